@@ -1,0 +1,78 @@
+"""The ``mtcomp`` command line (SPEC section 5).
+
+Each command lives in ``mtcomp.commands.<name>`` with two functions: ``add_arguments(parser)`` and
+``run(args) -> int``. Commands are imported only when used, so ``mtcomp machines`` stays fast.
+Bad input anywhere raises :class:`mtcomp.errors.InputError`; here it becomes one line on stderr and
+exit status 2, with no traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from .errors import InputError
+
+#: command name -> (module under mtcomp.commands, one-line help)
+COMMANDS = {
+    "demo": ("demo", "the whole job on built-in defaults: simulate, identify, diagnose, compensate, render"),
+    "machines": ("machines", "list the built-in machines"),
+    "identify": ("identify", "fit the base error model to measurement files"),
+    "diagnose": ("diagnose", "find what the fitted model gets wrong, extend it, measure the gain"),
+    "compensate": ("compensate", "plan bounded per-block axis corrections for an NC program"),
+    "predict": ("predict", "predict the readings of a measurement file from a model"),
+    "render": ("render", "workpiece error map before and after compensation"),
+    "iso230-2": ("iso230_2", "ISO 230-2 evaluation of laser positioning runs"),
+}
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # usage errors: one line, exit 2
+        sys.stderr.write(f"{self.prog}: error: {message}\n")
+        raise SystemExit(2)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from . import __version__
+    parser = _Parser(prog="mtcomp", description="Compensation planner for the geometric errors of "
+                     "CNC machine tools.")
+    parser.add_argument("--version", action="version", version=f"mtcomp {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub.required = True
+    for name, (module, help_text) in COMMANDS.items():
+        p = sub.add_parser(name, help=help_text, description=help_text)
+        mod = _command_module(module, optional=True)
+        if mod is not None:
+            mod.add_arguments(p)
+        p.set_defaults(_module=module)
+    return parser
+
+
+def _command_module(module: str, optional: bool = False):
+    try:
+        return importlib.import_module(f"mtcomp.commands.{module}")
+    except ModuleNotFoundError as exc:
+        if optional and exc.name == f"mtcomp.commands.{module}":
+            return None
+        raise
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    mod = _command_module(args._module, optional=True)
+    if mod is None:
+        sys.stderr.write(f"mtcomp {args.command}: this command is not available in this build\n")
+        return 2
+    try:
+        return int(mod.run(args) or 0)
+    except InputError as exc:
+        sys.stderr.write(f"mtcomp {args.command}: {exc.one_line()}\n")
+        return 2
+    except KeyboardInterrupt:
+        sys.stderr.write("mtcomp: interrupted\n")
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,48 @@
+"""Writing outputs safely: to a temporary file beside the target, renamed at the end.
+
+A failed run leaves nothing behind, and an input file is never overwritten.
+"""
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from pathlib import Path
+
+from ..errors import InputError
+
+
+def check_output_path(out: str | os.PathLike, inputs: list[str | os.PathLike] = ()) -> Path:
+    """Refuse an output that is one of the inputs or whose folder does not exist."""
+    out_p = Path(out)
+    for inp in inputs:
+        try:
+            if Path(inp).exists() and out_p.exists() and os.path.samefile(inp, out_p):
+                raise InputError("output would overwrite an input file", out)
+        except OSError:
+            pass
+        if Path(inp).resolve() == out_p.resolve():
+            raise InputError("output would overwrite an input file", out)
+    parent = out_p.resolve().parent
+    if not parent.is_dir():
+        raise InputError(f"output folder {parent} does not exist", out)
+    return out_p
+
+
+@contextlib.contextmanager
+def atomic_write(path: str | os.PathLike, mode: str = "w", newline: str | None = None):
+    """Open a temporary file next to ``path``; rename it onto ``path`` only if the block succeeds."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.resolve().parent)
+    try:
+        if "b" in mode:
+            f = os.fdopen(fd, mode)
+        else:
+            f = os.fdopen(fd, mode, encoding="utf-8", newline=newline)
+        with f:
+            yield f
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise

@@ -1,0 +1,304 @@
+"""Machine descriptions: topology, axes, travel, rotary axis lines (SPEC section 2).
+
+A :class:`Machine` is a frozen description. Algorithms take it as an argument and never change it.
+Internal units: mm and rad. The TOML file uses mm and deg.
+
+Conventions (see docs/conventions.md):
+
+* ``q``, the axis-position vector, lists the machine's axes in the fixed order X, Y, Z, A, B, C
+  (only those present): ``machine.axis_names``.
+* A linear axis at position ``s`` moves the tool by ``+s`` along its direction *relative to the
+  workpiece*, whichever side of the bed it sits on (a table axis moves the table by ``-s``, as ISO 841
+  prescribes for primed axes). A rotary axis at angle ``theta`` rotates its carrier by ``+theta``
+  (right-hand rule) about its direction (A about X, B about Y, C about Z): a workpiece-side rotary axis
+  turns the table, a tool-side one turns the head.
+* With every axis at zero, the workpiece frame coincides with the machine frame and the tool tip sits
+  at the origin; the spindle gauge point is ``tool_length`` above the tip along +Z.
+"""
+from __future__ import annotations
+
+import math
+import os
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+
+LINEAR = "XYZ"
+ROTARY = "ABC"
+AXIS_ORDER = "XYZABC"
+#: unit direction of each axis letter (A rotates about X, B about Y, C about Z)
+AXIS_DIRECTION = {"X": 0, "Y": 1, "Z": 2, "A": 0, "B": 1, "C": 2}
+
+BUILTIN_MACHINES = ("xfyz", "cafxyz", "cbfxyz")
+
+DEFAULT_COMPENSATION = {"max_correction_um": 50.0, "max_correction_urad": 500.0, "max_step_um": 5.0}
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One machine axis.
+
+    name : 'X', 'Y', 'Z', 'A', 'B' or 'C'.
+    side : 'workpiece' (between bed and workpiece) or 'tool' (between bed and tool).
+    travel : (lower, upper) in mm (linear) or rad (rotary).
+    axis_point : (3,) mm, a point of the nominal rotary axis line, machine frame, all axes at zero.
+    degree : degree of the polynomials of the six component errors of a linear axis.
+    fourier_order : harmonics of the angular positioning error of a rotary axis.
+    error_motion_order : harmonics of the radial, axial and tilt error motions of a rotary axis
+        (0: none, the base model of SPEC section 6).
+    """
+
+    name: str
+    side: str
+    travel: tuple[float, float]
+    axis_point: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    degree: int = 3
+    fourier_order: int = 2
+    error_motion_order: int = 0
+
+    @property
+    def is_rotary(self) -> bool:
+        return self.name in ROTARY
+
+    @property
+    def direction_index(self) -> int:
+        """0, 1 or 2: the machine-frame direction the axis moves along or turns about."""
+        return AXIS_DIRECTION[self.name]
+
+    @property
+    def direction(self) -> np.ndarray:
+        e = np.zeros(3)
+        e[self.direction_index] = 1.0
+        return e
+
+
+@dataclass(frozen=True)
+class Machine:
+    """A machine tool: topology, axes and compensation defaults.
+
+    topology : seed notation, e.g. 'XFYZ', 'CAFXYZ'.
+    axes : every axis, in the q order X Y Z A B C.
+    workpiece_chain : axis names from the bed towards the workpiece.
+    tool_chain : axis names from the bed towards the tool.
+    tool_length : mm, spindle gauge point to tool tip.
+    compensation : defaults for `mtcomp compensate` (max_correction_um, max_correction_urad, max_step_um).
+    """
+
+    name: str
+    topology: str
+    axes: tuple[Axis, ...]
+    workpiece_chain: tuple[str, ...]
+    tool_chain: tuple[str, ...]
+    tool_length: float = 0.0
+    compensation: dict = field(default_factory=lambda: dict(DEFAULT_COMPENSATION))
+    source: str = ""
+
+    @property
+    def axis_names(self) -> tuple[str, ...]:
+        return tuple(a.name for a in self.axes)
+
+    @property
+    def n_axes(self) -> int:
+        return len(self.axes)
+
+    def axis(self, name: str) -> Axis:
+        for a in self.axes:
+            if a.name == name:
+                return a
+        raise KeyError(name)
+
+    def index(self, name: str) -> int:
+        return self.axis_names.index(name)
+
+    @property
+    def linear_axes(self) -> tuple[Axis, ...]:
+        return tuple(a for a in self.axes if not a.is_rotary)
+
+    @property
+    def rotary_axes(self) -> tuple[Axis, ...]:
+        return tuple(a for a in self.axes if a.is_rotary)
+
+    @property
+    def is_five_axis(self) -> bool:
+        return len(self.rotary_axes) > 0
+
+    def travel_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper), each (n_axes,), mm and rad."""
+        lo = np.array([a.travel[0] for a in self.axes])
+        hi = np.array([a.travel[1] for a in self.axes])
+        return lo, hi
+
+    def to_dict(self) -> dict:
+        """The machine as TOML-like data (mm, deg), for MODEL.json."""
+        axes = {}
+        for a in self.axes:
+            d: dict = {}
+            if a.is_rotary:
+                d["travel_deg"] = [math.degrees(a.travel[0]), math.degrees(a.travel[1])]
+                d["axis_point_mm"] = list(a.axis_point)
+                d["fourier_order"] = a.fourier_order
+                d["error_motion_order"] = a.error_motion_order
+            else:
+                d["travel_mm"] = list(a.travel)
+                d["degree"] = a.degree
+            axes[a.name] = d
+        return {"name": self.name, "topology": self.topology, "tool_length_mm": self.tool_length,
+                "axes": axes, "compensation": dict(self.compensation)}
+
+
+def parse_topology(topology: str, path: str | None = None) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """'CAFXYZ' -> (workpiece chain bed->workpiece ('A', 'C'), tool chain bed->tool ('X', 'Y', 'Z'))."""
+    if not isinstance(topology, str) or not topology:
+        raise InputError("topology must be a non-empty string such as 'XFYZ'", path)
+    topo = topology.strip().upper()
+    if topo.count("F") != 1:
+        raise InputError(f"topology {topology!r} must contain exactly one 'F' (the bed)", path)
+    for ch in topo:
+        if ch != "F" and ch not in AXIS_ORDER:
+            raise InputError(f"topology {topology!r}: unknown letter {ch!r} (axes are X Y Z A B C, "
+                             "F is the bed)", path)
+    letters = topo.replace("F", "")
+    if len(set(letters)) != len(letters):
+        raise InputError(f"topology {topology!r} names an axis twice", path)
+    if not letters:
+        raise InputError(f"topology {topology!r} has no axes", path)
+    before, after = topo.split("F")
+    # letters before F are listed from the workpiece towards the bed: reverse for bed -> workpiece
+    return tuple(reversed(before)), tuple(after)
+
+
+def _number_list(value, n, what, path):
+    if not isinstance(value, (list, tuple)) or len(value) != n:
+        raise InputError(f"{what} must be a list of {n} numbers", path)
+    out = []
+    for v in value:
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise InputError(f"{what} must be a list of {n} finite numbers, got {value!r}", path)
+        out.append(float(v))
+    return out
+
+
+def _positive_int(value, what, path, minimum=0):
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise InputError(f"{what} must be a whole number >= {minimum}, got {value!r}", path)
+    return value
+
+
+def machine_from_dict(data: dict, path: str | None = None) -> Machine:
+    """Build and validate a Machine from TOML data (mm, deg). Raises InputError naming the key."""
+    if not isinstance(data, dict):
+        raise InputError("machine description must be a table", path)
+    known = {"name", "topology", "tool_length_mm", "axes", "compensation"}
+    for key in data:
+        if key not in known:
+            raise InputError(f"unknown key {key!r} (known: {', '.join(sorted(known))})", path)
+    if "topology" not in data:
+        raise InputError("missing key 'topology'", path)
+    wp_chain, tool_chain = parse_topology(data["topology"], path)
+    name = data.get("name", Path(path).stem if path else "machine")
+    if not isinstance(name, str):
+        raise InputError("name must be a string", path)
+    tool_length = data.get("tool_length_mm", 0.0)
+    if isinstance(tool_length, bool) or not isinstance(tool_length, (int, float)) \
+            or not math.isfinite(tool_length) or tool_length < 0:
+        raise InputError(f"tool_length_mm must be a finite number >= 0, got {tool_length!r}", path)
+    axes_data = data.get("axes", {})
+    if not isinstance(axes_data, dict):
+        raise InputError("[axes] must be a table of axis tables", path)
+    letters = set(wp_chain) | set(tool_chain)
+    for key in axes_data:
+        if key not in letters:
+            raise InputError(f"[axes.{key}] is not an axis of topology {data['topology']!r}", path)
+    axes = []
+    for letter in AXIS_ORDER:
+        if letter not in letters:
+            continue
+        if letter not in axes_data:
+            raise InputError(f"axis {letter} of topology {data['topology']!r} has no [axes.{letter}] "
+                             "table (travel is required)", path)
+        ad = axes_data[letter]
+        if not isinstance(ad, dict):
+            raise InputError(f"[axes.{letter}] must be a table", path)
+        side = "workpiece" if letter in wp_chain else "tool"
+        if letter in LINEAR:
+            allowed = {"travel_mm", "degree"}
+            for k in ad:
+                if k not in allowed:
+                    raise InputError(f"[axes.{letter}]: unknown key {k!r} for a linear axis "
+                                     f"(known: {', '.join(sorted(allowed))})", path)
+            if "travel_mm" not in ad:
+                raise InputError(f"[axes.{letter}]: linear axis without travel_mm", path)
+            lo, hi = _number_list(ad["travel_mm"], 2, f"[axes.{letter}] travel_mm", path)
+            if not lo < hi:
+                raise InputError(f"[axes.{letter}] travel_mm: lower {lo} must be below upper {hi}", path)
+            degree = _positive_int(ad.get("degree", 3), f"[axes.{letter}] degree", path, 1)
+            axes.append(Axis(letter, side, (lo, hi), degree=degree))
+        else:
+            allowed = {"travel_deg", "axis_point_mm", "fourier_order", "error_motion_order"}
+            for k in ad:
+                if k not in allowed:
+                    raise InputError(f"[axes.{letter}]: unknown key {k!r} for a rotary axis "
+                                     f"(known: {', '.join(sorted(allowed))})", path)
+            if "travel_deg" not in ad:
+                raise InputError(f"[axes.{letter}]: rotary axis without travel_deg", path)
+            if "axis_point_mm" not in ad:
+                raise InputError(f"[axes.{letter}]: rotary axis without axis_point_mm (a point on its "
+                                 "nominal axis line)", path)
+            lo, hi = _number_list(ad["travel_deg"], 2, f"[axes.{letter}] travel_deg", path)
+            if not lo < hi:
+                raise InputError(f"[axes.{letter}] travel_deg: lower {lo} must be below upper {hi}", path)
+            point = _number_list(ad["axis_point_mm"], 3, f"[axes.{letter}] axis_point_mm", path)
+            order = _positive_int(ad.get("fourier_order", 2), f"[axes.{letter}] fourier_order", path)
+            emo = _positive_int(ad.get("error_motion_order", 0), f"[axes.{letter}] error_motion_order",
+                                path)
+            axes.append(Axis(letter, side, (math.radians(lo), math.radians(hi)), tuple(point),
+                             fourier_order=order, error_motion_order=emo))
+    comp = dict(DEFAULT_COMPENSATION)
+    comp_data = data.get("compensation", {})
+    if not isinstance(comp_data, dict):
+        raise InputError("[compensation] must be a table", path)
+    for k, v in comp_data.items():
+        if k not in DEFAULT_COMPENSATION:
+            raise InputError(f"[compensation]: unknown key {k!r} (known: "
+                             f"{', '.join(sorted(DEFAULT_COMPENSATION))})", path)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+            raise InputError(f"[compensation] {k} must be a positive number, got {v!r}", path)
+        comp[k] = float(v)
+    return Machine(name=name, topology=str(data["topology"]).strip().upper(), axes=tuple(axes),
+                   workpiece_chain=wp_chain, tool_chain=tool_chain, tool_length=float(tool_length),
+                   compensation=comp, source=path or "")
+
+
+def load_machine(name_or_path: str | os.PathLike) -> Machine:
+    """A built-in machine by name (``xfyz``, ``cafxyz``, ``cbfxyz``) or a TOML file path."""
+    s = os.fspath(name_or_path)
+    if s.lower() in BUILTIN_MACHINES:
+        text = resources.files("mtcomp").joinpath(f"machines/{s.lower()}.toml").read_text()
+        return machine_from_dict(tomllib.loads(text), path=f"<built-in {s.lower()}>")
+    p = Path(s)
+    if not p.exists():
+        raise InputError(f"no such machine: not a built-in ({', '.join(BUILTIN_MACHINES)}) "
+                         "and no such file", s)
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"not valid TOML: {exc}", s) from None
+    except UnicodeDecodeError:
+        raise InputError("not a text file", s) from None
+    return machine_from_dict(data, path=s)
+
+
+def builtin_machine_summaries() -> list[str]:
+    out = []
+    for name in BUILTIN_MACHINES:
+        m = load_machine(name)
+        trav = ", ".join(
+            f"{a.name} {math.degrees(a.travel[0]):g}..{math.degrees(a.travel[1]):g} deg" if a.is_rotary
+            else f"{a.name} {a.travel[0]:g}..{a.travel[1]:g} mm" for a in m.axes)
+        out.append(f"{name:8s} {m.topology:8s} {m.name}: {trav}")
+    return out

@@ -1,0 +1,80 @@
+import math
+
+import numpy as np
+import pytest
+
+from mtcomp import InputError, load_machine
+from mtcomp.cli import main
+from mtcomp.kinematics import forward
+from mtcomp.machine import machine_from_dict, parse_topology
+
+
+def test_topology_chains():
+    assert parse_topology("XFYZ") == (("X",), ("Y", "Z"))
+    assert parse_topology("CAFXYZ") == (("A", "C"), ("X", "Y", "Z"))
+    assert parse_topology("cbfxyz") == (("B", "C"), ("X", "Y", "Z"))
+
+
+@pytest.mark.parametrize("bad, msg", [
+    ("XYZ", "exactly one 'F'"), ("QFYZ", "unknown letter 'Q'"), ("XFXZ", "names an axis twice"),
+])
+def test_bad_topology(bad, msg):
+    with pytest.raises(InputError, match=msg):
+        parse_topology(bad)
+
+
+def test_builtins_load():
+    m = load_machine("cafxyz")
+    assert m.axis_names == ("X", "Y", "Z", "A", "C")
+    assert m.axis("C").axis_point == (0.0, 0.0, 0.0)
+    assert m.axis("A").travel == pytest.approx((math.radians(-120), math.radians(120)), rel=1e-15, abs=0)
+
+
+def _write(tmp_path, text):
+    p = tmp_path / "m.toml"
+    p.write_text(text)
+    return p
+
+
+@pytest.mark.parametrize("text, msg", [
+    ('topology = "XFYZ"\n[axes.X]\ntravel_mm=[0,1]\n[axes.Y]\ntravel_mm=[0,1]\n', "axis Z .* has no"),
+    ('topology = "XFYZ"\n[axes.X]\n[axes.Y]\ntravel_mm=[0,1]\n[axes.Z]\ntravel_mm=[0,1]\n', "without travel_mm"),
+    ('topology = "CFXYZ"\n[axes.X]\ntravel_mm=[0,1]\n[axes.Y]\ntravel_mm=[0,1]\n[axes.Z]\ntravel_mm=[0,1]\n'
+     '[axes.C]\ntravel_deg=[0,360]\n', "without axis_point_mm"),
+    ('topology = "XFYZ"\n[axes.X]\ntravel_mm=[1,0]\n[axes.Y]\ntravel_mm=[0,1]\n[axes.Z]\ntravel_mm=[0,1]\n', "below upper"),
+    ('topology = "XFYW"\n', "unknown letter 'W'"),
+    ('topology = "XFYZ"\n[axes', "not valid TOML"),
+])
+def test_bad_machine_files(tmp_path, capsys, text, msg):
+    p = _write(tmp_path, text)
+    with pytest.raises(InputError, match=msg):
+        load_machine(p)
+
+
+def test_cli_machines_and_bad_machine(tmp_path, capsys):
+    assert main(["machines"]) == 0
+    out = capsys.readouterr().out
+    assert "xfyz" in out and "CAFXYZ" in out and "CBFXYZ" in out
+
+
+def test_nominal_forward_three_axis():
+    m = load_machine("xfyz")
+    q = np.array([[10.0, -20.0, 30.0], [0.0, 0.0, 0.0]])
+    tip, axis = forward(m, q)
+    np.testing.assert_allclose(tip, q, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(axis, [[0, 0, 1], [0, 0, 1]], rtol=0, atol=1e-15)
+
+
+def test_nominal_forward_cafxyz_hand_case():
+    # A = 90 deg about X through (0,0,-100); C = 90 deg about Z through the origin. The tool tip
+    # at machine (0, 0, 0): in the A-rotated table frame the point is R_A^T (p - a) + a.
+    m = load_machine("cafxyz")
+    q = np.array([[0.0, 0.0, 0.0, math.pi / 2, math.pi / 2]])
+    tip, axis = forward(m, q)
+    a = np.array([0, 0, -100.0])
+    RA = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0.0]])  # Rx(90)
+    p_a = RA.T @ (np.zeros(3) - a) + a  # = (0, 100, -100)
+    RC = np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1.0]])  # Rz(90)
+    np.testing.assert_allclose(tip[0], RC.T @ p_a, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(tip[0], [100.0, 0.0, -100.0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(axis[0], RC.T @ RA.T @ [0, 0, 1.0], rtol=0, atol=1e-15)
