@@ -1,0 +1,182 @@
+"""Reading a CSV file into header + string cells, and parsing its cells (SPEC section 3).
+
+This layer knows nothing about measurement kinds: it reads the header row and the data rows as
+strings, checks the shape (no empty file, no duplicate or unnamed column, no ragged row), and parses
+columns into numpy arrays with errors that name the file, the data row (1-based; the header is row 0)
+and the column. Blank cells mean "not measured" and become NaN where a column allows it; the text
+``nan`` or ``inf`` is refused everywhere, so that "not measured" has a single spelling.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+
+
+@dataclass(frozen=True, eq=False)
+class CsvTable:
+    """A CSV file as read: original header and cells, plus the lookup by column name.
+
+    path : the file, as given.
+    header : (m,) original header cells, verbatim.
+    rows : (n,) tuples of m original cells, verbatim (strings).
+    row : (n,) int, 1-based data row number of each row (the header is row 0; a blank line in the
+        file still counts, so row = file line - 1 for files without quoted line breaks).
+    """
+
+    path: str
+    header: tuple[str, ...]
+    rows: tuple[tuple[str, ...], ...]
+    row: np.ndarray
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """(m,) column names as matched: stripped and lower-case."""
+        return tuple(h.strip().lower() for h in self.header)
+
+    def has(self, name: str) -> bool:
+        return name in self.names
+
+    def cells(self, name: str) -> list[str]:
+        """(n,) stripped cells of column ``name`` (which must exist)."""
+        j = self.names.index(name)
+        return [r[j].strip() for r in self.rows]
+
+    def floats(self, name: str, required: bool = False, scale: float = 1.0) -> np.ndarray:
+        """(n,) float column times ``scale``; blank -> NaN, or an InputError when ``required``."""
+        return parse_floats(self.cells(name), name, self.path, self.row, required) * scale
+
+    def optional_floats(self, name: str, scale: float = 1.0, fill: float = math.nan) -> np.ndarray:
+        """(n,) float column times ``scale``, or ``fill`` everywhere when the column is absent."""
+        if not self.has(name):
+            return np.full(len(self.rows), fill)
+        return self.floats(name, scale=scale)
+
+    def fail(self, message: str, index: int | None = None):
+        """Raise InputError for this file, at data row ``row[index]`` when ``index`` is given."""
+        raise InputError(message, self.path, row=None if index is None else int(self.row[index]))
+
+
+def read_csv_table(path: str | os.PathLike) -> CsvTable:
+    """Read ``path`` into a :class:`CsvTable`; InputError for a missing, empty or ragged file."""
+    spath = os.fspath(path)
+    p = Path(spath)
+    if not p.exists():
+        raise InputError("no such file", spath)
+    if p.is_dir():
+        raise InputError("is a folder, not a CSV file", spath)
+    try:
+        text = p.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        raise InputError("not a UTF-8 text file (expected a CSV file)", spath) from None
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror}", spath) from None
+    reader = csv.reader(io.StringIO(text))
+    header: list[str] | None = None
+    rows: list[tuple[str, ...]] = []
+    row_numbers: list[int] = []
+    try:
+        for cells in reader:
+            if not cells or all(not c.strip() for c in cells):
+                continue  # blank line
+            if header is None:
+                header = cells
+                _check_header(header, spath)
+                continue
+            row_no = reader.line_num - 1
+            if len(cells) != len(header):
+                raise InputError(f"{len(cells)} cells but the header has {len(header)} columns",
+                                 spath, row=row_no)
+            rows.append(tuple(cells))
+            row_numbers.append(row_no)
+    except csv.Error as exc:
+        raise InputError(f"not a valid CSV file: {exc}", spath, row=max(reader.line_num - 1, 0)) \
+            from None
+    if header is None:
+        raise InputError("empty file: expected a header row and data rows", spath)
+    if not rows:
+        raise InputError("no data rows below the header", spath)
+    return CsvTable(spath, tuple(header), tuple(rows), np.asarray(row_numbers, dtype=np.int64))
+
+
+def _check_header(header: list[str], path: str) -> None:
+    seen: set[str] = set()
+    for j, h in enumerate(header):
+        name = h.strip().lower()
+        if not name:
+            raise InputError(f"header column {j + 1} has no name", path, row=0)
+        if name in seen:
+            raise InputError(f"column {name!r} appears twice in the header", path, row=0)
+        seen.add(name)
+
+
+def parse_floats(cells: list[str], column: str, path: str, row: np.ndarray,
+                 required: bool = False) -> np.ndarray:
+    """(n,) floats from stripped cells; blank -> NaN (or InputError when ``required``).
+
+    Text that is not a number, and the text ``nan``/``inf``, raise InputError naming the row and column.
+    """
+    n = len(cells)
+    if all(cells):  # fast path: every cell filled
+        try:
+            out = np.asarray(cells, dtype=float)
+        except ValueError:
+            out = None
+        if out is not None and np.all(np.isfinite(out)):
+            return out
+    out = np.empty(n)
+    for i, s in enumerate(cells):
+        if not s:
+            if required:
+                raise InputError(f"column {column} is blank; a value is required", path, row=int(row[i]))
+            out[i] = math.nan
+            continue
+        try:
+            v = float(s)
+        except ValueError:
+            raise InputError(f"column {column}: {s!r} is not a number", path, row=int(row[i])) from None
+        if not math.isfinite(v):
+            raise InputError(f"column {column}: {s!r} is not a finite number (leave the cell blank "
+                             "for 'not measured')", path, row=int(row[i]))
+        out[i] = v
+    return out
+
+
+def parse_ints(cells: list[str], column: str, path: str, row: np.ndarray, blank: int | None = None,
+               minimum: int | None = None) -> np.ndarray:
+    """(n,) int64 from cells holding whole numbers (``3`` or ``3.0``); blank -> ``blank`` or error."""
+    vals = parse_floats(cells, column, path, row, required=blank is None)
+    out = np.empty(len(cells), dtype=np.int64)
+    for i, v in enumerate(vals):
+        if math.isnan(v):
+            out[i] = blank
+            continue
+        if v != round(v):
+            raise InputError(f"column {column}: {cells[i]!r} is not a whole number", path,
+                             row=int(row[i]))
+        if minimum is not None and v < minimum:
+            raise InputError(f"column {column}: {cells[i]!r} is below {minimum}", path, row=int(row[i]))
+        out[i] = int(v)
+    return out
+
+
+def parse_signs(cells: list[str], column: str, path: str, row: np.ndarray,
+                required: bool = False) -> np.ndarray:
+    """(n,) int8 approach directions +1/-1 (``1``, ``+1``, ``-1``, ``1.0``); blank -> 0 (unknown)."""
+    vals = parse_floats(cells, column, path, row, required=required)
+    out = np.zeros(len(cells), dtype=np.int8)
+    for i, v in enumerate(vals):
+        if math.isnan(v):
+            continue
+        if v not in (1.0, -1.0):
+            raise InputError(f"column {column}: {cells[i]!r} is not an approach direction "
+                             "(+1 or -1)", path, row=int(row[i]))
+        out[i] = int(v)
+    return out
