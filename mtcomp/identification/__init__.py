@@ -1,0 +1,1 @@
+"""Identification: fitting error models to measurements, and standard evaluations (ISO 230-2)."""

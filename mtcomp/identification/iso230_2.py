@@ -1,0 +1,293 @@
+"""ISO 230-2:2014 evaluation of bidirectional positioning runs (laser files, SPEC 3.2 and 5).
+
+For each axis, every target position ``P_i`` is approached ``n`` times (runs ``j``) in each direction
+(up: ``dir = +1``, down: ``dir = -1``); each reading is the positional deviation ``x_ij = P_ij - P_i``
+(actual minus target: the ``value`` of the positioning component EXX, EYY, EZZ, EAA, EBB or ECC).
+With ``up``/``down`` for the arrows of the standard:
+
+* mean unidirectional positional deviation  ``xbar_i_up = mean_j x_ij_up`` (likewise down)
+* mean bidirectional positional deviation   ``xbar_i = (xbar_i_up + xbar_i_down) / 2``
+* reversal value                            ``B_i = xbar_i_up - xbar_i_down``
+* unidirectional repeatability estimator    ``s_i_up = sqrt(sum_j (x_ij_up - xbar_i_up)^2 / (n - 1))``
+* unidirectional repeatability              ``R_i_up = 4 s_i_up``
+* bidirectional repeatability               ``R_i = max(2 s_i_up + 2 s_i_down + |B_i|, R_i_up, R_i_down)``
+
+and for the axis:
+
+* reversal value ``B``: the ``B_i`` of largest magnitude, with its sign (SPEC 5); mean ``B_mean``
+* ``R_up = max_i R_i_up``, ``R_down``, ``R = max_i R_i``
+* systematic ``E_up = max xbar_i_up - min xbar_i_up``, ``E_down``,
+  ``E = max(xbar_up, xbar_down) - min(xbar_up, xbar_down)``
+* mean bidirectional ``M = max xbar_i - min xbar_i``
+* accuracy ``A_up = max(xbar_i_up + 2 s_i_up) - min(xbar_i_up - 2 s_i_up)``, ``A_down``,
+  ``A = max(xbar_up + 2 s_up, xbar_down + 2 s_down) - min(xbar_up - 2 s_up, xbar_down - 2 s_down)``
+
+Arrays and values are in internal units: mm for linear axes, rad for rotary ones; :meth:`to_dict`
+gives um (linear) or urad and arcsec (rotary).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..machine import ROTARY
+
+UM_PER_MM = 1e3
+URAD_PER_RAD = 1e6
+ARCSEC_PER_RAD = 180.0 / math.pi * 3600.0
+#: number of runs per direction the standard cycle asks for
+STANDARD_RUNS = 5
+#: targets closer than this (mm or rad) are the same target
+TARGET_TOLERANCE = 1e-9
+
+_PER_TARGET = ("mean_up", "mean_down", "mean", "reversal", "s_up", "s_down", "R_i_up", "R_i_down", "R_i")
+_PER_AXIS = ("A", "A_up", "A_down", "B", "B_mean", "E", "E_up", "E_down", "M", "R", "R_up", "R_down")
+
+
+def positioning_component(axis: str) -> str:
+    """ISO 230-1 name of the positioning error of ``axis``: 'X' -> 'EXX', 'C' -> 'ECC'."""
+    return f"E{axis}{axis}"
+
+
+@dataclass(frozen=True, eq=False)
+class AxisPositioning:
+    """ISO 230-2 figures of one axis. Units: mm (linear axis) or rad (rotary axis).
+
+    axis : 'X' ... 'C'; rotary : True for A, B, C.
+    targets : (m,) target positions P_i, increasing, mm or rad.
+    n_up, n_down : (m,) int number of runs at each target in each direction.
+    mean_up, mean_down : (m,) mean unidirectional positional deviations.
+    mean : (m,) mean bidirectional positional deviation; reversal : (m,) B_i.
+    s_up, s_down : (m,) estimators of the unidirectional repeatability standard uncertainty.
+    R_i_up, R_i_down, R_i : (m,) unidirectional and bidirectional repeatability at each target.
+    A, A_up, A_down, B, B_mean, E, E_up, E_down, M, R, R_up, R_down : axis figures (module docstring).
+    """
+
+    axis: str
+    rotary: bool
+    targets: np.ndarray
+    n_up: np.ndarray
+    n_down: np.ndarray
+    mean_up: np.ndarray
+    mean_down: np.ndarray
+    mean: np.ndarray
+    reversal: np.ndarray
+    s_up: np.ndarray
+    s_down: np.ndarray
+    R_i_up: np.ndarray
+    R_i_down: np.ndarray
+    R_i: np.ndarray
+    A: float
+    A_up: float
+    A_down: float
+    B: float
+    B_mean: float
+    E: float
+    E_up: float
+    E_down: float
+    M: float
+    R: float
+    R_up: float
+    R_down: float
+
+    @property
+    def unit(self) -> str:
+        """The report unit: 'um' (linear) or 'urad' (rotary)."""
+        return "urad" if self.rotary else "um"
+
+    @property
+    def scale(self) -> float:
+        """Factor from internal units to :attr:`unit`."""
+        return URAD_PER_RAD if self.rotary else UM_PER_MM
+
+    def to_dict(self) -> dict:
+        """JSON object of SPEC 5: ``A_um`` ... ``R_down_um`` (``_urad`` and ``_arcsec`` for rotary
+        axes), ``B_mean_*``, and the per-target arrays (``targets_mm`` or ``targets_deg``, ``n_up``,
+        ``n_down``, ``mean_up_*``, ``mean_down_*``, ``mean_*``, ``reversal_*``, ``s_up_*``,
+        ``s_down_*``, ``R_i_up_*``, ``R_i_down_*``, ``R_i_*``)."""
+        units = [(self.unit, self.scale)]
+        if self.rotary:
+            units.append(("arcsec", ARCSEC_PER_RAD))
+        out: dict = {"axis_type": "rotary" if self.rotary else "linear"}
+        for unit, scale in units:
+            for key in _PER_AXIS:
+                out[f"{key}_{unit}"] = float(getattr(self, key)) * scale
+        if self.rotary:
+            out["targets_deg"] = [float(v) for v in np.degrees(self.targets)]
+        else:
+            out["targets_mm"] = [float(v) for v in self.targets]
+        out["n_up"] = [int(v) for v in self.n_up]
+        out["n_down"] = [int(v) for v in self.n_down]
+        for unit, scale in units:
+            for key in _PER_TARGET:
+                out[f"{key}_{unit}"] = [float(v) * scale for v in getattr(self, key)]
+        return out
+
+    def table(self) -> str:
+        """A readable table: per target and direction, then the axis figures."""
+        s = self.scale
+        u = self.unit
+        tgt_unit = "deg" if self.rotary else "mm"
+        targets = np.degrees(self.targets) if self.rotary else self.targets
+        head = (f"{'target_' + tgt_unit:>11} {'n_up':>4} {'n_dn':>4} {'mean_up':>9} {'mean_dn':>9} "
+                f"{'mean':>9} {'B_i':>9} {'s_up':>8} {'s_dn':>8} {'R_i_up':>8} {'R_i_dn':>8} {'R_i':>8}")
+        lines = [f"axis {self.axis} ({'rotary' if self.rotary else 'linear'}), component "
+                 f"{positioning_component(self.axis)}, deviations in {u}", head]
+        for i in range(len(self.targets)):
+            lines.append(f"{targets[i]:11.4f} {self.n_up[i]:4d} {self.n_down[i]:4d} "
+                         f"{self.mean_up[i] * s:9.3f} {self.mean_down[i] * s:9.3f} {self.mean[i] * s:9.3f} "
+                         f"{self.reversal[i] * s:9.3f} {self.s_up[i] * s:8.3f} {self.s_down[i] * s:8.3f} "
+                         f"{self.R_i_up[i] * s:8.3f} {self.R_i_down[i] * s:8.3f} {self.R_i[i] * s:8.3f}")
+        units = [(u, s)] + ([("arcsec", ARCSEC_PER_RAD)] if self.rotary else [])
+        lines.append("")
+        lines.append(f"{'axis figures':44}" + "".join(f"{'up_' + un:>10} {'down_' + un:>10} "
+                                                      f"{'bidir_' + un:>12}  " for un, _ in units))
+        rows = [("A  accuracy (mean +- 2 s)", self.A_up, self.A_down, self.A),
+                ("E  systematic positional deviation", self.E_up, self.E_down, self.E),
+                ("R  repeatability (4 s, with B_i)", self.R_up, self.R_down, self.R),
+                ("M  mean bidirectional deviation", None, None, self.M),
+                ("B  reversal (largest |B_i|, signed)", None, None, self.B),
+                ("   mean reversal B_mean", None, None, self.B_mean)]
+        for label, up, down, bi in rows:
+            cells = ""
+            for _, sc in units:
+                f = (lambda v, w=10: f"{'':>{w}}" if v is None else f"{v * sc:{w}.3f}")
+                cells += f"{f(up)} {f(down)} {f(bi, 12)}  "
+            lines.append(f"{label:44}{cells}")
+        return "\n".join(line.rstrip() for line in lines)
+
+
+@dataclass(frozen=True, eq=False)
+class Iso230_2Report:
+    """ISO 230-2 evaluation of a laser file: one :class:`AxisPositioning` per axis, and notices.
+
+    axes : axis name -> figures, in X Y Z A B C order.
+    notices : sentences about what was ignored or falls short of the standard cycle.
+    path : the evaluated file.
+    """
+
+    axes: dict
+    notices: tuple[str, ...]
+    path: str = ""
+
+    def to_dict(self) -> dict:
+        """OUT.json of ``mtcomp iso230-2`` (SPEC 5): one object per axis."""
+        return {name: ax.to_dict() for name, ax in self.axes.items()}
+
+    def summary(self) -> str:
+        parts = [f"ISO 230-2 evaluation of {self.path}" if self.path else "ISO 230-2 evaluation"]
+        parts += [f"note: {n}" for n in self.notices]
+        for ax in self.axes.values():
+            parts += ["", ax.table()]
+        return "\n".join(parts)
+
+
+def evaluate_axis(axis: str, target: np.ndarray, direction: np.ndarray, run: np.ndarray,
+                  value: np.ndarray, path: str | None = None, row: np.ndarray | None = None
+                  ) -> AxisPositioning:
+    """ISO 230-2 figures of one axis from its positioning readings.
+
+    axis : 'X' ... 'C' (A, B, C are rotary).
+    target : (n,) target position of each reading, mm or rad.
+    direction : (n,) approach direction +1 (up) or -1 (down).
+    run : (n,) run number.
+    value : (n,) positional deviation x_ij (actual minus target), mm or rad.
+    path, row : the file and (n,) data rows, for error messages.
+    Raises InputError when a (target, direction, run) is read twice, a value is blank, or a target
+    has fewer than 2 runs in a direction (the repeatability needs a standard deviation).
+    """
+    target = np.asarray(target, dtype=float)
+    direction = np.asarray(direction)
+    run = np.asarray(run)
+    value = np.asarray(value, dtype=float)
+    row = np.arange(1, len(value) + 1) if row is None else np.asarray(row)
+    rotary = axis in ROTARY
+    tgt_text = (lambda t: f"{math.degrees(t):g} deg") if rotary else (lambda t: f"{t:g} mm")
+
+    blank = np.flatnonzero(~np.isfinite(value))
+    if blank.size:
+        raise InputError(f"axis {axis}: the value is blank; ISO 230-2 needs every reading", path,
+                         row=int(row[blank[0]]))
+    order = np.argsort(target, kind="stable")
+    # targets within TARGET_TOLERANCE of the previous one are the same target
+    new = np.r_[True, np.diff(target[order]) > TARGET_TOLERANCE]
+    label = np.empty(len(target), dtype=np.int64)
+    label[order] = np.cumsum(new) - 1
+    targets = np.array([target[label == k].mean() for k in range(label.max() + 1)])
+
+    m = len(targets)
+    stats = {d: (np.zeros(m, dtype=np.int64), np.zeros(m), np.zeros(m)) for d in (1, -1)}
+    for k in range(m):
+        for d, name in ((1, "+1 (up)"), (-1, "-1 (down)")):
+            sel = np.flatnonzero((label == k) & (direction == d))
+            runs, first = np.unique(run[sel], return_index=True)
+            if len(runs) != len(sel):
+                dup = np.setdiff1d(np.arange(len(sel)), first)[0]
+                raise InputError(f"axis {axis}: target {tgt_text(targets[k])}, dir {d:+d}, run "
+                                 f"{run[sel][dup]} is read twice", path, row=int(row[sel][dup]))
+            if len(sel) < 2:
+                where = int(row[np.flatnonzero(label == k)[0]])
+                raise InputError(f"axis {axis}: target {tgt_text(targets[k])} has {len(sel)} run(s) in "
+                                 f"direction {name}; ISO 230-2 needs at least 2 per direction to "
+                                 f"estimate the repeatability ({STANDARD_RUNS} in the standard cycle)",
+                                 path, row=where)
+            x = value[sel]
+            stats[d][0][k] = len(sel)
+            stats[d][1][k] = x.mean()
+            stats[d][2][k] = x.std(ddof=1)
+    n_up, mean_up, s_up = stats[1]
+    n_down, mean_down, s_down = stats[-1]
+    mean = (mean_up + mean_down) / 2.0
+    reversal = mean_up - mean_down
+    R_i_up, R_i_down = 4.0 * s_up, 4.0 * s_down
+    R_i = np.maximum.reduce([2.0 * s_up + 2.0 * s_down + np.abs(reversal), R_i_up, R_i_down])
+    both = np.concatenate([mean_up, mean_down])
+    hi = np.concatenate([mean_up + 2.0 * s_up, mean_down + 2.0 * s_down])
+    lo = np.concatenate([mean_up - 2.0 * s_up, mean_down - 2.0 * s_down])
+    return AxisPositioning(
+        axis=axis, rotary=rotary, targets=targets, n_up=n_up, n_down=n_down, mean_up=mean_up,
+        mean_down=mean_down, mean=mean, reversal=reversal, s_up=s_up, s_down=s_down, R_i_up=R_i_up,
+        R_i_down=R_i_down, R_i=R_i,
+        A=float(hi.max() - lo.min()),
+        A_up=float((mean_up + 2 * s_up).max() - (mean_up - 2 * s_up).min()),
+        A_down=float((mean_down + 2 * s_down).max() - (mean_down - 2 * s_down).min()),
+        B=float(reversal[np.argmax(np.abs(reversal))]), B_mean=float(reversal.mean()),
+        E=float(both.max() - both.min()), E_up=float(np.ptp(mean_up)), E_down=float(np.ptp(mean_down)),
+        M=float(np.ptp(mean)), R=float(R_i.max()), R_up=float(R_i_up.max()), R_down=float(R_i_down.max()))
+
+
+def evaluate_iso230_2(data) -> Iso230_2Report:
+    """ISO 230-2 evaluation of a :class:`mtcomp.io.measurements.LaserData`, axis by axis.
+
+    Only the positioning component of each axis (EXX, EYY, EZZ, EAA, EBB, ECC) is used; readings of
+    other components are ignored and said so in ``notices``. InputError when the file holds no
+    positioning readings or an axis lacks what the evaluation needs (see :func:`evaluate_axis`).
+    """
+    positioning = np.array([c == positioning_component(a) for a, c in zip(data.axis, data.component)],
+                           dtype=bool)
+    notices = []
+    if (~positioning).any():
+        others = sorted(set(data.component[~positioning]))
+        notices.append(f"ignored {int((~positioning).sum())} readings of components {', '.join(others)} "
+                       "(ISO 230-2 evaluates positioning only: EXX, EYY, EZZ, EAA, EBB, ECC)")
+    if not positioning.any():
+        raise InputError("no positioning readings (component EXX, EYY, EZZ, EAA, EBB or ECC) to "
+                         "evaluate", data.path)
+    axes = {}
+    for axis in "XYZABC":
+        sel = np.flatnonzero(positioning & (data.axis == axis))
+        if not sel.size:
+            continue
+        res = evaluate_axis(axis, data.target[sel], data.dir[sel], data.run[sel], data.value[sel],
+                            data.path, data.row[sel])
+        fewest = int(min(res.n_up.min(), res.n_down.min()))
+        if fewest < STANDARD_RUNS:
+            notices.append(f"axis {axis}: as few as {fewest} runs per target and direction; the "
+                           f"standard cycle has {STANDARD_RUNS}")
+        if len(res.targets) < 5:
+            notices.append(f"axis {axis}: {len(res.targets)} targets; ISO 230-2 asks for at least 5")
+        axes[axis] = res
+    return Iso230_2Report(axes=axes, notices=tuple(notices), path=data.path)
