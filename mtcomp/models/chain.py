@@ -1,0 +1,376 @@
+"""The error model of a machine: the exact homogeneous-transform chain, built symbolically in CasADi.
+
+Given a :class:`~mtcomp.machine.Machine` and optional extension terms, :class:`ErrorModel` builds
+
+    tool2wp(q, p, c) = wp2bed(q, p, c)^-1 . tool2bed(q, p, c)
+
+with CasADi SX symbols ``q`` (axis positions, mm and rad, in ``machine.axis_names`` order), ``p`` (the
+parameter vector, internal units, in ``model.param_names`` order) and ``c`` (block context, in
+``model.context_names`` order: feed, approach directions, time, spindle speed, tool length ...).
+
+Each axis contributes one rigid transform of its carriage in its parent frame (all frames coincide
+with the machine frame when every axis is at zero):
+
+* linear axis L at position s, tool side (docs/conventions.md):
+
+      Trans(s u_L) . Trans(delta) . prod_{a=A,B,C} [Trans(r + o_a) R_a(eps_a) Trans(-(r + o_a))]
+
+  where u_L is the axis direction tilted by the squareness errors (u_Y = Rz(C0Y) e_y,
+  u_Z = Ry(B0Z) Rx(A0Z) e_z), delta = (EXL, EYL, EZL)(s) and eps = (EAL, EBL, ECL)(s) are the
+  component errors, r the carriage's reference point (the spindle gauge point at q = 0 for tool-side
+  axes, the workpiece origin for table axes) and o_a the shift of the centre of rotation a (zero in
+  the base model, the IRC of seed 000 with :class:`~mtcomp.models.terms.AbbeIRC`). Component errors
+  are those a laser would read for the tool relative to the workpiece, so on the workpiece side the
+  table's transform is the inverse of the one above (seed 001, eq. 17 does the same with signs).
+* rotary axis R at angle theta: rotation about the *actual* axis line, not a nominal rotation plus an
+  offset:
+
+      Trans(P') . Trans(delta_m) . R(eps_m) . Rt Rot_d(theta + E_RR(theta)) Rt^T . Trans(-P')
+
+  with P' the nominal axis point moved by the location errors (X0C, Y0C for C), Rt the tilt of the
+  line (C: Ry(B0C) Rx(A0C)), E_RR the angular positioning error (ECC for C) and delta_m, eps_m the
+  error motions (EXC, EYC, EZC, EAC, EBC for C) in the fixed frame at P'.
+
+The tool tip is at (0, 0, -TOOL_dL) in the last tool-side frame, the tool axis is its +Z.
+Outputs: tool tip and tool axis in the workpiece frame, their deviations (actual minus nominal), and
+Jacobians with respect to q and p.
+"""
+from __future__ import annotations
+
+from functools import cached_property
+
+import casadi as ca
+import numpy as np
+
+from ..machine import AXIS_DIRECTION, Machine
+from .params import ParamSpec
+from .terms import ANGLE_LETTERS, TRANSLATION_LETTERS, Term, positioning_component
+
+#: context channels every model has; a term may add more (temperatures, drift features)
+BASE_CONTEXT = ("feed", "t", "spindle_rpm", "tool_length")
+
+
+def context_defaults(machine: Machine) -> dict[str, float]:
+    """Value of each base context channel when a data set does not give it (dir 0: unknown)."""
+    d = {"feed": 0.0, "t": 0.0, "spindle_rpm": 0.0, "tool_length": machine.tool_length}
+    for a in machine.axis_names:
+        d[f"dir_{a}"] = 0.0
+    return d
+
+
+# --------------------------------------------------------------------------------- rigid transforms
+# A transform is a pair (R 3x3, t 3x1) of SX: x_parent = R x_child + t.
+
+def rot(axis_index: int, angle):
+    """Elementary rotation about machine direction 0, 1 or 2 (SX 3x3)."""
+    c, s = ca.cos(angle), ca.sin(angle)
+    R = ca.SX.eye(3)
+    j, k = (axis_index + 1) % 3, (axis_index + 2) % 3
+    R[j, j] = c
+    R[k, k] = c
+    R[k, j] = s
+    R[j, k] = -s
+    return R
+
+
+def compose(A, B):
+    return (ca.mtimes(A[0], B[0]), ca.mtimes(A[0], B[1]) + A[1])
+
+
+def inverse(A):
+    Rt = A[0].T
+    return (Rt, -ca.mtimes(Rt, A[1]))
+
+
+def trans(v):
+    return (ca.SX.eye(3), ca.vertcat(*[v[i] for i in range(3)]) if not isinstance(v, ca.SX) else v)
+
+
+def rot_about_point(R, point):
+    """Rotation R about ``point`` (3-vector): Trans(p) R Trans(-p)."""
+    return (R, point - ca.mtimes(R, point))
+
+
+def unit(i: int):
+    e = ca.SX.zeros(3)
+    e[i] = 1
+    return e
+
+
+# --------------------------------------------------------------------------------- parameters
+def linear_component_names(axis_name: str) -> list[str]:
+    """The six ISO 230-1 component errors of a linear axis: EX?, EY?, EZ?, EA?, EB?, EC?."""
+    return [f"E{d}{axis_name}" for d in TRANSLATION_LETTERS + ANGLE_LETTERS]
+
+
+def rotary_motion_names(axis_name: str) -> list[str]:
+    """The five error motions of a rotary axis (all components but its own angular positioning)."""
+    own = positioning_component(axis_name)
+    return [n for n in (f"E{d}{axis_name}" for d in TRANSLATION_LETTERS + ANGLE_LETTERS) if n != own]
+
+
+def squareness_names(machine: Machine) -> list[str]:
+    names = set(machine.axis_names)
+    out = []
+    if {"X", "Y"} <= names:
+        out.append("C0Y")
+    if {"X", "Z"} <= names:
+        out.append("B0Z")
+    if {"Y", "Z"} <= names:
+        out.append("A0Z")
+    return out
+
+
+def rotary_location_names(axis_name: str) -> tuple[list[str], list[str]]:
+    """(offsets, tilts) of a rotary axis line: C -> (['X0C', 'Y0C'], ['A0C', 'B0C'])."""
+    d = AXIS_DIRECTION[axis_name]
+    others = [j for j in range(3) if j != d]
+    return ([f"{TRANSLATION_LETTERS[j]}0{axis_name}" for j in others],
+            [f"{ANGLE_LETTERS[j]}0{axis_name}" for j in others])
+
+
+def base_param_specs(machine: Machine) -> list[ParamSpec]:
+    """The base model of SPEC section 6, in a fixed order."""
+    specs: list[ParamSpec] = []
+    for ax in machine.linear_axes:
+        for comp in linear_component_names(ax.name):
+            angular = comp[1] in ANGLE_LETTERS
+            for k in range(1, ax.degree + 1):
+                specs.append(ParamSpec(f"{comp}_{k}", "urad" if angular else "um", f"{ax.name}:{comp}",
+                                       True, f"{comp}: coefficient of (s/1 m)^{k}"))
+    for name in squareness_names(machine):
+        specs.append(ParamSpec(name, "urad", "squareness", True, f"squareness {name}"))
+    for ax in machine.rotary_axes:
+        offsets, tilts = rotary_location_names(ax.name)
+        for name in offsets:
+            specs.append(ParamSpec(name, "um", f"{ax.name}:location", True, f"axis line offset {name}"))
+        for name in tilts:
+            specs.append(ParamSpec(name, "urad", f"{ax.name}:location", True, f"axis line tilt {name}"))
+        own = positioning_component(ax.name)
+        specs.append(ParamSpec(f"{own}_0", "urad", f"{ax.name}:{own}", True, f"zero offset of {ax.name}"))
+        for k in range(1, ax.fourier_order + 1):
+            for cs in "cs":
+                specs.append(ParamSpec(f"{own}_{cs}{k}", "urad", f"{ax.name}:{own}", True,
+                                       f"{own}: harmonic {k} ({'cos' if cs == 'c' else 'sin'})"))
+        for comp in rotary_motion_names(ax.name):
+            unit_ = "urad" if comp[1] in ANGLE_LETTERS else "um"
+            for k in range(1, ax.error_motion_order + 1):
+                for cs in "cs":
+                    specs.append(ParamSpec(f"{comp}_{cs}{k}", unit_, f"{ax.name}:{comp}", True,
+                                           f"{comp}: harmonic {k} ({'cos' if cs == 'c' else 'sin'})"))
+    specs.append(ParamSpec("TOOL_dL", "um", "tool", True, "tool length error (tip lower when > 0)"))
+    return specs
+
+
+# --------------------------------------------------------------------------------- the model
+class ErrorModel:
+    """The symbolic error model of one machine with a given set of extension terms.
+
+    The model is a frozen description; evaluation goes through its CasADi functions
+    (``deviation_function``, ``deviation_jacobian_function``) or :mod:`mtcomp.models.evaluate`.
+
+    Attributes
+    ----------
+    machine : the machine.
+    terms : extension terms (beyond the base model), in order.
+    param_specs : tuple of ParamSpec; ``param_names`` their names (the order of p).
+    context_names : names of the context channels (the order of c).
+    """
+
+    def __init__(self, machine: Machine, terms: tuple[Term, ...] | list[Term] = ()):
+        self.machine = machine
+        self.terms = tuple(terms)
+        keys = [t.key() for t in self.terms]
+        if len(set(keys)) != len(keys):
+            raise ValueError(f"a term is listed twice: {keys}")
+        specs = base_param_specs(machine)
+        for t in self.terms:
+            specs.extend(t.param_specs(machine))
+        names = [s.name for s in specs]
+        dup = {n for n in names if names.count(n) > 1}
+        if dup:
+            raise ValueError(f"parameters defined twice (a term duplicates the base model?): {sorted(dup)}")
+        self.param_specs = tuple(specs)
+        ctx = list(BASE_CONTEXT) + [f"dir_{a}" for a in machine.axis_names]
+        for t in self.terms:
+            for name in t.context_names(machine):
+                if name not in ctx:
+                    ctx.append(name)
+        self.context_names = tuple(ctx)
+        self._q = ca.SX.sym("q", machine.n_axes)
+        self._p = ca.SX.sym("p", len(specs))
+        self._c = ca.SX.sym("c", len(ctx))
+
+    # ----------------------------------------------------------------- sizes and names
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.param_specs)
+
+    @property
+    def n_params(self) -> int:
+        return len(self.param_specs)
+
+    @property
+    def n_context(self) -> int:
+        return len(self.context_names)
+
+    @property
+    def base_mask(self) -> np.ndarray:
+        return np.array([s.base for s in self.param_specs])
+
+    def structure_key(self) -> str:
+        """A string that identifies the model's structure (for caches of compiled code)."""
+        import hashlib
+        import json
+        blob = json.dumps({"machine": self.machine.to_dict(), "terms": [t.to_dict() for t in self.terms],
+                           "params": self.param_names, "ctx": self.context_names}, sort_keys=True)
+        return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+    def default_context(self, n: int = 1) -> np.ndarray:
+        """(n, n_context) context with every channel at its default (feed 0, dir unknown ...)."""
+        d = context_defaults(self.machine)
+        row = np.array([d.get(name, 0.0) for name in self.context_names])
+        return np.tile(row, (n, 1))
+
+    # ----------------------------------------------------------------- symbolic chain
+    def symbolic(self, q, p, c, errors: bool = True):
+        """Tool-tip frame in the workpiece frame for SX/MX inputs.
+
+        Returns (tip (3,), axis (3,), R (3, 3)): tool tip position (mm), tool axis (unit), and the tool
+        frame's rotation, all in the workpiece frame. ``errors=False`` gives the nominal chain.
+        """
+        m = self.machine
+        P = {name: p[i] for i, name in enumerate(self.param_names)}
+        C = {name: c[i] for i, name in enumerate(self.context_names)}
+        Z = ca.SX(0)
+
+        def par(name):
+            return P[name] if errors else Z
+
+        wp = (ca.SX.eye(3), ca.SX.zeros(3))
+        for name in m.workpiece_chain:
+            wp = compose(wp, self._axis_transform(name, q[m.index(name)], P, C, par, errors))
+        tl = (ca.SX.eye(3), ca.SX.zeros(3))
+        for name in m.tool_chain:
+            tl = compose(tl, self._axis_transform(name, q[m.index(name)], P, C, par, errors))
+        tool2wp = compose(inverse(wp), tl)
+        tip_local = ca.vertcat(0, 0, -par("TOOL_dL"))
+        tip = ca.mtimes(tool2wp[0], tip_local) + tool2wp[1]
+        if errors:
+            for t in self.terms:
+                off = t.tip_offset(m, q, C, P)
+                if off is not None:
+                    tip = tip + off
+        return tip, tool2wp[0][:, 2], tool2wp[0]
+
+    def _axis_transform(self, name, s, P, C, par, errors):
+        m = self.machine
+        ax = m.axis(name)
+        d = ax.direction_index
+        if ax.is_rotary:
+            own = positioning_component(name)
+            e_pos = par(f"{own}_0")
+            for k in range(1, ax.fourier_order + 1):
+                e_pos = e_pos + par(f"{own}_c{k}") * ca.cos(k * s) + par(f"{own}_s{k}") * ca.sin(k * s)
+            comps = {own: e_pos}
+            for comp in rotary_motion_names(name):
+                e = ca.SX(0)
+                for k in range(1, ax.error_motion_order + 1):
+                    e = e + par(f"{comp}_c{k}") * ca.cos(k * s) + par(f"{comp}_s{k}") * ca.sin(k * s)
+                comps[comp] = e
+            if errors:
+                for t in self.terms:
+                    for comp, e in t.axis_errors(m, ax, s, C, P, comps).items():
+                        comps[comp] = comps[comp] + e
+            offsets, tilts = rotary_location_names(name)
+            point = ca.SX(np.asarray(ax.axis_point, dtype=float))
+            others = [j for j in range(3) if j != d]
+            for j, oname in zip(others, offsets):
+                point[j] = point[j] + par(oname)
+            # tilt of the line: about the first other direction, then the second (C: Ry(B0C) Rx(A0C))
+            Rt = ca.mtimes(rot(others[1], par(tilts[1])), rot(others[0], par(tilts[0])))
+            R_turn = ca.mtimes(ca.mtimes(Rt, rot(d, s + comps[own])), Rt.T)
+            R_m = ca.SX.eye(3)
+            for j in range(3):
+                if j != d:
+                    R_m = ca.mtimes(R_m, rot(j, comps[f"E{ANGLE_LETTERS[j]}{name}"]))
+            delta_m = ca.vertcat(*[comps[f"E{TRANSLATION_LETTERS[j]}{name}"] for j in range(3)])
+            R = ca.mtimes(R_m, R_turn)
+            # Trans(P') Trans(delta_m) R Trans(-P')
+            return (R, point + delta_m - ca.mtimes(R, point))
+
+        # linear axis
+        comps = {}
+        for comp in linear_component_names(name):
+            e = ca.SX(0)
+            for k in range(1, ax.degree + 1):
+                e = e + par(f"{comp}_{k}") * (s / 1000.0) ** k
+            comps[comp] = e
+        centres = {a: ca.SX.zeros(3) for a in ANGLE_LETTERS}
+        if errors:
+            for t in self.terms:
+                for comp, e in t.axis_errors(m, ax, s, C, P, comps).items():
+                    comps[comp] = comps[comp] + e
+                for a, o in t.abbe_centres(m, ax, s, C, P).items():
+                    centres[a] = centres[a] + o
+        u = unit(d)
+        if name == "Y":
+            u = ca.mtimes(rot(2, par("C0Y")), u) if "C0Y" in P else u
+        elif name == "Z":
+            if "B0Z" in P or "A0Z" in P:
+                u = ca.mtimes(ca.mtimes(rot(1, par("B0Z") if "B0Z" in P else 0),
+                                        rot(0, par("A0Z") if "A0Z" in P else 0)), u)
+        r = ca.vertcat(0, 0, C["tool_length"]) if ax.side == "tool" else ca.SX.zeros(3)
+        A = trans(s * u)
+        A = compose(A, trans(ca.vertcat(*[comps[f"E{TRANSLATION_LETTERS[j]}{name}"] for j in range(3)])))
+        for j, a in enumerate(ANGLE_LETTERS):
+            A = compose(A, rot_about_point(rot(j, comps[f"E{a}{name}"]), r + centres[a]))
+        if ax.side == "workpiece":
+            A = inverse(A)
+        return A
+
+    # ----------------------------------------------------------------- CasADi functions
+    @cached_property
+    def _expressions(self):
+        q, p, c = self._q, self._p, self._c
+        tip, axis, _ = self.symbolic(q, p, c, errors=True)
+        tip0, axis0, _ = self.symbolic(q, p, c, errors=False)
+        dev = ca.vertcat(tip - tip0, axis - axis0)
+        return {"tip": tip, "axis": axis, "tip0": tip0, "axis0": axis0, "dev": dev}
+
+    @cached_property
+    def pose_function(self) -> ca.Function:
+        """(q, p, c) -> (tip (3,) mm, axis (3,)): actual tool tip and tool axis in the workpiece frame."""
+        e = self._expressions
+        return ca.Function("pose", [self._q, self._p, self._c], [e["tip"], e["axis"]],
+                           ["q", "p", "c"], ["tip", "axis"])
+
+    @cached_property
+    def nominal_function(self) -> ca.Function:
+        e = self._expressions
+        return ca.Function("nominal", [self._q], [e["tip0"], e["axis0"]], ["q"], ["tip", "axis"])
+
+    @cached_property
+    def deviation_function(self) -> ca.Function:
+        """(q, p, c) -> dev (6,): tip deviation (mm) and tool-axis deviation (actual minus nominal)."""
+        return ca.Function("deviation", [self._q, self._p, self._c], [self._expressions["dev"]],
+                           ["q", "p", "c"], ["dev"])
+
+    @cached_property
+    def deviation_jacobian_function(self) -> ca.Function:
+        """(q, p, c) -> (dev (6,), J_q (6, n_axes), J_p (6, n_params))."""
+        dev = self._expressions["dev"]
+        return ca.Function("deviation_jac", [self._q, self._p, self._c],
+                           [dev, ca.jacobian(dev, self._q), ca.jacobian(dev, self._p)],
+                           ["q", "p", "c"], ["dev", "J_q", "J_p"])
+
+    @cached_property
+    def deviation_qjacobian_function(self) -> ca.Function:
+        """(q, p, c) -> (dev (6,), J_q (6, n_axes)): what the planner needs per block."""
+        dev = self._expressions["dev"]
+        return ca.Function("deviation_qjac", [self._q, self._p, self._c],
+                           [dev, ca.jacobian(dev, self._q)], ["q", "p", "c"], ["dev", "J_q"])
+
+    def with_terms(self, *terms: Term) -> "ErrorModel":
+        """A new model with extra terms appended (the base model is unchanged)."""
+        return ErrorModel(self.machine, self.terms + tuple(terms))

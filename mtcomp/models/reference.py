@@ -1,0 +1,141 @@
+"""A plain numpy reference of the error model: the test oracle for the CasADi model.
+
+Written independently of :mod:`mtcomp.models.chain` (4x4 homogeneous matrices, scipy rotations,
+parameters looked up by name, one pose at a time), like Pinocchio's numeric model is the oracle of
+its CasADi model. It covers the base model and the extension terms Backlash, PeriodicError,
+FeedOffset and AbbeIRC. Slow by design; use it only in tests.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..machine import Machine
+
+XYZ = "XYZ"
+ABC = "ABC"
+
+
+def _htm(R=None, t=None):
+    T = np.eye(4)
+    if R is not None:
+        T[:3, :3] = R
+    if t is not None:
+        T[:3, 3] = t
+    return T
+
+
+def _rot(index, angle):
+    v = np.zeros(3)
+    v[index] = angle
+    return Rotation.from_rotvec(v).as_matrix()
+
+
+def reference_tool_pose(machine: Machine, params: dict, q, ctx: dict, terms=()):
+    """Actual tool tip (3,) and tool axis (3,) in the workpiece frame for one pose.
+
+    params : name -> internal value (missing names count as 0).
+    ctx : context name -> value ('feed' mm/min, 'tool_length' mm, 'dir_X' ...).
+    terms : extension term objects (Backlash, PeriodicError, FeedOffset, AbbeIRC are supported).
+    """
+    g = lambda name: float(params.get(name, 0.0))  # noqa: E731
+    feed_m = ctx.get("feed", 0.0) / 1000.0
+    T_wp = np.eye(4)
+    T_tool = np.eye(4)
+    for chain, side in ((machine.workpiece_chain, "workpiece"), (machine.tool_chain, "tool")):
+        for name in chain:
+            ax = machine.axis(name)
+            s = float(q[machine.index(name)])
+            if ax.is_rotary:
+                A = _rotary(machine, ax, s, g, ctx, terms)
+            else:
+                A = _linear(machine, ax, s, g, ctx, feed_m, terms)
+            if side == "workpiece":
+                T_wp = T_wp @ A
+            else:
+                T_tool = T_tool @ A
+    T = np.linalg.inv(T_wp) @ T_tool
+    tip = (T @ np.array([0.0, 0.0, -g("TOOL_dL"), 1.0]))[:3]
+    return tip, T[:3, 2]
+
+
+def _linear(machine, ax, s, g, ctx, feed_m, terms):
+    L = ax.name
+    sm = s / 1000.0
+    err = {}
+    for d in XYZ + ABC:
+        comp = f"E{d}{L}"
+        err[comp] = sum(g(f"{comp}_{k}") * sm ** k for k in range(1, ax.degree + 1))
+    centres = {a: np.zeros(3) for a in ABC}
+    for t in terms:
+        kind = type(t).__name__
+        if getattr(t, "axis", None) != L:
+            continue
+        if kind == "Backlash":
+            err[f"E{L}{L}"] += 0.5 * g(f"BL_{L}") * ctx.get(f"dir_{L}", 0.0)
+        elif kind == "PeriodicError":
+            w = 2 * np.pi / t.period_mm
+            err[f"E{L}{L}"] += g(f"PER_{L}_c") * np.cos(w * s) + g(f"PER_{L}_s") * np.sin(w * s)
+        elif kind == "FeedOffset":
+            err[f"E{L}{L}"] += g(f"FOFF_{L}") * feed_m * (ctx.get(f"dir_{L}", 0.0) if t.signed else 1.0)
+        elif kind == "AbbeIRC":
+            for a in t.angles:
+                for c in XYZ:
+                    if c == XYZ[ABC.index(a)]:
+                        continue
+                    base = f"IRC_{a}{L}_{c.lower()}"
+                    centres[a][XYZ.index(c)] += (g(base + "0") * t.static + g(base + "_s") * sm * t.position
+                                                 + g(base + "_f") * feed_m * t.feed)
+                if t.angle_gain:
+                    err[f"E{a}{L}"] *= 1.0 + g(f"AG_{a}{L}") * feed_m
+        else:
+            raise NotImplementedError(kind)
+    # axis direction with squareness
+    u = np.zeros(3)
+    u[ax.direction_index] = 1.0
+    if L == "Y":
+        u = _rot(2, g("C0Y")) @ u
+    elif L == "Z":
+        u = _rot(1, g("B0Z")) @ _rot(0, g("A0Z")) @ u
+    r = np.array([0.0, 0.0, ctx.get("tool_length", machine.tool_length)]) if ax.side == "tool" else np.zeros(3)
+    A = _htm(t=s * u) @ _htm(t=[err[f"E{d}{L}"] for d in XYZ])
+    for j, a in enumerate(ABC):
+        c = r + centres[a]
+        A = A @ _htm(t=c) @ _htm(R=_rot(j, err[f"E{a}{L}"])) @ _htm(t=-c)
+    return np.linalg.inv(A) if ax.side == "workpiece" else A
+
+
+def _rotary(machine, ax, theta, g, ctx, terms):
+    R_ = ax.name
+    d = ax.direction_index
+    own = f"E{ABC[d]}{R_}"
+    e_own = g(f"{own}_0") + sum(g(f"{own}_c{k}") * np.cos(k * theta) + g(f"{own}_s{k}") * np.sin(k * theta)
+                                for k in range(1, ax.fourier_order + 1))
+    motion = {}
+    for comp in [f"E{x}{R_}" for x in XYZ + ABC if f"E{x}{R_}" != own]:
+        motion[comp] = sum(g(f"{comp}_c{k}") * np.cos(k * theta) + g(f"{comp}_s{k}") * np.sin(k * theta)
+                           for k in range(1, 9))
+    for t in terms:
+        if type(t).__name__ == "Backlash" and t.axis == R_:
+            e_own += 0.5 * g(f"BL_{R_}") * ctx.get(f"dir_{R_}", 0.0)
+    others = [j for j in range(3) if j != d]
+    point = np.array(ax.axis_point, dtype=float)
+    point[others[0]] += g(f"{XYZ[others[0]]}0{R_}")
+    point[others[1]] += g(f"{XYZ[others[1]]}0{R_}")
+    tilt = _rot(others[1], g(f"{ABC[others[1]]}0{R_}")) @ _rot(others[0], g(f"{ABC[others[0]]}0{R_}"))
+    axis_line = tilt[:, d]
+    turn = Rotation.from_rotvec(axis_line * (theta + e_own)).as_matrix()
+    wobble = np.eye(3)
+    for j in range(3):
+        if j != d:
+            wobble = wobble @ _rot(j, motion[f"E{ABC[j]}{R_}"])
+    shift = np.array([motion.get(f"E{x}{R_}", 0.0) for x in XYZ])
+    return _htm(t=point) @ _htm(t=shift) @ _htm(R=wobble @ turn) @ _htm(t=-point)
+
+
+def reference_deviation(machine: Machine, params: dict, q, ctx: dict, terms=()) -> np.ndarray:
+    """(6,): actual minus nominal tool tip (mm) and tool axis, workpiece frame."""
+    tip, axis = reference_tool_pose(machine, params, q, ctx, terms)
+    tip0, axis0 = reference_tool_pose(machine, {}, q, {"tool_length": ctx.get("tool_length",
+                                                                               machine.tool_length)})
+    return np.concatenate([tip - tip0, axis - axis0])

@@ -1,0 +1,319 @@
+"""Error terms beyond the base model (SPEC section 6), each a symbolic extension of the chain.
+
+A term adds parameters and acts on the chain in one or more of three places:
+
+* ``axis_errors``: contributions to the six component errors of one axis (backlash, periodic screw
+  error, feed-dependent offset, rotary error motions, angle gains);
+* ``abbe_centres``: shifts of the centre about which an angular error of a linear axis turns its
+  carriage (the instantaneous rotation centre of seed 000, eqs. 2-4);
+* ``tip_offset``: a translation of the tool tip in the workpiece frame (thermal drift).
+
+Terms read block context (feed, approach directions, time, temperatures ...) from ``ctx``, a dict of
+CasADi scalars keyed by context name (see :data:`mtcomp.models.chain.BASE_CONTEXT`). A term that needs
+another context channel (e.g. a temperature) lists it in ``context_names``.
+
+Each term is a small frozen dataclass that can be written to and read from MODEL.json (``to_dict`` /
+:func:`term_from_dict`), so compensate and predict use an extended model directly.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+import casadi as ca
+
+from .params import ParamSpec
+
+ANGLE_LETTERS = "ABC"
+TRANSLATION_LETTERS = "XYZ"
+
+
+def positioning_component(axis_name: str) -> str:
+    """'X' -> 'EXX', 'C' -> 'ECC': the component along (linear) or about (rotary) the axis itself."""
+    return f"E{axis_name}{axis_name}"
+
+
+class Term:
+    """Base class: a term contributes nothing unless it overrides a hook."""
+
+    kind = "term"
+
+    def key(self) -> str:
+        raise NotImplementedError
+
+    def param_specs(self, machine) -> list[ParamSpec]:
+        return []
+
+    def context_names(self, machine) -> list[str]:
+        return []
+
+    def axis_errors(self, machine, axis, s, ctx, P, components) -> dict:
+        """Extra component errors of ``axis`` (dict component name -> SX), given the errors so far."""
+        return {}
+
+    def abbe_centres(self, machine, axis, s, ctx, P) -> dict:
+        """Shift (3-vector SX, mm, carriage frame) of the centre of each angular error of a linear axis,
+        keyed by 'A', 'B' or 'C' (rotation about X, Y, Z)."""
+        return {}
+
+    def tip_offset(self, machine, q, ctx, P):
+        """Translation (3-vector SX, mm) of the tool tip in the workpiece frame, or None."""
+        return None
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind, **asdict(self)}
+
+
+@dataclass(frozen=True)
+class Backlash(Term):
+    """Lost motion of an axis: its positioning error steps by ``BL_<axis>`` with the approach direction.
+
+    ``E<axis><axis> += BL/2 * dir``, so that mean(up) - mean(down) = BL, the ISO 230-2 reversal value B
+    (SPEC: B is mean up minus mean down). Rotary axes: seed 002's rotary backlash, in urad.
+    """
+
+    axis: str
+    kind = "backlash"
+
+    def key(self):
+        return f"backlash:{self.axis}"
+
+    def param_specs(self, machine):
+        rotary = machine.axis(self.axis).is_rotary
+        return [ParamSpec(f"BL_{self.axis}", "urad" if rotary else "um", self.key(), False,
+                          f"reversal (backlash) of {self.axis}: mean up minus mean down")]
+
+    def axis_errors(self, machine, axis, s, ctx, P, components):
+        if axis.name != self.axis:
+            return {}
+        return {positioning_component(self.axis): 0.5 * P[f"BL_{self.axis}"] * ctx[f"dir_{self.axis}"]}
+
+
+@dataclass(frozen=True)
+class PeriodicError(Term):
+    """Cyclic positioning error of a linear axis (ball-screw lead, scale period).
+
+    ``E<axis><axis> += PER_<axis>_c cos(2 pi s / period) + PER_<axis>_s sin(2 pi s / period)``.
+    """
+
+    axis: str
+    period_mm: float
+    kind = "periodic_error"
+
+    def key(self):
+        return f"periodic_error:{self.axis}"
+
+    def param_specs(self, machine):
+        return [ParamSpec(f"PER_{self.axis}_c", "um", self.key(), False,
+                          f"cosine amplitude of the {self.period_mm:g} mm cyclic error of {self.axis}"),
+                ParamSpec(f"PER_{self.axis}_s", "um", self.key(), False,
+                          f"sine amplitude of the {self.period_mm:g} mm cyclic error of {self.axis}")]
+
+    def axis_errors(self, machine, axis, s, ctx, P, components):
+        if axis.name != self.axis:
+            return {}
+        w = 2.0 * math.pi / self.period_mm
+        return {positioning_component(self.axis):
+                P[f"PER_{self.axis}_c"] * ca.cos(w * s) + P[f"PER_{self.axis}_s"] * ca.sin(w * s)}
+
+
+@dataclass(frozen=True)
+class FeedOffset(Term):
+    """A positioning error proportional to feed, uniform along the axis (a dynamic lag of the reading).
+
+    ``E<axis><axis> += FOFF_<axis> * feed`` with feed in m/min; with ``signed`` the offset follows the
+    approach direction (a lag behind the motion): ``... * dir``.
+    """
+
+    axis: str
+    signed: bool = False
+    kind = "feed_dependent_offset"
+
+    def key(self):
+        return f"feed_dependent_offset:{self.axis}"
+
+    def param_specs(self, machine):
+        return [ParamSpec(f"FOFF_{self.axis}", "um", self.key(), False,
+                          f"positioning offset of {self.axis} per m/min of feed")]
+
+    def axis_errors(self, machine, axis, s, ctx, P, components):
+        if axis.name != self.axis:
+            return {}
+        e = P[f"FOFF_{self.axis}"] * ctx["feed"] / 1000.0
+        if self.signed:
+            e = e * ctx[f"dir_{self.axis}"]
+        return {positioning_component(self.axis): e}
+
+
+@dataclass(frozen=True)
+class AbbeIRC(Term):
+    """Abbe errors about the instantaneous rotation centre (IRC) of a linear axis (seed 000, eqs. 2-4).
+
+    The base model turns each carriage about its reference point (the nominal Abbe arm). Seed 000 shows
+    that the worktable turns about a centre that moves with position and feed. For each angular error
+    ``E<a><axis>`` (a in ``angles``), the centre is shifted, in the two coordinates perpendicular to
+    the rotation, by
+
+        o = IRC_<a><axis>_<c>0 + IRC_<a><axis>_<c>_s * s/(1 m) + IRC_<a><axis>_<c>_f * feed/(1 m/min)
+
+    (mm; ``static``, ``position`` and ``feed`` choose which parts exist), and with ``angle_gain`` the
+    angle itself scales with feed: ``E<a><axis> *= 1 + AG_<a><axis> * feed/(1 m/min)``.
+
+    Seed 000 eq. (3) gives the yaw Abbe error about O_p as (-eps_z * Y', eps_z * X', 0), i.e. the
+    small-angle form of the exact rotation used here; eq. (4)'s last row prints ``eps * Y_B3`` where
+    ``eps_x * Y_B3`` is meant (roll about X).
+    """
+
+    axis: str
+    angles: str = "ABC"
+    static: bool = False
+    position: bool = False
+    feed: bool = True
+    angle_gain: bool = False
+    kind = "abbe_irc"
+
+    def key(self):
+        return f"abbe_irc:{self.axis}"
+
+    def _coords(self, a):
+        i = ANGLE_LETTERS.index(a)
+        return [TRANSLATION_LETTERS[j] for j in range(3) if j != i]
+
+    def param_specs(self, machine):
+        specs = []
+        for a in self.angles:
+            for c in self._coords(a):
+                base = f"IRC_{a}{self.axis}_{c.lower()}"
+                if self.static:
+                    specs.append(ParamSpec(base + "0", "mm", self.key(), False,
+                                           f"{c} of the E{a}{self.axis} rotation centre"))
+                if self.position:
+                    specs.append(ParamSpec(base + "_s", "mm", self.key(), False,
+                                           f"{c} shift of the E{a}{self.axis} centre per m of travel"))
+                if self.feed:
+                    specs.append(ParamSpec(base + "_f", "mm", self.key(), False,
+                                           f"{c} shift of the E{a}{self.axis} centre per m/min of feed"))
+            if self.angle_gain:
+                specs.append(ParamSpec(f"AG_{a}{self.axis}", "1", self.key(), False,
+                                       f"relative gain of E{a}{self.axis} per m/min of feed"))
+        return specs
+
+    def abbe_centres(self, machine, axis, s, ctx, P):
+        if axis.name != self.axis:
+            return {}
+        out = {}
+        for a in self.angles:
+            o = [ca.SX(0), ca.SX(0), ca.SX(0)]
+            for c in self._coords(a):
+                base = f"IRC_{a}{self.axis}_{c.lower()}"
+                j = TRANSLATION_LETTERS.index(c)
+                if self.static:
+                    o[j] = o[j] + P[base + "0"]
+                if self.position:
+                    o[j] = o[j] + P[base + "_s"] * s / 1000.0
+                if self.feed:
+                    o[j] = o[j] + P[base + "_f"] * ctx["feed"] / 1000.0
+            out[a] = ca.vertcat(*o)
+        return out
+
+    def axis_errors(self, machine, axis, s, ctx, P, components):
+        if axis.name != self.axis or not self.angle_gain:
+            return {}
+        return {f"E{a}{self.axis}": components[f"E{a}{self.axis}"] * P[f"AG_{a}{self.axis}"]
+                * ctx["feed"] / 1000.0 for a in self.angles}
+
+
+@dataclass(frozen=True)
+class RotaryErrorMotion(Term):
+    """Error motion of a rotary axis beyond its location errors (seed 003): eccentricity, wobble,
+    axial run-out, as a Fourier series of the angle without constant term (the constant is a location
+    error). ``component`` is the ISO 230-1 name, e.g. 'EXC', 'EYC' (radial), 'EZC' (axial),
+    'EAC', 'EBC' (tilt); parameters ``<component>_c<k>``, ``<component>_s<k>``, k = 1..order."""
+
+    component: str
+    order: int = 2
+    kind = "rotary_pdge"
+
+    @property
+    def axis(self):
+        return self.component[2]
+
+    def key(self):
+        return f"rotary_pdge:{self.component}"
+
+    def param_specs(self, machine):
+        unit = "urad" if self.component[1] in ANGLE_LETTERS else "um"
+        specs = []
+        for k in range(1, self.order + 1):
+            for cs in "cs":
+                specs.append(ParamSpec(f"{self.component}_{cs}{k}", unit, self.key(), False,
+                                       f"{'cosine' if cs == 'c' else 'sine'} harmonic {k} of "
+                                       f"{self.component}"))
+        return specs
+
+    def axis_errors(self, machine, axis, s, ctx, P, components):
+        if axis.name != self.axis:
+            return {}
+        e = 0
+        for k in range(1, self.order + 1):
+            e = e + P[f"{self.component}_c{k}"] * ca.cos(k * s) + P[f"{self.component}_s{k}"] * ca.sin(k * s)
+        return {self.component: e}
+
+
+@dataclass(frozen=True)
+class ThermalDrift(Term):
+    """Thermal drift of the tool tip, linear in named drivers (ISO 230-3 style).
+
+    ``features`` are context channels computed from the data before the fit (e.g. ``time_h``,
+    ``temp_t1`` as a rise above its first reading, ``spindle_heat_1800``: spindle speed filtered with a
+    1800 s time constant). The tip moves in the workpiece frame by
+    ``sum_f TD_<dir>_<f> * feature_f`` for each direction in ``directions``.
+    ``driver`` is 'time', 'temperature' or 'spindle' (what the report names).
+    """
+
+    driver: str
+    features: tuple[str, ...]
+    directions: str = "XYZ"
+    kind = "thermal_drift"
+
+    def key(self):
+        return f"thermal_drift:{self.driver}"
+
+    def param_specs(self, machine):
+        return [ParamSpec(f"TD_{d}_{f}", "um", self.key(), False,
+                          f"tip drift along {d} per unit of {f}")
+                for d in self.directions for f in self.features]
+
+    def context_names(self, machine):
+        return list(self.features)
+
+    def tip_offset(self, machine, q, ctx, P):
+        out = [ca.SX(0), ca.SX(0), ca.SX(0)]
+        for d in self.directions:
+            j = TRANSLATION_LETTERS.index(d)
+            for f in self.features:
+                out[j] = out[j] + P[f"TD_{d}_{f}"] * ctx[f]
+        return ca.vertcat(*out)
+
+    def to_dict(self):
+        d = super().to_dict()
+        d["features"] = list(self.features)
+        return d
+
+
+TERM_CLASSES = {cls.kind: cls for cls in
+                (Backlash, PeriodicError, FeedOffset, AbbeIRC, RotaryErrorMotion, ThermalDrift)}
+
+
+def term_from_dict(data: dict, path=None) -> Term:
+    from ..errors import InputError
+    if not isinstance(data, dict) or data.get("kind") not in TERM_CLASSES:
+        raise InputError(f"unknown model term {data!r} (known kinds: {', '.join(TERM_CLASSES)})", path)
+    cls = TERM_CLASSES[data["kind"]]
+    kwargs = {k: v for k, v in data.items() if k != "kind"}
+    if "features" in kwargs:
+        kwargs["features"] = tuple(kwargs["features"])
+    try:
+        return cls(**kwargs)
+    except TypeError as exc:
+        raise InputError(f"model term {data['kind']!r}: {exc}", path) from None
