@@ -1,0 +1,5 @@
+"""Fast path placeholder."""
+
+
+def available() -> bool:
+    return False
