@@ -462,8 +462,8 @@ def _check_normals(table: CsvTable, normal: np.ndarray, needed: np.ndarray) -> N
     partial = np.flatnonzero(~given & np.any(np.isfinite(normal), axis=1))
     if partial.size:
         table.fail("normal nx,ny,nz is only partly given", partial[0])
-    length = np.linalg.norm(np.where(given[:, None], normal, 1.0), axis=1)
-    bad = np.flatnonzero(np.abs(length - 1.0) > NORMAL_TOLERANCE)
+    length = np.linalg.norm(np.where(given[:, None], normal, 0.0), axis=1)
+    bad = np.flatnonzero(given & (np.abs(length - 1.0) > NORMAL_TOLERANCE))
     if bad.size:
         table.fail(f"normal nx,ny,nz has length {length[bad[0]]:.6g}, not 1 (tolerance "
                    f"{NORMAL_TOLERANCE:g})", bad[0])

@@ -1,0 +1,271 @@
+"""ISO 230-2 evaluation: hand-computed cases, an independent loop-based oracle on the real runs, the
+facts stated in the real-data README, and the command line."""
+import csv
+import json
+import math
+import statistics
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mtcomp import InputError
+from mtcomp.cli import main
+from mtcomp.identification.iso230_2 import ARCSEC_PER_RAD, evaluate_axis, evaluate_iso230_2
+from mtcomp.io.measurements import read_measurements
+
+REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / "iso230_2"
+
+
+def _laser(tmp_path, readings, axis="X", name="laser.csv"):
+    """readings: {(target, dir): [run1, run2, ...]} in um (or urad for rotary axes)."""
+    rotary = axis in "ABC"
+    lines = [f"axis,component,{'target_deg' if rotary else 'target_mm'},dir,run,"
+             f"{'value_urad' if rotary else 'value_um'}"]
+    for (target, d), values in readings.items():
+        for j, v in enumerate(values, start=1):
+            lines.append(f"{axis},E{axis}{axis},{target},{d},{j},{v}")
+    p = tmp_path / name
+    p.write_text("\n".join(lines) + "\n")
+    return p
+
+
+# Hand case 1 (worked in docs/iso230_2.md). Two targets, three runs per direction, um.
+#   P=0:  up 1 2 3   -> mean 2,  s 1;   down 4 6 8  -> mean 6, s 2
+#   P=10: up 9 10 11 -> mean 10, s 1;   down -1 2 5 -> mean 2, s 3
+# By hand: xbar = 4, 6; B_i = -4, +8; R_i_up = 4, 4; R_i_down = 8, 12;
+#   R_i = max(2+4+4, 4, 8) = 10, max(2+6+8, 4, 12) = 16
+#   B = +8 (largest |B_i|, signed); B_mean = 2; E_up = 10-2 = 8; E_down = 6-2 = 4;
+#   E = max(2,10,6,2) - min(2,10,6,2) = 8; M = 6-4 = 2
+#   A_up = max(2+2, 10+2) - min(2-2, 10-2) = 12; A_down = max(6+4, 2+6) - min(6-4, 2-6) = 14
+#   A = max(4, 12, 10, 8) - min(0, 8, 2, -4) = 16; R_up = 4, R_down = 12, R = 16
+CASE1 = {(0, 1): [1, 2, 3], (0, -1): [4, 6, 8], (10, 1): [9, 10, 11], (10, -1): [-1, 2, 5]}
+CASE1_AXIS = {"A": 16, "A_up": 12, "A_down": 14, "B": 8, "B_mean": 2, "E": 8, "E_up": 8, "E_down": 4,
+              "M": 2, "R": 16, "R_up": 4, "R_down": 12}
+
+# Hand case 2: the R_i_down branch of R_i and a negative B.
+#   P=0:  up 5 5 5 -> mean 5, s 0;  down 2 5 8 -> mean 5, s 3; B_0 = 0;
+#         R_i = max(0 + 6 + 0, 0, 12) = 12 (the 4 s_down branch)
+#   P=20: up 0 1 2 -> mean 1, s 1;  down 10 11 12 -> mean 11, s 1; B = -10;
+#         R_i = max(2 + 2 + 10, 4, 4) = 14
+#   B = -10; B_mean = -5; E_up = 5-1 = 4; E_down = 11-5 = 6; E = 11-1 = 10; M = xbar 5, 6 -> 1
+#   A_up = max(5, 3) - min(5, -1) = 6; A_down = max(11, 13) - min(-1, 9) = 14
+#   A = max(5, 3, 11, 13) - min(5, -1, -1, 9) = 14; R_up = 4, R_down = 12, R = 14
+CASE2 = {(0, 1): [5, 5, 5], (0, -1): [2, 5, 8], (20, 1): [0, 1, 2], (20, -1): [10, 11, 12]}
+CASE2_AXIS = {"A": 14, "A_up": 6, "A_down": 14, "B": -10, "B_mean": -5, "E": 10, "E_up": 4,
+              "E_down": 6, "M": 1, "R": 14, "R_up": 4, "R_down": 12}
+
+
+@pytest.mark.parametrize("case, expected", [(CASE1, CASE1_AXIS), (CASE2, CASE2_AXIS)])
+def test_hand_cases_linear(tmp_path, case, expected):
+    report = evaluate_iso230_2(read_measurements(_laser(tmp_path, case)))
+    ax = report.axes["X"]
+    d = ax.to_dict()
+    for key, value in expected.items():
+        assert getattr(ax, key) * 1e3 == pytest.approx(value, rel=0, abs=1e-9), key
+        assert d[f"{key}_um"] == pytest.approx(value, rel=0, abs=1e-9), key
+
+
+def test_hand_case_per_target_arrays(tmp_path):
+    ax = evaluate_iso230_2(read_measurements(_laser(tmp_path, CASE1))).axes["X"]
+    np.testing.assert_allclose(ax.targets, [0, 10], rtol=0, atol=0)
+    np.testing.assert_array_equal(ax.n_up, [3, 3])
+    scale = 1e3
+    np.testing.assert_allclose(ax.mean_up * scale, [2, 10], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ax.mean_down * scale, [6, 2], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ax.mean * scale, [4, 6], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ax.reversal * scale, [-4, 8], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ax.s_up * scale, [1, 1], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ax.s_down * scale, [2, 3], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ax.R_i * scale, [10, 16], rtol=0, atol=1e-12)
+    d = ax.to_dict()
+    assert d["targets_mm"] == [0.0, 10.0] and d["n_down"] == [3, 3]
+    np.testing.assert_allclose(d["R_i_down_um"], [8, 12], rtol=0, atol=1e-12)
+
+
+def test_rotary_axis_in_urad_and_arcsec(tmp_path):
+    # CASE1 again, read as urad of axis C at 0 and 10 deg
+    report = evaluate_iso230_2(read_measurements(_laser(tmp_path, CASE1, axis="C")))
+    ax = report.axes["C"]
+    assert ax.rotary and ax.unit == "urad"
+    np.testing.assert_allclose(ax.targets, [0, math.radians(10)], rtol=1e-15, atol=0)
+    d = ax.to_dict()
+    assert d["axis_type"] == "rotary" and d["targets_deg"] == pytest.approx([0, 10], rel=1e-15, abs=0)
+    assert "A_um" not in d
+    for key, value in CASE1_AXIS.items():
+        assert d[f"{key}_urad"] == pytest.approx(value, rel=1e-12, abs=0), key
+        # 1 urad = 0.206264806... arcsec
+        assert d[f"{key}_arcsec"] == pytest.approx(value * 0.2062648062470964, rel=1e-12, abs=0), key
+    assert ARCSEC_PER_RAD == pytest.approx(206264.80624709636, rel=1e-15, abs=0)
+
+
+def test_other_components_ignored_with_a_notice(tmp_path):
+    p = _laser(tmp_path, CASE1)
+    with open(p, "a") as f:
+        f.write("X,EYX,0,1,1,100\nX,EYX,10,1,1,-100\n")
+    report = evaluate_iso230_2(read_measurements(p))
+    assert report.axes["X"].E * 1e3 == pytest.approx(8, rel=0, abs=1e-9)
+    assert any("ignored 2 readings of components EYX" in n for n in report.notices)
+    assert any("as few as 3 runs" in n for n in report.notices)
+
+
+def test_two_axes_in_one_file(tmp_path):
+    p = _laser(tmp_path, CASE1)
+    q = _laser(tmp_path, CASE2, axis="Y", name="y.csv")
+    with open(p, "a") as f:
+        f.write("".join(q.read_text().splitlines(keepends=True)[1:]))
+    report = evaluate_iso230_2(read_measurements(p))
+    assert list(report.axes) == ["X", "Y"]
+    assert report.axes["Y"].B * 1e3 == pytest.approx(-10, rel=0, abs=1e-9)
+    assert report.axes["X"].B * 1e3 == pytest.approx(8, rel=0, abs=1e-9)
+
+
+@pytest.mark.parametrize("readings, msg", [
+    ({(0, 1): [1], (0, -1): [2, 3]}, r"row 1: axis X: target 0 mm has 1 run\(s\) in direction \+1 "
+                                     r"\(up\); ISO 230-2 needs at least 2"),
+    ({(0, 1): [1, 2]}, r"target 0 mm has 0 run\(s\) in direction -1 \(down\)"),
+    ({(0, 1): [1, 2], (0, -1): [2, ""]}, r"row 4: axis X: the value is blank"),
+])
+def test_not_enough_runs_or_blank(tmp_path, readings, msg):
+    with pytest.raises(InputError, match=msg):
+        evaluate_iso230_2(read_measurements(_laser(tmp_path, readings)))
+
+
+def test_reading_twice_refused():
+    with pytest.raises(InputError, match=r"f\.csv: row 3: axis X: target 5 mm, dir \+1, run 1 is read "
+                                         r"twice"):
+        evaluate_axis("X", np.array([5.0, 5.0, 5.0]), np.array([1, 1, 1]), np.array([1, 2, 1]),
+                      np.zeros(3), "f.csv", np.array([1, 2, 3]))
+
+
+def test_no_positioning_readings(tmp_path):
+    p = tmp_path / "l.csv"
+    p.write_text("axis,component,target_mm,dir,run,value_um\nX,EYX,0,1,1,2\n")
+    with pytest.raises(InputError, match="no positioning readings"):
+        evaluate_iso230_2(read_measurements(p))
+
+
+# ---- real runs: an independent, loop-based evaluation straight from the CSV text ----------------
+
+def _oracle(path):
+    """ISO 230-2 figures from plain Python (csv + statistics), um, written from the formulas."""
+    x = defaultdict(list)
+    with open(path, newline="") as f:
+        for r in csv.DictReader(f):
+            if r["component"] == "E" + r["axis"] * 2:
+                x[(float(r["target_mm"]), int(r["dir"]))].append(float(r["value_um"]))
+    targets = sorted({t for t, _ in x})
+    up = [statistics.mean(x[(t, 1)]) for t in targets]
+    dn = [statistics.mean(x[(t, -1)]) for t in targets]
+    su = [statistics.stdev(x[(t, 1)]) for t in targets]
+    sd = [statistics.stdev(x[(t, -1)]) for t in targets]
+    bi = [u - d for u, d in zip(up, dn)]
+    ri = [max(2 * a + 2 * b + abs(c), 4 * a, 4 * b) for a, b, c in zip(su, sd, bi)]
+    mean = [(u + d) / 2 for u, d in zip(up, dn)]
+    return {
+        "B_i": bi, "s_max": max(su + sd),
+        "B_um": max(bi, key=abs), "B_mean_um": sum(bi) / len(bi),
+        "E_up_um": max(up) - min(up), "E_down_um": max(dn) - min(dn), "E_um": max(up + dn) - min(up + dn),
+        "M_um": max(mean) - min(mean),
+        "R_up_um": 4 * max(su), "R_down_um": 4 * max(sd), "R_um": max(ri),
+        "A_up_um": max(u + 2 * s for u, s in zip(up, su)) - min(u - 2 * s for u, s in zip(up, su)),
+        "A_down_um": max(u + 2 * s for u, s in zip(dn, sd)) - min(u - 2 * s for u, s in zip(dn, sd)),
+        "A_um": max([u + 2 * s for u, s in zip(up, su)] + [u + 2 * s for u, s in zip(dn, sd)])
+        - min([u - 2 * s for u, s in zip(up, su)] + [u - 2 * s for u, s in zip(dn, sd)]),
+    }
+
+
+def _real(name):
+    path = REAL / name
+    if not path.exists():
+        pytest.skip(f"real ISO 230-2 runs not found at {path}")
+    return path
+
+
+@pytest.mark.parametrize("name", ["ess_b02_x.csv", "ess_b02_y.csv", "ess_b02_z.csv", "ess_w42_x.csv",
+                                  "ess_w42_back_x8a.csv", "psi_mcu1025_x.csv"])
+def test_real_runs_match_independent_oracle(name):
+    path = _real(name)
+    report = evaluate_iso230_2(read_measurements(path))
+    (axis,) = report.axes
+    got = report.axes[axis].to_dict()
+    want = _oracle(path)
+    for key in [k for k in want if k.endswith("_um")]:
+        assert got[key] == pytest.approx(want[key], rel=1e-12, abs=1e-9), key
+    np.testing.assert_allclose(got["reversal_um"], want["B_i"], rtol=1e-12, atol=1e-9)
+
+
+def test_real_ess_b02_x_readme_facts():
+    ax = evaluate_iso230_2(read_measurements(_real("ess_b02_x.csv"))).axes["X"]
+    reversal_um = ax.reversal * 1e3
+    # README: steady reversal of about -25 um, B_i from -16 to -34 um, s up to 7 um
+    assert ax.B_mean * 1e3 == pytest.approx(-25, rel=0, abs=1.0)
+    assert reversal_um.min() == pytest.approx(-34, rel=0, abs=0.6)
+    assert reversal_um.max() == pytest.approx(-16, rel=0, abs=0.6)
+    assert np.all(reversal_um < 0)
+    assert max(ax.s_up.max(), ax.s_down.max()) * 1e3 == pytest.approx(7, rel=0, abs=0.3)
+    assert ax.B == ax.reversal.min()  # the largest-magnitude B_i, negative
+    # "a large position-dependent error": the systematic deviation dwarfs the repeatability
+    assert ax.E * 1e3 > 100 and ax.E > 5 * ax.R_up
+    assert list(ax.n_up) == [5] * 9 and list(ax.n_down) == [5] * 9
+
+
+def test_real_ess_b02_y_reversal():
+    ax = evaluate_iso230_2(read_measurements(_real("ess_b02_y.csv"))).axes["Y"]
+    assert ax.B_mean * 1e3 == pytest.approx(-13, rel=0, abs=1.0)
+
+
+# ---- command line ----------------------------------------------------------------------------------
+
+def test_cli_writes_json_and_table(tmp_path, capsys):
+    p = _laser(tmp_path, CASE1)
+    out = tmp_path / "iso.json"
+    assert main(["iso230-2", str(p), "--json", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "axis X (linear), component EXX, deviations in um" in text
+    assert "B  reversal (largest |B_i|, signed)" in text and "8.000" in text
+    data = json.loads(out.read_text())
+    assert set(data) == {"X"}
+    for key in ("A_um", "A_up_um", "A_down_um", "B_um", "E_um", "E_up_um", "E_down_um", "M_um", "R_um",
+                "R_up_um", "R_down_um"):
+        assert data["X"][key] == pytest.approx(CASE1_AXIS[key[:-3]], rel=0, abs=1e-9), key
+
+
+@pytest.mark.parametrize("text, msg", [
+    ("axis,component,target_mm,dir,run,value_um\nX,EXX,0,1,1,abc\n", "row 1: column value_um: 'abc'"),
+    ("axis,component,target_mm,dir,run,value_um\nX,EXX,0,1,1,1\n", "row 1: axis X: target 0 mm has 1"),
+    ("x_mm,y_mm,z_mm,dx_um\n0,0,0,1\n", "this is a points file; iso230-2 needs a laser file"),
+    ("", "empty file"),
+])
+def test_cli_bad_input_one_line_exit_2_nothing_written(tmp_path, capsys, text, msg):
+    bad = tmp_path / "bad.csv"
+    bad.write_text(text)
+    out = tmp_path / "out.json"
+    assert main(["iso230-2", str(bad), "--json", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith(f"mtcomp iso230-2: {bad}: ") and msg in err
+    assert not out.exists()
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["bad.csv"]
+
+
+def test_cli_refuses_to_overwrite_input(tmp_path, capsys):
+    p = _laser(tmp_path, CASE1)
+    before = p.read_text()
+    assert main(["iso230-2", str(p), "--json", str(p)]) == 2
+    assert "overwrite an input" in capsys.readouterr().err
+    assert p.read_text() == before
+
+
+def test_cli_process_bad_file_exit_2_no_traceback(tmp_path):
+    import subprocess
+    import sys
+    bad = tmp_path / "bad.csv"
+    bad.write_text("axis,component,target_mm,dir,run,value_um\nX,EXX,0,1,1,1\nX,EXX,0,3,2,1\n")
+    proc = subprocess.run([sys.executable, "-m", "mtcomp", "iso230-2", str(bad)], capture_output=True,
+                          text=True, cwd=tmp_path, timeout=60)
+    assert proc.returncode == 2
+    assert proc.stderr == (f"mtcomp iso230-2: {bad}: row 2: column dir: '3' is not an approach "
+                           "direction (+1 or -1)\n")
+    assert proc.stdout == ""
