@@ -311,3 +311,13 @@ def test_real_thermal_file():
     lowest_um = min(np.nanmin(v) for v in d.channels.values()) * 1e3
     assert -75 < lowest_um < -65
     assert set(np.unique(d.context.spindle_rpm)) >= {0.0, 1250.0, 2500.0, 3750.0, 5000.0}
+
+
+def test_binary_and_non_utf8_files(tmp_path):
+    p = tmp_path / "bin.csv"
+    p.write_bytes(b"x_mm,y_mm\n\xff\xfe\x00\x01\n")
+    with pytest.raises(InputError, match="not a UTF-8 text file"):
+        read_measurements(p)
+    p.write_bytes(b"x_mm,y_mm,z_mm,dx_um\n1,2,3,\x004\n")
+    with pytest.raises(InputError, match=r"bin\.csv: row 1: column dx_um: .* is not a number"):
+        read_measurements(p)

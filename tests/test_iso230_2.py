@@ -269,3 +269,28 @@ def test_cli_process_bad_file_exit_2_no_traceback(tmp_path):
     assert proc.stderr == (f"mtcomp iso230-2: {bad}: row 2: column dir: '3' is not an approach "
                            "direction (+1 or -1)\n")
     assert proc.stdout == ""
+
+
+def test_invariances_offset_and_direction_swap():
+    # second formulation: a constant offset moves every mean but no range, spread or reversal;
+    # swapping the approach directions flips every B_i and swaps the up/down figures
+    rng = np.random.default_rng(7)
+    m, n = 6, 5
+    target = np.repeat(np.linspace(0, 500, m), 2 * n)
+    direction = np.tile(np.repeat([1, -1], n), m)
+    run = np.tile(np.arange(1, n + 1), 2 * m)
+    value = rng.normal(0, 0.004, m * 2 * n) + 0.003 * (direction > 0)
+    base = evaluate_axis("Y", target, direction, run, value)
+    shifted = evaluate_axis("Y", target, direction, run, value + 0.05)
+    swapped = evaluate_axis("Y", target, -direction, run, value)
+    for key in ("A", "A_up", "A_down", "B", "B_mean", "E", "E_up", "E_down", "M", "R", "R_up", "R_down"):
+        assert getattr(shifted, key) == pytest.approx(getattr(base, key), rel=1e-9, abs=1e-12), key
+    np.testing.assert_allclose(shifted.mean, base.mean + 0.05, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(swapped.reversal, -base.reversal, rtol=0, atol=1e-15)
+    assert swapped.B == pytest.approx(-base.B, rel=0, abs=1e-15)
+    for a, b in (("A_up", "A_down"), ("E_up", "E_down"), ("R_up", "R_down")):
+        assert getattr(swapped, a) == pytest.approx(getattr(base, b), rel=0, abs=1e-15)
+    for key in ("A", "E", "M", "R"):
+        assert getattr(swapped, key) == pytest.approx(getattr(base, key), rel=0, abs=1e-15)
+    assert base.B_mean == pytest.approx(np.mean(value[direction > 0]) - np.mean(value[direction < 0]),
+                                        rel=1e-12, abs=0)
