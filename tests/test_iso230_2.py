@@ -294,3 +294,18 @@ def test_invariances_offset_and_direction_swap():
         assert getattr(swapped, key) == pytest.approx(getattr(base, key), rel=0, abs=1e-15)
     assert base.B_mean == pytest.approx(np.mean(value[direction > 0]) - np.mean(value[direction < 0]),
                                         rel=1e-12, abs=0)
+
+
+@pytest.mark.parametrize("name", ["ess_w42_back_x.csv", "ess_w42_back_x2.csv", "ess_w42_back_x8a.csv",
+                                  "ess_w42_x.csv"])
+def test_real_ess_w42_drift_shows_in_repeatability(name):
+    # README: the ess_w42_* runs drift by up to 100 um or more from run to run. With n = 5 runs of
+    # range r, s >= r / sqrt(2 (n - 1)), so 4 s >= sqrt(2) r: the unidirectional repeatability must
+    # reflect the largest run-to-run spread read straight from the file.
+    path = _real(name)
+    data = read_measurements(path)
+    spread_um = max(np.ptp(data.value[(data.target == t) & (data.dir == s)]) * 1e3
+                    for t in np.unique(data.target) for s in (1, -1))
+    assert spread_um > 100
+    ax = evaluate_iso230_2(data).axes["X"]
+    assert max(ax.R_up, ax.R_down) * 1e3 >= math.sqrt(2) * spread_um * (1 - 1e-12)
