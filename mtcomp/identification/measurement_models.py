@@ -1,0 +1,513 @@
+"""Measurement models: what an error model predicts for each reading of a measurement file.
+
+A measurement model binds one :class:`~mtcomp.models.ErrorModel` to one measurement set
+(:mod:`mtcomp.io.measurements`) and turns a parameter vector ``p`` (internal units, the model's
+``param_names`` order) and the file's nuisance parameters into predicted readings, with exact
+Jacobians from CasADi (never finite differences). Every model is vectorised: one call evaluates every
+row of the file.
+
+Observations are the measured scalars of a file: rows x measured columns, blank (NaN) cells dropped.
+Each carries the data row it came from (``obs_row``, 0-based), its column (``obs_column``) and the
+factor from internal units to its file unit (``obs_unit_scale``: 1e3 for um, 1e6 for urad, 1 for mm).
+
+Kinds implemented here (docs/identification.md gives the equations):
+
+* ``points`` (SPEC 3.1): tool-tip deviation d = tip(q, p, c) - tip0(q) in the workpiece frame;
+  ``dx, dy, dz`` are its components, ``dn = n . d``. Per-row tool length (``tool_mm``).
+* ``laser`` (SPEC 3.2): the measured point is the tool tip plus the optic offset o carried by the tool
+  frame, so its deviation is ``d + (R_rel - I) o`` with ``R_rel = R R0^T`` the rotation of the tool
+  relative to the workpiece (actual times nominal transposed). A translational component E<d><L> reads
+  that deviation along direction d; an angular one the small-angle rotation of ``R_rel`` about d
+  (``vee((R_rel - R_rel^T) / 2)``, exact to O(angle^3)). For a rotary axis that carries the workpiece
+  the reading is the motion of the table relative to the tool, i.e. minus the above (so ECC is actual
+  minus commanded angle, as ISO 230-2 reports it). Nuisance per (file, axis, component): a zero offset
+  (interferometers are zeroed at the start of a set-up) and, for straightness components of linear
+  axes, a slope (alignment of the straightness optic with the axis; one um/m = one urad).
+* ``ballbar`` (SPEC 3.3): length ``| tip0 + d + R_rel b - T |`` with T the table-ball centre
+  (workpiece frame) and b the tool-ball centre relative to the nominal tool tip; nuisance: one length
+  offset per file (calibration of the bar).
+
+Other kinds (cmm, thermal, velocity) register here from ``measurement_models_extra``.
+"""
+from __future__ import annotations
+
+import weakref
+from pathlib import Path
+from typing import ClassVar
+
+import casadi as ca
+import numpy as np
+
+from ..errors import InputError
+from ..io.measurements import MeasurementSet
+from ..models.chain import ErrorModel, context_defaults as base_context_defaults
+from ..models.params import ParamSpec
+
+#: kind -> measurement model class (filled by :func:`register`)
+MEASUREMENT_MODELS: dict[str, type] = {}
+
+
+def register(cls):
+    """Class decorator: make ``cls`` the measurement model of files of kind ``cls.kind``."""
+    if not getattr(cls, "kind", ""):
+        raise TypeError(f"{cls.__name__} needs a class attribute 'kind'")
+    MEASUREMENT_MODELS[cls.kind] = cls
+    return cls
+
+
+def _load_extra_models():
+    """Import the optional module of extra kinds (cmm, thermal, velocity) so that it registers."""
+    try:
+        from . import measurement_models_extra  # noqa: F401
+    except ModuleNotFoundError as exc:
+        if exc.name != f"{__package__}.measurement_models_extra":
+            raise
+
+
+def model_class_for(kind: str, path=None) -> type:
+    """The registered measurement model class of a kind; InputError when none is registered."""
+    if kind not in MEASUREMENT_MODELS:
+        _load_extra_models()
+    if kind not in MEASUREMENT_MODELS:
+        raise InputError(f"no measurement model for {kind} files yet (available: "
+                         f"{', '.join(sorted(MEASUREMENT_MODELS))})", path)
+    return MEASUREMENT_MODELS[kind]
+
+
+def measurement_model(model: ErrorModel, data: MeasurementSet, context_defaults: dict | None = None,
+                      **options) -> "MeasurementModel":
+    """Build the registered measurement model for ``data`` (its kind decides the class)."""
+    return model_class_for(data.kind, data.path)(model, data, context_defaults, **options)
+
+
+# ------------------------------------------------------------------------------------------ context
+def context_matrix(model: ErrorModel, data: MeasurementSet, context_defaults: dict | None = None,
+                   machine=None, extra: dict | None = None) -> np.ndarray:
+    """(n_rows, model.n_context) block context of every row of ``data``.
+
+    Channel by channel (``model.context_names``): ``feed`` (mm/min) from ``feed_mm_min``, ``t`` (s)
+    from ``t_s``, ``spindle_rpm``, ``dir_<axis>`` from ``dir_<axis>`` (0 = unknown), ``tool_length``
+    (mm) from the row's ``tool_mm`` (points files) else the machine's, ``temp_<name>`` (degC) from
+    ``temp_<name>_c``. Blank cells and absent columns take ``context_defaults[name]`` when given, else
+    the model's default (feed 0, t 0, dir 0, the machine's tool length). ``extra``: name -> (n_rows,)
+    arrays for channels computed elsewhere (e.g. drift features); they win over everything.
+    """
+    machine = machine if machine is not None else model.machine
+    n = len(data)
+    defaults = base_context_defaults(machine)
+    defaults.update(context_defaults or {})
+    ctx = data.context
+    columns: dict[str, np.ndarray] = {"feed": ctx.feed, "t": ctx.t, "spindle_rpm": ctx.spindle_rpm}
+    for a in machine.axis_names:
+        d = ctx.dir_of(a).astype(float)
+        columns[f"dir_{a}"] = np.where(d == 0, np.nan, d)
+    tool = getattr(data, "tool", None)
+    if isinstance(tool, np.ndarray) and tool.shape == (n,):
+        columns["tool_length"] = tool
+    for name, values in ctx.temperatures.items():
+        columns[f"temp_{name}"] = values
+    out = np.zeros((n, model.n_context))
+    for i, name in enumerate(model.context_names):
+        default = float(defaults.get(name, 0.0))
+        col = columns.get(name)
+        if extra is not None and name in extra:
+            col = np.asarray(extra[name], dtype=float)
+        if col is None:
+            out[:, i] = default
+        else:
+            col = np.asarray(col, dtype=float)
+            out[:, i] = np.where(np.isfinite(col), col, default)
+    return out
+
+
+# ------------------------------------------------------------------------- batched CasADi evaluation
+_FUNCTIONS: "weakref.WeakKeyDictionary[ErrorModel, dict]" = weakref.WeakKeyDictionary()
+
+
+def chain_function(model: ErrorModel, name: str) -> ca.Function:
+    """CasADi functions of (q, p, c) built once per model and cached:
+
+    * ``'tip_jac'``: (d (3,) tip deviation mm, J_d (3, n_params)).
+    * ``'frame_jac'``: (d (3,), R_rel (3, 3), tip0 (3,), J_d (3, n_params), J_R (9, n_params)) with
+      ``R_rel = R R0^T`` the tool's rotation relative to nominal, J_R of vec(R_rel) in column-major order.
+    """
+    cache = _FUNCTIONS.setdefault(model, {})
+    if name not in cache:
+        q, p, c = ca.SX.sym("q", model.machine.n_axes), ca.SX.sym("p", model.n_params), \
+            ca.SX.sym("c", model.n_context)
+        tip, _, R = model.symbolic(q, p, c, errors=True)
+        tip0, _, R0 = model.symbolic(q, p, c, errors=False)
+        d = tip - tip0
+        if name == "tip_jac":
+            f = ca.Function("mm_tip_jac", [q, p, c], [d, ca.jacobian(d, p)], ["q", "p", "c"],
+                            ["d", "J_d"])
+        elif name == "frame_jac":
+            R_rel = ca.mtimes(R, R0.T)
+            f = ca.Function("mm_frame_jac", [q, p, c],
+                            [d, R_rel, tip0, ca.jacobian(d, p), ca.jacobian(ca.vec(R_rel), p)],
+                            ["q", "p", "c"], ["d", "R_rel", "tip0", "J_d", "J_R"])
+        else:
+            raise KeyError(name)
+        cache[name] = f
+    return cache[name]
+
+
+def evaluate_chain(model: ErrorModel, name: str, q: np.ndarray, p: np.ndarray, c: np.ndarray):
+    """Evaluate :func:`chain_function` ``name`` on N poses at once.
+
+    q (N, n_axes) mm and rad, p (n_params,), c (N, n_context). Returns a list with one array per
+    output, shaped (N, rows, cols) (or (N, rows) for column outputs).
+    """
+    from ..models import compiled
+    from ..models.evaluate import casadi_map_call
+    f = chain_function(model, name)
+    q = np.ascontiguousarray(q, dtype=float)
+    c = np.ascontiguousarray(c, dtype=float)
+    p = np.asarray(p, dtype=float)
+    n = q.shape[0]
+    if n == 0:
+        return [np.zeros((0, *f.size_out(k))) if f.size_out(k)[1] > 1 else np.zeros((0, f.size_out(k)[0]))
+                for k in range(f.n_out())]
+    outs = compiled.call(model, f.name(), f, q, p, c, required=False)
+    if outs is None:
+        outs = casadi_map_call(f, q, p, c)
+    result = []
+    for k, flat in enumerate(outs):
+        rows, cols = f.size_out(k)
+        result.append(flat if cols == 1 else flat.reshape(n, cols, rows).transpose(0, 2, 1))
+    return result
+
+
+# ------------------------------------------------------------------------------------- base class
+def file_tag(data: MeasurementSet) -> str:
+    """Short name of a file for nuisance parameter names: its stem."""
+    return Path(str(data.path)).stem or data.kind
+
+
+class MeasurementModel:
+    """Prediction of the readings of one measurement file from an error model.
+
+    Parameters
+    ----------
+    model : the error model (its ``param_names`` order the vector p).
+    data : the measurement set (one file).
+    context_defaults : values of context channels the file lacks (see :func:`context_matrix`).
+    options : ``tag`` (prefix of nuisance names; default: the file's stem), ``machine`` (a machine that
+        overrides the model's for tool length), ``extra_context`` (name -> (n_rows,) channels).
+
+    Attributes (set by subclasses in ``_setup``)
+    ----------
+    n_obs : number of scalar observations.
+    observed : (n_obs,) measured values, internal units (mm, rad).
+    obs_row : (n_obs,) 0-based data row of each observation.
+    obs_column : (n_obs,) name of the measured column ('dx_um', 'value_um', 'length_mm' ...).
+    obs_unit_scale : (n_obs,) factor internal -> file unit of each observation.
+    nuisance_specs : per-file nuisance parameters (names prefixed with ``<tag>:``).
+    """
+
+    kind: ClassVar[str] = ""
+
+    def __init__(self, model: ErrorModel, data: MeasurementSet, context_defaults: dict | None = None,
+                 **options):
+        if data.kind != self.kind:
+            raise ValueError(f"{type(self).__name__} models {self.kind} files, not {data.kind}")
+        self.model = model
+        self.data = data
+        self.context_defaults = dict(context_defaults or {})
+        self.options = dict(options)
+        self.tag = str(options.get("tag") or file_tag(data))
+        self.machine = options.get("machine") or model.machine
+        self.nuisance_specs: list[ParamSpec] = []
+        self.observed = np.zeros(0)
+        self.obs_row = np.zeros(0, dtype=np.int64)
+        self.obs_column = np.zeros(0, dtype=object)
+        self.obs_unit_scale = np.zeros(0)
+        self._setup()
+
+    # -------------------------------------------------------------- to be provided by subclasses
+    def _setup(self) -> None:
+        raise NotImplementedError
+
+    def predict(self, p: np.ndarray, nuisance: np.ndarray) -> np.ndarray:
+        """(n_obs,) predicted observations, internal units."""
+        return self._evaluate(p, nuisance, jacobian=False)[0]
+
+    def jacobian(self, p: np.ndarray, nuisance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """((n_obs, n_params), (n_obs, n_nuisance)): d predict / d p and d predict / d nuisance."""
+        _, J, Jn = self._evaluate(p, nuisance, jacobian=True)
+        return J, Jn
+
+    def predict_and_jacobian(self, p, nuisance):
+        """(prediction (n_obs,), J_p (n_obs, n_params), J_nuisance (n_obs, n_nuisance)) in one pass."""
+        return self._evaluate(p, nuisance, jacobian=True)
+
+    def _evaluate(self, p, nuisance, jacobian: bool):
+        raise NotImplementedError
+
+    def predict_columns(self, p: np.ndarray, nuisance: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """'pred_<column>' -> (n_rows,) predicted readings in FILE units, for every row (SPEC 5)."""
+        raise NotImplementedError
+
+    # -------------------------------------------------------------- shared helpers
+    @property
+    def n_obs(self) -> int:
+        return int(self.observed.shape[0])
+
+    @property
+    def n_nuisance(self) -> int:
+        return len(self.nuisance_specs)
+
+    @property
+    def nuisance_names(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.nuisance_specs)
+
+    def zero_nuisance(self) -> np.ndarray:
+        return np.zeros(self.n_nuisance)
+
+    def residuals(self, p, nuisance) -> np.ndarray:
+        """(n_obs,) observed minus predicted, internal units."""
+        return self.observed - self.predict(p, nuisance)
+
+    def context(self) -> np.ndarray:
+        """(n_rows, n_context) context of the file's rows."""
+        return context_matrix(self.model, self.data, self.context_defaults, self.machine,
+                              self.options.get("extra_context"))
+
+    def _check_p(self, p, nuisance):
+        p = np.asarray(p, dtype=float).reshape(-1)
+        if p.shape != (self.model.n_params,):
+            raise ValueError(f"p must have shape ({self.model.n_params},), got {p.shape}")
+        nuisance = self.zero_nuisance() if nuisance is None else np.asarray(nuisance, dtype=float).reshape(-1)
+        if nuisance.shape != (self.n_nuisance,):
+            raise ValueError(f"nuisance must have shape ({self.n_nuisance},), got {nuisance.shape}")
+        return p, nuisance
+
+    def _set_observations(self, values: np.ndarray, columns: list[str], scales: list[float]):
+        """From (n_rows, k) measured values (NaN = not measured): the flattened observation arrays,
+        row-major (row 0 col 0, row 0 col 1, ...)."""
+        values = np.asarray(values, dtype=float).reshape(len(self.data), len(columns))
+        mask = np.isfinite(values)
+        rows, cols = np.nonzero(mask)
+        self._obs_mask = mask
+        self.observed = values[mask]
+        self.obs_row = rows.astype(np.int64)
+        self.obs_column = np.asarray(columns, dtype=object)[cols]
+        self.obs_unit_scale = np.asarray(scales, dtype=float)[cols]
+
+    def __repr__(self):
+        return f"<{type(self).__name__} {self.tag}: {len(self.data)} rows, {self.n_obs} observations>"
+
+
+# ------------------------------------------------------------------------------------- points
+@register
+class PointsModel(MeasurementModel):
+    """Points files (SPEC 3.1): tip deviation d (workpiece frame), dn = n . d."""
+
+    kind = "points"
+    COLUMNS = ("dx_um", "dy_um", "dz_um", "dn_um")
+
+    def _setup(self):
+        data = self.data
+        self.q = data.axis_positions(self.machine)
+        self.c = self.context()
+        normal = np.where(np.isfinite(data.normal), data.normal, 0.0)
+        self.normal = normal
+        values = np.column_stack([data.deviation, data.normal_deviation])
+        self._set_observations(values, list(self.COLUMNS), [1e3] * 4)
+        # observation k = sum_j A[k, j] d[row_k, j]: unit vectors for dx..dz, the normal for dn
+        basis = np.zeros((len(data), 4, 3))
+        basis[:, 0, 0] = basis[:, 1, 1] = basis[:, 2, 2] = 1.0
+        basis[:, 3, :] = normal
+        self._rows, self._cols = np.nonzero(self._obs_mask)
+        self._A = basis[self._rows, self._cols]          # (n_obs, 3)
+
+    def tip_deviation(self, p, jacobian: bool = False):
+        """(n_rows, 3) tip deviation, mm (and (n_rows, 3, n_params) Jacobian when asked)."""
+        p = np.asarray(p, dtype=float)
+        out = evaluate_chain(self.model, "tip_jac", self.q, p, self.c)
+        return (out[0], out[1]) if jacobian else out[0]
+
+    def _evaluate(self, p, nuisance, jacobian):
+        p, nuisance = self._check_p(p, nuisance)
+        d, Jd = self.tip_deviation(p, jacobian=True)
+        pred = np.einsum("kj,kj->k", self._A, d[self._rows])
+        if not jacobian:
+            return pred, None, None
+        J = np.einsum("kj,kjp->kp", self._A, Jd[self._rows])
+        return pred, J, np.zeros((self.n_obs, 0))
+
+    def predict(self, p, nuisance=None):
+        p, nuisance = self._check_p(p, nuisance)
+        d = self.tip_deviation(p)
+        return np.einsum("kj,kj->k", self._A, d[self._rows])
+
+    def predict_columns(self, p, nuisance=None):
+        d = self.tip_deviation(np.asarray(p, dtype=float))
+        out = {"pred_dx_um": d[:, 0] * 1e3, "pred_dy_um": d[:, 1] * 1e3, "pred_dz_um": d[:, 2] * 1e3}
+        if "dn_um" in self.data.measured:
+            given = np.all(np.isfinite(self.data.normal), axis=1)
+            out["pred_dn_um"] = np.where(given, np.einsum("ij,ij->i", self.normal, d) * 1e3, np.nan)
+        return out
+
+
+# ------------------------------------------------------------------------------------- laser
+_LETTER_INDEX = {"X": 0, "Y": 1, "Z": 2, "A": 0, "B": 1, "C": 2}
+#: vee((R - R^T)/2) component k uses vec(R) (column-major) entries (+i, -j): R[2,1]-R[1,2] ...
+_VEE = {0: ((2, 1), (1, 2)), 1: ((0, 2), (2, 0)), 2: ((1, 0), (0, 1))}
+
+
+@register
+class LaserModel(MeasurementModel):
+    """Laser interferometer files (SPEC 3.2): component readings of the measured point.
+
+    Nuisance per (axis, component) of the file: ``<tag>:<axis>:<comp>:offset`` (um or urad) and, for
+    straightness components of a linear axis (E<d><L> with d != L, translational),
+    ``<tag>:<axis>:<comp>:slope`` (urad = um/m, times the target position).
+    """
+
+    kind = "laser"
+
+    def _setup(self):
+        data = self.data
+        m = self.machine
+        self.q = data.axis_positions(m)
+        self.c = self.context()
+        n = len(data)
+        comps = data.component
+        self.direction = np.array([_LETTER_INDEX[c[1]] for c in comps], dtype=np.int64)
+        self.angular = np.asarray(data.angular, dtype=bool)
+        # sign: readings of a rotary axis on the workpiece side are the table's motion (minus the
+        # tool-relative deviation)
+        sign = np.ones(n)
+        for i, a in enumerate(data.axis):
+            if a in "ABC" and m.axis(a).side == "workpiece":
+                sign[i] = -1.0
+        self.sign = sign
+        self.value_column = np.where(self.angular, "value_urad", "value_um")
+        mask = np.isfinite(data.value)
+        self._rows = np.flatnonzero(mask)
+        self.observed = data.value[mask]
+        self.obs_row = self._rows.astype(np.int64)
+        self.obs_column = self.value_column[mask].astype(object)
+        self.obs_unit_scale = np.where(self.angular[mask], 1e6, 1e3)
+        # nuisance: one offset per (axis, component), one slope per straightness (axis, component)
+        specs = []
+        self._offset_index = np.zeros(n, dtype=np.int64)
+        self._slope_index = np.full(n, -1, dtype=np.int64)
+        keys = sorted({(a, c) for a, c in zip(data.axis, comps)}, key=lambda k: (k[0], k[1]))
+        for a, comp in keys:
+            rows = (data.axis == a) & (comps == comp)
+            angular = comp[1] in "ABC"
+            self._offset_index[rows] = len(specs)
+            specs.append(ParamSpec(f"{self.tag}:{a}:{comp}:offset", "urad" if angular else "um",
+                                   f"nuisance:{self.tag}", False,
+                                   f"zero offset of the {comp} reading of {self.tag}"))
+            if not angular and a in "XYZ" and comp[1] != a:
+                self._slope_index[rows] = len(specs)
+                specs.append(ParamSpec(f"{self.tag}:{a}:{comp}:slope", "urad", f"nuisance:{self.tag}",
+                                       False, f"optic misalignment slope of the {comp} reading of "
+                                       f"{self.tag} (um/m)"))
+        self.nuisance_specs = specs
+        self.optic = np.asarray(data.optic, dtype=float)
+
+    def _readings(self, p, jacobian):
+        """(n_rows,) model readings without nuisance (and (n_rows, n_params) Jacobian)."""
+        d, R, _tip0, Jd, JR = evaluate_chain(self.model, "frame_jac", self.q, p, self.c)
+        n = len(self.data)
+        idx = np.arange(n)
+        k = self.direction
+        o = self.optic
+        # translational: e_k . (d + (R - I) o)
+        point_dev = d + np.einsum("nij,nj->ni", R, o) - o
+        trans = point_dev[idx, k]
+        # angular: vee((R - R^T)/2)_k
+        (i1, j1), (i2, j2) = np.array([_VEE[int(kk)][0] for kk in k]).T, \
+            np.array([_VEE[int(kk)][1] for kk in k]).T
+        ang = 0.5 * (R[idx, i1, j1] - R[idx, i2, j2])
+        value = self.sign * np.where(self.angular, ang, trans)
+        if not jacobian:
+            return value, None
+        # d point_dev_k / dp = Jd[k] + sum_j dR[k, j]/dp o_j ; vec index of R[i, j] is i + 3 j
+        JRr = JR.reshape(n, 3, 3, -1)            # [n, j (col), i (row), p] from column-major vec
+        J_trans = Jd[idx, k] + np.einsum("njp,nj->np", JRr[idx, :, k, :], o)
+        J_ang = 0.5 * (JRr[idx, j1, i1] - JRr[idx, j2, i2])
+        J = self.sign[:, None] * np.where(self.angular[:, None], J_ang, J_trans)
+        return value, J
+
+    def _nuisance_part(self, nuisance):
+        """(n_rows,) offset + slope * target, and the (n_rows, n_nuisance) design of it."""
+        n = len(self.data)
+        D = np.zeros((n, self.n_nuisance))
+        D[np.arange(n), self._offset_index] = 1.0
+        has = self._slope_index >= 0
+        D[np.flatnonzero(has), self._slope_index[has]] = self.data.target[has]
+        return D @ nuisance, D
+
+    def _evaluate(self, p, nuisance, jacobian):
+        p, nuisance = self._check_p(p, nuisance)
+        value, J = self._readings(p, jacobian)
+        extra, D = self._nuisance_part(nuisance)
+        pred = (value + extra)[self._rows]
+        if not jacobian:
+            return pred, None, None
+        return pred, J[self._rows], D[self._rows]
+
+    def predict(self, p, nuisance=None):
+        return self._evaluate(p, nuisance, jacobian=False)[0]
+
+    def predict_columns(self, p, nuisance=None):
+        p, nuisance = self._check_p(p, nuisance)
+        value, _ = self._readings(p, False)
+        value = value + self._nuisance_part(nuisance)[0]
+        out = {}
+        for col, scale, sel in (("value_um", 1e3, ~self.angular), ("value_urad", 1e6, self.angular)):
+            if col in self.data.value_columns:
+                out[f"pred_{col}"] = np.where(sel, value * scale, np.nan)
+        return out
+
+
+# ------------------------------------------------------------------------------------- ballbar
+@register
+class BallbarModel(MeasurementModel):
+    """Ball-bar files (SPEC 3.3): centre distance of table ball and tool ball, plus a per-file length
+    offset ``<tag>:length_offset`` (um) for the calibration of the bar."""
+
+    kind = "ballbar"
+
+    def _setup(self):
+        data = self.data
+        self.q = data.axis_positions(self.machine)
+        self.c = self.context()
+        self._set_observations(data.length[:, None], ["length_mm"], [1.0])
+        self._rows = self.obs_row
+        self.nuisance_specs = [ParamSpec(f"{self.tag}:length_offset", "um", f"nuisance:{self.tag}", False,
+                                         f"length calibration offset of the ball bar of {self.tag}")]
+
+    def _lengths(self, p, jacobian):
+        d, R, tip0, Jd, JR = evaluate_chain(self.model, "frame_jac", self.q, p, self.c)
+        n = len(self.data)
+        b = self.data.tool_ball
+        ball = tip0 + d + np.einsum("nij,nj->ni", R, b)
+        v = ball - self.data.table_ball
+        length = np.linalg.norm(v, axis=1)
+        if not jacobian:
+            return length, None
+        u = v / length[:, None]
+        JRr = JR.reshape(n, 3, 3, -1)            # [n, j, i, p]
+        Jball = Jd + np.einsum("njip,nj->nip", JRr, b)
+        return length, np.einsum("ni,nip->np", u, Jball)
+
+    def _evaluate(self, p, nuisance, jacobian):
+        p, nuisance = self._check_p(p, nuisance)
+        length, J = self._lengths(p, jacobian)
+        pred = length[self._rows] + nuisance[0]
+        if not jacobian:
+            return pred, None, None
+        return pred, J[self._rows], np.ones((self.n_obs, 1))
+
+    def predict(self, p, nuisance=None):
+        return self._evaluate(p, nuisance, jacobian=False)[0]
+
+    def predict_columns(self, p, nuisance=None):
+        p, nuisance = self._check_p(p, nuisance)
+        return {"pred_length_mm": self._lengths(p, False)[0] + nuisance[0]}
