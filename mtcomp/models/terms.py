@@ -301,8 +301,43 @@ class ThermalDrift(Term):
         return d
 
 
+@dataclass(frozen=True)
+class ChannelDrift(Term):
+    """Drift of the named displacement channels of thermal files (SPEC 3.5), linear in drivers.
+
+    For channels that are not tool-tip directions (a thermal file's ``disp_ch1_um`` ...), each channel
+    drifts by ``sum_f TD_<channel>_<f> * feature_f`` (um per unit of feature, see
+    :func:`mtcomp.identification.measurement_models_extra.thermal_features` for the features). The
+    term does not act on the tool tip (channels ``x``, ``y``, ``z`` are tip directions: use
+    :class:`ThermalDrift`); only the thermal measurement model reads its parameters.
+    """
+
+    driver: str
+    features: tuple[str, ...]
+    channels: tuple[str, ...]
+    kind = "channel_drift"
+
+    def key(self):
+        return f"channel_drift:{self.driver}"
+
+    def param_specs(self, machine):
+        return [ParamSpec(f"TD_{ch}_{f}", "um", self.key(), False,
+                          f"drift of channel {ch} per unit of {f}")
+                for ch in self.channels for f in self.features]
+
+    def context_names(self, machine):
+        return list(self.features)
+
+    def to_dict(self):
+        d = super().to_dict()
+        d["features"] = list(self.features)
+        d["channels"] = list(self.channels)
+        return d
+
+
 TERM_CLASSES = {cls.kind: cls for cls in
-                (Backlash, PeriodicError, FeedOffset, AbbeIRC, RotaryErrorMotion, ThermalDrift)}
+                (Backlash, PeriodicError, FeedOffset, AbbeIRC, RotaryErrorMotion, ThermalDrift,
+                 ChannelDrift)}
 
 
 def term_from_dict(data: dict, path=None) -> Term:
@@ -311,8 +346,9 @@ def term_from_dict(data: dict, path=None) -> Term:
         raise InputError(f"unknown model term {data!r} (known kinds: {', '.join(TERM_CLASSES)})", path)
     cls = TERM_CLASSES[data["kind"]]
     kwargs = {k: v for k, v in data.items() if k != "kind"}
-    if "features" in kwargs:
-        kwargs["features"] = tuple(kwargs["features"])
+    for key in ("features", "channels"):
+        if key in kwargs:
+            kwargs[key] = tuple(kwargs[key])
     try:
         return cls(**kwargs)
     except TypeError as exc:
