@@ -1,0 +1,636 @@
+"""Identification: one weighted least-squares fit of an error model to any mix of measurement files.
+
+:func:`identify` fits the parameters of an :class:`~mtcomp.models.ErrorModel` (by default its base
+parameters, ``model.base_mask``) and every file's nuisance parameters (laser zero offsets and optic
+slopes, ball-bar length offsets ...) to all observations at once, and returns an
+:class:`IdentificationResult`.
+
+Method (docs/identification.md):
+
+* Residuals ``r = w (observed - predicted)`` with one weight per observation. Default weighting
+  ``"unit"``: every residual in um (translational, lengths) or urad (angular), i.e. ``w = 1e3`` per mm
+  and ``1e6`` per rad, the same for every file. ``"noise"``: a first fit with unit weights estimates
+  each file's noise (rms residual per file and unit, corrected for the degrees of freedom the file
+  uses), then the fit is repeated with ``w = 1 / noise``. A dict ``{tag: noise}`` (um or urad) fixes
+  the noise per file.
+* Gauss-Newton on the unknowns x = (free parameters, nuisance parameters), with the exact CasADi
+  Jacobian, columns scaled to unit norm (``D``), the normal equations of the scaled problem solved in
+  the subspace of well-determined directions, then one step of iterative refinement (corrected
+  semi-normal equations). The model is nearly linear in p, so 2-3 iterations converge; a step that
+  increases the cost is halved (up to 20 times).
+* Rank: the singular values ``s`` of the scaled weighted Jacobian at the start point (the eigenvalues
+  of its normal matrix). Directions with ``s / s_max <= rcond`` (default 1e-6) are the combinations the
+  data cannot determine: they are named (the parameters with weight above 10 % of the largest in
+  each direction, in file units, normalised on a pivot parameter) and held at their start values
+  (zero by default) by solving only in the orthogonal complement, i.e. the minimum-norm solution of
+  the scaled problem. The null space is fixed at the start point so that combinations that would be
+  determined only by second-order effects of the errors themselves stay undetermined.
+* Covariance of the unknowns: ``s2 D B (B^T Js^T Js B)^-1 B^T D`` with B the determined directions and
+  ``s2 = sum r^2 / (n_obs - rank)``; standard errors are its diagonal. A parameter with weight in an
+  undetermined direction gets std error NaN and ``determined = False``.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg
+
+from ..errors import InputError
+from ..io.measurements import MeasurementSet
+from ..machine import Machine
+from ..models.chain import ErrorModel
+from ..models.model_file import FittedModel
+from ..models.params import ParameterSet, ParamSpec
+from .measurement_models import MeasurementModel, measurement_model
+
+#: relative singular-value threshold below which a direction counts as undetermined
+DEFAULT_RCOND = 1e-6
+#: a parameter is named in an undetermined combination when its weight exceeds this share of the largest
+NAME_SHARE = 0.1
+
+
+def error_scale(column: str) -> float:
+    """Internal -> error unit of a reading column: 1e6 (urad) for '_urad' columns, else 1e3 (um)."""
+    return 1e6 if str(column).endswith("_urad") else 1e3
+
+
+# ------------------------------------------------------------------------------------- results
+@dataclass
+class FileResiduals:
+    """Residuals of one file at the solution.
+
+    tag, path, kind : the file. rows : (n_obs,) 0-based data row of each observation.
+    file_rows : (n_obs,) 1-based row in the file (header = row 0). columns : (n_obs,) measured column.
+    residual : (n_obs,) observed minus predicted, FILE units (um, urad, mm as the column says).
+    weight : (n_obs,) weight per internal unit used in the fit.
+    """
+
+    tag: str
+    path: str
+    kind: str
+    rows: np.ndarray
+    file_rows: np.ndarray
+    columns: np.ndarray
+    residual: np.ndarray
+    weight: np.ndarray
+
+    @property
+    def n_obs(self) -> int:
+        return int(self.residual.shape[0])
+
+    def rms(self) -> dict[str, float]:
+        """Root mean square residual per measured column, file units."""
+        return {str(c): float(np.sqrt(np.mean(self.residual[self.columns == c] ** 2)))
+                for c in dict.fromkeys(self.columns.tolist())}
+
+    def rms_error_units(self) -> dict[str, float]:
+        """rms per error unit ('um' or 'urad'): lengths in mm are reported in um."""
+        out = {}
+        for unit in ("um", "urad"):
+            sel = np.array([(error_scale(c) == 1e6) == (unit == "urad") for c in self.columns], bool)
+            if sel.any():
+                scale = np.array([error_scale(c) / _file_scale(c) for c in self.columns[sel]])
+                out[unit] = float(np.sqrt(np.mean((self.residual[sel] * scale) ** 2)))
+        return out
+
+
+def _file_scale(column: str) -> float:
+    from ..io.measurements import file_unit_scale
+    return file_unit_scale(str(column))
+
+
+@dataclass
+class UndeterminedCombination:
+    """A direction of the unknowns the data cannot determine.
+
+    terms : [(name, coefficient)], coefficients in FILE units of each unknown, normalised so that the
+        pivot (first) has 1: moving the unknowns by ``t * coefficient`` leaves the prediction unchanged
+        (to first order) for any t.
+    singular_value : relative singular value s / s_max of the direction.
+    """
+
+    terms: list[tuple[str, float]]
+    singular_value: float
+
+    def __str__(self):
+        parts = []
+        for k, (name, coef) in enumerate(self.terms):
+            sign = "-" if coef < 0 else ("+" if k else "")
+            parts.append(f"{sign} {abs(coef):.3g} {name}" if k else f"{sign}{abs(coef):.3g} {name}")
+        return " ".join(parts)
+
+    @property
+    def names(self) -> list[str]:
+        return [n for n, _ in self.terms]
+
+
+@dataclass
+class IdentificationResult:
+    """What :func:`identify` returns (values in internal units; ``summary()`` prints file units).
+
+    model : the error model. specs : ParamSpec of every model parameter (``model.param_specs``).
+    values : (n_params,) fitted values (held parameters keep their start values).
+    std_errors : (n_params,) standard errors; NaN for held and undetermined parameters.
+    free : (n_params,) bool, fitted. determined : (n_params,) bool, free and not in a null direction.
+    nuisance_specs, nuisance_values, nuisance_std_errors : the files' nuisance parameters.
+    unknown_names : names of the fitted unknowns (free parameters then nuisance), the order of
+        ``covariance`` and ``correlation`` (internal units).
+    undetermined : combinations the data cannot determine.
+    rank, condition_number (of the determined part), singular_values (relative, descending).
+    files : residuals per file. n_obs, n_params (fitted unknowns), dof = n_obs - rank.
+    sigma : sqrt(weighted residual sum of squares / dof) (1 means residuals match the weights).
+    iterations, converged, cost (weighted residual sum of squares), seconds.
+    fitted_model : FittedModel (values and std errors) for save_model.
+    """
+
+    model: ErrorModel
+    specs: tuple[ParamSpec, ...]
+    values: np.ndarray
+    std_errors: np.ndarray
+    free: np.ndarray
+    determined: np.ndarray
+    nuisance_specs: list[ParamSpec]
+    nuisance_values: np.ndarray
+    nuisance_std_errors: np.ndarray
+    unknown_names: tuple[str, ...]
+    covariance: np.ndarray
+    undetermined: list[UndeterminedCombination]
+    rank: int
+    condition_number: float
+    singular_values: np.ndarray
+    files: list[FileResiduals]
+    n_obs: int
+    n_params: int
+    dof: int
+    sigma: float
+    iterations: int
+    converged: bool
+    cost: float
+    seconds: float
+    weighting: str
+    fitted_model: FittedModel = None
+    info: dict = field(default_factory=dict)
+
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.specs)
+
+    @property
+    def correlation(self) -> np.ndarray:
+        """(n_unknowns, n_unknowns) correlation matrix of the unknowns (NaN where undetermined)."""
+        sd = np.sqrt(np.diag(self.covariance))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            corr = self.covariance / np.outer(sd, sd)
+        return corr
+
+    def value(self, name: str) -> tuple[float, float]:
+        """(value, std error) of a parameter or nuisance parameter, FILE units."""
+        for specs, vals, errs in ((self.specs, self.values, self.std_errors),
+                                  (self.nuisance_specs, self.nuisance_values, self.nuisance_std_errors)):
+            for i, s in enumerate(specs):
+                if s.name == name:
+                    return float(vals[i] * s.to_file), float(errs[i] * s.to_file)
+        raise KeyError(name)
+
+    def rms(self) -> dict[str, dict[str, float]]:
+        """tag -> column -> rms residual, file units."""
+        return {f.tag: f.rms() for f in self.files}
+
+    def largest_correlations(self, k: int = 5, threshold: float = 0.9):
+        """Up to k pairs (name_a, name_b, r) of determined unknowns with |r| >= threshold."""
+        corr = self.correlation
+        n = corr.shape[0]
+        iu = np.triu_indices(n, 1)
+        r = corr[iu]
+        ok = np.isfinite(r) & (np.abs(r) >= threshold)
+        order = np.argsort(-np.abs(r[ok]))[:k]
+        a, b = iu[0][ok][order], iu[1][ok][order]
+        return [(self.unknown_names[i], self.unknown_names[j], float(corr[i, j])) for i, j in zip(a, b)]
+
+    def to_dict(self) -> dict:
+        """Plain summary (file units) for MODEL.json ``info`` and reports."""
+        return {"n_obs": self.n_obs, "n_params": self.n_params, "rank": self.rank, "dof": self.dof,
+                "sigma": self.sigma, "condition_number": self.condition_number,
+                "iterations": self.iterations, "converged": self.converged, "weighting": self.weighting,
+                "undetermined": [str(u) for u in self.undetermined],
+                "files": [{"tag": f.tag, "path": f.path, "kind": f.kind, "n_obs": f.n_obs,
+                           "rms": f.rms()} for f in self.files],
+                "nuisance": {s.name: {"value": float(v * s.to_file), "std_error": float(e * s.to_file),
+                                      "unit": s.unit}
+                             for s, v, e in zip(self.nuisance_specs, self.nuisance_values,
+                                                self.nuisance_std_errors)}}
+
+    def summary(self) -> str:
+        """A table a person can read: parameters with value +- std error (file units), the nuisance
+        parameters, the undetermined combinations and the rms residual of every file."""
+        m = self.model.machine
+        lines = [f"Identification of {m.name} ({m.topology}): {self.n_obs} observations in "
+                 f"{len(self.files)} file(s), {self.n_params} unknowns, rank {self.rank}, dof {self.dof}",
+                 f"weighting {self.weighting}; sigma {self.sigma:.4g}; condition number "
+                 f"{self.condition_number:.3g}; {self.iterations} iteration(s)"
+                 f"{'' if self.converged else ' (NOT converged)'}; {self.seconds:.2f} s", ""]
+        lines.append(f"{'parameter':<28} {'value':>12} {'std error':>11}  unit")
+        for i, s in enumerate(self.specs):
+            if not self.free[i]:
+                continue
+            v = self.values[i] * s.to_file
+            if self.determined[i]:
+                e = f"{self.std_errors[i] * s.to_file:11.4g}"
+            else:
+                e = f"{'undeterm.':>11}"
+            lines.append(f"{s.name:<28} {v:12.5g} {e}  {s.unit}")
+        held = [s.name for i, s in enumerate(self.specs) if not self.free[i]]
+        if held:
+            lines.append(f"held at their start values: {len(held)} parameter(s)"
+                         + (f" ({', '.join(held[:8])}{', ...' if len(held) > 8 else ''})"))
+        if self.nuisance_specs:
+            lines += ["", f"{'nuisance parameter':<28} {'value':>12} {'std error':>11}  unit"]
+            for s, v, e in zip(self.nuisance_specs, self.nuisance_values, self.nuisance_std_errors):
+                es = f"{e * s.to_file:11.4g}" if np.isfinite(e) else f"{'undeterm.':>11}"
+                lines.append(f"{s.name:<28} {v * s.to_file:12.5g} {es}  {s.unit}")
+        lines.append("")
+        if self.undetermined:
+            lines.append(f"{len(self.undetermined)} combination(s) the data cannot determine "
+                         "(held at zero; file units):")
+            for u in self.undetermined:
+                lines.append(f"  {u}")
+        else:
+            lines.append("every fitted parameter is determined by the data")
+        corr = self.largest_correlations()
+        if corr:
+            lines.append("strongest correlations: " + ", ".join(f"{a}/{b} {r:+.3f}" for a, b, r in corr))
+        lines += ["", f"{'file':<24} {'kind':<8} {'n_obs':>7}  rms residual"]
+        for f in self.files:
+            rms = ", ".join(f"{c} {v:.4g}" for c, v in f.rms().items())
+            lines.append(f"{f.tag:<24} {f.kind:<8} {f.n_obs:>7}  {rms}")
+        return "\n".join(lines)
+
+
+# ------------------------------------------------------------------------------------- identify
+def _free_mask(model: ErrorModel, free, hold) -> np.ndarray:
+    names = model.param_names
+    if free is None:
+        mask = model.base_mask.copy()
+    elif isinstance(free, np.ndarray) and free.dtype == bool:
+        if free.shape != (model.n_params,):
+            raise ValueError(f"free mask must have shape ({model.n_params},)")
+        mask = free.copy()
+    else:
+        free = list(free)
+        unknown = [n for n in free if n not in names]
+        if unknown:
+            raise InputError(f"unknown parameter(s) {', '.join(unknown)} (not in this model)")
+        mask = np.isin(np.asarray(names), free)
+    for name in hold or ():
+        if name not in names:
+            raise InputError(f"cannot hold {name!r}: no such parameter in this model")
+        mask[names.index(name)] = False
+    return mask
+
+
+def _unique_tags(datasets) -> list[str]:
+    from .measurement_models import file_tag
+    tags, seen = [], {}
+    for d in datasets:
+        t = d.tag if isinstance(d, MeasurementModel) else file_tag(d)
+        if t in seen:
+            seen[t] += 1
+            t = f"{t}#{seen[t]}"
+        else:
+            seen[t] = 1
+        tags.append(t)
+    return tags
+
+
+def build_measurement_models(model: ErrorModel, datasets, context_defaults=None, machine=None,
+                             **options) -> list[MeasurementModel]:
+    """A measurement model per data set (MeasurementModel instances are passed through), with unique
+    tags (file stems, ``#2``... appended on repeats)."""
+    out = []
+    for d, tag in zip(datasets, _unique_tags(datasets)):
+        if isinstance(d, MeasurementModel):
+            out.append(d)
+        elif isinstance(d, MeasurementSet):
+            opts = dict(options)
+            if machine is not None:
+                opts["machine"] = machine
+            out.append(measurement_model(model, d, context_defaults, tag=tag, **opts))
+        else:
+            raise TypeError(f"not a measurement set: {type(d).__name__}")
+    return out
+
+
+def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, weights="unit",
+             rcond: float = DEFAULT_RCOND, max_iterations: int = 20, tol: float = 1e-10,
+             context_defaults: dict | None = None, info: dict | None = None) -> IdentificationResult:
+    """Fit an error model to measurement files (all at once).
+
+    Parameters
+    ----------
+    machine_or_model : Machine (its base model is fitted), ErrorModel, or FittedModel (its values are
+        the start point and the values of held parameters; its context defaults are used).
+    datasets : MeasurementSet or MeasurementModel instances (any mix of kinds with a registered model).
+    free : None (``model.base_mask``), a bool mask (n_params,), or parameter names.
+    hold : names to hold at their start values even if ``free`` includes them.
+    initial : (n_params,) start values, internal units (default zeros, or the FittedModel's).
+    weights : ``"unit"`` (residuals in um and urad), ``"noise"`` (two passes, 1/noise per file and
+        unit) or a dict tag -> noise (um for translational/length columns, urad for angular ones).
+    rcond : relative singular-value threshold for undetermined directions.
+    max_iterations, tol : Gauss-Newton stops when the scaled step is below tol (relative).
+    context_defaults : values of context channels the files lack.
+    Returns an :class:`IdentificationResult`.
+    """
+    t0 = time.perf_counter()
+    fitted_in = machine_or_model if isinstance(machine_or_model, FittedModel) else None
+    if isinstance(machine_or_model, Machine):
+        model = ErrorModel(machine_or_model)
+    elif isinstance(machine_or_model, ErrorModel):
+        model = machine_or_model
+    elif fitted_in is not None:
+        model = fitted_in.model
+    else:
+        raise TypeError("machine_or_model must be a Machine, ErrorModel or FittedModel")
+    ctx_defaults = dict(fitted_in.context_defaults) if fitted_in is not None else {}
+    ctx_defaults.update(context_defaults or {})
+    p0 = np.zeros(model.n_params)
+    if fitted_in is not None:
+        p0 = fitted_in.params.values.copy()
+    if initial is not None:
+        p0 = np.asarray(initial, dtype=float).reshape(model.n_params).copy()
+    mask = _free_mask(model, free, hold)
+    mms = build_measurement_models(model, list(datasets), ctx_defaults)
+    if not mms or sum(m.n_obs for m in mms) == 0:
+        raise InputError("no observations to fit (every measured cell is blank)")
+    problem = _Problem(model, mms, mask, p0)
+
+    if isinstance(weights, str) and weights == "unit":
+        w = problem.unit_weights()
+        label = "unit (um, urad)"
+    elif isinstance(weights, str) and weights == "noise":
+        first = problem.solve(problem.unit_weights(), rcond, max_iterations, tol)
+        w = problem.noise_weights(first)
+        label = "1/noise per file"
+    elif isinstance(weights, dict):
+        w = problem.dict_weights(weights)
+        label = "given noise per file"
+    else:
+        raise ValueError(f"weights must be 'unit', 'noise' or a dict, not {weights!r}")
+    sol = problem.solve(w, rcond, max_iterations, tol)
+    result = problem.result(sol, w, label, ctx_defaults, time.perf_counter() - t0, info)
+    return result
+
+
+@dataclass
+class _Solution:
+    x: np.ndarray
+    r: np.ndarray               # weighted residuals at x
+    cov: np.ndarray             # covariance of the unknowns (internal units)
+    null: np.ndarray            # (n_unknowns, n_null) null directions, scaled coordinates
+    scale: np.ndarray           # column scaling D
+    sv: np.ndarray              # relative singular values, descending
+    rank: int
+    cond: float
+    iterations: int
+    converged: bool
+
+
+class _Problem:
+    """The stacked least-squares problem of several measurement models."""
+
+    def __init__(self, model, mms, mask, p0):
+        self.model = model
+        self.mms = mms
+        self.mask = mask
+        self.free_idx = np.flatnonzero(mask)
+        self.p0 = p0
+        self.n_free = self.free_idx.size
+        self.nuis_slices = []
+        k = self.n_free
+        for m in mms:
+            self.nuis_slices.append(slice(k, k + m.n_nuisance))
+            k += m.n_nuisance
+        self.n_unknowns = k
+        self.obs_slices = []
+        k = 0
+        for m in mms:
+            self.obs_slices.append(slice(k, k + m.n_obs))
+            k += m.n_obs
+        self.n_obs = k
+        self.observed = np.concatenate([m.observed for m in mms])
+
+    # --------------------------------------------------------------- weights
+    def unit_weights(self):
+        return np.concatenate([np.array([error_scale(c) for c in m.obs_column], dtype=float)
+                               if m.n_obs else np.zeros(0) for m in self.mms])
+
+    def _groups(self):
+        """(file index, unit, observation index array) per file and error unit."""
+        for i, (m, sl) in enumerate(zip(self.mms, self.obs_slices)):
+            scales = np.array([error_scale(c) for c in m.obs_column], dtype=float)
+            for s in np.unique(scales):
+                yield i, s, np.arange(sl.start, sl.stop)[scales == s]
+
+    def noise_weights(self, sol: "_Solution"):
+        """1/noise per file and unit from the residuals of a unit-weight fit."""
+        w = self.unit_weights()
+        dof_share = sol.dof_fraction if hasattr(sol, "dof_fraction") else \
+            max(self.n_obs - sol.rank, 1) / self.n_obs
+        for _, s, idx in self._groups():
+            resid = sol.r[idx] / w[idx] * s   # error units
+            noise = np.sqrt(np.sum(resid ** 2) / max(idx.size * dof_share, 1e-300))
+            if noise > 0:
+                w[idx] = s / noise
+        return w
+
+    def dict_weights(self, noise: dict):
+        w = self.unit_weights()
+        tags = {m.tag: i for i, m in enumerate(self.mms)}
+        for tag in noise:
+            if tag not in tags:
+                raise InputError(f"weights name file {tag!r}, which is not among the data "
+                                 f"({', '.join(tags)})")
+        for i, s, idx in self._groups():
+            tag = self.mms[i].tag
+            if tag in noise:
+                sigma = float(noise[tag])
+                if not sigma > 0:
+                    raise InputError(f"noise of file {tag!r} must be positive, got {sigma}")
+                w[idx] = s / sigma
+        return w
+
+    # --------------------------------------------------------------- evaluation
+    def params(self, x):
+        p = self.p0.copy()
+        p[self.free_idx] = x[:self.n_free]
+        return p
+
+    def evaluate(self, x, jacobian=True):
+        """Unweighted (prediction (n_obs,), J (n_obs, n_unknowns))."""
+        p = self.params(x)
+        pred = np.empty(self.n_obs)
+        J = np.zeros((self.n_obs, self.n_unknowns)) if jacobian else None
+        for m, so, sn in zip(self.mms, self.obs_slices, self.nuis_slices):
+            if m.n_obs == 0:
+                continue
+            nu = x[sn]
+            if jacobian:
+                y, Jp, Jn = m.predict_and_jacobian(p, nu)
+                J[so, :self.n_free] = Jp[:, self.free_idx]
+                J[so, sn] = Jn
+            else:
+                y = m.predict(p, nu)
+            pred[so] = y
+        return pred, J
+
+    # --------------------------------------------------------------- Gauss-Newton
+    def solve(self, w, rcond, max_iterations, tol) -> _Solution:
+        x = np.zeros(self.n_unknowns)
+        x[:self.n_free] = self.p0[self.free_idx]
+        pred, J = self.evaluate(x)
+        r = w * (self.observed - pred)
+        Jw = J * w[:, None]
+        norms = np.linalg.norm(Jw, axis=0)
+        scale = np.where(norms > 0, 1.0 / np.where(norms > 0, norms, 1.0), 1.0)
+        A = _normal_matrix(Jw, scale)
+        evals, V = np.linalg.eigh(A)
+        order = np.argsort(evals)[::-1]
+        evals, V = evals[order], V[:, order]
+        sv = np.sqrt(np.clip(evals, 0.0, None))
+        s_max = sv[0] if sv.size and sv[0] > 0 else 1.0
+        rel = sv / s_max
+        keep = rel > rcond
+        B, null = V[:, keep], V[:, ~keep]
+        rank = int(keep.sum())
+        cond = float(rel[0] / rel[keep][-1]) if rank else np.inf
+        cost = float(r @ r)
+        converged = False
+        iterations = 0
+        AB = B.T @ A @ B
+        for it in range(1, max_iterations + 1):
+            iterations = it
+            dz = _step(Jw, scale, B, AB, r)
+            dx = scale * dz
+            z_norm = np.linalg.norm(x / scale)
+            # backtracking (rarely needed: the model is nearly linear)
+            step = 1.0
+            for _ in range(20):
+                x_new = x + step * dx
+                pred_new, _ = self.evaluate(x_new, jacobian=False)
+                r_new = w * (self.observed - pred_new)
+                cost_new = float(r_new @ r_new)
+                if cost_new <= cost * (1 + 1e-12) + 1e-300:
+                    break
+                step *= 0.5
+            small = np.linalg.norm(step * dz) <= tol * (1.0 + z_norm)
+            x, r, cost = x_new, r_new, cost_new
+            if small or cost == 0.0:
+                converged = True
+                break
+            pred, J = self.evaluate(x)
+            Jw = J * w[:, None]
+            A = _normal_matrix(Jw, scale)
+            AB = B.T @ A @ B
+        dof = max(self.n_obs - rank, 0)
+        s2 = cost / dof if dof > 0 else np.nan
+        if rank:
+            ABinv = scipy.linalg.pinvh(AB)
+            cov = s2 * (scale[:, None] * (B @ ABinv @ B.T) * scale[None, :])
+        else:
+            cov = np.full((self.n_unknowns, self.n_unknowns), np.nan)
+        return _Solution(x, r, cov, null, scale, rel, rank, cond, iterations, converged)
+
+    # --------------------------------------------------------------- result
+    def result(self, sol: _Solution, w, label, ctx_defaults, seconds, info) -> IdentificationResult:
+        model = self.model
+        nuis_specs = [s for m in self.mms for s in m.nuisance_specs]
+        unknown_specs = [model.param_specs[i] for i in self.free_idx] + nuis_specs
+        unknown_names = tuple(s.name for s in unknown_specs)
+        to_file = np.array([s.to_file for s in unknown_specs])
+        # undetermined unknowns: those with weight in a null direction
+        if sol.null.shape[1]:
+            in_null = np.linalg.norm(sol.null, axis=1) > 1e-6
+        else:
+            in_null = np.zeros(self.n_unknowns, dtype=bool)
+        se = np.sqrt(np.clip(np.diag(sol.cov), 0.0, None))
+        se[in_null] = np.nan
+        cov = sol.cov.copy()
+        cov[in_null, :] = np.nan
+        cov[:, in_null] = np.nan
+        combos = _name_null_space(sol.null, sol.scale, to_file, unknown_names, sol.sv[sol.rank:])
+
+        values = self.params(sol.x)
+        std = np.full(model.n_params, np.nan)
+        std[self.free_idx] = se[:self.n_free]
+        determined = np.zeros(model.n_params, dtype=bool)
+        determined[self.free_idx] = ~in_null[:self.n_free]
+        files = []
+        pred, _ = self.evaluate(sol.x, jacobian=False)
+        for m, so in zip(self.mms, self.obs_slices):
+            resid = (m.observed - pred[so]) * m.obs_unit_scale
+            files.append(FileResiduals(m.tag, str(m.data.path), m.kind, m.obs_row.copy(),
+                                       np.asarray(m.data.row)[m.obs_row], np.asarray(m.obs_column),
+                                       resid, w[so]))
+        dof = max(self.n_obs - sol.rank, 0)
+        cost = float(sol.r @ sol.r)
+        res = IdentificationResult(
+            model=model, specs=model.param_specs, values=values, std_errors=std, free=self.mask.copy(),
+            determined=determined, nuisance_specs=nuis_specs, nuisance_values=sol.x[self.n_free:].copy(),
+            nuisance_std_errors=se[self.n_free:].copy(), unknown_names=unknown_names, covariance=cov,
+            undetermined=combos, rank=sol.rank, condition_number=sol.cond, singular_values=sol.sv,
+            files=files, n_obs=self.n_obs, n_params=self.n_unknowns, dof=dof,
+            sigma=float(np.sqrt(cost / dof)) if dof else float("nan"), iterations=sol.iterations,
+            converged=sol.converged, cost=cost, seconds=seconds, weighting=label, info=dict(info or {}))
+        params = ParameterSet(model.param_specs, values, std)
+        res.fitted_model = FittedModel(model, params, dict(ctx_defaults),
+                                       {"identify": res.to_dict(), **(info or {})})
+        return res
+
+
+def _normal_matrix(Jw, scale):
+    """(Jw D)^T (Jw D) without forming Jw D twice."""
+    Js = Jw * scale[None, :]
+    return Js.T @ Js
+
+
+def _step(Jw, scale, B, AB, r):
+    """Scaled Gauss-Newton step restricted to span(B), with one refinement (corrected semi-normal
+    equations: normal-equation accuracy close to a QR solve)."""
+    Js = Jw * scale[None, :]
+    if B.shape[1] == 0:
+        return np.zeros(Js.shape[1])
+    cho = scipy.linalg.cho_factor(AB)
+    y = scipy.linalg.cho_solve(cho, B.T @ (Js.T @ r))
+    r2 = r - Js @ (B @ y)
+    y = y + scipy.linalg.cho_solve(cho, B.T @ (Js.T @ r2))
+    return B @ y
+
+
+def _name_null_space(null, scale, to_file, names, svals) -> list[UndeterminedCombination]:
+    """Readable basis of the null space: pivoted so that each direction has one leading unknown.
+
+    null : (n, k) orthonormal null directions in scaled coordinates. A step ``D v`` of the unknowns
+    (internal units) is ``D v * to_file`` in file units.
+    """
+    k = null.shape[1]
+    if k == 0:
+        return []
+    phys = null * (scale * to_file)[:, None]           # file-unit directions
+    # pivot on the unknowns with the largest weight (in scaled coordinates, where weights compare)
+    _, _, piv = scipy.linalg.qr(null.T, pivoting=True)
+    piv = piv[:k]
+    M = null[piv, :]                                   # (k, k)
+    basis_scaled = null @ np.linalg.solve(M, np.eye(k))   # 1 at its own pivot, 0 at the others
+    out = []
+    for j in range(k):
+        v = basis_scaled[:, j]
+        big = np.abs(v) >= NAME_SHARE * np.abs(v).max()
+        f = v * scale * to_file
+        pivot = piv[j]
+        idx = [pivot] + [i for i in np.flatnonzero(big) if i != pivot]
+        coef = f / f[pivot]
+        out.append(UndeterminedCombination([(names[i], float(coef[i])) for i in idx],
+                                           float(svals[j]) if j < len(svals) else 0.0))
+    del phys
+    return out

@@ -1,0 +1,216 @@
+"""Measurement sets built from arrays (no file): for tests, benchmarks and simulated campaigns.
+
+Each ``make_*`` returns the same object :func:`mtcomp.io.measurements.read_measurements` would return
+for a CSV file with those columns (header and cells included, so ``mtcomp predict`` can repeat them).
+:func:`with_values` puts simulated readings into a set (e.g. a measurement model's prediction plus noise).
+Inputs in internal units (mm, rad); cells are written in file units (um, urad, deg).
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..io.measurements import BallbarData, Context, LaserData, MeasurementSet, PointsData, format_cell
+
+
+def _context(n, dirs=None, feed=None, t=None, run=None) -> Context:
+    return Context(feed=np.full(n, np.nan) if feed is None else np.asarray(feed, float),
+                   dirs=np.zeros((n, 6), np.int8) if dirs is None else np.asarray(dirs, np.int8),
+                   t=np.full(n, np.nan) if t is None else np.asarray(t, float),
+                   run=np.full(n, -1, np.int64) if run is None else np.asarray(run, np.int64),
+                   spindle_rpm=np.full(n, np.nan), temperatures={})
+
+
+def _cells(columns: dict) -> tuple[tuple[str, ...], tuple[tuple[str, ...], ...]]:
+    header = tuple(columns)
+    cols = []
+    for v in columns.values():
+        v = np.asarray(v)
+        cols.append([str(x) if v.dtype.kind in "US" else format_cell(float(x)) for x in v])
+    rows = tuple(zip(*cols)) if cols else ()
+    return header, tuple(tuple(r) for r in rows)
+
+
+def make_points(xyz, abc=None, tool=None, deviation=None, normal=None, normal_deviation=None,
+                path: str = "points.csv") -> PointsData:
+    """Points set. xyz (n, 3) mm; abc (n, 3) rad or None; tool (n,) mm or None; deviation (n, 3) mm
+    (NaN = not measured; default zeros); normal (n, 3) with normal_deviation (n,) mm for dn rows."""
+    xyz = np.asarray(xyz, float)
+    n = len(xyz)
+    dev = np.zeros((n, 3)) if deviation is None else np.asarray(deviation, float)
+    abc_a = np.zeros((n, 3)) if abc is None else np.asarray(abc, float)
+    cols = {"x_mm": xyz[:, 0], "y_mm": xyz[:, 1], "z_mm": xyz[:, 2]}
+    rotary = ()
+    if abc is not None:
+        rotary = ("a_deg", "b_deg", "c_deg")
+        for k, name in enumerate(rotary):
+            cols[name] = np.degrees(abc_a[:, k])
+    tool_a = np.full(n, np.nan) if tool is None else np.asarray(tool, float) * np.ones(n)
+    if tool is not None:
+        cols["tool_mm"] = tool_a
+    measured = ["dx_um", "dy_um", "dz_um"]
+    for k, name in enumerate(measured):
+        cols[name] = dev[:, k] * 1e3
+    nrm = np.full((n, 3), np.nan) if normal is None else np.asarray(normal, float)
+    dn = np.full(n, np.nan)
+    if normal is not None:
+        dn = np.asarray(normal_deviation, float) if normal_deviation is not None else np.zeros(n)
+        for k, name in enumerate(("nx", "ny", "nz")):
+            cols[name] = nrm[:, k]
+        cols["dn_um"] = dn * 1e3
+        measured.append("dn_um")
+    header, rows = _cells(cols)
+    return PointsData(path=path, header=header, rows=rows, row=np.arange(1, n + 1), context=_context(n),
+                      xyz=xyz, abc=abc_a, rotary_columns=rotary, tool=tool_a, deviation=dev,
+                      normal_deviation=dn, normal=nrm, measured=tuple(measured))
+
+
+def make_laser(axis, component, target, direction=None, run=None, static=None, optic=None,
+               value=None, path: str = "laser.csv") -> LaserData:
+    """Laser set. axis (n,) letters; component (n,) e.g. 'EXX'; target (n,) mm or rad; direction
+    (n,) +1/-1 (default +1); run (n,) (default 0); static (n, 6) positions of X Y Z (mm) A B C (rad)
+    (NaN or 0 where unused); optic (n, 3) mm; value (n,) mm or rad (default zeros)."""
+    axis = np.asarray(axis, dtype="<U1")
+    n = len(axis)
+    component = np.asarray(component, dtype="<U3")
+    target = np.asarray(target, float)
+    direction = np.ones(n, np.int8) if direction is None else np.asarray(direction, np.int8)
+    run = np.zeros(n, np.int64) if run is None else np.asarray(run, np.int64)
+    static = np.zeros((n, 6)) if static is None else np.asarray(static, float)
+    optic = np.zeros((n, 3)) if optic is None else np.asarray(optic, float)
+    value = np.zeros(n) if value is None else np.asarray(value, float)
+    angular = np.array([c[1] in "ABC" for c in component])
+    rotary = np.isin(axis, list("ABC"))
+    cols = {"axis": axis, "component": component}
+    if (~rotary).any():
+        cols["target_mm"] = np.where(rotary, np.nan, target)
+    if rotary.any():
+        cols["target_deg"] = np.where(rotary, np.degrees(target), np.nan)
+    cols["dir"] = direction
+    cols["run"] = run
+    value_columns = []
+    if (~angular).any():
+        cols["value_um"] = np.where(angular, np.nan, value * 1e3)
+        value_columns.append("value_um")
+    if angular.any():
+        cols["value_urad"] = np.where(angular, value * 1e6, np.nan)
+        value_columns.append("value_urad")
+    for k, name in enumerate(("x_mm", "y_mm", "z_mm")):
+        cols[name] = static[:, k]
+    for k, name in enumerate(("a_deg", "b_deg", "c_deg")):
+        cols[name] = np.degrees(static[:, 3 + k])
+    for k, name in enumerate(("optic_x_mm", "optic_y_mm", "optic_z_mm")):
+        cols[name] = optic[:, k]
+    header, rows = _cells(cols)
+    dirs = np.zeros((n, 6), np.int8)
+    for i, a in enumerate(axis):
+        dirs[i, "XYZABC".index(a)] = direction[i]
+    return LaserData(path=path, header=header, rows=rows, row=np.arange(1, n + 1),
+                     context=_context(n, dirs=dirs, run=run), axis=axis, component=component,
+                     angular=angular, target=target, dir=direction, run=run, value=value,
+                     xyz=static[:, :3].copy(), abc=static[:, 3:].copy(), optic=optic,
+                     seq=np.arange(n, dtype=np.int64), value_columns=tuple(value_columns))
+
+
+def make_ballbar(xyz, table_ball, tool_ball, abc=None, length=None, path: str = "ballbar.csv") -> BallbarData:
+    """Ball-bar set. xyz (n, 3) mm; table_ball (n, 3) or (3,) mm; tool_ball (n, 3) or (3,) mm
+    (relative to the nominal tool tip); abc (n, 3) rad or None; length (n,) mm (default: nominal)."""
+    xyz = np.asarray(xyz, float)
+    n = len(xyz)
+    tb = np.broadcast_to(np.asarray(table_ball, float), (n, 3)).copy()
+    lb = np.broadcast_to(np.asarray(tool_ball, float), (n, 3)).copy()
+    abc_a = np.zeros((n, 3)) if abc is None else np.asarray(abc, float)
+    cols = {"x_mm": xyz[:, 0], "y_mm": xyz[:, 1], "z_mm": xyz[:, 2]}
+    rotary = ()
+    if abc is not None:
+        rotary = ("a_deg", "b_deg", "c_deg")
+        for k, name in enumerate(rotary):
+            cols[name] = np.degrees(abc_a[:, k])
+    for k, a in enumerate("xyz"):
+        cols[f"table_ball_{a}_mm"] = tb[:, k]
+    for k, a in enumerate("xyz"):
+        cols[f"tool_ball_{a}_mm"] = lb[:, k]
+    length = np.zeros(n) if length is None else np.asarray(length, float)
+    cols["length_mm"] = length
+    header, rows = _cells(cols)
+    return BallbarData(path=path, header=header, rows=rows, row=np.arange(1, n + 1), context=_context(n),
+                       xyz=xyz, abc=abc_a, rotary_columns=rotary, table_ball=tb, tool_ball=lb,
+                       length=length)
+
+
+def with_values(data: MeasurementSet, values: dict[str, np.ndarray]) -> MeasurementSet:
+    """A copy of ``data`` whose measured arrays are replaced (internal units) and whose cells follow.
+
+    values : 'dx_um', 'dy_um', 'dz_um', 'dn_um' (points), 'value' (laser, mm or rad per row),
+    'length_mm' (ballbar): (n,) arrays, internal units (mm, rad); NaN keeps a cell blank.
+    """
+    header = list(data.header)
+    rows = [list(r) for r in data.rows]
+    changes = {}
+
+    def put(column, arr, scale):
+        j = header.index(column)
+        for i, v in enumerate(arr):
+            rows[i][j] = format_cell(float(v) * scale)
+
+    if data.kind == "points":
+        dev = data.deviation.copy()
+        for k, col in enumerate(("dx_um", "dy_um", "dz_um")):
+            if col in values:
+                dev[:, k] = values[col]
+                put(col, values[col], 1e3)
+        changes["deviation"] = dev
+        if "dn_um" in values:
+            changes["normal_deviation"] = np.asarray(values["dn_um"], float)
+            put("dn_um", values["dn_um"], 1e3)
+    elif data.kind == "laser":
+        v = np.asarray(values["value"], float)
+        changes["value"] = v
+        for col, scale, sel in (("value_um", 1e3, ~data.angular), ("value_urad", 1e6, data.angular)):
+            if col in header:
+                put(col, np.where(sel, v, np.nan), scale)
+    elif data.kind == "ballbar":
+        changes["length"] = np.asarray(values["length_mm"], float)
+        put("length_mm", values["length_mm"], 1.0)
+    else:
+        raise ValueError(f"with_values does not handle {data.kind} sets")
+    changes["rows"] = tuple(tuple(r) for r in rows)
+    return dataclasses.replace(data, **changes)
+
+
+def simulate(model, data: MeasurementSet, p, nuisance=None, noise_um: float = 0.0,
+             noise_urad: float = 0.0, rng=None, context_defaults=None) -> MeasurementSet:
+    """``data`` with its readings replaced by what ``model`` predicts for parameters p (internal
+    units) and the file's nuisance parameters (default zero), plus Gaussian noise (um for
+    translational readings and lengths, urad for angular ones). Blank cells stay blank."""
+    from .measurement_models import measurement_model
+    mm = measurement_model(model, data, context_defaults)
+    cols = mm.predict_columns(np.asarray(p, float), nuisance)
+    rng = np.random.default_rng(0) if rng is None else rng
+    n = len(data)
+
+    def noisy(v, sigma):
+        return v + (rng.normal(0.0, sigma, n) if sigma > 0 else 0.0)
+
+    if data.kind == "points":
+        values = {}
+        for k, col in enumerate(("dx_um", "dy_um", "dz_um")):
+            measured = np.isfinite(data.deviation[:, k])
+            values[col] = np.where(measured, noisy(cols[f"pred_{col}"] * 1e-3, noise_um * 1e-3), np.nan)
+        if "pred_dn_um" in cols:
+            measured = np.isfinite(data.normal_deviation)
+            values["dn_um"] = np.where(measured, noisy(cols["pred_dn_um"] * 1e-3, noise_um * 1e-3), np.nan)
+        return with_values(data, values)
+    if data.kind == "laser":
+        v = np.zeros(n)
+        if "pred_value_um" in cols:
+            v = np.where(~data.angular, noisy(cols["pred_value_um"] * 1e-3, noise_um * 1e-3), v)
+        if "pred_value_urad" in cols:
+            v = np.where(data.angular, noisy(cols["pred_value_urad"] * 1e-6, noise_urad * 1e-6), v)
+        v = np.where(np.isfinite(data.value), v, np.nan)
+        return with_values(data, {"value": v})
+    if data.kind == "ballbar":
+        v = noisy(cols["pred_length_mm"], noise_um * 1e-3)
+        return with_values(data, {"length_mm": np.where(np.isfinite(data.length), v, np.nan)})
+    raise ValueError(f"simulate does not handle {data.kind} sets")
