@@ -1,0 +1,522 @@
+"""Measurement models of the kinds cmm, thermal and velocity (SPEC 3.4-3.6), and drift features.
+
+These register into :data:`mtcomp.identification.measurement_models.MEASUREMENT_MODELS` like the
+points, laser and ballbar models, with the same interface (``predict``, ``jacobian``,
+``predict_columns``; internal units mm, rad, mm/min; exact CasADi Jacobians). docs/sim.md has the
+equations.
+
+* ``cmm`` (SPEC 3.4): the normal deviation of a machined surface point is the deviation of the ball
+  centre of the cutter that touched it, along the outward normal: ``dn = n . (d + r (R_rel - I) a0)``
+  with d the tool-tip deviation, ``R_rel`` the tool's rotation relative to nominal, ``a0`` the nominal
+  tool axis and r the ball radius (positive: tool displaced outward, material left outside). The
+  cutter location is found on the G-code that cut the part: the ball centre nearest to ``x + r n``.
+  Nuisance: ``<tag>:radius_offset`` (um), the tool radius error (``dn -= dr``).
+* ``thermal`` (SPEC 3.5): channel ``disp_<name>_um`` drifts. Channels ``x``, ``y``, ``z`` are tool-tip
+  directions: they read the tip deviation at the set-up pose relative to the file's first row (so the
+  :class:`~mtcomp.models.ThermalDrift` term acts). Other channels read ``sum_f TD_<name>_<f> (f - f0)``
+  from a :class:`~mtcomp.models.ChannelDrift` term (zero without one). Nuisance: one zero offset per
+  channel, ``<tag>:<name>:offset`` (um).
+* ``velocity`` (SPEC 3.6, seed 000 eq. 1): the velocity of a table point P is the translation at
+  feed plus the yaw rate about the rotation centre O: ``v = V e + Omega e_z x (P - O)`` with
+  ``V = dir * feed``, ``Omega = dE_C<axis>/ds * V`` (the derivative of the yaw error of the moving
+  axis, every extension term included) and O the carriage's reference point shifted by the
+  :class:`~mtcomp.models.AbbeIRC` centre of its E_C rotation. No nuisance.
+
+Drift features (:func:`thermal_features`, :func:`feature_value`): ``time_h`` (t / 3600),
+``dtemp_<name>`` (K, temperature rise over the first reading of the file), ``spindle_heat_<tau>``
+(spindle speed in 1000 rpm through a first-order lag of time constant tau seconds, from 0 at the
+first reading). Any measurement model fills these context channels from its file.
+"""
+from __future__ import annotations
+
+import math
+import re
+
+import casadi as ca
+import numpy as np
+
+from ..errors import InputError
+from ..io.measurements import Context, MeasurementSet
+from ..kinematics import forward
+from ..models.chain import ErrorModel, linear_component_names
+from ..models.params import ParamSpec
+from ..models.terms import ANGLE_LETTERS, ChannelDrift
+from .measurement_models import MeasurementModel, context_matrix, evaluate_chain, register
+
+#: default time constants (s) of the spindle heat features
+DEFAULT_TIME_CONSTANTS_S = (900.0, 3600.0)
+FEATURE_KINDS = ("time", "temperature", "spindle")
+_HEAT = re.compile(r"^spindle_heat_(\d+(?:\.\d+)?)$")
+_DTEMP = re.compile(r"^dtemp_(.+)$")
+#: tip-direction channels of thermal files
+TIP_CHANNELS = {"x": 0, "y": 1, "z": 2}
+
+
+# --------------------------------------------------------------------------------- drift features
+def _time_order(t: np.ndarray) -> np.ndarray:
+    """Indices of the rows with a finite time, in increasing time (stable)."""
+    idx = np.flatnonzero(np.isfinite(t))
+    return idx[np.argsort(t[idx], kind="stable")]
+
+
+def spindle_heat(t: np.ndarray, rpm: np.ndarray, tau_s: float) -> np.ndarray:
+    """(n,) spindle speed (1000 rpm) through a first-order lag of time constant ``tau_s`` (s).
+
+    h' = (rpm/1000 - h) / tau, h = 0 at the first reading; the speed is held between readings (exact
+    discretisation: h_k = h_{k-1} + (1 - exp(-dt/tau)) (u_{k-1} - h_{k-1})). Rows are processed in time
+    order; rows without a time get NaN. A blank speed counts as 0.
+    """
+    t = np.asarray(t, dtype=float)
+    u = np.nan_to_num(np.asarray(rpm, dtype=float)) / 1000.0
+    out = np.full(t.shape, np.nan)
+    order = _time_order(t)
+    h = 0.0
+    for k, i in enumerate(order):
+        if k > 0:
+            j = order[k - 1]
+            h += (1.0 - math.exp(-(t[i] - t[j]) / tau_s)) * (u[j] - h)
+        out[i] = h
+    return out
+
+
+def feature_value(name: str, context: Context, reference_temperatures: dict | None = None):
+    """(n,) values of drift feature ``name`` for the rows of ``context``, or None if ``name`` is not a
+    drift feature. ``time_h``: h; ``dtemp_<s>``: K above ``reference_temperatures[s]`` or else the
+    first reading in time order; ``spindle_heat_<tau>``: 1000 rpm (see :func:`spindle_heat`)."""
+    t = np.asarray(context.t, dtype=float)
+    if name == "time_h":
+        return t / 3600.0
+    m = _DTEMP.match(name)
+    if m:
+        sensor = m.group(1)
+        if sensor not in context.temperatures:
+            return np.full(t.shape, np.nan)
+        temp = np.asarray(context.temperatures[sensor], dtype=float)
+        ref = (reference_temperatures or {}).get(sensor)
+        if ref is None:
+            order = _time_order(t)
+            if order.size == 0:
+                order = np.arange(len(temp))
+            finite = order[np.isfinite(temp[order])]
+            ref = temp[finite[0]] if finite.size else np.nan
+        return temp - ref
+    m = _HEAT.match(name)
+    if m:
+        return spindle_heat(t, context.spindle_rpm, float(m.group(1)))
+    return None
+
+
+def feature_names(context: Context, kinds=FEATURE_KINDS,
+                  time_constants_s=DEFAULT_TIME_CONSTANTS_S) -> list[str]:
+    """Names of the drift features a file's context supports, for the given kinds."""
+    names = []
+    has_t = np.isfinite(context.t).any()
+    if "time" in kinds and has_t:
+        names.append("time_h")
+    if "temperature" in kinds:
+        names += [f"dtemp_{s}" for s in context.temperatures]
+    if "spindle" in kinds and has_t and np.isfinite(context.spindle_rpm).any():
+        names += [f"spindle_heat_{tau:g}" for tau in time_constants_s]
+    return names
+
+
+def thermal_features(context: Context, kinds=FEATURE_KINDS, time_constants_s=DEFAULT_TIME_CONSTANTS_S,
+                     reference_temperatures: dict | None = None) -> dict[str, np.ndarray]:
+    """Drift features of any file with ``t_s`` / ``temp_<name>_c`` / ``spindle_rpm``: name -> (n,).
+
+    kinds : subset of ('time', 'temperature', 'spindle'). time_constants_s : lags of the spindle heat
+    states (s). Units: time_h in h, dtemp_<name> in K, spindle_heat_<tau> in 1000 rpm.
+    """
+    return {name: feature_value(name, context, reference_temperatures)
+            for name in feature_names(context, kinds, time_constants_s)}
+
+
+def drift_context(model: ErrorModel, data: MeasurementSet, reference_temperatures: dict | None = None
+                  ) -> dict[str, np.ndarray]:
+    """The drift-feature channels among ``model.context_names`` computed from ``data`` (name -> (n,)),
+    for ``context_matrix(..., extra=...)``. NaN where a file lacks the input (the default applies)."""
+    out = {}
+    for name in model.context_names:
+        v = feature_value(name, data.context, reference_temperatures)
+        if v is not None:
+            out[name] = v
+    return out
+
+
+def _extra_context(self) -> dict:
+    extra = drift_context(self.model, self.data, self.options.get("reference_temperatures"))
+    extra.update(self.options.get("extra_context") or {})
+    return extra
+
+
+# --------------------------------------------------------------------------------- thermal
+@register
+class ThermalModel(MeasurementModel):
+    """Thermal files (SPEC 3.5): drift of each ``disp_<name>_um`` channel (module docstring).
+
+    Options: ``setup_q`` (n_axes,) axis positions of the set-up, mm and rad (default all zero),
+    ``reference_temperatures`` (name -> degC) for the dtemp features.
+    """
+
+    kind = "thermal"
+
+    def _setup(self):
+        data = self.data
+        m = self.machine
+        n = len(data)
+        self.channels = list(data.channels)
+        q = np.asarray(self.options.get("setup_q", np.zeros(m.n_axes)), dtype=float)
+        if q.shape != (m.n_axes,):
+            raise ValueError(f"setup_q must have shape ({m.n_axes},)")
+        self.q = np.tile(q, (n, 1))
+        self.c = context_matrix(self.model, data, self.context_defaults, m, _extra_context(self))
+        order = _time_order(data.t)
+        self.first = int(order[0]) if order.size else 0
+        values = np.column_stack([data.channels[ch] for ch in self.channels])
+        self._set_observations(values, [f"disp_{ch}_um" for ch in self.channels],
+                               [1e3] * len(self.channels))
+        self._rows, self._cols = np.nonzero(self._obs_mask)
+        self.nuisance_specs = [ParamSpec(f"{self.tag}:{ch}:offset", "um", f"nuisance:{self.tag}",
+                                         False, f"zero offset of channel {ch} of {self.tag}")
+                               for ch in self.channels]
+        # other channels: (feature index in context, parameter index) pairs per channel
+        ctx_index = {nm: i for i, nm in enumerate(self.model.context_names)}
+        p_index = {nm: i for i, nm in enumerate(self.model.param_names)}
+        self._channel_terms = {}
+        for ch in self.channels:
+            if ch in TIP_CHANNELS:
+                continue
+            pairs = []
+            for t in self.model.terms:
+                if isinstance(t, ChannelDrift) and ch in t.channels:
+                    pairs += [(ctx_index[f], p_index[f"TD_{ch}_{f}"]) for f in t.features]
+            self._channel_terms[ch] = pairs
+
+    def _channel_values(self, p, jacobian):
+        """(n_rows, n_channels) drift readings without offsets, (and (n_rows, n_ch, n_params))."""
+        n, k = len(self.data), len(self.channels)
+        val = np.zeros((n, k))
+        J = np.zeros((n, k, self.model.n_params)) if jacobian else None
+        if any(ch in TIP_CHANNELS for ch in self.channels):
+            d, Jd = evaluate_chain(self.model, "tip_jac", self.q, p, self.c)
+            d = d - d[self.first]
+            Jd = Jd - Jd[self.first]
+        dc = self.c - self.c[self.first]
+        for j, ch in enumerate(self.channels):
+            if ch in TIP_CHANNELS:
+                val[:, j] = d[:, TIP_CHANNELS[ch]]
+                if jacobian:
+                    J[:, j, :] = Jd[:, TIP_CHANNELS[ch], :]
+            else:
+                for ci, pi in self._channel_terms[ch]:
+                    val[:, j] += p[pi] * dc[:, ci]
+                    if jacobian:
+                        J[:, j, pi] += dc[:, ci]
+        return val, J
+
+    def _evaluate(self, p, nuisance, jacobian):
+        p, nuisance = self._check_p(p, nuisance)
+        val, J = self._channel_values(p, jacobian)
+        pred = val[self._rows, self._cols] + nuisance[self._cols]
+        if not jacobian:
+            return pred, None, None
+        Jn = np.zeros((self.n_obs, self.n_nuisance))
+        Jn[np.arange(self.n_obs), self._cols] = 1.0
+        return pred, J[self._rows, self._cols], Jn
+
+    def predict_columns(self, p, nuisance=None):
+        p, nuisance = self._check_p(p, nuisance)
+        val, _ = self._channel_values(p, False)
+        return {f"pred_disp_{ch}_um": (val[:, j] + nuisance[j]) * 1e3
+                for j, ch in enumerate(self.channels)}
+
+# --------------------------------------------------------------------------------- velocity
+@register
+class VelocityModel(MeasurementModel):
+    """Velocity files (SPEC 3.6): v = V e + Omega e_z x (P - O) for the points M and N (module
+    docstring; seed 000 eq. 1 inverts it for O). Velocities in mm/min, in the axis's own sense:
+    for a table axis the sign of the table's motion is reversed (ISO 841), which leaves O alone."""
+
+    kind = "velocity"
+    COLUMNS = ("m_vx_mm_min", "m_vy_mm_min", "n_vx_mm_min", "n_vy_mm_min")
+
+    def _setup(self):
+        data = self.data
+        m = self.machine
+        n = len(data)
+        bad = np.flatnonzero(~np.isin(data.axis, [a for a in ("X", "Y") if a in m.axis_names]))
+        if bad.size:
+            data.fail(f"velocity rows must move axis X or Y of the machine (table plane XY), not "
+                      f"{data.axis[bad[0]]}", bad[0])
+        self.c = context_matrix(self.model, data, self.context_defaults, m, _extra_context(self))
+        sign = np.zeros(n)
+        for i, a in enumerate(data.axis):
+            sign[i] = data.context.dir_of(a)[i]
+            if sign[i] == 0:
+                k = "XY".index(a)
+                tot = np.nansum([data.m_v[i, k], data.n_v[i, k]])
+                sign[i] = -1.0 if tot < 0 else 1.0
+        self.speed = sign * data.feed
+        values = np.column_stack([data.m_v, data.n_v])
+        self._set_observations(values, list(self.COLUMNS), [1.0] * 4)
+        self._rows, self._cols = np.nonzero(self._obs_mask)
+        self._functions = {a: velocity_function(self.model, a) for a in set(data.axis)}
+
+    def _velocities(self, p, jacobian):
+        n = len(self.data)
+        v = np.zeros((n, 4))
+        J = np.zeros((n, 4, self.model.n_params)) if jacobian else None
+        for a, f in self._functions.items():
+            rows = np.flatnonzero(self.data.axis == a)
+            inp = np.column_stack([self.data.position[rows], self.speed[rows],
+                                   self.data.m_xy[rows], self.data.n_xy[rows]])
+            fm = f.map(len(rows))
+            res = fm(inp.T, p, self.c[rows].T)
+            v[rows] = np.asarray(res[0]).T
+            if jacobian:
+                # mapped jacobian: 4 x (n_params * len(rows)), block j holds row j
+                Jm = np.asarray(res[1]).reshape(4, len(rows), self.model.n_params)
+                J[rows] = Jm.transpose(1, 0, 2)
+        return v, J
+
+    def _evaluate(self, p, nuisance, jacobian):
+        p, nuisance = self._check_p(p, nuisance)
+        v, J = self._velocities(p, jacobian)
+        pred = v[self._rows, self._cols]
+        if not jacobian:
+            return pred, None, None
+        return pred, J[self._rows, self._cols], np.zeros((self.n_obs, 0))
+
+    def predict_columns(self, p, nuisance=None):
+        p, nuisance = self._check_p(p, nuisance)
+        v, _ = self._velocities(p, False)
+        return {f"pred_{c}": v[:, j] for j, c in enumerate(self.COLUMNS)}
+
+    def rotation_centre(self, p) -> np.ndarray:
+        """(n_rows, 2) mm the model's rotation centre O of each row (carriage frame, XY)."""
+        out = np.zeros((len(self.data), 2))
+        for a in set(self.data.axis):
+            rows = np.flatnonzero(self.data.axis == a)
+            f = centre_function(self.model, a)
+            res = f.map(len(rows))(self.data.position[rows], p, self.c[rows].T)
+            out[rows] = np.asarray(res).T
+        return out
+
+# --------------------------------------------------------------------------------- cmm
+@register
+class CmmModel(MeasurementModel):
+    """CMM files (SPEC 3.4) with the program that cut the part (module docstring).
+
+    Options: ``program`` (G-code path, required), ``tool_radius_mm`` (ball radius, required),
+    ``tool_mm`` (tool length, default the machine's), ``sample_mm`` (spacing of the sampled
+    cutter locations, default 0.1), ``max_gap_mm`` (largest distance from ``x + r n`` to the
+    nearest ball centre before the point counts as not cut by the program, default 2).
+    """
+
+    kind = "cmm"
+
+    def _setup(self):
+        data = self.data
+        m = self.machine
+        program = self.options.get("program")
+        radius = self.options.get("tool_radius_mm")
+        if program is None or radius is None:
+            raise InputError("a cmm file needs the G-code that cut the part and the ball radius "
+                             "(options program and tool_radius_mm)", data.path)
+        radius = float(radius)
+        if not radius > 0:
+            raise InputError(f"tool radius must be positive, got {radius!r}", data.path)
+        self.radius = radius
+        loc = cutter_locations(m, program, radius, float(self.options.get("sample_mm", 0.1)))
+        target = data.xyz + radius * data.normal
+        q, k, gap = loc.nearest(target)
+        max_gap = float(self.options.get("max_gap_mm", 2.0))
+        far = np.flatnonzero(gap > max_gap)
+        if far.size:
+            data.fail(f"no cutter location of {program} within {max_gap:g} mm of this point's "
+                      f"ball centre (nearest {gap[far[0]]:.3g} mm): the program did not cut it",
+                      far[0])
+        self.q = q
+        self.segment = k
+        self.line = loc.line[k]
+        _, self.axis0 = forward(m, q)
+        extra = _extra_context(self)
+        cols = {"feed": loc.feed[k]}
+        for j, a in enumerate(m.axis_names):
+            cols[f"dir_{a}"] = loc.dirs[k, j].astype(float)
+        cols["tool_length"] = np.full(len(data), float(self.options.get("tool_mm", m.tool_length)))
+        cols.update(extra)
+        # the block context comes from the program, not from the CMM file's own columns
+        base = self.model.default_context(len(data))
+        for i, nm in enumerate(self.model.context_names):
+            if nm in self.context_defaults:
+                base[:, i] = self.context_defaults[nm]
+            if nm in cols:
+                col = np.asarray(cols[nm], dtype=float)
+                base[:, i] = np.where(np.isfinite(col), col, base[:, i])
+        self.c = base
+        self._set_observations(data.normal_deviation[:, None], ["dn_um"], [1e3])
+        self._rows = self.obs_row
+        self.nuisance_specs = [ParamSpec(f"{self.tag}:radius_offset", "um", f"nuisance:{self.tag}",
+                                         False, f"tool radius error of the cutter of {self.tag}")]
+
+    def _dn(self, p, jacobian):
+        d, R, _tip0, Jd, JR = evaluate_chain(self.model, "frame_jac", self.q, p, self.c)
+        n = len(self.data)
+        a0 = self.axis0 * self.radius
+        centre = d + np.einsum("nij,nj->ni", R, a0) - a0
+        dn = np.einsum("ni,ni->n", self.data.normal, centre)
+        if not jacobian:
+            return dn, None
+        JRr = JR.reshape(n, 3, 3, -1)            # [n, j (col), i (row), p]
+        Jc = Jd + np.einsum("njip,nj->nip", JRr, a0)
+        return dn, np.einsum("ni,nip->np", self.data.normal, Jc)
+
+    def _evaluate(self, p, nuisance, jacobian):
+        p, nuisance = self._check_p(p, nuisance)
+        dn, J = self._dn(p, jacobian)
+        pred = dn[self._rows] - nuisance[0]
+        if not jacobian:
+            return pred, None, None
+        return pred, J[self._rows], -np.ones((self.n_obs, 1))
+
+    def predict_columns(self, p, nuisance=None):
+        p, nuisance = self._check_p(p, nuisance)
+        return {"pred_dn_um": (self._dn(p, False)[0] - nuisance[0]) * 1e3}
+
+
+# --------------------------------------------------------------------------------- velocity algebra
+def linear_axis_components(model: ErrorModel, axis: str, s, P: dict, C: dict) -> dict:
+    """The six component errors of linear ``axis`` at position s (SX), base polynomials plus every
+    extension term's ``axis_errors``, as :meth:`ErrorModel._axis_transform` builds them."""
+    m = model.machine
+    ax = m.axis(axis)
+    comps = {}
+    for comp in linear_component_names(axis):
+        e = ca.SX(0)
+        for k in range(1, ax.degree + 1):
+            e = e + P[f"{comp}_{k}"] * (s / 1000.0) ** k
+        comps[comp] = e
+    for t in model.terms:
+        for comp, e in t.axis_errors(m, ax, s, C, P, comps).items():
+            comps[comp] = comps[comp] + e
+    return comps
+
+
+def _centre(model: ErrorModel, axis: str, s, P, C):
+    """(3,) SX: carriage reference point plus the AbbeIRC shift of the E_C<axis> rotation centre."""
+    m = model.machine
+    ax = m.axis(axis)
+    o = ca.vertcat(0, 0, C["tool_length"]) if ax.side == "tool" else ca.SX.zeros(3)
+    for t in model.terms:
+        shift = t.abbe_centres(m, ax, s, C, P).get("C")
+        if shift is not None:
+            o = o + shift
+    return o
+
+
+def _symbols(model: ErrorModel):
+    p = ca.SX.sym("p", model.n_params)
+    c = ca.SX.sym("c", model.n_context)
+    P = {nm: p[i] for i, nm in enumerate(model.param_names)}
+    C = {nm: c[i] for i, nm in enumerate(model.context_names)}
+    return p, c, P, C
+
+
+def velocity_function(model: ErrorModel, axis: str) -> ca.Function:
+    """CasADi (inp (6,) = [s mm, V mm/min, Mx, My, Nx, Ny], p, c) -> (v (4,) = [vMx, vMy, vNx, vNy]
+    mm/min, dv/dp (4, n_params)) for a table moving along ``axis`` (X or Y)."""
+    inp = ca.SX.sym("inp", 6)
+    p, c, P, C = _symbols(model)
+    s, V = inp[0], inp[1]
+    yaw = linear_axis_components(model, axis, s, P, C)[f"E{ANGLE_LETTERS[2]}{axis}"]
+    omega = ca.jacobian(yaw, s) * V
+    o = _centre(model, axis, s, P, C)
+    k = "XY".index(axis)
+    out = []
+    for base in (2, 4):
+        rx, ry = inp[base] - o[0], inp[base + 1] - o[1]
+        vx = -omega * ry + (V if k == 0 else 0)
+        vy = omega * rx + (V if k == 1 else 0)
+        out += [vx, vy]
+    v = ca.vertcat(*out)
+    return ca.Function(f"velocity_{axis}", [inp, p, c], [v, ca.jacobian(v, p)])
+
+
+def centre_function(model: ErrorModel, axis: str) -> ca.Function:
+    """CasADi (s, p, c) -> (2,) mm: the rotation centre O (XY) of the yaw of ``axis`` at position s."""
+    s = ca.SX.sym("s")
+    p, c, P, C = _symbols(model)
+    o = _centre(model, axis, s, P, C)
+    return ca.Function(f"centre_{axis}", [s, p, c], [o[:2]])
+
+
+# --------------------------------------------------------------------------------- cutter locations
+class CutterLocations:
+    """Densely sampled ball-centre path of a program (cutting moves only).
+
+    start, end : (m, na) segment ends (mm, rad); line, feed, dirs : per segment.
+    samples : (k, 3) mm ball centres (workpiece frame); seg : (k,) segment of each sample;
+    u : (k,) position of the sample along its segment (0..1).
+    """
+
+    def __init__(self, machine, start, end, line, feed, dirs, radius, sample_mm):
+        from scipy.spatial import cKDTree
+        self.machine, self.start, self.end = machine, start, end
+        self.line, self.feed, self.dirs, self.radius = line, feed, dirs, radius
+        tip_s, ax_s = forward(machine, start)
+        tip_e, ax_e = forward(machine, end)
+        length = np.linalg.norm(tip_e - tip_s + radius * (ax_e - ax_s), axis=1)
+        count = np.maximum(1, np.ceil(length / sample_mm).astype(int))
+        seg = np.repeat(np.arange(len(start)), count + 1)
+        first = np.repeat(np.cumsum(count + 1) - (count + 1), count + 1)
+        u = (np.arange(seg.size) - first) / np.repeat(count, count + 1)
+        self.seg, self.u = seg, u
+        self.samples = self._centres(seg, u)
+        self.tree = cKDTree(self.samples)
+
+    def _q(self, seg, u):
+        return self.start[seg] + u[:, None] * (self.end[seg] - self.start[seg])
+
+    def _centres(self, seg, u):
+        tip, axis = forward(self.machine, self._q(seg, u))
+        return tip + self.radius * axis
+
+    def nearest(self, target: np.ndarray):
+        """For each (n, 3) target ball centre: (q (n, na) cutter location, segment (n,), distance (n,)
+        mm from the target to that ball centre). The nearest sample is refined on its segment by
+        projecting the target on the sampled centre polyline around it."""
+        dist, idx = self.tree.query(target)
+        seg = self.seg[idx]
+        u = self.u[idx].copy()
+        best = dist.copy()
+        for nb in (-1, 1):
+            j = np.clip(idx + nb, 0, len(self.seg) - 1)
+            same = self.seg[j] == seg
+            a, b = self.samples[idx], self.samples[j]
+            ab = b - a
+            den = np.einsum("ij,ij->i", ab, ab)
+            lam = np.clip(np.einsum("ij,ij->i", target - a, ab) / np.where(den > 0, den, 1.0), 0, 1)
+            pt = a + lam[:, None] * ab
+            dd = np.linalg.norm(target - pt, axis=1)
+            better = same & (den > 0) & (dd < best)
+            u[better] = (self.u[idx] + lam * (self.u[j] - self.u[idx]))[better]
+            best[better] = dd[better]
+        return self._q(seg, u), seg, best
+
+
+def cutter_locations(machine, program, radius: float, sample_mm: float = 0.1) -> CutterLocations:
+    """Sample the cutting moves (not G0) of ``program`` as ball centres every ``sample_mm`` mm."""
+    from ..toolpaths import iter_segment_chunks
+    chunks = list(iter_segment_chunks(program, machine))
+    if not chunks:
+        raise InputError("the program has no motion", str(program))
+    start = np.concatenate([c.start for c in chunks])
+    end = np.concatenate([c.end for c in chunks])
+    keep = ~np.concatenate([c.rapid for c in chunks])
+    if not keep.any():
+        raise InputError("the program has no cutting moves (only G0)", str(program))
+    cat = lambda f: np.concatenate([getattr(c, f) for c in chunks])[keep]  # noqa: E731
+    return CutterLocations(machine, start[keep], end[keep], cat("line"), cat("feed"), cat("dirs"),
+                           radius, sample_mm)
+

@@ -1,0 +1,643 @@
+"""The virtual machine: measurement campaigns simulated from an error model with known parameters.
+
+A :class:`VirtualMachine` holds a *truth* (a :class:`~mtcomp.models.FittedModel`: base model plus any
+extension terms -- backlash, periodic error, thermal drift, feed-dependent terms, rotary error
+motions) and produces measurement files of every kind of SPEC section 3 from a :class:`Plan`. The
+readings are produced by the SAME measurement models that identification fits
+(:mod:`mtcomp.identification.measurement_models`, looked up in the registry by kind), plus Gaussian
+noise; the files are written in SPEC format (column names and units exactly as section 3) and read
+back with :func:`mtcomp.io.measurements.read_measurements`, so what a caller gets is what the readers
+give for the file.
+
+Plans (each a function returning a :class:`Plan`; times ``t_s`` advance with moves at feed and dwells):
+
+* :func:`iso230_2_plan`: laser positioning runs (ISO 230-2 cycle, 5 runs, bidirectional), optionally
+  straightness and angular components.
+* :func:`rotary_laser_plan`: the same for a rotary axis (seed 002).
+* :func:`volumetric_points_plan`: deviations on a 3-D grid with several tool lengths (and rotary angles).
+* :func:`ballbar_circles_plan`: ISO 230-4 circles in XY, YZ, ZX, CCW and CW.
+* :func:`three_sphere_plan`: seed 003 (bar along X, Y, Z from a table ball on the C axis, two heights,
+  only C moving, both directions).
+* :func:`thermal_plan`: a fixed set-up under a spindle-speed profile, with temperatures.
+* :func:`velocity_plan`: seed 000 two-point velocities (X axis, 200 mm, 5 mm steps, 3 repeats,
+  180/240/300 mm/min).
+* :func:`cmm_plan`: a machined part (G-code + ball-end tool) measured at given surface points.
+
+:func:`random_truth` draws realistic base parameters (um-scale polynomials, tens of urad squareness).
+Units: files as SPEC (mm, deg, um, urad, mm/min, s); everything else mm and rad.
+"""
+from __future__ import annotations
+
+import csv
+import math
+import os
+import tempfile
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+from .io.atomic import atomic_write
+from .io.measurements import MeasurementSet, format_cell, read_measurements
+from .machine import Machine
+from .models import ErrorModel, FittedModel, ParameterSet
+
+# --------------------------------------------------------------------------------------------- plans
+
+
+@dataclass
+class Plan:
+    """One measurement file to simulate.
+
+    kind : measurement kind (points, laser, ballbar, cmm, thermal, velocity).
+    name : file stem (``<name>.csv``).
+    columns : column name -> (n,) values in FILE units (numbers or strings), in file order; the
+        measured columns are left out (the virtual machine adds them).
+    measured : the measured columns to fill (``dx_um``, ``value_um``, ``length_mm`` ...). A reading
+        the measurement model predicts as NaN (e.g. ``value_um`` of an angular row) stays blank.
+    options : options of the measurement model (cmm: ``program``, ``tool_radius_mm``; thermal:
+        ``setup_q``).
+    """
+
+    kind: str
+    name: str
+    columns: dict
+    measured: tuple[str, ...]
+    options: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(next(iter(self.columns.values())))
+
+    @property
+    def duration_s(self) -> float:
+        """Time span of the plan (s): last ``t_s`` (0 when the plan has no times)."""
+        t = self.columns.get("t_s")
+        return float(np.nanmax(t)) if t is not None and len(t) else 0.0
+
+    def shifted(self, dt_s: float) -> "Plan":
+        """The same plan started ``dt_s`` seconds later."""
+        cols = dict(self.columns)
+        if "t_s" in cols:
+            cols["t_s"] = np.asarray(cols["t_s"], dtype=float) + dt_s
+        return replace(self, columns=cols)
+
+
+class _Clock:
+    """Campaign time: moves at feed, dwells; ``now`` in s."""
+
+    def __init__(self, start_s: float = 0.0):
+        self.now = float(start_s)
+
+    def move(self, distance: float, feed_per_min: float, dwell_s: float = 0.0) -> float:
+        self.now += abs(distance) / feed_per_min * 60.0 + dwell_s
+        return self.now
+
+
+def _axis_cells(machine: Machine, q: np.ndarray, columns: dict, prefix: str = "") -> None:
+    """Add the axis-position columns (x_mm ... , a_deg ...) of poses q (n, na) mm and rad."""
+    for j, a in enumerate(machine.axis_names):
+        if a in "XYZ":
+            columns[f"{prefix}{a.lower()}_mm"] = q[:, j]
+        else:
+            columns[f"{prefix}{a.lower()}_deg"] = np.degrees(q[:, j])
+
+
+def _approach_dirs(q: np.ndarray, first=None) -> np.ndarray:
+    """(n, na) +1/-1 approach direction of each axis at each pose of the sequence q: the sign of its
+    last motion (``first`` or +1 before any motion)."""
+    n, na = q.shape
+    out = np.zeros((n, na))
+    cur = np.ones(na) if first is None else np.asarray(first, dtype=float).copy()
+    prev = q[0] - 0.0
+    for i in range(n):
+        step = q[i] - prev if i else np.zeros(na)
+        moving = np.abs(step) > 1e-12
+        cur[moving] = np.sign(step[moving])
+        out[i] = cur
+        prev = q[i]
+    return out
+
+
+def _default_targets(lo: float, hi: float, rotary: bool) -> np.ndarray:
+    """ISO 230-2 style targets: at least 5 per metre (linear) or every 30 deg (rotary), irregular
+    spacing (fixed pattern) so that periodic errors are not sampled at one phase."""
+    if rotary:
+        lo_d, hi_d = math.degrees(lo), math.degrees(hi)
+        a, b = max(lo_d, 0.0), min(hi_d, 360.0)
+        if b - a < 30.0:
+            a, b = lo_d, hi_d
+        step = 30.0 if b - a >= 60.0 else (b - a) / 4
+        t = np.arange(a, b - 1e-9 if b - a >= 360.0 else b + 1e-9, step)
+        return np.radians(t)
+    margin = 0.05 * (hi - lo)
+    a, b = lo + margin, hi - margin
+    n = max(5, int(math.ceil(5.0 * (b - a) / 1000.0))) + 1
+    base = np.linspace(a, b, n)
+    jitter = np.random.default_rng(2302).uniform(-0.25, 0.25, n) * (b - a) / (n - 1)
+    jitter[[0, -1]] = 0.0
+    return np.round(base + jitter, 3)
+
+
+def iso230_2_plan(machine: Machine, axis: str, targets=None, n_runs: int = 5,
+                  components: tuple[str, ...] | None = None, static_q=None, optic_mm=(0.0, 0.0, 0.0),
+                  feed_mm_min: float = 1000.0, dwell_s: float = 3.0, overrun: float | None = None,
+                  start_s: float = 0.0, name: str | None = None) -> Plan:
+    """Laser runs along one axis (SPEC 3.2), ISO 230-2 standard cycle: each run goes up through every
+    target (dir +1) from below the first, then down (dir -1) from beyond the last.
+
+    axis : moving axis. targets : (m,) mm or rad (default: :func:`_default_targets`). components :
+        ISO 230-1 names read at each target (default the positioning component, EXX or ECC); each
+        component is its own set-up (its runs follow one another in time). static_q : (na,) positions
+        of the other axes, mm and rad (default 0). optic_mm : (3,) Abbe arm of the optic relative to
+        the tool tip. feed_mm_min : feed (deg/min for a rotary axis). overrun : approach overrun, mm or
+        rad (default 5 mm / 2 deg).
+    """
+    if axis not in machine.axis_names:
+        raise InputError(f"machine {machine.name!r} has no axis {axis}")
+    ax = machine.axis(axis)
+    j = machine.index(axis)
+    targets = _default_targets(*ax.travel, ax.is_rotary) if targets is None else \
+        np.asarray(targets, dtype=float)
+    components = components or (f"E{axis}{axis}",)
+    overrun = (math.radians(2.0) if ax.is_rotary else 5.0) if overrun is None else overrun
+    feed = math.radians(feed_mm_min) if ax.is_rotary else feed_mm_min
+    q0 = np.zeros(machine.n_axes) if static_q is None else np.asarray(static_q, dtype=float)
+    clock = _Clock(start_s)
+    rows = []
+    pos = targets[0] - overrun
+    seq = 0
+    for comp in components:
+        for run in range(1, n_runs + 1):
+            for d, order in ((1, targets), (-1, targets[::-1])):
+                start = order[0] - d * overrun
+                clock.move(start - pos, feed)
+                pos = start
+                for tgt in order:
+                    t = clock.move(tgt - pos, feed, dwell_s)
+                    pos = tgt
+                    rows.append((comp, tgt, d, run, t, seq))
+                    seq += 1
+    n = len(rows)
+    q = np.tile(q0, (n, 1))
+    q[:, j] = [r[1] for r in rows]
+    cols = {"axis": [axis] * n, "component": [r[0] for r in rows]}
+    if ax.is_rotary:
+        cols["target_deg"] = np.degrees(q[:, j])
+    else:
+        cols["target_mm"] = q[:, j]
+    cols["dir"] = np.array([r[2] for r in rows], dtype=float)
+    cols["run"] = np.array([r[3] for r in rows], dtype=float)
+    _axis_cells(machine, q, cols)
+    for k, c in enumerate("xyz"):
+        cols[f"optic_{c}_mm"] = np.full(n, float(optic_mm[k]))
+    cols["feed_mm_min"] = np.full(n, feed_mm_min)
+    cols["t_s"] = np.array([r[4] for r in rows])
+    cols["seq"] = np.array([r[5] for r in rows], dtype=float)
+    angular = [c[1] in "ABC" for c in cols["component"]]
+    measured = tuple(m for m, present in (("value_um", not all(angular)), ("value_urad", any(angular)))
+                     if present)
+    return Plan("laser", name or f"laser_{axis.lower()}", cols, measured)
+
+
+def rotary_laser_plan(machine: Machine, axis: str = "C", targets_deg=None, n_runs: int = 5,
+                      feed_deg_min: float = 1800.0, dwell_s: float = 4.0, overrun_deg: float = 2.0,
+                      static_q=None, start_s: float = 0.0, name: str | None = None) -> Plan:
+    """Seed 002: angular positioning (E<axis><axis>, e.g. ECC) of a rotary axis read by a laser and a
+    rotary indexer, both approach directions, ``n_runs`` runs (default targets every 30 deg)."""
+    if axis not in machine.axis_names or not machine.axis(axis).is_rotary:
+        raise InputError(f"machine {machine.name!r} has no rotary axis {axis}")
+    targets = None if targets_deg is None else np.radians(np.asarray(targets_deg, dtype=float))
+    return iso230_2_plan(machine, axis, targets, n_runs, (f"E{axis}{axis}",), static_q,
+                         feed_mm_min=feed_deg_min, dwell_s=dwell_s, overrun=math.radians(overrun_deg),
+                         start_s=start_s, name=name or f"rotary_laser_{axis.lower()}")
+
+
+def volumetric_points_plan(machine: Machine, n_per_axis=(5, 4, 3), tool_lengths_mm=None,
+                           rotary_deg: dict | None = None, margin: float = 0.1,
+                           feed_mm_min: float = 2000.0, dwell_s: float = 2.0, n_runs: int = 1,
+                           measured=("dx_um", "dy_um", "dz_um"), start_s: float = 0.0,
+                           name: str = "points") -> Plan:
+    """Deviations at commanded poses on a 3-D grid (SPEC 3.1): a laser tracker / R-test campaign.
+
+    n_per_axis : grid points along X, Y, Z (inside the travel shrunk by ``margin`` of each side).
+    tool_lengths_mm : tool lengths (default the machine's and 100 mm longer); the grid is measured
+        with each. rotary_deg : axis -> angles (deg) visited at every grid point (default 0; a
+        five-axis machine gets C at 0, 90, 180, 270 and A/B at 0 and a tilt of 30 deg).
+    The grid is visited in serpentine order, so approach directions change along the way.
+    """
+    lin = [a for a in machine.axes if not a.is_rotary]
+    grids = []
+    for a, n in zip(lin, n_per_axis):
+        lo, hi = a.travel
+        m = margin * (hi - lo)
+        grids.append(np.linspace(lo + m, hi - m, n))
+    if tool_lengths_mm is None:
+        tool_lengths_mm = (machine.tool_length, machine.tool_length + 100.0)
+    if rotary_deg is None:
+        rotary_deg = {}
+        for a in machine.rotary_axes:
+            rotary_deg[a.name] = [0.0, 90.0, 180.0, 270.0] if a.name == "C" else [0.0, 30.0]
+    rot_names = [a.name for a in machine.rotary_axes]
+    rot_sets = [np.radians(np.asarray(rotary_deg.get(r, [0.0]), dtype=float)) for r in rot_names]
+    rot_combos = np.array(np.meshgrid(*rot_sets, indexing="ij")).reshape(len(rot_names), -1).T \
+        if rot_names else np.zeros((1, 0))
+    poses = []
+    flip_y = flip_z = False
+    for xi in grids[0]:
+        ys = grids[1][::-1] if flip_y else grids[1]
+        for yi in ys:
+            zs = grids[2][::-1] if flip_z else grids[2]
+            for zi in zs:
+                for rc in rot_combos:
+                    poses.append(np.concatenate([[xi, yi, zi], rc]))
+            flip_z = not flip_z
+        flip_y = not flip_y
+    grid_q = np.array(poses)
+    lin_idx = [machine.index(a.name) for a in lin]
+    rot_idx = [machine.index(r) for r in rot_names]
+    q_all, tools, runs, times = [], [], [], []
+    clock = _Clock(start_s)
+    prev = None
+    for run in range(1, n_runs + 1):
+        for tl in tool_lengths_mm:
+            clock.move(0.0, 1.0, 30.0)                  # tool change
+            for g in grid_q:
+                q = np.zeros(machine.n_axes)
+                q[lin_idx] = g[:3]
+                q[rot_idx] = g[3:]
+                dist = 0.0 if prev is None else float(np.max(np.abs(q - prev)[lin_idx])) if lin_idx else 0.0
+                clock.move(dist, feed_mm_min, dwell_s)
+                prev = q
+                q_all.append(q)
+                tools.append(tl)
+                runs.append(run)
+                times.append(clock.now)
+    q = np.array(q_all)
+    cols: dict = {}
+    _axis_cells(machine, q, cols)
+    cols["tool_mm"] = np.array(tools, dtype=float)
+    dirs = _approach_dirs(q)
+    for j, a in enumerate(machine.axis_names):
+        cols[f"dir_{a.lower()}"] = dirs[:, j]
+    cols["feed_mm_min"] = np.full(len(q), feed_mm_min)
+    cols["run"] = np.array(runs, dtype=float)
+    cols["t_s"] = np.array(times)
+    return Plan("points", name, cols, tuple(measured))
+
+
+def _circle_dirs(u: np.ndarray, sense: int) -> np.ndarray:
+    """Approach direction of cos/sin coordinates along a circle traversed with ``sense`` (+1 CCW):
+    the sign of the velocity just before each point."""
+    du = 1e-6 * sense
+    cx = np.sign(np.cos(u) - np.cos(u - du))
+    cy = np.sign(np.sin(u) - np.sin(u - du))
+    return np.column_stack([cx, cy])
+
+
+def ballbar_circles_plan(machine: Machine, radius_mm: float = 100.0, centre_mm=None,
+                         planes=("XY", "YZ", "ZX"), senses=("ccw", "cw"), n_points: int = 180,
+                         feed_mm_min: float = 1000.0, n_runs: int = 1, tool_ball_mm=(0.0, 0.0, 0.0),
+                         start_s: float = 0.0, name: str = "ballbar_circles") -> Plan:
+    """ISO 230-4 circular tests with a ball bar (SPEC 3.3): one full circle per plane and sense.
+
+    centre_mm : (3,) table-ball centre, workpiece frame (default: middle of the linear travel). The
+    tool ball sits at ``tool_ball_mm`` from the nominal tool tip; the commanded tip runs on a circle of
+    radius ``radius_mm`` about ``centre - tool_ball``. Rotary axes stay at 0.
+    """
+    lo, hi = machine.travel_bounds()
+    lin = [machine.index(a) for a in "XYZ"]
+    centre = np.array([(lo[j] + hi[j]) / 2 for j in lin]) if centre_mm is None else \
+        np.asarray(centre_mm, dtype=float)
+    ball = np.asarray(tool_ball_mm, dtype=float)
+    q_rows, dir_rows, run_rows, t_rows = [], [], [], []
+    clock = _Clock(start_s)
+    for run in range(1, n_runs + 1):
+        for plane in planes:
+            i, k = ("XYZ".index(plane[0]), "XYZ".index(plane[1]))
+            for sense_name in senses:
+                sense = 1 if sense_name.lower() == "ccw" else -1
+                u = sense * np.arange(n_points) * 2 * math.pi / n_points
+                clock.move(0.0, 1.0, 5.0)
+                d = _circle_dirs(u, sense)
+                for m in range(n_points):
+                    q = np.zeros(machine.n_axes)
+                    tip = centre - ball
+                    tip[i] += radius_mm * math.cos(u[m])
+                    tip[k] += radius_mm * math.sin(u[m])
+                    q[lin] = tip
+                    dr = np.full(machine.n_axes, np.nan)
+                    dr[lin[i]], dr[lin[k]] = d[m]
+                    clock.move(radius_mm * 2 * math.pi / n_points, feed_mm_min)
+                    q_rows.append(q)
+                    dir_rows.append(dr)
+                    run_rows.append(run)
+                    t_rows.append(clock.now)
+    q = np.array(q_rows)
+    dirs = np.array(dir_rows)
+    n = len(q)
+    cols: dict = {}
+    _axis_cells(machine, q, cols)
+    for k, c in enumerate("xyz"):
+        cols[f"table_ball_{c}_mm"] = np.full(n, centre[k])
+    for k, c in enumerate("xyz"):
+        cols[f"tool_ball_{c}_mm"] = np.full(n, ball[k])
+    for j, a in enumerate(machine.axis_names):
+        if a in "XYZ":
+            cols[f"dir_{a.lower()}"] = dirs[:, j]
+    cols["feed_mm_min"] = np.full(n, feed_mm_min)
+    cols["run"] = np.array(run_rows, dtype=float)
+    cols["t_s"] = np.array(t_rows)
+    return Plan("ballbar", name, cols, ("length_mm",))
+
+
+def three_sphere_plan(machine: Machine, bar_mm: float = 100.0, heights_mm=(100.0, 200.0),
+                      angles_deg=None, n_runs: int = 3, senses=(1, -1), feed_deg_min: float = 720.0,
+                      dwell_s: float = 2.0, start_s: float = 0.0, name: str = "three_sphere") -> Plan:
+    """Seed 003 measurement: a ball bar of length ``bar_mm`` from a table ball on the C axis at each
+    height h (workpiece frame, above the C axis point) to a tool ball at ``bar_mm`` along X, then Y,
+    then Z (six set-ups); in each set-up only C moves, through ``angles_deg`` (default every 10 deg)
+    up (dir_c +1) and back down (-1), ``n_runs`` times. The tool ball is the nominal tool tip.
+    """
+    if "C" not in machine.axis_names:
+        raise InputError(f"the three-sphere method needs a C axis; machine {machine.name!r} "
+                         f"({machine.topology}) has none")
+    angles = np.arange(0.0, 360.0, 10.0) if angles_deg is None else np.asarray(angles_deg, dtype=float)
+    ap = np.asarray(machine.axis("C").axis_point, dtype=float)
+    jc = machine.index("C")
+    lin = [machine.index(a) for a in "XYZ"]
+    rows = []
+    clock = _Clock(start_s)
+    c_now = angles[0]
+    for h in heights_mm:
+        table = np.array([ap[0], ap[1], ap[2] + h])
+        for k in range(3):
+            tip = table.copy()
+            tip[k] += bar_mm
+            clock.move(0.0, 1.0, 120.0)                 # set-up of the bar
+            for run in range(1, n_runs + 1):
+                for sense in senses:
+                    order = angles if sense > 0 else angles[::-1]
+                    for a in order:
+                        clock.move(a - c_now, feed_deg_min, dwell_s)
+                        c_now = a
+                        q = np.zeros(machine.n_axes)
+                        q[lin] = tip
+                        q[jc] = math.radians(a)
+                        rows.append((q, table, sense, run, clock.now))
+    q = np.array([r[0] for r in rows])
+    n = len(q)
+    cols: dict = {}
+    _axis_cells(machine, q, cols)
+    for k, c in enumerate("xyz"):
+        cols[f"table_ball_{c}_mm"] = np.array([r[1][k] for r in rows])
+    for c in "xyz":
+        cols[f"tool_ball_{c}_mm"] = np.zeros(n)
+    cols["dir_c"] = np.array([r[2] for r in rows], dtype=float)
+    cols["run"] = np.array([r[3] for r in rows], dtype=float)
+    cols["t_s"] = np.array([r[4] for r in rows])
+    return Plan("ballbar", name, cols, ("length_mm",))
+
+
+def thermal_plan(machine: Machine, duration_h: float = 8.0, interval_s: float = 60.0,
+                 spindle_profile=((0.0, 0.0), (1800.0, 6000.0), (4 * 3600.0, 0.0)),
+                 channels=("x", "y", "z"), temperatures: dict | None = None, setup_q=None,
+                 start_s: float = 0.0, name: str = "thermal") -> Plan:
+    """A fixed set-up read every ``interval_s`` for ``duration_h`` (SPEC 3.5, ISO 230-3 style).
+
+    spindle_profile : ((t_s, rpm), ...) steps of the spindle speed (relative to the plan's start).
+    channels : displacement channels (``x``, ``y``, ``z`` read the tool tip; other names are
+        :class:`~mtcomp.models.ChannelDrift` channels). temperatures : sensor -> (ambient degC, K per
+        1000 rpm of heat, lag s); default a spindle sensor and a bed sensor. setup_q : (na,) set-up pose.
+    """
+    from .identification.measurement_models_extra import spindle_heat
+    t = np.arange(0.0, duration_h * 3600.0 + 1e-9, interval_s)
+    rpm = np.zeros_like(t)
+    for ts, r in spindle_profile:
+        rpm[t >= ts] = r
+    temperatures = temperatures or {"spindle": (21.0, 1.2, 1200.0), "bed": (20.5, 0.25, 5400.0)}
+    cols: dict = {"t_s": t + start_s, "spindle_rpm": rpm}
+    for sensor, (ambient, gain, tau) in temperatures.items():
+        cols[f"temp_{sensor}_c"] = ambient + gain * spindle_heat(t, rpm, tau) \
+            + 0.1 * np.sin(2 * math.pi * t / 86400.0)
+    options = {} if setup_q is None else {"setup_q": np.asarray(setup_q, dtype=float)}
+    return Plan("thermal", name, cols, tuple(f"disp_{c}_um" for c in channels), options)
+
+
+def velocity_plan(machine: Machine, axis: str = "X", start_mm: float | None = None,
+                  length_mm: float = 200.0, step_mm: float = 5.0, n_runs: int = 3,
+                  feeds_mm_min=(180.0, 240.0, 300.0), m_xy=(50.0, 150.0), n_xy=(250.0, 100.0),
+                  start_s: float = 0.0, name: str = "velocity") -> Plan:
+    """Seed 000 experiment: the table moves along ``axis`` over ``length_mm`` in ``step_mm`` steps
+    (41 positions for 200/5), ``n_runs`` repeats at each feed; at each position the velocities of the
+    table points M and N (coordinates ``m_xy``, ``n_xy`` in the carriage frame, XY) are read.
+    """
+    if axis not in ("X", "Y") or axis not in machine.axis_names:
+        raise InputError(f"velocity plans move axis X or Y of the machine, not {axis!r}")
+    lo, _hi = machine.axis(axis).travel
+    start = lo + 0.1 * (machine.axis(axis).travel[1] - lo) if start_mm is None else start_mm
+    pos = start + np.arange(0.0, length_mm + 1e-9, step_mm)
+    rows = []
+    clock = _Clock(start_s)
+    for feed in feeds_mm_min:
+        for run in range(1, n_runs + 1):
+            clock.move(length_mm, 3000.0, 5.0)          # rapid back to the start
+            for s in pos:
+                clock.move(step_mm, feed)
+                rows.append((s, feed, run, clock.now))
+    n = len(rows)
+    cols: dict = {"axis": [axis] * n, "feed_mm_min": np.array([r[1] for r in rows])}
+    cols[f"{axis.lower()}_mm"] = np.array([r[0] for r in rows])
+    cols["m_x_mm"], cols["m_y_mm"] = np.full(n, m_xy[0]), np.full(n, m_xy[1])
+    cols["n_x_mm"], cols["n_y_mm"] = np.full(n, n_xy[0]), np.full(n, n_xy[1])
+    cols[f"dir_{axis.lower()}"] = np.ones(n)
+    cols["run"] = np.array([r[2] for r in rows], dtype=float)
+    cols["t_s"] = np.array([r[3] for r in rows])
+    return Plan("velocity", name, cols, ("m_vx_mm_min", "m_vy_mm_min", "n_vx_mm_min", "n_vy_mm_min"))
+
+
+def cmm_plan(points_mm, normals, program, tool_radius_mm: float, name: str = "cmm",
+             **options) -> Plan:
+    """A machined part measured on a CMM (SPEC 3.4): nominal surface points (n, 3) mm with outward
+    unit normals (n, 3), cut by ``program`` (G-code path) with a ball-end tool of ``tool_radius_mm``.
+    Extra ``options`` go to the cmm measurement model (``sample_mm``, ``max_gap_mm``, ``tool_mm``)."""
+    pts = np.asarray(points_mm, dtype=float)
+    nrm = np.asarray(normals, dtype=float)
+    nrm = nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
+    cols = {"kind": ["cmm"] * len(pts), "x_mm": pts[:, 0], "y_mm": pts[:, 1], "z_mm": pts[:, 2],
+            "nx": nrm[:, 0], "ny": nrm[:, 1], "nz": nrm[:, 2]}
+    return Plan("cmm", name, cols, ("dn_um",),
+                {"program": os.fspath(program), "tool_radius_mm": float(tool_radius_mm), **options})
+
+
+# --------------------------------------------------------------------------------------------- truth
+
+#: standard deviation of random truth parameters, file units, by (group kind, order)
+def _param_sd(spec, machine: Machine) -> float:
+    name, unit, group = spec.name, spec.unit, spec.group
+    if group == "squareness":
+        return 30.0
+    if group == "tool":
+        return 2.0
+    if group.endswith(":location"):
+        return 10.0 if unit == "um" else 20.0
+    if ":" in group and group.split(":")[1].startswith("E") and spec.base:
+        comp = group.split(":")[1]
+        suffix = name.rsplit("_", 1)[1]
+        if suffix.isdigit():                              # linear polynomial coefficient
+            k = int(suffix)
+            if comp[1] in "ABC":
+                return (15.0, 8.0, 4.0)[min(k, 3) - 1]
+            if comp[1] == comp[2]:
+                return (10.0, 5.0, 3.0)[min(k, 3) - 1]
+            return (3.0, 4.0, 2.0)[min(k, 3) - 1]
+        return 8.0 if unit == "urad" else 2.0           # rotary harmonics
+    kind = group.split(":")[0]
+    return {"backlash": 5.0 if unit == "um" else 15.0, "periodic_error": 1.0,
+            "feed_dependent_offset": 0.5, "rotary_pdge": 3.0 if unit == "um" else 6.0,
+            "thermal_drift": 3.0, "channel_drift": 3.0}.get(kind, _extension_sd(spec))
+
+
+def _extension_sd(spec) -> float:
+    if spec.name.startswith("IRC_"):
+        return 40.0 if spec.name.endswith("0") else 50.0
+    if spec.name.startswith("AG_"):
+        return 0.05
+    return 1.0
+
+
+def random_truth(machine: Machine, rng: np.random.Generator, scale: float = 1.0, terms=(),
+                 context_defaults: dict | None = None) -> FittedModel:
+    """A realistic random truth: base parameters of machine-tool size plus the given extension terms.
+
+    Linear axes: positioning polynomials ~10, 5, 3 um at 1 m (k = 1, 2, 3), straightness ~3 um,
+    angular ~15, 8, 4 urad; squareness ~30 urad; rotary axis location ~10 um / 20 urad, angular
+    positioning harmonics ~8 urad; tool length error ~2 um. Extension terms: backlash ~5 um
+    (15 urad rotary), periodic error ~1 um, rotary error motions ~3 um / 6 urad, drift ~3 um per unit
+    of feature, IRC shifts ~50 mm. Every standard deviation times ``scale``.
+    """
+    model = ErrorModel(machine, terms)
+    params = ParameterSet(model.param_specs)
+    for i, spec in enumerate(model.param_specs):
+        params.values[i] = rng.normal() * _param_sd(spec, machine) * scale / spec.to_file
+    return FittedModel(model, params, dict(context_defaults or {}), {"source": "mtcomp.sim.random_truth"})
+
+
+# --------------------------------------------------------------------------------------------- machine
+
+def _write_csv(path, columns: dict) -> None:
+    names = list(columns)
+    n = len(next(iter(columns.values())))
+    cells = []
+    for nm in names:
+        col = columns[nm]
+        if isinstance(col, np.ndarray) and col.dtype.kind in "fiu":
+            cells.append([format_cell(float(v)) for v in col])
+        else:
+            cells.append(["" if v is None else (format_cell(float(v)) if isinstance(v, (float, np.floating))
+                                                 else str(v)) for v in col])
+    with atomic_write(path, newline="") as f:
+        w = csv.writer(f, lineterminator="\n")
+        w.writerow(names)
+        for i in range(n):
+            w.writerow([c[i] for c in cells])
+
+
+class VirtualMachine:
+    """A machine with known errors that produces measurement files.
+
+    machine : the machine (must match ``truth.machine`` in topology and axes).
+    truth : the error model and its parameter values (internal units).
+    noise_um : standard deviation of translational readings (points, laser um, ball-bar lengths,
+        CMM, thermal channels), um. noise_urad : angular readings, urad.
+    noise_velocity_mm_min : velocity readings (velocity files), mm/min.
+    rng : numpy Generator (or seed) for the noise.
+    nuisance : nuisance name (without the file tag, e.g. 'length_offset', 'X:EXX:offset') -> value in
+        internal units; unnamed nuisances are 0 (the instruments are perfect apart from noise).
+    """
+
+    def __init__(self, machine: Machine, truth: FittedModel, noise_um: float = 0.3,
+                 noise_urad: float = 0.5, rng=None, noise_velocity_mm_min: float = 1e-4,
+                 nuisance: dict | None = None):
+        if machine.topology != truth.machine.topology or machine.axis_names != truth.machine.axis_names:
+            raise ValueError(f"truth was made for {truth.machine.topology}, not {machine.topology}")
+        self.machine = machine
+        self.truth = truth
+        self.noise_um = float(noise_um)
+        self.noise_urad = float(noise_urad)
+        self.noise_velocity_mm_min = float(noise_velocity_mm_min)
+        self.rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+        self.nuisance = dict(nuisance or {})
+
+    # ---------------------------------------------------------------------------------------------
+    def noise_sd(self, column: str) -> float:
+        """Standard deviation of the noise of a measured column, in that column's file unit."""
+        if column.endswith("_mm_min"):
+            return self.noise_velocity_mm_min
+        if column.endswith("_urad"):
+            return self.noise_urad
+        if column.endswith("_um"):
+            return self.noise_um
+        if column.endswith("_mm"):
+            return self.noise_um * 1e-3
+        raise ValueError(f"no noise for column {column!r}")
+
+    def measurement_model(self, plan: Plan, data: MeasurementSet):
+        """The registered measurement model of the plan's kind, bound to the truth and ``data``."""
+        from .identification.measurement_models import model_class_for
+        from .identification.measurement_models_extra import drift_context
+        options = dict(plan.options)
+        options.setdefault("extra_context", drift_context(self.truth.model, data))
+        return model_class_for(plan.kind, data.path)(self.truth.model, data, self.truth.context_defaults,
+                                                     machine=self.machine, **options)
+
+    def _nuisance_vector(self, mmodel) -> np.ndarray:
+        out = np.zeros(mmodel.n_nuisance)
+        for i, nm in enumerate(mmodel.nuisance_names):
+            short = nm.split(":", 1)[1] if ":" in nm else nm
+            out[i] = self.nuisance.get(short, self.nuisance.get(nm, 0.0))
+        return out
+
+    def readings(self, plan: Plan, data: MeasurementSet, noise: bool = True) -> dict[str, np.ndarray]:
+        """Measured columns (file units) for the rows of ``data``: model prediction plus noise."""
+        mmodel = self.measurement_model(plan, data)
+        pred = mmodel.predict_columns(self.truth.params.values, self._nuisance_vector(mmodel))
+        out = {}
+        for col in plan.measured:
+            v = np.asarray(pred[f"pred_{col}"], dtype=float)
+            if noise:
+                v = v + self.rng.normal(size=v.shape) * self.noise_sd(col)
+            out[col] = v
+        return out
+
+    def measure(self, plan: Plan, path: str | os.PathLike | None = None, noise: bool = True
+                ) -> MeasurementSet:
+        """Simulate one file: write it to ``path`` (SPEC CSV; default: a temporary file) and return the
+        measurement set read back from it."""
+        with tempfile.TemporaryDirectory(prefix="mtcomp-sim-") as tmp:
+            template = Path(tmp) / f"{plan.name}.csv"
+            cols = dict(plan.columns)
+            for c in plan.measured:
+                cols[c] = np.full(len(plan), np.nan)
+            _write_csv(template, cols)
+            data = read_measurements(template, kind=plan.kind)
+            values = self.readings(plan, data, noise)
+            cols.update(values)
+            out = Path(path) if path is not None else template
+            _write_csv(out, cols)
+            return read_measurements(out, kind=plan.kind)
+
+    def campaign(self, plans, out_dir: str | os.PathLike, gap_s: float = 600.0,
+                 noise: bool = True) -> dict[str, MeasurementSet]:
+        """Run plans one after another (each starts ``gap_s`` after the previous one ends, so ``t_s``
+        runs on through the campaign); write ``<out_dir>/<plan.name>.csv``; name -> data read back."""
+        out_dir = Path(out_dir)
+        if not out_dir.is_dir():
+            raise InputError("output folder does not exist", str(out_dir))
+        t = 0.0
+        result = {}
+        for plan in plans:
+            p = plan.shifted(t) if "t_s" in plan.columns else plan
+            result[plan.name] = self.measure(p, out_dir / f"{plan.name}.csv", noise)
+            t = max(t, p.duration_s) + gap_s
+        return result
