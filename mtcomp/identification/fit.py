@@ -435,8 +435,7 @@ class _Problem:
     def noise_weights(self, sol: "_Solution"):
         """1/noise per file and unit from the residuals of a unit-weight fit."""
         w = self.unit_weights()
-        dof_share = sol.dof_fraction if hasattr(sol, "dof_fraction") else \
-            max(self.n_obs - sol.rank, 1) / self.n_obs
+        dof_share = max(self.n_obs - sol.rank, 1) / self.n_obs
         for _, s, idx in self._groups():
             resid = sol.r[idx] / w[idx] * s   # error units
             noise = np.sqrt(np.sum(resid ** 2) / max(idx.size * dof_share, 1e-300))
@@ -511,25 +510,28 @@ class _Problem:
         for it in range(1, max_iterations + 1):
             iterations = it
             dz = _step(Jw, scale, B, AB, r)
-            dx = scale * dz
-            z_norm = np.linalg.norm(x / scale)
-            # backtracking (rarely needed: the model is nearly linear)
+            small = np.linalg.norm(dz) <= tol * (1.0 + np.linalg.norm(x / scale))
+            # a converged step needs no new Jacobian (the one at x serves the covariance)
+            x_new = x + scale * dz
+            pred_new, J_new = self.evaluate(x_new, jacobian=not small)
+            r_new = w * (self.observed - pred_new)
+            cost_new = float(r_new @ r_new)
             step = 1.0
-            for _ in range(20):
-                x_new = x + step * dx
-                pred_new, _ = self.evaluate(x_new, jacobian=False)
+            while cost_new > cost * (1 + 1e-12) + 1e-300 and step > 1e-6:
+                # backtracking, rarely needed: the model is nearly linear in p
+                step *= 0.5
+                x_new = x + step * scale * dz
+                pred_new, J_new = self.evaluate(x_new, jacobian=not small)
                 r_new = w * (self.observed - pred_new)
                 cost_new = float(r_new @ r_new)
-                if cost_new <= cost * (1 + 1e-12) + 1e-300:
-                    break
-                step *= 0.5
-            small = np.linalg.norm(step * dz) <= tol * (1.0 + z_norm)
+            if cost_new > cost * (1 + 1e-12) + 1e-300:
+                converged = True        # no descent along the Gauss-Newton step: at the minimum
+                break
             x, r, cost = x_new, r_new, cost_new
             if small or cost == 0.0:
                 converged = True
                 break
-            pred, J = self.evaluate(x)
-            Jw = J * w[:, None]
+            Jw = J_new * w[:, None]
             A = _normal_matrix(Jw, scale)
             AB = B.T @ A @ B
         dof = max(self.n_obs - rank, 0)
@@ -616,7 +618,6 @@ def _name_null_space(null, scale, to_file, names, svals) -> list[UndeterminedCom
     k = null.shape[1]
     if k == 0:
         return []
-    phys = null * (scale * to_file)[:, None]           # file-unit directions
     # pivot on the unknowns with the largest weight (in scaled coordinates, where weights compare)
     _, _, piv = scipy.linalg.qr(null.T, pivoting=True)
     piv = piv[:k]
@@ -632,5 +633,4 @@ def _name_null_space(null, scale, to_file, names, svals) -> list[UndeterminedCom
         coef = f / f[pivot]
         out.append(UndeterminedCombination([(names[i], float(coef[i])) for i in idx],
                                            float(svals[j]) if j < len(svals) else 0.0))
-    del phys
     return out

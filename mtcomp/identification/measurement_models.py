@@ -125,30 +125,42 @@ _FUNCTIONS: "weakref.WeakKeyDictionary[ErrorModel, dict]" = weakref.WeakKeyDicti
 
 
 def chain_function(model: ErrorModel, name: str) -> ca.Function:
-    """CasADi functions of (q, p, c) built once per model and cached:
+    """CasADi functions of (q, p, c) built once per model and cached (``c`` may be extended per row):
 
-    * ``'tip_jac'``: (d (3,) tip deviation mm, J_d (3, n_params)).
-    * ``'frame_jac'``: (d (3,), R_rel (3, 3), tip0 (3,), J_d (3, n_params), J_R (9, n_params)) with
-      ``R_rel = R R0^T`` the tool's rotation relative to nominal, J_R of vec(R_rel) in column-major order.
+    * ``'tip'``: d (3,) tip deviation mm; ``'tip_jac'``: (d, J_d (3, n_params)).
+    * ``'laser'`` / ``'laser_jac'``: c = [context, o (3), s (6)]:
+      v = s . [d + (R_rel - I) o ; vee((R_rel - R_rel^T) / 2)] (scalar) and its gradient
+      (1, n_params), with ``R_rel = R R0^T`` the tool's rotation relative to nominal.
+    * ``'ballbar'`` / ``'ballbar_jac'``: c = [context, T (3), b (3)]:
+      L = | tip0 + d + R_rel b - T | (scalar) and its gradient (1, n_params).
     """
     cache = _FUNCTIONS.setdefault(model, {})
     if name not in cache:
-        q, p, c = ca.SX.sym("q", model.machine.n_axes), ca.SX.sym("p", model.n_params), \
-            ca.SX.sym("c", model.n_context)
+        nc = model.n_context
+        q, p = ca.SX.sym("q", model.machine.n_axes), ca.SX.sym("p", model.n_params)
+        extra = {"tip": 0, "tip_jac": 0, "laser": 9, "laser_jac": 9, "ballbar": 6, "ballbar_jac": 6}
+        if name not in extra:
+            raise KeyError(name)
+        cx = ca.SX.sym("c", nc + extra[name])
+        c = cx[:nc]
         tip, _, R = model.symbolic(q, p, c, errors=True)
         tip0, _, R0 = model.symbolic(q, p, c, errors=False)
         d = tip - tip0
-        if name == "tip_jac":
-            f = ca.Function("mm_tip_jac", [q, p, c], [d, ca.jacobian(d, p)], ["q", "p", "c"],
-                            ["d", "J_d"])
-        elif name == "frame_jac":
-            R_rel = ca.mtimes(R, R0.T)
-            f = ca.Function("mm_frame_jac", [q, p, c],
-                            [d, R_rel, tip0, ca.jacobian(d, p), ca.jacobian(ca.vec(R_rel), p)],
-                            ["q", "p", "c"], ["d", "R_rel", "tip0", "J_d", "J_R"])
+        R_rel = ca.mtimes(R, R0.T)
+        if name.startswith("tip"):
+            outs = [d]
+        elif name.startswith("laser"):
+            o, sel = cx[nc:nc + 3], cx[nc + 3:nc + 9]
+            point = d + ca.mtimes(R_rel, o) - o
+            vee = 0.5 * ca.vertcat(R_rel[2, 1] - R_rel[1, 2], R_rel[0, 2] - R_rel[2, 0],
+                                   R_rel[1, 0] - R_rel[0, 1])
+            outs = [ca.dot(sel, ca.vertcat(point, vee))]
         else:
-            raise KeyError(name)
-        cache[name] = f
+            T, b = cx[nc:nc + 3], cx[nc + 3:nc + 6]
+            outs = [ca.norm_2(tip0 + d + ca.mtimes(R_rel, b) - T)]
+        if name.endswith("_jac"):
+            outs.append(ca.jacobian(outs[0], p))
+        cache[name] = ca.Function(f"mm_{name}", [q, p, cx], outs)
     return cache[name]
 
 
@@ -324,8 +336,10 @@ class PointsModel(MeasurementModel):
     def tip_deviation(self, p, jacobian: bool = False):
         """(n_rows, 3) tip deviation, mm (and (n_rows, 3, n_params) Jacobian when asked)."""
         p = np.asarray(p, dtype=float)
+        if not jacobian:
+            return evaluate_chain(self.model, "tip", self.q, p, self.c)[0]
         out = evaluate_chain(self.model, "tip_jac", self.q, p, self.c)
-        return (out[0], out[1]) if jacobian else out[0]
+        return out[0], out[1]
 
     def _evaluate(self, p, nuisance, jacobian):
         p, nuisance = self._check_p(p, nuisance)
@@ -352,8 +366,6 @@ class PointsModel(MeasurementModel):
 
 # ------------------------------------------------------------------------------------- laser
 _LETTER_INDEX = {"X": 0, "Y": 1, "Z": 2, "A": 0, "B": 1, "C": 2}
-#: vee((R - R^T)/2) component k uses vec(R) (column-major) entries (+i, -j): R[2,1]-R[1,2] ...
-_VEE = {0: ((2, 1), (1, 2)), 1: ((0, 2), (2, 0)), 2: ((1, 0), (0, 1))}
 
 
 @register
@@ -409,30 +421,17 @@ class LaserModel(MeasurementModel):
                                        f"{self.tag} (um/m)"))
         self.nuisance_specs = specs
         self.optic = np.asarray(data.optic, dtype=float)
+        # per-row selector of the reading: [translation (3), rotation (3)] . s, sign included
+        sel = np.zeros((n, 6))
+        sel[np.arange(n), self.direction + 3 * self.angular] = self.sign
+        self._cx = np.hstack([self.c, self.optic, sel])
 
     def _readings(self, p, jacobian):
         """(n_rows,) model readings without nuisance (and (n_rows, n_params) Jacobian)."""
-        d, R, _tip0, Jd, JR = evaluate_chain(self.model, "frame_jac", self.q, p, self.c)
-        n = len(self.data)
-        idx = np.arange(n)
-        k = self.direction
-        o = self.optic
-        # translational: e_k . (d + (R - I) o)
-        point_dev = d + np.einsum("nij,nj->ni", R, o) - o
-        trans = point_dev[idx, k]
-        # angular: vee((R - R^T)/2)_k
-        (i1, j1), (i2, j2) = np.array([_VEE[int(kk)][0] for kk in k]).T, \
-            np.array([_VEE[int(kk)][1] for kk in k]).T
-        ang = 0.5 * (R[idx, i1, j1] - R[idx, i2, j2])
-        value = self.sign * np.where(self.angular, ang, trans)
-        if not jacobian:
-            return value, None
-        # d point_dev_k / dp = Jd[k] + sum_j dR[k, j]/dp o_j ; vec index of R[i, j] is i + 3 j
-        JRr = JR.reshape(n, 3, 3, -1)            # [n, j (col), i (row), p] from column-major vec
-        J_trans = Jd[idx, k] + np.einsum("njp,nj->np", JRr[idx, :, k, :], o)
-        J_ang = 0.5 * (JRr[idx, j1, i1] - JRr[idx, j2, i2])
-        J = self.sign[:, None] * np.where(self.angular[:, None], J_ang, J_trans)
-        return value, J
+        name = "laser_jac" if jacobian else "laser"
+        out = evaluate_chain(self.model, name, self.q, p, self._cx)
+        value = out[0].reshape(-1)
+        return value, (out[1].reshape(len(value), -1) if jacobian else None)
 
     def _nuisance_part(self, nuisance):
         """(n_rows,) offset + slope * target, and the (n_rows, n_nuisance) design of it."""
@@ -480,22 +479,15 @@ class BallbarModel(MeasurementModel):
         self.c = self.context()
         self._set_observations(data.length[:, None], ["length_mm"], [1.0])
         self._rows = self.obs_row
+        self._cx = np.hstack([self.c, data.table_ball, data.tool_ball])
         self.nuisance_specs = [ParamSpec(f"{self.tag}:length_offset", "um", f"nuisance:{self.tag}", False,
                                          f"length calibration offset of the ball bar of {self.tag}")]
 
     def _lengths(self, p, jacobian):
-        d, R, tip0, Jd, JR = evaluate_chain(self.model, "frame_jac", self.q, p, self.c)
-        n = len(self.data)
-        b = self.data.tool_ball
-        ball = tip0 + d + np.einsum("nij,nj->ni", R, b)
-        v = ball - self.data.table_ball
-        length = np.linalg.norm(v, axis=1)
-        if not jacobian:
-            return length, None
-        u = v / length[:, None]
-        JRr = JR.reshape(n, 3, 3, -1)            # [n, j, i, p]
-        Jball = Jd + np.einsum("njip,nj->nip", JRr, b)
-        return length, np.einsum("ni,nip->np", u, Jball)
+        name = "ballbar_jac" if jacobian else "ballbar"
+        out = evaluate_chain(self.model, name, self.q, p, self._cx)
+        length = out[0].reshape(-1)
+        return length, (out[1].reshape(len(length), -1) if jacobian else None)
 
     def _evaluate(self, p, nuisance, jacobian):
         p, nuisance = self._check_p(p, nuisance)

@@ -214,3 +214,97 @@ def simulate(model, data: MeasurementSet, p, nuisance=None, noise_um: float = 0.
         v = noisy(cols["pred_length_mm"], noise_um * 1e-3)
         return with_values(data, {"length_mm": np.where(np.isfinite(data.length), v, np.nan)})
     raise ValueError(f"simulate does not handle {data.kind} sets")
+
+
+def random_parameters(model, rng, um: float = 10.0, urad: float = 20.0, mask=None) -> np.ndarray:
+    """(n_params,) random values of machine size: N(0, um) for um parameters and N(0, urad) for urad
+    ones (internal units); zero outside ``mask`` (default ``model.base_mask``)."""
+    mask = model.base_mask if mask is None else mask
+    sd = np.array([um * 1e-3 if s.unit == "um" else urad * 1e-6 for s in model.param_specs])
+    return np.where(mask, rng.normal(size=model.n_params) * sd, 0.0)
+
+
+def campaign(machine, rng, n_points: int = 300, tool_lengths=(0.0, 100.0, 200.0),
+             laser_offsets: int = 2, laser_steps: int = 9, ballbar_radius: float = 100.0,
+             ballbar_steps: int = 36) -> dict[str, MeasurementSet]:
+    """A rich measurement campaign (readings zero; fill them with :func:`simulate`):
+
+    * ``points``: random poses over the whole work volume (rotary axes too), tool lengths drawn from
+      ``tool_lengths``;
+    * ``laser``: for every axis every component, each at ``laser_offsets`` set-ups with different
+      static positions of the other axes and optic offsets (Abbe arms), ``laser_steps`` targets;
+    * ``ballbar``: circles of ``ballbar_radius`` in the XY, XZ and YZ planes (and for a rotary axis a
+      circle of the table ball turning with it, tool following nominally).
+    """
+    lo, hi = machine.travel_bounds()
+    names = machine.axis_names
+    na = len(names)
+    rot_lo = np.maximum(lo, -np.pi)
+    rot_hi = np.minimum(hi, np.pi)
+    lo_c = np.where([n in "ABC" for n in names], rot_lo, lo)
+    hi_c = np.where([n in "ABC" for n in names], rot_hi, hi)
+    q = rng.uniform(lo_c, hi_c, size=(n_points, na))
+
+    def full(qrows):
+        xyz = np.zeros((len(qrows), 3))
+        abc = np.zeros((len(qrows), 3))
+        for k, n in enumerate(names):
+            (xyz if n in "XYZ" else abc)[:, "XYZABC".index(n) % 3] = qrows[:, k]
+        return xyz, abc
+
+    xyz, abc = full(q)
+    rotary = any(n in "ABC" for n in names)
+    points = make_points(xyz, abc if rotary else None, tool=rng.choice(np.asarray(tool_lengths), n_points),
+                         path="points.csv")
+
+    rows = {k: [] for k in ("axis", "component", "target", "direction", "run", "static", "optic")}
+    for a_i, a in enumerate(names):
+        comps = [f"E{d}{a}" for d in "XYZABC"]
+        for setup in range(laser_offsets):
+            static = np.zeros(6)
+            qs = rng.uniform(lo_c, hi_c) * 0.6
+            for k, n in enumerate(names):
+                static["XYZABC".index(n)] = qs[k]
+            optic = rng.uniform(-150.0, 150.0, 3)
+            targets = np.linspace(lo_c[a_i], hi_c[a_i], laser_steps)
+            for comp in comps:
+                for direction, seq in ((1, targets), (-1, targets[::-1])):
+                    for t in seq:
+                        rows["axis"].append(a)
+                        rows["component"].append(comp)
+                        rows["target"].append(t)
+                        rows["direction"].append(direction)
+                        rows["run"].append(setup)
+                        rows["static"].append(static)
+                        rows["optic"].append(optic)
+    laser = make_laser(rows["axis"], rows["component"], rows["target"], rows["direction"], rows["run"],
+                       np.array(rows["static"]), np.array(rows["optic"]), path="laser.csv")
+
+    centre = (lo + hi) / 2
+    ang = np.linspace(0.0, 2 * np.pi, ballbar_steps, endpoint=False)
+    bq, tb = [], []
+    for i, j in ((0, 1), (0, 2), (1, 2)):
+        for _ in range(2):
+            c = np.zeros(na)
+            c[:] = 0.0
+            for k, n in enumerate(names):
+                if n in "XYZ":
+                    c[k] = rng.uniform(lo[k] + ballbar_radius, hi[k] - ballbar_radius)
+            ki = [k for k, n in enumerate(names) if n == "XYZ"[i]]
+            kj = [k for k, n in enumerate(names) if n == "XYZ"[j]]
+            if not ki or not kj:
+                continue
+            qq = np.tile(c, (ballbar_steps, 1))
+            qq[:, ki[0]] += ballbar_radius * np.cos(ang)
+            qq[:, kj[0]] += ballbar_radius * np.sin(ang)
+            bq.append(qq)
+            centre_xyz, _ = full(c[None, :])
+            tb.append(np.tile(centre_xyz, (ballbar_steps, 1)))
+    bq = np.vstack(bq)
+    tb = np.vstack(tb)
+    bxyz, babc = full(bq)
+    tool_ball = np.array([0.0, 0.0, 0.0])
+    ballbar = make_ballbar(bxyz, tb, tool_ball, babc if rotary else None,
+                           length=np.linalg.norm(bxyz - tb, axis=1), path="ballbar.csv")
+    del centre
+    return {"points": points, "laser": laser, "ballbar": ballbar}

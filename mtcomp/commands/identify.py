@@ -1,0 +1,52 @@
+"""`mtcomp identify MACHINE DATA... -o MODEL.json`: fit the base error model to measurement files.
+
+Every DATA file is read (its kind is told by its columns, SPEC section 3), all of them are fitted at
+once (:func:`mtcomp.identification.fit.identify`), the summary is printed and MODEL.json is written
+atomically (nothing is written on error; an input is never overwritten). docs/identification.md.
+"""
+from __future__ import annotations
+
+
+def add_arguments(parser):
+    parser.add_argument("machine", metavar="MACHINE", help="built-in machine name or machine TOML file")
+    parser.add_argument("data", metavar="DATA", nargs="+",
+                        help="measurement files (points, laser, ballbar, and any kind with a "
+                             "registered measurement model)")
+    parser.add_argument("-o", "--output", metavar="MODEL.json", required=True,
+                        help="where to write the fitted model")
+    parser.add_argument("--hold", metavar="NAME", action="append", default=[],
+                        help="hold a parameter at zero (repeat, or give a comma-separated list), "
+                             "e.g. --hold EXY_1,EXZ_1,EYZ_1 to let the squareness terms carry the "
+                             "linear straightness")
+    parser.add_argument("--weights", choices=("unit", "noise"), default="unit",
+                        help="unit: every residual in um or urad (default); noise: refit with "
+                             "1/noise per file estimated from a first fit")
+    parser.add_argument("--rcond", type=float, default=None, metavar="R",
+                        help="relative singular value below which a combination of parameters counts "
+                             "as undetermined and is held at zero (default 1e-6)")
+
+
+def run(args) -> int:
+    import sys
+
+    from ..errors import InputError
+    from ..identification.fit import DEFAULT_RCOND, identify
+    from ..io.atomic import check_output_path
+    from ..io.measurements import read_measurements
+    from ..machine import load_machine
+    from ..models.model_file import save_model
+
+    out = check_output_path(args.output, list(args.data))
+    machine = load_machine(args.machine)
+    hold = [h.strip() for item in args.hold for h in item.split(",") if h.strip()]
+    rcond = DEFAULT_RCOND if args.rcond is None else args.rcond
+    if not (0.0 < rcond < 1.0):
+        raise InputError(f"--rcond must lie between 0 and 1, got {rcond}")
+    datasets = [read_measurements(path) for path in args.data]
+    result = identify(machine, datasets, hold=hold, weights=args.weights, rcond=rcond,
+                      info={"command": "mtcomp identify " + " ".join(sys.argv[2:]) if len(sys.argv) > 2
+                            else "mtcomp identify"})
+    print(result.summary())
+    save_model(out, result.fitted_model)
+    print(f"\nwrote {out}")
+    return 0
