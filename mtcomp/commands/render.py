@@ -1,0 +1,82 @@
+"""``mtcomp render MACHINE MODEL.json IN.nc [--compensated OUT.nc] -o MAP.png`` (SPEC section 5).
+
+The workpiece surface the program cuts, coloured by the model's predicted deviation along the surface
+normal (um), before and after compensation side by side on one colour scale; a .vtp with the same
+stem is written next to the PNG for ParaView. See docs/render.md.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..errors import InputError
+
+
+def add_arguments(parser):
+    parser.add_argument("machine", help="built-in machine name or machine TOML file")
+    parser.add_argument("model", help="MODEL.json (from identify or diagnose)")
+    parser.add_argument("program", help="the NC program (G-code) as written for the part")
+    parser.add_argument("--compensated", metavar="OUT.nc",
+                        help="the compensated program (from mtcomp compensate): adds the 'after' map")
+    parser.add_argument("-o", "--output", required=True, metavar="MAP.png",
+                        help="the PNG to write; MAP.vtp is written next to it")
+    parser.add_argument("--tool-radius-mm", type=float, default=0.0, metavar="R",
+                        help="ball-end radius: draw the map at the contact points (default 0: at the "
+                             "tool tips)")
+    parser.add_argument("--glyphs", action="store_true",
+                        help="draw the deviation vectors as exaggerated arrows")
+    parser.add_argument("--glyph-scale", type=float, default=None, metavar="K",
+                        help="arrow exaggeration factor (default: largest arrow = 1/10 of the part)")
+    parser.add_argument("--range-um", type=float, default=None, metavar="U",
+                        help="colour scale -U..U um (default: the largest |deviation| of both maps)")
+    parser.add_argument("--size", default="1400x700", metavar="WxH", help="image size in pixels")
+    parser.add_argument("--backend", choices=("auto", "pyvista", "matplotlib"), default="auto",
+                        help="renderer (auto: pyvista off-screen, matplotlib if VTK cannot render)")
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise InputError(f"--size must look like 1400x700, got {text!r}") from None
+    if not (100 <= w <= 8000 and 100 <= h <= 8000):
+        raise InputError(f"--size {text}: width and height must be 100..8000 pixels")
+    return w, h
+
+
+def run(args) -> int:
+    from ..io.atomic import check_output_path
+    from ..machine import load_machine
+    from ..models import load_model
+    from ..viz.surface import program_error_map
+
+    out = Path(args.output)
+    if out.suffix.lower() != ".png":
+        raise InputError("the map must be a .png file", out)
+    if args.glyph_scale is not None and not args.glyph_scale > 0:
+        raise InputError(f"--glyph-scale must be > 0, got {args.glyph_scale}")
+    if args.range_um is not None and not args.range_um > 0:
+        raise InputError(f"--range-um must be > 0, got {args.range_um}")
+    size = _size(args.size)
+    inputs = [args.model, args.program] + ([args.compensated] if args.compensated else [])
+    for p in inputs:
+        if not Path(p).is_file():
+            raise InputError("no such file", p)
+    check_output_path(out, inputs)
+    check_output_path(out.with_suffix(".vtp"), inputs)
+    machine = load_machine(args.machine)
+    fitted = load_model(args.model, machine)
+    smap = program_error_map(machine, fitted, args.program, args.compensated,
+                             tool_radius_mm=args.tool_radius_mm)
+    from ..viz.render import render_error_map
+    clim = None if args.range_um is None else (-args.range_um, args.range_um)
+    res = render_error_map(smap, out, glyphs=args.glyphs or args.glyph_scale is not None,
+                           glyph_scale=args.glyph_scale, clim=clim, window_size=size,
+                           backend=args.backend)
+    st = res.stats
+    print(f"surface: {st['n_points']} points, {st['n_triangles']} triangles")
+    print(f"before: RMS {st['rms_before_um']:.3f} um, max {st['max_before_um']:.3f} um "
+          "(deviation along the surface normal)")
+    if "rms_after_um" in st:
+        print(f"after:  RMS {st['rms_after_um']:.3f} um, max {st['max_after_um']:.3f} um")
+    print(f"wrote {res.png} ({res.backend}) and {res.vtp}")
+    return 0

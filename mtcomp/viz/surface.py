@@ -1,0 +1,277 @@
+"""The workpiece surface a program cuts, and the model's predicted deviation along its normal.
+
+No plotting here (numpy and scipy only): :func:`program_error_map` turns a machine, a fitted model
+and an NC program (optionally with its compensated version) into a :class:`SurfaceMap`, which
+:mod:`mtcomp.viz.render` draws and writes to .vtp.
+
+What the surface is (docs/render.md):
+
+* the cutting points are the end points of every feed move (G1, and the chords of G2/G3) of the
+  program: rapids (G0) are left out. They are nominal tool-tip positions (SPEC section 2), turned
+  into the workpiece frame by the nominal kinematics (for a 3-axis machine they are the X Y Z words).
+* the points are triangulated in the XY plane of the workpiece frame (scipy Delaunay), the part seen
+  from the tool side: of several points at the same XY (plunges, retracts, repeated passes) the lowest
+  is kept, and triangles with an edge longer than ``max_edge_factor`` times the median edge are
+  dropped (so holes and concave outlines are not bridged).
+* the unit normal at each point is the area-weighted mean of the normals of its triangles, turned to
+  point towards the tool (nominal tool axis): for a part cut from above it points out of the material.
+* for a ball-end tool of radius R (``tool_radius_mm``) the surface is drawn at the contact points
+  ``tip + R (axis - n)``; the tip-point surface and the cut surface are parallel, so the normals and
+  the deviations are the same either way.
+
+The deviation at a point is the actual tool tip minus the nominal one, in the workpiece frame (SPEC
+section 1), from the model; ``dn`` is its component along the normal (positive: the tool stays off the
+surface, material is left outside the nominal surface, the sign a CMM reports). For a compensated
+program the actual tip is taken at the corrected axis positions and compared with the ORIGINAL
+nominal point; original and compensated blocks are paired in source-line order.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..kinematics import forward
+from ..machine import Machine
+
+#: points closer than this in XY (mm) count as the same surface point
+XY_MERGE_TOL_MM = 1e-3
+#: triangles with an edge longer than this times the median edge length are dropped
+MAX_EDGE_FACTOR = 5.0
+
+
+@dataclass
+class ProgramPoints:
+    """The segment end points of a program, in program order (all motion, rapids included).
+
+    q : (n, na) axis positions, mm and rad. line : (n,) 1-based source lines. feed : (n,) mm/min
+    (nan for rapids). dirs : (n, na) approach directions. rapid : (n,) bool.
+    """
+
+    path: str
+    q: np.ndarray
+    line: np.ndarray
+    feed: np.ndarray
+    dirs: np.ndarray
+    rapid: np.ndarray
+
+    def __len__(self):
+        return int(self.line.shape[0])
+
+
+def read_program_points(path, machine: Machine) -> ProgramPoints:
+    """Every segment end of the program at ``path`` (arcs as chords). Raises InputError."""
+    from ..toolpaths import SegmentChunk, iter_segment_chunks
+    chunks = list(iter_segment_chunks(path, machine))
+    seg = SegmentChunk.concatenate(chunks, machine.n_axes)
+    return ProgramPoints(os.fspath(path), seg.end.copy(), seg.line.copy(), seg.feed.copy(),
+                         seg.dirs.copy(), seg.rapid.copy())
+
+
+@dataclass
+class SurfaceMap:
+    """A triangulated workpiece surface with the predicted deviation at its vertices.
+
+    points : (N, 3) mm, where the map is drawn (tool tips, or contact points for a ball-end tool).
+    tips : (N, 3) mm, nominal tool tips of the original program, workpiece frame.
+    normals : (N, 3) unit surface normals, pointing towards the tool.
+    triangles : (M, 3) int, vertex indices.
+    line : (N,) int, source line of each point in the original program.
+    dev_before : (N, 3) mm, actual minus nominal tool tip, original program.
+    dev_after : (N, 3) mm or None, actual tip at the corrected axes minus the ORIGINAL nominal tip.
+    source : the program's path, compensated : the compensated program's path or None.
+    """
+
+    points: np.ndarray
+    tips: np.ndarray
+    normals: np.ndarray
+    triangles: np.ndarray
+    line: np.ndarray
+    dev_before: np.ndarray
+    dev_after: np.ndarray | None = None
+    source: str = ""
+    compensated: str | None = None
+
+    @property
+    def dn_before_um(self) -> np.ndarray:
+        """(N,) um, deviation along the normal before compensation."""
+        return 1e3 * np.einsum("ij,ij->i", self.dev_before, self.normals)
+
+    @property
+    def dn_after_um(self) -> np.ndarray | None:
+        """(N,) um, deviation along the normal of the compensated program, or None."""
+        if self.dev_after is None:
+            return None
+        return 1e3 * np.einsum("ij,ij->i", self.dev_after, self.normals)
+
+    def stats(self) -> dict:
+        """RMS and largest magnitude of dn (um), before and (if present) after."""
+        out = {"n_points": int(self.points.shape[0]), "n_triangles": int(self.triangles.shape[0])}
+        for key, dn in (("before", self.dn_before_um), ("after", self.dn_after_um)):
+            if dn is not None:
+                out[f"rms_{key}_um"] = float(np.sqrt(np.mean(dn ** 2))) if dn.size else 0.0
+                out[f"max_{key}_um"] = float(np.max(np.abs(dn))) if dn.size else 0.0
+        return out
+
+
+# ------------------------------------------------------------------------------------ geometry
+def select_surface_points(tips: np.ndarray, tol_mm: float = XY_MERGE_TOL_MM) -> np.ndarray:
+    """Indices of the points that form the surface seen from +Z: one per XY cell of size ``tol_mm``,
+    the lowest (first in program order among equals). tips (n, 3) mm. Returns sorted indices."""
+    if tips.shape[0] == 0:
+        return np.zeros(0, np.int64)
+    key = np.round(tips[:, :2] / tol_mm).astype(np.int64)
+    order = np.lexsort((np.arange(tips.shape[0]), tips[:, 2], key[:, 1], key[:, 0]))
+    k = key[order]
+    first = np.ones(order.shape[0], bool)
+    first[1:] = np.any(k[1:] != k[:-1], axis=1)
+    return np.sort(order[first])
+
+
+def triangulate_xy(points: np.ndarray, max_edge_factor: float = MAX_EDGE_FACTOR) -> np.ndarray:
+    """Delaunay triangles (M, 3) of ``points`` (N, 3) projected on XY, without over-long triangles.
+
+    Raises InputError when fewer than 3 points or all points lie on a line in XY.
+    """
+    from scipy.spatial import Delaunay, QhullError
+    if points.shape[0] < 3:
+        raise InputError(f"the program has {points.shape[0]} distinct cutting points in XY; a surface "
+                         "needs at least 3")
+    try:
+        tri = Delaunay(points[:, :2]).simplices.astype(np.int64)
+    except QhullError:
+        raise InputError("the program's cutting points lie on a line in XY: no surface to map "
+                         "(render maps surfaces seen along Z)") from None
+    xy = points[:, :2]
+    edges = np.stack([np.linalg.norm(xy[tri[:, i]] - xy[tri[:, (i + 1) % 3]], axis=1)
+                      for i in range(3)], axis=1)
+    longest = edges.max(axis=1)
+    limit = max_edge_factor * np.median(edges)
+    keep = longest <= limit
+    if not np.any(keep):
+        keep = np.ones(tri.shape[0], bool)
+    return tri[keep]
+
+
+def vertex_normals(points: np.ndarray, triangles: np.ndarray, towards: np.ndarray) -> np.ndarray:
+    """(N, 3) unit normals: area-weighted mean of the triangle normals at each vertex, each turned to
+    have a positive component along ``towards`` (N, 3), e.g. the tool axis. Vertices in no triangle
+    get ``towards`` itself."""
+    a, b, c = (points[triangles[:, i]] for i in range(3))
+    fn = np.cross(b - a, c - a)  # length = 2 * area: area weighting for free
+    flip = np.einsum("ij,ij->i", fn, towards[triangles[:, 0]]) < 0
+    fn[flip] *= -1.0
+    acc = np.zeros_like(points)
+    for i in range(3):
+        np.add.at(acc, triangles[:, i], fn)
+    norm = np.linalg.norm(acc, axis=1)
+    n = np.where(norm[:, None] > 0, acc / np.where(norm > 0, norm, 1.0)[:, None], towards)
+    return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+
+# ----------------------------------------------------------------------------------- deviations
+def _context(fitted, q_count, feed, dirs):
+    machine = fitted.machine
+    cols = {"feed": feed}
+    for j, a in enumerate(machine.axis_names):
+        cols[f"dir_{a}"] = dirs[:, j].astype(float)
+    return fitted.context(q_count, cols)
+
+
+def predicted_tip(fitted, q: np.ndarray, feed: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+    """(n, 3) mm: the actual tool tip in the workpiece frame at axis positions q (n, na), as the model
+    predicts it (nominal forward kinematics plus the model's tip deviation)."""
+    from ..models import deviation
+    if q.shape[0] == 0:
+        return np.zeros((0, 3))
+    c = _context(fitted, q.shape[0], feed, dirs)
+    dev = deviation(fitted.model, q, fitted.params.values, c)
+    tip0, _ = forward(fitted.machine, q)
+    return tip0 + dev[:, :3]
+
+
+def pair_compensated(original: ProgramPoints, compensated: ProgramPoints, machine: Machine,
+                     tol_mm: float | None = None, tol_rad: float | None = None) -> np.ndarray:
+    """For each segment end of ``original``, the index of its corrected counterpart in ``compensated``.
+
+    Blocks are paired in source-line order: one to one when both have as many segment ends, else the
+    compensated program may carry extra intermediate points and each original end is paired with the
+    next compensated point within the tolerance (default: four times the machine's largest
+    correction, at least 0.05 mm / 50 urad). Raises InputError when the programs do not correspond.
+    """
+    comp = machine.compensation
+    tol_mm = max(4e-3 * comp.get("max_correction_um", 50.0), 0.05) if tol_mm is None else tol_mm
+    tol_rad = max(4e-6 * comp.get("max_correction_urad", 500.0), 5e-5) if tol_rad is None else tol_rad
+    rotary = np.array([a.is_rotary for a in machine.axes])
+    tol = np.where(rotary, tol_rad, tol_mm)
+    n, m = len(original), len(compensated)
+
+    def close(i, j):
+        return bool(np.all(np.abs(compensated.q[j] - original.q[i]) <= tol))
+
+    if n == m:
+        idx = np.arange(n)
+    else:
+        idx = np.empty(n, np.int64)
+        j = 0
+        for i in range(n):
+            while j < m and not close(i, j):
+                j += 1
+            if j >= m:
+                raise InputError(f"the compensated program has no point near line {int(original.line[i])} "
+                                 f"of {original.path} (is it compensated from that program?)",
+                                 compensated.path)
+            idx[i] = j
+            j += 1
+    if n:
+        diff = np.abs(compensated.q[idx] - original.q) > tol
+        bad = np.flatnonzero(np.any(diff, axis=1))
+        if bad.size:
+            i = int(bad[0])
+            d = np.abs(compensated.q[idx[i]] - original.q[i])
+            what = ", ".join(f"{a} by {d[k] * (1e6 if rotary[k] else 1e3):.4g} "
+                             f"{'urad' if rotary[k] else 'um'}"
+                             for k, a in enumerate(machine.axis_names) if d[k] > tol[k])
+            raise InputError(f"line {int(compensated.line[idx[i]])} differs from line "
+                             f"{int(original.line[i])} of {original.path} ({what}): not a compensated "
+                             "version of that program", compensated.path)
+    return idx
+
+
+def program_error_map(machine: Machine, fitted, program, compensated=None,
+                      tool_radius_mm: float = 0.0, max_edge_factor: float = MAX_EDGE_FACTOR
+                      ) -> SurfaceMap:
+    """The surface ``program`` cuts, with the deviation predicted by ``fitted`` (a FittedModel).
+
+    program, compensated : paths of NC files (or :class:`ProgramPoints`). tool_radius_mm : ball-end
+    radius, mm (0: draw the map at the tool tips). Raises InputError for programs without a surface
+    or a compensated program that does not match.
+    """
+    if not tool_radius_mm >= 0:
+        raise InputError(f"tool radius must be >= 0 mm, got {tool_radius_mm}")
+    orig = program if isinstance(program, ProgramPoints) else read_program_points(program, machine)
+    comp = None
+    if compensated is not None:
+        comp = (compensated if isinstance(compensated, ProgramPoints)
+                else read_program_points(compensated, machine))
+        pair = pair_compensated(orig, comp, machine)
+    cut = np.flatnonzero(~orig.rapid)
+    if cut.size == 0:
+        raise InputError("the program has no feed moves (G1/G2/G3): nothing is cut", orig.path)
+    tips_all, axes_all = forward(machine, orig.q[cut])
+    keep = select_surface_points(tips_all)
+    sel = cut[keep]
+    tips, tool_axis = tips_all[keep], axes_all[keep]
+    tri = triangulate_xy(tips, max_edge_factor)
+    normals = vertex_normals(tips, tri, tool_axis)
+    actual = predicted_tip(fitted, orig.q[sel], orig.feed[sel], orig.dirs[sel])
+    dev_before = actual - tips
+    dev_after = None
+    if comp is not None:
+        j = pair[sel]
+        dev_after = predicted_tip(fitted, comp.q[j], comp.feed[j], comp.dirs[j]) - tips
+    points = tips + tool_radius_mm * (tool_axis - normals) if tool_radius_mm > 0 else tips.copy()
+    return SurfaceMap(points, tips, normals, tri, orig.line[sel].copy(), dev_before, dev_after,
+                      orig.path, None if comp is None else comp.path)

@@ -1,0 +1,106 @@
+"""Rendering the error map off-screen: image against a stored reference, the .vtp, the CLI, and that
+importing mtcomp does not import pyvista."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mtcomp.viz import image_difference
+from mtcomp.viz.testing import REFERENCE_KWARGS, synthetic_surface_map
+
+DATA = Path(__file__).resolve().parent / "data"
+REFERENCE = DATA / "viz_error_map_ref.png"
+#: at most this fraction of pixels may differ visibly from the reference (anti-aliasing, fonts)
+TOLERANCE = 0.01
+
+pv = pytest.importorskip("pyvista")
+
+
+def render(smap, path, **kw):
+    from mtcomp.viz import render_error_map
+    return render_error_map(smap, path, **{**REFERENCE_KWARGS, **kw})
+
+
+def test_importing_mtcomp_does_not_import_pyvista():
+    code = ("import sys, mtcomp, mtcomp.models, mtcomp.viz, mtcomp.viz.surface, mtcomp.cli, "
+            "mtcomp.commands.render; mtcomp.cli.build_parser(); "
+            "bad = [m for m in ('pyvista', 'vtk', 'vtkmodules', 'matplotlib') if m in sys.modules]; "
+            "print(bad); sys.exit(1 if bad else 0)")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stdout + res.stderr
+
+
+def test_map_matches_the_reference_image(tmp_path):
+    res = render(synthetic_surface_map(), tmp_path / "map.png")
+    assert res.backend == "pyvista"
+    # largest |dn|: 5 um along z at (0, 30), times n_z = 1/sqrt(1 + 0.15^2) of the dish there
+    assert res.clim[1] == pytest.approx(5.0 / np.sqrt(1 + 0.15 ** 2), rel=0, abs=0.01)
+    assert res.clim[0] == -res.clim[1]
+    assert REFERENCE.stat().st_size < 100_000
+    assert image_difference(res.png, REFERENCE) <= TOLERANCE
+
+
+def test_comparison_fails_when_the_colour_scale_changes(tmp_path):
+    lo, hi = render(synthetic_surface_map(), tmp_path / "a.png").clim
+    res = render(synthetic_surface_map(), tmp_path / "map.png", clim=(0.7 * lo, 0.7 * hi))
+    assert image_difference(res.png, REFERENCE) > 5 * TOLERANCE
+
+
+def test_comparison_fails_when_the_data_change(tmp_path):
+    smap = synthetic_surface_map()
+    x, y = smap.tips[:, 0], smap.tips[:, 1]
+    bump = 3e-3 * np.exp(-((x - 10) ** 2 + (y + 10) ** 2) / 150.0)  # 3 um bump, ~20 mm wide
+    smap.dev_before[:, 2] += bump
+    smap.dev_after[:, 2] += bump
+    clim = render(synthetic_surface_map(), tmp_path / "a.png").clim  # the reference's scale
+    res = render(smap, tmp_path / "map.png", clim=clim)
+    assert image_difference(res.png, REFERENCE) > 2 * TOLERANCE
+
+
+def test_image_difference_hand_cases(tmp_path):
+    from PIL import Image
+    a = np.full((10, 20, 3), 255, np.uint8)
+    b = a.copy()
+    b[0:2, 0:5] = (255, 200, 255)  # 10 of 200 pixels, 55 levels off in green
+    b[5, 5] = (250, 250, 250)      # 5 levels: below the threshold
+    Image.fromarray(a).save(tmp_path / "a.png")
+    Image.fromarray(b).save(tmp_path / "b.png")
+    Image.fromarray(a[:, :10]).save(tmp_path / "c.png")
+    assert image_difference(tmp_path / "a.png", tmp_path / "b.png") == pytest.approx(0.05, abs=1e-12)
+    assert image_difference(tmp_path / "a.png", tmp_path / "a.png") == 0.0
+    assert image_difference(tmp_path / "a.png", tmp_path / "c.png") == 1.0
+
+
+def test_vtp_holds_the_map(tmp_path):
+    smap = synthetic_surface_map(n=7)
+    res = render(smap, tmp_path / "m.png", vtp=True, glyphs=True)
+    assert res.vtp == tmp_path / "m.vtp"
+    back = pv.read(res.vtp)
+    np.testing.assert_allclose(back.points, smap.points, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(back.point_data["dn_before_um"], smap.dn_before_um, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(back.point_data["dn_after_um"], smap.dn_after_um, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(back.point_data["dev_before_um"], 1e3 * smap.dev_before, rtol=0,
+                               atol=1e-12)
+    faces = back.faces.reshape(-1, 4)
+    np.testing.assert_array_equal(faces[:, 0], 3)
+    np.testing.assert_array_equal(faces[:, 1:], smap.triangles)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.png", "m.vtp"]  # no temporary files left
+
+
+def test_matplotlib_fallback_uses_the_same_colour_scale(tmp_path):
+    """Top view: the pixel colour at the map's hottest point is the top of the colour map."""
+    from matplotlib import colormaps
+    from PIL import Image
+    smap = synthetic_surface_map()
+    res = render(smap, tmp_path / "m.png", backend="matplotlib", window_size=(800, 400))
+    assert res.backend == "matplotlib"
+    img = np.asarray(Image.open(res.png).convert("RGB"), dtype=float)
+    top = np.array(colormaps["coolwarm"](1.0)[:3]) * 255
+    bottom = np.array(colormaps["coolwarm"](0.0)[:3]) * 255
+    dist_top = np.linalg.norm(img - top, axis=2).min()
+    dist_bottom = np.linalg.norm(img - bottom, axis=2).min()
+    assert dist_top < 12 and dist_bottom < 12  # both ends of the scale are drawn (map and bar)
