@@ -306,7 +306,7 @@ def rotary_positioning(data: LaserData, axis: str = "C") -> RotaryPositioning:
     sel = (data.axis == axis) & (data.component == comp) & np.isfinite(data.value)
     if not sel.any():
         raise InputError(f"no {comp} readings of axis {axis} in this laser file", data.path)
-    tgt = np.round(data.target[sel], 9)
+    tgt = np.round(data.target[sel], 12)
     val = data.value[sel]
     d = data.dir[sel]
     targets = np.unique(tgt)
