@@ -16,14 +16,15 @@ PLANE_AXES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
 #: plane G code -> (offset letter of the first in-plane axis, of the second)
 PLANE_OFFSET_LETTERS = {17: ("I", "J"), 18: ("K", "I"), 19: ("J", "K")}
 
-#: an arc whose end radius differs from its start radius by more than this is refused (mm) ...
-ARC_RADIUS_TOL_MM = 2e-3
+#: an arc whose end radius differs from its start radius by more than this is refused (mm; a
+#: 4-decimal inch program is off by up to 4 um through rounding alone) ...
+ARC_RADIUS_TOL_MM = 1e-2
 #: ... or by more than this fraction of the radius, whichever is larger
 ARC_RADIUS_TOL_REL = 1e-4
 #: start and end closer than this (mm) make an I/J/K arc a full circle
 FULL_CIRCLE_TOL_MM = 1e-9
 #: at most this many chords per arc (a guard against absurd radii and tolerances)
-MAX_CHORDS = 10_000_000
+MAX_CHORDS = 1_000_000
 
 
 class ArcError(ValueError):

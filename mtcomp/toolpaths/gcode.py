@@ -513,12 +513,13 @@ def _format_point(values: np.ndarray, letters: str, rotary: list[bool], inch: bo
 
 
 def format_motion_lines(block: MotionBlock, points: np.ndarray, letters: str, rotary: list[bool],
-                        need_g90: bool, ending: str) -> str:
+                        need_g90: bool, ending: str, separator: str = "\n") -> str:
     """The rewritten text of one motion line: ``points`` (m, na) become m lines G0/G1, absolute.
 
     The first line carries the N word, a G90 when the output is not yet absolute, the motion word,
     every axis, then the kept words and comments in their original order; the others only G0/G1
-    and the axes.
+    and the axes. ``ending`` is the line's own ending (kept, '' for a last line without one);
+    ``separator`` goes between the lines of a split block.
     """
     word = "G0" if block.rapid else "G1"
     out = []
@@ -534,7 +535,7 @@ def format_motion_lines(block: MotionBlock, points: np.ndarray, letters: str, ro
             out.append(" ".join(head))
         else:
             out.append(f"{word} {coords}")
-    return ending.join(out) + ending
+    return (ending or separator).join(out) + ending
 
 
 def _line_ending(raw: bytes) -> str:
@@ -608,6 +609,7 @@ def write_corrected(in_path, out_path, machine: Machine,
         return parts[0] if len(parts) == 1 else np.vstack(parts)
 
     out_absolute = False
+    separator = "\n"
     with atomic_write(out_path, "wb") as f:
         for k, raw, block, state in iter_blocks(in_path, machine, chord_tol_mm, initial_position):
             if block is None:
@@ -618,8 +620,10 @@ def write_corrected(in_path, out_path, machine: Machine,
                     out_absolute = True
                 continue
             pts = next_rows(k, block.points.shape[0])
-            text = format_motion_lines(block, pts, letters, rotary, not out_absolute,
-                                       _line_ending(raw))
+            ending = _line_ending(raw)
+            separator = ending or separator
+            text = format_motion_lines(block, pts, letters, rotary, not out_absolute, ending,
+                                       separator)
             out_absolute = True
             rows_written += block.points.shape[0]
             f.write(text.encode("latin-1"))

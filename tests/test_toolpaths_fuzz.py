@@ -1,0 +1,161 @@
+"""Property tests: generated programs survive the round trip; any input parses or names its line."""
+import math
+
+import numpy as np
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from mtcomp import InputError, load_machine
+from mtcomp.toolpaths import read_program, write_corrected
+
+CAFXYZ = load_machine("cafxyz")
+SETTINGS = settings(max_examples=60, deadline=None,
+                    suppress_health_check=[HealthCheck.function_scoped_fixture])
+
+TOL = 0.05   # chord tolerance (mm): coarse, to keep the examples small
+PASS_THROUGH = ["", "(a comment)", "; note", "M3 S12000", "T1 M6", "G4 P0.5", "G17", "M8",
+                "G43 H1", "(\xe9t\xe9 \xb0C)", "O0042", "G54", "S500 M5   ", "\t"]
+
+
+@st.composite
+def programs(draw):
+    """A valid program as a list of lines, built from a model of the modal state."""
+    n = draw(st.integers(1, 25))
+    lines = ["%"] if draw(st.booleans()) else []
+    pos = np.zeros(5)             # reader's positions: mm and rad
+    inch = incremental = False
+    mode = None
+    for _ in range(n):
+        kind = draw(st.sampled_from(["pass", "lin", "lin", "arc", "mode", "units"]))
+        if kind == "pass":
+            lines.append(draw(st.sampled_from(PASS_THROUGH)))
+        elif kind == "mode":
+            incremental = draw(st.booleans())
+            lines.append("G91" if incremental else "G90")
+        elif kind == "units":
+            inch = draw(st.booleans())
+            lines.append("G20" if inch else "G21")
+        elif kind == "lin":
+            scale = 25.4 if inch else 1.0
+            axes = draw(st.lists(st.sampled_from("XYZAC"), min_size=1, max_size=5, unique=True))
+            words = []
+            for c in "XYZAC":
+                if c not in axes:
+                    continue
+                i = "XYZAC".index(c)
+                dec = draw(st.integers(0, 4))
+                v = round(draw(st.floats(-90, 90, allow_nan=False)), dec)
+                txt = f"{v:.{dec}f}" if dec else f"{int(v)}"
+                if dec and draw(st.booleans()):
+                    txt = txt.rstrip("0")        # "1." and "1.5" forms
+                words.append(f"{c}{txt}")
+                val = math.radians(float(txt)) if c in "AC" else float(txt) * scale
+                pos[i] = pos[i] + val if incremental else val
+            g = draw(st.sampled_from(["G0", "G1", "G01", "g1", ""] if mode in (0, 1) else
+                                     ["G0", "G1", "G00"]))
+            if g:
+                mode = 0 if g.upper() in ("G0", "G00") else 1
+            pre = [f"N{draw(st.integers(1, 9999))}"] if draw(st.booleans()) else []
+            post = [f"F{draw(st.integers(1, 5000))}"] if draw(st.booleans()) or mode == 1 else []
+            post += [draw(st.sampled_from(["", "(c)", "M8", "; end"]))]
+            lines.append(" ".join(w for w in pre + ([g] if g else []) + words + post if w))
+        else:  # an arc in G17 from the current point, centre offset I J, end on the circle
+            scale = 25.4 if inch else 1.0
+            r = draw(st.floats(0.5, 40)) * scale
+            phi0 = draw(st.floats(0, 2 * math.pi))
+            phi1 = draw(st.floats(0, 2 * math.pi))
+            cx, cy = pos[0] - r * math.cos(phi0), pos[1] - r * math.sin(phi0)
+            ex, ey = cx + r * math.cos(phi1), cy + r * math.sin(phi1)
+            words = [f"I{(cx - pos[0]) / scale:.4f}", f"J{(cy - pos[1]) / scale:.4f}"]
+            coords = []
+            for i, (c, e) in enumerate((("X", ex), ("Y", ey))):
+                v = round((e - pos[i]) / scale if incremental else e / scale, 4)
+                coords.append(f"{c}{v:.4f}")
+                pos[i] = pos[i] + v * scale if incremental else v * scale
+            if draw(st.booleans()):
+                dz = round(draw(st.floats(-5, 5)), 3)
+                coords.append(f"Z{dz:.3f}")
+                pos[2] = pos[2] + dz * scale if incremental else dz * scale
+            g = draw(st.sampled_from(["G2", "G3", "G02", "G03"]))
+            mode = 2
+            lines.append(" ".join(["G17", g] + coords + words + ["F300"]))
+    if lines and lines[0] == "%":
+        lines.append("%")
+    ending = draw(st.sampled_from(["\n", "\r\n"]))
+    return ending.join(lines) + (ending if draw(st.booleans()) else "")
+
+
+def _split_keep(data: bytes) -> list[bytes]:
+    return data.splitlines(keepends=True)
+
+
+@SETTINGS
+@given(programs())
+def test_round_trip_property(tmp_path_factory, text):
+    d = tmp_path_factory.mktemp("rt")
+    src = d / "in.nc"
+    src.write_bytes(text.encode("latin-1"))
+    prog = read_program(src, CAFXYZ, chord_tol_mm=TOL)
+    out = d / "out.nc"
+    write_corrected(src, out, CAFXYZ, None, chord_tol_mm=TOL)
+    rows_per_line = {}
+    for b in prog.blocks:
+        rows_per_line[b.line] = b.points.shape[0]
+    src_lines = _split_keep(src.read_bytes())
+    out_lines = _split_keep(out.read_bytes())
+    # every non-motion line byte for byte and in place; a motion line becomes as many lines as rows
+    j = 0
+    for k, raw in enumerate(src_lines, 1):
+        if k in rows_per_line:
+            j += rows_per_line[k]
+        else:
+            assert out_lines[j] == raw
+            j += 1
+    assert j == len(out_lines)
+    # coordinates to the written precision (4 decimals mm/deg, 5 decimals inch)
+    a = prog.segments()
+    b = read_program(out, CAFXYZ, chord_tol_mm=TOL).segments()
+    tol = np.array([1.3e-4, 1.3e-4, 1.3e-4, math.radians(5.01e-5), math.radians(5.01e-5)])
+    assert np.all(np.abs(b.end - a.end) <= tol)
+    np.testing.assert_array_equal(b.rapid, a.rapid)
+    np.testing.assert_allclose(b.feed, a.feed, rtol=1e-12, atol=0, equal_nan=True)
+    # the written form is a fixed point of the round trip
+    out2 = d / "out2.nc"
+    write_corrected(out, out2, CAFXYZ, None)
+    assert out2.read_bytes() == out.read_bytes()
+
+
+JUNK = st.text(alphabet="GXYZACIJKRFNMO0123456789.-+ ()%;/\t\r\xe9#", max_size=30)
+
+
+@SETTINGS
+@given(st.lists(JUNK, min_size=1, max_size=8))
+def test_reader_never_crashes(tmp_path_factory, lines):
+    d = tmp_path_factory.mktemp("fz")
+    src = d / "in.nc"
+    src.write_bytes("\n".join(lines).encode("latin-1"))
+    out = d / "out.nc"
+    try:
+        read_program(src, CAFXYZ)
+    except InputError as exc:
+        assert exc.path == str(src) and 1 <= exc.line <= len(lines)
+        try:
+            write_corrected(src, out, CAFXYZ, None)
+        except InputError:
+            pass
+        assert not out.exists()
+        return
+    write_corrected(src, out, CAFXYZ, None)
+    assert out.exists()
+
+
+@SETTINGS
+@given(st.binary(max_size=200))
+def test_reader_never_crashes_on_bytes(tmp_path_factory, data):
+    d = tmp_path_factory.mktemp("fb")
+    src = d / "in.nc"
+    src.write_bytes(data)
+    try:
+        read_program(src, CAFXYZ)
+    except InputError as exc:
+        assert exc.line is not None and exc.line >= 1
