@@ -1,0 +1,68 @@
+"""Every example runs as a script, writes nothing where it is run, and prints its key figures (which
+are checked against what the virtual machine's truth implies)."""
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+NUM = r"(-?\d+(?:\.\d+)?)"
+
+
+def run_example(name, tmp_path, *args):
+    work = tmp_path / "cwd"
+    work.mkdir()
+    res = subprocess.run([sys.executable, str(EXAMPLES / name), *args], cwd=work, capture_output=True,
+                         text=True, timeout=180)
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert list(work.iterdir()) == []  # nothing written where it was run
+    return res.stdout
+
+
+def test_seed000_irc_beats_traditional_abbe_compensation(tmp_path):
+    out = run_example("seed000_irc_abbe.py", tmp_path)
+    rows = {}
+    for feed, paper in (("180", "0.81"), ("240", "1.12"), ("300", "1.18")):
+        m = re.search(rf"^\s+{feed}\s+{NUM}\.\.{NUM}\s+{NUM}\s+{NUM}\s+{NUM}\s+{NUM}\s+{NUM}\s+{NUM}\s+"
+                      rf"{re.escape(paper)}\s*$", out, re.M)
+        assert m, out
+        rows[feed] = [float(v) for v in m.groups()]
+    for feed, (y_lo, y_hi, before, trad, irc, gain_t, gain_i, diff) in rows.items():
+        assert 0 < y_lo <= y_hi < 210          # the IRC lies between the scale and the point B
+        assert irc < trad < before             # both compensations help, the IRC one more
+        assert diff == pytest.approx(trad - irc, abs=0.011)
+        assert diff > 0.5
+    # the truth's IRC moves away from the scale with feed, so the IRC advantage grows with feed
+    assert rows["180"][7] < rows["300"][7]
+    assert rows["180"][0] < rows["240"][0] < rows["300"][0]
+
+
+def test_seed002_compensation_removes_positioning_error_and_backlash(tmp_path):
+    out_dir = tmp_path / "files"
+    out = run_example("seed002_rotary_laser.py", tmp_path, "--out", str(out_dir))
+    fig = {}
+    for key in "ABEMR":
+        m = re.search(rf"^{key}  .*?\s{NUM}\s+{NUM}\s*$", out, re.M)
+        assert m, out
+        fig[key] = (float(m.group(1)), float(m.group(2)))
+    assert fig["A"][1] < 0.2 * fig["A"][0]
+    assert fig["B"][1] < 0.1 * fig["B"][0]
+    m = re.search(rf"backlash: truth {NUM} arcsec, measured {NUM} arcsec", out)
+    assert m, out
+    assert float(m.group(2)) == pytest.approx(float(m.group(1)), abs=0.3)  # 1 urad noise, 60 readings
+    assert sorted(p.name for p in out_dir.iterdir()) == ["rotary_laser_c_after.csv",
+                                                         "rotary_laser_c_before.csv"]
+
+
+def test_seed003_prediction_error_is_at_the_papers_level(tmp_path):
+    out = run_example("seed003_three_sphere.py", tmp_path)
+    mean = re.search(rf"^mean \(um\)\s+{NUM}\s+0\.30\s*$", out, re.M)
+    mx = re.search(rf"^max \(um\)\s+{NUM}\s+0\.78\s*$", out, re.M)
+    assert mean and mx, out
+    assert 0 < float(mean.group(1)) < float(mx.group(1)) < 1.5
+    for comp in ("EXC", "EYC", "EZC", "EAC", "EBC"):
+        assert re.search(rf"^{comp}\s+{NUM}\s+{NUM}\s+u(m|rad)\s*$", out, re.M), out
