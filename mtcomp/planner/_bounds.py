@@ -1,0 +1,153 @@
+"""Bounds of the corrections, in optimisation units (um, urad), and the exact enforcement on the output.
+
+Per block and axis: ``|x| <= B`` (max correction), ``lo <= q + x / scale <= hi`` (travel), and between
+consecutive blocks ``|x_i - x_(i-1)| <= S`` (max step; not into the end of a rapid unless the problem
+says so). With an output grid every bound is first rounded inwards to whole grid steps; corrections
+rounded to the nearest grid step then keep every bound (rounding is monotone and commutes with
+shifts by whole steps), and :meth:`Bounds.enforce` makes sure of it, clamping what a method without
+bounds (pinv, newton) produced and saying which bound acted.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .problem import CompensationProblem
+
+#: the kinds of bound, in the order of the flag array's last axis
+FLAG_KINDS = ("max", "min", "travel_max", "travel_min", "step")
+INF = 1e30
+
+
+def flag_name(kind: str, axis: str) -> str:
+    """Column text of one active bound: cx_max, cx_min, travel_x_max, travel_x_min, step_x."""
+    a = axis.lower()
+    return {"max": f"c{a}_max", "min": f"c{a}_min", "travel_max": f"travel_{a}_max",
+            "travel_min": f"travel_{a}_min", "step": f"step_{a}"}[kind]
+
+
+class Bounds:
+    """Bounds of one problem. Everything in optimisation units: um (linear), urad (rotary)."""
+
+    def __init__(self, problem: CompensationProblem):
+        self.problem = problem
+        self.D = problem.axis_scale
+        self.lo, self.hi = problem.travel()
+        self.grid = None if problem.grid is None else np.asarray(problem.grid, dtype=float)
+        # u: the unit of the clamp; whole numbers of grid steps with a grid, plain x otherwise
+        self.unit = np.ones(problem.n_axes) if self.grid is None else self.grid * self.D
+        self.B = self._floor(problem.max_correction * self.D)
+        self.S = self._floor(problem.max_step * self.D)
+
+    def _floor(self, x):
+        if self.grid is None:
+            return np.asarray(x, dtype=float)
+        return np.floor(x / self.unit + 1e-6) * self.unit
+
+    def _ceil(self, x):
+        if self.grid is None:
+            return np.asarray(x, dtype=float)
+        return np.ceil(x / self.unit - 1e-6) * self.unit
+
+    def snap(self, q: np.ndarray) -> np.ndarray:
+        """Nominal positions rounded to the output grid (mm, rad): the program as written."""
+        if self.grid is None:
+            return np.asarray(q, dtype=float)
+        return np.round(q / self.grid) * self.grid
+
+    def travel_x(self, q):
+        """(lo, hi) each (n, na): the travel as bounds of the correction x."""
+        return self._ceil((self.lo - q) * self.D), self._floor((self.hi - q) * self.D)
+
+    def box(self, q):
+        """(l, u) each (n, na): max correction and travel together."""
+        tlo, thi = self.travel_x(q)
+        return np.maximum(-self.B, tlo), np.minimum(self.B, thi)
+
+    def quantize(self, x):
+        if self.grid is None:
+            return np.array(x, dtype=float)
+        return np.round(x / self.unit) * self.unit
+
+    def enforce(self, x, q, exempt, prev, desired=None):
+        """The written corrections and the bounds that acted.
+
+        x : (n, na) corrections found (x units). desired : (n, na) the corrections the block would
+        take without bounds (default x), to tell which bounds acted. q : (n, na) nominal positions (mm, rad).
+        exempt : (n,) bool, no step bound into this block. prev : (na,) correction of the block
+        before (x units), or None. Returns (y (n, na) on the grid, flags (n, na, 5) bool, see
+        FLAG_KINDS): a flag is set where y sits on that bound and differs from ``desired`` by more
+        than half a grid step (the bound took something away).
+        """
+        desired = x if desired is None else desired
+        l, u = self.box(q)
+        base = np.clip(self.quantize(x), l, u)
+        y = base.copy()
+        n = y.shape[0]
+        tol = 1e-9 * np.maximum(self.unit, 1.0)
+        start = 0
+        while True:
+            j = self._next_violation(y, exempt, prev, start, tol)
+            if j is None:
+                break
+            while j < n:
+                before = y[j - 1] if j > 0 else prev
+                if exempt[j] or before is None:
+                    new = base[j]
+                else:
+                    new = np.clip(np.clip(base[j], before - self.S, before + self.S), l[j], u[j])
+                unchanged = np.all(new == base[j])
+                y[j] = new
+                if unchanged:
+                    break
+                j += 1
+            start = j + 1
+        flags = np.zeros((n, y.shape[1], len(FLAG_KINDS)), bool)
+        took = np.abs(desired - y) > 0.5 * self.unit + 1e-9
+        tlo, thi = self.travel_x(q)
+        flags[..., 0] = took & (y >= self.B - tol)
+        flags[..., 1] = took & (y <= -self.B + tol)
+        flags[..., 2] = took & (y >= thi - tol)
+        flags[..., 3] = took & (y <= tlo + tol)
+        prev_rows = np.vstack([prev[None, :] if prev is not None else y[:1], y[:-1]]) if n else y
+        has_prev = ~exempt.copy()
+        if prev is None and n:
+            has_prev[0] = False
+        flags[..., 4] = took & has_prev[:, None] & (np.abs(y - prev_rows) >= self.S - tol)
+        return y, flags
+
+    def _next_violation(self, y, exempt, prev, start, tol, block=8192):
+        n = y.shape[0]
+        s = max(start, 0)
+        while s < n:
+            e = min(n, s + block)
+            if s == 0:
+                if prev is None:
+                    before = np.vstack([y[:1], y[:e - 1]])
+                    ok0 = np.ones(1, bool)
+                else:
+                    before = np.vstack([prev[None, :], y[:e - 1]])
+                    ok0 = None
+            else:
+                before = y[s - 1:e - 1]
+                ok0 = None
+            viol = np.any(np.abs(y[s:e] - before) > self.S + tol, axis=1) & ~exempt[s:e]
+            if ok0 is not None and s == 0:
+                viol[0] = False
+            idx = np.flatnonzero(viol)
+            if idx.size:
+                return s + int(idx[0])
+            s = e
+        return None
+
+    def feasible(self, x, l, u, exempt, prev, tol=1e-9):
+        """True if corrections x (n, na) keep box bounds l, u and the step bound (from prev too)."""
+        if np.any(x < l - tol) or np.any(x > u + tol):
+            return False
+        if x.shape[0] > 1:
+            d = np.abs(np.diff(x, axis=0)) > self.S + tol
+            if np.any(d[~exempt[1:]]):
+                return False
+        if prev is not None and x.shape[0] and not exempt[0]:
+            if np.any(np.abs(x[0] - prev) > self.S + tol):
+                return False
+        return True

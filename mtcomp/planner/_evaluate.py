@@ -1,0 +1,69 @@
+"""The residual the planner drives to zero, and its Jacobian, in optimisation units.
+
+For a block with nominal axis positions q (mm, rad) and context c, and a correction x (um for linear
+axes, urad for rotary axes; dq = x / axis_scale):
+
+    r(x) = actual_pose(q + dq, c) - nominal_pose(q)
+         = nominal(q + dq) + deviation(q + dq, c) - nominal(q)
+
+(tip rows in mm; on 5-axis machines also the tool-axis rows), returned weighted: ``b = S r`` with S
+from :attr:`CompensationProblem.residual_scale` (um, and urad times the orientation weight), and the
+Jacobian ``A = S (J_nominal + J_q) / axis_scale`` (weighted residual per um or urad of correction).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..kinematics import forward
+from ..models.evaluate import evaluate
+from ._nominal import nominal_pose_jacobian
+from .problem import CompensationProblem
+
+
+class Evaluator:
+    """Residuals and Jacobians of one problem, vectorised over blocks."""
+
+    def __init__(self, problem: CompensationProblem):
+        self.problem = problem
+        self.model = problem.fitted.model
+        self.p = np.asarray(problem.fitted.params.values, dtype=float)
+        self.machine = problem.machine
+        self.rows = 6 if problem.correct_orientation else 3
+        self.S = problem.residual_scale
+        self.D = problem.axis_scale
+        self.evaluations = 0
+
+    def target(self, q: np.ndarray) -> np.ndarray:
+        """(n, rows) nominal pose (tip mm, tool axis) of q: what the program means."""
+        tip, axis = forward(self.machine, q)
+        return np.concatenate([tip, axis], axis=1)[:, :self.rows]
+
+    def residual_jacobian(self, q, x, ctx, target=None):
+        """Weighted residual b (n, rows) and Jacobian A (n, rows, n_axes) at corrections x (n, n_axes).
+
+        Returns (b, A, target): target (n, rows) is computed when not given (at x = 0 it is free).
+        """
+        q = np.asarray(q, dtype=float)
+        qq = q + x / self.D
+        dev, Jd = evaluate(self.model, "deviation_qjacobian_function", qq, self.p, ctx)
+        tip, axis, Jn = nominal_pose_jacobian(self.machine, qq)
+        self.evaluations += q.shape[0]
+        pose = np.concatenate([tip, axis], axis=1)[:, :self.rows]
+        if target is None:
+            target = pose if not np.any(x) else self.target(q)
+        r = pose + dev[:, :self.rows] - target
+        J = (Jn + Jd)[:, :self.rows, :]
+        return r * self.S, J * (self.S[:, None] / self.D[None, :]), target
+
+    def residual(self, q, x, ctx, target):
+        """Weighted residual b (n, rows) only (cheaper: no Jacobian of the model)."""
+        q = np.asarray(q, dtype=float)
+        qq = q + x / self.D
+        dev = evaluate(self.model, "deviation_function", qq, self.p, ctx)[0]
+        self.evaluations += q.shape[0]
+        return (self.target(qq) + dev[:, :self.rows] - target) * self.S
+
+    def deviation_only(self, q, ctx):
+        """Weighted model deviation (n, rows) at q (the residual of the uncorrected program)."""
+        dev = evaluate(self.model, "deviation_function", q, self.p, ctx)[0]
+        return dev[:, :self.rows] * self.S

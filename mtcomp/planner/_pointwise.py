@@ -1,0 +1,100 @@
+"""Per-block solutions without bounds: the seed-001 pseudo-inverse step and its Newton iteration.
+
+Seed 001 (eqs. 27-30): the machine Jacobian J maps axis motions to the tool's motion; the axis
+corrections that cancel an error E are ``dq = (J^T J)^-1 J^T E`` subtracted from the nominal motion,
+i.e. ``dq = -pinv(J) e`` with e the deviation (actual minus nominal). Here J is the Jacobian of the
+*actual* tool pose (nominal kinematics plus the error model's J_q) and e is the weighted residual of
+:mod:`mtcomp.planner._evaluate` (tip in um, tool axis in urad on 5-axis machines, where the tool-axis
+deviation vector takes the place of the seed's three small rotation angles).
+
+``newton`` iterates that step on the exact model (Gauss-Newton, with the problem's small
+regularisation so that it solves the same problem as the QP when no bound is active).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._evaluate import Evaluator
+
+
+@dataclass
+class Linearization:
+    """Where the residual was last linearised, per block: b(x) ~ b + A (x - x_lin).
+
+    x : (n, na) corrections found (um, urad). x_lin : (n, na). b : (n, rows). A : (n, rows, na).
+    b0 : (n, rows) weighted residual of the uncorrected block (x = 0). target : (n, rows) nominal pose.
+    iterations : (n,) evaluations used. converged : (n,) bool.
+    """
+
+    x: np.ndarray
+    x_lin: np.ndarray
+    b: np.ndarray
+    A: np.ndarray
+    b0: np.ndarray
+    target: np.ndarray
+    iterations: np.ndarray
+    converged: np.ndarray
+
+    def predict(self, x: np.ndarray) -> np.ndarray:
+        """(n, rows) weighted residual at corrections x, to first order around x_lin."""
+        return self.b + np.einsum("nij,nj->ni", self.A, x - self.x_lin)
+
+    def take(self, idx) -> "Linearization":
+        return Linearization(*(getattr(self, f)[idx] for f in
+                               ("x", "x_lin", "b", "A", "b0", "target", "iterations", "converged")))
+
+    @staticmethod
+    def concatenate(parts: list["Linearization"]) -> "Linearization":
+        return Linearization(*(np.concatenate([getattr(p, f) for p in parts]) for f in
+                               ("x", "x_lin", "b", "A", "b0", "target", "iterations", "converged")))
+
+
+def pinv_step(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Seed 001 eqs. 29-30: the correction -pinv(A) b of each block. A (n, rows, na), b (n, rows)."""
+    return -np.einsum("nij,nj->ni", np.linalg.pinv(A), b)
+
+
+def regularized_step(A: np.ndarray, b: np.ndarray, x: np.ndarray, lam: float) -> np.ndarray:
+    """Gauss-Newton step of min ||b + A dx||^2 + lam ||x + dx||^2 per block: (n, na)."""
+    na = A.shape[2]
+    H = np.einsum("nki,nkj->nij", A, A) + lam * np.eye(na)
+    g = np.einsum("nki,nk->ni", A, b) + lam * x
+    return -np.linalg.solve(H, g[..., None])[..., 0]
+
+
+def solve_pinv(ev: Evaluator, q: np.ndarray, ctx: np.ndarray) -> Linearization:
+    """One seed-001 step per block at the nominal position (no iteration)."""
+    n, na = q.shape
+    b0, A0, target = ev.residual_jacobian(q, np.zeros((n, na)), ctx)
+    x = pinv_step(A0, b0)
+    return Linearization(x, np.zeros_like(x), b0, A0, b0, target, np.ones(n, int), np.ones(n, bool))
+
+
+def solve_newton(ev: Evaluator, q: np.ndarray, ctx: np.ndarray, lam: float, tol: float,
+                 max_iterations: int) -> Linearization:
+    """Per-block Newton iteration of the (regularised) seed-001 step until the step is below tol.
+
+    Every block is iterated on its own; blocks that have converged are not evaluated again.
+    """
+    n, na = q.shape
+    x = np.zeros((n, na))
+    b, A, target = ev.residual_jacobian(q, x, ctx)
+    b0 = b.copy()
+    x_lin = x.copy()
+    iterations = np.ones(n, int)
+    converged = np.zeros(n, bool)
+    active = np.arange(n)
+    for _ in range(max_iterations):
+        dx = regularized_step(A[active], b[active], x[active], lam)
+        x[active] += dx
+        done = np.max(np.abs(dx), axis=1) < tol
+        converged[active[done]] = True
+        active = active[~done]
+        if active.size == 0:
+            break
+        bb, AA, _ = ev.residual_jacobian(q[active], x[active], ctx[active], target[active])
+        b[active], A[active], x_lin[active] = bb, AA, x[active]
+        iterations[active] += 1
+    return Linearization(x, x_lin, b, A, b0, target, iterations, converged)

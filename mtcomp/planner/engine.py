@@ -1,0 +1,483 @@
+"""The planner: output blocks (nodes), their corrections, streamed through a program of any length.
+
+Flow per :class:`~mtcomp.toolpaths.SegmentChunk`:
+
+1. nodes: the end of every segment (nominal positions rounded to the output grid), and internal
+   nodes in feed moves where the corrected path would miss its midpoint by more than
+   ``subdivide_tol_um`` (recursively); each node gets its block context (feed, approach direction of
+   every axis, tool length; the approach direction of the nominal motion, also for the corrected one);
+2. per node the correction without bounds (``pinv``: one seed-001 step; ``newton`` and ``qp``:
+   iterated to convergence);
+3. ``qp``: windows of ``window`` nodes plus ``overlap`` nodes of look-ahead; a window whose unbounded
+   solution keeps every bound (the anchor included) is that solution; otherwise OSQP solves the
+   window's bounded problem, re-linearised until the corrections change by less than
+   ``step_tol_um``. The first node of a window is the previous window's last committed node, fixed.
+   ``pinv`` and ``newton`` clamp their result to the bounds instead;
+4. the corrections are rounded to the output grid, every bound is enforced exactly, the bounds that
+   acted are recorded, and the predicted deviation after correction is computed.
+
+Memory holds at most two chunks and one window, whatever the length of the program.
+"""
+from __future__ import annotations
+
+import time
+from collections import deque
+from dataclasses import dataclass
+from typing import Iterable, Iterator
+
+import numpy as np
+
+from ..errors import InputError
+from ._bounds import FLAG_KINDS, INF, Bounds, flag_name
+from ._evaluate import Evaluator
+from ._pointwise import Linearization, solve_newton, solve_pinv
+from ._qp import WindowQP
+from .problem import CompensationProblem, PlannerOptions
+
+
+@dataclass
+class NodeSet:
+    """Output blocks in program order.
+
+    q : (n, na) nominal axis positions, mm and rad (on the output grid when the problem has one).
+    context : (n, n_context) block context in the model's context_names order.
+    exempt : (n,) bool, no step bound from the block before (the move into it is a rapid, or it is
+        the first block of the program).
+    line : (n,) source line. inserted : (n,) bool, an internal node the planner added.
+    rapid : (n,) bool, the node ends (or lies in) a G0 move.
+    """
+
+    q: np.ndarray
+    context: np.ndarray
+    exempt: np.ndarray
+    line: np.ndarray
+    inserted: np.ndarray
+    rapid: np.ndarray
+
+    FIELDS = ("q", "context", "exempt", "line", "inserted", "rapid")
+
+    def __len__(self):
+        return int(self.q.shape[0])
+
+    def take(self, idx) -> "NodeSet":
+        return NodeSet(*(getattr(self, f)[idx] for f in self.FIELDS))
+
+    @staticmethod
+    def concatenate(parts: list["NodeSet"]) -> "NodeSet":
+        return NodeSet(*(np.concatenate([getattr(p, f) for p in parts]) for f in NodeSet.FIELDS))
+
+
+@dataclass
+class PlanResult:
+    """Planned output blocks (one row per node), in program order.
+
+    line : (n,) source line. inserted, rapid : (n,) bool.
+    nominal : (n, na) nominal axis positions (mm, rad), as the uncorrected program would be written.
+    corrected : (n, na) corrected axis positions to write (mm, rad).
+    correction : (n, na) corrected minus nominal (mm, rad).
+    before, after : (n, 3) tip deviation (mm) of the uncorrected and corrected block, workpiece frame;
+    before_axis, after_axis : (n, 3) tool-axis deviation (actual minus nominal unit vector), 5-axis
+        machines only (None otherwise).
+    flags : (n, na, 5) bool, bounds that acted (see ``FLAG_KINDS``).
+    counts : (rows,) nodes per segment row of the source chunk (for write_corrected), or None.
+    iterations : (n,) model linearisations used per node. converged : (n,) bool.
+    """
+
+    line: np.ndarray
+    inserted: np.ndarray
+    rapid: np.ndarray
+    nominal: np.ndarray
+    corrected: np.ndarray
+    correction: np.ndarray
+    before: np.ndarray
+    after: np.ndarray
+    before_axis: np.ndarray | None
+    after_axis: np.ndarray | None
+    flags: np.ndarray
+    iterations: np.ndarray
+    converged: np.ndarray
+    counts: np.ndarray | None = None
+
+    FIELDS = ("line", "inserted", "rapid", "nominal", "corrected", "correction", "before", "after",
+              "before_axis", "after_axis", "flags", "iterations", "converged")
+
+    def __len__(self):
+        return int(self.line.shape[0])
+
+    def take(self, sl) -> "PlanResult":
+        return PlanResult(*(None if getattr(self, f) is None else getattr(self, f)[sl]
+                            for f in self.FIELDS))
+
+    @staticmethod
+    def concatenate(parts: list["PlanResult"]) -> "PlanResult":
+        out = []
+        for f in PlanResult.FIELDS:
+            vals = [getattr(p, f) for p in parts]
+            out.append(None if vals[0] is None else np.concatenate(vals))
+        return PlanResult(*out)
+
+    def active_bounds(self, axis_names) -> list[str]:
+        """Per node the active bounds as text, e.g. 'cx_max;step_y' ('' when none)."""
+        out = [""] * len(self)
+        rows = np.flatnonzero(self.flags.any(axis=(1, 2)))
+        for i in rows:
+            names = [flag_name(FLAG_KINDS[k], axis_names[j])
+                     for j in range(self.flags.shape[1]) for k in range(self.flags.shape[2])
+                     if self.flags[i, j, k]]
+            out[i] = ";".join(names)
+        return out
+
+
+class Planner:
+    """Plans the corrections of a stream of output blocks for one problem (see module docstring).
+
+    The planner keeps state between chunks (the last committed correction, the OSQP problems of
+    each window size); use one Planner per program.
+    """
+
+    def __init__(self, problem: CompensationProblem, options: PlannerOptions | None = None,
+                 source: str | None = None):
+        self.problem = problem
+        self.options = options or PlannerOptions()
+        self.source = source
+        self.ev = Evaluator(problem)
+        self.bounds = Bounds(problem)
+        self.machine = problem.machine
+        self.na = self.machine.n_axes
+        self._qps: dict[int, WindowQP] = {}
+        self._prev: np.ndarray | None = None        # last committed correction (x units)
+        self._last_end: tuple | None = None         # (q, x_free) of the last node of the last chunk
+        self._buffer: list[tuple[NodeSet, Linearization]] = []
+        self._done = 0
+        self._last_progress = time.monotonic()
+        self.stats = {"windows": 0, "windows_qp": 0, "qp_solves": 0, "qp_status": {}}
+
+    # ------------------------------------------------------------------ nodes
+    def _context(self, feed, dirs, n):
+        cols = {"feed": feed}
+        for j, a in enumerate(self.machine.axis_names):
+            cols[f"dir_{a}"] = dirs[:, j].astype(float)
+        return self.problem.fitted.context(n, cols)
+
+    def _solve_free(self, q, ctx) -> Linearization:
+        o = self.options
+        if o.method == "pinv":
+            return solve_pinv(self.ev, q, ctx)
+        return solve_newton(self.ev, q, ctx, self.problem.regularization, o.step_tol_um,
+                            o.max_iterations)
+
+    def _check_travel(self, q, line):
+        lo, hi = self.problem.travel()
+        tol = 1e-9
+        bad = (q < lo - tol) | (q > hi + tol)
+        if np.any(bad):
+            i, j = np.argwhere(bad)[0]
+            ax = self.machine.axes[j]
+            if ax.is_rotary:
+                v, a, b, u = np.degrees(q[i, j]), np.degrees(lo[j]), np.degrees(hi[j]), "deg"
+            else:
+                v, a, b, u = q[i, j], lo[j], hi[j], "mm"
+            raise InputError(f"{ax.name} {v:.4f} {u} is outside the travel of axis {ax.name} "
+                             f"({a:g} .. {b:g} {u}) of machine {self.machine.name}", self.source,
+                             int(line[i]) if line is not None else None)
+
+    def nodes_from_arrays(self, q, feed=None, dirs=None, rapid=None, line=None):
+        """Nodes for blocks given directly (no segments, so no internal nodes).
+
+        q : (n, na) nominal positions, mm and rad. feed : (n,) mm/min or None (model default).
+        dirs : (n, na) approach directions +-1 or None (unknown). rapid : (n,) bool or None.
+        line : (n,) labels or None (1..n).
+        """
+        q = self.bounds.snap(np.atleast_2d(np.asarray(q, dtype=float)))
+        n = q.shape[0]
+        line = np.arange(1, n + 1) if line is None else np.asarray(line)
+        self._check_travel(q, line)
+        feed = np.full(n, np.nan) if feed is None else np.asarray(feed, dtype=float)
+        dirs = np.zeros((n, self.na)) if dirs is None else np.asarray(dirs)
+        rapid = np.zeros(n, bool) if rapid is None else np.asarray(rapid, bool)
+        exempt = rapid & (not self.problem.step_across_rapids)
+        if self._last_end is None and n:
+            exempt = exempt.copy()
+            exempt[0] = True
+        nodes = NodeSet(q, self._context(feed, dirs, n), exempt, line, np.zeros(n, bool), rapid)
+        lin = self._solve_free(nodes.q, nodes.context)
+        if n:
+            self._last_end = (nodes.q[-1], lin.x[-1])
+        return nodes, lin
+
+    def nodes_from_chunk(self, chunk):
+        """Nodes of one SegmentChunk: segment ends plus internal nodes. Returns (nodes, lin, counts)."""
+        nrows = len(chunk)
+        end = self.bounds.snap(chunk.end)
+        self._check_travel(end, chunk.line)
+        ctx = self._context(chunk.feed, chunk.dirs, nrows)
+        rapid = np.asarray(chunk.rapid, bool)
+        lin_end = self._solve_free(end, ctx)
+        first = self._last_end is None
+        exempt = rapid & (not self.problem.step_across_rapids)
+        if first and nrows:
+            exempt = exempt.copy()
+            exempt[0] = True
+        # start of each row and its free correction
+        start = np.empty_like(end)
+        x_start = np.empty_like(lin_end.x)
+        if nrows:
+            start[1:] = end[:-1]
+            x_start[1:] = lin_end.x[:-1]
+            if first:
+                s0 = self.bounds.snap(chunk.start[:1])
+                start[0] = s0[0]
+                x_start[0] = self._solve_free(s0, ctx[:1]).x[0]
+            else:
+                start[0], x_start[0] = self._last_end
+            self._last_end = (end[-1], lin_end.x[-1])
+        inner = self._subdivide(start, end, x_start, lin_end.x, ctx, rapid)
+        counts = np.ones(nrows, np.int64)
+        if inner is None:
+            nodes = NodeSet(end, ctx, exempt, np.asarray(chunk.line), np.zeros(nrows, bool), rapid)
+            return nodes, lin_end, counts
+        rows_i, t_i, q_i, lin_i = inner
+        np.add.at(counts, rows_i, 1)
+        all_rows = np.concatenate([rows_i, np.arange(nrows)])
+        all_t = np.concatenate([t_i, np.ones(nrows)])
+        order = np.lexsort((all_t, all_rows))
+        m = rows_i.size
+        q_all = np.concatenate([q_i, end])[order]
+        ctx_all = np.concatenate([ctx[rows_i], ctx])[order]
+        # the first node of a row (inserted or its end) takes the row's exemption
+        ins_all = np.concatenate([np.ones(m, bool), np.zeros(nrows, bool)])[order]
+        row_sorted = all_rows[order]
+        firsts = np.ones(row_sorted.size, bool)
+        firsts[1:] = row_sorted[1:] != row_sorted[:-1]
+        ex_all = firsts & exempt[row_sorted]
+        nodes = NodeSet(q_all, ctx_all, ex_all, np.asarray(chunk.line)[row_sorted], ins_all,
+                        rapid[row_sorted])
+        lin = Linearization.concatenate([lin_i, lin_end]).take(order)
+        return nodes, lin, counts
+
+    def _subdivide(self, start, end, x_start, x_end, ctx, rapid):
+        """Internal nodes (rows, t, q, lin) where the interpolated correction misses the midpoint."""
+        o = self.options
+        if not o.subdivide_tol_um or o.max_subdivision_depth < 1 or start.shape[0] == 0:
+            return None
+        moving = ~rapid & np.any(np.abs(end - start) > 0, axis=1)
+        rows = np.flatnonzero(moving)
+        t0, t1 = np.zeros(rows.size), np.ones(rows.size)
+        x0, x1 = x_start[rows], x_end[rows]
+        found_rows, found_t, found_q, found_lin = [], [], [], []
+        for _depth in range(o.max_subdivision_depth):
+            if rows.size == 0:
+                break
+            tm = 0.5 * (t0 + t1)
+            qm = self.bounds.snap(start[rows] + tm[:, None] * (end[rows] - start[rows]))
+            xa = 0.5 * (x0 + x1)
+            c = ctx[rows]
+            target = self.ev.target(qm)
+            miss = self.ev.residual(qm, xa, c, target)
+            err = np.sqrt(np.sum(miss ** 2, axis=1))
+            hit = err > o.subdivide_tol_um
+            if not np.any(hit):
+                break
+            rows, t0, t1, x0, x1, tm, qm, c = (a[hit] for a in (rows, t0, t1, x0, x1, tm, qm, c))
+            lin = self._solve_free(qm, c)
+            found_rows.append(rows)
+            found_t.append(tm)
+            found_q.append(qm)
+            found_lin.append(lin)
+            rows = np.concatenate([rows, rows])
+            t0, t1 = np.concatenate([t0, tm]), np.concatenate([tm, t1])
+            x0, x1 = np.concatenate([x0, lin.x]), np.concatenate([lin.x, x1])
+        if not found_rows:
+            return None
+        return (np.concatenate(found_rows), np.concatenate(found_t), np.concatenate(found_q),
+                Linearization.concatenate(found_lin))
+
+    # ------------------------------------------------------------------ committing
+    def _commit(self, nodes: NodeSet, lin: Linearization, x: np.ndarray) -> PlanResult:
+        """Round, enforce bounds exactly, predict the deviation after correction."""
+        # flags compare with the unbounded correction: what the bounds took away
+        y, flags = self.bounds.enforce(x, nodes.q, nodes.exempt, self._prev, desired=lin.x)
+        if len(nodes):
+            self._prev = y[-1].copy()
+        D = self.bounds.D
+        if self.bounds.grid is not None:
+            g = self.bounds.grid
+            corrected = (np.round(nodes.q / g) + np.round(y / self.bounds.unit)) * g
+        else:
+            corrected = nodes.q + y / D
+        correction = corrected - nodes.q
+        if self.options.method == "pinv":
+            after_w = self.ev.residual(nodes.q, y, nodes.context, lin.target)
+        else:
+            after_w = lin.predict(y)
+        S = self.ev.S
+        before = lin.b0 / S
+        after = after_w / S
+        five = self.problem.correct_orientation
+        self._done += len(nodes)
+        self._tick()
+        return PlanResult(nodes.line, nodes.inserted, nodes.rapid, nodes.q, corrected, correction,
+                          before[:, :3], after[:, :3], before[:, 3:6] if five else None,
+                          after[:, 3:6] if five else None, flags, lin.iterations, lin.converged)
+
+    def _tick(self):
+        cb = self.options.progress
+        if cb is not None and time.monotonic() - self._last_progress > 3.0:
+            self._last_progress = time.monotonic()
+            cb(self._done)
+
+    # ------------------------------------------------------------------ windows (qp)
+    def _window_qp(self, n_nodes: int) -> WindowQP:
+        qp = self._qps.get(n_nodes)
+        if qp is None:
+            qp = self._qps[n_nodes] = WindowQP(n_nodes, self.na, self.options.osqp_eps)
+        return qp
+
+    def _solve_window(self, nodes: NodeSet, lin: Linearization) -> np.ndarray:
+        """Corrections x (n, na) of one window; updates lin in place when re-linearised."""
+        b, o = self.bounds, self.options
+        self.stats["windows"] += 1
+        l, u = b.box(nodes.q)
+        prev = self._prev
+        if not o.always_qp and b.feasible(lin.x, l, u, nodes.exempt, prev):
+            return lin.x.copy()
+        self.stats["windows_qp"] += 1
+        n, na = lin.x.shape
+        qp = self._window_qp(n + 1)
+        lam = self.problem.regularization
+        lower = np.vstack([np.zeros((1, na)) if prev is None else prev[None, :], l])
+        upper = np.vstack([np.zeros((1, na)) if prev is None else prev[None, :], u])
+        S = np.broadcast_to(b.S, (n, na))
+        free = nodes.exempt.copy()
+        if prev is None and n:
+            free[0] = True
+        step_lo = np.where(free[:, None], -INF, -S)
+        step_hi = np.where(free[:, None], INF, S)
+        eye = np.eye(na)
+        x = np.clip(lin.x, l, u)
+        for _it in range(o.max_iterations):
+            A = lin.A
+            H = np.einsum("nki,nkj->nij", A, A) + lam * eye
+            g = np.einsum("nki,nk->ni", A, lin.b - np.einsum("nkj,nj->nk", A, lin.x_lin))
+            Hall = np.concatenate([eye[None], H])
+            gall = np.vstack([np.zeros((1, na)), g])
+            x0 = np.vstack([lower[:1], x])
+            sol, status = qp.solve(Hall, gall, lower, upper, step_lo, step_hi, x0)
+            self.stats["qp_solves"] += 1
+            self.stats["qp_status"][status] = self.stats["qp_status"].get(status, 0) + 1
+            if status not in ("solved", "solved inaccurate"):
+                raise RuntimeError(f"OSQP failed on a window: {status}")
+            x = sol[1:]
+            moved = np.max(np.abs(x - lin.x_lin), axis=1) >= o.step_tol_um
+            if not np.any(moved):
+                break
+            idx = np.flatnonzero(moved)
+            bb, AA, _ = self.ev.residual_jacobian(nodes.q[idx], x[idx], nodes.context[idx],
+                                                  lin.target[idx])
+            lin.b[idx], lin.A[idx], lin.x_lin[idx] = bb, AA, x[idx]
+            lin.iterations[idx] += 1
+        return x
+
+    # ------------------------------------------------------------------ driving
+    def iter_chunks(self, chunks: Iterable) -> Iterator[tuple[object, PlanResult]]:
+        """Plan a stream of SegmentChunks; yields ``(chunk, result)`` per chunk, in order."""
+        pending: deque = deque()   # (chunk, counts, n_nodes) planned but not yet yielded
+        done: list[PlanResult] = []
+        n_done = 0
+
+        def ready():
+            nonlocal n_done
+            while pending and n_done >= pending[0][2]:
+                chunk, counts, n = pending.popleft()
+                allres = done[0] if len(done) == 1 else PlanResult.concatenate(done)
+                res, rest = allres.take(slice(0, n)), allres.take(slice(n, len(allres)))
+                done.clear()
+                if len(rest):
+                    done.append(rest)
+                n_done -= n
+                res.counts = counts
+                yield chunk, res
+
+        for chunk in chunks:
+            if len(chunk) == 0:
+                continue
+            nodes, lin, counts = self.nodes_from_chunk(chunk)
+            pending.append((chunk, counts, len(nodes)))
+            res = self.plan_nodes(nodes, lin, final=False)
+            if res is not None:
+                done.append(res)
+                n_done += len(res)
+            yield from ready()
+        res = self.plan_nodes(_empty_nodes(self), _empty_lin(self), final=True)
+        if res is not None and len(res):
+            done.append(res)
+            n_done += len(res)
+        yield from ready()
+
+    def plan_nodes(self, nodes: NodeSet, lin: Linearization, final: bool = True) -> PlanResult | None:
+        """Plan a batch of nodes (program order, after the ones planned before). With ``final`` every
+        node is committed; otherwise qp keeps the last ``overlap`` (or fewer) for the next call."""
+        o = self.options
+        if o.method != "qp":
+            x = lin.x.copy()
+            return self._commit(nodes, lin, x)
+        self._buffer.append((nodes, lin))
+        total = sum(len(n) for n, _ in self._buffer)
+        if len(self._buffer) > 1:
+            nodes = NodeSet.concatenate([n for n, _ in self._buffer])
+            lin = Linearization.concatenate([ln for _, ln in self._buffer])
+        W, O = o.window, o.overlap
+        results = []
+        pos = 0
+        while total - pos > 0:
+            left = total - pos
+            if not final and left < W + O:
+                break
+            nw = min(left, W + O)
+            nc = nw if (final and left <= W + O) else min(W, nw)
+            sl = slice(pos, pos + nw)
+            wn, wl = nodes.take(sl), lin.take(sl)
+            x = self._solve_window(wn, wl)
+            # keep the re-linearisation for the overlap nodes of the next window
+            lin.b[sl], lin.A[sl], lin.x_lin[sl], lin.iterations[sl] = wl.b, wl.A, wl.x_lin, wl.iterations
+            csl = slice(0, nc)
+            results.append(self._commit(wn.take(csl), wl.take(csl), x[:nc]))
+            pos += nc
+        self._buffer = [(nodes.take(slice(pos, total)), lin.take(slice(pos, total)))] if pos < total \
+            else []
+        if not results:
+            return None
+        return results[0] if len(results) == 1 else PlanResult.concatenate(results)
+
+
+def plan_arrays(problem: CompensationProblem, q, feed=None, dirs=None, rapid=None,
+                options: PlannerOptions | None = None) -> PlanResult:
+    """Plan corrections for blocks given as arrays (one output block each, no internal nodes).
+
+    q : (n, n_axes) nominal axis positions, mm and rad. feed : (n,) mm/min or None. dirs : (n, n_axes)
+    approach directions (+1/-1) or None. rapid : (n,) bool or None.
+    """
+    planner = Planner(problem, options)
+    nodes, lin = planner.nodes_from_arrays(q, feed, dirs, rapid)
+    return planner.plan_nodes(nodes, lin, final=True)
+
+
+def plan_chunks(problem: CompensationProblem, chunks: Iterable, options: PlannerOptions | None = None,
+                source: str | None = None) -> Iterator[tuple[object, PlanResult]]:
+    """Plan a program streamed as SegmentChunks; yields ``(chunk, result)`` in order, where
+    ``result.counts`` gives the output blocks per segment row (``write_corrected``'s counts) and
+    ``result.corrected`` the points to write."""
+    return Planner(problem, options, source).iter_chunks(chunks)
+
+
+def _empty_nodes(planner: Planner) -> NodeSet:
+    na, nc = planner.na, planner.problem.fitted.model.n_context
+    return NodeSet(np.zeros((0, na)), np.zeros((0, nc)), np.zeros(0, bool), np.zeros(0, np.int64),
+                   np.zeros(0, bool), np.zeros(0, bool))
+
+
+def _empty_lin(planner: Planner) -> Linearization:
+    na, r = planner.na, planner.ev.rows
+    z = np.zeros
+    return Linearization(z((0, na)), z((0, na)), z((0, r)), z((0, r, na)), z((0, r)), z((0, r)),
+                         z(0, int), z(0, bool))

@@ -1,0 +1,155 @@
+"""The compensation problem (what to solve) and the planner options (how to solve it).
+
+Kept apart on purpose, like acados' ``AcadosOcp`` and ``AcadosOcpSolver``: a
+:class:`CompensationProblem` describes costs, bounds and the output grid; :class:`PlannerOptions`
+say which method runs it, in what windows and to what tolerance.
+
+Units: the problem stores everything in the internal units (mm and rad). Its constructor
+:meth:`CompensationProblem.from_machine` takes the file units of the machine file and command line
+(um, urad) and converts them once. Inside the optimisation the corrections are scaled to um (linear
+axes) and urad (rotary axes), the tip deviation to um and the tool-axis deviation to urad times
+``orientation_weight``; see docs/planner.md.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+from ..machine import Machine
+from ..models.model_file import FittedModel
+
+METHODS = ("qp", "pinv", "newton")
+#: output resolution of SPEC section 4: 4 decimals of mm and deg; 5 decimals of inch
+MM_GRID = 1e-4
+DEG_GRID = 1e-4
+INCH_GRID_MM = 25.4e-5
+
+
+def output_grid(machine: Machine, inch: bool = False) -> np.ndarray:
+    """(n_axes,) the resolution of written coordinates: mm for linear, rad for rotary axes."""
+    return np.array([math.radians(DEG_GRID) if a.is_rotary else (INCH_GRID_MM if inch else MM_GRID)
+                     for a in machine.axes])
+
+
+@dataclass(frozen=True)
+class CompensationProblem:
+    """A compensation problem: model, bounds, weights, output grid.
+
+    fitted : the error model with its parameters (MODEL.json). Its machine supplies travel and tool length.
+    max_correction : (n_axes,) largest correction per block, mm (linear axes) and rad (rotary axes).
+    max_step : (n_axes,) largest change of a correction between consecutive output blocks, mm / rad.
+    orientation_weight : um of tool-tip deviation that weigh as much as 1 urad of tool-axis deviation
+        (5-axis machines only; 3-axis machines cannot correct orientation and ignore it). Default 1.
+    regularization : weight (per um^2 or urad^2 of correction) of a small penalty on the corrections
+        that makes the problem strictly convex near kinematic singularities. Default 1e-6: it changes a
+        50 um correction by ~5e-5 um where the machine is not singular.
+    step_across_rapids : False (default): the step bound does not apply into the end of a G0 move
+        (no cutting happens during a rapid, so the correction may jump there). True: it applies
+        between every pair of consecutive output blocks.
+    grid : (n_axes,) resolution of the written coordinates (mm, rad) or None. With a grid the nominal
+        positions are first rounded to it (the program as it would be written uncorrected) and the
+        written corrections are whole multiples of it, so every bound holds exactly in the output.
+    """
+
+    fitted: FittedModel
+    max_correction: np.ndarray
+    max_step: np.ndarray
+    orientation_weight: float = 1.0
+    regularization: float = 1e-6
+    step_across_rapids: bool = False
+    grid: np.ndarray | None = None
+
+    @property
+    def machine(self) -> Machine:
+        return self.fitted.machine
+
+    @property
+    def n_axes(self) -> int:
+        return self.machine.n_axes
+
+    @property
+    def correct_orientation(self) -> bool:
+        """True on machines with rotary axes: the tool axis is part of the objective."""
+        return self.machine.is_five_axis
+
+    @property
+    def axis_scale(self) -> np.ndarray:
+        """(n_axes,) internal unit -> optimisation unit: 1e3 (mm -> um), 1e6 (rad -> urad)."""
+        return np.array([1e6 if a.is_rotary else 1e3 for a in self.machine.axes])
+
+    @property
+    def residual_scale(self) -> np.ndarray:
+        """(3,) or (6,): tip mm -> um, tool axis -> urad times orientation_weight."""
+        s = [1e3] * 3
+        if self.correct_orientation:
+            s += [1e6 * self.orientation_weight] * 3
+        return np.array(s)
+
+    @classmethod
+    def from_machine(cls, fitted: FittedModel, max_correction_um: float | None = None,
+                     max_correction_urad: float | None = None, max_step_um: float | None = None,
+                     max_step_urad: float | None = None, grid: np.ndarray | None = None,
+                     **kwargs) -> "CompensationProblem":
+        """Bounds from the machine's [compensation] table, overridden by the values given (um, urad).
+
+        max_step_urad defaults to max_step_um scaled like the corrections:
+        ``max_step_um / max_correction_um * max_correction_urad`` (5 / 50 * 500 = 50 urad).
+        """
+        comp = fitted.machine.compensation
+        mc_um = comp["max_correction_um"] if max_correction_um is None else max_correction_um
+        mc_urad = comp["max_correction_urad"] if max_correction_urad is None else max_correction_urad
+        ms_um = comp["max_step_um"] if max_step_um is None else max_step_um
+        for name, v in (("max_correction_um", mc_um), ("max_correction_urad", mc_urad),
+                        ("max_step_um", ms_um), ("max_step_urad", max_step_urad)):
+            if v is not None and (isinstance(v, bool) or not math.isfinite(v) or v <= 0):
+                raise InputError(f"{name} must be a positive number, got {v!r}")
+        ms_urad = ms_um / mc_um * mc_urad if max_step_urad is None else max_step_urad
+        axes = fitted.machine.axes
+        max_corr = np.array([mc_urad * 1e-6 if a.is_rotary else mc_um * 1e-3 for a in axes])
+        max_step = np.array([ms_urad * 1e-6 if a.is_rotary else ms_um * 1e-3 for a in axes])
+        return cls(fitted, max_corr, max_step, grid=grid, **kwargs)
+
+    def travel(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.machine.travel_bounds()
+
+
+@dataclass(frozen=True)
+class PlannerOptions:
+    """How to solve a :class:`CompensationProblem`.
+
+    method : 'qp' (default: bounded optimisation over the whole program, OSQP in windows), 'pinv'
+        (seed 001, eqs. 27-30: one pseudo-inverse step per block, then bounds enforced by clamping),
+        'newton' (that step iterated to convergence per block, then bounds enforced by clamping).
+    window, overlap : blocks per OSQP window and blocks of look-ahead solved with it but committed
+        by the next window (qp only). Memory stays flat for any program length.
+    step_tol_um : re-linearise until the largest change of a correction is below this (um or urad).
+    max_iterations : Newton / SQP iterations at most.
+    subdivide_tol_um : insert internal nodes in a feed move when the corrected path, interpolated
+        linearly between the corrected end points, would miss the midpoint by more than this (um,
+        and urad times orientation_weight); None or 0: end points only.
+    max_subdivision_depth : recursion depth of that test (2**depth pieces per move at most).
+    always_qp : solve every window with OSQP even when the unbounded solution satisfies every bound
+        (the result is the same; for tests and timing).
+    osqp_eps : absolute and relative tolerance of OSQP (solutions are polished on the active set).
+    progress : callable(blocks_done: int) called every few seconds, or None.
+    """
+
+    method: str = "qp"
+    window: int = 4096
+    overlap: int = 256
+    step_tol_um: float = 0.01
+    max_iterations: int = 20
+    subdivide_tol_um: float | None = 0.5
+    max_subdivision_depth: int = 6
+    always_qp: bool = False
+    osqp_eps: float = 1e-7
+    progress: object = field(default=None, compare=False)
+
+    def __post_init__(self):
+        if self.method not in METHODS:
+            raise InputError(f"unknown method {self.method!r} (choose {', '.join(METHODS)})")
+        if self.window < 1 or self.overlap < 0:
+            raise ValueError("window must be >= 1 and overlap >= 0")
