@@ -193,13 +193,16 @@ def predicted_tip(fitted, q: np.ndarray, feed: np.ndarray, dirs: np.ndarray) -> 
 
 
 def pair_compensated(original: ProgramPoints, compensated: ProgramPoints, machine: Machine,
-                     tol_mm: float | None = None, tol_rad: float | None = None) -> np.ndarray:
+                     tol_mm: float | None = None, tol_rad: float | None = None,
+                     lookahead: int = 256) -> np.ndarray:
     """For each segment end of ``original``, the index of its corrected counterpart in ``compensated``.
 
-    Blocks are paired in source-line order: one to one when both have as many segment ends, else the
-    compensated program may carry extra intermediate points and each original end is paired with the
-    next compensated point within the tolerance (default: four times the machine's largest
-    correction, at least 0.05 mm / 50 urad). Raises InputError when the programs do not correspond.
+    Blocks are paired in source-line order: one to one when both have as many segment ends; else the
+    compensated program carries extra intermediate points (a planner may subdivide a move), and each
+    original end is paired with the closest of the next ``lookahead`` compensated points (the
+    corrected end is within the correction bound of it, intermediate points are a part of a move
+    away). Tolerance (default: four times the machine's largest correction, at least 0.05 mm /
+    50 urad). Raises InputError when the programs do not correspond.
     """
     comp = machine.compensation
     tol_mm = max(4e-3 * comp.get("max_correction_um", 50.0), 0.05) if tol_mm is None else tol_mm
@@ -207,22 +210,19 @@ def pair_compensated(original: ProgramPoints, compensated: ProgramPoints, machin
     rotary = np.array([a.is_rotary for a in machine.axes])
     tol = np.where(rotary, tol_rad, tol_mm)
     n, m = len(original), len(compensated)
-
-    def close(i, j):
-        return bool(np.all(np.abs(compensated.q[j] - original.q[i]) <= tol))
-
     if n == m:
         idx = np.arange(n)
     else:
         idx = np.empty(n, np.int64)
         j = 0
         for i in range(n):
-            while j < m and not close(i, j):
-                j += 1
-            if j >= m:
-                raise InputError(f"the compensated program has no point near line {int(original.line[i])} "
-                                 f"of {original.path} (is it compensated from that program?)",
-                                 compensated.path)
+            window = compensated.q[j:j + lookahead]
+            dist = np.max(np.abs(window - original.q[i]) / tol, axis=1) if window.size else np.zeros(0)
+            if dist.size == 0 or dist.min() > 1.0:
+                raise InputError(f"the compensated program has no point near line "
+                                 f"{int(original.line[i])} of {original.path} (is it compensated "
+                                 "from that program?)", compensated.path)
+            j += int(np.argmin(dist))
             idx[i] = j
             j += 1
     if n:
