@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 import re
+import weakref
 
 import casadi as ca
 import numpy as np
@@ -41,7 +42,7 @@ from ..kinematics import forward
 from ..models.chain import ErrorModel, linear_component_names
 from ..models.params import ParamSpec
 from ..models.terms import ANGLE_LETTERS, ChannelDrift
-from .measurement_models import MeasurementModel, context_matrix, evaluate_chain, register
+from .measurement_models import MeasurementModel, context_matrix, register
 
 #: default time constants (s) of the spindle heat features
 DEFAULT_TIME_CONSTANTS_S = (900.0, 3600.0)
@@ -143,6 +144,40 @@ def drift_context(model: ErrorModel, data: MeasurementSet, reference_temperature
     return out
 
 
+# --------------------------------------------------------------------------------- chain projections
+_NORMAL_FUNCTIONS: "weakref.WeakKeyDictionary[ErrorModel, ca.Function]" = weakref.WeakKeyDictionary()
+
+
+def normal_deviation_function(model: ErrorModel) -> ca.Function:
+    """CasADi (q, p, cx = [c, o (3), n (3)]) -> (v, dv/dp (1, n_params)) with
+    ``v = n . (d + (R_rel - I) o)``: the deviation along n of the point carried by the tool at o from
+    the nominal tip (workpiece frame; d tip deviation, R_rel the tool's rotation relative to nominal).
+    Built once per model."""
+    if model not in _NORMAL_FUNCTIONS:
+        nc = model.n_context
+        q, p = ca.SX.sym("q", model.machine.n_axes), ca.SX.sym("p", model.n_params)
+        cx = ca.SX.sym("c", nc + 6)
+        c, o, n = cx[:nc], cx[nc:nc + 3], cx[nc + 3:]
+        tip, _, R = model.symbolic(q, p, c, errors=True)
+        tip0, _, R0 = model.symbolic(q, p, c, errors=False)
+        v = ca.dot(n, tip - tip0 + ca.mtimes(ca.mtimes(R, R0.T), o) - o)
+        _NORMAL_FUNCTIONS[model] = ca.Function("normal_deviation", [q, p, cx], [v, ca.jacobian(v, p)])
+    return _NORMAL_FUNCTIONS[model]
+
+
+def normal_deviation(model: ErrorModel, q, p, c, offset, normal, jacobian: bool = False):
+    """(N,) deviation along ``normal`` (N, 3) of the tool point at ``offset`` (N, 3) mm from the nominal
+    tip, at poses q (N, na) with context c (N, n_context); with ``jacobian`` also (N, n_params)."""
+    from ..models.evaluate import casadi_map_call
+    q = np.ascontiguousarray(q, dtype=float)
+    cx = np.ascontiguousarray(np.column_stack([c, offset, normal]), dtype=float)
+    if q.shape[0] == 0:
+        return (np.zeros(0), np.zeros((0, model.n_params))) if jacobian else np.zeros(0)
+    v, J = casadi_map_call(normal_deviation_function(model), q, np.asarray(p, dtype=float), cx)
+    v = v.reshape(-1)
+    return (v, J.reshape(q.shape[0], model.n_params)) if jacobian else v
+
+
 def _extra_context(self) -> dict:
     extra = drift_context(self.model, self.data, self.options.get("reference_temperatures"))
     extra.update(self.options.get("extra_context") or {})
@@ -197,17 +232,19 @@ class ThermalModel(MeasurementModel):
         n, k = len(self.data), len(self.channels)
         val = np.zeros((n, k))
         J = np.zeros((n, k, self.model.n_params)) if jacobian else None
-        if any(ch in TIP_CHANNELS for ch in self.channels):
-            d, Jd = evaluate_chain(self.model, "tip_jac", self.q, p, self.c)
-            d = d - d[self.first]
-            Jd = Jd - Jd[self.first]
+        for ch, axis_index in TIP_CHANNELS.items():
+            if ch not in self.channels:
+                continue
+            e = np.zeros((n, 3))
+            e[:, axis_index] = 1.0
+            v, Jv = normal_deviation(self.model, self.q, p, self.c, np.zeros((n, 3)), e, True)
+            j = self.channels.index(ch)
+            val[:, j] = v - v[self.first]
+            if jacobian:
+                J[:, j, :] = Jv - Jv[self.first]
         dc = self.c - self.c[self.first]
         for j, ch in enumerate(self.channels):
-            if ch in TIP_CHANNELS:
-                val[:, j] = d[:, TIP_CHANNELS[ch]]
-                if jacobian:
-                    J[:, j, :] = Jd[:, TIP_CHANNELS[ch], :]
-            else:
+            if ch not in TIP_CHANNELS:
                 for ci, pi in self._channel_terms[ch]:
                     val[:, j] += p[pi] * dc[:, ci]
                     if jacobian:
@@ -361,16 +398,10 @@ class CmmModel(MeasurementModel):
                                          False, f"tool radius error of the cutter of {self.tag}")]
 
     def _dn(self, p, jacobian):
-        d, R, _tip0, Jd, JR = evaluate_chain(self.model, "frame_jac", self.q, p, self.c)
-        n = len(self.data)
-        a0 = self.axis0 * self.radius
-        centre = d + np.einsum("nij,nj->ni", R, a0) - a0
-        dn = np.einsum("ni,ni->n", self.data.normal, centre)
-        if not jacobian:
-            return dn, None
-        JRr = JR.reshape(n, 3, 3, -1)            # [n, j (col), i (row), p]
-        Jc = Jd + np.einsum("njip,nj->nip", JRr, a0)
-        return dn, np.einsum("ni,nip->np", self.data.normal, Jc)
+        """(n_rows,) n . (ball-centre deviation), mm (and (n_rows, n_params))."""
+        out = normal_deviation(self.model, self.q, p, self.c, self.axis0 * self.radius,
+                               self.data.normal, jacobian)
+        return out if jacobian else (out, None)
 
     def _evaluate(self, p, nuisance, jacobian):
         p, nuisance = self._check_p(p, nuisance)
