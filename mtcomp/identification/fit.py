@@ -47,6 +47,8 @@ from .measurement_models import MeasurementModel, measurement_model
 
 #: relative singular-value threshold below which a direction counts as undetermined
 DEFAULT_RCOND = 1e-6
+#: most fits with weights='noise' (each re-estimates the noise of every file and unit)
+NOISE_PASSES = 5
 #: a parameter is named in an undetermined combination when its weight exceeds this share of the largest
 NAME_SHARE = 0.1
 
@@ -335,7 +337,7 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
     free : None (``model.base_mask``), a bool mask (n_params,), or parameter names.
     hold : names to hold at their start values even if ``free`` includes them.
     initial : (n_params,) start values, internal units (default zeros, or the FittedModel's).
-    weights : ``"unit"`` (residuals in um and urad), ``"noise"`` (two passes, 1/noise per file and
+    weights : ``"unit"`` (residuals in um and urad), ``"noise"`` (iteratively reweighted, 1/noise per file and
         unit) or a dict tag -> noise (um for translational/length columns, urad for angular ones).
     rcond : relative singular-value threshold for undetermined directions.
     max_iterations, tol : Gauss-Newton stops when the scaled step is below tol (relative).
@@ -369,8 +371,14 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
         w = problem.unit_weights()
         label = "unit (um, urad)"
     elif isinstance(weights, str) and weights == "noise":
-        first = problem.solve(problem.unit_weights(), rcond, max_iterations, tol)
-        w = problem.noise_weights(first)
+        w = problem.unit_weights()
+        for _ in range(NOISE_PASSES):
+            sol = problem.solve(w, rcond, max_iterations, tol)
+            w_new = problem.noise_weights(sol, w)
+            change = np.max(np.abs(w_new / w - 1.0))
+            w = w_new
+            if change < 0.01:
+                break
         label = "1/noise per file"
     elif isinstance(weights, dict):
         w = problem.dict_weights(weights)
@@ -394,6 +402,7 @@ class _Solution:
     cond: float
     iterations: int
     converged: bool
+    leverage: np.ndarray        # (n_obs,) diagonal of the hat matrix (sums to the rank)
 
 
 class _Problem:
@@ -422,23 +431,23 @@ class _Problem:
 
     # --------------------------------------------------------------- weights
     def unit_weights(self):
-        return np.concatenate([np.array([error_scale(c) for c in m.obs_column], dtype=float)
-                               if m.n_obs else np.zeros(0) for m in self.mms])
+        return np.concatenate([_error_scales(m.obs_column) for m in self.mms])
 
     def _groups(self):
         """(file index, unit, observation index array) per file and error unit."""
         for i, (m, sl) in enumerate(zip(self.mms, self.obs_slices)):
-            scales = np.array([error_scale(c) for c in m.obs_column], dtype=float)
+            scales = _error_scales(m.obs_column)
             for s in np.unique(scales):
                 yield i, s, np.arange(sl.start, sl.stop)[scales == s]
 
-    def noise_weights(self, sol: "_Solution"):
-        """1/noise per file and unit from the residuals of a unit-weight fit."""
+    def noise_weights(self, sol: "_Solution", w_used):
+        """1/noise per file and unit from the residuals of a fit with weights ``w_used``: noise^2 =
+        sum of squared residuals / (n - sum of the leverages of those observations)."""
         w = self.unit_weights()
-        dof_share = max(self.n_obs - sol.rank, 1) / self.n_obs
         for _, s, idx in self._groups():
-            resid = sol.r[idx] / w[idx] * s   # error units
-            noise = np.sqrt(np.sum(resid ** 2) / max(idx.size * dof_share, 1e-300))
+            resid = sol.r[idx] / w_used[idx] * s   # error units
+            dof = idx.size - float(np.sum(sol.leverage[idx]))
+            noise = np.sqrt(np.sum(resid ** 2) / max(dof, 1e-12))
             if noise > 0:
                 w[idx] = s / noise
         return w
@@ -536,12 +545,17 @@ class _Problem:
             AB = B.T @ A @ B
         dof = max(self.n_obs - rank, 0)
         s2 = cost / dof if dof > 0 else np.nan
+        leverage = np.zeros(self.n_obs)
         if rank:
             ABinv = scipy.linalg.pinvh(AB)
             cov = s2 * (scale[:, None] * (B @ ABinv @ B.T) * scale[None, :])
+            # hat matrix diagonal: rows of Js B L^-T with AB = L L^T
+            L = np.linalg.cholesky(AB)
+            M = scipy.linalg.solve_triangular(L, ((Jw * scale[None, :]) @ B).T, lower=True)
+            leverage = np.einsum("ij,ij->j", M, M)
         else:
             cov = np.full((self.n_unknowns, self.n_unknowns), np.nan)
-        return _Solution(x, r, cov, null, scale, rel, rank, cond, iterations, converged)
+        return _Solution(x, r, cov, null, scale, rel, rank, cond, iterations, converged, leverage)
 
     # --------------------------------------------------------------- result
     def result(self, sol: _Solution, w, label, ctx_defaults, seconds, info) -> IdentificationResult:
@@ -588,6 +602,15 @@ class _Problem:
         res.fitted_model = FittedModel(model, params, dict(ctx_defaults),
                                        {"identify": res.to_dict(), **(info or {})})
         return res
+
+
+def _error_scales(columns) -> np.ndarray:
+    """(n,) :func:`error_scale` of each column name (computed once per distinct name)."""
+    columns = np.asarray(columns, dtype=object)
+    out = np.empty(columns.shape[0])
+    for name in set(columns.tolist()):
+        out[columns == name] = error_scale(name)
+    return out
 
 
 def _normal_matrix(Jw, scale):

@@ -1,0 +1,238 @@
+"""identify(): recovery of known parameters (noise-free to 1e-8, with noise within the standard
+errors and standard errors that match the scatter over seeds), joint fits of mixed files, rank
+deficiency named, extension parameters, weighting, the result object."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from mtcomp.errors import InputError
+from mtcomp.identification.fit import identify
+from mtcomp.identification.measurement_models import measurement_model
+from mtcomp.identification.synthetic import campaign, make_laser, make_points, random_parameters, simulate
+from mtcomp.machine import load_machine
+from mtcomp.models import Backlash, ErrorModel
+
+#: linear straightness terms that duplicate the squareness terms (EXY_1 = C0Y ...): held for full rank
+REDUNDANT = ["EXY_1", "EXZ_1", "EYZ_1"]
+
+
+def _file(model, values):
+    """Parameter values in file units (um, urad)."""
+    return values * np.array([s.to_file for s in model.param_specs])
+
+
+def _machine_with_degree(machine, degree):
+    axes = tuple(dataclasses.replace(a, degree=degree) if not a.is_rotary else a for a in machine.axes)
+    return dataclasses.replace(machine, axes=axes)
+
+
+@pytest.fixture(scope="module")
+def xfyz():
+    m = load_machine("xfyz")
+    return m, ErrorModel(m)
+
+
+@pytest.fixture(scope="module")
+def cafxyz():
+    m = load_machine("cafxyz")
+    return m, ErrorModel(m)
+
+
+def test_noise_free_rich_campaign_recovers_parameters(xfyz):
+    machine, model = xfyz
+    rng = np.random.default_rng(10)
+    camp = campaign(machine, rng)
+    free = model.base_mask & ~np.isin(model.param_names, REDUNDANT)
+    p = random_parameters(model, rng, mask=free)
+    data = [simulate(model, d, p) for d in camp.values()]
+    res = identify(model, data, hold=REDUNDANT)
+    assert res.rank == res.n_params == free.sum() + sum(len(s) for s in [res.nuisance_specs])
+    assert res.undetermined == []
+    assert res.converged and res.iterations <= 5
+    # 1e-8 relative to the parameter sizes (10 um, 20 urad)
+    np.testing.assert_allclose(_file(model, res.values), _file(model, p), rtol=1e-8, atol=1e-7)
+    np.testing.assert_allclose(res.nuisance_values, 0.0, rtol=0, atol=1e-10)
+    for f in res.files:
+        assert max(f.rms().values()) < 1e-6
+
+
+def test_joint_fit_points_laser_ballbar_five_axis_with_nuisance(cafxyz):
+    machine, model = cafxyz
+    rng = np.random.default_rng(11)
+    camp = campaign(machine, rng, n_points=250)
+    free = model.base_mask & ~np.isin(model.param_names, REDUNDANT)
+    p = random_parameters(model, rng, mask=free)
+    mms = {k: measurement_model(model, d) for k, d in camp.items()}
+    nuis = {k: rng.normal(size=m.n_nuisance) * 1e-3 for k, m in mms.items()}
+    data = [simulate(model, camp[k], p, nuis[k]) for k in camp]
+    res = identify(model, data, hold=REDUNDANT)
+    assert res.undetermined == [] and res.rank == res.n_params
+    # 1e-8 relative to the parameter sizes (10 um, 20 urad)
+    np.testing.assert_allclose(_file(model, res.values), _file(model, p), rtol=1e-8, atol=1e-7)
+    np.testing.assert_allclose(res.nuisance_values, np.concatenate([nuis[k] for k in camp]),
+                               rtol=1e-8, atol=1e-11)
+    assert [f.kind for f in res.files] == ["points", "laser", "ballbar"]
+    # the fitted model predicts the data
+    mm = measurement_model(model, data[0])
+    np.testing.assert_allclose(mm.predict(res.fitted_model.params.values, None), mm.observed,
+                               rtol=0, atol=1e-9)
+
+
+def test_redundant_squareness_named_and_held_at_minimum_norm(xfyz):
+    machine, model = xfyz
+    rng = np.random.default_rng(12)
+    camp = campaign(machine, rng, n_points=200)
+    p = random_parameters(model, rng)
+    res = identify(model, [simulate(model, d, p) for d in camp.values()])
+    combos = sorted(sorted(u.names) for u in res.undetermined)
+    assert combos == [["A0Z", "EYZ_1"], ["B0Z", "EXZ_1"], ["C0Y", "EXY_1"]]
+    names = list(model.param_names)
+    for u in res.undetermined:
+        # EXY_1 (um per m) and C0Y (urad) move together one for one: hand-derived
+        assert abs(abs(u.terms[1][1]) - 1.0) < 1e-9
+        for n in u.names:
+            assert not res.determined[names.index(n)] and np.isnan(res.std_errors[names.index(n)])
+    # the data see EXY_1 - C0Y (um per m minus urad): kept; the invariant direction is not fitted, so
+    # truth moved along it gives the same estimates
+    i, j = names.index("EXY_1"), names.index("C0Y")
+    fv, tv = _file(model, res.values), _file(model, p)
+    np.testing.assert_allclose(fv[i] - fv[j], tv[i] - tv[j], rtol=1e-8, atol=1e-7)
+    p2 = p.copy()
+    p2[i] += 5e-3
+    p2[j] += 5e-6
+    res2 = identify(model, [simulate(model, d, p2) for d in camp.values()])
+    # (up to second-order effects of a 5 urad shift on ~10 um terms: 1e-4 um)
+    np.testing.assert_allclose(_file(model, res2.values), fv, rtol=0, atol=1e-3)
+    text = res.summary()
+    assert "EXY_1" in text and "cannot determine" in text and "undeterm." in text
+
+
+def test_points_at_one_z_level_name_abbe_combinations(xfyz):
+    machine, model = xfyz
+    rng = np.random.default_rng(13)
+    xyz = rng.uniform([-400, -300, 0], [400, 300, 0], (300, 3))
+    xyz[:, 2] = 50.0
+    data = simulate(model, make_points(xyz), random_parameters(model, rng))
+    res = identify(model, [data], hold=REDUNDANT)
+    assert res.rank < res.n_params
+    # X table pitch EBX about the workpiece origin moves a tip 50 mm above it by 50 mm * EBX along x:
+    # EXX_1 + 1 um with EBX_1 - 20 urad leaves every reading unchanged
+    found = {tuple(sorted(u.names)): dict(u.terms) for u in res.undetermined}
+    assert ("EBX_1", "EXX_1") in found
+    coef = found[("EBX_1", "EXX_1")]
+    np.testing.assert_allclose(coef["EBX_1"] / coef["EXX_1"], -20.0, rtol=1e-6, atol=0)
+    # every named direction is a null direction of the prediction (independent check via predict)
+    mm = measurement_model(model, data)
+    J, _ = mm.jacobian(res.values, None)
+    names = list(model.param_names)
+    for u in res.undetermined:
+        v = np.zeros(model.n_params)
+        for n, c in u.terms:
+            v[names.index(n)] = c / model.param_specs[names.index(n)].to_file
+        # one file unit (1 um or 1 urad on the pivot) along it moves no reading by 1 nm
+        assert np.abs(J @ v).max() < 1e-6, str(u)
+
+
+def test_noise_estimates_within_standard_errors_and_errors_match_scatter():
+    machine = _machine_with_degree(load_machine("xfyz"), 2)
+    model = ErrorModel(machine)
+    rng0 = np.random.default_rng(20)
+    lo, hi = machine.travel_bounds()
+    xyz = rng0.uniform(lo, hi, (200, 3))
+    tool = rng0.choice([0.0, 100.0, 250.0], 200)
+    hold = REDUNDANT + [n for n in model.param_names if n.startswith(("ECY", "ECZ"))]
+    free = model.base_mask & ~np.isin(model.param_names, hold)
+    p = random_parameters(model, rng0, mask=free)
+    clean = make_points(xyz, tool=tool)
+    noise_um = 0.5
+    z, est, se = [], [], []
+    for seed in range(50):
+        data = simulate(model, clean, p, noise_um=noise_um, rng=np.random.default_rng(100 + seed))
+        res = identify(model, [data], hold=hold)
+        est.append(res.values[free])
+        se.append(res.std_errors[free])
+        z.append((res.values[free] - p[free]) / res.std_errors[free])
+    z, est, se = np.array(z), np.array(est), np.array(se)
+    assert np.all(np.isfinite(z))
+    # within 3 standard errors (99.7 %): allow the expected handful over 50 x n draws
+    assert np.mean(np.abs(z) > 3) < 0.01
+    assert np.abs(z).max() < 5
+    # reported standard errors against the scatter over the seeds
+    ratio = est.std(axis=0, ddof=1) / se.mean(axis=0)
+    assert 0.8 < np.sqrt(np.mean(ratio ** 2)) < 1.2
+    assert np.all((ratio > 0.6) & (ratio < 1.45))
+    # sigma of unit weights (um) estimates the noise
+    assert abs(res.sigma / noise_um - 1) < 0.15
+
+
+def test_extension_parameters_fitted_when_asked(xfyz):
+    machine, base = xfyz
+    model = base.with_terms(Backlash("X"))
+    rng = np.random.default_rng(14)
+    n = 120
+    target = np.tile(np.linspace(-400, 400, 20), 6)
+    direction = np.repeat([1, -1, 1, -1, 1, -1], 20)
+    data = make_laser(["X"] * n, ["EXX"] * n, target, direction)
+    p = np.zeros(model.n_params)
+    p[model.param_names.index("EXX_1")] = 8e-3
+    p[model.param_names.index("EXX_2")] = -5e-3
+    p[model.param_names.index("BL_X")] = 4e-3
+    data = simulate(model, data, p)
+    names = ["EXX_1", "EXX_2", "EXX_3", "BL_X"]
+    res = identify(model, [data], free=names)
+    assert res.undetermined == [] and res.rank == 5  # + the zero offset
+    np.testing.assert_allclose(res.value("BL_X")[0], 4.0, rtol=1e-8, atol=1e-9)
+    np.testing.assert_allclose(res.value("EXX_2")[0], -5.0, rtol=1e-8, atol=1e-9)
+    assert not res.free[model.param_names.index("EYX_1")]
+    with pytest.raises(InputError, match="NOPE"):
+        identify(model, [data], free=["NOPE"])
+
+
+def test_noise_weighting_per_file(xfyz):
+    machine, model = xfyz
+    rng = np.random.default_rng(15)
+    camp = campaign(machine, rng, n_points=400)
+    p = random_parameters(model, rng)
+    pts = simulate(model, camp["points"], p, noise_um=0.2, rng=rng)
+    las = simulate(model, camp["laser"], p, noise_um=2.0, noise_urad=4.0, rng=rng)
+    res = identify(model, [pts, las], weights="noise")
+    w = {f.tag: f for f in res.files}
+    # weights 1/noise per file and unit: internal mm -> 1/um noise = 1e3 / noise_um
+    np.testing.assert_allclose(np.median(w["points"].weight), 1e3 / 0.2, rtol=0.1, atol=0)
+    las_w = w["laser"].weight
+    um = np.array([c == "value_um" for c in w["laser"].columns])
+    np.testing.assert_allclose(np.median(las_w[um]), 1e3 / 2.0, rtol=0.15, atol=0)
+    np.testing.assert_allclose(np.median(las_w[~um]), 1e6 / 4.0, rtol=0.15, atol=0)
+    assert abs(res.sigma - 1) < 0.1
+    res_dict = identify(model, [pts, las], weights={"points": 0.2, "laser": 2.0})
+    assert "given noise" in res_dict.weighting
+    with pytest.raises(InputError, match="nothere"):
+        identify(model, [pts], weights={"nothere": 1.0})
+
+
+def test_result_reports_per_file_residuals_in_file_units(xfyz):
+    machine, model = xfyz
+    rng = np.random.default_rng(16)
+    xyz = rng.uniform(-200, 100, (60, 3))
+    dev = np.full((60, 3), np.nan)
+    dev[:, 2] = 0.0
+    data = make_points(xyz, deviation=dev, path="probe.csv")
+    data = simulate(model, data, np.zeros(model.n_params))
+    # one outlier of +7 um in row 5
+    bad = data.deviation.copy()
+    bad[5, 2] += 7e-3
+    data = dataclasses.replace(data, deviation=bad)
+    res = identify(model, [data], free=["EZX_1", "EZY_1", "TOOL_dL"])
+    f = res.files[0]
+    assert f.tag == "probe" and f.n_obs == 60 and set(f.columns) == {"dz_um"}
+    assert f.rows[np.argmax(np.abs(f.residual))] == 5 and f.file_rows[5] == 6
+    # least squares with an intercept-like TOOL_dL: residuals sum to ~0, the outlier keeps most of 7 um
+    assert 5.0 < f.residual[5] < 7.0
+    np.testing.assert_allclose(f.rms()["dz_um"], np.sqrt(np.mean(f.residual ** 2)), rtol=1e-12, atol=0)
+    corr = res.correlation
+    np.testing.assert_allclose(np.diag(corr), 1.0, rtol=1e-12, atol=0)
+    d = res.to_dict()
+    assert d["n_obs"] == 60 and d["files"][0]["tag"] == "probe"
