@@ -104,3 +104,27 @@ def test_matplotlib_fallback_uses_the_same_colour_scale(tmp_path):
     dist_top = np.linalg.norm(img - top, axis=2).min()
     dist_bottom = np.linalg.norm(img - bottom, axis=2).min()
     assert dist_top < 12 and dist_bottom < 12  # both ends of the scale are drawn (map and bar)
+
+
+def test_residual_plot_before_and_after(tmp_path):
+    from PIL import Image
+
+    from mtcomp.viz import render_residuals
+    x = np.linspace(-300.0, 300.0, 61)
+    d = np.where(np.arange(61) % 2 == 0, 1, -1)
+    before = 3.0 * d + 0.1 * np.sin(x / 50.0)        # a backlash step of 6 um, +-3 by direction
+    after = 0.1 * np.sin(x / 50.0)
+    stats = render_residuals(x, before, after, tmp_path / "res.png", groups=np.where(d > 0, "up", "down"),
+                             xlabel="X (mm)")
+    assert stats["before"]["max"] == pytest.approx(np.max(np.abs(before)), rel=1e-12)
+    assert stats["before"]["rms"] == pytest.approx(np.sqrt(np.mean(before ** 2)), rel=1e-12)
+    assert stats["after"]["rms"] == pytest.approx(np.sqrt(np.mean(after ** 2)), rel=1e-12)
+    img = np.asarray(Image.open(tmp_path / "res.png").convert("RGB"), dtype=int)
+    assert img.shape == (500, 1200, 3)
+    # the two groups are drawn in tab10 blue and orange, in both panels
+    for colour in ((31, 119, 180), (255, 127, 14)):
+        hit = np.all(np.abs(img - np.array(colour)) <= 3, axis=2)
+        assert hit[:, :600].sum() > 50 and hit[:, 600:].sum() > 50
+    with pytest.raises(ValueError, match="one value per observation"):
+        render_residuals(x, before[:-1], after, tmp_path / "bad.png")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["res.png"]
