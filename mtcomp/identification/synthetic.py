@@ -308,3 +308,14 @@ def campaign(machine, rng, n_points: int = 300, tool_lengths=(0.0, 100.0, 200.0)
                            length=np.linalg.norm(bxyz - tb, axis=1), path="ballbar.csv")
     del centre
     return {"points": points, "laser": laser, "ballbar": ballbar}
+
+
+def write_measurements(path, data: MeasurementSet) -> None:
+    """Write a measurement set's header and cells as a CSV file (atomically)."""
+    import csv
+
+    from ..io.atomic import atomic_write
+    with atomic_write(path, newline="") as f:
+        writer = csv.writer(f, lineterminator="\n")
+        writer.writerow(data.header)
+        writer.writerows(data.rows)

@@ -1,0 +1,94 @@
+"""`mtcomp identify`: fits files of several kinds, writes a MODEL.json that load_model reads back and
+whose predictions match the fit; bad input exits 2 with one line and writes nothing."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from mtcomp.cli import main
+from mtcomp.identification.fit import identify
+from mtcomp.identification.measurement_models import measurement_model
+from mtcomp.identification.synthetic import campaign, random_parameters, simulate, write_measurements
+from mtcomp.io.measurements import read_measurements
+from mtcomp.machine import load_machine
+from mtcomp.models import ErrorModel, load_model
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("identify")
+    machine = load_machine("xfyz")
+    model = ErrorModel(machine)
+    rng = np.random.default_rng(30)
+    camp = campaign(machine, rng, n_points=150, laser_offsets=1)
+    p = random_parameters(model, rng)
+    paths = {}
+    for kind, data in camp.items():
+        path = tmp / f"{kind}.csv"
+        write_measurements(path, simulate(model, data, p, noise_um=0.3, noise_urad=0.5, rng=rng))
+        paths[kind] = path
+    return tmp, paths, model
+
+
+def test_identify_writes_model_that_reads_back_and_predicts(files, capsys):
+    tmp, paths, model = files
+    out = tmp / "model.json"
+    args = ["identify", "xfyz", *map(str, paths.values()), "-o", str(out), "--hold", "EXY_1,EXZ_1",
+            "--hold", "EYZ_1"]
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert "rms residual" in text and "points" in text and "wrote" in text
+    fitted = load_model(out, load_machine("xfyz"))
+    raw = json.loads(out.read_text())
+    assert raw["parameters"]["EXX_1"]["unit"] == "um" and "std_error" in raw["parameters"]["EXX_1"]
+    assert raw["parameters"]["EXY_1"]["value"] == 0.0          # held
+    # the same fit through the Python API
+    data = [read_measurements(p) for p in paths.values()]
+    res = identify(model, data, hold=["EXY_1", "EXZ_1", "EYZ_1"])
+    np.testing.assert_allclose(fitted.params.values, res.values, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(fitted.params.std_errors[res.determined], res.std_errors[res.determined],
+                               rtol=1e-9, atol=0)
+    # the model's predictions reproduce observed minus residual of the fit (points file: no nuisance)
+    mm = measurement_model(fitted.model, data[0])
+    f = res.files[0]
+    np.testing.assert_allclose(mm.predict(fitted.params.values, None) * 1e3,
+                               mm.observed * 1e3 - f.residual, rtol=0, atol=1e-6)
+
+
+def _one_line_error(capsys):
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "Traceback" not in err
+    return err
+
+
+def test_reader_errors_exit_2_with_one_line_and_write_nothing(files, capsys):
+    tmp, paths, _ = files
+    bad = tmp / "bad.csv"
+    bad.write_text("x_mm,y_mm,z_mm,dx_um\n1,2,3,0.5\n1,2,abc,0.1\n")
+    out = tmp / "never.json"
+    assert main(["identify", "xfyz", str(paths["points"]), str(bad), "-o", str(out)]) == 2
+    err = _one_line_error(capsys)
+    assert "bad.csv" in err and "row 2" in err
+    assert not out.exists()
+    # an unknown machine, an unknown --hold name, overwriting an input
+    assert main(["identify", "nosuchmachine", str(paths["points"]), "-o", str(out)]) == 2
+    _one_line_error(capsys)
+    assert main(["identify", "xfyz", str(paths["points"]), "-o", str(out), "--hold", "EXX_9"]) == 2
+    assert "EXX_9" in _one_line_error(capsys)
+    before = paths["points"].read_bytes()
+    assert main(["identify", "xfyz", str(paths["points"]), "-o", str(paths["points"])]) == 2
+    assert "overwrite" in _one_line_error(capsys)
+    assert paths["points"].read_bytes() == before
+    assert not out.exists()
+    assert not list(tmp.glob(".*.part"))
+
+
+def test_identify_refuses_file_whose_axes_the_machine_lacks(files, capsys):
+    tmp, _, _ = files
+    f = tmp / "rot.csv"
+    f.write_text("x_mm,y_mm,z_mm,c_deg,dx_um\n0,0,0,10,1.0\n")
+    assert main(["identify", "xfyz", str(f), "-o", str(tmp / "m.json")]) == 2
+    err = _one_line_error(capsys)
+    assert "rot.csv" in err and "no C axis" in err

@@ -1,0 +1,118 @@
+"""`mtcomp predict`: every input column repeated verbatim, pred_<column> per measured column, values
+from the model (checked against the model's own deviation function and the numpy reference)."""
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+
+from mtcomp.cli import main
+from mtcomp.identification import measurement_models as mmod
+from mtcomp.identification.synthetic import make_ballbar, make_laser, make_points, write_measurements
+from mtcomp.io.measurements import read_measurements
+from mtcomp.machine import load_machine
+from mtcomp.models import ErrorModel, FittedModel, ParameterSet, deviation, save_model
+from mtcomp.models.reference import reference_deviation
+
+
+@pytest.fixture(scope="module")
+def model_file(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("predict")
+    machine = load_machine("cafxyz")
+    model = ErrorModel(machine)
+    rng = np.random.default_rng(40)
+    values = np.where(model.base_mask, rng.normal(size=model.n_params), 0.0)
+    values *= np.array([1e-2 if s.unit == "um" else 2e-5 for s in model.param_specs])
+    path = tmp / "model.json"
+    save_model(path, FittedModel(model, ParameterSet(model.param_specs, values)))
+    return tmp, path, model, values
+
+
+def _read(path):
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    return rows[0], rows[1:]
+
+
+def test_predict_points(model_file):
+    tmp, mpath, model, p = model_file
+    rng = np.random.default_rng(41)
+    n = 7
+    xyz = rng.uniform(-200, 200, (n, 3))
+    abc = np.column_stack([rng.uniform(-1, 1, n), np.zeros(n), rng.uniform(-3, 3, n)])
+    normal = np.tile([0.0, 0.6, 0.8], (n, 1))
+    data = make_points(xyz, abc, tool=np.full(n, 120.0), normal=normal)
+    src = tmp / "pts.csv"
+    write_measurements(src, data)
+    out = tmp / "pts_pred.csv"
+    assert main(["predict", "cafxyz", str(mpath), str(src), "-o", str(out)]) == 0
+    header, rows = _read(out)
+    in_header, in_rows = _read(src)
+    assert header == in_header + ["pred_dx_um", "pred_dy_um", "pred_dz_um", "pred_dn_um"]
+    assert [r[:len(in_header)] for r in rows] == in_rows           # verbatim
+    pred = np.array([[float(v) for v in r[len(in_header):]] for r in rows])
+    q = np.column_stack([xyz, abc[:, 0], abc[:, 2]])
+    c = model.default_context(n)
+    c[:, model.context_names.index("tool_length")] = 120.0
+    dev = deviation(model, q, p, c)[:, :3] * 1e3
+    np.testing.assert_allclose(pred[:, :3], dev, rtol=1e-8, atol=1e-8)
+    np.testing.assert_allclose(pred[:, 3], dev @ normal[0], rtol=1e-8, atol=1e-8)
+    ref = reference_deviation(model.machine, dict(zip(model.param_names, p)), q[0], {"tool_length": 120.0})
+    np.testing.assert_allclose(pred[0, :3], ref[:3] * 1e3, rtol=1e-8, atol=1e-8)
+
+
+def test_predict_laser_and_ballbar(model_file):
+    tmp, mpath, model, p = model_file
+    laser = make_laser(["X", "X", "C"], ["EXX", "EBX", "ECC"], [100.0, -50.0, np.radians(30.0)])
+    lpath = tmp / "las.csv"
+    write_measurements(lpath, laser)
+    out = tmp / "las_pred.csv"
+    assert main(["predict", "cafxyz", str(mpath), str(lpath), "-o", str(out)]) == 0
+    header, rows = _read(out)
+    assert header[-2:] == ["pred_value_um", "pred_value_urad"]
+    # hand case for ECC: actual minus commanded angle = ECC_0 + c1 cos + s1 sin + c2 cos 2 + s2 sin 2
+    names = list(model.param_names)
+    th = np.radians(30.0)
+    ecc = sum(p[names.index(n)] * f for n, f in [("ECC_0", 1.0), ("ECC_c1", np.cos(th)),
+                                                   ("ECC_s1", np.sin(th)), ("ECC_c2", np.cos(2 * th)),
+                                                   ("ECC_s2", np.sin(2 * th))])
+    assert rows[2][-2] == "" and rows[0][-1] == ""
+    # (the other angular errors of ~20 urad add second-order terms of ~(2e-5)^2 rad = 4e-4 urad each)
+    np.testing.assert_allclose(float(rows[2][-1]), ecc * 1e6, rtol=0, atol=1e-2)
+    ref = reference_deviation(model.machine, dict(zip(names, p)), [100.0, 0, 0, 0, 0],
+                              {"tool_length": model.machine.tool_length})
+    np.testing.assert_allclose(float(rows[0][-2]), ref[0] * 1e3, rtol=1e-8, atol=1e-8)
+
+    bb = make_ballbar([[100.0, 0.0, 0.0], [0.0, 100.0, 0.0]], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0])
+    bpath = tmp / "bb.csv"
+    write_measurements(bpath, bb)
+    out = tmp / "bb_pred.csv"
+    assert main(["predict", "cafxyz", str(mpath), str(bpath), "-o", str(out)]) == 0
+    header, rows = _read(out)
+    assert header[-1] == "pred_length_mm"
+    for row, q in zip(rows, ([100.0, 0, 0, 0, 0], [0, 100.0, 0, 0, 0])):
+        ref = reference_deviation(model.machine, dict(zip(names, p)), q,
+                                  {"tool_length": model.machine.tool_length})
+        np.testing.assert_allclose(float(row[-1]), np.linalg.norm(np.array(q[:3]) + ref[:3]),
+                                   rtol=1e-12, atol=1e-9)
+
+
+def test_predict_kind_without_model_and_bad_input(model_file, capsys, monkeypatch):
+    tmp, mpath, model, p = model_file
+    src = tmp / "pts2.csv"
+    write_measurements(src, make_points([[0.0, 0.0, 0.0]]))
+    out = tmp / "never.csv"
+    monkeypatch.delitem(mmod.MEASUREMENT_MODELS, "points")
+    monkeypatch.setattr(mmod, "_load_extra_models", lambda: None)
+    assert main(["predict", "cafxyz", str(mpath), str(src), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "no measurement model for points files" in err and err.count("\n") == 1
+    assert not out.exists()
+    monkeypatch.undo()
+    # output onto the model or the data file is refused; a model of another topology too
+    assert main(["predict", "cafxyz", str(mpath), str(src), "-o", str(src)]) == 2
+    assert main(["predict", "xfyz", str(mpath), str(src), "-o", str(out)]) == 2
+    assert "CAFXYZ" in capsys.readouterr().err
+    assert not out.exists()
+    assert read_measurements(src).kind == "points"
