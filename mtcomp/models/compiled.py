@@ -93,15 +93,28 @@ def _notice():
 
 
 # --------------------------------------------------------------------------------- code generation
-def dense_function(function: ca.Function) -> ca.Function:
-    """The same function of (q, p, c) with dense outputs and CSE, named for the generated C."""
+def split_function(function: ca.Function) -> tuple[ca.Function, ca.Function, list[tuple[int, int]]]:
+    """Split ``function`` of (q, p, c) for the pose loop.
+
+    Returns (pre, body, shapes): ``pre(p) -> w`` computes once per call every subexpression that
+    depends on p alone (trigonometry of squareness and location errors ...), ``body(q, p, w, c)``
+    gives every output densified and stacked column by column, with common subexpressions merged;
+    ``shapes`` are the (rows, cols) of the outputs. The arithmetic of every node is unchanged, so
+    the results are those of ``function``.
+    """
     if function.is_a("SXFunction"):
-        args = function.sx_in()
+        q, p, c = function.sx_in()
     else:
-        args = function.mx_in()
-    outs = function.call(args)
-    outs = [ca.densify(o) for o in outs]
-    return ca.Function("mtcomp_f", args, outs, {"cse": True})
+        q, p, c = (ca.SX.sym(function.name_in(k), function.sparsity_in(k)) for k in range(3))
+    outs = [ca.densify(o) for o in function.call([q, p, c])]
+    shapes = [o.shape for o in outs]
+    stacked = ca.vertcat(*[ca.vec(o) for o in outs])
+    body_expr, symbols, parametric = ca.extract_parametric(stacked, p)
+    w = ca.vertcat(*symbols) if symbols else ca.SX.sym("w", 0)
+    w_expr = ca.vertcat(*parametric) if parametric else ca.SX(0, 1)
+    pre = ca.Function("mtcomp_pre", [p], [w_expr], {"cse": True})
+    body = ca.Function("mtcomp_f", [q, p, w, c], [body_expr], {"cse": True})
+    return pre, body, shapes
 
 
 _LOOP = r"""
@@ -111,18 +124,27 @@ int mtcomp_loop(long long n, const double* q, const double* p, const double* c, 
   const casadi_real* arg[%(sz_arg)d + 1];
   casadi_real* res[%(sz_res)d + 1];
   casadi_int iw[%(sz_iw)d + 1];
-  casadi_real* w = (casadi_real*)malloc(sizeof(casadi_real) * (%(sz_w)d + 1));
+  casadi_real* w = (casadi_real*)malloc(sizeof(casadi_real) * (%(sz_w)d + %(nw)d + %(nout)d + 1));
+  casadi_real* pw;
+  casadi_real* buf;
   long long i;
   int k;
   if (!w) return 1;
+  pw = w + %(sz_w)d;
+  buf = pw + %(nw)d;
   for (k = 0; k < %(sz_arg)d; ++k) arg[k] = 0;
   for (k = 0; k < %(sz_res)d; ++k) res[k] = 0;
+  arg[0] = p;
+  res[0] = pw;
+  if (mtcomp_pre(arg, res, iw, w, 0)) { free(w); return 2; }
   arg[1] = p;
+  arg[2] = pw;
+  res[0] = buf;
   for (i = 0; i < n; ++i) {
     arg[0] = q + i * %(nq)d;
-    arg[2] = c + i * %(nc)d;
-%(set_res)s
+    arg[3] = c + i * %(nc)d;
     if (mtcomp_f(arg, res, iw, w, 0)) { free(w); return 2; }
+%(scatter)s
   }
   free(w);
   return 0;
@@ -131,21 +153,27 @@ int mtcomp_loop(long long n, const double* q, const double* p, const double* c, 
 
 
 def generate_source(function: ca.Function) -> tuple[str, list[int]]:
-    """C source of ``function`` (after :func:`dense_function`) with the pose loop appended.
+    """C source of ``function`` (split by :func:`split_function`) with the pose loop appended.
 
-    Returns (source, output sizes per pose).
+    Returns (source, output sizes per pose: rows*cols of each output).
     """
-    f = dense_function(function)
+    pre, body, shapes = split_function(function)
     with tempfile.TemporaryDirectory() as tmp:
         cg = ca.CodeGenerator("mtcomp_f.c", {"with_header": False, "casadi_real": "double",
                                             "casadi_int": "long long"})
-        cg.add(f)
+        cg.add(pre)
+        cg.add(body)
         path = cg.generate(tmp + os.sep)
         src = Path(path).read_text()
-    sizes = [f.numel_out(k) for k in range(f.n_out())]
-    set_res = "\n".join(f"    res[{k}] = out[{k}] + i * {sizes[k]};" for k in range(f.n_out()))
-    src += _LOOP % {"sz_arg": f.sz_arg(), "sz_res": f.sz_res(), "sz_iw": f.sz_iw(), "sz_w": f.sz_w(),
-                    "nq": f.numel_in(0), "nc": f.numel_in(2), "set_res": set_res}
+    sizes = [r * k for r, k in shapes]
+    scatter, offset = [], 0
+    for k, size in enumerate(sizes):
+        scatter.append(f"    for (k = 0; k < {size}; ++k) out[{k}][i * {size} + k] = buf[{offset} + k];")
+        offset += size
+    sz = lambda name: max(getattr(pre, name)(), getattr(body, name)())  # noqa: E731
+    src += _LOOP % {"sz_arg": sz("sz_arg"), "sz_res": sz("sz_res"), "sz_iw": sz("sz_iw"),
+                    "sz_w": sz("sz_w"), "nw": pre.numel_out(0), "nout": offset,
+                    "nq": body.numel_in(0), "nc": body.numel_in(3), "scatter": "\n".join(scatter)}
     return src, sizes
 
 
