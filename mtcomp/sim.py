@@ -124,12 +124,14 @@ def _default_targets(lo: float, hi: float, rotary: bool) -> np.ndarray:
     spacing (fixed pattern) so that periodic errors are not sampled at one phase."""
     if rotary:
         lo_d, hi_d = math.degrees(lo), math.degrees(hi)
-        a, b = max(lo_d, 0.0), min(hi_d, 360.0)
-        if b - a < 30.0:
-            a, b = lo_d, hi_d
-        step = 30.0 if b - a >= 60.0 else (b - a) / 4
-        t = np.arange(a, b - 1e-9 if b - a >= 360.0 else b + 1e-9, step)
-        return np.radians(t)
+        if hi_d - lo_d >= 360.0:                         # a full turn: 0, 30, ... 330 deg
+            a = max(lo_d, 0.0) if lo_d <= 0.0 <= hi_d - 360.0 else lo_d
+            return np.radians(np.arange(a, a + 360.0 - 1e-9, 30.0))
+        a, b = lo_d + 5.0, hi_d - 5.0                    # room for the approach overrun
+        if b - a >= 120.0:
+            n = int(math.floor((b - a) / 30.0 + 1e-9)) + 1
+            return np.radians(a + (b - a - 30.0 * (n - 1)) / 2 + 30.0 * np.arange(n))
+        return np.radians(np.linspace(a, b, 5))
     margin = 0.05 * (hi - lo)
     a, b = lo + margin, hi - margin
     n = max(5, int(math.ceil(5.0 * (b - a) / 1000.0))) + 1
