@@ -1,0 +1,130 @@
+"""`mtcomp compensate MACHINE MODEL.json IN.nc -o OUT.nc`: bounded per-block axis corrections.
+
+The program is streamed twice (once planned, once rewritten by :func:`mtcomp.toolpaths.write_corrected`)
+so memory stays flat for any length. OUT.nc and BLOCKS.csv are written atomically: on any error
+neither exists. Flags override the machine file's [compensation] table. docs/planner.md.
+"""
+from __future__ import annotations
+
+import re
+
+_G20 = re.compile(rb"(?<![A-Za-z0-9.])[Gg]0*20(?![0-9.])")
+
+
+def add_arguments(parser):
+    parser.add_argument("machine", metavar="MACHINE", help="built-in machine name or machine TOML file")
+    parser.add_argument("model", metavar="MODEL.json", help="fitted error model")
+    parser.add_argument("program", metavar="IN.nc", help="NC program (G-code)")
+    parser.add_argument("-o", "--output", metavar="OUT.nc", required=True,
+                        help="where to write the corrected program")
+    parser.add_argument("--method", choices=("qp", "pinv", "newton"), default="qp",
+                        help="qp: bounded optimisation over the whole program (default); pinv: one "
+                             "seed-001 pseudo-inverse step per block; newton: that step iterated")
+    parser.add_argument("--max-correction-um", type=float, metavar="U", default=None,
+                        help="largest correction of a linear axis per block (um)")
+    parser.add_argument("--max-correction-urad", type=float, metavar="R", default=None,
+                        help="largest correction of a rotary axis per block (urad)")
+    parser.add_argument("--max-step-um", type=float, metavar="S", default=None,
+                        help="largest change of a linear correction between consecutive blocks (um)")
+    parser.add_argument("--max-step-urad", type=float, metavar="S", default=None,
+                        help="the same for rotary axes (urad; default: max-step-um scaled like the "
+                             "correction bounds)")
+    parser.add_argument("--report", metavar="BLOCKS.csv", default=None,
+                        help="write one row per output block: positions, corrections, predicted "
+                             "deviation before and after, active bounds")
+    parser.add_argument("--subdivide-tol-um", type=float, metavar="T", default=0.5,
+                        help="insert internal nodes in a feed move where the corrected path would "
+                             "miss its midpoint by more than T um (default 0.5; 0: end points only)")
+    parser.add_argument("--chord-tol-um", type=float, metavar="T", default=1.0,
+                        help="chord tolerance for arcs written as G1 polylines (um, default 1)")
+    parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+
+
+def _positive(value, flag, allow_zero=False):
+    import math
+
+    from ..errors import InputError
+    if value is None:
+        return None
+    if not math.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
+        raise InputError(f"{flag} must be a positive number, got {value:g}")
+    return value
+
+
+def uses_inches(path) -> bool:
+    """True if the program contains a G20 word anywhere (comments are not excluded)."""
+    from ..errors import InputError
+    try:
+        with open(path, "rb") as f:
+            return _G20.search(f.read()) is not None
+    except FileNotFoundError:
+        raise InputError("no such file", path) from None
+    except OSError as exc:
+        raise InputError(f"cannot open: {exc.strerror}", path) from None
+
+
+def run(args) -> int:
+    import contextlib
+    import sys
+    import time
+
+    from ..errors import InputError
+    from ..io.atomic import atomic_write, check_output_path
+    from ..machine import load_machine
+    from ..models.model_file import load_model
+    from ..planner import (CompensationProblem, Planner, PlannerOptions, Summary, output_grid,
+                           report_columns, report_rows)
+    from ..toolpaths import iter_segment_chunks, write_corrected
+
+    t0 = time.perf_counter()
+    for flag, v in (("--max-correction-um", args.max_correction_um),
+                    ("--max-correction-urad", args.max_correction_urad),
+                    ("--max-step-um", args.max_step_um), ("--max-step-urad", args.max_step_urad),
+                    ("--chord-tol-um", args.chord_tol_um)):
+        _positive(v, flag)
+    _positive(args.subdivide_tol_um, "--subdivide-tol-um", allow_zero=True)
+    inputs = [args.program, args.model]
+    out = check_output_path(args.output, inputs)
+    report = None
+    if args.report is not None:
+        report = check_output_path(args.report, inputs)
+        if report.resolve() == out.resolve():
+            raise InputError("--report and -o name the same file", args.report)
+    machine = load_machine(args.machine)
+    fitted = load_model(args.model, machine)
+    inch = uses_inches(args.program)
+    problem = CompensationProblem.from_machine(
+        fitted, args.max_correction_um, args.max_correction_urad, args.max_step_um,
+        args.max_step_urad, grid=output_grid(machine, inch))
+
+    def progress(done):
+        sys.stderr.write(f"mtcomp compensate: {done} blocks planned ({time.perf_counter() - t0:.0f} s)\n")
+        sys.stderr.flush()
+
+    options = PlannerOptions(method=args.method, subdivide_tol_um=args.subdivide_tol_um or None,
+                             progress=None if args.quiet else progress)
+    chord_tol = args.chord_tol_um * 1e-3
+    planner = Planner(problem, options, source=args.program)
+    summary = Summary(machine.axis_names)
+
+    with contextlib.ExitStack() as stack:
+        rep = None
+        if report is not None:
+            rep = stack.enter_context(atomic_write(report, "w", newline=""))
+            rep.write(",".join(report_columns(machine.axis_names, machine.is_five_axis)) + "\n")
+
+        def corrections():
+            chunks = iter_segment_chunks(args.program, machine, chord_tol_mm=chord_tol)
+            for chunk, res in planner.iter_chunks(chunks):
+                summary.add(res)
+                if rep is not None:
+                    rep.writelines(report_rows(res, machine.axis_names))
+                yield chunk, res.corrected, res.counts
+
+        write_corrected(args.program, out, machine, corrections(), chord_tol_mm=chord_tol)
+    elapsed = time.perf_counter() - t0
+    print(f"mtcomp compensate: method {args.method}, {machine.name} ({machine.topology}), "
+          f"{elapsed:.1f} s")
+    print(summary.text())
+    print(f"wrote {out}" + (f" and {report}" if report is not None else ""))
+    return 0

@@ -1,0 +1,134 @@
+"""BLOCKS.csv (SPEC section 5) and the summary that ``mtcomp compensate`` prints.
+
+One row per output block (every G0/G1 line written for a motion, internal nodes included):
+
+* ``line``: source line of the block; ``inserted``: 1 for an internal node the planner added;
+  ``rapid``: 1 for a G0 move;
+* corrected axis positions as written: ``x_mm, y_mm, z_mm`` and ``a_deg, b_deg, c_deg`` (present axes);
+* corrections, written minus nominal: ``cx_um, cy_um, cz_um`` and ``ca_urad, cb_urad, cc_urad``;
+* predicted tool-tip deviation (actual minus nominal, workpiece frame) before and after correction:
+  ``ex_before_um, ey_before_um, ez_before_um, e_before_um`` (length), the same with ``_after``;
+* 5-axis machines: tool-axis deviation (actual minus nominal unit vector, x/y/z components, in urad)
+  ``ei_before_urad, ej_before_urad, ek_before_urad, e_axis_before_urad`` and ``_after``;
+* ``active_bounds``: the bounds that kept the planner from removing the error at this block,
+  separated by ``;``: ``cx_max`` / ``cx_min`` (max correction), ``travel_x_max`` / ``travel_x_min``
+  (travel), ``step_x`` (max change from the block before); empty when none.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._bounds import FLAG_KINDS, flag_name
+from .engine import PlanResult
+
+
+def report_columns(axis_names, five_axis: bool) -> list[str]:
+    cols = ["line", "inserted", "rapid"]
+    cols += [f"{a.lower()}_deg" if a in "ABC" else f"{a.lower()}_mm" for a in axis_names]
+    cols += [f"c{a.lower()}_urad" if a in "ABC" else f"c{a.lower()}_um" for a in axis_names]
+    for when in ("before", "after"):
+        cols += [f"ex_{when}_um", f"ey_{when}_um", f"ez_{when}_um", f"e_{when}_um"]
+        if five_axis:
+            cols += [f"ei_{when}_urad", f"ej_{when}_urad", f"ek_{when}_urad", f"e_axis_{when}_urad"]
+    cols.append("active_bounds")
+    return cols
+
+
+def report_rows(result: PlanResult, axis_names) -> list[str]:
+    """CSV text lines (with newline) of one planned result."""
+    rot = np.array([a in "ABC" for a in axis_names])
+    pos = np.where(rot, np.degrees(result.corrected), result.corrected)
+    corr = np.where(rot, result.correction * 1e6, result.correction * 1e3)
+    cols = [result.line.astype(np.int64), result.inserted.astype(int), result.rapid.astype(int)]
+    fmts = ["%d", "%d", "%d"]
+    for j in range(len(axis_names)):
+        cols.append(pos[:, j])
+        fmts.append("%.4f")
+    for j in range(len(axis_names)):
+        cols.append(corr[:, j])
+        fmts.append("%.6f" if rot[j] else "%.4f")
+    five = result.before_axis is not None
+    for dev, dax in ((result.before, result.before_axis), (result.after, result.after_axis)):
+        um = dev * 1e3
+        cols += [um[:, 0], um[:, 1], um[:, 2], np.sqrt(np.sum(um ** 2, axis=1))]
+        fmts += ["%.4f"] * 4
+        if five:
+            ur = dax * 1e6
+            cols += [ur[:, 0], ur[:, 1], ur[:, 2], np.sqrt(np.sum(ur ** 2, axis=1))]
+            fmts += ["%.4f"] * 4
+    bounds = result.active_bounds(axis_names)
+    fmt = ",".join(fmts) + ",%s\n"
+    return [fmt % row for row in zip(*[c.tolist() for c in cols], bounds)]
+
+
+@dataclass
+class Summary:
+    """Totals over a planned program (what the command prints)."""
+
+    axis_names: tuple
+    blocks: int = 0
+    inserted: int = 0
+    bounded_blocks: int = 0
+    flag_counts: dict = field(default_factory=dict)
+    max_before_um: float = 0.0
+    max_after_um: float = 0.0
+    worst_line: int = 0
+    sum_sq_before: float = 0.0
+    sum_sq_after: float = 0.0
+    max_axis_before_urad: float | None = None
+    max_axis_after_urad: float | None = None
+    not_converged: int = 0
+
+    def add(self, r: PlanResult):
+        n = len(r)
+        if n == 0:
+            return
+        self.blocks += n
+        self.inserted += int(r.inserted.sum())
+        any_flag = r.flags.any(axis=(1, 2))
+        self.bounded_blocks += int(any_flag.sum())
+        if any_flag.any():
+            counts = r.flags.sum(axis=0)
+            for j, a in enumerate(self.axis_names):
+                for k, kind in enumerate(FLAG_KINDS):
+                    if counts[j, k]:
+                        name = flag_name(kind, a)
+                        self.flag_counts[name] = self.flag_counts.get(name, 0) + int(counts[j, k])
+        eb = np.sqrt(np.sum(r.before ** 2, axis=1)) * 1e3
+        ea = np.sqrt(np.sum(r.after ** 2, axis=1)) * 1e3
+        self.max_before_um = max(self.max_before_um, float(eb.max()))
+        i = int(np.argmax(ea))
+        if ea[i] >= self.max_after_um:
+            self.max_after_um = float(ea[i])
+            self.worst_line = int(r.line[i])
+        self.sum_sq_before += float(np.sum(eb ** 2))
+        self.sum_sq_after += float(np.sum(ea ** 2))
+        if r.before_axis is not None:
+            ab = float(np.sqrt(np.sum(r.before_axis ** 2, axis=1)).max()) * 1e6
+            aa = float(np.sqrt(np.sum(r.after_axis ** 2, axis=1)).max()) * 1e6
+            self.max_axis_before_urad = max(self.max_axis_before_urad or 0.0, ab)
+            self.max_axis_after_urad = max(self.max_axis_after_urad or 0.0, aa)
+        self.not_converged += int(np.sum(~r.converged))
+
+    def text(self) -> str:
+        n = max(self.blocks, 1)
+        lines = [f"{self.blocks} blocks planned ({self.inserted} internal nodes inserted)",
+                 f"predicted tool-tip deviation before: max {self.max_before_um:.3f} um, "
+                 f"rms {np.sqrt(self.sum_sq_before / n):.3f} um",
+                 f"predicted tool-tip deviation after:  max {self.max_after_um:.3f} um "
+                 f"(line {self.worst_line}), rms {np.sqrt(self.sum_sq_after / n):.3f} um"]
+        if self.max_axis_before_urad is not None:
+            lines.append(f"predicted tool-axis deviation: max {self.max_axis_before_urad:.3f} urad "
+                         f"before, {self.max_axis_after_urad:.3f} urad after")
+        if self.bounded_blocks:
+            detail = ", ".join(f"{k} {v}" for k, v in sorted(self.flag_counts.items()))
+            lines.append(f"{self.bounded_blocks} blocks hit a bound ({detail}); worst remaining "
+                         f"predicted deviation {self.max_after_um:.3f} um at line {self.worst_line}")
+        else:
+            lines.append("0 blocks hit a bound")
+        if self.not_converged:
+            lines.append(f"warning: {self.not_converged} blocks did not converge within the "
+                         "iteration limit")
+        return "\n".join(lines)
