@@ -193,7 +193,8 @@ def iso230_2_plan(machine: Machine, axis: str, targets=None, n_runs: int = 5,
     _axis_cells(machine, q, cols)
     for k, c in enumerate("xyz"):
         cols[f"optic_{c}_mm"] = np.full(n, float(optic_mm[k]))
-    cols["feed_mm_min"] = np.full(n, feed_mm_min)
+    if not ax.is_rotary:                                 # a feed in deg/min is not a feed_mm_min
+        cols["feed_mm_min"] = np.full(n, feed_mm_min)
     cols["t_s"] = np.array([r[4] for r in rows])
     cols["seq"] = np.array([r[5] for r in rows], dtype=float)
     angular = [c[1] in "ABC" for c in cols["component"]]
