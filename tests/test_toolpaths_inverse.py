@@ -7,7 +7,7 @@ import pytest
 from mtcomp import InputError, load_machine
 from mtcomp.kinematics import forward
 from mtcomp.machine import machine_from_dict
-from mtcomp.toolpaths.inverse import inverse_kinematics
+from mtcomp.toolpaths.inverse import fit_rotary_travel, inverse_kinematics
 
 
 def _random_q(machine, rng, n, tilt_scale=1.0):
@@ -92,3 +92,17 @@ def test_unreachable_and_unsupported():
          "Z": {"travel_mm": [0, 1]}, "A": {"travel_deg": [-90, 90], "axis_point_mm": [0, 0, 0]}}}
     with pytest.raises(InputError, match="tool side"):
         inverse_kinematics(machine_from_dict(d), [[0, 0, 0]], [[0, 0, 1.0]])
+
+
+def test_fit_rotary_travel_removes_jumps():
+    m = load_machine("cafxyz")
+    c = np.radians(np.array([-350.0, -355.0, -359.0, 2.0, 7.0]))   # 2 deg is really -358 deg
+    q = np.zeros((5, 5))
+    q[:, 4] = c
+    q[:, 3] = np.radians(20.0)
+    out = fit_rotary_travel(m, q)
+    np.testing.assert_allclose(np.degrees(out[:, 4]), [10.0, 5.0, 1.0, 2.0, 7.0], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(out[:, :4], q[:, :4], rtol=0, atol=0)
+    q[:, 4] = np.radians(np.linspace(0, 800, 5) % 360)                  # 800 deg in one piece
+    with pytest.raises(InputError, match="more than its travel"):
+        fit_rotary_travel(m, q)

@@ -167,3 +167,29 @@ def inverse_kinematics(machine: Machine, tip: np.ndarray, tool_axis: np.ndarray,
     s = np.linalg.solve(M, (tip - pts[:, 0, :])[:, :, None])[:, :, 0]
     q[:, lin] = s
     return q
+
+
+def fit_rotary_travel(machine: Machine, q: np.ndarray) -> np.ndarray:
+    """Make each rotary column of a pose sequence q (N, n_axes) continuous (no 360 deg jumps) and
+    shift it by whole turns so that the whole sequence lies within travel, as near zero as possible.
+
+    The pose-by-pose wrap of :func:`inverse_kinematics` may jump when the next value would leave the
+    travel; a contour wants one continuous rotation planned as a whole. Raises InputError when the
+    rotation spans more than the travel.
+    """
+    q = np.array(q, dtype=float)
+    two_pi = 2.0 * math.pi
+    for ax in machine.rotary_axes:
+        j = machine.index(ax.name)
+        col = np.unwrap(q[:, j])
+        lo, hi = ax.travel
+        m_lo = math.ceil((lo - col.min()) / two_pi - 1e-12)
+        m_hi = math.floor((hi - col.max()) / two_pi + 1e-12)
+        if m_lo > m_hi:
+            raise InputError(f"axis {ax.name} would turn through {math.degrees(np.ptp(col)):.1f} deg, "
+                             f"more than its travel {math.degrees(lo):g}..{math.degrees(hi):g} deg "
+                             "allows in one piece")
+        ms = np.arange(m_lo, m_hi + 1)
+        m = ms[np.argmin(np.abs(col.mean() + two_pi * ms))]
+        q[:, j] = col + two_pi * m
+    return q
