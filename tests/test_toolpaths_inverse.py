@@ -103,6 +103,7 @@ def test_fit_rotary_travel_removes_jumps():
     out = fit_rotary_travel(m, q)
     np.testing.assert_allclose(np.degrees(out[:, 4]), [10.0, 5.0, 1.0, 2.0, 7.0], rtol=0, atol=1e-9)
     np.testing.assert_allclose(out[:, :4], q[:, :4], rtol=0, atol=0)
-    q[:, 4] = np.radians(np.linspace(0, 800, 5) % 360)                  # 800 deg in one piece
+    turn = np.zeros((41, 5))
+    turn[:, 4] = np.radians(np.linspace(0, 800, 41) % 360)      # 800 deg in 20 deg steps
     with pytest.raises(InputError, match="more than its travel"):
-        fit_rotary_travel(m, q)
+        fit_rotary_travel(m, turn)
