@@ -48,7 +48,7 @@ compile_count = 0
 _NOTICE = "mtcomp: no C compiler found; using CasADi's own evaluation (slower)"
 _notice_given = False
 _lock = threading.Lock()
-_loaded: dict = {}  # (structure key, function name, source hash) -> _Compiled
+_loaded: dict = {}  # (structure key, function name, fingerprint) -> _Compiled
 
 
 class CompileError(RuntimeError):
@@ -229,7 +229,7 @@ class _Compiled:
         return outs
 
 
-_sources: dict = {}  # (structure key, function name) -> (source, sizes)
+_sources: dict = {}  # (structure key, function name, fingerprint) -> (source, sizes)
 _failed: dict = {}  # (structure key, function name, compiler) -> message of the failure
 
 
@@ -243,7 +243,11 @@ def forget_loaded():
 def get_compiled(model, name: str, function: ca.Function, compile_if_missing: bool = True):
     """The loaded compiled form of ``function`` (model.<name>), or None if not compiled and
     ``compile_if_missing`` is False. Raises CompileError when compilation is impossible."""
-    skey = (model.structure_key(), name)
+    # the name alone could be reused for another function of the same model: add a fingerprint
+    shape = tuple(function.size_in(k) for k in range(function.n_in())) + \
+        tuple(function.size_out(k) for k in range(function.n_out()))
+    size = function.n_instructions() if function.is_a("SXFunction") else function.n_nodes()
+    skey = (model.structure_key(), name, shape, size)
     with _lock:
         if skey in _loaded:
             return _loaded[skey]
