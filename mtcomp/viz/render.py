@@ -195,7 +195,7 @@ def _render_pyvista(smap, panels, out_png, clim, scale, window_size, title):
                 plotter.add_mesh(arrows, color="black")
                 plotter.add_text(f"arrows: deviation x {scale:.3g}", position="lower_left",
                                  font_size=max(font - 3, 5), color="black")
-            plotter.view_vector((-0.55, -1.0, 1.25), viewup=(0, 0, 1))
+            plotter.view_vector((-0.5, -1.0, 0.75), viewup=(0, 0, 1))
             plotter.camera.zoom(1.15)
         plotter.subplot(1, 0)
         plotter.add_scalar_bar(title=" ", mapper=mapper, vertical=False, position_x=0.2,
