@@ -35,6 +35,10 @@ class Bounds:
         self.grid = None if problem.grid is None else np.asarray(problem.grid, dtype=float)
         # u: the unit of the clamp; whole numbers of grid steps with a grid, plain x otherwise
         self.unit = np.ones(problem.n_axes) if self.grid is None else self.grid * self.D
+        # how far a correction must be from the one wanted to count as taken away by a bound, and
+        # how close to a bound counts as on it
+        self.took_tol = 0.5 * self.unit + 1e-9 if self.grid is not None else np.full(len(self.D), 1e-4)
+        self.on_tol = 1e-9 * self.unit if self.grid is not None else np.full(len(self.D), 1e-6)
         self.B = self._floor(problem.max_correction * self.D)
         self.S = self._floor(problem.max_step * self.D)
 
@@ -68,13 +72,14 @@ class Bounds:
             return np.array(x, dtype=float)
         return np.round(x / self.unit) * self.unit
 
-    def enforce(self, x, q, exempt, prev, desired=None):
+    def enforce(self, x, q, exempt, prev, desired=None, following=None):
         """The written corrections and the bounds that acted.
 
         x : (n, na) corrections found (x units). desired : (n, na) the corrections the block would
         take without bounds (default x), to tell which bounds acted. q : (n, na) nominal positions (mm, rad).
         exempt : (n,) bool, no step bound into this block. prev : (na,) correction of the block
-        before (x units), or None. Returns (y (n, na) on the grid, flags (n, na, 5) bool, see
+        before (x units), or None. following : (na,) correction of the block after, with
+        ``following_exempt`` folded in by the caller (None: unknown or exempt). Returns (y (n, na) on the grid, flags (n, na, 5) bool, see
         FLAG_KINDS): a flag is set where y sits on that bound and differs from ``desired`` by more
         than half a grid step (the bound took something away).
         """
@@ -102,7 +107,8 @@ class Bounds:
                 j += 1
             start = j + 1
         flags = np.zeros((n, y.shape[1], len(FLAG_KINDS)), bool)
-        took = np.abs(desired - y) > 0.5 * self.unit + 1e-9
+        took = np.abs(desired - y) > self.took_tol
+        tol = self.on_tol
         tlo, thi = self.travel_x(q)
         flags[..., 0] = took & (y >= self.B - tol)
         flags[..., 1] = took & (y <= -self.B + tol)
@@ -112,7 +118,14 @@ class Bounds:
         has_prev = ~exempt.copy()
         if prev is None and n:
             has_prev[0] = False
-        flags[..., 4] = took & has_prev[:, None] & (np.abs(y - prev_rows) >= self.S - tol)
+        step_in = has_prev[:, None] & (np.abs(y - prev_rows) >= self.S - tol)
+        # a block held back by the step bound towards the block after it (a ramp into a bound)
+        step_out = np.zeros_like(step_in)
+        if n > 1:
+            step_out[:-1] = ~exempt[1:, None] & (np.abs(y[1:] - y[:-1]) >= self.S - tol)
+        if n and following is not None:
+            step_out[-1] = np.abs(following - y[-1]) >= self.S - tol
+        flags[..., 4] = took & (step_in | step_out)
         return y, flags
 
     def _next_violation(self, y, exempt, prev, start, tol, block=8192):

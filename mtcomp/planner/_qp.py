@@ -67,6 +67,6 @@ class WindowQP:
         u = np.concatenate([upper.reshape(-1), step_hi.reshape(-1)])
         self.solver.update(Px=self._p_data(H), q=np.ascontiguousarray(g.reshape(-1)), l=l, u=u)
         self.solver.warm_start(x=np.ascontiguousarray(x0.reshape(-1)))
-        res = self.solver.solve()
+        res = self.solver.solve(raise_error=False)
         self.solves += 1
         return np.asarray(res.x).reshape(self.N, self.na), res.info.status

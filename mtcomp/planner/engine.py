@@ -293,10 +293,12 @@ class Planner:
                 Linearization.concatenate(found_lin))
 
     # ------------------------------------------------------------------ committing
-    def _commit(self, nodes: NodeSet, lin: Linearization, x: np.ndarray) -> PlanResult:
+    def _commit(self, nodes: NodeSet, lin: Linearization, x: np.ndarray,
+                following: np.ndarray | None = None) -> PlanResult:
         """Round, enforce bounds exactly, predict the deviation after correction."""
         # flags compare with the unbounded correction: what the bounds took away
-        y, flags = self.bounds.enforce(x, nodes.q, nodes.exempt, self._prev, desired=lin.x)
+        y, flags = self.bounds.enforce(x, nodes.q, nodes.exempt, self._prev, desired=lin.x,
+                                       following=following)
         if len(nodes):
             self._prev = y[-1].copy()
         D = self.bounds.D
@@ -441,7 +443,8 @@ class Planner:
             # keep the re-linearisation for the overlap nodes of the next window
             lin.b[sl], lin.A[sl], lin.x_lin[sl], lin.iterations[sl] = wl.b, wl.A, wl.x_lin, wl.iterations
             csl = slice(0, nc)
-            results.append(self._commit(wn.take(csl), wl.take(csl), x[:nc]))
+            following = x[nc] if nc < nw and not wn.exempt[nc] else None
+            results.append(self._commit(wn.take(csl), wl.take(csl), x[:nc], following))
             pos += nc
         self._buffer = [(nodes.take(slice(pos, total)), lin.take(slice(pos, total)))] if pos < total \
             else []
