@@ -29,6 +29,7 @@ from __future__ import annotations
 import ctypes
 import hashlib
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -152,8 +153,47 @@ int mtcomp_loop(long long n, const double* q, const double* p, const double* c, 
 """
 
 
-def generate_source(function: ca.Function) -> tuple[str, list[int]]:
-    """C source of ``function`` (split by :func:`split_function`) with the pose loop appended.
+_TRIG = re.compile(r"^(\s*)(a\w+)=(sin|cos)\((a\w+)\);$")
+_ASSIGN = re.compile(r"^\s*(a\w+)=")
+
+
+def merge_sincos(src: str) -> str:
+    """Replace each pair sin(a), cos(a) of the same value in the generated straight-line code by
+    one call of glibc's ``sincos`` (which returns bit for bit what sin and cos return; half the
+    cost). Variables are reassigned in CasADi's code, so a pair is only merged while its argument
+    keeps its value."""
+    lines = src.split("\n")
+    version: dict[str, int] = {}
+    first: dict[tuple[str, int], tuple[int, str]] = {}  # (arg, version) -> (line, 'sin' or 'cos')
+    pairs = []
+    for i, line in enumerate(lines):
+        if line and not line[0].isspace():  # a new function: its variables are new
+            first.clear()
+        m = _TRIG.match(line)
+        if m:
+            arg = m.group(4)
+            key = (arg, version.get(arg, 0))
+            if key in first and first[key][1] != m.group(3):
+                pairs.append((first.pop(key)[0], i))
+            elif key not in first:
+                first[key] = (i, m.group(3))
+        a = _ASSIGN.match(line)
+        if a:
+            version[a.group(1)] = version.get(a.group(1), 0) + 1
+    for k, (i, j) in enumerate(pairs):
+        mi, mj = _TRIG.match(lines[i]), _TRIG.match(lines[j])
+        s_var, c_var = f"mtcomp_s{k}", f"mtcomp_c{k}"
+        lines[i] = (f"{mi.group(1)}casadi_real {s_var}, {c_var}; sincos({mi.group(4)}, &{s_var}, &{c_var}); "
+                    f"{mi.group(2)}={s_var if mi.group(3) == 'sin' else c_var};")
+        lines[j] = f"{mj.group(1)}{mj.group(2)}={s_var if mj.group(3) == 'sin' else c_var};"
+    if not pairs:
+        return src
+    return "void sincos(double, double*, double*);\n" + "\n".join(lines)
+
+
+def generate_source(function: ca.Function, merge: bool = True) -> tuple[str, list[int]]:
+    """C source of ``function`` (split by :func:`split_function`) with the pose loop appended;
+    ``merge``: sin/cos pairs merged into sincos (:func:`merge_sincos`, glibc only).
 
     Returns (source, output sizes per pose: rows*cols of each output).
     """
@@ -165,6 +205,8 @@ def generate_source(function: ca.Function) -> tuple[str, list[int]]:
         cg.add(body)
         path = cg.generate(tmp + os.sep)
         src = Path(path).read_text()
+    if merge and sys.platform.startswith("linux"):
+        src = merge_sincos(src)
     sizes = [r * k for r, k in shapes]
     scatter, offset = [], 0
     for k, size in enumerate(sizes):
@@ -229,7 +271,7 @@ class _Compiled:
         return outs
 
 
-_sources: dict = {}  # (structure key, function name, fingerprint) -> (source, sizes)
+_sources: dict = {}  # ((structure key, function name, fingerprint), merged) -> (source, sizes)
 _failed: dict = {}  # (structure key, function name, compiler) -> message of the failure
 
 
@@ -238,6 +280,12 @@ def forget_loaded():
     with _lock:
         _loaded.clear()
         _failed.clear()
+
+
+def _source(skey, function, merge: bool):
+    if (skey, merge) not in _sources:
+        _sources[(skey, merge)] = generate_source(function, merge=merge)
+    return _sources[(skey, merge)]
 
 
 def get_compiled(model, name: str, function: ca.Function, compile_if_missing: bool = True):
@@ -251,22 +299,27 @@ def get_compiled(model, name: str, function: ca.Function, compile_if_missing: bo
     with _lock:
         if skey in _loaded:
             return _loaded[skey]
-        if skey not in _sources:
-            _sources[skey] = generate_source(function)
-        src, sizes = _sources[skey]
         compiler = find_compiler()
         if compiler is None:
             raise CompileError("no C compiler")
         if (skey, compiler) in _failed:
             raise CompileError(_failed[(skey, compiler)])
-        key = hashlib.sha256("\0".join([src, compiler, *CFLAGS]).encode()).hexdigest()[:24]
-        if not compile_if_missing and not (cache_dir() / f"mtcomp_{key}.so").exists():
-            return None
-        try:
-            lib = compile_source(src, compiler)
-        except CompileError as exc:
-            _failed[(skey, compiler)] = str(exc)
-            raise
+        # first with sin/cos merged into sincos, then (a libm without sincos) plain
+        variants = [True, False] if (skey, compiler, "merged") not in _failed else [False]
+        for merge in variants:
+            src, sizes = _source(skey, function, merge)
+            if merge and "sincos(" not in src:
+                continue
+            key = hashlib.sha256("\0".join([src, compiler, *CFLAGS]).encode()).hexdigest()[:24]
+            if not compile_if_missing and not (cache_dir() / f"mtcomp_{key}.so").exists():
+                return None
+            try:
+                lib = compile_source(src, compiler)
+                break
+            except CompileError as exc:
+                _failed[(skey, compiler, "merged") if merge else (skey, compiler)] = str(exc)
+                if not merge:
+                    raise
         comp = _Compiled(lib, sizes, function.numel_in(0), function.numel_in(2), function.numel_in(1))
         _loaded[skey] = comp
         return comp
