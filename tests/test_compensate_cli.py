@@ -1,0 +1,226 @@
+"""`mtcomp compensate` end to end: the written G-code parsed back, the report, the bounds in the
+output, bounded programs reported (not failed), 5-axis orientation, bad input. Oracles: the nominal
+round trip of the same program, an independent evaluation of the model at the written positions."""
+import csv
+import math
+
+import numpy as np
+import pytest
+
+from mtcomp import load_machine
+from mtcomp.cli import main
+from mtcomp.kinematics import forward
+from mtcomp.models import ErrorModel, FittedModel, deviation, save_model
+from mtcomp.toolpaths import read_program, write_corrected
+
+UNIT_SCALE = {"um": 10e-3, "urad": 20e-6, "mm": 50.0, "1": 0.05}
+
+XFYZ_PROGRAM = """%
+O0100 (compensate test)
+N10 G21 G90 G17
+N20 G0 X-50 Y-40 Z20 ; approach
+N30 G1 Z-5 F800 M8
+N40 X60 Y-40
+N50 G2 X60 Y40 I0 J40 F600
+N60 G1 X-50 Y40
+G1 X-50 Y-38 Z-4.5
+N70 G0 Z30
+N80 X120 Y100
+N90 G1 Z0 F300
+X140 Y120 Z-2
+M30
+%
+"""
+
+CAFXYZ_PROGRAM = """%
+G21 G90
+G0 X0 Y0 Z50 A0 C0
+G1 X20 Y-10 Z30 A20 C10 F1000
+X40 Y-20 Z20 A35 C45
+X30 Y10 Z25 A40 C90
+X10 Y30 Z15 A30 C150
+G0 Z60
+M30
+%
+"""
+
+
+def _model(tmp_path, name, seed=3, scale=1.0):
+    machine = load_machine(name)
+    model = ErrorModel(machine)
+    fitted = FittedModel.zero(model)
+    rng = np.random.default_rng(seed)
+    fitted.params.values[:] = scale * rng.normal(size=model.n_params) * np.array(
+        [UNIT_SCALE[s.unit] for s in model.param_specs])
+    path = tmp_path / f"{name}.json"
+    save_model(path, fitted)
+    return machine, fitted, path
+
+
+def _read_report(path):
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    return rows
+
+
+def _run(args, capsys):
+    code = main(args)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _written_points(path, machine):
+    return read_program(path, machine).segments().end
+
+
+def _actual_minus_nominal(fitted, q_written, q_nominal, chunk):
+    """Independent: nominal kinematics + model deviation at the written positions, with the context
+    of each block (feed and approach directions of the nominal program)."""
+    m = fitted.machine
+    cols = {"feed": chunk.feed}
+    cols.update({f"dir_{a}": chunk.dirs[:, j].astype(float) for j, a in enumerate(m.axis_names)})
+    c = fitted.context(len(chunk), cols)
+    tip, axis = forward(m, q_written)
+    dev = deviation(fitted.model, q_written, fitted.params.values, c)
+    tip0, axis0 = forward(m, q_nominal)
+    return np.concatenate([tip - tip0 + dev[:, :3], axis - axis0 + dev[:, 3:]], axis=1)
+
+
+@pytest.mark.parametrize("method", ["qp", "newton", "pinv"])
+def test_xfyz_program_corrected_and_reported(tmp_path, capsys, method):
+    machine, fitted, model_path = _model(tmp_path, "xfyz")
+    prog = tmp_path / "in.nc"
+    prog.write_text(XFYZ_PROGRAM)
+    out, rep, nominal = tmp_path / "out.nc", tmp_path / "blocks.csv", tmp_path / "nominal.nc"
+    code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o", str(out),
+                              "--method", method, "--report", str(rep), "--subdivide-tol-um", "0"],
+                             capsys)
+    assert code == 0, err
+    assert "0 blocks hit a bound" in stdout
+    write_corrected(prog, nominal, machine, None)
+    q_out = _written_points(out, machine)
+    q_nom = _written_points(nominal, machine)
+    assert q_out.shape == q_nom.shape and q_out.shape[0] > 50     # arc chords included
+    # every non-motion line byte for byte, in place
+    def still(text):
+        return [ln for ln in text.splitlines() if not any(w in ln for w in "XYZ")]
+    assert still(out.read_text()) == still(prog.read_text())
+    assert len(still(XFYZ_PROGRAM)) == 5
+    rows = _read_report(rep)
+    assert len(rows) == q_out.shape[0]
+    pos = np.array([[float(r[k]) for k in ("x_mm", "y_mm", "z_mm")] for r in rows])
+    corr = np.array([[float(r[k]) for k in ("cx_um", "cy_um", "cz_um")] for r in rows])
+    np.testing.assert_allclose(pos, q_out, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(corr, (q_out - q_nom) * 1e3, rtol=0, atol=1e-6)
+    chunk = read_program(prog, machine).segments()
+    e = _actual_minus_nominal(fitted, q_out, q_nom, chunk)
+    after = np.array([[float(r[k]) for k in ("ex_after_um", "ey_after_um", "ez_after_um")]
+                      for r in rows])
+    before = np.array([[float(r[k]) for k in ("ex_before_um", "ey_before_um", "ez_before_um")]
+                       for r in rows])
+    # the report's prediction is the model at the written positions
+    np.testing.assert_allclose(after, e[:, :3] * 1e3, rtol=0, atol=2e-4)
+    e0 = _actual_minus_nominal(fitted, q_nom, q_nom, chunk)
+    np.testing.assert_allclose(before, e0[:, :3] * 1e3, rtol=0, atol=2e-4)
+    assert np.abs(before).max() > 5.0
+    # what remains is the 4-decimal rounding of the output (0.05 um per axis)
+    assert np.abs(e[:, :3]).max() * 1e3 < 0.06
+    assert all(r["active_bounds"] == "" for r in rows)
+
+
+def test_bounds_hold_in_the_output_and_are_reported(tmp_path, capsys):
+    machine, fitted, model_path = _model(tmp_path, "xfyz", seed=4, scale=2.0)
+    prog = tmp_path / "in.nc"
+    prog.write_text(XFYZ_PROGRAM)
+    out, rep, nominal = tmp_path / "out.nc", tmp_path / "blocks.csv", tmp_path / "nominal.nc"
+    code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o", str(out),
+                              "--max-correction-um", "4", "--max-step-um", "0.3",
+                              "--report", str(rep)], capsys)
+    assert code == 0, err
+    rows = _read_report(rep)
+    hit = [r for r in rows if r["active_bounds"]]
+    assert len(hit) > 5
+    assert f"{len(hit)} blocks hit a bound" in stdout
+    assert "worst remaining predicted deviation" in stdout
+    kinds = {k for r in hit for k in r["active_bounds"].split(";")}
+    assert kinds & {"cx_max", "cx_min", "cy_max", "cy_min", "cz_max", "cz_min"}
+    assert kinds & {"step_x", "step_y", "step_z"}
+    worst = max(float(r["e_after_um"]) for r in rows)
+    assert f"{worst:.3f} um" in stdout
+    assert worst > 1.0
+    q_out = _written_points(out, machine)
+    write_corrected(prog, nominal, machine, None)
+    chunk = read_program(prog, machine).segments()
+    # internal nodes may have been added: map output rows to the report, whose nominal is x - c
+    pos = np.array([[float(r[k]) for k in ("x_mm", "y_mm", "z_mm")] for r in rows])
+    corr_um = np.array([[float(r[k]) for k in ("cx_um", "cy_um", "cz_um")] for r in rows])
+    np.testing.assert_allclose(pos, q_out, rtol=0, atol=1e-9)
+    ends = np.array([r["inserted"] == "0" for r in rows])
+    np.testing.assert_allclose(pos[ends] - corr_um[ends] * 1e-3, _written_points(nominal, machine),
+                               rtol=0, atol=1e-9)
+    assert np.all(np.abs(corr_um) <= 4.0 + 1e-6)
+    rapid = np.array([r["rapid"] == "1" for r in rows])
+    steps = np.abs(np.diff(corr_um, axis=0))
+    assert np.all(steps[~rapid[1:]] <= 0.3 + 1e-6)
+    assert len(chunk) == int(ends.sum())
+
+
+def test_five_axis_corrects_orientation_too(tmp_path, capsys):
+    machine, fitted, model_path = _model(tmp_path, "cafxyz", seed=5)
+    prog = tmp_path / "in.nc"
+    prog.write_text(CAFXYZ_PROGRAM)
+    out, rep, nominal = tmp_path / "out.nc", tmp_path / "blocks.csv", tmp_path / "nominal.nc"
+    code, stdout, err = _run(["compensate", "cafxyz", str(model_path), str(prog), "-o", str(out),
+                              "--report", str(rep), "--max-correction-urad", "2000",
+                              "--max-correction-um", "200", "--max-step-um", "200"], capsys)
+    assert code == 0, err
+    rows = _read_report(rep)
+    assert {"ca_urad", "cc_urad", "ei_after_urad", "e_axis_before_urad"} <= set(rows[0])
+    write_corrected(prog, nominal, machine, None)
+    ends = np.array([r["inserted"] == "0" for r in rows])
+    assert (~ends).sum() > 0          # big rotary moves: the corrected path needs internal nodes
+    q_all = _written_points(out, machine)
+    q_out = q_all[ends]
+    q_nom = _written_points(nominal, machine)
+    chunk = read_program(prog, machine).segments()
+    e = _actual_minus_nominal(fitted, q_out, q_nom, chunk)
+    e0 = _actual_minus_nominal(fitted, q_nom, q_nom, chunk)
+    feed = ~chunk.rapid
+    # the first rapid goes to A = 0, where C cannot tilt the tool: look at the tilted blocks
+    tilted = feed & (np.abs(q_nom[:, 3]) > math.radians(10))
+    assert np.linalg.norm(e0[tilted, 3:], axis=1).min() * 1e6 > 5.0
+    # the written angles have a 1e-4 deg = 1.7 urad resolution: that is what is left
+    assert np.linalg.norm(e[tilted, 3:], axis=1).max() * 1e6 < 2.0
+    assert np.linalg.norm(e[tilted, :3], axis=1).max() * 1e3 < 0.6
+    ca = np.array([float(r["ca_urad"]) for r in rows])[ends]
+    np.testing.assert_allclose(ca, np.degrees(q_out[:, 3] - q_nom[:, 3]) / 180 * math.pi * 1e6,
+                               rtol=0, atol=1e-5)
+
+
+def test_bad_input_exits_2_and_writes_nothing(tmp_path, capsys):
+    machine, fitted, model_path = _model(tmp_path, "xfyz")
+    prog = tmp_path / "in.nc"
+    prog.write_text(XFYZ_PROGRAM)
+    out = tmp_path / "out.nc"
+    far = tmp_path / "far.nc"
+    far.write_text("G21 G90\nG0 X0 Y0 Z0\nG1 X500 F100\nM30\n")
+    garbled = tmp_path / "bad.nc"
+    garbled.write_text("G21 G90\nG1 X1 Y$ F100\n")
+    cases = [
+        (["compensate", "xfyz", str(model_path), str(tmp_path / "none.nc"), "-o", str(out)], "none.nc"),
+        (["compensate", "xfyz", str(model_path), str(far), "-o", str(out)], "far.nc:3"),
+        (["compensate", "xfyz", str(model_path), str(garbled), "-o", str(out)], "bad.nc:2"),
+        (["compensate", "xfyz", str(model_path), str(prog), "-o", str(out), "--max-step-um", "-1"],
+         "--max-step-um"),
+        (["compensate", "xfyz", str(model_path), str(prog), "-o", str(prog)], "overwrite"),
+        (["compensate", "cafxyz", str(model_path), str(prog), "-o", str(out)], "XFYZ"),
+    ]
+    for args, expect in cases:
+        code, stdout, err = _run(args + ["--report", str(tmp_path / "r.csv")], capsys)
+        assert code == 2, (args, err)
+        lines = err.strip().splitlines()
+        assert len(lines) == 1 and expect in lines[0], err
+        assert "Traceback" not in err
+        assert not out.exists() and not (tmp_path / "r.csv").exists()
+    assert prog.read_text() == XFYZ_PROGRAM
+    assert not [p for p in tmp_path.iterdir() if p.name.endswith(".part")]
