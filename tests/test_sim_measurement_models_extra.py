@@ -28,7 +28,8 @@ def fd_jacobian(mm, p, nu, step=1e-5):
 def ctx(t, rpm=None, temps=None):
     n = len(t)
     return Context(feed=np.full(n, np.nan), dirs=np.zeros((n, 6), np.int8), t=np.asarray(t, float),
-                   run=np.full(n, -1), spindle_rpm=np.full(n, np.nan) if rpm is None else np.asarray(rpm, float),
+                   run=np.full(n, -1),
+                   spindle_rpm=np.full(n, np.nan) if rpm is None else np.asarray(rpm, float),
                    temperatures=temps or {})
 
 

@@ -178,9 +178,10 @@ def normal_deviation(model: ErrorModel, q, p, c, offset, normal, jacobian: bool 
     return (v, J.reshape(q.shape[0], model.n_params)) if jacobian else v
 
 
-def _extra_context(self) -> dict:
-    extra = drift_context(self.model, self.data, self.options.get("reference_temperatures"))
-    extra.update(self.options.get("extra_context") or {})
+def _extra_context(mm: MeasurementModel) -> dict:
+    """Drift features of the model's file, overridden by the ``extra_context`` option."""
+    extra = drift_context(mm.model, mm.data, mm.options.get("reference_temperatures"))
+    extra.update(mm.options.get("extra_context") or {})
     return extra
 
 
@@ -266,6 +267,7 @@ class ThermalModel(MeasurementModel):
         val, _ = self._channel_values(p, False)
         return {f"pred_disp_{ch}_um": (val[:, j] + nuisance[j]) * 1e3
                 for j, ch in enumerate(self.channels)}
+
 
 # --------------------------------------------------------------------------------- velocity
 @register

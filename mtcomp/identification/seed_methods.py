@@ -286,7 +286,8 @@ class RotaryPositioning:
         lines = [f"{'target_deg':>10} {'mean_up_urad':>13} {'mean_down_urad':>15} {'backlash_urad':>14} "
                  f"{'comp_urad':>10} {'comp_arcsec':>11}"]
         for i, t in enumerate(self.targets):
-            lines.append(f"{math.degrees(t):10.3f} {self.mean_up[i] * 1e6:13.2f} {self.mean_down[i] * 1e6:15.2f} "
+            lines.append(f"{math.degrees(t):10.3f} {self.mean_up[i] * 1e6:13.2f} "
+                         f"{self.mean_down[i] * 1e6:15.2f} "
                          f"{self.backlash[i] * 1e6:14.2f} {self.compensation[i] * 1e6:10.2f} "
                          f"{self.compensation[i] * k:11.3f}")
         lines.append(f"backlash compensation: {self.backlash_mean * 1e6:.2f} urad "
