@@ -22,6 +22,7 @@ Plans (each a function returning a :class:`Plan`; times ``t_s`` advance with mov
 * :func:`velocity_plan`: seed 000 two-point velocities (X axis, 200 mm, 5 mm steps, 3 repeats,
   180/240/300 mm/min).
 * :func:`cmm_plan`: a machined part (G-code + ball-end tool) measured at given surface points.
+* :func:`standard_campaign`: the plans that determine the base model of a machine.
 
 :func:`random_truth` draws realistic base parameters (um-scale polynomials, tens of urad squareness).
 Units: files as SPEC (mm, deg, um, urad, mm/min, s); everything else mm and rad.
@@ -471,6 +472,28 @@ def cmm_plan(points_mm, normals, program, tool_radius_mm: float, name: str = "cm
             "nx": nrm[:, 0], "ny": nrm[:, 1], "nz": nrm[:, 2]}
     return Plan("cmm", name, cols, ("dn_um",),
                 {"program": os.fspath(program), "tool_radius_mm": float(tool_radius_mm), **options})
+
+
+def standard_campaign(machine: Machine, n_runs: int = 1, thermal: bool = False) -> list[Plan]:
+    """A campaign that determines the base model (SPEC 6) up to its known equivalences (a straightness
+    slope and the matching squareness): for each linear axis a laser set-up of each of its six
+    components, a volumetric points grid with two tool lengths, ISO 230-4 circles, and for each rotary
+    axis a laser positioning test (plus, with a C axis, the seed 003 three-sphere test). ``n_runs``
+    laser runs per set-up; ``thermal`` adds an 8 h thermal test."""
+    plans = []
+    for ax in machine.linear_axes:
+        a = ax.name
+        comps = tuple(f"E{d}{a}" for d in "XYZ") + tuple(f"E{r}{a}" for r in "ABC")
+        plans.append(iso230_2_plan(machine, a, components=comps, n_runs=n_runs))
+    plans.append(volumetric_points_plan(machine))
+    plans.append(ballbar_circles_plan(machine, n_points=72))
+    for ax in machine.rotary_axes:
+        plans.append(rotary_laser_plan(machine, ax.name, n_runs=n_runs))
+    if "C" in machine.axis_names:
+        plans.append(three_sphere_plan(machine, angles_deg=np.arange(0.0, 360.0, 30.0), n_runs=n_runs))
+    if thermal:
+        plans.append(thermal_plan(machine))
+    return plans
 
 
 # --------------------------------------------------------------------------------------------- truth
