@@ -14,10 +14,11 @@ Method (docs/identification.md):
   uses), then the fit is repeated with ``w = 1 / noise``. A dict ``{tag: noise}`` (um or urad) fixes
   the noise per file.
 * Gauss-Newton on the unknowns x = (free parameters, nuisance parameters), with the exact CasADi
-  Jacobian, columns scaled to unit norm (``D``), the normal equations of the scaled problem solved in
-  the subspace of well-determined directions, then one step of iterative refinement (corrected
-  semi-normal equations). The model is nearly linear in p, so 2-3 iterations converge; a step that
-  increases the cost is halved (up to 20 times).
+  Jacobian, columns scaled to unit norm (``D``), the normal equations of the scaled problem
+  (accumulated file by file: the stacked Jacobian is never formed) solved in the subspace of
+  well-determined directions. Each iteration recomputes the residuals exactly, which refines the
+  normal-equation solution like iterative refinement. The model is nearly linear in p, so 2-3
+  iterations converge; a step that increases the cost is halved (down to 1e-6).
 * Rank: the singular values ``s`` of the scaled weighted Jacobian at the start point (the eigenvalues
   of its normal matrix). Directions with ``s / s_max <= rcond`` (default 1e-6) are the combinations the
   data cannot determine: they are named (the parameters with weight above 10 % of the largest in
@@ -265,7 +266,8 @@ class IdentificationResult:
             lines.append("strongest correlations: " + ", ".join(f"{a}/{b} {r:+.3f}" for a, b, r in corr))
         lines += ["", f"{'file':<24} {'kind':<8} {'n_obs':>7}  rms residual"]
         for f in self.files:
-            rms = ", ".join(f"{c} {v:.4g}" for c, v in f.rms().items())
+            rms = ", ".join(f"{c} {v:.4g}" + (f" ({v * 1e3:.4g} um)" if c.endswith("_mm") else "")
+                            for c, v in f.rms().items())
             lines.append(f"{f.tag:<24} {f.kind:<8} {f.n_obs:>7}  {rms}")
         return "\n".join(lines)
 
@@ -373,7 +375,7 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
     elif isinstance(weights, str) and weights == "noise":
         w = problem.unit_weights()
         for _ in range(NOISE_PASSES):
-            sol = problem.solve(w, rcond, max_iterations, tol)
+            sol = problem.solve(w, rcond, max_iterations, tol, leverage=True)
             w_new = problem.noise_weights(sol, w)
             change = np.max(np.abs(w_new / w - 1.0))
             w = w_new
@@ -474,35 +476,70 @@ class _Problem:
         p[self.free_idx] = x[:self.n_free]
         return p
 
-    def evaluate(self, x, jacobian=True):
-        """Unweighted (prediction (n_obs,), J (n_obs, n_unknowns))."""
+    def evaluate(self, x):
+        """(n_obs,) unweighted predictions at the unknowns x."""
         p = self.params(x)
         pred = np.empty(self.n_obs)
-        J = np.zeros((self.n_obs, self.n_unknowns)) if jacobian else None
+        for m, so, sn in zip(self.mms, self.obs_slices, self.nuis_slices):
+            if m.n_obs:
+                pred[so] = m.predict(p, x[sn])
+        return pred
+
+    def normal_equations(self, x, w):
+        """Predictions and the normal equations of the weighted problem at x, file by file (the
+        stacked Jacobian is never formed): A = Jw^T Jw (n_unknowns, n_unknowns), g = Jw^T r_w with
+        Jw = w J and r_w = w (observed - predicted)."""
+        p = self.params(x)
+        n_u, nf, fi = self.n_unknowns, self.n_free, self.free_idx
+        pred = np.empty(self.n_obs)
+        A = np.zeros((n_u, n_u))
+        g = np.zeros(n_u)
         for m, so, sn in zip(self.mms, self.obs_slices, self.nuis_slices):
             if m.n_obs == 0:
                 continue
-            nu = x[sn]
-            if jacobian:
-                y, Jp, Jn = m.predict_and_jacobian(p, nu)
-                J[so, :self.n_free] = Jp[:, self.free_idx]
-                J[so, sn] = Jn
-            else:
-                y = m.predict(p, nu)
+            y, Jp, Jn = m.predict_and_jacobian(p, x[sn])
             pred[so] = y
-        return pred, J
+            ww = w[so]
+            rw = ww * (self.observed[so] - y)
+            Jw = np.multiply(Jp, ww[:, None], out=Jp if Jp.flags.writeable else None)
+            Jnw = Jn * ww[:, None]
+            App = _gram(Jw)
+            A[:nf, :nf] += App[np.ix_(fi, fi)]
+            g[:nf] += (Jw.T @ rw)[fi]
+            if Jn.shape[1]:
+                Apn = (Jw.T @ Jnw)[fi]
+                A[:nf, sn] += Apn
+                A[sn, :nf] += Apn.T
+                A[sn, sn] += Jnw.T @ Jnw
+                g[sn] += Jnw.T @ rw
+        return pred, A, g
+
+    def leverages(self, x, w, scale, B, L):
+        """(n_obs,) diagonal of the hat matrix Js B (B^T Js^T Js B)^-1 B^T Js^T, L L^T = B^T Js^T Js B."""
+        p = self.params(x)
+        out = np.zeros(self.n_obs)
+        for m, so, sn in zip(self.mms, self.obs_slices, self.nuis_slices):
+            if m.n_obs == 0:
+                continue
+            Jp, Jn = m.jacobian(p, x[sn])
+            Js = np.zeros((m.n_obs, self.n_unknowns))
+            Js[:, :self.n_free] = Jp[:, self.free_idx]
+            Js[:, sn] = Jn
+            Js *= w[so][:, None] * scale[None, :]
+            M = scipy.linalg.solve_triangular(L, (Js @ B).T, lower=True)
+            out[so] = np.einsum("ij,ij->j", M, M)
+        return out
 
     # --------------------------------------------------------------- Gauss-Newton
-    def solve(self, w, rcond, max_iterations, tol) -> _Solution:
+    def solve(self, w, rcond, max_iterations, tol, leverage=False) -> _Solution:
         x = np.zeros(self.n_unknowns)
         x[:self.n_free] = self.p0[self.free_idx]
-        pred, J = self.evaluate(x)
+        pred, A, g = self.normal_equations(x, w)
         r = w * (self.observed - pred)
-        Jw = J * w[:, None]
-        norms = np.linalg.norm(Jw, axis=0)
+        norms = np.sqrt(np.clip(np.diag(A), 0.0, None))
         scale = np.where(norms > 0, 1.0 / np.where(norms > 0, norms, 1.0), 1.0)
-        A = _normal_matrix(Jw, scale)
-        evals, V = np.linalg.eigh(A)
+        As = A * np.outer(scale, scale)
+        evals, V = np.linalg.eigh(As)
         order = np.argsort(evals)[::-1]
         evals, V = evals[order], V[:, order]
         sv = np.sqrt(np.clip(evals, 0.0, None))
@@ -515,14 +552,17 @@ class _Problem:
         cost = float(r @ r)
         converged = False
         iterations = 0
-        AB = B.T @ A @ B
+        AB = B.T @ As @ B
         for it in range(1, max_iterations + 1):
             iterations = it
-            dz = _step(Jw, scale, B, AB, r)
+            dz = _step(B, AB, scale * g)
             small = np.linalg.norm(dz) <= tol * (1.0 + np.linalg.norm(x / scale))
-            # a converged step needs no new Jacobian (the one at x serves the covariance)
             x_new = x + scale * dz
-            pred_new, J_new = self.evaluate(x_new, jacobian=not small)
+            if small:
+                # a converged step needs no new Jacobian (the one at x serves the covariance)
+                pred_new, A_new, g_new = self.evaluate(x_new), None, None
+            else:
+                pred_new, A_new, g_new = self.normal_equations(x_new, w)
             r_new = w * (self.observed - pred_new)
             cost_new = float(r_new @ r_new)
             step = 1.0
@@ -530,9 +570,10 @@ class _Problem:
                 # backtracking, rarely needed: the model is nearly linear in p
                 step *= 0.5
                 x_new = x + step * scale * dz
-                pred_new, J_new = self.evaluate(x_new, jacobian=not small)
+                pred_new = self.evaluate(x_new)
                 r_new = w * (self.observed - pred_new)
                 cost_new = float(r_new @ r_new)
+                A_new = None
             if cost_new > cost * (1 + 1e-12) + 1e-300:
                 converged = True        # no descent along the Gauss-Newton step: at the minimum
                 break
@@ -540,22 +581,22 @@ class _Problem:
             if small or cost == 0.0:
                 converged = True
                 break
-            Jw = J_new * w[:, None]
-            A = _normal_matrix(Jw, scale)
-            AB = B.T @ A @ B
+            if A_new is None:
+                _, A_new, g_new = self.normal_equations(x, w)
+            A, g = A_new, g_new
+            As = A * np.outer(scale, scale)
+            AB = B.T @ As @ B
         dof = max(self.n_obs - rank, 0)
         s2 = cost / dof if dof > 0 else np.nan
-        leverage = np.zeros(self.n_obs)
+        lev = np.zeros(self.n_obs)
         if rank:
             ABinv = scipy.linalg.pinvh(AB)
             cov = s2 * (scale[:, None] * (B @ ABinv @ B.T) * scale[None, :])
-            # hat matrix diagonal: rows of Js B L^-T with AB = L L^T
-            L = np.linalg.cholesky(AB)
-            M = scipy.linalg.solve_triangular(L, ((Jw * scale[None, :]) @ B).T, lower=True)
-            leverage = np.einsum("ij,ij->j", M, M)
+            if leverage:
+                lev = self.leverages(x, w, scale, B, np.linalg.cholesky(AB))
         else:
             cov = np.full((self.n_unknowns, self.n_unknowns), np.nan)
-        return _Solution(x, r, cov, null, scale, rel, rank, cond, iterations, converged, leverage)
+        return _Solution(x, r, cov, null, scale, rel, rank, cond, iterations, converged, lev)
 
     # --------------------------------------------------------------- result
     def result(self, sol: _Solution, w, label, ctx_defaults, seconds, info) -> IdentificationResult:
@@ -582,7 +623,7 @@ class _Problem:
         determined = np.zeros(model.n_params, dtype=bool)
         determined[self.free_idx] = ~in_null[:self.n_free]
         files = []
-        pred, _ = self.evaluate(sol.x, jacobian=False)
+        pred = self.evaluate(sol.x)
         for m, so in zip(self.mms, self.obs_slices):
             resid = (m.observed - pred[so]) * m.obs_unit_scale
             files.append(FileResiduals(m.tag, str(m.data.path), m.kind, m.obs_row.copy(),
@@ -613,23 +654,21 @@ def _error_scales(columns) -> np.ndarray:
     return out
 
 
-def _normal_matrix(Jw, scale):
-    """(Jw D)^T (Jw D) without forming Jw D twice."""
-    Js = Jw * scale[None, :]
-    return Js.T @ Js
+def _gram(J: np.ndarray) -> np.ndarray:
+    """J^T J with BLAS syrk (half the work of a general product)."""
+    if J.dtype == np.float64 and J.flags.c_contiguous and J.shape[0] > 4 * J.shape[1]:
+        from scipy.linalg.blas import dsyrk
+        upper = dsyrk(1.0, J.T, trans=0, lower=0)      # J.T is Fortran-ordered: no copy
+        return np.triu(upper) + np.triu(upper, 1).T
+    return J.T @ J
 
 
-def _step(Jw, scale, B, AB, r):
-    """Scaled Gauss-Newton step restricted to span(B), with one refinement (corrected semi-normal
-    equations: normal-equation accuracy close to a QR solve)."""
-    Js = Jw * scale[None, :]
+def _step(B, AB, gs):
+    """Scaled Gauss-Newton step restricted to span(B): B (B^T As B)^-1 B^T gs."""
     if B.shape[1] == 0:
-        return np.zeros(Js.shape[1])
+        return np.zeros(B.shape[0])
     cho = scipy.linalg.cho_factor(AB)
-    y = scipy.linalg.cho_solve(cho, B.T @ (Js.T @ r))
-    r2 = r - Js @ (B @ y)
-    y = y + scipy.linalg.cho_solve(cho, B.T @ (Js.T @ r2))
-    return B @ y
+    return B @ scipy.linalg.cho_solve(cho, B.T @ gs)
 
 
 def _name_null_space(null, scale, to_file, names, svals) -> list[UndeterminedCombination]:

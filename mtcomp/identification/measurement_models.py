@@ -332,6 +332,7 @@ class PointsModel(MeasurementModel):
         basis[:, 3, :] = normal
         self._rows, self._cols = np.nonzero(self._obs_mask)
         self._A = basis[self._rows, self._cols]          # (n_obs, 3)
+        self._all_xyz = bool(self._obs_mask[:, :3].all() and not self._obs_mask[:, 3].any())
 
     def tip_deviation(self, p, jacobian: bool = False):
         """(n_rows, 3) tip deviation, mm (and (n_rows, 3, n_params) Jacobian when asked)."""
@@ -343,11 +344,22 @@ class PointsModel(MeasurementModel):
 
     def _evaluate(self, p, nuisance, jacobian):
         p, nuisance = self._check_p(p, nuisance)
+        if not jacobian:
+            d = self.tip_deviation(p)
+            return np.einsum("kj,kj->k", self._A, d[self._rows]), None, None
         d, Jd = self.tip_deviation(p, jacobian=True)
         pred = np.einsum("kj,kj->k", self._A, d[self._rows])
-        if not jacobian:
-            return pred, None, None
-        J = np.einsum("kj,kjp->kp", self._A, Jd[self._rows])
+        n, n_p = len(self.data), self.model.n_params
+        if self._all_xyz:
+            J = Jd.reshape(n * 3, n_p)          # observations are rows x (dx, dy, dz), row-major
+        else:
+            J = np.empty((self.n_obs, n_p))
+            for j in range(3):
+                sel = self._cols == j
+                J[sel] = Jd[self._rows[sel], j]
+            sel = self._cols == 3
+            if sel.any():
+                J[sel] = np.einsum("kj,kjp->kp", self._A[sel], Jd[self._rows[sel]])
         return pred, J, np.zeros((self.n_obs, 0))
 
     def predict(self, p, nuisance=None):

@@ -1,0 +1,66 @@
+"""Benchmark of identify(): a 3-axis fit of 100,000 points and a 5-axis fit of 20,000 points.
+
+Prints, per case, the wall time of one identify() call (median of 3 runs after one warm-up run that
+also compiles the model's C code when a compiler is there), the Gauss-Newton iterations, the number
+of observations and unknowns, and the largest parameter error against the known truth.
+
+    python benchmarks/bench_identify.py [--runs 3]
+"""
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from mtcomp.identification.fit import identify
+from mtcomp.identification.synthetic import make_points, random_parameters, simulate
+from mtcomp.machine import load_machine
+from mtcomp.models import ErrorModel
+
+
+def case(machine_name: str, n_points: int, runs: int, rng) -> None:
+    machine = load_machine(machine_name)
+    model = ErrorModel(machine)
+    lo, hi = machine.travel_bounds()
+    lo = np.where(np.isin(list(machine.axis_names), list("ABC")), np.maximum(lo, -np.pi), lo)
+    hi = np.where(np.isin(list(machine.axis_names), list("ABC")), np.minimum(hi, np.pi), hi)
+    q = rng.uniform(lo, hi, (n_points, machine.n_axes))
+    xyz = q[:, :3]
+    abc = None
+    if machine.n_axes > 3:
+        abc = np.zeros((n_points, 3))
+        for k, name in enumerate(machine.axis_names[3:]):
+            abc[:, "ABC".index(name)] = q[:, 3 + k]
+    hold = ["EXY_1", "EXZ_1", "EYZ_1"]
+    free = model.base_mask & ~np.isin(model.param_names, hold)
+    p = random_parameters(model, rng, mask=free)
+    data = simulate(model, make_points(xyz, abc, tool=rng.choice([0.0, 100.0, 200.0], n_points)), p,
+                    noise_um=0.5, rng=rng)
+    t0 = time.perf_counter()
+    identify(model, [data], hold=hold)
+    first = time.perf_counter() - t0
+    times = []
+    for _ in range(runs):
+        t0 = time.perf_counter()
+        res = identify(model, [data], hold=hold)
+        times.append(time.perf_counter() - t0)
+    err = np.abs(res.values - p)[res.determined] / np.where(res.std_errors[res.determined] > 0,
+                                                            res.std_errors[res.determined], 1.0)
+    print(f"{machine_name:8s} {n_points:7d} points  {res.n_obs:7d} obs  {res.n_params:3d} unknowns  "
+          f"rank {res.rank:3d}  iterations {res.iterations}  median {np.median(times):.3f} s "
+          f"(runs {', '.join(f'{t:.3f}' for t in times)}; first {first:.3f} s)  "
+          f"max |error|/std error {err.max():.2f}")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--runs", type=int, default=3)
+    args = ap.parse_args()
+    rng = np.random.default_rng(0)
+    case("xfyz", 100_000, args.runs, rng)
+    case("cafxyz", 20_000, args.runs, rng)
+
+
+if __name__ == "__main__":
+    main()
