@@ -86,3 +86,34 @@ def test_rotary_positioning_backlash_and_compensation():
     after = np.abs(np.concatenate([r.residual_up, r.residual_down])).max()
     assert before > 15e-6 and after < 2.5e-6
     assert "backlash compensation" in r.table()
+
+
+def test_seed_method_starts_the_joint_fit_of_velocity_files():
+    # eq. 1 gives O per reading, then the yaw rate; both regressed on feed and position give start
+    # values from which identify() fits the AbbeIRC term (at zero the yaw hides the centre)
+    from mtcomp.identification.fit import identify
+    m = load_machine("xfyz")
+    model = ErrorModel(m, [AbbeIRC("X", angles="C", static=True, feed=True)])
+    p = ParameterSet(model.param_specs)
+    truth_values = {"ECX_1": 20e-6, "ECX_2": -15e-6, "ECX_3": 10e-6, "IRC_CX_x0": 120.0,
+                    "IRC_CX_y0": -60.0, "IRC_CX_x_f": -40.0, "IRC_CX_y_f": 150.0}
+    for k, v in truth_values.items():
+        p[k] = v
+    vm = VirtualMachine(m, FittedModel(model, p), noise_velocity_mm_min=1e-5, rng=np.random.default_rng(4))
+    data = vm.measure(velocity_plan(m))
+    O = sm.irc_from_velocities(data.m_xy, data.m_v, data.n_xy, data.n_v, data.feed)
+    A = np.column_stack([np.ones(len(data)), data.feed / 1000.0])
+    (x0, xf), (y0, yf) = (np.linalg.lstsq(A, O[:, k], rcond=None)[0] for k in range(2))
+    slope = sm.yaw_rate_from_velocities(data.n_xy, data.n_v, O, data.feed) / data.feed   # rad/mm
+    s_m = data.position / 1000.0
+    B = np.column_stack([np.ones_like(s_m), 2 * s_m, 3 * s_m ** 2]) / 1000.0
+    e1, e2, e3 = np.linalg.lstsq(B, slope, rcond=None)[0]
+    start = ParameterSet(model.param_specs)
+    for k, v in zip(truth_values, (e1, e2, e3, x0, y0, xf, yf)):
+        start[k] = v
+    np.testing.assert_allclose(start["IRC_CX_y_f"], 150.0, rtol=0.2, atol=0)
+    res = identify(model, [data], free=list(truth_values), initial=start.values)
+    assert res.converged and not res.undetermined
+    for k, v in truth_values.items():
+        value, se = res.value(k)
+        assert abs(value / p.specs[p.index(k)].to_file - v) < 4 * se / p.specs[p.index(k)].to_file, k

@@ -1,8 +1,8 @@
 """The direct (closed-form) methods of the seed papers, as plain computations.
 
 * Seed 000, eq. 1: the instantaneous rotation centre (IRC) of a table from the velocities of two of
-  its points (:func:`irc_from_velocities`), and eq. 3, the yaw Abbe error about it
-  (:func:`abbe_error_about_irc`).
+  its points (:func:`irc_from_velocities`), the yaw rate about it (:func:`yaw_rate_from_velocities`),
+  and eq. 3, the yaw Abbe error about it (:func:`abbe_error_about_irc`).
 * Seed 003, eqs. 10-15: three-sphere intersection (trilateration) of ball-bar lengths
   (:func:`trilaterate`, :func:`three_sphere_points`), the five position-dependent errors of the C
   axis from two axis points per angle (:func:`three_sphere_errors`), the prediction of table points
@@ -52,6 +52,17 @@ def irc_from_velocities(m_xy, m_v, n_xy, n_v, v0) -> np.ndarray:
     out = np.column_stack([x, y])
     out[~np.all(np.isfinite(out), axis=1)] = np.nan
     return out
+
+
+def yaw_rate_from_velocities(xy, v, irc_xy, v0) -> np.ndarray:
+    """(n,) rad/min the yaw rate w of a table moving along X, from the velocity v (n, 2) mm/min of its
+    point xy (n, 2) mm and the rotation centre irc_xy (n, 2) mm (seed 000, eq. 1 solved for O first):
+    ``w = ((P - O) x (v - V0 e_x))_z / |P - O|^2``. Divided by the signed speed v0 it is the slope
+    d eps_z / ds of the yaw error (rad/mm)."""
+    r = np.atleast_2d(xy) - np.atleast_2d(irc_xy)
+    u = np.atleast_2d(v).astype(float).copy()
+    u[:, 0] -= np.asarray(v0, dtype=float)
+    return (r[:, 0] * u[:, 1] - r[:, 1] * u[:, 0]) / np.einsum("ij,ij->i", r, r)
 
 
 def abbe_error_about_irc(eps_z, point_xy, irc_xy) -> np.ndarray:
