@@ -158,3 +158,27 @@ def test_cmm_point_the_program_did_not_cut_is_refused(tmp_path):
     vm = VirtualMachine(m, random_truth(m, np.random.default_rng(0)))
     with pytest.raises(InputError, match=r"row 2.*did not cut|did not cut"):
         vm.measure(plan)
+
+
+def test_cmm_on_the_seed001_bowl_finds_the_cutter_locations(tmp_path):
+    from mtcomp.toolpaths.parts import write_bowl_program
+    m = load_machine("xfyz")
+    bowl = write_bowl_program(tmp_path / "bowl.nc", stepover_mm=1.0, step_mm=1.0)
+    pick = np.random.default_rng(5).choice(len(bowl.contact_points), 100, replace=False)
+    truth = random_truth(m, np.random.default_rng(6))
+    plan = cmm_plan(bowl.contact_points[pick], bowl.normals[pick], bowl.path, bowl.ball_radius)
+    data = VirtualMachine(m, truth, noise_um=0.0).measure(plan, tmp_path / "cmm.csv")
+    mm = model_class_for("cmm")(truth.model, data, **plan.options)
+    # each point was cut where the program put the ball centre on it: the programmed tip (the
+    # program holds 4 decimals, so the exact centre lies up to 5e-5 mm off the programmed path)
+    np.testing.assert_allclose(mm.q, bowl.tool_tips[pick], rtol=0, atol=1e-4)
+    tips = mm.q
+    c = truth.model.default_context(100)
+    c[:, truth.model.context_names.index("feed")] = 1200.0
+    for a in m.axis_names:                 # approach directions: checked in the wall test above
+        k = truth.model.context_names.index(f"dir_{a}")
+        c[:, k] = mm.c[:, k]
+    dev = deviation(truth.model, tips, truth.params.values, c)
+    n = bowl.normals[pick]
+    oracle = np.einsum("ij,ij->i", n, dev[:, :3] + bowl.ball_radius * dev[:, 3:]) * 1e3
+    np.testing.assert_allclose(data.normal_deviation * 1e3, oracle, rtol=1e-7, atol=1e-6)
