@@ -1,0 +1,419 @@
+"""Residual analysis: noise floor, held-out folds, step test, spectrum, and the search for structure.
+
+Everything here works on a :class:`~mtcomp.diagnose._stack.Stack` and a residual vector (file units:
+um for lengths, urad for angles).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import signal, stats
+
+#: the largest number of folds of the K-fold held-out evaluation
+MAX_FOLDS = 5
+#: positions (mm or rad) closer than this count as the same target when matching repeats
+POSITION_DECIMALS = 4
+
+
+# ------------------------------------------------------------------------------------ noise floor
+@dataclass
+class Noise:
+    """Noise floor of one unit class ('um' or 'urad').
+
+    sigma : standard deviation of one reading, file units. dof : degrees of freedom behind it.
+    source : 'repeats' (pooled standard deviation of repeated readings at the same pose, direction
+        and conditions) or 'robust' (no repeats: 1.4826 MAD of successive differences / sqrt 2).
+    n_groups : number of repeat groups used.
+    """
+
+    unit: str
+    sigma: float
+    dof: int
+    source: str
+    n_groups: int = 0
+
+
+def _pose_keys(st, sel):
+    """Integer key per observation in ``sel``: same series, pose, directions, feed and arm."""
+    cols = [st.series[sel].astype(str)]
+    parts = [np.round(st.q[sel], POSITION_DECIMALS), st.dirs[sel], np.round(np.nan_to_num(st.feed[sel],
+             nan=-1.0), 3)[:, None], np.round(st.arm[sel], 3),
+             np.round(np.nan_to_num(st.spindle[sel], nan=-1.0), 1)[:, None]]
+    num = np.hstack(parts)
+    _, inv_s = np.unique(cols[0], return_inverse=True)
+    key = np.column_stack([inv_s, num])
+    _, inv = np.unique(key, axis=0, return_inverse=True)
+    return inv.reshape(-1)
+
+
+def _detrend_runs(st, resid, sel):
+    """Remove from ``resid[sel]`` a mean (and a slope in time, when t varies) per (series, run): slow
+    drift between and within runs must not count as noise of a repeated reading."""
+    r = resid[sel].copy()
+    keys = np.array([f"{s}|{k}" for s, k in zip(st.series[sel], st.run[sel])])
+    t = st.t[sel]
+    for key in np.unique(keys):
+        ix = np.flatnonzero(keys == key)
+        tt = t[ix]
+        if ix.size >= 6 and np.all(np.isfinite(tt)) and np.ptp(tt) > 0:
+            X = np.column_stack([np.ones(ix.size), (tt - tt.mean()) / np.ptp(tt)])
+            coef, *_ = np.linalg.lstsq(X, r[ix], rcond=None)
+            r[ix] -= X @ coef
+        elif ix.size >= 2:
+            r[ix] -= r[ix].mean()
+    return r
+
+
+def noise_floor(st, resid: np.ndarray) -> dict[str, Noise]:
+    """Noise floor per unit class from repeated readings of the base-fit residual ``resid``.
+
+    Repeats: same series, pose, approach directions, feed, arm and spindle speed, in different runs
+    (or repeated within one). The residual is first freed of a per-(series, run) offset and time
+    trend. Classes without repeats fall back to a robust estimate (Noise.source says which).
+    """
+    out = {}
+    posed = np.array([k != "thermal" for k in st.kinds])[st.file]
+    for unit in ("um", "urad"):
+        sel = np.flatnonzero((st.unit == unit) & np.isfinite(resid))
+        if sel.size == 0:
+            continue
+        ps = sel[posed[sel]]
+        sigma, dof, groups = np.nan, 0, 0
+        if ps.size:
+            r = _detrend_runs(st, resid, ps)
+            inv = _pose_keys(st, ps)
+            counts = np.bincount(inv)
+            means = np.bincount(inv, weights=r) / counts
+            dev = r - means[inv]
+            rep = counts[inv] >= 2
+            groups = int(np.sum(counts >= 2))
+            dof = int(np.sum(counts[counts >= 2] - 1))
+            if dof >= 5:
+                sigma = float(np.sqrt(np.sum(dev[rep] ** 2) / dof))
+        if np.isfinite(sigma) and sigma > 0:
+            out[unit] = Noise(unit, sigma, dof, "repeats", groups)
+        else:
+            out[unit] = Noise(unit, robust_sigma(st, resid, sel), int(sel.size), "robust")
+    return out
+
+
+def robust_sigma(st, resid, sel) -> float:
+    """1.4826 MAD of successive differences / sqrt(2), within each series in reading order (or along
+    the position of its moving axis when it has one)."""
+    diffs = []
+    for s in np.unique(st.series[sel]):
+        ix = sel[st.series[sel] == s]
+        order = np.lexsort((st.row[ix],))
+        diffs.append(np.diff(resid[ix][order]))
+    d = np.concatenate(diffs) if diffs else np.zeros(0)
+    if d.size < 3:
+        return float(np.std(resid[sel])) if sel.size > 1 else 1.0
+    mad = np.median(np.abs(d - np.median(d)))
+    return float(max(1.4826 * mad / np.sqrt(2.0), 1e-9))
+
+
+# ------------------------------------------------------------------------------------ folds
+def make_folds(st, max_folds: int = MAX_FOLDS) -> tuple[np.ndarray, str]:
+    """Fold of each observation for K-fold held-out evaluation, and a sentence saying how.
+
+    Whole runs are held out together (run r of every file in fold r mod K, by rank of its run number
+    in the file). Files without runs are cut into blocks: by spindle-speed block (a speed step and the
+    time until the next one) when the spindle speed changes at least four times, else into K
+    contiguous stretches of reading order.
+    """
+    n = len(st)
+    folds = np.zeros(n, dtype=np.int64)
+    how = set()
+    block_of = np.zeros(n, dtype=np.int64)
+    for fi in np.unique(st.file):
+        ix = np.flatnonzero(st.file == fi)
+        runs = st.run[ix]
+        known = np.unique(runs[runs >= 0])
+        if known.size >= 2:
+            rank = np.searchsorted(known, runs)
+            rank[runs < 0] = 0
+            block_of[ix] = rank
+            how.add("whole runs")
+            continue
+        rows = st.row[ix]
+        sp = st.spindle[ix]
+        order = np.argsort(rows, kind="stable")
+        blocks = None
+        if np.isfinite(sp).all() and sp.size:
+            sps = sp[order]
+            steps = np.flatnonzero(np.abs(np.diff(sps)) > 1e-6) + 1
+            on_steps = [s for s in steps if sps[s] > 0 and sps[s - 1] != sps[s]]
+            if len(on_steps) >= 4:
+                b = np.zeros(ix.size, dtype=np.int64)
+                for k, s in enumerate(on_steps):
+                    b[order[s:]] = k + 1
+                blocks = b
+                how.add("whole spindle-speed blocks")
+        if blocks is None:
+            urows = np.unique(rows)
+            edges = np.quantile(urows, np.linspace(0, 1, max_folds + 1)[1:-1]) if urows.size else []
+            blocks = np.searchsorted(edges, rows, side="right")
+            how.add("contiguous stretches of each file")
+        block_of[ix] = blocks
+    nb = int(block_of.max()) + 1
+    K = min(max_folds, nb)
+    if K < 2:
+        return np.zeros(n, dtype=np.int64), "no held-out split possible (one run, one block)"
+    folds = block_of % K
+    return folds, f"{K}-fold, holding out " + " and ".join(sorted(how))
+
+
+# ------------------------------------------------------------------------------------ step test
+@dataclass
+class Step:
+    """Mean residual difference between approach directions at matched positions.
+
+    step : mean(+) - mean(-) at matched positions (file units); se : its standard error;
+    n_pairs : matched position groups; t : step / se.
+    """
+
+    step: float
+    se: float
+    n_pairs: int
+
+    @property
+    def t(self) -> float:
+        return self.step / self.se if self.se > 0 else 0.0
+
+
+def step_test(st, resid, axis: str, sel=None) -> Step | None:
+    """Mean of (residual approached in +) minus (in -) at the same pose, for ``axis`` (seed 002 /
+    ISO 230-2 reversal), using residuals projected on the axis's positioning direction."""
+    k = st.machine.axis_names.index(axis)
+    g = st.g[axis]
+    use = (np.abs(g) > 0.3 * np.max(np.abs(g))) & (st.dirs[:, k] != 0) & np.isfinite(resid)
+    if sel is not None:
+        use &= sel
+    ix = np.flatnonzero(use)
+    if ix.size < 4:
+        return None
+    r = resid[ix] * np.sign(g[ix])
+    d = st.dirs[ix, k]
+    key_parts = np.column_stack([np.unique(st.series[ix].astype(str), return_inverse=True)[1],
+                                 np.round(st.q[ix], POSITION_DECIMALS),
+                                 np.round(np.nan_to_num(st.feed[ix], nan=-1), 3), np.round(st.arm[ix], 3)])
+    _, inv = np.unique(key_parts, axis=0, return_inverse=True)
+    inv = inv.reshape(-1)
+    steps, vars_ = [], []
+    for gk in np.unique(inv):
+        m = inv == gk
+        up, dn = r[m & (d > 0)], r[m & (d < 0)]
+        if up.size and dn.size:
+            steps.append(up.mean() - dn.mean())
+            vars_.append((up.var(ddof=1) / up.size if up.size > 1 else np.nan)
+                         + (dn.var(ddof=1) / dn.size if dn.size > 1 else np.nan))
+    if not steps:
+        return None
+    steps = np.array(steps)
+    se = np.std(steps, ddof=1) / np.sqrt(len(steps)) if len(steps) > 1 else np.nan
+    if not np.isfinite(se) or se == 0:
+        v = np.array(vars_)
+        se = float(np.sqrt(np.nanmean(v) / len(steps))) if np.isfinite(v).any() else float("nan")
+    return Step(float(steps.mean()), float(se), len(steps))
+
+
+# ------------------------------------------------------------------------------------ spectrum
+@dataclass
+class Line:
+    """A spectral line of the residual along an axis (Lomb-Scargle, uneven sampling).
+
+    period : mm (linear axis) or rad; power : normalised generalised LS power (0..1, share of the
+    variance a sinusoid at that period explains); fap : false-alarm probability over the searched band
+    (Zechmeister-Kuerster tail, times the number of independent frequencies); n : readings used.
+    """
+
+    period: float
+    power: float
+    fap: float
+    n: int
+
+
+def axis_series(st, resid, axis: str, sel=None):
+    """(positions, residual along the axis's positioning direction, index) of the observations that
+    read the positioning error of ``axis`` and vary its position."""
+    k = st.machine.axis_names.index(axis)
+    g = st.g[axis]
+    if not np.any(g):
+        return None
+    use = (np.abs(g) > 0.3 * np.max(np.abs(g))) & np.isfinite(resid)
+    if sel is not None:
+        use &= sel
+    ix = np.flatnonzero(use)
+    if ix.size < 12 or np.ptp(st.q[ix, k]) <= 0:
+        return None
+    return st.q[ix, k], resid[ix] * np.sign(g[ix]), ix
+
+
+def spectral_lines(st, resid, axis: str, min_cycles: float = 4.0, n_freq: int = 2000,
+                   max_lines: int = 3) -> list[Line]:
+    """Strongest lines of the residual of ``axis`` versus its position, periods between twice the
+    finest target spacing and travel/``min_cycles``; sorted by false-alarm probability."""
+    ser = axis_series(st, resid, axis)
+    if ser is None:
+        return []
+    x, r, _ = ser
+    span = np.ptp(x)
+    ux = np.unique(np.round(x, POSITION_DECIMALS))
+    if ux.size < 8:
+        return []
+    spacing = np.min(np.diff(ux))
+    pmin = max(2.0 * spacing, span / (ux.size / 1.2))
+    pmax = span / min_cycles
+    if pmax <= pmin:
+        return []
+    w = np.linspace(2 * np.pi / pmax, 2 * np.pi / pmin, n_freq)
+    y = r - r.mean()
+    if not np.any(y):
+        return []
+    p = signal.lombscargle(x, y, w, normalize=True, floating_mean=True)
+    p = np.clip(p, 0.0, 1.0 - 1e-15)
+    m_indep = max(1.0, (w[-1] - w[0]) * span / (2 * np.pi))
+    n = x.size
+    lines = []
+    peaks, _ = signal.find_peaks(p)
+    for i in peaks[np.argsort(p[peaks])[::-1]][:max_lines]:
+        single = (1.0 - p[i]) ** ((n - 3) / 2.0)
+        fap = float(min(1.0, m_indep * single))
+        lines.append(Line(float(2 * np.pi / w[i]), float(p[i]), fap, n))
+    return sorted(lines, key=lambda ln: ln.fap)
+
+
+def sinusoid_fit(x, r, period):
+    """Least-squares a cos + b sin + c of r(x) at ``period``: (amplitude, phase, amplitude se)."""
+    wx = 2 * np.pi * x / period
+    X = np.column_stack([np.cos(wx), np.sin(wx), np.ones_like(x)])
+    coef, *_ = np.linalg.lstsq(X, r, rcond=None)
+    res = r - X @ coef
+    dof = max(1, x.size - 3)
+    s2 = float(res @ res / dof)
+    cov = s2 * np.linalg.pinv(X.T @ X)
+    amp = float(np.hypot(coef[0], coef[1]))
+    se = float(np.sqrt(max((cov[0, 0] + cov[1, 1]) / 2.0, 0.0)))
+    return amp, float(np.arctan2(coef[1], coef[0])), se
+
+
+def halves_agree(st, resid, axis: str, period: float) -> tuple[bool, str]:
+    """Does a line at ``period`` replicate in both halves of the axis travel (a cyclic error does, a
+    local defect does not)? Needs amplitudes significant (> 3 se) in each half, within a factor 2,
+    and phases within 60 deg. Returns (agree, sentence)."""
+    ser = axis_series(st, resid, axis)
+    if ser is None:
+        return False, "too few readings"
+    x, r, _ = ser
+    mid = np.median(x)
+    fits = []
+    for part in (x <= mid, x > mid):
+        if part.sum() < 8 or np.ptp(x[part]) < period:
+            return False, f"a half of the travel is shorter than one period ({period:.4g})"
+        fits.append(sinusoid_fit(x[part], r[part], period))
+    (a1, p1, s1), (a2, p2, s2) = fits
+    dphi = abs((p1 - p2 + np.pi) % (2 * np.pi) - np.pi)
+    ok = a1 > 3 * s1 and a2 > 3 * s2 and max(a1, a2) < 2.0 * min(a1, a2) and dphi < np.radians(60)
+    text = (f"amplitude {a1:.3g} and {a2:.3g} in the lower and upper half of the travel, phases "
+            f"{np.degrees(dphi):.0f} deg apart")
+    return bool(ok), text
+
+
+# ------------------------------------------------------------------------------------ structure
+@dataclass
+class Structure:
+    """Where a residual is systematic: the strongest binned-mean departure from zero.
+
+    p : Bonferroni-corrected p-value of the chi-square test of bin means (noise known);
+    series : the series; variable : what the bins run along ('X position', 'time' ...);
+    lo, hi : range of the variable where bin means depart by more than 3 standard errors;
+    unit : unit of lo/hi; peak : largest bin mean (file units); chi2, dof.
+    """
+
+    p: float
+    series: str
+    variable: str
+    lo: float
+    hi: float
+    unit: str
+    peak: float
+    chi2: float
+    dof: int
+
+
+def _bins(x, n_bins):
+    ux = np.unique(x)
+    if ux.size <= n_bins:
+        return np.searchsorted(ux, x), ux, ux
+    edges = np.quantile(x, np.linspace(0, 1, n_bins + 1))
+    b = np.clip(np.searchsorted(edges[1:-1], x, side="right"), 0, n_bins - 1)
+    return b, edges[:-1], edges[1:]
+
+
+def find_structure(st, resid, sigma: dict, n_tests_extra: int = 0) -> list[Structure]:
+    """Chi-square tests of binned residual means along every variable of every series (positions of
+    moving axes, time, feed, temperatures), noise known from ``sigma`` (unit -> sigma). Returns the
+    tests with corrected p < 1e-3, strongest first."""
+    tests = []
+    names = st.machine.axis_names
+    for s in np.unique(st.series):
+        ix = np.flatnonzero((st.series == s) & np.isfinite(resid))
+        if ix.size < 10:
+            continue
+        unit = st.unit[ix[0]]
+        sg = sigma.get(unit)
+        if sg is None or sg <= 0:
+            continue
+        r = resid[ix]
+        variables = []
+        for k, a in enumerate(names):
+            x = st.q[ix, k]
+            if np.unique(np.round(x, POSITION_DECIMALS)).size >= 3:
+                rot = st.machine.axis(a).is_rotary
+                variables.append((f"{a} position", np.degrees(x) if rot else x, "deg" if rot else "mm"))
+        if np.isfinite(st.t[ix]).all() and np.ptp(st.t[ix]) > 0:
+            variables.append(("time", st.t[ix], "s"))
+        f = st.feed[ix]
+        if np.isfinite(f).all() and np.unique(f).size >= 2:
+            variables.append(("feed", f, "mm/min"))
+        for name, v in st.temps.items():
+            if np.isfinite(v[ix]).all() and np.ptp(v[ix]) > 0:
+                variables.append((f"temperature {name}", v[ix], "degC"))
+        for label, x, u in variables:
+            n_bins = int(min(12, max(3, ix.size // 8)))
+            b, lo, hi = _bins(x, n_bins)
+            cnt = np.bincount(b, minlength=len(lo)).astype(float)
+            ok = cnt > 0
+            mean = np.bincount(b, weights=r, minlength=len(lo))[ok] / cnt[ok]
+            zb = mean * np.sqrt(cnt[ok]) / sg
+            chi2 = float(np.sum(zb ** 2))
+            dof = int(ok.sum())
+            p = float(stats.chi2.sf(chi2, dof))
+            hot = np.flatnonzero(np.abs(zb) > 3)
+            lo_ok, hi_ok = lo[ok], hi[ok]
+            rng = (float(lo_ok[hot].min()), float(hi_ok[hot].max())) if hot.size else \
+                (float(lo_ok.min()), float(hi_ok.max()))
+            tests.append([p, str(s), label, rng[0], rng[1], u, float(mean[np.argmax(np.abs(mean))]),
+                          chi2, dof])
+    m = len(tests) + n_tests_extra
+    out = [Structure(min(1.0, t[0] * m), *t[1:]) for t in tests]
+    out = [s for s in out if s.p < 1e-3]
+    return sorted(out, key=lambda s: (s.p, -s.chi2 / max(s.dof, 1)))
+
+
+def correlations(st, resid, sel) -> list[tuple[str, float]]:
+    """Correlation of the residual with each context variable over ``sel``: [(name, r)], strongest
+    first (feed, time, spindle speed, temperatures, approach directions, axis positions)."""
+    out = []
+    r = resid[sel]
+    cand = [("feed", st.feed), ("time", st.t), ("spindle speed", st.spindle)]
+    cand += [(f"temperature {n}", v) for n, v in st.temps.items()]
+    cand += [(f"approach direction of {a}", st.dirs[:, k]) for k, a in enumerate(st.machine.axis_names)]
+    cand += [(f"{a} position", st.q[:, k]) for k, a in enumerate(st.machine.axis_names)]
+    for name, v in cand:
+        x = v[sel]
+        ok = np.isfinite(x) & np.isfinite(r)
+        if ok.sum() >= 5 and np.std(x[ok]) > 0 and np.std(r[ok]) > 0:
+            out.append((name, float(np.corrcoef(x[ok], r[ok])[0, 1])))
+    return sorted(out, key=lambda t: -abs(t[1]))

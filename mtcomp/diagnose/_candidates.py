@@ -1,0 +1,243 @@
+"""The library of candidate extensions, one per effect of SPEC section 6.
+
+Each candidate is a symbolic extension term of the error model (mtcomp.models.terms) together with
+its Jacobian columns at the current fit (from the probe model, see ``_stack``), so that selection is
+linear algebra and the chosen terms go straight into MODEL.json.
+
+Candidates that compete for the same residual share a ``rivals`` key ('feed:X', 'thermal'); the
+selection picks among rivals by held-out gain (with a parsimony margin), never by the order in which
+they are listed.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+from ..models.terms import (AbbeIRC, Backlash, ChannelDrift, FeedOffset, PeriodicError,
+                            RotaryErrorMotion, ThermalDrift, positioning_component)
+from . import _analysis as an
+from ._stack import MOTION_LETTERS, PDGE_ORDER
+
+#: false-alarm probability below which a spectral line makes a periodic candidate
+LINE_FAP = 1e-3
+
+
+@dataclass(eq=False)
+class Candidate:
+    """One extension of the current model.
+
+    effect : SPEC effect name; axis : machine axis ('' for campaign-wide drift); variant : which form.
+    columns : (n, k) Jacobian columns (file units per internal parameter unit).
+    terms : extension terms (mtcomp.models.terms) that implement it.
+    params : (k,) parameter names of ``terms``, one per column.
+    rivals : key shared by candidates that explain the same residual.
+    info : what the report needs (period, time constant, spectral line ...).
+    veto : a reason the data refuse this candidate (it is then never chosen), or None.
+    """
+
+    effect: str
+    axis: str
+    variant: str
+    columns: np.ndarray
+    terms: list
+    params: list
+    rivals: str = ""
+    info: dict = field(default_factory=dict)
+    veto: str | None = None
+
+    @property
+    def key(self) -> str:
+        return f"{self.effect}:{self.axis}:{self.variant}"
+
+
+def _significant(col: np.ndarray, ref: float) -> bool:
+    return bool(np.any(np.abs(col) > 1e-9 * max(ref, 1e-300)))
+
+
+def _feeds(st, sel):
+    f = st.feed[sel]
+    f = f[np.isfinite(f)]
+    return np.unique(np.round(f, 6))
+
+
+def generate(st, design, extra: np.ndarray, resid: np.ndarray, chosen_keys: set[str]) -> list[Candidate]:
+    """Every candidate that the data could support, given the current model (``extra`` columns beyond
+    the common block, ``resid`` its full-data residual)."""
+    m = st.machine
+    out: list[Candidate] = []
+    for k, a in enumerate(m.axis_names):
+        g = st.g[a]
+        gmax = float(np.max(np.abs(g))) if g.size else 0.0
+        if gmax == 0.0:
+            continue
+        reads = np.abs(g) > 0.3 * gmax
+        rotary = m.axis(a).is_rotary
+        dirs = st.dirs[reads, k]
+        # backlash: both approach directions must be present among readings of this axis's error
+        if np.any(dirs > 0) and np.any(dirs < 0):
+            col = 0.5 * st.dirs[:, k] * g
+            out.append(Candidate("rotary_backlash" if rotary else "backlash", a, "step", col[:, None],
+                                 [Backlash(a)], [f"BL_{a}"]))
+        if not rotary:
+            feeds = _feeds(st, reads)
+            if feeds.size >= 2:
+                f = np.nan_to_num(st.feed, nan=0.0) / 1000.0
+                out.append(Candidate("feed_dependent_offset", a, "uniform", (g * f)[:, None],
+                                     [FeedOffset(a)], [f"FOFF_{a}"], rivals=f"feed:{a}"))
+                if np.any(dirs > 0) and np.any(dirs < 0):
+                    out.append(Candidate("feed_dependent_offset", a, "lag", (g * f * st.dirs[:, k])[:, None],
+                                         [FeedOffset(a, signed=True)], [f"FOFF_{a}"], rivals=f"feed:{a}"))
+                out.extend(_abbe_candidates(st, a))
+            out.extend(_periodic_candidates(st, design, extra, resid, a))
+        else:
+            out.extend(_pdge_candidates(st, a))
+    out.extend(_thermal_candidates(st, design, extra))
+    return [c for c in out if c.key not in chosen_keys and _significant(c.columns, 1.0)]
+
+
+def _abbe_candidates(st, a: str) -> list[Candidate]:
+    irc = [n for n in st.probe.param_names if n.startswith("IRC_") and n[5] == a and n.endswith("_f")]
+    gain = [f"AG_{b}{a}" for b in "ABC"]
+    cands = []
+    for variant, names, kw in (("irc", irc, dict(feed=True, angle_gain=False)),
+                               ("gain", gain, dict(feed=False, angle_gain=True)),
+                               ("irc+gain", irc + gain, dict(feed=True, angle_gain=True))):
+        cols = st.columns(names)
+        ref = float(np.max(np.abs(cols))) if cols.size else 0.0
+        keep = [i for i in range(len(names)) if ref > 0 and np.max(np.abs(cols[:, i])) > 1e-6 * ref]
+        if not keep:
+            continue
+        cands.append(Candidate("feed_dependent_abbe", a, variant, cols, [AbbeIRC(a, angles="ABC", **kw)],
+                               list(names), rivals=f"feed:{a}"))
+    return cands
+
+
+def _periodic_candidates(st, design, extra, resid, a: str) -> list[Candidate]:
+    lines = [ln for ln in an.spectral_lines(st, resid, a) if ln.fap < LINE_FAP]
+    out = []
+    g = st.g[a]
+    k = st.machine.axis_names.index(a)
+    x = st.q[:, k]
+    ser = an.axis_series(st, resid, a)
+    span = float(np.ptp(ser[0])) if ser is not None else 0.0
+    for ln in lines[:2]:
+        def cols(period):
+            w = 2 * np.pi * x / period
+            return np.column_stack([g * np.cos(w), g * np.sin(w)])
+
+        def sse(period):
+            return design.fit(np.hstack([extra, cols(period)]), cv=False).sse
+
+        half = ln.period ** 2 / max(span, ln.period) * 0.75
+        lo, hi = max(ln.period - half, ln.period * 0.5), ln.period + half
+        res = minimize_scalar(sse, bounds=(lo, hi), method="bounded", options={"xatol": 1e-4 * ln.period})
+        period = float(res.x)
+        agree, text = an.halves_agree(st, resid, a, period)
+        cand = Candidate("periodic_error", a, f"{period:.6g}mm", cols(period), [PeriodicError(a, period)],
+                         [f"PER_{a}_c", f"PER_{a}_s"], rivals=f"periodic:{a}",
+                         info={"line": ln, "period_mm": period, "halves": text})
+        if not agree:
+            cand.veto = f"the line does not replicate across the halves of the travel ({text})"
+        out.append(cand)
+    return out
+
+
+def _pdge_candidates(st, a: str) -> list[Candidate]:
+    k = st.machine.axis_names.index(a)
+    angles = np.unique(np.round(st.q[:, k], 4))
+    if angles.size < 2 * PDGE_ORDER + 1:
+        return []
+    out = []
+    for letters in MOTION_LETTERS:
+        comp = f"{letters}{a}"
+        if comp == positioning_component(a):
+            continue
+        names = [f"{comp}_{cs}{h}" for h in range(1, PDGE_ORDER + 1) for cs in "cs"]
+        if not all(n in st.probe.param_names for n in names):
+            continue
+        out.append(Candidate("rotary_pdge", a, comp, st.columns(names),
+                             [RotaryErrorMotion(comp, order=PDGE_ORDER)], names, rivals=f"pdge:{a}",
+                             info={"component": comp}))
+    return out
+
+
+# ------------------------------------------------------------------------------------ thermal
+def _drift_columns(st, feature_names):
+    """Columns and parameter names of tip drift (X, Y, Z) and channel drift for the features."""
+    cols, params, dirs, chans = [], [], [], []
+    for d in "XYZ":
+        if np.any(st.h[d]):
+            dirs.append(d)
+    chans = [c for c, v in st.hc.items() if np.any(v)]
+    for f in feature_names:
+        v = st.feature(f)
+        for d in dirs:
+            cols.append(st.h[d] * v)
+            params.append(f"TD_{d}_{f}")
+        for c in chans:
+            cols.append(st.hc[c] * v)
+            params.append(f"TD_{c}_{f}")
+    return (np.column_stack(cols) if cols else np.zeros((len(st), 0))), params, dirs, chans
+
+
+def _drift_terms(driver, feature_names, dirs, chans):
+    terms = []
+    if dirs:
+        terms.append(ThermalDrift(driver, tuple(feature_names), "".join(dirs)))
+    if chans:
+        terms.append(ChannelDrift(driver, tuple(feature_names), tuple(chans)))
+    return terms
+
+
+def _drift_candidate(st, driver, variant, names, info=None):
+    cols, params, dirs, chans = _drift_columns(st, names)
+    if cols.shape[1] == 0:
+        return None
+    return Candidate("thermal_drift", "", variant, cols, _drift_terms(driver, names, dirs, chans), params,
+                     rivals="thermal", info={"driver": driver, "features": list(names), **(info or {})})
+
+
+def spindle_heat_name(tau_s: float) -> str:
+    """Feature name of the spindle heat state with time constant tau (s), whole seconds."""
+    return f"spindle_heat_{round(tau_s):d}"
+
+
+def _best_tau(st, design, extra, make_names, lo, hi):
+    """Time constant (s) in [lo, hi] minimising the fit's SSE (1-D search in log tau)."""
+    def sse(log_tau):
+        cols, *_ = _drift_columns(st, make_names(float(np.exp(log_tau))))
+        return design.fit(np.hstack([extra, cols]), cv=False).sse
+    res = minimize_scalar(sse, bounds=(np.log(lo), np.log(hi)), method="bounded",
+                          options={"xatol": 0.02})
+    return float(np.round(np.exp(res.x)))
+
+
+def _thermal_candidates(st, design, extra) -> list[Candidate]:
+    t = st.t
+    known = np.isfinite(t)
+    if known.mean() < 0.5 or np.ptp(t[known]) <= 0:
+        return []
+    span = float(np.ptp(t[known]))
+    out = []
+    c = _drift_candidate(st, "time", "time", ["time_h"])
+    if c is not None:
+        out.append(c)
+    sp = st.spindle
+    if np.isfinite(sp).mean() >= 0.5 and np.ptp(sp[np.isfinite(sp)]) > 0:
+        tau = _best_tau(st, design, extra, lambda tau: [spindle_heat_name(tau)], 60.0, span)
+        c = _drift_candidate(st, "spindle", "spindle", [spindle_heat_name(tau)], {"tau_s": tau})
+        if c is not None:
+            out.append(c)
+    temps = [n for n, v in st.temps.items() if np.isfinite(v).mean() >= 0.5 and np.ptp(v[np.isfinite(v)]) > 0]
+    for n in temps:
+        c = _drift_candidate(st, "temperature", f"temp_{n}", [f"dtemp_{n}"], {"temperatures": [n]})
+        if c is not None:
+            out.append(c)
+    if len(temps) > 1:
+        c = _drift_candidate(st, "temperature", "all temperatures", [f"dtemp_{n}" for n in temps],
+                             {"temperatures": temps})
+        if c is not None:
+            out.append(c)
+    return out

@@ -1,0 +1,326 @@
+"""`diagnose`: fit the base model, find what it gets wrong, extend it, measure the gain (SPEC 6).
+
+Steps (docs/diagnose.md explains them for a metrologist):
+
+1. Stack every observation and fit the base model (two Gauss-Newton steps on the exact CasADi chain).
+2. Noise floor from repeated readings (pooled standard deviation), or a robust estimate without them.
+3. Held-out folds: whole runs (or whole passes / spindle-speed blocks) left out together.
+4. Greedy forward selection: every candidate extension (``_candidates``) is fitted; it must lower the
+   held-out residual by more than noise could (``CV_Z`` standard deviations of the held-out sum of
+   squares under a useless extension) and lower the BIC by ``BIC_MARGIN``; the strongest is added,
+   and the search repeats until nothing more is significant or the held-out residual is at the noise.
+   Rival explanations of one residual are compared by held-out gain, with a parsimony margin.
+5. What structure remains (binned residual means against every context variable) becomes an
+   ``unexplained`` finding that says where it sits and what it correlates with.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+from ..machine import Machine
+from ..models.chain import ErrorModel
+from ..models.model_file import FittedModel
+from ..models.params import ParameterSet
+from . import _analysis as an
+from ._candidates import Candidate, generate
+from ._linalg import Design, rms, solve_normal
+from ._stack import Stack, build_stack
+
+#: a candidate must lower the BIC by at least this much
+BIC_MARGIN = 10.0
+#: ... and the held-out weighted sum of squares by CV_Z sqrt(2 k) + k (k: parameters it adds)
+CV_Z = 4.0
+#: the held-out rms may exceed the noise floor by this factor before the excess counts as structure
+EXCESS_RATIO = 1.3
+#: at most this many findings
+MAX_FINDINGS = 6
+
+
+def cv_threshold(dk: int) -> float:
+    """Held-out sum-of-squares reduction (in noise variances) an extension of dk parameters must beat."""
+    dk = max(int(dk), 1)
+    return CV_Z * np.sqrt(2.0 * dk) + dk
+
+
+@dataclass
+class Finding:
+    """One entry of the report's ``findings`` (SPEC 6): effect, axis, params, evidence, held-out rms
+    before and after (um). ``candidate`` is the extension chosen (None for ``unexplained``)."""
+
+    effect: str
+    axis: str
+    params: dict
+    evidence: str
+    heldout_rms_before_um: float
+    heldout_rms_after_um: float
+    candidate: Candidate | None = None
+
+    def to_dict(self) -> dict:
+        return {"effect": self.effect, "axis": self.axis, "params": self.params, "evidence": self.evidence,
+                "heldout_rms_before_um": _r(self.heldout_rms_before_um),
+                "heldout_rms_after_um": _r(self.heldout_rms_after_um)}
+
+
+def _r(v, nd=4):
+    return None if v is None or not np.isfinite(v) else round(float(v), nd)
+
+
+@dataclass
+class Diagnosis:
+    """What :func:`diagnose` returns: the report of SPEC 6 plus the extended model.
+
+    verdict : 'none', 'explained' or 'unexplained'.
+    noise : unit ('um', 'urad') -> :class:`~mtcomp.diagnose._analysis.Noise`.
+    base, final : {'n_params', 'rms_um', 'heldout_rms_um', ...}.
+    findings : list of :class:`Finding`.
+    model : the extended :class:`~mtcomp.models.FittedModel` (base + chosen terms).
+    folds : how the held-out data were chosen (one sentence).
+    seconds : wall time.
+    """
+
+    verdict: str
+    noise: dict
+    base: dict
+    findings: list
+    final: dict
+    model: FittedModel
+    folds: str
+    n_obs: int
+    seconds: float = 0.0
+    rejected: list = field(default_factory=list)
+
+    @property
+    def noise_um(self) -> float:
+        n = self.noise.get("um") or self.noise.get("urad")
+        return float(n.sigma) if n else float("nan")
+
+    def to_dict(self) -> dict:
+        """REPORT.json (SPEC 6 keys plus a few more)."""
+        noise = {u: {"sigma": _r(n.sigma), "source": n.source, "dof": n.dof, "repeat_groups": n.n_groups}
+                 for u, n in self.noise.items()}
+        return {"verdict": self.verdict, "noise_um": _r(self.noise_um),
+                "noise": noise, "base": self.base, "findings": [f.to_dict() for f in self.findings],
+                "final": self.final, "heldout": self.folds, "n_observations": self.n_obs,
+                "rejected": self.rejected}
+
+    def summary(self) -> str:
+        """The printed report: noise, base fit, each finding with evidence and gain, final fit."""
+        from ._report import summary
+        return summary(self)
+
+
+# ------------------------------------------------------------------------------------------- fit
+def _common_block(st: Stack) -> np.ndarray:
+    base = np.flatnonzero(st.probe.base_mask)
+    return np.hstack([st.J[:, base], st.D])
+
+
+def _theta0(st: Stack) -> np.ndarray:
+    base = np.flatnonzero(st.probe.base_mask)
+    return np.concatenate([st.p[base], st.nuisance])
+
+
+def _linear_target(st: Stack) -> np.ndarray:
+    return st.y - st.pred + _common_block(st) @ _theta0(st)
+
+
+def _apply(st: Stack, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    base = np.flatnonzero(st.probe.base_mask)
+    p = np.zeros(st.probe.n_params)
+    p[base] = theta[:base.size]
+    return p, theta[base.size:]
+
+
+def _metrics(st: Stack, fit, n_params: int) -> dict:
+    um = st.unit == "um"
+    urad = st.unit == "urad"
+    out = {"n_params": int(n_params), "n_determined": int(fit.rank),
+           "rms_um": _r(rms(fit.resid[um])) if um.any() else None,
+           "heldout_rms_um": _r(rms(fit.cv_resid[um])) if um.any() else None}
+    if urad.any():
+        out["rms_urad"] = _r(rms(fit.resid[urad]))
+        out["heldout_rms_urad"] = _r(rms(fit.cv_resid[urad]))
+    return out
+
+
+def _heldout(st, fit) -> float:
+    um = st.unit == "um"
+    sel = um if um.any() else np.ones(len(st), dtype=bool)
+    return rms(fit.cv_resid[sel])
+
+
+def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int = MAX_FINDINGS) -> Diagnosis:
+    """Diagnose the base model of ``machine`` on ``datasets`` (measurement sets, mtcomp.io).
+
+    progress : callable(str) for progress lines, or None.
+    Returns a :class:`Diagnosis`. Raises InputError when the data cannot be diagnosed.
+    """
+    t0 = time.perf_counter()
+    say = progress or (lambda s: None)
+    if not datasets:
+        raise InputError("no measurement files given")
+    st = build_stack(machine, datasets)
+    say(f"{len(st)} observations in {len(datasets)} file(s); probe model with {st.probe.n_params} "
+        "parameters")
+    # base fit: Gauss-Newton from zero (the chain is nearly linear in its small errors)
+    st.evaluate(np.zeros(st.probe.n_params), np.zeros(len(st.nuisance_names)))
+    for _ in range(2):
+        A = _common_block(st)
+        theta, _ = solve_normal(A.T @ A, A.T @ _linear_target(st))
+        p, nu = _apply(st, theta)
+        st.evaluate(p, nu)
+    A = _common_block(st)
+    z = _linear_target(st)
+    first = Design(A, z, np.ones(len(st)), np.zeros(len(st), dtype=np.int64)).fit(cv=False)
+    noise = an.noise_floor(st, first.resid)
+    for u, nz in noise.items():
+        say(f"noise floor ({u}): {nz.sigma:.4g} {u} from {nz.source}"
+            + (f" ({nz.n_groups} repeat groups, {nz.dof} dof)" if nz.source == "repeats" else
+               " (no repeated readings: robust estimate from successive differences)"))
+    sigma = {u: nz.sigma for u, nz in noise.items()}
+    w = np.array([1.0 / sigma[u] for u in st.unit])
+    folds, how = an.make_folds(st)
+    say(f"held-out evaluation: {how}")
+    design = Design(A, z, w, folds)
+    n_base = int(st.probe.base_mask.sum())
+    current = design.fit()
+    base_metrics = _metrics(st, current, n_base)
+    say(f"base model: rms {base_metrics['rms_um']} um, held-out {base_metrics['heldout_rms_um']} um")
+    chosen: list[Candidate] = []
+    findings: list[Finding] = []
+    rejected: list[dict] = []
+    extra = np.zeros((len(st), 0))
+    noise_main = noise.get("um") or noise.get("urad")
+    n = len(st)
+    while len(chosen) < max_findings:
+        if _heldout(st, current) <= noise_main.sigma:
+            say("held-out residual is at the noise floor: stop")
+            break
+        keys = {c.key for c in chosen}
+        used_terms = {t.key() for c in chosen for t in c.terms}
+        cands = [c for c in generate(st, design, extra, current.resid, keys)
+                 if not ({t.key() for t in c.terms} & used_terms)]
+        scored = []
+        for c in cands:
+            fit = design.fit(np.hstack([extra, c.columns]))
+            dk = fit.rank - current.rank
+            gain = current.cv_sse - fit.cv_sse
+            dbic = fit.bic(n) - current.bic(n)
+            ok = dk >= 1 and gain > cv_threshold(dk) and dbic < -BIC_MARGIN
+            scored.append((c, fit, dk, gain, dbic, ok))
+        good = [s for s in scored if s[5] and s[0].veto is None]
+        for s in scored:
+            if s[5] and s[0].veto is not None:
+                rejected.append({"effect": s[0].effect, "axis": s[0].axis, "reason": s[0].veto})
+        if not good:
+            say("no further candidate is significant on held-out data")
+            break
+        best = max(good, key=lambda s: s[3])
+        best = _parsimony(best, good)
+        c, fit, dk, gain, dbic, _ = best
+        rivals = [s for s in scored if s[0].rivals and s[0].rivals == c.rivals and s[0] is not c]
+        before = _heldout(st, current)
+        finding = _finding(st, c, current, fit, before, _heldout(st, fit), rivals, noise)
+        say(f"found {finding.effect} {finding.axis}: held-out {before:.4g} -> "
+            f"{finding.heldout_rms_after_um:.4g} um (BIC {dbic:+.1f}, {dk} parameter(s))")
+        findings.append(finding)
+        chosen.append(c)
+        extra = np.hstack([extra, c.columns])
+        current = fit
+    final_metrics = _metrics(st, current, n_base + sum(c.columns.shape[1] for c in chosen))
+    structure = an.find_structure(st, current.resid, sigma)
+    excess = _heldout(st, current) / noise_main.sigma
+    verdict = "none" if not findings else "explained"
+    if structure or excess > EXCESS_RATIO:
+        verdict = "unexplained"
+        findings.append(_unexplained(st, current, structure, excess, noise_main))
+        say(f"structure remains: {findings[-1].params['where']}")
+    model = _fitted_model(st, design, chosen, current)
+    diag = Diagnosis(verdict, noise, base_metrics, findings, final_metrics, model, how, len(st),
+                     rejected=rejected)
+    diag.seconds = time.perf_counter() - t0
+    model.info["diagnose"] = diag.to_dict()
+    return diag
+
+
+def _parsimony(best, good):
+    """Among rivals of ``best`` (same residual), prefer one with fewer parameters whose held-out gain
+    is not significantly smaller."""
+    c = best[0]
+    if not c.rivals:
+        return best
+    pick = best
+    for s in good:
+        if s[0].rivals != c.rivals or s[2] >= pick[2]:
+            continue
+        if s[3] >= best[3] - cv_threshold(best[2] - s[2]):
+            pick = s
+    return pick
+
+
+# --------------------------------------------------------------------------------------- findings
+def _finding(st, c: Candidate, before_fit, after_fit, before_um, after_um, rivals, noise) -> Finding:
+    from ._report import evidence_and_params
+    theta = after_fit.theta[-c.columns.shape[1]:]
+    params, evidence = evidence_and_params(st, c, theta, before_fit, after_fit, rivals, noise)
+    axis = c.axis or params.get("direction", "")
+    return Finding(c.effect, axis, params, evidence, before_um, after_um, c)
+
+
+def _unexplained(st, fit, structure, excess, noise_main) -> Finding:
+    from ._report import unexplained_params
+    params, evidence, axis = unexplained_params(st, fit, structure, excess, noise_main)
+    h = _heldout(st, fit)
+    return Finding("unexplained", axis, params, evidence, h, h, None)
+
+
+def _fitted_model(st: Stack, design: Design, chosen: list[Candidate], fit) -> FittedModel:
+    terms = []
+    for c in chosen:
+        for t in c.terms:
+            if t.key() not in {x.key() for x in terms}:
+                terms.append(t)
+    model = ErrorModel(st.machine, terms)
+    params = ParameterSet(model.param_specs)
+    base = [n for n, s in zip(st.probe.param_names, st.probe.param_specs) if s.base]
+    m = design.A.shape[1]
+    theta = fit.theta
+    std = np.full(model.n_params, np.nan)
+    # standard errors from the weighted normal matrix (noise variance 1 after weighting)
+    extra = np.hstack([c.columns for c in chosen]) if chosen else np.zeros((design.n, 0))
+    cov_diag = _cov_diag(design, extra)
+    for i, name in enumerate(base):
+        params[name] = theta[i]
+        std[params.index(name)] = cov_diag[i]
+    k = m
+    for c in chosen:
+        for j, name in enumerate(c.params):
+            if name in params:
+                params[name] = theta[k + j]
+                std[params.index(name)] = cov_diag[k + j]
+        k += c.columns.shape[1]
+    params.std_errors = np.sqrt(np.where(np.isfinite(std), std, np.nan))
+    info = {"fitted_by": "mtcomp diagnose",
+            "nuisance": {n: float(v) for n, v in zip(st.nuisance_names, theta[len(base):m])}}
+    feats = sorted({f for c in chosen for f in c.info.get("features", [])})
+    if feats:
+        info["drift_features"] = feats
+    return FittedModel(model, params, {}, info)
+
+
+def _cov_diag(design: Design, extra: np.ndarray) -> np.ndarray:
+    Ew = extra * design.w[:, None]
+    G = np.block([[design.G, design.Aw.T @ Ew], [Ew.T @ design.Aw, Ew.T @ Ew]])
+    d = np.sqrt(np.clip(np.diag(G), 0, None))
+    keep = d > 0
+    out = np.full(G.shape[0], np.nan)
+    Gs = G[np.ix_(keep, keep)] / np.outer(d[keep], d[keep])
+    wv, V = np.linalg.eigh(Gs)
+    ok = wv > 1e-10 * wv.max()
+    inv = (V[:, ok] / wv[ok]) @ V[:, ok].T
+    out[keep] = np.diag(inv) / d[keep] ** 2
+    return out

@@ -1,0 +1,139 @@
+"""Weighted linear least squares on column blocks, with K-fold held-out residuals.
+
+The diagnosis compares many models that share a common block of columns (base parameters and
+nuisance) and differ by a few extension columns. :class:`Design` keeps the weighted common block and
+its per-fold Gram matrices once, so that fitting a model with extra columns costs a few small
+matrix products: fits go through the normal equations of column-scaled matrices, solved by an
+eigen-decomposition that drops directions the data do not determine (rank-deficient designs are the
+rule in metrology: a laser run along X says nothing about EZY).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: relative eigenvalue below which a direction of the (column-scaled) normal matrix is not determined
+RANK_TOLERANCE = 1e-10
+
+
+def solve_normal(G: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, int]:
+    """Minimum-norm solution of G theta = b for a symmetric positive semi-definite G, and its rank.
+
+    The columns are scaled to unit diagonal first, so the tolerance is relative to each column's size.
+    """
+    d = np.sqrt(np.clip(np.diag(G), 0.0, None))
+    keep = d > 0
+    theta = np.zeros(G.shape[0])
+    if not keep.any():
+        return theta, 0
+    dk = d[keep]
+    Gs = G[np.ix_(keep, keep)] / np.outer(dk, dk)
+    w, V = np.linalg.eigh(Gs)
+    ok = w > RANK_TOLERANCE * max(w.max(), 1e-300)
+    bs = b[keep] / dk
+    x = V[:, ok] @ ((V[:, ok].T @ bs) / w[ok])
+    theta[keep] = x / dk
+    return theta, int(ok.sum())
+
+
+@dataclass
+class FitResult:
+    """A weighted least-squares fit on all data and its K-fold held-out residuals.
+
+    theta : (k,) coefficients of the model's columns (common block first, then the extras).
+    rank : number of determined directions (the effective number of parameters).
+    sse : weighted sum of squared residuals on all data (in units of the weights: sigma^2 = 1).
+    resid : (n,) residuals on all data, file units (um/urad), unweighted.
+    cv_resid : (n,) held-out residuals (each observation predicted by the fit without its fold).
+    cv_sse : weighted sum of squares of ``cv_resid``.
+    """
+
+    theta: np.ndarray
+    rank: int
+    sse: float
+    resid: np.ndarray
+    cv_resid: np.ndarray
+    cv_sse: float
+
+    def bic(self, n: int) -> float:
+        """Bayesian information criterion n ln(SSE/n) + rank ln n (Gaussian errors, sigma unknown)."""
+        return n * np.log(max(self.sse, 1e-300) / n) + self.rank * np.log(n)
+
+
+class Design:
+    """The common weighted column block of every model, fold structure and target.
+
+    A : (n, m) common columns (base parameters and nuisance), file units per parameter unit.
+    z : (n,) target (observations made linear: y - f(p0) + A p0), file units.
+    w : (n,) weights, 1 / sigma of each observation (sigma in file units).
+    folds : (n,) fold of each observation, 0..K-1 (held out together).
+    """
+
+    def __init__(self, A: np.ndarray, z: np.ndarray, w: np.ndarray, folds: np.ndarray):
+        self.A = np.asarray(A, dtype=float)
+        self.z = np.asarray(z, dtype=float)
+        self.w = np.asarray(w, dtype=float)
+        self.folds = np.asarray(folds, dtype=np.int64)
+        self.K = int(self.folds.max()) + 1 if len(self.folds) else 0
+        self.n = len(self.z)
+        self.Aw = self.A * self.w[:, None]
+        self.zw = self.z * self.w
+        self._fold_index = [np.flatnonzero(self.folds == k) for k in range(self.K)]
+        self.G = self.Aw.T @ self.Aw
+        self.b = self.Aw.T @ self.zw
+        self.Gk = [self.Aw[ix].T @ self.Aw[ix] for ix in self._fold_index]
+        self.bk = [self.Aw[ix].T @ self.zw[ix] for ix in self._fold_index]
+
+    def with_target(self, z: np.ndarray) -> "Design":
+        """The same design for another target (cheap: Gram matrices are shared)."""
+        other = object.__new__(Design)
+        other.__dict__.update(self.__dict__)
+        other.z = np.asarray(z, dtype=float)
+        other.zw = other.z * self.w
+        other.b = self.Aw.T @ other.zw
+        other.bk = [self.Aw[ix].T @ other.zw[ix] for ix in self._fold_index]
+        return other
+
+    def fit(self, extra: np.ndarray | None = None, cv: bool = True) -> FitResult:
+        """Fit the common block plus ``extra`` (n, k) columns; held-out residuals when ``cv``."""
+        if extra is None or extra.size == 0:
+            E = np.zeros((self.n, 0))
+        else:
+            E = np.asarray(extra, dtype=float).reshape(self.n, -1)
+        Ew = E * self.w[:, None]
+        m = self.A.shape[1]
+        k = E.shape[1]
+        G = np.empty((m + k, m + k))
+        G[:m, :m] = self.G
+        AE = self.Aw.T @ Ew
+        G[:m, m:] = AE
+        G[m:, :m] = AE.T
+        G[m:, m:] = Ew.T @ Ew
+        b = np.concatenate([self.b, Ew.T @ self.zw])
+        theta, rank = solve_normal(G, b)
+        full = np.hstack([self.A, E])
+        resid = self.z - full @ theta
+        sse = float(np.sum((resid * self.w) ** 2))
+        cv_resid = np.full(self.n, np.nan)
+        if cv and self.K >= 2:
+            for kk, ix in enumerate(self._fold_index):
+                Ek = Ew[ix]
+                Gk = G.copy()
+                AEk = self.Aw[ix].T @ Ek
+                Gk[:m, :m] -= self.Gk[kk]
+                Gk[:m, m:] -= AEk
+                Gk[m:, :m] -= AEk.T
+                Gk[m:, m:] -= Ek.T @ Ek
+                bk = b - np.concatenate([self.bk[kk], Ek.T @ self.zw[ix]])
+                th, _ = solve_normal(Gk, bk)
+                cv_resid[ix] = self.z[ix] - full[ix] @ th
+        cv_sse = float(np.nansum((cv_resid * self.w) ** 2)) if cv and self.K >= 2 else float("nan")
+        return FitResult(theta, rank, sse, resid, cv_resid, cv_sse)
+
+
+def rms(values: np.ndarray) -> float:
+    """Root mean square of the finite entries (NaN when there are none)."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    return float(np.sqrt(np.mean(v * v))) if v.size else float("nan")

@@ -1,0 +1,187 @@
+"""Words and numbers of the diagnosis report: the params and the one-sentence evidence of each finding
+(something a metrologist can check on the data), and the printed summary."""
+from __future__ import annotations
+
+import numpy as np
+
+from . import _analysis as an
+from ._linalg import rms
+
+
+def _fmt(v, nd=3):
+    return f"{v:.{nd}g}"
+
+
+def _rival_text(c, rivals, after_fit, before_fit):
+    """How the best rival (same residual, other explanation) did on held-out data."""
+    if not rivals:
+        return ""
+    gain_c = before_fit.cv_sse - after_fit.cv_sse
+    best = max(rivals, key=lambda s: s[3])
+    rc = best[0]
+    name = f"{rc.effect.replace('_', ' ')} ({rc.variant})"
+    return (f"; the rival explanation {name} gains {best[3] / max(gain_c, 1e-12) * 100:.0f} % as much "
+            "held-out")
+
+
+def evidence_and_params(st, c, theta, before_fit, after_fit, rivals, noise):
+    """(params dict in file units, evidence sentence) of a chosen candidate ``c`` with coefficients
+    ``theta`` (internal units), given the fits before and after adding it."""
+    resid = before_fit.resid
+    eff, a = c.effect, c.axis
+    rt = _rival_text(c, rivals, after_fit, before_fit)
+    if eff in ("backlash", "rotary_backlash"):
+        rotary = eff == "rotary_backlash"
+        scale, unit = (1e6, "urad") if rotary else (1e3, "um")
+        mag = float(theta[0] * scale)
+        stp = an.step_test(st, resid, a)
+        params = {f"magnitude_{unit}": round(mag, 4)}
+        if stp is not None:
+            # residuals are in um (or urad for angular readings); the step of the positioning error
+            params["step_at_matched_positions"] = round(stp.step, 4)
+            ev = (f"At {stp.n_pairs} matched positions of {a}, readings approached in + minus those "
+                  f"approached in - differ by {stp.step:.3g} {unit} on average (standard error "
+                  f"{stp.se:.2g}); the base model has no direction dependence")
+        else:
+            ev = f"Readings of {a} split by approach direction with a step of {mag:.3g} {unit}"
+        return params, ev
+    if eff == "periodic_error":
+        amp = float(np.hypot(theta[0], theta[1]) * 1e3)
+        ln = c.info["line"]
+        params = {"period_mm": round(c.info["period_mm"], 5), "amplitude_um": round(amp, 4),
+                  "phase_deg": round(float(np.degrees(np.arctan2(theta[1], theta[0]))), 2)}
+        ev = (f"The {a} residual against {a} position has a Lomb-Scargle line at {ln.period:.4g} mm "
+              f"(refined to {c.info['period_mm']:.4g} mm; power {ln.power:.2f}, false-alarm probability "
+              f"{ln.fap:.1e}) with {c.info['halves']}")
+        return params, ev
+    if eff == "feed_dependent_offset":
+        v = float(theta[0] * 1e3)
+        params = {"um_per_m_min": round(v, 4), "follows_direction": c.variant == "lag"}
+        ev = (f"The {a} positioning residual changes by {v:.3g} um per m/min of feed, the same all along "
+              f"the axis{' and with the sign of the approach direction' if c.variant == 'lag' else ''}"
+              f"{rt}")
+        return params, ev
+    if eff == "feed_dependent_abbe":
+        params = {"axis": a}
+        shifts = {n: float(v) for n, v in zip(c.params, theta) if n.startswith("IRC_")}
+        gains = {n: float(v) for n, v in zip(c.params, theta) if n.startswith("AG_")}
+        if shifts:
+            big = max(shifts, key=lambda n: abs(shifts[n]))
+            params["irc_shift_mm_per_m_min"] = round(shifts[big], 4)
+            params["irc_shift_component"] = big
+            params["irc_shifts_mm_per_m_min"] = {k: round(v, 4) for k, v in shifts.items()}
+        if gains:
+            big = max(gains, key=lambda n: abs(gains[n]))
+            params["angle_gain_per_m_min"] = round(gains[big], 6)
+            params["angle_gain_component"] = big
+            params["angle_gains_per_m_min"] = {k: round(v, 6) for k, v in gains.items()}
+        what = {"irc": "its instantaneous rotation centre moves with feed",
+                "gain": "its angular error motion grows with feed",
+                "irc+gain": "its rotation centre moves and its angular error grows with feed"}[c.variant]
+        ev = (f"The feed-dependent part of the {a} residual follows the fitted angular error profile of "
+              f"{a} times the Abbe arm ({what}; seed 000){rt}")
+        return params, ev
+    if eff == "rotary_pdge":
+        comp = c.info["component"]
+        unit, scale = ("urad", 1e6) if comp[1] in "ABC" else ("um", 1e3)
+        harm = theta.reshape(-1, 2) * scale
+        amps = np.hypot(harm[:, 0], harm[:, 1])
+        params = {"component": comp, f"harmonic_amplitudes_{unit}": [round(float(x), 4) for x in amps]}
+        ev = (f"The residual varies with the {a} angle at harmonics 1-{len(amps)} beyond the location "
+              f"errors of {a}; as the error motion {comp} they reach {amps.max():.3g} {unit}")
+        return params, ev
+    if eff == "thermal_drift":
+        driver = c.info["driver"]
+        feats = c.info["features"]
+        params = {"driver": driver, "features": feats}
+        if "tau_s" in c.info:
+            params["time_constant_s"] = c.info["tau_s"]
+        if "temperatures" in c.info:
+            params["temperatures"] = c.info["temperatures"]
+        drift = c.columns @ theta
+        ranges = {}
+        for d in "XYZ":
+            idx = [i for i, nm in enumerate(c.params) if nm.startswith(f"TD_{d}_")]
+            if idx:
+                ranges[d] = float(np.ptp(np.column_stack([st.feature(f) for f in feats])
+                                         @ theta[idx]) * 1e3)
+        if ranges:
+            params["direction"] = max(ranges, key=ranges.get)
+            params["drift_range_by_direction_um"] = {d: round(v, 4) for d, v in ranges.items()}
+        params["drift_range_um"] = round(float(np.ptp(drift[st.unit == "um"])) if np.any(st.unit == "um")
+                                         else float(np.ptp(drift)), 4)
+        sel = np.isfinite(st.t)
+        r = np.corrcoef(drift[sel], resid[sel])[0, 1] if np.std(drift[sel]) > 0 else 0.0
+        by = {"time": "time since the start", "spindle": "the spindle's speed history",
+              "temperature": "the temperature(s) " + ", ".join(c.info.get("temperatures", []))}[driver]
+        ev = (f"The residual drifts with {by} (correlation {r:.2f} with the fitted drift, range "
+              f"{params['drift_range_um']:.3g} um){rt}")
+        return params, ev
+    return {}, ""
+
+
+def unexplained_params(st, fit, structure, excess, noise_main):
+    """(params {'where', 'correlates_with', ...}, evidence, axis) of remaining structure."""
+    if structure:
+        s = structure[0]
+        sel = st.series == s.series
+        where = f"{s.series}: {s.variable} {s.lo:.4g} to {s.hi:.4g} {s.unit}"
+        axis = s.variable.split()[0] if s.variable.endswith("position") else \
+            (st.moving[sel][0] if st.moving[sel].size and st.moving[sel][0] else "")
+        runs = np.unique(st.run[sel])
+        cors = [f"{n} (r = {r:.2f})" for n, r in an.correlations(st, fit.resid, sel)[:3] if abs(r) > 0.2]
+        corr = [s.variable] + [x for x in cors if not x.startswith(s.variable)]
+        ev = (f"Binned means of the final residual of {s.series} against {s.variable} depart from zero "
+              f"(chi-square {s.chi2:.0f} on {s.dof} bins, corrected p = {s.p:.1e}; largest bin mean "
+              f"{s.peak:.3g} {st.unit[sel][0]}); no candidate effect explains it")
+        params = {"where": where, "correlates_with": corr, "runs": [int(r) for r in runs],
+                  "p_value": float(s.p)}
+        return params, ev, axis
+    where = "all data"
+    cors = an.correlations(st, fit.resid, np.ones(len(st), dtype=bool))
+    corr = [f"{n} (r = {r:.2f})" for n, r in cors[:3] if abs(r) > 0.2] or ["nothing measured"]
+    ev = (f"The held-out residual stays {excess:.2f} times the noise floor ({noise_main.sigma:.3g} "
+          f"{noise_main.unit}) with no localised structure; no candidate effect explains it")
+    return {"where": where, "correlates_with": corr}, ev, ""
+
+
+def summary(diag) -> str:
+    """Human-readable report."""
+    lines = []
+    nz = [f"{n.sigma:.3g} {u} ({n.source}{', %d repeat groups' % n.n_groups if n.source == 'repeats' else ''})"
+          for u, n in diag.noise.items()]
+    lines.append(f"observations: {diag.n_obs}; noise floor: {'; '.join(nz)}")
+    lines.append(f"held-out evaluation: {diag.folds}")
+    b = diag.base
+    lines.append(f"base model ({b['n_params']} parameters, {b['n_determined']} determined by the data): "
+                 f"rms {_num(b.get('rms_um'))} um, held-out {_num(b.get('heldout_rms_um'))} um"
+                 + (f"; angular rms {_num(b.get('rms_urad'))} urad, held-out {_num(b.get('heldout_rms_urad'))}"
+                    " urad" if "rms_urad" in b else ""))
+    if not diag.findings:
+        lines.append("findings: none")
+    for i, f in enumerate(diag.findings, 1):
+        ps = ", ".join(f"{k}={_short(v)}" for k, v in f.params.items() if not isinstance(v, dict))
+        lines.append(f"{i}. {f.effect}{' on ' + f.axis if f.axis else ''}: {ps}")
+        lines.append(f"   evidence: {f.evidence}")
+        if f.effect != "unexplained":
+            lines.append(f"   held-out rms {f.heldout_rms_before_um:.4g} -> {f.heldout_rms_after_um:.4g} um")
+    fz = diag.final
+    lines.append(f"final model ({fz['n_params']} parameters): rms {_num(fz.get('rms_um'))} um, held-out "
+                 f"{_num(fz.get('heldout_rms_um'))} um")
+    lines.append(f"verdict: {diag.verdict}")
+    return "\n".join(lines)
+
+
+def _num(v):
+    return "n/a" if v is None else f"{v:.4g}"
+
+
+def _short(v):
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    if isinstance(v, list):
+        return "[" + ", ".join(_short(x) for x in v) + "]"
+    return str(v)
+
+
+__all__ = ["evidence_and_params", "unexplained_params", "summary", "rms"]
