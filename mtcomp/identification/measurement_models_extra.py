@@ -349,7 +349,10 @@ class CmmModel(MeasurementModel):
     Options: ``program`` (G-code path, required), ``tool_radius_mm`` (ball radius, required),
     ``tool_mm`` (tool length, default the machine's), ``sample_mm`` (spacing of the sampled
     cutter locations, default 0.1), ``max_gap_mm`` (largest distance from ``x + r n`` to the
-    nearest ball centre before the point counts as not cut by the program, default 2).
+    nearest ball centre before the point counts as not cut by the program, default 2),
+    ``include_path_offset`` (default False: the program is taken to follow the nominal surface; True:
+    add ``n . (c0 - (x + r n))``, where the commanded ball centre c0 sits off the nominal one along
+    the normal -- the corrections of a compensated program, chordal error).
     """
 
     kind = "cmm"
@@ -378,7 +381,10 @@ class CmmModel(MeasurementModel):
         self.q = q
         self.segment = k
         self.line = loc.line[k]
-        _, self.axis0 = forward(m, q)
+        tip0, self.axis0 = forward(m, q)
+        self.path_offset = np.zeros(len(data))
+        if self.options.get("include_path_offset", False):
+            self.path_offset = np.einsum("ij,ij->i", tip0 + radius * self.axis0 - target, data.normal)
         extra = _extra_context(self)
         cols = {"feed": loc.feed[k]}
         for j, a in enumerate(m.axis_names):
@@ -403,7 +409,7 @@ class CmmModel(MeasurementModel):
         """(n_rows,) n . (ball-centre deviation), mm (and (n_rows, n_params))."""
         out = normal_deviation(self.model, self.q, p, self.c, self.axis0 * self.radius,
                                self.data.normal, jacobian)
-        return out if jacobian else (out, None)
+        return (out[0] + self.path_offset, out[1]) if jacobian else (out + self.path_offset, None)
 
     def _evaluate(self, p, nuisance, jacobian):
         p, nuisance = self._check_p(p, nuisance)
