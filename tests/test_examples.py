@@ -66,3 +66,23 @@ def test_seed003_prediction_error_is_at_the_papers_level(tmp_path):
     assert 0 < float(mean.group(1)) < float(mx.group(1)) < 1.5
     for comp in ("EXC", "EYC", "EZC", "EAC", "EBC"):
         assert re.search(rf"^{comp}\s+{NUM}\s+{NUM}\s+u(m|rad)\s*$", out, re.M), out
+
+
+def test_seed001_compensation_reduces_the_cmm_total_error(tmp_path):
+    out_dir = tmp_path / "files"
+    out = run_example("seed001_bowl.py", tmp_path, "--out", str(out_dir))
+    rows = {}
+    for label in ("total error, sum |dn| (um)", "mean |dn| (um)", "rms (um)", "max |dn| (um)"):
+        m = re.search(rf"^{re.escape(label)}\s+{NUM}\s+{NUM}\s*$", out, re.M)
+        assert m, out
+        rows[label] = (float(m.group(1)), float(m.group(2)))
+    total_before, total_after = rows["total error, sum |dn| (um)"]
+    assert rows["mean |dn| (um)"][0] == pytest.approx(total_before / 100, abs=0.006)  # 100 points
+    assert total_after < 0.7 * total_before          # at least the paper's 30 %
+    # what remains is the CMM noise (0.3 um) and the fit, not the machine's errors
+    assert rows["rms (um)"][1] < 0.8
+    m = re.search(rf"total error reduced by {NUM} % \(paper: about 30 % on a real cut\)", out)
+    assert m and float(m.group(1)) == pytest.approx(100 * (1 - total_after / total_before), abs=0.6)
+    for name in ("bowl.nc", "bowl_pinv.nc", "MODEL.json", "cmm_uncompensated.csv",
+                 "cmm_compensated.csv"):
+        assert (out_dir / name).is_file()
