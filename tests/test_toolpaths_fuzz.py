@@ -125,16 +125,53 @@ def test_round_trip_property(tmp_path_factory, text):
     assert out2.read_bytes() == out.read_bytes()
 
 
+def _both_paths(src, out_fast, out_py, monkeypatch):
+    """Chunks (chunk size 5) and written bytes from the compiled and the Python path."""
+    from mtcomp.toolpaths import _fast, iter_segment_chunks
+    res = {}
+    for mode, out in (("fast", out_fast), ("python", out_py)):
+        if mode == "python":
+            monkeypatch.setenv("MTCOMP_NO_FAST_GCODE", "1")
+        try:
+            chunks = list(iter_segment_chunks(src, CAFXYZ, chord_tol_mm=TOL, chunk_size=5))
+            write_corrected(src, out, CAFXYZ, None, chord_tol_mm=TOL)
+            res[mode] = (chunks, out.read_bytes())
+        except InputError as exc:
+            res[mode] = str(exc)
+        monkeypatch.delenv("MTCOMP_NO_FAST_GCODE", raising=False)
+    assert _fast.available()
+    return res["fast"], res["python"]
+
+
+@SETTINGS
+@given(programs())
+def test_compiled_path_equals_python_path(tmp_path_factory, monkeypatch, text):
+    d = tmp_path_factory.mktemp("eq")
+    src = d / "in.nc"
+    src.write_bytes(text.encode("latin-1"))
+    fast, py = _both_paths(src, d / "f.nc", d / "p.nc", monkeypatch)
+    assert fast[1] == py[1]
+    assert [len(c) for c in fast[0]] == [len(c) for c in py[0]]
+    for a, b in zip(fast[0], py[0]):
+        for f in ("line", "start", "end", "feed", "dirs", "rapid", "from_arc"):
+            np.testing.assert_array_equal(getattr(a, f), getattr(b, f))
+
+
 JUNK = st.text(alphabet="GXYZACIJKRFNMO0123456789.-+ ()%;/\t\r\xe9#", max_size=30)
 
 
 @SETTINGS
 @given(st.lists(JUNK, min_size=1, max_size=8))
-def test_reader_never_crashes(tmp_path_factory, lines):
+def test_reader_never_crashes(tmp_path_factory, monkeypatch, lines):
     d = tmp_path_factory.mktemp("fz")
     src = d / "in.nc"
     src.write_bytes("\n".join(lines).encode("latin-1"))
     out = d / "out.nc"
+    fast, py = _both_paths(src, d / "f.nc", d / "p.nc", monkeypatch)
+    if isinstance(py, str) or isinstance(fast, str):
+        assert fast == py                       # the same error, naming the same line
+    else:
+        assert fast[1] == py[1]
     try:
         read_program(src, CAFXYZ)
     except InputError as exc:
@@ -159,3 +196,38 @@ def test_reader_never_crashes_on_bytes(tmp_path_factory, data):
         read_program(src, CAFXYZ)
     except InputError as exc:
         assert exc.line is not None and exc.line >= 1
+
+
+def test_number_formatting_same_on_both_paths(tmp_path, monkeypatch):
+    """Corrected points with awkward values (ties, tiny negatives, large) give identical bytes."""
+    from mtcomp.toolpaths import _fast, iter_segment_chunks
+    if not _fast.available():
+        import pytest
+        pytest.skip("no C compiler")
+    rng = np.random.default_rng(11)
+    n = 4000
+    lines = ["G21 G90", *[f"G1 X{i * 0.001:.3f} F100" for i in range(n // 2)], "G20",
+             *[f"N{i} G1 X{i * 0.001:.3f}" for i in range(n // 2)]]
+    src = tmp_path / "in.nc"
+    src.write_text("\n".join(lines) + "\n")
+    awkward = np.concatenate([rng.uniform(-1e3, 1e3, 600), np.arange(-300, 300) * 5e-5,
+                              np.arange(-300, 300) * 1.27e-4 + 0.5e-5, [-0.0, -4e-5, 4e-5, 1e9, -1e9],
+                              rng.normal(0, 1e-4, 600)])
+
+    def corr():
+        for c in iter_segment_chunks(src, CAFXYZ):
+            pts = rng.choice(awkward, size=(2 * len(c), 5))
+            pts[:, 3:] = np.radians(pts[:, 3:])
+            yield c, pts, np.full(len(c), 2)
+    outs = {}
+    for mode in ("fast", "python"):
+        if mode == "python":
+            monkeypatch.setenv("MTCOMP_NO_FAST_GCODE", "1")
+        rng = np.random.default_rng(12)
+        out = tmp_path / f"{mode}.nc"
+        write_corrected(src, out, CAFXYZ, corr())
+        outs[mode] = out.read_bytes()
+    assert outs["fast"] == outs["python"]
+    import re
+    assert re.search(rb"-0\.0+(?![0-9])", outs["fast"]) is None      # no negative zero written
+    assert re.search(rb"X0\.0000 ", outs["fast"]) is not None        # ... but zeros are

@@ -11,6 +11,17 @@ from mtcomp.toolpaths.gcode import SegmentChunk
 XFYZ = load_machine("xfyz")
 CAFXYZ = load_machine("cafxyz")
 
+
+@pytest.fixture(autouse=True, params=["compiled", "python"])
+def gcode_path(request, monkeypatch):
+    """Every test runs on the compiled fast path and on the pure-Python path."""
+    from mtcomp.toolpaths import _fast
+    if request.param == "python":
+        monkeypatch.setenv("MTCOMP_NO_FAST_GCODE", "1")
+    elif not _fast.available():
+        pytest.skip("no C compiler: the compiled G-code path is not available")
+    return request.param
+
 SAMPLE = """%
 O1000 (TEST)
 N10 G21 G90 G17 ; setup

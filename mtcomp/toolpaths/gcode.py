@@ -551,6 +551,67 @@ def _uncorrected(path, machine, chord_tol_mm, chunk_size, initial_position):
         yield chunk, chunk.end, np.ones(len(chunk), np.int64)
 
 
+class CorrectionCursor:
+    """Walks the ``(chunk, points, counts)`` stream of :func:`write_corrected` row by row.
+
+    line (n,) int64, offsets (n+1,) int64 and points (M, na) float64 of the current chunk are
+    contiguous arrays (the compiled writer reads them directly); ``row`` is the next row to write.
+    """
+
+    def __init__(self, corrections, n_axes: int, in_path):
+        self._it = iter(corrections)
+        self.na = n_axes
+        self.in_path = in_path
+        self.line = np.zeros(0, np.int64)
+        self.offsets = np.zeros(1, np.int64)
+        self.points = np.zeros((0, n_axes))
+        self.row = 0
+        self.n = 0
+
+    def advance(self, line_no: int) -> None:
+        """Load the next chunk (the current one is used up)."""
+        try:
+            chunk, points, counts = next(self._it)
+        except StopIteration:
+            raise ValueError(f"corrections ended before line {line_no} of {self.in_path}") from None
+        counts = np.asarray(counts, dtype=np.int64).reshape(-1)
+        if counts.shape[0] != len(chunk) or np.any(counts < 1):
+            raise ValueError("counts must have one entry >= 1 per segment row")
+        offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        points = np.ascontiguousarray(points, dtype=np.float64)
+        if points.shape != (offsets[-1], self.na):
+            raise ValueError(f"points must be ({offsets[-1]}, {self.na}), got {points.shape}")
+        self.line = np.ascontiguousarray(chunk.line, dtype=np.int64)
+        self.offsets, self.points, self.row, self.n = offsets, points, 0, len(chunk)
+
+    def take(self, line_no: int, k: int) -> np.ndarray:
+        """The corrected points of the next k segment rows, which must belong to line_no."""
+        parts = []
+        while k > 0:
+            if self.row >= self.n:
+                self.advance(line_no)
+                continue
+            r = self.row
+            take = min(k, self.n - r)
+            if np.any(self.line[r:r + take] != line_no):
+                self.mismatch(line_no)
+            parts.append(self.points[self.offsets[r]:self.offsets[r + take]])
+            self.row = r + take
+            k -= take
+        return parts[0] if len(parts) == 1 else np.vstack(parts)
+
+    def mismatch(self, line_no: int):
+        raise ValueError(f"corrections do not match the program at line {line_no}: the segment row "
+                         f"says line {int(self.line[self.row])}")
+
+    def finish(self) -> None:
+        if self.row < self.n:
+            raise ValueError("corrections have more segment rows than the program")
+        for extra in self._it:
+            if len(extra[0]):
+                raise ValueError("corrections have more segment rows than the program")
+
+
 def write_corrected(in_path, out_path, machine: Machine,
                     corrections: Iterable[tuple[SegmentChunk, np.ndarray, np.ndarray]] | None,
                     chord_tol_mm: float = DEFAULT_CHORD_TOL_MM, initial_position=None) -> int:
@@ -569,45 +630,13 @@ def write_corrected(in_path, out_path, machine: Machine,
     if corrections is None:
         corrections = _uncorrected(in_path, machine, chord_tol_mm, DEFAULT_CHUNK_SIZE,
                                    initial_position)
+    cursor = CorrectionCursor(corrections, machine.n_axes, in_path)
     from . import _fast
     if _fast.available() and initial_position is None:
-        return _fast.write_corrected(in_path, out_path, machine, corrections, chord_tol_mm)
+        return _fast.write_corrected(in_path, out_path, machine, cursor, chord_tol_mm)
     letters = "".join(machine.axis_names)
     rotary = [c in "ABC" for c in letters]
-    corr_iter = iter(corrections)
-    cur = {"chunk": None, "points": None, "offsets": None, "row": 0}
     rows_written = 0
-
-    def next_rows(line_no: int, k: int) -> np.ndarray:
-        """The corrected points of the next k segment rows, which must belong to line_no."""
-        parts = []
-        while k > 0:
-            if cur["chunk"] is None or cur["row"] >= len(cur["chunk"]):
-                try:
-                    chunk, points, counts = next(corr_iter)
-                except StopIteration:
-                    raise ValueError(f"corrections ended before line {line_no} of {in_path}") from None
-                counts = np.asarray(counts, dtype=np.int64).reshape(-1)
-                points = np.asarray(points, dtype=float)
-                if counts.shape[0] != len(chunk) or np.any(counts < 1):
-                    raise ValueError("counts must have one entry >= 1 per segment row")
-                offsets = np.concatenate([[0], np.cumsum(counts)])
-                if points.shape != (offsets[-1], machine.n_axes):
-                    raise ValueError(f"points must be ({offsets[-1]}, {machine.n_axes}), "
-                                     f"got {points.shape}")
-                cur.update(chunk=chunk, points=points, offsets=offsets, row=0)
-                continue
-            chunk, r = cur["chunk"], cur["row"]
-            take = min(k, len(chunk) - r)
-            if np.any(chunk.line[r:r + take] != line_no):
-                raise ValueError(f"corrections do not match the program at line {line_no}: the "
-                                 f"segment row says line {int(chunk.line[r])}")
-            off = cur["offsets"]
-            parts.append(cur["points"][off[r]:off[r + take]])
-            cur["row"] = r + take
-            k -= take
-        return parts[0] if len(parts) == 1 else np.vstack(parts)
-
     out_absolute = False
     separator = "\n"
     with atomic_write(out_path, "wb") as f:
@@ -619,7 +648,7 @@ def write_corrected(in_path, out_path, machine: Machine,
                 elif state.distance_word == 90:
                     out_absolute = True
                 continue
-            pts = next_rows(k, block.points.shape[0])
+            pts = cursor.take(k, block.points.shape[0])
             ending = _line_ending(raw)
             separator = ending or separator
             text = format_motion_lines(block, pts, letters, rotary, not out_absolute, ending,
@@ -627,9 +656,5 @@ def write_corrected(in_path, out_path, machine: Machine,
             out_absolute = True
             rows_written += block.points.shape[0]
             f.write(text.encode("latin-1"))
-        if cur["chunk"] is not None and cur["row"] < len(cur["chunk"]):
-            raise ValueError("corrections have more segment rows than the program")
-        for extra in corr_iter:
-            if len(extra[0]):
-                raise ValueError("corrections have more segment rows than the program")
+        cursor.finish()
     return rows_written

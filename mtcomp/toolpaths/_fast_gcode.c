@@ -1,0 +1,238 @@
+/* Fast path of the mtcomp G-code reader and writer (see _fast.py).
+ *
+ * Handles only "simple" lines, exactly as mtcomp.toolpaths.gcode.ModalState would: blank lines and
+ * lines made of the words N, G0/G1, F and the machine's axis words (each at most once), separated
+ * by blanks. Any other line is handed back to Python (status FALLBACK) before the state is touched,
+ * so Python interprets it (and raises the errors). Positions, directions and the formatting of
+ * numbers reproduce the Python code bit for bit; tests compare both paths.
+ *
+ * state (double[20]): 0..5 position (mm, rad, per column), 6..11 dirs (+-1), 12 feed (mm/min),
+ * 13 motion (-1 none, 0..3), 14 inch, 15 incremental, 16 lines done, 17 output is absolute,
+ * 18 separator is CRLF.
+ */
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+enum { NEED_INPUT = 0, FALLBACK = 1, ROWS_FULL = 2, NEED_CORR = 3, OUT_FULL = 4, MISMATCH = 5 };
+
+static const double POW10[23] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11,
+                                 1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
+
+static int is_alpha(char c) { return (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z'); }
+static int is_digit(char c) { return c >= '0' && c <= '9'; }
+
+/* The number pattern of the Python tokenizer: [+-]?(\d+\.?\d*|\.\d+). 1 if found. */
+static int parse_num(const char *p, const char *e, double *out, const char **next) {
+    const char *s = p;
+    int neg = 0;
+    if (p < e && (*p == '+' || *p == '-')) { neg = (*p == '-'); p++; }
+    uint64_t mant = 0;
+    int ndig = 0, nint = 0, nfrac = 0;
+    while (p < e && is_digit(*p)) { mant = mant * 10 + (uint64_t)(*p - '0'); ndig++; nint++; p++; }
+    if (p < e && *p == '.') {
+        p++;
+        while (p < e && is_digit(*p)) { mant = mant * 10 + (uint64_t)(*p - '0'); ndig++; nfrac++; p++; }
+    }
+    if (nint == 0 && nfrac == 0) return 0;
+    *next = p;
+    if (ndig <= 15 && nfrac <= 22) {
+        /* both exact in binary: one correctly rounded division, as strtod would give */
+        double v = nfrac ? (double)mant / POW10[nfrac] : (double)mant;
+        *out = neg ? -v : v;
+        return 1;
+    }
+    char tmp[80];
+    size_t n = (size_t)(p - s);
+    if (n >= sizeof tmp) return 0;
+    memcpy(tmp, s, n);
+    tmp[n] = 0;
+    *out = strtod(tmp, NULL);
+    return 1;
+}
+
+/* Python's f"{v:.{dec}f}" (dec 4 or 5), with "-0.000.." written as "0.000..". */
+static int fmt_fixed(char *o, double v, int dec) {
+    double t = v * POW10[dec];
+    if (!(fabs(t) < 4e15)) return sprintf(o, "%.*f", dec, v);
+    double fl = floor(t);
+    double fr = t - fl;
+    if (fabs(fr - 0.5) < 1e-6) {                 /* near a tie: let printf round the exact value */
+        int n = sprintf(o, "%.*f", dec, v);
+        if (o[0] == '-') {                        /* "-0.0000" -> "0.0000" */
+            int zero = 1;
+            for (int i = 1; i < n; i++) if (o[i] != '0' && o[i] != '.') { zero = 0; break; }
+            if (zero) { memmove(o, o + 1, (size_t)n); n--; }
+        }
+        return n;
+    }
+    long long m = (long long)(fr < 0.5 ? fl : fl + 1.0);
+    char *s = o;
+    if (m < 0) { *s++ = '-'; m = -m; }
+    long long p = (long long)POW10[dec];
+    long long ip = m / p, fp = m % p;
+    char buf[32];
+    int k = 0;
+    do { buf[k++] = (char)('0' + ip % 10); ip /= 10; } while (ip);
+    while (k) *s++ = buf[--k];
+    *s++ = '.';
+    for (int i = dec - 1; i >= 0; i--) { s[i] = (char)('0' + fp % 10); fp /= 10; }
+    s += dec;
+    return (int)(s - o);
+}
+
+static int fmt_point(char *o, const double *q, int na, const char *letters, const int *is_rot,
+                     int inch) {
+    static const double RAD2DEG = 180.0 / 3.14159265358979323846;
+    char *s = o;
+    for (int j = 0; j < na; j++) {
+        if (j) *s++ = ' ';
+        *s++ = letters[j];
+        if (is_rot[j]) s += fmt_fixed(s, RAD2DEG * q[j], 4);
+        else if (inch) s += fmt_fixed(s, q[j] / 25.4, 5);
+        else s += fmt_fixed(s, q[j], 4);
+    }
+    return (int)(s - o);
+}
+
+long long mt_process(const char *buf, long long len, int eof, long long *consumed,
+                     double *state, int na, const int *letter_col, const int *is_rot,
+                     const char *letters,
+                     long long *r_line, double *r_start, double *r_end, double *r_feed,
+                     signed char *r_dirs, unsigned char *r_rapid, long long r_cap, long long *r_n,
+                     const long long *c_line, const long long *c_off, const double *c_pts,
+                     long long c_n, long long *c_row,
+                     char *out, long long out_cap, long long *out_n) {
+    static const double DEG2RAD = 3.14159265358979323846 / 180.0;
+    long long pos = *consumed;
+    for (;;) {
+        if (pos >= len) { *consumed = pos; return NEED_INPUT; }
+        const char *ls = buf + pos;
+        const char *nl = memchr(ls, '\n', (size_t)(len - pos));
+        const char *raw_end;
+        if (nl) raw_end = nl + 1;
+        else if (eof) raw_end = buf + len;
+        else { *consumed = pos; return NEED_INPUT; }
+        const char *ce = raw_end;
+        while (ce > ls && (ce[-1] == '\r' || ce[-1] == '\n')) ce--;
+        int ending = 0;                       /* 0 none, 1 LF, 2 CRLF */
+        if (raw_end > ls && raw_end[-1] == '\n')
+            ending = (raw_end - ls >= 2 && raw_end[-2] == '\r') ? 2 : 1;
+        if (out && out_cap - *out_n < 4096 + 2 * (raw_end - ls)) { *consumed = pos; return OUT_FULL; }
+
+        /* tokens */
+        const char *p = ls, *n_s = 0, *n_e = 0, *f_s = 0, *f_e = 0;
+        int has_g = 0, g = -1, has_f = 0;
+        unsigned seen = 0;
+        double vals[6] = {0, 0, 0, 0, 0, 0}, fval = 0.0;
+        int simple = 1;
+        while (p < ce) {
+            char ch = *p;
+            if (ch == ' ' || ch == '\t') { p++; continue; }
+            if (!is_alpha(ch)) { simple = 0; break; }
+            char L = (char)(ch & ~0x20);
+            const char *ts = p;
+            double v;
+            if (!parse_num(p + 1, ce, &v, &p)) { simple = 0; break; }
+            if (p < ce && !(*p == ' ' || *p == '\t' || is_alpha(*p))) { simple = 0; break; }
+            if (L == 'N') {
+                if (n_s) { simple = 0; break; }
+                n_s = ts; n_e = p;
+            } else if (L == 'G') {
+                if (has_g || !(v == 0.0 || v == 1.0)) { simple = 0; break; }
+                has_g = 1; g = (v == 1.0);
+            } else if (L == 'F') {
+                if (has_f || !(v > 0.0)) { simple = 0; break; }
+                has_f = 1; fval = v; f_s = ts; f_e = p;
+            } else {
+                int col = letter_col[L - 'A'];
+                if (col < 0 || (seen & (1u << col))) { simple = 0; break; }
+                seen |= 1u << col;
+                vals[col] = v;
+            }
+        }
+        if (!simple) { *consumed = pos; return FALLBACK; }
+        int motion = has_g ? g : (int)state[13];
+        int inch = state[14] != 0.0;
+        if (seen && !(motion == 0 || motion == 1)) { *consumed = pos; return FALLBACK; }
+        long long line_no = (long long)state[16] + 1;
+        if (seen) {
+            if (r_line && *r_n >= r_cap) { *consumed = pos; return ROWS_FULL; }
+            if (out) {
+                if (*c_row >= c_n) { *consumed = pos; return NEED_CORR; }
+                if (c_line[*c_row] != line_no) { *consumed = pos; return MISMATCH; }
+                long long need = (c_off[*c_row + 1] - c_off[*c_row]) * (na * 128 + 16) + 512;
+                if (need > out_cap / 2) { *consumed = pos; return FALLBACK; }   /* huge: Python */
+                if (out_cap - *out_n < need) { *consumed = pos; return OUT_FULL; }
+            }
+        }
+        /* the line is ours: update the state */
+        if (has_f) state[12] = fval * (inch ? 25.4 : 1.0);
+        if (has_g) state[13] = (double)g;
+        if (seen) {
+            double start[6], end[6];
+            double scale = inch ? 25.4 : 1.0;
+            int incr = state[15] != 0.0;
+            for (int j = 0; j < na; j++) { start[j] = state[j]; end[j] = state[j]; }
+            for (int j = 0; j < na; j++) {
+                if (!(seen & (1u << j))) continue;
+                double v = is_rot[j] ? vals[j] * DEG2RAD : vals[j] * scale;
+                end[j] = incr ? start[j] + v : v;
+            }
+            for (int j = 0; j < na; j++) {
+                double step = end[j] - start[j];
+                if (step > 1e-9) state[6 + j] = 1.0;
+                else if (step < -1e-9) state[6 + j] = -1.0;
+                state[j] = end[j];
+            }
+            if (r_line) {
+                long long r = *r_n;
+                r_line[r] = line_no;
+                for (int j = 0; j < na; j++) {
+                    r_start[r * na + j] = start[j];
+                    r_end[r * na + j] = end[j];
+                    r_dirs[r * na + j] = (signed char)state[6 + j];
+                }
+                r_feed[r] = motion == 0 ? NAN : state[12];
+                r_rapid[r] = (unsigned char)(motion == 0);
+                *r_n = r + 1;
+            }
+            if (out) {
+                long long row = *c_row;
+                char *o = out + *out_n;
+                const char *word = motion == 0 ? "G0" : "G1";
+                const char *sep = ending == 2 ? "\r\n" : ending == 1 ? "\n"
+                                  : (state[18] != 0.0 ? "\r\n" : "\n");
+                if (ending) state[18] = (ending == 2);
+                for (long long k = c_off[row]; k < c_off[row + 1]; k++) {
+                    if (k == c_off[row]) {
+                        if (n_s) { memcpy(o, n_s, (size_t)(n_e - n_s)); o += n_e - n_s; *o++ = ' '; }
+                        if (state[17] == 0.0) { memcpy(o, "G90 ", 4); o += 4; }
+                    } else {
+                        size_t sl = strlen(sep);
+                        memcpy(o, sep, sl); o += sl;
+                    }
+                    memcpy(o, word, 2); o += 2;
+                    *o++ = ' ';
+                    o += fmt_point(o, c_pts + k * na, na, letters, is_rot, inch);
+                    if (k == c_off[row] && f_s) {
+                        *o++ = ' ';
+                        memcpy(o, f_s, (size_t)(f_e - f_s)); o += f_e - f_s;
+                    }
+                }
+                if (ending == 2) { *o++ = '\r'; *o++ = '\n'; }
+                else if (ending == 1) *o++ = '\n';
+                *out_n = o - out;
+                *c_row = row + 1;
+                state[17] = 1.0;
+            }
+        } else if (out) {
+            memcpy(out + *out_n, ls, (size_t)(raw_end - ls));
+            *out_n += raw_end - ls;
+        }
+        state[16] = (double)line_no;
+        pos = raw_end - buf;
+    }
+}
