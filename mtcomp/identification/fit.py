@@ -623,7 +623,7 @@ class _Problem:
         determined = np.zeros(model.n_params, dtype=bool)
         determined[self.free_idx] = ~in_null[:self.n_free]
         files = []
-        pred = self.evaluate(sol.x)
+        pred = self.observed - sol.r / w
         for m, so in zip(self.mms, self.obs_slices):
             resid = (m.observed - pred[so]) * m.obs_unit_scale
             files.append(FileResiduals(m.tag, str(m.data.path), m.kind, m.obs_row.copy(),

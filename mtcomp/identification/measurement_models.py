@@ -127,12 +127,12 @@ _FUNCTIONS: "weakref.WeakKeyDictionary[ErrorModel, dict]" = weakref.WeakKeyDicti
 def chain_function(model: ErrorModel, name: str) -> ca.Function:
     """CasADi functions of (q, p, c) built once per model and cached (``c`` may be extended per row):
 
-    * ``'tip'``: d (3,) tip deviation mm; ``'tip_jac'``: (d, J_d (3, n_params)).
+    * ``'tip'``: d (3,) tip deviation mm; ``'tip_jac'``: (d, J_d^T (n_params, 3)).
     * ``'laser'`` / ``'laser_jac'``: c = [context, o (3), s (6)]:
       v = s . [d + (R_rel - I) o ; vee((R_rel - R_rel^T) / 2)] (scalar) and its gradient
-      (1, n_params), with ``R_rel = R R0^T`` the tool's rotation relative to nominal.
+      (n_params, 1), with ``R_rel = R R0^T`` the tool's rotation relative to nominal.
     * ``'ballbar'`` / ``'ballbar_jac'``: c = [context, T (3), b (3)]:
-      L = | tip0 + d + R_rel b - T | (scalar) and its gradient (1, n_params).
+      L = | tip0 + d + R_rel b - T | (scalar) and its gradient (n_params, 1).
     """
     cache = _FUNCTIONS.setdefault(model, {})
     if name not in cache:
@@ -159,7 +159,9 @@ def chain_function(model: ErrorModel, name: str) -> ca.Function:
             T, b = cx[nc:nc + 3], cx[nc + 3:nc + 6]
             outs = [ca.norm_2(tip0 + d + ca.mtimes(R_rel, b) - T)]
         if name.endswith("_jac"):
-            outs.append(ca.jacobian(outs[0], p))
+            # transposed (n_params, rows): column-major per pose = row-major (rows, n_params), so
+            # the stacked Jacobian of N poses is a reshape, not a copy
+            outs.append(ca.jacobian(outs[0], p).T)
         cache[name] = ca.Function(f"mm_{name}", [q, p, cx], outs)
     return cache[name]
 
@@ -340,7 +342,7 @@ class PointsModel(MeasurementModel):
         if not jacobian:
             return evaluate_chain(self.model, "tip", self.q, p, self.c)[0]
         out = evaluate_chain(self.model, "tip_jac", self.q, p, self.c)
-        return out[0], out[1]
+        return out[0], out[1].transpose(0, 2, 1)    # (n, 3, n_params), C-contiguous view
 
     def _evaluate(self, p, nuisance, jacobian):
         p, nuisance = self._check_p(p, nuisance)
