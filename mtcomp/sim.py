@@ -110,7 +110,7 @@ def _approach_dirs(q: np.ndarray, first=None) -> np.ndarray:
     n, na = q.shape
     out = np.zeros((n, na))
     cur = np.ones(na) if first is None else np.asarray(first, dtype=float).copy()
-    prev = q[0] - 0.0
+    prev = q[0].copy()
     for i in range(n):
         step = q[i] - prev if i else np.zeros(na)
         moving = np.abs(step) > 1e-12
@@ -498,8 +498,8 @@ def standard_campaign(machine: Machine, n_runs: int = 1, thermal: bool = False) 
 
 # --------------------------------------------------------------------------------------------- truth
 
-#: standard deviation of random truth parameters, file units, by (group kind, order)
 def _param_sd(spec, machine: Machine) -> float:
+    """Standard deviation of a random truth parameter, in its file unit (um, urad, mm ...)."""
     name, unit, group = spec.name, spec.unit, spec.group
     if group == "squareness":
         return 30.0
