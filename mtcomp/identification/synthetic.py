@@ -22,6 +22,19 @@ def _context(n, dirs=None, feed=None, t=None, run=None) -> Context:
                    spindle_rpm=np.full(n, np.nan), temperatures={})
 
 
+def _pose_columns(xyz, abc):
+    """(abc (n, 3) rad, columns x_mm.. [a_deg..] in file units, names of the rotary columns)."""
+    n = len(xyz)
+    abc_a = np.zeros((n, 3)) if abc is None else np.asarray(abc, float)
+    cols = {"x_mm": xyz[:, 0], "y_mm": xyz[:, 1], "z_mm": xyz[:, 2]}
+    rotary = ()
+    if abc is not None:
+        rotary = ("a_deg", "b_deg", "c_deg")
+        for k, name in enumerate(rotary):
+            cols[name] = np.degrees(abc_a[:, k])
+    return abc_a, cols, rotary
+
+
 def _cells(columns: dict) -> tuple[tuple[str, ...], tuple[tuple[str, ...], ...]]:
     header = tuple(columns)
     cols = []
@@ -39,13 +52,7 @@ def make_points(xyz, abc=None, tool=None, deviation=None, normal=None, normal_de
     xyz = np.asarray(xyz, float)
     n = len(xyz)
     dev = np.zeros((n, 3)) if deviation is None else np.asarray(deviation, float)
-    abc_a = np.zeros((n, 3)) if abc is None else np.asarray(abc, float)
-    cols = {"x_mm": xyz[:, 0], "y_mm": xyz[:, 1], "z_mm": xyz[:, 2]}
-    rotary = ()
-    if abc is not None:
-        rotary = ("a_deg", "b_deg", "c_deg")
-        for k, name in enumerate(rotary):
-            cols[name] = np.degrees(abc_a[:, k])
+    abc_a, cols, rotary = _pose_columns(xyz, abc)
     tool_a = np.full(n, np.nan) if tool is None else np.asarray(tool, float) * np.ones(n)
     if tool is not None:
         cols["tool_mm"] = tool_a
@@ -120,13 +127,7 @@ def make_ballbar(xyz, table_ball, tool_ball, abc=None, length=None, path: str = 
     n = len(xyz)
     tb = np.broadcast_to(np.asarray(table_ball, float), (n, 3)).copy()
     lb = np.broadcast_to(np.asarray(tool_ball, float), (n, 3)).copy()
-    abc_a = np.zeros((n, 3)) if abc is None else np.asarray(abc, float)
-    cols = {"x_mm": xyz[:, 0], "y_mm": xyz[:, 1], "z_mm": xyz[:, 2]}
-    rotary = ()
-    if abc is not None:
-        rotary = ("a_deg", "b_deg", "c_deg")
-        for k, name in enumerate(rotary):
-            cols[name] = np.degrees(abc_a[:, k])
+    abc_a, cols, rotary = _pose_columns(xyz, abc)
     for k, a in enumerate("xyz"):
         cols[f"table_ball_{a}_mm"] = tb[:, k]
     for k, a in enumerate("xyz"):
