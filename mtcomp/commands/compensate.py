@@ -6,9 +6,7 @@ neither exists. Flags override the machine file's [compensation] table. docs/pla
 """
 from __future__ import annotations
 
-import re
-
-_G20 = re.compile(rb"(?<![A-Za-z0-9.])[Gg]0*20(?![0-9.])")
+_DIGITS = b"0123456789."
 
 
 def add_arguments(parser):
@@ -51,16 +49,37 @@ def _positive(value, flag, allow_zero=False):
     return value
 
 
-def uses_inches(path) -> bool:
-    """True if the program contains a G20 word anywhere (comments are not excluded)."""
+def uses_inches(path, block: int = 1 << 22) -> bool:
+    """True if the program contains a G20 word anywhere (comments included: a cautious guess that
+    only sets the rounding grid of the output). Reads the file in blocks: memory stays flat."""
     from ..errors import InputError
     try:
-        with open(path, "rb") as f:
-            return _G20.search(f.read()) is not None
+        f = open(path, "rb")
     except FileNotFoundError:
         raise InputError("no such file", path) from None
     except OSError as exc:
         raise InputError(f"cannot open: {exc.strerror}", path) from None
+    tail = b""
+    with f:
+        while True:
+            data = f.read(block)
+            if not data:
+                return _has_g20(tail + b" ")
+            text = tail + data.upper()
+            if _has_g20(text[:-8]):
+                return True
+            tail = text[-16:]
+
+
+def _has_g20(text: bytes) -> bool:
+    for word in (b"G20", b"G020", b"G0020"):
+        i = text.find(word)
+        while i >= 0:
+            after = text[i + len(word):i + len(word) + 1]
+            if not after or after not in _DIGITS:
+                return True
+            i = text.find(word, i + 1)
+    return False
 
 
 def run(args) -> int:

@@ -64,27 +64,33 @@ class Bounds:
 
     def box(self, q):
         """(l, u) each (n, na): max correction and travel together."""
+        return self.limits(q)[:2]
+
+    def limits(self, q):
+        """(l, u, travel_lo, travel_hi), each (n, na): box bounds and the travel part of them."""
         tlo, thi = self.travel_x(q)
-        return np.maximum(-self.B, tlo), np.minimum(self.B, thi)
+        return np.maximum(-self.B, tlo), np.minimum(self.B, thi), tlo, thi
 
     def quantize(self, x):
         if self.grid is None:
             return np.array(x, dtype=float)
         return np.round(x / self.unit) * self.unit
 
-    def enforce(self, x, q, exempt, prev, desired=None, following=None):
+    def enforce(self, x, q, exempt, prev, desired=None, following=None, limits=None):
         """The written corrections and the bounds that acted.
 
-        x : (n, na) corrections found (x units). desired : (n, na) the corrections the block would
-        take without bounds (default x), to tell which bounds acted. q : (n, na) nominal positions (mm, rad).
+        x : (n, na) corrections found (x units). q : (n, na) nominal positions (mm, rad).
         exempt : (n,) bool, no step bound into this block. prev : (na,) correction of the block
-        before (x units), or None. following : (na,) correction of the block after, with
-        ``following_exempt`` folded in by the caller (None: unknown or exempt). Returns (y (n, na) on the grid, flags (n, na, 5) bool, see
-        FLAG_KINDS): a flag is set where y sits on that bound and differs from ``desired`` by more
-        than half a grid step (the bound took something away).
+        before (x units), or None. desired : (n, na) the corrections the blocks would take without
+        bounds (default x), to tell which bounds acted. following : (na,) correction of the block
+        after when it is known and not exempt, else None. limits : :meth:`limits` of q if known.
+
+        Returns (y (n, na) on the grid, flags (n, na, 5) bool, see FLAG_KINDS): a flag is set where
+        y sits on that bound and differs from ``desired`` by more than half a grid step (the bound
+        took something away); ``step`` also where the step to the next block is on its bound.
         """
         desired = x if desired is None else desired
-        l, u = self.box(q)
+        l, u, tlo, thi = self.limits(q) if limits is None else limits
         base = np.clip(self.quantize(x), l, u)
         y = base.copy()
         n = y.shape[0]
@@ -109,7 +115,6 @@ class Bounds:
         flags = np.zeros((n, y.shape[1], len(FLAG_KINDS)), bool)
         took = np.abs(desired - y) > self.took_tol
         tol = self.on_tol
-        tlo, thi = self.travel_x(q)
         flags[..., 0] = took & (y >= self.B - tol)
         flags[..., 1] = took & (y <= -self.B + tol)
         flags[..., 2] = took & (y >= thi - tol)

@@ -14,9 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kinematics import forward
 from ..models.evaluate import evaluate
-from ._nominal import nominal_pose_jacobian
+from ._nominal import nominal_pose, nominal_pose_jacobian
 from .problem import CompensationProblem
 
 
@@ -35,7 +34,7 @@ class Evaluator:
 
     def target(self, q: np.ndarray) -> np.ndarray:
         """(n, rows) nominal pose (tip mm, tool axis) of q: what the program means."""
-        tip, axis = forward(self.machine, q)
+        tip, axis = nominal_pose(self.machine, q)
         return np.concatenate([tip, axis], axis=1)[:, :self.rows]
 
     def residual_jacobian(self, q, x, ctx, target=None):
@@ -48,12 +47,16 @@ class Evaluator:
         dev, Jd = evaluate(self.model, "deviation_qjacobian_function", qq, self.p, ctx)
         tip, axis, Jn = nominal_pose_jacobian(self.machine, qq)
         self.evaluations += q.shape[0]
-        pose = np.concatenate([tip, axis], axis=1)[:, :self.rows]
+        pose = tip if self.rows == 3 else np.concatenate([tip, axis], axis=1)
         if target is None:
             target = pose if not np.any(x) else self.target(q)
-        r = pose + dev[:, :self.rows] - target
-        J = (Jn + Jd)[:, :self.rows, :]
-        return r * self.S, J * (self.S[:, None] / self.D[None, :]), target
+        r = dev[:, :self.rows] + pose
+        r -= target
+        r *= self.S
+        J = Jd[:, :self.rows, :]
+        J += Jn[:, :self.rows, :]
+        J *= self.S[:, None] / self.D[None, :]
+        return r, J, target
 
     def residual(self, q, x, ctx, target):
         """Weighted residual b (n, rows) only (cheaper: no Jacobian of the model)."""

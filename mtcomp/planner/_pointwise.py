@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._evaluate import Evaluator
+from ._small import a_x, at_b, gram, spd_solve
 
 
 @dataclass
@@ -39,7 +40,7 @@ class Linearization:
 
     def predict(self, x: np.ndarray) -> np.ndarray:
         """(n, rows) weighted residual at corrections x, to first order around x_lin."""
-        return self.b + np.einsum("nij,nj->ni", self.A, x - self.x_lin)
+        return self.b + a_x(self.A, x - self.x_lin)
 
     def take(self, idx) -> "Linearization":
         return Linearization(*(getattr(self, f)[idx] for f in
@@ -58,10 +59,9 @@ def pinv_step(A: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def regularized_step(A: np.ndarray, b: np.ndarray, x: np.ndarray, lam: float) -> np.ndarray:
     """Gauss-Newton step of min ||b + A dx||^2 + lam ||x + dx||^2 per block: (n, na)."""
-    na = A.shape[2]
-    H = np.einsum("nki,nkj->nij", A, A) + lam * np.eye(na)
-    g = np.einsum("nki,nk->ni", A, b) + lam * x
-    return -np.linalg.solve(H, g[..., None])[..., 0]
+    H = gram(A, lam)
+    g = at_b(A, b) + lam * x
+    return -spd_solve(H, g)
 
 
 def solve_pinv(ev: Evaluator, q: np.ndarray, ctx: np.ndarray) -> Linearization:
@@ -76,7 +76,10 @@ def solve_newton(ev: Evaluator, q: np.ndarray, ctx: np.ndarray, lam: float, tol:
                  max_iterations: int) -> Linearization:
     """Per-block Newton iteration of the (regularised) seed-001 step until the step is below tol.
 
-    Every block is iterated on its own; blocks that have converged are not evaluated again.
+    Every block is iterated on its own; blocks that have converged are not evaluated again. The
+    Jacobian is kept while the step shrinks at least tenfold per iteration (the chord method: the
+    model's Jacobian changes by ~1e-4 over a correction, so this converges to the same point) and
+    re-evaluated with the residual otherwise.
     """
     n, na = q.shape
     x = np.zeros((n, na))
@@ -86,15 +89,27 @@ def solve_newton(ev: Evaluator, q: np.ndarray, ctx: np.ndarray, lam: float, tol:
     iterations = np.ones(n, int)
     converged = np.zeros(n, bool)
     active = np.arange(n)
+    last = np.full(n, np.inf)
     for _ in range(max_iterations):
-        dx = regularized_step(A[active], b[active], x[active], lam)
-        x[active] += dx
-        done = np.max(np.abs(dx), axis=1) < tol
+        every = active.size == n          # plain slices while every block is still iterating
+        sel = slice(None) if every else active
+        dx = regularized_step(A[sel], b[sel], x[sel], lam)
+        x[sel] += dx
+        size = np.max(np.abs(dx), axis=1)
+        done = size < tol
         converged[active[done]] = True
-        active = active[~done]
+        slow = size > 0.1 * last[sel]
+        last[sel] = size
+        active, slow = active[~done], slow[~done]
         if active.size == 0:
             break
-        bb, AA, _ = ev.residual_jacobian(q[active], x[active], ctx[active], target[active])
-        b[active], A[active], x_lin[active] = bb, AA, x[active]
+        refresh, keep = active[slow], active[~slow]
+        if refresh.size:
+            bb, AA, _ = ev.residual_jacobian(q[refresh], x[refresh], ctx[refresh], target[refresh])
+            b[refresh], A[refresh], x_lin[refresh] = bb, AA, x[refresh]
+        if keep.size:
+            # b(x) exactly, A from before: store the linearisation point so that predict() holds
+            bb = ev.residual(q[keep], x[keep], ctx[keep], target[keep])
+            b[keep], x_lin[keep] = bb, x[keep]
         iterations[active] += 1
     return Linearization(x, x_lin, b, A, b0, target, iterations, converged)

@@ -14,14 +14,14 @@ difference rows. Only P's values, q, l and u change between windows and SQP iter
 from __future__ import annotations
 
 import numpy as np
-import osqp
-import scipy.sparse as sp
 
 
 class WindowQP:
     """An OSQP problem for windows of ``n_nodes`` blocks (anchor included) of ``na`` axes."""
 
     def __init__(self, n_nodes: int, na: int, eps: float = 1e-7):
+        import osqp                      # imported here: most programs never need a QP
+        import scipy.sparse as sp
         self.N, self.na = int(n_nodes), int(na)
         N, na = self.N, self.na
         nv = N * na

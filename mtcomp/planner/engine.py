@@ -32,6 +32,7 @@ from ._bounds import FLAG_KINDS, INF, Bounds, flag_name
 from ._evaluate import Evaluator
 from ._pointwise import Linearization, solve_newton, solve_pinv
 from ._qp import WindowQP
+from ._small import a_x, at_b, gram
 from .problem import CompensationProblem, PlannerOptions
 
 
@@ -294,11 +295,11 @@ class Planner:
 
     # ------------------------------------------------------------------ committing
     def _commit(self, nodes: NodeSet, lin: Linearization, x: np.ndarray,
-                following: np.ndarray | None = None) -> PlanResult:
+                following: np.ndarray | None = None, limits=None) -> PlanResult:
         """Round, enforce bounds exactly, predict the deviation after correction."""
         # flags compare with the unbounded correction: what the bounds took away
         y, flags = self.bounds.enforce(x, nodes.q, nodes.exempt, self._prev, desired=lin.x,
-                                       following=following)
+                                       following=following, limits=limits)
         if len(nodes):
             self._prev = y[-1].copy()
         D = self.bounds.D
@@ -335,11 +336,11 @@ class Planner:
             qp = self._qps[n_nodes] = WindowQP(n_nodes, self.na, self.options.osqp_eps)
         return qp
 
-    def _solve_window(self, nodes: NodeSet, lin: Linearization) -> np.ndarray:
+    def _solve_window(self, nodes: NodeSet, lin: Linearization, limits) -> np.ndarray:
         """Corrections x (n, na) of one window; updates lin in place when re-linearised."""
         b, o = self.bounds, self.options
         self.stats["windows"] += 1
-        l, u = b.box(nodes.q)
+        l, u = limits[:2]
         prev = self._prev
         if not o.always_qp and b.feasible(lin.x, l, u, nodes.exempt, prev):
             return lin.x.copy()
@@ -359,8 +360,8 @@ class Planner:
         x = np.clip(lin.x, l, u)
         for _it in range(o.max_iterations):
             A = lin.A
-            H = np.einsum("nki,nkj->nij", A, A) + lam * eye
-            g = np.einsum("nki,nk->ni", A, lin.b - np.einsum("nkj,nj->nk", A, lin.x_lin))
+            H = gram(A, lam)
+            g = at_b(A, lin.b - a_x(A, lin.x_lin))
             Hall = np.concatenate([eye[None], H])
             gall = np.vstack([np.zeros((1, na)), g])
             x0 = np.vstack([lower[:1], x])
@@ -439,12 +440,14 @@ class Planner:
             nc = nw if (final and left <= W + O) else min(W, nw)
             sl = slice(pos, pos + nw)
             wn, wl = nodes.take(sl), lin.take(sl)
-            x = self._solve_window(wn, wl)
+            limits = self.bounds.limits(wn.q)
+            x = self._solve_window(wn, wl, limits)
             # keep the re-linearisation for the overlap nodes of the next window
             lin.b[sl], lin.A[sl], lin.x_lin[sl], lin.iterations[sl] = wl.b, wl.A, wl.x_lin, wl.iterations
             csl = slice(0, nc)
             following = x[nc] if nc < nw and not wn.exempt[nc] else None
-            results.append(self._commit(wn.take(csl), wl.take(csl), x[:nc], following))
+            results.append(self._commit(wn.take(csl), wl.take(csl), x[:nc], following,
+                                        tuple(a[csl] for a in limits)))
             pos += nc
         self._buffer = [(nodes.take(slice(pos, total)), lin.take(slice(pos, total)))] if pos < total \
             else []
