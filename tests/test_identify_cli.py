@@ -92,3 +92,18 @@ def test_identify_refuses_file_whose_axes_the_machine_lacks(files, capsys):
     assert main(["identify", "xfyz", str(f), "-o", str(tmp / "m.json")]) == 2
     err = _one_line_error(capsys)
     assert "rot.csv" in err and "no C axis" in err
+
+
+def test_identify_options_noise_weights_and_rcond(files, capsys):
+    tmp, paths, _ = files
+    out = tmp / "model_noise.json"
+    assert main(["identify", "xfyz", str(paths["points"]), str(paths["laser"]), "-o", str(out),
+                 "--weights", "noise", "--rcond", "1e-5"]) == 0
+    text = capsys.readouterr().out
+    assert "weighting 1/noise per file" in text
+    # the three straightness/squareness pairs are named as undetermined
+    assert "3 combination(s) the data cannot determine" in text and "C0Y" in text
+    assert out.exists()
+    assert main(["identify", "xfyz", str(paths["points"]), "-o", str(tmp / "x.json"), "--rcond", "2"]) == 2
+    assert "--rcond" in _one_line_error(capsys)
+    assert not (tmp / "x.json").exists()

@@ -50,6 +50,9 @@ from .measurement_models import MeasurementModel, measurement_model
 DEFAULT_RCOND = 1e-6
 #: most fits with weights='noise' (each re-estimates the noise of every file and unit)
 NOISE_PASSES = 5
+#: an unknown whose weight in the (orthonormal, scaled) null space exceeds this is undetermined; below
+#: it, eigenvector round-off between a null direction and a weak determined one (~1e-6) is ignored
+NULL_WEIGHT = 1e-4
 #: a parameter is named in an undetermined combination when its weight exceeds this share of the largest
 NAME_SHARE = 0.1
 
@@ -607,7 +610,7 @@ class _Problem:
         to_file = np.array([s.to_file for s in unknown_specs])
         # undetermined unknowns: those with weight in a null direction
         if sol.null.shape[1]:
-            in_null = np.linalg.norm(sol.null, axis=1) > 1e-6
+            in_null = np.linalg.norm(sol.null, axis=1) > NULL_WEIGHT
         else:
             in_null = np.zeros(self.n_unknowns, dtype=bool)
         se = np.sqrt(np.clip(np.diag(sol.cov), 0.0, None))
