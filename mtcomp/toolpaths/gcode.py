@@ -378,6 +378,15 @@ class ModalState:
 
     def _directions(self, start: np.ndarray, pts: np.ndarray) -> np.ndarray:
         """(k, na) int8 approach directions at the end of each segment; updates self.dirs."""
+        if pts.shape[0] == 1:                 # the common straight move, without array arithmetic
+            cur = self.dirs
+            for j, (a, b) in enumerate(zip(start.tolist(), pts[0].tolist())):
+                step = b - a
+                if step > DIR_EPS:
+                    cur[j] = 1
+                elif step < -DIR_EPS:
+                    cur[j] = -1
+            return cur[None, :].copy()
         prev = np.vstack([start[None, :], pts[:-1]])
         step = pts - prev
         sign = np.where(step > DIR_EPS, 1, np.where(step < -DIR_EPS, -1, 0)).astype(np.int8)
@@ -440,36 +449,32 @@ class _ChunkBuilder:
         self._reset()
 
     def _reset(self):
-        self.line, self.start, self.end, self.feed = [], [], [], []
-        self.dirs, self.rapid, self.arc = [], [], []
+        self.rows: list[tuple] = []          # (line, start, end, feed, dirs, rapid, arc) per row
         self.n = 0
 
     def add(self, b: MotionBlock) -> Iterator[SegmentChunk]:
         k = b.points.shape[0]
-        starts = b.segment_starts() if k > 1 else b.start[None, :]
-        done = 0
-        while done < k:
-            take = min(k - done, self.size - self.n)
-            sl = slice(done, done + take)
-            self.line.append(np.full(take, b.line, np.int64))
-            self.start.append(starts[sl])
-            self.end.append(b.points[sl])
-            self.feed.append(np.full(take, b.feed))
-            self.dirs.append(b.dirs[sl])
-            self.rapid.append(np.full(take, b.rapid))
-            self.arc.append(np.full(take, b.from_arc))
-            self.n += take
-            done += take
+        if k == 1 and self.n < self.size:
+            self.rows.append((b.line, b.start, b.points[0], b.feed, b.dirs[0], b.rapid, b.from_arc))
+            self.n += 1
+            if self.n == self.size:
+                yield self.flush()
+            return
+        starts = b.segment_starts()
+        for r in range(k):
+            self.rows.append((b.line, starts[r], b.points[r], b.feed, b.dirs[r], b.rapid, b.from_arc))
+            self.n += 1
             if self.n == self.size:
                 yield self.flush()
 
     def flush(self) -> SegmentChunk:
         if self.n == 0:
             return _empty_chunk(self.na)
-        c = SegmentChunk(np.concatenate(self.line), np.concatenate(self.start),
-                         np.concatenate(self.end), np.concatenate(self.feed),
-                         np.concatenate(self.dirs), np.concatenate(self.rapid),
-                         np.concatenate(self.arc))
+        line, start, end, feed, dirs, rapid, arc = zip(*self.rows)
+        c = SegmentChunk(np.array(line, np.int64), np.array(start, float).reshape(-1, self.na),
+                         np.array(end, float).reshape(-1, self.na), np.array(feed, float),
+                         np.array(dirs, np.int8).reshape(-1, self.na), np.array(rapid, bool),
+                         np.array(arc, bool))
         self._reset()
         return c
 
