@@ -13,7 +13,7 @@ from mtcomp.identification.fit import identify
 from mtcomp.identification.measurement_models import measurement_model
 from mtcomp.identification.synthetic import campaign, make_laser, make_points, random_parameters, simulate
 from mtcomp.machine import load_machine
-from mtcomp.models import Backlash, ErrorModel
+from mtcomp.models import Backlash, ErrorModel, FittedModel, ParameterSet
 
 #: linear straightness terms that duplicate the squareness terms (EXY_1 = C0Y ...): held for full rank
 REDUNDANT = ["EXY_1", "EXZ_1", "EYZ_1"]
@@ -236,3 +236,21 @@ def test_result_reports_per_file_residuals_in_file_units(xfyz):
     np.testing.assert_allclose(np.diag(corr), 1.0, rtol=1e-12, atol=0)
     d = res.to_dict()
     assert d["n_obs"] == 60 and d["files"][0]["tag"] == "probe"
+
+
+def test_start_from_fitted_model_keeps_held_values(xfyz):
+    machine, model = xfyz
+    rng = np.random.default_rng(17)
+    camp = campaign(machine, rng, n_points=150)
+    free = model.base_mask & ~np.isin(model.param_names, REDUNDANT)
+    p = random_parameters(model, rng, mask=free)
+    data = [simulate(model, d, p) for d in camp.values()]
+    # the X errors are known (held at their true values), the rest is fitted
+    held = [n for n in model.param_names if n.endswith("X_1") or n.endswith("X_2")] + REDUNDANT
+    start = FittedModel(model, ParameterSet(model.param_specs, np.where(np.isin(model.param_names, held),
+                                                                        p, 0.0)))
+    res = identify(start, data, hold=held)
+    idx = np.isin(model.param_names, held)
+    np.testing.assert_array_equal(res.values[idx], p[idx])
+    assert np.all(np.isnan(res.std_errors[idx])) and not res.free[idx].any()
+    np.testing.assert_allclose(_file(model, res.values), _file(model, p), rtol=1e-8, atol=1e-7)

@@ -118,7 +118,7 @@ def test_ballbar_length_matches_reference(xfyz):
         np.testing.assert_allclose(pred[i], np.linalg.norm(ball - table) + 2e-3, rtol=1e-13, atol=1e-12)
 
 
-@pytest.mark.parametrize("kind", ["points", "laser", "ballbar"])
+@pytest.mark.parametrize("kind", ["points", "points_dn", "laser", "ballbar"])
 def test_jacobians_match_finite_differences(cafxyz, kind):
     machine, model = cafxyz
     rng = np.random.default_rng(4)
@@ -127,6 +127,13 @@ def test_jacobians_match_finite_differences(cafxyz, kind):
     abc = np.column_stack([q[:, 3], np.zeros(n), q[:, 4]])
     if kind == "points":
         data = make_points(q[:, :3], abc, tool=rng.uniform(0, 200, n))
+    elif kind == "points_dn":   # blank cells and normal deviations: the gathered Jacobian
+        normal = rng.normal(size=(n, 3))
+        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+        dev = np.zeros((n, 3))
+        dev[::2, 1] = np.nan
+        dev[1, :] = np.nan
+        data = make_points(q[:, :3], abc, deviation=dev, normal=normal)
     elif kind == "laser":
         axis = np.array(list("XYZACX"))
         comp = np.array(["EYX", "EBY", "EZZ", "EAA", "ECC", "ECX"])

@@ -116,3 +116,23 @@ def test_predict_kind_without_model_and_bad_input(model_file, capsys, monkeypatc
     assert "CAFXYZ" in capsys.readouterr().err
     assert not out.exists()
     assert read_measurements(src).kind == "points"
+
+
+def test_predict_uses_context_columns(tmp_path):
+    # backlash on X: EXX += BL/2 * dir_x, so rows approached from + and - differ by BL in dx
+    machine = load_machine("xfyz")
+    from mtcomp.models import Backlash
+    model = ErrorModel(machine, [Backlash("X")])
+    values = np.zeros(model.n_params)
+    values[model.param_names.index("BL_X")] = 4e-3
+    values[model.param_names.index("EXX_1")] = 2e-3
+    mpath = tmp_path / "bl.json"
+    save_model(mpath, FittedModel(model, ParameterSet(model.param_specs, values)))
+    src = tmp_path / "dir.csv"
+    src.write_text("x_mm,y_mm,z_mm,dx_um,dir_x\n100,0,0,0,1\n100,0,0,0,-1\n100,0,0,0,\n")
+    out = tmp_path / "dir_pred.csv"
+    assert main(["predict", "xfyz", str(mpath), str(src), "-o", str(out)]) == 0
+    header, rows = _read(out)
+    dx = np.array([float(r[header.index("pred_dx_um")]) for r in rows])
+    # EXX_1 = 2 um per m at 100 mm: 0.2 um; +-2 um of backlash; blank dir (unknown): no step
+    np.testing.assert_allclose(dx, [0.2 + 2.0, 0.2 - 2.0, 0.2], rtol=1e-9, atol=1e-9)
