@@ -33,7 +33,7 @@ def _inputs(model, seed, n):
 def test_compiled_matches_casadi_map(cache, name, terms):
     m = load_machine(name)
     model = ErrorModel(m, [Backlash("X"), FeedOffset("Y"), RotaryErrorMotion("EXC", 1)] if terms else [])
-    q, p, c = _inputs(model, 3, 40)
+    q, p, c = _inputs(model, 3, 41)  # odd: the last SIMD pair is padded
     for fname in FUNCTIONS:
         function = getattr(model, fname)
         got = compiled.call(model, fname, function, q, p, c, required=True)
@@ -46,6 +46,46 @@ def test_compiled_matches_casadi_map(cache, name, terms):
     for a, b in zip(evaluate(model, "deviation_jacobian_function", q, p, c, backend="compiled"),
                     evaluate(model, "deviation_jacobian_function", q, p, c, backend="casadi")):
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-13 * np.abs(b).max())
+
+
+def test_other_operations_and_shared_outputs(cache):
+    """A function like the measurement models' (norm, division, power, an output that depends on
+    p alone, extra context columns) compiles and matches CasADi's map."""
+    import casadi as ca
+    model = ErrorModel(load_machine("cafxyz"))
+    q = ca.SX.sym("q", 5)
+    p = ca.SX.sym("p", model.n_params)
+    c = ca.SX.sym("c", model.n_context + 3)
+    tip, axis = model.pose_function(q, p, c[:model.n_context])
+    length = ca.norm_2(tip - c[model.n_context:])
+    outs = [length, ca.atan2(axis[1], axis[0]) / (1 + p[0] ** 2), ca.sqrt(1 + p[1] ** 2) * ca.exp(p[2])]
+    f = ca.Function("mm_test", [q, p, c], outs)
+    qv, pv, cv = _inputs(model, 8, 7)
+    cv = np.hstack([cv, np.random.default_rng(9).normal(size=(7, 3)) * 100])
+    got = compiled.call(model, "mm_test", f, qv, pv, cv, required=True)
+    for g, r in zip(got, casadi_map_call(f, qv, pv, cv)):
+        np.testing.assert_allclose(g, r, rtol=0, atol=1e-13 * np.abs(r).max())
+
+
+def test_per_pose_variants_match(cache):
+    """The per-pose forms (plain CasADi code, and with sin/cos merged into sincos) used where the
+    batched form cannot be built."""
+    model = ErrorModel(load_machine("cafxyz"))
+    f = model.deviation_qjacobian_function
+    q, p, c = _inputs(model, 10, 9)
+    ref = casadi_map_call(f, q, p, c)
+    plain, sizes = compiled.generate_source(f, merge=False)
+    assert "sincos" not in plain
+    variants = [plain]
+    if "linux" in compiled.sys.platform:
+        merged = compiled.merge_sincos(plain)
+        assert merged.count("sincos(") >= 10  # five angles per pose, sin and cos of each
+        variants.append(merged)
+    for src in variants:
+        lib = compiled.compile_source(src, compiled.find_compiler())
+        got = compiled._Compiled(lib, sizes, 5, model.n_context, model.n_params)(q, p, c)
+        for g, r in zip(got, ref):
+            np.testing.assert_allclose(g, r, rtol=0, atol=1e-13 * np.abs(r).max())
 
 
 def test_cache_is_reused(cache):

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import ctypes
 import hashlib
+import math
 import os
 import re
 import shutil
@@ -192,20 +193,22 @@ def merge_sincos(src: str) -> str:
 
 
 def generate_source(function: ca.Function, merge: bool = True) -> tuple[str, list[int]]:
-    """C source of ``function`` (split by :func:`split_function`) with the pose loop appended;
-    ``merge``: sin/cos pairs merged into sincos (:func:`merge_sincos`, glibc only).
+    """C source of ``function`` (split by :func:`split_function`) with the pose loop appended.
 
+    ``merge`` (glibc only): the fast form, poses in SIMD pairs (:func:`batched_source`) or, for an
+    operation the batched emitter does not know, CasADi's code per pose with sin/cos pairs merged
+    (:func:`merge_sincos`). Otherwise CasADi's code per pose as it is (any C99 compiler and libm).
     Returns (source, output sizes per pose: rows*cols of each output).
     """
+    fast = merge and sys.platform.startswith("linux")
+    if fast:
+        try:
+            return batched_source(function)
+        except _Unsupported:
+            pass
     pre, body, shapes = split_function(function)
-    with tempfile.TemporaryDirectory() as tmp:
-        cg = ca.CodeGenerator("mtcomp_f.c", {"with_header": False, "casadi_real": "double",
-                                            "casadi_int": "long long"})
-        cg.add(pre)
-        cg.add(body)
-        path = cg.generate(tmp + os.sep)
-        src = Path(path).read_text()
-    if merge and sys.platform.startswith("linux"):
+    src = _casadi_source([pre, body])
+    if fast:
         src = merge_sincos(src)
     sizes = [r * k for r, k in shapes]
     scatter, offset = [], 0
@@ -217,6 +220,229 @@ def generate_source(function: ca.Function, merge: bool = True) -> tuple[str, lis
                     "sz_w": sz("sz_w"), "nw": pre.numel_out(0), "nout": offset,
                     "nq": body.numel_in(0), "nc": body.numel_in(3), "scatter": "\n".join(scatter)}
     return src, sizes
+
+
+# --------------------------------------------------------------------------------- batched C
+#: poses per SIMD vector (SSE2, the x86-64 baseline, holds two doubles)
+LANES = 2
+
+_OPS = {getattr(ca, n): n for n in dir(ca) if n.startswith("OP_")}
+_UNARY = {"OP_ASSIGN": "{0}", "OP_NEG": "(-{0})", "OP_SQ": "({0}*{0})", "OP_TWICE": "(2.*{0})",
+         "OP_SIN": "sin({0})", "OP_COS": "cos({0})", "OP_TAN": "tan({0})", "OP_SQRT": "sqrt({0})",
+         "OP_INV": "(1./{0})", "OP_FABS": "fabs({0})", "OP_EXP": "exp({0})", "OP_LOG": "log({0})",
+         "OP_ASIN": "asin({0})", "OP_ACOS": "acos({0})", "OP_ATAN": "atan({0})"}
+_BINARY = {"OP_ADD": "({0}+{1})", "OP_SUB": "({0}-{1})", "OP_MUL": "({0}*{1})", "OP_DIV": "({0}/{1})",
+          "OP_POW": "pow({0},{1})", "OP_CONSTPOW": "pow({0},{1})", "OP_ATAN2": "atan2({0},{1})",
+          "OP_FMIN": "fmin({0},{1})", "OP_FMAX": "fmax({0},{1})"}
+
+
+
+class _Unsupported(Exception):
+    """The batched emitter does not know an operation of the function."""
+
+
+def batched_body(body: ca.Function, lanes: int, varying_inputs: set, out_map: dict,
+                 name: str = "mtcomp_batch") -> str:
+    """C of ``body`` evaluated on ``lanes`` poses at once with GCC/Clang vector extensions.
+
+    ``static void name(const double** in, double** out)``: ``in[k]`` points at the first pose's row
+    of input k (rows of ``numel_in(k)`` values) for k in ``varying_inputs``, at the shared vector
+    otherwise; the stacked output's entry nz goes to ``out[k][pose * row + m]`` with
+    ``(k, m, row) = out_map[nz]``. Values shared by all poses stay scalars; per-pose values are
+    vectors of ``lanes`` doubles, so +, -, *, / run as SIMD instructions (IEEE results, lane by
+    lane the same as scalar code); library functions are called per lane, sin/cos pairs of the same
+    value as one ``sincos``. Raises _Unsupported for an operation it does not know.
+    """
+    n = body.n_instructions()
+    ids = [_OPS.get(body.instruction_id(k), "?") for k in range(n)]
+    # pair sin/cos of the same value: pair_id[k] = (t, is_first)
+    version, first, pair_id = {}, {}, {}
+    n_pairs = 0
+    for k in range(n):
+        op = ids[k]
+        if op in ("OP_SIN", "OP_COS"):
+            i = body.instruction_input(k)[0]
+            key = (i, version.get(i, 0))
+            if key in first and ids[first[key]] != op:
+                pair_id[first.pop(key)] = (n_pairs, True)
+                pair_id[k] = (n_pairs, False)
+                n_pairs += 1
+            elif key not in first:
+                first[key] = k
+        if op != "OP_OUTPUT":
+            o = body.instruction_output(k)[0]
+            version[o] = version.get(o, 0) + 1
+    uni = {}
+    used_u, used_v = set(), set()
+    lines = []
+    L = lanes
+
+    ARITH = {"OP_ASSIGN", "OP_NEG", "OP_SQ", "OP_TWICE", "OP_INV", "OP_ADD", "OP_SUB", "OP_MUL", "OP_DIV"}
+    lane = {"j": None}
+
+    def opnd(i):
+        if uni[i]:
+            used_u.add(i)
+            return f"u{i}"
+        used_v.add(i)
+        return f"v{i}" if lane["j"] is None else f"v{i}[{lane['j']}]"
+
+    def assign(o, is_uni, expr, fn=None):
+        uni[o] = is_uni
+        if is_uni:
+            used_u.add(o)
+            lines.append(f"  u{o}={expr};")
+        elif fn is None:  # vector arithmetic
+            used_v.add(o)
+            lines.append(f"  v{o}={expr};")
+        else:  # lane by lane
+            used_v.add(o)
+            parts = []
+            for jj in range(L):
+                lane["j"] = jj
+                parts.append(fn())
+            lane["j"] = None
+            lines.append(f"  v{o}=(vd){{{', '.join(parts)}}};")
+
+    for k in range(n):
+        op = ids[k]
+        ins = body.instruction_input(k)
+        if op == "OP_INPUT":
+            idx, nz = ins
+            o = body.instruction_output(k)[0]
+            if idx in varying_inputs:
+                row = body.numel_in(idx)
+                assign(o, False, None, fn=lambda: f"in[{idx}][{lane['j']}*{row}+{nz}]")
+            else:
+                assign(o, True, f"in[{idx}][{nz}]")
+        elif op == "OP_OUTPUT":
+            idx, nz = body.instruction_output(k)
+            kk, m, row = out_map[nz]
+            i = ins[0]
+            if uni[i]:
+                lines.append(f"  for (j=0;j<{L};++j) out[{kk}][j*{row}+{m}]=u{i};")
+                used_u.add(i)
+            else:
+                lines.append(f"  for (j=0;j<{L};++j) out[{kk}][j*{row}+{m}]=v{i}[j];")
+                used_v.add(i)
+        elif op == "OP_CONST":
+            c = body.instruction_constant(k)
+            if not math.isfinite(c):
+                raise _Unsupported("non-finite constant")
+            assign(body.instruction_output(k)[0], True, float.hex(c))
+        elif k in pair_id and not uni[ins[0]]:
+            i, o = ins[0], body.instruction_output(k)[0]
+            t, is_first = pair_id[k]
+            if is_first:
+                used_v.add(i)
+                lines.append(f"  for (j=0;j<{L};++j) sincos(v{i}[j],&ts{t}[j],&tc{t}[j]);")
+            arr = f"ts{t}" if op == "OP_SIN" else f"tc{t}"
+            assign(o, False, None, fn=lambda: f"{arr}[{lane['j']}]")
+        elif op in _UNARY:
+            i, o = ins[0], body.instruction_output(k)[0]
+            if op in ARITH or uni[i]:
+                assign(o, uni[i], _UNARY[op].format(opnd(i)))
+            else:
+                assign(o, False, None, fn=lambda: _UNARY[op].format(opnd(i)))
+        elif op in _BINARY:
+            a, b = ins[0], ins[1]
+            o = body.instruction_output(k)[0]
+            if op in ARITH or (uni[a] and uni[b]):
+                assign(o, uni[a] and uni[b], _BINARY[op].format(opnd(a), opnd(b)))
+            else:
+                assign(o, False, None, fn=lambda: _BINARY[op].format(opnd(a), opnd(b)))
+        else:
+            raise _Unsupported(op)
+    decl = [f"static void {name}(const double** in, double** out) {{", "  int j;"]
+    if used_u:
+        decl.append("  double " + ", ".join(f"u{i}" for i in sorted(used_u)) + ";")
+    if used_v:
+        decl.append("  vd " + ", ".join(f"v{i}" for i in sorted(used_v)) + ";")
+    if n_pairs:
+        decl.append("  double " + ", ".join(f"ts{t}[{L}], tc{t}[{L}]" for t in range(n_pairs)) + ";")
+    return "\n".join(decl + lines + ["}"]) + "\n"
+
+
+_BATCH_LOOP = r"""
+/* ---- mtcomp: loop over poses, %(L)d at a time (p shared, q and c one row per pose) ---- */
+void sincos(double, double*, double*);
+typedef double vd __attribute__((vector_size(%(vbytes)d)));
+%(batch)s
+int mtcomp_loop(long long n, const double* q, const double* p, const double* c, double** out) {
+  const casadi_real* arg[%(sz_arg)d + 1];
+  casadi_real* res[%(sz_res)d + 1];
+  casadi_int iw[%(sz_iw)d + 1];
+  casadi_real w[%(sz_w)d + 1], pw[%(nw)d + 1];
+  const double* in[4];
+  double* o[%(nout)d];
+  double qb[%(L)d * %(nq)d + 1], cb[%(L)d * %(nc)d + 1];
+%(obuf)s
+  long long i;
+  int k, j, r;
+  for (k = 0; k < %(sz_arg)d; ++k) arg[k] = 0;
+  for (k = 0; k < %(sz_res)d; ++k) res[k] = 0;
+  arg[0] = p;
+  res[0] = pw;
+  if (mtcomp_pre(arg, res, iw, w, 0)) return 2;
+  in[1] = p;
+  in[2] = pw;
+  for (i = 0; i + %(L)d <= n; i += %(L)d) {
+    in[0] = q + i * %(nq)d;
+    in[3] = c + i * %(nc)d;
+%(oset)s
+    mtcomp_batch(in, o);
+  }
+  if (i < n) {
+    r = (int)(n - i);
+    for (j = 0; j < %(L)d; ++j) {
+      int src = j < r ? j : r - 1;
+      for (k = 0; k < %(nq)d; ++k) qb[j * %(nq)d + k] = q[(i + src) * %(nq)d + k];
+      for (k = 0; k < %(nc)d; ++k) cb[j * %(nc)d + k] = c[(i + src) * %(nc)d + k];
+    }
+    in[0] = qb;
+    in[3] = cb;
+%(obset)s
+    mtcomp_batch(in, o);
+%(obcopy)s
+  }
+  return 0;
+}
+"""
+
+
+
+def batched_source(function: ca.Function, lanes: int = LANES) -> tuple[str, list[int]]:
+    """C source of ``function`` with the pose loop running :func:`batched_body` on ``lanes`` poses at
+    a time (the last, partial batch is padded with copies of the last pose). Raises _Unsupported."""
+    pre, body, shapes = split_function(function)
+    sizes = [r * k for r, k in shapes]
+    out_map, off = {}, 0
+    for kk, size in enumerate(sizes):
+        for m in range(size):
+            out_map[off + m] = (kk, m, size)
+        off += size
+    batch = batched_body(body, lanes, {0, 3}, out_map)
+    src = _casadi_source([pre])
+    L = lanes
+    fill = {"batch": batch, "vbytes": 8 * lanes, "sz_arg": pre.sz_arg(), "sz_res": pre.sz_res(),
+            "sz_iw": pre.sz_iw(), "sz_w": pre.sz_w(), "nw": pre.numel_out(0), "nout": len(sizes),
+            "L": L, "nq": body.numel_in(0), "nc": body.numel_in(3),
+            "obuf": "\n".join(f"  double ob{k}[{L} * {s}];" for k, s in enumerate(sizes)),
+            "oset": "\n".join(f"    o[{k}] = out[{k}] + i * {s};" for k, s in enumerate(sizes)),
+            "obset": "\n".join(f"    o[{k}] = ob{k};" for k in range(len(sizes))),
+            "obcopy": "\n".join(f"    for (j = 0; j < r * {s}; ++j) out[{k}][i * {s} + j] = ob{k}[j];"
+                                for k, s in enumerate(sizes))}
+    return src + _BATCH_LOOP % fill, sizes
+
+
+def _casadi_source(functions) -> str:
+    with tempfile.TemporaryDirectory() as tmp:
+        cg = ca.CodeGenerator("mtcomp_f.c", {"with_header": False, "casadi_real": "double",
+                                            "casadi_int": "long long"})
+        for f in functions:
+            cg.add(f)
+        path = cg.generate(tmp + os.sep)
+        return Path(path).read_text()
 
 
 def compile_source(src: str, compiler: str) -> Path:
