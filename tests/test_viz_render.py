@@ -27,7 +27,7 @@ def render(smap, path, **kw):
 
 def test_importing_mtcomp_does_not_import_pyvista():
     code = ("import sys, mtcomp, mtcomp.models, mtcomp.viz, mtcomp.viz.surface, mtcomp.cli, "
-            "mtcomp.commands.render; mtcomp.cli.build_parser(); "
+            "mtcomp.commands.render, mtcomp.demo, mtcomp.commands.demo; mtcomp.cli.build_parser(); "
             "bad = [m for m in ('pyvista', 'vtk', 'vtkmodules', 'matplotlib') if m in sys.modules]; "
             "print(bad); sys.exit(1 if bad else 0)")
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
@@ -128,3 +128,66 @@ def test_residual_plot_before_and_after(tmp_path):
     with pytest.raises(ValueError, match="one value per observation"):
         render_residuals(x, before[:-1], after, tmp_path / "bad.png")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["res.png"]
+
+
+def _plane_case(tmp_path):
+    from mtcomp import load_machine
+    from mtcomp.models import ErrorModel, FittedModel, save_model
+    machine = load_machine("xfyz")
+    fitted = FittedModel.zero(ErrorModel(machine))
+    for name, value in {"EXX_1": 40.0, "EZX_2": -30.0, "C0Y": 50.0}.items():
+        fitted.params.set_file_value(name, value)
+    save_model(tmp_path / "MODEL.json", fitted)
+    lines = ["G21 G90", "G0 Z5", "F800"]
+    for i, y in enumerate(np.linspace(0.0, 30.0, 7)):
+        xs = np.linspace(0.0, 30.0, 7)[:: 1 if i % 2 == 0 else -1]
+        lines += [f"G1 X{x:.4f} Y{y:.4f} Z{-0.05 * x:.4f}" for x in xs]
+    (tmp_path / "p.nc").write_text("\n".join(lines) + "\n")
+    comp = []                                   # the 'compensated' program: X + 2 um on every cut
+    for ln in lines:
+        if ln.startswith("G1 X"):
+            x = float(ln.split()[1][1:])
+            ln = ln.replace(ln.split()[1], f"X{x + 0.002:.4f}")
+        comp.append(ln)
+    (tmp_path / "c.nc").write_text("\n".join(comp) + "\n")
+    return machine, fitted
+
+
+def test_render_command_writes_both_files_and_prints_the_figures(tmp_path, capsys):
+    from mtcomp.cli import main
+    from mtcomp.viz.surface import program_error_map
+    machine, fitted = _plane_case(tmp_path)
+    rc = main(["render", "xfyz", str(tmp_path / "MODEL.json"), str(tmp_path / "p.nc"),
+               "--compensated", str(tmp_path / "c.nc"), "-o", str(tmp_path / "map.png"),
+               "--size", "500x300"])
+    out = capsys.readouterr().out
+    assert rc == 0
+    smap = program_error_map(machine, fitted, tmp_path / "p.nc", tmp_path / "c.nc")
+    st = smap.stats()
+    assert f"before: RMS {st['rms_before_um']:.3f} um, max {st['max_before_um']:.3f} um" in out
+    assert f"after:  RMS {st['rms_after_um']:.3f} um, max {st['max_after_um']:.3f} um" in out
+    assert "surface: 49 points" in out
+    back = pv.read(tmp_path / "map.vtp")
+    np.testing.assert_allclose(back.point_data["dn_after_um"], smap.dn_after_um, rtol=0, atol=1e-12)
+    from PIL import Image
+    assert Image.open(tmp_path / "map.png").size == (500, 300)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--compensated", "{d}/MODEL.json"], "MODEL.json"),      # not G-code
+    (["--size", "10x10"], "--size"),
+    (["--tool-radius-mm", "-1"], "--tool-radius-mm"),
+    (["--compensated", "{d}/far.nc"], "not a compensated version"),
+])
+def test_render_command_bad_input_exits_2_and_writes_nothing(tmp_path, capsys, args, message):
+    from mtcomp.cli import main
+    _plane_case(tmp_path)
+    text = (tmp_path / "p.nc").read_text().replace("G1 X", "G1 X1")   # X shifted by >= 10 mm
+    (tmp_path / "far.nc").write_text(text)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    rc = main(["render", "xfyz", str(tmp_path / "MODEL.json"), str(tmp_path / "p.nc"), "-o",
+               str(tmp_path / "map.png")] + [a.format(d=tmp_path) for a in args])
+    err = capsys.readouterr().err
+    assert rc == 2
+    assert err.count("\n") == 1 and message in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == before

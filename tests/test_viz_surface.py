@@ -7,7 +7,7 @@ import pytest
 
 from mtcomp import InputError, load_machine
 from mtcomp.models import ErrorModel, FittedModel
-from mtcomp.models.reference import reference_deviation
+from mtcomp.models.reference import reference_deviation, reference_tool_pose
 from mtcomp.viz.surface import (pair_compensated, program_error_map, read_program_points,
                                 select_surface_points, triangulate_xy, vertex_normals)
 
@@ -144,13 +144,101 @@ def test_programs_without_a_surface_are_refused(tmp_path, xfyz_model):
         program_error_map(machine, fitted, line)
 
 
-def test_tool_radius_moves_the_drawing_to_the_contact_points(tmp_path, xfyz_model):
+def test_ball_end_maps_the_ball_centre_deviation_at_the_contact_points(tmp_path, xfyz_model):
+    """Ball end of radius R: drawn at the contact points tip + R (z - n); mapped deviation is that of
+    the ball centre, tip + R * (actual tool axis), from the numpy reference."""
     machine, fitted = xfyz_model
     prog = plane_program(tmp_path / "plane.nc")
     flat = program_error_map(machine, fitted, prog)
     ball = program_error_map(machine, fitted, prog, tool_radius_mm=3.0)
     n = np.array([-A, -B, 1.0]) / np.sqrt(A ** 2 + B ** 2 + 1)
-    # contact point = ball centre (tip + R z) minus R n
     np.testing.assert_allclose(ball.points, flat.tips + 3.0 * (np.array([0, 0, 1.0]) - n),
                                rtol=0, atol=1e-12)
-    np.testing.assert_allclose(ball.dn_before_um, flat.dn_before_um, rtol=0, atol=1e-12)
+    params = dict(zip(fitted.model.param_names, fitted.params.values))
+    ctx = {"feed": 500.0, "tool_length": machine.tool_length}
+    ref = []
+    for q in ball.tips:
+        tip, axis = reference_tool_pose(machine, params, q, ctx)
+        ref.append(tip + 3.0 * axis - (q + [0, 0, 3.0]))
+    np.testing.assert_allclose(ball.dev_before, np.array(ref), rtol=1e-7, atol=1e-10)
+    # the tool's tilt moves the ball centre by up to R * angle: visible, but small against the tip's
+    diff = np.abs(ball.dn_before_um - flat.dn_before_um)
+    assert 1e-4 < diff.max() < 0.3 * np.abs(flat.dn_before_um).max()
+
+
+def test_cutting_runs_split_at_links_and_corners():
+    from mtcomp.viz.surface import cutting_runs
+    square = [[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0], [3, 1, 0], [3, 2, 0], [3, 3, 0],
+              [13, 3, 0], [14, 3, 0], [15, 3, 0], [16, 3, 0], [16, 3, 9]]
+    runs = cutting_runs(np.array(square, float))
+    # a corner at (3, 0) shared by both sides; the 10 mm link starts a new run; the last step turns up
+    assert [r.tolist() for r in runs] == [[0, 1, 2, 3], [3, 4, 5, 6], [7, 8, 9, 10]]
+
+
+def test_built_in_parts_are_recognised_by_their_header(tmp_path):
+    from mtcomp.toolpaths.parts import write_bowl_program, write_cone_frustum_program
+    from mtcomp.viz.surface import program_hints
+    write_bowl_program(tmp_path / "b.nc", ball_radius_mm=2.5, stepover_mm=10.0, step_mm=10.0)
+    assert program_hints(tmp_path / "b.nc") == {"tool_radius_mm": 2.5, "part": "seed-001 bowl"}
+    write_cone_frustum_program(tmp_path / "c.nc", load_machine("cafxyz"), n_points=24)
+    h = program_hints(tmp_path / "c.nc")
+    assert h["tool_radius_mm"] == 5.0
+    # slant height of the default frustum: (80 - 56) / 2 / sin(15 deg)
+    assert h["flank_length_mm"] == pytest.approx(12.0 / np.sin(np.radians(15.0)), rel=1e-12)
+    assert program_hints(plane_program(tmp_path / "p.nc")) == {}
+
+
+def test_bowl_contact_points_match_the_generator(tmp_path):
+    """The contact points reconstructed from the tool tips (triangulated normals) against the bowl
+    generator's analytic contact points and normals."""
+    from mtcomp.toolpaths.parts import write_bowl_program
+    machine = load_machine("xfyz")
+    tp = write_bowl_program(tmp_path / "bowl.nc", ball_radius_mm=3.0, stepover_mm=2.0, step_mm=2.0,
+                            origin_mm=(100.0, 50.0, -20.0))
+    smap = program_error_map(machine, FittedModel.zero(ErrorModel(machine)), tmp_path / "bowl.nc")
+    from scipy.spatial import cKDTree
+    dist, k = cKDTree(tp.tool_tips).query(smap.tips)
+    assert dist.max() < 1e-4                          # the program's 4 decimals
+    inner = np.all(np.abs(tp.contact_points[k, :2] - [100.0, 50.0]) < 36.0, axis=1)  # off the rim
+    # normals of the triangulated 2 mm raster: a discretisation, good to about 1 % here
+    np.testing.assert_allclose(smap.normals[inner], tp.normals[k][inner], rtol=0, atol=0.015)
+    np.testing.assert_allclose(smap.points[inner], tp.contact_points[k][inner], rtol=0, atol=0.05)
+    rms = np.sqrt(np.mean(np.sum((smap.points[inner] - tp.contact_points[k][inner]) ** 2, axis=1)))
+    assert rms < 0.01
+
+
+def test_flank_map_of_the_cone_frustum(tmp_path):
+    """5-axis flank milling: contact lines along the tool axis, normals from the path and the axis,
+    against the generator's cone geometry; the error-free model maps zero, a pure tip offset maps
+    its normal component."""
+    from mtcomp.toolpaths.parts import write_cone_frustum_program
+    machine = load_machine("cafxyz")
+    cone = write_cone_frustum_program(tmp_path / "cone.nc", machine, n_points=72)
+    fitted = FittedModel.zero(ErrorModel(machine))
+    smap = program_error_map(machine, fitted, tmp_path / "cone.nc")   # header: flank, R5
+    levels = smap.points.shape[0] // len(cone.q)
+    assert smap.points.shape[0] == levels * len(cone.q) and levels >= 2
+    base = smap.points[::levels]                      # height 0: the base circle
+    np.testing.assert_allclose(base, cone.contact_base, rtol=0, atol=1e-3)
+    np.testing.assert_allclose(smap.normals[::levels], cone.normals, rtol=0, atol=2e-3)
+    top = smap.points[levels - 1::levels]             # the top circle, radius 28 in the part frame
+    local = (top - cone.base_centre) @ cone.part2wp[:3, :3]
+    np.testing.assert_allclose(np.hypot(local[:, 0], local[:, 1]), 28.0, rtol=0, atol=2e-3)
+    np.testing.assert_allclose(local[:, 2], cone.height, rtol=0, atol=2e-3)
+    np.testing.assert_allclose(smap.dn_before_um, 0.0, rtol=0, atol=1e-9)
+    # a random machine: dn of each contact point is n . (deviation of the tool point at h a), which
+    # the cmm measurement model computes with its own CasADi function (a second formulation)
+    from mtcomp.identification.measurement_models_extra import normal_deviation
+    from mtcomp.sim import random_truth
+    from mtcomp.viz.surface import read_program_points
+    truth = random_truth(machine, np.random.default_rng(5))
+    smap = program_error_map(machine, truth, tmp_path / "cone.nc")
+    prog = read_program_points(tmp_path / "cone.nc", machine)
+    cut = np.flatnonzero(~prog.rapid)[:len(cone.q)]
+    q = np.repeat(prog.q[cut], levels, axis=0)
+    c = truth.context(len(q), {"feed": np.full(len(q), 1000.0)})
+    ref = 1e3 * normal_deviation(truth.model, q, truth.params.values, c, smap.offsets, smap.normals)
+    np.testing.assert_allclose(smap.dn_before_um, ref, rtol=1e-8, atol=1e-9)
+    assert np.abs(ref).max() > 1.0
+    h = np.linalg.norm(smap.offsets, axis=1)
+    assert h.max() == pytest.approx(12.0 / np.sin(np.radians(15.0)), rel=1e-9)

@@ -19,9 +19,17 @@ def add_arguments(parser):
                         help="the compensated program (from mtcomp compensate): adds the 'after' map")
     parser.add_argument("-o", "--output", required=True, metavar="MAP.png",
                         help="the PNG to write; MAP.vtp is written next to it")
-    parser.add_argument("--tool-radius-mm", type=float, default=0.0, metavar="R",
-                        help="ball-end radius: draw the map at the contact points (default 0: at the "
-                             "tool tips)")
+    parser.add_argument("--tool-radius-mm", type=float, default=None, metavar="R",
+                        help="ball-end radius (or the cutter radius with --flank-mm): draw the map at "
+                             "the contact points (default: from the header of a built-in test part, "
+                             "else 0: at the tool tips)")
+    parser.add_argument("--flank-mm", type=float, default=None, metavar="L",
+                        help="map the flank of the tool (5-axis side milling): contact lines along the "
+                             "tool axis over L mm from the tip (default: from the header of a built-in "
+                             "test part, else off: the surface of the tool tips)")
+    parser.add_argument("--flank-side", choices=("outer", "inner"), default="outer",
+                        help="with --flank-mm: the tool works outside the contour (a boss, default) "
+                             "or inside it (a pocket)")
     parser.add_argument("--glyphs", action="store_true",
                         help="draw the deviation vectors as exaggerated arrows")
     parser.add_argument("--glyph-scale", type=float, default=None, metavar="K",
@@ -47,13 +55,17 @@ def run(args) -> int:
     from ..io.atomic import check_output_path
     from ..machine import load_machine
     from ..models import load_model
-    from ..viz.surface import program_error_map
+    from ..viz.surface import program_error_map, program_hints
 
     out = Path(args.output)
     if out.suffix.lower() != ".png":
         raise InputError("the map must be a .png file", out)
     if args.glyph_scale is not None and not args.glyph_scale > 0:
         raise InputError(f"--glyph-scale must be > 0, got {args.glyph_scale}")
+    if args.tool_radius_mm is not None and not args.tool_radius_mm >= 0:
+        raise InputError(f"--tool-radius-mm must be >= 0, got {args.tool_radius_mm}")
+    if args.flank_mm is not None and not args.flank_mm >= 0:
+        raise InputError(f"--flank-mm must be >= 0, got {args.flank_mm}")
     if args.range_um is not None and not args.range_um > 0:
         raise InputError(f"--range-um must be > 0, got {args.range_um}")
     size = _size(args.size)
@@ -66,14 +78,19 @@ def run(args) -> int:
     machine = load_machine(args.machine)
     fitted = load_model(args.model, machine)
     smap = program_error_map(machine, fitted, args.program, args.compensated,
-                             tool_radius_mm=args.tool_radius_mm)
+                             tool_radius_mm=args.tool_radius_mm, flank_length_mm=args.flank_mm,
+                             flank_side=args.flank_side)
     from ..viz.render import render_error_map
     clim = None if args.range_um is None else (-args.range_um, args.range_um)
     res = render_error_map(smap, out, glyphs=args.glyphs or args.glyph_scale is not None,
                            glyph_scale=args.glyph_scale, clim=clim, window_size=size,
                            backend=args.backend)
     st = res.stats
-    print(f"surface: {st['n_points']} points, {st['n_triangles']} triangles")
+    hints = program_hints(args.program)
+    flank = args.flank_mm if args.flank_mm is not None else hints.get("flank_length_mm", 0.0)
+    what = f"flank contact lines, {flank:g} mm" if flank > 0 else "tool-tip surface"
+    print(f"surface: {st['n_points']} points, {st['n_triangles']} triangles ({what}"
+          + (f"; recognised the {hints['part']}" if hints else "") + ")")
     print(f"before: RMS {st['rms_before_um']:.3f} um, max {st['max_before_um']:.3f} um "
           "(deviation along the surface normal)")
     if "rms_after_um" in st:

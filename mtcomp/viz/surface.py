@@ -27,13 +27,16 @@ nominal point; original and compensated blocks are paired in source-line order.
 """
 from __future__ import annotations
 
+import math
 import os
+import re
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import InputError
-from ..kinematics import forward
+from ..kinematics import forward, tool2wp
 from ..machine import Machine
 
 #: points closer than this in XY (mm) count as the same surface point
@@ -79,9 +82,12 @@ class SurfaceMap:
     normals : (N, 3) unit surface normals, pointing towards the tool.
     triangles : (M, 3) int, vertex indices.
     line : (N,) int, source line of each point in the original program.
-    dev_before : (N, 3) mm, actual minus nominal tool tip, original program.
-    dev_after : (N, 3) mm or None, actual tip at the corrected axes minus the ORIGINAL nominal tip.
+    dev_before : (N, 3) mm, actual minus nominal position of the tool point at ``offsets``.
+    dev_after : (N, 3) mm or None, at the corrected axes minus the ORIGINAL nominal position.
     source : the program's path, compensated : the compensated program's path or None.
+    offsets : (N, 3) mm, the tool point whose deviation is mapped, relative to the nominal tip
+        (workpiece frame): zero for the tip, the ball centre for a ball end, the axis point at the
+        contact height on a flank. dev_before/dev_after are the deviations of that point.
     """
 
     points: np.ndarray
@@ -93,6 +99,7 @@ class SurfaceMap:
     dev_after: np.ndarray | None = None
     source: str = ""
     compensated: str | None = None
+    offsets: np.ndarray | None = None
 
     @property
     def dn_before_um(self) -> np.ndarray:
@@ -180,16 +187,42 @@ def _context(fitted, q_count, feed, dirs):
     return fitted.context(q_count, cols)
 
 
-def predicted_tip(fitted, q: np.ndarray, feed: np.ndarray, dirs: np.ndarray) -> np.ndarray:
-    """(n, 3) mm: the actual tool tip in the workpiece frame at axis positions q (n, na), as the model
-    predicts it (nominal forward kinematics plus the model's tip deviation)."""
-    from ..models import deviation
-    if q.shape[0] == 0:
+_FRAME_FUNCTIONS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def _frame_function(model):
+    """CasADi (q, p, c) -> (tip (3,), R (9,) column-major): the actual tool frame in the workpiece
+    frame, from the model's symbolic chain. Built once per model."""
+    f = _FRAME_FUNCTIONS.get(model)
+    if f is None:
+        import casadi as ca
+        q = ca.SX.sym("q", model.machine.n_axes)
+        p = ca.SX.sym("p", model.n_params)
+        c = ca.SX.sym("c", model.n_context)
+        tip, _, R = model.symbolic(q, p, c, errors=True)
+        f = ca.Function("viz_tool_frame", [q, p, c], [tip, ca.reshape(R, 9, 1)])
+        _FRAME_FUNCTIONS[model] = f
+    return f
+
+
+def predicted_points(fitted, q: np.ndarray, feed: np.ndarray, dirs: np.ndarray,
+                     offset_tool: np.ndarray | None = None) -> np.ndarray:
+    """(n, 3) mm: where the tool point at ``offset_tool`` (n, 3) mm, tool frame (None: the tip) really
+    is in the workpiece frame at axis positions q (n, na), as the model ``fitted`` predicts it (its
+    tool tip and tool rotation, every term included; feed mm/min and approach directions as context).
+    """
+    from ..models.evaluate import casadi_map_call
+    n = q.shape[0]
+    if n == 0:
         return np.zeros((0, 3))
-    c = _context(fitted, q.shape[0], feed, dirs)
-    dev = deviation(fitted.model, q, fitted.params.values, c)
-    tip0, _ = forward(fitted.machine, q)
-    return tip0 + dev[:, :3]
+    c = _context(fitted, n, feed, dirs)
+    tip, rflat = casadi_map_call(_frame_function(fitted.model), np.ascontiguousarray(q, dtype=float),
+                                 np.asarray(fitted.params.values, dtype=float),
+                                 np.ascontiguousarray(c, dtype=float))
+    if offset_tool is None:
+        return tip
+    R = rflat.reshape(n, 3, 3).transpose(0, 2, 1)
+    return tip + np.einsum("nij,nj->ni", R, offset_tool)
 
 
 def pair_compensated(original: ProgramPoints, compensated: ProgramPoints, machine: Machine,
@@ -240,38 +273,169 @@ def pair_compensated(original: ProgramPoints, compensated: ProgramPoints, machin
     return idx
 
 
+@dataclass
+class _Geometry:
+    """Surface points of a program: ``index`` (N,) into the program's segment ends, ``draw`` (N, 3)
+    where the point is drawn, ``offset`` (N, 3) the tool point (relative to the tip, workpiece frame,
+    nominal orientation) whose deviation along the normal is the part's, ``normals`` (N, 3),
+    ``triangles`` (M, 3)."""
+
+    index: np.ndarray
+    draw: np.ndarray
+    offset: np.ndarray
+    normals: np.ndarray
+    triangles: np.ndarray
+
+
+def _tip_geometry(orig: ProgramPoints, machine: Machine, radius: float, max_edge_factor: float):
+    cut = np.flatnonzero(~orig.rapid)
+    tips_all, axes_all = forward(machine, orig.q[cut])
+    keep = select_surface_points(tips_all)
+    tips, axis = tips_all[keep], axes_all[keep]
+    tri = triangulate_xy(tips, max_edge_factor)
+    normals = vertex_normals(tips, tri, axis)
+    # a ball end cuts with its surface: the contact point's deviation along n is the ball centre's
+    draw = tips + radius * (axis - normals) if radius > 0 else tips.copy()
+    return _Geometry(cut[keep], draw, radius * axis, normals, tri)
+
+
+def cutting_runs(tips: np.ndarray, gap_factor: float = 5.0, corner_deg: float = 60.0
+                 ) -> list[np.ndarray]:
+    """Split consecutive cutting points (n, 3) into runs: at steps longer than ``gap_factor`` times
+    the median step (linking moves), and where the path turns by more than ``corner_deg`` (a corner,
+    or an approach or leave move along the normal; the corner point belongs to both runs). Runs of at
+    least 3 points, as index arrays."""
+    n = tips.shape[0]
+    if n < 3:
+        return []
+    steps = np.diff(tips, axis=0)
+    length = np.linalg.norm(steps, axis=1)
+    long = length > gap_factor * max(float(np.median(length)), 1e-9)
+    unit = steps / np.maximum(length, 1e-300)[:, None]
+    turn = np.einsum("ij,ij->i", unit[:-1], unit[1:]) < np.cos(np.radians(corner_deg))
+    runs, start = [], 0
+    for i in range(1, n):                      # step i-1 goes from point i-1 to point i
+        if long[i - 1]:
+            runs.append(np.arange(start, i))
+            start = i
+        elif i < n - 1 and turn[i - 1]:        # the path turns at point i
+            runs.append(np.arange(start, i + 1))
+            start = i
+    runs.append(np.arange(start, n))
+    return [r for r in runs if r.size >= 3]
+
+
+def _flank_geometry(orig: ProgramPoints, machine: Machine, radius: float, length: float,
+                    side: str, n_levels: int | None):
+    cut = np.flatnonzero(~orig.rapid)
+    tips_all, axes_all = forward(machine, orig.q[cut])
+    idx, draw, offset, normals, tris = [], [], [], [], []
+    base = 0
+    for run in cutting_runs(tips_all):
+        tips, axis = tips_all[run], axes_all[run]
+        t = np.gradient(tips, axis=0)
+        step = float(np.median(np.linalg.norm(np.diff(tips, axis=0), axis=1)))
+        if np.linalg.norm(tips[-1] - tips[0]) < 1e-3 * step:   # closed contour: no ends
+            t[0] = t[-1] = tips[1] - tips[-2]
+        nrm = np.cross(t, axis)
+        nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
+        # outer wall: the normal points away from the middle of the run (inner: towards it)
+        out = tips - tips.mean(axis=0)
+        out -= np.einsum("ij,ij->i", out, axis)[:, None] * axis
+        sign = np.sign(np.einsum("ij,ij->i", nrm, out).sum()) or 1.0
+        nrm *= sign if side == "outer" else -sign
+        k = n_levels or int(np.clip(np.ceil(length / max(step, 1e-9)) + 1, 2, 41))
+        h = np.linspace(0.0, length, k)
+        m = run.size
+        # grid point (i, j): pose i, height h_j along the tool axis; the contact line on the flank
+        off = axis[:, None, :] * h[None, :, None]
+        idx.append(np.repeat(cut[run], k))
+        offset.append(off.reshape(-1, 3))
+        draw.append((tips[:, None, :] + off - radius * nrm[:, None, :]).reshape(-1, 3))
+        normals.append(np.repeat(nrm, k, axis=0))
+        ii, jj = np.meshgrid(np.arange(m - 1), np.arange(k - 1), indexing="ij")
+        v00 = (ii * k + jj).ravel() + base
+        v01, v10, v11 = v00 + 1, v00 + k, v00 + k + 1
+        tris.append(np.vstack([np.column_stack([v00, v10, v11]), np.column_stack([v00, v11, v01])]))
+        base += m * k
+    if not idx:
+        raise InputError("flank map: the program has no run of 3 or more cutting points", orig.path)
+    return _Geometry(np.concatenate(idx), np.vstack(draw), np.vstack(offset), np.vstack(normals),
+                     np.vstack(tris))
+
+
+_BOWL_HEADER = re.compile(r"SEED 001 BOWL .*BALL R\s*([0-9.]+)", re.I)
+_CONE_HEADER = re.compile(r"CONE FRUSTUM D([0-9.]+)/D([0-9.]+) HALF-ANGLE ([0-9.]+).*END MILL R\s*"
+                          r"([0-9.]+)", re.I)
+
+
+def program_hints(path) -> dict:
+    """Tool and surface of the built-in test parts (mtcomp.toolpaths.parts), from the header comment
+    in the first 30 lines: the seed-001 bowl gives ``tool_radius_mm``; the cone frustum gives
+    ``tool_radius_mm`` and ``flank_length_mm`` (its slant height). {} for any other program."""
+    try:
+        with open(path, encoding="latin-1") as f:
+            head = "".join(f.readline() for _ in range(30))
+    except OSError:
+        return {}
+    m = _BOWL_HEADER.search(head)
+    if m:
+        return {"tool_radius_mm": float(m.group(1)), "part": "seed-001 bowl"}
+    m = _CONE_HEADER.search(head)
+    if m:
+        big, small, half, r = (float(g) for g in m.groups())
+        return {"tool_radius_mm": r, "flank_length_mm": 0.5 * (big - small) / math.sin(math.radians(half)),
+                "part": "cone frustum"}
+    return {}
+
+
 def program_error_map(machine: Machine, fitted, program, compensated=None,
-                      tool_radius_mm: float = 0.0, max_edge_factor: float = MAX_EDGE_FACTOR
-                      ) -> SurfaceMap:
+                      tool_radius_mm: float | None = None, flank_length_mm: float | None = None,
+                      flank_side: str = "outer", max_edge_factor: float = MAX_EDGE_FACTOR,
+                      flank_levels: int | None = None) -> SurfaceMap:
     """The surface ``program`` cuts, with the deviation predicted by ``fitted`` (a FittedModel).
 
-    program, compensated : paths of NC files (or :class:`ProgramPoints`). tool_radius_mm : ball-end
-    radius, mm (0: draw the map at the tool tips). Raises InputError for programs without a surface
-    or a compensated program that does not match.
+    program, compensated : paths of NC files (or :class:`ProgramPoints`).
+    tool_radius_mm : ball-end radius (tip surface) or cylinder radius (flank), mm; None: from the
+        header of a built-in test part (:func:`program_hints`), else 0 (the map at the tool tips).
+    flank_length_mm : > 0 maps the flank of the tool instead (5-axis side milling): contact lines
+        along the tool axis from the tip over this length, offset by the tool radius; None: from the
+        header of a built-in part, else the tip surface. flank_side : 'outer' (the tool works
+        outside the contour, e.g. a boss) or 'inner' (a pocket).
+    Raises InputError for programs without a surface or a compensated program that does not match.
     """
-    if not tool_radius_mm >= 0:
+    hints = program_hints(program) if not isinstance(program, ProgramPoints) else {}
+    radius = hints.get("tool_radius_mm", 0.0) if tool_radius_mm is None else float(tool_radius_mm)
+    length = hints.get("flank_length_mm", 0.0) if flank_length_mm is None else float(flank_length_mm)
+    if not radius >= 0:
         raise InputError(f"tool radius must be >= 0 mm, got {tool_radius_mm}")
+    if not length >= 0:
+        raise InputError(f"flank length must be >= 0 mm, got {flank_length_mm}")
+    if flank_side not in ("outer", "inner"):
+        raise InputError(f"flank side must be 'outer' or 'inner', not {flank_side!r}")
     orig = program if isinstance(program, ProgramPoints) else read_program_points(program, machine)
     comp = None
     if compensated is not None:
         comp = (compensated if isinstance(compensated, ProgramPoints)
                 else read_program_points(compensated, machine))
         pair = pair_compensated(orig, comp, machine)
-    cut = np.flatnonzero(~orig.rapid)
-    if cut.size == 0:
+    if not np.any(~orig.rapid):
         raise InputError("the program has no feed moves (G1/G2/G3): nothing is cut", orig.path)
-    tips_all, axes_all = forward(machine, orig.q[cut])
-    keep = select_surface_points(tips_all)
-    sel = cut[keep]
-    tips, tool_axis = tips_all[keep], axes_all[keep]
-    tri = triangulate_xy(tips, max_edge_factor)
-    normals = vertex_normals(tips, tri, tool_axis)
-    actual = predicted_tip(fitted, orig.q[sel], orig.feed[sel], orig.dirs[sel])
-    dev_before = actual - tips
+    if length > 0:
+        g = _flank_geometry(orig, machine, radius, length, flank_side, flank_levels)
+    else:
+        g = _tip_geometry(orig, machine, radius, max_edge_factor)
+    sel = g.index
+    T0 = tool2wp(machine, orig.q[sel])
+    tips = T0[:, :3, 3]
+    offset_tool = np.einsum("nji,nj->ni", T0[:, :3, :3], g.offset)   # R0^T offset: tool frame
+    nominal = tips + g.offset
+    dev_before = predicted_points(fitted, orig.q[sel], orig.feed[sel], orig.dirs[sel],
+                                  offset_tool) - nominal
     dev_after = None
     if comp is not None:
         j = pair[sel]
-        dev_after = predicted_tip(fitted, comp.q[j], comp.feed[j], comp.dirs[j]) - tips
-    points = tips + tool_radius_mm * (tool_axis - normals) if tool_radius_mm > 0 else tips.copy()
-    return SurfaceMap(points, tips, normals, tri, orig.line[sel].copy(), dev_before, dev_after,
-                      orig.path, None if comp is None else comp.path)
+        dev_after = predicted_points(fitted, comp.q[j], comp.feed[j], comp.dirs[j],
+                                     offset_tool) - nominal
+    return SurfaceMap(g.draw, tips, g.normals, g.triangles, orig.line[sel].copy(), dev_before,
+                      dev_after, orig.path, None if comp is None else comp.path, g.offset)
