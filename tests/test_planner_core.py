@@ -287,3 +287,23 @@ def test_internal_nodes_where_the_error_varies_along_a_long_move():
     assert n_plain == 1 and worst_plain > 2.0
     assert n_sub == count > 8
     assert worst_sub < 0.3
+
+
+def test_cvxpy_user_constraints_no_z_and_nothing_on_the_first_blocks():
+    fitted = fitted_model("xfyz", 81)
+    n = 40
+    q = np.column_stack([np.linspace(-100, 100, n), np.linspace(-50, 50, n), np.full(n, -20.0)])
+    problem = CompensationProblem.from_machine(fitted, max_correction_um=30.0, max_step_um=1.0)
+    free = plan_with_cvxpy(problem, q)
+    dq = plan_with_cvxpy(problem, q, extra_constraints=lambda x: [x[:, 2] == 0, x[:10, :] == 0])
+    np.testing.assert_allclose(dq[:, 2], 0.0, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(dq[:10], 0.0, rtol=0, atol=1e-9)
+    # after block 10 X and Y ramp up by at most the step bound, then follow the free solution
+    steps = np.abs(np.diff(dq[:, :2], axis=0)) * 1e3
+    assert np.all(steps <= 1.0 + 1e-6)
+    np.testing.assert_allclose(dq[-5:, :2], free[-5:, :2], rtol=0, atol=2e-6)
+    # Z is left uncorrected: its error stays (the actual Z at the blocks equals the model's EZ error)
+    err = actual_pose(fitted, q + dq, np.full(n, np.nan), np.zeros((n, 3))) - nominal_pose(fitted.machine, q)
+    base = actual_pose(fitted, q, np.full(n, np.nan), np.zeros((n, 3))) - nominal_pose(fitted.machine, q)
+    np.testing.assert_allclose(err[-5:, 2], base[-5:, 2], rtol=0, atol=1e-4 * 1e-3 + 1e-7)
+    assert np.abs(base[:, 2]).max() > 1e-3
