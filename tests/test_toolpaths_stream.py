@@ -50,7 +50,7 @@ def test_memory_flat_with_length(tmp_path, monkeypatch, mode, small, large):
         src = tmp_path / f"p{n}.nc"
         _program(src, n)
         out = tmp_path / f"o{n}.nc"
-        peaks[n], rows = _peak_and_rows(src, out, chunk_size=2000)
+        peaks[n], rows = _peak_and_rows(src, out, chunk_size=200)
         assert rows >= n + 2
         written = out.read_text().splitlines()
         assert len(written) >= n + 6
