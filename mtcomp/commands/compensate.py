@@ -145,5 +145,12 @@ def run(args) -> int:
     print(f"mtcomp compensate: method {args.method}, {machine.name} ({machine.topology}), "
           f"{elapsed:.1f} s")
     print(summary.text())
+    st = planner.stats
+    if args.method == "qp" and st["windows"]:
+        print(f"qp: {st['windows_qp']} of {st['windows']} windows needed OSQP "
+              f"({st['qp_solves']} solves)")
+    if st.get("qp_failed"):
+        print(f"warning: OSQP failed on {st['qp_failed']} windows; their corrections were clamped "
+              "to the bounds instead (reported as active bounds)")
     print(f"wrote {out}" + (f" and {report}" if report is not None else ""))
     return 0

@@ -309,10 +309,13 @@ class Planner:
         else:
             corrected = nodes.q + y / D
         correction = corrected - nodes.q
-        if self.options.method == "pinv":
-            after_w = self.ev.residual(nodes.q, y, nodes.context, lin.target)
-        else:
-            after_w = lin.predict(y)
+        # first order around the last linearisation where the written correction is close to it
+        # (the iterations end there); the exact model where it is not (pinv, clamped blocks)
+        after_w = lin.predict(y)
+        far = np.flatnonzero(np.max(np.abs(y - lin.x_lin), axis=1) > 0.5)
+        if far.size:
+            after_w[far] = self.ev.residual(nodes.q[far], y[far], nodes.context[far],
+                                            lin.target[far])
         S = self.ev.S
         before = lin.b0 / S
         after = after_w / S
@@ -369,7 +372,9 @@ class Planner:
             self.stats["qp_solves"] += 1
             self.stats["qp_status"][status] = self.stats["qp_status"].get(status, 0) + 1
             if status not in ("solved", "solved inaccurate"):
-                raise RuntimeError(f"OSQP failed on a window: {status}")
+                # keep going with the unbounded solution; enforce() clamps it and flags the bounds
+                self.stats["qp_failed"] = self.stats.get("qp_failed", 0) + 1
+                return np.clip(lin.x, l, u)
             x = sol[1:]
             moved = np.max(np.abs(x - lin.x_lin), axis=1) >= o.step_tol_um
             if not np.any(moved):
