@@ -88,7 +88,7 @@ def test_per_pose_variants_match(cache):
             np.testing.assert_allclose(g, r, rtol=0, atol=1e-13 * np.abs(r).max())
 
 
-def test_cache_is_reused(cache):
+def test_cache_is_reused(cache, monkeypatch):
     model = ErrorModel(load_machine("xfyz"))
     q, p, c = _inputs(model, 4, 10)
     before = compiled.compile_count
@@ -98,6 +98,11 @@ def test_cache_is_reused(cache):
     assert len(libs) == 1
     mtime = libs[0].stat().st_mtime_ns
     compiled.forget_loaded()  # as a new process would: only the disk cache is left
+
+    def no_codegen(*args, **kwargs):
+        raise AssertionError("a cached library must be found without generating C")
+
+    monkeypatch.setattr(compiled, "generate_source", no_codegen)
     second = compiled.call(model, "deviation_function", model.deviation_function, q, p, c, required=True)
     assert compiled.compile_count == before + 1
     assert libs[0].stat().st_mtime_ns == mtime

@@ -502,16 +502,55 @@ _failed: dict = {}  # (structure key, function name, compiler) -> message of the
 
 
 def forget_loaded():
-    """Drop the in-process cache of loaded libraries and failures (the disk cache stays)."""
+    """Drop the in-process caches of libraries, sources and failures (the disk cache stays)."""
     with _lock:
         _loaded.clear()
         _failed.clear()
+        _sources.clear()
 
 
 def _source(skey, function, merge: bool):
     if (skey, merge) not in _sources:
         _sources[(skey, merge)] = generate_source(function, merge=merge)
     return _sources[(skey, merge)]
+
+
+def _generator_fingerprint() -> str:
+    """Hash of this module's code and CasADi's version: a change of either makes new libraries."""
+    global _GENERATOR
+    if _GENERATOR is None:
+        _GENERATOR = hashlib.sha256(Path(__file__).read_bytes() + ca.__version__.encode()).hexdigest()
+    return _GENERATOR
+
+
+_GENERATOR = None
+
+
+def _index_path(function: ca.Function, compiler: str) -> Path:
+    """Small file naming the library built for this function (so that a new process finds a cached
+    library without generating the C again)."""
+    key = hashlib.sha256(b"\0".join([function.serialize().encode(), compiler.encode(),
+                                      " ".join(CFLAGS).encode(), _generator_fingerprint().encode()]))
+    return cache_dir() / f"index-{key.hexdigest()[:24]}"
+
+
+def _from_index(function: ca.Function, compiler: str) -> Path | None:
+    try:
+        name = _index_path(function, compiler).read_text().strip()
+    except OSError:
+        return None
+    lib = cache_dir() / name
+    return lib if name.startswith("mtcomp_") and lib.exists() else None
+
+
+def _write_index(function: ca.Function, compiler: str, lib: Path):
+    path = _index_path(function, compiler)
+    try:
+        with tempfile.NamedTemporaryFile("w", dir=path.parent, prefix=".index-", delete=False) as fh:
+            fh.write(lib.name)
+        os.replace(fh.name, path)
+    except OSError:
+        pass  # the index only saves time
 
 
 def get_compiled(model, name: str, function: ca.Function, compile_if_missing: bool = True):
@@ -530,22 +569,23 @@ def get_compiled(model, name: str, function: ca.Function, compile_if_missing: bo
             raise CompileError("no C compiler")
         if (skey, compiler) in _failed:
             raise CompileError(_failed[(skey, compiler)])
-        # first with sin/cos merged into sincos, then (a libm without sincos) plain
-        variants = [True, False] if (skey, compiler, "merged") not in _failed else [False]
-        for merge in variants:
-            src, sizes = _source(skey, function, merge)
-            if merge and "sincos(" not in src:
-                continue
-            key = hashlib.sha256("\0".join([src, compiler, *CFLAGS]).encode()).hexdigest()[:24]
-            if not compile_if_missing and not (cache_dir() / f"mtcomp_{key}.so").exists():
+        sizes = [function.numel_out(k) for k in range(function.n_out())]
+        lib = _from_index(function, compiler)
+        if lib is None:
+            if not compile_if_missing:
                 return None
-            try:
-                lib = compile_source(src, compiler)
-                break
-            except CompileError as exc:
-                _failed[(skey, compiler, "merged") if merge else (skey, compiler)] = str(exc)
-                if not merge:
-                    raise
+            # first with the fast form, then (a compiler or libm without what it needs) plain
+            variants = [True, False] if (skey, compiler, "merged") not in _failed else [False]
+            for merge in variants:
+                src, sizes = _source(skey, function, merge)
+                try:
+                    lib = compile_source(src, compiler)
+                    break
+                except CompileError as exc:
+                    _failed[(skey, compiler, "merged") if merge else (skey, compiler)] = str(exc)
+                    if not merge:
+                        raise
+            _write_index(function, compiler, lib)
         comp = _Compiled(lib, sizes, function.numel_in(0), function.numel_in(2), function.numel_in(1))
         _loaded[skey] = comp
         return comp
