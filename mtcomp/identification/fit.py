@@ -280,10 +280,10 @@ def _free_mask(model: ErrorModel, free, hold) -> np.ndarray:
     names = model.param_names
     if free is None:
         mask = model.base_mask.copy()
-    elif isinstance(free, np.ndarray) and free.dtype == bool:
-        if free.shape != (model.n_params,):
-            raise ValueError(f"free mask must have shape ({model.n_params},)")
-        mask = free.copy()
+    elif np.asarray(free).dtype == bool:
+        mask = np.array(free, dtype=bool)
+        if mask.shape != (model.n_params,):
+            raise ValueError(f"free mask must have shape ({model.n_params},), got {mask.shape}")
     else:
         free = list(free)
         unknown = [n for n in free if n not in names]
@@ -342,8 +342,9 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
     free : None (``model.base_mask``), a bool mask (n_params,), or parameter names.
     hold : names to hold at their start values even if ``free`` includes them.
     initial : (n_params,) start values, internal units (default zeros, or the FittedModel's).
-    weights : ``"unit"`` (residuals in um and urad), ``"noise"`` (iteratively reweighted, 1/noise per file and
-        unit) or a dict tag -> noise (um for translational/length columns, urad for angular ones).
+    weights : ``"unit"`` (residuals in um and urad), ``"noise"`` (iteratively reweighted, 1/noise
+        per file and unit) or a dict tag -> noise (um for translational/length columns, urad for
+        angular ones).
     rcond : relative singular-value threshold for undetermined directions.
     max_iterations, tol : Gauss-Newton stops when the scaled step is below tol (relative).
     context_defaults : values of context channels the files lack.
