@@ -285,3 +285,27 @@ def test_chunks_split_blocks_and_concatenate(tmp_path):
     # segments chain: each start is the previous end
     np.testing.assert_array_equal(cat.start[1:], cat.end[:-1])
     assert cat.dirs.dtype == np.int8 and cat.start.shape == (len(cat), 3)
+
+
+def test_initial_position(tmp_path):
+    p = _write(tmp_path, "G91 G1 X1 F10\nG90 G28\nG1 Y1\n")
+    init = np.array([5.0, 0.0, 2.0])
+    prog = read_program(p, XFYZ, initial_position=init)
+    np.testing.assert_allclose(prog.blocks[0].start, init, rtol=0, atol=0)
+    np.testing.assert_allclose(prog.blocks[0].end, [6, 0, 2], rtol=0, atol=0)
+    np.testing.assert_allclose(prog.blocks[1].start, init, rtol=0, atol=0)    # G28: home = initial
+    c = SegmentChunk.concatenate(list(iter_segment_chunks(p, XFYZ, initial_position=init)), 3)
+    np.testing.assert_allclose(c.end, [[6, 0, 2], [5, 1, 2]], rtol=0, atol=0)
+    out = tmp_path / "out.nc"
+    write_corrected(p, out, XFYZ, None, initial_position=init)
+    assert out.read_text().splitlines()[0] == "G90 G1 X6.0000 Y0.0000 Z2.0000 F10"
+
+
+def test_incremental_home_move_keeps_its_meaning(tmp_path):
+    # the output drops the G91 of line 1 (it is absolute); G28 Z0 on line 2 relies on G91, so a
+    # G91 line is put before it, and the next motion line switches back to G90
+    p = _write(tmp_path, "G91 G1 X1 F100\nG28 Z0\nG1 X1\n(end)\n")
+    out = tmp_path / "out.nc"
+    write_corrected(p, out, XFYZ, None)
+    assert out.read_text() == ("G90 G1 X1.0000 Y0.0000 Z0.0000 F100\nG91\nG28 Z0\n"
+                               "G90 G1 X2.0000 Y0.0000 Z0.0000\n(end)\n")

@@ -98,13 +98,14 @@ def _ptr(a: np.ndarray | None):
 class _Driver:
     """Feeds the input to the compiled scanner and interprets its fallback lines in Python."""
 
-    def __init__(self, path, machine, chord_tol_mm):
+    def __init__(self, path, machine, chord_tol_mm, initial_position=None):
         from .gcode import ModalState
         self.lib = _load()
         self.path = os.fspath(path)
-        self.state = ModalState(machine, path, chord_tol_mm)
+        self.state = ModalState(machine, path, chord_tol_mm, initial_position)
         self.na = machine.n_axes
         st = np.zeros(20)
+        st[:self.na] = self.state.position
         st[6:12] = 1.0
         st[12] = math.nan
         st[13] = -1.0
@@ -182,14 +183,14 @@ def _new_rows(cap, na):
             np.empty((cap, na), np.int8), np.empty(cap, np.uint8), np.zeros(cap, bool))
 
 
-def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size):
+def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_position=None):
     """Compiled counterpart of :func:`mtcomp.toolpaths.gcode.iter_segment_chunks`."""
     from .gcode import SegmentChunk
     cap = int(chunk_size)
     if cap < 1:
         raise ValueError("chunk_size must be >= 1")
     na = machine.n_axes
-    d = _Driver(path, machine, chord_tol_mm)
+    d = _Driver(path, machine, chord_tol_mm, initial_position)
     rows = _new_rows(cap, na)
     n = ctypes.c_longlong(0)
 
@@ -242,12 +243,12 @@ def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size):
         yield chunk()
 
 
-def write_corrected(in_path, out_path, machine, cursor, chord_tol_mm):
+def write_corrected(in_path, out_path, machine, cursor, chord_tol_mm, initial_position=None):
     """Compiled counterpart of :func:`mtcomp.toolpaths.gcode.write_corrected` (cursor prepared)."""
-    from .gcode import _line_ending, format_motion_lines
+    from .gcode import _line_ending, format_motion_lines, write_pass_through
     letters = "".join(machine.axis_names)
     rotary = [c in "ABC" for c in letters]
-    d = _Driver(in_path, machine, chord_tol_mm)
+    d = _Driver(in_path, machine, chord_tol_mm, initial_position)
     out = np.empty(_OUT, np.uint8)
     out_n = ctypes.c_longlong(0)
     crow = ctypes.c_longlong(0)
@@ -279,11 +280,8 @@ def write_corrected(in_path, out_path, machine, cursor, chord_tol_mm):
                     flush(f)
                     k, raw, block = d.fallback()
                     if block is None:
-                        f.write(raw)
-                        if d.state.distance_word == 91:
-                            d.st[17] = 0.0
-                        elif d.state.distance_word == 90:
-                            d.st[17] = 1.0
+                        sep = "\r\n" if d.st[18] else "\n"
+                        d.st[17] = float(write_pass_through(f, raw, d.state, d.st[17] != 0.0, sep))
                         continue
                     pts = cursor.take(k, block.points.shape[0])
                     rows_done += block.points.shape[0]

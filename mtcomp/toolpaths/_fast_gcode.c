@@ -120,7 +120,11 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
         int ending = 0;                       /* 0 none, 1 LF, 2 CRLF */
         if (raw_end > ls && raw_end[-1] == '\n')
             ending = (raw_end - ls >= 2 && raw_end[-2] == '\r') ? 2 : 1;
-        if (out && out_cap - *out_n < 4096 + 2 * (raw_end - ls)) { *consumed = pos; return OUT_FULL; }
+        if (out) {
+            long long need = 4096 + 2 * (long long)(raw_end - ls);
+            if (need > out_cap / 2) { *consumed = pos; return FALLBACK; }   /* huge line: Python */
+            if (out_cap - *out_n < need) { *consumed = pos; return OUT_FULL; }
+        }
 
         /* tokens */
         const char *p = ls, *n_s = 0, *n_e = 0, *f_s = 0, *f_e = 0;

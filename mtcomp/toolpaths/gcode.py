@@ -205,6 +205,8 @@ class ModalState:
         self.xyz_index = tuple(machine.index(c) if c in self.names else -1 for c in "XYZ")
         #: 90 / 91 if the last block interpreted carried G90 / G91, else None
         self.distance_word: int | None = None
+        #: the last block was a G28/G30 with axis words (read in the distance mode in force)
+        self.distance_sensitive = False
 
     def _err(self, msg, line):
         return InputError(msg, self.path, line)
@@ -212,6 +214,7 @@ class ModalState:
     def block(self, line: int, text: str) -> MotionBlock | None:
         """Interpret one line (text without line ending). Returns its motion, or None."""
         self.distance_word = None
+        self.distance_sensitive = False
         s = text.lstrip(" \t")
         if not s or s[0] == "%":
             return None
@@ -281,6 +284,7 @@ class ModalState:
         if home_move is not None and motion is not None:
             raise self._err(f"G{home_move} and motion G{motion} in one block", line)
         if nonmotion_axes:
+            self.distance_sensitive = home_move in (28, 30) and bool(axes_given)
             if home_move is not None:
                 self._home_move(home_move, values, axes_given, line)
             return None
@@ -484,14 +488,17 @@ def iter_segment_chunks(path, machine: Machine, chord_tol_mm: float = DEFAULT_CH
                         initial_position=None) -> Iterator[SegmentChunk]:
     """Stream a program as :class:`SegmentChunk` objects of at most ``chunk_size`` rows.
 
+    initial_position : (na,) axis positions before the first block, also where G28/G30 send the
+    axes (mm, rad; default all zero). chord_tol_mm : largest sagitta of an arc's chords (mm).
     Memory stays flat for any program length: one chunk (and one arc) is held at a time. A block
     split into many chords may continue in the next chunk. Raises InputError naming file and line
     (rows of earlier chunks have been yielded by then: consumers must not write output before the
     stream is exhausted, which :func:`write_corrected` guarantees through atomic_write).
     """
     from . import _fast
-    if _fast.available() and initial_position is None:
-        yield from _fast.iter_segment_chunks(path, machine, chord_tol_mm, chunk_size)
+    if _fast.available():
+        yield from _fast.iter_segment_chunks(path, machine, chord_tol_mm, chunk_size,
+                                             initial_position)
         return
     builder = _ChunkBuilder(machine.n_axes, chunk_size)
     for _k, _raw, b, _state in iter_blocks(path, machine, chord_tol_mm, initial_position):
@@ -549,6 +556,24 @@ def _line_ending(raw: bytes) -> str:
     if raw.endswith(b"\n"):
         return "\n"
     return ""
+
+
+def write_pass_through(f, raw: bytes, state: ModalState, out_absolute: bool, separator: str) -> bool:
+    """Write a non-motion line as it is; returns whether the output is absolute after it.
+
+    The output is absolute while the input may be incremental (a G91 on a motion line is dropped).
+    A G28/G30 whose axis words rely on that G91 gets a line ``G91`` inserted before it.
+    """
+    if state.distance_sensitive and state.distance_word is None and state.incremental \
+            and out_absolute:
+        f.write(("G91" + (_line_ending(raw) or separator)).encode("latin-1"))
+        out_absolute = False
+    f.write(raw)
+    if state.distance_word == 91:
+        return False
+    if state.distance_word == 90:
+        return True
+    return out_absolute
 
 
 def _uncorrected(path, machine, chord_tol_mm, chunk_size, initial_position):
@@ -637,8 +662,9 @@ def write_corrected(in_path, out_path, machine: Machine,
                                    initial_position)
     cursor = CorrectionCursor(corrections, machine.n_axes, in_path)
     from . import _fast
-    if _fast.available() and initial_position is None:
-        return _fast.write_corrected(in_path, out_path, machine, cursor, chord_tol_mm)
+    if _fast.available():
+        return _fast.write_corrected(in_path, out_path, machine, cursor, chord_tol_mm,
+                                     initial_position)
     letters = "".join(machine.axis_names)
     rotary = [c in "ABC" for c in letters]
     rows_written = 0
@@ -647,11 +673,7 @@ def write_corrected(in_path, out_path, machine: Machine,
     with atomic_write(out_path, "wb") as f:
         for k, raw, block, state in iter_blocks(in_path, machine, chord_tol_mm, initial_position):
             if block is None:
-                f.write(raw)
-                if state.distance_word == 91:
-                    out_absolute = False
-                elif state.distance_word == 90:
-                    out_absolute = True
+                out_absolute = write_pass_through(f, raw, state, out_absolute, separator)
                 continue
             pts = cursor.take(k, block.points.shape[0])
             ending = _line_ending(raw)
