@@ -242,8 +242,8 @@ class MeasurementModel:
     def _setup(self) -> None:
         raise NotImplementedError
 
-    def predict(self, p: np.ndarray, nuisance: np.ndarray) -> np.ndarray:
-        """(n_obs,) predicted observations, internal units."""
+    def predict(self, p: np.ndarray, nuisance: np.ndarray | None = None) -> np.ndarray:
+        """(n_obs,) predicted observations, internal units (nuisance None: zeros)."""
         return self._evaluate(p, nuisance, jacobian=False)[0]
 
     def jacobian(self, p: np.ndarray, nuisance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -364,11 +364,6 @@ class PointsModel(MeasurementModel):
                 J[sel] = np.einsum("kj,kjp->kp", self._A[sel], Jd[self._rows[sel]])
         return pred, J, np.zeros((self.n_obs, 0))
 
-    def predict(self, p, nuisance=None):
-        p, nuisance = self._check_p(p, nuisance)
-        d = self.tip_deviation(p)
-        return np.einsum("kj,kj->k", self._A, d[self._rows])
-
     def predict_columns(self, p, nuisance=None):
         d = self.tip_deviation(np.asarray(p, dtype=float))
         out = {"pred_dx_um": d[:, 0] * 1e3, "pred_dy_um": d[:, 1] * 1e3, "pred_dz_um": d[:, 2] * 1e3}
@@ -465,9 +460,6 @@ class LaserModel(MeasurementModel):
             return pred, None, None
         return pred, J[self._rows], D[self._rows]
 
-    def predict(self, p, nuisance=None):
-        return self._evaluate(p, nuisance, jacobian=False)[0]
-
     def predict_columns(self, p, nuisance=None):
         p, nuisance = self._check_p(p, nuisance)
         value, _ = self._readings(p, False)
@@ -510,9 +502,6 @@ class BallbarModel(MeasurementModel):
         if not jacobian:
             return pred, None, None
         return pred, J[self._rows], np.ones((self.n_obs, 1))
-
-    def predict(self, p, nuisance=None):
-        return self._evaluate(p, nuisance, jacobian=False)[0]
 
     def predict_columns(self, p, nuisance=None):
         p, nuisance = self._check_p(p, nuisance)
