@@ -1,20 +1,25 @@
-"""Compiled evaluation: CasADi-generated C, looped over poses in C, compiled once and cached.
+"""Compiled evaluation: the model's CasADi function as C, looped over poses, compiled once and cached.
 
-:func:`call` is the backend of :func:`mtcomp.models.evaluate.evaluate`. For a model function of
+:func:`call` is the backend of :func:`mtcomp.models.evaluate.evaluate`. For a function of
 ``(q, p, c)`` it
 
-1. rebuilds the function with dense outputs and common-subexpression elimination,
-2. generates C with CasADi's code generator and appends a loop over N poses (``p`` shared, ``q`` and
-   ``c`` one row per pose, each output one row per pose, column-major within the row: exactly the
-   layout of :func:`mtcomp.models.evaluate.casadi_map_call`),
-3. compiles it with the system C compiler into a shared library stored in the cache directory under
-   the hash of the source, compiler and flags (``$MTCOMP_CACHE_DIR``, else
-   ``$XDG_CACHE_HOME/mtcomp``, else ``~/.cache/mtcomp``), written to a temporary file and renamed so
-   that concurrent processes never load a half-written library,
+1. splits off what depends on the parameters alone (computed once per call) and densifies the
+   outputs (:func:`split_function`);
+2. writes C for the rest that evaluates two poses at a time with SIMD vector extensions
+   (:func:`batched_source`; ``p`` shared, ``q`` and ``c`` one row per pose, each output one row per
+   pose, column-major within the row: exactly the layout of
+   :func:`mtcomp.models.evaluate.casadi_map_call`), or, for operations that emitter does not know,
+   CasADi's own generated code called once per pose;
+3. compiles it with the system C compiler into a shared library in the cache directory, named by
+   the hash of source, compiler and flags (``$MTCOMP_CACHE_DIR``, else ``$XDG_CACHE_HOME/mtcomp``,
+   else ``~/.cache/mtcomp``), written to a temporary file and renamed so that concurrent processes
+   never load a half-written library; a small index file lets a later process find it without
+   generating the C again;
 4. loads it with ctypes and calls it on numpy arrays.
 
-Compiler flags keep IEEE semantics (no ``-ffast-math``, no ``-march``, FMA contraction off), so the
-compiled path agrees with CasADi's own evaluation to rounding (tests check 1e-13 relative).
+Compiler flags keep IEEE semantics (no ``-ffast-math``, no ``-march``, FMA contraction off) and every
+operation is the one CasADi's own evaluation does, so the compiled path gives CasADi's results (bit
+for bit on glibc; tests check 1e-13 relative).
 
 Environment:
 
