@@ -39,8 +39,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kinematics import axis_transform
+from ..kinematics import axis_transform, tool2wp
 from .chain import ErrorModel
+from .evaluate import deviation
 from .poe import adjoint, prepare_inputs, rotary_line_errors, rotation_twist, skew
 from .terms import ANGLE_LETTERS, TRANSLATION_LETTERS, positioning_component
 
@@ -150,7 +151,6 @@ def tool_differential(model: ErrorModel, p, q, c=None) -> np.ndarray:
 
 def _to_workpiece(model: ErrorModel, q, Dt):
     """Eqs. 23-25: tip error R delta_t and tool-axis error R (eps_t x e_z), workpiece frame."""
-    from ..kinematics import tool2wp
     T = tool2wp(model.machine, q)
     R = T[:, :3, :3]
     tip = np.einsum("nij,nj->ni", R, Dt[:, :3])
@@ -185,8 +185,6 @@ def machine_jacobian(model: ErrorModel, q) -> np.ndarray:
 def exact_tool_differential(model: ErrorModel, p, q, c=None) -> np.ndarray:
     """(N, 6) tool-frame differential motion from the exact chain (any model, extension terms too):
     tip deviation and the tilt of the tool axis in the tool frame; rotation about the tool axis 0."""
-    from ..kinematics import tool2wp
-    from .evaluate import deviation
     q = np.atleast_2d(np.asarray(q, dtype=float))
     dev = deviation(model, q, p, c)
     R = tool2wp(model.machine, q)[:, :3, :3]
