@@ -103,6 +103,7 @@ def test_identify_options_noise_weights_and_rcond(files, capsys):
     assert "weighting 1/noise per file" in text
     # the three straightness/squareness pairs are named as undetermined
     assert "3 combination(s) the data cannot determine" in text and "C0Y" in text
+    assert "--hold EXY_1,EXZ_1,EYZ_1 assigns them to the squareness" in text
     assert out.exists()
     assert main(["identify", "xfyz", str(paths["points"]), "-o", str(tmp / "x.json"), "--rcond", "2"]) == 2
     assert "--rcond" in _one_line_error(capsys)
