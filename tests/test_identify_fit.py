@@ -254,3 +254,14 @@ def test_start_from_fitted_model_keeps_held_values(xfyz):
     np.testing.assert_array_equal(res.values[idx], p[idx])
     assert np.all(np.isnan(res.std_errors[idx])) and not res.free[idx].any()
     np.testing.assert_allclose(_file(model, res.values), _file(model, p), rtol=1e-8, atol=1e-7)
+
+
+def test_no_degrees_of_freedom_gives_strict_json(xfyz):
+    import json
+    machine, model = xfyz
+    data = simulate(model, make_points([[100.0, 0.0, 0.0]]), np.zeros(model.n_params))
+    res = identify(model, [data], free=["EXX_1", "EYX_1", "EZX_1", "EXX_2"])
+    assert res.rank == 3 and res.dof == 0 and np.isnan(res.sigma)
+    assert [sorted(u.names) for u in res.undetermined] == [["EXX_1", "EXX_2"]]
+    text = json.dumps(res.to_dict(), allow_nan=False)
+    assert '"sigma": null' in text

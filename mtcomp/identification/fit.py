@@ -107,6 +107,12 @@ class FileResiduals:
         return out
 
 
+def _finite(x) -> float | None:
+    """x as a float, or None when not finite (JSON has no NaN or Infinity)."""
+    x = float(x)
+    return x if np.isfinite(x) else None
+
+
 def _file_scale(column: str) -> float:
     from ..io.measurements import file_unit_scale
     return file_unit_scale(str(column))
@@ -223,12 +229,12 @@ class IdentificationResult:
     def to_dict(self) -> dict:
         """Plain summary (file units) for MODEL.json ``info`` and reports."""
         return {"n_obs": self.n_obs, "n_params": self.n_params, "rank": self.rank, "dof": self.dof,
-                "sigma": self.sigma, "condition_number": self.condition_number,
+                "sigma": _finite(self.sigma), "condition_number": _finite(self.condition_number),
                 "iterations": self.iterations, "converged": self.converged, "weighting": self.weighting,
                 "undetermined": [str(u) for u in self.undetermined],
                 "files": [{"tag": f.tag, "path": f.path, "kind": f.kind, "n_obs": f.n_obs,
-                           "rms": f.rms()} for f in self.files],
-                "nuisance": {s.name: {"value": float(v * s.to_file), "std_error": float(e * s.to_file),
+                           "rms": {c: _finite(v) for c, v in f.rms().items()}} for f in self.files],
+                "nuisance": {s.name: {"value": float(v * s.to_file), "std_error": _finite(e * s.to_file),
                                       "unit": s.unit}
                              for s, v, e in zip(self.nuisance_specs, self.nuisance_values,
                                                 self.nuisance_std_errors)}}
