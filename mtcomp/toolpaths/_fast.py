@@ -252,7 +252,6 @@ def write_corrected(in_path, out_path, machine, cursor, chord_tol_mm, initial_po
     out = np.empty(_OUT, np.uint8)
     out_n = ctypes.c_longlong(0)
     crow = ctypes.c_longlong(0)
-    rows_start = 0
     rows_done = 0
 
     def flush(f):
@@ -299,4 +298,4 @@ def write_corrected(in_path, out_path, machine, cursor, chord_tol_mm, initial_po
             cursor.finish()
     finally:
         d.close()
-    return rows_start + rows_done
+    return rows_done

@@ -56,7 +56,8 @@ static int parse_num(const char *p, const char *e, double *out, const char **nex
 /* Python's f"{v:.{dec}f}" (dec 4 or 5), with "-0.000.." written as "0.000..". */
 static int fmt_fixed(char *o, double v, int dec) {
     double t = v * POW10[dec];
-    if (!(fabs(t) < 4e15)) return sprintf(o, "%.*f", dec, v);
+    /* beyond 1e9 the rounding of t itself could hide a tie: let printf do it (values > 100 m) */
+    if (!(fabs(t) < 1e9)) return sprintf(o, "%.*f", dec, v);
     double fl = floor(t);
     double fr = t - fl;
     if (fabs(fr - 0.5) < 1e-6) {                 /* near a tie: let printf round the exact value */
