@@ -207,6 +207,10 @@ def test_noise_weighting_per_file(xfyz):
     np.testing.assert_allclose(np.median(las_w[um]), 1e3 / 2.0, rtol=0.15, atol=0)
     np.testing.assert_allclose(np.median(las_w[~um]), 1e6 / 4.0, rtol=0.15, atol=0)
     assert abs(res.sigma - 1) < 0.1
+    # the joint estimates sit within their standard errors (99.7 % within 3)
+    z = (res.values - p)[res.determined] / res.std_errors[res.determined]
+    assert np.mean(np.abs(z) > 3) < 0.03 and np.abs(z).max() < 5
+    assert 0.7 < np.sqrt(np.mean(z ** 2)) < 1.3
     res_dict = identify(model, [pts, las], weights={"points": 0.2, "laser": 2.0})
     assert "given noise" in res_dict.weighting
     with pytest.raises(InputError, match="nothere"):
