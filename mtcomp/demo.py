@@ -24,6 +24,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import textwrap
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -105,6 +106,7 @@ def run_demo(out_dir=DEFAULT_OUT, seed: int = 2026, say=print) -> DemoResult:
     from .diagnose import diagnose
     from .diagnose.hidden import campaign_plans
     from .identification.fit import identify
+    from .io.atomic import atomic_write
     from .machine import load_machine
     from .models import Backlash, save_model
     from .viz.render import render_error_map
@@ -147,7 +149,7 @@ def run_demo(out_dir=DEFAULT_OUT, seed: int = 2026, say=print) -> DemoResult:
     with steps.step("diagnose", "diagnosing what the base model gets wrong"):
         diag = diagnose(machine, datasets, progress=lambda s: say(f"      {s}"))
         report = diag.to_dict()
-        with open(out / "REPORT.json", "w", encoding="utf-8") as f:
+        with atomic_write(out / "REPORT.json") as f:
             json.dump(report, f, indent=1)
             f.write("\n")
         save_model(out / "MODEL.json", diag.model)
@@ -205,6 +207,8 @@ def summary_rows(res: DemoResult, report: dict, diag) -> list:
         params = ", ".join(f"{k} {v:.3g}" if isinstance(v, (int, float)) else f"{k} {v}"
                            for k, v in f["params"].items())
         rows.append((f"found: {f['effect']} {f['axis']}".rstrip(), params))
+        if f.get("evidence"):
+            rows.append(("  evidence", textwrap.fill(f["evidence"], 70)))
         rows.append(("  held-out rms gain", f"{f['heldout_rms_before_um']:.3f} -> "
                                             f"{f['heldout_rms_after_um']:.3f} um"))
     rows.append(("extended model", f"rms {report['final']['rms_um']:.3f} um, held-out "
@@ -229,5 +233,6 @@ def summary_rows(res: DemoResult, report: dict, diag) -> list:
 
 
 def format_table(rows) -> str:
+    """Two columns; a value with line breaks continues under itself."""
     w = max(len(a) for a, _ in rows)
-    return "\n".join(f"{a:<{w}}  {b}" for a, b in rows)
+    return "\n".join(f"{a:<{w}}  " + str(b).replace("\n", "\n" + " " * (w + 2)) for a, b in rows)

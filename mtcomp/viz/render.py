@@ -25,6 +25,8 @@ CMAP = "coolwarm"
 SCALAR_BAR_TITLE = "deviation along surface normal (um)"
 DEFAULT_WINDOW = (1400, 700)
 MAX_GLYPHS = 600
+#: whether prepare_offscreen chose EGL (so a failed render may retry without it)
+_EGL_SET_BY_US = [False]
 
 
 @dataclass
@@ -41,8 +43,9 @@ class RenderResult:
 def prepare_offscreen() -> None:
     """Make VTK render without a display: on Linux with no X/Wayland display, select EGL."""
     if sys.platform.startswith("linux") and not os.environ.get("DISPLAY") \
-            and not os.environ.get("WAYLAND_DISPLAY"):
-        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+            and not os.environ.get("WAYLAND_DISPLAY") and "VTK_DEFAULT_OPENGL_WINDOW" not in os.environ:
+        os.environ["VTK_DEFAULT_OPENGL_WINDOW"] = "vtkEGLRenderWindow"
+        _EGL_SET_BY_US[0] = True
 
 
 def _pyvista():
@@ -146,11 +149,23 @@ def render_error_map(smap: SurfaceMap, out_png, *, glyphs: bool = False,
         try:
             _render_pyvista(smap, panels, out_png, clim, scale, window_size, title)
             used = "pyvista"
-        except Exception as exc:  # no OpenGL context: fall back, say so
+        except Exception as exc:  # no OpenGL context
             if backend == "pyvista":
                 raise
-            sys.stderr.write(f"mtcomp: VTK could not render off-screen ({type(exc).__name__}: {exc}); "
-                             "drawing the PNG with matplotlib\n")
+            first = exc
+            if os.environ.get("VTK_DEFAULT_OPENGL_WINDOW") == "vtkEGLRenderWindow" \
+                    and _EGL_SET_BY_US[0]:
+                # EGL was our choice: let VTK pick its own off-screen window (e.g. OSMesa) once
+                del os.environ["VTK_DEFAULT_OPENGL_WINDOW"]
+                _EGL_SET_BY_US[0] = False
+                try:
+                    _render_pyvista(smap, panels, out_png, clim, scale, window_size, title)
+                    used = "pyvista"
+                except Exception as exc2:
+                    first = exc2
+            if used is None:
+                sys.stderr.write(f"mtcomp: VTK could not render off-screen ({type(first).__name__}: "
+                                 f"{first}); drawing the PNG with matplotlib\n")
     if used is None:
         _render_matplotlib(smap, panels, out_png, clim, scale, window_size, title)
         used = "matplotlib"
