@@ -1,29 +1,26 @@
 """The workpiece surface a program cuts, and the model's predicted deviation along its normal.
 
-No plotting here (numpy and scipy only): :func:`program_error_map` turns a machine, a fitted model
-and an NC program (optionally with its compensated version) into a :class:`SurfaceMap`, which
-:mod:`mtcomp.viz.render` draws and writes to .vtp.
+No plotting here (numpy, scipy, CasADi): :func:`program_error_map` turns a machine, a fitted model and
+an NC program (optionally with its compensated version) into a :class:`SurfaceMap`, which
+:mod:`mtcomp.viz.render` draws and writes to .vtp. docs/render.md says it for users.
 
-What the surface is (docs/render.md):
+Surfaces:
 
-* the cutting points are the end points of every feed move (G1, and the chords of G2/G3) of the
-  program: rapids (G0) are left out. They are nominal tool-tip positions (SPEC section 2), turned
-  into the workpiece frame by the nominal kinematics (for a 3-axis machine they are the X Y Z words).
-* the points are triangulated in the XY plane of the workpiece frame (scipy Delaunay), the part seen
-  from the tool side: of several points at the same XY (plunges, retracts, repeated passes) the lowest
-  is kept, and triangles with an edge longer than ``max_edge_factor`` times the median edge are
-  dropped (so holes and concave outlines are not bridged).
-* the unit normal at each point is the area-weighted mean of the normals of its triangles, turned to
-  point towards the tool (nominal tool axis): for a part cut from above it points out of the material.
-* for a ball-end tool of radius R (``tool_radius_mm``) the surface is drawn at the contact points
-  ``tip + R (axis - n)``; the tip-point surface and the cut surface are parallel, so the normals and
-  the deviations are the same either way.
+* tool-tip surface (default): the end points of the feed moves (G1, chords of G2/G3; rapids left
+  out), nominal tool tips in the workpiece frame, triangulated in XY (Delaunay; the lowest point per
+  1 um XY cell; over-long triangles dropped so holes are not bridged); normals are the area-weighted
+  triangle normals turned towards the tool. A ball end of radius R is drawn at the contact points
+  ``tip + R (axis - n)`` (the tip surface is the ball-centre surface moved by -R z: same normals).
+* flank surface (``flank_length_mm``, 5-axis side milling): per run of cutting points, contact lines
+  along the tool axis over the flank length, offset by the cutter radius; normals perpendicular to
+  the path and the tool axis.
 
-The deviation at a point is the actual tool tip minus the nominal one, in the workpiece frame (SPEC
-section 1), from the model; ``dn`` is its component along the normal (positive: the tool stays off the
-surface, material is left outside the nominal surface, the sign a CMM reports). For a compensated
-program the actual tip is taken at the corrected axis positions and compared with the ORIGINAL
-nominal point; original and compensated blocks are paired in source-line order.
+The deviation at a point is that of the tool point that cuts there -- the tip, the ball centre, or
+the axis point at the contact height on a flank -- actual minus nominal, in the workpiece frame (SPEC
+section 1), from the model's tool frame (tip and rotation); ``dn`` is its component along the normal
+(positive: the tool stays off the surface, material is left outside, the sign a CMM reports). For a
+compensated program the same tool point is taken at the corrected axis positions and compared with
+its ORIGINAL nominal position; original and compensated blocks are paired in source-line order.
 """
 from __future__ import annotations
 
