@@ -1,7 +1,7 @@
 """Compiled fast path of the G-code reader and writer (optional, same results as the Python path).
 
-The C source ``_fast_gcode.c`` handles the common lines (blank lines and ``N.. G0/G1 X.. Y.. Z..
-F..``) and hands every other line back to :class:`~mtcomp.toolpaths.gcode.ModalState`, which is
+The C source ``_fast_gcode.c`` handles the common lines (``N.. G0/G1 X.. Y.. Z.. F..``, with
+comments and words such as M, S, T that do not touch the geometry) and hands every other line back to :class:`~mtcomp.toolpaths.gcode.ModalState`, which is
 kept in step through a small state vector. It is compiled once with the system C compiler (``$CC``
 or ``gcc``) into a per-user cache folder (``$XDG_CACHE_HOME/mtcomp`` or ``~/.cache/mtcomp``) and
 loaded with ctypes. Without a compiler, or with ``MTCOMP_NO_FAST_GCODE=1`` in the environment,

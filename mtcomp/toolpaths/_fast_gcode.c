@@ -1,8 +1,9 @@
 /* Fast path of the mtcomp G-code reader and writer (see _fast.py).
  *
- * Handles only "simple" lines, exactly as mtcomp.toolpaths.gcode.ModalState would: blank lines and
- * lines made of the words N, G0/G1, F and the machine's axis words (each at most once), separated
- * by blanks. Any other line is handed back to Python (status FALLBACK) before the state is touched,
+ * Handles only "simple" lines, exactly as mtcomp.toolpaths.gcode.ModalState would: lines made of
+ * comments, the words N, G0/G1, F and the machine's axis words (each at most once) and words that
+ * do not touch the geometry (M S T H D P Q O E ..., kept as written). Any other line (G codes
+ * other than G0/G1, arcs, '%', errors of any kind) is handed back to Python (status FALLBACK) before the state is touched,
  * so Python interprets it (and raises the errors). Positions, directions and the formatting of
  * numbers reproduce the Python code bit for bit; tests compare both paths.
  *
@@ -15,6 +16,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+#define MAX_KEPT 16
 
 enum { NEED_INPUT = 0, FALLBACK = 1, ROWS_FULL = 2, NEED_CORR = 3, OUT_FULL = 4, MISMATCH = 5 };
 
@@ -128,7 +131,9 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
         }
 
         /* tokens */
-        const char *p = ls, *n_s = 0, *n_e = 0, *f_s = 0, *f_e = 0;
+        const char *p = ls, *n_s = 0, *n_e = 0;
+        const char *kept_s[MAX_KEPT], *kept_e[MAX_KEPT];
+        int nk = 0;
         int has_g = 0, g = -1, has_f = 0;
         unsigned seen = 0;
         double vals[6] = {0, 0, 0, 0, 0, 0}, fval = 0.0;
@@ -136,12 +141,27 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
         while (p < ce) {
             char ch = *p;
             if (ch == ' ' || ch == '\t') { p++; continue; }
+            if (ch == '(' || ch == ';') {            /* comments: kept, in order */
+                const char *q = ce;
+                if (ch == '(') {
+                    q = p + 1;
+                    while (q < ce && *q != ')' && *q != '(') q++;
+                    if (q >= ce || *q == '(') { simple = 0; break; }
+                    q++;
+                }
+                if (nk == MAX_KEPT) { simple = 0; break; }
+                kept_s[nk] = p; kept_e[nk] = q; nk++;
+                p = q;
+                continue;
+            }
             if (!is_alpha(ch)) { simple = 0; break; }
             char L = (char)(ch & ~0x20);
             const char *ts = p;
             double v;
             if (!parse_num(p + 1, ce, &v, &p)) { simple = 0; break; }
-            if (p < ce && !(*p == ' ' || *p == '\t' || is_alpha(*p))) { simple = 0; break; }
+            if (p < ce && !(*p == ' ' || *p == '\t' || *p == '(' || *p == ';' || is_alpha(*p))) {
+                simple = 0; break;
+            }
             if (L == 'N') {
                 if (n_s) { simple = 0; break; }
                 n_s = ts; n_e = p;
@@ -149,13 +169,20 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                 if (has_g || !(v == 0.0 || v == 1.0)) { simple = 0; break; }
                 has_g = 1; g = (v == 1.0);
             } else if (L == 'F') {
-                if (has_f || !(v > 0.0)) { simple = 0; break; }
-                has_f = 1; fval = v; f_s = ts; f_e = p;
-            } else {
+                if (has_f || !(v > 0.0) || nk == MAX_KEPT) { simple = 0; break; }
+                has_f = 1; fval = v;
+                kept_s[nk] = ts; kept_e[nk] = p; nk++;
+            } else if (L == 'X' || L == 'Y' || L == 'Z' || L == 'A' || L == 'B' || L == 'C') {
                 int col = letter_col[L - 'A'];
                 if (col < 0 || (seen & (1u << col))) { simple = 0; break; }
                 seen |= 1u << col;
                 vals[col] = v;
+            } else if (L == 'I' || L == 'J' || L == 'K' || L == 'R' || L == 'U' || L == 'V' ||
+                       L == 'W') {
+                simple = 0; break;                  /* arcs and foreign axes: Python decides */
+            } else {                                /* M S T H D P Q O E ...: kept, in order */
+                if (nk == MAX_KEPT) { simple = 0; break; }
+                kept_s[nk] = ts; kept_e[nk] = p; nk++;
             }
         }
         if (!simple) { *consumed = pos; return FALLBACK; }
@@ -168,7 +195,8 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
             if (out) {
                 if (*c_row >= c_n) { *consumed = pos; return NEED_CORR; }
                 if (c_line[*c_row] != line_no) { *consumed = pos; return MISMATCH; }
-                long long need = (c_off[*c_row + 1] - c_off[*c_row]) * (na * 128 + 16) + 512;
+                long long need = (c_off[*c_row + 1] - c_off[*c_row]) * (na * 128 + 16) + 512
+                                 + (long long)(raw_end - ls);
                 if (need > out_cap / 2) { *consumed = pos; return FALLBACK; }   /* huge: Python */
                 if (out_cap - *out_n < need) { *consumed = pos; return OUT_FULL; }
             }
@@ -222,9 +250,12 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                     memcpy(o, word, 2); o += 2;
                     *o++ = ' ';
                     o += fmt_point(o, c_pts + k * na, na, letters, is_rot, inch);
-                    if (k == c_off[row] && f_s) {
-                        *o++ = ' ';
-                        memcpy(o, f_s, (size_t)(f_e - f_s)); o += f_e - f_s;
+                    if (k == c_off[row]) {
+                        for (int t = 0; t < nk; t++) {
+                            *o++ = ' ';
+                            memcpy(o, kept_s[t], (size_t)(kept_e[t] - kept_s[t]));
+                            o += kept_e[t] - kept_s[t];
+                        }
                     }
                 }
                 if (ending == 2) { *o++ = '\r'; *o++ = '\n'; }
