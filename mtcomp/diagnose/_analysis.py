@@ -225,13 +225,15 @@ class Line:
 
     period : mm (linear axis) or rad; power : normalised generalised LS power (0..1, share of the
     variance a sinusoid at that period explains); fap : false-alarm probability over the searched band
-    (Zechmeister-Kuerster tail, times the number of independent frequencies); n : readings used.
+    (Zechmeister-Kuerster tail, times the number of independent frequencies); n : readings used;
+    n_independent : number of independent frequencies searched.
     """
 
     period: float
     power: float
     fap: float
     n: int
+    n_independent: float = 1.0
 
 
 def axis_series(st, resid, axis: str, sel=None):
@@ -262,12 +264,13 @@ def spectral_lines(st, resid, axis: str, min_cycles: float = 4.0, n_freq: int = 
     ux = np.unique(np.round(x, POSITION_DECIMALS))
     if ux.size < 8:
         return []
-    spacing = np.min(np.diff(ux))
-    pmin = max(2.0 * spacing, span / (ux.size / 1.2))
+    # shortest period: three median target spacings (jittered grids alias near their Nyquist period)
+    pmin = 3.0 * span / (ux.size - 1)
     pmax = span / min_cycles
     if pmax <= pmin:
         return []
-    w = np.linspace(2 * np.pi / pmax, 2 * np.pi / pmin, n_freq)
+    m_band = (1.0 / pmin - 1.0 / pmax) * span
+    w = np.linspace(2 * np.pi / pmax, 2 * np.pi / pmin, int(min(n_freq, max(50, 5 * m_band))))
     y = r - r.mean()
     if not np.any(y):
         return []
@@ -280,7 +283,7 @@ def spectral_lines(st, resid, axis: str, min_cycles: float = 4.0, n_freq: int = 
     for i in peaks[np.argsort(p[peaks])[::-1]][:max_lines]:
         single = (1.0 - p[i]) ** ((n - 3) / 2.0)
         fap = float(min(1.0, m_indep * single))
-        lines.append(Line(float(2 * np.pi / w[i]), float(p[i]), fap, n))
+        lines.append(Line(float(2 * np.pi / w[i]), float(p[i]), fap, n, m_indep))
     return sorted(lines, key=lambda ln: ln.fap)
 
 

@@ -85,10 +85,12 @@ def generate(st, design, extra: np.ndarray, resid: np.ndarray, chosen_keys: set[
             if feeds.size >= 2:
                 f = np.nan_to_num(st.feed, nan=0.0) / 1000.0
                 out.append(Candidate("feed_dependent_offset", a, "uniform", (g * f)[:, None],
-                                     [FeedOffset(a)], [f"FOFF_{a}"], rivals=f"feed:{a}"))
+                                     [FeedOffset(a)], [f"FOFF_{a}"], rivals=f"feed:{a}",
+                                     info={"complexity": 0}))
                 if np.any(dirs > 0) and np.any(dirs < 0):
                     out.append(Candidate("feed_dependent_offset", a, "lag", (g * f * st.dirs[:, k])[:, None],
-                                         [FeedOffset(a, signed=True)], [f"FOFF_{a}"], rivals=f"feed:{a}"))
+                                         [FeedOffset(a, signed=True)], [f"FOFF_{a}"], rivals=f"feed:{a}",
+                                         info={"complexity": 1}))
                 out.extend(_abbe_candidates(st, a))
             out.extend(_periodic_candidates(st, design, extra, resid, a))
         else:
@@ -98,19 +100,23 @@ def generate(st, design, extra: np.ndarray, resid: np.ndarray, chosen_keys: set[
 
 
 def _abbe_candidates(st, a: str) -> list[Candidate]:
-    irc = [n for n in st.probe.param_names if n.startswith("IRC_") and n[5] == a and n.endswith("_f")]
-    gain = [f"AG_{b}{a}" for b in "ABC"]
+    """Seed 000: one candidate per way the Abbe error of axis ``a`` can depend on feed: the centre of
+    one angular error (E<b><a>, b = A, B, C) shifted along one coordinate in proportion to feed
+    (``IRC_<b><a>_<c>_f``), or that angular error scaled by feed (``AG_<b><a>``). One parameter each,
+    so that the report can say what moves."""
     cands = []
-    for variant, names, kw in (("irc", irc, dict(feed=True, angle_gain=False)),
-                               ("gain", gain, dict(feed=False, angle_gain=True)),
-                               ("irc+gain", irc + gain, dict(feed=True, angle_gain=True))):
-        cols = st.columns(names)
-        ref = float(np.max(np.abs(cols))) if cols.size else 0.0
-        keep = [i for i in range(len(names)) if ref > 0 and np.max(np.abs(cols[:, i])) > 1e-6 * ref]
-        if not keep:
-            continue
-        cands.append(Candidate("feed_dependent_abbe", a, variant, cols, [AbbeIRC(a, angles="ABC", **kw)],
-                               list(names), rivals=f"feed:{a}"))
+    for b in "ABC":
+        for c in [x for i, x in enumerate("XYZ") if i != "ABC".index(b)]:
+            name = f"IRC_{b}{a}_{c.lower()}_f"
+            if name in st.probe.param_names:
+                cands.append(Candidate("feed_dependent_abbe", a, f"irc:{name}", st.columns([name]),
+                                       [AbbeIRC(a, angles=b, feed=True)], [name], rivals=f"feed:{a}",
+                                       info={"complexity": 2}))
+        name = f"AG_{b}{a}"
+        if name in st.probe.param_names:
+            cands.append(Candidate("feed_dependent_abbe", a, f"gain:{name}", st.columns([name]),
+                                   [AbbeIRC(a, angles=b, feed=False, angle_gain=True)], [name],
+                                   rivals=f"feed:{a}", info={"complexity": 2}))
     return cands
 
 
@@ -137,7 +143,9 @@ def _periodic_candidates(st, design, extra, resid, a: str) -> list[Candidate]:
         agree, text = an.halves_agree(st, resid, a, period)
         cand = Candidate("periodic_error", a, f"{period:.6g}mm", cols(period), [PeriodicError(a, period)],
                          [f"PER_{a}_c", f"PER_{a}_s"], rivals=f"periodic:{a}",
-                         info={"line": ln, "period_mm": period, "halves": text})
+                         info={"line": ln, "period_mm": period, "halves": text,
+                               # the period was searched: the best of M frequencies needs 2 ln M more
+                               "search_penalty": 2.0 * np.log(max(ln.n_independent, 1.0))})
         if not agree:
             cand.veto = f"the line does not replicate across the halves of the travel ({text})"
         out.append(cand)

@@ -138,7 +138,8 @@ def _apply(st: Stack, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _metrics(st: Stack, fit, n_params: int) -> dict:
     um = st.unit == "um"
     urad = st.unit == "urad"
-    out = {"n_params": int(n_params), "n_determined": int(fit.rank),
+    out = {"n_params": int(n_params), "n_determined": int(fit.rank) - len(st.nuisance_names),
+           "n_nuisance": len(st.nuisance_names),
            "rms_um": _r(rms(fit.resid[um])) if um.any() else None,
            "heldout_rms_um": _r(rms(fit.cv_resid[um])) if um.any() else None}
     if urad.any():
@@ -159,6 +160,12 @@ def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int 
     progress : callable(str) for progress lines, or None.
     Returns a :class:`Diagnosis`. Raises InputError when the data cannot be diagnosed.
     """
+    from ._blas import single_threaded_blas
+    with single_threaded_blas():
+        return _diagnose(machine, datasets, progress, max_findings)
+
+
+def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
     if not datasets:
@@ -210,7 +217,8 @@ def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int 
             dk = fit.rank - current.rank
             gain = current.cv_sse - fit.cv_sse
             dbic = fit.bic(n) - current.bic(n)
-            ok = dk >= 1 and gain > cv_threshold(dk) and dbic < -BIC_MARGIN
+            pen = c.info.get("search_penalty", 0.0)
+            ok = dk >= 1 and gain > cv_threshold(dk) + pen and dbic < -BIC_MARGIN - pen
             scored.append((c, fit, dk, gain, dbic, ok))
         good = [s for s in scored if s[5] and s[0].veto is None]
         for s in scored:
@@ -222,7 +230,7 @@ def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int 
         best = max(good, key=lambda s: s[3])
         best = _parsimony(best, good)
         c, fit, dk, gain, dbic, _ = best
-        rivals = [s for s in scored if s[0].rivals and s[0].rivals == c.rivals and s[0] is not c]
+        rivals = [s for s in good if s[0].rivals and s[0].rivals == c.rivals and s[0] is not c]
         before = _heldout(st, current)
         finding = _finding(st, c, current, fit, before, _heldout(st, fit), rivals, noise)
         say(f"found {finding.effect} {finding.axis}: held-out {before:.4g} -> "
@@ -247,17 +255,22 @@ def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int 
     return diag
 
 
+def _complexity(c: Candidate, dk: int) -> float:
+    return dk + 0.1 * c.info.get("complexity", 0)
+
+
 def _parsimony(best, good):
-    """Among rivals of ``best`` (same residual), prefer one with fewer parameters whose held-out gain
-    is not significantly smaller."""
+    """Among rivals of ``best`` (explanations of the same residual), prefer the simplest one (fewer
+    parameters; then uniform offset before direction lag before an Abbe term) whose held-out gain is
+    not significantly smaller: a more specific cause must be earned by a margin in the data."""
     c = best[0]
     if not c.rivals:
         return best
     pick = best
     for s in good:
-        if s[0].rivals != c.rivals or s[2] >= pick[2]:
+        if s[0].rivals != c.rivals or _complexity(s[0], s[2]) >= _complexity(pick[0], pick[2]):
             continue
-        if s[3] >= best[3] - cv_threshold(best[2] - s[2]):
+        if s[3] >= best[3] - cv_threshold(max(best[2] - s[2], 1)):
             pick = s
     return pick
 
@@ -287,7 +300,7 @@ def _fitted_model(st: Stack, design: Design, chosen: list[Candidate], fit) -> Fi
     model = ErrorModel(st.machine, terms)
     params = ParameterSet(model.param_specs)
     base = [n for n, s in zip(st.probe.param_names, st.probe.param_specs) if s.base]
-    m = design.A.shape[1]
+    m = design.A_original.shape[1]
     theta = fit.theta
     std = np.full(model.n_params, np.nan)
     # standard errors from the weighted normal matrix (noise variance 1 after weighting)
@@ -313,8 +326,7 @@ def _fitted_model(st: Stack, design: Design, chosen: list[Candidate], fit) -> Fi
 
 
 def _cov_diag(design: Design, extra: np.ndarray) -> np.ndarray:
-    Ew = extra * design.w[:, None]
-    G = np.block([[design.G, design.Aw.T @ Ew], [Ew.T @ design.Aw, Ew.T @ Ew]])
+    G = design.gram(extra)
     d = np.sqrt(np.clip(np.diag(G), 0, None))
     keep = d > 0
     out = np.full(G.shape[0], np.nan)

@@ -3,9 +3,10 @@
 The diagnosis compares many models that share a common block of columns (base parameters and
 nuisance) and differ by a few extension columns. :class:`Design` keeps the weighted common block and
 its per-fold Gram matrices once, so that fitting a model with extra columns costs a few small
-matrix products: fits go through the normal equations of column-scaled matrices, solved by an
-eigen-decomposition that drops directions the data do not determine (rank-deficient designs are the
-rule in metrology: a laser run along X says nothing about EZY).
+matrix products. Rank-deficient designs are the rule in metrology (a laser run along X says nothing
+about EZY): the common block is reduced once, by an eigen-decomposition of its column-scaled normal
+matrix, to the directions the data determine; every later fit is then a Cholesky solve of a small,
+well-posed normal matrix (with an eigen-decomposition fallback).
 """
 from __future__ import annotations
 
@@ -61,6 +62,20 @@ class FitResult:
         return n * np.log(max(self.sse, 1e-300) / n) + self.rank * np.log(n)
 
 
+def _chol_solve(G: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Solve G x = b for symmetric positive (semi-)definite G: Cholesky of the unit-diagonal scaled
+    matrix with a tiny ridge; the eigen-decomposition route when that fails."""
+    d = np.sqrt(np.clip(np.diag(G), 0.0, None))
+    d = np.where(d > 0, d, 1.0)
+    Gs = G / np.outer(d, d)
+    try:
+        L = np.linalg.cholesky(Gs + 1e-11 * np.eye(len(Gs)))
+    except np.linalg.LinAlgError:
+        return solve_normal(G, b)[0]
+    y = np.linalg.solve(L, b / d)
+    return np.linalg.solve(L.T, y) / d
+
+
 class Design:
     """The common weighted column block of every model, fold structure and target.
 
@@ -71,9 +86,23 @@ class Design:
     """
 
     def __init__(self, A: np.ndarray, z: np.ndarray, w: np.ndarray, folds: np.ndarray):
-        self.A = np.asarray(A, dtype=float)
-        self.z = np.asarray(z, dtype=float)
+        A = np.asarray(A, dtype=float)
         self.w = np.asarray(w, dtype=float)
+        # reduce the common block to the directions the (weighted) data determine: A T, T = S V_r
+        Aw0 = A * self.w[:, None]
+        d = np.sqrt(np.sum(Aw0 ** 2, axis=0))
+        keep = d > 0
+        S = np.zeros_like(d)
+        S[keep] = 1.0 / d[keep]
+        G0 = (Aw0 * S).T @ (Aw0 * S)
+        ev, V = np.linalg.eigh(G0)
+        ok = ev > RANK_TOLERANCE * max(ev.max(), 1e-300)
+        self.T = S[:, None] * V[:, ok]
+        # orthonormal basis of the weighted common block: to measure what extra columns add
+        self.Q = (Aw0 @ self.T) / np.sqrt(ev[ok])
+        self.A_original = A
+        self.A = A @ self.T
+        self.z = np.asarray(z, dtype=float)
         self.folds = np.asarray(folds, dtype=np.int64)
         self.K = int(self.folds.max()) + 1 if len(self.folds) else 0
         self.n = len(self.z)
@@ -111,7 +140,8 @@ class Design:
         G[m:, :m] = AE.T
         G[m:, m:] = Ew.T @ Ew
         b = np.concatenate([self.b, Ew.T @ self.zw])
-        theta, rank = solve_normal(G, b)
+        theta = _chol_solve(G, b)
+        rank = m + self.extra_rank(Ew)
         full = np.hstack([self.A, E])
         resid = self.z - full @ theta
         sse = float(np.sum((resid * self.w) ** 2))
@@ -126,10 +156,29 @@ class Design:
                 Gk[m:, :m] -= AEk.T
                 Gk[m:, m:] -= Ek.T @ Ek
                 bk = b - np.concatenate([self.bk[kk], Ek.T @ self.zw[ix]])
-                th, _ = solve_normal(Gk, bk)
+                th = _chol_solve(Gk, bk)
                 cv_resid[ix] = self.z[ix] - full[ix] @ th
         cv_sse = float(np.nansum((cv_resid * self.w) ** 2)) if cv and self.K >= 2 else float("nan")
+        theta = np.concatenate([self.T @ theta[:m], theta[m:]])
         return FitResult(theta, rank, sse, resid, cv_resid, cv_sse)
+
+    def extra_rank(self, Ew: np.ndarray, tol: float = 1e-6) -> int:
+        """Number of directions the weighted columns ``Ew`` add to the common block: eigenvalues of
+        the Gram matrix of their part orthogonal to it, relative to their own size, above ``tol``."""
+        if Ew.shape[1] == 0:
+            return 0
+        R = Ew - self.Q @ (self.Q.T @ Ew)
+        nrm = np.sqrt(np.sum(Ew ** 2, axis=0))
+        nrm = np.where(nrm > 0, nrm, 1.0)
+        Rs = R / nrm
+        ev = np.linalg.eigvalsh(Rs.T @ Rs)
+        return int(np.sum(ev > tol))
+
+    def gram(self, extra: np.ndarray) -> np.ndarray:
+        """Weighted normal matrix of the ORIGINAL common columns plus ``extra`` (for covariances)."""
+        Aw = self.A_original * self.w[:, None]
+        Ew = extra * self.w[:, None]
+        return np.block([[Aw.T @ Aw, Aw.T @ Ew], [Ew.T @ Aw, Ew.T @ Ew]])
 
 
 def rms(values: np.ndarray) -> float:

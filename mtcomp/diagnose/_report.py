@@ -63,21 +63,19 @@ def evidence_and_params(st, c, theta, before_fit, after_fit, rivals, noise):
         return params, ev
     if eff == "feed_dependent_abbe":
         params = {"axis": a}
-        shifts = {n: float(v) for n, v in zip(c.params, theta) if n.startswith("IRC_")}
-        gains = {n: float(v) for n, v in zip(c.params, theta) if n.startswith("AG_")}
-        if shifts:
-            big = max(shifts, key=lambda n: abs(shifts[n]))
-            params["irc_shift_mm_per_m_min"] = round(shifts[big], 4)
-            params["irc_shift_component"] = big
-            params["irc_shifts_mm_per_m_min"] = {k: round(v, 4) for k, v in shifts.items()}
-        if gains:
-            big = max(gains, key=lambda n: abs(gains[n]))
-            params["angle_gain_per_m_min"] = round(gains[big], 6)
-            params["angle_gain_component"] = big
-            params["angle_gains_per_m_min"] = {k: round(v, 6) for k, v in gains.items()}
-        what = {"irc": "its instantaneous rotation centre moves with feed",
-                "gain": "its angular error motion grows with feed",
-                "irc+gain": "its rotation centre moves and its angular error grows with feed"}[c.variant]
+        # name the part that acts most on the readings (size of its contribution), with its value
+        contrib = np.sqrt(np.mean((c.columns * theta) ** 2, axis=0))
+        for prefix, key, nd in (("IRC_", "irc_shift_mm_per_m_min", 4), ("AG_", "angle_gain_per_m_min", 6)):
+            idx = [i for i, n in enumerate(c.params) if n.startswith(prefix)]
+            if not idx:
+                continue
+            big = max(idx, key=lambda i: contrib[i])
+            params[key] = round(float(theta[big]), nd)
+            params[key.replace("_per_m_min", "_component").replace("_mm", "")] = c.params[big]
+            params[key.replace("_per", "s_per")] = {c.params[i]: round(float(theta[i]), nd) for i in idx}
+        comp = "E" + c.params[0].split("_")[1]
+        what = (f"the rotation centre of {comp} moves along {c.params[0].split('_')[2].upper()} with feed"
+                if c.variant.startswith("irc") else f"{comp} grows with feed")
         ev = (f"The feed-dependent part of the {a} residual follows the fitted angular error profile of "
               f"{a} times the Abbe arm ({what}; seed 000){rt}")
         return params, ev

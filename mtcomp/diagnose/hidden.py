@@ -115,7 +115,7 @@ def campaign_plans(machine: Machine, size: str = "small") -> list:
     readings on xfyz) or 'full' (benchmarks, about 5,000)."""
     from .. import sim
     small = size == "small"
-    n_coarse, n_runs, n_fine = (11, 2, 110) if small else (21, 3, 160)
+    n_coarse, n_runs, n_fine = (11, 2, 160) if small else (21, 3, 220)
     plans = []
     for ax in machine.linear_axes:
         a = ax.name
@@ -126,13 +126,11 @@ def campaign_plans(machine: Machine, size: str = "small") -> list:
         plans.append(sim.iso230_2_plan(machine, a, coarse, n_runs,
                                        (f"E{a}{a}", f"EA{a}", f"EB{a}", f"EC{a}"),
                                        feed_mm_min=FEEDS[0], name=f"laser_{a.lower()}"))
-        for fi, feed in enumerate(FEEDS):
-            for ai, arm in enumerate(ARMS):
-                if fi == 0 and ai == 0:
-                    continue
-                plans.append(sim.iso230_2_plan(machine, a, coarse, n_runs, (f"E{a}{a}",), optic_mm=arm,
-                                               feed_mm_min=feed, dwell_s=1.0,
-                                               name=f"laser_{a.lower()}_f{int(feed)}_arm{ai}"))
+        for ai, arm in enumerate(ARMS):
+            # one set-up per optic offset, its runs at every feed (one laser zero for all feeds)
+            parts = [sim.iso230_2_plan(machine, a, coarse, n_runs, (f"E{a}{a}",), optic_mm=arm,
+                                       feed_mm_min=feed, dwell_s=1.0) for feed in FEEDS]
+            plans.append(_merge(parts, f"laser_{a.lower()}_feeds_arm{ai}"))
         plans.append(sim.iso230_2_plan(machine, a, fine, 1, (f"E{a}{a}",), feed_mm_min=FEEDS[0],
                                        dwell_s=1.0, name=f"laser_{a.lower()}_fine"))
     rotary = {a.name: ([0.0, 90.0, 180.0, 270.0] if a.name == "C" else [0.0, 30.0])
@@ -147,6 +145,25 @@ def campaign_plans(machine: Machine, size: str = "small") -> list:
         plans.append(sim.three_sphere_plan(machine, angles_deg=np.arange(0.0, 360.0, 20.0 if small else 10.0),
                                            n_runs=2, name="three_sphere"))
     return plans
+
+
+def _merge(plans, name: str):
+    """One plan made of ``plans`` run one after another (times and run numbers continue)."""
+    from dataclasses import replace
+    cols = {}
+    t0, run0 = 0.0, 0
+    for p in plans:
+        p2 = p.shifted(t0)
+        runs = np.asarray(p2.columns["run"], dtype=float) + run0
+        for k, v in p2.columns.items():
+            v = runs if k == "run" else v
+            cols.setdefault(k, []).extend(list(v))
+        t0 = p2.duration_s + 10.0
+        run0 = int(runs.max())
+    cols = {k: (np.asarray(v) if not isinstance(v[0], str) else v) for k, v in cols.items()}
+    if "seq" in cols:
+        cols["seq"] = np.arange(len(cols["seq"]), dtype=float)
+    return replace(plans[0], name=name, columns=cols)
 
 
 def _readings(d) -> np.ndarray:
@@ -174,29 +191,36 @@ def _sigma(d, noise_um, noise_urad) -> np.ndarray:
 
 
 def _effect_term(effect: str, axis: str, rng):
-    """(terms, unit parameter values name -> internal value, description) of one effect."""
+    """(terms, parameter values name -> internal value at a small unit size, description) of one
+    effect; the readings are later scaled to the drawn magnitude (every effect is linear in its own
+    parameters, so the scaling is exact)."""
     if effect in ("backlash", "rotary_backlash"):
-        return [Backlash(axis)], {f"BL_{axis}": 1.0}, {}
+        return [Backlash(axis)], {f"BL_{axis}": 1e-5 if effect == "rotary_backlash" else 1e-3}, {}
     if effect == "periodic_error":
         period = float(rng.choice(PERIODS))
         ph = rng.uniform(0, 2 * math.pi)
-        return [PeriodicError(axis, period)], {f"PER_{axis}_c": math.cos(ph), f"PER_{axis}_s": math.sin(ph)}, \
-            {"period_mm": period}
+        return [PeriodicError(axis, period)], {f"PER_{axis}_c": 1e-3 * math.cos(ph),
+                                               f"PER_{axis}_s": 1e-3 * math.sin(ph)}, {"period_mm": period}
     if effect == "feed_dependent_offset":
-        return [FeedOffset(axis)], {f"FOFF_{axis}": 1.0}, {}
+        return [FeedOffset(axis)], {f"FOFF_{axis}": 1e-3}, {}
     if effect == "feed_dependent_abbe":
-        # one angular error of the axis turns about a centre that moves with feed, along an arm
-        a = str(rng.choice(list("ABC")))
-        others = [c for c in "XYZ" if "XYZ".index(c) != "ABC".index(a)]
-        c = str(rng.choice(others))
-        name = f"IRC_{a}{axis}_{c.lower()}_f"
-        return [AbbeIRC(axis, angles="ABC", feed=True)], {name: 1.0}, {"irc_component": name}
+        # an angular error of the axis that tilts its positioning reading (rotation about one of the
+        # other two directions) turns about a centre that moves with feed (seed 000), or grows with feed
+        own = "XYZ".index(axis)
+        a = str(rng.choice([c for i, c in enumerate("ABC") if i != own]))
+        c = [x for i, x in enumerate("XYZ") if i not in (own, "ABC".index(a))][0]
+        if rng.random() < 0.5:
+            name = f"IRC_{a}{axis}_{c.lower()}_f"
+            return [AbbeIRC(axis, angles="ABC", feed=True)], {name: 10.0}, {"what": name}
+        name = f"AG_{a}{axis}"
+        return [AbbeIRC(axis, angles="ABC", feed=False, angle_gain=True)], {name: 0.01}, {"what": name}
     if effect == "thermal_drift":
-        return [ThermalDrift("time", ("time_h",), "XYZ")], {f"TD_{axis}_time_h": 1.0}, {"driver": "time"}
+        return [ThermalDrift("time", ("time_h",), "XYZ")], {f"TD_{axis}_time_h": 1e-3}, {"driver": "time"}
     if effect == "rotary_pdge":
         comp = str(rng.choice(["EXC", "EYC", "EZC", "EAC", "EBC"]))
         order = 2
-        vals = {f"{comp}_{cs}{k}": rng.normal() for k in range(1, order + 1) for cs in "cs"}
+        unit = 1e-5 if comp[1] in "ABC" else 1e-3
+        vals = {f"{comp}_{cs}{k}": unit * rng.normal() for k in range(1, order + 1) for cs in "cs"}
         return [RotaryErrorMotion(comp, order=order)], vals, {"component": comp}
     raise ValueError(effect)
 
