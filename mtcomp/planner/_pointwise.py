@@ -52,9 +52,13 @@ class Linearization:
                                ("x", "x_lin", "b", "A", "b0", "target", "iterations", "converged")))
 
 
-def pinv_step(A: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Seed 001 eqs. 29-30: the correction -pinv(A) b of each block. A (n, rows, na), b (n, rows)."""
-    return -np.einsum("nij,nj->ni", np.linalg.pinv(A), b)
+def pinv_step(A: np.ndarray, b: np.ndarray, lam: float = 0.0) -> np.ndarray:
+    """Seed 001 eqs. 29-30: the correction ``-(A^T A)^-1 A^T b`` of each block (the normal equations
+    of eq. 29; with ``lam`` > 0 regularised: ``-(A^T A + lam I)^-1 A^T b``, which stays finite at
+    singular poses). A (n, rows, na), b (n, rows)."""
+    if lam <= 0:
+        return -np.einsum("nij,nj->ni", np.linalg.pinv(A), b)
+    return -spd_solve(gram(A, lam), at_b(A, b))
 
 
 def regularized_step(A: np.ndarray, b: np.ndarray, x: np.ndarray, lam: float) -> np.ndarray:
@@ -64,11 +68,11 @@ def regularized_step(A: np.ndarray, b: np.ndarray, x: np.ndarray, lam: float) ->
     return -spd_solve(H, g)
 
 
-def solve_pinv(ev: Evaluator, q: np.ndarray, ctx: np.ndarray) -> Linearization:
+def solve_pinv(ev: Evaluator, q: np.ndarray, ctx: np.ndarray, lam: float = 0.0) -> Linearization:
     """One seed-001 step per block at the nominal position (no iteration)."""
     n, na = q.shape
     b0, A0, target = ev.residual_jacobian(q, np.zeros((n, na)), ctx)
-    x = pinv_step(A0, b0)
+    x = pinv_step(A0, b0, lam)
     return Linearization(x, np.zeros_like(x), b0, A0, b0, target, np.ones(n, int), np.ones(n, bool))
 
 

@@ -163,7 +163,7 @@ class Planner:
     def _solve_free(self, q, ctx) -> Linearization:
         o = self.options
         if o.method == "pinv":
-            return solve_pinv(self.ev, q, ctx)
+            return solve_pinv(self.ev, q, ctx, self.problem.regularization)
         return solve_newton(self.ev, q, ctx, self.problem.regularization, o.step_tol_um,
                             o.max_iterations)
 
