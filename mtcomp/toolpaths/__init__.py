@@ -5,9 +5,16 @@ Public API (see docs/toolpaths.md):
 * :func:`iter_segment_chunks`, :class:`SegmentChunk`: a program streamed as straight segments.
 * :func:`write_corrected`: the program written back with corrected (or nominal) coordinates.
 * :func:`read_program`, :class:`Program`, :class:`MotionBlock`: a small program in memory.
+* :mod:`.parts`: the seed-001 bowl, ISO 230-4 circles, the seed-003 three-sphere test, a cone frustum.
+* :func:`inverse_kinematics`, :func:`fit_rotary_travel`: tool pose -> axis positions.
 """
 from .gcode import (MotionBlock, ModalState, Program, SegmentChunk, iter_segment_chunks,
                     read_program, tokenize, write_corrected)
+from .inverse import fit_rotary_travel, inverse_kinematics
+from .parts import (write_bowl_program, write_circle_program, write_cone_frustum_program,
+                    write_three_sphere_program)
 
 __all__ = ["MotionBlock", "ModalState", "Program", "SegmentChunk", "iter_segment_chunks",
-           "read_program", "tokenize", "write_corrected"]
+           "read_program", "tokenize", "write_corrected", "fit_rotary_travel", "inverse_kinematics",
+           "write_bowl_program", "write_circle_program", "write_cone_frustum_program",
+           "write_three_sphere_program"]

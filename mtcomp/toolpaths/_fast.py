@@ -38,6 +38,14 @@ def _cache_dirs():
     yield Path(tempfile.gettempdir()) / f"mtcomp-{os.getuid() if hasattr(os, 'getuid') else 'user'}"
 
 
+def _private(d: Path) -> bool:
+    """The folder belongs to this user and nobody else can write to it (we load code from it)."""
+    if not hasattr(os, "getuid"):
+        return True
+    st = d.stat()
+    return st.st_uid == os.getuid() and not (st.st_mode & 0o022)
+
+
 def _compile() -> Path | None:
     src = _SRC.read_bytes()
     tag = hashlib.sha256(src + sys.platform.encode() + str(ctypes.sizeof(ctypes.c_void_p)).encode())
@@ -45,10 +53,12 @@ def _compile() -> Path | None:
     cc = os.environ.get("CC", "gcc")
     for d in _cache_dirs():
         so = d / name
-        if so.exists():
-            return so
         try:
-            d.mkdir(parents=True, exist_ok=True)
+            d.mkdir(parents=True, exist_ok=True, mode=0o700)
+            if not _private(d):
+                continue
+            if so.exists():
+                return so
             fd, tmp = tempfile.mkstemp(prefix=".gcode_", suffix=".so", dir=d)
             os.close(fd)
             r = subprocess.run([cc, "-O2", "-shared", "-fPIC", "-o", tmp, str(_SRC), "-lm"],
