@@ -269,6 +269,10 @@ def test_corrections_that_do_not_match_are_refused(tmp_path):
     shifted = SegmentChunk(c.line + 1, c.start, c.end, c.feed, c.dirs, c.rapid, c.from_arc)
     with pytest.raises(ValueError, match="do not match"):
         write_corrected(p, out, XFYZ, iter([(shifted, c.end, np.ones(len(c), int))]))
+    nan_end = c.end.copy()
+    nan_end[1, 0] = np.nan
+    with pytest.raises(ValueError, match="non-finite point for line 2"):
+        write_corrected(p, out, XFYZ, iter([(c, nan_end, np.ones(len(c), int))]))
     with pytest.raises(ValueError, match="ended before"):
         write_corrected(p, out, XFYZ, iter([]))
     assert not out.exists()

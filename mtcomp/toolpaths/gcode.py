@@ -611,6 +611,9 @@ class CorrectionCursor:
         points = np.ascontiguousarray(points, dtype=np.float64)
         if points.shape != (offsets[-1], self.na):
             raise ValueError(f"points must be ({offsets[-1]}, {self.na}), got {points.shape}")
+        if not np.all(np.isfinite(points)):
+            bad = int(np.searchsorted(offsets, np.argmax(~np.isfinite(points).all(axis=1)), "right")) - 1
+            raise ValueError(f"corrections hold a non-finite point for line {int(chunk.line[bad])}")
         self.line = np.ascontiguousarray(chunk.line, dtype=np.int64)
         self.offsets, self.points, self.row, self.n = offsets, points, 0, len(chunk)
 
