@@ -31,7 +31,7 @@ import math
 import numpy as np
 
 from ..errors import InputError
-from ..kinematics import forward, rotation_about
+from ..kinematics import forward
 from ..machine import Machine
 
 #: |sin| of the angle between a vector and a rotation axis below which the rotation is taken as free
