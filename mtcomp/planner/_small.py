@@ -34,18 +34,32 @@ def a_x(A: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 def spd_solve(H: np.ndarray, g: np.ndarray) -> np.ndarray:
-    """(n, m): H^-1 g for symmetric positive definite H (n, m, m) by Cholesky, vectorised over n."""
+    """(n, m): H^-1 g for symmetric positive definite H (n, m, m) by Cholesky, vectorised over n
+    (explicit loops over the m <= 6 rows: no reductions over short strided axes)."""
     n, m, _ = H.shape
-    L = np.zeros_like(H)
+    L = [[None] * m for _ in range(m)]
+    inv_diag = [None] * m
     for j in range(m):
-        s = H[:, j, j] - np.sum(L[:, j, :j] ** 2, axis=1)
-        L[:, j, j] = np.sqrt(s)
+        s = H[:, j, j].copy()
+        for k in range(j):
+            s -= L[j][k] * L[j][k]
+        d = np.sqrt(s)
+        inv_diag[j] = 1.0 / d
         for i in range(j + 1, m):
-            L[:, i, j] = (H[:, i, j] - np.sum(L[:, i, :j] * L[:, j, :j], axis=1)) / L[:, j, j]
-    y = np.empty((n, m))
+            t = H[:, i, j].copy()
+            for k in range(j):
+                t -= L[i][k] * L[j][k]
+            L[i][j] = t * inv_diag[j]
+    y = [None] * m
     for i in range(m):
-        y[:, i] = (g[:, i] - np.sum(L[:, i, :i] * y[:, :i], axis=1)) / L[:, i, i]
+        t = g[:, i].copy()
+        for k in range(i):
+            t -= L[i][k] * y[k]
+        y[i] = t * inv_diag[i]
     x = np.empty((n, m))
     for i in range(m - 1, -1, -1):
-        x[:, i] = (y[:, i] - np.sum(L[:, i + 1:, i] * x[:, i + 1:], axis=1)) / L[:, i, i]
+        t = y[i]
+        for k in range(i + 1, m):
+            t = t - L[k][i] * x[:, k]
+        x[:, i] = t * inv_diag[i]
     return x
