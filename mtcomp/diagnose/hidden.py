@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 import tempfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -135,21 +135,40 @@ def campaign_plans(machine: Machine, size: str = "small") -> list:
                                        dwell_s=1.0, name=f"laser_{a.lower()}_fine"))
     rotary = {a.name: ([0.0, 90.0, 180.0, 270.0] if a.name == "C" else [0.0, 30.0])
               for a in machine.rotary_axes}
-    plans.append(sim.volumetric_points_plan(machine, (3, 3, 2) if machine.rotary_axes else (4, 3, 3),
-                                            rotary_deg=rotary or None, n_runs=2 if not machine.rotary_axes
-                                            else 1, name="points"))
+    points = sim.volumetric_points_plan(machine, (2, 2, 2) if machine.rotary_axes else (4, 3, 3),
+                                        rotary_deg=rotary or None, n_runs=1, name="points")
+    plans.insert(0, points)
+    plans.insert(len(plans) // 2, replace(points, name="points_repeat"))
     for ax in machine.rotary_axes:
         plans.append(sim.rotary_laser_plan(machine, ax.name, n_runs=n_runs + 1,
                                            name=f"rotary_laser_{ax.name.lower()}"))
     if "C" in machine.axis_names:
         plans.append(sim.three_sphere_plan(machine, angles_deg=np.arange(0.0, 360.0, 20.0 if small else 10.0),
                                            n_runs=2, name="three_sphere"))
+    # the points grid again in the middle and at the end (runs 2 and 3 of the same file): drift checks
+    plans.append(replace(points, name="points_repeat"))
     return plans
+
+
+def _join_repeat(plans):
+    """Fold the plans named 'points_repeat' into 'points' as runs 2, 3 ... (times kept as they are)."""
+    names = [p.name for p in plans]
+    if "points_repeat" not in names or "points" not in names:
+        return plans
+    first = plans[names.index("points")]
+    cols = {k: list(v) for k, v in first.columns.items()}
+    for rep in (p for p in plans if p.name == "points_repeat"):
+        top = max(cols["run"])
+        for k in cols:
+            w = rep.columns[k]
+            cols[k].extend(list(np.asarray(w, dtype=float) + top) if k == "run" else list(w))
+    cols = {k: (v if isinstance(v[0], str) else np.asarray(v)) for k, v in cols.items()}
+    joined = replace(first, columns=cols)
+    return [joined if p.name == "points" else p for p in plans if p.name != "points_repeat"]
 
 
 def _merge(plans, name: str):
     """One plan made of ``plans`` run one after another (times and run numbers continue)."""
-    from dataclasses import replace
     cols = {}
     t0, run0 = 0.0, 0
     for p in plans:
@@ -262,6 +281,7 @@ def hidden_case(seed: int, effects=None, machine: str | Machine | None = None, s
         p2 = p.shifted(t)
         shifted.append(p2)
         t = max(t, p2.duration_s) + 600.0
+    shifted = _join_repeat(shifted)
     with tempfile.TemporaryDirectory(prefix="mtcomp-hidden-") as tmp:
         vm0 = sim.VirtualMachine(m, base_truth, 0.0, 0.0, rng=0)
         data0 = [vm0.measure(p, f"{tmp}/{p.name}.csv", noise=False) for p in shifted]

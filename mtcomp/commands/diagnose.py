@@ -1,0 +1,61 @@
+"""`mtcomp diagnose MACHINE DATA... --json REPORT.json [-o MODEL.json]` (SPEC sections 5 and 6).
+
+Fits the base model to every DATA file, finds what it gets wrong (residual analysis against every
+context the data carry), extends it with the effects that earn their place on held-out data, and
+reports the gain. The printed report is for a metrologist; REPORT.json has the keys of SPEC 6;
+MODEL.json is the extended model (read by compensate, predict and render). Progress lines go to
+stderr. Outputs are written atomically, and only after the whole diagnosis succeeded.
+docs/diagnose.md.
+"""
+from __future__ import annotations
+
+
+def add_arguments(parser):
+    parser.add_argument("machine", metavar="MACHINE", help="built-in machine name or machine TOML file")
+    parser.add_argument("data", metavar="DATA", nargs="+",
+                        help="measurement files (points, laser, ballbar, thermal, ...: SPEC section 3)")
+    parser.add_argument("--json", metavar="REPORT.json", required=True,
+                        help="where to write the report (verdict, noise_um, base, findings, final)")
+    parser.add_argument("-o", "--output", metavar="MODEL.json", default=None,
+                        help="also write the extended model (base model plus the terms found)")
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
+
+
+def run(args) -> int:
+    import json
+    import sys
+
+    from ..diagnose import diagnose
+    from ..errors import InputError
+    from ..io.atomic import atomic_write, check_output_path
+    from ..io.measurements import read_measurements
+    from ..machine import load_machine
+    from ..models.model_file import _json_default, save_model
+
+    report_path = check_output_path(args.json, list(args.data))
+    model_path = check_output_path(args.output, list(args.data)) if args.output else None
+    if model_path is not None and report_path.resolve() == model_path.resolve():
+        raise InputError("--json and -o name the same file", args.json)
+    machine = load_machine(args.machine)
+    datasets = [read_measurements(path) for path in args.data]
+
+    def progress(line):
+        if not args.quiet:
+            sys.stderr.write(f"diagnose: {line}\n")
+            sys.stderr.flush()
+
+    result = diagnose(machine, datasets, progress=progress)
+    result.model.info["command"] = "mtcomp diagnose " + " ".join(sys.argv[2:]) if len(sys.argv) > 2 \
+        else "mtcomp diagnose"
+    print(result.summary())
+    report = result.to_dict()
+    report["seconds"] = round(result.seconds, 3)
+    report["files"] = [str(p) for p in args.data]
+    with atomic_write(report_path) as f:
+        json.dump(report, f, indent=1, default=_json_default)
+        f.write("\n")
+    print(f"\nwrote {report_path}")
+    if model_path is not None:
+        save_model(model_path, result.model)
+        print(f"wrote {model_path}")
+    return 0
