@@ -59,26 +59,35 @@ def programs(draw):
             post = [f"F{draw(st.integers(1, 5000))}"] if draw(st.booleans()) or mode == 1 else []
             post += [draw(st.sampled_from(["", "(c)", "M8", "; end"]))]
             lines.append(" ".join(w for w in pre + ([g] if g else []) + words + post if w))
-        else:  # an arc in G17 from the current point, centre offset I J, end on the circle
+        else:  # an arc in G17/G18/G19 from the current point, I/J/K or R, end on the circle
             scale = 25.4 if inch else 1.0
+            plane = draw(st.sampled_from([17, 18, 19]))
+            ia, ib, inorm = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}[plane]
+            la, lb = {17: ("I", "J"), 18: ("K", "I"), 19: ("J", "K")}[plane]
             r = draw(st.floats(0.5, 40)) * scale
             phi0 = draw(st.floats(0, 2 * math.pi))
             phi1 = draw(st.floats(0, 2 * math.pi))
-            cx, cy = pos[0] - r * math.cos(phi0), pos[1] - r * math.sin(phi0)
-            ex, ey = cx + r * math.cos(phi1), cy + r * math.sin(phi1)
-            words = [f"I{(cx - pos[0]) / scale:.4f}", f"J{(cy - pos[1]) / scale:.4f}"]
+            ccw = draw(st.booleans())
+            ca, cb = pos[ia] - r * math.cos(phi0), pos[ib] - r * math.sin(phi0)
+            end = {ia: ca + r * math.cos(phi1), ib: cb + r * math.sin(phi1)}
+            sweep = (phi1 - phi0) % (2 * math.pi) if ccw else (phi0 - phi1) % (2 * math.pi)
+            use_r = draw(st.booleans()) and min(abs(sweep - math.pi), sweep, 2 * math.pi - sweep) > 0.2
+            if use_r:
+                words = [f"R{(r if sweep <= math.pi else -r) / scale:.4f}"]
+            else:
+                words = [f"{la}{(ca - pos[ia]) / scale:.4f}", f"{lb}{(cb - pos[ib]) / scale:.4f}"]
             coords = []
-            for i, (c, e) in enumerate((("X", ex), ("Y", ey))):
-                v = round((e - pos[i]) / scale if incremental else e / scale, 4)
-                coords.append(f"{c}{v:.4f}")
+            for i in sorted(end):
+                v = round((end[i] - pos[i]) / scale if incremental else end[i] / scale, 4)
+                coords.append(f"{'XYZ'[i]}{v:.4f}")
                 pos[i] = pos[i] + v * scale if incremental else v * scale
             if draw(st.booleans()):
-                dz = round(draw(st.floats(-5, 5)), 3)
-                coords.append(f"Z{dz:.3f}")
-                pos[2] = pos[2] + dz * scale if incremental else dz * scale
-            g = draw(st.sampled_from(["G2", "G3", "G02", "G03"]))
+                dn = round(draw(st.floats(-5, 5)), 3)
+                coords.append(f"{'XYZ'[inorm]}{dn:.3f}")
+                pos[inorm] = pos[inorm] + dn * scale if incremental else dn * scale
+            g = draw(st.sampled_from(["G3", "G03"] if ccw else ["G2", "G02"]))
             mode = 2
-            lines.append(" ".join(["G17", g] + coords + words + ["F300"]))
+            lines.append(" ".join([f"G{plane}", g] + coords + words + ["F300"]))
     if lines and lines[0] == "%":
         lines.append("%")
     ending = draw(st.sampled_from(["\n", "\r\n"]))
