@@ -648,7 +648,8 @@ class CorrectionCursor:
 def write_corrected(in_path, out_path, machine: Machine,
                     corrections: Iterable[tuple[SegmentChunk, np.ndarray, np.ndarray]] | None,
                     chord_tol_mm: float = DEFAULT_CHORD_TOL_MM, initial_position=None) -> int:
-    """Write ``in_path`` to ``out_path`` with corrected motion lines. Returns the rows written.
+    """Write ``in_path`` to ``out_path`` with corrected motion lines; returns the number of segment
+    rows written.
 
     corrections : iterator of ``(chunk, points, counts)`` per SegmentChunk of
         :func:`iter_segment_chunks` (same order): points (M, na) corrected axis positions (mm, rad)
@@ -658,6 +659,8 @@ def write_corrected(in_path, out_path, machine: Machine,
     Every line that is not a motion line is written byte for byte and in place. Output is absolute
     (G90), in the units of the input at that line, 4 decimals for mm and deg, 5 for inch. The file
     is written atomically: nothing is left on failure and the input is never overwritten.
+    Raises InputError for a bad program or output path, ValueError for corrections that do not
+    match the program's segment rows (or hold a non-finite point).
     """
     check_output_path(out_path, [in_path])
     if corrections is None:
