@@ -138,6 +138,7 @@ def test_fallback_without_compiler(cache, monkeypatch, capsys):
 
 @pytest.mark.skipif(shutil.which("false") is None, reason="needs the 'false' program")
 def test_fallback_when_compilation_fails(cache, monkeypatch, capsys):
+    monkeypatch.setattr(compiled, "_said", set())
     monkeypatch.setenv("MTCOMP_CC", shutil.which("false"))
     monkeypatch.setenv("MTCOMP_COMPILE_MIN_POSES", "1")
     model = ErrorModel(load_machine("xfyz"))
@@ -146,6 +147,24 @@ def test_fallback_when_compilation_fails(cache, monkeypatch, capsys):
     np.testing.assert_array_equal(dev, casadi_map_call(model.deviation_function, q, p, c)[0])
     assert "compiling the model failed" in capsys.readouterr().err
     assert not list(cache.glob("*.so"))
+
+
+def test_shared_cache_dir_is_refused(tmp_path, monkeypatch, capsys):
+    """Code is only loaded from a directory nobody else can write to."""
+    shared = tmp_path / "shared"
+    shared.mkdir()
+    shared.chmod(0o777)
+    monkeypatch.setenv("MTCOMP_CACHE_DIR", str(shared))
+    compiled.forget_loaded()
+    model = ErrorModel(load_machine("xfyz"))
+    q, p, c = _inputs(model, 11, 4)
+    monkeypatch.setattr(compiled, "_said", set())
+    for _ in range(2):
+        assert compiled.call(model, "deviation_function", model.deviation_function, q, p, c) is None
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "writable by other users" in err
+    assert not list(shared.iterdir())
+    compiled.forget_loaded()
 
 
 def test_cache_dir_follows_environment(monkeypatch, tmp_path):

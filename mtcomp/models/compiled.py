@@ -54,6 +54,7 @@ compile_count = 0
 
 _NOTICE = "mtcomp: no C compiler found; using CasADi's own evaluation (slower)"
 _notice_given = False
+_said: set = set()
 _lock = threading.Lock()
 _loaded: dict = {}  # (structure key, function name, fingerprint) -> _Compiled
 
@@ -70,6 +71,20 @@ def cache_dir() -> Path:
     xdg = os.environ.get("XDG_CACHE_HOME")
     base = Path(xdg) if xdg else Path.home() / ".cache"
     return base / "mtcomp"
+
+
+def _private_cache_dir() -> Path:
+    """The cache directory, created if needed, after checking that only this user can write to it
+    (libraries are loaded from it). Raises CompileError otherwise."""
+    d = cache_dir()
+    try:
+        d.mkdir(parents=True, exist_ok=True, mode=0o700)
+        st = d.stat()
+    except OSError as exc:
+        raise CompileError(f"cannot create cache directory {d}: {exc}") from None
+    if hasattr(os, "getuid") and (st.st_uid != os.getuid() or st.st_mode & 0o022):
+        raise CompileError(f"cache directory {d} is writable by other users; not loading code from it")
+    return d
 
 
 def find_compiler() -> str | None:
@@ -454,14 +469,10 @@ def compile_source(src: str, compiler: str) -> Path:
     """Compile ``src`` into the cache (or reuse a cached library). Raises CompileError."""
     global compile_count
     key = hashlib.sha256("\0".join([src, compiler, *CFLAGS]).encode()).hexdigest()[:24]
-    out_dir = cache_dir()
+    out_dir = _private_cache_dir()
     lib = out_dir / f"mtcomp_{key}.so"
     if lib.exists():
         return lib
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise CompileError(f"cannot create cache directory {out_dir}: {exc}") from None
     with tempfile.TemporaryDirectory(dir=out_dir, prefix=".build-") as tmp:
         c_file = Path(tmp) / f"mtcomp_{key}.c"
         c_file.write_text(src)
@@ -575,6 +586,7 @@ def get_compiled(model, name: str, function: ca.Function, compile_if_missing: bo
         if (skey, compiler) in _failed:
             raise CompileError(_failed[(skey, compiler)])
         sizes = [function.numel_out(k) for k in range(function.n_out())]
+        _private_cache_dir()
         lib = _from_index(function, compiler)
         if lib is None:
             if not compile_if_missing:
@@ -614,7 +626,8 @@ def call(model, name, function, q, p, c, required=False):
             raise RuntimeError(f"compiled backend not available: {exc}") from None
         if "no C compiler" in str(exc):
             _notice()
-        else:
+        elif str(exc) not in _said:  # each problem once per process
+            _said.add(str(exc))
             print(f"mtcomp: compiling the model failed; using CasADi's own evaluation ({exc})"[:300],
                   file=sys.stderr)
         return None
