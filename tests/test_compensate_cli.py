@@ -224,3 +224,22 @@ def test_bad_input_exits_2_and_writes_nothing(tmp_path, capsys):
         assert not out.exists() and not (tmp_path / "r.csv").exists()
     assert prog.read_text() == XFYZ_PROGRAM
     assert not [p for p in tmp_path.iterdir() if p.name.endswith(".part")]
+
+
+def test_inch_program_keeps_bounds_on_the_inch_grid(tmp_path, capsys):
+    machine, fitted, model_path = _model(tmp_path, "xfyz", seed=6, scale=2.0)
+    prog = tmp_path / "in.nc"
+    prog.write_text("G20 G90\nG0 X-2 Y-1.5 Z0.5\nG1 Z-0.2 F40\nX2 Y-1.5\nX2 Y1.5\nX-2 Y1.5\nM30\n")
+    out, nominal = tmp_path / "out.nc", tmp_path / "nominal.nc"
+    code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o", str(out),
+                              "--max-correction-um", "3", "--max-step-um", "1",
+                              "--subdivide-tol-um", "0"], capsys)
+    assert code == 0, err
+    write_corrected(prog, nominal, machine, None)
+    corr_inch = (_written_points(out, machine) - _written_points(nominal, machine)) / 25.4
+    k = corr_inch / 1e-5                                   # whole steps of the 5th inch decimal
+    np.testing.assert_allclose(k, np.round(k), rtol=0, atol=1e-6)
+    corr_um = corr_inch * 25.4e3
+    assert np.all(np.abs(corr_um) <= 3.0 + 1e-6)
+    assert np.all(np.abs(np.diff(corr_um[1:], axis=0)) <= 1.0 + 1e-6)   # block 1 follows a rapid
+    assert np.abs(corr_um).max() > 0.5
