@@ -122,8 +122,7 @@ def make_folds(st, max_folds: int = MAX_FOLDS) -> tuple[np.ndarray, str]:
     time until the next one) when the spindle speed changes at least four times, else into K
     contiguous stretches of reading order.
     """
-    n = len(st)
-    folds = np.zeros(n, dtype=np.int64)
+    n = len(st.file)
     how = set()
     block_of = np.zeros(n, dtype=np.int64)
     for fi in np.unique(st.file):

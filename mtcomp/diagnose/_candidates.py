@@ -35,6 +35,7 @@ class Candidate:
     rivals : key shared by candidates that explain the same residual.
     info : what the report needs (period, time constant, spectral line ...).
     veto : a reason the data refuse this candidate (it is then never chosen), or None.
+    build : callable(stack) -> columns, to rebuild them after the stack is re-linearised.
     """
 
     effect: str
@@ -46,6 +47,11 @@ class Candidate:
     rivals: str = ""
     info: dict = field(default_factory=dict)
     veto: str | None = None
+    build: object = None
+
+    def rebuild(self, st) -> np.ndarray:
+        """The candidate's columns for the stack's current linearisation point."""
+        return self.build(st) if self.build is not None else self.columns
 
     @property
     def key(self) -> str:
@@ -77,20 +83,25 @@ def generate(st, design, extra: np.ndarray, resid: np.ndarray, chosen_keys: set[
         dirs = st.dirs[reads, k]
         # backlash: both approach directions must be present among readings of this axis's error
         if np.any(dirs > 0) and np.any(dirs < 0):
-            col = 0.5 * st.dirs[:, k] * g
-            out.append(Candidate("rotary_backlash" if rotary else "backlash", a, "step", col[:, None],
-                                 [Backlash(a)], [f"BL_{a}"]))
+            def bl(s, k=k, a=a):
+                return (0.5 * s.dirs[:, k] * s.g[a])[:, None]
+            out.append(Candidate("rotary_backlash" if rotary else "backlash", a, "step", bl(st),
+                                 [Backlash(a)], [f"BL_{a}"], build=bl))
         if not rotary:
             feeds = _feeds(st, reads)
             if feeds.size >= 2:
-                f = np.nan_to_num(st.feed, nan=0.0) / 1000.0
-                out.append(Candidate("feed_dependent_offset", a, "uniform", (g * f)[:, None],
+                def fo(s, a=a, k=k, signed=False):
+                    col = s.g[a] * np.nan_to_num(s.feed, nan=0.0) / 1000.0
+                    return (col * s.dirs[:, k] if signed else col)[:, None]
+                out.append(Candidate("feed_dependent_offset", a, "uniform", fo(st),
                                      [FeedOffset(a)], [f"FOFF_{a}"], rivals=f"feed:{a}",
-                                     info={"complexity": 0}))
+                                     info={"complexity": 0}, build=fo))
                 if np.any(dirs > 0) and np.any(dirs < 0):
-                    out.append(Candidate("feed_dependent_offset", a, "lag", (g * f * st.dirs[:, k])[:, None],
+                    def fl(s, a=a, k=k):
+                        return fo(s, a, k, True)
+                    out.append(Candidate("feed_dependent_offset", a, "lag", fl(st),
                                          [FeedOffset(a, signed=True)], [f"FOFF_{a}"], rivals=f"feed:{a}",
-                                         info={"complexity": 1}))
+                                         info={"complexity": 1}, build=fl))
                 out.extend(_abbe_candidates(st, a))
             out.extend(_periodic_candidates(st, design, extra, resid, a))
         else:
@@ -111,13 +122,30 @@ def _abbe_candidates(st, a: str) -> list[Candidate]:
             if name in st.probe.param_names:
                 cands.append(Candidate("feed_dependent_abbe", a, f"irc:{name}", st.columns([name]),
                                        [AbbeIRC(a, angles=b, feed=True)], [name], rivals=f"feed:{a}",
-                                       info={"complexity": 2}))
+                                       info={"complexity": 2}, build=_probe_columns([name])))
         name = f"AG_{b}{a}"
         if name in st.probe.param_names:
             cands.append(Candidate("feed_dependent_abbe", a, f"gain:{name}", st.columns([name]),
                                    [AbbeIRC(a, angles=b, feed=False, angle_gain=True)], [name],
-                                   rivals=f"feed:{a}", info={"complexity": 2}))
+                                   rivals=f"feed:{a}", info={"complexity": 2}, build=_probe_columns([name])))
     return cands
+
+
+def _probe_columns(names):
+    def build(st):
+        return st.columns(names)
+    return build
+
+
+def joint_abbe(c1: Candidate, c2: Candidate) -> Candidate:
+    """One feed-dependent Abbe candidate made of two one-parameter ones of the same axis."""
+    names = c1.params + c2.params
+    letters = "".join(sorted({n.split("_")[1][0] for n in names}))
+    term = AbbeIRC(c1.axis, angles=letters, feed=any(n.startswith("IRC_") for n in names),
+                   angle_gain=any(n.startswith("AG_") for n in names))
+    return Candidate("feed_dependent_abbe", c1.axis, f"{c1.variant}+{c2.variant}",
+                     np.hstack([c1.columns, c2.columns]), [term], names, rivals=c1.rivals,
+                     info={"complexity": 3}, build=_probe_columns(names))
 
 
 def _periodic_candidates(st, design, extra, resid, a: str) -> list[Candidate]:
@@ -129,9 +157,9 @@ def _periodic_candidates(st, design, extra, resid, a: str) -> list[Candidate]:
     ser = an.axis_series(st, resid, a)
     span = float(np.ptp(ser[0])) if ser is not None else 0.0
     for ln in lines[:2]:
-        def cols(period):
-            w = 2 * np.pi * x / period
-            return np.column_stack([g * np.cos(w), g * np.sin(w)])
+        def cols(period, s=st):
+            w = 2 * np.pi * s.q[:, k] / period
+            return np.column_stack([s.g[a] * np.cos(w), s.g[a] * np.sin(w)])
 
         def sse(period):
             return design.fit(np.hstack([extra, cols(period)]), cv=False).sse
@@ -143,6 +171,7 @@ def _periodic_candidates(st, design, extra, resid, a: str) -> list[Candidate]:
         agree, text = an.halves_agree(st, resid, a, period)
         cand = Candidate("periodic_error", a, f"{period:.6g}mm", cols(period), [PeriodicError(a, period)],
                          [f"PER_{a}_c", f"PER_{a}_s"], rivals=f"periodic:{a}",
+                         build=lambda s, period=period, cols=cols: cols(period, s),
                          info={"line": ln, "period_mm": period, "halves": text,
                                # the period was searched: the best of M frequencies needs 2 ln M more
                                "search_penalty": 2.0 * np.log(max(ln.n_independent, 1.0))})
@@ -167,7 +196,7 @@ def _pdge_candidates(st, a: str) -> list[Candidate]:
             continue
         out.append(Candidate("rotary_pdge", a, comp, st.columns(names),
                              [RotaryErrorMotion(comp, order=PDGE_ORDER)], names, rivals=f"pdge:{a}",
-                             info={"component": comp}))
+                             info={"component": comp}, build=_probe_columns(names)))
     return out
 
 
@@ -204,7 +233,8 @@ def _drift_candidate(st, driver, variant, names, info=None):
     if cols.shape[1] == 0:
         return None
     return Candidate("thermal_drift", "", variant, cols, _drift_terms(driver, names, dirs, chans), params,
-                     rivals="thermal", info={"driver": driver, "features": list(names), **(info or {})})
+                     rivals="thermal", info={"driver": driver, "features": list(names), **(info or {})},
+                     build=lambda s: _drift_columns(s, names)[0])
 
 
 def spindle_heat_name(tau_s: float) -> str:
@@ -249,3 +279,13 @@ def _thermal_candidates(st, design, extra) -> list[Candidate]:
         if c is not None:
             out.append(c)
     return out
+
+
+def temperature_regression(st) -> Candidate | None:
+    """The plain linear regression of every reading on every temperature (rise over its first
+    reading), as a candidate: the usual thermal model, reported beside the diagnosis as a reference."""
+    temps = [n for n, v in st.temps.items() if np.isfinite(v).mean() >= 0.5 and np.ptp(v[np.isfinite(v)]) > 0]
+    if not temps:
+        return None
+    return _drift_candidate(st, "temperature", "all temperatures", [f"dtemp_{n}" for n in temps],
+                            {"temperatures": temps})

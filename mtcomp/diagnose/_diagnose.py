@@ -26,7 +26,7 @@ from ..models.chain import ErrorModel
 from ..models.model_file import FittedModel
 from ..models.params import ParameterSet
 from . import _analysis as an
-from ._candidates import Candidate, generate
+from ._candidates import Candidate, generate, temperature_regression
 from ._linalg import Design, rms, solve_normal
 from ._stack import Stack, build_stack
 
@@ -58,6 +58,7 @@ class Finding:
     heldout_rms_before_um: float
     heldout_rms_after_um: float
     candidate: Candidate | None = None
+    step: tuple | None = None
 
     def to_dict(self) -> dict:
         return {"effect": self.effect, "axis": self.axis, "params": self.params, "evidence": self.evidence,
@@ -92,6 +93,7 @@ class Diagnosis:
     n_obs: int
     seconds: float = 0.0
     rejected: list = field(default_factory=list)
+    reference: dict = field(default_factory=dict)
 
     @property
     def noise_um(self) -> float:
@@ -105,7 +107,7 @@ class Diagnosis:
         return {"verdict": self.verdict, "noise_um": _r(self.noise_um),
                 "noise": noise, "base": self.base, "findings": [f.to_dict() for f in self.findings],
                 "final": self.final, "heldout": self.folds, "n_observations": self.n_obs,
-                "rejected": self.rejected}
+                "rejected": self.rejected, "reference": self.reference}
 
     def summary(self) -> str:
         """The printed report: noise, base fit, each finding with evidence and gain, final fit."""
@@ -197,6 +199,12 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
     current = design.fit()
     base_metrics = _metrics(st, current, n_base)
     say(f"base model: rms {base_metrics['rms_um']} um, held-out {base_metrics['heldout_rms_um']} um")
+    reference = {}
+    treg = temperature_regression(st)
+    if treg is not None:
+        fit = design.fit(treg.columns)
+        reference["linear_regression_all_temperatures"] = {
+            **_metrics(st, fit, n_base + treg.columns.shape[1]), "temperatures": treg.info["temperatures"]}
     chosen: list[Candidate] = []
     findings: list[Finding] = []
     rejected: list[dict] = []
@@ -229,6 +237,7 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
             break
         best = max(good, key=lambda s: s[3])
         best = _parsimony(best, good)
+        best = _joint_abbe(design, extra, current, best, good, n)
         c, fit, dk, gain, dbic, _ = best
         rivals = [s for s in good if s[0].rivals and s[0].rivals == c.rivals and s[0] is not c]
         before = _heldout(st, current)
@@ -239,6 +248,10 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
         chosen.append(c)
         extra = np.hstack([extra, c.columns])
         current = fit
+    if chosen:
+        design, current = _refine(st, design, chosen, current)
+        say(f"extended model re-linearised at its own fit: held-out {_heldout(st, current):.4g} um")
+        _final_params(st, design, findings, current)
     final_metrics = _metrics(st, current, n_base + sum(c.columns.shape[1] for c in chosen))
     structure = an.find_structure(st, current.resid, sigma)
     excess = _heldout(st, current) / noise_main.sigma
@@ -249,10 +262,76 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
         say(f"structure remains: {findings[-1].params['where']}")
     model = _fitted_model(st, design, chosen, current)
     diag = Diagnosis(verdict, noise, base_metrics, findings, final_metrics, model, how, len(st),
-                     rejected=rejected)
+                     rejected=rejected, reference=reference)
     diag.seconds = time.perf_counter() - t0
     model.info["diagnose"] = diag.to_dict()
     return diag
+
+
+def _final_params(st, design, findings, fit):
+    """Report the parameters of every finding at the final (re-linearised) fit."""
+    from ._report import evidence_and_params
+    k = design.A_original.shape[1]
+    for f in findings:
+        c = f.candidate
+        w = c.columns.shape[1]
+        before, after, rivals = f.step
+        f.params, _ = evidence_and_params(st, c, fit.theta[k:k + w], before, after, rivals, None)
+        k += w
+
+
+def _refine(st: Stack, design: Design, chosen: list[Candidate], fit, iterations: int = 2):
+    """Gauss-Newton steps of the extended model: re-evaluate the probe at the extended fit (so that
+    bilinear terms, e.g. an angular error times a moving rotation centre, let every reading inform
+    both factors) and refit the chosen model. Returns (design, fit)."""
+    base_idx = np.flatnonzero(st.probe.base_mask)
+    nb = base_idx.size
+    m = design.A_original.shape[1]
+    for _ in range(iterations):
+        theta = fit.theta
+        p = np.zeros(st.probe.n_params)
+        p[base_idx] = theta[:nb]
+        in_probe = []                                   # (name, value) evaluated by the probe itself
+        k = m
+        for c in chosen:
+            for j, name in enumerate(c.params):
+                if name in st.probe.param_names and not name.startswith(("BL_", "TD_")):
+                    p[st.index(name)] = theta[k + j]
+                    in_probe.append((name, theta[k + j]))
+            k += c.columns.shape[1]
+        st.evaluate(p, theta[nb:m])
+        A = _common_block(st)
+        z = st.y - st.pred + A @ theta[:m]
+        for name, v in in_probe:
+            z = z + st.J[:, st.index(name)] * v
+        for c in chosen:
+            c.columns = c.rebuild(st)
+        design = design.__class__(A, z, design.w, design.folds)
+        fit = design.fit(np.hstack([c.columns for c in chosen]))
+    return design, fit
+
+
+def _joint_abbe(design, extra, current, best, good, n):
+    """Two angular errors of one axis can have profiles so alike that either alone explains most of
+    a feed-dependent Abbe residual; then the pair of the two best is tried, and kept when it earns
+    its extra parameter on held-out data (and in BIC)."""
+    from ._candidates import joint_abbe
+    c = best[0]
+    if c.effect != "feed_dependent_abbe":
+        return best
+    others = sorted((s for s in good if s[0].effect == c.effect and s[0].axis == c.axis and s[0] is not c),
+                    key=lambda s: -s[3])
+    if not others:
+        return best
+    pair = joint_abbe(c, others[0][0])
+    fit = design.fit(np.hstack([extra, pair.columns]))
+    dk = fit.rank - current.rank
+    gain = current.cv_sse - fit.cv_sse
+    dbic = fit.bic(n) - current.bic(n)
+    if dk > best[2] and gain - best[3] > cv_threshold(dk - best[2]) and dbic < best[4] - BIC_MARGIN:
+        pair.info["alternative"] = others[0][0]
+        return (pair, fit, dk, gain, dbic, True)
+    return best
 
 
 def _complexity(c: Candidate, dk: int) -> float:
@@ -281,7 +360,7 @@ def _finding(st, c: Candidate, before_fit, after_fit, before_um, after_um, rival
     theta = after_fit.theta[-c.columns.shape[1]:]
     params, evidence = evidence_and_params(st, c, theta, before_fit, after_fit, rivals, noise)
     axis = c.axis or params.get("direction", "")
-    return Finding(c.effect, axis, params, evidence, before_um, after_um, c)
+    return Finding(c.effect, axis, params, evidence, before_um, after_um, c, (before_fit, after_fit, rivals))
 
 
 def _unexplained(st, fit, structure, excess, noise_main) -> Finding:

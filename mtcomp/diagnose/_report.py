@@ -65,17 +65,20 @@ def evidence_and_params(st, c, theta, before_fit, after_fit, rivals, noise):
         params = {"axis": a}
         # name the part that acts most on the readings (size of its contribution), with its value
         contrib = np.sqrt(np.mean((c.columns * theta) ** 2, axis=0))
-        for prefix, key, nd in (("IRC_", "irc_shift_mm_per_m_min", 4), ("AG_", "angle_gain_per_m_min", 6)):
+        for prefix, what, unit, nd in (("IRC_", "irc_shift", "_mm", 4), ("AG_", "angle_gain", "", 6)):
             idx = [i for i, n in enumerate(c.params) if n.startswith(prefix)]
             if not idx:
                 continue
             big = max(idx, key=lambda i: contrib[i])
-            params[key] = round(float(theta[big]), nd)
-            params[key.replace("_per_m_min", "_component").replace("_mm", "")] = c.params[big]
-            params[key.replace("_per", "s_per")] = {c.params[i]: round(float(theta[i]), nd) for i in idx}
-        comp = "E" + c.params[0].split("_")[1]
-        what = (f"the rotation centre of {comp} moves along {c.params[0].split('_')[2].upper()} with feed"
-                if c.variant.startswith("irc") else f"{comp} grows with feed")
+            params[f"{what}{unit}_per_m_min"] = round(float(theta[big]), nd)
+            params[f"{what}_component"] = c.params[big]
+            params[f"{what}s{unit}_per_m_min"] = {c.params[i]: round(float(theta[i]), nd) for i in idx}
+        parts = []
+        for n in c.params:
+            comp = "E" + n.split("_")[1]
+            parts.append(f"the rotation centre of {comp} moves along {n.split('_')[2].upper()} with feed"
+                         if n.startswith("IRC_") else f"{comp} grows with feed")
+        what = " and ".join(parts)
         ev = (f"The feed-dependent part of the {a} residual follows the fitted angular error profile of "
               f"{a} times the Abbe arm ({what}; seed 000){rt}")
         return params, ev
@@ -166,6 +169,11 @@ def summary(diag) -> str:
     fz = diag.final
     lines.append(f"final model ({fz['n_params']} parameters): rms {_num(fz.get('rms_um'))} um, held-out "
                  f"{_num(fz.get('heldout_rms_um'))} um")
+    ref = diag.reference.get("linear_regression_all_temperatures")
+    if ref:
+        lines.append(f"reference: plain linear regression on all {len(ref['temperatures'])} temperatures "
+                     f"({ref['n_params']} parameters): rms {_num(ref.get('rms_um'))} um, held-out "
+                     f"{_num(ref.get('heldout_rms_um'))} um")
     lines.append(f"verdict: {diag.verdict}")
     return "\n".join(lines)
 

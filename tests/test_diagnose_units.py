@@ -1,0 +1,158 @@
+"""Pieces of `diagnose` against independent oracles: least squares and held-out residuals against
+numpy's lstsq refitted fold by fold, the noise floor against a known sigma, the step test against a
+hand case, the Lomb-Scargle line against a known period, the halves test against a bump."""
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from mtcomp.diagnose import _analysis as an
+from mtcomp.diagnose._blas import _openblas_handles, single_threaded_blas
+from mtcomp.diagnose._linalg import Design, solve_normal
+from mtcomp.machine import load_machine
+
+
+def test_design_fit_matches_lstsq_and_refits_per_fold():
+    rng = np.random.default_rng(1)
+    n = 120
+    A = rng.normal(size=(n, 5))
+    A[:, 4] = A[:, 0] + A[:, 1]                      # a rank-deficient common block
+    E = rng.normal(size=(n, 2))
+    z = A @ rng.normal(size=5) + E @ np.array([0.5, -2.0]) + 0.01 * rng.normal(size=n)
+    w = rng.uniform(0.5, 2.0, n)
+    folds = np.arange(n) % 4
+    fit = Design(A, z, w, folds).fit(E)
+    full = np.hstack([A, E])
+    sol, *_ = np.linalg.lstsq(full * w[:, None], z * w, rcond=None)
+    np.testing.assert_allclose(fit.resid, z - full @ sol, rtol=0, atol=1e-9)
+    assert fit.rank == 6
+    for k in range(4):
+        tr, te = folds != k, folds == k
+        s, *_ = np.linalg.lstsq(full[tr] * w[tr, None], z[tr] * w[tr], rcond=None)
+        np.testing.assert_allclose(fit.cv_resid[te], z[te] - full[te] @ s, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(fit.cv_sse, np.sum((fit.cv_resid * w) ** 2), rtol=1e-12, atol=0)
+
+
+def test_extra_rank_counts_only_new_directions():
+    rng = np.random.default_rng(2)
+    A = rng.normal(size=(50, 3))
+    d = Design(A, rng.normal(size=50), np.ones(50), np.arange(50) % 2)
+    assert d.extra_rank(A[:, :1] * 3.0 - A[:, 2:3]) == 0
+    assert d.extra_rank(rng.normal(size=(50, 2))) == 2
+    assert d.extra_rank(np.column_stack([A[:, 0], rng.normal(size=50)])) == 1
+
+
+def test_solve_normal_minimum_norm_on_rank_deficient_matrix():
+    G = np.array([[1.0, 1.0], [1.0, 1.0]])
+    x, rank = solve_normal(G, np.array([2.0, 2.0]))
+    assert rank == 1
+    np.testing.assert_allclose(x, [1.0, 1.0], rtol=0, atol=1e-12)
+
+
+def _stack(q, series, dirs=None, run=None, t=None, feed=None, unit="um"):
+    """A minimal stand-in for the observation stack of one linear axis X of machine xfyz."""
+    n = len(q)
+    m = load_machine("xfyz")
+    qq = np.zeros((n, 3))
+    qq[:, 0] = q
+    d = np.zeros((n, 3))
+    if dirs is not None:
+        d[:, 0] = dirs
+    return SimpleNamespace(machine=m, q=qq, series=np.asarray(series, dtype=object), dirs=d,
+                           feed=np.full(n, np.nan) if feed is None else feed, arm=np.zeros((n, 3)),
+                           spindle=np.full(n, np.nan), run=np.full(n, -1) if run is None else run,
+                           t=np.full(n, np.nan) if t is None else t, unit=np.full(n, unit),
+                           kinds=["laser"], file=np.zeros(n, dtype=int), row=np.arange(n),
+                           g={"X": np.full(n, 1e3), "Y": np.zeros(n), "Z": np.zeros(n)},
+                           temps={}, moving=np.full(n, "X"))
+
+
+def test_noise_floor_from_repeats_recovers_sigma():
+    rng = np.random.default_rng(3)
+    targets = np.linspace(0, 500, 21)
+    q = np.tile(targets, 10)
+    run = np.repeat(np.arange(10), 21)
+    structure = 5.0 * np.sin(q / 40.0)               # the same at every repeat: not noise
+    r = structure + 0.4 * rng.normal(size=q.size) + 2.0 * run   # a run offset: not noise either
+    st = _stack(q, ["s"] * q.size, run=run)
+    nz = an.noise_floor(st, r)["um"]
+    assert nz.source == "repeats"
+    assert nz.n_groups == 21
+    # pooled sd of 21 groups x 10 repeats after removing run offsets: sigma sqrt((R-1)/R)-ish
+    assert nz.sigma == pytest.approx(0.4, rel=0.12)
+
+
+def test_noise_floor_without_repeats_is_robust_and_says_so():
+    rng = np.random.default_rng(4)
+    q = np.sort(rng.uniform(0, 500, 400))
+    r = 0.01 * q + 0.3 * rng.normal(size=q.size)     # smooth structure plus noise, no repeats
+    st = _stack(q, ["s"] * q.size)
+    nz = an.noise_floor(st, r)["um"]
+    assert nz.source == "robust"
+    assert nz.sigma == pytest.approx(0.3, rel=0.15)
+
+
+def test_step_test_hand_case():
+    # two targets, + readings 3 um above - readings at each, noise free
+    q = np.array([0.0, 0.0, 100.0, 100.0, 0.0, 100.0])
+    dirs = np.array([1, -1, 1, -1, 1, -1])
+    r = np.array([1.5, -1.5, 2.5, -0.5, 1.5, -0.5])
+    st = _stack(q, ["s"] * 6, dirs=dirs)
+    step = an.step_test(st, r, "X")
+    assert step.n_pairs == 2
+    assert step.step == pytest.approx(3.0, rel=0, abs=1e-12)
+
+
+def test_lomb_scargle_line_on_uneven_positions():
+    rng = np.random.default_rng(5)
+    q = np.sort(rng.uniform(0, 600, 300))
+    r = 2.0 * np.cos(2 * np.pi * q / 23.0 + 0.4) + 0.3 * rng.normal(size=q.size)
+    st = _stack(q, ["s"] * q.size)
+    lines = an.spectral_lines(st, r, "X")
+    assert lines[0].period == pytest.approx(23.0, rel=0.01)
+    assert lines[0].fap < 1e-10
+    noise_only = an.spectral_lines(st, 0.3 * rng.normal(size=q.size), "X")
+    assert all(ln.fap > 1e-3 for ln in noise_only)
+    amp, _, se = an.sinusoid_fit(q, r, 23.0)
+    assert amp == pytest.approx(2.0, abs=4 * se)
+
+
+def test_halves_tell_a_cyclic_error_from_a_local_bump():
+    rng = np.random.default_rng(6)
+    q = np.sort(rng.uniform(0, 600, 400))
+    cyc = 1.0 * np.sin(2 * np.pi * q / 20.0) + 0.2 * rng.normal(size=q.size)
+    bump = 3.0 * np.exp(-0.5 * ((q - 150.0) / 15.0) ** 2) + 0.2 * rng.normal(size=q.size)
+    st = _stack(q, ["s"] * q.size)
+    assert an.halves_agree(st, cyc, "X", 20.0)[0]
+    assert not an.halves_agree(st, bump, "X", 20.0)[0]
+
+
+def test_folds_hold_out_whole_runs():
+    q = np.tile(np.linspace(0, 100, 5), 6)
+    run = np.repeat(np.arange(1, 7), 5)
+    st = _stack(q, ["s"] * q.size, run=run)
+    folds, how = an.make_folds(st)
+    assert "whole runs" in how
+    for r in range(1, 7):
+        assert np.unique(folds[run == r]).size == 1
+    assert np.unique(folds).size == 5
+
+
+def test_structure_test_finds_a_bump_and_not_noise():
+    rng = np.random.default_rng(7)
+    q = np.sort(rng.uniform(0, 600, 500))
+    noise = 0.3 * rng.normal(size=q.size)
+    st = _stack(q, ["s"] * q.size)
+    assert an.find_structure(st, noise, {"um": 0.3}) == []
+    bump = noise + 2.0 * np.exp(-0.5 * ((q - 400.0) / 20.0) ** 2)
+    found = an.find_structure(st, bump, {"um": 0.3})
+    assert found and found[0].variable == "X position"
+    assert found[0].lo <= 400.0 <= found[0].hi
+
+
+def test_single_threaded_blas_restores_the_setting():
+    handles = _openblas_handles()
+    before = [g() for _, g in handles]
+    with single_threaded_blas():
+        assert all(g() == 1 for _, g in _openblas_handles())
+    assert [g() for _, g in handles] == before
