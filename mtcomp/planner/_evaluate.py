@@ -35,7 +35,7 @@ class Evaluator:
     def target(self, q: np.ndarray) -> np.ndarray:
         """(n, rows) nominal pose (tip mm, tool axis) of q: what the program means."""
         tip, axis = nominal_pose(self.machine, q)
-        return np.concatenate([tip, axis], axis=1)[:, :self.rows]
+        return tip if self.rows == 3 else np.concatenate([tip, axis], axis=1)
 
     def residual_jacobian(self, q, x, ctx, target=None):
         """Weighted residual b (n, rows) and Jacobian A (n, rows, n_axes) at corrections x (n, n_axes).
@@ -64,7 +64,10 @@ class Evaluator:
         qq = q + x / self.D
         dev = evaluate(self.model, "deviation_function", qq, self.p, ctx)[0]
         self.evaluations += q.shape[0]
-        return (self.target(qq) + dev[:, :self.rows] - target) * self.S
+        r = dev[:, :self.rows] + self.target(qq)
+        r -= target
+        r *= self.S
+        return r
 
     def deviation_only(self, q, ctx):
         """Weighted model deviation (n, rows) at q (the residual of the uncorrected program)."""
