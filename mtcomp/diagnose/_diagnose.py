@@ -7,7 +7,8 @@ Steps (docs/diagnose.md explains them for a metrologist):
 3. Held-out folds: whole runs (or whole passes / spindle-speed blocks) left out together.
 4. Greedy forward selection: every candidate extension (``_candidates``) is fitted; it must lower the
    held-out residual by more than noise could (``CV_Z`` standard deviations of the held-out sum of
-   squares under a useless extension) and lower the BIC by ``BIC_MARGIN``; the strongest is added,
+   squares under a useless extension), remove a material share of the held-out excess over the noise
+   (``MIN_EXCESS_SHARE``) and lower the BIC (noise known) by ``BIC_MARGIN``; the strongest is added,
    and the search repeats until nothing more is significant or the held-out residual is at the noise.
    Rival explanations of one residual are compared by held-out gain, with a parsimony margin.
 5. What structure remains (binned residual means against every context variable) becomes an
@@ -34,6 +35,9 @@ from ._stack import Stack, build_stack
 BIC_MARGIN = 10.0
 #: ... and the held-out weighted sum of squares by CV_Z sqrt(2 k) + k (k: parameters it adds)
 CV_Z = 4.0
+#: ... and remove at least this share of the held-out excess over the noise (a cause must be material:
+#: with large unexplained structure, a column that merely leans on it gains a little everywhere)
+MIN_EXCESS_SHARE = 0.05
 #: the held-out rms may exceed the noise floor by this factor before the excess counts as structure
 EXCESS_RATIO = 1.3
 #: at most this many findings
@@ -79,7 +83,8 @@ class Diagnosis:
     base, final : {'n_params', 'rms_um', 'heldout_rms_um', ...}.
     findings : list of :class:`Finding`.
     model : the extended :class:`~mtcomp.models.FittedModel` (base + chosen terms).
-    folds : how the held-out data were chosen (one sentence).
+    folds : how the held-out data were chosen (one sentence); folds_of_observations : (n_obs,) the
+        fold of each observation (files in the order given, rows in file order, columns in order).
     seconds : wall time.
     """
 
@@ -94,6 +99,7 @@ class Diagnosis:
     seconds: float = 0.0
     rejected: list = field(default_factory=list)
     reference: dict = field(default_factory=dict)
+    folds_of_observations: np.ndarray | None = None
 
     @property
     def noise_um(self) -> float:
@@ -226,7 +232,9 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
             gain = current.cv_sse - fit.cv_sse
             dbic = fit.bic(n) - current.bic(n)
             pen = c.info.get("search_penalty", 0.0)
-            ok = dk >= 1 and gain > cv_threshold(dk) + pen and dbic < -BIC_MARGIN - pen
+            excess = max(current.cv_sse - n, 0.0)
+            ok = (dk >= 1 and gain > cv_threshold(dk) + pen and dbic < -BIC_MARGIN - pen
+                  and gain >= MIN_EXCESS_SHARE * excess)
             scored.append((c, fit, dk, gain, dbic, ok))
         good = [s for s in scored if s[5] and s[0].veto is None]
         for s in scored:
@@ -263,6 +271,7 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
     model = _fitted_model(st, design, chosen, current)
     diag = Diagnosis(verdict, noise, base_metrics, findings, final_metrics, model, how, len(st),
                      rejected=rejected, reference=reference)
+    diag.folds_of_observations = folds
     diag.seconds = time.perf_counter() - t0
     model.info["diagnose"] = diag.to_dict()
     return diag

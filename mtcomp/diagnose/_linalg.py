@@ -58,8 +58,12 @@ class FitResult:
     cv_sse: float
 
     def bic(self, n: int) -> float:
-        """Bayesian information criterion n ln(SSE/n) + rank ln n (Gaussian errors, sigma unknown)."""
-        return n * np.log(max(self.sse, 1e-300) / n) + self.rank * np.log(n)
+        """Bayesian information criterion with the noise known (weights are 1/sigma, sigma the noise
+        floor from repeated readings, i.e. the pure error of the classical lack-of-fit test):
+        SSE + rank ln n. With sigma known, structure the model lacks (a position-dependent error
+        the polynomials cannot follow) does not hide an effect that is orthogonal to it, such as a
+        reversal seen at matched positions."""
+        return self.sse + self.rank * np.log(n)
 
 
 def _chol_solve(G: np.ndarray, b: np.ndarray) -> np.ndarray:
