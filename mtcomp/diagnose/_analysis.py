@@ -35,10 +35,13 @@ class Noise:
 
 
 def _pose_keys(st, sel):
-    """Integer key per observation in ``sel``: same series, pose, directions, feed and arm."""
+    """Integer key per observation in ``sel``: same series, pose, set-up (tool, balls), directions,
+    feed and arm."""
     cols = [st.series[sel].astype(str)]
-    parts = [np.round(st.q[sel], POSITION_DECIMALS), st.dirs[sel], np.round(np.nan_to_num(st.feed[sel],
-             nan=-1.0), 3)[:, None], np.round(st.arm[sel], 3),
+    setup = getattr(st, "setup", None)
+    setup = np.zeros((sel.size, 1)) if setup is None else np.round(setup[sel], 3)
+    parts = [np.round(st.q[sel], POSITION_DECIMALS), setup, st.dirs[sel],
+             np.round(np.nan_to_num(st.feed[sel], nan=-1.0), 3)[:, None], np.round(st.arm[sel], 3),
              np.round(np.nan_to_num(st.spindle[sel], nan=-1.0), 1)[:, None]]
     num = np.hstack(parts)
     _, inv_s = np.unique(cols[0], return_inverse=True)
@@ -194,8 +197,10 @@ def step_test(st, resid, axis: str, sel=None) -> Step | None:
         return None
     r = resid[ix] * np.sign(g[ix])
     d = st.dirs[ix, k]
+    setup = getattr(st, "setup", None)
     key_parts = np.column_stack([np.unique(st.series[ix].astype(str), return_inverse=True)[1],
                                  np.round(st.q[ix], POSITION_DECIMALS),
+                                 np.zeros((ix.size, 1)) if setup is None else np.round(setup[ix], 3),
                                  np.round(np.nan_to_num(st.feed[ix], nan=-1), 3), np.round(st.arm[ix], 3)])
     _, inv = np.unique(key_parts, axis=0, return_inverse=True)
     inv = inv.reshape(-1)

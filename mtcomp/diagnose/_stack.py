@@ -71,6 +71,8 @@ class Stack:
     feed : (n,) mm/min (NaN unknown); t : (n,) s (NaN unknown); run : (n,) int (-1 unknown);
     spindle : (n,) rev/min (NaN unknown); temps : name -> (n,) degC (NaN unknown).
     arm : (n, 3) mm optic offset (Abbe arm of the set-up) of laser rows, 0 otherwise.
+    setup : (n, 7) what else fixes a reading besides the axis positions: tool length (mm) and, for
+        ball-bar rows, table-ball and tool-ball centres (mm); used to match repeated readings.
     J : (n, n_probe) probe Jacobian at ``p`` (file unit per internal unit); D : (n, n_nuisance).
     pred : (n,) probe prediction at ``p``, ``nuisance``.
     g : axis -> (n,) derivative with respect to that axis's positioning error (file unit per mm or
@@ -97,6 +99,7 @@ class Stack:
     spindle: np.ndarray
     temps: dict
     arm: np.ndarray
+    setup: np.ndarray
     nuisance_names: list
     kinds: list
     J: np.ndarray = None
@@ -191,7 +194,7 @@ def build_stack(machine: Machine, datasets: list[MeasurementSet], extra_context=
 
     probe = ErrorModel(machine, probe_terms(machine))
     parts = {k: [] for k in ("y", "unit", "file", "series", "column", "component", "row", "q", "moving",
-                             "dirs", "feed", "t", "run", "spindle", "arm")}
+                             "dirs", "feed", "t", "run", "spindle", "arm", "setup")}
     temp_names = sorted({n for d in datasets for n in d.context.temperatures})
     temps = {n: [] for n in temp_names}
     models, nuis_names, kinds = [], [], []
@@ -239,6 +242,14 @@ def build_stack(machine: Machine, datasets: list[MeasurementSet], extra_context=
         parts["moving"].append(np.asarray(moving, dtype=object))
         parts["series"].append(series)
         parts["arm"].append(arm)
+        setup = np.zeros((n, 7))
+        setup[:, 0] = machine.tool_length
+        if data.kind == "points":
+            setup[:, 0] = data.tool_lengths(machine)[r]
+        elif data.kind == "ballbar":
+            setup[:, 1:4] = data.table_ball[r]
+            setup[:, 4:7] = data.tool_ball[r]
+        parts["setup"].append(setup)
         ctx = data.context
         parts["dirs"].append(np.column_stack([ctx.dir_of(a)[r].astype(float) for a in machine.axis_names]))
         parts["feed"].append(ctx.feed[r])
@@ -258,7 +269,7 @@ def build_stack(machine: Machine, datasets: list[MeasurementSet], extra_context=
                component=cat["component"], row=cat["row"], q=cat["q"], moving=cat["moving"],
                dirs=cat["dirs"], feed=cat["feed"], t=cat["t"], run=cat["run"].astype(np.int64),
                spindle=cat["spindle"], temps={k: np.concatenate(v) for k, v in temps.items()},
-               arm=cat["arm"], nuisance_names=nuis_names, kinds=kinds)
+               arm=cat["arm"], setup=cat["setup"], nuisance_names=nuis_names, kinds=kinds)
     st._models = models
     st.datasets = list(datasets)
     return st
