@@ -387,6 +387,8 @@ def find_structure(st, resid, sigma: dict, n_tests_extra: int = 0) -> list[Struc
         for name, v in st.temps.items():
             if np.isfinite(v[ix]).all() and np.ptp(v[ix]) > 0:
                 variables.append((f"temperature {name}", v[ix], "degC"))
+        if np.unique(st.run[ix]).size >= 3 and np.all(st.run[ix] >= 0):
+            variables.append(("run", st.run[ix].astype(float), ""))
         for label, x, u in variables:
             n_bins = int(min(12, max(3, ix.size // 8)))
             b, lo, hi = _bins(x, n_bins)
@@ -414,7 +416,8 @@ def correlations(st, resid, sel) -> list[tuple[str, float]]:
     first (feed, time, spindle speed, temperatures, approach directions, axis positions)."""
     out = []
     r = resid[sel]
-    cand = [("feed", st.feed), ("time", st.t), ("spindle speed", st.spindle)]
+    cand = [("feed", st.feed), ("time", st.t), ("spindle speed", st.spindle),
+            ("run", np.where(st.run >= 0, st.run, np.nan).astype(float)), ("reading order", st.row.astype(float))]
     cand += [(f"temperature {n}", v) for n, v in st.temps.items()]
     cand += [(f"approach direction of {a}", st.dirs[:, k]) for k, a in enumerate(st.machine.axis_names)]
     cand += [(f"{a} position", st.q[:, k]) for k, a in enumerate(st.machine.axis_names)]

@@ -126,7 +126,7 @@ def unexplained_params(st, fit, structure, excess, noise_main):
     if structure:
         s = structure[0]
         sel = st.series == s.series
-        where = f"{s.series}: {s.variable} {s.lo:.4g} to {s.hi:.4g} {s.unit}"
+        where = f"{s.series}: {s.variable} {s.lo:.4g} to {s.hi:.4g} {s.unit}".rstrip()
         axis = s.variable.split()[0] if s.variable.endswith("position") else \
             (st.moving[sel][0] if st.moving[sel].size and st.moving[sel][0] else "")
         runs = np.unique(st.run[sel])
