@@ -7,7 +7,9 @@ noise), and simulates a realistic campaign on the virtual machine (:mod:`mtcomp.
 * per linear axis: an ISO 230-2 laser set-up (positioning and the three angular components), the
   positioning at three feeds and two optic offsets (Abbe arms), and one fine bidirectional scan with
   irregular steps (periodic errors);
-* a volumetric points grid with two tool lengths (and rotary angles on a five-axis machine);
+* a volumetric points grid with two tool lengths (and rotary angles on a five-axis machine), measured
+  at the start, in the middle and at the end of the campaign (drift checks; plans 'points',
+  'points_mid', 'points_end', joined into one file of three runs by :func:`hidden_case`);
 * on a five-axis machine: rotary laser runs of C and A (both directions) and the seed-003 three-sphere
   ball-bar test of C.
 
@@ -138,7 +140,7 @@ def campaign_plans(machine: Machine, size: str = "small") -> list:
     points = sim.volumetric_points_plan(machine, (2, 2, 2) if machine.rotary_axes else (4, 3, 3),
                                         rotary_deg=rotary or None, n_runs=1, name="points")
     plans.insert(0, points)
-    plans.insert(len(plans) // 2, replace(points, name="points_repeat"))
+    plans.insert(len(plans) // 2, replace(points, name="points_mid"))
     for ax in machine.rotary_axes:
         plans.append(sim.rotary_laser_plan(machine, ax.name, n_runs=n_runs + 1,
                                            name=f"rotary_laser_{ax.name.lower()}"))
@@ -146,25 +148,27 @@ def campaign_plans(machine: Machine, size: str = "small") -> list:
         plans.append(sim.three_sphere_plan(machine, angles_deg=np.arange(0.0, 360.0, 20.0 if small else 10.0),
                                            n_runs=2, name="three_sphere"))
     # the points grid again in the middle and at the end (runs 2 and 3 of the same file): drift checks
-    plans.append(replace(points, name="points_repeat"))
+    plans.append(replace(points, name="points_end"))
     return plans
 
 
 def _join_repeat(plans):
-    """Fold the plans named 'points_repeat' into 'points' as runs 2, 3 ... (times kept as they are)."""
+    """Fold the repeats of the points grid ('points_mid', 'points_end') into 'points' as runs 2, 3
+    (times kept as they are): one file, so that the repeats count for the noise floor."""
     names = [p.name for p in plans]
-    if "points_repeat" not in names or "points" not in names:
+    repeats = ("points_mid", "points_end")
+    if "points" not in names or not any(n in repeats for n in names):
         return plans
     first = plans[names.index("points")]
     cols = {k: list(v) for k, v in first.columns.items()}
-    for rep in (p for p in plans if p.name == "points_repeat"):
+    for rep in (p for p in plans if p.name in repeats):
         top = max(cols["run"])
         for k in cols:
             w = rep.columns[k]
             cols[k].extend(list(np.asarray(w, dtype=float) + top) if k == "run" else list(w))
     cols = {k: (v if isinstance(v[0], str) else np.asarray(v)) for k, v in cols.items()}
     joined = replace(first, columns=cols)
-    return [joined if p.name == "points" else p for p in plans if p.name != "points_repeat"]
+    return [joined if p.name == "points" else p for p in plans if p.name not in repeats]
 
 
 def _merge(plans, name: str):
