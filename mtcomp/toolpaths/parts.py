@@ -112,11 +112,13 @@ class BowlToolpath:
     depth: float = BOWL_DEPTH_MM
 
 
-def write_bowl_program(path, ball_radius_mm: float = 1.5, stepover_mm: float = 0.5,
+def write_bowl_program(path, ball_radius_mm: float = 3.0, stepover_mm: float = 0.5,
                        step_mm: float = 0.5, feed_mm_min: float = 1200.0,
                        origin_mm=(0.0, 0.0, 0.0), safe_z_mm: float = 10.0,
                        side_mm: float = BOWL_SIDE_MM, depth_mm: float = BOWL_DEPTH_MM) -> BowlToolpath:
-    """Write the seed-001 bowl finishing program (zig-zag raster along X, 3 mm ball-end).
+    """Write the seed-001 bowl finishing program (zig-zag raster along X, ball-end of radius 3 mm).
+
+    Seed 001 section 4 cuts the bowl with a ball-end tool "of radius 3 mm" (半径为 3 mm), the default.
 
     Contact points lie on a regular (x, y) grid (``step_mm`` along a pass, ``stepover_mm`` between
     passes); the ball centre is the contact point plus ``ball_radius`` along the surface normal,
