@@ -217,3 +217,21 @@ def test_simulate_round_trip_and_unknown_kind(xfyz, monkeypatch):
     monkeypatch.setattr(mmod, "_load_extra_models", lambda: None)
     with pytest.raises(InputError, match="no measurement model for points files"):
         measurement_model(model, data)
+
+
+def test_context_matrix_computes_drift_features_from_the_file(tmp_path):
+    """A ThermalDrift term's features come from the file's t_s and temperature columns."""
+    from mtcomp import load_machine
+    from mtcomp.identification.measurement_models import context_matrix
+    from mtcomp.io.measurements import read_measurements
+    from mtcomp.models import ErrorModel, ThermalDrift
+
+    p = tmp_path / "pts.csv"
+    p.write_text("x_mm,y_mm,z_mm,dx_um,t_s,temp_spindle_c\n"
+                 "0,0,0,1.0,0,20.0\n10,0,0,1.5,1800,21.5\n20,0,0,2.0,7200,23.0\n")
+    machine = load_machine("xfyz")
+    model = ErrorModel(machine, [ThermalDrift("temperature", ("time_h", "dtemp_spindle"))])
+    c = context_matrix(model, read_measurements(p))
+    names = list(model.context_names)
+    np.testing.assert_allclose(c[:, names.index("time_h")], [0.0, 0.5, 2.0], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(c[:, names.index("dtemp_spindle")], [0.0, 1.5, 3.0], rtol=0, atol=1e-12)

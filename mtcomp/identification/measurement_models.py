@@ -89,8 +89,10 @@ def context_matrix(model: ErrorModel, data: MeasurementSet, context_defaults: di
     from ``t_s``, ``spindle_rpm``, ``dir_<axis>`` from ``dir_<axis>`` (0 = unknown), ``tool_length``
     (mm) from the row's ``tool_mm`` (points files) else the machine's, ``temp_<name>`` (degC) from
     ``temp_<name>_c``. Blank cells and absent columns take ``context_defaults[name]`` when given, else
-    the model's default (feed 0, t 0, dir 0, the machine's tool length). ``extra``: name -> (n_rows,)
-    arrays for channels computed elsewhere (e.g. drift features); they win over everything.
+    the model's default (feed 0, t 0, dir 0, the machine's tool length). Drift features of a
+    ThermalDrift term (``time_h``, ``dtemp_<s>``, ``spindle_heat_<tau>``) are computed from the file's
+    ``t_s``, temperature and spindle columns (:func:`measurement_models_extra.feature_value`).
+    ``extra``: name -> (n_rows,) arrays for channels computed elsewhere; they win over everything.
     """
     machine = machine if machine is not None else model.machine
     n = len(data)
@@ -112,6 +114,11 @@ def context_matrix(model: ErrorModel, data: MeasurementSet, context_defaults: di
         col = columns.get(name)
         if extra is not None and name in extra:
             col = np.asarray(extra[name], dtype=float)
+        if col is None:
+            # drift features of a ThermalDrift term (time_h, dtemp_<s>, spindle_heat_<tau>) come
+            # from the file's own time, temperature and spindle columns
+            from .measurement_models_extra import feature_value
+            col = feature_value(name, ctx)
         if col is None:
             out[:, i] = default
         else:
