@@ -23,6 +23,7 @@ equations.
   :class:`~mtcomp.models.AbbeIRC` centre of its E_C rotation. No nuisance.
 
 Drift features (:func:`thermal_features`, :func:`feature_value`): ``time_h`` (t / 3600),
+``time_exp_<tau>`` (1 - exp(-t / tau), tau in s: a first-order warm-up),
 ``dtemp_<name>`` (K, temperature rise over the first reading of the file), ``spindle_heat_<tau>``
 (spindle speed in 1000 rpm through a first-order lag of time constant tau seconds, from 0 at the
 first reading). Any measurement model fills these context channels from its file.
@@ -49,6 +50,7 @@ DEFAULT_TIME_CONSTANTS_S = (900.0, 3600.0)
 FEATURE_KINDS = ("time", "temperature", "spindle")
 _HEAT = re.compile(r"^spindle_heat_(\d+(?:\.\d+)?)$")
 _DTEMP = re.compile(r"^dtemp_(.+)$")
+_TEXP = re.compile(r"^time_exp_(\d+(?:\.\d+)?)$")
 #: tip-direction channels of thermal files
 TIP_CHANNELS = {"x": 0, "y": 1, "z": 2}
 
@@ -87,6 +89,9 @@ def feature_value(name: str, context: Context, reference_temperatures: dict | No
     t = np.asarray(context.t, dtype=float)
     if name == "time_h":
         return t / 3600.0
+    m = _TEXP.match(name)
+    if m:                                   # warm-up: 1 - exp(-t / tau), tau in s (diagnose)
+        return 1.0 - np.exp(-t / float(m.group(1)))
     m = _DTEMP.match(name)
     if m:
         sensor = m.group(1)
