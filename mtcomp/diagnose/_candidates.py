@@ -259,18 +259,26 @@ def _thermal_candidates(st, design, extra) -> list[Candidate]:
         return []
     span = float(np.ptp(t[known]))
     out = []
-    c = _drift_candidate(st, "time", "time", ["time_h"])
+    c = _drift_candidate(st, "time", "time", ["time_h"], {"complexity": 0})
+    if c is not None:
+        out.append(c)
+    # a warm-up that settles: 1 - exp(-t / tau), tau by a 1-D search (one more effective parameter)
+    tau = _best_tau(st, design, extra, lambda tau: [f"time_exp_{round(tau):d}"], span / 30.0, span * 3.0)
+    c = _drift_candidate(st, "time", "time (exponential)", [f"time_exp_{round(tau):d}"],
+                         {"tau_s": tau, "complexity": 1, "search_penalty": 2.0})
     if c is not None:
         out.append(c)
     sp = st.spindle
     if np.isfinite(sp).mean() >= 0.5 and np.ptp(sp[np.isfinite(sp)]) > 0:
         tau = _best_tau(st, design, extra, lambda tau: [spindle_heat_name(tau)], 60.0, span)
-        c = _drift_candidate(st, "spindle", "spindle", [spindle_heat_name(tau)], {"tau_s": tau})
+        c = _drift_candidate(st, "spindle", "spindle", [spindle_heat_name(tau)],
+                             {"tau_s": tau, "complexity": 2, "search_penalty": 2.0})
         if c is not None:
             out.append(c)
     temps = [n for n, v in st.temps.items() if np.isfinite(v).mean() >= 0.5 and np.ptp(v[np.isfinite(v)]) > 0]
     for n in temps:
-        c = _drift_candidate(st, "temperature", f"temp_{n}", [f"dtemp_{n}"], {"temperatures": [n]})
+        c = _drift_candidate(st, "temperature", f"temp_{n}", [f"dtemp_{n}"],
+                             {"temperatures": [n], "complexity": 2})
         if c is not None:
             out.append(c)
     if len(temps) > 1:

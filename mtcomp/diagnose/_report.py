@@ -113,7 +113,9 @@ def evidence_and_params(st, c, theta, before_fit, after_fit, rivals, noise):
                                          else float(np.ptp(drift)), 4)
         sel = np.isfinite(st.t)
         r = np.corrcoef(drift[sel], resid[sel])[0, 1] if np.std(drift[sel]) > 0 else 0.0
-        by = {"time": "time since the start", "spindle": "the spindle's speed history",
+        by = {"time": "time since the start" + (f" (settling with a {c.info['tau_s'] / 3600:.3g} h time "
+                                                  "constant)" if "tau_s" in c.info else ""),
+              "spindle": "the spindle's speed history",
               "temperature": "the temperature(s) " + ", ".join(c.info.get("temperatures", []))}[driver]
         ev = (f"The residual drifts with {by} (correlation {r:.2f} with the fitted drift, range "
               f"{params['drift_range_um']:.3g} um){rt}")

@@ -238,7 +238,10 @@ def _effect_term(effect: str, axis: str, rng):
         name = f"AG_{a}{axis}"
         return [AbbeIRC(axis, angles="ABC", feed=False, angle_gain=True)], {name: 0.01}, {"what": name}
     if effect == "thermal_drift":
-        return [ThermalDrift("time", ("time_h",), "XYZ")], {f"TD_{axis}_time_h": 1e-3}, {"driver": "time"}
+        # a steady drift, or a warm-up that settles with a time constant of 0.5 to 2 h
+        feature = "time_h" if rng.random() < 0.5 else f"time_exp_{int(rng.choice([1800, 3600, 7200]))}"
+        return [ThermalDrift("time", (feature,), "XYZ")], {f"TD_{axis}_{feature}": 1e-3}, \
+            {"driver": "time", "feature": feature}
     if effect == "rotary_pdge":
         comp = str(rng.choice(["EXC", "EYC", "EZC", "EAC", "EBC"]))
         order = 2
