@@ -241,8 +241,13 @@ class Line:
 
 
 def axis_series(st, resid, axis: str, sel=None):
-    """(positions, residual along the axis's positioning direction, index) of the observations that
-    read the positioning error of ``axis`` and vary its position."""
+    """(positions, mean residual along the axis's positioning direction at each position, index of
+    the observations used) for the spectrum of ``axis``.
+
+    Readings of scans that move the axis (laser rows with ``axis`` moving) are used when there are
+    enough of them, else every reading of the axis's positioning error. Readings at the same position
+    are averaged first, so that heavily repeated coarse targets do not dominate the spectrum (their
+    sparse grid aliases any structure into false lines)."""
     k = st.machine.axis_names.index(axis)
     g = st.g[axis]
     if not np.any(g):
@@ -250,10 +255,17 @@ def axis_series(st, resid, axis: str, sel=None):
     use = (np.abs(g) > 0.3 * np.max(np.abs(g))) & np.isfinite(resid)
     if sel is not None:
         use &= sel
+    scans = use & (st.moving == axis)
+    if np.unique(np.round(st.q[scans, k], POSITION_DECIMALS)).size >= 12:
+        use = scans
     ix = np.flatnonzero(use)
     if ix.size < 12 or np.ptp(st.q[ix, k]) <= 0:
         return None
-    return st.q[ix, k], resid[ix] * np.sign(g[ix]), ix
+    x = np.round(st.q[ix, k], POSITION_DECIMALS)
+    r = resid[ix] * np.sign(g[ix])
+    ux, inv = np.unique(x, return_inverse=True)
+    means = np.bincount(inv, weights=r) / np.bincount(inv)
+    return ux, means, ix
 
 
 def spectral_lines(st, resid, axis: str, min_cycles: float = 4.0, n_freq: int = 2000,
@@ -307,8 +319,8 @@ def sinusoid_fit(x, r, period):
 
 def halves_agree(st, resid, axis: str, period: float) -> tuple[bool, str]:
     """Does a line at ``period`` replicate in both halves of the axis travel (a cyclic error does, a
-    local defect does not)? Needs amplitudes significant (> 3 se) in each half, within a factor 2,
-    and phases within 60 deg. Returns (agree, sentence)."""
+    local defect does not)? Needs amplitudes significant (> 5 se) in each half, within a factor 1.5,
+    and phases within 45 deg. Returns (agree, sentence)."""
     ser = axis_series(st, resid, axis)
     if ser is None:
         return False, "too few readings"
@@ -321,7 +333,7 @@ def halves_agree(st, resid, axis: str, period: float) -> tuple[bool, str]:
         fits.append(sinusoid_fit(x[part], r[part], period))
     (a1, p1, s1), (a2, p2, s2) = fits
     dphi = abs((p1 - p2 + np.pi) % (2 * np.pi) - np.pi)
-    ok = a1 > 3 * s1 and a2 > 3 * s2 and max(a1, a2) < 2.0 * min(a1, a2) and dphi < np.radians(60)
+    ok = a1 > 5 * s1 and a2 > 5 * s2 and max(a1, a2) < 1.5 * min(a1, a2) and dphi < np.radians(45)
     text = (f"amplitude {a1:.3g} and {a2:.3g} in the lower and upper half of the travel, phases "
             f"{np.degrees(dphi):.0f} deg apart")
     return bool(ok), text
@@ -334,7 +346,8 @@ class Structure:
 
     p : Bonferroni-corrected p-value of the chi-square test of bin means (noise known);
     series : the series; variable : what the bins run along ('X position', 'time' ...);
-    lo, hi : range of the variable where bin means depart by more than 3 standard errors;
+    lo, hi : range of the variable around the bin furthest from zero, extended over neighbouring bins
+        of the same sign beyond 3 standard errors;
     unit : unit of lo/hi; peak : largest bin mean (file units); chi2, dof.
     """
 
@@ -399,10 +412,15 @@ def find_structure(st, resid, sigma: dict, n_tests_extra: int = 0) -> list[Struc
             chi2 = float(np.sum(zb ** 2))
             dof = int(ok.sum())
             p = float(stats.chi2.sf(chi2, dof))
-            hot = np.flatnonzero(np.abs(zb) > 3)
             lo_ok, hi_ok = lo[ok], hi[ok]
-            rng = (float(lo_ok[hot].min()), float(hi_ok[hot].max())) if hot.size else \
-                (float(lo_ok.min()), float(hi_ok.max()))
+            # where: the bin furthest from zero and its neighbours of the same sign beyond 3 se
+            k0 = int(np.argmax(np.abs(zb)))
+            a = b_ = k0
+            while a > 0 and abs(zb[a - 1]) > 3 and np.sign(zb[a - 1]) == np.sign(zb[k0]):
+                a -= 1
+            while b_ < zb.size - 1 and abs(zb[b_ + 1]) > 3 and np.sign(zb[b_ + 1]) == np.sign(zb[k0]):
+                b_ += 1
+            rng = (float(lo_ok[a]), float(hi_ok[b_]))
             tests.append([p, str(s), label, rng[0], rng[1], u, float(mean[np.argmax(np.abs(mean))]),
                           chi2, dof])
     m = len(tests) + n_tests_extra

@@ -239,7 +239,10 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
         good = [s for s in scored if s[5] and s[0].veto is None]
         for s in scored:
             if s[5] and s[0].veto is not None:
-                rejected.append({"effect": s[0].effect, "axis": s[0].axis, "reason": s[0].veto})
+                entry = {"effect": s[0].effect, "axis": s[0].axis, "variant": s[0].variant,
+                         "reason": s[0].veto}
+                rejected = [r for r in rejected if (r["effect"], r["axis"]) != (entry["effect"], entry["axis"])]
+                rejected.append(entry)
         if not good:
             say("no further candidate is significant on held-out data")
             break

@@ -168,6 +168,8 @@ def summary(diag) -> str:
         lines.append(f"   evidence: {f.evidence}")
         if f.effect != "unexplained":
             lines.append(f"   held-out rms {f.heldout_rms_before_um:.4g} -> {f.heldout_rms_after_um:.4g} um")
+    for r in diag.rejected:
+        lines.append(f"refused: {r['effect']} on {r['axis']} ({r['variant']}): {r['reason']}")
     fz = diag.final
     lines.append(f"final model ({fz['n_params']} parameters): rms {_num(fz.get('rms_um'))} um, held-out "
                  f"{_num(fz.get('heldout_rms_um'))} um")
