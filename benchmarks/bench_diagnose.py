@@ -20,8 +20,8 @@ from mtcomp.diagnose import diagnose
 from mtcomp.diagnose.hidden import EFFECTS, hidden_case, score
 
 
-def run_case(seed, effects, size):
-    case = hidden_case(seed, effects, size=size)
+def run_case(seed, effects, size, defect=False):
+    case = hidden_case(seed, effects, size=size, defect=defect, machine="xfyz" if defect else None)
     t0 = time.perf_counter()
     d = diagnose(case.machine, case.datasets)
     dt = time.perf_counter() - t0
@@ -47,6 +47,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--hidden", type=int, default=210, help="number of hidden-effect cases")
     ap.add_argument("--clean", type=int, default=100, help="number of clean cases (false alarms)")
+    ap.add_argument("--defects", type=int, default=20,
+                    help="number of cases with a local bump on one guideway (must be 'unexplained')")
     ap.add_argument("--size", default="full", choices=("small", "full"), help="campaign size")
     ap.add_argument("--seed", type=int, default=1000, help="first seed")
     args = ap.parse_args(argv)
@@ -87,6 +89,17 @@ def main(argv=None):
         if (k + 1) % 10 == 0:
             print(f"  {k + 1}/{args.clean} clean cases, false alarms so far {false_alarms}", flush=True)
 
+    defect_ok = 0
+    for k in range(args.defects):
+        seed = args.seed + 200000 + k
+        case, d, sc, dt = run_case(seed, [], args.size, defect=True)
+        named = [(f.effect, f.axis) for f in d.findings if f.effect != "unexplained"]
+        un = [f for f in d.findings if f.effect == "unexplained"]
+        if not named and un and un[0].axis == case.defect["axis"]:
+            defect_ok += 1
+        else:
+            misses.append((seed, "local defect", case.defect["axis"], 0, named, d.verdict))
+
     cols = list(EFFECTS) + sorted({c for r in confusion.values() for c in r} - set(EFFECTS))
     print("\nconfusion matrix (rows: hidden effect, columns: what diagnose named)")
     width = max(len(c) for c in cols) + 1
@@ -104,9 +117,12 @@ def main(argv=None):
     if args.clean:
         print(f"false alarms on clean campaigns: {false_alarms}/{args.clean} "
               f"({100.0 * false_alarms / args.clean:.1f} %)")
-    all_t = np.array(times + clean_times)
+    if args.defects:
+        print(f"local defects reported as unexplained on the right axis, with no effect named: "
+              f"{defect_ok}/{args.defects}")
+    all_t = np.array(times + clean_times) if times or clean_times else np.zeros(1)
     print(f"time per diagnosis: median {np.median(all_t):.2f} s, max {all_t.max():.2f} s; readings per "
-          f"campaign: median {int(np.median(sizes))}, max {int(np.max(sizes))}")
+          f"campaign: median {int(np.median(sizes or [0]))}, max {int(np.max(sizes or [0]))}")
     if misses:
         print("\ncases not named cleanly (seed, hidden, axis, magnitude, named, verdict):")
         for m in misses:
