@@ -68,12 +68,13 @@ def _detrend_runs(st, resid, sel):
     return r
 
 
-def noise_floor(st, resid: np.ndarray) -> dict[str, Noise]:
+def noise_floor(st, resid: np.ndarray, n_params: int = 0) -> dict[str, Noise]:
     """Noise floor per unit class from repeated readings of the base-fit residual ``resid``.
 
     Repeats: same series, pose, approach directions, feed, arm and spindle speed, in different runs
     (or repeated within one). The residual is first freed of a per-(series, run) offset and time
-    trend. Classes without repeats fall back to a robust estimate (Noise.source says which).
+    trend. Classes without repeats fall back to a robust estimate (Noise.source says which), scaled
+    by sqrt(n / (n - n_params)) for the degrees of freedom the fit took from the residual.
     """
     out = {}
     posed = np.array([k != "thermal" for k in st.kinds])[st.file]
@@ -97,7 +98,10 @@ def noise_floor(st, resid: np.ndarray) -> dict[str, Noise]:
         if np.isfinite(sigma) and sigma > 0:
             out[unit] = Noise(unit, sigma, dof, "repeats", groups)
         else:
-            out[unit] = Noise(unit, robust_sigma(st, resid, sel), int(sel.size), "robust")
+            share = n_params * sel.size / max(len(resid), 1)      # the class's share of the parameters
+            dof = max(sel.size - share, 1.0)
+            out[unit] = Noise(unit, robust_sigma(st, resid, sel) * np.sqrt(sel.size / dof), int(dof),
+                              "robust")
     return out
 
 

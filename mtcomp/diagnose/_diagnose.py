@@ -28,7 +28,7 @@ from ..models.model_file import FittedModel
 from ..models.params import ParameterSet
 from . import _analysis as an
 from ._candidates import Candidate, generate, temperature_regression
-from ._linalg import Design, rms, solve_normal
+from ._linalg import Design, determined_subspace, rms, solve_normal
 from ._stack import Stack, build_stack
 
 #: a candidate must lower the BIC by at least this much
@@ -38,7 +38,8 @@ CV_Z = 4.0
 #: ... and remove at least this share of the held-out excess over the noise (a cause must be material:
 #: with large unexplained structure, a column that merely leans on it gains a little everywhere)
 MIN_EXCESS_SHARE = 0.05
-#: the held-out rms may exceed the noise floor by this factor before the excess counts as structure
+#: the held-out rms may exceed the noise floor by this factor (times the inflation expected of a right
+#: model, sqrt(1 + parameters / readings fitted)) before the excess counts as structure
 EXCESS_RATIO = 1.3
 #: at most this many findings
 MAX_FINDINGS = 6
@@ -183,15 +184,17 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
         "parameters")
     # base fit: Gauss-Newton from zero (the chain is nearly linear in its small errors)
     st.evaluate(np.zeros(st.probe.n_params), np.zeros(len(st.nuisance_names)))
+    # the directions the data determine, fixed at the start point (as identify does)
+    T0 = determined_subspace(_common_block(st))
     for _ in range(2):
-        A = _common_block(st)
-        theta, _ = solve_normal(A.T @ A, A.T @ _linear_target(st))
-        p, nu = _apply(st, theta)
+        Ar = _common_block(st) @ T0
+        phi, _ = solve_normal(Ar.T @ Ar, Ar.T @ _linear_target(st))
+        p, nu = _apply(st, T0 @ phi)
         st.evaluate(p, nu)
     A = _common_block(st)
     z = _linear_target(st)
-    first = Design(A, z, np.ones(len(st)), np.zeros(len(st), dtype=np.int64)).fit(cv=False)
-    noise = an.noise_floor(st, first.resid)
+    first = Design(A, z, np.ones(len(st)), np.zeros(len(st), dtype=np.int64), T0).fit(cv=False)
+    noise = an.noise_floor(st, first.resid, first.rank)
     for u, nz in noise.items():
         say(f"noise floor ({u}): {nz.sigma:.4g} {u} from {nz.source}"
             + (f" ({nz.n_groups} repeat groups, {nz.dof} dof)" if nz.source == "repeats" else
@@ -200,7 +203,7 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
     w = np.array([1.0 / sigma[u] for u in st.unit])
     folds, how = an.make_folds(st)
     say(f"held-out evaluation: {how}")
-    design = Design(A, z, w, folds)
+    design = Design(A, z, w, folds, T0)
     n_base = int(st.probe.base_mask.sum())
     current = design.fit()
     base_metrics = _metrics(st, current, n_base)
@@ -266,8 +269,10 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
     final_metrics = _metrics(st, current, n_base + sum(c.columns.shape[1] for c in chosen))
     structure = an.find_structure(st, current.resid, sigma)
     excess = _heldout(st, current) / noise_main.sigma
+    # a right model still predicts held-out readings a little worse than the noise: sqrt(1 + p/n_fit)
+    inflation = np.sqrt(1.0 + current.rank / max(n * (design.K - 1) / max(design.K, 1), 1.0))
     verdict = "none" if not findings else "explained"
-    if structure or excess > EXCESS_RATIO:
+    if structure or excess > EXCESS_RATIO * inflation:
         verdict = "unexplained"
         findings.append(_unexplained(st, current, structure, excess, noise_main))
         say(f"structure remains: {findings[-1].params['where']}")
@@ -318,7 +323,7 @@ def _refine(st: Stack, design: Design, chosen: list[Candidate], fit, iterations:
             z = z + st.J[:, st.index(name)] * v
         for c in chosen:
             c.columns = c.rebuild(st)
-        design = design.__class__(A, z, design.w, design.folds)
+        design = design.__class__(A, z, design.w, design.folds, design.T)
         fit = design.fit(np.hstack([c.columns for c in chosen]))
     return design, fit
 

@@ -13,12 +13,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 
 #: relative eigenvalue below which a direction of the (column-scaled) normal matrix is not determined
 RANK_TOLERANCE = 1e-10
+#: share of the information on a direction that a fold must keep for that direction to be fitted
+FOLD_TOLERANCE = 1e-4
 
 
-def solve_normal(G: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, int]:
+def solve_normal(G: np.ndarray, b: np.ndarray, tol: float = RANK_TOLERANCE) -> tuple[np.ndarray, int]:
     """Minimum-norm solution of G theta = b for a symmetric positive semi-definite G, and its rank.
 
     The columns are scaled to unit diagonal first, so the tolerance is relative to each column's size.
@@ -31,7 +34,7 @@ def solve_normal(G: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, int]:
     dk = d[keep]
     Gs = G[np.ix_(keep, keep)] / np.outer(dk, dk)
     w, V = np.linalg.eigh(Gs)
-    ok = w > RANK_TOLERANCE * max(w.max(), 1e-300)
+    ok = w > tol * max(w.max(), 1e-300)
     bs = b[keep] / dk
     x = V[:, ok] @ ((V[:, ok].T @ bs) / w[ok])
     theta[keep] = x / dk
@@ -68,7 +71,7 @@ class FitResult:
 
 def _chol_solve(G: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Solve G x = b for symmetric positive (semi-)definite G: Cholesky of the unit-diagonal scaled
-    matrix with a tiny ridge; the eigen-decomposition route when that fails."""
+    matrix with a tiny ridge; the minimum-norm eigen-decomposition route when that fails."""
     d = np.sqrt(np.clip(np.diag(G), 0.0, None))
     d = np.where(d > 0, d, 1.0)
     Gs = G / np.outer(d, d)
@@ -76,8 +79,44 @@ def _chol_solve(G: np.ndarray, b: np.ndarray) -> np.ndarray:
         L = np.linalg.cholesky(Gs + 1e-11 * np.eye(len(Gs)))
     except np.linalg.LinAlgError:
         return solve_normal(G, b)[0]
-    y = np.linalg.solve(L, b / d)
-    return np.linalg.solve(L.T, y) / d
+    return scipy.linalg.cho_solve((L, True), b / d) / d
+
+
+def _fold_solve(Gk: np.ndarray, bk: np.ndarray, G: np.ndarray) -> np.ndarray:
+    """Least squares on the part of the data a fold keeps (normal matrix Gk), with G the normal
+    matrix of all the data: the generalised eigenproblem Gk v = lambda G v gives, per direction, the
+    share lambda of its information the fold keeps; directions with lambda < FOLD_TOLERANCE are left
+    out (held-out readings would be extrapolated along a direction the fold hardly determines).
+    Otherwise this is the plain least-squares solution."""
+    d = np.sqrt(np.clip(np.diag(G), 0.0, None))
+    d = np.where(d > 0, d, 1.0)
+    Gs = G / np.outer(d, d)
+    try:
+        L = np.linalg.cholesky(Gs + 1e-11 * np.eye(len(Gs)))
+    except np.linalg.LinAlgError:
+        return solve_normal(Gk, bk, FOLD_TOLERANCE)[0]
+    tri = scipy.linalg.solve_triangular
+    M = tri(L, tri(L, Gk / np.outer(d, d), lower=True).T, lower=True)
+    lam, U = np.linalg.eigh((M + M.T) / 2)
+    ok = lam > FOLD_TOLERANCE
+    y = tri(L, bk / d, lower=True)
+    return tri(L.T, U[:, ok] @ ((U[:, ok].T @ y) / lam[ok]), lower=False) / d
+
+
+def determined_subspace(A: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
+    """(m, r) basis T of the parameter directions the weighted columns of A determine: T = S V_r
+    with S the inverse column norms and V_r the eigenvectors of the scaled normal matrix whose
+    relative eigenvalues exceed RANK_TOLERANCE. Fixed once, at the start point of a fit, so that
+    combinations determined only through second-order effects of the errors stay undetermined."""
+    Aw = A if w is None else A * np.asarray(w, dtype=float)[:, None]
+    d = np.sqrt(np.sum(Aw ** 2, axis=0))
+    keep = d > 0
+    S = np.zeros_like(d)
+    S[keep] = 1.0 / d[keep]
+    G0 = (Aw * S).T @ (Aw * S)
+    ev, V = np.linalg.eigh(G0)
+    ok = ev > RANK_TOLERANCE * max(ev.max(), 1e-300)
+    return S[:, None] * V[:, ok]
 
 
 class Design:
@@ -89,21 +128,16 @@ class Design:
     folds : (n,) fold of each observation, 0..K-1 (held out together).
     """
 
-    def __init__(self, A: np.ndarray, z: np.ndarray, w: np.ndarray, folds: np.ndarray):
+    def __init__(self, A: np.ndarray, z: np.ndarray, w: np.ndarray, folds: np.ndarray,
+                 T: np.ndarray | None = None):
         A = np.asarray(A, dtype=float)
         self.w = np.asarray(w, dtype=float)
-        # reduce the common block to the directions the (weighted) data determine: A T, T = S V_r
-        Aw0 = A * self.w[:, None]
-        d = np.sqrt(np.sum(Aw0 ** 2, axis=0))
-        keep = d > 0
-        S = np.zeros_like(d)
-        S[keep] = 1.0 / d[keep]
-        G0 = (Aw0 * S).T @ (Aw0 * S)
-        ev, V = np.linalg.eigh(G0)
-        ok = ev > RANK_TOLERANCE * max(ev.max(), 1e-300)
-        self.T = S[:, None] * V[:, ok]
+        # reduce the common block to the directions the (weighted) data determine: A T
+        self.T = determined_subspace(A, self.w) if T is None else T
+        Aw0 = (A * self.w[:, None]) @ self.T
         # orthonormal basis of the weighted common block: to measure what extra columns add
-        self.Q = (Aw0 @ self.T) / np.sqrt(ev[ok])
+        U, sv, _ = np.linalg.svd(Aw0, full_matrices=False)
+        self.Q = U[:, sv > 1e-7 * max(sv.max(), 1e-300)] if sv.size else U
         self.A_original = A
         self.A = A @ self.T
         self.z = np.asarray(z, dtype=float)
@@ -117,16 +151,6 @@ class Design:
         self.b = self.Aw.T @ self.zw
         self.Gk = [self.Aw[ix].T @ self.Aw[ix] for ix in self._fold_index]
         self.bk = [self.Aw[ix].T @ self.zw[ix] for ix in self._fold_index]
-
-    def with_target(self, z: np.ndarray) -> "Design":
-        """The same design for another target (cheap: Gram matrices are shared)."""
-        other = object.__new__(Design)
-        other.__dict__.update(self.__dict__)
-        other.z = np.asarray(z, dtype=float)
-        other.zw = other.z * self.w
-        other.b = self.Aw.T @ other.zw
-        other.bk = [self.Aw[ix].T @ other.zw[ix] for ix in self._fold_index]
-        return other
 
     def fit(self, extra: np.ndarray | None = None, cv: bool = True) -> FitResult:
         """Fit the common block plus ``extra`` (n, k) columns; held-out residuals when ``cv``."""
@@ -160,7 +184,7 @@ class Design:
                 Gk[m:, :m] -= AEk.T
                 Gk[m:, m:] -= Ek.T @ Ek
                 bk = b - np.concatenate([self.bk[kk], Ek.T @ self.zw[ix]])
-                th = _chol_solve(Gk, bk)
+                th = _fold_solve(Gk, bk, G)
                 cv_resid[ix] = self.z[ix] - full[ix] @ th
         cv_sse = float(np.nansum((cv_resid * self.w) ** 2)) if cv and self.K >= 2 else float("nan")
         theta = np.concatenate([self.T @ theta[:m], theta[m:]])
