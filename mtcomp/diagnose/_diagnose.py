@@ -422,13 +422,28 @@ def _fitted_model(st: Stack, design: Design, chosen: list[Candidate], fit) -> Fi
 
 
 def _cov_diag(design: Design, extra: np.ndarray) -> np.ndarray:
+    """Variances (noise variance 1 after weighting) of the common-block parameters and the extra
+    columns' coefficients; NaN for a parameter that lies partly in a direction the data do not
+    determine (outside the subspace fixed at the start, or in the null space of the extras)."""
     G = design.gram(extra)
-    d = np.sqrt(np.clip(np.diag(G), 0, None))
-    keep = d > 0
-    out = np.full(G.shape[0], np.nan)
-    Gs = G[np.ix_(keep, keep)] / np.outer(d[keep], d[keep])
-    wv, V = np.linalg.eigh(Gs)
+    m = design.A_original.shape[1]
+    # in the determined subspace: parameters = [T 0; 0 I] (phi, extra coefficients)
+    k = extra.shape[1]
+    B = np.zeros((m + k, design.T.shape[1] + k))
+    B[:m, :design.T.shape[1]] = design.T
+    B[m:, design.T.shape[1]:] = np.eye(k)
+    H = B.T @ G @ B
+    d = np.sqrt(np.clip(np.diag(H), 0, None))
+    d = np.where(d > 0, d, 1.0)
+    wv, V = np.linalg.eigh(H / np.outer(d, d))
     ok = wv > 1e-10 * wv.max()
-    inv = (V[:, ok] / wv[ok]) @ V[:, ok].T
-    out[keep] = np.diag(inv) / d[keep] ** 2
-    return out
+    Hinv = ((V[:, ok] / wv[ok]) @ V[:, ok].T) / np.outer(d, d)
+    var = np.einsum("ij,jk,ik->i", B, Hinv, B)
+    # a parameter is determined when its unit vector lies in the span of B (scaled coordinates)
+    scale = np.sqrt(np.clip(np.diag(G), 0, None))
+    scale = np.where(scale > 0, scale, 1.0)
+    Bs = B * scale[:, None]
+    Qb, rb = np.linalg.qr(Bs)
+    Qb = Qb[:, np.abs(np.diag(rb)) > 1e-8 * max(np.abs(np.diag(rb)).max(), 1e-300)]
+    determined = np.sum(Qb ** 2, axis=1) > 0.999
+    return np.where(determined, var, np.nan)
