@@ -156,3 +156,19 @@ def test_single_threaded_blas_restores_the_setting():
     with single_threaded_blas():
         assert all(g() == 1 for _, g in _openblas_handles())
     assert [g() for _, g in handles] == before
+
+
+def test_a_fold_that_loses_a_direction_does_not_extrapolate_along_it():
+    rng = np.random.default_rng(8)
+    n = 80
+    folds = np.arange(n) % 4
+    A = rng.normal(size=(n, 3))
+    A[:, 2] = np.where(folds == 0, rng.normal(size=n), 0.0)   # only fold 0 sees parameter 3
+    z = A @ np.array([1.0, -1.0, 50.0]) + 0.01 * rng.normal(size=n)
+    fit = Design(A, z, np.ones(n), folds).fit()
+    # fold 0 held out: parameter 3 is undetermined, so it is left at zero (minimum norm) and the
+    # held-out residual is exactly what parameter 3 contributes there; other folds predict well
+    te = folds == 0
+    s, *_ = np.linalg.lstsq(A[~te][:, :2], z[~te], rcond=None)
+    np.testing.assert_allclose(fit.cv_resid[te], z[te] - A[te][:, :2] @ s, rtol=0, atol=1e-9)
+    assert np.sqrt(np.mean(fit.cv_resid[~te] ** 2)) < 0.05
