@@ -166,9 +166,10 @@ def test_a_fold_that_loses_a_direction_does_not_extrapolate_along_it():
     A[:, 2] = np.where(folds == 0, rng.normal(size=n), 0.0)   # only fold 0 sees parameter 3
     z = A @ np.array([1.0, -1.0, 50.0]) + 0.01 * rng.normal(size=n)
     fit = Design(A, z, np.ones(n), folds).fit()
-    # fold 0 held out: parameter 3 is undetermined, so it is left at zero (minimum norm) and the
-    # held-out residual is exactly what parameter 3 contributes there; other folds predict well
+    # fold 0 held out: parameter 3 is undetermined, so the fold leaves out the direction it lost
+    # (in the metric of all the data, close to parameter 3 alone): the held-out residual is, to
+    # within the small correlation of column 3 with the others, what parameter 3 contributes there
     te = folds == 0
     s, *_ = np.linalg.lstsq(A[~te][:, :2], z[~te], rcond=None)
-    np.testing.assert_allclose(fit.cv_resid[te], z[te] - A[te][:, :2] @ s, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fit.cv_resid[te], z[te] - A[te][:, :2] @ s, rtol=0.01, atol=0)
     assert np.sqrt(np.mean(fit.cv_resid[~te] ** 2)) < 0.05
