@@ -163,7 +163,8 @@ def test_a_fold_that_loses_a_direction_does_not_extrapolate_along_it():
     n = 80
     folds = np.arange(n) % 4
     A = rng.normal(size=(n, 3))
-    A[:, 2] = np.where(folds == 0, rng.normal(size=n), 0.0)   # only fold 0 sees parameter 3
+    # only fold 0 sees parameter 3 (the others a trace of it: plain least squares would extrapolate)
+    A[:, 2] = np.where(folds == 0, 1.0, 1e-6) * rng.normal(size=n)
     z = A @ np.array([1.0, -1.0, 50.0]) + 0.01 * rng.normal(size=n)
     fit = Design(A, z, np.ones(n), folds).fit()
     # fold 0 held out: parameter 3 is undetermined, so the fold leaves out the direction it lost
@@ -172,4 +173,6 @@ def test_a_fold_that_loses_a_direction_does_not_extrapolate_along_it():
     te = folds == 0
     s, *_ = np.linalg.lstsq(A[~te][:, :2], z[~te], rcond=None)
     np.testing.assert_allclose(fit.cv_resid[te], z[te] - A[te][:, :2] @ s, rtol=0.01, atol=0)
+    plain, *_ = np.linalg.lstsq(A[~te], z[~te], rcond=None)
+    assert abs(plain[2]) > 1e3                       # what a plain fit of the fold would do
     assert np.sqrt(np.mean(fit.cv_resid[~te] ** 2)) < 0.05
