@@ -350,14 +350,16 @@ def batched_body(body: ca.Function, lanes: int, varying_inputs: set, out_map: di
             if not math.isfinite(c):
                 raise _Unsupported("non-finite constant")
             assign(body.instruction_output(k)[0], True, float.hex(c))
-        elif k in pair_id and not uni[ins[0]]:
+        elif op in ("OP_SIN", "OP_COS") and not uni[ins[0]]:
             i, o = ins[0], body.instruction_output(k)[0]
-            t, is_first = pair_id[k]
+            t, is_first = pair_id.get(k, (None, True))
+            if t is None:  # sin or cos alone: the other result goes unused
+                t = n_pairs
+                n_pairs += 1
             if is_first:
                 used_v.add(i)
-                lines.append(f"  for (j=0;j<{L};++j) sincos(v{i}[j],&ts{t}[j],&tc{t}[j]);")
-            arr = f"ts{t}" if op == "OP_SIN" else f"tc{t}"
-            assign(o, False, None, fn=lambda: f"{arr}[{lane['j']}]")
+                lines.append(f"  mt_sincos(v{i},&vs{t},&vc{t});")
+            assign(o, False, f"vs{t}" if op == "OP_SIN" else f"vc{t}")
         elif op in _UNARY:
             i, o = ins[0], body.instruction_output(k)[0]
             if op in ARITH or uni[i]:
@@ -379,7 +381,7 @@ def batched_body(body: ca.Function, lanes: int, varying_inputs: set, out_map: di
     if used_v:
         decl.append("  vd " + ", ".join(f"v{i}" for i in sorted(used_v)) + ";")
     if n_pairs:
-        decl.append("  double " + ", ".join(f"ts{t}[{L}], tc{t}[{L}]" for t in range(n_pairs)) + ";")
+        decl.append("  vd " + ", ".join(f"vs{t}, vc{t}" for t in range(n_pairs)) + ";")
     return "\n".join(decl + lines + ["}"]) + "\n"
 
 
@@ -387,6 +389,8 @@ _BATCH_LOOP = r"""
 /* ---- mtcomp: loop over poses, %(L)d at a time (p shared, q and c one row per pose) ---- */
 void sincos(double, double*, double*);
 typedef double vd __attribute__((vector_size(%(vbytes)d)));
+typedef long long vl __attribute__((vector_size(%(vbytes)d)));
+%(trig)s
 %(batch)s
 int mtcomp_loop(long long n, const double* q, const double* p, const double* c, double** out) {
   const casadi_real* arg[%(sz_arg)d + 1];
@@ -431,6 +435,35 @@ int mtcomp_loop(long long n, const double* q, const double* p, const double* c, 
 
 
 
+def _trig_source(lanes: int) -> str:
+    """C of ``mt_sincos(vd x, vd* s, vd* c)``: sin and cos of each lane; a Taylor polynomial for
+    |x| < 2^-6, glibc's ``sincos`` otherwise (and for inf and NaN)."""
+    L = lanes
+    all_small = " & ".join(f"small[{j}]" for j in range(L))
+    return _TRIG_C % {"all_small": all_small, "L": L,
+                      **{k: float.hex(v) for k, v in _TAYLOR.items()}, "lim": float.hex(2.0 ** -6)}
+
+
+#: Taylor coefficients of sin (x^3 .. x^9) and cos (x^2 .. x^8), rounded to double
+_TAYLOR = {"s3": -1 / 6, "s5": 1 / 120, "s7": -1 / 5040, "s9": 1 / 362880,
+           "c2": -1 / 2, "c4": 1 / 24, "c6": -1 / 720, "c8": 1 / 40320}
+
+_TRIG_C = r"""
+static void __attribute__((noinline, cold)) mt_sincos_libm(vd x, vl small, vd* s, vd* c) {
+  int j;
+  for (j = 0; j < %(L)d; ++j)
+    if (!small[j]) sincos(x[j], &(*s)[j], &(*c)[j]);
+}
+static inline __attribute__((always_inline)) void mt_sincos(vd x, vd* s, vd* c) {
+  vd x2 = x * x;
+  vl small = (x > -%(lim)s) & (x < %(lim)s);
+  *s = x + x * (x2 * (%(s3)s + x2 * (%(s5)s + x2 * (%(s7)s + x2 * %(s9)s))));
+  *c = 1. + x2 * (%(c2)s + x2 * (%(c4)s + x2 * (%(c6)s + x2 * %(c8)s)));
+  if (__builtin_expect(!(%(all_small)s), 0)) mt_sincos_libm(x, small, s, c);
+}
+"""
+
+
 def batched_source(function: ca.Function, lanes: int = LANES) -> tuple[str, list[int]]:
     """C source of ``function`` with the pose loop running :func:`batched_body` on ``lanes`` poses at
     a time (the last, partial batch is padded with copies of the last pose). Raises _Unsupported."""
@@ -444,7 +477,7 @@ def batched_source(function: ca.Function, lanes: int = LANES) -> tuple[str, list
     batch = batched_body(body, lanes, {0, 3}, out_map)
     src = _casadi_source([pre])
     L = lanes
-    fill = {"batch": batch, "vbytes": 8 * lanes, "sz_arg": pre.sz_arg(), "sz_res": pre.sz_res(),
+    fill = {"batch": batch, "trig": _trig_source(lanes), "vbytes": 8 * lanes, "sz_arg": pre.sz_arg(), "sz_res": pre.sz_res(),
             "sz_iw": pre.sz_iw(), "sz_w": pre.sz_w(), "nw": pre.numel_out(0), "nout": len(sizes),
             "L": L, "nq": body.numel_in(0), "nc": body.numel_in(3),
             "obuf": "\n".join(f"  double ob{k}[{L} * {s}];" for k, s in enumerate(sizes)),
