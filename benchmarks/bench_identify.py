@@ -32,8 +32,7 @@ def case(machine_name: str, n_points: int, runs: int, rng) -> None:
         abc = np.zeros((n_points, 3))
         for k, name in enumerate(machine.axis_names[3:]):
             abc[:, "ABC".index(name)] = q[:, 3 + k]
-    hold = ["EXY_1", "EXZ_1", "EYZ_1"]
-    free = model.base_mask & ~np.isin(model.param_names, hold)
+    free = model.base_mask.copy()
     p = random_parameters(model, rng, mask=free)
     data = simulate(model, make_points(xyz, abc, tool=rng.choice([0.0, 100.0, 200.0], n_points)), p,
                     noise_um=0.5, rng=rng)

@@ -122,7 +122,7 @@ def test_xfyz_program_corrected_and_reported(tmp_path, capsys, method):
     np.testing.assert_allclose(after, e[:, :3] * 1e3, rtol=0, atol=2e-4)
     e0 = _actual_minus_nominal(fitted, q_nom, q_nom, chunk)
     np.testing.assert_allclose(before, e0[:, :3] * 1e3, rtol=0, atol=2e-4)
-    assert np.abs(before).max() > 5.0
+    assert np.abs(before).max() > 3.0   # um: errors far above the 0.06 um left after compensation
     # what remains is the 4-decimal rounding of the output (0.05 um per axis)
     assert np.abs(e[:, :3]).max() * 1e3 < 0.06
     assert all(r["active_bounds"] == "" for r in rows)

@@ -35,18 +35,20 @@ def files(tmp_path_factory):
 def test_identify_writes_model_that_reads_back_and_predicts(files, capsys):
     tmp, paths, model = files
     out = tmp / "model.json"
-    args = ["identify", "xfyz", *map(str, paths.values()), "-o", str(out), "--hold", "EXY_1,EXZ_1",
-            "--hold", "EYZ_1"]
+    args = ["identify", "xfyz", *map(str, paths.values()), "-o", str(out), "--hold", "EXY_2,EXZ_2",
+            "--hold", "EYZ_2"]
     assert main(args) == 0
     text = capsys.readouterr().out
     assert "rms residual" in text and "points" in text and "wrote" in text
     fitted = load_model(out, load_machine("xfyz"))
     raw = json.loads(out.read_text())
     assert raw["parameters"]["EXX_1"]["unit"] == "um" and "std_error" in raw["parameters"]["EXX_1"]
-    assert raw["parameters"]["EXY_1"]["value"] == 0.0          # held
+    assert raw["parameters"]["EXY_2"]["value"] == 0.0          # held
+    # the squareness carries the straightness slope: no EXY_1 in the base model (ISO 230-1)
+    assert "EXY_1" not in raw["parameters"] and "C0Y" in raw["parameters"]
     # the same fit through the Python API
     data = [read_measurements(p) for p in paths.values()]
-    res = identify(model, data, hold=["EXY_1", "EXZ_1", "EYZ_1"])
+    res = identify(model, data, hold=["EXY_2", "EXZ_2", "EYZ_2"])
     np.testing.assert_allclose(fitted.params.values, res.values, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(fitted.params.std_errors[res.determined], res.std_errors[res.determined],
                                rtol=1e-9, atol=0)
@@ -101,9 +103,8 @@ def test_identify_options_noise_weights_and_rcond(files, capsys):
                  "--weights", "noise", "--rcond", "1e-5"]) == 0
     text = capsys.readouterr().out
     assert "weighting 1/noise per file" in text
-    # the three straightness/squareness pairs are named as undetermined
-    assert "3 combination(s) the data cannot determine" in text and "C0Y" in text
-    assert "--hold EXY_1,EXZ_1,EYZ_1 assigns them to the squareness" in text
+    # a rich points + laser campaign determines every base parameter
+    assert "every fitted parameter is determined by the data" in text
     assert out.exists()
     assert main(["identify", "xfyz", str(paths["points"]), "-o", str(tmp / "x.json"), "--rcond", "2"]) == 2
     assert "--rcond" in _one_line_error(capsys)

@@ -15,10 +15,6 @@ from mtcomp.identification.synthetic import campaign, make_laser, make_points, r
 from mtcomp.machine import load_machine
 from mtcomp.models import Backlash, ErrorModel, FittedModel, ParameterSet
 
-#: linear straightness terms that duplicate the squareness terms (EXY_1 = C0Y ...): held for full rank
-REDUNDANT = ["EXY_1", "EXZ_1", "EYZ_1"]
-
-
 def _file(model, values):
     """Parameter values in file units (um, urad)."""
     return values * np.array([s.to_file for s in model.param_specs])
@@ -45,10 +41,10 @@ def test_noise_free_rich_campaign_recovers_parameters(xfyz):
     machine, model = xfyz
     rng = np.random.default_rng(10)
     camp = campaign(machine, rng)
-    free = model.base_mask & ~np.isin(model.param_names, REDUNDANT)
+    free = model.base_mask.copy()
     p = random_parameters(model, rng, mask=free)
     data = [simulate(model, d, p) for d in camp.values()]
-    res = identify(model, data, hold=REDUNDANT)
+    res = identify(model, data)
     assert res.rank == res.n_params == free.sum() + sum(len(s) for s in [res.nuisance_specs])
     assert res.undetermined == []
     assert res.converged and res.iterations <= 5
@@ -63,12 +59,12 @@ def test_joint_fit_points_laser_ballbar_five_axis_with_nuisance(cafxyz):
     machine, model = cafxyz
     rng = np.random.default_rng(11)
     camp = campaign(machine, rng, n_points=250)
-    free = model.base_mask & ~np.isin(model.param_names, REDUNDANT)
+    free = model.base_mask.copy()
     p = random_parameters(model, rng, mask=free)
     mms = {k: measurement_model(model, d) for k, d in camp.items()}
     nuis = {k: rng.normal(size=m.n_nuisance) * 1e-3 for k, m in mms.items()}
     data = [simulate(model, camp[k], p, nuis[k]) for k in camp]
-    res = identify(model, data, hold=REDUNDANT)
+    res = identify(model, data)
     assert res.undetermined == [] and res.rank == res.n_params
     # 1e-8 relative to the parameter sizes (10 um, 20 urad)
     np.testing.assert_allclose(_file(model, res.values), _file(model, p), rtol=1e-8, atol=1e-7)
@@ -81,33 +77,42 @@ def test_joint_fit_points_laser_ballbar_five_axis_with_nuisance(cafxyz):
                                rtol=0, atol=1e-9)
 
 
-def test_redundant_squareness_named_and_held_at_minimum_norm(xfyz):
+def test_rich_campaign_determines_the_whole_base_model(xfyz):
+    """The base model has no built-in redundancy: the straightness slopes that a squareness carries
+    (EXY_1 ~ C0Y ...) are not in it (ISO 230-1), so a rich campaign determines every parameter."""
     machine, model = xfyz
     rng = np.random.default_rng(12)
     camp = campaign(machine, rng, n_points=200)
     p = random_parameters(model, rng)
     res = identify(model, [simulate(model, d, p) for d in camp.values()])
-    combos = sorted(sorted(u.names) for u in res.undetermined)
-    assert combos == [["A0Z", "EYZ_1"], ["B0Z", "EXZ_1"], ["C0Y", "EXY_1"]]
+    assert res.undetermined == [] and res.determined[model.base_mask].all()
+    assert "EXY_1" not in model.param_names and "C0Y" in model.param_names
+    np.testing.assert_allclose(_file(model, res.values), _file(model, p), rtol=1e-8, atol=1e-7)
+    assert "every fitted parameter is determined by the data" in res.summary()
+
+
+def test_undetermined_direction_held_at_minimum_norm(xfyz):
+    """Points at one Z level cannot see EXX_1 + 1 um against EBX_1 - 20 urad (50 mm Abbe arm): truth
+    moved along that direction gives the same estimates, and the summary names it."""
+    machine, model = xfyz
+    rng = np.random.default_rng(14)
+    xyz = rng.uniform([-400, -300, 0], [400, 300, 0], (300, 3))
+    xyz[:, 2] = 50.0
+    clean = make_points(xyz)
+    p = random_parameters(model, rng)
+    res = identify(model, [simulate(model, clean, p)])
     names = list(model.param_names)
-    for u in res.undetermined:
-        # EXY_1 (um per m) and C0Y (urad) move together one for one: hand-derived
-        assert abs(abs(u.terms[1][1]) - 1.0) < 1e-9
-        for n in u.names:
-            assert not res.determined[names.index(n)] and np.isnan(res.std_errors[names.index(n)])
-    # the data see EXY_1 - C0Y (um per m minus urad): kept; the invariant direction is not fitted, so
-    # truth moved along it gives the same estimates
-    i, j = names.index("EXY_1"), names.index("C0Y")
-    fv, tv = _file(model, res.values), _file(model, p)
-    np.testing.assert_allclose(fv[i] - fv[j], tv[i] - tv[j], rtol=1e-8, atol=1e-7)
+    i, j = names.index("EXX_1"), names.index("EBX_1")
+    assert not res.determined[i] and not res.determined[j] and np.isnan(res.std_errors[i])
     p2 = p.copy()
-    p2[i] += 5e-3
-    p2[j] += 5e-6
-    res2 = identify(model, [simulate(model, d, p2) for d in camp.values()])
-    # (up to second-order effects of a 5 urad shift on ~10 um terms: 1e-4 um)
-    np.testing.assert_allclose(_file(model, res2.values), fv, rtol=0, atol=1e-3)
+    p2[i] += 0.25e-3   # 0.25 um per metre
+    p2[j] -= 5e-6      # 5 urad per metre: 50 mm * 5 urad = 0.25 um
+    res2 = identify(model, [simulate(model, clean, p2)])
+    # up to second-order effects (5 urad x tens of urad x arms of ~500 mm ~ 1e-3); a fit that moved
+    # with the truth would shift EXX_1 by 0.25 and EBX_1 by 5
+    np.testing.assert_allclose(_file(model, res2.values), _file(model, res.values), rtol=0, atol=3e-3)
     text = res.summary()
-    assert "EXY_1" in text and "cannot determine" in text and "undeterm." in text
+    assert "EXX_1" in text and "EBX_1" in text and "cannot determine" in text
 
 
 def test_points_at_one_z_level_name_abbe_combinations(xfyz):
@@ -116,7 +121,7 @@ def test_points_at_one_z_level_name_abbe_combinations(xfyz):
     xyz = rng.uniform([-400, -300, 0], [400, 300, 0], (300, 3))
     xyz[:, 2] = 50.0
     data = simulate(model, make_points(xyz), random_parameters(model, rng))
-    res = identify(model, [data], hold=REDUNDANT)
+    res = identify(model, [data])
     assert res.rank < res.n_params
     # X table pitch EBX about the workpiece origin moves a tip 50 mm above it by 50 mm * EBX along x:
     # EXX_1 + 1 um with EBX_1 - 20 urad leaves every reading unchanged
@@ -143,7 +148,7 @@ def test_noise_estimates_within_standard_errors_and_errors_match_scatter():
     lo, hi = machine.travel_bounds()
     xyz = rng0.uniform(lo, hi, (200, 3))
     tool = rng0.choice([0.0, 100.0, 250.0], 200)
-    hold = REDUNDANT + [n for n in model.param_names if n.startswith(("ECY", "ECZ"))]
+    hold = [n for n in model.param_names if n.startswith(("ECY", "ECZ"))]
     free = model.base_mask & ~np.isin(model.param_names, hold)
     p = random_parameters(model, rng0, mask=free)
     clean = make_points(xyz, tool=tool)
@@ -246,11 +251,11 @@ def test_start_from_fitted_model_keeps_held_values(xfyz):
     machine, model = xfyz
     rng = np.random.default_rng(17)
     camp = campaign(machine, rng, n_points=150)
-    free = model.base_mask & ~np.isin(model.param_names, REDUNDANT)
+    free = model.base_mask.copy()
     p = random_parameters(model, rng, mask=free)
     data = [simulate(model, d, p) for d in camp.values()]
     # the X errors are known (held at their true values), the rest is fitted
-    held = [n for n in model.param_names if n.endswith("X_1") or n.endswith("X_2")] + REDUNDANT
+    held = [n for n in model.param_names if n.endswith("X_1") or n.endswith("X_2")]
     start = FittedModel(model, ParameterSet(model.param_specs, np.where(np.isin(model.param_names, held),
                                                                         p, 0.0)))
     res = identify(start, data, hold=held)

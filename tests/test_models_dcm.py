@@ -7,6 +7,7 @@ import pytest
 from mtcomp import load_machine
 from mtcomp.kinematics import forward, tool2wp
 from mtcomp.models import Backlash, ErrorModel, deviation, deviation_and_jacobians
+from mtcomp.models.chain import polynomial_orders
 from mtcomp.models.dcm import (dcm_deviation, differential_change_matrix, machine_jacobian,
                                pinv_correction, tool_in_axis_frames)
 from mtcomp.models.poe import adjoint, exp_twist
@@ -182,9 +183,11 @@ def _first_order_ours(model, q, iso, L):
     for name, value in iso.items():
         if name in ("C0Y", "A0Z", "B0Z"):
             p[model.param_names.index(name)] = value
-        else:  # E?A(s) = E?A_1 * s / 1 m: the value at this pose
+        else:  # E?A(s) = E?A_k * (s / 1 m)^k: the value at this pose, with the lowest power the
+            # base model has (EXY_1, EXZ_1, EYZ_1 are carried by the squareness)
             s = q["XYZ".index(name[2])]
-            p[model.param_names.index(f"{name}_1")] = value / (s / 1000.0)
+            k = polynomial_orders(model.machine, name[2], name)[0]
+            p[model.param_names.index(f"{name}_{k}")] = value / (s / 1000.0) ** k
     c = model.default_context(1)
     c[0, model.context_names.index("tool_length")] = L
     _, _, Jp0 = deviation_and_jacobians(model, q[None, :], np.zeros(model.n_params), c)

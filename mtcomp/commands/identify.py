@@ -16,8 +16,7 @@ def add_arguments(parser):
                         help="where to write the fitted model")
     parser.add_argument("--hold", metavar="NAME", action="append", default=[],
                         help="hold a parameter at zero (repeat, or give a comma-separated list), "
-                             "e.g. --hold EXY_1,EXZ_1,EYZ_1 to let the squareness terms carry the "
-                             "linear straightness")
+                             "e.g. --hold EAX_3,EBX_3")
     parser.add_argument("--weights", choices=("unit", "noise"), default="unit",
                         help="unit: every residual in um or urad (default); noise: refit with "
                              "1/noise per file estimated from a first fit")

@@ -57,11 +57,6 @@ NULL_WEIGHT = 1e-4
 NAME_SHARE = 0.1
 
 
-#: pairs of parameters of the base model that no measurement can separate
-_STRAIGHTNESS_SQUARENESS = {frozenset(("EXY_1", "C0Y")), frozenset(("EXZ_1", "B0Z")),
-                            frozenset(("EYZ_1", "A0Z"))}
-
-
 def error_scale(column: str) -> float:
     """Internal -> error unit of a reading column: 1e6 (urad) for '_urad' columns, else 1e3 (um)."""
     return 1e6 if str(column).endswith("_urad") else 1e3
@@ -273,11 +268,6 @@ class IdentificationResult:
                          "(held at the start values, zero by default; file units):")
             for u in self.undetermined:
                 lines.append(f"  {u}")
-            pairs = [u for u in self.undetermined if frozenset(u.names) in _STRAIGHTNESS_SQUARENESS]
-            if pairs:
-                names = ",".join(sorted(n for u in pairs for n in u.names if n.startswith("E")))
-                lines.append(f"  (a straightness slope and a squareness act identically on every "
-                             f"measurement; --hold {names} assigns them to the squareness)")
         else:
             lines.append("every fitted parameter is determined by the data")
         corr = self.largest_correlations()

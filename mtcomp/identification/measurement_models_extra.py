@@ -40,7 +40,7 @@ import numpy as np
 from ..errors import InputError
 from ..io.measurements import Context, MeasurementSet
 from ..kinematics import forward
-from ..models.chain import ErrorModel, linear_component_names
+from ..models.chain import ErrorModel, linear_component_names, polynomial_orders
 from ..models.params import ParamSpec
 from ..models.terms import ANGLE_LETTERS, ChannelDrift
 from .measurement_models import MeasurementModel, context_matrix, register
@@ -438,7 +438,7 @@ def linear_axis_components(model: ErrorModel, axis: str, s, P: dict, C: dict) ->
     comps = {}
     for comp in linear_component_names(axis):
         e = ca.SX(0)
-        for k in range(1, ax.degree + 1):
+        for k in polynomial_orders(m, axis, comp):
             e = e + P[f"{comp}_{k}"] * (s / 1000.0) ** k
         comps[comp] = e
     for t in model.terms:

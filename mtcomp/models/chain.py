@@ -109,6 +109,22 @@ def rotary_motion_names(axis_name: str) -> list[str]:
     return [n for n in (f"E{d}{axis_name}" for d in TRANSLATION_LETTERS + ANGLE_LETTERS) if n != own]
 
 
+#: the linear (k = 1) term of a straightness that a squareness already carries: ISO 230-1 defines
+#: straightness about a reference straight line whose slope against the other axis IS the squareness,
+#: so the base model keeps only one of the two (they act identically on every measurement)
+SLOPE_CARRIED_BY_SQUARENESS = {"EXY": "C0Y", "EXZ": "B0Z", "EYZ": "A0Z"}
+
+
+def polynomial_orders(machine: Machine, axis_name: str, comp: str) -> list[int]:
+    """Powers k of the base polynomial of component ``comp`` (e.g. 'EXY') of linear axis ``axis_name``:
+    1..degree, less k = 1 where the squareness carries the slope (:data:`SLOPE_CARRIED_BY_SQUARENESS`)."""
+    ax = machine.axis(axis_name)
+    orders = list(range(1, ax.degree + 1))
+    if SLOPE_CARRIED_BY_SQUARENESS.get(comp) in squareness_names(machine):
+        orders.remove(1)
+    return orders
+
+
 def squareness_names(machine: Machine) -> list[str]:
     names = set(machine.axis_names)
     out = []
@@ -135,7 +151,7 @@ def base_param_specs(machine: Machine) -> list[ParamSpec]:
     for ax in machine.linear_axes:
         for comp in linear_component_names(ax.name):
             angular = comp[1] in ANGLE_LETTERS
-            for k in range(1, ax.degree + 1):
+            for k in polynomial_orders(machine, ax.name, comp):
                 specs.append(ParamSpec(f"{comp}_{k}", "urad" if angular else "um", f"{ax.name}:{comp}",
                                        True, f"{comp}: coefficient of (s/1 m)^{k}"))
     for name in squareness_names(machine):
@@ -303,7 +319,7 @@ class ErrorModel:
         comps = {}
         for comp in linear_component_names(name):
             e = ca.SX(0)
-            for k in range(1, ax.degree + 1):
+            for k in polynomial_orders(m, name, comp):
                 e = e + par(f"{comp}_{k}") * (s / 1000.0) ** k
             comps[comp] = e
         centres = {a: ca.SX.zeros(3) for a in ANGLE_LETTERS}

@@ -40,7 +40,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .chain import ErrorModel, linear_component_names, rotary_location_names, rotary_motion_names
+from .chain import (ErrorModel, linear_component_names, polynomial_orders, rotary_location_names,
+                    rotary_motion_names)
 from .terms import ANGLE_LETTERS, TRANSLATION_LETTERS, positioning_component
 
 __all__ = ["hat", "exp_twist", "adjoint", "component_errors", "poe_transforms", "poe_tool_pose",
@@ -162,7 +163,7 @@ def component_errors(model: ErrorModel, p: np.ndarray, q: np.ndarray) -> dict[st
         else:
             for comp in linear_component_names(ax.name):
                 e = np.zeros_like(s)
-                for k in range(1, ax.degree + 1):
+                for k in polynomial_orders(model.machine, ax.name, comp):
                     e = e + P[f"{comp}_{k}"] * (s / 1000.0) ** k
                 comps[comp] = e
         out[ax.name] = comps
