@@ -47,14 +47,16 @@ class Evaluator:
         dev, Jd = evaluate(self.model, "deviation_qjacobian_function", qq, self.p, ctx)
         tip, axis, Jn = nominal_pose_jacobian(self.machine, qq)
         self.evaluations += q.shape[0]
-        pose = tip if self.rows == 3 else np.concatenate([tip, axis], axis=1)
+        rows = self.rows
         if target is None:
-            target = pose if not np.any(x) else self.target(q)
-        r = dev[:, :self.rows] + pose
+            target = (tip if rows == 3 else np.concatenate([tip, axis], axis=1)) if not np.any(x) \
+                else self.target(q)
+        r = dev[:, :rows] + tip if rows == 3 else dev + np.concatenate([tip, axis], axis=1)
         r -= target
         r *= self.S
-        J = Jd[:, :self.rows, :]
-        J += Jn[:, :self.rows, :]
+        # C-contiguous (n, rows, n_axes): later passes over A read it in order
+        J = np.empty((q.shape[0], rows, Jd.shape[2]))
+        np.add(Jd[:, :rows, :], Jn[:, :rows, :], out=J)
         J *= self.S[:, None] / self.D[None, :]
         return r, J, target
 

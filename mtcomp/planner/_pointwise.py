@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._evaluate import Evaluator
-from ._small import a_x, at_b, gram, spd_solve
+from ._small import a_x, normal_step
 
 
 @dataclass
@@ -58,14 +58,12 @@ def pinv_step(A: np.ndarray, b: np.ndarray, lam: float = 0.0) -> np.ndarray:
     singular poses). A (n, rows, na), b (n, rows)."""
     if lam <= 0:
         return -np.einsum("nij,nj->ni", np.linalg.pinv(A), b)
-    return -spd_solve(gram(A, lam), at_b(A, b))
+    return normal_step(A, b, None, lam)
 
 
 def regularized_step(A: np.ndarray, b: np.ndarray, x: np.ndarray, lam: float) -> np.ndarray:
     """Gauss-Newton step of min ||b + A dx||^2 + lam ||x + dx||^2 per block: (n, na)."""
-    H = gram(A, lam)
-    g = at_b(A, b) + lam * x
-    return -spd_solve(H, g)
+    return normal_step(A, b, x, lam)
 
 
 def solve_pinv(ev: Evaluator, q: np.ndarray, ctx: np.ndarray, lam: float = 0.0) -> Linearization:
@@ -101,19 +99,26 @@ def solve_newton(ev: Evaluator, q: np.ndarray, ctx: np.ndarray, lam: float, tol:
         x[sel] += dx
         size = np.max(np.abs(dx), axis=1)
         done = size < tol
-        converged[active[done]] = True
         slow = size > 0.1 * last[sel]
         last[sel] = size
-        active, slow = active[~done], slow[~done]
+        if np.any(done):
+            converged[active[done]] = True
+            active, slow = active[~done], slow[~done]
+            every = False
         if active.size == 0:
             break
-        refresh, keep = active[slow], active[~slow]
-        if refresh.size:
+        if not np.any(slow):
+            refresh, keep = None, (slice(None) if every else active)
+        elif np.all(slow):
+            refresh, keep = (slice(None) if every else active), None
+        else:
+            refresh, keep = active[slow], active[~slow]
+        if refresh is not None:
             bb, AA, _ = ev.residual_jacobian(q[refresh], x[refresh], ctx[refresh], target[refresh])
             b[refresh], A[refresh], x_lin[refresh] = bb, AA, x[refresh]
-        if keep.size:
+        if keep is not None:
             # b(x) exactly, A from before: store the linearisation point so that predict() holds
             bb = ev.residual(q[keep], x[keep], ctx[keep], target[keep])
             b[keep], x_lin[keep] = bb, x[keep]
-        iterations[active] += 1
+        iterations[sel if every else active] += 1
     return Linearization(x, x_lin, b, A, b0, target, iterations, converged)
