@@ -48,6 +48,9 @@ import numpy as np
 
 #: flags that keep results bit-compatible with plain double arithmetic on any x86-64
 CFLAGS = ("-O3", "-fPIC", "-shared", "-fno-math-errno", "-ffp-contract=off", "-std=c99")
+#: added for GCC: scheduling before register allocation, register-pressure aware (the pose body is
+#: one long basic block; this ordering makes it about 15 % faster); the arithmetic is unchanged
+GCC_FLAGS = ("-fschedule-insns", "-fsched-pressure")
 
 #: number of compiler runs in this process (tests read it to check cache reuse)
 compile_count = 0
@@ -262,16 +265,19 @@ class _Unsupported(Exception):
 
 
 def batched_body(body: ca.Function, lanes: int, varying_inputs: set, out_map: dict,
-                 name: str = "mtcomp_batch") -> str:
+                 name: str = "mtcomp_batch", trig: str = "exact") -> tuple[str, list[tuple[int, int]], bool]:
     """C of ``body`` evaluated on ``lanes`` poses at once with GCC/Clang vector extensions.
 
-    ``static void name(const double** in, double** out)``: ``in[k]`` points at the first pose's row
-    of input k (rows of ``numel_in(k)`` values) for k in ``varying_inputs``, at the shared vector
-    otherwise; the stacked output's entry nz goes to ``out[k][pose * row + m]`` with
-    ``(k, m, row) = out_map[nz]``. Values shared by all poses stay scalars; per-pose values are
-    vectors of ``lanes`` doubles, so +, -, *, / run as SIMD instructions (IEEE results, lane by
-    lane the same as scalar code); library functions are called per lane, sin/cos pairs of the same
-    value as one ``sincos``. Raises _Unsupported for an operation it does not know.
+    ``static void name(const double** in, const vd* shared, double** out)``: ``in[k]`` points at
+    the first pose's row of input k (rows of ``numel_in(k)`` values) for k in ``varying_inputs``;
+    the stacked output's entry nz goes to ``out[k][pose * row + m]`` with ``(k, m, row) =
+    out_map[nz]``. Per-pose values are vectors of ``lanes`` doubles, so +, -, *, / run as SIMD
+    instructions (IEEE results, lane by lane the same as scalar code). Entries of the shared inputs
+    are read from ``shared[slot]``, the entry broadcast to all lanes once per call by the caller
+    (so that they enter SIMD instructions as memory operands), with ``slots[slot] = (input, nz)``.
+    sin and cos go through ``mt_sincos`` (:func:`_trig_source`); other library functions are
+    called per lane. Returns (C source, slots). Raises _Unsupported for an operation it does not
+    know.
     """
     n = body.n_instructions()
     ids = [_OPS.get(body.instruction_id(k), "?") for k in range(n)]
@@ -293,6 +299,7 @@ def batched_body(body: ca.Function, lanes: int, varying_inputs: set, out_map: di
             o = body.instruction_output(k)[0]
             version[o] = version.get(o, 0) + 1
     uni = {}
+    slots: dict = {}
     used_u, used_v = set(), set()
     lines = []
     L = lanes
@@ -334,7 +341,8 @@ def batched_body(body: ca.Function, lanes: int, varying_inputs: set, out_map: di
                 row = body.numel_in(idx)
                 assign(o, False, None, fn=lambda: f"in[{idx}][{lane['j']}*{row}+{nz}]")
             else:
-                assign(o, True, f"in[{idx}][{nz}]")
+                slot = slots.setdefault((idx, nz), len(slots))
+                assign(o, False, f"shared[{slot}]")
         elif op == "OP_OUTPUT":
             idx, nz = body.instruction_output(k)
             kk, m, row = out_map[nz]
@@ -358,7 +366,10 @@ def batched_body(body: ca.Function, lanes: int, varying_inputs: set, out_map: di
                 n_pairs += 1
             if is_first:
                 used_v.add(i)
-                lines.append(f"  mt_sincos(v{i},&vs{t},&vc{t});")
+                if trig == "exact":
+                    lines.append(f"  mt_sincos(v{i},&vs{t},&vc{t});")
+                else:
+                    lines.append(f"  mt_sincos_small(v{i},&vs{t},&vc{t},&large);")
             assign(o, False, f"vs{t}" if op == "OP_SIN" else f"vc{t}")
         elif op in _UNARY:
             i, o = ins[0], body.instruction_output(k)[0]
@@ -375,15 +386,39 @@ def batched_body(body: ca.Function, lanes: int, varying_inputs: set, out_map: di
                 assign(o, False, None, fn=lambda: _BINARY[op].format(opnd(a), opnd(b)))
         else:
             raise _Unsupported(op)
-    decl = [f"static void {name}(const double** in, double** out) {{", "  int j;"]
+    decl = [f"static __attribute__((noinline)) int {name}(const double** in, const vd* shared, double** out) {{", "  int j;"]
+    if trig != "exact":
+        decl.append("  vl large = {0};")
     if used_u:
         decl.append("  double " + ", ".join(f"u{i}" for i in sorted(used_u)) + ";")
     if used_v:
         decl.append("  vd " + ", ".join(f"v{i}" for i in sorted(used_v)) + ";")
     if n_pairs:
         decl.append("  vd " + ", ".join(f"vs{t}, vc{t}" for t in range(n_pairs)) + ";")
-    return "\n".join(decl + lines + ["}"]) + "\n"
+    any_large = " | ".join(f"large[{j}]" for j in range(L)) if trig != "exact" and n_pairs else "0"
+    return "\n".join(decl + lines + [f"  return ({any_large}) != 0;", "}"]) + "\n", list(slots), n_pairs > 0
 
+
+#: run the fast body (sin and cos as polynomials) on a batch, and the exact one on a batch where a
+#: polynomial did not hold; after such a batch, the next ones go to the exact body directly (a
+#: function with a large angle, a rotary axis's, does not pay for both bodies every time)
+_RUN_TWO = r"""
+static void mtcomp_run(const double** in, const vd* shared, double** o, int* skip) {
+  if (*skip > 0) {
+    --*skip;
+    mtcomp_exact(in, shared, o);
+  } else if (mtcomp_fast(in, shared, o)) {
+    mtcomp_exact(in, shared, o);
+    *skip = 64;
+  }
+}
+"""
+_RUN_ONE = r"""
+static void mtcomp_run(const double** in, const vd* shared, double** o, int* skip) {
+  (void)skip;
+  mtcomp_exact(in, shared, o);
+}
+"""
 
 _BATCH_LOOP = r"""
 /* ---- mtcomp: loop over poses, %(L)d at a time (p shared, q and c one row per pose) ---- */
@@ -400,9 +435,10 @@ int mtcomp_loop(long long n, const double* q, const double* p, const double* c, 
   const double* in[4];
   double* o[%(nout)d];
   double qb[%(L)d * %(nq)d + 1], cb[%(L)d * %(nc)d + 1];
+  vd shared[%(n_shared)d + 1];
 %(obuf)s
   long long i;
-  int k, j, r;
+  int k, j, r, skip = 0;
   for (k = 0; k < %(sz_arg)d; ++k) arg[k] = 0;
   for (k = 0; k < %(sz_res)d; ++k) res[k] = 0;
   arg[0] = p;
@@ -410,11 +446,12 @@ int mtcomp_loop(long long n, const double* q, const double* p, const double* c, 
   if (mtcomp_pre(arg, res, iw, w, 0)) return 2;
   in[1] = p;
   in[2] = pw;
+%(broadcast)s
   for (i = 0; i + %(L)d <= n; i += %(L)d) {
     in[0] = q + i * %(nq)d;
     in[3] = c + i * %(nc)d;
 %(oset)s
-    mtcomp_batch(in, o);
+    mtcomp_run(in, shared, o, &skip);
   }
   if (i < n) {
     r = (int)(n - i);
@@ -426,7 +463,7 @@ int mtcomp_loop(long long n, const double* q, const double* p, const double* c, 
     in[0] = qb;
     in[3] = cb;
 %(obset)s
-    mtcomp_batch(in, o);
+    mtcomp_run(in, shared, o, &skip);
 %(obcopy)s
   }
   return 0;
@@ -454,11 +491,21 @@ static void __attribute__((noinline, cold)) mt_sincos_libm(vd x, vl small, vd* s
   for (j = 0; j < %(L)d; ++j)
     if (!small[j]) sincos(x[j], &(*s)[j], &(*c)[j]);
 }
-static inline __attribute__((always_inline)) void mt_sincos(vd x, vd* s, vd* c) {
+/* the polynomials in every lane; returns the lanes where they hold (|x| < lim; not NaN) */
+static inline __attribute__((always_inline)) vl mt_sincos_poly(vd x, vd* s, vd* c) {
   vd x2 = x * x;
-  vl small = (x > -%(lim)s) & (x < %(lim)s);
+  vd ax = (vd)((vl)x & 0x7fffffffffffffffLL);
   *s = x + x * (x2 * (%(s3)s + x2 * (%(s5)s + x2 * (%(s7)s + x2 * %(s9)s))));
   *c = 1. + x2 * (%(c2)s + x2 * (%(c4)s + x2 * (%(c6)s + x2 * %(c8)s)));
+  return ax < %(lim)s;
+}
+/* fast body: polynomials only, lanes where they do not hold are marked in *large */
+static inline __attribute__((always_inline)) void mt_sincos_small(vd x, vd* s, vd* c, vl* large) {
+  *large |= ~mt_sincos_poly(x, s, c);
+}
+/* exact body: polynomials where they hold, glibc's sincos in the other lanes */
+static inline __attribute__((always_inline)) void mt_sincos(vd x, vd* s, vd* c) {
+  vl small = mt_sincos_poly(x, s, c);
   if (__builtin_expect(!(%(all_small)s), 0)) mt_sincos_libm(x, small, s, c);
 }
 """
@@ -474,11 +521,20 @@ def batched_source(function: ca.Function, lanes: int = LANES) -> tuple[str, list
         for m in range(size):
             out_map[off + m] = (kk, m, size)
         off += size
-    batch = batched_body(body, lanes, {0, 3}, out_map)
+    batch, slots, has_trig = batched_body(body, lanes, {0, 3}, out_map, "mtcomp_exact", "exact")
+    if has_trig:
+        fast, slots_fast, _ = batched_body(body, lanes, {0, 3}, out_map, "mtcomp_fast", "fast")
+        assert slots_fast == slots
+        batch += fast + _RUN_TWO
+    else:
+        batch += _RUN_ONE
     src = _casadi_source([pre])
     L = lanes
     fill = {"batch": batch, "trig": _trig_source(lanes), "vbytes": 8 * lanes, "sz_arg": pre.sz_arg(), "sz_res": pre.sz_res(),
             "sz_iw": pre.sz_iw(), "sz_w": pre.sz_w(), "nw": pre.numel_out(0), "nout": len(sizes),
+            "n_shared": len(slots),
+            "broadcast": "\n".join(f"  for (j = 0; j < {L}; ++j) shared[{s}][j] = in[{i}][{nz}];"
+                                   for s, (i, nz) in enumerate(slots)),
             "L": L, "nq": body.numel_in(0), "nc": body.numel_in(3),
             "obuf": "\n".join(f"  double ob{k}[{L} * {s}];" for k, s in enumerate(sizes)),
             "oset": "\n".join(f"    o[{k}] = out[{k}] + i * {s};" for k, s in enumerate(sizes)),
@@ -498,10 +554,26 @@ def _casadi_source(functions) -> str:
         return Path(path).read_text()
 
 
+_is_gcc: dict = {}  # compiler path -> whether it is GCC
+
+
+def compile_flags(compiler: str) -> tuple[str, ...]:
+    """Flags for ``compiler``: :data:`CFLAGS`, plus :data:`GCC_FLAGS` when it is GCC."""
+    if compiler not in _is_gcc:
+        try:  # the predefined macros tell GCC (__GNUC__ alone) from Clang (which also defines it)
+            out = subprocess.run([compiler, "-E", "-dM", "-x", "c", "-"], input="", capture_output=True,
+                                 text=True, timeout=60).stdout
+        except (OSError, subprocess.SubprocessError):
+            out = ""
+        _is_gcc[compiler] = "#define __GNUC__ " in out and "__clang__" not in out
+    return CFLAGS + (GCC_FLAGS if _is_gcc[compiler] else ())
+
+
 def compile_source(src: str, compiler: str) -> Path:
     """Compile ``src`` into the cache (or reuse a cached library). Raises CompileError."""
     global compile_count
-    key = hashlib.sha256("\0".join([src, compiler, *CFLAGS]).encode()).hexdigest()[:24]
+    flags = compile_flags(compiler)
+    key = hashlib.sha256("\0".join([src, compiler, *flags]).encode()).hexdigest()[:24]
     out_dir = _private_cache_dir()
     lib = out_dir / f"mtcomp_{key}.so"
     if lib.exists():
@@ -510,7 +582,7 @@ def compile_source(src: str, compiler: str) -> Path:
         c_file = Path(tmp) / f"mtcomp_{key}.c"
         c_file.write_text(src)
         tmp_lib = Path(tmp) / f"mtcomp_{key}.so"
-        cmd = [compiler, *CFLAGS, str(c_file), "-o", str(tmp_lib), "-lm"]
+        cmd = [compiler, *flags, str(c_file), "-o", str(tmp_lib), "-lm"]
         try:
             proc = subprocess.run(cmd, capture_output=True, text=True)
         except OSError as exc:
@@ -579,7 +651,8 @@ def _index_path(function: ca.Function, compiler: str) -> Path:
     """Small file naming the library built for this function (so that a new process finds a cached
     library without generating the C again)."""
     key = hashlib.sha256(b"\0".join([function.serialize().encode(), compiler.encode(),
-                                      " ".join(CFLAGS).encode(), _generator_fingerprint().encode()]))
+                                      " ".join(compile_flags(compiler)).encode(),
+                                      _generator_fingerprint().encode()]))
     return cache_dir() / f"index-{key.hexdigest()[:24]}"
 
 
