@@ -28,7 +28,7 @@ from ..models.model_file import FittedModel
 from ..models.params import ParameterSet
 from . import _analysis as an
 from ._candidates import Candidate, generate, temperature_regression
-from ._linalg import Design, determined_subspace, rms, solve_normal
+from ._linalg import Design, _eigh, determined_subspace, rms, solve_normal
 from ._stack import Stack, build_stack
 
 #: a candidate must lower the BIC by at least this much
@@ -435,7 +435,7 @@ def _cov_diag(design: Design, extra: np.ndarray) -> np.ndarray:
     H = B.T @ G @ B
     d = np.sqrt(np.clip(np.diag(H), 0, None))
     d = np.where(d > 0, d, 1.0)
-    wv, V = np.linalg.eigh(H / np.outer(d, d))
+    wv, V = _eigh(H / np.outer(d, d))
     ok = wv > 1e-10 * wv.max()
     Hinv = ((V[:, ok] / wv[ok]) @ V[:, ok].T) / np.outer(d, d)
     var = np.einsum("ij,jk,ik->i", B, Hinv, B)

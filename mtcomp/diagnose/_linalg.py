@@ -33,7 +33,7 @@ def solve_normal(G: np.ndarray, b: np.ndarray, tol: float = RANK_TOLERANCE) -> t
         return theta, 0
     dk = d[keep]
     Gs = G[np.ix_(keep, keep)] / np.outer(dk, dk)
-    w, V = np.linalg.eigh(Gs)
+    w, V = _eigh(Gs)
     ok = w > tol * max(w.max(), 1e-300)
     bs = b[keep] / dk
     x = V[:, ok] @ ((V[:, ok].T @ bs) / w[ok])
@@ -82,6 +82,15 @@ def _chol_solve(G: np.ndarray, b: np.ndarray) -> np.ndarray:
     return scipy.linalg.cho_solve((L, True), b / d) / d
 
 
+def _eigh(M: np.ndarray):
+    """Symmetric eigen-decomposition; LAPACK's divide-and-conquer occasionally fails to converge on
+    nearly singular matrices, then the relatively robust representation driver is used."""
+    try:
+        return np.linalg.eigh(M)
+    except np.linalg.LinAlgError:
+        return scipy.linalg.eigh(M, driver="evr")
+
+
 def _fold_solve(Gk: np.ndarray, bk: np.ndarray, G: np.ndarray) -> np.ndarray:
     """Least squares on the part of the data a fold keeps (normal matrix Gk), with G the normal
     matrix of all the data: the generalised eigenproblem Gk v = lambda G v gives, per direction, the
@@ -97,7 +106,7 @@ def _fold_solve(Gk: np.ndarray, bk: np.ndarray, G: np.ndarray) -> np.ndarray:
         return solve_normal(Gk, bk, FOLD_TOLERANCE)[0]
     tri = scipy.linalg.solve_triangular
     M = tri(L, tri(L, Gk / np.outer(d, d), lower=True).T, lower=True)
-    lam, U = np.linalg.eigh((M + M.T) / 2)
+    lam, U = _eigh((M + M.T) / 2)
     ok = lam > FOLD_TOLERANCE
     y = tri(L, bk / d, lower=True)
     return tri(L.T, U[:, ok] @ ((U[:, ok].T @ y) / lam[ok]), lower=False) / d
@@ -114,7 +123,7 @@ def determined_subspace(A: np.ndarray, w: np.ndarray | None = None) -> np.ndarra
     S = np.zeros_like(d)
     S[keep] = 1.0 / d[keep]
     G0 = (Aw * S).T @ (Aw * S)
-    ev, V = np.linalg.eigh(G0)
+    ev, V = _eigh(G0)
     ok = ev > RANK_TOLERANCE * max(ev.max(), 1e-300)
     return S[:, None] * V[:, ok]
 
