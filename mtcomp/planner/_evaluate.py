@@ -12,6 +12,8 @@ Jacobian ``A = S (J_nominal + J_q) / axis_scale`` (weighted residual per um or u
 """
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 from ..models.evaluate import evaluate
@@ -31,6 +33,11 @@ class Evaluator:
         self.S = problem.residual_scale
         self.D = problem.axis_scale
         self.evaluations = 0
+        self._count_lock = threading.Lock()     # parts of a chunk are evaluated in threads
+
+    def _count(self, n: int):
+        with self._count_lock:
+            self.evaluations += n
 
     def target(self, q: np.ndarray) -> np.ndarray:
         """(n, rows) nominal pose (tip mm, tool axis) of q: what the program means."""
@@ -46,7 +53,7 @@ class Evaluator:
         qq = q + x / self.D
         dev, Jd = evaluate(self.model, "deviation_qjacobian_function", qq, self.p, ctx)
         tip, axis, Jn = nominal_pose_jacobian(self.machine, qq)
-        self.evaluations += q.shape[0]
+        self._count(q.shape[0])
         rows = self.rows
         if target is None:
             target = (tip if rows == 3 else np.concatenate([tip, axis], axis=1)) if not np.any(x) \
@@ -65,7 +72,7 @@ class Evaluator:
         q = np.asarray(q, dtype=float)
         qq = q + x / self.D
         dev = evaluate(self.model, "deviation_function", qq, self.p, ctx)[0]
-        self.evaluations += q.shape[0]
+        self._count(q.shape[0])
         r = dev[:, :self.rows] + self.target(qq)
         r -= target
         r *= self.S

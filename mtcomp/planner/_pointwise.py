@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._evaluate import Evaluator
-from ._small import a_x, normal_step
+from ._small import a_x, normal_step, row_max_abs
 
 
 @dataclass
@@ -97,7 +97,7 @@ def solve_newton(ev: Evaluator, q: np.ndarray, ctx: np.ndarray, lam: float, tol:
         sel = slice(None) if every else active
         dx = regularized_step(A[sel], b[sel], x[sel], lam)
         x[sel] += dx
-        size = np.max(np.abs(dx), axis=1)
+        size = row_max_abs(dx)
         done = size < tol
         slow = size > 0.1 * last[sel]
         last[sel] = size

@@ -33,6 +33,23 @@ def a_x(A: np.ndarray, x: np.ndarray) -> np.ndarray:
     return out
 
 
+def row_max_abs(a: np.ndarray) -> np.ndarray:
+    """(n,): the largest |a_ij| of each row of a (n, m) (a loop over the few columns: numpy's
+    reductions along a short last axis are slow)."""
+    out = np.abs(a[:, 0])
+    for j in range(1, a.shape[1]):
+        np.maximum(out, np.abs(a[:, j]), out=out)
+    return out
+
+
+def row_norm(a: np.ndarray) -> np.ndarray:
+    """(n,): Euclidean length of each row of a (n, m), summed in column order as ``np.sum(a**2, 1)``."""
+    out = a[:, 0] * a[:, 0]
+    for j in range(1, a.shape[1]):
+        out += a[:, j] * a[:, j]
+    return np.sqrt(out, out=out)
+
+
 def spd_solve(H: np.ndarray, g: np.ndarray) -> np.ndarray:
     """(n, m): H^-1 g for symmetric positive definite H (n, m, m) by Cholesky, vectorised over n
     (explicit loops over the m <= 6 rows: no reductions over short strided axes)."""

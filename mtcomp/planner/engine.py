@@ -30,9 +30,10 @@ import numpy as np
 from ..errors import InputError
 from ._bounds import FLAG_KINDS, INF, Bounds, flag_name
 from ._evaluate import Evaluator
+from ._parallel import read_ahead, resolve_threads, split_rows
 from ._pointwise import Linearization, solve_newton, solve_pinv
 from ._qp import WindowQP
-from ._small import a_x, at_b, gram
+from ._small import a_x, at_b, gram, row_max_abs, row_norm
 from .problem import CompensationProblem, PlannerOptions
 
 
@@ -152,6 +153,7 @@ class Planner:
         self._done = 0
         self._last_progress = time.monotonic()
         self.stats = {"windows": 0, "windows_qp": 0, "qp_solves": 0, "qp_status": {}}
+        self.threads = resolve_threads(self.options.threads)
 
     # ------------------------------------------------------------------ nodes
     def _context(self, feed, dirs, n):
@@ -161,6 +163,10 @@ class Planner:
         return self.problem.fitted.context(n, cols)
 
     def _solve_free(self, q, ctx) -> Linearization:
+        parts = split_rows(self._solve_free_part, q.shape[0], self.threads, q, ctx)
+        return parts[0] if len(parts) == 1 else Linearization.concatenate(parts)
+
+    def _solve_free_part(self, q, ctx) -> Linearization:
         o = self.options
         if o.method == "pinv":
             return solve_pinv(self.ev, q, ctx, self.problem.regularization)
@@ -261,25 +267,26 @@ class Planner:
         o = self.options
         if not o.subdivide_tol_um or o.max_subdivision_depth < 1 or start.shape[0] == 0:
             return None
-        moving = ~rapid & np.any(np.abs(end - start) > 0, axis=1)
+        moving = ~rapid & (row_max_abs(end - start) > 0)
         rows = np.flatnonzero(moving)
+        if rows.size == moving.size:      # every row moves (the common case): no copies
+            s0, e0, x0, x1, c = start, end, x_start, x_end, ctx
+        else:
+            s0, e0, x0, x1, c = start[rows], end[rows], x_start[rows], x_end[rows], ctx[rows]
         t0, t1 = np.zeros(rows.size), np.ones(rows.size)
-        x0, x1 = x_start[rows], x_end[rows]
         found_rows, found_t, found_q, found_lin = [], [], [], []
         for _depth in range(o.max_subdivision_depth):
             if rows.size == 0:
                 break
             tm = 0.5 * (t0 + t1)
-            qm = self.bounds.snap(start[rows] + tm[:, None] * (end[rows] - start[rows]))
-            xa = 0.5 * (x0 + x1)
-            c = ctx[rows]
-            target = self.ev.target(qm)
-            miss = self.ev.residual(qm, xa, c, target)
-            err = np.sqrt(np.sum(miss ** 2, axis=1))
+            parts = split_rows(self._midpoint_miss, rows.size, self.threads, s0, e0, tm, x0, x1, c)
+            err = np.concatenate([p[0] for p in parts]) if len(parts) > 1 else parts[0][0]
             hit = err > o.subdivide_tol_um
             if not np.any(hit):
                 break
-            rows, t0, t1, x0, x1, tm, qm, c = (a[hit] for a in (rows, t0, t1, x0, x1, tm, qm, c))
+            qm = np.concatenate([p[1] for p in parts]) if len(parts) > 1 else parts[0][1]
+            rows, t0, t1, x0, x1, tm, qm, c, s0, e0 = (
+                a[hit] for a in (rows, t0, t1, x0, x1, tm, qm, c, s0, e0))
             lin = self._solve_free(qm, c)
             found_rows.append(rows)
             found_t.append(tm)
@@ -288,10 +295,19 @@ class Planner:
             rows = np.concatenate([rows, rows])
             t0, t1 = np.concatenate([t0, tm]), np.concatenate([tm, t1])
             x0, x1 = np.concatenate([x0, lin.x]), np.concatenate([lin.x, x1])
+            s0, e0, c = np.concatenate([s0, s0]), np.concatenate([e0, e0]), np.concatenate([c, c])
         if not found_rows:
             return None
         return (np.concatenate(found_rows), np.concatenate(found_t), np.concatenate(found_q),
                 Linearization.concatenate(found_lin))
+
+    def _midpoint_miss(self, start, end, t, x0, x1, c):
+        """(err (n,), qm (n, na)): the node at parameter t (n,) of the moves start -> end (n, na),
+        rounded to the grid, and how far (weighted, um / urad) the correction interpolated between
+        the corrections x0 and x1 of the ends misses there."""
+        qm = self.bounds.snap(start + t[:, None] * (end - start))
+        miss = self.ev.residual(qm, 0.5 * (x0 + x1), c, self.ev.target(qm))
+        return row_norm(miss), qm
 
     # ------------------------------------------------------------------ committing
     def _commit(self, nodes: NodeSet, lin: Linearization, x: np.ndarray,
@@ -312,7 +328,7 @@ class Planner:
         # first order around the last linearisation where the written correction is close to it
         # (the iterations end there); the exact model where it is not (pinv, clamped blocks)
         after_w = lin.predict(y)
-        far = np.flatnonzero(np.max(np.abs(y - lin.x_lin), axis=1) > 0.5)
+        far = np.flatnonzero(row_max_abs(y - lin.x_lin) > 0.5)
         if far.size:
             after_w[far] = self.ev.residual(nodes.q[far], y[far], nodes.context[far],
                                             lin.target[far])
@@ -376,7 +392,7 @@ class Planner:
                 self.stats["qp_failed"] = self.stats.get("qp_failed", 0) + 1
                 return np.clip(lin.x, l, u)
             x = sol[1:]
-            moved = np.max(np.abs(x - lin.x_lin), axis=1) >= o.step_tol_um
+            moved = row_max_abs(x - lin.x_lin) >= o.step_tol_um
             if not np.any(moved):
                 break
             idx = np.flatnonzero(moved)
@@ -386,9 +402,55 @@ class Planner:
             lin.iterations[idx] += 1
         return x
 
+    def _feasible_run(self, nodes: NodeSet, lin: Linearization, pos: int, total: int, final: bool):
+        """Commit at once the run of full windows from ``pos`` on whose unbounded solution keeps every
+        bound: ``(result, nodes committed)``, or ``(None, 0)`` when fewer than two such windows.
+
+        The same plan as window by window: each of these windows would be its unbounded solution
+        (checked here as :meth:`_solve_window` does, the anchor of a window being the written,
+        rounded correction of the node before it), and rounding a solution that keeps the bounds
+        changes none of them, so committing the run in one piece writes the same corrections.
+        """
+        W, O = self.options.window, self.options.overlap
+        room = total - pos - W - O - (1 if final else 0)
+        if room < W:          # at most one full window: the plain path
+            return None, 0
+        count = room // W + 1
+        end = pos + count * W + O
+        x = lin.x[pos:end]
+        exempt = nodes.exempt[pos:end]
+        limits = self.bounds.limits(nodes.q[pos:end])
+        b = self.bounds
+        if not b.feasible(x, limits[0], limits[1], exempt, self._prev):
+            return None, 0
+        # window k > 0 starts at k * W, anchored at the rounded correction of the node before it
+        starts = np.arange(1, count) * W
+        anchor = b.quantize(x[starts - 1])
+        bad = np.any(np.abs(x[starts] - anchor) > b.S + 1e-9, axis=1) & ~exempt[starts]
+        if np.any(bad):
+            count = 1 + int(np.flatnonzero(bad)[0])
+            if count < 2:
+                return None, 0
+        nc = count * W
+        self.stats["windows"] += count
+        following = x[nc] if not exempt[nc] else None
+        csl = slice(pos, pos + nc)
+        res = self._commit(nodes.take(csl), lin.take(csl), x[:nc].copy(), following,
+                           tuple(a[:nc] for a in limits))
+        return res, nc
+
     # ------------------------------------------------------------------ driving
     def iter_chunks(self, chunks: Iterable) -> Iterator[tuple[object, PlanResult]]:
-        """Plan a stream of SegmentChunks; yields ``(chunk, result)`` per chunk, in order."""
+        """Plan a stream of SegmentChunks; yields ``(chunk, result)`` per chunk, in order.
+
+        With more than one thread (``PlannerOptions.threads``) the chunks are read and planned one
+        result ahead of the consumer in a thread of their own (the consumer, e.g. the writer of the
+        corrected program, works on the previous result meanwhile).
+        """
+        gen = self._iter_chunks(chunks)
+        return read_ahead(gen) if self.threads > 1 else gen
+
+    def _iter_chunks(self, chunks: Iterable) -> Iterator[tuple[object, PlanResult]]:
         pending: deque = deque()   # (chunk, counts, n_nodes) planned but not yet yielded
         done: list[PlanResult] = []
         n_done = 0
@@ -441,6 +503,12 @@ class Planner:
             left = total - pos
             if not final and left < W + O:
                 break
+            if not o.always_qp:
+                res, n_run = self._feasible_run(nodes, lin, pos, total, final)
+                if n_run:
+                    results.append(res)
+                    pos += n_run
+                    continue
             nw = min(left, W + O)
             nc = nw if (final and left <= W + O) else min(W, nw)
             sl = slice(pos, pos + nw)

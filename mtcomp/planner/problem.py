@@ -134,7 +134,11 @@ class PlannerOptions:
     always_qp : solve every window with OSQP even when the unbounded solution satisfies every bound
         (the result is the same; for tests and timing).
     osqp_eps : absolute and relative tolerance of OSQP (solutions are polished on the active set).
-    progress : callable(blocks_done: int) called every few seconds, or None.
+    progress : callable(blocks_done: int) called every few seconds, or None (called from the
+        planning thread when there is more than one).
+    threads : threads for the per-block work and for planning ahead of the consumer of
+        ``Planner.iter_chunks``; 0 (default): the CPUs available, at most 4; 1: everything in the
+        calling thread. The plan is the same for any number.
     """
 
     method: str = "qp"
@@ -147,9 +151,12 @@ class PlannerOptions:
     always_qp: bool = False
     osqp_eps: float = 1e-7
     progress: object = field(default=None, compare=False)
+    threads: int = 0
 
     def __post_init__(self):
         if self.method not in METHODS:
             raise InputError(f"unknown method {self.method!r} (choose {', '.join(METHODS)})")
         if self.window < 1 or self.overlap < 0:
             raise ValueError("window must be >= 1 and overlap >= 0")
+        if self.threads < 0:
+            raise ValueError("threads must be >= 0")
