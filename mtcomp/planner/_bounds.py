@@ -114,6 +114,8 @@ class Bounds:
             start = j + 1
         flags = np.zeros((n, y.shape[1], len(FLAG_KINDS)), bool)
         took = np.abs(desired - y) > self.took_tol
+        if not took.any():          # every flag needs the bound to have taken something away
+            return y, flags
         tol = self.on_tol
         flags[..., 0] = took & (y >= self.B - tol)
         flags[..., 1] = took & (y <= -self.B + tol)

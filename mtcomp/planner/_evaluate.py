@@ -45,18 +45,20 @@ class Evaluator:
         return tip if self.rows == 3 else np.concatenate([tip, axis], axis=1)
 
     def residual_jacobian(self, q, x, ctx, target=None):
-        """Weighted residual b (n, rows) and Jacobian A (n, rows, n_axes) at corrections x (n, n_axes).
+        """Weighted residual b (n, rows) and Jacobian A (n, rows, n_axes) at corrections x (n, n_axes)
+        (None: zero).
 
         Returns (b, A, target): target (n, rows) is computed when not given (at x = 0 it is free).
         """
         q = np.asarray(q, dtype=float)
-        qq = q + x / self.D
+        zero = x is None or not np.any(x)
+        qq = q if zero else q + x / self.D
         dev, Jd = evaluate(self.model, "deviation_qjacobian_function", qq, self.p, ctx)
         tip, axis, Jn = nominal_pose_jacobian(self.machine, qq)
         self._count(q.shape[0])
         rows = self.rows
         if target is None:
-            target = (tip if rows == 3 else np.concatenate([tip, axis], axis=1)) if not np.any(x) \
+            target = (tip if rows == 3 else np.concatenate([tip, axis], axis=1)) if zero \
                 else self.target(q)
         r = dev[:, :rows] + tip if rows == 3 else dev + np.concatenate([tip, axis], axis=1)
         r -= target

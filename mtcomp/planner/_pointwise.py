@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._evaluate import Evaluator
-from ._small import a_x, normal_step, row_max_abs
+from ._small import NormalFactor, a_x, normal_step, row_max_abs
 
 
 @dataclass
@@ -92,10 +92,13 @@ def solve_newton(ev: Evaluator, q: np.ndarray, ctx: np.ndarray, lam: float, tol:
     converged = np.zeros(n, bool)
     active = np.arange(n)
     last = np.full(n, np.inf)
+    factor = None                         # of the blocks in sel, while their A is kept
     for _ in range(max_iterations):
         every = active.size == n          # plain slices while every block is still iterating
         sel = slice(None) if every else active
-        dx = regularized_step(A[sel], b[sel], x[sel], lam)
+        if factor is None:
+            factor = NormalFactor(A[sel], lam)
+        dx = factor.step(b[sel], x[sel])
         x[sel] += dx
         size = row_max_abs(dx)
         done = size < tol
@@ -105,6 +108,7 @@ def solve_newton(ev: Evaluator, q: np.ndarray, ctx: np.ndarray, lam: float, tol:
             converged[active[done]] = True
             active, slow = active[~done], slow[~done]
             every = False
+            factor = factor.take(~done) if active.size else None
         if active.size == 0:
             break
         if not np.any(slow):
@@ -114,6 +118,7 @@ def solve_newton(ev: Evaluator, q: np.ndarray, ctx: np.ndarray, lam: float, tol:
         else:
             refresh, keep = active[slow], active[~slow]
         if refresh is not None:
+            factor = None
             bb, AA, _ = ev.residual_jacobian(q[refresh], x[refresh], ctx[refresh], target[refresh])
             b[refresh], A[refresh], x_lin[refresh] = bb, AA, x[refresh]
         if keep is not None:

@@ -91,50 +91,74 @@ def normal_step(A: np.ndarray, b: np.ndarray, x: np.ndarray | None = None,
     (n,) vectors (one transposed copy of A and b, then no strided passes): the per-block 3 x 3 (or
     6 x 6) problems of a chunk cost a few dozen vector operations in all.
     """
-    n, r, m = A.shape
-    Ac = np.ascontiguousarray(A.transpose(1, 2, 0))   # (r, m, n)
-    bc = np.ascontiguousarray(b.T)                     # (r, n)
-    H = [[None] * m for _ in range(m)]
-    g = [None] * m
-    for i in range(m):
-        for j in range(i, m):
-            h = Ac[0, i] * Ac[0, j]
-            for k in range(1, r):
-                h += Ac[k, i] * Ac[k, j]
-            H[i][j] = h
-        H[i][i] += lam
-        t = Ac[0, i] * bc[0]
-        for k in range(1, r):
-            t += Ac[k, i] * bc[k]
-        if lam and x is not None:
-            t += lam * x[:, i]
-        g[i] = t
-    # Cholesky H = L L^T (lower triangle from the upper one stored), then two triangular solves
-    L = [[None] * m for _ in range(m)]
-    inv_diag = [None] * m
-    for j in range(m):
-        s = H[j][j]
-        for k in range(j):
-            s = s - L[j][k] * L[j][k]
-        inv_diag[j] = 1.0 / np.sqrt(s)
-        for i in range(j + 1, m):
-            t = H[j][i]
+    return NormalFactor(A, lam).step(b, x)
+
+
+class NormalFactor:
+    """The Cholesky factors of ``A^T A + lam I`` of many blocks, kept for further right-hand sides
+    (Newton steps that keep the Jacobian: the chord method). A (n, r, m)."""
+
+    def __init__(self, A: np.ndarray, lam: float = 0.0, _parts=None):
+        if _parts is not None:
+            self.Ac, self.L, self.inv_diag, self.lam = _parts
+            return
+        n, r, m = A.shape
+        self.lam = lam
+        self.Ac = Ac = np.ascontiguousarray(A.transpose(1, 2, 0))   # (r, m, n)
+        H = [[None] * m for _ in range(m)]
+        for i in range(m):
+            for j in range(i, m):
+                h = Ac[0, i] * Ac[0, j]
+                for k in range(1, r):
+                    h += Ac[k, i] * Ac[k, j]
+                H[i][j] = h
+            H[i][i] += lam
+        # H = L L^T (lower triangle from the upper one stored)
+        L = [[None] * m for _ in range(m)]
+        inv_diag = [None] * m
+        for j in range(m):
+            s = H[j][j]
             for k in range(j):
-                t = t - L[i][k] * L[j][k]
-            L[i][j] = t * inv_diag[j]
-    y = [None] * m
-    for i in range(m):
-        t = g[i]
-        for k in range(i):
-            t = t - L[i][k] * y[k]
-        y[i] = t * inv_diag[i]
-    sol = [None] * m
-    for i in range(m - 1, -1, -1):
-        t = y[i]
-        for k in range(i + 1, m):
-            t = t - L[k][i] * sol[k]
-        sol[i] = t * inv_diag[i]
-    out = np.empty((n, m))
-    for i in range(m):
-        np.negative(sol[i], out=out[:, i])
-    return out
+                s = s - L[j][k] * L[j][k]
+            inv_diag[j] = 1.0 / np.sqrt(s)
+            for i in range(j + 1, m):
+                t = H[j][i]
+                for k in range(j):
+                    t = t - L[i][k] * L[j][k]
+                L[i][j] = t * inv_diag[j]
+        self.L, self.inv_diag = L, inv_diag
+
+    def __len__(self):
+        return self.Ac.shape[2]
+
+    def take(self, idx) -> "NormalFactor":
+        """The factors of the blocks idx (index array or boolean mask)."""
+        L = [[None if v is None else v[idx] for v in row] for row in self.L]
+        return NormalFactor(None, _parts=(self.Ac[:, :, idx], L, [v[idx] for v in self.inv_diag],
+                                          self.lam))
+
+    def step(self, b: np.ndarray, x: np.ndarray | None = None) -> np.ndarray:
+        """(n, m): ``-(A^T A + lam I)^-1 (A^T b + lam x)`` for b (n, r), x (n, m) or None."""
+        Ac, L, inv_diag, lam = self.Ac, self.L, self.inv_diag, self.lam
+        r, m, n = Ac.shape
+        bc = np.ascontiguousarray(b.T)                     # (r, n)
+        y = [None] * m
+        for i in range(m):
+            t = Ac[0, i] * bc[0]
+            for k in range(1, r):
+                t += Ac[k, i] * bc[k]
+            if lam and x is not None:
+                t += lam * x[:, i]
+            for k in range(i):
+                t = t - L[i][k] * y[k]
+            y[i] = t * inv_diag[i]
+        sol = [None] * m
+        for i in range(m - 1, -1, -1):
+            t = y[i]
+            for k in range(i + 1, m):
+                t = t - L[k][i] * sol[k]
+            sol[i] = t * inv_diag[i]
+        out = np.empty((n, m))
+        for i in range(m):
+            np.negative(sol[i], out=out[:, i])
+        return out

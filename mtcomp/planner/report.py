@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._bounds import FLAG_KINDS, flag_name
+from ._small import row_norm
 from .engine import PlanResult
 
 
@@ -87,17 +88,16 @@ class Summary:
             return
         self.blocks += n
         self.inserted += int(r.inserted.sum())
-        any_flag = r.flags.any(axis=(1, 2))
-        self.bounded_blocks += int(any_flag.sum())
-        if any_flag.any():
+        if r.flags.any():
+            self.bounded_blocks += int(r.flags.any(axis=(1, 2)).sum())
             counts = r.flags.sum(axis=0)
             for j, a in enumerate(self.axis_names):
                 for k, kind in enumerate(FLAG_KINDS):
                     if counts[j, k]:
                         name = flag_name(kind, a)
                         self.flag_counts[name] = self.flag_counts.get(name, 0) + int(counts[j, k])
-        eb = np.sqrt(np.sum(r.before ** 2, axis=1)) * 1e3
-        ea = np.sqrt(np.sum(r.after ** 2, axis=1)) * 1e3
+        eb = row_norm(r.before) * 1e3
+        ea = row_norm(r.after) * 1e3
         self.max_before_um = max(self.max_before_um, float(eb.max()))
         i = int(np.argmax(ea))
         if ea[i] >= self.max_after_um:
