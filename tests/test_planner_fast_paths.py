@@ -1,0 +1,146 @@
+"""Planner fast paths give the plan of the plain paths: the per-block normal equations against
+numpy's dense solve, feasible runs of windows against window-by-window planning, threads against
+one thread, the read-ahead thread against plain iteration."""
+import numpy as np
+import pytest
+
+from mtcomp.models import PeriodicError
+from mtcomp.planner import CompensationProblem, Planner, PlannerOptions, output_grid, plan_chunks
+from mtcomp.planner import _parallel
+from mtcomp.planner._small import NormalFactor, normal_step, row_max_abs, row_norm
+from mtcomp.toolpaths.gcode import SegmentChunk
+
+from test_planner_core import _segment_chunk, fitted_model
+
+
+@pytest.mark.parametrize("rows,cols", [(3, 3), (6, 5), (6, 6), (3, 5)])
+def test_normal_step_matches_a_dense_solve(rows, cols):
+    rng = np.random.default_rng(rows * 10 + cols)
+    n, lam = 50, 1e-3
+    A = rng.normal(size=(n, rows, cols))
+    b = rng.normal(size=(n, rows))
+    x = rng.normal(size=(n, cols))
+    H = np.einsum("nki,nkj->nij", A, A) + lam * np.eye(cols)
+    g = np.einsum("nki,nk->ni", A, b) + lam * x
+    want = -np.linalg.solve(H, g[:, :, None])[:, :, 0]
+    np.testing.assert_allclose(normal_step(A, b, x, lam), want, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(normal_step(A, b, None, lam),
+                               -np.linalg.solve(H, (g - lam * x)[:, :, None])[:, :, 0],
+                               rtol=1e-9, atol=1e-9)
+    # kept factors: a second right-hand side, and a subset of the blocks, give the same numbers
+    f = NormalFactor(A, lam)
+    b2 = rng.normal(size=(n, rows))
+    np.testing.assert_array_equal(f.step(b2, x), normal_step(A, b2, x, lam))
+    keep = rng.random(n) < 0.5
+    np.testing.assert_array_equal(f.take(keep).step(b2[keep], x[keep]), f.step(b2, x)[keep])
+
+
+def test_row_reductions_match_numpy():
+    a = np.random.default_rng(3).normal(size=(40, 5))
+    np.testing.assert_array_equal(row_max_abs(a), np.max(np.abs(a), axis=1))
+    np.testing.assert_array_equal(row_norm(a), np.sqrt(np.sum(a ** 2, axis=1)))
+
+
+def _bounded_stream(seed, n=600):
+    """A path whose free corrections (17 to 19.6 um) exceed a 19 um bound along part of it only:
+    some windows keep every bound with their unbounded solution, others need OSQP."""
+    fitted = fitted_model("xfyz", seed)
+    m = fitted.machine
+    t = np.linspace(0.0, 1.0, n + 1)
+    pts = np.stack([-200 + 400 * t, 100 * np.sin(5 * t), -40 + 30 * t], axis=1)
+    problem = CompensationProblem.from_machine(fitted, max_correction_um=19.0, max_step_um=0.3,
+                                               grid=output_grid(m))
+    return problem, _segment_chunk(m, pts)
+
+
+def test_feasible_runs_give_the_window_by_window_plan(monkeypatch):
+    problem, chunk = _bounded_stream(91)
+    opts = PlannerOptions(window=16, overlap=4, subdivide_tol_um=None, threads=1)
+    planner = Planner(problem, opts)
+    committed = []
+    real_run = Planner._feasible_run
+
+    def spy(self, *args):
+        res, n = real_run(self, *args)
+        committed.append(n)
+        return res, n
+
+    monkeypatch.setattr(Planner, "_feasible_run", spy)
+    (_, fast), = list(planner.iter_chunks([chunk]))
+    runs = planner.stats
+    assert sum(committed) >= 4 * opts.window       # runs of windows were committed at once
+    monkeypatch.setattr(Planner, "_feasible_run", lambda self, *a: (None, 0))
+    slow_planner = Planner(problem, opts)
+    (_, slow), = list(slow_planner.iter_chunks([chunk]))
+    # both paths ran: some windows in runs, some with OSQP, and the same windows were counted
+    assert 0 < runs["windows_qp"] < runs["windows"]
+    assert runs["windows"] == slow_planner.stats["windows"]
+    assert runs["windows_qp"] == slow_planner.stats["windows_qp"]
+    assert slow.flags.any()
+    for f in ("corrected", "after", "flags", "iterations"):
+        np.testing.assert_array_equal(getattr(fast, f), getattr(slow, f))
+
+
+def test_threads_give_the_plan_of_one_thread(monkeypatch):
+    """Chunks cut into parts for threads (tiny parts here), internal nodes, planning ahead."""
+    fitted = fitted_model("xfyz", 71, [PeriodicError("X", 40.0)])
+    fitted.params["PER_X_c"] = 3e-3
+    m = fitted.machine
+    t = np.linspace(0.0, 1.0, 31)       # moves of ~13 mm: the 40 mm period needs internal nodes
+    pts = np.stack([-200 + 400 * t, 100 * np.cos(3 * t), -30 + 20 * t], axis=1)
+    pts[20:, 0] = pts[20, 0]        # a stretch along Y only
+    whole = _segment_chunk(m, pts)
+    parts = [SegmentChunk(*(getattr(whole, f)[a:a + 12] for f in
+                            ("line", "start", "end", "feed", "dirs", "rapid", "from_arc")))
+             for a in range(0, 30, 12)]
+    problem = CompensationProblem.from_machine(fitted, max_correction_um=8.0, max_step_um=0.5,
+                                               grid=output_grid(m))
+    plans = {}
+    for threads in (1, 3):
+        monkeypatch.setattr(_parallel, "MIN_PART", 4)
+        out = list(plan_chunks(problem, parts, PlannerOptions(window=32, overlap=8, threads=threads)))
+        assert [c is p for (c, _), p in zip(out, parts)] == [True] * len(parts)
+        plans[threads] = out
+    inserted = sum(int(r.inserted.sum()) for _, r in plans[1])
+    assert inserted > 0
+    for (_, a), (_, b) in zip(plans[1], plans[3]):
+        for f in ("corrected", "after", "flags", "counts"):
+            np.testing.assert_array_equal(getattr(a, f), getattr(b, f))
+
+
+def test_read_ahead_keeps_order_raises_in_place_and_stops_when_closed():
+    assert list(_parallel.read_ahead(iter(range(50)), depth=2)) == list(range(50))
+
+    def failing():
+        yield 1
+        yield 2
+        raise ValueError("bad block")
+
+    got = []
+    with pytest.raises(ValueError, match="bad block"):
+        for v in _parallel.read_ahead(failing()):
+            got.append(v)
+    assert got == [1, 2]
+
+    made = []
+
+    def endless():
+        k = 0
+        while True:
+            made.append(k)
+            yield k
+            k += 1
+
+    gen = _parallel.read_ahead(endless(), depth=1)
+    assert [next(gen) for _ in range(3)] == [0, 1, 2]
+    gen.close()                     # joins the thread: it stops within depth + 1 items
+    assert len(made) <= 3 + 2
+
+
+def test_split_rows_joins_parts_in_order(monkeypatch):
+    monkeypatch.setattr(_parallel, "MIN_PART", 3)
+    a = np.arange(20.0)
+    parts = _parallel.split_rows(lambda v: v * 2.0, a.size, 4, a)
+    assert len(parts) == 4
+    np.testing.assert_array_equal(np.concatenate(parts), a * 2.0)
+    assert len(_parallel.split_rows(lambda v: v, 5, 4, a[:5])) == 1
