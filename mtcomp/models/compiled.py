@@ -9,7 +9,13 @@
    (:func:`batched_source`; ``p`` shared, ``q`` and ``c`` one row per pose, each output one row per
    pose, column-major within the row: exactly the layout of
    :func:`mtcomp.models.evaluate.casadi_map_call`), or, for operations that emitter does not know,
-   CasADi's own generated code called once per pose;
+   CasADi's own generated code called once per pose. sin and cos of a per-pose angle are inline
+   Taylor polynomials while the angle is small (below :data:`TAYLOR_LIMIT`, 2^-6 rad: the error
+   angles of linear axes) and glibc's ``sincos`` otherwise (rotary axis angles). The pose body is
+   written twice: a fast one with the polynomials only, straight-line code that the compiler can
+   schedule as a whole, which reports a batch with a large angle, and an exact one that takes
+   the polynomial or glibc lane by lane and reruns such a batch (and the next 64, so that a
+   function with a rotary axis does not pay for both bodies);
 3. compiles it with the system C compiler into a shared library in the cache directory, named by
    the hash of source, compiler and flags (``$MTCOMP_CACHE_DIR``, else ``$XDG_CACHE_HOME/mtcomp``,
    else ``~/.cache/mtcomp``), written to a temporary file and renamed so that concurrent processes
@@ -17,9 +23,13 @@
    generating the C again;
 4. loads it with ctypes and calls it on numpy arrays.
 
-Compiler flags keep IEEE semantics (no ``-ffast-math``, no ``-march``, FMA contraction off) and every
-operation is the one CasADi's own evaluation does, so the compiled path gives CasADi's results (bit
-for bit on glibc; tests check 1e-13 relative).
+Compiler flags keep IEEE semantics (no ``-ffast-math``, no ``-march``: SSE2, any x86-64; FMA
+contraction off) and every arithmetic operation is the one CasADi's own evaluation does. The only
+difference is sin and cos of small angles: the polynomials are within about half an ulp of the true
+value, as glibc's are, so they agree with glibc's value to an ulp (in tests, bit for bit on all
+error-model poses tried) and the results agree with CasADi's to the model's own rounding (1e-13 mm
+and better; tests check 1e-13 times max(1, size of the output)). A pose's result does not depend on
+the poses batched with it.
 
 Environment:
 
@@ -474,8 +484,10 @@ int mtcomp_loop(long long n, const double* q, const double* p, const double* c, 
 
 
 def _trig_source(lanes: int) -> str:
-    """C of ``mt_sincos(vd x, vd* s, vd* c)``: sin and cos of each lane; a Taylor polynomial for
-    |x| < 2^-6, glibc's ``sincos`` otherwise (and for inf and NaN)."""
+    """C of the sin/cos of a vector of ``lanes`` angles: ``mt_sincos(x, &s, &c)`` (exact body:
+    lane by lane the Taylor polynomials of :data:`_TAYLOR` for |x| < :data:`TAYLOR_LIMIT`, glibc's
+    ``sincos`` otherwise, inf and NaN included) and ``mt_sincos_small(x, &s, &c, &large)`` (fast
+    body: the polynomials, lanes outside their range marked in ``large``)."""
     L = lanes
     all_small = " & ".join(f"small[{j}]" for j in range(L))
     return _TRIG_C % {"all_small": all_small, "L": L,
@@ -487,8 +499,9 @@ TAYLOR_LIMIT = 2.0 ** -6
 
 #: Taylor coefficients of sin (x^3 .. x^7) and cos (x^2 .. x^6), rounded to double. For |x| <
 #: TAYLOR_LIMIT the first omitted terms are below x^9/9! (relative to sin x: < 2^-48/9! ~ 1e-20)
-#: and x^8/8! (< 2^-48/8! ~ 9e-20), far below half an ulp (1.1e-16): the results are those of a
-#: correctly rounded sin and cos to within the rounding of the last addition (about half an ulp)
+#: and x^8/8! (< 2^-48/8! ~ 9e-20), far below half an ulp (1.1e-16). The rounding errors of the
+#: correction term (x^3/6 or x^2/2 and beyond, at most 2^-12 of the result) are below 2^-12 ulp, so
+#: the error is the last addition's, about half an ulp, as glibc's sin and cos
 _TAYLOR = {"s3": -1 / 6, "s5": 1 / 120, "s7": -1 / 5040,
            "c2": -1 / 2, "c4": 1 / 24, "c6": -1 / 720}
 
