@@ -10,7 +10,9 @@ The model is a synthetic base model of machine-tool size (about 10 um and 20 ura
 seeded). Each command runs ``--repeat`` times after one warm-up run (the warm-up compiles the model's
 C code into the cache); the median is printed. The reference is the same program read and written
 without correction (``write_corrected(..., None)`` in a subprocess), so the ratio is
-compensate / (read + write). Peak memory is ru_maxrss of each subprocess (os.wait4).
+compensate / (read + write) of wall times ("x r+w") and of CPU times ("cpu x"). ``qp 1 thread``
+is qp with ``MTCOMP_THREADS=1`` (the planner does not use a second CPU). Peak memory is ru_maxrss
+of each subprocess (os.wait4).
 
     python benchmarks/bench_compensate.py                      # full size
     python benchmarks/bench_compensate.py --xfyz-blocks 100000 --cafxyz-blocks 20000 --repeat 1
@@ -71,10 +73,11 @@ def write_model(path: Path, machine_name: str, seed: int = 7) -> None:
     save_model(path, fitted)
 
 
-def run(cmd: list[str]) -> tuple[float, float, float, int]:
+def run(cmd: list[str], env=None) -> tuple[float, float, float, int]:
     """(wall s, cpu s, peak rss MB, exit code) of one subprocess."""
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            env=None if env is None else {**os.environ, **env})
     _, status, ru = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - t0
     proc.returncode = os.waitstatus_to_exitcode(status)
@@ -85,9 +88,9 @@ def run(cmd: list[str]) -> tuple[float, float, float, int]:
     return wall, ru.ru_utime + ru.ru_stime, ru.ru_maxrss / 1024.0, proc.returncode
 
 
-def measure(cmd, repeat):
-    run(cmd)                          # warm-up (compiles the model functions into the cache)
-    runs = [run(cmd) for _ in range(repeat)]
+def measure(cmd, repeat, env=None):
+    run(cmd, env)                     # warm-up (compiles the model functions into the cache)
+    runs = [run(cmd, env) for _ in range(repeat)]
     return (statistics.median(r[0] for r in runs), statistics.median(r[1] for r in runs),
             max(r[2] for r in runs))
 
@@ -115,20 +118,20 @@ def main(argv=None):
                   "write_corrected(sys.argv[1], sys.argv[2], load_machine(sys.argv[3]), None)",
                   str(prog), str(tmp / "rt.nc"), name]
             base = measure(rt, args.repeat)
-            rows.append((name, n, "read+write", *base, 1.0))
-            for method in args.methods.split(","):
+            rows.append((name, n, "read+write", *base, 1.0, 1.0))
+            runs = [(m, ["--method", m], None) for m in args.methods.split(",")]
+            runs += [("qp 1 thread", ["--method", "qp"], {"MTCOMP_THREADS": "1"}),
+                     ("qp+report", ["--report", str(tmp / "blocks.csv")], None)]
+            for what, extra, env in runs:
                 cmd = [py, "-m", "mtcomp", "compensate", name, str(model), str(prog), "-o", str(out),
-                       "--method", method, "--quiet"]
-                res = measure(cmd, args.repeat)
-                rows.append((name, n, method, *res, res[0] / base[0]))
-            cmd = [py, "-m", "mtcomp", "compensate", name, str(model), str(prog), "-o", str(out),
-                   "--quiet", "--report", str(tmp / "blocks.csv")]
-            res = measure(cmd, args.repeat)
-            rows.append((name, n, "qp+report", *res, res[0] / base[0]))
+                       "--quiet", *extra]
+                res = measure(cmd, args.repeat, env)
+                rows.append((name, n, what, *res, res[0] / base[0], res[1] / base[1]))
     print(f"{'machine':8s} {'blocks':>9s} {'what':12s} {'wall s':>8s} {'cpu s':>8s} {'peak MB':>8s} "
-          f"{'x r+w':>6s}")
-    for name, n, what, wall, cpu, mb, ratio in rows:
-        print(f"{name:8s} {n:9d} {what:12s} {wall:8.2f} {cpu:8.2f} {mb:8.0f} {ratio:6.1f}")
+          f"{'x r+w':>6s} {'cpu x':>6s}")
+    for name, n, what, wall, cpu, mb, ratio, cpu_ratio in rows:
+        print(f"{name:8s} {n:9d} {what:12s} {wall:8.2f} {cpu:8.2f} {mb:8.0f} {ratio:6.1f} "
+              f"{cpu_ratio:6.1f}")
     print(f"(median of {args.repeat} runs after a warm-up; cpu = user + sys of the subprocess; "
           f"{os.cpu_count()} cpus, load average {os.getloadavg()[0]:.1f})")
 

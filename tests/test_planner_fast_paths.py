@@ -144,3 +144,13 @@ def test_split_rows_joins_parts_in_order(monkeypatch):
     assert len(parts) == 4
     np.testing.assert_array_equal(np.concatenate(parts), a * 2.0)
     assert len(_parallel.split_rows(lambda v: v, 5, 4, a[:5])) == 1
+
+
+def test_thread_count_from_the_option_or_the_environment(monkeypatch):
+    monkeypatch.setenv("MTCOMP_THREADS", "3")
+    assert _parallel.resolve_threads(0) == 3
+    assert _parallel.resolve_threads(2) == 2
+    monkeypatch.setenv("MTCOMP_THREADS", "many")
+    assert _parallel.resolve_threads(0) == max(1, min(4, _parallel.available_threads()))
+    with pytest.raises(ValueError):
+        PlannerOptions(threads=-1)

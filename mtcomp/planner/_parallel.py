@@ -27,9 +27,19 @@ def available_threads() -> int:
         return os.cpu_count() or 1
 
 
+#: environment variable that sets the number of threads when the option says automatic (0)
+THREADS_ENV = "MTCOMP_THREADS"
+
+
 def resolve_threads(threads: int) -> int:
-    """The number of threads for an option value: 0 = automatic (the CPUs available, at most 4)."""
-    return max(1, min(4, available_threads())) if threads == 0 else max(1, int(threads))
+    """The number of threads for an option value: 0 = automatic: ``$MTCOMP_THREADS`` if set (a
+    positive whole number), else the CPUs available, at most 4."""
+    if threads == 0:
+        env = os.environ.get(THREADS_ENV, "").strip()
+        if env.isdigit() and int(env) > 0:
+            return int(env)
+        return max(1, min(4, available_threads()))
+    return max(1, int(threads))
 
 
 def _pool(workers: int) -> ThreadPoolExecutor:

@@ -137,8 +137,8 @@ class PlannerOptions:
     progress : callable(blocks_done: int) called every few seconds, or None (called from the
         planning thread when there is more than one).
     threads : threads for the per-block work and for planning ahead of the consumer of
-        ``Planner.iter_chunks``; 0 (default): the CPUs available, at most 4; 1: everything in the
-        calling thread. The plan is the same for any number.
+        ``Planner.iter_chunks``; 0 (default): ``$MTCOMP_THREADS`` if set, else the CPUs available,
+        at most 4; 1: everything in the calling thread. The plan is the same for any number.
     """
 
     method: str = "qp"
