@@ -65,20 +65,33 @@ def uses_inches(path, block: int = 1 << 22) -> bool:
             data = f.read(block)
             if not data:
                 return _has_g20(tail + b" ")
-            text = tail + data.upper()
+            text = tail + data
             if _has_g20(text[:-8]):
                 return True
             tail = text[-16:]
 
 
 def _has_g20(text: bytes) -> bool:
-    for word in (b"G20", b"G020", b"G0020"):
-        i = text.find(word)
-        while i >= 0:
-            after = text[i + len(word):i + len(word) + 1]
-            if not after or after not in _DIGITS:
-                return True
-            i = text.find(word, i + 1)
+    """True if ``text`` holds G20, G020 or G0020 (G or g) not followed by a digit or '.' (the end
+    of the text counts as not followed). Vectorised over the G letters of the text."""
+    import numpy as np
+    a = np.frombuffer(text, np.uint8)
+    g = np.flatnonzero((a | 0x20) == ord("g"))        # G or g
+    if g.size == 0:
+        return False
+    pad = np.concatenate([a, np.full(6, ord(" "), np.uint8)])     # room after the last G
+    after_ok = np.ones(256, bool)
+    after_ok[np.frombuffer(_DIGITS, np.uint8)] = False
+    n = a.size
+    for zeros in range(3):
+        word = g + 1
+        ok = np.ones(g.size, bool)
+        for k, ch in enumerate(b"0" * zeros + b"20"):
+            ok &= (word + k < n) & (pad[word + k] == ch)
+        end = word + zeros + 2
+        ok &= (end >= n) | after_ok[pad[np.minimum(end, n)]]
+        if ok.any():
+            return True
     return False
 
 
