@@ -58,10 +58,15 @@ import numpy as np
 
 #: flags that keep results bit-compatible with plain double arithmetic on any x86-64
 CFLAGS = ("-O3", "-fPIC", "-shared", "-fno-math-errno", "-ffp-contract=off", "-std=c99")
-#: added for GCC: scheduling before register allocation, register-pressure aware (the pose body is
-#: one long basic block; this ordering makes it about 15 % faster), and register renaming after it
-#: (another 3 %); the arithmetic is unchanged
+#: added for GCC to sources marked with :data:`SCHEDULE_MARK`: scheduling before register
+#: allocation, register-pressure aware, and register renaming after it; the arithmetic is unchanged.
+#: The fast pose body of a small function is one long basic block that this makes 15-20 % faster
+#: (xfyz deviation and J_q); for larger bodies it raises register pressure more than it gains
+#: (cafxyz deviation and J_q 5 % slower, J_p 40 % slower), so they are not marked
 GCC_FLAGS = ("-fschedule-insns", "-fsched-pressure", "-frename-registers")
+SCHEDULE_MARK = "/* mtcomp: schedule before register allocation */\n"
+#: largest pose body (CasADi instructions) whose source is marked
+SCHEDULE_MAX_INSTRUCTIONS = 1200
 
 #: number of compiler runs in this process (tests read it to check cache reuse)
 compile_count = 0
@@ -562,7 +567,8 @@ def batched_source(function: ca.Function, lanes: int = LANES) -> tuple[str, list
             "obset": "\n".join(f"    o[{k}] = ob{k};" for k in range(len(sizes))),
             "obcopy": "\n".join(f"    for (j = 0; j < r * {s}; ++j) out[{k}][i * {s} + j] = ob{k}[j];"
                                 for k, s in enumerate(sizes))}
-    return src + _BATCH_LOOP % fill, sizes
+    mark = SCHEDULE_MARK if has_trig and body.n_instructions() <= SCHEDULE_MAX_INSTRUCTIONS else ""
+    return mark + src + _BATCH_LOOP % fill, sizes
 
 
 def _casadi_source(functions) -> str:
@@ -578,8 +584,9 @@ def _casadi_source(functions) -> str:
 _is_gcc: dict = {}  # compiler path -> whether it is GCC
 
 
-def compile_flags(compiler: str) -> tuple[str, ...]:
-    """Flags for ``compiler``: :data:`CFLAGS`, plus :data:`GCC_FLAGS` when it is GCC."""
+def compile_flags(compiler: str, src: str = SCHEDULE_MARK) -> tuple[str, ...]:
+    """Flags for ``compiler`` and ``src``: :data:`CFLAGS`, plus :data:`GCC_FLAGS` when it is GCC
+    and the source starts with :data:`SCHEDULE_MARK`."""
     if compiler not in _is_gcc:
         try:  # the predefined macros tell GCC (__GNUC__ alone) from Clang (which also defines it)
             out = subprocess.run([compiler, "-E", "-dM", "-x", "c", "-"], input="", capture_output=True,
@@ -587,13 +594,13 @@ def compile_flags(compiler: str) -> tuple[str, ...]:
         except (OSError, subprocess.SubprocessError):
             out = ""
         _is_gcc[compiler] = "#define __GNUC__ " in out and "__clang__" not in out
-    return CFLAGS + (GCC_FLAGS if _is_gcc[compiler] else ())
+    return CFLAGS + (GCC_FLAGS if _is_gcc[compiler] and src.startswith(SCHEDULE_MARK) else ())
 
 
 def compile_source(src: str, compiler: str) -> Path:
     """Compile ``src`` into the cache (or reuse a cached library). Raises CompileError."""
     global compile_count
-    flags = compile_flags(compiler)
+    flags = compile_flags(compiler, src)
     key = hashlib.sha256("\0".join([src, compiler, *flags]).encode()).hexdigest()[:24]
     out_dir = _private_cache_dir()
     lib = out_dir / f"mtcomp_{key}.so"
