@@ -45,22 +45,37 @@ class Bounds:
     def _floor(self, x):
         if self.grid is None:
             return np.asarray(x, dtype=float)
-        return np.floor(x / self.unit + 1e-6) * self.unit
+        t = np.divide(x, self.unit)         # in place from here: fewer large temporaries
+        t += 1e-6
+        np.floor(t, out=t)
+        t *= self.unit
+        return t
 
     def _ceil(self, x):
         if self.grid is None:
             return np.asarray(x, dtype=float)
-        return np.ceil(x / self.unit - 1e-6) * self.unit
+        t = np.divide(x, self.unit)
+        t -= 1e-6
+        np.ceil(t, out=t)
+        t *= self.unit
+        return t
 
     def snap(self, q: np.ndarray) -> np.ndarray:
         """Nominal positions rounded to the output grid (mm, rad): the program as written."""
         if self.grid is None:
             return np.asarray(q, dtype=float)
-        return np.round(q / self.grid) * self.grid
+        t = np.divide(q, self.grid)
+        np.round(t, out=t)
+        t *= self.grid
+        return t
 
     def travel_x(self, q):
         """(lo, hi) each (n, na): the travel as bounds of the correction x."""
-        return self._ceil((self.lo - q) * self.D), self._floor((self.hi - q) * self.D)
+        lo = np.subtract(self.lo, q)
+        lo *= self.D
+        hi = np.subtract(self.hi, q)
+        hi *= self.D
+        return self._ceil(lo), self._floor(hi)
 
     def box(self, q):
         """(l, u) each (n, na): max correction and travel together."""
@@ -74,7 +89,10 @@ class Bounds:
     def quantize(self, x):
         if self.grid is None:
             return np.array(x, dtype=float)
-        return np.round(x / self.unit) * self.unit
+        t = np.divide(x, self.unit)
+        np.round(t, out=t)
+        t *= self.unit
+        return t
 
     def enforce(self, x, q, exempt, prev, desired=None, following=None, limits=None):
         """The written corrections and the bounds that acted.

@@ -321,14 +321,21 @@ class Planner:
         D = self.bounds.D
         if self.bounds.grid is not None:
             g = self.bounds.grid
-            corrected = (np.round(nodes.q / g) + np.round(y / self.bounds.unit)) * g
+            corrected = np.divide(nodes.q, g)            # in place from here: fewer temporaries
+            np.round(corrected, out=corrected)
+            steps = np.divide(y, self.bounds.unit)
+            np.round(steps, out=steps)
+            corrected += steps
+            corrected *= g
         else:
             corrected = nodes.q + y / D
         correction = corrected - nodes.q
         # first order around the last linearisation where the written correction is close to it
         # (the iterations end there); the exact model where it is not (pinv, clamped blocks)
-        after_w = lin.predict(y)
-        far = np.flatnonzero(row_max_abs(y - lin.x_lin) > 0.5)
+        dy = y - lin.x_lin
+        after_w = a_x(lin.A, dy)
+        after_w += lin.b
+        far = np.flatnonzero(row_max_abs(dy) > 0.5)
         if far.size:
             after_w[far] = self.ev.residual(nodes.q[far], y[far], nodes.context[far],
                                             lin.target[far])
