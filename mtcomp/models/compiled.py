@@ -513,8 +513,13 @@ _TAYLOR = {"s3": -1 / 6, "s5": 1 / 120, "s7": -1 / 5040,
 _TRIG_C = r"""
 static void __attribute__((noinline, cold)) mt_sincos_libm(vd x, vl small, vd* s, vd* c) {
   int j;
+  double sj, cj;  /* not &(*s)[j]: Clang refuses the address of a vector element */
   for (j = 0; j < %(L)d; ++j)
-    if (!small[j]) sincos(x[j], &(*s)[j], &(*c)[j]);
+    if (!small[j]) {
+      sincos(x[j], &sj, &cj);
+      (*s)[j] = sj;
+      (*c)[j] = cj;
+    }
 }
 /* the polynomials in every lane; returns the lanes where they hold (|x| < lim; not NaN). sin(-0)
    comes out as +0 (-0 + 0 = +0): equal values; fixing the sign costs ~7 %% of the whole body */
