@@ -154,6 +154,7 @@ class Planner:
         self._last_progress = time.monotonic()
         self.stats = {"windows": 0, "windows_qp": 0, "qp_solves": 0, "qp_status": {}}
         self.threads = resolve_threads(self.options.threads)
+        self._split = self.threads          # parts a chunk's per-block work is cut into
 
     # ------------------------------------------------------------------ nodes
     def _context(self, feed, dirs, n):
@@ -163,7 +164,7 @@ class Planner:
         return self.problem.fitted.context(n, cols)
 
     def _solve_free(self, q, ctx) -> Linearization:
-        parts = split_rows(self._solve_free_part, q.shape[0], self.threads, q, ctx)
+        parts = split_rows(self._solve_free_part, q.shape[0], self._split, q, ctx)
         return parts[0] if len(parts) == 1 else Linearization.concatenate(parts)
 
     def _solve_free_part(self, q, ctx) -> Linearization:
@@ -279,7 +280,7 @@ class Planner:
             if rows.size == 0:
                 break
             tm = 0.5 * (t0 + t1)
-            parts = split_rows(self._midpoint_miss, rows.size, self.threads, s0, e0, tm, x0, x1, c)
+            parts = split_rows(self._midpoint_miss, rows.size, self._split, s0, e0, tm, x0, x1, c)
             err = np.concatenate([p[0] for p in parts]) if len(parts) > 1 else parts[0][0]
             hit = err > o.subdivide_tol_um
             if not np.any(hit):
@@ -455,7 +456,11 @@ class Planner:
         corrected program, works on the previous result meanwhile).
         """
         gen = self._iter_chunks(chunks)
-        return read_ahead(gen) if self.threads > 1 else gen
+        if self.threads < 2:
+            return gen
+        # the consumer keeps one thread busy: the planning thread cuts chunks into one part fewer
+        self._split = self.threads - 1
+        return read_ahead(gen)
 
     def _iter_chunks(self, chunks: Iterable) -> Iterator[tuple[object, PlanResult]]:
         pending: deque = deque()   # (chunk, counts, n_nodes) planned but not yet yielded
