@@ -135,8 +135,8 @@ def _trig_angles(rng):
 def test_small_angle_sin_cos(cache):
     """sin and cos in the compiled code (polynomials below TAYLOR_LIMIT, glibc's sincos otherwise)
     against Python's math (glibc): within an ulp everywhere, exactly where glibc is used, NaN for
-    inf and NaN (sin(-0) may come out as +0, an equal value). Near the limit a wrong coefficient is several ulps off
-    (test_wrong_polynomial_coefficient_is_caught)."""
+    inf and NaN (sin(-0) may come out as +0, an equal value). Near the limit a wrong coefficient is
+    several ulps off (test_wrong_polynomial_coefficient_is_caught)."""
     f = _trig_function()
     src = compiled.generate_source(f)[0]
     if "linux" in compiled.sys.platform:  # both pose bodies are built (else CasADi's code per pose)

@@ -284,16 +284,18 @@ def batched_body(body: ca.Function, lanes: int, varying_inputs: set, out_map: di
                  name: str = "mtcomp_batch", trig: str = "exact") -> tuple[str, list[tuple[int, int]], bool]:
     """C of ``body`` evaluated on ``lanes`` poses at once with GCC/Clang vector extensions.
 
-    ``static void name(const double** in, const vd* shared, double** out)``: ``in[k]`` points at
+    ``static int name(const double** in, const vd* shared, double** out)``: ``in[k]`` points at
     the first pose's row of input k (rows of ``numel_in(k)`` values) for k in ``varying_inputs``;
     the stacked output's entry nz goes to ``out[k][pose * row + m]`` with ``(k, m, row) =
     out_map[nz]``. Per-pose values are vectors of ``lanes`` doubles, so +, -, *, / run as SIMD
     instructions (IEEE results, lane by lane the same as scalar code). Entries of the shared inputs
     are read from ``shared[slot]``, the entry broadcast to all lanes once per call by the caller
     (so that they enter SIMD instructions as memory operands), with ``slots[slot] = (input, nz)``.
-    sin and cos go through ``mt_sincos`` (:func:`_trig_source`); other library functions are
-    called per lane. Returns (C source, slots). Raises _Unsupported for an operation it does not
-    know.
+    sin and cos go through ``mt_sincos`` (``trig='exact'``) or ``mt_sincos_small`` (``trig='fast'``:
+    polynomials only; the function returns nonzero when an angle was outside their range and the
+    outputs are then to be discarded) (:func:`_trig_source`); other library functions are called
+    per lane. Returns (C source, slots, whether there are sin/cos pairs). Raises _Unsupported for an
+    operation it does not know.
     """
     n = body.n_instructions()
     ids = [_OPS.get(body.instruction_id(k), "?") for k in range(n)]
@@ -402,7 +404,8 @@ def batched_body(body: ca.Function, lanes: int, varying_inputs: set, out_map: di
                 assign(o, False, None, fn=lambda: _BINARY[op].format(opnd(a), opnd(b)))
         else:
             raise _Unsupported(op)
-    decl = [f"static __attribute__((noinline)) int {name}(const double** in, const vd* shared, double** out) {{", "  int j;"]
+    decl = [f"static __attribute__((noinline)) int {name}(const double** in, const vd* shared, "
+            f"double** out) {{", "  int j;"]
     if trig != "exact":
         decl.append("  vl large = {0};")
     if used_u:
@@ -561,7 +564,8 @@ def batched_source(function: ca.Function, lanes: int = LANES) -> tuple[str, list
         batch += _RUN_ONE
     src = _casadi_source([pre])
     L = lanes
-    fill = {"batch": batch, "trig": _trig_source(lanes), "vbytes": 8 * lanes, "sz_arg": pre.sz_arg(), "sz_res": pre.sz_res(),
+    fill = {"batch": batch, "trig": _trig_source(lanes), "vbytes": 8 * lanes,
+            "sz_arg": pre.sz_arg(), "sz_res": pre.sz_res(),
             "sz_iw": pre.sz_iw(), "sz_w": pre.sz_w(), "nw": pre.numel_out(0), "nout": len(sizes),
             "n_shared": len(slots),
             "broadcast": "\n".join(f"  for (j = 0; j < {L}; ++j) shared[{s}][j] = in[{i}][{nz}];"
