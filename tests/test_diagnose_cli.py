@@ -28,7 +28,9 @@ def test_report_and_extended_model(campaign, tmp_path, capsys):
     assert main(["diagnose", "xfyz", *files, "--json", str(report), "-o", str(model), "-q"]) == 0
     out = capsys.readouterr().out
     assert "verdict: explained" in out and "evidence:" in out
-    rep = json.loads(report.read_text())
+    def no_nan(token):
+        raise AssertionError(f"REPORT.json holds {token}")
+    rep = json.loads(report.read_text(), parse_constant=no_nan)
     assert rep["verdict"] == "explained"
     for key in ("verdict", "noise_um", "base", "findings", "final"):
         assert key in rep

@@ -71,6 +71,19 @@ class Finding:
                 "heldout_rms_after_um": _r(self.heldout_rms_after_um)}
 
 
+def _finite(obj):
+    """The report with every non-finite number replaced by None (JSON has no NaN)."""
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if np.isfinite(obj) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    return obj
+
+
 def _r(v, nd=4):
     return None if v is None or not np.isfinite(v) else round(float(v), nd)
 
@@ -111,10 +124,10 @@ class Diagnosis:
         """REPORT.json (SPEC 6 keys plus a few more)."""
         noise = {u: {"sigma": _r(n.sigma), "source": n.source, "dof": n.dof, "repeat_groups": n.n_groups}
                  for u, n in self.noise.items()}
-        return {"verdict": self.verdict, "noise_um": _r(self.noise_um),
-                "noise": noise, "base": self.base, "findings": [f.to_dict() for f in self.findings],
-                "final": self.final, "heldout": self.folds, "n_observations": self.n_obs,
-                "rejected": self.rejected, "reference": self.reference}
+        return _finite({"verdict": self.verdict, "noise_um": _r(self.noise_um),
+                        "noise": noise, "base": self.base, "findings": [f.to_dict() for f in self.findings],
+                        "final": self.final, "heldout": self.folds, "n_observations": self.n_obs,
+                        "rejected": self.rejected, "reference": self.reference})
 
     def summary(self) -> str:
         """The printed report: noise, base fit, each finding with evidence and gain, final fit."""
