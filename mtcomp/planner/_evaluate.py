@@ -63,11 +63,17 @@ class Evaluator:
         r = dev[:, :rows] + tip if rows == 3 else dev + np.concatenate([tip, axis], axis=1)
         r -= target
         r *= self.S
-        # C-contiguous (n, rows, n_axes): later passes over A read it in order
-        J = np.empty((q.shape[0], rows, Jd.shape[2]))
-        np.add(Jd[:, :rows, :], Jn[:, :rows, :], out=J)
-        J *= self.S[:, None] / self.D[None, :]
-        return r, J, target
+        # stored entry by entry, (rows, n_axes, n) contiguous, returned as its (n, rows, n_axes)
+        # view: every entry is one contiguous vector (as NormalFactor and a_x read them)
+        na = Jd.shape[2]
+        scale = self.S[:, None] / self.D[None, :]
+        Jt = np.empty((rows, na, q.shape[0]))
+        for i in range(rows):
+            for j in range(na):
+                np.add(Jd[:, i, j], Jn[:, i, j], out=Jt[i, j])
+                if scale[i, j] != 1.0:
+                    Jt[i, j] *= scale[i, j]
+        return r, Jt.transpose(2, 0, 1), target
 
     def residual(self, q, x, ctx, target):
         """Weighted residual b (n, rows) only (cheaper: no Jacobian of the model)."""
