@@ -37,12 +37,12 @@ def case(machine_name: str, n_points: int, runs: int, rng) -> None:
     data = simulate(model, make_points(xyz, abc, tool=rng.choice([0.0, 100.0, 200.0], n_points)), p,
                     noise_um=0.5, rng=rng)
     t0 = time.perf_counter()
-    identify(model, [data], hold=hold)
+    identify(model, [data])
     first = time.perf_counter() - t0
     times = []
     for _ in range(runs):
         t0 = time.perf_counter()
-        res = identify(model, [data], hold=hold)
+        res = identify(model, [data])
         times.append(time.perf_counter() - t0)
     err = np.abs(res.values - p)[res.determined] / np.where(res.std_errors[res.determined] > 0,
                                                             res.std_errors[res.determined], 1.0)
