@@ -278,6 +278,11 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
     if chosen:
         design, current = _refine(st, design, chosen, current)
         say(f"extended model re-linearised at its own fit: held-out {_heldout(st, current):.4g} um")
+        dropped = _backward(design, chosen, findings, current, n)
+        if dropped:
+            for f in dropped:
+                say(f"dropped {f.effect} {f.axis}: no longer significant in the re-linearised model")
+            design, current = _refine(st, design, chosen, design.fit(np.hstack([c.columns for c in chosen])))
         _final_params(st, design, findings, current)
     final_metrics = _metrics(st, current, n_base + sum(c.columns.shape[1] for c in chosen))
     structure = an.find_structure(st, current.resid, sigma)
@@ -296,6 +301,31 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
     diag.seconds = time.perf_counter() - t0
     model.info["diagnose"] = diag.to_dict()
     return diag
+
+
+def _backward(design, chosen, findings, fit, n) -> list:
+    """One backward pass after re-linearisation: a term chosen earlier that no longer passes the
+    selection tests against the model without it (a later, better-placed term or the refined
+    profiles now explain its share) is removed from ``chosen`` and ``findings``. Returns the
+    removed findings."""
+    dropped = []
+    for c in list(chosen)[::-1]:
+        if len(chosen) < 2:
+            break
+        rest = [x for x in chosen if x is not c]
+        without = design.fit(np.hstack([x.columns for x in rest]))
+        dk = fit.rank - without.rank
+        gain = without.cv_sse - fit.cv_sse
+        dbic = fit.bic(n) - without.bic(n)
+        excess = max(without.cv_sse - n, 0.0)
+        if not (dk >= 1 and gain > cv_threshold(dk) and dbic < -BIC_MARGIN
+                and gain >= MIN_EXCESS_SHARE * excess):
+            chosen.remove(c)
+            f = next(f for f in findings if f.candidate is c)
+            findings.remove(f)
+            dropped.append(f)
+            fit = without
+    return dropped
 
 
 def _final_params(st, design, findings, fit):
