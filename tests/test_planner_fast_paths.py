@@ -53,9 +53,10 @@ def _bounded_stream(seed, n=600):
     return problem, _segment_chunk(m, pts)
 
 
-def test_feasible_runs_give_the_window_by_window_plan(monkeypatch):
+@pytest.mark.parametrize("overlap", [4, 0])
+def test_feasible_runs_give_the_window_by_window_plan(monkeypatch, overlap):
     problem, chunk = _bounded_stream(91)
-    opts = PlannerOptions(window=16, overlap=4, subdivide_tol_um=None, threads=1)
+    opts = PlannerOptions(window=16, overlap=overlap, subdivide_tol_um=None, threads=1)
     planner = Planner(problem, opts)
     committed = []
     real_run = Planner._feasible_run
@@ -79,6 +80,22 @@ def test_feasible_runs_give_the_window_by_window_plan(monkeypatch):
     assert slow.flags.any()
     for f in ("corrected", "after", "flags", "iterations"):
         np.testing.assert_array_equal(getattr(fast, f), getattr(slow, f))
+
+
+@pytest.mark.parametrize("window,overlap,size", [(16, 4, 37), (100, 0, 150), (7, 30, 333)])
+def test_streamed_batches_give_the_plan_of_the_whole(window, overlap, size):
+    """Windows that start in the nodes kept from the last batch are planned on those joined with
+    only the first new nodes they need: the same corrections as planning everything at once."""
+    problem, whole = _bounded_stream(91, n=1200)
+    opts = PlannerOptions(window=window, overlap=overlap, subdivide_tol_um=None, threads=1)
+    (_, ref), = list(plan_chunks(problem, [whole], opts))
+    parts = [SegmentChunk(*(getattr(whole, f)[a:a + size] for f in
+                            ("line", "start", "end", "feed", "dirs", "rapid", "from_arc")))
+             for a in range(0, len(whole), size)]
+    got = list(plan_chunks(problem, parts, opts))
+    assert ref.flags.any() and not ref.flags.all()
+    for f in ("corrected", "flags", "after"):
+        np.testing.assert_array_equal(np.concatenate([getattr(r, f) for _, r in got]), getattr(ref, f))
 
 
 def test_threads_give_the_plan_of_one_thread(monkeypatch):

@@ -441,7 +441,7 @@ class Planner:
                 return None, 0
         nc = count * W
         self.stats["windows"] += count
-        following = x[nc] if not exempt[nc] else None
+        following = x[nc] if nc < x.shape[0] and not exempt[nc] else None
         csl = slice(pos, pos + nc)
         res = self._commit(nodes.take(csl), lin.take(csl), x[:nc].copy(), following,
                            tuple(a[:nc] for a in limits))
@@ -503,11 +503,52 @@ class Planner:
         if o.method != "qp":
             x = lin.x.copy()
             return self._commit(nodes, lin, x)
-        self._buffer.append((nodes, lin))
-        total = sum(len(n) for n, _ in self._buffer)
-        if len(self._buffer) > 1:
-            nodes = NodeSet.concatenate([n for n, _ in self._buffer])
-            lin = Linearization.concatenate([ln for _, ln in self._buffer])
+        results = []
+        if self._buffer:
+            (prev_n, prev_l), = self._buffer
+            head = self._plan_head(prev_n, prev_l, nodes, lin, final)
+            if head is None:        # too few new nodes: plan the two batches joined
+                nodes = NodeSet.concatenate([prev_n, nodes])
+                lin = Linearization.concatenate([prev_l, lin])
+            else:
+                results, start = head
+                nodes, lin = nodes.take(slice(start, None)), lin.take(slice(start, None))
+        more, pos = self._plan_windows(nodes, lin, final)
+        results += more
+        total = len(nodes)
+        self._buffer = [(nodes.take(slice(pos, total)), lin.take(slice(pos, total)))] if pos < total \
+            else []
+        if not results:
+            return None
+        return results[0] if len(results) == 1 else PlanResult.concatenate(results)
+
+    def _plan_head(self, prev_n: NodeSet, prev_l: Linearization, nodes: NodeSet, lin: Linearization,
+                   final: bool):
+        """The windows that start in the nodes kept from the last call (r of them), planned on those
+        joined with only the first new nodes they need: k = ceil(r / window) full windows, which end
+        exactly k * window - r nodes into the new batch. Returns (results, that offset), or None when
+        the new batch is too short (then the windows would not be the same as on the whole).
+
+        Saves joining (copying) every new batch to the few nodes kept from the last one."""
+        W, O = self.options.window, self.options.overlap
+        r = len(prev_n)
+        k = -(-r // W)
+        h = k * W + O - r                       # new nodes the k windows need
+        if h > len(nodes) or (final and h == len(nodes)):
+            return None
+        hn = NodeSet.concatenate([prev_n, nodes.take(slice(0, h))])
+        hl = Linearization.concatenate([prev_l, lin.take(slice(0, h))])
+        results, pos = self._plan_windows(hn, hl, final=False)
+        assert pos == k * W, "head windows"
+        # re-linearisations of new nodes made there (the overlap of the last head window)
+        for f in ("b", "A", "x_lin", "iterations"):
+            getattr(lin, f)[:h] = getattr(hl, f)[r:]
+        return results, k * W - r
+
+    def _plan_windows(self, nodes: NodeSet, lin: Linearization, final: bool):
+        """Windows over ``nodes`` from the first on: (results, nodes committed)."""
+        o = self.options
+        total = len(nodes)
         W, O = o.window, o.overlap
         results = []
         pos = 0
@@ -534,11 +575,7 @@ class Planner:
             results.append(self._commit(wn.take(csl), wl.take(csl), x[:nc], following,
                                         tuple(a[csl] for a in limits)))
             pos += nc
-        self._buffer = [(nodes.take(slice(pos, total)), lin.take(slice(pos, total)))] if pos < total \
-            else []
-        if not results:
-            return None
-        return results[0] if len(results) == 1 else PlanResult.concatenate(results)
+        return results, pos
 
 
 def plan_arrays(problem: CompensationProblem, q, feed=None, dirs=None, rapid=None,
