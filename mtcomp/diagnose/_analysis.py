@@ -352,7 +352,8 @@ class Structure:
     series : the series; variable : what the bins run along ('X position', 'time' ...);
     lo, hi : range of the variable around the bin furthest from zero, extended over neighbouring bins
         of the same sign beyond 3 standard errors;
-    unit : unit of lo/hi; peak : largest bin mean (file units); chi2, dof.
+    unit : unit of lo/hi; peak : largest bin mean (file units); chi2, dof (bins);
+    n_departing : bins whose mean departs from zero by more than 3 standard errors.
     """
 
     p: float
@@ -364,6 +365,7 @@ class Structure:
     peak: float
     chi2: float
     dof: int
+    n_departing: int = 0
 
 
 def _bins(x, n_bins):
@@ -426,7 +428,7 @@ def find_structure(st, resid, sigma: dict, n_tests_extra: int = 0) -> list[Struc
                 b_ += 1
             rng = (float(lo_ok[a]), float(hi_ok[b_]))
             tests.append([p, str(s), label, rng[0], rng[1], u, float(mean[np.argmax(np.abs(mean))]),
-                          chi2, dof])
+                          chi2, dof, int(np.sum(np.abs(zb) > 3))])
     m = len(tests) + n_tests_extra
     out = [Structure(min(1.0, t[0] * m), *t[1:]) for t in tests]
     out = [s for s in out if s.p < 1e-3]

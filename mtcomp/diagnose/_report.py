@@ -128,7 +128,10 @@ def unexplained_params(st, fit, structure, excess, noise_main):
     if structure:
         s = structure[0]
         sel = st.series == s.series
-        where = f"{s.series}: {s.variable} {s.lo:.4g} to {s.hi:.4g} {s.unit}".rstrip()
+        span = f"{s.lo:.4g} to {s.hi:.4g}" if s.hi > s.lo else f"{s.lo:.4g}"
+        where = f"{s.series}: {s.variable} {span} {s.unit}".rstrip()
+        if s.n_departing > 1:
+            where += f" (most; {s.n_departing} of {s.dof} bins depart from zero)"
         axis = s.variable.split()[0] if s.variable.endswith("position") else \
             (st.moving[sel][0] if st.moving[sel].size and st.moving[sel][0] else "")
         runs = np.unique(st.run[sel])
