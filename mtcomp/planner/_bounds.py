@@ -86,6 +86,19 @@ class Bounds:
         tlo, thi = self.travel_x(q)
         return np.maximum(-self.B, tlo), np.minimum(self.B, thi), tlo, thi
 
+    def limits_lazy(self, q):
+        """As :meth:`limits`, but where the travel is nowhere tighter than the correction bound
+        (the usual case) ``(-B, B, None, None)`` as read-only broadcasts, the travel part left for
+        :meth:`enforce` to compute if it needs it: the same l and u (the travel bounds of x fall
+        with q, so those of the per-axis extremes of q bound every node's)."""
+        if q.shape[0] == 0:
+            return self.limits(q)
+        tlo, _ = self.travel_x(q.min(axis=0)[None, :])
+        _, thi = self.travel_x(q.max(axis=0)[None, :])
+        if np.all(tlo[0] <= -self.B) and np.all(thi[0] >= self.B):
+            return (np.broadcast_to(-self.B, q.shape), np.broadcast_to(self.B, q.shape), None, None)
+        return self.limits(q)
+
     def quantize(self, x):
         if self.grid is None:
             return np.array(x, dtype=float)
@@ -134,6 +147,8 @@ class Bounds:
         took = np.abs(desired - y) > self.took_tol
         if not took.any():          # every flag needs the bound to have taken something away
             return y, flags
+        if tlo is None:             # limits_lazy: the travel part was not computed
+            tlo, thi = self.travel_x(q)
         tol = self.on_tol
         flags[..., 0] = took & (y >= self.B - tol)
         flags[..., 1] = took & (y <= -self.B + tol)

@@ -427,7 +427,7 @@ class Planner:
         end = pos + count * W + O
         x = lin.x[pos:end]
         exempt = nodes.exempt[pos:end]
-        limits = self.bounds.limits(nodes.q[pos:end])
+        limits = self.bounds.limits_lazy(nodes.q[pos:end])
         b = self.bounds
         if not b.feasible(x, limits[0], limits[1], exempt, self._prev):
             return None, 0
@@ -444,7 +444,7 @@ class Planner:
         following = x[nc] if nc < x.shape[0] and not exempt[nc] else None
         csl = slice(pos, pos + nc)
         res = self._commit(nodes.take(csl), lin.take(csl), x[:nc].copy(), following,
-                           tuple(a[:nc] for a in limits))
+                           tuple(None if a is None else a[:nc] for a in limits))
         return res, nc
 
     # ------------------------------------------------------------------ driving
