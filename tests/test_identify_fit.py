@@ -25,18 +25,6 @@ def _machine_with_degree(machine, degree):
     return dataclasses.replace(machine, axes=axes)
 
 
-@pytest.fixture(scope="module")
-def xfyz():
-    m = load_machine("xfyz")
-    return m, ErrorModel(m)
-
-
-@pytest.fixture(scope="module")
-def cafxyz():
-    m = load_machine("cafxyz")
-    return m, ErrorModel(m)
-
-
 def test_noise_free_rich_campaign_recovers_parameters(xfyz):
     machine, model = xfyz
     rng = np.random.default_rng(10)

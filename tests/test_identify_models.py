@@ -15,18 +15,6 @@ from mtcomp.models import ErrorModel, ThermalDrift
 from mtcomp.models.reference import reference_deviation
 
 
-@pytest.fixture(scope="module")
-def xfyz():
-    m = load_machine("xfyz")
-    return m, ErrorModel(m)
-
-
-@pytest.fixture(scope="module")
-def cafxyz():
-    m = load_machine("cafxyz")
-    return m, ErrorModel(m)
-
-
 def _params_dict(model, p):
     return dict(zip(model.param_names, p))
 
