@@ -55,6 +55,31 @@ def test_cli_machines_and_bad_machine(tmp_path, capsys):
     assert main(["machines"]) == 0
     out = capsys.readouterr().out
     assert "xfyz" in out and "CAFXYZ" in out and "CBFXYZ" in out
+    # a bad machine file on any command: exit 2, one line naming the file and the problem, no output
+    bad = _write(tmp_path, 'topology = "XFYQ"\n')
+    data = tmp_path / "d.csv"
+    data.write_text("x_mm,y_mm,z_mm,dx_um\n1,2,3,0.5\n")
+    out_model = tmp_path / "m.json"
+    assert main(["identify", str(bad), str(data), "-o", str(out_model)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "m.toml" in err and "unknown letter 'Q'" in err
+    assert not out_model.exists()
+
+
+def test_output_path_refuses_the_input_itself_a_symlink_or_a_hard_link(tmp_path):
+    import os
+
+    from mtcomp.io.atomic import check_output_path
+    inp = tmp_path / "in.nc"
+    inp.write_text("G1 X1\n")
+    (tmp_path / "sym.nc").symlink_to(inp)
+    os.link(inp, tmp_path / "hard.nc")
+    for out in (inp, tmp_path / "sym.nc", tmp_path / "hard.nc"):
+        with pytest.raises(InputError, match="overwrite an input"):
+            check_output_path(out, [inp])
+    assert check_output_path(tmp_path / "new.nc", [inp]) == tmp_path / "new.nc"
+    with pytest.raises(InputError, match="does not exist"):
+        check_output_path(tmp_path / "nofolder" / "x.nc", [inp])
 
 
 def test_nominal_forward_three_axis():

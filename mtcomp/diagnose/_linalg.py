@@ -69,15 +69,23 @@ class FitResult:
         return self.sse + self.rank * np.log(n)
 
 
-def _chol_solve(G: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Solve G x = b for symmetric positive (semi-)definite G: Cholesky of the unit-diagonal scaled
-    matrix with a tiny ridge; the minimum-norm eigen-decomposition route when that fails."""
+def _scaled_cholesky(G: np.ndarray):
+    """(d, L): the diagonal scaling d of a symmetric positive (semi-)definite G and the Cholesky factor
+    L of the unit-diagonal matrix G / (d d^T) with a tiny ridge; L is None when that fails."""
     d = np.sqrt(np.clip(np.diag(G), 0.0, None))
     d = np.where(d > 0, d, 1.0)
     Gs = G / np.outer(d, d)
     try:
-        L = np.linalg.cholesky(Gs + 1e-11 * np.eye(len(Gs)))
+        return d, np.linalg.cholesky(Gs + 1e-11 * np.eye(len(Gs)))
     except np.linalg.LinAlgError:
+        return d, None
+
+
+def _chol_solve(G: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Solve G x = b for symmetric positive (semi-)definite G: scaled Cholesky; the minimum-norm
+    eigen-decomposition route when that fails."""
+    d, L = _scaled_cholesky(G)
+    if L is None:
         return solve_normal(G, b)[0]
     return scipy.linalg.cho_solve((L, True), b / d) / d
 
@@ -97,12 +105,8 @@ def _fold_solve(Gk: np.ndarray, bk: np.ndarray, G: np.ndarray) -> np.ndarray:
     share lambda of its information the fold keeps; directions with lambda < FOLD_TOLERANCE are left
     out (held-out readings would be extrapolated along a direction the fold hardly determines).
     Otherwise this is the plain least-squares solution."""
-    d = np.sqrt(np.clip(np.diag(G), 0.0, None))
-    d = np.where(d > 0, d, 1.0)
-    Gs = G / np.outer(d, d)
-    try:
-        L = np.linalg.cholesky(Gs + 1e-11 * np.eye(len(Gs)))
-    except np.linalg.LinAlgError:
+    d, L = _scaled_cholesky(G)
+    if L is None:
         return solve_normal(Gk, bk, FOLD_TOLERANCE)[0]
     tri = scipy.linalg.solve_triangular
     M = tri(L, tri(L, Gk / np.outer(d, d), lower=True).T, lower=True)

@@ -16,12 +16,10 @@ def check_output_path(out: str | os.PathLike, inputs: list[str | os.PathLike] = 
     """Refuse an output that is one of the inputs or whose folder does not exist."""
     out_p = Path(out)
     for inp in inputs:
-        try:
-            if Path(inp).exists() and out_p.exists() and os.path.samefile(inp, out_p):
-                raise InputError("output would overwrite an input file", out)
-        except OSError:
-            pass
-        if Path(inp).resolve() == out_p.resolve():
+        same = Path(inp).resolve() == out_p.resolve()          # the same path, or via a symlink
+        if not same and out_p.exists() and Path(inp).exists():
+            same = os.path.samefile(inp, out_p)                # a hard link to the input
+        if same:
             raise InputError("output would overwrite an input file", out)
     parent = out_p.resolve().parent
     if not parent.is_dir():

@@ -25,6 +25,14 @@ def flag_name(kind: str, axis: str) -> str:
             "travel_min": f"travel_{a}_min", "step": f"step_{a}"}[kind]
 
 
+
+def _round_to(x, step):
+    """x rounded to whole multiples of step (a new array; in place from the division on)."""
+    t = np.divide(x, step)
+    np.round(t, out=t)
+    t *= step
+    return t
+
 class Bounds:
     """Bounds of one problem. Everything in optimisation units: um (linear), urad (rotary)."""
 
@@ -64,10 +72,7 @@ class Bounds:
         """Nominal positions rounded to the output grid (mm, rad): the program as written."""
         if self.grid is None:
             return np.asarray(q, dtype=float)
-        t = np.divide(q, self.grid)
-        np.round(t, out=t)
-        t *= self.grid
-        return t
+        return _round_to(q, self.grid)
 
     def travel_x(self, q):
         """(lo, hi) each (n, na): the travel as bounds of the correction x."""
@@ -100,12 +105,10 @@ class Bounds:
         return self.limits(q)
 
     def quantize(self, x):
+        """Corrections (scaled units) rounded to whole output-grid steps (a copy)."""
         if self.grid is None:
             return np.array(x, dtype=float)
-        t = np.divide(x, self.unit)
-        np.round(t, out=t)
-        t *= self.unit
-        return t
+        return _round_to(x, self.unit)
 
     def enforce(self, x, q, exempt, prev, desired=None, following=None, limits=None):
         """The written corrections and the bounds that acted.
