@@ -4,9 +4,9 @@ A :class:`VirtualMachine` holds a *truth* (a :class:`~mtcomp.models.FittedModel`
 extension terms -- backlash, periodic error, thermal drift, feed-dependent terms, rotary error
 motions) and produces measurement files of every kind of SPEC section 3 from a :class:`Plan`. The
 readings are produced by the SAME measurement models that identification fits
-(:mod:`mtcomp.identification.measurement_models`, looked up in the registry by kind), plus Gaussian
+(:mod:`mtcomp.measurement.readings`, looked up in the registry by kind), plus Gaussian
 noise; the files are written in SPEC format (column names and units exactly as section 3) and read
-back with :func:`mtcomp.io.measurements.read_measurements`, so what a caller gets is what the readers
+back with :func:`mtcomp.measurement.files.read_measurements`, so what a caller gets is what the readers
 give for the file.
 
 Plans (each a function returning a :class:`Plan`; times ``t_s`` advance with moves at feed and dwells):
@@ -40,7 +40,7 @@ import numpy as np
 
 from .errors import InputError
 from .io.atomic import atomic_write
-from .io.measurements import MeasurementSet, format_cell, read_measurements
+from .measurement.files import MeasurementSet, format_cell, read_measurements
 from .machine import Machine
 from .models import ErrorModel, FittedModel, ParameterSet
 
@@ -414,7 +414,7 @@ def thermal_plan(machine: Machine, duration_h: float = 8.0, interval_s: float = 
         :class:`~mtcomp.models.ChannelDrift` channels). temperatures : sensor -> (ambient degC, K per
         1000 rpm of heat, lag s); default a spindle sensor and a bed sensor. setup_q : (na,) set-up pose.
     """
-    from .identification.measurement_models_extra import spindle_heat
+    from .measurement.readings_extra import spindle_heat
     t = np.arange(0.0, duration_h * 3600.0 + 1e-9, interval_s)
     rpm = np.zeros_like(t)
     for ts, r in spindle_profile:
@@ -610,8 +610,8 @@ class VirtualMachine:
 
     def measurement_model(self, plan: Plan, data: MeasurementSet):
         """The registered measurement model of the plan's kind, bound to the truth and ``data``."""
-        from .identification.measurement_models import model_class_for
-        from .identification.measurement_models_extra import drift_context
+        from .measurement.readings import model_class_for
+        from .measurement.readings_extra import drift_context
         options = dict(plan.options)
         options.setdefault("extra_context", drift_context(self.truth.model, data))
         return model_class_for(plan.kind, data.path)(self.truth.model, data, self.truth.context_defaults,

@@ -8,9 +8,9 @@ import pytest
 
 from mtcomp.cli import main
 from mtcomp.diagnose.hidden import hidden_case
-from mtcomp.identification.measurement_models import measurement_model
-from mtcomp.identification.measurement_models_extra import drift_context
-from mtcomp.io.measurements import read_measurements
+from mtcomp.measurement.readings import measurement_model
+from mtcomp.measurement.readings_extra import drift_context
+from mtcomp.measurement.files import read_measurements
 from mtcomp.machine import load_machine
 from mtcomp.models import load_model
 

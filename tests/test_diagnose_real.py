@@ -15,7 +15,7 @@ import pytest
 
 from mtcomp.diagnose import diagnose
 from mtcomp.identification.iso230_2 import evaluate_iso230_2
-from mtcomp.io.measurements import read_measurements
+from mtcomp.measurement.files import read_measurements
 from mtcomp.machine import load_machine
 
 REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"

@@ -9,9 +9,9 @@ import pytest
 
 from mtcomp.cli import main
 from mtcomp.identification.fit import identify
-from mtcomp.identification.measurement_models import measurement_model
+from mtcomp.measurement.readings import measurement_model
 from mtcomp.identification.synthetic import campaign, random_parameters, simulate, write_measurements
-from mtcomp.io.measurements import read_measurements
+from mtcomp.measurement.files import read_measurements
 from mtcomp.machine import load_machine
 from mtcomp.models import ErrorModel, load_model
 

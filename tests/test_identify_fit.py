@@ -10,7 +10,7 @@ import pytest
 
 from mtcomp.errors import InputError
 from mtcomp.identification.fit import identify
-from mtcomp.identification.measurement_models import measurement_model
+from mtcomp.measurement.readings import measurement_model
 from mtcomp.identification.synthetic import campaign, make_laser, make_points, random_parameters, simulate
 from mtcomp.machine import load_machine
 from mtcomp.models import Backlash, ErrorModel, FittedModel, ParameterSet

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from mtcomp.errors import InputError
-from mtcomp.identification import measurement_models as mmod
-from mtcomp.identification.measurement_models import context_matrix, measurement_model
+from mtcomp.measurement import readings as mmod
+from mtcomp.measurement.readings import context_matrix, measurement_model
 from mtcomp.identification.synthetic import (make_ballbar, make_laser, make_points, random_parameters,
                                              simulate)
 from mtcomp.machine import load_machine
@@ -210,8 +210,8 @@ def test_simulate_round_trip_and_unknown_kind(xfyz, monkeypatch):
 def test_context_matrix_computes_drift_features_from_the_file(tmp_path):
     """A ThermalDrift term's features come from the file's t_s and temperature columns."""
     from mtcomp import load_machine
-    from mtcomp.identification.measurement_models import context_matrix
-    from mtcomp.io.measurements import read_measurements
+    from mtcomp.measurement.readings import context_matrix
+    from mtcomp.measurement.files import read_measurements
     from mtcomp.models import ErrorModel, ThermalDrift
 
     p = tmp_path / "pts.csv"

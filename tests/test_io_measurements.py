@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from mtcomp import InputError, load_machine
-from mtcomp.io.measurements import (BallbarData, CmmData, LaserData, PointsData, ThermalData,
+from mtcomp.measurement.files import (BallbarData, CmmData, LaserData, PointsData, ThermalData,
                                     VelocityData, file_unit_scale, group_runs, read_measurements,
                                     split_runs, write_csv_with_columns)
 

@@ -13,7 +13,7 @@ import pytest
 from mtcomp import InputError
 from mtcomp.cli import main
 from mtcomp.identification.iso230_2 import ARCSEC_PER_RAD, evaluate_axis, evaluate_iso230_2
-from mtcomp.io.measurements import read_measurements
+from mtcomp.measurement.files import read_measurements
 
 REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / "iso230_2"
 

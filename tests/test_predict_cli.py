@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from mtcomp.cli import main
-from mtcomp.identification import measurement_models as mmod
+from mtcomp.measurement import readings as mmod
 from mtcomp.identification.synthetic import make_ballbar, make_laser, make_points, write_measurements
-from mtcomp.io.measurements import read_measurements
+from mtcomp.measurement.files import read_measurements
 from mtcomp.machine import load_machine
 from mtcomp.models import ErrorModel, FittedModel, ParameterSet, deviation, save_model
 from mtcomp.models.reference import reference_deviation

@@ -6,7 +6,7 @@ import numpy as np
 
 from mtcomp import load_machine
 from mtcomp.identification import seed_methods as sm
-from mtcomp.identification.measurement_models import model_class_for
+from mtcomp.measurement.readings import model_class_for
 from mtcomp.models import AbbeIRC, Backlash, ErrorModel, FittedModel, ParameterSet
 from mtcomp.sim import VirtualMachine, rotary_laser_plan, velocity_plan
 

@@ -5,9 +5,9 @@ import pytest
 
 from mtcomp import load_machine
 from mtcomp import sim
-from mtcomp.identification.measurement_models import model_class_for
-from mtcomp.identification.measurement_models_extra import drift_context
-from mtcomp.io.measurements import read_measurements
+from mtcomp.measurement.readings import model_class_for
+from mtcomp.measurement.readings_extra import drift_context
+from mtcomp.measurement.files import read_measurements
 from mtcomp.models import AbbeIRC, Backlash, ChannelDrift, FeedOffset, PeriodicError, ThermalDrift
 
 SPEC_COLUMNS = {

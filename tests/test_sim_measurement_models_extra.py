@@ -7,9 +7,9 @@ import pytest
 
 from mtcomp import load_machine
 from mtcomp.errors import InputError
-from mtcomp.identification.measurement_models import model_class_for
-from mtcomp.identification.measurement_models_extra import spindle_heat, thermal_features
-from mtcomp.io.measurements import Context
+from mtcomp.measurement.readings import model_class_for
+from mtcomp.measurement.readings_extra import spindle_heat, thermal_features
+from mtcomp.measurement.files import Context
 from mtcomp.models import (AbbeIRC, Backlash, ChannelDrift, ErrorModel, FittedModel, ParameterSet,
                            ThermalDrift, deviation)
 from mtcomp.sim import VirtualMachine, cmm_plan, random_truth, thermal_plan, velocity_plan

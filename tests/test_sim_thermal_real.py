@@ -6,7 +6,7 @@ import pytest
 
 from mtcomp import load_machine
 from mtcomp.identification.fit import identify
-from mtcomp.io.measurements import read_measurements
+from mtcomp.measurement.files import read_measurements
 from mtcomp.models import ChannelDrift, ErrorModel
 
 REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"

@@ -228,7 +228,7 @@ def test_flank_map_of_the_cone_frustum(tmp_path):
     np.testing.assert_allclose(smap.dn_before_um, 0.0, rtol=0, atol=1e-9)
     # a random machine: dn of each contact point is n . (deviation of the tool point at h a), which
     # the cmm measurement model computes with its own CasADi function (a second formulation)
-    from mtcomp.identification.measurement_models_extra import normal_deviation
+    from mtcomp.measurement.readings_extra import normal_deviation
     from mtcomp.sim import random_truth
     from mtcomp.viz.surface import read_program_points
     truth = random_truth(machine, np.random.default_rng(5))

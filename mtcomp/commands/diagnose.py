@@ -28,7 +28,7 @@ def run(args) -> int:
     from ..diagnose import diagnose
     from ..errors import InputError
     from ..io.atomic import atomic_write, check_output_path
-    from ..io.measurements import read_measurements
+    from ..measurement.files import read_measurements
     from ..machine import load_machine
     from ..models.model_file import _json_default, save_model
 

@@ -31,7 +31,7 @@ def run(args) -> int:
     from ..errors import InputError
     from ..identification.fit import DEFAULT_RCOND, identify
     from ..io.atomic import check_output_path
-    from ..io.measurements import read_measurements
+    from ..measurement.files import read_measurements
     from ..machine import load_machine
     from ..models.model_file import save_model
 

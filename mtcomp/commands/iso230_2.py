@@ -17,7 +17,7 @@ def run(args) -> int:
     from ..errors import InputError
     from ..identification.iso230_2 import evaluate_iso230_2
     from ..io.atomic import atomic_write, check_output_path
-    from ..io.measurements import read_measurements
+    from ..measurement.files import read_measurements
 
     out = check_output_path(args.json, [args.laser]) if args.json else None
     data = read_measurements(args.laser)

@@ -20,9 +20,9 @@ def add_arguments(parser):
 
 
 def run(args) -> int:
-    from ..identification.measurement_models import model_class_for
+    from ..measurement.readings import model_class_for
     from ..io.atomic import check_output_path
-    from ..io.measurements import read_measurements, write_csv_with_columns
+    from ..measurement.files import read_measurements, write_csv_with_columns
     from ..machine import load_machine
     from ..models.model_file import load_model
 

@@ -12,7 +12,7 @@ that need a shape chosen later (a period, a drift feature) are built from two pr
 * ``h[d]`` (n,): derivative with respect to a tool-tip translation along d (X, Y, Z), from a
   ThermalDrift term with a constant feature; ``hc[channel]`` the same for the other channels of
   thermal files (ChannelDrift). Thermal files read drift relative to their first reading
-  (measurement_models_extra.ThermalModel), so their drift columns use features minus the feature at
+  (readings_extra.ThermalModel), so their drift columns use features minus the feature at
   that reading (``Stack.feature``).
 
 Units: observations ``y`` in file units (um for lengths, urad for angles; ball-bar lengths in um);
@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from ..io.measurements import MeasurementSet
+from ..measurement.files import MeasurementSet
 from ..machine import Machine
 from ..models.chain import ErrorModel
 from ..models.terms import AbbeIRC, Backlash, RotaryErrorMotion, ThermalDrift, positioning_component
@@ -130,11 +130,11 @@ class Stack:
 
     def feature(self, name: str) -> np.ndarray:
         """(n,) drift feature ``name`` of every observation (names and definitions of
-        :func:`mtcomp.identification.measurement_models_extra.feature_value`); 0 where unknown.
+        :func:`mtcomp.measurement.readings_extra.feature_value`); 0 where unknown.
         Thermal files get the feature minus its value at their first reading (they read drift
         relative to it)."""
         if name not in self._features:
-            from ..identification.measurement_models_extra import _time_order, feature_value
+            from ..measurement.readings_extra import _time_order, feature_value
             out = np.zeros(len(self))
             for fi, data in enumerate(self.datasets):
                 sel = self.file == fi
@@ -190,7 +190,7 @@ class Stack:
 
 def build_stack(machine: Machine, datasets: list[MeasurementSet], extra_context=None) -> Stack:
     """Stack the observations of ``datasets`` and bind them to the probe model (not yet evaluated)."""
-    from ..identification.measurement_models import measurement_model
+    from ..measurement.readings import measurement_model
 
     probe = ErrorModel(machine, probe_terms(machine))
     parts = {k: [] for k in ("y", "unit", "file", "series", "column", "component", "row", "q", "moving",
@@ -276,7 +276,7 @@ def build_stack(machine: Machine, datasets: list[MeasurementSet], extra_context=
 
 
 def _unique_tags(datasets) -> list[str]:
-    from ..identification.measurement_models import file_tag
+    from ..measurement.readings import file_tag
     tags = []
     for d in datasets:
         base = file_tag(d)

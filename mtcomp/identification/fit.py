@@ -39,12 +39,12 @@ import numpy as np
 import scipy.linalg
 
 from ..errors import InputError
-from ..io.measurements import MeasurementSet
+from ..measurement.files import MeasurementSet
 from ..machine import Machine
 from ..models.chain import ErrorModel
 from ..models.model_file import FittedModel
 from ..models.params import ParameterSet, ParamSpec
-from .measurement_models import MeasurementModel, measurement_model
+from ..measurement.readings import MeasurementModel, measurement_model
 
 #: relative singular-value threshold below which a direction counts as undetermined
 DEFAULT_RCOND = 1e-6
@@ -109,7 +109,7 @@ def _finite(x) -> float | None:
 
 
 def _file_scale(column: str) -> float:
-    from ..io.measurements import file_unit_scale
+    from ..measurement.files import file_unit_scale
     return file_unit_scale(str(column))
 
 
@@ -304,7 +304,7 @@ def _free_mask(model: ErrorModel, free, hold) -> np.ndarray:
 
 
 def _unique_tags(datasets) -> list[str]:
-    from .measurement_models import file_tag
+    from ..measurement.readings import file_tag
     tags, seen = [], {}
     for d in datasets:
         t = d.tag if isinstance(d, MeasurementModel) else file_tag(d)

@@ -260,7 +260,7 @@ def evaluate_axis(axis: str, target: np.ndarray, direction: np.ndarray, run: np.
 
 
 def evaluate_iso230_2(data) -> Iso230_2Report:
-    """ISO 230-2 evaluation of a :class:`mtcomp.io.measurements.LaserData`, axis by axis.
+    """ISO 230-2 evaluation of a :class:`mtcomp.measurement.files.LaserData`, axis by axis.
 
     Only the positioning component of each axis (EXX, EYY, EZZ, EAA, EBB, ECC) is used; readings of
     other components are ignored and said so in ``notices``. InputError when the file holds no

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..io.measurements import BallbarData, LaserData
+from ..measurement.files import BallbarData, LaserData
 from ..kinematics import forward, wp2bed
 from ..machine import Machine
 

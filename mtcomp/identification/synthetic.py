@@ -1,6 +1,6 @@
 """Measurement sets built from arrays (no file): for tests, benchmarks and simulated campaigns.
 
-Each ``make_*`` returns the same object :func:`mtcomp.io.measurements.read_measurements` would return
+Each ``make_*`` returns the same object :func:`mtcomp.measurement.files.read_measurements` would return
 for a CSV file with those columns (header and cells included, so ``mtcomp predict`` can repeat them).
 :func:`with_values` puts simulated readings into a set (e.g. a measurement model's prediction plus noise).
 Inputs in internal units (mm, rad); cells are written in file units (um, urad, deg).
@@ -11,7 +11,7 @@ import dataclasses
 
 import numpy as np
 
-from ..io.measurements import BallbarData, Context, LaserData, MeasurementSet, PointsData, format_cell
+from ..measurement.files import BallbarData, Context, LaserData, MeasurementSet, PointsData, format_cell
 
 
 def _context(n, dirs=None, feed=None, t=None, run=None) -> Context:
@@ -185,7 +185,7 @@ def simulate(model, data: MeasurementSet, p, nuisance=None, noise_um: float = 0.
     """``data`` with its readings replaced by what ``model`` predicts for parameters p (internal
     units) and the file's nuisance parameters (default zero), plus Gaussian noise (um for
     translational readings and lengths, urad for angular ones). Blank cells stay blank."""
-    from .measurement_models import measurement_model
+    from ..measurement.readings import measurement_model
     mm = measurement_model(model, data, context_defaults)
     cols = mm.predict_columns(np.asarray(p, float), nuisance)
     rng = np.random.default_rng(0) if rng is None else rng

@@ -8,7 +8,13 @@ Layout (file units: um, urad, mm; see docs/model_file.md)::
      "parameters": {"EXX_1": {"value": 1.2, "unit": "um", "group": "X:EXX", "base": true,
                               "std_error": 0.1}, ...},
      "context_defaults": {"temp_t1": 21.0},                   # optional
+     "support": {"X": [-20.0, 20.0], "C": [-180.0, 180.0]},   # optional: where the data reach
      "info": {...}}                                           # free: fit summary, provenance
+
+``support`` is the identified region: for each axis that moved in the fitted data, the lowest and
+highest position it took (mm, deg). An axis not listed never moved in the data: what its errors are
+is not known, and the model holds them at zero. A model without ``support`` (written by hand, or by
+an older mtcomp) claims nothing about its region.
 """
 from __future__ import annotations
 
@@ -36,12 +42,15 @@ class FittedModel:
     params : ParameterSet on ``model.param_specs`` (internal units).
     context_defaults : values for context channels a data set may lack (e.g. reference temperatures).
     info : free-form provenance (fit summary, command line).
+    support : axis name -> (lowest, highest) position the data reached, internal units (mm, rad);
+        axes that did not move in the data are absent. ``None``: the region is not known.
     """
 
     model: ErrorModel
     params: ParameterSet
     context_defaults: dict = field(default_factory=dict)
     info: dict = field(default_factory=dict)
+    support: dict | None = None
 
     @property
     def machine(self) -> Machine:
@@ -66,7 +75,38 @@ class FittedModel:
         return {"format": FORMAT, "version": 1, "machine": self.machine.to_dict(),
                 "terms": [t.to_dict() for t in self.model.terms],
                 "parameters": self.params.to_json_dict(),
-                "context_defaults": dict(self.context_defaults), "info": self.info}
+                "context_defaults": dict(self.context_defaults),
+                **({} if self.support is None else {"support": support_to_file(self.machine, self.support)}),
+                "info": self.info}
+
+
+def support_to_file(machine: Machine, support: dict) -> dict:
+    """Support in file units (mm, deg), axes in machine order."""
+    out = {}
+    for a in machine.axis_names:
+        if a in support:
+            f = 180.0 / np.pi if machine.axis(a).is_rotary else 1.0
+            out[a] = [float(support[a][0]) * f, float(support[a][1]) * f]
+    return out
+
+
+def support_from_file(machine: Machine, data, path) -> dict | None:
+    """Inverse of :func:`support_to_file`, with checks (InputError naming the key)."""
+    if data is None:
+        return None
+    if not isinstance(data, dict):
+        raise InputError("'support' must be an object axis -> [low, high]", path)
+    out = {}
+    for a, v in data.items():
+        if a not in machine.axis_names:
+            raise InputError(f"'support' names axis {a!r}, which the machine does not have", path)
+        if (not isinstance(v, list) or len(v) != 2
+                or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)
+                or not v[0] <= v[1]):
+            raise InputError(f"'support' of axis {a} must be [low, high] with low <= high", path)
+        f = np.pi / 180.0 if machine.axis(a).is_rotary else 1.0
+        out[a] = (float(v[0]) * f, float(v[1]) * f)
+    return out
 
 
 def save_model(path: str | os.PathLike, fitted: FittedModel) -> None:
@@ -128,4 +168,6 @@ def load_model(path: str | os.PathLike, machine: Machine | None = None) -> Fitte
     cd = data.get("context_defaults", {})
     if not isinstance(cd, dict):
         raise InputError("'context_defaults' must be an object", p)
-    return FittedModel(model, params, {str(k): float(v) for k, v in cd.items()}, data.get("info", {}))
+    support = support_from_file(model.machine, data.get("support"), p)
+    return FittedModel(model, params, {str(k): float(v) for k, v in cd.items()}, data.get("info", {}),
+                       support)

@@ -1,6 +1,6 @@
 """Measurement models of the kinds cmm, thermal and velocity (SPEC 3.4-3.6), and drift features.
 
-These register into :data:`mtcomp.identification.measurement_models.MEASUREMENT_MODELS` like the
+These register into :data:`mtcomp.measurement.readings.MEASUREMENT_MODELS` like the
 points, laser and ballbar models, with the same interface (``predict``, ``jacobian``,
 ``predict_columns``; internal units mm, rad, mm/min; exact CasADi Jacobians). docs/sim.md has the
 equations.
@@ -38,12 +38,12 @@ import casadi as ca
 import numpy as np
 
 from ..errors import InputError
-from ..io.measurements import Context, MeasurementSet
+from .files import Context, MeasurementSet
 from ..kinematics import forward
 from ..models.chain import ErrorModel, linear_component_names, polynomial_orders
 from ..models.params import ParamSpec
 from ..models.terms import ANGLE_LETTERS, ChannelDrift
-from .measurement_models import MeasurementModel, context_matrix, register
+from .readings import MeasurementModel, context_matrix, register
 
 #: default time constants (s) of the spindle heat features
 DEFAULT_TIME_CONSTANTS_S = (900.0, 3600.0)

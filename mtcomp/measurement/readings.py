@@ -1,7 +1,7 @@
 """Measurement models: what an error model predicts for each reading of a measurement file.
 
 A measurement model binds one :class:`~mtcomp.models.ErrorModel` to one measurement set
-(:mod:`mtcomp.io.measurements`) and turns a parameter vector ``p`` (internal units, the model's
+(:mod:`mtcomp.measurement.files`) and turns a parameter vector ``p`` (internal units, the model's
 ``param_names`` order) and the file's nuisance parameters into predicted readings, with exact
 Jacobians from CasADi (never finite differences). Every model is vectorised: one call evaluates every
 row of the file.
@@ -27,7 +27,7 @@ Kinds implemented here (docs/identification.md gives the equations):
   (workpiece frame) and b the tool-ball centre relative to the nominal tool tip; nuisance: one length
   offset per file (calibration of the bar).
 
-Other kinds (cmm, thermal, velocity) register here from ``measurement_models_extra``.
+Other kinds (cmm, thermal, velocity) register here from ``readings_extra``.
 """
 from __future__ import annotations
 
@@ -39,7 +39,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import InputError
-from ..io.measurements import MeasurementSet
+from .files import MeasurementSet
 from ..models.chain import ErrorModel, context_defaults as base_context_defaults
 from ..models.params import ParamSpec
 
@@ -58,9 +58,9 @@ def register(cls):
 def _load_extra_models():
     """Import the optional module of extra kinds (cmm, thermal, velocity) so that it registers."""
     try:
-        from . import measurement_models_extra  # noqa: F401
+        from . import readings_extra  # noqa: F401
     except ModuleNotFoundError as exc:
-        if exc.name != f"{__package__}.measurement_models_extra":
+        if exc.name != f"{__package__}.readings_extra":
             raise
 
 
@@ -91,7 +91,7 @@ def context_matrix(model: ErrorModel, data: MeasurementSet, context_defaults: di
     ``temp_<name>_c``. Blank cells and absent columns take ``context_defaults[name]`` when given, else
     the model's default (feed 0, t 0, dir 0, the machine's tool length). Drift features of a
     ThermalDrift term (``time_h``, ``dtemp_<s>``, ``spindle_heat_<tau>``) are computed from the file's
-    ``t_s``, temperature and spindle columns (:func:`measurement_models_extra.feature_value`).
+    ``t_s``, temperature and spindle columns (:func:`readings_extra.feature_value`).
     ``extra``: name -> (n_rows,) arrays for channels computed elsewhere; they win over everything.
     """
     machine = machine if machine is not None else model.machine
@@ -117,7 +117,7 @@ def context_matrix(model: ErrorModel, data: MeasurementSet, context_defaults: di
         if col is None:
             # drift features of a ThermalDrift term (time_h, dtemp_<s>, spindle_heat_<tau>) come
             # from the file's own time, temperature and spindle columns
-            from .measurement_models_extra import feature_value
+            from .readings_extra import feature_value
             col = feature_value(name, ctx)
         if col is None:
             out[:, i] = default

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..machine import AXIS_ORDER, LINEAR, ROTARY, Machine
-from .csvtable import CsvTable, parse_ints, parse_signs, read_csv_table
+from ..io.csvtable import CsvTable, parse_ints, parse_signs, read_csv_table
 
 UM = 1e-3                      #: mm per um
 URAD = 1e-6                    #: rad per urad
@@ -705,7 +705,7 @@ def write_csv_with_columns(path: str | os.PathLike, data: MeasurementSet,
     """
     import csv
 
-    from .atomic import atomic_write, check_output_path
+    from ..io.atomic import atomic_write, check_output_path
 
     out = check_output_path(path, [data.path])
     existing = {h.strip().lower() for h in data.header}
