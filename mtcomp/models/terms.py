@@ -307,7 +307,7 @@ class ChannelDrift(Term):
 
     For channels that are not tool-tip directions (a thermal file's ``disp_ch1_um`` ...), each channel
     drifts by ``sum_f TD_<channel>_<f> * feature_f`` (um per unit of feature, see
-    :func:`mtcomp.identification.measurement_models_extra.thermal_features` for the features). The
+    :func:`mtcomp.measurement.readings_extra.thermal_features` for the features). The
     term does not act on the tool tip (channels ``x``, ``y``, ``z`` are tip directions: use
     :class:`ThermalDrift`); only the thermal measurement model reads its parameters.
     """
