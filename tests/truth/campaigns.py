@@ -53,7 +53,7 @@ def _cell(name, v):
         return ""
     if name in INTEGER_COLUMNS or name.startswith("dir_"):
         return str(int(round(v)))
-    return format(v, ".10g")
+    return format(v, ".12g")
 
 
 def write_csv(path, columns: dict) -> Path:
