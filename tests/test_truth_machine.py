@@ -55,6 +55,17 @@ def test_zero_machine_has_no_deviation(topology, tmp_path):
     assert_allclose(res.columns["length_mm"], 100.0, rtol=0, atol=1e-12)
 
 
+def test_tool_fixed_offsets_are_given_in_the_workpiece_frame():
+    m = TruthMachine.zero("CAFXYZ")
+    q = np.array([[40.0, -20.0, 60.0, math.radians(25.0), math.radians(90.0)]])
+    b = np.array([0.0, 100.0, 0.0])
+    tip0, _ = m.nominal_pose(q)
+    assert_allclose(m.point_position(q, b), tip0 + b, rtol=0, atol=1e-12)
+    assert_allclose(m.point_deviation(q, b), 0.0, rtol=0, atol=1e-12)
+    assert_allclose(m.ballbar_length(q, tip0[0] + [0.0, 0.0, 50.0], b), math.hypot(100.0, 50.0), rtol=0,
+                    atol=1e-12)
+
+
 def test_nominal_xfyz_tip_is_q():
     m = TruthMachine.zero("XFYZ")
     q = _q3(np.random.default_rng(1))
@@ -262,6 +273,15 @@ def test_feed_dependent_abbe_gain_and_irc_shift():
     d, _ = s.true_deviation(q, context=Context(feed_mm_min=feed))
     p_feed = p + [0.0, 120.0, 0.0]
     assert_allclose(d[0], (_rz(eps) - np.eye(3)) @ (q[0] - p_feed), rtol=1e-12, atol=1e-12)
+
+
+def test_thermal_drift_moves_the_spindle_along_machine_axes():
+    m = TruthMachine.zero("CAFXYZ").with_effects(ThermalDrift("linear", (3.0, 0.0, -6.0)))
+    th = math.radians(90.0)
+    q = np.array([[50.0, 10.0, 0.0, 0.0, th]])
+    d, _ = m.true_deviation(q, context=Context(t_s=7200.0))
+    # 2 h of drift (6, 0, -12) um along the machine axes, seen from the table turned by 90 deg
+    assert_allclose(d[0], _rz(-th) @ [6 * UM, 0.0, -12 * UM], rtol=1e-9, atol=1e-12)
 
 
 def test_spindle_schedule_lag_against_fine_integration():
@@ -502,3 +522,22 @@ def test_truth_does_not_import_mtcomp():
     for f in pathlib.Path(truth.__file__).parent.glob("*.py"):
         text = f.read_text()
         assert "import mtcomp" not in text and "from mtcomp" not in text, f.name
+
+
+def test_velocity_irc_is_the_table_pivot_shifted_by_feed(tmp_path):
+    m = TruthMachine.zero("XFYZ")
+    m.components["X"]["ECX"] = P.Linear(5 * URAD, 40 * URAD / 400.0)
+    p = np.array([120.0, 30.0, -50.0])
+    m.pivots["X"] = p
+    m = m.with_effects(FeedAbbe("X", irc_shift_mm_per_m_min=(10.0, -20.0, 0.0)))
+    res = campaigns.velocity(m, tmp_path / "v.csv", np.random.default_rng(23), n_runs=1, noise_mm_min=0.0)
+    rows = _read(res.path)
+    assert len(rows) == 3 * 41 and {r["dir_x"] for r in rows} == {"1"}
+    feed = res.columns["feed_mm_min"]
+    expected = p[:2] + np.outer(feed / 1000.0, [10.0, -20.0])
+    assert_allclose(res.setup["irc_xy_mm"], expected, rtol=0, atol=0.02)
+    # first order by hand: v = V e_x + Omega e_z x (P - O), Omega = V dECX/ds
+    V, om = feed, feed * 40 * URAD / 400.0
+    M = np.array([50.0, 150.0])
+    assert_allclose(res.columns["m_vy_mm_min"], om * (M[0] - expected[:, 0]), rtol=1e-3, atol=1e-6)
+    assert_allclose(res.columns["m_vx_mm_min"], V - om * (M[1] - expected[:, 1]), rtol=0, atol=1e-5)

@@ -493,3 +493,89 @@ def thermal(machine: TruthMachine, path, rng, *, duration_h=8.0, interval_s=60.0
         cols[f"temp_{name}_c"] = v + (rng.normal(0.0, noise_c, n) if noise_c > 0 else 0.0)
     write_csv(path, cols)
     return CampaignResult(Path(path), cols, {"zero_um": ref}, ideal, ctx, q)
+
+
+# ---------------------------------------------------------------------------------------- velocity
+def table_point_velocity(machine: TruthMachine, axis: str, s, points_xy, feed_mm_min, direction=1.0,
+                         context: Context | None = None, h_mm: float = 1e-3) -> np.ndarray:
+    """(N, 2) mm/min: minus the velocity, in the bed frame, of the table points ``points_xy`` (N, 2)
+    (table frame coordinates, z = 0) while table ``axis`` moves at ``direction * feed_mm_min`` through
+    ``s`` (N,) mm, every other axis at 0.
+
+    The table moves by -s along the axis, so the sign is flipped to read the motion in the sense of the
+    axis: with no error the result is ``+direction * feed`` along the axis (V0 of seed 000, as
+    docs/measurements.md uses it). Central difference of the exact chain over +-h_mm. To first order
+    ``v = V0 u + Omega e_z x (P - O)`` with Omega = dEC/ds V0 and O the pivot of the table's angular
+    errors shifted by the straightness slope (O_x = p_x - dEYX/ds / dECX/ds for X)."""
+    s = np.atleast_1d(np.asarray(s, float))
+    n = len(s)
+    j = machine.index(axis)
+    P = np.zeros((n, 3))
+    P[:, :2] = np.broadcast_to(np.asarray(points_xy, float), (n, 2))
+    ctx = context if context is not None else Context(feed_mm_min, {axis: direction})
+    qp = np.zeros((n, machine.n_axes))
+    qm = np.zeros((n, machine.n_axes))
+    qp[:, j] = s + h_mm
+    qm[:, j] = s - h_mm
+    xp = T.apply(machine.wp2bed(qp, ctx), P)
+    xm = T.apply(machine.wp2bed(qm, ctx), P)
+    rate = np.broadcast_to(np.asarray(direction, float) * np.asarray(feed_mm_min, float), (n,))
+    return -((xp - xm) / (2 * h_mm))[:, :2] * rate[:, None]
+
+
+def velocity(machine: TruthMachine, path, rng, *, axis: str = "X", start_mm=None, length_mm=200.0,
+             step_mm=5.0, feeds_mm_min=(180.0, 240.0, 300.0), n_runs: int = 3, m_xy=(50.0, 150.0),
+             n_xy=(250.0, 100.0), noise_mm_min: float = 1e-4, t0_s: float = 0.0) -> CampaignResult:
+    """Seed 000 experiment (SPEC 3.6): the table moves along ``axis`` (a workpiece-side X or Y) over
+    ``length_mm`` in ``step_mm`` steps from ``start_mm`` (default 10 % into the travel), ``n_runs``
+    runs at each feed, always in the + direction (``dir_<axis>`` = +1); at each position the velocities
+    of the table points M and N (table frame coordinates ``m_xy``, ``n_xy``) are read.
+
+    Convention (SPEC is silent): velocities are those of :func:`table_point_velocity`: minus the
+    table points' velocity in the bed frame, i.e. the motion in the sense of the axis (V0 = dir * feed
+    along the axis, as docs/measurements.md uses it); a sensor on the bed reads the negative. Noise ``noise_mm_min`` per
+    component. Returns ``ideal`` velocities and ``setup["irc_xy_mm"]``: the rotation centre
+    solved from the ideal velocities by eq. 1 ((v - V0 e) . (O - P) = 0 for P = M, N).
+    """
+    axis = axis.upper()
+    if axis not in ("X", "Y") or machine.side(axis) != "workpiece":
+        raise ValueError(f"the velocity campaign moves a table axis X or Y; {machine.topology} has "
+                         f"{axis} on the {machine.side(axis) if axis in machine.axis_names else 'no'} side")
+    lo, hi = machine.travel[axis]
+    start = lo + 0.1 * (hi - lo) if start_mm is None else float(start_mm)
+    pos = start + np.arange(0.0, length_mm + 1e-9, step_mm)
+    rows = []
+    clock = _Clock(t0_s)
+    for feed in feeds_mm_min:
+        for run in range(1, n_runs + 1):
+            clock.move(length_mm, 3000.0, 5.0)
+            for s in pos:
+                rows.append((s, feed, run, clock.move(step_mm, feed, 0.0)))
+    s = np.array([r[0] for r in rows])
+    feed = np.array([r[1] for r in rows])
+    t = np.array([r[3] for r in rows])
+    n = len(s)
+    ctx = Context(feed, {axis: np.ones(n)}, t)
+    vm = table_point_velocity(machine, axis, s, m_xy, feed, 1.0, ctx)
+    vn = table_point_velocity(machine, axis, s, n_xy, feed, 1.0, ctx)
+    k = "XY".index(axis)
+    irc = np.full((n, 2), np.nan)
+    for i in range(n):
+        v0 = np.zeros(2)
+        v0[k] = feed[i]
+        U = np.array([vm[i] - v0, vn[i] - v0])
+        if abs(np.linalg.det(U)) > 1e-300:
+            irc[i] = np.linalg.solve(U, [U[0] @ m_xy, U[1] @ n_xy])
+    noise = (lambda: rng.normal(0.0, noise_mm_min, n)) if noise_mm_min > 0 else (lambda: 0.0)
+    cols = {"axis": [axis] * n, "feed_mm_min": feed, f"{axis.lower()}_mm": s,
+            "m_x_mm": np.full(n, float(m_xy[0])), "m_y_mm": np.full(n, float(m_xy[1])),
+            "m_vx_mm_min": vm[:, 0] + noise(), "m_vy_mm_min": vm[:, 1] + noise(),
+            "n_x_mm": np.full(n, float(n_xy[0])), "n_y_mm": np.full(n, float(n_xy[1])),
+            "n_vx_mm_min": vn[:, 0] + noise(), "n_vy_mm_min": vn[:, 1] + noise(),
+            f"dir_{axis.lower()}": np.ones(n), "run": np.array([r[2] for r in rows]), "t_s": t}
+    q = np.zeros((n, machine.n_axes))
+    q[:, machine.index(axis)] = s
+    write_csv(path, cols)
+    ideal = {"m_vx_mm_min": vm[:, 0], "m_vy_mm_min": vm[:, 1], "n_vx_mm_min": vn[:, 0],
+             "n_vy_mm_min": vn[:, 1]}
+    return CampaignResult(Path(path), cols, {"irc_xy_mm": irc}, ideal, ctx, q)
