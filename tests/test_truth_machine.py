@@ -541,3 +541,48 @@ def test_velocity_irc_is_the_table_pivot_shifted_by_feed(tmp_path):
     M = np.array([50.0, 150.0])
     assert_allclose(res.columns["m_vy_mm_min"], om * (M[0] - expected[:, 0]), rtol=1e-3, atol=1e-6)
     assert_allclose(res.columns["m_vx_mm_min"], V - om * (M[1] - expected[:, 1]), rtol=0, atol=1e-5)
+
+
+def test_rotary_run_translational_reading_is_the_table_motion(tmp_path):
+    m = TruthMachine.zero("CAFXYZ").with_effects(RotaryRunout("C", eccentricity_um=5.0))
+    res = campaigns.laser(m, tmp_path / "c.csv", np.random.default_rng(24), "C", components=("EXC", "EYC"),
+                          setup=False, noise_um=0.0, n_targets=8, n_runs=1)
+    rows = _read(res.path)
+    # the table shifted by e (cos th, sin th) in the bed is, seen along the workpiece axes that turn with
+    # it, a constant (e, 0): the reading (table relative to tool) is +5 um on EXC and 0 on EYC
+    for r in rows:
+        expected = 5.0 if r["component"] == "EXC" else 0.0
+        assert_allclose(float(r["value_um"]), expected, rtol=0, atol=1e-8)
+    assert len(rows) == 2 * 8 * 2
+
+
+@pytest.mark.parametrize("kind", ["backlash", "rotary_backlash", "periodic_error", "feed_dependent_offset",
+                                  "feed_dependent_abbe", "thermal_drift", "rotary_pdge", "local_defect"])
+def test_random_effects_change_the_truth(kind):
+    from truth import random_effect
+    rng = np.random.default_rng(25)
+    base = TruthMachine.random("CBFXYZ", rng)
+    eff = random_effect(kind, base, rng)
+    m = base.with_effects(eff)
+    n = 400
+    q = np.zeros((n, 5))
+    q[:, :3] = _q3(rng, n)
+    q[:, 3:] = rng.uniform(-1.5, 1.5, (n, 2))
+    if kind == "local_defect":
+        q[:, "XYZ".index(eff.axis)] = eff.centre_mm + rng.uniform(-0.3, 0.3, n) * eff.width_mm
+    ctx = Context(feed_mm_min=rng.uniform(500, 5000, n), dirs={a: rng.choice([-1.0, 1.0], n) for a in "XYZBC"},
+                  t_s=rng.uniform(0, 20000, n), temperatures={"spindle": rng.uniform(19, 26, n)})
+    diff = m.true_deviation(q, context=ctx)[0] - base.true_deviation(q, context=ctx)[0]
+    assert 0.3 * UM < np.abs(diff).max() < 60 * UM
+
+
+def test_full_campaign_writes_every_file(tmp_path):
+    m = TruthMachine.random("CAFXYZ", np.random.default_rng(26))
+    out = campaigns.full_campaign(m, tmp_path, np.random.default_rng(27), points_grid=(2, 2, 2),
+                                  laser_targets=5)
+    assert set(out) == {"points", "laser_x", "laser_y", "laser_z", "laser_a", "laser_c", "ballbar",
+                        "three_sphere"}
+    starts = [out[k].columns["t_s"][0] for k in ("points", "laser_x", "laser_y", "ballbar", "three_sphere")]
+    assert np.all(np.diff(starts) > 0)
+    for res in out.values():
+        assert res.path.parent == tmp_path and len(_read(res.path)) == len(res.q)

@@ -16,6 +16,7 @@ Usage
     d_tip, d_axis = m.true_deviation(q)                # actual - nominal, workpiece frame, mm
     res = campaigns.points(m, tmp_path / "points.csv", rng)       # SPEC 3.1 file, res.ideal, res.setup
     res = campaigns.laser(m, tmp_path / "laser_x.csv", rng, "X", optic_mm=(0, 150, 80))
+    files = campaigns.full_campaign(m, tmp_path, rng)   # points, laser per axis, ballbar, three-sphere
 
 Units and frames
 ----------------
@@ -92,7 +93,8 @@ optionally signed by dir), ``FeedAbbe`` (seed 000: angle gain per m/min and/or a
 mm per m/min), ``ThermalDrift`` (drivers ``time`` settling exponential, ``linear``, ``temperature``
 channel, ``spindle`` first-order lag over a ``SpindleSchedule``; a translation of the spindle along the
 machine axes), ``RotaryRunout`` (eccentricity, wobble, axial run-out), ``LocalDefect`` (raised-cosine
-bump). ``z_reference_tool_mm`` (default None) evaluates the Z errors at the physical carriage position
+bump). ``random_effect(kind, machine, rng)`` draws one with realistic parameters (kinds named as in
+SPEC 6). ``z_reference_tool_mm`` (default None) evaluates the Z errors at the physical carriage position
 ``z + L - L_ref`` instead of the commanded z.
 
 Context (:class:`Context`): ``feed_mm_min`` (default 0), ``dirs`` {axis: +1/-1} (default +1),
@@ -105,8 +107,9 @@ Measurements (conventions where SPEC 3 leaves a choice)
 * laser: the measured point is the tip plus ``optic_*_mm``, a vector fixed to the tool and given in the
   workpiece frame at the nominal pose (the same convention for ``tool_ball_*_mm``). Translational
   E<d>.: d-component of (actual - nominal position of that point). Angular E<d>.: the rotation vector
-  of ``R R0^T`` (tool relative to workpiece, actual against nominal), its d-component; for a rotary
-  axis carrying the workpiece the negative (table relative to tool: ECC = actual - commanded angle).
+  of ``R R0^T`` (tool relative to workpiece, actual against nominal), its d-component. In a run of a
+  rotary axis carrying the workpiece both kinds are negated (the table relative to the tool:
+  ECC = actual - commanded angle, EXC the table's radial motion).
   Directions are those of the workpiece frame (linear runs are made with rotary axes at 0, where it
   coincides with the bed frame). Set-up per (axis, component): zero offset; straightness of linear
   axes also a slope (um/m) times the target. This agrees with docs/measurements.md and mtcomp's
@@ -118,12 +121,13 @@ Measurements (conventions where SPEC 3 leaves a choice)
 :func:`form_error` (Kabsch) gives the form error of cut points; ``TruthMachine.cut`` the actual tip of
 commanded (e.g. compensated) axis positions.
 """
-from .effects import (Backlash, FeedAbbe, FeedOffset, LocalDefect, PeriodicError, RotaryBacklash,
-                      RotaryRunout, SpindleSchedule, ThermalDrift, ThermalEnvironment)
+from .effects import (EFFECT_KINDS, Backlash, FeedAbbe, FeedOffset, LocalDefect, PeriodicError,
+                      RotaryBacklash, RotaryRunout, SpindleSchedule, ThermalDrift, ThermalEnvironment,
+                      random_effect)
 from .machine import Context, FormError, TruthMachine, form_error, read_machine_file
 from . import campaigns, profiles, transforms
 
 __all__ = ["TruthMachine", "Context", "form_error", "FormError", "read_machine_file", "campaigns",
            "profiles", "transforms", "Backlash", "RotaryBacklash", "PeriodicError", "FeedOffset",
            "FeedAbbe", "ThermalDrift", "SpindleSchedule", "ThermalEnvironment", "RotaryRunout",
-           "LocalDefect"]
+           "LocalDefect", "random_effect", "EFFECT_KINDS"]

@@ -223,9 +223,9 @@ def laser(machine: TruthMachine, path, rng, axis: str, *, components=None, targe
 
     Reading (:meth:`TruthMachine.laser_reading`): a translational component E<d><axis> reads the
     d-component of actual minus nominal position of the measured point (workpiece frame); an angular
-    one the rotation of the tool relative to the workpiece about d (right-handed, small angle); for a
-    rotary axis carrying the workpiece its negative, the table relative to the tool, i.e. ECC = actual
-    minus commanded table angle as ISO 230-2 reports it. Set-up (``setup=True``): per component a zero
+    one the rotation of the tool relative to the workpiece about d (right-handed, small angle); in a
+    run of a rotary axis carrying the workpiece both are negated (the table relative to the tool, i.e.
+    ECC = actual minus commanded table angle as ISO 230-2 reports it). Set-up (``setup=True``): per component a zero
     offset (translational 1-10 um, angular 2-20 urad) and for straightness components of a linear axis
     a slope (optic misalignment, 5-50 urad = um/m) times the target in m:
     value = ideal + offset + slope * target_mm / 1000 (+ noise). ``setup["offset"]`` and
@@ -579,3 +579,54 @@ def velocity(machine: TruthMachine, path, rng, *, axis: str = "X", start_mm=None
     ideal = {"m_vx_mm_min": vm[:, 0], "m_vy_mm_min": vm[:, 1], "n_vx_mm_min": vn[:, 0],
              "n_vy_mm_min": vn[:, 1]}
     return CampaignResult(Path(path), cols, {"irc_xy_mm": irc}, ideal, ctx, q)
+
+
+# ---------------------------------------------------------------------------------------- a whole campaign
+def full_campaign(machine: TruthMachine, folder, rng, *, points_grid=(5, 5, 4), laser_targets: int = 11,
+                  noise_um: float = 0.3, noise_urad: float = 0.5, noise_mm: float = 0.0003,
+                  setup: bool = True, with_thermal: bool = False, with_velocity: bool = False) -> dict:
+    """A typical measurement campaign, one file per set-up, one after the other in time (each file's
+    ``t_s`` starts where the previous ended): ``points`` (two tool lengths, both directions, three
+    feeds), ``laser_<axis>`` for every linear axis (six components, a random optic offset of up to
+    150 mm per direction, the other axes at random static positions) and for every rotary axis
+    (positioning), ``ballbar`` (circles in XY, YZ, ZX), ``three_sphere`` (machines with C),
+    optionally ``thermal`` (4 h) and ``velocity`` (a table X or Y). Returns {name: CampaignResult};
+    files are written into ``folder`` as ``<name>.csv``."""
+    from pathlib import Path as _P
+    folder = _P(folder)
+    out = {}
+    t = 0.0
+
+    def last_t(res):
+        ts = res.columns.get("t_s")
+        return float(np.max(ts)) + 60.0 if ts is not None and len(ts) else t
+
+    out["points"] = points(machine, folder / "points.csv", rng, grid=points_grid, setup=setup,
+                           noise_um=noise_um, t0_s=t)
+    t = last_t(out["points"])
+    for a in machine.axis_names:
+        if a in "XYZ":
+            static = {b: rng.uniform(*machine.travel[b]) * 0.5 for b in "XYZ" if b != a}
+            optic = tuple(rng.uniform(-150, 150, 3))
+            out[f"laser_{a.lower()}"] = laser(machine, folder / f"laser_{a.lower()}.csv", rng, a,
+                                              n_targets=laser_targets, static=static, optic_mm=optic,
+                                              setup=setup, noise_um=noise_um, noise_urad=noise_urad, t0_s=t)
+        else:
+            out[f"laser_{a.lower()}"] = laser(machine, folder / f"laser_{a.lower()}.csv", rng, a,
+                                              n_targets=12, setup=setup, noise_urad=noise_urad, t0_s=t)
+        t = last_t(out[f"laser_{a.lower()}"])
+    out["ballbar"] = ballbar_circles(machine, folder / "ballbar.csv", rng, setup=setup, noise_mm=noise_mm,
+                                     t0_s=t)
+    t = last_t(out["ballbar"])
+    if "C" in machine.axis_names:
+        out["three_sphere"] = three_sphere(machine, folder / "three_sphere.csv", rng, setup=setup,
+                                           noise_mm=noise_mm, t0_s=t)
+        t = last_t(out["three_sphere"])
+    if with_thermal:
+        out["thermal"] = thermal(machine, folder / "thermal.csv", rng, duration_h=4.0, setup=setup,
+                                 noise_um=noise_um / 3)
+    if with_velocity:
+        table = [a for a in ("X", "Y") if a in machine.axis_names and machine.side(a) == "workpiece"]
+        if table:
+            out["velocity"] = velocity(machine, folder / "velocity.csv", rng, axis=table[0], t0_s=t)
+    return out

@@ -287,3 +287,68 @@ class ThermalEnvironment:
             g = 1.0 / np.sqrt(1.0 + (w * self.bed_tau_s) ** 2)
             bed = bed + a * g * np.sin(w * t + ph - np.arctan(w * self.bed_tau_s))
         return {"ambient": amb, "spindle": spindle, "bed": bed}
+
+
+EFFECT_KINDS = ("backlash", "rotary_backlash", "periodic_error", "feed_dependent_offset",
+                "feed_dependent_abbe", "thermal_drift", "rotary_pdge", "local_defect")
+
+
+def random_effect(kind: str, machine, rng, axis: str | None = None, **overrides) -> Effect:
+    """One hidden effect of ``kind`` (one of :data:`EFFECT_KINDS`, the SPEC 6 effect names) with
+    realistic random parameters drawn from ``rng``, on ``axis`` (default: a random suitable axis of
+    ``machine``; feed_dependent_abbe prefers a table axis). ``overrides`` replace drawn fields
+    (e.g. ``driver="temperature"`` for thermal_drift)."""
+    linear = [a for a in machine.axis_names if a in "XYZ"]
+    rotary = [a for a in machine.axis_names if a in "ABC"]
+    sign = lambda: float(rng.choice([-1.0, 1.0]))  # noqa: E731
+    pick = lambda pool: axis or str(rng.choice(pool))  # noqa: E731
+    if kind == "backlash":
+        kw = dict(axis=pick(linear), magnitude_um=sign() * rng.uniform(3, 12))
+        cls = Backlash
+    elif kind == "rotary_backlash":
+        if not rotary:
+            raise ValueError(f"{machine.topology} has no rotary axis")
+        kw = dict(axis=pick(rotary), magnitude_urad=sign() * rng.uniform(10, 40))
+        cls = RotaryBacklash
+    elif kind == "periodic_error":
+        kw = dict(axis=pick(linear), period_mm=float(rng.choice([5.0, 10.0, 16.0, 20.0, 25.0, 32.0])),
+                  amplitude_um=rng.uniform(1, 4), phase_rad=rng.uniform(0, 2 * np.pi))
+        cls = PeriodicError
+    elif kind == "feed_dependent_offset":
+        kw = dict(axis=pick(linear), um_per_m_min=sign() * rng.uniform(0.5, 2.0))
+        cls = FeedOffset
+    elif kind == "feed_dependent_abbe":
+        table = [a for a in linear if machine.side(a) == "workpiece"]
+        a = pick(table or linear)
+        shift = np.zeros(3)
+        shift[int(rng.integers(0, 2))] = sign() * rng.uniform(20, 100)
+        kw = dict(axis=a, angles=str(rng.choice(["B", "C"])) if a == "X" else "C",
+                  angle_gain_per_m_min=rng.uniform(0.05, 0.3), irc_shift_mm_per_m_min=tuple(shift))
+        cls = FeedAbbe
+    elif kind == "thermal_drift":
+        driver = overrides.pop("driver", None) or str(rng.choice(["time", "temperature", "spindle", "linear"]))
+        vec = (sign() * rng.uniform(1, 5), sign() * rng.uniform(1, 5), -rng.uniform(5, 20))
+        if driver == "temperature":
+            vec = tuple(v / 5.0 for v in vec)                   # um per degC
+        elif driver == "linear":
+            vec = tuple(v / 4.0 for v in vec)                   # um per hour
+        kw = dict(driver=driver, vector_um=vec, tau_s=rng.uniform(1200, 3600), channel="spindle",
+                  schedule=SpindleSchedule(((0.0, 0.0), (1800.0, 2000.0), (5400.0, 6000.0), (12600.0, 0.0),
+                                            (16200.0, 4000.0), (21600.0, 0.0))))
+        cls = ThermalDrift
+    elif kind == "rotary_pdge":
+        if not rotary:
+            raise ValueError(f"{machine.topology} has no rotary axis")
+        kw = dict(axis=pick(rotary), eccentricity_um=rng.uniform(3, 10), wobble_urad=rng.uniform(5, 20),
+                  axial_um=rng.uniform(1, 4), phase_rad=rng.uniform(0, 2 * np.pi))
+        cls = RotaryRunout
+    elif kind == "local_defect":
+        a = pick(linear)
+        lo, hi = machine.travel[a]
+        kw = dict(axis=a, centre_mm=rng.uniform(lo + 0.2 * (hi - lo), hi - 0.2 * (hi - lo)),
+                  width_mm=rng.uniform(10, 40), amplitude_um=sign() * rng.uniform(2, 6))
+        cls = LocalDefect
+    else:
+        raise ValueError(f"unknown effect kind {kind!r}; one of {EFFECT_KINDS}")
+    kw.update(overrides)
+    return cls(**kw)

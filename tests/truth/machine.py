@@ -463,16 +463,19 @@ class TruthMachine:
 
         Translational E<d>.: the d-component of the deviation of the measured point (tool tip plus
         ``optic_mm``, see :meth:`point_deviation`). Angular E<d>.: the d-component of
-        :meth:`relative_rotation` (tool relative to workpiece); for a workpiece-side rotary ``axis``
-        its negative, the motion of the table relative to the tool (ECC = actual minus commanded angle).
+        :meth:`relative_rotation` (tool relative to workpiece). In a run of a workpiece-side rotary
+        ``axis`` both are negated: the reading is the motion of the table relative to the tool
+        (ECC = actual minus commanded angle, EXC = the table's radial displacement), as ISO 230-2 and
+        docs/measurements.md report it.
         """
         k = "XYZABC".index(component[1]) % 3
         if component[1] in "XYZ":
-            return self.point_deviation(q, optic_mm, tool_length, context)[:, k]
-        w = self.relative_rotation(q, tool_length, context)[:, k]
+            v = self.point_deviation(q, optic_mm, tool_length, context)[:, k]
+        else:
+            v = self.relative_rotation(q, tool_length, context)[:, k]
         if axis in "ABC" and self.side(axis) == "workpiece":
-            w = -w
-        return w
+            v = -v
+        return v
 
     def ballbar_length(self, q, table_ball_mm, tool_ball_mm=(0.0, 0.0, 0.0), tool_length=None,
                        context=None) -> np.ndarray:
