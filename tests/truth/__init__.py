@@ -64,8 +64,8 @@ What is modelled, where each error acts, and the signs
   sines (no polynomials), held constant outside the travel; positioning optionally shaped on the real
   ISO 230-2 run ``/work/shared/data/real/iso230_2/ess_b02_<axis>.csv`` (mean per target, stretched
   over the travel, 85 % of the shape). Positioning 5-30 um peak-to-peak plus a constant within +-5 um,
-  straightness 2-10 um p-p plus +-3 um, angular 5-30 urad p-p **plus a constant of 3-20 urad** (so
-  every angular error is nonzero at s = 0); translational errors need not vanish at 0 either.
+  straightness 2-10 um p-p plus +-3 um, angular 5-30 urad p-p **with a constant part: 3-20 urad in
+  magnitude at s = 0** (never anchored at zero); translational errors need not vanish at 0 either.
 
 *Spindle*: the tool frame in the last tool-side carriage = ``Trans(g) Ry(tb) Rx(ta) Trans(-g)``,
 ``g = (0, 0, L)`` the spindle gauge point, ``(ta, tb) = spindle_tilt`` (rad, 3-30 urad each): the tool

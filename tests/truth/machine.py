@@ -190,8 +190,8 @@ class TruthMachine:
         scale : multiplies every error magnitude.
 
         Magnitudes: positioning 5-30 um peak-to-peak over the travel plus a constant up to +-5 um,
-        straightness 2-10 um p-p plus up to +-3 um, angular 5-30 urad p-p plus a constant of
-        3-20 urad of random sign; squareness 10-60 urad; spindle tilt 3-30 urad per component;
+        straightness 2-10 um p-p plus up to +-3 um, angular 5-30 urad p-p with a value of 3-20 urad
+        (random sign) at s = 0 (a constant part; 0 clipped into the travel); squareness 10-60 urad; spindle tilt 3-30 urad per component;
         rotary offsets 5-40 um, tilts 10-60 urad, positioning error constant 5-30 urad and
         harmonics 1..5 of 3-15 urad, error motions 1-4 um and 2-8 urad.
         """
@@ -206,7 +206,8 @@ class TruthMachine:
                         rng_pp = rng.uniform(5.0, 30.0) * UM * scale
                         shape = P.real_positioning_shape(a, lo, hi) if real_positioning else None
                         if shape is not None:
-                            base = P.Sum((P.Scaled(0.85, shape), P.Scaled(0.15, P.random_shape(rng, lo, hi))))
+                            base = P.normalised(P.Sum((P.Scaled(0.85, shape),
+                                                       P.Scaled(0.15, P.random_shape(rng, lo, hi)))), lo, hi)
                         else:
                             base = P.random_shape(rng, lo, hi)
                         m.components[a][c] = P.Sum((P.Scaled(rng_pp, base),
@@ -214,9 +215,10 @@ class TruthMachine:
                     elif d in "XYZ":               # straightness
                         m.components[a][c] = P.random_profile(rng, lo, hi, rng.uniform(2, 10) * UM * scale,
                                                               rng.uniform(-3, 3) * UM * scale)
-                    else:                          # angular, with a constant part
-                        m.components[a][c] = P.random_profile(rng, lo, hi, rng.uniform(5, 30) * URAD * scale,
-                                                              rnd(3, 20) * URAD * scale)
+                    else:                          # angular: 3-20 urad at s = 0, never through 0 there
+                        shape = P.Scaled(rng.uniform(5, 30) * URAD * scale, P.random_shape(rng, lo, hi))
+                        at0 = rnd(3, 20) * URAD * scale
+                        m.components[a][c] = P.Sum((shape, P.Constant(at0 - float(shape(np.array([0.0]))[0]))))
                 side = "workpiece" if a in m.workpiece_chain else "tool"
                 if side == "workpiece":
                     # somewhere on the table, below or at its face, away from the workpiece origin
