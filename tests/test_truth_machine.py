@@ -586,3 +586,13 @@ def test_full_campaign_writes_every_file(tmp_path):
     assert np.all(np.diff(starts) > 0)
     for res in out.values():
         assert res.path.parent == tmp_path and len(_read(res.path)) == len(res.q)
+
+
+def test_laser_runs_at_several_feeds_see_the_feed_offset(tmp_path):
+    m = TruthMachine.zero("XFYZ").with_effects(FeedOffset("Z", 1.5))
+    res = campaigns.laser(m, tmp_path / "z.csv", np.random.default_rng(28), "Z", components=("EZZ",),
+                          feed_mm_min=(1000.0, 4000.0), n_runs=2, n_targets=4, setup=False, noise_um=0.0)
+    rows = _read(res.path)
+    assert [r["run"] for r in rows[::8]] == ["1", "2", "3", "4"]
+    for r in rows:
+        assert_allclose(float(r["value_um"]), 1.5 * float(r["feed_mm_min"]) / 1000.0, rtol=1e-9, atol=1e-9)

@@ -219,7 +219,9 @@ def laser(machine: TruthMachine, path, rng, axis: str, *, components=None, targe
     static : {axis letter: mm or deg} positions of the other axes (default 0), written as ``x_mm`` ...
         (the moving axis's column holds its target). optic_mm : (3,) the measured point relative to the
         tool tip (Abbe arm; a vector fixed to the tool, given in the workpiece frame at the nominal pose).
-    feed_mm_min : the feed of the moves; tool_length_mm : default the machine's.
+    feed_mm_min : the feed of the moves (mm/min, deg/min for rotary), or a sequence of feeds: then
+        every component's ``n_runs`` are repeated at each feed, ``run`` numbering all runs of a
+        component 1, 2, ... in order. tool_length_mm : default the machine's.
 
     Reading (:meth:`TruthMachine.laser_reading`): a translational component E<d><axis> reads the
     d-component of actual minus nominal position of the measured point (workpiece frame); an angular
@@ -254,27 +256,32 @@ def laser(machine: TruthMachine, path, rng, axis: str, *, components=None, targe
     for a, v in static.items():
         if a != axis:
             q_static[machine.index(a)] = math.radians(v) if a in "ABC" else v
-    rows = {k: [] for k in ("component", "target", "dir", "run", "seq", "t")}
+    feeds = np.atleast_1d(np.asarray(feed_mm_min, float))
+    rows = {k: [] for k in ("component", "target", "dir", "run", "seq", "t", "feed")}
     clock = _Clock(t0_s)
     pos = targets[0]
     for comp in components:
         seq = 0
-        for run in range(1, n_runs + 1):
-            for d, order in ((1, targets), (-1, targets[::-1])):
-                for tg in order:
-                    seq += 1
-                    rows["t"].append(clock.move(tg - pos, feed_mm_min, dwell_s))
-                    pos = tg
-                    for k, v in (("component", comp), ("target", tg), ("dir", d), ("run", run),
-                                 ("seq", seq)):
-                        rows[k].append(v)
+        run = 0
+        for feed in feeds:
+            for _ in range(n_runs):
+                run += 1
+                for d, order in ((1, targets), (-1, targets[::-1])):
+                    for tg in order:
+                        seq += 1
+                        rows["t"].append(clock.move(tg - pos, feed, dwell_s))
+                        pos = tg
+                        for k, v in (("component", comp), ("target", tg), ("dir", d), ("run", run),
+                                     ("seq", seq), ("feed", feed)):
+                            rows[k].append(v)
     n = len(rows["target"])
     tg = np.array(rows["target"])
     q = np.tile(q_static, (n, 1))
     q[:, j] = np.radians(tg) if rotary else tg
     dirs = np.array(rows["dir"], float)
     t = np.array(rows["t"])
-    ctx = Context(feed_mm_min, {axis: dirs}, t)
+    feed_rows = np.array(rows["feed"])
+    ctx = Context(feed_rows, {axis: dirs}, t)
     comp_arr = np.array(rows["component"])
     angular = np.array([c[1] in "ABC" for c in comp_arr])
     ideal = np.zeros(n)
@@ -301,7 +308,7 @@ def laser(machine: TruthMachine, path, rng, axis: str, *, components=None, targe
     cols.update(_axis_columns(machine, q))
     for k, c in enumerate("xyz"):
         cols[f"optic_{c}_mm"] = np.full(n, float(optic_mm[k]))
-    cols["feed_mm_min"] = np.full(n, float(feed_mm_min))
+    cols["feed_mm_min"] = feed_rows
     cols["t_s"] = t
     write_csv(path, cols)
     return CampaignResult(Path(path), cols, {"offset": offsets, "slope_urad": slopes},
