@@ -123,7 +123,8 @@ def test_table_pitch_about_its_pivot_by_hand():
     # the tool relative to the table turns by Ry(eps) about p (table coordinates)
     expected = (q - p) @ (_ry(eps) - np.eye(3)).T
     assert_allclose(d, expected, rtol=1e-12, atol=1e-12)
-    assert_allclose(d_axis, np.tile(_ry(eps) @ [0, 0, 1.0] - [0, 0, 1.0], (len(q), 1)), rtol=1e-12, atol=1e-14)
+    assert_allclose(d_axis, np.tile(_ry(eps) @ [0, 0, 1.0] - [0, 0, 1.0], (len(q), 1)), rtol=1e-12,
+                    atol=1e-14)
 
 
 def test_tool_side_yaw_about_carriage_pivot_by_hand():
@@ -466,7 +467,7 @@ def test_three_sphere_by_hand(tmp_path):
         tool = np.array([float(r[f"{c}_mm"]) for c in "xyz"])          # bed = wp at C = 0
         ball = np.array([float(r[f"table_ball_{c}_mm"]) for c in "xyz"])
         c = np.array([30 * UM, 0, 0])
-        ball_bed = _rz(th) @ (ball - c) + c                             # table ball turns about the actual line
+        ball_bed = _rz(th) @ (ball - c) + c          # the table ball turns about the actual line
         assert_allclose(float(r["length_mm"]), np.linalg.norm(tool - ball_bed), rtol=0, atol=1e-9)
     assert {r["dir_c"] for r in rows} == {"1", "-1"}
 
@@ -570,8 +571,9 @@ def test_random_effects_change_the_truth(kind):
     q[:, 3:] = rng.uniform(-1.5, 1.5, (n, 2))
     if kind == "local_defect":
         q[:, "XYZ".index(eff.axis)] = eff.centre_mm + rng.uniform(-0.3, 0.3, n) * eff.width_mm
-    ctx = Context(feed_mm_min=rng.uniform(500, 5000, n), dirs={a: rng.choice([-1.0, 1.0], n) for a in "XYZBC"},
-                  t_s=rng.uniform(0, 20000, n), temperatures={"spindle": rng.uniform(19, 26, n)})
+    ctx = Context(feed_mm_min=rng.uniform(500, 5000, n),
+                  dirs={a: rng.choice([-1.0, 1.0], n) for a in "XYZBC"}, t_s=rng.uniform(0, 20000, n),
+                  temperatures={"spindle": rng.uniform(19, 26, n)})
     diff = m.true_deviation(q, context=ctx)[0] - base.true_deviation(q, context=ctx)[0]
     assert 0.3 * UM < np.abs(diff).max() < 60 * UM
 

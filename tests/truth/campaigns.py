@@ -227,9 +227,9 @@ def laser(machine: TruthMachine, path, rng, axis: str, *, components=None, targe
     d-component of actual minus nominal position of the measured point (workpiece frame); an angular
     one the rotation of the tool relative to the workpiece about d (right-handed, small angle); in a
     run of a rotary axis carrying the workpiece both are negated (the table relative to the tool, i.e.
-    ECC = actual minus commanded table angle as ISO 230-2 reports it). Set-up (``setup=True``): per component a zero
-    offset (translational 1-10 um, angular 2-20 urad) and for straightness components of a linear axis
-    a slope (optic misalignment, 5-50 urad = um/m) times the target in m:
+    ECC = actual minus commanded table angle as ISO 230-2 reports it). Set-up (``setup=True``): per
+    component a zero offset (translational 1-10 um, angular 2-20 urad) and for straightness
+    components of a linear axis a slope (optic misalignment, 5-50 urad = um/m) times the target in m:
     value = ideal + offset + slope * target_mm / 1000 (+ noise). ``setup["offset"]`` and
     ``setup["slope_urad"]`` hold them per component.
     """
@@ -540,9 +540,9 @@ def velocity(machine: TruthMachine, path, rng, *, axis: str = "X", start_mm=None
 
     Convention (SPEC is silent): velocities are those of :func:`table_point_velocity`: minus the
     table points' velocity in the bed frame, i.e. the motion in the sense of the axis (V0 = dir * feed
-    along the axis, as docs/measurements.md uses it); a sensor on the bed reads the negative. Noise ``noise_mm_min`` per
-    component. Returns ``ideal`` velocities and ``setup["irc_xy_mm"]``: the rotation centre
-    solved from the ideal velocities by eq. 1 ((v - V0 e) . (O - P) = 0 for P = M, N).
+    along the axis, as docs/measurements.md uses it); a sensor on the bed reads the negative.
+    Noise ``noise_mm_min`` per component. Returns ``ideal`` velocities and ``setup["irc_xy_mm"]``:
+    the rotation centre solved from the ideal velocities by eq. 1 ((v - V0 e) . (O - P) = 0 for P = M, N).
     """
     axis = axis.upper()
     if axis not in ("X", "Y") or machine.side(axis) != "workpiece":

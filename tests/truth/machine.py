@@ -191,9 +191,10 @@ class TruthMachine:
 
         Magnitudes: positioning 5-30 um peak-to-peak over the travel plus a constant up to +-5 um,
         straightness 2-10 um p-p plus up to +-3 um, angular 5-30 urad p-p with a value of 3-20 urad
-        (random sign) at s = 0 (a constant part; 0 clipped into the travel); squareness 10-60 urad; spindle tilt 3-30 urad per component;
-        rotary offsets 5-40 um, tilts 10-60 urad, positioning error constant 5-30 urad and
-        harmonics 1..5 of 3-15 urad, error motions 1-4 um and 2-8 urad.
+        (random sign) at s = 0 (a constant part; 0 clipped into the travel); squareness 10-60 urad;
+        spindle tilt 3-30 urad per component; pivots as in :mod:`truth`; rotary offsets 5-40 um,
+        tilts 10-60 urad, positioning error constant 5-30 urad and harmonics 1..5 of 3-15 urad,
+        error motions 1-4 um and 2-8 urad.
         """
         m = cls(source, tool_length_mm)
         rnd = lambda lo, hi: float(rng.uniform(lo, hi) * rng.choice([-1.0, 1.0]))  # noqa: E731
@@ -218,7 +219,8 @@ class TruthMachine:
                     else:                          # angular: 3-20 urad at s = 0, never through 0 there
                         shape = P.Scaled(rng.uniform(5, 30) * URAD * scale, P.random_shape(rng, lo, hi))
                         at0 = rnd(3, 20) * URAD * scale
-                        m.components[a][c] = P.Sum((shape, P.Constant(at0 - float(shape(np.array([0.0]))[0]))))
+                        shift = at0 - float(shape(np.array([0.0]))[0])
+                        m.components[a][c] = P.Sum((shape, P.Constant(shift)))
                 side = "workpiece" if a in m.workpiece_chain else "tool"
                 if side == "workpiece":
                     # somewhere on the table, below or at its face, away from the workpiece origin
