@@ -598,3 +598,19 @@ def test_laser_runs_at_several_feeds_see_the_feed_offset(tmp_path):
     assert [r["run"] for r in rows[::8]] == ["1", "2", "3", "4"]
     for r in rows:
         assert_allclose(float(r["value_um"]), 1.5 * float(r["feed_mm_min"]) / 1000.0, rtol=1e-9, atol=1e-9)
+
+
+def test_thermal_machine_records_its_environment_in_every_file(tmp_path):
+    drift = ThermalDrift("temperature", (0.0, 0.0, -2.0), channel="spindle", t_ref_c=20.0)
+    m = TruthMachine.zero("XFYZ").with_effects(drift)
+    out = campaigns.full_campaign(m, tmp_path, np.random.default_rng(29), points_grid=(2, 2, 2),
+                                  laser_targets=3, setup=False, noise_um=0.0, noise_urad=0.0, noise_mm=0.0)
+    for name in ("points", "laser_z", "ballbar"):
+        rows = _read(out[name].path)
+        assert {"spindle_rpm", "temp_spindle_c", "temp_ambient_c"} <= set(rows[0]), name
+    rows = _read(out["points"].path)
+    temp = np.array([float(r["temp_spindle_c"]) for r in rows])
+    assert_allclose([float(r["dz_um"]) for r in rows], -2.0 * (temp - 20.0), rtol=1e-9, atol=1e-8)
+    rows = [r for r in _read(out["laser_z"].path) if r["component"] == "EZZ"]
+    temp = np.array([float(r["temp_spindle_c"]) for r in rows])
+    assert_allclose([float(r["value_um"]) for r in rows], -2.0 * (temp - 20.0), rtol=1e-9, atol=1e-8)
