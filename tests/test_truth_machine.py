@@ -139,6 +139,19 @@ def test_tool_side_yaw_about_carriage_pivot_by_hand():
     assert_allclose(d, arm @ (_rz(eps) - np.eye(3)).T, rtol=1e-12, atol=1e-12)
 
 
+def test_spindle_carriage_pivot_is_fixed_to_the_gauge_point():
+    m = TruthMachine.zero("XFYZ")
+    eps = 18 * URAD
+    p = np.array([-20.0, 40.0, 150.0])                   # relative to the spindle gauge point
+    m.components["Z"]["EAZ"] = P.Constant(eps)
+    m.pivots["Z"] = p
+    q = _q3(np.random.default_rng(30), 4)
+    for L in (0.0, 90.0, 200.0):
+        d, _ = m.true_deviation(q, L)
+        arm = -(p + [0.0, 0.0, L])                       # tip relative to the pivot
+        assert_allclose(d, np.tile((_rx(eps) - np.eye(3)) @ arm, (4, 1)), rtol=1e-9, atol=1e-12)
+
+
 def test_translational_components_add_on_either_side():
     m = TruthMachine.zero("XFYZ")
     m.components["X"]["EYX"] = P.Linear(2 * UM, 10 * UM / 400.0)

@@ -131,7 +131,9 @@ class TruthMachine:
     Attributes (plain data a test may set; see :mod:`truth` for their meaning):
     components : {axis: {component name: profile f(s) -> mm or rad}}
     pivots : {linear axis: (3,) mm} point, in that axis's carriage frame, about which its angular
-        errors act.
+        errors act; for the axis that carries the spindle (the last tool-side axis, Z) relative to
+        the spindle gauge point instead (carriage coordinates ``pivot + (0, 0, tool_length)``), so
+        that it is fixed on the ram whatever the tool length.
     squareness : {"C0Y", "B0Z", "A0Z": rad}.
     location : {rotary location error name (X0C, Y0C, A0C, B0C ...): mm or rad}.
     spindle_tilt : (2,) rad, tilt of the tool axis about X then about Y of the Z carriage.
@@ -226,6 +228,9 @@ class TruthMachine:
                     # somewhere on the table, below or at its face, away from the workpiece origin
                     m.pivots[a] = np.array([rng.uniform(-250, 250), rng.uniform(-150, 150),
                                             rng.uniform(-120, -20)])
+                elif a == m.tool_chain[-1]:        # relative to the gauge point, up the ram
+                    m.pivots[a] = np.array([rng.uniform(-150, 150), rng.uniform(-150, 150),
+                                            rng.uniform(20, 300)])
                 else:
                     m.pivots[a] = np.array([rng.uniform(-150, 150), rng.uniform(-150, 150),
                                             rng.uniform(50, 400)])
@@ -316,8 +321,10 @@ class TruthMachine:
                 vals[c] = vals[c] + v
         return vals
 
-    def _pivot(self, axis, s, ctx) -> np.ndarray:
+    def _pivot(self, axis, s, ctx, L=None) -> np.ndarray:
         p = np.broadcast_to(self.pivots[axis], (len(s), 3)).copy()
+        if L is not None and self.side(axis) == "tool" and axis == self.tool_chain[-1]:
+            p[:, 2] += L                   # the spindle carriage's pivot is fixed to the gauge point
         for e in self.effects:
             d = e.pivot_shift(self, axis, s, ctx)
             if d is not None:
@@ -325,7 +332,7 @@ class TruthMachine:
         return p
 
     # ---------------------------------------------------------------- one axis
-    def _linear(self, axis, s, ctx, errors: bool) -> np.ndarray:
+    def _linear(self, axis, s, ctx, errors: bool, L=None) -> np.ndarray:
         """Carriage of linear ``axis`` in its parent frame (N, 4, 4).
 
         tool side :  Trans(s u) Trans(delta) [Trans(p) Rx(EA) Ry(EB) Rz(EC) Trans(-p)]
@@ -342,7 +349,7 @@ class TruthMachine:
         v = self.component_values(axis, s, ctx)
         delta = np.stack([v[f"EX{axis}"], v[f"EY{axis}"], v[f"EZ{axis}"]], axis=1)
         R = T.rot_x(v[f"EA{axis}"]) @ T.rot_y(v[f"EB{axis}"]) @ T.rot_z(v[f"EC{axis}"])
-        p = self._pivot(axis, s, ctx)
+        p = self._pivot(axis, s, ctx, L)
         if table:
             return (T.translation(-s[:, None] * u) @ T.about_point(p, np.transpose(R, (0, 2, 1)))
                     @ T.translation(-delta))
@@ -409,7 +416,7 @@ class TruthMachine:
         L = self._tool(tool_length, n)
         out = T.identity(n)
         for a in self.tool_chain:
-            out = out @ self._linear(a, self._axis_argument(a, q, L), ctx, errors)
+            out = out @ self._linear(a, self._axis_argument(a, q, L), ctx, errors, L)
         return out @ self._spindle(q, L, ctx, errors)
 
     def tool2wp(self, q, tool_length=None, context=None, errors: bool = True) -> np.ndarray:
