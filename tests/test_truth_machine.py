@@ -66,6 +66,14 @@ def test_tool_fixed_offsets_are_given_in_the_workpiece_frame():
                     atol=1e-12)
 
 
+def test_q_from_file_units():
+    m = TruthMachine.zero("CAFXYZ")
+    assert_allclose(m.q_from(1.0, 2.0, 3.0, a_deg=90.0, c_deg=[0.0, 180.0]),
+                    [[1, 2, 3, math.pi / 2, 0.0], [1, 2, 3, math.pi / 2, math.pi]], rtol=1e-15, atol=0)
+    with pytest.raises(ValueError, match="no axis B"):
+        m.q_from(b_deg=10.0)
+
+
 def test_nominal_xfyz_tip_is_q():
     m = TruthMachine.zero("XFYZ")
     q = _q3(np.random.default_rng(1))

@@ -277,6 +277,17 @@ class TruthMachine:
     def side(self, axis: str) -> str:
         return "workpiece" if axis in self.workpiece_chain else "tool"
 
+    def q_from(self, x_mm=0.0, y_mm=0.0, z_mm=0.0, a_deg=0.0, b_deg=0.0, c_deg=0.0) -> np.ndarray:
+        """(N, n_axes) or (n_axes,) q in mm and rad from file-unit positions (mm, deg; scalars or (N,)
+        arrays); positions of axes the machine lacks must be 0."""
+        given = {"X": x_mm, "Y": y_mm, "Z": z_mm, "A": a_deg, "B": b_deg, "C": c_deg}
+        for a, v in given.items():
+            if a not in self.axis_names and np.any(np.asarray(v) != 0):
+                raise ValueError(f"machine {self.topology} has no axis {a}")
+        cols = [np.asarray(given[a], float) if a in "XYZ" else np.radians(np.asarray(given[a], float))
+                for a in self.axis_names]
+        return np.stack(np.broadcast_arrays(*cols), axis=-1)
+
     def _q(self, q) -> np.ndarray:
         q = np.atleast_2d(np.asarray(q, dtype=float))
         if q.shape[1] != self.n_axes:
