@@ -36,6 +36,10 @@ AXIS_DIRECTION = {"X": 0, "Y": 1, "Z": 2, "A": 0, "B": 1, "C": 2}
 
 BUILTIN_MACHINES = ("xfyz", "cafxyz", "cbfxyz")
 
+#: knot intervals of a spline axis when neither the machine file nor the data choose them
+DEFAULT_SPLINE_INTERVALS = 8
+BASES = ("bspline", "polynomial")
+
 DEFAULT_COMPENSATION = {"max_correction_um": 50.0, "max_correction_urad": 500.0, "max_step_um": 5.0}
 
 
@@ -47,8 +51,15 @@ class Axis:
     side : 'workpiece' (between bed and workpiece) or 'tool' (between bed and tool).
     travel : (lower, upper) in mm (linear) or rad (rotary).
     axis_point : (3,) mm, a point of the nominal rotary axis line, machine frame, all axes at zero.
-    degree : degree of the polynomials of the six component errors of a linear axis.
+    basis : 'bspline' (default) or 'polynomial': the functions of the six component errors of a
+        linear axis (mtcomp.models.basis).
+    degree : degree of those splines (1..3) or polynomials.
+    spline_range : (lo, hi) mm that the spline knots span; None: chosen from the data by identify
+        (:func:`with_data_basis`), the travel until then.
+    spline_intervals : number of equal knot intervals; None: chosen from the data (8 until then).
     fourier_order : harmonics of the angular positioning error of a rotary axis.
+    fourier_from_data : the machine file leaves ``fourier_order`` open: identification sets it from
+        the number of distinct angles in the data (:func:`with_data_basis`).
     error_motion_order : harmonics of the radial, axial and tilt error motions of a rotary axis
         (0: none, the base model of SPEC section 6).
     """
@@ -60,6 +71,22 @@ class Axis:
     degree: int = 3
     fourier_order: int = 2
     error_motion_order: int = 0
+    basis: str = "bspline"
+    spline_range: tuple[float, float] | None = None
+    spline_intervals: int | None = None
+    fourier_from_data: bool = False
+
+    @property
+    def basis_from_data(self) -> bool:
+        """True when identification chooses the spline knots from the data."""
+        return self.basis == "bspline" and (self.spline_range is None or self.spline_intervals is None)
+
+    def spline(self):
+        """The :class:`~mtcomp.models.basis.SplineBasis` of a linear axis with basis 'bspline'."""
+        from .models.basis import SplineBasis
+        lo, hi = self.spline_range if self.spline_range is not None else self.travel
+        return SplineBasis(float(lo), float(hi), int(self.spline_intervals or DEFAULT_SPLINE_INTERVALS),
+                           int(self.degree))
 
     @property
     def is_rotary(self) -> bool:
@@ -127,6 +154,15 @@ class Machine:
     def is_five_axis(self) -> bool:
         return len(self.rotary_axes) > 0
 
+    def with_basis(self, basis: str, **axis_fields) -> "Machine":
+        """The same machine with every linear axis on ``basis`` ('bspline' or 'polynomial'), and any
+        other Axis fields (``degree=2``, ``spline_intervals=4`` ...) set on those axes."""
+        from dataclasses import replace
+        if basis not in BASES:
+            raise ValueError(f"basis must be one of {BASES}, got {basis!r}")
+        return replace(self, axes=tuple(a if a.is_rotary else replace(a, basis=basis, **axis_fields)
+                                        for a in self.axes))
+
     def travel_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """(lower, upper), each (n_axes,), mm and rad."""
         lo = np.array([a.travel[0] for a in self.axes])
@@ -145,10 +181,41 @@ class Machine:
                 d["error_motion_order"] = a.error_motion_order
             else:
                 d["travel_mm"] = list(a.travel)
+                d["basis"] = a.basis
                 d["degree"] = a.degree
+                if a.basis == "bspline" and a.spline_range is not None:
+                    d["spline_range_mm"] = list(a.spline_range)
+                if a.basis == "bspline" and a.spline_intervals is not None:
+                    d["spline_intervals"] = a.spline_intervals
             axes[a.name] = d
         return {"name": self.name, "topology": self.topology, "tool_length_mm": self.tool_length,
                 "axes": axes, "compensation": dict(self.compensation)}
+
+
+def with_data_basis(machine: Machine, positions: dict) -> Machine:
+    """The machine with the spline knots of every 'bspline' axis without fixed knots, and the Fourier
+    order of every rotary axis whose machine file leaves it open, chosen from the data
+    (:func:`mtcomp.models.basis.auto_spline`, :func:`~mtcomp.models.basis.auto_fourier_order`).
+
+    positions : axis name -> array of every position that axis took in the data (mm).
+    """
+    from dataclasses import replace
+
+    from .models.basis import auto_fourier_order, auto_spline
+    axes = []
+    for a in machine.axes:
+        if a.is_rotary and a.fourier_from_data:
+            a = replace(a, fourier_order=auto_fourier_order(positions.get(a.name, ())),
+                        fourier_from_data=False)
+        if not a.is_rotary and a.basis_from_data:
+            lo, hi, n, degree = auto_spline(positions.get(a.name, ()), a.travel)
+            if a.spline_range is not None:
+                lo, hi = a.spline_range
+            if a.spline_intervals is not None:
+                n, degree = a.spline_intervals, a.degree
+            a = replace(a, spline_range=(lo, hi), spline_intervals=n, degree=degree)
+        axes.append(a)
+    return replace(machine, axes=tuple(axes))
 
 
 def parse_topology(topology: str, path: str | None = None) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -226,7 +293,7 @@ def machine_from_dict(data: dict, path: str | None = None) -> Machine:
             raise InputError(f"[axes.{letter}] must be a table", path)
         side = "workpiece" if letter in wp_chain else "tool"
         if letter in LINEAR:
-            allowed = {"travel_mm", "degree"}
+            allowed = {"travel_mm", "degree", "basis", "spline_range_mm", "spline_intervals"}
             for k in ad:
                 if k not in allowed:
                     raise InputError(f"[axes.{letter}]: unknown key {k!r} for a linear axis "
@@ -237,7 +304,23 @@ def machine_from_dict(data: dict, path: str | None = None) -> Machine:
             if not lo < hi:
                 raise InputError(f"[axes.{letter}] travel_mm: lower {lo} must be below upper {hi}", path)
             degree = _positive_int(ad.get("degree", 3), f"[axes.{letter}] degree", path, 1)
-            axes.append(Axis(letter, side, (lo, hi), degree=degree))
+            basis = ad.get("basis", "bspline")
+            if basis not in BASES:
+                raise InputError(f"[axes.{letter}] basis must be one of {', '.join(BASES)}, got {basis!r}",
+                                 path)
+            if basis == "bspline" and degree > 3:
+                raise InputError(f"[axes.{letter}] degree of a spline must be 1, 2 or 3, got {degree}", path)
+            srange = None
+            if "spline_range_mm" in ad:
+                srange = tuple(_number_list(ad["spline_range_mm"], 2, f"[axes.{letter}] spline_range_mm",
+                                            path))
+                if not srange[0] < srange[1]:
+                    raise InputError(f"[axes.{letter}] spline_range_mm: lower must be below upper", path)
+            nint = None
+            if "spline_intervals" in ad:
+                nint = _positive_int(ad["spline_intervals"], f"[axes.{letter}] spline_intervals", path, 1)
+            axes.append(Axis(letter, side, (lo, hi), degree=degree, basis=basis, spline_range=srange,
+                             spline_intervals=nint))
         else:
             allowed = {"travel_deg", "axis_point_mm", "fourier_order", "error_motion_order"}
             for k in ad:
@@ -254,10 +337,12 @@ def machine_from_dict(data: dict, path: str | None = None) -> Machine:
                 raise InputError(f"[axes.{letter}] travel_deg: lower {lo} must be below upper {hi}", path)
             point = _number_list(ad["axis_point_mm"], 3, f"[axes.{letter}] axis_point_mm", path)
             order = _positive_int(ad.get("fourier_order", 2), f"[axes.{letter}] fourier_order", path)
+            fourier_from_data = "fourier_order" not in ad
             emo = _positive_int(ad.get("error_motion_order", 0), f"[axes.{letter}] error_motion_order",
                                 path)
             axes.append(Axis(letter, side, (math.radians(lo), math.radians(hi)), tuple(point),
-                             fourier_order=order, error_motion_order=emo))
+                             fourier_order=order, error_motion_order=emo,
+                             fourier_from_data=fourier_from_data))
     comp = dict(DEFAULT_COMPENSATION)
     comp_data = data.get("compensation", {})
     if not isinstance(comp_data, dict):

@@ -16,10 +16,28 @@ from mtcomp.machine import load_machine
 from mtcomp.models import ErrorModel, load_model
 
 
+POLY_XFYZ = """name = "xfyz-poly"
+topology = "XFYZ"
+tool_length_mm = 100.0
+[axes.X]
+travel_mm = [-400.0, 400.0]
+basis = "polynomial"
+[axes.Y]
+travel_mm = [-300.0, 300.0]
+basis = "polynomial"
+[axes.Z]
+travel_mm = [-250.0, 150.0]
+basis = "polynomial"
+"""
+
+
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
+    """A campaign of mtcomp's own simulator on a machine file with the polynomial basis (these tests
+    check the command against the API by parameter name)."""
     tmp = tmp_path_factory.mktemp("identify")
-    machine = load_machine("xfyz")
+    (tmp / "poly.toml").write_text(POLY_XFYZ)
+    machine = load_machine(tmp / "poly.toml")
     model = ErrorModel(machine)
     rng = np.random.default_rng(30)
     camp = campaign(machine, rng, n_points=150, laser_offsets=1)
@@ -35,12 +53,12 @@ def files(tmp_path_factory):
 def test_identify_writes_model_that_reads_back_and_predicts(files, capsys):
     tmp, paths, model = files
     out = tmp / "model.json"
-    args = ["identify", "xfyz", *map(str, paths.values()), "-o", str(out), "--hold", "EXY_2,EXZ_2",
-            "--hold", "EYZ_2"]
+    args = ["identify", str(tmp / "poly.toml"), *map(str, paths.values()), "-o", str(out), "--hold",
+            "EXY_2,EXZ_2", "--hold", "EYZ_2", "--known-setup", str(paths["points"])]
     assert main(args) == 0
     text = capsys.readouterr().out
     assert "rms residual" in text and "points" in text and "wrote" in text
-    fitted = load_model(out, load_machine("xfyz"))
+    fitted = load_model(out, load_machine(tmp / "poly.toml"))
     raw = json.loads(out.read_text())
     assert raw["parameters"]["EXX_1"]["unit"] == "um" and "std_error" in raw["parameters"]["EXX_1"]
     assert raw["parameters"]["EXY_2"]["value"] == 0.0          # held
@@ -48,7 +66,7 @@ def test_identify_writes_model_that_reads_back_and_predicts(files, capsys):
     assert "EXY_1" not in raw["parameters"] and "C0Y" in raw["parameters"]
     # the same fit through the Python API
     data = [read_measurements(p) for p in paths.values()]
-    res = identify(model, data, hold=["EXY_2", "EXZ_2", "EYZ_2"])
+    res = identify(model, data, hold=["EXY_2", "EXZ_2", "EYZ_2"], known_setup=[paths["points"]])
     np.testing.assert_allclose(fitted.params.values, res.values, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(fitted.params.std_errors[res.determined], res.std_errors[res.determined],
                                rtol=1e-9, atol=0)
@@ -99,8 +117,8 @@ def test_identify_refuses_file_whose_axes_the_machine_lacks(files, capsys):
 def test_identify_options_noise_weights_and_rcond(files, capsys):
     tmp, paths, _ = files
     out = tmp / "model_noise.json"
-    assert main(["identify", "xfyz", str(paths["points"]), str(paths["laser"]), "-o", str(out),
-                 "--weights", "noise", "--rcond", "1e-5"]) == 0
+    assert main(["identify", str(tmp / "poly.toml"), str(paths["points"]), str(paths["laser"]), "-o",
+                 str(out), "--weights", "noise", "--rcond", "1e-5", "--known-setup", str(paths["points"])]) == 0
     text = capsys.readouterr().out
     assert "weighting 1/noise per file" in text
     # a rich points + laser campaign determines every base parameter

@@ -65,8 +65,9 @@ def test_zero_parameters_give_nominal_kinematics(name):
 
 @pytest.mark.parametrize("name", MACHINES)
 @pytest.mark.parametrize("with_terms", [False, True])
-def test_casadi_model_matches_numpy_oracle(name, with_terms):
-    m = load_machine(name)
+@pytest.mark.parametrize("basis", ["bspline", "polynomial"])
+def test_casadi_model_matches_numpy_oracle(name, with_terms, basis):
+    m = load_machine(name).with_basis(basis)
     terms = extension_terms(m) if with_terms else []
     model = ErrorModel(m, terms)
     rng = np.random.default_rng(11)
@@ -82,9 +83,9 @@ def test_casadi_model_matches_numpy_oracle(name, with_terms):
 
 
 def test_hand_case_xfyz_positioning_and_yaw():
-    """EXX_1 = 10 um/m at x = 200 mm gives dx = 2 um; a yaw ECX_1 of X turns the table about the
+    """Polynomial basis: EXX_1 = 10 um/m at x = 200 mm gives dx = 2 um; a yaw ECX_1 of X turns the table about the
     workpiece origin, so the tool at (x, y) sees dy = +eps*x... with the table's inverse motion."""
-    m = load_machine("xfyz")
+    m = load_machine("xfyz").with_basis("polynomial")
     model = ErrorModel(m)
     p = np.zeros(model.n_params)
     p[model.param_names.index("EXX_1")] = 10e-3  # 10 um per metre
@@ -158,3 +159,28 @@ def test_model_file_errors(tmp_path):
     save_model(tmp_path / "x.json", fitted)
     with pytest.raises(InputError, match="made for a XFYZ machine"):
         load_model(tmp_path / "x.json", load_machine("cafxyz"))
+
+
+def test_hand_case_spline_component_and_spindle_tilt():
+    """One interior cubic B-spline coefficient: at its central knot B_j = 4/6 and its mean over the
+    range is h / L = 1 / n, so EXX = c (4/6 - 1/6). A spindle tilt A0S turns the tool about the gauge
+    point: with tool length L the tip moves by +L A0S along Y (first order)."""
+    m = load_machine("xfyz").with_basis("bspline", spline_range=(-300.0, 300.0), spline_intervals=6,
+                                        degree=3)
+    model = ErrorModel(m)
+    p = np.zeros(model.n_params)
+    # basis j = 3 spans intervals 0..3 (knots -300 .. -100 .. 100 mm), its centre knot is x = -100 mm
+    p[model.param_names.index("EXX_b3")] = 6e-3            # 6 um
+    d = deviation(model, [[-100.0, 0.0, 0.0]], p)[0]
+    np.testing.assert_allclose(d[0], 6e-3 * (4 / 6 - 1 / 6), rtol=0, atol=1e-12)
+    # outside the range the error stays at its end value (B_3 is 0 at x = 300, mean 1/6 removed)
+    d_out = deviation(model, [[350.0, 0.0, 0.0]], p)[0]
+    np.testing.assert_allclose(d_out[0], 6e-3 * (0.0 - 1 / 6), rtol=0, atol=1e-12)
+    p[:] = 0.0
+    p[model.param_names.index("A0S")] = 20e-6
+    c = model.default_context(2)
+    c[:, model.context_names.index("tool_length")] = [100.0, 200.0]
+    d = deviation(model, [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]], p, c)
+    # Rx(a) turns the tip at (0, 0, -L) below the gauge point to (0, +L sin a, -L cos a)
+    np.testing.assert_allclose(d[:, 1], [100.0 * np.sin(20e-6), 200.0 * np.sin(20e-6)], rtol=1e-12, atol=0)
+    np.testing.assert_allclose(d[:, 4], [-np.sin(20e-6)] * 2, rtol=1e-9, atol=0)

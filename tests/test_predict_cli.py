@@ -19,7 +19,8 @@ from mtcomp.models.reference import reference_deviation
 @pytest.fixture(scope="module")
 def model_file(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("predict")
-    machine = load_machine("cafxyz")
+    # polynomial basis: every linear-axis error is zero at the axis zero, which the hand cases use
+    machine = load_machine("cafxyz").with_basis("polynomial")
     model = ErrorModel(machine)
     rng = np.random.default_rng(40)
     values = np.where(model.base_mask, rng.normal(size=model.n_params), 0.0)
@@ -27,6 +28,12 @@ def model_file(tmp_path_factory):
     path = tmp / "model.json"
     save_model(path, FittedModel(model, ParameterSet(model.param_specs, values)))
     return tmp, path, model, values
+
+
+def _by_name(header, rows, names) -> np.ndarray:
+    """(n_rows, len(names)) floats of the named columns, blank cells NaN."""
+    return np.array([[float(r[header.index(n)]) if r[header.index(n)] != "" else np.nan for n in names]
+                     for r in rows])
 
 
 def _read(path):
@@ -49,9 +56,12 @@ def test_predict_points(model_file):
     assert main(["predict", "cafxyz", str(mpath), str(src), "-o", str(out)]) == 0
     header, rows = _read(out)
     in_header, in_rows = _read(src)
-    assert header == in_header + ["pred_dx_um", "pred_dy_um", "pred_dz_um", "pred_dn_um"]
+    preds = ["pred_dx_um", "pred_dy_um", "pred_dz_um", "pred_dn_um"]
+    assert header == in_header + [c for p in preds for c in (p, f"{p}_sd")]
     assert [r[:len(in_header)] for r in rows] == in_rows           # verbatim
-    pred = np.array([[float(v) for v in r[len(in_header):]] for r in rows])
+    pred = _by_name(header, rows, preds)
+    # a model written by hand carries no uncertainty: its standard errors are blank
+    assert np.isnan(_by_name(header, rows, [f"{p}_sd" for p in preds])).all()
     q = np.column_stack([xyz, abc[:, 0], abc[:, 2]])
     c = model.default_context(n)
     c[:, model.context_names.index("tool_length")] = 120.0
@@ -70,7 +80,8 @@ def test_predict_laser_and_ballbar(model_file):
     out = tmp / "las_pred.csv"
     assert main(["predict", "cafxyz", str(mpath), str(lpath), "-o", str(out)]) == 0
     header, rows = _read(out)
-    assert header[-2:] == ["pred_value_um", "pred_value_urad"]
+    assert header[-4:] == ["pred_value_um", "pred_value_um_sd", "pred_value_urad", "pred_value_urad_sd"]
+    rows = [[r[header.index(c)] for c in ("pred_value_um", "pred_value_urad")] for r in rows]
     # hand case for ECC: actual minus commanded angle = ECC_0 + c1 cos + s1 sin + c2 cos 2 + s2 sin 2
     names = list(model.param_names)
     th = np.radians(30.0)
@@ -90,7 +101,8 @@ def test_predict_laser_and_ballbar(model_file):
     out = tmp / "bb_pred.csv"
     assert main(["predict", "cafxyz", str(mpath), str(bpath), "-o", str(out)]) == 0
     header, rows = _read(out)
-    assert header[-1] == "pred_length_mm"
+    assert header[-2:] == ["pred_length_mm", "pred_length_mm_sd"]
+    rows = [[r[header.index("pred_length_mm")]] for r in rows]
     for row, q in zip(rows, ([100.0, 0, 0, 0, 0], [0, 100.0, 0, 0, 0])):
         ref = reference_deviation(model.machine, dict(zip(names, p)), q,
                                   {"tool_length": model.machine.tool_length})
@@ -120,7 +132,7 @@ def test_predict_kind_without_model_and_bad_input(model_file, capsys, monkeypatc
 
 def test_predict_uses_context_columns(tmp_path):
     # backlash on X: EXX += BL/2 * dir_x, so rows approached from + and - differ by BL in dx
-    machine = load_machine("xfyz")
+    machine = load_machine("xfyz").with_basis("polynomial")
     from mtcomp.models import Backlash
     model = ErrorModel(machine, [Backlash("X")])
     values = np.zeros(model.n_params)

@@ -39,7 +39,7 @@ def test_eq3_abbe_error_is_the_small_rotation_about_the_centre():
 
 
 def irc_truth():
-    m = load_machine("xfyz")
+    m = load_machine("xfyz").with_basis("polynomial")
     model = ErrorModel(m, [AbbeIRC("X", angles="C", static=True, position=True, feed=True)])
     p = ParameterSet(model.param_specs)
     p["ECX_1"], p["ECX_2"] = 2000e-6, -1500e-6          # a large yaw so the CSV digits do not matter
@@ -92,7 +92,7 @@ def test_seed_method_starts_the_joint_fit_of_velocity_files():
     # eq. 1 gives O per reading, then the yaw rate; both regressed on feed and position give start
     # values from which identify() fits the AbbeIRC term (at zero the yaw hides the centre)
     from mtcomp.identification.fit import identify
-    m = load_machine("xfyz")
+    m = load_machine("xfyz").with_basis("polynomial")
     model = ErrorModel(m, [AbbeIRC("X", angles="C", static=True, feed=True)])
     p = ParameterSet(model.param_specs)
     truth_values = {"ECX_1": 20e-6, "ECX_2": -15e-6, "ECX_3": 10e-6, "IRC_CX_x0": 120.0,

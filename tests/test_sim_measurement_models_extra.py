@@ -56,7 +56,7 @@ def test_thermal_features_names_and_values():
 
 
 def thermal_truth():
-    m = load_machine("xfyz")
+    m = load_machine("xfyz").with_basis("polynomial")
     model = ErrorModel(m, [ThermalDrift("time", ("time_h",)), ThermalDrift("spindle", ("spindle_heat_900",)),
                            ChannelDrift("spindle", ("spindle_heat_900",), ("ch1",))])
     p = ParameterSet(model.param_specs)
@@ -84,7 +84,7 @@ def test_thermal_channels_follow_their_drift_terms(tmp_path):
 
 
 def test_velocity_model_hand_formula_and_jacobian():
-    m = load_machine("xfyz")
+    m = load_machine("xfyz").with_basis("polynomial")
     model = ErrorModel(m, [AbbeIRC("X", angles="C", static=True, feed=True)])
     p = ParameterSet(model.param_specs)
     p["ECX_1"], p["ECX_2"] = 300e-6, -200e-6
@@ -120,7 +120,7 @@ M30
 
 
 def test_cmm_dn_is_the_ball_centre_deviation_along_the_normal(tmp_path):
-    m = load_machine("xfyz")
+    m = load_machine("xfyz").with_basis("polynomial")
     prog = tmp_path / "wall.nc"
     prog.write_text(WALL)
     truth = random_truth(m, np.random.default_rng(3), terms=[Backlash("Y")])
@@ -151,7 +151,7 @@ def test_cmm_dn_is_the_ball_centre_deviation_along_the_normal(tmp_path):
 
 
 def test_cmm_point_the_program_did_not_cut_is_refused(tmp_path):
-    m = load_machine("xfyz")
+    m = load_machine("xfyz").with_basis("polynomial")
     prog = tmp_path / "wall.nc"
     prog.write_text(WALL)
     plan = cmm_plan([[303.0, 0.0, -7.0], [303.0, 80.0, -7.0]], [[-1.0, 0, 0], [-1.0, 0, 0]], prog, 3.0)
@@ -162,7 +162,7 @@ def test_cmm_point_the_program_did_not_cut_is_refused(tmp_path):
 
 def test_cmm_on_the_seed001_bowl_finds_the_cutter_locations(tmp_path):
     from mtcomp.toolpaths.parts import write_bowl_program
-    m = load_machine("xfyz")
+    m = load_machine("xfyz").with_basis("polynomial")
     bowl = write_bowl_program(tmp_path / "bowl.nc", stepover_mm=1.0, step_mm=1.0)
     pick = np.random.default_rng(5).choice(len(bowl.contact_points), 100, replace=False)
     truth = random_truth(m, np.random.default_rng(6))

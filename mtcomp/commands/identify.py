@@ -20,6 +20,9 @@ def add_arguments(parser):
     parser.add_argument("--weights", choices=("unit", "noise"), default="unit",
                         help="unit: every residual in um or urad (default); noise: refit with "
                              "1/noise per file estimated from a first fit")
+    parser.add_argument("--known-setup", metavar="FILE", action="append", default=[],
+                        help="a points file whose instrument frame is the workpiece frame (no set-up "
+                             "translation and rotation is fitted for it); repeat for several")
     parser.add_argument("--rcond", type=float, default=None, metavar="R",
                         help="relative singular value below which a combination of parameters counts "
                              "as undetermined and is held at zero (default 1e-6)")
@@ -43,6 +46,7 @@ def run(args) -> int:
         raise InputError(f"--rcond must lie between 0 and 1, got {rcond}")
     datasets = [read_measurements(path) for path in args.data]
     result = identify(machine, datasets, hold=hold, weights=args.weights, rcond=rcond,
+                      known_setup=list(args.known_setup),
                       info={"command": "mtcomp identify " + " ".join(sys.argv[2:]) if len(sys.argv) > 2
                             else "mtcomp identify"})
     print(result.summary())

@@ -4,9 +4,12 @@ PRED.csv repeats every input column verbatim and adds ``pred_<column>`` per meas
 file's kind (SPEC section 5): points ``pred_dx_um, pred_dy_um, pred_dz_um`` (always) and
 ``pred_dn_um`` (when the file has dn_um); laser ``pred_value_um`` / ``pred_value_urad``; ballbar
 ``pred_length_mm``; thermal ``pred_disp_<name>_um`` (and cmm, velocity as registered). Context
-columns (feed, dir, t_s, temperatures, tool_mm) are used. Nuisance parameters of the file's set-up
-(laser zero offsets and optic slopes, ball-bar length offsets) are taken as zero: predicted laser
-readings are the model's deviations, so compare them with readings up to the set-up's zero offset.
+columns (feed, dir, t_s, temperatures, tool_mm) are used, with the context defaults the fit used.
+Each ``pred_<column>`` has its standard error ``pred_<column>_sd`` (blank where the data behind the
+model do not determine the prediction). A file that was part of the fit (recognised by its name) is
+predicted with its fitted set-up (laser zero offsets and optic slopes, tracker frame, ball-bar
+length offset), so PRED.csv reproduces the fit's residuals; any other file's set-up is unknown and
+taken as zero, and the command says so.
 """
 from __future__ import annotations
 
@@ -20,7 +23,9 @@ def add_arguments(parser):
 
 
 def run(args) -> int:
-    from ..measurement.readings import model_class_for
+    import sys
+
+    from ..identification.fit import predict_readings
     from ..io.atomic import check_output_path
     from ..measurement.files import read_measurements, write_csv_with_columns
     from ..machine import load_machine
@@ -30,11 +35,16 @@ def run(args) -> int:
     machine = load_machine(args.machine)
     fitted = load_model(args.model, machine)
     data = read_measurements(args.data)
-    cls = model_class_for(data.kind, args.data)
-    mm = cls(fitted.model, data, fitted.context_defaults, machine=machine)
-    columns = mm.predict_columns(fitted.params.values, mm.zero_nuisance())
-    ordered = {name: columns[name] for name in data.prediction_columns if name in columns}
-    ordered.update({k: v for k, v in columns.items() if k not in ordered})
+    pred = predict_readings(fitted, data, machine)
+    columns = pred.columns
+    for note in pred.notes:
+        print(f"note: {note}", file=sys.stderr)
+    ordered = {}
+    for name in list(data.prediction_columns) + [k for k in columns if not k.endswith("_sd")]:
+        if name in columns and name not in ordered:
+            ordered[name] = columns[name]
+            if f"{name}_sd" in columns:
+                ordered[f"{name}_sd"] = columns[f"{name}_sd"]
     write_csv_with_columns(out, data, ordered, internal_units=False)
     print(f"wrote {out}: {len(data)} rows, columns {', '.join(ordered)}")
     return 0

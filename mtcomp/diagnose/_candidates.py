@@ -86,7 +86,11 @@ def generate(st, design, extra: np.ndarray, resid: np.ndarray, chosen_keys: set[
             def bl(s, k=k, a=a):
                 return (0.5 * s.dirs[:, k] * s.g[a])[:, None]
             out.append(Candidate("rotary_backlash" if rotary else "backlash", a, "step", bl(st),
-                                 [Backlash(a)], [f"BL_{a}"], build=bl))
+                                 [Backlash(a)], [f"BL_{a}"], rivals=f"backlash:{a}",
+                                 info={"complexity": 0}, build=bl))
+            profile = _backlash_profile_candidate(st, a, k, reads)
+            if profile is not None:
+                out.append(profile)
         if not rotary:
             feeds = _feeds(st, reads)
             if feeds.size >= 2:
@@ -108,6 +112,31 @@ def generate(st, design, extra: np.ndarray, resid: np.ndarray, chosen_keys: set[
             out.extend(_pdge_candidates(st, a))
     out.extend(_thermal_candidates(st, design, extra))
     return [c for c in out if c.key not in chosen_keys and _significant(c.columns, 1.0)]
+
+
+def _backlash_profile_candidate(st, a: str, k: int, reads) -> Candidate | None:
+    """Backlash whose reversal varies along a linear axis (a bidirectional pitch table's shape), on
+    the axis's own spline basis: the step's column plus one per zero-mean spline function. Offered
+    only where both directions are read at three or more distinct positions; the selection takes it
+    over the constant step only when held-out data earn the extra parameters."""
+    ax = st.machine.axis(a)
+    if ax.is_rotary or ax.basis != "bspline":
+        return None
+    x = st.q[reads, k]
+    both = [v for v in np.unique(np.round(x, 3))
+            if np.any((np.abs(x - v) < 1e-3) & (st.dirs[reads, k] > 0))
+            and np.any((np.abs(x - v) < 1e-3) & (st.dirs[reads, k] < 0))]
+    if len(both) < 3:
+        return None
+    term = Backlash(a, profile=True)
+    names = [s.name for s in term.param_specs(st.machine)]
+
+    def cols(s, k=k, a=a):
+        step = 0.5 * s.dirs[:, k] * s.g[a]
+        phis = s.machine.axis(a).spline().functions(s.q[:, k], False)
+        return np.column_stack([step] + [step * phi for phi in phis])
+    return Candidate("backlash", a, "profile", cols(st), [term], names, rivals=f"backlash:{a}",
+                     info={"complexity": 1}, build=cols)
 
 
 def _abbe_candidates(st, a: str) -> list[Candidate]:

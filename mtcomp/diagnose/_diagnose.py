@@ -114,10 +114,11 @@ class Diagnosis:
     rejected: list = field(default_factory=list)
     reference: dict = field(default_factory=dict)
     folds_of_observations: np.ndarray | None = None
+    outliers: list = field(default_factory=list)
 
     @property
     def noise_um(self) -> float:
-        n = self.noise.get("um") or self.noise.get("urad")
+        n = self.noise.get("um") or self.noise.get("urad") or self.noise.get("um/min")
         return float(n.sigma) if n else float("nan")
 
     def to_dict(self) -> dict:
@@ -127,7 +128,9 @@ class Diagnosis:
         return _finite({"verdict": self.verdict, "noise_um": _r(self.noise_um),
                         "noise": noise, "base": self.base, "findings": [f.to_dict() for f in self.findings],
                         "final": self.final, "heldout": self.folds, "n_observations": self.n_obs,
-                        "rejected": self.rejected, "reference": self.reference})
+                        "rejected": self.rejected, "reference": self.reference,
+                        "outliers": [{"file": o.path, "row": o.row, "column": o.column, "value": o.value,
+                                      "off_median_of_repeats": o.deviation} for o in self.outliers]})
 
     def summary(self) -> str:
         """The printed report: noise, base fit, each finding with evidence and gain, final fit."""
@@ -192,6 +195,21 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
     say = progress or (lambda s: None)
     if not datasets:
         raise InputError("no measurement files given")
+    # the base model's resolution follows the data, as identify's does
+    from ..machine import with_data_basis
+    from ..measurement.readings import data_positions
+    machine = with_data_basis(machine, data_positions(machine, datasets))
+    from ..measurement.outliers import OUTLIER_K, find_outliers
+    cleaned, outliers = [], []
+    for d in datasets:
+        d, found = find_outliers(d)
+        cleaned.append(d)
+        outliers += found
+    datasets = cleaned
+    if outliers:
+        say(f"{len(outliers)} reading(s) more than {OUTLIER_K:g} robust standard deviations off their "
+            f"repeats left out: " + "; ".join(str(o) for o in outliers[:5])
+            + ("; ..." if len(outliers) > 5 else ""))
     st = build_stack(machine, datasets)
     say(f"{len(st)} observations in {len(datasets)} file(s); probe model with {st.probe.n_params} "
         "parameters")
@@ -231,7 +249,7 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
     findings: list[Finding] = []
     rejected: list[dict] = []
     extra = np.zeros((len(st), 0))
-    noise_main = noise.get("um") or noise.get("urad")
+    noise_main = noise.get("um") or noise.get("urad") or noise.get("um/min")
     n = len(st)
     while len(chosen) < max_findings:
         if _heldout(st, current) <= noise_main.sigma:
@@ -298,6 +316,9 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
     diag = Diagnosis(verdict, noise, base_metrics, findings, final_metrics, model, how, len(st),
                      rejected=rejected, reference=reference)
     diag.folds_of_observations = folds
+    diag.outliers = outliers
+    from ..measurement.readings import data_support
+    model.support = data_support(st.machine, datasets)
     diag.seconds = time.perf_counter() - t0
     model.info["diagnose"] = diag.to_dict()
     return diag

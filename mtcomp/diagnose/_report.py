@@ -44,6 +44,15 @@ def evidence_and_params(st, c, theta, before_fit, after_fit, rivals, noise):
                   f"{stp.se:.2g}); the base model has no direction dependence")
         else:
             ev = f"Readings of {a} split by approach direction with a step of {mag:.3g} {unit}"
+        if c.variant == "profile":
+            ax = st.machine.axis(a)
+            s_grid = np.linspace(*ax.spline_range, 101) if ax.spline_range else np.linspace(*ax.travel, 101)
+            phis = np.array(ax.spline().functions(s_grid, False))
+            prof = (theta[0] + theta[1:] @ phis) * scale
+            params.update({f"reversal_min_{unit}": round(float(prof.min()), 4),
+                           f"reversal_max_{unit}": round(float(prof.max()), 4)})
+            ev += (f"; the reversal varies along {a} from {prof.min():.3g} to {prof.max():.3g} {unit}"
+                   f" (held-out data prefer this profile to a constant step)")
         return params, ev
     if eff == "periodic_error":
         amp = float(np.hypot(theta[0], theta[1]) * 1e3)
@@ -158,6 +167,8 @@ def summary(diag) -> str:
           for u, n in diag.noise.items()]
     lines.append(f"observations: {diag.n_obs}; noise floor: {'; '.join(nz)}")
     lines.append(f"held-out evaluation: {diag.folds}")
+    for o in diag.outliers:
+        lines.append(f"left out as an outlier: {o}")
     b = diag.base
     lines.append(f"base model ({b['n_params']} parameters, {b['n_determined']} determined by the data): "
                  f"rms {_num(b.get('rms_um'))} um, held-out {_num(b.get('heldout_rms_um'))} um"

@@ -15,7 +15,8 @@ that need a shape chosen later (a period, a drift feature) are built from two pr
   (readings_extra.ThermalModel), so their drift columns use features minus the feature at
   that reading (``Stack.feature``).
 
-Units: observations ``y`` in file units (um for lengths, urad for angles; ball-bar lengths in um);
+Units: observations ``y`` in error units (um for lengths, urad for angles, um/min for velocities;
+ball-bar lengths in um), each unit its own class for the noise floor and the weights;
 parameters in internal units (mm, rad), so ``J`` is file unit per internal unit.
 """
 from __future__ import annotations
@@ -216,7 +217,8 @@ def build_stack(machine: Machine, datasets: list[MeasurementSet], extra_context=
         r = mm.obs_row
         cols = np.asarray(mm.obs_column, dtype=object).astype(str)
         scale = np.asarray(mm.obs_unit_scale, dtype=float).copy()
-        unit = np.where(np.char.endswith(cols, "_urad"), "urad", "um")
+        from ..identification.fit import error_unit
+        unit = np.array([error_unit(c) for c in cols], dtype=object).astype(str)
         scale = np.where(scale == 1.0, 1e3, scale)     # ball-bar lengths: mm -> um
         n = mm.n_obs
         parts["y"].append(mm.observed * scale)

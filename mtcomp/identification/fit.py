@@ -44,7 +44,8 @@ from ..machine import Machine
 from ..models.chain import ErrorModel
 from ..models.model_file import FittedModel
 from ..models.params import ParameterSet, ParamSpec
-from ..measurement.readings import MeasurementModel, measurement_model
+from ..machine import with_data_basis
+from ..measurement.readings import MeasurementModel, data_positions, data_support, measurement_model
 
 #: relative singular-value threshold below which a direction counts as undetermined
 DEFAULT_RCOND = 1e-6
@@ -57,9 +58,21 @@ NULL_WEIGHT = 1e-4
 NAME_SHARE = 0.1
 
 
+def error_unit(column: str) -> str:
+    """The unit a reading column's errors are weighed and reported in: 'urad' for angles, 'um/min'
+    for velocities (two-point velocity files, mm/min), 'um' for lengths and positions."""
+    column = str(column)
+    if column.endswith("_urad"):
+        return "urad"
+    if column.endswith("_mm_min"):
+        return "um/min"
+    return "um"
+
+
 def error_scale(column: str) -> float:
-    """Internal -> error unit of a reading column: 1e6 (urad) for '_urad' columns, else 1e3 (um)."""
-    return 1e6 if str(column).endswith("_urad") else 1e3
+    """Internal -> error unit of a reading column (:func:`error_unit`): 1e6 for urad, 1e3 for um and
+    um/min (internal mm and mm/min)."""
+    return 1e6 if error_unit(column) == "urad" else 1e3
 
 
 # ------------------------------------------------------------------------------------- results
@@ -92,10 +105,11 @@ class FileResiduals:
                 for c in dict.fromkeys(self.columns.tolist())}
 
     def rms_error_units(self) -> dict[str, float]:
-        """rms per error unit ('um' or 'urad'): lengths in mm are reported in um."""
+        """rms per error unit ('um', 'urad', 'um/min'): lengths in mm are reported in um."""
         out = {}
-        for unit in ("um", "urad"):
-            sel = np.array([(error_scale(c) == 1e6) == (unit == "urad") for c in self.columns], bool)
+        units = np.array([error_unit(c) for c in self.columns])
+        for unit in ("um", "urad", "um/min"):
+            sel = units == unit
             if sel.any():
                 scale = np.array([error_scale(c) / _file_scale(c) for c in self.columns[sel]])
                 out[unit] = float(np.sqrt(np.mean((self.residual[sel] * scale) ** 2)))
@@ -318,10 +332,12 @@ def _unique_tags(datasets) -> list[str]:
 
 
 def build_measurement_models(model: ErrorModel, datasets, context_defaults=None, machine=None,
-                             **options) -> list[MeasurementModel]:
+                             known_setup=(), **options) -> list[MeasurementModel]:
     """A measurement model per data set (MeasurementModel instances are passed through), with unique
-    tags (file stems, ``#2``... appended on repeats)."""
+    tags (file stems, ``#2``... appended on repeats). ``known_setup``: tags or paths of files whose
+    instrument frame is the workpiece frame."""
     out = []
+    known = {str(k) for k in known_setup}
     for d, tag in zip(datasets, _unique_tags(datasets)):
         if isinstance(d, MeasurementModel):
             out.append(d)
@@ -329,6 +345,8 @@ def build_measurement_models(model: ErrorModel, datasets, context_defaults=None,
             opts = dict(options)
             if machine is not None:
                 opts["machine"] = machine
+            if tag in known or str(d.path) in known:
+                opts["setup"] = "known"
             out.append(measurement_model(model, d, context_defaults, tag=tag, **opts))
         else:
             raise TypeError(f"not a measurement set: {type(d).__name__}")
@@ -337,7 +355,8 @@ def build_measurement_models(model: ErrorModel, datasets, context_defaults=None,
 
 def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, weights="unit",
              rcond: float = DEFAULT_RCOND, max_iterations: int = 20, tol: float = 1e-10,
-             context_defaults: dict | None = None, info: dict | None = None) -> IdentificationResult:
+             context_defaults: dict | None = None, info: dict | None = None,
+             known_setup=()) -> IdentificationResult:
     """Fit an error model to measurement files (all at once).
 
     Parameters
@@ -354,7 +373,12 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
     rcond : relative singular-value threshold for undetermined directions.
     max_iterations, tol : Gauss-Newton stops when the scaled step is below tol (relative).
     context_defaults : values of context channels the files lack.
+    known_setup : tags (file stems) or paths of points files whose instrument frame is the workpiece
+        frame (no set-up translation and rotation is fitted for them).
     Returns an :class:`IdentificationResult`.
+
+    Spline axes without fixed knots get them from the data first
+    (:func:`mtcomp.machine.with_data_basis`): the fitted model's structure follows what was measured.
     """
     t0 = time.perf_counter()
     fitted_in = machine_or_model if isinstance(machine_or_model, FittedModel) else None
@@ -368,16 +392,19 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
         raise TypeError("machine_or_model must be a Machine, ErrorModel or FittedModel")
     ctx_defaults = dict(fitted_in.context_defaults) if fitted_in is not None else {}
     ctx_defaults.update(context_defaults or {})
+    datasets = list(datasets)
+    model = model_for_data(model, datasets)
     p0 = np.zeros(model.n_params)
     if fitted_in is not None:
-        p0 = fitted_in.params.values.copy()
+        p0 = fitted_in.params.reindexed(model.param_specs).values
     if initial is not None:
         p0 = np.asarray(initial, dtype=float).reshape(model.n_params).copy()
     mask = _free_mask(model, free, hold)
-    mms = build_measurement_models(model, list(datasets), ctx_defaults)
+    mms = build_measurement_models(model, datasets, ctx_defaults, known_setup=known_setup)
     if not mms or sum(m.n_obs for m in mms) == 0:
         raise InputError("no observations to fit (every measured cell is blank)")
     problem = _Problem(model, mms, mask, p0)
+    problem.metric = travel_metric(model, problem.free_idx, problem.n_unknowns)
 
     if isinstance(weights, str) and weights == "unit":
         w = problem.unit_weights()
@@ -399,7 +426,55 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
         raise ValueError(f"weights must be 'unit', 'noise' or a dict, not {weights!r}")
     sol = problem.solve(w, rcond, max_iterations, tol)
     result = problem.result(sol, w, label, ctx_defaults, time.perf_counter() - t0, info)
+    result.fitted_model.support = data_support(model.machine, datasets)
     return result
+
+
+def model_for_data(model: ErrorModel, datasets) -> ErrorModel:
+    """``model`` with the knots of its spline axes chosen from the data where the machine leaves them
+    open (the same terms)."""
+    m = model.machine
+    if not any(a.basis_from_data for a in m.linear_axes):
+        return model
+    return ErrorModel(with_data_basis(m, data_positions(m, datasets)), model.terms)
+
+
+#: poses drawn over the travel for the physical metric of :func:`travel_metric`
+METRIC_POSES = 256
+#: weight of the rms tool-tip error (um^2) of a weak direction in the fitted sum of squares: stiff,
+#: so that a direction the data see worse than their noise stays at the least error
+WEAK_PENALTY = 1e6
+#: a combination of parameters whose rms tool-tip error over the travel the data fix only to worse
+#: than this standard error (um) is held at the least error, like one they do not see at all
+WEAK_SD_UM = 1.0
+
+
+def travel_metric(model: ErrorModel, free_idx: np.ndarray, n_unknowns: int) -> np.ndarray:
+    """(n_unknowns, n_unknowns) M with ``x^T M x`` the mean squared tool-tip error (mm^2) over the
+    machine's travel that the fitted parameters x predict (to first order); zero for nuisance
+    parameters, which are not machine errors.
+
+    The poses are drawn uniformly over the travel of every axis (fixed seed), at the machine's tool
+    length and 100 mm longer, with random approach directions and feeds up to 5 m/min, so that
+    every term that acts somewhere in normal use has its weight. What the data do not determine is
+    resolved by the smallest ``x^T M x``: the smallest predicted error, in physical terms.
+    """
+    from ..measurement.readings import evaluate_chain
+    m = model.machine
+    rng = np.random.default_rng(20261123)
+    lo, hi = m.travel_bounds()
+    q = lo + (hi - lo) * rng.random((METRIC_POSES, m.n_axes))
+    c = model.default_context(METRIC_POSES)
+    names = model.context_names
+    c[:, names.index("tool_length")] = m.tool_length + 100.0 * rng.integers(0, 2, METRIC_POSES)
+    c[:, names.index("feed")] = 5000.0 * rng.random(METRIC_POSES)
+    for a in m.axis_names:
+        c[:, names.index(f"dir_{a}")] = rng.choice([-1.0, 1.0], METRIC_POSES)
+    J = evaluate_chain(model, "tip_jac", q, np.zeros(model.n_params), c)[1]   # (N, n_params, 3)
+    G = J.transpose(0, 2, 1).reshape(-1, model.n_params)[:, free_idx]
+    M = np.zeros((n_unknowns, n_unknowns))
+    M[:free_idx.size, :free_idx.size] = G.T @ G / METRIC_POSES
+    return M
 
 
 @dataclass
@@ -440,17 +515,21 @@ class _Problem:
             k += m.n_obs
         self.n_obs = k
         self.observed = np.concatenate([m.observed for m in mms])
+        self.metric = None      # (n_unknowns, n_unknowns) mean squared tip error over the travel, mm^2
 
     # --------------------------------------------------------------- weights
     def unit_weights(self):
         return np.concatenate([_error_scales(m.obs_column) for m in self.mms])
 
     def _groups(self):
-        """(file index, unit, observation index array) per file and error unit."""
+        """(file index, scale, observation index array) per file and error unit (um, urad and um/min
+        are separate groups: a velocity's noise is not a position's)."""
         for i, (m, sl) in enumerate(zip(self.mms, self.obs_slices)):
             scales = _error_scales(m.obs_column)
-            for s in np.unique(scales):
-                yield i, s, np.arange(sl.start, sl.stop)[scales == s]
+            units = np.array([error_unit(c) for c in m.obs_column])
+            for u in np.unique(units):
+                sel = units == u
+                yield i, scales[sel][0], np.arange(sl.start, sl.stop)[sel]
 
     def noise_weights(self, sol: "_Solution", w_used):
         """1/noise per file and unit from the residuals of a fit with weights ``w_used``: noise^2 =
@@ -540,32 +619,123 @@ class _Problem:
             out[so] = np.einsum("ij,ij->j", M, M)
         return out
 
+    # --------------------------------------------------------------- weak directions
+    def _weak_direction_penalty(self, A, sigma_w: float):
+        """(penalty matrix, the weak directions the data do see (n_unknowns, k) in x, to report as
+        undetermined): what the data barely see, held at the least predicted error.
+
+        With the files' set-ups marginalised out (Schur complement of the normal matrix), the
+        fitted parameters are whitened by the travel metric (||z|| = rms tool-tip error over the
+        travel, um). A direction z whose standard error ``sigma_w / s`` (sigma_w the rms weighted
+        residual, s the data's singular value per um) exceeds :data:`WEAK_SD_UM` is weak: the data
+        would fix its error over the travel only to worse than that. It gets a stiff penalty on its
+        own rms error, so the fit leaves it at the least error; directions the data see are fitted
+        without bias. Weak and strong directions are
+        orthogonal in the metric, so the result is the least-error completion of what the data
+        determine.
+        """
+        n_u = self.n_unknowns
+        P = np.zeros((n_u, n_u))
+        if self.metric is None:
+            return P, np.zeros((n_u, 0))
+        nf = self.n_free
+        App = A[:nf, :nf]
+        if n_u > nf:
+            Apn, Ann = A[:nf, nf:], A[nf:, nf:]
+            App = App - Apn @ scipy.linalg.pinvh(Ann) @ Apn.T
+        M = self.metric[:nf, :nf] * 1e6                 # um^2 of mean squared tip error per x^2
+        M = M + np.eye(nf) * (1e-12 * max(np.trace(M) / max(nf, 1), 1e-300))
+        L = np.linalg.cholesky(M)
+        Li = scipy.linalg.solve_triangular(L, np.eye(nf), lower=True)
+        H = Li @ App @ Li.T
+        evals, U = np.linalg.eigh(0.5 * (H + H.T))
+        is_weak = evals * WEAK_SD_UM ** 2 < sigma_w ** 2
+        weak = U[:, is_weak]
+        # seen, if weakly (above round-off): these count as undetermined in the report too
+        seen = U[:, is_weak & (evals > 1e-9 * max(evals.max(), 1e-300))]
+        out = np.zeros((n_u, seen.shape[1]))
+        if weak.shape[1]:
+            X = Li.T @ weak                               # weak directions in x (M-orthonormal)
+            Q = X @ X.T @ M                               # M-orthogonal projector onto them
+            P[:nf, :nf] = WEAK_PENALTY * (Q.T @ M @ Q)
+            out[:nf] = Li.T @ seen
+        return P, out
+
     # --------------------------------------------------------------- Gauss-Newton
     def solve(self, w, rcond, max_iterations, tol, leverage=False) -> _Solution:
+        """Gauss-Newton on the weighted residuals, in two passes.
+
+        What the data determine (rank, the undetermined combinations, which parameters are
+        determined) comes from the data alone: the eigen-decomposition of the column-scaled normal
+        matrix at the start point; undetermined directions stay at their start values. The first
+        pass fits the data alone. Knowing the residual scale, the directions whose rms tool-tip error
+        over the travel the data fix only to worse than :data:`WEAK_SD_UM` count as undetermined
+        too: the second pass holds them at the least predicted error
+        (:meth:`_weak_direction_penalty`), so that noise is never amplified into invented errors.
+        """
         x = np.zeros(self.n_unknowns)
         x[:self.n_free] = self.p0[self.free_idx]
         pred, A, g = self.normal_equations(x, w)
         r = w * (self.observed - pred)
-        norms = np.sqrt(np.clip(np.diag(A), 0.0, None))
-        scale = np.where(norms > 0, 1.0 / np.where(norms > 0, norms, 1.0), 1.0)
-        As = A * np.outer(scale, scale)
-        evals, V = np.linalg.eigh(As)
-        order = np.argsort(evals)[::-1]
-        evals, V = evals[order], V[:, order]
-        sv = np.sqrt(np.clip(evals, 0.0, None))
-        s_max = sv[0] if sv.size and sv[0] > 0 else 1.0
-        rel = sv / s_max
+        scale = _column_scale(A)
+        rel, V = _relative_singular_values(A * np.outer(scale, scale))
         keep = rel > rcond
-        B, null = V[:, keep], V[:, ~keep]
+        null = V[:, ~keep]
         rank = int(keep.sum())
         cond = float(rel[0] / rel[keep][-1]) if rank else np.inf
-        cost = float(r @ r)
+        P = np.zeros((self.n_unknowns, self.n_unknowns))
+        x, r, A, g, B, scale_p, AB, iterations, converged = self._gauss_newton(
+            x, r, A, g, P, w, rcond, max_iterations, tol, directions=V[:, keep], scale=scale)
+        dof0 = max(self.n_obs - rank, 0)
+        sigma_w = np.sqrt(float(r @ r) / dof0) if dof0 > 0 else 0.0
+        P, weak = self._weak_direction_penalty(A, sigma_w)
+        if weak.shape[1]:
+            # the weak directions new to the null space (those the data's null space does not
+            # already hold, up to round-off), in scaled coordinates, orthonormalised
+            Wk = weak / scale[:, None]
+            Wk = Wk / np.linalg.norm(Wk, axis=0, keepdims=True)
+            Wk = Wk - null @ (null.T @ Wk)
+            U_, sv_, _ = np.linalg.svd(Wk, full_matrices=False)
+            null = np.hstack([null, U_[:, sv_ > 1e-3]])
+            rank = self.n_unknowns - null.shape[1]
+            x, r, A, g, B, scale_p, AB, more, converged = self._gauss_newton(
+                x, r, A, g, P, w, rcond, max_iterations, tol)
+            iterations += more
+        dof = max(self.n_obs - rank, 0)
+        s2 = float(r @ r) / dof if dof > 0 else np.nan
+        lev = np.zeros(self.n_obs)
+        if B.shape[1]:
+            ABinv = scipy.linalg.pinvh(AB)
+            cov = s2 * (scale_p[:, None] * (B @ ABinv @ B.T) * scale_p[None, :])
+            if leverage:
+                lev = self.leverages(x, w, scale_p, B, np.linalg.cholesky(AB))
+        else:
+            cov = np.full((self.n_unknowns, self.n_unknowns), np.nan)
+        return _Solution(x, r, cov, null, scale, rel, rank, cond, iterations, converged, lev)
+
+    def _gauss_newton(self, x, r, A, g, P, w, rcond, max_iterations, tol, directions=None, scale=None):
+        """Minimise ``|r|^2 + x^T P x`` from x (with its residuals r and normal equations A, g) in
+        ``directions`` (scaled by ``scale``), by default those the data or P see. Returns (x, r, A,
+        g, B, scale, reduced matrix, iterations, converged)."""
+        if directions is None:
+            scale = _column_scale(A + P)
+            rel_p, V_p = _relative_singular_values((A + P) * np.outer(scale, scale))
+            directions = V_p[:, rel_p > rcond]
+        B = directions
+
+        def objective(r_, x_):
+            return float(r_ @ r_ + x_ @ P @ x_)
+
+        def reduced(A_):
+            return B.T @ ((A_ + P) * np.outer(scale, scale)) @ B
+
+        cost = objective(r, x)
         converged = False
         iterations = 0
-        AB = B.T @ As @ B
+        AB = reduced(A)
         for it in range(1, max_iterations + 1):
             iterations = it
-            dz = _step(B, AB, scale * g)
+            dz = _step(B, AB, scale * (g - P @ x))
             small = np.linalg.norm(dz) <= tol * (1.0 + np.linalg.norm(x / scale))
             x_new = x + scale * dz
             if small:
@@ -574,7 +744,7 @@ class _Problem:
             else:
                 pred_new, A_new, g_new = self.normal_equations(x_new, w)
             r_new = w * (self.observed - pred_new)
-            cost_new = float(r_new @ r_new)
+            cost_new = objective(r_new, x_new)
             step = 1.0
             while cost_new > cost * (1 + 1e-12) + 1e-300 and step > 1e-6:
                 # backtracking, rarely needed: the model is nearly linear in p
@@ -582,7 +752,7 @@ class _Problem:
                 x_new = x + step * scale * dz
                 pred_new = self.evaluate(x_new)
                 r_new = w * (self.observed - pred_new)
-                cost_new = float(r_new @ r_new)
+                cost_new = objective(r_new, x_new)
                 A_new = None
             if cost_new > cost * (1 + 1e-12) + 1e-300:
                 converged = True        # no descent along the Gauss-Newton step: at the minimum
@@ -594,19 +764,10 @@ class _Problem:
             if A_new is None:
                 _, A_new, g_new = self.normal_equations(x, w)
             A, g = A_new, g_new
-            As = A * np.outer(scale, scale)
-            AB = B.T @ As @ B
-        dof = max(self.n_obs - rank, 0)
-        s2 = cost / dof if dof > 0 else np.nan
-        lev = np.zeros(self.n_obs)
-        if rank:
-            ABinv = scipy.linalg.pinvh(AB)
-            cov = s2 * (scale[:, None] * (B @ ABinv @ B.T) * scale[None, :])
-            if leverage:
-                lev = self.leverages(x, w, scale, B, np.linalg.cholesky(AB))
-        else:
-            cov = np.full((self.n_unknowns, self.n_unknowns), np.nan)
-        return _Solution(x, r, cov, null, scale, rel, rank, cond, iterations, converged, lev)
+            AB = reduced(A)
+        if A is None:
+            _, A, g = self.normal_equations(x, w)
+        return x, r, A, g, B, scale, AB, iterations, converged
 
     # --------------------------------------------------------------- result
     def result(self, sol: _Solution, w, label, ctx_defaults, seconds, info) -> IdentificationResult:
@@ -650,8 +811,25 @@ class _Problem:
             sigma=float(np.sqrt(cost / dof)) if dof else float("nan"), iterations=sol.iterations,
             converged=sol.converged, cost=cost, seconds=seconds, weighting=label, info=dict(info or {}))
         params = ParameterSet(model.param_specs, values, std)
+        nf = self.n_free
+        null_p = (sol.scale[:, None] * sol.null)[:nf]
+        # directions that trade machine errors against a file's set-up (a constant against a laser
+        # zero ...) change readings only as a set-up would: predictions "up to the set-up" do not
+        # depend on them. Only directions among machine parameters alone leave predictions open.
+        keep = np.linalg.norm(sol.null[nf:], axis=0) < 1e-6
+        if self.metric is not None and null_p.shape[1]:
+            # each direction scaled to 1 um rms tool-tip error over the travel; those that move the
+            # tip nowhere (a turn about the tool axis ...) cannot change a prediction and are dropped
+            rms = np.sqrt(np.einsum("ik,ij,jk->k", null_p, self.metric[:nf, :nf], null_p))
+            keep &= rms > 1e-12 * np.linalg.norm(null_p, axis=0)
+            null_p = null_p * (1e-3 / np.where(rms > 0, rms, 1.0))
+        else:
+            keep &= np.linalg.norm(null_p, axis=0) > 0
+        uncertainty = {"names": tuple(model.param_names[i] for i in self.free_idx),
+                       "covariance": np.nan_to_num(sol.cov[:nf, :nf]), "undetermined": null_p[:, keep]}
         res.fitted_model = FittedModel(model, params, dict(ctx_defaults),
-                                       {"identify": res.to_dict(), **(info or {})})
+                                       {"identify": res.to_dict(), **(info or {})},
+                                       uncertainty=uncertainty)
         return res
 
 
@@ -662,6 +840,22 @@ def _error_scales(columns) -> np.ndarray:
     for name in set(columns.tolist()):
         out[columns == name] = error_scale(name)
     return out
+
+
+def _column_scale(A: np.ndarray) -> np.ndarray:
+    """1 / sqrt(diag A) (1 where the diagonal is zero): unit columns for the eigen-analysis."""
+    norms = np.sqrt(np.clip(np.diag(A), 0.0, None))
+    return np.where(norms > 0, 1.0 / np.where(norms > 0, norms, 1.0), 1.0)
+
+
+def _relative_singular_values(As: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(relative singular values s / s_max descending, eigenvectors) of a scaled normal matrix."""
+    evals, V = np.linalg.eigh(As)
+    order = np.argsort(evals)[::-1]
+    evals, V = evals[order], V[:, order]
+    sv = np.sqrt(np.clip(evals, 0.0, None))
+    s_max = sv[0] if sv.size and sv[0] > 0 else 1.0
+    return sv / s_max, V
 
 
 def _gram(J: np.ndarray) -> np.ndarray:
@@ -677,8 +871,11 @@ def _step(B, AB, gs):
     """Scaled Gauss-Newton step restricted to span(B): B (B^T As B)^-1 B^T gs."""
     if B.shape[1] == 0:
         return np.zeros(B.shape[0])
-    cho = scipy.linalg.cho_factor(AB)
-    return B @ scipy.linalg.cho_solve(cho, B.T @ gs)
+    try:
+        cho = scipy.linalg.cho_factor(AB)
+        return B @ scipy.linalg.cho_solve(cho, B.T @ gs)
+    except np.linalg.LinAlgError:       # round-off at the edge of the rank: the pseudo-inverse
+        return B @ (scipy.linalg.pinvh(AB) @ (B.T @ gs))
 
 
 def _name_null_space(null, scale, to_file, names, svals) -> list[UndeterminedCombination]:
@@ -706,3 +903,58 @@ def _name_null_space(null, scale, to_file, names, svals) -> list[UndeterminedCom
         out.append(UndeterminedCombination([(names[i], float(coef[i])) for i in idx],
                                            float(svals[j]) if j < len(svals) else 0.0))
     return out
+
+
+# ------------------------------------------------------------------------------------- predict
+@dataclass
+class Prediction:
+    """What :func:`predict_readings` returns.
+
+    columns : 'pred_<column>' -> (n_rows,) predicted readings, FILE units, and 'pred_<column>_sd'
+        -> its standard error (NaN where the data behind the model do not determine it).
+    setup_known : True when the file was part of the fit and its fitted set-up (laser zero, tracker
+        frame, bar calibration) is used; False: the set-up is unknown and taken as zero.
+    notes : lines for the user.
+    """
+
+    columns: dict
+    setup_known: bool
+    notes: list
+
+
+def stored_setup(fitted: FittedModel, mm: MeasurementModel) -> tuple[np.ndarray, bool]:
+    """The fitted set-up (nuisance) of a file that was part of the fit, recognised by its tag (file
+    stem), internal units; (zeros, False) when the model has none for it."""
+    stored = fitted.info.get("identify", {}).get("nuisance", {})
+    values = np.zeros(mm.n_nuisance)
+    for i, spec in enumerate(mm.nuisance_specs):
+        entry = stored.get(spec.name)
+        if not isinstance(entry, dict) or "value" not in entry:
+            return np.zeros(mm.n_nuisance), mm.n_nuisance == 0
+        values[i] = float(entry["value"]) / spec.to_file
+    return values, True
+
+
+def predict_readings(fitted: FittedModel, data: MeasurementSet, machine: Machine | None = None) -> Prediction:
+    """Predict every row of a measurement file with a fitted model: the same measurement model,
+    context defaults and set-up that :func:`identify` used, so that a file that was fitted is
+    reproduced exactly (its readings minus the prediction are the fit's residuals)."""
+    mm = build_measurement_models(fitted.model, [data], fitted.context_defaults, machine=machine)[0]
+    nuisance, known = stored_setup(fitted, mm)
+    p = fitted.params.values
+    columns = mm.predict_columns(p, nuisance)
+    jac = mm.column_jacobians(p)
+    notes = []
+    for name in list(columns):
+        if name in jac:
+            columns[f"{name}_sd"] = fitted.prediction_std(np.nan_to_num(jac[name]))
+            columns[f"{name}_sd"][~np.isfinite(columns[name])] = np.nan
+        else:
+            columns[f"{name}_sd"] = np.full(len(data), np.nan)
+    if fitted.uncertainty is None:
+        notes.append("the model carries no uncertainty (not written by mtcomp identify/diagnose): "
+                     "the _sd columns are blank")
+    if not known:
+        notes.append(f"{mm.tag} was not part of the fit: its set-up ({', '.join(s.name.split(':', 1)[1] for s in mm.nuisance_specs)}) "
+                     "is unknown and taken as zero; compare readings up to that set-up")
+    return Prediction(columns, known, notes)

@@ -80,6 +80,31 @@ def measurement_model(model: ErrorModel, data: MeasurementSet, context_defaults:
     return model_class_for(data.kind, data.path)(model, data, context_defaults, **options)
 
 
+def data_positions(machine, datasets) -> dict[str, np.ndarray]:
+    """Axis name -> every position that axis took in the files' rows (mm, rad); files without axis
+    positions (thermal) add nothing."""
+    out: dict[str, list] = {a: [] for a in machine.axis_names}
+    for d in datasets:
+        data = d.data if isinstance(d, MeasurementModel) else d
+        if not hasattr(data, "axis_positions") or len(data) == 0:
+            continue
+        q = np.asarray(data.axis_positions(machine), dtype=float)
+        for j, a in enumerate(machine.axis_names):
+            out[a].append(q[:, j])
+    return {a: np.concatenate(v) for a, v in out.items() if v}
+
+
+def data_support(machine, datasets) -> dict[str, tuple[float, float]]:
+    """The identified region: axis name -> (lowest, highest) position in the data, internal units. An
+    axis the data hold at one position has lo == hi; an axis no file positions is absent."""
+    out = {}
+    for a, v in data_positions(machine, datasets).items():
+        v = v[np.isfinite(v)]
+        if v.size:
+            out[a] = (float(v.min()), float(v.max()))
+    return out
+
+
 # ------------------------------------------------------------------------------------------ context
 def context_matrix(model: ErrorModel, data: MeasurementSet, context_defaults: dict | None = None,
                    machine=None, extra: dict | None = None) -> np.ndarray:
@@ -266,8 +291,13 @@ class MeasurementModel:
         raise NotImplementedError
 
     def predict_columns(self, p: np.ndarray, nuisance: np.ndarray | None = None) -> dict[str, np.ndarray]:
-        """'pred_<column>' -> (n_rows,) predicted readings in FILE units, for every row (SPEC 5)."""
+        """'pred_<column>' -> (n_rows,) predicted readings in FILE units, for every row."""
         raise NotImplementedError
+
+    def column_jacobians(self, p: np.ndarray) -> dict[str, np.ndarray]:
+        """'pred_<column>' -> (n_rows, n_params): derivative of each row's predicted reading (FILE
+        units) with respect to the model parameters (internal units); {} where not provided."""
+        return {}
 
     # -------------------------------------------------------------- shared helpers
     @property
@@ -322,7 +352,14 @@ class MeasurementModel:
 # ------------------------------------------------------------------------------------- points
 @register
 class PointsModel(MeasurementModel):
-    """Points files (SPEC 3.1): tip deviation d (workpiece frame), dn = n . d."""
+    """Points files: tip deviation d (workpiece frame), dn = n . d, as the file's instrument reads it.
+
+    A tracker, probe or CMM is aligned to the part, not to the machine, so each file has its own
+    set-up: a translation t and a small rotation w (about the centroid c of the file's nominal tips)
+    of the frame its deviations are reported in. The reading is ``d + t + w x (tip0 - c)`` (and ``n .``
+    of that for dn). Nuisance ``<tag>:setup:tx`` ``ty`` ``tz`` (um) and ``<tag>:setup:rx`` ``ry`` ``rz``
+    (urad). Option ``setup="known"``: the instrument's frame is the workpiece frame (no nuisance).
+    """
 
     kind = "points"
     COLUMNS = ("dx_um", "dy_um", "dz_um", "dn_um")
@@ -342,6 +379,19 @@ class PointsModel(MeasurementModel):
         self._rows, self._cols = np.nonzero(self._obs_mask)
         self._A = basis[self._rows, self._cols]          # (n_obs, 3)
         self._all_xyz = bool(self._obs_mask[:, :3].all() and not self._obs_mask[:, 3].any())
+        self._setup_design = np.zeros((self.n_obs, 0))
+        if self.options.get("setup", "free") != "known" and self.n_obs:
+            from ..kinematics import forward
+            tip0 = forward(self.machine, self.q)[0]
+            arm = tip0 - tip0[self._rows].mean(axis=0)
+            # d/dt = A; d/dw of A . (w x r) = r x A
+            self._setup_design = np.hstack([self._A, np.cross(arm[self._rows], self._A)])
+            for name, unit in (("tx", "um"), ("ty", "um"), ("tz", "um"),
+                               ("rx", "urad"), ("ry", "urad"), ("rz", "urad")):
+                self.nuisance_specs.append(ParamSpec(
+                    f"{self.tag}:setup:{name}", unit, f"nuisance:{self.tag}", False,
+                    f"set-up of {self.tag}: {'translation' if name[0] == 't' else 'rotation'} "
+                    f"{name[1]} of the instrument's frame"))
 
     def tip_deviation(self, p, jacobian: bool = False):
         """(n_rows, 3) tip deviation, mm (and (n_rows, 3, n_params) Jacobian when asked)."""
@@ -353,11 +403,12 @@ class PointsModel(MeasurementModel):
 
     def _evaluate(self, p, nuisance, jacobian):
         p, nuisance = self._check_p(p, nuisance)
+        setup = self._setup_design @ nuisance if self.n_nuisance else 0.0
         if not jacobian:
             d = self.tip_deviation(p)
-            return np.einsum("kj,kj->k", self._A, d[self._rows]), None, None
+            return np.einsum("kj,kj->k", self._A, d[self._rows]) + setup, None, None
         d, Jd = self.tip_deviation(p, jacobian=True)
-        pred = np.einsum("kj,kj->k", self._A, d[self._rows])
+        pred = np.einsum("kj,kj->k", self._A, d[self._rows]) + setup
         n, n_p = len(self.data), self.model.n_params
         if self._all_xyz:
             J = Jd.reshape(n * 3, n_p)          # observations are rows x (dx, dy, dz), row-major
@@ -369,10 +420,24 @@ class PointsModel(MeasurementModel):
             sel = self._cols == 3
             if sel.any():
                 J[sel] = np.einsum("kj,kjp->kp", self._A[sel], Jd[self._rows[sel]])
-        return pred, J, np.zeros((self.n_obs, 0))
+        return pred, J, self._setup_design
+
+    def column_jacobians(self, p):
+        _, Jd = self.tip_deviation(np.asarray(p, dtype=float), jacobian=True)
+        out = {f"pred_d{x}_um": Jd[:, j] * 1e3 for j, x in enumerate("xyz")}
+        if "dn_um" in self.data.measured:
+            out["pred_dn_um"] = np.einsum("ij,ijp->ip", self.normal, Jd) * 1e3
+        return out
 
     def predict_columns(self, p, nuisance=None):
-        d = self.tip_deviation(np.asarray(p, dtype=float))
+        p, nuisance = self._check_p(p, nuisance)
+        d = self.tip_deviation(p)
+        if self.n_nuisance:
+            # the set-up acts on every row alike: t + w x (tip0 - c), c the centroid of the observations
+            from ..kinematics import forward
+            tip0 = forward(self.machine, self.q)[0]
+            arm = tip0 - tip0[self._rows].mean(axis=0)
+            d = d + nuisance[:3] + np.cross(nuisance[3:], arm)
         out = {"pred_dx_um": d[:, 0] * 1e3, "pred_dy_um": d[:, 1] * 1e3, "pred_dz_um": d[:, 2] * 1e3}
         if "dn_um" in self.data.measured:
             given = np.all(np.isfinite(self.data.normal), axis=1)
@@ -467,6 +532,14 @@ class LaserModel(MeasurementModel):
             return pred, None, None
         return pred, J[self._rows], D[self._rows]
 
+    def column_jacobians(self, p):
+        _, J = self._readings(np.asarray(p, dtype=float), True)
+        out = {}
+        for col, scale, sel in (("value_um", 1e3, ~self.angular), ("value_urad", 1e6, self.angular)):
+            if col in self.data.value_columns:
+                out[f"pred_{col}"] = np.where(sel[:, None], J * scale, np.nan)
+        return out
+
     def predict_columns(self, p, nuisance=None):
         p, nuisance = self._check_p(p, nuisance)
         value, _ = self._readings(p, False)
@@ -509,6 +582,9 @@ class BallbarModel(MeasurementModel):
         if not jacobian:
             return pred, None, None
         return pred, J[self._rows], np.ones((self.n_obs, 1))
+
+    def column_jacobians(self, p):
+        return {"pred_length_mm": self._lengths(np.asarray(p, dtype=float), True)[1]}
 
     def predict_columns(self, p, nuisance=None):
         p, nuisance = self._check_p(p, nuisance)

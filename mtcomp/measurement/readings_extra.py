@@ -40,7 +40,7 @@ import numpy as np
 from ..errors import InputError
 from .files import Context, MeasurementSet
 from ..kinematics import forward
-from ..models.chain import ErrorModel, linear_component_names, polynomial_orders
+from ..models.chain import ErrorModel, linear_components
 from ..models.params import ParamSpec
 from ..models.terms import ANGLE_LETTERS, ChannelDrift
 from .readings import MeasurementModel, context_matrix, register
@@ -431,16 +431,11 @@ class CmmModel(MeasurementModel):
 
 # --------------------------------------------------------------------------------- velocity algebra
 def linear_axis_components(model: ErrorModel, axis: str, s, P: dict, C: dict) -> dict:
-    """The six component errors of linear ``axis`` at position s (SX), base polynomials plus every
+    """The six component errors of linear ``axis`` at position s (SX), base component errors plus every
     extension term's ``axis_errors``, as :meth:`ErrorModel._axis_transform` builds them."""
     m = model.machine
     ax = m.axis(axis)
-    comps = {}
-    for comp in linear_component_names(axis):
-        e = ca.SX(0)
-        for k in polynomial_orders(m, axis, comp):
-            e = e + P[f"{comp}_{k}"] * (s / 1000.0) ** k
-        comps[comp] = e
+    comps = linear_components(m, axis, s, P.__getitem__, ca.SX(0))
     for t in model.terms:
         for comp, e in t.axis_errors(m, ax, s, C, P, comps).items():
             comps[comp] = comps[comp] + e

@@ -43,6 +43,7 @@ import casadi as ca
 import numpy as np
 
 from ..machine import AXIS_DIRECTION, Machine
+from .basis import SLOPE_CARRIED_BY_SQUARENESS
 from .params import ParamSpec
 from .terms import ANGLE_LETTERS, TRANSLATION_LETTERS, Term, positioning_component
 
@@ -109,20 +110,58 @@ def rotary_motion_names(axis_name: str) -> list[str]:
     return [n for n in (f"E{d}{axis_name}" for d in TRANSLATION_LETTERS + ANGLE_LETTERS) if n != own]
 
 
-#: the linear (k = 1) term of a straightness that a squareness already carries: ISO 230-1 defines
-#: straightness about a reference straight line whose slope against the other axis IS the squareness,
-#: so the base model keeps only one of the two (they act identically on every measurement)
-SLOPE_CARRIED_BY_SQUARENESS = {"EXY": "C0Y", "EXZ": "B0Z", "EYZ": "A0Z"}
+def slope_carried(machine: Machine, comp: str) -> bool:
+    """True when a squareness of the machine carries the slope of straightness ``comp`` (ISO 230-1
+    defines straightness about a reference line whose slope against the other axis IS the squareness,
+    so the base model keeps only one of the two: they act identically on every measurement)."""
+    return SLOPE_CARRIED_BY_SQUARENESS.get(comp) in squareness_names(machine)
 
 
 def polynomial_orders(machine: Machine, axis_name: str, comp: str) -> list[int]:
     """Powers k of the base polynomial of component ``comp`` (e.g. 'EXY') of linear axis ``axis_name``:
-    1..degree, less k = 1 where the squareness carries the slope (:data:`SLOPE_CARRIED_BY_SQUARENESS`)."""
+    1..degree, less k = 1 where the squareness carries the slope (:func:`slope_carried`)."""
     ax = machine.axis(axis_name)
     orders = list(range(1, ax.degree + 1))
-    if SLOPE_CARRIED_BY_SQUARENESS.get(comp) in squareness_names(machine):
+    if slope_carried(machine, comp):
         orders.remove(1)
     return orders
+
+
+def component_terms(machine: Machine, axis_name: str, comp: str) -> list[str]:
+    """Suffixes of the parameters of component ``comp`` of linear axis ``axis_name``: ``b<j>`` for the
+    kept B-spline functions, or the powers ``1``, ``2`` ... of a polynomial."""
+    ax = machine.axis(axis_name)
+    if ax.basis == "bspline":
+        return [f"b{j}" for j in ax.spline().kept(slope_carried(machine, comp))]
+    return [str(k) for k in polynomial_orders(machine, axis_name, comp)]
+
+
+def linear_components(machine: Machine, axis_name: str, s, value, zero=0) -> dict:
+    """The six base component errors of linear axis ``axis_name`` at position s: {comp: E(s)}.
+
+    Works on numpy arrays and CasADi expressions alike. ``value(name)`` gives the parameter of that
+    name (e.g. 'EXX_b3'); ``zero`` starts each sum. The basis functions are evaluated once per axis
+    and shared by its six components.
+    """
+    ax = machine.axis(axis_name)
+    if ax.basis == "bspline":
+        spline = ax.spline()
+        phis = spline.functions_by_reference(s)
+    out = {}
+    for comp in linear_component_names(axis_name):
+        if ax.basis == "bspline":
+            funcs = phis[slope_carried(machine, comp)]
+        else:
+            funcs = [(s / 1000.0) ** k for k in polynomial_orders(machine, axis_name, comp)]
+        e = zero
+        for k, phi in zip(component_terms(machine, axis_name, comp), funcs):
+            e = e + value(f"{comp}_{k}") * phi
+        out[comp] = e
+    return out
+
+
+#: the tilt of the spindle (tool) axis against its nominal direction: about X and about Y (urad)
+SPINDLE_TILT = ("A0S", "B0S")
 
 
 def squareness_names(machine: Machine) -> list[str]:
@@ -151,9 +190,10 @@ def base_param_specs(machine: Machine) -> list[ParamSpec]:
     for ax in machine.linear_axes:
         for comp in linear_component_names(ax.name):
             angular = comp[1] in ANGLE_LETTERS
-            for k in polynomial_orders(machine, ax.name, comp):
+            for k in component_terms(machine, ax.name, comp):
+                what = f"B-spline coefficient {k[1:]}" if k.startswith("b") else f"coefficient of (s/1 m)^{k}"
                 specs.append(ParamSpec(f"{comp}_{k}", "urad" if angular else "um", f"{ax.name}:{comp}",
-                                       True, f"{comp}: coefficient of (s/1 m)^{k}"))
+                                       True, f"{comp}: {what}"))
     for name in squareness_names(machine):
         specs.append(ParamSpec(name, "urad", "squareness", True, f"squareness {name}"))
     for ax in machine.rotary_axes:
@@ -174,6 +214,9 @@ def base_param_specs(machine: Machine) -> list[ParamSpec]:
                 for cs in "cs":
                     specs.append(ParamSpec(f"{comp}_{cs}{k}", unit_, f"{ax.name}:{comp}", True,
                                            f"{comp}: harmonic {k} ({'cos' if cs == 'c' else 'sin'})"))
+    for name, about in zip(SPINDLE_TILT, "XY"):
+        specs.append(ParamSpec(name, "urad", "spindle", True,
+                               f"tilt of the tool axis about {about}, about the spindle gauge point"))
     specs.append(ParamSpec("TOOL_dL", "um", "tool", True, "tool length error (tip lower when > 0)"))
     return specs
 
@@ -269,6 +312,9 @@ class ErrorModel:
         tl = (ca.SX.eye(3), ca.SX.zeros(3))
         for name in m.tool_chain:
             tl = compose(tl, self._axis_transform(name, q[m.index(name)], P, C, par, errors))
+        # the tool axis tilted by the spindle tilt about the gauge point (0, 0, tool_length)
+        tilt = ca.mtimes(rot(1, par("B0S")), rot(0, par("A0S")))
+        tl = compose(tl, rot_about_point(tilt, ca.vertcat(0, 0, C["tool_length"])))
         tool2wp = compose(inverse(wp), tl)
         tip_local = ca.vertcat(0, 0, -par("TOOL_dL"))
         tip = ca.mtimes(tool2wp[0], tip_local) + tool2wp[1]
@@ -316,12 +362,10 @@ class ErrorModel:
             return (R, point + delta_m - ca.mtimes(R, point))
 
         # linear axis
-        comps = {}
-        for comp in linear_component_names(name):
-            e = ca.SX(0)
-            for k in polynomial_orders(m, name, comp):
-                e = e + par(f"{comp}_{k}") * (s / 1000.0) ** k
-            comps[comp] = e
+        if errors:
+            comps = linear_components(m, name, s, par, ca.SX(0))
+        else:
+            comps = {comp: ca.SX(0) for comp in linear_component_names(name)}
         centres = {a: ca.SX.zeros(3) for a in ANGLE_LETTERS}
         if errors:
             for t in self.terms:

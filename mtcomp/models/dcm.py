@@ -145,7 +145,15 @@ def tool_differential(model: ErrorModel, p, q, c=None) -> np.ndarray:
     Dt = np.zeros((q.shape[0], 6))
     for name, T in frames.items():
         Dt += np.einsum("nij,nj->ni", differential_change_matrix(T), D[name])
-    Dt[:, 2] -= dict(zip(model.param_names, np.asarray(p, dtype=float)))["TOOL_dL"]
+    P = dict(zip(model.param_names, np.asarray(p, dtype=float)))
+    Dt[:, 2] -= P["TOOL_dL"]
+    # spindle tilt eps = (A0S, B0S, 0) about the gauge point r = (0, 0, L) of the tool frame: the tip
+    # (origin) moves by r x eps
+    L = (model.default_context(q.shape[0]) if c is None else np.atleast_2d(c))[:, model.context_names.index("tool_length")]
+    Dt[:, 0] += -L * P.get("B0S", 0.0)
+    Dt[:, 1] += L * P.get("A0S", 0.0)
+    Dt[:, 3] += P.get("A0S", 0.0)
+    Dt[:, 4] += P.get("B0S", 0.0)
     return Dt
 
 

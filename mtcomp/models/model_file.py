@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -43,7 +43,13 @@ class FittedModel:
     context_defaults : values for context channels a data set may lack (e.g. reference temperatures).
     info : free-form provenance (fit summary, command line).
     support : axis name -> (lowest, highest) position the data reached, internal units (mm, rad);
-        axes that did not move in the data are absent. ``None``: the region is not known.
+        an axis the data hold at one position has lowest == highest; axes no file positions are
+        absent. ``None``: the region is not known.
+    uncertainty : None, or what the fit knows of its own precision, internal units:
+        ``{"names": (k,) fitted parameter names, "covariance": (k, k), "undetermined": (k, m)}``,
+        the covariance of those parameters and the m directions of them the data did not determine
+        (moving the parameters along one leaves every fitted reading unchanged), each scaled to the
+        size that predicts 1 um rms tool-tip error over the machine's travel.
     """
 
     model: ErrorModel
@@ -51,6 +57,26 @@ class FittedModel:
     context_defaults: dict = field(default_factory=dict)
     info: dict = field(default_factory=dict)
     support: dict | None = None
+    uncertainty: dict | None = None
+
+    def prediction_std(self, J: np.ndarray) -> np.ndarray:
+        """(n,) standard error of n predictions whose Jacobian with respect to ``params`` is J (n,
+        n_params), internal units; NaN where a prediction depends on a direction the data did not
+        determine, or where the model carries no uncertainty."""
+        J = np.atleast_2d(np.asarray(J, dtype=float))
+        if self.uncertainty is None:
+            return np.full(J.shape[0], np.nan)
+        idx = np.array([self.params.index(n) for n in self.uncertainty["names"]], dtype=int)
+        Jf = J[:, idx]
+        sd = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", Jf, self.uncertainty["covariance"], Jf), 0, None))
+        N = self.uncertainty["undetermined"]
+        if N.shape[1]:
+            # undetermined: a combination the data leave open, at the size of 1 um rms error over the
+            # travel, moves the prediction by more than 1 % of that (0.01 um or urad; J is in file
+            # units per internal unit)
+            along = np.abs(Jf @ N).max(axis=1)
+            sd = np.where(along > 0.01, np.nan, sd)
+        return sd
 
     @property
     def machine(self) -> Machine:
@@ -77,7 +103,38 @@ class FittedModel:
                 "parameters": self.params.to_json_dict(),
                 "context_defaults": dict(self.context_defaults),
                 **({} if self.support is None else {"support": support_to_file(self.machine, self.support)}),
+                **({} if self.uncertainty is None else {"uncertainty": uncertainty_to_file(self)}),
                 "info": self.info}
+
+
+def _file_factors(params: ParameterSet, names) -> np.ndarray:
+    return np.array([params.specs[params.index(n)].to_file for n in names])
+
+
+def uncertainty_to_file(fitted: "FittedModel") -> dict:
+    """The uncertainty in file units (um, urad ...): covariance f_i f_j C_ij, null directions f_i N_ij."""
+    u = fitted.uncertainty
+    f = _file_factors(fitted.params, u["names"])
+    N = f[:, None] * u["undetermined"]
+    return {"parameters": list(u["names"]), "covariance": (u["covariance"] * np.outer(f, f)).tolist(),
+            "undetermined": N.T.tolist()}
+
+
+def _uncertainty_from_file(params: ParameterSet, data, path) -> dict | None:
+    if data is None:
+        return None
+    try:
+        names = [str(n) for n in data["parameters"]]
+        cov = np.asarray(data["covariance"], dtype=float).reshape(len(names), len(names))
+        null = np.asarray(data["undetermined"], dtype=float).reshape(-1, len(names)).T
+    except (KeyError, TypeError, ValueError):
+        raise InputError("'uncertainty' must hold 'parameters', a square 'covariance' and "
+                         "'undetermined' directions", path) from None
+    unknown = [n for n in names if n not in params]
+    if unknown:
+        raise InputError(f"'uncertainty' names parameter {unknown[0]!r}, which the model lacks", path)
+    f = _file_factors(params, names)
+    return {"names": tuple(names), "covariance": cov / np.outer(f, f), "undetermined": null / f[:, None]}
 
 
 def support_to_file(machine: Machine, support: dict) -> dict:
@@ -146,12 +203,11 @@ def load_model(path: str | os.PathLike, machine: Machine | None = None) -> Fitte
         if machine.topology != file_machine.topology:
             raise InputError(f"model was made for a {file_machine.topology} machine, not "
                              f"{machine.topology}", p)
-        for a, b in zip(machine.axes, file_machine.axes):
-            if (a.degree, a.fourier_order, a.error_motion_order) != \
-                    (b.degree, b.fourier_order, b.error_motion_order):
-                raise InputError(f"model's axis {a.name} has another error-model structure than the "
-                                 "machine given (degree or Fourier orders differ)", p)
-        file_machine = machine  # travel, tool length and compensation: the given machine's
+        # travel, tool length and compensation limits: the given machine's; the error-model
+        # structure (bases, knots, Fourier orders): the model file's, which its parameters belong to
+        axes = tuple(replace(a, travel=b.travel, axis_point=b.axis_point)
+                     for a, b in zip(file_machine.axes, machine.axes))
+        file_machine = replace(machine, axes=axes)
     terms = tuple(term_from_dict(t, p) for t in data.get("terms", []))
     try:
         model = ErrorModel(file_machine, terms)
@@ -169,5 +225,6 @@ def load_model(path: str | os.PathLike, machine: Machine | None = None) -> Fitte
     if not isinstance(cd, dict):
         raise InputError("'context_defaults' must be an object", p)
     support = support_from_file(model.machine, data.get("support"), p)
+    uncertainty = _uncertainty_from_file(params, data.get("uncertainty"), p)
     return FittedModel(model, params, {str(k): float(v) for k, v in cd.items()}, data.get("info", {}),
-                       support)
+                       support, uncertainty)

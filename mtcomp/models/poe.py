@@ -39,8 +39,9 @@ Units: mm and rad; q (N, n_axes) in ``machine.axis_names`` order; p in ``model.p
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
-from .chain import (ErrorModel, linear_component_names, polynomial_orders, rotary_location_names,
+from .chain import (ErrorModel, linear_components, rotary_location_names,
                     rotary_motion_names)
 from .terms import ANGLE_LETTERS, TRANSLATION_LETTERS, positioning_component
 
@@ -161,11 +162,7 @@ def component_errors(model: ErrorModel, p: np.ndarray, q: np.ndarray) -> dict[st
                     e = e + P[f"{comp}_c{k}"] * np.cos(k * s) + P[f"{comp}_s{k}"] * np.sin(k * s)
                 comps[comp] = e
         else:
-            for comp in linear_component_names(ax.name):
-                e = np.zeros_like(s)
-                for k in polynomial_orders(model.machine, ax.name, comp):
-                    e = e + P[f"{comp}_{k}"] * (s / 1000.0) ** k
-                comps[comp] = e
+            comps = linear_components(model.machine, ax.name, s, P.__getitem__, np.zeros_like(s))
         out[ax.name] = comps
     return out
 
@@ -297,7 +294,18 @@ def poe_tool_pose(model: ErrorModel, p, q, c=None, errors: bool = True,
     g_ft = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
     for name in m.tool_chain:
         g_ft = g_ft @ A[name]
-    dL = float(dict(zip(model.param_names, p))["TOOL_dL"]) if errors else 0.0
+    P = dict(zip(model.param_names, p))
+    dL = float(P["TOOL_dL"]) if errors else 0.0
+    if errors and (P.get("A0S", 0.0) or P.get("B0S", 0.0)):
+        # spindle tilt: exp of two rotation twists about the gauge point r = (0, 0, L) (Y after X)
+        L = (model.default_context(n) if c is None else np.atleast_2d(c))[:, model.context_names.index("tool_length")]
+        R = Rotation.from_rotvec([0.0, P["B0S"], 0.0]).as_matrix() @ Rotation.from_rotvec([P["A0S"], 0.0, 0.0]).as_matrix()
+        r = np.zeros((n, 3))
+        r[:, 2] = L
+        tilt = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
+        tilt[:, :3, :3] = R
+        tilt[:, :3, 3] = r - r @ R.T
+        g_ft = g_ft @ tilt
     g_ft = g_ft @ exp_twist(np.array([0, 0, -1.0, 0, 0, 0]), np.full(n, dL))  # g_ft(0)
     g_wt = np.linalg.solve(g_fw, g_ft)
     return g_wt[:, :3, 3].copy(), g_wt[:, :3, 2].copy()

@@ -7,7 +7,11 @@ FeedOffset and AbbeIRC. Slow by design; use it only in tests.
 """
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
+from scipy.integrate import quad
+from scipy.interpolate import BSpline
 from scipy.spatial.transform import Rotation
 
 from ..machine import Machine
@@ -54,9 +58,48 @@ def reference_tool_pose(machine: Machine, params: dict, q, ctx: dict, terms=()):
                 T_wp = T_wp @ A
             else:
                 T_tool = T_tool @ A
+    # spindle tilt: the tool turns about the gauge point, about X by A0S then about Y by B0S
+    gauge = np.array([0.0, 0.0, ctx.get("tool_length", machine.tool_length)])
+    tilt = Rotation.from_euler("YX", [g("B0S"), g("A0S")]).as_matrix()
+    T_tool = T_tool @ _htm(t=gauge) @ _htm(R=tilt) @ _htm(t=-gauge)
     T = np.linalg.inv(T_wp) @ T_tool
     tip = (T @ np.array([0.0, 0.0, -g("TOOL_dL"), 1.0]))[:3]
     return tip, T[:3, 2]
+
+
+@lru_cache(maxsize=64)
+def _spline_pieces(lo, hi, n, k):
+    """scipy B-spline basis elements on n equal intervals of [lo, hi] (degree k), with the mean and the
+    least-squares slope of each over [lo, hi] from adaptive quadrature."""
+    h = (hi - lo) / n
+    knots = lo + h * np.arange(-k, n + k + 1)
+    elems = [BSpline.basis_element(knots[j:j + k + 2], extrapolate=False) for j in range(n + k)]
+    mid, length = 0.5 * (lo + hi), hi - lo
+    brk = list(lo + h * np.arange(1, n))
+    f = [lambda x, e=e: float(np.nan_to_num(e(x))) for e in elems]
+    mean = [quad(fj, lo, hi, points=brk, limit=200, epsabs=1e-13, epsrel=1e-11)[0] / length for fj in f]
+    sxx = length ** 3 / 12.0
+    slope = [quad(lambda x, fj=fj: fj(x) * (x - mid), lo, hi, points=brk, limit=200, epsabs=1e-13, epsrel=1e-11)[0] / sxx
+             for fj in f]
+    return f, mean, slope, mid
+
+
+def _spline_component(machine, ax, comp, s, g):
+    """E(s) of a B-spline component: sum over the parameters present of c_j (B_j - mean_j [- line_j]),
+    at s clipped to the spline range. Which straightness drops its slope: the one whose squareness
+    the machine has (EXY: C0Y, EXZ: B0Z, EYZ: A0Z)."""
+    lo, hi = ax.spline_range if ax.spline_range is not None else ax.travel
+    n = ax.spline_intervals or 8
+    f, mean, slope, mid = _spline_pieces(float(lo), float(hi), int(n), int(ax.degree))
+    sc = min(max(s, lo), hi)
+    names = set(machine.axis_names)
+    carried = {"EXY": {"X", "Y"}, "EXZ": {"X", "Z"}, "EYZ": {"Y", "Z"}}.get(comp, None)
+    carried = carried is not None and carried <= names
+    total = 0.0
+    for j in range(len(f)):
+        v = f[j](sc) - mean[j] - (slope[j] * (sc - mid) if carried else 0.0)
+        total += g(f"{comp}_b{j}") * v
+    return total
 
 
 def _linear(machine, ax, s, g, ctx, feed_m, terms):
@@ -65,7 +108,10 @@ def _linear(machine, ax, s, g, ctx, feed_m, terms):
     err = {}
     for d in XYZ + ABC:
         comp = f"E{d}{L}"
-        err[comp] = sum(g(f"{comp}_{k}") * sm ** k for k in range(1, ax.degree + 1))
+        if ax.basis == "bspline":
+            err[comp] = _spline_component(machine, ax, comp, s, g)
+        else:
+            err[comp] = sum(g(f"{comp}_{k}") * sm ** k for k in range(1, ax.degree + 1))
     centres = {a: np.zeros(3) for a in ABC}
     for t in terms:
         kind = type(t).__name__

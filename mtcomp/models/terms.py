@@ -69,24 +69,47 @@ class Backlash(Term):
     """Lost motion of an axis: its positioning error steps by ``BL_<axis>`` with the approach direction.
 
     ``E<axis><axis> += BL/2 * dir``, so that mean(up) - mean(down) = BL, the ISO 230-2 reversal value B
-    (SPEC: B is mean up minus mean down). Rotary axes: seed 002's rotary backlash, in urad.
+    (B is mean up minus mean down). Rotary axes: seed 002's rotary backlash, in urad.
+
+    ``profile=True`` (linear axes on a spline basis): the reversal varies along the axis, as a
+    bidirectional pitch table holds it: ``BL(s) = BL + sum_j BL_<axis>_b<j> phi_j(s)`` with the zero-mean
+    spline functions of the axis's own basis (mtcomp.models.basis), so ``BL`` stays the mean reversal.
     """
 
     axis: str
+    profile: bool = False
     kind = "backlash"
 
     def key(self):
         return f"backlash:{self.axis}"
 
+    def _profile_terms(self, machine) -> list[int]:
+        ax = machine.axis(self.axis)
+        if not self.profile:
+            return []
+        if ax.is_rotary or ax.basis != "bspline":
+            raise ValueError(f"a backlash profile needs a linear axis on a spline basis ({self.axis})")
+        return ax.spline().kept(False)
+
     def param_specs(self, machine):
         rotary = machine.axis(self.axis).is_rotary
-        return [ParamSpec(f"BL_{self.axis}", "urad" if rotary else "um", self.key(), False,
-                          f"reversal (backlash) of {self.axis}: mean up minus mean down")]
+        unit = "urad" if rotary else "um"
+        specs = [ParamSpec(f"BL_{self.axis}", unit, self.key(), False,
+                           f"reversal (backlash) of {self.axis}: mean up minus mean down")]
+        for j in self._profile_terms(machine):
+            specs.append(ParamSpec(f"BL_{self.axis}_b{j}", unit, self.key(), False,
+                                   f"reversal of {self.axis} along the axis: B-spline coefficient {j}"))
+        return specs
 
     def axis_errors(self, machine, axis, s, ctx, P, components):
         if axis.name != self.axis:
             return {}
-        return {positioning_component(self.axis): 0.5 * P[f"BL_{self.axis}"] * ctx[f"dir_{self.axis}"]}
+        reversal = P[f"BL_{self.axis}"]
+        terms = self._profile_terms(machine)
+        if terms:
+            for j, phi in zip(terms, axis.spline().functions(s, False)):
+                reversal = reversal + P[f"BL_{self.axis}_b{j}"] * phi
+        return {positioning_component(self.axis): 0.5 * reversal * ctx[f"dir_{self.axis}"]}
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,98 @@
+"""Readings that disagree with their own repeats: flagged, reported, and left out of a fit.
+
+A repeat group is the set of readings of one file taken at the same set-up of the machine: the same
+measured column, positions, approach directions, feed, tool and optic, in different runs. Within each
+group with three or more readings, a reading's deviation from the group's median is compared with the
+robust spread of all such deviations in the file (1.4826 times their median absolute value, the
+normal-consistent MAD). A reading more than :data:`OUTLIER_K` robust standard deviations off is an
+outlier: a glitch of the first run after homing, a bumped optic. It stays in the file and in every
+report; a fit leaves it out and says which rows.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .files import LaserData, MeasurementSet, PointsData
+
+#: robust standard deviations beyond which a reading is an outlier of its repeat group
+OUTLIER_K = 5.0
+
+
+@dataclass(frozen=True)
+class Outlier:
+    """One flagged reading: file, 1-based data row, column, value and its deviation from the median
+    of its repeats, both in file units."""
+
+    path: str
+    row: int
+    column: str
+    value: float
+    deviation: float
+
+    def __str__(self):
+        return (f"{self.path} row {self.row} {self.column} = {self.value:.4g} "
+                f"({self.deviation:+.3g} off the median of its repeats)")
+
+
+def _setup_keys(data: MeasurementSet) -> np.ndarray:
+    """(n,) integer id of each row's set-up (everything but the run, time and the reading)."""
+    ctx = data.context
+    parts = [np.round(np.nan_to_num(ctx.feed, nan=-1.0), 3)[:, None], ctx.dirs.astype(float)]
+    if isinstance(data, LaserData):
+        parts += [np.unique(data.axis, return_inverse=True)[1][:, None].astype(float),
+                  np.unique(data.component, return_inverse=True)[1][:, None].astype(float),
+                  np.round(data.target, 9)[:, None], data.dir.astype(float)[:, None],
+                  np.round(np.nan_to_num(data.xyz, nan=1e300), 6), np.round(np.nan_to_num(data.abc, nan=1e300), 9),
+                  np.round(data.optic, 6)]
+    else:
+        parts += [np.round(data.xyz, 6), np.round(data.abc, 9), np.round(np.nan_to_num(data.tool, nan=-1.0), 6)[:, None]]
+    keys = np.hstack(parts)
+    return np.unique(keys, axis=0, return_inverse=True)[1].ravel()
+
+
+def _flag(values: np.ndarray, groups: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(flag (n,), deviation from the group median (n,)) for one column of readings."""
+    n = values.size
+    dev = np.full(n, np.nan)
+    ok = np.isfinite(values)
+    for g in np.unique(groups[ok]):
+        idx = np.flatnonzero(ok & (groups == g))
+        if idx.size >= 3:
+            dev[idx] = values[idx] - np.median(values[idx])
+    have = np.isfinite(dev)
+    flag = np.zeros(n, dtype=bool)
+    if have.sum() < 6:
+        return flag, dev
+    scale = 1.4826 * float(np.median(np.abs(dev[have])))
+    if scale > 0:
+        flag[have] = np.abs(dev[have]) > OUTLIER_K * scale
+    return flag, dev
+
+
+def find_outliers(data: MeasurementSet) -> tuple[MeasurementSet, list[Outlier]]:
+    """(the set with outlying readings blanked, the outliers). Kinds other than laser and points
+    come back unchanged: they have no repeat structure to judge by."""
+    if not isinstance(data, (LaserData, PointsData)) or len(data) < 6:
+        return data, []
+    groups = _setup_keys(data)
+    found: list[Outlier] = []
+    if isinstance(data, LaserData):
+        flag, dev = _flag(data.value, groups)
+        if not flag.any():
+            return data, []
+        for i in np.flatnonzero(flag):
+            scale = 1e6 if data.angular[i] else 1e3
+            col = "value_urad" if data.angular[i] else "value_um"
+            found.append(Outlier(str(data.path), int(data.row[i]), col, data.value[i] * scale, dev[i] * scale))
+        return replace(data, value=np.where(flag, np.nan, data.value)), found
+    deviation = data.deviation.copy()
+    for j, col in enumerate(("dx_um", "dy_um", "dz_um")):
+        flag, dev = _flag(deviation[:, j], groups)
+        for i in np.flatnonzero(flag):
+            found.append(Outlier(str(data.path), int(data.row[i]), col, deviation[i, j] * 1e3, dev[i] * 1e3))
+        deviation[flag, j] = np.nan
+    if not found:
+        return data, []
+    return replace(data, deviation=deviation), found

@@ -1,0 +1,196 @@
+"""Smooth bases for the component errors of a linear axis: uniform B-splines (default) and polynomials.
+
+A component error of a linear axis (EXX, EYX, ..., ECX) is a linear combination of basis functions
+of the axis position ``s`` (mm):
+
+    E(s) = sum_j c_j phi_j(s)
+
+**B-splines** (``basis = "bspline"``): ``B_j`` are the uniform B-splines of degree k on ``n`` equal
+intervals of ``[lo, hi]`` (``n + k`` functions; Eilers & Marx's P-spline basis). Each is written with
+truncated powers of its clipped local coordinate, which is exact, smooth and branch-free, so CasADi
+differentiates and compiles it like any other expression:
+
+    N_k(u) = 1/k! sum_{i=0}^{k+1} (-1)^i C(k+1, i) (u - i)_+^k,   u clipped to [0, k+1]
+    B_j(s) = N_k((s - lo) / h - j + k),   h = (hi - lo) / n
+
+(the truncated powers are shared between neighbouring functions, see ``SplineBasis.raw``).
+
+Outside ``[lo, hi]`` the position is clipped: the error stays at its value at the nearer end. A model
+knows nothing there (see ``FittedModel.support``), and a constant continuation never runs away.
+
+A B-spline space holds the constants (the functions sum to one), and a reference for each component
+must be fixed, or the errors and the set-ups (laser zero, tracker origin) trade a constant against
+each other. mtcomp follows ISO 230-1: a component error is reported about a reference. For every
+component the **mean over [lo, hi] is zero**; for the straightnesses whose slope a squareness carries
+(EXY, EXZ, EYZ when the machine has C0Y, B0Z, A0Z) also the **least-squares slope over [lo, hi] is
+zero** (the squareness is the angle between the least-squares reference lines, as ISO 230-1
+defines it). So ``phi_j = B_j - (a_j + b_j (s - mid))`` with ``a_j + b_j (s - mid)`` the continuous
+least-squares line (or mean) of ``B_j`` over ``[lo, hi]``, computed exactly by Gauss-Legendre
+quadrature. One basis function (two for the straightnesses) carries nothing new after that, and is
+dropped: the first (and the last).
+
+**Polynomials** (``basis = "polynomial"``, the earlier default): ``phi_k(s) = (s / 1 m)^k`` for
+k = 1..degree, zero at the axis zero, less k = 1 for the straightnesses whose slope a squareness
+carries.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from math import comb, factorial
+
+import numpy as np
+
+#: component errors whose linear part (slope) a squareness carries (ISO 230-1 reference lines)
+SLOPE_CARRIED_BY_SQUARENESS = {"EXY": "C0Y", "EXZ": "B0Z", "EYZ": "A0Z"}
+
+
+def _clip(x, lo, hi):
+    """Works on numpy arrays and CasADi expressions alike."""
+    try:
+        import casadi as ca
+        if isinstance(x, (ca.SX, ca.MX)):
+            return ca.fmin(ca.fmax(x, lo), hi)
+    except ImportError:     # pragma: no cover
+        pass
+    return np.minimum(np.maximum(x, lo), hi)
+
+
+def _positive_part(x):
+    try:
+        import casadi as ca
+        if isinstance(x, (ca.SX, ca.MX)):
+            return ca.fmax(x, 0)
+    except ImportError:     # pragma: no cover
+        pass
+    return np.maximum(x, 0.0)
+
+
+@dataclass(frozen=True)
+class SplineBasis:
+    """Uniform B-spline basis of one linear axis.
+
+    lo, hi : mm, the range the knots span. n_intervals : equal intervals. degree : 1 to 3.
+    """
+
+    lo: float
+    hi: float
+    n_intervals: int
+    degree: int = 3
+
+    def __post_init__(self):
+        if not self.hi > self.lo:
+            raise ValueError(f"spline range must have hi > lo, got [{self.lo}, {self.hi}]")
+        if self.n_intervals < 1 or not 1 <= self.degree <= 3:
+            raise ValueError("spline needs n_intervals >= 1 and degree 1..3")
+
+    @property
+    def n_basis(self) -> int:
+        return self.n_intervals + self.degree
+
+    @property
+    def h(self) -> float:
+        return (self.hi - self.lo) / self.n_intervals
+
+    @property
+    def mid(self) -> float:
+        return 0.5 * (self.lo + self.hi)
+
+    def raw(self, s):
+        """[B_j(s) for j in 0..n_basis-1], numpy arrays or CasADi expressions (s clipped to range).
+
+        With x = (s - lo) / h in [0, n], B_j(x) = N_k(x - j + k) is a sum of the truncated powers
+        T_m = (x - m)_+^k, m = j - k .. j + 1, which the functions share: each T_m is built once (for
+        m < 0 it is a plain power, x >= 0). Beyond B_j's support the terms cancel exactly in exact
+        arithmetic; in floating point to ~1e-16 (n + k)^k, far below any error an axis has.
+        """
+        k = self.degree
+        x = (_clip(s, self.lo, self.hi) - self.lo) / self.h
+        T = {}
+        for m in range(-k, self.n_intervals):
+            T[m] = (x - m) ** k if m < 0 else _positive_part(x - m) ** k
+        coef = [((-1) ** i) * comb(k + 1, i) / factorial(k) for i in range(k + 2)]
+        out = []
+        for j in range(self.n_basis):
+            b = 0
+            for i, c in enumerate(coef):
+                m = j - k + i
+                if m in T:          # T_m = 0 for m >= n (x <= n)
+                    b = b + c * T[m]
+            out.append(b)
+        return out
+
+    def functions_by_reference(self, s) -> dict:
+        """{False: functions(s, False), True: functions(s, True)} from one evaluation of the basis."""
+        mean, slope = self._moments
+        raw = self.raw(s)
+        sc = _clip(s, self.lo, self.hi)
+        out = {}
+        for carried in (False, True):
+            out[carried] = [raw[j] - mean[j] - (slope[j] * (sc - self.mid) if carried else 0.0)
+                            for j in self.kept(carried)]
+        return out
+
+    @cached_property
+    def _moments(self) -> tuple[np.ndarray, np.ndarray]:
+        """(a, b): least-squares line a_j + b_j (s - mid) of each B_j over [lo, hi] (exact quadrature)."""
+        g, w = np.polynomial.legendre.leggauss(4)      # exact for the quartic B_j(s) * s per interval
+        edges = np.linspace(self.lo, self.hi, self.n_intervals + 1)
+        s = (0.5 * (edges[1:, None] + edges[:-1, None]) + 0.5 * self.h * g[None, :]).ravel()
+        wt = np.tile(0.5 * self.h * w, self.n_intervals)
+        B = np.array(self.raw(s))                     # (n_basis, n_nodes)
+        L = self.hi - self.lo
+        x = s - self.mid
+        mean = B @ wt / L
+        slope = (B @ (wt * x)) / float(np.sum(wt * x * x))
+        return mean, slope
+
+    def kept(self, carried_slope: bool) -> list[int]:
+        """Indices of the basis functions a component keeps (the first, and the last when the slope
+        is carried elsewhere, are redundant after the reference is removed)."""
+        idx = list(range(1, self.n_basis))
+        if carried_slope:
+            idx = idx[:-1]
+        return idx
+
+    def functions(self, s, carried_slope: bool):
+        """[phi_j(s) for j in kept(carried_slope)]: B_j less its mean (and least-squares line), all
+        evaluated at the clipped position (constant beyond the range). numpy or CasADi."""
+        return self.functions_by_reference(s)[carried_slope]
+
+
+def auto_spline(positions, travel: tuple[float, float], max_basis: int = 16,
+                resolution_mm: float = 1e-3) -> tuple[float, float, int, int]:
+    """Knots that the data can determine: (lo, hi, n_intervals, degree) for one linear axis.
+
+    positions : every position the axis took in the data (mm). The range is that of the data; the
+    number of basis functions is the number of distinct positions (at ``resolution_mm``), at most
+    ``max_basis``, so that a laser run over m targets is followed at every target (a pitch table's
+    resolution), and a dense scan gets a smooth fit. Degree 3 when there are four or more functions,
+    less below. An axis that did not move gets the travel and one linear piece (its errors are
+    undetermined and held at zero).
+    """
+    pos = np.asarray(positions, dtype=float)
+    pos = pos[np.isfinite(pos)]
+    distinct = np.unique(np.round(pos / resolution_mm)) * resolution_mm if pos.size else pos
+    if distinct.size < 2:
+        return float(travel[0]), float(travel[1]), 1, 1
+    n_basis = int(min(distinct.size, max_basis))
+    degree = min(3, n_basis - 1)
+    return float(distinct[0]), float(distinct[-1]), n_basis - degree, degree
+
+
+#: the highest harmonic of a rotary axis's angular positioning error chosen from data
+MAX_FOURIER_ORDER = 6
+
+
+def auto_fourier_order(angles, resolution_rad: float = 1e-6) -> int:
+    """Harmonics of a rotary axis's positioning error that the data can determine: with m distinct
+    angles (modulo one turn) a Fourier series of order (m - 1) // 2 has no more coefficients than
+    angles; at most :data:`MAX_FOURIER_ORDER`."""
+    a = np.asarray(angles, dtype=float)
+    a = a[np.isfinite(a)]
+    if a.size == 0:
+        return 0
+    distinct = np.unique(np.round(np.mod(a, 2 * np.pi) / resolution_rad))
+    return int(min(MAX_FOURIER_ORDER, max(0, (distinct.size - 1) // 2)))
