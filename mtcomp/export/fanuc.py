@@ -76,10 +76,8 @@ def export(tables, sign: str | None = None, unit_um: float = 1.0, max_value: int
         if next_point + n * len(blocks) - 1 > MAX_POINT_NUMBER:
             raise InputError(f"the pitch error tables need more than {MAX_POINT_NUMBER + 1} points; "
                              "use a larger --grid-mm")
-        first = {}
-        cums = {}
+        first, cums = {}, {}
         for label, corr in blocks:
-            cum, _ = cumulative_units(corr, unit_mm, max_value)
             cums[label] = corr
             first[label] = next_point
             next_point += n
@@ -95,8 +93,7 @@ def export(tables, sign: str | None = None, unit_um: float = 1.0, max_value: int
                 offset = int(cum[i_ref])
                 par += [f"N3626 A{k} P{first['-']}", f"N3627 A{k} P{offset}"]
                 cum = cum - offset
-            inc = np.diff(np.r_[cum[0], cum])  # value at point n: change from n - 1 to n
-            inc[0] = 0 if n == 1 else inc[0]
+            inc = np.diff(np.r_[cum[0], cum])  # value at point n: change from n - 1 to n (first: 0)
             for i in range(n):
                 data.append(f"N{10000 + first[label] + i} P{int(inc[i])}")
                 csv.append(f"{a},{first[label] + i},{pos[i]:.6f},{label},{int(inc[i])},"
