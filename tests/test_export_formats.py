@@ -154,7 +154,8 @@ def read_siemens(text):
     while f"$AN_CEC_INPUT_AXIS[{t}]" in assign:
         n = len([k for k in assign if re.match(rf"\$AN_CEC\[{t},\d+\]", k)])
         lo, step = float(assign[f"$AN_CEC_MIN[{t}]"]), float(assign[f"$AN_CEC_STEP[{t}]"])
-        cec.append({"input": assign[f"$AN_CEC_INPUT_AXIS[{t}]"], "output": assign[f"$AN_CEC_OUTPUT_AXIS[{t}]"],
+        cec.append({"input": assign[f"$AN_CEC_INPUT_AXIS[{t}]"].strip("()"),
+                    "output": assign[f"$AN_CEC_OUTPUT_AXIS[{t}]"].strip("()"),
                     "direction": int(assign[f"$AN_CEC_DIRECTION[{t}]"]),
                     "positions": lo + step * np.arange(n),
                     "values": np.array([float(assign[f"$AN_CEC[{t},{i}]"]) for i in range(n)])})
@@ -214,28 +215,30 @@ def read_heidenhain_table(path):
 
 def test_heidenhain_com_tables_reproduce_the_model_with_backlash(fitted, model_path, tmp_path):
     out = export(model_path, tmp_path / "hh", "heidenhain")
-    for a in AXES:
-        cols, rows = read_heidenhain_table(out / f"{a}_{a}.COM")
-        assert cols[:3] == ["NR", "AXISPOS", a]
-        pos = np.array([float(r["AXISPOS"]) for r in rows])
-        val = np.array([float(r[a]) for r in rows])
-        j = AXES.index(a)
-        np.testing.assert_allclose(val, -predicted(fitted, a, pos, 1.0)[:, j], rtol=0, atol=6e-6)
-        if a == "X":
-            assert "BACKLASH" in cols
-            neg = val + np.array([float(r["BACKLASH"]) for r in rows])
-            np.testing.assert_allclose(neg, -predicted(fitted, a, pos, -1.0)[:, j], rtol=0, atol=1.1e-5)
-        else:
-            assert "BACKLASH" not in cols
-    cols, rows = read_heidenhain_table(out / "Y_X.COM")
-    pos = np.array([float(r["AXISPOS"]) for r in rows])
-    e = 0.5 * (predicted(fitted, "X", pos, 1.0) + predicted(fitted, "X", pos, -1.0))
-    np.testing.assert_allclose([float(r["Y"]) for r in rows], -e[:, 1], rtol=0, atol=6e-6)
     cma = (out / "AXIS.CMA").read_text().splitlines()
     head = cma[1].split()
     active = [line.split() for line in cma[2:-1] if line.split()[1:2] == ["*"]]
     assert len(active) == 1
-    assert dict(zip(head, active[0]))["X"] == "X_X.COM"
+    assigned = dict(zip(head, active[0]))
+    for a in AXES:
+        # [axis in a column of the .COM] = F(axis of the .CMA column the .COM is entered in)
+        cols, rows = read_heidenhain_table(out / assigned[a])
+        assert cols[:2] == ["NR", "AXISPOS"] and set(AXES) <= set(cols)
+        assert len(rows) <= 256
+        pos = np.array([float(r["AXISPOS"]) for r in rows])
+        e_f, e_r = predicted(fitted, a, pos, 1.0), predicted(fitted, a, pos, -1.0)
+        mean = 0.5 * (e_f + e_r)
+        j = AXES.index(a)
+        own = e_f[:, j] if a == "X" else mean[:, j]
+        np.testing.assert_allclose([float(r[a]) for r in rows], -own, rtol=0, atol=6e-6)
+        for d in AXES:
+            if d != a:
+                np.testing.assert_allclose([float(r[d]) for r in rows], -mean[:, AXES.index(d)],
+                                           rtol=0, atol=6e-6)
+        if a == "X":
+            np.testing.assert_allclose([float(r["BACKLASH"]) for r in rows], -e_r[:, j], rtol=0, atol=6e-6)
+        else:
+            assert "BACKLASH" not in cols
 
 
 # ------------------------------------------------------------------------------------ Fanuc

@@ -46,7 +46,7 @@ def _cec_table(lines, t_no, values, table, inp, out, direction, factor):
     step = (table.positions[1] - table.positions[0]) * factor if len(table.positions) > 1 else 0.0
     for n, v in enumerate(values):
         lines.append(f"$AN_CEC[{t_no},{n}]={_fmt(v)}")
-    lines += [f"$AN_CEC_INPUT_AXIS[{t_no}]={inp}", f"$AN_CEC_OUTPUT_AXIS[{t_no}]={out}",
+    lines += [f"$AN_CEC_INPUT_AXIS[{t_no}]=({inp})", f"$AN_CEC_OUTPUT_AXIS[{t_no}]=({out})",
               f"$AN_CEC_STEP[{t_no}]={_fmt(step)}", f"$AN_CEC_MIN[{t_no}]={_fmt(table.positions[0] * factor)}",
               f"$AN_CEC_MAX[{t_no}]={_fmt(table.positions[-1] * factor)}",
               f"$AN_CEC_DIRECTION[{t_no}]={direction}", f"$AN_CEC_MULT_BY_TABLE[{t_no}]=0",
