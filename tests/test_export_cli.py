@@ -85,3 +85,15 @@ def test_output_never_overwrites_the_model_and_kind_of_output_is_checked(tmp_pat
     assert main(["export", "xfyz", str(p), "--format", "klipper", "-o", str(tmp_path / "d")]) == 2
     assert "directory" in capsys.readouterr().err
     assert list(tmp_path.glob(".*part")) == []
+
+
+def test_a_model_without_errors_has_nothing_to_export(tmp_path, capsys):
+    zero = FittedModel.zero(ErrorModel(load_machine("xfyz")))
+    zero.support = {"X": (0.0, 10.0)}
+    p = tmp_path / "zero.json"
+    save_model(p, zero)
+    assert main(["export", "xfyz", str(p), "--format", "siemens", "-o", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err
+    assert "nothing to export: axis X: no table: the model predicts no error" in err
+    assert "axis Y: no table: the axis did not move" in err and err.count("\n") == 1
+    assert not (tmp_path / "s").exists()

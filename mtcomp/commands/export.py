@@ -77,7 +77,8 @@ def run(args) -> int:
                        what=args.format, anchors=anchors)
     tables = component_tables(fitted, grids, region, notes, source)
     if not tables.tables:
-        raise InputError("no axis has a region with data to tabulate; nothing to export", args.model)
+        why = "; ".join(n for n in tables.notes if n.startswith("axis ")) or "no axis has a region"
+        raise InputError(f"nothing to export: {why}", args.model)
     result = fmt.export(tables, comp_type=args.comp_type, sign=args.sign, unit_um=args.fanuc_unit_um,
                         max_value=args.fanuc_max_value)
     written = write_result(result, args.output, [args.model, args.machine])

@@ -36,6 +36,9 @@ import numpy as np
 from ..errors import InputError
 from ..models.evaluate import casadi_map_call, deviation
 
+#: below this (mm, rad) everywhere an axis table is zero: the model holds that axis's errors at zero
+ZERO = 1e-12
+
 #: the six component errors of an axis L, in the order of the table columns: E X L, E Y L, E Z L,
 #: E A L, E B L, E C L
 COMPONENT_LETTERS = "XYZABC"
@@ -295,7 +298,7 @@ def component_tables(fitted, grids: dict, region: dict | None = None,
     ref = reference_positions(machine, region)
     q_ref = np.array([ref[a] for a in machine.axis_names])
     zero, _ = model_errors(fitted, q_ref[None, :])
-    tables = {}
+    tables, dropped = {}, []
     for a, g in grids.items():
         g = np.asarray(g, dtype=float)
         q = np.tile(q_ref, (len(g), 1))
@@ -308,5 +311,11 @@ def component_tables(fitted, grids: dict, region: dict | None = None,
             # a rotary table turns the workpiece: its own error is minus the tool's rotation
             j = own_column(machine, a)
             fwd[:, j], rev[:, j] = -fwd[:, j], -rev[:, j]
+        if not (np.nanmax(np.abs(fwd)) > ZERO or np.nanmax(np.abs(rev)) > ZERO):
+            dropped.append(a)
+            continue
         tables[a] = AxisTable(a, ax.is_rotary, g, fwd, rev, ref, known)
-    return ComponentTables(machine, tables, list(notes or []), dict(source or {}))
+    notes = list(notes or [])
+    notes += [f"axis {a}: no table: the model predicts no error at all along it (its errors are held at "
+              "zero: no data determined them)" for a in dropped]
+    return ComponentTables(machine, tables, notes, dict(source or {}))
