@@ -94,6 +94,6 @@ def test_a_model_without_errors_has_nothing_to_export(tmp_path, capsys):
     save_model(p, zero)
     assert main(["export", "xfyz", str(p), "--format", "siemens", "-o", str(tmp_path / "s")]) == 2
     err = capsys.readouterr().err
-    assert "nothing to export: axis X: no table: the model predicts no error" in err
+    assert "nothing to export: " in err and "axis X: no table: the model predicts no error" in err
     assert "axis Y: no table: the axis did not move" in err and err.count("\n") == 1
     assert not (tmp_path / "s").exists()
