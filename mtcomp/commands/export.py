@@ -35,7 +35,7 @@ def add_arguments(parser):
                         help="clip the table of AXIS to LO..HI (mm or deg); repeat per axis")
     parser.add_argument("--max-points", type=int, default=None, metavar="N",
                         help="points per table the controller holds (default per format: linuxcnc "
-                             "256, siemens 125, heidenhain 1024, fanuc 128, isg 1024)")
+                             "256, siemens 125, heidenhain 256, fanuc 128, isg 1024)")
     parser.add_argument("--comp-type", type=int, choices=(0, 1), default=1,
                         help="linuxcnc COMP_FILE_TYPE: 1 trims (default), 0 actual positions")
     parser.add_argument("--sign", choices=("correction", "error"), default=None,

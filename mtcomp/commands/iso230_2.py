@@ -29,6 +29,10 @@ def run(args) -> int:
 
     out = check_output_path(args.json, args.laser) if args.json else None
     plot = check_output_path(args.plot, args.laser) if args.plot else None
+    if plot is not None:
+        import importlib.util
+        if importlib.util.find_spec("matplotlib") is None:
+            raise InputError("--plot needs matplotlib (pip install matplotlib)", args.plot)
     if out is not None and plot is not None and out.resolve() == plot.resolve():
         raise InputError("--json and --plot name the same file", args.json)
     names = [Path(p).name for p in args.laser]
