@@ -350,3 +350,31 @@ def test_klipper_skew_factors_are_the_angles_between_the_axes(fitted, model_path
         a = np.polyfit(sj, predicted(fitted, j, sj)[:, AXES.index(i)], 1)[0]
         b = np.polyfit(si, predicted(fitted, i, si)[:, AXES.index(j)], 1)[0]
         assert skew[f"{i.lower()}{j.lower()}_skew"] == pytest.approx(a + b, rel=0.05, abs=1e-8)
+
+
+# ------------------------------------------------------------------------------------ a rotary axis
+def test_rotary_table_matches_the_laser_reading_of_its_angular_positioning(tmp_path):
+    """The C table of a rotary table (CAFXYZ) against a second formulation: `mtcomp predict` of a
+    laser file of ECC readings (the measurement model: actual minus commanded angle of the table)."""
+    m = load_machine("cafxyz")
+    model = ErrorModel(m, (Backlash("C"),))
+    ps = ParameterSet(model.param_specs)
+    rng = np.random.default_rng(2)
+    for s in model.param_specs:
+        ps.set_file_value(s.name, rng.normal(0.0, 8.0))
+    p = tmp_path / "caf.json"
+    save_model(p, FittedModel(model, ps, support={"C": (-np.pi, np.pi)}))
+    assert main(["export", "cafxyz", str(p), "--format", "linuxcnc", "-o", str(tmp_path / "lc"),
+                 "--grid-deg", "10"]) == 0
+    nom, fwd, rev = read_linuxcnc_comp(tmp_path / "lc" / "c.comp", 1)
+    laser = tmp_path / "c.csv"
+    laser.write_text("axis,component,target_deg,dir,run,value_urad\n" + "".join(
+        f"C,ECC,{t:g},{d},1,\n" for t in [0.0, *nom] for d in (1, -1)))
+    assert main(["predict", "cafxyz", str(p), str(laser), "-o", str(tmp_path / "pred.csv")]) == 0
+    lines = (tmp_path / "pred.csv").read_text().splitlines()[1:]
+    pred = np.array([float(line.split(",")[-1]) for line in lines]).reshape(-1, 2)   # (dir +1, -1)
+    ref = pred[0].mean()
+    urad_per_deg = np.pi / 180 * 1e6
+    # trim = minus the error; 6 decimals of a degree = 0.017 urad
+    np.testing.assert_allclose(-fwd * urad_per_deg, pred[1:, 0] - ref, rtol=0, atol=0.01)
+    np.testing.assert_allclose(-rev * urad_per_deg, pred[1:, 1] - ref, rtol=0, atol=0.01)

@@ -97,11 +97,8 @@ def left_out(tables, carried: dict) -> tuple[list, dict]:
             how = carried.get((a, name))
             if not np.isfinite(peak):
                 if j >= 3:
-                    lines.append(f"{name}: not evaluated (the model's rotations are not available)")
+                    lines.append(f"{name} of axis {a}: not evaluated (the model's rotations are not available)")
                 continue
-            angular = j >= 3
-            if angular and (t.rotary and j == 3 + tables.machine.axis(a).direction_index):
-                angular = False  # the positioning error of a rotary axis, in urad
             scale, unit = (URAD_PER_RAD, "urad") if j >= 3 else (UM_PER_MM, "um")
             if peak * scale < 0.0005:
                 continue
@@ -109,6 +106,7 @@ def left_out(tables, carried: dict) -> tuple[list, dict]:
                     LINEAR: "what a straight line leaves (curvature)"}.get(how, "all of it")
             if what is None:
                 continue
+            # angular errors of linear axes act through arms; a rotary axis's own are its positioning
             extra = " (angular*)" if j >= 3 and not t.rotary else ""
             lines.append(f"{name} of axis {a}: left out {what}: up to {peak * scale:.3f} {unit}{extra}")
     if any(line.endswith("(angular*)") for line in lines):
