@@ -5,18 +5,12 @@ import pytest
 from mtcomp.cli import main
 from mtcomp.machine import load_machine
 from mtcomp.models import Backlash, ErrorModel, FittedModel, save_model
-from mtcomp.models.params import ParameterSet
+from test_export_formats import random_model
 
 
 def _model(tmp_path, support):
-    m = load_machine("xfyz")
-    model = ErrorModel(m, (Backlash("X"),))
-    ps = ParameterSet(model.param_specs)
-    rng = np.random.default_rng(3)
-    for s in model.param_specs:
-        ps.set_file_value(s.name, rng.normal(0.0, 20.0))
     p = tmp_path / "model.json"
-    save_model(p, FittedModel(model, ps, support=support))
+    save_model(p, random_model("xfyz", (Backlash("X"),), 3, 20.0, support))
     return p
 
 

@@ -31,16 +31,21 @@ SUPPORT = {"X": (-100.0, 200.0), "Y": (-50.0, 80.0), "Z": (-60.0, 0.0)}
 AXES = "XYZ"
 
 
+def random_model(machine: str, terms, seed: int, sd: float, support) -> FittedModel:
+    """A FittedModel whose every parameter is drawn from N(0, sd) in file units (um, urad)."""
+    model = ErrorModel(load_machine(machine), tuple(terms))
+    ps = ParameterSet(model.param_specs)
+    rng = np.random.default_rng(seed)
+    for s in model.param_specs:
+        ps.set_file_value(s.name, rng.normal(0.0, sd))
+    return FittedModel(model, ps, support=support)
+
+
 @pytest.fixture(scope="module")
 def fitted():
-    m = load_machine("xfyz")
-    model = ErrorModel(m, (Backlash("X"), PeriodicError("Y", 25.0)))
-    ps = ParameterSet(model.param_specs)
-    rng = np.random.default_rng(14)
-    for s in model.param_specs:
-        ps.set_file_value(s.name, rng.normal(0.0, 40.0))
-    ps.set_file_value("BL_X", -12.0)
-    return FittedModel(model, ps, support=dict(SUPPORT))
+    fm = random_model("xfyz", (Backlash("X"), PeriodicError("Y", 25.0)), 14, 40.0, dict(SUPPORT))
+    fm.params.set_file_value("BL_X", -12.0)
+    return fm
 
 
 @pytest.fixture(scope="module")
@@ -356,14 +361,8 @@ def test_klipper_skew_factors_are_the_angles_between_the_axes(fitted, model_path
 def test_rotary_table_matches_the_laser_reading_of_its_angular_positioning(tmp_path):
     """The C table of a rotary table (CAFXYZ) against a second formulation: `mtcomp predict` of a
     laser file of ECC readings (the measurement model: actual minus commanded angle of the table)."""
-    m = load_machine("cafxyz")
-    model = ErrorModel(m, (Backlash("C"),))
-    ps = ParameterSet(model.param_specs)
-    rng = np.random.default_rng(2)
-    for s in model.param_specs:
-        ps.set_file_value(s.name, rng.normal(0.0, 8.0))
     p = tmp_path / "caf.json"
-    save_model(p, FittedModel(model, ps, support={"C": (-np.pi, np.pi)}))
+    save_model(p, random_model("cafxyz", (Backlash("C"),), 2, 8.0, {"C": (-np.pi, np.pi)}))
     assert main(["export", "cafxyz", str(p), "--format", "linuxcnc", "-o", str(tmp_path / "lc"),
                  "--grid-deg", "10"]) == 0
     nom, fwd, rev = read_linuxcnc_comp(tmp_path / "lc" / "c.comp", 1)
