@@ -333,6 +333,37 @@ def test_isg_volumetric_csv_holds_every_component(fitted, model_path, tmp_path):
         assert np.max(np.abs(w_x)) > 1e-6 and np.max(np.abs(w_y)) > 1e-6
 
 
+def read_isg_ssfk(path):
+    """(positions mm, pos values mm, neg values mm or None) of a kw.ssfk list: 'key value' lines,
+    '#' comments, positions kw_startpos + i interval and values in 0.1 um (ISG's example)."""
+    kv = {}
+    for line in Path(path).read_text().splitlines():
+        if line.strip() and not line.startswith("#"):
+            k, v = line.split()
+            kv[k] = v if k == "kopf.log_achs_name" else int(v)
+    n, tenth = kv["kw.ssfk.kw_nr_max"], 1e-4
+    pos = (kv["kw.ssfk.kw_startpos"] + kv["kw.ssfk.interval"] * np.arange(n)) * tenth
+    up = np.array([kv[f"kw.ssfk.table[{i}].pos"] for i in range(n)]) * tenth
+    down = (np.array([kv[f"kw.ssfk.table[{i}].neg"] for i in range(n)]) * tenth
+            if kv["kw.ssfk.bilateral"] == 1 else None)
+    return pos, up, down
+
+
+def test_isg_leadscrew_lists_hold_the_error_with_backlash(fitted, model_path, tmp_path):
+    out = export(model_path, tmp_path / "isg", "isg")
+    for a in AXES:
+        pos, up, down = read_isg_ssfk(out / f"achskw_{a.lower()}.lis")
+        j = AXES.index(a)
+        e_f, e_r = predicted(fitted, a, pos, 1.0)[:, j], predicted(fitted, a, pos, -1.0)[:, j]
+        assert SUPPORT[a][0] - 1e-9 <= pos[0] and pos[-1] <= SUPPORT[a][1] + 1e-9
+        if a == "X":   # actual minus setpoint, each direction
+            np.testing.assert_allclose(up, e_f, rtol=0, atol=5.1e-5)
+            np.testing.assert_allclose(down, e_r, rtol=0, atol=5.1e-5)
+        else:
+            assert down is None
+            np.testing.assert_allclose(up, 0.5 * (e_f + e_r), rtol=0, atol=5.1e-5)
+
+
 # ------------------------------------------------------------------------------------ Klipper
 def read_klipper(path):
     section, out = None, {}
