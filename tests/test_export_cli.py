@@ -91,3 +91,10 @@ def test_a_model_without_errors_has_nothing_to_export(tmp_path, capsys):
     assert "nothing to export: " in err and "axis X: no table: the model predicts no error" in err
     assert "axis Y: no table: the axis did not move" in err and err.count("\n") == 1
     assert not (tmp_path / "s").exists()
+
+
+def test_region_shorter_than_a_grid_step_gets_no_table(tmp_path, capsys):
+    p = _model(tmp_path, {"X": (-20.0, 20.0), "Y": (0.0, 0.5)})
+    assert main(["export", "xfyz", str(p), "--format", "fanuc", "-o", str(tmp_path / "f")]) == 0
+    assert "axis Y: no table: its region is shorter than one grid step" in capsys.readouterr().err
+    assert "N3620 A2 " not in (tmp_path / "f" / "pitch_error.txt").read_text()

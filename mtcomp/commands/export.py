@@ -75,6 +75,9 @@ def run(args) -> int:
     anchors = reference_positions(machine, region) if getattr(fmt, "ANCHOR_AT_REFERENCE", False) else None
     grids = plan_grids(machine, region, max_points, args.grid_mm, args.grid_deg, fmt.INCLUDE_END,
                        what=args.format, anchors=anchors)
+    for a in [a for a, g in grids.items() if len(g) < 2]:
+        del grids[a]
+        notes.append(f"axis {a}: no table: its region is shorter than one grid step")
     tables = component_tables(fitted, grids, region, notes, source)
     if not tables.tables:
         why = "; ".join(n for n in tables.notes if n.startswith("axis ")) or "no axis has a region"
