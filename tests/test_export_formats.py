@@ -408,3 +408,18 @@ def test_rotary_table_matches_the_laser_reading_of_its_angular_positioning(tmp_p
     # trim = minus the error; 6 decimals of a degree = 0.017 urad
     np.testing.assert_allclose(-fwd * urad_per_deg, pred[1:, 0] - ref, rtol=0, atol=0.01)
     np.testing.assert_allclose(-rev * urad_per_deg, pred[1:, 1] - ref, rtol=0, atol=0.01)
+
+
+def test_linuxcnc_table_applied_as_linuxcnc_does_cancels_the_positioning_error(fitted, model_path, tmp_path):
+    """Closing the loop: command x + trim(x) (interpolated, forward or reverse column by direction)
+    and ask the model where the axis goes; what remains is second order (the error's slope times
+    the trim) plus interpolation between 1 mm grid points."""
+    out = export(model_path, tmp_path / "lc", "linuxcnc")
+    nom, fwd, rev = read_linuxcnc_comp(out / "x.comp", 1)
+    x = np.random.default_rng(7).uniform(SUPPORT["X"][0], SUPPORT["X"][1], 200)
+    for d, col in ((1.0, fwd), (-1.0, rev)):
+        cmd = x + np.interp(x, nom, col)
+        reached = cmd + predicted(fitted, "X", cmd, d)[:, 0]
+        before = predicted(fitted, "X", x, d)[:, 0]
+        assert np.max(np.abs(before)) > 5e-3
+        np.testing.assert_allclose(reached, x, rtol=0, atol=2e-3 * np.max(np.abs(before)))
