@@ -23,6 +23,8 @@ COMMANDS = {
     "predict": ("predict", "predict the readings of a measurement file from a model"),
     "render": ("render", "workpiece error map before and after compensation"),
     "iso230-2": ("iso230_2", "ISO 230-2 evaluation of laser positioning runs"),
+    "export": ("export", "the controller's own compensation tables (LinuxCNC, Siemens, Heidenhain, "
+               "Fanuc, ISG, Klipper)"),
 }
 
 

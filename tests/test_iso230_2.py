@@ -309,3 +309,60 @@ def test_real_ess_w42_drift_shows_in_repeatability(name):
     assert spread_um > 100
     ax = evaluate_iso230_2(data).axes["X"]
     assert max(ax.R_up, ax.R_down) * 1e3 >= math.sqrt(2) * spread_um * (1 - 1e-12)
+
+
+# ---- outliers, several files, the plot --------------------------------------------------------------
+# Hand case 3: three targets, five runs per direction. Every group reads 1 2 3 2 2 (+ the target in
+# um), s = sqrt((1 + 0 + 1 + 0 + 0) / 4) = sqrt(0.5), except up at 10 mm: 2 2 2 2 9. The median of the
+# six s_i is sqrt(0.5). The 9 departs from the median of the others (2) by 7; the spread allowed is
+# sqrt(0.5) sqrt(1 + pi / 8), so its score is 7 / (sqrt(0.5) sqrt(1 + pi / 8)) = 8.39 > 4: flagged.
+# The clean readings depart by at most 1 (score 1.2): not flagged.
+CASE3 = {(t, d): [1 + t, 2 + t, 3 + t, 2 + t, 2 + t] for t in (0, 10, 20) for d in (1, -1)}
+CASE3[(10, 1)] = [12, 12, 12, 12, 19]
+
+
+def test_outlier_rule_by_hand(tmp_path):
+    ax = evaluate_iso230_2(read_measurements(_laser(tmp_path, CASE3))).axes["X"]
+    assert len(ax.outliers) == 1
+    o = ax.outliers[0]
+    assert (o.target, o.dir, o.run) == (10.0, 1, 5)
+    assert o.value * 1e3 == pytest.approx(19, abs=1e-9)
+    assert o.departure * 1e3 == pytest.approx(7, abs=1e-9)
+    assert o.score == pytest.approx(7 / (math.sqrt(0.5) * math.sqrt(1 + math.pi / 8)), rel=1e-12)
+    clean = dict(CASE3)
+    clean[(10, 1)] = [11, 12, 13, 12, 12]
+    assert evaluate_iso230_2(read_measurements(_laser(tmp_path, clean, name="c.csv"))).axes["X"].outliers == ()
+
+
+@pytest.mark.skipif(not REAL.is_dir(), reason=f"real data folder {REAL} is absent")
+def test_real_outliers_are_the_first_readings_of_the_psi_cycle():
+    rep = evaluate_iso230_2(read_measurements(REAL / "psi_mcu1025_x.csv"))
+    assert [(o.run, o.row) for o in rep.axes["X"].outliers] == [(1, 1), (1, 2)]
+    assert any("outlier" in n for n in rep.notices)
+    assert evaluate_iso230_2(read_measurements(REAL / "ess_b02_y.csv")).axes["Y"].outliers == ()
+
+
+def test_cli_several_files_json_per_file_and_plot(tmp_path, capsys):
+    a = _laser(tmp_path, CASE1, name="a.csv")
+    b = _laser(tmp_path, CASE3, name="b.csv")
+    out, png = tmp_path / "iso.json", tmp_path / "runs.png"
+    assert main(["iso230-2", str(a), str(b), "--json", str(out), "--plot", str(png)]) == 0
+    text = capsys.readouterr().out
+    assert f"ISO 230-2 evaluation of {a}" in text and f"ISO 230-2 evaluation of {b}" in text
+    assert "outlier: target 10 mm, dir +1, run 5" in text
+    data = json.loads(out.read_text())
+    assert set(data) == {"a.csv", "b.csv"}
+    assert data["a.csv"]["X"]["B_um"] == pytest.approx(8, abs=1e-9)
+    assert data["b.csv"]["X"]["outliers"][0]["value_um"] == pytest.approx(19, abs=1e-9)
+    single = tmp_path / "one.json"
+    assert main(["iso230-2", str(a), "--json", str(single)]) == 0
+    assert json.loads(single.read_text()) == data["a.csv"]
+    image = pytest.importorskip("matplotlib.image").imread(png)
+    assert image.shape[0] > 400 and image.shape[1] > 400       # two panels, stacked
+
+
+def test_cli_plot_refused_onto_an_input(tmp_path, capsys):
+    a = _laser(tmp_path, CASE1, name="a.csv")
+    before = a.read_text()
+    assert main(["iso230-2", str(a), "--plot", str(a)]) == 2
+    assert "overwrite an input" in capsys.readouterr().err and a.read_text() == before

@@ -24,15 +24,25 @@ and for the axis:
 
 Arrays and values are in internal units: mm for linear axes, rad for rotary ones; :meth:`to_dict`
 gives um (linear) or urad and arcsec (rotary).
+
+Outlier readings are flagged, never removed (the standard evaluates every reading): at a target and
+direction with n >= 3 runs, a reading is an outlier when it departs from the median of the *other*
+runs there by more than ``OUTLIER_K`` = 4 times what the axis's repeatability allows,
+``s_ref sqrt(1 + pi / (2 (n - 1)))`` (the spread of a reading about a median of n - 1 others), with
+``s_ref`` the median of the axis's ``s_i_up`` and ``s_i_down``. Medians, so that one wild reading
+neither inflates the scale nor drags its neighbours over the line. For normal readings a false flag
+has a chance of about 1e-4 per reading.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
+from ..io.atomic import atomic_write
 from ..machine import ROTARY
 
 UM_PER_MM = 1e3
@@ -42,6 +52,8 @@ ARCSEC_PER_RAD = 180.0 / math.pi * 3600.0
 STANDARD_RUNS = 5
 #: targets closer than this (mm or rad) are the same target
 TARGET_TOLERANCE = 1e-9
+#: outlier rule: |reading - median of the other runs| > OUTLIER_K * s_ref * sqrt(1 + pi / (2 (n - 1)))
+OUTLIER_K = 4.0
 
 _PER_TARGET = ("mean_up", "mean_down", "mean", "reversal", "s_up", "s_down", "R_i_up", "R_i_down", "R_i")
 _PER_AXIS = ("A", "A_up", "A_down", "B", "B_mean", "E", "E_up", "E_down", "M", "R", "R_up", "R_down")
@@ -50,6 +62,21 @@ _PER_AXIS = ("A", "A_up", "A_down", "B", "B_mean", "E", "E_up", "E_down", "M", "
 def positioning_component(axis: str) -> str:
     """ISO 230-1 name of the positioning error of ``axis``: 'X' -> 'EXX', 'C' -> 'ECC'."""
     return f"E{axis}{axis}"
+
+
+@dataclass(frozen=True)
+class Outlier:
+    """A flagged reading: target (mm or rad), dir (+1 / -1), run, value (mm or rad), departure from
+    the median of the other runs at that target and direction (mm or rad), score (departure over its
+    expected spread), row (data row of the file)."""
+
+    target: float
+    dir: int
+    run: int
+    value: float
+    departure: float
+    score: float
+    row: int
 
 
 @dataclass(frozen=True, eq=False)
@@ -64,6 +91,8 @@ class AxisPositioning:
     s_up, s_down : (m,) estimators of the unidirectional repeatability standard uncertainty.
     R_i_up, R_i_down, R_i : (m,) unidirectional and bidirectional repeatability at each target.
     A, A_up, A_down, B, B_mean, E, E_up, E_down, M, R, R_up, R_down : axis figures (module docstring).
+    outliers : flagged readings (:class:`Outlier`, module docstring).
+    readings : the readings evaluated, {'target', 'dir', 'run', 'value'} -> (n,) arrays, for plots.
     """
 
     axis: str
@@ -92,6 +121,8 @@ class AxisPositioning:
     R: float
     R_up: float
     R_down: float
+    outliers: tuple = ()
+    readings: dict | None = None
 
     @property
     def unit(self) -> str:
@@ -124,6 +155,11 @@ class AxisPositioning:
         for unit, scale in units:
             for key in _PER_TARGET:
                 out[f"{key}_{unit}"] = [float(v) * scale for v in getattr(self, key)]
+        tgt = ("target_deg", 180.0 / math.pi) if self.rotary else ("target_mm", 1.0)
+        out["outliers"] = [{tgt[0]: o.target * tgt[1], "dir": o.dir, "run": o.run, "row": o.row,
+                            f"value_{self.unit}": o.value * self.scale,
+                            f"departure_{self.unit}": o.departure * self.scale, "score": o.score}
+                           for o in self.outliers]
         return out
 
     def table(self) -> str:
@@ -157,6 +193,11 @@ class AxisPositioning:
                 f = (lambda v, w=10: f"{'':>{w}}" if v is None else f"{v * sc:{w}.3f}")
                 cells += f"{f(up)} {f(down)} {f(bi, 12)}  "
             lines.append(f"{label:44}{cells}")
+        for o in self.outliers:
+            t = math.degrees(o.target) if self.rotary else o.target
+            lines.append(f"outlier: target {t:g} {tgt_unit}, dir {o.dir:+d}, run {o.run} (row {o.row}): "
+                         f"{o.value * s:.3f} {u}, {o.departure * s:+.3f} {u} from the median of the "
+                         f"other runs ({o.score:.1f} x the spread the repeatability allows)")
         return "\n".join(line.rstrip() for line in lines)
 
 
@@ -220,6 +261,7 @@ def evaluate_axis(axis: str, target: np.ndarray, direction: np.ndarray, run: np.
 
     m = len(targets)
     stats = {d: (np.zeros(m, dtype=np.int64), np.zeros(m), np.zeros(m)) for d in (1, -1)}
+    groups = []
     for k in range(m):
         for d, name in ((1, "+1 (up)"), (-1, "-1 (down)")):
             sel = np.flatnonzero((label == k) & (direction == d))
@@ -235,6 +277,7 @@ def evaluate_axis(axis: str, target: np.ndarray, direction: np.ndarray, run: np.
                                  f"estimate the repeatability ({STANDARD_RUNS} in the standard cycle)",
                                  path, row=where)
             x = value[sel]
+            groups.append((k, d, sel))
             stats[d][0][k] = len(sel)
             stats[d][1][k] = x.mean()
             stats[d][2][k] = x.std(ddof=1)
@@ -244,6 +287,7 @@ def evaluate_axis(axis: str, target: np.ndarray, direction: np.ndarray, run: np.
     reversal = mean_up - mean_down
     R_i_up, R_i_down = 4.0 * s_up, 4.0 * s_down
     R_i = np.maximum.reduce([2.0 * s_up + 2.0 * s_down + np.abs(reversal), R_i_up, R_i_down])
+    outliers = flag_outliers(targets, groups, run, value, row, np.concatenate([s_up, s_down]))
     both = np.concatenate([mean_up, mean_down])
     hi = np.concatenate([mean_up + 2.0 * s_up, mean_down + 2.0 * s_down])
     lo = np.concatenate([mean_up - 2.0 * s_up, mean_down - 2.0 * s_down])
@@ -256,7 +300,32 @@ def evaluate_axis(axis: str, target: np.ndarray, direction: np.ndarray, run: np.
         A_down=float((mean_down + 2 * s_down).max() - (mean_down - 2 * s_down).min()),
         B=float(reversal[np.argmax(np.abs(reversal))]), B_mean=float(reversal.mean()),
         E=float(both.max() - both.min()), E_up=float(np.ptp(mean_up)), E_down=float(np.ptp(mean_down)),
-        M=float(np.ptp(mean)), R=float(R_i.max()), R_up=float(R_i_up.max()), R_down=float(R_i_down.max()))
+        M=float(np.ptp(mean)), R=float(R_i.max()), R_up=float(R_i_up.max()), R_down=float(R_i_down.max()),
+        outliers=outliers, readings={"target": target, "dir": direction, "run": run, "value": value})
+
+
+def flag_outliers(targets, groups, run, value, row, s_all) -> tuple:
+    """Readings that depart from the median of the other runs at their target and direction by more
+    than OUTLIER_K s_ref sqrt(1 + pi / (2 (n - 1))), s_ref = median of ``s_all`` (module docstring).
+
+    groups : (target index, dir, (n,) reading indices) per target and direction.
+    """
+    s_ref = float(np.median(s_all))
+    if not s_ref > 0:
+        return ()
+    out = []
+    for k, d, sel in groups:
+        n = len(sel)
+        if n < 3:
+            continue
+        x = value[sel]
+        others = np.array([np.median(np.delete(x, i)) for i in range(n)])
+        departure = x - others
+        score = np.abs(departure) / (s_ref * math.sqrt(1.0 + math.pi / (2.0 * (n - 1))))
+        for i in np.flatnonzero(score > OUTLIER_K):
+            out.append(Outlier(float(targets[k]), int(d), int(run[sel][i]), float(x[i]),
+                               float(departure[i]), float(score[i]), int(row[sel][i])))
+    return tuple(out)
 
 
 def evaluate_iso230_2(data) -> Iso230_2Report:
@@ -287,7 +356,55 @@ def evaluate_iso230_2(data) -> Iso230_2Report:
         if fewest < STANDARD_RUNS:
             notices.append(f"axis {axis}: as few as {fewest} runs per target and direction; the "
                            f"standard cycle has {STANDARD_RUNS}")
+        if res.outliers:
+            notices.append(f"axis {axis}: {len(res.outliers)} outlier reading(s) flagged (more than "
+                           f"{OUTLIER_K:g} x the spread the repeatability allows from the median of "
+                           "the other runs; kept in the figures, as the standard requires)")
         if len(res.targets) < 5:
             notices.append(f"axis {axis}: {len(res.targets)} targets; ISO 230-2 asks for at least 5")
         axes[axis] = res
     return Iso230_2Report(axes=axes, notices=tuple(notices), path=data.path)
+
+
+def plot_runs(reports, path) -> None:
+    """Write a PNG of the runs of every axis of ``reports`` (Iso230_2Report list), one panel each, as
+    ISO 230-2 reports draw them: the readings against the target, the mean unidirectional positional
+    deviations of both directions with their +-2 s bands, the mean bidirectional deviation, and the
+    flagged outliers ringed. Needs matplotlib (imported here, not with mtcomp)."""
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        raise InputError("--plot needs matplotlib (pip install matplotlib)") from None
+    panels = [(rep, ax) for rep in reports for ax in rep.axes.values()]
+    fig, axes = plt.subplots(len(panels), 1, figsize=(8.0, 3.6 * len(panels)), squeeze=False)
+    for (rep, ax), pl in zip(panels, axes[:, 0]):
+        s, u = ax.scale, ax.unit
+        f = 180.0 / math.pi if ax.rotary else 1.0
+        tx = ax.targets * f
+        for d, colour, marker, mean, sd, label in ((1, "tab:blue", "^", ax.mean_up, ax.s_up, "up (dir +1)"),
+                                                    (-1, "tab:red", "v", ax.mean_down, ax.s_down,
+                                                     "down (dir -1)")):
+            r = ax.readings
+            sel = r["dir"] == d
+            pl.plot(r["target"][sel] * f, r["value"][sel] * s, marker, color=colour, ms=4, alpha=0.6,
+                    linestyle="none")
+            pl.plot(tx, mean * s, "-", color=colour, label=f"mean {label}")
+            pl.fill_between(tx, (mean - 2 * sd) * s, (mean + 2 * sd) * s, color=colour, alpha=0.15,
+                            label=f"mean +- 2 s, {label.split()[0]}")
+        pl.plot(tx, ax.mean * s, "k--", lw=1, label="mean bidirectional")
+        if ax.outliers:
+            pl.plot([o.target * f for o in ax.outliers], [o.value * s for o in ax.outliers], "o", ms=10,
+                    mfc="none", mec="k", label="outlier (flagged)")
+        name = Path(rep.path).name if rep.path else ""
+        pl.set_title(f"{name} axis {ax.axis}: A {ax.A * s:.2f}  B {ax.B * s:.2f}  E {ax.E * s:.2f}  "
+                     f"R {ax.R * s:.2f} {u}", fontsize=9)
+        pl.set_xlabel(f"target ({'deg' if ax.rotary else 'mm'})")
+        pl.set_ylabel(f"deviation ({u})")
+        pl.grid(alpha=0.3)
+        pl.legend(fontsize=7, ncol=3)
+    fig.tight_layout()
+    with atomic_write(path, "wb") as fh:
+        fig.savefig(fh, format="png", dpi=110)
+    plt.close(fig)

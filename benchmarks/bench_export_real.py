@@ -1,0 +1,160 @@
+"""Does a LinuxCNC table exported by mtcomp correct real ISO 230-2 runs it has not seen?
+
+For each real laser file (shared/data/real/iso230_2: ess_b02_x, _y, _z, psi_mcu1025_x; 5 runs each)
+runs 1-3 are the training data and runs 4-5 are held out. Three corrections are compared on the
+held-out runs:
+
+* raw: no correction;
+* pitch table: the classical table built directly from runs 1-3, the mean reading per target and
+  direction (what ISO 230-2 calls the mean unidirectional positional deviation), entered as trims;
+* mtcomp: `mtcomp identify` (base model) or `mtcomp diagnose` (base model + what it finds, e.g.
+  backlash) on a file holding runs 1-3, then `mtcomp export --format linuxcnc`.
+
+A table is applied the way LinuxCNC does it: the trim is interpolated linearly between the table's
+nominal positions, from the forward column when the target was approached moving + (dir +1) and the
+reverse column otherwise, and added to the command; the corrected reading is reading + trim. The
+figure is the rms of the corrected held-out readings about their mean: a new file is a new laser
+set-up whose zero no fit can know. When the model file has no 'support' (the region of its data) the
+export gets --range from the training targets.
+
+    python benchmarks/bench_export_real.py [--data DIR]
+"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import csv
+import io
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
+FILES = ("ess_b02_x", "ess_b02_y", "ess_b02_z", "psi_mcu1025_x")
+TRAIN_RUNS = (1, 2, 3)
+TEST_RUNS = (4, 5)
+
+
+def read_rows(path: Path) -> list[dict]:
+    with open(path, newline="", encoding="utf-8") as f:
+        return list(csv.DictReader(f))
+
+
+def write_rows(path: Path, rows: list[dict]) -> None:
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+
+
+def arrays(rows):
+    """(target mm, dir, value um) of the rows."""
+    return (np.array([float(r["target_mm"]) for r in rows]), np.array([int(r["dir"]) for r in rows]),
+            np.array([float(r["value_um"]) for r in rows]))
+
+
+def rms_about_mean(x: np.ndarray) -> float:
+    return float(np.sqrt(np.mean((x - x.mean()) ** 2)))
+
+
+def pitch_table_residual(train, test) -> np.ndarray:
+    """Corrected held-out readings (um) with the table of per-target, per-direction training means."""
+    t_tr, d_tr, v_tr = arrays(train)
+    t_te, d_te, v_te = arrays(test)
+    out = np.empty_like(v_te)
+    for i, (t, d) in enumerate(zip(t_te, d_te)):
+        sel = (np.abs(t_tr - t) < 1e-9) & (d_tr == d)
+        out[i] = v_te[i] - v_tr[sel].mean()
+    return out
+
+
+def read_comp_file(path: Path):
+    """(nominal, forward trim, reverse trim) of a COMP_FILE_TYPE 1 file, read as LinuxCNC does
+    (three numbers per line; stop at the first line that is not)."""
+    rows = []
+    for line in path.read_text().splitlines():
+        try:
+            vals = [float(v) for v in line.split()]
+        except ValueError:
+            break
+        if len(vals) != 3:
+            break
+        rows.append(vals)
+    a = np.array(rows)
+    return a[:, 0], a[:, 1], a[:, 2]
+
+
+def linuxcnc_residual(comp: Path, test) -> np.ndarray:
+    """Corrected held-out readings (um): reading + interpolated trim (mm -> um)."""
+    nom, fwd, rev = read_comp_file(comp)
+    t, d, v = arrays(test)
+    trim = np.where(d > 0, np.interp(t, nom, fwd), np.interp(t, nom, rev))
+    return v + trim * 1e3
+
+
+def mtcomp_table(train_csv: Path, axis: str, how: str, work: Path, grid_mm: float | None = None) -> Path:
+    """Fit (identify or diagnose) on ``train_csv`` and export a LinuxCNC table; the comp file's path."""
+    from mtcomp.cli import main
+    from mtcomp.models.model_file import load_model
+    model = work / f"model_{how}.json"
+    sink = io.StringIO()
+    with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
+        if how == "identify":
+            rc = main(["identify", "xfyz", str(train_csv), "-o", str(model)])
+        else:
+            rc = main(["diagnose", "xfyz", str(train_csv), "--json", str(work / "report.json"),
+                       "-o", str(model), "-q"])
+        if rc != 0:
+            raise RuntimeError(f"mtcomp {how} failed: {sink.getvalue()}")
+        extra = []
+        if load_model(model).support is None:
+            t, _, _ = arrays(read_rows(train_csv))
+            extra = ["--range", f"{axis}={t.min():g}:{t.max():g}"]
+        if grid_mm is not None:
+            extra += ["--grid-mm", f"{grid_mm:g}"]
+        out = work / f"linuxcnc_{how}"
+        rc = main(["export", "xfyz", str(model), "--format", "linuxcnc", "-o", str(out), *extra])
+        if rc != 0:
+            raise RuntimeError(f"mtcomp export failed: {sink.getvalue()}")
+    return out / f"{axis.lower()}.comp"
+
+
+def compare(path: Path, grid_mm: float | None = None) -> dict:
+    """Held-out rms (um) of one file: raw, pitch table, mtcomp identify, mtcomp diagnose."""
+    rows = read_rows(path)
+    axis = rows[0]["axis"]
+    train = [r for r in rows if int(r["run"]) in TRAIN_RUNS]
+    test = [r for r in rows if int(r["run"]) in TEST_RUNS]
+    out = {"file": path.stem, "axis": axis, "n_test": len(test),
+           "raw_um": rms_about_mean(arrays(test)[2]),
+           "pitch_um": rms_about_mean(pitch_table_residual(train, test))}
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        train_csv = work / f"{path.stem}_runs123.csv"
+        write_rows(train_csv, train)
+        for how in ("identify", "diagnose"):
+            comp = mtcomp_table(train_csv, axis, how, work, grid_mm)
+            out[f"{how}_um"] = rms_about_mean(linuxcnc_residual(comp, test))
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", type=Path, default=REAL, help="the shared real-data folder")
+    ap.add_argument("--grid-mm", type=float, default=None, help="grid step of the exported tables")
+    args = ap.parse_args()
+    folder = args.data / "iso230_2"
+    if not folder.is_dir():
+        raise SystemExit(f"no real data at {folder}")
+    print("held-out rms (runs 4-5, about their mean), um; tables from runs 1-3")
+    print(f"{'file':16s} {'raw':>8s} {'pitch table':>12s} {'mtcomp identify':>16s} "
+          f"{'mtcomp diagnose':>16s} {'diagnose/pitch':>15s}")
+    for name in FILES:
+        r = compare(folder / f"{name}.csv", args.grid_mm)
+        print(f"{r['file']:16s} {r['raw_um']:8.2f} {r['pitch_um']:12.2f} {r['identify_um']:16.2f} "
+              f"{r['diagnose_um']:16.2f} {r['diagnose_um'] / r['pitch_um']:15.2f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,180 @@
+"""What an exporter returns, what it left out, and writing it safely."""
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..io.atomic import atomic_write, check_output_path
+from ._tables import component_names
+
+UM_PER_MM = 1e3
+URAD_PER_RAD = 1e6
+
+#: how much of a component an exporter carries
+FULL = "full"          # the table, forward and reverse
+MEAN = "mean"          # the table without direction (mean of forward and reverse)
+LINEAR = "linear"      # the least-squares line of the mean over the table
+
+
+@dataclass
+class ExportResult:
+    """Files of one export, in memory until written.
+
+    files : relative file name -> text. single_file : True when OUT is one file (the only entry).
+    carried : (axis, component name) -> FULL, MEAN or LINEAR: what the controller takes.
+    notes : sentences for the README and the summary (limits, signs, what was left out).
+    """
+
+    format: str
+    files: dict
+    single_file: bool = False
+    carried: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)
+
+
+def sign_factor_and_note(sign: str | None, what: str) -> tuple[float, str]:
+    """For a controller whose sign is not public: (factor on the error, the loud note).
+
+    sign : 'correction' (default: the table holds minus the error) or 'error'."""
+    sign = sign or "correction"
+    other = "error" if sign == "correction" else "correction"
+    text = "minus the error" if sign == "correction" else "the error, actual minus nominal"
+    return (-1.0 if sign == "correction" else 1.0,
+            f"{what} are the {sign} ({text}): THIS SIGN IS NOT PUBLIC. Check one point on the machine "
+            f"and rerun with --sign {other} if the error doubles instead of vanishing")
+
+
+def fit_line(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """Least-squares line y ~ a + b x: (a, b)."""
+    A = np.column_stack([np.ones_like(x), x])
+    (a, b), *_ = np.linalg.lstsq(A, y, rcond=None)
+    return float(a), float(b)
+
+
+def slope(tables, moving: str, column: int) -> float | None:
+    """Least-squares slope (mm/mm) of component ``column`` of axis ``moving`` (mean of directions)
+    over its table, or None when the axis has no table."""
+    t = tables.tables.get(moving)
+    if t is None or len(t.positions) < 2:
+        return None
+    return fit_line(t.positions, t.mean[:, column])[1]
+
+
+def left_out(tables, carried: dict) -> tuple[list, dict]:
+    """Lines on what the tables do not carry, and the peak remaining translation per axis (mm).
+
+    For each axis table and component: the part not carried (the whole component, its direction
+    dependence, or what a straight line leaves), its largest magnitude over the grid.
+    """
+    lines, worst = [], {}
+    for a, t in tables.tables.items():
+        rem = np.zeros_like(t.forward)
+        for j, name in enumerate(component_names(a)):
+            how = carried.get((a, name))
+            fwd, rev = t.forward[:, j], t.reverse[:, j]
+            if how == FULL:
+                r_f, r_r = 0 * fwd, 0 * rev
+            elif how == MEAN:
+                m = 0.5 * (fwd + rev)
+                r_f, r_r = fwd - m, rev - m
+            elif how == LINEAR:
+                c0, c1 = fit_line(t.positions, 0.5 * (fwd + rev))
+                line = c0 + c1 * t.positions
+                r_f, r_r = fwd - line, rev - line
+            else:
+                r_f, r_r = fwd, rev
+            rem[:, j] = np.where(np.abs(r_f) >= np.abs(r_r), r_f, r_r)
+        trans = np.linalg.norm(rem[:, :3], axis=1)
+        worst[a] = float(trans.max()) if len(trans) else 0.0
+        for j, name in enumerate(component_names(a)):
+            peak = np.nanmax(np.abs(rem[:, j])) if np.isfinite(rem[:, j]).any() else np.nan
+            how = carried.get((a, name))
+            if not np.isfinite(peak):
+                if j >= 3:
+                    lines.append(f"{name} of axis {a}: not evaluated (the model's rotations are not available)")
+                continue
+            scale, unit = (URAD_PER_RAD, "urad") if j >= 3 else (UM_PER_MM, "um")
+            if peak * scale < 0.0005:
+                continue
+            what = {FULL: None, MEAN: "its direction dependence (backlash)",
+                    LINEAR: "what a straight line leaves (curvature)"}.get(how, "all of it")
+            if what is None:
+                continue
+            # angular errors of linear axes act through arms; a rotary axis's own are its positioning
+            extra = " (angular*)" if j >= 3 and not t.rotary else ""
+            lines.append(f"{name} of axis {a}: left out {what}: up to {peak * scale:.3f} {unit}{extra}")
+    if any(line.endswith("(angular*)") for line in lines):
+        lines.append("* an angular error: no per-axis table can carry it; its Abbe effect at the "
+                     "reference pose is inside the translations above, elsewhere it grows with the arm "
+                     "(other tool lengths, other positions of the axes)")
+    return lines, worst
+
+
+def readme_text(result: ExportResult, tables, header: list) -> str:
+    """README.txt beside the tables: how to load them, the limits and signs, what was left out."""
+    lines = list(header)
+    lines += ["", "Region of each table (where the model's data reached):"]
+    for a, t in tables.tables.items():
+        u, f = ("deg", 180 / np.pi) if t.rotary else ("mm", 1.0)
+        src = {"data": "the data", "range": "--range", "travel": "the travel (NO data region known)"}
+        lines.append(f"  {a}: {t.positions[0] * f:g} .. {t.positions[-1] * f:g} {u}, {len(t.positions)} "
+                     f"points, from {src.get(tables.region_source.get(a), 'the given grid')}; reference "
+                     f"position {t.reference[a] * f:g} {u}")
+    ref = next(iter(tables.tables.values())).reference if tables.tables else {}
+    if ref:
+        lines.append("  component errors are the model's deviation when only that axis moves, every "
+                     "other axis at its reference position (" + ", ".join(
+                         f"{a}={v * (180 / np.pi if tables.machine.axis(a).is_rotary else 1):g}"
+                         for a, v in ref.items()) + f"), tool length {tables.machine.tool_length:g} mm")
+    lines += ["", "Notes:"] + [f"  - {n}" for n in tables.notes + result.notes]
+    rest, worst = left_out(tables, result.carried)
+    lines += ["", "What the controller cannot hold (left out of these files):"]
+    lines += [f"  - {r}" for r in rest] or ["  - nothing above 0.0005 um / urad"]
+    lines += [f"  remaining along {a} at the reference pose (largest translation not carried): "
+              f"{w * UM_PER_MM:.3f} um" for a, w in worst.items()]
+    return "\n".join(lines) + "\n"
+
+
+def write_result(result: ExportResult, out, inputs=()) -> list[Path]:
+    """Write the files: OUT is the file itself (single-file formats) or a directory that is created
+    (or whose files of the same names are replaced). Everything is written to temporary files first
+    and renamed at the end; an input is never overwritten."""
+    out = Path(out)
+    if result.single_file:
+        (name, text), = result.files.items()
+        if out.is_dir():
+            raise InputError(f"the {result.format} format writes one file; this is a directory", out)
+        check_output_path(out, list(inputs))
+        with atomic_write(out) as f:
+            f.write(text)
+        return [out]
+    if out.exists() and not out.is_dir():
+        raise InputError(f"the {result.format} format writes a directory of files; this is a file", out)
+    targets = [out / name for name in result.files]
+    for t in targets:
+        if out.is_dir():
+            check_output_path(t, list(inputs))
+    parent = out.resolve().parent
+    if not parent.is_dir():
+        raise InputError(f"output folder {parent} does not exist", out)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".part", dir=parent))
+    try:
+        for name, text in result.files.items():
+            with open(tmp / name, "w", encoding="utf-8", newline="\n") as f:
+                f.write(text)
+        if not out.exists():
+            os.replace(tmp, out)
+        else:
+            for name in result.files:
+                os.replace(tmp / name, out / name)
+            shutil.rmtree(tmp, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return targets

@@ -1,0 +1,321 @@
+"""Component-error tables of a fitted model, evaluated on a grid of each axis (the core of `export`).
+
+The model is evaluated, never parsed: every number comes from the model's own prediction of the
+tool-tip deviation (:func:`mtcomp.models.evaluate.deviation`) and of the tool's rotation relative to
+the workpiece (the chain of :meth:`mtcomp.models.ErrorModel.symbolic`).
+
+Definition. Every axis has a *reference position*: 0 (the machine zero, where the workpiece frame
+coincides with the machine frame) clipped into the region the table covers. The component errors of
+axis L at position s, approached in direction dir, are what the model predicts when only L moves:
+
+    E(L, s, dir) = dev(q_ref with q_L = s, dir_L = dir) - dev(q_ref, all directions unknown)
+
+with ``dev`` = (tip deviation dx, dy, dz in mm; rotation of the tool relative to the workpiece about
+X, Y, Z in rad), the machine's tool length, every other axis at its reference position and its
+approach direction unknown (0: the mean of both directions). So
+
+* the positioning error of a linear axis L is the deviation along L: EXX = dx when X moves;
+* its straightness errors are the other two translations (EYX = dy, EZX = dz when X moves); they
+  contain the squareness (the slope of a straightness against the other axis is the squareness);
+* its angular errors are the three rotations (EAX, EBX, ECX);
+* the positioning error of a rotary axis is its rotation about its own direction, read the way a
+  laser reads it: actual minus commanded angle of the axis (minus the tool's rotation for a rotary
+  table, which turns the workpiece);
+* forward (dir = +1) and reverse (dir = -1) differ by the backlash; their mean is zero at the
+  reference position.
+
+All arrays are in internal units (mm, rad).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+from ..models.evaluate import casadi_map_call, deviation
+
+#: below this (mm, rad) everywhere an axis table is zero: the model holds that axis's errors at zero
+ZERO = 1e-12
+
+#: the six component errors of an axis L, in the order of the table columns: E X L, E Y L, E Z L,
+#: E A L, E B L, E C L
+COMPONENT_LETTERS = "XYZABC"
+
+
+def component_names(axis: str) -> list[str]:
+    """ISO 230-1 names of the six columns of an axis table: 'X' -> ['EXX', 'EYX', ... 'ECX']."""
+    return [f"E{d}{axis}" for d in COMPONENT_LETTERS]
+
+
+def own_column(machine, axis: str) -> int:
+    """Column of the positioning error of ``axis`` (EXX: 0 ... ECC: 5)."""
+    ax = machine.axis(axis)
+    return ax.direction_index + (3 if ax.is_rotary else 0)
+
+
+@dataclass(frozen=True)
+class AxisTable:
+    """The component errors of one axis on its grid (internal units: mm and rad).
+
+    axis : axis letter. rotary : True for A, B, C.
+    positions : (n,) grid positions, increasing, mm or rad.
+    forward, reverse : (n, 6) component errors (columns :func:`component_names`) approaching each
+        position in the + / - direction. angular_known : False when the model's rotations could not
+        be evaluated (columns 3..5 are then NaN).
+    reference : the reference position of every axis (dict axis -> mm or rad).
+    """
+
+    axis: str
+    rotary: bool
+    positions: np.ndarray
+    forward: np.ndarray
+    reverse: np.ndarray
+    reference: dict
+    angular_known: bool = True
+
+    @property
+    def mean(self) -> np.ndarray:
+        """(n, 6): the error without direction (mean of forward and reverse)."""
+        return 0.5 * (self.forward + self.reverse)
+
+    @property
+    def reversal(self) -> np.ndarray:
+        """(n, 6): forward minus reverse (the ISO 230-2 reversal value B_i of each component)."""
+        return self.forward - self.reverse
+
+    def column(self, name: str) -> int:
+        return component_names(self.axis).index(name)
+
+
+@dataclass
+class ComponentTables:
+    """Every axis table of a model, and the lines that say what has no table and why.
+
+    machine : the Machine. tables : axis -> AxisTable (axes with a region only).
+    notes : sentences for the user (axes without data, travel used for lack of a region ...).
+    region_source : axis -> 'data' (the model's support), 'range' (--range alone), 'travel'.
+    """
+
+    machine: object
+    tables: dict
+    notes: list = field(default_factory=list)
+    region_source: dict = field(default_factory=dict)
+
+    def has_backlash(self, axis: str, tol: float = 1e-9) -> bool:
+        """True when the positioning error of ``axis`` depends on the approach direction."""
+        t = self.tables[axis]
+        j = own_column(self.machine, axis)
+        return bool(np.max(np.abs(t.reversal[:, j])) > tol)
+
+
+# ------------------------------------------------------------------------------------ the region
+def parse_ranges(items, machine) -> dict:
+    """``['X=0:400', 'C=-90:90']`` -> {'X': (0.0, 400.0), 'C': (-pi/2, pi/2)} (mm, rad)."""
+    out = {}
+    for item in items or ():
+        axis, sep, rest = item.partition("=")
+        axis = axis.strip().upper()
+        lo_s, sep2, hi_s = rest.partition(":")
+        if not sep or not sep2:
+            raise InputError(f"--range {item!r}: expected AXIS=LO:HI, e.g. X=0:400")
+        if axis not in machine.axis_names:
+            raise InputError(f"--range {item!r}: the machine has no axis {axis} "
+                             f"(axes: {' '.join(machine.axis_names)})")
+        try:
+            lo, hi = float(lo_s), float(hi_s)
+        except ValueError:
+            raise InputError(f"--range {item!r}: LO and HI must be numbers (mm, or deg for a rotary "
+                             "axis)") from None
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+            raise InputError(f"--range {item!r}: needs finite LO < HI")
+        f = math.pi / 180.0 if machine.axis(axis).is_rotary else 1.0
+        out[axis] = (lo * f, hi * f)
+    return out
+
+
+def table_region(fitted, ranges: dict | None = None) -> tuple[dict, dict, list]:
+    """Where each axis gets a table: (region axis -> (lo, hi), source axis -> str, notes).
+
+    The model's support (where its data reached), clipped by ``ranges``. An axis absent from the
+    support moved in none of the fitted data: no table. Without a support (``None``: a model written
+    by hand or by an older mtcomp) the ranges are used where given, else the travel, with a warning.
+    """
+    machine = fitted.machine
+    ranges = dict(ranges or {})
+    region, source, notes = {}, {}, []
+    support = fitted.support
+    unit = {a.name: ("deg", 180.0 / math.pi) if a.is_rotary else ("mm", 1.0) for a in machine.axes}
+    if support is None:
+        notes.append("WARNING: the model does not say where its data reached (no 'support' in "
+                     "MODEL.json); tables span " + ("the --range given and otherwise " if ranges else "")
+                     + "the machine's travel, where the model may be extrapolating. Refit with a "
+                     "current mtcomp or give --range AXIS=LO:HI.")
+    for ax in machine.axes:
+        a = ax.name
+        u, f = unit[a]
+        if support is None:
+            lo, hi = ranges.get(a, ax.travel)
+            region[a], source[a] = (float(lo), float(hi)), ("range" if a in ranges else "travel")
+            continue
+        if a not in support:
+            notes.append(f"axis {a}: no table: the axis did not move in the data the model was fitted "
+                         "on, so its errors are unknown (the model holds them at zero)")
+            continue
+        lo, hi = support[a]
+        if a in ranges:
+            lo, hi = max(lo, ranges[a][0]), min(hi, ranges[a][1])
+            if not lo < hi:
+                notes.append(f"axis {a}: no table: --range {ranges[a][0] * f:g}:{ranges[a][1] * f:g} "
+                             f"{u} does not overlap the region of the data {support[a][0] * f:g}:"
+                             f"{support[a][1] * f:g} {u}")
+                continue
+        if not lo < hi:
+            notes.append(f"axis {a}: no table: the data reached only one position ({lo * f:g} {u})")
+            continue
+        region[a], source[a] = (float(lo), float(hi)), "data"
+    return region, source, notes
+
+
+# ------------------------------------------------------------------------------------ the grid
+_NICE = (1.0, 2.0, 2.5, 5.0)
+
+
+def _nice_steps(smallest: float):
+    k = math.floor(math.log10(smallest)) - 1
+    while True:
+        for m in _NICE:
+            s = m * 10.0 ** k
+            if s >= smallest * (1 - 1e-12):
+                yield s
+        k += 1
+
+
+def grid_positions(lo: float, hi: float, step: float, include_end: bool,
+                   anchor: float | None = None) -> np.ndarray:
+    """lo, lo + step, ... up to hi (equidistant, inside [lo, hi]); with ``include_end`` also hi.
+    With ``anchor``: the points anchor + k step inside [lo, hi] instead (a point sits on the anchor)."""
+    if anchor is not None:
+        k0 = math.ceil((lo - anchor) / step - 1e-9)
+        k1 = math.floor((hi - anchor) / step + 1e-9)
+        return anchor + step * np.arange(k0, k1 + 1)
+    n = int(math.floor((hi - lo) / step + 1e-9)) + 1
+    g = lo + step * np.arange(n)
+    if include_end and hi - g[-1] > 1e-9 * max(1.0, abs(hi)):
+        g = np.append(g, hi)
+    return g
+
+
+def plan_grids(machine, region: dict, max_points: int, step_mm: float | None = None,
+               step_deg: float | None = None, include_end: bool = False,
+               what: str = "the controller", anchors: dict | None = None) -> dict:
+    """Grid of each axis of ``region`` (axis -> (n,) positions, mm or rad).
+
+    An explicit step (``step_mm`` for linear axes, ``step_deg`` for rotary ones) is used as given and
+    refused (InputError) when the grid would exceed ``max_points``; without one, the smallest of
+    1, 2, 2.5, 5 x 10^k mm (deg) not below 1 mm (1 deg) whose grid fits ``max_points``.
+    ``anchors`` (axis -> position): grids through that position (:func:`grid_positions`).
+    """
+    grids = {}
+    for a, (lo, hi) in region.items():
+        rotary = machine.axis(a).is_rotary
+        f = math.pi / 180.0 if rotary else 1.0
+        u = "deg" if rotary else "mm"
+        given = step_deg if rotary else step_mm
+        span = (hi - lo) / f
+        if given is not None:
+            if not (given > 0 and math.isfinite(given)):
+                raise InputError(f"--grid-{u} must be a positive number, got {given:g}")
+            n = int(math.floor(span / given + 1e-9)) + 1 + (1 if include_end else 0)
+            if n > max_points:
+                raise InputError(f"--grid-{u} {given:g} gives {n} points on axis {a} ({span:g} {u}); "
+                                 f"{what} holds at most {max_points}: use --grid-{u} >= "
+                                 f"{span / (max_points - 1 - (1 if include_end else 0)):.4g}")
+            step = given
+        else:
+            smallest = max(1.0, span / (max_points - 1 - (1 if include_end else 0)))
+            step = next(_nice_steps(smallest))
+        anchor = None if anchors is None else anchors.get(a)
+        grids[a] = grid_positions(lo, hi, step * f, include_end and anchor is None, anchor)
+    return grids
+
+
+# ------------------------------------------------------------------------------------ evaluation
+def _rotation_function(model):
+    """CasADi function (q, p, c) -> (3,): rotation vector of the tool relative to the workpiece,
+    actual times nominal transposed, vee((R - R^T) / 2) (exact to third order in the angle)."""
+    import casadi as ca
+    q = ca.SX.sym("q", model.machine.n_axes)
+    p = ca.SX.sym("p", model.n_params)
+    c = ca.SX.sym("c", model.n_context)
+    _, _, R = model.symbolic(q, p, c, errors=True)
+    _, _, R0 = model.symbolic(q, p, c, errors=False)
+    Rr = ca.mtimes(R, R0.T)
+    w = 0.5 * ca.vertcat(Rr[2, 1] - Rr[1, 2], Rr[0, 2] - Rr[2, 0], Rr[1, 0] - Rr[0, 1])
+    return ca.Function("tool_rotation", [q, p, c], [w])
+
+
+def model_errors(fitted, q: np.ndarray, directions: dict | None = None) -> tuple[np.ndarray, bool]:
+    """(N, 6) tip deviation (mm) and tool rotation (rad) the model predicts at poses ``q`` (N, n_axes),
+    with context ``dir_<axis>`` from ``directions`` (axis -> (N,) or scalar), everything else at the
+    model's defaults (tool length from the machine). Second value: False when the rotation could not
+    be evaluated (then columns 3..5 are NaN)."""
+    model = fitted.model
+    n = q.shape[0]
+    cols = {f"dir_{a}": np.broadcast_to(np.asarray(v, dtype=float), (n,))
+            for a, v in (directions or {}).items()}
+    c = fitted.context(n, cols)
+    p = fitted.params.values
+    out = np.full((n, 6), np.nan)
+    out[:, :3] = deviation(model, q, p, c)[:, :3]
+    try:
+        fn = _rotation_function(model)
+    except Exception:  # a model without the symbolic chain: translations only
+        return out, False
+    out[:, 3:] = casadi_map_call(fn, np.ascontiguousarray(q), p, np.ascontiguousarray(c))[0]
+    return out, True
+
+
+def reference_positions(machine, region: dict) -> dict:
+    """Reference position of every axis: 0 clipped into its region (or its travel)."""
+    ref = {}
+    for ax in machine.axes:
+        lo, hi = region.get(ax.name, ax.travel)
+        ref[ax.name] = float(min(max(0.0, lo), hi))
+    return ref
+
+
+def component_tables(fitted, grids: dict, region: dict | None = None,
+                     notes: list | None = None, source: dict | None = None) -> ComponentTables:
+    """Evaluate the component errors of every axis of ``grids`` (module docstring).
+
+    grids : axis -> (n,) positions, mm or rad. region : axis -> (lo, hi), for the reference
+    positions (default: the grids' ends).
+    """
+    machine = fitted.machine
+    region = dict(region or {a: (float(g[0]), float(g[-1])) for a, g in grids.items()})
+    ref = reference_positions(machine, region)
+    q_ref = np.array([ref[a] for a in machine.axis_names])
+    zero, _ = model_errors(fitted, q_ref[None, :])
+    tables, dropped = {}, []
+    for a, g in grids.items():
+        g = np.asarray(g, dtype=float)
+        q = np.tile(q_ref, (len(g), 1))
+        q[:, machine.index(a)] = g
+        fwd, known = model_errors(fitted, q, {a: 1.0})
+        rev, _ = model_errors(fitted, q, {a: -1.0})
+        fwd, rev = fwd - zero, rev - zero
+        ax = machine.axis(a)
+        if ax.is_rotary and ax.side == "workpiece":
+            # a rotary table turns the workpiece: its own error is minus the tool's rotation
+            j = own_column(machine, a)
+            fwd[:, j], rev[:, j] = -fwd[:, j], -rev[:, j]
+        if not (np.nanmax(np.abs(fwd)) > ZERO or np.nanmax(np.abs(rev)) > ZERO):
+            dropped.append(a)
+            continue
+        tables[a] = AxisTable(a, ax.is_rotary, g, fwd, rev, ref, known)
+    notes = list(notes or [])
+    notes += [f"axis {a}: no table: the model predicts no error at all along it (its errors are held at "
+              "zero: no data determined them)" for a in dropped]
+    return ComponentTables(machine, tables, notes, dict(source or {}))

@@ -1,0 +1,123 @@
+"""Fanuc: stored pitch error compensation as a parameter list (details vary by series).
+
+Per axis: 3620 the compensation point number of the reference position, 3621 / 3622 the most
+negative / most positive point number, 3623 the magnification, 3624 the interval (detection units);
+bidirectional compensation (3605#0 = 1) adds 3626 (most negative point number of the table for
+negative travel) and 3627 (the compensation at the reference position when moving negative, relative
+to moving positive). The pitch error values are incremental: the value at point n is the change of
+the compensation from point n - 1 to point n, in detection units times the magnification; the
+compensation is 0 at the reference point (positive travel). Points sit at
+``reference position + (n - 3620) * interval``; mtcomp puts the reference point on the axis's
+reference position (0, or the nearest end of the table) and numbers the axes' blocks one after the
+other from 0. Values are rounded as cumulative sums, so the rounding never accumulates.
+
+The sign of the values is not public: by default they are the correction (minus the error);
+``--sign error`` writes the error. Linear axes only (a rotary table's values must sum to 0 over a
+turn; not written here).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ._output import FULL, MEAN, ExportResult, readme_text, sign_factor_and_note
+from ._tables import component_names, own_column
+
+NAME = "fanuc"
+MAX_POINTS = 128
+SINGLE_FILE = False
+INCLUDE_END = False
+LINEAR_ONLY = True
+ANCHOR_AT_REFERENCE = True
+MAX_POINT_NUMBER = 1023
+
+
+def cumulative_units(correction_mm: np.ndarray, unit_mm: float, max_value: int) -> tuple[np.ndarray, int]:
+    """(rounded cumulative values in units of unit x magnification, magnification): the smallest
+    magnification (1..100) whose increments fit +-max_value."""
+    for mag in range(1, 101):
+        cum = np.round(correction_mm / (unit_mm * mag)).astype(np.int64)
+        if len(cum) < 2 or np.max(np.abs(np.diff(cum))) <= max_value:
+            return cum, mag
+    raise InputError(f"pitch error increments exceed {max_value} units even at magnification 100; "
+                     "use a smaller --grid-mm or a larger --fanuc-max-value")
+
+
+def export(tables, sign: str | None = None, unit_um: float = 1.0, max_value: int = 127, **_) -> ExportResult:
+    m = tables.machine
+    s, sign_note = sign_factor_and_note(sign, "values")
+    if not unit_um > 0:
+        raise InputError(f"--fanuc-unit-um must be positive, got {unit_um}")
+    unit_mm = unit_um * 1e-3
+    files, carried, notes = {}, {}, []
+    par = [f"% mtcomp pitch error compensation; axis numbers A1, A2 ... in the order "
+           f"{' '.join(m.axis_names)}; detection unit {unit_um:g} um"]
+    data = []
+    csv = ["axis,point,position_mm,travel,value_units,compensation_um"]
+    next_point = 0
+    for a, t in tables.tables.items():
+        k = m.axis_names.index(a) + 1
+        j = own_column(m, a)
+        pos = t.positions
+        step = pos[1] - pos[0] if len(pos) > 1 else 0.0
+        interval = step / unit_mm
+        if abs(interval - round(interval)) > 1e-6:
+            raise InputError(f"axis {a}: the interval {step:g} mm is not a whole number of detection "
+                             f"units ({unit_um:g} um)")
+        ref = t.reference[a]
+        i_ref = int(np.argmin(np.abs(pos - ref)))
+        corr_f, corr_r = s * t.forward[:, j], s * t.reverse[:, j]
+        bidir = tables.has_backlash(a)
+        base = corr_f[i_ref]
+        blocks = [("+", corr_f - base)] + ([("-", corr_r - base)] if bidir else [])
+        if not bidir:
+            blocks = [("+", s * t.mean[:, j] - s * t.mean[i_ref, j])]
+        n = len(pos)
+        if next_point + n * len(blocks) - 1 > MAX_POINT_NUMBER:
+            raise InputError(f"the pitch error tables need more than {MAX_POINT_NUMBER + 1} points; "
+                             "use a larger --grid-mm")
+        first, cums = {}, {}
+        for label, corr in blocks:
+            cums[label] = corr
+            first[label] = next_point
+            next_point += n
+        # one magnification for both travel directions
+        mag = max(cumulative_units(c, unit_mm, max_value)[1] for c in cums.values())
+        p_ref = first["+"] + i_ref
+        par += [f"; axis {a}", f"N3605 A{k} P{1 if bidir else 0}", f"N3620 A{k} P{p_ref}",
+                f"N3621 A{k} P{first['+']}", f"N3622 A{k} P{first['+'] + n - 1}",
+                f"N3623 A{k} P{mag}", f"N3624 A{k} P{int(round(interval))}"]
+        for label, corr in cums.items():
+            cum = np.round(corr / (unit_mm * mag)).astype(np.int64)
+            if label == "-":
+                offset = int(cum[i_ref])
+                par += [f"N3626 A{k} P{first['-']}", f"N3627 A{k} P{offset}"]
+                cum = cum - offset
+            inc = np.diff(np.r_[cum[0], cum])  # value at point n: change from n - 1 to n (first: 0)
+            for i in range(n):
+                data.append(f"N{10000 + first[label] + i} P{int(inc[i])}")
+                csv.append(f"{a},{first[label] + i},{pos[i]:.6f},{label},{int(inc[i])},"
+                           f"{corr[i] * 1e3:.4f}")
+        carried[(a, component_names(a)[j])] = FULL if bidir else MEAN
+    files["pitch_error.txt"] = "\n".join(par + ["; pitch error data: N(10000 + point number) P(value)"]
+                                         + data) + "\n"
+    files["pitch_points.csv"] = "\n".join(csv) + "\n"
+    notes.append(sign_note)
+    notes.append("the compensation is 0 at the reference point for positive travel: a constant offset "
+                 "of the whole table is absorbed by the reference position; reference return in the "
+                 "positive direction is assumed for 3627")
+    notes.append(f"one increment holds at most +-{max_value} units (--fanuc-max-value; the range depends "
+                 "on the series); the magnification 3623 was chosen to fit")
+    rotary = [ax.name for ax in m.rotary_axes]
+    if rotary:
+        notes.append(f"rotary axes {' '.join(rotary)}: no table (not written by this exporter)")
+    result = ExportResult(NAME, files, False, carried, notes)
+    header = ["mtcomp export: Fanuc stored pitch error compensation",
+              "",
+              "pitch_error.txt  the parameters (N3605 bit 0, N3620 ... N3627, per axis A1, A2 ...) and",
+              "                 the pitch error data N(10000 + point) P(value) in parameter-tape style;",
+              "                 enter them on the SETTING / PITCH ERROR screens or load the tape",
+              "pitch_points.csv the same points with their positions (mm) and the compensation in um",
+              "Power off and on after changing 3620 ... 3627."]
+    files["README.txt"] = readme_text(result, tables, header)
+    return result

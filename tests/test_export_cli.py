@@ -1,0 +1,100 @@
+"""`mtcomp export` on the command line: the region of the tables, and bad input (exit 2, one line)."""
+import numpy as np
+import pytest
+
+from mtcomp.cli import main
+from mtcomp.machine import load_machine
+from mtcomp.models import Backlash, ErrorModel, FittedModel, save_model
+from test_export_formats import random_model
+
+
+def _model(tmp_path, support):
+    p = tmp_path / "model.json"
+    save_model(p, random_model("xfyz", (Backlash("X"),), 3, 20.0, support))
+    return p
+
+
+def _nominals(path):
+    return np.array([float(line.split()[0]) for line in path.read_text().splitlines()])
+
+
+def test_axis_without_data_gets_no_table_and_a_reason(tmp_path, capsys):
+    p = _model(tmp_path, {"X": (-20.0, 20.0), "Y": (0.0, 10.0)})
+    assert main(["export", "xfyz", str(p), "--format", "linuxcnc", "-o", str(tmp_path / "lc")]) == 0
+    err = capsys.readouterr().err
+    assert (tmp_path / "lc" / "x.comp").exists() and (tmp_path / "lc" / "y.comp").exists()
+    assert not (tmp_path / "lc" / "z.comp").exists()
+    assert "axis Z: no table: the axis did not move in the data" in err
+    nom = _nominals(tmp_path / "lc" / "x.comp")
+    assert nom[0] == -20 and nom[-1] == 20 and np.allclose(np.diff(nom), 1.0)
+    assert "axis Z: no table" in (tmp_path / "lc" / "README.txt").read_text()
+
+
+def test_model_without_support_uses_the_travel_loudly_or_the_range(tmp_path, capsys):
+    p = _model(tmp_path, None)
+    assert main(["export", "xfyz", str(p), "--format", "linuxcnc", "-o", str(tmp_path / "a"),
+                 "--range", "Y=-5:5"]) == 0
+    err = capsys.readouterr().err
+    assert "WARNING" in err and "support" in err
+    x = _nominals(tmp_path / "a" / "x.comp")
+    y = _nominals(tmp_path / "a" / "y.comp")
+    assert (x[0], x[-1]) == (-400, 400) and len(x) <= 256
+    assert (y[0], y[-1]) == (-5, 5)
+
+
+def test_range_clips_the_support_and_grid_step_is_honoured(tmp_path, capsys):
+    p = _model(tmp_path, {"X": (-20.0, 20.0)})
+    assert main(["export", "xfyz", str(p), "--format", "linuxcnc", "-o", str(tmp_path / "lc"),
+                 "--range", "X=0:50", "--grid-mm", "3"]) == 0
+    nom = _nominals(tmp_path / "lc" / "x.comp")
+    # equidistant from the start, the last point at the end of the region (LinuxCNC takes any nominal)
+    np.testing.assert_allclose(nom, [0, 3, 6, 9, 12, 15, 18, 20], rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("args,expected", [
+    (["--range", "X=5"], "expected AXIS=LO:HI"),
+    (["--range", "Q=0:1"], "no axis Q"),
+    (["--range", "X=3:1"], "LO < HI"),
+    (["--grid-mm", "0.01"], "holds at most 256"),
+    (["--max-points", "1"], "at least 2"),
+])
+def test_bad_options_exit_2_with_one_line_and_write_nothing(tmp_path, capsys, args, expected):
+    p = _model(tmp_path, {"X": (-20.0, 20.0)})
+    out = tmp_path / "lc"
+    assert main(["export", "xfyz", str(p), "--format", "linuxcnc", "-o", str(out), *args]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and expected in err and "Traceback" not in err
+    assert not out.exists()
+
+
+def test_output_never_overwrites_the_model_and_kind_of_output_is_checked(tmp_path, capsys):
+    p = _model(tmp_path, {"X": (-20.0, 20.0), "Y": (-20.0, 20.0)})
+    before = p.read_text()
+    assert main(["export", "xfyz", str(p), "--format", "klipper", "-o", str(p)]) == 2
+    assert "overwrite an input" in capsys.readouterr().err
+    assert p.read_text() == before
+    assert main(["export", "xfyz", str(p), "--format", "linuxcnc", "-o", str(p)]) == 2
+    assert "is a file" in capsys.readouterr().err
+    (tmp_path / "d").mkdir()
+    assert main(["export", "xfyz", str(p), "--format", "klipper", "-o", str(tmp_path / "d")]) == 2
+    assert "directory" in capsys.readouterr().err
+    assert list(tmp_path.glob(".*part")) == []
+
+
+def test_a_model_without_errors_has_nothing_to_export(tmp_path, capsys):
+    zero = FittedModel.zero(ErrorModel(load_machine("xfyz")))
+    zero.support = {"X": (0.0, 10.0)}
+    p = tmp_path / "zero.json"
+    save_model(p, zero)
+    assert main(["export", "xfyz", str(p), "--format", "siemens", "-o", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err
+    assert "nothing to export: " in err and "axis X: no table: the model predicts no error" in err
+    assert "axis Y: no table: the axis did not move" in err and err.count("\n") == 1
+    assert not (tmp_path / "s").exists()
+
+
+def test_region_shorter_than_a_grid_step_gets_no_table(tmp_path, capsys):
+    p = _model(tmp_path, {"X": (-20.0, 20.0), "Y": (0.0, 0.5)})
+    assert main(["export", "xfyz", str(p), "--format", "fanuc", "-o", str(tmp_path / "f")]) == 0
+    assert "axis Y: no table: its region is shorter than one grid step" in capsys.readouterr().err
+    assert "N3620 A2 " not in (tmp_path / "f" / "pitch_error.txt").read_text()
