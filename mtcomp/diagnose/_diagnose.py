@@ -114,6 +114,7 @@ class Diagnosis:
     rejected: list = field(default_factory=list)
     reference: dict = field(default_factory=dict)
     folds_of_observations: np.ndarray | None = None
+    thermal: object = None
 
     @property
     def noise_um(self) -> float:
@@ -176,13 +177,22 @@ def _heldout(st, fit) -> float:
     return rms(fit.cv_resid[sel])
 
 
-def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int = MAX_FINDINGS) -> Diagnosis:
+def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int = MAX_FINDINGS,
+             channel_axes: dict | None = None) -> Diagnosis:
     """Diagnose the base model of ``machine`` on ``datasets`` (measurement sets, mtcomp.io).
 
     progress : callable(str) for progress lines, or None.
+    channel_axes : thermal channel name -> machine axis (X, Y, Z) it reads (channels x, y, z need none).
+    A single thermal file is diagnosed by :func:`mtcomp.thermal.diagnose_thermal` (drift models
+    validated forward in time, docs/thermal.md).
     Returns a :class:`Diagnosis`. Raises InputError when the data cannot be diagnosed.
     """
     from ._blas import single_threaded_blas
+    if len(datasets) == 1 and datasets[0].kind == "thermal":
+        from ..thermal import diagnose_thermal
+        return diagnose_thermal(machine, datasets[0], channel_axes, progress)
+    if channel_axes:
+        raise InputError("--channel-axis applies to the diagnosis of one thermal file alone")
     with single_threaded_blas():
         return _diagnose(machine, datasets, progress, max_findings)
 
