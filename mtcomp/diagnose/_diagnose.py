@@ -251,6 +251,7 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
         used_terms = {t.key() for c in chosen for t in c.terms}
         cands = [c for c in generate(st, design, extra, current.resid, keys)
                  if not ({t.key() for t in c.terms} & used_terms)]
+        _forward_in_time(st, design, extra, cands)
         scored = []
         for c in cands:
             fit = design.fit(np.hstack([extra, c.columns]))
@@ -311,6 +312,26 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
     diag.seconds = time.perf_counter() - t0
     model.info["diagnose"] = diag.to_dict()
     return diag
+
+
+def _forward_in_time(st, design, extra, cands) -> None:
+    """A drift (in time, temperature or spindle history) must predict later readings from earlier
+    ones: each thermal_drift candidate is fitted on the past and scored on the future (forward-chained
+    blocks in time, mtcomp.thermal); one that does not lower that score by more than noise could gets
+    a veto saying so."""
+    from ..thermal._fit import forward_in_time_sse
+    drift = [c for c in cands if c.effect == "thermal_drift"]
+    if not drift:
+        return
+    without = forward_in_time_sse(design, extra, st.t)
+    if not np.isfinite(without):
+        return
+    for c in drift:
+        with_c = forward_in_time_sse(design, np.hstack([extra, c.columns]), st.t)
+        if not without - with_c > cv_threshold(c.columns.shape[1]):
+            c.veto = (f"predicted forward in time (fitted on earlier readings, scored on later ones) it "
+                      f"does not beat the model without it (weighted sum of squares {with_c:.4g} "
+                      f"against {without:.4g})")
 
 
 def _backward(design, chosen, findings, fit, n) -> list:
