@@ -137,3 +137,20 @@ def test_bad_channel_axis_exits_2_with_one_line_and_writes_nothing(tmp_path, cap
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and needle in err[0] and "Traceback" not in err[0]
     assert not rep.exists()
+
+
+@pytest.mark.parametrize("flags,needle", [(["--temperature", "nope=20"], "nope"),
+                                          (["--temperature", "s"], "NAME=VALUE"),
+                                          (["--spindle-rpm", "-5"], "0 or more")])
+def test_compensate_refuses_a_thermal_state_the_model_cannot_use(tmp_path, capsys, flags, needle):
+    path = _thermal_file(tmp_path / "th.csv", n=400)
+    model = tmp_path / "m.json"
+    assert main(["diagnose", "xfyz", str(path), "--json", str(tmp_path / "r.json"), "-o", str(model),
+                 "--channel-axis", "a=Y", "-q"]) == 0
+    prog, out = tmp_path / "in.nc", tmp_path / "out.nc"
+    prog.write_text("G21 G90\nG0 X10 Y10 Z20\nG1 X50 F600\n")
+    capsys.readouterr()
+    assert main(["compensate", "xfyz", str(model), str(prog), "-o", str(out), "--quiet", *flags]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and needle in err[0] and "Traceback" not in err[0]
+    assert not out.exists()

@@ -62,3 +62,40 @@ def test_hidden_drift_is_named_and_the_future_predicted_to_the_noise(tmp_path, d
     print(f"\n{driver}: named {[f.params['driver'] for f in drift]}, later pass rms {rms:.3f} um "
           f"({rms / NOISE_UM:.2f} x noise)")
     assert rms < 1.2 * NOISE_UM
+
+
+PROGRAM = "%\nG21 G90\nG0 X10 Y10 Z20\nG1 X50 Y20 Z5 F600\nX80 Y-30 Z5\nM30\n%\n"
+
+
+def test_compensate_corrects_the_drift_at_the_temperature_given(tmp_path, capsys):
+    """Drift driven by the spindle's temperature; channel z renamed ch3 and mapped to Z with
+    --channel-axis. `compensate --temperature ...` plans the program for the truth's drift at the
+    temperatures given: vector_um * (T_spindle - T_spindle at the first reading, the channels' zero)."""
+    import csv
+
+    from mtcomp.cli import main
+    rng = np.random.default_rng(5)
+    eff = random_effect("thermal_drift", TruthMachine("xfyz"), rng, driver="temperature", schedule=SCHEDULE)
+    truth = TruthMachine.random("xfyz", rng, effects=(eff,))
+    record = tmp_path / "record.csv"
+    res = campaigns.thermal(truth, record, rng, duration_h=10.0, interval_s=60.0, schedule=SCHEDULE,
+                            noise_um=NOISE_UM)
+    record.write_text(record.read_text().replace("disp_z_um", "disp_ch3_um"))
+    model, rep = tmp_path / "m.json", tmp_path / "r.json"
+    assert main(["diagnose", "xfyz", str(record), "--json", str(rep), "-o", str(model),
+                 "--channel-axis", "ch3=Z", "-q"]) == 0
+    prog, out, blocks = tmp_path / "in.nc", tmp_path / "out.nc", tmp_path / "blocks.csv"
+    prog.write_text(PROGRAM)
+    given = {"ambient": 20.3, "spindle": 26.0, "bed": 20.1}
+    flags = [x for k, v in given.items() for x in ("--temperature", f"{k}={v}")]
+    assert main(["compensate", "xfyz", str(model), str(prog), "-o", str(out), "--report", str(blocks),
+                 "--max-correction-um", "200", "--max-step-um", "200", "--quiet", *flags]) == 0
+    printed = capsys.readouterr().out
+    assert "thermal drift assumed: temperatures ambient=20.3 degC, spindle=26 degC, bed=20.1 degC" in printed
+    expect = np.asarray(eff.vector_um) * (given["spindle"] - res.context.temperatures["spindle"][0])
+    with open(blocks, newline="") as f:
+        rows = [r for r in csv.DictReader(f) if r["ez_before_um"]]
+    assert len(rows) >= 2
+    for k, c in enumerate("xyz"):
+        before = np.array([float(r[f"e{c}_before_um"]) for r in rows])
+        np.testing.assert_allclose(before, expect[k], rtol=0, atol=0.1 + 0.02 * abs(expect[k]))
