@@ -154,3 +154,23 @@ def test_compensate_refuses_a_thermal_state_the_model_cannot_use(tmp_path, capsy
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and needle in err[0] and "Traceback" not in err[0]
     assert not out.exists()
+
+
+def test_blank_temperature_is_left_out_and_named_short_file_is_refused(tmp_path, capsys):
+    path = _thermal_file(tmp_path / "th.csv", n=300)
+    lines = path.read_text().splitlines()
+    lines[0] += ",temp_broken_c"
+    lines[1:] = [ln + ("," if k == 5 else ",21.0") for k, ln in enumerate(lines[1:])]
+    path.write_text("\n".join(lines) + "\n")
+    rep = tmp_path / "r.json"
+    assert main(["diagnose", "xfyz", str(path), "--json", str(rep), "-q"]) == 0
+    drift = [f for f in json.loads(rep.read_text())["findings"] if f["effect"] == "thermal_drift"]
+    assert drift[0]["params"]["temperatures_left_out"] == ["broken"]
+    assert "temp_broken" not in drift[0]["params"]["features"]
+    short = tmp_path / "short.csv"
+    short.write_text("\n".join(lines[:8]) + "\n")
+    capsys.readouterr()
+    assert main(["diagnose", "xfyz", str(short), "--json", str(tmp_path / "s.json"), "-q"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "short.csv" in err[0] and "too few" in err[0]
+    assert not (tmp_path / "s.json").exists()

@@ -89,7 +89,8 @@ def diagnose_thermal(machine, data, channel_axes: dict | None = None, progress=N
                   "time_constants_s": c.time_constants_s, "ridge_penalty": c.penalty,
                   "channels": {ch: axes.get(ch, "") for ch in fit.channels},
                   "max_drift_um": {ch: _r(v, 3) for ch, v in zip(fit.channels, fit.max_drift_um)},
-                  "forward_rms_um": {ch: _r(v, 3) for ch, v in zip(fit.channels, c.forward_rms_um)}}
+                  "forward_rms_um": {ch: _r(v, 3) for ch, v in zip(fit.channels, c.forward_rms_um)},
+                  "temperatures_left_out": fit.left_out}
         runner_up = sorted((s for s in fit.scores if s is not c), key=lambda s: s.total_sse)[0]
         evidence = (f"predicting each next block of the record from the readings before it, "
                     f"{c.label} leaves {_rms(c.forward_rms_um):.3g} um rms against "

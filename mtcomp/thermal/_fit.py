@@ -177,6 +177,7 @@ class ThermalFit:
     spindle_rpm: np.ndarray
     n_folds: int = N_FOLDS
     temperature_means: dict = field(default_factory=dict)
+    left_out: list = field(default_factory=list)
 
     def summary(self) -> str:
         lines = [f"thermal drift ({len(self.t_s)} readings over {np.ptp(self.t_s) / 3600:.3g} h, "
@@ -187,6 +188,8 @@ class ThermalFit:
             lines.append(f" {mark} {s.label:<32s} rms {_rms(s.forward_rms_um):8.3f} um"
                          + (f"  (time constants {', '.join(f'{x:g}' for x in s.time_constants_s)} s)"
                             if s.time_constants_s else ""))
+        if self.left_out:
+            lines.append(f"   temperatures left out (blank or constant readings): {', '.join(self.left_out)}")
         lines.append("channel   max drift um  fitted rms um  forward rms um")
         resid = self.fitted_um - self.measured_um
         for j, ch in enumerate(self.channels):
@@ -256,7 +259,9 @@ def fit_thermal(data, lags_s=DEFAULT_LAGS_S, n_folds: int = N_FOLDS, penalties=P
     return ThermalFit(channels, chosen, scores, ridge, robust_noise_um(Y),
                       np.max(np.abs(Y - Y[0]), axis=0), ridge.predict(X), Y,
                       np.asarray(ctx.t, dtype=float), forward_predictions(X, Y, chosen.penalty, folds),
-                      np.asarray(ctx.spindle_rpm, dtype=float), n_folds, temp_means)
+                      np.asarray(ctx.spindle_rpm, dtype=float), n_folds, temp_means,
+                      [s for s in ctx.temperatures if f"temp_{s}" not in
+                       {f for c in scores for f in c.features}])
 
 
 def choose(scores: list[CandidateScore]) -> CandidateScore:
