@@ -66,6 +66,14 @@ def test_tool_fixed_offsets_are_given_in_the_workpiece_frame():
                     atol=1e-12)
 
 
+def test_q_from_file_units():
+    m = TruthMachine.zero("CAFXYZ")
+    assert_allclose(m.q_from(1.0, 2.0, 3.0, a_deg=90.0, c_deg=[0.0, 180.0]),
+                    [[1, 2, 3, math.pi / 2, 0.0], [1, 2, 3, math.pi / 2, math.pi]], rtol=1e-15, atol=0)
+    with pytest.raises(ValueError, match="no axis B"):
+        m.q_from(b_deg=10.0)
+
+
 def test_nominal_xfyz_tip_is_q():
     m = TruthMachine.zero("XFYZ")
     q = _q3(np.random.default_rng(1))
@@ -123,7 +131,8 @@ def test_table_pitch_about_its_pivot_by_hand():
     # the tool relative to the table turns by Ry(eps) about p (table coordinates)
     expected = (q - p) @ (_ry(eps) - np.eye(3)).T
     assert_allclose(d, expected, rtol=1e-12, atol=1e-12)
-    assert_allclose(d_axis, np.tile(_ry(eps) @ [0, 0, 1.0] - [0, 0, 1.0], (len(q), 1)), rtol=1e-12, atol=1e-14)
+    assert_allclose(d_axis, np.tile(_ry(eps) @ [0, 0, 1.0] - [0, 0, 1.0], (len(q), 1)), rtol=1e-12,
+                    atol=1e-14)
 
 
 def test_tool_side_yaw_about_carriage_pivot_by_hand():
@@ -136,6 +145,19 @@ def test_tool_side_yaw_about_carriage_pivot_by_hand():
     d, _ = m.true_deviation(q)
     arm = np.column_stack([np.zeros(len(q)), np.zeros(len(q)), q[:, 2]]) - p    # tip in the Y carriage
     assert_allclose(d, arm @ (_rz(eps) - np.eye(3)).T, rtol=1e-12, atol=1e-12)
+
+
+def test_spindle_carriage_pivot_is_fixed_to_the_gauge_point():
+    m = TruthMachine.zero("XFYZ")
+    eps = 18 * URAD
+    p = np.array([-20.0, 40.0, 150.0])                   # relative to the spindle gauge point
+    m.components["Z"]["EAZ"] = P.Constant(eps)
+    m.pivots["Z"] = p
+    q = _q3(np.random.default_rng(30), 4)
+    for L in (0.0, 90.0, 200.0):
+        d, _ = m.true_deviation(q, L)
+        arm = -(p + [0.0, 0.0, L])                       # tip relative to the pivot
+        assert_allclose(d, np.tile((_rx(eps) - np.eye(3)) @ arm, (4, 1)), rtol=1e-9, atol=1e-12)
 
 
 def test_translational_components_add_on_either_side():
@@ -331,7 +353,7 @@ def test_random_machine_magnitudes_and_constant_angles(topology):
                 assert 1.9 * UM < pp < 10.1 * UM
             else:
                 assert 4.9 * URAD < pp < 30.1 * URAD
-                assert abs(f(np.array([0.0]))[0]) > 0.1 * URAD
+                assert 3 * URAD - 1e-12 <= abs(f(np.array([0.0]))[0]) <= 20 * URAD + 1e-12
     q = np.zeros((1, m.n_axes))
     d, _ = m.true_deviation(q)
     assert 0 < np.linalg.norm(d) < 0.1                   # nonzero, below 100 um at the origin
@@ -466,7 +488,7 @@ def test_three_sphere_by_hand(tmp_path):
         tool = np.array([float(r[f"{c}_mm"]) for c in "xyz"])          # bed = wp at C = 0
         ball = np.array([float(r[f"table_ball_{c}_mm"]) for c in "xyz"])
         c = np.array([30 * UM, 0, 0])
-        ball_bed = _rz(th) @ (ball - c) + c                             # table ball turns about the actual line
+        ball_bed = _rz(th) @ (ball - c) + c          # the table ball turns about the actual line
         assert_allclose(float(r["length_mm"]), np.linalg.norm(tool - ball_bed), rtol=0, atol=1e-9)
     assert {r["dir_c"] for r in rows} == {"1", "-1"}
 
@@ -570,8 +592,9 @@ def test_random_effects_change_the_truth(kind):
     q[:, 3:] = rng.uniform(-1.5, 1.5, (n, 2))
     if kind == "local_defect":
         q[:, "XYZ".index(eff.axis)] = eff.centre_mm + rng.uniform(-0.3, 0.3, n) * eff.width_mm
-    ctx = Context(feed_mm_min=rng.uniform(500, 5000, n), dirs={a: rng.choice([-1.0, 1.0], n) for a in "XYZBC"},
-                  t_s=rng.uniform(0, 20000, n), temperatures={"spindle": rng.uniform(19, 26, n)})
+    ctx = Context(feed_mm_min=rng.uniform(500, 5000, n),
+                  dirs={a: rng.choice([-1.0, 1.0], n) for a in "XYZBC"}, t_s=rng.uniform(0, 20000, n),
+                  temperatures={"spindle": rng.uniform(19, 26, n)})
     diff = m.true_deviation(q, context=ctx)[0] - base.true_deviation(q, context=ctx)[0]
     assert 0.3 * UM < np.abs(diff).max() < 60 * UM
 
@@ -586,3 +609,29 @@ def test_full_campaign_writes_every_file(tmp_path):
     assert np.all(np.diff(starts) > 0)
     for res in out.values():
         assert res.path.parent == tmp_path and len(_read(res.path)) == len(res.q)
+
+
+def test_laser_runs_at_several_feeds_see_the_feed_offset(tmp_path):
+    m = TruthMachine.zero("XFYZ").with_effects(FeedOffset("Z", 1.5))
+    res = campaigns.laser(m, tmp_path / "z.csv", np.random.default_rng(28), "Z", components=("EZZ",),
+                          feed_mm_min=(1000.0, 4000.0), n_runs=2, n_targets=4, setup=False, noise_um=0.0)
+    rows = _read(res.path)
+    assert [r["run"] for r in rows[::8]] == ["1", "2", "3", "4"]
+    for r in rows:
+        assert_allclose(float(r["value_um"]), 1.5 * float(r["feed_mm_min"]) / 1000.0, rtol=1e-9, atol=1e-9)
+
+
+def test_thermal_machine_records_its_environment_in_every_file(tmp_path):
+    drift = ThermalDrift("temperature", (0.0, 0.0, -2.0), channel="spindle", t_ref_c=20.0)
+    m = TruthMachine.zero("XFYZ").with_effects(drift)
+    out = campaigns.full_campaign(m, tmp_path, np.random.default_rng(29), points_grid=(2, 2, 2),
+                                  laser_targets=3, setup=False, noise_um=0.0, noise_urad=0.0, noise_mm=0.0)
+    for name in ("points", "laser_z", "ballbar"):
+        rows = _read(out[name].path)
+        assert {"spindle_rpm", "temp_spindle_c", "temp_ambient_c"} <= set(rows[0]), name
+    rows = _read(out["points"].path)
+    temp = np.array([float(r["temp_spindle_c"]) for r in rows])
+    assert_allclose([float(r["dz_um"]) for r in rows], -2.0 * (temp - 20.0), rtol=1e-9, atol=1e-8)
+    rows = [r for r in _read(out["laser_z"].path) if r["component"] == "EZZ"]
+    temp = np.array([float(r["temp_spindle_c"]) for r in rows])
+    assert_allclose([float(r["value_um"]) for r in rows], -2.0 * (temp - 20.0), rtol=1e-9, atol=1e-8)

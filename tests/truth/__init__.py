@@ -34,7 +34,8 @@ by ``+theta`` right-handed about +X/+Y/+Z (A/B/C) through its ``axis_point_mm``.
 (bed towards workpiece), ``tool2bed = A_1 ... A_n S`` (bed towards tool, S the spindle),
 ``tool2wp = wp2bed^-1 tool2bed``. With every axis at 0 the tip is at the origin and the spindle gauge
 point ``tool_length`` above it along +Z, for every tool length (the carriage frames are attached to
-the current tool's tip; see ``z_reference_tool_mm`` for the physical alternative). So on a 3-axis
+the current tool's tip, so the Z errors are functions of the commanded tip z; set
+``z_reference_tool_mm`` to evaluate them at the physical ram position z + L - L_ref instead). So on a 3-axis
 machine q is the tip position in the workpiece frame, and on XFYZ/CAFXYZ/CBFXYZ the X, Y, Z positions
 are the tip in the bed frame.
 
@@ -47,9 +48,12 @@ What is modelled, where each error acts, and the signs
 * tool side: carriage in its parent = ``Trans(s u) Trans(delta) Trans(p) R Trans(-p)``: the carriage
   translates by delta and turns by R about the pivot p, a point fixed in the carriage frame
   (``pivots[a]``, random: within +-150 mm in X and Y and 50-400 mm above the tip's zero position, i.e.
-  somewhere on the slide). Everything it carries (the following axes, the spindle, the tool) turns
-  with it, so the Abbe arm of the tip is (tip position in that carriage frame) - p, e.g. on XFYZ for
-  Y: ``(0, 0, z) - p_Y``.
+  somewhere on the slide; for the spindle carriage 20-300 mm above the gauge point). Everything it
+  carries (the following axes, the spindle, the tool) turns with it, so the Abbe arm of the tip is
+  (tip position in that carriage frame) - p, e.g. on XFYZ for Y: ``(0, 0, z) - p_Y``. For the axis
+  that carries the spindle (the last tool-side axis, Z here) the pivot is given relative to the
+  spindle gauge point, i.e. p + (0, 0, tool_length) in carriage coordinates, so it is fixed on the
+  ram whatever the tool length: the arm of the tip is ``-(p_Z + (0, 0, L))``.
 * table side: table in the bed = ``Trans(-s u) Trans(p) R^T Trans(-p) Trans(-delta)``, so the tool
   relative to the table moves by ``Trans(delta) Trans(p) R Trans(-p) Trans(s u)``: the component
   errors of a table axis are the error motion of the tool relative to the table (what a laser reads,
@@ -64,8 +68,8 @@ What is modelled, where each error acts, and the signs
   sines (no polynomials), held constant outside the travel; positioning optionally shaped on the real
   ISO 230-2 run ``/work/shared/data/real/iso230_2/ess_b02_<axis>.csv`` (mean per target, stretched
   over the travel, 85 % of the shape). Positioning 5-30 um peak-to-peak plus a constant within +-5 um,
-  straightness 2-10 um p-p plus +-3 um, angular 5-30 urad p-p **plus a constant of 3-20 urad** (so
-  every angular error is nonzero at s = 0); translational errors need not vanish at 0 either.
+  straightness 2-10 um p-p plus +-3 um, angular 5-30 urad p-p **with a constant part: 3-20 urad in
+  magnitude at s = 0** (never anchored at zero); translational errors need not vanish at 0 either.
 
 *Spindle*: the tool frame in the last tool-side carriage = ``Trans(g) Ry(tb) Rx(ta) Trans(-g)``,
 ``g = (0, 0, L)`` the spindle gauge point, ``(ta, tb) = spindle_tilt`` (rad, 3-30 urad each): the tool
@@ -117,6 +121,13 @@ Measurements (conventions where SPEC 3 leaves a choice)
 * ballbar: ``length_mm`` = |actual tool-ball centre - table-ball centre| + the file's calibration
   offset + noise; the table ball is fixed in the workpiece frame.
 * thermal: ``disp_<c>_um`` = component c of the tip deviation, zeroed at the first reading (ISO 230-3).
+* velocity (seed 000): minus the velocity of the table points M, N in the bed frame (the motion in
+  the sense of the axis, so V0 = dir * feed as docs/measurements.md uses it), M and N in table
+  coordinates; the rotation centre is the table's pivot shifted by the straightness slope and by
+  ``FeedAbbe``'s IRC shift.
+* Every writer: ``setup=False`` and zero noise give the machine's readings exactly; a machine with a
+  ``ThermalDrift`` records ``spindle_rpm`` and ``temp_<name>_c`` (a ``ThermalEnvironment``) in every
+  file, and the writers take ``t0_s`` so that a campaign runs on one clock.
 
 :func:`form_error` (Kabsch) gives the form error of cut points; ``TruthMachine.cut`` the actual tip of
 commanded (e.g. compensated) axis positions.

@@ -100,6 +100,31 @@ class _Clock:
         return self.t
 
 
+def _environment(machine: TruthMachine, environment):
+    """The environment a campaign records: ``environment`` when given, else, for a machine with a
+    :class:`ThermalDrift` effect, a :class:`ThermalEnvironment` on the schedule of its first
+    spindle-driven drift (or :data:`DEFAULT_SCHEDULE`), else None (no temperature columns)."""
+    if environment is not None:
+        return environment
+    drifts = [e for e in machine.effects if isinstance(e, ThermalDrift)]
+    if not drifts:
+        return None
+    schedule = next((e.schedule for e in drifts if e.driver == "spindle" and e.schedule), None)
+    return ThermalEnvironment(schedule or DEFAULT_SCHEDULE)
+
+
+def _with_environment(env, ctx: Context, cols: dict, t) -> None:
+    """Fill the context's temperatures and spindle speed from ``env`` at times ``t`` and add the
+    ``spindle_rpm`` and ``temp_<name>_c`` columns (nothing when env is None)."""
+    if env is None:
+        return
+    ctx.temperatures = env.temperatures(t)
+    ctx.spindle_rpm = env.schedule.rpm(t)
+    cols["spindle_rpm"] = ctx.spindle_rpm
+    for name, v in ctx.temperatures.items():
+        cols[f"temp_{name}_c"] = v
+
+
 # ---------------------------------------------------------------------------------------- points
 def points(machine: TruthMachine, path, rng, *, grid=(5, 5, 4), margin=0.1, plane: dict | None = None,
            rotary_deg=None, tool_lengths_mm=None, directions=(1, -1), feeds_mm_min=(500.0, 2000.0, 5000.0),
@@ -119,8 +144,10 @@ def points(machine: TruthMachine, path, rng, *, grid=(5, 5, 4), margin=0.1, plan
         frame) as ``R_s p + t_s``; the file holds d = R_s p + t_s - p_nominal (um), with t_s a
         translation of 2-30 um per component and R_s a rotation (about the workpiece origin) by a
         rotation vector of 5-50 urad per component (``setup["translation_um"]``,
-        ``setup["rotation_urad"]``). environment : adds ``spindle_rpm`` and ``temp_<name>_c`` columns
-        (and feeds them to thermal effects) from a :class:`ThermalEnvironment`.
+        ``setup["rotation_urad"]``). environment : a :class:`ThermalEnvironment` whose spindle speed
+        and temperatures are written (``spindle_rpm``, ``temp_<name>_c``) and fed to thermal effects;
+        default: one on the machine's spindle schedule when it has a :class:`ThermalDrift`, else none
+        (the same holds for the laser and ballbar writers).
 
     Returns ideal ``dx_um, dy_um, dz_um`` = actual minus nominal tip (no set-up, no noise).
     """
@@ -171,11 +198,9 @@ def points(machine: TruthMachine, path, rng, *, grid=(5, 5, 4), margin=0.1, plan
     dirs = np.array(rows_dir, float)
     t = np.array(rows_t)
     feed = np.array(rows_feed)
-    temps, rpm = {}, np.zeros(n)
-    if environment is not None:
-        temps = environment.temperatures(t)
-        rpm = environment.schedule.rpm(t)
-    ctx = Context(feed, {a: dirs for a in machine.axis_names}, t, temps, rpm)
+    ctx = Context(feed, {a: dirs for a in machine.axis_names}, t)
+    env_cols: dict = {}
+    _with_environment(_environment(machine, environment), ctx, env_cols, t)
     tip, _ = machine.true_pose(q, L, ctx)
     tip0, _ = machine.nominal_pose(q, L)
     ideal = (tip - tip0) * 1e3
@@ -195,10 +220,7 @@ def points(machine: TruthMachine, path, rng, *, grid=(5, 5, 4), margin=0.1, plan
         cols[f"dir_{a.lower()}"] = dirs
     cols["run"] = np.array(rows_run)
     cols["t_s"] = t
-    if environment is not None:
-        cols["spindle_rpm"] = rpm
-        for name, v in temps.items():
-            cols[f"temp_{name}_c"] = v
+    cols.update(env_cols)
     write_csv(path, cols)
     return CampaignResult(Path(path), cols, {"translation_um": t_um, "rotation_urad": w * 1e6},
                           {"dx_um": ideal[:, 0], "dy_um": ideal[:, 1], "dz_um": ideal[:, 2]}, ctx, q)
@@ -208,7 +230,8 @@ def points(machine: TruthMachine, path, rng, *, grid=(5, 5, 4), margin=0.1, plan
 def laser(machine: TruthMachine, path, rng, axis: str, *, components=None, targets=None, n_targets=11,
           n_runs: int = 5, static: dict | None = None, optic_mm=(0.0, 0.0, 0.0), feed_mm_min=1000.0,
           tool_length_mm=None, setup: bool = True, noise_um: float = 0.2, noise_urad: float = 0.3,
-          t0_s: float = 0.0, dwell_s: float = 4.0) -> CampaignResult:
+          t0_s: float = 0.0, dwell_s: float = 4.0,
+          environment: ThermalEnvironment | None = None) -> CampaignResult:
     """ISO 230-2 runs of one ``axis`` (SPEC 3.2), one set-up per component.
 
     components : default the six of a linear axis (EXX, EYX, EZX, EAX, EBX, ECX for X) or the
@@ -219,15 +242,17 @@ def laser(machine: TruthMachine, path, rng, axis: str, *, components=None, targe
     static : {axis letter: mm or deg} positions of the other axes (default 0), written as ``x_mm`` ...
         (the moving axis's column holds its target). optic_mm : (3,) the measured point relative to the
         tool tip (Abbe arm; a vector fixed to the tool, given in the workpiece frame at the nominal pose).
-    feed_mm_min : the feed of the moves; tool_length_mm : default the machine's.
+    feed_mm_min : the feed of the moves (mm/min, deg/min for rotary), or a sequence of feeds: then
+        every component's ``n_runs`` are repeated at each feed, ``run`` numbering all runs of a
+        component 1, 2, ... in order. tool_length_mm : default the machine's.
 
     Reading (:meth:`TruthMachine.laser_reading`): a translational component E<d><axis> reads the
     d-component of actual minus nominal position of the measured point (workpiece frame); an angular
     one the rotation of the tool relative to the workpiece about d (right-handed, small angle); in a
     run of a rotary axis carrying the workpiece both are negated (the table relative to the tool, i.e.
-    ECC = actual minus commanded table angle as ISO 230-2 reports it). Set-up (``setup=True``): per component a zero
-    offset (translational 1-10 um, angular 2-20 urad) and for straightness components of a linear axis
-    a slope (optic misalignment, 5-50 urad = um/m) times the target in m:
+    ECC = actual minus commanded table angle as ISO 230-2 reports it). Set-up (``setup=True``): per
+    component a zero offset (translational 1-10 um, angular 2-20 urad) and for straightness
+    components of a linear axis a slope (optic misalignment, 5-50 urad = um/m) times the target in m:
     value = ideal + offset + slope * target_mm / 1000 (+ noise). ``setup["offset"]`` and
     ``setup["slope_urad"]`` hold them per component.
     """
@@ -254,27 +279,34 @@ def laser(machine: TruthMachine, path, rng, axis: str, *, components=None, targe
     for a, v in static.items():
         if a != axis:
             q_static[machine.index(a)] = math.radians(v) if a in "ABC" else v
-    rows = {k: [] for k in ("component", "target", "dir", "run", "seq", "t")}
+    feeds = np.atleast_1d(np.asarray(feed_mm_min, float))
+    rows = {k: [] for k in ("component", "target", "dir", "run", "seq", "t", "feed")}
     clock = _Clock(t0_s)
     pos = targets[0]
     for comp in components:
         seq = 0
-        for run in range(1, n_runs + 1):
-            for d, order in ((1, targets), (-1, targets[::-1])):
-                for tg in order:
-                    seq += 1
-                    rows["t"].append(clock.move(tg - pos, feed_mm_min, dwell_s))
-                    pos = tg
-                    for k, v in (("component", comp), ("target", tg), ("dir", d), ("run", run),
-                                 ("seq", seq)):
-                        rows[k].append(v)
+        run = 0
+        for feed in feeds:
+            for _ in range(n_runs):
+                run += 1
+                for d, order in ((1, targets), (-1, targets[::-1])):
+                    for tg in order:
+                        seq += 1
+                        rows["t"].append(clock.move(tg - pos, feed, dwell_s))
+                        pos = tg
+                        for k, v in (("component", comp), ("target", tg), ("dir", d), ("run", run),
+                                     ("seq", seq), ("feed", feed)):
+                            rows[k].append(v)
     n = len(rows["target"])
     tg = np.array(rows["target"])
     q = np.tile(q_static, (n, 1))
     q[:, j] = np.radians(tg) if rotary else tg
     dirs = np.array(rows["dir"], float)
     t = np.array(rows["t"])
-    ctx = Context(feed_mm_min, {axis: dirs}, t)
+    feed_rows = np.array(rows["feed"])
+    ctx = Context(feed_rows, {axis: dirs}, t)
+    env_cols: dict = {}
+    _with_environment(_environment(machine, environment), ctx, env_cols, t)
     comp_arr = np.array(rows["component"])
     angular = np.array([c[1] in "ABC" for c in comp_arr])
     ideal = np.zeros(n)
@@ -301,8 +333,9 @@ def laser(machine: TruthMachine, path, rng, axis: str, *, components=None, targe
     cols.update(_axis_columns(machine, q))
     for k, c in enumerate("xyz"):
         cols[f"optic_{c}_mm"] = np.full(n, float(optic_mm[k]))
-    cols["feed_mm_min"] = np.full(n, float(feed_mm_min))
+    cols["feed_mm_min"] = feed_rows
     cols["t_s"] = t
+    cols.update(env_cols)
     write_csv(path, cols)
     return CampaignResult(Path(path), cols, {"offset": offsets, "slope_urad": slopes},
                           {"value_um": np.where(angular, np.nan, ideal),
@@ -317,8 +350,11 @@ def _length_offset(rng, setup):
     return float(_signed(rng, 1.0, 20.0) * 1e-3) if setup else 0.0
 
 
-def _ballbar_file(machine, path, rng, q, table_ball, tool_ball, L, ctx, extra, setup, noise_mm):
+def _ballbar_file(machine, path, rng, q, table_ball, tool_ball, L, ctx, extra, setup, noise_mm,
+                  environment=None):
     n = len(q)
+    extra = dict(extra)
+    _with_environment(_environment(machine, environment), ctx, extra, ctx.t_s)
     true_len = machine.ballbar_length(q, table_ball, tool_ball, L, ctx)
     offset = _length_offset(rng, setup)
     length = true_len + offset + (rng.normal(0.0, noise_mm, n) if noise_mm > 0 else 0.0)
@@ -338,7 +374,8 @@ def _ballbar_file(machine, path, rng, q, table_ball, tool_ball, L, ctx, extra, s
 def ballbar_circles(machine: TruthMachine, path, rng, *, planes=("XY", "YZ", "ZX"), radius_mm=100.0,
                     centre_mm=None, n_points: int = 72, directions=(1, -1), feed_mm_min=1000.0,
                     tool_ball_mm=(0.0, 0.0, 0.0), tool_length_mm=None, setup: bool = True,
-                    noise_mm: float = 0.0003, t0_s: float = 0.0, dwell_s: float = 0.0) -> CampaignResult:
+                    noise_mm: float = 0.0003, t0_s: float = 0.0, dwell_s: float = 0.0,
+                    environment: ThermalEnvironment | None = None) -> CampaignResult:
     """ISO 230-4 circles (SPEC 3.3) in ``planes`` (``"XY"``: X towards Y, ``"YZ"``, ``"ZX"``), each in
     both ``directions`` (+1: counter-clockwise seen from the positive third axis), rotary axes at 0.
 
@@ -396,13 +433,14 @@ def ballbar_circles(machine: TruthMachine, path, rng, *, planes=("XY", "YZ", "ZX
     extra.update({"feed_mm_min": np.full(n, float(feed_mm_min)), "run": np.array(rows_run), "t_s": t})
     table = np.tile(c, (n, 1))
     tool = np.tile(b, (n, 1))
-    return _ballbar_file(machine, path, rng, q, table, tool, tool_length_mm, ctx, extra, setup, noise_mm)
+    return _ballbar_file(machine, path, rng, q, table, tool, tool_length_mm, ctx, extra, setup, noise_mm,
+                         environment)
 
 
 def three_sphere(machine: TruthMachine, path, rng, *, heights_mm=(100.0, 200.0), bar_mm=100.0,
                  angles_deg=None, n_runs: int = 3, directions=(1, -1), feed_deg_min=3600.0,
                  tool_length_mm=None, setup: bool = True, noise_mm: float = 0.0003, t0_s: float = 0.0,
-                 dwell_s: float = 2.0) -> CampaignResult:
+                 dwell_s: float = 2.0, environment: ThermalEnvironment | None = None) -> CampaignResult:
     """Seed 003: ball bar of ``bar_mm`` from a table ball on the C axis (``axis_point_C + (0, 0, h)``,
     workpiece frame = machine frame with every axis at zero) at each height h to a tool ball
     ``bar_mm`` along X, then Y, then Z from it (six set-ups); in each only C moves, through
@@ -446,7 +484,7 @@ def three_sphere(machine: TruthMachine, path, rng, *, heights_mm=(100.0, 200.0),
     ctx = Context(0.0, {"C": dirc}, t)
     extra = {"dir_c": dirc, "run": np.array(rows_run), "t_s": t}
     return _ballbar_file(machine, path, rng, q, np.array(rows_tb), np.zeros((n, 3)), tool_length_mm, ctx,
-                         extra, setup, noise_mm)
+                         extra, setup, noise_mm, environment)
 
 
 # ---------------------------------------------------------------------------------------- thermal
@@ -533,9 +571,9 @@ def velocity(machine: TruthMachine, path, rng, *, axis: str = "X", start_mm=None
 
     Convention (SPEC is silent): velocities are those of :func:`table_point_velocity`: minus the
     table points' velocity in the bed frame, i.e. the motion in the sense of the axis (V0 = dir * feed
-    along the axis, as docs/measurements.md uses it); a sensor on the bed reads the negative. Noise ``noise_mm_min`` per
-    component. Returns ``ideal`` velocities and ``setup["irc_xy_mm"]``: the rotation centre
-    solved from the ideal velocities by eq. 1 ((v - V0 e) . (O - P) = 0 for P = M, N).
+    along the axis, as docs/measurements.md uses it); a sensor on the bed reads the negative.
+    Noise ``noise_mm_min`` per component. Returns ``ideal`` velocities and ``setup["irc_xy_mm"]``:
+    the rotation centre solved from the ideal velocities by eq. 1 ((v - V0 e) . (O - P) = 0 for P = M, N).
     """
     axis = axis.upper()
     if axis not in ("X", "Y") or machine.side(axis) != "workpiece":

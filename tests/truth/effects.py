@@ -16,7 +16,7 @@ side X is on.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -259,7 +259,8 @@ class LocalDefect(Effect):
 class ThermalEnvironment:
     """Temperatures of a thermal campaign: ``ambient`` = ambient_c + slow wander (two sines),
     ``spindle`` = ambient + spindle_gain_c * (first-order lag of rpm / rpm_ref, time constant
-    spindle_tau_s), ``bed`` = first-order lag (bed_tau_s) of the ambient wander around ambient_c."""
+    spindle_tau_s), ``bed`` = the steady-state response of a first-order lag (bed_tau_s) to the ambient
+    wander, around ambient_c."""
 
     schedule: SpindleSchedule
     ambient_c: float = 20.0
@@ -326,7 +327,8 @@ def random_effect(kind: str, machine, rng, axis: str | None = None, **overrides)
                   angle_gain_per_m_min=rng.uniform(0.05, 0.3), irc_shift_mm_per_m_min=tuple(shift))
         cls = FeedAbbe
     elif kind == "thermal_drift":
-        driver = overrides.pop("driver", None) or str(rng.choice(["time", "temperature", "spindle", "linear"]))
+        driver = overrides.pop("driver", None) or str(rng.choice(["time", "temperature", "spindle",
+                                                                  "linear"]))
         vec = (sign() * rng.uniform(1, 5), sign() * rng.uniform(1, 5), -rng.uniform(5, 20))
         if driver == "temperature":
             vec = tuple(v / 5.0 for v in vec)                   # um per degC

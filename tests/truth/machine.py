@@ -131,7 +131,9 @@ class TruthMachine:
     Attributes (plain data a test may set; see :mod:`truth` for their meaning):
     components : {axis: {component name: profile f(s) -> mm or rad}}
     pivots : {linear axis: (3,) mm} point, in that axis's carriage frame, about which its angular
-        errors act.
+        errors act; for the axis that carries the spindle (the last tool-side axis, Z) relative to
+        the spindle gauge point instead (carriage coordinates ``pivot + (0, 0, tool_length)``), so
+        that it is fixed on the ram whatever the tool length.
     squareness : {"C0Y", "B0Z", "A0Z": rad}.
     location : {rotary location error name (X0C, Y0C, A0C, B0C ...): mm or rad}.
     spindle_tilt : (2,) rad, tilt of the tool axis about X then about Y of the Z carriage.
@@ -190,10 +192,11 @@ class TruthMachine:
         scale : multiplies every error magnitude.
 
         Magnitudes: positioning 5-30 um peak-to-peak over the travel plus a constant up to +-5 um,
-        straightness 2-10 um p-p plus up to +-3 um, angular 5-30 urad p-p plus a constant of
-        3-20 urad of random sign; squareness 10-60 urad; spindle tilt 3-30 urad per component;
-        rotary offsets 5-40 um, tilts 10-60 urad, positioning error constant 5-30 urad and
-        harmonics 1..5 of 3-15 urad, error motions 1-4 um and 2-8 urad.
+        straightness 2-10 um p-p plus up to +-3 um, angular 5-30 urad p-p with a value of 3-20 urad
+        (random sign) at s = 0 (a constant part; 0 clipped into the travel); squareness 10-60 urad;
+        spindle tilt 3-30 urad per component; pivots as in :mod:`truth`; rotary offsets 5-40 um,
+        tilts 10-60 urad, positioning error constant 5-30 urad and harmonics 1..5 of 3-15 urad,
+        error motions 1-4 um and 2-8 urad.
         """
         m = cls(source, tool_length_mm)
         rnd = lambda lo, hi: float(rng.uniform(lo, hi) * rng.choice([-1.0, 1.0]))  # noqa: E731
@@ -206,7 +209,8 @@ class TruthMachine:
                         rng_pp = rng.uniform(5.0, 30.0) * UM * scale
                         shape = P.real_positioning_shape(a, lo, hi) if real_positioning else None
                         if shape is not None:
-                            base = P.Sum((P.Scaled(0.85, shape), P.Scaled(0.15, P.random_shape(rng, lo, hi))))
+                            base = P.normalised(P.Sum((P.Scaled(0.85, shape),
+                                                       P.Scaled(0.15, P.random_shape(rng, lo, hi)))), lo, hi)
                         else:
                             base = P.random_shape(rng, lo, hi)
                         m.components[a][c] = P.Sum((P.Scaled(rng_pp, base),
@@ -214,14 +218,19 @@ class TruthMachine:
                     elif d in "XYZ":               # straightness
                         m.components[a][c] = P.random_profile(rng, lo, hi, rng.uniform(2, 10) * UM * scale,
                                                               rng.uniform(-3, 3) * UM * scale)
-                    else:                          # angular, with a constant part
-                        m.components[a][c] = P.random_profile(rng, lo, hi, rng.uniform(5, 30) * URAD * scale,
-                                                              rnd(3, 20) * URAD * scale)
+                    else:                          # angular: 3-20 urad at s = 0, never through 0 there
+                        shape = P.Scaled(rng.uniform(5, 30) * URAD * scale, P.random_shape(rng, lo, hi))
+                        at0 = rnd(3, 20) * URAD * scale
+                        shift = at0 - float(shape(np.array([0.0]))[0])
+                        m.components[a][c] = P.Sum((shape, P.Constant(shift)))
                 side = "workpiece" if a in m.workpiece_chain else "tool"
                 if side == "workpiece":
                     # somewhere on the table, below or at its face, away from the workpiece origin
                     m.pivots[a] = np.array([rng.uniform(-250, 250), rng.uniform(-150, 150),
                                             rng.uniform(-120, -20)])
+                elif a == m.tool_chain[-1]:        # relative to the gauge point, up the ram
+                    m.pivots[a] = np.array([rng.uniform(-150, 150), rng.uniform(-150, 150),
+                                            rng.uniform(20, 300)])
                 else:
                     m.pivots[a] = np.array([rng.uniform(-150, 150), rng.uniform(-150, 150),
                                             rng.uniform(50, 400)])
@@ -268,6 +277,17 @@ class TruthMachine:
     def side(self, axis: str) -> str:
         return "workpiece" if axis in self.workpiece_chain else "tool"
 
+    def q_from(self, x_mm=0.0, y_mm=0.0, z_mm=0.0, a_deg=0.0, b_deg=0.0, c_deg=0.0) -> np.ndarray:
+        """(N, n_axes) or (n_axes,) q in mm and rad from file-unit positions (mm, deg; scalars or (N,)
+        arrays); positions of axes the machine lacks must be 0."""
+        given = {"X": x_mm, "Y": y_mm, "Z": z_mm, "A": a_deg, "B": b_deg, "C": c_deg}
+        for a, v in given.items():
+            if a not in self.axis_names and np.any(np.asarray(v) != 0):
+                raise ValueError(f"machine {self.topology} has no axis {a}")
+        cols = [np.asarray(given[a], float) if a in "XYZ" else np.radians(np.asarray(given[a], float))
+                for a in self.axis_names]
+        return np.stack(np.broadcast_arrays(*cols), axis=-1)
+
     def _q(self, q) -> np.ndarray:
         q = np.atleast_2d(np.asarray(q, dtype=float))
         if q.shape[1] != self.n_axes:
@@ -312,8 +332,10 @@ class TruthMachine:
                 vals[c] = vals[c] + v
         return vals
 
-    def _pivot(self, axis, s, ctx) -> np.ndarray:
+    def _pivot(self, axis, s, ctx, L=None) -> np.ndarray:
         p = np.broadcast_to(self.pivots[axis], (len(s), 3)).copy()
+        if L is not None and self.side(axis) == "tool" and axis == self.tool_chain[-1]:
+            p[:, 2] += L                   # the spindle carriage's pivot is fixed to the gauge point
         for e in self.effects:
             d = e.pivot_shift(self, axis, s, ctx)
             if d is not None:
@@ -321,7 +343,7 @@ class TruthMachine:
         return p
 
     # ---------------------------------------------------------------- one axis
-    def _linear(self, axis, s, ctx, errors: bool) -> np.ndarray:
+    def _linear(self, axis, s, ctx, errors: bool, L=None) -> np.ndarray:
         """Carriage of linear ``axis`` in its parent frame (N, 4, 4).
 
         tool side :  Trans(s u) Trans(delta) [Trans(p) Rx(EA) Ry(EB) Rz(EC) Trans(-p)]
@@ -338,7 +360,7 @@ class TruthMachine:
         v = self.component_values(axis, s, ctx)
         delta = np.stack([v[f"EX{axis}"], v[f"EY{axis}"], v[f"EZ{axis}"]], axis=1)
         R = T.rot_x(v[f"EA{axis}"]) @ T.rot_y(v[f"EB{axis}"]) @ T.rot_z(v[f"EC{axis}"])
-        p = self._pivot(axis, s, ctx)
+        p = self._pivot(axis, s, ctx, L)
         if table:
             return (T.translation(-s[:, None] * u) @ T.about_point(p, np.transpose(R, (0, 2, 1)))
                     @ T.translation(-delta))
@@ -405,7 +427,7 @@ class TruthMachine:
         L = self._tool(tool_length, n)
         out = T.identity(n)
         for a in self.tool_chain:
-            out = out @ self._linear(a, self._axis_argument(a, q, L), ctx, errors)
+            out = out @ self._linear(a, self._axis_argument(a, q, L), ctx, errors, L)
         return out @ self._spindle(q, L, ctx, errors)
 
     def tool2wp(self, q, tool_length=None, context=None, errors: bool = True) -> np.ndarray:

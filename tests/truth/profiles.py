@@ -121,6 +121,13 @@ class Fourier:
         return out
 
 
+def normalised(f, lo, hi, n=801):
+    """f shifted and scaled to mean 0 and peak-to-peak 1 over [lo, hi]."""
+    v = f(np.linspace(lo, hi, n))
+    pp = float(v.max() - v.min())
+    return Sum((Scaled(1.0 / pp, f), Constant(-float(v.mean()) / pp)))
+
+
 def peak_to_peak(f, lo, hi, n=801) -> float:
     v = f(np.linspace(lo, hi, n))
     return float(v.max() - v.min())
