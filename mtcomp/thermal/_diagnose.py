@@ -18,7 +18,8 @@ from ..models.chain import ErrorModel
 from ..models.model_file import FittedModel
 from ..models.params import ParameterSet
 from ..models.terms import ChannelDrift, ThermalDrift
-from ._fit import _rms, feature_matrix, fit_ridge, fit_thermal, forward_folds, forward_sse, thermal_arrays
+from ._fit import (_rms, feature_matrix, fit_ridge, fit_thermal, forward_folds, forward_sse, thermal_arrays,
+                   usable_temperatures)
 
 
 def channel_axes_for(channels, channel_axes: dict | None, path=None) -> dict:
@@ -130,7 +131,7 @@ def _temperature_regression(data, fit) -> dict | None:
     """Plain least squares on every temperature, scored like the candidates (a reference)."""
     order, _, Y = thermal_arrays(data)
     ctx = data.context.subset(order)
-    temps = [s for s, v in ctx.temperatures.items() if np.isfinite(v).all() and np.ptp(v) > 0]
+    temps = usable_temperatures(ctx)
     if not temps:
         return None
     X = feature_matrix(ctx, [f"temp_{s}" for s in temps])

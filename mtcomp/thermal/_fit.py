@@ -122,6 +122,11 @@ def lag_name(tau_s: float) -> str:
     return f"spindle_lag_{round(tau_s):d}"
 
 
+def usable_temperatures(context) -> list[str]:
+    """Sensors with a reading in every row that is not constant (the others are left out)."""
+    return [s for s, v in context.temperatures.items() if np.isfinite(v).all() and np.ptp(v) > 0]
+
+
 def candidates(context, Y, lags_s=DEFAULT_LAGS_S) -> list[CandidateScore]:
     """The drift models a file supports (features not yet scored), simplest first."""
     t = np.asarray(context.t, dtype=float)
@@ -137,8 +142,7 @@ def candidates(context, Y, lags_s=DEFAULT_LAGS_S) -> list[CandidateScore]:
         tau = _fit_tau(context, Y, lag_name, 60.0, max(span, 120.0))
         out.append(CandidateScore("spindle heat", "spindle", ["spindle"], [lag_name(tau)], 3,
                                   time_constants_s=[tau]))
-    temps = [s for s, v in context.temperatures.items()
-             if np.isfinite(v).all() and np.ptp(v) > 0]
+    temps = usable_temperatures(context)
     if temps:
         out.append(CandidateScore("temperatures", "temperature", ["temperature"],
                                   [f"temp_{s}" for s in temps], 4))
@@ -219,6 +223,8 @@ def thermal_arrays(data):
     if not np.isfinite(t).all():
         bad = int(np.flatnonzero(~np.isfinite(t))[0])
         data.fail("blank t_s: every reading of a thermal file needs its time", bad)
+    if np.ptp(t) <= 0:
+        data.fail("t_s does not advance: a drift record needs readings spread in time")
     order = np.argsort(t, kind="stable")
     channels = list(data.channels)
     Y = np.column_stack([data.channels[ch] for ch in channels]) * 1e3
@@ -260,8 +266,7 @@ def fit_thermal(data, lags_s=DEFAULT_LAGS_S, n_folds: int = N_FOLDS, penalties=P
                       np.max(np.abs(Y - Y[0]), axis=0), ridge.predict(X), Y,
                       np.asarray(ctx.t, dtype=float), forward_predictions(X, Y, chosen.penalty, folds),
                       np.asarray(ctx.spindle_rpm, dtype=float), n_folds, temp_means,
-                      [s for s in ctx.temperatures if f"temp_{s}" not in
-                       {f for c in scores for f in c.features}])
+                      [s for s in ctx.temperatures if s not in usable_temperatures(ctx)])
 
 
 def choose(scores: list[CandidateScore]) -> CandidateScore:
