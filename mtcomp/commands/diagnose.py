@@ -13,7 +13,7 @@ from __future__ import annotations
 def add_arguments(parser):
     parser.add_argument("machine", metavar="MACHINE", help="built-in machine name or machine TOML file")
     parser.add_argument("data", metavar="DATA", nargs="+",
-                        help="measurement files (points, laser, ballbar, thermal, ...: SPEC section 3)")
+                        help="measurement files (points, laser, ballbar, thermal, ...: docs/measurements.md)")
     parser.add_argument("--json", metavar="REPORT.json", required=True,
                         help="where to write the report (verdict, noise_um, base, findings, final)")
     parser.add_argument("-o", "--output", metavar="MODEL.json", default=None,
