@@ -35,6 +35,13 @@ def add_arguments(parser):
                              "miss its midpoint by more than T um (default 0.5; 0: end points only)")
     parser.add_argument("--chord-tol-um", type=float, metavar="T", default=1.0,
                         help="chord tolerance for arcs written as G1 polylines (um, default 1)")
+    parser.add_argument("--temperature", metavar="NAME=DEGC", action="append", default=[],
+                        help="temperature of sensor NAME (as in temp_NAME_c of the thermal file) while "
+                             "the program runs, for the model's thermal drift (repeatable; sensors not "
+                             "given keep the model's reference)")
+    parser.add_argument("--spindle-rpm", type=float, metavar="RPM", default=None,
+                        help="spindle speed the machine has run at long enough to be warm, for the "
+                             "model's spindle-heat drift (default: spindle stopped for long)")
     parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
 
 
@@ -124,6 +131,10 @@ def run(args) -> int:
             raise InputError("--report and -o name the same file", args.report)
     machine = load_machine(args.machine)
     fitted = load_model(args.model, machine)
+    from ..thermal.context import parse_assignments, thermal_context
+    thermal, assumed = thermal_context(fitted, parse_assignments(args.temperature, "--temperature"),
+                                       args.spindle_rpm)
+    fitted.context_defaults.update(thermal)
     inch = uses_inches(args.program)
     problem = CompensationProblem.from_machine(
         fitted, args.max_correction_um, args.max_correction_urad, args.max_step_um,
@@ -157,6 +168,8 @@ def run(args) -> int:
     elapsed = time.perf_counter() - t0
     print(f"mtcomp compensate: method {args.method}, {machine.name} ({machine.topology}), "
           f"{elapsed:.1f} s")
+    if assumed:
+        print(assumed)
     print(summary.text())
     st = planner.stats
     if args.method == "qp" and st["windows"]:

@@ -13,11 +13,18 @@ from __future__ import annotations
 def add_arguments(parser):
     parser.add_argument("machine", metavar="MACHINE", help="built-in machine name or machine TOML file")
     parser.add_argument("data", metavar="DATA", nargs="+",
-                        help="measurement files (points, laser, ballbar, thermal, ...: SPEC section 3)")
+                        help="measurement files (points, laser, ballbar, thermal, ...: docs/measurements.md)")
     parser.add_argument("--json", metavar="REPORT.json", required=True,
                         help="where to write the report (verdict, noise_um, base, findings, final)")
     parser.add_argument("-o", "--output", metavar="MODEL.json", default=None,
                         help="also write the extended model (base model plus the terms found)")
+    parser.add_argument("--channel-axis", metavar="NAME=AXIS", action="append", default=[],
+                        help="thermal file: channel disp_NAME_um reads the tool tip along machine axis "
+                             "AXIS (X, Y or Z), so its drift acts where compensation needs it "
+                             "(repeatable; channels named x, y, z need none)")
+    parser.add_argument("--plot", metavar="DRIFT.png", default=None,
+                        help="thermal file: draw each channel's drift over time, measured and "
+                             "predicted forward in time (ISO 230-3 style)")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
 
 
@@ -34,8 +41,16 @@ def run(args) -> int:
 
     report_path = check_output_path(args.json, list(args.data))
     model_path = check_output_path(args.output, list(args.data)) if args.output else None
-    if model_path is not None and report_path.resolve() == model_path.resolve():
-        raise InputError("--json and -o name the same file", args.json)
+    plot_path = check_output_path(args.plot, list(args.data)) if args.plot else None
+    outputs = [p.resolve() for p in (report_path, model_path, plot_path) if p is not None]
+    if len(set(outputs)) < len(outputs):
+        raise InputError("--json, -o and --plot must name different files", args.json)
+    channel_axes = {}
+    for item in args.channel_axis:
+        name, sep, axis = item.partition("=")
+        if not sep or not name or not axis:
+            raise InputError(f"--channel-axis {item!r}: write NAME=AXIS, e.g. ch3=Z")
+        channel_axes[name] = axis
     machine = load_machine(args.machine)
     datasets = [read_measurements(path) for path in args.data]
 
@@ -44,7 +59,10 @@ def run(args) -> int:
             sys.stderr.write(f"diagnose: {line}\n")
             sys.stderr.flush()
 
-    result = diagnose(machine, datasets, progress=progress)
+    result = diagnose(machine, datasets, progress=progress, channel_axes=channel_axes or None)
+    if plot_path is not None and result.thermal is None:
+        raise InputError("--plot draws the drift of one thermal file; the data are not one thermal file",
+                         args.data[0])
     result.model.info["command"] = "mtcomp diagnose " + " ".join(sys.argv[2:]) if len(sys.argv) > 2 \
         else "mtcomp diagnose"
     print(result.summary())
@@ -58,4 +76,9 @@ def run(args) -> int:
     if model_path is not None:
         save_model(model_path, result.model)
         print(f"wrote {model_path}")
+    if plot_path is not None:
+        from ..thermal.plot import plot_drift
+        with atomic_write(plot_path, "wb") as f:
+            plot_drift(result.thermal, f)
+        print(f"wrote {plot_path}")
     return 0

@@ -115,6 +115,7 @@ class Diagnosis:
     reference: dict = field(default_factory=dict)
     folds_of_observations: np.ndarray | None = None
     outliers: list = field(default_factory=list)
+    thermal: object = None
 
     @property
     def noise_um(self) -> float:
@@ -179,13 +180,22 @@ def _heldout(st, fit) -> float:
     return rms(fit.cv_resid[sel])
 
 
-def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int = MAX_FINDINGS) -> Diagnosis:
+def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int = MAX_FINDINGS,
+             channel_axes: dict | None = None) -> Diagnosis:
     """Diagnose the base model of ``machine`` on ``datasets`` (measurement sets, mtcomp.io).
 
     progress : callable(str) for progress lines, or None.
+    channel_axes : thermal channel name -> machine axis (X, Y, Z) it reads (channels x, y, z need none).
+    A single thermal file is diagnosed by :func:`mtcomp.thermal.diagnose_thermal` (drift models
+    validated forward in time, docs/thermal.md).
     Returns a :class:`Diagnosis`. Raises InputError when the data cannot be diagnosed.
     """
     from ._blas import single_threaded_blas
+    if len(datasets) == 1 and datasets[0].kind == "thermal":
+        from ..thermal import diagnose_thermal
+        return diagnose_thermal(machine, datasets[0], channel_axes, progress)
+    if channel_axes:
+        raise InputError("--channel-axis applies to the diagnosis of one thermal file alone")
     with single_threaded_blas():
         return _diagnose(machine, datasets, progress, max_findings)
 
@@ -259,6 +269,7 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
         used_terms = {t.key() for c in chosen for t in c.terms}
         cands = [c for c in generate(st, design, extra, current.resid, keys)
                  if not ({t.key() for t in c.terms} & used_terms)]
+        _forward_in_time(st, design, extra, cands)
         scored = []
         for c in cands:
             fit = design.fit(np.hstack([extra, c.columns]))
@@ -322,6 +333,26 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
     diag.seconds = time.perf_counter() - t0
     model.info["diagnose"] = diag.to_dict()
     return diag
+
+
+def _forward_in_time(st, design, extra, cands) -> None:
+    """A drift (in time, temperature or spindle history) must predict later readings from earlier
+    ones: each thermal_drift candidate is fitted on the past and scored on the future (forward-chained
+    blocks in time, mtcomp.thermal); one that does not lower that score by more than noise could gets
+    a veto saying so."""
+    from ..thermal._fit import forward_in_time_sse
+    drift = [c for c in cands if c.effect == "thermal_drift"]
+    if not drift:
+        return
+    without = forward_in_time_sse(design, extra, st.t)
+    if not np.isfinite(without):
+        return
+    for c in drift:
+        with_c = forward_in_time_sse(design, np.hstack([extra, c.columns]), st.t)
+        if not without - with_c > cv_threshold(c.columns.shape[1]):
+            c.veto = (f"predicted forward in time (fitted on earlier readings, scored on later ones) it "
+                      f"does not beat the model without it (weighted sum of squares {with_c:.4g} "
+                      f"against {without:.4g})")
 
 
 def _backward(design, chosen, findings, fit, n) -> list:

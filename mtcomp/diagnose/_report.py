@@ -192,6 +192,8 @@ def summary(diag) -> str:
         lines.append(f"reference: plain linear regression on all {len(ref['temperatures'])} temperatures "
                      f"({ref['n_params']} parameters): rms {_num(ref.get('rms_um'))} um, held-out "
                      f"{_num(ref.get('heldout_rms_um'))} um")
+    if diag.thermal is not None:
+        lines.append(diag.thermal.summary())
     lines.append(f"verdict: {diag.verdict}")
     return "\n".join(lines)
 

@@ -11,11 +11,13 @@ equations.
   tool axis and r the ball radius (positive: tool displaced outward, material left outside). The
   cutter location is found on the G-code that cut the part: the ball centre nearest to ``x + r n``.
   Nuisance: ``<tag>:radius_offset`` (um), the tool radius error (``dn -= dr``).
-* ``thermal`` (SPEC 3.5): channel ``disp_<name>_um`` drifts. Channels ``x``, ``y``, ``z`` are tool-tip
-  directions: they read the tip deviation at the set-up pose relative to the file's first row (so the
-  :class:`~mtcomp.models.ThermalDrift` term acts). Other channels read ``sum_f TD_<name>_<f> (f - f0)``
-  from a :class:`~mtcomp.models.ChannelDrift` term (zero without one). Nuisance: one zero offset per
-  channel, ``<tag>:<name>:offset`` (um).
+* ``thermal`` (SPEC 3.5): channel ``disp_<name>_um`` drifts. Channels ``x``, ``y``, ``z``, and the
+  channels a :class:`~mtcomp.models.ThermalDrift` term names, are tool-tip directions: they read the
+  tip deviation at the set-up pose relative to the file's first row (so the ThermalDrift term acts).
+  Other channels read ``sum_f TD_<name>_<f> (f - f0)`` from a :class:`~mtcomp.models.ChannelDrift`
+  term (zero without one). A channel covered by an ``absolute`` drift term reads its value itself, not
+  its change since the first row (docs/thermal.md). Nuisance: one zero offset per channel,
+  ``<tag>:<name>:offset`` (um).
 * ``velocity`` (SPEC 3.6, seed 000 eq. 1): the velocity of a table point P is the translation at
   feed plus the yaw rate about the rotation centre O: ``v = V e + Omega e_z x (P - O)`` with
   ``V = dir * feed``, ``Omega = dE_C<axis>/ds * V`` (the derivative of the yaw error of the moving
@@ -49,6 +51,8 @@ from .readings import MeasurementModel, context_matrix, register
 DEFAULT_TIME_CONSTANTS_S = (900.0, 3600.0)
 FEATURE_KINDS = ("time", "temperature", "spindle")
 _HEAT = re.compile(r"^spindle_heat_(\d+(?:\.\d+)?)$")
+_LAG = re.compile(r"^spindle_lag_(\d+(?:\.\d+)?)$")
+_TEMP = re.compile(r"^temp_(.+)$")
 _DTEMP = re.compile(r"^dtemp_(.+)$")
 _TEXP = re.compile(r"^time_exp_(\d+(?:\.\d+)?)$")
 #: tip-direction channels of thermal files
@@ -62,10 +66,11 @@ def _time_order(t: np.ndarray) -> np.ndarray:
     return idx[np.argsort(t[idx], kind="stable")]
 
 
-def spindle_heat(t: np.ndarray, rpm: np.ndarray, tau_s: float) -> np.ndarray:
+def spindle_heat(t: np.ndarray, rpm: np.ndarray, tau_s: float, steady_start: bool = False) -> np.ndarray:
     """(n,) spindle speed (1000 rpm) through a first-order lag of time constant ``tau_s`` (s).
 
-    h' = (rpm/1000 - h) / tau, h = 0 at the first reading; the speed is held between readings (exact
+    h' = (rpm/1000 - h) / tau, h = 0 at the first reading (``steady_start``: h = the first reading's
+    speed, as if the spindle had run at it for long); the speed is held between readings (exact
     discretisation: h_k = h_{k-1} + (1 - exp(-dt/tau)) (u_{k-1} - h_{k-1})). Rows are processed in time
     order; rows without a time get NaN. A blank speed counts as 0.
     """
@@ -73,7 +78,7 @@ def spindle_heat(t: np.ndarray, rpm: np.ndarray, tau_s: float) -> np.ndarray:
     u = np.nan_to_num(np.asarray(rpm, dtype=float)) / 1000.0
     out = np.full(t.shape, np.nan)
     order = _time_order(t)
-    h = 0.0
+    h = float(u[order[0]]) if steady_start and order.size else 0.0
     for k, i in enumerate(order):
         if k > 0:
             j = order[k - 1]
@@ -85,7 +90,8 @@ def spindle_heat(t: np.ndarray, rpm: np.ndarray, tau_s: float) -> np.ndarray:
 def feature_value(name: str, context: Context, reference_temperatures: dict | None = None):
     """(n,) values of drift feature ``name`` for the rows of ``context``, or None if ``name`` is not a
     drift feature. ``time_h``: h; ``dtemp_<s>``: K above ``reference_temperatures[s]`` or else the
-    first reading in time order; ``spindle_heat_<tau>``: 1000 rpm (see :func:`spindle_heat`)."""
+    first reading in time order; ``temp_<s>``: degC as read; ``spindle_heat_<tau>``: 1000 rpm (see
+    :func:`spindle_heat`), ``spindle_lag_<tau>`` the same started at the first reading's speed."""
     t = np.asarray(context.t, dtype=float)
     if name == "time_h":
         return t / 3600.0
@@ -106,9 +112,13 @@ def feature_value(name: str, context: Context, reference_temperatures: dict | No
             finite = order[np.isfinite(temp[order])]
             ref = temp[finite[0]] if finite.size else np.nan
         return temp - ref
-    m = _HEAT.match(name)
+    m = _HEAT.match(name) or _LAG.match(name)
     if m:
-        return spindle_heat(t, context.spindle_rpm, float(m.group(1)))
+        return spindle_heat(t, context.spindle_rpm, float(m.group(1)), steady_start=m.re is _LAG)
+    m = _TEMP.match(name)
+    if m:
+        temp = context.temperatures.get(m.group(1))
+        return np.full(t.shape, np.nan) if temp is None else np.asarray(temp, dtype=float)
     return None
 
 
@@ -183,6 +193,22 @@ def normal_deviation(model: ErrorModel, q, p, c, offset, normal, jacobian: bool 
     return (v, J.reshape(q.shape[0], model.n_params)) if jacobian else v
 
 
+def tip_channels(model: ErrorModel) -> tuple[dict, set]:
+    """(thermal channel -> tip direction index 0/1/2 it reads, channels read as absolute values):
+    channels x, y, z, those the model's ThermalDrift terms name, and the channels of absolute terms."""
+    from ..models.terms import ThermalDrift
+    tip = dict(TIP_CHANNELS)
+    absolute = set()
+    for t in model.terms:
+        if isinstance(t, ThermalDrift):
+            tip.update(t.channel_directions())
+            if t.absolute:
+                absolute.update(t.channel_directions())
+        elif isinstance(t, ChannelDrift) and t.absolute:
+            absolute.update(t.channels)
+    return tip, absolute
+
+
 def _extra_context(mm: MeasurementModel) -> dict:
     """Drift features of the model's file, overridden by the ``extra_context`` option."""
     extra = drift_context(mm.model, mm.data, mm.options.get("reference_temperatures"))
@@ -220,17 +246,20 @@ class ThermalModel(MeasurementModel):
         self.nuisance_specs = [ParamSpec(f"{self.tag}:{ch}:offset", "um", f"nuisance:{self.tag}",
                                          False, f"zero offset of channel {ch} of {self.tag}")
                                for ch in self.channels]
-        # other channels: (feature index in context, parameter index) pairs per channel
+        self._tip, self._absolute = tip_channels(self.model)
+        # other channels: (feature index in context or -1 for the zero, parameter index) pairs
         ctx_index = {nm: i for i, nm in enumerate(self.model.context_names)}
         p_index = {nm: i for i, nm in enumerate(self.model.param_names)}
         self._channel_terms = {}
         for ch in self.channels:
-            if ch in TIP_CHANNELS:
+            if ch in self._tip:
                 continue
             pairs = []
             for t in self.model.terms:
                 if isinstance(t, ChannelDrift) and ch in t.channels:
                     pairs += [(ctx_index[f], p_index[f"TD_{ch}_{f}"]) for f in t.features]
+                    if t.absolute:
+                        pairs.append((-1, p_index[f"TD_{ch}_zero"]))
             self._channel_terms[ch] = pairs
 
     def _channel_values(self, p, jacobian):
@@ -238,23 +267,26 @@ class ThermalModel(MeasurementModel):
         n, k = len(self.data), len(self.channels)
         val = np.zeros((n, k))
         J = np.zeros((n, k, self.model.n_params)) if jacobian else None
-        for ch, axis_index in TIP_CHANNELS.items():
+        for ch, axis_index in self._tip.items():
             if ch not in self.channels:
                 continue
             e = np.zeros((n, 3))
             e[:, axis_index] = 1.0
             v, Jv = normal_deviation(self.model, self.q, p, self.c, np.zeros((n, 3)), e, True)
             j = self.channels.index(ch)
-            val[:, j] = v - v[self.first]
+            absolute = ch in self._absolute
+            val[:, j] = v if absolute else v - v[self.first]
             if jacobian:
-                J[:, j, :] = Jv - Jv[self.first]
-        dc = self.c - self.c[self.first]
+                J[:, j, :] = Jv if absolute else Jv - Jv[self.first]
         for j, ch in enumerate(self.channels):
-            if ch not in TIP_CHANNELS:
-                for ci, pi in self._channel_terms[ch]:
-                    val[:, j] += p[pi] * dc[:, ci]
-                    if jacobian:
-                        J[:, j, pi] += dc[:, ci]
+            if ch in self._tip:
+                continue
+            dc = self.c if ch in self._absolute else self.c - self.c[self.first]
+            for ci, pi in self._channel_terms[ch]:
+                col = np.ones(n) if ci < 0 else dc[:, ci]
+                val[:, j] += p[pi] * col
+                if jacobian:
+                    J[:, j, pi] += col
         return val, J
 
     def _evaluate(self, p, nuisance, jacobian):

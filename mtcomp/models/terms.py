@@ -288,27 +288,44 @@ class ThermalDrift(Term):
     """Thermal drift of the tool tip, linear in named drivers (ISO 230-3 style).
 
     ``features`` are context channels computed from the data before the fit (e.g. ``time_h``,
-    ``temp_t1`` as a rise above its first reading, ``spindle_heat_1800``: spindle speed filtered with a
-    1800 s time constant). The tip moves in the workpiece frame by
-    ``sum_f TD_<dir>_<f> * feature_f`` for each direction in ``directions``.
+    ``dtemp_t1`` as a rise above its first reading, ``temp_t1`` the temperature itself in degC,
+    ``spindle_heat_1800``: spindle speed filtered with a 1800 s time constant). The tip moves in the
+    workpiece frame by ``sum_f TD_<dir>_<f> * feature_f`` for each direction in ``directions``.
     ``driver`` is 'time', 'temperature' or 'spindle' (what the report names).
+
+    ``absolute``: the drift is a function of the features alone, ``TD_<dir>_zero + sum_f ...``, not a
+    change since a file's first reading (docs/thermal.md): what compensation needs, since a program
+    has no "first reading". ``channels``: the thermal-file channels that read the tip along each of
+    ``directions`` (same order; empty: channels named x, y, z).
     """
 
     driver: str
     features: tuple[str, ...]
     directions: str = "XYZ"
+    absolute: bool = False
+    channels: tuple[str, ...] = ()
     kind = "thermal_drift"
 
     def key(self):
         return f"thermal_drift:{self.driver}"
 
     def param_specs(self, machine):
-        return [ParamSpec(f"TD_{d}_{f}", "um", self.key(), False,
-                          f"tip drift along {d} per unit of {f}")
-                for d in self.directions for f in self.features]
+        specs = [ParamSpec(f"TD_{d}_{f}", "um", self.key(), False,
+                           f"tip drift along {d} per unit of {f}")
+                 for d in self.directions for f in self.features]
+        if self.absolute:
+            specs += [ParamSpec(f"TD_{d}_zero", "um", self.key(), False,
+                                f"tip drift along {d} with every feature at zero") for d in self.directions]
+        return specs
 
     def context_names(self, machine):
         return list(self.features)
+
+    def channel_directions(self) -> dict:
+        """Thermal channel name -> tip direction index (0, 1, 2) it reads."""
+        if self.channels:
+            return {ch: TRANSLATION_LETTERS.index(d) for ch, d in zip(self.channels, self.directions)}
+        return {d.lower(): TRANSLATION_LETTERS.index(d) for d in self.directions}
 
     def tip_offset(self, machine, q, ctx, P):
         out = [ca.SX(0), ca.SX(0), ca.SX(0)]
@@ -316,11 +333,14 @@ class ThermalDrift(Term):
             j = TRANSLATION_LETTERS.index(d)
             for f in self.features:
                 out[j] = out[j] + P[f"TD_{d}_{f}"] * ctx[f]
+            if self.absolute:
+                out[j] = out[j] + P[f"TD_{d}_zero"]
         return ca.vertcat(*out)
 
     def to_dict(self):
         d = super().to_dict()
         d["features"] = list(self.features)
+        d["channels"] = list(self.channels)
         return d
 
 
@@ -330,23 +350,29 @@ class ChannelDrift(Term):
 
     For channels that are not tool-tip directions (a thermal file's ``disp_ch1_um`` ...), each channel
     drifts by ``sum_f TD_<channel>_<f> * feature_f`` (um per unit of feature, see
-    :func:`mtcomp.measurement.readings_extra.thermal_features` for the features). The
-    term does not act on the tool tip (channels ``x``, ``y``, ``z`` are tip directions: use
+    :func:`mtcomp.measurement.readings_extra.thermal_features` for the features); with ``absolute``
+    the reading is ``TD_<channel>_zero + sum_f ...`` (see :class:`ThermalDrift`), else its change since
+    the file's first reading. The term does not act on the tool tip (channels that read the tip: use
     :class:`ThermalDrift`); only the thermal measurement model reads its parameters.
     """
 
     driver: str
     features: tuple[str, ...]
     channels: tuple[str, ...]
+    absolute: bool = False
     kind = "channel_drift"
 
     def key(self):
         return f"channel_drift:{self.driver}"
 
     def param_specs(self, machine):
-        return [ParamSpec(f"TD_{ch}_{f}", "um", self.key(), False,
-                          f"drift of channel {ch} per unit of {f}")
-                for ch in self.channels for f in self.features]
+        specs = [ParamSpec(f"TD_{ch}_{f}", "um", self.key(), False,
+                           f"drift of channel {ch} per unit of {f}")
+                 for ch in self.channels for f in self.features]
+        if self.absolute:
+            specs += [ParamSpec(f"TD_{ch}_zero", "um", self.key(), False,
+                                f"reading of channel {ch} with every feature at zero") for ch in self.channels]
+        return specs
 
     def context_names(self, machine):
         return list(self.features)

@@ -1,0 +1,143 @@
+"""`diagnose` of a thermal file: the drift model that predicts the future, as a report and a model.
+
+The chosen drift (``_fit.fit_thermal``) becomes model terms that give each channel's reading itself
+(``absolute``): a :class:`~mtcomp.models.ThermalDrift` on the tool tip for the channels that read a
+machine axis (channels named x, y, z, or mapped by ``channel_axes``), a
+:class:`~mtcomp.models.ChannelDrift` for the others. Temperatures enter as read (``temp_<s>``,
+degC); their means over the file become the model's context defaults (a program compensated
+without temperatures gets the mean drift of the file).
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..errors import InputError
+from ..models.chain import ErrorModel
+from ..models.model_file import FittedModel
+from ..models.params import ParameterSet
+from ..models.terms import ChannelDrift, ThermalDrift
+from ._fit import (_rms, feature_matrix, fit_ridge, fit_thermal, forward_folds, forward_sse, thermal_arrays,
+                   usable_temperatures)
+
+
+def channel_axes_for(channels, channel_axes: dict | None, path=None) -> dict:
+    """Channel name -> machine axis letter (X, Y, Z) it reads: channels x, y, z, plus ``channel_axes``.
+    InputError for an unknown channel, an axis other than X, Y, Z or two channels on one axis."""
+    out = {ch: ch.upper() for ch in channels if ch in ("x", "y", "z")}
+    for ch, axis in (channel_axes or {}).items():
+        if ch not in channels:
+            raise InputError(f"--channel-axis names channel {ch!r}, but the file has "
+                             f"{', '.join(channels)}", path)
+        if axis.upper() not in ("X", "Y", "Z"):
+            raise InputError(f"--channel-axis {ch}={axis}: the axis must be X, Y or Z", path)
+        out[ch] = axis.upper()
+    seen = {}
+    for ch, axis in out.items():
+        if axis in seen:
+            raise InputError(f"channels {seen[axis]} and {ch} both read axis {axis}", path)
+        seen[axis] = ch
+    return out
+
+
+def drift_terms_and_values(fit, axes: dict):
+    """(terms, {parameter name: internal value}) of a :class:`ThermalFit` (um -> mm)."""
+    c = fit.chosen
+    feats = tuple(c.features)
+    values = {}
+    terms = []
+    tip = [ch for ch in fit.channels if ch in axes]
+    other = [ch for ch in fit.channels if ch not in axes]
+    if tip:
+        dirs = "".join(axes[ch] for ch in tip)
+        terms.append(ThermalDrift(c.driver, feats, dirs, absolute=True, channels=tuple(tip)))
+    if other:
+        terms.append(ChannelDrift(c.driver, feats, tuple(other), absolute=True))
+    for j, ch in enumerate(fit.channels):
+        name = axes.get(ch, ch)
+        for i, f in enumerate(feats):
+            values[f"TD_{name}_{f}"] = fit.ridge.coef[i, j] * 1e-3
+        values[f"TD_{name}_zero"] = fit.ridge.intercept[j] * 1e-3
+    return terms, values
+
+
+def diagnose_thermal(machine, data, channel_axes: dict | None = None, progress=None):
+    """Diagnosis (mtcomp.diagnose) of one thermal file: the drift model chosen by forward-chaining
+    validation, its report (SPEC 6 keys) and the model (base model at zero plus the drift terms)."""
+    from ..diagnose._analysis import Noise
+    from ..diagnose._diagnose import Diagnosis, Finding, _r
+    t0 = time.perf_counter()
+    say = progress or (lambda s: None)
+    fit = fit_thermal(data)
+    axes = channel_axes_for(fit.channels, channel_axes, data.path)
+    for line in fit.summary().splitlines():
+        say(line)
+    c = fit.chosen
+    none = next(s for s in fit.scores if s.driver == "none")
+    n_obs = fit.measured_um.size
+    noise = {"um": Noise("um", fit.noise_um, max(n_obs - len(fit.channels), 1), "robust", 0)}
+    base = {"n_params": 0, "n_determined": 0, "n_nuisance": len(fit.channels),
+            "rms_um": _r(_rms(fit.measured_um - fit.measured_um.mean(axis=0))),
+            "heldout_rms_um": _r(_rms(none.forward_rms_um))}
+    k = len(c.features) + 1
+    final = {"n_params": k * len(fit.channels), "n_determined": k * len(fit.channels), "n_nuisance": 0,
+             "rms_um": _r(_rms(fit.fitted_um - fit.measured_um)),
+             "heldout_rms_um": _r(_rms(c.forward_rms_um))}
+    findings = []
+    if c.driver != "none":
+        params = {"driver": c.driver, "drivers": c.drivers, "features": list(c.features),
+                  "time_constants_s": c.time_constants_s, "ridge_penalty": c.penalty,
+                  "channels": {ch: axes.get(ch, "") for ch in fit.channels},
+                  "max_drift_um": {ch: _r(v, 3) for ch, v in zip(fit.channels, fit.max_drift_um)},
+                  "forward_rms_um": {ch: _r(v, 3) for ch, v in zip(fit.channels, c.forward_rms_um)},
+                  "temperatures_left_out": fit.left_out}
+        runner_up = sorted((s for s in fit.scores if s is not c), key=lambda s: s.total_sse)[0]
+        evidence = (f"predicting each next block of the record from the readings before it, "
+                    f"{c.label} leaves {_rms(c.forward_rms_um):.3g} um rms against "
+                    f"{_rms(none.forward_rms_um):.3g} um without a drift model and "
+                    f"{_rms(runner_up.forward_rms_um):.3g} um for the next best ({runner_up.label})")
+        axis = "".join(sorted({axes[ch] for ch in fit.channels if ch in axes}))
+        findings.append(Finding("thermal_drift", axis, params, evidence,
+                                _rms(none.forward_rms_um), _rms(c.forward_rms_um)))
+    ratio = _rms(c.forward_rms_um) / fit.noise_um if fit.noise_um > 0 else np.inf
+    verdict = "none" if c.driver == "none" and ratio <= 1.5 else ("explained" if ratio <= 1.5 else "unexplained")
+    if verdict == "unexplained":
+        findings.append(Finding("unexplained", "", {"where": "the drift predicted forward in time",
+                                                    "correlates_with": "time"},
+                                f"the forward-validated rms {_rms(c.forward_rms_um):.3g} um is "
+                                f"{ratio:.3g} times the noise of one reading", _rms(c.forward_rms_um),
+                                _rms(c.forward_rms_um)))
+    terms, values = drift_terms_and_values(fit, axes) if c.driver != "none" else ([], {})
+    model = ErrorModel(machine, terms)
+    params = ParameterSet(model.param_specs)
+    for name, v in values.items():
+        params[name] = v
+    defaults = {f"temp_{s}": v for s, v in fit.temperature_means.items()}
+    info = {"fitted_by": "mtcomp diagnose (thermal drift)", "drift_features": list(c.features),
+            "time_constants_s": c.time_constants_s}
+    fitted = FittedModel(model, params, defaults, info)
+    how = (f"forward-chained in time: the readings cut into {fit.n_folds + 1} blocks, each of the last "
+           f"{fit.n_folds} predicted from the blocks before it")
+    reference = {"linear_regression_all_temperatures": _temperature_regression(data, fit)}
+    diag = Diagnosis(verdict, noise, base, findings, final, fitted, how, n_obs, reference=reference)
+    diag.thermal = fit
+    diag.seconds = time.perf_counter() - t0
+    fitted.info["diagnose"] = diag.to_dict()
+    return diag
+
+
+def _temperature_regression(data, fit) -> dict | None:
+    """Plain least squares on every temperature, scored like the candidates (a reference)."""
+    order, _, Y = thermal_arrays(data)
+    ctx = data.context.subset(order)
+    temps = usable_temperatures(ctx)
+    if not temps:
+        return None
+    X = feature_matrix(ctx, [f"temp_{s}" for s in temps])
+    folds = forward_folds(len(Y), fit.n_folds)
+    n_test = sum(te.stop - te.start for _, te in folds)
+    r = fit_ridge(X, Y, 0.0).predict(X) - Y
+    return {"n_params": (len(temps) + 1) * Y.shape[1], "rms_um": round(_rms(r), 4),
+            "heldout_rms_um": round(_rms(np.sqrt(forward_sse(X, Y, 0.0, folds) / n_test)), 4),
+            "temperatures": temps}

@@ -1,0 +1,300 @@
+"""Drift models of thermal files that carry forward in time (ISO 230-3), validated forward in time.
+
+Every candidate is a linear model of each displacement channel in a set of drift features (absolute
+temperatures ``temp_<s>`` in degC, spindle heat ``spindle_lag_<tau>`` in 1000 rpm through a
+first-order lag, time ``time_h`` or a settling ``time_exp_<tau>``), with an intercept, fitted by
+ridge regression on standardised features (the intercept is not penalised). The penalty and the
+choice among candidates come from forward-chaining validation: the rows, in time order, are cut into
+``n_folds + 1`` equal blocks; fold k fits blocks 0..k-1 and predicts block k, so every score is a
+prediction of the future from the past. docs/thermal.md explains it for a user.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+from ..errors import InputError
+from ..measurement.readings_extra import feature_value
+
+#: time constants (s) of the spindle heat lags combined with the temperatures
+DEFAULT_LAGS_S = (900.0, 3600.0)
+#: ridge penalties tried (per reading, on standardised features); 0 is plain least squares
+PENALTIES = (0.0, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1, 3e-1, 1.0)
+#: forward-chaining folds
+N_FOLDS = 5
+#: a more complex candidate must lower the forward-validated sum of squares by this share
+PARSIMONY = 0.05
+
+
+# ------------------------------------------------------------------------------------ linear algebra
+def forward_folds(n_rows: int, n_folds: int = N_FOLDS) -> list[tuple[slice, slice]]:
+    """(train, test) slices of rows in time order: n_folds + 1 equal blocks, fold k trains on the
+    blocks before block k and tests on block k (k = 1..n_folds)."""
+    if n_rows < 2 * (n_folds + 1):
+        raise ValueError(f"{n_rows} readings are too few for {n_folds} forward folds")
+    edges = np.linspace(0, n_rows, n_folds + 2).round().astype(int)
+    return [(slice(0, edges[k]), slice(edges[k], edges[k + 1])) for k in range(1, n_folds + 1)]
+
+
+@dataclass(frozen=True)
+class Ridge:
+    """y = intercept + X @ coef (feature units): coef (k, m), intercept (m,), penalty."""
+
+    coef: np.ndarray
+    intercept: np.ndarray
+    penalty: float
+
+    def predict(self, X: np.ndarray) -> np.ndarray:
+        return self.intercept + X @ self.coef
+
+
+def fit_ridge(X: np.ndarray, Y: np.ndarray, penalty: float) -> Ridge:
+    """Ridge regression of Y (n, m) on X (n, k) with an unpenalised intercept: minimises
+    ``|Y - b - X C|^2 + penalty * n * |S C|^2`` with S the features' standard deviations (the
+    penalty acts on standardised features, so it does not depend on their units)."""
+    n, k = X.shape
+    mx, my = X.mean(axis=0), Y.mean(axis=0)
+    sx = X.std(axis=0)
+    sx = np.where(sx > 0, sx, 1.0)
+    Xs = (X - mx) / sx
+    if k == 0:
+        return Ridge(np.zeros((0, Y.shape[1])), my, penalty)
+    G = Xs.T @ Xs + penalty * n * np.eye(k)
+    B = np.linalg.lstsq(G, Xs.T @ (Y - my), rcond=None)[0]
+    coef = B / sx[:, None]
+    return Ridge(coef, my - mx @ coef, penalty)
+
+
+def forward_predictions(X: np.ndarray, Y: np.ndarray, penalty: float, folds) -> np.ndarray:
+    """(n, m) each fold's test block predicted from its training blocks; NaN in the first block."""
+    out = np.full(Y.shape, np.nan)
+    for train, test in folds:
+        out[test] = fit_ridge(X[train], Y[train], penalty).predict(X[test])
+    return out
+
+
+def forward_sse(X: np.ndarray, Y: np.ndarray, penalty: float, folds) -> np.ndarray:
+    """(m,) forward-chained sum of squared prediction errors per channel."""
+    return np.nansum((forward_predictions(X, Y, penalty, folds) - Y) ** 2, axis=0)
+
+
+# ------------------------------------------------------------------------------------ candidates
+@dataclass
+class CandidateScore:
+    """One drift model tried: ``driver`` (report name), ``drivers`` (every driver it uses),
+    ``features``, penalty chosen, forward-validated rms per channel (um), time constants (s)."""
+
+    label: str
+    driver: str
+    drivers: list
+    features: list
+    complexity: int
+    penalty: float = 0.0
+    forward_sse: np.ndarray | None = None
+    forward_rms_um: np.ndarray | None = None
+    time_constants_s: list = field(default_factory=list)
+
+    @property
+    def total_sse(self) -> float:
+        return float(np.sum(self.forward_sse))
+
+
+def feature_matrix(context, names) -> np.ndarray:
+    """(n, len(names)) drift features of a file's context (readings_extra.feature_value)."""
+    cols = [feature_value(nm, context) for nm in names]
+    return np.column_stack(cols) if cols else np.zeros((len(context.t), 0))
+
+
+def _fit_tau(context, Y, make_name, lo, hi) -> float:
+    """Time constant (s) in [lo, hi] whose single feature fits Y best (least squares, 1-D search in
+    log tau), rounded to whole seconds."""
+    def sse(log_tau):
+        X = feature_matrix(context, [make_name(float(np.exp(log_tau)))])
+        r = fit_ridge(X, Y, 0.0).predict(X) - Y
+        return float(np.sum(r ** 2))
+    res = minimize_scalar(sse, bounds=(np.log(lo), np.log(hi)), method="bounded", options={"xatol": 0.01})
+    return float(np.round(np.exp(res.x)))
+
+
+def lag_name(tau_s: float) -> str:
+    return f"spindle_lag_{round(tau_s):d}"
+
+
+def usable_temperatures(context) -> list[str]:
+    """Sensors with a reading in every row that is not constant (the others are left out)."""
+    return [s for s, v in context.temperatures.items() if np.isfinite(v).all() and np.ptp(v) > 0]
+
+
+def candidates(context, Y, lags_s=DEFAULT_LAGS_S) -> list[CandidateScore]:
+    """The drift models a file supports (features not yet scored), simplest first."""
+    t = np.asarray(context.t, dtype=float)
+    span = float(np.ptp(t))
+    out = [CandidateScore("no drift", "none", [], [], 0),
+           CandidateScore("steady drift in time", "time", ["time"], ["time_h"], 1)]
+    tau = _fit_tau(context, Y, lambda tau: f"time_exp_{round(tau):d}", span / 30.0, span * 3.0)
+    out.append(CandidateScore("settling drift in time", "time", ["time"], [f"time_exp_{round(tau):d}"],
+                              2, time_constants_s=[tau]))
+    rpm = np.nan_to_num(np.asarray(context.spindle_rpm, dtype=float))
+    spindle = np.ptp(rpm) > 0
+    if spindle:
+        tau = _fit_tau(context, Y, lag_name, 60.0, max(span, 120.0))
+        out.append(CandidateScore("spindle heat", "spindle", ["spindle"], [lag_name(tau)], 3,
+                                  time_constants_s=[tau]))
+    temps = usable_temperatures(context)
+    if temps:
+        out.append(CandidateScore("temperatures", "temperature", ["temperature"],
+                                  [f"temp_{s}" for s in temps], 4))
+        if spindle:
+            out.append(CandidateScore("temperatures and spindle heat", "temperature",
+                                      ["temperature", "spindle"],
+                                      [f"temp_{s}" for s in temps] + [lag_name(x) for x in lags_s], 5,
+                                      time_constants_s=[float(x) for x in lags_s]))
+    return out
+
+
+# ------------------------------------------------------------------------------------ the fit
+@dataclass
+class ThermalFit:
+    """The drift model chosen for a thermal file, and how it was chosen.
+
+    channels : channel names (``disp_<name>_um``). chosen : the :class:`CandidateScore` kept.
+    scores : every candidate tried. ridge : the chosen model refitted on every reading (um).
+    noise_um : robust noise of one reading (1.4826 MAD of successive differences / sqrt 2), pooled.
+    max_drift_um : (m,) largest |reading - first reading| per channel (ISO 230-3 drift).
+    fitted_um : (n, m) the model's readings at the file's rows; measured_um : (n, m) the readings.
+    forward_um : (n, m) each block predicted from the blocks before it (NaN in the first block).
+    t_s : (n,) time of the rows (in time order, as every array here); spindle_rpm : (n,).
+    """
+
+    channels: list
+    chosen: CandidateScore
+    scores: list
+    ridge: Ridge
+    noise_um: float
+    max_drift_um: np.ndarray
+    fitted_um: np.ndarray
+    measured_um: np.ndarray
+    t_s: np.ndarray
+    forward_um: np.ndarray
+    spindle_rpm: np.ndarray
+    n_folds: int = N_FOLDS
+    temperature_means: dict = field(default_factory=dict)
+    left_out: list = field(default_factory=list)
+
+    def summary(self) -> str:
+        lines = [f"thermal drift ({len(self.t_s)} readings over {np.ptp(self.t_s) / 3600:.3g} h, "
+                 f"noise {self.noise_um:.3g} um); forward-chained validation, {self.n_folds} folds "
+                 "(fit the past, predict the next block):"]
+        for s in self.scores:
+            mark = "*" if s is self.chosen else " "
+            lines.append(f" {mark} {s.label:<32s} rms {_rms(s.forward_rms_um):8.3f} um"
+                         + (f"  (time constants {', '.join(f'{x:g}' for x in s.time_constants_s)} s)"
+                            if s.time_constants_s else ""))
+        if self.left_out:
+            lines.append(f"   temperatures left out (blank or constant readings): {', '.join(self.left_out)}")
+        lines.append("channel   max drift um  fitted rms um  forward rms um")
+        resid = self.fitted_um - self.measured_um
+        for j, ch in enumerate(self.channels):
+            lines.append(f"{ch:<9s} {self.max_drift_um[j]:12.3f}  {_rms(resid[:, j]):13.3f}  "
+                         f"{self.chosen.forward_rms_um[j]:14.3f}")
+        return "\n".join(lines)
+
+
+def _rms(v) -> float:
+    v = np.asarray(v, dtype=float)
+    return float(np.sqrt(np.mean(v ** 2))) if v.size else float("nan")
+
+
+def robust_noise_um(Y: np.ndarray) -> float:
+    """Noise of one reading (um): 1.4826 MAD of successive differences / sqrt 2, pooled over channels."""
+    d = np.diff(Y, axis=0)
+    if d.shape[0] == 0:
+        return float("nan")
+    mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0) * 1.4826 / np.sqrt(2.0)
+    return float(np.sqrt(np.mean(mad ** 2)))
+
+
+def thermal_arrays(data):
+    """(order, channels, Y (n, m) um) of a thermal file, rows in time order; InputError when a channel
+    or the time is blank (a drift model needs complete readings)."""
+    t = np.asarray(data.t, dtype=float)
+    if not np.isfinite(t).all():
+        bad = int(np.flatnonzero(~np.isfinite(t))[0])
+        data.fail("blank t_s: every reading of a thermal file needs its time", bad)
+    if np.ptp(t) <= 0:
+        data.fail("t_s does not advance: a drift record needs readings spread in time")
+    order = np.argsort(t, kind="stable")
+    channels = list(data.channels)
+    Y = np.column_stack([data.channels[ch] for ch in channels]) * 1e3
+    if not np.isfinite(Y).all():
+        r, c = np.argwhere(~np.isfinite(Y))[0]
+        data.fail(f"blank disp_{channels[c]}_um: the drift fit needs every channel at every reading", r)
+    return order, channels, Y[order]
+
+
+def fit_thermal(data, lags_s=DEFAULT_LAGS_S, n_folds: int = N_FOLDS, penalties=PENALTIES) -> ThermalFit:
+    """Choose and fit the drift model of a thermal file (measurement.files.ThermalData), validated
+    forward in time (module docstring). Raises InputError when the file is too short."""
+    order, channels, Y = thermal_arrays(data)
+    ctx = data.context.subset(order)
+    n = len(order)
+    try:
+        folds = forward_folds(n, n_folds)
+    except ValueError as exc:
+        raise InputError(f"thermal drift: {exc}", data.path) from None
+    scores = candidates(ctx, Y, lags_s)
+    for s in scores:
+        X = feature_matrix(ctx, s.features)
+        if not np.isfinite(X).all():
+            s.forward_sse = np.full(Y.shape[1], np.inf)
+            s.forward_rms_um = np.full(Y.shape[1], np.inf)
+            continue
+        options = penalties if X.shape[1] > 1 else (0.0,)
+        sse = [forward_sse(X, Y, lam, folds) for lam in options]
+        best = int(np.argmin([np.sum(x) for x in sse]))
+        s.penalty, s.forward_sse = float(options[best]), sse[best]
+        n_test = sum(te.stop - te.start for _, te in folds)
+        s.forward_rms_um = np.sqrt(s.forward_sse / n_test)
+    chosen = choose(scores)
+    X = feature_matrix(ctx, chosen.features)
+    ridge = fit_ridge(X, Y, chosen.penalty)
+    temp_means = {f[5:]: float(np.mean(X[:, i])) for i, f in enumerate(chosen.features)
+                  if f.startswith("temp_")}
+    return ThermalFit(channels, chosen, scores, ridge, robust_noise_um(Y),
+                      np.max(np.abs(Y - Y[0]), axis=0), ridge.predict(X), Y,
+                      np.asarray(ctx.t, dtype=float), forward_predictions(X, Y, chosen.penalty, folds),
+                      np.asarray(ctx.spindle_rpm, dtype=float), n_folds, temp_means,
+                      [s for s in ctx.temperatures if s not in usable_temperatures(ctx)])
+
+
+def choose(scores: list[CandidateScore]) -> CandidateScore:
+    """The candidate with the smallest forward-validated sum of squares, unless a simpler one comes
+    within ``PARSIMONY`` of it (a more complex driver must earn its place on the future)."""
+    finite = [s for s in scores if np.isfinite(s.total_sse)]
+    best = min(finite, key=lambda s: s.total_sse)
+    simpler = [s for s in finite if s.complexity < best.complexity
+               and s.total_sse <= (1.0 + PARSIMONY) * best.total_sse]
+    return min(simpler, key=lambda s: s.complexity) if simpler else best
+
+
+def forward_in_time_sse(design, extra: np.ndarray, t: np.ndarray, n_folds: int = N_FOLDS) -> float:
+    """Weighted sum of squares of a diagnose design (mtcomp.diagnose._linalg.Design) plus ``extra``
+    columns, predicted forward in time: observations with a time, cut into ``n_folds + 1`` blocks of
+    equal count in time order, each of the last ``n_folds`` predicted by weighted least squares on the
+    blocks before it (minimum-norm in directions the past does not determine). NaN without enough
+    timed observations."""
+    t = np.asarray(t, dtype=float)
+    timed = np.flatnonzero(np.isfinite(t))
+    if timed.size < 2 * (n_folds + 1) or np.ptp(t[timed]) <= 0:
+        return float("nan")
+    order = timed[np.argsort(t[timed], kind="stable")]
+    M = np.hstack([design.A, np.asarray(extra, dtype=float).reshape(design.n, -1)])
+    Mw = M * design.w[:, None]
+    sse = 0.0
+    for train, test in forward_folds(order.size, n_folds):
+        tr, te = order[train], order[test]
+        sol = np.linalg.lstsq(Mw[tr], design.zw[tr], rcond=1e-10)[0]
+        sse += float(np.sum((design.zw[te] - Mw[te] @ sol) ** 2))
+    return sse
