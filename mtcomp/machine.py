@@ -192,19 +192,20 @@ class Machine:
                 "axes": axes, "compensation": dict(self.compensation)}
 
 
-def with_data_basis(machine: Machine, positions: dict) -> Machine:
+def with_data_basis(machine: Machine, positions: dict, fourier: bool = True) -> Machine:
     """The machine with the spline knots of every 'bspline' axis without fixed knots, and the Fourier
     order of every rotary axis whose machine file leaves it open, chosen from the data
     (:func:`mtcomp.models.basis.auto_spline`, :func:`~mtcomp.models.basis.auto_fourier_order`).
 
     positions : axis name -> array of every position that axis took in the data (mm).
+    fourier : also choose the Fourier orders (False keeps the machine's).
     """
     from dataclasses import replace
 
     from .models.basis import auto_fourier_order, auto_spline
     axes = []
     for a in machine.axes:
-        if a.is_rotary and a.fourier_from_data:
+        if a.is_rotary and a.fourier_from_data and fourier:
             a = replace(a, fourier_order=auto_fourier_order(positions.get(a.name, ())),
                         fourier_from_data=False)
         if not a.is_rotary and a.basis_from_data:

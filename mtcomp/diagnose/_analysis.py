@@ -73,8 +73,8 @@ def noise_floor(st, resid: np.ndarray, n_params: int = 0) -> dict[str, Noise]:
 
     Repeats: same series, pose, approach directions, feed, arm and spindle speed, in different runs
     (or repeated within one). The residual is first freed of a per-(series, run) offset and time
-    trend. Readings more than 4 robust standard deviations (1.4826 MAD) off their repeats do not count
-    towards the floor. Classes without repeats fall back to a robust estimate (Noise.source says which), scaled
+    trend (readings that disagree with their repeats were left out before, mtcomp.measurement.outliers).
+    Classes without repeats fall back to a robust estimate (Noise.source says which), scaled
     by sqrt(n / (n - n_params)) for the degrees of freedom the fit took from the residual.
     """
     out = {}
@@ -95,13 +95,7 @@ def noise_floor(st, resid: np.ndarray, n_params: int = 0) -> dict[str, Noise]:
             groups = int(np.sum(counts >= 2))
             dof = int(np.sum(counts[counts >= 2] - 1))
             if dof >= 5:
-                # readings more than 4 robust standard deviations off their repeats (a glitch of the
-                # first run ...) are outliers: they would inflate the floor and hide real effects
-                c = counts[inv][rep]
-                scaled = dev[rep] * np.sqrt(c / (c - 1.0))
-                robust = 1.4826 * float(np.median(np.abs(scaled)))
-                keep = np.abs(scaled) <= 4.0 * robust if robust > 0 else np.ones(scaled.size, bool)
-                sigma = float(np.sqrt(np.sum(dev[rep][keep] ** 2) / max(dof * keep.mean(), 1.0)))
+                sigma = float(np.sqrt(np.sum(dev[rep] ** 2) / dof))
         if np.isfinite(sigma) and sigma > 0:
             out[unit] = Noise(unit, sigma, dof, "repeats", groups)
         else:

@@ -208,7 +208,9 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
     # the base model's resolution follows the data, as identify's does
     from ..machine import with_data_basis
     from ..measurement.readings import data_positions
-    machine = with_data_basis(machine, data_positions(machine, datasets))
+    # (the Fourier orders of rotary axes stay the machine's: diagnose's own linearised fit has no
+    # guard yet against the weakly determined high harmonics; identify's has)
+    machine = with_data_basis(machine, data_positions(machine, datasets), fourier=False)
     from ..measurement.outliers import OUTLIER_K, find_outliers
     cleaned, outliers = [], []
     for d in datasets:

@@ -63,9 +63,12 @@ def _flag(values: np.ndarray, groups: np.ndarray) -> tuple[np.ndarray, np.ndarra
             dev[idx] = values[idx] - np.median(values[idx])
     have = np.isfinite(dev)
     flag = np.zeros(n, dtype=bool)
-    if have.sum() < 6:
+    # the median reading of an odd group is 0 off its own median: it says nothing of the spread
+    spread = np.abs(dev[have])
+    spread = spread[spread > 0]
+    if spread.size < 6:
         return flag, dev
-    scale = 1.4826 * float(np.median(np.abs(dev[have])))
+    scale = 1.4826 * float(np.median(spread))
     if scale > 0:
         flag[have] = np.abs(dev[have]) > OUTLIER_K * scale
     return flag, dev
