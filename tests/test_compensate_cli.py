@@ -73,6 +73,13 @@ def _written_points(path, machine):
     return read_program(path, machine).segments().end
 
 
+def _nominal_points(prog, machine):
+    """The program's segment ends on the 4-decimal output grid (mm; the test programs have no
+    rotary arcs): the nominal positions the planner corrects (the writer keeps unchanged arcs as
+    arcs, so the nominal program written back would hold the unrounded chord ends)."""
+    return np.round(read_program(prog, machine).segments().end, 4)
+
+
 def _actual_minus_nominal(fitted, q_written, q_nominal, chunk):
     """Independent: nominal kinematics + model deviation at the written positions, with the context
     of each block (feed and approach directions of the nominal program)."""
@@ -98,8 +105,9 @@ def test_xfyz_program_corrected_and_reported(tmp_path, capsys, method):
     assert code == 0, err
     assert "0 blocks hit a bound" in stdout
     write_corrected(prog, nominal, machine, None)
+    assert nominal.read_text() == prog.read_text()      # nothing to change: written as it was
     q_out = _written_points(out, machine)
-    q_nom = _written_points(nominal, machine)
+    q_nom = _nominal_points(prog, machine)
     assert q_out.shape == q_nom.shape and q_out.shape[0] > 50     # arc chords included
     # every non-motion line byte for byte, in place
     def still(text):
@@ -156,7 +164,7 @@ def test_bounds_hold_in_the_output_and_are_reported(tmp_path, capsys):
     corr_um = np.array([[float(r[k]) for k in ("cx_um", "cy_um", "cz_um")] for r in rows])
     np.testing.assert_allclose(pos, q_out, rtol=0, atol=1e-9)
     ends = np.array([r["inserted"] == "0" for r in rows])
-    np.testing.assert_allclose(pos[ends] - corr_um[ends] * 1e-3, _written_points(nominal, machine),
+    np.testing.assert_allclose(pos[ends] - corr_um[ends] * 1e-3, _nominal_points(prog, machine),
                                rtol=0, atol=1e-9)
     assert np.all(np.abs(corr_um) <= 4.0 + 1e-6)
     rapid = np.array([r["rapid"] == "1" for r in rows])
