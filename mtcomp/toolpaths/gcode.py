@@ -62,7 +62,10 @@ _REFUSED_G = {
 #: M codes refused (subprograms, tool centre point control)
 _REFUSED_M = {98: "M98 (subprogram call)", 99: "M99 (subprogram end)",
               128: "M128 (tool centre point control: the program gives tool-tip positions, not axis "
-                   "positions)"}
+                   "positions)",
+              428: "M428 (LinuxCNC switchable kinematics to tool centre point: the program gives "
+                   "tool-tip positions, not axis positions)",
+              430: "M430 (LinuxCNC switchable kinematics: the program does not give axis positions)"}
 #: drilling cycles: their lines pass through unchanged (not corrected), see docs/toolpaths.md
 _CANNED_CYCLES = frozenset({73, 81, 82, 83, 84, 85, 86, 87, 88, 89})
 #: work coordinate systems, in the order of their index in ``frame`` codes
@@ -394,6 +397,8 @@ class ModalState:
         self.distance_sensitive = False
         self.had_g = False
         self.cycle_line = False
+        if line == 1 and text.startswith("\xef\xbb\xbf"):      # a UTF-8 byte order mark
+            text = text[3:]
         s = text.lstrip(" \t")
         if not s or s[0] == "%":
             return None
