@@ -6,19 +6,10 @@ import pytest
 
 from mtcomp import InputError, load_machine
 from mtcomp.toolpaths import iter_segment_chunks, read_program, write_corrected
+from test_toolpaths_gcode import gcode_path  # noqa: F401  (autouse: compiled and Python path)
 
 XFYZ = load_machine("xfyz")
 CBFXYZ = load_machine("cbfxyz")
-
-
-@pytest.fixture(autouse=True, params=["compiled", "python"])
-def gcode_path(request, monkeypatch):
-    from mtcomp.toolpaths import _fast
-    if request.param == "python":
-        monkeypatch.setenv("MTCOMP_NO_FAST_GCODE", "1")
-    elif not _fast.available():
-        pytest.skip("no C compiler: the compiled G-code path is not available")
-    return request.param
 
 
 def _shifted(path, machine, shift_mm=0.002):
