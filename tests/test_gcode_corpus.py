@@ -1,7 +1,7 @@
 """Real programs from public repositories (tests/data/gcode_corpus, SOURCES.md there), compensated
 end to end: no output line writes an axis the program had not positioned, every non-motion line is
 kept byte for byte and in order, at least 90 % are accepted, every refusal is one line naming the
-feature and the line.
+feature and the line, and every accepted program renders with its compensated version.
 
 The oracle of "positioned" is written here from the RS-274 rules, independently of the reader: an
 axis is positioned once a motion block names it, and no longer after a home move (G28/G30) or a move
@@ -168,6 +168,13 @@ def test_corpus_compensated_safely(tmp_path, capsys):
         accepted.append(prog.name)
         _check_output(prog.read_bytes(), out.read_bytes())
         growth.append(out.stat().st_size / prog.stat().st_size)
+        # the map of the compensated program, paired with the original through its lines
+        code = main(["render", str(machine), str(model), str(prog), "--compensated", str(out),
+                     "-o", str(tmp_path / f"{prog.stem}.png"), "--backend", "matplotlib",
+                     "--size", "300x150"])
+        stdout, err = capsys.readouterr()
+        assert code == 0, (prog.name, err)
+        assert "model prediction after" in stdout
     assert sorted(refused) == sorted(REFUSED)
     assert len(accepted) / len(PROGRAMS) >= 0.9
     # modal output, unchanged lines as written, arcs kept where the correction allows

@@ -141,3 +141,21 @@ def test_refusals_name_the_feature_and_the_line(tmp_path, text, msg):
         read_program(p, XFYZ)
     assert msg in str(exc.value) and str(exc.value).count("\n") == 0
     assert exc.value.line == (1 if text.startswith("M428") else 2)
+
+
+def test_full_circle_stays_full_and_raw_spelling_is_where_the_machine_is(tmp_path):
+    # LinuxCNC's tort.ngc: a helical full circle from a point written with 6 decimals. Writing its
+    # end with 4 decimals would turn it into a 0.05 um arc; the output must still be a full circle.
+    p = tmp_path / "in.nc"
+    p.write_text("G21 G90\nG0 X-2.496094 Y37.186053 Z6.807612\n"
+                 "G17 G3 F100 I-1.000000 J-1.732051 X-2.496094 Y37.186053 Z10.807612\nG0 Z20\n")
+    src = read_program(p, XFYZ).blocks[1]
+    for shift in ([0.0, 0.0, 0.003], [2e-5, 0.0, 0.003]):
+        corr = [(c, c.end + shift, np.ones(len(c), int)) for c in iter_segment_chunks(p, XFYZ)]
+        out = tmp_path / "out.nc"
+        write_corrected(p, out, XFYZ, iter(corr))
+        back = read_program(out, XFYZ).segments()
+        xy = back.end[:, :2]
+        # the whole circle is cut: the points reach the far side of it (diameter 4 mm)
+        span = np.ptp(xy[back.line > 2], axis=0)
+        np.testing.assert_allclose(span, np.ptp(src.points[:, :2], axis=0), rtol=0, atol=2e-3)

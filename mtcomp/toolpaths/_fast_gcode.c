@@ -311,7 +311,8 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                             *o++ = letters[j];
                             memcpy(o, tmp, (size_t)tn); o += tn;
                         }
-                        double back = strtod(tmp, NULL);
+                        /* the machine goes where the written spelling says */
+                        double back = use_raw ? strtod(ax_s[j] + 1, NULL) : strtod(tmp, NULL);
                         last[j] = is_rot[j] ? back * DEG2RAD : (inch ? back * 25.4 : back);
                     }
                     if (!first && nparts == 0) { o = mark; state[22] = prev_motion; continue; }

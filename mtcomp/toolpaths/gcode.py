@@ -24,7 +24,8 @@ import numpy as np
 from ..errors import InputError
 from ..io.atomic import atomic_write, check_output_path
 from ..machine import Machine
-from ._arcs import PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, centre_from_radius
+from ._arcs import (FULL_CIRCLE_TOL_MM, PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords,
+                    centre_from_radius)
 
 MM_PER_INCH = 25.4
 #: an axis moving less than this (mm or rad) in a segment keeps its previous approach direction
@@ -897,6 +898,7 @@ def format_motion_lines(block: MotionBlock, points: np.ndarray, letters: str, ro
                 raw = block.raw.get(letters[i]) if (k == 1 and named) else None
                 if raw is not None and t == _format_value(block.end[i], rotary[i], block.inch):
                     parts.append(raw)
+                    t = raw[1:]         # the machine goes where the source spelling says
                 else:
                     parts.append(letters[i] + t)
                     verbatim = False
@@ -957,6 +959,19 @@ def _arc_text(block, points, letters, rotary, out, source, chord_tol) -> str | N
         return None
     code = block.motion
     texts = [_format_value(points[-1, i], rotary[i], block.inch) for i in range(na)]
+    # a full circle (end = start in the plane) must stay one, and an arc must not become one
+    xyz = [letters.index(c) for c in "XYZ"]
+    pa, pb = xyz[PLANE_AXES[block.plane][0]], xyz[PLANE_AXES[block.plane][1]]
+    full = math.hypot(block.end[pa] - block.start[pa], block.end[pb] - block.start[pb]) \
+        <= FULL_CIRCLE_TOL_MM
+    if full:
+        for i in (pa, pb):
+            texts[i] = _format_value(start[i], False, block.inch)
+            if float(texts[i]) * scale != start[i]:
+                return None             # the start was written in a spelling this cannot repeat
+    elif math.hypot(float(texts[pa]) * scale - start[pa], float(texts[pb]) * scale - start[pb]) \
+            <= FULL_CIRCLE_TOL_MM:
+        return None
     unchanged = all(texts[i] == _format_value(block.end[i], rotary[i], block.inch)
                     and (out.last(i, block.inch) or _format_value(block.start[i], rotary[i], block.inch))
                     == _format_value(block.start[i], rotary[i], block.inch)
@@ -978,8 +993,7 @@ def _arc_text(block, points, letters, rotary, out, source, chord_tol) -> str | N
         head.append(f"G{code}")
         out.motion = code
     i0, i1, _ = PLANE_AXES[block.plane]
-    xyz = [letters.index(c) for c in "XYZ"]
-    plane_cols = (xyz[i0], xyz[i1])
+    plane_cols = (pa, pb)
     parts = []
     for i in range(na):
         if not known[i]:
