@@ -978,9 +978,7 @@ def _arc_text(block, points, letters, rotary, out, source, chord_tol) -> str | N
                     for i in range(na) if known[i])
     if unchanged and source is not None and out.absolute and not block.incremental \
             and (block.motion_word or out.motion == code):
-        for i in range(na):
-            if known[i]:
-                out.set_last(i, texts[i], block.inch)
+        out.values[known] = block.end[known]     # where the source's own spelling goes
         out.motion = code
         return source
     head = []
