@@ -96,6 +96,12 @@ static int fmt_fixed(char *o, double v, int dec) {
     return (int)(s - o);
 }
 
+/* The text of the last written value of each column, kept so that it is formatted once: valid while
+ * the value (bit for bit) and the unit are the ones it was made from. Per thread. */
+static __thread double cache_val[6];
+static __thread int cache_inch[6] = {-1, -1, -1, -1, -1, -1};
+static __thread char cache_txt[6][40];
+
 /* One coordinate's text (without the letter), NUL-terminated; returns its length. */
 static int fmt_value(char *o, double q, int rot, int inch) {
     static const double RAD2DEG = 180.0 / 3.14159265358979323846;
@@ -262,7 +268,7 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                 if (ending) state[18] = (ending == 2);
                 long long npieces = c_off[row + 1] - c_off[row];
                 int incr = state[15] != 0.0;
-                char tmp[64], nom[64], prev[64];
+                char tmp[64], nom[64];
                 char *line_start = o;
                 int verbatim = npieces == 1 && state[17] != 0.0 && (has_g || state[22] == (double)motion);
                 int nraw = 0;
@@ -292,8 +298,12 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                         int tn = fmt_value(tmp, q[j], is_rot[j], inch);
                         int named = first && (seen & (1u << j));
                         if (!named && !isnan(last[j])) {
-                            fmt_value(prev, last[j], is_rot[j], inch);
-                            if (strcmp(tmp, prev) == 0) continue;
+                            if (cache_inch[j] != inch || memcmp(&cache_val[j], &last[j], sizeof(double))) {
+                                fmt_value(cache_txt[j], last[j], is_rot[j], inch);
+                                cache_val[j] = last[j];
+                                cache_inch[j] = inch;
+                            }
+                            if (strcmp(tmp, cache_txt[j]) == 0) continue;
                         }
                         if (sp) *o++ = ' ';
                         sp = 1;
@@ -314,6 +324,11 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                         /* the machine goes where the written spelling says */
                         double back = use_raw ? strtod(ax_s[j] + 1, NULL) : strtod(tmp, NULL);
                         last[j] = is_rot[j] ? back * DEG2RAD : (inch ? back * 25.4 : back);
+                        if (!use_raw) {         /* its text is the one just written */
+                            memcpy(cache_txt[j], tmp, (size_t)tn + 1);
+                            cache_val[j] = last[j];
+                            cache_inch[j] = inch;
+                        }
                     }
                     if (!first && nparts == 0) { o = mark; state[22] = prev_motion; continue; }
                     if (first) {

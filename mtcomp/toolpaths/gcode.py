@@ -967,7 +967,7 @@ def _arc_text(block, points, letters, rotary, out, source, chord_tol) -> str | N
     if full:
         for i in (pa, pb):
             texts[i] = _format_value(start[i], False, block.inch)
-            if float(texts[i]) * scale != start[i]:
+            if abs(float(texts[i]) * scale - start[i]) > FULL_CIRCLE_TOL_MM:
                 return None             # the start was written in a spelling this cannot repeat
     elif math.hypot(float(texts[pa]) * scale - start[pa], float(texts[pb]) * scale - start[pb]) \
             <= FULL_CIRCLE_TOL_MM:
