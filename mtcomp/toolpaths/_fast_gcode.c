@@ -66,8 +66,9 @@ static int parse_num(const char *p, const char *e, double *out, const char **nex
 }
 
 /* Python's f"{v:.{dec}f}" (dec 4 or 5), with "-0.000.." written as "0.000..". */
-static int fmt_fixed(char *o, double v, int dec) {
+static int fmt_fixed_m(char *o, double v, int dec, long long *mout, int *exact) {
     double t = v * POW10[dec];
+    *exact = 0;
     /* beyond 1e9 the rounding of t itself could hide a tie: let printf do it (values > 100 m) */
     if (!(fabs(t) < 1e9)) return sprintf(o, "%.*f", dec, v);
     double fl = floor(t);
@@ -82,6 +83,8 @@ static int fmt_fixed(char *o, double v, int dec) {
         return n;
     }
     long long m = (long long)(fr < 0.5 ? fl : fl + 1.0);
+    *mout = m;
+    *exact = 1;
     char *s = o;
     if (m < 0) { *s++ = '-'; m = -m; }
     long long p = (long long)POW10[dec];
@@ -94,6 +97,12 @@ static int fmt_fixed(char *o, double v, int dec) {
     for (int i = dec - 1; i >= 0; i--) { s[i] = (char)('0' + fp % 10); fp /= 10; }
     s += dec;
     return (int)(s - o);
+}
+
+static int fmt_fixed(char *o, double v, int dec) {
+    long long m;
+    int exact;
+    return fmt_fixed_m(o, v, dec, &m, &exact);
 }
 
 /* The text of the last written value of each column, kept so that it is formatted once: valid while
@@ -110,6 +119,21 @@ static int fmt_value(char *o, double q, int rot, int inch) {
     else if (inch) n = fmt_fixed(o, q / 25.4, 5);
     else n = fmt_fixed(o, q, 4);
     o[n] = 0;
+    return n;
+}
+
+/* As fmt_value, and *back: the position the text says (mm, rad), as Python's float() of the text
+ * would read it: m / 10^dec is that correctly rounded value when the digits are known exactly. */
+static int fmt_value_back(char *o, double q, int rot, int inch, double *back) {
+    static const double RAD2DEG = 180.0 / 3.14159265358979323846;
+    static const double DEG2RAD_ = 3.14159265358979323846 / 180.0;
+    long long m = 0;
+    int exact = 0, n, dec = (!rot && inch) ? 5 : 4;
+    double v = rot ? RAD2DEG * q : (inch ? q / 25.4 : q);
+    n = fmt_fixed_m(o, v, dec, &m, &exact);
+    o[n] = 0;
+    double x = exact ? (double)m / POW10[dec] : strtod(o, NULL);
+    *back = rot ? x * DEG2RAD_ : (inch ? x * 25.4 : x);
     return n;
 }
 
@@ -295,7 +319,8 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                     const double *q = c_pts + k * na;
                     for (int j = 0; j < na; j++) {
                         if (!(known & (1u << j))) continue;
-                        int tn = fmt_value(tmp, q[j], is_rot[j], inch);
+                        double back;
+                        int tn = fmt_value_back(tmp, q[j], is_rot[j], inch, &back);
                         int named = first && (seen & (1u << j));
                         if (!named && !isnan(last[j])) {
                             if (cache_inch[j] != inch || memcmp(&cache_val[j], &last[j], sizeof(double))) {
@@ -310,8 +335,11 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                         nparts++;
                         int use_raw = 0;
                         if (named && npieces == 1 && !incr && ax_s[j]) {
-                            fmt_value(nom, end[j], is_rot[j], inch);
-                            use_raw = strcmp(tmp, nom) == 0;
+                            if (q[j] == end[j]) use_raw = 1;      /* the same value: same text */
+                            else {
+                                fmt_value(nom, end[j], is_rot[j], inch);
+                                use_raw = strcmp(tmp, nom) == 0;
+                            }
                         }
                         if (use_raw) {
                             memcpy(o, ax_s[j], (size_t)(ax_e[j] - ax_s[j])); o += ax_e[j] - ax_s[j];
@@ -321,9 +349,9 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                             *o++ = letters[j];
                             memcpy(o, tmp, (size_t)tn); o += tn;
                         }
-                        /* the machine goes where the written spelling says */
-                        double back = use_raw ? strtod(ax_s[j] + 1, NULL) : strtod(tmp, NULL);
-                        last[j] = is_rot[j] ? back * DEG2RAD : (inch ? back * 25.4 : back);
+                        /* the machine goes where the written spelling says (the source's: its
+                         * parsed value, the block's end) */
+                        last[j] = use_raw ? end[j] : back;
                         if (!use_raw) {         /* its text is the one just written */
                             memcpy(cache_txt[j], tmp, (size_t)tn + 1);
                             cache_val[j] = last[j];
