@@ -348,3 +348,28 @@ def test_program_without_units_is_warned(tmp_path, capsys):
     assert "taken as inch (--units)" in stdout
     rows = _read_report(tmp_path / "b.csv")
     assert float(rows[-1]["x_mm"]) == pytest.approx(50.8, rel=0, abs=0.02)   # 2 in, corrected
+
+
+def test_rotary_axes_a_program_never_names_are_declared_with_start_position(tmp_path, capsys):
+    machine, fitted, model_path = _model(tmp_path, "cafxyz", seed=9)
+    prog = tmp_path / "in.nc"
+    prog.write_text("G21 G90\nG0 X0 Y0 Z20\nG1 X30 F500\nY30\nM30\n")
+    rep = tmp_path / "b.csv"
+    out = tmp_path / "o.nc"
+    code, stdout, err = _run(["compensate", "cafxyz", str(model_path), str(prog), "-o", str(out),
+                              "--report", str(rep), "--max-correction-urad", "2000"], capsys)
+    assert code == 0, err
+    rows = _read_report(rep)
+    # A and C are never named: their positions are not known, nothing is corrected or written
+    assert all(r["unknown_axes"] == "AC" and r["corrected"] == "0" for r in rows)
+    assert out.read_text() == prog.read_text()
+    code, stdout, err = _run(["compensate", "cafxyz", str(model_path), str(prog), "-o", str(out),
+                              "--report", str(rep), "--max-correction-urad", "2000",
+                              "--start-position", "A=0,C=0"], capsys)
+    assert code == 0, err
+    rows = _read_report(rep)
+    assert all(r["unknown_axes"] == "" and r["corrected"] == "1" for r in rows)
+    assert max(abs(float(r["cz_um"])) for r in rows) > 0.1
+    code, stdout, err = _run(["compensate", "cafxyz", str(model_path), str(prog), "-o",
+                              str(tmp_path / "o2.nc"), "--start-position", "B=0"], capsys)
+    assert code == 2 and "has no B axis" in err

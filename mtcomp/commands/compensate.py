@@ -50,6 +50,10 @@ def add_arguments(parser):
                              "positions (mm, deg; repeatable; wins over --offsets)")
     parser.add_argument("--tool-length", metavar="H1=L", action="append", default=[],
                         help="length (mm) of the tool of G43 H1 (repeatable; wins over --offsets)")
+    parser.add_argument("--start-position", metavar="A=0,C=0", action="append", default=[],
+                        help="axes that stand at a known position (program frame; mm, deg) before "
+                             "the program starts, e.g. the rotary axes of a 5-axis machine that a "
+                             "3-axis program never names (default: no axis is known at the start)")
     parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
 
 
@@ -62,6 +66,32 @@ def _positive(value, flag, allow_zero=False):
     if not math.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
         raise InputError(f"{flag} must be a positive number, got {value:g}")
     return value
+
+
+def _start_position(machine, flags):
+    """--start-position A=0,C=0 (repeatable) -> (initial position (na,) mm/rad, known mask (na,))."""
+    import math
+    import re
+
+    import numpy as np
+
+    from ..errors import InputError
+    pos = np.zeros(machine.n_axes)
+    known = np.zeros(machine.n_axes, bool)
+    for flag in flags:
+        for item in filter(None, (t.strip() for t in flag.split(","))):
+            m = re.fullmatch(r"([A-Za-z])\s*=\s*([+-]?(?:\d+\.?\d*|\.\d+))", item)
+            if not m:
+                raise InputError(f"--start-position {flag}: {item!r} is not an axis value such as "
+                                 "A=0")
+            a = m.group(1).upper()
+            if a not in machine.axis_names:
+                raise InputError(f"--start-position {flag}: machine {machine.name} has no {a} axis")
+            j = machine.index(a)
+            v = float(m.group(2))
+            pos[j] = math.radians(v) if machine.axes[j].is_rotary else v
+            known[j] = True
+    return pos, known
 
 
 def uses_inches(path, block: int = 1 << 22) -> bool:
@@ -165,6 +195,7 @@ def run(args) -> int:
                          f"({'--units' if args.units else 'machine file'})")
         start_inch = units == "inch"
     inch = start_inch or uses_inches(args.program)
+    start_pos, start_known = _start_position(machine, args.start_position)
     problem = CompensationProblem.from_machine(
         fitted, args.max_correction_um, args.max_correction_urad, args.max_step_um,
         args.max_step_urad, grid=output_grid(machine, inch))
@@ -190,7 +221,8 @@ def run(args) -> int:
 
         def machine_chunks():
             for chunk in iter_segment_chunks(args.program, machine, chord_tol_mm=chord_tol,
-                                             inch=start_inch):
+                                             initial_position=start_pos, inch=start_inch,
+                                             initial_known=start_known):
                 mchunk, off = setup.apply(chunk)
                 offsets_of[id(mchunk)] = (chunk, off)
                 yield mchunk
@@ -208,7 +240,7 @@ def run(args) -> int:
                 yield chunk, res.corrected, res.counts
 
         write_corrected(args.program, out, machine, corrections(), chord_tol_mm=chord_tol,
-                        inch=start_inch)
+                        initial_position=start_pos, inch=start_inch, initial_known=start_known)
     elapsed = time.perf_counter() - t0
     print(f"mtcomp compensate: method {args.method}, {machine.name} ({machine.topology}), "
           f"{elapsed:.1f} s")
