@@ -333,6 +333,20 @@ def test_work_offset_and_tool_length_reach_the_model(tmp_path, capsys):
     assert code == 2 and "--work-offset G54=X100,Q5" in err and len(err.strip().splitlines()) == 1
 
 
+def test_drilling_cycles_are_passed_through_and_counted(tmp_path, capsys):
+    machine, fitted, model_path = _model(tmp_path, "xfyz")
+    prog = tmp_path / "in.nc"
+    prog.write_text("G21 G90\nG0 X0 Y0 Z10\nG99 G82 X5 Y5 Z-3 R2 P0.5 F100\nX10\nY10\nG80\n"
+                    "G0 Z10\nX0 Y0\nM30\n")
+    out = tmp_path / "o.nc"
+    code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o", str(out)],
+                             capsys)
+    assert code == 0, err
+    assert "3 drilling cycle lines (G73, G81-G89) passed through unchanged" in stdout
+    src, dst = prog.read_text().splitlines(), out.read_text().splitlines()
+    assert dst[2:6] == src[2:6]
+
+
 def test_program_without_units_is_warned(tmp_path, capsys):
     machine, fitted, model_path = _model(tmp_path, "xfyz")
     prog = tmp_path / "in.nc"

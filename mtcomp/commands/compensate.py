@@ -239,8 +239,13 @@ def run(args) -> int:
                     rep.writelines(report_rows(res, machine.axis_names))
                 yield chunk, res.corrected, res.counts
 
+        written = {}
         write_corrected(args.program, out, machine, corrections(), chord_tol_mm=chord_tol,
-                        initial_position=start_pos, inch=start_inch, initial_known=start_known)
+                        initial_position=start_pos, inch=start_inch, initial_known=start_known,
+                        stats=written)
+    if written.get("cycle_lines"):
+        notes.append(f"{written['cycle_lines']} drilling cycle lines (G73, G81-G89) passed through "
+                     "unchanged: their positions are not corrected")
     elapsed = time.perf_counter() - t0
     print(f"mtcomp compensate: method {args.method}, {machine.name} ({machine.topology}), "
           f"{elapsed:.1f} s")

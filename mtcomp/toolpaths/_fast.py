@@ -273,7 +273,8 @@ def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_positio
         yield chunk()
 
 
-def write_corrected(in_path, out_path, machine, cursor, chord_tol_mm, initial_position=None, **kw):
+def write_corrected(in_path, out_path, machine, cursor, chord_tol_mm, initial_position=None,
+                    stats=None, **kw):
     """Compiled counterpart of :func:`mtcomp.toolpaths.gcode.write_corrected` (cursor prepared)."""
     from .gcode import _line_ending, format_motion_lines, write_pass_through
     letters = "".join(machine.axis_names)
@@ -334,4 +335,6 @@ def write_corrected(in_path, out_path, machine, cursor, chord_tol_mm, initial_po
             cursor.finish()
     finally:
         d.close()
+    if stats is not None:
+        stats["cycle_lines"] = ostate.cycle_lines
     return rows_done

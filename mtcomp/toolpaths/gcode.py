@@ -816,6 +816,7 @@ class OutputState:
     def __init__(self, na: int, state: ModalState | None = None):
         self.absolute = True        # the reader takes a program without G90/G91 as absolute too
         self.motion = -1
+        self.cycle_lines = 0        # drilling cycle lines passed through (not corrected)
         self.values = np.full(na, np.nan)
         self.rotary = [False] * na if state is None else state.rotary
         if state is not None:       # axes known before the first line stand where the reader says
@@ -1038,6 +1039,8 @@ def write_pass_through(f, raw: bytes, state: ModalState, out: OutputState, separ
         out.absolute = True
     if state.had_g:
         out.motion = state.motion if state.motion in (0, 1) and state.cycle is None else -1
+    if state.cycle_line:
+        out.cycle_lines += 1
 
 
 def _uncorrected(path, machine, chord_tol_mm, chunk_size, initial_position, **kw):
@@ -1112,7 +1115,7 @@ class CorrectionCursor:
 def write_corrected(in_path, out_path, machine: Machine,
                     corrections: Iterable[tuple[SegmentChunk, np.ndarray, np.ndarray]] | None,
                     chord_tol_mm: float = DEFAULT_CHORD_TOL_MM, initial_position=None, *,
-                    inch: bool = False, initial_known=None) -> int:
+                    inch: bool = False, initial_known=None, stats: dict | None = None) -> int:
     """Write ``in_path`` to ``out_path`` with corrected motion lines; returns the number of segment
     rows written.
 
@@ -1126,6 +1129,8 @@ def write_corrected(in_path, out_path, machine: Machine,
     has not given is never written. Output is absolute (G90), in the units of the input at that
     line, 4 decimals for mm and deg, 5 for inch. The file is written atomically: nothing is left on
     failure and the input is never overwritten. inch, initial_known : see :func:`iter_blocks`.
+    stats : a dict that receives ``cycle_lines``, the drilling cycle lines passed through unchanged
+    (their positions are not corrected), or None.
     Raises InputError for a bad program or output path, ValueError for corrections that do not
     match the program's segment rows (or hold a non-finite point).
     """
@@ -1138,7 +1143,7 @@ def write_corrected(in_path, out_path, machine: Machine,
     from . import _fast
     if _fast.available():
         return _fast.write_corrected(in_path, out_path, machine, cursor, chord_tol_mm,
-                                     initial_position, **kw)
+                                     initial_position, stats=stats, **kw)
     letters = "".join(machine.axis_names)
     rotary = [c in "ABC" for c in letters]
     rows_written = 0
@@ -1161,4 +1166,6 @@ def write_corrected(in_path, out_path, machine: Machine,
             rows_written += block.points.shape[0]
             f.write(text.encode("latin-1"))
         cursor.finish()
+    if stats is not None:
+        stats["cycle_lines"] = 0 if out is None else out.cycle_lines
     return rows_written
