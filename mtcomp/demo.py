@@ -14,7 +14,8 @@ render, and check the result against the virtual machine's truth.
    zig-zag raster along X, so X reverses at the end of every pass.
 5. **Compensate** it with the extended model, and for comparison with the base model, by the real
    ``mtcomp compensate`` command (bounded QP; BLOCKS.csv).
-6. **Render** the predicted before/after error map (map.png, map.vtp) and measure what the virtual
+6. **Render** the predicted before/after error map (map.png, map.vtp), the bowl as the virtual machine
+   cuts it before/after (map_cut.png, map_cut.vtp: its truth), and measure what the virtual
    machine would really cut with each program (its truth, not the fitted model).
 
 Every file goes into the output folder; nothing outside it is written.
@@ -180,8 +181,10 @@ def run_demo(out_dir=DEFAULT_OUT, seed: int = 2026, say=print) -> DemoResult:
         r = BOWL_TOOL_RADIUS_MM
         smap = program_error_map(machine, diag.model, prog, prog_c, tool_radius_mm=r)
         rr = render_error_map(smap, out / "map.png")
-        res.files += ["map.png", "map.vtp"]
         actual = program_error_map(machine, truth, prog, prog_c, tool_radius_mm=r)
+        # what the virtual machine really cut, labelled so: not the model's own residual
+        render_error_map(actual, out / "map_cut.png", shows="truth")
+        res.files += ["map.png", "map.vtp", "map_cut.png", "map_cut.vtp"]
         actual_base = program_error_map(machine, truth, prog, prog_b, tool_radius_mm=r)
         st = smap.stats()
         res.bowl.update({

@@ -113,6 +113,7 @@ class Machine:
     workpiece_chain : axis names from the bed towards the workpiece.
     tool_chain : axis names from the bed towards the tool.
     tool_length : mm, spindle gauge point to tool tip.
+    units : 'mm' or 'inch': what a program without G20/G21 means on this machine; None: not said.
     compensation : defaults for `mtcomp compensate` (max_correction_um, max_correction_urad, max_step_um).
     """
 
@@ -124,6 +125,7 @@ class Machine:
     tool_length: float = 0.0
     compensation: dict = field(default_factory=lambda: dict(DEFAULT_COMPENSATION))
     source: str = ""
+    units: str | None = None
 
     @property
     def axis_names(self) -> tuple[str, ...]:
@@ -188,8 +190,11 @@ class Machine:
                 if a.basis == "bspline" and a.spline_intervals is not None:
                     d["spline_intervals"] = a.spline_intervals
             axes[a.name] = d
-        return {"name": self.name, "topology": self.topology, "tool_length_mm": self.tool_length,
-                "axes": axes, "compensation": dict(self.compensation)}
+        d = {"name": self.name, "topology": self.topology, "tool_length_mm": self.tool_length,
+             "axes": axes, "compensation": dict(self.compensation)}
+        if self.units is not None:
+            d["units"] = self.units
+        return d
 
 
 def with_data_basis(machine: Machine, positions: dict, fourier: bool = True) -> Machine:
@@ -261,7 +266,7 @@ def machine_from_dict(data: dict, path: str | None = None) -> Machine:
     """Build and validate a Machine from TOML data (mm, deg). Raises InputError naming the key."""
     if not isinstance(data, dict):
         raise InputError("machine description must be a table", path)
-    known = {"name", "topology", "tool_length_mm", "axes", "compensation"}
+    known = {"name", "topology", "tool_length_mm", "axes", "compensation", "units"}
     for key in data:
         if key not in known:
             raise InputError(f"unknown key {key!r} (known: {', '.join(sorted(known))})", path)
@@ -275,6 +280,9 @@ def machine_from_dict(data: dict, path: str | None = None) -> Machine:
     if isinstance(tool_length, bool) or not isinstance(tool_length, (int, float)) \
             or not math.isfinite(tool_length) or tool_length < 0:
         raise InputError(f"tool_length_mm must be a finite number >= 0, got {tool_length!r}", path)
+    units = data.get("units")
+    if units is not None and units not in ("mm", "inch"):
+        raise InputError(f"units must be \"mm\" or \"inch\", got {units!r}", path)
     axes_data = data.get("axes", {})
     if not isinstance(axes_data, dict):
         raise InputError("[axes] must be a table of axis tables", path)
@@ -357,7 +365,7 @@ def machine_from_dict(data: dict, path: str | None = None) -> Machine:
         comp[k] = float(v)
     return Machine(name=name, topology=str(data["topology"]).strip().upper(), axes=tuple(axes),
                    workpiece_chain=wp_chain, tool_chain=tool_chain, tool_length=float(tool_length),
-                   compensation=comp, source=path or "")
+                   compensation=comp, source=path or "", units=units)
 
 
 def load_machine(name_or_path: str | os.PathLike) -> Machine:

@@ -73,6 +73,13 @@ def _written_points(path, machine):
     return read_program(path, machine).segments().end
 
 
+def _nominal_points(prog, machine):
+    """The program's segment ends on the 4-decimal output grid (mm; the test programs have no
+    rotary arcs): the nominal positions the planner corrects (the writer keeps unchanged arcs as
+    arcs, so the nominal program written back would hold the unrounded chord ends)."""
+    return np.round(read_program(prog, machine).segments().end, 4)
+
+
 def _actual_minus_nominal(fitted, q_written, q_nominal, chunk):
     """Independent: nominal kinematics + model deviation at the written positions, with the context
     of each block (feed and approach directions of the nominal program)."""
@@ -98,8 +105,9 @@ def test_xfyz_program_corrected_and_reported(tmp_path, capsys, method):
     assert code == 0, err
     assert "0 blocks hit a bound" in stdout
     write_corrected(prog, nominal, machine, None)
+    assert nominal.read_text() == prog.read_text()      # nothing to change: written as it was
     q_out = _written_points(out, machine)
-    q_nom = _written_points(nominal, machine)
+    q_nom = _nominal_points(prog, machine)
     assert q_out.shape == q_nom.shape and q_out.shape[0] > 50     # arc chords included
     # every non-motion line byte for byte, in place
     def still(text):
@@ -156,7 +164,7 @@ def test_bounds_hold_in_the_output_and_are_reported(tmp_path, capsys):
     corr_um = np.array([[float(r[k]) for k in ("cx_um", "cy_um", "cz_um")] for r in rows])
     np.testing.assert_allclose(pos, q_out, rtol=0, atol=1e-9)
     ends = np.array([r["inserted"] == "0" for r in rows])
-    np.testing.assert_allclose(pos[ends] - corr_um[ends] * 1e-3, _written_points(nominal, machine),
+    np.testing.assert_allclose(pos[ends] - corr_um[ends] * 1e-3, _nominal_points(prog, machine),
                                rtol=0, atol=1e-9)
     assert np.all(np.abs(corr_um) <= 4.0 + 1e-6)
     rapid = np.array([r["rapid"] == "1" for r in rows])
@@ -243,3 +251,139 @@ def test_inch_program_keeps_bounds_on_the_inch_grid(tmp_path, capsys):
     assert np.all(np.abs(corr_um) <= 3.0 + 1e-6)
     assert np.all(np.abs(np.diff(corr_um[1:], axis=0)) <= 1.0 + 1e-6)   # block 1 follows a rapid
     assert np.abs(corr_um).max() > 0.5
+
+
+def _model_with_support(tmp_path, support):
+    machine, fitted, path = _model(tmp_path, "xfyz", seed=7)
+    fitted.support = support
+    save_model(path, fitted)
+    return machine, fitted, path
+
+
+def test_blocks_outside_the_support_are_not_corrected_unless_asked(tmp_path, capsys):
+    machine, fitted, model_path = _model_with_support(tmp_path, {"X": (-20.0, 20.0),
+                                                                 "Y": (-20.0, 20.0)})
+    prog = tmp_path / "in.nc"
+    prog.write_text("G21 G90\nG0 X0 Y0 Z5\nG1 Z0 F300\nX15\nX60\nY10\nX0\nM30\n")
+    out, rep = tmp_path / "out.nc", tmp_path / "b.csv"
+    code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o", str(out),
+                              "--report", str(rep), "--subdivide-tol-um", "0"], capsys)
+    assert code == 0, err
+    rows = _read_report(rep)
+    outside = [r for r in rows if r["outside_support"]]
+    assert [int(r["line"]) for r in outside] == [5, 6]           # X60: lines 5 and 6
+    assert all(r["outside_support"] == "X" and r["corrected"] == "0" for r in outside)
+    for r in outside:
+        assert float(r["cx_um"]) == 0 and float(r["cy_um"]) == 0 and float(r["cz_um"]) == 0
+    inside = [r for r in rows if not r["outside_support"]]
+    assert max(abs(float(r["cz_um"])) for r in inside) > 1.0    # the others are corrected
+    assert "2 blocks outside the region the model's data reached (X 2; first at line 5): not " \
+           "corrected (pass --extrapolate" in stdout
+    code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o", str(out),
+                              "--report", str(rep), "--subdivide-tol-um", "0", "--extrapolate"],
+                             capsys)
+    assert code == 0, err
+    rows = _read_report(rep)
+    assert all(r["corrected"] == "1" for r in rows)
+    assert max(abs(float(r["cz_um"])) for r in rows if r["line"] == "5") > 1.0
+    assert "corrected anyway (--extrapolate)" in stdout
+
+
+def test_model_without_support_is_said_once(tmp_path, capsys):
+    machine, fitted, model_path = _model(tmp_path, "xfyz")
+    prog = tmp_path / "in.nc"
+    prog.write_text(XFYZ_PROGRAM)
+    code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o",
+                              str(tmp_path / "o.nc")], capsys)
+    assert code == 0, err
+    assert stdout.count("the model does not state the region its data reached") == 1
+    assert stdout.count("assumed: work offset G54 = 0") == 1
+
+
+def test_work_offset_and_tool_length_reach_the_model(tmp_path, capsys):
+    machine, fitted, model_path = _model(tmp_path, "xfyz", seed=8)
+    prog = tmp_path / "in.nc"
+    prog.write_text("G21 G90 G54\nT1 M6\nG0 G43 H1 Z20\nG0 X-50 Y-40\nG1 Z-5 F800\nX60\nY40\nM30\n")
+    offsets = tmp_path / "offsets.toml"
+    offsets.write_text("[work_offsets]\nG54 = {X = 100.0, Y = 50.0, Z = -200.0}\n"
+                       "[tool_lengths]\nH1 = 80.0\n")
+    rep = tmp_path / "b.csv"
+    code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o",
+                              str(tmp_path / "o.nc"), "--offsets", str(offsets), "--report",
+                              str(rep), "--subdivide-tol-um", "0"], capsys)
+    assert code == 0, err
+    assert "assumed" not in stdout
+    rows = _read_report(rep)
+    # reported and written positions are the program's; the model saw them + the offset, tool 80 mm
+    q_prog = np.array([[float(r[k]) for k in ("x_mm", "y_mm", "z_mm")] for r in rows])
+    corr = np.array([[float(r[k]) for k in ("cx_um", "cy_um", "cz_um")] for r in rows]) * 1e-3
+    before = np.array([[float(r[k]) for k in ("ex_before_um", "ey_before_um", "ez_before_um")]
+                       for r in rows])
+    q_mach = q_prog - corr + [100.0, 50.0, -200.0]
+    c = fitted.context(len(rows), {"tool_length": np.full(len(rows), 80.0)})
+    dev = deviation(fitted.model, q_mach, fitted.params.values, c)
+    known = np.array([r["unknown_axes"] == "" for r in rows])
+    np.testing.assert_allclose(before[known], dev[known, :3] * 1e3, rtol=0, atol=2e-3)
+    # an oracle with another offset disagrees: the test can fail
+    dev0 = deviation(fitted.model, q_prog - corr, fitted.params.values, c)
+    assert np.abs(before[known] - dev0[known, :3] * 1e3).max() > 0.05
+    # the flags do the same as the file; a bad flag is one clear line
+    code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o",
+                              str(tmp_path / "o2.nc"), "--work-offset", "G54=X100,Q5"], capsys)
+    assert code == 2 and "--work-offset G54=X100,Q5" in err and len(err.strip().splitlines()) == 1
+
+
+def test_drilling_cycles_are_passed_through_and_counted(tmp_path, capsys):
+    machine, fitted, model_path = _model(tmp_path, "xfyz")
+    prog = tmp_path / "in.nc"
+    prog.write_text("G21 G90\nG0 X0 Y0 Z10\nG99 G82 X5 Y5 Z-3 R2 P0.5 F100\nX10\nY10\nG80\n"
+                    "G0 Z10\nX0 Y0\nM30\n")
+    out = tmp_path / "o.nc"
+    code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o", str(out)],
+                             capsys)
+    assert code == 0, err
+    assert "3 drilling cycle lines (G73, G81-G89) passed through unchanged" in stdout
+    src, dst = prog.read_text().splitlines(), out.read_text().splitlines()
+    assert dst[2:6] == src[2:6]
+
+
+def test_program_without_units_is_warned(tmp_path, capsys):
+    machine, fitted, model_path = _model(tmp_path, "xfyz")
+    prog = tmp_path / "in.nc"
+    prog.write_text("G90\nG0 X1 Y1 Z1\nG1 X2 F100\n")
+    code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o",
+                              str(tmp_path / "o.nc")], capsys)
+    assert code == 0, err
+    assert "warning: the program has no G20/G21" in stdout
+    code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o",
+                              str(tmp_path / "o.nc"), "--units", "inch", "--report",
+                              str(tmp_path / "b.csv")], capsys)
+    assert code == 0, err
+    assert "taken as inch (--units)" in stdout
+    rows = _read_report(tmp_path / "b.csv")
+    assert float(rows[-1]["x_mm"]) == pytest.approx(50.8, rel=0, abs=0.02)   # 2 in, corrected
+
+
+def test_rotary_axes_a_program_never_names_are_declared_with_start_position(tmp_path, capsys):
+    machine, fitted, model_path = _model(tmp_path, "cafxyz", seed=9)
+    prog = tmp_path / "in.nc"
+    prog.write_text("G21 G90\nG0 X0 Y0 Z20\nG1 X30 F500\nY30\nM30\n")
+    rep = tmp_path / "b.csv"
+    out = tmp_path / "o.nc"
+    code, stdout, err = _run(["compensate", "cafxyz", str(model_path), str(prog), "-o", str(out),
+                              "--report", str(rep), "--max-correction-urad", "2000"], capsys)
+    assert code == 0, err
+    rows = _read_report(rep)
+    # A and C are never named: their positions are not known, nothing is corrected or written
+    assert all(r["unknown_axes"] == "AC" and r["corrected"] == "0" for r in rows)
+    assert out.read_text() == prog.read_text()
+    code, stdout, err = _run(["compensate", "cafxyz", str(model_path), str(prog), "-o", str(out),
+                              "--report", str(rep), "--max-correction-urad", "2000",
+                              "--start-position", "A=0,C=0"], capsys)
+    assert code == 0, err
+    rows = _read_report(rep)
+    assert all(r["unknown_axes"] == "" and r["corrected"] == "1" for r in rows)
+    assert max(abs(float(r["cz_um"])) for r in rows) > 0.1
+    code, stdout, err = _run(["compensate", "cafxyz", str(model_path), str(prog), "-o",
+                              str(tmp_path / "o2.nc"), "--start-position", "B=0"], capsys)
+    assert code == 2 and "has no B axis" in err

@@ -34,7 +34,8 @@ def test_demo_runs_and_writes_only_into_its_folder(demo_run):
     assert list(cwd.iterdir()) == []
     expected = {"MODEL_base.json", "identify.txt", "REPORT.json", "MODEL.json", "diagnose.txt",
                 "bowl.nc", "bowl_compensated.nc", "BLOCKS.csv", "compensate.txt",
-                "bowl_compensated_base.nc", "compensate_base.txt", "map.png", "map.vtp", "campaign"}
+                "bowl_compensated_base.nc", "compensate_base.txt", "map.png", "map.vtp", "map_cut.png",
+                "map_cut.vtp", "campaign"}
     assert {p.name for p in out.iterdir()} == expected
     assert len(list((out / "campaign").glob("*.csv"))) >= 10
     listed = re.search(r"^files in .*?: (.*), campaign/ \((\d+) CSV files\)$", res.stdout, re.M)
@@ -83,6 +84,13 @@ def test_demo_map_and_blocks_agree_with_the_summary(demo_run):
         dn = np.asarray(mesh.point_data[arr])
         assert np.sqrt(np.mean(dn ** 2)) == pytest.approx(float(m.group(1)), abs=0.0006)
         assert np.max(np.abs(dn)) == pytest.approx(float(m.group(2)), abs=0.0006)
+    # the second map is the bowl as the virtual machine cut it: the summary's truth figures
+    cut = re.search(rf"extended model\s+rms {NUM} um, max {NUM} um", res.stdout)
+    first = re.search(rf"uncompensated\s+rms {NUM} um, max {NUM} um", res.stdout)
+    mesh = pv.read(out / "map_cut.vtp")
+    for arr, m in (("dn_before_um", first), ("dn_after_um", cut)):
+        dn = np.asarray(mesh.point_data[arr])
+        assert np.sqrt(np.mean(dn ** 2)) == pytest.approx(float(m.group(1)), abs=0.0006)
     with open(out / "BLOCKS.csv", newline="") as f:
         blocks = list(csv.DictReader(f))
     assert "line" in blocks[0] and "cx_um" in blocks[0]

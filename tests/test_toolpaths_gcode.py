@@ -135,7 +135,7 @@ def test_major_arc_negative_r(tmp_path):
 
 def test_inch_and_incremental(tmp_path):
     text = "G20 G91\nG1 X1 Y-0.5 F10\nX1\nG21 G90 G1 X1\n"
-    prog = read_program(_write(tmp_path, text), XFYZ)
+    prog = read_program(_write(tmp_path, text), XFYZ, initial_known=True)
     b = prog.blocks
     np.testing.assert_allclose(b[0].end, [25.4, -12.7, 0], rtol=0, atol=1e-12)
     np.testing.assert_allclose(b[1].end, [50.8, -12.7, 0], rtol=0, atol=1e-12)
@@ -144,12 +144,16 @@ def test_inch_and_incremental(tmp_path):
     np.testing.assert_allclose(b[2].end, [1, -12.7, 0], rtol=0, atol=1e-12)
     assert b[2].feed == pytest.approx(254.0, rel=1e-15, abs=0)
     out = tmp_path / "out.nc"
-    write_corrected(tmp_path / "in.nc", out, XFYZ, None)
+    write_corrected(tmp_path / "in.nc", out, XFYZ, None, initial_known=True)
     lines = out.read_text().splitlines()
+    # absolute output: G90 once; only the named axes and what changes; the same on both paths
     assert lines[0] == "G20 G91"
-    assert lines[1] == "G90 G1 X1.00000 Y-0.50000 Z0.00000 F10"
-    assert lines[2] == "G1 X2.00000 Y-0.50000 Z0.00000"
-    assert lines[3] == "G1 X1.0000 Y-12.7000 Z0.0000 G21"
+    assert lines[1] == "G90 G1 X1.00000 Y-0.50000 F10"
+    assert lines[2] == "X2.00000"
+    assert lines[3] == "G21 G90 G1 X1"
+    # without initial_known the program has not said where X is: an incremental move is refused
+    with pytest.raises(InputError, match="incremental .G91. move of axis X"):
+        read_program(tmp_path / "in.nc", XFYZ)
 
 
 def test_rotary_words_in_degrees(tmp_path):
@@ -160,7 +164,12 @@ def test_rotary_words_in_degrees(tmp_path):
     np.testing.assert_array_equal(prog.blocks[1].dirs[-1], [1, 1, 1, -1, -1])
     out = tmp_path / "out.nc"
     write_corrected(tmp_path / "in.nc", out, CAFXYZ, None)
-    assert out.read_text().splitlines()[0] == "G90 G0 X1.0000 Y2.0000 Z3.0000 A-30.0000 C370.5000"
+    # unchanged blocks are written as they are (their own spelling of the numbers)
+    assert out.read_text() == text
+    corr = [(c, c.end + np.radians([0, 0, 0, 1e-3, 0.5]), np.ones(len(c), int))
+            for c in iter_segment_chunks(tmp_path / "in.nc", CAFXYZ)]
+    write_corrected(tmp_path / "in.nc", out, CAFXYZ, iter(corr))
+    assert out.read_text() == "G0 X1 Y2 Z3 A-29.9990 C371.0000\nG1 C10.5000 F500\n"
 
 
 def test_home_moves_and_dwell(tmp_path):
@@ -168,14 +177,32 @@ def test_home_moves_and_dwell(tmp_path):
     prog = read_program(_write(tmp_path, text), XFYZ)
     b = prog.blocks
     assert [x.line for x in b] == [1, 5, 7]
-    np.testing.assert_allclose(b[1].start, [5, 5, 0], rtol=0, atol=0)   # Z homed to 0, X not dwell
-    np.testing.assert_allclose(b[2].start, [1, 5, -10], rtol=0, atol=0)
+    np.testing.assert_allclose(b[1].start[:2], [5, 5], rtol=0, atol=0)   # X not moved by the dwell
+    # Z is not known after the home move (G28) nor after the move in machine coordinates (G53)
+    assert [x.known.tolist() for x in b] == [[True] * 3, [True, True, False], [True, True, False]]
+    out = tmp_path / "out.nc"
+    shift = [(c, c.end + 0.001, np.ones(len(c), int)) for c in iter_segment_chunks(tmp_path / "in.nc",
+                                                                                    XFYZ)]
+    write_corrected(tmp_path / "in.nc", out, XFYZ, iter(shift))
+    assert out.read_text().splitlines() == [
+        "G0 X5.0010 Y5.0010 Z5.0010", "G91 G28 Z0", "G90", "G4 X2.5", "G0 X1.0010",
+        "G53 Z-10", "G0 Y1.0010"]
 
 
 @pytest.mark.parametrize("text, line, msg", [
     ("G0 X1\nG1 X1.2.3\n", 2, "unexpected character '.'"),
     ("G0 X1\nG1 X--1\n", 2, "word X without a valid number"),
-    ("G1 X1 F100\nG1 Y#1\n", 2, "word Y without a valid number"),
+    ("G1 X1 F100\nG1 Y#1\n", 2, "#-parameters not supported"),
+    ("G0 X1\no200 sub\n", 2, "O-word sub .subroutines"),
+    ("G0 X1\nO100 IF [#1 GT 2]\n", 2, "O-word if"),
+    ("#100 = 5\n", 1, "#-parameters"),
+    ("G0 X1\nTRAORI\n", 2, "TRAORI"),
+    ("G0 X1\nG43.4 H1\n", 2, "G43.4 .tool centre point"),
+    ("G0 X1\nM128\n", 2, "M128 .tool centre point"),
+    ("G0 X1\nM98 P1000\n", 2, "M98 .subprogram call"),
+    ("G91 G1 X1 F100\n", 1, "incremental .G91. move of axis X"),
+    ("G0 X1\nG2 X2 Y0 I0.5 F100\n", 2, "arc G2 from a position the program has not given"),
+    ("G93\nG0 X0 Y0\nG1 X1\n", 3, "G93 .inverse time feed.: the G1 block has no F word"),
     ("G0 X1\nG0 A10\n", 2, "no A axis"),
     ("G0 X1\nG1 U10\n", 2, "no U axis"),
     ("G0 X0 Y0\nG2 X10 Y0 I4 J0 F100\n", 2, "radius inconsistent"),
@@ -186,9 +213,9 @@ def test_home_moves_and_dwell(tmp_path):
     ("G0 G1 X1\n", 1, "two motion codes"),
     ("G0 X1 X2\n", 1, "appears twice"),
     ("G92 X0\n", 1, "G92"),
-    ("G81 X1 Y1 Z-1 R1\n", 1, "canned cycle"),
+    ("G76 X1 Z-1 P1\n", 1, "canned cycle G76"),
     ("G1 X1 I2 F10\n", 1, "I word in a G1 block"),
-    ("G17\nG2 X1 Y1 K2 F10\n", 2, "not an offset in plane G17"),
+    ("G0 X0 Y0\nG17\nG2 X1 Y1 K2 F10\n", 3, "not an offset in plane G17"),
     ("G1 X1 F-5\n", 1, "feed F must be positive"),
     ("G1 X1\xe9 F5\n", 1, "unexpected character"),
     ("/G1 X1 F5\n", 1, "block delete"),
@@ -254,9 +281,10 @@ def test_corrections_with_inserted_nodes(tmp_path):
             yield c, np.array(pts), np.array(counts)
     out = tmp_path / "out.nc"
     assert write_corrected(p, out, XFYZ, corr()) == 2
-    assert out.read_text() == ("N1 G90 G0 X0.0000 Y0.0000 Z0.0000\n"
-                               "N2 G1 X5.0000 Y0.0000 Z0.0010 F100 (cut)\n"
-                               "G1 X10.0000 Y0.0020 Z0.0000\nM30\n")
+    # modal output: line 1 unchanged (as written), then only what changes
+    assert out.read_text() == ("N1 G0 X0 Y0 Z0\n"
+                               "N2 G1 X5.0000 Z0.0010 F100 (cut)\n"
+                               "X10.0000 Y0.0020 Z0.0000\nM30\n")
 
 
 def test_corrections_that_do_not_match_are_refused(tmp_path):
@@ -302,7 +330,9 @@ def test_initial_position(tmp_path):
     np.testing.assert_allclose(c.end, [[6, 0, 2], [5, 1, 2]], rtol=0, atol=0)
     out = tmp_path / "out.nc"
     write_corrected(p, out, XFYZ, None, initial_position=init)
-    assert out.read_text().splitlines()[0] == "G90 G1 X6.0000 Y0.0000 Z2.0000 F10"
+    assert out.read_text() == "G1 X6.0000 F10\nG90 G28\nG1 Y1\n"
+    # after G28 (every axis home) only Y is known again
+    assert [b.known.tolist() for b in prog.blocks] == [[True] * 3, [False, True, False]]
 
 
 def test_incremental_home_move_keeps_its_meaning(tmp_path):
@@ -310,6 +340,5 @@ def test_incremental_home_move_keeps_its_meaning(tmp_path):
     # G91 line is put before it, and the next motion line switches back to G90
     p = _write(tmp_path, "G91 G1 X1 F100\nG28 Z0\nG1 X1\n(end)\n")
     out = tmp_path / "out.nc"
-    write_corrected(p, out, XFYZ, None)
-    assert out.read_text() == ("G90 G1 X1.0000 Y0.0000 Z0.0000 F100\nG91\nG28 Z0\n"
-                               "G90 G1 X2.0000 Y0.0000 Z0.0000\n(end)\n")
+    write_corrected(p, out, XFYZ, None, initial_known=True)
+    assert out.read_text() == "G1 X1.0000 F100\nG91\nG28 Z0\nG90 G1 X2.0000\n(end)\n"

@@ -132,16 +132,24 @@ def test_a_program_that_is_not_the_compensated_one_is_refused(tmp_path, xfyz_mod
         program_error_map(machine, fitted, prog, other)
 
 
-def test_programs_without_a_surface_are_refused(tmp_path, xfyz_model):
+def test_programs_without_a_surface_are_mapped_as_their_path(tmp_path, xfyz_model):
+    """No surface seen along Z (only rapids, a straight line, a lathe profile): the points of the
+    path, with the deviation along the tool axis (+Z on this machine), and no triangles."""
+    from mtcomp.viz.surface import predicted_points
     machine, fitted = xfyz_model
     rapid = tmp_path / "rapid.nc"
     rapid.write_text("G0 X1 Y2 Z3\nG0 X4\n")
-    with pytest.raises(InputError, match="no feed moves"):
-        program_error_map(machine, fitted, rapid)
+    m = program_error_map(machine, fitted, rapid)
+    assert m.triangles.shape == (0, 3)
+    np.testing.assert_allclose(m.tips, [[1, 2, 3], [4, 2, 3]], rtol=0, atol=1e-12)
     line = tmp_path / "line.nc"
     line.write_text("G1 X0 Y0 Z0 F100\nG1 X10 Y10\nG1 X20 Y20\nG1 X30 Y30\n")
-    with pytest.raises(InputError, match="on a line"):
-        program_error_map(machine, fitted, line)
+    m = program_error_map(machine, fitted, line)
+    assert m.triangles.shape == (0, 3) and m.points.shape == (4, 3)
+    np.testing.assert_allclose(m.normals, np.tile([0, 0, 1.0], (4, 1)), rtol=0, atol=1e-12)
+    q = np.array([[0, 0, 0], [10, 10, 0], [20, 20, 0], [30, 30, 0.0]])
+    dz = predicted_points(fitted, q, np.full(4, 100.0), np.ones((4, 3)))[:, 2] - q[:, 2]
+    np.testing.assert_allclose(m.dn_before_um, dz * 1e3, rtol=0, atol=1e-9)
 
 
 def test_ball_end_maps_the_ball_centre_deviation_at_the_contact_points(tmp_path, xfyz_model):
@@ -242,3 +250,46 @@ def test_flank_map_of_the_cone_frustum(tmp_path):
     assert np.abs(ref).max() > 1.0
     h = np.linalg.norm(smap.offsets, axis=1)
     assert h.max() == pytest.approx(12.0 / np.sin(np.radians(15.0)), rel=1e-9)
+
+
+def test_compensated_program_paired_through_its_lines_and_the_report(tmp_path, capsys):
+    """A program that revisits the same points (where pairing by proximity fails): the compensated
+    blocks are found through the kept lines, or through the report's source lines."""
+    from mtcomp.cli import main
+    from mtcomp.models import ErrorModel, FittedModel, save_model
+    from mtcomp.viz.surface import pair_compensated, read_program_points, report_points
+    from mtcomp import load_machine
+    machine = load_machine("xfyz")
+    fitted = FittedModel.zero(ErrorModel(machine))
+    rng = np.random.default_rng(4)
+    fitted.params.values[:] = rng.normal(size=len(fitted.params.values)) * 1e-3
+    model = tmp_path / "m.json"
+    save_model(model, fitted)
+    passes = "".join(f"(pass {k})\nG0 X0 Y{k}\nG1 Z-1 F500\nG2 X0 Y{k} I5 J0\nG1 X20\nX0\nG0 Z5\n"
+                     for k in range(3))
+    prog = tmp_path / "in.nc"
+    prog.write_text("G21 G90\nG0 Z5\n" + passes + passes + "M30\n")
+    out, rep = tmp_path / "out.nc", tmp_path / "b.csv"
+    assert main(["compensate", "xfyz", str(model), str(prog), "-o", str(out), "--report",
+                 str(rep), "--quiet"]) == 0
+    orig = read_program_points(prog, machine)
+    comp = read_program_points(out, machine)
+    idx = pair_compensated(orig, comp, machine)
+    # every original end is paired with a compensated end of the same pass: the comment line before
+    # it in the output is the one before it in the source
+    src_lines = prog.read_text().splitlines()
+    out_lines = out.read_text().splitlines()
+
+    def pass_of(lines, n):
+        return next(lines[k] for k in range(n - 1, -1, -1) if lines[k].startswith("(pass"))
+    for i in range(len(orig)):
+        if orig.line[i] > 2:
+            assert pass_of(src_lines, orig.line[i]) == pass_of(out_lines, comp.line[idx[i]])
+    assert np.all(np.diff(idx) >= 0)
+    rp = report_points(orig, rep, machine)
+    np.testing.assert_array_equal(rp.line, orig.line)
+    np.testing.assert_allclose(rp.q, orig.q, rtol=0, atol=0.05)
+    capsys.readouterr()
+    assert main(["render", "xfyz", str(model), str(prog), "--report", str(rep), "-o",
+                 str(tmp_path / "map.png"), "--backend", "matplotlib", "--size", "300x150"]) == 0
+    assert "model prediction after" in capsys.readouterr().out

@@ -2,7 +2,8 @@
 
 The program is streamed twice (once planned, once rewritten by :func:`mtcomp.toolpaths.write_corrected`)
 so memory stays flat for any length. OUT.nc and BLOCKS.csv are written atomically: on any error
-neither exists. Flags override the machine file's [compensation] table. docs/planner.md.
+neither exists. Flags override the machine file's [compensation] table. docs/planner.md,
+docs/toolpaths.md (what is read and written, offsets).
 """
 from __future__ import annotations
 
@@ -42,6 +43,24 @@ def add_arguments(parser):
     parser.add_argument("--spindle-rpm", type=float, metavar="RPM", default=None,
                         help="spindle speed the machine has run at long enough to be warm, for the "
                              "model's spindle-heat drift (default: spindle stopped for long)")
+    parser.add_argument("--extrapolate", action="store_true",
+                        help="correct blocks outside the region the model's data reached too "
+                             "(default: they get no correction, and the summary counts them)")
+    parser.add_argument("--units", choices=("mm", "inch"), default=None,
+                        help="what a program without G20/G21 is written in (default: the machine "
+                             "file's 'units', else mm with a warning)")
+    parser.add_argument("--offsets", metavar="OFFSETS.toml", default=None,
+                        help="work offsets (G54 ...) and tool lengths (H1 ...) of the program; "
+                             "see docs/toolpaths.md")
+    parser.add_argument("--work-offset", metavar="G54=X..,Y..,Z..", action="append", default=[],
+                        help="a work offset: where the program's zero sits in machine axis "
+                             "positions (mm, deg; repeatable; wins over --offsets)")
+    parser.add_argument("--tool-length", metavar="H1=L", action="append", default=[],
+                        help="length (mm) of the tool of G43 H1 (repeatable; wins over --offsets)")
+    parser.add_argument("--start-position", metavar="A=0,C=0", action="append", default=[],
+                        help="axes that stand at a known position (program frame; mm, deg) before "
+                             "the program starts, e.g. the rotary axes of a 5-axis machine that a "
+                             "3-axis program never names (default: no axis is known at the start)")
     parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
 
 
@@ -56,9 +75,44 @@ def _positive(value, flag, allow_zero=False):
     return value
 
 
+def _start_position(machine, flags):
+    """--start-position A=0,C=0 (repeatable) -> (initial position (na,) mm/rad, known mask (na,))."""
+    import math
+    import re
+
+    import numpy as np
+
+    from ..errors import InputError
+    pos = np.zeros(machine.n_axes)
+    known = np.zeros(machine.n_axes, bool)
+    for flag in flags:
+        for item in filter(None, (t.strip() for t in flag.split(","))):
+            m = re.fullmatch(r"([A-Za-z])\s*=\s*([+-]?(?:\d+\.?\d*|\.\d+))", item)
+            if not m:
+                raise InputError(f"--start-position {flag}: {item!r} is not an axis value such as "
+                                 "A=0")
+            a = m.group(1).upper()
+            if a not in machine.axis_names:
+                raise InputError(f"--start-position {flag}: machine {machine.name} has no {a} axis")
+            j = machine.index(a)
+            v = float(m.group(2))
+            pos[j] = math.radians(v) if machine.axes[j].is_rotary else v
+            known[j] = True
+    return pos, known
+
+
 def uses_inches(path, block: int = 1 << 22) -> bool:
     """True if the program contains a G20 word anywhere (comments included: a cautious guess that
     only sets the rounding grid of the output). Reads the file in blocks: memory stays flat."""
+    return _has_word(path, b"20", block)
+
+
+def states_units(path, block: int = 1 << 22) -> bool:
+    """True if the program contains a G20 or a G21 word anywhere."""
+    return _has_word(path, b"20", block) or _has_word(path, b"21", block)
+
+
+def _has_word(path, code: bytes, block: int) -> bool:
     from ..errors import InputError
     try:
         f = open(path, "rb")
@@ -71,16 +125,16 @@ def uses_inches(path, block: int = 1 << 22) -> bool:
         while True:
             data = f.read(block)
             if not data:
-                return _has_g20(tail + b" ")
+                return _has_g(tail + b" ", code)
             text = tail + data
-            if _has_g20(text[:-8]):
+            if _has_g(text[:-8], code):
                 return True
             tail = text[-16:]
 
 
-def _has_g20(text: bytes) -> bool:
-    """True if ``text`` holds G20, G020 or G0020 (G or g) not followed by a digit or '.' (the end
-    of the text counts as not followed). Vectorised over the G letters of the text."""
+def _has_g(text: bytes, code: bytes = b"20") -> bool:
+    """True if ``text`` holds G20, G020 or G0020 (G or g; ``code`` instead of 20) not followed by a
+    digit or '.' (the end of the text counts as not followed). Vectorised over the G letters."""
     import numpy as np
     a = np.frombuffer(text, np.uint8)
     g = np.flatnonzero((a | 0x20) == ord("g"))        # G or g
@@ -93,7 +147,7 @@ def _has_g20(text: bytes) -> bool:
     for zeros in range(3):
         word = g + 1
         ok = np.ones(g.size, bool)
-        for k, ch in enumerate(b"0" * zeros + b"20"):
+        for k, ch in enumerate(b"0" * zeros + code):
             ok &= (word + k < n) & (pad[word + k] == ch)
         end = word + zeros + 2
         ok &= (end >= n) | after_ok[pad[np.minimum(end, n)]]
@@ -107,6 +161,8 @@ def run(args) -> int:
     import sys
     import time
 
+    import numpy as np
+
     from ..errors import InputError
     from ..io.atomic import atomic_write, check_output_path
     from ..machine import load_machine
@@ -114,6 +170,7 @@ def run(args) -> int:
     from ..planner import (CompensationProblem, Planner, PlannerOptions, Summary, output_grid,
                            report_columns, report_rows)
     from ..toolpaths import iter_segment_chunks, write_corrected
+    from ..toolpaths.offsets import load_setup
 
     t0 = time.perf_counter()
     for flag, v in (("--max-correction-um", args.max_correction_um),
@@ -135,7 +192,21 @@ def run(args) -> int:
     thermal, assumed = thermal_context(fitted, parse_assignments(args.temperature, "--temperature"),
                                        args.spindle_rpm)
     fitted.context_defaults.update(thermal)
-    inch = uses_inches(args.program)
+    setup = load_setup(machine, args.offsets, args.work_offset, args.tool_length)
+    notes = []
+    start_inch = False
+    if not states_units(args.program):
+        units = args.units or machine.units
+        if units is None:
+            units = "mm"
+            notes.append("warning: the program has no G20/G21 and neither --units nor the machine "
+                         "file's 'units' says which: taken as mm")
+        else:
+            notes.append(f"the program has no G20/G21: taken as {units} "
+                         f"({'--units' if args.units else 'machine file'})")
+        start_inch = units == "inch"
+    inch = start_inch or uses_inches(args.program)
+    start_pos, start_known = _start_position(machine, args.start_position)
     problem = CompensationProblem.from_machine(
         fitted, args.max_correction_um, args.max_correction_urad, args.max_step_um,
         args.max_step_urad, grid=output_grid(machine, inch))
@@ -145,10 +216,13 @@ def run(args) -> int:
         sys.stderr.flush()
 
     options = PlannerOptions(method=args.method, subdivide_tol_um=args.subdivide_tol_um or None,
-                             progress=None if args.quiet else progress)
+                             progress=None if args.quiet else progress,
+                             extrapolate=args.extrapolate)
     chord_tol = args.chord_tol_um * 1e-3
     planner = Planner(problem, options, source=args.program)
-    summary = Summary(machine.axis_names)
+    summary = Summary(machine.axis_names, extrapolate=args.extrapolate,
+                      support_known=fitted.support is not None)
+    offsets_of = {}
 
     with contextlib.ExitStack() as stack:
         rep = None
@@ -156,21 +230,41 @@ def run(args) -> int:
             rep = stack.enter_context(atomic_write(report, "w", newline=""))
             rep.write(",".join(report_columns(machine.axis_names, machine.is_five_axis)) + "\n")
 
+        def machine_chunks():
+            for chunk in iter_segment_chunks(args.program, machine, chord_tol_mm=chord_tol,
+                                             initial_position=start_pos, inch=start_inch,
+                                             initial_known=start_known):
+                mchunk, off = setup.apply(chunk)
+                offsets_of[id(mchunk)] = (chunk, off)
+                yield mchunk
+
         def corrections():
-            chunks = iter_segment_chunks(args.program, machine, chord_tol_mm=chord_tol)
-            for chunk, res in planner.iter_chunks(chunks):
+            for mchunk, res in planner.iter_chunks(machine_chunks()):
+                chunk, off = offsets_of.pop(id(mchunk))
+                # back to the program's frame: what is written and reported
+                node_off = np.repeat(off, res.counts, axis=0)
+                res.corrected = res.corrected - node_off
+                res.nominal = res.nominal - node_off
                 summary.add(res)
                 if rep is not None:
                     rep.writelines(report_rows(res, machine.axis_names))
                 yield chunk, res.corrected, res.counts
 
-        write_corrected(args.program, out, machine, corrections(), chord_tol_mm=chord_tol)
+        written = {}
+        write_corrected(args.program, out, machine, corrections(), chord_tol_mm=chord_tol,
+                        initial_position=start_pos, inch=start_inch, initial_known=start_known,
+                        stats=written)
+    if written.get("cycle_lines"):
+        notes.append(f"{written['cycle_lines']} drilling cycle lines (G73, G81-G89) passed through "
+                     "unchanged: their positions are not corrected")
     elapsed = time.perf_counter() - t0
     print(f"mtcomp compensate: method {args.method}, {machine.name} ({machine.topology}), "
           f"{elapsed:.1f} s")
     if assumed:
         print(assumed)
     print(summary.text())
+    for line in notes + setup.notes():
+        print(line)
     st = planner.stats
     if args.method == "qp" and st["windows"]:
         print(f"qp: {st['windows_qp']} of {st['windows']} windows needed OSQP "

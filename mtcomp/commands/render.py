@@ -1,8 +1,10 @@
-"""``mtcomp render MACHINE MODEL.json IN.nc [--compensated OUT.nc] -o MAP.png`` (SPEC section 5).
+"""``mtcomp render MACHINE MODEL.json IN.nc [--compensated OUT.nc] [--report BLOCKS.csv] -o MAP.png``.
 
 The workpiece surface the program cuts, coloured by the model's predicted deviation along the surface
 normal (um), before and after compensation side by side on one colour scale; a .vtp with the same
-stem is written next to the PNG for ParaView. See docs/render.md.
+stem is written next to the PNG for ParaView. The compensated blocks are paired with the original
+ones through the programs' line structure, or through the compensation report's source lines.
+See docs/render.md.
 """
 from __future__ import annotations
 
@@ -17,6 +19,9 @@ def add_arguments(parser):
     parser.add_argument("program", help="the NC program (G-code) as written for the part")
     parser.add_argument("--compensated", metavar="OUT.nc",
                         help="the compensated program (from mtcomp compensate): adds the 'after' map")
+    parser.add_argument("--report", metavar="BLOCKS.csv",
+                        help="the report of mtcomp compensate: the 'after' map at its corrected "
+                             "positions, paired with the program by source line")
     parser.add_argument("-o", "--output", required=True, metavar="MAP.png",
                         help="the PNG to write; MAP.vtp is written next to it")
     parser.add_argument("--tool-radius-mm", type=float, default=None, metavar="R",
@@ -69,7 +74,8 @@ def run(args) -> int:
     if args.range_um is not None and not args.range_um > 0:
         raise InputError(f"--range-um must be > 0, got {args.range_um}")
     size = _size(args.size)
-    inputs = [args.model, args.program] + ([args.compensated] if args.compensated else [])
+    inputs = [args.model, args.program] + ([args.compensated] if args.compensated else []) \
+        + ([args.report] if args.report else [])
     for p in inputs:
         if not Path(p).is_file():
             raise InputError("no such file", p)
@@ -79,7 +85,7 @@ def run(args) -> int:
     fitted = load_model(args.model, machine)
     smap = program_error_map(machine, fitted, args.program, args.compensated,
                              tool_radius_mm=args.tool_radius_mm, flank_length_mm=args.flank_mm,
-                             flank_side=args.flank_side)
+                             flank_side=args.flank_side, report=args.report)
     from ..viz.render import render_error_map
     clim = None if args.range_um is None else (-args.range_um, args.range_um)
     res = render_error_map(smap, out, glyphs=args.glyphs or args.glyph_scale is not None,
@@ -91,9 +97,10 @@ def run(args) -> int:
     what = f"flank contact lines, {flank:g} mm" if flank > 0 else "tool-tip surface"
     print(f"surface: {st['n_points']} points, {st['n_triangles']} triangles ({what}"
           + (f"; recognised the {hints['part']}" if hints else "") + ")")
-    print(f"before: RMS {st['rms_before_um']:.3f} um, max {st['max_before_um']:.3f} um "
-          "(deviation along the surface normal)")
+    print(f"model prediction before: RMS {st['rms_before_um']:.3f} um, max {st['max_before_um']:.3f} "
+          "um (deviation along the surface normal)")
     if "rms_after_um" in st:
-        print(f"after:  RMS {st['rms_after_um']:.3f} um, max {st['max_after_um']:.3f} um")
+        print(f"model prediction after:  RMS {st['rms_after_um']:.3f} um, max "
+              f"{st['max_after_um']:.3f} um")
     print(f"wrote {res.png} ({res.backend}) and {res.vtp}")
     return 0

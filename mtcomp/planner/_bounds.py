@@ -82,22 +82,27 @@ class Bounds:
         hi *= self.D
         return self._ceil(lo), self._floor(hi)
 
-    def box(self, q):
+    def box(self, q, pinned=None):
         """(l, u) each (n, na): max correction and travel together."""
-        return self.limits(q)[:2]
+        return self.limits(q, pinned)[:2]
 
-    def limits(self, q):
-        """(l, u, travel_lo, travel_hi), each (n, na): box bounds and the travel part of them."""
+    def limits(self, q, pinned=None):
+        """(l, u, travel_lo, travel_hi), each (n, na): box bounds and the travel part of them.
+        pinned : (n,) bool or None, blocks that get no correction (l = u = 0)."""
         tlo, thi = self.travel_x(q)
-        return np.maximum(-self.B, tlo), np.minimum(self.B, thi), tlo, thi
+        l, u = np.maximum(-self.B, tlo), np.minimum(self.B, thi)
+        if pinned is not None and np.any(pinned):
+            l[pinned] = 0.0
+            u[pinned] = 0.0
+        return l, u, tlo, thi
 
-    def limits_lazy(self, q):
+    def limits_lazy(self, q, pinned=None):
         """As :meth:`limits`, but where the travel is nowhere tighter than the correction bound
         (the usual case) ``(-B, B, None, None)`` as read-only broadcasts, the travel part left for
         :meth:`enforce` to compute if it needs it: the same l and u (the travel bounds of x fall
         with q, so those of the per-axis extremes of q bound every node's)."""
-        if q.shape[0] == 0:
-            return self.limits(q)
+        if q.shape[0] == 0 or (pinned is not None and np.any(pinned)):
+            return self.limits(q, pinned)
         tlo, _ = self.travel_x(q.min(axis=0)[None, :])
         _, thi = self.travel_x(q.max(axis=0)[None, :])
         if np.all(tlo[0] <= -self.B) and np.all(thi[0] >= self.B):

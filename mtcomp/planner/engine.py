@@ -36,6 +36,10 @@ from ._qp import WindowQP
 from ._small import a_x, at_b, gram, row_max_abs, row_norm
 from .problem import CompensationProblem, PlannerOptions
 
+#: slack of the support test (mm for linear axes, rad for rotary ones): a block this close to the
+#: edge of the region the model's data reached counts as inside
+SUPPORT_TOL = 1e-6
+
 
 @dataclass
 class NodeSet:
@@ -47,6 +51,10 @@ class NodeSet:
         the first block of the program).
     line : (n,) source line. inserted : (n,) bool, an internal node the planner added.
     rapid : (n,) bool, the node ends (or lies in) a G0 move.
+    unknown : (n, na) bool, axes whose position the program has not given at this block.
+    outside : (n, na) bool, axes outside the region the model's data reached (its ``support``).
+    pinned : (n,) bool, the block gets no correction (an unknown axis, or outside the support
+        without ``PlannerOptions.extrapolate``): its correction bounds are zero.
     """
 
     q: np.ndarray
@@ -55,8 +63,11 @@ class NodeSet:
     line: np.ndarray
     inserted: np.ndarray
     rapid: np.ndarray
+    unknown: np.ndarray
+    outside: np.ndarray
+    pinned: np.ndarray
 
-    FIELDS = ("q", "context", "exempt", "line", "inserted", "rapid")
+    FIELDS = ("q", "context", "exempt", "line", "inserted", "rapid", "unknown", "outside", "pinned")
 
     def __len__(self):
         return int(self.q.shape[0])
@@ -81,8 +92,10 @@ class PlanResult:
     before_axis, after_axis : (n, 3) tool-axis deviation (actual minus nominal unit vector), 5-axis
         machines only (None otherwise).
     flags : (n, na, 5) bool, bounds that acted (see ``FLAG_KINDS``).
-    counts : (rows,) nodes per segment row of the source chunk (for write_corrected), or None.
     iterations : (n,) model linearisations used per node. converged : (n,) bool.
+    unknown, outside : (n, na) bool, axes not known / outside the model's support (see NodeSet).
+    pinned : (n,) bool, the block was given no correction (bounds zero) for either reason.
+    counts : (rows,) nodes per segment row of the source chunk (for write_corrected), or None.
     """
 
     line: np.ndarray
@@ -98,10 +111,14 @@ class PlanResult:
     flags: np.ndarray
     iterations: np.ndarray
     converged: np.ndarray
+    unknown: np.ndarray
+    outside: np.ndarray
+    pinned: np.ndarray
     counts: np.ndarray | None = None
 
     FIELDS = ("line", "inserted", "rapid", "nominal", "corrected", "correction", "before", "after",
-              "before_axis", "after_axis", "flags", "iterations", "converged")
+              "before_axis", "after_axis", "flags", "iterations", "converged", "unknown", "outside",
+              "pinned")
 
     def __len__(self):
         return int(self.line.shape[0])
@@ -154,14 +171,39 @@ class Planner:
         self._last_progress = time.monotonic()
         self.stats = {"windows": 0, "windows_qp": 0, "qp_solves": 0, "qp_status": {}}
         self.threads = resolve_threads(self.options.threads)
+        support = problem.fitted.support
+        #: (lo, hi) each (na,): the model's support, +-inf for axes it does not limit; None: unknown
+        self.support = None
+        if support is not None:
+            lo = np.full(self.na, -np.inf)
+            hi = np.full(self.na, np.inf)
+            for j, a in enumerate(self.machine.axis_names):
+                if a in support:
+                    lo[j], hi[j] = support[a]
+            self.support = (lo, hi)
         self._split = self.threads          # parts a chunk's per-block work is cut into
 
     # ------------------------------------------------------------------ nodes
-    def _context(self, feed, dirs, n):
+    def _context(self, feed, dirs, n, tool_length=None):
         cols = {"feed": feed}
         for j, a in enumerate(self.machine.axis_names):
             cols[f"dir_{a}"] = dirs[:, j].astype(float)
+        if tool_length is not None:
+            cols["tool_length"] = tool_length
         return self.problem.fitted.context(n, cols)
+
+    def _outside(self, q, known):
+        """(n, na) bool: known axes outside the model's support (SUPPORT_TOL of slack)."""
+        if self.support is None:
+            return np.zeros(q.shape, bool)
+        lo, hi = self.support
+        return known & ((q < lo - SUPPORT_TOL) | (q > hi + SUPPORT_TOL))
+
+    def _pinned(self, unknown, outside):
+        pinned = unknown.any(axis=1)
+        if not self.options.extrapolate:
+            pinned |= outside.any(axis=1)
+        return pinned
 
     def _solve_free(self, q, ctx) -> Linearization:
         parts = split_rows(self._solve_free_part, q.shape[0], self._split, q, ctx)
@@ -174,10 +216,12 @@ class Planner:
         return solve_newton(self.ev, q, ctx, self.problem.regularization, o.step_tol_um,
                             o.max_iterations)
 
-    def _check_travel(self, q, line):
+    def _check_travel(self, q, line, known=None):
         lo, hi = self.problem.travel()
         tol = 1e-9
         bad = (q < lo - tol) | (q > hi + tol)
+        if known is not None:
+            bad &= known
         if np.any(bad):
             i, j = np.argwhere(bad)[0]
             ax = self.machine.axes[j]
@@ -207,7 +251,10 @@ class Planner:
         if self._last_end is None and n:
             exempt = exempt.copy()
             exempt[0] = True
-        nodes = NodeSet(q, self._context(feed, dirs, n), exempt, line, np.zeros(n, bool), rapid)
+        unknown = np.zeros(q.shape, bool)
+        outside = self._outside(q, ~unknown)
+        nodes = NodeSet(q, self._context(feed, dirs, n), exempt, line, np.zeros(n, bool), rapid,
+                        unknown, outside, self._pinned(unknown, outside))
         lin = self._solve_free(nodes.q, nodes.context)
         if n:
             self._last_end = (nodes.q[-1], lin.x[-1])
@@ -217,9 +264,13 @@ class Planner:
         """Nodes of one SegmentChunk: segment ends plus internal nodes. Returns (nodes, lin, counts)."""
         nrows = len(chunk)
         end = self.bounds.snap(chunk.end)
-        self._check_travel(end, chunk.line)
-        ctx = self._context(chunk.feed, chunk.dirs, nrows)
+        known = np.asarray(chunk.known, bool)
+        self._check_travel(end, chunk.line, known)
+        ctx = self._context(chunk.feed, chunk.dirs, nrows, chunk.tool_length)
         rapid = np.asarray(chunk.rapid, bool)
+        unknown = ~known
+        outside = self._outside(end, known)
+        pinned = self._pinned(unknown, outside)
         lin_end = self._solve_free(end, ctx)
         first = self._last_end is None
         exempt = rapid & (not self.problem.step_across_rapids)
@@ -239,10 +290,11 @@ class Planner:
             else:
                 start[0], x_start[0] = self._last_end
             self._last_end = (end[-1], lin_end.x[-1])
-        inner = self._subdivide(start, end, x_start, lin_end.x, ctx, rapid)
+        inner = self._subdivide(start, end, x_start, lin_end.x, ctx, rapid | pinned)
         counts = np.ones(nrows, np.int64)
         if inner is None:
-            nodes = NodeSet(end, ctx, exempt, np.asarray(chunk.line), np.zeros(nrows, bool), rapid)
+            nodes = NodeSet(end, ctx, exempt, np.asarray(chunk.line), np.zeros(nrows, bool), rapid,
+                            unknown, outside, pinned)
             return nodes, lin_end, counts
         rows_i, t_i, q_i, lin_i = inner
         np.add.at(counts, rows_i, 1)
@@ -259,7 +311,8 @@ class Planner:
         firsts[1:] = row_sorted[1:] != row_sorted[:-1]
         ex_all = firsts & exempt[row_sorted]
         nodes = NodeSet(q_all, ctx_all, ex_all, np.asarray(chunk.line)[row_sorted], ins_all,
-                        rapid[row_sorted])
+                        rapid[row_sorted], unknown[row_sorted], outside[row_sorted],
+                        pinned[row_sorted])
         lin = Linearization.concatenate([lin_i, lin_end]).take(order)
         return nodes, lin, counts
 
@@ -314,6 +367,8 @@ class Planner:
     def _commit(self, nodes: NodeSet, lin: Linearization, x: np.ndarray,
                 following: np.ndarray | None = None, limits=None) -> PlanResult:
         """Round, enforce bounds exactly, predict the deviation after correction."""
+        if limits is None:
+            limits = self.bounds.limits(nodes.q, nodes.pinned)
         # flags compare with the unbounded correction: what the bounds took away
         y, flags = self.bounds.enforce(x, nodes.q, nodes.exempt, self._prev, desired=lin.x,
                                        following=following, limits=limits)
@@ -348,7 +403,8 @@ class Planner:
         self._tick()
         return PlanResult(nodes.line, nodes.inserted, nodes.rapid, nodes.q, corrected, correction,
                           before[:, :3], after[:, :3], before[:, 3:6] if five else None,
-                          after[:, 3:6] if five else None, flags, lin.iterations, lin.converged)
+                          after[:, 3:6] if five else None, flags, lin.iterations, lin.converged,
+                          nodes.unknown, nodes.outside, nodes.pinned)
 
     def _tick(self):
         cb = self.options.progress
@@ -427,7 +483,7 @@ class Planner:
         end = pos + count * W + O
         x = lin.x[pos:end]
         exempt = nodes.exempt[pos:end]
-        limits = self.bounds.limits_lazy(nodes.q[pos:end])
+        limits = self.bounds.limits_lazy(nodes.q[pos:end], nodes.pinned[pos:end])
         b = self.bounds
         if not b.feasible(x, limits[0], limits[1], exempt, self._prev):
             return None, 0
@@ -566,7 +622,7 @@ class Planner:
             nc = nw if (final and left <= W + O) else min(W, nw)
             sl = slice(pos, pos + nw)
             wn, wl = nodes.take(sl), lin.take(sl)
-            limits = self.bounds.limits(wn.q)
+            limits = self.bounds.limits(wn.q, wn.pinned)
             x = self._solve_window(wn, wl, limits)
             # keep the re-linearisation for the overlap nodes of the next window
             lin.b[sl], lin.A[sl], lin.x_lin[sl], lin.iterations[sl] = wl.b, wl.A, wl.x_lin, wl.iterations
@@ -601,7 +657,8 @@ def plan_chunks(problem: CompensationProblem, chunks: Iterable, options: Planner
 def _empty_nodes(planner: Planner) -> NodeSet:
     na, nc = planner.na, planner.problem.fitted.model.n_context
     return NodeSet(np.zeros((0, na)), np.zeros((0, nc)), np.zeros(0, bool), np.zeros(0, np.int64),
-                   np.zeros(0, bool), np.zeros(0, bool))
+                   np.zeros(0, bool), np.zeros(0, bool), np.zeros((0, na), bool),
+                   np.zeros((0, na), bool), np.zeros(0, bool))
 
 
 def _empty_lin(planner: Planner) -> Linearization:

@@ -136,6 +136,9 @@ class PlannerOptions:
     osqp_eps : absolute and relative tolerance of OSQP (solutions are polished on the active set).
     progress : callable(blocks_done: int) called every few seconds, or None (called from the
         planning thread when there is more than one).
+    extrapolate : correct blocks outside the region the model's data reached (its support) too;
+        default False: they get no correction (their bounds are zero; the step bound ramps the
+        corrections of their neighbours in and out).
     threads : threads for the per-block work and for planning ahead of the consumer of
         ``Planner.iter_chunks``; 0 (default): ``$MTCOMP_THREADS`` if set, else the CPUs available,
         at most 4; 1: everything in the calling thread. The plan is the same for any number.
@@ -152,6 +155,7 @@ class PlannerOptions:
     osqp_eps: float = 1e-7
     progress: object = field(default=None, compare=False)
     threads: int = 0
+    extrapolate: bool = False
 
     def __post_init__(self):
         if self.method not in METHODS:

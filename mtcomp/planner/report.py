@@ -1,4 +1,4 @@
-"""BLOCKS.csv (SPEC section 5) and the summary that ``mtcomp compensate`` prints.
+"""BLOCKS.csv and the summary that ``mtcomp compensate`` prints.
 
 One row per output block (every G0/G1 line written for a motion, internal nodes included):
 
@@ -13,6 +13,11 @@ One row per output block (every G0/G1 line written for a motion, internal nodes 
 * ``active_bounds``: the bounds that kept the planner from removing the error at this block,
   separated by ``;``: ``cx_max`` / ``cx_min`` (max correction), ``travel_x_max`` / ``travel_x_min``
   (travel), ``step_x`` (max change from the block before); empty when none.
+* ``unknown_axes``: the axes whose position the program has not given at this block (e.g. ``Z``
+  after a tool change); such a block gets no correction and those axes are not written.
+* ``outside_support``: the axes outside the region the model's data reached; without
+  ``--extrapolate`` such a block gets no correction.
+* ``corrected``: 1 if the block could be corrected (0: no correction, for one of the two reasons).
 """
 from __future__ import annotations
 
@@ -33,7 +38,7 @@ def report_columns(axis_names, five_axis: bool) -> list[str]:
         cols += [f"ex_{when}_um", f"ey_{when}_um", f"ez_{when}_um", f"e_{when}_um"]
         if five_axis:
             cols += [f"ei_{when}_urad", f"ej_{when}_urad", f"ek_{when}_urad", f"e_axis_{when}_urad"]
-    cols.append("active_bounds")
+    cols += ["active_bounds", "unknown_axes", "outside_support", "corrected"]
     return cols
 
 
@@ -60,8 +65,19 @@ def report_rows(result: PlanResult, axis_names) -> list[str]:
             cols += [ur[:, 0], ur[:, 1], ur[:, 2], np.sqrt(np.sum(ur ** 2, axis=1))]
             fmts += ["%.4f"] * 4
     bounds = result.active_bounds(axis_names)
-    fmt = ",".join(fmts) + ",%s\n"
-    return [fmt % row for row in zip(*[c.tolist() for c in cols], bounds)]
+    unknown = _axis_letters(result.unknown, axis_names)
+    outside = _axis_letters(result.outside, axis_names)
+    fmt = ",".join(fmts) + ",%s,%s,%s,%d\n"
+    return [fmt % row for row in zip(*[c.tolist() for c in cols], bounds, unknown, outside,
+                                       (~result.pinned).astype(int).tolist())]
+
+
+def _axis_letters(mask, axis_names) -> list[str]:
+    """Per row the letters of the axes set in mask (n, na) ('' when none)."""
+    out = [""] * mask.shape[0]
+    for i in np.flatnonzero(mask.any(axis=1)):
+        out[i] = "".join(a for a, m in zip(axis_names, mask[i]) if m)
+    return out
 
 
 @dataclass
@@ -81,6 +97,13 @@ class Summary:
     max_axis_before_urad: float | None = None
     max_axis_after_urad: float | None = None
     not_converged: int = 0
+    unknown_blocks: int = 0
+    evaluated: int = 0
+    outside_blocks: int = 0
+    outside_axes: dict = field(default_factory=dict)
+    first_outside_line: int = 0
+    extrapolate: bool = False
+    support_known: bool = True
 
     def add(self, r: PlanResult):
         n = len(r)
@@ -88,6 +111,23 @@ class Summary:
             return
         self.blocks += n
         self.inserted += int(r.inserted.sum())
+        unknown = r.unknown.any(axis=1)
+        self.unknown_blocks += int(unknown.sum())
+        outside = r.outside.any(axis=1) & ~unknown
+        if outside.any():
+            self.outside_blocks += int(outside.sum())
+            if not self.first_outside_line:
+                self.first_outside_line = int(r.line[np.argmax(outside)])
+            for j, a in enumerate(self.axis_names):
+                k = int((r.outside[:, j] & ~unknown).sum())
+                if k:
+                    self.outside_axes[a] = self.outside_axes.get(a, 0) + k
+        # predictions at unknown positions mean nothing: the statistics leave those blocks out
+        if unknown.any():
+            r = r.take(~unknown)
+            if len(r) == 0:
+                return
+        self.evaluated += len(r)
         if r.flags.any():
             self.bounded_blocks += int(r.flags.any(axis=(1, 2)).sum())
             counts = r.flags.sum(axis=0)
@@ -113,7 +153,7 @@ class Summary:
         self.not_converged += int(np.sum(~r.converged))
 
     def text(self) -> str:
-        n = max(self.blocks, 1)
+        n = max(self.evaluated, 1)
         lines = [f"{self.blocks} blocks planned ({self.inserted} internal nodes inserted)",
                  f"predicted tool-tip deviation before: max {self.max_before_um:.3f} um, "
                  f"rms {np.sqrt(self.sum_sq_before / n):.3f} um",
@@ -131,4 +171,17 @@ class Summary:
         if self.not_converged:
             lines.append(f"warning: {self.not_converged} blocks did not converge within the "
                          "iteration limit")
+        if self.unknown_blocks:
+            lines.append(f"{self.unknown_blocks} blocks not corrected: an axis position the program "
+                         "had not given (at the start, after a home move, tool change or offset "
+                         "change); those axes are not written")
+        if self.outside_blocks:
+            axes = ", ".join(f"{a} {k}" for a, k in self.outside_axes.items())
+            what = ("corrected anyway (--extrapolate)" if self.extrapolate
+                    else "not corrected (pass --extrapolate to correct them)")
+            lines.append(f"{self.outside_blocks} blocks outside the region the model's data reached "
+                         f"({axes}; first at line {self.first_outside_line}): {what}")
+        if not self.support_known:
+            lines.append("note: the model does not state the region its data reached; every "
+                         "block was corrected as if inside it")
         return "\n".join(lines)

@@ -1,9 +1,10 @@
-"""Toolpaths: G-code in and out (SPEC section 4), test-part programs, inverse kinematics.
+"""Toolpaths: G-code in and out (docs/toolpaths.md), test-part programs, inverse kinematics.
 
 Public API (see docs/toolpaths.md):
 
 * :func:`iter_segment_chunks`, :class:`SegmentChunk`: a program streamed as straight segments.
 * :func:`write_corrected`: the program written back with corrected (or nominal) coordinates.
+* :mod:`.offsets`: work offsets and tool lengths (:func:`~.offsets.load_setup`).
 * :func:`read_program`, :class:`Program`, :class:`MotionBlock`: a small program in memory.
 * :mod:`.parts`: the seed-001 bowl, ISO 230-4 circles, the seed-003 three-sphere test, a cone frustum.
 * :func:`inverse_kinematics`, :func:`fit_rotary_travel`: tool pose -> axis positions.

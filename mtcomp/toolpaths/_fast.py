@@ -89,7 +89,8 @@ def _load():
     LL = ctypes.c_longlong
     lib.mt_process.restype = LL
     lib.mt_process.argtypes = [ctypes.c_char_p, LL, ctypes.c_int, P, P, ctypes.c_int, P, P,
-                               ctypes.c_char_p, P, P, P, P, P, P, LL, P, P, P, P, LL, P, P, LL, P]
+                               ctypes.c_char_p, P, P, P, P, P, P, P, P, LL, P, P, P, P, LL, P, P, LL,
+                               P, P]
     _lib = lib
     return _lib
 
@@ -108,17 +109,24 @@ def _ptr(a: np.ndarray | None):
 class _Driver:
     """Feeds the input to the compiled scanner and interprets its fallback lines in Python."""
 
-    def __init__(self, path, machine, chord_tol_mm, initial_position=None):
-        from .gcode import ModalState
+    def __init__(self, path, machine, chord_tol_mm, initial_position=None, **kw):
+        from .gcode import OutputState, new_state
         self.lib = _load()
         self.path = os.fspath(path)
-        self.state = ModalState(machine, path, chord_tol_mm, initial_position)
+        self.state = new_state(machine, path, chord_tol_mm, initial_position, **kw)
         self.na = machine.n_axes
-        st = np.zeros(20)
+        self.out = OutputState(self.na, self.state)
+        self.bits = 1 << np.arange(self.na)
+        st = np.zeros(24)
         st[:self.na] = self.state.position
         st[6:12] = 1.0
         st[12] = math.nan
         st[13] = -1.0
+        st[14] = float(self.state.inch)
+        st[20] = float(self._mask(self.state.known))
+        st[21] = float(self.state.frame)
+        st[17] = float(self.out.absolute)
+        st[22] = -1.0
         self.st = st
         self.letter_col = np.full(26, -1, np.int32)
         for j, c in enumerate(machine.axis_names):
@@ -148,19 +156,23 @@ class _Driver:
         self.buf = self.buf[self.consumed.value:] + data
         self.consumed.value = 0
 
+    def _mask(self, known) -> int:
+        return int(np.sum(self.bits[np.asarray(known, bool)]))
+
     def call(self, rows=None, cap=0, r_n=None, cursor=None, crow=None, out=None, out_n=None):
-        line, start, end, feed, dirs, rapid = rows if rows is not None else (None,) * 6
+        line, start, end, feed, dirs, rapid, known, frame = rows if rows is not None else (None,) * 8
         cur = cursor
         return self.lib.mt_process(
             self.buf, len(self.buf), int(self.eof), ctypes.byref(self.consumed), _ptr(self.st),
             self.na, _ptr(self.letter_col), _ptr(self.is_rot), self.letters,
-            _ptr(line), _ptr(start), _ptr(end), _ptr(feed), _ptr(dirs), _ptr(rapid), cap,
+            _ptr(line), _ptr(start), _ptr(end), _ptr(feed), _ptr(dirs), _ptr(rapid), _ptr(known),
+            _ptr(frame), cap,
             None if r_n is None else ctypes.byref(r_n),
             None if cur is None else _ptr(cur.line), None if cur is None else _ptr(cur.offsets),
             None if cur is None else _ptr(cur.points), 0 if cur is None else cur.n,
             None if crow is None else ctypes.byref(crow),
             _ptr(out), 0 if out is None else out.shape[0],
-            None if out_n is None else ctypes.byref(out_n))
+            None if out_n is None else ctypes.byref(out_n), _ptr(self.out.values))
 
     def fallback(self):
         """Interpret the line at the current position in Python: (line number, raw bytes, block)."""
@@ -176,7 +188,11 @@ class _Driver:
         s.motion = None if st[13] < 0 else int(st[13])
         s.inch = bool(st[14])
         s.incremental = bool(st[15])
+        s.known = (int(st[20]) & self.bits) != 0
         block = s.block(k, raw.decode("latin-1").rstrip("\r\n"))
+        st[19] = float(s.python_only)
+        st[20] = float(self._mask(s.known))
+        st[21] = float(s.frame)
         st[:na] = s.position
         st[6:6 + na] = s.dirs
         st[12] = s.feed
@@ -190,28 +206,30 @@ class _Driver:
 
 def _new_rows(cap, na):
     return (np.empty(cap, np.int64), np.empty((cap, na)), np.empty((cap, na)), np.empty(cap),
-            np.empty((cap, na), np.int8), np.empty(cap, np.uint8), np.zeros(cap, bool))
+            np.empty((cap, na), np.int8), np.empty(cap, np.uint8), np.empty(cap, np.uint8),
+            np.empty(cap, np.int32), np.zeros(cap, bool))
 
 
-def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_position=None):
+def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_position=None, **kw):
     """Compiled counterpart of :func:`mtcomp.toolpaths.gcode.iter_segment_chunks`."""
     from .gcode import SegmentChunk
     cap = int(chunk_size)
     if cap < 1:
         raise ValueError("chunk_size must be >= 1")
     na = machine.n_axes
-    d = _Driver(path, machine, chord_tol_mm, initial_position)
+    d = _Driver(path, machine, chord_tol_mm, initial_position, **kw)
     rows = _new_rows(cap, na)
     n = ctypes.c_longlong(0)
 
     def chunk():
         k = n.value
-        line, start, end, feed, dirs, rapid, arc = rows
+        line, start, end, feed, dirs, rapid, known, frame, arc = rows
+        known = (known[:k, None].astype(np.int64) & d.bits) != 0
         return SegmentChunk(line[:k], start[:k], end[:k], feed[:k], dirs[:k], rapid[:k].view(bool),
-                            arc[:k])
+                            arc[:k], known, frame[:k])
     try:
         while True:
-            status = d.call(rows[:6], cap, n)
+            status = d.call(rows[:8], cap, n)
             if status == NEED_INPUT:
                 if d.eof:
                     break
@@ -234,8 +252,10 @@ def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_positio
                         n.value = 0
                     r = n.value
                     take = min(kb - done, cap - r)
-                    line, start, end, feed, dirs, rapid, arc = rows
+                    line, start, end, feed, dirs, rapid, known, frame, arc = rows
                     sl = slice(done, done + take)
+                    known[r:r + take] = d._mask(b.known)
+                    frame[r:r + take] = b.frame
                     line[r:r + take] = b.line
                     start[r:r + take] = starts[sl]
                     end[r:r + take] = b.points[sl]
@@ -253,12 +273,14 @@ def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_positio
         yield chunk()
 
 
-def write_corrected(in_path, out_path, machine, cursor, chord_tol_mm, initial_position=None):
+def write_corrected(in_path, out_path, machine, cursor, chord_tol_mm, initial_position=None,
+                    stats=None, **kw):
     """Compiled counterpart of :func:`mtcomp.toolpaths.gcode.write_corrected` (cursor prepared)."""
     from .gcode import _line_ending, format_motion_lines, write_pass_through
     letters = "".join(machine.axis_names)
     rotary = [c in "ABC" for c in letters]
-    d = _Driver(in_path, machine, chord_tol_mm, initial_position)
+    d = _Driver(in_path, machine, chord_tol_mm, initial_position, **kw)
+    ostate = d.out
     out = np.empty(_OUT, np.uint8)
     out_n = ctypes.c_longlong(0)
     crow = ctypes.c_longlong(0)
@@ -288,17 +310,22 @@ def write_corrected(in_path, out_path, machine, cursor, chord_tol_mm, initial_po
                 elif status == FALLBACK:
                     flush(f)
                     k, raw, block = d.fallback()
+                    ostate.absolute = d.st[17] != 0.0
+                    ostate.motion = int(d.st[22])
                     if block is None:
                         sep = "\r\n" if d.st[18] else "\n"
-                        d.st[17] = float(write_pass_through(f, raw, d.state, d.st[17] != 0.0, sep))
+                        write_pass_through(f, raw, d.state, ostate, sep)
+                        d.st[17] = float(ostate.absolute)
+                        d.st[22] = float(ostate.motion)
                         continue
                     pts = cursor.take(k, block.points.shape[0])
                     rows_done += block.points.shape[0]
                     ending = _line_ending(raw)
                     separator = ending or ("\r\n" if d.st[18] else "\n")
-                    text = format_motion_lines(block, pts, letters, rotary, d.st[17] == 0.0,
-                                               ending, separator)
-                    d.st[17] = 1.0
+                    text = format_motion_lines(block, pts, letters, rotary, ostate, ending, separator,
+                                               raw.decode("latin-1").rstrip("\r\n"), chord_tol_mm)
+                    d.st[17] = float(ostate.absolute)
+                    d.st[22] = float(ostate.motion)
                     if ending:
                         d.st[18] = float(ending == "\r\n")
                     f.write(text.encode("latin-1"))
@@ -308,4 +335,6 @@ def write_corrected(in_path, out_path, machine, cursor, chord_tol_mm, initial_po
             cursor.finish()
     finally:
         d.close()
+    if stats is not None:
+        stats["cycle_lines"] = ostate.cycle_lines
     return rows_done

@@ -7,9 +7,18 @@
  * so Python interprets it (and raises the errors). Positions, directions and the formatting of
  * numbers reproduce the Python code bit for bit; tests compare both paths.
  *
- * state (double[20]): 0..5 position (mm, rad, per column), 6..11 dirs (+-1), 12 feed (mm/min),
+ * state (double[24]): 0..5 position (mm, rad, per column), 6..11 dirs (+-1), 12 feed (mm/min),
  * 13 motion (-1 none, 0..3), 14 inch, 15 incremental, 16 lines done, 17 output is absolute,
- * 18 separator is CRLF.
+ * 18 separator is CRLF, 19 Python takes every line (drilling cycle or G93 in force), 20 bit mask of
+ * the axes whose position the program has given, 21 frame code (work offset, tool length number),
+ * 22 motion word in force in the output (-1 unknown, 0, 1).
+ * last (double[na]): per axis the position last written (mm, rad, read back from its text; NaN:
+ * none yet). A coordinate is written when its text differs from the text of that value.
+ *
+ * Motion lines are written as gcode.format_motion_lines does: N, G90 if needed, the motion word if
+ * the line had one or the output's mode differs, the named axes and the axes whose text changes
+ * (never an axis not known), a named coordinate that keeps its source value in its source spelling,
+ * then the kept words; later pieces of a split block only if they change a coordinate.
  */
 #include <math.h>
 #include <stdint.h>
@@ -57,8 +66,9 @@ static int parse_num(const char *p, const char *e, double *out, const char **nex
 }
 
 /* Python's f"{v:.{dec}f}" (dec 4 or 5), with "-0.000.." written as "0.000..". */
-static int fmt_fixed(char *o, double v, int dec) {
+static int fmt_fixed_m(char *o, double v, int dec, long long *mout, int *exact) {
     double t = v * POW10[dec];
+    *exact = 0;
     /* beyond 1e9 the rounding of t itself could hide a tie: let printf do it (values > 100 m) */
     if (!(fabs(t) < 1e9)) return sprintf(o, "%.*f", dec, v);
     double fl = floor(t);
@@ -73,6 +83,8 @@ static int fmt_fixed(char *o, double v, int dec) {
         return n;
     }
     long long m = (long long)(fr < 0.5 ? fl : fl + 1.0);
+    *mout = m;
+    *exact = 1;
     char *s = o;
     if (m < 0) { *s++ = '-'; m = -m; }
     long long p = (long long)POW10[dec];
@@ -87,32 +99,58 @@ static int fmt_fixed(char *o, double v, int dec) {
     return (int)(s - o);
 }
 
-static int fmt_point(char *o, const double *q, int na, const char *letters, const int *is_rot,
-                     int inch) {
+static int fmt_fixed(char *o, double v, int dec) {
+    long long m;
+    int exact;
+    return fmt_fixed_m(o, v, dec, &m, &exact);
+}
+
+/* The text of the last written value of each column, kept so that it is formatted once: valid while
+ * the value (bit for bit) and the unit are the ones it was made from. Per thread. */
+static __thread double cache_val[6];
+static __thread int cache_inch[6] = {-1, -1, -1, -1, -1, -1};
+static __thread char cache_txt[6][40];
+
+/* One coordinate's text (without the letter), NUL-terminated; returns its length. */
+static int fmt_value(char *o, double q, int rot, int inch) {
     static const double RAD2DEG = 180.0 / 3.14159265358979323846;
-    char *s = o;
-    for (int j = 0; j < na; j++) {
-        if (j) *s++ = ' ';
-        *s++ = letters[j];
-        if (is_rot[j]) s += fmt_fixed(s, RAD2DEG * q[j], 4);
-        else if (inch) s += fmt_fixed(s, q[j] / 25.4, 5);
-        else s += fmt_fixed(s, q[j], 4);
-    }
-    return (int)(s - o);
+    int n;
+    if (rot) n = fmt_fixed(o, RAD2DEG * q, 4);
+    else if (inch) n = fmt_fixed(o, q / 25.4, 5);
+    else n = fmt_fixed(o, q, 4);
+    o[n] = 0;
+    return n;
+}
+
+/* As fmt_value, and *back: the position the text says (mm, rad), as Python's float() of the text
+ * would read it: m / 10^dec is that correctly rounded value when the digits are known exactly. */
+static int fmt_value_back(char *o, double q, int rot, int inch, double *back) {
+    static const double RAD2DEG = 180.0 / 3.14159265358979323846;
+    static const double DEG2RAD_ = 3.14159265358979323846 / 180.0;
+    long long m = 0;
+    int exact = 0, n, dec = (!rot && inch) ? 5 : 4;
+    double v = rot ? RAD2DEG * q : (inch ? q / 25.4 : q);
+    n = fmt_fixed_m(o, v, dec, &m, &exact);
+    o[n] = 0;
+    double x = exact ? (double)m / POW10[dec] : strtod(o, NULL);
+    *back = rot ? x * DEG2RAD_ : (inch ? x * 25.4 : x);
+    return n;
 }
 
 long long mt_process(const char *buf, long long len, int eof, long long *consumed,
                      double *state, int na, const int *letter_col, const int *is_rot,
                      const char *letters,
                      long long *r_line, double *r_start, double *r_end, double *r_feed,
-                     signed char *r_dirs, unsigned char *r_rapid, long long r_cap, long long *r_n,
+                     signed char *r_dirs, unsigned char *r_rapid, unsigned char *r_known,
+                     int *r_frame, long long r_cap, long long *r_n,
                      const long long *c_line, const long long *c_off, const double *c_pts,
                      long long c_n, long long *c_row,
-                     char *out, long long out_cap, long long *out_n) {
+                     char *out, long long out_cap, long long *out_n, double *last) {
     static const double DEG2RAD = 3.14159265358979323846 / 180.0;
     long long pos = *consumed;
     for (;;) {
         if (pos >= len) { *consumed = pos; return NEED_INPUT; }
+        if (state[19] != 0.0) { *consumed = pos; return FALLBACK; }
         const char *ls = buf + pos;
         const char *nl = memchr(ls, '\n', (size_t)(len - pos));
         const char *raw_end;
@@ -133,6 +171,7 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
         /* tokens */
         const char *p = ls, *n_s = 0, *n_e = 0;
         const char *kept_s[MAX_KEPT], *kept_e[MAX_KEPT];
+        const char *ax_s[6] = {0, 0, 0, 0, 0, 0}, *ax_e[6] = {0, 0, 0, 0, 0, 0};
         int nk = 0;
         int has_g = 0, g = -1, has_f = 0;
         unsigned seen = 0;
@@ -177,10 +216,14 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                 if (col < 0 || (seen & (1u << col))) { simple = 0; break; }
                 seen |= 1u << col;
                 vals[col] = v;
+                ax_s[col] = ts; ax_e[col] = p;
             } else if (L == 'I' || L == 'J' || L == 'K' || L == 'R' || L == 'U' || L == 'V' ||
                        L == 'W') {
                 simple = 0; break;                  /* arcs and foreign axes: Python decides */
-            } else {                                /* M S T H D P Q O E ...: kept, in order */
+            } else if (L == 'T' || (L == 'M' && (v == 6.0 || v == 98.0 || v == 99.0 || v == 128.0 || v == 428.0 ||
+                                          v == 430.0))) {
+                simple = 0; break;                  /* tool changes, subprograms: Python */
+            } else {                                /* M S H D P Q O E ...: kept, in order */
                 if (nk == MAX_KEPT) { simple = 0; break; }
                 kept_s[nk] = ts; kept_e[nk] = p; nk++;
             }
@@ -189,6 +232,9 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
         int motion = has_g ? g : (int)state[13];
         int inch = state[14] != 0.0;
         if (seen && !(motion == 0 || motion == 1)) { *consumed = pos; return FALLBACK; }
+        unsigned known = (unsigned)state[20];
+        /* an incremental move of an axis not known: Python refuses it */
+        if (seen && state[15] != 0.0 && (seen & ~known)) { *consumed = pos; return FALLBACK; }
         long long line_no = (long long)state[16] + 1;
         if (seen) {
             if (r_line && *r_n >= r_cap) { *consumed = pos; return ROWS_FULL; }
@@ -214,6 +260,8 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                 double v = is_rot[j] ? vals[j] * DEG2RAD : vals[j] * scale;
                 end[j] = incr ? start[j] + v : v;
             }
+            known |= seen;
+            state[20] = (double)known;
             for (int j = 0; j < na; j++) {
                 double step = end[j] - start[j];
                 if (step > 1e-9) state[6 + j] = 1.0;
@@ -230,6 +278,8 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                 }
                 r_feed[r] = motion == 0 ? NAN : state[12];
                 r_rapid[r] = (unsigned char)(motion == 0);
+                r_known[r] = (unsigned char)known;
+                r_frame[r] = (int)state[21];
                 *r_n = r + 1;
             }
             if (out) {
@@ -238,35 +288,101 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                 const char *word = motion == 0 ? "G0" : "G1";
                 const char *sep = ending == 2 ? "\r\n" : ending == 1 ? "\n"
                                   : (state[18] != 0.0 ? "\r\n" : "\n");
+                size_t sl = strlen(sep);
                 if (ending) state[18] = (ending == 2);
+                long long npieces = c_off[row + 1] - c_off[row];
+                int incr = state[15] != 0.0;
+                char tmp[64], nom[64];
+                char *line_start = o;
+                int verbatim = npieces == 1 && state[17] != 0.0 && (has_g || state[22] == (double)motion);
+                int nraw = 0;
                 for (long long k = c_off[row]; k < c_off[row + 1]; k++) {
-                    if (k == c_off[row]) {
-                        if (n_s) { memcpy(o, n_s, (size_t)(n_e - n_s)); o += n_e - n_s; *o++ = ' '; }
-                        if (state[17] == 0.0) { memcpy(o, "G90 ", 4); o += 4; }
-                    } else {
-                        size_t sl = strlen(sep);
-                        memcpy(o, sep, sl); o += sl;
+                    int first = (k == c_off[row]);
+                    char *mark = o;                 /* a later piece without change is undone */
+                    int sp = 0;                      /* a word was written: the next needs a space */
+                    int nparts = 0;
+                    if (!first) { memcpy(o, sep, sl); o += sl; }
+                    if (first) {
+                        if (n_s) { memcpy(o, n_s, (size_t)(n_e - n_s)); o += n_e - n_s; sp = 1; }
+                        if (state[17] == 0.0) {
+                            if (sp) *o++ = ' ';
+                            memcpy(o, "G90", 3); o += 3; sp = 1;
+                            state[17] = 1.0;
+                        }
                     }
-                    memcpy(o, word, 2); o += 2;
-                    *o++ = ' ';
-                    o += fmt_point(o, c_pts + k * na, na, letters, is_rot, inch);
-                    if (k == c_off[row]) {
+                    double prev_motion = state[22];
+                    if ((first && has_g) || state[22] != (double)motion) {
+                        if (sp) *o++ = ' ';
+                        memcpy(o, word, 2); o += 2; sp = 1;
+                        state[22] = (double)motion;
+                    }
+                    const double *q = c_pts + k * na;
+                    for (int j = 0; j < na; j++) {
+                        if (!(known & (1u << j))) continue;
+                        double back;
+                        int tn = fmt_value_back(tmp, q[j], is_rot[j], inch, &back);
+                        int named = first && (seen & (1u << j));
+                        if (!named && !isnan(last[j])) {
+                            if (cache_inch[j] != inch || memcmp(&cache_val[j], &last[j], sizeof(double))) {
+                                fmt_value(cache_txt[j], last[j], is_rot[j], inch);
+                                cache_val[j] = last[j];
+                                cache_inch[j] = inch;
+                            }
+                            if (strcmp(tmp, cache_txt[j]) == 0) continue;
+                        }
+                        if (sp) *o++ = ' ';
+                        sp = 1;
+                        nparts++;
+                        int use_raw = 0;
+                        if (named && npieces == 1 && !incr && ax_s[j]) {
+                            if (q[j] == end[j]) use_raw = 1;      /* the same value: same text */
+                            else {
+                                fmt_value(nom, end[j], is_rot[j], inch);
+                                use_raw = strcmp(tmp, nom) == 0;
+                            }
+                        }
+                        if (use_raw) {
+                            memcpy(o, ax_s[j], (size_t)(ax_e[j] - ax_s[j])); o += ax_e[j] - ax_s[j];
+                            nraw++;
+                        } else {
+                            verbatim = 0;
+                            *o++ = letters[j];
+                            memcpy(o, tmp, (size_t)tn); o += tn;
+                        }
+                        /* the machine goes where the written spelling says (the source's: its
+                         * parsed value, the block's end) */
+                        last[j] = use_raw ? end[j] : back;
+                        if (!use_raw) {         /* its text is the one just written */
+                            memcpy(cache_txt[j], tmp, (size_t)tn + 1);
+                            cache_val[j] = last[j];
+                            cache_inch[j] = inch;
+                        }
+                    }
+                    if (!first && nparts == 0) { o = mark; state[22] = prev_motion; continue; }
+                    if (first) {
                         for (int t = 0; t < nk; t++) {
-                            *o++ = ' ';
+                            if (sp) *o++ = ' ';
+                            sp = 1;
                             memcpy(o, kept_s[t], (size_t)(kept_e[t] - kept_s[t]));
                             o += kept_e[t] - kept_s[t];
                         }
                     }
                 }
+                if (verbatim && nraw == __builtin_popcount(seen)) {
+                    /* written with the very words of the source: the source line itself */
+                    o = line_start;
+                    memcpy(o, ls, (size_t)(ce - ls)); o += ce - ls;
+                    state[22] = (double)motion;
+                }
                 if (ending == 2) { *o++ = '\r'; *o++ = '\n'; }
                 else if (ending == 1) *o++ = '\n';
                 *out_n = o - out;
                 *c_row = row + 1;
-                state[17] = 1.0;
             }
         } else if (out) {
             memcpy(out + *out_n, ls, (size_t)(raw_end - ls));
             *out_n += raw_end - ls;
+            if (has_g) state[22] = (double)g;       /* "G1 F100" passed through */
         }
         state[16] = (double)line_no;
         pos = raw_end - buf;

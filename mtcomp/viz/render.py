@@ -71,19 +71,29 @@ def panel_title(label: str, dn: np.ndarray) -> str:
     return f"{label}\nRMS {rms:.2f} um, max {mx:.2f} um"
 
 
-def _panels(smap: SurfaceMap):
-    panels = [("Before compensation" if smap.dev_after is not None else "Predicted deviation",
-               smap.dn_before_um, smap.dev_before)]
+#: what a map shows -> (title of the single panel, of the before panel, of the after panel)
+PANEL_TITLES = {
+    "model": ("Model prediction", "Model prediction: before", "Model prediction: after"),
+    "truth": ("Part as cut (truth)", "As cut (truth): uncompensated", "As cut (truth): compensated"),
+}
+
+
+def _panels(smap: SurfaceMap, shows: str = "model"):
+    single, before, after = PANEL_TITLES[shows]
+    panels = [(before if smap.dev_after is not None else single, smap.dn_before_um, smap.dev_before)]
     if smap.dev_after is not None:
-        panels.append(("After compensation", smap.dn_after_um, smap.dev_after))
+        panels.append((after, smap.dn_after_um, smap.dev_after))
     return panels
 
 
 def to_polydata(smap: SurfaceMap):
     """The map as a pyvista PolyData with point arrays (um and mm as named)."""
     pv = _pyvista()
-    faces = np.hstack([np.full((smap.triangles.shape[0], 1), 3), smap.triangles]).ravel()
-    poly = pv.PolyData(np.ascontiguousarray(smap.points, dtype=float), faces)
+    if smap.triangles.shape[0]:
+        faces = np.hstack([np.full((smap.triangles.shape[0], 1), 3), smap.triangles]).ravel()
+        poly = pv.PolyData(np.ascontiguousarray(smap.points, dtype=float), faces)
+    else:       # a path, not a surface: its points
+        poly = pv.PolyData(np.ascontiguousarray(smap.points, dtype=float))
     poly.point_data["dn_before_um"] = smap.dn_before_um
     poly.point_data["dev_before_um"] = 1e3 * smap.dev_before
     if smap.dev_after is not None:
@@ -123,14 +133,17 @@ def _glyph_scale(smap: SurfaceMap, glyph_scale: float | None) -> float:
 def render_error_map(smap: SurfaceMap, out_png, *, glyphs: bool = False,
                      glyph_scale: float | None = None, clim: tuple[float, float] | None = None,
                      window_size: tuple[int, int] = DEFAULT_WINDOW, vtp: bool = True,
-                     backend: str = "auto", title: str | None = None) -> RenderResult:
+                     backend: str = "auto", title: str | None = None,
+                     shows: str = "model") -> RenderResult:
     """Draw the map: before (and after, if the map has it) side by side, one colour scale in um.
 
     out_png : the PNG to write; the .vtp goes next to it with the same stem (``vtp=False``: none).
     glyphs : draw the deviation vectors as arrows, exaggerated ``glyph_scale`` times (default: the
         largest arrow is a tenth of the part's size). clim : colour range in um (default symmetric,
         the largest |dn| of both panels). backend : 'auto' (pyvista, matplotlib if VTK cannot render),
-        'pyvista' or 'matplotlib'. Both files are written atomically.
+        'pyvista' or 'matplotlib'. shows : what the deviations are, said in the panel titles:
+        'model' (the model's prediction) or 'truth' (the error of a part actually cut, e.g. by the
+        demo's virtual machine). Both files are written atomically.
     """
     out_png = Path(out_png)
     if out_png.suffix.lower() != ".png":
@@ -139,7 +152,9 @@ def render_error_map(smap: SurfaceMap, out_png, *, glyphs: bool = False,
         raise InputError(f"output folder {out_png.resolve().parent} does not exist", out_png)
     if backend not in ("auto", "pyvista", "matplotlib"):
         raise ValueError(f"unknown backend {backend!r}")
-    panels = _panels(smap)
+    if shows not in PANEL_TITLES:
+        raise ValueError(f"shows must be one of {sorted(PANEL_TITLES)}, got {shows!r}")
+    panels = _panels(smap, shows)
     if clim is None:
         clim = symmetric_clim(*[p[1] for p in panels])
     clim = (float(clim[0]), float(clim[1]))
@@ -194,9 +209,11 @@ def _render_pyvista(smap, panels, out_png, clim, scale, window_size, title):
             plotter.subplot(0, k)
             mesh = poly.copy()
             mesh.point_data["dn_um"] = dn
+            style = ({} if smap.triangles.shape[0] else
+                     {"style": "points", "point_size": 6, "render_points_as_spheres": True})
             actor = plotter.add_mesh(mesh, scalars="dn_um", cmap=CMAP, clim=clim,
                                      show_scalar_bar=False, ambient=0.45, diffuse=0.6, specular=0.0,
-                                     smooth_shading=True)
+                                     smooth_shading=True, **style)
             mapper = actor.mapper
             text = panel_title(label, dn)
             if k == 0 and title:
@@ -236,17 +253,26 @@ def _render_matplotlib(smap, panels, out_png, clim, scale, window_size, title):
     dpi = 100
     fig, axes = plt.subplots(1, len(panels), figsize=(window_size[0] / dpi, window_size[1] / dpi),
                              dpi=dpi, squeeze=False, constrained_layout=True)
-    tri = Triangulation(smap.points[:, 0], smap.points[:, 1], smap.triangles)
+    tri = (Triangulation(smap.points[:, 0], smap.points[:, 1], smap.triangles)
+           if smap.triangles.shape[0] else None)
     im = None
+    names = "XY"
     for ax, (label, dn, dev) in zip(axes[0], panels):
-        im = ax.tripcolor(tri, dn, shading="gouraud", cmap=CMAP, vmin=clim[0], vmax=clim[1])
+        if tri is None:         # a path, not a surface: its points, seen along the axis it spans
+            span = np.ptp(smap.points, axis=0) if smap.points.size else np.zeros(3)
+            u, v = (0, 1) if span[1] > 0 or span[2] == 0 else (0, 2)
+            names = "XYZ"[u] + "XYZ"[v]
+            im = ax.scatter(smap.points[:, u], smap.points[:, v], c=dn, s=8, cmap=CMAP,
+                            vmin=clim[0], vmax=clim[1])
+        else:
+            im = ax.tripcolor(tri, dn, shading="gouraud", cmap=CMAP, vmin=clim[0], vmax=clim[1])
         if scale is not None:
             step = max(1, smap.points.shape[0] // MAX_GLYPHS)
             ax.quiver(smap.points[::step, 0], smap.points[::step, 1], dev[::step, 0] * scale,
                       dev[::step, 1] * scale, angles="xy", scale_units="xy", scale=1.0, width=0.002)
         ax.set_aspect("equal")
-        ax.set_xlabel("X (mm)")
-        ax.set_ylabel("Y (mm)")
+        ax.set_xlabel(f"{names[0]} (mm)")
+        ax.set_ylabel(f"{names[1]} (mm)")
         ax.set_title(panel_title(label, dn) if not (title and ax is axes[0][0])
                      else f"{title}\n{panel_title(label, dn)}")
     fig.colorbar(im, ax=axes[0].tolist(), orientation="horizontal", label=SCALAR_BAR_TITLE,

@@ -4,7 +4,8 @@ No plotting here (numpy, scipy, CasADi): :func:`program_error_map` turns a machi
 an NC program (optionally with its compensated version) into a :class:`SurfaceMap`, which
 :mod:`mtcomp.viz.render` draws and writes to .vtp. docs/render.md says it for users.
 
-Surfaces:
+Surfaces (a program whose cut is not a surface seen along Z -- a lathe profile in XZ, a single
+point, only rapids -- is mapped as the points of its path, the deviation along the tool axis):
 
 * tool-tip surface (default): the end points of the feed moves (G1, chords of G2/G3; rapids left
   out), nominal tool tips in the workpiece frame, triangulated in XY (Delaunay; the lowest point per
@@ -16,11 +17,11 @@ Surfaces:
   the path and the tool axis.
 
 The deviation at a point is that of the tool point that cuts there -- the tip, the ball centre, or
-the axis point at the contact height on a flank -- actual minus nominal, in the workpiece frame (SPEC
-section 1), from the model's tool frame (tip and rotation); ``dn`` is its component along the normal
+the axis point at the contact height on a flank -- actual minus nominal, in the workpiece frame , from the model's tool frame (tip and rotation); ``dn`` is its component along the normal
 (positive: the tool stays off the surface, material is left outside, the sign a CMM reports). For a
 compensated program the same tool point is taken at the corrected axis positions and compared with
-its ORIGINAL nominal position; original and compensated blocks are paired in source-line order.
+its ORIGINAL nominal position; original and compensated blocks are paired through the programs'
+line structure or the compensation report's source lines.
 """
 from __future__ import annotations
 
@@ -222,17 +223,49 @@ def predicted_points(fitted, q: np.ndarray, feed: np.ndarray, dirs: np.ndarray,
     return tip + np.einsum("nij,nj->ni", R, offset_tool)
 
 
+def _motion_runs(original: ProgramPoints, compensated: ProgramPoints) -> tuple[np.ndarray, np.ndarray]:
+    """Run number of every segment end of both programs, from their line structure.
+
+    The compensated program keeps every non-motion line of the original byte for byte and in order
+    (mtcomp compensate writes it so); the motion lines between two such kept lines form a run, and
+    a run of the original and the same run of the compensated program hold the same blocks, in the
+    same order. Raises InputError where a kept line is missing."""
+    def lines(path):
+        with open(path, "rb") as f:
+            return f.read().split(b"\n")
+    a, b = lines(original.path), lines(compensated.path)
+    a_motion, b_motion = set(original.line.tolist()), set(compensated.line.tolist())
+    run_a = np.zeros(len(a) + 2, np.int64)
+    run_b = np.zeros(len(b) + 2, np.int64)
+    j, run = 0, 0
+    for k, raw in enumerate(a, 1):
+        if k in a_motion:
+            run_a[k] = run
+            continue
+        start = j
+        while j < len(b) and ((j + 1) in b_motion or b[j] != raw):
+            j += 1
+        if j >= len(b):
+            raise InputError(f"line {k} of {original.path} is not in the compensated program (is it "
+                             "compensated from that program?)", compensated.path)
+        run_b[start + 1:j + 1] = run
+        run += 1
+        j += 1
+    run_b[j + 1:] = run
+    return run_a[original.line], run_b[compensated.line]
+
+
 def pair_compensated(original: ProgramPoints, compensated: ProgramPoints, machine: Machine,
-                     tol_mm: float | None = None, tol_rad: float | None = None,
-                     lookahead: int = 256) -> np.ndarray:
+                     tol_mm: float | None = None, tol_rad: float | None = None) -> np.ndarray:
     """For each segment end of ``original``, the index of its corrected counterpart in ``compensated``.
 
-    Blocks are paired in source-line order: one to one when both have as many segment ends; else the
-    compensated program carries extra intermediate points (a planner may subdivide a move), and each
-    original end is paired with the closest of the next ``lookahead`` compensated points (the
-    corrected end is within the correction bound of it, intermediate points are a part of a move
-    away). Tolerance (default: four times the machine's largest correction, at least 0.05 mm /
-    50 urad). Raises InputError when the programs do not correspond.
+    Blocks are paired through the programs' line structure (:func:`_motion_runs`): within a run of
+    motion lines, one to one when both have as many segment ends; else (the compensated program
+    may split a move, or write an arc as chords or a piece that changes nothing not at all) each
+    original end is paired with the nearest compensated end of the same run after the one paired
+    before it, no further ahead than the run's surplus of compensated ends allows. The pair must agree within a tolerance (default: four times the machine's
+    largest correction, at least 0.05 mm / 50 urad). Raises InputError when the programs do not
+    correspond.
     """
     comp = machine.compensation
     tol_mm = max(4e-3 * comp.get("max_correction_um", 50.0), 0.05) if tol_mm is None else tol_mm
@@ -240,22 +273,30 @@ def pair_compensated(original: ProgramPoints, compensated: ProgramPoints, machin
     rotary = np.array([a.is_rotary for a in machine.axes])
     tol = np.where(rotary, tol_rad, tol_mm)
     n, m = len(original), len(compensated)
-    if n == m:
-        idx = np.arange(n)
-    else:
-        idx = np.empty(n, np.int64)
+    idx = np.empty(n, np.int64)
+    run_a, run_b = _motion_runs(original, compensated)
+    for r in np.unique(run_a):
+        ia = np.flatnonzero(run_a == r)
+        ib = np.flatnonzero(run_b == r)
+        if ib.size == 0:
+            raise InputError(f"the compensated program has no motion where line "
+                             f"{int(original.line[ia[0]])} of {original.path} moves",
+                             compensated.path)
+        if ia.size == ib.size:
+            idx[ia] = ib
+            continue
+        # the compensated run has `slack` more ends than the original one: an original end lies
+        # at most that many ends ahead of the place the ends before it left off
+        slack = max(ib.size - ia.size, 0) + 1
         j = 0
-        for i in range(n):
-            window = compensated.q[j:j + lookahead]
-            dist = np.max(np.abs(window - original.q[i]) / tol, axis=1) if window.size else np.zeros(0)
-            if dist.size == 0 or dist.min() > 1.0:
-                raise InputError(f"the compensated program has no point near line "
-                                 f"{int(original.line[i])} of {original.path} (is it compensated "
-                                 "from that program?)", compensated.path)
-            j += int(np.argmin(dist))
-            idx[i] = j
-            j += 1
-    if n:
+        for i in ia:
+            window = compensated.q[ib[j:j + slack + 1]]
+            dist = np.max(np.abs(window - original.q[i]) / tol, axis=1)
+            step = int(np.argmin(dist))
+            idx[i] = ib[j + step]
+            slack -= step
+            j = min(j + step + 1, ib.size - 1)
+    if n and m:
         diff = np.abs(compensated.q[idx] - original.q) > tol
         bad = np.flatnonzero(np.any(diff, axis=1))
         if bad.size:
@@ -270,6 +311,34 @@ def pair_compensated(original: ProgramPoints, compensated: ProgramPoints, machin
     return idx
 
 
+def report_points(original: ProgramPoints, report, machine: Machine) -> ProgramPoints:
+    """The corrected positions of the original's segment ends, from the BLOCKS.csv of
+    ``mtcomp compensate`` (its rows that are not inserted nodes, in order, by source line)."""
+    import csv
+    path = os.fspath(report)
+    cols = [f"{a.lower()}_deg" if a in "ABC" else f"{a.lower()}_mm" for a in machine.axis_names]
+    try:
+        with open(path, newline="") as f:
+            rows = [r for r in csv.DictReader(f) if r.get("inserted", "0") == "0"]
+    except FileNotFoundError:
+        raise InputError("no such report file", path) from None
+    if len(rows) != len(original):
+        raise InputError(f"the report has {len(rows)} blocks, the program {len(original)} segment "
+                         "ends: not the report of that program", path)
+    try:
+        q = np.array([[float(r[c]) for c in cols] for r in rows])
+        line = np.array([int(r["line"]) for r in rows])
+    except (KeyError, ValueError, TypeError):
+        raise InputError(f"not a report of mtcomp compensate (columns line, inserted, "
+                         f"{', '.join(cols)})", path) from None
+    q[:, [a.is_rotary for a in machine.axes]] = np.radians(q[:, [a.is_rotary for a in machine.axes]])
+    bad = np.flatnonzero(line != original.line)
+    if bad.size:
+        raise InputError(f"row {int(bad[0]) + 2} is for line {int(line[bad[0]])}, the program's "
+                         f"segment end there is on line {int(original.line[bad[0]])}", path)
+    return ProgramPoints(path, q, line, original.feed, original.dirs, original.rapid)
+
+
 @dataclass
 class _Geometry:
     """Surface points of a program: ``index`` (N,) into the program's segment ends, ``draw`` (N, 3)
@@ -282,6 +351,16 @@ class _Geometry:
     offset: np.ndarray
     normals: np.ndarray
     triangles: np.ndarray
+
+
+def _path_geometry(orig: ProgramPoints, machine: Machine) -> _Geometry:
+    """The points of the feed moves (of every move, if none cuts) with no surface: the deviation
+    along the tool axis at each, drawn as points."""
+    idx = np.flatnonzero(~orig.rapid)
+    if idx.size == 0:
+        idx = np.arange(len(orig))
+    tips, axes = forward(machine, orig.q[idx])
+    return _Geometry(idx, tips, np.zeros_like(tips), axes, np.zeros((0, 3), np.int64))
 
 
 def _tip_geometry(orig: ProgramPoints, machine: Machine, radius: float, max_edge_factor: float):
@@ -389,10 +468,13 @@ def program_hints(path) -> dict:
 def program_error_map(machine: Machine, fitted, program, compensated=None,
                       tool_radius_mm: float | None = None, flank_length_mm: float | None = None,
                       flank_side: str = "outer", max_edge_factor: float = MAX_EDGE_FACTOR,
-                      flank_levels: int | None = None) -> SurfaceMap:
+                      flank_levels: int | None = None, report=None) -> SurfaceMap:
     """The surface ``program`` cuts, with the deviation predicted by ``fitted`` (a FittedModel).
 
-    program, compensated : paths of NC files (or :class:`ProgramPoints`).
+    program, compensated : paths of NC files (or :class:`ProgramPoints`); the compensated program
+        is paired with the original through their line structure (:func:`pair_compensated`).
+    report : the BLOCKS.csv of the compensation (path) or None: the corrected positions are then
+        taken from it, paired by source line (:func:`report_points`).
     tool_radius_mm : ball-end radius (tip surface) or cylinder radius (flank), mm; None: from the
         header of a built-in test part (:func:`program_hints`), else 0 (the map at the tool tips).
     flank_length_mm : > 0 maps the flank of the tool instead (5-axis side milling): contact lines
@@ -412,16 +494,20 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
         raise InputError(f"flank side must be 'outer' or 'inner', not {flank_side!r}")
     orig = program if isinstance(program, ProgramPoints) else read_program_points(program, machine)
     comp = None
-    if compensated is not None:
+    if report is not None:
+        comp = report_points(orig, report, machine)
+        pair = np.arange(len(orig))
+    elif compensated is not None:
         comp = (compensated if isinstance(compensated, ProgramPoints)
                 else read_program_points(compensated, machine))
         pair = pair_compensated(orig, comp, machine)
-    if not np.any(~orig.rapid):
-        raise InputError("the program has no feed moves (G1/G2/G3): nothing is cut", orig.path)
     if length > 0:
         g = _flank_geometry(orig, machine, radius, length, flank_side, flank_levels)
     else:
-        g = _tip_geometry(orig, machine, radius, max_edge_factor)
+        try:
+            g = _tip_geometry(orig, machine, radius, max_edge_factor)
+        except InputError:      # no surface seen along Z (a lathe profile, one point, no cutting)
+            g = _path_geometry(orig, machine)
     sel = g.index
     T0 = tool2wp(machine, orig.q[sel])
     tips = T0[:, :3, 3]

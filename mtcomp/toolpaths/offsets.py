@@ -1,0 +1,175 @@
+"""Where a program's coordinates sit on the machine: work offsets and tool lengths.
+
+A program's X Y Z ... are positions in its work coordinate system (G54 ... G59.3). The error model
+wants machine axis positions: the tool-tip position of the machine (the convention of the machine
+file: with every axis at zero the tip of a tool of ``tool_length_mm`` sits at the machine origin).
+So a block's machine positions are its program positions plus the work offset in force, and the
+tool length of the ``G43 H`` number in force sets the model's Abbe arm (context ``tool_length``).
+
+Offsets come from a small TOML file (``--offsets``) and/or flags (``--work-offset``,
+``--tool-length``); flags win. File format (mm for linear axes, deg for rotary axes; axes left out
+are 0)::
+
+    [work_offsets]
+    G54 = {X = 250.0, Y = 120.0, Z = -310.5}
+    G55 = {X = 400.0, Y = 120.0, Z = -310.5, C = 90.0}
+
+    [tool_lengths]            # mm, spindle gauge point to tool tip
+    H1 = 82.35
+    H2 = 104.0
+
+Flags: ``--work-offset G54=X250,Y120,Z-310.5`` and ``--tool-length H1=82.35`` (each may be repeated).
+"""
+from __future__ import annotations
+
+import math
+import os
+import re
+import tomllib
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..errors import InputError
+from ..machine import Machine
+from .gcode import WORK_SYSTEMS, SegmentChunk, frame_tool, frame_wcs
+
+_WCS_NAME = {name: i for i, name in enumerate(WORK_SYSTEMS)}
+_AXIS_VALUE_RE = re.compile(r"^\s*([A-Za-z])\s*=?\s*([+-]?(?:\d+\.?\d*|\.\d+))\s*$")
+
+
+@dataclass
+class ProgramSetup:
+    """Work offsets and tool lengths of one program on one machine.
+
+    work_offsets : wcs index (0 = G54 ... 8 = G59.3) -> (na,) offset, mm and rad (machine order).
+    tool_lengths : H number -> tool length, mm.
+    used_wcs, used_tools : the work systems and H numbers the program used (filled by :meth:`apply`).
+    """
+
+    machine: Machine
+    work_offsets: dict = field(default_factory=dict)
+    tool_lengths: dict = field(default_factory=dict)
+    used_wcs: set = field(default_factory=set)
+    used_tools: set = field(default_factory=set)
+
+    def _offset_table(self) -> np.ndarray:
+        table = np.zeros((len(WORK_SYSTEMS), self.machine.n_axes))
+        for i, v in self.work_offsets.items():
+            table[i] = v
+        return table
+
+    def apply(self, chunk: SegmentChunk) -> tuple[SegmentChunk, np.ndarray]:
+        """The chunk in machine axis positions, and the (n, na) offsets added to each row.
+
+        The returned chunk carries ``tool_length`` (mm per row; nan: the machine's tool length)."""
+        wcs = frame_wcs(chunk.frame)
+        tool = frame_tool(chunk.frame)
+        self.used_wcs.update(np.unique(wcs).tolist())
+        self.used_tools.update(t for t in np.unique(tool).tolist() if t > 0)
+        off = self._offset_table()[wcs]
+        lengths = np.full(len(chunk), np.nan)
+        for h, length in self.tool_lengths.items():
+            lengths[tool == h] = length
+        return replace(chunk, start=chunk.start + off, end=chunk.end + off, tool_length=lengths), off
+
+    def notes(self) -> list[str]:
+        """What was assumed for what the program used and nobody said (one line each)."""
+        out = []
+        missing = sorted(w for w in self.used_wcs if w not in self.work_offsets)
+        if missing:
+            names = ", ".join(WORK_SYSTEMS[w] for w in missing)
+            out.append(f"assumed: work offset {names} = 0 (the program's coordinates taken as machine "
+                       "axis positions); give --work-offset or --offsets")
+        tools = sorted(t for t in self.used_tools if t not in self.tool_lengths)
+        if tools:
+            names = ", ".join(f"H{t}" for t in tools)
+            out.append(f"assumed: tool length of {names} = the machine's tool_length_mm "
+                       f"({self.machine.tool_length:g} mm); give --tool-length or --offsets")
+        return out
+
+
+def _axis_vector(machine: Machine, values: dict, where: str, path) -> np.ndarray:
+    v = np.zeros(machine.n_axes)
+    for letter, x in values.items():
+        a = letter.upper()
+        if a not in machine.axis_names:
+            raise InputError(f"{where}: machine {machine.name} has no {a} axis", path)
+        if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
+            raise InputError(f"{where}: {a} must be a number, got {x!r}", path)
+        i = machine.index(a)
+        v[i] = math.radians(x) if machine.axes[i].is_rotary else float(x)
+    return v
+
+
+def _wcs_index(name: str, where: str, path) -> int:
+    key = name.strip().upper()
+    if key not in _WCS_NAME:
+        raise InputError(f"{where}: {name!r} is not a work coordinate system "
+                         f"({', '.join(WORK_SYSTEMS)})", path)
+    return _WCS_NAME[key]
+
+
+def _tool_number(name: str, where: str, path) -> int:
+    m = re.fullmatch(r"\s*[Hh]?(\d+)\s*", name)
+    if not m or int(m.group(1)) < 1:
+        raise InputError(f"{where}: {name!r} is not a tool length number (H1, H2 ...)", path)
+    return int(m.group(1))
+
+
+def _length(x, where, path) -> float:
+    if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x) or x < 0:
+        raise InputError(f"{where}: tool length must be a number >= 0 (mm), got {x!r}", path)
+    return float(x)
+
+
+def load_setup(machine: Machine, path=None, work_offset_flags=(), tool_length_flags=()) -> ProgramSetup:
+    """The program setup from an offsets file (or None) and the command-line flags (which win).
+
+    work_offset_flags : strings ``G54=X250,Y120,Z-310.5``. tool_length_flags : strings ``H1=82.35``.
+    Raises InputError naming the file or the flag and what is wrong.
+    """
+    setup = ProgramSetup(machine)
+    if path is not None:
+        p = os.fspath(path)
+        try:
+            with open(p, "rb") as f:
+                data = tomllib.load(f)
+        except FileNotFoundError:
+            raise InputError("no such offsets file", p) from None
+        except tomllib.TOMLDecodeError as exc:
+            raise InputError(f"not valid TOML: {exc}", p) from None
+        for key in data:
+            if key not in ("work_offsets", "tool_lengths"):
+                raise InputError(f"unknown table {key!r} (known: work_offsets, tool_lengths)", p)
+        for name, values in data.get("work_offsets", {}).items():
+            where = f"[work_offsets] {name}"
+            if not isinstance(values, dict):
+                raise InputError(f"{where} must be a table such as {{X = 250.0, Y = 120.0}}", p)
+            setup.work_offsets[_wcs_index(name, where, p)] = _axis_vector(machine, values, where, p)
+        for name, x in data.get("tool_lengths", {}).items():
+            where = f"[tool_lengths] {name}"
+            setup.tool_lengths[_tool_number(name, where, p)] = _length(x, where, p)
+    for flag in work_offset_flags:
+        where = f"--work-offset {flag}"
+        name, sep, rest = flag.partition("=")
+        if not sep:
+            raise InputError(f"{where}: write it as G54=X250,Y120,Z-310.5")
+        values = {}
+        for item in filter(None, (t.strip() for t in rest.split(","))):
+            m = _AXIS_VALUE_RE.match(item)
+            if not m:
+                raise InputError(f"{where}: {item!r} is not an axis value such as X250")
+            values[m.group(1)] = float(m.group(2))
+        setup.work_offsets[_wcs_index(name, where, None)] = _axis_vector(machine, values, where, None)
+    for flag in tool_length_flags:
+        where = f"--tool-length {flag}"
+        name, sep, rest = flag.partition("=")
+        try:
+            x = float(rest) if sep else None
+        except ValueError:
+            x = None
+        if x is None:
+            raise InputError(f"{where}: write it as H1=82.35 (mm)")
+        setup.tool_lengths[_tool_number(name, where, None)] = _length(x, where, None)
+    return setup
