@@ -44,7 +44,7 @@ def read_columns(path) -> dict:
     with open(path, newline="") as f:
         rows = list(csv.reader(f))
     head, body = rows[0], rows[1:]
-    return {name: np.array([float(r[i]) for r in body]) for i, name in enumerate(head)}
+    return {name: np.array([float(r[i]) if r[i] != "" else np.nan for r in body]) for i, name in enumerate(head)}
 
 
 def scores(pred: np.ndarray, y: np.ndarray) -> tuple[float, float]:

@@ -58,7 +58,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", help="folder for the simulated files (default: a temporary one)")
     args = ap.parse_args(argv)
-    machine = load_machine("xfyz")
+    machine = load_machine("xfyz").with_basis("polynomial")  # the truth is set by polynomial name
     rng = np.random.default_rng(2020)
     vm = VirtualMachine(machine, make_truth(machine, rng), noise_um=0.05, noise_urad=0.1, rng=rng,
                         noise_velocity_mm_min=1e-5)

@@ -46,7 +46,9 @@ M30
 
 
 def _model(tmp_path, name, seed=3, scale=1.0):
-    machine = load_machine(name)
+    # polynomial basis: random values per parameter give errors of machine size (a spline has many
+    # more parameters, whose random values would add up far beyond the correction bounds)
+    machine = load_machine(name).with_basis("polynomial")
     model = ErrorModel(machine)
     fitted = FittedModel.zero(model)
     rng = np.random.default_rng(seed)
@@ -276,7 +278,7 @@ def test_blocks_outside_the_support_are_not_corrected_unless_asked(tmp_path, cap
     for r in outside:
         assert float(r["cx_um"]) == 0 and float(r["cy_um"]) == 0 and float(r["cz_um"]) == 0
     inside = [r for r in rows if not r["outside_support"]]
-    assert max(abs(float(r["cz_um"])) for r in inside) > 1.0    # the others are corrected
+    assert max(abs(float(r["cz_um"])) for r in inside) > 0.3    # the others are corrected
     assert "2 blocks outside the region the model's data reached (X 2; first at line 5): not " \
            "corrected (pass --extrapolate" in stdout
     code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o", str(out),
@@ -285,7 +287,7 @@ def test_blocks_outside_the_support_are_not_corrected_unless_asked(tmp_path, cap
     assert code == 0, err
     rows = _read_report(rep)
     assert all(r["corrected"] == "1" for r in rows)
-    assert max(abs(float(r["cz_um"])) for r in rows if r["line"] == "5") > 1.0
+    assert max(abs(float(r["cz_um"])) for r in rows if r["line"] == "5") > 0.3
     assert "corrected anyway (--extrapolate)" in stdout
 
 

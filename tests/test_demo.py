@@ -67,9 +67,10 @@ def test_demo_compensation_helps_on_the_virtual_machine(demo_run):
         m = re.search(rf"{re.escape(label)}\s+rms {NUM} um, max {NUM} um", res.stdout)
         assert m, res.stdout
         rows[label] = (float(m.group(1)), float(m.group(2)))
-    assert rows["extended model"][0] < 0.3 * rows["uncompensated"][0]
+    # the part's form error (true normal error less the best rigid motion: the datum is probed)
+    assert rows["extended model"][0] < 0.5 * rows["uncompensated"][0]
     assert rows["extended model"][0] < rows["base model comp."][0]
-    assert re.search(rf"total error removed \(truth rms\)\s+{NUM} % with the base model, {NUM} % "
+    assert re.search(rf"form error removed \(truth rms\)\s+{NUM} % with the base model, {NUM} % "
                      r"with the extended model \(seed 001: about 30 % on a real cut\)", res.stdout)
 
 
@@ -88,8 +89,10 @@ def test_demo_map_and_blocks_agree_with_the_summary(demo_run):
     cut = re.search(rf"extended model\s+rms {NUM} um, max {NUM} um", res.stdout)
     first = re.search(rf"uncompensated\s+rms {NUM} um, max {NUM} um", res.stdout)
     mesh = pv.read(out / "map_cut.vtp")
+    from mtcomp.demo import form_error
     for arr, m in (("dn_before_um", first), ("dn_after_um", cut)):
-        dn = np.asarray(mesh.point_data[arr])
+        dn = form_error(np.asarray(mesh.point_data[arr]), np.asarray(mesh.points),
+                        np.asarray(mesh.point_data["normal"]))
         assert np.sqrt(np.mean(dn ** 2)) == pytest.approx(float(m.group(1)), abs=0.0006)
     with open(out / "BLOCKS.csv", newline="") as f:
         blocks = list(csv.DictReader(f))

@@ -57,9 +57,6 @@ def test_exported_linuxcnc_tables_correct_held_out_runs(results):
 
 
 @needs_real
-@pytest.mark.xfail(strict=False, reason="the base model's component errors are cubic polynomials, far "
-                   "smoother than these stages' profiles (held-out 1.3x to 8x the pitch table's); the 1.1x "
-                   "target needs component errors that follow them (splines, under way)")
 def test_exported_table_is_within_1p1_of_a_pitch_table_from_the_same_runs(results):
     for name, r in results.items():
         assert r["diagnose_um"] <= 1.1 * r["pitch_um"], name

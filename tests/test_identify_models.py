@@ -12,7 +12,7 @@ from mtcomp.identification.synthetic import (make_ballbar, make_laser, make_poin
                                              simulate)
 from mtcomp.machine import load_machine
 from mtcomp.models import ErrorModel, ThermalDrift
-from mtcomp.models.reference import reference_deviation
+from reference_model import reference_deviation
 
 
 def _params_dict(model, p):

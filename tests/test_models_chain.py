@@ -9,7 +9,7 @@ from mtcomp import InputError, load_machine
 from mtcomp.kinematics import forward
 from mtcomp.models import (AbbeIRC, Backlash, ErrorModel, FeedOffset, FittedModel, PeriodicError,
                            RotaryErrorMotion, deviation, deviation_and_jacobians, load_model, save_model)
-from mtcomp.models.reference import reference_deviation
+from reference_model import reference_deviation
 
 MACHINES = ["xfyz", "cafxyz", "cbfxyz"]
 

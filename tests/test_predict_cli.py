@@ -13,7 +13,7 @@ from mtcomp.identification.synthetic import make_ballbar, make_laser, make_point
 from mtcomp.measurement.files import read_measurements
 from mtcomp.machine import load_machine
 from mtcomp.models import ErrorModel, FittedModel, ParameterSet, deviation, save_model
-from mtcomp.models.reference import reference_deviation
+from reference_model import reference_deviation
 
 
 @pytest.fixture(scope="module")

@@ -22,7 +22,9 @@ needs_real = pytest.mark.skipif(not THERMAL.exists(), reason=f"real thermal reco
 def _columns(path) -> dict:
     with open(path, newline="") as f:
         rows = list(csv.reader(f))
-    return {name: np.array([float(r[i]) for r in rows[1:]]) for i, name in enumerate(rows[0])}
+    # blank cells (a standard error the model does not give) read as NaN
+    return {name: np.array([float(r[i]) if r[i] != "" else np.nan for r in rows[1:]])
+            for i, name in enumerate(rows[0])}
 
 
 def _scores(pred, y):

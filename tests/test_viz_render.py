@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from mtcomp.viz import image_difference
-from mtcomp.viz.testing import REFERENCE_KWARGS, synthetic_surface_map
+from viz_reference import REFERENCE_KWARGS, synthetic_surface_map
 
 DATA = Path(__file__).resolve().parent / "data"
 REFERENCE = DATA / "viz_error_map_ref.png"
@@ -133,7 +133,7 @@ def test_residual_plot_before_and_after(tmp_path):
 def _plane_case(tmp_path):
     from mtcomp import load_machine
     from mtcomp.models import ErrorModel, FittedModel, save_model
-    machine = load_machine("xfyz")
+    machine = load_machine("xfyz").with_basis("polynomial")
     fitted = FittedModel.zero(ErrorModel(machine))
     for name, value in {"EXX_1": 40.0, "EZX_2": -30.0, "C0Y": 50.0}.items():
         fitted.params.set_file_value(name, value)

@@ -7,7 +7,7 @@ import pytest
 
 from mtcomp import InputError, load_machine
 from mtcomp.models import ErrorModel, FittedModel
-from mtcomp.models.reference import reference_deviation, reference_tool_pose
+from reference_model import reference_deviation, reference_tool_pose
 from mtcomp.viz.surface import (pair_compensated, program_error_map, read_program_points,
                                 select_surface_points, triangulate_xy, vertex_normals)
 
@@ -70,7 +70,7 @@ def test_vertex_normals_of_a_plane_are_its_normal_turned_to_the_tool():
 
 @pytest.fixture()
 def xfyz_model():
-    machine = load_machine("xfyz")
+    machine = load_machine("xfyz").with_basis("polynomial")
     fitted = FittedModel.zero(ErrorModel(machine))
     for name, value in {"EXX_1": 30.0, "EZX_2": -40.0, "EYY_1": 12.0, "C0Y": -57.78, "A0Z": -29.28,
                         "B0Z": 48.99, "EBX_1": 80.0, "EAY_1": -60.0}.items():
@@ -100,7 +100,7 @@ def test_map_of_a_plane_matches_the_reference_model(tmp_path, xfyz_model):
 
 def test_compensated_map_compares_with_the_original_nominal_points(tmp_path):
     """Error-free model, 'compensated' program shifted by +10 um in X: after = 10 um * n_x exactly."""
-    machine = load_machine("xfyz")
+    machine = load_machine("xfyz").with_basis("polynomial")
     fitted = FittedModel.zero(ErrorModel(machine))
     prog = plane_program(tmp_path / "plane.nc")
     comp = plane_program(tmp_path / "plane_c.nc", shift_x=0.010)
@@ -112,7 +112,7 @@ def test_compensated_map_compares_with_the_original_nominal_points(tmp_path):
 
 
 def test_compensated_program_with_extra_points_is_paired_in_order(tmp_path):
-    machine = load_machine("xfyz")
+    machine = load_machine("xfyz").with_basis("polynomial")
     orig = read_program_points(plane_program(tmp_path / "a.nc"), machine)
     comp = read_program_points(plane_program(tmp_path / "b.nc", shift_x=0.004, extra_points=True),
                                machine)
@@ -200,7 +200,7 @@ def test_bowl_contact_points_match_the_generator(tmp_path):
     """The contact points reconstructed from the tool tips (triangulated normals) against the bowl
     generator's analytic contact points and normals."""
     from mtcomp.toolpaths.parts import write_bowl_program
-    machine = load_machine("xfyz")
+    machine = load_machine("xfyz").with_basis("polynomial")
     tp = write_bowl_program(tmp_path / "bowl.nc", ball_radius_mm=3.0, stepover_mm=2.0, step_mm=2.0,
                             origin_mm=(100.0, 50.0, -20.0))
     smap = program_error_map(machine, FittedModel.zero(ErrorModel(machine)), tmp_path / "bowl.nc")
@@ -220,7 +220,7 @@ def test_flank_map_of_the_cone_frustum(tmp_path):
     against the generator's cone geometry; the error-free model maps zero, a pure tip offset maps
     its normal component."""
     from mtcomp.toolpaths.parts import write_cone_frustum_program
-    machine = load_machine("cafxyz")
+    machine = load_machine("cafxyz").with_basis("polynomial")
     cone = write_cone_frustum_program(tmp_path / "cone.nc", machine, n_points=72)
     fitted = FittedModel.zero(ErrorModel(machine))
     smap = program_error_map(machine, fitted, tmp_path / "cone.nc")   # header: flank, R5
@@ -259,10 +259,11 @@ def test_compensated_program_paired_through_its_lines_and_the_report(tmp_path, c
     from mtcomp.models import ErrorModel, FittedModel, save_model
     from mtcomp.viz.surface import pair_compensated, read_program_points, report_points
     from mtcomp import load_machine
-    machine = load_machine("xfyz")
+    machine = load_machine("xfyz").with_basis("polynomial")
     fitted = FittedModel.zero(ErrorModel(machine))
     rng = np.random.default_rng(4)
-    fitted.params.values[:] = rng.normal(size=len(fitted.params.values)) * 1e-3
+    fitted.params.values[:] = rng.normal(size=len(fitted.params.values)) * np.array(
+        [1e-3 if s.unit == "um" else 1e-5 for s in fitted.params.specs])     # 1 um, 10 urad
     model = tmp_path / "m.json"
     save_model(model, fitted)
     passes = "".join(f"(pass {k})\nG0 X0 Y{k}\nG1 Z-1 F500\nG2 X0 Y{k} I5 J0\nG1 X20\nX0\nG0 Z5\n"

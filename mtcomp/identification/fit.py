@@ -619,6 +619,31 @@ class _Problem:
             out[so] = np.einsum("ij,ij->j", M, M)
         return out
 
+    def _repeat_scale(self, r, rank) -> float:
+        """The scale of the weighted residuals r that noise alone makes: pooled over repeat groups
+        (the same reading of the same set-up in several runs, mtcomp.measurement.outliers) when the
+        files have at least 5 degrees of freedom of repeats, so that a model's misfit (an effect it
+        lacks) is not taken for noise; else the rms residual."""
+        from ..measurement.outliers import setup_keys
+        ss, dof = 0.0, 0
+        for m, so in zip(self.mms, self.obs_slices):
+            keys = setup_keys(m.data)
+            if keys is None or m.n_obs == 0:
+                continue
+            cols = np.unique(np.asarray(m.obs_column, dtype=str), return_inverse=True)[1]
+            group = np.unique(np.column_stack([keys[m.obs_row], cols]), axis=0, return_inverse=True)[1]
+            group = np.asarray(group).ravel()
+            rr = r[so]
+            counts = np.bincount(group)
+            means = np.bincount(group, weights=rr) / counts
+            rep = counts[group] >= 2
+            ss += float(np.sum((rr[rep] - means[group[rep]]) ** 2))
+            dof += int(np.sum(counts[counts >= 2] - 1))
+        if dof >= 5:
+            return float(np.sqrt(ss / dof))
+        dof0 = max(self.n_obs - rank, 0)
+        return float(np.sqrt(float(r @ r) / dof0)) if dof0 > 0 else 0.0
+
     # --------------------------------------------------------------- weak directions
     def _weak_direction_penalty(self, A, sigma_w: float):
         """(penalty matrix, the weak directions the data do see (n_unknowns, k) in x, to report as
@@ -643,10 +668,19 @@ class _Problem:
         if n_u > nf:
             Apn, Ann = A[:nf, nf:], A[nf:, nf:]
             App = App - Apn @ scipy.linalg.pinvh(Ann) @ Apn.T
-        M = self.metric[:nf, :nf] * 1e6                 # um^2 of mean squared tip error per x^2
-        M = M + np.eye(nf) * (1e-12 * max(np.trace(M) / max(nf, 1), 1e-300))
+        M_all = self.metric[:nf, :nf] * 1e6             # um^2 of mean squared tip error per x^2
+        # only parameters that move the tool tip somewhere in the travel have a physical size; the
+        # others (a thermal channel's drift ...) are left to the data alone
+        d = np.diag(M_all)
+        phys = np.flatnonzero(d > 1e-12 * max(d.max() if d.size else 0.0, 1e-300))
+        out = np.zeros((n_u, 0))
+        if phys.size == 0:
+            return P, out
+        App = App[np.ix_(phys, phys)]
+        M = M_all[np.ix_(phys, phys)]
+        M = M + np.eye(phys.size) * (1e-12 * np.trace(M) / phys.size)
         L = np.linalg.cholesky(M)
-        Li = scipy.linalg.solve_triangular(L, np.eye(nf), lower=True)
+        Li = scipy.linalg.solve_triangular(L, np.eye(phys.size), lower=True)
         H = Li @ App @ Li.T
         evals, U = np.linalg.eigh(0.5 * (H + H.T))
         is_weak = evals * WEAK_SD_UM ** 2 < sigma_w ** 2
@@ -657,8 +691,8 @@ class _Problem:
         if weak.shape[1]:
             X = Li.T @ weak                               # weak directions in x (M-orthonormal)
             Q = X @ X.T @ M                               # M-orthogonal projector onto them
-            P[:nf, :nf] = WEAK_PENALTY * (Q.T @ M @ Q)
-            out[:nf] = Li.T @ seen
+            P[np.ix_(phys, phys)] = WEAK_PENALTY * (Q.T @ M @ Q)
+            out[phys] = Li.T @ seen
         return P, out
 
     # --------------------------------------------------------------- Gauss-Newton
@@ -686,8 +720,7 @@ class _Problem:
         P = np.zeros((self.n_unknowns, self.n_unknowns))
         x, r, A, g, B, scale_p, AB, iterations, converged = self._gauss_newton(
             x, r, A, g, P, w, rcond, max_iterations, tol, directions=V[:, keep], scale=scale)
-        dof0 = max(self.n_obs - rank, 0)
-        sigma_w = np.sqrt(float(r @ r) / dof0) if dof0 > 0 else 0.0
+        sigma_w = self._repeat_scale(r, rank)
         P, weak = self._weak_direction_penalty(A, sigma_w)
         if weak.shape[1]:
             # the weak directions new to the null space (those the data's null space does not

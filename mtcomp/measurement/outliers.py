@@ -36,6 +36,14 @@ class Outlier:
                 f"({self.deviation:+.3g} off the median of its repeats)")
 
 
+def setup_keys(data: MeasurementSet) -> np.ndarray | None:
+    """(n,) integer id of each row's set-up (everything but the run, time and the reading): rows with
+    the same id are repeats. None for kinds without that structure (only laser and points files)."""
+    if not isinstance(data, (LaserData, PointsData)):
+        return None
+    return _setup_keys(data)
+
+
 def _setup_keys(data: MeasurementSet) -> np.ndarray:
     """(n,) integer id of each row's set-up (everything but the run, time and the reading)."""
     ctx = data.context
@@ -44,7 +52,7 @@ def _setup_keys(data: MeasurementSet) -> np.ndarray:
         parts += [np.unique(data.axis, return_inverse=True)[1][:, None].astype(float),
                   np.unique(data.component, return_inverse=True)[1][:, None].astype(float),
                   np.round(data.target, 9)[:, None], data.dir.astype(float)[:, None],
-                  np.round(np.nan_to_num(data.xyz, nan=1e300), 6), np.round(np.nan_to_num(data.abc, nan=1e300), 9),
+                  np.round(np.nan_to_num(data.xyz, nan=-1e9), 6), np.round(np.nan_to_num(data.abc, nan=-1e9), 9),
                   np.round(data.optic, 6)]
     else:
         parts += [np.round(data.xyz, 6), np.round(data.abc, 9), np.round(np.nan_to_num(data.tool, nan=-1.0), 6)[:, None]]

@@ -14,7 +14,7 @@ from scipy.integrate import quad
 from scipy.interpolate import BSpline
 from scipy.spatial.transform import Rotation
 
-from ..machine import Machine
+from mtcomp.machine import Machine
 
 XYZ = "XYZ"
 ABC = "ABC"
@@ -77,10 +77,14 @@ def _spline_pieces(lo, hi, n, k):
     mid, length = 0.5 * (lo + hi), hi - lo
     brk = list(lo + h * np.arange(1, n))
     f = [lambda x, e=e: float(np.nan_to_num(e(x))) for e in elems]
-    mean = [quad(fj, lo, hi, points=brk, limit=200, epsabs=1e-13, epsrel=1e-11)[0] / length for fj in f]
+    edges = [lo] + brk + [hi]
+
+    def integral(g):
+        # piece by piece: each piece of a B-spline is a polynomial, smooth for quad
+        return sum(quad(g, a, b, epsabs=1e-14, epsrel=1e-12)[0] for a, b in zip(edges[:-1], edges[1:]))
+    mean = [integral(fj) / length for fj in f]
     sxx = length ** 3 / 12.0
-    slope = [quad(lambda x, fj=fj: fj(x) * (x - mid), lo, hi, points=brk, limit=200, epsabs=1e-13, epsrel=1e-11)[0] / sxx
-             for fj in f]
+    slope = [integral(lambda x, fj=fj: fj(x) * (x - mid)) / sxx for fj in f]
     return f, mean, slope, mid
 
 

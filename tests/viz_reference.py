@@ -1,6 +1,6 @@
 """Helpers for image tests of the error map: a deterministic synthetic map and a reference image.
 
-``python -m mtcomp.viz.testing OUT.png`` renders the reference image that tests/test_viz_render.py
+``python tests/viz_reference.py OUT.png`` renders the reference image that tests/test_viz_render.py
 compares against (run it after an intended change of the picture, then look at the PNG and commit it).
 """
 from __future__ import annotations
@@ -9,7 +9,7 @@ import sys
 
 import numpy as np
 
-from .surface import SurfaceMap, triangulate_xy, vertex_normals
+from mtcomp.viz.surface import SurfaceMap, triangulate_xy, vertex_normals
 
 #: how the reference image is rendered (small, so the PNG stays well under 100 kB)
 REFERENCE_KWARGS = {"window_size": (600, 320), "vtp": False, "backend": "pyvista"}
@@ -33,7 +33,7 @@ def main(argv=None) -> int:
     from .render import render_error_map
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) != 1:
-        sys.stderr.write("usage: python -m mtcomp.viz.testing OUT.png\n")
+        sys.stderr.write("usage: python tests/viz_reference.py OUT.png\n")
         return 2
     res = render_error_map(synthetic_surface_map(), argv[0], **REFERENCE_KWARGS)
     print(f"wrote {res.png} ({res.backend})")

@@ -1,0 +1,53 @@
+"""Identification on machines built independently of mtcomp (tests/truth): held-out error vs noise.
+
+For each topology, N random machines (seeds 0..N-1) get a clean, rich campaign (volumetric points at
+two tool lengths in two passes, laser runs of every axis, ball-bar circles, the three-sphere set-up
+with a C axis; tests/independent_cases.py); identify fits every file without its last run and
+predicts that run. Printed per topology: the held-out rms over the noise (um readings and urad
+readings), median and worst, and how many machines are within 1.1 times the noise.
+
+    python benchmarks/bench_identify_independent.py [--machines 50] [--topologies XFYZ CAFXYZ CBFXYZ]
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+# the independent machine is test code: it lives in tests/ (not in the mtcomp package)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+from independent_cases import clean_campaign, heldout_by_run  # noqa: E402
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--machines", type=int, default=50)
+    ap.add_argument("--topologies", nargs="+", default=["XFYZ", "CAFXYZ", "CBFXYZ"])
+    args = ap.parse_args()
+    print(f"{'topology':<8} {'n':>3} {'um med':>7} {'um max':>7} {'urad med':>8} {'urad max':>8} "
+          f"{'<=1.1x':>7} {'s/fit':>6}")
+    for topo in args.topologies:
+        ratios_um, ratios_urad, secs = [], [], []
+        for seed in range(args.machines):
+            with tempfile.TemporaryDirectory() as tmp:
+                _, paths = clean_campaign(topo, seed, Path(tmp))
+                t0 = time.perf_counter()
+                h = heldout_by_run(topo, paths)
+                secs.append(time.perf_counter() - t0)
+            ratios_um.append(h.ratio_um)
+            ratios_urad.append(h.ratio_urad)
+            print(f"  {topo} seed {seed}: {h.ratio_um:.3f} x noise (um), {h.ratio_urad:.3f} x (urad), "
+                  f"{secs[-1]:.1f} s", flush=True)
+        within = sum(max(a, b) <= 1.1 for a, b in zip(ratios_um, ratios_urad))
+        print(f"{topo:<8} {len(ratios_um):>3} {statistics.median(ratios_um):7.3f} {max(ratios_um):7.3f} "
+              f"{statistics.median(ratios_urad):8.3f} {max(ratios_urad):8.3f} "
+              f"{within:>3}/{len(ratios_um):<3} {statistics.median(secs):6.1f}", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

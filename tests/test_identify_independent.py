@@ -1,0 +1,122 @@
+"""Identification checked on truths that share no code with mtcomp: the independent virtual machine
+(tests/truth) and the real ISO 230-2 runs (shared/data/real; skipped when absent).
+
+* A clean, rich campaign of a random independent machine is fitted without its last runs; those runs
+  are predicted within 1.25 times the truth's noise (fixed seed).
+* predict on a fitted file reproduces the fit's residuals (same path, same set-up, same context).
+* A partial campaign (laser runs of X only) never invents: the model predicts no error in Y and Z
+  anywhere, and X along the laser's line follows the truth's X positioning to the noise.
+* The real runs: fit runs 1-3 (diagnose), predict runs 4-5, within 1.1 times the held-out error of the
+  pitch table a controller would build from runs 1-3.
+"""
+from __future__ import annotations
+
+import csv
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from independent_cases import NOISE_UM, clean_campaign, heldout_by_run
+from mtcomp.identification.fit import identify, predict_readings
+from mtcomp.machine import load_machine
+from mtcomp.measurement.files import read_measurements
+from mtcomp.models import deviation
+from truth import Context, TruthMachine
+from truth import campaigns as tc
+
+REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / "iso230_2"
+needs_real = pytest.mark.skipif(not REAL.is_dir(), reason=f"real data folder {REAL} is absent")
+
+
+def test_clean_campaign_of_an_independent_machine_is_predicted_to_the_noise(tmp_path):
+    _, paths = clean_campaign("XFYZ", 1, tmp_path)
+    h = heldout_by_run("XFYZ", paths)
+    print(f"held-out {h.rms_um:.3f} um ({h.ratio_um:.2f} x noise), {h.rms_urad:.3f} urad "
+          f"({h.ratio_urad:.2f} x noise); {h.n_params} parameters, rank {h.rank}")
+    assert h.ratio_um <= 1.25 and h.ratio_urad <= 1.25
+
+
+def test_predict_reproduces_the_fit_on_its_own_file(tmp_path):
+    _, paths = clean_campaign("XFYZ", 2, tmp_path)
+    data = [read_measurements(p) for p in paths]
+    res = identify(load_machine("xfyz"), data)
+    for d, f in zip(data, res.files):
+        pred = predict_readings(res.fitted_model, d)
+        assert pred.setup_known
+        col = {"points": None, "laser": None, "ballbar": "pred_length_mm"}[d.kind]
+        if d.kind == "points":
+            got = np.column_stack([pred.columns[f"pred_d{x}_um"] for x in "xyz"])
+            resid = (d.deviation * 1e3 - got)[np.isfinite(d.deviation)]
+        elif d.kind == "laser":
+            got = np.where(d.angular, pred.columns.get("pred_value_urad", np.nan),
+                           pred.columns.get("pred_value_um", np.nan))
+            resid = np.where(d.angular, d.value * 1e6, d.value * 1e3) - got
+        else:
+            resid = (d.length - pred.columns[col]) * 1e3 * 1e-3    # mm, as the fit reports lengths
+        np.testing.assert_allclose(resid, f.residual, rtol=0, atol=1e-9)
+
+
+def test_laser_runs_of_x_alone_invent_nothing(tmp_path):
+    rng = np.random.default_rng(7)
+    machine = TruthMachine.random("xfyz", rng, error_motions=False)
+    static = {"Y": 50.0, "Z": -40.0}
+    res = tc.laser(machine, tmp_path / "laser_x.csv", rng, "X", components=["EXX"], n_runs=3,
+                   static=static, noise_um=NOISE_UM)
+    fit = identify(load_machine("xfyz"), [read_measurements(res.path)])
+    model = fit.fitted_model
+    # the support says where the data were: X over the targets, Y and Z at the laser's line only
+    assert model.support["Y"] == (50.0, 50.0) and model.support["Z"] == (-40.0, -40.0)
+    lo, hi = model.support["X"]
+    q = np.column_stack([np.linspace(lo, hi, 41), np.full(41, 50.0), np.full(41, -40.0)])
+    dev = deviation(model.model, q, model.params.values)[:, :3] * 1e3
+    true = machine.true_deviation(q, None, Context())[0] * 1e3
+    # X along the line, up to the laser's unknown zero, to the noise
+    err = (dev[:, 0] - true[:, 0]) - np.mean(dev[:, 0] - true[:, 0])
+    print(f"X along the laser line: rms {np.sqrt(np.mean(err ** 2)):.3f} um, truth's profile "
+          f"{np.ptp(true[:, 0]):.1f} um peak to peak")
+    assert np.sqrt(np.mean(err ** 2)) < 2 * NOISE_UM
+    # nothing in Y and Z, anywhere in the travel
+    q_any = np.random.default_rng(8).uniform(*load_machine("xfyz").travel_bounds(), (50, 3))
+    dev_any = deviation(model.model, q_any, model.params.values)[:, :3] * 1e3
+    np.testing.assert_allclose(dev_any[:, 1:], 0.0, rtol=0, atol=0.05)
+
+
+def _split(src: Path, out: Path):
+    rows = list(csv.DictReader(open(src, newline="")))
+    paths = []
+    for part, keep in (("train", lambda r: int(r["run"]) <= 3), ("heldout", lambda r: int(r["run"]) > 3)):
+        p = out / f"{src.stem}_{part}.csv"
+        with open(p, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(rows[0]))
+            w.writeheader()
+            w.writerows(r for r in rows if keep(r))
+        paths.append(p)
+    return paths
+
+
+def _rms_about_mean(x):
+    x = np.asarray(x, dtype=float)
+    return float(np.sqrt(np.mean((x - x.mean()) ** 2)))
+
+
+@needs_real
+@pytest.mark.parametrize("name", ["ess_b02_x", "psi_mcu1025_x"])
+def test_real_runs_predicted_as_well_as_a_pitch_table(name, tmp_path):
+    train, heldout = _split(REAL / f"{name}.csv", tmp_path)
+    table: dict = {}
+    for r in csv.DictReader(open(train, newline="")):
+        table.setdefault((float(r["target_mm"]), int(r["dir"])), []).append(float(r["value_um"]))
+    rows = list(csv.DictReader(open(heldout, newline="")))
+    pitch = _rms_about_mean([float(r["value_um"]) - np.mean(table[(float(r["target_mm"]), int(r["dir"]))])
+                             for r in rows])
+    model, pred = tmp_path / "model.json", tmp_path / "pred.csv"
+    for cmd in (["diagnose", "xfyz", str(train), "--json", str(tmp_path / "r.json"), "-o", str(model)],
+                ["predict", "xfyz", str(model), str(heldout), "-o", str(pred)]):
+        subprocess.run([sys.executable, "-m", "mtcomp", *cmd], check=True, capture_output=True, text=True)
+    ours = _rms_about_mean([float(r["value_um"]) - float(r["pred_value_um"])
+                            for r in csv.DictReader(open(pred, newline=""))])
+    print(f"{name}: held-out rms about the mean: pitch table {pitch:.2f} um, mtcomp {ours:.2f} um")
+    assert ours <= 1.1 * pitch
