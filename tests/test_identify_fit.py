@@ -282,3 +282,28 @@ def test_no_degrees_of_freedom_gives_strict_json(xfyz):
     assert [sorted(u.names) for u in res.undetermined] == [["EXX_1", "EXX_2"]]
     text = json.dumps(res.to_dict(), allow_nan=False)
     assert '"sigma": null' in text
+
+
+def test_compare_f_test_against_a_hand_computation(xfyz):
+    """A fit with a backlash term against the base fit of data with a real backlash: the F statistic
+    recomputed by hand from the two weighted residual sums, and a tiny p-value; without a backlash in
+    the data the extension is not significant."""
+    from scipy import stats
+    machine, model = xfyz
+    rng = np.random.default_rng(19)
+    ext = ErrorModel(machine, [Backlash("X")])
+    x = rng.uniform(-300, 300, 200)
+    dirs = rng.choice([-1.0, 1.0], 200)
+    for bl, significant in ((4e-3, True), (0.0, False)):
+        values = np.zeros(ext.n_params)
+        values[ext.param_names.index("BL_X")] = bl
+        data = make_laser(["X"] * 200, ["EXX"] * 200, x, direction=dirs)
+        data = simulate(ext, data, values, noise_um=0.3, rng=np.random.default_rng(5))
+        base = identify(model, [data])
+        full = identify(ext, [data], free=list(model.param_names[i] for i in np.flatnonzero(model.base_mask))
+                        + ["BL_X"])
+        cmp = base.compare(full)
+        F = ((base.cost - full.cost) / (full.rank - base.rank)) / (full.cost / full.dof)
+        assert cmp["F"] == pytest.approx(F, rel=1e-12, abs=0)
+        assert cmp["p_value"] == pytest.approx(stats.f.sf(F, full.rank - base.rank, full.dof), rel=1e-9)
+        assert (cmp["p_value"] < 1e-6) == significant

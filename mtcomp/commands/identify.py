@@ -49,7 +49,10 @@ def run(args) -> int:
                       known_setup=list(args.known_setup),
                       info={"command": "mtcomp identify " + " ".join(sys.argv[2:]) if len(sys.argv) > 2
                             else "mtcomp identify"})
+    save_model(out, result.fitted_model)      # before printing: a closed pipe must not lose it
+    if not result.converged:
+        print(f"warning: the fit did not converge in {result.iterations} iterations; check the data "
+              "(files of different machines fitted as one?)", file=sys.stderr)
     print(result.summary())
-    save_model(out, result.fitted_model)
     print(f"\nwrote {out}")
     return 0

@@ -224,6 +224,25 @@ class IdentificationResult:
         """tag -> column -> rms residual, file units."""
         return {f.tag: f.rms() for f in self.files}
 
+    def compare(self, extended: "IdentificationResult") -> dict:
+        """F-test of this fit against an ``extended`` one of the same observations (statsmodels'
+        ``compare_f_test``): does the extension lower the weighted residual sum of squares by more
+        than its extra parameters would by chance?
+
+        Returns {"F": F, "p_value": p, "df_num": extra ranks, "df_den": extended dof}; p small means
+        the extension earns its place on these data (a held-out check is still the stronger test).
+        """
+        from scipy import stats
+        if extended.n_obs != self.n_obs:
+            raise ValueError("compare needs fits of the same observations")
+        df_num = extended.rank - self.rank
+        df_den = extended.dof
+        if df_num <= 0 or df_den <= 0:
+            raise ValueError("the extended fit must determine more parameters and keep degrees of freedom")
+        F = ((self.cost - extended.cost) / df_num) / (extended.cost / df_den)
+        return {"F": float(F), "p_value": float(stats.f.sf(F, df_num, df_den)), "df_num": int(df_num),
+                "df_den": int(df_den)}
+
     def largest_correlations(self, k: int = 5, threshold: float = 0.9):
         """Up to k pairs (name_a, name_b, r) of determined unknowns with |r| >= threshold."""
         corr = self.correlation
@@ -278,8 +297,9 @@ class IdentificationResult:
                 lines.append(f"{s.name:<28} {v * s.to_file:12.5g} {es}  {s.unit}")
         lines.append("")
         if self.undetermined:
-            lines.append(f"{len(self.undetermined)} combination(s) the data cannot determine "
-                         "(held at the start values, zero by default; file units):")
+            lines.append(f"{len(self.undetermined)} combination(s) the data cannot determine, or only "
+                         "worse than 1 um of error over the travel (held where they predict the least "
+                         "error; file units):")
             for u in self.undetermined:
                 lines.append(f"  {u}")
         else:
@@ -516,6 +536,7 @@ class _Problem:
         self.n_obs = k
         self.observed = np.concatenate([m.observed for m in mms])
         self.metric = None      # (n_unknowns, n_unknowns) mean squared tip error over the travel, mm^2
+        self.weak_fallback = False  # the weak-direction pass was refused (see solve)
 
     # --------------------------------------------------------------- weights
     def unit_weights(self):
@@ -644,6 +665,21 @@ class _Problem:
         dof0 = max(self.n_obs - rank, 0)
         return float(np.sqrt(float(r @ r) / dof0)) if dof0 > 0 else 0.0
 
+    def _damped_step(self, x, cost, B, AB, scale, grad, w, objective):
+        """Levenberg-Marquardt steps ``(AB + mu I)^-1`` with growing mu from the smallest that helps:
+        (x, r, cost) of the first that lowers the objective, or (None, None, None)."""
+        gs = B.T @ (scale * grad)
+        mu = 1e-8 * max(float(np.trace(AB)) / max(AB.shape[0], 1), 1e-300)
+        for _ in range(12):
+            dz = B @ np.linalg.solve(AB + mu * np.eye(AB.shape[0]), gs)
+            x_new = x + scale * dz
+            r_new = w * (self.observed - self.evaluate(x_new))
+            cost_new = objective(r_new, x_new)
+            if cost_new < cost * (1 - 1e-12):
+                return x_new, r_new, cost_new
+            mu *= 30.0
+        return None, None, None
+
     # --------------------------------------------------------------- weak directions
     def _weak_direction_penalty(self, A, sigma_w: float):
         """(penalty matrix, the weak directions the data do see (n_unknowns, k) in x, to report as
@@ -672,7 +708,7 @@ class _Problem:
         # only parameters that move the tool tip somewhere in the travel have a physical size; the
         # others (a thermal channel's drift ...) are left to the data alone
         d = np.diag(M_all)
-        phys = np.flatnonzero(d > 1e-12 * max(d.max() if d.size else 0.0, 1e-300))
+        phys = np.flatnonzero(d > 1e-6 * max(d.max() if d.size else 0.0, 1e-300))
         out = np.zeros((n_u, 0))
         if phys.size == 0:
             return P, out
@@ -722,6 +758,7 @@ class _Problem:
             x, r, A, g, P, w, rcond, max_iterations, tol, directions=V[:, keep], scale=scale)
         sigma_w = self._repeat_scale(r, rank)
         P, weak = self._weak_direction_penalty(A, sigma_w)
+        first = (x, r, A, g, B, scale_p, AB, iterations, converged, null, rank)
         if weak.shape[1]:
             # the weak directions new to the null space (those the data's null space does not
             # already hold, up to round-off), in scaled coordinates, orthonormalised
@@ -734,6 +771,12 @@ class _Problem:
             x, r, A, g, B, scale_p, AB, more, converged = self._gauss_newton(
                 x, r, A, g, P, w, rcond, max_iterations, tol)
             iterations += more
+            # holding weak directions may cost the data fit about one noise variance each; much more
+            # means the split into weak and strong went wrong numerically: keep the data's own fit
+            allowed = float(first[1] @ first[1]) + 4.0 * weak.shape[1] * sigma_w ** 2 + 1e-300
+            if not converged or float(r @ r) > 1.01 * allowed:
+                x, r, A, g, B, scale_p, AB, iterations, converged, null, rank = first
+                self.weak_fallback = True
         dof = max(self.n_obs - rank, 0)
         s2 = float(r @ r) / dof if dof > 0 else np.nan
         lev = np.zeros(self.n_obs)
@@ -788,8 +831,14 @@ class _Problem:
                 cost_new = objective(r_new, x_new)
                 A_new = None
             if cost_new > cost * (1 + 1e-12) + 1e-300:
-                converged = True        # no descent along the Gauss-Newton step: at the minimum
-                break
+                # no descent along the Gauss-Newton step: either at the minimum, or the step is
+                # dominated by nearly singular directions; Levenberg-Marquardt damping tells them apart
+                x_new, r_new, cost_new = self._damped_step(x, cost, B, AB, scale, g - P @ x, w, objective)
+                if x_new is None:
+                    converged = True
+                    break
+                A_new = None
+                small = False
             x, r, cost = x_new, r_new, cost_new
             if small or cost == 0.0:
                 converged = True
@@ -876,9 +925,13 @@ def _error_scales(columns) -> np.ndarray:
 
 
 def _column_scale(A: np.ndarray) -> np.ndarray:
-    """1 / sqrt(diag A) (1 where the diagonal is zero): unit columns for the eigen-analysis."""
+    """1 / sqrt(diag A): unit columns for the eigen-analysis. A column at round-off level (below
+    1e-9 of the largest: a straightness no file measures, seen only through the rounding of the
+    chain) keeps scale 1, so that it stays at zero size and counts as undetermined; scaled to unit
+    norm, its round-off would pass for information and the step would follow it to 1e12."""
     norms = np.sqrt(np.clip(np.diag(A), 0.0, None))
-    return np.where(norms > 0, 1.0 / np.where(norms > 0, norms, 1.0), 1.0)
+    real = norms > 1e-9 * max(float(norms.max()) if norms.size else 0.0, 1e-300)
+    return np.where(real, 1.0 / np.where(real, norms, 1.0), 1.0)
 
 
 def _relative_singular_values(As: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -959,12 +1012,16 @@ def stored_setup(fitted: FittedModel, mm: MeasurementModel) -> tuple[np.ndarray,
     """The fitted set-up (nuisance) of a file that was part of the fit, recognised by its tag (file
     stem), internal units; (zeros, False) when the model has none for it."""
     stored = fitted.info.get("identify", {}).get("nuisance", {})
+    internal = fitted.info.get("nuisance", {})        # mtcomp diagnose: internal units
     values = np.zeros(mm.n_nuisance)
     for i, spec in enumerate(mm.nuisance_specs):
         entry = stored.get(spec.name)
-        if not isinstance(entry, dict) or "value" not in entry:
+        if isinstance(entry, dict) and "value" in entry:
+            values[i] = float(entry["value"]) / spec.to_file
+        elif isinstance(internal.get(spec.name), (int, float)):
+            values[i] = float(internal[spec.name])
+        else:
             return np.zeros(mm.n_nuisance), mm.n_nuisance == 0
-        values[i] = float(entry["value"]) / spec.to_file
     return values, True
 
 
@@ -985,8 +1042,8 @@ def predict_readings(fitted: FittedModel, data: MeasurementSet, machine: Machine
         else:
             columns[f"{name}_sd"] = np.full(len(data), np.nan)
     if fitted.uncertainty is None:
-        notes.append("the model carries no uncertainty (not written by mtcomp identify/diagnose): "
-                     "the _sd columns are blank")
+        notes.append("the model carries no uncertainty (mtcomp identify writes one; diagnose does "
+                     "not yet): the _sd columns are blank")
     if not known:
         notes.append(f"{mm.tag} was not part of the fit: its set-up ({', '.join(s.name.split(':', 1)[1] for s in mm.nuisance_specs)}) "
                      "is unknown and taken as zero; compare readings up to that set-up")

@@ -39,6 +39,11 @@ def atomic_write(path: str | os.PathLike, mode: str = "w", newline: str | None =
             f = os.fdopen(fd, mode, encoding="utf-8", newline=newline)
         with f:
             yield f
+        # mkstemp makes the file private (0600); an output gets the permissions any new file of the
+        # user gets (0666 less the umask), so that a controller PC or a colleague can read it
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(OSError):
