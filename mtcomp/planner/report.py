@@ -154,7 +154,10 @@ class Summary:
 
     def text(self) -> str:
         n = max(self.evaluated, 1)
-        lines = [f"{self.blocks} blocks planned ({self.inserted} internal nodes inserted)",
+
+        def blocks(k: int) -> str:
+            return f"{k} block" if k == 1 else f"{k} blocks"
+        lines = [f"{blocks(self.blocks)} planned ({self.inserted} internal nodes inserted)",
                  f"predicted tool-tip deviation before: max {self.max_before_um:.3f} um, "
                  f"rms {np.sqrt(self.sum_sq_before / n):.3f} um",
                  f"predicted tool-tip deviation after:  max {self.max_after_um:.3f} um "
@@ -164,22 +167,22 @@ class Summary:
                          f"before, {self.max_axis_after_urad:.3f} urad after")
         if self.bounded_blocks:
             detail = ", ".join(f"{k} {v}" for k, v in sorted(self.flag_counts.items()))
-            lines.append(f"{self.bounded_blocks} blocks hit a bound ({detail}); worst remaining "
+            lines.append(f"{blocks(self.bounded_blocks)} hit a bound ({detail}); worst remaining "
                          f"predicted deviation {self.max_after_um:.3f} um at line {self.worst_line}")
         else:
             lines.append("0 blocks hit a bound")
         if self.not_converged:
-            lines.append(f"warning: {self.not_converged} blocks did not converge within the "
+            lines.append(f"warning: {blocks(self.not_converged)} did not converge within the "
                          "iteration limit")
         if self.unknown_blocks:
-            lines.append(f"{self.unknown_blocks} blocks not corrected: an axis position the program "
+            lines.append(f"{blocks(self.unknown_blocks)} not corrected: an axis position the program "
                          "had not given (at the start, after a home move, tool change or offset "
                          "change); those axes are not written")
         if self.outside_blocks:
             axes = ", ".join(f"{a} {k}" for a, k in self.outside_axes.items())
             what = ("corrected anyway (--extrapolate)" if self.extrapolate
                     else "not corrected (pass --extrapolate to correct them)")
-            lines.append(f"{self.outside_blocks} blocks outside the region the model's data reached "
+            lines.append(f"{blocks(self.outside_blocks)} outside the region the model's data reached "
                          f"({axes}; first at line {self.first_outside_line}): {what}")
         if not self.support_known:
             lines.append("note: the model does not state the region its data reached; every "
