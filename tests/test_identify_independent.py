@@ -67,8 +67,9 @@ def test_laser_runs_of_x_alone_invent_nothing(tmp_path):
                    static=static, noise_um=NOISE_UM)
     fit = identify(load_machine("xfyz"), [read_measurements(res.path)])
     model = fit.fitted_model
-    # the support says where the data were: X over the targets, Y and Z at the laser's line only
-    assert model.support["Y"] == (50.0, 50.0) and model.support["Z"] == (-40.0, -40.0)
+    # the support says where the data were: X over the targets; Y and Z did not move, and do not
+    # bound the region (what depends on them is held at zero)
+    assert set(model.support) == {"X"}
     lo, hi = model.support["X"]
     q = np.column_stack([np.linspace(lo, hi, 41), np.full(41, 50.0), np.full(41, -40.0)])
     dev = deviation(model.model, q, model.params.values)[:, :3] * 1e3
@@ -120,3 +121,53 @@ def test_real_runs_predicted_as_well_as_a_pitch_table(name, tmp_path):
                             for r in csv.DictReader(open(pred, newline=""))])
     print(f"{name}: held-out rms about the mean: pitch table {pitch:.2f} um, mtcomp {ours:.2f} um")
     assert ours <= 1.1 * pitch
+
+
+def _blocks(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+@pytest.mark.parametrize("seed", [11, 12, 13])
+def test_laser_model_of_x_corrects_its_line_and_leaves_the_rest_alone(seed, tmp_path):
+    """The whole user path on a partial campaign: laser runs of X alone (at Y 50, Z -40), identify,
+    compensate a program that runs along the laser's line and then elsewhere, cut it on the
+    independent machine. Along the line the X error goes to the noise; elsewhere X is corrected from
+    what the data say of X (as a pitch table from the run would be) and Y and Z not at all (the data
+    say nothing of them); the part's form error does not get worse."""
+    rng = np.random.default_rng(seed)
+    machine = TruthMachine.random("xfyz", rng, error_motions=False)
+    laser = tc.laser(machine, tmp_path / "laser_x.csv", rng, "X", components=["EXX"], n_runs=3,
+                     static={"Y": 50.0, "Z": -40.0}, noise_um=NOISE_UM).path
+    xs = np.arange(-300.0, 300.1, 20.0)
+    prog = tmp_path / "part.nc"
+    prog.write_text("G21 G90\nG0 X-300 Y50 Z-40\n" + "".join(f"G1 X{x:g} F1000\n" for x in xs[1:])
+                    + "G0 Y-100 Z0\n" + "".join(f"G1 X{x:g}\n" for x in xs[::-1]) + "M30\n")
+    model, out, rep = tmp_path / "m.json", tmp_path / "out.nc", tmp_path / "b.csv"
+    for cmd in (["identify", "xfyz", str(laser), "-o", str(model)],
+                ["compensate", "xfyz", str(model), str(prog), "-o", str(out), "--report", str(rep),
+                 "--max-step-um", "50"]):
+        subprocess.run([sys.executable, "-m", "mtcomp", *cmd], check=True, capture_output=True, text=True)
+    rows = [r for r in _blocks(rep) if r["inserted"] == "0"]
+    q = np.array([[float(r[f"{a}_mm"]) for a in "xyz"] for r in rows])          # as commanded
+    nominal = q - np.array([[float(r[f"c{a}_um"]) for a in "xyz"] for r in rows]) * 1e-3
+    ctx = Context(feed_mm_min=1000.0, dirs={"X": 1.0, "Y": 1.0, "Z": 1.0})
+    before = (machine.true_pose(nominal, None, ctx)[0] - nominal) * 1e3
+    after = (machine.true_pose(q, None, ctx)[0] - nominal) * 1e3
+    on_line = (np.abs(nominal[:, 1] - 50.0) < 1e-9) & (np.abs(nominal[:, 2] + 40.0) < 1e-9)
+    assert on_line.sum() >= 25 and (~on_line).sum() >= 25
+    # along the laser's line: X positioning removed to the noise (up to the laser's unknown zero)
+    x_before, x_after = before[on_line, 0], after[on_line, 0]
+    rms = lambda v: float(np.sqrt(np.mean((v - v.mean()) ** 2)))  # noqa: E731
+    print(f"X along the laser line: {rms(x_before):.2f} -> {rms(x_after):.2f} um")
+    assert rms(x_before) > 5 * rms(x_after) and rms(x_after) < 2 * NOISE_UM
+    # elsewhere: X corrected from what the data say of X, Y and Z not at all
+    assert all(r["corrected"] == "1" for r in rows)
+    for a in ("cy_um", "cz_um"):
+        np.testing.assert_allclose([float(r[a]) for r in rows], 0.0, rtol=0, atol=1e-4)
+    # the part as a whole: its form error (less the best rigid motion) is not worse
+    from truth import form_error
+    f_before = form_error(nominal + before * 1e-3, nominal).rms_um
+    f_after = form_error(nominal + after * 1e-3, nominal).rms_um
+    print(f"form error of the part: {f_before:.2f} -> {f_after:.2f} um")
+    assert f_after <= f_before + 1e-6

@@ -95,12 +95,16 @@ def data_positions(machine, datasets) -> dict[str, np.ndarray]:
 
 
 def data_support(machine, datasets) -> dict[str, tuple[float, float]]:
-    """The identified region: axis name -> (lowest, highest) position in the data, internal units. An
-    axis the data hold at one position has lo == hi; an axis no file positions is absent."""
+    """The identified region: axis name -> (lowest, highest) position in the data, internal units,
+    for every axis the data moved. An axis the data hold at one position (the static axes of a laser
+    run) is absent, like one no file positions: the model holds what depends on it at zero, and it
+    does not bound where the model applies (a laser run of X corrects X along the whole table, as
+    the pitch table from the same run would; correcting it only on the laser's line would make the
+    parts of a workpiece disagree)."""
     out = {}
     for a, v in data_positions(machine, datasets).items():
         v = v[np.isfinite(v)]
-        if v.size:
+        if v.size and np.ptp(v) > 1e-9:
             out[a] = (float(v.min()), float(v.max()))
     return out
 

@@ -12,8 +12,8 @@ Layout (file units: um, urad, mm; see docs/model_file.md)::
      "info": {...}}                                           # free: fit summary, provenance
 
 ``support`` is the identified region: for each axis that moved in the fitted data, the lowest and
-highest position it took (mm, deg). An axis not listed never moved in the data: what its errors are
-is not known, and the model holds them at zero. A model without ``support`` (written by hand, or by
+highest position it took (mm, deg). An axis not listed never moved in the data (or stood at one
+position): what its errors are is not known, and the model holds them at zero. A model without ``support`` (written by hand, or by
 an older mtcomp) claims nothing about its region.
 """
 from __future__ import annotations
@@ -42,9 +42,8 @@ class FittedModel:
     params : ParameterSet on ``model.param_specs`` (internal units).
     context_defaults : values for context channels a data set may lack (e.g. reference temperatures).
     info : free-form provenance (fit summary, command line).
-    support : axis name -> (lowest, highest) position the data reached, internal units (mm, rad);
-        an axis the data hold at one position has lowest == highest; axes no file positions are
-        absent. ``None``: the region is not known.
+    support : axis name -> (lowest, highest) position the data reached, internal units (mm, rad),
+        for the axes the data moved; the others are absent. ``None``: the region is not known.
     uncertainty : None, or what the fit knows of its own precision, internal units:
         ``{"names": (k,) fitted parameter names, "covariance": (k, k), "undetermined": (k, m)}``,
         the covariance of those parameters and the m directions of them the data did not determine
