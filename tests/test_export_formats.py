@@ -424,3 +424,20 @@ def test_linuxcnc_table_applied_as_linuxcnc_does_cancels_the_positioning_error(f
         before = predicted(fitted, "X", x, d)[:, 0]
         assert np.max(np.abs(before)) > 5e-3
         np.testing.assert_allclose(reached, x, rtol=0, atol=2e-3 * np.max(np.abs(before)))
+
+
+def test_siemens_writes_no_table_of_zeros(tmp_path):
+    """A model of X positioning alone (laser runs of X: every other error held at zero) gets its LEC
+    table and no cross-axis CEC table of zeros; the README says why."""
+    model = ErrorModel(load_machine("xfyz").with_basis("polynomial"))
+    ps = ParameterSet(model.param_specs)
+    ps.set_file_value("EXX_1", 30.0)
+    ps.set_file_value("EXX_2", -20.0)
+    path = tmp_path / "x.json"
+    save_model(path, FittedModel(model, ps, support={"X": (-100.0, 200.0)}))
+    out = export(path, tmp_path / "sie", "siemens")
+    cec_text = (out / "NC_CEC.INI").read_text()
+    assert "$AN_CEC_OUTPUT_AXIS" not in cec_text
+    assert "$AA_ENC_COMP[0,0,AX1]" in (out / "AX_EEC.INI").read_text()
+    readme = (out / "README.txt").read_text()
+    assert "no CEC table for AX1 -> AX2" in readme and "no CEC table for AX1 -> AX3" in readme

@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from ._output import FULL, MEAN, ExportResult, readme_text, sign_factor_and_note
 from ._tables import component_names, own_column
 
@@ -86,6 +88,11 @@ def export(tables, sign: str | None = None, **_) -> ExportResult:
             if d == a or d not in m.axis_names:
                 continue
             col = t.mean[:, "XYZ".index(d)]
+            if not np.any(np.abs(col) >= 0.5e-6):
+                # a straightness the model holds at zero (no data on it) would be a table of zeros
+                notes.append(f"no CEC table for {ax} -> {axis_name(m, d)}: the model has no "
+                             f"straightness E{d}{a} (zero to the table's 1 nm resolution)")
+                continue
             _cec_table(cec, t_no, cec_sign * col, t, ax, axis_name(m, d), 0, factor)
             carried[(a, f"E{d}{a}")] = MEAN
             t_no += 1
