@@ -162,6 +162,10 @@ class Summary:
                  f"rms {np.sqrt(self.sum_sq_before / n):.3f} um",
                  f"predicted tool-tip deviation after:  max {self.max_after_um:.3f} um "
                  f"(line {self.worst_line}), rms {np.sqrt(self.sum_sq_after / n):.3f} um"]
+        not_corrected = self.unknown_blocks + (0 if self.extrapolate else self.outside_blocks)
+        if not_corrected:
+            lines.append(f"(these figures include the {blocks(not_corrected)} left uncorrected, "
+                         "listed below)")
         if self.max_axis_before_urad is not None:
             lines.append(f"predicted tool-axis deviation: max {self.max_axis_before_urad:.3f} urad "
                          f"before, {self.max_axis_after_urad:.3f} urad after")
