@@ -75,9 +75,6 @@ def test_output_never_overwrites_the_model_and_kind_of_output_is_checked(tmp_pat
     assert p.read_text() == before
     assert main(["export", "xfyz", str(p), "--format", "linuxcnc", "-o", str(p)]) == 2
     assert "is a file" in capsys.readouterr().err
-    (tmp_path / "d").mkdir()
-    assert main(["export", "xfyz", str(p), "--format", "klipper", "-o", str(tmp_path / "d")]) == 2
-    assert "directory" in capsys.readouterr().err
     assert list(tmp_path.glob(".*part")) == []
 
 
@@ -98,3 +95,18 @@ def test_region_shorter_than_a_grid_step_gets_no_table(tmp_path, capsys):
     assert main(["export", "xfyz", str(p), "--format", "fanuc", "-o", str(tmp_path / "f")]) == 0
     assert "axis Y: no table: its region is shorter than one grid step" in capsys.readouterr().err
     assert "N3620 A2 " not in (tmp_path / "f" / "pitch_error.txt").read_text()
+
+
+def test_single_file_format_into_a_directory(tmp_path, capsys):
+    """klipper writes one file: given a directory it goes inside it as skew.cfg; a path written as a
+    directory that does not exist is refused in one line."""
+    model = _model(tmp_path, {"X": (-20.0, 20.0), "Y": (-20.0, 20.0)})
+    (tmp_path / "out").mkdir()
+    assert main(["export", "xfyz", str(model), "--format", "klipper", "-o", str(tmp_path / "out")]) == 0
+    assert (tmp_path / "out" / "skew.cfg").is_file()
+    capsys.readouterr()
+    assert main(["export", "xfyz", str(model), "--format", "klipper", "-o",
+                 str(tmp_path / "nodir") + "/"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no such directory" in err[0]
+    assert not (tmp_path / "nodir").exists()

@@ -145,11 +145,15 @@ def write_result(result: ExportResult, out, inputs=()) -> list[Path]:
     """Write the files: OUT is the file itself (single-file formats) or a directory that is created
     (or whose files of the same names are replaced). Everything is written to temporary files first
     and renamed at the end; an input is never overwritten."""
+    as_given = str(out)
     out = Path(out)
     if result.single_file:
         (name, text), = result.files.items()
-        if out.is_dir():
-            raise InputError(f"the {result.format} format writes one file; this is a directory", out)
+        if out.is_dir() or as_given.endswith(("/", os.sep)):
+            # a directory (or a path written as one): the file goes inside it, under its own name
+            if not out.is_dir():
+                raise InputError(f"the {result.format} format writes one file; no such directory", out)
+            out = out / name
         check_output_path(out, list(inputs))
         with atomic_write(out) as f:
             f.write(text)
