@@ -83,10 +83,10 @@ class Axis:
 
     def spline(self):
         """The :class:`~mtcomp.models.basis.SplineBasis` of a linear axis with basis 'bspline'."""
-        from .models.basis import SplineBasis
+        from .models.basis import spline_basis
         lo, hi = self.spline_range if self.spline_range is not None else self.travel
-        return SplineBasis(float(lo), float(hi), int(self.spline_intervals or DEFAULT_SPLINE_INTERVALS),
-                           int(self.degree))
+        return spline_basis(float(lo), float(hi), int(self.spline_intervals or DEFAULT_SPLINE_INTERVALS),
+                            int(self.degree))
 
     @property
     def is_rotary(self) -> bool:

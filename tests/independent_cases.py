@@ -32,7 +32,6 @@ def clean_campaign(topology: str, seed: int, folder: Path) -> tuple[TruthMachine
     machine = TruthMachine.random(name, rng, error_motions=False)
     folder.mkdir(parents=True, exist_ok=True)
     paths = [tc.points(machine, folder / "points.csv", rng, repeats=2, noise_um=NOISE_UM).path]
-    t = 0.0
     for a in machine.axis_names:
         if a in "XYZ":
             static = {b: rng.uniform(*machine.travel[b]) * 0.5 for b in "XYZ" if b != a}
@@ -45,7 +44,6 @@ def clean_campaign(topology: str, seed: int, folder: Path) -> tuple[TruthMachine
     paths.append(tc.ballbar_circles(machine, folder / "ballbar.csv", rng, noise_mm=NOISE_MM).path)
     if "C" in machine.axis_names:
         paths.append(tc.three_sphere(machine, folder / "three_sphere.csv", rng, noise_mm=NOISE_MM).path)
-    del t
     return machine, paths
 
 

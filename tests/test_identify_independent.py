@@ -46,7 +46,6 @@ def test_predict_reproduces_the_fit_on_its_own_file(tmp_path):
     for d, f in zip(data, res.files):
         pred = predict_readings(res.fitted_model, d)
         assert pred.setup_known
-        col = {"points": None, "laser": None, "ballbar": "pred_length_mm"}[d.kind]
         if d.kind == "points":
             got = np.column_stack([pred.columns[f"pred_d{x}_um"] for x in "xyz"])
             resid = (d.deviation * 1e3 - got)[np.isfinite(d.deviation)]
@@ -55,7 +54,7 @@ def test_predict_reproduces_the_fit_on_its_own_file(tmp_path):
                            pred.columns.get("pred_value_um", np.nan))
             resid = np.where(d.angular, d.value * 1e6, d.value * 1e3) - got
         else:
-            resid = (d.length - pred.columns[col]) * 1e3 * 1e-3    # mm, as the fit reports lengths
+            resid = d.length - pred.columns["pred_length_mm"]     # mm, as the fit reports lengths
         np.testing.assert_allclose(resid, f.residual, rtol=0, atol=1e-9)
 
 

@@ -304,6 +304,8 @@ class IdentificationResult:
                 lines.append(f"  {u}")
         else:
             lines.append("every fitted parameter is determined by the data")
+        if "weak_directions" in self.info:
+            lines.append(f"weakly determined combinations {self.info['weak_directions']}")
         corr = self.largest_correlations()
         if corr:
             lines.append("strongest correlations: " + ", ".join(f"{a}/{b} {r:+.3f}" for a, b, r in corr))
@@ -447,6 +449,9 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
     sol = problem.solve(w, rcond, max_iterations, tol)
     result = problem.result(sol, w, label, ctx_defaults, time.perf_counter() - t0, info)
     result.fitted_model.support = data_support(model.machine, datasets)
+    if problem.weak_fallback:
+        result.info["weak_directions"] = ("not held: holding them would have spoiled the fit of the "
+                                          "data; the data's own least-squares fit is kept")
     return result
 
 

@@ -41,11 +41,6 @@ def setup_keys(data: MeasurementSet) -> np.ndarray | None:
     the same id are repeats. None for kinds without that structure (only laser and points files)."""
     if not isinstance(data, (LaserData, PointsData)):
         return None
-    return _setup_keys(data)
-
-
-def _setup_keys(data: MeasurementSet) -> np.ndarray:
-    """(n,) integer id of each row's set-up (everything but the run, time and the reading)."""
     ctx = data.context
     parts = [np.round(np.nan_to_num(ctx.feed, nan=-1.0), 3)[:, None], ctx.dirs.astype(float)]
     if isinstance(data, LaserData):
@@ -85,9 +80,9 @@ def _flag(values: np.ndarray, groups: np.ndarray) -> tuple[np.ndarray, np.ndarra
 def find_outliers(data: MeasurementSet) -> tuple[MeasurementSet, list[Outlier]]:
     """(the set with outlying readings blanked, the outliers). Kinds other than laser and points
     come back unchanged: they have no repeat structure to judge by."""
-    if not isinstance(data, (LaserData, PointsData)) or len(data) < 6:
+    groups = setup_keys(data)
+    if groups is None or len(data) < 6:
         return data, []
-    groups = _setup_keys(data)
     found: list[Outlier] = []
     if isinstance(data, LaserData):
         flag, dev = _flag(data.value, groups)

@@ -387,9 +387,9 @@ class PointsModel(MeasurementModel):
         if self.options.get("setup", "free") != "known" and self.n_obs:
             from ..kinematics import forward
             tip0 = forward(self.machine, self.q)[0]
-            arm = tip0 - tip0[self._rows].mean(axis=0)
+            self._setup_arm = tip0 - tip0[self._rows].mean(axis=0)    # (n_rows, 3): w x arm
             # d/dt = A; d/dw of A . (w x r) = r x A
-            self._setup_design = np.hstack([self._A, np.cross(arm[self._rows], self._A)])
+            self._setup_design = np.hstack([self._A, np.cross(self._setup_arm[self._rows], self._A)])
             for name, unit in (("tx", "um"), ("ty", "um"), ("tz", "um"),
                                ("rx", "urad"), ("ry", "urad"), ("rz", "urad")):
                 self.nuisance_specs.append(ParamSpec(
@@ -438,10 +438,7 @@ class PointsModel(MeasurementModel):
         d = self.tip_deviation(p)
         if self.n_nuisance:
             # the set-up acts on every row alike: t + w x (tip0 - c), c the centroid of the observations
-            from ..kinematics import forward
-            tip0 = forward(self.machine, self.q)[0]
-            arm = tip0 - tip0[self._rows].mean(axis=0)
-            d = d + nuisance[:3] + np.cross(nuisance[3:], arm)
+            d = d + nuisance[:3] + np.cross(nuisance[3:], self._setup_arm)
         out = {"pred_dx_um": d[:, 0] * 1e3, "pred_dy_um": d[:, 1] * 1e3, "pred_dz_um": d[:, 2] * 1e3}
         if "dn_um" in self.data.measured:
             given = np.all(np.isfinite(self.data.normal), axis=1)

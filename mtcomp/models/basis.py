@@ -36,9 +36,10 @@ carries.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
 from math import comb, factorial
 
+import casadi as ca
 import numpy as np
 
 #: component errors whose linear part (slope) a squareness carries (ISO 230-1 reference lines)
@@ -47,22 +48,14 @@ SLOPE_CARRIED_BY_SQUARENESS = {"EXY": "C0Y", "EXZ": "B0Z", "EYZ": "A0Z"}
 
 def _clip(x, lo, hi):
     """Works on numpy arrays and CasADi expressions alike."""
-    try:
-        import casadi as ca
-        if isinstance(x, (ca.SX, ca.MX)):
-            return ca.fmin(ca.fmax(x, lo), hi)
-    except ImportError:     # pragma: no cover
-        pass
+    if isinstance(x, (ca.SX, ca.MX)):
+        return ca.fmin(ca.fmax(x, lo), hi)
     return np.minimum(np.maximum(x, lo), hi)
 
 
 def _positive_part(x):
-    try:
-        import casadi as ca
-        if isinstance(x, (ca.SX, ca.MX)):
-            return ca.fmax(x, 0)
-    except ImportError:     # pragma: no cover
-        pass
+    if isinstance(x, (ca.SX, ca.MX)):
+        return ca.fmax(x, 0)
     return np.maximum(x, 0.0)
 
 
@@ -157,6 +150,12 @@ class SplineBasis:
         """[phi_j(s) for j in kept(carried_slope)]: B_j less its mean (and least-squares line), all
         evaluated at the clipped position (constant beyond the range). numpy or CasADi."""
         return self.functions_by_reference(s)[carried_slope]
+
+
+@lru_cache(maxsize=256)
+def spline_basis(lo: float, hi: float, n_intervals: int, degree: int) -> SplineBasis:
+    """The (shared, immutable) basis of one knot layout: built, and its moments integrated, once."""
+    return SplineBasis(lo, hi, n_intervals, degree)
 
 
 def auto_spline(positions, travel: tuple[float, float], max_basis: int = 16,
