@@ -143,8 +143,24 @@ def test_tool_side_yaw_about_carriage_pivot_by_hand():
     m.pivots["Y"] = p
     q = _q3(np.random.default_rng(4))
     d, _ = m.true_deviation(q)
-    arm = np.column_stack([np.zeros(len(q)), np.zeros(len(q)), q[:, 2]]) - p    # tip in the Y carriage
+    L = m.tool_length_mm
+    arm = np.column_stack([np.zeros(len(q)), np.zeros(len(q)), q[:, 2] - L]) - p    # tip in the Y carriage
     assert_allclose(d, arm @ (_rz(eps) - np.eye(3)).T, rtol=1e-12, atol=1e-12)
+
+
+def test_tool_side_pitch_arm_grows_with_the_tool_length():
+    """The Y slide's pivot is fixed on the slide: a tool 90 mm longer puts the tip 90 mm further
+    from it, so a pitch of the slide moves the tip by 90 mm x eps more along Y."""
+    m = TruthMachine.zero("XFYZ")
+    eps = 25 * URAD
+    p = np.array([10.0, -40.0, 120.0])                   # relative to the gauge point at q = 0
+    m.components["Y"]["EAY"] = P.Constant(eps)
+    m.pivots["Y"] = p
+    q = _q3(np.random.default_rng(8), 5)
+    for L in (0.0, 90.0):
+        d, _ = m.true_deviation(q, L)
+        arm = np.column_stack([np.zeros(len(q)), np.zeros(len(q)), q[:, 2] - L]) - p
+        assert_allclose(d, arm @ (_rx(eps) - np.eye(3)).T, rtol=1e-9, atol=1e-12)
 
 
 def test_spindle_carriage_pivot_is_fixed_to_the_gauge_point():

@@ -47,13 +47,13 @@ What is modelled, where each error acts, and the signs
 
 * tool side: carriage in its parent = ``Trans(s u) Trans(delta) Trans(p) R Trans(-p)``: the carriage
   translates by delta and turns by R about the pivot p, a point fixed in the carriage frame
-  (``pivots[a]``, random: within +-150 mm in X and Y and 50-400 mm above the tip's zero position, i.e.
-  somewhere on the slide; for the spindle carriage 20-300 mm above the gauge point). Everything it
-  carries (the following axes, the spindle, the tool) turns with it, so the Abbe arm of the tip is
-  (tip position in that carriage frame) - p, e.g. on XFYZ for Y: ``(0, 0, z) - p_Y``. For the axis
-  that carries the spindle (the last tool-side axis, Z here) the pivot is given relative to the
-  spindle gauge point, i.e. p + (0, 0, tool_length) in carriage coordinates, so it is fixed on the
-  ram whatever the tool length: the arm of the tip is ``-(p_Z + (0, 0, L))``.
+  (``pivots[a]``, random: within +-150 mm in X and Y and 50-400 mm above the spindle gauge point at
+  q = 0, i.e. somewhere on the slide; for the spindle carriage 20-300 mm above the gauge point).
+  Everything it carries (the following axes, the spindle, the tool) turns with it. The tool-side
+  carriage frames have their origin at the tool tip at q = 0, so a pivot fixed on the slide is
+  given relative to the gauge point: p + (0, 0, tool_length) in carriage coordinates, and the Abbe
+  arm of the tip is (tip position in that carriage frame) - p - (0, 0, L), e.g. on XFYZ for Y:
+  ``(0, 0, z - L) - p_Y``, for Z: ``-(p_Z + (0, 0, L))``. A longer tool has a longer arm.
 * table side: table in the bed = ``Trans(-s u) Trans(p) R^T Trans(-p) Trans(-delta)``, so the tool
   relative to the table moves by ``Trans(delta) Trans(p) R Trans(-p) Trans(s u)``: the component
   errors of a table axis are the error motion of the tool relative to the table (what a laser reads,

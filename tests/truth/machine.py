@@ -130,10 +130,10 @@ class TruthMachine:
 
     Attributes (plain data a test may set; see :mod:`truth` for their meaning):
     components : {axis: {component name: profile f(s) -> mm or rad}}
-    pivots : {linear axis: (3,) mm} point, in that axis's carriage frame, about which its angular
-        errors act; for the axis that carries the spindle (the last tool-side axis, Z) relative to
-        the spindle gauge point instead (carriage coordinates ``pivot + (0, 0, tool_length)``), so
-        that it is fixed on the ram whatever the tool length.
+    pivots : {linear axis: (3,) mm} point about which the axis's angular errors act, fixed on its
+        carriage: for a table axis in the table's frame; for a tool-side axis relative to the
+        spindle gauge point (carriage coordinates ``pivot + (0, 0, tool_length)``), so that it stays
+        on the slide whatever the tool length.
     squareness : {"C0Y", "B0Z", "A0Z": rad}.
     location : {rotary location error name (X0C, Y0C, A0C, B0C ...): mm or rad}.
     spindle_tilt : (2,) rad, tilt of the tool axis about X then about Y of the Z carriage.
@@ -334,8 +334,10 @@ class TruthMachine:
 
     def _pivot(self, axis, s, ctx, L=None) -> np.ndarray:
         p = np.broadcast_to(self.pivots[axis], (len(s), 3)).copy()
-        if L is not None and self.side(axis) == "tool" and axis == self.tool_chain[-1]:
-            p[:, 2] += L                   # the spindle carriage's pivot is fixed to the gauge point
+        if L is not None and self.side(axis) == "tool":
+            # the carriage frames of the tool side have their origin at the tool tip (q = 0): a pivot
+            # fixed on a slide is fixed relative to the spindle gauge point, L above the tip
+            p[:, 2] += L
         for e in self.effects:
             d = e.pivot_shift(self, axis, s, ctx)
             if d is not None:
