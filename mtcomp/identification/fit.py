@@ -542,6 +542,7 @@ class _Problem:
         self.observed = np.concatenate([m.observed for m in mms])
         self.metric = None      # (n_unknowns, n_unknowns) mean squared tip error over the travel, mm^2
         self.weak_fallback = False  # the weak-direction pass was refused (see solve)
+        self._group_cache: dict = {}
 
     # --------------------------------------------------------------- weights
     def unit_weights(self):
@@ -600,14 +601,14 @@ class _Problem:
                 pred[so] = m.predict(p, x[sn])
         return pred
 
-    def normal_equations(self, x, w):
+    def normal_equations(self, x, w, gram: bool = True):
         """Predictions and the normal equations of the weighted problem at x, file by file (the
         stacked Jacobian is never formed): A = Jw^T Jw (n_unknowns, n_unknowns), g = Jw^T r_w with
-        Jw = w J and r_w = w (observed - predicted)."""
+        Jw = w J and r_w = w (observed - predicted). ``gram=False`` skips A (returned as None)."""
         p = self.params(x)
         n_u, nf, fi = self.n_unknowns, self.n_free, self.free_idx
         pred = np.empty(self.n_obs)
-        A = np.zeros((n_u, n_u))
+        A = np.zeros((n_u, n_u)) if gram else None
         g = np.zeros(n_u)
         for m, so, sn in zip(self.mms, self.obs_slices, self.nuis_slices):
             if m.n_obs == 0:
@@ -618,16 +619,25 @@ class _Problem:
             rw = ww * (self.observed[so] - y)
             Jw = np.multiply(Jp, ww[:, None], out=Jp if Jp.flags.writeable else None)
             Jnw = Jn * ww[:, None]
-            App = _gram(Jw)
-            A[:nf, :nf] += App[np.ix_(fi, fi)]
             g[:nf] += (Jw.T @ rw)[fi]
-            if Jn.shape[1]:
+            g[sn] += Jnw.T @ rw
+            if gram:
+                A[:nf, :nf] += _column_grouped_gram(Jw, self._column_groups(m))[np.ix_(fi, fi)]
                 Apn = (Jw.T @ Jnw)[fi]
                 A[:nf, sn] += Apn
                 A[sn, :nf] += Apn.T
                 A[sn, sn] += Jnw.T @ Jnw
-                g[sn] += Jnw.T @ rw
         return pred, A, g
+
+    def _column_groups(self, m) -> list[np.ndarray]:
+        """The observation indices of measurement model m, one array per measured column (a dx
+        reading and a dz reading depend on different parameters; cached per model)."""
+        groups = self._group_cache.get(id(m))
+        if groups is None:
+            cols = np.unique(np.asarray(m.obs_column, dtype=str), return_inverse=True)[1].ravel()
+            groups = [_as_slice(np.flatnonzero(cols == k)) for k in range(int(cols.max(initial=-1)) + 1)]
+            self._group_cache[id(m)] = groups
+        return groups
 
     def leverages(self, x, w, scale, B, L):
         """(n_obs,) diagonal of the hat matrix Js B (B^T Js^T Js B)^-1 B^T Js^T, L L^T = B^T Js^T Js B."""
@@ -650,15 +660,14 @@ class _Problem:
         (the same reading of the same set-up in several runs, mtcomp.measurement.outliers) when the
         files have at least 5 degrees of freedom of repeats, so that a model's misfit (an effect it
         lacks) is not taken for noise; else the rms residual."""
-        from ..measurement.outliers import setup_keys
+        from ..measurement.outliers import row_groups, setup_keys
         ss, dof = 0.0, 0
         for m, so in zip(self.mms, self.obs_slices):
             keys = setup_keys(m.data)
             if keys is None or m.n_obs == 0:
                 continue
             cols = np.unique(np.asarray(m.obs_column, dtype=str), return_inverse=True)[1]
-            group = np.unique(np.column_stack([keys[m.obs_row], cols]), axis=0, return_inverse=True)[1]
-            group = np.asarray(group).ravel()
+            group = row_groups(np.column_stack([keys[m.obs_row], cols]))
             rr = r[so]
             counts = np.bincount(group)
             means = np.bincount(group, weights=rr) / counts
@@ -814,6 +823,11 @@ class _Problem:
         converged = False
         iterations = 0
         AB = reduced(A)
+        # The model is linear in p up to products of errors (1e-5 of the readings), so the Gram
+        # matrix at the start serves every step (the chord method: the gradient is exact at each
+        # step, so the minimum is the exact one). It is formed anew only when a step fails to
+        # descend or convergence is slow: signs that the problem is not nearly linear.
+        refresh = False
         for it in range(1, max_iterations + 1):
             iterations = it
             dz = _step(B, AB, scale * (g - P @ x))
@@ -823,7 +837,9 @@ class _Problem:
                 # a converged step needs no new Jacobian (the one at x serves the covariance)
                 pred_new, A_new, g_new = self.evaluate(x_new), None, None
             else:
-                pred_new, A_new, g_new = self.normal_equations(x_new, w)
+                refresh = refresh or it >= 4
+                pred_new, A_new, g_new = self.normal_equations(x_new, w, gram=refresh)
+                A_new = A if A_new is None else A_new
             r_new = w * (self.observed - pred_new)
             cost_new = objective(r_new, x_new)
             step = 1.0
@@ -835,6 +851,7 @@ class _Problem:
                 r_new = w * (self.observed - pred_new)
                 cost_new = objective(r_new, x_new)
                 A_new = None
+                refresh = True
             if cost_new > cost * (1 + 1e-12) + 1e-300:
                 # no descent along the Gauss-Newton step: either at the minimum, or the step is
                 # dominated by nearly singular directions; Levenberg-Marquardt damping tells them apart
@@ -843,6 +860,7 @@ class _Problem:
                     converged = True
                     break
                 A_new = None
+                refresh = True
                 small = False
             x, r, cost = x_new, r_new, cost_new
             if small or cost == 0.0:
@@ -956,6 +974,39 @@ def _gram(J: np.ndarray) -> np.ndarray:
         upper = dsyrk(1.0, J.T, trans=0, lower=0)      # J.T is Fortran-ordered: no copy
         return np.triu(upper) + np.triu(upper, 1).T
     return J.T @ J
+
+
+def _as_slice(idx: np.ndarray):
+    """A slice equal to the sorted index array ``idx`` when its steps are equal (a view, not a
+    copy, of the rows of a Jacobian: the readings of a points file come as dx, dy, dz per row),
+    else ``idx``."""
+    if idx.size >= 2:
+        step = int(idx[1] - idx[0])
+        if step > 0 and np.all(np.diff(idx) == step):
+            return slice(int(idx[0]), int(idx[-1]) + 1, step)
+    return idx
+
+
+def _column_grouped_gram(J: np.ndarray, groups) -> np.ndarray:
+    """J^T J summed over row groups, each on the columns it does not hold at exactly zero.
+
+    A parameter that cannot move a reading has a structural zero in its column (an X straightness
+    in a dz reading, an angle about Z in a dz reading): the Gram of each group of readings (one
+    measured column) then needs only its own columns, about half of them, which is a quarter of
+    the work of the full product."""
+    p = J.shape[1]
+    if len(groups) <= 1:
+        return _gram(np.ascontiguousarray(J))
+    A = np.zeros((p, p))
+    for rows in groups:
+        Jg = J[rows]
+        cols = np.flatnonzero(np.any(Jg != 0.0, axis=0))
+        if cols.size == 0:
+            continue
+        if cols.size < p:
+            Jg = np.ascontiguousarray(Jg[:, cols])
+        A[np.ix_(cols, cols)] += _gram(Jg)
+    return A
 
 
 def _step(B, AB, gs):

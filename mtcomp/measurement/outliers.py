@@ -51,8 +51,24 @@ def setup_keys(data: MeasurementSet) -> np.ndarray | None:
                   np.round(data.optic, 6)]
     else:
         parts += [np.round(data.xyz, 6), np.round(data.abc, 9), np.round(np.nan_to_num(data.tool, nan=-1.0), 6)[:, None]]
-    keys = np.hstack(parts)
-    return np.unique(keys, axis=0, return_inverse=True)[1].ravel()
+    return row_groups(np.hstack(parts))
+
+
+def row_groups(keys: np.ndarray) -> np.ndarray:
+    """(n,) integer id of each row of ``keys`` (n, k): equal rows get equal ids, numbered in the
+    rows' sorted order (what ``np.unique(keys, axis=0, return_inverse=True)`` gives, by a lexical
+    sort of the columns, many times faster on large files)."""
+    keys = np.asarray(keys, dtype=float)
+    n = keys.shape[0]
+    if n == 0:
+        return np.zeros(0, dtype=int)
+    order = np.lexsort(keys.T[::-1])
+    s = keys[order]
+    new = np.ones(n, dtype=bool)
+    new[1:] = np.any(s[1:] != s[:-1], axis=1)
+    ids = np.empty(n, dtype=int)
+    ids[order] = np.cumsum(new) - 1
+    return ids
 
 
 def _flag(values: np.ndarray, groups: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
