@@ -224,6 +224,21 @@ def test_small_batches_do_not_compile_unless_cached(cache, monkeypatch):
     assert compiled.compile_count == before
 
 
+def test_a_function_used_on_many_poses_in_all_gets_compiled(cache, monkeypatch):
+    """A fit evaluates one function on the same few thousand poses many times: once the poses add
+    up to MTCOMP_COMPILE_MIN_POSES it is compiled, though no single call reaches it."""
+    monkeypatch.setenv("MTCOMP_COMPILE_MIN_POSES", "25")
+    model = ErrorModel(load_machine("xfyz"))
+    q, p, c = _inputs(model, 8, 10)
+    before = compiled.compile_count
+    assert compiled.call(model, "deviation_function", model.deviation_function, q, p, c) is None
+    assert compiled.call(model, "deviation_function", model.deviation_function, q, p, c) is None
+    out = compiled.call(model, "deviation_function", model.deviation_function, q, p, c)
+    assert compiled.compile_count == before + 1
+    np.testing.assert_allclose(out[0], casadi_map_call(model.deviation_function, q, p, c)[0],
+                               rtol=0, atol=1e-12)
+
+
 def test_fallback_without_compiler(cache, monkeypatch, capsys):
     monkeypatch.setenv("MTCOMP_CC", "/nonexistent/cc")
     monkeypatch.setenv("MTCOMP_COMPILE_MIN_POSES", "1")

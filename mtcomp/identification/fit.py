@@ -768,6 +768,7 @@ class _Problem:
         rank = int(keep.sum())
         cond = float(rel[0] / rel[keep][-1]) if rank else np.inf
         P = np.zeros((self.n_unknowns, self.n_unknowns))
+        start = (x, r, A, g)
         x, r, A, g, B, scale_p, AB, iterations, converged = self._gauss_newton(
             x, r, A, g, P, w, rcond, max_iterations, tol, directions=V[:, keep], scale=scale)
         sigma_w = self._repeat_scale(r, rank)
@@ -782,8 +783,10 @@ class _Problem:
             U_, sv_, _ = np.linalg.svd(Wk, full_matrices=False)
             null = np.hstack([null, U_[:, sv_ > 1e-3]])
             rank = self.n_unknowns - null.shape[1]
+            # from the start again: the data-only pass may have wandered far along the weak
+            # directions, and pulling them back through a nonlinear model converges slowly
             x, r, A, g, B, scale_p, AB, more, converged = self._gauss_newton(
-                x, r, A, g, P, w, rcond, max_iterations, tol)
+                *start, P, w, rcond, max_iterations, tol)
             iterations += more
             # holding weak directions may cost the data fit about one noise variance each; much more
             # means the split into weak and strong went wrong numerically: keep the data's own fit

@@ -36,8 +36,10 @@ Environment:
 * ``MTCOMP_CC``: the compiler to use (default: ``$CC``, else ``cc``, ``gcc``, ``clang`` on PATH). A
   path that does not exist means "no compiler": evaluation falls back to CasADi's map.
 * ``MTCOMP_CACHE_DIR``: where libraries are kept.
-* ``MTCOMP_COMPILE_MIN_POSES``: smallest N for which ``backend='auto'`` compiles a function that is
-  not compiled yet (default 5000; below that CasADi's map is faster than a compile).
+* ``MTCOMP_COMPILE_MIN_POSES``: ``backend='auto'`` compiles a function that is not compiled yet
+  once the process has evaluated it on this many poses in all (default 5000; a fit calls the same
+  function on its poses a dozen times or more, which pays for the compile; a one-off evaluation of
+  fewer poses is faster with CasADi's map).
 """
 from __future__ import annotations
 
@@ -660,11 +662,14 @@ _failed: dict = {}  # (structure key, function name, compiler) -> message of the
 
 
 def forget_loaded():
-    """Drop the in-process caches of libraries, sources and failures (the disk cache stays)."""
+    """Drop the in-process caches of libraries, sources, failures, lookups and use counts (the disk
+    cache stays)."""
     with _lock:
         _loaded.clear()
         _failed.clear()
         _sources.clear()
+        _not_on_disk.clear()
+        _poses_used.clear()
 
 
 def _source(skey, function, merge: bool):
@@ -682,6 +687,10 @@ def _generator_fingerprint() -> str:
 
 
 _GENERATOR = None
+#: (structure key, compiler) of functions with no library on disk when last looked for
+_not_on_disk: set = set()
+#: (model structure key, function name) -> poses evaluated in this process
+_poses_used: dict = {}
 
 
 def _index_path(function: ca.Function, compiler: str) -> Path:
@@ -729,10 +738,13 @@ def get_compiled(model, name: str, function: ca.Function, compile_if_missing: bo
         if (skey, compiler) in _failed:
             raise CompileError(_failed[(skey, compiler)])
         sizes = [function.numel_out(k) for k in range(function.n_out())]
+        if not compile_if_missing and (skey, compiler) in _not_on_disk:
+            return None             # looked for already in this process (a lookup hashes the function)
         _private_cache_dir()
         lib = _from_index(function, compiler)
         if lib is None:
             if not compile_if_missing:
+                _not_on_disk.add((skey, compiler))
                 return None
             # first with the fast form, then (a compiler or libm without what it needs) plain
             variants = [True, False] if (skey, compiler, "merged") not in _failed else [False]
@@ -761,9 +773,11 @@ def call(model, name, function, q, p, c, required=False):
     returning None.
     """
     n = np.asarray(q).shape[0]
+    used = (model.structure_key(), name)
+    _poses_used[used] = _poses_used.get(used, 0) + n
     try:
         comp = get_compiled(model, name, function,
-                            compile_if_missing=required or n >= _min_poses())
+                            compile_if_missing=required or _poses_used[used] >= _min_poses())
     except CompileError as exc:
         if required:
             raise RuntimeError(f"compiled backend not available: {exc}") from None
