@@ -19,12 +19,17 @@ from truth import campaigns as tc
 NOISE_UM = 0.3
 NOISE_URAD = 0.5
 NOISE_MM = NOISE_UM * 1e-3
+#: bidirectional runs per laser file (ISO 230-2 asks for five). With a model as fine as the targets
+#: (one function per target), a run held out of k is predicted from 2 (k - 1) readings per target:
+#: even a right model then leaves sqrt(1 + 1 / (2 (k - 1))) times the noise, 1.12 for k = 3
+LASER_RUNS = 5
 
 
 def clean_campaign(topology: str, seed: int, folder: Path) -> tuple[TruthMachine, list[Path]]:
     """A rich campaign on a random independent machine with no hidden effect: volumetric points (two
     tool lengths, both directions, two passes), laser runs of every axis (all components, an optic
-    offset, the other axes at random positions), ball-bar circles and, with a C axis, the
+    offset, the other axes at random positions; five bidirectional runs, as ISO 230-2 asks),
+    ball-bar circles and, with a C axis, the
     three-sphere set-up. Rotary error motions are left out: they are a diagnose finding
     (rotary_pdge), not part of the base model."""
     rng = np.random.default_rng(seed)
@@ -35,11 +40,12 @@ def clean_campaign(topology: str, seed: int, folder: Path) -> tuple[TruthMachine
     for a in machine.axis_names:
         if a in "XYZ":
             static = {b: rng.uniform(*machine.travel[b]) * 0.5 for b in "XYZ" if b != a}
-            res = tc.laser(machine, folder / f"laser_{a.lower()}.csv", rng, a, n_runs=3, static=static,
+            res = tc.laser(machine, folder / f"laser_{a.lower()}.csv", rng, a, n_runs=LASER_RUNS, static=static,
                            optic_mm=tuple(rng.uniform(-150, 150, 3)), noise_um=NOISE_UM,
                            noise_urad=NOISE_URAD)
         else:
-            res = tc.laser(machine, folder / f"laser_{a.lower()}.csv", rng, a, n_runs=3, noise_urad=NOISE_URAD)
+            res = tc.laser(machine, folder / f"laser_{a.lower()}.csv", rng, a, n_runs=LASER_RUNS,
+                           noise_urad=NOISE_URAD)
         paths.append(res.path)
     paths.append(tc.ballbar_circles(machine, folder / "ballbar.csv", rng, noise_mm=NOISE_MM).path)
     if "C" in machine.axis_names:
@@ -104,3 +110,51 @@ def _measured(d) -> dict:
     if d.kind == "ballbar":
         return {"length_mm": d.length}
     raise ValueError(d.kind)
+
+
+# ------------------------------------------------------------------ seed 003: C axis from a ball bar
+#: the C-axis points seed 003 predicts: on the axis at the table face and 100 mm above it (mm)
+SEED003_POINTS = ((0.0, 0.0, 0.0), (0.0, 0.0, 100.0))
+#: what the user holds: the paper compensated X, Y and Z first and knows its tool ball
+SEED003_HOLD = ("X", "Y", "Z", "squareness", "spindle", "tool")
+
+
+def seed003_case(seed: int, folder: Path) -> tuple[TruthMachine, Path, Path]:
+    """(truth, ball-bar file, machine TOML): an independent CAFXYZ machine with rotary location
+    errors, positioning errors and error motions (harmonics 2-5) of A and C, its linear axes
+    compensated as in the paper (their errors, squareness and spindle tilt zero), measured by the
+    three-sphere set-up (100 mm calibrated bar, heights 100 and 200 mm, C every 10 deg, 3 runs both
+    ways, 0.25 um noise). The machine file is the built-in cafxyz with ``error_motion_order = 5``
+    on A and C: the base model then holds the error motions the method measures."""
+    from truth import profiles as P
+    rng = np.random.default_rng(seed)
+    machine = TruthMachine.random("cafxyz", rng, error_motions=True)
+    for a in "XYZ":
+        machine.components[a] = {c: P.ZERO for c in machine.components[a]}
+    machine.squareness = {k: 0.0 for k in machine.squareness}
+    machine.spindle_tilt = np.zeros(2)
+    folder.mkdir(parents=True, exist_ok=True)
+    path = tc.three_sphere(machine, folder / "three_sphere.csv", rng, noise_mm=0.00025, setup=False).path
+    toml = folder / "cafxyz_motions.toml"
+    text = (Path(__file__).resolve().parents[1] / "mtcomp" / "machines" / "cafxyz.toml").read_text()
+    text = text.replace("axis_point_mm = [0.0, 0.0, -100.0]\n",
+                        "axis_point_mm = [0.0, 0.0, -100.0]\nerror_motion_order = 5\n")
+    text = text.replace("axis_point_mm = [0.0, 0.0, 0.0]\n", "axis_point_mm = [0.0, 0.0, 0.0]\nerror_motion_order = 5\n")
+    assert text.count("error_motion_order") == 2
+    toml.write_text(text)
+    return machine, path, toml
+
+
+def seed003_errors_um(fitted, truth: TruthMachine) -> np.ndarray:
+    """(k,) um: distance between where the fitted model and the truth put the C-axis points
+    (:data:`SEED003_POINTS`) at C = 0, 10, ..., 350 deg (A at 0), seed 003's eq. 15."""
+    from mtcomp.identification.seed_methods import table_point_positions
+    angles = np.radians(np.arange(0.0, 360.0, 10.0))
+    q = np.zeros((angles.size, truth.n_axes))
+    q[:, truth.index("C")] = angles
+    W = truth.wp2bed(q)
+    out = []
+    for point in SEED003_POINTS:
+        actual = W[:, :3, :3] @ np.asarray(point) + W[:, :3, 3]
+        out.append(np.linalg.norm(table_point_positions(fitted, angles, point) - actual, axis=1) * 1e3)
+    return np.concatenate(out)

@@ -369,3 +369,39 @@ def test_chord_steps_reach_the_exact_least_squares_minimum(xfyz):
     step = np.linalg.lstsq(J, resid(res.values, nuis), rcond=None)[0][:idx.size]
     ratio = np.abs(step) / res.std_errors[idx]
     assert ratio.max() < 1e-3, ratio.max()
+
+
+def test_hold_by_name_component_axis_and_group():
+    from mtcomp.identification.fit import _free_mask, held_parameters
+    model = ErrorModel(load_machine("cafxyz"))
+    groups = [s.group for s in model.param_specs]
+    names = list(model.param_names)
+    x = held_parameters(model, "X")
+    assert x.sum() == sum(g.startswith("X:") for g in groups) > 0
+    c = held_parameters(model, "C")
+    assert c.sum() == sum(g.startswith("C:") for g in groups)
+    assert all(held_parameters(model, "C")[names.index(n)] for n in ("X0C", "Y0C", "A0C", "B0C"))
+    assert held_parameters(model, "EXX").sum() == groups.count("X:EXX")
+    assert held_parameters(model, "squareness").sum() == 3
+    assert held_parameters(model, "C:location").sum() == 4
+    assert held_parameters(model, names[5]).sum() == 1
+    mask = _free_mask(model, None, ["X", "squareness"])
+    assert not mask[x].any() and mask[c].all()
+    with pytest.raises(InputError, match="cannot hold 'Q'"):
+        _free_mask(model, None, ["Q"])
+
+
+def test_calibrated_ball_bar_has_no_length_offset():
+    from mtcomp.identification.fit import build_measurement_models
+    from mtcomp.identification.synthetic import make_ballbar
+    model = ErrorModel(load_machine("xfyz"))
+    th = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    xyz = np.column_stack([100 * np.cos(th), 100 * np.sin(th), np.zeros_like(th)])
+    data = make_ballbar(xyz, np.zeros((12, 3)), np.zeros((12, 3)), length=np.full(12, 100.0))
+    (free,) = build_measurement_models(model, [data])
+    (cal,) = build_measurement_models(model, [data], known_setup=[str(data.path)])
+    assert free.n_nuisance == 1 and cal.n_nuisance == 0
+    p = np.zeros(model.n_params)
+    np.testing.assert_allclose(cal.predict(p, np.zeros(0)), 100.0, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(free.predict(p, np.array([2e-3])), 100.002, rtol=0, atol=1e-9)
+    assert cal.jacobian(p, np.zeros(0))[1].shape == (12, 0)

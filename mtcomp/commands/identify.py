@@ -15,14 +15,18 @@ def add_arguments(parser):
     parser.add_argument("-o", "--output", metavar="MODEL.json", required=True,
                         help="where to write the fitted model")
     parser.add_argument("--hold", metavar="NAME", action="append", default=[],
-                        help="hold a parameter at zero (repeat, or give a comma-separated list), "
-                             "e.g. --hold EAX_3,EBX_3")
+                        help="hold parameters at zero (repeat, or give a comma-separated list): a "
+                             "name (EAX_b3), a component (EAX: all its terms), an axis letter (X: all "
+                             "its errors), or squareness, spindle, C:location ...; e.g. --hold "
+                             "X,Y,Z,squareness for axes a controller already compensates")
     parser.add_argument("--weights", choices=("unit", "noise"), default="unit",
                         help="unit: every residual in um or urad (default); noise: refit with "
                              "1/noise per file estimated from a first fit")
     parser.add_argument("--known-setup", metavar="FILE", action="append", default=[],
-                        help="a points file whose instrument frame is the workpiece frame (no set-up "
-                             "translation and rotation is fitted for it); repeat for several")
+                        help="a file whose set-up is known: a points file whose instrument frame is "
+                             "the workpiece frame (no set-up translation and rotation is fitted), or a "
+                             "ball-bar file of a calibrated bar (no length offset is fitted); repeat "
+                             "for several")
     parser.add_argument("--rcond", type=float, default=None, metavar="R",
                         help="relative singular value below which a combination of parameters counts "
                              "as undetermined and is held at zero (default 1e-6)")

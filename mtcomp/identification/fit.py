@@ -333,10 +333,32 @@ def _free_mask(model: ErrorModel, free, hold) -> np.ndarray:
             raise InputError(f"unknown parameter(s) {', '.join(unknown)} (not in this model)")
         mask = np.isin(np.asarray(names), free)
     for name in hold or ():
-        if name not in names:
-            raise InputError(f"cannot hold {name!r}: no such parameter in this model")
-        mask[names.index(name)] = False
+        held = held_parameters(model, name)
+        if not held.any():
+            raise InputError(f"cannot hold {name!r}: no such parameter or group in this model "
+                             f"(a name such as EXX_b3, a component such as EXX, an axis letter such "
+                             f"as X, or one of: {', '.join(sorted(_hold_groups(model)))})")
+        mask[held] = False
     return mask
+
+
+def _hold_groups(model: ErrorModel) -> set[str]:
+    """Group names a hold may give besides parameter names: 'squareness', 'spindle', 'tool' and
+    '<axis>:location' ... (the part of each parameter's group before any ':' is its axis)."""
+    return {s.group for s in model.param_specs if ":" not in s.group or s.group.endswith(":location")}
+
+
+def held_parameters(model: ErrorModel, name: str) -> np.ndarray:
+    """(n_params,) bool: the parameters ``name`` stands for in a hold: a parameter name (EXX_b3), a
+    component (EXX: all its terms), an axis letter (X: every component error of the axis; its
+    location errors too for a rotary axis), or a group (squareness, spindle, tool, C:location)."""
+    names = np.asarray(model.param_names)
+    groups = np.array([s.group for s in model.param_specs])
+    if name in model.param_names:
+        return names == name
+    axis = np.array([g.split(":", 1)[0] for g in groups])
+    component = np.array([g.split(":", 1)[1] if ":" in g else "" for g in groups])
+    return (groups == name) | (component == name) | ((axis == name) & (component != ""))
 
 
 def _unique_tags(datasets) -> list[str]:

@@ -556,7 +556,10 @@ class LaserModel(MeasurementModel):
 @register
 class BallbarModel(MeasurementModel):
     """Ball-bar files (SPEC 3.3): centre distance of table ball and tool ball, plus a per-file length
-    offset ``<tag>:length_offset`` (um) for the calibration of the bar."""
+    offset ``<tag>:length_offset`` (um) for the calibration of the bar. Option ``setup="known"``: the
+    bar is calibrated (its length is exact, no offset is fitted). A bar read from one side only (the
+    three-sphere set-up: tool ball along +X, +Y, +Z) cannot tell its length offset from a shift of the
+    table ball along (1, 1, 1): there the calibration decides where the axis is."""
 
     kind = "ballbar"
 
@@ -567,8 +570,13 @@ class BallbarModel(MeasurementModel):
         self._set_observations(data.length[:, None], ["length_mm"], [1.0])
         self._rows = self.obs_row
         self._cx = np.hstack([self.c, data.table_ball, data.tool_ball])
-        self.nuisance_specs = [ParamSpec(f"{self.tag}:length_offset", "um", f"nuisance:{self.tag}", False,
-                                         f"length calibration offset of the ball bar of {self.tag}")]
+        self._calibrated = self.options.get("setup", "free") == "known"
+        self.nuisance_specs = [] if self._calibrated else [
+            ParamSpec(f"{self.tag}:length_offset", "um", f"nuisance:{self.tag}", False,
+                      f"length calibration offset of the ball bar of {self.tag}")]
+
+    def _offset(self, nuisance) -> float:
+        return 0.0 if self._calibrated else nuisance[0]
 
     def _lengths(self, p, jacobian):
         name = "ballbar_jac" if jacobian else "ballbar"
@@ -579,14 +587,14 @@ class BallbarModel(MeasurementModel):
     def _evaluate(self, p, nuisance, jacobian):
         p, nuisance = self._check_p(p, nuisance)
         length, J = self._lengths(p, jacobian)
-        pred = length[self._rows] + nuisance[0]
+        pred = length[self._rows] + self._offset(nuisance)
         if not jacobian:
             return pred, None, None
-        return pred, J[self._rows], np.ones((self.n_obs, 1))
+        return pred, J[self._rows], np.ones((self.n_obs, len(self.nuisance_specs)))
 
     def column_jacobians(self, p):
         return {"pred_length_mm": self._lengths(np.asarray(p, dtype=float), True)[1]}
 
     def predict_columns(self, p, nuisance=None):
         p, nuisance = self._check_p(p, nuisance)
-        return {"pred_length_mm": self._lengths(p, False)[0] + nuisance[0]}
+        return {"pred_length_mm": self._lengths(p, False)[0] + self._offset(nuisance)}
