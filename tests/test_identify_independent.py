@@ -188,3 +188,52 @@ def test_seed003_through_identify_predicts_the_c_axis_points(seed, tmp_path):
     assert run.returncode == 0, run.stderr
     d = seed003_errors_um(load_model(out), truth)
     assert d.mean() < 0.3 and d.max() < 0.78, (d.mean(), d.max())
+
+
+@pytest.mark.parametrize("seed", [21, 23])
+def test_points_on_one_plane_correct_the_plane_and_extrapolate_nothing(seed, tmp_path):
+    """Partial campaign: tracker points on one plane (Z = -50, 9 x 9 grid, one tool). A program
+    visits the grid's X, Y at that Z and at two other heights. On the plane the part's form error
+    goes to the noise; off it, the model says nothing of how the errors change with Z, so each block
+    gets the correction measured on the plane at its X, Y (the model is evaluated where Z was held,
+    MODEL.json 'held'), and the form error of the whole part does not get worse."""
+    from truth import form_error
+    rng = np.random.default_rng(seed)
+    machine = TruthMachine.random("xfyz", rng, error_motions=False)
+    pts = tc.points(machine, tmp_path / "plane.csv", rng, grid=(9, 9, 1), plane={"Z": -50.0},
+                    tool_lengths_mm=(machine.tool_length_mm,), repeats=2, noise_um=NOISE_UM).path
+    xs, ys = np.linspace(-320.0, 320.0, 9), np.linspace(-240.0, 240.0, 9)[::2]
+    lines = ["G21 G90", f"G0 X{xs[0]:g} Y{ys[0]:g} Z-50"]
+    for z in (-50.0, -150.0, 50.0):
+        lines.append(f"G0 Z{z:g}")
+        for k, y in enumerate(ys):
+            row = xs if k % 2 == 0 else xs[::-1]
+            lines.append(f"G0 X{row[0]:g} Y{y:g}")
+            lines += [f"G1 X{x:g} F1000" for x in row[1:]]
+    prog = tmp_path / "part.nc"
+    prog.write_text("\n".join(lines + ["M30"]) + "\n")
+    model, out, rep = tmp_path / "m.json", tmp_path / "out.nc", tmp_path / "b.csv"
+    for cmd in (["identify", "xfyz", str(pts), "-o", str(model)],
+                ["compensate", "xfyz", str(model), str(prog), "-o", str(out), "--report", str(rep),
+                 "--max-step-um", "50", "--max-correction-um", "200"]):
+        subprocess.run([sys.executable, "-m", "mtcomp", *cmd], check=True, capture_output=True, text=True)
+    rows = [r for r in _blocks(rep) if r["inserted"] == "0"]
+    assert all(r["corrected"] == "1" for r in rows)
+    q = np.array([[float(r[f"{a}_mm"]) for a in "xyz"] for r in rows])
+    corr = np.array([[float(r[f"c{a}_um"]) for a in "xyz"] for r in rows])
+    nominal = np.round(q - corr * 1e-3, 6)
+    ctx = Context(feed_mm_min=1000.0, dirs={"X": 1.0, "Y": 1.0, "Z": 1.0})
+    before = machine.true_pose(nominal, None, ctx)[0]
+    after = machine.true_pose(q, None, ctx)[0]
+    level = {z: np.abs(nominal[:, 2] - z) < 1e-9 for z in (-50.0, -150.0, 50.0)}
+    # the same correction at every height (to the output's 0.1 um resolution)
+    key = {tuple(p[:2]): c for p, c in zip(nominal[level[-50.0]], corr[level[-50.0]])}
+    for z in (-150.0, 50.0):
+        for p, c in zip(nominal[level[z]], corr[level[z]]):
+            np.testing.assert_allclose(c, key[tuple(p[:2])], rtol=0, atol=0.11)
+    form = lambda pts_, sel: form_error(pts_[sel], nominal[sel]).rms_um  # noqa: E731
+    on_b, on_a = form(before, level[-50.0]), form(after, level[-50.0])
+    whole_b, whole_a = form(before, slice(None)), form(after, slice(None))
+    print(f"plane: form {on_b:.2f} -> {on_a:.2f} um; whole part {whole_b:.2f} -> {whole_a:.2f} um")
+    assert on_a < 2 * NOISE_UM < on_b
+    assert whole_a <= whole_b

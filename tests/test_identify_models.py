@@ -224,3 +224,28 @@ def test_context_matrix_computes_drift_features_from_the_file(tmp_path):
     names = list(model.context_names)
     np.testing.assert_allclose(c[:, names.index("time_h")], [0.0, 0.5, 2.0], rtol=0, atol=1e-15)
     np.testing.assert_allclose(c[:, names.index("dtemp_spindle")], [0.0, 1.5, 3.0], rtol=0, atol=1e-12)
+
+
+def test_held_axes_round_trip_and_clamp(tmp_path):
+    """MODEL.json 'held' (file units, deg for rotary axes) survives save/load; clamp puts the held
+    axes at their positions and leaves the others; a bad entry is refused naming the key."""
+    import json
+    from mtcomp.errors import InputError
+    from mtcomp.models import ErrorModel, FittedModel, load_model, save_model
+    machine = load_machine("cafxyz")
+    fm = FittedModel.zero(ErrorModel(machine))
+    fm.held = {"Z": -40.0, "A": np.radians(30.0)}
+    path = tmp_path / "m.json"
+    save_model(path, fm)
+    data = json.loads(path.read_text())
+    assert data["held"] == {"Z": -40.0, "A": pytest.approx(30.0)}
+    back = load_model(path)
+    q = np.array([[1.0, 2.0, 3.0, 0.1, 0.2], [4.0, 5.0, 6.0, 0.3, 0.4]])
+    qc, cols = back.clamp(q)
+    assert sorted(cols) == [2, 3]
+    np.testing.assert_allclose(qc, [[1, 2, -40, np.radians(30), 0.2], [4, 5, -40, np.radians(30), 0.4]])
+    np.testing.assert_array_equal(q[0], [1.0, 2.0, 3.0, 0.1, 0.2])      # the input is not changed
+    data["held"] = {"Q": 1.0}
+    path.write_text(json.dumps(data))
+    with pytest.raises(InputError, match="'held' names axis 'Q'"):
+        load_model(path)

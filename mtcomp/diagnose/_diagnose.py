@@ -330,8 +330,9 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
                      rejected=rejected, reference=reference)
     diag.folds_of_observations = folds
     diag.outliers = outliers
-    from ..measurement.readings import data_support
+    from ..measurement.readings import data_held, data_support
     model.support = data_support(st.machine, datasets)
+    model.held = data_held(st.machine, datasets)
     diag.seconds = time.perf_counter() - t0
     model.info["diagnose"] = diag.to_dict()
     return diag

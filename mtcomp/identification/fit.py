@@ -45,7 +45,8 @@ from ..models.chain import ErrorModel
 from ..models.model_file import FittedModel
 from ..models.params import ParameterSet, ParamSpec
 from ..machine import with_data_basis
-from ..measurement.readings import MeasurementModel, data_positions, data_support, measurement_model
+from ..measurement.readings import (MeasurementModel, data_held, data_positions, data_support,
+                                    measurement_model)
 
 #: relative singular-value threshold below which a direction counts as undetermined
 DEFAULT_RCOND = 1e-6
@@ -471,6 +472,7 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
     sol = problem.solve(w, rcond, max_iterations, tol)
     result = problem.result(sol, w, label, ctx_defaults, time.perf_counter() - t0, info)
     result.fitted_model.support = data_support(model.machine, datasets)
+    result.fitted_model.held = data_held(model.machine, datasets)
     if problem.weak_fallback:
         result.info["weak_directions"] = ("not held: holding them would have spoiled the fit of the "
                                           "data; the data's own least-squares fit is kept")

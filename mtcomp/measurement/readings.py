@@ -109,6 +109,17 @@ def data_support(machine, datasets) -> dict[str, tuple[float, float]]:
     return out
 
 
+def data_held(machine, datasets) -> dict[str, float]:
+    """Axis name -> position, for every axis that the files position but hold at one and the same
+    position (internal units): how its errors vary along it, the data cannot say."""
+    out = {}
+    for a, v in data_positions(machine, datasets).items():
+        v = v[np.isfinite(v)]
+        if v.size and np.ptp(v) <= 1e-9:
+            out[a] = float(v[0])
+    return out
+
+
 # ------------------------------------------------------------------------------------------ context
 def context_matrix(model: ErrorModel, data: MeasurementSet, context_defaults: dict | None = None,
                    machine=None, extra: dict | None = None) -> np.ndarray:

@@ -9,12 +9,19 @@ Layout (file units: um, urad, mm; see docs/model_file.md)::
                               "std_error": 0.1}, ...},
      "context_defaults": {"temp_t1": 21.0},                   # optional
      "support": {"X": [-20.0, 20.0], "C": [-180.0, 180.0]},   # optional: where the data reach
+     "held": {"Y": 50.0, "Z": -40.0},                         # optional: axes the data held still
      "info": {...}}                                           # free: fit summary, provenance
 
 ``support`` is the identified region: for each axis that moved in the fitted data, the lowest and
 highest position it took (mm, deg). An axis not listed never moved in the data (or stood at one
 position): what its errors are is not known, and the model holds them at zero. A model without ``support`` (written by hand, or by
 an older mtcomp) claims nothing about its region.
+
+``held`` names the axes every fitted file held at one and the same position (mm, deg): the static
+axes of laser runs, the Z of points on one plane. How the errors change along such an axis is not
+known, so the model is evaluated at that position wherever it is used for a correction: what was
+measured there is applied along the whole axis (as a pitch table from a laser run is), and nothing
+is extrapolated from it.
 """
 from __future__ import annotations
 
@@ -44,6 +51,8 @@ class FittedModel:
     info : free-form provenance (fit summary, command line).
     support : axis name -> (lowest, highest) position the data reached, internal units (mm, rad),
         for the axes the data moved; the others are absent. ``None``: the region is not known.
+    held : axis name -> the one position (internal units) at which every fitted file held that axis;
+        a correction evaluates the model there (:meth:`clamp`). ``None`` or empty: none.
     uncertainty : None, or what the fit knows of its own precision, internal units:
         ``{"names": (k,) fitted parameter names, "covariance": (k, k), "undetermined": (k, m)}``,
         the covariance of those parameters and the m directions of them the data did not determine
@@ -57,6 +66,18 @@ class FittedModel:
     info: dict = field(default_factory=dict)
     support: dict | None = None
     uncertainty: dict | None = None
+    held: dict | None = None
+
+    def clamp(self, q: np.ndarray) -> tuple[np.ndarray, list[int]]:
+        """(q with every held axis set to its held position (a copy when any is held), the indices
+        of those axes): where the model is evaluated for a correction at poses q (n, n_axes)."""
+        cols = [self.machine.index(a) for a in (self.held or {})]
+        if not cols:
+            return q, []
+        q = np.array(q, dtype=float, copy=True)
+        for a, j in zip(self.held, cols):
+            q[:, j] = self.held[a]
+        return q, cols
 
     def prediction_std(self, J: np.ndarray) -> np.ndarray:
         """(n,) standard error of n predictions whose Jacobian with respect to ``params`` is J (n,
@@ -102,6 +123,7 @@ class FittedModel:
                 "parameters": self.params.to_json_dict(),
                 "context_defaults": dict(self.context_defaults),
                 **({} if self.support is None else {"support": support_to_file(self.machine, self.support)}),
+                **({"held": held_to_file(self.machine, self.held)} if self.held else {}),
                 **({} if self.uncertainty is None else {"uncertainty": uncertainty_to_file(self)}),
                 "info": self.info}
 
@@ -143,6 +165,28 @@ def support_to_file(machine: Machine, support: dict) -> dict:
         if a in support:
             f = 180.0 / np.pi if machine.axis(a).is_rotary else 1.0
             out[a] = [float(support[a][0]) * f, float(support[a][1]) * f]
+    return out
+
+
+def held_to_file(machine: Machine, held: dict) -> dict:
+    """Held positions in file units (mm, deg), axes in machine order."""
+    return {a: float(held[a]) * (180.0 / np.pi if machine.axis(a).is_rotary else 1.0)
+            for a in machine.axis_names if a in held}
+
+
+def held_from_file(machine: Machine, data, path) -> dict | None:
+    """Inverse of :func:`held_to_file`, with checks (InputError naming the key)."""
+    if data is None:
+        return None
+    if not isinstance(data, dict):
+        raise InputError("'held' must be an object axis -> position", path)
+    out = {}
+    for a, v in data.items():
+        if a not in machine.axis_names:
+            raise InputError(f"'held' names axis {a!r}, which the machine does not have", path)
+        if not isinstance(v, (int, float)) or isinstance(v, bool) or not np.isfinite(v):
+            raise InputError(f"'held' position of axis {a} must be a number", path)
+        out[a] = float(v) * (np.pi / 180.0 if machine.axis(a).is_rotary else 1.0)
     return out
 
 
@@ -225,5 +269,6 @@ def load_model(path: str | os.PathLike, machine: Machine | None = None) -> Fitte
         raise InputError("'context_defaults' must be an object", p)
     support = support_from_file(model.machine, data.get("support"), p)
     uncertainty = _uncertainty_from_file(params, data.get("uncertainty"), p)
+    held = held_from_file(model.machine, data.get("held"), p)
     return FittedModel(model, params, {str(k): float(v) for k, v in cd.items()}, data.get("info", {}),
-                       support, uncertainty)
+                       support, uncertainty, held)

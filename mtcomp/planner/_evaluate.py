@@ -39,6 +39,21 @@ class Evaluator:
         with self._count_lock:
             self.evaluations += n
 
+    def _deviation(self, q, ctx):
+        """(n, 6) the model's deviation at q, evaluated at the held position of every axis the
+        model's data held still (FittedModel.clamp)."""
+        return evaluate(self.model, "deviation_function", self.problem.fitted.clamp(q)[0], self.p, ctx)[0]
+
+    def _deviation_and_qjacobian(self, q, ctx):
+        """(deviation (n, 6), d deviation / d q (n, 6, n_axes)) as :meth:`_deviation`: along a held
+        axis the deviation does not change."""
+        qc, held = self.problem.fitted.clamp(q)
+        dev, Jd = evaluate(self.model, "deviation_qjacobian_function", qc, self.p, ctx)
+        if held:
+            Jd = np.array(Jd, copy=True)
+            Jd[:, :, held] = 0.0
+        return dev, Jd
+
     def target(self, q: np.ndarray) -> np.ndarray:
         """(n, rows) nominal pose (tip mm, tool axis) of q: what the program means."""
         tip, axis = nominal_pose(self.machine, q)
@@ -53,7 +68,7 @@ class Evaluator:
         q = np.asarray(q, dtype=float)
         zero = x is None or not np.any(x)
         qq = q if zero else q + x / self.D
-        dev, Jd = evaluate(self.model, "deviation_qjacobian_function", qq, self.p, ctx)
+        dev, Jd = self._deviation_and_qjacobian(qq, ctx)
         tip, axis, Jn = nominal_pose_jacobian(self.machine, qq)
         self._count(q.shape[0])
         rows = self.rows
@@ -79,7 +94,7 @@ class Evaluator:
         """Weighted residual b (n, rows) only (cheaper: no Jacobian of the model)."""
         q = np.asarray(q, dtype=float)
         qq = q + x / self.D
-        dev = evaluate(self.model, "deviation_function", qq, self.p, ctx)[0]
+        dev = self._deviation(qq, ctx)
         self._count(q.shape[0])
         r = dev[:, :self.rows] + self.target(qq)
         r -= target
@@ -88,5 +103,5 @@ class Evaluator:
 
     def deviation_only(self, q, ctx):
         """Weighted model deviation (n, rows) at q (the residual of the uncorrected program)."""
-        dev = evaluate(self.model, "deviation_function", q, self.p, ctx)[0]
+        dev = self._deviation(q, ctx)
         return dev[:, :self.rows] * self.S
