@@ -335,18 +335,31 @@ def test_work_offset_and_tool_length_reach_the_model(tmp_path, capsys):
     assert code == 2 and "--work-offset G54=X100,Q5" in err and len(err.strip().splitlines()) == 1
 
 
-def test_drilling_cycles_are_passed_through_and_counted(tmp_path, capsys):
+def test_drilling_cycles_are_corrected_as_cycles(tmp_path, capsys):
     machine, fitted, model_path = _model(tmp_path, "xfyz")
     prog = tmp_path / "in.nc"
     prog.write_text("G21 G90\nG0 X0 Y0 Z10\nG99 G82 X5 Y5 Z-3 R2 P0.5 F100\nX10\nY10\nG80\n"
-                    "G0 Z10\nX0 Y0\nM30\n")
-    out = tmp_path / "o.nc"
-    code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o", str(out)],
-                             capsys)
+                    "G0 Z10\nX0 Y0\nG28 G91 X0 Y0\nG90\nG98 G81 Z-3 R2\nG80\nM30\n")
+    out, rep = tmp_path / "o.nc", tmp_path / "b.csv"
+    code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o", str(out),
+                              "--report", str(rep)], capsys)
     assert code == 0, err
-    assert "3 drilling cycle lines (G73, G81-G89) passed through unchanged" in stdout
+    assert "3 drilling cycle lines (G73, G81-G89) kept as cycles and corrected" in stdout
+    assert "1 drilling cycle lines (G73, G81-G89) passed through unchanged" in stdout
     src, dst = prog.read_text().splitlines(), out.read_text().splitlines()
-    assert dst[2:6] == src[2:6]
+    rows = np.genfromtxt(rep, delimiter=",", names=True, dtype=None, encoding=None)
+    holes = rows[np.isin(rows["line"], [3, 4, 5])]
+    assert holes["inserted"].tolist() == [0, 0, 0]          # one block per hole
+    nominal = np.array([[5, 5, -3], [10, 5, -3], [10, 10, -3]])
+    written = np.column_stack([holes["x_mm"], holes["y_mm"], holes["z_mm"]])
+    corr = np.column_stack([holes["cx_um"], holes["cy_um"], holes["cz_um"]]) * 1e-3
+    np.testing.assert_allclose(written - corr, nominal, rtol=0, atol=1e-9)
+    assert np.abs(corr).max() > 1e-4                        # the model asks for a correction here
+    # the cycle line carries the report's positions, R moved by the Z correction
+    x, y, z = written[0]
+    r = 2 + corr[0, 2]
+    assert dst[2] == f"G99 G82 X{x:.4f} Y{y:.4f} Z{z:.4f} R{r:.4f} P0.5 F100"
+    assert dst[10:] == src[10:]                             # the hole at an unknown X Y as written
 
 
 def test_program_without_units_is_warned(tmp_path, capsys):

@@ -254,9 +254,13 @@ def run(args) -> int:
         write_corrected(args.program, out, machine, corrections(), chord_tol_mm=chord_tol,
                         initial_position=start_pos, inch=start_inch, initial_known=start_known,
                         stats=written)
+    if written.get("cycle_blocks"):
+        notes.append(f"{written['cycle_blocks']} drilling cycle lines (G73, G81-G89) kept as cycles "
+                     "and corrected: X Y Z to the hole's bottom, R moved with Z")
     if written.get("cycle_lines"):
         notes.append(f"{written['cycle_lines']} drilling cycle lines (G73, G81-G89) passed through "
-                     "unchanged: their positions are not corrected")
+                     "unchanged and uncorrected: their hole position, R or Z was not known, or "
+                     "they drill along another axis than Z")
     elapsed = time.perf_counter() - t0
     print(f"mtcomp compensate: method {args.method}, {machine.name} ({machine.topology}), "
           f"{elapsed:.1f} s")

@@ -268,12 +268,14 @@ class Planner:
         self._check_travel(end, chunk.line, known)
         ctx = self._context(chunk.feed, chunk.dirs, nrows, chunk.tool_length)
         rapid = np.asarray(chunk.rapid, bool)
+        # a drilling cycle's hole: one block, reached by rapids, never subdivided
+        cycle = np.zeros(nrows, bool) if chunk.cycle is None else np.asarray(chunk.cycle, bool)
         unknown = ~known
         outside = self._outside(end, known)
         pinned = self._pinned(unknown, outside)
         lin_end = self._solve_free(end, ctx)
         first = self._last_end is None
-        exempt = rapid & (not self.problem.step_across_rapids)
+        exempt = (rapid | cycle) & (not self.problem.step_across_rapids)
         if first and nrows:
             exempt = exempt.copy()
             exempt[0] = True
@@ -290,7 +292,7 @@ class Planner:
             else:
                 start[0], x_start[0] = self._last_end
             self._last_end = (end[-1], lin_end.x[-1])
-        inner = self._subdivide(start, end, x_start, lin_end.x, ctx, rapid | pinned)
+        inner = self._subdivide(start, end, x_start, lin_end.x, ctx, rapid | pinned | cycle)
         counts = np.ones(nrows, np.int64)
         if inner is None:
             nodes = NodeSet(end, ctx, exempt, np.asarray(chunk.line), np.zeros(nrows, bool), rapid,

@@ -207,7 +207,7 @@ class _Driver:
 def _new_rows(cap, na):
     return (np.empty(cap, np.int64), np.empty((cap, na)), np.empty((cap, na)), np.empty(cap),
             np.empty((cap, na), np.int8), np.empty(cap, np.uint8), np.empty(cap, np.uint8),
-            np.empty(cap, np.int32), np.zeros(cap, bool))
+            np.empty(cap, np.int32), np.zeros(cap, bool), np.zeros(cap, bool))
 
 
 def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_position=None, **kw):
@@ -223,10 +223,10 @@ def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_positio
 
     def chunk():
         k = n.value
-        line, start, end, feed, dirs, rapid, known, frame, arc = rows
+        line, start, end, feed, dirs, rapid, known, frame, arc, cycle = rows
         known = (known[:k, None].astype(np.int64) & d.bits) != 0
         return SegmentChunk(line[:k], start[:k], end[:k], feed[:k], dirs[:k], rapid[:k].view(bool),
-                            arc[:k], known, frame[:k])
+                            arc[:k], known, frame[:k], cycle[:k])
     try:
         while True:
             status = d.call(rows[:8], cap, n)
@@ -252,7 +252,7 @@ def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_positio
                         n.value = 0
                     r = n.value
                     take = min(kb - done, cap - r)
-                    line, start, end, feed, dirs, rapid, known, frame, arc = rows
+                    line, start, end, feed, dirs, rapid, known, frame, arc, cycle = rows
                     sl = slice(done, done + take)
                     known[r:r + take] = d._mask(b.known)
                     frame[r:r + take] = b.frame
@@ -263,6 +263,7 @@ def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_positio
                     dirs[r:r + take] = b.dirs[sl]
                     rapid[r:r + take] = b.rapid
                     arc[r:r + take] = b.from_arc
+                    cycle[r:r + take] = b.cycle is not None
                     n.value = r + take
                     done += take
             else:  # pragma: no cover - the reader asks for nothing else
@@ -337,4 +338,5 @@ def write_corrected(in_path, out_path, machine, cursor, chord_tol_mm, initial_po
         d.close()
     if stats is not None:
         stats["cycle_lines"] = ostate.cycle_lines
+        stats["cycle_blocks"] = ostate.cycle_blocks
     return rows_done
