@@ -150,3 +150,13 @@ def test_unclear_incremental_cycles_are_refused(tmp_path, text, line, words):
         read_program(p, machine)
     msg = str(e.value)
     assert words in msg and f":{line + 1}:" in msg and "\n" not in msg
+
+
+def test_words_keep_their_places(tmp_path):
+    # pcb2gcode writes R and Z first, FreeCAD R last; Y keeps the value the output holds
+    p = tmp_path / "in.nc"
+    p.write_text("G21 G90\nG0 X0 Y0 Z10\nG81 R5.00000 Z-2.50000 F1000.00000 X12.55500 Y10.94500\n"
+                 "G98 G83 X-2.827 Z-4.000 F60.000 Q0.100 R3.000\nG80\n")
+    out = _write(p)
+    assert out[2:4] == ["G81 R5.0033 Z-2.4967 F1000.00000 X12.5562 Y10.9429",
+                        "G98 G83 X-2.8258 Z-3.9967 F60.000 Q0.100 R3.0033"]

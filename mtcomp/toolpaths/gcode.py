@@ -1085,9 +1085,10 @@ def _cycle_text(block: MotionBlock, points: np.ndarray, letters: str, out: Outpu
                 separator: str, source: str | None) -> str:
     """A drilling cycle line restated with corrected hole positions: points (k, na) are the
     corrected bottoms of its k holes. X, Y and Z take the corrected bottom; R moves with Z (the
-    depth below the R plane is kept). The line keeps its words in their order; X Y Z R stand where
-    the source's first one stood, each written when the source names it or the output's value
-    differs. An incremental line becomes absolute, one line per repeat (L dropped)."""
+    depth below the R plane is kept). The line keeps its words in their order, X Y Z R in their
+    places; each is written when the source names it or the output's value differs (those the
+    source does not name after its last one). An incremental line becomes absolute, one line per
+    repeat (L dropped)."""
     info = block.cycle
     xi, yi, zi = (letters.index(c) for c in "XYZ")
     inch = block.inch
@@ -1122,20 +1123,25 @@ def _cycle_text(block: MotionBlock, points: np.ndarray, letters: str, out: Outpu
                 if not out.absolute:
                     head.append("G90")
                     out.absolute = True
-                body, placed = [], False
+                word_of = dict(zip(need, words))
+                in_source = [t[0] for t in info.tokens if t[0] in "XYZR"]
+                extra = [word_of[c] for c in need if c not in in_source]
+                body = []
                 for letter, num, rw in info.tokens:
                     if letter == "G" and float(num) in (90, 91):
                         continue
                     if letter in "LK" and info.incremental:
                         continue
                     if letter in "XYZR":
-                        if not placed:
-                            body += words
-                            placed = True
+                        if letter in word_of:
+                            body.append(word_of[letter])
+                        in_source.remove(letter)
+                        if not in_source:      # after the source's last X Y Z R: the others
+                            body += extra
+                            extra = []
                         continue
                     body.append(rw)
-                if not placed:
-                    body += words
+                body += extra
                 lines.append(" ".join(head + body))
             else:
                 lines.append(" ".join(words))
