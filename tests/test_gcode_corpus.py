@@ -232,3 +232,16 @@ def test_the_oracle_follows_the_retract_of_drilling_cycles():
     # G98 with the R plane below the start: back at Z5
     src = src.replace(b"G81", b"G98 G81")
     _check_output(src, b"G21\nG0 X1 Y1 Z5\nG98 G81 X2 Y2 Z-1 R1 F100\nG80\nG0 X3 Z5.001\nM30\n")
+
+
+def test_corpus_is_not_shipped_in_the_package():
+    # the corpus keeps its own licences (GPL among them): it must stay out of wheel and sdist
+    import configparser
+    root = Path(__file__).parent.parent
+    cfg = configparser.ConfigParser()
+    cfg.read(root / "setup.cfg")
+    assert cfg["options.packages.find"]["include"].split() == ["mtcomp*"]
+    assert "corpus" not in cfg["options.package_data"]["mtcomp"]
+    manifest = root / "MANIFEST.in"
+    assert not manifest.exists() or not re.search(r"^\s*(graft|recursive-include)\s+tests",
+                                                   manifest.read_text(), re.M)
