@@ -291,6 +291,41 @@ def test_blocks_outside_the_support_are_not_corrected_unless_asked(tmp_path, cap
     assert "corrected anyway (--extrapolate)" in stdout
 
 
+def test_figures_over_the_corrected_blocks_only(tmp_path, capsys):
+    import json
+    machine, fitted, model_path = _model_with_support(tmp_path, {"X": (-20.0, 20.0),
+                                                                 "Y": (-20.0, 20.0)})
+    prog = tmp_path / "in.nc"
+    # line 2 leaves Z unknown (not corrected), lines 5-6 lie outside the support (not corrected)
+    prog.write_text("G21 G90\nG0 X0 Y0\nG0 Z5\nG1 Z0 F300\nX60\nY10\nX15\nX0\nM30\n")
+    out, rep, js = tmp_path / "out.nc", tmp_path / "b.csv", tmp_path / "s.json"
+    code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o", str(out),
+                              "--report", str(rep), "--json", str(js), "--subdivide-tol-um", "0"],
+                             capsys)
+    assert code == 0, err
+    rows = _read_report(rep)
+    done = [r for r in rows if r["corrected"] == "1"]
+    assert [int(r["line"]) for r in done] == [3, 4, 7, 8]
+    known = [r for r in rows if not r["unknown_axes"]]     # the overall figures leave these out
+    figures = json.loads(js.read_text())
+
+    def stats(rs, when):
+        e = np.array([float(r[f"e_{when}_um"]) for r in rs])
+        return e.max(), np.sqrt(np.mean(e ** 2))
+    c = figures["corrected"]
+    assert c["blocks"] == 4 and figures["evaluated_blocks"] == len(known) == 6
+    for when in ("before", "after"):
+        np.testing.assert_allclose([c[f"max_{when}_um"], c[f"rms_{when}_um"]], stats(done, when),
+                                   rtol=0, atol=1e-4)
+        np.testing.assert_allclose([figures[f"max_{when}_um"], figures[f"rms_{when}_um"]],
+                                   stats(known, when), rtol=0, atol=1e-4)
+    assert figures["uncorrected"] == {"unknown_axes": 1, "outside_support": 2}
+    # the corrected blocks alone show what the correction did; the outside ones keep their error
+    assert c["rms_after_um"] < 0.5 * c["rms_before_um"] < figures["rms_after_um"]
+    line = next(t for t in stdout.splitlines() if t.startswith("over the 4 blocks corrected"))
+    assert f"rms {c['rms_after_um']:.3f} um" in line and f"rms {c['rms_before_um']:.3f} um" in line
+
+
 def test_model_without_support_is_said_once(tmp_path, capsys):
     machine, fitted, model_path = _model(tmp_path, "xfyz")
     prog = tmp_path / "in.nc"
