@@ -22,7 +22,8 @@ CORPUS = Path(__file__).parent / "data" / "gcode_corpus"
 PROGRAMS = sorted(p for p in CORPUS.iterdir() if p.name != "SOURCES.md")
 #: the programs refused, and the words their one-line message must hold
 REFUSED = {"linuxcnc_cone.ngc": ["cone.ngc:", "O-word sub", "o200 sub"],
-           "linuxcnc_boat-xyzac.ngc": ["boat-xyzac.ngc:2:", "M428", "tool centre point"]}
+           "linuxcnc_boat-xyzac.ngc": ["boat-xyzac.ngc:2:", "M428", "tool centre point"],
+           "gcodeworkshop_HAAS.nc": ["HAAS.nc:5:", "G10 (programmable data input)"]}
 _COMMENT = re.compile(r"\([^)]*\)|;.*")
 _WORD = re.compile(r"([A-Z])\s*([-+]?\s*(?:\d+\.?\d*|\.\d+))")
 

@@ -162,3 +162,17 @@ def test_full_circle_stays_full_and_raw_spelling_is_where_the_machine_is(tmp_pat
         # the whole circle is cut: the points reach the far side of it (diameter 4 mm)
         span = np.ptp(xy[back.line > 2], axis=0)
         np.testing.assert_allclose(span, np.ptp(src.points[:, :2], axis=0), rtol=0, atol=2e-3)
+
+
+def test_fanuc_colon_program_number_and_dos_end_mark_pass_through(tmp_path):
+    # Fanuc's ISO program number ':0097' and a DOS Ctrl-Z after the last line, as published
+    p = tmp_path / "in.nc"
+    p.write_bytes(b"% \r\n:0097\r\n:0098 (SECOND)\r\nN10 G21 G90 G0 X2. Y0 Z5.\r\nM30\r\n%\r\n\x1a")
+    b = read_program(p, XFYZ).blocks
+    assert [x.line for x in b] == [4]
+    out = _shifted(p, XFYZ)
+    assert out == ["% ", ":0097", ":0098 (SECOND)", "N10 G0 X2.0020 Y0.0020 Z5.0020 G21", "M30", "%",
+                   "\x1a"]
+    p.write_text(":0097 X1\n")                 # a colon line with more than a number is refused
+    with pytest.raises(InputError, match=":1: unexpected character ':'"):
+        read_program(p, XFYZ)

@@ -73,6 +73,8 @@ _CANNED_CYCLES = frozenset({73, 81, 82, 83, 84, 85, 86, 87, 88, 89})
 WORK_SYSTEMS = ("G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3")
 _WCS_INDEX = {54: 0, 55: 1, 56: 2, 57: 3, 58: 4, 59: 5, 59.1: 6, 59.2: 7, 59.3: 8}
 _NEG_ZERO_RE = re.compile(r"-(0\.0+)(?![0-9])")
+#: a program number written with ':' (the ISO code's O), alone or with comments
+_COLON_PROGRAM_RE = re.compile(r":\s*\d+\s*(?:\([^()]*\)\s*)*(?:;.*)?$")
 #: features of other languages, refused with their name (checked on lines that do not tokenize)
 _O_WORD_RE = re.compile(r"^\s*(?:[Nn]\s*\d+\s*)?[Oo]\s*(?:\d+|<[^>]*>)\s*([A-Za-z]+)")
 _KEYWORDS = {
@@ -444,6 +446,10 @@ class ModalState:
             text = text[3:]
         s = text.lstrip(" \t")
         if not s or s[0] == "%":
+            return None
+        if s[0] == ":" and _COLON_PROGRAM_RE.match(s):    # ':0097': ISO's O, a program number
+            return None
+        if not s.strip("\x1a \t"):        # DOS end-of-file mark (Ctrl-Z) after the program
             return None
         if s[0] == "$":               # grbl system command: passes through; $H homes every axis
             if s[1:2].upper() in ("H", "J"):
