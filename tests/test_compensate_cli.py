@@ -380,7 +380,7 @@ def test_drilling_cycles_are_corrected_as_cycles(tmp_path, capsys):
                               "--report", str(rep)], capsys)
     assert code == 0, err
     assert "3 drilling cycle lines (G73, G81-G89) kept as cycles and corrected" in stdout
-    assert "1 drilling cycle lines (G73, G81-G89) passed through unchanged" in stdout
+    assert "1 drilling cycle line (G73, G81-G89) passed through unchanged" in stdout
     src, dst = prog.read_text().splitlines(), out.read_text().splitlines()
     rows = np.genfromtxt(rep, delimiter=",", names=True, dtype=None, encoding=None)
     holes = rows[np.isin(rows["line"], [3, 4, 5])]

@@ -271,13 +271,15 @@ def run(args) -> int:
             with atomic_write(summary_json, "w") as f:     # written with the others, at the end
                 json.dump(figures, f, indent=2)
                 f.write("\n")
+    def cycle_lines(k):
+        return f"{k} drilling cycle line{'' if k == 1 else 's'} (G73, G81-G89)"
     if written.get("cycle_blocks"):
-        notes.append(f"{written['cycle_blocks']} drilling cycle lines (G73, G81-G89) kept as cycles "
-                     "and corrected: X Y Z to the hole's bottom, R moved with Z")
+        notes.append(f"{cycle_lines(written['cycle_blocks'])} kept as cycles and corrected: X Y Z "
+                     "to the hole's bottom, R moved with Z")
     if written.get("cycle_lines"):
-        notes.append(f"{written['cycle_lines']} drilling cycle lines (G73, G81-G89) passed through "
-                     "unchanged and uncorrected: their hole position, R or Z was not known, or "
-                     "they drill along another axis than Z")
+        notes.append(f"{cycle_lines(written['cycle_lines'])} passed through unchanged and "
+                     "uncorrected: hole position, R or Z not known, or drilling along another "
+                     "axis than Z")
     elapsed = time.perf_counter() - t0
     print(f"mtcomp compensate: method {args.method}, {machine.name} ({machine.topology}), "
           f"{elapsed:.1f} s")
