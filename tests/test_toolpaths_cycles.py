@@ -160,3 +160,19 @@ def test_words_keep_their_places(tmp_path):
     out = _write(p)
     assert out[2:4] == ["G81 R5.0033 Z-2.4967 F1000.00000 X12.5562 Y10.9429",
                         "G98 G83 X-2.8258 Z-3.9967 F60.000 Q0.100 R3.0033"]
+
+
+def test_unchanged_coordinates_keep_their_spelling(tmp_path):
+    # five decimals in the source: an uncorrected line as written; the next hole's Y corrected,
+    # its Z and R still those the controller holds from the source's spelling
+    p = tmp_path / "in.nc"
+    p.write_text("G21 G90\nG0 X0 Y0 Z10\nG99 G81 X1.23456 Y2 Z-2.50004 R1.00004 F100\nX3\n")
+    out = p.with_name("out.nc")
+    corr = []
+    for c in iter_segment_chunks(p, XFYZ):
+        pts = c.end.copy()
+        pts[c.line == 4] += [0.0, 0.0012, 0.0]
+        corr.append((c, pts, np.ones(len(c), int)))
+    write_corrected(p, out, XFYZ, iter(corr))
+    assert out.read_text().splitlines()[2:] == ["G99 G81 X1.23456 Y2 Z-2.50004 R1.00004 F100",
+                                                "X3 Y2.0012"]

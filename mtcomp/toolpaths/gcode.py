@@ -1115,13 +1115,15 @@ def _cycle_text(block: MotionBlock, points: np.ndarray, letters: str, out: Outpu
                    "R": out.cycle_r}
         named = info.named if j == 0 else frozenset("XY")
         need = [c for c in "XYZR" if c in named or text[c] != current[c]]
+        # a coordinate that keeps its source value keeps its source spelling: the machine goes
+        # where that spelling says
+        spelled = {c: raw[c][1:] for c in need if c in raw and text[c] == nominal[c]}
         if j == 0 and points.shape[0] == 1 and source is not None and out.absolute \
                 and not info.incremental and all(text[c] == nominal[c] for c in "XYZR") \
                 and all(current[c] == nominal[c] for c in "XYZR" if c not in named):
             lines.append(source)
         else:
-            words = [f"{c}{text[c]}" if not (text[c] == nominal[c] and c in raw) else raw[c]
-                     for c in need]
+            words = [raw[c] if c in spelled else f"{c}{text[c]}" for c in need]
             head = []
             if j == 0:
                 if block.number:
@@ -1151,9 +1153,10 @@ def _cycle_text(block: MotionBlock, points: np.ndarray, letters: str, out: Outpu
                 lines.append(" ".join(head + body))
             else:
                 lines.append(" ".join(words))
-        out.set_last(xi, text["X"], inch)
-        out.set_last(yi, text["Y"], inch)
-        out.cycle_z, out.cycle_r = text["Z"], text["R"]
+        out.set_last(xi, spelled.get("X", text["X"]), inch)
+        out.set_last(yi, spelled.get("Y", text["Y"]), inch)
+        out.cycle_z, out.cycle_r = (_format_value(float(spelled[c]) * scale, False, inch)
+                                    if c in spelled else text[c] for c in "ZR")
     r_out = float(out.cycle_r) * scale
     init = out.cycle_init_z
     if info.retract == 99:
