@@ -176,3 +176,23 @@ def test_unchanged_coordinates_keep_their_spelling(tmp_path):
     write_corrected(p, out, XFYZ, iter(corr))
     assert out.read_text().splitlines()[2:] == ["G99 G81 X1.23456 Y2 Z-2.50004 R1.00004 F100",
                                                 "X3 Y2.0012"]
+
+
+def test_real_pcb2gcode_drill_program_line_by_line(tmp_path):
+    # pcb2gcode's drill file (inch, G81 without G98/G99), every known axis moved by +0.0001 in in X,
+    # -0.0002 in in Y, +0.0003 in in Z: the holes carry it, R moves with Z, the rest as published
+    from pathlib import Path
+    src = Path(__file__).parent / "data" / "gcode_corpus" / \
+        "pcb2gcode_example_board_new_default_drill.ngc"
+    p = tmp_path / "in.ngc"
+    p.write_bytes(src.read_bytes())
+    out = _write(p, shift=np.array([0.0001, -0.0002, 0.0003]) * 25.4)
+    lines = src.read_text().splitlines()
+    expected = list(lines)
+    expected[12] = "G0 Z1.00030 (Retract)"
+    expected[20] = "G0 Z0.08030"                 # after M6 only Z; X and Y not given yet
+    expected[23:26] = ["G81 R0.08030 Z-0.06269 F30.00000 X0.90010 Y-0.45020",
+                       "X1.65010 Y-0.55020", "X1.65010 Y-0.80020"]
+    # no G98/G99 in the program: Z after the cycle is not known until the retract names it
+    expected[28] = "G0 Z1.00030 ( All done -- retract )"
+    assert out == expected
