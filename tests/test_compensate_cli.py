@@ -326,6 +326,26 @@ def test_figures_over_the_corrected_blocks_only(tmp_path, capsys):
     assert f"rms {c['rms_after_um']:.3f} um" in line and f"rms {c['rms_before_um']:.3f} um" in line
 
 
+def test_no_internal_nodes_from_a_start_the_program_has_not_given(tmp_path, capsys):
+    # internal nodes lie on the line from the previous block's end; after a home move, a tool
+    # change or a drilling cycle the machine does not stand there, so such a move gets none (they
+    # would be positions the program never gave: after the cycle, at the hole's depth)
+    machine, fitted, model_path = _model(tmp_path, "xfyz")
+    prog = tmp_path / "in.nc"
+    prog.write_text("G21 G90\nG0 X0 Y0 Z10\nG1 X300 Y200 F500\nG28 Z0\nG1 X0 Y0 Z-1\n"
+                    "T2 M6\nG1 X300 Y200 Z5\nG99 G81 X5 Y5 Z-3 R2 F100\nG80\nG1 X300 Y200\n"
+                    "X0 Y0\nM30\n")
+    out, rep = tmp_path / "out.nc", tmp_path / "b.csv"
+    code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o", str(out),
+                              "--report", str(rep), "--subdivide-tol-um", "0.001"], capsys)
+    assert code == 0, err
+    inserted = {int(r["line"]) for r in _read_report(rep) if r["inserted"] == "1"}
+    assert inserted == {3, 11}          # the moves that start where the program put the machine
+    text = out.read_text().splitlines()
+    after_cycle = text[text.index("G80") + 1].split()      # one line straight to X300 Y200
+    assert after_cycle[0] == "G1" and abs(float(after_cycle[1][1:]) - 300.0) < 0.05
+
+
 def test_model_without_support_is_said_once(tmp_path, capsys):
     machine, fitted, model_path = _model(tmp_path, "xfyz")
     prog = tmp_path / "in.nc"

@@ -27,6 +27,8 @@ _SRC = Path(__file__).with_name("_fast_gcode.c")
 _BLOCK = 4 << 20           # bytes read from the input at a time
 _OUT = 8 << 20             # bytes of output gathered before a write
 NEED_INPUT, FALLBACK, ROWS_FULL, NEED_CORR, OUT_FULL, MISMATCH = range(6)
+#: bit of a row's known mask (uint8) set by the compiled reader when the row's start is not known
+START_UNKNOWN = 128
 
 _lib = None
 _tried = False
@@ -224,9 +226,10 @@ def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_positio
     def chunk():
         k = n.value
         line, start, end, feed, dirs, rapid, known, frame, arc, cycle = rows
+        jump = (known[:k] & START_UNKNOWN) != 0
         known = (known[:k, None].astype(np.int64) & d.bits) != 0
         return SegmentChunk(line[:k], start[:k], end[:k], feed[:k], dirs[:k], rapid[:k].view(bool),
-                            arc[:k], known, frame[:k], cycle[:k])
+                            arc[:k], known, frame[:k], cycle[:k], jump)
     try:
         while True:
             status = d.call(rows[:8], cap, n)
@@ -255,6 +258,8 @@ def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_positio
                     line, start, end, feed, dirs, rapid, known, frame, arc, cycle = rows
                     sl = slice(done, done + take)
                     known[r:r + take] = d._mask(b.known)
+                    if done == 0 and not b.start_known:
+                        known[r] |= START_UNKNOWN
                     frame[r:r + take] = b.frame
                     line[r:r + take] = b.line
                     start[r:r + take] = starts[sl]

@@ -122,6 +122,9 @@ class SegmentChunk:
     frame : (n,) int32, active work coordinate system and tool length number (:func:`frame_code`).
     cycle : (n,) bool, the row is the bottom of a hole of a drilling cycle (G73, G81-G89) that is
         kept as a cycle: one output block, reached by rapids, corrected as a whole.
+    jump : (n,) bool, the row's start is not a position the program has given on every axis (an
+        axis was unknown before its block: at the start, after a home move, a tool change ...):
+        the machine does not come from ``start`` along a known line.
     tool_length : (n,) float, mm, tool length of the block for the error model (nan: the machine's),
         or None; set by the caller that knows the tool lengths (not read from the program).
     """
@@ -136,9 +139,11 @@ class SegmentChunk:
     known: np.ndarray | None = None
     frame: np.ndarray | None = None
     cycle: np.ndarray | None = None
+    jump: np.ndarray | None = None
     tool_length: np.ndarray | None = None
 
-    FIELDS = ("line", "start", "end", "feed", "dirs", "rapid", "from_arc", "known", "frame", "cycle")
+    FIELDS = ("line", "start", "end", "feed", "dirs", "rapid", "from_arc", "known", "frame", "cycle",
+              "jump")
 
     def __post_init__(self):
         n, na = self.start.shape
@@ -148,6 +153,8 @@ class SegmentChunk:
             self.frame = np.zeros(n, np.int32)
         if self.cycle is None:
             self.cycle = np.zeros(n, bool)
+        if self.jump is None:
+            self.jump = np.zeros(n, bool)
 
     def __len__(self) -> int:
         return int(self.line.shape[0])
@@ -163,7 +170,8 @@ class SegmentChunk:
 def _empty_chunk(na: int) -> SegmentChunk:
     return SegmentChunk(np.zeros(0, np.int64), np.zeros((0, na)), np.zeros((0, na)), np.zeros(0),
                         np.zeros((0, na), np.int8), np.zeros(0, bool), np.zeros(0, bool),
-                        np.zeros((0, na), bool), np.zeros(0, np.int32), np.zeros(0, bool))
+                        np.zeros((0, na), bool), np.zeros(0, np.int32), np.zeros(0, bool),
+                        np.zeros(0, bool))
 
 
 @dataclass
@@ -186,6 +194,8 @@ class MotionBlock:
     frame : :func:`frame_code` of the block.
     cycle : a drilling cycle line kept as a cycle (:class:`CycleBlock`), else None; its ``points``
         are then the bottoms of its holes (one per hole) and ``end`` where the cycle leaves the tool.
+    start_known : every axis's position was known before the block (``start`` is where the machine
+        stands, not a placeholder).
     """
 
     line: int
@@ -209,6 +219,7 @@ class MotionBlock:
     f_word: float = math.nan
     frame: int = 0
     cycle: "CycleBlock | None" = None
+    start_known: bool = True
 
     def __post_init__(self):
         if self.known is None:
@@ -272,7 +283,8 @@ def _block_rows(b: MotionBlock) -> SegmentChunk:
     return SegmentChunk(np.full(k, b.line, np.int64), b.segment_starts(), b.points.copy(),
                         np.full(k, b.feed), b.dirs.copy(), np.full(k, b.rapid), np.full(k, b.from_arc),
                         np.repeat(b.known[None, :], k, axis=0), np.full(k, b.frame, np.int32),
-                        np.full(k, b.cycle is not None))
+                        np.full(k, b.cycle is not None), np.arange(k) == 0 if not b.start_known
+                        else np.zeros(k, bool))
 
 
 # --------------------------------------------------------------------------------------- tokens
@@ -637,6 +649,7 @@ class ModalState:
             pts, centre = self._arc(start, end, values, line)
         else:
             pts = end[None, :]
+        start_known = bool(self.known.all())
         self.known |= given
         dirs = self._directions(start, pts)
         if self.motion == 0:
@@ -655,7 +668,7 @@ class ModalState:
         return MotionBlock(line, self.motion, start, end, feed, pts, dirs, centre, self.plane,
                            self.inch, words, number, self.known.copy(), given, raw_axes,
                            motion_word, self.incremental, self.inverse_time and self.motion != 0,
-                           self.f_word, self.frame)
+                           self.f_word, self.frame, start_known=start_known)
 
     def _set_wcs(self, index: int):
         if index != self.wcs:
@@ -705,6 +718,7 @@ class ModalState:
                             ">= 1)", line)
         reps = int(reps)
         start = self.position.copy()
+        start_known = bool(self.known.all())
         init_z, init_known = self.cycle_init
         if inc:
             if not (self.known[xi] and self.known[yi] and self.known[zi]):
@@ -748,7 +762,7 @@ class ModalState:
                           frozenset(c for c in "XYZR" if c in values), z_known)
         return MotionBlock(line, self.cycle, start, end, feed, pts, dirs, None, self.plane,
                            self.inch, [], number, known, given, {}, True, inc, False, self.f_word,
-                           self.frame, info)
+                           self.frame, info, start_known)
 
     def _cycle_move(self, values, axes_given):
         """A drilling cycle line passed through: X/Y go where it says (absolute) or stay unknown; the
@@ -897,7 +911,8 @@ class _ChunkBuilder:
         self._reset()
 
     def _reset(self):
-        self.rows: list[tuple] = []   # (line, start, end, feed, dirs, rapid, arc, known, frame, cycle)
+        self.rows: list[tuple] = []   # (line, start, end, feed, dirs, rapid, arc, known, frame,
+        #                                cycle, jump)
         self.n = 0
 
     def add(self, b: MotionBlock) -> Iterator[SegmentChunk]:
@@ -905,7 +920,7 @@ class _ChunkBuilder:
         starts = b.segment_starts() if k > 1 else b.start[None, :]
         for r in range(k):
             self.rows.append((b.line, starts[r], b.points[r], b.feed, b.dirs[r], b.rapid, b.from_arc,
-                              b.known, b.frame, b.cycle is not None))
+                              b.known, b.frame, b.cycle is not None, r == 0 and not b.start_known))
             self.n += 1
             if self.n == self.size:
                 yield self.flush()
@@ -913,12 +928,12 @@ class _ChunkBuilder:
     def flush(self) -> SegmentChunk:
         if self.n == 0:
             return _empty_chunk(self.na)
-        line, start, end, feed, dirs, rapid, arc, known, frame, cycle = zip(*self.rows)
+        line, start, end, feed, dirs, rapid, arc, known, frame, cycle, jump = zip(*self.rows)
         c = SegmentChunk(np.array(line, np.int64), np.array(start, float).reshape(-1, self.na),
                          np.array(end, float).reshape(-1, self.na), np.array(feed, float),
                          np.array(dirs, np.int8).reshape(-1, self.na), np.array(rapid, bool),
                          np.array(arc, bool), np.array(known, bool).reshape(-1, self.na),
-                         np.array(frame, np.int32), np.array(cycle, bool))
+                         np.array(frame, np.int32), np.array(cycle, bool), np.array(jump, bool))
         self._reset()
         return c
 
