@@ -119,8 +119,8 @@ def run(args) -> int:
         if flank == 0 and (flat or planar_levels(read_program_points(args.program, machine),
                                                  machine)):
             print("warning: the map's normals all lie along the tool axis (a flat or 2-D "
-                  "program): it shows the deviation along Z only, not the error of a contour's "
-                  "position in its plane (--normal in-plane shows that)")
+                  "program): it shows the deviation along Z only, not the error across it (where "
+                  "a contour or a hole lies in its plane; --normal in-plane maps contours)")
     print(f"model prediction before: RMS {st['rms_before_um']:.3f} um, max {st['max_before_um']:.3f} "
           f"um (deviation along {along})")
     if "rms_after_um" in st:
