@@ -291,6 +291,61 @@ def test_blocks_outside_the_support_are_not_corrected_unless_asked(tmp_path, cap
     assert "corrected anyway (--extrapolate)" in stdout
 
 
+def test_figures_over_the_corrected_blocks_only(tmp_path, capsys):
+    import json
+    machine, fitted, model_path = _model_with_support(tmp_path, {"X": (-20.0, 20.0),
+                                                                 "Y": (-20.0, 20.0)})
+    prog = tmp_path / "in.nc"
+    # line 2 leaves Z unknown (not corrected), lines 5-6 lie outside the support (not corrected)
+    prog.write_text("G21 G90\nG0 X0 Y0\nG0 Z5\nG1 Z0 F300\nX60\nY10\nX15\nX0\nM30\n")
+    out, rep, js = tmp_path / "out.nc", tmp_path / "b.csv", tmp_path / "s.json"
+    code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o", str(out),
+                              "--report", str(rep), "--json", str(js), "--subdivide-tol-um", "0"],
+                             capsys)
+    assert code == 0, err
+    rows = _read_report(rep)
+    done = [r for r in rows if r["corrected"] == "1"]
+    assert [int(r["line"]) for r in done] == [3, 4, 7, 8]
+    known = [r for r in rows if not r["unknown_axes"]]     # the overall figures leave these out
+    figures = json.loads(js.read_text())
+
+    def stats(rs, when):
+        e = np.array([float(r[f"e_{when}_um"]) for r in rs])
+        return e.max(), np.sqrt(np.mean(e ** 2))
+    c = figures["corrected"]
+    assert c["blocks"] == 4 and figures["evaluated_blocks"] == len(known) == 6
+    for when in ("before", "after"):
+        np.testing.assert_allclose([c[f"max_{when}_um"], c[f"rms_{when}_um"]], stats(done, when),
+                                   rtol=0, atol=1e-4)
+        np.testing.assert_allclose([figures[f"max_{when}_um"], figures[f"rms_{when}_um"]],
+                                   stats(known, when), rtol=0, atol=1e-4)
+    assert figures["uncorrected"] == {"unknown_axes": 1, "outside_support": 2}
+    # the corrected blocks alone show what the correction did; the outside ones keep their error
+    assert c["rms_after_um"] < 0.5 * c["rms_before_um"] < figures["rms_after_um"]
+    line = next(t for t in stdout.splitlines() if t.startswith("over the 4 blocks corrected"))
+    assert f"rms {c['rms_after_um']:.3f} um" in line and f"rms {c['rms_before_um']:.3f} um" in line
+
+
+def test_no_internal_nodes_from_a_start_the_program_has_not_given(tmp_path, capsys):
+    # internal nodes lie on the line from the previous block's end; after a home move, a tool
+    # change or a drilling cycle the machine does not stand there, so such a move gets none (they
+    # would be positions the program never gave: after the cycle, at the hole's depth)
+    machine, fitted, model_path = _model(tmp_path, "xfyz")
+    prog = tmp_path / "in.nc"
+    prog.write_text("G21 G90\nG0 X0 Y0 Z10\nG1 X300 Y200 F500\nG28 Z0\nG1 X0 Y0 Z-1\n"
+                    "T2 M6\nG1 X300 Y200 Z5\nG99 G81 X5 Y5 Z-3 R2 F100\nG80\nG1 X300 Y200\n"
+                    "X0 Y0\nM30\n")
+    out, rep = tmp_path / "out.nc", tmp_path / "b.csv"
+    code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o", str(out),
+                              "--report", str(rep), "--subdivide-tol-um", "0.001"], capsys)
+    assert code == 0, err
+    inserted = {int(r["line"]) for r in _read_report(rep) if r["inserted"] == "1"}
+    assert inserted == {3, 11}          # the moves that start where the program put the machine
+    text = out.read_text().splitlines()
+    after_cycle = text[text.index("G80") + 1].split()      # one line straight to X300 Y200
+    assert after_cycle[0] == "G1" and abs(float(after_cycle[1][1:]) - 300.0) < 0.05
+
+
 def test_model_without_support_is_said_once(tmp_path, capsys):
     machine, fitted, model_path = _model(tmp_path, "xfyz")
     prog = tmp_path / "in.nc"
@@ -335,18 +390,31 @@ def test_work_offset_and_tool_length_reach_the_model(tmp_path, capsys):
     assert code == 2 and "--work-offset G54=X100,Q5" in err and len(err.strip().splitlines()) == 1
 
 
-def test_drilling_cycles_are_passed_through_and_counted(tmp_path, capsys):
+def test_drilling_cycles_are_corrected_as_cycles(tmp_path, capsys):
     machine, fitted, model_path = _model(tmp_path, "xfyz")
     prog = tmp_path / "in.nc"
     prog.write_text("G21 G90\nG0 X0 Y0 Z10\nG99 G82 X5 Y5 Z-3 R2 P0.5 F100\nX10\nY10\nG80\n"
-                    "G0 Z10\nX0 Y0\nM30\n")
-    out = tmp_path / "o.nc"
-    code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o", str(out)],
-                             capsys)
+                    "G0 Z10\nX0 Y0\nG28 G91 X0 Y0\nG90\nG98 G81 Z-3 R2\nG80\nM30\n")
+    out, rep = tmp_path / "o.nc", tmp_path / "b.csv"
+    code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o", str(out),
+                              "--report", str(rep)], capsys)
     assert code == 0, err
-    assert "3 drilling cycle lines (G73, G81-G89) passed through unchanged" in stdout
+    assert "3 drilling cycle lines (G73, G81-G89) kept as cycles and corrected" in stdout
+    assert "1 drilling cycle line (G73, G81-G89) passed through unchanged" in stdout
     src, dst = prog.read_text().splitlines(), out.read_text().splitlines()
-    assert dst[2:6] == src[2:6]
+    rows = np.genfromtxt(rep, delimiter=",", names=True, dtype=None, encoding=None)
+    holes = rows[np.isin(rows["line"], [3, 4, 5])]
+    assert holes["inserted"].tolist() == [0, 0, 0]          # one block per hole
+    nominal = np.array([[5, 5, -3], [10, 5, -3], [10, 10, -3]])
+    written = np.column_stack([holes["x_mm"], holes["y_mm"], holes["z_mm"]])
+    corr = np.column_stack([holes["cx_um"], holes["cy_um"], holes["cz_um"]]) * 1e-3
+    np.testing.assert_allclose(written - corr, nominal, rtol=0, atol=1e-9)
+    assert np.abs(corr).max() > 1e-4                        # the model asks for a correction here
+    # the cycle line carries the report's positions, R moved by the Z correction
+    x, y, z = written[0]
+    r = 2 + corr[0, 2]
+    assert dst[2] == f"G99 G82 X{x:.4f} Y{y:.4f} Z{z:.4f} R{r:.4f} P0.5 F100"
+    assert dst[10:] == src[10:]                             # the hole at an unknown X Y as written
 
 
 def test_program_without_units_is_warned(tmp_path, capsys):

@@ -6,7 +6,8 @@ feature and the line, and every accepted program renders with its compensated ve
 The oracle of "positioned" is written here from the RS-274 rules, independently of the reader: an
 axis is positioned once a motion block names it, and no longer after a home move (G28/G30) or a move
 in machine coordinates (G53) of that axis, a tool change or tool length change (Z), a change of
-work coordinate system or grbl homing (every axis), a drilling cycle (Z)."""
+work coordinate system or grbl homing (every axis); after a drilling cycle Z stands where the
+cycle's retract leaves it (see _positioned_per_line)."""
 import re
 from pathlib import Path
 
@@ -21,7 +22,8 @@ CORPUS = Path(__file__).parent / "data" / "gcode_corpus"
 PROGRAMS = sorted(p for p in CORPUS.iterdir() if p.name != "SOURCES.md")
 #: the programs refused, and the words their one-line message must hold
 REFUSED = {"linuxcnc_cone.ngc": ["cone.ngc:", "O-word sub", "o200 sub"],
-           "linuxcnc_boat-xyzac.ngc": ["boat-xyzac.ngc:2:", "M428", "tool centre point"]}
+           "linuxcnc_boat-xyzac.ngc": ["boat-xyzac.ngc:2:", "M428", "tool centre point"],
+           "gcodeworkshop_HAAS.nc": ["HAAS.nc:5:", "G10 (programmable data input)"]}
 _COMMENT = re.compile(r"\([^)]*\)|;.*")
 _WORD = re.compile(r"([A-Z])\s*([-+]?\s*(?:\d+\.?\d*|\.\d+))")
 
@@ -61,9 +63,15 @@ def _model_file(tmp_path, machine_path, seed=1):
 
 
 def _positioned_per_line(text: str):
-    """Per source line (1-based): (is a motion line, axes positioned after it), from the rules."""
+    """Per source line (1-based): (is a motion line, axes positioned after it), from the rules.
+
+    A drilling cycle line with axis words is a motion line that may write X, Y (given or known) and
+    Z and R of the cycle; after it Z stands at the R plane (G99) or at the initial level (G98, when
+    that was known and the R plane is not above it), and is unknown otherwise."""
     known: set = set()
     wcs, motion, cycle = "G54", None, False
+    absolute, z_now, retract, cycle_z, cycle_r = True, None, None, None, None
+    init_z = None
     out = []
     for raw in text.splitlines():
         code = _COMMENT.sub("", raw).upper().strip()
@@ -73,6 +81,7 @@ def _positioned_per_line(text: str):
             out.append((False, set(known)))
             continue
         words = [(m.group(1), float(m.group(2).replace(" ", ""))) for m in _WORD.finditer(code)]
+        value = dict(words)
         g = [v for c, v in words if c == "G"]
         axes = {c for c, _ in words if c in "XYZABC"}
         if any(c == "M" and v == 6 for c, v in words) or any(v in (43, 49) for v in g):
@@ -81,6 +90,10 @@ def _positioned_per_line(text: str):
             name = f"G{v:g}"
             if name in ("G54", "G55", "G56", "G57", "G58", "G59") and name != wcs:
                 wcs, known = name, set()
+            if v in (90, 91):
+                absolute = v == 90
+            if v in (98, 99):
+                retract = int(v)
         moved = False
         if any(v in (28, 30) for v in g):
             known = known - axes if axes else set()
@@ -92,15 +105,35 @@ def _positioned_per_line(text: str):
             if any(v in (0, 1, 2, 3) for v in g):
                 motion, cycle = next(v for v in g if v in (0, 1, 2, 3)), False
             if any(v in (73, 81, 82, 83, 84, 85, 86, 87, 88, 89) for v in g):
+                if not cycle:
+                    init_z = z_now if "Z" in known else None
                 cycle = True
             if 80 in g:
                 cycle, motion = False, None
+            if cycle:
+                cycle_z = value.get("Z", cycle_z) if absolute else None
+                cycle_r = value.get("R", cycle_r) if absolute else None
             if axes and cycle:
+                # the hole: X Y given or known, Z the cycle's bottom (written with its R)
                 known |= axes - {"Z"}
-                known.discard("Z")
+                if cycle_z is not None and cycle_r is not None:
+                    known.add("Z")
+                moved = True
+                out.append((moved, set(known)))
+                if retract == 99 and cycle_r is not None:
+                    z_now = cycle_r
+                elif retract == 98 and init_z is not None and cycle_r is not None \
+                        and cycle_r <= init_z:
+                    z_now = init_z
+                else:
+                    known.discard("Z")
+                    z_now = None
+                continue
             elif axes or (motion in (2, 3) and any(c in "IJKR" for c, _ in words)):
                 known |= axes
                 moved = True
+                if "Z" in axes:
+                    z_now = value["Z"] if absolute else None
         out.append((moved, set(known)))
     return out
 
@@ -167,6 +200,8 @@ def test_corpus_compensated_safely(tmp_path, capsys):
             continue
         accepted.append(prog.name)
         _check_output(prog.read_bytes(), out.read_bytes())
+        if re.search(r"^[^(;]*\bG(?:73|8[1-9])\b", text, re.M | re.I):    # drilling cycles
+            assert "kept as cycles and corrected" in stdout, prog.name
         growth.append(out.stat().st_size / prog.stat().st_size)
         # the map of the compensated program, paired with the original through its lines
         code = main(["render", str(machine), str(model), str(prog), "--compensated", str(out),
@@ -189,3 +224,27 @@ def test_the_oracle_catches_a_written_unknown_axis():
         _check_output(src, b"G21\nG0 X1 Y1 Z0\nG1 Z-1 F100\nM30\n")
     with pytest.raises(AssertionError, match="missing from the output"):
         _check_output(src, b"G0 X1 Y1\nG1 Z-1 F100\nM30\n")
+
+
+def test_the_oracle_follows_the_retract_of_drilling_cycles():
+    src = b"G21\nG0 X1 Y1 Z5\nG81 X2 Y2 Z-1 R1 F100\nG80\nG0 X3\nM30\n"
+    _check_output(src, b"G21\nG0 X1 Y1 Z5\nG81 X2.001 Y2 Z-0.999 R1.001 F100\nG80\nG0 X3\nM30\n")
+    # neither G98 nor G99: Z is not known after the cycle
+    with pytest.raises(AssertionError, match="writes \\['Z'\\]"):
+        _check_output(src, b"G21\nG0 X1 Y1 Z5\nG81 X2 Y2 Z-1 R1 F100\nG80\nG0 X3 Z5\nM30\n")
+    # G98 with the R plane below the start: back at Z5
+    src = src.replace(b"G81", b"G98 G81")
+    _check_output(src, b"G21\nG0 X1 Y1 Z5\nG98 G81 X2 Y2 Z-1 R1 F100\nG80\nG0 X3 Z5.001\nM30\n")
+
+
+def test_corpus_is_not_shipped_in_the_package():
+    # the corpus keeps its own licences (GPL among them): it must stay out of wheel and sdist
+    import configparser
+    root = Path(__file__).parent.parent
+    cfg = configparser.ConfigParser()
+    cfg.read(root / "setup.cfg")
+    assert cfg["options.packages.find"]["include"].split() == ["mtcomp*"]
+    assert "corpus" not in cfg["options.package_data"]["mtcomp"]
+    manifest = root / "MANIFEST.in"
+    assert not manifest.exists() or not re.search(r"^\s*(graft|recursive-include)\s+tests",
+                                                   manifest.read_text(), re.M)

@@ -75,16 +75,19 @@ def test_tool_change_and_work_offset_forget_positions(tmp_path):
     assert out[4] == "G0 Y5.0020"              # after G55 only Y
 
 
-def test_g53_and_cycles_pass_through(tmp_path):
+def test_g53_passes_through_and_cycles_keep_the_known_axes(tmp_path):
     p = tmp_path / "in.nc"
     p.write_text("G0 X0 Y0 Z10\nG53 G0 Z0.\nG0 X5 Y5 Z2\nG98 G81 X5 Y5 Z-3 R2 F100\nX10\n"
                  "G80\nG0 X0 Y0\nG0 Z20\n")
     b = read_program(p, XFYZ).blocks
-    assert [x.line for x in b] == [1, 3, 7, 8]
-    assert b[2].known.tolist() == [True, True, False]     # after a drilling cycle Z is not known
+    assert [x.line for x in b] == [1, 3, 4, 5, 7, 8]
+    assert b[1].known.tolist() == [True, True, True]
+    # G98 with the R plane at the initial level 2: the cycle leaves the tool there, Z known
+    assert b[4].known.tolist() == [True, True, True] and b[4].start[2] == 2.0
     out = _shifted(p, XFYZ)
     src = p.read_text().splitlines()
-    assert out[1] == src[1] and out[3:6] == src[3:6]      # G53 and the cycle lines as written
+    assert out[1] == src[1]                                   # G53 as written
+    assert out[3:5] == ["G98 G81 X5.0020 Y5.0020 Z-2.9980 R2.0020 F100", "X10.0020"]
     assert out[6] == "G0 X0.0020 Y0.0020"
 
 
@@ -159,3 +162,17 @@ def test_full_circle_stays_full_and_raw_spelling_is_where_the_machine_is(tmp_pat
         # the whole circle is cut: the points reach the far side of it (diameter 4 mm)
         span = np.ptp(xy[back.line > 2], axis=0)
         np.testing.assert_allclose(span, np.ptp(src.points[:, :2], axis=0), rtol=0, atol=2e-3)
+
+
+def test_fanuc_colon_program_number_and_dos_end_mark_pass_through(tmp_path):
+    # Fanuc's ISO program number ':0097' and a DOS Ctrl-Z after the last line, as published
+    p = tmp_path / "in.nc"
+    p.write_bytes(b"% \r\n:0097\r\n:0098 (SECOND)\r\nN10 G21 G90 G0 X2. Y0 Z5.\r\nM30\r\n%\r\n\x1a")
+    b = read_program(p, XFYZ).blocks
+    assert [x.line for x in b] == [4]
+    out = _shifted(p, XFYZ)
+    assert out == ["% ", ":0097", ":0098 (SECOND)", "N10 G0 X2.0020 Y0.0020 Z5.0020 G21", "M30", "%",
+                   "\x1a"]
+    p.write_text(":0097 X1\n")                 # a colon line with more than a number is refused
+    with pytest.raises(InputError, match=":1: unexpected character ':'"):
+        read_program(p, XFYZ)

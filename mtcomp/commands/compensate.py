@@ -31,6 +31,10 @@ def add_arguments(parser):
     parser.add_argument("--report", metavar="BLOCKS.csv", default=None,
                         help="write one row per output block: positions, corrections, predicted "
                              "deviation before and after, active bounds")
+    parser.add_argument("--json", metavar="SUMMARY.json", default=None,
+                        help="write the summary's figures as JSON (blocks, deviation before and "
+                             "after over all evaluated blocks and over the corrected ones only, "
+                             "blocks left uncorrected, bounds, drilling cycles)")
     parser.add_argument("--subdivide-tol-um", type=float, metavar="T", default=0.5,
                         help="insert internal nodes in a feed move where the corrected path would "
                              "miss its midpoint by more than T um (default 0.5; 0: end points only)")
@@ -186,6 +190,11 @@ def run(args) -> int:
         report = check_output_path(args.report, inputs)
         if report.resolve() == out.resolve():
             raise InputError("--report and -o name the same file", args.report)
+    summary_json = None
+    if args.json is not None:
+        summary_json = check_output_path(args.json, inputs)
+        if summary_json.resolve() in {out.resolve()} | ({report.resolve()} if report else set()):
+            raise InputError("--json names the same file as -o or --report", args.json)
     machine = load_machine(args.machine)
     fitted = load_model(args.model, machine)
     from ..thermal.context import parse_assignments, thermal_context
@@ -254,9 +263,23 @@ def run(args) -> int:
         write_corrected(args.program, out, machine, corrections(), chord_tol_mm=chord_tol,
                         initial_position=start_pos, inch=start_inch, initial_known=start_known,
                         stats=written)
+        if summary_json is not None:
+            import json
+            figures = summary.as_dict()
+            figures["drilling_cycles"] = {"corrected_lines": written.get("cycle_blocks", 0),
+                                          "passed_through_lines": written.get("cycle_lines", 0)}
+            with atomic_write(summary_json, "w") as f:     # written with the others, at the end
+                json.dump(figures, f, indent=2)
+                f.write("\n")
+    def cycle_lines(k):
+        return f"{k} drilling cycle line{'' if k == 1 else 's'} (G73, G81-G89)"
+    if written.get("cycle_blocks"):
+        notes.append(f"{cycle_lines(written['cycle_blocks'])} kept as cycles and corrected: X Y Z "
+                     "to the hole's bottom, R moved with Z")
     if written.get("cycle_lines"):
-        notes.append(f"{written['cycle_lines']} drilling cycle lines (G73, G81-G89) passed through "
-                     "unchanged: their positions are not corrected")
+        notes.append(f"{cycle_lines(written['cycle_lines'])} passed through unchanged and "
+                     "uncorrected: hole position, R or Z not known, or drilling along another "
+                     "axis than Z")
     elapsed = time.perf_counter() - t0
     print(f"mtcomp compensate: method {args.method}, {machine.name} ({machine.topology}), "
           f"{elapsed:.1f} s")
@@ -272,5 +295,6 @@ def run(args) -> int:
     if st.get("qp_failed"):
         print(f"warning: OSQP failed on {st['qp_failed']} windows; their corrections were clamped "
               "to the bounds instead (reported as active bounds)")
-    print(f"wrote {out}" + (f" and {report}" if report is not None else ""))
+    extra = [str(p) for p in (report, summary_json) if p is not None]
+    print(f"wrote {out}" + (f" and {' and '.join(extra)}" if extra else ""))
     return 0

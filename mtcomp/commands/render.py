@@ -33,8 +33,14 @@ def add_arguments(parser):
                              "tool axis over L mm from the tip (default: from the header of a built-in "
                              "test part, else off: the surface of the tool tips)")
     parser.add_argument("--flank-side", choices=("outer", "inner"), default="outer",
-                        help="with --flank-mm: the tool works outside the contour (a boss, default) "
-                             "or inside it (a pocket)")
+                        help="with --flank-mm or an in-plane map: the tool works outside the "
+                             "contour (a boss, default) or inside it (a pocket)")
+    parser.add_argument("--normal", choices=("auto", "surface", "in-plane"), default="auto",
+                        help="the direction the deviation is measured along: surface (the normal "
+                             "of the cut surface), in-plane (a planar contour's normal in its "
+                             "plane, across the tool axis: the error of the contour's position), "
+                             "auto (default: in-plane when the program cuts in planes across the "
+                             "tool axis, a 2-D contour; else surface)")
     parser.add_argument("--glyphs", action="store_true",
                         help="draw the deviation vectors as exaggerated arrows")
     parser.add_argument("--glyph-scale", type=float, default=None, metavar="K",
@@ -57,10 +63,13 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def run(args) -> int:
+    import numpy as np
+
     from ..io.atomic import check_output_path
     from ..machine import load_machine
     from ..models import load_model
-    from ..viz.surface import program_error_map, program_hints
+    from ..viz.surface import (planar_levels, program_error_map, program_hints,
+                               read_program_points)
 
     out = Path(args.output)
     if out.suffix.lower() != ".png":
@@ -85,7 +94,7 @@ def run(args) -> int:
     fitted = load_model(args.model, machine)
     smap = program_error_map(machine, fitted, args.program, args.compensated,
                              tool_radius_mm=args.tool_radius_mm, flank_length_mm=args.flank_mm,
-                             flank_side=args.flank_side, report=args.report)
+                             flank_side=args.flank_side, report=args.report, normal=args.normal)
     from ..viz.render import render_error_map
     clim = None if args.range_um is None else (-args.range_um, args.range_um)
     res = render_error_map(smap, out, glyphs=args.glyphs or args.glyph_scale is not None,
@@ -94,11 +103,26 @@ def run(args) -> int:
     st = res.stats
     hints = program_hints(args.program)
     flank = args.flank_mm if args.flank_mm is not None else hints.get("flank_length_mm", 0.0)
-    what = f"flank contact lines, {flank:g} mm" if flank > 0 else "tool-tip surface"
-    print(f"surface: {st['n_points']} points, {st['n_triangles']} triangles ({what}"
-          + (f"; recognised the {hints['part']}" if hints else "") + ")")
+    if smap.normal_kind == "in-plane":
+        levels = planar_levels(read_program_points(args.program, machine), machine)
+        print(f"contour: {st['n_triangles'] // 2} wall segments in {levels or 'no'} plane"
+              f"{'' if levels == 1 else 's'} across the tool axis (in-plane map"
+              + ("" if args.normal == "in-plane" else ": a planar program; --normal surface maps "
+                 "the deviation along the tool axis instead") + ")")
+        along = "the contour's normal in its plane"
+    else:
+        what = f"flank contact lines, {flank:g} mm" if flank > 0 else "tool-tip surface"
+        print(f"surface: {st['n_points']} points, {st['n_triangles']} triangles ({what}"
+              + (f"; recognised the {hints['part']}" if hints else "") + ")")
+        along = "the surface normal"
+        flat = smap.normals.size and np.all(np.abs(smap.normals[:, 2]) >= np.cos(np.radians(1.0)))
+        if flank == 0 and (flat or planar_levels(read_program_points(args.program, machine),
+                                                 machine)):
+            print("warning: the map's normals all lie along the tool axis (a flat or 2-D "
+                  "program): it shows the deviation along Z only, not the error across it (where "
+                  "a contour or a hole lies in its plane; --normal in-plane maps contours)")
     print(f"model prediction before: RMS {st['rms_before_um']:.3f} um, max {st['max_before_um']:.3f} "
-          "um (deviation along the surface normal)")
+          f"um (deviation along {along})")
     if "rms_after_um" in st:
         print(f"model prediction after:  RMS {st['rms_after_um']:.3f} um, max "
               f"{st['max_after_um']:.3f} um")

@@ -166,6 +166,7 @@ class Planner:
         self._qps: dict[int, WindowQP] = {}
         self._prev: np.ndarray | None = None        # last committed correction (x units)
         self._last_end: tuple | None = None         # (q, x_free) of the last node of the last chunk
+        self._after_cycle = False                   # the last row of the last chunk was a hole
         self._buffer: list[tuple[NodeSet, Linearization]] = []
         self._done = 0
         self._last_progress = time.monotonic()
@@ -268,12 +269,22 @@ class Planner:
         self._check_travel(end, chunk.line, known)
         ctx = self._context(chunk.feed, chunk.dirs, nrows, chunk.tool_length)
         rapid = np.asarray(chunk.rapid, bool)
+        # a drilling cycle's hole: one block, reached by rapids, never subdivided
+        cycle = np.zeros(nrows, bool) if chunk.cycle is None else np.asarray(chunk.cycle, bool)
+        # internal nodes lie on the line from the previous node: not where the move starts from a
+        # position the program has not given (an axis unknown before it), nor after a hole (the
+        # cycle leaves the tool at its retract plane, not at the hole's bottom)
+        no_line = np.zeros(nrows, bool) if chunk.jump is None else np.asarray(chunk.jump, bool).copy()
+        if nrows:
+            no_line[1:] |= cycle[:-1]
+            no_line[0] |= self._after_cycle
+            self._after_cycle = bool(cycle[-1])
         unknown = ~known
         outside = self._outside(end, known)
         pinned = self._pinned(unknown, outside)
         lin_end = self._solve_free(end, ctx)
         first = self._last_end is None
-        exempt = rapid & (not self.problem.step_across_rapids)
+        exempt = (rapid | cycle) & (not self.problem.step_across_rapids)
         if first and nrows:
             exempt = exempt.copy()
             exempt[0] = True
@@ -290,7 +301,7 @@ class Planner:
             else:
                 start[0], x_start[0] = self._last_end
             self._last_end = (end[-1], lin_end.x[-1])
-        inner = self._subdivide(start, end, x_start, lin_end.x, ctx, rapid | pinned)
+        inner = self._subdivide(start, end, x_start, lin_end.x, ctx, rapid | pinned | cycle | no_line)
         counts = np.ones(nrows, np.int64)
         if inner is None:
             nodes = NodeSet(end, ctx, exempt, np.asarray(chunk.line), np.zeros(nrows, bool), rapid,

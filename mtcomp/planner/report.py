@@ -104,6 +104,12 @@ class Summary:
     first_outside_line: int = 0
     extrapolate: bool = False
     support_known: bool = True
+    #: the same figures over the corrected blocks only (``corrected`` = 1 in BLOCKS.csv)
+    corrected_blocks: int = 0
+    corrected_max_before_um: float = 0.0
+    corrected_max_after_um: float = 0.0
+    corrected_sum_sq_before: float = 0.0
+    corrected_sum_sq_after: float = 0.0
 
     def add(self, r: PlanResult):
         n = len(r)
@@ -145,12 +151,46 @@ class Summary:
             self.worst_line = int(r.line[i])
         self.sum_sq_before += float(np.sum(eb ** 2))
         self.sum_sq_after += float(np.sum(ea ** 2))
+        done = ~r.pinned
+        if done.any():
+            self.corrected_blocks += int(done.sum())
+            self.corrected_max_before_um = max(self.corrected_max_before_um, float(eb[done].max()))
+            self.corrected_max_after_um = max(self.corrected_max_after_um, float(ea[done].max()))
+            self.corrected_sum_sq_before += float(np.sum(eb[done] ** 2))
+            self.corrected_sum_sq_after += float(np.sum(ea[done] ** 2))
         if r.before_axis is not None:
             ab = float(np.sqrt(np.sum(r.before_axis ** 2, axis=1)).max()) * 1e6
             aa = float(np.sqrt(np.sum(r.after_axis ** 2, axis=1)).max()) * 1e6
             self.max_axis_before_urad = max(self.max_axis_before_urad or 0.0, ab)
             self.max_axis_after_urad = max(self.max_axis_after_urad or 0.0, aa)
         self.not_converged += int(np.sum(~r.converged))
+
+    def as_dict(self) -> dict:
+        """The figures as the keys of ``mtcomp compensate --json`` (um; counts of blocks)."""
+        n = max(self.evaluated, 1)
+        nc = max(self.corrected_blocks, 1)
+        out = {"blocks": self.blocks, "internal_nodes": self.inserted,
+               "evaluated_blocks": self.evaluated,
+               "max_before_um": self.max_before_um,
+               "rms_before_um": float(np.sqrt(self.sum_sq_before / n)),
+               "max_after_um": self.max_after_um,
+               "rms_after_um": float(np.sqrt(self.sum_sq_after / n)),
+               "worst_line": self.worst_line,
+               "corrected": {"blocks": self.corrected_blocks,
+                             "max_before_um": self.corrected_max_before_um,
+                             "rms_before_um": float(np.sqrt(self.corrected_sum_sq_before / nc)),
+                             "max_after_um": self.corrected_max_after_um,
+                             "rms_after_um": float(np.sqrt(self.corrected_sum_sq_after / nc))},
+               "uncorrected": {"unknown_axes": self.unknown_blocks,
+                               "outside_support": 0 if self.extrapolate else self.outside_blocks},
+               "outside_support_blocks": self.outside_blocks,
+               "bounded_blocks": self.bounded_blocks,
+               "active_bounds": dict(sorted(self.flag_counts.items())),
+               "not_converged": self.not_converged}
+        if self.max_axis_before_urad is not None:
+            out["max_axis_before_urad"] = self.max_axis_before_urad
+            out["max_axis_after_urad"] = self.max_axis_after_urad
+        return out
 
     def text(self) -> str:
         n = max(self.evaluated, 1)
@@ -166,6 +206,10 @@ class Summary:
         if not_corrected:
             lines.append(f"(these figures include the {blocks(not_corrected)} left uncorrected, "
                          "listed below)")
+            c = self.as_dict()["corrected"]
+            lines.append(f"over the {blocks(c['blocks'])} corrected: before max "
+                         f"{c['max_before_um']:.3f} um, rms {c['rms_before_um']:.3f} um; after max "
+                         f"{c['max_after_um']:.3f} um, rms {c['rms_after_um']:.3f} um")
         if self.max_axis_before_urad is not None:
             lines.append(f"predicted tool-axis deviation: max {self.max_axis_before_urad:.3f} urad "
                          f"before, {self.max_axis_after_urad:.3f} urad after")

@@ -27,6 +27,8 @@ _SRC = Path(__file__).with_name("_fast_gcode.c")
 _BLOCK = 4 << 20           # bytes read from the input at a time
 _OUT = 8 << 20             # bytes of output gathered before a write
 NEED_INPUT, FALLBACK, ROWS_FULL, NEED_CORR, OUT_FULL, MISMATCH = range(6)
+#: bit of a row's known mask (uint8) set by the compiled reader when the row's start is not known
+START_UNKNOWN = 128
 
 _lib = None
 _tried = False
@@ -207,7 +209,7 @@ class _Driver:
 def _new_rows(cap, na):
     return (np.empty(cap, np.int64), np.empty((cap, na)), np.empty((cap, na)), np.empty(cap),
             np.empty((cap, na), np.int8), np.empty(cap, np.uint8), np.empty(cap, np.uint8),
-            np.empty(cap, np.int32), np.zeros(cap, bool))
+            np.empty(cap, np.int32), np.zeros(cap, bool), np.zeros(cap, bool))
 
 
 def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_position=None, **kw):
@@ -223,10 +225,11 @@ def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_positio
 
     def chunk():
         k = n.value
-        line, start, end, feed, dirs, rapid, known, frame, arc = rows
+        line, start, end, feed, dirs, rapid, known, frame, arc, cycle = rows
+        jump = (known[:k] & START_UNKNOWN) != 0
         known = (known[:k, None].astype(np.int64) & d.bits) != 0
         return SegmentChunk(line[:k], start[:k], end[:k], feed[:k], dirs[:k], rapid[:k].view(bool),
-                            arc[:k], known, frame[:k])
+                            arc[:k], known, frame[:k], cycle[:k], jump)
     try:
         while True:
             status = d.call(rows[:8], cap, n)
@@ -252,9 +255,11 @@ def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_positio
                         n.value = 0
                     r = n.value
                     take = min(kb - done, cap - r)
-                    line, start, end, feed, dirs, rapid, known, frame, arc = rows
+                    line, start, end, feed, dirs, rapid, known, frame, arc, cycle = rows
                     sl = slice(done, done + take)
                     known[r:r + take] = d._mask(b.known)
+                    if done == 0 and not b.start_known:
+                        known[r] |= START_UNKNOWN
                     frame[r:r + take] = b.frame
                     line[r:r + take] = b.line
                     start[r:r + take] = starts[sl]
@@ -263,6 +268,7 @@ def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_positio
                     dirs[r:r + take] = b.dirs[sl]
                     rapid[r:r + take] = b.rapid
                     arc[r:r + take] = b.from_arc
+                    cycle[r:r + take] = b.cycle is not None
                     n.value = r + take
                     done += take
             else:  # pragma: no cover - the reader asks for nothing else
@@ -337,4 +343,5 @@ def write_corrected(in_path, out_path, machine, cursor, chord_tol_mm, initial_po
         d.close()
     if stats is not None:
         stats["cycle_lines"] = ostate.cycle_lines
+        stats["cycle_blocks"] = ostate.cycle_blocks
     return rows_done

@@ -260,6 +260,9 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                 double v = is_rot[j] ? vals[j] * DEG2RAD : vals[j] * scale;
                 end[j] = incr ? start[j] + v : v;
             }
+            /* a start the program has not given on every axis: bit 7 of the row's known mask */
+            unsigned all = (1u << na) - 1u;
+            unsigned jump = (known & all) != all ? 128u : 0u;
             known |= seen;
             state[20] = (double)known;
             for (int j = 0; j < na; j++) {
@@ -278,7 +281,7 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                 }
                 r_feed[r] = motion == 0 ? NAN : state[12];
                 r_rapid[r] = (unsigned char)(motion == 0);
-                r_known[r] = (unsigned char)known;
+                r_known[r] = (unsigned char)(known | jump);
                 r_frame[r] = (int)state[21];
                 *r_n = r + 1;
             }

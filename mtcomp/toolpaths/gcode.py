@@ -73,6 +73,8 @@ _CANNED_CYCLES = frozenset({73, 81, 82, 83, 84, 85, 86, 87, 88, 89})
 WORK_SYSTEMS = ("G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3")
 _WCS_INDEX = {54: 0, 55: 1, 56: 2, 57: 3, 58: 4, 59: 5, 59.1: 6, 59.2: 7, 59.3: 8}
 _NEG_ZERO_RE = re.compile(r"-(0\.0+)(?![0-9])")
+#: a program number written with ':' (the ISO code's O), alone or with comments
+_COLON_PROGRAM_RE = re.compile(r":\s*\d+\s*(?:\([^()]*\)\s*)*(?:;.*)?$")
 #: features of other languages, refused with their name (checked on lines that do not tokenize)
 _O_WORD_RE = re.compile(r"^\s*(?:[Nn]\s*\d+\s*)?[Oo]\s*(?:\d+|<[^>]*>)\s*([A-Za-z]+)")
 _KEYWORDS = {
@@ -118,6 +120,11 @@ class SegmentChunk:
         change (the tool axis), a change of work coordinate system (every axis), until the program
         names the axis again. Unknown axes are never written and never corrected.
     frame : (n,) int32, active work coordinate system and tool length number (:func:`frame_code`).
+    cycle : (n,) bool, the row is the bottom of a hole of a drilling cycle (G73, G81-G89) that is
+        kept as a cycle: one output block, reached by rapids, corrected as a whole.
+    jump : (n,) bool, the row's start is not a position the program has given on every axis (an
+        axis was unknown before its block: at the start, after a home move, a tool change ...):
+        the machine does not come from ``start`` along a known line.
     tool_length : (n,) float, mm, tool length of the block for the error model (nan: the machine's),
         or None; set by the caller that knows the tool lengths (not read from the program).
     """
@@ -131,9 +138,12 @@ class SegmentChunk:
     from_arc: np.ndarray
     known: np.ndarray | None = None
     frame: np.ndarray | None = None
+    cycle: np.ndarray | None = None
+    jump: np.ndarray | None = None
     tool_length: np.ndarray | None = None
 
-    FIELDS = ("line", "start", "end", "feed", "dirs", "rapid", "from_arc", "known", "frame")
+    FIELDS = ("line", "start", "end", "feed", "dirs", "rapid", "from_arc", "known", "frame", "cycle",
+              "jump")
 
     def __post_init__(self):
         n, na = self.start.shape
@@ -141,6 +151,10 @@ class SegmentChunk:
             self.known = np.ones((n, na), bool)
         if self.frame is None:
             self.frame = np.zeros(n, np.int32)
+        if self.cycle is None:
+            self.cycle = np.zeros(n, bool)
+        if self.jump is None:
+            self.jump = np.zeros(n, bool)
 
     def __len__(self) -> int:
         return int(self.line.shape[0])
@@ -156,7 +170,8 @@ class SegmentChunk:
 def _empty_chunk(na: int) -> SegmentChunk:
     return SegmentChunk(np.zeros(0, np.int64), np.zeros((0, na)), np.zeros((0, na)), np.zeros(0),
                         np.zeros((0, na), np.int8), np.zeros(0, bool), np.zeros(0, bool),
-                        np.zeros((0, na), bool), np.zeros(0, np.int32))
+                        np.zeros((0, na), bool), np.zeros(0, np.int32), np.zeros(0, bool),
+                        np.zeros(0, bool))
 
 
 @dataclass
@@ -177,6 +192,10 @@ class MotionBlock:
     motion_word : the line carries its G0/G1/G2/G3. incremental : G91 was in force.
     inverse_time : G93 was in force (then ``f_word`` is the block's F value, 1/min).
     frame : :func:`frame_code` of the block.
+    cycle : a drilling cycle line kept as a cycle (:class:`CycleBlock`), else None; its ``points``
+        are then the bottoms of its holes (one per hole) and ``end`` where the cycle leaves the tool.
+    start_known : every axis's position was known before the block (``start`` is where the machine
+        stands, not a placeholder).
     """
 
     line: int
@@ -199,6 +218,8 @@ class MotionBlock:
     inverse_time: bool = False
     f_word: float = math.nan
     frame: int = 0
+    cycle: "CycleBlock | None" = None
+    start_known: bool = True
 
     def __post_init__(self):
         if self.known is None:
@@ -220,6 +241,30 @@ class MotionBlock:
 
 
 @dataclass
+class CycleBlock:
+    """A drilling cycle line (G73, G81-G89) kept as a cycle: what the writer needs to restate it.
+
+    code : 73, 81 ... r_level, z_bottom : mm, absolute levels of the R plane and the hole bottom in
+    the program's frame. retract : 98 / 99, or None when the program has stated neither.
+    starting : the line begins a series of cycles (the initial level is the Z before it).
+    incremental : the line was written in G91 (its repeats become one absolute line each).
+    tokens : the line's words and comments (letter, number, raw), without its N word.
+    named : the letters among X Y Z R that the line gives.
+    z_after_known : the program knows Z after the line (where the cycle leaves the tool).
+    """
+
+    code: int
+    r_level: float
+    z_bottom: float
+    retract: int | None
+    starting: bool
+    incremental: bool
+    tokens: list
+    named: frozenset
+    z_after_known: bool = False
+
+
+@dataclass
 class Program:
     """A whole program in memory (small programs and tests; use the streaming API for big ones)."""
 
@@ -237,7 +282,9 @@ def _block_rows(b: MotionBlock) -> SegmentChunk:
     k = b.points.shape[0]
     return SegmentChunk(np.full(k, b.line, np.int64), b.segment_starts(), b.points.copy(),
                         np.full(k, b.feed), b.dirs.copy(), np.full(k, b.rapid), np.full(k, b.from_arc),
-                        np.repeat(b.known[None, :], k, axis=0), np.full(k, b.frame, np.int32))
+                        np.repeat(b.known[None, :], k, axis=0), np.full(k, b.frame, np.int32),
+                        np.full(k, b.cycle is not None), np.arange(k) == 0 if not b.start_known
+                        else np.zeros(k, bool))
 
 
 # --------------------------------------------------------------------------------------- tokens
@@ -360,6 +407,14 @@ class ModalState:
         self.tool = 0
         self.selected_tool = 0
         self.cycle: int | None = None
+        #: drilling cycles: G98/G99 in force (None: neither stated), the sticky R and Z words
+        #: (mm, given in G91), the initial level of the series (mm, known)
+        self.retract: int | None = None
+        self.cycle_r: tuple[float, bool] | None = None
+        self.cycle_z: tuple[float, bool] | None = None
+        self.cycle_init: tuple[float, bool] = (math.nan, False)
+        #: the last block began a series of drilling cycles
+        self.cycle_start = False
         self.inverse_time = False
         self.f_word = math.nan
         self.tool_axis = self.names.index(TOOL_AXIS) if TOOL_AXIS in self.names else -1
@@ -398,10 +453,15 @@ class ModalState:
         self.distance_sensitive = False
         self.had_g = False
         self.cycle_line = False
+        self.cycle_start = False
         if line == 1 and text.startswith("\xef\xbb\xbf"):      # a UTF-8 byte order mark
             text = text[3:]
         s = text.lstrip(" \t")
         if not s or s[0] == "%":
+            return None
+        if s[0] == ":" and _COLON_PROGRAM_RE.match(s):    # ':0097': ISO's O, a program number
+            return None
+        if not s.strip("\x1a \t"):        # DOS end-of-file mark (Ctrl-Z) after the program
             return None
         if s[0] == "$":               # grbl system command: passes through; $H homes every axis
             if s[1:2].upper() in ("H", "J"):
@@ -437,8 +497,8 @@ class ModalState:
                 values[letter] = v
                 if letter == "N":
                     number = raw
-            elif letter == "H":
-                values["H"] = v
+            elif letter in "HL":
+                values[letter] = v
         for m in mcodes:
             if m in _REFUSED_M:
                 raise self._err(f"{_REFUSED_M[m]} is not supported", line)
@@ -484,6 +544,8 @@ class ModalState:
             elif gi in (28, 30, 53):
                 nonmotion_axes = True
                 home_move = gi
+            elif gi in (98, 99):
+                self.retract = gi
             elif gi == 80:
                 self.motion = None
                 self.cycle = None
@@ -532,11 +594,21 @@ class ModalState:
             self.motion = motion
             self.cycle = None
         if cycle is not None:
+            if self.cycle is None:
+                self.cycle_start = True
+                z = self.tool_axis
+                self.cycle_init = (float(self.position[z]), bool(self.known[z])) if z >= 0 \
+                    else (math.nan, False)
             self.cycle = cycle
             self.motion = None
+        if self.cycle is not None:
+            scale = MM_PER_INCH if self.inch else 1.0
+            if "R" in values:
+                self.cycle_r = (values["R"] * scale, self.incremental)
+            if "Z" in values:
+                self.cycle_z = (values["Z"] * scale, self.incremental)
         if self.cycle is not None and axes_given:
-            self._cycle_move(values, axes_given)
-            return None
+            return self._cycle_block(line, values, axes_given, tokens, number)
         arc_words = [c for c in "IJKR" if c in values]
         is_motion = bool(axes_given) or (self.motion in (2, 3) and bool(arc_words))
         if not is_motion:
@@ -577,6 +649,7 @@ class ModalState:
             pts, centre = self._arc(start, end, values, line)
         else:
             pts = end[None, :]
+        start_known = bool(self.known.all())
         self.known |= given
         dirs = self._directions(start, pts)
         if self.motion == 0:
@@ -595,16 +668,105 @@ class ModalState:
         return MotionBlock(line, self.motion, start, end, feed, pts, dirs, centre, self.plane,
                            self.inch, words, number, self.known.copy(), given, raw_axes,
                            motion_word, self.incremental, self.inverse_time and self.motion != 0,
-                           self.f_word, self.frame)
+                           self.f_word, self.frame, start_known=start_known)
 
     def _set_wcs(self, index: int):
         if index != self.wcs:
             self.wcs = index
             self._forget()
 
+    def _cycle_unclear(self, inc: bool) -> str | None:
+        """Why a drilling cycle line cannot be kept as a corrected cycle (None: it can)."""
+        if min(self.xyz_index) < 0:
+            return "a machine without X, Y and Z"
+        if self.plane != 17:
+            return f"drilling along another axis than Z (G{self.plane})"
+        if self.cycle == 87:
+            return "back boring G87"
+        if self.inverse_time:
+            return "inverse time feed G93"
+        if self.cycle_r is None or self.cycle_z is None:
+            return "no R or Z word given for the cycle"
+        if self.cycle_r[1] != inc or self.cycle_z[1] != inc:
+            return "its R or Z was given in the other distance mode (G90/G91)"
+        return None
+
+    def _cycle_block(self, line, values, axes_given, tokens, number) -> MotionBlock | None:
+        """A drilling cycle line. Where the hole is clear (X, Y, the R plane and the bottom known,
+        plane G17) it becomes a :class:`CycleBlock` whose points are the bottoms of its holes;
+        otherwise it passes through uncorrected (G90) or is refused (G91: an incremental cycle
+        passed through would be read against an absolute output)."""
+        rot = [c for c in axes_given if c in "ABC"]
+        if rot:
+            raise self._err(f"drilling cycle G{self.cycle} with a rotary axis word {rot[0]} is not "
+                            "supported", line)
+        inc = self.incremental
+        reason = self._cycle_unclear(inc)
+        xi, yi, zi = self.xyz_index
+        if reason is None and not inc and not all(self.known[i] or c in values
+                                                  for i, c in ((xi, "X"), (yi, "Y"))):
+            reason = "its X or Y position is not known"
+        if reason is not None:
+            if inc:
+                raise self._err(f"incremental (G91) drilling cycle G{self.cycle}: {reason}", line)
+            self._cycle_move(values, axes_given)
+            return None
+        scale = MM_PER_INCH if self.inch else 1.0
+        reps = values.get("L", values.get("K", 1.0))
+        if reps != int(reps) or reps < 1:
+            raise self._err(f"drilling cycle repeat count {reps:g} is not supported (a whole number "
+                            ">= 1)", line)
+        reps = int(reps)
+        start = self.position.copy()
+        start_known = bool(self.known.all())
+        init_z, init_known = self.cycle_init
+        if inc:
+            if not (self.known[xi] and self.known[yi] and self.known[zi]):
+                raise self._err(f"incremental (G91) drilling cycle G{self.cycle} from a position the "
+                                "program has not given", line)
+            if not self.cycle_start and self.retract != 98:
+                raise self._err(f"incremental (G91) drilling cycle G{self.cycle} continued without "
+                                "G98: where its R plane lies differs between controllers", line)
+            r_level = start[zi] + self.cycle_r[0]
+            z_bottom = r_level + self.cycle_z[0]
+            steps = np.arange(1, reps + 1)
+            xs = start[xi] + steps * values.get("X", 0.0) * scale
+            ys = start[yi] + steps * values.get("Y", 0.0) * scale
+        else:
+            r_level, z_bottom = self.cycle_r[0], self.cycle_z[0]
+            xs = np.array([values["X"] * scale if "X" in values else start[xi]])
+            ys = np.array([values["Y"] * scale if "Y" in values else start[yi]])
+        pts = np.repeat(start[None, :], xs.shape[0], axis=0)
+        pts[:, xi], pts[:, yi], pts[:, zi] = xs, ys, z_bottom
+        given = np.zeros(self.na, bool)
+        given[[xi, yi, zi]] = True
+        known = self.known | given
+        dirs = self._directions(start, pts)
+        # where the cycle leaves the tool: the R plane (G99) or the initial level (G98; controllers
+        # differ when the R plane lies above it, and neither stated leaves it open)
+        if self.retract == 99:
+            z_after, z_known = r_level, True
+        elif self.retract == 98 and init_known and r_level <= init_z + 1e-9:
+            z_after, z_known = init_z, True
+        else:
+            z_after, z_known = r_level, False
+        end = pts[-1].copy()
+        end[zi] = z_after
+        self.dirs[zi] = 1                  # the retract moves Z up last
+        self.position = end
+        self.known = known.copy()
+        self.known[zi] = z_known
+        feed = self.feed
+        info = CycleBlock(self.cycle, r_level, z_bottom, self.retract, self.cycle_start, inc,
+                          [t for t in tokens if t[0] != "N"],
+                          frozenset(c for c in "XYZR" if c in values), z_known)
+        return MotionBlock(line, self.cycle, start, end, feed, pts, dirs, None, self.plane,
+                           self.inch, [], number, known, given, {}, True, inc, False, self.f_word,
+                           self.frame, info, start_known)
+
     def _cycle_move(self, values, axes_given):
-        """A drilling cycle block: X/Y go where it says (absolute) or stay unknown; the tool axis
-        ends at the R plane or the start height, which mtcomp does not follow: unknown."""
+        """A drilling cycle line passed through: X/Y go where it says (absolute) or stay unknown; the
+        tool axis ends at the R plane or the start height: unknown."""
         scale = MM_PER_INCH if self.inch else 1.0
         self.cycle_line = True
         for c in axes_given:
@@ -749,7 +911,8 @@ class _ChunkBuilder:
         self._reset()
 
     def _reset(self):
-        self.rows: list[tuple] = []   # (line, start, end, feed, dirs, rapid, arc, known, frame)
+        self.rows: list[tuple] = []   # (line, start, end, feed, dirs, rapid, arc, known, frame,
+        #                                cycle, jump)
         self.n = 0
 
     def add(self, b: MotionBlock) -> Iterator[SegmentChunk]:
@@ -757,7 +920,7 @@ class _ChunkBuilder:
         starts = b.segment_starts() if k > 1 else b.start[None, :]
         for r in range(k):
             self.rows.append((b.line, starts[r], b.points[r], b.feed, b.dirs[r], b.rapid, b.from_arc,
-                              b.known, b.frame))
+                              b.known, b.frame, b.cycle is not None, r == 0 and not b.start_known))
             self.n += 1
             if self.n == self.size:
                 yield self.flush()
@@ -765,12 +928,12 @@ class _ChunkBuilder:
     def flush(self) -> SegmentChunk:
         if self.n == 0:
             return _empty_chunk(self.na)
-        line, start, end, feed, dirs, rapid, arc, known, frame = zip(*self.rows)
+        line, start, end, feed, dirs, rapid, arc, known, frame, cycle, jump = zip(*self.rows)
         c = SegmentChunk(np.array(line, np.int64), np.array(start, float).reshape(-1, self.na),
                          np.array(end, float).reshape(-1, self.na), np.array(feed, float),
                          np.array(dirs, np.int8).reshape(-1, self.na), np.array(rapid, bool),
                          np.array(arc, bool), np.array(known, bool).reshape(-1, self.na),
-                         np.array(frame, np.int32))
+                         np.array(frame, np.int32), np.array(cycle, bool), np.array(jump, bool))
         self._reset()
         return c
 
@@ -817,6 +980,12 @@ class OutputState:
         self.absolute = True        # the reader takes a program without G90/G91 as absolute too
         self.motion = -1
         self.cycle_lines = 0        # drilling cycle lines passed through (not corrected)
+        self.cycle_blocks = 0       # drilling cycle lines kept as cycles and corrected
+        #: drilling cycles: the R and Z the output's cycle holds ('' : not known), and the Z where
+        #: its current series began (mm; nan: not known)
+        self.cycle_r = ""
+        self.cycle_z = ""
+        self.cycle_init_z = math.nan
         self.values = np.full(na, np.nan)
         self.rotary = [False] * na if state is None else state.rotary
         if state is not None:       # axes known before the first line stand where the reader says
@@ -872,6 +1041,8 @@ def format_motion_lines(block: MotionBlock, points: np.ndarray, letters: str, ro
     its correction); otherwise it is written as its chords. ``ending`` is the line's own ending (kept, '' for a last line without
     one); ``separator`` goes between the lines of a split block.
     """
+    if block.cycle is not None:
+        return _cycle_text(block, points, letters, out, ending, separator, source)
     if block.from_arc:
         text = _arc_text(block, points, letters, rotary, out, source, min(chord_tol, ARC_KEEP_TOL_MM))
         if text is not None:
@@ -929,6 +1100,88 @@ def format_motion_lines(block: MotionBlock, points: np.ndarray, letters: str, ro
             carried = 0.0
         out_lines.append(" ".join(head + parts + tail))
     return (ending or separator).join(out_lines) + ending
+
+
+def _cycle_text(block: MotionBlock, points: np.ndarray, letters: str, out: OutputState, ending: str,
+                separator: str, source: str | None) -> str:
+    """A drilling cycle line restated with corrected hole positions: points (k, na) are the
+    corrected bottoms of its k holes. X, Y and Z take the corrected bottom; R moves with Z (the
+    depth below the R plane is kept). The line keeps its words in their order, X Y Z R in their
+    places; each is written when the source names it or the output's value differs (those the
+    source does not name after its last one). An incremental line becomes absolute, one line per
+    repeat (L dropped)."""
+    info = block.cycle
+    xi, yi, zi = (letters.index(c) for c in "XYZ")
+    inch = block.inch
+    scale = MM_PER_INCH if inch else 1.0
+    if info.starting:
+        out.cycle_init_z = out.values[zi]
+    out.cycle_blocks += 1
+    raw = {} if info.incremental else {t[0]: t[2] for t in info.tokens if t[0] in "XYZR"}
+    nominal = {"X": block.points[0, xi], "Y": block.points[0, yi], "Z": info.z_bottom,
+               "R": info.r_level}
+    nominal = {c: _format_value(v, False, inch) for c, v in nominal.items()}
+    lines = []
+    for j in range(points.shape[0]):
+        p = points[j]
+        r = info.r_level + (p[zi] - block.points[j, zi])
+        text = {c: _format_value(v, False, inch) for c, v in zip("XYZR", (p[xi], p[yi], p[zi], r))}
+        current = {"X": out.last(xi, inch), "Y": out.last(yi, inch), "Z": out.cycle_z,
+                   "R": out.cycle_r}
+        named = info.named if j == 0 else frozenset("XY")
+        need = [c for c in "XYZR" if c in named or text[c] != current[c]]
+        # a coordinate that keeps its source value keeps its source spelling: the machine goes
+        # where that spelling says
+        spelled = {c: raw[c][1:] for c in need if c in raw and text[c] == nominal[c]}
+        if j == 0 and points.shape[0] == 1 and source is not None and out.absolute \
+                and not info.incremental and all(text[c] == nominal[c] for c in "XYZR") \
+                and all(current[c] == nominal[c] for c in "XYZR" if c not in named):
+            lines.append(source)
+        else:
+            words = [raw[c] if c in spelled else f"{c}{text[c]}" for c in need]
+            head = []
+            if j == 0:
+                if block.number:
+                    head.append(block.number)
+                if not out.absolute:
+                    head.append("G90")
+                    out.absolute = True
+                word_of = dict(zip(need, words))
+                in_source = [t[0] for t in info.tokens if t[0] in "XYZR"]
+                extra = [word_of[c] for c in need if c not in in_source]
+                body = []
+                for letter, num, rw in info.tokens:
+                    if letter == "G" and float(num) in (90, 91):
+                        continue
+                    if letter in "LK" and info.incremental:
+                        continue
+                    if letter in "XYZR":
+                        if letter in word_of:
+                            body.append(word_of[letter])
+                        in_source.remove(letter)
+                        if not in_source:      # after the source's last X Y Z R: the others
+                            body += extra
+                            extra = []
+                        continue
+                    body.append(rw)
+                body += extra
+                lines.append(" ".join(head + body))
+            else:
+                lines.append(" ".join(words))
+        out.set_last(xi, spelled.get("X", text["X"]), inch)
+        out.set_last(yi, spelled.get("Y", text["Y"]), inch)
+        out.cycle_z, out.cycle_r = (_format_value(float(spelled[c]) * scale, False, inch)
+                                    if c in spelled else text[c] for c in "ZR")
+    r_out = float(out.cycle_r) * scale
+    init = out.cycle_init_z
+    if info.retract == 99:
+        out.values[zi] = r_out
+    elif info.retract == 98 and info.z_after_known and init == init and r_out <= init + 1e-9:
+        out.values[zi] = init
+    else:
+        out.values[zi] = math.nan
+    out.motion = -1
+    return (ending or separator).join(lines) + ending
 
 
 def _arc_text(block, points, letters, rotary, out, source, chord_tol) -> str | None:
@@ -1041,6 +1294,15 @@ def write_pass_through(f, raw: bytes, state: ModalState, out: OutputState, separ
         out.motion = state.motion if state.motion in (0, 1) and state.cycle is None else -1
     if state.cycle_line:
         out.cycle_lines += 1
+        xi, yi, zi = state.xyz_index
+        if state.cycle_start:
+            out.cycle_init_z = out.values[zi]
+        for i in (xi, yi):
+            out.values[i] = state.position[i] if state.known[i] else math.nan
+        out.values[zi] = math.nan
+        for attr in ("cycle_r", "cycle_z"):
+            v = getattr(state, attr)
+            setattr(out, attr, "" if v is None or v[1] else _format_value(v[0], False, state.inch))
 
 
 def _uncorrected(path, machine, chord_tol_mm, chunk_size, initial_position, **kw):
@@ -1130,7 +1392,8 @@ def write_corrected(in_path, out_path, machine: Machine,
     line, 4 decimals for mm and deg, 5 for inch. The file is written atomically: nothing is left on
     failure and the input is never overwritten. inch, initial_known : see :func:`iter_blocks`.
     stats : a dict that receives ``cycle_lines``, the drilling cycle lines passed through unchanged
-    (their positions are not corrected), or None.
+    (their positions are not corrected), and ``cycle_blocks``, those kept as cycles and corrected,
+    or None.
     Raises InputError for a bad program or output path, ValueError for corrections that do not
     match the program's segment rows (or hold a non-finite point).
     """
@@ -1168,4 +1431,5 @@ def write_corrected(in_path, out_path, machine: Machine,
         cursor.finish()
     if stats is not None:
         stats["cycle_lines"] = 0 if out is None else out.cycle_lines
+        stats["cycle_blocks"] = 0 if out is None else out.cycle_blocks
     return rows_written

@@ -23,6 +23,9 @@ from .surface import SurfaceMap
 #: diverging colour map: blue = tool dug in (dn < 0), red = material left (dn > 0)
 CMAP = "coolwarm"
 SCALAR_BAR_TITLE = "deviation along surface normal (um)"
+#: the scale bar's title per SurfaceMap.normal_kind
+SCALAR_BAR_TITLES = {"surface": SCALAR_BAR_TITLE,
+                     "in-plane": "deviation across the contour, in its plane (um)"}
 DEFAULT_WINDOW = (1400, 700)
 MAX_GLYPHS = 600
 #: whether prepare_offscreen chose EGL (so a failed render may retry without it)
@@ -233,7 +236,7 @@ def _render_pyvista(smap, panels, out_png, clim, scale, window_size, title):
         plotter.add_scalar_bar(title=" ", mapper=mapper, vertical=False, position_x=0.2,
                                position_y=0.45, width=0.6, height=0.5, color="black",
                                label_font_size=max(font + 1, 8), n_labels=7, fmt="%.2f")
-        plotter.add_text(SCALAR_BAR_TITLE, position="lower_edge", font_size=max(font - 1, 6),
+        plotter.add_text(SCALAR_BAR_TITLES[smap.normal_kind], position="lower_edge", font_size=max(font - 1, 6),
                          color="black")
         if n > 1:
             plotter.link_views()
@@ -275,7 +278,8 @@ def _render_matplotlib(smap, panels, out_png, clim, scale, window_size, title):
         ax.set_ylabel(f"{names[1]} (mm)")
         ax.set_title(panel_title(label, dn) if not (title and ax is axes[0][0])
                      else f"{title}\n{panel_title(label, dn)}")
-    fig.colorbar(im, ax=axes[0].tolist(), orientation="horizontal", label=SCALAR_BAR_TITLE,
+    fig.colorbar(im, ax=axes[0].tolist(), orientation="horizontal",
+                 label=SCALAR_BAR_TITLES[smap.normal_kind],
                  shrink=0.6)
     try:
         with atomic_write(out_png, "wb") as f:

@@ -41,6 +41,13 @@ from ..machine import Machine
 XY_MERGE_TOL_MM = 1e-3
 #: triangles with an edge longer than this times the median edge length are dropped
 MAX_EDGE_FACTOR = 5.0
+#: a program is planar (a 2-D contour) when this share of its cutting path runs across a constant
+#: tool axis and of its cutting points lies on at most PLANAR_MAX_LEVELS heights (to PLANAR_TOL_MM)
+PLANAR_SHARE = 0.95
+PLANAR_MAX_LEVELS = 10
+PLANAR_TOL_MM = 1e-3
+#: width of the band an in-plane map is drawn as, as a share of the contour's extent (display only)
+BAND_SHARE = 0.015
 
 
 @dataclass
@@ -86,6 +93,8 @@ class SurfaceMap:
     offsets : (N, 3) mm, the tool point whose deviation is mapped, relative to the nominal tip
         (workpiece frame): zero for the tip, the ball centre for a ball end, the axis point at the
         contact height on a flank. dev_before/dev_after are the deviations of that point.
+    normal_kind : 'surface' (the normal of the cut surface, or of the flank) or 'in-plane' (the
+        normal of a planar contour in its plane, across the tool axis).
     """
 
     points: np.ndarray
@@ -98,6 +107,7 @@ class SurfaceMap:
     source: str = ""
     compensated: str | None = None
     offsets: np.ndarray | None = None
+    normal_kind: str = "surface"
 
     @property
     def dn_before_um(self) -> np.ndarray:
@@ -375,6 +385,82 @@ def _tip_geometry(orig: ProgramPoints, machine: Machine, radius: float, max_edge
     return _Geometry(cut[keep], draw, radius * axis, normals, tri)
 
 
+def planar_levels(orig: ProgramPoints, machine: Machine) -> int:
+    """The number of planes across the tool axis the program cuts in (0: not planar).
+
+    Planar (a 2-D contour, engraving, a profile cut in a few step-downs): the tool axis is the same
+    at every cutting point, at least ``PLANAR_SHARE`` of the cutting path's length runs across it
+    (moves whose height along it changes by at most ``PLANAR_TOL_MM``), and at least that share of
+    the cutting points lies on at most ``PLANAR_MAX_LEVELS`` heights (ramps and plunges may lie
+    between). A sloped or curved surface, or waterline finishing on many levels, is not planar."""
+    feed = np.flatnonzero(~orig.rapid)
+    feed = feed[feed > 0]
+    if feed.size < 2:
+        return 0
+    tips, axes = forward(machine, orig.q)
+    axis = axes[feed[0]]
+    if np.max(np.abs(axes[feed] - axis)) > 1e-9:
+        return 0
+    step = tips[feed] - tips[feed - 1]
+    dh = step @ axis
+    across = np.linalg.norm(step - dh[:, None] * axis, axis=1)
+    flat = np.abs(dh) <= PLANAR_TOL_MM
+    if across.sum() <= 0 or across[flat].sum() < PLANAR_SHARE * across.sum():
+        return 0
+    h = np.round(tips[feed] @ axis / PLANAR_TOL_MM).astype(np.int64)
+    _, counts = np.unique(h, return_counts=True)
+    top = np.sort(counts)[::-1][:PLANAR_MAX_LEVELS]
+    return int(top.size) if top.sum() >= PLANAR_SHARE * feed.size else 0
+
+
+def _inplane_geometry(orig: ProgramPoints, machine: Machine, radius: float, side: str):
+    """A planar program's contour: every feed move with a length across the tool axis is a wall
+    segment whose normal lies in the plane (perpendicular to the move and the tool axis), pointing
+    away from the middle of its pass (``side`` 'outer', a boss) or towards it ('inner', a pocket).
+    The deviation is the tip's (or the tool axis point's, for a cutter of ``radius``: the same for
+    a tool that does not tilt); each segment is drawn as a band of its own two end points, so a
+    corner keeps the normals of both walls."""
+    tips, axes = forward(machine, orig.q)
+    feed = ~orig.rapid
+    seg = []                                  # row j: the move from point j-1 to point j
+    for j in np.flatnonzero(feed):
+        if j == 0:
+            continue
+        d = tips[j] - tips[j - 1]
+        d = d - (d @ axes[j]) * axes[j]
+        length = float(np.linalg.norm(d))
+        if length > 1e-6:
+            seg.append((j, d / length, length))
+    if not seg:
+        raise InputError("in-plane map: the program has no feed move across the tool axis",
+                         orig.path)
+    rows = np.array([j for j, _t, _l in seg])
+    t = np.array([t for _j, t, _l in seg])
+    n = np.cross(t, axes[rows])
+    mid = 0.5 * (tips[rows] + tips[rows - 1])
+    # passes: segments that follow each other without a rapid or a move along the axis between
+    new_pass = np.ones(rows.size, bool)
+    new_pass[1:] = rows[1:] != rows[:-1] + 1
+    pass_id = np.cumsum(new_pass) - 1
+    lengths = np.array([l for _j, _t, l in seg])
+    for k in range(int(pass_id[-1]) + 1):
+        m = pass_id == k
+        centre = np.average(mid[m], axis=0, weights=lengths[m])
+        sign = np.sign(np.sum(lengths[m] * np.einsum("ij,ij->i", mid[m] - centre, n[m]))) or 1.0
+        n[m] *= sign if side == "outer" else -sign
+    span = np.ptp(tips[np.concatenate([rows, rows - 1])], axis=0)
+    width = BAND_SHARE * max(float(np.max(span)), 1e-3)
+    s = rows.size
+    index = np.concatenate([rows - 1, rows, rows - 1, rows])
+    normals = np.tile(n, (4, 1))
+    contact = tips[index] - radius * normals
+    draw = contact + np.concatenate([np.zeros((2 * s, 1)), np.full((2 * s, 1), width)]) * normals
+    a, b = np.arange(s), np.arange(s) + s                   # start, end on the contour
+    c, e = a + 2 * s, b + 2 * s                              # start, end on the band's far edge
+    tris = np.vstack([np.column_stack([a, b, e]), np.column_stack([a, e, c])])
+    return _Geometry(index, draw, radius * axes[index], normals, tris)
+
+
 def cutting_runs(tips: np.ndarray, gap_factor: float = 5.0, corner_deg: float = 60.0
                  ) -> list[np.ndarray]:
     """Split consecutive cutting points (n, 3) into runs: at steps longer than ``gap_factor`` times
@@ -468,7 +554,8 @@ def program_hints(path) -> dict:
 def program_error_map(machine: Machine, fitted, program, compensated=None,
                       tool_radius_mm: float | None = None, flank_length_mm: float | None = None,
                       flank_side: str = "outer", max_edge_factor: float = MAX_EDGE_FACTOR,
-                      flank_levels: int | None = None, report=None) -> SurfaceMap:
+                      flank_levels: int | None = None, report=None,
+                      normal: str = "surface") -> SurfaceMap:
     """The surface ``program`` cuts, with the deviation predicted by ``fitted`` (a FittedModel).
 
     program, compensated : paths of NC files (or :class:`ProgramPoints`); the compensated program
@@ -480,7 +567,10 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
     flank_length_mm : > 0 maps the flank of the tool instead (5-axis side milling): contact lines
         along the tool axis from the tip over this length, offset by the tool radius; None: from the
         header of a built-in part, else the tip surface. flank_side : 'outer' (the tool works
-        outside the contour, e.g. a boss) or 'inner' (a pocket).
+        outside the contour, e.g. a boss) or 'inner' (a pocket); also the side of an in-plane map.
+    normal : 'surface' (the cut surface's normal), 'in-plane' (a planar contour's normal in its
+        plane: :func:`_inplane_geometry`) or 'auto' (in-plane for a program :func:`planar_levels`
+        finds planar, else surface). A flank length > 0 maps the flank whatever this says.
     Raises InputError for programs without a surface or a compensated program that does not match.
     """
     hints = program_hints(program) if not isinstance(program, ProgramPoints) else {}
@@ -492,6 +582,8 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
         raise InputError(f"flank length must be >= 0 mm, got {flank_length_mm}")
     if flank_side not in ("outer", "inner"):
         raise InputError(f"flank side must be 'outer' or 'inner', not {flank_side!r}")
+    if normal not in ("surface", "in-plane", "auto"):
+        raise InputError(f"normal must be 'surface', 'in-plane' or 'auto', not {normal!r}")
     orig = program if isinstance(program, ProgramPoints) else read_program_points(program, machine)
     comp = None
     if report is not None:
@@ -501,9 +593,18 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
         comp = (compensated if isinstance(compensated, ProgramPoints)
                 else read_program_points(compensated, machine))
         pair = pair_compensated(orig, comp, machine)
+    kind = "surface"
+    g = None
     if length > 0:
         g = _flank_geometry(orig, machine, radius, length, flank_side, flank_levels)
-    else:
+    elif normal == "in-plane" or (normal == "auto" and planar_levels(orig, machine)):
+        try:
+            g = _inplane_geometry(orig, machine, radius, flank_side)
+            kind = "in-plane"
+        except InputError:
+            if normal == "in-plane":
+                raise
+    if g is None:
         try:
             g = _tip_geometry(orig, machine, radius, max_edge_factor)
         except InputError:      # no surface seen along Z (a lathe profile, one point, no cutting)
@@ -521,4 +622,4 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
         dev_after = predicted_points(fitted, comp.q[j], comp.feed[j], comp.dirs[j],
                                      offset_tool) - nominal
     return SurfaceMap(g.draw, tips, g.normals, g.triangles, orig.line[sel].copy(), dev_before,
-                      dev_after, orig.path, None if comp is None else comp.path, g.offset)
+                      dev_after, orig.path, None if comp is None else comp.path, g.offset, kind)
