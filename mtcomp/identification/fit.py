@@ -471,8 +471,14 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
         raise ValueError(f"weights must be 'unit', 'noise' or a dict, not {weights!r}")
     sol = problem.solve(w, rcond, max_iterations, tol)
     result = problem.result(sol, w, label, ctx_defaults, time.perf_counter() - t0, info)
-    result.fitted_model.support = data_support(model.machine, datasets)
-    result.fitted_model.held = data_held(model.machine, datasets)
+    # an axis none of whose own errors were fitted (all held: the user says the controller already
+    # compensates it) does not bound the model: what was fitted (a rotary table's motion) holds for
+    # the rigid body wherever that axis stands
+    fitted_axes = {model.param_specs[i].group.split(":", 1)[0] for i in np.flatnonzero(mask)}
+    result.fitted_model.support = {a: r for a, r in data_support(model.machine, datasets).items()
+                                   if a in fitted_axes}
+    result.fitted_model.held = {a: v for a, v in data_held(model.machine, datasets).items()
+                                if a in fitted_axes}
     if problem.weak_fallback:
         result.info["weak_directions"] = ("not held: holding them would have spoiled the fit of the "
                                           "data; the data's own least-squares fit is kept")

@@ -21,7 +21,8 @@ an older mtcomp) claims nothing about its region.
 axes of laser runs, the Z of points on one plane. How the errors change along such an axis is not
 known, so the model is evaluated at that position wherever it is used for a correction: what was
 measured there is applied along the whole axis (as a pitch table from a laser run is), and nothing
-is extrapolated from it.
+is extrapolated from it. A held rotary axis instead bounds the model like ``support``: blocks at
+another angle are not corrected (the errors measured at one angle of a table say nothing at another).
 """
 from __future__ import annotations
 
@@ -69,14 +70,17 @@ class FittedModel:
     held: dict | None = None
 
     def clamp(self, q: np.ndarray) -> tuple[np.ndarray, list[int]]:
-        """(q with every held axis set to its held position (a copy when any is held), the indices
-        of those axes): where the model is evaluated for a correction at poses q (n, n_axes)."""
-        cols = [self.machine.index(a) for a in (self.held or {})]
-        if not cols:
+        """(q with every held linear axis set to its held position (a copy when any is held), the
+        indices of those axes): where the model is evaluated for a correction at poses q (n, n_axes).
+        A held rotary axis is not clamped: its angle turns everything it carries, so the errors
+        measured at one angle say nothing at another (compensate leaves such blocks uncorrected)."""
+        held = {a: v for a, v in (self.held or {}).items() if not self.machine.axis(a).is_rotary}
+        if not held:
             return q, []
         q = np.array(q, dtype=float, copy=True)
-        for a, j in zip(self.held, cols):
-            q[:, j] = self.held[a]
+        cols = [self.machine.index(a) for a in held]
+        for a, j in zip(held, cols):
+            q[:, j] = held[a]
         return q, cols
 
     def prediction_std(self, J: np.ndarray) -> np.ndarray:

@@ -178,9 +178,12 @@ class Planner:
         if support is not None:
             lo = np.full(self.na, -np.inf)
             hi = np.full(self.na, np.inf)
+            held = problem.fitted.held or {}
             for j, a in enumerate(self.machine.axis_names):
                 if a in support:
                     lo[j], hi[j] = support[a]
+                elif a in held and self.machine.axis(a).is_rotary:
+                    lo[j] = hi[j] = held[a]      # measured at one angle only: no other is corrected
             self.support = (lo, hi)
         self._split = self.threads          # parts a chunk's per-block work is cut into
 
