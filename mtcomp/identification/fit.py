@@ -647,11 +647,11 @@ class _Problem:
             pred[so] = y
             ww = w[so]
             rw = ww * (self.observed[so] - y)
-            Jw = np.multiply(Jp, ww[:, None], out=Jp if Jp.flags.writeable else None)
-            Jnw = Jn * ww[:, None]
-            g[:nf] += (Jw.T @ rw)[fi]
-            g[sn] += Jnw.T @ rw
+            g[:nf] += (Jp.T @ (ww * rw))[fi]
+            g[sn] += Jn.T @ (ww * rw)
             if gram:
+                Jw = np.multiply(Jp, ww[:, None], out=Jp if Jp.flags.writeable else None)
+                Jnw = Jn * ww[:, None]
                 A[:nf, :nf] += _column_grouped_gram(Jw, self._column_groups(m))[np.ix_(fi, fi)]
                 Apn = (Jw.T @ Jnw)[fi]
                 A[:nf, sn] += Apn
