@@ -61,6 +61,9 @@ class HeldOut:
     rms_urad: float
     n_params: int
     rank: int
+    #: held-out rms of the urad readings predicted by a pitch table (the mean of the training runs per
+    #: file, axis, component, target and direction): what every laser user does today
+    pitch_urad: float = float("nan")
 
     @property
     def ratio_um(self) -> float:
@@ -85,7 +88,10 @@ def heldout_by_run(topology: str, paths: list[Path]) -> HeldOut:
         else:
             train.append(d)
     res = identify(machine, train)
-    um, urad = [], []
+    um, urad, pitch = [], [], []
+    for d_train, d in zip([t for t in train if any(t.path == d.path for d in test)], test):
+        if d.kind == "laser":
+            pitch.append(_pitch_table_residuals(d_train, d))
     for d in test:
         pred = predict_readings(res.fitted_model, d)
         for col, values in _measured(d).items():
@@ -93,7 +99,22 @@ def heldout_by_run(topology: str, paths: list[Path]) -> HeldOut:
             r = r[np.isfinite(r)]
             (urad if col.endswith("_urad") else um).append(r * (1e3 if col.endswith("_mm") else 1.0))
     rms = lambda parts: float(np.sqrt(np.mean(np.concatenate(parts) ** 2))) if parts else float("nan")  # noqa: E731
-    return HeldOut(rms(um), rms(urad), res.n_params, res.rank)
+    return HeldOut(rms(um), rms(urad), res.n_params, res.rank, rms(pitch))
+
+
+def _pitch_table_residuals(train, test) -> np.ndarray:
+    """(k,) urad: a held-out laser run's angular readings less the mean of the training runs at the
+    same axis, component, target and direction (only the angular readings: a straightness or
+    positioning run's zero changes with every set-up, an angle's does not here)."""
+    def keys(d):
+        return [(a, c, round(float(t), 6), int(r)) for a, c, t, r in zip(d.axis, d.component, d.target, d.dir)]
+    table: dict = {}
+    for k, v, ang in zip(keys(train), train.value, train.angular):
+        if ang:
+            table.setdefault(k, []).append(v)
+    out = [(v - np.mean(table[k])) * 1e6 for k, v, ang in zip(keys(test), test.value, test.angular)
+           if ang and k in table]
+    return np.asarray(out, dtype=float)
 
 
 def _measured(d) -> dict:
