@@ -659,8 +659,9 @@ class _Problem:
                 A[sn, sn] += Jnw.T @ Jnw
         return pred, A, g
 
-    def _column_groups(self, m) -> list[np.ndarray]:
-        """The observation indices of measurement model m, one array per measured column (a dx
+    def _column_groups(self, m) -> list:
+        """The observation indices (a slice when evenly spaced, else an array) of measurement model m,
+        one per measured column (a dx
         reading and a dz reading depend on different parameters; cached per model)."""
         groups = self._group_cache.get(id(m))
         if groups is None:
