@@ -149,7 +149,7 @@ def run_demo(out_dir=DEFAULT_OUT, seed: int = 2026, say=print) -> DemoResult:
             f"-> {camp}")
 
     # 2. identify the base model ------------------------------------------------------------------
-    with steps.step("identify", "identifying the base model (rigid-body geometry, SPEC 6)"):
+    with steps.step("identify", "identifying the base model (rigid-body geometry)"):
         ident = identify(machine, datasets, info={"command": "mtcomp demo"})
         save_model(out / "MODEL_base.json", ident.fitted_model)
         (out / "identify.txt").write_text(ident.summary() + "\n", encoding="utf-8")

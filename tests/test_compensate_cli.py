@@ -324,6 +324,8 @@ def test_figures_over_the_corrected_blocks_only(tmp_path, capsys):
     assert c["rms_after_um"] < 0.5 * c["rms_before_um"] < figures["rms_after_um"]
     line = next(t for t in stdout.splitlines() if t.startswith("over the 4 blocks corrected"))
     assert f"rms {c['rms_after_um']:.3f} um" in line and f"rms {c['rms_before_um']:.3f} um" in line
+    # the figures hold the 2 blocks outside the region, not the one with an unknown axis
+    assert "(these figures include the 2 blocks left uncorrected" in stdout
 
 
 def test_no_internal_nodes_from_a_start_the_program_has_not_given(tmp_path, capsys):
@@ -399,7 +401,7 @@ def test_drilling_cycles_are_corrected_as_cycles(tmp_path, capsys):
     code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o", str(out),
                               "--report", str(rep)], capsys)
     assert code == 0, err
-    assert "3 drilling cycle lines (G73, G81-G89) kept as cycles and corrected" in stdout
+    assert "3 drilling cycle lines (G73, G81-G89) kept as cycles, each hole corrected" in stdout
     assert "1 drilling cycle line (G73, G81-G89) passed through unchanged" in stdout
     src, dst = prog.read_text().splitlines(), out.read_text().splitlines()
     rows = np.genfromtxt(rep, delimiter=",", names=True, dtype=None, encoding=None)

@@ -387,8 +387,10 @@ def test_hold_by_name_component_axis_and_group():
     assert held_parameters(model, names[5]).sum() == 1
     mask = _free_mask(model, None, ["X", "squareness"])
     assert not mask[x].any() and mask[c].all()
-    with pytest.raises(InputError, match="cannot hold 'Q'"):
+    with pytest.raises(InputError, match="--hold Q: no such parameter"):
         _free_mask(model, None, ["Q"])
+    with pytest.raises(InputError, match="did you mean squareness"):
+        _free_mask(model, None, ["squarenes"])
 
 
 def test_calibrated_ball_bar_has_no_length_offset():
@@ -405,3 +407,31 @@ def test_calibrated_ball_bar_has_no_length_offset():
     np.testing.assert_allclose(cal.predict(p, np.zeros(0)), 100.0, rtol=0, atol=1e-9)
     np.testing.assert_allclose(free.predict(p, np.array([2e-3])), 100.002, rtol=0, atol=1e-9)
     assert cal.jacobian(p, np.zeros(0))[1].shape == (12, 0)
+
+
+def test_known_setup_matches_any_path_to_the_file_and_refuses_what_it_cannot_mean(tmp_path, monkeypatch):
+    from mtcomp.identification.fit import build_measurement_models
+    from mtcomp.identification.synthetic import make_ballbar, write_measurements
+    from mtcomp.measurement.files import read_measurements
+    model = ErrorModel(load_machine("xfyz"))
+    th = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    xyz = np.column_stack([100 * np.cos(th), 100 * np.sin(th), np.zeros_like(th)])
+    (tmp_path / "bar").mkdir()
+    write_measurements(tmp_path / "bar" / "bb.csv", make_ballbar(xyz, np.zeros(3), np.zeros(3),
+                                                                length=np.full(12, 100.0)))
+    monkeypatch.chdir(tmp_path)
+    data = read_measurements("bar/bb.csv")
+    for name in ("bar/bb.csv", "./bar/bb.csv", str(tmp_path / "bar" / "bb.csv"), "bb"):
+        (mm,) = build_measurement_models(model, [data], known_setup=[name])
+        assert mm.n_nuisance == 0, name
+    with pytest.raises(InputError, match="--known-setup nosuch.csv: names none of the data files"):
+        build_measurement_models(model, [data], known_setup=["nosuch.csv"])
+    laser = make_laser(["X"] * 5, ["EXX"] * 5, np.linspace(-100, 100, 5))
+    with pytest.raises(InputError, match="a laser file has no set-up to declare known"):
+        build_measurement_models(model, [laser], known_setup=[str(laser.path)])
+    # the model remembers it: predict treats the calibrated bar as fitted, with no length offset
+    from mtcomp.identification.fit import predict_readings
+    res = identify(model, [data], known_setup=["bar/bb.csv"])
+    assert res.fitted_model.info["known_setup"] == ["bb"]
+    pred = predict_readings(res.fitted_model, data)
+    assert pred.setup_known and not any("not part of the fit" in n for n in pred.notes)

@@ -103,3 +103,17 @@ def test_nominal_forward_cafxyz_hand_case():
     np.testing.assert_allclose(tip[0], RC.T @ p_a, rtol=0, atol=1e-12)
     np.testing.assert_allclose(tip[0], [100.0, 0.0, -100.0], rtol=0, atol=1e-12)
     np.testing.assert_allclose(axis[0], RC.T @ RA.T @ [0, 0, 1.0], rtol=0, atol=1e-15)
+
+
+def test_the_machine_file_example_in_the_docs_loads(tmp_path):
+    """docs/machines.md shows a whole machine file: it must be one mtcomp accepts, with the values
+    the page says."""
+    import re
+    from pathlib import Path
+    text = (Path(__file__).resolve().parents[1] / "docs" / "machines.md").read_text()
+    block = re.search(r"```toml\n(.*?)```", text, re.S).group(1)
+    (tmp_path / "m.toml").write_text(block)
+    m = load_machine(str(tmp_path / "m.toml"))
+    assert m.topology == "CAFXYZ" and m.tool_length == 100.0 and m.units == "mm"
+    assert m.axis("C").error_motion_order == 5 and m.axis("A").error_motion_order == 0
+    assert m.compensation["max_step_um"] == 5.0

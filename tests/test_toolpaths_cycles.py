@@ -196,3 +196,25 @@ def test_real_pcb2gcode_drill_program_line_by_line(tmp_path):
     # no G98/G99 in the program: Z after the cycle is not known until the retract names it
     expected[28] = "G0 Z1.00030 ( All done -- retract )"
     assert out == expected
+
+
+def test_haas_peck_words_are_not_a_repeat_count(tmp_path):
+    """Haas G83 writes I (first peck), J (reduction) and K (minimum peck): K is then no repeat count.
+    In G90 the line is corrected once; in G91 with L2 the L gives the count and K0.5 stays."""
+    p = tmp_path / "in.nc"
+    p.write_text("G21 G90 G17\nG0 X0 Y0 Z10\nG98 G83 X5 Y5 Z-3 R2 I1 J0.2 K0.5 F100\n"
+                 "G91 G98 G83 X5 Y0 Z-4 R-8 I1 J0.2 K0.5 L2\nG90 G80\nM30\n")
+    holes = [x.points.tolist() for x in read_program(p, XFYZ).blocks if x.cycle is not None]
+    # second line from (5, 5, 10): R plane 2, bottom -2, two steps of 5 in X
+    assert holes == [[[5, 5, -3]], [[10, 5, -2], [15, 5, -2]]]
+    out = _write(p)
+    assert out[2] == "G98 G83 X5.0012 Y4.9979 Z-2.9967 R2.0033 I1 J0.2 K0.5 F100"
+    assert out[3] == "G98 G83 X10.0012 Y4.9979 Z-1.9967 R2.0033 I1 J0.2 K0.5"
+    assert out[4].startswith("X15.0012")
+
+
+def test_fanuc_k_is_the_repeat_count_without_l(tmp_path):
+    p = tmp_path / "in.nc"
+    p.write_text("G21 G90 G17\nG0 X0 Y0 Z10\nG91 G98 G81 X5 Y0 Z-4 R-8 K2 F100\nG90 G80\nM30\n")
+    holes = [x.points.tolist() for x in read_program(p, XFYZ).blocks if x.cycle is not None]
+    assert holes == [[[5, 0, -2], [10, 0, -2]]]

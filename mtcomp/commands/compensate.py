@@ -266,7 +266,7 @@ def run(args) -> int:
         if summary_json is not None:
             import json
             figures = summary.as_dict()
-            figures["drilling_cycles"] = {"corrected_lines": written.get("cycle_blocks", 0),
+            figures["drilling_cycles"] = {"kept_lines": written.get("cycle_blocks", 0),
                                           "passed_through_lines": written.get("cycle_lines", 0)}
             with atomic_write(summary_json, "w") as f:     # written with the others, at the end
                 json.dump(figures, f, indent=2)
@@ -274,8 +274,9 @@ def run(args) -> int:
     def cycle_lines(k):
         return f"{k} drilling cycle line{'' if k == 1 else 's'} (G73, G81-G89)"
     if written.get("cycle_blocks"):
-        notes.append(f"{cycle_lines(written['cycle_blocks'])} kept as cycles and corrected: X Y Z "
-                     "to the hole's bottom, R moved with Z")
+        notes.append(f"{cycle_lines(written['cycle_blocks'])} kept as cycles, each hole corrected "
+                     "where the model applies (X Y Z to the hole's bottom, R moved with Z; BLOCKS.csv "
+                     "says which)")
     if written.get("cycle_lines"):
         notes.append(f"{cycle_lines(written['cycle_lines'])} passed through unchanged and "
                      "uncorrected: hole position, R or Z not known, or drilling along another "

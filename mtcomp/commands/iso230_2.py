@@ -7,7 +7,7 @@ import json
 
 def add_arguments(parser):
     parser.add_argument("laser", metavar="LASER.csv", nargs="+",
-                        help="laser files (SPEC 3.2) with positioning runs: component EXX, EYY, EZZ, "
+                        help="laser files (docs/measurements.md) with positioning runs: component EXX, EYY, EZZ, "
                              "EAA, EBB or ECC, both directions, at least 2 runs (5 in the standard "
                              "cycle); each file is evaluated on its own")
     parser.add_argument("--json", metavar="OUT.json", default=None,

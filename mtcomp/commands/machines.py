@@ -12,5 +12,5 @@ def run(args) -> int:
     print("built-in machines (name, topology, description, travel):")
     for line in builtin_machine_summaries():
         print("  " + line)
-    print("A machine can also be given as a TOML file (SPEC section 2).")
+    print("A machine can also be given as a TOML file (format: docs/machines.md).")
     return 0

@@ -267,6 +267,7 @@ def model_errors(fitted, q: np.ndarray, directions: dict | None = None) -> tuple
             for a, v in (directions or {}).items()}
     c = fitted.context(n, cols)
     p = fitted.params.values
+    q, _ = fitted.clamp(q)        # where the data held an axis, the model is evaluated there
     out = np.full((n, 6), np.nan)
     out[:, :3] = deviation(model, q, p, c)[:, :3]
     try:

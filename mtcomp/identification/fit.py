@@ -32,6 +32,7 @@ Method (docs/identification.md):
 """
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass, field
 
@@ -336,9 +337,15 @@ def _free_mask(model: ErrorModel, free, hold) -> np.ndarray:
     for name in hold or ():
         held = held_parameters(model, name)
         if not held.any():
-            raise InputError(f"cannot hold {name!r}: no such parameter or group in this model "
-                             f"(a name such as EXX_b3, a component such as EXX, an axis letter such "
-                             f"as X, or one of: {', '.join(sorted(_hold_groups(model)))})")
+            import difflib
+            words = set(names) | _hold_groups(model) | {g.split(":")[0] for g in _hold_groups(model)}
+            words |= {s.group.split(":", 1)[-1] for s in model.param_specs} | set(model.machine.axis_names)
+            close = difflib.get_close_matches(name, sorted(words), n=1) or \
+                difflib.get_close_matches(name.upper(), sorted(words), n=1)
+            hint = f"did you mean {close[0]}? " if close else ""
+            raise InputError(f"--hold {name}: no such parameter or group in this model ({hint}give a "
+                             f"name such as EXX_b3, a component such as EXX, an axis letter such as X, "
+                             f"or one of: {', '.join(sorted(_hold_groups(model)))})")
         mask[held] = False
     return mask
 
@@ -379,10 +386,13 @@ def _unique_tags(datasets) -> list[str]:
 def build_measurement_models(model: ErrorModel, datasets, context_defaults=None, machine=None,
                              known_setup=(), **options) -> list[MeasurementModel]:
     """A measurement model per data set (MeasurementModel instances are passed through), with unique
-    tags (file stems, ``#2``... appended on repeats). ``known_setup``: tags or paths of files whose
-    instrument frame is the workpiece frame."""
+    tags (file stems, ``#2``... appended on repeats). ``known_setup``: tags or paths (as given, or
+    any path to the same file) of files whose set-up is known: a points file whose instrument frame
+    is the workpiece frame, a ball-bar file of a calibrated bar. One that names no data file, or a
+    file of another kind, is an InputError."""
     out = []
-    known = {str(k) for k in known_setup}
+    known = [str(k) for k in known_setup]
+    used: set[str] = set()
     for d, tag in zip(datasets, _unique_tags(datasets)):
         if isinstance(d, MeasurementModel):
             out.append(d)
@@ -390,12 +400,35 @@ def build_measurement_models(model: ErrorModel, datasets, context_defaults=None,
             opts = dict(options)
             if machine is not None:
                 opts["machine"] = machine
-            if tag in known or str(d.path) in known:
+            hits = [k for k in known if k == tag or _same_file(k, d.path)]
+            if hits:
+                if d.kind not in KNOWN_SETUP_KINDS:
+                    raise InputError(f"--known-setup {hits[0]}: a {d.kind} file has no set-up to declare "
+                                     f"known (only {' and '.join(KNOWN_SETUP_KINDS)} files)")
+                used.update(hits)
                 opts["setup"] = "known"
             out.append(measurement_model(model, d, context_defaults, tag=tag, **opts))
         else:
             raise TypeError(f"not a measurement set: {type(d).__name__}")
+    for k in known:
+        if k not in used:
+            raise InputError(f"--known-setup {k}: names none of the data files")
     return out
+
+
+#: kinds whose set-up ``known_setup`` can declare known (points: the instrument frame; ballbar: the
+#: bar's length)
+KNOWN_SETUP_KINDS = ("points", "ballbar")
+
+
+def _same_file(name: str, path) -> bool:
+    """Whether ``name`` and ``path`` are the same file (as written, or resolved)."""
+    if name == str(path):
+        return True
+    try:
+        return os.path.realpath(name) == os.path.realpath(str(path))
+    except (OSError, ValueError):
+        return False
 
 
 def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, weights="unit",
@@ -410,7 +443,9 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
         the start point and the values of held parameters; its context defaults are used).
     datasets : MeasurementSet or MeasurementModel instances (any mix of kinds with a registered model).
     free : None (``model.base_mask``), a bool mask (n_params,), or parameter names.
-    hold : names to hold at their start values even if ``free`` includes them.
+    hold : what to hold at the start values even if ``free`` includes it: parameter names, components
+        (EXX), axis letters (X) or groups (squareness, spindle, tool, C:location); see
+        :func:`held_parameters`.
     initial : (n_params,) start values, internal units (default zeros, or the FittedModel's).
     weights : ``"unit"`` (residuals in um and urad), ``"noise"`` (iteratively reweighted, 1/noise
         per file and unit) or a dict tag -> noise (um for translational/length columns, urad for
@@ -418,8 +453,10 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
     rcond : relative singular-value threshold for undetermined directions.
     max_iterations, tol : Gauss-Newton stops when the scaled step is below tol (relative).
     context_defaults : values of context channels the files lack.
-    known_setup : tags (file stems) or paths of points files whose instrument frame is the workpiece
-        frame (no set-up translation and rotation is fitted for them).
+    known_setup : tags (file stems) or paths of files whose set-up is known: points files whose
+        instrument frame is the workpiece frame (no set-up translation and rotation is fitted), ball-bar
+        files of a calibrated bar (no length offset). Recorded in the model (``info["known_setup"]``)
+        so that predict treats those files alike.
     Returns an :class:`IdentificationResult`.
 
     Spline axes without fixed knots get them from the data first
@@ -477,6 +514,9 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
     fitted_axes = {model.param_specs[i].group.split(":", 1)[0] for i in np.flatnonzero(mask)}
     result.fitted_model.support = {a: r for a, r in data_support(model.machine, datasets).items()
                                    if a in fitted_axes}
+    known = [m.tag for m in mms if m.options.get("setup") == "known"]
+    if known:
+        result.fitted_model.info["known_setup"] = known
     result.fitted_model.held = {a: v for a, v in data_held(model.machine, datasets).items()
                                 if a in fitted_axes}
     if problem.weak_fallback:
@@ -868,7 +908,8 @@ class _Problem:
             small = np.linalg.norm(dz) <= tol * (1.0 + np.linalg.norm(x / scale))
             x_new = x + scale * dz
             if small:
-                # a converged step needs no new Jacobian (the one at x serves the covariance)
+                # a converged step needs no new Jacobian: the covariance uses the normal matrix the
+                # steps used (the start's unless refreshed; the model is linear in p to 1e-5)
                 pred_new, A_new, g_new = self.evaluate(x_new), None, None
             else:
                 refresh = refresh or it >= 4
@@ -1119,7 +1160,10 @@ def predict_readings(fitted: FittedModel, data: MeasurementSet, machine: Machine
     """Predict every row of a measurement file with a fitted model: the same measurement model,
     context defaults and set-up that :func:`identify` used, so that a file that was fitted is
     reproduced exactly (its readings minus the prediction are the fit's residuals)."""
-    mm = build_measurement_models(fitted.model, [data], fitted.context_defaults, machine=machine)[0]
+    tag = _unique_tags([data])[0]
+    known = [tag] if tag in fitted.info.get("known_setup", ()) and data.kind in KNOWN_SETUP_KINDS else []
+    mm = build_measurement_models(fitted.model, [data], fitted.context_defaults, machine=machine,
+                                  known_setup=known)[0]
     nuisance, known = stored_setup(fitted, mm)
     p = fitted.params.values
     columns = mm.predict_columns(p, nuisance)

@@ -94,30 +94,30 @@ def data_positions(machine, datasets) -> dict[str, np.ndarray]:
     return {a: np.concatenate(v) for a, v in out.items() if v}
 
 
-def data_support(machine, datasets) -> dict[str, tuple[float, float]]:
-    """The identified region: axis name -> (lowest, highest) position in the data, internal units,
-    for every axis the data moved. An axis the data hold at one position (the static axes of a laser
-    run) is absent, like one no file positions: the model holds what depends on it at zero, and it
-    does not bound where the model applies (a laser run of X corrects X along the whole table, as
-    the pitch table from the same run would; correcting it only on the laser's line would make the
-    parts of a workpiece disagree)."""
+def _position_ranges(machine, datasets) -> dict[str, tuple[float, float]]:
+    """Axis name -> (lowest, highest) finite position in the files' rows (internal units)."""
     out = {}
     for a, v in data_positions(machine, datasets).items():
         v = v[np.isfinite(v)]
-        if v.size and np.ptp(v) > 1e-9:
+        if v.size:
             out[a] = (float(v.min()), float(v.max()))
     return out
+
+
+def data_support(machine, datasets) -> dict[str, tuple[float, float]]:
+    """The identified region: axis name -> (lowest, highest) position in the data, internal units,
+    for every axis the data moved. An axis the data hold at one position (the static axes of a laser
+    run) is absent, like one no file positions (see :func:`data_held`): it does not bound where the
+    model applies (a laser run of X corrects X along the whole table, as the pitch table from the
+    same run would; correcting it only on the laser's line would make the parts of a workpiece
+    disagree)."""
+    return {a: r for a, r in _position_ranges(machine, datasets).items() if r[1] - r[0] > 1e-9}
 
 
 def data_held(machine, datasets) -> dict[str, float]:
     """Axis name -> position, for every axis that the files position but hold at one and the same
     position (internal units): how its errors vary along it, the data cannot say."""
-    out = {}
-    for a, v in data_positions(machine, datasets).items():
-        v = v[np.isfinite(v)]
-        if v.size and np.ptp(v) <= 1e-9:
-            out[a] = float(v[0])
-    return out
+    return {a: r[0] for a, r in _position_ranges(machine, datasets).items() if r[1] - r[0] <= 1e-9}
 
 
 # ------------------------------------------------------------------------------------------ context

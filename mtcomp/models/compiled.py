@@ -769,7 +769,8 @@ def call(model, name, function, q, p, c, required=False):
     q (N, n_axes), p (n_params,), c (N, n_context), internal units. Returns a list of (N, rows*cols)
     arrays (column-major per pose, as :func:`mtcomp.models.evaluate.casadi_map_call`), or None to let
     the caller fall back to CasADi's map: no compiler (a one-line notice on stderr, once), a failed
-    compilation, or a small N for a function not compiled yet. ``required=True`` raises instead of
+    compilation, or a function not compiled yet that this process has evaluated on fewer than
+    ``MTCOMP_COMPILE_MIN_POSES`` poses in all (this call's included). ``required=True`` raises instead of
     returning None.
     """
     n = np.asarray(q).shape[0]

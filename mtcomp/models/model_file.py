@@ -1,6 +1,6 @@
 """MODEL.json: one file that identify, diagnose, compensate, predict and render share.
 
-Layout (file units: um, urad, mm; see docs/model_file.md)::
+Layout (file units: um, urad, mm; docs/identification.md, "MODEL.json")::
 
     {"format": "mtcomp-model", "version": 1,
      "machine": {... the machine description, as in its TOML ...},
@@ -17,7 +17,8 @@ highest position it took (mm, deg). An axis not listed never moved in the data (
 position): what its errors are is not known, and the model holds them at zero. A model without ``support`` (written by hand, or by
 an older mtcomp) claims nothing about its region.
 
-``held`` names the axes every fitted file held at one and the same position (mm, deg): the static
+``held`` names the axes every fitted file held at one and the same position (mm, deg), among those
+whose errors the fit identified (an axis whose errors were all held is left out): the static
 axes of laser runs, the Z of points on one plane. How the errors change along such an axis is not
 known, so the model is evaluated at that position wherever it is used for a correction: what was
 measured there is applied along the whole axis (as a pitch table from a laser run is), and nothing

@@ -202,9 +202,10 @@ class Summary:
                  f"rms {np.sqrt(self.sum_sq_before / n):.3f} um",
                  f"predicted tool-tip deviation after:  max {self.max_after_um:.3f} um "
                  f"(line {self.worst_line}), rms {np.sqrt(self.sum_sq_after / n):.3f} um"]
-        not_corrected = self.unknown_blocks + (0 if self.extrapolate else self.outside_blocks)
-        if not_corrected:
-            lines.append(f"(these figures include the {blocks(not_corrected)} left uncorrected, "
+        # blocks with an unknown axis are not in the figures; those outside the region are
+        included = self.evaluated - self.corrected_blocks
+        if included > 0:
+            lines.append(f"(these figures include the {blocks(included)} left uncorrected, "
                          "listed below)")
             c = self.as_dict()["corrected"]
             lines.append(f"over the {blocks(c['blocks'])} corrected: before max "

@@ -251,6 +251,7 @@ class CycleBlock:
     tokens : the line's words and comments (letter, number, raw), without its N word.
     named : the letters among X Y Z R that the line gives.
     z_after_known : the program knows Z after the line (where the cycle leaves the tool).
+    count_letter : the word that gave the repeat count ("L" or "K"), None when the line gives none.
     """
 
     code: int
@@ -262,6 +263,7 @@ class CycleBlock:
     tokens: list
     named: frozenset
     z_after_known: bool = False
+    count_letter: str | None = None
 
 
 @dataclass
@@ -712,7 +714,12 @@ class ModalState:
             self._cycle_move(values, axes_given)
             return None
         scale = MM_PER_INCH if self.inch else 1.0
-        reps = values.get("L", values.get("K", 1.0))
+        # the repeat count: L (LinuxCNC, Haas, Siemens ISO mode); K on Fanuc, but only where the
+        # line has no L and no I/J (Haas G73/G83 write I J K as first peck, peck reduction and
+        # minimum peck)
+        count_letter = "L" if "L" in values else (
+            "K" if "K" in values and "I" not in values and "J" not in values else None)
+        reps = values.get(count_letter, 1.0) if count_letter else 1.0
         if reps != int(reps) or reps < 1:
             raise self._err(f"drilling cycle repeat count {reps:g} is not supported (a whole number "
                             ">= 1)", line)
@@ -759,7 +766,7 @@ class ModalState:
         feed = self.feed
         info = CycleBlock(self.cycle, r_level, z_bottom, self.retract, self.cycle_start, inc,
                           [t for t in tokens if t[0] != "N"],
-                          frozenset(c for c in "XYZR" if c in values), z_known)
+                          frozenset(c for c in "XYZR" if c in values), z_known, count_letter)
         return MotionBlock(line, self.cycle, start, end, feed, pts, dirs, None, self.plane,
                            self.inch, [], number, known, given, {}, True, inc, False, self.f_word,
                            self.frame, info, start_known)
@@ -980,7 +987,7 @@ class OutputState:
         self.absolute = True        # the reader takes a program without G90/G91 as absolute too
         self.motion = -1
         self.cycle_lines = 0        # drilling cycle lines passed through (not corrected)
-        self.cycle_blocks = 0       # drilling cycle lines kept as cycles and corrected
+        self.cycle_blocks = 0       # drilling cycle lines kept as cycles (holes corrected where given)
         #: drilling cycles: the R and Z the output's cycle holds ('' : not known), and the Z where
         #: its current series began (mm; nan: not known)
         self.cycle_r = ""
@@ -1153,7 +1160,7 @@ def _cycle_text(block: MotionBlock, points: np.ndarray, letters: str, out: Outpu
                 for letter, num, rw in info.tokens:
                     if letter == "G" and float(num) in (90, 91):
                         continue
-                    if letter in "LK" and info.incremental:
+                    if letter == info.count_letter and info.incremental:
                         continue
                     if letter in "XYZR":
                         if letter in word_of:
@@ -1392,7 +1399,7 @@ def write_corrected(in_path, out_path, machine: Machine,
     line, 4 decimals for mm and deg, 5 for inch. The file is written atomically: nothing is left on
     failure and the input is never overwritten. inch, initial_known : see :func:`iter_blocks`.
     stats : a dict that receives ``cycle_lines``, the drilling cycle lines passed through unchanged
-    (their positions are not corrected), and ``cycle_blocks``, those kept as cycles and corrected,
+    (their positions are not corrected), and ``cycle_blocks``, those kept as cycles (with the corrections given),
     or None.
     Raises InputError for a bad program or output path, ValueError for corrections that do not
     match the program's segment rows (or hold a non-finite point).

@@ -223,13 +223,27 @@ def predicted_points(fitted, q: np.ndarray, feed: np.ndarray, dirs: np.ndarray,
     n = q.shape[0]
     if n == 0:
         return np.zeros((0, 3))
-    c = _context(fitted, n, feed, dirs)
-    tip, rflat = casadi_map_call(_frame_function(fitted.model), np.ascontiguousarray(q, dtype=float),
-                                 np.asarray(fitted.params.values, dtype=float),
-                                 np.ascontiguousarray(c, dtype=float))
+    c = np.ascontiguousarray(_context(fitted, n, feed, dirs), dtype=float)
+    f = _frame_function(fitted.model)
+    p = np.asarray(fitted.params.values, dtype=float)
+    q = np.ascontiguousarray(q, dtype=float)
+
+    def frame(q_, p_):
+        tip_, rflat_ = casadi_map_call(f, q_, p_, c)
+        return tip_, rflat_.reshape(n, 3, 3).transpose(0, 2, 1)
+
+    qc, held = fitted.clamp(q)
+    tip, R = frame(q, p)
+    if held:
+        # the model's error is evaluated where the data held those axes (as compensate does): the
+        # deviation at the clamped pose, carried to the block's own nominal pose
+        tip_c, R_c = frame(qc, p)
+        tip0_c, R0_c = frame(qc, np.zeros_like(p))
+        tip0, R0 = frame(q, np.zeros_like(p))
+        tip = tip0 + (tip_c - tip0_c)
+        R = np.einsum("nij,nkj,nkl->nil", R_c, R0_c, R0)
     if offset_tool is None:
         return tip
-    R = rflat.reshape(n, 3, 3).transpose(0, 2, 1)
     return tip + np.einsum("nij,nj->ni", R, offset_tool)
 
 
