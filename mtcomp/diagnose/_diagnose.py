@@ -28,6 +28,7 @@ from ..models.model_file import FittedModel
 from ..models.params import ParameterSet
 from . import _analysis as an
 from ._candidates import Candidate, generate, temperature_regression
+from ._refusal import moved_axes, refusal
 from ._linalg import Design, _eigh, determined_subspace, rms, solve_normal
 from ._stack import Stack, build_stack
 
@@ -252,6 +253,13 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
     base_metrics = _metrics(st, current, n_base)
     say(f"base model: rms {base_metrics['rms_um']} um, held-out {base_metrics['heldout_rms_um']} um")
     reference = {}
+    still = [a for a in st.machine.axis_names if a not in moved_axes(st)]
+    not_tried = []
+    if still:
+        not_tried.append({"effect": "every extension", "axis": ", ".join(still), "variant": "",
+                          "reason": "the data do not move " + ("this axis" if len(still) == 1 else
+                                                                "these axes")})
+        say(f"not tried: any extension on {', '.join(still)} (the data do not move them)")
     treg = temperature_regression(st)
     if treg is not None:
         fit = design.fit(treg.columns)
@@ -259,7 +267,7 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
             **_metrics(st, fit, n_base + treg.columns.shape[1]), "temperatures": treg.info["temperatures"]}
     chosen: list[Candidate] = []
     findings: list[Finding] = []
-    rejected: list[dict] = []
+    rejected: list[dict] = list(not_tried)
     extra = np.zeros((len(st), 0))
     noise_main = noise.get("um") or noise.get("urad") or noise.get("um/min")
     n = len(st)
@@ -282,6 +290,8 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
             excess = max(current.cv_sse - n, 0.0)
             ok = (dk >= 1 and gain > cv_threshold(dk) + pen and dbic < -BIC_MARGIN - pen
                   and gain >= MIN_EXCESS_SHARE * excess)
+            if ok and c.veto is None:
+                c.veto = refusal(st, c, fit.theta[-c.columns.shape[1]:], dk)
             scored.append((c, fit, dk, gain, dbic, ok))
         good = [s for s in scored if s[5] and s[0].veto is None]
         for s in scored:
@@ -295,7 +305,7 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
             break
         best = max(good, key=lambda s: s[3])
         best = _parsimony(best, good)
-        best = _joint_abbe(design, extra, current, best, good, n)
+        best = _joint_abbe(design, extra, current, best, good, n, st)
         c, fit, dk, gain, dbic, _ = best
         rivals = [s for s in good if s[0].rivals and s[0].rivals == c.rivals and s[0] is not c]
         before = _heldout(st, current)
@@ -425,7 +435,7 @@ def _refine(st: Stack, design: Design, chosen: list[Candidate], fit, iterations:
     return design, fit
 
 
-def _joint_abbe(design, extra, current, best, good, n):
+def _joint_abbe(design, extra, current, best, good, n, st):
     """Two angular errors of one axis can have profiles so alike that either alone explains most of
     a feed-dependent Abbe residual; then the pair of the two best is tried, and kept when it earns
     its extra parameter on held-out data (and in BIC)."""
@@ -442,7 +452,8 @@ def _joint_abbe(design, extra, current, best, good, n):
     dk = fit.rank - current.rank
     gain = current.cv_sse - fit.cv_sse
     dbic = fit.bic(n) - current.bic(n)
-    if dk > best[2] and gain - best[3] > cv_threshold(dk - best[2]) and dbic < best[4] - BIC_MARGIN:
+    if (dk > best[2] and gain - best[3] > cv_threshold(dk - best[2]) and dbic < best[4] - BIC_MARGIN
+            and refusal(st, pair, fit.theta[-pair.columns.shape[1]:], dk) is None):
         pair.info["alternative"] = others[0][0]
         return (pair, fit, dk, gain, dbic, True)
     return best

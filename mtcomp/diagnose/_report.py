@@ -83,11 +83,17 @@ def evidence_and_params(st, c, theta, before_fit, after_fit, rivals, noise):
             params[f"{what}_component"] = c.params[big]
             params[f"{what}s{unit}_per_m_min"] = {c.params[i]: round(float(theta[i]), nd) for i in idx}
         parts = []
-        for n in c.params:
+        for n in [n for n in c.params if n.startswith(("IRC_", "AG_"))]:
             comp = "E" + n.split("_")[1]
             parts.append(f"the rotation centre of {comp} moves along {n.split('_')[2].upper()} with feed"
                          if n.startswith("IRC_") else f"{comp} grows with feed")
         what = " and ".join(parts)
+        off = [i for i, n in enumerate(c.params) if n.startswith("FOFF_")]
+        if off:
+            # the moving centre times the angular error's constant part (not in the base model)
+            params["uniform_um_per_m_min"] = round(float(theta[off[0]] * 1e3), 4)
+            what += (f", with a uniform {params['uniform_um_per_m_min']:.3g} um per m/min from the "
+                     "angular error's constant part")
         ev = (f"The feed-dependent part of the {a} residual follows the fitted angular error profile of "
               f"{a} times the Abbe arm ({what}; seed 000){rt}")
         return params, ev
@@ -183,7 +189,9 @@ def summary(diag) -> str:
         if f.effect != "unexplained":
             lines.append(f"   held-out rms {f.heldout_rms_before_um:.4g} -> {f.heldout_rms_after_um:.4g} um")
     for r in diag.rejected:
-        lines.append(f"refused: {r['effect']} on {r['axis']} ({r['variant']}): {r['reason']}")
+        variant = f" ({r['variant']})" if r.get("variant") else ""
+        on = f" on {r['axis']}" if r.get("axis") else ""
+        lines.append(f"refused: {r['effect']}{on}{variant}: {r['reason']}")
     fz = diag.final
     lines.append(f"final model ({fz['n_params']} parameters): rms {_num(fz.get('rms_um'))} um, held-out "
                  f"{_num(fz.get('heldout_rms_um'))} um")
