@@ -268,12 +268,13 @@ def _drift_columns(st, feature_names):
     chans = [c for c, v in st.hc.items() if np.any(v)]
     for f in feature_names:
         v = st.feature(f)
-        for d in dirs:
-            cols.append(st.h[d] * v)
-            params.append(f"TD_{d}_{f}")
-        for c in chans:
-            cols.append(st.hc[c] * v)
-            params.append(f"TD_{c}_{f}")
+        # a direction or channel none of whose readings has the feature (e.g. laser files without
+        # temperatures) gets no column: its parameter stays at zero, it is not 'undetermined'
+        for name, h in [(d, st.h[d]) for d in dirs] + [(c, st.hc[c]) for c in chans]:
+            col = h * v
+            if np.any(col):
+                cols.append(col)
+                params.append(f"TD_{name}_{f}")
     return (np.column_stack(cols) if cols else np.zeros((len(st), 0))), params, dirs, chans
 
 

@@ -277,8 +277,11 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
             break
         keys = {c.key for c in chosen}
         used_terms = {t.key() for c in chosen for t in c.terms}
+        # one drift finding: its driver is chosen among the rivals, not added driver after driver
+        drift_chosen = any(c.effect == "thermal_drift" for c in chosen)
         cands = [c for c in generate(st, design, extra, current.resid, keys)
-                 if not ({t.key() for t in c.terms} & used_terms)]
+                 if not ({t.key() for t in c.terms} & used_terms)
+                 and not (drift_chosen and c.effect == "thermal_drift")]
         _forward_in_time(st, design, extra, cands)
         scored = []
         for c in cands:

@@ -17,8 +17,8 @@ SAME_POSITION_RAD = 1e-6
 ACTS_SHARE = 0.05
 #: a fitted contribution whose peak-to-peak exceeds this multiple of the readings' own is absurd
 MAX_RANGE_RATIO = 1.5
-#: an angular error that grows by more than this share of itself over the data's feeds is absurd
-MAX_ANGLE_GAIN = 1.0
+#: an angular error that grows by more than this multiple of itself over the data's feeds is absurd
+MAX_ANGLE_GAIN = 3.0
 
 
 def distinct_positions(st, axis: str, rows=None) -> np.ndarray:

@@ -116,13 +116,17 @@ def evidence_and_params(st, c, theta, before_fit, after_fit, rivals, noise):
             params["temperatures"] = c.info["temperatures"]
         drift = c.columns @ theta
         ranges = {}
-        for d in "XYZ":
-            idx = [i for i, nm in enumerate(c.params) if nm.startswith(f"TD_{d}_")]
-            if idx:
-                ranges[d] = float(np.ptp(np.column_stack([st.feature(f) for f in feats])
-                                         @ theta[idx]) * 1e3)
+        for d in list("XYZ") + sorted(st.hc):
+            drift_d = np.zeros(len(st))
+            for i, nm in enumerate(c.params):
+                f = next((f for f in feats if nm == f"TD_{d}_{f}"), None)
+                if f is not None:
+                    drift_d = drift_d + st.feature(f) * theta[i]
+            if np.any(drift_d):
+                ranges[d] = float(np.ptp(drift_d) * 1e3)
         if ranges:
-            params["direction"] = max(ranges, key=ranges.get)
+            top = max(ranges, key=ranges.get)
+            params["direction" if top in ("X", "Y", "Z") else "channel"] = top
             params["drift_range_by_direction_um"] = {d: round(v, 4) for d, v in ranges.items()}
         params["drift_range_um"] = round(float(np.ptp(drift[st.unit == "um"])) if np.any(st.unit == "um")
                                          else float(np.ptp(drift)), 4)
