@@ -4,10 +4,11 @@ Nothing here imports mtcomp. :func:`hidden_case` draws a random machine of a top
 effect (or none: a clean case) and writes a campaign of one kind:
 
 * ``rich``: volumetric points (two tool lengths, both directions, three feeds, two passes), laser
-  runs of every linear axis (six components, an optic offset, two feeds, both directions) and of the
-  rotary axes, ball-bar circles, and the three-sphere set-up on machines with C;
+  runs of every linear axis (six components, an optic offset, two feeds, both directions; and a fine
+  positioning run at 150 irregular targets) and of the rotary axes, ball-bar circles, and the three-sphere set-up on machines with C;
 * ``laser``: ISO 230-2 runs of the effect's axis alone at three feeds, positioning at two Abbe
-  offsets, yaw and pitch (the seed 000 set-up, any axis);
+  offsets and the two angular errors that have an arm (the seed 000 set-up, any axis), and a fine
+  positioning run at 150 irregular targets;
 * ``rotary_laser``: positioning runs of the rotary axes at two feeds, both directions;
 * ``ballbar``: ball-bar circles in three planes (and the three-sphere set-up with C), two feeds;
 * ``mixture``: the laser runs of the effect's axis plus ball-bar circles.
@@ -65,6 +66,17 @@ def compatible_kinds(effect: str, topology: str) -> tuple:
     return KINDS if rotary else tuple(k for k in KINDS if k != "rotary_laser")
 
 
+def _fine_run(m, folder, rng, axis, feed, t):
+    """A fine bidirectional positioning run of ``axis``: 150 targets drawn at random over the travel
+    (irregular, so that no period aliases), two runs. Returns (path, time after it)."""
+    lo, hi = m.travel[axis]
+    pad = 0.05 * (hi - lo)
+    r = tc.laser(m, folder / f"laser_{axis.lower()}_fine.csv", rng, axis, components=(f"E{axis}{axis}",),
+                 targets=np.sort(rng.uniform(lo + pad, hi - pad, 150)), n_runs=2, feed_mm_min=feed,
+                 noise_um=NOISE_UM, t0_s=t)
+    return r.path, float(np.max(r.columns["t_s"])) + 60.0
+
+
 def _laser_runs(m, folder, rng, axis, feeds, t0=0.0):
     """Seed 000 style runs of a linear ``axis``: positioning at 0 and at an Abbe offset across the
     axis, yaw and pitch, at each feed, three runs both ways."""
@@ -76,6 +88,8 @@ def _laser_runs(m, folder, rng, axis, feeds, t0=0.0):
     pos = f"E{axis}{axis}"
     angles = tuple(f"E{b}{axis}" for b in "ABC" if b != "ABC"["XYZ".index(axis)])
     paths, t = [], t0
+    p, t = _fine_run(m, folder, rng, axis, feeds[0], t)
+    paths.append(p)
     for name, comps, optic in ((f"laser_{axis.lower()}_0", (pos,), (0.0, 0.0, 0.0)),
                                (f"laser_{axis.lower()}_abbe", (pos,), tuple(offset)),
                                (f"laser_{axis.lower()}_angles", angles, (0.0, 0.0, 0.0))):
@@ -100,11 +114,6 @@ def hidden_case(seed: int, effect: str, kind: str, topology: str, folder) -> Hid
                                                        "feed_dependent_offset"):
             axis_pick = str(rng.choice([a for a in probe.axis_names if a in "XYZ"]))
         hidden = random_effect(effect, probe, rng, axis=axis_pick)
-        if effect == "feed_dependent_abbe":
-            # the paper's effect: the centre of the yaw moves with feed, on the scale seed 000 saw
-            hidden = FeedAbbe(hidden.axis, angles="C", irc_shift_mm_per_m_min=(
-                0.0, float(rng.choice([-1, 1]) * rng.uniform(400, 900)), 0.0) if hidden.axis == "X" else
-                (float(rng.choice([-1, 1]) * rng.uniform(400, 900)), 0.0, 0.0))
         if effect == "thermal_drift":
             hidden = random_effect(effect, probe, rng, driver="time")
         axis = getattr(hidden, "axis", "")
@@ -125,6 +134,8 @@ def hidden_case(seed: int, effect: str, kind: str, topology: str, folder) -> Hid
                          noise_urad=NOISE_URAD, t0_s=t)
             paths.append(r.path)
             t = float(np.max(r.columns["t_s"])) + 60.0
+            p, t = _fine_run(m, folder, rng, a, feeds2[0], t)
+            paths.append(p)
         for a in rot:
             r = tc.laser(m, folder / f"laser_{a.lower()}.csv", rng, a, n_runs=2, feed_mm_min=feeds2,
                          noise_urad=NOISE_URAD, t0_s=t)
@@ -156,7 +167,7 @@ def hidden_case(seed: int, effect: str, kind: str, topology: str, folder) -> Hid
     if effect == "thermal_drift":
         paths.append(tc.thermal(m, folder / "thermal.csv", rng, duration_h=4.0, noise_um=NOISE_UM / 3).path)
     return HiddenCase(m, paths, effect, axis, kind, topology, hidden,
-                      {"defect": effect == "local_defect"})
+                      {"defect": effect == "local_defect", "seed": seed})
 
 
 def seed000_case(seed: int, folder, irc_shift_mm_per_m_min: float = -800.0) -> HiddenCase:
