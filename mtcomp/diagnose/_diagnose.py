@@ -155,6 +155,12 @@ def _linear_target(st: Stack) -> np.ndarray:
     return st.y - st.pred + _common_block(st) @ _theta0(st)
 
 
+def _cost(st: Stack) -> float:
+    """Sum of squared residuals at the stack's current point (file units: um, urad, um/min)."""
+    r = st.y - st.pred
+    return float(r @ r)
+
+
 def _apply(st: Stack, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     base = np.flatnonzero(st.probe.base_mask)
     p = np.zeros(st.probe.n_params)
@@ -230,11 +236,18 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
     st.evaluate(np.zeros(st.probe.n_params), np.zeros(len(st.nuisance_names)))
     # the directions the data determine, fixed at the start point (as identify does)
     T0 = determined_subspace(_common_block(st))
+    point, cost = (np.zeros(st.probe.n_params), np.zeros(len(st.nuisance_names))), _cost(st)
     for _ in range(2):
         Ar = _common_block(st) @ T0
         phi, _ = solve_normal(Ar.T @ Ar, Ar.T @ _linear_target(st))
         p, nu = _apply(st, T0 @ phi)
         st.evaluate(p, nu)
+        if not _cost(st) < cost:
+            # a step that does not lower the misfit (weakly determined directions followed into the
+            # chain's non-linearity) is not taken: back to the last point that did
+            st.evaluate(*point)
+            break
+        point, cost = (p, nu), _cost(st)
     A = _common_block(st)
     z = _linear_target(st)
     first = Design(A, z, np.ones(len(st)), np.zeros(len(st), dtype=np.int64), T0).fit(cv=False)
@@ -471,11 +484,12 @@ def _parsimony(best, good):
     parameters; then uniform offset before direction lag before an Abbe term) whose held-out gain is
     not significantly smaller: a more specific cause must be earned by a margin in the data."""
     c = best[0]
-    if not c.rivals:
-        return best
     pick = best
     for s in good:
-        if s[0].rivals != c.rivals or _complexity(s[0], s[2]) >= _complexity(pick[0], pick[2]):
+        # rivals: the same residual's explanations, or a candidate made of part of this one's terms
+        # (a feed offset beside an IRC shift that carries that offset)
+        related = (c.rivals and s[0].rivals == c.rivals) or set(s[0].params) < set(c.params)
+        if not related or _complexity(s[0], s[2]) >= _complexity(pick[0], pick[2]):
             continue
         if s[3] >= best[3] - cv_threshold(max(best[2] - s[2], 1)):
             pick = s
