@@ -150,8 +150,8 @@ TOPOLOGIES = ("xfyz", "cafxyz", "cbfxyz")
 
 
 def truth_plan(n: int, first_seed: int) -> list:
-    """(seed, effect, kind, topology) of n cases: effects in turn, then topologies, then campaign kinds
-    (the kinds in which the effect can be seen; rotary effects never on xfyz)."""
+    """(seed, effect, kind, topology) of n cases: effects in turn, then topologies; the campaign kind
+    drawn from the seed among those in which the effect can be seen (rotary effects never on xfyz)."""
     from truth.hidden import compatible_kinds
     plan = []
     for i in range(n):
@@ -160,7 +160,7 @@ def truth_plan(n: int, first_seed: int) -> list:
         if effect == "rotary_backlash" and topo == "xfyz":
             topo = TOPOLOGIES[1 + (i // len(TRUTH_EFFECTS)) % 2]
         kinds = compatible_kinds(effect, topo)
-        kind = kinds[(i // (len(TRUTH_EFFECTS) * len(TOPOLOGIES))) % len(kinds)]
+        kind = kinds[int(np.random.default_rng(first_seed + i).integers(len(kinds)))]
         plan.append((first_seed + i, effect, kind, topo))
     return plan
 

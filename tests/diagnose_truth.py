@@ -13,14 +13,15 @@ from mtcomp.identification.fit import predict_readings
 from mtcomp.machine import load_machine
 from mtcomp.measurement.files import read_measurements
 from truth import Context
-from truth.hidden import NOISE_UM, SEED000_FEEDS, SEED000_OFFSET_MM, HiddenCase
+from truth.hidden import NOISE_UM, NOISE_URAD, SEED000_FEEDS, SEED000_OFFSET_MM, HiddenCase
 
 
 @dataclass
 class Score:
     """right : the hidden effect named on its axis (a local defect: 'unexplained' on its axis and
     nothing named; a clean case: nothing found). wrong : names given that are not the hidden effect on
-    its axis. alarm : a clean case with any finding. ratio : final held-out rms over the truth's noise."""
+    its axis. alarm : a clean case with any finding. ratio : final held-out rms over the truth's noise
+    (um readings; urad when a campaign has only angular readings)."""
 
     right: bool
     wrong: list
@@ -57,6 +58,8 @@ def score(case: HiddenCase, d, seconds: float = 0.0, noise_um: float = NOISE_UM)
         right = any(right_name(f) for f in named)
     h = d.final.get("heldout_rms_um")
     ratio = float(h) / noise_um if h is not None else float("nan")
+    if h is None and d.final.get("heldout_rms_urad") is not None:     # angular readings only
+        ratio = float(d.final["heldout_rms_urad"]) / NOISE_URAD
     return Score(right, wrong, bool(not case.effect and d.findings), d.verdict, ratio, seconds)
 
 

@@ -285,8 +285,9 @@ def spectral_lines(st, resid, axis: str, min_cycles: float = 4.0, n_freq: int = 
     ux = np.unique(np.round(x, POSITION_DECIMALS))
     if ux.size < 8:
         return []
-    # shortest period: three median target spacings (jittered grids alias near their Nyquist period)
-    pmin = 3.0 * span / (ux.size - 1)
+    # shortest period: three median target spacings (jittered grids alias near their Nyquist period);
+    # the median of the actual spacings, so that a fine run over part of the travel counts as fine
+    pmin = 3.0 * min(float(np.median(np.diff(ux))), span / (ux.size - 1))
     pmax = span / min_cycles
     if pmax <= pmin:
         return []

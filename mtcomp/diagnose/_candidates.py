@@ -156,13 +156,13 @@ def _abbe_candidates(st, a: str) -> list[Candidate]:
                 continue
             # the constant part of an angular error is not in the base model (laser zero offsets and
             # set-ups take it), yet a centre that moves with feed turns it into a uniform feed offset,
-            # perpendicular to the rotation and to the shift: along the axis itself it comes with the
-            # IRC shift, so that the feed Abbe term is not split into an Abbe and an offset finding
+            # perpendicular to the rotation and to the shift: it comes with the IRC shift, so that one
+            # cause is not split into an Abbe finding and an offset finding (on this or another axis)
             d = next(x for x in "XYZ" if x not in (c, "XYZ"["ABC".index(b)]))
-            if d == a:
-                build = _irc_with_offset(name, a)
+            if d in st.g and np.max(np.abs(st.g[d])) > 1.0:     # d is read (not round-off)
+                build = _irc_with_offset(name, d)
                 cands.append(Candidate("feed_dependent_abbe", a, f"irc:{name}", build(st),
-                                       [AbbeIRC(a, angles=b, feed=True), FeedOffset(a)], [name, f"FOFF_{a}"],
+                                       [AbbeIRC(a, angles=b, feed=True), FeedOffset(d)], [name, f"FOFF_{d}"],
                                        rivals=f"feed:{a}", info={"complexity": 2}, build=build))
             else:
                 cands.append(Candidate("feed_dependent_abbe", a, f"irc:{name}", st.columns([name]),
@@ -197,7 +197,7 @@ def joint_abbe(c1: Candidate, c2: Candidate) -> Candidate:
     letters = "".join(sorted({n.split("_")[1][0] for n in abbe}))
     terms = [AbbeIRC(c1.axis, angles=letters, feed=any(n.startswith("IRC_") for n in abbe),
                      angle_gain=any(n.startswith("AG_") for n in abbe))]
-    terms += [t for t in c1.terms + c2.terms if isinstance(t, FeedOffset)][:1]
+    terms += list({t.key(): t for t in c1.terms + c2.terms if isinstance(t, FeedOffset)}.values())
 
     def build(st):
         return np.hstack([c1.rebuild(st), c2.rebuild(st)[:, keep]])

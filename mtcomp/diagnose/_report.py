@@ -91,9 +91,10 @@ def evidence_and_params(st, c, theta, before_fit, after_fit, rivals, noise):
         off = [i for i, n in enumerate(c.params) if n.startswith("FOFF_")]
         if off:
             # the moving centre times the angular error's constant part (not in the base model)
-            params["uniform_um_per_m_min"] = round(float(theta[off[0]] * 1e3), 4)
-            what += (f", with a uniform {params['uniform_um_per_m_min']:.3g} um per m/min from the "
-                     "angular error's constant part")
+            params["uniform_um_per_m_min"] = {c.params[i][5:]: round(float(theta[i] * 1e3), 4) for i in off}
+            what += ", with a uniform " + " and ".join(
+                f"{v:.3g} um per m/min along {d}" for d, v in params["uniform_um_per_m_min"].items()) + \
+                " from the angular error's constant part"
         ev = (f"The feed-dependent part of the {a} residual follows the fitted angular error profile of "
               f"{a} times the Abbe arm ({what}; seed 000){rt}")
         return params, ev

@@ -5,10 +5,10 @@ effect (or none: a clean case) and writes a campaign of one kind:
 
 * ``rich``: volumetric points (two tool lengths, both directions, three feeds, two passes), laser
   runs of every linear axis (six components, an optic offset, two feeds, both directions; and a fine
-  positioning run at 150 irregular targets) and of the rotary axes, ball-bar circles, and the three-sphere set-up on machines with C;
+  positioning run at 200 irregular targets over 240 mm) and of the rotary axes, ball-bar circles, and the three-sphere set-up on machines with C;
 * ``laser``: ISO 230-2 runs of the effect's axis alone at three feeds, positioning at two Abbe
   offsets and the two angular errors that have an arm (the seed 000 set-up, any axis), and a fine
-  positioning run at 150 irregular targets;
+  positioning run at 200 irregular targets over 240 mm;
 * ``rotary_laser``: positioning runs of the rotary axes at two feeds, both directions;
 * ``ballbar``: ball-bar circles in three planes (and the three-sphere set-up with C), two feeds;
 * ``mixture``: the laser runs of the effect's axis plus ball-bar circles.
@@ -67,12 +67,12 @@ def compatible_kinds(effect: str, topology: str) -> tuple:
 
 
 def _fine_run(m, folder, rng, axis, feed, t):
-    """A fine bidirectional positioning run of ``axis``: 150 targets drawn at random over the travel
-    (irregular, so that no period aliases), two runs. Returns (path, time after it)."""
-    lo, hi = m.travel[axis]
-    pad = 0.05 * (hi - lo)
+    """A fine bidirectional positioning run of ``axis``: 200 targets drawn at random over 240 mm in the
+    middle of the travel (irregular, so that no period aliases; about 1.2 mm apart, so that a 5 mm
+    screw period is seen), two runs. Returns (path, time after it)."""
+    mid = 0.5 * sum(m.travel[axis])
     r = tc.laser(m, folder / f"laser_{axis.lower()}_fine.csv", rng, axis, components=(f"E{axis}{axis}",),
-                 targets=np.sort(rng.uniform(lo + pad, hi - pad, 150)), n_runs=2, feed_mm_min=feed,
+                 targets=np.sort(rng.uniform(mid - 120.0, mid + 120.0, 200)), n_runs=2, feed_mm_min=feed,
                  noise_um=NOISE_UM, t0_s=t)
     return r.path, float(np.max(r.columns["t_s"])) + 60.0
 
@@ -100,15 +100,18 @@ def _laser_runs(m, folder, rng, axis, feeds, t0=0.0):
     return paths, t
 
 
-def hidden_case(seed: int, effect: str, kind: str, topology: str, folder) -> HiddenCase:
+def hidden_case(seed: int, effect: str, kind: str, topology: str, folder, hidden=None) -> HiddenCase:
     """One case: machine drawn from ``seed``, ``effect`` ('' for none) hidden, a ``kind`` campaign
-    written into ``folder``."""
+    written into ``folder``. ``hidden``: the effect object to hide instead of a random one of kind
+    ``effect``."""
     rng = np.random.default_rng(seed)
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     probe = TruthMachine(topology)
-    hidden, axis = None, ""
-    if effect:
+    axis = ""
+    if hidden is not None:
+        axis = getattr(hidden, "axis", "")
+    elif effect:
         axis_pick = None
         if kind in ("laser", "mixture") and effect in ("backlash", "periodic_error", "local_defect",
                                                        "feed_dependent_offset"):
