@@ -146,6 +146,9 @@ def test_thermal_diagnose_prints_its_table_once(tmp_path, capsys):
     # location errors reach the readings only through round-off; taken for information they sent the
     # base fit to 1e10 and every reading 50,000 times the noise away
     (7008, "backlash", "mixture", "cafxyz", None),
+    # rotary laser runs of C and B: the truth's angular positioning has harmonics up to 5, which the
+    # base model follows only with the Fourier order the data allow (it stayed at the machine's 2)
+    (7017, "rotary_backlash", "rotary_laser", "cbfxyz", None),
     # a 5 mm screw period seen by a fine run over 240 mm of an 800 mm travel
     (31, "periodic_error", "laser", "xfyz", PeriodicError("X", 5.0, 2.5, 1.0)),
 ])

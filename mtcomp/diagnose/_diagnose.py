@@ -215,9 +215,9 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
     # the base model's resolution follows the data, as identify's does
     from ..machine import with_data_basis
     from ..measurement.readings import data_positions
-    # (the Fourier orders of rotary axes stay the machine's: diagnose's own linearised fit has no
-    # guard yet against the weakly determined high harmonics; identify's has)
-    machine = with_data_basis(machine, data_positions(machine, datasets), fourier=False)
+    # (the Fourier orders of rotary axes too, as identify chooses them: with identify's column-scale
+    # rule and steps that must lower the misfit, the weak high harmonics no longer run away)
+    machine = with_data_basis(machine, data_positions(machine, datasets), fourier=True)
     from ..measurement.outliers import OUTLIER_K, find_outliers
     cleaned, outliers = [], []
     for d in datasets:
