@@ -11,12 +11,7 @@ from mtcomp.diagnose import diagnose
 from mtcomp.diagnose.hidden import EFFECTS, hidden_case, score
 
 #: (effect, seed): one fixed case per effect; the machine and axis are drawn from the seed
-#: the spline base model chosen from the data (issue 10) changed what diagnose sees on mtcomp's own
-#: simulator; these cases regressed and wait for diagnose on the identification engine (issue 11)
-_REGRESSED = pytest.mark.xfail(strict=True, reason="named feed_dependent_abbe on Z for a feed offset "
-                               "on Y since the spline base; diagnose moves onto identify's engine next")
-CASES = [pytest.param(e, 11 + k, marks=_REGRESSED) if (e, 11 + k) == ("feed_dependent_offset", 15)
-         else (e, 11 + k) for k, e in enumerate(EFFECTS)]
+CASES = [(e, 11 + k) for k, e in enumerate(EFFECTS)]
 
 
 def _size_ok(case, finding):
@@ -84,10 +79,6 @@ def test_two_effects_at_once_are_both_found():
     assert len(d.findings) == 2
 
 
-@pytest.mark.xfail(strict=True, reason="since the spline base (its knots follow the data) absorbs part of "
-                   "the bump, the unexplained residual is reported on the right axis but at 41 mm, "
-                   "not at the bump (0.8 mm); issue 11 (diagnose) decides how a local defect is told "
-                   "from a smooth profile")
 def test_local_defect_is_unexplained_not_misnamed():
     case = hidden_case(31, [], machine="xfyz", defect=True)
     d = diagnose(case.machine, case.datasets)

@@ -74,3 +74,17 @@ def test_spindle_thermal_drift_is_found_and_beats_a_plain_temperature_regression
     assert ref == pytest.approx(plain, rel=1e-3)
     assert final <= 0.7 * plain
     assert final < 0.5 * d.base["heldout_rms_um"]
+
+
+@needs_real
+def test_thermal_record_with_a_laser_file_gives_one_drift_finding():
+    """A thermal record diagnosed with a laser file: one thermal_drift finding, its driver chosen
+    among the rivals (it was once named twice, 'on X', for temperature and for time, though the laser
+    file has no temperatures and the drift sits in the record's channels)."""
+    data = [read_measurements(REAL / "thermal" / "fl_thermal.csv"),
+            read_measurements(REAL / "iso230_2" / "ess_b02_x.csv")]
+    d = diagnose(load_machine("xfyz"), data)
+    drift = [f for f in d.findings if f.effect == "thermal_drift"]
+    assert len(drift) == 1, [(f.effect, f.axis, f.params.get("driver")) for f in drift]
+    assert drift[0].axis == ""
+    assert drift[0].params["channel"].startswith("ch")

@@ -285,8 +285,9 @@ def spectral_lines(st, resid, axis: str, min_cycles: float = 4.0, n_freq: int = 
     ux = np.unique(np.round(x, POSITION_DECIMALS))
     if ux.size < 8:
         return []
-    # shortest period: three median target spacings (jittered grids alias near their Nyquist period)
-    pmin = 3.0 * span / (ux.size - 1)
+    # shortest period: three median target spacings (jittered grids alias near their Nyquist period);
+    # the median of the actual spacings, so that a fine run over part of the travel counts as fine
+    pmin = 3.0 * min(float(np.median(np.diff(ux))), span / (ux.size - 1))
     pmax = span / min_cycles
     if pmax <= pmin:
         return []
@@ -421,19 +422,44 @@ def find_structure(st, resid, sigma: dict, n_tests_extra: int = 0) -> list[Struc
             p = float(stats.chi2.sf(chi2, dof))
             lo_ok, hi_ok = lo[ok], hi[ok]
             # where: the bin furthest from zero and its neighbours of the same sign beyond 3 se
-            k0 = int(np.argmax(np.abs(zb)))
-            a = b_ = k0
-            while a > 0 and abs(zb[a - 1]) > 3 and np.sign(zb[a - 1]) == np.sign(zb[k0]):
-                a -= 1
-            while b_ < zb.size - 1 and abs(zb[b_ + 1]) > 3 and np.sign(zb[b_ + 1]) == np.sign(zb[k0]):
-                b_ += 1
+            a, b_ = _peak_run(zb)
             rng = (float(lo_ok[a]), float(hi_ok[b_]))
+            if label.endswith("position"):
+                rng = _peak_positions(x, r, sg) or rng
             tests.append([p, str(s), label, rng[0], rng[1], u, float(mean[np.argmax(np.abs(mean))]),
                           chi2, dof, int(np.sum(np.abs(zb) > 3))])
     m = len(tests) + n_tests_extra
     out = [Structure(min(1.0, t[0] * m), *t[1:]) for t in tests]
     out = [s for s in out if s.p < 1e-3]
     return sorted(out, key=lambda s: (s.p, -s.chi2 / max(s.dof, 1)))
+
+
+def _peak_run(z):
+    """(first, last) index of the run around the entry of ``z`` furthest from zero: its neighbours of
+    the same sign beyond 3 (standard errors)."""
+    k0 = int(np.argmax(np.abs(z)))
+    a = b = k0
+    while a > 0 and abs(z[a - 1]) > 3 and np.sign(z[a - 1]) == np.sign(z[k0]):
+        a -= 1
+    while b < z.size - 1 and abs(z[b + 1]) > 3 and np.sign(z[b + 1]) == np.sign(z[k0]):
+        b += 1
+    return a, b
+
+
+def _peak_positions(x, r, sg):
+    """Where along a position the residual peaks, at the resolution of the positions read: the
+    position whose mean residual is furthest from zero (in standard errors) and its neighbours of the
+    same sign beyond 3 standard errors, as (lo, hi) halfway to the next positions read. A bin of a
+    coarse grid can average a narrow defect away against the smooth profile's overshoot beside it;
+    the positions themselves do not. None when positions are not repeated (no per-position mean)."""
+    xs, inv, cnt = np.unique(np.round(x, POSITION_DECIMALS), return_inverse=True, return_counts=True)
+    if xs.size < 3 or cnt.min() < 2:
+        return None
+    z = np.bincount(inv, weights=r) / cnt * np.sqrt(cnt) / sg
+    a, b = _peak_run(z)
+    lo = xs[a] - 0.5 * (xs[a] - xs[a - 1]) if a > 0 else xs[a]
+    hi = xs[b] + 0.5 * (xs[b + 1] - xs[b]) if b < xs.size - 1 else xs[b]
+    return float(lo), float(hi)
 
 
 def correlations(st, resid, sel) -> list[tuple[str, float]]:

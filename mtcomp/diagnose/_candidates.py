@@ -71,9 +71,13 @@ def _feeds(st, sel):
 def generate(st, design, extra: np.ndarray, resid: np.ndarray, chosen_keys: set[str]) -> list[Candidate]:
     """Every candidate that the data could support, given the current model (``extra`` columns beyond
     the common block, ``resid`` its full-data residual)."""
+    from ._refusal import moved_axes
     m = st.machine
     out: list[Candidate] = []
+    moved = moved_axes(st)
     for k, a in enumerate(m.axis_names):
+        if a not in moved:
+            continue                        # no term is named on an axis the data do not move
         g = st.g[a]
         gmax = float(np.max(np.abs(g))) if g.size else 0.0
         if gmax == 0.0:
@@ -148,7 +152,19 @@ def _abbe_candidates(st, a: str) -> list[Candidate]:
     for b in "ABC":
         for c in [x for i, x in enumerate("XYZ") if i != "ABC".index(b)]:
             name = f"IRC_{b}{a}_{c.lower()}_f"
-            if name in st.probe.param_names:
+            if name not in st.probe.param_names:
+                continue
+            # the constant part of an angular error is not in the base model (laser zero offsets and
+            # set-ups take it), yet a centre that moves with feed turns it into a uniform feed offset,
+            # perpendicular to the rotation and to the shift: it comes with the IRC shift, so that one
+            # cause is not split into an Abbe finding and an offset finding (on this or another axis)
+            d = next(x for x in "XYZ" if x not in (c, "XYZ"["ABC".index(b)]))
+            if d in st.g and np.max(np.abs(st.g[d])) > 1.0:     # d is read (not round-off)
+                build = _irc_with_offset(name, d)
+                cands.append(Candidate("feed_dependent_abbe", a, f"irc:{name}", build(st),
+                                       [AbbeIRC(a, angles=b, feed=True), FeedOffset(d)], [name, f"FOFF_{d}"],
+                                       rivals=f"feed:{a}", info={"complexity": 2}, build=build))
+            else:
                 cands.append(Candidate("feed_dependent_abbe", a, f"irc:{name}", st.columns([name]),
                                        [AbbeIRC(a, angles=b, feed=True)], [name], rivals=f"feed:{a}",
                                        info={"complexity": 2}, build=_probe_columns([name])))
@@ -160,6 +176,13 @@ def _abbe_candidates(st, a: str) -> list[Candidate]:
     return cands
 
 
+def _irc_with_offset(name, a):
+    def build(st):
+        return np.column_stack([st.columns([name])[:, 0],
+                                st.g[a] * np.nan_to_num(st.feed, nan=0.0) / 1000.0])
+    return build
+
+
 def _probe_columns(names):
     def build(st):
         return st.columns(names)
@@ -168,13 +191,19 @@ def _probe_columns(names):
 
 def joint_abbe(c1: Candidate, c2: Candidate) -> Candidate:
     """One feed-dependent Abbe candidate made of two one-parameter ones of the same axis."""
-    names = c1.params + c2.params
-    letters = "".join(sorted({n.split("_")[1][0] for n in names}))
-    term = AbbeIRC(c1.axis, angles=letters, feed=any(n.startswith("IRC_") for n in names),
-                   angle_gain=any(n.startswith("AG_") for n in names))
+    keep = [i for i, n in enumerate(c2.params) if n not in c1.params]
+    params = c1.params + [c2.params[i] for i in keep]
+    abbe = [n for n in params if n.startswith(("IRC_", "AG_"))]
+    letters = "".join(sorted({n.split("_")[1][0] for n in abbe}))
+    terms = [AbbeIRC(c1.axis, angles=letters, feed=any(n.startswith("IRC_") for n in abbe),
+                     angle_gain=any(n.startswith("AG_") for n in abbe))]
+    terms += list({t.key(): t for t in c1.terms + c2.terms if isinstance(t, FeedOffset)}.values())
+
+    def build(st):
+        return np.hstack([c1.rebuild(st), c2.rebuild(st)[:, keep]])
     return Candidate("feed_dependent_abbe", c1.axis, f"{c1.variant}+{c2.variant}",
-                     np.hstack([c1.columns, c2.columns]), [term], names, rivals=c1.rivals,
-                     info={"complexity": 3}, build=_probe_columns(names))
+                     np.hstack([c1.columns, c2.columns[:, keep]]), terms, params, rivals=c1.rivals,
+                     info={"complexity": 3}, build=build)
 
 
 def _periodic_candidates(st, design, extra, resid, a: str) -> list[Candidate]:
@@ -239,12 +268,13 @@ def _drift_columns(st, feature_names):
     chans = [c for c, v in st.hc.items() if np.any(v)]
     for f in feature_names:
         v = st.feature(f)
-        for d in dirs:
-            cols.append(st.h[d] * v)
-            params.append(f"TD_{d}_{f}")
-        for c in chans:
-            cols.append(st.hc[c] * v)
-            params.append(f"TD_{c}_{f}")
+        # a direction or channel none of whose readings has the feature (e.g. laser files without
+        # temperatures) gets no column: its parameter stays at zero, it is not 'undetermined'
+        for name, h in [(d, st.h[d]) for d in dirs] + [(c, st.hc[c]) for c in chans]:
+            col = h * v
+            if np.any(col):
+                cols.append(col)
+                params.append(f"TD_{name}_{f}")
     return (np.column_stack(cols) if cols else np.zeros((len(st), 0))), params, dirs, chans
 
 

@@ -28,6 +28,7 @@ from ..models.model_file import FittedModel
 from ..models.params import ParameterSet
 from . import _analysis as an
 from ._candidates import Candidate, generate, temperature_regression
+from ._refusal import moved_axes, refusal
 from ._linalg import Design, _eigh, determined_subspace, rms, solve_normal
 from ._stack import Stack, build_stack
 
@@ -154,6 +155,12 @@ def _linear_target(st: Stack) -> np.ndarray:
     return st.y - st.pred + _common_block(st) @ _theta0(st)
 
 
+def _cost(st: Stack) -> float:
+    """Sum of squared residuals at the stack's current point (file units: um, urad, um/min)."""
+    r = st.y - st.pred
+    return float(r @ r)
+
+
 def _apply(st: Stack, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     base = np.flatnonzero(st.probe.base_mask)
     p = np.zeros(st.probe.n_params)
@@ -208,9 +215,9 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
     # the base model's resolution follows the data, as identify's does
     from ..machine import with_data_basis
     from ..measurement.readings import data_positions
-    # (the Fourier orders of rotary axes stay the machine's: diagnose's own linearised fit has no
-    # guard yet against the weakly determined high harmonics; identify's has)
-    machine = with_data_basis(machine, data_positions(machine, datasets), fourier=False)
+    # (the Fourier orders of rotary axes too, as identify chooses them: with identify's column-scale
+    # rule and steps that must lower the misfit, the weak high harmonics no longer run away)
+    machine = with_data_basis(machine, data_positions(machine, datasets), fourier=True)
     from ..measurement.outliers import OUTLIER_K, find_outliers
     cleaned, outliers = [], []
     for d in datasets:
@@ -229,11 +236,18 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
     st.evaluate(np.zeros(st.probe.n_params), np.zeros(len(st.nuisance_names)))
     # the directions the data determine, fixed at the start point (as identify does)
     T0 = determined_subspace(_common_block(st))
+    point, cost = (np.zeros(st.probe.n_params), np.zeros(len(st.nuisance_names))), _cost(st)
     for _ in range(2):
         Ar = _common_block(st) @ T0
         phi, _ = solve_normal(Ar.T @ Ar, Ar.T @ _linear_target(st))
         p, nu = _apply(st, T0 @ phi)
         st.evaluate(p, nu)
+        if not _cost(st) < cost:
+            # a step that does not lower the misfit (weakly determined directions followed into the
+            # chain's non-linearity) is not taken: back to the last point that did
+            st.evaluate(*point)
+            break
+        point, cost = (p, nu), _cost(st)
     A = _common_block(st)
     z = _linear_target(st)
     first = Design(A, z, np.ones(len(st)), np.zeros(len(st), dtype=np.int64), T0).fit(cv=False)
@@ -252,6 +266,13 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
     base_metrics = _metrics(st, current, n_base)
     say(f"base model: rms {base_metrics['rms_um']} um, held-out {base_metrics['heldout_rms_um']} um")
     reference = {}
+    still = [a for a in st.machine.axis_names if a not in moved_axes(st)]
+    not_tried = []
+    if still:
+        not_tried.append({"effect": "every extension", "axis": ", ".join(still), "variant": "",
+                          "reason": "the data do not move " + ("this axis" if len(still) == 1 else
+                                                                "these axes")})
+        say(f"not tried: any extension on {', '.join(still)} (the data do not move them)")
     treg = temperature_regression(st)
     if treg is not None:
         fit = design.fit(treg.columns)
@@ -259,7 +280,7 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
             **_metrics(st, fit, n_base + treg.columns.shape[1]), "temperatures": treg.info["temperatures"]}
     chosen: list[Candidate] = []
     findings: list[Finding] = []
-    rejected: list[dict] = []
+    rejected: list[dict] = list(not_tried)
     extra = np.zeros((len(st), 0))
     noise_main = noise.get("um") or noise.get("urad") or noise.get("um/min")
     n = len(st)
@@ -269,8 +290,11 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
             break
         keys = {c.key for c in chosen}
         used_terms = {t.key() for c in chosen for t in c.terms}
+        # one drift finding: its driver is chosen among the rivals, not added driver after driver
+        drift_chosen = any(c.effect == "thermal_drift" for c in chosen)
         cands = [c for c in generate(st, design, extra, current.resid, keys)
-                 if not ({t.key() for t in c.terms} & used_terms)]
+                 if not ({t.key() for t in c.terms} & used_terms)
+                 and not (drift_chosen and c.effect == "thermal_drift")]
         _forward_in_time(st, design, extra, cands)
         scored = []
         for c in cands:
@@ -282,6 +306,8 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
             excess = max(current.cv_sse - n, 0.0)
             ok = (dk >= 1 and gain > cv_threshold(dk) + pen and dbic < -BIC_MARGIN - pen
                   and gain >= MIN_EXCESS_SHARE * excess)
+            if ok and c.veto is None:
+                c.veto = refusal(st, c, fit.theta[-c.columns.shape[1]:], dk)
             scored.append((c, fit, dk, gain, dbic, ok))
         good = [s for s in scored if s[5] and s[0].veto is None]
         for s in scored:
@@ -295,7 +321,7 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
             break
         best = max(good, key=lambda s: s[3])
         best = _parsimony(best, good)
-        best = _joint_abbe(design, extra, current, best, good, n)
+        best = _joint_abbe(design, extra, current, best, good, n, st)
         c, fit, dk, gain, dbic, _ = best
         rivals = [s for s in good if s[0].rivals and s[0].rivals == c.rivals and s[0] is not c]
         before = _heldout(st, current)
@@ -426,7 +452,7 @@ def _refine(st: Stack, design: Design, chosen: list[Candidate], fit, iterations:
     return design, fit
 
 
-def _joint_abbe(design, extra, current, best, good, n):
+def _joint_abbe(design, extra, current, best, good, n, st):
     """Two angular errors of one axis can have profiles so alike that either alone explains most of
     a feed-dependent Abbe residual; then the pair of the two best is tried, and kept when it earns
     its extra parameter on held-out data (and in BIC)."""
@@ -443,7 +469,8 @@ def _joint_abbe(design, extra, current, best, good, n):
     dk = fit.rank - current.rank
     gain = current.cv_sse - fit.cv_sse
     dbic = fit.bic(n) - current.bic(n)
-    if dk > best[2] and gain - best[3] > cv_threshold(dk - best[2]) and dbic < best[4] - BIC_MARGIN:
+    if (dk > best[2] and gain - best[3] > cv_threshold(dk - best[2]) and dbic < best[4] - BIC_MARGIN
+            and refusal(st, pair, fit.theta[-pair.columns.shape[1]:], dk) is None):
         pair.info["alternative"] = others[0][0]
         return (pair, fit, dk, gain, dbic, True)
     return best
@@ -458,11 +485,12 @@ def _parsimony(best, good):
     parameters; then uniform offset before direction lag before an Abbe term) whose held-out gain is
     not significantly smaller: a more specific cause must be earned by a margin in the data."""
     c = best[0]
-    if not c.rivals:
-        return best
     pick = best
     for s in good:
-        if s[0].rivals != c.rivals or _complexity(s[0], s[2]) >= _complexity(pick[0], pick[2]):
+        # rivals: the same residual's explanations, or a candidate made of part of this one's terms
+        # (a feed offset beside an IRC shift that carries that offset)
+        related = (c.rivals and s[0].rivals == c.rivals) or set(s[0].params) < set(c.params)
+        if not related or _complexity(s[0], s[2]) >= _complexity(pick[0], pick[2]):
             continue
         if s[3] >= best[3] - cv_threshold(max(best[2] - s[2], 1)):
             pick = s

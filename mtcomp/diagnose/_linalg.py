@@ -121,11 +121,11 @@ def determined_subspace(A: np.ndarray, w: np.ndarray | None = None) -> np.ndarra
     with S the inverse column norms and V_r the eigenvectors of the scaled normal matrix whose
     relative eigenvalues exceed RANK_TOLERANCE. Fixed once, at the start point of a fit, so that
     combinations determined only through second-order effects of the errors stay undetermined."""
+    from ..identification.fit import _column_scale
     Aw = A if w is None else A * np.asarray(w, dtype=float)[:, None]
-    d = np.sqrt(np.sum(Aw ** 2, axis=0))
-    keep = d > 0
-    S = np.zeros_like(d)
-    S[keep] = 1.0 / d[keep]
+    # identify's rule: a column at round-off level (a rotary location error the data never turn,
+    # seen only through the rounding of the chain) is not scaled up to pass for information
+    S = _column_scale(np.diag(np.sum(Aw ** 2, axis=0)))
     G0 = (Aw * S).T @ (Aw * S)
     ev, V = _eigh(G0)
     ok = ev > RANK_TOLERANCE * max(ev.max(), 1e-300)

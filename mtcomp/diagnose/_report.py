@@ -83,11 +83,18 @@ def evidence_and_params(st, c, theta, before_fit, after_fit, rivals, noise):
             params[f"{what}_component"] = c.params[big]
             params[f"{what}s{unit}_per_m_min"] = {c.params[i]: round(float(theta[i]), nd) for i in idx}
         parts = []
-        for n in c.params:
+        for n in [n for n in c.params if n.startswith(("IRC_", "AG_"))]:
             comp = "E" + n.split("_")[1]
             parts.append(f"the rotation centre of {comp} moves along {n.split('_')[2].upper()} with feed"
                          if n.startswith("IRC_") else f"{comp} grows with feed")
         what = " and ".join(parts)
+        off = [i for i, n in enumerate(c.params) if n.startswith("FOFF_")]
+        if off:
+            # the moving centre times the angular error's constant part (not in the base model)
+            params["uniform_um_per_m_min"] = {c.params[i][5:]: round(float(theta[i] * 1e3), 4) for i in off}
+            what += ", with a uniform " + " and ".join(
+                f"{v:.3g} um per m/min along {d}" for d, v in params["uniform_um_per_m_min"].items()) + \
+                " from the angular error's constant part"
         ev = (f"The feed-dependent part of the {a} residual follows the fitted angular error profile of "
               f"{a} times the Abbe arm ({what}; seed 000){rt}")
         return params, ev
@@ -110,13 +117,17 @@ def evidence_and_params(st, c, theta, before_fit, after_fit, rivals, noise):
             params["temperatures"] = c.info["temperatures"]
         drift = c.columns @ theta
         ranges = {}
-        for d in "XYZ":
-            idx = [i for i, nm in enumerate(c.params) if nm.startswith(f"TD_{d}_")]
-            if idx:
-                ranges[d] = float(np.ptp(np.column_stack([st.feature(f) for f in feats])
-                                         @ theta[idx]) * 1e3)
+        for d in list("XYZ") + sorted(st.hc):
+            drift_d = np.zeros(len(st))
+            for i, nm in enumerate(c.params):
+                f = next((f for f in feats if nm == f"TD_{d}_{f}"), None)
+                if f is not None:
+                    drift_d = drift_d + st.feature(f) * theta[i]
+            if np.any(drift_d):
+                ranges[d] = float(np.ptp(drift_d) * 1e3)
         if ranges:
-            params["direction"] = max(ranges, key=ranges.get)
+            top = max(ranges, key=ranges.get)
+            params["direction" if top in ("X", "Y", "Z") else "channel"] = top
             params["drift_range_by_direction_um"] = {d: round(v, 4) for d, v in ranges.items()}
         params["drift_range_um"] = round(float(np.ptp(drift[st.unit == "um"])) if np.any(st.unit == "um")
                                          else float(np.ptp(drift)), 4)
@@ -183,7 +194,9 @@ def summary(diag) -> str:
         if f.effect != "unexplained":
             lines.append(f"   held-out rms {f.heldout_rms_before_um:.4g} -> {f.heldout_rms_after_um:.4g} um")
     for r in diag.rejected:
-        lines.append(f"refused: {r['effect']} on {r['axis']} ({r['variant']}): {r['reason']}")
+        variant = f" ({r['variant']})" if r.get("variant") else ""
+        on = f" on {r['axis']}" if r.get("axis") else ""
+        lines.append(f"refused: {r['effect']}{on}{variant}: {r['reason']}")
     fz = diag.final
     lines.append(f"final model ({fz['n_params']} parameters): rms {_num(fz.get('rms_um'))} um, held-out "
                  f"{_num(fz.get('heldout_rms_um'))} um")

@@ -71,9 +71,10 @@ def diagnose_thermal(machine, data, channel_axes: dict | None = None, progress=N
     say = progress or (lambda s: None)
     fit = fit_thermal(data)
     axes = channel_axes_for(fit.channels, channel_axes, data.path)
-    for line in fit.summary().splitlines():
-        say(line)
     c = fit.chosen
+    # the table itself is the summary's (printed once, at the end)
+    say(f"{len(fit.scores)} drift models compared forward in time on {len(fit.channels)} channel(s); "
+        f"chosen: {c.label}")
     none = next(s for s in fit.scores if s.driver == "none")
     n_obs = fit.measured_um.size
     noise = {"um": Noise("um", fit.noise_um, max(n_obs - len(fit.channels), 1), "robust", 0)}
