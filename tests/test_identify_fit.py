@@ -309,23 +309,6 @@ def test_compare_f_test_against_a_hand_computation(xfyz):
         assert (cmp["p_value"] < 1e-6) == significant
 
 
-def test_grouped_gram_is_the_full_product_on_structural_zeros():
-    """The normal matrix built group by group on each group's non-zero columns equals J^T J
-    (numpy's plain product), for strided and scattered groups."""
-    from mtcomp.identification.fit import _as_slice, _column_grouped_gram
-    rng = np.random.default_rng(3)
-    J = rng.normal(size=(300, 12))
-    J[0::3, :4] = 0.0                 # "dx" rows do not see columns 0-3
-    J[1::3, 8:] = 0.0                 # "dy" rows do not see 8-11
-    groups = [_as_slice(np.arange(k, 300, 3)) for k in range(3)]
-    assert all(isinstance(g, slice) for g in groups)
-    np.testing.assert_allclose(_column_grouped_gram(J, groups), J.T @ J, rtol=1e-13, atol=1e-12)
-    scattered = [np.flatnonzero(rng.random(300) < 0.5)]
-    scattered.append(np.setdiff1d(np.arange(300), scattered[0]))
-    assert not isinstance(_as_slice(scattered[0]), slice)
-    np.testing.assert_allclose(_column_grouped_gram(J, scattered), J.T @ J, rtol=1e-13, atol=1e-12)
-
-
 def test_row_groups_numbers_rows_as_numpy_unique_does():
     from mtcomp.measurement.outliers import row_groups
     rng = np.random.default_rng(5)

@@ -612,7 +612,6 @@ class _Problem:
         self.observed = np.concatenate([m.observed for m in mms])
         self.metric = None      # (n_unknowns, n_unknowns) mean squared tip error over the travel, mm^2
         self.weak_fallback = False  # the weak-direction pass was refused (see solve)
-        self._group_cache: dict = {}
 
     # --------------------------------------------------------------- weights
     def unit_weights(self):
@@ -692,23 +691,12 @@ class _Problem:
             if gram:
                 Jw = np.multiply(Jp, ww[:, None], out=Jp if Jp.flags.writeable else None)
                 Jnw = Jn * ww[:, None]
-                A[:nf, :nf] += _column_grouped_gram(Jw, self._column_groups(m))[np.ix_(fi, fi)]
+                A[:nf, :nf] += _gram(Jw)[np.ix_(fi, fi)]
                 Apn = (Jw.T @ Jnw)[fi]
                 A[:nf, sn] += Apn
                 A[sn, :nf] += Apn.T
                 A[sn, sn] += Jnw.T @ Jnw
         return pred, A, g
-
-    def _column_groups(self, m) -> list:
-        """The observation indices (a slice when evenly spaced, else an array) of measurement model m,
-        one per measured column (a dx
-        reading and a dz reading depend on different parameters; cached per model)."""
-        groups = self._group_cache.get(id(m))
-        if groups is None:
-            cols = np.unique(np.asarray(m.obs_column, dtype=str), return_inverse=True)[1].ravel()
-            groups = [_as_slice(np.flatnonzero(cols == k)) for k in range(int(cols.max(initial=-1)) + 1)]
-            self._group_cache[id(m)] = groups
-        return groups
 
     def leverages(self, x, w, scale, B, L):
         """(n_obs,) diagonal of the hat matrix Js B (B^T Js^T Js B)^-1 B^T Js^T, L L^T = B^T Js^T Js B."""
@@ -1049,39 +1037,6 @@ def _gram(J: np.ndarray) -> np.ndarray:
         upper = dsyrk(1.0, J.T, trans=0, lower=0)      # J.T is Fortran-ordered: no copy
         return np.triu(upper) + np.triu(upper, 1).T
     return J.T @ J
-
-
-def _as_slice(idx: np.ndarray):
-    """A slice equal to the sorted index array ``idx`` when its steps are equal (a view, not a
-    copy, of the rows of a Jacobian: the readings of a points file come as dx, dy, dz per row),
-    else ``idx``."""
-    if idx.size >= 2:
-        step = int(idx[1] - idx[0])
-        if step > 0 and np.all(np.diff(idx) == step):
-            return slice(int(idx[0]), int(idx[-1]) + 1, step)
-    return idx
-
-
-def _column_grouped_gram(J: np.ndarray, groups) -> np.ndarray:
-    """J^T J summed over row groups, each on the columns it does not hold at exactly zero.
-
-    A parameter that cannot move a reading has a structural zero in its column (an X straightness
-    in a dz reading, an angle about Z in a dz reading): the Gram of each group of readings (one
-    measured column) then needs only its own columns, about half of them, which is a quarter of
-    the work of the full product."""
-    p = J.shape[1]
-    if len(groups) <= 1:
-        return _gram(np.ascontiguousarray(J))
-    A = np.zeros((p, p))
-    for rows in groups:
-        Jg = J[rows]
-        cols = np.flatnonzero(np.any(Jg != 0.0, axis=0))
-        if cols.size == 0:
-            continue
-        if cols.size < p:
-            Jg = np.ascontiguousarray(Jg[:, cols])
-        A[np.ix_(cols, cols)] += _gram(Jg)
-    return A
 
 
 def _step(B, AB, gs):
