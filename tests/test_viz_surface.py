@@ -294,3 +294,29 @@ def test_compensated_program_paired_through_its_lines_and_the_report(tmp_path, c
     assert main(["render", "xfyz", str(model), str(prog), "--report", str(rep), "-o",
                  str(tmp_path / "map.png"), "--backend", "matplotlib", "--size", "300x150"]) == 0
     assert "model prediction after" in capsys.readouterr().out
+
+
+def test_predicted_points_and_export_errors_use_the_held_position():
+    """A model whose data held Z at -50 mm: render's predicted points and export's model errors at
+    any Z carry the deviation the model has at Z = -50 (the numpy oracle's, at the same X, Y),
+    as compensate's corrections do, not the model's own extrapolation along Z."""
+    from mtcomp.export._tables import model_errors
+    from mtcomp.viz.surface import predicted_points
+    machine = load_machine("xfyz").with_basis("polynomial")
+    model = ErrorModel(machine)
+    p = np.random.default_rng(3).normal(size=model.n_params) * 1e-5
+    fitted = FittedModel.zero(model)
+    fitted.params.values[:] = p
+    fitted.held = {"Z": -50.0}
+    q = np.array([[100.0, -80.0, -150.0], [-200.0, 40.0, 90.0]])
+    q_held = q.copy()
+    q_held[:, 2] = -50.0
+    params = dict(zip(model.param_names, p))
+    ctx = {"feed": 0.0, "tool_length": machine.tool_length}
+    dev_held = np.array([reference_deviation(machine, params, qq, ctx)[:3] for qq in q_held])
+    dev_own = np.array([reference_deviation(machine, params, qq, ctx)[:3] for qq in q])
+    assert np.abs(dev_own - dev_held).max() > 1e-4          # the extrapolation would differ
+    nominal = q.copy()                                        # xfyz: the tip sits at (x, y, z)
+    pts = predicted_points(fitted, q, np.zeros(2), np.zeros((2, 3)))
+    np.testing.assert_allclose(pts - nominal, dev_held, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(model_errors(fitted, q)[0][:, :3], dev_held, rtol=0, atol=1e-10)
