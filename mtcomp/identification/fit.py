@@ -536,9 +536,9 @@ def model_for_data(model: ErrorModel, datasets) -> ErrorModel:
 
 #: poses drawn over the travel for the physical metric of :func:`travel_metric`
 METRIC_POSES = 256
-#: weight of the rms tool-tip error (um^2) of a weak direction in the fitted sum of squares: stiff,
-#: so that a direction the data see worse than their noise stays at the least error
-WEAK_PENALTY = 1e6
+#: Gauss-Newton stops at a step that moves every combination of the unknowns by less than this
+#: many of its standard errors (or by less than ``tol`` relative)
+STEP_SE = 1e-3
 #: a combination of parameters whose rms tool-tip error over the travel the data fix only to worse
 #: than this standard error (um) is held at the least error, like one they do not see at all
 WEAK_SD_UM = 1.0
@@ -719,17 +719,17 @@ class _Problem:
         (the same reading of the same set-up in several runs, mtcomp.measurement.outliers) when the
         files have at least 5 degrees of freedom of repeats, so that a model's misfit (an effect it
         lacks) is not taken for noise; else the rms residual."""
-        from ..measurement.outliers import row_groups, setup_keys
+        from ..measurement.outliers import setup_keys
         ss, dof = 0.0, 0
         for m, so in zip(self.mms, self.obs_slices):
             keys = setup_keys(m.data)
             if keys is None or m.n_obs == 0:
                 continue
-            cols = np.unique(np.asarray(m.obs_column, dtype=str), return_inverse=True)[1]
-            group = row_groups(np.column_stack([keys[m.obs_row], cols]))
+            names, cols = np.unique(np.asarray(m.obs_column, dtype=str), return_inverse=True)
+            group = keys[m.obs_row] * names.size + cols
             rr = r[so]
             counts = np.bincount(group)
-            means = np.bincount(group, weights=rr) / counts
+            means = np.bincount(group, weights=rr) / np.maximum(counts, 1)
             rep = counts[group] >= 2
             ss += float(np.sum((rr[rep] - means[group[rep]]) ** 2))
             dof += int(np.sum(counts[counts >= 2] - 1))
@@ -738,7 +738,7 @@ class _Problem:
         dof0 = max(self.n_obs - rank, 0)
         return float(np.sqrt(float(r @ r) / dof0)) if dof0 > 0 else 0.0
 
-    def _damped_step(self, x, cost, B, AB, scale, grad, w, objective):
+    def _damped_step(self, x, cost, B, AB, scale, grad, w):
         """Levenberg-Marquardt steps ``(AB + mu I)^-1`` with growing mu from the smallest that helps:
         (x, r, cost) of the first that lowers the objective, or (None, None, None)."""
         gs = B.T @ (scale * grad)
@@ -747,31 +747,31 @@ class _Problem:
             dz = B @ np.linalg.solve(AB + mu * np.eye(AB.shape[0]), gs)
             x_new = x + scale * dz
             r_new = w * (self.observed - self.evaluate(x_new))
-            cost_new = objective(r_new, x_new)
+            cost_new = float(r_new @ r_new)
             if cost_new < cost * (1 - 1e-12):
                 return x_new, r_new, cost_new
             mu *= 30.0
         return None, None, None
 
     # --------------------------------------------------------------- weak directions
-    def _weak_direction_penalty(self, A, sigma_w: float):
-        """(penalty matrix, the weak directions the data do see (n_unknowns, k) in x, to report as
-        undetermined): what the data barely see, held at the least predicted error.
+    def _weak_directions(self, A, sigma_w: float):
+        """(n_unknowns, k) the weak directions the data do see (above round-off) in x, M-orthonormal,
+        also reported as undetermined: what the data barely see, to be held at the least predicted
+        error.
 
         With the files' set-ups marginalised out (Schur complement of the normal matrix), the
         fitted parameters are whitened by the travel metric (||z|| = rms tool-tip error over the
         travel, um). A direction z whose standard error ``sigma_w / s`` (sigma_w the rms weighted
         residual, s the data's singular value per um) exceeds :data:`WEAK_SD_UM` is weak: the data
-        would fix its error over the travel only to worse than that. It gets a stiff penalty on its
-        own rms error, so the fit leaves it at the least error; directions the data see are fitted
-        without bias. Weak and strong directions are
-        orthogonal in the metric, so the result is the least-error completion of what the data
-        determine.
+        would fix its error over the travel only to worse than that. The second pass holds its
+        component (in the metric) at the start's, zero error: directions the data see are fitted
+        without bias. Weak and strong directions are orthogonal in the metric, so the result is the
+        least-error completion of what the data determine.
         """
         n_u = self.n_unknowns
-        P = np.zeros((n_u, n_u))
+        none = np.zeros((n_u, 0))
         if self.metric is None:
-            return P, np.zeros((n_u, 0))
+            return none
         nf = self.n_free
         App = A[:nf, :nf]
         if n_u > nf:
@@ -782,9 +782,8 @@ class _Problem:
         # others (a thermal channel's drift ...) are left to the data alone
         d = np.diag(M_all)
         phys = np.flatnonzero(d > 1e-6 * max(d.max() if d.size else 0.0, 1e-300))
-        out = np.zeros((n_u, 0))
         if phys.size == 0:
-            return P, out
+            return none
         App = App[np.ix_(phys, phys)]
         M = M_all[np.ix_(phys, phys)]
         M = M + np.eye(phys.size) * (1e-12 * np.trace(M) / phys.size)
@@ -793,16 +792,11 @@ class _Problem:
         H = Li @ App @ Li.T
         evals, U = np.linalg.eigh(0.5 * (H + H.T))
         is_weak = evals * WEAK_SD_UM ** 2 < sigma_w ** 2
-        weak = U[:, is_weak]
-        # seen, if weakly (above round-off): these count as undetermined in the report too
+        # seen, if weakly (above round-off; the others are in the data's null space already)
         seen = U[:, is_weak & (evals > 1e-9 * max(evals.max(), 1e-300))]
         out = np.zeros((n_u, seen.shape[1]))
-        if weak.shape[1]:
-            X = Li.T @ weak                               # weak directions in x (M-orthonormal)
-            Q = X @ X.T @ M                               # M-orthogonal projector onto them
-            P[np.ix_(phys, phys)] = WEAK_PENALTY * (Q.T @ M @ Q)
-            out[phys] = Li.T @ seen
-        return P, out
+        out[phys] = Li.T @ seen
+        return out
 
     # --------------------------------------------------------------- Gauss-Newton
     def solve(self, w, rcond, max_iterations, tol, leverage=False) -> _Solution:
@@ -813,8 +807,8 @@ class _Problem:
         matrix at the start point; undetermined directions stay at their start values. The first
         pass fits the data alone. Knowing the residual scale, the directions whose rms tool-tip error
         over the travel the data fix only to worse than :data:`WEAK_SD_UM` count as undetermined
-        too: the second pass holds them at the least predicted error
-        (:meth:`_weak_direction_penalty`), so that noise is never amplified into invented errors.
+        too: the second pass holds them at the least predicted error (:meth:`_weak_directions`), so
+        that noise is never amplified into invented errors.
         """
         x = np.zeros(self.n_unknowns)
         x[:self.n_free] = self.p0[self.free_idx]
@@ -826,13 +820,13 @@ class _Problem:
         null = V[:, ~keep]
         rank = int(keep.sum())
         cond = float(rel[0] / rel[keep][-1]) if rank else np.inf
-        P = np.zeros((self.n_unknowns, self.n_unknowns))
         start = (x, r, A, g)
-        x, r, A, g, B, scale_p, AB, iterations, converged = self._gauss_newton(
-            x, r, A, g, P, w, rcond, max_iterations, tol, directions=V[:, keep], scale=scale)
+        B1 = V[:, keep]
+        x, r, A, g, B, AB, iterations, converged = self._gauss_newton(
+            x, r, A, g, w, max_iterations, tol, B1, scale)
         sigma_w = self._repeat_scale(r, rank)
-        P, weak = self._weak_direction_penalty(A, sigma_w)
-        first = (x, r, A, g, B, scale_p, AB, iterations, converged, null, rank)
+        weak = self._weak_directions(A, sigma_w)
+        first = (x, r, A, g, B, AB, iterations, converged, null, rank)
         if weak.shape[1]:
             # the weak directions new to the null space (those the data's null space does not
             # already hold, up to round-off), in scaled coordinates, orthonormalised
@@ -842,46 +836,45 @@ class _Problem:
             U_, sv_, _ = np.linalg.svd(Wk, full_matrices=False)
             null = np.hstack([null, U_[:, sv_ > 1e-3]])
             rank = self.n_unknowns - null.shape[1]
-            # from the start again: the data-only pass may have wandered far along the weak
-            # directions, and pulling them back through a nonlinear model converges slowly
-            x, r, A, g, B, scale_p, AB, more, converged = self._gauss_newton(
-                *start, P, w, rcond, max_iterations, tol)
+            # from the start again (the data-only pass may have wandered far along the weak
+            # directions), in the directions the data see less the weak ones: a step B1 y holds
+            # every weak component (in the travel metric) at the start's, X^T M (scale B1 y) = 0
+            C = weak.T @ self.metric @ (scale[:, None] * B1)
+            if C.shape[0]:
+                _, sv_c, Vt = np.linalg.svd(C, full_matrices=True)
+                k_c = int(np.sum(sv_c > 1e-9 * max(float(sv_c.max()), 1e-300)))
+                B2 = B1 @ Vt[k_c:].T
+            else:
+                B2 = B1
+            x, r, A, g, B, AB, more, converged = self._gauss_newton(
+                *start, w, max_iterations, tol, B2, scale)
             iterations += more
             # holding weak directions may cost the data fit about one noise variance each; much more
             # means the split into weak and strong went wrong numerically: keep the data's own fit
             allowed = float(first[1] @ first[1]) + 4.0 * weak.shape[1] * sigma_w ** 2 + 1e-300
             if not converged or float(r @ r) > 1.01 * allowed:
-                x, r, A, g, B, scale_p, AB, iterations, converged, null, rank = first
+                x, r, A, g, B, AB, iterations, converged, null, rank = first
                 self.weak_fallback = True
         dof = max(self.n_obs - rank, 0)
         s2 = float(r @ r) / dof if dof > 0 else np.nan
         lev = np.zeros(self.n_obs)
         if B.shape[1]:
             ABinv = scipy.linalg.pinvh(AB)
-            cov = s2 * (scale_p[:, None] * (B @ ABinv @ B.T) * scale_p[None, :])
+            cov = s2 * (scale[:, None] * (B @ ABinv @ B.T) * scale[None, :])
             if leverage:
-                lev = self.leverages(x, w, scale_p, B, np.linalg.cholesky(AB))
+                lev = self.leverages(x, w, scale, B, np.linalg.cholesky(AB))
         else:
             cov = np.full((self.n_unknowns, self.n_unknowns), np.nan)
         return _Solution(x, r, cov, null, scale, rel, rank, cond, iterations, converged, lev)
 
-    def _gauss_newton(self, x, r, A, g, P, w, rcond, max_iterations, tol, directions=None, scale=None):
-        """Minimise ``|r|^2 + x^T P x`` from x (with its residuals r and normal equations A, g) in
-        ``directions`` (scaled by ``scale``), by default those the data or P see. Returns (x, r, A,
-        g, B, scale, reduced matrix, iterations, converged)."""
-        if directions is None:
-            scale = _column_scale(A + P)
-            rel_p, V_p = _relative_singular_values((A + P) * np.outer(scale, scale))
-            directions = V_p[:, rel_p > rcond]
-        B = directions
-
-        def objective(r_, x_):
-            return float(r_ @ r_ + x_ @ P @ x_)
-
+    def _gauss_newton(self, x, r, A, g, w, max_iterations, tol, B, scale):
+        """Minimise ``|r|^2`` from x (with its residuals r and normal equations A, g) along the
+        orthonormal directions B of the scaled unknowns (x = x0 + scale * B y). Returns (x, r, A, g,
+        B, reduced matrix B^T As B, iterations, converged)."""
         def reduced(A_):
-            return B.T @ ((A_ + P) * np.outer(scale, scale)) @ B
+            return B.T @ (A_ * np.outer(scale, scale)) @ B
 
-        cost = objective(r, x)
+        cost = float(r @ r)
         converged = False
         iterations = 0
         AB = reduced(A)
@@ -892,19 +885,29 @@ class _Problem:
         refresh = False
         for it in range(1, max_iterations + 1):
             iterations = it
-            dz = _step(B, AB, scale * (g - P @ x))
-            small = np.linalg.norm(dz) <= tol * (1.0 + np.linalg.norm(x / scale))
+            gs = scale * g
+            dz = _step(B, AB, gs)
+            # small: below tol of the unknowns, or so small against their uncertainty that no
+            # reading could tell (the step's Mahalanobis length gs.dz under STEP_SE standard
+            # errors: every combination of the unknowns moves less than that)
+            small = (np.linalg.norm(dz) <= tol * (1.0 + np.linalg.norm(x / scale))
+                     or float(gs @ dz) <= STEP_SE ** 2 * cost / max(self.n_obs - B.shape[1], 1))
+            if small and it > 1:
+                # converged: a step this small changes nothing a user can see (below tol of the
+                # unknowns), so it is not taken and x keeps the residuals and gradient just evaluated;
+                # the covariance uses the normal matrix the steps used (the start's unless refreshed;
+                # the model is linear in p to 1e-5)
+                converged = True
+                break
             x_new = x + scale * dz
             if small:
-                # a converged step needs no new Jacobian: the covariance uses the normal matrix the
-                # steps used (the start's unless refreshed; the model is linear in p to 1e-5)
                 pred_new, A_new, g_new = self.evaluate(x_new), None, None
             else:
                 refresh = refresh or it >= 4
                 pred_new, A_new, g_new = self.normal_equations(x_new, w, gram=refresh)
                 A_new = A if A_new is None else A_new
             r_new = w * (self.observed - pred_new)
-            cost_new = objective(r_new, x_new)
+            cost_new = float(r_new @ r_new)
             step = 1.0
             while cost_new > cost * (1 + 1e-12) + 1e-300 and step > 1e-6:
                 # backtracking, rarely needed: the model is nearly linear in p
@@ -912,13 +915,13 @@ class _Problem:
                 x_new = x + step * scale * dz
                 pred_new = self.evaluate(x_new)
                 r_new = w * (self.observed - pred_new)
-                cost_new = objective(r_new, x_new)
+                cost_new = float(r_new @ r_new)
                 A_new = None
                 refresh = True
             if cost_new > cost * (1 + 1e-12) + 1e-300:
                 # no descent along the Gauss-Newton step: either at the minimum, or the step is
                 # dominated by nearly singular directions; Levenberg-Marquardt damping tells them apart
-                x_new, r_new, cost_new = self._damped_step(x, cost, B, AB, scale, g - P @ x, w, objective)
+                x_new, r_new, cost_new = self._damped_step(x, cost, B, AB, scale, g, w)
                 if x_new is None:
                     converged = True
                     break
@@ -935,7 +938,7 @@ class _Problem:
             AB = reduced(A)
         if A is None:
             _, A, g = self.normal_equations(x, w)
-        return x, r, A, g, B, scale, AB, iterations, converged
+        return x, r, A, g, B, AB, iterations, converged
 
     # --------------------------------------------------------------- result
     def result(self, sol: _Solution, w, label, ctx_defaults, seconds, info) -> IdentificationResult:

@@ -31,7 +31,7 @@ Other kinds (cmm, thermal, velocity) register here from ``readings_extra``.
 """
 from __future__ import annotations
 
-import weakref
+from collections import OrderedDict
 from pathlib import Path
 from typing import ClassVar
 
@@ -168,11 +168,14 @@ def context_matrix(model: ErrorModel, data: MeasurementSet, context_defaults: di
 
 
 # ------------------------------------------------------------------------- batched CasADi evaluation
-_FUNCTIONS: "weakref.WeakKeyDictionary[ErrorModel, dict]" = weakref.WeakKeyDictionary()
+#: structure key -> {name: CasADi function}: models of one structure (identify builds a new model with
+#: the data's knots on every call) share their functions, the last few structures kept
+_FUNCTIONS: "OrderedDict[str, dict]" = OrderedDict()
+_FUNCTIONS_KEPT = 16
 
 
 def chain_function(model: ErrorModel, name: str) -> ca.Function:
-    """CasADi functions of (q, p, c) built once per model and cached (``c`` may be extended per row):
+    """CasADi functions of (q, p, c) built once per model structure and cached (``c`` may be extended per row):
 
     * ``'tip'``: d (3,) tip deviation mm; ``'tip_jac'``: (d, J_d^T (n_params, 3)).
     * ``'laser'`` / ``'laser_jac'``: c = [context, o (3), s (6)]:
@@ -181,7 +184,11 @@ def chain_function(model: ErrorModel, name: str) -> ca.Function:
     * ``'ballbar'`` / ``'ballbar_jac'``: c = [context, T (3), b (3)]:
       L = | tip0 + d + R_rel b - T | (scalar) and its gradient (n_params, 1).
     """
-    cache = _FUNCTIONS.setdefault(model, {})
+    key = model.structure_key()
+    cache = _FUNCTIONS.setdefault(key, {})
+    _FUNCTIONS.move_to_end(key)
+    while len(_FUNCTIONS) > _FUNCTIONS_KEPT:
+        _FUNCTIONS.popitem(last=False)
     if name not in cache:
         nc = model.n_context
         q, p = ca.SX.sym("q", model.machine.n_axes), ca.SX.sym("p", model.n_params)
