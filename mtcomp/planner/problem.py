@@ -108,7 +108,12 @@ class CompensationProblem:
                 raise InputError(f"{name} must be a positive number, got {v!r}")
         ms_urad = ms_um / mc_um * mc_urad if max_step_urad is None else max_step_urad
         axes = fitted.machine.axes
-        max_corr = np.array([mc_urad * 1e-6 if a.is_rotary else mc_um * 1e-3 for a in axes])
+        # a rotary axis the model's data held at one angle gets no correction: nothing says how the
+        # errors change as it turns, and what it would correct (the tool's orientation) one angle's
+        # data hardly fix
+        held = fitted.held or {}
+        max_corr = np.array([(0.0 if a.name in held else mc_urad * 1e-6) if a.is_rotary else mc_um * 1e-3
+                             for a in axes])
         max_step = np.array([ms_urad * 1e-6 if a.is_rotary else ms_um * 1e-3 for a in axes])
         return cls(fitted, max_corr, max_step, grid=grid, **kwargs)
 
