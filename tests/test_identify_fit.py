@@ -418,3 +418,31 @@ def test_known_setup_matches_any_path_to_the_file_and_refuses_what_it_cannot_mea
     assert res.fitted_model.info["known_setup"] == ["bb"]
     pred = predict_readings(res.fitted_model, data)
     assert pred.setup_known and not any("not part of the fit" in n for n in pred.notes)
+
+
+def test_points_gradient_is_the_jacobian_transposed_times_the_seed(cafxyz):
+    """The fit's gradient-only steps use one reverse sweep per row (PointsModel.gradient); it must
+    equal J^T v from the full Jacobian, with a normal-deviation column, blank cells and the set-up
+    nuisance, and on a 5-axis model away from zero errors."""
+    machine, model = cafxyz
+    rng = np.random.default_rng(5)
+    n = 40
+    lo, hi = machine.travel_bounds()
+    q = rng.uniform(lo, hi, (n, machine.n_axes))
+    abc = np.zeros((n, 3))
+    abc[:, 0], abc[:, 2] = q[:, 3], q[:, 4]
+    normal = rng.normal(size=(n, 3))
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    dev = rng.normal(size=(n, 3)) * 1e-3
+    dev[rng.random((n, 3)) < 0.2] = np.nan
+    data = make_points(q[:, :3], abc, tool=rng.choice([0.0, 120.0], n), deviation=dev, normal=normal,
+                       normal_deviation=rng.normal(size=n) * 1e-3)
+    mm = measurement_model(model, data)
+    assert mm.fast_gradient
+    p = random_parameters(model, rng, mask=model.base_mask.copy()) * 5.0
+    nuis = rng.normal(size=mm.n_nuisance) * 1e-3
+    v = rng.normal(size=mm.n_obs)
+    J, Jn = mm.jacobian(p, nuis)
+    gp, gn = mm.gradient(p, nuis, v)
+    np.testing.assert_allclose(gp, J.T @ v, rtol=1e-10, atol=1e-12 * np.abs(J.T @ v).max())
+    np.testing.assert_allclose(gn, Jn.T @ v, rtol=1e-12, atol=0)

@@ -682,9 +682,16 @@ class _Problem:
         for m, so, sn in zip(self.mms, self.obs_slices, self.nuis_slices):
             if m.n_obs == 0:
                 continue
+            ww = w[so]
+            if not gram and m.fast_gradient:
+                y = m.predict(p, x[sn])
+                pred[so] = y
+                gp, gn = m.gradient(p, x[sn], ww * ww * (self.observed[so] - y))
+                g[:nf] += gp[fi]
+                g[sn] += gn
+                continue
             y, Jp, Jn = m.predict_and_jacobian(p, x[sn])
             pred[so] = y
-            ww = w[so]
             rw = ww * (self.observed[so] - y)
             g[:nf] += (Jp.T @ (ww * rw))[fi]
             g[sn] += Jn.T @ (ww * rw)

@@ -177,7 +177,8 @@ _FUNCTIONS_KEPT = 16
 def chain_function(model: ErrorModel, name: str) -> ca.Function:
     """CasADi functions of (q, p, c) built once per model structure and cached (``c`` may be extended per row):
 
-    * ``'tip'``: d (3,) tip deviation mm; ``'tip_jac'``: (d, J_d^T (n_params, 3)).
+    * ``'tip'``: d (3,) tip deviation mm; ``'tip_jac'``: (d, J_d^T (n_params, 3)); ``'tip_vjp'``:
+      c = [context, v (3)]: (d, J_d^T v (n_params, 1)), one reverse sweep instead of the Jacobian.
     * ``'laser'`` / ``'laser_jac'``: c = [context, o (3), s (6)]:
       v = s . [d + (R_rel - I) o ; vee((R_rel - R_rel^T) / 2)] (scalar) and its gradient
       (n_params, 1), with ``R_rel = R R0^T`` the tool's rotation relative to nominal.
@@ -192,7 +193,8 @@ def chain_function(model: ErrorModel, name: str) -> ca.Function:
     if name not in cache:
         nc = model.n_context
         q, p = ca.SX.sym("q", model.machine.n_axes), ca.SX.sym("p", model.n_params)
-        extra = {"tip": 0, "tip_jac": 0, "laser": 9, "laser_jac": 9, "ballbar": 6, "ballbar_jac": 6}
+        extra = {"tip": 0, "tip_jac": 0, "tip_vjp": 3, "laser": 9, "laser_jac": 9, "ballbar": 6,
+                 "ballbar_jac": 6}
         if name not in extra:
             raise KeyError(name)
         cx = ca.SX.sym("c", nc + extra[name])
@@ -216,6 +218,8 @@ def chain_function(model: ErrorModel, name: str) -> ca.Function:
             # transposed (n_params, rows): column-major per pose = row-major (rows, n_params), so
             # the stacked Jacobian of N poses is a reshape, not a copy
             outs.append(ca.jacobian(outs[0], p).T)
+        elif name.endswith("_vjp"):
+            outs.append(ca.jtimes(outs[0], p, cx[nc:nc + 3], True))
         cache[name] = ca.Function(f"mm_{name}", [q, p, cx], outs)
     return cache[name]
 
@@ -311,6 +315,14 @@ class MeasurementModel:
 
     def _evaluate(self, p, nuisance, jacobian: bool):
         raise NotImplementedError
+
+    #: :meth:`gradient` is cheaper than the Jacobian (a reverse sweep per row)
+    fast_gradient: ClassVar[bool] = False
+
+    def gradient(self, p: np.ndarray, nuisance: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(J_p^T v (n_params,), J_nuisance^T v (n_nuisance,)) for a seed v (n_obs,)."""
+        J, Jn = self.jacobian(p, nuisance)
+        return J.T @ v, Jn.T @ v
 
     def predict_columns(self, p: np.ndarray, nuisance: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """'pred_<column>' -> (n_rows,) predicted readings in FILE units, for every row."""
@@ -443,6 +455,18 @@ class PointsModel(MeasurementModel):
             if sel.any():
                 J[sel] = np.einsum("kj,kjp->kp", self._A[sel], Jd[self._rows[sel]])
         return pred, J, self._setup_design
+
+    fast_gradient = True
+
+    def gradient(self, p, nuisance, v):
+        p, nuisance = self._check_p(p, nuisance)
+        v = np.asarray(v, dtype=float)
+        n = len(self.data)
+        # observation k = A_k . d[row_k]: the seed of each row's d is the sum of v_k A_k over its rows
+        seeds = np.column_stack([np.bincount(self._rows, weights=v * self._A[:, j], minlength=n)
+                                 for j in range(3)])
+        g = evaluate_chain(self.model, "tip_vjp", self.q, p, np.hstack([self.c, seeds]))[1]
+        return g.sum(axis=0), self._setup_design.T @ v
 
     def column_jacobians(self, p):
         _, Jd = self.tip_deviation(np.asarray(p, dtype=float), jacobian=True)
