@@ -446,3 +446,26 @@ def test_points_gradient_is_the_jacobian_transposed_times_the_seed(cafxyz):
     gp, gn = mm.gradient(p, nuis, v)
     np.testing.assert_allclose(gp, J.T @ v, rtol=1e-10, atol=1e-12 * np.abs(J.T @ v).max())
     np.testing.assert_allclose(gn, Jn.T @ v, rtol=1e-12, atol=0)
+
+
+def test_weak_directions_hand_case():
+    """The weak-direction rule on a hand-made normal matrix. Unknowns: y1 (1 um of tip error over
+    the travel per unit, data information 100 per um^2: standard error 0.1 um), y2 (1 um per unit)
+    and a set-up y3 (no tip error) that the data can hardly tell from y2 (correlation 0.999). With y3
+    marginalised y2's information is 1 - 0.999^2 = 0.002 per um^2: standard error 22 um > 1 um, so
+    it is weak. It is held only
+    while the fit moved it by less than 3 standard errors (66 um)."""
+    from types import SimpleNamespace
+
+    from mtcomp.identification.fit import _Problem
+    prob = SimpleNamespace(metric=np.diag([1.0, 1.0, 0.0]) * 1e-6)      # mm^2 per unit^2
+    AB = np.array([[100.0, 0.0, 0.0], [0.0, 1.0, 0.999], [0.0, 0.999, 1.0]])
+    B, scale = np.eye(3), np.ones(3)
+    W, Q = _Problem._weak_directions(prob, AB, B, scale, 1.0, np.array([5.0, 10.0, 0.0]))
+    assert W.shape == (3, 1)
+    np.testing.assert_allclose(np.abs(W[:, 0]), [0.0, 1.0, 0.0], atol=1e-9)   # Q-orthonormal: y2
+    W, _ = _Problem._weak_directions(prob, AB, B, scale, 1.0, np.array([5.0, 80.0, 0.0]))
+    assert W.shape == (3, 0)                        # 80 um is 3.6 standard errors: the data see it
+    W, _ = _Problem._weak_directions(prob, np.diag([100.0, 4.0, 1.0]), B, scale, 1.0,
+                                     np.array([5.0, 0.5, 0.0]))
+    assert W.shape == (3, 0)                        # y3 independent: standard error 0.5 um, not weak

@@ -542,6 +542,9 @@ STEP_SE = 1e-3
 #: a combination of parameters whose rms tool-tip error over the travel the data fix only to worse
 #: than this standard error (um) is held at the least error, like one they do not see at all
 WEAK_SD_UM = 1.0
+#: ... unless the first fit puts it further from the start than this many of its standard errors:
+#: then the data do see it (a real error of 28 um fixed to 1.2 um is fitted, not held at zero)
+WEAK_SIGNIFICANT = 3.0
 
 
 def travel_metric(model: ErrorModel, free_idx: np.ndarray, n_unknowns: int) -> np.ndarray:
@@ -761,49 +764,47 @@ class _Problem:
         return None, None, None
 
     # --------------------------------------------------------------- weak directions
-    def _weak_directions(self, A, sigma_w: float):
-        """(n_unknowns, k) the weak directions the data do see (above round-off) in x, M-orthonormal,
-        also reported as undetermined: what the data barely see, to be held at the least predicted
-        error.
+    def _weak_directions(self, AB, B, scale, sigma_w: float, y):
+        """(n_seen, k) the weak directions among those the data see, as coordinates on B: what the
+        data barely see, to be held at the least predicted error.
 
-        With the files' set-ups marginalised out (Schur complement of the normal matrix), the
-        fitted parameters are whitened by the travel metric (||z|| = rms tool-tip error over the
-        travel, um). A direction z whose standard error ``sigma_w / s`` (sigma_w the rms weighted
-        residual, s the data's singular value per um) exceeds :data:`WEAK_SD_UM` is weak: the data
-        would fix its error over the travel only to worse than that. The second pass holds its
-        component (in the metric) at the start's, zero error: directions the data see are fitted
-        without bias. Weak and strong directions are orthogonal in the metric, so the result is the
-        least-error completion of what the data determine.
+        The search space is x = x0 + scale * B y (B: the directions the data see, orthonormal in the
+        scaled unknowns; AB = B^T As B, the data's normal matrix there). The travel metric
+        ``Q = B^T D M D B`` measures a step's rms tool-tip error over the travel (um^2); steps it
+        does not see (the files' set-ups, a thermal channel's drift ...) have no physical size and
+        are marginalised out (Schur complement of AB). In the rest, whitened by Q, a direction
+        whose standard error ``sigma_w / s`` (sigma_w the rms weighted residual, s^2 the data's
+        information per um^2) exceeds :data:`WEAK_SD_UM` is weak: the data would fix its error over
+        the travel only to worse than that; unless the first fit ``y`` moved it by more than
+        :data:`WEAK_SIGNIFICANT` of those standard errors (then the data see it after all). The
+        second pass holds each weak one at the start's value, zero error: directions the data see
+        are fitted without bias. Weak and strong directions are orthogonal in the metric, so the
+        result is the least-error completion of what the data determine.
+
+        Returns W (n_seen, k) with the constraint ``W^T Q y = 0`` holding them, Q-orthonormal.
         """
-        n_u = self.n_unknowns
-        none = np.zeros((n_u, 0))
-        if self.metric is None:
-            return none
-        nf = self.n_free
-        App = A[:nf, :nf]
-        if n_u > nf:
-            Apn, Ann = A[:nf, nf:], A[nf:, nf:]
-            App = App - Apn @ scipy.linalg.pinvh(Ann) @ Apn.T
-        M_all = self.metric[:nf, :nf] * 1e6             # um^2 of mean squared tip error per x^2
-        # only parameters that move the tool tip somewhere in the travel have a physical size; the
-        # others (a thermal channel's drift ...) are left to the data alone
-        d = np.diag(M_all)
-        phys = np.flatnonzero(d > 1e-6 * max(d.max() if d.size else 0.0, 1e-300))
-        if phys.size == 0:
-            return none
-        App = App[np.ix_(phys, phys)]
-        M = M_all[np.ix_(phys, phys)]
-        M = M + np.eye(phys.size) * (1e-12 * np.trace(M) / phys.size)
-        L = np.linalg.cholesky(M)
-        Li = scipy.linalg.solve_triangular(L, np.eye(phys.size), lower=True)
-        H = Li @ App @ Li.T
-        evals, U = np.linalg.eigh(0.5 * (H + H.T))
-        is_weak = evals * WEAK_SD_UM ** 2 < sigma_w ** 2
-        # seen, if weakly (above round-off; the others are in the data's null space already)
-        seen = U[:, is_weak & (evals > 1e-9 * max(evals.max(), 1e-300))]
-        out = np.zeros((n_u, seen.shape[1]))
-        out[phys] = Li.T @ seen
-        return out
+        k = B.shape[1]
+        if self.metric is None or k == 0:
+            return np.zeros((k, 0)), None
+        SB = scale[:, None] * B
+        Q = SB.T @ (self.metric * 1e6) @ SB                 # um^2 of mean squared tip error per y^2
+        Q = 0.5 * (Q + Q.T)
+        m, W = np.linalg.eigh(Q)
+        phys = m > 1e-9 * max(float(m.max()), 1e-300)
+        if not phys.any():
+            return np.zeros((k, 0)), Q
+        R, N0 = W[:, phys], W[:, ~phys]
+        H = R.T @ AB @ R
+        if N0.shape[1]:
+            Hrn = R.T @ AB @ N0
+            H = H - Hrn @ scipy.linalg.pinvh(N0.T @ AB @ N0) @ Hrn.T
+        d = 1.0 / np.sqrt(m[phys])
+        Hw = d[:, None] * H * d[None, :]
+        evals, U = np.linalg.eigh(0.5 * (Hw + Hw.T))
+        sd = sigma_w / np.sqrt(np.clip(evals, 1e-300, None))
+        c = U.T @ (np.sqrt(m[phys]) * (R.T @ y))            # each direction's size in the fit, um
+        is_weak = (sd > WEAK_SD_UM) & (np.abs(c) < WEAK_SIGNIFICANT * sd)
+        return R @ (d[:, None] * U[:, is_weak]), Q
 
     # --------------------------------------------------------------- Gauss-Newton
     def solve(self, w, rcond, max_iterations, tol, leverage=False) -> _Solution:
@@ -832,27 +833,20 @@ class _Problem:
         x, r, A, g, B, AB, iterations, converged = self._gauss_newton(
             x, r, A, g, w, max_iterations, tol, B1, scale)
         sigma_w = self._repeat_scale(r, rank)
-        weak = self._weak_directions(A, sigma_w)
+        y1 = B1.T @ ((x - start[0]) / scale)
+        weak, Q = self._weak_directions(AB, B1, scale, sigma_w, y1)
         first = (x, r, A, g, B, AB, iterations, converged, null, rank)
         if weak.shape[1]:
-            # the weak directions new to the null space (those the data's null space does not
-            # already hold, up to round-off), in scaled coordinates, orthonormalised
-            Wk = weak / scale[:, None]
-            Wk = Wk / np.linalg.norm(Wk, axis=0, keepdims=True)
-            Wk = Wk - null @ (null.T @ Wk)
-            U_, sv_, _ = np.linalg.svd(Wk, full_matrices=False)
-            null = np.hstack([null, U_[:, sv_ > 1e-3]])
+            # reported as undetermined: the weak directions, in scaled coordinates, orthonormalised
+            U_, sv_, _ = np.linalg.svd(B1 @ weak, full_matrices=False)
+            null = np.hstack([null, U_[:, sv_ > 1e-9 * sv_.max()]])
             rank = self.n_unknowns - null.shape[1]
             # from the start again (the data-only pass may have wandered far along the weak
-            # directions), in the directions the data see less the weak ones: a step B1 y holds
-            # every weak component (in the travel metric) at the start's, X^T M (scale B1 y) = 0
-            C = weak.T @ self.metric @ (scale[:, None] * B1)
-            if C.shape[0]:
-                _, sv_c, Vt = np.linalg.svd(C, full_matrices=True)
-                k_c = int(np.sum(sv_c > 1e-9 * max(float(sv_c.max()), 1e-300)))
-                B2 = B1 @ Vt[k_c:].T
-            else:
-                B2 = B1
+            # directions), in the directions the data see less the weak ones: W^T Q y = 0
+            C = weak.T @ Q
+            _, sv_c, Vt = np.linalg.svd(C, full_matrices=True)
+            k_c = int(np.sum(sv_c > 1e-9 * max(float(sv_c.max()), 1e-300)))
+            B2 = B1 @ Vt[k_c:].T
             x, r, A, g, B, AB, more, converged = self._gauss_newton(
                 *start, w, max_iterations, tol, B2, scale)
             iterations += more
