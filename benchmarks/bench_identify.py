@@ -16,9 +16,9 @@ import time
 import numpy as np
 
 from mtcomp.identification.fit import identify
-from mtcomp.identification.synthetic import make_points, random_parameters, simulate
 from mtcomp.machine import load_machine
 from mtcomp.models import ErrorModel
+from mtcomp.sim import make_points, random_parameters, simulate
 
 
 def case(machine_name: str, n_points: int, runs: int, rng) -> None:

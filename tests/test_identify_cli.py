@@ -10,10 +10,10 @@ import pytest
 from mtcomp.cli import main
 from mtcomp.identification.fit import identify
 from mtcomp.measurement.readings import measurement_model
-from mtcomp.identification.synthetic import campaign, random_parameters, simulate, write_measurements
 from mtcomp.measurement.files import read_measurements
 from mtcomp.machine import load_machine
 from mtcomp.models import ErrorModel, load_model
+from mtcomp.sim import random_campaign, random_parameters, simulate, write_measurements
 
 
 POLY_XFYZ = """name = "xfyz-poly"
@@ -40,7 +40,7 @@ def files(tmp_path_factory):
     machine = load_machine(tmp / "poly.toml")
     model = ErrorModel(machine)
     rng = np.random.default_rng(30)
-    camp = campaign(machine, rng, n_points=150, laser_offsets=1)
+    camp = random_campaign(machine, rng, n_points=150, laser_offsets=1)
     p = random_parameters(model, rng)
     paths = {}
     for kind, data in camp.items():

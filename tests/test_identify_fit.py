@@ -11,9 +11,9 @@ import pytest
 from mtcomp.errors import InputError
 from mtcomp.identification.fit import identify
 from mtcomp.measurement.readings import measurement_model
-from mtcomp.identification.synthetic import campaign, make_laser, make_points, random_parameters, simulate
 from mtcomp.machine import load_machine
 from mtcomp.models import Backlash, ErrorModel, FittedModel, ParameterSet
+from mtcomp.sim import make_laser, make_points, random_campaign, random_parameters, simulate
 
 @pytest.fixture(scope="module")
 def xfyz():
@@ -43,7 +43,7 @@ def _machine_with_degree(machine, degree):
 def test_noise_free_rich_campaign_recovers_parameters(xfyz):
     machine, model = xfyz
     rng = np.random.default_rng(10)
-    camp = campaign(machine, rng)
+    camp = random_campaign(machine, rng)
     free = model.base_mask.copy()
     p = random_parameters(model, rng, mask=free)
     data = [simulate(model, d, p) for d in camp.values()]
@@ -61,7 +61,7 @@ def test_noise_free_rich_campaign_recovers_parameters(xfyz):
 def test_joint_fit_points_laser_ballbar_five_axis_with_nuisance(cafxyz):
     machine, model = cafxyz
     rng = np.random.default_rng(11)
-    camp = campaign(machine, rng, n_points=250)
+    camp = random_campaign(machine, rng, n_points=250)
     free = model.base_mask.copy()
     p = random_parameters(model, rng, mask=free)
     mms = {k: measurement_model(model, d) for k, d in camp.items()}
@@ -86,7 +86,7 @@ def test_rich_campaign_determines_the_whole_base_model(xfyz):
     (EXY_1 ~ C0Y ...) are not in it (ISO 230-1), so a rich campaign determines every parameter."""
     machine, model = xfyz
     rng = np.random.default_rng(12)
-    camp = campaign(machine, rng, n_points=200)
+    camp = random_campaign(machine, rng, n_points=200)
     p = random_parameters(model, rng)
     res = identify(model, [simulate(model, d, p) for d in camp.values()])
     assert res.undetermined == [] and res.determined[model.base_mask].all()
@@ -205,7 +205,7 @@ def test_extension_parameters_fitted_when_asked(xfyz):
 def test_noise_weighting_per_file(xfyz):
     machine, model = xfyz
     rng = np.random.default_rng(15)
-    camp = campaign(machine, rng, n_points=400)
+    camp = random_campaign(machine, rng, n_points=400)
     p = random_parameters(model, rng)
     pts = simulate(model, camp["points"], p, noise_um=0.2, rng=rng)
     las = simulate(model, camp["laser"], p, noise_um=2.0, noise_urad=4.0, rng=rng)
@@ -256,7 +256,7 @@ def test_result_reports_per_file_residuals_in_file_units(xfyz):
 def test_start_from_fitted_model_keeps_held_values(xfyz):
     machine, model = xfyz
     rng = np.random.default_rng(17)
-    camp = campaign(machine, rng, n_points=150)
+    camp = random_campaign(machine, rng, n_points=150)
     free = model.base_mask.copy()
     p = random_parameters(model, rng, mask=free)
     data = [simulate(model, d, p) for d in camp.values()]
@@ -378,7 +378,7 @@ def test_hold_by_name_component_axis_and_group():
 
 def test_calibrated_ball_bar_has_no_length_offset():
     from mtcomp.identification.fit import build_measurement_models
-    from mtcomp.identification.synthetic import make_ballbar
+    from mtcomp.sim import make_ballbar
     model = ErrorModel(load_machine("xfyz"))
     th = np.linspace(0, 2 * np.pi, 12, endpoint=False)
     xyz = np.column_stack([100 * np.cos(th), 100 * np.sin(th), np.zeros_like(th)])
@@ -394,7 +394,7 @@ def test_calibrated_ball_bar_has_no_length_offset():
 
 def test_known_setup_matches_any_path_to_the_file_and_refuses_what_it_cannot_mean(tmp_path, monkeypatch):
     from mtcomp.identification.fit import build_measurement_models
-    from mtcomp.identification.synthetic import make_ballbar, write_measurements
+    from mtcomp.sim import make_ballbar, write_measurements
     from mtcomp.measurement.files import read_measurements
     model = ErrorModel(load_machine("xfyz"))
     th = np.linspace(0, 2 * np.pi, 12, endpoint=False)

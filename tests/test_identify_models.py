@@ -8,10 +8,9 @@ import pytest
 from mtcomp.errors import InputError
 from mtcomp.measurement import readings as mmod
 from mtcomp.measurement.readings import context_matrix, measurement_model
-from mtcomp.identification.synthetic import (make_ballbar, make_laser, make_points, random_parameters,
-                                             simulate)
 from mtcomp.machine import load_machine
 from mtcomp.models import ErrorModel, ThermalDrift
+from mtcomp.sim import make_ballbar, make_laser, make_points, random_parameters, simulate
 from reference_model import reference_deviation
 
 

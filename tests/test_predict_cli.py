@@ -9,10 +9,10 @@ import pytest
 
 from mtcomp.cli import main
 from mtcomp.measurement import readings as mmod
-from mtcomp.identification.synthetic import make_ballbar, make_laser, make_points, write_measurements
 from mtcomp.measurement.files import read_measurements
 from mtcomp.machine import load_machine
 from mtcomp.models import ErrorModel, FittedModel, ParameterSet, deviation, save_model
+from mtcomp.sim import make_ballbar, make_laser, make_points, write_measurements
 from reference_model import reference_deviation
 
 

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..identification.synthetic import with_values
+from ..sim import with_values
 from ..machine import Machine, load_machine
 from ..models import ErrorModel, FittedModel, ParameterSet
 from ..models.terms import (AbbeIRC, Backlash, FeedOffset, PeriodicError, RotaryErrorMotion,

@@ -1,16 +1,19 @@
-"""Measurement sets built from arrays (no file): for tests, benchmarks and simulated campaigns.
+"""Measurement sets built from arrays (no file), their readings replaced, and sets and columns written as CSV.
 
 Each ``make_*`` returns the same object :func:`mtcomp.measurement.files.read_measurements` would return
 for a CSV file with those columns (header and cells included, so ``mtcomp predict`` can repeat them).
-:func:`with_values` puts simulated readings into a set (e.g. a measurement model's prediction plus noise).
-Inputs in internal units (mm, rad); cells are written in file units (um, urad, deg).
+:func:`with_values` puts readings into a set (e.g. :func:`mtcomp.sim.simulate`'s). :func:`random_campaign`
+draws a rich campaign of such sets. Inputs in internal units (mm, rad); cells are written in file
+units (um, urad, deg).
 """
 from __future__ import annotations
 
+import csv
 import dataclasses
 
 import numpy as np
 
+from ..io.atomic import atomic_write
 from ..measurement.files import BallbarData, Context, LaserData, MeasurementSet, PointsData, format_cell
 
 
@@ -36,13 +39,30 @@ def _pose_columns(xyz, abc):
 
 
 def _cells(columns: dict) -> tuple[tuple[str, ...], tuple[tuple[str, ...], ...]]:
+    """(header, rows) of CSV cells for column name -> (n,) values in file units: numbers through
+    :func:`format_cell` (NaN and None blank), anything else as text."""
     header = tuple(columns)
     cols = []
-    for v in columns.values():
-        v = np.asarray(v)
-        cols.append([str(x) if v.dtype.kind in "US" else format_cell(float(x)) for x in v])
-    rows = tuple(zip(*cols)) if cols else ()
-    return header, tuple(tuple(r) for r in rows)
+    for col in columns.values():
+        if isinstance(col, np.ndarray) and col.dtype.kind in "fiu":
+            cols.append([format_cell(float(v)) for v in col])
+        else:
+            cols.append(["" if v is None else format_cell(float(v)) if isinstance(v, (float, np.floating))
+                         else str(v) for v in col])
+    return header, tuple(zip(*cols)) if cols else ()
+
+
+def _write_table(path, header, rows) -> None:
+    """Write a header and rows of cells as a CSV file (atomically)."""
+    with atomic_write(path, newline="") as f:
+        writer = csv.writer(f, lineterminator="\n")
+        writer.writerow(header)
+        writer.writerows(rows)
+
+
+def write_columns(path, columns: dict) -> None:
+    """Write column name -> (n,) values (file units, numbers or text) as a CSV file (atomically)."""
+    _write_table(path, *_cells(columns))
 
 
 def make_points(xyz, abc=None, tool=None, deviation=None, normal=None, normal_deviation=None,
@@ -180,62 +200,17 @@ def with_values(data: MeasurementSet, values: dict[str, np.ndarray]) -> Measurem
     return dataclasses.replace(data, **changes)
 
 
-def simulate(model, data: MeasurementSet, p, nuisance=None, noise_um: float = 0.0,
-             noise_urad: float = 0.0, rng=None, context_defaults=None) -> MeasurementSet:
-    """``data`` with its readings replaced by what ``model`` predicts for parameters p (internal
-    units) and the file's nuisance parameters (default zero), plus Gaussian noise (um for
-    translational readings and lengths, urad for angular ones). Blank cells stay blank."""
-    from ..measurement.readings import measurement_model
-    mm = measurement_model(model, data, context_defaults)
-    cols = mm.predict_columns(np.asarray(p, float), nuisance)
-    rng = np.random.default_rng(0) if rng is None else rng
-    n = len(data)
-
-    def noisy(v, sigma):
-        return v + (rng.normal(0.0, sigma, n) if sigma > 0 else 0.0)
-
-    if data.kind == "points":
-        values = {}
-        for k, col in enumerate(("dx_um", "dy_um", "dz_um")):
-            measured = np.isfinite(data.deviation[:, k])
-            values[col] = np.where(measured, noisy(cols[f"pred_{col}"] * 1e-3, noise_um * 1e-3), np.nan)
-        if "pred_dn_um" in cols:
-            measured = np.isfinite(data.normal_deviation)
-            values["dn_um"] = np.where(measured, noisy(cols["pred_dn_um"] * 1e-3, noise_um * 1e-3), np.nan)
-        return with_values(data, values)
-    if data.kind == "laser":
-        v = np.zeros(n)
-        if "pred_value_um" in cols:
-            v = np.where(~data.angular, noisy(cols["pred_value_um"] * 1e-3, noise_um * 1e-3), v)
-        if "pred_value_urad" in cols:
-            v = np.where(data.angular, noisy(cols["pred_value_urad"] * 1e-6, noise_urad * 1e-6), v)
-        v = np.where(np.isfinite(data.value), v, np.nan)
-        return with_values(data, {"value": v})
-    if data.kind == "ballbar":
-        v = noisy(cols["pred_length_mm"], noise_um * 1e-3)
-        return with_values(data, {"length_mm": np.where(np.isfinite(data.length), v, np.nan)})
-    raise ValueError(f"simulate does not handle {data.kind} sets")
-
-
-def random_parameters(model, rng, um: float = 10.0, urad: float = 20.0, mask=None) -> np.ndarray:
-    """(n_params,) random values of machine size: N(0, um) for um parameters and N(0, urad) for urad
-    ones (internal units); zero outside ``mask`` (default ``model.base_mask``)."""
-    mask = model.base_mask if mask is None else mask
-    sd = np.array([um * 1e-3 if s.unit == "um" else urad * 1e-6 for s in model.param_specs])
-    return np.where(mask, rng.normal(size=model.n_params) * sd, 0.0)
-
-
-def campaign(machine, rng, n_points: int = 300, tool_lengths=(0.0, 100.0, 200.0),
-             laser_offsets: int = 2, laser_steps: int = 9, ballbar_radius: float = 100.0,
-             ballbar_steps: int = 36) -> dict[str, MeasurementSet]:
-    """A rich measurement campaign (readings zero; fill them with :func:`simulate`):
+def random_campaign(machine, rng, n_points: int = 300, tool_lengths=(0.0, 100.0, 200.0),
+                    laser_offsets: int = 2, laser_steps: int = 9, ballbar_radius: float = 100.0,
+                    ballbar_steps: int = 36) -> dict[str, MeasurementSet]:
+    """A rich random measurement campaign (readings zero; fill them with :func:`mtcomp.sim.simulate`):
 
     * ``points``: random poses over the whole work volume (rotary axes too), tool lengths drawn from
       ``tool_lengths``;
     * ``laser``: for every axis every component, each at ``laser_offsets`` set-ups with different
       static positions of the other axes and optic offsets (Abbe arms), ``laser_steps`` targets;
-    * ``ballbar``: circles of ``ballbar_radius`` in the XY, XZ and YZ planes (and for a rotary axis a
-      circle of the table ball turning with it, tool following nominally).
+    * ``ballbar``: two circles of ``ballbar_radius`` in each of the XY, XZ and YZ planes, at random
+      centres, rotary axes at zero.
     """
     lo, hi = machine.travel_bounds()
     names = machine.axis_names
@@ -281,13 +256,11 @@ def campaign(machine, rng, n_points: int = 300, tool_lengths=(0.0, 100.0, 200.0)
     laser = make_laser(rows["axis"], rows["component"], rows["target"], rows["direction"], rows["run"],
                        np.array(rows["static"]), np.array(rows["optic"]), path="laser.csv")
 
-    centre = (lo + hi) / 2
     ang = np.linspace(0.0, 2 * np.pi, ballbar_steps, endpoint=False)
     bq, tb = [], []
     for i, j in ((0, 1), (0, 2), (1, 2)):
         for _ in range(2):
             c = np.zeros(na)
-            c[:] = 0.0
             for k, n in enumerate(names):
                 if n in "XYZ":
                     c[k] = rng.uniform(lo[k] + ballbar_radius, hi[k] - ballbar_radius)
@@ -307,16 +280,9 @@ def campaign(machine, rng, n_points: int = 300, tool_lengths=(0.0, 100.0, 200.0)
     tool_ball = np.array([0.0, 0.0, 0.0])
     ballbar = make_ballbar(bxyz, tb, tool_ball, babc if rotary else None,
                            length=np.linalg.norm(bxyz - tb, axis=1), path="ballbar.csv")
-    del centre
     return {"points": points, "laser": laser, "ballbar": ballbar}
 
 
 def write_measurements(path, data: MeasurementSet) -> None:
     """Write a measurement set's header and cells as a CSV file (atomically)."""
-    import csv
-
-    from ..io.atomic import atomic_write
-    with atomic_write(path, newline="") as f:
-        writer = csv.writer(f, lineterminator="\n")
-        writer.writerow(data.header)
-        writer.writerows(data.rows)
+    _write_table(path, data.header, data.rows)

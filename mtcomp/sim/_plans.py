@@ -1,50 +1,20 @@
-"""The virtual machine: measurement campaigns simulated from an error model with known parameters.
+"""Plans: what a simulated measurement file measures, in which order, at which feed and when.
 
-A :class:`VirtualMachine` holds a *truth* (a :class:`~mtcomp.models.FittedModel`: base model plus any
-extension terms -- backlash, periodic error, thermal drift, feed-dependent terms, rotary error
-motions) and produces measurement files of every kind of SPEC section 3 from a :class:`Plan`. The
-readings are produced by the SAME measurement models that identification fits
-(:mod:`mtcomp.measurement.readings`, looked up in the registry by kind), plus Gaussian
-noise; the files are written in SPEC format (column names and units exactly as section 3) and read
-back with :func:`mtcomp.measurement.files.read_measurements`, so what a caller gets is what the readers
-give for the file.
-
-Plans (each a function returning a :class:`Plan`; times ``t_s`` advance with moves at feed and dwells):
-
-* :func:`iso230_2_plan`: laser positioning runs (ISO 230-2 cycle, 5 runs, bidirectional), optionally
-  straightness and angular components.
-* :func:`rotary_laser_plan`: the same for a rotary axis (seed 002).
-* :func:`volumetric_points_plan`: deviations on a 3-D grid with several tool lengths (and rotary angles).
-* :func:`ballbar_circles_plan`: ISO 230-4 circles in XY, YZ, ZX, CCW and CW.
-* :func:`three_sphere_plan`: seed 003 (bar along X, Y, Z from a table ball on the C axis, two heights,
-  only C moving, both directions).
-* :func:`thermal_plan`: a fixed set-up under a spindle-speed profile, with temperatures.
-* :func:`velocity_plan`: seed 000 two-point velocities (X axis, 200 mm, 5 mm steps, 3 repeats,
-  180/240/300 mm/min).
-* :func:`cmm_plan`: a machined part (G-code + ball-end tool) measured at given surface points.
-* :func:`standard_campaign`: the plans that determine the base model of a machine.
-
-:func:`random_truth` draws realistic base parameters (um-scale polynomials, tens of urad squareness).
-Units: files as SPEC (mm, deg, um, urad, mm/min, s); everything else mm and rad.
+Each ``*_plan`` function returns a :class:`Plan` (columns in SPEC file units, the measured columns left
+out); :class:`~mtcomp.sim.VirtualMachine` fills the readings. Times ``t_s`` advance with moves at feed
+and dwells. Plan columns are in SPEC file units (mm, deg, mm/min, s); arguments in the units their
+names and docstrings give.
 """
 from __future__ import annotations
 
-import csv
 import math
 import os
-import tempfile
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
-from .io.atomic import atomic_write
-from .measurement.files import MeasurementSet, format_cell, read_measurements
-from .machine import Machine
-from .models import ErrorModel, FittedModel, ParameterSet
-
-# --------------------------------------------------------------------------------------------- plans
+from ..errors import InputError
+from ..machine import Machine
 
 
 @dataclass
@@ -414,7 +384,7 @@ def thermal_plan(machine: Machine, duration_h: float = 8.0, interval_s: float = 
         :class:`~mtcomp.models.ChannelDrift` channels). temperatures : sensor -> (ambient degC, K per
         1000 rpm of heat, lag s); default a spindle sensor and a bed sensor. setup_q : (na,) set-up pose.
     """
-    from .measurement.readings_extra import spindle_heat
+    from ..measurement.readings_extra import spindle_heat
     t = np.arange(0.0, duration_h * 3600.0 + 1e-9, interval_s)
     rpm = np.zeros_like(t)
     for ts, r in spindle_profile:
@@ -494,176 +464,3 @@ def standard_campaign(machine: Machine, n_runs: int = 1, thermal: bool = False) 
     if thermal:
         plans.append(thermal_plan(machine))
     return plans
-
-
-# --------------------------------------------------------------------------------------------- truth
-
-def _param_sd(spec, machine: Machine) -> float:
-    """Standard deviation of a random truth parameter, in its file unit (um, urad, mm ...)."""
-    name, unit, group = spec.name, spec.unit, spec.group
-    if group == "squareness":
-        return 30.0
-    if group == "tool":
-        return 2.0
-    if group.endswith(":location"):
-        return 10.0 if unit == "um" else 20.0
-    if ":" in group and group.split(":")[1].startswith("E") and spec.base:
-        comp = group.split(":")[1]
-        suffix = name.rsplit("_", 1)[1]
-        if suffix.isdigit():                              # linear polynomial coefficient
-            k = int(suffix)
-            if comp[1] in "ABC":
-                return (15.0, 8.0, 4.0)[min(k, 3) - 1]
-            if comp[1] == comp[2]:
-                return (10.0, 5.0, 3.0)[min(k, 3) - 1]
-            return (3.0, 4.0, 2.0)[min(k, 3) - 1]
-        return 8.0 if unit == "urad" else 2.0           # rotary harmonics
-    kind = group.split(":")[0]
-    return {"backlash": 5.0 if unit == "um" else 15.0, "periodic_error": 1.0,
-            "feed_dependent_offset": 0.5, "rotary_pdge": 3.0 if unit == "um" else 6.0,
-            "thermal_drift": 3.0, "channel_drift": 3.0}.get(kind, _extension_sd(spec))
-
-
-def _extension_sd(spec) -> float:
-    if spec.name.startswith("IRC_"):
-        return 40.0 if spec.name.endswith("0") else 50.0
-    if spec.name.startswith("AG_"):
-        return 0.05
-    return 1.0
-
-
-def random_truth(machine: Machine, rng: np.random.Generator, scale: float = 1.0, terms=(),
-                 context_defaults: dict | None = None) -> FittedModel:
-    """A realistic random truth: base parameters of machine-tool size plus the given extension terms.
-
-    Linear axes: positioning polynomials ~10, 5, 3 um at 1 m (k = 1, 2, 3), straightness ~3 um,
-    angular ~15, 8, 4 urad; squareness ~30 urad; rotary axis location ~10 um / 20 urad, angular
-    positioning harmonics ~8 urad; tool length error ~2 um. Extension terms: backlash ~5 um
-    (15 urad rotary), periodic error ~1 um, rotary error motions ~3 um / 6 urad, drift ~3 um per unit
-    of feature, IRC shifts ~50 mm. Every standard deviation times ``scale``.
-    """
-    model = ErrorModel(machine, terms)
-    params = ParameterSet(model.param_specs)
-    for i, spec in enumerate(model.param_specs):
-        params.values[i] = rng.normal() * _param_sd(spec, machine) * scale / spec.to_file
-    return FittedModel(model, params, dict(context_defaults or {}), {"source": "mtcomp.sim.random_truth"})
-
-
-# --------------------------------------------------------------------------------------------- machine
-
-def _write_csv(path, columns: dict) -> None:
-    names = list(columns)
-    n = len(next(iter(columns.values())))
-    cells = []
-    for nm in names:
-        col = columns[nm]
-        if isinstance(col, np.ndarray) and col.dtype.kind in "fiu":
-            cells.append([format_cell(float(v)) for v in col])
-        else:
-            cells.append(["" if v is None else (format_cell(float(v)) if isinstance(v, (float, np.floating))
-                                                 else str(v)) for v in col])
-    with atomic_write(path, newline="") as f:
-        w = csv.writer(f, lineterminator="\n")
-        w.writerow(names)
-        for i in range(n):
-            w.writerow([c[i] for c in cells])
-
-
-class VirtualMachine:
-    """A machine with known errors that produces measurement files.
-
-    machine : the machine (must match ``truth.machine`` in topology and axes).
-    truth : the error model and its parameter values (internal units).
-    noise_um : standard deviation of translational readings (points, laser um, ball-bar lengths,
-        CMM, thermal channels), um. noise_urad : angular readings, urad.
-    noise_velocity_mm_min : velocity readings (velocity files), mm/min.
-    rng : numpy Generator (or seed) for the noise.
-    nuisance : nuisance name (without the file tag, e.g. 'length_offset', 'X:EXX:offset') -> value in
-        internal units; unnamed nuisances are 0 (the instruments are perfect apart from noise).
-    """
-
-    def __init__(self, machine: Machine, truth: FittedModel, noise_um: float = 0.3,
-                 noise_urad: float = 0.5, rng=None, noise_velocity_mm_min: float = 1e-4,
-                 nuisance: dict | None = None):
-        if machine.topology != truth.machine.topology or machine.axis_names != truth.machine.axis_names:
-            raise ValueError(f"truth was made for {truth.machine.topology}, not {machine.topology}")
-        self.machine = machine
-        self.truth = truth
-        self.noise_um = float(noise_um)
-        self.noise_urad = float(noise_urad)
-        self.noise_velocity_mm_min = float(noise_velocity_mm_min)
-        self.rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
-        self.nuisance = dict(nuisance or {})
-
-    # ---------------------------------------------------------------------------------------------
-    def noise_sd(self, column: str) -> float:
-        """Standard deviation of the noise of a measured column, in that column's file unit."""
-        if column.endswith("_mm_min"):
-            return self.noise_velocity_mm_min
-        if column.endswith("_urad"):
-            return self.noise_urad
-        if column.endswith("_um"):
-            return self.noise_um
-        if column.endswith("_mm"):
-            return self.noise_um * 1e-3
-        raise ValueError(f"no noise for column {column!r}")
-
-    def measurement_model(self, plan: Plan, data: MeasurementSet):
-        """The registered measurement model of the plan's kind, bound to the truth and ``data``."""
-        from .measurement.readings import model_class_for
-        from .measurement.readings_extra import drift_context
-        options = dict(plan.options)
-        options.setdefault("extra_context", drift_context(self.truth.model, data))
-        return model_class_for(plan.kind, data.path)(self.truth.model, data, self.truth.context_defaults,
-                                                     machine=self.machine, **options)
-
-    def _nuisance_vector(self, mmodel) -> np.ndarray:
-        out = np.zeros(mmodel.n_nuisance)
-        for i, nm in enumerate(mmodel.nuisance_names):
-            short = nm.split(":", 1)[1] if ":" in nm else nm
-            out[i] = self.nuisance.get(short, self.nuisance.get(nm, 0.0))
-        return out
-
-    def readings(self, plan: Plan, data: MeasurementSet, noise: bool = True) -> dict[str, np.ndarray]:
-        """Measured columns (file units) for the rows of ``data``: model prediction plus noise."""
-        mmodel = self.measurement_model(plan, data)
-        pred = mmodel.predict_columns(self.truth.params.values, self._nuisance_vector(mmodel))
-        out = {}
-        for col in plan.measured:
-            v = np.asarray(pred[f"pred_{col}"], dtype=float)
-            if noise:
-                v = v + self.rng.normal(size=v.shape) * self.noise_sd(col)
-            out[col] = v
-        return out
-
-    def measure(self, plan: Plan, path: str | os.PathLike | None = None, noise: bool = True
-                ) -> MeasurementSet:
-        """Simulate one file: write it to ``path`` (SPEC CSV; default: a temporary file) and return the
-        measurement set read back from it."""
-        with tempfile.TemporaryDirectory(prefix="mtcomp-sim-") as tmp:
-            template = Path(tmp) / f"{plan.name}.csv"
-            cols = dict(plan.columns)
-            for c in plan.measured:
-                cols[c] = np.full(len(plan), np.nan)
-            _write_csv(template, cols)
-            data = read_measurements(template, kind=plan.kind)
-            values = self.readings(plan, data, noise)
-            cols.update(values)
-            out = Path(path) if path is not None else template
-            _write_csv(out, cols)
-            return read_measurements(out, kind=plan.kind)
-
-    def campaign(self, plans, out_dir: str | os.PathLike, gap_s: float = 600.0,
-                 noise: bool = True) -> dict[str, MeasurementSet]:
-        """Run plans one after another (each starts ``gap_s`` after the previous one ends, so ``t_s``
-        runs on through the campaign); write ``<out_dir>/<plan.name>.csv``; name -> data read back."""
-        out_dir = Path(out_dir)
-        if not out_dir.is_dir():
-            raise InputError("output folder does not exist", str(out_dir))
-        t = 0.0
-        result = {}
-        for plan in plans:
-            p = plan.shifted(t) if "t_s" in plan.columns else plan
-            result[plan.name] = self.measure(p, out_dir / f"{plan.name}.csv", noise)
-            t = max(t, p.duration_s) + gap_s
-        return result
