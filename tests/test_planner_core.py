@@ -378,3 +378,28 @@ def test_tilt_zero_turns_no_table_after_a_tool_axis_error_no_rotary_axis_removes
     assert np.abs(res.before_axis).max() * 1e6 > 20.0
     assert np.abs(res.after_axis).max() * 1e6 < 0.05
     assert np.abs(res.correction[:, ic]).max() * 1e6 > 20.0
+
+
+def test_tilt_zero_move_is_not_split_after_a_tool_axis_error_no_rotary_axis_removes():
+    """The midpoint test of internal nodes counts the tool axis as the objective does: at A = 0 a
+    deviation in X that no correction removes is missed at every midpoint and must not split the
+    move into 2^6 pieces; the tip along the corrected move still stays within the tolerance."""
+    fitted = fitted_model("cafxyz", 91)
+    m = fitted.machine
+    pts = np.array([[-300.0, 100.0, -50.0, 0.0, 0.0], [300.0, 100.0, -50.0, 0.0, 0.0]])
+    chunk = _segment_chunk(m, pts)
+    problem = CompensationProblem.from_machine(fitted, **LOOSE)
+    (_, res), = plan_chunks(problem, [chunk], PlannerOptions(subdivide_tol_um=0.5))
+    assert np.abs(res.after_axis[:, 0]).max() * 1e6 > 5.0      # the deviation no axis removes
+    # 64 pieces when the whole tool-axis deviation was counted; here 22 (17 for the tip alone, the
+    # rest for the tool axis's Y component, which A corrects)
+    assert int(res.counts[0]) < 32
+    # dense check of the tip along the corrected polyline (as in the test above)
+    start = plan_arrays(problem, pts[:1], np.array([1000.0]), np.ones((1, 5), int)).corrected
+    nodes_c, nodes_n = np.vstack([start, res.corrected]), np.vstack([pts[:1], res.nominal])
+    s = np.linspace(0.0, 1.0, 21)[1:]
+    qc = np.concatenate([a + s[:, None] * (b - a) for a, b in zip(nodes_c[:-1], nodes_c[1:])])
+    qn = np.concatenate([a + s[:, None] * (b - a) for a, b in zip(nodes_n[:-1], nodes_n[1:])])
+    k = qc.shape[0]
+    err = actual_pose(fitted, qc, np.full(k, 1000.0), np.ones((k, 5), int)) - nominal_pose(m, qn)
+    assert np.linalg.norm(err[:, :3], axis=1).max() * 1e3 < 0.6
