@@ -90,7 +90,9 @@ def test_pinv_is_one_seed001_step_against_finite_differences_and_lstsq(name):
     m = fitted.machine
     rng = np.random.default_rng(12)
     q, feed, dirs = random_blocks(m, rng, 12)
-    problem = CompensationProblem.from_machine(fitted, **LOOSE)
+    # next to nothing of the regularisation, which lstsq does not have
+    problem = CompensationProblem.from_machine(fitted, regularization=1e-12,
+                                               rotary_regularization=1e-12, **LOOSE)
     res = plan_arrays(problem, q, feed, dirs, options=PlannerOptions(method="pinv"))
     rows = 6 if m.is_five_axis else 3
     W = np.array([1e3] * 3 + [1e6] * 3)[:rows]         # um and urad, orientation weight 1
@@ -106,7 +108,8 @@ def test_pinv_is_one_seed001_step_against_finite_differences_and_lstsq(name):
             J[:, j] = (p[0, :rows] - p[1, :rows]) / 2e-6
         expected[i] = -np.linalg.lstsq(W[:, None] * J, W * e[i], rcond=None)[0]
     scale = problem.axis_scale
-    # the planner's step carries the problem's 1e-6 regularisation: ~1e-5 relative on C
+    # the planner counts the tool axis in the directions the rotary axes turn it (tilt 15 deg or
+    # more here): the same step as counting all of it, since five axes remove the whole deviation
     np.testing.assert_allclose(res.correction * scale, expected * scale, rtol=0, atol=2e-3)
     # before: the deviation of the uncorrected block
     np.testing.assert_allclose(res.before, e[:, :3], rtol=0, atol=1e-12)
@@ -334,3 +337,69 @@ def test_streaming_in_small_chunks_gives_the_same_plan():
     assert ref.flags.any()
     c = ref.correction * 1e3
     assert np.all(np.abs(np.diff(c, axis=0)) <= 0.3 + 1e-6) and np.all(np.abs(c) <= 5.0 + 1e-6)
+
+
+def test_tilt_zero_turns_no_table_after_a_tool_axis_error_no_rotary_axis_removes():
+    """CA table at A = 0: the tool axis is parallel to C, so no rotary axis can remove the X
+    component of a tool-axis deviation (only a B axis could). The planner must not turn C after it
+    through the model's tiny C-dependence of the tool axis, with X/Y paying up to their bounds: C
+    stays within a few urad, no bound acts, and the tip ends as close as with X/Y/Z alone (the same
+    problem with zero rotary bounds). At A = 30 deg the tool axis is still corrected."""
+    fitted = fitted_model("cafxyz", 91)
+    m = fitted.machine
+    ia, ic = m.index("A"), m.index("C")
+    gx, gy = np.meshgrid(np.linspace(-300.0, 300.0, 5), np.linspace(-200.0, 200.0, 3))
+    n = gx.size
+    q = np.column_stack([gx.ravel(), gy.ravel(), np.full(n, -50.0), np.zeros(n), np.zeros(n)])
+    rapid = np.ones(n, bool)             # scattered blocks: no step bound between them
+    problem = CompensationProblem.from_machine(fitted)          # 50 um, 500 urad
+    rotary = np.array([a.is_rotary for a in m.axes])
+    xyz_only = CompensationProblem(fitted, np.where(rotary, 0.0, problem.max_correction),
+                                   problem.max_step)
+    best = np.linalg.norm(plan_arrays(xyz_only, q, rapid=rapid).after, axis=1).max() * 1e3
+    qp = None
+    for method in ("qp", "newton", "pinv"):
+        res = plan_arrays(problem, q, rapid=rapid,
+                          options=PlannerOptions(method=method, always_qp=True))
+        c = res.correction * problem.axis_scale
+        assert np.abs(c[:, ic]).max() < 3.0                       # urad
+        assert not res.flags.any()
+        assert np.linalg.norm(res.after, axis=1).max() * 1e3 < best + 0.02
+        qp = c if qp is None else qp
+    # an error there was, and it stays: no rotary axis reaches it
+    assert np.abs(res.before_axis[:, 0]).max() * 1e6 > 20.0
+    np.testing.assert_allclose(res.after_axis[:, 0], res.before_axis[:, 0], rtol=0, atol=0.5e-6)
+    ref = solve_reference(problem, q, rapid=rapid)
+    np.testing.assert_allclose(qp, ref * problem.axis_scale, rtol=0, atol=0.01)
+    # tilted 30 deg the rotary axes turn the tool well: its deviation is corrected
+    q30 = q.copy()
+    q30[:, ia] = np.radians(30.0)
+    res = plan_arrays(problem, q30, rapid=rapid)
+    assert np.abs(res.before_axis).max() * 1e6 > 20.0
+    assert np.abs(res.after_axis).max() * 1e6 < 0.05
+    assert np.abs(res.correction[:, ic]).max() * 1e6 > 20.0
+
+
+def test_tilt_zero_move_is_not_split_after_a_tool_axis_error_no_rotary_axis_removes():
+    """The midpoint test of internal nodes counts the tool axis as the objective does: at A = 0 a
+    deviation in X that no correction removes is missed at every midpoint and must not split the
+    move into 2^6 pieces; the tip along the corrected move still stays within the tolerance."""
+    fitted = fitted_model("cafxyz", 91)
+    m = fitted.machine
+    pts = np.array([[-300.0, 100.0, -50.0, 0.0, 0.0], [300.0, 100.0, -50.0, 0.0, 0.0]])
+    chunk = _segment_chunk(m, pts)
+    problem = CompensationProblem.from_machine(fitted, **LOOSE)
+    (_, res), = plan_chunks(problem, [chunk], PlannerOptions(subdivide_tol_um=0.5))
+    assert np.abs(res.after_axis[:, 0]).max() * 1e6 > 5.0      # the deviation no axis removes
+    # 64 pieces when the whole tool-axis deviation was counted; here 22 (17 for the tip alone, the
+    # rest for the tool axis's Y component, which A corrects)
+    assert int(res.counts[0]) < 32
+    # dense check of the tip along the corrected polyline (as in the test above)
+    start = plan_arrays(problem, pts[:1], np.array([1000.0]), np.ones((1, 5), int)).corrected
+    nodes_c, nodes_n = np.vstack([start, res.corrected]), np.vstack([pts[:1], res.nominal])
+    s = np.linspace(0.0, 1.0, 21)[1:]
+    qc = np.concatenate([a + s[:, None] * (b - a) for a, b in zip(nodes_c[:-1], nodes_c[1:])])
+    qn = np.concatenate([a + s[:, None] * (b - a) for a, b in zip(nodes_n[:-1], nodes_n[1:])])
+    k = qc.shape[0]
+    err = actual_pose(fitted, qc, np.full(k, 1000.0), np.ones((k, 5), int)) - nominal_pose(m, qn)
+    assert np.linalg.norm(err[:, :3], axis=1).max() * 1e3 < 0.6

@@ -9,6 +9,12 @@ axes, urad for rotary axes; dq = x / axis_scale):
 (tip rows in mm; on 5-axis machines also the tool-axis rows), returned weighted: ``b = S r`` with S
 from :attr:`CompensationProblem.residual_scale` (um, and urad times the orientation weight), and the
 Jacobian ``A = S (J_nominal + J_q) / axis_scale`` (weighted residual per um or urad of correction).
+
+What the methods minimise is not ``|b|^2`` itself: on 5-axis machines the tool-axis rows enter the
+objective as ``M e`` (:meth:`Evaluator.orientation_rows`, :func:`objective_residual`), the part of the
+tool-axis deviation e the rotary axes can turn the tool against at that block (see
+``CompensationProblem.orientation_damping``). ``b`` and ``A`` themselves stay the deviation as it is,
+which is what the report shows.
 """
 from __future__ import annotations
 
@@ -19,6 +25,31 @@ import numpy as np
 from ..models.evaluate import evaluate
 from ._nominal import nominal_pose, nominal_pose_jacobian
 from .problem import CompensationProblem
+
+
+def objective_residual(M: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(n, rows): the residual b (n, rows) as the objective counts it, its tool-axis rows 3:6 replaced
+    by ``M e`` (M (n, 3, 3) from :meth:`Evaluator.orientation_rows`); b itself on 3-axis machines
+    (M (n, 0, 0))."""
+    if M.shape[1] == 0:
+        return b
+    out = np.array(b, copy=True)
+    e = b[:, 3:6]
+    for k in range(3):
+        out[:, 3 + k] = M[:, k, 0] * e[:, 0] + M[:, k, 1] * e[:, 1] + M[:, k, 2] * e[:, 2]
+    return out
+
+
+def objective_jacobian(M: np.ndarray, A: np.ndarray) -> np.ndarray:
+    """(n, rows, na): the Jacobian A (n, rows, na) of :func:`objective_residual`'s rows (M is
+    constant)."""
+    if M.shape[1] == 0:
+        return A
+    out = np.array(A, copy=True)
+    for k in range(3):
+        out[:, 3 + k, :] = (M[:, k, 0, None] * A[:, 3, :] + M[:, k, 1, None] * A[:, 4, :]
+                            + M[:, k, 2, None] * A[:, 5, :])
+    return out
 
 
 class Evaluator:
@@ -54,12 +85,65 @@ class Evaluator:
             Jd[:, :, held] = 0.0
         return dev, Jd
 
+    def orientation_rows(self, q: np.ndarray, nominal_jacobian: np.ndarray | None = None) -> np.ndarray:
+        """(n, 3, 3) M with ``M^T M = W = J (J^T J + d^2 I)^-1 J^T``: the objective counts the
+        tool-axis rows e of a block's residual as ``|M e|^2 = e^T W e``; (n, 0, 0) on 3-axis machines.
+
+        J (3, n_rotary) is the nominal tool axis's Jacobian with respect to the rotary axes at the
+        nominal position q (n, n_axes; mm, rad), d ``CompensationProblem.orientation_damping``. In J's
+        singular directions W weighs a deviation by sigma^2 / (sigma^2 + d^2): 1 where the rotary axes
+        turn the tool well, 0 where they cannot turn it at all (the tool axis parallel to a turntable,
+        and the tool axis's own direction). Without this, a deviation no rotary axis can remove
+        (at tilt 0 on a CA table, the X component) drew large rotary corrections through the model's
+        tiny second-order sensitivities (1e-4 urad per urad), paid for with X/Y at their bounds.
+        M depends on the nominal pose only, so every method and iteration minimises the same thing.
+        nominal_jacobian : (n, 6, n_axes) the nominal pose's Jacobian at q when already computed.
+        """
+        q = np.asarray(q, dtype=float)
+        n = q.shape[0]
+        if self.rows == 3:
+            return np.zeros((n, 0, 0))
+        if nominal_jacobian is None:
+            nominal_jacobian = nominal_pose_jacobian(self.machine, q)[2]
+        rot = [j for j, a in enumerate(self.machine.axes) if a.is_rotary]
+        d2 = self.problem.orientation_damping ** 2
+        M = np.zeros((n, 3, 3))
+        # W = J G^-1 J^T = (L^-1 J^T)^T (L^-1 J^T) with G = J^T J + d^2 I = L L^T; entry by entry
+        # on (n,) vectors for the usual two rotary axes (a batched Cholesky costs ten times more)
+        if len(rot) == 2:
+            u, v = nominal_jacobian[:, 3:6, rot[0]], nominal_jacobian[:, 3:6, rot[1]]  # (n, 3)
+            l11 = np.sqrt(np.einsum("ni,ni->n", u, u) + d2)
+            l21 = np.einsum("ni,ni->n", u, v) / l11
+            l22 = np.sqrt(np.einsum("ni,ni->n", v, v) + d2 - l21 * l21)
+            M[:, 0, :] = u / l11[:, None]
+            M[:, 1, :] = (v - l21[:, None] * M[:, 0, :]) / l22[:, None]
+            return M
+        J = nominal_jacobian[:, 3:6, rot]                                     # (n, 3, k) rad / rad
+        G = np.einsum("nik,nil->nkl", J, J) + d2 * np.eye(len(rot))
+        M[:, :len(rot), :] = np.linalg.solve(np.linalg.cholesky(G), np.swapaxes(J, 1, 2))
+        return M
+
+    def target_and_orientation_rows(self, q: np.ndarray):
+        """(target (n, rows), orientation_rows (n, 3, 3) or (n, 0, 0)) of q: :meth:`target` and
+        :meth:`orientation_rows` from one evaluation of the nominal kinematics."""
+        q = np.asarray(q, dtype=float)
+        if self.rows == 3:
+            return self.target(q), np.zeros((q.shape[0], 0, 0))
+        tip, axis, Jn = nominal_pose_jacobian(self.machine, q)
+        return np.concatenate([tip, axis], axis=1), self.orientation_rows(q, Jn)
+
     def target(self, q: np.ndarray) -> np.ndarray:
         """(n, rows) nominal pose (tip mm, tool axis) of q: what the program means."""
         tip, axis = nominal_pose(self.machine, q)
         return tip if self.rows == 3 else np.concatenate([tip, axis], axis=1)
 
-    def residual_jacobian(self, q, x, ctx, target=None):
+    def residual_jacobian_rows(self, q, ctx):
+        """(b, A, target, orientation_rows) of the uncorrected blocks (x = 0): one nominal Jacobian
+        for both."""
+        b, A, target, Jn = self.residual_jacobian(q, None, ctx, _with_nominal=True)
+        return b, A, target, self.orientation_rows(q, Jn)
+
+    def residual_jacobian(self, q, x, ctx, target=None, _with_nominal=False):
         """Weighted residual b (n, rows) and Jacobian A (n, rows, n_axes) at corrections x (n, n_axes)
         (None: zero).
 
@@ -88,6 +172,8 @@ class Evaluator:
                 np.add(Jd[:, i, j], Jn[:, i, j], out=Jt[i, j])
                 if scale[i, j] != 1.0:
                     Jt[i, j] *= scale[i, j]
+        if _with_nominal:
+            return r, Jt.transpose(2, 0, 1), target, Jn
         return r, Jt.transpose(2, 0, 1), target
 
     def residual(self, q, x, ctx, target):

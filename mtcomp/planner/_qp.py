@@ -4,12 +4,13 @@ Variables of a window: the corrections of ``n + 1`` blocks in optimisation units
 0 being the anchor (the last block committed by the previous window, fixed by its bounds) and blocks
 1..n the window. Node-major order: x[i * na + j].
 
-    minimise    1/2 sum_i ||b_i + A_i (x_i - x_lin,i)||^2 + lam/2 ||x||^2
+    minimise    1/2 sum_i ||b_i + A_i (x_i - x_lin,i)||^2 + 1/2 sum_i x_i^T diag(lam) x_i
     subject to  l_i <= x_i <= u_i                         (correction bound and travel, per block)
                 -S_j <= x_i,j - x_(i-1),j <= S_j          (step bound; +-inf where exempt)
 
-P is block diagonal (upper triangle stored, fixed pattern), A is constant: identity rows then
-difference rows. Only P's values, q, l and u change between windows and SQP iterations.
+with b_i, A_i the objective's residual and Jacobian (``Linearization.objective``) and lam the
+per-axis regularisation (``CompensationProblem.regularization_weights``). P is block diagonal (upper
+triangle stored, fixed pattern), A is constant: identity rows then difference rows. Only P's values, q, l and u change between windows and SQP iterations.
 """
 from __future__ import annotations
 

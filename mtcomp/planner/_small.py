@@ -6,9 +6,15 @@ from __future__ import annotations
 import numpy as np
 
 
-def gram(A: np.ndarray, lam: float = 0.0) -> np.ndarray:
-    """(n, m, m): A^T A + lam I for A (n, r, m)."""
+def _diagonal(lam, m: int) -> np.ndarray:
+    """(m,) the regularisation weights: lam a number (the same for every column) or (m,)."""
+    return np.broadcast_to(np.asarray(lam, dtype=float), (m,))
+
+
+def gram(A: np.ndarray, lam=0.0) -> np.ndarray:
+    """(n, m, m): A^T A + diag(lam) for A (n, r, m), lam a number or (m,)."""
     n, r, m = A.shape
+    lam = _diagonal(lam, m)
     H = np.empty((n, m, m))
     for i in range(m):
         ai = A[:, :, i]
@@ -16,7 +22,7 @@ def gram(A: np.ndarray, lam: float = 0.0) -> np.ndarray:
             h = np.einsum("nk,nk->n", ai, A[:, :, j])
             H[:, i, j] = h
             H[:, j, i] = h
-        H[:, i, i] += lam
+        H[:, i, i] += lam[i]
     return H
 
 
@@ -83,10 +89,10 @@ def spd_solve(H: np.ndarray, g: np.ndarray) -> np.ndarray:
 
 
 def normal_step(A: np.ndarray, b: np.ndarray, x: np.ndarray | None = None,
-                lam: float = 0.0) -> np.ndarray:
-    """(n, m): the Gauss-Newton step ``-(A^T A + lam I)^-1 (A^T b + lam x)`` of each block.
+                lam=0.0) -> np.ndarray:
+    """(n, m): the Gauss-Newton step ``-(A^T A + L)^-1 (A^T b + L x)`` of each block, L = diag(lam).
 
-    A (n, r, m), b (n, r), x (n, m) or None (zero). The same numbers as ``-spd_solve(gram(A, lam),
+    A (n, r, m), b (n, r), x (n, m) or None (zero), lam a number or (m,). The same numbers as ``-spd_solve(gram(A, lam),
     at_b(A, b) + lam x)`` with the normal equations formed and factored entry by entry on contiguous
     (n,) vectors (one transposed copy of A and b, then no strided passes): the per-block 3 x 3 (or
     6 x 6) problems of a chunk cost a few dozen vector operations in all.
@@ -95,15 +101,16 @@ def normal_step(A: np.ndarray, b: np.ndarray, x: np.ndarray | None = None,
 
 
 class NormalFactor:
-    """The Cholesky factors of ``A^T A + lam I`` of many blocks, kept for further right-hand sides
-    (Newton steps that keep the Jacobian: the chord method). A (n, r, m)."""
+    """The Cholesky factors of ``A^T A + diag(lam)`` of many blocks, kept for further right-hand
+    sides (Newton steps that keep the Jacobian: the chord method). A (n, r, m), lam a number or
+    (m,)."""
 
-    def __init__(self, A: np.ndarray, lam: float = 0.0, _parts=None):
+    def __init__(self, A: np.ndarray, lam=0.0, _parts=None):
         if _parts is not None:
             self.Ac, self.L, self.inv_diag, self.lam = _parts
             return
         n, r, m = A.shape
-        self.lam = lam
+        self.lam = lam = _diagonal(lam, m)
         self.Ac = Ac = np.ascontiguousarray(A.transpose(1, 2, 0))   # (r, m, n)
         H = [[None] * m for _ in range(m)]
         for i in range(m):
@@ -112,7 +119,7 @@ class NormalFactor:
                 for k in range(1, r):
                     h += Ac[k, i] * Ac[k, j]
                 H[i][j] = h
-            H[i][i] += lam
+            H[i][i] += lam[i]
         # H = L L^T (lower triangle from the upper one stored)
         L = [[None] * m for _ in range(m)]
         inv_diag = [None] * m
@@ -138,7 +145,7 @@ class NormalFactor:
                                           self.lam))
 
     def step(self, b: np.ndarray, x: np.ndarray | None = None) -> np.ndarray:
-        """(n, m): ``-(A^T A + lam I)^-1 (A^T b + lam x)`` for b (n, r), x (n, m) or None."""
+        """(n, m): ``-(A^T A + L)^-1 (A^T b + L x)`` for b (n, r), x (n, m) or None."""
         Ac, L, inv_diag, lam = self.Ac, self.L, self.inv_diag, self.lam
         r, m, n = Ac.shape
         bc = np.ascontiguousarray(b.T)                     # (r, n)
@@ -147,8 +154,8 @@ class NormalFactor:
             t = Ac[0, i] * bc[0]
             for k in range(1, r):
                 t += Ac[k, i] * bc[k]
-            if lam and x is not None:
-                t += lam * x[:, i]
+            if lam[i] and x is not None:
+                t += lam[i] * x[:, i]
             for k in range(i):
                 t = t - L[i][k] * y[k]
             y[i] = t * inv_diag[i]

@@ -29,7 +29,8 @@ from .problem import CompensationProblem, PlannerOptions
 class CvxpyProblem:
     """problem : cp.Problem. x : cp.Variable (n, n_axes), corrections in um / urad.
     nodes : the blocks (NodeSet). constraints : the bound constraints (a list one can extend).
-    A, c : Parameters of the linearised weighted residual r_k = sum_j A[k][j] * x[:, j] + c[k].
+    A, c : Parameters of the linearised weighted residual r_k = sum_j A[k][j] * x[:, j] + c[k]
+        (on 5-axis machines its tool-axis rows as the objective counts them, see docs/planner.md).
     scale : (n_axes,) um or urad per mm or rad."""
 
     problem: object
@@ -42,12 +43,13 @@ class CvxpyProblem:
     objective: object
 
     def update(self, lin: Linearization):
-        """Set the parameters to the linearisation lin (b + A (x - x_lin))."""
-        const = lin.b - np.einsum("nkj,nj->nk", lin.A, lin.x_lin)
+        """Set the parameters to the linearisation lin of the objective's residual (b + A (x -
+        x_lin), its tool-axis rows as the objective counts them: ``Linearization.objective``)."""
+        const, A = lin.objective()
         for k in range(len(self.A)):
             self.c[k].value = const[:, k]
             for j in range(len(self.A[k])):
-                self.A[k][j].value = lin.A[:, k, j]
+                self.A[k][j].value = A[:, k, j]
 
     def with_constraints(self, extra: list):
         """A new cp.Problem: this objective, these bounds and the extra constraints."""
@@ -73,8 +75,9 @@ def build_cvxpy_problem(problem: CompensationProblem, q, feed=None, dirs=None, r
     A = [[cp.Parameter(n, name=f"A_{k}_{j}") for j in range(na)] for k in range(rows)]
     c = [cp.Parameter(n, name=f"c_{k}") for k in range(rows)]
     resid = [sum(cp.multiply(A[k][j], x[:, j]) for j in range(na)) + c[k] for k in range(rows)]
-    lam = problem.regularization
-    objective = cp.Minimize(0.5 * sum(cp.sum_squares(r) for r in resid) + 0.5 * lam * cp.sum_squares(x))
+    lam = problem.regularization_weights
+    objective = cp.Minimize(0.5 * sum(cp.sum_squares(r) for r in resid)
+                            + 0.5 * sum(lam[j] * cp.sum_squares(x[:, j]) for j in range(na)))
     b = planner.bounds
     l, u = b.box(nodes.q)
     cons = [x >= l, x <= u]

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..errors import InputError
 from ._bounds import FLAG_KINDS, INF, Bounds, flag_name
-from ._evaluate import Evaluator
+from ._evaluate import Evaluator, objective_residual
 from ._parallel import read_ahead, resolve_threads, split_rows
 from ._pointwise import Linearization, solve_newton, solve_pinv
 from ._qp import WindowQP
@@ -216,8 +216,8 @@ class Planner:
     def _solve_free_part(self, q, ctx) -> Linearization:
         o = self.options
         if o.method == "pinv":
-            return solve_pinv(self.ev, q, ctx, self.problem.regularization)
-        return solve_newton(self.ev, q, ctx, self.problem.regularization, o.step_tol_um,
+            return solve_pinv(self.ev, q, ctx, self.problem.regularization_weights)
+        return solve_newton(self.ev, q, ctx, self.problem.regularization_weights, o.step_tol_um,
                             o.max_iterations)
 
     def _check_travel(self, q, line, known=None):
@@ -374,7 +374,10 @@ class Planner:
         rounded to the grid, and how far (weighted, um / urad) the correction interpolated between
         the corrections x0 and x1 of the ends misses there."""
         qm = self.bounds.snap(start + t[:, None] * (end - start))
-        miss = self.ev.residual(qm, 0.5 * (x0 + x1), c, self.ev.target(qm))
+        target, M = self.ev.target_and_orientation_rows(qm)
+        # as the objective counts it: a tool-axis deviation no rotary axis can remove there is
+        # missed by any correction and says nothing about the interpolation
+        miss = objective_residual(M, self.ev.residual(qm, 0.5 * (x0 + x1), c, target))
         return row_norm(miss), qm
 
     # ------------------------------------------------------------------ committing
@@ -444,7 +447,7 @@ class Planner:
         self.stats["windows_qp"] += 1
         n, na = lin.x.shape
         qp = self._window_qp(n + 1)
-        lam = self.problem.regularization
+        lam = self.problem.regularization_weights
         lower = np.vstack([np.zeros((1, na)) if prev is None else prev[None, :], l])
         upper = np.vstack([np.zeros((1, na)) if prev is None else prev[None, :], u])
         S = np.broadcast_to(b.S, (n, na))
@@ -456,9 +459,9 @@ class Planner:
         eye = np.eye(na)
         x = np.clip(lin.x, l, u)
         for _it in range(o.max_iterations):
-            A = lin.A
+            c, A = lin.objective()
             H = gram(A, lam)
-            g = at_b(A, lin.b - a_x(A, lin.x_lin))
+            g = at_b(A, c)
             Hall = np.concatenate([eye[None], H])
             gall = np.vstack([np.zeros((1, na)), g])
             x0 = np.vstack([lower[:1], x])
@@ -678,5 +681,6 @@ def _empty_nodes(planner: Planner) -> NodeSet:
 def _empty_lin(planner: Planner) -> Linearization:
     na, r = planner.na, planner.ev.rows
     z = np.zeros
+    k = 3 if planner.problem.correct_orientation else 0
     return Linearization(z((0, na)), z((0, na)), z((0, r)), z((0, r, na)), z((0, r)), z((0, r)),
-                         z(0, int), z(0, bool))
+                         z(0, int), z(0, bool), z((0, k, k)))

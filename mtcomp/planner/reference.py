@@ -2,10 +2,11 @@
 
 No linearisation, no windows: the exact model over the whole program at once,
 
-    minimise    1/2 sum_i ||S (actual_pose(q_i + dq_i, c_i) - nominal_pose(q_i))||^2 + lam/2 ||x||^2
+    minimise    1/2 sum_i ||M_i S (actual_pose(q_i + dq_i, c_i) - nominal_pose(q_i))||^2 + 1/2 sum_j lam_j ||x_j||^2
     subject to  the same correction, travel and step bounds as the QP
 
-with x the corrections in um / urad (see :mod:`mtcomp.planner._qp`). Meant for small programs (tests
+with x the corrections in um / urad (see :mod:`mtcomp.planner._qp`) and M_i the identity on the tip
+rows and ``Evaluator.orientation_rows`` on the tool-axis rows (a constant of block i). Meant for small programs (tests
 compare qp, newton and cvxpy with it); it is slow for long ones.
 """
 from __future__ import annotations
@@ -32,8 +33,13 @@ def solve_reference(problem: CompensationProblem, q, feed=None, dirs=None, rapid
     tip, axis = F(nodes.q.T + X / ev.D[:, None], ev.p, nodes.context.T)
     pose = ca.vertcat(tip, axis)[:rows, :]
     r = (pose - lin.target.T) * ev.S[:, None]
-    lam = problem.regularization
-    opti.minimize(0.5 * ca.sumsqr(r) + 0.5 * lam * ca.sumsqr(X))
+    if rows == 6:
+        M = lin.orientation_rows
+        e = r[3:6, :]
+        r = ca.vertcat(r[:3, :], *[sum(ca.DM(M[:, k, j]).T * e[j, :] for j in range(3))
+                                   for k in range(3)])
+    lam = problem.regularization_weights
+    opti.minimize(0.5 * ca.sumsqr(r) + 0.5 * ca.sumsqr(np.sqrt(lam)[:, None] * X))
     l, u = b.box(nodes.q)
     opti.subject_to(opti.bounded(l.T, X, u.T))
     idx = [i for i in range(1, n) if not nodes.exempt[i]]
