@@ -330,12 +330,13 @@ class Planner:
         lin = Linearization.concatenate([lin_i, lin_end]).take(order)
         return nodes, lin, counts
 
-    def _subdivide(self, start, end, x_start, x_end, ctx, rapid):
-        """Internal nodes (rows, t, q, lin) where the interpolated correction misses the midpoint."""
+    def _subdivide(self, start, end, x_start, x_end, ctx, skip):
+        """Internal nodes (rows, t, q, lin) where the interpolated correction misses the midpoint.
+        skip : (n,) bool, rows never subdivided (rapids, pinned blocks, cycles, moves without a start)."""
         o = self.options
         if not o.subdivide_tol_um or o.max_subdivision_depth < 1 or start.shape[0] == 0:
             return None
-        moving = ~rapid & (row_max_abs(end - start) > 0)
+        moving = ~skip & (row_max_abs(end - start) > 0)
         rows = np.flatnonzero(moving)
         if rows.size == moving.size:      # every row moves (the common case): no copies
             s0, e0, x0, x1, c = start, end, x_start, x_end, ctx
