@@ -205,6 +205,18 @@ def test_five_axis_corrects_orientation_too(tmp_path, capsys):
     ca = np.array([float(r["ca_urad"]) for r in rows])[ends]
     np.testing.assert_allclose(ca, np.degrees(q_out[:, 3] - q_nom[:, 3]) / 180 * math.pi * 1e6,
                                rtol=0, atol=1e-5)
+    # --orientation-weight: a tool axis weighed at 1e-4 um per urad is left (nearly) as it was,
+    # while the tip is still corrected
+    code, stdout, err = _run(["compensate", "cafxyz", str(model_path), str(prog), "-o", str(out),
+                              "--report", str(rep), "--max-correction-urad", "2000",
+                              "--max-correction-um", "200", "--max-step-um", "200",
+                              "--orientation-weight", "1e-4"], capsys)
+    assert code == 0, err
+    ends = np.array([r["inserted"] == "0" for r in _read_report(rep)])
+    e = _actual_minus_nominal(fitted, _written_points(out, machine)[ends], q_nom, chunk)
+    left = np.linalg.norm(e[tilted, 3:], axis=1) / np.linalg.norm(e0[tilted, 3:], axis=1)
+    assert left.min() > 0.9
+    assert np.linalg.norm(e[tilted, :3], axis=1).max() * 1e3 < 0.6
 
 
 def test_bad_input_exits_2_and_writes_nothing(tmp_path, capsys):
@@ -223,6 +235,8 @@ def test_bad_input_exits_2_and_writes_nothing(tmp_path, capsys):
         (["compensate", "xfyz", str(model_path), str(prog), "-o", str(out), "--max-step-um", "-1"],
          "--max-step-um"),
         (["compensate", "xfyz", str(model_path), str(prog), "-o", str(prog)], "overwrite"),
+        (["compensate", "xfyz", str(model_path), str(prog), "-o", str(out), "--orientation-weight",
+          "0"], "--orientation-weight"),
         (["compensate", "cafxyz", str(model_path), str(prog), "-o", str(out)], "XFYZ"),
     ]
     for args, expect in cases:

@@ -28,6 +28,10 @@ def add_arguments(parser):
     parser.add_argument("--max-step-urad", type=float, metavar="S", default=None,
                         help="the same for rotary axes (urad; default: max-step-um scaled like the "
                              "correction bounds)")
+    parser.add_argument("--orientation-weight", type=float, metavar="W", default=1.0,
+                        help="5-axis: um of tool-tip deviation that weigh as much as 1 urad of "
+                             "tool-axis deviation (default 1: a 1 m lever; the tool's working "
+                             "length in m, e.g. 0.05, favours the tip)")
     parser.add_argument("--report", metavar="BLOCKS.csv", default=None,
                         help="write one row per output block: positions, corrections, predicted "
                              "deviation before and after, active bounds")
@@ -180,7 +184,8 @@ def run(args) -> int:
     for flag, v in (("--max-correction-um", args.max_correction_um),
                     ("--max-correction-urad", args.max_correction_urad),
                     ("--max-step-um", args.max_step_um), ("--max-step-urad", args.max_step_urad),
-                    ("--chord-tol-um", args.chord_tol_um)):
+                    ("--chord-tol-um", args.chord_tol_um),
+                    ("--orientation-weight", args.orientation_weight)):
         _positive(v, flag)
     _positive(args.subdivide_tol_um, "--subdivide-tol-um", allow_zero=True)
     inputs = [args.program, args.model]
@@ -218,7 +223,7 @@ def run(args) -> int:
     start_pos, start_known = _start_position(machine, args.start_position)
     problem = CompensationProblem.from_machine(
         fitted, args.max_correction_um, args.max_correction_urad, args.max_step_um,
-        args.max_step_urad, grid=output_grid(machine, inch))
+        args.max_step_urad, grid=output_grid(machine, inch), orientation_weight=args.orientation_weight)
 
     def progress(done):
         sys.stderr.write(f"mtcomp compensate: {done} blocks planned ({time.perf_counter() - t0:.0f} s)\n")
