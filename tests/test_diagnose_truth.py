@@ -151,9 +151,12 @@ def test_thermal_diagnose_prints_its_table_once(tmp_path, capsys):
     (7017, "rotary_backlash", "rotary_laser", "cbfxyz", None),
     # a 5 mm screw period seen by a fine run over 240 mm of an 800 mm travel
     (31, "periodic_error", "laser", "xfyz", PeriodicError("X", 5.0, 2.5, 1.0)),
-    # a 32 mm period over a 600 mm travel: the base on twice its spline functions (the periodic
-    # candidate's rival) does not follow it, so the sine still earns its place beyond that profile
+    # a 32 mm period over a 600 mm travel: the periodic candidate's rival (a finer profile whose knots
+    # are too far apart to follow the line) does not take it, so the sine earns its place beyond it
     (7018, "periodic_error", "laser", "cbfxyz", None),
+    # a 32 mm period of Z, a little longer than the base's knot spacing (28 mm): a rival on twice the
+    # base's functions followed it and refused it; the rival's knots are now 32 / 1.5 mm apart
+    (9152, "periodic_error", "mixture", "xfyz", None),
 ])
 def test_hidden_effect_on_the_independent_machine(seed, effect, kind, topology, hidden, tmp_path):
     case = hidden_case(seed, effect, kind, topology, tmp_path, hidden=hidden)

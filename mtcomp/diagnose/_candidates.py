@@ -265,28 +265,42 @@ def _periodic_candidates(st, design, extra, resid, a: str) -> list[Candidate]:
     return out
 
 
-#: the rival of a periodic error: the axis's positioning profile on this many times the base's
-#: spline functions (at most one per distinct position read)
+#: the rival of a periodic error is the axis's positioning profile on knots this many times closer
+#: than the line's period: a cubic spline on such knots follows at most about 12 % of a sine of that
+#: period (and all of a sine 2.5 knot spacings long), so it takes what the base's knots missed of
+#: slower structure, not the line itself
+RIVAL_KNOTS_PER_PERIOD = 1.5
+#: a line slower than that (the base's knots already follow part of it: a shape on the base's own
+#: scale) has as rival the profile on this many times the base's knot intervals, which follows it
 FINER_PROFILE = 2
+#: ... the rival has at most this many times the base's spline functions
+FINER_PROFILE_MAX = 4
 
 
-def finer_profile_columns(st, a: str) -> np.ndarray:
-    """(n, m) columns of the positioning error of linear axis ``a`` on a spline with FINER_PROFILE
-    times the base's functions over the same range (zero-mean functions, as the base's): the base model
-    at a finer resolution, for that one component. (n, 0) when the data hold no more positions."""
+def finer_profile_columns(st, a: str, period_mm: float) -> tuple[np.ndarray, float]:
+    """(n, m) columns of the positioning error of linear axis ``a`` on a finer spline over the base's
+    range (zero-mean functions, as the base's): the base model at a finer resolution, for that one
+    component. Knots ``period_mm / RIVAL_KNOTS_PER_PERIOD`` apart when that is closer than the base's
+    (the rival cannot follow a sine of ``period_mm``), else ``FINER_PROFILE`` times the base's
+    intervals (the line is on the base's own scale); and the knot spacing (mm). (n, 0) columns when
+    the data hold no more positions than the base has functions."""
     from ..models.basis import spline_basis
     ax = st.machine.axis(a)
     if ax.is_rotary or ax.basis != "bspline":
-        return np.zeros((len(st), 0))
+        return np.zeros((len(st), 0)), 0.0
     k = st.machine.axis_names.index(a)
     base = ax.spline()
     reads = np.abs(st.g[a]) > 0
     distinct = np.unique(np.round(st.q[reads, k], 3)).size
-    n_basis = min(FINER_PROFILE * base.n_basis, distinct)
+    if period_mm / RIVAL_KNOTS_PER_PERIOD < base.h:
+        n_intervals = int(np.ceil((base.hi - base.lo) * RIVAL_KNOTS_PER_PERIOD / period_mm))
+    else:
+        n_intervals = FINER_PROFILE * base.n_intervals
+    n_basis = min(n_intervals + 3, FINER_PROFILE_MAX * base.n_basis, distinct)
     if n_basis <= base.n_basis:
-        return np.zeros((len(st), 0))
+        return np.zeros((len(st), 0)), 0.0
     fine = spline_basis(base.lo, base.hi, n_basis - 3, 3)
-    return np.column_stack([st.g[a] * phi for phi in fine.functions(st.q[:, k], False)])
+    return np.column_stack([st.g[a] * phi for phi in fine.functions(st.q[:, k], False)]), fine.h
 
 
 def _finer_profile_veto(st, design, extra, a: str, cand: Candidate) -> str | None:
@@ -298,7 +312,7 @@ def _finer_profile_veto(st, design, extra, a: str, cand: Candidate) -> str | Non
     the current model: where held-out data are whole stretches of the travel, a finer profile cannot
     predict what it was not fitted to (and a sine can), so there it is no rival."""
     from ._diagnose import cv_threshold
-    fine = finer_profile_columns(st, a)
+    fine, spacing = finer_profile_columns(st, a, cand.info["period_mm"])
     if fine.shape[1] == 0:
         return None
     rival = design.fit(np.hstack([extra, fine]))
@@ -309,8 +323,8 @@ def _finer_profile_veto(st, design, extra, a: str, cand: Candidate) -> str | Non
     need = cv_threshold(max(both.rank - rival.rank, 1)) + cand.info.get("search_penalty", 0.0)
     if gain > need:
         return None
-    return (f"a positioning profile of {a} on {fine.shape[1]} spline functions (the base's resolution "
-            f"times {FINER_PROFILE}) explains the line as well: beyond it the sine lowers the held-out "
+    return (f"a positioning profile of {a} on {fine.shape[1]} spline functions (knots "
+            f"{spacing:.3g} mm apart) explains the line as well: beyond it the sine lowers the held-out "
             f"sum of squares by {gain:.3g} noise variances, not more than the {need:.3g} noise could; "
             "a smooth profile the base's resolution does not follow, not a periodic error")
 
