@@ -138,6 +138,8 @@ def _linear(machine, ax, s, g, ctx, feed_m, terms):
                                                  + g(base + "_f") * feed_m * t.feed)
                 if t.angle_gain:
                     err[f"E{a}{L}"] *= 1.0 + g(f"AG_{a}{L}") * feed_m
+                if getattr(t, "angle_feed", False):
+                    err[f"E{a}{L}"] += g(f"AF_{a}{L}") * feed_m
         else:
             raise NotImplementedError(kind)
     # axis direction with squareness

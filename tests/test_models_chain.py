@@ -43,7 +43,7 @@ def random_poses(machine, rng, n):
 
 def extension_terms(machine):
     terms = [Backlash("X"), PeriodicError("Y", 5.0), FeedOffset("Z", signed=True),
-             AbbeIRC("X", static=True, position=True, feed=True, angle_gain=True)]
+             AbbeIRC("X", static=True, position=True, feed=True, angle_gain=True, angle_feed=True)]
     if machine.is_five_axis:
         terms += [Backlash("C"), RotaryErrorMotion("EXC", 2), RotaryErrorMotion("EBC", 1)]
     return terms

@@ -173,7 +173,30 @@ def _abbe_candidates(st, a: str) -> list[Candidate]:
             cands.append(Candidate("feed_dependent_abbe", a, f"gain:{name}", st.columns([name]),
                                    [AbbeIRC(a, angles=b, feed=False, angle_gain=True)], [name],
                                    rivals=f"feed:{a}", info={"complexity": 2}, build=_probe_columns([name])))
+            # an angle that scales as a whole scales its constant part too, which the base model does
+            # not hold (set-ups take it): without its own column that part, an angle uniform along the
+            # axis that grows with feed, is left to terms of other axes and named there
+            # that part turns about the carriage's true centre, which is not the model's reference
+            # point: about the model's, it comes with a translation perpendicular to the rotation,
+            # uniform and in proportion to feed (as the IRC shift's offset above)
+            both = [name, f"AF_{b}{a}"]
+            perp = [x for x in "XYZ" if x != "XYZ"["ABC".index(b)]
+                    and x in st.g and np.max(np.abs(st.g[x])) > 1.0]
+            if both[1] in st.probe.param_names:
+                build = _with_offsets(both, perp)
+                cands.append(Candidate("feed_dependent_abbe", a, f"gain+constant:{name}", build(st),
+                                       [AbbeIRC(a, angles=b, feed=False, angle_gain=True, angle_feed=True)]
+                                       + [FeedOffset(d) for d in perp],
+                                       both + [f"FOFF_{d}" for d in perp], rivals=f"feed:{a}",
+                                       info={"complexity": 2}, build=build))
     return cands
+
+
+def _with_offsets(names, dirs):
+    def build(st):
+        f = np.nan_to_num(st.feed, nan=0.0) / 1000.0
+        return np.column_stack([st.columns(names)] + [st.g[d] * f for d in dirs])
+    return build
 
 
 def _irc_with_offset(name, a):
@@ -193,10 +216,11 @@ def joint_abbe(c1: Candidate, c2: Candidate) -> Candidate:
     """One feed-dependent Abbe candidate made of two one-parameter ones of the same axis."""
     keep = [i for i, n in enumerate(c2.params) if n not in c1.params]
     params = c1.params + [c2.params[i] for i in keep]
-    abbe = [n for n in params if n.startswith(("IRC_", "AG_"))]
+    abbe = [n for n in params if n.startswith(("IRC_", "AG_", "AF_"))]
     letters = "".join(sorted({n.split("_")[1][0] for n in abbe}))
     terms = [AbbeIRC(c1.axis, angles=letters, feed=any(n.startswith("IRC_") for n in abbe),
-                     angle_gain=any(n.startswith("AG_") for n in abbe))]
+                     angle_gain=any(n.startswith("AG_") for n in abbe),
+                     angle_feed=any(n.startswith("AF_") for n in abbe))]
     terms += list({t.key(): t for t in c1.terms + c2.terms if isinstance(t, FeedOffset)}.values())
 
     def build(st):
@@ -235,8 +259,74 @@ def _periodic_candidates(st, design, extra, resid, a: str) -> list[Candidate]:
                                "search_penalty": 2.0 * np.log(max(ln.n_independent, 1.0))})
         if not agree:
             cand.veto = f"the line does not replicate across the halves of the travel ({text})"
+        else:
+            cand.veto = _finer_profile_veto(st, design, extra, a, cand)
         out.append(cand)
     return out
+
+
+#: the rival of a periodic error is the axis's positioning profile on knots this many times closer
+#: than the line's period: a cubic spline on such knots follows at most about 12 % of a sine of that
+#: period (and all of a sine 2.5 knot spacings long), so it takes what the base's knots missed of
+#: slower structure, not the line itself
+RIVAL_KNOTS_PER_PERIOD = 1.5
+#: a line slower than that (the base's knots already follow part of it: a shape on the base's own
+#: scale) has as rival the profile on this many times the base's knot intervals, which follows it
+FINER_PROFILE = 2
+#: ... the rival has at most this many times the base's spline functions
+FINER_PROFILE_MAX = 4
+
+
+def finer_profile_columns(st, a: str, period_mm: float) -> tuple[np.ndarray, float]:
+    """(n, m) columns of the positioning error of linear axis ``a`` on a finer spline over the base's
+    range (zero-mean functions, as the base's): the base model at a finer resolution, for that one
+    component. Knots ``period_mm / RIVAL_KNOTS_PER_PERIOD`` apart when that is closer than the base's
+    (the rival cannot follow a sine of ``period_mm``), else ``FINER_PROFILE`` times the base's
+    intervals (the line is on the base's own scale); and the knot spacing (mm). (n, 0) columns when
+    the data hold no more positions than the base has functions."""
+    from ..models.basis import spline_basis
+    ax = st.machine.axis(a)
+    if ax.is_rotary or ax.basis != "bspline":
+        return np.zeros((len(st), 0)), 0.0
+    k = st.machine.axis_names.index(a)
+    base = ax.spline()
+    reads = np.abs(st.g[a]) > 0
+    distinct = np.unique(np.round(st.q[reads, k], 3)).size
+    if period_mm / RIVAL_KNOTS_PER_PERIOD < base.h:
+        n_intervals = int(np.ceil((base.hi - base.lo) * RIVAL_KNOTS_PER_PERIOD / period_mm))
+    else:
+        n_intervals = FINER_PROFILE * base.n_intervals
+    n_basis = min(n_intervals + 3, FINER_PROFILE_MAX * base.n_basis, distinct)
+    if n_basis <= base.n_basis:
+        return np.zeros((len(st), 0)), 0.0
+    fine = spline_basis(base.lo, base.hi, n_basis - 3, 3)
+    return np.column_stack([st.g[a] * phi for phi in fine.functions(st.q[:, k], False)]), fine.h
+
+
+def _finer_profile_veto(st, design, extra, a: str, cand: Candidate) -> str | None:
+    """A line in the residual along an axis may be a smooth part of the positioning profile that the
+    base's spline is too coarse to follow (a profile with wiggles a few centimetres apart), not a
+    periodic error. The rival is the base at a finer resolution (see :func:`finer_profile_columns`):
+    the sine must still lower the held-out sum of squares by more than noise could beyond that finer
+    profile, else it is refused. The rival counts only when it predicts held-out readings better than
+    the current model: where held-out data are whole stretches of the travel, a finer profile cannot
+    predict what it was not fitted to (and a sine can), so there it is no rival."""
+    from ._diagnose import cv_threshold
+    fine, spacing = finer_profile_columns(st, a, cand.info["period_mm"])
+    if fine.shape[1] == 0:
+        return None
+    rival = design.fit(np.hstack([extra, fine]))
+    if rival.cv_sse > design.fit(extra).cv_sse:
+        return None
+    both = design.fit(np.hstack([extra, fine, cand.columns]))
+    gain = rival.cv_sse - both.cv_sse
+    need = cv_threshold(max(both.rank - rival.rank, 1)) + cand.info.get("search_penalty", 0.0)
+    if gain > need:
+        return None
+    return (f"a positioning profile of {a} on {fine.shape[1]} spline functions (knots "
+            f"{spacing:.3g} mm apart) explains the line as well: beyond it the sine lowers the held-out "
+            f"sum of squares by {gain:.3g} noise variances, not more than the {need:.3g} noise could; "
+            "a smooth profile the base's resolution does not follow, not a periodic error")
 
 
 def _pdge_candidates(st, a: str) -> list[Candidate]:

@@ -319,9 +319,20 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
         if not good:
             say("no further candidate is significant on held-out data")
             break
-        best = max(good, key=lambda s: s[3])
-        best = _parsimony(best, good)
-        best = _joint_abbe(design, extra, current, best, good, n, st)
+        # a feed-dependent Abbe effect can need several parts at once (see _joint_abbe): each axis's
+        # best one is completed before the axes compete, else one part of one axis's effect may be
+        # better explained by a single part of another axis (every reading carries the block's feed,
+        # whichever axes move)
+        abbe_axes = sorted({s[0].axis for s in good if s[0].effect == "feed_dependent_abbe"})
+        pool = list(good)
+        for a in abbe_axes:
+            top = max((s for s in good if s[0].effect == "feed_dependent_abbe" and s[0].axis == a),
+                      key=lambda s: s[3])
+            joint = _joint_abbe(design, extra, current, top, good, n, st)
+            if joint is not top:
+                pool.append(joint)
+        best = max(pool, key=lambda s: s[3])
+        best = _parsimony(best, pool)
         c, fit, dk, gain, dbic, _ = best
         rivals = [s for s in good if s[0].rivals and s[0].rivals == c.rivals and s[0] is not c]
         before = _heldout(st, current)
@@ -452,27 +463,38 @@ def _refine(st: Stack, design: Design, chosen: list[Candidate], fit, iterations:
     return design, fit
 
 
-def _joint_abbe(design, extra, current, best, good, n, st):
-    """Two angular errors of one axis can have profiles so alike that either alone explains most of
-    a feed-dependent Abbe residual; then the pair of the two best is tried, and kept when it earns
-    its extra parameter on held-out data (and in BIC)."""
+def _joint_abbe(design, extra, current, best, good, n, st, max_parts: int = 4):
+    """A carriage's angular errors can depend on feed in more than one way at once (its rotation
+    centre moves, shifting every angular error's centre, while one angle also grows with feed), and two
+    angular errors can have profiles so alike that either alone explains most of the residual. So the
+    other significant feed-dependent Abbe candidates of the same axis are added to the best one, one
+    at a time (the one that gains most first, up to ``max_parts``), each kept only when it earns its
+    extra parameters on held-out data and in BIC and is not refused."""
     from ._candidates import joint_abbe
     c = best[0]
     if c.effect != "feed_dependent_abbe":
         return best
-    others = sorted((s for s in good if s[0].effect == c.effect and s[0].axis == c.axis and s[0] is not c),
-                    key=lambda s: -s[3])
-    if not others:
-        return best
-    pair = joint_abbe(c, others[0][0])
-    fit = design.fit(np.hstack([extra, pair.columns]))
-    dk = fit.rank - current.rank
-    gain = current.cv_sse - fit.cv_sse
-    dbic = fit.bic(n) - current.bic(n)
-    if (dk > best[2] and gain - best[3] > cv_threshold(dk - best[2]) and dbic < best[4] - BIC_MARGIN
-            and refusal(st, pair, fit.theta[-pair.columns.shape[1]:], dk) is None):
-        pair.info["alternative"] = others[0][0]
-        return (pair, fit, dk, gain, dbic, True)
+    others = [s[0] for s in good if s[0].effect == c.effect and s[0].axis == c.axis and s[0] is not c]
+    parts = 1
+    while others and parts < max_parts:
+        tried = []
+        for o in others:
+            pair = joint_abbe(best[0], o)
+            if len(pair.params) == len(best[0].params):
+                continue
+            fit = design.fit(np.hstack([extra, pair.columns]))
+            dk = fit.rank - current.rank
+            gain = current.cv_sse - fit.cv_sse
+            dbic = fit.bic(n) - current.bic(n)
+            if (dk > best[2] and gain - best[3] > cv_threshold(dk - best[2]) and dbic < best[4] - BIC_MARGIN
+                    and refusal(st, pair, fit.theta[-pair.columns.shape[1]:], dk) is None):
+                tried.append(((pair, fit, dk, gain, dbic, True), o))
+        if not tried:
+            break
+        (step, o) = max(tried, key=lambda t: t[0][3])
+        best = step
+        others = [x for x in others if x is not o]
+        parts += 1
     return best
 
 
@@ -483,7 +505,8 @@ def _complexity(c: Candidate, dk: int) -> float:
 def _parsimony(best, good):
     """Among rivals of ``best`` (explanations of the same residual), prefer the simplest one (fewer
     parameters; then uniform offset before direction lag before an Abbe term) whose held-out gain is
-    not significantly smaller: a more specific cause must be earned by a margin in the data."""
+    not significantly smaller, or whose BIC is not worse by ``BIC_MARGIN``: a more specific cause must
+    be earned by a margin in the data."""
     c = best[0]
     pick = best
     for s in good:
@@ -492,7 +515,9 @@ def _parsimony(best, good):
         related = (c.rivals and s[0].rivals == c.rivals) or set(s[0].params) < set(c.params)
         if not related or _complexity(s[0], s[2]) >= _complexity(pick[0], pick[2]):
             continue
-        if s[3] >= best[3] - cv_threshold(max(best[2] - s[2], 1)):
+        # the more specific cause must pass both selection tests against the simpler one: its extra
+        # parameters must gain more than noise could held out, and lower the BIC by the margin
+        if s[3] >= best[3] - cv_threshold(max(best[2] - s[2], 1)) or s[4] <= best[4] + BIC_MARGIN:
             pick = s
     return pick
 

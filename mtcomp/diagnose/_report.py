@@ -88,6 +88,15 @@ def evidence_and_params(st, c, theta, before_fit, after_fit, rivals, noise):
             parts.append(f"the rotation centre of {comp} moves along {n.split('_')[2].upper()} with feed"
                          if n.startswith("IRC_") else f"{comp} grows with feed")
         what = " and ".join(parts)
+        const = [i for i, n in enumerate(c.params) if n.startswith("AF_")]
+        if const:
+            # the angle's constant part times its gain (the base model holds no constant angle)
+            params["constant_angle_urad_per_m_min"] = {"E" + c.params[i][3:]: round(float(theta[i] * 1e6), 4)
+                                                       for i in const}
+            what += ", with " + " and ".join(
+                f"{v:.3g} urad per m/min of {n} uniform along the axis"
+                for n, v in params["constant_angle_urad_per_m_min"].items()) + \
+                " from the angle's constant part"
         off = [i for i, n in enumerate(c.params) if n.startswith("FOFF_")]
         if off:
             # the moving centre times the angular error's constant part (not in the base model)

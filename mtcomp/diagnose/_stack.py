@@ -43,7 +43,7 @@ def probe_terms(machine: Machine) -> list:
     """The extension terms of the probe model (see module docstring), in a fixed order."""
     terms = [Backlash(a) for a in machine.axis_names]
     for ax in machine.linear_axes:
-        terms.append(AbbeIRC(ax.name, angles="ABC", feed=True, angle_gain=True))
+        terms.append(AbbeIRC(ax.name, angles="ABC", feed=True, angle_gain=True, angle_feed=True))
     for ax in machine.rotary_axes:
         if ax.error_motion_order > 0:
             continue

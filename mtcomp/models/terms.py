@@ -180,7 +180,10 @@ class AbbeIRC(Term):
         o = IRC_<a><axis>_<c>0 + IRC_<a><axis>_<c>_s * s/(1 m) + IRC_<a><axis>_<c>_f * feed/(1 m/min)
 
     (mm; ``static``, ``position`` and ``feed`` choose which parts exist), and with ``angle_gain`` the
-    angle itself scales with feed: ``E<a><axis> *= 1 + AG_<a><axis> * feed/(1 m/min)``.
+    angle itself scales with feed: ``E<a><axis> *= 1 + AG_<a><axis> * feed/(1 m/min)``. The base model
+    holds no constant part of an angular error (set-ups take it), so an angle that scales as a whole
+    also needs ``angle_feed``: ``E<a><axis> += AF_<a><axis> * feed/(1 m/min)`` (rad), the constant
+    part times its gain, the same all along the axis.
 
     Seed 000 eq. (3) gives the yaw Abbe error about O_p as (-eps_z * Y', eps_z * X', 0), i.e. the
     small-angle form of the exact rotation used here; eq. (4)'s last row prints ``eps * Y_B3`` where
@@ -193,6 +196,7 @@ class AbbeIRC(Term):
     position: bool = False
     feed: bool = True
     angle_gain: bool = False
+    angle_feed: bool = False
     kind = "abbe_irc"
 
     def key(self):
@@ -219,6 +223,9 @@ class AbbeIRC(Term):
             if self.angle_gain:
                 specs.append(ParamSpec(f"AG_{a}{self.axis}", "1", self.key(), False,
                                        f"relative gain of E{a}{self.axis} per m/min of feed"))
+            if self.angle_feed:
+                specs.append(ParamSpec(f"AF_{a}{self.axis}", "urad", self.key(), False,
+                                       f"E{a}{self.axis} added uniformly along the axis per m/min of feed"))
         return specs
 
     def abbe_centres(self, machine, axis, s, ctx, P):
@@ -240,10 +247,18 @@ class AbbeIRC(Term):
         return out
 
     def axis_errors(self, machine, axis, s, ctx, P, components):
-        if axis.name != self.axis or not self.angle_gain:
+        if axis.name != self.axis or not (self.angle_gain or self.angle_feed):
             return {}
-        return {f"E{a}{self.axis}": components[f"E{a}{self.axis}"] * P[f"AG_{a}{self.axis}"]
-                * ctx["feed"] / 1000.0 for a in self.angles}
+        out = {}
+        for a in self.angles:
+            comp = f"E{a}{self.axis}"
+            v = ca.SX(0)
+            if self.angle_gain:
+                v = v + components[comp] * P[f"AG_{a}{self.axis}"] * ctx["feed"] / 1000.0
+            if self.angle_feed:
+                v = v + P[f"AF_{a}{self.axis}"] * ctx["feed"] / 1000.0
+            out[comp] = v
+        return out
 
 
 @dataclass(frozen=True)
