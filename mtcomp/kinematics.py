@@ -77,9 +77,19 @@ def tool2bed(machine: Machine, q: np.ndarray) -> np.ndarray:
     return T
 
 
+def rigid_inverse(T: np.ndarray) -> np.ndarray:
+    """(N, 4, 4) inverses of rigid transforms: [R^T, -R^T t]."""
+    R = T[:, :3, :3]
+    Ti = np.zeros_like(T)
+    Ti[:, :3, :3] = R.transpose(0, 2, 1)
+    Ti[:, :3, 3] = -np.einsum("nji,nj->ni", R, T[:, :3, 3])
+    Ti[:, 3, 3] = 1.0
+    return Ti
+
+
 def tool2wp(machine: Machine, q: np.ndarray) -> np.ndarray:
     """(N, 4, 4) tool-tip frame in the workpiece frame (nominal)."""
-    return np.linalg.inv(wp2bed(machine, q)) @ tool2bed(machine, q)
+    return rigid_inverse(wp2bed(machine, q)) @ tool2bed(machine, q)
 
 
 def forward(machine: Machine, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -117,3 +117,14 @@ def test_the_machine_file_example_in_the_docs_loads(tmp_path):
     assert m.topology == "CAFXYZ" and m.tool_length == 100.0 and m.units == "mm"
     assert m.axis("C").error_motion_order == 5 and m.axis("A").error_motion_order == 0
     assert m.compensation["max_step_um"] == 5.0
+
+
+def test_rigid_inverse_is_the_inverse_of_the_nominal_table_chain():
+    from mtcomp.kinematics import rigid_inverse, wp2bed
+    machine = load_machine("cafxyz")
+    rng = np.random.default_rng(3)
+    lo, hi = machine.travel_bounds()
+    q = rng.uniform(np.maximum(lo, -7.0), np.minimum(hi, 7.0), (200, machine.n_axes))
+    T = wp2bed(machine, q)
+    np.testing.assert_allclose(rigid_inverse(T) @ T, np.broadcast_to(np.eye(4), T.shape), atol=1e-12)
+    np.testing.assert_allclose(rigid_inverse(T), np.linalg.inv(T), atol=1e-10)

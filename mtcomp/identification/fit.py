@@ -879,6 +879,7 @@ class _Problem:
         converged = False
         iterations = 0
         AB = reduced(A)
+        solve = _solver(AB)
         # The model is linear in p up to products of errors (1e-5 of the readings), so the Gram
         # matrix at the start serves every step (the chord method: the gradient is exact at each
         # step, so the minimum is the exact one). It is formed anew only when a step fails to
@@ -887,7 +888,7 @@ class _Problem:
         for it in range(1, max_iterations + 1):
             iterations = it
             gs = scale * g
-            dz = _step(B, AB, gs)
+            dz = _step(B, solve, gs)
             # small: below tol of the unknowns, or so small against their uncertainty that no
             # reading could tell (the step's Mahalanobis length gs.dz under STEP_SE standard
             # errors: every combination of the unknowns moves less than that)
@@ -935,8 +936,10 @@ class _Problem:
                 break
             if A_new is None:
                 _, A_new, g_new = self.normal_equations(x, w)
+            if A_new is not A:
+                AB = reduced(A_new)
+                solve = _solver(AB)
             A, g = A_new, g_new
-            AB = reduced(A)
         if A is None:
             _, A, g = self.normal_equations(x, w)
         return x, r, A, g, B, AB, iterations, converged
@@ -1043,15 +1046,24 @@ def _gram(J: np.ndarray) -> np.ndarray:
     return J.T @ J
 
 
-def _step(B, AB, gs):
-    """Scaled Gauss-Newton step restricted to span(B): B (B^T As B)^-1 B^T gs."""
-    if B.shape[1] == 0:
-        return np.zeros(B.shape[0])
+def _solver(AB):
+    """A function gs_B -> (AB)^-1 gs_B for the reduced normal matrix: its Cholesky factor, formed
+    once and used by every step that shares AB (the pseudo-inverse where round-off at the edge of
+    the rank makes AB not quite positive definite)."""
+    if AB.shape[0] == 0:
+        return lambda v: v
     try:
         cho = scipy.linalg.cho_factor(AB)
-        return B @ scipy.linalg.cho_solve(cho, B.T @ gs)
-    except np.linalg.LinAlgError:       # round-off at the edge of the rank: the pseudo-inverse
-        return B @ (scipy.linalg.pinvh(AB) @ (B.T @ gs))
+        return lambda v: scipy.linalg.cho_solve(cho, v)
+    except np.linalg.LinAlgError:
+        pinv = scipy.linalg.pinvh(AB)
+        return lambda v: pinv @ v
+
+
+def _step(B, solve, gs):
+    """Scaled Gauss-Newton step restricted to span(B): B (B^T As B)^-1 B^T gs, with ``solve`` from
+    :func:`_solver`."""
+    return B @ solve(B.T @ gs)
 
 
 def _name_null_space(null, scale, to_file, names, svals) -> list[UndeterminedCombination]:
