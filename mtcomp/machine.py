@@ -197,13 +197,16 @@ class Machine:
         return d
 
 
-def with_data_basis(machine: Machine, positions: dict, fourier: bool = True) -> Machine:
+def with_data_basis(machine: Machine, positions: dict, fourier: bool = True,
+                    sizes: dict | None = None) -> Machine:
     """The machine with the spline knots of every 'bspline' axis without fixed knots, and the Fourier
     order of every rotary axis whose machine file leaves it open, chosen from the data
     (:func:`mtcomp.models.basis.auto_spline`, :func:`~mtcomp.models.basis.auto_fourier_order`).
 
     positions : axis name -> array of every position that axis took in the data (mm).
     fourier : also choose the Fourier orders (False keeps the machine's).
+    sizes : axis name -> the most spline functions for that axis (default: ``auto_spline``'s cap),
+        e.g. from :func:`mtcomp.measurement.readings.data_spline_sizes`.
     """
     from dataclasses import replace
 
@@ -214,7 +217,8 @@ def with_data_basis(machine: Machine, positions: dict, fourier: bool = True) -> 
             a = replace(a, fourier_order=auto_fourier_order(positions.get(a.name, ())),
                         fourier_from_data=False)
         if not a.is_rotary and a.basis_from_data:
-            lo, hi, n, degree = auto_spline(positions.get(a.name, ()), a.travel)
+            cap = {"max_basis": int(sizes[a.name])} if sizes and a.name in sizes else {}
+            lo, hi, n, degree = auto_spline(positions.get(a.name, ()), a.travel, **cap)
             if a.spline_range is not None:
                 lo, hi = a.spline_range
             if a.spline_intervals is not None:

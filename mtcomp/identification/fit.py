@@ -46,7 +46,7 @@ from ..models.chain import ErrorModel
 from ..models.model_file import FittedModel
 from ..models.params import ParameterSet, ParamSpec
 from ..machine import with_data_basis
-from ..measurement.readings import (MeasurementModel, data_held, data_positions, data_support,
+from ..measurement.readings import (MeasurementModel, data_held, data_positions, data_spline_sizes, data_support,
                                     measurement_model)
 
 #: relative singular-value threshold below which a direction counts as undetermined
@@ -531,7 +531,8 @@ def model_for_data(model: ErrorModel, datasets) -> ErrorModel:
     m = model.machine
     if not any(a.basis_from_data for a in m.linear_axes):
         return model
-    return ErrorModel(with_data_basis(m, data_positions(m, datasets)), model.terms)
+    return ErrorModel(with_data_basis(m, data_positions(m, datasets), sizes=data_spline_sizes(m, datasets)),
+                      model.terms)
 
 
 #: poses drawn over the travel for the physical metric of :func:`travel_metric`

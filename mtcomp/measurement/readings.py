@@ -94,6 +94,54 @@ def data_positions(machine, datasets) -> dict[str, np.ndarray]:
     return {a: np.concatenate(v) for a, v in out.items() if v}
 
 
+def single_axis_lines(machine, datasets) -> dict[str, list]:
+    """Linear axis name -> the measured lines of the laser files that move it: one (target mm,
+    value, run) triple per (file, component, optic offset, static position, feed), for
+    :func:`mtcomp.models.basis.spline_size_by_cv`."""
+    out: dict[str, list] = {}
+    for d in datasets:
+        data = d.data if isinstance(d, MeasurementModel) else d
+        if getattr(data, "kind", "") != "laser" or len(data) == 0:
+            continue
+        feed = np.nan_to_num(np.asarray(data.context.feed, dtype=float), nan=-1.0)
+        for a in machine.axis_names:
+            if a not in "XYZ":
+                continue
+            static = np.round(np.nan_to_num(data.xyz), 3)
+            static[:, "XYZ".index(a)] = 0.0                # the moving axis's own column
+            key = np.column_stack([static, np.round(np.nan_to_num(data.abc), 9), np.round(data.optic, 3),
+                                   np.round(feed, 3)])
+            for comp in np.unique(data.component[data.axis == a]):
+                sel = (data.axis == a) & (data.component == comp) & np.isfinite(data.value)
+                if not sel.any():
+                    continue
+                _, line = np.unique(key[sel], axis=0, return_inverse=True)
+                ix = np.flatnonzero(sel)
+                for g in np.unique(line):
+                    j = ix[line.ravel() == g]
+                    out.setdefault(a, []).append((data.target[j], data.value[j], data.run[j]))
+    return out
+
+
+def data_spline_sizes(machine, datasets) -> dict[str, int]:
+    """Linear axis name -> the most spline functions the data's single-axis runs ask for
+    (:func:`mtcomp.models.basis.spline_size_by_cv` over the axis's position range), for the axes
+    whose knots the data choose; axes without such runs are absent (the default cap holds)."""
+    from ..models.basis import spline_size_by_cv
+    lines = single_axis_lines(machine, datasets)
+    if not lines:
+        return {}
+    ranges = _position_ranges(machine, datasets)
+    out = {}
+    for a, ls in lines.items():
+        ax = machine.axis(a)
+        if not ax.basis_from_data or a not in ranges or not ranges[a][1] > ranges[a][0]:
+            continue
+        n, _ = spline_size_by_cv(ls, *ranges[a])
+        out[a] = n
+    return out
+
+
 def _position_ranges(machine, datasets) -> dict[str, tuple[float, float]]:
     """Axis name -> (lowest, highest) finite position in the files' rows (internal units)."""
     out = {}

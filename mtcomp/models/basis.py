@@ -179,6 +179,122 @@ def auto_spline(positions, travel: tuple[float, float], max_basis: int = 16,
     return float(distinct[0]), float(distinct[-1]), n_basis - degree, degree
 
 
+#: basis sizes (functions per linear axis) that single-axis runs may choose beyond ``auto_spline``'s
+#: default cap (:func:`spline_size_by_cv`)
+SPLINE_SIZES = (16, 20, 24, 32, 40, 48, 64)
+#: a larger basis must lower the held-out sum of squares (in noise variances) by this many standard
+#: deviations of a chi-square with the added functions as degrees of freedom, plus their number
+SIZE_CV_Z = 2.0
+
+
+def spline_size_by_cv(series, lo: float, hi: float, sizes=SPLINE_SIZES) -> tuple[int, dict]:
+    """The number of cubic B-spline functions over [lo, hi] that single-axis runs ask for, chosen by
+    leave-one-run-out cross-validation.
+
+    series : list of (s, y, run) arrays, one per measured line (a laser file's component at one
+        optic offset, static position and feed): position (mm), reading (any unit), run number.
+        Each is modelled as a spline of s alone (its own profile, which absorbs the laser zero and
+        the Abbe offsets of that line), fitted with one run left out and scored on it, in units of
+        that line's noise variance (the scatter of repeated readings about their target's mean).
+    sizes : candidate numbers of functions, increasing; the first is the default.
+
+    A size replaces a smaller one only when it lowers the summed held-out score by more than
+    ``SIZE_CV_Z * sqrt(2 dk) + dk`` (dk: the functions it adds over the lines that can take it), on
+    the lines that can take both. A line with fewer than two runs, or no more distinct positions
+    than the first size, says nothing; one with fewer distinct positions than a size says nothing
+    about that size. Returns (size, {size: summed score}); the first size when no line can tell.
+    """
+    sizes = [int(n) for n in sizes]
+    lines = []                                  # per line: {size: held-out score}
+    for s, y, run in series:
+        s, y, run = (np.asarray(v) for v in (s, y, run))
+        ok = np.isfinite(s) & np.isfinite(y)
+        s, y, run = s[ok].astype(float), y[ok].astype(float), run[ok]
+        runs = np.unique(run)
+        distinct, inv = np.unique(np.round(s, 3), return_inverse=True)
+        if runs.size < 2 or distinct.size <= sizes[0]:
+            continue
+        cnt = np.bincount(inv)
+        mean = np.bincount(inv, weights=y) / cnt
+        dof = int(y.size - distinct.size)
+        pure = float(np.sum((y - mean[inv]) ** 2))
+        if dof < 2 or not pure > 0:
+            continue
+        var = pure / dof
+        x = np.clip(s, lo, hi)
+        score = {n: _held_out(_bspline_design(x, lo, hi, n), y, run) / var
+                 for n in sizes if n <= distinct.size and (n == sizes[0] or (hi - lo) / (n - 3) >= MIN_KNOT_MM)}
+        finer = [n for n in score if n > sizes[0]]
+        if finer:
+            base = _bspline_design(x, lo, hi, sizes[0])
+            finest = max(n for n in sizes if n <= distinct.size)
+            cols = _local_columns(x, y - base @ np.linalg.lstsq(base, y, rcond=None)[0], lo, hi, finest)
+            rival = _held_out(np.hstack([base, cols]), y, run) / var
+            gain = score[sizes[0]] - min(score[n] for n in finer)
+            if gain > 0 and score[sizes[0]] - rival >= RIVAL_SHARE * gain:
+                # one period or one place explains what the finer bases gain: that is for diagnose
+                # to name (a periodic error, a local defect), not for the base to absorb
+                score = {sizes[0]: score[sizes[0]]}
+        lines.append(score)
+    chosen = sizes[0]
+    for n in sizes[1:]:
+        both = [sc for sc in lines if n in sc]
+        if not both:
+            break
+        dk = (n - chosen) * len(both)
+        gain = sum(sc[chosen] - sc[n] for sc in both)
+        if gain > SIZE_CV_Z * np.sqrt(2.0 * dk) + dk:
+            chosen = n
+    totals = {n: float(sum(sc[n] for sc in lines if n in sc)) for n in sizes}
+    return chosen, {n: v for n, v in totals.items() if any(n in sc for sc in lines)}
+
+
+def _bspline_design(x, lo, hi, n):
+    """(len(x), n) cubic (degree n - 1 below four functions) uniform B-splines over [lo, hi]:
+    the same functions as :class:`SplineBasis` (scipy's design matrix)."""
+    from scipy.interpolate import BSpline
+    k = min(3, n - 1)
+    h = (hi - lo) / (n - k)
+    return BSpline.design_matrix(x, lo + h * np.arange(-k, n + 1), k).toarray()
+
+
+def _held_out(X, y, run) -> float:
+    """Sum of squares of each run predicted by least squares on the others."""
+    sse = 0.0
+    for r in np.unique(run):
+        out = run == r
+        c, *_ = np.linalg.lstsq(X[~out], y[~out], rcond=None)
+        sse += float(np.sum((y[out] - X[out] @ c) ** 2))
+    return sse
+
+
+#: the closest knots a finer basis may have (mm): a cubic spline on knots h apart follows little of a
+#: sine shorter than 2.5 h, so the base leaves what repeats at a ball screw's lead (5 to 40 mm) to
+#: diagnose, which names it a periodic error
+MIN_KNOT_MM = 16.0
+#: a line whose finer bases gain (held-out) at most 1 / this share more than one sinusoid or one
+#: window of fine functions gains does not ask for a finer basis
+RIVAL_SHARE = 0.9
+#: the window of the local rival of a finer basis, as a share of the line's span
+LOCAL_WINDOW = 1.0 / 8.0
+
+
+def _local_columns(x, r, lo, hi, n_fine):
+    """The narrow explanation a finer basis competes with on one line: the functions of the finest
+    basis the line can take (``n_fine``) over one window (``LOCAL_WINDOW`` of the line's span)
+    centred where the per-target mean of ``r`` (the residual of the default basis), smoothed over
+    five targets, peaks."""
+    ux, inv = np.unique(np.round(x, 3), return_inverse=True)
+    mean = np.bincount(inv, weights=r) / np.bincount(inv)
+    smooth = np.convolve(mean, np.ones(5) / 5.0, mode="same")
+    c = float(ux[int(np.argmax(np.abs(smooth)))])
+    half = 0.5 * LOCAL_WINDOW * float(ux[-1] - ux[0])
+    fine = _bspline_design(x, lo, hi, n_fine)
+    h = (hi - lo) / (n_fine - 3)
+    centre = lo + h * (np.arange(n_fine) - 1.0)          # centre of B_j's support [j-3, j+1] h
+    return fine[:, np.abs(centre - c) <= half + h]
+
+
 #: the highest harmonic of a rotary axis's angular positioning error chosen from data
 MAX_FOURIER_ORDER = 6
 
