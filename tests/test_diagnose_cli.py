@@ -2,6 +2,7 @@
 (checked by evaluating it independently, through load_model and the measurement models, on the
 same files), bad input gives exit 2, one line, and no output file."""
 import json
+import re
 
 import numpy as np
 import pytest
@@ -81,3 +82,41 @@ def test_bad_inputs_exit_2_and_write_nothing(campaign, tmp_path, capsys):
         assert err.count("\n") == 1 and "Traceback" not in err, err
         assert not report.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["rotary.csv"]
+
+
+def test_start_from_identify_model(campaign, tmp_path, capsys):
+    """`--start MODEL.json`: identify's model is the base diagnosed (its knots, here fixed coarser by the
+    machine file) and the start of the fit; the same effect is found as from the data's own base, and
+    the start model is an input, never overwritten."""
+    case, files = campaign
+    # identify on a machine file that fixes 8 knot intervals per axis (the data would choose 13)
+    toml = tmp_path / "xfyz8.toml"
+    toml.write_text('name = "xfyz8"\ntopology = "XFYZ"\ntool_length_mm = 100.0\n' + "".join(
+        f'[axes.{a}]\ntravel_mm = [{lo}, {hi}]\nspline_intervals = 8\n'
+        for a, lo, hi in (("X", -400.0, 400.0), ("Y", -300.0, 300.0), ("Z", -250.0, 150.0))))
+    base = tmp_path / "base.json"
+    assert main(["identify", str(toml), *files, "-o", str(base)]) == 0
+    plain, started = tmp_path / "plain.json", tmp_path / "started.json"
+    assert main(["diagnose", "xfyz", *files, "--json", str(plain), "-q"]) == 0
+    capsys.readouterr()
+    assert main(["diagnose", "xfyz", *files, "--json", str(started), "-o", str(tmp_path / "ext.json"),
+                 "--start", str(base)]) == 0
+    err = capsys.readouterr().err
+    start_line = next(line for line in err.splitlines() if "start:" in line)
+    n_taken, n_base = (int(w) for w in re.findall(r"\d+", start_line)[:2])
+    assert 0 < n_taken == n_base
+    a, b = json.loads(plain.read_text()), json.loads(started.read_text())
+    assert [(f["effect"], f["axis"]) for f in a["findings"]] == [(f["effect"], f["axis"]) for f in b["findings"]]
+    assert b["final"]["heldout_rms_um"] == pytest.approx(a["final"]["heldout_rms_um"], rel=0.05)
+    assert b["base"]["n_params"] < a["base"]["n_params"]
+    ext = load_model(tmp_path / "ext.json")
+    assert [ax.spline_intervals for ax in ext.model.machine.linear_axes] == [8, 8, 8]
+    # bad start models: not a model file; the report over the start model
+    for argv in (["--start", files[0]], ["--start", str(base), "--json", str(base)]):
+        report = tmp_path / "r.json"
+        full = ["diagnose", "xfyz", *files, "--json", str(report), *argv]
+        assert main(full) == 2, argv
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "Traceback" not in err, err
+        assert not report.exists()
+    assert json.loads(base.read_text())["format"]

@@ -1,4 +1,4 @@
-"""`mtcomp diagnose MACHINE DATA... --json REPORT.json [-o MODEL.json]` (SPEC sections 5 and 6).
+"""`mtcomp diagnose MACHINE DATA... --json REPORT.json [-o MODEL.json] [--start MODEL.json]` (SPEC 5, 6).
 
 Fits the base model to every DATA file, finds what it gets wrong (residual analysis against every
 context the data carry), extends it with the effects that earn their place on held-out data, and
@@ -18,6 +18,9 @@ def add_arguments(parser):
                         help="where to write the report (verdict, noise_um, base, findings, final)")
     parser.add_argument("-o", "--output", metavar="MODEL.json", default=None,
                         help="also write the extended model (base model plus the terms found)")
+    parser.add_argument("--start", metavar="MODEL.json", default=None,
+                        help="start from this model of the machine (e.g. identify's output): its base "
+                             "(knots, harmonics) is diagnosed and its values start the fit")
     parser.add_argument("--channel-axis", metavar="NAME=AXIS", action="append", default=[],
                         help="thermal file: channel disp_NAME_um reads the tool tip along machine axis "
                              "AXIS (X, Y or Z), so its drift acts where compensation needs it "
@@ -39,9 +42,10 @@ def run(args) -> int:
     from ..machine import load_machine
     from ..models.model_file import _json_default, save_model
 
-    report_path = check_output_path(args.json, list(args.data))
-    model_path = check_output_path(args.output, list(args.data)) if args.output else None
-    plot_path = check_output_path(args.plot, list(args.data)) if args.plot else None
+    inputs = list(args.data) + ([args.start] if args.start else [])
+    report_path = check_output_path(args.json, inputs)
+    model_path = check_output_path(args.output, inputs) if args.output else None
+    plot_path = check_output_path(args.plot, inputs) if args.plot else None
     outputs = [p.resolve() for p in (report_path, model_path, plot_path) if p is not None]
     if len(set(outputs)) < len(outputs):
         raise InputError("--json, -o and --plot must name different files", args.json)
@@ -52,6 +56,10 @@ def run(args) -> int:
             raise InputError(f"--channel-axis {item!r}: write NAME=AXIS, e.g. ch3=Z")
         channel_axes[name] = axis
     machine = load_machine(args.machine)
+    start = None
+    if args.start:
+        from ..models.model_file import load_model
+        start = load_model(args.start, machine)
     datasets = [read_measurements(path) for path in args.data]
 
     def progress(line):
@@ -59,7 +67,10 @@ def run(args) -> int:
             sys.stderr.write(f"diagnose: {line}\n")
             sys.stderr.flush()
 
-    result = diagnose(machine, datasets, progress=progress, channel_axes=channel_axes or None)
+    if start is not None and len(datasets) == 1 and datasets[0].kind == "thermal":
+        raise InputError("--start applies to geometric data; a thermal file alone is diagnosed on its own",
+                         args.start)
+    result = diagnose(machine, datasets, progress=progress, channel_axes=channel_axes or None, start=start)
     if plot_path is not None and result.thermal is None:
         raise InputError("--plot draws the drift of one thermal file; the data are not one thermal file",
                          args.data[0])

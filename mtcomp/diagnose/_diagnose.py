@@ -188,11 +188,14 @@ def _heldout(st, fit) -> float:
 
 
 def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int = MAX_FINDINGS,
-             channel_axes: dict | None = None) -> Diagnosis:
+             channel_axes: dict | None = None, start=None) -> Diagnosis:
     """Diagnose the base model of ``machine`` on ``datasets`` (measurement sets, mtcomp.io).
 
     progress : callable(str) for progress lines, or None.
     channel_axes : thermal channel name -> machine axis (X, Y, Z) it reads (channels x, y, z need none).
+    start : a FittedModel (MODEL.json of ``identify``) of this machine: its base (knots, Fourier
+        orders) is the base diagnosed, and its values the point the base fit starts from; extension
+        terms it carries are not taken (diagnose finds its own).
     A single thermal file is diagnosed by :func:`mtcomp.thermal.diagnose_thermal` (drift models
     validated forward in time, docs/thermal.md).
     Returns a :class:`Diagnosis`. Raises InputError when the data cannot be diagnosed.
@@ -204,20 +207,34 @@ def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int 
     if channel_axes:
         raise InputError("--channel-axis applies to the diagnosis of one thermal file alone")
     with single_threaded_blas():
-        return _diagnose(machine, datasets, progress, max_findings)
+        return _diagnose(machine, datasets, progress, max_findings, start)
 
 
-def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
+def _start_point(machine, start):
+    """(machine, {parameter name: value}) of a start model: its machine, checked against
+    ``machine``, and its base parameters' values (internal units)."""
+    m = start.model.machine
+    if m.topology != machine.topology or m.axis_names != machine.axis_names:
+        raise InputError(f"the start model is of a {m.topology} machine, not {machine.topology}",
+                         start.info.get("path"))
+    return m, dict(zip(start.model.param_names, np.asarray(start.params.values, dtype=float)))
+
+
+def _diagnose(machine, datasets, progress, max_findings, start=None) -> Diagnosis:
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
     if not datasets:
         raise InputError("no measurement files given")
+    values = {}
+    if start is not None:
+        machine, values = _start_point(machine, start)
     # the base model's resolution follows the data, as identify's does
     from ..machine import with_data_basis
-    from ..measurement.readings import data_positions
+    from ..measurement.readings import data_positions, data_spline_sizes
     # (the Fourier orders of rotary axes too, as identify chooses them: with identify's column-scale
     # rule and steps that must lower the misfit, the weak high harmonics no longer run away)
-    machine = with_data_basis(machine, data_positions(machine, datasets), fourier=True)
+    machine = with_data_basis(machine, data_positions(machine, datasets), fourier=True,
+                              sizes=data_spline_sizes(machine, datasets))
     from ..measurement.outliers import OUTLIER_K, find_outliers
     cleaned, outliers = [], []
     for d in datasets:
@@ -232,11 +249,19 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
     st = build_stack(machine, datasets)
     say(f"{len(st)} observations in {len(datasets)} file(s); probe model with {st.probe.n_params} "
         "parameters")
-    # base fit: Gauss-Newton from zero (the chain is nearly linear in its small errors)
-    st.evaluate(np.zeros(st.probe.n_params), np.zeros(len(st.nuisance_names)))
+    # base fit: Gauss-Newton from zero, or from the start model (the chain is nearly linear in its
+    # small errors)
+    p0 = np.zeros(st.probe.n_params)
+    base_names = [nm for nm, b in zip(st.probe.param_names, st.probe.base_mask) if b]
+    taken = [nm for nm in base_names if nm in values]
+    for nm in taken:
+        p0[st.probe.param_names.index(nm)] = values[nm]
+    if start is not None:
+        say(f"start: {len(taken)} of the base's {len(base_names)} parameters from the start model")
+    st.evaluate(p0, np.zeros(len(st.nuisance_names)))
     # the directions the data determine, fixed at the start point (as identify does)
     T0 = determined_subspace(_common_block(st))
-    point, cost = (np.zeros(st.probe.n_params), np.zeros(len(st.nuisance_names))), _cost(st)
+    point, cost = (p0, np.zeros(len(st.nuisance_names))), _cost(st)
     for _ in range(2):
         Ar = _common_block(st) @ T0
         phi, _ = solve_normal(Ar.T @ Ar, Ar.T @ _linear_target(st))
@@ -377,18 +402,39 @@ def _diagnose(machine, datasets, progress, max_findings) -> Diagnosis:
 
 def _forward_in_time(st, design, extra, cands) -> None:
     """A drift (in time, temperature or spindle history) must predict later readings from earlier
-    ones: each thermal_drift candidate is fitted on the past and scored on the future (forward-chained
-    blocks in time, mtcomp.thermal); one that does not lower that score by more than noise could gets
-    a veto saying so."""
-    from ..thermal._fit import forward_in_time_sse
+    ones: each thermal_drift candidate is fitted to the residuals of the model without it on the
+    past and scored on the future (forward-chained blocks in time, :func:`mtcomp.thermal.forward_folds`);
+    one that does not lower the future's weighted sum of squares by more than noise could gets a
+    veto saying so.
+
+    The model without the drift is fitted once on all readings, and only the files' set-ups are
+    refitted on the past (readings of a file the past has not read are not scored): what is tested
+    is the drift's law in time, not whether the first hours of a campaign determine the geometry
+    that later files measure (a laser run of X cannot predict a later run of Y, drift or none)."""
+    from ..thermal._fit import N_FOLDS, forward_folds
     drift = [c for c in cands if c.effect == "thermal_drift"]
-    if not drift:
+    timed = np.flatnonzero(np.isfinite(st.t))
+    if not drift or timed.size < 2 * (N_FOLDS + 1) or np.ptp(st.t[timed]) <= 0:
         return
-    without = forward_in_time_sse(design, extra, st.t)
-    if not np.isfinite(without):
-        return
+    order = timed[np.argsort(st.t[timed], kind="stable")]
+    rw = design.fit(extra, cv=False).resid * design.w
+    Dw = st.D * design.w[:, None]
+    folds = []
+    for tr, te in forward_folds(order.size, N_FOLDS):
+        tr, te = order[tr], order[te]
+        # a file first read in the test block has a set-up the past cannot know: not scored
+        folds.append((tr, te[np.isin(st.file[te], st.file[tr])]))
+
+    def sse(M):
+        out = 0.0
+        for tr, te in folds:
+            theta = np.linalg.lstsq(M[tr], rw[tr], rcond=1e-10)[0]
+            out += float(np.sum((rw[te] - M[te] @ theta) ** 2))
+        return out
+    # the files' set-ups (zero offsets) are refitted on the past, with or without the drift
+    without = sse(Dw)
     for c in drift:
-        with_c = forward_in_time_sse(design, np.hstack([extra, c.columns]), st.t)
+        with_c = sse(np.hstack([c.columns * design.w[:, None], Dw]))
         if not without - with_c > cv_threshold(c.columns.shape[1]):
             c.veto = (f"predicted forward in time (fitted on earlier readings, scored on later ones) it "
                       f"does not beat the model without it (weighted sum of squares {with_c:.4g} "

@@ -17,7 +17,7 @@ A thermal case adds a 4 h ``thermal`` file. :func:`seed000_case` builds the pape
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -119,6 +119,11 @@ def hidden_case(seed: int, effect: str, kind: str, topology: str, folder, hidden
         hidden = random_effect(effect, probe, rng, axis=axis_pick)
         if effect == "thermal_drift":
             hidden = random_effect(effect, probe, rng, driver="time")
+        if effect == "local_defect":
+            # where the campaign's fine run passes (mid-travel +-120 mm, see _fine_run): a defect
+            # between the coarse targets of the other runs is in no reading, and nothing can report it
+            mid, half = 0.5 * sum(probe.travel[hidden.axis]), 120.0 - 0.5 * hidden.width_mm
+            hidden = replace(hidden, centre_mm=float(rng.uniform(mid - half, mid + half)))
         axis = getattr(hidden, "axis", "")
     m = TruthMachine.random(topology, rng, effects=[hidden] if hidden else [], error_motions=False)
     paths: list[Path] = []
