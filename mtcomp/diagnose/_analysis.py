@@ -323,25 +323,32 @@ def sinusoid_fit(x, r, period):
     return amp, float(np.arctan2(coef[1], coef[0])), se
 
 
-def halves_agree(st, resid, axis: str, period: float) -> tuple[bool, str]:
-    """Does a line at ``period`` replicate in both halves of the axis travel (a cyclic error does, a
-    local defect does not)? Needs amplitudes significant (> 5 se) in each half, within a factor 1.5,
-    and phases within 45 deg. Returns (agree, sentence)."""
+def parts_agree(st, resid, axis: str, period: float) -> tuple[bool, str]:
+    """Does a line at ``period`` replicate along the axis travel (a cyclic error does, a local defect
+    does not)? The travel's readings are cut into thirds of equal count (halves when a third is
+    shorter than one period; a bump in the middle of a run fits a sine in each half, mirrored, but
+    not in the outer thirds). Needs amplitudes significant (> 5 se) in each part, within a factor 1.5
+    of each other, and phases within 45 deg. Returns (agree, sentence)."""
     ser = axis_series(st, resid, axis)
     if ser is None:
         return False, "too few readings"
     x, r, _ = ser
-    mid = np.median(x)
-    fits = []
-    for part in (x <= mid, x > mid):
-        if part.sum() < 8 or np.ptp(x[part]) < period:
-            return False, f"a half of the travel is shorter than one period ({period:.4g})"
-        fits.append(sinusoid_fit(x[part], r[part], period))
-    (a1, p1, s1), (a2, p2, s2) = fits
-    dphi = abs((p1 - p2 + np.pi) % (2 * np.pi) - np.pi)
-    ok = a1 > 5 * s1 and a2 > 5 * s2 and max(a1, a2) < 1.5 * min(a1, a2) and dphi < np.radians(45)
-    text = (f"amplitude {a1:.3g} and {a2:.3g} in the lower and upper half of the travel, phases "
-            f"{np.degrees(dphi):.0f} deg apart")
+    names = {3: ("lower", "middle", "upper"), 2: ("lower", "upper")}
+    for n_parts in (3, 2):
+        edges = np.quantile(x, np.linspace(0.0, 1.0, n_parts + 1))
+        parts = [(x >= lo) & (x <= hi) for lo, hi in zip(edges[:-1], edges[1:])]
+        if all(p.sum() >= 8 and np.ptp(x[p]) >= period for p in parts):
+            break
+    else:
+        return False, f"a half of the travel is shorter than one period ({period:.4g})"
+    fits = [sinusoid_fit(x[p], r[p], period) for p in parts]
+    amps = [f[0] for f in fits]
+    dphi = max(abs((f[1] - fits[0][1] + np.pi) % (2 * np.pi) - np.pi) for f in fits)
+    ok = (all(f[0] > 5 * f[2] for f in fits) and max(amps) < 1.5 * min(amps)
+          and dphi < np.radians(45))
+    which = "third" if n_parts == 3 else "half"
+    text = ("amplitude " + ", ".join(f"{a_:.3g}" for a_ in amps) + " in the "
+            + ", ".join(names[n_parts]) + f" {which} of the travel, phases within {np.degrees(dphi):.0f} deg")
     return bool(ok), text
 
 

@@ -250,15 +250,15 @@ def _periodic_candidates(st, design, extra, resid, a: str) -> list[Candidate]:
         lo, hi = max(ln.period - half, ln.period * 0.5), ln.period + half
         res = minimize_scalar(sse, bounds=(lo, hi), method="bounded", options={"xatol": 1e-4 * ln.period})
         period = float(res.x)
-        agree, text = an.halves_agree(st, resid, a, period)
+        agree, text = an.parts_agree(st, resid, a, period)
         cand = Candidate("periodic_error", a, f"{period:.6g}mm", cols(period), [PeriodicError(a, period)],
                          [f"PER_{a}_c", f"PER_{a}_s"], rivals=f"periodic:{a}",
                          build=lambda s, period=period, cols=cols: cols(period, s),
-                         info={"line": ln, "period_mm": period, "halves": text,
+                         info={"line": ln, "period_mm": period, "parts": text,
                                # the period was searched: the best of M frequencies needs 2 ln M more
                                "search_penalty": 2.0 * np.log(max(ln.n_independent, 1.0))})
         if not agree:
-            cand.veto = f"the line does not replicate across the halves of the travel ({text})"
+            cand.veto = f"the line does not replicate along the travel ({text})"
         else:
             cand.veto = _finer_profile_veto(st, design, extra, a, cand)
         out.append(cand)

@@ -61,7 +61,7 @@ def evidence_and_params(st, c, theta, before_fit, after_fit, rivals, noise):
                   "phase_deg": round(float(np.degrees(np.arctan2(theta[1], theta[0]))), 2)}
         ev = (f"The {a} residual against {a} position has a Lomb-Scargle line at {ln.period:.4g} mm "
               f"(refined to {c.info['period_mm']:.4g} mm; power {ln.power:.2f}, false-alarm probability "
-              f"{ln.fap:.1e}) with {c.info['halves']}")
+              f"{ln.fap:.1e}) with {c.info['parts']}")
         return params, ev
     if eff == "feed_dependent_offset":
         v = float(theta[0] * 1e3)
