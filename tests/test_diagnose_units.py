@@ -37,9 +37,11 @@ def test_extra_rank_counts_only_new_directions():
     rng = np.random.default_rng(2)
     A = rng.normal(size=(50, 3))
     d = Design(A, rng.normal(size=50), np.ones(50), np.arange(50) % 2)
-    assert d.extra_rank(A[:, :1] * 3.0 - A[:, 2:3]) == 0
-    assert d.extra_rank(rng.normal(size=(50, 2))) == 2
-    assert d.extra_rank(np.column_stack([A[:, 0], rng.normal(size=50)])) == 1
+    def added(E):
+        return d.fit(E, cv=False).rank - 3
+    assert added(A[:, :1] * 3.0 - A[:, 2:3]) == 0
+    assert added(rng.normal(size=(50, 2))) == 2
+    assert added(np.column_stack([A[:, 0], rng.normal(size=50)])) == 1
 
 
 def test_solve_normal_minimum_norm_on_rank_deficient_matrix():
@@ -180,3 +182,33 @@ def test_a_fold_that_loses_a_direction_does_not_extrapolate_along_it():
     plain, *_ = np.linalg.lstsq(A[~te], z[~te], rcond=None)
     assert abs(plain[2]) > 1e3                       # what a plain fit of the fold would do
     assert np.sqrt(np.mean(fit.cv_resid[~te] ** 2)) < 0.05
+
+
+@pytest.mark.parametrize("where", ["common", "extra"])
+def test_a_direction_only_the_held_out_fold_sees_is_left_out_of_its_fit(where):
+    """A column non-zero only in fold 0: the fit without fold 0 knows nothing of it. Along that
+    direction the fold's fit takes the point of least norm in the metric of all the data (it is
+    left out of the generalised eigenproblem): the other folds' least squares s without the column,
+    plus t times it, t = -e^T G s / e^T G e. Whether the column is in the common block or an extra."""
+    rng = np.random.default_rng(4)
+    n = 80
+    folds = np.arange(n) % 4
+    A = rng.normal(size=(n, 3))
+    only0 = np.where(folds == 0, rng.normal(size=n), 0.0)
+    z = rng.normal(size=n)
+    E = rng.normal(size=(n, 1))
+    if where == "common":
+        d, extra = Design(np.column_stack([A, only0]), z, np.ones(n), folds), E
+    else:
+        d, extra = Design(A, z, np.ones(n), folds), np.column_stack([E, only0])
+    fit = d.fit(extra)
+    others = np.column_stack([A, E])
+    tr = folds != 0
+    s, *_ = np.linalg.lstsq(others[tr], z[tr], rcond=None)
+    full = np.column_stack([others, only0])
+    G = full.T @ full
+    s_full = np.append(s, 0.0)
+    t = -G[-1] @ s_full / G[-1, -1]
+    theta = s_full + t * np.eye(5)[-1]
+    np.testing.assert_allclose(fit.cv_resid[~tr], z[~tr] - full[~tr] @ theta, rtol=0, atol=1e-9)
+    assert abs(t) > 1e-3                       # the metric's choice matters here

@@ -139,6 +139,11 @@ class Design:
     z : (n,) target (observations made linear: y - f(p0) + A p0), file units.
     w : (n,) weights, 1 / sigma of each observation (sigma in file units).
     folds : (n,) fold of each observation, 0..K-1 (held out together).
+
+    Everything about the common block is factored once: the Cholesky factor of its normal matrix,
+    and for each fold the directions of the block that the data the fold keeps determine (the
+    generalised eigenproblem of :func:`_fold_solve`, in which the fold's normal matrix is diagonal).
+    A fit with k extra columns then costs products with them and k x k solves (block elimination).
     """
 
     def __init__(self, A: np.ndarray, z: np.ndarray, w: np.ndarray, folds: np.ndarray,
@@ -147,10 +152,6 @@ class Design:
         self.w = np.asarray(w, dtype=float)
         # reduce the common block to the directions the (weighted) data determine: A T
         self.T = determined_subspace(A, self.w) if T is None else T
-        Aw0 = (A * self.w[:, None]) @ self.T
-        # orthonormal basis of the weighted common block: to measure what extra columns add
-        U, sv, _ = np.linalg.svd(Aw0, full_matrices=False)
-        self.Q = U[:, sv > 1e-7 * max(sv.max(), 1e-300)] if sv.size else U
         self.A_original = A
         self.A = A @ self.T
         self.z = np.asarray(z, dtype=float)
@@ -164,55 +165,117 @@ class Design:
         self.b = self.Aw.T @ self.zw
         self.Gk = [self.Aw[ix].T @ self.Aw[ix] for ix in self._fold_index]
         self.bk = [self.Aw[ix].T @ self.zw[ix] for ix in self._fold_index]
+        # G = (d L)(d L)^T: the block's directions are determined (T), so this factor exists
+        self._d, self._L = _scaled_cholesky(self.G)
+        # per fold: the kept data's normal matrix is diagonal, diag(lam), on the basis
+        # V = d^-1 L^-T U of the common block (U, lam: eigenpairs of L^-1 G_kept L^-T, scaled).
+        # A fold that keeps less than FOLD_TOLERANCE of the information on some direction (None)
+        # takes the general route of _fold_solve, which leaves such directions out
+        self._fold_basis = []
+        if self._L is not None and self.K >= 2:
+            tri = scipy.linalg.solve_triangular
+            dd = np.outer(self._d, self._d)
+            for Gk in self.Gk:
+                M = tri(self._L, tri(self._L, (self.G - Gk) / dd, lower=True).T, lower=True)
+                lam, U = _eigh((M + M.T) / 2)
+                V = tri(self._L.T, U, lower=False) / self._d[:, None]
+                self._fold_basis.append((V, lam) if lam.min() > FOLD_TOLERANCE else None)
+
+    def _solve_all(self, AE, EE, bE):
+        """(theta_A, theta_E, S): least squares on all data by block elimination; S the Schur
+        complement of the extra columns (their information beyond the common block)."""
+        d, L = self._d, self._L
+        GiAE = scipy.linalg.cho_solve((L, True), AE / d[:, None]) / d[:, None]
+        Gib = scipy.linalg.cho_solve((L, True), self.b / d) / d
+        S = EE - AE.T @ GiAE
+        rhs = bE - AE.T @ Gib
+        tE = _chol_solve(S, rhs) if S.size else np.zeros(0)
+        return Gib - GiAE @ tE, tE, S
 
     def fit(self, extra: np.ndarray | None = None, cv: bool = True) -> FitResult:
         """Fit the common block plus ``extra`` (n, k) columns; held-out residuals when ``cv``."""
+        if self._L is None:
+            return self._fit_dense(extra, cv)
         if extra is None or extra.size == 0:
             E = np.zeros((self.n, 0))
         else:
             E = np.asarray(extra, dtype=float).reshape(self.n, -1)
         Ew = E * self.w[:, None]
-        m = self.A.shape[1]
-        k = E.shape[1]
-        G = np.empty((m + k, m + k))
-        G[:m, :m] = self.G
+        m, k = self.A.shape[1], E.shape[1]
         AE = self.Aw.T @ Ew
-        G[:m, m:] = AE
-        G[m:, :m] = AE.T
-        G[m:, m:] = Ew.T @ Ew
-        b = np.concatenate([self.b, Ew.T @ self.zw])
-        theta = _chol_solve(G, b)
-        rank = m + self.extra_rank(Ew)
-        full = np.hstack([self.A, E])
-        resid = self.z - full @ theta
+        EE = Ew.T @ Ew
+        bE = Ew.T @ self.zw
+        tA, tE, S = self._solve_all(AE, EE, bE)
+        rank = m + self._extra_rank(S, EE)
+        resid = self.z - self.A @ tA - E @ tE
         sse = float(np.sum((resid * self.w) ** 2))
         cv_resid = np.full(self.n, np.nan)
         if cv and self.K >= 2:
             for kk, ix in enumerate(self._fold_index):
                 Ek = Ew[ix]
-                Gk = G.copy()
                 AEk = self.Aw[ix].T @ Ek
-                Gk[:m, :m] -= self.Gk[kk]
-                Gk[:m, m:] -= AEk
-                Gk[m:, :m] -= AEk.T
-                Gk[m:, m:] -= Ek.T @ Ek
-                bk = b - np.concatenate([self.bk[kk], Ek.T @ self.zw[ix]])
+                EEk = EE - Ek.T @ Ek
+                bEk = bE - Ek.T @ self.zw[ix]
+                fast = self._fold_basis[kk]
+                if fast is not None:
+                    # normal equations of the kept data in (alpha, theta_E), theta_A = V alpha
+                    V, lam = fast
+                    C = V.T @ (AE - AEk)                                  # (m, k)
+                    ba = V.T @ (self.b - self.bk[kk])
+                    Sk = EEk - C.T @ (C / lam[:, None])
+                    # the extras' information beyond the block, kept against all: else general route
+                    if k == 0 or _shares(Sk, S).min() > FOLD_TOLERANCE:
+                        th_E = _chol_solve(Sk, bEk - C.T @ (ba / lam)) if k else np.zeros(0)
+                        alpha = (ba - C @ th_E) / lam
+                        cv_resid[ix] = self.z[ix] - self.A[ix] @ (V @ alpha) - E[ix] @ th_E
+                        continue
+                G = np.block([[self.G, AE], [AE.T, EE]])
+                Gk = G - np.block([[self.Gk[kk], AEk], [AEk.T, Ek.T @ Ek]])
+                bk = np.concatenate([self.b - self.bk[kk], bEk])
                 th = _fold_solve(Gk, bk, G)
-                cv_resid[ix] = self.z[ix] - full[ix] @ th
+                cv_resid[ix] = self.z[ix] - self.A[ix] @ th[:m] - E[ix] @ th[m:]
         cv_sse = float(np.nansum((cv_resid * self.w) ** 2)) if cv and self.K >= 2 else float("nan")
-        theta = np.concatenate([self.T @ theta[:m], theta[m:]])
+        theta = np.concatenate([self.T @ tA, tE])
         return FitResult(theta, rank, sse, resid, cv_resid, cv_sse)
 
-    def extra_rank(self, Ew: np.ndarray, tol: float = 1e-6) -> int:
-        """Number of directions the weighted columns ``Ew`` add to the common block: eigenvalues of
-        the Gram matrix of their part orthogonal to it, relative to their own size, above ``tol``."""
-        if Ew.shape[1] == 0:
+    def _fit_dense(self, extra, cv):
+        """The plain route (the common block's normal matrix has no Cholesky factor: never with a
+        reduced block, kept for safety): one (m + k) solve per fit and per fold."""
+        E = np.zeros((self.n, 0)) if extra is None or extra.size == 0 else \
+            np.asarray(extra, dtype=float).reshape(self.n, -1)
+        Ew = E * self.w[:, None]
+        m = self.A.shape[1]
+        AE = self.Aw.T @ Ew
+        G = np.block([[self.G, AE], [AE.T, Ew.T @ Ew]])
+        b = np.concatenate([self.b, Ew.T @ self.zw])
+        theta = _chol_solve(G, b)
+        resid = self.z - self.A @ theta[:m] - E @ theta[m:]
+        GiAE = np.column_stack([solve_normal(self.G, AE[:, j])[0] for j in range(AE.shape[1])]) \
+            if AE.shape[1] else np.zeros((m, 0))
+        rank = m + self._extra_rank(G[m:, m:] - AE.T @ GiAE, G[m:, m:])
+        cv_resid = np.full(self.n, np.nan)
+        if cv and self.K >= 2:
+            for kk, ix in enumerate(self._fold_index):
+                Ek = Ew[ix]
+                AEk = self.Aw[ix].T @ Ek
+                Gk = G - np.block([[self.Gk[kk], AEk], [AEk.T, Ek.T @ Ek]])
+                bk = b - np.concatenate([self.bk[kk], Ek.T @ self.zw[ix]])
+                th = _fold_solve(Gk, bk, G)
+                cv_resid[ix] = self.z[ix] - self.A[ix] @ th[:m] - E[ix] @ th[m:]
+        cv_sse = float(np.nansum((cv_resid * self.w) ** 2)) if cv and self.K >= 2 else float("nan")
+        return FitResult(np.concatenate([self.T @ theta[:m], theta[m:]]), rank, float(np.sum((resid * self.w) ** 2)),
+                         resid, cv_resid, cv_sse)
+
+    @staticmethod
+    def _extra_rank(S: np.ndarray, EE: np.ndarray, tol: float = 1e-6) -> int:
+        """Number of directions the extra columns add to the common block: eigenvalues of the Gram
+        matrix of their part orthogonal to it (the Schur complement S), with the columns scaled to
+        unit norm, above ``tol``."""
+        if S.size == 0:
             return 0
-        R = Ew - self.Q @ (self.Q.T @ Ew)
-        nrm = np.sqrt(np.sum(Ew ** 2, axis=0))
+        nrm = np.sqrt(np.clip(np.diag(EE), 0.0, None))
         nrm = np.where(nrm > 0, nrm, 1.0)
-        Rs = R / nrm
-        ev = np.linalg.eigvalsh(Rs.T @ Rs)
+        ev = np.linalg.eigvalsh(S / np.outer(nrm, nrm))
         return int(np.sum(ev > tol))
 
     def gram(self, extra: np.ndarray) -> np.ndarray:
@@ -220,6 +283,15 @@ class Design:
         Aw = self.A_original * self.w[:, None]
         Ew = extra * self.w[:, None]
         return np.block([[Aw.T @ Aw, Aw.T @ Ew], [Ew.T @ Aw, Ew.T @ Ew]])
+
+
+def _shares(Sk: np.ndarray, S: np.ndarray) -> np.ndarray:
+    """Generalised eigenvalues of Sk v = lambda S v (S positive definite, else zeros): the share of
+    each direction's information that Sk keeps."""
+    try:
+        return scipy.linalg.eigh(Sk, S, eigvals_only=True)
+    except (np.linalg.LinAlgError, ValueError):
+        return np.zeros(1)
 
 
 def rms(values: np.ndarray) -> float:
