@@ -161,10 +161,16 @@ class Design:
         self.Aw = self.A * self.w[:, None]
         self.zw = self.z * self.w
         self._fold_index = [np.flatnonzero(self.folds == k) for k in range(self.K)]
+        # the rows sorted by fold, once: each fold is then a slice (a view, not a copy per fit)
+        self._order = np.concatenate(self._fold_index) if self.K else np.zeros(0, dtype=np.int64)
+        ends = np.cumsum([0] + [ix.size for ix in self._fold_index])
+        self._slices = [slice(int(a), int(b)) for a, b in zip(ends[:-1], ends[1:])]
+        self._Aws = self.Aw[self._order]
+        self._As = self.A[self._order]
         self.G = self.Aw.T @ self.Aw
         self.b = self.Aw.T @ self.zw
-        self.Gk = [self.Aw[ix].T @ self.Aw[ix] for ix in self._fold_index]
-        self.bk = [self.Aw[ix].T @ self.zw[ix] for ix in self._fold_index]
+        self.Gk = [self._Aws[sl].T @ self._Aws[sl] for sl in self._slices]
+        self.bk = [self._Aws[sl].T @ self.zw[ix] for sl, ix in zip(self._slices, self._fold_index)]
         # G = (d L)(d L)^T: the block's directions are determined (T), so this factor exists
         self._d, self._L = _scaled_cholesky(self.G)
         # per fold: the kept data's normal matrix is diagonal, diag(lam), on the basis
@@ -212,8 +218,9 @@ class Design:
         cv_resid = np.full(self.n, np.nan)
         if cv and self.K >= 2:
             for kk, ix in enumerate(self._fold_index):
+                sl = self._slices[kk]
                 Ek = Ew[ix]
-                AEk = self.Aw[ix].T @ Ek
+                AEk = self._Aws[sl].T @ Ek
                 EEk = EE - Ek.T @ Ek
                 bEk = bE - Ek.T @ self.zw[ix]
                 fast = self._fold_basis[kk]
@@ -227,13 +234,13 @@ class Design:
                     if k == 0 or _shares(Sk, S).min() > FOLD_TOLERANCE:
                         th_E = _chol_solve(Sk, bEk - C.T @ (ba / lam)) if k else np.zeros(0)
                         alpha = (ba - C @ th_E) / lam
-                        cv_resid[ix] = self.z[ix] - self.A[ix] @ (V @ alpha) - E[ix] @ th_E
+                        cv_resid[ix] = self.z[ix] - self._As[sl] @ (V @ alpha) - E[ix] @ th_E
                         continue
                 G = np.block([[self.G, AE], [AE.T, EE]])
                 Gk = G - np.block([[self.Gk[kk], AEk], [AEk.T, Ek.T @ Ek]])
                 bk = np.concatenate([self.b - self.bk[kk], bEk])
                 th = _fold_solve(Gk, bk, G)
-                cv_resid[ix] = self.z[ix] - self.A[ix] @ th[:m] - E[ix] @ th[m:]
+                cv_resid[ix] = self.z[ix] - self._As[sl] @ th[:m] - E[ix] @ th[m:]
         cv_sse = float(np.nansum((cv_resid * self.w) ** 2)) if cv and self.K >= 2 else float("nan")
         theta = np.concatenate([self.T @ tA, tE])
         return FitResult(theta, rank, sse, resid, cv_resid, cv_sse)
