@@ -421,6 +421,14 @@ def find_structure(st, resid, sigma: dict, n_tests_extra: int = 0) -> list[Struc
         for label, x, u in variables:
             n_bins = int(min(12, max(3, ix.size // 8)))
             b, lo, hi = _bins(x, n_bins)
+            if label.endswith("position"):
+                # a fine run read more than once at each of many positions: every position its own
+                # bin (the pure-error test of lack of fit), else a narrow defect's core and the
+                # smooth profile's overshoot beside it cancel within a coarse bin
+                ux, inv, cnt = np.unique(np.round(x, POSITION_DECIMALS), return_inverse=True,
+                                         return_counts=True)
+                if ux.size > n_bins and cnt.min() >= 2:
+                    b, lo, hi = inv, ux, ux
             cnt = np.bincount(b, minlength=len(lo)).astype(float)
             ok = cnt > 0
             mean = np.bincount(b, weights=r, minlength=len(lo))[ok] / cnt[ok]

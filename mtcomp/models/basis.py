@@ -196,7 +196,8 @@ def spline_size_by_cv(series, lo: float, hi: float, sizes=SPLINE_SIZES) -> tuple
         Each is modelled as a spline of s alone (its own profile, which absorbs the laser zero and
         the Abbe offsets of that line), fitted with one run left out and scored on it, in units of
         that line's noise variance (the scatter of repeated readings about their target's mean).
-    sizes : candidate numbers of functions, increasing; the first is the default.
+    sizes : candidate numbers of functions, increasing; the first is the default. Each line's number
+        of distinct positions between the first and the last is tried too.
 
     A size replaces a smaller one only when it lowers the summed held-out score by more than
     ``SIZE_CV_Z * sqrt(2 dk) + dk`` (dk: the functions it adds over the lines that can take it), on
@@ -204,7 +205,10 @@ def spline_size_by_cv(series, lo: float, hi: float, sizes=SPLINE_SIZES) -> tuple
     than the first size, says nothing; one with fewer distinct positions than a size says nothing
     about that size. Returns (size, {size: summed score}); the first size when no line can tell.
     """
-    sizes = [int(n) for n in sizes]
+    # each line's own number of positions is a size too (one function per target, a pitch table's
+    # resolution), where it lies between the first and the last
+    counts = {np.unique(np.round(np.asarray(s, dtype=float)[np.isfinite(s)], 3)).size for s, _, _ in series}
+    sizes = sorted({int(n) for n in sizes} | {c for c in counts if sizes[0] < c < max(sizes)})
     lines = []                                  # per line: {size: held-out score}
     for s, y, run in series:
         s, y, run = (np.asarray(v) for v in (s, y, run))
