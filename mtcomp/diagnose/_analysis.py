@@ -323,12 +323,16 @@ def sinusoid_fit(x, r, period):
     return amp, float(np.arctan2(coef[1], coef[0])), se
 
 
+#: the largest ratio of the sine's amplitudes in the parts of the travel (thirds: 3, halves: 1.5)
+AMPLITUDE_RATIO = {3: 3.0, 2: 1.5}
+
+
 def parts_agree(st, resid, axis: str, period: float) -> tuple[bool, str]:
     """Does a line at ``period`` replicate along the axis travel (a cyclic error does, a local defect
     does not)? The travel's readings are cut into thirds of equal count (halves when a third is
     shorter than one period; a bump in the middle of a run fits a sine in each half, mirrored, but
-    not in the outer thirds). Needs the sine significant (amplitude > 5 se) in each part, with
-    phases within 45 deg. Returns (agree, sentence)."""
+    not in the outer thirds). Needs the sine significant (amplitude > 5 se) in each part, its
+    amplitudes within :data:`AMPLITUDE_RATIO`, and phases within 45 deg. Returns (agree, sentence)."""
     ser = axis_series(st, resid, axis)
     if ser is None:
         return False, "too few readings"
@@ -344,9 +348,11 @@ def parts_agree(st, resid, axis: str, period: float) -> tuple[bool, str]:
     fits = [sinusoid_fit(x[p], r[p], period) for p in parts]
     amps = [f[0] for f in fits]
     dphi = max(abs((f[1] - fits[0][1] + np.pi) % (2 * np.pi) - np.pi) for f in fits)
-    # the amplitudes are not compared: each part mixes the travel's lines in its own proportions
-    # (a fine run fills the middle third), which dilutes the sine more in some parts than in others
-    ok = all(f[0] > 5 * f[2] for f in fits) and dphi < np.radians(45)
+    # each third mixes the travel's lines in its own proportions (a fine run fills the middle one),
+    # which dilutes the sine more in some than in others: amplitudes within a factor 3 there (1.5
+    # between the halves of one line); a bump's leak into the outer thirds is far smaller
+    ratio = AMPLITUDE_RATIO[n_parts]
+    ok = all(f[0] > 5 * f[2] for f in fits) and max(amps) < ratio * min(amps) and dphi < np.radians(45)
     which = "third" if n_parts == 3 else "half"
     text = ("amplitude " + ", ".join(f"{a_:.3g}" for a_ in amps) + " in the "
             + ", ".join(names[n_parts]) + f" {which} of the travel, phases within {np.degrees(dphi):.0f} deg")
