@@ -212,3 +212,30 @@ def test_a_direction_only_the_held_out_fold_sees_is_left_out_of_its_fit(where):
     theta = s_full + t * np.eye(5)[-1]
     np.testing.assert_allclose(fit.cv_resid[~tr], z[~tr] - full[~tr] @ theta, rtol=0, atol=1e-9)
     assert abs(t) > 1e-3                       # the metric's choice matters here
+
+
+def test_a_drift_must_predict_the_repeats_that_follow():
+    """10 positions read in 6 passes over 3 h: the geometry is one value per position, a drift
+    settles as 1 - exp(-t / 40 min). The drift's own shape, fitted on earlier passes, predicts the
+    later repeats: kept. With no drift in the data a linear trend cannot, and a step confined to the
+    last pass (which the earlier passes know nothing of) cannot either: both get the veto."""
+    from mtcomp.diagnose._diagnose import _forward_in_time
+    rng = np.random.default_rng(8)
+    pos = np.tile(np.linspace(0.0, 450.0, 10), 6)
+    t = np.repeat(np.arange(6) * 1800.0, 10) + np.tile(np.arange(10) * 60.0, 6)
+    geometry = np.eye(10)[np.tile(np.arange(10), 6)]              # one column per position
+    settle = 1.0 - np.exp(-t / 2400.0)
+    st = _stack(pos, ["laser:X:EXX"] * pos.size, t=t)
+
+    def veto(z, column):
+        design = Design(geometry, z, np.full(z.size, 1 / 0.1), np.arange(z.size) % 3)
+        cand = SimpleNamespace(effect="thermal_drift", columns=column[:, None], veto=None)
+        _forward_in_time(st, design, np.zeros((z.size, 0)), [cand])
+        return cand.veto
+    values = rng.normal(0.0, 3.0, 10)[np.tile(np.arange(10), 6)]
+    drifting = values + 4.0 * settle + rng.normal(0.0, 0.1, t.size)
+    still = values + rng.normal(0.0, 0.1, t.size)
+    assert veto(drifting, settle) is None
+    assert "forward in time" in veto(still, t / 3600.0)
+    last = (t >= 5 * 1800.0).astype(float)
+    assert "forward in time" in veto(values + 2.0 * last + rng.normal(0.0, 0.1, t.size), last)

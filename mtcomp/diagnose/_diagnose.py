@@ -402,43 +402,50 @@ def _diagnose(machine, datasets, progress, max_findings, start=None) -> Diagnosi
 
 def _forward_in_time(st, design, extra, cands) -> None:
     """A drift (in time, temperature or spindle history) must predict later readings from earlier
-    ones: each thermal_drift candidate is fitted to the residuals of the model without it on the
+    ones: the model with each thermal_drift candidate and the model without it are fitted on the
     past and scored on the future (forward-chained blocks in time, :func:`mtcomp.thermal.forward_folds`);
-    one that does not lower the future's weighted sum of squares by more than noise could gets a
-    veto saying so.
+    a candidate that does not lower the future's weighted sum of squares by more than noise could
+    gets a veto saying so.
 
-    The model without the drift is fitted once on all readings, and only the files' set-ups are
-    refitted on the past (readings of a file the past has not read are not scored): what is tested
-    is the drift's law in time, not whether the first hours of a campaign determine the geometry
-    that later files measure (a laser run of X cannot predict a later run of Y, drift or none)."""
+    Only future readings that repeat a past one are scored (same series, same axis positions and
+    optic arm): there the past has fixed the geometry and the file's set-up, and what the future
+    adds is the change in time, which is the drift's to predict. A reading at a position or of a
+    file the past has not seen would be predicted by extrapolating the geometry, with or without a
+    drift (a laser run of X cannot predict a later run of Y)."""
     from ..thermal._fit import N_FOLDS, forward_folds
     drift = [c for c in cands if c.effect == "thermal_drift"]
     timed = np.flatnonzero(np.isfinite(st.t))
     if not drift or timed.size < 2 * (N_FOLDS + 1) or np.ptp(st.t[timed]) <= 0:
         return
     order = timed[np.argsort(st.t[timed], kind="stable")]
-    rw = design.fit(extra, cv=False).resid * design.w
-    Dw = st.D * design.w[:, None]
+    _, series = np.unique(st.series.astype(str), return_inverse=True)
+    _, key = np.unique(np.column_stack([series, np.round(st.q, 6), np.round(st.arm, 3)]), axis=0,
+                       return_inverse=True)
+    key = key.ravel()
+    Bw = np.hstack([design.Aw, extra * design.w[:, None]])
+    zw = design.zw
     folds = []
     for tr, te in forward_folds(order.size, N_FOLDS):
         tr, te = order[tr], order[te]
-        # a file first read in the test block has a set-up the past cannot know: not scored
-        folds.append((tr, te[np.isin(st.file[te], st.file[tr])]))
+        scored = te[np.isin(key[te], key[tr])]
+        if scored.size:
+            folds.append((tr, scored))
+    if not folds:
+        return
 
     def sse(M):
         out = 0.0
         for tr, te in folds:
-            theta = np.linalg.lstsq(M[tr], rw[tr], rcond=1e-10)[0]
-            out += float(np.sum((rw[te] - M[te] @ theta) ** 2))
+            theta, _ = solve_normal(M[tr].T @ M[tr], M[tr].T @ zw[tr])
+            out += float(np.sum((zw[te] - M[te] @ theta) ** 2))
         return out
-    # the files' set-ups (zero offsets) are refitted on the past, with or without the drift
-    without = sse(Dw)
+    without = sse(Bw)
     for c in drift:
-        with_c = sse(np.hstack([c.columns * design.w[:, None], Dw]))
+        with_c = sse(np.hstack([Bw, c.columns * design.w[:, None]]))
         if not without - with_c > cv_threshold(c.columns.shape[1]):
-            c.veto = (f"predicted forward in time (fitted on earlier readings, scored on later ones) it "
-                      f"does not beat the model without it (weighted sum of squares {with_c:.4g} "
-                      f"against {without:.4g})")
+            c.veto = (f"predicted forward in time (fitted on earlier readings, scored on later ones "
+                      f"that repeat them) it does not beat the model without it (weighted sum of "
+                      f"squares {with_c:.4g} against {without:.4g})")
 
 
 def _backward(design, chosen, findings, fit, n) -> list:
