@@ -407,8 +407,9 @@ def _forward_in_time(st, design, extra, cands) -> None:
     a candidate that does not lower the future's weighted sum of squares by more than noise could
     gets a veto saying so.
 
-    Only future readings that repeat a past one are scored (same series, same axis positions and
-    optic arm): there the past has fixed the geometry and the file's set-up, and what the future
+    Only future readings that repeat a past one are scored (same series, same row of the model's
+    columns: same axis positions, optic arm, tool, balls): there the past has fixed the geometry and
+    the file's set-up, and what the future
     adds is the change in time, which is the drift's to predict. A reading at a position or of a
     file the past has not seen would be predicted by extrapolating the geometry, with or without a
     drift (a laser run of X cannot predict a later run of Y)."""
@@ -418,11 +419,14 @@ def _forward_in_time(st, design, extra, cands) -> None:
     if not drift or timed.size < 2 * (N_FOLDS + 1) or np.ptp(st.t[timed]) <= 0:
         return
     order = timed[np.argsort(st.t[timed], kind="stable")]
-    _, series = np.unique(st.series.astype(str), return_inverse=True)
-    _, key = np.unique(np.column_stack([series, np.round(st.q, 6), np.round(st.arm, 3)]), axis=0,
-                       return_inverse=True)
-    key = key.ravel()
     Bw = np.hstack([design.Aw, extra * design.w[:, None]])
+    # a repeat: the same series and the same row of the model's columns (same axis positions, optic
+    # arm, tool, ball positions, approach directions ...), to 1e-6 of each column's largest entry
+    _, series = np.unique(st.series.astype(str), return_inverse=True)
+    scale = np.max(np.abs(Bw), axis=0)
+    rows = np.round(Bw / np.where(scale > 0, scale, 1.0), 6)
+    _, key = np.unique(np.column_stack([series, rows]), axis=0, return_inverse=True)
+    key = key.ravel()
     zw = design.zw
     folds = []
     for tr, te in forward_folds(order.size, N_FOLDS):
