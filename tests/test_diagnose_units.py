@@ -239,3 +239,40 @@ def test_a_drift_must_predict_the_repeats_that_follow():
     assert "forward in time" in veto(still, t / 3600.0)
     last = (t >= 5 * 1800.0).astype(float)
     assert "forward in time" in veto(values + 2.0 * last + rng.normal(0.0, 0.1, t.size), last)
+
+
+def test_a_fold_that_keeps_too_little_of_a_joint_direction_leaves_it_out():
+    """One common column and one extra, each kept by fold 1 at a share just above FOLD_TOLERANCE
+    (the common column's own share and the extra's share beyond it, so a test on each apart would
+    pass), while a joint direction of the two keeps less. The fold's fit must leave that joint
+    direction out, as the generalised eigenproblem of the joint normal matrices (kept vs all) says
+    (scipy.linalg.eigh, written here apart from the code)."""
+    import scipy.linalg
+    rng = np.random.default_rng(16)
+    n = 40
+    folds = np.arange(n) % 2
+    a = rng.normal(size=n) * np.where(folds == 0, 1.0, 0.014)
+    e = -0.45 * a + rng.normal(size=n) * np.where(folds == 0, 1.0, 0.009)
+    z = 3.0 * a - 2.0 * e + 0.01 * rng.normal(size=n)
+    X = np.column_stack([a, e])
+    G = X.T @ X
+    Gk = X[folds == 1].T @ X[folds == 1]
+    # the precondition: each share apart above the tolerance, the joint one below
+    assert Gk[0, 0] / G[0, 0] > 1e-4
+    assert (Gk[1, 1] - Gk[0, 1] ** 2 / Gk[0, 0]) / (G[1, 1] - G[0, 1] ** 2 / G[0, 0]) > 1e-4
+    assert scipy.linalg.eigh(Gk, G, eigvals_only=True).min() < 1e-4
+    fit = Design(a[:, None], z, np.ones(n), folds).fit(e[:, None])
+    for k in range(2):
+        kept = folds != k
+        Gk = X[kept].T @ X[kept]
+        lam, V = scipy.linalg.eigh(Gk, G)          # V^T G V = I
+        ok = lam > 1e-4
+        theta = V[:, ok] @ ((V[:, ok].T @ (X[kept].T @ z[kept])) / lam[ok])
+        np.testing.assert_allclose(fit.cv_resid[~kept], z[~kept] - X[~kept] @ theta, rtol=1e-6, atol=1e-9)
+
+
+def test_a_common_block_without_determined_directions_still_fits():
+    rng = np.random.default_rng(12)
+    z = rng.normal(size=20)
+    fit = Design(np.zeros((20, 2)), z, np.ones(20), np.arange(20) % 2).fit(rng.normal(size=(20, 1)))
+    assert np.isfinite(fit.cv_sse) and fit.rank == 1

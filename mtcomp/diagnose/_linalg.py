@@ -185,7 +185,7 @@ class Design:
                 M = tri(self._L, tri(self._L, (self.G - Gk) / dd, lower=True).T, lower=True)
                 lam, U = _eigh((M + M.T) / 2)
                 V = tri(self._L.T, U, lower=False) / self._d[:, None]
-                self._fold_basis.append((V, lam) if lam.min() > FOLD_TOLERANCE else None)
+                self._fold_basis.append((V, lam) if lam.size and lam.min() > FOLD_TOLERANCE else None)
 
     def _solve_all(self, AE, EE, bE):
         """(theta_A, theta_E, S): least squares on all data by block elimination; S the Schur
@@ -230,8 +230,9 @@ class Design:
                     C = V.T @ (AE - AEk)                                  # (m, k)
                     ba = V.T @ (self.b - self.bk[kk])
                     Sk = EEk - C.T @ (C / lam[:, None])
-                    # the extras' information beyond the block, kept against all: else general route
-                    if k == 0 or _shares(Sk, S).min() > FOLD_TOLERANCE:
+                    # the fold keeps more than FOLD_TOLERANCE of every direction's information,
+                    # common and extra together, else the general route
+                    if k == 0 or _keeps_all(lam, C - FOLD_TOLERANCE * (V.T @ AE), EEk - FOLD_TOLERANCE * EE):
                         th_E = _chol_solve(Sk, bEk - C.T @ (ba / lam)) if k else np.zeros(0)
                         alpha = (ba - C @ th_E) / lam
                         cv_resid[ix] = self.z[ix] - self._As[sl] @ (V @ alpha) - E[ix] @ th_E
@@ -292,13 +293,20 @@ class Design:
         return np.block([[Aw.T @ Aw, Aw.T @ Ew], [Ew.T @ Aw, Ew.T @ Ew]])
 
 
-def _shares(Sk: np.ndarray, S: np.ndarray) -> np.ndarray:
-    """Generalised eigenvalues of Sk v = lambda S v (S positive definite, else zeros): the share of
-    each direction's information that Sk keeps."""
+def _keeps_all(lam: np.ndarray, D: np.ndarray, E: np.ndarray) -> bool:
+    """True when a fold's kept normal matrix minus FOLD_TOLERANCE times the all-data one is positive
+    definite, i.e. the fold keeps more than that share of the information on every direction of the
+    joint (common + extra) parameters. On the fold's basis of the common block that difference is
+    [[diag(lam - tol), D], [D^T, E]] (``D``, ``E`` already shifted by the tolerance); it is positive
+    definite when lam > tol and its Schur complement E - D^T diag(1 / (lam - tol)) D is (Cholesky)."""
+    gap = lam - FOLD_TOLERANCE
+    if gap.min() <= 0:
+        return False
     try:
-        return scipy.linalg.eigh(Sk, S, eigvals_only=True)
-    except (np.linalg.LinAlgError, ValueError):
-        return np.zeros(1)
+        np.linalg.cholesky(E - D.T @ (D / gap[:, None]))
+    except np.linalg.LinAlgError:
+        return False
+    return True
 
 
 def rms(values: np.ndarray) -> float:

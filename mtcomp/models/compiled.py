@@ -123,11 +123,16 @@ def find_compiler() -> str | None:
     return None
 
 
+#: a function is compiled once it has been evaluated at this many poses (MTCOMP_COMPILE_MIN_POSES)
+MIN_POSES = 50_000
+
+
 def _min_poses() -> int:
+    """MTCOMP_COMPILE_MIN_POSES when it is an integer, else MIN_POSES."""
     try:
-        return int(os.environ.get("MTCOMP_COMPILE_MIN_POSES", "50000"))
+        return int(os.environ.get("MTCOMP_COMPILE_MIN_POSES", MIN_POSES))
     except ValueError:
-        return 5000
+        return MIN_POSES
 
 
 def _notice():
