@@ -63,18 +63,22 @@ def test_a_local_bump_is_left_to_diagnose():
     assert scores[16] > 1.5 * 800              # the bump is in the data: the default misses it
 
 
-def test_a_screw_period_is_not_followed():
+def test_a_screw_period_is_not_followed(monkeypatch):
     def screw(s):
         return _smooth(s) + 2.0 * np.sin(2 * np.pi * s / 10.0)
     n, _ = spline_size_by_cv([_line(screw)], LO, HI)
-    assert (HI - LO) / (n - 3) >= 16.0          # knots at least 16 mm apart: the 10 mm line is left
+    assert n == SPLINE_SIZES[0]                 # the 10 mm line is left to diagnose
+    # the rules that leave it: without the local rival and the 16 mm knots, the finest size wins
+    import mtcomp.models.basis as basis
+    monkeypatch.setattr(basis, "RIVAL_SHARE", 2.0)
+    monkeypatch.setattr(basis, "MIN_KNOT_MM", 1.0)
+    assert spline_size_by_cv([_line(screw)], LO, HI)[0] == SPLINE_SIZES[-1]
 
 
-@pytest.mark.parametrize("runs", [1])
-def test_a_single_run_cannot_tell(runs):
+def test_a_single_run_cannot_tell():
     def wavy(s):
         return 2.0 * np.sin(2 * np.pi * s / 60.0)
-    assert spline_size_by_cv([_line(wavy, runs=runs)], LO, HI) == (SPLINE_SIZES[0], {})
+    assert spline_size_by_cv([_line(wavy, runs=1)], LO, HI) == (SPLINE_SIZES[0], {})
 
 
 def test_the_held_out_design_is_the_model_basis():
@@ -86,3 +90,28 @@ def test_the_held_out_design_is_the_model_basis():
     X = BSpline.design_matrix(s, LO + h * np.arange(-3, 25), 3).toarray()
     assert raw.shape == X.shape
     np.testing.assert_allclose(raw, X, atol=1e-10)     # truncated powers: round-off ~1e-16 (n+k)^k
+
+
+@pytest.mark.parametrize("backlash_um", [0.0, 5.0])
+def test_a_reversal_error_is_not_read_as_noise(tmp_path, backlash_um):
+    """A bidirectional laser file (SPEC 3.2, written here by hand) of X with 60 mm waves: the size
+    chosen from the file must not depend on the axis's backlash. Pooled about each target's mean over
+    both directions, the repeats' scatter would be sigma^2 + B^2/4, and the waves drowned in it."""
+    from mtcomp.machine import load_machine
+    from mtcomp.measurement.files import read_measurements
+    from mtcomp.measurement.readings import data_spline_sizes
+
+    def wavy(s):
+        return _smooth(s) + 0.5 * np.sin(2 * np.pi * s / 60.0 + 0.4)
+    rng = np.random.default_rng(3)
+    targets = np.sort(rng.uniform(LO, HI, 300))
+    rows = ["axis,component,target_mm,dir,run,value_um"]
+    for run in (1, 2):
+        for d in (1, -1):
+            for t in targets[::d]:
+                v = wavy(t) + d * backlash_um / 2 + rng.normal(0.0, NOISE)
+                rows.append(f"X,EXX,{t:.4f},{d},{run},{v:.5f}")
+    path = tmp_path / "laser_x.csv"
+    path.write_text("\n".join(rows) + "\n")
+    sizes = data_spline_sizes(load_machine("xfyz"), [read_measurements(path)])
+    assert sizes["X"] >= 32

@@ -96,8 +96,8 @@ def data_positions(machine, datasets) -> dict[str, np.ndarray]:
 
 def single_axis_lines(machine, datasets) -> dict[str, list]:
     """Linear axis name -> the measured lines of the laser files that move it: one (target mm,
-    value, run) triple per (file, component, optic offset, static position, feed), for
-    :func:`mtcomp.models.basis.spline_size_by_cv`."""
+    value, run) triple per (file, component, optic offset, static position, feed, approach direction
+    of the axis), for :func:`mtcomp.models.basis.spline_size_by_cv`. Axes X, Y and Z only."""
     out: dict[str, list] = {}
     for d in datasets:
         data = d.data if isinstance(d, MeasurementModel) else d
@@ -109,8 +109,9 @@ def single_axis_lines(machine, datasets) -> dict[str, list]:
                 continue
             static = np.round(np.nan_to_num(data.xyz), 3)
             static[:, "XYZ".index(a)] = 0.0                # the moving axis's own column
+            # the approach direction too: a reversal error is not noise of a repeated reading
             key = np.column_stack([static, np.round(np.nan_to_num(data.abc), 9), np.round(data.optic, 3),
-                                   np.round(feed, 3)])
+                                   np.round(feed, 3), data.context.dir_of(a)])
             for comp in np.unique(data.component[data.axis == a]):
                 sel = (data.axis == a) & (data.component == comp) & np.isfinite(data.value)
                 if not sel.any():

@@ -259,7 +259,9 @@ def _bspline_design(x, lo, hi, n):
     from scipy.interpolate import BSpline
     k = min(3, n - 1)
     h = (hi - lo) / (n - k)
-    return BSpline.design_matrix(x, lo + h * np.arange(-k, n + 1), k).toarray()
+    t = lo + h * np.arange(-k, n + 1)
+    # t[n] may round a hair below hi: a position at hi is then out of scipy's bounds
+    return BSpline.design_matrix(np.clip(x, t[k], t[n]), t, k).toarray()
 
 
 def _held_out(X, y, run) -> float:
