@@ -276,3 +276,43 @@ def test_a_common_block_without_determined_directions_still_fits():
     z = rng.normal(size=20)
     fit = Design(np.zeros((20, 2)), z, np.ones(20), np.arange(20) % 2).fit(rng.normal(size=(20, 1)))
     assert np.isfinite(fit.cv_sse) and fit.rank == 1
+
+
+def test_finer_base_columns_are_the_jacobian_of_the_finer_model(tmp_path):
+    """The finer base's columns, recovered from the base's Jacobian (d reading / d E times the finer
+    functions), against a second formulation: the probe model built with the finer spline itself,
+    its CasADi Jacobian columns of the same components. A points file (SPEC 3.1, written here) reads
+    every component of X through the chain, at random poses."""
+    from dataclasses import replace
+
+    from mtcomp.diagnose._resolution import finer_base_columns
+    from mtcomp.diagnose._stack import build_stack
+    from mtcomp.measurement.files import read_measurements
+    from mtcomp.models.chain import component_terms, linear_component_names
+
+    rng = np.random.default_rng(5)
+    rows = ["x_mm,y_mm,z_mm,dx_um,dy_um,dz_um,tool_mm"]
+    for _ in range(60):
+        x, y, z = rng.uniform(-250, 250), rng.uniform(-200, 200), rng.uniform(-200, 100)
+        rows.append(f"{x:.3f},{y:.3f},{z:.3f},0,0,0,{rng.choice([100.0, 250.0])}")
+    path = tmp_path / "points.csv"
+    path.write_text("\n".join(rows) + "\n")
+    data = [read_measurements(path)]
+
+    def machine_with(n_intervals):
+        m = load_machine("xfyz")
+        return replace(m, axes=tuple(replace(ax, spline_range=(-300.0, 300.0), spline_intervals=n_intervals,
+                                             degree=3) if ax.name == "X" else ax for ax in m.axes))
+
+    def stack(m):
+        st = build_stack(m, data)
+        st.evaluate(np.zeros(st.probe.n_params), np.zeros(len(st.nuisance_names)))
+        return st
+    coarse, fine = machine_with(12), machine_with(24)
+    cols, centres, basis = finer_base_columns(stack(coarse), "X")
+    assert basis.n_intervals == 24 and cols.shape[1] == centres.size
+    st = stack(fine)
+    names = [f"{c}_{t}" for c in linear_component_names("X") for t in component_terms(fine, "X", c)]
+    expected = st.columns(names)
+    seen = np.abs(expected).max(axis=0) > 0
+    np.testing.assert_allclose(cols, expected[:, seen], rtol=1e-9, atol=1e-9 * np.abs(expected).max())

@@ -14,6 +14,9 @@ from scipy import signal, stats
 MAX_FOLDS = 5
 #: positions (mm or rad) closer than this count as the same target when matching repeats
 POSITION_DECIMALS = 4
+#: the repeats must give at least this many degrees of freedom for their noise floor (with 12, a
+#: standard deviation is off by a third one time in ten: a few poses two circles share are no floor)
+MIN_REPEAT_DOF = 30
 
 
 # ------------------------------------------------------------------------------------ noise floor
@@ -72,8 +75,9 @@ def noise_floor(st, resid: np.ndarray, n_params: int = 0) -> dict[str, Noise]:
     """Noise floor per unit class from repeated readings of the base-fit residual ``resid``.
 
     Repeats: same series, pose, approach directions, feed, arm and spindle speed, in different runs
-    (or repeated within one). The residual is first freed of a per-(series, run) offset and time
-    trend (readings that disagree with their repeats were left out before, mtcomp.measurement.outliers).
+    (or repeated within one), when they give at least ``MIN_REPEAT_DOF`` degrees of freedom. The
+    residual is first freed of a per-(series, run) offset and time trend (readings that disagree
+    with their repeats were left out before, mtcomp.measurement.outliers).
     Classes without repeats fall back to a robust estimate (Noise.source says which), scaled
     by sqrt(n / (n - n_params)) for the degrees of freedom the fit took from the residual.
     """
@@ -94,7 +98,7 @@ def noise_floor(st, resid: np.ndarray, n_params: int = 0) -> dict[str, Noise]:
             rep = counts[inv] >= 2
             groups = int(np.sum(counts >= 2))
             dof = int(np.sum(counts[counts >= 2] - 1))
-            if dof >= 5:
+            if dof >= MIN_REPEAT_DOF:
                 sigma = float(np.sqrt(np.sum(dev[rep] ** 2) / dof))
         if np.isfinite(sigma) and sigma > 0:
             out[unit] = Noise(unit, sigma, dof, "repeats", groups)

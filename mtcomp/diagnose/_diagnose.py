@@ -206,8 +206,18 @@ def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int 
         return diagnose_thermal(machine, datasets[0], channel_axes, progress)
     if channel_axes:
         raise InputError("--channel-axis applies to the diagnosis of one thermal file alone")
+    from ._resolution import MAX_REFINEMENTS
+    say = progress or (lambda s: None)
+    refine: dict = {}
     with single_threaded_blas():
-        return _diagnose(machine, datasets, progress, max_findings, start)
+        while True:
+            diag, finer = _diagnose(machine, datasets, progress, max_findings, start, refine,
+                                    may_refine=len(refine) < MAX_REFINEMENTS)
+            if finer is None:
+                return diag
+            a, basis, text = finer
+            refine[a] = basis
+            say(f"{text}: diagnosed again with it")
 
 
 def _start_point(machine, start):
@@ -220,7 +230,10 @@ def _start_point(machine, start):
     return m, dict(zip(start.model.param_names, np.asarray(start.params.values, dtype=float)))
 
 
-def _diagnose(machine, datasets, progress, max_findings, start=None) -> Diagnosis:
+def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None, may_refine=False):
+    """(Diagnosis, None), or (None, (axis, finer basis, sentence)) when ``may_refine`` and the final
+    structure is the base's resolution along a linear axis (:func:`_resolution.finer_base`).
+    ``refine``: axis -> SplineBasis that replaces the data-chosen base of that axis."""
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
     if not datasets:
@@ -235,6 +248,14 @@ def _diagnose(machine, datasets, progress, max_findings, start=None) -> Diagnosi
     # rule and steps that must lower the misfit, the weak high harmonics no longer run away)
     machine = with_data_basis(machine, data_positions(machine, datasets), fourier=True,
                               sizes=data_spline_sizes(machine, datasets))
+    if refine:
+        from dataclasses import replace
+        machine = replace(machine, axes=tuple(
+            replace(ax, spline_range=(refine[ax.name].lo, refine[ax.name].hi),
+                    spline_intervals=refine[ax.name].n_intervals, degree=refine[ax.name].degree)
+            if ax.name in refine else ax for ax in machine.axes))
+        # a start model's coefficients of a refined axis are of other functions
+        values = {k: v for k, v in values.items() if not (k[:1] == "E" and k[2:3] in refine and "_b" in k)}
     from ..measurement.outliers import OUTLIER_K, find_outliers
     cleaned, outliers = [], []
     for d in datasets:
@@ -289,6 +310,8 @@ def _diagnose(machine, datasets, progress, max_findings, start=None) -> Diagnosi
     n_base = int(st.probe.base_mask.sum())
     current = design.fit()
     base_metrics = _metrics(st, current, n_base)
+    if refine:
+        base_metrics["refined"] = {a: b.n_basis for a, b in refine.items()}
     say(f"base model: rms {base_metrics['rms_um']} um, held-out {base_metrics['heldout_rms_um']} um")
     reference = {}
     still = [a for a in st.machine.axis_names if a not in moved_axes(st)]
@@ -383,6 +406,12 @@ def _diagnose(machine, datasets, progress, max_findings, start=None) -> Diagnosi
     # a right model still predicts held-out readings a little worse than the noise: sqrt(1 + p/n_fit)
     inflation = np.sqrt(1.0 + current.rank / max(n * (design.K - 1) / max(design.K, 1), 1.0))
     verdict = "none" if not findings else "explained"
+    if structure and may_refine:
+        from ._resolution import finer_base
+        extra_all = np.hstack([c.columns for c in chosen]) if chosen else np.zeros((len(st), 0))
+        finer = finer_base(st, design, extra_all, current, structure)
+        if finer is not None:
+            return None, finer
     if structure or excess > EXCESS_RATIO * inflation:
         verdict = "unexplained"
         findings.append(_unexplained(st, current, structure, excess, noise_main))
@@ -397,7 +426,7 @@ def _diagnose(machine, datasets, progress, max_findings, start=None) -> Diagnosi
     model.held = data_held(st.machine, datasets)
     diag.seconds = time.perf_counter() - t0
     model.info["diagnose"] = diag.to_dict()
-    return diag
+    return diag, None
 
 
 def _forward_in_time(st, design, extra, cands) -> None:

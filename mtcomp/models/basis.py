@@ -191,27 +191,34 @@ def spline_size_by_cv(series, lo: float, hi: float, sizes=SPLINE_SIZES) -> tuple
     """The number of cubic B-spline functions over [lo, hi] that single-axis runs ask for, chosen by
     leave-one-run-out cross-validation.
 
-    series : list of (s, y, run) arrays, one per measured line (a laser file's component at one
-        optic offset, static position and feed): position (mm), reading (any unit), run number.
-        Each is modelled as a spline of s alone (its own profile, which absorbs the laser zero and
-        the Abbe offsets of that line), fitted with one run left out and scored on it, in units of
-        that line's noise variance (the scatter of repeated readings about their target's mean).
+    series : list of (s, y, run) or (s, y, run, group) arrays, one per measured line (a laser file's
+        component at one optic offset, static position, feed and approach direction): position (mm),
+        reading (any unit), run number, and a label of the profile the line follows (default: one
+        for all). Each line is modelled as a spline of s alone (its own profile, which absorbs the
+        laser zero and the Abbe offsets of that line), fitted with one run left out and scored on
+        it, in units of that line's noise variance (the scatter of repeated readings about their
+        target's mean).
     sizes : candidate numbers of functions, increasing; the first is the default. Each line's number
         of distinct positions between the first and the last is tried too.
 
-    A size replaces a smaller one only when it lowers the summed held-out score by more than
-    ``SIZE_CV_Z * sqrt(2 dk) + dk`` (dk: the functions it adds over the lines that can take it), on
-    the lines that can take both. A line with fewer than two runs, or no more distinct positions
-    than the first size, says nothing; one with fewer distinct positions than a size says nothing
-    about that size. Returns (size, {size: summed score}); the first size when no line can tell.
+    Each group (one error component, say) asks for its own size: a size replaces a smaller one when
+    it lowers the group's summed held-out score by more than ``z * sqrt(2 dk) + dk`` (dk: the
+    functions it adds over the group's lines that can take it; z is ``SIZE_CV_Z``, Bonferroni-
+    corrected for the number of groups), on the lines that can take both. The axis takes the most
+    any group asks for (one component finer than the others must not be averaged away by them). A
+    line with fewer than two runs, or no more distinct positions than the first size, says nothing;
+    one with fewer distinct positions than a size says nothing about that size. Returns (size,
+    {size: summed score}); the first size when no line can tell.
     """
+    from scipy import stats
     # each line's own number of positions is a size too (one function per target, a pitch table's
     # resolution), where it lies between the first and the last
-    counts = {np.unique(np.round(np.asarray(s, dtype=float)[np.isfinite(s)], 3)).size for s, _, _ in series}
+    counts = {np.unique(np.round(np.asarray(ln[0], dtype=float)[np.isfinite(ln[0])], 3)).size for ln in series}
     sizes = sorted({int(n) for n in sizes} | {c for c in counts if sizes[0] < c < max(sizes)})
-    lines = []                                  # per line: {size: held-out score}
-    for s, y, run in series:
-        s, y, run = (np.asarray(v) for v in (s, y, run))
+    lines = []                                  # per line: (group, {size: held-out score})
+    for ln in series:
+        s, y, run = (np.asarray(v) for v in ln[:3])
+        group = ln[3] if len(ln) > 3 else ""
         ok = np.isfinite(s) & np.isfinite(y)
         s, y, run = s[ok].astype(float), y[ok].astype(float), run[ok]
         runs = np.unique(run)
@@ -234,23 +241,33 @@ def spline_size_by_cv(series, lo: float, hi: float, sizes=SPLINE_SIZES) -> tuple
             finest = max(n for n in sizes if n <= distinct.size)
             cols = _local_columns(x, y - base @ np.linalg.lstsq(base, y, rcond=None)[0], lo, hi, finest)
             rival = _held_out(np.hstack([base, cols]), y, run) / var
-            gain = score[sizes[0]] - min(score[n] for n in finer)
-            if gain > 0 and score[sizes[0]] - rival >= RIVAL_SHARE * gain:
-                # one period or one place explains what the finer bases gain: that is for diagnose
-                # to name (a periodic error, a local defect), not for the base to absorb
+            best = min(finer, key=lambda n: score[n])
+            gain = score[sizes[0]] - score[best]
+            # a rival with as many functions as the finer basis adds is no narrower than it (a line
+            # of few targets, whose default basis misses a few of them)
+            narrow = cols.shape[1] <= 0.5 * (best - sizes[0])
+            if gain > 0 and narrow and score[sizes[0]] - rival >= RIVAL_SHARE * gain:
+                # one place explains what the finer bases gain: that is for diagnose to name (a
+                # local defect), not for the base to absorb
                 score = {sizes[0]: score[sizes[0]]}
-        lines.append(score)
+        lines.append((group, score))
+    groups = sorted({g for g, _ in lines})
+    z = SIZE_CV_Z if len(groups) <= 1 else float(stats.norm.isf(stats.norm.sf(SIZE_CV_Z) / len(groups)))
     chosen = sizes[0]
-    for n in sizes[1:]:
-        both = [sc for sc in lines if n in sc]
-        if not both:
-            break
-        dk = (n - chosen) * len(both)
-        gain = sum(sc[chosen] - sc[n] for sc in both)
-        if gain > SIZE_CV_Z * np.sqrt(2.0 * dk) + dk:
-            chosen = n
-    totals = {n: float(sum(sc[n] for sc in lines if n in sc)) for n in sizes}
-    return chosen, {n: v for n, v in totals.items() if any(n in sc for sc in lines)}
+    for g in groups:
+        scores = [sc for gg, sc in lines if gg == g]
+        own = sizes[0]
+        for n in sizes[1:]:
+            both = [sc for sc in scores if n in sc]
+            if not both:
+                break
+            dk = (n - own) * len(both)
+            gain = sum(sc[own] - sc[n] for sc in both)
+            if gain > z * np.sqrt(2.0 * dk) + dk:
+                own = n
+        chosen = max(chosen, own)
+    totals = {n: float(sum(sc[n] for _, sc in lines if n in sc)) for n in sizes}
+    return chosen, {n: v for n, v in totals.items() if any(n in sc for _, sc in lines)}
 
 
 def _bspline_design(x, lo, hi, n):
@@ -287,9 +304,10 @@ LOCAL_WINDOW = 1.0 / 8.0
 
 def _local_columns(x, r, lo, hi, n_fine):
     """The narrow explanation a finer basis competes with on one line: the functions of the finest
-    basis the line can take (``n_fine``) over one window (``LOCAL_WINDOW`` of the line's span)
-    centred where the per-target mean of ``r`` (the residual of the default basis), smoothed over
-    five targets, peaks."""
+    basis the line can take (``n_fine``, by its number of targets alone: a defect may be narrower
+    than the ``MIN_KNOT_MM`` knots of the bases it competes with) over one window (``LOCAL_WINDOW``
+    of the line's span) centred where the per-target mean of ``r`` (the residual of the default
+    basis), smoothed over five targets, peaks."""
     ux, inv = np.unique(np.round(x, 3), return_inverse=True)
     mean = np.bincount(inv, weights=r) / np.bincount(inv)
     smooth = np.convolve(mean, np.ones(5) / 5.0, mode="same")

@@ -1,0 +1,103 @@
+"""The base's resolution along a linear axis, checked by the diagnosis on its own held-out data.
+
+The number of spline functions per axis is chosen before the fit from the laser lines that move one
+axis alone (:func:`mtcomp.models.basis.spline_size_by_cv`). A campaign can see finer shape than any
+such line tells: a straightness read at eleven laser targets whose ball-bar circles pass between
+them, a volumetric grid read with several set-ups. Structure then stays in the residual along that
+axis, and it is the base's resolution, not an effect. So, when the diagnosis ends with structure
+along a linear axis, the base at twice the resolution (every component of the axis, knots at least
+``MIN_KNOT_MM`` apart) is fitted beside the chosen model; when it earns its parameters on held-out
+data, as an extension must (BIC is not asked: most of the finer functions are only weakly determined,
+and BIC counts each direction at the full log n), and a window of its functions about the
+structure's peak does not explain the gain as well (that is a local defect, which the diagnosis must
+report), the axis asks for the finer base and the diagnosis is run again with it.
+
+The finer columns are the derivative of each reading with respect to a component's value at the
+row's position (recovered from the base's own Jacobian columns: d reading / d c_j = d reading / d E
+* phi_j(s)) times the finer functions. A reading that depends on one component at two positions (a
+two-point velocity) is not of that form and gets no finer column.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..models.basis import LOCAL_WINDOW, MIN_KNOT_MM, RIVAL_SHARE, spline_basis
+from ..models.chain import component_terms, linear_component_names, slope_carried
+
+#: at most this many refinements of the base in one diagnosis
+MAX_REFINEMENTS = 2
+
+
+def finer_base_columns(st, a: str):
+    """((n, m) columns, (m,) centre of each column's function (mm), the finer SplineBasis) of linear
+    axis ``a`` at twice the base's intervals (fewer when knots would come closer than
+    ``MIN_KNOT_MM``); None when the axis has no B-spline base or none finer is allowed."""
+    ax = st.machine.axis(a)
+    if ax.is_rotary or ax.basis != "bspline":
+        return None
+    base = ax.spline()
+    n_int = 2 * base.n_intervals
+    while n_int > base.n_intervals and (base.hi - base.lo) / n_int < MIN_KNOT_MM:
+        n_int -= 1
+    if n_int <= base.n_intervals:
+        return None
+    fine = spline_basis(base.lo, base.hi, n_int, base.degree)
+    s = st.q[:, st.machine.axis_names.index(a)]
+    cols, centres = [], []
+    for comp in linear_component_names(a):
+        carried = slope_carried(st.machine, comp)
+        names = [f"{comp}_{t}" for t in component_terms(st.machine, a, comp)]
+        if not names:
+            continue
+        Jc = st.columns(names)
+        phi = np.column_stack(base.functions(s, carried))
+        norm = np.sum(phi * phi, axis=1)
+        sens = np.sum(Jc * phi, axis=1) / np.where(norm > 0, norm, 1.0)
+        # rows not of the form sens * phi (one component read at two positions) get no column
+        off = np.abs(Jc - sens[:, None] * phi).max(axis=1) > 1e-6 * (np.abs(Jc).max(axis=1) + 1e-300)
+        sens[off] = 0.0
+        if not np.any(sens):
+            continue
+        kept = fine.kept(carried)
+        cols.append(sens[:, None] * np.column_stack(fine.functions(s, carried)))
+        centres.append(fine.lo + fine.h * (np.asarray(kept, dtype=float) - 1.0))
+    if not cols:
+        return None
+    return np.hstack(cols), np.concatenate(centres), fine
+
+
+def finer_base(st, design, extra, current, structure):
+    """(axis, finer SplineBasis, sentence) when the base at a finer resolution along a linear axis
+    the final ``structure`` names takes that structure (see the module docstring), else None.
+    ``extra``: the chosen extensions' columns; ``current``: their fit."""
+    from ._diagnose import cv_threshold
+    axes = []
+    for s in structure:
+        a = s.variable.split(" ")[0]
+        if s.variable.endswith(" position") and a in st.machine.axis_names and a not in axes:
+            axes.append(a)
+    for a in axes:
+        got = finer_base_columns(st, a)
+        if got is None:
+            continue
+        fine, centres, basis = got
+        fit = design.fit(np.hstack([extra, fine]))
+        dk = fit.rank - current.rank
+        gain = current.cv_sse - fit.cv_sse
+        if not (dk >= 1 and gain > cv_threshold(dk)):
+            continue
+        # the rival: the finer functions of one window about where the structure peaks
+        peak = next(s for s in structure if s.variable == f"{a} position")
+        c = 0.5 * (peak.lo + peak.hi)
+        half = 0.5 * max(peak.hi - peak.lo, LOCAL_WINDOW * (basis.hi - basis.lo)) + basis.h
+        window = np.abs(centres - c) <= half
+        if window.any():
+            rival = design.fit(np.hstack([extra, fine[:, window]]))
+            if (rival.rank - current.rank <= 0.5 * dk
+                    and current.cv_sse - rival.cv_sse >= RIVAL_SHARE * gain):
+                continue
+        text = (f"the base of {a} at {basis.n_basis} spline functions (knots {basis.h:.3g} mm apart) takes "
+                f"the structure along {a}: held-out sum of squares lower by {gain:.3g} noise variances "
+                f"for {dk} parameters, not in one place")
+        return a, basis, text
+    return None
