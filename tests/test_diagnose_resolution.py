@@ -2,7 +2,7 @@
 defect in one place (mtcomp.diagnose._resolution).
 
 The readings are written here from their definitions (numpy sines and a raised cosine, known noise)
-into a points file (SPEC 3.1); the machine's X base is fixed at 8 intervals over 600 mm (knots 75 mm
+into a points file (SPEC 3.1, every 2.5 mm, three runs); the machine's X base is fixed at 8 intervals over 600 mm (knots 75 mm
 apart), too coarse for a 150 mm wave.
 """
 from __future__ import annotations
@@ -26,7 +26,7 @@ def _machine():
 
 def _points(tmp_path, profile, seed=0):
     rng = np.random.default_rng(seed)
-    x = np.linspace(-300.0, 300.0, 121)
+    x = np.linspace(-300.0, 300.0, 241)             # 2.5 mm apart: a 20 mm bump is read at 8 positions
     rows = ["x_mm,y_mm,z_mm,dx_um,run"]
     for run in (1, 2, 3):
         for xi in x:

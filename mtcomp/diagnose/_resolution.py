@@ -5,12 +5,13 @@ axis alone (:func:`mtcomp.models.basis.spline_size_by_cv`). A campaign can see f
 such line tells: a straightness read at eleven laser targets whose ball-bar circles pass between
 them, a volumetric grid read with several set-ups. Structure then stays in the residual along that
 axis, and it is the base's resolution, not an effect. So, when the diagnosis ends with structure
-along a linear axis, the base at twice the resolution (every component of the axis, knots at least
-``MIN_KNOT_MM`` apart) is fitted beside the chosen model; when it earns its parameters on held-out
-data, as an extension must (BIC is not asked: most of the finer functions are only weakly determined,
-and BIC counts each direction at the full log n), and a window of its functions about the
-structure's peak does not explain the gain as well (that is a local defect, which the diagnosis must
-report), the axis asks for the finer base and the diagnosis is run again with it.
+along a linear axis, each component of the axis at twice the resolution (knots at least
+``MIN_KNOT_MM`` apart) is fitted beside the chosen model. When the one that gains most earns its
+parameters on held-out data, as an extension must (BIC is not asked: most of the finer functions are
+only weakly determined, and BIC counts each direction at the full log n), and a window of its
+functions about the structure's peak does not explain the gain as well, there (that is a local
+defect, which the diagnosis must report), the axis asks for the finer base and the diagnosis is run again
+with it.
 
 The finer columns are the derivative of each reading with respect to a component's value at the
 row's position (recovered from the base's own Jacobian columns: d reading / d c_j = d reading / d E
@@ -26,12 +27,20 @@ from ..models.chain import component_terms, linear_component_names, slope_carrie
 
 #: at most this many refinements of the base in one diagnosis
 MAX_REFINEMENTS = 2
+#: the structure's peak must span this many positions read for a window to be its rival (a defect)
+MIN_DEFECT_POSITIONS = 4
+#: ... and the window's functions must gain at least this share of their held-out gain on the
+#: readings inside the window (a defect's bump about 0.8, with the base's overshoot beside it; a
+#: wave two knot intervals long, which a few finer functions anywhere let the coarse ones follow
+#: everywhere, about 0.4)
+LOCAL_SHARE = 2.0 / 3.0
 
 
 def finer_base_columns(st, a: str):
-    """((n, m) columns, (m,) centre of each column's function (mm), the finer SplineBasis) of linear
-    axis ``a`` at twice the base's intervals (fewer when knots would come closer than
-    ``MIN_KNOT_MM``); None when the axis has no B-spline base or none finer is allowed."""
+    """({component: ((n, m) columns, (m,) centre of each column's function, mm)}, the finer
+    SplineBasis) of linear axis ``a`` at twice the base's intervals (fewer when knots would come
+    closer than ``MIN_KNOT_MM``); components the data do not read are absent. None when the axis has
+    no B-spline base or none finer is allowed."""
     ax = st.machine.axis(a)
     if ax.is_rotary or ax.basis != "bspline":
         return None
@@ -43,7 +52,7 @@ def finer_base_columns(st, a: str):
         return None
     fine = spline_basis(base.lo, base.hi, n_int, base.degree)
     s = st.q[:, st.machine.axis_names.index(a)]
-    cols, centres = [], []
+    out = {}
     for comp in linear_component_names(a):
         carried = slope_carried(st.machine, comp)
         names = [f"{comp}_{t}" for t in component_terms(st.machine, a, comp)]
@@ -58,12 +67,12 @@ def finer_base_columns(st, a: str):
         sens[off] = 0.0
         if not np.any(sens):
             continue
-        kept = fine.kept(carried)
-        cols.append(sens[:, None] * np.column_stack(fine.functions(s, carried)))
-        centres.append(fine.lo + fine.h * (np.asarray(kept, dtype=float) - 1.0))
-    if not cols:
+        kept = np.asarray(fine.kept(carried), dtype=float)
+        out[comp] = (sens[:, None] * np.column_stack(fine.functions(s, carried)),
+                     fine.lo + fine.h * (kept - 1.0))          # centre of B_j's support
+    if not out:
         return None
-    return np.hstack(cols), np.concatenate(centres), fine
+    return out, fine
 
 
 def finer_base(st, design, extra, current, structure):
@@ -80,10 +89,15 @@ def finer_base(st, design, extra, current, structure):
         got = finer_base_columns(st, a)
         if got is None:
             continue
-        fine, centres, basis = got
-        fit = design.fit(np.hstack([extra, fine]))
-        dk = fit.rank - current.rank
-        gain = current.cv_sse - fit.cv_sse
+        by_comp, basis = got
+        # each component on its own (one finer than the others must not be diluted by them); the
+        # one that gains most speaks for the axis: when a window takes its gain, the structure is a
+        # defect in one place, and what the others gain is the defect's leak into them
+        tried = []
+        for comp, (fine, centres) in by_comp.items():
+            fit = design.fit(np.hstack([extra, fine]))
+            tried.append((current.cv_sse - fit.cv_sse, fit.rank - current.rank, comp, fine, centres))
+        gain, dk, comp, fine, centres = max(tried, key=lambda t: t[0])
         if not (dk >= 1 and gain > cv_threshold(dk)):
             continue
         # the rival: the finer functions of one window about where the structure peaks
@@ -91,13 +105,23 @@ def finer_base(st, design, extra, current, structure):
         c = 0.5 * (peak.lo + peak.hi)
         half = 0.5 * max(peak.hi - peak.lo, LOCAL_WINDOW * (basis.hi - basis.lo)) + basis.h
         window = np.abs(centres - c) <= half
-        if window.any():
+        # a defect is a shape read at several positions; a peak at one or two targets of a coarse
+        # line is the profile between them, not a place
+        k = st.machine.axis_names.index(a)
+        x = st.q[st.series == peak.series, k]
+        resolved = np.unique(np.round(x[(x >= peak.lo) & (x <= peak.hi)], 3)).size >= MIN_DEFECT_POSITIONS
+        if window.any() and resolved:
             rival = design.fit(np.hstack([extra, fine[:, window]]))
-            if (rival.rank - current.rank <= 0.5 * dk
+            # ... and a rival in one place gains there: a wave at the knots' own scale is also
+            # taken by a few finer functions anywhere, which free the coarse ones everywhere
+            each = np.nan_to_num((current.cv_resid ** 2 - rival.cv_resid ** 2) * design.w ** 2)
+            inside = np.abs(st.q[:, k] - c) <= half
+            local = each[inside].sum() >= LOCAL_SHARE * each.sum()
+            if (local and rival.rank - current.rank <= 0.5 * dk
                     and current.cv_sse - rival.cv_sse >= RIVAL_SHARE * gain):
                 continue
-        text = (f"the base of {a} at {basis.n_basis} spline functions (knots {basis.h:.3g} mm apart) takes "
-                f"the structure along {a}: held-out sum of squares lower by {gain:.3g} noise variances "
-                f"for {dk} parameters, not in one place")
+        text = (f"the base of {a} at {basis.n_basis} spline functions (knots {basis.h:.3g} mm apart) "
+                f"takes the structure along {a}: {comp} alone on them lowers the held-out sum of "
+                f"squares by {gain:.3g} noise variances for {dk} parameters, not in one place")
         return a, basis, text
     return None

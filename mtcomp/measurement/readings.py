@@ -96,11 +96,10 @@ def data_positions(machine, datasets) -> dict[str, np.ndarray]:
 
 def single_axis_lines(machine, datasets) -> dict[str, list]:
     """Linear axis name -> the measured lines of the laser files that move it: one (target mm,
-    value, run, group) per (file, component, optic offset, static position, feed, approach direction
-    of the axis), the group naming the file and component (the profile the line follows), for
-    :func:`mtcomp.models.basis.spline_size_by_cv`. Axes X, Y and Z only."""
+    value, run) triple per (file, component, optic offset, static position, feed, approach direction
+    of the axis), for :func:`mtcomp.models.basis.spline_size_by_cv`. Axes X, Y and Z only."""
     out: dict[str, list] = {}
-    for i, d in enumerate(datasets):
+    for d in datasets:
         data = d.data if isinstance(d, MeasurementModel) else d
         if getattr(data, "kind", "") != "laser" or len(data) == 0:
             continue
@@ -121,8 +120,7 @@ def single_axis_lines(machine, datasets) -> dict[str, list]:
                 ix = np.flatnonzero(sel)
                 for g in np.unique(line):
                     j = ix[line.ravel() == g]
-                    out.setdefault(a, []).append((data.target[j], data.value[j], data.run[j],
-                                                  f"{i}:{comp}"))
+                    out.setdefault(a, []).append((data.target[j], data.value[j], data.run[j]))
     return out
 
 

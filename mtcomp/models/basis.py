@@ -191,34 +191,30 @@ def spline_size_by_cv(series, lo: float, hi: float, sizes=SPLINE_SIZES) -> tuple
     """The number of cubic B-spline functions over [lo, hi] that single-axis runs ask for, chosen by
     leave-one-run-out cross-validation.
 
-    series : list of (s, y, run) or (s, y, run, group) arrays, one per measured line (a laser file's
-        component at one optic offset, static position, feed and approach direction): position (mm),
-        reading (any unit), run number, and a label of the profile the line follows (default: one
-        for all). Each line is modelled as a spline of s alone (its own profile, which absorbs the
-        laser zero and the Abbe offsets of that line), fitted with one run left out and scored on
-        it, in units of that line's noise variance (the scatter of repeated readings about their
+    series : list of (s, y, run) arrays, one per measured line (a laser file's component at one
+        optic offset, static position, feed and approach direction): position (mm), reading (any
+        unit), run number. Each is modelled as a spline of s alone (its own profile, which absorbs
+        the laser zero and the Abbe offsets of that line), fitted with one run left out and scored
+        on it, in units of that line's noise variance (the scatter of repeated readings about their
         target's mean).
     sizes : candidate numbers of functions, increasing; the first is the default. Each line's number
         of distinct positions between the first and the last is tried too.
 
-    Each group (one error component, say) asks for its own size: a size replaces a smaller one when
-    it lowers the group's summed held-out score by more than ``z * sqrt(2 dk) + dk`` (dk: the
-    functions it adds over the group's lines that can take it; z is ``SIZE_CV_Z``, Bonferroni-
-    corrected for the number of groups), on the lines that can take both. The axis takes the most
-    any group asks for (one component finer than the others must not be averaged away by them). A
-    line with fewer than two runs, or no more distinct positions than the first size, says nothing;
-    one with fewer distinct positions than a size says nothing about that size. Returns (size,
-    {size: summed score}); the first size when no line can tell.
+    A size replaces a smaller one only when it lowers the summed held-out score by more than
+    ``SIZE_CV_Z * sqrt(2 dk) + dk`` (dk: the functions it adds over the lines that can take it), on
+    the lines that can take both. A line with fewer than two runs, or no more distinct positions
+    than the first size, says nothing; one with fewer distinct positions than a size says nothing
+    about that size. Returns (size, {size: summed score}); the first size when no line can tell.
+    (A component finer than the others of its axis may be averaged away here; diagnose checks the
+    final residual component by component, mtcomp.diagnose._resolution.)
     """
-    from scipy import stats
     # each line's own number of positions is a size too (one function per target, a pitch table's
     # resolution), where it lies between the first and the last
-    counts = {np.unique(np.round(np.asarray(ln[0], dtype=float)[np.isfinite(ln[0])], 3)).size for ln in series}
+    counts = {np.unique(np.round(np.asarray(s, dtype=float)[np.isfinite(s)], 3)).size for s, _, _ in series}
     sizes = sorted({int(n) for n in sizes} | {c for c in counts if sizes[0] < c < max(sizes)})
-    lines = []                                  # per line: (group, {size: held-out score})
-    for ln in series:
-        s, y, run = (np.asarray(v) for v in ln[:3])
-        group = ln[3] if len(ln) > 3 else ""
+    lines = []                                  # per line: {size: held-out score}
+    for s, y, run in series:
+        s, y, run = (np.asarray(v) for v in (s, y, run))
         ok = np.isfinite(s) & np.isfinite(y)
         s, y, run = s[ok].astype(float), y[ok].astype(float), run[ok]
         runs = np.unique(run)
@@ -243,31 +239,26 @@ def spline_size_by_cv(series, lo: float, hi: float, sizes=SPLINE_SIZES) -> tuple
             rival = _held_out(np.hstack([base, cols]), y, run) / var
             best = min(finer, key=lambda n: score[n])
             gain = score[sizes[0]] - score[best]
-            # a rival with as many functions as the finer basis adds is no narrower than it (a line
-            # of few targets, whose default basis misses a few of them)
-            narrow = cols.shape[1] <= 0.5 * (best - sizes[0])
+            # a window holding as many functions as the line has targets beyond the default size is
+            # no narrower than the line itself (21 targets: the default misses a few of them, and
+            # any few are "one place")
+            narrow = cols.shape[1] <= 0.5 * (distinct.size - sizes[0])
             if gain > 0 and narrow and score[sizes[0]] - rival >= RIVAL_SHARE * gain:
                 # one place explains what the finer bases gain: that is for diagnose to name (a
                 # local defect), not for the base to absorb
                 score = {sizes[0]: score[sizes[0]]}
-        lines.append((group, score))
-    groups = sorted({g for g, _ in lines})
-    z = SIZE_CV_Z if len(groups) <= 1 else float(stats.norm.isf(stats.norm.sf(SIZE_CV_Z) / len(groups)))
+        lines.append(score)
     chosen = sizes[0]
-    for g in groups:
-        scores = [sc for gg, sc in lines if gg == g]
-        own = sizes[0]
-        for n in sizes[1:]:
-            both = [sc for sc in scores if n in sc]
-            if not both:
-                break
-            dk = (n - own) * len(both)
-            gain = sum(sc[own] - sc[n] for sc in both)
-            if gain > z * np.sqrt(2.0 * dk) + dk:
-                own = n
-        chosen = max(chosen, own)
-    totals = {n: float(sum(sc[n] for _, sc in lines if n in sc)) for n in sizes}
-    return chosen, {n: v for n, v in totals.items() if any(n in sc for _, sc in lines)}
+    for n in sizes[1:]:
+        both = [sc for sc in lines if n in sc]
+        if not both:
+            break
+        dk = (n - chosen) * len(both)
+        gain = sum(sc[chosen] - sc[n] for sc in both)
+        if gain > SIZE_CV_Z * np.sqrt(2.0 * dk) + dk:
+            chosen = n
+    totals = {n: float(sum(sc[n] for sc in lines if n in sc)) for n in sizes}
+    return chosen, {n: v for n, v in totals.items() if any(n in sc for sc in lines)}
 
 
 def _bspline_design(x, lo, hi, n):
