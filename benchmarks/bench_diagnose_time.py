@@ -51,11 +51,11 @@ def main(argv=None):
             for _ in range(args.runs):
                 with tempfile.TemporaryDirectory() as cache:
                     env = dict(os.environ, MTCOMP_CACHE_DIR=cache,
-                               PYTHONPATH=os.pathsep.join([tests, os.environ.get("PYTHONPATH", "")]))
+                               PYTHONPATH=os.pathsep.join(p for p in (tests, os.environ.get("PYTHONPATH")) if p))
                     out = subprocess.run([sys.executable, "-c", CHILD, str(seed), effect, topo,
                                           "1" if whole else "0"], env=env, capture_output=True, text=True)
                     if out.returncode:
-                        sys.exit(out.stderr.strip().splitlines()[-1])
+                        sys.exit((out.stderr.strip().splitlines() or [f"child exited {out.returncode}"])[-1])
                     r, t, verdict = out.stdout.split()
                     rows, times = int(r), times + [float(t)]
             print(f"seed {seed} {topo:7} {'whole campaign' if whole else 'without points '} {rows:6d} rows: "

@@ -175,23 +175,33 @@ def test_hidden_effect_on_the_independent_machine(seed, effect, kind, topology, 
     sc = score(case, d)
     assert sc.right and not sc.wrong, [(f.effect, f.axis) for f in d.findings]
     assert d.verdict == ("unexplained" if effect == "local_defect" else "explained")
-    assert sc.ratio < 1.2 or effect == "local_defect"
+    # a defect stays in the residual (it is reported, not modelled): a looser bound there
+    assert sc.ratio < (1.2 if effect != "local_defect" else 1.6)
 
 
-@pytest.mark.parametrize("seed,kind,topology", [
+@pytest.mark.parametrize("seed,kind,topology,axis", [
     # the truth's profiles of Y are finer than 16 functions follow over 540 mm: the fine run's held-out
     # runs ask for 24, and nothing is left (it ended 'unexplained Y' with 16)
-    (9015, "laser", "cafxyz"),
+    (9015, "laser", "cafxyz", "Y"),
     # the same on Y and Z of a rich campaign (ended 'unexplained Y')
-    (9181, "rich", "xfyz"),
+    (9181, "rich", "xfyz", "Y"),
+    # the pitch of Z (EBZ) read at 21 targets is finer than the positioning lines ask for: the
+    # diagnosis's own check, component by component, refines Z (it ended 'unexplained Z')
+    (20089, "laser", "xfyz", "Z"),
+    # the yaw of Y (ECY) seen by laser and ball-bar circles together (ended 'unexplained Y')
+    (20043, "mixture", "cafxyz", "Y"),
+    # ball-bar circles at two feeds share 12 poses: their 12 dof gave a noise floor a third low, and
+    # the held-out rms looked 1.5 times the noise (now the floor comes from successive differences)
+    (20036, "ballbar", "xfyz", None),
 ])
-def test_clean_campaign_finer_than_the_default_base_raises_no_alarm(seed, kind, topology, tmp_path):
+def test_clean_campaign_finer_than_the_default_base_raises_no_alarm(seed, kind, topology, axis, tmp_path):
     case = hidden_case(seed, "", kind, topology, tmp_path)
     d, _ = run(case)
     assert d.findings == [] and d.verdict == "none"
     assert score(case, d).ratio < 1.1
-    y = d.model.model.machine.axis("Y")
-    assert y.spline_intervals + y.degree > 16          # the base's functions along Y
+    if axis:
+        ax = d.model.model.machine.axis(axis)
+        assert ax.spline_intervals + ax.degree > 16          # the base's functions along the axis
 
 
 def test_periodic_error_refused_where_a_finer_profile_explains_the_line(tmp_path):

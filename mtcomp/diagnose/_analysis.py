@@ -336,7 +336,8 @@ def parts_agree(st, resid, axis: str, period: float) -> tuple[bool, str]:
     does not)? The travel's readings are cut into thirds of equal count (halves when a third is
     shorter than one period; a bump in the middle of a run fits a sine in each half, mirrored, but
     not in the outer thirds). Needs the sine significant (amplitude > 5 se) in each part, its
-    amplitudes within :data:`AMPLITUDE_RATIO`, and phases within 45 deg. Returns (agree, sentence)."""
+    amplitudes within :data:`AMPLITUDE_RATIO`, and each part's phase within 45 deg of the lower
+    part's. Returns (agree, sentence)."""
     ser = axis_series(st, resid, axis)
     if ser is None:
         return False, "too few readings"
@@ -344,7 +345,9 @@ def parts_agree(st, resid, axis: str, period: float) -> tuple[bool, str]:
     names = {3: ("lower", "middle", "upper"), 2: ("lower", "upper")}
     for n_parts in (3, 2):
         edges = np.quantile(x, np.linspace(0.0, 1.0, n_parts + 1))
-        parts = [(x >= lo) & (x <= hi) for lo, hi in zip(edges[:-1], edges[1:])]
+        # half-open parts (the last one closed): a reading on an edge counts once
+        parts = [(x >= lo) & ((x < hi) if k < n_parts - 1 else (x <= hi))
+                 for k, (lo, hi) in enumerate(zip(edges[:-1], edges[1:]))]
         if all(p.sum() >= 8 and np.ptp(x[p]) >= period for p in parts):
             break
     else:
@@ -359,7 +362,7 @@ def parts_agree(st, resid, axis: str, period: float) -> tuple[bool, str]:
     ok = all(f[0] > 5 * f[2] for f in fits) and max(amps) < ratio * min(amps) and dphi < np.radians(45)
     which = "third" if n_parts == 3 else "half"
     text = ("amplitude " + ", ".join(f"{a_:.3g}" for a_ in amps) + " in the "
-            + ", ".join(names[n_parts]) + f" {which} of the travel, phases within {np.degrees(dphi):.0f} deg")
+            + ", ".join(names[n_parts]) + f" {which} of the travel, phases within {np.degrees(dphi):.0f} deg of the lower one")
     return bool(ok), text
 
 

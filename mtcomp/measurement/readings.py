@@ -138,7 +138,8 @@ def data_spline_sizes(machine, datasets) -> dict[str, int]:
         ax = machine.axis(a)
         if not ax.basis_from_data or a not in ranges or not ranges[a][1] > ranges[a][0]:
             continue
-        n, _ = spline_size_by_cv(ls, *ranges[a])
+        # over the range the knots will span: the machine file's when it fixes one
+        n, _ = spline_size_by_cv(ls, *(ax.spline_range or ranges[a]))
         out[a] = n
     return out
 

@@ -185,6 +185,15 @@ SPLINE_SIZES = (16, 20, 24, 32, 40, 48, 64)
 #: a larger basis must lower the held-out sum of squares (in noise variances) by this many standard
 #: deviations of a chi-square with the added functions as degrees of freedom, plus their number
 SIZE_CV_Z = 2.0
+#: the closest knots a finer basis may have (mm): a cubic spline on knots h apart follows little of a
+#: sine shorter than 2.5 h, so the base leaves what repeats at a ball screw's lead (5 to 40 mm) to
+#: diagnose, which names it a periodic error
+MIN_KNOT_MM = 16.0
+#: a line whose finer bases gain (held-out) at most 1 / this share more than one window of fine
+#: functions gains does not ask for a finer basis
+RIVAL_SHARE = 0.9
+#: the window of the local rival of a finer basis, as a share of the line's span
+LOCAL_WINDOW = 1.0 / 8.0
 
 
 def spline_size_by_cv(series, lo: float, hi: float, sizes=SPLINE_SIZES) -> tuple[int, dict]:
@@ -280,17 +289,6 @@ def _held_out(X, y, run) -> float:
         c, *_ = np.linalg.lstsq(X[~out], y[~out], rcond=None)
         sse += float(np.sum((y[out] - X[out] @ c) ** 2))
     return sse
-
-
-#: the closest knots a finer basis may have (mm): a cubic spline on knots h apart follows little of a
-#: sine shorter than 2.5 h, so the base leaves what repeats at a ball screw's lead (5 to 40 mm) to
-#: diagnose, which names it a periodic error
-MIN_KNOT_MM = 16.0
-#: a line whose finer bases gain (held-out) at most 1 / this share more than one sinusoid or one
-#: window of fine functions gains does not ask for a finer basis
-RIVAL_SHARE = 0.9
-#: the window of the local rival of a finer basis, as a share of the line's span
-LOCAL_WINDOW = 1.0 / 8.0
 
 
 def _local_columns(x, r, lo, hi, n_fine):

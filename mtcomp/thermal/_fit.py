@@ -277,24 +277,3 @@ def choose(scores: list[CandidateScore]) -> CandidateScore:
     simpler = [s for s in finite if s.complexity < best.complexity
                and s.total_sse <= (1.0 + PARSIMONY) * best.total_sse]
     return min(simpler, key=lambda s: s.complexity) if simpler else best
-
-
-def forward_in_time_sse(design, extra: np.ndarray, t: np.ndarray, n_folds: int = N_FOLDS) -> float:
-    """Weighted sum of squares of a diagnose design (mtcomp.diagnose._linalg.Design) plus ``extra``
-    columns, predicted forward in time: observations with a time, cut into ``n_folds + 1`` blocks of
-    equal count in time order, each of the last ``n_folds`` predicted by weighted least squares on the
-    blocks before it (minimum-norm in directions the past does not determine). NaN without enough
-    timed observations."""
-    t = np.asarray(t, dtype=float)
-    timed = np.flatnonzero(np.isfinite(t))
-    if timed.size < 2 * (n_folds + 1) or np.ptp(t[timed]) <= 0:
-        return float("nan")
-    order = timed[np.argsort(t[timed], kind="stable")]
-    M = np.hstack([design.A, np.asarray(extra, dtype=float).reshape(design.n, -1)])
-    Mw = M * design.w[:, None]
-    sse = 0.0
-    for train, test in forward_folds(order.size, n_folds):
-        tr, te = order[train], order[test]
-        sol = np.linalg.lstsq(Mw[tr], design.zw[tr], rcond=1e-10)[0]
-        sse += float(np.sum((design.zw[te] - Mw[te] @ sol) ** 2))
-    return sse
