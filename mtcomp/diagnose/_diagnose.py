@@ -210,14 +210,29 @@ def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int 
     say = progress or (lambda s: None)
     refine: dict = {}
     with single_threaded_blas():
-        while True:
-            diag, finer = _diagnose(machine, datasets, progress, max_findings, start, refine,
-                                    may_refine=len(refine) < MAX_REFINEMENTS)
-            if finer is None:
-                return diag
+        diag, finer = _diagnose(machine, datasets, progress, max_findings, start, refine, may_refine=True)
+        while finer is not None:
             a, basis, text = finer
-            refine[a] = basis
             say(f"{text}: diagnosed again with it")
+            again, finer = _diagnose(machine, datasets, progress, max_findings, start, {**refine, a: basis},
+                                     may_refine=len(refine) + 1 < MAX_REFINEMENTS)
+            # the finer base must pay on the diagnosis's own held-out data, once the extensions
+            # are chosen again on it
+            if not _final_heldout(again) < _final_heldout(diag):
+                say(f"the finer base of {a} does not lower the final held-out rms "
+                    f"({_final_heldout(again):.4g} against {_final_heldout(diag):.4g}): kept the base before")
+                break
+            diag, refine = again, {**refine, a: basis}
+        return diag
+
+
+def _final_heldout(diag) -> float:
+    """The final held-out rms of a diagnosis: um readings, else urad (inf when there is none)."""
+    for key in ("heldout_rms_um", "heldout_rms_urad"):
+        h = diag.final.get(key)
+        if h is not None and np.isfinite(h):
+            return float(h)
+    return float("inf")
 
 
 def _start_point(machine, start):
@@ -231,8 +246,8 @@ def _start_point(machine, start):
 
 
 def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None, may_refine=False):
-    """(Diagnosis, None), or (None, (axis, finer basis, sentence)) when ``may_refine`` and the final
-    structure is the base's resolution along a linear axis (:func:`_resolution.finer_base`).
+    """(Diagnosis, None), or (Diagnosis, (axis, finer basis, sentence)) when ``may_refine`` and the
+    final structure is the base's resolution along a linear axis (:func:`_resolution.finer_base`).
     ``refine``: axis -> SplineBasis that replaces the data-chosen base of that axis."""
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
@@ -406,12 +421,11 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     # a right model still predicts held-out readings a little worse than the noise: sqrt(1 + p/n_fit)
     inflation = np.sqrt(1.0 + current.rank / max(n * (design.K - 1) / max(design.K, 1), 1.0))
     verdict = "none" if not findings else "explained"
+    finer = None
     if structure and may_refine:
         from ._resolution import finer_base
         extra_all = np.hstack([c.columns for c in chosen]) if chosen else np.zeros((len(st), 0))
         finer = finer_base(st, design, extra_all, current, structure)
-        if finer is not None:
-            return None, finer
     if structure or excess > EXCESS_RATIO * inflation:
         verdict = "unexplained"
         findings.append(_unexplained(st, current, structure, excess, noise_main))
@@ -426,7 +440,7 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     model.held = data_held(st.machine, datasets)
     diag.seconds = time.perf_counter() - t0
     model.info["diagnose"] = diag.to_dict()
-    return diag, None
+    return diag, finer
 
 
 def _forward_in_time(st, design, extra, cands) -> None:

@@ -10,8 +10,9 @@ along a linear axis, each component of the axis at twice the resolution (knots a
 parameters on held-out data, as an extension must (BIC is not asked: most of the finer functions are
 only weakly determined, and BIC counts each direction at the full log n), and a window of its
 functions about the structure's peak does not explain the gain as well, there (that is a local
-defect, which the diagnosis must report), the axis asks for the finer base and the diagnosis is run again
-with it.
+defect, which the diagnosis must report, and no axis is refined), the axis asks for the finer base and the
+diagnosis is run again with it. When the axis asks for none, the other linear axes the structure's
+series moves are tried the same way.
 
 The finer columns are the derivative of each reading with respect to a component's value at the
 row's position (recovered from the base's own Jacobian columns: d reading / d c_j = d reading / d E
@@ -80,11 +81,18 @@ def finer_base(st, design, extra, current, structure):
     the final ``structure`` names takes that structure (see the module docstring), else None.
     ``extra``: the chosen extensions' columns; ``current``: their fit."""
     from ._diagnose import cv_threshold
+    # the axis the structure runs along first, then the other linear axes its series moves (a
+    # ball-bar circle's extreme in Y is where Z turns too)
     axes = []
     for s in structure:
         a = s.variable.split(" ")[0]
         if s.variable.endswith(" position") and a in st.machine.axis_names and a not in axes:
             axes.append(a)
+    for s in structure:
+        rows = st.series == s.series
+        for k, a in enumerate(st.machine.axis_names):
+            if a not in axes and not st.machine.axis(a).is_rotary and np.ptp(st.q[rows, k]) > 0:
+                axes.append(a)
     for a in axes:
         got = finer_base_columns(st, a)
         if got is None:
@@ -101,7 +109,12 @@ def finer_base(st, design, extra, current, structure):
         if not (dk >= 1 and gain > cv_threshold(dk)):
             continue
         # the rival: the finer functions of one window about where the structure peaks
-        peak = next(s for s in structure if s.variable == f"{a} position")
+        peak = next((s for s in structure if s.variable == f"{a} position"), None)
+        if peak is None:
+            text = (f"the base of {a} at {basis.n_basis} spline functions (knots {basis.h:.3g} mm apart) "
+                    f"takes the structure: {comp} alone on them lowers the held-out sum of squares by "
+                    f"{gain:.3g} noise variances for {dk} parameters")
+            return a, basis, text
         c = 0.5 * (peak.lo + peak.hi)
         half = 0.5 * max(peak.hi - peak.lo, LOCAL_WINDOW * (basis.hi - basis.lo)) + basis.h
         window = np.abs(centres - c) <= half
@@ -119,7 +132,7 @@ def finer_base(st, design, extra, current, structure):
             local = each[inside].sum() >= LOCAL_SHARE * each.sum()
             if (local and rival.rank - current.rank <= 0.5 * dk
                     and current.cv_sse - rival.cv_sse >= RIVAL_SHARE * gain):
-                continue
+                return None                 # a defect: no other axis is refined to take its leak
         text = (f"the base of {a} at {basis.n_basis} spline functions (knots {basis.h:.3g} mm apart) "
                 f"takes the structure along {a}: {comp} alone on them lowers the held-out sum of "
                 f"squares by {gain:.3g} noise variances for {dk} parameters, not in one place")
