@@ -216,23 +216,24 @@ def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int 
             say(f"{text}: diagnosed again with it")
             again, finer = _diagnose(machine, datasets, progress, max_findings, start, {**refine, a: basis},
                                      may_refine=len(refine) + 1 < MAX_REFINEMENTS)
-            # the finer base must pay on the diagnosis's own held-out data, once the extensions
-            # are chosen again on it
-            if not _final_heldout(again) < _final_heldout(diag):
-                say(f"the finer base of {a} does not lower the final held-out rms "
-                    f"({_final_heldout(again):.4g} against {_final_heldout(diag):.4g}): kept the base before")
+            # the finer base must hold on the diagnosis's own held-out data, once the extensions are
+            # chosen again on it: no worse than noise could make it (2 sd of a chi-square with the
+            # directions it adds)
+            slack = 2.0 * np.sqrt(2.0 * max(abs(again.rank - diag.rank), 1))
+            if not _final_heldout(again) < _final_heldout(diag) + slack:
+                say(f"the finer base of {a} predicts held-out data worse "
+                    f"({_final_heldout(again):.4g} against {_final_heldout(diag):.4g} noise variances): "
+                    "kept the base before")
                 break
             diag, refine = again, {**refine, a: basis}
         return diag
 
 
 def _final_heldout(diag) -> float:
-    """The final held-out rms of a diagnosis: um readings, else urad (inf when there is none)."""
-    for key in ("heldout_rms_um", "heldout_rms_urad"):
-        h = diag.final.get(key)
-        if h is not None and np.isfinite(h):
-            return float(h)
-    return float("inf")
+    """The final held-out sum of squares of a diagnosis in noise variances, all readings (um and
+    urad alike); inf when there is none."""
+    h = getattr(diag, "heldout_sse", None)
+    return float(h) if h is not None and np.isfinite(h) else float("inf")
 
 
 def _start_point(machine, start):
@@ -434,6 +435,8 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     diag = Diagnosis(verdict, noise, base_metrics, findings, final_metrics, model, how, len(st),
                      rejected=rejected, reference=reference)
     diag.folds_of_observations = folds
+    diag.heldout_sse = current.cv_sse               # in noise variances, every unit class
+    diag.rank = current.rank
     diag.outliers = outliers
     from ..measurement.readings import data_held, data_support
     model.support = data_support(st.machine, datasets)
