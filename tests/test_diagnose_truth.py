@@ -157,6 +157,9 @@ def test_thermal_diagnose_prints_its_table_once(tmp_path, capsys):
     # a 32 mm period of Z, a little longer than the base's knot spacing (28 mm): a rival on twice the
     # base's functions followed it and refused it; the rival's knots are now 32 / 1.5 mm apart
     (9152, "periodic_error", "mixture", "xfyz", None),
+    # a 32 mm period of X whose fine run asks for the base's finest knots (16 mm): the rival on twice
+    # the base's intervals (8 mm) followed the sine, finer than any base may be; it is capped at 16 mm
+    (9650, "periodic_error", "rich", "xfyz", None),
     # a settling drift in time seen by a thermal file and by laser runs of X taken meanwhile: checked
     # forward in time it lost to the model without it, because the early runs of X could not predict
     # the set-ups of the later files (now only the drift's law is predicted forward)
@@ -207,20 +210,21 @@ def test_clean_campaign_finer_than_the_default_base_raises_no_alarm(seed, kind, 
         assert ax.spline_intervals + ax.degree > 16          # the base's functions along the axis
 
 
-def test_periodic_error_refused_where_a_finer_profile_explains_the_line(tmp_path):
+def test_a_profile_finer_than_the_default_base_is_no_periodic_error(tmp_path):
     """Seed 7016's laser runs (backlash of Y hidden): the truth's positioning profile of Y (a real
     ISO 230-2 shape interpolated through its targets) wiggles faster than the base's 16 spline
-    functions follow. That line was named a periodic error of Y; now the sine must replicate in each
-    third of the travel and beat the base at a finer resolution, it does not, and the report says so
-    (what remains stays 'unexplained')."""
+    functions follow. That line was once named a periodic error of Y; then refused (it does not
+    replicate along the travel, and a finer profile explains it) and left 'unexplained'. Now the
+    fine run's lines are taken one approach direction at a time, the backlash no longer counts as
+    noise of the repeats, the base follows the profile, and backlash alone explains the data."""
     case = hidden_case(7016, "backlash", "laser", "cbfxyz", tmp_path)
     d, _ = run(case)
-    refused = [r for r in d.rejected if r["effect"] == "periodic_error"]
-    assert refused and all(r["axis"] == "Y" for r in refused), d.rejected
-    # refused by the rival, or before it by the thirds of the travel (amplitudes 0.29, 0.37, 0.18)
-    assert ("explains the line as well" in refused[0]["reason"]
-            or "does not replicate along the travel" in refused[0]["reason"]), refused
-    assert "periodic_error" not in {f.effect for f in d.findings}
+    sc = score(case, d)
+    assert sc.right and not sc.wrong, [(f.effect, f.axis) for f in d.findings]
+    assert [(f.effect, f.axis) for f in d.findings] == [("backlash", "Y")]
+    assert d.verdict == "explained" and sc.ratio < 1.1
+    y = d.model.model.machine.axis("Y")
+    assert y.spline_intervals + y.degree > 16
 
 
 def test_feed_abbe_whose_angle_grows_and_whose_centre_moves_is_one_finding(tmp_path):
