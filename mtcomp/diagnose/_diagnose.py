@@ -211,6 +211,9 @@ def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int 
     refine: dict = {}
     with single_threaded_blas():
         diag, finer = _diagnose(machine, datasets, progress, max_findings, start, refine, may_refine=True)
+        # every run is scored with the first run's noise floor: a floor estimated from the
+        # residual (no repeats) would move with the base
+        sigma = {u: nz.sigma for u, nz in diag.noise.items()}
         while finer is not None:
             a, basis, text = finer
             say(f"{text}: diagnosed again with it")
@@ -220,20 +223,25 @@ def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int 
             # chosen again on it: no worse than noise could make it (2 sd of a chi-square with the
             # directions it adds)
             slack = 2.0 * np.sqrt(2.0 * max(abs(again.rank - diag.rank), 1))
-            if not _final_heldout(again) < _final_heldout(diag) + slack:
-                say(f"the finer base of {a} predicts held-out data worse "
-                    f"({_final_heldout(again):.4g} against {_final_heldout(diag):.4g} noise variances): "
-                    "kept the base before")
+            before, after = _heldout_sse(diag, sigma), _heldout_sse(again, sigma)
+            if not after < before + slack:
+                say(f"the finer base of {a} predicts held-out data worse ({after:.4g} against {before:.4g} "
+                    "noise variances): kept the base before")
+                diag.rejected.append({"effect": "finer base", "axis": a, "variant": f"{basis.n_basis} functions",
+                                      "reason": f"the diagnosis with it predicts held-out readings worse "
+                                                f"({after:.4g} against {before:.4g} noise variances)"})
                 break
             diag, refine = again, {**refine, a: basis}
         return diag
 
 
-def _final_heldout(diag) -> float:
-    """The final held-out sum of squares of a diagnosis in noise variances, all readings (um and
-    urad alike); inf when there is none."""
-    h = getattr(diag, "heldout_sse", None)
-    return float(h) if h is not None and np.isfinite(h) else float("inf")
+def _heldout_sse(diag, sigma: dict) -> float:
+    """The final held-out sum of squares of a diagnosis in noise variances of ``sigma`` (unit ->
+    standard deviation), all readings (um and urad alike); inf when there is none."""
+    r = np.asarray(diag.heldout_resid, dtype=float)
+    s = np.array([sigma.get(u, np.nan) for u in diag.units], dtype=float)
+    ok = np.isfinite(r) & np.isfinite(s) & (s > 0)
+    return float(np.sum((r[ok] / s[ok]) ** 2)) if ok.any() else float("inf")
 
 
 def _start_point(machine, start):
@@ -435,8 +443,7 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     diag = Diagnosis(verdict, noise, base_metrics, findings, final_metrics, model, how, len(st),
                      rejected=rejected, reference=reference)
     diag.folds_of_observations = folds
-    diag.heldout_sse = current.cv_sse               # in noise variances, every unit class
-    diag.rank = current.rank
+    diag.heldout_resid, diag.units, diag.rank = current.cv_resid, st.unit, current.rank
     diag.outliers = outliers
     from ..measurement.readings import data_held, data_support
     model.support = data_support(st.machine, datasets)

@@ -12,7 +12,8 @@ only weakly determined, and BIC counts each direction at the full log n), and a 
 functions about the structure's peak does not explain the gain as well, there (that is a local
 defect, which the diagnosis must report, and no axis is refined), the axis asks for the finer base and the
 diagnosis is run again with it. When the axis asks for none, the other linear axes the structure's
-series moves are tried the same way.
+series moves are tried the same way, about where they stand at the structure's peak. Structure along
+time, feed, temperature or a rotary axis asks nothing of the base.
 
 The finer columns are the derivative of each reading with respect to a component's value at the
 row's position (recovered from the base's own Jacobian columns: d reading / d c_j = d reading / d E
@@ -68,9 +69,10 @@ def finer_base_columns(st, a: str):
         sens[off] = 0.0
         if not np.any(sens):
             continue
+        # centre of B_j's support [j - degree, j + 1] knot intervals from lo
         kept = np.asarray(fine.kept(carried), dtype=float)
         out[comp] = (sens[:, None] * np.column_stack(fine.functions(s, carried)),
-                     fine.lo + fine.h * (kept - 1.0))          # centre of B_j's support
+                     fine.lo + fine.h * (kept - 0.5 * (fine.degree - 1)))
     if not out:
         return None
     return out, fine
@@ -80,20 +82,27 @@ def finer_base(st, design, extra, current, structure):
     """(axis, finer SplineBasis, sentence) when the base at a finer resolution along a linear axis
     the final ``structure`` names takes that structure (see the module docstring), else None.
     ``extra``: the chosen extensions' columns; ``current``: their fit."""
+    from ._analysis import POSITION_DECIMALS
     from ._diagnose import cv_threshold
-    # the axis the structure runs along first, then the other linear axes its series moves (a
-    # ball-bar circle's extreme in Y is where Z turns too)
-    axes = []
-    for s in structure:
-        a = s.variable.split(" ")[0]
-        if s.variable.endswith(" position") and a in st.machine.axis_names and a not in axes:
-            axes.append(a)
-    for s in structure:
-        rows = st.series == s.series
-        for k, a in enumerate(st.machine.axis_names):
-            if a not in axes and not st.machine.axis(a).is_rotary and np.ptp(st.q[rows, k]) > 0:
-                axes.append(a)
-    for a in axes:
+    names = st.machine.axis_names
+    linear = [a for a in names if not st.machine.axis(a).is_rotary]
+    # (axis, series, lo, hi): where the structure peaks along a linear axis; then, for the other
+    # linear axes its series moves, where they stand at that peak (a ball-bar circle's extreme in Y
+    # is where Z turns too). Structure along time, feed or a rotary axis asks nothing of the base.
+    peaks = [(s.variable.split(" ")[0], s.series, s.lo, s.hi) for s in structure
+             if s.variable.endswith(" position") and s.variable.split(" ")[0] in linear]
+    for a0, series, lo, hi in list(peaks):
+        rows = st.series == series
+        at = rows & (st.q[:, names.index(a0)] >= lo) & (st.q[:, names.index(a0)] <= hi)
+        for b in linear:
+            k = names.index(b)
+            if b != a0 and np.ptp(st.q[rows, k]) > 0 and at.any():
+                peaks.append((b, series, float(st.q[at, k].min()), float(st.q[at, k].max())))
+    seen = set()
+    for a, series, lo, hi in peaks:
+        if a in seen:
+            continue
+        seen.add(a)
         got = finer_base_columns(st, a)
         if got is None:
             continue
@@ -109,20 +118,14 @@ def finer_base(st, design, extra, current, structure):
         if not (dk >= 1 and gain > cv_threshold(dk)):
             continue
         # the rival: the finer functions of one window about where the structure peaks
-        peak = next((s for s in structure if s.variable == f"{a} position"), None)
-        if peak is None:
-            text = (f"the base of {a} at {basis.n_basis} spline functions (knots {basis.h:.3g} mm apart) "
-                    f"takes the structure: {comp} alone on them lowers the held-out sum of squares by "
-                    f"{gain:.3g} noise variances for {dk} parameters")
-            return a, basis, text
-        c = 0.5 * (peak.lo + peak.hi)
-        half = 0.5 * max(peak.hi - peak.lo, LOCAL_WINDOW * (basis.hi - basis.lo)) + basis.h
+        c = 0.5 * (lo + hi)
+        half = 0.5 * max(hi - lo, LOCAL_WINDOW * (basis.hi - basis.lo)) + basis.h
         window = np.abs(centres - c) <= half
         # a defect is a shape read at several positions; a peak at one or two targets of a coarse
         # line is the profile between them, not a place
-        k = st.machine.axis_names.index(a)
-        x = st.q[st.series == peak.series, k]
-        resolved = np.unique(np.round(x[(x >= peak.lo) & (x <= peak.hi)], 3)).size >= MIN_DEFECT_POSITIONS
+        k = names.index(a)
+        x = st.q[st.series == series, k]
+        resolved = np.unique(np.round(x[(x >= lo) & (x <= hi)], POSITION_DECIMALS)).size >= MIN_DEFECT_POSITIONS
         if window.any() and resolved:
             rival = design.fit(np.hstack([extra, fine[:, window]]))
             # ... and a rival in one place gains there: a wave at the knots' own scale is also
@@ -133,8 +136,9 @@ def finer_base(st, design, extra, current, structure):
             if (local and rival.rank - current.rank <= 0.5 * dk
                     and current.cv_sse - rival.cv_sse >= RIVAL_SHARE * gain):
                 return None                 # a defect: no other axis is refined to take its leak
+        where = "not in one place" if resolved else "at a peak too narrow to be a place"
         text = (f"the base of {a} at {basis.n_basis} spline functions (knots {basis.h:.3g} mm apart) "
                 f"takes the structure along {a}: {comp} alone on them lowers the held-out sum of "
-                f"squares by {gain:.3g} noise variances for {dk} parameters, not in one place")
+                f"squares by {gain:.3g} noise variances for {dk} parameters, {where}")
         return a, basis, text
     return None
