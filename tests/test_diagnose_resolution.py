@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
 from mtcomp.diagnose import diagnose
 from mtcomp.machine import load_machine
@@ -55,3 +56,47 @@ def test_a_narrow_bump_is_reported_not_absorbed(tmp_path):
     assert "refined" not in d.base
     assert d.verdict == "unexplained"
     assert d.findings[-1].effect == "unexplained" and d.findings[-1].axis == "X"
+
+
+def test_a_finer_base_that_predicts_worse_is_not_kept(monkeypatch):
+    """The rerun loop of diagnose(), with stand-in diagnoses: a finer base whose diagnosis predicts
+    held-out readings worse (scored with the first run's noise floor) is dropped and listed under
+    rejected; one that predicts better is kept, and refinement stops after MAX_REFINEMENTS."""
+    from types import SimpleNamespace
+
+    import mtcomp.diagnose._diagnose as D
+    from mtcomp.diagnose._analysis import Noise
+    from mtcomp.diagnose._resolution import MAX_REFINEMENTS
+    from mtcomp.models.basis import spline_basis
+
+    def stub(resid_um, rank, finer):
+        d = SimpleNamespace(noise={"um": Noise("um", 0.5, 100, "repeats")}, heldout_resid=np.asarray(resid_um),
+                            units=np.array(["um"] * len(resid_um)), rank=rank, rejected=[])
+        return d, finer
+
+    fine = spline_basis(-300.0, 300.0, 16, 3)
+    calls = []
+
+    def worse(machine, datasets, progress, max_findings, start, refine, may_refine):
+        calls.append(dict(refine))
+        if not refine:
+            return stub([0.5] * 100, 10, ("X", fine, "finer X"))
+        return stub([0.9] * 100, 18, None)                     # 324 against 100 noise variances
+    monkeypatch.setattr(D, "_diagnose", worse)
+    d = D.diagnose(load_machine("xfyz"), [SimpleNamespace(kind="points")])
+    assert len(calls) == 2 and d.heldout_resid[0] == 0.5
+    assert d.rejected and d.rejected[0]["effect"] == "finer base" and d.rejected[0]["axis"] == "X"
+
+    calls.clear()
+
+    def better(machine, datasets, progress, max_findings, start, refine, may_refine):
+        calls.append((dict(refine), may_refine))
+        # every run finds structure a finer base of Y would take, and predicts better than the one
+        # before; the loop must stop on its own
+        k = len(calls) - 1
+        return stub([0.5 - 0.1 * k] * 100, 10 + 8 * k, ("Y", fine, "finer Y"))
+    monkeypatch.setattr(D, "_diagnose", better)
+    d = D.diagnose(load_machine("xfyz"), [SimpleNamespace(kind="points")])
+    assert len(calls) == MAX_REFINEMENTS + 1
+    assert calls[-1][1] is False                                # the last rerun may not refine
+    assert d.heldout_resid[0] == pytest.approx(0.5 - 0.1 * MAX_REFINEMENTS)

@@ -214,11 +214,13 @@ def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int 
         # every run is scored with the first run's noise floor: a floor estimated from the
         # residual (no repeats) would move with the base
         sigma = {u: nz.sigma for u, nz in diag.noise.items()}
-        while finer is not None:
+        for n_refined in range(1, MAX_REFINEMENTS + 1):
+            if finer is None:
+                break
             a, basis, text = finer
             say(f"{text}: diagnosed again with it")
             again, finer = _diagnose(machine, datasets, progress, max_findings, start, {**refine, a: basis},
-                                     may_refine=len(refine) + 1 < MAX_REFINEMENTS)
+                                     may_refine=n_refined < MAX_REFINEMENTS)
             # the finer base must hold on the diagnosis's own held-out data, once the extensions are
             # chosen again on it: no worse than noise could make it (2 sd of a chi-square with the
             # directions it adds)
