@@ -100,3 +100,26 @@ def test_a_finer_base_that_predicts_worse_is_not_kept(monkeypatch):
     assert len(calls) == MAX_REFINEMENTS + 1
     assert calls[-1][1] is False                                # the last rerun may not refine
     assert d.heldout_resid[0] == pytest.approx(0.5 - 0.1 * MAX_REFINEMENTS)
+
+
+def test_a_start_model_gives_no_values_to_a_refined_axis(tmp_path):
+    """With identify's model as the start (X fixed at 8 intervals), the wave refines X; the rerun
+    must not take the start's X coefficients, which belong to other functions (their names, EXX_b1
+    ..., exist in the finer base too)."""
+    import re
+
+    from mtcomp.identification.fit import identify
+
+    def wave(x):
+        return 3.0 * np.sin(2 * np.pi * x / 150.0 + 0.3)
+    data = _points(tmp_path, wave)
+    start = identify(_machine(), data).fitted_model
+    lines = []
+    d = diagnose(_machine(), data, start=start, progress=lines.append)
+    assert d.base["refined"]["X"] > 8 + 3
+    taken = [tuple(int(v) for v in re.findall(r"\d+", s)[:2]) for s in lines if s.startswith("start:")]
+    assert len(taken) >= 2
+    assert taken[0][0] == taken[0][1]             # first run: every base value from the start
+    # the rerun: at least the positioning error's 10 coefficients of X (8 + 3 functions, less the
+    # mean) are not taken
+    assert taken[-1][0] <= taken[0][0] - (8 + 3 - 1)

@@ -285,7 +285,7 @@ def finer_profile_columns(st, a: str, period_mm: float) -> tuple[np.ndarray, flo
     intervals (the line is on the base's own scale), and never closer than ``MIN_KNOT_MM`` (the
     base's own limit); and the knot spacing (mm). (n, 0) columns when the data hold no more
     positions than the base has functions, or the rival would be no finer than the base."""
-    from ..models.basis import MIN_KNOT_MM, spline_basis
+    from ..models.basis import max_intervals, spline_basis
     ax = st.machine.axis(a)
     if ax.is_rotary or ax.basis != "bspline":
         return np.zeros((len(st), 0)), 0.0
@@ -299,7 +299,7 @@ def finer_profile_columns(st, a: str, period_mm: float) -> tuple[np.ndarray, flo
         n_intervals = FINER_PROFILE * base.n_intervals
     # never finer than the base itself may become (docs/identification.md): a sine two or three
     # of those knot spacings long is what diagnose names, not a profile the base could follow
-    n_intervals = min(n_intervals, int((base.hi - base.lo) // MIN_KNOT_MM))
+    n_intervals = min(n_intervals, max_intervals(base.lo, base.hi))
     n_basis = min(n_intervals + 3, FINER_PROFILE_MAX * base.n_basis, distinct)
     if n_basis <= base.n_basis:
         return np.zeros((len(st), 0)), 0.0

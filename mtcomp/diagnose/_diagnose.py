@@ -281,7 +281,9 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
                     spline_intervals=refine[ax.name].n_intervals, degree=refine[ax.name].degree)
             if ax.name in refine else ax for ax in machine.axes))
         # a start model's coefficients of a refined axis are of other functions
-        values = {k: v for k, v in values.items() if not (k[:1] == "E" and k[2:3] in refine and "_b" in k)}
+        if start is not None:
+            other = {ps.name for ps in start.model.param_specs if ps.group.split(":")[0] in refine}
+            values = {k: v for k, v in values.items() if k not in other}
     from ..measurement.outliers import OUTLIER_K, find_outliers
     cleaned, outliers = [], []
     for d in datasets:

@@ -195,9 +195,8 @@ def summary(diag) -> str:
                  + (f"; angular rms {_num(b.get('rms_urad'))} urad, held-out {_num(b.get('heldout_rms_urad'))}"
                     " urad" if "rms_urad" in b else ""))
     if b.get("refined"):
-        lines.append("base refined by the diagnosis (structure along these axes that a finer spline takes "
-                     "everywhere, not in one place): " + ", ".join(f"{a} {k} spline functions"
-                                                               for a, k in b["refined"].items()))
+        lines.append("base refined by the diagnosis (its held-out data asked for a finer spline along "
+                     "these axes): " + ", ".join(f"{a} {k} spline functions" for a, k in b["refined"].items()))
     if not diag.findings:
         lines.append("findings: none")
     for i, f in enumerate(diag.findings, 1):

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..models.basis import LOCAL_WINDOW, MIN_KNOT_MM, RIVAL_SHARE, spline_basis
+from ..models.basis import LOCAL_WINDOW, RIVAL_SHARE, max_intervals, spline_basis
 from ..models.chain import component_terms, linear_component_names, slope_carried
 
 #: at most this many refinements of the base in one diagnosis
@@ -47,9 +47,7 @@ def finer_base_columns(st, a: str):
     if ax.is_rotary or ax.basis != "bspline":
         return None
     base = ax.spline()
-    n_int = 2 * base.n_intervals
-    while n_int > base.n_intervals and (base.hi - base.lo) / n_int < MIN_KNOT_MM:
-        n_int -= 1
+    n_int = min(2 * base.n_intervals, max_intervals(base.lo, base.hi))
     if n_int <= base.n_intervals:
         return None
     fine = spline_basis(base.lo, base.hi, n_int, base.degree)

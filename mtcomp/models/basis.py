@@ -189,6 +189,13 @@ SIZE_CV_Z = 2.0
 #: sine shorter than 2.5 h, so the base leaves what repeats at a ball screw's lead (5 to 40 mm) to
 #: diagnose, which names it a periodic error
 MIN_KNOT_MM = 16.0
+
+
+def max_intervals(lo: float, hi: float) -> int:
+    """The most equal knot intervals over [lo, hi] whose knots stay ``MIN_KNOT_MM`` apart."""
+    return int((hi - lo) // MIN_KNOT_MM)
+
+
 #: a line whose finer bases gain (held-out) at most 1 / this share more than one window of fine
 #: functions gains does not ask for a finer basis
 RIVAL_SHARE = 0.9
@@ -239,7 +246,7 @@ def spline_size_by_cv(series, lo: float, hi: float, sizes=SPLINE_SIZES) -> tuple
         var = pure / dof
         x = np.clip(s, lo, hi)
         score = {n: _held_out(_bspline_design(x, lo, hi, n), y, run) / var
-                 for n in sizes if n <= distinct.size and (n == sizes[0] or (hi - lo) / (n - 3) >= MIN_KNOT_MM)}
+                 for n in sizes if n <= distinct.size and (n == sizes[0] or n - 3 <= max_intervals(lo, hi))}
         finer = [n for n in score if n > sizes[0]]
         if finer:
             base = _bspline_design(x, lo, hi, sizes[0])
