@@ -105,6 +105,31 @@ def test_a_term_whose_parameters_the_data_do_not_determine_is_refused(stack000):
     assert _refusal.undetermined(irc, design.fit(irc.columns, cv=False).rank - base.rank) is None
 
 
+def test_an_undetermined_offset_of_an_abbe_candidate_is_dropped_not_the_cause(stack000):
+    """An Abbe candidate's accompanying feed offset that the data cannot tell from its other columns is
+    dropped; the cause stays and is no longer refused (seeds 9172, 9292: the angle-gain candidate was
+    refused for an offset along an axis the campaign never read at several feeds)."""
+    from mtcomp.diagnose._diagnose import _drop_undetermined_offsets
+    from mtcomp.models.terms import FeedOffset
+    st, design = stack000
+    irc = next(c for c in _abbe_candidates(st, "X") if c.params[0] == "IRC_CX_y_f")
+    # an offset whose column is the centre shift's own again: it adds no determined direction
+    cand = Candidate(irc.effect, "X", irc.variant, np.column_stack([irc.columns, 3.0 * irc.columns[:, 0]]),
+                     irc.terms + [FeedOffset("Z")], irc.params + ["FOFF_Z"], rivals=irc.rivals)
+    base = design.fit()
+    fit = design.fit(cand.columns)
+    assert _refusal.undetermined(cand, fit.rank - base.rank) is not None
+    pruned, pfit = _drop_undetermined_offsets(design, np.zeros((len(st), 0)), base, cand, fit)
+    assert pruned.params == irc.params
+    assert not any(isinstance(t, FeedOffset) and t.axis == "Z" for t in pruned.terms)
+    assert _refusal.undetermined(pruned, pfit.rank - base.rank) is None
+    np.testing.assert_allclose(pruned.rebuild(st), irc.columns)
+    assert pfit.rank == fit.rank and np.isfinite(pfit.cv_sse)
+    # a determined offset stays
+    kept, _ = _drop_undetermined_offsets(design, np.zeros((len(st), 0)), base, irc, design.fit(irc.columns))
+    assert kept is irc
+
+
 def test_physically_absurd_values_are_refused(stack000):
     st, design = stack000
     irc = next(c for c in _abbe_candidates(st, "X") if c.params[0] == "IRC_CX_y_f")
@@ -160,6 +185,9 @@ def test_thermal_diagnose_prints_its_table_once(tmp_path, capsys):
     # a 32 mm period of X whose fine run asks for the base's finest knots (16 mm): the rival on twice
     # the base's intervals (8 mm) followed the sine, finer than any base may be; it is capped at 16 mm
     (9650, "periodic_error", "rich", "xfyz", None),
+    # an angle of X that grows with feed, read at several feeds, beside positioning runs: the candidate
+    # was refused because its offset along an axis read at one feed was not determined (now dropped)
+    (9172, "feed_dependent_abbe", "mixture", "xfyz", None),
     # a settling drift in time seen by a thermal file and by laser runs of X taken meanwhile: checked
     # forward in time it lost to the model without it, because the early runs of X could not predict
     # the set-ups of the later files (now only the drift's law is predicted forward)

@@ -192,6 +192,19 @@ def _abbe_candidates(st, a: str) -> list[Candidate]:
     return cands
 
 
+def without_params(c: Candidate, names) -> Candidate:
+    """``c`` without the accompanying feed offsets ``names`` (``FOFF_<d>`` of an Abbe candidate):
+    their columns and their FeedOffset terms go, the cause's own parameters stay."""
+    keep = [i for i, n in enumerate(c.params) if n not in names]
+    gone = {n[len("FOFF_"):] for n in names}
+    terms = [t for t in c.terms if not (isinstance(t, FeedOffset) and t.axis in gone)]
+
+    def build(st):
+        return c.rebuild(st)[:, keep]
+    return Candidate(c.effect, c.axis, c.variant, c.columns[:, keep], terms, [c.params[i] for i in keep],
+                     rivals=c.rivals, info=dict(c.info), build=build)
+
+
 def _with_offsets(names, dirs):
     def build(st):
         f = np.nan_to_num(st.feed, nan=0.0) / 1000.0

@@ -27,7 +27,7 @@ from ..models.chain import ErrorModel
 from ..models.model_file import FittedModel
 from ..models.params import ParameterSet
 from . import _analysis as an
-from ._candidates import Candidate, generate, temperature_regression
+from ._candidates import Candidate, generate, temperature_regression, without_params
 from ._refusal import moved_axes, refusal
 from ._linalg import Design, _eigh, determined_subspace, rms, solve_normal
 from ._stack import Stack, build_stack
@@ -376,6 +376,9 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
         for c in cands:
             fit = design.fit(np.hstack([extra, c.columns]))
             dk = fit.rank - current.rank
+            if dk < c.columns.shape[1]:
+                c, fit = _drop_undetermined_offsets(design, extra, current, c, fit)
+                dk = fit.rank - current.rank
             gain = current.cv_sse - fit.cv_sse
             dbic = fit.bic(n) - current.bic(n)
             pen = c.info.get("search_penalty", 0.0)
@@ -575,6 +578,27 @@ def _refine(st: Stack, design: Design, chosen: list[Candidate], fit, iterations:
         design = design.__class__(A, z, design.w, design.folds, design.T)
         fit = design.fit(np.hstack([c.columns for c in chosen]))
     return design, fit
+
+
+def _drop_undetermined_offsets(design, extra, current, c: Candidate, fit):
+    """An Abbe candidate brings feed offsets along the directions its moved centre or its scaled
+    constant angle translates (see ``_abbe_candidates``); where the data cannot tell such an offset
+    from the rest of the model (a direction read at one feed only, or read only where another column
+    already moves it), the offset is dropped rather than the cause refused for it. Returns the candidate
+    and its fit; unchanged when no offset is undetermined."""
+    if c.effect != "feed_dependent_abbe":
+        return c, fit
+    dropped = False
+    for name in [p for p in c.params if p.startswith("FOFF_")]:
+        if fit.rank - current.rank >= c.columns.shape[1]:
+            break
+        trial = without_params(c, [name])
+        f = design.fit(np.hstack([extra, trial.columns]), cv=False)
+        if f.rank == fit.rank:               # the offset added no direction the data determine
+            c, fit, dropped = trial, f, True
+    if dropped:
+        fit = design.fit(np.hstack([extra, c.columns]))
+    return c, fit
 
 
 def _joint_abbe(design, extra, current, best, good, n, st, max_parts: int = 4):
