@@ -37,11 +37,12 @@ def run(args) -> int:
 
     from ..diagnose import diagnose
     from ..errors import InputError
-    from ..io.atomic import atomic_write, check_output_path
+    from ..io.atomic import atomic_write, check_distinct_inputs, check_output_path
     from ..measurement.files import read_measurements
     from ..machine import load_machine
     from ..models.model_file import _json_default, save_model
 
+    check_distinct_inputs(args.data)
     inputs = list(args.data) + ([args.start] if args.start else [])
     report_path = check_output_path(args.json, inputs)
     model_path = check_output_path(args.output, inputs) if args.output else None

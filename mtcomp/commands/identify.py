@@ -37,11 +37,12 @@ def run(args) -> int:
 
     from ..errors import InputError
     from ..identification.fit import DEFAULT_RCOND, identify
-    from ..io.atomic import check_output_path
+    from ..io.atomic import check_distinct_inputs, check_output_path
     from ..measurement.files import read_measurements
     from ..machine import load_machine
     from ..models.model_file import save_model
 
+    check_distinct_inputs(args.data)
     out = check_output_path(args.output, list(args.data))
     machine = load_machine(args.machine)
     hold = [h.strip() for item in args.hold for h in item.split(",") if h.strip()]

@@ -55,7 +55,8 @@ def cv_threshold(dk: int) -> float:
 @dataclass
 class Finding:
     """One entry of the report's ``findings`` (SPEC 6): effect, axis, params, evidence, held-out rms
-    before and after (um). ``candidate`` is the extension chosen (None for ``unexplained``)."""
+    before and after (in ``unit``: um, or urad when the data hold no positions). ``candidate`` is the
+    extension chosen (None for ``unexplained``)."""
 
     effect: str
     axis: str
@@ -65,11 +66,12 @@ class Finding:
     heldout_rms_after_um: float
     candidate: Candidate | None = None
     step: tuple | None = None
+    unit: str = "um"
 
     def to_dict(self) -> dict:
         return {"effect": self.effect, "axis": self.axis, "params": self.params, "evidence": self.evidence,
-                "heldout_rms_before_um": _r(self.heldout_rms_before_um),
-                "heldout_rms_after_um": _r(self.heldout_rms_after_um)}
+                f"heldout_rms_before_{self.unit}": _r(self.heldout_rms_before_um),
+                f"heldout_rms_after_{self.unit}": _r(self.heldout_rms_after_um)}
 
 
 def _finite(obj):
@@ -181,6 +183,15 @@ def _metrics(st: Stack, fit, n_params: int) -> dict:
     return out
 
 
+def _heldout_unit(st) -> str:
+    """The unit of the held-out rms the selection follows: um, or the one unit of data without
+    positions (urad of angular laser runs)."""
+    if np.any(st.unit == "um"):
+        return "um"
+    units = np.unique(st.unit)
+    return str(units[0]) if units.size == 1 else "/".join(map(str, units))
+
+
 def _heldout(st, fit) -> float:
     um = st.unit == "um"
     sel = um if um.any() else np.ones(len(st), dtype=bool)
@@ -248,12 +259,23 @@ def _heldout_sse(diag, sigma: dict) -> float:
 
 def _start_point(machine, start):
     """(machine, {parameter name: value}) of a start model: its machine, checked against
-    ``machine``, and its base parameters' values (internal units)."""
+    ``machine``, and its parameters' values (internal units).
+
+    A model fitted by identify gives a standard error to every value its data determined; the others
+    were held where they predict the least error (an angle of an axis the data never moved may then
+    hold a level the readings share with a set-up offset). Those are not taken: at such a value the
+    chain's products of small errors give columns to parameters nothing determines (a tool length
+    error of 40 mm fitted to a laser run of X), so they start at zero, as without a start model. A
+    model with no standard errors at all (written by hand) is taken whole."""
     m = start.model.machine
     if m.topology != machine.topology or m.axis_names != machine.axis_names:
         raise InputError(f"the start model is of a {m.topology} machine, not {machine.topology}",
                          start.info.get("path"))
-    return m, dict(zip(start.model.param_names, np.asarray(start.params.values, dtype=float)))
+    values = np.asarray(start.params.values, dtype=float)
+    se = start.params.std_errors
+    if se is not None and np.isfinite(se).any():
+        return m, {n: v for n, v, e in zip(start.model.param_names, values, se) if np.isfinite(e)}
+    return m, dict(zip(start.model.param_names, values))
 
 
 def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None, may_refine=False):
@@ -417,7 +439,7 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
         before = _heldout(st, current)
         finding = _finding(st, c, current, fit, before, _heldout(st, fit), rivals, noise)
         say(f"found {finding.effect} {finding.axis}: held-out {before:.4g} -> "
-            f"{finding.heldout_rms_after_um:.4g} um (BIC {dbic:+.1f}, {dk} parameter(s))")
+            f"{finding.heldout_rms_after_um:.4g} {finding.unit} (BIC {dbic:+.1f}, {dk} parameter(s))")
         findings.append(finding)
         chosen.append(c)
         extra = np.hstack([extra, c.columns])
@@ -666,14 +688,15 @@ def _finding(st, c: Candidate, before_fit, after_fit, before_um, after_um, rival
     theta = after_fit.theta[-c.columns.shape[1]:]
     params, evidence = evidence_and_params(st, c, theta, before_fit, after_fit, rivals, noise)
     axis = c.axis or params.get("direction", "")
-    return Finding(c.effect, axis, params, evidence, before_um, after_um, c, (before_fit, after_fit, rivals))
+    return Finding(c.effect, axis, params, evidence, before_um, after_um, c, (before_fit, after_fit, rivals),
+                   _heldout_unit(st))
 
 
 def _unexplained(st, fit, structure, excess, noise_main) -> Finding:
     from ._report import unexplained_params
     params, evidence, axis = unexplained_params(st, fit, structure, excess, noise_main)
     h = _heldout(st, fit)
-    return Finding("unexplained", axis, params, evidence, h, h, None)
+    return Finding("unexplained", axis, params, evidence, h, h, None, unit=_heldout_unit(st))
 
 
 def _fitted_model(st: Stack, design: Design, chosen: list[Candidate], fit) -> FittedModel:

@@ -204,14 +204,16 @@ def summary(diag) -> str:
         lines.append(f"{i}. {f.effect}{' on ' + f.axis if f.axis else ''}: {ps}")
         lines.append(f"   evidence: {f.evidence}")
         if f.effect != "unexplained":
-            lines.append(f"   held-out rms {f.heldout_rms_before_um:.4g} -> {f.heldout_rms_after_um:.4g} um")
+            lines.append(f"   held-out rms {f.heldout_rms_before_um:.4g} -> {f.heldout_rms_after_um:.4g} {f.unit}")
     for r in diag.rejected:
         variant = f" ({r['variant']})" if r.get("variant") else ""
         on = f" on {r['axis']}" if r.get("axis") else ""
         lines.append(f"refused: {r['effect']}{on}{variant}: {r['reason']}")
     fz = diag.final
     lines.append(f"final model ({fz['n_params']} parameters): rms {_num(fz.get('rms_um'))} um, held-out "
-                 f"{_num(fz.get('heldout_rms_um'))} um")
+                 f"{_num(fz.get('heldout_rms_um'))} um"
+                 + (f"; angular rms {_num(fz.get('rms_urad'))} urad, held-out {_num(fz.get('heldout_rms_urad'))}"
+                    " urad" if "rms_urad" in fz else ""))
     ref = diag.reference.get("linear_regression_all_temperatures")
     if ref:
         lines.append(f"reference: plain linear regression on all {len(ref['temperatures'])} temperatures "

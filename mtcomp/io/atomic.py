@@ -21,10 +21,23 @@ def check_output_path(out: str | os.PathLike, inputs: list[str | os.PathLike] = 
             same = os.path.samefile(inp, out_p)                # a hard link to the input
         if same:
             raise InputError("output would overwrite an input file", out)
+    if out_p.is_dir():
+        raise InputError("is a folder: name the output file", out)
     parent = out_p.resolve().parent
     if not parent.is_dir():
         raise InputError(f"output folder {parent} does not exist", out)
     return out_p
+
+
+def check_distinct_inputs(paths: list[str | os.PathLike]) -> None:
+    """Refuse a data file given twice (by the same path, a symlink or a hard link): its readings
+    would count twice and pass for repeats."""
+    seen: list[Path] = []
+    for p in map(Path, paths):
+        for q in seen:
+            if p.resolve() == q.resolve() or (p.exists() and q.exists() and os.path.samefile(p, q)):
+                raise InputError(f"given twice (also as {q}): its readings would count twice", p)
+        seen.append(p)
 
 
 @contextlib.contextmanager
