@@ -120,6 +120,28 @@ def test_angular_readings_alone_report_urad(tmp_path, capsys):
     assert "urad" in final and f"{r['final']['heldout_rms_urad']:.4g}" in final
 
 
+def test_readings_outside_the_machine_travel_are_noted(tmp_path, capsys):
+    """Readings beyond the machine file's travel are no error, but identify and diagnose say so on
+    stderr (file, axis, how far), since the data may be of another machine."""
+    toml = tmp_path / "small.toml"
+    toml.write_text('name = "small"\ntopology = "XFYZ"\ntool_length_mm = 100.0\n' + "".join(
+        f"[axes.{a}]\ntravel_mm = [-50.0, 50.0]\n" for a in "XYZ"))
+    rows = ["axis,component,target_mm,dir,run,value_um"]
+    rows += [f"X,EXX,{x:g},{d},{r},{0.01 * x + 0.3 * d:.3f}" for r in (1, 2) for d in (1, -1)
+             for x in (-80, -40, 0, 40)]
+    laser = tmp_path / "x.csv"
+    laser.write_text("\n".join(rows) + "\n")
+    assert main(["identify", str(toml), str(laser), "-o", str(tmp_path / "m.json")]) == 0
+    assert main(["diagnose", str(toml), str(laser), "--json", str(tmp_path / "r.json"), "-q"]) == 0
+    notes = [line for line in capsys.readouterr().err.splitlines() if "note:" in line]
+    assert len(notes) == 2, notes
+    for line in notes:
+        assert "4 row(s) take X to -80..-80 mm, outside the machine's travel -50..50 mm" in line
+    # inside the travel: no note
+    assert main(["identify", "xfyz", str(laser), "-o", str(tmp_path / "m2.json")]) == 0
+    assert "note:" not in capsys.readouterr().err
+
+
 def test_start_model_values_the_data_did_not_determine_are_not_taken(tmp_path, capsys):
     """A laser run of X alone: identify holds the values its data do not determine where they predict
     the least error (an angle of Z shares a level with the laser's set-up offset). Started there,

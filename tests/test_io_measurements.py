@@ -139,6 +139,16 @@ def test_laser_malformed_rows(tmp_path, row, msg):
         read_measurements(p)
 
 
+def test_negative_feed_is_refused_blank_feed_is_not(tmp_path):
+    head = "axis,component,target_mm,dir,run,value_um,feed_mm_min\n"
+    p = _write(tmp_path, head + "X,EXX,0,1,1,1,1000\nX,EXX,10,-1,1,2,-1000\n")
+    with pytest.raises(InputError, match=r"row 2: column feed_mm_min must not be negative"):
+        read_measurements(p)
+    p = _write(tmp_path, head + "X,EXX,0,1,1,1,1000\nX,EXX,10,-1,1,2,\n")
+    feed = read_measurements(p).context.feed
+    assert feed[0] == 1000.0 and np.isnan(feed[1])
+
+
 def test_laser_units_mixed_the_other_way(tmp_path):
     p = _write(tmp_path, "axis,component,target_mm,dir,run,value_urad\nX,EYX,0,1,1,3\n")
     with pytest.raises(InputError, match=r"row 1: units mixed: component EYX is translational and takes "
@@ -248,8 +258,10 @@ def test_velocity_and_rotation_centre_of_a_rigid_motion(tmp_path):
     np.testing.assert_allclose(d.position, [0, 10, 20, 30, 40], rtol=0, atol=0)
     np.testing.assert_allclose(d.context.feed, 240.0, rtol=0, atol=0)
     np.testing.assert_allclose(d.rotation_centre(), truth, rtol=0, atol=1e-6)
-    with pytest.raises(InputError, match=r"row 1: column feed_mm_min must be positive"):
+    with pytest.raises(InputError, match=r"row 1: column feed_mm_min must not be negative"):
         read_measurements(_write(tmp_path, text.replace("X,240.0", "X,-240.0", 1)))
+    with pytest.raises(InputError, match=r"row 1: column feed_mm_min must be positive"):
+        read_measurements(_write(tmp_path, text.replace("X,240.0", "X,0.0", 1)))
     with pytest.raises(InputError, match=r"row 1: missing column y_mm \(position of moving axis Y\)"):
         read_measurements(_write(tmp_path, text.replace("X,240.0", "Y,240.0", 1)))
 

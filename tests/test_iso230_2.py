@@ -366,3 +366,20 @@ def test_cli_plot_refused_onto_an_input(tmp_path, capsys):
     before = a.read_text()
     assert main(["iso230-2", str(a), "--plot", str(a)]) == 2
     assert "overwrite an input" in capsys.readouterr().err and a.read_text() == before
+    # the plot is a PNG: another name is refused before anything is written
+    assert main(["iso230-2", str(a), "--plot", str(tmp_path / "p.jpg"), "--json", str(tmp_path / "o.json")]) == 2
+    assert ".png name" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.csv"]
+
+
+def test_cli_runs_at_several_feeds_are_refused_with_the_way_out(tmp_path, capsys):
+    """Runs at two feeds in one file: the same (target, dir, run) at each feed would be 'read twice';
+    the command says the file holds two feeds and to give each its own file."""
+    lines = ["axis,component,target_mm,dir,run,value_um,feed_mm_min"]
+    for feed in (500, 1000):
+        lines += [f"X,EXX,{t},{d},{r},{0.1 * r},{feed}" for t in (0, 10) for d in (1, -1) for r in (1, 2, 3)]
+    p = tmp_path / "two_feeds.csv"
+    p.write_text("\n".join(lines) + "\n")
+    assert main(["iso230-2", str(p)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "2 feeds (500, 1000 mm/min)" in err and "its own file" in err

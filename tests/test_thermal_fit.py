@@ -119,6 +119,13 @@ def test_diagnose_thermal_cli_maps_a_channel_to_an_axis_and_plots(tmp_path, caps
     drift = [f for f in report["findings"] if f["effect"] == "thermal_drift"]
     assert drift and drift[0]["params"]["driver"] == "temperature" and drift[0]["axis"] == "Y"
     assert drift[0]["params"]["channels"] == {"a": "Y", "ch3": ""}
+    # the keys of every drift finding: temperatures used, the channel that drifts most, its direction
+    # and its drift (largest |reading - first reading|, from the file itself)
+    cols = np.genfromtxt(path, delimiter=",", names=True)
+    p = drift[0]["params"]
+    assert p["temperatures"] == ["s"] and p["channel"] == "a" and p["direction"] == "Y"
+    assert p["drift_range_um"] == pytest.approx(np.max(np.abs(cols["disp_a_um"] - cols["disp_a_um"][0])),
+                                                abs=2e-3)
     assert "forward-chained" in report["heldout"]
     saved = json.loads(model.read_text())
     kinds = {t["kind"]: t for t in saved["terms"]}
@@ -132,7 +139,8 @@ def test_diagnose_thermal_cli_maps_a_channel_to_an_axis_and_plots(tmp_path, caps
 
 @pytest.mark.parametrize("flags,needle", [(["--channel-axis", "a"], "NAME=AXIS"),
                                           (["--channel-axis", "nope=X"], "nope"),
-                                          (["--channel-axis", "a=Q"], "X, Y or Z")])
+                                          (["--channel-axis", "a=Q"], "X, Y or Z"),
+                                          (["--plot", "drift.jpg"], ".png name")])
 def test_bad_channel_axis_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys, flags, needle):
     path = _thermal_file(tmp_path / "th.csv")
     rep = tmp_path / "r.json"

@@ -47,6 +47,8 @@ def run(args) -> int:
     report_path = check_output_path(args.json, inputs)
     model_path = check_output_path(args.output, inputs) if args.output else None
     plot_path = check_output_path(args.plot, inputs) if args.plot else None
+    if args.plot and not str(args.plot).lower().endswith(".png"):
+        raise InputError("--plot writes a PNG image: give the file a .png name", args.plot)
     outputs = [p.resolve() for p in (report_path, model_path, plot_path) if p is not None]
     if len(set(outputs)) < len(outputs):
         raise InputError("--json, -o and --plot must name different files", args.json)
@@ -62,6 +64,9 @@ def run(args) -> int:
         from ..models.model_file import load_model
         start = load_model(args.start, machine)
     datasets = [read_measurements(path) for path in args.data]
+    from ..measurement.readings import outside_travel
+    for note in outside_travel(machine, datasets):
+        print(f"mtcomp diagnose: note: {note}", file=sys.stderr)
 
     def progress(line):
         if not args.quiet:

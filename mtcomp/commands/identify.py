@@ -50,6 +50,9 @@ def run(args) -> int:
     if not (0.0 < rcond < 1.0):
         raise InputError(f"--rcond must lie between 0 and 1, got {rcond}")
     datasets = [read_measurements(path) for path in args.data]
+    from ..measurement.readings import outside_travel
+    for note in outside_travel(machine, datasets):
+        print(f"mtcomp identify: note: {note}", file=sys.stderr)
     result = identify(machine, datasets, hold=hold, weights=args.weights, rcond=rcond,
                       known_setup=list(args.known_setup),
                       info={"command": "mtcomp identify " + " ".join(sys.argv[2:]) if len(sys.argv) > 2

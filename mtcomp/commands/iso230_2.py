@@ -22,6 +22,8 @@ def add_arguments(parser):
 def run(args) -> int:
     from pathlib import Path
 
+    import numpy as np
+
     from ..errors import InputError
     from ..identification.iso230_2 import evaluate_iso230_2, plot_runs
     from ..io.atomic import atomic_write, check_output_path
@@ -29,6 +31,8 @@ def run(args) -> int:
 
     out = check_output_path(args.json, args.laser) if args.json else None
     plot = check_output_path(args.plot, args.laser) if args.plot else None
+    if args.plot and not str(args.plot).lower().endswith(".png"):
+        raise InputError("--plot writes a PNG image: give the file a .png name", args.plot)
     if plot is not None:
         import importlib.util
         if importlib.util.find_spec("matplotlib") is None:
@@ -45,6 +49,11 @@ def run(args) -> int:
         if data.kind != "laser":
             raise InputError(f"this is a {data.kind} file; iso230-2 needs a laser file (columns axis, "
                              "component, target_mm or target_deg, dir, run, value_um or value_urad)", path)
+        feeds = np.unique(data.context.feed[np.isfinite(data.context.feed)])
+        if feeds.size > 1:
+            raise InputError(f"runs at {feeds.size} feeds ({', '.join(f'{f:g}' for f in feeds)} mm/min): "
+                             "ISO 230-2 evaluates one feed at a time; give each feed its own file "
+                             "(diagnose takes them all together)", path)
         reports.append(evaluate_iso230_2(data))
     print("\n\n".join(r.summary() for r in reports))
     if out is not None:

@@ -445,7 +445,12 @@ def _read_context(table: CsvTable) -> Context:
         m = _TEMP.match(name)
         if m:
             temps[m.group(1)] = table.floats(name)
-    return Context(feed=table.optional_floats("feed_mm_min"), dirs=dirs, t=table.optional_floats("t_s"),
+    feed = table.optional_floats("feed_mm_min")
+    bad = np.flatnonzero(feed < 0)                      # blank (NaN) is allowed: no feed known
+    if bad.size:
+        table.fail("column feed_mm_min must not be negative (a feed is a speed: the approach "
+                   "direction goes in dir)", bad[0])
+    return Context(feed=feed, dirs=dirs, t=table.optional_floats("t_s"),
                    run=run, spindle_rpm=table.optional_floats("spindle_rpm"), temperatures=temps)
 
 

@@ -84,14 +84,38 @@ def data_positions(machine, datasets) -> dict[str, np.ndarray]:
     """Axis name -> every position that axis took in the files' rows (mm, rad); files without axis
     positions (thermal) add nothing."""
     out: dict[str, list] = {a: [] for a in machine.axis_names}
-    for d in datasets:
-        data = d.data if isinstance(d, MeasurementModel) else d
-        if not hasattr(data, "axis_positions") or len(data) == 0:
-            continue
-        q = np.asarray(data.axis_positions(machine), dtype=float)
+    for _, q in _positions_by_file(machine, datasets):
         for j, a in enumerate(machine.axis_names):
             out[a].append(q[:, j])
     return {a: np.concatenate(v) for a, v in out.items() if v}
+
+
+def _positions_by_file(machine, datasets):
+    """(file's data, (n, n_axes) axis positions) of each file with axis positions and rows."""
+    for d in datasets:
+        data = d.data if isinstance(d, MeasurementModel) else d
+        if hasattr(data, "axis_positions") and len(data):
+            yield data, np.asarray(data.axis_positions(machine), dtype=float)
+
+
+def outside_travel(machine, datasets) -> list[str]:
+    """One sentence per (file, linear axis) whose rows take the axis beyond the machine's travel (by
+    more than 1 um): the data may be of another machine, or the machine file's travel wrong. Not an
+    error (a machine file may give a nominal travel), but the user is told. Rotary angles are not
+    checked (an angle and that angle plus a turn are one position)."""
+    notes = []
+    for data, q in _positions_by_file(machine, datasets):
+        for j, ax in enumerate(machine.axes):
+            if ax.is_rotary:
+                continue
+            lo, hi = ax.travel
+            out = np.flatnonzero((q[:, j] < lo - 1e-3) | (q[:, j] > hi + 1e-3))
+            if out.size:
+                v = q[out, j]
+                notes.append(f"{data.path}: {out.size} row(s) take {ax.name} to {v.min():.6g}..{v.max():.6g} mm, "
+                             f"outside the machine's travel {lo:.6g}..{hi:.6g} mm (data of another machine, "
+                             "or a machine file whose travel is wrong?)")
+    return notes
 
 
 def single_axis_lines(machine, datasets) -> dict[str, list]:

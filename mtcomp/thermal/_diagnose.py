@@ -93,12 +93,20 @@ def diagnose_thermal(machine, data, channel_axes: dict | None = None, progress=N
                   "max_drift_um": {ch: _r(v, 3) for ch, v in zip(fit.channels, fit.max_drift_um)},
                   "forward_rms_um": {ch: _r(v, 3) for ch, v in zip(fit.channels, c.forward_rms_um)},
                   "temperatures_left_out": fit.left_out}
+        # the keys every drift finding has (docs/diagnose.md): the temperatures it uses, the channel
+        # that drifts most (and its tip direction, when it reads one) and that channel's drift
+        params["temperatures"] = [f[len("temp_"):] for f in c.features if f.startswith("temp_")]
+        worst = int(np.argmax(fit.max_drift_um))
+        params["channel"] = fit.channels[worst]
+        if fit.channels[worst] in axes:
+            params["direction"] = axes[fit.channels[worst]]
+        params["drift_range_um"] = _r(float(fit.max_drift_um[worst]), 3)
         runner_up = sorted((s for s in fit.scores if s is not c), key=lambda s: s.total_sse)[0]
         evidence = (f"predicting each next block of the record from the readings before it, "
                     f"{c.label} leaves {_rms(c.forward_rms_um):.3g} um rms against "
                     f"{_rms(none.forward_rms_um):.3g} um without a drift model and "
                     f"{_rms(runner_up.forward_rms_um):.3g} um for the next best ({runner_up.label})")
-        axis = "".join(sorted({axes[ch] for ch in fit.channels if ch in axes}))
+        axis = params.get("direction", "")
         findings.append(Finding("thermal_drift", axis, params, evidence,
                                 _rms(none.forward_rms_um), _rms(c.forward_rms_um)))
     ratio = _rms(c.forward_rms_um) / fit.noise_um if fit.noise_um > 0 else np.inf
