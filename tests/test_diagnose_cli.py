@@ -116,6 +116,11 @@ def test_angular_readings_alone_report_urad(tmp_path, capsys):
     assert r["findings"]
     for f in r["findings"]:
         assert "heldout_rms_before_urad" in f and "heldout_rms_before_um" not in f, f
+    # the reversal of the yaw is no effect diagnose has: 'unexplained', on the axis whose approach
+    # direction the residual follows, with the runs and a p-value like any unexplained finding
+    un = [f for f in r["findings"] if f["effect"] == "unexplained"]
+    assert un and un[0]["axis"] == "X" and un[0]["params"]["runs"] == [1, 2, 3]
+    assert un[0]["params"]["p_value"] < 1e-6
     final = next(line for line in out.splitlines() if line.startswith("final model"))
     assert "urad" in final and f"{r['final']['heldout_rms_urad']:.4g}" in final
 

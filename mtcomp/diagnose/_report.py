@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from scipy.stats import chi2
 
 from . import _analysis as an
 from ._linalg import rms
@@ -173,11 +174,26 @@ def unexplained_params(st, fit, structure, excess, noise_main):
                   "p_value": float(s.p)}
         return params, ev, axis
     where = "all data"
-    cors = an.correlations(st, fit.resid, np.ones(len(st), dtype=bool))
-    corr = [f"{n} (r = {r:.2f})" for n, r in cors[:3] if abs(r) > 0.2] or ["nothing measured"]
+    cors = [(n, r) for n, r in an.correlations(st, fit.resid, np.ones(len(st), dtype=bool)) if abs(r) > 0.2]
+    corr = [f"{n} (r = {r:.2f})" for n, r in cors[:3]] or ["nothing measured"]
+    # the axis of the strongest correlate, when it is an axis's approach direction or position
+    axis = ""
+    if cors:
+        words = cors[0][0].split()
+        if cors[0][0].startswith("approach direction of "):
+            axis = words[-1]
+        elif cors[0][0].endswith(" position"):
+            axis = words[0]
+    # p: the held-out sum of squares in noise variances against chi-square with one degree of
+    # freedom per reading (what noise alone would leave)
+    z = fit.cv_resid / noise_main.sigma
+    sel = np.isfinite(z) & (st.unit == noise_main.unit)
+    p = float(chi2.sf(np.sum(z[sel] ** 2), max(int(sel.sum()), 1)))
+    runs = np.unique(st.run[st.run >= 0])
     ev = (f"The held-out residual stays {excess:.2f} times the noise floor ({noise_main.sigma:.3g} "
           f"{noise_main.unit}) with no localised structure; no candidate effect explains it")
-    return {"where": where, "correlates_with": corr}, ev, ""
+    return ({"where": where, "correlates_with": corr, "runs": [int(r) for r in runs], "p_value": p},
+            ev, axis)
 
 
 def summary(diag) -> str:
