@@ -54,7 +54,7 @@ def test_hidden_effect_is_named_on_its_axis(effect, seed):
     assert sc["ratio"] <= 1.3
     finding = next(f for f in d.findings if f.effect == effect)
     assert _size_ok(case, finding), (case.effects, finding.params)
-    assert finding.heldout_rms_after_um < finding.heldout_rms_before_um
+    assert finding.heldout_rms_after < finding.heldout_rms_before
     # the noise floor from repeats is the simulated noise
     assert d.noise["um"].source == "repeats"
     assert d.noise["um"].sigma == pytest.approx(case.noise_um, rel=0.1)

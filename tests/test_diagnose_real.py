@@ -32,14 +32,14 @@ def test_reversal_of_a_real_stage_is_found_as_backlash(name, axis):
     assert [f.axis for f in found] == [axis]
     mag = found[0].params["magnitude_um"]
     print(f"{name}: diagnose backlash {mag:.3f} um; ISO 230-2 B_mean {iso.B_mean * 1e3:.3f} um, "
-          f"B {iso.B * 1e3:.3f} um; held-out rms {found[0].heldout_rms_before_um:.2f} -> "
-          f"{found[0].heldout_rms_after_um:.2f} um, noise {d.noise_um:.2f} um, verdict {d.verdict}")
+          f"B {iso.B * 1e3:.3f} um; held-out rms {found[0].heldout_rms_before:.2f} -> "
+          f"{found[0].heldout_rms_after:.2f} um, noise {d.noise_um:.2f} um, verdict {d.verdict}")
     # a constant step fitted to every reading would equal B_mean exactly (each target is approached
     # equally often from both sides); readings that disagree with their repeats are left out and the
     # reversal may vary along the axis (its mean over the travel is reported), so within 10 %
     assert mag == pytest.approx(iso.B_mean * 1e3, rel=0.1, abs=0)
     assert abs(mag) <= abs(iso.B * 1e3)
-    assert found[0].heldout_rms_after_um < found[0].heldout_rms_before_um
+    assert found[0].heldout_rms_after < found[0].heldout_rms_before
 
 
 def _forward_temperature_regression(data) -> float:
@@ -74,6 +74,15 @@ def test_spindle_thermal_drift_is_found_and_beats_a_plain_temperature_regression
     assert ref == pytest.approx(plain, rel=1e-3)
     assert final <= 0.7 * plain
     assert final < 0.5 * d.base["heldout_rms_um"]
+    # the channel that drifts most is named with its drift (largest |reading - first|, from the file)
+    ch = drift[0].params["channel"]
+    v = data.channels[ch][np.argsort(data.context.t, kind="stable")] * 1e3
+    assert drift[0].params["drift_range_um"] == pytest.approx(np.max(np.abs(v - v[0])), abs=2e-3)
+    # what stays (the record is far noisier forward than one reading): 'unexplained', with the keys
+    # of every unexplained finding
+    un = [f for f in d.findings if f.effect == "unexplained"]
+    assert d.verdict == "unexplained" and un[0].params["correlates_with"] == ["time"]
+    assert un[0].params["runs"] == [] and 0.0 <= un[0].params["p_value"] < 1e-6
 
 
 @needs_real

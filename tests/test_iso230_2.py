@@ -382,4 +382,10 @@ def test_cli_runs_at_several_feeds_are_refused_with_the_way_out(tmp_path, capsys
     p.write_text("\n".join(lines) + "\n")
     assert main(["iso230-2", str(p)]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "2 feeds (500, 1000 mm/min)" in err and "its own file" in err
+    assert err.count("\n") == 1 and "runs of X at 2 feeds (500, 1000 mm/min)" in err and "its own file" in err
+    # one feed per axis, and a straightness run (not evaluated) at another feed: evaluated
+    lines = ["axis,component,target_mm,dir,run,value_um,feed_mm_min"]
+    for axis, comp, feed in (("X", "EXX", 1000), ("Y", "EYY", 2000), ("X", "EYX", 500)):
+        lines += [f"{axis},{comp},{t},{d},{r},{0.1 * r},{feed}" for t in (0, 10) for d in (1, -1) for r in (1, 2, 3)]
+    p.write_text("\n".join(lines) + "\n")
+    assert main(["iso230-2", str(p)]) == 0

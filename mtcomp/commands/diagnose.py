@@ -37,6 +37,7 @@ def run(args) -> int:
 
     from ..diagnose import diagnose
     from ..errors import InputError
+    from . import note_outside_travel
     from ..io.atomic import atomic_write, check_distinct_inputs, check_output_path
     from ..measurement.files import read_measurements
     from ..machine import load_machine
@@ -46,9 +47,7 @@ def run(args) -> int:
     inputs = list(args.data) + ([args.start] if args.start else [])
     report_path = check_output_path(args.json, inputs)
     model_path = check_output_path(args.output, inputs) if args.output else None
-    plot_path = check_output_path(args.plot, inputs) if args.plot else None
-    if args.plot and not str(args.plot).lower().endswith(".png"):
-        raise InputError("--plot writes a PNG image: give the file a .png name", args.plot)
+    plot_path = check_output_path(args.plot, inputs, ".png", "--plot") if args.plot else None
     outputs = [p.resolve() for p in (report_path, model_path, plot_path) if p is not None]
     if len(set(outputs)) < len(outputs):
         raise InputError("--json, -o and --plot must name different files", args.json)
@@ -64,9 +63,7 @@ def run(args) -> int:
         from ..models.model_file import load_model
         start = load_model(args.start, machine)
     datasets = [read_measurements(path) for path in args.data]
-    from ..measurement.readings import outside_travel
-    for note in outside_travel(machine, datasets):
-        print(f"mtcomp diagnose: note: {note}", file=sys.stderr)
+    note_outside_travel("diagnose", machine, datasets)
 
     def progress(line):
         if not args.quiet:

@@ -37,6 +37,7 @@ def run(args) -> int:
 
     from ..errors import InputError
     from ..identification.fit import DEFAULT_RCOND, identify
+    from . import note_outside_travel
     from ..io.atomic import check_distinct_inputs, check_output_path
     from ..measurement.files import read_measurements
     from ..machine import load_machine
@@ -50,9 +51,7 @@ def run(args) -> int:
     if not (0.0 < rcond < 1.0):
         raise InputError(f"--rcond must lie between 0 and 1, got {rcond}")
     datasets = [read_measurements(path) for path in args.data]
-    from ..measurement.readings import outside_travel
-    for note in outside_travel(machine, datasets):
-        print(f"mtcomp identify: note: {note}", file=sys.stderr)
+    note_outside_travel("identify", machine, datasets)
     result = identify(machine, datasets, hold=hold, weights=args.weights, rcond=rcond,
                       known_setup=list(args.known_setup),
                       info={"command": "mtcomp identify " + " ".join(sys.argv[2:]) if len(sys.argv) > 2

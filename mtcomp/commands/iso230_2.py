@@ -25,14 +25,12 @@ def run(args) -> int:
     import numpy as np
 
     from ..errors import InputError
-    from ..identification.iso230_2 import evaluate_iso230_2, plot_runs
+    from ..identification.iso230_2 import evaluate_iso230_2, plot_runs, positioning_component
     from ..io.atomic import atomic_write, check_output_path
     from ..measurement.files import read_measurements
 
     out = check_output_path(args.json, args.laser) if args.json else None
-    plot = check_output_path(args.plot, args.laser) if args.plot else None
-    if args.plot and not str(args.plot).lower().endswith(".png"):
-        raise InputError("--plot writes a PNG image: give the file a .png name", args.plot)
+    plot = check_output_path(args.plot, args.laser, ".png", "--plot") if args.plot else None
     if plot is not None:
         import importlib.util
         if importlib.util.find_spec("matplotlib") is None:
@@ -49,11 +47,15 @@ def run(args) -> int:
         if data.kind != "laser":
             raise InputError(f"this is a {data.kind} file; iso230-2 needs a laser file (columns axis, "
                              "component, target_mm or target_deg, dir, run, value_um or value_urad)", path)
-        feeds = np.unique(data.context.feed[np.isfinite(data.context.feed)])
-        if feeds.size > 1:
-            raise InputError(f"runs at {feeds.size} feeds ({', '.join(f'{f:g}' for f in feeds)} mm/min): "
-                             "ISO 230-2 evaluates one feed at a time; give each feed its own file "
-                             "(diagnose takes them all together)", path)
+        for axis in np.unique(data.axis):
+            # the rows evaluated: this axis's positioning component (the others are skipped anyway)
+            rows = (data.axis == axis) & (data.component == positioning_component(str(axis)))
+            f = data.context.feed[rows]
+            feeds = np.unique(f[np.isfinite(f)])
+            if feeds.size > 1:
+                raise InputError(f"runs of {axis} at {feeds.size} feeds ({', '.join(f'{v:g}' for v in feeds)} "
+                                 "mm/min): ISO 230-2 evaluates one feed at a time; give each feed its own "
+                                 "file (diagnose takes them all together)", path)
         reports.append(evaluate_iso230_2(data))
     print("\n\n".join(r.summary() for r in reports))
     if out is not None:

@@ -72,8 +72,6 @@ def run(args) -> int:
                                read_program_points)
 
     out = Path(args.output)
-    if out.suffix.lower() != ".png":
-        raise InputError("the map must be a .png file", out)
     if args.glyph_scale is not None and not args.glyph_scale > 0:
         raise InputError(f"--glyph-scale must be > 0, got {args.glyph_scale}")
     if args.tool_radius_mm is not None and not args.tool_radius_mm >= 0:
@@ -88,7 +86,7 @@ def run(args) -> int:
     for p in inputs:
         if not Path(p).is_file():
             raise InputError("no such file", p)
-    check_output_path(out, inputs)
+    check_output_path(out, inputs, ".png", "the map")
     check_output_path(out.with_suffix(".vtp"), inputs)
     machine = load_machine(args.machine)
     fitted = load_model(args.model, machine)

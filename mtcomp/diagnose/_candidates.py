@@ -202,7 +202,7 @@ def without_params(c: Candidate, names) -> Candidate:
     def build(st):
         return c.rebuild(st)[:, keep]
     return Candidate(c.effect, c.axis, c.variant, c.columns[:, keep], terms, [c.params[i] for i in keep],
-                     rivals=c.rivals, info=dict(c.info), build=build)
+                     rivals=c.rivals, info=dict(c.info), veto=c.veto, build=build)
 
 
 def _with_offsets(names, dirs):

@@ -62,16 +62,19 @@ class Finding:
     axis: str
     params: dict
     evidence: str
-    heldout_rms_before_um: float
-    heldout_rms_after_um: float
+    heldout_rms_before: float
+    heldout_rms_after: float
     candidate: Candidate | None = None
     step: tuple | None = None
     unit: str = "um"
 
     def to_dict(self) -> dict:
-        return {"effect": self.effect, "axis": self.axis, "params": self.params, "evidence": self.evidence,
-                f"heldout_rms_before_{self.unit}": _r(self.heldout_rms_before_um),
-                f"heldout_rms_after_{self.unit}": _r(self.heldout_rms_after_um)}
+        # SPEC's keys are in um; data without positions keep them (null) and add their own unit's
+        out = {"effect": self.effect, "axis": self.axis, "params": self.params, "evidence": self.evidence,
+               "heldout_rms_before_um": None, "heldout_rms_after_um": None}
+        out[f"heldout_rms_before_{self.unit}"] = _r(self.heldout_rms_before)
+        out[f"heldout_rms_after_{self.unit}"] = _r(self.heldout_rms_after)
+        return out
 
 
 def _finite(obj):
@@ -183,19 +186,18 @@ def _metrics(st: Stack, fit, n_params: int) -> dict:
     return out
 
 
+#: the unit whose held-out rms the selection follows: the first of these the data hold
+MAIN_UNITS = ("um", "urad", "um/min")
+
+
 def _heldout_unit(st) -> str:
-    """The unit of the held-out rms the selection follows: um, or the one unit of data without
-    positions (urad of angular laser runs)."""
-    if np.any(st.unit == "um"):
-        return "um"
-    units = np.unique(st.unit)
-    return str(units[0]) if units.size == 1 else "/".join(map(str, units))
+    """um, else urad (angular laser runs alone), else um/min (velocities alone)."""
+    return next((u for u in MAIN_UNITS if np.any(st.unit == u)), MAIN_UNITS[0])
 
 
 def _heldout(st, fit) -> float:
-    um = st.unit == "um"
-    sel = um if um.any() else np.ones(len(st), dtype=bool)
-    return rms(fit.cv_resid[sel])
+    """Held-out rms of the readings in :func:`_heldout_unit` (one unit, never a mixture)."""
+    return rms(fit.cv_resid[st.unit == _heldout_unit(st)])
 
 
 def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int = MAX_FINDINGS,
@@ -380,7 +382,7 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     findings: list[Finding] = []
     rejected: list[dict] = list(not_tried)
     extra = np.zeros((len(st), 0))
-    noise_main = noise.get("um") or noise.get("urad") or noise.get("um/min")
+    noise_main = noise.get(_heldout_unit(st)) or next(iter(noise.values()))
     n = len(st)
     while len(chosen) < max_findings:
         if _heldout(st, current) <= noise_main.sigma:
@@ -439,7 +441,7 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
         before = _heldout(st, current)
         finding = _finding(st, c, current, fit, before, _heldout(st, fit), rivals, noise)
         say(f"found {finding.effect} {finding.axis}: held-out {before:.4g} -> "
-            f"{finding.heldout_rms_after_um:.4g} {finding.unit} (BIC {dbic:+.1f}, {dk} parameter(s))")
+            f"{finding.heldout_rms_after:.4g} {finding.unit} (BIC {dbic:+.1f}, {dk} parameter(s))")
         findings.append(finding)
         chosen.append(c)
         extra = np.hstack([extra, c.columns])
@@ -466,7 +468,7 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
         finer = finer_base(st, design, extra_all, current, structure)
     if structure or excess > EXCESS_RATIO * inflation:
         verdict = "unexplained"
-        findings.append(_unexplained(st, current, structure, excess, noise_main))
+        findings.append(_unexplained(st, current, structure, excess, noise_main, inflation))
         say(f"structure remains: {findings[-1].params['where']}")
     model = _fitted_model(st, design, chosen, current)
     diag = Diagnosis(verdict, noise, base_metrics, findings, final_metrics, model, how, len(st),
@@ -692,9 +694,9 @@ def _finding(st, c: Candidate, before_fit, after_fit, before_um, after_um, rival
                    _heldout_unit(st))
 
 
-def _unexplained(st, fit, structure, excess, noise_main) -> Finding:
+def _unexplained(st, fit, structure, excess, noise_main, inflation: float = 1.0) -> Finding:
     from ._report import unexplained_params
-    params, evidence, axis = unexplained_params(st, fit, structure, excess, noise_main)
+    params, evidence, axis = unexplained_params(st, fit, structure, excess, noise_main, inflation)
     h = _heldout(st, fit)
     return Finding("unexplained", axis, params, evidence, h, h, None, unit=_heldout_unit(st))
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.stats import chi2
+from scipy.stats import f as f_dist
 
 from . import _analysis as an
 from ._linalg import rms
@@ -153,8 +153,15 @@ def evidence_and_params(st, c, theta, before_fit, after_fit, rivals, noise):
     return {}, ""
 
 
-def unexplained_params(st, fit, structure, excess, noise_main):
-    """(params {'where', 'correlates_with', ...}, evidence, axis) of remaining structure."""
+def _runs(st, sel) -> np.ndarray:
+    """The run numbers of the rows ``sel`` (rows without a run, -1, left out)."""
+    r = st.run[sel]
+    return np.unique(r[r >= 0])
+
+
+def unexplained_params(st, fit, structure, excess, noise_main, inflation: float = 1.0):
+    """(params {'where', 'correlates_with', ...}, evidence, axis) of remaining structure.
+    ``inflation``: how much larger than the noise a right model's held-out rms is expected to be."""
     if structure:
         s = structure[0]
         sel = st.series == s.series
@@ -164,7 +171,7 @@ def unexplained_params(st, fit, structure, excess, noise_main):
             where += f" (most; {s.n_departing} of {s.dof} bins depart from zero)"
         axis = s.variable.split()[0] if s.variable.endswith("position") else \
             (st.moving[sel][0] if st.moving[sel].size and st.moving[sel][0] else "")
-        runs = np.unique(st.run[sel])
+        runs = _runs(st, sel)
         cors = [f"{n} (r = {r:.2f})" for n, r in an.correlations(st, fit.resid, sel)[:3] if abs(r) > 0.2]
         corr = [s.variable] + [x for x in cors if not x.startswith(s.variable)]
         ev = (f"Binned means of the final residual of {s.series} against {s.variable} depart from zero "
@@ -184,12 +191,13 @@ def unexplained_params(st, fit, structure, excess, noise_main):
             axis = words[-1]
         elif cors[0][0].endswith(" position"):
             axis = words[0]
-    # p: the held-out sum of squares in noise variances against chi-square with one degree of
-    # freedom per reading (what noise alone would leave)
+    # p: the held-out mean square over the noise variance, against what a right model leaves (the
+    # noise times the held-out inflation); the noise is itself estimated (its dof): an F test
     z = fit.cv_resid / noise_main.sigma
     sel = np.isfinite(z) & (st.unit == noise_main.unit)
-    p = float(chi2.sf(np.sum(z[sel] ** 2), max(int(sel.sum()), 1)))
-    runs = np.unique(st.run[st.run >= 0])
+    p = (float(f_dist.sf(np.mean(z[sel] ** 2) / inflation ** 2, int(sel.sum()), max(noise_main.dof, 1)))
+         if sel.any() else None)
+    runs = _runs(st, np.ones(len(st), dtype=bool))
     ev = (f"The held-out residual stays {excess:.2f} times the noise floor ({noise_main.sigma:.3g} "
           f"{noise_main.unit}) with no localised structure; no candidate effect explains it")
     return ({"where": where, "correlates_with": corr, "runs": [int(r) for r in runs], "p_value": p},
@@ -220,7 +228,7 @@ def summary(diag) -> str:
         lines.append(f"{i}. {f.effect}{' on ' + f.axis if f.axis else ''}: {ps}")
         lines.append(f"   evidence: {f.evidence}")
         if f.effect != "unexplained":
-            lines.append(f"   held-out rms {f.heldout_rms_before_um:.4g} -> {f.heldout_rms_after_um:.4g} {f.unit}")
+            lines.append(f"   held-out rms {f.heldout_rms_before:.4g} -> {f.heldout_rms_after:.4g} {f.unit}")
     for r in diag.rejected:
         variant = f" ({r['variant']})" if r.get("variant") else ""
         on = f" on {r['axis']}" if r.get("axis") else ""

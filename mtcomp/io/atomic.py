@@ -12,17 +12,25 @@ from pathlib import Path
 from ..errors import InputError
 
 
-def check_output_path(out: str | os.PathLike, inputs: list[str | os.PathLike] = ()) -> Path:
-    """Refuse an output that is one of the inputs or whose folder does not exist."""
+def _same_file(a: Path, b: Path) -> bool:
+    """The same path, via a symlink, or a hard link to the same file."""
+    if a.resolve() == b.resolve():
+        return True
+    return a.exists() and b.exists() and os.path.samefile(a, b)
+
+
+def check_output_path(out: str | os.PathLike, inputs: list[str | os.PathLike] = (),
+                      suffix: str | None = None, what: str = "the output") -> Path:
+    """Refuse an output that is one of the inputs, that is a folder, whose folder does not exist, or
+    (with ``suffix``, e.g. '.png') whose name does not end so (``what`` names it in the message)."""
     out_p = Path(out)
     for inp in inputs:
-        same = Path(inp).resolve() == out_p.resolve()          # the same path, or via a symlink
-        if not same and out_p.exists() and Path(inp).exists():
-            same = os.path.samefile(inp, out_p)                # a hard link to the input
-        if same:
+        if _same_file(Path(inp), out_p):
             raise InputError("output would overwrite an input file", out)
     if out_p.is_dir():
         raise InputError("is a folder: name the output file", out)
+    if suffix is not None and out_p.suffix.lower() != suffix:
+        raise InputError(f"{what} is written as {suffix[1:].upper()}: give the file a {suffix} name", out)
     parent = out_p.resolve().parent
     if not parent.is_dir():
         raise InputError(f"output folder {parent} does not exist", out)
@@ -35,7 +43,7 @@ def check_distinct_inputs(paths: list[str | os.PathLike]) -> None:
     seen: list[Path] = []
     for p in map(Path, paths):
         for q in seen:
-            if p.resolve() == q.resolve() or (p.exists() and q.exists() and os.path.samefile(p, q)):
+            if _same_file(p, q):
                 raise InputError(f"given twice (also as {q}): its readings would count twice", p)
         seen.append(p)
 

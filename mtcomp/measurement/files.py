@@ -249,6 +249,15 @@ class LaserData(MeasurementSet):
             q[:, k] = np.where(self.axis == name, self.target, np.nan_to_num(static))
         return q
 
+    def positions_given(self, machine) -> np.ndarray:
+        """(n, n_axes) bool: the file gives that axis's position in that row (the moving axis's
+        target, or a static position column); the others are taken as 0 by :meth:`axis_positions`."""
+        given = np.zeros((len(self), machine.n_axes), dtype=bool)
+        for k, name in enumerate(machine.axis_names):
+            static = self.xyz[:, LINEAR.index(name)] if name in LINEAR else self.abc[:, ROTARY.index(name)]
+            given[:, k] = (self.axis == name) | np.isfinite(static)
+        return given
+
 
 @dataclass(eq=False)
 class BallbarData(_CommandedPoses, MeasurementSet):

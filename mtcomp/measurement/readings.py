@@ -105,11 +105,14 @@ def outside_travel(machine, datasets) -> list[str]:
     checked (an angle and that angle plus a turn are one position)."""
     notes = []
     for data, q in _positions_by_file(machine, datasets):
+        # positions the file does not give (a laser file's static axes without a column) are not its
+        given = (data.positions_given(machine) if hasattr(data, "positions_given")
+                 else np.ones(q.shape, dtype=bool))
         for j, ax in enumerate(machine.axes):
             if ax.is_rotary:
                 continue
             lo, hi = ax.travel
-            out = np.flatnonzero((q[:, j] < lo - 1e-3) | (q[:, j] > hi + 1e-3))
+            out = np.flatnonzero(given[:, j] & ((q[:, j] < lo - 1e-3) | (q[:, j] > hi + 1e-3)))
             if out.size:
                 v = q[out, j]
                 notes.append(f"{data.path}: {out.size} row(s) take {ax.name} to {v.min():.6g}..{v.max():.6g} mm, "

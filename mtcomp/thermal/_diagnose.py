@@ -12,6 +12,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from scipy.stats import f as f_dist
 
 from ..errors import InputError
 from ..models.chain import ErrorModel
@@ -112,8 +113,11 @@ def diagnose_thermal(machine, data, channel_axes: dict | None = None, progress=N
     ratio = _rms(c.forward_rms_um) / fit.noise_um if fit.noise_um > 0 else np.inf
     verdict = "none" if c.driver == "none" and ratio <= 1.5 else ("explained" if ratio <= 1.5 else "unexplained")
     if verdict == "unexplained":
+        runs = np.unique(data.context.run[data.context.run >= 0])
+        p = float(f_dist.sf(ratio ** 2, n_obs, max(n_obs - len(fit.channels), 1)))
         findings.append(Finding("unexplained", "", {"where": "the drift predicted forward in time",
-                                                    "correlates_with": "time"},
+                                                    "correlates_with": ["time"],
+                                                    "runs": [int(r) for r in runs], "p_value": p},
                                 f"the forward-validated rms {_rms(c.forward_rms_um):.3g} um is "
                                 f"{ratio:.3g} times the noise of one reading", _rms(c.forward_rms_um),
                                 _rms(c.forward_rms_um)))
