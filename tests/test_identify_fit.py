@@ -121,6 +121,36 @@ def test_undetermined_direction_resolved_by_the_data_not_the_truth(xfyz):
     assert "EXX_1" in text and "EBX_1" in text and "cannot determine" in text
 
 
+def test_a_laser_run_of_x_alone_invents_no_error_of_axes_it_never_moved(tmp_path):
+    """A positioning run of X (Y, Z, the tool never changed): the readings' constant is shared, in the
+    data, by the laser's zero offset, the pitch of Z (through its 12.5 mm arm) and the squareness B0S
+    (through the tool). It is the offset's: the model predicts the same X error for every tool length
+    and every Z, as the data say nothing of them (the plain minimum-norm split had put 105 urad in EBZ
+    and 13 urad in B0S, 2.6 um more X error per 100 mm of tool). Data from the independent machine."""
+    import csv
+    from mtcomp.cli import main
+    from truth import TruthMachine
+    from truth import campaigns as tc
+    rng = np.random.default_rng(5)
+    m = TruthMachine.random("xfyz", rng, effects=[], error_motions=False)
+    laser = tc.laser(m, tmp_path / "x1.csv", rng, "X", components=("EXX",), targets=np.linspace(-200, 200, 11),
+                     n_runs=3, feed_mm_min=[1000.0], noise_um=0.3, t0_s=0.0).path
+    assert main(["identify", "xfyz", str(laser), "-o", str(tmp_path / "m.json")]) == 0
+    rows = ["x_mm,y_mm,z_mm,tool_mm,dx_um"] + [f"{x},0,{z},{t},0" for x in (-200, 0, 150)
+                                             for z in (-200, 0, 100) for t in (0, 100, 250)]
+    (tmp_path / "p.csv").write_text("\n".join(rows) + "\n")
+    assert main(["predict", "xfyz", str(tmp_path / "m.json"), str(tmp_path / "p.csv"), "-o",
+                 str(tmp_path / "pred.csv")]) == 0
+    with open(tmp_path / "pred.csv") as f:
+        pred = list(csv.DictReader(f))
+    by_x = {}
+    for r in pred:
+        by_x.setdefault(float(r["x_mm"]), []).append(float(r["pred_dx_um"]))
+    for x, v in by_x.items():
+        assert np.ptp(v) < 1e-3, (x, v)             # one X error whatever the tool and Z
+    assert len({round(v[0], 3) for v in by_x.values()}) == 3       # the profile along X is kept
+
+
 def test_points_at_one_z_level_name_abbe_combinations(xfyz):
     machine, model = xfyz
     rng = np.random.default_rng(13)

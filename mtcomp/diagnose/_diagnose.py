@@ -151,6 +151,11 @@ def _common_block(st: Stack) -> np.ndarray:
     return np.hstack([st.J[:, base], st.D])
 
 
+def _setup_columns(st: Stack) -> np.ndarray:
+    """(m,) bool: the common block's set-up (nuisance) columns, which follow the base's."""
+    return np.arange(int(st.probe.base_mask.sum()) + st.D.shape[1]) >= int(st.probe.base_mask.sum())
+
+
 def _theta0(st: Stack) -> np.ndarray:
     base = np.flatnonzero(st.probe.base_mask)
     return np.concatenate([st.p[base], st.nuisance])
@@ -264,11 +269,11 @@ def _start_point(machine, start):
     ``machine``, and its parameters' values (internal units).
 
     A model fitted by identify gives a standard error to every value its data determined; the others
-    were held where they predict the least error (an angle of an axis the data never moved may then
-    hold a level the readings share with a set-up offset). Those are not taken: at such a value the
-    chain's products of small errors give columns to parameters nothing determines (a tool length
-    error of 40 mm fitted to a laser run of X), so they start at zero, as without a start model. A
-    model with no standard errors at all (written by hand) is taken whole."""
+    were held (weakly determined combinations at the least predicted error, which need not be zero).
+    Those are not taken: at such a value the chain's products of small errors give columns to
+    parameters nothing determines (a start model holding a pitch of Z of 105 urad made a tool-length
+    error of 37 mm out of a laser run of X), so they start at zero, as without a start model. A model
+    with no standard errors at all (written by hand) is taken whole."""
     m = start.model.machine
     if m.topology != machine.topology or m.axis_names != machine.axis_names:
         raise InputError(f"the start model is of a {m.topology} machine, not {machine.topology}",
@@ -333,7 +338,7 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
         say(f"start: {len(taken)} of the base's {len(base_names)} parameters from the start model")
     st.evaluate(p0, np.zeros(len(st.nuisance_names)))
     # the directions the data determine, fixed at the start point (as identify does)
-    T0 = determined_subspace(_common_block(st))
+    T0 = determined_subspace(_common_block(st), setup=_setup_columns(st))
     point, cost = (p0, np.zeros(len(st.nuisance_names))), _cost(st)
     for _ in range(2):
         Ar = _common_block(st) @ T0

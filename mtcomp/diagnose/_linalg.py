@@ -116,12 +116,16 @@ def _fold_solve(Gk: np.ndarray, bk: np.ndarray, G: np.ndarray) -> np.ndarray:
     return tri(L.T, U[:, ok] @ ((U[:, ok].T @ y) / lam[ok]), lower=False) / d
 
 
-def determined_subspace(A: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
-    """(m, r) basis T of the parameter directions the weighted columns of A determine: T = S V_r
-    with S the inverse column norms and V_r the eigenvectors of the scaled normal matrix whose
-    relative eigenvalues exceed RANK_TOLERANCE. Fixed once, at the start point of a fit, so that
-    combinations determined only through second-order effects of the errors stay undetermined."""
-    from ..identification.fit import _column_scale
+def determined_subspace(A: np.ndarray, w: np.ndarray | None = None,
+                        setup: np.ndarray | None = None) -> np.ndarray:
+    """(m, r) basis T of the parameter directions a fit moves in: T = S B with S the inverse column
+    norms and B the directions of the scaled problem complementary to its null space (eigenvalues
+    of the scaled normal matrix not above RANK_TOLERANCE of the largest), chosen as identify does
+    (:func:`mtcomp.identification.fit.held_complement`): ``setup`` (m,) bool marks set-up columns,
+    which take what an undetermined combination trades with machine parameters (None: all machine).
+    Fixed once, at the start point of a fit, so that combinations determined only through
+    second-order effects of the errors stay undetermined."""
+    from ..identification.fit import _column_scale, held_complement
     Aw = A if w is None else A * np.asarray(w, dtype=float)[:, None]
     # identify's rule: a column at round-off level (a rotary location error the data never turn,
     # seen only through the rounding of the chain) is not scaled up to pass for information
@@ -129,7 +133,8 @@ def determined_subspace(A: np.ndarray, w: np.ndarray | None = None) -> np.ndarra
     G0 = (Aw * S).T @ (Aw * S)
     ev, V = _eigh(G0)
     ok = ev > RANK_TOLERANCE * max(ev.max(), 1e-300)
-    return S[:, None] * V[:, ok]
+    machine = np.ones(A.shape[1], dtype=bool) if setup is None else ~np.asarray(setup, dtype=bool)
+    return S[:, None] * held_complement(V[:, ~ok], machine)
 
 
 class Design:

@@ -543,9 +543,29 @@ STEP_SE = 1e-3
 #: a combination of parameters whose rms tool-tip error over the travel the data fix only to worse
 #: than this standard error (um) is held at the least error, like one they do not see at all
 WEAK_SD_UM = 1.0
+#: weight of a set-up unknown (a file's zero offset, its alignment) against a machine parameter when a
+#: combination the data cannot determine is held: the set-up takes what it trades with machine errors
+SETUP_WEIGHT = 1e-3
 #: ... unless the first fit puts it further from the start than this many of its standard errors:
 #: then the data do see it (a real error of 28 um fixed to 1.2 um is fitted, not held at zero)
 WEAK_SIGNIFICANT = 3.0
+
+
+def held_complement(null: np.ndarray, machine: np.ndarray) -> np.ndarray:
+    """(n, n - k) orthonormal directions a fit moves in, given the k orthonormal directions ``null``
+    (column-scaled coordinates) the data do not determine and ``machine`` (n,) bool, True for machine
+    parameters, False for set-up unknowns: ``{z : null^T W z = 0}`` with W = 1 on machine parameters
+    and SETUP_WEIGHT^2 on set-ups. W is positive definite, so these directions and ``null`` together
+    span everything: every fit of the data is reached, with the least machine part of each
+    undetermined combination. A constant the readings share between a laser's zero offset and the
+    angle of an axis that never moved (through its Abbe arm) is the offset's: the plain minimum norm
+    split it three ways and made a pitch of Z of 105 urad out of a laser run of X."""
+    k = null.shape[1]
+    if k == 0:
+        return np.eye(null.shape[0])
+    w = np.where(machine, 1.0, SETUP_WEIGHT ** 2)
+    _, _, Vt = np.linalg.svd((w[:, None] * null).T, full_matrices=True)
+    return Vt[k:].T
 
 
 def travel_metric(model: ErrorModel, free_idx: np.ndarray, n_unknowns: int) -> np.ndarray:
@@ -813,7 +833,8 @@ class _Problem:
 
         What the data determine (rank, the undetermined combinations, which parameters are
         determined) comes from the data alone: the eigen-decomposition of the column-scaled normal
-        matrix at the start point; undetermined directions stay at their start values. The first
+        matrix at the start point; the machine part of undetermined combinations stays at its start
+        values, set-ups taking what they trade with it (:func:`held_complement`). The first
         pass fits the data alone. Knowing the residual scale, the directions whose rms tool-tip error
         over the travel the data fix only to worse than :data:`WEAK_SD_UM` count as undetermined
         too: the second pass holds them at the least predicted error (:meth:`_weak_directions`), so
@@ -830,7 +851,7 @@ class _Problem:
         rank = int(keep.sum())
         cond = float(rel[0] / rel[keep][-1]) if rank else np.inf
         start = (x, r, A, g)
-        B1 = V[:, keep]
+        B1 = held_complement(null, np.arange(self.n_unknowns) < self.n_free)
         x, r, A, g, B, AB, iterations, converged = self._gauss_newton(
             x, r, A, g, w, max_iterations, tol, B1, scale)
         sigma_w = self._repeat_scale(r, rank)
