@@ -12,9 +12,11 @@ On the independent machine (tests/truth, which shares no code with mtcomp), N hi
 effects (backlash, rotary backlash, periodic, feed offset, feed Abbe, thermal, local defect, clean),
 campaign kinds (rich volumetric, single-axis laser runs at three feeds and two Abbe offsets, rotary
 laser runs, ball bar with the three-sphere set-up, mixtures) and topologies (xfyz, cafxyz, cbfxyz),
-then seed 000's set-up (--seed000 M machines: the compensated 210 mm line, base vs extended model):
+then seed 000's set-up (--seed000 M machines: the compensated 210 mm line, base vs extended model);
+clean campaigns alone with --truth-clean N:
 
     PYTHONPATH=tests python benchmarks/bench_diagnose.py --truth 48 --seed000 5
+    PYTHONPATH=tests python benchmarks/bench_diagnose.py --truth-clean 100 --seed 24000
 """
 from __future__ import annotations
 
@@ -63,7 +65,11 @@ def main(argv=None):
                     help="run N hidden cases on the independent machine (tests/truth) instead")
     ap.add_argument("--seed000", type=int, default=0, metavar="M",
                     help="with --truth: seed 000's set-up on M independent machines")
+    ap.add_argument("--truth-clean", type=int, default=0, metavar="N",
+                    help="N clean campaigns on the independent machine (false alarms), from --seed")
     args = ap.parse_args(argv)
+    if args.truth_clean:
+        return truth_clean_main(args)
     if args.truth or args.seed000:
         return truth_main(args)
 
@@ -163,6 +169,42 @@ def truth_plan(n: int, first_seed: int) -> list:
         kind = kinds[int(np.random.default_rng(first_seed + i).integers(len(kinds)))]
         plan.append((first_seed + i, effect, kind, topo))
     return plan
+
+
+def truth_clean_plan(n: int, first_seed: int) -> list:
+    """(seed, kind, topology) of n clean campaigns: topologies in turn, the kind drawn from the seed
+    among all five (rotary laser runs only on 5-axis machines)."""
+    from truth.hidden import compatible_kinds
+    plan = []
+    for k in range(n):
+        topo = TOPOLOGIES[k % len(TOPOLOGIES)]
+        kinds = compatible_kinds("", topo)
+        plan.append((first_seed + k, kinds[int(np.random.default_rng(first_seed + k).integers(len(kinds)))], topo))
+    return plan
+
+
+def truth_clean_main(args):
+    """Clean campaigns on the independent machine: any finding is a false alarm."""
+    import tempfile
+    from pathlib import Path
+
+    from diagnose_truth import run
+    from truth.hidden import hidden_case
+
+    alarms, times = [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        for k, (seed, kind, topo) in enumerate(truth_clean_plan(args.truth_clean, args.seed)):
+            case = hidden_case(seed, "", kind, topo, Path(tmp) / f"clean{k}")
+            d, dt = run(case)
+            times.append(dt)
+            named = [f"{f.effect} {f.axis}".strip() for f in d.findings]
+            if named:
+                alarms.append((seed, topo, kind, named))
+            print(f"{k + 1:4d} seed {seed} {topo:7} {kind:12} -> {'ALARM ' + str(named) if named else 'ok'} "
+                  f"{dt:.1f} s", flush=True)
+    print(f"\nfalse alarms on clean campaigns: {len(alarms)}/{args.truth_clean}"
+          + "".join(f"\n   seed {s} {t} {k}: {n}" for s, t, k, n in alarms))
+    print(f"time per case: median {np.median(times):.1f} s, max {np.max(times):.1f} s")
 
 
 def truth_main(args):
