@@ -228,10 +228,13 @@ def test_bad_input_exits_2_and_writes_nothing(tmp_path, capsys):
     far.write_text("G21 G90\nG0 X0 Y0 Z0\nG1 X500 F100\nM30\n")
     garbled = tmp_path / "bad.nc"
     garbled.write_text("G21 G90\nG1 X1 Y$ F100\n")
+    empty = tmp_path / "empty.nc"
+    empty.write_text("G21 G90\n(no motion)\nM30\n")
     cases = [
         (["compensate", "xfyz", str(model_path), str(tmp_path / "none.nc"), "-o", str(out)], "none.nc"),
         (["compensate", "xfyz", str(model_path), str(far), "-o", str(out)], "far.nc:3"),
         (["compensate", "xfyz", str(model_path), str(garbled), "-o", str(out)], "bad.nc:2"),
+        (["compensate", "xfyz", str(model_path), str(empty), "-o", str(out)], "no motion block"),
         (["compensate", "xfyz", str(model_path), str(prog), "-o", str(out), "--max-step-um", "-1"],
          "--max-step-um"),
         (["compensate", "xfyz", str(model_path), str(prog), "-o", str(prog)], "overwrite"),

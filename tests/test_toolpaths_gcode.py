@@ -213,6 +213,16 @@ def test_home_moves_and_dwell(tmp_path):
     ("G0 G1 X1\n", 1, "two motion codes"),
     ("G0 X1 X2\n", 1, "appears twice"),
     ("G92 X0\n", 1, "G92"),
+    # moves that stop where a signal comes: the position after them is not the program's (a corrected
+    # later block once carried the probe's target Z)
+    ("G0 X10 Y0 Z5\nG38.2 Z-10 F100\nG1 X20 Y3\n", 2, "G38.2 .probing move"),
+    ("G0 X10 Y0 Z5\nG31 Z-10 F100\n", 2, "G31 .skip function"),
+    # coordinates that are not axis positions, and curves mtcomp does not follow
+    ("G16\nG1 X50 Y45 F100\n", 1, "G16 .polar coordinates"),
+    ("G0 X0 Y0\nG12.1\n", 2, "G12.1 .polar coordinate interpolation"),
+    ("G0 X0 Y0\nG5.2 X1 Y1 P1 L3\n", 2, "G5.2 .NURBS"),
+    # LinuxCNC's multi-turn arc: P turns (one turn was cut, and P landed on a straight move)
+    ("G0 X0 Y0 Z0\nG2 X10 Y0 I-10 J0 P3 F100\n", 2, "arc G2 with a P word"),
     ("G76 X1 Z-1 P1\n", 1, "canned cycle G76"),
     ("G1 X1 I2 F10\n", 1, "I word in a G1 block"),
     ("G0 X0 Y0\nG17\nG2 X1 Y1 K2 F10\n", 3, "not an offset in plane G17"),

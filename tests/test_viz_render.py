@@ -173,6 +173,19 @@ def test_render_command_writes_both_files_and_prints_the_figures(tmp_path, capsy
     assert Image.open(tmp_path / "map.png").size == (500, 300)
 
 
+def test_render_a_program_without_motion_exits_2_and_draws_nothing(tmp_path, capsys):
+    """A program of set-up lines only (it once crashed in pyvista after writing the PNG)."""
+    from mtcomp.cli import main
+    _plane_case(tmp_path)
+    (tmp_path / "empty.nc").write_text("G21 G90\n(no motion)\nM30\n")
+    before = sorted(p.name for p in tmp_path.iterdir())
+    rc = main(["render", "xfyz", str(tmp_path / "MODEL.json"), str(tmp_path / "empty.nc"), "-o",
+               str(tmp_path / "map.png")])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1 and "no motion block" in err and "Traceback" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
 @pytest.mark.parametrize("args, message", [
     (["--compensated", "{d}/MODEL.json"], "MODEL.json"),      # not G-code
     (["--size", "10x10"], "--size"),

@@ -263,6 +263,9 @@ def run(args) -> int:
                 if rep is not None:
                     rep.writelines(report_rows(res, machine.axis_names))
                 yield chunk, res.corrected, res.counts
+            if summary.blocks == 0:
+                # raised while the outputs are still temporary files: nothing is written
+                raise InputError("no motion block in the program: nothing to compensate", args.program)
 
         written = {}
         write_corrected(args.program, out, machine, corrections(), chord_tol_mm=chord_tol,

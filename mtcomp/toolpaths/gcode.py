@@ -59,6 +59,16 @@ _REFUSED_G = {
     68.2: "G68.2 (tilted working plane)", 68.3: "G68.3 (tilted working plane)",
     53.1: "G53.1 (tool axis direction control)",
     65: "G65 (macro call)", 66: "G66 (modal macro call)",
+    # moves that stop where a signal comes (the position after them is not the program's), and
+    # coordinates that are not axis positions
+    31: "G31 (skip function: the move stops where the signal comes, and later positions are unknown)",
+    38.2: "G38.2 (probing move: it stops where the probe touches, and later positions are unknown)",
+    38.3: "G38.3 (probing move: it stops where the probe touches, and later positions are unknown)",
+    38.4: "G38.4 (probing move: it stops where the probe leaves, and later positions are unknown)",
+    38.5: "G38.5 (probing move: it stops where the probe leaves, and later positions are unknown)",
+    16: "G16 (polar coordinates: X and Y are a radius and an angle)",
+    12.1: "G12.1 (polar coordinate interpolation)", 7.1: "G7.1 (cylindrical interpolation)",
+    5: "G5 (spline)", 5.2: "G5.2 (NURBS)",
 }
 #: M codes refused (subprograms, tool centre point control)
 _REFUSED_M = {98: "M98 (subprogram call)", 99: "M99 (subprogram end)",
@@ -642,6 +652,9 @@ class ModalState:
             raw_axes = {letter: raw for letter, _num, raw in tokens if letter in _AXIS_LETTERS}
         centre = None
         if self.motion in (2, 3):
+            if any(letter == "P" for letter, _num, _raw in tokens):
+                raise self._err(f"arc G{self.motion} with a P word (a number of turns) is not supported",
+                                line)
             i0, i1, _ = PLANE_AXES[self.plane]
             plane_idx = [self.xyz_index[i0], self.xyz_index[i1]]
             if min(self.xyz_index) >= 0 and not all(self.known[i] for i in plane_idx):

@@ -74,6 +74,9 @@ def read_program_points(path, machine: Machine) -> ProgramPoints:
     from ..toolpaths import SegmentChunk, iter_segment_chunks
     chunks = list(iter_segment_chunks(path, machine))
     seg = SegmentChunk.concatenate(chunks, machine.n_axes)
+    if len(seg.end) == 0:
+        from ..errors import InputError
+        raise InputError("no motion block in the program: nothing to draw", path)
     return ProgramPoints(os.fspath(path), seg.end.copy(), seg.line.copy(), seg.feed.copy(),
                          seg.dirs.copy(), seg.rapid.copy())
 
