@@ -74,6 +74,12 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         sys.stderr.write("mtcomp: interrupted\n")
         return 130
+    except BrokenPipeError:
+        # the reader of the output went away (`mtcomp ... | head`): output files are already written
+        # whole (or not at all); stop quietly, without a traceback at the interpreter's final flush
+        import os
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
 
 
 if __name__ == "__main__":

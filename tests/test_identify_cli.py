@@ -127,3 +127,20 @@ def test_identify_options_noise_weights_and_rcond(files, capsys):
     assert main(["identify", "xfyz", str(paths["points"]), "-o", str(tmp / "x.json"), "--rcond", "2"]) == 2
     assert "--rcond" in _one_line_error(capsys)
     assert not (tmp / "x.json").exists()
+
+
+def test_a_reader_that_goes_away_stops_the_command_quietly(tmp_path):
+    """`mtcomp identify ... | head -1`: the summary's reader closes the pipe; the model is written
+    whole, the command stops with 141 (as a shell reports SIGPIPE) and no traceback."""
+    import subprocess
+    import sys
+    rows = ["axis,component,target_mm,dir,run,value_um"]
+    rows += [f"X,EXX,{x},{d},{r},{0.01 * x + 0.1 * r}" for r in (1, 2) for d in (1, -1) for x in (0, 50, 100)]
+    (tmp_path / "x.csv").write_text("\n".join(rows) + "\n")
+    proc = subprocess.Popen([sys.executable, "-m", "mtcomp", "identify", "xfyz", str(tmp_path / "x.csv"), "-o",
+                             str(tmp_path / "m.json")], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()                       # the reader is gone before a line is written
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 141, err
+    assert "Traceback" not in err and "BrokenPipe" not in err, err
+    assert json.loads((tmp_path / "m.json").read_text())["format"]
