@@ -57,6 +57,7 @@ def test_range_clips_the_support_and_grid_step_is_honoured(tmp_path, capsys):
     (["--range", "X=3:1"], "LO < HI"),
     (["--grid-mm", "0.01"], "holds at most 256"),
     (["--max-points", "1"], "at least 2"),
+    (["--fanuc-max-value", "-1"], "--fanuc-max-value must be a positive whole number"),
 ])
 def test_bad_options_exit_2_with_one_line_and_write_nothing(tmp_path, capsys, args, expected):
     p = _model(tmp_path, {"X": (-20.0, 20.0)})

@@ -66,6 +66,8 @@ def run(args) -> int:
     max_points = fmt.MAX_POINTS if args.max_points is None else args.max_points
     if max_points < 2:
         raise InputError(f"--max-points must be at least 2, got {max_points}")
+    if args.fanuc_max_value < 1:
+        raise InputError(f"--fanuc-max-value must be a positive whole number, got {args.fanuc_max_value}")
     ranges = parse_ranges(args.range, machine)
     region, source, notes = table_region(fitted, ranges)
     if fmt.LINEAR_ONLY:
