@@ -8,6 +8,7 @@ exit status 2, with no traceback.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import sys
 
@@ -67,18 +68,25 @@ def main(argv: list[str] | None = None) -> int:
         sys.stderr.write(f"mtcomp {args.command}: this command is not available in this build\n")
         return 2
     try:
-        return int(mod.run(args) or 0)
-    except InputError as exc:
-        sys.stderr.write(f"mtcomp {args.command}: {exc.one_line()}\n")
-        return 2
-    except KeyboardInterrupt:
-        sys.stderr.write("mtcomp: interrupted\n")
-        return 130
+        try:
+            rc = int(mod.run(args) or 0)
+            sys.stdout.flush()              # a closed pipe shows here, not at the interpreter's exit
+            return rc
+        except InputError as exc:
+            sys.stderr.write(f"mtcomp {args.command}: {exc.one_line()}\n")
+            return 2
+        except KeyboardInterrupt:
+            sys.stderr.write("mtcomp: interrupted\n")
+            return 130
     except BrokenPipeError:
-        # the reader of the output went away (`mtcomp ... | head`): output files are already written
-        # whole (or not at all); stop quietly, without a traceback at the interpreter's final flush
+        # the reader of the output went away (`mtcomp ... | head`): what was written is whole (atomic
+        # outputs), files not yet written are not; stop quietly, with nothing left for the
+        # interpreter's final flush of stdout and stderr to fail on
         import os
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(OSError, ValueError):
+                os.dup2(devnull, stream.fileno())
         return 141
 
 

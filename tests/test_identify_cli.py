@@ -137,10 +137,18 @@ def test_a_reader_that_goes_away_stops_the_command_quietly(tmp_path):
     rows = ["axis,component,target_mm,dir,run,value_um"]
     rows += [f"X,EXX,{x},{d},{r},{0.01 * x + 0.1 * r}" for r in (1, 2) for d in (1, -1) for x in (0, 50, 100)]
     (tmp_path / "x.csv").write_text("\n".join(rows) + "\n")
-    proc = subprocess.Popen([sys.executable, "-m", "mtcomp", "identify", "xfyz", str(tmp_path / "x.csv"), "-o",
-                             str(tmp_path / "m.json")], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    import os
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}   # stdout buffered, as usual
+    argv = [sys.executable, "-m", "mtcomp", "identify", "xfyz", str(tmp_path / "x.csv"), "-o", str(tmp_path / "m.json")]
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
     proc.stdout.close()                       # the reader is gone before a line is written
     err = proc.stderr.read().decode()
     assert proc.wait(timeout=120) == 141, err
     assert "Traceback" not in err and "BrokenPipe" not in err, err
     assert json.loads((tmp_path / "m.json").read_text())["format"]
+    # an error line into a closed pipe (`2>&1 | head`): no traceback either
+    bad = [sys.executable, "-m", "mtcomp", "identify", "xfyz", str(tmp_path / "none.csv"), "-o",
+           str(tmp_path / "n.json")]
+    proc = subprocess.Popen(bad, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=env)
+    proc.stdout.close()
+    assert proc.wait(timeout=120) == 141

@@ -221,6 +221,11 @@ def test_home_moves_and_dwell(tmp_path):
     ("G16\nG1 X50 Y45 F100\n", 1, "G16 .polar coordinates"),
     ("G0 X0 Y0\nG12.1\n", 2, "G12.1 .polar coordinate interpolation"),
     ("G0 X0 Y0\nG5.2 X1 Y1 P1 L3\n", 2, "G5.2 .NURBS"),
+    ("G0 X0 Y0\nG5 X10 Y0 I5 J5 P1 Q2 F100\n", 2, "G5 .cubic spline"),
+    ("G0 X0 Y0 Z0\nG2 G5.1 X10 Y0 I5 J5 F100\n", 2, "G5.1 .quadratic spline"),   # once read as an arc
+    ("G0 X0 Y0 Z0\nG31.1 X10 F100\n", 2, "G31.1 .multi-step skip"),
+    ("G0 X0 Y0 Z0\nG37 Z-10\n", 2, "G37 .automatic tool length"),
+    ("G0 X0 Y0\nG112\n", 2, "G112 .polar coordinate interpolation"),
     # LinuxCNC's multi-turn arc: P turns (one turn was cut, and P landed on a straight move)
     ("G0 X0 Y0 Z0\nG2 X10 Y0 I-10 J0 P3 F100\n", 2, "arc G2 with a P word"),
     ("G76 X1 Z-1 P1\n", 1, "canned cycle G76"),
@@ -352,3 +357,14 @@ def test_incremental_home_move_keeps_its_meaning(tmp_path):
     out = tmp_path / "out.nc"
     write_corrected(p, out, XFYZ, None, initial_known=True)
     assert out.read_text() == "G1 X1.0000 F100\nG91\nG28 Z0\nG90 G1 X2.0000\n(end)\n"
+
+
+def test_fanuc_contour_control_modes_pass_through(tmp_path):
+    """G05 P10000 / G05 P0 (high-precision contour control) and G05.1 Q1 (AI contour control) are
+    modes, not curves: they pass through unchanged and the moves around them are read."""
+    text = "G21 G90\nG05 P10000\nG05.1 Q1\nG0 X1 Y2 Z3\nG1 X4 F100\nG05.1 Q0\nG05 P0\n"
+    prog = read_program(_write(tmp_path, text), XFYZ)
+    assert [b.line for b in prog.blocks] == [4, 5]
+    out = tmp_path / "out.nc"
+    write_corrected(tmp_path / "in.nc", out, XFYZ, None)
+    assert out.read_text().splitlines()[1:3] == ["G05 P10000", "G05.1 Q1"]

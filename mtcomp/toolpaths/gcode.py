@@ -62,14 +62,24 @@ _REFUSED_G = {
     # moves that stop where a signal comes (the position after them is not the program's), and
     # coordinates that are not axis positions
     31: "G31 (skip function: the move stops where the signal comes, and later positions are unknown)",
+    31.1: "G31.1 (multi-step skip: the move stops where the signal comes)",
+    31.2: "G31.2 (multi-step skip: the move stops where the signal comes)",
+    31.3: "G31.3 (multi-step skip: the move stops where the signal comes)",
+    31.4: "G31.4 (multi-step skip: the move stops where the signal comes)",
+    37: "G37 (automatic tool length measurement: the move stops at the sensor and sets the offset)",
     38.2: "G38.2 (probing move: it stops where the probe touches, and later positions are unknown)",
     38.3: "G38.3 (probing move: it stops where the probe touches, and later positions are unknown)",
     38.4: "G38.4 (probing move: it stops where the probe leaves, and later positions are unknown)",
     38.5: "G38.5 (probing move: it stops where the probe leaves, and later positions are unknown)",
     16: "G16 (polar coordinates: X and Y are a radius and an angle)",
-    12.1: "G12.1 (polar coordinate interpolation)", 7.1: "G7.1 (cylindrical interpolation)",
-    5: "G5 (spline)", 5.2: "G5.2 (NURBS)",
+    12.1: "G12.1 (polar coordinate interpolation)", 112: "G112 (polar coordinate interpolation)",
+    7.1: "G7.1 (cylindrical interpolation)", 107: "G107 (cylindrical interpolation)",
+    5.2: "G5.2 (NURBS)", 6.2: "G6.2 (NURBS)",
 }
+#: codes that are a curve when the block has coordinates, and a mode switch without them (Fanuc's
+#: G05 P10000 high-precision contour control, G05.1 Q1 AI contour control pass through)
+_CURVE_WITH_COORDINATES = {5: ("G5 (cubic spline)", frozenset("XYZABCIJKR")),
+                           5.1: ("G5.1 (quadratic spline)", frozenset("XYZABCIJK"))}
 #: M codes refused (subprograms, tool centre point control)
 _REFUSED_M = {98: "M98 (subprogram call)", 99: "M99 (subprogram end)",
               128: "M128 (tool centre point control: the program gives tool-tip positions, not axis "
@@ -524,6 +534,10 @@ class ModalState:
             gi = round(g)
             if g in _REFUSED_G:
                 raise self._err(f"{_REFUSED_G[g]} is not supported", line)
+            if g in _CURVE_WITH_COORDINATES:
+                name, words = _CURVE_WITH_COORDINATES[g]
+                if any(letter in words for letter, _num, _raw in tokens):
+                    raise self._err(f"{name} is not supported", line)
             if g != gi:
                 if g in _WCS_INDEX:
                     self._set_wcs(_WCS_INDEX[g])
@@ -652,6 +666,8 @@ class ModalState:
             raw_axes = {letter: raw for letter, _num, raw in tokens if letter in _AXIS_LETTERS}
         centre = None
         if self.motion in (2, 3):
+            # LinuxCNC's P turns: even P1 (the plain arc) is refused, since a corrected arc is written
+            # as straight G1 chords, which may not carry a P word
             if any(letter == "P" for letter, _num, _raw in tokens):
                 raise self._err(f"arc G{self.motion} with a P word (a number of turns) is not supported",
                                 line)
