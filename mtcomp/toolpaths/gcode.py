@@ -642,7 +642,8 @@ class ModalState:
                 raise self._err(f"{arc_words[0]} word outside an arc block", line)
             return None
         if self.motion is None:
-            raise self._err("coordinates without a motion mode (no G0/G1/G2/G3 in force)", line)
+            raise self._err("coordinates without a motion mode (no G0/G1/G2/G3 in force; a controller's "
+                            "power-on mode is not assumed: write G0 or G1 in this block)", line)
         if self.motion in (0, 1) and arc_words:
             raise self._err(f"{arc_words[0]} word in a G{self.motion} block (only G2/G3 take I J K R)",
                             line)
