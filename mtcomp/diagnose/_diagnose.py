@@ -153,7 +153,7 @@ def _common_block(st: Stack) -> np.ndarray:
 
 def _setup_columns(st: Stack) -> np.ndarray:
     """(m,) bool: the common block's set-up (nuisance) columns, which follow the base's."""
-    return np.arange(int(st.probe.base_mask.sum()) + st.D.shape[1]) >= int(st.probe.base_mask.sum())
+    return np.r_[np.zeros(int(st.probe.base_mask.sum()), dtype=bool), np.ones(st.D.shape[1], dtype=bool)]
 
 
 def _theta0(st: Stack) -> np.ndarray:
@@ -690,12 +690,12 @@ def _parsimony(best, good):
 
 
 # --------------------------------------------------------------------------------------- findings
-def _finding(st, c: Candidate, before_fit, after_fit, before_um, after_um, rivals, noise) -> Finding:
+def _finding(st, c: Candidate, before_fit, after_fit, before, after, rivals, noise) -> Finding:
     from ._report import evidence_and_params
     theta = after_fit.theta[-c.columns.shape[1]:]
     params, evidence = evidence_and_params(st, c, theta, before_fit, after_fit, rivals, noise)
     axis = c.axis or params.get("direction", "")
-    return Finding(c.effect, axis, params, evidence, before_um, after_um, c, (before_fit, after_fit, rivals),
+    return Finding(c.effect, axis, params, evidence, before, after, c, (before_fit, after_fit, rivals),
                    _heldout_unit(st))
 
 

@@ -543,12 +543,12 @@ STEP_SE = 1e-3
 #: a combination of parameters whose rms tool-tip error over the travel the data fix only to worse
 #: than this standard error (um) is held at the least error, like one they do not see at all
 WEAK_SD_UM = 1.0
-#: weight of a set-up unknown (a file's zero offset, its alignment) against a machine parameter when a
-#: combination the data cannot determine is held: the set-up takes what it trades with machine errors
-SETUP_WEIGHT = 1e-3
 #: ... unless the first fit puts it further from the start than this many of its standard errors:
 #: then the data do see it (a real error of 28 um fixed to 1.2 um is fitted, not held at zero)
 WEAK_SIGNIFICANT = 3.0
+#: weight of a set-up unknown (a file's zero offset, its alignment) against a machine parameter when a
+#: combination the data cannot determine is held: the set-up takes what it trades with machine errors
+SETUP_WEIGHT = 1e-3
 
 
 def held_complement(null: np.ndarray, machine: np.ndarray) -> np.ndarray:

@@ -245,18 +245,18 @@ class LaserData(MeasurementSet):
                     self.fail(f"column {letter.lower()}_deg: machine {machine.name!r} "
                               f"({machine.topology}) has no {letter} axis", bad[0])
         for k, name in enumerate(machine.axis_names):
-            static = self.xyz[:, LINEAR.index(name)] if name in LINEAR else self.abc[:, ROTARY.index(name)]
-            q[:, k] = np.where(self.axis == name, self.target, np.nan_to_num(static))
+            q[:, k] = np.where(self.axis == name, self.target, np.nan_to_num(self._static(name)))
         return q
 
     def positions_given(self, machine) -> np.ndarray:
         """(n, n_axes) bool: the file gives that axis's position in that row (the moving axis's
         target, or a static position column); the others are taken as 0 by :meth:`axis_positions`."""
-        given = np.zeros((len(self), machine.n_axes), dtype=bool)
-        for k, name in enumerate(machine.axis_names):
-            static = self.xyz[:, LINEAR.index(name)] if name in LINEAR else self.abc[:, ROTARY.index(name)]
-            given[:, k] = (self.axis == name) | np.isfinite(static)
-        return given
+        return np.column_stack([(self.axis == name) | np.isfinite(self._static(name))
+                                for name in machine.axis_names])
+
+    def _static(self, name: str) -> np.ndarray:
+        """(n,) the static position column of axis ``name`` (NaN where absent or blank)."""
+        return self.xyz[:, LINEAR.index(name)] if name in LINEAR else self.abc[:, ROTARY.index(name)]
 
 
 @dataclass(eq=False)
