@@ -57,8 +57,13 @@ def test_irc_from_simulated_velocities_matches_the_model_centre():
     np.testing.assert_allclose(got, centre, rtol=0, atol=2e-3)
     # second formulation: the reader's perpendicular-lines solve
     np.testing.assert_allclose(got, data.rotation_centre(), rtol=0, atol=1e-6)
-    # the centre moves with feed as the truth says: 150 mm per m/min in y
-    x0 = centre[:, 0] - 120.0 - 80.0 * data.position / 1000.0
+    # by hand: the table turns by E(s) about O(s) = (120 + 80 s/m, -60 + 150 f/(m/min)), so a point's
+    # velocity is V d/ds[E e_z x (P - O)] = V E' e_z x (P - O - (E / E') O'): the instantaneous
+    # centre is O + (E / E') O' (O' = (0.08, 0)); it moves with feed as the truth says, 150 mm per
+    # m/min in y
+    s = data.position / 1000.0
+    E, dE = 2000e-6 * s - 1500e-6 * s ** 2, (2000e-6 - 3000e-6 * s) / 1000.0
+    x0 = centre[:, 0] - 120.0 - 80.0 * s - E / dE * 0.08
     np.testing.assert_allclose(x0, 0.0, rtol=0, atol=1e-9)
     np.testing.assert_allclose(got[:, 1] + 60.0, 150.0 * data.feed / 1000.0, rtol=0, atol=2e-3)
 

@@ -89,23 +89,48 @@ def test_velocity_model_hand_formula_and_jacobian():
     p = ParameterSet(model.param_specs)
     p["ECX_1"], p["ECX_2"] = 300e-6, -200e-6
     p["IRC_CX_x0"], p["IRC_CX_y0"], p["IRC_CX_y_f"] = 40.0, -25.0, 90.0
+    # the carriage's own translation errors move every table point: positioning and straightness
+    p["EXX_1"], p["EXX_2"], p["EYX_2"] = 20e-3, -10e-3, 15e-3           # mm per (s / m)^k
     truth = FittedModel(model, p)
     data = VirtualMachine(m, truth, noise_velocity_mm_min=0.0).measure(velocity_plan(m, n_runs=1))
     s, V = data.position, data.feed
     omega = (300e-6 / 1000 + 2 * -200e-6 * s / 1e6) * V
+    dexx = (20e-3 / 1000 + 2 * -10e-3 * s / 1e6) * V                     # V dEXX/ds
+    deyx = 2 * 15e-3 * s / 1e6 * V
     O = np.column_stack([np.full(s.size, 40.0), -25.0 + 90.0 * V / 1000])
     mm = model_class_for("velocity")(model, data)
     pred = mm.predict_columns(p.values)
     for pt, xy in (("m", data.m_xy), ("n", data.n_xy)):
         r = xy - O
-        np.testing.assert_allclose(pred[f"pred_{pt}_vx_mm_min"], V - omega * r[:, 1], rtol=1e-14, atol=1e-12)
-        np.testing.assert_allclose(pred[f"pred_{pt}_vy_mm_min"], omega * r[:, 0], rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(pred[f"pred_{pt}_vx_mm_min"], V + dexx - omega * r[:, 1], rtol=1e-14, atol=1e-12)
+        np.testing.assert_allclose(pred[f"pred_{pt}_vy_mm_min"], deyx + omega * r[:, 0], rtol=1e-12, atol=1e-15)
     # the file holds them to 10 significant digits
     np.testing.assert_allclose(data.m_v[:, 1], pred["pred_m_vy_mm_min"], rtol=1e-9, atol=0)
     J, _ = mm.jacobian(p.values, mm.zero_nuisance())
     # v is bilinear in (yaw, centre) parameters: central differences are exact up to rounding
     np.testing.assert_allclose(J, fd_jacobian(mm, p.values, mm.zero_nuisance(), 1e-3), rtol=0, atol=1e-10)
     assert np.abs(J).max() > 1e-3
+    # eq. 1 on these velocities finds the point moving at exactly V e_x: the model's rotation centre
+    # shifted by the translation's slope: v - V e = t' + Omega e_z x (P - O) vanishes at
+    # P = O + e_z x t' / Omega = O + (-V dEYX/ds, V dEXX/ds) / Omega
+    centre = mm.rotation_centre(p.values)
+    np.testing.assert_allclose(centre, O + np.column_stack([-deyx, dexx]) / omega[:, None], rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(data.rotation_centre(), centre, rtol=0, atol=1e-3)   # file: 10 digits
+
+
+def test_velocity_of_a_y_table_follows_its_squareness():
+    # Y moves along Rz(C0Y) e_y: its points move at V (-sin C0Y, cos C0Y) when nothing else errs
+    m = load_machine("xfyz").with_basis("polynomial")
+    model = ErrorModel(m)
+    p = ParameterSet(model.param_specs)
+    p["C0Y"] = 50e-6
+    data = VirtualMachine(m, FittedModel(model, p), noise_velocity_mm_min=0.0).measure(
+        velocity_plan(m, axis="Y", n_runs=1))
+    pred = model_class_for("velocity")(model, data).predict_columns(p.values)
+    V = data.feed
+    for pt in ("m", "n"):
+        np.testing.assert_allclose(pred[f"pred_{pt}_vx_mm_min"], -V * np.sin(50e-6), rtol=1e-12, atol=0)
+        np.testing.assert_allclose(pred[f"pred_{pt}_vy_mm_min"], V * np.cos(50e-6), rtol=1e-14, atol=0)
 
 
 WALL = """%

@@ -343,6 +343,22 @@ class VelocityData(MeasurementSet):
     def prediction_columns(self) -> tuple[str, ...]:
         return tuple(f"pred_{c}" for c in ("m_vx_mm_min", "m_vy_mm_min", "n_vx_mm_min", "n_vy_mm_min"))
 
+    def axis_positions(self, machine: Machine) -> np.ndarray:
+        """(n, na) q in ``machine.axis_names`` order, mm: the moving axis at ``position``, the others
+        at 0 (the file does not give them). Velocities follow the errors' slopes along the moving
+        axis, so its positions count where the model's knots go and what the data cover."""
+        q = np.zeros((len(self), machine.n_axes))
+        for i in np.flatnonzero(~np.isin(self.axis, machine.axis_names)):
+            self.fail(f"axis {self.axis[i]}: machine {machine.name!r} ({machine.topology}) has no such "
+                      "axis", i)
+        for k, name in enumerate(machine.axis_names):
+            q[:, k] = np.where(self.axis == name, self.position, 0.0)
+        return q
+
+    def positions_given(self, machine) -> np.ndarray:
+        """(n, n_axes) bool: only the moving axis's position is given."""
+        return np.column_stack([self.axis == name for name in machine.axis_names])
+
     def rotation_centre(self) -> np.ndarray:
         """(n, 2) mm instantaneous rotation centre O_p in the table plane (seed 000, eq. 1).
 

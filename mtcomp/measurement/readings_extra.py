@@ -42,9 +42,9 @@ import numpy as np
 from ..errors import InputError
 from .files import Context, MeasurementSet
 from ..kinematics import forward
-from ..models.chain import ErrorModel, linear_components
+from ..models.chain import ErrorModel
 from ..models.params import ParamSpec
-from ..models.terms import ANGLE_LETTERS, ChannelDrift
+from ..models.terms import ANGLE_LETTERS, TRANSLATION_LETTERS, ChannelDrift
 from .readings import MeasurementModel, context_matrix, register
 
 #: default time constants (s) of the spindle heat features
@@ -324,6 +324,7 @@ class VelocityModel(MeasurementModel):
         if bad.size:
             data.fail(f"velocity rows must move axis X or Y of the machine (table plane XY), not "
                       f"{data.axis[bad[0]]}", bad[0])
+        self.q = data.axis_positions(m)            # the moving axis at its position, the others at 0
         self.c = context_matrix(self.model, data, self.context_defaults, m, _extra_context(self))
         sign = np.zeros(n)
         for i, a in enumerate(data.axis):
@@ -369,13 +370,22 @@ class VelocityModel(MeasurementModel):
         return {f"pred_{c}": v[:, j] for j, c in enumerate(self.COLUMNS)}
 
     def rotation_centre(self, p) -> np.ndarray:
-        """(n_rows, 2) mm the model's rotation centre O of each row (carriage frame, XY)."""
-        out = np.zeros((len(self.data), 2))
-        for a in set(self.data.axis):
-            rows = np.flatnonzero(self.data.axis == a)
-            f = centre_function(self.model, a)
-            res = f.map(len(rows))(self.data.position[rows], p, self.c[rows].T)
-            out[rows] = np.asarray(res).T
+        """(n_rows, 2) mm the instantaneous rotation centre of the model's velocity field at each row
+        (carriage frame, XY): the point moving at exactly V0 along the axis, which seed 000 eq. 1 finds
+        from two measured velocities (NaN without a yaw rate). The field is v(P) = a + Omega e_z x P, so
+        the centre solves a + Omega e_z x O = V0 e; it is the AbbeIRC centre only when the axis has no
+        translational error slope and the centre does not move along the axis."""
+        out = np.full((len(self.data), 2), np.nan)
+        for ax, f in self._functions.items():
+            rows = np.flatnonzero(self.data.axis == ax)
+            inp = np.column_stack([self.data.position[rows], self.speed[rows], np.zeros((rows.size, 2)),
+                                   np.tile([1.0, 0.0], (rows.size, 1))])
+            v = np.asarray(f.map(rows.size)(inp.T, p, self.c[rows].T)[0]).T     # v(0, 0), v(1, 0)
+            omega = v[:, 3] - v[:, 1]
+            g = -v[:, :2]
+            g[:, "XY".index(ax)] += self.speed[rows]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                out[rows] = np.column_stack([g[:, 1], -g[:, 0]]) / np.where(omega != 0, omega, np.nan)[:, None]
         return out
 
 # --------------------------------------------------------------------------------- cmm
@@ -462,30 +472,6 @@ class CmmModel(MeasurementModel):
 
 
 # --------------------------------------------------------------------------------- velocity algebra
-def linear_axis_components(model: ErrorModel, axis: str, s, P: dict, C: dict) -> dict:
-    """The six component errors of linear ``axis`` at position s (SX), base component errors plus every
-    extension term's ``axis_errors``, as :meth:`ErrorModel._axis_transform` builds them."""
-    m = model.machine
-    ax = m.axis(axis)
-    comps = linear_components(m, axis, s, P.__getitem__, ca.SX(0))
-    for t in model.terms:
-        for comp, e in t.axis_errors(m, ax, s, C, P, comps).items():
-            comps[comp] = comps[comp] + e
-    return comps
-
-
-def _centre(model: ErrorModel, axis: str, s, P, C):
-    """(3,) SX: carriage reference point plus the AbbeIRC shift of the E_C<axis> rotation centre."""
-    m = model.machine
-    ax = m.axis(axis)
-    o = ca.vertcat(0, 0, C["tool_length"]) if ax.side == "tool" else ca.SX.zeros(3)
-    for t in model.terms:
-        shift = t.abbe_centres(m, ax, s, C, P).get("C")
-        if shift is not None:
-            o = o + shift
-    return o
-
-
 def _symbols(model: ErrorModel):
     p = ca.SX.sym("p", model.n_params)
     c = ca.SX.sym("c", model.n_context)
@@ -496,30 +482,27 @@ def _symbols(model: ErrorModel):
 
 def velocity_function(model: ErrorModel, axis: str) -> ca.Function:
     """CasADi (inp (6,) = [s mm, V mm/min, Mx, My, Nx, Ny], p, c) -> (v (4,) = [vMx, vMy, vNx, vNy]
-    mm/min, dv/dp (4, n_params)) for a table moving along ``axis`` (X or Y)."""
+    mm/min, dv/dp (4, n_params)) for a table moving along ``axis`` (X or Y).
+
+    The in-plane displacement of a carriage point P (in the plane of the carriage's reference point)
+    at position s is, to first order, ``s u + delta(s) + E_C(s) e_z x (P - O(s))`` (the model's own
+    carriage transform: u the axis direction with its squareness, delta its translational component
+    errors, E_C its yaw about O); the velocity is its derivative along s times V."""
     inp = ca.SX.sym("inp", 6)
     p, c, P, C = _symbols(model)
     s, V = inp[0], inp[1]
-    yaw = linear_axis_components(model, axis, s, P, C)[f"E{ANGLE_LETTERS[2]}{axis}"]
-    omega = ca.jacobian(yaw, s) * V
-    o = _centre(model, axis, s, P, C)
-    k = "XY".index(axis)
+    u, comps, centres, r = model.linear_parts(axis, s, P, C)
+    delta = [comps[f"E{t}{axis}"] for t in TRANSLATION_LETTERS[:2]]
+    yaw = comps[f"E{ANGLE_LETTERS[2]}{axis}"]
+    o = r + centres["C"]                      # the yaw's centre: reference point + AbbeIRC shift
     out = []
     for base in (2, 4):
         rx, ry = inp[base] - o[0], inp[base + 1] - o[1]
-        vx = -omega * ry + (V if k == 0 else 0)
-        vy = omega * rx + (V if k == 1 else 0)
-        out += [vx, vy]
+        dx = s * u[0] + delta[0] - yaw * ry
+        dy = s * u[1] + delta[1] + yaw * rx
+        out += [ca.jacobian(dx, s) * V, ca.jacobian(dy, s) * V]
     v = ca.vertcat(*out)
     return ca.Function(f"velocity_{axis}", [inp, p, c], [v, ca.jacobian(v, p)])
-
-
-def centre_function(model: ErrorModel, axis: str) -> ca.Function:
-    """CasADi (s, p, c) -> (2,) mm: the rotation centre O (XY) of the yaw of ``axis`` at position s."""
-    s = ca.SX.sym("s")
-    p, c, P, C = _symbols(model)
-    o = _centre(model, axis, s, P, C)
-    return ca.Function(f"centre_{axis}", [s, p, c], [o[:2]])
 
 
 # --------------------------------------------------------------------------------- cutter locations

@@ -47,9 +47,11 @@ SLOPE_CARRIED_BY_SQUARENESS = {"EXY": "C0Y", "EXZ": "B0Z", "EYZ": "A0Z"}
 
 
 def _clip(x, lo, hi):
-    """Works on numpy arrays and CasADi expressions alike."""
+    """Works on numpy arrays and CasADi expressions alike. In CasADi the slope at lo and at hi is the
+    one from inside the range (fmin/fmax would give half of it there, and a velocity read at the end
+    of the data, where the knots end, would be predicted at half its slope)."""
     if isinstance(x, (ca.SX, ca.MX)):
-        return ca.fmin(ca.fmax(x, lo), hi)
+        return ca.if_else(x < lo, lo, ca.if_else(x > hi, hi, x))
     return np.minimum(np.maximum(x, lo), hi)
 
 

@@ -325,6 +325,38 @@ class ErrorModel:
                     tip = tip + off
         return tip, tool2wp[0][:, 2], tool2wp[0]
 
+    def linear_parts(self, name, s, P, C, par=None, errors: bool = True):
+        """The pieces of linear axis ``name``'s carriage transform at position s (SX), in the axis's own
+        sense (tool relative to workpiece): (u, comps, centres, r) with u (3,) the axis direction tilted
+        by the squareness errors, comps the six component errors (base plus every extension term's
+        ``axis_errors``), centres {'A'|'B'|'C': (3,) shift of that rotation's centre (AbbeIRC)} and r
+        (3,) the carriage's reference point. ``P``/``C`` map parameter/context names to symbols;
+        ``par(name)`` gives a parameter (default ``P[name]``; zero for the nominal chain)."""
+        m = self.machine
+        ax = m.axis(name)
+        d = ax.direction_index
+        par = par or P.__getitem__
+        if errors:
+            comps = linear_components(m, name, s, par, ca.SX(0))
+        else:
+            comps = {comp: ca.SX(0) for comp in linear_component_names(name)}
+        centres = {a: ca.SX.zeros(3) for a in ANGLE_LETTERS}
+        if errors:
+            for t in self.terms:
+                for comp, e in t.axis_errors(m, ax, s, C, P, comps).items():
+                    comps[comp] = comps[comp] + e
+                for a, o in t.abbe_centres(m, ax, s, C, P).items():
+                    centres[a] = centres[a] + o
+        u = unit(d)
+        if name == "Y":
+            u = ca.mtimes(rot(2, par("C0Y")), u) if "C0Y" in P else u
+        elif name == "Z":
+            if "B0Z" in P or "A0Z" in P:
+                u = ca.mtimes(ca.mtimes(rot(1, par("B0Z") if "B0Z" in P else 0),
+                                        rot(0, par("A0Z") if "A0Z" in P else 0)), u)
+        r = ca.vertcat(0, 0, C["tool_length"]) if ax.side == "tool" else ca.SX.zeros(3)
+        return u, comps, centres, r
+
     def _axis_transform(self, name, s, P, C, par, errors):
         m = self.machine
         ax = m.axis(name)
@@ -362,25 +394,7 @@ class ErrorModel:
             return (R, point + delta_m - ca.mtimes(R, point))
 
         # linear axis
-        if errors:
-            comps = linear_components(m, name, s, par, ca.SX(0))
-        else:
-            comps = {comp: ca.SX(0) for comp in linear_component_names(name)}
-        centres = {a: ca.SX.zeros(3) for a in ANGLE_LETTERS}
-        if errors:
-            for t in self.terms:
-                for comp, e in t.axis_errors(m, ax, s, C, P, comps).items():
-                    comps[comp] = comps[comp] + e
-                for a, o in t.abbe_centres(m, ax, s, C, P).items():
-                    centres[a] = centres[a] + o
-        u = unit(d)
-        if name == "Y":
-            u = ca.mtimes(rot(2, par("C0Y")), u) if "C0Y" in P else u
-        elif name == "Z":
-            if "B0Z" in P or "A0Z" in P:
-                u = ca.mtimes(ca.mtimes(rot(1, par("B0Z") if "B0Z" in P else 0),
-                                        rot(0, par("A0Z") if "A0Z" in P else 0)), u)
-        r = ca.vertcat(0, 0, C["tool_length"]) if ax.side == "tool" else ca.SX.zeros(3)
+        u, comps, centres, r = self.linear_parts(name, s, P, C, par, errors)
         A = trans(s * u)
         A = compose(A, trans(ca.vertcat(*[comps[f"E{TRANSLATION_LETTERS[j]}{name}"] for j in range(3)])))
         for j, a in enumerate(ANGLE_LETTERS):

@@ -178,13 +178,15 @@ def hidden_case(seed: int, effect: str, kind: str, topology: str, folder, hidden
                       {"defect": effect == "local_defect", "seed": seed})
 
 
-def seed000_case(seed: int, folder, irc_shift_mm_per_m_min: float = -800.0) -> HiddenCase:
+def seed000_case(seed: int, folder, irc_shift_mm_per_m_min: float = -800.0,
+                 velocity_noise_mm_min: float | None = None) -> HiddenCase:
     """Seed 000's experiment on a random XFYZ machine: laser runs of the table axis X over 200 mm in
     5 mm steps, three runs both ways at 180, 240 and 300 mm/min: positioning at 0 and at 210 mm Abbe
     offset (along Y), yaw (ECX) and pitch (EBX). The table yaws about a centre that moves along Y by
     ``irc_shift_mm_per_m_min`` per m/min of feed (the default, -800, moves it 144-240 mm over the
     paper's feeds: a traditional model's error at the 210 mm line is then of the order the paper
-    reports, about 1 um)."""
+    reports, about 1 um). ``velocity_noise_mm_min``: also the paper's two-point velocities over the
+    same 200 mm at the same feeds (SPEC 3.6), with that noise (mm/min)."""
     rng = np.random.default_rng(seed)
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -199,4 +201,8 @@ def seed000_case(seed: int, folder, irc_shift_mm_per_m_min: float = -800.0) -> H
                      optic_mm=optic, feed_mm_min=SEED000_FEEDS, noise_um=0.2, noise_urad=0.3, t0_s=t)
         paths.append(r.path)
         t = float(np.max(r.columns["t_s"])) + 60.0
+    if velocity_noise_mm_min is not None:
+        paths.append(tc.velocity(m, folder / "velocity.csv", rng, start_mm=SEED000_TARGETS[0],
+                                 length_mm=float(np.ptp(SEED000_TARGETS)), feeds_mm_min=SEED000_FEEDS,
+                                 noise_mm_min=velocity_noise_mm_min, t0_s=t).path)
     return HiddenCase(m, paths, "feed_dependent_abbe", "X", "seed000", "xfyz", eff)
