@@ -12,8 +12,9 @@ On the independent machine (tests/truth, which shares no code with mtcomp), N hi
 effects (backlash, rotary backlash, periodic, feed offset, feed Abbe, thermal, local defect, clean),
 campaign kinds (rich volumetric, single-axis laser runs at three feeds and two Abbe offsets, rotary
 laser runs, ball bar with the three-sphere set-up, mixtures) and topologies (xfyz, cafxyz, cbfxyz),
-then seed 000's set-up (--seed000 M machines: the compensated 210 mm line, base vs extended model);
-clean campaigns alone with --truth-clean N:
+then seed 000's set-up (--seed000 M machines: the compensated 210 mm line, base vs extended model;
+--seed000-velocity NOISE adds the paper's two-point velocity sensors); clean campaigns alone with
+--truth-clean N:
 
     PYTHONPATH=tests python benchmarks/bench_diagnose.py --truth 48 --seed000 5
     PYTHONPATH=tests python benchmarks/bench_diagnose.py --truth-clean 100 --seed 24000
@@ -65,6 +66,8 @@ def main(argv=None):
                     help="run N hidden cases on the independent machine (tests/truth) instead")
     ap.add_argument("--seed000", type=int, default=0, metavar="M",
                     help="with --truth: seed 000's set-up on M independent machines")
+    ap.add_argument("--seed000-velocity", type=float, default=None, metavar="NOISE",
+                    help="with --seed000: add the paper's two-point velocities (noise in mm/min)")
     ap.add_argument("--truth-clean", type=int, default=0, metavar="N",
                     help="N clean campaigns on the independent machine (false alarms), from --seed")
     args = ap.parse_args(argv)
@@ -229,7 +232,8 @@ def truth_main(args):
             _truth_summary(rows)
         gains = []
         for j in range(args.seed000):
-            case = seed000_case(args.seed + j, Path(tmp) / f"seed000_{j}")
+            case = seed000_case(args.seed + j, Path(tmp) / f"seed000_{j}",
+                                velocity_noise_mm_min=args.seed000_velocity)
             d, _ = run(case)
             base, _ = run(case, max_findings=0)
             before = compensated_line_error(case, base.model)
