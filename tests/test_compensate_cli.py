@@ -324,6 +324,10 @@ def test_figures_over_the_corrected_blocks_only(tmp_path, capsys):
     done = [r for r in rows if r["corrected"] == "1"]
     assert [int(r["line"]) for r in done] == [3, 4, 7, 8]
     known = [r for r in rows if not r["unknown_axes"]]     # the overall figures leave these out
+    # the block with Z unknown: no Z position and no predicted deviation to show (blank, not 0)
+    (blind,) = [r for r in rows if r["unknown_axes"]]
+    assert blind["unknown_axes"] == "Z" and blind["z_mm"] == "" and blind["e_before_um"] == ""
+    assert blind["x_mm"] == "0.0000" and blind["cx_um"] == "0.0000"
     figures = json.loads(js.read_text())
 
     def stats(rs, when):
@@ -391,6 +395,10 @@ def test_work_offset_and_tool_length_reach_the_model(tmp_path, capsys):
     assert "assumed" not in stdout
     rows = _read_report(rep)
     # reported and written positions are the program's; the model saw them + the offset, tool 80 mm
+    known = np.array([r["unknown_axes"] == "" for r in rows])
+    assert known.sum() >= 4
+    rows = [r for r, k in zip(rows, known) if k]            # unknown axes have blank cells
+    known = known[known]
     q_prog = np.array([[float(r[k]) for k in ("x_mm", "y_mm", "z_mm")] for r in rows])
     corr = np.array([[float(r[k]) for k in ("cx_um", "cy_um", "cz_um")] for r in rows]) * 1e-3
     before = np.array([[float(r[k]) for k in ("ex_before_um", "ey_before_um", "ez_before_um")]
@@ -398,7 +406,6 @@ def test_work_offset_and_tool_length_reach_the_model(tmp_path, capsys):
     q_mach = q_prog - corr + [100.0, 50.0, -200.0]
     c = fitted.context(len(rows), {"tool_length": np.full(len(rows), 80.0)})
     dev = deviation(fitted.model, q_mach, fitted.params.values, c)
-    known = np.array([r["unknown_axes"] == "" for r in rows])
     np.testing.assert_allclose(before[known], dev[known, :3] * 1e3, rtol=0, atol=2e-3)
     # an oracle with another offset disagrees: the test can fail
     dev0 = deviation(fitted.model, q_prog - corr, fitted.params.values, c)
@@ -465,6 +472,7 @@ def test_rotary_axes_a_program_never_names_are_declared_with_start_position(tmp_
     rows = _read_report(rep)
     # A and C are never named: their positions are not known, nothing is corrected or written
     assert all(r["unknown_axes"] == "AC" and r["corrected"] == "0" for r in rows)
+    assert all(r["a_deg"] == r["c_deg"] == r["ei_before_urad"] == "" and r["x_mm"] for r in rows)
     assert out.read_text() == prog.read_text()
     code, stdout, err = _run(["compensate", "cafxyz", str(model_path), str(prog), "-o", str(out),
                               "--report", str(rep), "--max-correction-urad", "2000",

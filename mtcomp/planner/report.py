@@ -14,7 +14,8 @@ One row per output block (every G0/G1 line written for a motion, internal nodes 
   separated by ``;``: ``cx_max`` / ``cx_min`` (max correction), ``travel_x_max`` / ``travel_x_min``
   (travel), ``step_x`` (max change from the block before); empty when none.
 * ``unknown_axes``: the axes whose position the program has not given at this block (e.g. ``Z``
-  after a tool change); such a block gets no correction and those axes are not written.
+  after a tool change); such a block gets no correction and those axes are not written: their
+  position cells, and the block's predicted deviations, are blank.
 * ``outside_support``: the axes outside the region the model's data reached; without
   ``--extrapolate`` such a block gets no correction.
 * ``corrected``: 1 if the block could be corrected (0: no correction, for one of the two reasons).
@@ -46,6 +47,10 @@ def report_rows(result: PlanResult, axis_names) -> list[str]:
     """CSV text lines (with newline) of one planned result."""
     rot = np.array([a in "ABC" for a in axis_names])
     pos = np.where(rot, np.degrees(result.corrected), result.corrected)
+    # an axis the program has not positioned has no position to show, and a deviation predicted there
+    # means nothing: blank cells (not a made-up 0)
+    pos = np.where(result.unknown, np.nan, pos)
+    blank = result.unknown.any(axis=1)
     corr = np.where(rot, result.correction * 1e6, result.correction * 1e3)
     cols = [result.line.astype(np.int64), result.inserted.astype(int), result.rapid.astype(int)]
     fmts = ["%d", "%d", "%d"]
@@ -57,19 +62,22 @@ def report_rows(result: PlanResult, axis_names) -> list[str]:
         fmts.append("%.6f" if rot[j] else "%.4f")
     five = result.before_axis is not None
     for dev, dax in ((result.before, result.before_axis), (result.after, result.after_axis)):
-        um = dev * 1e3
+        um = np.where(blank[:, None], np.nan, dev * 1e3)
         cols += [um[:, 0], um[:, 1], um[:, 2], np.sqrt(np.sum(um ** 2, axis=1))]
         fmts += ["%.4f"] * 4
         if five:
-            ur = dax * 1e6
+            ur = np.where(blank[:, None], np.nan, dax * 1e6)
             cols += [ur[:, 0], ur[:, 1], ur[:, 2], np.sqrt(np.sum(ur ** 2, axis=1))]
             fmts += ["%.4f"] * 4
     bounds = result.active_bounds(axis_names)
     unknown = _axis_letters(result.unknown, axis_names)
     outside = _axis_letters(result.outside, axis_names)
     fmt = ",".join(fmts) + ",%s,%s,%s,%d\n"
-    return [fmt % row for row in zip(*[c.tolist() for c in cols], bounds, unknown, outside,
-                                       (~result.pinned).astype(int).tolist())]
+    lines = [fmt % row for row in zip(*[c.tolist() for c in cols], bounds, unknown, outside,
+                                        (~result.pinned).astype(int).tolist())]
+    for i in np.flatnonzero(blank):
+        lines[i] = ",".join("" if f == "nan" else f for f in lines[i][:-1].split(",")) + "\n"
+    return lines
 
 
 def _axis_letters(mask, axis_names) -> list[str]:

@@ -353,7 +353,9 @@ def report_points(original: ProgramPoints, report, machine: Machine) -> ProgramP
         raise InputError(f"the report has {len(rows)} blocks, the program {len(original)} segment "
                          "ends: not the report of that program", path)
     try:
-        q = np.array([[float(r[c]) for c in cols] for r in rows])
+        # a blank cell: an axis the program had not positioned there, which the block leaves alone
+        q = np.array([[float(r[c]) if r[c] != "" else np.nan for c in cols] for r in rows])
+        q = np.where(np.isnan(q), original.q, q)
         line = np.array([int(r["line"]) for r in rows])
     except (KeyError, ValueError, TypeError):
         raise InputError(f"not a report of mtcomp compensate (columns line, inserted, "
