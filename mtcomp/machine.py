@@ -171,6 +171,25 @@ class Machine:
         hi = np.array([a.travel[1] for a in self.axes])
         return lo, hi
 
+    def check_travel(self, q, line=None, known=None, source=None, tol: float = 1e-9) -> None:
+        """InputError naming ``source`` and the first row's ``line`` where an axis position of ``q``
+        (n, n_axes; mm, rad) lies outside the axis's travel; ``known`` (n, n_axes) bool limits the
+        check to the positions a program has given."""
+        lo, hi = self.travel_bounds()
+        bad = (q < lo - tol) | (q > hi + tol)
+        if known is not None:
+            bad &= known
+        if np.any(bad):
+            i, j = np.argwhere(bad)[0]
+            ax = self.axes[j]
+            if ax.is_rotary:
+                v, a, b, u = np.degrees(q[i, j]), np.degrees(lo[j]), np.degrees(hi[j]), "deg"
+            else:
+                v, a, b, u = q[i, j], lo[j], hi[j], "mm"
+            raise InputError(f"{ax.name} {v:.4f} {u} is outside the travel of axis {ax.name} "
+                             f"({a:g} .. {b:g} {u}) of machine {self.name}", source,
+                             int(line[i]) if line is not None else None)
+
     def to_dict(self) -> dict:
         """The machine as TOML-like data (mm, deg), for MODEL.json."""
         axes = {}

@@ -186,6 +186,20 @@ def test_render_a_program_without_motion_exits_2_and_draws_nothing(tmp_path, cap
     assert sorted(p.name for p in tmp_path.iterdir()) == before
 
 
+def test_render_a_program_beyond_the_travel_exits_2_and_draws_nothing(tmp_path, capsys):
+    """The machine cannot make the move (compensate refuses it too): no map of it is drawn."""
+    from mtcomp.cli import main
+    _plane_case(tmp_path)
+    (tmp_path / "far.nc").write_text("G21 G90\nG0 X0 Y0 Z5\nG1 Z0 F500\nG1 X450\nG1 Y20\nM30\n")
+    before = sorted(p.name for p in tmp_path.iterdir())
+    rc = main(["render", "xfyz", str(tmp_path / "MODEL.json"), str(tmp_path / "far.nc"), "-o",
+               str(tmp_path / "map.png")])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1 and "Traceback" not in err
+    assert "far.nc:4: X 450.0000 mm is outside the travel of axis X (-400 .. 400 mm)" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
 @pytest.mark.parametrize("args, message", [
     (["--compensated", "{d}/MODEL.json"], "MODEL.json"),      # not G-code
     (["--size", "10x10"], "--size"),

@@ -221,21 +221,7 @@ class Planner:
                             o.max_iterations)
 
     def _check_travel(self, q, line, known=None):
-        lo, hi = self.problem.travel()
-        tol = 1e-9
-        bad = (q < lo - tol) | (q > hi + tol)
-        if known is not None:
-            bad &= known
-        if np.any(bad):
-            i, j = np.argwhere(bad)[0]
-            ax = self.machine.axes[j]
-            if ax.is_rotary:
-                v, a, b, u = np.degrees(q[i, j]), np.degrees(lo[j]), np.degrees(hi[j]), "deg"
-            else:
-                v, a, b, u = q[i, j], lo[j], hi[j], "mm"
-            raise InputError(f"{ax.name} {v:.4f} {u} is outside the travel of axis {ax.name} "
-                             f"({a:g} .. {b:g} {u}) of machine {self.machine.name}", self.source,
-                             int(line[i]) if line is not None else None)
+        self.machine.check_travel(q, line, known, self.source)
 
     def nodes_from_arrays(self, q, feed=None, dirs=None, rapid=None, line=None):
         """Nodes for blocks given directly (no segments, so no internal nodes).

@@ -77,6 +77,8 @@ def read_program_points(path, machine: Machine) -> ProgramPoints:
     if len(seg.end) == 0:
         from ..errors import InputError
         raise InputError("no motion block in the program: nothing to draw", path)
+    # a map of moves the machine cannot make would be a map of nothing (compensate refuses them too)
+    machine.check_travel(seg.end, seg.line, seg.known, os.fspath(path))
     return ProgramPoints(os.fspath(path), seg.end.copy(), seg.line.copy(), seg.feed.copy(),
                          seg.dirs.copy(), seg.rapid.copy())
 
