@@ -173,30 +173,22 @@ def test_render_command_writes_both_files_and_prints_the_figures(tmp_path, capsy
     assert Image.open(tmp_path / "map.png").size == (500, 300)
 
 
-def test_render_a_program_without_motion_exits_2_and_draws_nothing(tmp_path, capsys):
-    """A program of set-up lines only (it once crashed in pyvista after writing the PNG)."""
+@pytest.mark.parametrize("program, message", [
+    # set-up lines only (it once crashed in pyvista after writing the PNG)
+    ("G21 G90\n(no motion)\nM30\n", "no motion block"),
+    # a move the machine cannot make (compensate refuses it too): no map of it
+    ("G21 G90\nG0 X0 Y0 Z5\nG1 Z0 F500\nG1 X450\nG1 Y20\nM30\n",
+     "prog.nc:4: X 450.0000 mm is outside the travel of axis X (-400 .. 400 mm)"),
+])
+def test_render_refuses_a_program_it_cannot_draw_exit_2_nothing_written(tmp_path, capsys, program, message):
     from mtcomp.cli import main
     _plane_case(tmp_path)
-    (tmp_path / "empty.nc").write_text("G21 G90\n(no motion)\nM30\n")
+    (tmp_path / "prog.nc").write_text(program)
     before = sorted(p.name for p in tmp_path.iterdir())
-    rc = main(["render", "xfyz", str(tmp_path / "MODEL.json"), str(tmp_path / "empty.nc"), "-o",
+    rc = main(["render", "xfyz", str(tmp_path / "MODEL.json"), str(tmp_path / "prog.nc"), "-o",
                str(tmp_path / "map.png")])
     err = capsys.readouterr().err
-    assert rc == 2 and err.count("\n") == 1 and "no motion block" in err and "Traceback" not in err
-    assert sorted(p.name for p in tmp_path.iterdir()) == before
-
-
-def test_render_a_program_beyond_the_travel_exits_2_and_draws_nothing(tmp_path, capsys):
-    """The machine cannot make the move (compensate refuses it too): no map of it is drawn."""
-    from mtcomp.cli import main
-    _plane_case(tmp_path)
-    (tmp_path / "far.nc").write_text("G21 G90\nG0 X0 Y0 Z5\nG1 Z0 F500\nG1 X450\nG1 Y20\nM30\n")
-    before = sorted(p.name for p in tmp_path.iterdir())
-    rc = main(["render", "xfyz", str(tmp_path / "MODEL.json"), str(tmp_path / "far.nc"), "-o",
-               str(tmp_path / "map.png")])
-    err = capsys.readouterr().err
-    assert rc == 2 and err.count("\n") == 1 and "Traceback" not in err
-    assert "far.nc:4: X 450.0000 mm is outside the travel of axis X (-400 .. 400 mm)" in err
+    assert rc == 2 and err.count("\n") == 1 and message in err and "Traceback" not in err
     assert sorted(p.name for p in tmp_path.iterdir()) == before
 
 
