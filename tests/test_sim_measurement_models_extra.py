@@ -168,9 +168,17 @@ def test_cmm_dn_is_the_ball_centre_deviation_along_the_normal(tmp_path):
     assert np.abs(np.einsum("ij,ij->i", nrm, r * dev[:, 3:])).max() * 1e3 > 1e-3   # the tilt acts
     mm = model_class_for("cmm")(truth.model, data, program=str(prog), tool_radius_mm=r)
     np.testing.assert_array_equal(mm.line, np.full(y.size, 5))           # the G1 Y30 block
-    nu = np.array([2e-3])
-    np.testing.assert_allclose(mm.predict(truth.params.values, nu) - mm.predict(truth.params.values, 0 * nu),
-                               -2e-3, rtol=0, atol=1e-15)
+    # nuisance: the tool's radius error (dn -= dr), then the CMM frame's translation and rotation
+    # (about the points' centroid): dn += n . (t + w x (x - c))
+    assert [s.name.split(":", 1)[1] for s in mm.nuisance_specs] == [
+        "radius_offset", "setup:tx", "setup:ty", "setup:tz", "setup:rx", "setup:ry", "setup:rz"]
+    p0 = mm.predict(truth.params.values, np.zeros(7))
+    nu = np.array([2e-3, 0, 0, 0, 0, 0, 0])
+    np.testing.assert_allclose(mm.predict(truth.params.values, nu) - p0, -2e-3, rtol=0, atol=1e-15)
+    nu = np.array([0, 1e-3, 0, 0, 0, 0, 1e-5])           # tx 1 um, rz 10 urad
+    arm_y = pts[:, 1] - pts[:, 1].mean()
+    np.testing.assert_allclose(mm.predict(truth.params.values, nu) - p0, -1e-3 + 1e-5 * arm_y,
+                               rtol=0, atol=1e-15)
     J, Jn = mm.jacobian(truth.params.values, nu)
     np.testing.assert_allclose(J, fd_jacobian(mm, truth.params.values, nu), rtol=0, atol=1e-7)
 

@@ -9,3 +9,66 @@ def note_outside_travel(command: str, machine, datasets) -> None:
     from ..measurement.readings import outside_travel
     for note in outside_travel(machine, datasets):
         print(f"mtcomp {command}: note: {note}", file=sys.stderr)
+
+
+def add_cmm_arguments(parser) -> None:
+    """``--cmm-program`` and ``--cmm-tool-radius``: what cut the part of a cmm file (SPEC 3.4)."""
+    parser.add_argument("--cmm-program", metavar="[CMM.csv=]PART.nc", action="append", default=[],
+                        help="the G-code that cut the part a cmm file measured (its cutter locations "
+                             "say which pose made each surface point); CMM.csv= may be left out when "
+                             "one cmm file is given; repeat for several")
+    parser.add_argument("--cmm-tool-radius", metavar="[CMM.csv=]MM", action="append", default=[],
+                        help="the radius of the ball-end tool that cut it, mm")
+
+
+def cmm_programs(args) -> list[str]:
+    """The program paths ``--cmm-program`` names: inputs, which no output may overwrite."""
+    return [value.rpartition("=")[2] for value in args.cmm_program]
+
+
+def attach_cmm_cuts(args, datasets) -> None:
+    """Give each cmm data set the program and tool radius of ``--cmm-program`` /
+    ``--cmm-tool-radius`` (``CMM.csv=VALUE``, or ``VALUE`` alone when there is one cmm file).
+    InputError (one line) for a flag
+    that names no cmm file, a program that does not exist, a radius that is not a positive number,
+    or a cmm file left without either."""
+    from pathlib import Path
+
+    from ..errors import InputError
+    from ..io.atomic import same_file
+    cmm = [d for d in datasets if d.kind == "cmm"]
+
+    def target(flag, value):
+        name, sep, rest = value.rpartition("=")
+        if sep:
+            hits = [d for d in datasets if same_file(name, d.path)]
+            if not hits:
+                raise InputError(f"{flag} {value}: {name} is none of the data files")
+            if hits[0].kind != "cmm":
+                raise InputError(f"{flag} {value}: {name} is a {hits[0].kind} file, not a cmm file")
+            return hits[0], rest
+        if len(cmm) != 1:
+            raise InputError(f"{flag} {value}: " + ("no cmm file among the data" if not cmm else
+                             f"{len(cmm)} cmm files; write CMM.csv={value}"))
+        return cmm[0], value
+
+    for value in args.cmm_program:
+        d, program = target("--cmm-program", value)
+        if not Path(program).is_file():
+            raise InputError(f"--cmm-program {value}: no such file", program)
+        d.program = program
+    for value in args.cmm_tool_radius:
+        d, text = target("--cmm-tool-radius", value)
+        try:
+            radius = float(text)
+        except ValueError:
+            radius = float("nan")
+        if not radius > 0 or radius == float("inf"):
+            raise InputError(f"--cmm-tool-radius {value}: the radius must be a positive number of mm")
+        d.tool_radius_mm = radius
+    for d in cmm:
+        missing = [f for f, v in (("--cmm-program", d.program), ("--cmm-tool-radius", d.tool_radius_mm))
+                   if v is None]
+        if missing:
+            raise InputError(f"a cmm file is read with the G-code that cut the part and the radius of "
+                             f"its ball-end tool: give {' and '.join(missing)}", d.path)

@@ -9,6 +9,8 @@ docs/diagnose.md.
 """
 from __future__ import annotations
 
+from . import add_cmm_arguments
+
 
 def add_arguments(parser):
     parser.add_argument("machine", metavar="MACHINE", help="built-in machine name or machine TOML file")
@@ -28,6 +30,7 @@ def add_arguments(parser):
     parser.add_argument("--plot", metavar="DRIFT.png", default=None,
                         help="thermal file: draw each channel's drift over time, measured and "
                              "predicted forward in time (ISO 230-3 style)")
+    add_cmm_arguments(parser)
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
 
 
@@ -37,14 +40,14 @@ def run(args) -> int:
 
     from ..diagnose import diagnose
     from ..errors import InputError
-    from . import note_outside_travel
+    from . import attach_cmm_cuts, cmm_programs, note_outside_travel
     from ..io.atomic import atomic_write, check_distinct_inputs, check_output_path
     from ..measurement.files import read_measurements
     from ..machine import load_machine
     from ..models.model_file import _json_default, save_model
 
     check_distinct_inputs(args.data)
-    inputs = list(args.data) + ([args.start] if args.start else [])
+    inputs = list(args.data) + ([args.start] if args.start else []) + cmm_programs(args)
     report_path = check_output_path(args.json, inputs)
     model_path = check_output_path(args.output, inputs) if args.output else None
     plot_path = check_output_path(args.plot, inputs, ".png", "--plot") if args.plot else None
@@ -63,6 +66,7 @@ def run(args) -> int:
         from ..models.model_file import load_model
         start = load_model(args.start, machine)
     datasets = [read_measurements(path) for path in args.data]
+    attach_cmm_cuts(args, datasets)
     note_outside_travel("diagnose", machine, datasets)
 
     def progress(line):

@@ -6,6 +6,8 @@ atomically (nothing is written on error; an input is never overwritten). docs/id
 """
 from __future__ import annotations
 
+from . import add_cmm_arguments
+
 
 def add_arguments(parser):
     parser.add_argument("machine", metavar="MACHINE", help="built-in machine name or machine TOML file")
@@ -23,10 +25,11 @@ def add_arguments(parser):
                         help="unit: every residual in um or urad (default); noise: refit with "
                              "1/noise per file estimated from a first fit")
     parser.add_argument("--known-setup", metavar="FILE", action="append", default=[],
-                        help="a file whose set-up is known: a points file whose instrument frame is "
-                             "the workpiece frame (no set-up translation and rotation is fitted), or a "
-                             "ball-bar file of a calibrated bar (no length offset is fitted); repeat "
-                             "for several")
+                        help="a file whose set-up is known: a points or cmm file whose instrument "
+                             "frame is the workpiece frame (no set-up translation and rotation is "
+                             "fitted), or a ball-bar file of a calibrated bar (no length offset is "
+                             "fitted); repeat for several")
+    add_cmm_arguments(parser)
     parser.add_argument("--rcond", type=float, default=None, metavar="R",
                         help="relative singular value below which a combination of parameters counts "
                              "as undetermined and is held at zero (default 1e-6)")
@@ -37,20 +40,21 @@ def run(args) -> int:
 
     from ..errors import InputError
     from ..identification.fit import DEFAULT_RCOND, identify
-    from . import note_outside_travel
+    from . import attach_cmm_cuts, cmm_programs, note_outside_travel
     from ..io.atomic import check_distinct_inputs, check_output_path
     from ..measurement.files import read_measurements
     from ..machine import load_machine
     from ..models.model_file import save_model
 
     check_distinct_inputs(args.data)
-    out = check_output_path(args.output, list(args.data))
+    out = check_output_path(args.output, list(args.data) + cmm_programs(args))
     machine = load_machine(args.machine)
     hold = [h.strip() for item in args.hold for h in item.split(",") if h.strip()]
     rcond = DEFAULT_RCOND if args.rcond is None else args.rcond
     if not (0.0 < rcond < 1.0):
         raise InputError(f"--rcond must lie between 0 and 1, got {rcond}")
     datasets = [read_measurements(path) for path in args.data]
+    attach_cmm_cuts(args, datasets)
     note_outside_travel("identify", machine, datasets)
     result = identify(machine, datasets, hold=hold, weights=args.weights, rcond=rcond,
                       known_setup=list(args.known_setup),

@@ -13,6 +13,8 @@ taken as zero, and the command says so.
 """
 from __future__ import annotations
 
+from . import add_cmm_arguments
+
 
 def add_arguments(parser):
     parser.add_argument("machine", metavar="MACHINE", help="built-in machine name or machine TOML file")
@@ -20,21 +22,24 @@ def add_arguments(parser):
     parser.add_argument("data", metavar="DATA.csv", help="measurement file of any kind")
     parser.add_argument("-o", "--output", metavar="PRED.csv", required=True,
                         help="output: the input columns plus pred_<column>")
+    add_cmm_arguments(parser)
 
 
 def run(args) -> int:
     import sys
 
+    from . import attach_cmm_cuts, cmm_programs
     from ..identification.fit import predict_readings
     from ..io.atomic import check_output_path
     from ..measurement.files import read_measurements, write_csv_with_columns
     from ..machine import load_machine
     from ..models.model_file import load_model
 
-    out = check_output_path(args.output, [args.data, args.model])
+    out = check_output_path(args.output, [args.data, args.model] + cmm_programs(args))
     machine = load_machine(args.machine)
     fitted = load_model(args.model, machine)
     data = read_measurements(args.data)
+    attach_cmm_cuts(args, [data])
     pred = predict_readings(fitted, data, machine)
     columns = pred.columns
     for note in pred.notes:

@@ -132,7 +132,7 @@ def make_folds(st, max_folds: int = MAX_FOLDS) -> tuple[np.ndarray, str]:
     Whole runs are held out together (run r of every file in fold r mod K, by rank of its run number
     in the file). Files without runs are cut into blocks: by spindle-speed block (a speed step and the
     time until the next one) when the spindle speed changes at least four times, else into K
-    contiguous stretches of reading order.
+    contiguous stretches of reading order; a cmm file (a cut part) by every K-th point.
     """
     n = len(st.file)
     how = set()
@@ -148,6 +148,14 @@ def make_folds(st, max_folds: int = MAX_FOLDS) -> tuple[np.ndarray, str]:
             how.add("whole runs")
             continue
         rows = st.row[ix]
+        if st.kinds[fi] == "cmm":
+            # a cut part: the order of its points is a path over the part, not the machine's time, and
+            # a stretch of it held out is a region of the part the rest does not reach (its errors are
+            # undetermined there): every K-th point in turn
+            urows, rank = np.unique(rows, return_inverse=True)
+            block_of[ix] = rank % max_folds
+            how.add("every K-th point of a cut part")
+            continue
         sp = st.spindle[ix]
         order = np.argsort(rows, kind="stable")
         blocks = None

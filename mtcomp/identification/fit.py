@@ -32,7 +32,6 @@ Method (docs/identification.md):
 """
 from __future__ import annotations
 
-import os
 import time
 from dataclasses import dataclass, field
 
@@ -40,6 +39,7 @@ import numpy as np
 import scipy.linalg
 
 from ..errors import InputError
+from ..io.atomic import same_file
 from ..measurement.files import MeasurementSet
 from ..machine import Machine
 from ..models.chain import ErrorModel
@@ -400,7 +400,7 @@ def build_measurement_models(model: ErrorModel, datasets, context_defaults=None,
             opts = dict(options)
             if machine is not None:
                 opts["machine"] = machine
-            hits = [k for k in known if k == tag or _same_file(k, d.path)]
+            hits = [k for k in known if k == tag or same_file(k, d.path)]
             if hits:
                 if d.kind not in KNOWN_SETUP_KINDS:
                     raise InputError(f"--known-setup {hits[0]}: a {d.kind} file has no set-up to declare "
@@ -416,19 +416,9 @@ def build_measurement_models(model: ErrorModel, datasets, context_defaults=None,
     return out
 
 
-#: kinds whose set-up ``known_setup`` can declare known (points: the instrument frame; ballbar: the
-#: bar's length)
-KNOWN_SETUP_KINDS = ("points", "ballbar")
-
-
-def _same_file(name: str, path) -> bool:
-    """Whether ``name`` and ``path`` are the same file (as written, or resolved)."""
-    if name == str(path):
-        return True
-    try:
-        return os.path.realpath(name) == os.path.realpath(str(path))
-    except (OSError, ValueError):
-        return False
+#: kinds whose set-up ``known_setup`` can declare known (points, cmm: the instrument frame; ballbar:
+#: the bar's length)
+KNOWN_SETUP_KINDS = ("points", "ballbar", "cmm")
 
 
 def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, weights="unit",

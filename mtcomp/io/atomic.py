@@ -12,8 +12,9 @@ from pathlib import Path
 from ..errors import InputError
 
 
-def _same_file(a: Path, b: Path) -> bool:
-    """The same path, via a symlink, or a hard link to the same file."""
+def same_file(a, b) -> bool:
+    """The same path, via a symlink, or a hard link to the same file (paths or strings)."""
+    a, b = Path(a), Path(b)
     if a.resolve() == b.resolve():
         return True
     return a.exists() and b.exists() and os.path.samefile(a, b)
@@ -25,7 +26,7 @@ def check_output_path(out: str | os.PathLike, inputs: list[str | os.PathLike] = 
     (with ``suffix``, e.g. '.png') whose name does not end so (``what`` names it in the message)."""
     out_p = Path(out)
     for inp in inputs:
-        if _same_file(Path(inp), out_p):
+        if same_file(Path(inp), out_p):
             raise InputError("output would overwrite an input file", out)
     if out_p.is_dir():
         raise InputError("is a folder: name the output file", out)
@@ -43,7 +44,7 @@ def check_distinct_inputs(paths: list[str | os.PathLike]) -> None:
     seen: list[Path] = []
     for p in map(Path, paths):
         for q in seen:
-            if _same_file(p, q):
+            if same_file(p, q):
                 raise InputError(f"given twice (also as {q}): its readings would count twice", p)
         seen.append(p)
 

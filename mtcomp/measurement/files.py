@@ -289,16 +289,31 @@ class CmmData(MeasurementSet):
     xyz : (n, 3) mm nominal surface point, workpiece frame.
     normal : (n, 3) outward unit normal.
     normal_deviation : (n,) mm deviation along the normal (positive: material outside), NaN if blank.
+    program, tool_radius_mm : the G-code that cut the part and the radius of its ball-end tool (mm);
+        not in the file (SPEC 3.4): the commands take them from ``--cmm-program`` and
+        ``--cmm-tool-radius`` (:func:`mtcomp.commands.attach_cmm_cuts`).
     """
 
     kind: ClassVar[str] = "cmm"
     xyz: np.ndarray = None
     normal: np.ndarray = None
     normal_deviation: np.ndarray = None
+    program: str | None = None
+    tool_radius_mm: float | None = None
 
     @property
     def prediction_columns(self) -> tuple[str, ...]:
         return ("pred_dn_um",)
+
+    def axis_positions(self, machine: Machine) -> np.ndarray:
+        """(n, na) mm and rad: the pose of ``program`` that cut each surface point (its ball centre
+        nearest to ``x + r n``), so that the part counts where the model's knots go and what the data
+        cover. InputError when the program or the radius is not attached."""
+        if self.program is None or self.tool_radius_mm is None:
+            raise InputError("a cmm file needs the G-code that cut the part and the radius of its "
+                             "ball-end tool: give --cmm-program and --cmm-tool-radius", self.path)
+        from .readings_extra import cut_poses
+        return cut_poses(machine, self, self.program, float(self.tool_radius_mm))[0]
 
 
 @dataclass(eq=False)

@@ -461,6 +461,15 @@ class MeasurementModel:
 
 
 # ------------------------------------------------------------------------------------- points
+def frame_setup_specs(tag: str, frame: str) -> list[ParamSpec]:
+    """The set-up of an instrument aligned to the part (points, cmm): a translation ``<tag>:setup:tx``
+    ``ty`` ``tz`` (um) and a small rotation ``rx`` ``ry`` ``rz`` (urad) of ``frame``."""
+    return [ParamSpec(f"{tag}:setup:{name}", unit, f"nuisance:{tag}", False,
+                      f"set-up of {tag}: {'translation' if name[0] == 't' else 'rotation'} {name[1]} of {frame}")
+            for name, unit in (("tx", "um"), ("ty", "um"), ("tz", "um"),
+                               ("rx", "urad"), ("ry", "urad"), ("rz", "urad"))]
+
+
 @register
 class PointsModel(MeasurementModel):
     """Points files: tip deviation d (workpiece frame), dn = n . d, as the file's instrument reads it.
@@ -497,12 +506,7 @@ class PointsModel(MeasurementModel):
             self._setup_arm = tip0 - tip0[self._rows].mean(axis=0)    # (n_rows, 3): w x arm
             # d/dt = A; d/dw of A . (w x r) = r x A
             self._setup_design = np.hstack([self._A, np.cross(self._setup_arm[self._rows], self._A)])
-            for name, unit in (("tx", "um"), ("ty", "um"), ("tz", "um"),
-                               ("rx", "urad"), ("ry", "urad"), ("rz", "urad")):
-                self.nuisance_specs.append(ParamSpec(
-                    f"{self.tag}:setup:{name}", unit, f"nuisance:{self.tag}", False,
-                    f"set-up of {self.tag}: {'translation' if name[0] == 't' else 'rotation'} "
-                    f"{name[1]} of the instrument's frame"))
+            self.nuisance_specs += frame_setup_specs(self.tag, "the instrument's frame")
 
     def tip_deviation(self, p, jacobian: bool = False):
         """(n_rows, 3) tip deviation, mm (and (n_rows, 3, n_params) Jacobian when asked)."""

@@ -45,7 +45,7 @@ from ..kinematics import forward
 from ..models.chain import ErrorModel
 from ..models.params import ParamSpec
 from ..models.terms import ANGLE_LETTERS, TRANSLATION_LETTERS, ChannelDrift
-from .readings import MeasurementModel, context_matrix, register
+from .readings import MeasurementModel, context_matrix, frame_setup_specs, register
 
 #: default time constants (s) of the spindle heat features
 DEFAULT_TIME_CONSTANTS_S = (900.0, 3600.0)
@@ -393,7 +393,8 @@ class VelocityModel(MeasurementModel):
 class CmmModel(MeasurementModel):
     """CMM files (SPEC 3.4) with the program that cut the part (module docstring).
 
-    Options: ``program`` (G-code path, required), ``tool_radius_mm`` (ball radius, required),
+    Options: ``program`` (G-code path) and ``tool_radius_mm`` (ball radius), required here or as
+    the data's fields of the same names,
     ``tool_mm`` (tool length, default the machine's), ``sample_mm`` (spacing of the sampled
     cutter locations, default 0.1), ``max_gap_mm`` (largest distance from ``x + r n`` to the
     nearest ball centre before the point counts as not cut by the program, default 2),
@@ -407,24 +408,15 @@ class CmmModel(MeasurementModel):
     def _setup(self):
         data = self.data
         m = self.machine
-        program = self.options.get("program")
-        radius = self.options.get("tool_radius_mm")
+        program = self.options.get("program", data.program)
+        radius = self.options.get("tool_radius_mm", data.tool_radius_mm)
         if program is None or radius is None:
-            raise InputError("a cmm file needs the G-code that cut the part and the ball radius "
-                             "(options program and tool_radius_mm)", data.path)
-        radius = float(radius)
-        if not radius > 0:
-            raise InputError(f"tool radius must be positive, got {radius!r}", data.path)
-        self.radius = radius
-        loc = cutter_locations(m, program, radius, float(self.options.get("sample_mm", 0.1)))
+            raise InputError("a cmm file needs the G-code that cut the part and the radius of its "
+                             "ball-end tool: give --cmm-program and --cmm-tool-radius", data.path)
+        self.radius = radius = float(radius)
+        q, k, loc = cut_poses(m, data, program, radius, float(self.options.get("sample_mm", 0.1)),
+                              float(self.options.get("max_gap_mm", 2.0)))
         target = data.xyz + radius * data.normal
-        q, k, gap = loc.nearest(target)
-        max_gap = float(self.options.get("max_gap_mm", 2.0))
-        far = np.flatnonzero(gap > max_gap)
-        if far.size:
-            data.fail(f"no cutter location of {program} within {max_gap:g} mm of this point's "
-                      f"ball centre (nearest {gap[far[0]]:.3g} mm): the program did not cut it",
-                      far[0])
         self.q = q
         self.segment = k
         self.line = loc.line[k]
@@ -451,6 +443,13 @@ class CmmModel(MeasurementModel):
         self._rows = self.obs_row
         self.nuisance_specs = [ParamSpec(f"{self.tag}:radius_offset", "um", f"nuisance:{self.tag}",
                                          False, f"tool radius error of the cutter of {self.tag}")]
+        # the CMM is aligned to the part, never to the machine: a translation t and a small rotation w
+        # (about the centroid of the measured points) of its frame, dn += n . (t + w x (x - c))
+        self._setup_arm = data.xyz - data.xyz[self._rows if self.n_obs else slice(None)].mean(axis=0)
+        self._setup_design = np.zeros((len(data), 0))
+        if self.options.get("setup", "free") != "known" and self.n_obs:
+            self._setup_design = np.hstack([data.normal, np.cross(self._setup_arm, data.normal)])
+            self.nuisance_specs += frame_setup_specs(self.tag, "the CMM's frame")
 
     def _dn(self, p, jacobian):
         """(n_rows,) n . (ball-centre deviation), mm (and (n_rows, n_params))."""
@@ -458,17 +457,22 @@ class CmmModel(MeasurementModel):
                                self.data.normal, jacobian)
         return (out[0] + self.path_offset, out[1]) if jacobian else (out + self.path_offset, None)
 
+    def _nuisance_design(self):
+        """(n_rows, n_nuisance): radius offset (dn -= dr), then the set-up (when fitted)."""
+        return np.hstack([-np.ones((len(self.data), 1)), self._setup_design])
+
     def _evaluate(self, p, nuisance, jacobian):
         p, nuisance = self._check_p(p, nuisance)
         dn, J = self._dn(p, jacobian)
-        pred = dn[self._rows] - nuisance[0]
+        design = self._nuisance_design()[self._rows]
+        pred = dn[self._rows] + design @ nuisance
         if not jacobian:
             return pred, None, None
-        return pred, J[self._rows], -np.ones((self.n_obs, 1))
+        return pred, J[self._rows], design
 
     def predict_columns(self, p, nuisance=None):
         p, nuisance = self._check_p(p, nuisance)
-        return {"pred_dn_um": (self._dn(p, False)[0] - nuisance[0]) * 1e3}
+        return {"pred_dn_um": (self._dn(p, False)[0] + self._nuisance_design() @ nuisance) * 1e3}
 
 
 # --------------------------------------------------------------------------------- velocity algebra
@@ -557,6 +561,29 @@ class CutterLocations:
             u[better] = (self.u[idx] + lam * (self.u[j] - self.u[idx]))[better]
             best[better] = dd[better]
         return self._q(seg, u), seg, best
+
+
+def cut_poses(machine, data, program, radius: float, sample_mm: float = 0.1, max_gap_mm: float = 2.0):
+    """(q (n, na), segment (n,), CutterLocations) of the cmm file ``data``: for each surface point the
+    cutter location of ``program`` whose ball centre is nearest to ``x + r n``. InputError naming the
+    row of a point no cutter location comes within ``max_gap_mm`` of. Kept on ``data`` for the same
+    machine, program and radius (the knots are placed from these poses before the fit builds its
+    model)."""
+    geometry = tuple((a.name, tuple(getattr(a, "axis_point", None) or ())) for a in machine.axes)
+    key = (machine.topology, geometry, str(program), float(radius), float(sample_mm), float(max_gap_mm))
+    cached = getattr(data, "_cut_poses", None)
+    if cached is not None and cached[0] == key:
+        return cached[1]
+    if not radius > 0:
+        raise InputError(f"tool radius must be positive, got {radius!r}", data.path)
+    loc = cutter_locations(machine, program, radius, sample_mm)
+    q, k, gap = loc.nearest(data.xyz + radius * data.normal)
+    far = np.flatnonzero(gap > max_gap_mm)
+    if far.size:
+        data.fail(f"no cutter location of {program} within {max_gap_mm:g} mm of this point's "
+                  f"ball centre (nearest {gap[far[0]]:.3g} mm): the program did not cut it", far[0])
+    data._cut_poses = (key, (q, k, loc))
+    return q, k, loc
 
 
 def cutter_locations(machine, program, radius: float, sample_mm: float = 0.1) -> CutterLocations:

@@ -1,0 +1,100 @@
+"""A part cut and measured on a CMM (SPEC 3.4), through the command line: the program that cut it and
+the ball radius come with --cmm-program / --cmm-tool-radius. The part is cut on the independent
+machine (tests/truth), whose Z straightness along X and Y the CMM reads on the floor of the part."""
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+
+from mtcomp.cli import main
+from truth import TruthMachine
+from truth import profiles as P
+
+RADIUS = 3.0
+NOISE_UM = 0.1
+ROWS = np.arange(-40.0, 40.1, 10.0)
+
+
+def _cut_and_measure(folder):
+    """A zig-zag floor at Z0 cut with a 3 mm ball on an XFYZ machine whose table sags along X and Y
+    (EZX, EZY: sines of 4 and 3 um); CMM points on the cut rows, dn = the ball centre's Z error."""
+    m = TruthMachine.zero("XFYZ")
+    m.components["X"]["EZX"] = P.Sines((4e-3,), (150.0,), (0.3,))
+    m.components["Y"]["EZY"] = P.Sines((3e-3,), (120.0,), (1.0,))
+    lines = ["G21 G90", f"G0 X-60 Y{ROWS[0]:g} Z5", "G1 Z0 F800"]
+    for k, y in enumerate(ROWS):
+        if k:
+            lines.append(f"G1 Y{y:g}")
+        lines.append(f"G1 X{60 if k % 2 == 0 else -60}")
+    lines += ["G0 Z5", "M30"]
+    program = folder / "floor.nc"
+    program.write_text("\n".join(lines) + "\n")
+    x, y = (v.ravel() for v in np.meshgrid(np.arange(-55.0, 55.1, 5.0), ROWS))
+    q = np.column_stack([x, y, np.zeros_like(x)])
+    tip, axis = m.true_pose(q)
+    centre = tip + RADIUS * axis
+    dn = (centre[:, 2] - RADIUS) * 1e3 + np.random.default_rng(3).normal(0.0, NOISE_UM, x.size)
+    part = folder / "floor_cmm.csv"
+    with open(part, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["x_mm", "y_mm", "z_mm", "nx", "ny", "nz", "dn_um", "kind"])
+        for row in zip(x, y, np.zeros_like(x), np.zeros_like(x), np.zeros_like(x), np.ones_like(x), dn):
+            w.writerow([f"{v:.6f}" for v in row] + ["cmm"])
+    return program, part, dn
+
+
+def test_identify_and_predict_a_cut_part_from_the_command_line(tmp_path, capsys):
+    program, part, dn = _cut_and_measure(tmp_path)
+    model, pred = tmp_path / "model.json", tmp_path / "pred.csv"
+    flags = ["--cmm-program", str(program), "--cmm-tool-radius", str(RADIUS)]
+    assert main(["identify", "xfyz", str(part), "-o", str(model), *flags]) == 0, capsys.readouterr().err
+    assert main(["predict", "xfyz", str(model), str(part), "-o", str(pred),
+                 "--cmm-program", f"{part}={program}", "--cmm-tool-radius", f"{part}={RADIUS}"]) == 0
+    with open(pred, newline="") as f:
+        got = np.array([float(r["pred_dn_um"]) for r in csv.DictReader(f)])
+    # the CMM is aligned to the part (a rotation and translation are fitted): the sag beyond a plane is
+    # what the model must follow
+    A = np.column_stack([np.ones(dn.size), *np.loadtxt(part, delimiter=",", skiprows=1,
+                                                       usecols=(0, 1)).T])
+    beyond_plane = dn - A @ np.linalg.lstsq(A, dn, rcond=None)[0]
+    assert np.std(beyond_plane) > 10 * NOISE_UM
+    assert np.sqrt(np.mean((dn - got) ** 2)) < 2 * NOISE_UM
+
+
+@pytest.mark.parametrize("flags, message", [
+    ([], "floor_cmm.csv: a cmm file is read with the G-code that cut the part and the radius of its "
+         "ball-end tool: give --cmm-program and --cmm-tool-radius"),
+    (["--cmm-program", "{d}/floor.nc"], "give --cmm-tool-radius"),
+    (["--cmm-program", "{d}/none.nc", "--cmm-tool-radius", "3"], "--cmm-program {d}/none.nc: no such file"),
+    (["--cmm-program", "{d}/floor.nc", "--cmm-tool-radius", "-3"], "the radius must be a positive number"),
+    (["--cmm-program", "{d}/floor.nc", "--cmm-tool-radius", "{d}/floor.nc=3"], "is none of the data files"),
+    (["--cmm-program", "{d}/floor.nc", "--cmm-tool-radius", "3", "-o", "{d}/floor.nc"],
+     "output would overwrite an input file"),
+])
+def test_cmm_flags_refused_with_one_line_and_nothing_written(tmp_path, capsys, flags, message):
+    program, part, _ = _cut_and_measure(tmp_path)
+    flags = [f.format(d=tmp_path) for f in flags]
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    args = ["identify", "xfyz", str(part), *flags]
+    if "-o" not in flags:
+        args += ["-o", str(tmp_path / "model.json")]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message.format(d=tmp_path) in err and "Traceback" not in err
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+
+
+def test_diagnose_a_clean_cut_part_finds_nothing(tmp_path, capsys):
+    """The part's errors are the machine's geometry alone: nothing to name. Held-out points are every
+    fifth one of the part (a stretch of rows held out would leave its Y profile undetermined: 15 times
+    the noise held out, read as structure)."""
+    import json
+    program, part, _ = _cut_and_measure(tmp_path)
+    report = tmp_path / "report.json"
+    assert main(["diagnose", "xfyz", str(part), "--cmm-program", str(program), "--cmm-tool-radius",
+                 str(RADIUS), "--json", str(report), "-q"]) == 0, capsys.readouterr().err
+    r = json.loads(report.read_text())
+    assert r["verdict"] == "none" and r["findings"] == []
+    assert r["final"]["heldout_rms_um"] < 1.5 * NOISE_UM
