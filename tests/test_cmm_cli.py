@@ -72,6 +72,10 @@ def test_identify_and_predict_a_cut_part_from_the_command_line(tmp_path, capsys)
     (["--cmm-program", "{d}/floor.nc", "--cmm-tool-radius", "{d}/floor.nc=3"], "is none of the data files"),
     (["--cmm-program", "{d}/floor.nc", "--cmm-tool-radius", "3", "-o", "{d}/floor.nc"],
      "output would overwrite an input file"),
+    (["--cmm-program", "{d}/floor.nc", "--cmm-tool-radius", "3", "--cmm-tool-radius", "5"],
+     "--cmm-tool-radius 5: {d}/floor_cmm.csv has its tool radius given twice"),
+    (["--cmm-program", "{d}", "--cmm-tool-radius", "3"], "a folder, not a G-code file"),
+    (["--cmm-program", "{d}/floor_cmm.csv=", "--cmm-tool-radius", "3"], "give the G-code file after '='"),
 ])
 def test_cmm_flags_refused_with_one_line_and_nothing_written(tmp_path, capsys, flags, message):
     program, part, _ = _cut_and_measure(tmp_path)

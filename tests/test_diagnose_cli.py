@@ -134,6 +134,33 @@ def test_angular_readings_alone_report_urad(tmp_path, capsys):
     assert un[0]["params"]["p_value"] < 1e-6
     final = next(line for line in out.splitlines() if line.startswith("final model"))
     assert "urad" in final and f"{r['final']['heldout_rms_urad']:.4g}" in final
+    # the noise floor is named by its unit: no um readings, no um noise
+    assert r["noise_um"] is None and r["noise_urad"] == pytest.approx(0.2, rel=0.25)
+
+
+def test_velocities_alone_report_um_per_min(tmp_path, capsys):
+    """Velocity readings only (mm/min in the file): the noise and the rms figures are in um/min and
+    named so (they had been printed as um)."""
+    rng = np.random.default_rng(5)
+    rows = ["axis,feed_mm_min,x_mm,m_x_mm,m_y_mm,m_vx_mm_min,m_vy_mm_min,n_x_mm,n_y_mm,n_vx_mm_min,"
+            "n_vy_mm_min,dir_x,run"]
+    for run in (1, 2, 3):
+        for feed in (180.0, 300.0):
+            for x in np.linspace(-100, 100, 21):
+                w = 2e-7 * x / 100.0 * feed            # yaw rate of a yaw slope growing along X
+                v = [feed - w * 150.0, w * 50.0, feed - w * 100.0, w * 250.0]
+                v = [a + rng.normal(0, 1e-4) for a in v]
+                rows.append(f"X,{feed:g},{x:g},50,150,{v[0]:.7f},{v[1]:.7f},250,100,{v[2]:.7f},{v[3]:.7f},1,{run}")
+    path = tmp_path / "vel.csv"
+    path.write_text("\n".join(rows) + "\n")
+    report = tmp_path / "r.json"
+    assert main(["diagnose", "xfyz", str(path), "--json", str(report), "-q"]) == 0
+    out = capsys.readouterr().out
+    r = json.loads(report.read_text())
+    assert r["noise_um"] is None and r["noise_um_min"] == pytest.approx(0.1, rel=0.25)
+    assert r["final"]["rms_um"] is None and r["final"]["heldout_rms_um_min"] == pytest.approx(0.1, rel=0.3)
+    final = next(line for line in out.splitlines() if line.startswith("final model"))
+    assert f"velocity rms {r['final']['rms_um_min']:.4g} um/min" in final
 
 
 def test_readings_outside_the_machine_travel_are_noted(tmp_path, capsys):

@@ -260,6 +260,16 @@ def test_velocity_and_rotation_centre_of_a_rigid_motion(tmp_path):
     np.testing.assert_allclose(d.rotation_centre(), truth, rtol=0, atol=1e-6)
     with pytest.raises(InputError, match=r"row 1: column feed_mm_min must not be negative"):
         read_measurements(_write(tmp_path, text.replace("X,240.0", "X,-240.0", 1)))
+    # the velocity along the moving axis is the feed: another axis's, or a sign against dir_x, is refused
+    first = rows[0].split(",")
+    for k, v, msg in ((11, "-1", r"row 1: column m_vx_mm_min: 2\d\d.* mm/min, but the table moves along X at "
+                                 r"-240 mm/min \(feed_mm_min and dir_x\)"),
+                      (5, "0.0", r"row 1: column m_vx_mm_min: 0 mm/min, but the table moves along X at 240"),
+                      (0, "Z", r"row 1: column axis: Z: a velocity file's table moves along X or Y")):
+        bad = first.copy()
+        bad[k] = v
+        with pytest.raises(InputError, match=msg):
+            read_measurements(_write(tmp_path, text.replace(rows[0], ",".join(bad), 1)))
     with pytest.raises(InputError, match=r"row 1: column feed_mm_min must be positive"):
         read_measurements(_write(tmp_path, text.replace("X,240.0", "X,0.0", 1)))
     with pytest.raises(InputError, match=r"row 1: missing column y_mm \(position of moving axis Y\)"):

@@ -40,6 +40,8 @@ def attach_cmm_cuts(args, datasets) -> None:
 
     def target(flag, value):
         name, sep, rest = value.rpartition("=")
+        if sep and not name:
+            raise InputError(f"{flag} {value}: name the cmm file before '=' (CMM.csv=...)")
         if sep:
             hits = [d for d in datasets if same_file(name, d.path)]
             if not hits:
@@ -52,13 +54,26 @@ def attach_cmm_cuts(args, datasets) -> None:
                              f"{len(cmm)} cmm files; write CMM.csv={value}"))
         return cmm[0], value
 
+    given = set()
+
+    def once(flag, value, d):
+        if (flag, id(d)) in given:
+            raise InputError(f"{flag} {value}: {d.path} has its {flag[6:].replace('-', ' ')} given twice")
+        given.add((flag, id(d)))
+
     for value in args.cmm_program:
         d, program = target("--cmm-program", value)
+        once("--cmm-program", value, d)
+        if not program:
+            raise InputError(f"--cmm-program {value}: give the G-code file after '='")
+        if Path(program).is_dir():
+            raise InputError(f"--cmm-program {value}: a folder, not a G-code file", program)
         if not Path(program).is_file():
             raise InputError(f"--cmm-program {value}: no such file", program)
         d.program = program
     for value in args.cmm_tool_radius:
         d, text = target("--cmm-tool-radius", value)
+        once("--cmm-tool-radius", value, d)
         try:
             radius = float(text)
         except ValueError:

@@ -72,8 +72,9 @@ class Finding:
         # SPEC's keys are in um; data without positions keep them (null) and add their own unit's
         out = {"effect": self.effect, "axis": self.axis, "params": self.params, "evidence": self.evidence,
                "heldout_rms_before_um": None, "heldout_rms_after_um": None}
-        out[f"heldout_rms_before_{self.unit}"] = _r(self.heldout_rms_before)
-        out[f"heldout_rms_after_{self.unit}"] = _r(self.heldout_rms_after)
+        key = UNIT_KEYS.get(self.unit, self.unit)
+        out[f"heldout_rms_before_{key}"] = _r(self.heldout_rms_before)
+        out[f"heldout_rms_after_{key}"] = _r(self.heldout_rms_after)
         return out
 
 
@@ -125,14 +126,17 @@ class Diagnosis:
 
     @property
     def noise_um(self) -> float:
-        n = self.noise.get("um") or self.noise.get("urad") or self.noise.get("um/min")
+        """The noise floor of the readings in um (NaN when the data hold none: then ``noise``
+        has the urad or um/min floor)."""
+        n = self.noise.get("um")
         return float(n.sigma) if n else float("nan")
 
     def to_dict(self) -> dict:
         """REPORT.json (SPEC 6 keys plus a few more)."""
         noise = {u: {"sigma": _r(n.sigma), "source": n.source, "dof": n.dof, "repeat_groups": n.n_groups}
                  for u, n in self.noise.items()}
-        return _finite({"verdict": self.verdict, "noise_um": _r(self.noise_um),
+        extra = {f"noise_{UNIT_KEYS[u]}": _r(n.sigma) for u, n in self.noise.items() if u != "um"}
+        return _finite({"verdict": self.verdict, "noise_um": _r(self.noise_um), **extra,
                         "noise": noise, "base": self.base, "findings": [f.to_dict() for f in self.findings],
                         "final": self.final, "heldout": self.folds, "n_observations": self.n_obs,
                         "rejected": self.rejected, "reference": self.reference,
@@ -180,15 +184,20 @@ def _apply(st: Stack, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _metrics(st: Stack, fit, n_params: int) -> dict:
     um = st.unit == "um"
-    urad = st.unit == "urad"
     out = {"n_params": int(n_params), "n_determined": int(fit.rank) - len(st.nuisance_names),
            "n_nuisance": len(st.nuisance_names),
            "rms_um": _r(rms(fit.resid[um])) if um.any() else None,
            "heldout_rms_um": _r(rms(fit.cv_resid[um])) if um.any() else None}
-    if urad.any():
-        out["rms_urad"] = _r(rms(fit.resid[urad]))
-        out["heldout_rms_urad"] = _r(rms(fit.cv_resid[urad]))
+    for unit in ("urad", "um/min"):
+        sel = st.unit == unit
+        if sel.any():
+            out[f"rms_{UNIT_KEYS[unit]}"] = _r(rms(fit.resid[sel]))
+            out[f"heldout_rms_{UNIT_KEYS[unit]}"] = _r(rms(fit.cv_resid[sel]))
     return out
+
+
+#: report key suffix of each unit class: angular readings, velocities
+UNIT_KEYS = {"um": "um", "urad": "urad", "um/min": "um_min"}
 
 
 #: the unit whose held-out rms the selection follows: the first of these the data hold

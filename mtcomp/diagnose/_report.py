@@ -204,6 +204,14 @@ def unexplained_params(st, fit, structure, excess, noise_main, inflation: float 
             ev, axis)
 
 
+def _other_units(fit: dict) -> str:
+    """'; angular rms .. urad, held-out .. urad' and the same for velocities, where the data hold them."""
+    return "".join(f"; {what} rms {_num(fit.get('rms_' + key))} {unit}, held-out "
+                   f"{_num(fit.get('heldout_rms_' + key))} {unit}"
+                   for what, key, unit in (("angular", "urad", "urad"), ("velocity", "um_min", "um/min"))
+                   if f"rms_{key}" in fit)
+
+
 def summary(diag) -> str:
     """Human-readable report."""
     lines = []
@@ -216,8 +224,7 @@ def summary(diag) -> str:
     b = diag.base
     lines.append(f"base model ({b['n_params']} parameters, {b['n_determined']} determined by the data): "
                  f"rms {_num(b.get('rms_um'))} um, held-out {_num(b.get('heldout_rms_um'))} um"
-                 + (f"; angular rms {_num(b.get('rms_urad'))} urad, held-out {_num(b.get('heldout_rms_urad'))}"
-                    " urad" if "rms_urad" in b else ""))
+                 + _other_units(b))
     if b.get("refined"):
         lines.append("base refined by the diagnosis (its held-out data asked for a finer spline along "
                      "these axes): " + ", ".join(f"{a} {k} spline functions" for a, k in b["refined"].items()))
@@ -236,8 +243,7 @@ def summary(diag) -> str:
     fz = diag.final
     lines.append(f"final model ({fz['n_params']} parameters): rms {_num(fz.get('rms_um'))} um, held-out "
                  f"{_num(fz.get('heldout_rms_um'))} um"
-                 + (f"; angular rms {_num(fz.get('rms_urad'))} urad, held-out {_num(fz.get('heldout_rms_urad'))}"
-                    " urad" if "rms_urad" in fz else ""))
+                 + _other_units(fz))
     ref = diag.reference.get("linear_regression_all_temperatures")
     if ref:
         lines.append(f"reference: plain linear regression on all {len(ref['temperatures'])} temperatures "

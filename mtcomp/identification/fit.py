@@ -474,7 +474,10 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
     mask = _free_mask(model, free, hold)
     mms = build_measurement_models(model, datasets, ctx_defaults, known_setup=known_setup)
     if not mms or sum(m.n_obs for m in mms) == 0:
-        raise InputError("no observations to fit (every measured cell is blank)")
+        paths = [str(m.data.path) for m in mms if getattr(m.data, "path", None)]
+        raise InputError("no observations to fit: every measured cell is blank"
+                         + (f" in {', '.join(paths)}" if len(paths) > 1 else ""),
+                         paths[0] if len(paths) == 1 else None)
     problem = _Problem(model, mms, mask, p0)
     problem.metric = travel_metric(model, problem.free_idx, problem.n_unknowns)
 

@@ -584,6 +584,10 @@ def _axis_letters(table: CsvTable, allowed: str) -> np.ndarray:
 def _read_velocity(table: CsvTable, context: Context) -> VelocityData:
     _require(table, "velocity", ("axis", "feed_mm_min", *_VELOCITY))
     axis = _axis_letters(table, LINEAR)
+    other = np.flatnonzero(~np.isin(axis, ["X", "Y"]))
+    if other.size:
+        table.fail(f"column axis: {axis[other[0]]}: a velocity file's table moves along X or Y (the "
+                   "velocities are read in the table plane XY)", other[0])
     position = np.full(len(axis), np.nan)
     for k, letter in enumerate(LINEAR):
         rows = axis == letter
@@ -604,6 +608,21 @@ def _read_velocity(table: CsvTable, context: Context) -> VelocityData:
         table.fail("column feed_mm_min must be positive", bad[0])
     context.feed = feed
     v = {c: table.floats(c, required=c.endswith("_mm")) for c in _VELOCITY}
+    # the table moves along its axis at the feed: a velocity along the axis far from +-feed is a
+    # reading of another axis, a unit slip, or a sign that disagrees with dir_<axis>
+    for i, a in enumerate(axis):
+        k = "xy".index(a.lower())
+        sign = float(context.dir_of(a)[i])
+        for point in ("m", "n"):
+            along = v[f"{point}_v{'xy'[k]}_mm_min"][i]
+            if not np.isfinite(along):
+                continue
+            expect = sign * feed[i] if sign else np.copysign(feed[i], along)
+            if abs(along - expect) > 0.1 * feed[i]:
+                table.fail(f"column {point}_v{'xy'[k]}_mm_min: {along:g} mm/min, but the table moves along "
+                           f"{a} at {expect:g} mm/min (feed_mm_min" + (f" and dir_{a.lower()}" if sign else "")
+                           + "): the velocity of a table point along its axis is the feed, to a few "
+                           "parts per million", i)
     return VelocityData(**_base(table, context), axis=axis, feed=feed, position=position,
                         m_xy=np.stack([v["m_x_mm"], v["m_y_mm"]], 1),
                         m_v=np.stack([v["m_vx_mm_min"], v["m_vy_mm_min"]], 1),

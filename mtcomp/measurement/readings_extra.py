@@ -369,6 +369,10 @@ class VelocityModel(MeasurementModel):
         v, _ = self._velocities(p, False)
         return {f"pred_{c}": v[:, j] for j, c in enumerate(self.COLUMNS)}
 
+    def column_jacobians(self, p):
+        _, J = self._velocities(np.asarray(p, dtype=float), True)
+        return {f"pred_{c}": J[:, j] for j, c in enumerate(self.COLUMNS)}
+
     def rotation_centre(self, p) -> np.ndarray:
         """(n_rows, 2) mm the instantaneous rotation centre of the model's velocity field at each row
         (carriage frame, XY): the point moving at exactly V0 along the axis, which seed 000 eq. 1 finds
@@ -473,6 +477,9 @@ class CmmModel(MeasurementModel):
     def predict_columns(self, p, nuisance=None):
         p, nuisance = self._check_p(p, nuisance)
         return {"pred_dn_um": (self._dn(p, False)[0] + self._nuisance_design() @ nuisance) * 1e3}
+
+    def column_jacobians(self, p):
+        return {"pred_dn_um": self._dn(np.asarray(p, dtype=float), True)[1] * 1e3}
 
 
 # --------------------------------------------------------------------------------- velocity algebra
