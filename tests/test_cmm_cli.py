@@ -102,3 +102,19 @@ def test_diagnose_a_clean_cut_part_finds_nothing(tmp_path, capsys):
     r = json.loads(report.read_text())
     assert r["verdict"] == "none" and r["findings"] == []
     assert r["final"]["heldout_rms_um"] < 1.5 * NOISE_UM
+
+
+def test_a_wrong_tool_radius_is_noted(tmp_path, capsys):
+    """A wall cut with a 3 mm ball at X3 (the wall at X0, normal +X), read with 4 mm: the points lie
+    1 mm off the ball-centre path along their normals; identify says so (and fits: not an error)."""
+    program = tmp_path / "wall.nc"
+    program.write_text("G21 G90\nG0 X3 Y-50 Z5\nG1 Z-5 F400\nG1 Y50\nG0 Z5\nM30\n")
+    part = tmp_path / "wall_cmm.csv"
+    rows = [f"0,{y:g},-2,1,0,0,{0.05 * np.sin(y / 20):.4f},cmm" for y in np.arange(-45.0, 45.1, 5.0)]
+    part.write_text("x_mm,y_mm,z_mm,nx,ny,nz,dn_um,kind\n" + "\n".join(rows) + "\n")
+    for radius, noted in (("4", True), ("3", False)):
+        assert main(["identify", "xfyz", str(part), "--cmm-program", str(program), "--cmm-tool-radius",
+                     radius, "-o", str(tmp_path / f"m{radius}.json")]) == 0
+        err = capsys.readouterr().err
+        assert ("the points lie a median +1.000 mm off the ball-centre path" in err
+                and "is the tool radius 4 mm right (it would be 3 mm)" in err) == noted, err

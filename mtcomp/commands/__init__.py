@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import sys
 
+import numpy as np
+
 
 def note_outside_travel(command: str, machine, datasets) -> None:
     """Tell the user (stderr, one line per file and axis) of readings beyond the machine's travel."""
@@ -87,3 +89,29 @@ def attach_cmm_cuts(args, datasets) -> None:
         if missing:
             raise InputError(f"a cmm file is read with the G-code that cut the part and the radius of "
                              f"its ball-end tool: give {' and '.join(missing)}", d.path)
+
+
+#: a cmm file's points lying further than this (mm, median along their normals) from the ball-centre
+#: path of the program that cut them get a note: the radius or the part's placement is off
+CMM_GAP_NOTE_MM = 0.05
+
+
+def note_cmm_gaps(command: str, machine, datasets) -> None:
+    """Tell the user (stderr) of a cmm file whose points sit off the program's ball-centre path along
+    their normals: a wrong ``--cmm-tool-radius`` (a wall cut with a 3 mm ball read as 4 mm lies 1 mm
+    off) or a part not where the program put it. Not an error: the fit would take a radius offset."""
+    from ..kinematics import forward
+    from ..measurement.readings_extra import cut_poses
+    for d in datasets:
+        if d.kind != "cmm" or d.program is None or d.tool_radius_mm is None or not len(d):
+            continue
+        q = cut_poses(machine, d, d.program, float(d.tool_radius_mm))[0]
+        tip, axis = forward(machine, q)
+        gap = np.einsum("ij,ij->i", d.xyz + d.tool_radius_mm * d.normal - (tip + d.tool_radius_mm * axis),
+                        d.normal)
+        med = float(np.median(gap))
+        if abs(med) > CMM_GAP_NOTE_MM:
+            print(f"mtcomp {command}: note: {d.path}: the points lie a median {med:+.3f} mm off the "
+                  f"ball-centre path of {d.program} along their normals: is the tool radius "
+                  f"{d.tool_radius_mm:g} mm right (it would be {d.tool_radius_mm - med:.3g} mm), and the "
+                  "part where the program put it?", file=sys.stderr)

@@ -40,7 +40,7 @@ def run(args) -> int:
 
     from ..diagnose import diagnose
     from ..errors import InputError
-    from . import attach_cmm_cuts, cmm_programs, note_outside_travel
+    from . import attach_cmm_cuts, cmm_programs, note_cmm_gaps, note_outside_travel
     from ..io.atomic import atomic_write, check_distinct_inputs, check_output_path
     from ..measurement.files import read_measurements
     from ..machine import load_machine
@@ -68,6 +68,7 @@ def run(args) -> int:
     datasets = [read_measurements(path) for path in args.data]
     attach_cmm_cuts(args, datasets)
     note_outside_travel("diagnose", machine, datasets)
+    note_cmm_gaps("diagnose", machine, datasets)
 
     def progress(line):
         if not args.quiet:

@@ -40,7 +40,7 @@ def run(args) -> int:
 
     from ..errors import InputError
     from ..identification.fit import DEFAULT_RCOND, identify
-    from . import attach_cmm_cuts, cmm_programs, note_outside_travel
+    from . import attach_cmm_cuts, cmm_programs, note_cmm_gaps, note_outside_travel
     from ..io.atomic import check_distinct_inputs, check_output_path
     from ..measurement.files import read_measurements
     from ..machine import load_machine
@@ -56,6 +56,7 @@ def run(args) -> int:
     datasets = [read_measurements(path) for path in args.data]
     attach_cmm_cuts(args, datasets)
     note_outside_travel("identify", machine, datasets)
+    note_cmm_gaps("identify", machine, datasets)
     result = identify(machine, datasets, hold=hold, weights=args.weights, rcond=rcond,
                       known_setup=list(args.known_setup),
                       info={"command": "mtcomp identify " + " ".join(sys.argv[2:]) if len(sys.argv) > 2
