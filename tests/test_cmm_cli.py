@@ -118,3 +118,33 @@ def test_a_wrong_tool_radius_is_noted(tmp_path, capsys):
         err = capsys.readouterr().err
         assert ("the points lie a median +1.000 mm off the ball-centre path" in err
                 and "is the tool radius 4 mm right (it would be 3 mm)" in err) == noted, err
+
+
+def test_the_cmm_frame_takes_a_misaligned_part_not_the_machine(tmp_path, capsys):
+    """The same part read by a CMM tilted by (20, -15) urad about the points' centroid and shifted
+    2 um along Z: the machine's parameters come out the same, the set-up's rotation by the tilt."""
+    import json
+    program, part, dn = _cut_and_measure(tmp_path)
+    xyz = np.loadtxt(part, delimiter=",", skiprows=1, usecols=(0, 1, 2))
+    arm = xyz - xyz.mean(axis=0)
+    w = np.array([20e-6, -15e-6, 0.0])
+    tilted = dn + (np.cross(w, arm)[:, 2] + 2e-3) * 1e3           # n = +z: dn += (w x arm)_z + tz
+    moved = tmp_path / "moved" / part.name
+    moved.parent.mkdir()
+    text = part.read_text().splitlines()
+    moved.write_text("\n".join([text[0]] + [",".join(r.split(",")[:6] + [f"{v:.6f}", "cmm"])
+                                            for r, v in zip(text[1:], tilted)]) + "\n")
+    fits = []
+    for f in (part, moved):
+        out = f.parent / "m.json"
+        assert main(["identify", "xfyz", str(f), "--cmm-program", str(program), "--cmm-tool-radius",
+                     str(RADIUS), "-o", str(out)]) == 0, capsys.readouterr().err
+        fits.append(json.loads(out.read_text()))
+    values = [{k: v["value"] for k, v in m["parameters"].items()} for m in fits]
+    assert values[0].keys() == values[1].keys()
+    worst = max(abs(values[0][k] - values[1][k]) for k in values[0])
+    assert worst < 1e-3, worst                                        # um, urad
+    setup = [m["info"]["identify"]["nuisance"] for m in fits]
+    d = {k.split(":", 1)[1]: setup[1][k]["value"] - setup[0][k]["value"] for k in setup[0]}
+    assert d["setup:rx"] == pytest.approx(20.0, abs=1e-3) and d["setup:ry"] == pytest.approx(-15.0, abs=1e-3)
+    assert d["setup:tz"] - d["radius_offset"] == pytest.approx(2.0, abs=1e-3)   # one along the normal

@@ -326,7 +326,7 @@ def test_figures_over_the_corrected_blocks_only(tmp_path, capsys):
     known = [r for r in rows if not r["unknown_axes"]]     # the overall figures leave these out
     # the block with Z unknown: no Z position and no predicted deviation to show (blank, not 0)
     (blind,) = [r for r in rows if r["unknown_axes"]]
-    assert blind["unknown_axes"] == "Z" and blind["z_mm"] == "" and blind["e_before_um"] == ""
+    assert blind["unknown_axes"] == "Z" and blind["z_mm"] == blind["cz_um"] == blind["e_before_um"] == ""
     assert blind["x_mm"] == "0.0000" and blind["cx_um"] == "0.0000"
     figures = json.loads(js.read_text())
 

@@ -263,11 +263,16 @@ def test_velocity_and_rotation_centre_of_a_rigid_motion(tmp_path):
     # the velocity along the moving axis is the feed: another axis's, or a sign against dir_x, is refused
     first = rows[0].split(",")
     for k, v, msg in ((11, "-1", r"row 1: column m_vx_mm_min: 2\d\d.* mm/min, but the table moves along X at "
-                                 r"-240 mm/min \(feed_mm_min and dir_x\)"),
+                                 r"-240 mm/min in the axis's own sense \(feed_mm_min and dir_x\)"),
+                      # no dir_x: the sign is the velocities', and both points must agree with it
+                      (11, "", r"row 1: column n_vx_mm_min: 2\d\d.* mm/min, but the table moves along X at "
+                               r"-240 mm/min in the axis's own sense \(feed_mm_min, signed by the velocities\)"),
                       (5, "0.0", r"row 1: column m_vx_mm_min: 0 mm/min, but the table moves along X at 240"),
                       (0, "Z", r"row 1: column axis: Z: a velocity file's table moves along X or Y")):
         bad = first.copy()
         bad[k] = v
+        if k == 11 and v == "":                # M read backwards: -240 and N +240 sum to 0 -> sign +
+            bad[5] = repr(-float(first[5]) - 1.0)
         with pytest.raises(InputError, match=msg):
             read_measurements(_write(tmp_path, text.replace(rows[0], ",".join(bad), 1)))
     with pytest.raises(InputError, match=r"row 1: column feed_mm_min must be positive"):

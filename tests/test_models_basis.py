@@ -115,3 +115,21 @@ def test_a_reversal_error_is_not_read_as_noise(tmp_path, backlash_um):
     path.write_text("\n".join(rows) + "\n")
     sizes = data_spline_sizes(load_machine("xfyz"), [read_measurements(path)])
     assert sizes["X"] >= 32
+
+
+def test_the_slope_at_the_ends_of_the_knots_is_the_one_from_inside():
+    """A velocity read where the data end (the last knot) sees the error's slope there: the CasADi
+    basis's derivative at lo and hi is the one-sided one from inside the range (a clip by fmin/fmax
+    gave half of it), and zero beyond (the error stays at its end value)."""
+    import casadi as ca
+    basis = SplineBasis(-100.0, 100.0, 8, 3)
+    s = ca.SX.sym("s")
+    f = ca.Function("f", [s], [ca.jacobian(ca.vertcat(*basis.functions(s, False)), s)])
+    h = 1e-6
+    for end, inside in ((-100.0, -100.0 + h), (100.0, 100.0 - h)):
+        got = np.asarray(f(end)).ravel()
+        one_sided = (np.array(basis.functions(inside, False)) - np.array(basis.functions(end, False))) \
+            / (inside - end)
+        assert np.abs(one_sided).max() > 1e-3
+        np.testing.assert_allclose(got, one_sided, rtol=0, atol=1e-6)
+        np.testing.assert_allclose(np.asarray(f(end + np.sign(end) * 1.0)).ravel(), 0.0, rtol=0, atol=0)

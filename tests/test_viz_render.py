@@ -173,23 +173,26 @@ def test_render_command_writes_both_files_and_prints_the_figures(tmp_path, capsy
     assert Image.open(tmp_path / "map.png").size == (500, 300)
 
 
-@pytest.mark.parametrize("program, message", [
-    # set-up lines only (it once crashed in pyvista after writing the PNG)
-    ("G21 G90\n(no motion)\nM30\n", "no motion block"),
-    # a move the machine cannot make (compensate refuses it too): no map of it
-    ("G21 G90\nG0 X0 Y0 Z5\nG1 Z0 F500\nG1 X450\nG1 Y20\nM30\n",
+@pytest.mark.parametrize("program, rc, message", [
+    # set-up lines only (it once crashed in pyvista after writing the PNG): refused, nothing written
+    ("G21 G90\n(no motion)\nM30\n", 2, "no motion block"),
+    # a move beyond the travel, in the program's coordinates (render knows no work offsets): drawn,
+    # and the user told
+    ("G21 G90\nG0 X0 Y0 Z5\nG1 Z0 F500\nG1 X450\nG1 Y20\nM30\n", 0,
      "prog.nc:4: X 450.0000 mm is outside the travel of axis X (-400 .. 400 mm)"),
 ])
-def test_render_refuses_a_program_it_cannot_draw_exit_2_nothing_written(tmp_path, capsys, program, message):
+def test_render_a_program_it_cannot_draw_or_the_machine_cannot_run(tmp_path, capsys, program, rc, message):
     from mtcomp.cli import main
     _plane_case(tmp_path)
     (tmp_path / "prog.nc").write_text(program)
     before = sorted(p.name for p in tmp_path.iterdir())
-    rc = main(["render", "xfyz", str(tmp_path / "MODEL.json"), str(tmp_path / "prog.nc"), "-o",
-               str(tmp_path / "map.png")])
+    got = main(["render", "xfyz", str(tmp_path / "MODEL.json"), str(tmp_path / "prog.nc"), "-o",
+                str(tmp_path / "map.png"), "--backend", "matplotlib", "--size", "300x150"])
     err = capsys.readouterr().err
-    assert rc == 2 and err.count("\n") == 1 and message in err and "Traceback" not in err
-    assert sorted(p.name for p in tmp_path.iterdir()) == before
+    assert got == rc and err.count("\n") == 1 and message in err and "Traceback" not in err
+    assert ("note:" in err) == (rc == 0)
+    written = sorted(set(p.name for p in tmp_path.iterdir()) - set(before))
+    assert written == ([] if rc else ["map.png", "map.vtp"])
 
 
 @pytest.mark.parametrize("args, message", [

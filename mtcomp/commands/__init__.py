@@ -23,17 +23,26 @@ def add_cmm_arguments(parser) -> None:
                         help="the radius of the ball-end tool that cut it, mm")
 
 
+def _split_file_value(value: str, data_paths) -> tuple[str | None, str]:
+    """``CMM.csv=VALUE`` -> (CMM.csv, VALUE) when the text before an '=' names one of the data files
+    (a program path may hold '=' too); (None, value) otherwise."""
+    from ..io.atomic import same_file
+    for i, ch in enumerate(value):
+        if ch == "=" and i and any(same_file(value[:i], p) for p in data_paths):
+            return value[:i], value[i + 1:]
+    return None, value
+
+
 def cmm_programs(args) -> list[str]:
     """The program paths ``--cmm-program`` names: inputs, which no output may overwrite."""
-    return [value.rpartition("=")[2] for value in args.cmm_program]
+    return [_split_file_value(value, args.data)[1] for value in args.cmm_program]
 
 
 def attach_cmm_cuts(args, datasets) -> None:
     """Give each cmm data set the program and tool radius of ``--cmm-program`` /
     ``--cmm-tool-radius`` (``CMM.csv=VALUE``, or ``VALUE`` alone when there is one cmm file).
-    InputError (one line) for a flag
-    that names no cmm file, a program that does not exist, a radius that is not a positive number,
-    or a cmm file left without either."""
+    InputError (one line) for a flag that names no cmm file, a program that does not exist, a radius
+    that is not a positive number, a value given twice, or a cmm file left without either."""
     from pathlib import Path
 
     from ..errors import InputError
@@ -41,16 +50,16 @@ def attach_cmm_cuts(args, datasets) -> None:
     cmm = [d for d in datasets if d.kind == "cmm"]
 
     def target(flag, value):
-        name, sep, rest = value.rpartition("=")
-        if sep and not name:
-            raise InputError(f"{flag} {value}: name the cmm file before '=' (CMM.csv=...)")
-        if sep:
-            hits = [d for d in datasets if same_file(name, d.path)]
-            if not hits:
-                raise InputError(f"{flag} {value}: {name} is none of the data files")
-            if hits[0].kind != "cmm":
-                raise InputError(f"{flag} {value}: {name} is a {hits[0].kind} file, not a cmm file")
-            return hits[0], rest
+        name, rest = _split_file_value(value, [d.path for d in datasets])
+        if name is None and "=" in value and not (flag == "--cmm-program" and Path(value).is_file()):
+            left = value.split("=", 1)[0]
+            raise InputError(f"{flag} {value}: " + (f"{left} is none of the data files" if left else
+                                                    "name the cmm file before '=' (CMM.csv=...)"))
+        if name is not None:
+            hit = next(d for d in datasets if same_file(name, d.path))
+            if hit.kind != "cmm":
+                raise InputError(f"{flag} {value}: {name} is a {hit.kind} file, not a cmm file")
+            return hit, rest
         if len(cmm) != 1:
             raise InputError(f"{flag} {value}: " + ("no cmm file among the data" if not cmm else
                              f"{len(cmm)} cmm files; write CMM.csv={value}"))

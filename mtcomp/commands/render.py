@@ -63,6 +63,8 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def run(args) -> int:
+    import sys
+
     import numpy as np
 
     from ..io.atomic import check_output_path
@@ -90,7 +92,14 @@ def run(args) -> int:
     check_output_path(out.with_suffix(".vtp"), inputs)
     machine = load_machine(args.machine)
     fitted = load_model(args.model, machine)
-    smap = program_error_map(machine, fitted, args.program, args.compensated,
+    program = read_program_points(args.program, machine)
+    try:
+        machine.check_travel(program.q, program.line, program.known, args.program)
+    except InputError as e:
+        # render takes the program's coordinates as axis positions (no work offsets): tell, not refuse
+        print(f"mtcomp render: note: {e} (the program's coordinates taken as axis positions; "
+              "compensate, given the work offsets, checks the travel)", file=sys.stderr)
+    smap = program_error_map(machine, fitted, program, args.compensated,
                              tool_radius_mm=args.tool_radius_mm, flank_length_mm=args.flank_mm,
                              flank_side=args.flank_side, report=args.report, normal=args.normal)
     from ..viz.render import render_error_map
@@ -102,7 +111,7 @@ def run(args) -> int:
     hints = program_hints(args.program)
     flank = args.flank_mm if args.flank_mm is not None else hints.get("flank_length_mm", 0.0)
     if smap.normal_kind == "in-plane":
-        levels = planar_levels(read_program_points(args.program, machine), machine)
+        levels = planar_levels(program, machine)
         print(f"contour: {st['n_triangles'] // 2} wall segments in {levels or 'no'} plane"
               f"{'' if levels == 1 else 's'} across the tool axis (in-plane map"
               + ("" if args.normal == "in-plane" else ": a planar program; --normal surface maps "
@@ -114,8 +123,7 @@ def run(args) -> int:
               + (f"; recognised the {hints['part']}" if hints else "") + ")")
         along = "the surface normal"
         flat = smap.normals.size and np.all(np.abs(smap.normals[:, 2]) >= np.cos(np.radians(1.0)))
-        if flank == 0 and (flat or planar_levels(read_program_points(args.program, machine),
-                                                 machine)):
+        if flank == 0 and (flat or planar_levels(program, machine)):
             print("warning: the map's normals all lie along the tool axis (a flat or 2-D "
                   "program): it shows the deviation along Z only, not the error across it (where "
                   "a contour or a hole lies in its plane; --normal in-plane maps contours)")

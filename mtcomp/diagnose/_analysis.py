@@ -152,7 +152,7 @@ def make_folds(st, max_folds: int = MAX_FOLDS) -> tuple[np.ndarray, str]:
             # a cut part: the order of its points is a path over the part, not the machine's time, and
             # a stretch of it held out is a region of the part the rest does not reach (its errors are
             # undetermined there): every K-th point in turn
-            urows, rank = np.unique(rows, return_inverse=True)
+            _, rank = np.unique(rows, return_inverse=True)
             block_of[ix] = rank % max_folds
             how.add("every K-th point of a cut part")
             continue

@@ -387,8 +387,8 @@ def build_measurement_models(model: ErrorModel, datasets, context_defaults=None,
                              known_setup=(), **options) -> list[MeasurementModel]:
     """A measurement model per data set (MeasurementModel instances are passed through), with unique
     tags (file stems, ``#2``... appended on repeats). ``known_setup``: tags or paths (as given, or
-    any path to the same file) of files whose set-up is known: a points file whose instrument frame
-    is the workpiece frame, a ball-bar file of a calibrated bar. One that names no data file, or a
+    any path to the same file) of files whose set-up is known: a points or cmm file whose instrument
+    frame is the workpiece frame, a ball-bar file of a calibrated bar. One that names no data file, or a
     file of another kind, is an InputError."""
     out = []
     known = [str(k) for k in known_setup]

@@ -15,9 +15,12 @@ from ..errors import InputError
 def same_file(a, b) -> bool:
     """The same path, via a symlink, or a hard link to the same file (paths or strings)."""
     a, b = Path(a), Path(b)
-    if a.resolve() == b.resolve():
-        return True
-    return a.exists() and b.exists() and os.path.samefile(a, b)
+    try:
+        if a.resolve() == b.resolve():
+            return True
+        return a.exists() and b.exists() and os.path.samefile(a, b)
+    except (OSError, ValueError, RuntimeError):      # a NUL in the name, a symlink loop ...
+        return str(a) == str(b)
 
 
 def check_output_path(out: str | os.PathLike, inputs: list[str | os.PathLike] = (),

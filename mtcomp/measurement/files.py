@@ -358,6 +358,18 @@ class VelocityData(MeasurementSet):
     def prediction_columns(self) -> tuple[str, ...]:
         return tuple(f"pred_{c}" for c in ("m_vx_mm_min", "m_vy_mm_min", "n_vx_mm_min", "n_vy_mm_min"))
 
+    def signed_speed(self) -> np.ndarray:
+        """(n,) mm/min the table's speed along its axis, in the axis's own sense: the feed signed by
+        ``dir_<axis>``, or where that is blank by the sum of the measured velocities along the axis."""
+        out = np.empty(len(self))
+        for i, a in enumerate(self.axis):
+            sign = float(self.context.dir_of(a)[i])
+            if sign == 0.0:
+                k = "XY".index(a)
+                sign = -1.0 if np.nansum([self.m_v[i, k], self.n_v[i, k]]) < 0 else 1.0
+            out[i] = sign * self.feed[i]
+        return out
+
     def axis_positions(self, machine: Machine) -> np.ndarray:
         """(n, na) q in ``machine.axis_names`` order, mm: the moving axis at ``position``, the others
         at 0 (the file does not give them). Velocities follow the errors' slopes along the moving
@@ -370,7 +382,7 @@ class VelocityData(MeasurementSet):
             q[:, k] = np.where(self.axis == name, self.position, 0.0)
         return q
 
-    def positions_given(self, machine) -> np.ndarray:
+    def positions_given(self, machine: Machine) -> np.ndarray:
         """(n, n_axes) bool: only the moving axis's position is given."""
         return np.column_stack([self.axis == name for name in machine.axis_names])
 
@@ -383,15 +395,11 @@ class VelocityData(MeasurementSet):
         eq. 1 of seed 000. NaN for axis Z and where the two lines are parallel.
         """
         out = np.full((len(self), 2), np.nan)
+        speed = self.signed_speed()
         for i in range(len(self)):
-            if self.axis[i] not in ("X", "Y"):
-                continue
             k = "XY".index(self.axis[i])
-            sign = float(self.context.dir_of(self.axis[i])[i])
-            if sign == 0.0:
-                sign = 1.0 if self.m_v[i, k] + self.n_v[i, k] >= 0 else -1.0
             v0 = np.zeros(2)
-            v0[k] = sign * self.feed[i]
+            v0[k] = speed[i]
             u = np.array([self.m_v[i] - v0, self.n_v[i] - v0])
             rhs = np.array([u[0] @ self.m_xy[i], u[1] @ self.n_xy[i]])
             if not np.all(np.isfinite(u)) or abs(np.linalg.det(u)) <= 1e-12 * np.abs(u).max() ** 2:
@@ -581,6 +589,11 @@ def _axis_letters(table: CsvTable, allowed: str) -> np.ndarray:
     return np.asarray(cells, dtype="<U1")
 
 
+#: a velocity along the moving axis further than this share of the feed from the signed feed is
+#: refused (a real table's differs by parts per million)
+VELOCITY_TOLERANCE = 0.1
+
+
 def _read_velocity(table: CsvTable, context: Context) -> VelocityData:
     _require(table, "velocity", ("axis", "feed_mm_min", *_VELOCITY))
     axis = _axis_letters(table, LINEAR)
@@ -589,7 +602,7 @@ def _read_velocity(table: CsvTable, context: Context) -> VelocityData:
         table.fail(f"column axis: {axis[other[0]]}: a velocity file's table moves along X or Y (the "
                    "velocities are read in the table plane XY)", other[0])
     position = np.full(len(axis), np.nan)
-    for k, letter in enumerate(LINEAR):
+    for k, letter in enumerate("XY"):
         rows = axis == letter
         if rows.any():
             col = _XYZ[k]
@@ -608,26 +621,26 @@ def _read_velocity(table: CsvTable, context: Context) -> VelocityData:
         table.fail("column feed_mm_min must be positive", bad[0])
     context.feed = feed
     v = {c: table.floats(c, required=c.endswith("_mm")) for c in _VELOCITY}
-    # the table moves along its axis at the feed: a velocity along the axis far from +-feed is a
-    # reading of another axis, a unit slip, or a sign that disagrees with dir_<axis>
-    for i, a in enumerate(axis):
-        k = "xy".index(a.lower())
-        sign = float(context.dir_of(a)[i])
-        for point in ("m", "n"):
-            along = v[f"{point}_v{'xy'[k]}_mm_min"][i]
-            if not np.isfinite(along):
-                continue
-            expect = sign * feed[i] if sign else np.copysign(feed[i], along)
-            if abs(along - expect) > 0.1 * feed[i]:
-                table.fail(f"column {point}_v{'xy'[k]}_mm_min: {along:g} mm/min, but the table moves along "
-                           f"{a} at {expect:g} mm/min (feed_mm_min" + (f" and dir_{a.lower()}" if sign else "")
-                           + "): the velocity of a table point along its axis is the feed, to a few "
-                           "parts per million", i)
-    return VelocityData(**_base(table, context), axis=axis, feed=feed, position=position,
+    data = VelocityData(**_base(table, context), axis=axis, feed=feed, position=position,
                         m_xy=np.stack([v["m_x_mm"], v["m_y_mm"]], 1),
                         m_v=np.stack([v["m_vx_mm_min"], v["m_vy_mm_min"]], 1),
                         n_xy=np.stack([v["n_x_mm"], v["n_y_mm"]], 1),
                         n_v=np.stack([v["n_vx_mm_min"], v["n_vy_mm_min"]], 1))
+    # the table moves along its axis at the feed: a velocity along the axis far from it is a reading
+    # of another axis, a unit slip, a sign against dir_<axis>, or the table's motion read in the bed's
+    # sense instead of the axis's own
+    speed = data.signed_speed()
+    for i, a in enumerate(axis):
+        k = "XY".index(a)
+        for point, vel in (("m", data.m_v), ("n", data.n_v)):
+            along = vel[i, k]
+            if np.isfinite(along) and abs(along - speed[i]) > VELOCITY_TOLERANCE * feed[i]:
+                table.fail(f"column {point}_v{a.lower()}_mm_min: {along:g} mm/min, but the table moves "
+                           f"along {a} at {speed[i]:g} mm/min in the axis's own sense (feed_mm_min"
+                           + (f" and dir_{a.lower()}" if context.dir_of(a)[i] else ", signed by the "
+                              "velocities") + f"); more than {VELOCITY_TOLERANCE:.0%} off the feed is "
+                           "not a table point's velocity", i)
+    return data
 
 
 def _read_laser(table: CsvTable, context: Context) -> LaserData:

@@ -10,7 +10,8 @@ equations.
   with d the tool-tip deviation, ``R_rel`` the tool's rotation relative to nominal, ``a0`` the nominal
   tool axis and r the ball radius (positive: tool displaced outward, material left outside). The
   cutter location is found on the G-code that cut the part: the ball centre nearest to ``x + r n``.
-  Nuisance: ``<tag>:radius_offset`` (um), the tool radius error (``dn -= dr``).
+  Nuisance: ``<tag>:radius_offset`` (um), the tool radius error (``dn -= dr``), and the CMM frame's
+  set-up, a translation and a rotation about the points' centroid (``dn += n . (t + w x (x - c))``).
 * ``thermal`` (SPEC 3.5): channel ``disp_<name>_um`` drifts. Channels ``x``, ``y``, ``z``, and the
   channels a :class:`~mtcomp.models.ThermalDrift` term names, are tool-tip directions: they read the
   tip deviation at the set-up pose relative to the file's first row (so the ThermalDrift term acts).
@@ -18,11 +19,12 @@ equations.
   term (zero without one). A channel covered by an ``absolute`` drift term reads its value itself, not
   its change since the first row (docs/thermal.md). Nuisance: one zero offset per channel,
   ``<tag>:<name>:offset`` (um).
-* ``velocity`` (SPEC 3.6, seed 000 eq. 1): the velocity of a table point P is the translation at
-  feed plus the yaw rate about the rotation centre O: ``v = V e + Omega e_z x (P - O)`` with
-  ``V = dir * feed``, ``Omega = dE_C<axis>/ds * V`` (the derivative of the yaw error of the moving
-  axis, every extension term included) and O the carriage's reference point shifted by the
-  :class:`~mtcomp.models.AbbeIRC` centre of its E_C rotation. No nuisance.
+* ``velocity`` (SPEC 3.6, seed 000 eq. 1): the velocity of a table point P is the derivative of its
+  displacement along the axis position s times ``V = dir * feed``:
+  ``v = V d/ds [s u + delta(s) + E_C(s) e_z x (P - O(s))]`` with u the axis direction (squareness),
+  delta its translational component errors, ``E_C<axis>`` its yaw (every extension term included)
+  and O the carriage's reference point shifted by the :class:`~mtcomp.models.AbbeIRC` centre of its
+  E_C rotation. No nuisance.
 
 Drift features (:func:`thermal_features`, :func:`feature_value`): ``time_h`` (t / 3600),
 ``time_exp_<tau>`` (1 - exp(-t / tau), tau in s: a first-order warm-up),
@@ -309,9 +311,10 @@ class ThermalModel(MeasurementModel):
 # --------------------------------------------------------------------------------- velocity
 @register
 class VelocityModel(MeasurementModel):
-    """Velocity files (SPEC 3.6): v = V e + Omega e_z x (P - O) for the points M and N (module
-    docstring; seed 000 eq. 1 inverts it for O). Velocities in mm/min, in the axis's own sense:
-    for a table axis the sign of the table's motion is reversed (ISO 841), which leaves O alone."""
+    """Velocity files (SPEC 3.6): the derivative of the points M and N's displacement along the axis
+    times V (module docstring; seed 000 eq. 1 finds the point moving at exactly V e from two of them).
+    Velocities in mm/min, in the axis's own sense: for a table axis the sign of the table's motion is
+    reversed (ISO 841), which leaves O alone."""
 
     kind = "velocity"
     COLUMNS = ("m_vx_mm_min", "m_vy_mm_min", "n_vx_mm_min", "n_vy_mm_min")
@@ -326,14 +329,7 @@ class VelocityModel(MeasurementModel):
                       f"{data.axis[bad[0]]}", bad[0])
         self.q = data.axis_positions(m)            # the moving axis at its position, the others at 0
         self.c = context_matrix(self.model, data, self.context_defaults, m, _extra_context(self))
-        sign = np.zeros(n)
-        for i, a in enumerate(data.axis):
-            sign[i] = data.context.dir_of(a)[i]
-            if sign[i] == 0:
-                k = "XY".index(a)
-                tot = np.nansum([data.m_v[i, k], data.n_v[i, k]])
-                sign[i] = -1.0 if tot < 0 else 1.0
-        self.speed = sign * data.feed
+        self.speed = data.signed_speed()
         values = np.column_stack([data.m_v, data.n_v])
         self._set_observations(values, list(self.COLUMNS), [1.0] * 4)
         self._rows, self._cols = np.nonzero(self._obs_mask)
@@ -570,15 +566,19 @@ class CutterLocations:
         return self._q(seg, u), seg, best
 
 
+#: cmm data set -> (key, cut poses): the last poses found for it (the knots are placed from them
+#: before the fit's measurement model finds them again)
+_CUT_POSES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
 def cut_poses(machine, data, program, radius: float, sample_mm: float = 0.1, max_gap_mm: float = 2.0):
     """(q (n, na), segment (n,), CutterLocations) of the cmm file ``data``: for each surface point the
     cutter location of ``program`` whose ball centre is nearest to ``x + r n``. InputError naming the
-    row of a point no cutter location comes within ``max_gap_mm`` of. Kept on ``data`` for the same
-    machine, program and radius (the knots are placed from these poses before the fit builds its
-    model)."""
+    row of a point no cutter location comes within ``max_gap_mm`` of. Remembered for the same data,
+    machine geometry, program and radius (:data:`_CUT_POSES`)."""
     geometry = tuple((a.name, tuple(getattr(a, "axis_point", None) or ())) for a in machine.axes)
     key = (machine.topology, geometry, str(program), float(radius), float(sample_mm), float(max_gap_mm))
-    cached = getattr(data, "_cut_poses", None)
+    cached = _CUT_POSES.get(data)
     if cached is not None and cached[0] == key:
         return cached[1]
     if not radius > 0:
@@ -589,7 +589,7 @@ def cut_poses(machine, data, program, radius: float, sample_mm: float = 0.1, max
     if far.size:
         data.fail(f"no cutter location of {program} within {max_gap_mm:g} mm of this point's "
                   f"ball centre (nearest {gap[far[0]]:.3g} mm): the program did not cut it", far[0])
-    data._cut_poses = (key, (q, k, loc))
+    _CUT_POSES[data] = (key, (q, k, loc))
     return q, k, loc
 
 

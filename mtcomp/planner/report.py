@@ -15,7 +15,7 @@ One row per output block (every G0/G1 line written for a motion, internal nodes 
   (travel), ``step_x`` (max change from the block before); empty when none.
 * ``unknown_axes``: the axes whose position the program has not given at this block (e.g. ``Z``
   after a tool change); such a block gets no correction and those axes are not written: their
-  position cells, and the block's predicted deviations, are blank.
+  position and correction cells, and the block's predicted deviations, are blank.
 * ``outside_support``: the axes outside the region the model's data reached; without
   ``--extrapolate`` such a block gets no correction.
 * ``corrected``: 1 if the block could be corrected (0: no correction, for one of the two reasons).
@@ -52,6 +52,7 @@ def report_rows(result: PlanResult, axis_names) -> list[str]:
     pos = np.where(result.unknown, np.nan, pos)
     blank = result.unknown.any(axis=1)
     corr = np.where(rot, result.correction * 1e6, result.correction * 1e3)
+    corr = np.where(result.unknown, np.nan, corr)
     cols = [result.line.astype(np.int64), result.inserted.astype(int), result.rapid.astype(int)]
     fmts = ["%d", "%d", "%d"]
     for j in range(len(axis_names)):

@@ -55,7 +55,8 @@ class ProgramPoints:
     """The segment end points of a program, in program order (all motion, rapids included).
 
     q : (n, na) axis positions, mm and rad. line : (n,) 1-based source lines. feed : (n,) mm/min
-    (nan for rapids). dirs : (n, na) approach directions. rapid : (n,) bool.
+    (nan for rapids). dirs : (n, na) approach directions. rapid : (n,) bool. known : (n, na) bool, the
+    program has given that axis's position (None: all).
     """
 
     path: str
@@ -64,6 +65,7 @@ class ProgramPoints:
     feed: np.ndarray
     dirs: np.ndarray
     rapid: np.ndarray
+    known: np.ndarray | None = None
 
     def __len__(self):
         return int(self.line.shape[0])
@@ -77,10 +79,8 @@ def read_program_points(path, machine: Machine) -> ProgramPoints:
     if len(seg.end) == 0:
         from ..errors import InputError
         raise InputError("no motion block in the program: nothing to draw", path)
-    # a map of moves the machine cannot make would be a map of nothing (compensate refuses them too)
-    machine.check_travel(seg.end, seg.line, seg.known, os.fspath(path))
     return ProgramPoints(os.fspath(path), seg.end.copy(), seg.line.copy(), seg.feed.copy(),
-                         seg.dirs.copy(), seg.rapid.copy())
+                         seg.dirs.copy(), seg.rapid.copy(), seg.known.copy())
 
 
 @dataclass
