@@ -1,6 +1,7 @@
 """`mtcomp diagnose` end to end: REPORT.json has the keys of SPEC 6, MODEL.json is the extended model
 (checked by evaluating it independently, through load_model and the measurement models, on the
 same files), bad input gives exit 2, one line, and no output file."""
+import csv
 import json
 import re
 
@@ -161,6 +162,24 @@ def test_velocities_alone_report_um_per_min(tmp_path, capsys):
     assert r["final"]["rms_um"] is None and r["final"]["heldout_rms_um_min"] == pytest.approx(0.1, rel=0.3)
     final = next(line for line in out.splitlines() if line.startswith("final model"))
     assert f"velocity rms {r['final']['rms_um_min']:.4g} um/min" in final
+    # the same file in the bed's sense (every velocity negated): noted, fitted alike, and predicted in
+    # its own sense
+    bed = tmp_path / "bed.csv"
+    head, *body = path.read_text().strip().split("\n")
+    bed.write_text("\n".join([head] + [",".join(c if j not in (5, 6, 9, 10) else f"{-float(c):.7f}"
+                                                  for j, c in enumerate(line.split(",")))
+                                         for line in body]) + "\n")
+    model = tmp_path / "m.json"
+    assert main(["identify", "xfyz", str(path), "-o", str(model)]) == 0
+    preds = []
+    for f in (path, bed):
+        assert main(["predict", "xfyz", str(model), str(f), "-o", str(tmp_path / f"p_{f.name}")]) == 0
+        err = capsys.readouterr().err
+        assert ("the bed's sense" in err) == (f == bed), err
+        with open(tmp_path / f"p_{f.name}", newline="") as fh:
+            preds.append(np.array([[float(r[c]) for c in ("pred_m_vx_mm_min", "pred_n_vy_mm_min")]
+                                   for r in csv.DictReader(fh)]))
+    np.testing.assert_allclose(preds[1], -preds[0], rtol=0, atol=1e-9)
 
 
 def test_readings_outside_the_machine_travel_are_noted(tmp_path, capsys):

@@ -260,6 +260,15 @@ def test_velocity_and_rotation_centre_of_a_rigid_motion(tmp_path):
     np.testing.assert_allclose(d.rotation_centre(), truth, rtol=0, atol=1e-6)
     with pytest.raises(InputError, match=r"row 1: column feed_mm_min must not be negative"):
         read_measurements(_write(tmp_path, text.replace("X,240.0", "X,-240.0", 1)))
+    # read in the bed's sense (the table's own motion: every velocity negated, dir_x kept): taken in
+    # the axis's own sense, the same rotation centre
+    head, *body = text.strip().split("\n")
+    flipped = [",".join(c if j not in (5, 6, 9, 10) else repr(-float(c)) for j, c in enumerate(r.split(",")))
+               for r in body]
+    b = read_measurements(_write(tmp_path, "\n".join([head] + flipped) + "\n", "bed.csv"))
+    assert b.bed_sense and not d.bed_sense
+    np.testing.assert_allclose(np.hstack([b.m_v, b.n_v]), np.hstack([d.m_v, d.n_v]), rtol=0, atol=0)
+    np.testing.assert_allclose(b.rotation_centre(), truth, rtol=0, atol=1e-6)
     # the velocity along the moving axis is the feed: another axis's, or a sign against dir_x, is refused
     first = rows[0].split(",")
     for k, v, msg in ((11, "-1", r"row 1: column m_vx_mm_min: 2\d\d.* mm/min, but the table moves along X at "

@@ -7,10 +7,16 @@ import numpy as np
 
 
 def note_outside_travel(command: str, machine, datasets) -> None:
-    """Tell the user (stderr, one line per file and axis) of readings beyond the machine's travel."""
+    """Tell the user (stderr, one line per file and axis) of readings beyond the machine's travel, and
+    of velocity files read in the bed's sense."""
     from ..measurement.readings import outside_travel
     for note in outside_travel(machine, datasets):
         print(f"mtcomp {command}: note: {note}", file=sys.stderr)
+    for d in datasets:
+        if getattr(d, "bed_sense", False):
+            print(f"mtcomp {command}: note: {d.path}: every velocity along the moving axis is minus the "
+                  "feed signed by dir_<axis>: read as the table's own motion (the bed's sense) and "
+                  "taken in the axis's sense (negated)", file=sys.stderr)
 
 
 def add_cmm_arguments(parser) -> None:

@@ -28,7 +28,7 @@ def add_arguments(parser):
 def run(args) -> int:
     import sys
 
-    from . import attach_cmm_cuts, cmm_programs, note_cmm_gaps
+    from . import attach_cmm_cuts, cmm_programs, note_cmm_gaps, note_outside_travel
     from ..identification.fit import predict_readings
     from ..io.atomic import check_output_path
     from ..measurement.files import read_measurements, write_csv_with_columns
@@ -40,6 +40,7 @@ def run(args) -> int:
     fitted = load_model(args.model, machine)
     data = read_measurements(args.data)
     attach_cmm_cuts(args, [data])
+    note_outside_travel("predict", machine, [data])
     note_cmm_gaps("predict", machine, [data])
     pred = predict_readings(fitted, data, machine)
     columns = pred.columns

@@ -338,11 +338,12 @@ class ThermalData(MeasurementSet):
 class VelocityData(MeasurementSet):
     """Two-point velocities of a moving table (SPEC 3.6, seed 000 eq. 1).
 
-    axis : (n,) str moving axis ('X', 'Y' or 'Z').
+    axis : (n,) str moving axis ('X' or 'Y').
     feed : (n,) mm/min commanded feed (also ``context.feed``).
     position : (n,) mm position of the moving axis at the reading.
     m_xy, n_xy : (n, 2) mm coordinates of the points M and N in the table plane.
-    m_v, n_v : (n, 2) mm/min measured velocity components of M and N, NaN where not measured.
+    m_v, n_v : (n, 2) mm/min measured velocity components of M and N in the axis's own sense, NaN
+        where not measured (a file in the bed's sense is negated on reading: ``bed_sense``).
     """
 
     kind: ClassVar[str] = "velocity"
@@ -353,6 +354,8 @@ class VelocityData(MeasurementSet):
     m_v: np.ndarray = None
     n_xy: np.ndarray = None
     n_v: np.ndarray = None
+    #: the file read the table's own motion (the bed's sense): its velocities were negated on reading
+    bed_sense: bool = False
 
     @property
     def prediction_columns(self) -> tuple[str, ...]:
@@ -626,9 +629,18 @@ def _read_velocity(table: CsvTable, context: Context) -> VelocityData:
                         m_v=np.stack([v["m_vx_mm_min"], v["m_vy_mm_min"]], 1),
                         n_xy=np.stack([v["n_x_mm"], v["n_y_mm"]], 1),
                         n_v=np.stack([v["n_vx_mm_min"], v["n_vy_mm_min"]], 1))
+    # a table axis's velocities read in the bed's sense (the table's own motion, the other way, ISO
+    # 841): every reading along the axis is minus the signed feed. Eq. 1 and the model take the axis's
+    # own sense; minus every velocity is that, and leaves the rotation centre where it is
+    dirs = np.array([context.dir_of(a)[i] for i, a in enumerate(axis)])
+    along = np.array([[data.m_v[i, "XY".index(a)], data.n_v[i, "XY".index(a)]] for i, a in enumerate(axis)])
+    given = np.isfinite(along)
+    if (dirs != 0).all() and given.any() and np.all(
+            np.abs(along + (dirs * feed)[:, None])[given] <= VELOCITY_TOLERANCE * np.broadcast_to(feed[:, None], along.shape)[given]):
+        data.m_v, data.n_v = -data.m_v, -data.n_v
+        data.bed_sense = True
     # the table moves along its axis at the feed: a velocity along the axis far from it is a reading
-    # of another axis, a unit slip, a sign against dir_<axis>, or the table's motion read in the bed's
-    # sense instead of the axis's own
+    # of another axis, a unit slip, a sign against dir_<axis>, or a file that mixes the two senses
     speed = data.signed_speed()
     for i, a in enumerate(axis):
         k = "XY".index(a)

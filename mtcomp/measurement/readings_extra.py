@@ -361,13 +361,16 @@ class VelocityModel(MeasurementModel):
         return pred, J[self._rows, self._cols], np.zeros((self.n_obs, 0))
 
     def predict_columns(self, p, nuisance=None):
+        """In the file's own sense (a file in the bed's sense gets its predictions negated back)."""
         p, nuisance = self._check_p(p, nuisance)
         v, _ = self._velocities(p, False)
-        return {f"pred_{c}": v[:, j] for j, c in enumerate(self.COLUMNS)}
+        sense = -1.0 if self.data.bed_sense else 1.0
+        return {f"pred_{c}": sense * v[:, j] for j, c in enumerate(self.COLUMNS)}
 
     def column_jacobians(self, p):
         _, J = self._velocities(np.asarray(p, dtype=float), True)
-        return {f"pred_{c}": J[:, j] for j, c in enumerate(self.COLUMNS)}
+        sense = -1.0 if self.data.bed_sense else 1.0
+        return {f"pred_{c}": sense * J[:, j] for j, c in enumerate(self.COLUMNS)}
 
     def rotation_centre(self, p) -> np.ndarray:
         """(n_rows, 2) mm the instantaneous rotation centre of the model's velocity field at each row
