@@ -298,3 +298,19 @@ def test_c_axis_only_ballbar_corrects_at_its_tilt_and_nothing_else(tmp_path):
     whole_b, whole_a = form_error(before, tip0).rms_um, form_error(after, tip0).rms_um
     print(f"whole part: {whole_b:.2f} -> {whole_a:.2f} um")
     assert whole_a <= whole_b
+
+
+def test_a_velocity_file_does_not_claim_the_axes_it_does_not_move(tmp_path):
+    """X velocities beside a laser run of Y over 50..250 mm: the identified region of Y is the laser's
+    (a velocity file gives no Y; taken as 0 it had widened Y's region to 0..250), and X's is the
+    velocities'."""
+    rng = np.random.default_rng(12)
+    machine = TruthMachine.random("xfyz", rng, error_motions=False)
+    laser = tc.laser(machine, tmp_path / "y.csv", rng, "Y", components=("EYY",),
+                     targets=np.arange(50.0, 250.1, 25.0), n_runs=2, noise_um=NOISE_UM).path
+    vel = tc.velocity(machine, tmp_path / "v.csv", rng, start_mm=-100.0, length_mm=200.0, n_runs=2,
+                      noise_mm_min=1e-3).path
+    res = identify(load_machine("xfyz"), [read_measurements(laser), read_measurements(vel)])
+    support = res.fitted_model.support
+    assert support["Y"] == pytest.approx((50.0, 250.0)), support
+    assert support["X"] == pytest.approx((-100.0, 100.0)), support

@@ -374,15 +374,17 @@ class VelocityData(MeasurementSet):
         return out
 
     def axis_positions(self, machine: Machine) -> np.ndarray:
-        """(n, na) q in ``machine.axis_names`` order, mm: the moving axis at ``position``, the others
-        at 0 (the file does not give them). Velocities follow the errors' slopes along the moving
-        axis, so its positions count where the model's knots go and what the data cover."""
-        q = np.zeros((len(self), machine.n_axes))
-        for i in np.flatnonzero(~np.isin(self.axis, machine.axis_names)):
-            self.fail(f"axis {self.axis[i]}: machine {machine.name!r} ({machine.topology}) has no such "
-                      "axis", i)
+        """(n, na) q in ``machine.axis_names`` order, mm: the moving axis at ``position``, NaN for the
+        others (the file does not give them: they neither place knots nor widen what the data cover).
+        Velocities follow the errors' slopes along the moving axis, so its positions count where the
+        model's knots go and what the data cover."""
+        q = np.full((len(self), machine.n_axes), np.nan)
+        bad = np.flatnonzero(~np.isin(self.axis, machine.axis_names))
+        if bad.size:
+            self.fail(f"axis {self.axis[bad[0]]}: machine {machine.name!r} ({machine.topology}) has no "
+                      "such axis", bad[0])
         for k, name in enumerate(machine.axis_names):
-            q[:, k] = np.where(self.axis == name, self.position, 0.0)
+            q[self.axis == name, k] = self.position[self.axis == name]
         return q
 
     def positions_given(self, machine: Machine) -> np.ndarray:

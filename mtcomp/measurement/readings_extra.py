@@ -327,7 +327,7 @@ class VelocityModel(MeasurementModel):
         if bad.size:
             data.fail(f"velocity rows must move axis X or Y of the machine (table plane XY), not "
                       f"{data.axis[bad[0]]}", bad[0])
-        self.q = data.axis_positions(m)            # the moving axis at its position, the others at 0
+        self.q = np.nan_to_num(data.axis_positions(m))    # the moving axis at its position, the others at 0
         self.c = context_matrix(self.model, data, self.context_defaults, m, _extra_context(self))
         self.speed = data.signed_speed()
         values = np.column_stack([data.m_v, data.n_v])
