@@ -484,3 +484,26 @@ def test_rotary_axes_a_program_never_names_are_declared_with_start_position(tmp_
     code, stdout, err = _run(["compensate", "cafxyz", str(model_path), str(prog), "-o",
                               str(tmp_path / "o2.nc"), "--start-position", "B=0"], capsys)
     assert code == 2 and "has no B axis" in err
+
+
+def test_feed_moves_without_a_feed_are_noted_when_the_model_has_feed_terms(tmp_path, capsys):
+    """A model with a feed offset on X takes a move without F at 0 mm/min: the user is told which
+    lines; with F in the program, or with no feed term in the model, nothing is said."""
+    from mtcomp.models import FeedOffset
+    machine = load_machine("xfyz").with_basis("polynomial")
+    fitted = FittedModel.zero(ErrorModel(machine, [FeedOffset("X")]))
+    fitted.params["FOFF_X"] = 5e-3                            # 5 um per m/min
+    path = tmp_path / "feed.json"
+    save_model(path, fitted)
+    _, _, plain = _model(tmp_path, "xfyz")
+    no_f = tmp_path / "nof.nc"
+    no_f.write_text("G21 G90\nG0 X0 Y0 Z5\nG1 Z0\nG1 X50\nM30\n")
+    with_f = tmp_path / "f.nc"
+    with_f.write_text("G21 G90\nG0 X0 Y0 Z5\nG1 Z0 F800\nG1 X50\nM30\n")
+    for model, prog, noted in ((path, no_f, True), (path, with_f, False), (plain, no_f, False)):
+        code, out, err = _run(["compensate", "xfyz", str(model), str(prog), "-o", str(tmp_path / "o.nc")],
+                              capsys)
+        assert code == 0, err
+        said = ("warning: 2 feed moves from line 3 on have no feed (no F word before them): the model's "
+                "feed terms (feed_dependent_offset:X) take them at 0 mm/min") in out
+        assert said == noted, out

@@ -237,6 +237,7 @@ def run(args) -> int:
     summary = Summary(machine.axis_names, extrapolate=args.extrapolate,
                       support_known=fitted.support is not None)
     offsets_of = {}
+    no_feed = {"blocks": 0, "line": 0}        # feed moves before any F word
 
     with contextlib.ExitStack() as stack:
         rep = None
@@ -248,6 +249,10 @@ def run(args) -> int:
             for chunk in iter_segment_chunks(args.program, machine, chord_tol_mm=chord_tol,
                                              initial_position=start_pos, inch=start_inch,
                                              initial_known=start_known):
+                feedless = ~np.asarray(chunk.rapid, bool) & np.isnan(chunk.feed)
+                if feedless.any():
+                    no_feed["blocks"] += int(feedless.sum())
+                    no_feed["line"] = no_feed["line"] or int(chunk.line[np.argmax(feedless)])
                 mchunk, off = setup.apply(chunk)
                 offsets_of[id(mchunk)] = (chunk, off)
                 yield mchunk
@@ -289,6 +294,11 @@ def run(args) -> int:
         notes.append(f"{cycle_lines(written['cycle_lines'])} passed through unchanged and "
                      "uncorrected: hole position, R or Z not known, or drilling along another "
                      "axis than Z")
+    feed_terms = [t.key() for t in fitted.model.terms if t.uses_feed]
+    if feed_terms and no_feed["blocks"]:
+        notes.append(f"warning: {no_feed['blocks']} feed move{'s' if no_feed['blocks'] != 1 else ''} "
+                     f"from line {no_feed['line']} on have no feed (no F word before them): the model's "
+                     f"feed terms ({', '.join(feed_terms)}) take them at 0 mm/min")
     elapsed = time.perf_counter() - t0
     print(f"mtcomp compensate: method {args.method}, {machine.name} ({machine.topology}), "
           f"{elapsed:.1f} s")

@@ -51,6 +51,9 @@ class Term:
         """Extra component errors of ``axis`` (dict component name -> SX), given the errors so far."""
         return {}
 
+    #: the term acts through the block's feed (a program's moves without a feed take it at 0)
+    uses_feed = False
+
     def abbe_centres(self, machine, axis, s, ctx, P) -> dict:
         """Shift (3-vector SX, mm, carriage frame) of the centre of each angular error of a linear axis,
         keyed by 'A', 'B' or 'C' (rotation about X, Y, Z)."""
@@ -151,6 +154,7 @@ class FeedOffset(Term):
     axis: str
     signed: bool = False
     kind = "feed_dependent_offset"
+    uses_feed = True
 
     def key(self):
         return f"feed_dependent_offset:{self.axis}"
@@ -198,6 +202,10 @@ class AbbeIRC(Term):
     angle_gain: bool = False
     angle_feed: bool = False
     kind = "abbe_irc"
+
+    @property
+    def uses_feed(self) -> bool:
+        return bool(self.feed or self.angle_gain or self.angle_feed)
 
     def key(self):
         return f"abbe_irc:{self.axis}"
