@@ -111,3 +111,17 @@ def test_single_file_format_into_a_directory(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no such directory" in err[0]
     assert not (tmp_path / "nodir").exists()
+
+
+@pytest.mark.parametrize("terms, said", [((Backlash("X"),), False), ((Backlash("X"), "feed"), True)])
+def test_terms_a_table_cannot_hold_are_named(tmp_path, capsys, terms, said):
+    """A controller's table has no feed: a model's feed offset is left out of it, and export says so;
+    a backlash is in the tables (forward and reverse), and nothing is said."""
+    from mtcomp.models import FeedOffset
+    terms = tuple(FeedOffset("X") if t == "feed" else t for t in terms)
+    p = tmp_path / "model.json"
+    save_model(p, random_model("xfyz", terms, 3, 20.0, {"X": (-20.0, 20.0)}))
+    assert main(["export", "xfyz", str(p), "--format", "linuxcnc", "-o", str(tmp_path / "lc")]) == 0
+    err = capsys.readouterr().err
+    assert ("the tables leave out what depends on feed, time or temperature "
+            "(feed_dependent_offset:X)" in err) == said, err

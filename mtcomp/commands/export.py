@@ -91,7 +91,13 @@ def run(args) -> int:
     err = sys.stderr
     err.write(f"mtcomp export --format {args.format}: " + ", ".join(
         f"{a} {len(t.positions)} points" for a, t in tables.tables.items()) + "\n")
-    for n in tables.notes + result.notes:
+    # a controller's tables hold errors along the axes' positions (and direction), not along feed,
+    # time or temperature: the model's terms that act through those are evaluated at rest
+    at_rest = [t.key() for t in fitted.model.terms if t.uses_feed or t.kind in ("thermal_drift", "channel_drift")]
+    rest = [f"the tables leave out what depends on feed, time or temperature ({', '.join(at_rest)}): they "
+            "hold the model at feed 0 and its reference conditions (mtcomp compensate applies these "
+            "terms block by block)"] if at_rest else []
+    for n in tables.notes + result.notes + rest:
         err.write(f"  note: {n}\n")
     for line in lines:
         err.write(f"  left out: {line}\n")
