@@ -148,3 +148,60 @@ def test_the_cmm_frame_takes_a_misaligned_part_not_the_machine(tmp_path, capsys)
     d = {k.split(":", 1)[1]: setup[1][k]["value"] - setup[0][k]["value"] for k in setup[0]}
     assert d["setup:rx"] == pytest.approx(20.0, abs=1e-3) and d["setup:ry"] == pytest.approx(-15.0, abs=1e-3)
     assert d["setup:tz"] - d["radius_offset"] == pytest.approx(2.0, abs=1e-3)   # one along the normal
+
+
+def _zigzag_part(folder, shape, backlash_um):
+    """Rows along X cut both ways (zig-zag) with a 3 mm ball over a surface z = f(x) ('slope': 0.3 x,
+    'trough': 0.005 x^2) on an XFYZ machine with a backlash of X; CMM points every 5 mm on every row,
+    dn = the ball centre's error along the normal (directions as the program approached)."""
+    from truth import Backlash, Context
+    m = TruthMachine.zero("XFYZ").with_effects(Backlash("X", backlash_um))
+    f, df = {"slope": (lambda x: 0.3 * x, lambda x: 0.3 + 0 * x),
+             "trough": (lambda x: 0.005 * x * x, lambda x: 0.01 * x)}[shape]
+    def normal(x):
+        return np.array([-df(x), 0.0, 1.0]) / np.hypot(df(x), 1.0)
+    def tip(x, y):
+        return np.array([x, y, f(x)]) + RADIUS * normal(x) - [0.0, 0.0, RADIUS]
+    rows, xs = np.arange(-40.0, 40.1, 4.0), np.arange(-60.0, 60.1, 2.0)
+    lines = ["G21 G90", "G0 X-70 Y-40 Z20"]
+    for i, y in enumerate(rows):
+        for j, x in enumerate(xs if i % 2 == 0 else xs[::-1]):
+            t = tip(x, y)
+            lines.append(f"G1 X{t[0]:.4f} Y{t[1]:.4f} Z{t[2]:.4f}" + (" F600" if i == j == 0 else ""))
+    program = folder / f"{shape}.nc"
+    program.write_text("\n".join(lines + ["G0 Z30", "M30"]) + "\n")
+    pts = [(x, y, 1.0 if i % 2 == 0 else -1.0) for i, y in enumerate(rows) for x in np.arange(-50.0, 50.1, 5.0)]
+    q = np.array([tip(x, y) for x, y, _ in pts])
+    d = np.array([p[2] for p in pts])
+    dz = d * np.sign([df(x) for x, _, _ in pts])             # Z follows the surface up or down
+    ctx = Context(np.full(len(pts), 600.0), {"X": d, "Y": np.ones(len(pts)), "Z": dz}, np.zeros(len(pts)))
+    tip_a, ax_a = m.true_pose(q, None, ctx)
+    tip_n, ax_n = m.nominal_pose(q)
+    n = np.array([normal(x) for x, _, _ in pts])
+    dn = np.einsum("ij,ij->i", (tip_a + RADIUS * ax_a) - (tip_n + RADIUS * ax_n), n) * 1e3
+    dn += np.random.default_rng(8).normal(0.0, NOISE_UM, dn.size)
+    part = folder / f"{shape}_cmm.csv"
+    part.write_text("x_mm,y_mm,z_mm,nx,ny,nz,dn_um,kind\n" + "".join(
+        f"{x:.4f},{y:.4f},{f(x):.4f},{nn[0]:.6f},0,{nn[2]:.6f},{v:.4f},cmm\n" for (x, y, _), nn, v in zip(pts, n, dn)))
+    return program, part
+
+
+@pytest.mark.parametrize("shape", ["trough", "slope"])
+def test_a_backlash_read_on_a_cut_part(tmp_path, capsys, shape):
+    """The reversal of X shows on a cut part where the surface slopes along X. On a trough the slope
+    varies, and X's reversal reads otherwise than Z's (which follows the surface up and down): backlash
+    on X is named, at its size. On a plane slope the two read alike everywhere: neither is named, the
+    report says the data cannot tell X from Z, and the residual stays unexplained."""
+    import json
+    program, part = _zigzag_part(tmp_path, shape, 8.0)
+    report = tmp_path / "r.json"
+    assert main(["diagnose", "xfyz", str(part), "--cmm-program", str(program), "--cmm-tool-radius",
+                 str(RADIUS), "--json", str(report), "-q"]) == 0, capsys.readouterr().err
+    r = json.loads(report.read_text())
+    named = [(f["effect"], f["axis"]) for f in r["findings"] if f["effect"] != "unexplained"]
+    if shape == "trough":
+        assert named == [("backlash", "X")], r["findings"]
+        assert r["findings"][0]["params"]["magnitude_um"] == pytest.approx(8.0, abs=0.3)
+    else:
+        assert named == [] and r["verdict"] == "unexplained", r["findings"]
+        assert any(x["axis"] == "X or Z" and "cannot tell which axis" in x["reason"] for x in r["rejected"])

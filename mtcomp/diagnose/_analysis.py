@@ -151,10 +151,13 @@ def make_folds(st, max_folds: int = MAX_FOLDS) -> tuple[np.ndarray, str]:
         if st.kinds[fi] == "cmm":
             # a cut part: the order of its points is a path over the part, not the machine's time, and
             # a stretch of it held out is a region of the part the rest does not reach (its errors are
-            # undetermined there): every K-th point in turn
-            _, rank = np.unique(rows, return_inverse=True)
-            block_of[ix] = rank % max_folds
-            how.add("every K-th point of a cut part")
+            # undetermined there): the points are dealt to the folds in a fixed shuffled order (every
+            # K-th point in reading order would hold out whole columns of a grid whose rows have a
+            # multiple of K points)
+            urows, rank = np.unique(rows, return_inverse=True)
+            order = np.random.default_rng(int(fi)).permutation(urows.size)
+            block_of[ix] = order[rank] % max_folds
+            how.add("the points of a cut part dealt to the folds in a shuffled order")
             continue
         sp = st.spindle[ix]
         order = np.argsort(rows, kind="stable")

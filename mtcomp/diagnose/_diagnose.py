@@ -398,6 +398,7 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     extra = np.zeros((len(st), 0))
     noise_main = noise.get(_heldout_unit(st)) or next(iter(noise.values()))
     n = len(st)
+    undecided: set = set()                # (effect, axis) the data cannot tell from another axis
     while len(chosen) < max_findings:
         if _heldout(st, current) <= noise_main.sigma:
             say("held-out residual is at the noise floor: stop")
@@ -408,7 +409,8 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
         drift_chosen = any(c.effect == "thermal_drift" for c in chosen)
         cands = [c for c in generate(st, design, extra, current.resid, keys)
                  if not ({t.key() for t in c.terms} & used_terms)
-                 and not (drift_chosen and c.effect == "thermal_drift")]
+                 and not (drift_chosen and c.effect == "thermal_drift")
+                 and (c.effect, c.axis) not in undecided]
         _forward_in_time(st, design, extra, cands)
         scored = []
         for c in cands:
@@ -450,6 +452,18 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
                 pool.append(joint)
         best = max(pool, key=lambda s: s[3])
         best = _parsimony(best, pool)
+        tied = _axis_ties(design, extra, best, good)
+        if tied:
+            # the same effect on another axis explains the same residual exactly (a program that moves
+            # X and Z together on a slope): the data cannot say which axis it is; none is named
+            axes = " or ".join(sorted({best[0].axis} | {t[0].axis for t in tied}))
+            for s_ in [best] + tied:           # every variant of the effect on these axes
+                undecided.add((s_[0].effect, s_[0].axis))
+            rejected.append({"effect": best[0].effect, "axis": axes, "variant": "",
+                             "reason": f"the data cannot tell which axis: their readings reverse (or "
+                                       f"change) together, so {axes} explain the same residual alike"})
+            say(f"not named: {best[0].effect} on {axes} (the data cannot tell which)")
+            continue
         c, fit, dk, gain, dbic, _ = best
         rivals = [s for s in good if s[0].rivals and s[0].rivals == c.rivals and s[0] is not c]
         before = _heldout(st, current)
@@ -676,6 +690,22 @@ def _joint_abbe(design, extra, current, best, good, n, st, max_parts: int = 4):
 
 def _complexity(c: Candidate, dk: int) -> float:
     return dk + 0.1 * c.info.get("complexity", 0)
+
+
+def _axis_ties(design, extra, best, good) -> list:
+    """The scored candidates of ``best``'s effect on other axes that the data cannot tell from it:
+    columns that add no direction to its own (to the design's rank tolerance), and a held-out gain
+    that noise alone could make up (within the threshold one parameter must pass)."""
+    c, fit = best[0], best[1]
+    out = []
+    for s in good:
+        if s[0].effect != c.effect or s[0].axis == c.axis or not s[0].axis:
+            continue
+        if best[3] - s[3] > cv_threshold(1):
+            continue
+        if design.fit(np.hstack([extra, c.columns, s[0].columns])).rank == fit.rank:
+            out.append(s)
+    return out
 
 
 def _parsimony(best, good):

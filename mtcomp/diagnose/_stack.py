@@ -206,7 +206,8 @@ def build_stack(machine: Machine, datasets: list[MeasurementSet], extra_context=
         for a in machine.axis_names:
             d = data.context.dir_of(a).astype(float)
             dir_probe[f"dir_{a}"] = np.where(d == 0, 1.0, d)
-        extra = dict(dir_probe)
+        # a cut part's approach directions are the program's (its measurement model finds them)
+        extra = dict(dir_probe) if data.kind != "cmm" else {}
         extra[ONE] = np.ones(n_rows)
         try:
             mm = measurement_model(probe, data, None, tag=tags[fi], extra_context=extra)
@@ -253,8 +254,15 @@ def build_stack(machine: Machine, datasets: list[MeasurementSet], extra_context=
             setup[:, 4:7] = data.tool_ball[r]
         parts["setup"].append(setup)
         ctx = data.context
-        parts["dirs"].append(np.column_stack([ctx.dir_of(a)[r].astype(float) for a in machine.axis_names]))
-        parts["feed"].append(ctx.feed[r])
+        if data.kind == "cmm":
+            # a cut part's block context is the program's (the cutter location that made each point),
+            # not the CMM file's own columns
+            names = probe.context_names
+            parts["dirs"].append(np.column_stack([mm.c[r, names.index(f"dir_{a}")] for a in machine.axis_names]))
+            parts["feed"].append(mm.c[r, names.index("feed")])
+        else:
+            parts["dirs"].append(np.column_stack([ctx.dir_of(a)[r].astype(float) for a in machine.axis_names]))
+            parts["feed"].append(ctx.feed[r])
         parts["t"].append(ctx.t[r])
         parts["run"].append(ctx.run[r])
         parts["spindle"].append(ctx.spindle_rpm[r])
