@@ -205,3 +205,45 @@ def test_a_backlash_read_on_a_cut_part(tmp_path, capsys, shape):
     else:
         assert named == [] and r["verdict"] == "unexplained", r["findings"]
         assert any(x["axis"] == "X or Z" and "cannot tell which axis" in x["reason"] for x in r["rejected"])
+
+
+def test_a_part_cut_by_a_compensated_program_is_predicted_with_its_path_offset(tmp_path, capsys):
+    """The floor again, cut by a program whose Z carries the corrections (minus the machine's Z error
+    at each point): the part comes out flat. With --cmm-path-offset the model fitted to the first part
+    predicts that (the program's offset from the nominal surface is part of what it cut); without, it
+    predicts the uncompensated error."""
+    program, part, dn = _cut_and_measure(tmp_path)
+    m = TruthMachine.zero("XFYZ")
+    m.components["X"]["EZX"] = P.Sines((4e-3,), (150.0,), (0.3,))
+    m.components["Y"]["EZY"] = P.Sines((3e-3,), (120.0,), (1.0,))
+    xy = np.loadtxt(part, delimiter=",", skiprows=1, usecols=(0, 1))
+    q = np.column_stack([xy, np.zeros(len(xy))])
+    ez = m.true_pose(q)[0][:, 2] - q[:, 2]                    # Z error of the tip (mm)
+    lines = ["G21 G90", f"G0 X-60 Y{ROWS[0]:g} Z5", "G1 Z0 F800"]
+    for k, y in enumerate(ROWS):
+        row = np.flatnonzero(xy[:, 1] == y)
+        row = row[np.argsort(xy[row, 0])][::1 if k % 2 == 0 else -1]
+        lines += [f"G1 X{xy[i, 0]:.4f} Y{y:.4f} Z{-ez[i]:.4f}" for i in row]
+    comp = tmp_path / "floor_comp.nc"
+    comp.write_text("\n".join(lines + ["G0 Z5", "M30"]) + "\n")
+    tip, axis = m.true_pose(q - np.column_stack([0 * xy, ez]))
+    flat = (tip + RADIUS * axis)[:, 2] - RADIUS                  # where the compensated cut lands
+    assert np.abs(flat * 1e3).max() < 0.01                       # flat to 10 nm: a compensation
+    cut = tmp_path / "flat" / part.name
+    cut.parent.mkdir()
+    text = part.read_text().splitlines()
+    cut.write_text("\n".join([text[0]] + [",".join(r.split(",")[:6] + [f"{v * 1e3:.6f}", "cmm"])
+                                          for r, v in zip(text[1:], flat)]) + "\n")
+    model = tmp_path / "model.json"
+    flags = ["--cmm-program", str(program), "--cmm-tool-radius", str(RADIUS)]
+    assert main(["identify", "xfyz", str(part), "-o", str(model), "--known-setup", str(part), *flags]) == 0
+    got = {}
+    for extra in ([], ["--cmm-path-offset"]):
+        out = tmp_path / f"pred{len(extra)}.csv"
+        assert main(["predict", "xfyz", str(model), str(cut), "-o", str(out), "--cmm-program", str(comp),
+                     "--cmm-tool-radius", str(RADIUS), *extra]) == 0, capsys.readouterr().err
+        with open(out, newline="") as f:
+            got[bool(extra)] = np.array([float(r["pred_dn_um"]) for r in csv.DictReader(f)])
+    rms = lambda v: float(np.sqrt(np.mean(v ** 2)))  # noqa: E731
+    assert rms(got[True]) < 2 * NOISE_UM < rms(dn) / 5        # the flat part, predicted flat
+    assert rms(got[False] - dn) < 2 * NOISE_UM                # without: the uncompensated error

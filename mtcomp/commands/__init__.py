@@ -27,6 +27,10 @@ def add_cmm_arguments(parser) -> None:
                              "one cmm file is given; repeat for several")
     parser.add_argument("--cmm-tool-radius", metavar="[CMM.csv=]MM", action="append", default=[],
                         help="the radius of the ball-end tool that cut it, mm")
+    parser.add_argument("--cmm-path-offset", action="store_true",
+                        help="the programs' ball centres sit off the nominal surface by more than "
+                             "the machine's errors (a compensated program): that offset along each "
+                             "point's normal is part of what was cut (points on the passes)")
 
 
 def _split_file_value(value: str, data_paths) -> tuple[str | None, str]:
@@ -98,7 +102,10 @@ def attach_cmm_cuts(args, datasets) -> None:
         if not radius > 0 or radius == float("inf"):
             raise InputError(f"--cmm-tool-radius {value}: the radius must be a positive number of mm")
         d.tool_radius_mm = radius
+    if args.cmm_path_offset and not cmm:
+        raise InputError("--cmm-path-offset: no cmm file among the data")
     for d in cmm:
+        d.include_path_offset = bool(args.cmm_path_offset)
         missing = [f for f, v in (("--cmm-program", d.program), ("--cmm-tool-radius", d.tool_radius_mm))
                    if v is None]
         if missing:

@@ -292,6 +292,8 @@ class CmmData(MeasurementSet):
     program, tool_radius_mm : the G-code that cut the part and the radius of its ball-end tool (mm);
         not in the file (SPEC 3.4): the commands take them from ``--cmm-program`` and
         ``--cmm-tool-radius`` (:func:`mtcomp.commands.attach_cmm_cuts`).
+    include_path_offset : ``--cmm-path-offset``: the program's ball centres are not on the nominal
+        surface's offset (a compensated program): their offset along the normal is part of what it cut.
     """
 
     kind: ClassVar[str] = "cmm"
@@ -300,6 +302,8 @@ class CmmData(MeasurementSet):
     normal_deviation: np.ndarray = None
     program: str | None = None
     tool_radius_mm: float | None = None
+    #: the program's own offset from the nominal surface counts (a compensated program's corrections)
+    include_path_offset: bool = False
 
     @property
     def prediction_columns(self) -> tuple[str, ...]:

@@ -401,9 +401,10 @@ class CmmModel(MeasurementModel):
     ``tool_mm`` (tool length, default the machine's), ``sample_mm`` (spacing of the sampled
     cutter locations, default 0.1), ``max_gap_mm`` (largest distance from ``x + r n`` to the
     nearest ball centre before the point counts as not cut by the program, default 2),
-    ``include_path_offset`` (default False: the program is taken to follow the nominal surface; True:
-    add ``n . (c0 - (x + r n))``, where the commanded ball centre c0 sits off the nominal one along
-    the normal -- the corrections of a compensated program, chordal error).
+    ``include_path_offset`` (default the data's field, False: the program is taken to follow the
+    nominal surface; True: add ``n . (c0 - (x + r n))``, where the commanded ball centre c0 sits off
+    the nominal one along the normal -- the corrections of a compensated program, chordal error; for
+    points on the passes: between passes of a curved surface the nearest centre is off the normal).
     """
 
     kind = "cmm"
@@ -425,7 +426,7 @@ class CmmModel(MeasurementModel):
         self.line = loc.line[k]
         tip0, self.axis0 = forward(m, q)
         self.path_offset = np.zeros(len(data))
-        if self.options.get("include_path_offset", False):
+        if self.options.get("include_path_offset", data.include_path_offset):
             self.path_offset = np.einsum("ij,ij->i", tip0 + radius * self.axis0 - target, data.normal)
         extra = _extra_context(self)
         cols = {"feed": loc.feed[k]}
