@@ -144,6 +144,20 @@ def test_folds_hold_out_whole_runs():
     assert np.unique(folds).size == 5
 
 
+def test_a_cut_part_is_dealt_to_the_folds_not_held_out_by_columns():
+    """A CMM grid of 21 rows of 20 points: every point of a column must reach the fit in some fold
+    (every 5th point in reading order had put whole columns in one fold), and no fold holds a
+    contiguous stretch of the part."""
+    x = np.tile(np.arange(20.0), 21)
+    st = _stack(x, ["part:dn_um"] * x.size)
+    st.kinds = ["cmm"]
+    folds, how = an.make_folds(st)
+    assert "cut part" in how and np.unique(folds).size == 5
+    for col in range(20):
+        assert np.unique(folds[x == col]).size >= 3, col
+    assert max(np.bincount(folds)) < 1.5 * x.size / 5
+
+
 def test_structure_test_finds_a_bump_and_not_noise():
     rng = np.random.default_rng(7)
     q = np.sort(rng.uniform(0, 600, 500))

@@ -99,7 +99,7 @@ def attach_cmm_cuts(args, datasets) -> None:
             radius = float(text)
         except ValueError:
             radius = float("nan")
-        if not radius > 0 or radius == float("inf"):
+        if not (radius > 0 and np.isfinite(radius)):
             raise InputError(f"--cmm-tool-radius {value}: the radius must be a positive number of mm")
         d.tool_radius_mm = radius
     if args.cmm_path_offset and not cmm:
@@ -122,16 +122,13 @@ def note_cmm_gaps(command: str, machine, datasets) -> None:
     """Tell the user (stderr) of a cmm file whose points sit off the program's ball-centre path along
     their normals: a wrong ``--cmm-tool-radius`` (a wall cut with a 3 mm ball read as 4 mm lies 1 mm
     off) or a part not where the program put it. Not an error: the fit would take a radius offset."""
-    from ..kinematics import forward
-    from ..measurement.readings_extra import cut_poses
+    from ..measurement.readings_extra import cut_poses, path_offsets
     for d in datasets:
         if d.kind != "cmm" or d.program is None or d.tool_radius_mm is None or not len(d):
             continue
-        q = cut_poses(machine, d, d.program, float(d.tool_radius_mm))[0]
-        tip, axis = forward(machine, q)
-        gap = np.einsum("ij,ij->i", d.xyz + d.tool_radius_mm * d.normal - (tip + d.tool_radius_mm * axis),
-                        d.normal)
-        med = float(np.median(gap))
+        radius = float(d.tool_radius_mm)
+        q = cut_poses(machine, d, d.program, radius)[0]
+        med = -float(np.median(path_offsets(machine, d, q, radius)))   # points off the path, mm
         if abs(med) > CMM_GAP_NOTE_MM:
             print(f"mtcomp {command}: note: {d.path}: the points lie a median {med:+.3f} mm off the "
                   f"ball-centre path of {d.program} along their normals: is the tool radius "

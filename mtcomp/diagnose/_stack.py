@@ -202,12 +202,11 @@ def build_stack(machine: Machine, datasets: list[MeasurementSet], extra_context=
     tags = _unique_tags(datasets)
     for fi, data in enumerate(datasets):
         n_rows = len(data)
-        dir_probe = {}
-        for a in machine.axis_names:
-            d = data.context.dir_of(a).astype(float)
-            dir_probe[f"dir_{a}"] = np.where(d == 0, 1.0, d)
-        # a cut part's approach directions are the program's (its measurement model finds them)
-        extra = dict(dir_probe) if data.kind != "cmm" else {}
+        # the probe reads each axis's backlash column at dir +1 where the file does not say; a cut
+        # part's approach directions are the program's (its measurement model finds them)
+        extra = {} if data.kind == "cmm" else {
+            f"dir_{a}": np.where(data.context.dir_of(a) == 0, 1.0, data.context.dir_of(a).astype(float))
+            for a in machine.axis_names}
         extra[ONE] = np.ones(n_rows)
         try:
             mm = measurement_model(probe, data, None, tag=tags[fi], extra_context=extra)

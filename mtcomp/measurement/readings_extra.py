@@ -420,14 +420,13 @@ class CmmModel(MeasurementModel):
         self.radius = radius = float(radius)
         q, k, loc = cut_poses(m, data, program, radius, float(self.options.get("sample_mm", 0.1)),
                               float(self.options.get("max_gap_mm", 2.0)))
-        target = data.xyz + radius * data.normal
         self.q = q
         self.segment = k
         self.line = loc.line[k]
-        tip0, self.axis0 = forward(m, q)
+        self.axis0 = forward(m, q)[1]
         self.path_offset = np.zeros(len(data))
         if self.options.get("include_path_offset", data.include_path_offset):
-            self.path_offset = np.einsum("ij,ij->i", tip0 + radius * self.axis0 - target, data.normal)
+            self.path_offset = path_offsets(m, data, q, radius)
         extra = _extra_context(self)
         cols = {"feed": loc.feed[k]}
         for j, a in enumerate(m.axis_names):
@@ -568,6 +567,15 @@ class CutterLocations:
             u[better] = (self.u[idx] + lam * (self.u[j] - self.u[idx]))[better]
             best[better] = dd[better]
         return self._q(seg, u), seg, best
+
+
+def path_offsets(machine, data, q, radius: float) -> np.ndarray:
+    """(n,) mm how far the program's nominal ball centre at the cutter locations ``q`` sits from the
+    cmm points' own ball centre ``x + r n``, along each normal: ``n . (c0 - (x + r n))``. Zero for a
+    program that follows the nominal surface; a compensated program's corrections; a wrong radius or
+    a misplaced part as a whole."""
+    tip0, axis0 = forward(machine, q)
+    return np.einsum("ij,ij->i", tip0 + radius * axis0 - (data.xyz + radius * data.normal), data.normal)
 
 
 #: cmm data set -> (key, cut poses): the last poses found for it (the knots are placed from them
