@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -56,7 +57,8 @@ def cv_threshold(dk: int) -> float:
 class Finding:
     """One entry of the report's ``findings`` (SPEC 6): effect, axis, params, evidence, held-out rms
     before and after (in ``unit``: um, or urad when the data hold no positions). ``candidate`` is the
-    extension chosen (None for ``unexplained``)."""
+    extension chosen: None for ``unexplained``, except where the model holds a term whose rival the
+    data do not tell apart (``rival_alike``)."""
 
     effect: str
     axis: str
@@ -67,6 +69,9 @@ class Finding:
     candidate: Candidate | None = None
     step: tuple | None = None
     unit: str = "um"
+    #: "effect axis" of a rival the data do not tell from this finding (see :func:`_parsimony`): the
+    #: model holds this finding's term, the report names neither cause
+    rival_alike: str = ""
 
     def to_dict(self) -> dict:
         # SPEC's keys are in um; data without positions keep them (null) and add their own unit's
@@ -398,7 +403,8 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     extra = np.zeros((len(st), 0))
     noise_main = noise.get(_heldout_unit(st)) or next(iter(noise.values()))
     n = len(st)
-    undecided: set = set()                # (effect, axis) the data cannot tell from another axis
+    undecided: set = set()                # (effect, axis) the data cannot tell from another one
+    alike_entries: list = []              # (finding, rejected line) of rivals the data do not tell apart
     while len(chosen) < max_findings:
         if _heldout(st, current) <= noise_main.sigma:
             say("held-out residual is at the noise floor: stop")
@@ -451,7 +457,7 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
             if joint is not top:
                 pool.append(joint)
         best = max(pool, key=lambda s: s[3])
-        best = _parsimony(best, pool)
+        best, alike = _parsimony(best, pool)
         tied = _axis_ties(design, extra, best, good)
         if tied:
             # the same effect on another axis explains the same residual exactly (a program that moves
@@ -468,8 +474,19 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
         rivals = [s for s in good if s[0].rivals and s[0].rivals == c.rivals and s[0] is not c]
         before = _heldout(st, current)
         finding = _finding(st, c, current, fit, before, _heldout(st, fit), rivals, noise)
-        say(f"found {finding.effect} {finding.axis}: held-out {before:.4g} -> "
-            f"{finding.heldout_rms_after:.4g} {finding.unit} (BIC {dbic:+.1f}, {dk} parameter(s))")
+        if alike is not None:
+            # held-out data and the BIC both lean to the more specific rival, only one decisively:
+            # naming either would be a guess. The simpler term holds the residual (so that no third
+            # candidate takes it); the report names neither (seed 9180: a moving centre times a pitch
+            # no run measures reads almost as a feed offset)
+            finding.rival_alike = f"{alike[0].effect} {alike[0].axis}"
+            undecided.add((alike[0].effect, alike[0].axis))
+            alike_entries.append((finding, _alike_entry(best, alike)))
+            say(f"not named: {c.effect} {c.axis} or {finding.rival_alike} (only one selection test is decisive); "
+                f"the model holds the first")
+        else:
+            say(f"found {finding.effect} {finding.axis}: held-out {before:.4g} -> "
+                f"{finding.heldout_rms_after:.4g} {finding.unit} (BIC {dbic:+.1f}, {dk} parameter(s))")
         findings.append(finding)
         chosen.append(c)
         extra = np.hstack([extra, c.columns])
@@ -483,12 +500,15 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
                 say(f"dropped {f.effect} {f.axis}: no longer significant in the re-linearised model")
             design, current = _refine(st, design, chosen, design.fit(np.hstack([c.columns for c in chosen])))
         _final_params(st, design, findings, current)
+        # rivals told apart by neither test decisively: reported once the backward pass has kept them
+        rejected += [e for f, e in alike_entries if f in findings]
+        findings = [_not_named(f) if f.rival_alike else f for f in findings]
     final_metrics = _metrics(st, current, n_base + sum(c.columns.shape[1] for c in chosen))
     structure = an.find_structure(st, current.resid, sigma)
     excess = _heldout(st, current) / noise_main.sigma
     # a right model still predicts held-out readings a little worse than the noise: sqrt(1 + p/n_fit)
     inflation = np.sqrt(1.0 + current.rank / max(n * (design.K - 1) / max(design.K, 1), 1.0))
-    verdict = "none" if not findings else "explained"
+    verdict = "none" if not findings else ("unexplained" if any(f.rival_alike for f in findings) else "explained")
     finer = None
     if structure and may_refine:
         from ._resolution import finer_base
@@ -708,13 +728,24 @@ def _axis_ties(design, extra, best, good) -> list:
     return out
 
 
-def _parsimony(best, good):
+class Choice(NamedTuple):
+    """What :func:`_parsimony` picks among rivals: the scored candidate to add, and the more specific
+    rival the data do not tell from it (None when they do)."""
+
+    pick: tuple
+    rival_alike: tuple | None
+
+
+def _parsimony(best, good) -> Choice:
     """Among rivals of ``best`` (explanations of the same residual), prefer the simplest one (fewer
     parameters; then uniform offset before direction lag before an Abbe term) whose held-out gain is
     not significantly smaller, or whose BIC is not worse by ``BIC_MARGIN``: a more specific cause must
-    be earned by a margin in the data."""
+    be earned by a margin in the data. ``rival_alike`` of the result is ``best`` when both tests lean
+    to it against the simpler pick of another name (effect or axis), a larger held-out gain and a
+    lower BIC, but only one by its margin: the data then do not tell the two names apart. Only the
+    final pick is compared with ``best`` so."""
     c = best[0]
-    pick = best
+    pick, alike = best, None
     for s in good:
         # rivals: the same residual's explanations, or a candidate made of part of this one's terms
         # (a feed offset beside an IRC shift that carries that offset)
@@ -723,9 +754,14 @@ def _parsimony(best, good):
             continue
         # the more specific cause must pass both selection tests against the simpler one: its extra
         # parameters must gain more than noise could held out, and lower the BIC by the margin
-        if s[3] >= best[3] - cv_threshold(max(best[2] - s[2], 1)) or s[4] <= best[4] + BIC_MARGIN:
+        gain_earned = s[3] < best[3] - cv_threshold(max(best[2] - s[2], 1))
+        bic_earned = s[4] > best[4] + BIC_MARGIN
+        if not (gain_earned and bic_earned):
             pick = s
-    return pick
+            lean = s[3] < best[3] and s[4] > best[4]
+            other_name = (s[0].effect, s[0].axis) != (c.effect, c.axis)
+            alike = best if lean and gain_earned != bic_earned and other_name else None
+    return Choice(pick, alike)
 
 
 # --------------------------------------------------------------------------------------- findings
@@ -736,6 +772,46 @@ def _finding(st, c: Candidate, before_fit, after_fit, before, after, rivals, noi
     axis = c.axis or params.get("direction", "")
     return Finding(c.effect, axis, params, evidence, before, after, c, (before_fit, after_fit, rivals),
                    _heldout_unit(st))
+
+
+def _correlate(effect: str, axis: str) -> str:
+    """What a residual that two rivals of ``effect`` explain alike varies with (the words of
+    :func:`mtcomp.diagnose._analysis.correlations`)."""
+    if effect.startswith("feed_dependent"):
+        return "feed"
+    if effect in ("backlash", "rotary_backlash"):
+        return f"approach direction of {axis}"
+    return "time" if effect == "thermal_drift" else effect
+
+
+def _alike_entry(pick, alike) -> dict:
+    """The report's ``rejected`` line for a rival the data do not tell from ``pick``."""
+    p, s = pick[0], alike[0]
+    gain, dbic = alike[3] - pick[3], pick[4] - alike[4]
+    thr = cv_threshold(max(alike[2] - pick[2], 1))
+    return {"effect": s.effect, "axis": s.axis, "variant": s.variant,
+            "reason": f"the data cannot tell it from {p.effect} {p.axis}: it gains {gain:.1f} noise "
+                      f"variances held out over that ({thr:.1f} needed), and its BIC differs from that one's "
+                      f"by {-dbic:+.1f} ({-BIC_MARGIN:+g} needed): only one test is decisive; neither is "
+                      f"named, the model holds {p.effect} {p.axis}"}
+
+
+def _not_named(f: Finding) -> Finding:
+    """A finding whose rival the data do not tell apart, as the report's ``unexplained`` entry: the
+    model holds its term (its params as fitted), the cause is not named."""
+    named = f"{f.effect} {f.axis}"
+    var = _correlate(f.effect, f.axis)
+    params = {"where": f"{f.axis}, with {var} ({named} or {f.rival_alike})", "correlates_with": [var],
+              "runs": [], "p_value": None, "explained_alike_by": [named, f.rival_alike],
+              "held_in_model": named, **f.params}
+    evidence = (f"{named} and {f.rival_alike} explain this residual alike: held-out data and the BIC both "
+                f"lean to the second, only one decisively; the model holds the first (held-out "
+                f"{f.heldout_rms_before:.3g} -> {f.heldout_rms_after:.3g} {f.unit}); readings that "
+                f"tell them apart would name the cause"
+                + (" (the axis's angular errors at several feeds, or its positioning at two Abbe offsets)"
+                   if var == "feed" else ""))
+    return Finding("unexplained", f.axis, params, evidence, f.heldout_rms_before, f.heldout_rms_after,
+                   f.candidate, f.step, f.unit, f.rival_alike)
 
 
 def _unexplained(st, fit, structure, excess, noise_main, inflation: float = 1.0) -> Finding:

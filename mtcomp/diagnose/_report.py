@@ -234,7 +234,7 @@ def summary(diag) -> str:
         ps = ", ".join(f"{k}={_short(v)}" for k, v in f.params.items() if not isinstance(v, dict))
         lines.append(f"{i}. {f.effect}{' on ' + f.axis if f.axis else ''}: {ps}")
         lines.append(f"   evidence: {f.evidence}")
-        if f.effect != "unexplained":
+        if f.effect != "unexplained" or f.candidate is not None:     # a term the model holds
             lines.append(f"   held-out rms {f.heldout_rms_before:.4g} -> {f.heldout_rms_after:.4g} {f.unit}")
     for r in diag.rejected:
         variant = f" ({r['variant']})" if r.get("variant") else ""
