@@ -17,7 +17,7 @@ Steps (docs/diagnose.md explains them for a metrologist):
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -318,7 +318,6 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     machine = with_data_basis(machine, data_positions(machine, datasets), fourier=True,
                               sizes=data_spline_sizes(machine, datasets))
     if refine:
-        from dataclasses import replace
         machine = replace(machine, axes=tuple(
             replace(ax, spline_range=(refine[ax.name].lo, refine[ax.name].hi),
                     spline_intervals=refine[ax.name].n_intervals, degree=refine[ax.name].degree)
@@ -810,8 +809,7 @@ def _not_named(f: Finding) -> Finding:
                 f"tell them apart would name the cause"
                 + (" (the axis's angular errors at several feeds, or its positioning at two Abbe offsets)"
                    if var == "feed" else ""))
-    return Finding("unexplained", f.axis, params, evidence, f.heldout_rms_before, f.heldout_rms_after,
-                   f.candidate, f.step, f.unit, f.rival_alike)
+    return replace(f, effect="unexplained", params=params, evidence=evidence)
 
 
 def _unexplained(st, fit, structure, excess, noise_main, inflation: float = 1.0) -> Finding:

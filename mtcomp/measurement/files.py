@@ -401,7 +401,7 @@ class VelocityData(MeasurementSet):
         O_p lies on the line through M perpendicular to M's velocity relative to the table's
         translation V0 (feed, signed by ``dir_<axis>`` or else by the measured motion), and likewise
         for N: ``(v_M - V0 e) . (O_p - M) = 0``, ``(v_N - V0 e) . (O_p - N) = 0``. For axis X this is
-        eq. 1 of seed 000. NaN for axis Z and where the two lines are parallel.
+        eq. 1 of seed 000. NaN where the two lines are parallel.
         """
         out = np.full((len(self), 2), np.nan)
         speed = self.signed_speed()
