@@ -179,3 +179,72 @@ def seed003_errors_um(fitted, truth: TruthMachine) -> np.ndarray:
         actual = W[:, :3, :3] @ np.asarray(point) + W[:, :3, 3]
         out.append(np.linalg.norm(table_point_positions(fitted, angles, point) - actual, axis=1) * 1e3)
     return np.concatenate(out)
+
+
+# ------------------------------------------------------------------ a tool length nobody measured
+#: the tracker campaign's stylus lengths (mm): dense lines with one, a coarse grid with two others
+LINE_STYLUS_MM = 100.0
+GRID_STYLI_MM = (50.0, 200.0)
+GRID = (7, 5, 4)
+
+
+@dataclass
+class ToolLengthCase:
+    """A tracker campaign that never measured the program's tool length (0 mm): dense lines along
+    X, Y and Z with a 100 mm stylus, a coarse 7 x 5 x 4 grid with 50 and 200 mm styli."""
+
+    truth: TruthMachine
+    toml: Path
+    files: list
+    bowl: object            # mtcomp.toolpaths.parts.BowlToolpath, cut at tool length 0
+
+
+def _smooth_angular(truth: TruthMachine, rng, rough_period_mm: float | None) -> None:
+    """Angular profiles of the linear axes smooth on the scale of the grid spacing: a cubic spline
+    through random values at 4 knots over the travel, 5-30 urad peak to peak. With
+    ``rough_period_mm`` a sine of that period and 3-6 urad amplitude is added (structure finer than
+    the grid: what the grid's two styli cannot follow between its nodes)."""
+    from truth import profiles as P
+    from truth.effects import URAD
+    from truth.machine import components_of
+    for a in "XYZ":
+        lo, hi = truth.travel[a]
+        for c in components_of(a):
+            if c[1] not in "ABC":
+                continue
+            knots = np.linspace(lo, hi, 4)
+            f = P.Spline(knots, rng.uniform(-15, 15, 4) * URAD)
+            if rough_period_mm:
+                f = P.Sum((f, P.Sines((rng.uniform(3, 6) * URAD,), (rough_period_mm,),
+                                      (rng.uniform(0, 2 * np.pi),), (lo, hi))))
+            truth.components[a][c] = f
+
+
+def tool_length_case(seed: int, folder: Path, rough_period_mm: float | None = None) -> ToolLengthCase:
+    """The case of a part cut with a tool length the campaign did not measure (see ToolLengthCase).
+    The bowl (300 x 300 x 30 mm, 3 mm ball, 6 mm raster) sits at the table's centre, rim at Z 0."""
+    from mtcomp.toolpaths.parts import write_bowl_program
+    folder.mkdir(parents=True, exist_ok=True)
+    toml = folder / "mill0.toml"
+    toml.write_text('name = "mill0"\ntopology = "XFYZ"\ntool_length_mm = 0.0\n'
+                    '[axes.X]\ntravel_mm = [-400.0, 400.0]\n[axes.Y]\ntravel_mm = [-300.0, 300.0]\n'
+                    '[axes.Z]\ntravel_mm = [-250.0, 150.0]\n')
+    rng = np.random.default_rng(seed)
+    truth = TruthMachine.random(str(toml), rng, error_motions=False)
+    _smooth_angular(truth, rng, rough_period_mm)
+    files = []
+    lines = {"X": [(-100.0, -100.0), (150.0, 50.0)], "Y": [(-200.0, -100.0), (200.0, 50.0)],
+             "Z": [(-250.0, -150.0), (250.0, 150.0)]}
+    for axis, where in lines.items():
+        for k, (u, v) in enumerate(where):
+            others = [b for b in "XYZ" if b != axis]
+            grid = tuple(41 if b == axis else 1 for b in "XYZ")
+            res = tc.points(truth, folder / f"line_{axis.lower()}{k}.csv", rng, grid=grid, margin=0.05,
+                            plane={others[0]: u, others[1]: v}, tool_lengths_mm=(LINE_STYLUS_MM,),
+                            repeats=2, noise_um=NOISE_UM)
+            files.append(res.path)
+    files.append(tc.points(truth, folder / "grid.csv", rng, grid=GRID, tool_lengths_mm=GRID_STYLI_MM,
+                           repeats=1, noise_um=NOISE_UM).path)
+    bowl = write_bowl_program(folder / "bowl.nc", ball_radius_mm=3.0, stepover_mm=6.0, step_mm=3.0,
+                              side_mm=300.0, depth_mm=30.0)
+    return ToolLengthCase(truth, toml, files, bowl)

@@ -11,6 +11,7 @@ _DIGITS = b"0123456789."
 
 
 def add_arguments(parser):
+    from ..planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
     parser.add_argument("machine", metavar="MACHINE", help="built-in machine name or machine TOML file")
     parser.add_argument("model", metavar="MODEL.json", help="fitted error model")
     parser.add_argument("program", metavar="IN.nc", help="NC program (G-code)")
@@ -54,6 +55,10 @@ def add_arguments(parser):
     parser.add_argument("--extrapolate", action="store_true",
                         help="correct blocks outside the region the model's data reached too "
                              "(default: they get no correction, and the summary counts them)")
+    parser.add_argument("--max-correction-sd-um", type=float, metavar="SD", default=None,
+                        help="leave a block uncorrected where its correction's standard error (from "
+                             "the model's covariance) exceeds SD um: the model is unsure there "
+                             f"(default {DEFAULT_MAX_CORRECTION_SD_UM:g}; 0: no limit)")
     parser.add_argument("--units", choices=("mm", "inch"), default=None,
                         help="what a program without G20/G21 is written in (default: the machine "
                              "file's 'units', else mm with a warning)")
@@ -229,13 +234,17 @@ def run(args) -> int:
         sys.stderr.write(f"mtcomp compensate: {done} blocks planned ({time.perf_counter() - t0:.0f} s)\n")
         sys.stderr.flush()
 
+    from ..planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
+    sd_limit = (DEFAULT_MAX_CORRECTION_SD_UM if args.max_correction_sd_um is None
+                else _positive(args.max_correction_sd_um, "--max-correction-sd-um", allow_zero=True)) or None
     options = PlannerOptions(method=args.method, subdivide_tol_um=args.subdivide_tol_um or None,
                              progress=None if args.quiet else progress,
-                             extrapolate=args.extrapolate)
+                             extrapolate=args.extrapolate, max_correction_sd_um=sd_limit)
     chord_tol = args.chord_tol_um * 1e-3
     planner = Planner(problem, options, source=args.program)
     summary = Summary(machine.axis_names, extrapolate=args.extrapolate,
-                      support_known=fitted.support is not None)
+                      support_known=fitted.support is not None, max_correction_sd_um=sd_limit,
+                      has_covariance=fitted.uncertainty is not None)
     offsets_of = {}
     no_feed = {"blocks": 0, "line": 0}        # feed moves before any F word
 
@@ -266,7 +275,7 @@ def run(args) -> int:
                 res.nominal = res.nominal - node_off
                 summary.add(res)
                 if rep is not None:
-                    rep.writelines(report_rows(res, machine.axis_names))
+                    rep.writelines(report_rows(res, machine.axis_names, sd_limit))
                 yield chunk, res.corrected, res.counts
             if summary.blocks == 0:
                 # raised while the outputs are still temporary files: nothing is written

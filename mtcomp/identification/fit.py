@@ -191,7 +191,7 @@ class IdentificationResult:
     files: list[FileResiduals]
     n_obs: int
     n_params: int
-    dof: int
+    dof: float
     sigma: float
     iterations: int
     converged: bool
@@ -200,6 +200,8 @@ class IdentificationResult:
     weighting: str
     fitted_model: FittedModel = None
     info: dict = field(default_factory=dict)
+    #: the roughness penalty's weights (mtcomp.identification.penalty.Smoothing), None without one
+    smoothing: object = None
 
     @property
     def param_names(self) -> tuple[str, ...]:
@@ -258,7 +260,8 @@ class IdentificationResult:
 
     def to_dict(self) -> dict:
         """Plain summary (file units) for MODEL.json ``info`` and reports."""
-        return {"n_obs": self.n_obs, "n_params": self.n_params, "rank": self.rank, "dof": self.dof,
+        return {"n_obs": self.n_obs, "n_params": self.n_params, "rank": self.rank, "dof": _finite(self.dof),
+                "smoothing": self.smoothing.to_dict() if self.smoothing is not None else None,
                 "sigma": _finite(self.sigma), "condition_number": _finite(self.condition_number),
                 "iterations": self.iterations, "converged": self.converged, "weighting": self.weighting,
                 "undetermined": [str(u) for u in self.undetermined],
@@ -274,7 +277,7 @@ class IdentificationResult:
         parameters, the undetermined combinations and the rms residual of every file."""
         m = self.model.machine
         lines = [f"Identification of {m.name} ({m.topology}): {self.n_obs} observations in "
-                 f"{len(self.files)} file(s), {self.n_params} unknowns, rank {self.rank}, dof {self.dof}",
+                 f"{len(self.files)} file(s), {self.n_params} unknowns, rank {self.rank}, dof {self.dof:.1f}",
                  f"weighting {self.weighting}; sigma {self.sigma:.4g}; condition number "
                  f"{self.condition_number:.3g}; {self.iterations} iteration(s)"
                  f"{'' if self.converged else ' (NOT converged)'}; {self.seconds:.2f} s", ""]
@@ -539,6 +542,8 @@ WEAK_SD_UM = 1.0
 #: ... unless the first fit puts it further from the start than this many of its standard errors:
 #: then the data do see it (a real error of 28 um fixed to 1.2 um is fitted, not held at zero)
 WEAK_SIGNIFICANT = 3.0
+#: the widest range of penalty on one class's coefficients (column-scaled) that a fit keeps
+PENALTY_RANGE = 1e6
 #: weight of a set-up unknown (a file's zero offset, its alignment) against a machine parameter when a
 #: combination the data cannot determine is held: the set-up takes what it trades with machine errors
 SETUP_WEIGHT = 1e-3
@@ -602,10 +607,14 @@ class _Solution:
     iterations: int
     converged: bool
     leverage: np.ndarray        # (n_obs,) diagonal of the hat matrix (sums to the rank)
+    edf: float = float("nan")   # effective degrees of freedom (the rank without a penalty)
 
 
 class _Problem:
     """The stacked least-squares problem of several measurement models."""
+
+    #: profiles carry a roughness penalty (mtcomp.identification.penalty)
+    use_penalty = True
 
     def __init__(self, model, mms, mask, p0):
         self.model = model
@@ -629,6 +638,9 @@ class _Problem:
         self.observed = np.concatenate([m.observed for m in mms])
         self.metric = None      # (n_unknowns, n_unknowns) mean squared tip error over the travel, mm^2
         self.weak_fallback = False  # the weak-direction pass was refused (see solve)
+        self.use_penalty = type(self).use_penalty  # profiles carry a roughness penalty (mtcomp.identification.penalty)
+        self.S = None               # the penalty in scaled coordinates at the chosen weights
+        self.smoothing = None       # penalty.Smoothing of the last solve
 
     # --------------------------------------------------------------- weights
     def unit_weights(self):
@@ -764,18 +776,69 @@ class _Problem:
 
     def _damped_step(self, x, cost, B, AB, scale, grad, w):
         """Levenberg-Marquardt steps ``(AB + mu I)^-1`` with growing mu from the smallest that helps:
-        (x, r, cost) of the first that lowers the objective, or (None, None, None)."""
-        gs = B.T @ (scale * grad)
+        (x, r, cost) of the first that lowers the objective (penalty included), or (None, None, None)."""
+        gs = B.T @ (scale * grad - self.penalty_gradient(x, scale))
         mu = 1e-8 * max(float(np.trace(AB)) / max(AB.shape[0], 1), 1e-300)
         for _ in range(12):
             dz = B @ np.linalg.solve(AB + mu * np.eye(AB.shape[0]), gs)
             x_new = x + scale * dz
             r_new = w * (self.observed - self.evaluate(x_new))
-            cost_new = float(r_new @ r_new)
+            cost_new = float(r_new @ r_new) + self.penalty(x_new, scale)
             if cost_new < cost * (1 - 1e-12):
                 return x_new, r_new, cost_new
             mu *= 30.0
         return None, None, None
+
+    # --------------------------------------------------------------- penalty
+    def penalty(self, x, scale) -> float:
+        """The roughness penalty ``z^T S z`` at the unknowns x (z = x / scale), 0 without one."""
+        if self.S is None:
+            return 0.0
+        z = x / scale
+        return float(z @ self.S @ z)
+
+    def penalty_gradient(self, x, scale) -> np.ndarray:
+        """``S z``: half the gradient of the penalty in scaled coordinates (zeros without one)."""
+        if self.S is None:
+            return np.zeros_like(x)
+        return self.S @ (x / scale)
+
+    def scaled_penalties(self, A, scale) -> dict:
+        """{class: S_k} in scaled coordinates, each normalised so that a weight of 1 weighs a
+        profile's curvature about as much as the data weigh one well-seen coefficient (the median
+        penalty on the coefficients the data see). Classes none of whose coefficients the data see
+        are left out, and so are the coefficients the data do not see at all (a rotary axis's
+        positioning harmonics under balls on its axis): what no data touch stays at zero, held with
+        the null space, never set by the penalty alone."""
+        from .penalty import penalty_matrices
+        seen = _seen_columns(A)
+        out = {}
+        for cls, S in penalty_matrices(self.model, self.free_idx, self.n_unknowns).items():
+            Ss = S * np.outer(scale * seen, scale * seen)
+            d = np.diag(Ss)
+            if not (d > 0).any():
+                continue
+            Ss = Ss / float(np.median(d[d > 0]))
+            # a coefficient the data see a million times more weakly than the class's typical one
+            # (a wall's angular profile seen through a 0.1 mm arm) is as good as unseen: its penalty
+            # would dwarf every other direction and the solve would lose them to round-off
+            faint = np.diag(Ss) > PENALTY_RANGE
+            Ss[faint, :] = 0.0
+            Ss[:, faint] = 0.0
+            if np.diag(Ss).any():
+                out[cls] = Ss
+        return out
+
+    def penalised_null(self, null, penalties: dict) -> np.ndarray:
+        """The directions among ``null`` (the data's, orthonormal, scaled) that no penalty sees either
+        (a straight line of a profile the data do not reach, a constant against a laser zero ...)."""
+        if not penalties or null.shape[1] == 0:
+            return null
+        # each penalty is normalised to about 1 on a well-seen coefficient (scaled_penalties): a
+        # direction it weighs below DEFAULT_RCOND of that is as good as unseen
+        M = sum(null.T @ S @ null for S in penalties.values())
+        ev, U = np.linalg.eigh(0.5 * (M + M.T))
+        return null @ U[:, ev <= DEFAULT_RCOND]
 
     # --------------------------------------------------------------- weak directions
     def _weak_directions(self, AB, B, scale, sigma_w: float, y):
@@ -822,17 +885,20 @@ class _Problem:
 
     # --------------------------------------------------------------- Gauss-Newton
     def solve(self, w, rcond, max_iterations, tol, leverage=False) -> _Solution:
-        """Gauss-Newton on the weighted residuals, in two passes.
+        """Penalised Gauss-Newton on the weighted residuals, in two passes.
 
         What the data determine (rank, the undetermined combinations, which parameters are
         determined) comes from the data alone: the eigen-decomposition of the column-scaled normal
-        matrix at the start point; the machine part of undetermined combinations stays at its start
-        values, set-ups taking what they trade with it (:func:`held_complement`). The first
-        pass fits the data alone. Knowing the residual scale, the directions whose rms tool-tip error
-        over the travel the data fix only to worse than :data:`WEAK_SD_UM` count as undetermined
-        too: the second pass holds them at the least predicted error (:meth:`_weak_directions`), so
-        that noise is never amplified into invented errors.
+        matrix at the start point. Of what they leave open, the profiles' roughness penalty
+        (:mod:`mtcomp.identification.penalty`, weights by REML) fixes the curvature: between what
+        was measured a profile follows the smoothest curve. What neither sees stays at its start
+        values, set-ups taking what they trade with machine errors (:func:`held_complement`). The
+        first pass fits the data and the penalty. Knowing the residual scale, the directions whose
+        rms tool-tip error over the travel is fixed only to worse than :data:`WEAK_SD_UM` count as
+        undetermined too: the second pass holds them at the least predicted error
+        (:meth:`_weak_directions`), so that noise is never amplified into invented errors.
         """
+        from .penalty import Smoothing, reml_weights
         x = np.zeros(self.n_unknowns)
         x[:self.n_free] = self.p0[self.free_idx]
         pred, A, g = self.normal_equations(x, w)
@@ -840,16 +906,40 @@ class _Problem:
         scale = _column_scale(A)
         rel, V = _relative_singular_values(A * np.outer(scale, scale))
         keep = rel > rcond
-        null = V[:, ~keep]
-        rank = int(keep.sum())
-        cond = float(rel[0] / rel[keep][-1]) if rank else np.inf
+        penalties = self.scaled_penalties(A, scale) if self.use_penalty else {}
+        null = self.penalised_null(V[:, ~keep], penalties)
+        data_rank = int(keep.sum())
+        cond = float(rel[0] / rel[keep][-1]) if data_rank else np.inf
         start = (x, r, A, g)
         B1 = held_complement(null, np.arange(self.n_unknowns) < self.n_free)
-        x, r, A, g, B, AB, iterations, converged = self._gauss_newton(
-            x, r, A, g, w, max_iterations, tol, B1, scale)
-        sigma_w = self._repeat_scale(r, rank)
+        self.S = None
+        iterations = 0
+        # REML on the problem linearised at the start, then again at that fit: there the residuals
+        # are small, so the criterion's residual sum of squares (the start's less what the step
+        # explains) does not lose its digits to a large start misfit (a misaligned CMM frame)
+        rho = None
+        for k in range(2 if penalties else 1):
+            if k:
+                # the gradient at the fit (Gauss-Newton may stop on a step whose gradient it did not
+                # evaluate); the normal matrix is the start's (linear in p up to 1e-5)
+                pred, _, g = self.normal_equations(x, w, gram=False)
+                r = w * (self.observed - pred)
+            if penalties:
+                z0 = x / scale
+                AB0 = B1.T @ (A * np.outer(scale, scale)) @ B1
+                Ss = list(penalties.values())
+                rho, _ = reml_weights(AB0, B1.T @ (scale * g), float(r @ r), [B1.T @ S @ B1 for S in Ss],
+                                      [B1.T @ (S @ z0) for S in Ss], [float(z0 @ S @ z0) for S in Ss],
+                                      self.n_obs, start=rho)
+                self.S = sum(np.exp(rk) * S for rk, S in zip(rho, Ss))
+                self.smoothing_rho = dict(zip(penalties, rho))
+            x, r, A, g, B, AB, more, converged = self._gauss_newton(
+                x, r, A, g, w, max_iterations, tol, B1, scale)
+            iterations += more
+        rank = self.n_unknowns - null.shape[1]
+        sigma_w = self._repeat_scale(r, min(rank, data_rank))
         y1 = B1.T @ ((x - start[0]) / scale)
-        weak, Q = self._weak_directions(AB, B1, scale, sigma_w, y1)
+        weak, Q = self._weak_directions(AB + self._reduced_penalty(B), B1, scale, sigma_w, y1)
         first = (x, r, A, g, B, AB, iterations, converged, null, rank)
         if weak.shape[1]:
             # reported as undetermined: the weak directions, in scaled coordinates, orthonormalised
@@ -871,30 +961,46 @@ class _Problem:
             if not converged or float(r @ r) > 1.01 * allowed:
                 x, r, A, g, B, AB, iterations, converged, null, rank = first
                 self.weak_fallback = True
-        dof = max(self.n_obs - rank, 0)
-        s2 = float(r @ r) / dof if dof > 0 else np.nan
         lev = np.zeros(self.n_obs)
+        edf = float(rank)
         if B.shape[1]:
-            ABinv = scipy.linalg.pinvh(AB)
-            cov = s2 * (scale[:, None] * (B @ ABinv @ B.T) * scale[None, :])
+            # the Bayesian posterior covariance of a penalised fit (Wood 2006): phi (AB + S)^-1, phi
+            # the residual variance over the effective degrees of freedom tr((AB + S)^-1 AB)
+            H = AB + self._reduced_penalty(B)
+            Hinv = scipy.linalg.pinvh(H)
+            edf = float(np.trace(Hinv @ AB)) if self.S is not None else float(rank)
+            dof = self.n_obs - edf
+            s2 = float(r @ r) / dof if dof > 0 else np.nan
+            cov = s2 * (scale[:, None] * (B @ Hinv @ B.T) * scale[None, :])
             if leverage:
-                lev = self.leverages(x, w, scale, B, np.linalg.cholesky(AB))
+                lev = self.leverages(x, w, scale, B, np.linalg.cholesky(H))
         else:
             cov = np.full((self.n_unknowns, self.n_unknowns), np.nan)
-        return _Solution(x, r, cov, null, scale, rel, rank, cond, iterations, converged, lev)
+        if self.S is not None:
+            lam = {k: float(np.exp(v)) for k, v in self.smoothing_rho.items()}
+            self.smoothing = Smoothing(lam, dict(self.smoothing_rho), edf)
+        return _Solution(x, r, cov, null, scale, rel, rank, cond, iterations, converged, lev, edf)
+
+    def _reduced_penalty(self, B) -> np.ndarray:
+        """B^T S B: the penalty in the directions B (zeros without one)."""
+        if self.S is None:
+            return np.zeros((B.shape[1], B.shape[1]))
+        return B.T @ self.S @ B
 
     def _gauss_newton(self, x, r, A, g, w, max_iterations, tol, B, scale):
-        """Minimise ``|r|^2`` from x (with its residuals r and normal equations A, g) along the
-        orthonormal directions B of the scaled unknowns (x = x0 + scale * B y). Returns (x, r, A, g,
-        B, reduced matrix B^T As B, iterations, converged)."""
+        """Minimise ``|r|^2 + z^T S z`` (the penalty, when the problem has one) from x (with its
+        residuals r and normal equations A, g) along the orthonormal directions B of the scaled
+        unknowns (x = x0 + scale * B y, z = x / scale). Returns (x, r, A, g, B, reduced data matrix
+        B^T As B, iterations, converged)."""
         def reduced(A_):
             return B.T @ (A_ * np.outer(scale, scale)) @ B
 
-        cost = float(r @ r)
+        SB = self._reduced_penalty(B)
+        cost = float(r @ r) + self.penalty(x, scale)
         converged = False
         iterations = 0
         AB = reduced(A)
-        solve = _solver(AB)
+        solve = _solver(AB + SB)
         # The model is linear in p up to products of errors (1e-5 of the readings), so the Gram
         # matrix at the start serves every step (the chord method: the gradient is exact at each
         # step, so the minimum is the exact one). It is formed anew only when a step fails to
@@ -902,7 +1008,7 @@ class _Problem:
         refresh = False
         for it in range(1, max_iterations + 1):
             iterations = it
-            gs = scale * g
+            gs = scale * g - self.penalty_gradient(x, scale)
             dz = _step(B, solve, gs)
             # small: below tol of the unknowns, or so small against their uncertainty that no
             # reading could tell (the step's Mahalanobis length gs.dz under STEP_SE standard
@@ -924,7 +1030,7 @@ class _Problem:
                 pred_new, A_new, g_new = self.normal_equations(x_new, w, gram=refresh)
                 A_new = A if A_new is None else A_new
             r_new = w * (self.observed - pred_new)
-            cost_new = float(r_new @ r_new)
+            cost_new = float(r_new @ r_new) + self.penalty(x_new, scale)
             step = 1.0
             while cost_new > cost * (1 + 1e-12) + 1e-300 and step > 1e-6:
                 # backtracking, rarely needed: the model is nearly linear in p
@@ -932,13 +1038,13 @@ class _Problem:
                 x_new = x + step * scale * dz
                 pred_new = self.evaluate(x_new)
                 r_new = w * (self.observed - pred_new)
-                cost_new = float(r_new @ r_new)
+                cost_new = float(r_new @ r_new) + self.penalty(x_new, scale)
                 A_new = None
                 refresh = True
             if cost_new > cost * (1 + 1e-12) + 1e-300:
                 # no descent along the Gauss-Newton step: either at the minimum, or the step is
                 # dominated by nearly singular directions; Levenberg-Marquardt damping tells them apart
-                x_new, r_new, cost_new = self._damped_step(x, cost, B, AB, scale, g, w)
+                x_new, r_new, cost_new = self._damped_step(x, cost, B, AB + SB, scale, g, w)
                 if x_new is None:
                     converged = True
                     break
@@ -953,7 +1059,7 @@ class _Problem:
                 _, A_new, g_new = self.normal_equations(x, w)
             if A_new is not A:
                 AB = reduced(A_new)
-                solve = _solver(AB)
+                solve = _solver(AB + SB)
             A, g = A_new, g_new
         if A is None:
             _, A, g = self.normal_equations(x, w)
@@ -990,7 +1096,8 @@ class _Problem:
             files.append(FileResiduals(m.tag, str(m.data.path), m.kind, m.obs_row.copy(),
                                        np.asarray(m.data.row)[m.obs_row], np.asarray(m.obs_column),
                                        resid, w[so]))
-        dof = max(self.n_obs - sol.rank, 0)
+        # a penalised fit spends its effective degrees of freedom, not its rank
+        dof = max(self.n_obs - (sol.edf if np.isfinite(sol.edf) else sol.rank), 0)
         cost = float(sol.r @ sol.r)
         res = IdentificationResult(
             model=model, specs=model.param_specs, values=values, std_errors=std, free=self.mask.copy(),
@@ -1000,6 +1107,8 @@ class _Problem:
             files=files, n_obs=self.n_obs, n_params=self.n_unknowns, dof=dof,
             sigma=float(np.sqrt(cost / dof)) if dof else float("nan"), iterations=sol.iterations,
             converged=sol.converged, cost=cost, seconds=seconds, weighting=label, info=dict(info or {}))
+        if self.smoothing is not None:
+            res.smoothing = self.smoothing
         params = ParameterSet(model.param_specs, values, std)
         nf = self.n_free
         null_p = (sol.scale[:, None] * sol.null)[:nf]
@@ -1010,7 +1119,7 @@ class _Problem:
         if self.metric is not None and null_p.shape[1]:
             # each direction scaled to 1 um rms tool-tip error over the travel; those that move the
             # tip nowhere (a turn about the tool axis ...) cannot change a prediction and are dropped
-            rms = np.sqrt(np.einsum("ik,ij,jk->k", null_p, self.metric[:nf, :nf], null_p))
+            rms = np.sqrt(np.clip(np.einsum("ik,ij,jk->k", null_p, self.metric[:nf, :nf], null_p), 0.0, None))
             keep &= rms > 1e-12 * np.linalg.norm(null_p, axis=0)
             null_p = null_p * (1e-3 / np.where(rms > 0, rms, 1.0))
         else:
@@ -1038,8 +1147,15 @@ def _column_scale(A: np.ndarray) -> np.ndarray:
     chain) keeps scale 1, so that it stays at zero size and counts as undetermined; scaled to unit
     norm, its round-off would pass for information and the step would follow it to 1e12."""
     norms = np.sqrt(np.clip(np.diag(A), 0.0, None))
-    real = norms > 1e-9 * max(float(norms.max()) if norms.size else 0.0, 1e-300)
+    real = _seen_columns(A)
     return np.where(real, 1.0 / np.where(real, norms, 1.0), 1.0)
+
+
+def _seen_columns(A: np.ndarray) -> np.ndarray:
+    """(n,) bool: the unknowns the data see at all, columns of the normal matrix A above round-off
+    (1e-9 of the largest column norm)."""
+    norms = np.sqrt(np.clip(np.diag(A), 0.0, None))
+    return norms > 1e-9 * max(float(norms.max()) if norms.size else 0.0, 1e-300)
 
 
 def _relative_singular_values(As: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -439,6 +439,14 @@ class ErrorModel:
                            ["q", "p", "c"], ["dev", "J_q", "J_p"])
 
     @cached_property
+    def tip_pjacobian_function(self) -> ca.Function:
+        """(q, p, c) -> J_p (3, n_params): the tip deviation's (mm) Jacobian with respect to the
+        parameters, for the standard error of a correction."""
+        tip = self._expressions["dev"][:3]
+        return ca.Function("tip_pjac", [self._q, self._p, self._c], [ca.jacobian(tip, self._p)],
+                           ["q", "p", "c"], ["J_p"])
+
+    @cached_property
     def deviation_qjacobian_function(self) -> ca.Function:
         """(q, p, c) -> (dev (6,), J_q (6, n_axes)): what the planner needs per block."""
         dev = self._expressions["dev"]

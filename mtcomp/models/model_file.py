@@ -84,6 +84,18 @@ class FittedModel:
             q[:, j] = held[a]
         return q, cols
 
+    def covariance_factor(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(indices into ``params``, F) with F F^T the covariance of those parameters (internal
+        units), from its positive eigenvalues; None when the model carries no uncertainty. What the
+        data left undetermined is not in it: it is held at zero and corrects nothing."""
+        if self.uncertainty is None:
+            return None
+        idx = np.array([self.params.index(n) for n in self.uncertainty["names"]], dtype=int)
+        C = np.nan_to_num(np.asarray(self.uncertainty["covariance"], dtype=float))
+        w, V = np.linalg.eigh(0.5 * (C + C.T))
+        keep = w > 1e-12 * max(float(w.max()) if w.size else 0.0, 1e-300)
+        return idx, V[:, keep] * np.sqrt(w[keep])
+
     def prediction_std(self, J: np.ndarray) -> np.ndarray:
         """(n,) standard error of n predictions whose Jacobian with respect to ``params`` is J (n,
         n_params), internal units; NaN where a prediction depends on a direction the data did not

@@ -65,6 +65,7 @@ class Evaluator:
         self.D = problem.axis_scale
         self.evaluations = 0
         self._count_lock = threading.Lock()     # parts of a chunk are evaluated in threads
+        self._factor = problem.fitted.covariance_factor()
 
     def _count(self, n: int):
         with self._count_lock:
@@ -74,6 +75,18 @@ class Evaluator:
         """(n, 6) the model's deviation at q, evaluated at the held position of every axis the
         model's data held still (FittedModel.clamp)."""
         return evaluate(self.model, "deviation_function", self.problem.fitted.clamp(q)[0], self.p, ctx)[0]
+
+    def correction_sd_um(self, q, ctx) -> np.ndarray:
+        """(n,) standard error (um) of the correction at q: the largest of the tip deviation's three
+        components' standard errors under the model's covariance (evaluated where
+        :meth:`_deviation` evaluates it); NaN when the model carries no uncertainty."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        if self._factor is None:
+            return np.full(q.shape[0], np.nan)
+        idx, F = self._factor
+        J = evaluate(self.model, "tip_pjacobian_function", self.problem.fitted.clamp(q)[0], self.p, ctx)[0]
+        G = J[:, :, idx] @ F                        # (n, 3, rank), mm
+        return np.sqrt(np.max(np.einsum("nij,nij->ni", G, G), axis=1)) * 1e3
 
     def _deviation_and_qjacobian(self, q, ctx):
         """(deviation (n, 6), d deviation / d q (n, 6, n_axes)) as :meth:`_deviation`: along a held

@@ -53,8 +53,11 @@ class NodeSet:
     rapid : (n,) bool, the node ends (or lies in) a G0 move.
     unknown : (n, na) bool, axes whose position the program has not given at this block.
     outside : (n, na) bool, axes outside the region the model's data reached (its ``support``).
-    pinned : (n,) bool, the block gets no correction (an unknown axis, or outside the support
-        without ``PlannerOptions.extrapolate``): its correction bounds are zero.
+    pinned : (n,) bool, the block gets no correction (an unknown axis, outside the support without
+        ``PlannerOptions.extrapolate``, or a correction less certain than
+        ``PlannerOptions.max_correction_sd_um``): its correction bounds are zero.
+    sd_um : (n,) standard error of the block's correction (um; NaN where not evaluated: unknown
+        axes, outside the support, or a model without uncertainty).
     """
 
     q: np.ndarray
@@ -66,8 +69,10 @@ class NodeSet:
     unknown: np.ndarray
     outside: np.ndarray
     pinned: np.ndarray
+    sd_um: np.ndarray
 
-    FIELDS = ("q", "context", "exempt", "line", "inserted", "rapid", "unknown", "outside", "pinned")
+    FIELDS = ("q", "context", "exempt", "line", "inserted", "rapid", "unknown", "outside", "pinned",
+              "sd_um")
 
     def __len__(self):
         return int(self.q.shape[0])
@@ -94,7 +99,8 @@ class PlanResult:
     flags : (n, na, 5) bool, bounds that acted (see ``FLAG_KINDS``).
     iterations : (n,) model linearisations used per node. converged : (n,) bool.
     unknown, outside : (n, na) bool, axes not known / outside the model's support (see NodeSet).
-    pinned : (n,) bool, the block was given no correction (bounds zero) for either reason.
+    pinned : (n,) bool, the block was given no correction (bounds zero) for any of the reasons.
+    sd_um : (n,) standard error of the block's correction, um (see NodeSet).
     counts : (rows,) nodes per segment row of the source chunk (for write_corrected), or None.
     """
 
@@ -114,11 +120,12 @@ class PlanResult:
     unknown: np.ndarray
     outside: np.ndarray
     pinned: np.ndarray
+    sd_um: np.ndarray
     counts: np.ndarray | None = None
 
     FIELDS = ("line", "inserted", "rapid", "nominal", "corrected", "correction", "before", "after",
               "before_axis", "after_axis", "flags", "iterations", "converged", "unknown", "outside",
-              "pinned")
+              "pinned", "sd_um")
 
     def __len__(self):
         return int(self.line.shape[0])
@@ -203,11 +210,27 @@ class Planner:
         lo, hi = self.support
         return known & ((q < lo - SUPPORT_TOL) | (q > hi + SUPPORT_TOL))
 
-    def _pinned(self, unknown, outside):
+    def _pinned(self, unknown, outside, sd_um):
         pinned = unknown.any(axis=1)
         if not self.options.extrapolate:
             pinned |= outside.any(axis=1)
+        limit = self.options.max_correction_sd_um
+        if limit:
+            pinned |= sd_um > limit            # NaN (not evaluated) compares False
         return pinned
+
+    def _sd_um(self, q, ctx, unknown, outside):
+        """(n,) the standard error of each block's correction (um), NaN for blocks that are not
+        corrected anyway (an unknown axis, outside the support) and when no limit is asked."""
+        sd = np.full(q.shape[0], np.nan)
+        if not self.options.max_correction_sd_um:
+            return sd
+        todo = ~unknown.any(axis=1)
+        if not self.options.extrapolate:
+            todo &= ~outside.any(axis=1)
+        if todo.any():
+            sd[todo] = self.ev.correction_sd_um(q[todo], ctx[todo])
+        return sd
 
     def _solve_free(self, q, ctx) -> Linearization:
         parts = split_rows(self._solve_free_part, q.shape[0], self._split, q, ctx)
@@ -243,8 +266,10 @@ class Planner:
             exempt[0] = True
         unknown = np.zeros(q.shape, bool)
         outside = self._outside(q, ~unknown)
-        nodes = NodeSet(q, self._context(feed, dirs, n), exempt, line, np.zeros(n, bool), rapid,
-                        unknown, outside, self._pinned(unknown, outside))
+        ctx = self._context(feed, dirs, n)
+        sd = self._sd_um(q, ctx, unknown, outside)
+        nodes = NodeSet(q, ctx, exempt, line, np.zeros(n, bool), rapid, unknown, outside,
+                        self._pinned(unknown, outside, sd), sd)
         lin = self._solve_free(nodes.q, nodes.context)
         if n:
             self._last_end = (nodes.q[-1], lin.x[-1])
@@ -270,7 +295,8 @@ class Planner:
             self._after_cycle = bool(cycle[-1])
         unknown = ~known
         outside = self._outside(end, known)
-        pinned = self._pinned(unknown, outside)
+        sd = self._sd_um(end, ctx, unknown, outside)
+        pinned = self._pinned(unknown, outside, sd)
         lin_end = self._solve_free(end, ctx)
         first = self._last_end is None
         exempt = (rapid | cycle) & (not self.problem.step_across_rapids)
@@ -294,7 +320,7 @@ class Planner:
         counts = np.ones(nrows, np.int64)
         if inner is None:
             nodes = NodeSet(end, ctx, exempt, np.asarray(chunk.line), np.zeros(nrows, bool), rapid,
-                            unknown, outside, pinned)
+                            unknown, outside, pinned, sd)
             return nodes, lin_end, counts
         rows_i, t_i, q_i, lin_i = inner
         np.add.at(counts, rows_i, 1)
@@ -312,7 +338,7 @@ class Planner:
         ex_all = firsts & exempt[row_sorted]
         nodes = NodeSet(q_all, ctx_all, ex_all, np.asarray(chunk.line)[row_sorted], ins_all,
                         rapid[row_sorted], unknown[row_sorted], outside[row_sorted],
-                        pinned[row_sorted])
+                        pinned[row_sorted], sd[row_sorted])
         lin = Linearization.concatenate([lin_i, lin_end]).take(order)
         return nodes, lin, counts
 
@@ -408,7 +434,7 @@ class Planner:
         return PlanResult(nodes.line, nodes.inserted, nodes.rapid, nodes.q, corrected, correction,
                           before[:, :3], after[:, :3], before[:, 3:6] if five else None,
                           after[:, 3:6] if five else None, flags, lin.iterations, lin.converged,
-                          nodes.unknown, nodes.outside, nodes.pinned)
+                          nodes.unknown, nodes.outside, nodes.pinned, nodes.sd_um)
 
     def _tick(self):
         cb = self.options.progress
@@ -662,7 +688,7 @@ def _empty_nodes(planner: Planner) -> NodeSet:
     na, nc = planner.na, planner.problem.fitted.model.n_context
     return NodeSet(np.zeros((0, na)), np.zeros((0, nc)), np.zeros(0, bool), np.zeros(0, np.int64),
                    np.zeros(0, bool), np.zeros(0, bool), np.zeros((0, na), bool),
-                   np.zeros((0, na), bool), np.zeros(0, bool))
+                   np.zeros((0, na), bool), np.zeros(0, bool), np.zeros(0))
 
 
 def _empty_lin(planner: Planner) -> Linearization:

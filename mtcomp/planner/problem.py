@@ -21,6 +21,11 @@ from ..errors import InputError
 from ..machine import Machine
 from ..models.model_file import FittedModel
 
+#: a block whose correction's standard error exceeds this (um) is left uncorrected: the model is
+#: unsure there (a profile bridged by the penalty over a gap, a tool length far from the measured
+#: ones), and a correction that may be wrong by more than it removes is not written
+DEFAULT_MAX_CORRECTION_SD_UM = 2.0
+
 METHODS = ("qp", "pinv", "newton")
 #: output resolution of SPEC section 4: 4 decimals of mm and deg; 5 decimals of inch
 MM_GRID = 1e-4
@@ -172,6 +177,9 @@ class PlannerOptions:
     extrapolate : correct blocks outside the region the model's data reached (its support) too;
         default False: they get no correction (their bounds are zero; the step bound ramps the
         corrections of their neighbours in and out).
+    max_correction_sd_um : a block whose correction's standard error (the model's covariance, um)
+        exceeds this gets no correction, like one outside the support; None or 0: no such limit.
+        Models without a covariance are not limited.
     threads : threads for the per-block work and for planning ahead of the consumer of
         ``Planner.iter_chunks``; 0 (default): ``$MTCOMP_THREADS`` if set, else the CPUs available,
         at most 4; 1: everything in the calling thread. The plan is the same for any number.
@@ -189,6 +197,7 @@ class PlannerOptions:
     progress: object = field(default=None, compare=False)
     threads: int = 0
     extrapolate: bool = False
+    max_correction_sd_um: float | None = DEFAULT_MAX_CORRECTION_SD_UM
 
     def __post_init__(self):
         if self.method not in METHODS:

@@ -18,7 +18,11 @@ One row per output block (every G0/G1 line written for a motion, internal nodes 
   position and correction cells, and the block's predicted deviations, are blank.
 * ``outside_support``: the axes outside the region the model's data reached; without
   ``--extrapolate`` such a block gets no correction.
-* ``corrected``: 1 if the block could be corrected (0: no correction, for one of the two reasons).
+* ``corrected``: 1 if the block could be corrected (0: no correction, for one of the reasons).
+* ``correction_sd_um``: the standard error of the block's correction (um, from the model's
+  covariance; blank where it was not evaluated: an unknown axis, outside the support, a model
+  without a covariance, or no limit asked); ``uncertain``: 1 when that exceeds
+  ``--max-correction-sd-um`` and the block was left uncorrected for it.
 """
 from __future__ import annotations
 
@@ -39,12 +43,14 @@ def report_columns(axis_names, five_axis: bool) -> list[str]:
         cols += [f"ex_{when}_um", f"ey_{when}_um", f"ez_{when}_um", f"e_{when}_um"]
         if five_axis:
             cols += [f"ei_{when}_urad", f"ej_{when}_urad", f"ek_{when}_urad", f"e_axis_{when}_urad"]
-    cols += ["active_bounds", "unknown_axes", "outside_support", "corrected"]
+    cols += ["active_bounds", "unknown_axes", "outside_support", "corrected", "correction_sd_um",
+             "uncertain"]
     return cols
 
 
-def report_rows(result: PlanResult, axis_names) -> list[str]:
-    """CSV text lines (with newline) of one planned result."""
+def report_rows(result: PlanResult, axis_names, max_correction_sd_um: float | None = None) -> list[str]:
+    """CSV text lines (with newline) of one planned result (``max_correction_sd_um``: the limit
+    the plan used, for the ``uncertain`` column)."""
     rot = np.array([a in "ABC" for a in axis_names])
     pos = np.where(rot, np.degrees(result.corrected), result.corrected)
     # an axis the program has not positioned has no position to show, and a deviation predicted there
@@ -73,12 +79,22 @@ def report_rows(result: PlanResult, axis_names) -> list[str]:
     bounds = result.active_bounds(axis_names)
     unknown = _axis_letters(result.unknown, axis_names)
     outside = _axis_letters(result.outside, axis_names)
-    fmt = ",".join(fmts) + ",%s,%s,%s,%d\n"
+    sd = ["" if not np.isfinite(v) else f"{v:.4f}" for v in result.sd_um.tolist()]
+    uncertain = _uncertain(result, max_correction_sd_um).astype(int).tolist()
+    fmt = ",".join(fmts) + ",%s,%s,%s,%d,%s,%d\n"
     lines = [fmt % row for row in zip(*[c.tolist() for c in cols], bounds, unknown, outside,
-                                        (~result.pinned).astype(int).tolist())]
+                                        (~result.pinned).astype(int).tolist(), sd, uncertain)]
     for i in np.flatnonzero(blank):
         lines[i] = ",".join("" if f == "nan" else f for f in lines[i][:-1].split(",")) + "\n"
     return lines
+
+
+def _uncertain(result: PlanResult, limit: float | None) -> np.ndarray:
+    """(n,) bool: blocks left uncorrected because their correction's standard error exceeds limit."""
+    if not limit:
+        return np.zeros(len(result), bool)
+    with np.errstate(invalid="ignore"):
+        return result.sd_um > limit
 
 
 def _axis_letters(mask, axis_names) -> list[str]:
@@ -113,6 +129,12 @@ class Summary:
     first_outside_line: int = 0
     extrapolate: bool = False
     support_known: bool = True
+    #: the limit on a correction's standard error (um) the plan used, None: none
+    max_correction_sd_um: float | None = None
+    uncertain_blocks: int = 0
+    max_sd_um: float = 0.0
+    #: the model carries a covariance (without one no block's standard error is known)
+    has_covariance: bool = True
     #: the same figures over the corrected blocks only (``corrected`` = 1 in BLOCKS.csv)
     corrected_blocks: int = 0
     corrected_max_before_um: float = 0.0
@@ -129,6 +151,10 @@ class Summary:
         unknown = r.unknown.any(axis=1)
         self.unknown_blocks += int(unknown.sum())
         outside = r.outside.any(axis=1) & ~unknown
+        uncertain = _uncertain(r, self.max_correction_sd_um) & ~unknown & ~(outside & ~self.extrapolate)
+        self.uncertain_blocks += int(uncertain.sum())
+        if np.isfinite(r.sd_um).any():
+            self.max_sd_um = max(self.max_sd_um, float(np.nanmax(r.sd_um)))
         if outside.any():
             self.outside_blocks += int(outside.sum())
             if not self.first_outside_line:
@@ -191,7 +217,10 @@ class Summary:
                              "max_after_um": self.corrected_max_after_um,
                              "rms_after_um": float(np.sqrt(self.corrected_sum_sq_after / nc))},
                "uncorrected": {"unknown_axes": self.unknown_blocks,
-                               "outside_support": 0 if self.extrapolate else self.outside_blocks},
+                               "outside_support": 0 if self.extrapolate else self.outside_blocks,
+                               "uncertain": self.uncertain_blocks},
+               "max_correction_sd_um": self.max_correction_sd_um,
+               "largest_correction_sd_um": self.max_sd_um if self.max_correction_sd_um else None,
                "outside_support_blocks": self.outside_blocks,
                "bounded_blocks": self.bounded_blocks,
                "active_bounds": dict(sorted(self.flag_counts.items())),
@@ -242,6 +271,14 @@ class Summary:
                     else "not corrected (pass --extrapolate to correct them)")
             lines.append(f"{blocks(self.outside_blocks)} outside the region the model's data reached "
                          f"({axes}; first at line {self.first_outside_line}): {what}")
+        if self.uncertain_blocks:
+            lines.append(f"{blocks(self.uncertain_blocks)} not corrected: the model is unsure there "
+                         f"(a correction's standard error above {self.max_correction_sd_um:g} um, "
+                         f"largest {self.max_sd_um:.3f} um; BLOCKS.csv column correction_sd_um); "
+                         "more data there, or a larger --max-correction-sd-um, corrects them")
+        if self.max_correction_sd_um and not self.has_covariance:
+            lines.append("note: the model carries no covariance (identify writes one): no block's "
+                         "correction could be checked against --max-correction-sd-um")
         if not self.support_known:
             lines.append("note: the model does not state the region its data reached; every "
                          "block was corrected as if inside it")

@@ -1,0 +1,228 @@
+"""Roughness penalties on the error profiles and the choice of their weights (penalised splines).
+
+What the data leave open between what they measured (an angular profile between the nodes of a
+coarse grid, seen only through the difference of two styli; the coefficients of a spline between
+two laser targets) is not free: a profile follows the smoothest curve through what was measured.
+
+**The penalty** (Eilers and Marx 1996, "Flexible smoothing with B-splines and penalties", eq. 5 and
+its integrated form): a component error ``E(s) = sum_j c_j B_j(s)`` of a linear axis on uniform
+B-splines with knot spacing h carries
+
+    P(c) = h^-3 |D2 c|^2  ~=  integral of E''(s)^2 ds,
+
+D2 the second-difference matrix of the full coefficient vector (the function mtcomp drops to fix
+the reference, ``SplineBasis.kept``, has coefficient 0; a constant and a straight line have no
+second difference, so the reference does not change the penalty). The factor h^-3 makes one weight
+mean the same curvature on axes with different knot spacing. A rotary axis's Fourier series
+``f = sum_k a_k cos k theta + b_k sin k theta`` (its positioning error, its error motions) carries
+the exact integral ``pi sum_k k^4 (a_k^2 + b_k^2)`` of ``f''(theta)^2`` over a turn, the periodic
+counterpart.
+
+**One weight per class** of component (positioning, straightness and angular errors of linear axes;
+angular and translational errors of rotary axes), chosen by REML (Wood 2011, "Fast stable restricted
+maximum likelihood and marginal likelihood estimation of semiparametric generalized linear models",
+eq. 4 with the scale profiled out) on the linearised problem: the model is linear in its parameters
+up to products of the errors, so the normal matrix at the start point serves. With y the
+coefficients in the fitted directions, ``AB`` the data's normal matrix there and ``S(l) = sum l_k
+S_k`` the penalty,
+
+    V(rho) = (n - M_p)/2 log(RSS + pen) + 1/2 log|AB + S| - 1/2 sum_k r_k rho_k,  l_k = exp(rho_k)
+
+(r_k the rank of S_k, M_p the dimension of the unpenalised directions). REML is preferred to GCV:
+it is less prone to undersmoothing and its optimum is well defined (Wood 2011, section 1).
+
+**Uncertainty**: the Bayesian posterior covariance ``phi (AB + S)^-1`` (Wood 2006, "On confidence
+intervals for generalized additive models based on penalized regression splines", eq. 3): where a
+prediction rests on the penalty rather than on data, its standard error says so.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+import scipy.optimize
+
+#: the classes of component that share one penalty weight
+CLASSES = ("positioning", "straightness", "angular", "rotary angular", "rotary translational")
+#: log weights are searched in [-RHO_BOUND, RHO_BOUND] about the class's normalised penalty
+RHO_BOUND = 30.0
+
+
+def component_class(machine, group: str) -> str | None:
+    """The penalty class of a parameter group ('X:EXX' -> 'positioning'), None for groups without a
+    profile (squareness, locations, set-ups ...)."""
+    if ":" not in group:
+        return None
+    axis, comp = group.split(":", 1)
+    if len(comp) != 3 or not comp.startswith("E") or axis not in machine.axis_names:
+        return None
+    direction, of = comp[1], comp[2]
+    if of != axis:
+        return None
+    if machine.axis(axis).is_rotary:
+        return "rotary angular" if direction in "ABC" else "rotary translational"
+    if direction in "ABC":
+        return "angular"
+    return "positioning" if direction == axis else "straightness"
+
+
+def penalty_matrices(model, free_idx: np.ndarray, n_unknowns: int) -> dict[str, np.ndarray]:
+    """{class: (n_unknowns, n_unknowns) S_k} in internal units of the unknowns (free parameters in
+    the order of ``free_idx``, then nuisance: unpenalised). Classes without a penalised parameter
+    are left out."""
+    machine = model.machine
+    specs = model.param_specs
+    position = {int(i): k for k, i in enumerate(free_idx)}
+    groups: dict[str, list[int]] = {}
+    for i, s in enumerate(specs):
+        if i in position:
+            groups.setdefault(s.group, []).append(i)
+    out: dict[str, np.ndarray] = {}
+    for group, idx in groups.items():
+        cls = component_class(machine, group)
+        if cls is None:
+            continue
+        axis = machine.axis(group.split(":", 1)[0])
+        names = [specs[i].name.rsplit("_", 1)[1] for i in idx]
+        block = _block(axis, names)
+        if block is None:
+            continue
+        keep, P = block
+        S = out.setdefault(cls, np.zeros((n_unknowns, n_unknowns)))
+        pos = np.array([position[idx[j]] for j in keep], dtype=int)
+        S[np.ix_(pos, pos)] += P
+    return out
+
+
+def _block(axis, suffixes: list[str]):
+    """(indices into suffixes, penalty matrix) of one component's parameters, or None."""
+    if axis.is_rotary:
+        # Fourier harmonics c<k>, s<k>: integral of f''^2 over a turn = pi sum k^4 (a_k^2 + b_k^2)
+        keep, diag = [], []
+        for j, suf in enumerate(suffixes):
+            if suf[:1] in ("c", "s") and suf[1:].isdigit():
+                keep.append(j)
+                diag.append(np.pi * int(suf[1:]) ** 4)
+        return (keep, np.diag(diag)) if keep else None
+    if axis.basis != "bspline":
+        return None
+    spline = axis.spline()
+    n = spline.n_basis
+    if n < 3:
+        return None
+    keep, cols = [], []
+    for j, suf in enumerate(suffixes):
+        if suf.startswith("b") and suf[1:].isdigit():
+            keep.append(j)
+            cols.append(int(suf[1:]))
+    if not keep:
+        return None
+    D2 = np.diff(np.eye(n), 2, axis=0)
+    P = (D2.T @ D2)[np.ix_(cols, cols)] / spline.h ** 3
+    return keep, P
+
+
+@dataclass
+class Smoothing:
+    """The penalty weights chosen for a fit.
+
+    weights : {class: lambda} per internal unit of the class's profiles (mm or rad, per mm^3 of
+        travel for linear axes). rho : {class: log of the normalised weight}. edf : effective
+        degrees of freedom of the fit (trace of the hat matrix). criterion : 'REML'.
+    """
+
+    weights: dict
+    rho: dict
+    edf: float
+    criterion: str = "REML"
+
+    def to_dict(self) -> dict:
+        return {"criterion": self.criterion, "edf": float(self.edf),
+                "weights": {k: float(v) for k, v in self.weights.items()}}
+
+
+def _logdet_solve(M: np.ndarray, b: np.ndarray):
+    """(log|M|, M^-1 b) of a symmetric positive definite M, by Cholesky (eigenvalues where it fails)."""
+    try:
+        c, low = scipy.linalg.cho_factor(M)
+        return 2.0 * float(np.sum(np.log(np.diag(c)))), scipy.linalg.cho_solve((c, low), b)
+    except np.linalg.LinAlgError:
+        # at the edge of the weights' range round-off leaves M not quite positive definite:
+        # eigenvalues below 1e-14 of the largest count at that floor
+        w, V = np.linalg.eigh(0.5 * (M + M.T))
+        w = np.clip(w, 1e-14 * max(float(w.max()), 1e-300), None)
+        return float(np.sum(np.log(w))), V @ ((V.T @ b) / w)
+
+
+def reml_criterion(rho: np.ndarray, AB: np.ndarray, gB: np.ndarray, rss0: float, SB: list, bz: list,
+                   cz: list, n_obs: int, gradient: bool = True):
+    """(V, dV/drho or None, AB + S) of the REML criterion of the module docstring at log weights rho
+    (the arguments as :func:`reml_weights` takes them)."""
+    ranks = _ranks(SB)
+    mp = AB.shape[0] - int(ranks.sum())
+    lam = np.exp(rho)
+    H = AB + sum(l * Sk for l, Sk in zip(lam, SB))
+    b = gB - sum(l * bk for l, bk in zip(lam, bz))
+    try:
+        factor = scipy.linalg.cho_factor(H)
+        logdet = 2.0 * float(np.sum(np.log(np.diag(factor[0]))))
+        y = scipy.linalg.cho_solve(factor, b)
+        inv_S = [scipy.linalg.cho_solve(factor, Sk) for Sk in SB] if gradient else []
+    except np.linalg.LinAlgError:
+        # at the edge of the weights' range round-off leaves H not quite positive definite:
+        # eigenvalues below 1e-14 of the largest count at that floor
+        w, V = np.linalg.eigh(0.5 * (H + H.T))
+        w = np.clip(w, 1e-14 * max(float(w.max()), 1e-300), None)
+        logdet = float(np.sum(np.log(w)))
+        y = V @ ((V.T @ b) / w)
+        inv_S = [V @ ((V.T @ Sk) / w[:, None]) for Sk in SB] if gradient else []
+    pen_k = np.array([float(y @ Sk @ y + 2.0 * y @ bk + ck) for Sk, bk, ck in zip(SB, bz, cz)])
+    total = max(rss0 - 2.0 * float(gB @ y) + float(y @ AB @ y) + float(lam @ pen_k), 1e-300)
+    value = 0.5 * (n_obs - mp) * np.log(total) + 0.5 * logdet - 0.5 * float(ranks @ rho)
+    if not gradient:
+        return value, None, H
+    # y minimises the penalised sum, so its derivative by rho_k is lam_k pen_k(y) alone (envelope
+    # theorem); d log|H| / d rho_k = lam_k tr(H^-1 S_k)
+    grad = (0.5 * (n_obs - mp) * lam * pen_k / total
+            + 0.5 * lam * np.array([np.trace(M) for M in inv_S]) - 0.5 * ranks)
+    return value, grad, H
+
+
+def _ranks(SB) -> np.ndarray:
+    return np.array([np.linalg.matrix_rank(S, tol=1e-9 * max(np.abs(S).max(), 1e-300)) for S in SB])
+
+
+def reml_weights(AB: np.ndarray, gB: np.ndarray, rss0: float, SB: list[np.ndarray],
+                 bz: list[np.ndarray], cz: list[float], n_obs: int,
+                 start: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+    """Log weights rho (one per penalty) minimising the REML criterion of the module docstring, and
+    the effective degrees of freedom at them.
+
+    AB : (k, k) data normal matrix in the fitted directions. gB : (k,) gradient of the data term
+    (J^T r at the linearisation point). rss0 : the residual sum of squares there. SB : the penalties
+    (k, k) in those directions, each normalised. bz, cz : the penalties' linear and constant parts
+    from a non-zero start point, pen_k(y) = y^T SB_k y + 2 y^T bz_k + cz_k. start : log weights to
+    refine from (skips the coarse grid).
+    """
+    m = len(SB)
+    args = (AB, gB, rss0, SB, bz, cz, n_obs)
+
+    def criterion(rho):
+        return reml_criterion(rho, *args, gradient=False)[0]
+
+    # a common weight on a coarse grid first (the criterion is flat far out and may have shallow
+    # local minima), then every class's own from there, with the exact gradient
+    if start is None:
+        grid = np.arange(-RHO_BOUND, RHO_BOUND + 1e-9, 2.0)
+        rho = np.full(m, min(grid, key=lambda r: criterion(np.full(m, r))))
+    else:
+        rho = np.asarray(start, dtype=float)
+    res = scipy.optimize.minimize(lambda r: reml_criterion(r, *args)[:2], rho, jac=True,
+                                  method="L-BFGS-B", bounds=[(-RHO_BOUND, RHO_BOUND)] * m,
+                                  options={"maxiter": 500, "ftol": 1e-15, "gtol": 1e-9})
+    if res.fun <= criterion(rho):
+        rho = res.x
+    H = reml_criterion(rho, *args, gradient=False)[2]
+    edf = float(np.trace(_logdet_solve(H, AB)[1]))
+    return rho, edf
