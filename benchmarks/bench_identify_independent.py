@@ -23,24 +23,27 @@ three-sphere ball-bar file, error motions of A and C in the machine file, the ca
 the linear axes held), then the C-axis points against the truth: mean and max distance (um), and the
 paper's 0.3 / 0.78 um beside them.
 
-    python benchmarks/bench_identify_independent.py [--machines 50] [--topologies XFYZ CAFXYZ CBFXYZ]
-    python benchmarks/bench_identify_independent.py --machines 0 --seed003 20
+    PYTHONPATH=tests python benchmarks/bench_identify_independent.py [--machines 50] [--topologies XFYZ CAFXYZ CBFXYZ]
+    PYTHONPATH=tests python benchmarks/bench_identify_independent.py --machines 0 --seed003 20
+
+(The independent machine is test code: it lives in tests/, not in the mtcomp package, so tests/ goes
+on PYTHONPATH, as for bench_diagnose.py.)
 """
 from __future__ import annotations
 
 import argparse
 import math
 import statistics
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-# the independent machine is test code: it lives in tests/ (not in the mtcomp package)
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-
-from independent_cases import (SEED003_HOLD, clean_campaign, heldout_by_run, seed003_case,  # noqa: E402
-                               seed003_errors_um)
+try:
+    from independent_cases import (SEED003_HOLD, clean_campaign, heldout_by_run, seed003_case,
+                                   seed003_errors_um)
+except ImportError:
+    raise SystemExit("bench_identify_independent: run it with tests/ on PYTHONPATH "
+                     "(PYTHONPATH=tests python benchmarks/bench_identify_independent.py)") from None
 
 
 def main() -> int:

@@ -1,9 +1,11 @@
-"""Seed 000: Abbe positioning error about the worktable's instantaneous rotation centre (IRC).
+"""Yang et al. (2020): Abbe positioning error about the worktable's instantaneous rotation centre (IRC).
 
-Replays the paper's experiment on the virtual machine: the X axis of an XFYZ machine moves 200 mm in
-5 mm steps, 3 runs at 180, 240 and 300 mm/min. A laser reads the positioning error at the point B
-(yaw Abbe arm 210 mm, pitch arm 100 mm from the scale) and the yaw and pitch angles; two velocity
-sensors at M and N give the IRC (eq. 1). The positioning error at B is compensated twice:
+Replays the experiment of Hong-Tao Yang, Li Li, Yong-Jun Pang and Bang-Shen Chen, "Abbe Positioning
+Error Modeling and Compensation of CNC Machine Tools Based on Instantaneous Rotation Center" (2020;
+docs/references.md) on the virtual machine: the X axis of an XFYZ machine moves 200 mm in 5 mm
+steps, 3 runs at 180, 240 and 300 mm/min. A laser reads the positioning error at the point B (yaw Abbe
+arm 210 mm, pitch arm 100 mm from the scale) and the yaw and pitch angles; two velocity sensors at M
+and N give the IRC (eq. 1). The positioning error at B is compensated twice:
 
 * traditionally, with the nominal arms (eq. 4 with Y_B = 210 mm, Z_B = 100 mm);
 * about the IRC: the yaw arm is measured from O_p instead (eqs. 2-4).
@@ -74,7 +76,7 @@ def main(argv=None) -> int:
         out.mkdir(parents=True, exist_ok=True)
         data = vm.campaign(plans, out)
         vel = data["velocity"]
-        print(f"seed 000: X axis, 200 mm in 5 mm steps, 3 runs per feed; files in {out}")
+        print(f"Yang et al. (2020): X axis, 200 mm in 5 mm steps, 3 runs per feed; files in {out}")
         print(f"{'feed':>8} {'IRC y_Op':>14} {'error':>8} {'trad.':>8} {'IRC':>8} "
               f"{'trad. gain':>11} {'IRC gain':>9} {'IRC - trad.':>12} {'paper':>6}")
         print(f"{'mm/min':>8} {'mm (min..max)':>14} {'um':>8} {'um':>8} {'um':>8} {'um':>11} "

@@ -1,14 +1,19 @@
-"""Seed 001: geometric error compensation of the bowl part by the pseudo-inverse (eqs. 27-30).
+"""Qi and Yang (2016): geometric error compensation of the bowl part by the pseudo-inverse (eqs. 27-30).
 
-Replays the paper's experiment on the virtual machine: an XFYZ machine with the 21 geometric errors
-(the squareness errors the paper measured, S_xy = -57.78, S_yz = -29.28, S_zx = 48.99 urad, and random
-component errors of machine-tool size) is measured (laser runs and a volumetric grid), the 21-term
-model is identified, the bowl program (80 x 80 mm, 13.8 mm deep, ball end of radius 3 mm) is
-compensated block by block with the seed's pseudo-inverse (``mtcomp compensate --method pinv``), both
-programs are "cut" on the virtual machine and each part is measured on a CMM at 100 evenly spread
-points of the bowl surface. Prints the total error of both parts, next to the paper's "about 30 %
-less" (a real cut also carries thermal, force and tool errors that geometric compensation does not
-touch; the virtual machine has only geometric errors and noise, so expect more).
+Replays the experiment of Qi Jibao and Yang Weimin, "Differential Change Construction Based Geometric
+Error Compensation for Machine Tools" (2016; docs/references.md) on the virtual machine: an XFYZ machine
+with the 21 geometric errors (the squareness errors the paper measured, S_xy = -57.78, S_yz = -29.28,
+S_zx = 48.99 urad, and random component errors of machine-tool size) is measured (laser runs and a
+volumetric grid), the 21-term model is identified, the bowl program (80 x 80 mm, 13.8 mm deep, ball end
+of radius 3 mm) is compensated block by block with the paper's pseudo-inverse
+(``mtcomp compensate --method pinv``), both programs are "cut" on the virtual machine and each part is
+measured on a CMM at 100 evenly spread points of the bowl surface. The part's datum is the fixture's
+zero at the machine origin (the program's coordinates are machine positions, no work offset), probed on
+the machine before the cut: the machine's error there is in the probed datum, so both parts are
+measured relative to it, and compensate references its corrections to it too. Prints the total error
+of both parts, next to the paper's "about 30 % less" (a real cut also carries thermal, force and tool
+errors that geometric compensation does not touch; the virtual machine has only geometric errors and
+noise, so expect more).
 
 Run: python examples/seed001_bowl.py [--out DIR]   (default: a temporary folder)
 """
@@ -27,11 +32,13 @@ from mtcomp.cli import main as mtcomp_main
 from mtcomp.diagnose.hidden import campaign_plans
 from mtcomp.identification.fit import identify
 from mtcomp.models import save_model
+from mtcomp.models.evaluate import deviation
 from mtcomp.sim import VirtualMachine, cmm_plan, random_truth
 from mtcomp.toolpaths.parts import bowl_normal, bowl_surface, write_bowl_program
 
 BALL_RADIUS_MM = 3.0
-#: seed 001's squareness, in mtcomp's names (docs/parameters.md: C0Y = -S_xy, A0Z = S_yz, B0Z = S_zx)
+#: the squareness Qi and Yang (2016) measured, in mtcomp's names
+#: (docs/parameters.md: C0Y = -S_xy, A0Z = S_yz, B0Z = S_zx)
 SQUARENESS_URAD = {"C0Y": 57.78, "A0Z": -29.28, "B0Z": 48.99}
 #: where the part centre (rim level) sits on the table: off the axis zeros, where errors are larger
 ORIGIN_MM = np.array([200.0, 150.0, -100.0])
@@ -74,15 +81,19 @@ def main(argv=None) -> int:
         if rc != 0:
             raise SystemExit(log.getvalue())
         pts, nrm = cmm_points()
+        # the true tool-tip deviation at the datum, the machine origin (approach directions unknown)
+        datum_error = deviation(truth.model, np.zeros((1, 3)), truth.params.values)[0, :3]
         parts = {}
         for label, program in (("uncompensated", "bowl.nc"), ("compensated", "bowl_pinv.nc")):
             # the CMM measures the part against the nominal surface: the corrections of the
             # compensated program are part of what it cut (include_path_offset)
             plan = cmm_plan(pts, nrm, out / program, BALL_RADIUS_MM, name=f"cmm_{label}",
                             include_path_offset=True)
-            parts[label] = vm.measure(plan, out / f"cmm_{label}.csv").normal_deviation * 1e3  # um
-        print(f"seed 001: bowl 80 x 80 x 13.8 mm, ball end R {BALL_RADIUS_MM:g} mm, {len(pts)} CMM "
-              f"points; files in {out}")
+            # measured against the part's datum: the machine's error there is in it
+            parts[label] = (vm.measure(plan, out / f"cmm_{label}.csv").normal_deviation
+                            - nrm @ datum_error) * 1e3                               # um
+        print(f"Qi and Yang (2016): bowl 80 x 80 x 13.8 mm, ball end R {BALL_RADIUS_MM:g} mm, "
+              f"{len(pts)} CMM points; files in {out}")
         print(f"{'CMM, deviation along the normal':<34} {'uncompensated':>14} {'compensated':>12}")
         b, a = parts["uncompensated"], parts["compensated"]
         rows = (("total error, sum |dn| (um)", np.sum(np.abs(b)), np.sum(np.abs(a))),

@@ -1,12 +1,14 @@
-"""Seed 002: positioning error and backlash of a rotary axis, measured with a laser, compensated.
+"""Pi et al. (2017): positioning error and backlash of a rotary axis, measured with a laser, compensated.
 
-Replays the experiment on the virtual machine: the C axis of a CAFXYZ double turntable (angular
-positioning error with a once- and twice-per-turn component, and backlash) is read by a laser and a
-rotary indexer every 30 deg, 5 runs in both directions. From the readings seed 002 builds a pitch
-compensation table and a backlash compensation (mtcomp.identification.seed_methods.rotary_positioning);
-the axis is then measured again with the compensated commands. Prints the ISO 230-2 figures before
-and after. The paper reports that accuracy "is largely improved after the compensation" (its figures
-8 and 9; the numbers are not legible in the OCR text we have).
+Replays the experiment of Pi Shiwei, Liu Qiang and Sun Pengpeng, "Geometric error detection for rotary
+feed drive based on laser interferometer" (2017; docs/references.md) on the virtual machine: the C axis
+of a CAFXYZ double turntable (angular positioning error with a once- and twice-per-turn component, and
+backlash) is read by a laser and a rotary indexer every 30 deg, 5 runs in both directions. From the
+readings the paper builds a pitch compensation table and a backlash compensation
+(mtcomp.identification.seed_methods.rotary_positioning); the axis is then measured again with the
+compensated commands. Prints the ISO 230-2 figures before and after. The paper reports that accuracy
+"is largely improved after the compensation" (its figures 8 and 9; the numbers are not legible in the
+OCR text we have).
 
 Run: python examples/seed002_rotary_laser.py [--out DIR]   (default: a temporary folder)
 """
@@ -54,8 +56,8 @@ def main(argv=None) -> int:
         out.mkdir(parents=True, exist_ok=True)
         before = vm.measure(plan, out / "rotary_laser_c_before.csv")
         comp = rotary_positioning(before, "C")
-        print(f"seed 002: C axis, {comp.targets.size} targets, 5 runs each way; files in {out}")
-        print("compensation table (seed 002):")
+        print(f"Pi et al. (2017): C axis, {comp.targets.size} targets, 5 runs each way; files in {out}")
+        print("compensation table (Pi et al. 2017):")
         print(comp.table())
         # the same cycle with compensated commands: pitch table plus half the backlash per direction
         intended = np.radians(np.asarray(plan.columns["target_deg"], dtype=float))

@@ -1,6 +1,8 @@
-"""Seed 003: the five position-dependent errors of a C axis by three-sphere intersection.
+"""Tan et al. (2026): the five position-dependent errors of a C axis by three-sphere intersection.
 
-Replays the experiment on the virtual machine: a CAFXYZ double turntable whose C axis has radial,
+Replays the experiment of Tan Zhi, Wang Peilü, Liu Chunshi et al., "Geometric error identification
+method for rotary axes based on three-sphere intersection positioning principle" (2026;
+docs/references.md) on the virtual machine: a CAFXYZ double turntable whose C axis has radial,
 axial and tilt error motions. A 100 mm ball bar runs from a table ball on the C axis, at 100 mm and
 200 mm above the table, to a tool ball along X, Y and Z; only C moves (every 10 deg, both ways,
 3 repeats). Per angle the three bar lengths locate the table ball (eqs. 10-14 after trilateration),
@@ -69,7 +71,7 @@ def main(argv=None) -> int:
         predicted = predict_table_point(errors, angles, centre)              # eq. 9 (as eq. 5)
         actual = table_point_positions(truth, angles, centre)               # the truth
         d_um = 1e3 * prediction_error(predicted, actual)                    # eq. 15
-        print(f"seed 003: ball bar {BAR:g} mm at heights {H1:g} and {H2:g} mm, {angles.size} C "
+        print(f"Tan et al. (2026): ball bar {BAR:g} mm at heights {H1:g} and {H2:g} mm, {angles.size} C "
               f"angles, {len(data)} readings; file in {out}")
         print(f"{'identified error':<18} {'min':>9} {'max':>9}  unit")
         for k in COMPONENTS:

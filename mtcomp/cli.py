@@ -1,4 +1,4 @@
-"""The ``mtcomp`` command line (SPEC section 5).
+"""The ``mtcomp`` command line (README.md lists the commands).
 
 Each command lives in ``mtcomp.commands.<name>`` with two functions: ``add_arguments(parser)`` and
 ``run(args) -> int``. Commands are imported only when used, so ``mtcomp machines`` stays fast.

@@ -5,13 +5,14 @@ render, and check the result against the virtual machine's truth.
    but realistic geometric truth plus a *hidden effect* the base model cannot express (backlash of the
    X axis by default). Laser runs of every axis (positioning and angular components, three feeds, two
    Abbe arms, one fine scan) and a volumetric grid with two tool lengths
-   (:func:`mtcomp.diagnose.hidden.campaign_plans`), written as SPEC CSV files.
-2. **Identify** the base model (SPEC section 6, "the simulation") from the files:
+   (:func:`mtcomp.diagnose.hidden.campaign_plans`), written as measurement CSV files
+   (docs/measurements.md).
+2. **Identify** the base model ("the simulation") from the files:
    :func:`mtcomp.identification.fit.identify`.
 3. **Diagnose**: what the base model gets wrong, the extension, the gain on held-out data
    (:func:`mtcomp.diagnose.diagnose`); REPORT.json and the extended MODEL.json.
-4. **Part program**: the seed-001 bowl (80 x 80 mm, 13.8 mm deep, ball end of radius 3 mm), a
-   zig-zag raster along X, so X reverses at the end of every pass.
+4. **Part program**: the bowl of Qi and Yang (2016) (80 x 80 mm, 13.8 mm deep, ball end of radius
+   3 mm), a zig-zag raster along X, so X reverses at the end of every pass.
 5. **Compensate** it with the extended model, and for comparison with the base model, by the real
    ``mtcomp compensate`` command (bounded QP; BLOCKS.csv).
 6. **Render** the predicted before/after error map (map.png, map.vtp), the bowl as the virtual machine
@@ -36,7 +37,7 @@ DEFAULT_OUT = "mtcomp-demo"
 #: the hidden effect of the default run: backlash of X, um (mean up minus mean down)
 HIDDEN_BACKLASH_UM = 6.0
 NOISE_UM, NOISE_URAD = 0.3, 0.5
-BOWL_TOOL_RADIUS_MM = 3.0   # seed 001: ball-end of radius 3 mm
+BOWL_TOOL_RADIUS_MM = 3.0   # Qi and Yang (2016): ball-end of radius 3 mm
 BOWL_RASTER_MM = 1.0        # step along and between passes (the paper's path: constant scallop)
 #: the part centre (rim level) on the table: away from the axis zeros, where the errors are larger
 BOWL_ORIGIN_MM = (200.0, 150.0, -100.0)
@@ -103,8 +104,9 @@ def form_error(dn_um, points, normals) -> np.ndarray:
 
 
 def write_bowl(path: Path) -> dict:
-    """Write the seed-001 bowl finishing program (:func:`mtcomp.toolpaths.parts.write_bowl_program`,
-    ball-end of radius 3 mm as in the paper, 1 mm raster) to ``path``; its description."""
+    """Write the bowl finishing program of Qi and Yang (2016)
+    (:func:`mtcomp.toolpaths.parts.write_bowl_program`, ball-end of radius 3 mm as in the paper, 1 mm
+    raster) to ``path``; its description."""
     from .toolpaths.parts import write_bowl_program
     tp = write_bowl_program(path, ball_radius_mm=BOWL_TOOL_RADIUS_MM, stepover_mm=BOWL_RASTER_MM,
                             step_mm=BOWL_RASTER_MM, origin_mm=BOWL_ORIGIN_MM)
@@ -171,7 +173,7 @@ def run_demo(out_dir=DEFAULT_OUT, seed: int = 2026, say=print) -> DemoResult:
 
     # 4. the part ---------------------------------------------------------------------------------
     bowl = out / "bowl.nc"
-    with steps.step("bowl", "writing the seed-001 bowl program"):
+    with steps.step("bowl", "writing the bowl program (Qi and Yang 2016)"):
         res.bowl = write_bowl(bowl)
         res.files.append("bowl.nc")
 
@@ -245,7 +247,7 @@ def summary_rows(res: DemoResult, report: dict, diag) -> list:
     rows.append(("form error removed (truth rms)",
                  f"{100 * (1 - b['truth_base_model'][0] / before):.0f} % with the base model, "
                  f"{100 * (1 - b['truth_extended_model'][0] / before):.0f} % with the extended model "
-                 "(seed 001: about 30 % on a real cut)"))
+                 "(Qi and Yang 2016: about 30 % on a real cut)"))
     return rows
 
 

@@ -1,4 +1,4 @@
-"""Machine descriptions: topology, axes, travel, rotary axis lines (SPEC section 2).
+"""Machine descriptions: topology, axes, travel, rotary axis lines (docs/machines.md).
 
 A :class:`Machine` is a frozen description. Algorithms take it as an argument and never change it.
 Internal units: mm and rad. The TOML file uses mm and deg.
@@ -61,7 +61,7 @@ class Axis:
     fourier_from_data : the machine file leaves ``fourier_order`` open: identification sets it from
         the number of distinct angles in the data (:func:`with_data_basis`).
     error_motion_order : harmonics of the radial, axial and tilt error motions of a rotary axis
-        (0: none, the base model of SPEC section 6).
+        (0: none, the base model).
     """
 
     name: str
@@ -108,7 +108,7 @@ class Axis:
 class Machine:
     """A machine tool: topology, axes and compensation defaults.
 
-    topology : seed notation, e.g. 'XFYZ', 'CAFXYZ'.
+    topology : e.g. 'XFYZ', 'CAFXYZ' (docs/conventions.md).
     axes : every axis, in the q order X Y Z A B C.
     workpiece_chain : axis names from the bed towards the workpiece.
     tool_chain : axis names from the bed towards the tool.

@@ -82,17 +82,23 @@ def _nominal_points(prog, machine):
     return np.round(read_program(prog, machine).segments().end, 4)
 
 
-def _actual_minus_nominal(fitted, q_written, q_nominal, chunk):
+def _actual_minus_nominal(fitted, q_written, q_nominal, chunk, datum=None):
     """Independent: nominal kinematics + model deviation at the written positions, with the context
-    of each block (feed and approach directions of the nominal program)."""
+    of each block (feed and approach directions of the nominal program), less the tip deviation at
+    the part's datum (``datum``: machine axis positions of the program's origin, default the
+    machine zero; at the model's reference conditions: every approach direction unknown, feed 0):
+    what compensate corrects is referenced to it."""
     m = fitted.machine
     cols = {"feed": chunk.feed}
+    c0 = fitted.context(len(chunk))
     cols.update({f"dir_{a}": chunk.dirs[:, j].astype(float) for j, a in enumerate(m.axis_names)})
     c = fitted.context(len(chunk), cols)
     tip, axis = forward(m, q_written)
     dev = deviation(fitted.model, q_written, fitted.params.values, c)
     tip0, axis0 = forward(m, q_nominal)
-    return np.concatenate([tip - tip0 + dev[:, :3], axis - axis0 + dev[:, 3:]], axis=1)
+    q_datum = np.zeros_like(q_written) if datum is None else np.broadcast_to(datum, q_written.shape)
+    ref = deviation(fitted.model, q_datum, fitted.params.values, c0)[:, :3]
+    return np.concatenate([tip - tip0 + dev[:, :3] - ref, axis - axis0 + dev[:, 3:]], axis=1)
 
 
 @pytest.mark.parametrize("method", ["qp", "newton", "pinv"])
@@ -295,7 +301,9 @@ def test_blocks_outside_the_support_are_not_corrected_unless_asked(tmp_path, cap
     for r in outside:
         assert float(r["cx_um"]) == 0 and float(r["cy_um"]) == 0 and float(r["cz_um"]) == 0
     inside = [r for r in rows if not r["outside_support"]]
-    assert max(abs(float(r["cz_um"])) for r in inside) > 0.3    # the others are corrected
+    # the others are corrected (near the part's datum, the origin, by little: 0.1 um)
+    norm = lambda r: float(np.hypot(np.hypot(float(r["cx_um"]), float(r["cy_um"])), float(r["cz_um"])))  # noqa: E731
+    assert all(r["corrected"] == "1" for r in inside) and max(norm(r) for r in inside) >= 0.1
     assert "2 blocks outside the region the model's data reached (X 2; first at line 5): not " \
            "corrected (pass --extrapolate" in stdout
     code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o", str(out),
@@ -304,7 +312,7 @@ def test_blocks_outside_the_support_are_not_corrected_unless_asked(tmp_path, cap
     assert code == 0, err
     rows = _read_report(rep)
     assert all(r["corrected"] == "1" for r in rows)
-    assert max(abs(float(r["cz_um"])) for r in rows if r["line"] == "5") > 0.3
+    assert max(norm(r) for r in rows if r["line"] == "5") > 0.3
     assert "corrected anyway (--extrapolate)" in stdout
 
 
@@ -406,10 +414,13 @@ def test_work_offset_and_tool_length_reach_the_model(tmp_path, capsys):
     q_mach = q_prog - corr + [100.0, 50.0, -200.0]
     c = fitted.context(len(rows), {"tool_length": np.full(len(rows), 80.0)})
     dev = deviation(fitted.model, q_mach, fitted.params.values, c)
-    np.testing.assert_allclose(before[known], dev[known, :3] * 1e3, rtol=0, atol=2e-3)
+    # referenced to the part's datum: the program's origin, the work offset, with the tool of H1
+    datum = deviation(fitted.model, np.tile([100.0, 50.0, -200.0], (len(rows), 1)),
+                      fitted.params.values, c)
+    np.testing.assert_allclose(before[known], (dev - datum)[known, :3] * 1e3, rtol=0, atol=2e-3)
     # an oracle with another offset disagrees: the test can fail
     dev0 = deviation(fitted.model, q_prog - corr, fitted.params.values, c)
-    assert np.abs(before[known] - dev0[known, :3] * 1e3).max() > 0.05
+    assert np.abs(before[known] - (dev0 - datum)[known, :3] * 1e3).max() > 0.05
     # the flags do the same as the file; a bad flag is one clear line
     code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o",
                               str(tmp_path / "o2.nc"), "--work-offset", "G54=X100,Q5"], capsys)
@@ -439,7 +450,11 @@ def test_drilling_cycles_are_corrected_as_cycles(tmp_path, capsys):
     # the cycle line carries the report's positions, R moved by the Z correction
     x, y, z = written[0]
     r = 2 + corr[0, 2]
-    assert dst[2] == f"G99 G82 X{x:.4f} Y{y:.4f} Z{z:.4f} R{r:.4f} P0.5 F100"
+    # a word whose correction is zero (the hole at the part's datum's Y: relative to it nothing to
+    # correct) stays as the program wrote it
+    word = lambda v, c, old: old if c == 0 else f"{v:.4f}"  # noqa: E731
+    assert dst[2] == (f"G99 G82 X{word(x, corr[0, 0], '5')} Y{word(y, corr[0, 1], '5')} "
+                      f"Z{word(z, corr[0, 2], '-3')} R{word(r, corr[0, 2], '2')} P0.5 F100")
     assert dst[10:] == src[10:]                             # the hole at an unknown X Y as written
 
 

@@ -71,7 +71,7 @@ def test_demo_compensation_helps_on_the_virtual_machine(demo_run):
     assert rows["extended model"][0] < 0.5 * rows["uncompensated"][0]
     assert rows["extended model"][0] < rows["base model comp."][0]
     assert re.search(rf"form error removed \(truth rms\)\s+{NUM} % with the base model, {NUM} % "
-                     r"with the extended model \(seed 001: about 30 % on a real cut\)", res.stdout)
+                     r"with the extended model \(Qi and Yang 2016: about 30 % on a real cut\)", res.stdout)
 
 
 def test_demo_map_and_blocks_agree_with_the_summary(demo_run):

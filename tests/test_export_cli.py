@@ -125,3 +125,52 @@ def test_terms_a_table_cannot_hold_are_named(tmp_path, capsys, terms, said):
     err = capsys.readouterr().err
     assert ("the tables leave out what depends on feed, time or temperature "
             "(feed_dependent_offset:X)" in err) == said, err
+
+
+@pytest.mark.parametrize("command", ["identify", "diagnose", "predict", "compensate", "export", "render",
+                                     "iso230-2", "machines", "demo"])
+def test_every_command_prints_its_help(command, capsys):
+    """--help prints and exits 0 (export's Siemens file names hold a '%', which argparse's help
+    formatting took for a placeholder and crashed on)."""
+    with pytest.raises(SystemExit) as stop:
+        main([command, "--help"])
+    assert stop.value.code == 0
+    assert "usage: mtcomp " + command in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("work_offset", [None, "G54=X100,Y50,Z-40"])
+def test_compensate_and_export_correct_alike_up_to_the_datum(tmp_path, work_offset, capsys):
+    """One laser model of X, two routes: the deviation compensate corrects at each block (BLOCKS.csv
+    ex_before_um) and the trim of the LinuxCNC table export writes (its forward column, comp type 1)
+    at the same machine position differ by one constant, the reference (compensate: the part's
+    datum, the program's work-offset origin; export: the machine zero), to 0.01 um. The datum's own
+    deviation is not corrected: the block at the program's origin has none."""
+    from truth import TruthMachine
+    from truth import campaigns as tc
+    rng = np.random.default_rng(4)
+    truth = TruthMachine.random("xfyz", rng, error_motions=False)
+    laser = tc.laser(truth, tmp_path / "laser_x.csv", rng, "X", components=["EXX"], n_runs=3,
+                     static={"Y": 50.0, "Z": -40.0}, noise_um=0.3).path
+    model = tmp_path / "m.json"
+    assert main(["identify", "xfyz", str(laser), "-o", str(model)]) == 0
+    shift = np.array([100.0, 50.0, -40.0]) if work_offset else np.array([0.0, 50.0, -40.0])
+    xs = np.arange(-200.0, 201.0, 25.0)                      # machine X, on the table's 1 mm grid
+    prog = tmp_path / "x.nc"
+    prog.write_text("G21 G90 G54\nG0 X0 Y0 Z0\n" + f"G0 X{xs[0] - shift[0] - 5:g} Y{50 - shift[1]:g} "
+                    f"Z{-40 - shift[2]:g}\n" + "".join(f"G1 X{x - shift[0]:g} F1000\n" for x in xs)
+                    + "M30\n")
+    rep = tmp_path / "b.csv"
+    args = ["compensate", "xfyz", str(model), str(prog), "-o", str(tmp_path / "o.nc"), "--report",
+            str(rep), "--subdivide-tol-um", "0", "--max-step-um", "50"]
+    assert main(args + (["--work-offset", work_offset] if work_offset else [])) == 0
+    assert main(["export", "xfyz", str(model), "--format", "linuxcnc", "-o", str(tmp_path / "lc")]) == 0
+    capsys.readouterr()
+    rows = {int(r["line"]): r for r in __import__("csv").DictReader(open(rep, newline=""))}
+    before = np.array([float(rows[4 + k]["ex_before_um"]) for k in range(xs.size)])
+    table = np.loadtxt(tmp_path / "lc" / "x.comp")
+    trim = np.interp(xs, table[:, 0], table[:, 1]) * 1e3    # forward: -(error) um, at machine X
+    diff = before + trim
+    np.testing.assert_allclose(diff, diff.mean(), rtol=0, atol=0.01)
+    # the program's origin (the first block, at the datum) has nothing to correct
+    assert float(rows[2]["ex_before_um"]) == pytest.approx(0.0, abs=1e-4)
+    assert np.ptp(before) > 5.0                              # um: there was an error to correct

@@ -224,25 +224,29 @@ def test_compensate_leaves_blocks_where_the_model_is_unsure(tmp_path):
     """The 200 mm gap between laser targets, bridged by the penalty: with --max-correction-sd-um
     between the standard error at the targets and the one in the gap, the blocks in the gap are left
     uncorrected (correction 0, corrected 0, uncertain 1) and the rest corrected. Each block's
-    correction_sd_um is the standard error of EXX there from the model's covariance, computed here
-    from the basis functions (a second formulation: the planner takes the model's Jacobian)."""
+    correction_sd_um is the standard error of EXX there less EXX at the part's datum (X -300, the
+    work offset: corrections are referenced to it) from the model's covariance, computed here from
+    the basis functions (a second formulation: the planner takes the model's Jacobian)."""
     from mtcomp.models import load_model
     fm, spline = _gap_fit(tmp_path, lambda t: 5.0 * np.sin(2 * np.pi * t / 500.0), "wave")
     model, prog = tmp_path / "m.json", tmp_path / "x.nc"
     xs = np.arange(-300.0, 300.1, 10.0)
-    prog.write_text("G21 G90\nG0 X-300 Y0 Z0\n" + "".join(f"G1 X{x:g} F1000\n" for x in xs[1:]) + "M30\n")
+    prog.write_text("G21 G90 G54\nG0 X0 Y0 Z0\n" + "".join(f"G1 X{x + 300:g} F1000\n" for x in xs[1:])
+                    + "M30\n")
     out, rep = tmp_path / "out.nc", tmp_path / "b.csv"
     subprocess.run([sys.executable, "-m", "mtcomp", "identify", "xfyz", str(tmp_path / "wave.csv"),
                     "-o", str(model)], check=True, capture_output=True, text=True)
     fm = load_model(model)
     at = xs
     J = np.zeros((at.size, len(fm.params.names)))
-    for j, phi in zip(spline.kept(False), spline.functions(at, False)):
-        J[:, fm.params.index(f"EXX_b{j}")] = 1e3 * phi
+    for j, phi, phi0 in zip(spline.kept(False), spline.functions(at, False),
+                            spline.functions(np.array([-300.0]), False)):
+        J[:, fm.params.index(f"EXX_b{j}")] = 1e3 * (phi - phi0)
     sd = fm.prediction_std(J)
     limit = float(np.sqrt(sd[np.abs(at) > 150].max() * sd.max()))     # between targets and gap
     run = subprocess.run([sys.executable, "-m", "mtcomp", "compensate", "xfyz", str(model), str(prog),
                           "-o", str(out), "--report", str(rep), "--max-correction-sd-um", f"{limit:.6f}",
+                          "--work-offset", "G54=X-300,Y0,Z0",
                           "--max-step-um", "50", "--subdivide-tol-um", "0"],
                          capture_output=True, text=True)
     assert run.returncode == 0, run.stderr

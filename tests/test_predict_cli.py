@@ -148,3 +148,30 @@ def test_predict_uses_context_columns(tmp_path):
     dx = np.array([float(r[header.index("pred_dx_um")]) for r in rows])
     # EXX_1 = 2 um per m at 100 mm: 0.2 um; +-2 um of backlash; blank dir (unknown): no step
     np.testing.assert_allclose(dx, [0.2 + 2.0, 0.2 - 2.0, 0.2], rtol=1e-9, atol=1e-9)
+
+
+def test_a_diagnosed_model_gives_every_prediction_its_standard_error(tmp_path):
+    """A diagnosed model carries its covariance (as identify's does): laser runs of X positioning at
+    13 targets, five bidirectional runs (10 readings a target), no hidden effect. The base follows
+    every target (one function a target), so the prediction at a target is its readings' mean less
+    the reference: its standard error is the noise over sqrt(10) (a hand-derived oracle), to within
+    the reference's share (1/13 of the variance) and the noise estimate."""
+    from mtcomp.diagnose import diagnose
+    from mtcomp.identification.fit import predict_readings
+    from mtcomp.machine import load_machine
+    from mtcomp.measurement.files import read_measurements
+    rng = np.random.default_rng(3)
+    rows = ["axis,component,target_mm,dir,run,value_um"]
+    for run in range(1, 6):
+        for t in np.arange(-300, 301, 50.0):
+            for d in (1, -1):
+                rows.append(f"X,EXX,{t},{d},{run},{10 * np.sin(t / 150) + rng.normal(0, 0.5):.4f}")
+    path = tmp_path / "laser_x.csv"
+    path.write_text("\n".join(rows) + "\n")
+    data = read_measurements(str(path))
+    diag = diagnose(load_machine("xfyz"), [data])
+    assert diag.findings == [] and diag.model.uncertainty is not None
+    sd = predict_readings(diag.model, data).columns["pred_value_um_sd"]
+    expected = diag.noise["um"].sigma / np.sqrt(10)
+    assert np.all(np.isfinite(sd))
+    np.testing.assert_allclose(sd, expected, rtol=0.12, atol=0)

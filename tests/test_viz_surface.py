@@ -187,7 +187,7 @@ def test_built_in_parts_are_recognised_by_their_header(tmp_path):
     from mtcomp.toolpaths.parts import write_bowl_program, write_cone_frustum_program
     from mtcomp.viz.surface import program_hints
     write_bowl_program(tmp_path / "b.nc", ball_radius_mm=2.5, stepover_mm=10.0, step_mm=10.0)
-    assert program_hints(tmp_path / "b.nc") == {"tool_radius_mm": 2.5, "part": "seed-001 bowl"}
+    assert program_hints(tmp_path / "b.nc") == {"tool_radius_mm": 2.5, "part": "bowl of Qi and Yang (2016)"}
     write_cone_frustum_program(tmp_path / "c.nc", load_machine("cafxyz"), n_points=24)
     h = program_hints(tmp_path / "c.nc")
     assert h["tool_radius_mm"] == 5.0

@@ -20,7 +20,7 @@ def note_outside_travel(command: str, machine, datasets) -> None:
 
 
 def add_cmm_arguments(parser) -> None:
-    """``--cmm-program`` and ``--cmm-tool-radius``: what cut the part of a cmm file (SPEC 3.4)."""
+    """``--cmm-program`` and ``--cmm-tool-radius``: what cut the part of a cmm file (docs/measurements.md)."""
     parser.add_argument("--cmm-program", metavar="[CMM.csv=]PART.nc", action="append", default=[],
                         help="the G-code that cut the part a cmm file measured (its cutter locations "
                              "say which pose made each surface point); CMM.csv= may be left out when "

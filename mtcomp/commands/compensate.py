@@ -19,7 +19,8 @@ def add_arguments(parser):
                         help="where to write the corrected program")
     parser.add_argument("--method", choices=("qp", "pinv", "newton"), default="qp",
                         help="qp: bounded optimisation over the whole program (default); pinv: one "
-                             "seed-001 pseudo-inverse step per block; newton: that step iterated")
+                             "pseudo-inverse step per block (Qi and Yang 2016); newton: that step "
+                             "iterated")
     parser.add_argument("--max-correction-um", type=float, metavar="U", default=None,
                         help="largest correction of a linear axis per block (um)")
     parser.add_argument("--max-correction-urad", type=float, metavar="R", default=None,

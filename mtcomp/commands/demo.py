@@ -1,4 +1,4 @@
-"""``mtcomp demo [--out DIR]``: the whole job on built-in defaults (SPEC section 5, docs/demo.md)."""
+"""``mtcomp demo [--out DIR]``: the whole job on built-in defaults (docs/demo.md)."""
 from __future__ import annotations
 
 

@@ -1,10 +1,11 @@
-"""`mtcomp diagnose MACHINE DATA... --json REPORT.json [-o MODEL.json] [--start MODEL.json]` (SPEC 5, 6).
+"""`mtcomp diagnose MACHINE DATA... --json REPORT.json [-o MODEL.json] [--start MODEL.json]`.
 
 Fits the base model to every DATA file, finds what it gets wrong (residual analysis against every
 context the data carry), extends it with the effects that earn their place on held-out data, and
-reports the gain. The printed report is for a metrologist; REPORT.json has the keys of SPEC 6;
-MODEL.json is the extended model (read by compensate, predict and render). Progress lines go to
-stderr. Outputs are written atomically, and only after the whole diagnosis succeeded.
+reports the gain. The printed report is for a metrologist; REPORT.json has the keys of
+docs/diagnose.md; MODEL.json is the extended model (read by compensate, predict and render).
+Progress lines go to stderr. Outputs are written atomically, and only after the whole diagnosis
+succeeded.
 docs/diagnose.md.
 """
 from __future__ import annotations

@@ -22,7 +22,7 @@ def add_arguments(parser):
     parser.add_argument("machine", metavar="MACHINE", help="built-in machine name or machine TOML file")
     parser.add_argument("model", metavar="MODEL.json", help="fitted model (identify or diagnose)")
     parser.add_argument("--format", required=True, choices=FORMAT_NAMES,
-                        help="; ".join(f"{k}: {v}" for k, v in FORMAT_HELP.items()))
+                        help="; ".join(f"{k}: {v}" for k, v in FORMAT_HELP.items()).replace("%", "%%"))
     parser.add_argument("-o", "--output", metavar="OUT", required=True,
                         help="output directory (file for klipper); files of the same names in an "
                              "existing directory are replaced")

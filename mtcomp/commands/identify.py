@@ -1,6 +1,6 @@
 """`mtcomp identify MACHINE DATA... -o MODEL.json`: fit the base error model to measurement files.
 
-Every DATA file is read (its kind is told by its columns, SPEC section 3), all of them are fitted at
+Every DATA file is read (its kind is told by its columns, docs/measurements.md), all of them are fitted at
 once (:func:`mtcomp.identification.fit.identify`), the summary is printed and MODEL.json is written
 atomically (nothing is written on error; an input is never overwritten). docs/identification.md.
 """

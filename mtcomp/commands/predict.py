@@ -1,7 +1,7 @@
 """`mtcomp predict MACHINE MODEL.json DATA.csv -o PRED.csv`: what a model predicts for a file's rows.
 
 PRED.csv repeats every input column verbatim and adds ``pred_<column>`` per measured column of the
-file's kind (SPEC section 5): points ``pred_dx_um, pred_dy_um, pred_dz_um`` (always) and
+file's kind (docs/identification.md): points ``pred_dx_um, pred_dy_um, pred_dz_um`` (always) and
 ``pred_dn_um`` (when the file has dn_um); laser ``pred_value_um`` / ``pred_value_urad``; ballbar
 ``pred_length_mm``; thermal ``pred_disp_<name>_um`` (and cmm, velocity as registered). Context
 columns (feed, dir, t_s, temperatures, tool_mm) are used, with the context defaults the fit used.

@@ -205,8 +205,9 @@ class Step:
 
 
 def step_test(st, resid, axis: str, sel=None) -> Step | None:
-    """Mean of (residual approached in +) minus (in -) at the same pose, for ``axis`` (seed 002 /
-    ISO 230-2 reversal), using residuals projected on the axis's positioning direction."""
+    """Mean of (residual approached in +) minus (in -) at the same pose, for ``axis`` (the backlash
+    of Pi et al. (2017) / ISO 230-2 reversal), using residuals projected on the axis's positioning
+    direction."""
     k = st.machine.axis_names.index(axis)
     g = st.g[axis]
     use = (np.abs(g) > 0.3 * np.max(np.abs(g))) & (st.dirs[:, k] != 0) & np.isfinite(resid)

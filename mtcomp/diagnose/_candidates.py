@@ -1,4 +1,4 @@
-"""The library of candidate extensions, one per effect of SPEC section 6.
+"""The library of candidate extensions, one per effect a diagnosis reports (docs/diagnose.md).
 
 Each candidate is a symbolic extension term of the error model (mtcomp.models.terms) together with
 its Jacobian columns at the current fit (from the probe model, see ``_stack``), so that selection is
@@ -28,7 +28,7 @@ LINE_FAP = 1e-3
 class Candidate:
     """One extension of the current model.
 
-    effect : SPEC effect name; axis : machine axis ('' for campaign-wide drift); variant : which form.
+    effect : the report's effect name; axis : machine axis ('' for campaign-wide drift); variant : which form.
     columns : (n, k) Jacobian columns (file units per internal parameter unit).
     terms : extension terms (mtcomp.models.terms) that implement it.
     params : (k,) parameter names of ``terms``, one per column.
@@ -144,8 +144,8 @@ def _backlash_profile_candidate(st, a: str, k: int, reads) -> Candidate | None:
 
 
 def _abbe_candidates(st, a: str) -> list[Candidate]:
-    """Seed 000: one candidate per way the Abbe error of axis ``a`` can depend on feed: the centre of
-    one angular error (E<b><a>, b = A, B, C) shifted along one coordinate in proportion to feed
+    """Yang et al. (2020): one candidate per way the Abbe error of axis ``a`` can depend on feed: the
+    centre of one angular error (E<b><a>, b = A, B, C) shifted along one coordinate in proportion to feed
     (``IRC_<b><a>_<c>_f``), or that angular error scaled by feed (``AG_<b><a>``). One parameter each,
     so that the report can say what moves."""
     cands = []

@@ -1,4 +1,4 @@
-"""`diagnose`: fit the base model, find what it gets wrong, extend it, measure the gain (SPEC 6).
+"""`diagnose`: fit the base model, find what it gets wrong, extend it, measure the gain.
 
 Steps (docs/diagnose.md explains them for a metrologist):
 
@@ -55,7 +55,7 @@ def cv_threshold(dk: int) -> float:
 
 @dataclass
 class Finding:
-    """One entry of the report's ``findings`` (SPEC 6): effect, axis, params, evidence, held-out rms
+    """One entry of the report's ``findings`` (docs/diagnose.md): effect, axis, params, evidence, held-out rms
     before and after (in ``unit``: um, or urad when the data hold no positions). ``candidate`` is the
     extension chosen: None for ``unexplained``, except where the model holds a term whose rival the
     data do not tell apart (``rival_alike``)."""
@@ -74,7 +74,8 @@ class Finding:
     rival_alike: str = ""
 
     def to_dict(self) -> dict:
-        # SPEC's keys are in um; data without positions keep them (null) and add their own unit's
+        # the stable keys (docs/diagnose.md) are in um; data without positions keep them (null) and add
+        # their own unit's
         out = {"effect": self.effect, "axis": self.axis, "params": self.params, "evidence": self.evidence,
                "heldout_rms_before_um": None, "heldout_rms_after_um": None}
         key = UNIT_KEYS.get(self.unit, self.unit)
@@ -102,7 +103,7 @@ def _r(v, nd=4):
 
 @dataclass
 class Diagnosis:
-    """What :func:`diagnose` returns: the report of SPEC 6 plus the extended model.
+    """What :func:`diagnose` returns: the report (docs/diagnose.md) plus the extended model.
 
     verdict : 'none', 'explained' or 'unexplained'.
     noise : unit ('um', 'urad') -> :class:`~mtcomp.diagnose._analysis.Noise`.
@@ -137,7 +138,7 @@ class Diagnosis:
         return float(n.sigma) if n else float("nan")
 
     def to_dict(self) -> dict:
-        """REPORT.json (SPEC 6 keys plus a few more)."""
+        """REPORT.json (the stable keys of docs/diagnose.md plus a few more)."""
         noise = {u: {"sigma": _r(n.sigma), "source": n.source, "dof": n.dof, "repeat_groups": n.n_groups}
                  for u, n in self.noise.items()}
         extra = {f"noise_{UNIT_KEYS[u]}": _r(n.sigma) for u, n in self.noise.items() if u != "um"}
@@ -476,8 +477,8 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
         if alike is not None:
             # held-out data and the BIC both lean to the more specific rival, only one decisively:
             # naming either would be a guess. The simpler term holds the residual (so that no third
-            # candidate takes it); the report names neither (seed 9180: a moving centre times a pitch
-            # no run measures reads almost as a feed offset)
+            # candidate takes it); the report names neither (benchmark seed 9180: a moving centre times a
+            # pitch no run measures reads almost as a feed offset)
             finding.rival_alike = f"{alike[0].effect} {alike[0].axis}"
             undecided.add((alike[0].effect, alike[0].axis))
             alike_entries.append((finding, _alike_entry(best, alike)))
@@ -850,13 +851,22 @@ def _fitted_model(st: Stack, design: Design, chosen: list[Candidate], fit) -> Fi
     feats = sorted({f for c in chosen for f in c.info.get("features", [])})
     if feats:
         info["drift_features"] = feats
-    return FittedModel(model, params, {}, info)
+    names, theta_idx, k = list(base), list(range(len(base))), m
+    for c in chosen:
+        for j, name in enumerate(c.params):
+            if name in params and name not in names:
+                names.append(name)
+                theta_idx.append(k + j)
+        k += c.columns.shape[1]
+    uncertainty = _uncertainty(model, design, extra, names, theta_idx, ~_setup_columns(st))
+    return FittedModel(model, params, {}, info, uncertainty=uncertainty)
 
 
-def _cov_diag(design: Design, extra: np.ndarray) -> np.ndarray:
-    """Variances (noise variance 1 after weighting) of the common-block parameters and the extra
-    columns' coefficients; NaN for a parameter that lies partly in a direction the data do not
-    determine (outside the subspace fixed at the start, or in the null space of the extras)."""
+def _covariance(design: Design, extra: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(covariance (m + k, m + k) of the common-block parameters and the extra columns'
+    coefficients, noise variance 1 after weighting; determined (m + k,) bool): a parameter is
+    determined unless it lies partly in a direction the data do not determine (outside the
+    subspace fixed at the start, or in the null space of the extras)."""
     G = design.gram(extra)
     m = design.A_original.shape[1]
     # in the determined subspace: parameters = [T 0; 0 I] (phi, extra coefficients)
@@ -870,12 +880,50 @@ def _cov_diag(design: Design, extra: np.ndarray) -> np.ndarray:
     wv, V = _eigh(H / np.outer(d, d))
     ok = wv > 1e-10 * wv.max()
     Hinv = ((V[:, ok] / wv[ok]) @ V[:, ok].T) / np.outer(d, d)
-    var = np.einsum("ij,jk,ik->i", B, Hinv, B)
+    cov = B @ Hinv @ B.T
     # a parameter is determined when its unit vector lies in the span of B (scaled coordinates)
     scale = np.sqrt(np.clip(np.diag(G), 0, None))
     scale = np.where(scale > 0, scale, 1.0)
     Bs = B * scale[:, None]
     Qb, rb = np.linalg.qr(Bs)
     Qb = Qb[:, np.abs(np.diag(rb)) > 1e-8 * max(np.abs(np.diag(rb)).max(), 1e-300)]
-    determined = np.sum(Qb ** 2, axis=1) > 0.999
-    return np.where(determined, var, np.nan)
+    return cov, np.sum(Qb ** 2, axis=1) > 0.999
+
+
+def _cov_diag(design: Design, extra: np.ndarray) -> np.ndarray:
+    """Variances (noise variance 1 after weighting) of the common-block parameters and the extra
+    columns' coefficients; NaN for a parameter the data do not determine (:func:`_covariance`)."""
+    cov, determined = _covariance(design, extra)
+    return np.where(determined, np.diag(cov), np.nan)
+
+
+def _uncertainty(model: ErrorModel, design: Design, extra: np.ndarray, names: list, theta_idx: list,
+                 machine_cols: np.ndarray) -> dict:
+    """The model file's ``uncertainty`` of a diagnosed model (as identify writes it): the machine
+    parameters' covariance (internal units, noise variance 1 after weighting) and the combinations
+    of them the data do not see at all, each scaled to 1 um rms tool-tip error over the travel
+    (mtcomp.identification.fit.travel_metric), so that a prediction resting on one is blank.
+
+    names : the machine parameters' names. theta_idx : their positions among the common block and
+    the extras. machine_cols : (m,) bool, the common block's machine (not set-up) columns."""
+    from ..identification.fit import DEFAULT_RCOND, travel_metric
+    cov, _ = _covariance(design, extra)
+    idx = np.asarray(theta_idx, dtype=int)
+    C = cov[np.ix_(idx, idx)]
+    # what the data do not see among the machine parameters alone (set-ups free to follow)
+    A = np.hstack([design.A_original[:, machine_cols], extra]) * design.w[:, None]
+    order = np.r_[np.flatnonzero(machine_cols), design.A_original.shape[1] + np.arange(extra.shape[1])]
+    pos = {int(t): j for j, t in enumerate(order)}
+    A = A[:, [pos[int(t)] for t in idx]]
+    norms = np.sqrt(np.einsum("ij,ij->j", A, A))
+    seen = norms > 1e-9 * max(float(norms.max()) if norms.size else 0.0, 1e-300)
+    s = np.where(seen, 1.0 / np.where(seen, norms, 1.0), 1.0)
+    w, V = _eigh((A * s).T @ (A * s))
+    N = s[:, None] * V[:, w <= DEFAULT_RCOND * max(float(w.max()), 1e-300)]
+    free = np.array([model.param_names.index(n) for n in names], dtype=int)
+    if N.shape[1]:
+        M = travel_metric(model, free, free.size)
+        size = np.sqrt(np.clip(np.einsum("ik,ij,jk->k", N, M, N), 0.0, None))
+        keep = size > 1e-12 * np.linalg.norm(N, axis=0)
+        N = N[:, keep] * (1e-3 / size[keep])
+    return {"names": tuple(names), "covariance": np.nan_to_num(C), "undetermined": N}

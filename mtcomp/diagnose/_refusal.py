@@ -1,4 +1,4 @@
-"""Why a candidate extension is refused even when it lowers the held-out residual (issue 11).
+"""Why a candidate extension is refused even when it lowers the held-out residual.
 
 A candidate that fits the data can still be no cause: its parameters may not be determined by the
 data, it may act only where the data do not reach (an axis they hold still, a single feed), or its

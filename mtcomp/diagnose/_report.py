@@ -106,7 +106,7 @@ def evidence_and_params(st, c, theta, before_fit, after_fit, rivals, noise):
                 f"{v:.3g} um per m/min along {d}" for d, v in params["uniform_um_per_m_min"].items()) + \
                 " from the angular error's constant part"
         ev = (f"The feed-dependent part of the {a} residual follows the fitted angular error profile of "
-              f"{a} times the Abbe arm ({what}; seed 000){rt}")
+              f"{a} times the Abbe arm ({what}; Yang et al. 2020){rt}")
         return params, ev
     if eff == "rotary_pdge":
         comp = c.info["component"]

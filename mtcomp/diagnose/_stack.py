@@ -1,6 +1,6 @@
 """All observations of a campaign stacked into one linearised problem, with their context.
 
-Every measurement file is bound to one *probe* error model: the base model of SPEC section 6 plus every
+Every measurement file is bound to one *probe* error model: the base model plus every
 extension term diagnose may need (backlash of each axis, feed-dependent Abbe terms of each linear
 axis, error motions of each rotary axis, a unit tool-tip drift). Its exact CasADi Jacobian, taken at
 the base fit, gives the columns of every candidate extension at once: extension parameters are zero
@@ -35,7 +35,7 @@ from ..models.terms import AbbeIRC, Backlash, RotaryErrorMotion, ThermalDrift, p
 ONE = "_one"
 #: the rotary error motions diagnose can add (ISO 230-1 letters before the axis letter)
 MOTION_LETTERS = ("EX", "EY", "EZ", "EA", "EB")
-#: harmonics of a rotary error-motion candidate (seed 003: one revolution carries them all)
+#: harmonics of a rotary error-motion candidate (Tan et al. 2026: one revolution carries them all)
 PDGE_ORDER = 3
 
 

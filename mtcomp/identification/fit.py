@@ -542,6 +542,9 @@ WEAK_SD_UM = 1.0
 #: ... unless the first fit puts it further from the start than this many of its standard errors:
 #: then the data do see it (a real error of 28 um fixed to 1.2 um is fitted, not held at zero)
 WEAK_SIGNIFICANT = 3.0
+#: log penalty weights that the REML at the fit moves by less than this are those the fit used (a
+#: factor 1.05: the profiles move by far less than their standard errors), and the fit stands
+RHO_SETTLED = 0.05
 #: the widest range of penalty on one class's coefficients (column-scaled) that a fit keeps
 PENALTY_RANGE = 1e6
 #: weight of a set-up unknown (a file's zero offset, its alignment) against a machine parameter when a
@@ -928,9 +931,14 @@ class _Problem:
                 z0 = x / scale
                 AB0 = B1.T @ (A * np.outer(scale, scale)) @ B1
                 Ss = list(penalties.values())
+                before = rho
                 rho, _ = reml_weights(AB0, B1.T @ (scale * g), float(r @ r), [B1.T @ S @ B1 for S in Ss],
                                       [B1.T @ (S @ z0) for S in Ss], [float(z0 @ S @ z0) for S in Ss],
                                       self.n_obs, start=rho)
+                if before is not None and np.max(np.abs(rho - before)) < RHO_SETTLED:
+                    # the weights at the fit are those the fit used: it stands
+                    rho = before
+                    break
                 self.S = sum(np.exp(rk) * S for rk, S in zip(rho, Ss))
                 self.smoothing_rho = dict(zip(penalties, rho))
             x, r, A, g, B, AB, more, converged = self._gauss_newton(
@@ -1278,8 +1286,8 @@ def predict_readings(fitted: FittedModel, data: MeasurementSet, machine: Machine
         else:
             columns[f"{name}_sd"] = np.full(len(data), np.nan)
     if fitted.uncertainty is None:
-        notes.append("the model carries no uncertainty (mtcomp identify writes one; diagnose does "
-                     "not yet): the _sd columns are blank")
+        notes.append("the model carries no uncertainty (mtcomp identify and diagnose write one; a "
+                     "model file of an older mtcomp may not): the _sd columns are blank")
     if not known:
         notes.append(f"{mm.tag} was not part of the fit: its set-up ({', '.join(s.name.split(':', 1)[1] for s in mm.nuisance_specs)}) "
                      "is unknown and taken as zero; compare readings up to that set-up")

@@ -1,4 +1,4 @@
-"""ISO 230-2:2014 evaluation of bidirectional positioning runs (laser files, SPEC 3.2 and 5).
+"""ISO 230-2:2014 evaluation of bidirectional positioning runs (laser files, docs/iso230_2.md).
 
 For each axis, every target position ``P_i`` is approached ``n`` times (runs ``j``) in each direction
 (up: ``dir = +1``, down: ``dir = -1``); each reading is the positional deviation ``x_ij = P_ij - P_i``
@@ -14,7 +14,8 @@ With ``up``/``down`` for the arrows of the standard:
 
 and for the axis:
 
-* reversal value ``B``: the ``B_i`` of largest magnitude, with its sign (SPEC 5); mean ``B_mean``
+* reversal value ``B``: the ``B_i`` of largest magnitude, with its sign (docs/iso230_2.md); mean
+  ``B_mean``
 * ``R_up = max_i R_i_up``, ``R_down``, ``R = max_i R_i``
 * systematic ``E_up = max xbar_i_up - min xbar_i_up``, ``E_down``,
   ``E = max(xbar_up, xbar_down) - min(xbar_up, xbar_down)``
@@ -135,10 +136,10 @@ class AxisPositioning:
         return URAD_PER_RAD if self.rotary else UM_PER_MM
 
     def to_dict(self) -> dict:
-        """JSON object of SPEC 5: ``A_um`` ... ``R_down_um`` (``_urad`` and ``_arcsec`` for rotary
-        axes), ``B_mean_*``, and the per-target arrays (``targets_mm`` or ``targets_deg``, ``n_up``,
-        ``n_down``, ``mean_up_*``, ``mean_down_*``, ``mean_*``, ``reversal_*``, ``s_up_*``,
-        ``s_down_*``, ``R_i_up_*``, ``R_i_down_*``, ``R_i_*``)."""
+        """JSON object of one axis (docs/iso230_2.md): ``A_um`` ... ``R_down_um`` (``_urad`` and
+        ``_arcsec`` for rotary axes), ``B_mean_*``, and the per-target arrays (``targets_mm`` or
+        ``targets_deg``, ``n_up``, ``n_down``, ``mean_up_*``, ``mean_down_*``, ``mean_*``,
+        ``reversal_*``, ``s_up_*``, ``s_down_*``, ``R_i_up_*``, ``R_i_down_*``, ``R_i_*``)."""
         units = [(self.unit, self.scale)]
         if self.rotary:
             units.append(("arcsec", ARCSEC_PER_RAD))
@@ -215,7 +216,7 @@ class Iso230_2Report:
     path: str = ""
 
     def to_dict(self) -> dict:
-        """OUT.json of ``mtcomp iso230-2`` (SPEC 5): one object per axis."""
+        """OUT.json of ``mtcomp iso230-2``: one object per axis (docs/iso230_2.md)."""
         return {name: ax.to_dict() for name, ax in self.axes.items()}
 
     def summary(self) -> str:

@@ -156,10 +156,11 @@ def _logdet_solve(M: np.ndarray, b: np.ndarray):
 
 
 def reml_criterion(rho: np.ndarray, AB: np.ndarray, gB: np.ndarray, rss0: float, SB: list, bz: list,
-                   cz: list, n_obs: int, gradient: bool = True):
+                   cz: list, n_obs: int, gradient: bool = True, ranks: np.ndarray | None = None):
     """(V, dV/drho or None, AB + S) of the REML criterion of the module docstring at log weights rho
-    (the arguments as :func:`reml_weights` takes them)."""
-    ranks = _ranks(SB)
+    (the arguments as :func:`reml_weights` takes them; ``ranks``: the penalties' ranks, computed
+    when not given)."""
+    ranks = _ranks(SB) if ranks is None else ranks
     mp = AB.shape[0] - int(ranks.sum())
     lam = np.exp(rho)
     H = AB + sum(l * Sk for l, Sk in zip(lam, SB))
@@ -207,9 +208,10 @@ def reml_weights(AB: np.ndarray, gB: np.ndarray, rss0: float, SB: list[np.ndarra
     """
     m = len(SB)
     args = (AB, gB, rss0, SB, bz, cz, n_obs)
+    ranks = _ranks(SB)
 
     def criterion(rho):
-        return reml_criterion(rho, *args, gradient=False)[0]
+        return reml_criterion(rho, *args, gradient=False, ranks=ranks)[0]
 
     # a common weight on a coarse grid first (the criterion is flat far out and may have shallow
     # local minima), then every class's own from there, with the exact gradient
@@ -218,11 +220,11 @@ def reml_weights(AB: np.ndarray, gB: np.ndarray, rss0: float, SB: list[np.ndarra
         rho = np.full(m, min(grid, key=lambda r: criterion(np.full(m, r))))
     else:
         rho = np.asarray(start, dtype=float)
-    res = scipy.optimize.minimize(lambda r: reml_criterion(r, *args)[:2], rho, jac=True,
+    res = scipy.optimize.minimize(lambda r: reml_criterion(r, *args, ranks=ranks)[:2], rho, jac=True,
                                   method="L-BFGS-B", bounds=[(-RHO_BOUND, RHO_BOUND)] * m,
                                   options={"maxiter": 500, "ftol": 1e-15, "gtol": 1e-9})
     if res.fun <= criterion(rho):
         rho = res.x
-    H = reml_criterion(rho, *args, gradient=False)[2]
+    H = reml_criterion(rho, *args, gradient=False, ranks=ranks)[2]
     edf = float(np.trace(_logdet_solve(H, AB)[1]))
     return rho, edf

@@ -1,15 +1,16 @@
-"""The direct (closed-form) methods of the seed papers, as plain computations.
+"""The direct (closed-form) methods of the papers mtcomp builds on (docs/references.md), as plain
+computations.
 
-* Seed 000, eq. 1: the instantaneous rotation centre (IRC) of a table from the velocities of two of
-  its points (:func:`irc_from_velocities`), the yaw rate about it (:func:`yaw_rate_from_velocities`),
-  and eq. 3, the yaw Abbe error about it (:func:`abbe_error_about_irc`).
-* Seed 003, eqs. 10-15: three-sphere intersection (trilateration) of ball-bar lengths
+* Yang et al. (2020), eq. 1: the instantaneous rotation centre (IRC) of a table from the velocities of
+  two of its points (:func:`irc_from_velocities`), the yaw rate about it
+  (:func:`yaw_rate_from_velocities`), and eq. 3, the yaw Abbe error about it (:func:`abbe_error_about_irc`).
+* Tan et al. (2026), eqs. 10-15: three-sphere intersection (trilateration) of ball-bar lengths
   (:func:`trilaterate`, :func:`three_sphere_points`), the five position-dependent errors of the C
   axis from two axis points per angle (:func:`three_sphere_errors`), the prediction of table points
   with them (eq. 9 in the order of eq. 5, :func:`predict_table_point`) and the prediction error
   (eq. 15, :func:`prediction_error`).
-* Seed 002: positioning error, backlash and compensation table of a rotary axis from laser readings
-  in both approach directions (:func:`rotary_positioning`).
+* Pi et al. (2017): positioning error, backlash and compensation table of a rotary axis from laser
+  readings in both approach directions (:func:`rotary_positioning`).
 
 docs/seed_methods.md checks every printed equation and says where the print is wrong.
 Units: mm, rad, mm/min inside; the result objects say when they convert.
@@ -27,9 +28,9 @@ from ..kinematics import forward, wp2bed
 from ..machine import Machine
 
 
-# ------------------------------------------------------------------------------------- seed 000
+# --------------------------------------------------------------------------- Yang et al. (2020)
 def irc_from_velocities(m_xy, m_v, n_xy, n_v, v0) -> np.ndarray:
-    """(n, 2) mm instantaneous rotation centre O_p of a table moving along X (seed 000, eq. 1).
+    """(n, 2) mm instantaneous rotation centre O_p of a table moving along X (Yang et al. (2020), eq. 1).
 
     m_xy, n_xy : (n, 2) mm coordinates of the points M and N (table frame).
     m_v, n_v : (n, 2) mm/min their measured velocities (V_Mx, V_My), (V_Nx, V_Ny).
@@ -56,8 +57,8 @@ def irc_from_velocities(m_xy, m_v, n_xy, n_v, v0) -> np.ndarray:
 
 def yaw_rate_from_velocities(xy, v, irc_xy, v0) -> np.ndarray:
     """(n,) rad/min the yaw rate w of a table moving along X, from the velocity v (n, 2) mm/min of its
-    point xy (n, 2) mm and the rotation centre irc_xy (n, 2) mm (seed 000, eq. 1 solved for O first):
-    ``w = ((P - O) x (v - V0 e_x))_z / |P - O|^2``. Divided by the signed speed v0 it is the slope
+    point xy (n, 2) mm and the rotation centre irc_xy (n, 2) mm (Yang et al. (2020), eq. 1 solved for O
+    first): ``w = ((P - O) x (v - V0 e_x))_z / |P - O|^2``. Divided by the signed speed v0 it is the slope
     d eps_z / ds of the yaw error (rad/mm)."""
     r = np.atleast_2d(xy) - np.atleast_2d(irc_xy)
     u = np.atleast_2d(v).astype(float).copy()
@@ -66,20 +67,20 @@ def yaw_rate_from_velocities(xy, v, irc_xy, v0) -> np.ndarray:
 
 
 def abbe_error_about_irc(eps_z, point_xy, irc_xy) -> np.ndarray:
-    """(n, 2) mm yaw Abbe positioning error of table point B about the rotation centre O_p (seed 000,
-    eq. 3): ``delta = (-eps_z (y_B - y_O), eps_z (x_B - x_O))``. eps_z : (n,) rad yaw angle."""
+    """(n, 2) mm yaw Abbe positioning error of table point B about the rotation centre O_p (Yang et al.
+    (2020), eq. 3): ``delta = (-eps_z (y_B - y_O), eps_z (x_B - x_O))``. eps_z : (n,) rad yaw angle."""
     eps_z = np.asarray(eps_z, dtype=float)
     r = np.atleast_2d(point_xy) - np.atleast_2d(irc_xy)
     return np.column_stack([-eps_z * r[:, 1], eps_z * r[:, 0]])
 
 
-# ------------------------------------------------------------------------------------- seed 003
+# ---------------------------------------------------------------------------- Tan et al. (2026)
 def trilaterate(centres, radii, near) -> np.ndarray:
-    """(n, 3) mm the intersection of three spheres nearest to ``near`` (seed 003, Fig. 4).
+    """(n, 3) mm the intersection of three spheres nearest to ``near`` (Tan et al. (2026), Fig. 4).
 
     centres : (n, 3, 3) mm sphere centres (three per problem). radii : (n, 3) mm. near : (n, 3) mm a
     point near the wanted root (three spheres meet in two points D and D', mirror images through the
-    plane of the centres; seed 003 takes the one near the rotary axis). Where noise makes the spheres
+    plane of the centres; Tan et al. take the one near the rotary axis). Where noise makes the spheres
     miss each other, the point of the centres' plane closest to all three is returned.
     """
     P = np.asarray(centres, dtype=float).reshape(-1, 3, 3)
@@ -108,7 +109,7 @@ class ThreeSpherePoints:
     """Table-ball positions found by trilateration, one per (set-up height, C angle).
 
     angle : (m,) rad C angle. height : (m,) mm nominal height of the table ball above the C axis point.
-    point : (m, 3) mm actual table-ball centre, machine frame (D of seed 003).
+    point : (m, 3) mm actual table-ball centre, machine frame (D of Tan et al. (2026)).
     nominal : (m, 3) mm its nominal position. lengths : (m, 3) mm mean bar lengths (repeats averaged).
     n_readings : (m,) readings averaged.
     """
@@ -122,7 +123,7 @@ class ThreeSpherePoints:
 
 
 def three_sphere_points(data: BallbarData, machine: Machine, decimals: int = 6) -> ThreeSpherePoints:
-    """Seed 003, section 2.1: average the repeats, then trilaterate each (height, C angle).
+    """Tan et al. (2026), section 2.1: average the repeats, then trilaterate each (height, C angle).
 
     Rows are grouped by C angle (rounded to ``decimals`` deg) and table ball; within a group the
     distinct tool-ball positions (machine frame: nominal tip plus the tool-ball offset) are the three
@@ -167,11 +168,11 @@ def three_sphere_points(data: BallbarData, machine: Machine, decimals: int = 6) 
 
 
 def three_sphere_errors(D1, D2, h1: float, h2: float, exact: bool = False) -> dict[str, np.ndarray]:
-    """The five position-dependent errors of the C axis per angle from two axis points (seed 003).
+    """The five position-dependent errors of the C axis per angle from two axis points (Tan et al. (2026)).
 
     D1, D2 : (m, 3) mm actual positions of the table balls set at heights h1 and h2 (mm) on the axis,
     machine frame with the origin at the C table's centre (the points of :func:`three_sphere_points`).
-    Returns 'EXC', 'EYC', 'EZC' (mm) and 'EAC', 'EBC' (rad) of each angle (seed: delta_xc, delta_yc,
+    Returns 'EXC', 'EYC', 'EZC' (mm) and 'EAC', 'EBC' (rad) of each angle (the paper's delta_xc, delta_yc,
     delta_zc, epsilon_xc, epsilon_yc):
 
     * eq. 10: ``delta_zc = (z1 + z2)/2 - (h1 + h2)/2``
@@ -202,7 +203,8 @@ def three_sphere_errors(D1, D2, h1: float, h2: float, exact: bool = False) -> di
 
 
 def error_matrix(errors: dict, index=slice(None)) -> np.ndarray:
-    """(m, 4, 4) the C axis error matrix of seed 003 eq. 7 (small angles, eps_zc = 0 when absent)."""
+    """(m, 4, 4) the C axis error matrix of Tan et al. (2026), eq. 7 (small angles, eps_zc = 0 when
+    absent)."""
     dx, dy, dz = (np.atleast_1d(errors[k])[index] for k in ("EXC", "EYC", "EZC"))
     ex, ey = (np.atleast_1d(errors[k])[index] for k in ("EAC", "EBC"))
     ez = np.atleast_1d(errors.get("ECC", np.zeros_like(dx)))[index]
@@ -216,8 +218,8 @@ def error_matrix(errors: dict, index=slice(None)) -> np.ndarray:
 
 def predict_table_point(errors: dict, angle, point, order: str = "error_first") -> np.ndarray:
     """(m, 3) mm where a table point (3,) (table frame, origin at the C table centre) is at each C
-    angle (m,) rad, from the identified errors (seed 003 eq. 9, used as eq. 5 writes it: actual =
-    error matrix . ideal rotation). ``order='ideal_first'`` applies eq. 9 as printed (ideal . error),
+    angle (m,) rad, from the identified errors (Tan et al. (2026), eq. 9, used as eq. 5 writes it:
+    actual = error matrix . ideal rotation). ``order='ideal_first'`` applies eq. 9 as printed (ideal . error),
     which rotates the error motion with the table: wrong for errors identified by eqs. 10-14."""
     angle = np.atleast_1d(np.asarray(angle, dtype=float))
     E = error_matrix(errors)
@@ -231,7 +233,7 @@ def predict_table_point(errors: dict, angle, point, order: str = "error_first") 
 
 
 def prediction_error(predicted, actual) -> np.ndarray:
-    """(m,) mm distance between predicted and actual points (seed 003, eq. 15)."""
+    """(m,) mm distance between predicted and actual points (Tan et al. (2026), eq. 15)."""
     return np.linalg.norm(np.atleast_2d(predicted) - np.atleast_2d(actual), axis=1)
 
 
@@ -266,10 +268,10 @@ def table_point_positions(fitted, angles, point, axis: str = "C") -> np.ndarray:
     return x
 
 
-# ------------------------------------------------------------------------------------- seed 002
+# ----------------------------------------------------------------------------- Pi et al. (2017)
 @dataclass(frozen=True)
 class RotaryPositioning:
-    """Positioning error, backlash and compensation table of a rotary axis (seed 002), rad.
+    """Positioning error, backlash and compensation table of a rotary axis (Pi et al. (2017)), rad.
 
     axis : 'A', 'B' or 'C'. targets : (m,) rad. mean_up, mean_down : (m,) mean angular positioning
     error (actual minus commanded) approaching up (+1) and down (-1). mean : (m,) bidirectional mean.
@@ -307,7 +309,7 @@ class RotaryPositioning:
 
 
 def rotary_positioning(data: LaserData, axis: str = "C") -> RotaryPositioning:
-    """Seed 002: from angular positioning readings (E<axis><axis>, e.g. ECC, value_urad) of a rotary
+    """Pi et al. (2017): from angular positioning readings (E<axis><axis>, e.g. ECC, value_urad) of a rotary
     axis in both approach directions: the positioning error curve per direction, the backlash per
     target (mean up minus mean down, as ISO 230-2's B_i), and the compensation tables.
 

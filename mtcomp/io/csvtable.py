@@ -1,4 +1,4 @@
-"""Reading a CSV file into header + string cells, and parsing its cells (SPEC section 3).
+"""Reading a CSV file into header + string cells, and parsing its cells (docs/measurements.md).
 
 This layer knows nothing about measurement kinds: it reads the header row and the data rows as
 strings, checks the shape (no empty file, no duplicate or unnamed column, no ragged row), and parses

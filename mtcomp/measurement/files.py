@@ -1,4 +1,4 @@
-"""Measurement files (SPEC section 3): points, laser, ballbar, cmm, thermal, velocity.
+"""Measurement files (docs/measurements.md): points, laser, ballbar, cmm, thermal, velocity.
 
 :func:`read_measurements` reads one CSV file, tells its kind from its columns and returns one of
 :class:`PointsData`, :class:`LaserData`, :class:`BallbarData`, :class:`CmmData`, :class:`ThermalData`,
@@ -61,7 +61,7 @@ REQUIRED = {
 
 @dataclass(eq=False)
 class Context:
-    """Context of every observation (struct of arrays, one entry per row; SPEC section 3).
+    """Context of every observation (struct of arrays, one entry per row; docs/measurements.md).
 
     feed : (n,) mm/min, NaN when blank or absent.
     dirs : (n, 6) approach direction (+1/-1, 0 when unknown) of axes X Y Z A B C, in that order.
@@ -109,7 +109,8 @@ class MeasurementSet:
 
     @property
     def prediction_columns(self) -> tuple[str, ...]:
-        """Names of the ``pred_<column>`` columns ``mtcomp predict`` adds for this file (SPEC 5)."""
+        """Names of the ``pred_<column>`` columns ``mtcomp predict`` adds for this file
+        (docs/identification.md)."""
         return ()
 
     def subset(self, index) -> "MeasurementSet":
@@ -158,7 +159,7 @@ def _check_rotary_columns(data, machine: Machine) -> None:
 
 @dataclass(eq=False)
 class PointsData(_CommandedPoses, MeasurementSet):
-    """Deviations at commanded poses (SPEC 3.1).
+    """Deviations at commanded poses (a points file, docs/measurements.md).
 
     xyz : (n, 3) mm commanded linear axis positions (nominal tool-tip position).
     abc : (n, 3) rad commanded A, B, C positions; 0 where the column is absent.
@@ -194,7 +195,7 @@ class PointsData(_CommandedPoses, MeasurementSet):
 
 @dataclass(eq=False)
 class LaserData(MeasurementSet):
-    """Interferometer runs along one axis (SPEC 3.2).
+    """Interferometer runs along one axis (a laser file, docs/measurements.md).
 
     axis : (n,) str, the moving axis of each row ('X'...'C').
     component : (n,) str, ISO 230-1 component (``E<dir><axis>``: EXX, EYX, ..., ECC).
@@ -261,7 +262,7 @@ class LaserData(MeasurementSet):
 
 @dataclass(eq=False)
 class BallbarData(_CommandedPoses, MeasurementSet):
-    """Ball-bar length readings (SPEC 3.3).
+    """Ball-bar length readings (a ballbar file, docs/measurements.md).
 
     xyz : (n, 3) mm commanded linear axis positions; abc : (n, 3) rad rotary positions (0 if absent).
     table_ball : (n, 3) mm centre of the table ball, workpiece frame.
@@ -284,13 +285,13 @@ class BallbarData(_CommandedPoses, MeasurementSet):
 
 @dataclass(eq=False)
 class CmmData(MeasurementSet):
-    """A machined part measured on a CMM (SPEC 3.4).
+    """A machined part measured on a CMM (a cmm file, docs/measurements.md).
 
     xyz : (n, 3) mm nominal surface point, workpiece frame.
     normal : (n, 3) outward unit normal.
     normal_deviation : (n,) mm deviation along the normal (positive: material outside), NaN if blank.
     program, tool_radius_mm : the G-code that cut the part and the radius of its ball-end tool (mm);
-        not in the file (SPEC 3.4): the commands take them from ``--cmm-program`` and
+        not in the file (docs/measurements.md): the commands take them from ``--cmm-program`` and
         ``--cmm-tool-radius`` (:func:`mtcomp.commands.attach_cmm_cuts`).
     include_path_offset : ``--cmm-path-offset``: the program's ball centres are not on the nominal
         surface's offset (a compensated program): their offset along the normal is part of what it cut.
@@ -322,7 +323,7 @@ class CmmData(MeasurementSet):
 
 @dataclass(eq=False)
 class ThermalData(MeasurementSet):
-    """Drift of a fixed set-up over time (SPEC 3.5).
+    """Drift of a fixed set-up over time (a thermal file, docs/measurements.md).
 
     t : (n,) s since the start (also ``context.t``).
     channels : name -> (n,) mm displacement of channel ``disp_<name>_um``, NaN where blank.
@@ -340,7 +341,8 @@ class ThermalData(MeasurementSet):
 
 @dataclass(eq=False)
 class VelocityData(MeasurementSet):
-    """Two-point velocities of a moving table (SPEC 3.6, seed 000 eq. 1).
+    """Two-point velocities of a moving table (a velocity file, docs/measurements.md; Yang et al.
+    (2020), eq. 1).
 
     axis : (n,) str moving axis ('X' or 'Y').
     feed : (n,) mm/min commanded feed (also ``context.feed``).
@@ -396,12 +398,13 @@ class VelocityData(MeasurementSet):
         return np.column_stack([self.axis == name for name in machine.axis_names])
 
     def rotation_centre(self) -> np.ndarray:
-        """(n, 2) mm instantaneous rotation centre O_p in the table plane (seed 000, eq. 1).
+        """(n, 2) mm instantaneous rotation centre O_p in the table plane (Yang et al. (2020),
+        eq. 1).
 
         O_p lies on the line through M perpendicular to M's velocity relative to the table's
         translation V0 (feed, signed by ``dir_<axis>`` or else by the measured motion), and likewise
         for N: ``(v_M - V0 e) . (O_p - M) = 0``, ``(v_N - V0 e) . (O_p - N) = 0``. For axis X this is
-        eq. 1 of seed 000. NaN where the two lines are parallel.
+        eq. 1 of Yang et al. (2020). NaN where the two lines are parallel.
         """
         out = np.full((len(self), 2), np.nan)
         speed = self.signed_speed()
@@ -424,7 +427,7 @@ _CLASSES = {c.kind: c for c in (PointsData, LaserData, BallbarData, CmmData, The
 # reading
 
 def read_measurements(path: str | os.PathLike, kind: str | None = None) -> MeasurementSet:
-    """Read one measurement file (SPEC section 3); its kind is told by its columns.
+    """Read one measurement file (docs/measurements.md); its kind is told by its columns.
 
     path : a CSV file with a header row.
     kind : force one of :data:`KINDS`; only needed for a file with just ``x_mm,y_mm,z_mm,nx,ny,nz,

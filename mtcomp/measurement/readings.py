@@ -10,11 +10,12 @@ Observations are the measured scalars of a file: rows x measured columns, blank 
 Each carries the data row it came from (``obs_row``, 0-based), its column (``obs_column``) and the
 factor from internal units to its file unit (``obs_unit_scale``: 1e3 for um, 1e6 for urad, 1 for mm).
 
-Kinds implemented here (docs/identification.md gives the equations):
+Kinds implemented here (docs/measurements.md gives the file formats, docs/identification.md the
+equations):
 
-* ``points`` (SPEC 3.1): tool-tip deviation d = tip(q, p, c) - tip0(q) in the workpiece frame;
+* ``points``: tool-tip deviation d = tip(q, p, c) - tip0(q) in the workpiece frame;
   ``dx, dy, dz`` are its components, ``dn = n . d``. Per-row tool length (``tool_mm``).
-* ``laser`` (SPEC 3.2): the measured point is the tool tip plus the optic offset o carried by the tool
+* ``laser``: the measured point is the tool tip plus the optic offset o carried by the tool
   frame, so its deviation is ``d + (R_rel - I) o`` with ``R_rel = R R0^T`` the rotation of the tool
   relative to the workpiece (actual times nominal transposed). A translational component E<d><L> reads
   that deviation along direction d; an angular one the small-angle rotation of ``R_rel`` about d
@@ -23,7 +24,7 @@ Kinds implemented here (docs/identification.md gives the equations):
   minus commanded angle, as ISO 230-2 reports it). Nuisance per (file, axis, component): a zero offset
   (interferometers are zeroed at the start of a set-up) and, for straightness components of linear
   axes, a slope (alignment of the straightness optic with the axis; one um/m = one urad).
-* ``ballbar`` (SPEC 3.3): length ``| tip0 + d + R_rel b - T |`` with T the table-ball centre
+* ``ballbar``: length ``| tip0 + d + R_rel b - T |`` with T the table-ball centre
   (workpiece frame) and b the tool-ball centre relative to the nominal tool tip; nuisance: one length
   offset per file (calibration of the bar).
 
@@ -575,7 +576,7 @@ _LETTER_INDEX = {"X": 0, "Y": 1, "Z": 2, "A": 0, "B": 1, "C": 2}
 
 @register
 class LaserModel(MeasurementModel):
-    """Laser interferometer files (SPEC 3.2): component readings of the measured point.
+    """Laser interferometer files (docs/measurements.md): component readings of the measured point.
 
     Nuisance per (axis, component) of the file: ``<tag>:<axis>:<comp>:offset`` (um or urad) and, for
     straightness components of a linear axis (E<d><L> with d != L, translational),
@@ -678,9 +679,9 @@ class LaserModel(MeasurementModel):
 # ------------------------------------------------------------------------------------- ballbar
 @register
 class BallbarModel(MeasurementModel):
-    """Ball-bar files (SPEC 3.3): centre distance of table ball and tool ball, plus a per-file length
-    offset ``<tag>:length_offset`` (um) for the calibration of the bar. Option ``setup="known"``: the
-    bar is calibrated (its length is exact, no offset is fitted). A bar read from one side only (the
+    """Ball-bar files (docs/measurements.md): centre distance of table ball and tool ball, plus a
+    per-file length offset ``<tag>:length_offset`` (um) for the calibration of the bar. Option
+    ``setup="known"``: the bar is calibrated (its length is exact, no offset is fitted). A bar read from one side only (the
     three-sphere set-up: tool ball along +X, +Y, +Z) cannot tell its length offset from a shift of the
     table ball along (1, 1, 1): there the calibration decides where the axis is."""
 

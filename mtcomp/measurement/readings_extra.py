@@ -1,25 +1,25 @@
-"""Measurement models of the kinds cmm, thermal and velocity (SPEC 3.4-3.6), and drift features.
+"""Measurement models of the kinds cmm, thermal and velocity, and drift features.
 
 These register into :data:`mtcomp.measurement.readings.MEASUREMENT_MODELS` like the
 points, laser and ballbar models, with the same interface (``predict``, ``jacobian``,
 ``predict_columns``; internal units mm, rad, mm/min; exact CasADi Jacobians). docs/sim.md has the
-equations.
+equations, docs/measurements.md the file formats.
 
-* ``cmm`` (SPEC 3.4): the normal deviation of a machined surface point is the deviation of the ball
+* ``cmm``: the normal deviation of a machined surface point is the deviation of the ball
   centre of the cutter that touched it, along the outward normal: ``dn = n . (d + r (R_rel - I) a0)``
   with d the tool-tip deviation, ``R_rel`` the tool's rotation relative to nominal, ``a0`` the nominal
   tool axis and r the ball radius (positive: tool displaced outward, material left outside). The
   cutter location is found on the G-code that cut the part: the ball centre nearest to ``x + r n``.
   Nuisance: ``<tag>:radius_offset`` (um), the tool radius error (``dn -= dr``), and the CMM frame's
   set-up, a translation and a rotation about the points' centroid (``dn += n . (t + w x (x - c))``).
-* ``thermal`` (SPEC 3.5): channel ``disp_<name>_um`` drifts. Channels ``x``, ``y``, ``z``, and the
+* ``thermal``: channel ``disp_<name>_um`` drifts. Channels ``x``, ``y``, ``z``, and the
   channels a :class:`~mtcomp.models.ThermalDrift` term names, are tool-tip directions: they read the
   tip deviation at the set-up pose relative to the file's first row (so the ThermalDrift term acts).
   Other channels read ``sum_f TD_<name>_<f> (f - f0)`` from a :class:`~mtcomp.models.ChannelDrift`
   term (zero without one). A channel covered by an ``absolute`` drift term reads its value itself, not
   its change since the first row (docs/thermal.md). Nuisance: one zero offset per channel,
   ``<tag>:<name>:offset`` (um).
-* ``velocity`` (SPEC 3.6, seed 000 eq. 1): the velocity of a table point P is the derivative of its
+* ``velocity`` (Yang et al. (2020), eq. 1): the velocity of a table point P is the derivative of its
   displacement along the axis position s times ``V = dir * feed``:
   ``v = V d/ds [s u + delta(s) + E_C(s) e_z x (P - O(s))]`` with u the axis direction (squareness),
   delta its translational component errors, ``E_C<axis>`` its yaw (every extension term included)
@@ -221,7 +221,7 @@ def _extra_context(mm: MeasurementModel) -> dict:
 # --------------------------------------------------------------------------------- thermal
 @register
 class ThermalModel(MeasurementModel):
-    """Thermal files (SPEC 3.5): drift of each ``disp_<name>_um`` channel (module docstring).
+    """Thermal files (docs/measurements.md): drift of each ``disp_<name>_um`` channel (module docstring).
 
     Options: ``setup_q`` (n_axes,) axis positions of the set-up, mm and rad (default all zero),
     ``reference_temperatures`` (name -> degC) for the dtemp features.
@@ -311,8 +311,9 @@ class ThermalModel(MeasurementModel):
 # --------------------------------------------------------------------------------- velocity
 @register
 class VelocityModel(MeasurementModel):
-    """Velocity files (SPEC 3.6): the derivative of the points M and N's displacement along the axis
-    times V (module docstring; seed 000 eq. 1 finds the point moving at exactly V e from two of them).
+    """Velocity files (docs/measurements.md): the derivative of the points M and N's displacement
+    along the axis times V (module docstring; Yang et al. (2020), eq. 1, find the point moving at
+    exactly V e from two of them).
     Velocities in mm/min, in the axis's own sense: for a table axis the sign of the table's motion is
     reversed (ISO 841), which leaves O alone."""
 
@@ -374,9 +375,9 @@ class VelocityModel(MeasurementModel):
 
     def rotation_centre(self, p) -> np.ndarray:
         """(n_rows, 2) mm the instantaneous rotation centre of the model's velocity field at each row
-        (carriage frame, XY): the point moving at exactly V0 along the axis, which seed 000 eq. 1 finds
-        from two measured velocities (NaN without a yaw rate). The field is v(P) = a + Omega e_z x P, so
-        the centre solves a + Omega e_z x O = V0 e; it is the AbbeIRC centre only when the axis has no
+        (carriage frame, XY): the point moving at exactly V0 along the axis, which Yang et al. (2020),
+        eq. 1, find from two measured velocities (NaN without a yaw rate). The field is
+        v(P) = a + Omega e_z x P, so the centre solves a + Omega e_z x O = V0 e; it is the AbbeIRC centre only when the axis has no
         translational error slope and the centre does not move along the axis."""
         out = np.full((len(self.data), 2), np.nan)
         for ax, f in self._functions.items():
@@ -394,7 +395,7 @@ class VelocityModel(MeasurementModel):
 # --------------------------------------------------------------------------------- cmm
 @register
 class CmmModel(MeasurementModel):
-    """CMM files (SPEC 3.4) with the program that cut the part (module docstring).
+    """CMM files (docs/measurements.md) with the program that cut the part (module docstring).
 
     Options: ``program`` (G-code path) and ``tool_radius_mm`` (ball radius), required here or as
     the data's fields of the same names,

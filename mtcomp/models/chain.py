@@ -19,9 +19,10 @@ with the machine frame when every axis is at zero):
   u_Z = Ry(B0Z) Rx(A0Z) e_z), delta = (EXL, EYL, EZL)(s) and eps = (EAL, EBL, ECL)(s) are the
   component errors, r the carriage's reference point (the spindle gauge point at q = 0 for tool-side
   axes, the workpiece origin for table axes) and o_a the shift of the centre of rotation a (zero in
-  the base model, the IRC of seed 000 with :class:`~mtcomp.models.terms.AbbeIRC`). Component errors
+  the base model, the IRC of Yang et al. (2020) with :class:`~mtcomp.models.terms.AbbeIRC`). Component errors
   are those a laser would read for the tool relative to the workpiece, so on the workpiece side the
-  table's transform is the inverse of the one above (seed 001, eq. 17 does the same with signs).
+  table's transform is the inverse of the one above (Qi and Yang (2016), eq. 17, do the same with
+  signs).
 * rotary axis R at angle theta: rotation about the *actual* axis line, not a nominal rotation plus an
   offset:
 
@@ -185,7 +186,7 @@ def rotary_location_names(axis_name: str) -> tuple[list[str], list[str]]:
 
 
 def base_param_specs(machine: Machine) -> list[ParamSpec]:
-    """The base model of SPEC section 6, in a fixed order."""
+    """The base model (docs/identification.md), in a fixed order."""
     specs: list[ParamSpec] = []
     for ax in machine.linear_axes:
         for comp in linear_component_names(ax.name):

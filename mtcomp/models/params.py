@@ -3,7 +3,7 @@
 Every parameter has an internal value (mm or rad, or mm and rad per unit of its basis) and a file
 value (um or urad, ...). ``ParamSpec.to_file`` is the factor from internal to file units.
 
-Naming (docs/parameters.md has the full table and the seed notation):
+Naming (docs/parameters.md has the full table and the notation of the papers in docs/references.md):
 
 * ``EXX_1 .. EXX_3``: coefficient k of the polynomial of component error EXX of axis X in the axis
   position in metres: ``EXX(s) = sum_k EXX_k * (s / 1000 mm)**k`` (no constant term: every error is
@@ -31,7 +31,7 @@ class ParamSpec:
     name : unique name, e.g. 'EXX_2'.
     unit : file unit ('um', 'urad', 'mm', '1').
     group : what it belongs to, e.g. 'X:EXX', 'squareness', 'C:location', 'backlash:X'.
-    base : True for the base model of SPEC section 6, False for an extension term.
+    base : True for the base model, False for an extension term.
     description : one line, for summaries.
     """
 

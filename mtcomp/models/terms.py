@@ -1,11 +1,11 @@
-"""Error terms beyond the base model (SPEC section 6), each a symbolic extension of the chain.
+"""Error terms beyond the base model, each a symbolic extension of the chain.
 
 A term adds parameters and acts on the chain in one or more of three places:
 
 * ``axis_errors``: contributions to the six component errors of one axis (backlash, periodic screw
   error, feed-dependent offset, rotary error motions, angle gains);
 * ``abbe_centres``: shifts of the centre about which an angular error of a linear axis turns its
-  carriage (the instantaneous rotation centre of seed 000, eqs. 2-4);
+  carriage (the instantaneous rotation centre of Yang et al. (2020), eqs. 2-4);
 * ``tip_offset``: a translation of the tool tip in the workpiece frame (thermal drift).
 
 Terms read block context (feed, approach directions, time, temperatures ...) from ``ctx``, a dict of
@@ -72,7 +72,7 @@ class Backlash(Term):
     """Lost motion of an axis: its positioning error steps by ``BL_<axis>`` with the approach direction.
 
     ``E<axis><axis> += BL/2 * dir``, so that mean(up) - mean(down) = BL, the ISO 230-2 reversal value B
-    (B is mean up minus mean down). Rotary axes: seed 002's rotary backlash, in urad.
+    (B is mean up minus mean down). Rotary axes: the rotary backlash of Pi et al. (2017), in urad.
 
     ``profile=True`` (linear axes on a spline basis): the reversal varies along the axis, as a
     bidirectional pitch table holds it: ``BL(s) = BL + sum_j BL_<axis>_b<j> phi_j(s)`` with the zero-mean
@@ -174,12 +174,13 @@ class FeedOffset(Term):
 
 @dataclass(frozen=True)
 class AbbeIRC(Term):
-    """Abbe errors about the instantaneous rotation centre (IRC) of a linear axis (seed 000, eqs. 2-4).
+    """Abbe errors about the instantaneous rotation centre (IRC) of a linear axis (Yang et al. (2020),
+    eqs. 2-4).
 
-    The base model turns each carriage about its reference point (the nominal Abbe arm). Seed 000 shows
-    that the worktable turns about a centre that moves with position and feed. For each angular error
-    ``E<a><axis>`` (a in ``angles``), the centre is shifted, in the two coordinates perpendicular to
-    the rotation, by
+    The base model turns each carriage about its reference point (the nominal Abbe arm). Yang et al.
+    (2020) show that the worktable turns about a centre that moves with position and feed. For each
+    angular error ``E<a><axis>`` (a in ``angles``), the centre is shifted, in the two coordinates
+    perpendicular to the rotation, by
 
         o = IRC_<a><axis>_<c>0 + IRC_<a><axis>_<c>_s * s/(1 m) + IRC_<a><axis>_<c>_f * feed/(1 m/min)
 
@@ -189,9 +190,9 @@ class AbbeIRC(Term):
     also needs ``angle_feed``: ``E<a><axis> += AF_<a><axis> * feed/(1 m/min)`` (rad), the constant
     part times its gain, the same all along the axis.
 
-    Seed 000 eq. (3) gives the yaw Abbe error about O_p as (-eps_z * Y', eps_z * X', 0), i.e. the
-    small-angle form of the exact rotation used here; eq. (4)'s last row prints ``eps * Y_B3`` where
-    ``eps_x * Y_B3`` is meant (roll about X).
+    Yang et al. (2020), eq. (3), give the yaw Abbe error about O_p as (-eps_z * Y', eps_z * X', 0),
+    i.e. the small-angle form of the exact rotation used here; eq. (4)'s last row prints
+    ``eps * Y_B3`` where ``eps_x * Y_B3`` is meant (roll about X).
     """
 
     axis: str
@@ -271,9 +272,9 @@ class AbbeIRC(Term):
 
 @dataclass(frozen=True)
 class RotaryErrorMotion(Term):
-    """Error motion of a rotary axis beyond its location errors (seed 003): eccentricity, wobble,
-    axial run-out, as a Fourier series of the angle without constant term (the constant is a location
-    error). ``component`` is the ISO 230-1 name, e.g. 'EXC', 'EYC' (radial), 'EZC' (axial),
+    """Error motion of a rotary axis beyond its location errors (Tan et al. (2026)): eccentricity,
+    wobble, axial run-out, as a Fourier series of the angle without constant term (the constant is a
+    location error). ``component`` is the ISO 230-1 name, e.g. 'EXC', 'EYC' (radial), 'EZC' (axial),
     'EAC', 'EBC' (tilt); parameters ``<component>_c<k>``, ``<component>_s<k>``, k = 1..order."""
 
     component: str
@@ -369,7 +370,7 @@ class ThermalDrift(Term):
 
 @dataclass(frozen=True)
 class ChannelDrift(Term):
-    """Drift of the named displacement channels of thermal files (SPEC 3.5), linear in drivers.
+    """Drift of the named displacement channels of thermal files (docs/measurements.md), linear in drivers.
 
     For channels that are not tool-tip directions (a thermal file's ``disp_ch1_um`` ...), each channel
     drifts by ``sum_f TD_<channel>_<f> * feature_f`` (um per unit of feature, see

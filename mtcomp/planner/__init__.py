@@ -1,4 +1,4 @@
-"""Compensation planner: bounded per-block axis corrections (issue 5, docs/planner.md).
+"""Compensation planner: bounded per-block axis corrections (docs/planner.md).
 
 Public names:
 

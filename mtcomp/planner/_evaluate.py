@@ -23,6 +23,7 @@ import threading
 import numpy as np
 
 from ..models.evaluate import evaluate
+from ..models.terms import ChannelDrift, ThermalDrift
 from ._nominal import nominal_pose, nominal_pose_jacobian
 from .problem import CompensationProblem
 
@@ -66,6 +67,12 @@ class Evaluator:
         self.evaluations = 0
         self._count_lock = threading.Lock()     # parts of a chunk are evaluated in threads
         self._factor = problem.fitted.covariance_factor()
+        #: the parameters with the drift terms' at zero: the datum was probed without drift
+        self.p_datum = self.p.copy()
+        for term in self.model.terms:
+            if isinstance(term, (ThermalDrift, ChannelDrift)):
+                for spec in term.param_specs(self.machine):
+                    self.p_datum[self.model.param_names.index(spec.name)] = 0.0
 
     def _count(self, n: int):
         with self._count_lock:
@@ -76,15 +83,21 @@ class Evaluator:
         model's data held still (FittedModel.clamp)."""
         return evaluate(self.model, "deviation_function", self.problem.fitted.clamp(q)[0], self.p, ctx)[0]
 
-    def correction_sd_um(self, q, ctx) -> np.ndarray:
-        """(n,) standard error (um) of the correction at q: the largest of the tip deviation's three
-        components' standard errors under the model's covariance (evaluated where
-        :meth:`_deviation` evaluates it); NaN when the model carries no uncertainty."""
+    def correction_sd_um(self, q, ctx, datum=None) -> np.ndarray:
+        """(n,) standard error (um) of the correction at q: the largest of the three components'
+        standard errors of the tip deviation (less the deviation at the part's datum, as
+        :meth:`datum_reference` takes it, when ``datum`` (n, na) is given) under the model's
+        covariance, evaluated where :meth:`_deviation` evaluates it; NaN when the model carries no
+        uncertainty."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         if self._factor is None:
             return np.full(q.shape[0], np.nan)
         idx, F = self._factor
-        J = evaluate(self.model, "tip_pjacobian_function", self.problem.fitted.clamp(q)[0], self.p, ctx)[0]
+        fitted = self.problem.fitted
+        J = evaluate(self.model, "tip_pjacobian_function", fitted.clamp(q)[0], self.p, ctx)[0]
+        if datum is not None:
+            J = J - evaluate(self.model, "tip_pjacobian_function", fitted.clamp(datum)[0], self.p_datum,
+                             self._datum_context(ctx))[0]
         G = J[:, :, idx] @ F                        # (n, 3, rank), mm
         return np.sqrt(np.max(np.einsum("nij,nij->ni", G, G), axis=1)) * 1e3
 
@@ -150,11 +163,40 @@ class Evaluator:
         tip, axis = nominal_pose(self.machine, q)
         return tip if self.rows == 3 else np.concatenate([tip, axis], axis=1)
 
-    def residual_jacobian_rows(self, q, ctx):
+    def residual_jacobian_rows(self, q, ctx, reference=None):
         """(b, A, target, orientation_rows) of the uncorrected blocks (x = 0): one nominal Jacobian
-        for both."""
+        for both. ``reference`` (n, rows): what the target takes beside the nominal pose, the
+        deviation at the part's datum (:meth:`datum_reference`); None: nothing."""
         b, A, target, Jn = self.residual_jacobian(q, None, ctx, _with_nominal=True)
+        if reference is not None:
+            target = target + reference
+            b = b - reference * self.S
         return b, A, target, self.orientation_rows(q, Jn)
+
+    def datum_reference(self, datum, ctx) -> np.ndarray:
+        """(n, rows): the model's tip deviation at the part's datum (machine positions (n, na) of the
+        program's origin) as the machinist probed it: with the block's tool length, the model's
+        reference conditions otherwise (every approach direction unknown, the mean of both; feed 0),
+        and no thermal drift (the drift terms' own zero, the start of the thermal record: a drift
+        while the program runs is corrected, not taken for part of the probed offset), as export's
+        tables take their reference; zero tool-axis rows. This much of every block's deviation is
+        already in the probed offset: a block's correction removes its deviation less this (what a
+        laser's zero or a constant left open cannot change)."""
+        datum = np.atleast_2d(np.asarray(datum, dtype=float))
+        out = np.zeros((datum.shape[0], self.rows))
+        qc = self.problem.fitted.clamp(datum)[0]
+        out[:, :3] = evaluate(self.model, "deviation_function", qc, self.p_datum,
+                              self._datum_context(ctx))[0][:, :3]
+        return out
+
+    def _datum_context(self, ctx) -> np.ndarray:
+        """The model's own reference context with the tool length of ctx's blocks."""
+        ctx = np.atleast_2d(ctx)
+        c = self.model.default_context(ctx.shape[0])
+        if "tool_length" in self.model.context_names:
+            j = self.model.context_names.index("tool_length")
+            c[:, j] = ctx[:, j]
+        return c
 
     def residual_jacobian(self, q, x, ctx, target=None, _with_nominal=False):
         """Weighted residual b (n, rows) and Jacobian A (n, rows, n_axes) at corrections x (n, n_axes)

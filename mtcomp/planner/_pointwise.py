@@ -1,11 +1,12 @@
-"""Per-block solutions without bounds: the seed-001 pseudo-inverse step and its Newton iteration.
+"""Per-block solutions without bounds: the pseudo-inverse step of Qi and Yang (2016) and its Newton
+iteration.
 
-Seed 001 (eqs. 27-30): the machine Jacobian J maps axis motions to the tool's motion; the axis
-corrections that cancel an error E are ``dq = (J^T J)^-1 J^T E`` subtracted from the nominal motion,
-i.e. ``dq = -pinv(J) e`` with e the deviation (actual minus nominal). Here J is the Jacobian of the
+Qi and Yang (2016), eqs. 27-30: the machine Jacobian J maps axis motions to the tool's motion; the
+axis corrections that cancel an error E are ``dq = (J^T J)^-1 J^T E`` subtracted from the nominal
+motion, i.e. ``dq = -pinv(J) e`` with e the deviation (actual minus nominal). Here J is the Jacobian of the
 *actual* tool pose (nominal kinematics plus the error model's J_q) and e is the weighted residual of
 :mod:`mtcomp.planner._evaluate` (tip in um, tool axis in urad on 5-axis machines, where the tool-axis
-deviation vector takes the place of the seed's three small rotation angles). Both minimise the
+deviation vector takes the place of the paper's three small rotation angles). Both minimise the
 objective of :mod:`mtcomp.planner._evaluate`: the tool-axis rows count only in the directions the
 rotary axes can turn the tool at the block (``orientation_rows``), so at a singular pose they do not
 turn a rotary axis after a deviation it cannot remove.
@@ -68,8 +69,8 @@ class Linearization:
 
 
 def pinv_step(A: np.ndarray, b: np.ndarray, lam=0.0) -> np.ndarray:
-    """Seed 001 eqs. 29-30: the correction ``-(A^T A)^-1 A^T b`` of each block (the normal equations
-    of eq. 29; with ``lam`` > 0 regularised: ``-(A^T A + diag(lam))^-1 A^T b``, which stays finite at
+    """Qi and Yang (2016), eqs. 29-30: the correction ``-(A^T A)^-1 A^T b`` of each block (the normal
+    equations of eq. 29; with ``lam`` > 0 regularised: ``-(A^T A + diag(lam))^-1 A^T b``, which stays finite at
     singular poses). A (n, rows, na), b (n, rows), lam a number or (na,)."""
     if np.all(np.asarray(lam) <= 0):
         return -np.einsum("nij,nj->ni", np.linalg.pinv(A), b)
@@ -81,17 +82,18 @@ def regularized_step(A: np.ndarray, b: np.ndarray, x: np.ndarray, lam) -> np.nda
     return normal_step(A, b, x, lam)
 
 
-def solve_pinv(ev: Evaluator, q: np.ndarray, ctx: np.ndarray, lam=0.0) -> Linearization:
-    """One seed-001 step per block at the nominal position (no iteration)."""
+def solve_pinv(ev: Evaluator, q: np.ndarray, ctx: np.ndarray, lam=0.0, reference=None) -> Linearization:
+    """One pseudo-inverse step (Qi and Yang 2016) per block at the nominal position (no iteration).
+    reference: see :meth:`Evaluator.residual_jacobian_rows`."""
     n, na = q.shape
-    b0, A0, target, M = ev.residual_jacobian_rows(q, ctx)
+    b0, A0, target, M = ev.residual_jacobian_rows(q, ctx, reference)
     x = pinv_step(objective_jacobian(M, A0), objective_residual(M, b0), lam)
     return Linearization(x, np.zeros_like(x), b0, A0, b0, target, np.ones(n, int), np.ones(n, bool), M)
 
 
 def solve_newton(ev: Evaluator, q: np.ndarray, ctx: np.ndarray, lam, tol: float,
-                 max_iterations: int) -> Linearization:
-    """Per-block Newton iteration of the (regularised) seed-001 step until the step is below tol.
+                 max_iterations: int, reference=None) -> Linearization:
+    """Per-block Newton iteration of the (regularised) pseudo-inverse step until the step is below tol.
 
     Every block is iterated on its own; blocks that have converged are not evaluated again. The
     Jacobian is kept while the step shrinks at least tenfold per iteration (the chord method: the
@@ -100,7 +102,7 @@ def solve_newton(ev: Evaluator, q: np.ndarray, ctx: np.ndarray, lam, tol: float,
     """
     n, na = q.shape
     x = np.zeros((n, na))
-    b, A, target, M = ev.residual_jacobian_rows(q, ctx)
+    b, A, target, M = ev.residual_jacobian_rows(q, ctx, reference)
     b0 = b.copy()
     x_lin = x.copy()
     iterations = np.ones(n, int)

@@ -219,7 +219,7 @@ class Planner:
             pinned |= sd_um > limit            # NaN (not evaluated) compares False
         return pinned
 
-    def _sd_um(self, q, ctx, unknown, outside):
+    def _sd_um(self, q, ctx, unknown, outside, datum=None):
         """(n,) the standard error of each block's correction (um), NaN for blocks that are not
         corrected anyway (an unknown axis, outside the support) and when no limit is asked."""
         sd = np.full(q.shape[0], np.nan)
@@ -229,29 +229,37 @@ class Planner:
         if not self.options.extrapolate:
             todo &= ~outside.any(axis=1)
         if todo.any():
-            sd[todo] = self.ev.correction_sd_um(q[todo], ctx[todo])
+            sd[todo] = self.ev.correction_sd_um(q[todo], ctx[todo], None if datum is None else datum[todo])
         return sd
 
-    def _solve_free(self, q, ctx) -> Linearization:
-        parts = split_rows(self._solve_free_part, q.shape[0], self._split, q, ctx)
+    def _solve_free(self, q, ctx, reference) -> Linearization:
+        parts = split_rows(self._solve_free_part, q.shape[0], self._split, q, ctx, reference)
         return parts[0] if len(parts) == 1 else Linearization.concatenate(parts)
 
-    def _solve_free_part(self, q, ctx) -> Linearization:
+    def _solve_free_part(self, q, ctx, reference) -> Linearization:
         o = self.options
         if o.method == "pinv":
-            return solve_pinv(self.ev, q, ctx, self.problem.regularization_weights)
+            return solve_pinv(self.ev, q, ctx, self.problem.regularization_weights, reference)
         return solve_newton(self.ev, q, ctx, self.problem.regularization_weights, o.step_tol_um,
-                            o.max_iterations)
+                            o.max_iterations, reference)
+
+    def _reference(self, datum, ctx) -> np.ndarray:
+        """(n, rows) the deviation at the part's datum of each block (Evaluator.datum_reference);
+        zeros without a datum (the raw deviation is corrected)."""
+        if datum is None:
+            return np.zeros((ctx.shape[0], self.ev.rows))
+        return self.ev.datum_reference(datum, ctx)
 
     def _check_travel(self, q, line, known=None):
         self.machine.check_travel(q, line, known, self.source)
 
-    def nodes_from_arrays(self, q, feed=None, dirs=None, rapid=None, line=None):
+    def nodes_from_arrays(self, q, feed=None, dirs=None, rapid=None, line=None, datum=None):
         """Nodes for blocks given directly (no segments, so no internal nodes).
 
         q : (n, na) nominal positions, mm and rad. feed : (n,) mm/min or None (model default).
         dirs : (n, na) approach directions +-1 or None (unknown). rapid : (n,) bool or None.
-        line : (n,) labels or None (1..n).
+        line : (n,) labels or None (1..n). datum : (n, na) machine positions of the part's datum
+        (the corrections are referenced to it), or None (the raw deviation is corrected).
         """
         q = self.bounds.snap(np.atleast_2d(np.asarray(q, dtype=float)))
         n = q.shape[0]
@@ -267,10 +275,11 @@ class Planner:
         unknown = np.zeros(q.shape, bool)
         outside = self._outside(q, ~unknown)
         ctx = self._context(feed, dirs, n)
-        sd = self._sd_um(q, ctx, unknown, outside)
+        datum = None if datum is None else np.broadcast_to(np.asarray(datum, dtype=float), q.shape)
+        sd = self._sd_um(q, ctx, unknown, outside, datum)
         nodes = NodeSet(q, ctx, exempt, line, np.zeros(n, bool), rapid, unknown, outside,
                         self._pinned(unknown, outside, sd), sd)
-        lin = self._solve_free(nodes.q, nodes.context)
+        lin = self._solve_free(nodes.q, nodes.context, self._reference(datum, ctx))
         if n:
             self._last_end = (nodes.q[-1], lin.x[-1])
         return nodes, lin
@@ -295,9 +304,10 @@ class Planner:
             self._after_cycle = bool(cycle[-1])
         unknown = ~known
         outside = self._outside(end, known)
-        sd = self._sd_um(end, ctx, unknown, outside)
+        sd = self._sd_um(end, ctx, unknown, outside, chunk.datum)
         pinned = self._pinned(unknown, outside, sd)
-        lin_end = self._solve_free(end, ctx)
+        ref = self._reference(chunk.datum, ctx)
+        lin_end = self._solve_free(end, ctx, ref)
         first = self._last_end is None
         exempt = (rapid | cycle) & (not self.problem.step_across_rapids)
         if first and nrows:
@@ -312,11 +322,12 @@ class Planner:
             if first:
                 s0 = self.bounds.snap(chunk.start[:1])
                 start[0] = s0[0]
-                x_start[0] = self._solve_free(s0, ctx[:1]).x[0]
+                x_start[0] = self._solve_free(s0, ctx[:1], ref[:1]).x[0]
             else:
                 start[0], x_start[0] = self._last_end
             self._last_end = (end[-1], lin_end.x[-1])
-        inner = self._subdivide(start, end, x_start, lin_end.x, ctx, rapid | pinned | cycle | no_line)
+        inner = self._subdivide(start, end, x_start, lin_end.x, ctx, ref,
+                                rapid | pinned | cycle | no_line)
         counts = np.ones(nrows, np.int64)
         if inner is None:
             nodes = NodeSet(end, ctx, exempt, np.asarray(chunk.line), np.zeros(nrows, bool), rapid,
@@ -342,7 +353,7 @@ class Planner:
         lin = Linearization.concatenate([lin_i, lin_end]).take(order)
         return nodes, lin, counts
 
-    def _subdivide(self, start, end, x_start, x_end, ctx, skip):
+    def _subdivide(self, start, end, x_start, x_end, ctx, ref, skip):
         """Internal nodes (rows, t, q, lin) where the interpolated correction misses the midpoint.
         skip : (n,) bool, rows never subdivided (rapids, pinned blocks, cycles, moves without a start)."""
         o = self.options
@@ -351,24 +362,24 @@ class Planner:
         moving = ~skip & (row_max_abs(end - start) > 0)
         rows = np.flatnonzero(moving)
         if rows.size == moving.size:      # every row moves (the common case): no copies
-            s0, e0, x0, x1, c = start, end, x_start, x_end, ctx
+            s0, e0, x0, x1, c, rf = start, end, x_start, x_end, ctx, ref
         else:
-            s0, e0, x0, x1, c = start[rows], end[rows], x_start[rows], x_end[rows], ctx[rows]
+            s0, e0, x0, x1, c, rf = start[rows], end[rows], x_start[rows], x_end[rows], ctx[rows], ref[rows]
         t0, t1 = np.zeros(rows.size), np.ones(rows.size)
         found_rows, found_t, found_q, found_lin = [], [], [], []
         for _depth in range(o.max_subdivision_depth):
             if rows.size == 0:
                 break
             tm = 0.5 * (t0 + t1)
-            parts = split_rows(self._midpoint_miss, rows.size, self._split, s0, e0, tm, x0, x1, c)
+            parts = split_rows(self._midpoint_miss, rows.size, self._split, s0, e0, tm, x0, x1, c, rf)
             err = np.concatenate([p[0] for p in parts]) if len(parts) > 1 else parts[0][0]
             hit = err > o.subdivide_tol_um
             if not np.any(hit):
                 break
             qm = np.concatenate([p[1] for p in parts]) if len(parts) > 1 else parts[0][1]
-            rows, t0, t1, x0, x1, tm, qm, c, s0, e0 = (
-                a[hit] for a in (rows, t0, t1, x0, x1, tm, qm, c, s0, e0))
-            lin = self._solve_free(qm, c)
+            rows, t0, t1, x0, x1, tm, qm, c, rf, s0, e0 = (
+                a[hit] for a in (rows, t0, t1, x0, x1, tm, qm, c, rf, s0, e0))
+            lin = self._solve_free(qm, c, rf)
             found_rows.append(rows)
             found_t.append(tm)
             found_q.append(qm)
@@ -377,17 +388,19 @@ class Planner:
             t0, t1 = np.concatenate([t0, tm]), np.concatenate([tm, t1])
             x0, x1 = np.concatenate([x0, lin.x]), np.concatenate([lin.x, x1])
             s0, e0, c = np.concatenate([s0, s0]), np.concatenate([e0, e0]), np.concatenate([c, c])
+            rf = np.concatenate([rf, rf])
         if not found_rows:
             return None
         return (np.concatenate(found_rows), np.concatenate(found_t), np.concatenate(found_q),
                 Linearization.concatenate(found_lin))
 
-    def _midpoint_miss(self, start, end, t, x0, x1, c):
+    def _midpoint_miss(self, start, end, t, x0, x1, c, ref):
         """(err (n,), qm (n, na)): the node at parameter t (n,) of the moves start -> end (n, na),
         rounded to the grid, and how far (weighted, um / urad) the correction interpolated between
         the corrections x0 and x1 of the ends misses there."""
         qm = self.bounds.snap(start + t[:, None] * (end - start))
         target, M = self.ev.target_and_orientation_rows(qm)
+        target = target + ref
         # as the objective counts it: a tool-axis deviation no rotary axis can remove there is
         # missed by any correction and says nothing about the interpolation
         miss = objective_residual(M, self.ev.residual(qm, 0.5 * (x0 + x1), c, target))

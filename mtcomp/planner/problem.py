@@ -27,7 +27,7 @@ from ..models.model_file import FittedModel
 DEFAULT_MAX_CORRECTION_SD_UM = 2.0
 
 METHODS = ("qp", "pinv", "newton")
-#: output resolution of SPEC section 4: 4 decimals of mm and deg; 5 decimals of inch
+#: output resolution (docs/toolpaths.md): 4 decimals of mm and deg; 5 decimals of inch
 MM_GRID = 1e-4
 DEG_GRID = 1e-4
 INCH_GRID_MM = 25.4e-5
@@ -159,7 +159,8 @@ class PlannerOptions:
     """How to solve a :class:`CompensationProblem`.
 
     method : 'qp' (default: bounded optimisation over the whole program, OSQP in windows), 'pinv'
-        (seed 001, eqs. 27-30: one pseudo-inverse step per block, then bounds enforced by clamping),
+        (Qi and Yang (2016), eqs. 27-30: one pseudo-inverse step per block, then bounds enforced by
+        clamping),
         'newton' (that step iterated to convergence per block, then bounds enforced by clamping).
     window, overlap : blocks per OSQP window and blocks of look-ahead solved with it but committed
         by the next window (qp only). Memory stays flat for any program length.

@@ -141,8 +141,8 @@ class VirtualMachine:
 
     def measure(self, plan: Plan, path: str | os.PathLike | None = None, noise: bool = True
                 ) -> MeasurementSet:
-        """Simulate one file: write it to ``path`` (SPEC CSV; default: a temporary file) and return the
-        measurement set read back from it."""
+        """Simulate one file: write it to ``path`` (measurement CSV; default: a temporary file) and return
+        the measurement set read back from it."""
         with tempfile.TemporaryDirectory(prefix="mtcomp-sim-") as tmp:
             template = Path(tmp) / f"{plan.name}.csv"
             cols = dict(plan.columns)

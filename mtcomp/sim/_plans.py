@@ -1,9 +1,9 @@
 """Plans: what a simulated measurement file measures, in which order, at which feed and when.
 
-Each ``*_plan`` function returns a :class:`Plan` (columns in SPEC file units, the measured columns left
-out); :class:`~mtcomp.sim.VirtualMachine` fills the readings. Times ``t_s`` advance with moves at feed
-and dwells. Plan columns are in SPEC file units (mm, deg, mm/min, s); arguments in the units their
-names and docstrings give.
+Each ``*_plan`` function returns a :class:`Plan` (columns in the file units of docs/measurements.md, the
+measured columns left out); :class:`~mtcomp.sim.VirtualMachine` fills the readings. Times ``t_s`` advance
+with moves at feed and dwells. Plan columns are in file units (mm, deg, mm/min, s); arguments in the units
+their names and docstrings give.
 """
 from __future__ import annotations
 
@@ -116,7 +116,7 @@ def iso230_2_plan(machine: Machine, axis: str, targets=None, n_runs: int = 5,
                   components: tuple[str, ...] | None = None, static_q=None, optic_mm=(0.0, 0.0, 0.0),
                   feed_mm_min: float = 1000.0, dwell_s: float = 3.0, overrun: float | None = None,
                   start_s: float = 0.0, name: str | None = None) -> Plan:
-    """Laser runs along one axis (SPEC 3.2), ISO 230-2 standard cycle: each run goes up through every
+    """Laser runs along one axis (a laser file), ISO 230-2 standard cycle: each run goes up through every
     target (dir +1) from below the first, then down (dir -1) from beyond the last.
 
     axis : moving axis. targets : (m,) mm or rad (default: :func:`_default_targets`). components :
@@ -177,8 +177,8 @@ def iso230_2_plan(machine: Machine, axis: str, targets=None, n_runs: int = 5,
 def rotary_laser_plan(machine: Machine, axis: str = "C", targets_deg=None, n_runs: int = 5,
                       feed_deg_min: float = 1800.0, dwell_s: float = 4.0, overrun_deg: float = 2.0,
                       static_q=None, start_s: float = 0.0, name: str | None = None) -> Plan:
-    """Seed 002: angular positioning (E<axis><axis>, e.g. ECC) of a rotary axis read by a laser and a
-    rotary indexer, both approach directions, ``n_runs`` runs (default targets every 30 deg)."""
+    """Pi et al. (2017): angular positioning (E<axis><axis>, e.g. ECC) of a rotary axis read by a laser
+    and a rotary indexer, both approach directions, ``n_runs`` runs (default targets every 30 deg)."""
     if axis not in machine.axis_names or not machine.axis(axis).is_rotary:
         raise InputError(f"machine {machine.name!r} has no rotary axis {axis}")
     targets = None if targets_deg is None else np.radians(np.asarray(targets_deg, dtype=float))
@@ -192,7 +192,7 @@ def volumetric_points_plan(machine: Machine, n_per_axis=(5, 4, 3), tool_lengths_
                            feed_mm_min: float = 2000.0, dwell_s: float = 2.0, n_runs: int = 1,
                            measured=("dx_um", "dy_um", "dz_um"), start_s: float = 0.0,
                            name: str = "points") -> Plan:
-    """Deviations at commanded poses on a 3-D grid (SPEC 3.1): a laser tracker / R-test campaign.
+    """Deviations at commanded poses on a 3-D grid (a points file): a laser tracker / R-test campaign.
 
     n_per_axis : grid points along X, Y, Z (inside the travel shrunk by ``margin`` of each side).
     tool_lengths_mm : tool lengths (default the machine's and 100 mm longer); the grid is measured
@@ -273,7 +273,7 @@ def ballbar_circles_plan(machine: Machine, radius_mm: float = 100.0, centre_mm=N
                          planes=("XY", "YZ", "ZX"), senses=("ccw", "cw"), n_points: int = 180,
                          feed_mm_min: float = 1000.0, n_runs: int = 1, tool_ball_mm=(0.0, 0.0, 0.0),
                          start_s: float = 0.0, name: str = "ballbar_circles") -> Plan:
-    """ISO 230-4 circular tests with a ball bar (SPEC 3.3): one full circle per plane and sense.
+    """ISO 230-4 circular tests with a ball bar (a ballbar file): one full circle per plane and sense.
 
     centre_mm : (3,) table-ball centre, workpiece frame (default: middle of the linear travel). The
     tool ball sits at ``tool_ball_mm`` from the nominal tool tip; the commanded tip runs on a circle of
@@ -328,10 +328,10 @@ def ballbar_circles_plan(machine: Machine, radius_mm: float = 100.0, centre_mm=N
 def three_sphere_plan(machine: Machine, bar_mm: float = 100.0, heights_mm=(100.0, 200.0),
                       angles_deg=None, n_runs: int = 3, senses=(1, -1), feed_deg_min: float = 720.0,
                       dwell_s: float = 2.0, start_s: float = 0.0, name: str = "three_sphere") -> Plan:
-    """Seed 003 measurement: a ball bar of length ``bar_mm`` from a table ball on the C axis at each
-    height h (workpiece frame, above the C axis point) to a tool ball at ``bar_mm`` along X, then Y,
-    then Z (six set-ups); in each set-up only C moves, through ``angles_deg`` (default every 10 deg)
-    up (dir_c +1) and back down (-1), ``n_runs`` times. The tool ball is the nominal tool tip.
+    """The measurement of Tan et al. (2026): a ball bar of length ``bar_mm`` from a table ball on the C axis
+    at each height h (workpiece frame, above the C axis point) to a tool ball at ``bar_mm`` along X, then Y,
+    then Z (six set-ups); in each set-up only C moves, through ``angles_deg`` (default every 10 deg) up
+    (dir_c +1) and back down (-1), ``n_runs`` times. The tool ball is the nominal tool tip.
     """
     if "C" not in machine.axis_names:
         raise InputError(f"the three-sphere method needs a C axis; machine {machine.name!r} "
@@ -377,7 +377,7 @@ def thermal_plan(machine: Machine, duration_h: float = 8.0, interval_s: float = 
                  spindle_profile=((0.0, 0.0), (1800.0, 6000.0), (4 * 3600.0, 0.0)),
                  channels=("x", "y", "z"), temperatures: dict | None = None, setup_q=None,
                  start_s: float = 0.0, name: str = "thermal") -> Plan:
-    """A fixed set-up read every ``interval_s`` for ``duration_h`` (SPEC 3.5, ISO 230-3 style).
+    """A fixed set-up read every ``interval_s`` for ``duration_h`` (a thermal file, ISO 230-3 style).
 
     spindle_profile : ((t_s, rpm), ...) steps of the spindle speed (relative to the plan's start).
     channels : displacement channels (``x``, ``y``, ``z`` read the tool tip; other names are
@@ -402,9 +402,10 @@ def velocity_plan(machine: Machine, axis: str = "X", start_mm: float | None = No
                   length_mm: float = 200.0, step_mm: float = 5.0, n_runs: int = 3,
                   feeds_mm_min=(180.0, 240.0, 300.0), m_xy=(50.0, 150.0), n_xy=(250.0, 100.0),
                   start_s: float = 0.0, name: str = "velocity") -> Plan:
-    """Seed 000 experiment: the table moves along ``axis`` over ``length_mm`` in ``step_mm`` steps
-    (41 positions for 200/5), ``n_runs`` repeats at each feed; at each position the velocities of the
-    table points M and N (coordinates ``m_xy``, ``n_xy`` in the carriage frame, XY) are read.
+    """The experiment of Yang et al. (2020): the table moves along ``axis`` over ``length_mm`` in
+    ``step_mm`` steps (41 positions for 200/5), ``n_runs`` repeats at each feed; at each position the
+    velocities of the table points M and N (coordinates ``m_xy``, ``n_xy`` in the carriage frame, XY) are
+    read.
     """
     if axis not in ("X", "Y") or axis not in machine.axis_names:
         raise InputError(f"velocity plans move axis X or Y of the machine, not {axis!r}")
@@ -432,7 +433,7 @@ def velocity_plan(machine: Machine, axis: str = "X", start_mm: float | None = No
 
 def cmm_plan(points_mm, normals, program, tool_radius_mm: float, name: str = "cmm",
              **options) -> Plan:
-    """A machined part measured on a CMM (SPEC 3.4): nominal surface points (n, 3) mm with outward
+    """A machined part measured on a CMM (a cmm file): nominal surface points (n, 3) mm with outward
     unit normals (n, 3), cut by ``program`` (G-code path) with a ball-end tool of ``tool_radius_mm``.
     Extra ``options`` go to the cmm measurement model (``sample_mm``, ``max_gap_mm``, ``tool_mm``)."""
     pts = np.asarray(points_mm, dtype=float)
@@ -445,11 +446,11 @@ def cmm_plan(points_mm, normals, program, tool_radius_mm: float, name: str = "cm
 
 
 def standard_campaign(machine: Machine, n_runs: int = 1, thermal: bool = False) -> list[Plan]:
-    """A campaign that determines the base model (SPEC 6) up to its known equivalences (a straightness
+    """A campaign that determines the base model up to its known equivalences (a straightness
     slope and the matching squareness): for each linear axis a laser set-up of each of its six
     components, a volumetric points grid with two tool lengths, ISO 230-4 circles, and for each rotary
-    axis a laser positioning test (plus, with a C axis, the seed 003 three-sphere test). ``n_runs``
-    laser runs per set-up; ``thermal`` adds an 8 h thermal test."""
+    axis a laser positioning test (plus, with a C axis, the three-sphere test of Tan et al. (2026)).
+    ``n_runs`` laser runs per set-up; ``thermal`` adds an 8 h thermal test."""
     plans = []
     for ax in machine.linear_axes:
         a = ax.name

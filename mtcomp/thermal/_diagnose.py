@@ -65,7 +65,7 @@ def drift_terms_and_values(fit, axes: dict):
 
 def diagnose_thermal(machine, data, channel_axes: dict | None = None, progress=None):
     """Diagnosis (mtcomp.diagnose) of one thermal file: the drift model chosen by forward-chaining
-    validation, its report (SPEC 6 keys) and the model (base model at zero plus the drift terms)."""
+    validation, its report (the keys of docs/diagnose.md) and the model (base model at zero plus the drift terms)."""
     from ..diagnose._analysis import Noise
     from ..diagnose._diagnose import Diagnosis, Finding, _r
     t0 = time.perf_counter()

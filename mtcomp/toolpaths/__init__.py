@@ -6,7 +6,8 @@ Public API (see docs/toolpaths.md):
 * :func:`write_corrected`: the program written back with corrected (or nominal) coordinates.
 * :mod:`.offsets`: work offsets and tool lengths (:func:`~.offsets.load_setup`).
 * :func:`read_program`, :class:`Program`, :class:`MotionBlock`: a small program in memory.
-* :mod:`.parts`: the seed-001 bowl, ISO 230-4 circles, the seed-003 three-sphere test, a cone frustum.
+* :mod:`.parts`: the bowl of Qi and Yang (2016), ISO 230-4 circles, the three-sphere test of Tan et al.
+  (2026), a cone frustum.
 * :func:`inverse_kinematics`, :func:`fit_rotary_travel`: tool pose -> axis positions.
 """
 from .gcode import (MotionBlock, ModalState, Program, SegmentChunk, iter_segment_chunks,

@@ -147,6 +147,10 @@ class SegmentChunk:
         the machine does not come from ``start`` along a known line.
     tool_length : (n,) float, mm, tool length of the block for the error model (nan: the machine's),
         or None; set by the caller that knows the tool lengths (not read from the program).
+    datum : (n, na) float, the machine axis positions of the program's origin (its work offset) at
+        the row, or None (the machine zero); set by the caller that knows the work offsets. The
+        corrections are referenced to it (mtcomp.planner: what the machinist's probing of the
+        part's datum already removes is not corrected again).
     """
 
     line: np.ndarray
@@ -161,6 +165,7 @@ class SegmentChunk:
     cycle: np.ndarray | None = None
     jump: np.ndarray | None = None
     tool_length: np.ndarray | None = None
+    datum: np.ndarray | None = None
 
     FIELDS = ("line", "start", "end", "feed", "dirs", "rapid", "from_arc", "known", "frame", "cycle",
               "jump")

@@ -62,7 +62,8 @@ class ProgramSetup:
     def apply(self, chunk: SegmentChunk) -> tuple[SegmentChunk, np.ndarray]:
         """The chunk in machine axis positions, and the (n, na) offsets added to each row.
 
-        The returned chunk carries ``tool_length`` (mm per row; nan: the machine's tool length)."""
+        The returned chunk carries ``tool_length`` (mm per row; nan: the machine's tool length) and
+        ``datum`` (the machine position of the program's origin per row: its work offset)."""
         wcs = frame_wcs(chunk.frame)
         tool = frame_tool(chunk.frame)
         self.used_wcs.update(np.unique(wcs).tolist())
@@ -71,7 +72,8 @@ class ProgramSetup:
         lengths = np.full(len(chunk), np.nan)
         for h, length in self.tool_lengths.items():
             lengths[tool == h] = length
-        return replace(chunk, start=chunk.start + off, end=chunk.end + off, tool_length=lengths), off
+        return replace(chunk, start=chunk.start + off, end=chunk.end + off, tool_length=lengths,
+                       datum=off), off
 
     def notes(self) -> list[str]:
         """What was assumed for what the program used and nobody said (one line each)."""

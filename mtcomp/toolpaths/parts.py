@@ -1,7 +1,8 @@
-"""Test programs: the seed 001 bowl, ISO 230-4 ballbar circles, the seed 003 three-sphere set-ups and
-a 5-axis cone frustum (NAS 979 / ISO 10791-7 style). Each writer returns the nominal geometry.
+"""Test programs: the bowl of Qi and Yang (2016), ISO 230-4 ballbar circles, the three-sphere set-ups
+of Tan et al. (2026) and a 5-axis cone frustum (NAS 979 / ISO 10791-7 style). Each writer returns the
+nominal geometry (docs/references.md lists the papers).
 
-Conventions: G-code positions are tool-tip positions (SPEC section 2). Lengths mm, angles rad in
+Conventions: G-code positions are tool-tip positions (docs/toolpaths.md). Lengths mm, angles rad in
 Python; the programs carry mm and deg (4 decimals). Every program is written with atomic_write.
 """
 from __future__ import annotations
@@ -50,7 +51,7 @@ def _check_travel(machine: Machine, q: np.ndarray, what: str) -> None:
 
 
 def save_table(path, table: dict[str, np.ndarray]) -> None:
-    """Write a table of columns (equal-length arrays) as CSV (SPEC section 3), atomically."""
+    """Write a table of columns (equal-length arrays) as CSV (docs/measurements.md), atomically."""
     cols = list(table)
     n = len(next(iter(table.values())))
     with atomic_write(path, newline="") as f:
@@ -61,7 +62,7 @@ def save_table(path, table: dict[str, np.ndarray]) -> None:
                          else table[c][i]) for c in cols])
 
 
-# ------------------------------------------------------------------------------- seed 001 bowl
+# ------------------------------------------------------------------ bowl of Qi and Yang (2016)
 BOWL_SIDE_MM = 80.0
 BOWL_DEPTH_MM = 13.8
 
@@ -70,9 +71,9 @@ def bowl_surface(x, y, side: float = BOWL_SIDE_MM, depth: float = BOWL_DEPTH_MM)
     """Height z (mm) of the bowl at (x, y) mm, part frame (centre at the origin, rim at z = 0).
 
     z = -depth (1 - u^2)^2 (1 - v^2)^2 with u = 2x/side, v = 2y/side inside the square, 0 outside:
-    13.8 mm deep at the centre, 0 with zero slope along the edges of the 80 x 80 mm square (seed
-    001, section 4, models the part as a NURBS bowl of these dimensions; this bi-quartic has the
-    same size and is smooth, so tests can check against it).
+    13.8 mm deep at the centre, 0 with zero slope along the edges of the 80 x 80 mm square (Qi and
+    Yang (2016), section 4, model the part as a NURBS bowl of these dimensions; this bi-quartic has
+    the same size and is smooth, so tests can check against it).
     """
     u = np.clip(2.0 * np.asarray(x, float) / side, -1.0, 1.0)
     v = np.clip(2.0 * np.asarray(y, float) / side, -1.0, 1.0)
@@ -116,9 +117,11 @@ def write_bowl_program(path, ball_radius_mm: float = 3.0, stepover_mm: float = 0
                        step_mm: float = 0.5, feed_mm_min: float = 1200.0,
                        origin_mm=(0.0, 0.0, 0.0), safe_z_mm: float = 10.0,
                        side_mm: float = BOWL_SIDE_MM, depth_mm: float = BOWL_DEPTH_MM) -> BowlToolpath:
-    """Write the seed-001 bowl finishing program (zig-zag raster along X, ball-end of radius 3 mm).
+    """Write the bowl finishing program of Qi and Yang (2016) (zig-zag raster along X, ball-end of
+    radius 3 mm).
 
-    Seed 001 section 4 cuts the bowl with a ball-end tool "of radius 3 mm" (半径为 3 mm), the default.
+    Qi and Yang (2016), section 4, cut the bowl with a ball-end tool "of radius 3 mm" (半径为 3 mm),
+    the default.
 
     Contact points lie on a regular (x, y) grid (``step_mm`` along a pass, ``stepover_mm`` between
     passes); the ball centre is the contact point plus ``ball_radius`` along the surface normal,
@@ -146,7 +149,7 @@ def write_bowl_program(path, ball_radius_mm: float = 3.0, stepover_mm: float = 0
     tips = centres - np.array([0.0, 0.0, ball_radius_mm]) + origin
     centres = centres + origin
     contact = contact + origin
-    lines = ["%", "O0001 (SEED 001 BOWL 80 X 80 X 13.8, BALL R%.3f)" % ball_radius_mm,
+    lines = ["%", "O0001 (QI-YANG 2016 BOWL 80 X 80 X 13.8, BALL R%.3f)" % ball_radius_mm,
              "G21 G90 G17", "T1 M6 (BALL END)", "S12000 M3",
              f"G0 Z{origin[2] + safe_z_mm:.4f}",
              f"G0 X{tips[0, 0]:.4f} Y{tips[0, 1]:.4f}",
@@ -167,8 +170,8 @@ _PLANES = {"XY": (17, 0, 1, 2), "ZX": (18, 2, 0, 1), "YZ": (19, 1, 2, 0)}
 class CircleTest:
     """An ISO 230-4 circular test: the program and the nominal data-capture points.
 
-    table : columns of a ballbar file (SPEC 3.3) for ``n_points`` points of the 360 deg data arc:
-        x_mm, y_mm, z_mm (+ a_deg/b_deg/c_deg at 0), table_ball_*, tool_ball_* (0: the tool ball
+    table : columns of a ballbar file (docs/measurements.md) for ``n_points`` points of the 360 deg
+        data arc: x_mm, y_mm, z_mm (+ a_deg/b_deg/c_deg at 0), table_ball_*, tool_ball_* (0: the tool ball
         centre is the programmed tip), length_mm (= radius), feed_mm_min, angle_deg.
     """
 
@@ -246,13 +249,13 @@ def write_circle_program(path, machine: Machine, radius_mm: float = 100.0,
     return CircleTest(str(path), float(radius_mm), c, plane, direction, table)
 
 
-# ------------------------------------------------------------------ seed 003 three-sphere set-ups
+# ------------------------------------------------------ three-sphere set-ups of Tan et al. (2026)
 @dataclass
 class ThreeSphereTest:
-    """Seed 003 (section 2.1): ballbar along X, Y, Z at two heights, only C moving.
+    """Tan et al. (2026), section 2.1: ballbar along X, Y, Z at two heights, only C moving.
 
-    table : ballbar columns (SPEC 3.3) per reading: axis positions (x_mm ... c_deg), table ball at
-    (C axis, height) in the workpiece frame, tool ball 0 (the programmed tip), length_mm = bar,
+    table : ballbar columns (docs/measurements.md) per reading: axis positions (x_mm ... c_deg), table
+    ball at (C axis, height) in the workpiece frame, tool ball 0 (the programmed tip), length_mm = bar,
     plus ``setup`` ('X', 'Y' or 'Z'), ``height_mm`` and ``block_line`` (line of the C move).
     """
 
@@ -264,7 +267,7 @@ def write_three_sphere_program(path, machine: Machine, heights_mm=(100.0, 200.0)
                                bar_mm: float = 100.0, step_deg: float = 10.0,
                                c_range_deg=(0.0, 360.0), feed_deg_min: float = 1800.0,
                                dwell_s: float = 1.0) -> ThreeSphereTest:
-    """Write the three-sphere measurement of the C axis (seed 003, eqs. 10-14 set-up).
+    """Write the three-sphere measurement of the C axis (the set-up of Tan et al. (2026), eqs. 10-14).
 
     The table ball sits on the nominal C axis line at ``height`` above the table face (z = 0 of the
     workpiece frame); the tool ball at table ball + bar * (X, Y or Z direction) with every rotary
@@ -280,7 +283,7 @@ def write_three_sphere_program(path, machine: Machine, heights_mm=(100.0, 200.0)
     px, py, _ = machine.axis("C").axis_point
     lo, hi = c_range_deg
     angles = np.arange(lo, hi + 1e-9, step_deg)
-    lines = ["%", f"O0003 (SEED 003 THREE-SPHERE, BAR {bar_mm:g} MM, STEP {step_deg:g} DEG)",
+    lines = ["%", f"O0003 (TAN ET AL. 2026 THREE-SPHERE, BAR {bar_mm:g} MM, STEP {step_deg:g} DEG)",
              "G21 G90 G17"]
     rows = []
     for h in heights_mm:

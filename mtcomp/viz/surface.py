@@ -547,15 +547,16 @@ def _flank_geometry(orig: ProgramPoints, machine: Machine, radius: float, length
                      np.vstack(tris))
 
 
-_BOWL_HEADER = re.compile(r"SEED 001 BOWL .*BALL R\s*([0-9.]+)", re.I)
+#: the bowl's header; programs written by earlier versions of mtcomp name it "SEED 001 BOWL"
+_BOWL_HEADER = re.compile(r"(?:QI-YANG 2016|SEED 001) BOWL .*BALL R\s*([0-9.]+)", re.I)
 _CONE_HEADER = re.compile(r"CONE FRUSTUM D([0-9.]+)/D([0-9.]+) HALF-ANGLE ([0-9.]+).*END MILL R\s*"
                           r"([0-9.]+)", re.I)
 
 
 def program_hints(path) -> dict:
     """Tool and surface of the built-in test parts (mtcomp.toolpaths.parts), from the header comment
-    in the first 30 lines: the seed-001 bowl gives ``tool_radius_mm``; the cone frustum gives
-    ``tool_radius_mm`` and ``flank_length_mm`` (its slant height). {} for any other program."""
+    in the first 30 lines: the bowl of Qi and Yang (2016) gives ``tool_radius_mm``; the cone frustum
+    gives ``tool_radius_mm`` and ``flank_length_mm`` (its slant height). {} for any other program."""
     try:
         with open(path, encoding="latin-1") as f:
             head = "".join(f.readline() for _ in range(30))
@@ -563,7 +564,7 @@ def program_hints(path) -> dict:
         return {}
     m = _BOWL_HEADER.search(head)
     if m:
-        return {"tool_radius_mm": float(m.group(1)), "part": "seed-001 bowl"}
+        return {"tool_radius_mm": float(m.group(1)), "part": "bowl of Qi and Yang (2016)"}
     m = _CONE_HEADER.search(head)
     if m:
         big, small, half, r = (float(g) for g in m.groups())
