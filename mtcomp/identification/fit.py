@@ -644,6 +644,7 @@ class _Problem:
         self.use_penalty = type(self).use_penalty  # profiles carry a roughness penalty (mtcomp.identification.penalty)
         self.S = None               # the penalty in scaled coordinates at the chosen weights
         self.smoothing = None       # penalty.Smoothing of the last solve
+        self.gradient_stale = False  # the last Gauss-Newton pass stopped on a step it did not evaluate
 
     # --------------------------------------------------------------- weights
     def unit_weights(self):
@@ -922,8 +923,8 @@ class _Problem:
         # explains) does not lose its digits to a large start misfit (a misaligned CMM frame)
         rho = None
         for k in range(2 if penalties else 1):
-            if k:
-                # the gradient at the fit (Gauss-Newton may stop on a step whose gradient it did not
+            if k and self.gradient_stale:
+                # the gradient at the fit (Gauss-Newton stopped on a step whose gradient it did not
                 # evaluate); the normal matrix is the start's (linear in p up to 1e-5)
                 pred, _, g = self.normal_equations(x, w, gram=False)
                 r = w * (self.observed - pred)
@@ -1014,6 +1015,7 @@ class _Problem:
         # step, so the minimum is the exact one). It is formed anew only when a step fails to
         # descend or convergence is slow: signs that the problem is not nearly linear.
         refresh = False
+        self.gradient_stale = False
         for it in range(1, max_iterations + 1):
             iterations = it
             gs = scale * g - self.penalty_gradient(x, scale)
@@ -1062,6 +1064,7 @@ class _Problem:
             x, r, cost = x_new, r_new, cost_new
             if small or cost == 0.0:
                 converged = True
+                self.gradient_stale = True      # g is the last point's: the step was not evaluated
                 break
             if A_new is None:
                 _, A_new, g_new = self.normal_equations(x, w)

@@ -169,7 +169,7 @@ def reml_criterion(rho: np.ndarray, AB: np.ndarray, gB: np.ndarray, rss0: float,
         factor = scipy.linalg.cho_factor(H)
         logdet = 2.0 * float(np.sum(np.log(np.diag(factor[0]))))
         y = scipy.linalg.cho_solve(factor, b)
-        inv_S = [scipy.linalg.cho_solve(factor, Sk) for Sk in SB] if gradient else []
+        Hinv = scipy.linalg.cho_solve(factor, np.eye(H.shape[0])) if gradient else None
     except np.linalg.LinAlgError:
         # at the edge of the weights' range round-off leaves H not quite positive definite:
         # eigenvalues below 1e-14 of the largest count at that floor
@@ -177,7 +177,7 @@ def reml_criterion(rho: np.ndarray, AB: np.ndarray, gB: np.ndarray, rss0: float,
         w = np.clip(w, 1e-14 * max(float(w.max()), 1e-300), None)
         logdet = float(np.sum(np.log(w)))
         y = V @ ((V.T @ b) / w)
-        inv_S = [V @ ((V.T @ Sk) / w[:, None]) for Sk in SB] if gradient else []
+        Hinv = (V / w) @ V.T if gradient else None
     pen_k = np.array([float(y @ Sk @ y + 2.0 * y @ bk + ck) for Sk, bk, ck in zip(SB, bz, cz)])
     total = max(rss0 - 2.0 * float(gB @ y) + float(y @ AB @ y) + float(lam @ pen_k), 1e-300)
     value = 0.5 * (n_obs - mp) * np.log(total) + 0.5 * logdet - 0.5 * float(ranks @ rho)
@@ -185,8 +185,9 @@ def reml_criterion(rho: np.ndarray, AB: np.ndarray, gB: np.ndarray, rss0: float,
         return value, None, H
     # y minimises the penalised sum, so its derivative by rho_k is lam_k pen_k(y) alone (envelope
     # theorem); d log|H| / d rho_k = lam_k tr(H^-1 S_k)
+    # tr(H^-1 S_k) = sum of the elementwise product (both symmetric): one inverse for every class
     grad = (0.5 * (n_obs - mp) * lam * pen_k / total
-            + 0.5 * lam * np.array([np.trace(M) for M in inv_S]) - 0.5 * ranks)
+            + 0.5 * lam * np.array([float(np.sum(Hinv * Sk)) for Sk in SB]) - 0.5 * ranks)
     return value, grad, H
 
 
@@ -222,7 +223,7 @@ def reml_weights(AB: np.ndarray, gB: np.ndarray, rss0: float, SB: list[np.ndarra
         rho = np.asarray(start, dtype=float)
     res = scipy.optimize.minimize(lambda r: reml_criterion(r, *args, ranks=ranks)[:2], rho, jac=True,
                                   method="L-BFGS-B", bounds=[(-RHO_BOUND, RHO_BOUND)] * m,
-                                  options={"maxiter": 500, "ftol": 1e-15, "gtol": 1e-9})
+                                  options={"maxiter": 500, "ftol": 1e-12, "gtol": 1e-6})
     if res.fun <= criterion(rho):
         rho = res.x
     H = reml_criterion(rho, *args, gradient=False, ranks=ranks)[2]
