@@ -91,7 +91,7 @@ def truth_sweep(n_seeds: int) -> None:
     """Hidden drifts on the truth machine (module docstring)."""
     from truth import SpindleSchedule, TruthMachine, campaigns, random_effect
 
-    from mtcomp.diagnose import diagnose
+    from mtcomp.thermal import diagnose_thermal
     from mtcomp.machine import load_machine
     from mtcomp.measurement.files import read_measurements
     from mtcomp.measurement.readings import model_class_for
@@ -116,7 +116,7 @@ def truth_sweep(n_seeds: int) -> None:
                 s = int(np.searchsorted(cols["t_s"], 36000.0))
                 (tmp / "f.csv").write_text("\n".join(lines[:1 + s]) + "\n")
                 (tmp / "v.csv").write_text("\n".join([lines[0]] + lines[1 + s:]) + "\n")
-                d = diagnose(machine, [read_measurements(tmp / "f.csv")])
+                d = diagnose_thermal(machine, read_measurements(tmp / "f.csv"))
                 val = read_measurements(tmp / "v.csv")
             right += [f.params["driver"] for f in d.findings if f.effect == "thermal_drift"] == \
                 ([named] if named else [])

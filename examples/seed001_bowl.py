@@ -29,7 +29,7 @@ import numpy as np
 
 from mtcomp import load_machine
 from mtcomp.cli import main as mtcomp_main
-from mtcomp.diagnose.hidden import campaign_plans
+from mtcomp.sim import campaign_plans
 from mtcomp.identification.fit import identify
 from mtcomp.models import save_model
 from mtcomp.models.evaluate import deviation

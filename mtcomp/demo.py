@@ -5,7 +5,7 @@ render, and check the result against the virtual machine's truth.
    but realistic geometric truth plus a *hidden effect* the base model cannot express (backlash of the
    X axis by default). Laser runs of every axis (positioning and angular components, three feeds, two
    Abbe arms, one fine scan) and a volumetric grid with two tool lengths
-   (:func:`mtcomp.diagnose.hidden.campaign_plans`), written as measurement CSV files
+   (:func:`mtcomp.sim.campaign_plans`), written as measurement CSV files
    (docs/measurements.md).
 2. **Identify** the base model ("the simulation") from the files:
    :func:`mtcomp.identification.fit.identify`.
@@ -118,7 +118,7 @@ def run_demo(out_dir=DEFAULT_OUT, seed: int = 2026, say=print) -> DemoResult:
     """Run the demo into ``out_dir`` (created if needed). ``say``: where progress lines go."""
     from . import sim
     from .diagnose import diagnose
-    from .diagnose.hidden import campaign_plans
+    from .sim import campaign_plans
     from .identification.fit import identify
     from .io.atomic import atomic_write
     from .machine import load_machine

@@ -52,14 +52,14 @@ class Axis:
     travel : (lower, upper) in mm (linear) or rad (rotary).
     axis_point : (3,) mm, a point of the nominal rotary axis line, machine frame, all axes at zero.
     basis : 'bspline' (default) or 'polynomial': the functions of the six component errors of a
-        linear axis (mtcomp.models.basis).
+        linear axis (mtcomp.models.basis, :func:`~mtcomp.models.basis.axis_spline`).
     degree : degree of those splines (1..3) or polynomials.
     spline_range : (lo, hi) mm that the spline knots span; None: chosen from the data by identify
-        (:func:`with_data_basis`), the travel until then.
+        (:func:`mtcomp.models.basis.with_data_basis`), the travel until then.
     spline_intervals : number of equal knot intervals; None: chosen from the data (8 until then).
     fourier_order : harmonics of the angular positioning error of a rotary axis.
     fourier_from_data : the machine file leaves ``fourier_order`` open: identification sets it from
-        the number of distinct angles in the data (:func:`with_data_basis`).
+        the number of distinct angles in the data (:func:`mtcomp.models.basis.with_data_basis`).
     error_motion_order : harmonics of the radial, axial and tilt error motions of a rotary axis
         (0: none, the base model).
     """
@@ -80,13 +80,6 @@ class Axis:
     def basis_from_data(self) -> bool:
         """True when identification chooses the spline knots from the data."""
         return self.basis == "bspline" and (self.spline_range is None or self.spline_intervals is None)
-
-    def spline(self):
-        """The :class:`~mtcomp.models.basis.SplineBasis` of a linear axis with basis 'bspline'."""
-        from .models.basis import spline_basis
-        lo, hi = self.spline_range if self.spline_range is not None else self.travel
-        return spline_basis(float(lo), float(hi), int(self.spline_intervals or DEFAULT_SPLINE_INTERVALS),
-                            int(self.degree))
 
     @property
     def is_rotary(self) -> bool:
@@ -214,37 +207,6 @@ class Machine:
         if self.units is not None:
             d["units"] = self.units
         return d
-
-
-def with_data_basis(machine: Machine, positions: dict, fourier: bool = True,
-                    sizes: dict | None = None) -> Machine:
-    """The machine with the spline knots of every 'bspline' axis without fixed knots, and the Fourier
-    order of every rotary axis whose machine file leaves it open, chosen from the data
-    (:func:`mtcomp.models.basis.auto_spline`, :func:`~mtcomp.models.basis.auto_fourier_order`).
-
-    positions : axis name -> array of every position that axis took in the data (mm).
-    fourier : also choose the Fourier orders (False keeps the machine's).
-    sizes : axis name -> the most spline functions for that axis (default: ``auto_spline``'s cap),
-        e.g. from :func:`mtcomp.measurement.readings.data_spline_sizes`.
-    """
-    from dataclasses import replace
-
-    from .models.basis import auto_fourier_order, auto_spline
-    axes = []
-    for a in machine.axes:
-        if a.is_rotary and a.fourier_from_data and fourier:
-            a = replace(a, fourier_order=auto_fourier_order(positions.get(a.name, ())),
-                        fourier_from_data=False)
-        if not a.is_rotary and a.basis_from_data:
-            cap = {"max_basis": int(sizes[a.name])} if sizes and a.name in sizes else {}
-            lo, hi, n, degree = auto_spline(positions.get(a.name, ()), a.travel, **cap)
-            if a.spline_range is not None:
-                lo, hi = a.spline_range
-            if a.spline_intervals is not None:
-                n, degree = a.spline_intervals, a.degree
-            a = replace(a, spline_range=(lo, hi), spline_intervals=n, degree=degree)
-        axes.append(a)
-    return replace(machine, axes=tuple(axes))
 
 
 def parse_topology(topology: str, path: str | None = None) -> tuple[tuple[str, ...], tuple[str, ...]]:

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from mtcomp.cli import main
-from mtcomp.diagnose.hidden import hidden_case
+from sim_hidden import hidden_case
 from mtcomp.measurement.readings import measurement_model
 from mtcomp.measurement.readings_extra import drift_context
 from mtcomp.measurement.files import read_measurements

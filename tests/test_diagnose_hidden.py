@@ -1,4 +1,4 @@
-"""`diagnose` on simulated campaigns that hide a known effect (mtcomp.diagnose.hidden): it must name
+"""`diagnose` on simulated campaigns that hide a known effect (tests/sim_hidden.py): it must name
 the effect and its axis, recover its size, and bring the held-out residual to the noise; clean data
 must give no finding; two effects at once are both found; a local bump is `unexplained`.
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from mtcomp.diagnose import diagnose
-from mtcomp.diagnose.hidden import EFFECTS, hidden_case, score
+from sim_hidden import EFFECTS, hidden_case, score
 
 #: (effect, seed): one fixed case per effect; the machine and axis are drawn from the seed
 CASES = [(e, 11 + k) for k, e in enumerate(EFFECTS)]

@@ -60,8 +60,9 @@ def _forward_temperature_regression(data) -> float:
 
 @needs_real
 def test_spindle_thermal_drift_is_found_and_beats_a_plain_temperature_regression():
+    from mtcomp.thermal import diagnose_thermal
     data = read_measurements(REAL / "thermal" / "fl_thermal.csv")
-    d = diagnose(load_machine("xfyz"), [data])
+    d = diagnose_thermal(load_machine("xfyz"), data)
     assert "forward-chained" in d.folds
     drift = [f for f in d.findings if f.effect == "thermal_drift"]
     assert drift, [f.effect for f in d.findings]

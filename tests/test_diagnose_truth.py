@@ -9,7 +9,8 @@ from mtcomp.diagnose._candidates import Candidate, _abbe_candidates, generate
 from mtcomp.diagnose._diagnose import _apply, _common_block, _linear_target, _parsimony, BIC_MARGIN, cv_threshold
 from mtcomp.diagnose._linalg import Design, determined_subspace, solve_normal
 from mtcomp.diagnose._stack import build_stack
-from mtcomp.machine import load_machine, with_data_basis
+from mtcomp.machine import load_machine
+from mtcomp.models.basis import with_data_basis
 from mtcomp.measurement.files import read_measurements
 from mtcomp.measurement.readings import data_positions
 from truth import FeedAbbe, PeriodicError

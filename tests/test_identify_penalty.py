@@ -13,7 +13,8 @@ from scipy.interpolate import BSpline
 
 from mtcomp.identification.fit import identify
 from mtcomp.identification.penalty import component_class, penalty_matrices, reml_weights
-from mtcomp.machine import load_machine, with_data_basis
+from mtcomp.machine import load_machine
+from mtcomp.models.basis import axis_spline, with_data_basis
 from mtcomp.measurement.files import read_measurements
 from mtcomp.models import ErrorModel
 
@@ -33,7 +34,7 @@ def test_spline_penalty_is_the_integrated_squared_second_derivative_of_a_parabol
     model = ErrorModel(machine)
     free = np.flatnonzero(model.base_mask)
     S = penalty_matrices(model, free, free.size)["positioning"]
-    spline = machine.axis("X").spline()
+    spline = axis_spline(machine.axis("X"))
     # the parabola's full B-spline coefficients (least squares on a fine grid: exact, it is in the
     # space), less the dropped first function's (the reference does not change second differences)
     s = np.linspace(spline.lo, spline.hi, 2001)
@@ -132,7 +133,7 @@ def _gap_fit(tmp_path, truth_um, name):
     path = tmp_path / f"{name}.csv"
     path.write_text("\n".join(rows) + "\n")
     fm = identify(load_machine("xfyz"), [read_measurements(str(path))]).fitted_model
-    return fm, fm.model.machine.axis("X").spline()
+    return fm, axis_spline(fm.model.machine.axis("X"))
 
 
 def test_between_targets_a_profile_follows_the_smoothest_curve(tmp_path):

@@ -8,9 +8,9 @@ from mtcomp import load_machine
 from mtcomp.kinematics import forward, tool2wp
 from mtcomp.models import Backlash, ErrorModel, deviation, deviation_and_jacobians
 from mtcomp.models.chain import polynomial_orders
-from mtcomp.models.dcm import (dcm_deviation, differential_change_matrix, machine_jacobian,
+from oracles.dcm import (dcm_deviation, differential_change_matrix, machine_jacobian,
                                pinv_correction, tool_in_axis_frames)
-from mtcomp.models.poe import adjoint, exp_twist
+from oracles.poe import adjoint, exp_twist
 from test_models_chain import machine_size_params, random_context, random_poses
 
 MACHINES = ["xfyz", "cafxyz", "cbfxyz"]

@@ -9,7 +9,7 @@ from scipy.linalg import expm
 
 from mtcomp import load_machine
 from mtcomp.models import ErrorModel, deviation
-from mtcomp.models.poe import (adjoint, exp_twist, hat, poe_deviation, poe_tool_pose,
+from oracles.poe import (adjoint, exp_twist, hat, poe_deviation, poe_tool_pose,
                                rotation_twist)
 from test_models_chain import machine_size_params, random_context, random_poses
 

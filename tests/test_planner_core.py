@@ -11,9 +11,10 @@ from mtcomp import load_machine
 from mtcomp.kinematics import forward
 from mtcomp.models import Backlash, ErrorModel, FeedOffset, FittedModel, PeriodicError, deviation
 from mtcomp.planner import (CompensationProblem, PlannerOptions, nominal_pose_jacobian, output_grid,
-                            plan_arrays, plan_chunks, plan_with_cvxpy, solve_reference)
+                            plan_arrays, plan_chunks, plan_with_cvxpy)
 from mtcomp.planner._bounds import Bounds
 from mtcomp.toolpaths.gcode import SegmentChunk
+from oracles.planner_reference import solve_reference
 
 UNIT_SCALE = {"um": 10e-3, "urad": 20e-6, "mm": 50.0, "1": 0.05}
 LOOSE = dict(max_correction_um=1000.0, max_correction_urad=1e5, max_step_um=1000.0)
@@ -117,7 +118,7 @@ def test_pinv_is_one_seed001_step_against_finite_differences_and_lstsq(name):
 
 def test_pinv_agrees_with_the_dcm_step_to_first_order():
     """models.dcm.pinv_correction (the seed's differential-change Jacobian, first-order errors)."""
-    from mtcomp.models.dcm import pinv_correction
+    from oracles.dcm import pinv_correction
     fitted = fitted_model("xfyz", 21)
     m = fitted.machine
     q, _, _ = random_blocks(m, np.random.default_rng(22), 20)

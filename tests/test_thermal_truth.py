@@ -12,7 +12,7 @@ import pytest
 
 from truth import SpindleSchedule, TruthMachine, campaigns, random_effect
 
-from mtcomp.diagnose import diagnose
+from mtcomp.thermal import diagnose_thermal
 from mtcomp.machine import load_machine
 from mtcomp.measurement.files import read_measurements
 from mtcomp.measurement.readings import model_class_for
@@ -47,7 +47,13 @@ def test_hidden_drift_is_named_and_the_future_predicted_to_the_noise(tmp_path, d
     fit, val = tmp_path / "fit.csv", tmp_path / "val.csv"
     _split(record, 10 * 3600.0, fit, val)
     machine = load_machine("xfyz")
-    d = diagnose(machine, [read_measurements(fit)])
+    d = diagnose_thermal(machine, read_measurements(fit))
+    # the geometric diagnosis points a lone thermal record to the thermal one (mtcomp diagnose
+    # chooses it by itself)
+    from mtcomp.diagnose import diagnose
+    from mtcomp.errors import InputError
+    with pytest.raises(InputError, match="diagnose_thermal"):
+        diagnose(machine, [read_measurements(fit)])
     drift = [f for f in d.findings if f.effect == "thermal_drift"]
     assert [f.params["driver"] for f in drift] == ([named] if named else [])
     if driver in ("spindle", "time"):

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mtcomp.viz import image_difference
+from oracles.image_compare import image_difference
 from viz_reference import REFERENCE_KWARGS, synthetic_surface_map
 
 DATA = Path(__file__).resolve().parent / "data"

@@ -79,7 +79,13 @@ def run(args) -> int:
     if start is not None and len(datasets) == 1 and datasets[0].kind == "thermal":
         raise InputError("--start applies to geometric data; a thermal file alone is diagnosed on its own",
                          args.start)
-    result = diagnose(machine, datasets, progress=progress, channel_axes=channel_axes or None, start=start)
+    if len(datasets) == 1 and datasets[0].kind == "thermal":
+        # a thermal record alone: drift models validated forward in time (docs/thermal.md)
+        from ..thermal import diagnose_thermal
+        result = diagnose_thermal(machine, datasets[0], channel_axes or None, progress)
+    else:
+        result = diagnose(machine, datasets, progress=progress, channel_axes=channel_axes or None,
+                          start=start)
     if plot_path is not None and result.thermal is None:
         raise InputError("--plot draws the drift of one thermal file; the data are not one thermal file",
                          args.data[0])

@@ -7,7 +7,6 @@ Public names:
   docs/diagnose.md lists) and the extended model (``Diagnosis.model``, a
   :class:`~mtcomp.models.FittedModel`).
 * :class:`Finding`: one entry of the report.
-* :mod:`mtcomp.diagnose.hidden`: campaigns with a hidden effect, for tests and benchmarks.
 """
 from ._diagnose import Diagnosis, Finding, diagnose
 

@@ -519,3 +519,29 @@ def correlations(st, resid, sel) -> list[tuple[str, float]]:
         if ok.sum() >= 5 and np.std(x[ok]) > 0 and np.std(r[ok]) > 0:
             out.append((name, float(np.corrcoef(x[ok], r[ok])[0, 1])))
     return sorted(out, key=lambda t: -abs(t[1]))
+
+
+# ------------------------------------------------------------------ forward-chained folds in time
+#: blocks of readings predicted forward in time (thermal drift: docs/thermal.md)
+N_FOLDS = 5
+
+
+def forward_folds(n_rows: int, n_folds: int = N_FOLDS) -> list[tuple[slice, slice]]:
+    """(train, test) slices of rows in time order: n_folds + 1 equal blocks, fold k trains on the
+    blocks before block k and tests on block k (k = 1..n_folds)."""
+    if n_rows < 2 * (n_folds + 1):
+        raise ValueError(f"{n_rows} readings are too few for {n_folds} forward folds")
+    edges = np.linspace(0, n_rows, n_folds + 2).round().astype(int)
+    return [(slice(0, edges[k]), slice(edges[k], edges[k + 1])) for k in range(1, n_folds + 1)]
+
+
+# ------------------------------------------------------------------ what a candidate must gain
+#: a candidate must lower the held-out weighted sum of squares by CV_Z sqrt(2 k) + k (k: the
+#: parameters it adds; besides a lower BIC, mtcomp.diagnose._diagnose.BIC_MARGIN)
+CV_Z = 4.0
+
+
+def cv_threshold(dk: int) -> float:
+    """Held-out sum-of-squares reduction (in noise variances) an extension of dk parameters must beat."""
+    dk = max(int(dk), 1)
+    return CV_Z * np.sqrt(2.0 * dk) + dk

@@ -17,7 +17,9 @@ from scipy.optimize import minimize_scalar
 
 from ..models.terms import (AbbeIRC, Backlash, ChannelDrift, FeedOffset, PeriodicError,
                             RotaryErrorMotion, ThermalDrift, positioning_component)
+from ..models.basis import axis_spline
 from . import _analysis as an
+from ._analysis import cv_threshold
 from ._stack import MOTION_LETTERS, PDGE_ORDER
 
 #: false-alarm probability below which a spectral line makes a periodic candidate
@@ -137,7 +139,7 @@ def _backlash_profile_candidate(st, a: str, k: int, reads) -> Candidate | None:
 
     def cols(s, k=k, a=a):
         step = 0.5 * s.dirs[:, k] * s.g[a]
-        phis = s.machine.axis(a).spline().functions(s.q[:, k], False)
+        phis = axis_spline(s.machine.axis(a)).functions(s.q[:, k], False)
         return np.column_stack([step] + [step * phi for phi in phis])
     return Candidate("backlash", a, "profile", cols(st), [term], names, rivals=f"backlash:{a}",
                      info={"complexity": 1}, build=cols)
@@ -303,7 +305,7 @@ def finer_profile_columns(st, a: str, period_mm: float) -> tuple[np.ndarray, flo
     if ax.is_rotary or ax.basis != "bspline":
         return np.zeros((len(st), 0)), 0.0
     k = st.machine.axis_names.index(a)
-    base = ax.spline()
+    base = axis_spline(ax)
     reads = np.abs(st.g[a]) > 0
     distinct = np.unique(np.round(st.q[reads, k], 3)).size
     if period_mm / RIVAL_KNOTS_PER_PERIOD < base.h:
@@ -328,7 +330,6 @@ def _finer_profile_veto(st, design, extra, a: str, cand: Candidate) -> str | Non
     profile, else it is refused. The rival counts only when it predicts held-out readings better than
     the current model: where held-out data are whole stretches of the travel, a finer profile cannot
     predict what it was not fitted to (and a sine can), so there it is no rival."""
-    from ._diagnose import cv_threshold
     fine, spacing = finer_profile_columns(st, a, cand.info["period_mm"])
     if fine.shape[1] == 0:
         return None

@@ -28,15 +28,15 @@ from ..models.chain import ErrorModel
 from ..models.model_file import FittedModel
 from ..models.params import ParameterSet
 from . import _analysis as an
+from ._analysis import CV_Z, cv_threshold
 from ._candidates import Candidate, generate, temperature_regression, without_params
 from ._refusal import moved_axes, refusal
 from ._linalg import Design, _eigh, determined_subspace, rms, solve_normal
 from ._stack import Stack, build_stack
+from .result import UNIT_KEYS, Diagnosis, Finding, _r
 
 #: a candidate must lower the BIC by at least this much
 BIC_MARGIN = 10.0
-#: ... and the held-out weighted sum of squares by CV_Z sqrt(2 k) + k (k: parameters it adds)
-CV_Z = 4.0
 #: ... and remove at least this share of the held-out excess over the noise (a cause must be material:
 #: with large unexplained structure, a column that merely leans on it gains a little everywhere)
 MIN_EXCESS_SHARE = 0.05
@@ -45,114 +45,6 @@ MIN_EXCESS_SHARE = 0.05
 EXCESS_RATIO = 1.3
 #: at most this many findings
 MAX_FINDINGS = 6
-
-
-def cv_threshold(dk: int) -> float:
-    """Held-out sum-of-squares reduction (in noise variances) an extension of dk parameters must beat."""
-    dk = max(int(dk), 1)
-    return CV_Z * np.sqrt(2.0 * dk) + dk
-
-
-@dataclass
-class Finding:
-    """One entry of the report's ``findings`` (docs/diagnose.md): effect, axis, params, evidence, held-out rms
-    before and after (in ``unit``: um, or urad when the data hold no positions). ``candidate`` is the
-    extension chosen: None for ``unexplained``, except where the model holds a term whose rival the
-    data do not tell apart (``rival_alike``)."""
-
-    effect: str
-    axis: str
-    params: dict
-    evidence: str
-    heldout_rms_before: float
-    heldout_rms_after: float
-    candidate: Candidate | None = None
-    step: tuple | None = None
-    unit: str = "um"
-    #: "effect axis" of a rival the data do not tell from this finding (see :func:`_parsimony`): the
-    #: model holds this finding's term, the report names neither cause
-    rival_alike: str = ""
-
-    def to_dict(self) -> dict:
-        # the stable keys (docs/diagnose.md) are in um; data without positions keep them (null) and add
-        # their own unit's
-        out = {"effect": self.effect, "axis": self.axis, "params": self.params, "evidence": self.evidence,
-               "heldout_rms_before_um": None, "heldout_rms_after_um": None}
-        key = UNIT_KEYS.get(self.unit, self.unit)
-        out[f"heldout_rms_before_{key}"] = _r(self.heldout_rms_before)
-        out[f"heldout_rms_after_{key}"] = _r(self.heldout_rms_after)
-        return out
-
-
-def _finite(obj):
-    """The report with every non-finite number replaced by None (JSON has no NaN)."""
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_finite(v) for v in obj]
-    if isinstance(obj, (float, np.floating)):
-        return float(obj) if np.isfinite(obj) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    return obj
-
-
-def _r(v, nd=4):
-    return None if v is None or not np.isfinite(v) else round(float(v), nd)
-
-
-@dataclass
-class Diagnosis:
-    """What :func:`diagnose` returns: the report (docs/diagnose.md) plus the extended model.
-
-    verdict : 'none', 'explained' or 'unexplained'.
-    noise : unit ('um', 'urad') -> :class:`~mtcomp.diagnose._analysis.Noise`.
-    base, final : {'n_params', 'rms_um', 'heldout_rms_um', ...}.
-    findings : list of :class:`Finding`.
-    model : the extended :class:`~mtcomp.models.FittedModel` (base + chosen terms).
-    folds : how the held-out data were chosen (one sentence); folds_of_observations : (n_obs,) the
-        fold of each observation (files in the order given, rows in file order, columns in order).
-    seconds : wall time.
-    """
-
-    verdict: str
-    noise: dict
-    base: dict
-    findings: list
-    final: dict
-    model: FittedModel
-    folds: str
-    n_obs: int
-    seconds: float = 0.0
-    rejected: list = field(default_factory=list)
-    reference: dict = field(default_factory=dict)
-    folds_of_observations: np.ndarray | None = None
-    outliers: list = field(default_factory=list)
-    thermal: object = None
-
-    @property
-    def noise_um(self) -> float:
-        """The noise floor of the readings in um (NaN when the data hold none: then ``noise``
-        has the urad or um/min floor)."""
-        n = self.noise.get("um")
-        return float(n.sigma) if n else float("nan")
-
-    def to_dict(self) -> dict:
-        """REPORT.json (the stable keys of docs/diagnose.md plus a few more)."""
-        noise = {u: {"sigma": _r(n.sigma), "source": n.source, "dof": n.dof, "repeat_groups": n.n_groups}
-                 for u, n in self.noise.items()}
-        extra = {f"noise_{UNIT_KEYS[u]}": _r(n.sigma) for u, n in self.noise.items() if u != "um"}
-        return _finite({"verdict": self.verdict, "noise_um": _r(self.noise_um), **extra,
-                        "noise": noise, "base": self.base, "findings": [f.to_dict() for f in self.findings],
-                        "final": self.final, "heldout": self.folds, "n_observations": self.n_obs,
-                        "rejected": self.rejected, "reference": self.reference,
-                        "outliers": [{"file": o.path, "row": o.row, "column": o.column, "value": o.value,
-                                      "off_median_of_repeats": o.deviation} for o in self.outliers]})
-
-    def summary(self) -> str:
-        """The printed report: noise, base fit, each finding with evidence and gain, final fit."""
-        from ._report import summary
-        return summary(self)
 
 
 # ------------------------------------------------------------------------------------------- fit
@@ -203,7 +95,6 @@ def _metrics(st: Stack, fit, n_params: int) -> dict:
 
 
 #: report key suffix of each unit class: angular readings, velocities
-UNIT_KEYS = {"um": "um", "urad": "urad", "um/min": "um_min"}
 
 
 #: the unit whose held-out rms the selection follows: the first of these the data hold
@@ -230,13 +121,14 @@ def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int 
         orders) is the base diagnosed, and its values the point the base fit starts from; extension
         terms it carries are not taken (diagnose finds its own).
     A single thermal file is diagnosed by :func:`mtcomp.thermal.diagnose_thermal` (drift models
-    validated forward in time, docs/thermal.md).
+    validated forward in time, docs/thermal.md; ``mtcomp diagnose`` chooses it for such a file).
     Returns a :class:`Diagnosis`. Raises InputError when the data cannot be diagnosed.
     """
     from ._blas import single_threaded_blas
     if len(datasets) == 1 and datasets[0].kind == "thermal":
-        from ..thermal import diagnose_thermal
-        return diagnose_thermal(machine, datasets[0], channel_axes, progress)
+        raise InputError("a thermal file alone is diagnosed by mtcomp.thermal.diagnose_thermal (drift "
+                         "models validated forward in time), not by the geometric diagnosis",
+                         str(datasets[0].path))
     if channel_axes:
         raise InputError("--channel-axis applies to the diagnosis of one thermal file alone")
     from ._resolution import MAX_REFINEMENTS
@@ -312,7 +204,7 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     if start is not None:
         machine, values = _start_point(machine, start)
     # the base model's resolution follows the data, as identify's does
-    from ..machine import with_data_basis
+    from ..models.basis import with_data_basis
     from ..measurement.readings import data_positions, data_spline_sizes
     # (the Fourier orders of rotary axes too, as identify chooses them: with identify's column-scale
     # rule and steps that must lower the misfit, the weak high harmonics no longer run away)
@@ -535,7 +427,7 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
 def _forward_in_time(st, design, extra, cands) -> None:
     """A drift (in time, temperature or spindle history) must predict later readings from earlier
     ones: the model with each thermal_drift candidate and the model without it are fitted on the
-    past and scored on the future (forward-chained blocks in time, :func:`mtcomp.thermal.forward_folds`);
+    past and scored on the future (forward-chained blocks in time, :func:`mtcomp.diagnose._analysis.forward_folds`);
     a candidate that does not lower the future's weighted sum of squares by more than noise could
     gets a veto saying so.
 
@@ -545,7 +437,7 @@ def _forward_in_time(st, design, extra, cands) -> None:
     adds is the change in time, which is the drift's to predict. A reading at a position or of a
     file the past has not seen would be predicted by extrapolating the geometry, with or without a
     drift (a laser run of X cannot predict a later run of Y)."""
-    from ..thermal._fit import N_FOLDS, forward_folds
+    from ._analysis import N_FOLDS, forward_folds
     drift = [c for c in cands if c.effect == "thermal_drift"]
     timed = np.flatnonzero(np.isfinite(st.t))
     if not drift or timed.size < 2 * (N_FOLDS + 1) or np.ptp(st.t[timed]) <= 0:

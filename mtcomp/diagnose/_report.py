@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import f as f_dist
 
+from ..models.basis import axis_spline
 from . import _analysis as an
 from ._linalg import rms
 
@@ -48,7 +49,7 @@ def evidence_and_params(st, c, theta, before_fit, after_fit, rivals, noise):
         if c.variant == "profile":
             ax = st.machine.axis(a)
             s_grid = np.linspace(*ax.spline_range, 101) if ax.spline_range else np.linspace(*ax.travel, 101)
-            phis = np.array(ax.spline().functions(s_grid, False))
+            phis = np.array(axis_spline(ax).functions(s_grid, False))
             prof = (theta[0] + theta[1:] @ phis) * scale
             params.update({f"reversal_min_{unit}": round(float(prof.min()), 4),
                            f"reversal_max_{unit}": round(float(prof.max()), 4)})

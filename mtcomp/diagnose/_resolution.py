@@ -24,8 +24,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..models.basis import LOCAL_WINDOW, RIVAL_SHARE, max_intervals, spline_basis
+from ..models.basis import LOCAL_WINDOW, RIVAL_SHARE, axis_spline, max_intervals, spline_basis
 from ..models.chain import component_terms, linear_component_names, slope_carried
+from ._analysis import cv_threshold
 
 #: at most this many refinements of the base in one diagnosis
 MAX_REFINEMENTS = 2
@@ -46,7 +47,7 @@ def finer_base_columns(st, a: str):
     ax = st.machine.axis(a)
     if ax.is_rotary or ax.basis != "bspline":
         return None
-    base = ax.spline()
+    base = axis_spline(ax)
     n_int = min(2 * base.n_intervals, max_intervals(base.lo, base.hi))
     if n_int <= base.n_intervals:
         return None
@@ -81,7 +82,6 @@ def finer_base(st, design, extra, current, structure):
     the final ``structure`` names takes that structure (see the module docstring), else None.
     ``extra``: the chosen extensions' columns; ``current``: their fit."""
     from ._analysis import POSITION_DECIMALS
-    from ._diagnose import cv_threshold
     names = st.machine.axis_names
     linear = [a for a in names if not st.machine.axis(a).is_rotary]
     # (axis, series, lo, hi): where the structure peaks along a linear axis; then, for the other

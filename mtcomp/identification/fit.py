@@ -45,7 +45,7 @@ from ..machine import Machine
 from ..models.chain import ErrorModel
 from ..models.model_file import FittedModel
 from ..models.params import ParameterSet, ParamSpec
-from ..machine import with_data_basis
+from ..models.basis import with_data_basis
 from ..measurement.readings import (MeasurementModel, data_held, data_positions, data_spline_sizes, data_support,
                                     measurement_model)
 
@@ -453,7 +453,7 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
     Returns an :class:`IdentificationResult`.
 
     Spline axes without fixed knots get them from the data first
-    (:func:`mtcomp.machine.with_data_basis`): the fitted model's structure follows what was measured.
+    (:func:`mtcomp.models.basis.with_data_basis`): the fitted model's structure follows what was measured.
     """
     t0 = time.perf_counter()
     fitted_in = machine_or_model if isinstance(machine_or_model, FittedModel) else None

@@ -43,6 +43,8 @@ import numpy as np
 import scipy.linalg
 import scipy.optimize
 
+from ..models.basis import axis_spline
+
 #: the classes of component that share one penalty weight
 CLASSES = ("positioning", "straightness", "angular", "rotary angular", "rotary translational")
 #: log weights are searched in [-RHO_BOUND, RHO_BOUND] about the class's normalised penalty
@@ -107,7 +109,7 @@ def _block(axis, suffixes: list[str]):
         return (keep, np.diag(diag)) if keep else None
     if axis.basis != "bspline":
         return None
-    spline = axis.spline()
+    spline = axis_spline(axis)
     n = spline.n_basis
     if n < 3:
         return None

@@ -42,6 +42,8 @@ from math import comb, factorial
 import casadi as ca
 import numpy as np
 
+from ..machine import DEFAULT_SPLINE_INTERVALS, Machine
+
 #: component errors whose linear part (slope) a squareness carries (ISO 230-1 reference lines)
 SLOPE_CARRIED_BY_SQUARENESS = {"EXY": "C0Y", "EXZ": "B0Z", "EYZ": "A0Z"}
 
@@ -331,3 +333,42 @@ def auto_fourier_order(angles, resolution_rad: float = 1e-6) -> int:
         return 0
     distinct = np.unique(np.round(np.mod(a, 2 * np.pi) / resolution_rad))
     return int(min(MAX_FOURIER_ORDER, max(0, (distinct.size - 1) // 2)))
+
+
+# ------------------------------------------------------------------ the basis of a machine's axes
+def axis_spline(axis) -> SplineBasis:
+    """The :class:`SplineBasis` of a linear axis (mtcomp.machine.Axis) with basis 'bspline': its
+    knots' range (the travel until the data choose one) and intervals."""
+    lo, hi = axis.spline_range if axis.spline_range is not None else axis.travel
+    return spline_basis(float(lo), float(hi), int(axis.spline_intervals or DEFAULT_SPLINE_INTERVALS),
+                        int(axis.degree))
+
+
+def with_data_basis(machine: Machine, positions: dict, fourier: bool = True,
+                    sizes: dict | None = None) -> Machine:
+    """The machine with the spline knots of every 'bspline' axis without fixed knots, and the Fourier
+    order of every rotary axis whose machine file leaves it open, chosen from the data
+    (:func:`mtcomp.models.basis.auto_spline`, :func:`~mtcomp.models.basis.auto_fourier_order`).
+
+    positions : axis name -> array of every position that axis took in the data (mm).
+    fourier : also choose the Fourier orders (False keeps the machine's).
+    sizes : axis name -> the most spline functions for that axis (default: ``auto_spline``'s cap),
+        e.g. from :func:`mtcomp.measurement.readings.data_spline_sizes`.
+    """
+    from dataclasses import replace
+
+    axes = []
+    for a in machine.axes:
+        if a.is_rotary and a.fourier_from_data and fourier:
+            a = replace(a, fourier_order=auto_fourier_order(positions.get(a.name, ())),
+                        fourier_from_data=False)
+        if not a.is_rotary and a.basis_from_data:
+            cap = {"max_basis": int(sizes[a.name])} if sizes and a.name in sizes else {}
+            lo, hi, n, degree = auto_spline(positions.get(a.name, ()), a.travel, **cap)
+            if a.spline_range is not None:
+                lo, hi = a.spline_range
+            if a.spline_intervals is not None:
+                n, degree = a.spline_intervals, a.degree
+            a = replace(a, spline_range=(lo, hi), spline_intervals=n, degree=degree)
+        axes.append(a)
+    return replace(machine, axes=tuple(axes))

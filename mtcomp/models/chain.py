@@ -44,7 +44,7 @@ import casadi as ca
 import numpy as np
 
 from ..machine import AXIS_DIRECTION, Machine
-from .basis import SLOPE_CARRIED_BY_SQUARENESS
+from .basis import SLOPE_CARRIED_BY_SQUARENESS, axis_spline
 from .params import ParamSpec
 from .terms import ANGLE_LETTERS, TRANSLATION_LETTERS, Term, positioning_component
 
@@ -133,7 +133,7 @@ def component_terms(machine: Machine, axis_name: str, comp: str) -> list[str]:
     kept B-spline functions, or the powers ``1``, ``2`` ... of a polynomial."""
     ax = machine.axis(axis_name)
     if ax.basis == "bspline":
-        return [f"b{j}" for j in ax.spline().kept(slope_carried(machine, comp))]
+        return [f"b{j}" for j in axis_spline(ax).kept(slope_carried(machine, comp))]
     return [str(k) for k in polynomial_orders(machine, axis_name, comp)]
 
 
@@ -146,7 +146,7 @@ def linear_components(machine: Machine, axis_name: str, s, value, zero=0) -> dic
     """
     ax = machine.axis(axis_name)
     if ax.basis == "bspline":
-        spline = ax.spline()
+        spline = axis_spline(ax)
         phis = spline.functions_by_reference(s)
     out = {}
     for comp in linear_component_names(axis_name):

@@ -22,6 +22,7 @@ from dataclasses import asdict, dataclass, field
 
 import casadi as ca
 
+from .basis import axis_spline
 from .params import ParamSpec
 
 ANGLE_LETTERS = "ABC"
@@ -92,7 +93,7 @@ class Backlash(Term):
             return []
         if ax.is_rotary or ax.basis != "bspline":
             raise ValueError(f"a backlash profile needs a linear axis on a spline basis ({self.axis})")
-        return ax.spline().kept(False)
+        return axis_spline(ax).kept(False)
 
     def param_specs(self, machine):
         rotary = machine.axis(self.axis).is_rotary
@@ -110,7 +111,7 @@ class Backlash(Term):
         reversal = P[f"BL_{self.axis}"]
         terms = self._profile_terms(machine)
         if terms:
-            for j, phi in zip(terms, axis.spline().functions(s, False)):
+            for j, phi in zip(terms, axis_spline(axis).functions(s, False)):
                 reversal = reversal + P[f"BL_{self.axis}_b{j}"] * phi
         return {positioning_component(self.axis): 0.5 * reversal * ctx[f"dir_{self.axis}"]}
 

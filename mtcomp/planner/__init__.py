@@ -9,7 +9,6 @@ Public names:
   :func:`plan_chunks` (SegmentChunks), :class:`PlanResult` (one row per output block).
 * :func:`build_cvxpy_problem`, :func:`plan_with_cvxpy`: the same bounded problem in cvxpy, to add
   constraints of one's own.
-* :func:`solve_reference`: the nonlinear problem in CasADi Opti / IPOPT (the reference of the tests).
 * :func:`nominal_pose_jacobian`: nominal tool pose and its exact Jacobian.
 * BLOCKS.csv: :func:`report_columns`, :func:`report_rows`, :class:`Summary`.
 """
@@ -20,15 +19,11 @@ from .report import Summary, report_columns, report_rows
 
 __all__ = ["nominal_pose_jacobian", "NodeSet", "Planner", "PlanResult", "plan_arrays", "plan_chunks",
            "METHODS", "CompensationProblem", "PlannerOptions", "output_grid", "Summary",
-           "report_columns", "report_rows", "build_cvxpy_problem", "plan_with_cvxpy",
-           "solve_reference"]
+           "report_columns", "report_rows", "build_cvxpy_problem", "plan_with_cvxpy"]
 
 
-def __getattr__(name):  # cvxpy and the IPOPT reference are imported only when used
+def __getattr__(name):  # cvxpy is imported only when used
     if name in ("build_cvxpy_problem", "plan_with_cvxpy"):
         from . import cvxpy_problem
         return getattr(cvxpy_problem, name)
-    if name == "solve_reference":
-        from .reference import solve_reference
-        return solve_reference
     raise AttributeError(name)

@@ -6,7 +6,7 @@ Flow per :class:`~mtcomp.toolpaths.SegmentChunk`:
    nodes in feed moves where the corrected path would miss its midpoint by more than
    ``subdivide_tol_um`` (recursively); each node gets its block context (feed, approach direction of
    every axis, tool length; the approach direction of the nominal motion, also for the corrected one);
-2. per node the correction without bounds (``pinv``: one seed-001 step; ``newton`` and ``qp``:
+2. per node the correction without bounds (``pinv``: one step of Qi and Yang (2016); ``newton`` and ``qp``:
    iterated to convergence);
 3. ``qp``: windows of ``window`` nodes plus ``overlap`` nodes of look-ahead; a window whose unbounded
    solution keeps every bound (the anchor included) is that solution; otherwise OSQP solves the

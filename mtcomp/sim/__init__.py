@@ -24,6 +24,9 @@ Plans (each a function returning a :class:`Plan`; times ``t_s`` advance with mov
   3 repeats, 180/240/300 mm/min).
 * :func:`cmm_plan`: a machined part (G-code + ball-end tool) measured at given surface points.
 * :func:`standard_campaign`: the plans that determine the base model of a machine.
+* :func:`campaign_plans`: a realistic campaign for `diagnose` (laser runs at several feeds and Abbe
+  arms, a fine scan, a points grid repeated for drift checks; rotary runs on five axes), the demo's.
+* :func:`merge_plans`: one plan made of several run one after another.
 
 Sets built in memory, without a file (tests, benchmarks): :func:`make_points`, :func:`make_laser`,
 :func:`make_ballbar` from arrays, :func:`random_campaign` (random poses, laser set-ups and circles),
@@ -35,14 +38,14 @@ given readings in, :func:`write_measurements` writes one as CSV.
 Units: files as docs/measurements.md (mm, deg, um, urad, mm/min, s); everything else mm and rad.
 """
 from ._machine import VirtualMachine, noise_sd, simulate, simulated_columns
-from ._plans import (Plan, ballbar_circles_plan, cmm_plan, iso230_2_plan, rotary_laser_plan,
-                     standard_campaign, thermal_plan, three_sphere_plan, velocity_plan,
-                     volumetric_points_plan)
+from ._plans import (CAMPAIGN_ARMS, CAMPAIGN_FEEDS, Plan, ballbar_circles_plan, campaign_plans, cmm_plan,
+                     iso230_2_plan, merge_plans, rotary_laser_plan, standard_campaign, thermal_plan,
+                     three_sphere_plan, velocity_plan, volumetric_points_plan)
 from ._sets import (make_ballbar, make_laser, make_points, random_campaign, with_values, write_columns,
                     write_measurements)
 from ._truth import random_parameters, random_truth
 
-__all__ = ["Plan", "VirtualMachine", "ballbar_circles_plan", "cmm_plan", "iso230_2_plan", "make_ballbar",
+__all__ = ["CAMPAIGN_ARMS", "CAMPAIGN_FEEDS", "campaign_plans", "merge_plans", "Plan", "VirtualMachine", "ballbar_circles_plan", "cmm_plan", "iso230_2_plan", "make_ballbar",
            "make_laser", "make_points", "noise_sd", "random_campaign", "random_parameters", "random_truth",
            "rotary_laser_plan", "simulate", "simulated_columns", "standard_campaign", "thermal_plan",
            "three_sphere_plan", "velocity_plan", "volumetric_points_plan", "with_values", "write_columns",

@@ -465,3 +465,84 @@ def standard_campaign(machine: Machine, n_runs: int = 1, thermal: bool = False) 
     if thermal:
         plans.append(thermal_plan(machine))
     return plans
+
+
+# ------------------------------------------------------------------------ a campaign for diagnose
+#: feeds (mm/min) of the feed runs of :func:`campaign_plans`, and the optic offsets (mm) of its Abbe runs
+CAMPAIGN_FEEDS = (1000.0, 3500.0, 6000.0)
+CAMPAIGN_ARMS = ((0.0, 0.0, 0.0), (80.0, 120.0, 100.0))
+
+
+def _irregular_targets(rng_seed: int, lo: float, hi: float, n: int) -> np.ndarray:
+    rng = np.random.default_rng(rng_seed)
+    base = np.linspace(lo, hi, n)
+    jit = rng.uniform(-0.35, 0.35, n) * (hi - lo) / (n - 1)
+    jit[[0, -1]] = 0.0
+    return np.round(np.sort(base + jit), 3)
+
+
+def campaign_plans(machine: Machine, size: str = "small") -> list:
+    """A realistic campaign for `diagnose` (the demo's, the examples' and the tests'):
+
+    * per linear axis: an ISO 230-2 laser set-up (positioning and the three angular components),
+      the positioning at three feeds (``CAMPAIGN_FEEDS``) and two optic offsets (``CAMPAIGN_ARMS``,
+      the Abbe arms), and one fine single run with irregular steps (periodic errors);
+    * a volumetric points grid with two tool lengths (and rotary angles on a five-axis machine),
+      measured at the start, in the middle and at the end of the campaign (drift checks; plans
+      'points', 'points_mid', 'points_end');
+    * on a five-axis machine: rotary laser runs of each rotary axis (both directions) and the
+      three-sphere ball-bar test of C (Tan et al. 2026).
+
+    ``size``: 'small' (tests, about 2,500 readings on xfyz) or 'full' (benchmarks, about 5,000)."""
+    small = size == "small"
+    n_coarse, n_runs, n_fine = (11, 2, 160) if small else (21, 3, 220)
+    plans = []
+    for ax in machine.linear_axes:
+        a = ax.name
+        lo, hi = ax.travel
+        m = 0.05 * (hi - lo)
+        coarse = _irregular_targets(11 + "XYZ".index(a), lo + m, hi - m, n_coarse)
+        fine = _irregular_targets(23 + "XYZ".index(a), lo + m, hi - m, n_fine)
+        plans.append(iso230_2_plan(machine, a, coarse, n_runs,
+                                       (f"E{a}{a}", f"EA{a}", f"EB{a}", f"EC{a}"),
+                                       feed_mm_min=CAMPAIGN_FEEDS[0], name=f"laser_{a.lower()}"))
+        for ai, arm in enumerate(CAMPAIGN_ARMS):
+            # one set-up per optic offset, its runs at every feed (one laser zero for all feeds)
+            parts = [iso230_2_plan(machine, a, coarse, n_runs, (f"E{a}{a}",), optic_mm=arm,
+                                       feed_mm_min=feed, dwell_s=1.0) for feed in CAMPAIGN_FEEDS]
+            plans.append(merge_plans(parts, f"laser_{a.lower()}_feeds_arm{ai}"))
+        plans.append(iso230_2_plan(machine, a, fine, 1, (f"E{a}{a}",), feed_mm_min=CAMPAIGN_FEEDS[0],
+                                       dwell_s=1.0, name=f"laser_{a.lower()}_fine"))
+    rotary = {a.name: ([0.0, 90.0, 180.0, 270.0] if a.name == "C" else [0.0, 30.0])
+              for a in machine.rotary_axes}
+    points = volumetric_points_plan(machine, (2, 2, 2) if machine.rotary_axes else (4, 3, 3),
+                                        rotary_deg=rotary or None, n_runs=1, name="points")
+    plans.insert(0, points)
+    plans.insert(len(plans) // 2, replace(points, name="points_mid"))
+    for ax in machine.rotary_axes:
+        plans.append(rotary_laser_plan(machine, ax.name, n_runs=n_runs + 1,
+                                           name=f"rotary_laser_{ax.name.lower()}"))
+    if "C" in machine.axis_names:
+        plans.append(three_sphere_plan(machine, angles_deg=np.arange(0.0, 360.0, 20.0 if small else 10.0),
+                                           n_runs=2, name="three_sphere"))
+    # the points grid again in the middle and at the end (runs 2 and 3 of the same file): drift checks
+    plans.append(replace(points, name="points_end"))
+    return plans
+
+
+def merge_plans(plans, name: str):
+    """One plan made of ``plans`` run one after another (times and run numbers continue)."""
+    cols = {}
+    t0, run0 = 0.0, 0
+    for p in plans:
+        p2 = p.shifted(t0)
+        runs = np.asarray(p2.columns["run"], dtype=float) + run0
+        for k, v in p2.columns.items():
+            v = runs if k == "run" else v
+            cols.setdefault(k, []).extend(list(v))
+        t0 = p2.duration_s + 10.0
+        run0 = int(runs.max())
+    cols = {k: (np.asarray(v) if not isinstance(v[0], str) else v) for k, v in cols.items()}
+    if "seq" in cols:
+        cols["seq"] = np.arange(len(cols["seq"]), dtype=float)
+    return replace(plans[0], name=name, columns=cols)

@@ -67,7 +67,7 @@ def diagnose_thermal(machine, data, channel_axes: dict | None = None, progress=N
     """Diagnosis (mtcomp.diagnose) of one thermal file: the drift model chosen by forward-chaining
     validation, its report (the keys of docs/diagnose.md) and the model (base model at zero plus the drift terms)."""
     from ..diagnose._analysis import Noise
-    from ..diagnose._diagnose import Diagnosis, Finding, _r
+    from ..diagnose.result import Diagnosis, Finding, _r
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
     fit = fit_thermal(data)

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import minimize_scalar
 
+from ..diagnose._analysis import N_FOLDS, forward_folds
 from ..errors import InputError
 from ..measurement.readings_extra import feature_value
 
@@ -22,22 +23,11 @@ from ..measurement.readings_extra import feature_value
 DEFAULT_LAGS_S = (900.0, 3600.0)
 #: ridge penalties tried (per reading, on standardised features); 0 is plain least squares
 PENALTIES = (0.0, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1, 3e-1, 1.0)
-#: forward-chaining folds
-N_FOLDS = 5
 #: a more complex candidate must lower the forward-validated sum of squares by this share
 PARSIMONY = 0.05
 
 
 # ------------------------------------------------------------------------------------ linear algebra
-def forward_folds(n_rows: int, n_folds: int = N_FOLDS) -> list[tuple[slice, slice]]:
-    """(train, test) slices of rows in time order: n_folds + 1 equal blocks, fold k trains on the
-    blocks before block k and tests on block k (k = 1..n_folds)."""
-    if n_rows < 2 * (n_folds + 1):
-        raise ValueError(f"{n_rows} readings are too few for {n_folds} forward folds")
-    edges = np.linspace(0, n_rows, n_folds + 2).round().astype(int)
-    return [(slice(0, edges[k]), slice(edges[k], edges[k + 1])) for k in range(1, n_folds + 1)]
-
-
 @dataclass(frozen=True)
 class Ridge:
     """y = intercept + X @ coef (feature units): coef (k, m), intercept (m,), penalty."""

@@ -8,12 +8,11 @@ that draw. Public names:
 * :func:`render_error_map`: PNG (pyvista off-screen, matplotlib as fallback) and .vtp for ParaView.
 * :func:`write_vtp`: the .vtp alone.
 * :func:`render_residuals`: residual versus position before and after a model extension (diagnose).
-* :func:`image_difference`: mean colour difference of two PNGs (for image tests).
 """
 from .surface import ProgramPoints, SurfaceMap, program_error_map, read_program_points
 
 __all__ = ["ProgramPoints", "SurfaceMap", "program_error_map", "read_program_points",
-           "render_error_map", "write_vtp", "render_residuals", "image_difference", "RenderResult"]
+           "render_error_map", "write_vtp", "render_residuals", "RenderResult"]
 
 
 def render_error_map(*args, **kwargs):
@@ -28,11 +27,6 @@ def write_vtp(*args, **kwargs):
 
 def render_residuals(*args, **kwargs):
     from .residuals import render_residuals as f
-    return f(*args, **kwargs)
-
-
-def image_difference(*args, **kwargs):
-    from .compare import image_difference as f
     return f(*args, **kwargs)
 
 

@@ -1,4 +1,4 @@
-"""The differential change construction (seed 001): a first-order error model and the machine
+"""The differential change construction (Qi and Yang 2016): a first-order error model and the machine
 Jacobian built from the same differential change matrices, for any topology, in numpy.
 
 Frames (docs/conventions.md): every axis carriage has a frame that coincides with the bed frame when
@@ -39,11 +39,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kinematics import axis_transform, tool2wp
-from .chain import ErrorModel
-from .evaluate import deviation
+from mtcomp.kinematics import axis_transform, tool2wp
+from mtcomp.models.chain import ErrorModel
+from mtcomp.models.evaluate import deviation
+from mtcomp.models.terms import ANGLE_LETTERS, TRANSLATION_LETTERS, positioning_component
+
 from .poe import adjoint, prepare_inputs, rotary_line_errors, rotation_twist, skew
-from .terms import ANGLE_LETTERS, TRANSLATION_LETTERS, positioning_component
 
 __all__ = ["differential_change_matrix", "tool_in_axis_frames", "axis_differential_motions",
            "tool_differential", "dcm_deviation", "machine_jacobian", "pinv_correction",
@@ -205,7 +206,7 @@ def exact_tool_differential(model: ErrorModel, p, q, c=None) -> np.ndarray:
 
 def pinv_correction(model: ErrorModel, p, q, c=None, errors: str = "auto",
                     orientation_weight_mm: float = 100.0, rcond: float = 1e-10) -> np.ndarray:
-    """(N, n_axes) axis corrections dq of one seed-001 step (eq. 29); command ``q - dq`` (eq. 30).
+    """(N, n_axes) axis corrections dq of one step of Qi and Yang (2016) (eq. 29); command ``q - dq`` (eq. 30).
 
     Least squares of ``J dq = D_t`` per pose over the tool-frame translation (mm) and the two tilts
     of the tool axis (rad, scaled by ``orientation_weight_mm`` to be comparable with mm); the

@@ -14,8 +14,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from .engine import Planner
-from .problem import CompensationProblem, PlannerOptions
+from mtcomp.planner.engine import Planner
+from mtcomp.planner.problem import CompensationProblem, PlannerOptions
 
 
 def solve_reference(problem: CompensationProblem, q, feed=None, dirs=None, rapid=None,

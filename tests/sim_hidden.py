@@ -1,17 +1,10 @@
-"""Measurement campaigns with a hidden effect, for the tests and benchmarks of `diagnose`.
+"""Measurement campaigns with a hidden effect on mtcomp's own virtual machine (mtcomp.sim), for the
+tests and benchmarks of `diagnose` (test code: the independent machine of tests/truth has its own).
 
 :func:`hidden_case` draws a machine (xfyz or cafxyz), a random base truth (:func:`mtcomp.sim.random_truth`)
-and one effect of SPEC section 6 (which effect, which axis, a magnitude between 4 and 20 times the
-noise), and simulates a realistic campaign on the virtual machine (:mod:`mtcomp.sim`):
-
-* per linear axis: an ISO 230-2 laser set-up (positioning and the three angular components), the
-  positioning at three feeds and two optic offsets (Abbe arms), and one fine bidirectional scan with
-  irregular steps (periodic errors);
-* a volumetric points grid with two tool lengths (and rotary angles on a five-axis machine), measured
-  at the start, in the middle and at the end of the campaign (drift checks; plans 'points',
-  'points_mid', 'points_end', joined into one file of three runs by :func:`hidden_case`);
-* on a five-axis machine: rotary laser runs of C and A (both directions) and the seed-003 three-sphere
-  ball-bar test of C.
+and one effect of docs/diagnose.md's list (which effect, which axis, a magnitude between 4 and 20 times
+the noise), and simulates the campaign of :func:`mtcomp.sim.campaign_plans` on the virtual machine,
+the repeats of its points grid joined into one file of three runs.
 
 The magnitude is defined on the campaign itself: the largest change the effect makes to any reading
 is ``magnitude`` times the noise of that reading. The effect is simulated exactly (the readings are
@@ -27,19 +20,16 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..sim import with_values
-from ..machine import Machine, load_machine
-from ..models import ErrorModel, FittedModel, ParameterSet
-from ..models.terms import (AbbeIRC, Backlash, FeedOffset, PeriodicError, RotaryErrorMotion,
-                            ThermalDrift)
+from mtcomp.machine import Machine, load_machine
+from mtcomp.models import ErrorModel, FittedModel, ParameterSet
+from mtcomp.models.terms import (AbbeIRC, Backlash, FeedOffset, PeriodicError, RotaryErrorMotion,
+                                 ThermalDrift)
+from mtcomp.sim import campaign_plans, with_values
 
 EFFECTS = ("backlash", "rotary_backlash", "thermal_drift", "feed_dependent_abbe",
            "feed_dependent_offset", "periodic_error", "rotary_pdge")
 #: effects that need a rotary axis
 ROTARY_EFFECTS = ("rotary_backlash", "rotary_pdge")
-#: feeds (mm/min) of the feed runs, and the optic offsets (mm) of the Abbe runs
-FEEDS = (1000.0, 3500.0, 6000.0)
-ARMS = ((0.0, 0.0, 0.0), (80.0, 120.0, 100.0))
 #: periods (mm) a hidden cyclic error is drawn from (ball-screw leads)
 PERIODS = (16.0, 20.0, 25.0, 32.0, 40.0)
 
@@ -80,7 +70,7 @@ class HiddenCase:
         return int(sum(_n_readings(d) for d in self.datasets))
 
     def write(self, folder) -> list:
-        """Write every data set as a SPEC CSV file in ``folder``; returns the paths."""
+        """Write every data set as a measurement CSV file in ``folder``; returns the paths."""
         import csv
         from pathlib import Path
         paths = []
@@ -104,54 +94,6 @@ def _n_readings(d) -> int:
     return len(d)
 
 
-def _irregular_targets(rng_seed: int, lo: float, hi: float, n: int) -> np.ndarray:
-    rng = np.random.default_rng(rng_seed)
-    base = np.linspace(lo, hi, n)
-    jit = rng.uniform(-0.35, 0.35, n) * (hi - lo) / (n - 1)
-    jit[[0, -1]] = 0.0
-    return np.round(np.sort(base + jit), 3)
-
-
-def campaign_plans(machine: Machine, size: str = "small") -> list:
-    """The plans of the campaign (see module docstring). ``size``: 'small' (tests, about 2,500
-    readings on xfyz) or 'full' (benchmarks, about 5,000)."""
-    from .. import sim
-    small = size == "small"
-    n_coarse, n_runs, n_fine = (11, 2, 160) if small else (21, 3, 220)
-    plans = []
-    for ax in machine.linear_axes:
-        a = ax.name
-        lo, hi = ax.travel
-        m = 0.05 * (hi - lo)
-        coarse = _irregular_targets(11 + "XYZ".index(a), lo + m, hi - m, n_coarse)
-        fine = _irregular_targets(23 + "XYZ".index(a), lo + m, hi - m, n_fine)
-        plans.append(sim.iso230_2_plan(machine, a, coarse, n_runs,
-                                       (f"E{a}{a}", f"EA{a}", f"EB{a}", f"EC{a}"),
-                                       feed_mm_min=FEEDS[0], name=f"laser_{a.lower()}"))
-        for ai, arm in enumerate(ARMS):
-            # one set-up per optic offset, its runs at every feed (one laser zero for all feeds)
-            parts = [sim.iso230_2_plan(machine, a, coarse, n_runs, (f"E{a}{a}",), optic_mm=arm,
-                                       feed_mm_min=feed, dwell_s=1.0) for feed in FEEDS]
-            plans.append(_merge(parts, f"laser_{a.lower()}_feeds_arm{ai}"))
-        plans.append(sim.iso230_2_plan(machine, a, fine, 1, (f"E{a}{a}",), feed_mm_min=FEEDS[0],
-                                       dwell_s=1.0, name=f"laser_{a.lower()}_fine"))
-    rotary = {a.name: ([0.0, 90.0, 180.0, 270.0] if a.name == "C" else [0.0, 30.0])
-              for a in machine.rotary_axes}
-    points = sim.volumetric_points_plan(machine, (2, 2, 2) if machine.rotary_axes else (4, 3, 3),
-                                        rotary_deg=rotary or None, n_runs=1, name="points")
-    plans.insert(0, points)
-    plans.insert(len(plans) // 2, replace(points, name="points_mid"))
-    for ax in machine.rotary_axes:
-        plans.append(sim.rotary_laser_plan(machine, ax.name, n_runs=n_runs + 1,
-                                           name=f"rotary_laser_{ax.name.lower()}"))
-    if "C" in machine.axis_names:
-        plans.append(sim.three_sphere_plan(machine, angles_deg=np.arange(0.0, 360.0, 20.0 if small else 10.0),
-                                           n_runs=2, name="three_sphere"))
-    # the points grid again in the middle and at the end (runs 2 and 3 of the same file): drift checks
-    plans.append(replace(points, name="points_end"))
-    return plans
-
-
 def _join_repeat(plans):
     """Fold the repeats of the points grid ('points_mid', 'points_end') into 'points' as runs 2, 3
     (times kept as they are): one file, so that the repeats count for the noise floor."""
@@ -169,24 +111,6 @@ def _join_repeat(plans):
     cols = {k: (v if isinstance(v[0], str) else np.asarray(v)) for k, v in cols.items()}
     joined = replace(first, columns=cols)
     return [joined if p.name == "points" else p for p in plans if p.name not in repeats]
-
-
-def _merge(plans, name: str):
-    """One plan made of ``plans`` run one after another (times and run numbers continue)."""
-    cols = {}
-    t0, run0 = 0.0, 0
-    for p in plans:
-        p2 = p.shifted(t0)
-        runs = np.asarray(p2.columns["run"], dtype=float) + run0
-        for k, v in p2.columns.items():
-            v = runs if k == "run" else v
-            cols.setdefault(k, []).extend(list(v))
-        t0 = p2.duration_s + 10.0
-        run0 = int(runs.max())
-    cols = {k: (np.asarray(v) if not isinstance(v[0], str) else v) for k, v in cols.items()}
-    if "seq" in cols:
-        cols["seq"] = np.arange(len(cols["seq"]), dtype=float)
-    return replace(plans[0], name=name, columns=cols)
 
 
 def _readings(d) -> np.ndarray:
@@ -270,7 +194,7 @@ def hidden_case(seed: int, effects=None, machine: str | Machine | None = None, s
     magnitude : times the noise (None: uniform in [4, 20] per effect). defect : add a local bump
     (4-20 times the noise high, 3-8 % of the travel wide) on the positioning of one linear axis.
     """
-    from .. import sim
+    import mtcomp.sim as sim
     rng = np.random.default_rng(seed)
     if effects is None:
         effects = [str(rng.choice(EFFECTS))]

@@ -1,9 +1,9 @@
-"""The error model as a product of exponentials (seed 003, eqs. 1-9), in numpy.
+"""The error model as a product of exponentials (Tan et al. 2026, eqs. 1-9), in numpy.
 
 A second, independent formulation of the exact chain of :mod:`mtcomp.models.chain`, with the same
 parameter vector and the same meaning of every parameter. Every motion is the exponential of a
 twist ``xi = (v, w)`` (v: mm, w: unit or zero; a 6-vector, translation part first) defined in the bed
-frame with every axis at zero (all frames coincide there, SPEC section 2):
+frame with every axis at zero (all frames coincide there, docs/conventions.md):
 
     g_ft = prod_{tool chain} exp(xi_i^e) exp(xi_i^r theta_i) . g_ft(0)          (eq. 2, 5)
     g_fw = prod_{workpiece chain} exp(xi_i^e) exp(xi_i^r theta_i) . g_fw(0)     (eq. 1, 5)
@@ -26,14 +26,14 @@ How the errors of chain.py become exponentials:
 * linear axis, workpiece side: the table transform is the inverse of the tool-relative motion, so
   the ideal twist is ``-(u, 0)`` and the error exponentials are the inverses, in reverse order, of
   those above with r = 0 (the workpiece origin); they are already on the left. This is the sign
-  flip of seed 001, eq. 17.
+  flip of Qi and Yang (2016), eq. 17.
 * rotary axis: the ideal twist of the *actual* line, ``Ad_{G_loc} (-e_d x P, e_d)``, with G_loc the
   location errors (offset of the axis point, tilt of the line about P), turned by ``theta + E_own``;
   the error motions are a translation and rotations about the actual axis point, in the fixed frame
-  (seed 003 eq. 7), on the left.
+  (Tan et al. 2026, eq. 7), on the left.
 * the tool length error moves the tool frame at zero: ``g_ft(0) = exp((0, 0, -TOOL_dL, 0, 0, 0))``.
 
-Only the base model (SPEC section 6) is covered; extension terms raise NotImplementedError.
+Only the base model (docs/models.md) is covered; extension terms raise NotImplementedError.
 Units: mm and rad; q (N, n_axes) in ``machine.axis_names`` order; p in ``model.param_names`` order.
 """
 from __future__ import annotations
@@ -41,9 +41,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .chain import (ErrorModel, linear_components, rotary_location_names,
+from mtcomp.models.chain import (ErrorModel, linear_components, rotary_location_names,
                     rotary_motion_names)
-from .terms import ANGLE_LETTERS, TRANSLATION_LETTERS, positioning_component
+from mtcomp.models.terms import ANGLE_LETTERS, TRANSLATION_LETTERS, positioning_component
 
 __all__ = ["hat", "exp_twist", "adjoint", "component_errors", "poe_transforms", "poe_tool_pose",
            "poe_deviation", "rotation_twist"]
@@ -213,7 +213,7 @@ def poe_transforms(model: ErrorModel, p, q, c=None, errors: bool = True,
     """(N, 4, 4) actual motion of each axis, ``exp(xi^e) exp(xi^r theta)`` (eq. 4), keyed by axis.
 
     With ``errors=False`` the ideal motions ``exp(xi theta)`` (eqs. 1, 2). ``error_side='right'``
-    multiplies the same error exponentials on the right, ``exp(xi^r theta) exp(xi^e)``, as seed 003
+    multiplies the same error exponentials on the right, ``exp(xi^r theta) exp(xi^e)``, as Tan et al. (2026)
     eq. 9 prints it: this is *not* the model (tests use it to show that eq. 9's order contradicts the
     fixed-frame error definitions).
     """
