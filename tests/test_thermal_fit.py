@@ -185,3 +185,26 @@ def test_blank_temperature_is_left_out_and_named_short_file_is_refused(tmp_path,
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "short.csv" in err[0] and "too few" in err[0]
     assert not (tmp_path / "s.json").exists()
+
+
+@pytest.mark.parametrize("penalty", [0.0, 0.03])
+def test_ridge_covariance_is_the_posterior_of_the_raw_problem(penalty):
+    """A second formulation: in raw feature units, with the intercept as a column of ones, the
+    ridge's penalty is lam n sum_i s_i^2 c_i^2 (s_i the feature's standard deviation, the intercept
+    free), so the posterior covariance of (c, b) is sigma^2 (X1^T X1 + P)^-1, P = diag(lam n s^2, 0),
+    sigma^2 the residual sum of squares over n - edf."""
+    from mtcomp.thermal._fit import ridge_covariance
+    rng = np.random.default_rng(2)
+    n = 300
+    X = np.column_stack([rng.normal(20.0, 2.0, n), rng.normal(3.0, 0.5, n)])
+    Y = np.column_stack([X @ [1.5, -4.0] + 7.0 + rng.normal(0, 0.3, n),
+                         X @ [-0.5, 2.0] + rng.normal(0, 0.6, n)])
+    ridge = fit_ridge(X, Y, penalty)
+    cov = ridge_covariance(X, Y, ridge)
+    X1 = np.column_stack([X, np.ones(n)])
+    P = np.diag(np.r_[penalty * n * X.std(axis=0) ** 2, 0.0])
+    H = np.linalg.inv(X1.T @ X1 + P)
+    edf = np.trace(H @ X1.T @ X1)
+    for j in range(2):
+        s2 = np.sum((Y[:, j] - ridge.predict(X)[:, j]) ** 2) / (n - edf)
+        np.testing.assert_allclose(cov[j], s2 * H, rtol=1e-9, atol=1e-14)

@@ -105,3 +105,29 @@ def test_compensate_corrects_the_drift_at_the_temperature_given(tmp_path, capsys
     for k, c in enumerate("xyz"):
         before = np.array([float(r[f"e{c}_before_um"]) for r in rows])
         np.testing.assert_allclose(before, expect[k], rtol=0, atol=0.1 + 0.02 * abs(expect[k]))
+
+
+def test_a_drift_model_gives_its_predictions_a_standard_error(tmp_path):
+    """The drift model carries its posterior covariance (as identify's and diagnose's models do):
+    predicting the record it was fitted on, every reading has a standard error, below the noise of
+    one reading (the model averages 600 of them) and above zero; predicting 5 h past the record, the
+    standard error grows (the features move away from their mean)."""
+    from mtcomp.identification.fit import predict_readings
+    from mtcomp.thermal import diagnose_thermal
+    rng = np.random.default_rng(7)
+    eff = random_effect("thermal_drift", TruthMachine("xfyz"), rng, driver="temperature", schedule=SCHEDULE)
+    truth = TruthMachine.random("xfyz", rng, effects=(eff,))
+    record = tmp_path / "record.csv"
+    campaigns.thermal(truth, record, rng, duration_h=16.0, interval_s=60.0, schedule=SCHEDULE,
+                      noise_um=NOISE_UM)
+    fit, later = tmp_path / "fit.csv", tmp_path / "later.csv"
+    _split(record, 10 * 3600.0, fit, later)
+    d = diagnose_thermal(load_machine("xfyz"), read_measurements(fit))
+    assert d.model.uncertainty is not None
+    cols = predict_readings(d.model, read_measurements(fit)).columns
+    sds = [v for k, v in cols.items() if k.endswith("_sd")]
+    assert sds and all(np.all(np.isfinite(s)) for s in sds)
+    assert 0 < max(float(np.median(s)) for s in sds) < NOISE_UM
+    ahead = predict_readings(d.model, read_measurements(later)).columns
+    for k in (k for k in cols if k.endswith("_sd")):
+        assert np.median(ahead[k]) > np.median(cols[k])

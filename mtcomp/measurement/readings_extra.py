@@ -307,6 +307,10 @@ class ThermalModel(MeasurementModel):
         return {f"pred_disp_{ch}_um": (val[:, j] + nuisance[j]) * 1e3
                 for j, ch in enumerate(self.channels)}
 
+    def column_jacobians(self, p):
+        _, J = self._channel_values(np.asarray(p, dtype=float), True)
+        return {f"pred_disp_{ch}_um": J[:, j, :] * 1e3 for j, ch in enumerate(self.channels)}
+
 
 # --------------------------------------------------------------------------------- velocity
 @register

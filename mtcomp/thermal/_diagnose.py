@@ -42,6 +42,23 @@ def channel_axes_for(channels, channel_axes: dict | None, path=None) -> dict:
     return out
 
 
+def drift_uncertainty(fit, axes: dict) -> dict | None:
+    """The model file's ``uncertainty`` of a drift model (as identify writes it): the posterior
+    covariance of every channel's coefficients and intercept (:func:`ridge_covariance`, um -> mm;
+    channels independent), nothing undetermined."""
+    if fit.covariance is None:
+        return None
+    feats = tuple(fit.chosen.features)
+    names, blocks = [], []
+    for j, ch in enumerate(fit.channels):
+        name = axes.get(ch, ch)
+        names += [f"TD_{name}_{f}" for f in feats] + [f"TD_{name}_zero"]
+        blocks.append(fit.covariance[j] * 1e-6)
+    import scipy.linalg
+    return {"names": tuple(names), "covariance": scipy.linalg.block_diag(*blocks),
+            "undetermined": np.zeros((len(names), 0))}
+
+
 def drift_terms_and_values(fit, axes: dict):
     """(terms, {parameter name: internal value}) of a :class:`ThermalFit` (um -> mm)."""
     c = fit.chosen
@@ -129,7 +146,8 @@ def diagnose_thermal(machine, data, channel_axes: dict | None = None, progress=N
     defaults = {f"temp_{s}": v for s, v in fit.temperature_means.items()}
     info = {"fitted_by": "mtcomp diagnose (thermal drift)", "drift_features": list(c.features),
             "time_constants_s": c.time_constants_s}
-    fitted = FittedModel(model, params, defaults, info)
+    fitted = FittedModel(model, params, defaults, info,
+                         uncertainty=drift_uncertainty(fit, axes) if c.driver != "none" else None)
     how = (f"forward-chained in time: the readings cut into {fit.n_folds + 1} blocks, each of the last "
            f"{fit.n_folds} predicted from the blocks before it")
     reference = {"linear_regression_all_temperatures": _temperature_regression(data, fit)}

@@ -57,6 +57,36 @@ def fit_ridge(X: np.ndarray, Y: np.ndarray, penalty: float) -> Ridge:
     return Ridge(coef, my - mx @ coef, penalty)
 
 
+def ridge_covariance(X: np.ndarray, Y: np.ndarray, ridge: Ridge) -> np.ndarray:
+    """(m, k + 1, k + 1) the Bayesian posterior covariance of each channel's (coef..., intercept)
+    (feature units; um^2 per feature unit^2) of :func:`fit_ridge`'s fit: the penalty on the
+    standardised coefficients is a Gaussian prior, so cov(B) = s^2 (Xs^T Xs + penalty n I)^-1 with
+    s^2 the channel's residual variance over its effective degrees of freedom, the centred
+    intercept independent of B with variance s^2 / n (Wood 2006's posterior, for a ridge). The
+    residuals of a drift record are correlated in time, so this is a lower bound of the spread
+    a new record shows (docs/thermal.md)."""
+    n, k = X.shape
+    m = Y.shape[1]
+    mx = X.mean(axis=0) if k else np.zeros(0)
+    sx = X.std(axis=0) if k else np.zeros(0)
+    sx = np.where(sx > 0, sx, 1.0)
+    Xs = (X - mx) / sx
+    G = Xs.T @ Xs
+    Ginv = np.linalg.pinv(G + ridge.penalty * n * np.eye(k)) if k else np.zeros((0, 0))
+    edf = 1.0 + float(np.trace(Ginv @ G))
+    resid = Y - ridge.predict(X)
+    s2 = np.sum(resid ** 2, axis=0) / max(n - edf, 1.0)
+    # (coef, intercept) = T (B, my): coef = B / sx, intercept = my - mx . coef
+    T = np.zeros((k + 1, k + 1))
+    T[:k, :k] = np.diag(1.0 / sx)
+    T[k, :k] = -mx / sx
+    T[k, k] = 1.0
+    base = np.zeros((k + 1, k + 1))
+    base[:k, :k] = Ginv
+    base[k, k] = 1.0 / n
+    return np.array([s2[j] * (T @ base @ T.T) for j in range(m)])
+
+
 def forward_predictions(X: np.ndarray, Y: np.ndarray, penalty: float, folds) -> np.ndarray:
     """(n, m) each fold's test block predicted from its training blocks; NaN in the first block."""
     out = np.full(Y.shape, np.nan)
@@ -172,6 +202,9 @@ class ThermalFit:
     n_folds: int = N_FOLDS
     temperature_means: dict = field(default_factory=dict)
     left_out: list = field(default_factory=list)
+    #: (m, k + 1, k + 1) posterior covariance of each channel's (coefficients, intercept), um
+    #: per feature unit (:func:`ridge_covariance`)
+    covariance: np.ndarray | None = None
 
     def summary(self) -> str:
         lines = [f"thermal drift ({len(self.t_s)} readings over {np.ptp(self.t_s) / 3600:.3g} h, "
@@ -256,7 +289,8 @@ def fit_thermal(data, lags_s=DEFAULT_LAGS_S, n_folds: int = N_FOLDS, penalties=P
                       np.max(np.abs(Y - Y[0]), axis=0), ridge.predict(X), Y,
                       np.asarray(ctx.t, dtype=float), forward_predictions(X, Y, chosen.penalty, folds),
                       np.asarray(ctx.spindle_rpm, dtype=float), n_folds, temp_means,
-                      [s for s in ctx.temperatures if s not in usable_temperatures(ctx)])
+                      [s for s in ctx.temperatures if s not in usable_temperatures(ctx)],
+                      ridge_covariance(X, Y, ridge))
 
 
 def choose(scores: list[CandidateScore]) -> CandidateScore:
