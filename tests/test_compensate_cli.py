@@ -522,3 +522,18 @@ def test_feed_moves_without_a_feed_are_noted_when_the_model_has_feed_terms(tmp_p
         said = ("warning: 2 feed moves from line 3 on have no feed (no F word before them): the model's "
                 "feed terms (feed_dependent_offset:X) take them at 0 mm/min") in out
         assert said == noted, out
+
+
+def test_a_datum_outside_the_data_is_said(tmp_path, capsys):
+    """The corrections are referenced to the deviation at the part's datum; a datum outside the
+    region the model's data reached gets one line (the model's continuation is its reference)."""
+    machine, fitted, model_path = _model_with_support(tmp_path, {"X": (-20.0, 20.0), "Y": (-20.0, 20.0)})
+    prog = tmp_path / "in.nc"
+    prog.write_text("G21 G90 G54\nG0 X-40 Y0 Z5\nG1 Z0 F300\nX-30\nM30\n")
+    args = ["compensate", "xfyz", str(model_path), str(prog), "-o", str(tmp_path / "o.nc")]
+    code, stdout, err = _run(args + ["--work-offset", "G54=X30,Y0,Z0"], capsys)
+    assert code == 0, err
+    assert "the part's datum of G54 (X 30) lies outside the region the model's data reached" in stdout
+    code, stdout, err = _run(args + ["--work-offset", "G54=X10,Y0,Z0"], capsys)
+    assert code == 0, err
+    assert "the part's datum" not in stdout

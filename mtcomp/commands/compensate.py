@@ -89,6 +89,29 @@ def _positive(value, flag, allow_zero=False):
     return value
 
 
+def _datum_notes(fitted, setup) -> list[str]:
+    """One line for each part's datum (the origin of a work offset the program used) outside the
+    region the model's data reached: the corrections are referenced to the model's deviation there,
+    which is then its continuation beyond the data."""
+    import numpy as np
+
+    from ..toolpaths.offsets import WORK_SYSTEMS
+    support = fitted.support or {}
+    machine = fitted.machine
+    out = []
+    for w in sorted(setup.used_wcs):
+        datum = setup._offset_table()[w]
+        off = [a for a, v in zip(machine.axis_names, datum)
+               if a in support and not support[a][0] - 1e-6 <= v <= support[a][1] + 1e-6]
+        if off:
+            where = ", ".join(f"{a} {np.degrees(datum[machine.index(a)]) if machine.axis(a).is_rotary else datum[machine.index(a)]:g}"
+                              for a in off)
+            out.append(f"note: the part's datum of {WORK_SYSTEMS[w]} ({where}) lies outside the region "
+                       "the model's data reached: the corrections are referenced to the model's "
+                       "deviation there, its continuation beyond the data")
+    return out
+
+
 def _start_position(machine, flags):
     """--start-position A=0,C=0 (repeatable) -> (initial position (na,) mm/rad, known mask (na,))."""
     import math
@@ -304,6 +327,7 @@ def run(args) -> int:
         notes.append(f"{cycle_lines(written['cycle_lines'])} passed through unchanged and "
                      "uncorrected: hole position, R or Z not known, or drilling along another "
                      "axis than Z")
+    notes += _datum_notes(fitted, setup)
     feed_terms = [t.key() for t in fitted.model.terms if t.uses_feed]
     if feed_terms and no_feed["blocks"]:
         notes.append(f"warning: {no_feed['blocks']} feed move{'s' if no_feed['blocks'] != 1 else ''} "

@@ -811,7 +811,8 @@ def _uncertainty(model: ErrorModel, design: Design, extra: np.ndarray, names: li
     seen = norms > 1e-9 * max(float(norms.max()) if norms.size else 0.0, 1e-300)
     s = np.where(seen, 1.0 / np.where(seen, norms, 1.0), 1.0)
     w, V = _eigh((A * s).T @ (A * s))
-    N = s[:, None] * V[:, w <= DEFAULT_RCOND * max(float(w.max()), 1e-300)]
+    # identify's rule: a relative singular value at most DEFAULT_RCOND (these are its squares)
+    N = s[:, None] * V[:, w <= DEFAULT_RCOND ** 2 * max(float(w.max()), 1e-300)]
     free = np.array([model.param_names.index(n) for n in names], dtype=int)
     if N.shape[1]:
         M = travel_metric(model, free, free.size)

@@ -233,19 +233,22 @@ class IdentificationResult:
         ``compare_f_test``): does the extension lower the weighted residual sum of squares by more
         than its extra parameters would by chance?
 
-        Returns {"F": F, "p_value": p, "df_num": extra ranks, "df_den": extended dof}; p small means
-        the extension earns its place on these data (a held-out check is still the stronger test).
+        Returns {"F": F, "p_value": p, "df_num": extra effective degrees of freedom, "df_den":
+        extended dof}; p small means the extension earns its place on these data (a held-out check
+        is still the stronger test). With profiles under a roughness penalty the degrees of freedom
+        are the fits' effective ones (trace of the hat matrix), not their ranks: a direction the
+        penalty alone fixes costs the data nothing (for penalised fits the test is approximate).
         """
         from scipy import stats
         if extended.n_obs != self.n_obs:
             raise ValueError("compare needs fits of the same observations")
-        df_num = extended.rank - self.rank
-        df_den = extended.dof
+        df_num = float(self.dof - extended.dof)
+        df_den = float(extended.dof)
         if df_num <= 0 or df_den <= 0:
             raise ValueError("the extended fit must determine more parameters and keep degrees of freedom")
         F = ((self.cost - extended.cost) / df_num) / (extended.cost / df_den)
-        return {"F": float(F), "p_value": float(stats.f.sf(F, df_num, df_den)), "df_num": int(df_num),
-                "df_den": int(df_den)}
+        return {"F": float(F), "p_value": float(stats.f.sf(F, df_num, df_den)), "df_num": df_num,
+                "df_den": df_den}
 
     def largest_correlations(self, k: int = 5, threshold: float = 0.9):
         """Up to k pairs (name_a, name_b, r) of determined unknowns with |r| >= threshold."""
@@ -609,7 +612,7 @@ class _Solution:
     cond: float
     iterations: int
     converged: bool
-    leverage: np.ndarray        # (n_obs,) diagonal of the hat matrix (sums to the rank)
+    leverage: np.ndarray        # (n_obs,) diagonal of the hat matrix (sums to the edf)
     edf: float = float("nan")   # effective degrees of freedom (the rank without a penalty)
 
 
@@ -641,9 +644,9 @@ class _Problem:
         self.observed = np.concatenate([m.observed for m in mms])
         self.metric = None      # (n_unknowns, n_unknowns) mean squared tip error over the travel, mm^2
         self.weak_fallback = False  # the weak-direction pass was refused (see solve)
-        self.use_penalty = type(self).use_penalty  # profiles carry a roughness penalty (mtcomp.identification.penalty)
         self.S = None               # the penalty in scaled coordinates at the chosen weights
         self.smoothing = None       # penalty.Smoothing of the last solve
+        self.smoothing_rho = {}     # class -> log weight of the last solve
         self.gradient_stale = False  # the last Gauss-Newton pass stopped on a step it did not evaluate
 
     # --------------------------------------------------------------- weights
@@ -818,20 +821,19 @@ class _Problem:
         seen = _seen_columns(A)
         out = {}
         for cls, S in penalty_matrices(self.model, self.free_idx, self.n_unknowns).items():
-            Ss = S * np.outer(scale * seen, scale * seen)
+            on = np.diag(S) > 0
+            Ss = S * np.outer(scale, scale)
             d = np.diag(Ss)
-            if not (d > 0).any():
+            typical = d[on & seen]
+            if typical.size == 0:
                 continue
-            Ss = Ss / float(np.median(d[d > 0]))
+            Ss = Ss / float(np.median(typical))
             # a coefficient the data see a million times more weakly than the class's typical one
             # (a wall's angular profile seen through a 0.1 mm arm) is as good as unseen: its penalty
             # would dwarf every other direction and the solve would lose them to round-off
-            faint = np.diag(Ss) > PENALTY_RANGE
-            Ss[faint, :] = 0.0
-            Ss[:, faint] = 0.0
-            if np.diag(Ss).any():
-                out[cls] = Ss
-        return out
+            drop = on & (~seen | (np.diag(Ss) > PENALTY_RANGE))
+            out[cls] = _eliminate(Ss, drop)
+        return {cls: Ss for cls, Ss in out.items() if np.diag(Ss).any()}
 
     def penalised_null(self, null, penalties: dict) -> np.ndarray:
         """The directions among ``null`` (the data's, orthonormal, scaled) that no penalty sees either
@@ -903,6 +905,7 @@ class _Problem:
         (:meth:`_weak_directions`), so that noise is never amplified into invented errors.
         """
         from .penalty import Smoothing, reml_weights
+        self.smoothing, self.smoothing_rho = None, {}
         x = np.zeros(self.n_unknowns)
         x[:self.n_free] = self.p0[self.free_idx]
         pred, A, g = self.normal_equations(x, w)
@@ -1160,6 +1163,20 @@ def _column_scale(A: np.ndarray) -> np.ndarray:
     norms = np.sqrt(np.clip(np.diag(A), 0.0, None))
     real = _seen_columns(A)
     return np.where(real, 1.0 / np.where(real, norms, 1.0), 1.0)
+
+
+def _eliminate(S: np.ndarray, drop: np.ndarray) -> np.ndarray:
+    """The penalty S with the coefficients ``drop`` left free: the Schur complement
+    ``S_kk - S_kd S_dd^+ S_dk`` on the others (zero rows and columns for the dropped), the least
+    penalty over every value of theirs. Cutting them out instead would price the kept ones as if the
+    dropped were 0, and a straight line through the kept ones would cost something."""
+    if not drop.any():
+        return S
+    keep = ~drop
+    out = np.zeros_like(S)
+    Skd = S[np.ix_(keep, drop)]
+    out[np.ix_(keep, keep)] = S[np.ix_(keep, keep)] - Skd @ np.linalg.pinv(S[np.ix_(drop, drop)]) @ Skd.T
+    return out
 
 
 def _seen_columns(A: np.ndarray) -> np.ndarray:

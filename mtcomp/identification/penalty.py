@@ -129,9 +129,10 @@ def _block(axis, suffixes: list[str]):
 class Smoothing:
     """The penalty weights chosen for a fit.
 
-    weights : {class: lambda} per internal unit of the class's profiles (mm or rad, per mm^3 of
-        travel for linear axes). rho : {class: log of the normalised weight}. edf : effective
-        degrees of freedom of the fit (trace of the hat matrix). criterion : 'REML'.
+    weights : {class: exp(rho)}, dimensionless multiples of the class's normalised penalty (each
+        class's penalty is scaled so that 1 weighs a profile's curvature about as much as the data
+        weigh one well-seen coefficient). rho : {class: log weight}. edf : effective degrees of
+        freedom of the fit (trace of the hat matrix). criterion : 'REML'.
     """
 
     weights: dict

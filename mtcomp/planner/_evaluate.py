@@ -96,8 +96,7 @@ class Evaluator:
         fitted = self.problem.fitted
         J = evaluate(self.model, "tip_pjacobian_function", fitted.clamp(q)[0], self.p, ctx)[0]
         if datum is not None:
-            J = J - evaluate(self.model, "tip_pjacobian_function", fitted.clamp(datum)[0], self.p_datum,
-                             self._datum_context(ctx))[0]
+            J = J - self._at_datum("tip_pjacobian_function", datum, ctx)
         G = J[:, :, idx] @ F                        # (n, 3, rank), mm
         return np.sqrt(np.max(np.einsum("nij,nij->ni", G, G), axis=1)) * 1e3
 
@@ -184,10 +183,19 @@ class Evaluator:
         laser's zero or a constant left open cannot change)."""
         datum = np.atleast_2d(np.asarray(datum, dtype=float))
         out = np.zeros((datum.shape[0], self.rows))
-        qc = self.problem.fitted.clamp(datum)[0]
-        out[:, :3] = evaluate(self.model, "deviation_function", qc, self.p_datum,
-                              self._datum_context(ctx))[0][:, :3]
+        out[:, :3] = self._at_datum("deviation_function", datum, ctx)[:, :3]
         return out
+
+    def _at_datum(self, name: str, datum, ctx) -> np.ndarray:
+        """The model's function ``name`` at each block's datum in the datum's context, evaluated once
+        per distinct (datum, tool length): a program has one datum or a few."""
+        c = self._datum_context(ctx)
+        key = np.column_stack([datum, c])
+        uniq, inv = np.unique(key, axis=0, return_inverse=True)
+        na = datum.shape[1]
+        out = evaluate(self.model, name, self.problem.fitted.clamp(uniq[:, :na])[0], self.p_datum,
+                       uniq[:, na:])[0]
+        return out[inv.reshape(-1)]
 
     def _datum_context(self, ctx) -> np.ndarray:
         """The model's own reference context with the tool length of ctx's blocks."""

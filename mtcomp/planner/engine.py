@@ -229,7 +229,12 @@ class Planner:
         if not self.options.extrapolate:
             todo &= ~outside.any(axis=1)
         if todo.any():
-            sd[todo] = self.ev.correction_sd_um(q[todo], ctx[todo], None if datum is None else datum[todo])
+            qt, ct = q[todo], ctx[todo]
+            if datum is None:
+                parts = split_rows(self.ev.correction_sd_um, qt.shape[0], self._split, qt, ct)
+            else:
+                parts = split_rows(self.ev.correction_sd_um, qt.shape[0], self._split, qt, ct, datum[todo])
+            sd[todo] = np.concatenate(parts)
         return sd
 
     def _solve_free(self, q, ctx, reference) -> Linearization:

@@ -277,8 +277,9 @@ class Summary:
                          f"largest {self.max_sd_um:.3f} um; BLOCKS.csv column correction_sd_um); "
                          "more data there, or a larger --max-correction-sd-um, corrects them")
         if self.max_correction_sd_um and not self.has_covariance:
-            lines.append("note: the model carries no covariance (identify writes one): no block's "
-                         "correction could be checked against --max-correction-sd-um")
+            lines.append("note: the model carries no covariance (identify, diagnose and a thermal "
+                         "diagnosis write one; an older model file may not): no block's correction "
+                         "could be checked against --max-correction-sd-um")
         if not self.support_known:
             lines.append("note: the model does not state the region its data reached; every "
                          "block was corrected as if inside it")
