@@ -123,15 +123,10 @@ def test_reml_matches_a_brute_force_marginal_likelihood():
 def _gap_fit(tmp_path, truth_um, name):
     """identify on laser runs of X positioning (three bidirectional runs, 0.05 um noise) at targets
     on two stretches with a 200 mm gap between them; (fitted model, its X spline)."""
+    from laser_files import write_x_positioning
     targets = np.r_[np.arange(-300.0, -99.0, 25.0), np.arange(100.0, 301.0, 25.0)]
-    rng = np.random.default_rng(8)
-    rows = ["axis,component,target_mm,dir,run,value_um"]
-    for run in range(1, 4):
-        for t in targets:
-            for d in (1, -1):
-                rows.append(f"X,EXX,{t},{d},{run},{truth_um(t) + 3 + rng.normal(0, 0.05):.4f}")
-    path = tmp_path / f"{name}.csv"
-    path.write_text("\n".join(rows) + "\n")
+    path = write_x_positioning(tmp_path / f"{name}.csv", targets, lambda t, d: truth_um(t) + 3, 3, 0.05,
+                               np.random.default_rng(8))
     fm = identify(load_machine("xfyz"), [read_measurements(str(path))]).fitted_model
     return fm, axis_spline(fm.model.machine.axis("X"))
 
@@ -290,15 +285,10 @@ def test_f_test_of_penalised_fits_counts_effective_degrees_of_freedom(tmp_path):
     """compare() between penalised fits uses their effective degrees of freedom (n - dof), not their
     ranks, which count directions the penalty alone fixes: a laser run with a real 4 um reversal,
     the base model against the base plus backlash."""
+    from laser_files import write_x_positioning
     from mtcomp.models import Backlash, ErrorModel as Model
-    rng = np.random.default_rng(1)
-    rows = ["axis,component,target_mm,dir,run,value_um"]
-    for run in range(1, 4):
-        for t in np.arange(-300.0, 301.0, 25.0):
-            for d in (1, -1):
-                rows.append(f"X,EXX,{t},{d},{run},{5 * np.sin(t / 120) + 2 * d + rng.normal(0, 0.2):.4f}")
-    path = tmp_path / "laser_x.csv"
-    path.write_text("\n".join(rows) + "\n")
+    path = write_x_positioning(tmp_path / "laser_x.csv", np.arange(-300.0, 301.0, 25.0),
+                               lambda t, d: 5 * np.sin(t / 120) + 2 * d, 3, 0.2, np.random.default_rng(1))
     data = [read_measurements(str(path))]
     base = identify(load_machine("xfyz"), data)
     ext_model = Model(base.model.machine, (Backlash("X"),))

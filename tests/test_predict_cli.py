@@ -160,14 +160,9 @@ def test_a_diagnosed_model_gives_every_prediction_its_standard_error(tmp_path):
     from mtcomp.identification.fit import predict_readings
     from mtcomp.machine import load_machine
     from mtcomp.measurement.files import read_measurements
-    rng = np.random.default_rng(3)
-    rows = ["axis,component,target_mm,dir,run,value_um"]
-    for run in range(1, 6):
-        for t in np.arange(-300, 301, 50.0):
-            for d in (1, -1):
-                rows.append(f"X,EXX,{t},{d},{run},{10 * np.sin(t / 150) + rng.normal(0, 0.5):.4f}")
-    path = tmp_path / "laser_x.csv"
-    path.write_text("\n".join(rows) + "\n")
+    from laser_files import write_x_positioning
+    path = write_x_positioning(tmp_path / "laser_x.csv", np.arange(-300, 301, 50.0),
+                               lambda t, d: 10 * np.sin(t / 150), 5, 0.5, np.random.default_rng(3))
     data = read_measurements(str(path))
     diag = diagnose(load_machine("xfyz"), [data])
     assert diag.findings == [] and diag.model.uncertainty is not None

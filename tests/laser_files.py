@@ -1,0 +1,18 @@
+"""Hand-made laser files of X positioning for tests (the measurement file format of docs/measurements.md)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+
+def write_x_positioning(path, targets, error_um, n_runs: int, noise_um: float, rng) -> Path:
+    """Write ``n_runs`` bidirectional runs of EXX at ``targets`` (mm): each reading is
+    ``error_um(target, direction)`` plus Gaussian noise of ``noise_um``; returns the path."""
+    rows = ["axis,component,target_mm,dir,run,value_um"]
+    for run in range(1, n_runs + 1):
+        for t in targets:
+            for d in (1, -1):
+                rows.append(f"X,EXX,{t},{d},{run},{error_um(t, d) + rng.normal(0, noise_um):.4f}")
+    Path(path).write_text("\n".join(rows) + "\n")
+    return Path(path)
