@@ -36,7 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
-DEFAULT = Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "thermal" / "fl_thermal.csv"
+#: the real record is in the repository (tests/data/real/thermal, MIT licence; SOURCES.md there)
+DEFAULT = Path(__file__).resolve().parents[1] / "tests" / "data" / "real" / "thermal" / "fl_thermal.csv"
 SPLITS = (0.6, 0.4, 0.8)
 
 

@@ -3,8 +3,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
 
 def write_x_positioning(path, targets, error_um, n_runs: int, noise_um: float, rng) -> Path:
     """Write ``n_runs`` bidirectional runs of EXX at ``targets`` (mm): each reading is

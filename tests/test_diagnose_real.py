@@ -1,4 +1,5 @@
-"""`diagnose` on real measurements (shared/data/real; skipped when the folder is absent).
+"""`diagnose` on real measurements (the ISO 230-2 runs from ../shared/data/real, skipped when the
+folder is absent; the thermal record from tests/data/real, tests/real_data.py).
 
 * ISO 230-2 runs of a real linear stage (ess_b02_x, ess_b02_y): the reversal is found as backlash.
   Oracle: the ISO 230-2 evaluation (mtcomp.identification.iso230_2). Each target is approached
@@ -8,7 +9,6 @@
   thermal drift; the extended model's held-out residual (whole spindle-speed blocks held out) is
   compared with a plain linear regression on all 16 temperatures, recomputed here with numpy.
 """
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,7 +18,9 @@ from mtcomp.identification.iso230_2 import evaluate_iso230_2
 from mtcomp.measurement.files import read_measurements
 from mtcomp.machine import load_machine
 
-REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
+from real_data import SHARED_REAL as REAL
+from real_data import THERMAL
+
 needs_real = pytest.mark.skipif(not REAL.is_dir(), reason=f"real data folder {REAL} is absent")
 
 
@@ -58,10 +60,9 @@ def _forward_temperature_regression(data) -> float:
     return float(np.sqrt(np.mean(np.concatenate(resid) ** 2)))
 
 
-@needs_real
 def test_spindle_thermal_drift_is_found_and_beats_a_plain_temperature_regression():
     from mtcomp.thermal import diagnose_thermal
-    data = read_measurements(REAL / "thermal" / "fl_thermal.csv")
+    data = read_measurements(THERMAL)
     d = diagnose_thermal(load_machine("xfyz"), data)
     assert "forward-chained" in d.folds
     drift = [f for f in d.findings if f.effect == "thermal_drift"]
@@ -91,7 +92,7 @@ def test_thermal_record_with_a_laser_file_gives_one_drift_finding():
     """A thermal record diagnosed with a laser file: one thermal_drift finding, its driver chosen
     among the rivals (it was once named twice, 'on X', for temperature and for time, though the laser
     file has no temperatures and the drift sits in the record's channels)."""
-    data = [read_measurements(REAL / "thermal" / "fl_thermal.csv"),
+    data = [read_measurements(THERMAL),
             read_measurements(REAL / "iso230_2" / "ess_b02_x.csv")]
     d = diagnose(load_machine("xfyz"), data)
     drift = [f for f in d.findings if f.effect == "thermal_drift"]

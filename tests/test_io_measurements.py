@@ -335,7 +335,7 @@ def test_file_unit_scale():
 
 
 def test_real_thermal_file():
-    path = REAL / "thermal" / "fl_thermal.csv"
+    from real_data import THERMAL as path
     if not path.exists():
         pytest.skip(f"real data not found at {path}")
     d = read_measurements(path)

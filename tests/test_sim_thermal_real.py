@@ -1,5 +1,4 @@
 """The thermal measurement model and drift features on real data (CAIVIAC FL_THERMAL spindle run)."""
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -9,8 +8,7 @@ from mtcomp.identification.fit import identify
 from mtcomp.measurement.files import read_measurements
 from mtcomp.models import ChannelDrift, ErrorModel
 
-REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
-THERMAL = REAL / "thermal" / "fl_thermal.csv"
+from real_data import THERMAL
 
 
 @pytest.mark.skipif(not THERMAL.exists(), reason=f"real data not present at {THERMAL}")

@@ -7,15 +7,14 @@ numpy: least squares on the 16 temperatures, and ridge regression on them with i
 forward-chaining validation inside the fitted part. Skipped when the real data folder is absent.
 """
 import csv
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from mtcomp.cli import main
 
-REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
-THERMAL = REAL / "thermal" / "fl_thermal.csv"
+from real_data import THERMAL
+
 needs_real = pytest.mark.skipif(not THERMAL.exists(), reason=f"real thermal record {THERMAL} is absent")
 
 

@@ -17,7 +17,7 @@ Steps (docs/diagnose.md explains them for a metrologist):
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import NamedTuple
 
 import numpy as np
@@ -28,7 +28,7 @@ from ..models.chain import ErrorModel
 from ..models.model_file import FittedModel
 from ..models.params import ParameterSet
 from . import _analysis as an
-from ._analysis import CV_Z, cv_threshold
+from ._analysis import cv_threshold
 from ._candidates import Candidate, generate, temperature_regression, without_params
 from ._refusal import moved_axes, refusal
 from ._linalg import Design, _eigh, determined_subspace, rms, solve_normal

@@ -27,7 +27,6 @@ from typing import Iterable, Iterator
 
 import numpy as np
 
-from ..errors import InputError
 from ._bounds import FLAG_KINDS, INF, Bounds, flag_name
 from ._evaluate import Evaluator, objective_residual
 from ._parallel import read_ahead, resolve_threads, split_rows
