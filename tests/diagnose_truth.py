@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mtcomp.diagnose import diagnose
-from mtcomp.identification.fit import predict_readings
+from mtcomp.identification.predict import predict_readings
 from mtcomp.machine import load_machine
 from mtcomp.measurement.files import read_measurements
 from truth import Context

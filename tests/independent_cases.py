@@ -10,7 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mtcomp.identification.fit import identify, predict_readings
+from mtcomp.identification.fit import identify
+from mtcomp.identification.predict import predict_readings
 from mtcomp.machine import load_machine
 from mtcomp.measurement.files import read_measurements
 from truth import TruthMachine

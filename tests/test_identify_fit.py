@@ -385,7 +385,7 @@ def test_chord_steps_reach_the_exact_least_squares_minimum(xfyz):
 
 
 def test_hold_by_name_component_axis_and_group():
-    from mtcomp.identification.fit import _free_mask, held_parameters
+    from mtcomp.identification.problem import _free_mask, held_parameters
     model = ErrorModel(load_machine("cafxyz"))
     groups = [s.group for s in model.param_specs]
     names = list(model.param_names)
@@ -407,7 +407,7 @@ def test_hold_by_name_component_axis_and_group():
 
 
 def test_calibrated_ball_bar_has_no_length_offset():
-    from mtcomp.identification.fit import build_measurement_models
+    from mtcomp.identification.problem import build_measurement_models
     from mtcomp.sim import make_ballbar
     model = ErrorModel(load_machine("xfyz"))
     th = np.linspace(0, 2 * np.pi, 12, endpoint=False)
@@ -423,7 +423,7 @@ def test_calibrated_ball_bar_has_no_length_offset():
 
 
 def test_known_setup_matches_any_path_to_the_file_and_refuses_what_it_cannot_mean(tmp_path, monkeypatch):
-    from mtcomp.identification.fit import build_measurement_models
+    from mtcomp.identification.problem import build_measurement_models
     from mtcomp.sim import make_ballbar, write_measurements
     from mtcomp.measurement.files import read_measurements
     model = ErrorModel(load_machine("xfyz"))
@@ -443,7 +443,7 @@ def test_known_setup_matches_any_path_to_the_file_and_refuses_what_it_cannot_mea
     with pytest.raises(InputError, match="a laser file has no set-up to declare known"):
         build_measurement_models(model, [laser], known_setup=[str(laser.path)])
     # the model remembers it: predict treats the calibrated bar as fitted, with no length offset
-    from mtcomp.identification.fit import predict_readings
+    from mtcomp.identification.predict import predict_readings
     res = identify(model, [data], known_setup=["bar/bb.csv"])
     assert res.fitted_model.info["known_setup"] == ["bb"]
     pred = predict_readings(res.fitted_model, data)

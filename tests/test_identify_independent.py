@@ -20,7 +20,8 @@ import numpy as np
 import pytest
 
 from independent_cases import NOISE_UM, clean_campaign, heldout_by_run
-from mtcomp.identification.fit import identify, predict_readings
+from mtcomp.identification.fit import identify
+from mtcomp.identification.predict import predict_readings
 from mtcomp.machine import load_machine
 from mtcomp.measurement.files import read_measurements
 from mtcomp.models import deviation

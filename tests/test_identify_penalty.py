@@ -264,7 +264,7 @@ def test_coefficients_left_out_of_the_penalty_leave_a_line_free():
     """Coefficients the data do not see are left out of the penalty as free (the least penalty over
     their values, a Schur complement), not as zeros: a straight line through the others still costs
     nothing, a parabola its second differences (hand-derived: 10 coefficients, 3 left free)."""
-    from mtcomp.identification.fit import _eliminate
+    from mtcomp.identification._linalg import _eliminate
     n = 10
     D = np.diff(np.eye(n), 2, axis=0)
     S = D.T @ D

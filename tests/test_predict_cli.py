@@ -157,7 +157,7 @@ def test_a_diagnosed_model_gives_every_prediction_its_standard_error(tmp_path):
     the reference: its standard error is the noise over sqrt(10) (a hand-derived oracle), to within
     the reference's share (1/13 of the variance) and the noise estimate."""
     from mtcomp.diagnose import diagnose
-    from mtcomp.identification.fit import predict_readings
+    from mtcomp.identification.predict import predict_readings
     from mtcomp.machine import load_machine
     from mtcomp.measurement.files import read_measurements
     from laser_files import write_x_positioning

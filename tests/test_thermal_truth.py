@@ -112,7 +112,7 @@ def test_a_drift_model_gives_its_predictions_a_standard_error(tmp_path):
     predicting the record it was fitted on, every reading has a standard error, below the noise of
     one reading (the model averages 600 of them) and above zero; predicting 5 h past the record, the
     standard error grows (the features move away from their mean)."""
-    from mtcomp.identification.fit import predict_readings
+    from mtcomp.identification.predict import predict_readings
     from mtcomp.thermal import diagnose_thermal
     rng = np.random.default_rng(7)
     eff = random_effect("thermal_drift", TruthMachine("xfyz"), rng, driver="temperature", schedule=SCHEDULE)

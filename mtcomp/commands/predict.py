@@ -29,7 +29,7 @@ def run(args) -> int:
     import sys
 
     from . import attach_cmm_cuts, cmm_programs, note_cmm_gaps, note_outside_travel
-    from ..identification.fit import predict_readings
+    from ..identification.predict import predict_readings
     from ..io.atomic import check_output_path
     from ..measurement.files import read_measurements, write_csv_with_columns
     from ..machine import load_machine

@@ -798,7 +798,8 @@ def _uncertainty(model: ErrorModel, design: Design, extra: np.ndarray, names: li
 
     names : the machine parameters' names. theta_idx : their positions among the common block and
     the extras. machine_cols : (m,) bool, the common block's machine (not set-up) columns."""
-    from ..identification.fit import DEFAULT_RCOND, travel_metric
+    from ..identification.fit import DEFAULT_RCOND
+    from ..identification.problem import travel_metric
     cov, _ = _covariance(design, extra)
     idx = np.asarray(theta_idx, dtype=int)
     C = cov[np.ix_(idx, idx)]

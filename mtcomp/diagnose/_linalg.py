@@ -125,7 +125,7 @@ def determined_subspace(A: np.ndarray, w: np.ndarray | None = None,
     which take what an undetermined combination trades with machine parameters (None: all machine).
     Fixed once, at the start point of a fit, so that combinations determined only through
     second-order effects of the errors stay undetermined."""
-    from ..identification.fit import _column_scale, held_complement
+    from ..identification._linalg import _column_scale, held_complement
     Aw = A if w is None else A * np.asarray(w, dtype=float)[:, None]
     # identify's rule: a column at round-off level (a rotary location error the data never turn,
     # seen only through the rounding of the chain) is not scaled up to pass for information

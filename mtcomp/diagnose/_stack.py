@@ -217,7 +217,7 @@ def build_stack(machine: Machine, datasets: list[MeasurementSet], extra_context=
         r = mm.obs_row
         cols = np.asarray(mm.obs_column, dtype=object).astype(str)
         scale = np.asarray(mm.obs_unit_scale, dtype=float).copy()
-        from ..identification.fit import error_unit
+        from ..identification.result import error_unit
         unit = np.array([error_unit(c) for c in cols], dtype=object).astype(str)
         scale = np.where(scale == 1.0, 1e3, scale)     # ball-bar lengths: mm -> um
         n = mm.n_obs

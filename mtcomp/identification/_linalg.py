@@ -1,0 +1,146 @@
+"""Linear algebra of the fit: column scaling, rank and null space of the scaled normal matrix, the
+directions a fit moves in when some combinations are held, penalties with coefficients left free,
+Cholesky solves, and readable names of undetermined combinations."""
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg
+
+from .result import UndeterminedCombination, error_scale
+
+
+#: an unknown whose weight in the (orthonormal, scaled) null space exceeds this is undetermined; below
+#: it, eigenvector round-off between a null direction and a weak determined one (~1e-6) is ignored
+NULL_WEIGHT = 1e-4
+
+
+#: a parameter is named in an undetermined combination when its weight exceeds this share of the largest
+NAME_SHARE = 0.1
+
+
+#: weight of a set-up unknown (a file's zero offset, its alignment) against a machine parameter when a
+#: combination the data cannot determine is held: the set-up takes what it trades with machine errors
+SETUP_WEIGHT = 1e-3
+
+
+def held_complement(null: np.ndarray, machine: np.ndarray) -> np.ndarray:
+    """(n, n - k) orthonormal directions a fit moves in, given the k orthonormal directions ``null``
+    (column-scaled coordinates) the data do not determine and ``machine`` (n,) bool, True for machine
+    parameters, False for set-up unknowns: ``{z : null^T W z = 0}`` with W = 1 on machine parameters
+    and SETUP_WEIGHT^2 on set-ups. W is positive definite, so these directions and ``null`` together
+    span everything: every fit of the data is reached, with the least machine part of each
+    undetermined combination. A constant the readings share between a laser's zero offset and the
+    angle of an axis that never moved (through its Abbe arm) is the offset's: the plain minimum norm
+    split it three ways and made a pitch of Z of 105 urad out of a laser run of X."""
+    k = null.shape[1]
+    if k == 0:
+        return np.eye(null.shape[0])
+    w = np.where(machine, 1.0, SETUP_WEIGHT ** 2)
+    _, _, Vt = np.linalg.svd((w[:, None] * null).T, full_matrices=True)
+    return Vt[k:].T
+
+
+def _error_scales(columns) -> np.ndarray:
+    """(n,) :func:`error_scale` of each column name (computed once per distinct name)."""
+    columns = np.asarray(columns, dtype=object)
+    out = np.empty(columns.shape[0])
+    for name in set(columns.tolist()):
+        out[columns == name] = error_scale(name)
+    return out
+
+
+def _column_scale(A: np.ndarray) -> np.ndarray:
+    """1 / sqrt(diag A): unit columns for the eigen-analysis. A column at round-off level (below
+    1e-9 of the largest: a straightness no file measures, seen only through the rounding of the
+    chain) keeps scale 1, so that it stays at zero size and counts as undetermined; scaled to unit
+    norm, its round-off would pass for information and the step would follow it to 1e12."""
+    norms = np.sqrt(np.clip(np.diag(A), 0.0, None))
+    real = _seen_columns(A)
+    return np.where(real, 1.0 / np.where(real, norms, 1.0), 1.0)
+
+
+def _eliminate(S: np.ndarray, drop: np.ndarray) -> np.ndarray:
+    """The penalty S with the coefficients ``drop`` left free: the Schur complement
+    ``S_kk - S_kd S_dd^+ S_dk`` on the others (zero rows and columns for the dropped), the least
+    penalty over every value of theirs. Cutting them out instead would price the kept ones as if the
+    dropped were 0, and a straight line through the kept ones would cost something."""
+    if not drop.any():
+        return S
+    keep = ~drop
+    out = np.zeros_like(S)
+    Skd = S[np.ix_(keep, drop)]
+    out[np.ix_(keep, keep)] = S[np.ix_(keep, keep)] - Skd @ np.linalg.pinv(S[np.ix_(drop, drop)]) @ Skd.T
+    return out
+
+
+def _seen_columns(A: np.ndarray) -> np.ndarray:
+    """(n,) bool: the unknowns the data see at all, columns of the normal matrix A above round-off
+    (1e-9 of the largest column norm)."""
+    norms = np.sqrt(np.clip(np.diag(A), 0.0, None))
+    return norms > 1e-9 * max(float(norms.max()) if norms.size else 0.0, 1e-300)
+
+
+def _relative_singular_values(As: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(relative singular values s / s_max descending, eigenvectors) of a scaled normal matrix."""
+    evals, V = np.linalg.eigh(As)
+    order = np.argsort(evals)[::-1]
+    evals, V = evals[order], V[:, order]
+    sv = np.sqrt(np.clip(evals, 0.0, None))
+    s_max = sv[0] if sv.size and sv[0] > 0 else 1.0
+    return sv / s_max, V
+
+
+def _gram(J: np.ndarray) -> np.ndarray:
+    """J^T J with BLAS syrk (half the work of a general product)."""
+    if J.dtype == np.float64 and J.flags.c_contiguous and J.shape[0] > 4 * J.shape[1]:
+        from scipy.linalg.blas import dsyrk
+        upper = dsyrk(1.0, J.T, trans=0, lower=0)      # J.T is Fortran-ordered: no copy
+        return np.triu(upper) + np.triu(upper, 1).T
+    return J.T @ J
+
+
+def _solver(AB):
+    """A function gs_B -> (AB)^-1 gs_B for the reduced normal matrix: its Cholesky factor, formed
+    once and used by every step that shares AB (the pseudo-inverse where round-off at the edge of
+    the rank makes AB not quite positive definite)."""
+    if AB.shape[0] == 0:
+        return lambda v: v
+    try:
+        cho = scipy.linalg.cho_factor(AB)
+        return lambda v: scipy.linalg.cho_solve(cho, v)
+    except np.linalg.LinAlgError:
+        pinv = scipy.linalg.pinvh(AB)
+        return lambda v: pinv @ v
+
+
+def _step(B, solve, gs):
+    """Scaled Gauss-Newton step restricted to span(B): B (B^T As B)^-1 B^T gs, with ``solve`` from
+    :func:`_solver`."""
+    return B @ solve(B.T @ gs)
+
+
+def _name_null_space(null, scale, to_file, names, svals) -> list[UndeterminedCombination]:
+    """Readable basis of the null space: pivoted so that each direction has one leading unknown.
+
+    null : (n, k) orthonormal null directions in scaled coordinates. A step ``D v`` of the unknowns
+    (internal units) is ``D v * to_file`` in file units.
+    """
+    k = null.shape[1]
+    if k == 0:
+        return []
+    # pivot on the unknowns with the largest weight (in scaled coordinates, where weights compare)
+    _, _, piv = scipy.linalg.qr(null.T, pivoting=True)
+    piv = piv[:k]
+    M = null[piv, :]                                   # (k, k)
+    basis_scaled = null @ np.linalg.solve(M, np.eye(k))   # 1 at its own pivot, 0 at the others
+    out = []
+    for j in range(k):
+        v = basis_scaled[:, j]
+        big = np.abs(v) >= NAME_SHARE * np.abs(v).max()
+        f = v * scale * to_file
+        pivot = piv[j]
+        idx = [pivot] + [i for i in np.flatnonzero(big) if i != pivot]
+        coef = f / f[pivot]
+        out.append(UndeterminedCombination([(names[i], float(coef[i])) for i in idx],
+                                           float(svals[j]) if j < len(svals) else 0.0))
+    return out

@@ -1,0 +1,157 @@
+"""What a fit fits: the free and held parameters of a model, the measurement model of every file
+(with unique tags and declared set-ups), the model's knots from the data, and the physical metric
+(tool-tip error over the travel) in which what the data leave open is measured."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ..io.atomic import same_file
+from ..measurement.files import MeasurementSet
+from ..measurement.readings import (MeasurementModel, data_positions, data_spline_sizes,
+                                    measurement_model)
+from ..models.basis import with_data_basis
+from ..models.chain import ErrorModel
+
+
+def _free_mask(model: ErrorModel, free, hold) -> np.ndarray:
+    names = model.param_names
+    if free is None:
+        mask = model.base_mask.copy()
+    elif np.asarray(free).dtype == bool:
+        mask = np.array(free, dtype=bool)
+        if mask.shape != (model.n_params,):
+            raise ValueError(f"free mask must have shape ({model.n_params},), got {mask.shape}")
+    else:
+        free = list(free)
+        unknown = [n for n in free if n not in names]
+        if unknown:
+            raise InputError(f"unknown parameter(s) {', '.join(unknown)} (not in this model)")
+        mask = np.isin(np.asarray(names), free)
+    for name in hold or ():
+        held = held_parameters(model, name)
+        if not held.any():
+            import difflib
+            words = set(names) | _hold_groups(model) | {g.split(":")[0] for g in _hold_groups(model)}
+            words |= {s.group.split(":", 1)[-1] for s in model.param_specs} | set(model.machine.axis_names)
+            close = difflib.get_close_matches(name, sorted(words), n=1) or \
+                difflib.get_close_matches(name.upper(), sorted(words), n=1)
+            hint = f"did you mean {close[0]}? " if close else ""
+            raise InputError(f"--hold {name}: no such parameter or group in this model ({hint}give a "
+                             f"name such as EXX_b3, a component such as EXX, an axis letter such as X, "
+                             f"or one of: {', '.join(sorted(_hold_groups(model)))})")
+        mask[held] = False
+    return mask
+
+
+def _hold_groups(model: ErrorModel) -> set[str]:
+    """Group names a hold may give besides parameter names: 'squareness', 'spindle', 'tool' and
+    '<axis>:location' ... (the part of each parameter's group before any ':' is its axis)."""
+    return {s.group for s in model.param_specs if ":" not in s.group or s.group.endswith(":location")}
+
+
+def held_parameters(model: ErrorModel, name: str) -> np.ndarray:
+    """(n_params,) bool: the parameters ``name`` stands for in a hold: a parameter name (EXX_b3), a
+    component (EXX: all its terms), an axis letter (X: every component error of the axis; its
+    location errors too for a rotary axis), or a group (squareness, spindle, tool, C:location)."""
+    names = np.asarray(model.param_names)
+    groups = np.array([s.group for s in model.param_specs])
+    if name in model.param_names:
+        return names == name
+    axis = np.array([g.split(":", 1)[0] for g in groups])
+    component = np.array([g.split(":", 1)[1] if ":" in g else "" for g in groups])
+    return (groups == name) | (component == name) | ((axis == name) & (component != ""))
+
+
+def _unique_tags(datasets) -> list[str]:
+    from ..measurement.readings import file_tag
+    tags, seen = [], {}
+    for d in datasets:
+        t = d.tag if isinstance(d, MeasurementModel) else file_tag(d)
+        if t in seen:
+            seen[t] += 1
+            t = f"{t}#{seen[t]}"
+        else:
+            seen[t] = 1
+        tags.append(t)
+    return tags
+
+
+def build_measurement_models(model: ErrorModel, datasets, context_defaults=None, machine=None,
+                             known_setup=(), **options) -> list[MeasurementModel]:
+    """A measurement model per data set (MeasurementModel instances are passed through), with unique
+    tags (file stems, ``#2``... appended on repeats). ``known_setup``: tags or paths (as given, or
+    any path to the same file) of files whose set-up is known: a points or cmm file whose instrument
+    frame is the workpiece frame, a ball-bar file of a calibrated bar. One that names no data file, or a
+    file of another kind, is an InputError."""
+    out = []
+    known = [str(k) for k in known_setup]
+    used: set[str] = set()
+    for d, tag in zip(datasets, _unique_tags(datasets)):
+        if isinstance(d, MeasurementModel):
+            out.append(d)
+        elif isinstance(d, MeasurementSet):
+            opts = dict(options)
+            if machine is not None:
+                opts["machine"] = machine
+            hits = [k for k in known if k == tag or same_file(k, d.path)]
+            if hits:
+                if d.kind not in KNOWN_SETUP_KINDS:
+                    raise InputError(f"--known-setup {hits[0]}: a {d.kind} file has no set-up to declare "
+                                     f"known (only {' and '.join(KNOWN_SETUP_KINDS)} files)")
+                used.update(hits)
+                opts["setup"] = "known"
+            out.append(measurement_model(model, d, context_defaults, tag=tag, **opts))
+        else:
+            raise TypeError(f"not a measurement set: {type(d).__name__}")
+    for k in known:
+        if k not in used:
+            raise InputError(f"--known-setup {k}: names none of the data files")
+    return out
+
+
+#: kinds whose set-up ``known_setup`` can declare known (points, cmm: the instrument frame; ballbar:
+#: the bar's length)
+KNOWN_SETUP_KINDS = ("points", "ballbar", "cmm")
+
+
+def model_for_data(model: ErrorModel, datasets) -> ErrorModel:
+    """``model`` with the knots of its spline axes chosen from the data where the machine leaves them
+    open (the same terms)."""
+    m = model.machine
+    if not any(a.basis_from_data for a in m.linear_axes):
+        return model
+    return ErrorModel(with_data_basis(m, data_positions(m, datasets), sizes=data_spline_sizes(m, datasets)),
+                      model.terms)
+
+
+#: poses drawn over the travel for the physical metric of :func:`travel_metric`
+METRIC_POSES = 256
+
+
+def travel_metric(model: ErrorModel, free_idx: np.ndarray, n_unknowns: int) -> np.ndarray:
+    """(n_unknowns, n_unknowns) M with ``x^T M x`` the mean squared tool-tip error (mm^2) over the
+    machine's travel that the fitted parameters x predict (to first order); zero for nuisance
+    parameters, which are not machine errors.
+
+    The poses are drawn uniformly over the travel of every axis (fixed seed), at the machine's tool
+    length and 100 mm longer, with random approach directions and feeds up to 5 m/min, so that
+    every term that acts somewhere in normal use has its weight. What the data do not determine is
+    resolved by the smallest ``x^T M x``: the smallest predicted error, in physical terms.
+    """
+    from ..measurement.readings import evaluate_chain
+    m = model.machine
+    rng = np.random.default_rng(20261123)
+    lo, hi = m.travel_bounds()
+    q = lo + (hi - lo) * rng.random((METRIC_POSES, m.n_axes))
+    c = model.default_context(METRIC_POSES)
+    names = model.context_names
+    c[:, names.index("tool_length")] = m.tool_length + 100.0 * rng.integers(0, 2, METRIC_POSES)
+    c[:, names.index("feed")] = 5000.0 * rng.random(METRIC_POSES)
+    for a in m.axis_names:
+        c[:, names.index(f"dir_{a}")] = rng.choice([-1.0, 1.0], METRIC_POSES)
+    J = evaluate_chain(model, "tip_jac", q, np.zeros(model.n_params), c)[1]   # (N, n_params, 3)
+    G = J.transpose(0, 2, 1).reshape(-1, model.n_params)[:, free_idx]
+    M = np.zeros((n_unknowns, n_unknowns))
+    M[:free_idx.size, :free_idx.size] = G.T @ G / METRIC_POSES
+    return M

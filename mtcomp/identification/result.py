@@ -1,0 +1,277 @@
+"""The result of :func:`mtcomp.identification.fit.identify`: :class:`IdentificationResult` (values,
+standard errors, covariance, undetermined combinations, residuals per file, a readable summary and
+an F test against an extension), with :class:`FileResiduals` and :class:`UndeterminedCombination`;
+the error units of reading columns."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..models.chain import ErrorModel
+from ..models.model_file import FittedModel
+from ..models.params import ParamSpec
+
+
+def error_unit(column: str) -> str:
+    """The unit a reading column's errors are weighed and reported in: 'urad' for angles, 'um/min'
+    for velocities (two-point velocity files, mm/min), 'um' for lengths and positions."""
+    column = str(column)
+    if column.endswith("_urad"):
+        return "urad"
+    if column.endswith("_mm_min"):
+        return "um/min"
+    return "um"
+
+
+def error_scale(column: str) -> float:
+    """Internal -> error unit of a reading column (:func:`error_unit`): 1e6 for urad, 1e3 for um and
+    um/min (internal mm and mm/min)."""
+    return 1e6 if error_unit(column) == "urad" else 1e3
+
+
+@dataclass
+class FileResiduals:
+    """Residuals of one file at the solution.
+
+    tag, path, kind : the file. rows : (n_obs,) 0-based data row of each observation.
+    file_rows : (n_obs,) 1-based row in the file (header = row 0). columns : (n_obs,) measured column.
+    residual : (n_obs,) observed minus predicted, FILE units (um, urad, mm as the column says).
+    weight : (n_obs,) weight per internal unit used in the fit.
+    """
+
+    tag: str
+    path: str
+    kind: str
+    rows: np.ndarray
+    file_rows: np.ndarray
+    columns: np.ndarray
+    residual: np.ndarray
+    weight: np.ndarray
+
+    @property
+    def n_obs(self) -> int:
+        return int(self.residual.shape[0])
+
+    def rms(self) -> dict[str, float]:
+        """Root mean square residual per measured column, file units."""
+        return {str(c): float(np.sqrt(np.mean(self.residual[self.columns == c] ** 2)))
+                for c in dict.fromkeys(self.columns.tolist())}
+
+    def rms_error_units(self) -> dict[str, float]:
+        """rms per error unit ('um', 'urad', 'um/min'): lengths in mm are reported in um."""
+        out = {}
+        units = np.array([error_unit(c) for c in self.columns])
+        for unit in ("um", "urad", "um/min"):
+            sel = units == unit
+            if sel.any():
+                scale = np.array([error_scale(c) / _file_scale(c) for c in self.columns[sel]])
+                out[unit] = float(np.sqrt(np.mean((self.residual[sel] * scale) ** 2)))
+        return out
+
+
+def _finite(x) -> float | None:
+    """x as a float, or None when not finite (JSON has no NaN or Infinity)."""
+    x = float(x)
+    return x if np.isfinite(x) else None
+
+
+def _file_scale(column: str) -> float:
+    from ..measurement.files import file_unit_scale
+    return file_unit_scale(str(column))
+
+
+@dataclass
+class UndeterminedCombination:
+    """A direction of the unknowns the data cannot determine.
+
+    terms : [(name, coefficient)], coefficients in FILE units of each unknown, normalised so that the
+        pivot (first) has 1: moving the unknowns by ``t * coefficient`` leaves the prediction unchanged
+        (to first order) for any t.
+    singular_value : relative singular value s / s_max of the direction.
+    """
+
+    terms: list[tuple[str, float]]
+    singular_value: float
+
+    def __str__(self):
+        parts = []
+        for k, (name, coef) in enumerate(self.terms):
+            sign = "-" if coef < 0 else ("+" if k else "")
+            parts.append(f"{sign} {abs(coef):.3g} {name}" if k else f"{sign}{abs(coef):.3g} {name}")
+        return " ".join(parts)
+
+    @property
+    def names(self) -> list[str]:
+        return [n for n, _ in self.terms]
+
+
+@dataclass
+class IdentificationResult:
+    """What :func:`identify` returns (values in internal units; ``summary()`` prints file units).
+
+    model : the error model. specs : ParamSpec of every model parameter (``model.param_specs``).
+    values : (n_params,) fitted values (held parameters keep their start values).
+    std_errors : (n_params,) standard errors; NaN for held and undetermined parameters.
+    free : (n_params,) bool, fitted. determined : (n_params,) bool, free and not in a null direction.
+    nuisance_specs, nuisance_values, nuisance_std_errors : the files' nuisance parameters.
+    unknown_names : names of the fitted unknowns (free parameters then nuisance), the order of
+        ``covariance`` and ``correlation`` (internal units).
+    undetermined : combinations the data cannot determine.
+    rank, condition_number (of the determined part), singular_values (relative, descending).
+    files : residuals per file. n_obs, n_params (fitted unknowns), dof = n_obs - rank.
+    sigma : sqrt(weighted residual sum of squares / dof) (1 means residuals match the weights).
+    iterations, converged, cost (weighted residual sum of squares), seconds.
+    fitted_model : FittedModel (values and std errors) for save_model.
+    """
+
+    model: ErrorModel
+    specs: tuple[ParamSpec, ...]
+    values: np.ndarray
+    std_errors: np.ndarray
+    free: np.ndarray
+    determined: np.ndarray
+    nuisance_specs: list[ParamSpec]
+    nuisance_values: np.ndarray
+    nuisance_std_errors: np.ndarray
+    unknown_names: tuple[str, ...]
+    covariance: np.ndarray
+    undetermined: list[UndeterminedCombination]
+    rank: int
+    condition_number: float
+    singular_values: np.ndarray
+    files: list[FileResiduals]
+    n_obs: int
+    n_params: int
+    dof: float
+    sigma: float
+    iterations: int
+    converged: bool
+    cost: float
+    seconds: float
+    weighting: str
+    fitted_model: FittedModel = None
+    info: dict = field(default_factory=dict)
+    #: the roughness penalty's weights (mtcomp.identification.penalty.Smoothing), None without one
+    smoothing: object = None
+
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.specs)
+
+    @property
+    def correlation(self) -> np.ndarray:
+        """(n_unknowns, n_unknowns) correlation matrix of the unknowns (NaN where undetermined)."""
+        sd = np.sqrt(np.diag(self.covariance))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            corr = self.covariance / np.outer(sd, sd)
+        return corr
+
+    def value(self, name: str) -> tuple[float, float]:
+        """(value, std error) of a parameter or nuisance parameter, FILE units."""
+        for specs, vals, errs in ((self.specs, self.values, self.std_errors),
+                                  (self.nuisance_specs, self.nuisance_values, self.nuisance_std_errors)):
+            for i, s in enumerate(specs):
+                if s.name == name:
+                    return float(vals[i] * s.to_file), float(errs[i] * s.to_file)
+        raise KeyError(name)
+
+    def rms(self) -> dict[str, dict[str, float]]:
+        """tag -> column -> rms residual, file units."""
+        return {f.tag: f.rms() for f in self.files}
+
+    def compare(self, extended: "IdentificationResult") -> dict:
+        """F-test of this fit against an ``extended`` one of the same observations (statsmodels'
+        ``compare_f_test``): does the extension lower the weighted residual sum of squares by more
+        than its extra parameters would by chance?
+
+        Returns {"F": F, "p_value": p, "df_num": extra effective degrees of freedom, "df_den":
+        extended dof}; p small means the extension earns its place on these data (a held-out check
+        is still the stronger test). With profiles under a roughness penalty the degrees of freedom
+        are the fits' effective ones (trace of the hat matrix), not their ranks: a direction the
+        penalty alone fixes costs the data nothing (for penalised fits the test is approximate).
+        """
+        from scipy import stats
+        if extended.n_obs != self.n_obs:
+            raise ValueError("compare needs fits of the same observations")
+        df_num = float(self.dof - extended.dof)
+        df_den = float(extended.dof)
+        if df_num <= 0 or df_den <= 0:
+            raise ValueError("the extended fit must determine more parameters and keep degrees of freedom")
+        F = ((self.cost - extended.cost) / df_num) / (extended.cost / df_den)
+        return {"F": float(F), "p_value": float(stats.f.sf(F, df_num, df_den)), "df_num": df_num,
+                "df_den": df_den}
+
+    def largest_correlations(self, k: int = 5, threshold: float = 0.9):
+        """Up to k pairs (name_a, name_b, r) of determined unknowns with |r| >= threshold."""
+        corr = self.correlation
+        n = corr.shape[0]
+        iu = np.triu_indices(n, 1)
+        r = corr[iu]
+        ok = np.isfinite(r) & (np.abs(r) >= threshold)
+        order = np.argsort(-np.abs(r[ok]))[:k]
+        a, b = iu[0][ok][order], iu[1][ok][order]
+        return [(self.unknown_names[i], self.unknown_names[j], float(corr[i, j])) for i, j in zip(a, b)]
+
+    def to_dict(self) -> dict:
+        """Plain summary (file units) for MODEL.json ``info`` and reports."""
+        return {"n_obs": self.n_obs, "n_params": self.n_params, "rank": self.rank, "dof": _finite(self.dof),
+                "smoothing": self.smoothing.to_dict() if self.smoothing is not None else None,
+                "sigma": _finite(self.sigma), "condition_number": _finite(self.condition_number),
+                "iterations": self.iterations, "converged": self.converged, "weighting": self.weighting,
+                "undetermined": [str(u) for u in self.undetermined],
+                "files": [{"tag": f.tag, "path": f.path, "kind": f.kind, "n_obs": f.n_obs,
+                           "rms": {c: _finite(v) for c, v in f.rms().items()}} for f in self.files],
+                "nuisance": {s.name: {"value": float(v * s.to_file), "std_error": _finite(e * s.to_file),
+                                      "unit": s.unit}
+                             for s, v, e in zip(self.nuisance_specs, self.nuisance_values,
+                                                self.nuisance_std_errors)}}
+
+    def summary(self) -> str:
+        """A table a person can read: parameters with value +- std error (file units), the nuisance
+        parameters, the undetermined combinations and the rms residual of every file."""
+        m = self.model.machine
+        lines = [f"Identification of {m.name} ({m.topology}): {self.n_obs} observations in "
+                 f"{len(self.files)} file(s), {self.n_params} unknowns, rank {self.rank}, dof {self.dof:.1f}",
+                 f"weighting {self.weighting}; sigma {self.sigma:.4g}; condition number "
+                 f"{self.condition_number:.3g}; {self.iterations} iteration(s)"
+                 f"{'' if self.converged else ' (NOT converged)'}; {self.seconds:.2f} s", ""]
+        lines.append(f"{'parameter':<28} {'value':>12} {'std error':>11}  unit")
+        for i, s in enumerate(self.specs):
+            if not self.free[i]:
+                continue
+            v = self.values[i] * s.to_file
+            if self.determined[i]:
+                e = f"{self.std_errors[i] * s.to_file:11.4g}"
+            else:
+                e = f"{'undeterm.':>11}"
+            lines.append(f"{s.name:<28} {v:12.5g} {e}  {s.unit}")
+        held = [s.name for i, s in enumerate(self.specs) if not self.free[i]]
+        if held:
+            lines.append(f"held at their start values: {len(held)} parameter(s)"
+                         + (f" ({', '.join(held[:8])}{', ...' if len(held) > 8 else ''})"))
+        if self.nuisance_specs:
+            lines += ["", f"{'nuisance parameter':<28} {'value':>12} {'std error':>11}  unit"]
+            for s, v, e in zip(self.nuisance_specs, self.nuisance_values, self.nuisance_std_errors):
+                es = f"{e * s.to_file:11.4g}" if np.isfinite(e) else f"{'undeterm.':>11}"
+                lines.append(f"{s.name:<28} {v * s.to_file:12.5g} {es}  {s.unit}")
+        lines.append("")
+        if self.undetermined:
+            lines.append(f"{len(self.undetermined)} combination(s) the data cannot determine, or only "
+                         "worse than 1 um of error over the travel (held where they predict the least "
+                         "error; file units):")
+            for u in self.undetermined:
+                lines.append(f"  {u}")
+        else:
+            lines.append("every fitted parameter is determined by the data")
+        if "weak_directions" in self.info:
+            lines.append(f"weakly determined combinations {self.info['weak_directions']}")
+        corr = self.largest_correlations()
+        if corr:
+            lines.append("strongest correlations: " + ", ".join(f"{a}/{b} {r:+.3f}" for a, b, r in corr))
+        lines += ["", f"{'file':<24} {'kind':<8} {'n_obs':>7}  rms residual"]
+        for f in self.files:
+            rms = ", ".join(f"{c} {v:.4g}" + (f" ({v * 1e3:.4g} um)" if c.endswith("_mm") else "")
+                            for c, v in f.rms().items())
+            lines.append(f"{f.tag:<24} {f.kind:<8} {f.n_obs:>7}  {rms}")
+        return "\n".join(lines)
