@@ -332,6 +332,15 @@ def test_chunks_split_blocks_and_concatenate(tmp_path):
     # segments chain: each start is the previous end
     np.testing.assert_array_equal(cat.start[1:], cat.end[:-1])
     assert cat.dirs.dtype == np.int8 and cat.start.shape == (len(cat), 3)
+    assert cat.tool_length is None and cat.datum is None
+    # what a caller set on every chunk (the tool lengths, the part's datum) is kept, row for row
+    from dataclasses import replace
+    marked = [replace(c, tool_length=np.full(len(c), 50.0 + k), datum=np.full((len(c), 3), float(k)))
+              for k, c in enumerate(chunks)]
+    cat = SegmentChunk.concatenate(marked, 3)
+    np.testing.assert_array_equal(cat.tool_length, np.concatenate([c.tool_length for c in marked]))
+    np.testing.assert_array_equal(cat.datum, np.concatenate([c.datum for c in marked]))
+    assert SegmentChunk.concatenate(marked[:1] + chunks[1:], 3).datum is None   # not on every chunk
 
 
 def test_initial_position(tmp_path):

@@ -169,6 +169,8 @@ class SegmentChunk:
 
     FIELDS = ("line", "start", "end", "feed", "dirs", "rapid", "from_arc", "known", "frame", "cycle",
               "jump")
+    #: set by the caller, None until then
+    OPTIONAL = ("tool_length", "datum")
 
     def __post_init__(self):
         n, na = self.start.shape
@@ -188,8 +190,11 @@ class SegmentChunk:
     def concatenate(chunks: list["SegmentChunk"], n_axes: int) -> "SegmentChunk":
         if not chunks:
             return _empty_chunk(n_axes)
+        # what the caller set (tool lengths, the datum) is kept when every chunk has it
+        optional = {f: np.concatenate([getattr(c, f) for c in chunks]) for f in SegmentChunk.OPTIONAL
+                    if all(getattr(c, f) is not None for c in chunks)}
         return SegmentChunk(*(np.concatenate([getattr(c, f) for c in chunks])
-                              for f in SegmentChunk.FIELDS))
+                              for f in SegmentChunk.FIELDS), **optional)
 
 
 def _empty_chunk(na: int) -> SegmentChunk:
