@@ -246,6 +246,12 @@ def test_flank_map_of_the_cone_frustum(tmp_path):
     q = np.repeat(prog.q[cut], levels, axis=0)
     c = truth.context(len(q), {"feed": np.full(len(q), 1000.0)})
     ref = 1e3 * normal_deviation(truth.model, q, truth.params.values, c, smap.offsets, smap.normals)
+    # referenced to the part's datum, the program's origin (the tip's deviation there, approach
+    # directions unknown and feed 0: the model's default context)
+    from mtcomp.models import deviation
+    datum = deviation(truth.model, np.zeros((1, machine.n_axes)), truth.params.values,
+                      truth.model.default_context(1))[0, :3]
+    ref = ref - 1e3 * smap.normals @ datum
     np.testing.assert_allclose(smap.dn_before_um, ref, rtol=1e-8, atol=1e-9)
     assert np.abs(ref).max() > 1.0
     h = np.linalg.norm(smap.offsets, axis=1)

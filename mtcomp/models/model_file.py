@@ -38,7 +38,7 @@ from ..io.atomic import atomic_write
 from ..machine import Machine, machine_from_dict
 from .chain import ErrorModel
 from .params import ParameterSet
-from .terms import term_from_dict
+from .terms import ChannelDrift, ThermalDrift, term_from_dict
 
 FORMAT = "mtcomp-model"
 
@@ -69,6 +69,41 @@ class FittedModel:
     support: dict | None = None
     uncertainty: dict | None = None
     held: dict | None = None
+
+    def datum_params(self) -> np.ndarray:
+        """(n_params,) the values with every drift term's at zero: the machine as the part's datum
+        was probed (the drift terms' own zero, the start of the thermal record)."""
+        p = np.array(self.params.values, dtype=float, copy=True)
+        for term in self.model.terms:
+            if isinstance(term, (ThermalDrift, ChannelDrift)):
+                for spec in term.param_specs(self.machine):
+                    p[self.params.index(spec.name)] = 0.0
+        return p
+
+    def datum_context(self, tool_length) -> np.ndarray:
+        """(n, n_context) the context the part's datum is probed in: the model's own reference
+        conditions (every approach direction unknown, the mean of both; feed 0) with the tool
+        lengths ``tool_length`` (n,) mm."""
+        tool_length = np.atleast_1d(np.asarray(tool_length, dtype=float))
+        c = self.model.default_context(tool_length.shape[0])
+        if "tool_length" in self.model.context_names:
+            c[:, self.model.context_names.index("tool_length")] = tool_length
+        return c
+
+    def at_datum(self, name: str, datum, tool_length) -> np.ndarray:
+        """The model's function ``name`` (e.g. 'deviation_function') at the part's datum (machine
+        positions (n, na) of the program's origin) as it was probed (:meth:`datum_params`,
+        :meth:`datum_context`), evaluated where the model is (:meth:`clamp`)."""
+        from .evaluate import evaluate
+        datum = np.atleast_2d(np.asarray(datum, dtype=float))
+        return evaluate(self.model, name, self.clamp(datum)[0], self.datum_params(),
+                        self.datum_context(tool_length))[0]
+
+    def datum_deviation(self, datum, tool_length) -> np.ndarray:
+        """(n, 3) mm: the tool tip's deviation at the part's datum as it was probed
+        (:meth:`at_datum`): what the probed work offset already holds, the reference of every
+        correction and error map."""
+        return self.at_datum("deviation_function", datum, tool_length)[:, :3]
 
     def clamp(self, q: np.ndarray) -> tuple[np.ndarray, list[int]]:
         """(q with every held linear axis set to its held position (a copy when any is held), the

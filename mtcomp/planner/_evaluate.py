@@ -23,7 +23,6 @@ import threading
 import numpy as np
 
 from ..models.evaluate import evaluate
-from ..models.terms import ChannelDrift, ThermalDrift
 from ._nominal import nominal_pose, nominal_pose_jacobian
 from .problem import CompensationProblem
 
@@ -67,12 +66,6 @@ class Evaluator:
         self.evaluations = 0
         self._count_lock = threading.Lock()     # parts of a chunk are evaluated in threads
         self._factor = problem.fitted.covariance_factor()
-        #: the parameters with the drift terms' at zero: the datum was probed without drift
-        self.p_datum = self.p.copy()
-        for term in self.model.terms:
-            if isinstance(term, (ThermalDrift, ChannelDrift)):
-                for spec in term.param_specs(self.machine):
-                    self.p_datum[self.model.param_names.index(spec.name)] = 0.0
 
     def _count(self, n: int):
         with self._count_lock:
@@ -174,13 +167,12 @@ class Evaluator:
 
     def datum_reference(self, datum, ctx) -> np.ndarray:
         """(n, rows): the model's tip deviation at the part's datum (machine positions (n, na) of the
-        program's origin) as the machinist probed it: with the block's tool length, the model's
-        reference conditions otherwise (every approach direction unknown, the mean of both; feed 0),
-        and no thermal drift (the drift terms' own zero, the start of the thermal record: a drift
-        while the program runs is corrected, not taken for part of the probed offset), as export's
-        tables take their reference; zero tool-axis rows. This much of every block's deviation is
-        already in the probed offset: a block's correction removes its deviation less this (what a
-        laser's zero or a constant left open cannot change)."""
+        program's origin) as the machinist probed it (FittedModel.datum_deviation: the block's tool
+        length, the model's reference conditions otherwise, no thermal drift, as export's tables
+        take their reference; a drift while the program runs is corrected), zero tool-axis rows.
+        This much of every block's deviation is already in the probed offset: a block's correction
+        removes its deviation less this (what a laser's zero or a constant left open cannot
+        change). Evaluated once per distinct datum and tool length."""
         datum = np.atleast_2d(np.asarray(datum, dtype=float))
         out = np.zeros((datum.shape[0], self.rows))
         out[:, :3] = self._at_datum("deviation_function", datum, ctx)[:, :3]
@@ -189,22 +181,11 @@ class Evaluator:
     def _at_datum(self, name: str, datum, ctx) -> np.ndarray:
         """The model's function ``name`` at each block's datum in the datum's context, evaluated once
         per distinct (datum, tool length): a program has one datum or a few."""
-        c = self._datum_context(ctx)
-        key = np.column_stack([datum, c])
-        uniq, inv = np.unique(key, axis=0, return_inverse=True)
-        na = datum.shape[1]
-        out = evaluate(self.model, name, self.problem.fitted.clamp(uniq[:, :na])[0], self.p_datum,
-                       uniq[:, na:])[0]
-        return out[inv.reshape(-1)]
-
-    def _datum_context(self, ctx) -> np.ndarray:
-        """The model's own reference context with the tool length of ctx's blocks."""
         ctx = np.atleast_2d(ctx)
-        c = self.model.default_context(ctx.shape[0])
-        if "tool_length" in self.model.context_names:
-            j = self.model.context_names.index("tool_length")
-            c[:, j] = ctx[:, j]
-        return c
+        names = self.model.context_names
+        tool = ctx[:, names.index("tool_length")] if "tool_length" in names else np.zeros(ctx.shape[0])
+        uniq, inv = np.unique(np.column_stack([datum, tool]), axis=0, return_inverse=True)
+        return self.problem.fitted.at_datum(name, uniq[:, :-1], uniq[:, -1])[inv.reshape(-1)]
 
     def residual_jacobian(self, q, x, ctx, target=None, _with_nominal=False):
         """Weighted residual b (n, rows) and Jacobian A (n, rows, n_axes) at corrections x (n, n_axes)

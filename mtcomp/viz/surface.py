@@ -92,8 +92,10 @@ class SurfaceMap:
     normals : (N, 3) unit surface normals, pointing towards the tool.
     triangles : (M, 3) int, vertex indices.
     line : (N,) int, source line of each point in the original program.
-    dev_before : (N, 3) mm, actual minus nominal position of the tool point at ``offsets``.
-    dev_after : (N, 3) mm or None, at the corrected axes minus the ORIGINAL nominal position.
+    dev_before : (N, 3) mm, actual minus nominal position of the tool point at ``offsets``, less the
+        deviation at the part's datum (the program's origin: FittedModel.datum_deviation).
+    dev_after : (N, 3) mm or None, at the corrected axes minus the ORIGINAL nominal position (less
+        the same).
     source : the program's path, compensated : the compensated program's path or None.
     offsets : (N, 3) mm, the tool point whose deviation is mapped, relative to the nominal tip
         (workpiece frame): zero for the tip, the ball centre for a ball end, the axis point at the
@@ -635,7 +637,9 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
     T0 = tool2wp(machine, orig.q[sel])
     tips = T0[:, :3, 3]
     offset_tool = np.einsum("nji,nj->ni", T0[:, :3, :3], g.offset)   # R0^T offset: tool frame
-    nominal = tips + g.offset
+    # referenced to the part's datum, as compensate references its corrections: the program's
+    # origin (the machine zero: the map knows no work offsets), where the machinist probed the part
+    nominal = tips + g.offset + fitted.datum_deviation(np.zeros((1, machine.n_axes)), machine.tool_length)
     dev_before = predicted_points(fitted, orig.q[sel], orig.feed[sel], orig.dirs[sel],
                                   offset_tool) - nominal
     dev_after = None
