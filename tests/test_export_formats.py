@@ -342,7 +342,10 @@ def read_isg_ssfk(path):
             k, v = line.split()
             kv[k] = v if k == "kopf.log_achs_name" else int(v)
     n, tenth = kv["kw.ssfk.kw_nr_max"], 1e-4
-    pos = (kv["kw.ssfk.kw_startpos"] + kv["kw.ssfk.interval"] * np.arange(n)) * tenth
+    if kv["kw.ssfk.interval"] == 0:    # non-equidistant: each point's position (ISG's example)
+        pos = np.array([kv[f"kw.ssfk.table[{i}].setpoint"] for i in range(n)]) * tenth
+    else:
+        pos = (kv["kw.ssfk.kw_startpos"] + kv["kw.ssfk.interval"] * np.arange(n)) * tenth
     up = np.array([kv[f"kw.ssfk.table[{i}].pos"] for i in range(n)]) * tenth
     down = (np.array([kv[f"kw.ssfk.table[{i}].neg"] for i in range(n)]) * tenth
             if kv["kw.ssfk.bilateral"] == 1 else None)
@@ -362,6 +365,26 @@ def test_isg_leadscrew_lists_hold_the_error_with_backlash(fitted, model_path, tm
         else:
             assert down is None
             np.testing.assert_allclose(up, 0.5 * (e_f + e_r), rtol=0, atol=5.1e-5)
+
+
+def test_isg_tables_reach_the_high_end_of_the_region_like_linuxcnc(tmp_path):
+    # X's data reach 55.8 mm: off the 1 mm grid from -20, so the last point is the region's end, as
+    # in the LinuxCNC table; the leadscrew list then names every position
+    fm = random_model("xfyz", (Backlash("X"),), 23, 40.0, {"X": (-20.0, 55.8)})
+    fm.params.set_file_value("BL_X", 9.0)
+    path = tmp_path / "model.json"
+    save_model(path, fm)
+    lcnc = read_linuxcnc_comp(export(path, tmp_path / "lcnc", "linuxcnc") / "x.comp", 1)[0]
+    out = export(path, tmp_path / "isg", "isg")
+    _, vc = read_isg(out / "vc_x.csv")
+    pos, up, down = read_isg_ssfk(out / "achskw_x.lis")
+    for grid in (vc[:, 0], pos):
+        np.testing.assert_allclose(grid[[0, -1]], [-20.0, 55.8], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(grid, lcnc, rtol=0, atol=1e-9)
+    e_f, e_r = predicted(fm, "X", pos, 1.0)[:, 0], predicted(fm, "X", pos, -1.0)[:, 0]
+    np.testing.assert_allclose(up, e_f, rtol=0, atol=5.1e-5)
+    np.testing.assert_allclose(down, e_r, rtol=0, atol=5.1e-5)
+    np.testing.assert_allclose(vc[:, 1], 0.5 * (e_f + e_r), rtol=0, atol=1e-9)
 
 
 # ------------------------------------------------------------------------------------ Klipper

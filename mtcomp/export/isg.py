@@ -11,7 +11,9 @@ directions.
 
 Beside them, one leadscrew error compensation list per linear axis (``achskw_<axis>.lis``, the
 ``kw.ssfk.*`` list of the ISG axis compensation): equidistant interpolation points (``interval``,
-``kw_startpos`` in 0.1 um), ``table[i].pos`` / ``table[i].neg`` = actual minus setpoint moving
+``kw_startpos`` in 0.1 um) or, where the last point sits at the high end of the region closer than one
+step to the point before it, ``interval`` 0 and every point's ``table[i].setpoint`` (P-COMP-00018);
+``table[i].pos`` / ``table[i].neg`` = actual minus setpoint moving
 positive / negative, in 0.1 um (as in ISG's example: setpoint 19866.7 um, measured 19856.5 um ->
 pos -102), ``bilateral`` 1 where the model has backlash. They carry the positioning error with its
 direction dependence; load *either* the volumetric tables *or* these lists for the positioning,
@@ -29,7 +31,7 @@ from ._tables import component_names, own_column
 NAME = "isg"
 MAX_POINTS = 1024
 SINGLE_FILE = False
-INCLUDE_END = False  # the kw.ssfk lists need equidistant points
+INCLUDE_END = True   # the last point at the high end; kw.ssfk lists then name every position
 LINEAR_ONLY = False
 
 
@@ -41,7 +43,11 @@ def ssfk_list(tables, a: str, k: int) -> str:
     t = tables.tables[a]
     j = own_column(tables.machine, a)
     bilateral = tables.has_backlash(a)
-    step = t.positions[1] - t.positions[0] if len(t.positions) > 1 else 0.0
+    setpoints = np.round(t.positions * TENTH_UM_PER_MM).astype(np.int64)
+    steps = np.diff(setpoints)
+    # equidistant points: kw_startpos + i interval; else (the last point at the high end of the region,
+    # off the step) interval 0 and each point's position, table[i].setpoint (P-COMP-00018)
+    interval = int(steps[0]) if len(steps) and np.all(steps == steps[0]) else 0
     pos = t.forward[:, j] if bilateral else t.mean[:, j]
     neg = t.reverse[:, j] if bilateral else t.mean[:, j]
     lines = [f"# mtcomp export: leadscrew error compensation of axis {a} (values: actual minus setpoint, "
@@ -49,11 +55,13 @@ def ssfk_list(tables, a: str, k: int) -> str:
              f"kopf.log_achs_nr                     {k}",
              f"kopf.log_achs_name                   {a}",
              "kw.ssfk.unit                         1",
-             f"kw.ssfk.interval                     {round(step * TENTH_UM_PER_MM)}",
-             f"kw.ssfk.kw_startpos                  {round(t.positions[0] * TENTH_UM_PER_MM)}",
+             f"kw.ssfk.interval                     {interval}",
+             f"kw.ssfk.kw_startpos                  {setpoints[0]}",
              f"kw.ssfk.kw_nr_max                    {len(t.positions)}",
              f"kw.ssfk.bilateral                    {1 if bilateral else 0}",
              "kw.ssfk.modulo                       0"]
+    if not interval:
+        lines += [f"kw.ssfk.table[{i}].setpoint{'':<{11 - len(str(i))}}{v}" for i, v in enumerate(setpoints)]
     lines += [f"kw.ssfk.table[{i}].pos{'':<{16 - len(str(i))}}{round(v * TENTH_UM_PER_MM)}"
               for i, v in enumerate(pos)]
     if bilateral:
@@ -69,6 +77,14 @@ def export(tables, **_) -> ExportResult:
     for a, t in tables.tables.items():
         if not t.rotary:
             files[f"achskw_{a.lower()}.lis"] = ssfk_list(tables, a, m.axis_names.index(a) + 1)
+    uneven = [a for a, t in tables.tables.items() if len(t.positions) > 2 and not np.allclose(
+        np.diff(t.positions), t.positions[1] - t.positions[0], rtol=1e-9, atol=1e-12)]
+    if uneven:
+        notes.append(f"axis {', '.join(uneven)}: the last point sits at the high end of the region, "
+                     "closer than one step to the point before it (the kw.ssfk lists name every "
+                     "position); a configuration that interpolates the volumetric tables on a grid "
+                     "(P-VOLC-00014) needs equidistant rows: give --grid-mm (--grid-deg) that divides "
+                     "the region")
     for k, (a, t) in enumerate(tables.tables.items()):
         f = 180.0 / math.pi if t.rotary else 1.0
         names = component_names(a)
