@@ -1,8 +1,9 @@
 """Reading a CSV file into header + string cells, and parsing its cells (docs/measurements.md).
 
 This layer knows nothing about measurement kinds: it reads the header row and the data rows as
-strings, checks the shape (no empty file, no duplicate or unnamed column, no ragged row), and parses
-columns into numpy arrays with errors that name the file, the data row (1-based; the header is row 0)
+strings, checks the shape (no empty file, no duplicate or unnamed column, no ragged row; a file cut off
+in its last row, one separated by semicolons or tabs, and decimal commas are refused with the fix
+named, docs/measurements.md), and parses columns into numpy arrays with errors that name the file, the data row (1-based; the header is row 0)
 and the column. Blank cells mean "not measured" and become NaN where a column allows it; the text
 ``nan`` or ``inf`` is refused everywhere, so that "not measured" has a single spelling.
 """
@@ -12,12 +13,16 @@ import csv
 import io
 import math
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
+
+#: a number written with a decimal comma, e.g. ``-1,25``
+_DECIMAL_COMMA = re.compile(r"^[+-]?\d*,\d+$")
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,12 +95,8 @@ def read_csv_table(path: str | os.PathLike) -> CsvTable:
                 header = cells
                 _check_header(header, spath)
                 continue
-            row_no = reader.line_num - 1
-            if len(cells) != len(header):
-                raise InputError(f"{len(cells)} cells but the header has {len(header)} columns",
-                                 spath, row=row_no)
             rows.append(tuple(cells))
-            row_numbers.append(row_no)
+            row_numbers.append(reader.line_num - 1)
     except csv.Error as exc:
         raise InputError(f"not a valid CSV file: {exc}", spath, row=max(reader.line_num - 1, 0)) \
             from None
@@ -103,7 +104,61 @@ def read_csv_table(path: str | os.PathLike) -> CsvTable:
         raise InputError("empty file: expected a header row and data rows", spath)
     if not rows:
         raise InputError("no data rows below the header", spath)
+    for i, cells in enumerate(rows):
+        if len(cells) != len(header):
+            _ragged(cells, len(header), i == len(rows) - 1, spath, row_numbers[i])
+    if not text.endswith(("\n", "\r")):
+        _check_cut_mid_row(header, rows, spath, row_numbers[-1])
     return CsvTable(spath, tuple(header), tuple(rows), np.asarray(row_numbers, dtype=np.int64))
+
+
+def _ragged(cells, n_columns: int, last: bool, path: str, row: int) -> None:
+    """Raise the InputError of a row of ``len(cells)`` cells under a header of ``n_columns``, with
+    the likely cause: a cut-off file (the last row short) or a decimal comma (a row too long)."""
+    message = f"{len(cells)} cells but the header has {n_columns} columns"
+    if last and len(cells) < n_columns:
+        message += (" in the last row: the file looks cut off mid-row (an interrupted export or "
+                    "copy); re-export or copy it again, or delete the incomplete last row")
+    elif len(cells) > n_columns:
+        message += ("; a decimal comma splits a number into two cells: write decimal points "
+                    "(1.5, not 1,5)")
+    raise InputError(message, path, row=row)
+
+
+def _decimals(cell: str) -> int | None:
+    """Digits after the decimal point of a plain decimal number (``-12.50`` -> 2, ``7`` -> 0), None
+    for anything else (exponent notation, text)."""
+    body = cell.lstrip("+-")
+    whole, _, frac = body.partition(".")
+    if not (whole or frac) or not (whole.isdigit() or not whole) or not (frac.isdigit() or not frac):
+        return None
+    return len(frac)
+
+
+def _check_cut_mid_row(header, rows, path: str, row: int) -> None:
+    """A file that ends without a line break may have been cut in the middle of its last cell. Refuse
+    it when the last cell says so against the rest of its column: blank where every other row has a
+    value, or a number with fewer decimals than every other value of the column (all plain decimals
+    with at least one decimal). A complete file can always be accepted by ending it with a line break."""
+    if len(rows) < 2:
+        return
+    last = rows[-1][-1].strip()
+    others = [r[-1].strip() for r in rows[:-1]]
+    name = header[-1].strip()
+    fix = ("the file looks cut off (an interrupted export or copy): re-export or copy it again; if "
+           "the row is complete, end the file with a line break")
+    if not last and all(others):
+        raise InputError(f"the file ends without a line break on a blank {name} where every other row "
+                         f"has a value: {fix}", path, row=row)
+    mine = _decimals(last)
+    theirs = [_decimals(c) for c in others if c]
+    if mine is None or not theirs or None in theirs:
+        return
+    fewest = min(theirs)
+    if fewest >= 1 and mine < fewest:
+        raise InputError(f"the file ends without a line break in the middle of what looks like a number: "
+                         f"{last!r} has {mine} decimal(s) where every other value of {name} has at "
+                         f"least {fewest}: {fix}", path, row=row)
 
 
 def _check_header(header: list[str], path: str) -> None:
@@ -115,6 +170,13 @@ def _check_header(header: list[str], path: str) -> None:
         if name in seen:
             raise InputError(f"column {name!r} appears twice in the header", path, row=0)
         seen.add(name)
+    if len(header) == 1:
+        for sep, what in ((";", "semicolons"), ("\t", "tabs")):
+            if sep in header[0]:
+                raise InputError(f"the header is one column {header[0].strip()!r}: the file is separated "
+                                 f"by {what} (as spreadsheets write it where the decimal mark is a comma); "
+                                 "save it comma separated, with a decimal point (1.5, not 1,5)",
+                                 path, row=0)
 
 
 def parse_floats(cells: list[str], column: str, path: str, row: np.ndarray,
@@ -141,7 +203,11 @@ def parse_floats(cells: list[str], column: str, path: str, row: np.ndarray,
         try:
             v = float(s)
         except ValueError:
-            raise InputError(f"column {column}: {s!r} is not a number", path, row=int(row[i])) from None
+            hint = ""
+            if _DECIMAL_COMMA.match(s):
+                hint = f" (a decimal comma? write {s.replace(',', '.')})"
+            raise InputError(f"column {column}: {s!r} is not a number{hint}", path,
+                             row=int(row[i])) from None
         if not math.isfinite(v):
             raise InputError(f"column {column}: {s!r} is not a finite number (leave the cell blank "
                              "for 'not measured')", path, row=int(row[i]))
