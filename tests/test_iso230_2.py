@@ -12,7 +12,7 @@ import pytest
 
 from mtcomp import InputError
 from mtcomp.cli import main
-from mtcomp.identification.iso230_2 import ARCSEC_PER_RAD, evaluate_axis, evaluate_iso230_2
+from mtcomp.identification.iso230_2 import ARCSEC_PER_RAD, DRIFT_ALPHA, evaluate_axis, evaluate_iso230_2
 from mtcomp.measurement.files import read_measurements
 
 REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / "iso230_2"
@@ -389,3 +389,210 @@ def test_cli_runs_at_several_feeds_are_refused_with_the_way_out(tmp_path, capsys
         lines += [f"{axis},{comp},{t},{d},{r},{0.1 * r},{feed}" for t in (0, 10) for d in (1, -1) for r in (1, 2, 3)]
     p.write_text("\n".join(lines) + "\n")
     assert main(["iso230-2", str(p)]) == 0
+
+
+# ---- run-to-run drift -------------------------------------------------------------------------------
+# Hand case 4: one target, three runs each way (um). Up 1 3 5, down 2 4 9.
+#   run means (1+2)/2 = 1.5, 3.5, 7; grand mean 4; cell means up 3, down 5
+#   residuals x - cell mean - run mean + grand: up 0.5 0.5 -1, down -0.5 -0.5 1 -> SS_res = 3, df 2
+#   SS_runs = 2 cells x ((-2.5)^2 + (-0.5)^2 + 3^2) = 31, df 2 -> F = (31/2) / (3/2) = 31/3
+#   F(2, 2) has survival function 1 / (1 + F): p = 3/34; within-run s = sqrt(3/2)
+#   trend: slope of 1.5, 3.5, 7 against 1, 2, 3 = ((-1)(-2.5) + (1)(3)) / 2 = 2.75; range 5.5
+CASE4 = {(0, 1): [1, 3, 5], (0, -1): [2, 4, 9]}
+
+
+def test_drift_hand_case(tmp_path):
+    ax = evaluate_iso230_2(read_measurements(_laser(tmp_path, CASE4))).axes["X"]
+    dr = ax.drift
+    np.testing.assert_array_equal(dr.runs, [1, 2, 3])
+    np.testing.assert_allclose(dr.run_means * 1e3, [1.5, 3.5, 7], rtol=0, atol=1e-12)
+    assert dr.F == pytest.approx(31 / 3, rel=1e-12, abs=0)
+    assert dr.p == pytest.approx(3 / 34, rel=1e-9, abs=0)
+    assert dr.within_s * 1e3 == pytest.approx(math.sqrt(1.5), rel=1e-12, abs=0)
+    assert dr.trend * 1e3 == pytest.approx(2.75, rel=1e-12, abs=0)
+    assert dr.size * 1e3 == pytest.approx(5.5, rel=1e-12, abs=0)
+    assert not dr.drift  # p = 0.088: three runs cannot tell this from scatter
+    d = ax.to_dict()
+    assert d["drift"] is False and d["run_means_um"] == pytest.approx([1.5, 3.5, 7], rel=0, abs=1e-12)
+    assert d["drift_um"] == pytest.approx(5.5, rel=0, abs=1e-12) and d["runs"] == [1, 2, 3]
+
+
+def test_drift_of_the_worked_example(tmp_path):
+    # docs/iso230_2.md: CASE1 rises run by run in every cell. Run means 13/4, 20/4, 27/4; grand 5;
+    # SS_runs = 4 (1.75^2 + 0 + 1.75^2) = 24.5 (df 2); residuals +-0.75, +-0.25, +-0.75, +-1.25 and
+    # four zeros: SS_res = 5.5 (df 3 x 2 = 6); F = 12.25 / (5.5 / 6). Without the run offsets
+    # (-1.75, 0, 1.75): s = 0.75, 0.25, 0.75, 1.25, so R_0 = max(1.5 + 0.5 + 4, 3, 1) = 6 and
+    # R_10 = max(1.5 + 2.5 + 8, 3, 5) = 12: R = 12 (16 with the drift).
+    dr = evaluate_iso230_2(read_measurements(_laser(tmp_path, CASE1))).axes["X"].drift
+    np.testing.assert_allclose(dr.run_means * 1e3, [3.25, 5, 6.75], rtol=0, atol=1e-12)
+    assert dr.F == pytest.approx(12.25 / (5.5 / 6), rel=1e-12, abs=0)
+    assert dr.within_s * 1e3 == pytest.approx(math.sqrt(5.5 / 6), rel=1e-12, abs=0)
+    assert dr.R_without * 1e3 == pytest.approx(12, rel=0, abs=1e-9)
+    assert dr.trend * 1e3 == pytest.approx(1.75, rel=1e-12, abs=0)
+    assert dr.drift and dr.p < DRIFT_ALPHA
+
+
+def _drifting_file(tmp_path, offsets_um, noise_um, seed, name="drift.csv", missing=()):
+    """X positioning: a position error, a backlash, a per-run offset and noise; rows of ``missing``
+    (target, dir, run) left out."""
+    rng = np.random.default_rng(seed)
+    lines = ["axis,component,target_mm,dir,run,value_um"]
+    for r, off in enumerate(offsets_um, start=1):
+        for t in (0, 100, 200, 300, 400, 500):
+            for d in (1, -1):
+                v = 12 * math.sin(t / 80) + 3 * d + off + rng.normal(0, noise_um)
+                if (t, d, r) not in missing:
+                    lines.append(f"X,EXX,{t},{d},{r},{v:.4f}")
+    p = tmp_path / name
+    p.write_text("\n".join(lines) + "\n")
+    return p
+
+
+def _balanced_anova(path):
+    """Second formulation: the balanced two-way analysis of variance, from the CSV text with plain
+    Python (cells = target x direction, rows = runs). Returns run means, F, within-run s, um."""
+    x = defaultdict(dict)
+    with open(path, newline="") as f:
+        for r in csv.DictReader(f):
+            x[(float(r["target_mm"]), int(r["dir"]))][int(r["run"])] = float(r["value_um"])
+    cells, runs = sorted(x), sorted(next(iter(x.values())))
+    grand = statistics.mean(v for c in cells for v in x[c].values())
+    cm = {c: statistics.mean(x[c].values()) for c in cells}
+    rm = {j: statistics.mean(x[c][j] for c in cells) for j in runs}
+    ss_run = len(cells) * sum((rm[j] - grand) ** 2 for j in runs)
+    ss_res = sum((x[c][j] - cm[c] - rm[j] + grand) ** 2 for c in cells for j in runs)
+    df1, df2 = len(runs) - 1, (len(cells) - 1) * (len(runs) - 1)
+    return [rm[j] for j in runs], (ss_run / df1) / (ss_res / df2), math.sqrt(ss_res / df2)
+
+
+def test_drift_against_balanced_anova_and_flag(tmp_path):
+    p = _drifting_file(tmp_path, [0, 3, 6, 9, 12], 0.8, seed=11)
+    ax = evaluate_iso230_2(read_measurements(p)).axes["X"]
+    means, F, s = _balanced_anova(p)
+    np.testing.assert_allclose(ax.drift.run_means * 1e3, means, rtol=0, atol=1e-9)
+    assert ax.drift.F == pytest.approx(F, rel=1e-9, abs=0)
+    assert ax.drift.within_s * 1e3 == pytest.approx(s, rel=1e-9, abs=0)
+    assert ax.drift.drift and ax.drift.p < 1e-10
+    # the drift put in is 3 um per run; the slope of five run means of 12 readings each has an sd of
+    # 0.8 / sqrt(12) / sqrt(10) = 0.07 um per run
+    assert ax.drift.trend * 1e3 == pytest.approx(3.0, rel=0, abs=0.3)
+    # R with the run offsets taken out: the ISO R of the readings minus their run's offset
+    shifted = _oracle_of_shifted(p, {j + 1: m - statistics.mean(means) for j, m in enumerate(means)},
+                                 tmp_path)
+    assert ax.drift.R_without * 1e3 == pytest.approx(shifted, rel=1e-9, abs=0)
+    assert ax.drift.R_without < 0.5 * ax.R
+
+
+def _oracle_of_shifted(path, offset_um, folder):
+    """ISO R (um) of the file's readings minus ``offset_um[run]``, via the plain-Python oracle."""
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    q = folder / "shifted.csv"
+    with open(q, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        for r in rows:
+            w.writerow({**r, "value_um": float(r["value_um"]) - offset_um[int(r["run"])]})
+    return _oracle(q)["R_um"]
+
+
+def test_no_drift_not_flagged_and_missing_readings(tmp_path):
+    flags = [evaluate_iso230_2(read_measurements(_drifting_file(tmp_path, [0] * 5, 1.0, seed=s,
+                                                                name=f"n{s}.csv"))).axes["X"].drift.drift
+             for s in range(20)]
+    assert sum(flags) <= 2  # at 1 % per file, 20 clean files flag none or one, rarely two
+    # a reading missing: run means are adjusted for it (the position error at 100 mm is not taken
+    # for a drift of run 2), so they stay near the offsets put in
+    p = _drifting_file(tmp_path, [0, 0, 20, 0, 0], 0.3, seed=3, missing={(100, 1, 2), (100, -1, 2)})
+    dr = evaluate_iso230_2(read_measurements(p)).axes["X"].drift
+    np.testing.assert_allclose(dr.run_means * 1e3 - np.median(dr.run_means * 1e3), [0, 0, 20, 0, 0],
+                               rtol=0, atol=0.5)
+
+
+def test_real_drift_of_the_w42_back_z_runs():
+    path = _real("ess_w42_back_z.csv")
+    rep = evaluate_iso230_2(read_measurements(path))
+    ax = rep.axes["Z"]
+    # run means straight from the CSV text
+    by_run = defaultdict(list)
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    for r in rows:
+        by_run[int(r["run"])].append(float(r["value_um"]))
+    plain = [statistics.mean(by_run[j]) for j in sorted(by_run)]
+    np.testing.assert_allclose(plain, [29.0, 156.4, 23.5, -70.2, -138.7], rtol=0, atol=0.05)
+    np.testing.assert_allclose(ax.drift.run_means * 1e3, plain, rtol=0, atol=1e-9)
+    assert ax.drift.drift and ax.drift.size * 1e3 == pytest.approx(max(plain) - min(plain), rel=1e-12)
+    assert any(n.startswith("axis Z: the runs drift") for n in rep.notices)
+    assert "drift" in ax.table() and "run mean" in ax.table()
+
+
+@pytest.mark.parametrize("name, flagged", [("ess_b02_z.csv", False), ("psi_mcu1025_x.csv", False),
+                                           ("ess_w42_y.csv", True), ("ess_b02_y.csv", True)])
+def test_real_drift_flags(name, flagged):
+    rep = evaluate_iso230_2(read_measurements(_real(name)))
+    (ax,) = rep.axes.values()
+    assert ax.drift.drift is flagged
+    assert any("the runs drift" in n for n in rep.notices) is flagged
+
+
+def test_cli_json_keeps_every_key_and_adds_the_drift(tmp_path, capsys):
+    p = _drifting_file(tmp_path, [0, 3, 6, 9, 12], 0.8, seed=11)
+    out = tmp_path / "o.json"
+    assert main(["iso230-2", str(p), "--json", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "note: axis X: the runs drift" in text
+    d = json.loads(out.read_text())["X"]
+    old = {"axis_type", "A_um", "A_up_um", "A_down_um", "B_um", "B_mean_um", "E_um", "E_up_um",
+           "E_down_um", "M_um", "R_um", "R_up_um", "R_down_um", "targets_mm", "n_up", "n_down",
+           "mean_up_um", "mean_down_um", "mean_um", "reversal_um", "s_up_um", "s_down_um",
+           "R_i_up_um", "R_i_down_um", "R_i_um", "outliers"}
+    assert old <= set(d)
+    assert d["drift"] is True and len(d["run_means_um"]) == 5
+    for key in ("drift_um", "drift_trend_um_per_run", "drift_F", "drift_p", "within_run_s_um",
+                "R_without_drift_um", "unit_suspect"):
+        assert key in d, key
+
+
+def test_runs_figure_draws_every_run_apart(tmp_path):
+    pytest.importorskip("matplotlib")
+    from mtcomp.identification.iso230_2 import runs_figure
+    p = _drifting_file(tmp_path, [0, 3, 6, 9, 12], 0.8, seed=11)
+    rep = evaluate_iso230_2(read_measurements(p))
+    fig = runs_figure([rep])
+    main_panel, runs_panel = fig.axes[:2]
+    passes = {ln.get_gid(): ln for ln in main_panel.get_lines() if (ln.get_gid() or "").startswith("run ")}
+    assert set(passes) == {f"run {j} {d}" for j in range(1, 6) for d in ("up", "down")}
+    from matplotlib.colors import to_rgba
+    assert len({to_rgba(passes[f"run {j} up"].get_color()) for j in range(1, 6)}) == 5  # one per run
+    r = rep.axes["X"].readings
+    sel = (r["run"] == 3) & (r["dir"] == -1)
+    order = np.argsort(r["target"][sel])
+    np.testing.assert_allclose(passes["run 3 down"].get_xdata(), r["target"][sel][order], rtol=0, atol=0)
+    np.testing.assert_allclose(passes["run 3 down"].get_ydata(), r["value"][sel][order] * 1e3, rtol=0,
+                               atol=1e-9)
+    (means,) = [ln for ln in runs_panel.get_lines() if ln.get_gid() == "run means"]
+    np.testing.assert_allclose(means.get_xdata(), [1, 2, 3, 4, 5], rtol=0, atol=0)
+    np.testing.assert_allclose(means.get_ydata(), rep.axes["X"].drift.run_means * 1e3, rtol=0, atol=1e-12)
+    import matplotlib.pyplot as plt
+    plt.close(fig)
+
+
+# ---- implausible units ------------------------------------------------------------------------------
+
+def test_values_in_mm_under_value_um_are_flagged(tmp_path):
+    # a 25 um error over 500 mm written in mm: every |value| below 0.05
+    p = _drifting_file(tmp_path, [0] * 5, 0.5, seed=5)
+    rows = p.read_text().splitlines()
+    mm = [rows[0]] + [",".join(r.split(",")[:-1] + [f"{float(r.split(',')[-1]) / 1000:.6f}"]) for r in rows[1:]]
+    q = tmp_path / "mm.csv"
+    q.write_text("\n".join(mm) + "\n")
+    rep = evaluate_iso230_2(read_measurements(q))
+    note = [n for n in rep.notices if "value_um" in n]
+    assert len(note) == 1 and "multiply them by 1000" in note[0] and "500 mm" in note[0]
+    assert rep.axes["X"].to_dict()["unit_suspect"] is True
+    # the same readings in um, and tiny values over a short travel, are not flagged
+    assert evaluate_iso230_2(read_measurements(p)).axes["X"].to_dict()["unit_suspect"] is False
+    short = _laser(tmp_path, {(t, d): [0.001 * t, 0.002, 0.003] for t in (0, 20) for d in (1, -1)},
+                   name="short.csv")
+    assert not any("value_um" in n for n in evaluate_iso230_2(read_measurements(short)).notices)

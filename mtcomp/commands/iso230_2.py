@@ -1,5 +1,6 @@
 """`mtcomp iso230-2 LASER.csv... [--json OUT.json] [--plot OUT.png]`: ISO 230-2 evaluation of laser
-positioning runs, file by file, with outlier readings flagged and an optional plot of the runs."""
+positioning runs, file by file, with outlier readings, run-to-run drift and implausible units flagged,
+and an optional plot of the runs."""
 from __future__ import annotations
 
 import json
@@ -12,11 +13,13 @@ def add_arguments(parser):
                              "cycle); each file is evaluated on its own")
     parser.add_argument("--json", metavar="OUT.json", default=None,
                         help="also write the figures as JSON: one object per axis (A_um, B_um, E_um, "
-                             "M_um, R_um ... ; _urad and _arcsec for rotary axes, 'outliers'); with "
+                             "M_um, R_um ... ; _urad and _arcsec for rotary axes, 'outliers', the run "
+                             "means and the drift: run_means_um, drift, drift_um ...); with "
                              "several files, one such object per file, keyed by the file name")
     parser.add_argument("--plot", metavar="OUT.png", default=None,
-                        help="also draw the runs: deviation against target, both directions, mean "
-                             "and +-2 s bands, outliers ringed (needs matplotlib)")
+                        help="also draw the runs: deviation against target, each run in its own "
+                             "colour, both directions, mean and +-2 s bands, outliers ringed; beside it "
+                             "the run means against run number (the drift) (needs matplotlib)")
 
 
 def run(args) -> int:

@@ -33,6 +33,15 @@ runs there by more than ``OUTLIER_K`` = 4 times what the axis's repeatability al
 ``s_ref`` the median of the axis's ``s_i_up`` and ``s_i_down``. Medians, so that one wild reading
 neither inflates the scale nor drags its neighbours over the line. For normal readings a false flag
 has a chance of about 1e-4 per reading.
+
+Run-to-run drift (:class:`RunDrift`, not part of the standard): the readings are fitted with the
+additive model ``x = mu_(target, dir) + r_run + e``; the runs drift when the F test of the run
+effects against the within-run scatter rejects at ``DRIFT_ALPHA`` = 1 %. Reported with the run means,
+their range and linear trend, and R with the run offsets removed.
+
+Units: a linear axis whose targets span 100 mm or more, with every reading below
+max(0.05 um, 0.5 ppm of the span), reads less than a laser resolves there: its values were likely
+written in mm under ``value_um`` (:func:`unit_check`; flagged, not refused).
 """
 from __future__ import annotations
 
@@ -55,6 +64,17 @@ STANDARD_RUNS = 5
 TARGET_TOLERANCE = 1e-9
 #: outlier rule: |reading - median of the other runs| > OUTLIER_K * s_ref * sqrt(1 + pi / (2 (n - 1)))
 OUTLIER_K = 4.0
+#: run-to-run drift is reported when the F test of the runs has a p-value below this
+DRIFT_ALPHA = 0.01
+#: unit check: a linear axis whose targets span at least UNIT_CHECK_TRAVEL_MM and whose readings all
+#: stay below max(UNIT_CHECK_FLOOR_UM, UNIT_CHECK_PPM x travel) in magnitude reads less than a laser
+#: resolves over that travel: its values were likely written in mm
+UNIT_CHECK_TRAVEL_MM = 100.0
+UNIT_CHECK_FLOOR_UM = 0.05
+UNIT_CHECK_PPM = 0.5
+#: the same for a rotary axis: targets spanning at least 90 deg, every reading below 0.05 urad
+UNIT_CHECK_TRAVEL_DEG = 90.0
+UNIT_CHECK_FLOOR_URAD = 0.05
 
 _PER_TARGET = ("mean_up", "mean_down", "mean", "reversal", "s_up", "s_down", "R_i_up", "R_i_down", "R_i")
 _PER_AXIS = ("A", "A_up", "A_down", "B", "B_mean", "E", "E_up", "E_down", "M", "R", "R_up", "R_down")
@@ -81,6 +101,37 @@ class Outlier:
 
 
 @dataclass(frozen=True, eq=False)
+class RunDrift:
+    """Run-to-run drift of one axis (docs/iso230_2.md). Units: mm (linear axis) or rad (rotary).
+
+    The readings are fitted with the additive model ``x = mu_(target, dir) + r_run + e`` (least
+    squares, ``sum r_run = 0``); the runs differ when the F test of that model against
+    ``x = mu_(target, dir) + e`` rejects at :data:`DRIFT_ALPHA`.
+
+    runs : (n,) int run numbers, in increasing order (the order the runs were made in).
+    run_means : (n,) mean deviation of each run: the mean of the fitted ``mu`` over the (target,
+        direction) cells plus ``r_run``; the plain mean of the run's readings when every run reads
+        every cell.
+    size : max - min of ``run_means``.
+    trend : least-squares slope of ``run_means`` against the run's place in the order, per run.
+    within_s : residual standard deviation of the additive model: the scatter left within runs.
+    F, p : F statistic of the runs (``n - 1`` and ``N - cells - n + 1`` degrees of freedom), p-value.
+    drift : True when ``p < DRIFT_ALPHA``.
+    R_without : bidirectional repeatability R of the readings with each run's ``r_run`` removed.
+    """
+
+    runs: np.ndarray
+    run_means: np.ndarray
+    size: float
+    trend: float
+    within_s: float
+    F: float
+    p: float
+    drift: bool
+    R_without: float
+
+
+@dataclass(frozen=True, eq=False)
 class AxisPositioning:
     """ISO 230-2 figures of one axis. Units: mm (linear axis) or rad (rotary axis).
 
@@ -94,6 +145,9 @@ class AxisPositioning:
     A, A_up, A_down, B, B_mean, E, E_up, E_down, M, R, R_up, R_down : axis figures (module docstring).
     outliers : flagged readings (:class:`Outlier`, module docstring).
     readings : the readings evaluated, {'target', 'dir', 'run', 'value'} -> (n,) arrays, for plots.
+    drift : run-to-run drift (:class:`RunDrift`), None when a run needs two runs or more to compare.
+    unit_suspect : True when every reading is smaller than a laser resolves over the axis's travel
+        (:func:`unit_check`): the values were likely written in mm (rad) under value_um (value_urad).
     """
 
     axis: str
@@ -124,6 +178,8 @@ class AxisPositioning:
     R_down: float
     outliers: tuple = ()
     readings: dict | None = None
+    drift: RunDrift | None = None
+    unit_suspect: bool = False
 
     @property
     def unit(self) -> str:
@@ -161,6 +217,19 @@ class AxisPositioning:
                             f"value_{self.unit}": o.value * self.scale,
                             f"departure_{self.unit}": o.departure * self.scale, "score": o.score}
                            for o in self.outliers]
+        if self.drift is not None:
+            dr = self.drift
+            out["runs"] = [int(v) for v in dr.runs]
+            out["drift"] = bool(dr.drift)
+            out["drift_F"] = float(dr.F)
+            out["drift_p"] = float(dr.p)
+            for unit, scale in units:
+                out[f"run_means_{unit}"] = [float(v) * scale for v in dr.run_means]
+                out[f"drift_{unit}"] = float(dr.size) * scale
+                out[f"drift_trend_{unit}_per_run"] = float(dr.trend) * scale
+                out[f"within_run_s_{unit}"] = float(dr.within_s) * scale
+                out[f"R_without_drift_{unit}"] = float(dr.R_without) * scale
+        out["unit_suspect"] = bool(self.unit_suspect)
         return out
 
     def table(self) -> str:
@@ -194,12 +263,52 @@ class AxisPositioning:
                 f = (lambda v, w=10: f"{'':>{w}}" if v is None else f"{v * sc:{w}.3f}")
                 cells += f"{f(up)} {f(down)} {f(bi, 12)}  "
             lines.append(f"{label:44}{cells}")
+        if self.drift is not None:
+            lines += ["", *self._drift_lines()]
         for o in self.outliers:
             t = math.degrees(o.target) if self.rotary else o.target
             lines.append(f"outlier: target {t:g} {tgt_unit}, dir {o.dir:+d}, run {o.run} (row {o.row}): "
                          f"{o.value * s:.3f} {u}, {o.departure * s:+.3f} {u} from the median of the "
                          f"other runs ({o.score:.1f} x the spread the repeatability allows)")
         return "\n".join(line.rstrip() for line in lines)
+
+    def _drift_lines(self) -> list[str]:
+        dr, s, u = self.drift, self.scale, self.unit
+        lines = [f"{'run':16}" + "".join(f"{int(j):>9d}" for j in dr.runs),
+                 f"{'run mean ' + u:16}" + "".join(f"{v * s:9.3f}" for v in dr.run_means)]
+        verdict = "drift between runs" if dr.drift else "no drift between runs detected"
+        lines.append(f"{verdict}: range of the run means {dr.size * s:.3f} {u}, trend {dr.trend * s:+.3f} "
+                     f"{u} per run, within-run s {dr.within_s * s:.3f} {u}, F = {dr.F:.2f} "
+                     f"(p = {dr.p:.2g}); R without the run offsets {dr.R_without * s:.3f} {u}")
+        return lines
+
+    def drift_note(self) -> str | None:
+        """One sentence on the run-to-run drift when it is detected, else None."""
+        dr = self.drift
+        if dr is None or not dr.drift:
+            return None
+        s, u = self.scale, self.unit
+        return (f"axis {self.axis}: the runs drift: run means {', '.join(f'{v * s:.1f}' for v in dr.run_means)} "
+                f"{u} (range {dr.size * s:.1f} {u}, trend {dr.trend * s:+.1f} {u} per run; F = {dr.F:.1f} "
+                f"against a within-run s of {dr.within_s * s:.1f} {u}, p = {dr.p:.1g}); R ({self.R * s:.1f} "
+                f"{u}) includes this drift ({dr.R_without * s:.1f} {u} without it): let the machine and the "
+                "laser set-up reach a steady temperature (warm-up) and check the optics' mounting before "
+                "repeating the cycle")
+
+    def unit_note(self) -> str | None:
+        """One sentence when the readings look written in mm (rad) under value_um (value_urad)."""
+        if not self.unit_suspect:
+            return None
+        biggest = float(np.abs(self.readings["value"]).max()) * self.scale
+        if self.rotary:
+            return (f"axis {self.axis}: every reading is below {UNIT_CHECK_FLOOR_URAD:g} urad in magnitude "
+                    f"(largest {biggest:.3g} urad) over {math.degrees(np.ptp(self.targets)):g} deg, less "
+                    "than any angular instrument resolves: were the values written in rad under "
+                    "value_urad? if so multiply them by 1e6")
+        span = float(np.ptp(self.targets))
+        return (f"axis {self.axis}: every reading is below {_unit_limit_um(span):.2g} um in magnitude "
+                f"(largest {biggest:.3g} um) over {span:g} mm of travel, less than a laser resolves "
+                "there: were the values written in mm under value_um? if so multiply them by 1000")
 
 
 @dataclass(frozen=True, eq=False)
@@ -228,8 +337,8 @@ class Iso230_2Report:
 
 
 def evaluate_axis(axis: str, target: np.ndarray, direction: np.ndarray, run: np.ndarray,
-                  value: np.ndarray, path: str | None = None, row: np.ndarray | None = None
-                  ) -> AxisPositioning:
+                  value: np.ndarray, path: str | None = None, row: np.ndarray | None = None,
+                  with_drift: bool = True) -> AxisPositioning:
     """ISO 230-2 figures of one axis from its positioning readings.
 
     axis : 'X' ... 'C' (A, B, C are rotary).
@@ -238,6 +347,7 @@ def evaluate_axis(axis: str, target: np.ndarray, direction: np.ndarray, run: np.
     run : (n,) run number.
     value : (n,) positional deviation x_ij (actual minus target), mm or rad.
     path, row : the file and (n,) data rows, for error messages.
+    with_drift : also fit the run-to-run drift (:func:`run_drift`).
     Raises InputError when a (target, direction, run) is read twice, a value is blank, or a target
     has fewer than 2 runs in a direction (the repeatability needs a standard deviation).
     """
@@ -302,7 +412,72 @@ def evaluate_axis(axis: str, target: np.ndarray, direction: np.ndarray, run: np.
         B=float(reversal[np.argmax(np.abs(reversal))]), B_mean=float(reversal.mean()),
         E=float(both.max() - both.min()), E_up=float(np.ptp(mean_up)), E_down=float(np.ptp(mean_down)),
         M=float(np.ptp(mean)), R=float(R_i.max()), R_up=float(R_i_up.max()), R_down=float(R_i_down.max()),
-        outliers=outliers, readings={"target": target, "dir": direction, "run": run, "value": value})
+        outliers=outliers, readings={"target": target, "dir": direction, "run": run, "value": value},
+        drift=run_drift(axis, label * 2 + (direction < 0), target, direction, run, value) if with_drift
+        else None,
+        unit_suspect=unit_check(rotary, targets, value))
+
+
+def run_drift(axis: str, cell: np.ndarray, target: np.ndarray, direction: np.ndarray, run: np.ndarray,
+              value: np.ndarray) -> RunDrift | None:
+    """Run-to-run drift of one axis (:class:`RunDrift`): the additive model ``x = mu_cell + r_run``
+    fitted by least squares and its F test against ``x = mu_cell``.
+
+    cell : (n,) int label of each reading's (target, direction) cell; target, direction, run, value:
+    as :func:`evaluate_axis`. None when there are fewer than 2 runs, no degree of freedom is left for
+    the scatter, or the runs cannot be told from the cells (a run that shares no cell with the others).
+    """
+    import scipy.stats
+
+    runs, r_index = np.unique(run, return_inverse=True)
+    cells, c_index = np.unique(cell, return_inverse=True)
+    n, c, N = len(runs), len(cells), len(value)
+    df1, df2 = n - 1, N - c - n + 1
+    if n < 2 or df2 < 1:
+        return None
+    # sum-to-zero coding of the runs: the last run's effect is minus the sum of the others
+    coding = np.vstack([np.eye(n - 1), -np.ones((1, n - 1))])
+    design = np.hstack([np.eye(c)[c_index], coding[r_index]])
+    if np.linalg.matrix_rank(design) < c + n - 1:
+        return None
+    coef, *_ = np.linalg.lstsq(design, value, rcond=None)
+    effect = coding @ coef[c:]
+    ss_full = float(np.sum((value - design @ coef) ** 2))
+    cell_mean = np.bincount(c_index, weights=value) / np.bincount(c_index)
+    ss_cells = float(np.sum((value - cell_mean[c_index]) ** 2))
+    # exact data (no scatter at all) would divide by zero: round-off level counts as zero
+    zero = N * (1e-9 * float(np.abs(value).max())) ** 2
+    if ss_full <= zero:
+        F, p = (math.inf, 0.0) if ss_cells - ss_full > zero else (0.0, 1.0)
+    else:
+        F = ((ss_cells - ss_full) / df1) / (ss_full / df2)
+        p = float(scipy.stats.f.sf(F, df1, df2))
+    run_means = coef[:c].mean() + effect
+    without = evaluate_axis(axis, target, direction, run, value - effect[r_index], with_drift=False)
+    return RunDrift(runs=runs, run_means=run_means, size=float(np.ptp(run_means)),
+                    trend=float(np.polyfit(runs.astype(float), run_means, 1)[0]),
+                    within_s=math.sqrt(ss_full / df2), F=float(F), p=p, drift=bool(p < DRIFT_ALPHA),
+                    R_without=without.R)
+
+
+def unit_check(rotary: bool, targets: np.ndarray, value: np.ndarray) -> bool:
+    """True when every reading is smaller than a laser resolves over the axis's travel, so that the
+    values were likely written in mm (rad) under value_um (value_urad) (docs/iso230_2.md).
+
+    Linear: the targets span at least UNIT_CHECK_TRAVEL_MM and every |value| is below
+    max(UNIT_CHECK_FLOOR_UM, UNIT_CHECK_PPM ppm of the span). Rotary: the targets span at least
+    UNIT_CHECK_TRAVEL_DEG and every |value| is below UNIT_CHECK_FLOOR_URAD.
+    targets : (m,) mm or rad; value : (n,) mm or rad.
+    """
+    span = float(np.ptp(targets))
+    biggest = float(np.abs(value).max())
+    if rotary:
+        return math.degrees(span) >= UNIT_CHECK_TRAVEL_DEG and biggest * URAD_PER_RAD < UNIT_CHECK_FLOOR_URAD
+    return span >= UNIT_CHECK_TRAVEL_MM and biggest * UM_PER_MM < _unit_limit_um(span)
+
+
+def _unit_limit_um(span_mm: float) -> float:
+    return max(UNIT_CHECK_FLOOR_UM, UNIT_CHECK_PPM * 1e-6 * span_mm * UM_PER_MM)
 
 
 def flag_outliers(targets, groups, run, value, row, s_all) -> tuple:
@@ -363,15 +538,30 @@ def evaluate_iso230_2(data) -> Iso230_2Report:
                            "the other runs; kept in the figures, as the standard requires)")
         if len(res.targets) < 5:
             notices.append(f"axis {axis}: {len(res.targets)} targets; ISO 230-2 asks for at least 5")
+        notices += [n for n in (res.unit_note(), res.drift_note()) if n]
         axes[axis] = res
     return Iso230_2Report(axes=axes, notices=tuple(notices), path=data.path)
 
 
 def plot_runs(reports, path) -> None:
-    """Write a PNG of the runs of every axis of ``reports`` (Iso230_2Report list), one panel each, as
-    ISO 230-2 reports draw them: the readings against the target, the mean unidirectional positional
+    """Write the PNG of :func:`runs_figure` to ``path``. Needs matplotlib."""
+    import matplotlib.pyplot as plt
+
+    fig = runs_figure(reports)
+    with atomic_write(path, "wb") as fh:
+        fig.savefig(fh, format="png", dpi=110)
+    plt.close(fig)
+
+
+def runs_figure(reports):
+    """A matplotlib figure of the runs of every axis of ``reports`` (Iso230_2Report list), one row per
+    axis. Left, as ISO 230-2 reports draw them: each run's passes drawn apart (one colour per run, up
+    triangles and solid line, down triangles and dotted line), the mean unidirectional positional
     deviations of both directions with their +-2 s bands, the mean bidirectional deviation, and the
-    flagged outliers ringed. Needs matplotlib (imported here, not with mtcomp)."""
+    flagged outliers ringed. Right: the mean of each run against its number (the run-to-run drift),
+    with the band +-2 within-run s / sqrt(readings per run) that the run means keep to without drift,
+    and the trend line when drift is detected. Lines carry gids ('run 3 up', 'run means') for tests.
+    Needs matplotlib (imported here, not with mtcomp)."""
     try:
         import matplotlib
         matplotlib.use("Agg")
@@ -379,21 +569,27 @@ def plot_runs(reports, path) -> None:
     except ImportError:
         raise InputError("--plot needs matplotlib (pip install matplotlib)") from None
     panels = [(rep, ax) for rep in reports for ax in rep.axes.values()]
-    fig, axes = plt.subplots(len(panels), 1, figsize=(8.0, 3.6 * len(panels)), squeeze=False)
-    for (rep, ax), pl in zip(panels, axes[:, 0]):
+    fig, grid = plt.subplots(len(panels), 2, figsize=(11.0, 3.8 * len(panels)), squeeze=False,
+                             gridspec_kw={"width_ratios": [3, 1]})
+    for (rep, ax), (pl, pr) in zip(panels, grid):
         s, u = ax.scale, ax.unit
         f = 180.0 / math.pi if ax.rotary else 1.0
         tx = ax.targets * f
-        for d, colour, marker, mean, sd, label in ((1, "tab:blue", "^", ax.mean_up, ax.s_up, "up (dir +1)"),
-                                                    (-1, "tab:red", "v", ax.mean_down, ax.s_down,
-                                                     "down (dir -1)")):
-            r = ax.readings
-            sel = r["dir"] == d
-            pl.plot(r["target"][sel] * f, r["value"][sel] * s, marker, color=colour, ms=4, alpha=0.6,
-                    linestyle="none")
-            pl.plot(tx, mean * s, "-", color=colour, label=f"mean {label}")
-            pl.fill_between(tx, (mean - 2 * sd) * s, (mean + 2 * sd) * s, color=colour, alpha=0.15,
-                            label=f"mean +- 2 s, {label.split()[0]}")
+        r = ax.readings
+        runs = np.unique(r["run"])
+        colours = plt.get_cmap("viridis")(np.linspace(0.0, 0.85, len(runs)))
+        for j, colour in zip(runs, colours):
+            for d, marker, style, name in ((1, "^", "-", "up"), (-1, "v", ":", "down")):
+                sel = (r["run"] == j) & (r["dir"] == d)
+                order = np.argsort(r["target"][sel], kind="stable")
+                pl.plot(r["target"][sel][order] * f, r["value"][sel][order] * s, marker=marker,
+                        linestyle=style, color=colour, ms=4, lw=0.8, alpha=0.8, gid=f"run {j} {name}",
+                        label=f"run {j}" if d == 1 else None)
+        for d, colour, mean, sd, label in ((1, "tab:blue", ax.mean_up, ax.s_up, "up"),
+                                           (-1, "tab:red", ax.mean_down, ax.s_down, "down")):
+            pl.plot(tx, mean * s, "-", color=colour, lw=1.8, label=f"mean {label}")
+            pl.fill_between(tx, (mean - 2 * sd) * s, (mean + 2 * sd) * s, color=colour, alpha=0.12,
+                            label=f"mean +- 2 s, {label}")
         pl.plot(tx, ax.mean * s, "k--", lw=1, label="mean bidirectional")
         if ax.outliers:
             pl.plot([o.target * f for o in ax.outliers], [o.value * s for o in ax.outliers], "o", ms=10,
@@ -404,8 +600,33 @@ def plot_runs(reports, path) -> None:
         pl.set_xlabel(f"target ({'deg' if ax.rotary else 'mm'})")
         pl.set_ylabel(f"deviation ({u})")
         pl.grid(alpha=0.3)
-        pl.legend(fontsize=7, ncol=3)
+        pl.legend(fontsize=7, ncol=4)
+        _draw_run_means(pr, ax, runs, colours)
     fig.tight_layout()
-    with atomic_write(path, "wb") as fh:
-        fig.savefig(fh, format="png", dpi=110)
-    plt.close(fig)
+    return fig
+
+
+def _draw_run_means(pr, ax: AxisPositioning, runs, colours) -> None:
+    """The right-hand panel of :func:`runs_figure`: run means against run number."""
+    s, u, dr = ax.scale, ax.unit, ax.drift
+    pr.set_xlabel("run")
+    pr.set_ylabel(f"run mean ({u})")
+    pr.grid(alpha=0.3)
+    if dr is None:
+        pr.set_title("one run: no drift to compare", fontsize=9)
+        return
+    x = dr.runs.astype(float)
+    centre = float(np.mean(dr.run_means))
+    per_run = len(ax.readings["value"]) / len(dr.runs)
+    band = 2.0 * dr.within_s / math.sqrt(per_run)
+    pr.fill_between([x[0], x[-1]], [(centre - band) * s] * 2, [(centre + band) * s] * 2, color="0.5",
+                    alpha=0.2, label="+- 2 s / sqrt(readings per run)")
+    pr.plot(x, dr.run_means * s, "k-", lw=1, zorder=2, gid="run means", label="run mean")
+    pr.scatter(x, dr.run_means * s, c=colours, s=36, zorder=3)
+    if dr.drift:
+        fit = np.polyval([dr.trend, centre - dr.trend * x.mean()], x)
+        pr.plot(x, fit * s, "--", color="tab:orange", lw=1, label=f"trend {dr.trend * s:+.2f} {u}/run")
+    pr.set_xticks(x)
+    verdict = "drift" if dr.drift else "no drift detected"
+    pr.set_title(f"{verdict}: range {dr.size * s:.2f} {u}, p = {dr.p:.1g}", fontsize=9)
+    pr.legend(fontsize=7)
