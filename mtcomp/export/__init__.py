@@ -9,10 +9,13 @@ Public names:
 * :func:`component_tables`, :func:`table_region`, :func:`plan_grids`, :func:`parse_ranges`
   (_tables.py): the model's component errors evaluated on each axis's grid.
 * :class:`ExportResult`, :func:`write_result` (_output.py).
+* :func:`reversal_note` (_reversal.py): the one line saying that the model's data show a reversal
+  the model does not hold (export prints it; compensate can print the same).
 """
 from importlib import import_module
 
 from ._output import ExportResult, write_result
+from ._reversal import reversal_note
 from ._tables import (AxisTable, ComponentTables, component_names, component_tables, parse_ranges,
                       plan_grids, table_region)
 
@@ -27,4 +30,4 @@ def exporter(name: str):
 
 
 __all__ = ["FORMAT_NAMES", "exporter", "ExportResult", "write_result", "AxisTable", "ComponentTables",
-           "component_names", "component_tables", "parse_ranges", "plan_grids", "table_region"]
+           "component_names", "component_tables", "parse_ranges", "plan_grids", "table_region", "reversal_note"]

@@ -35,6 +35,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..models.evaluate import casadi_map_call, deviation
+from ._reversal import reversal_note, unheld_reversals
 
 #: below this (mm, rad) everywhere an axis table is zero: the model holds that axis's errors at zero
 ZERO = 1e-12
@@ -96,12 +97,15 @@ class ComponentTables:
     machine : the Machine. tables : axis -> AxisTable (axes with a region only).
     notes : sentences for the user (axes without data, travel used for lack of a region ...).
     region_source : axis -> 'data' (the model's support), 'range' (--range alone), 'travel'.
+    unheld_reversal : axis -> (mean, largest, unit) of the reversal the model's data show and the
+        model does not hold (mtcomp.export._reversal.unheld_reversals), file units.
     """
 
     machine: object
     tables: dict
     notes: list = field(default_factory=list)
     region_source: dict = field(default_factory=dict)
+    unheld_reversal: dict = field(default_factory=dict)
 
     def has_backlash(self, axis: str, tol: float = 1e-9) -> bool:
         """True when the positioning error of ``axis`` depends on the approach direction."""
@@ -319,4 +323,7 @@ def component_tables(fitted, grids: dict, region: dict | None = None,
     notes = list(notes or [])
     notes += [f"axis {a}: no table: the model predicts no error at all along it (its errors are held at "
               "zero: no data determined them)" for a in dropped]
-    return ComponentTables(machine, tables, notes, dict(source or {}))
+    reversal = reversal_note(fitted)
+    if reversal:
+        notes.append(reversal)
+    return ComponentTables(machine, tables, notes, dict(source or {}), unheld_reversals(fitted))

@@ -34,6 +34,19 @@ def comp_lines(table, column: int, comp_type: int, factor: float) -> list[str]:
     return out
 
 
+def backlash_comment(tables, a: str) -> str:
+    """The ini comment on BACKLASH for axis ``a``: where the reversal is, or that there is none."""
+    if tables.has_backlash(a):
+        return "# BACKLASH is ignored when COMP_FILE is set: the reversal is in the two columns"
+    line = ("# BACKLASH is ignored when COMP_FILE is set, and this model holds no reversal: the two "
+            "columns are equal")
+    if a in tables.unheld_reversal:
+        mean, _, unit = tables.unheld_reversal[a]
+        line += (f". ITS DATA SHOW ONE ({mean:+.1f} {unit}, mean up minus mean down): fit the model "
+                 "with mtcomp diagnose and export again (README.txt)")
+    return line
+
+
 def export(tables, comp_type: int = 1, **_) -> ExportResult:
     m = tables.machine
     files, carried, notes = {}, {}, []
@@ -49,7 +62,7 @@ def export(tables, comp_type: int = 1, **_) -> ExportResult:
         files[name] = "\n".join(comp_lines(t, j, comp_type, factor)) + "\n"
         carried[(a, component_names(a)[j])] = FULL
         ini += ["", f"[JOINT_{n}]", f"COMP_FILE = {name}", f"COMP_FILE_TYPE = {comp_type}",
-                "# BACKLASH is ignored when COMP_FILE is set: the reversal is in the two columns"]
+                backlash_comment(tables, a)]
     files["ini_lines.txt"] = "\n".join(ini) + "\n"
     # squareness (and the linear part of every cross straightness) as matrixkins C = I - S
     hal = ["# matrixkins: [KINS] KINEMATICS = matrixkins; joint = C . axis position",

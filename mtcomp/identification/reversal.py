@@ -1,0 +1,100 @@
+"""What the fitted data show of the reversal of each axis (ISO 230-2), for MODEL.json ``info``.
+
+A base model (``mtcomp identify``) has no dependence on the approach direction; when its laser data
+show a reversal, the tables and corrections made from it drop that reversal. So that ``export`` and
+``compensate`` can say so, a model records what its data showed: for each axis with bidirectional
+positioning readings (laser files, component EXX, EYY, ... ECC),
+
+* at every target (and static position of the other axes) of every file, the reversal value
+  ``B_i = mean up - mean down`` (ISO 230-2; up: dir +1);
+* ``B``: the ``B_i`` of largest magnitude, with its sign; ``B_mean``: their mean;
+* ``p_value``: how likely reversal values this far from zero are when the axis has no reversal:
+  ``F = sum_i B_i^2 / (s^2 (1/n_up_i + 1/n_down_i)) / m`` against Fisher's F(m, dof), with ``s^2``
+  the repeatability variance pooled over every target and direction (dof = readings - groups) and m
+  the number of targets. It tests the whole profile, so a reversal that changes sign along the axis
+  counts as well as a constant step. None when no target has repeated readings (nothing to judge
+  the reversal values against).
+
+:data:`REVERSAL_P` is the level below which the data are said to show a reversal.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..machine import ROTARY
+from .iso230_2 import positioning_component
+
+#: the data show a reversal when its p-value (module docstring) is below this
+REVERSAL_P = 1e-3
+#: positions (mm, rad) closer than this are the same target
+_DECIMALS = 9
+
+
+def _laser_sets(datasets):
+    for d in datasets:
+        d = getattr(d, "data", d)       # a measurement model holds its file as ``data``
+        if getattr(d, "kind", None) == "laser":
+            yield d
+
+
+def _groups(d, sel):
+    """(reversal B_i, n_up, n_down, within sum of squares, within dof) per target of rows ``sel``
+    of laser data ``d``, internal units; targets read in one direction only are skipped."""
+    key = np.column_stack([d.target[sel], np.nan_to_num(d.xyz[sel]), np.nan_to_num(d.abc[sel])])
+    _, label = np.unique(np.round(key, _DECIMALS), axis=0, return_inverse=True)
+    label = label.reshape(-1)
+    value, direction = d.value[sel], d.dir[sel]
+    out = []
+    for k in range(label.max() + 1):
+        up = value[(label == k) & (direction > 0)]
+        down = value[(label == k) & (direction < 0)]
+        if up.size and down.size:
+            ss = float(((up - up.mean()) ** 2).sum() + ((down - down.mean()) ** 2).sum())
+            out.append((float(up.mean() - down.mean()), up.size, down.size, ss, up.size + down.size - 2))
+    return out
+
+
+def reversal_p_value(B, n_up, n_down, ss: float, dof: int) -> float | None:
+    """p-value of reversal values ``B`` (m,) at targets read n_up, n_down (m,) times, against a
+    pooled within-group sum of squares ``ss`` with ``dof`` degrees of freedom (module docstring).
+    None without repeated readings (dof 0)."""
+    from scipy.stats import f as fisher_f
+    B = np.asarray(B, dtype=float)
+    if dof <= 0 or B.size == 0:
+        return None
+    s2 = ss / dof
+    if not s2 > 0:
+        return 0.0 if np.any(B != 0) else 1.0      # noise-free readings: any step is a step
+    F = float(np.sum(B ** 2 / (s2 * (1.0 / np.asarray(n_up) + 1.0 / np.asarray(n_down))))) / B.size
+    return float(fisher_f.sf(F, B.size, dof))
+
+
+def data_reversal(datasets) -> dict:
+    """What the laser files among ``datasets`` (MeasurementSet or measurement models) show of each
+    axis's reversal, in file units (module docstring)::
+
+        {"X": {"B_um": -36.0, "B_mean_um": -26.0, "p_value": 3e-27, "n_targets": 9,
+               "files": ["ess_b02_x"]}}
+
+    (``_urad`` for rotary axes). Axes without a target read in both directions are absent."""
+    found: dict = {}
+    for d in _laser_sets(datasets):
+        tag = Path(str(d.path)).stem if getattr(d, "path", None) else "laser"
+        for a in dict.fromkeys(d.axis.tolist()):
+            sel = np.flatnonzero((d.axis == a) & (d.component == positioning_component(a))
+                                 & np.isfinite(d.value))
+            groups = _groups(d, sel) if sel.size else []
+            if groups:
+                entry = found.setdefault(a, {"groups": [], "files": []})
+                entry["groups"] += groups
+                entry["files"].append(tag)
+    out = {}
+    for a, entry in found.items():
+        B, n_up, n_down, ss, dof = (np.array(c) for c in zip(*entry["groups"]))
+        unit, scale = ("urad", 1e6) if a in ROTARY else ("um", 1e3)
+        out[a] = {f"B_{unit}": float(B[np.argmax(np.abs(B))] * scale), f"B_mean_{unit}": float(B.mean() * scale),
+                  "p_value": reversal_p_value(B, n_up, n_down, float(ss.sum()), int(dof.sum())),
+                  "n_targets": int(B.size), "files": list(dict.fromkeys(entry["files"]))}
+    return out
