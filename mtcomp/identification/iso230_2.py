@@ -40,8 +40,8 @@ effects against the within-run scatter rejects at ``DRIFT_ALPHA`` = 1 %. Reporte
 their range and linear trend, and R with the run offsets removed.
 
 Units: a linear axis whose targets span 100 mm or more, with every reading below
-max(0.05 um, 0.5 ppm of the span), reads less than a laser resolves there: its values were likely
-written in mm under ``value_um`` (:func:`unit_check`; flagged, not refused).
+max(0.05 um, 0.5 ppm of the span), reads below what a laser measures reliably there: its values were
+likely written in mm under ``value_um`` (:func:`unit_check`; flagged, not refused).
 """
 from __future__ import annotations
 
@@ -68,7 +68,8 @@ OUTLIER_K = 4.0
 DRIFT_ALPHA = 0.01
 #: unit check: a linear axis whose targets span at least UNIT_CHECK_TRAVEL_MM and whose readings all
 #: stay below max(UNIT_CHECK_FLOOR_UM, UNIT_CHECK_PPM x travel) in magnitude reads less than a laser
-#: resolves over that travel: its values were likely written in mm
+#: measures reliably over that travel (about 0.5 ppm with air compensation): its values were likely
+#: written in mm
 UNIT_CHECK_TRAVEL_MM = 100.0
 UNIT_CHECK_FLOOR_UM = 0.05
 UNIT_CHECK_PPM = 0.5
@@ -146,7 +147,7 @@ class AxisPositioning:
     outliers : flagged readings (:class:`Outlier`, module docstring).
     readings : the readings evaluated, {'target', 'dir', 'run', 'value'} -> (n,) arrays, for plots.
     drift : run-to-run drift (:class:`RunDrift`), None when a run needs two runs or more to compare.
-    unit_suspect : True when every reading is smaller than a laser resolves over the axis's travel
+    unit_suspect : True when every reading is smaller than a laser measures over the axis's travel
         (:func:`unit_check`): the values were likely written in mm (rad) under value_um (value_urad).
     """
 
@@ -307,8 +308,8 @@ class AxisPositioning:
                     "value_urad? if so multiply them by 1e6")
         span = float(np.ptp(self.targets))
         return (f"axis {self.axis}: every reading is below {_unit_limit_um(span):.2g} um in magnitude "
-                f"(largest {biggest:.3g} um) over {span:g} mm of travel, less than a laser resolves "
-                "there: were the values written in mm under value_um? if so multiply them by 1000")
+                f"(largest {biggest:.3g} um) over {span:g} mm of travel, below what a laser measures "
+                "reliably there: were the values written in mm under value_um? if so multiply them by 1000")
 
 
 @dataclass(frozen=True, eq=False)
@@ -461,7 +462,7 @@ def run_drift(axis: str, cell: np.ndarray, target: np.ndarray, direction: np.nda
 
 
 def unit_check(rotary: bool, targets: np.ndarray, value: np.ndarray) -> bool:
-    """True when every reading is smaller than a laser resolves over the axis's travel, so that the
+    """True when every reading is smaller than a laser measures over the axis's travel, so that the
     values were likely written in mm (rad) under value_um (value_urad) (docs/iso230_2.md).
 
     Linear: the targets span at least UNIT_CHECK_TRAVEL_MM and every |value| is below
