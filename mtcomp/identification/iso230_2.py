@@ -114,7 +114,7 @@ class RunDrift:
         direction) cells plus ``r_run``; the plain mean of the run's readings when every run reads
         every cell.
     size : max - min of ``run_means``.
-    trend : least-squares slope of ``run_means`` against the run's place in the order, per run.
+    trend : least-squares slope of ``run_means`` against the run number, per run.
     within_s : residual standard deviation of the additive model: the scatter left within runs.
     F, p : F statistic of the runs (``n - 1`` and ``N - cells - n + 1`` degrees of freedom), p-value.
     drift : True when ``p < DRIFT_ALPHA``.
@@ -146,7 +146,7 @@ class AxisPositioning:
     A, A_up, A_down, B, B_mean, E, E_up, E_down, M, R, R_up, R_down : axis figures (module docstring).
     outliers : flagged readings (:class:`Outlier`, module docstring).
     readings : the readings evaluated, {'target', 'dir', 'run', 'value'} -> (n,) arrays, for plots.
-    drift : run-to-run drift (:class:`RunDrift`), None when a run needs two runs or more to compare.
+    drift : run-to-run drift (:class:`RunDrift`); None with a single run (see :func:`run_drift`).
     unit_suspect : True when every reading is smaller than a laser measures over the axis's travel
         (:func:`unit_check`): the values were likely written in mm (rad) under value_um (value_urad).
     """
