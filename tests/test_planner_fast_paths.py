@@ -177,7 +177,7 @@ def test_thread_count_from_the_option_or_the_environment(monkeypatch):
                                        ("G1 X20 G201\n", False), ("N5 G0020 X1\n", True),
                                        ("G020.5\n", False), ("(metric) G21\nG1 X1 ; G20\n", True)])
 def test_uses_inches_finds_g20_words_across_read_blocks(tmp_path, text, want):
-    from mtcomp.commands.compensate import uses_inches
+    from mtcomp.compensation import uses_inches
     path = tmp_path / "p.nc"
     path.write_text("G1 X1.0000 Y2.0000\n" * 7 + text + "G1 X3\n" * 5)
     for block in (9, 10, 11, 13, 1 << 22):      # a word cut at every place between two reads

@@ -1,0 +1,425 @@
+"""One compensation of one program with one model: what ``mtcomp compensate`` and ``mtcomp study`` run.
+
+:func:`compensate_program` streams the program twice (once planned, once rewritten by
+:func:`mtcomp.toolpaths.write_corrected`), so memory stays flat for any length, and returns a
+:class:`CompensationRun`: the planner's :class:`~mtcomp.planner.Summary`, what the writer did with
+drilling cycles, the notes to tell the user and, when asked, the same figures under other models
+(:class:`Judge`: a later re-measurement, or a draw of the model from its covariance).
+
+The settings (:class:`CompensationSettings`) are the command line's flags in file units (um, urad,
+degC); the planner's problem and options are built from them here, once.
+"""
+from __future__ import annotations
+
+import contextlib
+import math
+import re
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import InputError
+from .io.atomic import atomic_write
+from .planner import (CompensationProblem, Planner, PlannerOptions, Summary, output_grid,
+                      report_columns, report_rows)
+from .planner._bounds import FLAG_KINDS
+from .planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
+from .toolpaths import iter_segment_chunks, write_corrected
+
+_DIGITS = b"0123456789."
+#: kinds of bound -> their columns in PlanResult.flags
+_BOUND_KINDS = {kind: [FLAG_KINDS.index(f) for f in flags] for kind, flags in
+                (("max_correction", ("max", "min")), ("travel", ("travel_max", "travel_min")),
+                 ("max_step", ("step",)))}
+
+
+@dataclass(frozen=True)
+class CompensationSettings:
+    """How to compensate (``mtcomp compensate``'s flags; file units).
+
+    method : 'qp', 'pinv' or 'newton' (:class:`~mtcomp.planner.PlannerOptions`).
+    max_correction_um, max_correction_urad, max_step_um, max_step_urad : bounds for every linear /
+        rotary axis (um, urad); None: the machine file's [compensation] table.
+    axis_max_correction, axis_max_step : axis name -> bound of that axis alone (um for linear axes,
+        urad for rotary ones), over the ones above.
+    orientation_weight : um of tip deviation that weigh as much as 1 urad of tool-axis deviation.
+    subdivide_tol_um : internal nodes where the corrected path would miss a midpoint by more (0: none).
+    chord_tol_um : chord tolerance of arcs written as lines.
+    temperatures : sensor name -> degC while the program runs; spindle_rpm : warm spindle speed.
+    extrapolate : correct blocks outside the region the model's data reached too.
+    max_correction_sd_um : the limit on a correction's standard error (um); None: the default; 0: none.
+    units : 'mm' or 'inch' for a program without G20/G21 (None: the machine file's, else mm).
+    start_position : axis name -> position (mm, deg) of axes known before the program starts.
+    threads : planner threads (0: automatic; a study's worker uses 1).
+    """
+
+    method: str = "qp"
+    max_correction_um: float | None = None
+    max_correction_urad: float | None = None
+    max_step_um: float | None = None
+    max_step_urad: float | None = None
+    axis_max_correction: dict = field(default_factory=dict)
+    axis_max_step: dict = field(default_factory=dict)
+    orientation_weight: float = 1.0
+    subdivide_tol_um: float = 0.5
+    chord_tol_um: float = 1.0
+    temperatures: dict = field(default_factory=dict)
+    spindle_rpm: float | None = None
+    extrapolate: bool = False
+    max_correction_sd_um: float | None = None
+    units: str | None = None
+    start_position: dict = field(default_factory=dict)
+    threads: int = 0
+
+    def sd_limit(self) -> float | None:
+        """The limit on a correction's standard error the plan uses (um), None for none."""
+        v = DEFAULT_MAX_CORRECTION_SD_UM if self.max_correction_sd_um is None else self.max_correction_sd_um
+        return v or None
+
+    def check(self, where: str = "") -> None:
+        """InputError (one line, prefixed by ``where``) for a bound or tolerance that is not a
+        positive number."""
+        def positive(v, name, allow_zero=False):
+            if v is None:
+                return
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
+                    or v < 0 or (v == 0 and not allow_zero):
+                raise InputError(f"{where}{name} must be a positive number, got {v!r}")
+        for name in ("max_correction_um", "max_correction_urad", "max_step_um", "max_step_urad",
+                     "chord_tol_um", "orientation_weight"):
+            positive(getattr(self, name), name)
+        positive(self.subdivide_tol_um, "subdivide_tol_um", allow_zero=True)
+        positive(self.max_correction_sd_um, "max_correction_sd_um", allow_zero=True)
+        for table in ("axis_max_correction", "axis_max_step"):
+            for axis, v in getattr(self, table).items():
+                positive(v, f"{table} {axis}")
+
+
+def start_position(machine, values: dict) -> tuple[np.ndarray, np.ndarray]:
+    """axis name -> position (mm, deg) -> (initial position (na,) mm/rad, known mask (na,))."""
+    pos = np.zeros(machine.n_axes)
+    known = np.zeros(machine.n_axes, bool)
+    for a, v in values.items():
+        j = machine.index(a)
+        pos[j] = math.radians(v) if machine.axes[j].is_rotary else v
+        known[j] = True
+    return pos, known
+
+
+def parse_start_position(machine, flags) -> dict:
+    """``--start-position A=0,C=0`` (repeatable) -> {axis: value (mm, deg)}; InputError otherwise."""
+    out = {}
+    for flag in flags:
+        for item in filter(None, (t.strip() for t in flag.split(","))):
+            m = re.fullmatch(r"([A-Za-z])\s*=\s*([+-]?(?:\d+\.?\d*|\.\d+))", item)
+            if not m:
+                raise InputError(f"--start-position {flag}: {item!r} is not an axis value such as "
+                                 "A=0")
+            a = m.group(1).upper()
+            if a not in machine.axis_names:
+                raise InputError(f"--start-position {flag}: machine {machine.name} has no {a} axis")
+            out[a] = float(m.group(2))
+    return out
+
+
+def build_problem(fitted, settings: CompensationSettings, inch: bool) -> CompensationProblem:
+    """The planner's problem: the machine file's bounds overridden by the settings (per axis last)."""
+    machine = fitted.machine
+    problem = CompensationProblem.from_machine(
+        fitted, settings.max_correction_um, settings.max_correction_urad, settings.max_step_um,
+        settings.max_step_urad, grid=output_grid(machine, inch),
+        orientation_weight=settings.orientation_weight)
+    if not settings.axis_max_correction and not settings.axis_max_step:
+        return problem
+    from dataclasses import replace
+    corr, step = problem.max_correction.copy(), problem.max_step.copy()
+    for table, out in ((settings.axis_max_correction, corr), (settings.axis_max_step, step)):
+        for a, v in table.items():
+            if a not in machine.axis_names:
+                raise InputError(f"machine {machine.name} has no {a} axis (its axes: "
+                                 f"{', '.join(machine.axis_names)})")
+            j = machine.index(a)
+            held = machine.axes[j].is_rotary and a in (fitted.held or {}) and out is corr
+            out[j] = 0.0 if held else v * (1e-6 if machine.axes[j].is_rotary else 1e-3)
+    return replace(problem, max_correction=corr, max_step=step)
+
+
+def uses_inches(path, block: int = 1 << 22) -> bool:
+    """True if the program contains a G20 word anywhere (comments included: a cautious guess that
+    only sets the rounding grid of the output). Reads the file in blocks: memory stays flat."""
+    return _has_word(path, b"20", block)
+
+
+def states_units(path, block: int = 1 << 22) -> bool:
+    """True if the program contains a G20 or a G21 word anywhere."""
+    return _has_word(path, b"20", block) or _has_word(path, b"21", block)
+
+
+def _has_word(path, code: bytes, block: int) -> bool:
+    try:
+        f = open(path, "rb")
+    except FileNotFoundError:
+        raise InputError("no such file", path) from None
+    except OSError as exc:
+        raise InputError(f"cannot open: {exc.strerror}", path) from None
+    tail = b""
+    with f:
+        while True:
+            data = f.read(block)
+            if not data:
+                return _has_g(tail + b" ", code)
+            text = tail + data
+            if _has_g(text[:-8], code):
+                return True
+            tail = text[-16:]
+
+
+def _has_g(text: bytes, code: bytes = b"20") -> bool:
+    """True if ``text`` holds G20, G020 or G0020 (G or g; ``code`` instead of 20) not followed by a
+    digit or '.' (the end of the text counts as not followed). Vectorised over the G letters."""
+    a = np.frombuffer(text, np.uint8)
+    g = np.flatnonzero((a | 0x20) == ord("g"))        # G or g
+    if g.size == 0:
+        return False
+    pad = np.concatenate([a, np.full(6, ord(" "), np.uint8)])     # room after the last G
+    after_ok = np.ones(256, bool)
+    after_ok[np.frombuffer(_DIGITS, np.uint8)] = False
+    n = a.size
+    for zeros in range(3):
+        word = g + 1
+        ok = np.ones(g.size, bool)
+        for k, ch in enumerate(b"0" * zeros + code):
+            ok &= (word + k < n) & (pad[word + k] == ch)
+        end = word + zeros + 2
+        ok &= (end >= n) | after_ok[pad[np.minimum(end, n)]]
+        if ok.any():
+            return True
+    return False
+
+
+class Judge:
+    """The tool-tip deviation of the planned blocks under another model of the same machine (a later
+    re-measurement, or a draw of the model from its covariance): before correction and after it,
+    over the blocks the plan corrected. The same evaluator as the planner's (one simulator), its
+    corrections referenced to the part's datum as this model has it (the machinist probes the datum
+    on the machine the judge stands for)."""
+
+    def __init__(self, fitted, settings: CompensationSettings, label: str = "judge"):
+        from .planner._evaluate import Evaluator
+        from .thermal.context import thermal_context
+        self.label = label
+        self.fitted = fitted
+        thermal, _ = thermal_context(fitted, settings.temperatures, settings.spindle_rpm)
+        fitted.context_defaults.update(thermal)
+        self.ev = Evaluator(CompensationProblem.from_machine(fitted))
+        self.count = 0
+        self.max_before_um = self.max_after_um = 0.0
+        self.sum_sq_before = self.sum_sq_after = 0.0
+
+    def add(self, chunk, res) -> None:
+        """Accumulate one planned chunk: ``chunk`` the machine-frame SegmentChunk the plan was made
+        for, ``res`` its PlanResult (rows per node; ``res.counts`` nodes per chunk row)."""
+        done = ~res.pinned
+        if not done.any():
+            return
+        rows = np.repeat(np.arange(len(chunk)), res.counts)[done]
+        cols = {"feed": np.asarray(chunk.feed)[rows]}
+        dirs = np.asarray(chunk.dirs)[rows]
+        for j, a in enumerate(self.fitted.machine.axis_names):
+            cols[f"dir_{a}"] = dirs[:, j].astype(float)
+        if chunk.tool_length is not None:
+            cols["tool_length"] = np.asarray(chunk.tool_length)[rows]
+        ctx = self.fitted.context(rows.size, cols)
+        q = res.nominal[done]
+        x = res.correction[done] * self.ev.D
+        target = self.ev.target(q)
+        if chunk.datum is not None:
+            target = target + self.ev.datum_reference(np.asarray(chunk.datum)[rows], ctx)
+        before = self.ev.residual(q, np.zeros_like(x), ctx, target)[:, :3] / self.ev.S[:3]
+        after = self.ev.residual(q, x, ctx, target)[:, :3] / self.ev.S[:3]
+        eb = np.sqrt(np.sum(before ** 2, axis=1)) * 1e3
+        ea = np.sqrt(np.sum(after ** 2, axis=1)) * 1e3
+        self.count += rows.size
+        self.max_before_um = max(self.max_before_um, float(eb.max()))
+        self.max_after_um = max(self.max_after_um, float(ea.max()))
+        self.sum_sq_before += float(np.sum(eb ** 2))
+        self.sum_sq_after += float(np.sum(ea ** 2))
+
+    def as_dict(self) -> dict:
+        """{blocks, rms_before_um, max_before_um, rms_after_um, max_after_um} over the corrected blocks."""
+        n = max(self.count, 1)
+        return {"blocks": self.count, "rms_before_um": math.sqrt(self.sum_sq_before / n),
+                "max_before_um": self.max_before_um, "rms_after_um": math.sqrt(self.sum_sq_after / n),
+                "max_after_um": self.max_after_um}
+
+
+@dataclass
+class CompensationRun:
+    """What one compensation did.
+
+    summary : the planner's Summary (figures over the blocks, under the compensating model).
+    written : the writer's counts (``cycle_blocks``, ``cycle_lines``).
+    notes : lines to tell the user (units assumed, drilling cycles, datum, feeds).
+    assumed : the sentence on the thermal conditions assumed ('' without drift terms).
+    stats : the planner's statistics (windows, OSQP solves ...).
+    judges : Judge label -> its figures (:meth:`Judge.as_dict`).
+    correction_rms_um, correction_max_um : size of the linear corrections written, over the
+        corrected blocks (the correction effort).
+    bound_blocks : {'max_correction', 'max_step', 'travel'} -> blocks (every axis known) at which a
+        bound of that kind acted on some axis.
+    seconds : wall time.
+    """
+
+    summary: Summary
+    written: dict
+    notes: list
+    assumed: str
+    stats: dict
+    judges: dict
+    correction_rms_um: float
+    correction_max_um: float
+    seconds: float
+    bound_blocks: dict = field(default_factory=dict)
+
+
+def compensate_program(fitted, program, output, settings: CompensationSettings, setup=None,
+                       report=None, progress=None, judges=()) -> CompensationRun:
+    """Compensate ``program`` with the model ``fitted`` into ``output`` (written atomically, with
+    the BLOCKS.csv ``report`` when given). ``setup``: the program's work offsets and tool lengths
+    (:func:`mtcomp.toolpaths.offsets.load_setup`; None: none). ``progress``: callable(blocks done)
+    every few seconds. ``judges``: :class:`Judge` objects that evaluate the plan under their models.
+    InputError, with nothing written, for a program without motion."""
+    from .thermal.context import thermal_context
+    from .toolpaths.offsets import ProgramSetup
+    t0 = time.perf_counter()
+    machine = fitted.machine
+    settings.check()
+    thermal, assumed = thermal_context(fitted, settings.temperatures, settings.spindle_rpm)
+    fitted.context_defaults.update(thermal)
+    setup = setup if setup is not None else ProgramSetup(machine)
+    notes = []
+    start_inch = False
+    if not states_units(program):
+        units = settings.units or machine.units
+        if units is None:
+            units = "mm"
+            notes.append("warning: the program has no G20/G21 and neither --units nor the machine "
+                         "file's 'units' says which: taken as mm")
+        else:
+            notes.append(f"the program has no G20/G21: taken as {units} "
+                         f"({'--units' if settings.units else 'machine file'})")
+        start_inch = units == "inch"
+    inch = start_inch or uses_inches(program)
+    start_pos, start_known = start_position(machine, settings.start_position)
+    problem = build_problem(fitted, settings, inch)
+    sd_limit = settings.sd_limit()
+    options = PlannerOptions(method=settings.method, subdivide_tol_um=settings.subdivide_tol_um or None,
+                             progress=progress, extrapolate=settings.extrapolate,
+                             max_correction_sd_um=sd_limit, threads=settings.threads)
+    chord_tol = settings.chord_tol_um * 1e-3
+    planner = Planner(problem, options, source=str(program))
+    summary = Summary(machine.axis_names, extrapolate=settings.extrapolate,
+                      support_known=fitted.support is not None, max_correction_sd_um=sd_limit,
+                      has_covariance=fitted.uncertainty is not None)
+    offsets_of = {}
+    no_feed = {"blocks": 0, "line": 0}        # feed moves before any F word
+    effort = {"sum_sq": 0.0, "max": 0.0, "n": 0}
+    bound_blocks = dict.fromkeys(_BOUND_KINDS, 0)
+    linear = np.array([not a.is_rotary for a in machine.axes])
+
+    with contextlib.ExitStack() as stack:
+        rep = None
+        if report is not None:
+            rep = stack.enter_context(atomic_write(report, "w", newline=""))
+            rep.write(",".join(report_columns(machine.axis_names, machine.is_five_axis)) + "\n")
+
+        def machine_chunks():
+            for chunk in iter_segment_chunks(program, machine, chord_tol_mm=chord_tol,
+                                             initial_position=start_pos, inch=start_inch,
+                                             initial_known=start_known):
+                feedless = ~np.asarray(chunk.rapid, bool) & np.isnan(chunk.feed)
+                if feedless.any():
+                    no_feed["blocks"] += int(feedless.sum())
+                    no_feed["line"] = no_feed["line"] or int(chunk.line[np.argmax(feedless)])
+                mchunk, off = setup.apply(chunk)
+                offsets_of[id(mchunk)] = (chunk, off)
+                yield mchunk
+
+        def corrections():
+            for mchunk, res in planner.iter_chunks(machine_chunks()):
+                chunk, off = offsets_of.pop(id(mchunk))
+                for judge in judges:
+                    judge.add(mchunk, res)
+                flags = res.flags[~res.unknown.any(axis=1)]
+                for kind, cols in _BOUND_KINDS.items():
+                    bound_blocks[kind] += int(flags[:, :, cols].any(axis=(1, 2)).sum())
+                done = ~res.pinned
+                if done.any():
+                    c = np.sqrt(np.sum(res.correction[done][:, linear] ** 2, axis=1)) * 1e3
+                    effort["sum_sq"] += float(np.sum(c ** 2))
+                    effort["max"] = max(effort["max"], float(c.max()))
+                    effort["n"] += int(done.sum())
+                # back to the program's frame: what is written and reported
+                node_off = np.repeat(off, res.counts, axis=0)
+                res.corrected = res.corrected - node_off
+                res.nominal = res.nominal - node_off
+                summary.add(res)
+                if rep is not None:
+                    rep.writelines(report_rows(res, machine.axis_names, sd_limit))
+                yield chunk, res.corrected, res.counts
+            if summary.blocks == 0:
+                # raised while the outputs are still temporary files: nothing is written
+                raise InputError("no motion block in the program: nothing to compensate", program)
+
+        written = {}
+        write_corrected(program, output, machine, corrections(), chord_tol_mm=chord_tol,
+                        initial_position=start_pos, inch=start_inch, initial_known=start_known,
+                        stats=written)
+    notes += _cycle_notes(written) + datum_notes(fitted, setup)
+    feed_terms = [t.key() for t in fitted.model.terms if t.uses_feed]
+    if feed_terms and no_feed["blocks"]:
+        notes.append(f"warning: {no_feed['blocks']} feed move{'s' if no_feed['blocks'] != 1 else ''} "
+                     f"from line {no_feed['line']} on have no feed (no F word before them): the model's "
+                     f"feed terms ({', '.join(feed_terms)}) take them at 0 mm/min")
+    notes += setup.notes()
+    return CompensationRun(summary, written, notes, assumed, planner.stats,
+                           {j.label: j.as_dict() for j in judges},
+                           math.sqrt(effort["sum_sq"] / max(effort["n"], 1)), effort["max"],
+                           time.perf_counter() - t0, bound_blocks)
+
+
+def _cycle_notes(written: dict) -> list[str]:
+    def cycle_lines(k):
+        return f"{k} drilling cycle line{'' if k == 1 else 's'} (G73, G81-G89)"
+    notes = []
+    if written.get("cycle_blocks"):
+        notes.append(f"{cycle_lines(written['cycle_blocks'])} kept as cycles, each hole corrected "
+                     "where the model applies (X Y Z to the hole's bottom, R moved with Z; BLOCKS.csv "
+                     "says which)")
+    if written.get("cycle_lines"):
+        notes.append(f"{cycle_lines(written['cycle_lines'])} passed through unchanged and "
+                     "uncorrected: hole position, R or Z not known, or drilling along another "
+                     "axis than Z")
+    return notes
+
+
+def datum_notes(fitted, setup) -> list[str]:
+    """One line for each part's datum (the origin of a work offset the program used) outside the
+    region the model's data reached: the corrections are referenced to the model's deviation there,
+    which is then its continuation beyond the data."""
+    from .toolpaths.offsets import WORK_SYSTEMS
+    support = fitted.support or {}
+    machine = fitted.machine
+    out = []
+    for w in sorted(setup.used_wcs):
+        datum = setup._offset_table()[w]
+        off = [a for a, v in zip(machine.axis_names, datum)
+               if a in support and not support[a][0] - 1e-6 <= v <= support[a][1] + 1e-6]
+        if off:
+            where = ", ".join(f"{a} {np.degrees(datum[machine.index(a)]) if machine.axis(a).is_rotary else datum[machine.index(a)]:g}"
+                              for a in off)
+            out.append(f"note: the part's datum of {WORK_SYSTEMS[w]} ({where}) lies outside the region "
+                       "the model's data reached: the corrections are referenced to the model's "
+                       "deviation there, its continuation beyond the data")
+    return out
