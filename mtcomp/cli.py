@@ -21,6 +21,7 @@ COMMANDS = {
     "identify": ("identify", "fit the base error model to measurement files"),
     "diagnose": ("diagnose", "find what the fitted model gets wrong, extend it, measure the gain"),
     "compensate": ("compensate", "plan bounded per-block axis corrections for an NC program"),
+    "study": ("study", "a correction study: many compensations on Dask, one results table and plots"),
     "predict": ("predict", "predict the readings of a measurement file from a model"),
     "render": ("render", "workpiece error map before and after compensation"),
     "iso230-2": ("iso230_2", "ISO 230-2 evaluation of laser positioning runs"),

@@ -86,3 +86,20 @@ def test_seed001_compensation_reduces_the_cmm_total_error(tmp_path):
     for name in ("bowl.nc", "bowl_pinv.nc", "MODEL.json", "cmm_uncompensated.csv",
                  "cmm_compensated.csv"):
         assert (out_dir / name).is_file()
+
+
+def test_study_bounds_prints_what_each_bound_buys(tmp_path):
+    out = run_example("study_bounds.py", tmp_path, "--programs", "2", "--draws", "1", "--workers", "2")
+    assert "2 programs x 1 models x 1 methods x 5 bound settings x 1 temperatures x 2 draws" in out
+    rows = {}
+    for name in ("50 um", "3 um", "2 um", "1 um", "0.5 um"):
+        m = re.search(rf"^{re.escape(name)}\s+{NUM}\s+{NUM}\s+{NUM}\.\.{NUM}\s+{NUM}\s*$", out, re.M)
+        assert m, out
+        rows[name] = [float(v) for v in m.groups()]
+    before, wide, lo, hi, bounded = rows["50 um"]
+    assert wide < 0.3 * before and bounded == 0.0      # wide bounds: most of the error removed
+    assert lo <= wide <= hi                             # draw 0 lies within the draws' range
+    afters = [rows[n][1] for n in rows]
+    # a tighter bound never buys accuracy (the same programs, the same judge)
+    assert all(b >= a - 1e-3 for a, b in zip(afters, afters[1:]))
+    assert rows["0.5 um"][4] > 50 and rows["0.5 um"][1] > 2 * wide
