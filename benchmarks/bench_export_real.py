@@ -18,6 +18,12 @@ set-up whose zero no fit can know. When the model file has no 'support' (the reg
 export gets --range from the training targets.
 
     python benchmarks/bench_export_real.py [--data DIR]
+
+The real data (a folder holding iso230_2/ess_b02_x.csv ...) are looked for where the tests look
+(tests/real_data.py): ``--data DIR``, else ``$MTCOMP_REAL_DATA``, else ``shared/data/real`` beside
+the repository. They are not part of the repository (no licence, or the GPL); without them the
+script says where it looked and exits with status 1. docs/export.md quotes its output and
+tests/test_export_real.py checks those figures against a run.
 """
 from __future__ import annotations
 
@@ -25,15 +31,38 @@ import argparse
 import contextlib
 import csv
 import io
+import os
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
+#: the environment variable naming the real-data folder
+REAL_ENV = "MTCOMP_REAL_DATA"
+#: the shared real-data folder beside the repository (absent on a plain clone)
 REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
 FILES = ("ess_b02_x", "ess_b02_y", "ess_b02_z", "psi_mcu1025_x")
 TRAIN_RUNS = (1, 2, 3)
 TEST_RUNS = (4, 5)
+
+
+def real_data_folder(given: Path | None = None) -> Path:
+    """The real-data folder: ``given`` (--data), else $MTCOMP_REAL_DATA, else :data:`REAL`."""
+    if given is not None:
+        return Path(given)
+    return Path(os.environ[REAL_ENV]) if os.environ.get(REAL_ENV) else REAL
+
+
+def iso230_2_folder_or_exit(given: Path | None = None) -> Path:
+    """The folder of the real ISO 230-2 runs; SystemExit(1) saying where it looked when absent."""
+    folder = real_data_folder(given) / "iso230_2"
+    if not folder.is_dir():
+        how = ("--data" if given is not None else f"${REAL_ENV}" if os.environ.get(REAL_ENV)
+               else f"the default (neither --data nor ${REAL_ENV} given)")
+        raise SystemExit(f"no real ISO 230-2 runs at {folder} (from {how}); the real data are not in "
+                         f"the repository: give --data DIR or set {REAL_ENV}=DIR, DIR holding "
+                         f"iso230_2/{FILES[0]}.csv ... (default: {REAL})")
+    return folder
 
 
 def read_rows(path: Path) -> list[dict]:
@@ -141,12 +170,12 @@ def compare(path: Path, grid_mm: float | None = None) -> dict:
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", type=Path, default=REAL, help="the shared real-data folder")
+    ap.add_argument("--data", type=Path, default=None,
+                    help=f"the real-data folder (holding iso230_2/); default ${REAL_ENV}, else {REAL}")
     ap.add_argument("--grid-mm", type=float, default=None, help="grid step of the exported tables")
     args = ap.parse_args()
-    folder = args.data / "iso230_2"
-    if not folder.is_dir():
-        raise SystemExit(f"no real data at {folder}")
+    folder = iso230_2_folder_or_exit(args.data)
+    print(f"real data: {folder}")
     print("held-out rms (runs 4-5, about their mean), um; tables from runs 1-3")
     print(f"{'file':16s} {'raw':>8s} {'pitch table':>12s} {'mtcomp identify':>16s} "
           f"{'mtcomp diagnose':>16s} {'diagnose/pitch':>15s}")

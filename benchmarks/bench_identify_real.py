@@ -8,8 +8,12 @@ table is the mean of runs 1-3 per target and direction (bidirectional), computed
 Python; "raw" is the held-out readings' own rms about their mean.
 
     python benchmarks/bench_identify_real.py [--command diagnose|identify] [--files ess_b02_x ...]
+                                             [--data DIR]
 
-Prints one row per file and the ratio mtcomp / pitch table (goal: <= 1.1).
+Prints one row per file and the ratio mtcomp / pitch table (goal: <= 1.1). The real data are found
+as bench_export_real.py finds them: ``--data DIR``, else ``$MTCOMP_REAL_DATA``, else
+``shared/data/real`` beside the repository; without them the script says where it looked and exits
+with status 1.
 """
 from __future__ import annotations
 
@@ -22,8 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / "iso230_2"
-FILES = ("ess_b02_x", "ess_b02_y", "ess_b02_z", "psi_mcu1025_x")
+from bench_export_real import FILES, iso230_2_folder_or_exit     # the script's own folder
 
 
 def split_runs(src: Path, out_dir: Path, last_train_run: int = 3) -> tuple[Path, Path]:
@@ -70,16 +73,18 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--command", choices=("diagnose", "identify"), default="diagnose")
     ap.add_argument("--files", nargs="+", default=list(FILES))
+    ap.add_argument("--data", type=Path, default=None,
+                    help="the real-data folder (holding iso230_2/); default $MTCOMP_REAL_DATA, else "
+                         "shared/data/real beside the repository")
     args = ap.parse_args()
-    if not REAL.is_dir():
-        print(f"real data folder {REAL} is absent")
-        return 1
+    real = iso230_2_folder_or_exit(args.data)
+    print(f"real data: {real}")
     print(f"held-out rms about the mean, um (fit runs 1-3, predict runs 4-5; mtcomp {args.command})")
     print(f"{'file':<16} {'raw':>7} {'pitch':>7} {'mtcomp':>7} {'ratio':>6}")
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         for name in args.files:
-            train, heldout = split_runs(REAL / f"{name}.csv", work)
+            train, heldout = split_runs(real / f"{name}.csv", work)
             raw = [float(r["value_um"]) for r in csv.DictReader(open(heldout, newline=""))]
             pitch = rms_about_mean(pitch_table_residual(train, heldout))
             ours = rms_about_mean(mtcomp_residual(args.command, train, heldout, work))
