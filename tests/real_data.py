@@ -8,11 +8,14 @@
 """
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 #: the real spindle thermal record, in the repository
 THERMAL = ROOT / "tests" / "data" / "real" / "thermal" / "fl_thermal.csv"
-#: the shared real data beside the repository (absent on a plain clone)
-SHARED_REAL = ROOT.parent / "shared" / "data" / "real"
+#: the shared real data: $MTCOMP_REAL_DATA, else the folder beside the repository (absent on a
+#: plain clone); the benchmarks look in the same places
+SHARED_REAL = (Path(os.environ["MTCOMP_REAL_DATA"]) if os.environ.get("MTCOMP_REAL_DATA")
+               else ROOT.parent / "shared" / "data" / "real")
 ISO230_2 = SHARED_REAL / "iso230_2"

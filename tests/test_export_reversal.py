@@ -139,10 +139,21 @@ def test_a_diagnose_model_says_diagnose_did_not_keep_it(tmp_path):
     assert _size(note) == pytest.approx(-25.0, abs=0.5) and "did not keep a backlash term" in note
 
 
-@pytest.mark.xfail(strict=True, reason="MODEL.json records the data's reversal once identify() stores "
-                   "data_reversal(datasets) in info['reversal'] (one line in mtcomp/identification/fit.py)")
 def test_identify_then_export_on_the_command_line(tmp_path, capsys):
     laser = _laser(tmp_path, lambda t: -25.0)
     assert main(["identify", "xfyz", str(laser), "-o", str(tmp_path / "m.json")]) == 0
     assert main(["export", "xfyz", str(tmp_path / "m.json"), "--format", "isg", "-o", str(tmp_path / "i")]) == 0
     assert _size(capsys.readouterr().err) == pytest.approx(-25.0, abs=0.5)
+
+
+def test_compensate_says_it_too(tmp_path, capsys):
+    laser = _laser(tmp_path, lambda t: -25.0)
+    assert main(["identify", "xfyz", str(laser), "-o", str(tmp_path / "m.json")]) == 0
+    prog = tmp_path / "p.nc"
+    prog.write_text("G21 G90\nG0 X10 Y0 Z0\nG1 X100 F500\nG1 X20\nM30\n")
+    capsys.readouterr()
+    assert main(["compensate", "xfyz", str(tmp_path / "m.json"), str(prog), "-o",
+                 str(tmp_path / "o.nc"), "--quiet"]) == 0
+    said = [line for line in capsys.readouterr().out.splitlines() if "reversal" in line]
+    assert len(said) == 1 and "mtcomp diagnose" in said[0]
+    assert _size(said[0]) == pytest.approx(-25.0, abs=0.5)

@@ -278,3 +278,41 @@ def test_bad_study_files_get_one_line_and_nothing_written(tmp_path, capsys, text
     named = "MODEL.json" if "no covariance" in message else study.name
     assert message in err and named in err and len(err.splitlines()) == 1
     assert not out.exists()
+
+
+def test_scheduler_runs_the_study_on_an_existing_cluster(tmp_path, capsys):
+    from dask.distributed import LocalCluster
+    study = _write_study(tmp_path, STUDY.replace("draws = 2", "draws = 0"))
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None,
+                      silence_logs=40) as cluster:
+        out = tmp_path / "R"
+        assert main(["study", str(study), "-o", str(out), "--scheduler", cluster.scheduler_address,
+                     "--quiet"]) == 0
+        assert f"4 computed on {cluster.scheduler_address}" in capsys.readouterr().out
+        # the cluster is the caller's: still running
+        assert cluster.status.name == "running"
+    rows = _rows(out / "results.csv")
+    assert len(rows) == 4 and {r["status"] for r in rows} == {"ok"}
+
+
+def test_an_unreachable_scheduler_is_one_line(tmp_path, capsys):
+    study = _write_study(tmp_path, STUDY.replace("draws = 2", "draws = 0"))
+    assert main(["study", str(study), "-o", str(tmp_path / "R"), "--scheduler",
+                 "tcp://127.0.0.1:1", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "cannot reach the Dask scheduler" in err and len(err.splitlines()) == 1
+
+
+def test_progress_shows_done_of_total_and_the_time_left():
+    import io
+    from mtcomp.study.runner import Progress
+    stream = io.StringIO()
+    bar = Progress(10, 4, stream=stream, every=0.0)
+    bar.t0 -= 6.0                       # 6 s into the run
+    bar.update()
+    bar.update(failed=True)
+    lines = stream.getvalue().splitlines()
+    assert "5/10 tasks (4 kept from before)" in lines[0]
+    assert "6/10 tasks (4 kept from before), 1 failed" in lines[1]
+    # 2 computed in 6 s, 4 to go: 12 s left
+    assert "0m06s elapsed, 0m12s left" in lines[1]

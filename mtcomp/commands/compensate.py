@@ -156,6 +156,10 @@ def run(args) -> int:
     print(run_.summary.text())
     for line in run_.notes:
         print(line)
+    from ..export import reversal_note
+    reversal = reversal_note(fitted)
+    if reversal:
+        print(f"note: {reversal}")
     st = run_.stats
     if args.method == "qp" and st["windows"]:
         print(f"qp: {st['windows_qp']} of {st['windows']} windows needed OSQP "

@@ -51,6 +51,7 @@ from ..measurement.readings import data_held, data_support
 from ..models.chain import ErrorModel
 from ..models.model_file import FittedModel
 from ..models.params import ParameterSet
+from .reversal import data_reversal
 from ._linalg import (NULL_WEIGHT, _column_scale, _eliminate, _error_scales, _gram, _name_null_space,
                       _relative_singular_values, _seen_columns, _solver, _step, held_complement)
 from .problem import _free_mask, build_measurement_models, model_for_data, travel_metric
@@ -154,6 +155,8 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
         result.fitted_model.info["known_setup"] = known
     result.fitted_model.held = {a: v for a, v in data_held(model.machine, datasets).items()
                                 if a in fitted_axes}
+    # what the data show of a reversal, so that export can say when the model leaves it out
+    result.fitted_model.info["reversal"] = data_reversal(datasets)
     if problem.weak_fallback:
         result.info["weak_directions"] = ("not held: holding them would have spoiled the fit of the "
                                           "data; the data's own least-squares fit is kept")
