@@ -152,3 +152,39 @@ def test_a_reader_that_goes_away_stops_the_command_quietly(tmp_path):
     proc = subprocess.Popen(bad, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=env)
     proc.stdout.close()
     assert proc.wait(timeout=120) == 141
+
+
+def test_component_ranges_match_the_polynomial_profiles(files):
+    """Range over the data's travel and its standard error, against the documented polynomial
+    E(s) = sum_k E_k (s / 1 m)^k (file units) and the fit's covariance of those coefficients;
+    straightness about its least-squares line (numpy's polyfit)."""
+    from mtcomp.identification.report import GRID_POINTS, component_ranges
+    from mtcomp.models.chain import polynomial_orders
+    tmp, paths, model = files
+    machine = model.machine
+    res = identify(model, [read_measurements(p) for p in paths.values()])
+    ranges, values, _ = component_ranges(res.fitted_model)
+    index = {n: i for i, n in enumerate(res.unknown_names)}
+    checked = 0
+    for r in ranges:
+        lo, hi = res.fitted_model.support[r.axis]
+        s = np.linspace(lo, hi, GRID_POINTS)
+        orders = polynomial_orders(machine, r.axis, r.component)
+        names = [f"{r.component}_{k}" for k in orders]
+        basis = np.column_stack([(s / 1000.0) ** k for k in orders])
+        coef = np.array([res.value(n)[0] for n in names])
+        e = basis @ coef
+        if r.meaning.startswith("straightness"):
+            line = np.polyval(np.polyfit(s, e, 1), s)
+            e = e - line
+            basis = basis - np.column_stack([np.polyval(np.polyfit(s, b, 1), s) for b in basis.T])
+        assert r.status == "fitted"
+        np.testing.assert_allclose(r.range, np.ptp(e), rtol=1e-6, atol=1e-9)
+        j = basis[np.argmax(e)] - basis[np.argmin(e)]
+        f = np.array([res.specs[res.param_names.index(n)].to_file for n in names])
+        C = res.covariance[np.ix_([index[n] for n in names], [index[n] for n in names])] * np.outer(f, f)
+        np.testing.assert_allclose(r.sd, np.sqrt(j @ C @ j), rtol=1e-6, atol=1e-9)
+        checked += 1
+    assert checked == 18
+    c0y = next(v for v in values if v.name == "C0Y")
+    np.testing.assert_allclose([c0y.value, c0y.sd], res.value("C0Y"), rtol=1e-6, atol=1e-9)

@@ -2,11 +2,11 @@
 
 Fits the base model to every DATA file, finds what it gets wrong (residual analysis against every
 context the data carry), extends it with the effects that earn their place on held-out data, and
-reports the gain. The printed report is for a metrologist; REPORT.json has the keys of
-docs/diagnose.md; MODEL.json is the extended model (read by compensate, predict and render).
-Progress lines go to stderr. Outputs are written atomically, and only after the whole diagnosis
-succeeded.
-docs/diagnose.md.
+reports the gain. The printed report is for a metrologist (findings, the final model's error
+components per axis, residuals per file and per laser target; --verbose adds its parameters);
+REPORT.json has the keys of docs/diagnose.md; MODEL.json is the extended model (read by compensate,
+predict and render). Progress lines go to stderr. Outputs are written atomically, and only after the
+whole diagnosis succeeded. docs/diagnose.md.
 """
 from __future__ import annotations
 
@@ -33,6 +33,10 @@ def add_arguments(parser):
                              "predicted forward in time (ISO 230-3 style)")
     add_cmm_arguments(parser)
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
+    parser.add_argument("-v", "--verbose", action="store_true",
+                        help="also print every parameter of the final model (value and standard "
+                             "error), those the data do not determine, and the per-target table of "
+                             "laser components with many targets")
 
 
 def run(args) -> int:
@@ -91,7 +95,7 @@ def run(args) -> int:
                          args.data[0])
     result.model.info["command"] = "mtcomp diagnose " + " ".join(sys.argv[2:]) if len(sys.argv) > 2 \
         else "mtcomp diagnose"
-    print(result.summary())
+    print(result.summary(details=_details(result, machine, datasets, args.verbose)))
     report = result.to_dict()
     report["seconds"] = round(result.seconds, 3)
     report["files"] = [str(p) for p in args.data]
@@ -108,3 +112,25 @@ def run(args) -> int:
             plot_drift(result.thermal, f)
         print(f"wrote {plot_path}")
     return 0
+
+def _details(result, machine, datasets, verbose: bool) -> list[str]:
+    """The final model in a metrologist's terms (mtcomp.identification.report): its error components
+    per axis, the rms residual of every file and the laser readings per target; with ``verbose`` its
+    parameters. Nothing for a thermal record's drift model, which has no axis errors."""
+    if result.thermal is not None:
+        return []
+    from ..identification.predict import predict_readings
+    from ..identification.report import (component_lines, file_rms_lines, laser_target_tables,
+                                         parameter_lines)
+    model = result.model
+    predictions = [predict_readings(model, d, machine) for d in datasets]
+    excluded = [(o.path, o.row, o.column) for o in result.outliers]
+    lines = [""] + component_lines(model) + [""]
+    lines += ["final model's residuals" + (" (outliers left out)" if excluded else "") + ":"]
+    lines += file_rms_lines(model, datasets, machine, excluded, predictions)
+    targets = laser_target_tables(model, datasets, machine, verbose, predictions)
+    if targets:
+        lines += [""] + targets
+    if verbose:
+        lines += [""] + parameter_lines(model)
+    return lines + [""]

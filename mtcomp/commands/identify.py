@@ -1,8 +1,10 @@
 """`mtcomp identify MACHINE DATA... -o MODEL.json`: fit the base error model to measurement files.
 
 Every DATA file is read (its kind is told by its columns, docs/measurements.md), all of them are fitted at
-once (:func:`mtcomp.identification.fit.identify`), the summary is printed and MODEL.json is written
-atomically (nothing is written on error; an input is never overwritten). docs/identification.md.
+once (:func:`mtcomp.identification.fit.identify`), the report is printed (the error components per
+axis in a metrologist's terms, the residual of every file, laser readings per target; the raw
+parameters with --verbose) and MODEL.json is written atomically (nothing is written on error; an
+input is never overwritten). docs/identification.md.
 """
 from __future__ import annotations
 
@@ -30,6 +32,10 @@ def add_arguments(parser):
                              "fitted), or a ball-bar file of a calibrated bar (no length offset is "
                              "fitted); repeat for several")
     add_cmm_arguments(parser)
+    parser.add_argument("-v", "--verbose", action="store_true",
+                        help="also print every parameter (value and standard error), the files' "
+                             "set-ups, the combinations the data cannot determine, and the per-target "
+                             "table of laser components with many targets")
     parser.add_argument("--rcond", type=float, default=None, metavar="R",
                         help="relative singular value below which a combination of parameters counts "
                              "as undetermined and is held at zero (default 1e-6)")
@@ -65,6 +71,9 @@ def run(args) -> int:
     if not result.converged:
         print(f"warning: the fit did not converge in {result.iterations} iterations; check the data "
               "(files of different machines fitted as one?)", file=sys.stderr)
-    print(result.summary())
+    from ..identification.report import component_lines, laser_target_tables
+    print(result.summary(verbose=args.verbose, components=component_lines(result.fitted_model),
+                         targets=laser_target_tables(result.fitted_model, datasets, machine,
+                                                     verbose=args.verbose)))
     print(f"\nwrote {out}")
     return 0

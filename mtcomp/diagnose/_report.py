@@ -213,8 +213,8 @@ def _other_units(fit: dict) -> str:
                    if f"rms_{key}" in fit)
 
 
-def summary(diag) -> str:
-    """Human-readable report."""
+def summary(diag, details=()) -> str:
+    """Human-readable report; ``details`` (lines) go before the verdict."""
     lines = []
     nz = [f"{n.sigma:.3g} {u} ({n.source}{', %d repeat groups' % n.n_groups if n.source == 'repeats' else ''})"
           for u, n in diag.noise.items()]
@@ -242,8 +242,10 @@ def summary(diag) -> str:
         on = f" on {r['axis']}" if r.get("axis") else ""
         lines.append(f"refused: {r['effect']}{on}{variant}: {r['reason']}")
     fz = diag.final
-    lines.append(f"final model ({fz['n_params']} parameters): rms {_num(fz.get('rms_um'))} um, held-out "
-                 f"{_num(fz.get('heldout_rms_um'))} um"
+    rank = getattr(diag, "rank", None)
+    dof = f", dof {diag.n_obs - rank}" if rank is not None else ""
+    lines.append(f"final model ({fz['n_params']} parameters{dof}): rms {_num(fz.get('rms_um'))} um, "
+                 f"held-out {_num(fz.get('heldout_rms_um'))} um"
                  + _other_units(fz))
     ref = diag.reference.get("linear_regression_all_temperatures")
     if ref:
@@ -252,6 +254,7 @@ def summary(diag) -> str:
                      f"{_num(ref.get('heldout_rms_um'))} um")
     if diag.thermal is not None:
         lines.append(diag.thermal.summary())
+    lines += list(details)
     lines.append(f"verdict: {diag.verdict}")
     return "\n".join(lines)
 

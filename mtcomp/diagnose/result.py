@@ -113,7 +113,8 @@ class Diagnosis:
                         "outliers": [{"file": o.path, "row": o.row, "column": o.column, "value": o.value,
                                       "off_median_of_repeats": o.deviation} for o in self.outliers]})
 
-    def summary(self) -> str:
-        """The printed report: noise, base fit, each finding with evidence and gain, final fit."""
+    def summary(self, details=()) -> str:
+        """The printed report: noise, base fit, each finding with evidence and gain, final fit,
+        ``details`` (lines: the final model in a metrologist's terms), the verdict."""
         from ._report import summary
-        return summary(self)
+        return summary(self, details)

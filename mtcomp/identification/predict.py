@@ -1,5 +1,5 @@
 """Predictions of a fitted model for the rows of any measurement file, with their standard errors
-(what ``mtcomp predict`` writes)."""
+(what ``mtcomp predict`` writes), blank where the model's data do not determine them."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -14,11 +14,92 @@ from .problem import KNOWN_SETUP_KINDS, _unique_tags, build_measurement_models
 
 
 @dataclass
+class Undetermined:
+    """What the data behind a model left undetermined, to blank predictions that rest on it.
+
+    index : (k,) positions in the model's parameters of the fitted ones (the covariance's order).
+    directions : (k, m) directions of those parameters the data did not determine (the model
+        file's ``uncertainty.undetermined``), internal units, each scaled to 1 um rms tool-tip error
+        over the machine's travel. None: the model carries no uncertainty.
+    to_file : (k,) file unit per internal unit of each fitted parameter.
+    largest_sd : the largest standard error of any combination of unit size of the fitted
+        parameters in file units (um, urad): the scale against which a standard error counts as
+        none at all.
+    """
+
+    index: np.ndarray | None
+    directions: np.ndarray | None
+    to_file: np.ndarray | None = None
+    largest_sd: float = 0.0
+    #: (indices, F) with F F^T the covariance (:meth:`FittedModel.covariance_factor`), computed once
+    factor: tuple | None = None
+
+    #: a prediction whose standard error is below this share of :attr:`largest_sd` (per unit of its
+    #: Jacobian) has none: the fit held what it rests on (undetermined directions have no variance
+    #: at all, to rounding), it did not measure it. Measured quantities stay above 1e-7 of it on the
+    #: real ISO 230-2 runs, held ones below 1e-12.
+    NO_VARIANCE = 1e-9
+
+    @classmethod
+    def of(cls, fitted: FittedModel) -> "Undetermined":
+        u = fitted.uncertainty
+        if u is None:
+            return cls(None, None)
+        idx = np.array([fitted.params.index(n) for n in u["names"]], dtype=int)
+        f = np.array([fitted.params.specs[i].to_file for i in idx])
+        factor = fitted.covariance_factor()
+        scaled = factor[1] * f[:, None]          # the same parameters, in the same order
+        top = float(np.linalg.norm(scaled, 2)) if scaled.size else 0.0
+        return cls(idx, np.asarray(u["undetermined"], dtype=float).reshape(idx.size, -1), f, top, factor)
+
+    def std(self, J: np.ndarray, setup: np.ndarray | None = None) -> np.ndarray:
+        """(n,) standard error of n predictions whose Jacobian with respect to the model's parameters
+        is J (n, n_params; file units per internal unit), from the model's covariance; NaN where a
+        prediction moves by more than 0.01 (um, urad) along an undetermined direction, or has no
+        variance at all while it moves with fitted parameters (:attr:`NO_VARIANCE`), or where the
+        model carries no uncertainty.
+
+        setup : (n, k) the predictions' derivatives with respect to their file's set-up (a laser's
+            zero, a tracker's frame): readings are compared up to their set-up, so what a set-up
+            would absorb (a constant on every reading of a laser component) is taken out of each
+            direction's effect before the test; and a prediction that shares a set-up parameter with
+            an undetermined one is undetermined too (the set-up they are compared up to is open:
+            the reading of a Y laser run at Y = 0, where a profile is zero by its reference, is no
+            better known than the others).
+        """
+        J = np.atleast_2d(np.asarray(J, dtype=float))
+        if self.factor is None:
+            return np.full(J.shape[0], np.nan)
+        idx, F = self.factor
+        sd = np.linalg.norm(J[:, idx] @ F, axis=1)
+        # no variance at all: the prediction rests only on what the fit held
+        size = np.linalg.norm(J[:, self.index] / self.to_file, axis=1) * self.largest_sd
+        open_ = (size > 0) & (sd < self.NO_VARIANCE * size)
+        if self.directions.shape[1]:
+            moved = J[:, self.index] @ self.directions
+            if setup is not None and setup.shape[1]:
+                rows = np.all(np.isfinite(setup), axis=1)
+                D = setup[rows]
+                moved[rows] -= D @ np.linalg.lstsq(D, moved[rows], rcond=None)[0]
+            open_ |= np.abs(moved).max(axis=1) > 0.01
+        if setup is not None and setup.shape[1] and open_.any():
+            acts = np.abs(np.nan_to_num(setup)) > 1e-6 * np.abs(np.nan_to_num(setup)).max(axis=0)
+            open_ |= np.any(acts[:, np.any(acts[open_], axis=0)], axis=1)
+        return np.where(open_, np.nan, sd)
+
+    def blanks(self, sd: np.ndarray) -> np.ndarray:
+        """(n,) bool: the predictions whose standard error ``sd`` is NaN because they rest on what the
+        data did not determine (none when the model carries no uncertainty)."""
+        return np.isnan(sd) if self.directions is not None else np.zeros(np.shape(sd), dtype=bool)
+
+
+@dataclass
 class Prediction:
     """What :func:`predict_readings` returns.
 
     columns : 'pred_<column>' -> (n_rows,) predicted readings, FILE units, and 'pred_<column>_sd'
-        -> its standard error (NaN where the data behind the model do not determine it).
+        -> its standard error; both NaN where the data behind the model do not determine the
+        prediction (it rests on a combination of parameters the fit held at zero error).
     setup_known : True when the file was part of the fit and its fitted set-up (laser zero, tracker
         frame, bar calibration) is used; False: the set-up is unknown and taken as zero.
     notes : lines for the user.
@@ -46,6 +127,19 @@ def stored_setup(fitted: FittedModel, mm: MeasurementModel) -> tuple[np.ndarray,
     return values, True
 
 
+def _setup_derivatives(mm: MeasurementModel, p, nuisance, columns, step: float = 1e-6) -> dict:
+    """'pred_<column>' -> (n, k): how each prediction moves with each of the file's k set-up
+    (nuisance) parameters, per internal unit (forward differences of ``step`` mm or rad)."""
+    out = {name: np.zeros((len(np.asarray(v)), mm.n_nuisance)) for name, v in columns.items()}
+    for k in range(mm.n_nuisance):
+        moved_setup = np.array(nuisance, dtype=float, copy=True)
+        moved_setup[k] += step
+        moved = mm.predict_columns(p, moved_setup)
+        for name in out:
+            out[name][:, k] = (np.asarray(moved[name]) - np.asarray(columns[name])) / step
+    return out
+
+
 def predict_readings(fitted: FittedModel, data: MeasurementSet, machine: Machine | None = None) -> Prediction:
     """Predict every row of a measurement file with a fitted model: the same measurement model,
     context defaults and set-up that :func:`identify` used, so that a file that was fitted is
@@ -58,13 +152,23 @@ def predict_readings(fitted: FittedModel, data: MeasurementSet, machine: Machine
     p = fitted.params.values
     columns = mm.predict_columns(p, nuisance)
     jac = mm.column_jacobians(p)
+    setup = _setup_derivatives(mm, p, nuisance, columns)
+    undetermined = Undetermined.of(fitted)
     notes = []
+    blank = 0
     for name in list(columns):
         if name in jac:
-            columns[f"{name}_sd"] = fitted.prediction_std(np.nan_to_num(jac[name]))
-            columns[f"{name}_sd"][~np.isfinite(columns[name])] = np.nan
+            sd = undetermined.std(np.nan_to_num(jac[name]), setup.get(name))
+            # what the model does not determine is no number (not the zero it is held at)
+            open_ = undetermined.blanks(sd) & np.isfinite(columns[name])
+            blank += int(open_.sum())
+            columns[name] = np.where(open_, np.nan, columns[name])
+            columns[f"{name}_sd"] = np.where(np.isfinite(columns[name]), sd, np.nan)
         else:
             columns[f"{name}_sd"] = np.full(len(data), np.nan)
+    if blank:
+        notes.append(f"{blank} prediction(s) of {mm.tag} rest on what the model's data did not "
+                     "determine: left blank")
     if fitted.uncertainty is None:
         notes.append("the model carries no uncertainty (mtcomp identify and diagnose write one; a "
                      "model file of an older mtcomp may not): the _sd columns are blank")

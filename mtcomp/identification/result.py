@@ -227,16 +227,44 @@ class IdentificationResult:
                              for s, v, e in zip(self.nuisance_specs, self.nuisance_values,
                                                 self.nuisance_std_errors)}}
 
-    def summary(self) -> str:
-        """A table a person can read: parameters with value +- std error (file units), the nuisance
-        parameters, the undetermined combinations and the rms residual of every file."""
+    def summary(self, verbose: bool = True, components=(), targets=()) -> str:
+        """A report a person can read: the fit's figures, ``components`` (lines: the error components
+        in a metrologist's terms, mtcomp.identification.report), the rms residual of every file,
+        ``targets`` (lines: laser readings per target) and, with ``verbose``, every parameter with
+        value +- std error (file units), the nuisance parameters and the combinations the data cannot
+        determine (without it, their count)."""
         m = self.model.machine
         lines = [f"Identification of {m.name} ({m.topology}): {self.n_obs} observations in "
                  f"{len(self.files)} file(s), {self.n_params} unknowns, rank {self.rank}, dof {self.dof:.1f}",
                  f"weighting {self.weighting}; sigma {self.sigma:.4g}; condition number "
                  f"{self.condition_number:.3g}; {self.iterations} iteration(s)"
                  f"{'' if self.converged else ' (NOT converged)'}; {self.seconds:.2f} s", ""]
-        lines.append(f"{'parameter':<28} {'value':>12} {'std error':>11}  unit")
+        if components:
+            lines += list(components) + [""]
+        lines.append(f"{'file':<24} {'kind':<8} {'n_obs':>7}  rms residual")
+        for f in self.files:
+            rms = ", ".join(f"{c} {v:.4g}" + (f" ({v * 1e3:.4g} um)" if c.endswith("_mm") else "")
+                            for c, v in f.rms().items())
+            lines.append(f"{f.tag:<24} {f.kind:<8} {f.n_obs:>7}  {rms}")
+        if targets:
+            lines += [""] + list(targets)
+        lines.append("")
+        if verbose:
+            lines += self._parameter_lines()
+        elif self.undetermined:
+            lines.append(f"{len(self.undetermined)} combination(s) of parameters the data cannot "
+                         "determine are held where they predict the least error (--verbose lists them, with every "
+                         "parameter's value)")
+        else:
+            lines.append("every fitted parameter is determined by the data (--verbose lists them)")
+        while lines and not lines[-1]:
+            lines.pop()
+        return "\n".join(lines)
+
+    def _parameter_lines(self) -> list[str]:
+        """Parameters with value +- std error (file units), the nuisance parameters, the undetermined
+        combinations and the strongest correlations."""
+        lines = [f"{'parameter':<28} {'value':>12} {'std error':>11}  unit"]
         for i, s in enumerate(self.specs):
             if not self.free[i]:
                 continue
@@ -269,9 +297,4 @@ class IdentificationResult:
         corr = self.largest_correlations()
         if corr:
             lines.append("strongest correlations: " + ", ".join(f"{a}/{b} {r:+.3f}" for a, b, r in corr))
-        lines += ["", f"{'file':<24} {'kind':<8} {'n_obs':>7}  rms residual"]
-        for f in self.files:
-            rms = ", ".join(f"{c} {v:.4g}" + (f" ({v * 1e3:.4g} um)" if c.endswith("_mm") else "")
-                            for c, v in f.rms().items())
-            lines.append(f"{f.tag:<24} {f.kind:<8} {f.n_obs:>7}  {rms}")
-        return "\n".join(lines)
+        return lines

@@ -1,0 +1,402 @@
+"""A fitted model in a metrologist's terms: what `mtcomp identify` and `mtcomp diagnose` print.
+
+* :func:`component_ranges`: per axis the data moved, each ISO 230-1 component error (positioning,
+  straightness, angular: roll, pitch, yaw; a rotary axis's angular positioning, radial, axial and
+  tilt motions) as its range over the travel the data reached, with the range's standard error from
+  the model's covariance; the squareness, spindle tilt and rotary-axis location errors as values.
+  A component the data do not determine is said to be so, never printed as a number.
+* :func:`laser_target_tables`: for every laser file, the mean reading of the runs per target and
+  approach direction, the model's prediction there and the residual (an ISO 230-2 style table).
+* :func:`file_rms_lines`: the rms residual of every file, from the model's predictions.
+* :func:`parameter_lines`: the raw parameter rows (``--verbose``).
+
+Everything is evaluated from the model (its CasADi chain, :mod:`mtcomp.models.evaluate`), never read
+off the coefficients: a B-spline coefficient of -259 um can belong to a profile whose range is 2 um.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from ..machine import AXIS_DIRECTION
+from ..models.chain import (SPINDLE_TILT, rotary_location_names,
+                            rotary_motion_names, squareness_names)
+from ..models.evaluate import casadi_map_call
+from ..models.model_file import FittedModel
+from ..models.terms import ANGLE_LETTERS, TRANSLATION_LETTERS, positioning_component
+from .predict import Undetermined, predict_readings
+
+#: positions along an axis at which a component's profile is evaluated
+GRID_POINTS = 201
+
+#: at most this many targets of a laser component are printed without --verbose
+COMPACT_TARGETS = 30
+
+#: without --verbose, per-target tables of the components other than positioning only when a file
+#: has at most this many components
+COMPACT_COMPONENTS = 3
+
+
+def component_meaning(name: str, comp: str) -> str:
+    """What component ``comp`` (e.g. 'EBX') of axis ``name`` is to a metrologist: 'positioning',
+    'straightness in Y', 'roll', 'pitch', 'yaw' (X and Y: pitch about the other horizontal axis, yaw
+    about Z), 'tilt about X' (Z); for a rotary axis 'angular positioning', 'radial in X', 'axial',
+    'tilt about X'."""
+    d = comp[1]
+    if name in ANGLE_LETTERS:
+        if comp == positioning_component(name):
+            return "angular positioning"
+        if d in TRANSLATION_LETTERS:
+            return "axial" if TRANSLATION_LETTERS.index(d) == AXIS_DIRECTION[name] else f"radial in {d}"
+        return f"tilt about {TRANSLATION_LETTERS[ANGLE_LETTERS.index(d)]}"
+    if d == name:
+        return "positioning"
+    if d in TRANSLATION_LETTERS:
+        return f"straightness in {d}"
+    about = TRANSLATION_LETTERS[ANGLE_LETTERS.index(d)]
+    if about == name:
+        return "roll"
+    if name == "Z":
+        return f"tilt about {about}"
+    return "yaw" if about == "Z" else "pitch"
+
+
+@dataclass
+class ComponentRange:
+    """One component error of one axis over the travel the data reached.
+
+    axis, component (ISO 230-1 name), meaning (:func:`component_meaning`), unit ('um' or 'urad').
+    lo, hi : the travel the data reached, mm or deg.
+    range : max minus min of the profile over [lo, hi] (straightness: about its least-squares line),
+        file units; sd : its standard error (NaN without a covariance).
+    largest_sd : the largest standard error of the profile along [lo, hi], relative to its value at
+        the first position (straightness: about its least-squares line).
+    status : 'fitted', 'undetermined' (the data do not determine the profile) or 'held' (none of its
+        parameters was fitted: held at zero).
+    """
+
+    axis: str
+    component: str
+    meaning: str
+    unit: str
+    lo: float
+    hi: float
+    range: float
+    sd: float
+    largest_sd: float
+    status: str
+
+
+@dataclass
+class LocationValue:
+    """A single-valued error (squareness, spindle tilt, rotary-axis location): value +- sd, file units;
+    status as :class:`ComponentRange`."""
+
+    name: str
+    meaning: str
+    unit: str
+    value: float
+    sd: float
+    status: str
+
+
+def _component_function(model, axis) -> ca.Function:
+    """CasADi (s (1,), p, c) -> (E (6,), dE/dp (6, n_params)): the six component errors of ``axis`` at
+    position s (mm or rad), internal units, with every extension term's contribution, in the order
+    E X, E Y, E Z, E A, E B, E C of the axis."""
+    s = ca.SX.sym("s")
+    p = ca.SX.sym("p", model.n_params)
+    c = ca.SX.sym("c", model.n_context)
+    P = {n: p[i] for i, n in enumerate(model.param_names)}
+    C = {n: c[i] for i, n in enumerate(model.context_names)}
+    if axis.is_rotary:
+        comps = _rotary_components(model, axis, s, P, C)
+    else:
+        _, comps, _, _ = model.linear_parts(axis.name, s, P, C)
+    order = [f"E{d}{axis.name}" for d in TRANSLATION_LETTERS + ANGLE_LETTERS]
+    E = ca.vertcat(*[comps.get(n, ca.SX(0)) for n in order])
+    return ca.Function(f"components_{axis.name}", [s, p, c], [E, ca.jacobian(E, p)])
+
+
+def _rotary_components(model, axis, s, P, C) -> dict:
+    """The component errors of a rotary axis at angle s: the Fourier series of its base parameters
+    (``<comp>_0``, ``<comp>_c<k>`` cos(k s), ``<comp>_s<k>`` sin(k s); docs/parameters.md) plus the
+    extension terms' contributions."""
+    comps = {}
+    for comp in [positioning_component(axis.name)] + rotary_motion_names(axis.name):
+        e = ca.SX(0)
+        for spec in model.param_specs:
+            if not spec.base or spec.group != f"{axis.name}:{comp}":
+                continue
+            k = spec.name.rsplit("_", 1)[1]
+            wave = {"c": ca.cos, "s": ca.sin}.get(k[0])
+            e = e + P[spec.name] * (wave(int(k[1:]) * s) if wave is not None else 1.0)
+        comps[comp] = e
+    for term in model.terms:
+        for comp, e in term.axis_errors(model.machine, axis, s, C, P, comps).items():
+            comps[comp] = comps.get(comp, ca.SX(0)) + e
+    return comps
+
+
+def _fitted_mask(fitted: FittedModel) -> np.ndarray | None:
+    """(n_params,) bool: the parameters the fit estimated (None: the model does not say)."""
+    if fitted.uncertainty is None:
+        return None
+    mask = np.zeros(len(fitted.params), dtype=bool)
+    mask[[fitted.params.index(n) for n in fitted.uncertainty["names"]]] = True
+    return mask
+
+
+def _status(J: np.ndarray, sd: np.ndarray, fitted_mask) -> str:
+    """'held' when nothing fitted moves the rows J, 'undetermined' when one of them rests on what the
+    data did not determine (sd NaN with a covariance), else 'fitted'."""
+    if fitted_mask is not None and not np.any(J[:, fitted_mask]):
+        return "held"
+    if fitted_mask is not None and np.any(np.isnan(sd)):
+        return "undetermined"
+    return "fitted"
+
+
+def component_ranges(fitted: FittedModel, undetermined: Undetermined | None = None):
+    """(ranges, values, notes): :class:`ComponentRange` of every component of every axis the data
+    moved (the model's ``support``), :class:`LocationValue` of the squareness, spindle tilt and
+    rotary location errors, and sentences on the axes the data did not move.
+
+    Profiles are evaluated at the model's reference context (approach direction unknown: the mean of
+    both directions; feed 0; the reference conditions of drift terms). Straightness is taken about
+    its least-squares line over [lo, hi] (ISO 230-1's reference line), so its slope, which is the
+    squareness's, does not count in its range.
+    """
+    machine, model = fitted.machine, fitted.model
+    und = undetermined if undetermined is not None else Undetermined.of(fitted)
+    mask = _fitted_mask(fitted)
+    p = fitted.params.values
+    ranges, notes = [], []
+    support = fitted.support
+    if support is None:
+        notes.append("the model does not say where its data reached: component ranges are over the "
+                     "machine's travel")
+        support = {a.name: a.travel for a in machine.axes}
+    for ax in machine.axes:
+        if ax.name not in support or not support[ax.name][0] < support[ax.name][1]:
+            continue
+        lo, hi = support[ax.name]
+        s = np.linspace(lo, hi, GRID_POINTS)
+        fn = _component_function(model, ax)
+        E, dE = casadi_map_call(fn, s[:, None], p, fitted.context(s.size))
+        dE = dE.reshape(s.size, model.n_params, 6).transpose(0, 2, 1)     # (n, 6, n_params)
+        f_pos = 180.0 / math.pi if ax.is_rotary else 1.0
+        names = [f"E{d}{ax.name}" for d in TRANSLATION_LETTERS + ANGLE_LETTERS]
+        for j, comp in enumerate(names):
+            angular = comp[1] in ANGLE_LETTERS
+            unit, scale = ("urad", 1e6) if angular else ("um", 1e3)
+            e, J = E[:, j] * scale, dE[:, j, :] * scale
+            if not ax.is_rotary and not angular and comp[1] != ax.name:
+                # straightness about its least-squares line
+                X = np.column_stack([np.ones_like(s), s - s.mean()])
+                e = e - X @ np.linalg.lstsq(X, e, rcond=None)[0]
+                J = J - X @ np.linalg.lstsq(X, J, rcond=None)[0]
+            D = J - J[0]
+            sd_along = und.std(D)
+            i_max, i_min = int(np.argmax(e)), int(np.argmin(e))
+            sd = float(und.std((J[i_max] - J[i_min])[None, :])[0])
+            status = _status(D, sd_along, mask)
+            ranges.append(ComponentRange(ax.name, comp, component_meaning(ax.name, comp), unit, lo * f_pos,
+                                         hi * f_pos, float(e[i_max] - e[i_min]), sd,
+                                         float(np.nanmax(sd_along)) if np.any(np.isfinite(sd_along))
+                                         else float("nan"), status))
+    moved = {r.axis for r in ranges}
+    still = [a for a in machine.axis_names if a not in moved]
+    if still:
+        held = fitted.held or {}
+        at = [f"{a} at {held[a] * (180.0 / math.pi if machine.axis(a).is_rotary else 1.0):g} "
+              f"{'deg' if machine.axis(a).is_rotary else 'mm'}" for a in still if a in held]
+        notes.append(f"axes the data did not move: {', '.join(still)}"
+                     + (f" (held {', '.join(at)})" if at else "")
+                     + ": how their errors vary along them is not known")
+    values = []
+    singles = [(n, f"squareness {n}") for n in squareness_names(machine)]
+    singles += [(n, f"tilt of the tool axis about {about}") for n, about in zip(SPINDLE_TILT, "XY")]
+    for ax in machine.rotary_axes:
+        offsets, tilts = rotary_location_names(ax.name)
+        singles += [(n, f"location of {ax.name}: offset") for n in offsets]
+        singles += [(n, f"location of {ax.name}: tilt") for n in tilts]
+    for name, meaning in singles:
+        if name not in fitted.params:
+            continue
+        i = fitted.params.index(name)
+        spec = fitted.params.specs[i]
+        J = np.zeros((1, len(fitted.params)))
+        J[0, i] = spec.to_file
+        sd = und.std(J)
+        status = _status(J, sd, mask)
+        std = fitted.params.std_errors
+        if status == "fitted" and std is not None and np.isfinite(std).any() and np.isnan(std[i]):
+            status = "undetermined"       # the fit gave it no standard error: part of a held combination
+        values.append(LocationValue(name, meaning, spec.unit, float(p[i] * spec.to_file), float(sd[0]),
+                                    status))
+    return ranges, values, notes
+
+
+def _pm(value, sd, status, unit, width=9) -> str:
+    if status == "undetermined":
+        return "not determined by the data"
+    if status == "held":
+        return "held at zero (not fitted)"
+    err = f" +- {sd:.2g}" if np.isfinite(sd) else ""
+    return f"{value:{width}.3g}{err} {unit}"
+
+
+def component_lines(fitted: FittedModel, undetermined: Undetermined | None = None) -> list[str]:
+    """The printed table of :func:`component_ranges`."""
+    ranges, values, notes = component_ranges(fitted, undetermined)
+    lines = ["error components over the travel the data reached (range: largest minus smallest value,",
+             "straightness about its least-squares line; +- the standard error)"]
+    for axis in dict.fromkeys(r.axis for r in ranges):
+        rows = [r for r in ranges if r.axis == axis]
+        unit = "deg" if fitted.machine.axis(axis).is_rotary else "mm"
+        lines.append(f"  {axis} from {rows[0].lo:g} to {rows[0].hi:g} {unit}:")
+        for r in rows:
+            lines.append(f"    {r.meaning:<22} {r.component:<5} range {_pm(r.range, r.sd, r.status, r.unit)}")
+    fitted_values = [v for v in values if v.status != "held"]
+    if fitted_values:
+        lines.append("  squareness, tool axis and axis location:")
+        for v in fitted_values:
+            lines.append(f"    {v.meaning:<36} {v.name:<5} {_pm(v.value, v.sd, v.status, v.unit)}")
+    lines += [f"  {n}" for n in notes]
+    return lines
+
+
+# ------------------------------------------------------------------------------ per file
+def _measured(data, column: str) -> np.ndarray:
+    """(n,) the file's own cells of ``column`` as numbers (NaN where blank), file units."""
+    header = [h.strip().lower() for h in data.header]
+    if column.lower() not in header:
+        return np.full(len(data), np.nan)
+    j = header.index(column.lower())
+    out = np.full(len(data), np.nan)
+    for i, cells in enumerate(data.rows):
+        try:
+            out[i] = float(cells[j])
+        except (ValueError, IndexError):
+            pass
+    return out
+
+
+def file_residuals(fitted: FittedModel, data, machine=None, prediction=None) -> dict:
+    """column -> (n,) measured minus predicted (file units, NaN where blank or not predicted) of one
+    file whose set-up the model carries (a file of the fit)."""
+    pred = prediction if prediction is not None else predict_readings(fitted, data, machine)
+    out = {}
+    for name, values in pred.columns.items():
+        if name.endswith("_sd") or not name.startswith("pred_"):
+            continue
+        column = name[len("pred_"):]
+        out[column] = _measured(data, column) - np.asarray(values, dtype=float)
+    return out
+
+
+def file_rms_lines(fitted: FittedModel, datasets, machine=None, excluded=(), predictions=None) -> list[str]:
+    """The rms residual of every file (measured minus the model's prediction, with the file's fitted
+    set-up), per measured column; ``excluded``: (path, row, column) cells left out of the fit."""
+    from .problem import _unique_tags
+    skip = {(str(p), int(r), str(c)) for p, r, c in excluded}
+    lines = [f"{'file':<24} {'kind':<8} {'n_obs':>7}  rms residual"]
+    for k, (tag, data) in enumerate(zip(_unique_tags(datasets), datasets)):
+        pred = predictions[k] if predictions is not None else None
+        res = file_residuals(fitted, data, machine, pred)
+        parts, n = [], 0
+        for column, r in res.items():
+            keep = np.isfinite(r) & np.array([(str(data.path), int(row), column) not in skip
+                                              for row in data.row])
+            if not keep.any():
+                continue
+            n += int(keep.sum())
+            v = float(np.sqrt(np.mean(r[keep] ** 2)))
+            um = f" ({v * 1e3:.4g} um)" if column.endswith("_mm") else ""
+            parts.append(f"{column} {v:.4g}{um}")
+        lines.append(f"{tag:<24} {data.kind:<8} {n:>7}  {', '.join(parts) or 'nothing predicted'}")
+    return lines
+
+
+def laser_target_tables(fitted: FittedModel, datasets, machine=None, verbose: bool = False,
+                        predictions=None) -> list[str]:
+    """Per laser file and component: target, the mean reading of the runs approaching it in + and in
+    -, the model's prediction of each (with the file's fitted set-up: its zero, its slope) and the
+    residual (mean reading minus prediction). Without ``verbose``: only components with at most
+    :data:`COMPACT_TARGETS` targets, and of a file with more than :data:`COMPACT_COMPONENTS`
+    components only the positioning ones (ISO 230-2), the others counted in one line."""
+    from .problem import _unique_tags
+    lines = []
+    for k, (tag, data) in enumerate(zip(_unique_tags(datasets), datasets)):
+        if data.kind != "laser":
+            continue
+        pred = predictions[k] if predictions is not None else predict_readings(fitted, data, machine)
+        components = list(dict.fromkeys(data.component.tolist()))
+        shown, more = components, []
+        if not verbose and len(components) > COMPACT_COMPONENTS:
+            shown = [c for c in components if c == positioning_component(c[2])]
+            more = [f"laser {tag}: {len(components) - len(shown)} more component(s) "
+                    f"({', '.join(c for c in components if c not in shown)}): --verbose prints their "
+                    "per-target tables"]
+        for comp in shown:
+            sel = data.component == comp
+            angular = bool(data.angular[sel][0])
+            column = "value_urad" if angular else "value_um"
+            unit = "urad" if angular else "um"
+            measured = _measured(data, column)
+            predicted = np.asarray(pred.columns.get(f"pred_{column}", np.full(len(data), np.nan)))
+            ax = str(data.axis[sel][0])
+            rotary = ax in ANGLE_LETTERS
+            f_pos, pos_unit = (180.0 / math.pi, "deg") if rotary else (1.0, "mm")
+            targets = np.unique(np.round(data.target[sel] * f_pos, 9))
+            if targets.size > COMPACT_TARGETS and not verbose:
+                lines.append(f"laser {tag}, {ax} {comp}: {targets.size} targets (--verbose prints the "
+                             "per-target table)")
+                continue
+            lines.append(f"laser {tag}, {ax} {component_meaning(ax, comp)} ({comp}), {unit}: "
+                         "mean of the runs per target and approach direction")
+            lines.append(f"  {'target_' + pos_unit:>11} {'measured +':>11} {'measured -':>11} "
+                         f"{'model +':>9} {'model -':>9} {'resid +':>9} {'resid -':>9}")
+            for t in targets:
+                at = sel & np.isclose(data.target * f_pos, t, rtol=0, atol=1e-9) & np.isfinite(measured)
+                cells = []
+                for what in ("m", "p"):
+                    for d in (1, -1):
+                        rows = at & (data.dir == d)
+                        src = measured if what == "m" else predicted
+                        cells.append(float(np.mean(src[rows])) if rows.any() else float("nan"))
+                m_up, m_dn, p_up, p_dn = cells
+                row = [m_up, m_dn, p_up, p_dn, m_up - p_up, m_dn - p_dn]
+                widths = (11, 11, 9, 9, 9, 9)
+                text = " ".join(f"{v:{w}.3f}" if np.isfinite(v) else " " * w for v, w in zip(row, widths))
+                lines.append(f"  {t:11.4f} {text}")
+        lines += more
+    return lines
+
+
+# ------------------------------------------------------------------------------ raw parameters
+def parameter_lines(fitted: FittedModel) -> list[str]:
+    """Every fitted parameter of the model with its value and standard error (file units), and the
+    names of those the data do not determine (held at zero error): the ``--verbose`` rows."""
+    mask = _fitted_mask(fitted)
+    std = fitted.params.std_errors
+    lines = [f"{'parameter':<28} {'value':>12} {'std error':>11}  unit"]
+    undetermined = []
+    for i, s in enumerate(fitted.params.specs):
+        if mask is not None and not mask[i]:
+            continue
+        v = fitted.params.values[i] * s.to_file
+        if std is not None and np.isfinite(std[i]):
+            e = f"{std[i] * s.to_file:11.4g}"
+        else:
+            e = f"{'undeterm.':>11}"
+            undetermined.append(s.name)
+        lines.append(f"{s.name:<28} {v:12.5g} {e}  {s.unit}")
+    if undetermined:
+        lines.append(f"{len(undetermined)} parameter(s) the data do not determine alone (their "
+                     f"combinations are held where they predict the least error): {', '.join(undetermined)}")
+    return lines

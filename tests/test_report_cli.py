@@ -1,0 +1,174 @@
+"""The printed reports of `mtcomp identify` and `mtcomp diagnose` in a metrologist's terms (error
+components per axis with their range and its standard error, residuals per file and per laser
+target; parameter rows only with --verbose), and `mtcomp predict` leaving blank what the model does
+not determine. Numbers are checked against numpy means of the file's readings and the predict
+command's output (the component ranges against the polynomial profiles: tests/test_identify_cli.py)."""
+from __future__ import annotations
+
+import csv
+import re
+
+import numpy as np
+import pytest
+
+from laser_files import write_x_positioning
+from mtcomp.cli import main
+from mtcomp.identification.report import component_meaning
+from real_data import ISO230_2
+
+X_TARGETS = [-200.0, -150.0, -100.0, -50.0, 0.0, 50.0, 100.0, 150.0, 200.0]
+
+
+def _x_error_um(t, d):
+    """A positioning error with a reversal of 4 um (mean up minus mean down)."""
+    return 8.0 * np.sin(t / 90.0) + 0.00002 * t ** 2 + 2.0 * d
+
+
+@pytest.fixture(scope="module")
+def x_laser(tmp_path_factory):
+    """Five bidirectional runs of X positioning (ISO 230-2), and a Y positioning run of the same
+    machine."""
+    tmp = tmp_path_factory.mktemp("xlaser")
+    rng = np.random.default_rng(61)
+    x = write_x_positioning(tmp / "x_pos.csv", X_TARGETS, _x_error_um, 5, 0.3, rng)
+    rows = ["axis,component,target_mm,dir,run,value_um"]
+    for run in (1, 2):
+        for t in (-150.0, -50.0, 0.0, 50.0, 150.0):
+            for d in (1, -1):
+                rows.append(f"Y,EYY,{t},{d},{run},{3.0 * np.cos(t / 70.0) + rng.normal(0, 0.3):.4f}")
+    y = tmp / "y_pos.csv"
+    y.write_text("\n".join(rows) + "\n")
+    return tmp, x, y
+
+
+def _table(text, tag, comp):
+    """Rows (target, measured +, measured -, model +, model -, resid +, resid -) of the per-target
+    table of component ``comp`` of laser file ``tag`` in a printed report."""
+    lines = text.splitlines()
+    start = next(i for i, ln in enumerate(lines) if ln.startswith(f"laser {tag},") and f"({comp})" in ln)
+    rows = []
+    for ln in lines[start + 2:]:
+        cells = ln.split()
+        if len(cells) != 7 or not re.fullmatch(r"-?\d+\.\d+", cells[0]):
+            break
+        rows.append([float(c) for c in cells])
+    return np.array(rows)
+
+
+def _means(path, column="value_um"):
+    """(target, dir) -> mean of the file's readings, straight from the CSV."""
+    groups = {}
+    with open(path, newline="") as f:
+        for row in csv.DictReader(f):
+            if row.get(column):
+                groups.setdefault((float(row["target_mm"]), int(row["dir"])), []).append(float(row[column]))
+    return {k: float(np.mean(v)) for k, v in groups.items()}
+
+
+def test_identify_prints_components_and_per_target_table_not_parameter_rows(x_laser, tmp_path, capsys):
+    tmp, x, _ = x_laser
+    model = tmp_path / "m.json"
+    assert main(["identify", "xfyz", str(x), "-o", str(model)]) == 0
+    out = capsys.readouterr().out
+    # the metrologist's terms: the positioning range with its standard error; what a positioning
+    # run cannot see is said so, never printed as a number like 1e-10
+    assert re.search(r"positioning\s+EXX\s+range\s+\d+\.?\d* \+- [\d.e-]+ um", out), out
+    for comp in ("EYX", "EZX", "EAX", "EBX", "ECX"):
+        assert re.search(rf"{comp}\s+range not determined by the data", out), out
+    assert re.search(r"C0Y\s+not determined by the data", out)
+    assert "axes the data did not move: Y, Z" in out
+    # no parameter rows, no null space: only their count
+    assert "EXX_b1" not in out and "undeterm." not in out
+    assert "combination(s) of parameters the data cannot determine" in out
+    # the per-target table: measured means from the file, the model's prediction from predict
+    pred = tmp_path / "pred.csv"
+    assert main(["predict", "xfyz", str(model), str(x), "-o", str(pred)]) == 0
+    capsys.readouterr()
+    table = _table(out, "x_pos", "EXX")
+    measured, predicted = _means(x), _means(pred, "pred_value_um")
+    assert table[:, 0].tolist() == X_TARGETS
+    for t, m_up, m_dn, p_up, p_dn, r_up, r_dn in table:
+        np.testing.assert_allclose([m_up, m_dn], [measured[(t, 1)], measured[(t, -1)]], rtol=0, atol=6e-4)
+        np.testing.assert_allclose([p_up, p_dn], [predicted[(t, 1)], predicted[(t, -1)]], rtol=0, atol=6e-4)
+        np.testing.assert_allclose([r_up, r_dn], [measured[(t, 1)] - predicted[(t, 1)],
+                                                  measured[(t, -1)] - predicted[(t, -1)]], rtol=0, atol=6e-4)
+    # the base model has no reversal: the residuals split it, +2 and -2 um
+    np.testing.assert_allclose(table[:, 5].mean() - table[:, 6].mean(), 4.0, rtol=0, atol=0.5)
+
+
+def test_identify_verbose_prints_parameters_and_combinations(x_laser, tmp_path, capsys):
+    _, x, _ = x_laser
+    assert main(["identify", "xfyz", str(x), "-o", str(tmp_path / "m.json"), "--verbose"]) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"^EXX_b1\s", out, re.M) and "undeterm." in out
+    assert "combination(s) the data cannot determine" in out
+    assert "positioning" in out and "x_pos" in out
+
+
+def test_predict_leaves_blank_what_the_model_does_not_determine(x_laser, tmp_path, capsys):
+    """A model of X alone predicts nothing of Y: its Y positioning readings are blank (not the
+    -1e-9 the held parameters give), while the fitted X file is predicted in full."""
+    _, x, y = x_laser
+    model = tmp_path / "m.json"
+    assert main(["identify", "xfyz", str(x), "-o", str(model)]) == 0
+    for path, blank in ((y, True), (x, False)):
+        out = tmp_path / f"pred_{path.stem}.csv"
+        assert main(["predict", "xfyz", str(model), str(path), "-o", str(out)]) == 0
+        with open(out, newline="") as f:
+            rows = list(csv.DictReader(f))
+        cells = [(r["pred_value_um"], r["pred_value_um_sd"]) for r in rows]
+        if blank:
+            assert all(c == ("", "") for c in cells), cells[:3]
+        else:
+            assert all(p and s for p, s in cells)
+    err = capsys.readouterr().err
+    assert "20 prediction(s) of y_pos rest on what the model's data did not determine" in err
+
+
+@pytest.mark.skipif(not ISO230_2.is_dir(), reason=f"real ISO 230-2 runs absent ({ISO230_2})")
+def test_real_run_report_and_predict(tmp_path, capsys):
+    """The real run of a stage's X (ess_b02_x): positioning 91 um over -20..20 mm, nothing else
+    determined; predicting the same stage's Y run with it gives blanks."""
+    model = tmp_path / "m.json"
+    assert main(["identify", "xfyz", str(ISO230_2 / "ess_b02_x.csv"), "-o", str(model)]) == 0
+    out = capsys.readouterr().out
+    rng_um = float(re.search(r"positioning\s+EXX\s+range\s+([\d.]+) \+-", out).group(1))
+    # the measured means of the file span 123 um (-52.6 .. 70.3); the base model has no reversal
+    # and follows the mean of both directions, whose range is 96 um at the targets
+    m = _means(ISO230_2 / "ess_b02_x.csv")
+    both = [0.5 * (m[(t, 1)] + m[(t, -1)]) for t in sorted({t for t, _ in m})]
+    assert 0.8 * np.ptp(both) < rng_um < 1.1 * np.ptp(both)
+    assert re.search(r"EYX\s+range not determined by the data", out)
+    pred = tmp_path / "pred.csv"
+    assert main(["predict", "xfyz", str(model), str(ISO230_2 / "ess_b02_y.csv"), "-o", str(pred)]) == 0
+    with open(pred, newline="") as f:
+        assert all(r["pred_value_um"] == "" for r in csv.DictReader(f))
+
+
+def test_component_names_a_metrologist_uses():
+    expected = {("X", "EXX"): "positioning", ("X", "EYX"): "straightness in Y", ("X", "EAX"): "roll",
+                ("X", "EBX"): "pitch", ("X", "ECX"): "yaw", ("Y", "EAY"): "pitch", ("Y", "EBY"): "roll",
+                ("Y", "ECY"): "yaw", ("Z", "ECZ"): "roll", ("Z", "EAZ"): "tilt about X",
+                ("C", "ECC"): "angular positioning", ("C", "EZC"): "axial", ("C", "EXC"): "radial in X",
+                ("C", "EAC"): "tilt about X", ("A", "EXA"): "axial", ("A", "EYA"): "radial in Y"}
+    assert {k: component_meaning(*k) for k in expected} == expected
+
+
+def test_diagnose_prints_components_and_residuals_parameters_only_verbose(x_laser, tmp_path, capsys):
+    """The diagnosis of the X run finds the 4 um reversal; its report gives the final model's
+    components, the file's rms (the final rms of the report) and the per-target table, whose
+    residuals no longer split the reversal; --verbose adds the parameter rows."""
+    _, x, _ = x_laser
+    args = ["diagnose", "xfyz", str(x), "--json", str(tmp_path / "r.json"), "-q"]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"positioning\s+EXX\s+range\s+[\d.]+ \+- [\d.e-]+ um", out), out
+    assert re.search(r"EYX\s+range not determined by the data", out)
+    final = float(re.search(r"final model \(\d+ parameters, dof \d+\): rms ([\d.]+) um", out).group(1))
+    file_rms = float(re.search(r"^x_pos\s+laser\s+\d+\s+value_um ([\d.]+)", out, re.M).group(1))
+    np.testing.assert_allclose(file_rms, final, rtol=2e-3, atol=0)
+    table = _table(out, "x_pos", "EXX")
+    assert abs(table[:, 5].mean() - table[:, 6].mean()) < 0.5
+    assert "EXX_b1" not in out
+    assert main(args + ["--verbose"]) == 0
+    assert re.search(r"^EXX_b1\s", capsys.readouterr().out, re.M)
