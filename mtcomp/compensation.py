@@ -47,7 +47,8 @@ class CompensationSettings:
     subdivide_tol_um : internal nodes where the corrected path would miss a midpoint by more (0: none).
     chord_tol_um : chord tolerance of arcs written as lines.
     temperatures : sensor name -> degC while the program runs; spindle_rpm : warm spindle speed.
-    extrapolate : correct blocks outside the region the model's data reached too.
+    extrapolate : correct blocks outside the region the model's data reached too, and at
+        temperatures and spindle speeds outside the range of the model's thermal record (else refused).
     max_correction_sd_um : the limit on a correction's standard error (um); None: the default; 0: none.
     units : 'mm' or 'inch' for a program without G20/G21 (None: the machine file's, else mm).
     start_position : axis name -> position (mm, deg) of axes known before the program starts.
@@ -210,7 +211,8 @@ class Judge:
         from .thermal.context import thermal_context
         self.label = label
         self.fitted = fitted
-        thermal, _ = thermal_context(fitted, settings.temperatures, settings.spindle_rpm)
+        thermal, _ = thermal_context(fitted, settings.temperatures, settings.spindle_rpm,
+                                     settings.extrapolate)
         fitted.context_defaults.update(thermal)
         self.ev = Evaluator(CompensationProblem.from_machine(fitted))
         self.count = 0
@@ -295,7 +297,8 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     t0 = time.perf_counter()
     machine = fitted.machine
     settings.check()
-    thermal, assumed = thermal_context(fitted, settings.temperatures, settings.spindle_rpm)
+    thermal, assumed = thermal_context(fitted, settings.temperatures, settings.spindle_rpm,
+                                       settings.extrapolate)
     fitted.context_defaults.update(thermal)
     setup = setup if setup is not None else ProgramSetup(machine)
     notes = []

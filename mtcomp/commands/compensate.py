@@ -47,13 +47,20 @@ def add_arguments(parser):
     parser.add_argument("--temperature", metavar="NAME=DEGC", action="append", default=[],
                         help="temperature of sensor NAME (as in temp_NAME_c of the thermal file) while "
                              "the program runs, for the model's thermal drift (repeatable; sensors not "
-                             "given keep the model's reference)")
+                             "given keep the model's reference; refused outside the range of the "
+                             "model's thermal record unless --extrapolate)")
+    parser.add_argument("--temperatures", metavar="READINGS.csv", default=None,
+                        help="one row of temperature readings while the program runs, a column "
+                             "temp_NAME_c per sensor as in the thermal file (--temperature wins for "
+                             "a sensor given both ways; a time series is not supported yet)")
     parser.add_argument("--spindle-rpm", type=float, metavar="RPM", default=None,
                         help="spindle speed the machine has run at long enough to be warm, for the "
                              "model's spindle-heat drift (default: spindle stopped for long)")
     parser.add_argument("--extrapolate", action="store_true",
                         help="correct blocks outside the region the model's data reached too "
-                             "(default: they get no correction, and the summary counts them)")
+                             "(default: they get no correction, and the summary counts them), and "
+                             "accept temperatures and spindle speeds outside the range of the "
+                             "model's thermal record (default: refused)")
     parser.add_argument("--max-correction-sd-um", type=float, metavar="SD", default=None,
                         help="leave a block uncorrected where its correction's standard error (from "
                              "the model's covariance) exceeds SD um: the model is unsure there "
@@ -96,7 +103,7 @@ def run(args) -> int:
     from ..io.atomic import atomic_write, check_output_path
     from ..machine import load_machine
     from ..models.model_file import load_model
-    from ..thermal.context import parse_assignments
+    from ..thermal.context import parse_assignments, thermal_context
     from ..toolpaths.offsets import load_setup
 
     t0 = time.perf_counter()
@@ -108,7 +115,7 @@ def run(args) -> int:
         _positive(v, flag)
     _positive(args.subdivide_tol_um, "--subdivide-tol-um", allow_zero=True)
     _positive(args.max_correction_sd_um, "--max-correction-sd-um", allow_zero=True)
-    inputs = [args.program, args.model]
+    inputs = [args.program, args.model] + ([args.temperatures] if args.temperatures else [])
     out = check_output_path(args.output, inputs)
     report = None
     if args.report is not None:
@@ -122,12 +129,19 @@ def run(args) -> int:
             raise InputError("--json names the same file as -o or --report", args.json)
     machine = load_machine(args.machine)
     fitted = load_model(args.model, machine)
+    temperatures, unread = {}, []
+    if args.temperatures:
+        from ..thermal.context import read_temperature_row
+        temperatures, unread = read_temperature_row(args.temperatures)
+    temperatures.update(parse_assignments(args.temperature, "--temperature"))
+    # the thermal state is checked against the model before any work, the model file named
+    thermal_context(fitted, temperatures, args.spindle_rpm, args.extrapolate, source=args.model)
     settings = CompensationSettings(
         method=args.method, max_correction_um=args.max_correction_um,
         max_correction_urad=args.max_correction_urad, max_step_um=args.max_step_um,
         max_step_urad=args.max_step_urad, orientation_weight=args.orientation_weight,
         subdivide_tol_um=args.subdivide_tol_um, chord_tol_um=args.chord_tol_um,
-        temperatures=parse_assignments(args.temperature, "--temperature"),
+        temperatures=temperatures,
         spindle_rpm=args.spindle_rpm, extrapolate=args.extrapolate,
         max_correction_sd_um=args.max_correction_sd_um, units=args.units,
         start_position=parse_start_position(machine, args.start_position))
@@ -153,6 +167,9 @@ def run(args) -> int:
           f"{time.perf_counter() - t0:.1f} s")
     if run_.assumed:
         print(run_.assumed)
+    if "spindle_rpm" in unread:
+        print(f"note: {args.temperatures}: column spindle_rpm not read (the spindle's state is "
+              "--spindle-rpm)")
     print(run_.summary.text())
     for line in run_.notes:
         print(line)

@@ -27,7 +27,8 @@ def add_arguments(parser):
     parser.add_argument("--channel-axis", metavar="NAME=AXIS", action="append", default=[],
                         help="thermal file: channel disp_NAME_um reads the tool tip along machine axis "
                              "AXIS (X, Y or Z), so its drift acts where compensation needs it "
-                             "(repeatable; channels named x, y, z need none)")
+                             "(repeatable; channels named x, y, z, or named in a column axis_NAME "
+                             "of the file, need none)")
     parser.add_argument("--plot", metavar="DRIFT.png", default=None,
                         help="thermal file: draw each channel's drift over time, measured and "
                              "predicted forward in time (ISO 230-3 style)")
@@ -87,6 +88,10 @@ def run(args) -> int:
         # a thermal record alone: drift models validated forward in time (docs/thermal.md)
         from ..thermal import diagnose_thermal
         result = diagnose_thermal(machine, datasets[0], channel_axes or None, progress)
+    elif sum(d.kind == "thermal" for d in datasets) == 1:
+        # a thermal record beside geometric files: each on its own path, one report and one model
+        from ..thermal import diagnose_with_record
+        result = diagnose_with_record(machine, datasets, channel_axes or None, progress, start)
     else:
         result = diagnose(machine, datasets, progress=progress, channel_axes=channel_axes or None,
                           start=start)

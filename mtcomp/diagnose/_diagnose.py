@@ -117,12 +117,14 @@ def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int 
     """Diagnose the base model of ``machine`` on ``datasets`` (measurement sets, mtcomp.io).
 
     progress : callable(str) for progress lines, or None.
-    channel_axes : thermal channel name -> machine axis (X, Y, Z) it reads (channels x, y, z need none).
+    channel_axes : refused (InputError), as thermal files with ``axis_<name>`` columns are: here
+        channels x, y, z read the tip; another channel's axis is for one record (mtcomp.thermal).
     start : a FittedModel (MODEL.json of ``identify``) of this machine: its base (knots, Fourier
         orders) is the base diagnosed, and its values the point the base fit starts from; extension
         terms it carries are not taken (diagnose finds its own).
     A single thermal file is diagnosed by :func:`mtcomp.thermal.diagnose_thermal` (drift models
-    validated forward in time, docs/thermal.md; ``mtcomp diagnose`` chooses it for such a file).
+    validated forward in time, docs/thermal.md; ``mtcomp diagnose`` chooses it for such a file),
+    one beside geometric files by :func:`mtcomp.thermal.diagnose_with_record`.
     Returns a :class:`Diagnosis`. Raises InputError when the data cannot be diagnosed.
     """
     from ._blas import single_threaded_blas
@@ -130,8 +132,17 @@ def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int 
         raise InputError("a thermal file alone is diagnosed by mtcomp.thermal.diagnose_thermal (drift "
                          "models validated forward in time), not by the geometric diagnosis",
                          str(datasets[0].path))
+    # the general search reads channels x, y, z as the tip; other axes are named for one record
+    # (mtcomp.thermal: alone, or beside geometric files)
+    join = "join the records of one set-up into one file in time order (docs/thermal.md)"
     if channel_axes:
-        raise InputError("--channel-axis applies to the diagnosis of one thermal file alone")
+        raise InputError(f"--channel-axis applies to one thermal record, alone or beside geometric "
+                         f"files, not to several: {join}")
+    for d in datasets:
+        named = [h.strip() for h in d.header if h.strip().lower().startswith("axis_")]
+        if d.kind == "thermal" and named:
+            raise InputError(f"column {named[0]}: a channel's axis is read from one thermal record, "
+                             f"alone or beside geometric files, not from several: {join}", str(d.path))
     from ._resolution import MAX_REFINEMENTS
     say = progress or (lambda s: None)
     refine: dict = {}

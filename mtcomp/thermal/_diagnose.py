@@ -9,7 +9,9 @@ without temperatures gets the mean drift of the file).
 """
 from __future__ import annotations
 
+import re
 import time
+from pathlib import Path
 
 import numpy as np
 from scipy.stats import f as f_dist
@@ -23,22 +25,80 @@ from ._fit import (_rms, feature_matrix, fit_ridge, fit_thermal, forward_folds, 
                    usable_temperatures)
 
 
-def channel_axes_for(channels, channel_axes: dict | None, path=None) -> dict:
-    """Channel name -> machine axis letter (X, Y, Z) it reads: channels x, y, z, plus ``channel_axes``.
-    InputError for an unknown channel, an axis other than X, Y, Z or two channels on one axis."""
+#: the column of a thermal file that names the machine axis channel ``disp_<name>_um`` reads
+AXIS_COLUMN = re.compile(r"^axis_(.+)$")
+
+
+def declared_channel_axes(data) -> dict:
+    """Channel name -> axis letter (X, Y, Z) the thermal file ``data`` declares in its columns
+    ``axis_<name>`` (docs/thermal.md): every cell X, Y or Z (any case) or blank, the given ones alike.
+    A column whose every cell is blank declares nothing. InputError naming the row otherwise, or for
+    a column that names no channel of the file."""
+    out = {}
+    names = [h.strip().lower() for h in data.header]
+    for j, name in enumerate(names):
+        m = AXIS_COLUMN.match(name)
+        if not m:
+            continue
+        ch = m.group(1)
+        if ch not in data.channels:
+            data.fail(f"column {name} names channel {ch!r}, but the file's channels are "
+                      f"{', '.join(data.channels)} (disp_<name>_um)")
+        axis = None
+        for i, cells in enumerate(data.rows):
+            cell = cells[j].strip().upper()
+            if not cell:
+                continue
+            if cell not in ("X", "Y", "Z"):
+                data.fail(f"column {name}: {cells[j].strip()!r} is not a machine axis (X, Y or Z)", i)
+            if axis is not None and cell != axis:
+                data.fail(f"column {name}: {cell} where the rows before say {axis} (a channel reads "
+                          "one axis for the whole record)", i)
+            axis = cell
+        if axis is not None:
+            out[ch] = axis
+    return out
+
+
+def channel_axes_for(channels, channel_axes: dict | None, path=None, declared: dict | None = None) -> dict:
+    """Channel name -> machine axis letter (X, Y, Z) it reads: channels x, y, z, those the file
+    declares (``declared``, :func:`declared_channel_axes`) and ``channel_axes`` (``--channel-axis``).
+    InputError for an unknown channel, an axis other than X, Y, Z, a flag that contradicts the file
+    or two channels on one axis."""
     out = {ch: ch.upper() for ch in channels if ch in ("x", "y", "z")}
+    for ch, axis in (declared or {}).items():
+        if ch in out and out[ch] != axis:
+            raise InputError(f"column axis_{ch} says channel {ch} reads {axis}, but a channel named "
+                             f"{ch} reads {out[ch]}", path)
+        out[ch] = axis
     for ch, axis in (channel_axes or {}).items():
         if ch not in channels:
             raise InputError(f"--channel-axis names channel {ch!r}, but the file has "
                              f"{', '.join(channels)}", path)
         if axis.upper() not in ("X", "Y", "Z"):
             raise InputError(f"--channel-axis {ch}={axis}: the axis must be X, Y or Z", path)
+        if ch in out and out[ch] != axis.upper():
+            said = f"column axis_{ch}" if ch in (declared or {}) else f"the channel's name {ch}"
+            raise InputError(f"--channel-axis {ch}={axis.upper()} contradicts {said}, which says "
+                             f"{out[ch]}", path)
         out[ch] = axis.upper()
     seen = {}
     for ch, axis in out.items():
         if axis in seen:
             raise InputError(f"channels {seen[axis]} and {ch} both read axis {axis}", path)
         seen[axis] = ch
+    return out
+
+
+def context_ranges(fit) -> dict:
+    """The thermal state the record spans, as MODEL.json's ``info["context_ranges"]``: ``temp_<s>``
+    -> [lowest, highest] reading (degC) of each sensor the drift reads, and ``spindle_rpm`` ->
+    [lowest, highest] speed (rev/min) when it reads spindle heat. compensate refuses a state outside
+    them unless told to extrapolate (:func:`mtcomp.thermal.context.thermal_context`)."""
+    out = {f"temp_{s}": [lo, hi] for s, (lo, hi) in fit.temperature_ranges.items()}
+    rpm = fit.spindle_rpm[np.isfinite(fit.spindle_rpm)]
+    if any(f.startswith("spindle_") for f in fit.chosen.features) and rpm.size:
+        out["spindle_rpm"] = [float(rpm.min()), float(rpm.max())]
     return out
 
 
@@ -87,8 +147,13 @@ def diagnose_thermal(machine, data, channel_axes: dict | None = None, progress=N
     from ..diagnose.result import Diagnosis, Finding, _r
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
+    axes = channel_axes_for(list(data.channels), channel_axes, data.path, declared_channel_axes(data))
+    if not axes:
+        say(f"note: no channel of {Path(str(data.path)).name} reads a machine axis (channels "
+            f"{', '.join(data.channels)}): its drift is modelled per channel and compensate cannot "
+            "correct it; say which axis a channel reads with --channel-axis NAME=AXIS or a column "
+            "axis_<name>")
     fit = fit_thermal(data)
-    axes = channel_axes_for(fit.channels, channel_axes, data.path)
     c = fit.chosen
     # the table itself is the summary's (printed once, at the end)
     say(f"{len(fit.scores)} drift models compared forward in time on {len(fit.channels)} channel(s); "
@@ -145,7 +210,8 @@ def diagnose_thermal(machine, data, channel_axes: dict | None = None, progress=N
         params[name] = v
     defaults = {f"temp_{s}": v for s, v in fit.temperature_means.items()}
     info = {"fitted_by": "mtcomp diagnose (thermal drift)", "drift_features": list(c.features),
-            "time_constants_s": c.time_constants_s}
+            "time_constants_s": c.time_constants_s,
+            "context_ranges": context_ranges(fit) if c.driver != "none" else {}}
     fitted = FittedModel(model, params, defaults, info,
                          uncertainty=drift_uncertainty(fit, axes) if c.driver != "none" else None)
     how = (f"forward-chained in time: the readings cut into {fit.n_folds + 1} blocks, each of the last "

@@ -186,6 +186,8 @@ class ThermalFit:
     fitted_um : (n, m) the model's readings at the file's rows; measured_um : (n, m) the readings.
     forward_um : (n, m) each block predicted from the blocks before it (NaN in the first block).
     t_s : (n,) time of the rows (in time order, as every array here); spindle_rpm : (n,).
+    temperature_means, temperature_ranges : sensor -> mean, (lowest, highest) reading over the
+        record (degC), for the sensors the chosen model reads.
     """
 
     channels: list
@@ -205,6 +207,7 @@ class ThermalFit:
     #: (m, k + 1, k + 1) posterior covariance of each channel's (coefficients, intercept), um
     #: per feature unit (:func:`ridge_covariance`)
     covariance: np.ndarray | None = None
+    temperature_ranges: dict = field(default_factory=dict)
 
     def summary(self) -> str:
         lines = [f"thermal drift ({len(self.t_s)} readings over {np.ptp(self.t_s) / 3600:.3g} h, "
@@ -283,14 +286,15 @@ def fit_thermal(data, lags_s=DEFAULT_LAGS_S, n_folds: int = N_FOLDS, penalties=P
     chosen = choose(scores)
     X = feature_matrix(ctx, chosen.features)
     ridge = fit_ridge(X, Y, chosen.penalty)
-    temp_means = {f[5:]: float(np.mean(X[:, i])) for i, f in enumerate(chosen.features)
-                  if f.startswith("temp_")}
+    temps = [(f[5:], X[:, i]) for i, f in enumerate(chosen.features) if f.startswith("temp_")]
+    temp_means = {s: float(np.mean(v)) for s, v in temps}
     return ThermalFit(channels, chosen, scores, ridge, robust_noise_um(Y),
                       np.max(np.abs(Y - Y[0]), axis=0), ridge.predict(X), Y,
                       np.asarray(ctx.t, dtype=float), forward_predictions(X, Y, chosen.penalty, folds),
                       np.asarray(ctx.spindle_rpm, dtype=float), n_folds, temp_means,
                       [s for s in ctx.temperatures if s not in usable_temperatures(ctx)],
-                      ridge_covariance(X, Y, ridge))
+                      ridge_covariance(X, Y, ridge),
+                      {s: (float(np.min(v)), float(np.max(v))) for s, v in temps})
 
 
 def choose(scores: list[CandidateScore]) -> CandidateScore:

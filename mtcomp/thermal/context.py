@@ -1,6 +1,8 @@
 """The thermal state a program is compensated for: temperatures and spindle speed given on the
-command line become the context of the model's drift terms (``temp_<name>`` in degC,
-``spindle_lag_<tau>`` / ``spindle_heat_<tau>`` in 1000 rpm at steady state)."""
+command line (or one row of readings, :func:`read_temperature_row`) become the context of the
+model's drift terms (``temp_<name>`` in degC, ``spindle_lag_<tau>`` / ``spindle_heat_<tau>`` in
+1000 rpm at steady state), checked against the range of the thermal record the model was fitted on
+(MODEL.json's ``info["context_ranges"]``, docs/thermal.md)."""
 from __future__ import annotations
 
 import math
@@ -9,6 +11,7 @@ import re
 from ..errors import InputError
 
 _LAG = re.compile(r"^spindle_(lag|heat)_\d+(\.\d+)?$")
+_TEMP_COLUMN = re.compile(r"^temp_(.+)_c$")
 
 
 def parse_assignments(items, flag: str) -> dict:
@@ -26,40 +29,125 @@ def parse_assignments(items, flag: str) -> dict:
     return out
 
 
-def thermal_context(fitted, temperatures: dict | None = None, spindle_rpm: float | None = None
-                    ) -> tuple[dict, str]:
+def read_temperature_row(path) -> tuple[dict, list]:
+    """(sensor name -> degC, columns not read) of ``--temperatures FILE``: a CSV file with a header
+    and one row of readings, one column ``temp_<name>_c`` per sensor (as in the thermal file; a blank
+    cell gives no reading). Columns other than the temperatures (``t_s``, ``spindle_rpm``, ...) are
+    not read. A time series (several rows) is refused: not supported yet. InputError naming the file
+    and the row otherwise."""
+    from ..io.csvtable import parse_floats, read_csv_table
+    table = read_csv_table(path)
+    if len(table.rows) > 1:
+        what = "a time series of readings (t_s)" if table.has("t_s") else "several rows of readings"
+        table.fail(f"{len(table.rows)} rows: {what} is not supported yet; give one row, the "
+                   "temperatures while the program runs", 1)
+    temps, other = {}, []
+    for name in table.names:
+        m = _TEMP_COLUMN.match(name)
+        if not m:
+            other.append(name)
+            continue
+        v = float(parse_floats(table.cells(name), name, table.path, table.row)[0])
+        if math.isfinite(v):
+            temps[m.group(1)] = v
+    if not temps:
+        table.fail("no temperature in the row: expected columns temp_<name>_c (degC) with a value, "
+                   "as in the thermal file", 0)
+    return temps, other
+
+
+def _drift_terms(model):
+    from ..models.terms import ChannelDrift, ThermalDrift
+    tip = [t for t in model.terms if isinstance(t, ThermalDrift)]
+    channel = [t for t in model.terms if isinstance(t, ChannelDrift)]
+    return tip, channel
+
+
+def _check_range(what: str, value: float, unit: str, rng, extrapolate: bool, source, hint: str = ""):
+    """'' inside ``rng`` ([lowest, highest]) or without one; beyond it: InputError, or with
+    ``extrapolate`` the words that say so."""
+    if not rng:
+        return ""
+    lo, hi = (float(x) for x in rng)
+    if lo <= value <= hi:
+        return ""
+    span = f"{lo:.4g} to {hi:.4g} {unit}"
+    if not extrapolate:
+        raise InputError(f"{what} {value:g} {unit} is outside the range the model's thermal record "
+                         f"spans ({span}){hint}: refused; give --extrapolate to correct beyond it",
+                         source)
+    return f" (beyond the record's {span})"
+
+
+def _degf_hint(value: float, rng) -> str:
+    """A clause saying what the value would be in degC if it was written in degF, when that falls
+    inside ``rng`` (a likely slip); '' otherwise."""
+    c = (value - 32.0) / 1.8
+    if rng and float(rng[0]) <= c <= float(rng[1]):
+        return f"; as degF it would be {c:.3g} degC, inside it: temperatures are in degC"
+    return ""
+
+
+def thermal_context(fitted, temperatures: dict | None = None, spindle_rpm: float | None = None,
+                    extrapolate: bool = False, source=None) -> tuple[dict, str]:
     """(context values to use, one sentence saying what is assumed) for the drift terms of
     ``fitted`` (a FittedModel). ``temperatures``: sensor name -> degC; ``spindle_rpm``: the speed the
     spindle has run at long enough to reach steady state. Sensors not given keep the model's
-    reference (the mean over the thermal record it was fitted on). InputError for a sensor or a
-    spindle speed the model does not use."""
-    names = fitted.model.context_names
-    temps = [n[5:] for n in names if n.startswith("temp_")]
-    lags = [n for n in names if _LAG.match(n)]
-    out = {}
+    reference (the mean over the thermal record it was fitted on).
+
+    InputError (naming ``source``, the model file, when given) for a sensor or a spindle speed the
+    model's tool-tip drift does not use, for a thermal state given to a model whose drift maps to no
+    machine axis (it would correct nothing), and, unless ``extrapolate``, for a temperature or speed
+    outside the range of the record (``info["context_ranges"]``)."""
+    tip, channel = _drift_terms(fitted.model)
+    given = bool(temperatures) or spindle_rpm is not None
+    if channel and not tip:
+        chans = ", ".join(c for t in channel for c in t.channels)
+        if given:
+            raise InputError(f"a temperature or spindle speed was given, but the model's thermal drift "
+                             f"reads channels {chans}, none of which maps to a machine axis, so it "
+                             "corrects nothing: diagnose the thermal record again with --channel-axis "
+                             "NAME=AXIS (or a column axis_<name> in it)", source)
+        return {}, (f"thermal drift not compensated: the model's drift reads channels {chans}, none of "
+                    "which maps to a machine axis")
+    features = [f for t in tip for f in t.features]
+    temps = list(dict.fromkeys(f[5:] for f in features if f.startswith("temp_")))
+    lags = list(dict.fromkeys(f for f in features if _LAG.match(f)))
+    ranges = fitted.info.get("context_ranges") if isinstance(fitted.info, dict) else None
+    ranges = ranges if isinstance(ranges, dict) else None
+    out, beyond = {}, {}
     for sensor, v in (temperatures or {}).items():
         if sensor not in temps:
-            raise InputError(f"--temperature {sensor}: the model has no drift term that reads that "
-                             f"sensor (it reads: {', '.join(temps) or 'none'})")
+            raise InputError(f"temperature {sensor}: the model has no drift term that reads that "
+                             f"sensor (it reads: {', '.join(temps) or 'none'})", source)
+        rng = (ranges or {}).get(f"temp_{sensor}")
+        beyond[sensor] = _check_range(f"temperature of sensor {sensor}:", float(v), "degC", rng,
+                                      extrapolate, source, _degf_hint(float(v), rng))
         out[f"temp_{sensor}"] = float(v)
     if spindle_rpm is not None:
         if not math.isfinite(spindle_rpm) or spindle_rpm < 0:
             raise InputError(f"--spindle-rpm must be a speed of 0 or more, got {spindle_rpm:g}")
         if not lags:
-            raise InputError("--spindle-rpm: the model has no drift term that reads spindle heat")
+            raise InputError("--spindle-rpm: the model has no drift term that reads spindle heat", source)
+        rpm_beyond = _check_range("--spindle-rpm", float(spindle_rpm), "rpm",
+                                         (ranges or {}).get("spindle_rpm"), extrapolate, source)
         out.update({n: spindle_rpm / 1000.0 for n in lags})
     if not temps and not lags:
         return out, ""
     parts = []
     if temps:
-        given = [s for s in temps if f"temp_{s}" in out]
-        rest = [s for s in temps if s not in given]
-        if given:
-            parts.append("temperatures " + ", ".join(f"{s}={out['temp_' + s]:g} degC" for s in given))
+        done = [s for s in temps if f"temp_{s}" in out]
+        rest = [s for s in temps if s not in done]
+        if done:
+            parts.append("temperatures " + ", ".join(f"{s}={out['temp_' + s]:g} degC{beyond[s]}"
+                                                      for s in done))
         if rest:
-            parts.append(f"{'other ' if given else ''}temperatures ({', '.join(rest)}) at the model's "
+            parts.append(f"{'other ' if done else ''}temperatures ({', '.join(rest)}) at the model's "
                          "reference, their mean over the thermal record")
     if lags:
-        parts.append(f"spindle heat at steady state of {spindle_rpm:g} rpm" if spindle_rpm is not None
-                     else "spindle stopped for long (no spindle heat)")
+        parts.append(f"spindle heat at steady state of {spindle_rpm:g} rpm{rpm_beyond}"
+                     if spindle_rpm is not None else "spindle stopped for long (no spindle heat)")
+    if given and ranges is None:
+        parts.append("the model file records no range of its thermal record: the values given are "
+                     "not checked against it")
     return out, "thermal drift assumed: " + "; ".join(parts)

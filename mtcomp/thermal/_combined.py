@@ -1,0 +1,125 @@
+"""`diagnose` of a thermal record beside geometric files: one report and one model.
+
+The two are diagnosed on their own paths and joined. The geometric files (laser, points, ballbar ...)
+go through the general search of :func:`mtcomp.diagnose.diagnose`, exactly as without the record;
+the record goes through :func:`diagnose_thermal` (drift models validated forward in time). A fixed
+set-up's drift record says nothing about the geometry of the axes, and tens of thousands of drift
+readings, stacked with a hundred laser readings in one search, would drown their findings (an X
+backlash of 6 um was lost that way on the 46 h spindle record); each path judges its own data.
+
+The model is the geometric model plus the drift terms (``ThermalDrift`` on the tool tip for the
+channels that read a machine axis, ``ChannelDrift`` for the others), their covariances side by side
+(the two fits share no data), the record's temperature means as the context defaults and its ranges
+in ``info["context_ranges"]``.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..diagnose.result import Diagnosis
+from ..errors import InputError
+from ..models.chain import ErrorModel
+from ..models.model_file import FittedModel
+from ..models.params import ParameterSet
+from ._diagnose import channel_axes_for, declared_channel_axes, diagnose_thermal
+
+#: the record's keys that ``info`` takes from the thermal diagnosis's model
+_THERMAL_INFO = ("drift_features", "time_constants_s", "context_ranges")
+
+
+@dataclass
+class RecordDiagnosis(Diagnosis):
+    """A :class:`~mtcomp.diagnose.result.Diagnosis` of geometric files and a thermal record;
+    ``record``: the record's own verdict, noise, base, final and held-out scheme (REPORT.json's
+    ``thermal``)."""
+
+    record: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {**super().to_dict(), "thermal": self.record}
+
+
+def diagnose_with_record(machine, datasets, channel_axes: dict | None = None, progress=None, start=None):
+    """Diagnosis (mtcomp.diagnose.result.Diagnosis) of exactly one thermal file among geometric ones.
+
+    channel_axes : channel -> machine axis (X, Y, Z), beside the record's own ``axis_<name>`` columns.
+    start : the start model of the geometric diagnosis (``--start``).
+    The report's ``base`` and ``final`` are the geometric files'; ``findings`` holds the geometric
+    findings, then the record's; ``thermal`` (REPORT.json) the record's own base, final and noise.
+    InputError when the data are not one thermal file and at least one other."""
+    from ..diagnose import diagnose
+    t0 = time.perf_counter()
+    say = progress or (lambda s: None)
+    records = [d for d in datasets if d.kind == "thermal"]
+    geometric = [d for d in datasets if d.kind != "thermal"]
+    if len(records) != 1 or not geometric:
+        raise InputError("a thermal record beside geometric files: give one thermal file and at least "
+                         "one other")
+    record = records[0]
+    # the channels' axes are checked before the long geometric search
+    channel_axes_for(list(record.channels), channel_axes, record.path, declared_channel_axes(record))
+    name = Path(str(record.path)).name
+    say(f"geometric files ({len(geometric)}): the general search, without the thermal record")
+    geo = diagnose(machine, geometric, progress=progress, start=start)
+    say(f"thermal record {name}: drift models validated forward in time")
+    th = diagnose_thermal(machine, record, channel_axes, progress)
+    model = _joined_model(geo.model, th.model, record.path)
+    verdicts = {geo.verdict, th.verdict}
+    verdict = next(v for v in ("unexplained", "explained", "none") if v in verdicts)
+    reference = dict(th.reference) if th.reference.get("linear_regression_all_temperatures") else {}
+    reference.update(geo.reference)
+    record_report = {"file": str(record.path), **{k: v for k, v in th.to_dict().items()
+                                                  if k in ("verdict", "noise_um", "base", "final", "heldout")}}
+    diag = RecordDiagnosis(verdict, geo.noise, geo.base, list(geo.findings) + list(th.findings), geo.final,
+                           model, f"{geo.folds}; thermal record {name}: {th.folds}", geo.n_obs + th.n_obs,
+                           rejected=list(geo.rejected), reference=reference, outliers=list(geo.outliers),
+                           thermal=th.thermal, record=record_report)
+    diag.seconds = time.perf_counter() - t0
+    model.info["diagnose"] = diag.to_dict()
+    return diag
+
+
+def _joined_model(geo: FittedModel, drift: FittedModel, record_path) -> FittedModel:
+    """The geometric model plus the drift model's terms, values, covariance, defaults and ranges."""
+    terms = list(geo.model.terms) + list(drift.model.terms)
+    try:
+        model = ErrorModel(geo.model.machine, terms)
+    except ValueError as exc:
+        raise InputError(f"the geometric files' own drift and the thermal record's drift cannot be held "
+                         f"in one model ({exc}): diagnose the record alone, or the geometric files "
+                         "without their time and temperature columns", record_path) from None
+    params = ParameterSet(model.param_specs)
+    std = np.full(len(params), np.nan)
+    # the drift model's base is the machine's default one, all zero: only its drift terms are taken
+    drift_names = {ps.name for t in drift.model.terms for ps in t.param_specs(drift.model.machine)}
+    for part, names in ((geo, set(geo.params.names)), (drift, drift_names)):
+        se = part.params.std_errors
+        for i, nm in enumerate(part.params.names):
+            if nm in names:
+                params[nm] = part.params.values[i]
+                if se is not None:
+                    std[params.index(nm)] = se[i]
+    params.std_errors = std
+    info = dict(geo.info)
+    info.update({k: drift.info[k] for k in _THERMAL_INFO if k in drift.info})
+    info["thermal_record"] = str(record_path)
+    return FittedModel(model, params, {**geo.context_defaults, **drift.context_defaults}, info,
+                       geo.support, _joined_uncertainty(geo.uncertainty, drift.uncertainty), geo.held)
+
+
+def _joined_uncertainty(a: dict | None, b: dict | None) -> dict | None:
+    """Two fits on different data: their covariances side by side, the undetermined directions of
+    each padded with zeros for the other's parameters."""
+    if a is None or b is None:
+        return a if b is None else b
+    import scipy.linalg
+    na, nb = len(a["names"]), len(b["names"])
+    und = scipy.linalg.block_diag(np.asarray(a["undetermined"]).reshape(na, -1),
+                                  np.asarray(b["undetermined"]).reshape(nb, -1))
+    return {"names": tuple(a["names"]) + tuple(b["names"]),
+            "covariance": scipy.linalg.block_diag(a["covariance"], b["covariance"]),
+            "undetermined": und.reshape(na + nb, -1)}
