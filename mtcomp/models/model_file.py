@@ -70,14 +70,17 @@ class FittedModel:
     uncertainty: dict | None = None
     held: dict | None = None
 
+    def drift_param_indices(self) -> list[int]:
+        """Indices into ``params`` of every drift term's parameters."""
+        return [self.params.index(spec.name) for term in self.model.terms
+                if isinstance(term, (ThermalDrift, ChannelDrift))
+                for spec in term.param_specs(self.machine)]
+
     def datum_params(self) -> np.ndarray:
         """(n_params,) the values with every drift term's at zero: the machine as the part's datum
         was probed (the drift terms' own zero, the start of the thermal record)."""
         p = np.array(self.params.values, dtype=float, copy=True)
-        for term in self.model.terms:
-            if isinstance(term, (ThermalDrift, ChannelDrift)):
-                for spec in term.param_specs(self.machine):
-                    p[self.params.index(spec.name)] = 0.0
+        p[self.drift_param_indices()] = 0.0
         return p
 
     def datum_context(self, tool_length) -> np.ndarray:
@@ -96,8 +99,16 @@ class FittedModel:
         :meth:`datum_context`), evaluated where the model is (:meth:`clamp`)."""
         from .evaluate import evaluate
         datum = np.atleast_2d(np.asarray(datum, dtype=float))
-        return evaluate(self.model, name, self.clamp(datum)[0], self.datum_params(),
-                        self.datum_context(tool_length))[0]
+        out = evaluate(self.model, name, self.clamp(datum)[0], self.datum_params(),
+                       self.datum_context(tool_length))[0]
+        if name.endswith("pjacobian_function"):
+            # the datum's deviation is taken with the drift parameters at zero, whatever their
+            # fitted values: it does not depend on them (without this the intercept of an absolute
+            # drift model cancelled against the datum while its temperature terms did not, and a
+            # drift at the record's own temperatures had a standard error of 4 um)
+            out = np.array(out, copy=True)
+            out[..., self.drift_param_indices()] = 0.0
+        return out
 
     def datum_deviation(self, datum, tool_length) -> np.ndarray:
         """(n, 3) mm: the tool tip's deviation at the part's datum as it was probed
