@@ -25,9 +25,11 @@ ONE_WAY = {("thermal", "diagnose")}
 #: what the package still does against these rules, each with the reason it is left (a new one fails)
 KNOWN_UPWARD = {("measurement", "toolpaths"): "a cmm file's measurement model reads the G-code that "
                                               "cut the part"}
-KNOWN_CYCLES = [{"mtcomp.toolpaths.gcode", "mtcomp.toolpaths._fast"},
-                {"mtcomp.measurement.files", "mtcomp.measurement.readings",
+KNOWN_CYCLES = [{"mtcomp.measurement.files", "mtcomp.measurement.readings",
                  "mtcomp.measurement.readings_extra"}]
+#: the layers of the G-code reader and writer in mtcomp.toolpaths, lowest first (gcode is the
+#: public face: it re-exports them and chooses the compiled or the Python path)
+GCODE_LAYERS = ["words", "blocks", "modal", "reader", "writer", "_fast", "gcode"]
 
 
 def _modules() -> dict:
@@ -118,6 +120,12 @@ def _upward(edges: dict) -> set:
     return upward
 
 
+def _against_layers(edges: dict, package: str, layers: list) -> list:
+    """'a -> b' for every import of a module of ``layers`` by one at its level or below it."""
+    rank = {f"{package}.{m}": i for i, m in enumerate(layers)}
+    return sorted(f"{a} -> {b}" for a in rank for b in edges.get(a, ()) if rank.get(b, -1) >= rank[a])
+
+
 def test_no_module_imports_one_above_it_in_the_pipeline():
     mods = _modules()
     assert set(map(_area, mods)) <= set(LEVELS), set(map(_area, mods)) - set(LEVELS)
@@ -135,6 +143,13 @@ def test_no_import_cycle_beyond_the_known_ones():
     assert all(c in cycles for c in KNOWN_CYCLES), "a known cycle is gone: remove it from KNOWN_CYCLES"
 
 
+def test_the_gcode_layers_import_only_those_below_them():
+    edges = _edges(_modules())
+    assert all(f"mtcomp.toolpaths.{m}" in edges for m in GCODE_LAYERS)
+    bad = _against_layers(edges, "mtcomp.toolpaths", GCODE_LAYERS)
+    assert not bad, "G-code layers importing one at or above their level: " + "; ".join(bad)
+
+
 def test_the_checker_sees_a_cycle_and_an_upward_import():
     """The checks can fail: a hand-made graph with a cycle and an import against the pipeline."""
     edges = {"mtcomp.models.a": {"mtcomp.models.b"}, "mtcomp.models.b": {"mtcomp.models.a"},
@@ -143,3 +158,5 @@ def test_the_checker_sees_a_cycle_and_an_upward_import():
     edges["mtcomp.diagnose.x"] = {"mtcomp.thermal.y"}        # one way only: thermal -> diagnose
     edges["mtcomp.thermal.y"] = {"mtcomp.diagnose.x"}
     assert {(x, y) for x, y, _, _ in _upward(edges)} == {("machine", "planner"), ("diagnose", "thermal")}
+    layered = {"p.words": set(), "p.modal": {"p.words", "p.reader"}, "p.reader": {"p.modal"}}
+    assert _against_layers(layered, "p", ["words", "modal", "reader"]) == ["p.modal -> p.reader"]

@@ -1,11 +1,16 @@
 """Compiled fast path of the G-code reader and writer (optional, same results as the Python path).
 
 The C source ``_fast_gcode.c`` handles the common lines (``N.. G0/G1 X.. Y.. Z.. F..``, with
-comments and words such as M, S, T that do not touch the geometry) and hands every other line back to :class:`~mtcomp.toolpaths.gcode.ModalState`, which is
-kept in step through a small state vector. It is compiled once with the system C compiler (``$CC``
-or ``gcc``) into a per-user cache folder (``$XDG_CACHE_HOME/mtcomp`` or ``~/.cache/mtcomp``) and
-loaded with ctypes. Without a compiler, or with ``MTCOMP_NO_FAST_GCODE=1`` in the environment,
-the pure-Python path runs instead. The tests check both paths give identical chunks and bytes.
+comments and words such as M, S, T that do not touch the geometry) and hands every other line back
+to :class:`~mtcomp.toolpaths.modal.ModalState`, which is kept in step through a small state vector;
+the writer hands those lines to :mod:`.writer`'s formatting. It is compiled once with the system C
+compiler (``$CC`` or ``gcc``) into a per-user cache folder (``$XDG_CACHE_HOME/mtcomp`` or
+``~/.cache/mtcomp``) and loaded with ctypes. Without a compiler, or with ``MTCOMP_NO_FAST_GCODE=1``
+in the environment, the pure-Python path runs instead (:mod:`.gcode` chooses). The tests check
+both paths give identical chunks and bytes.
+
+This module builds on the lower layers only (:mod:`.blocks`, :mod:`.reader`, :mod:`.writer`),
+never on :mod:`.gcode`, which imports it.
 """
 from __future__ import annotations
 
@@ -22,6 +27,9 @@ import numpy as np
 
 from ..errors import InputError
 from ..io.atomic import atomic_write
+from .blocks import SegmentChunk
+from .reader import new_state
+from .writer import OutputState, _line_ending, format_motion_lines, write_pass_through
 
 _SRC = Path(__file__).with_name("_fast_gcode.c")
 _BLOCK = 4 << 20           # bytes read from the input at a time
@@ -112,7 +120,6 @@ class _Driver:
     """Feeds the input to the compiled scanner and interprets its fallback lines in Python."""
 
     def __init__(self, path, machine, chord_tol_mm, initial_position=None, **kw):
-        from .gcode import OutputState, new_state
         self.lib = _load()
         self.path = os.fspath(path)
         self.state = new_state(machine, path, chord_tol_mm, initial_position, **kw)
@@ -214,7 +221,6 @@ def _new_rows(cap, na):
 
 def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_position=None, **kw):
     """Compiled counterpart of :func:`mtcomp.toolpaths.gcode.iter_segment_chunks`."""
-    from .gcode import SegmentChunk
     cap = int(chunk_size)
     if cap < 1:
         raise ValueError("chunk_size must be >= 1")
@@ -282,7 +288,6 @@ def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_positio
 def write_corrected(in_path, out_path, machine, cursor, chord_tol_mm, initial_position=None,
                     stats=None, **kw):
     """Compiled counterpart of :func:`mtcomp.toolpaths.gcode.write_corrected` (cursor prepared)."""
-    from .gcode import _line_ending, format_motion_lines, write_pass_through
     letters = "".join(machine.axis_names)
     rotary = [c in "ABC" for c in letters]
     d = _Driver(in_path, machine, chord_tol_mm, initial_position, **kw)

@@ -1,0 +1,601 @@
+"""The modal state of the machine while a program is read: the one place that holds it.
+
+The middle layer of the reader (after pygcode: word -> block -> program). :class:`ModalState`
+takes the tokens of one line (:func:`~.words.tokenize`), updates the modes the line changes
+(motion mode, plane, units, distance mode, feed and feed mode, work coordinate system, tool length,
+drilling cycle) and the position and approach directions of the axes, and returns the line's
+motion as a :class:`~.blocks.MotionBlock`, or None for a line that passes through.
+
+Units: the file holds mm or inch (G20/G21) and deg for A, B, C; the state holds mm, rad and mm/min.
+"""
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+
+from ..errors import InputError
+from ..machine import Machine
+from ._arcs import PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, centre_from_radius
+from .blocks import CycleBlock, MotionBlock
+from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _COLON_PROGRAM_RE, _CURVE_WITH_COORDINATES,
+                    _REFUSED_G, _REFUSED_M, _UNIQUE_LETTERS, _WCS_INDEX, DEFAULT_CHORD_TOL_MM,
+                    DIR_EPS, MM_PER_INCH, TOOL_AXIS, frame_code, tokenize)
+
+
+class ModalState:
+    """The machine's modal state while a program is read, and the interpreter of one block.
+
+    motion : None (none yet / G80), 0, 1, 2 or 3. plane : 17, 18, 19. inch : G20 active.
+    incremental : G91 active. feed : mm/min (nan until the first F). position : (na,) mm and rad.
+    dirs : (na,) int8 approach directions. known : (na,) bool, the program has given the axis's
+    position in its frame (see :class:`~.blocks.SegmentChunk`). wcs : active work coordinate system index
+    (0 = G54). tool : active tool length number (G43 H; 0 = none). cycle : the drilling cycle in
+    force (G81 ...) or None. inverse_time : G93 in force.
+    """
+
+    def __init__(self, machine: Machine, path=None, chord_tol: float = DEFAULT_CHORD_TOL_MM,
+                 initial_position: np.ndarray | None = None, inch: bool = False,
+                 initial_known=None):
+        self.machine = machine
+        self.path = None if path is None else os.fspath(path)
+        self.chord_tol = float(chord_tol)
+        if not self.chord_tol > 0:
+            raise ValueError("chord_tol_mm must be positive")
+        self.names = machine.axis_names
+        self.na = len(self.names)
+        self.rotary = [n in "ABC" for n in self.names]
+        self.home = (np.zeros(self.na) if initial_position is None
+                     else np.asarray(initial_position, dtype=float).reshape(self.na).copy())
+        self.position = self.home.copy()
+        if initial_known is None:
+            initial_known = initial_position is not None
+        self.known = np.broadcast_to(np.asarray(initial_known, bool), (self.na,)).copy()
+        self.dirs = np.ones(self.na, np.int8)
+        self.motion: int | None = None
+        self.plane = 17
+        self.inch = bool(inch)
+        self.incremental = False
+        self.feed = math.nan
+        self.wcs = 0
+        self.tool = 0
+        self.selected_tool = 0
+        self.cycle: int | None = None
+        #: drilling cycles: G98/G99 in force (None: neither stated), the sticky R and Z words
+        #: (mm, given in G91), the initial level of the series (mm, known)
+        self.retract: int | None = None
+        self.cycle_r: tuple[float, bool] | None = None
+        self.cycle_z: tuple[float, bool] | None = None
+        self.cycle_init: tuple[float, bool] = (math.nan, False)
+        #: the last block began a series of drilling cycles
+        self.cycle_start = False
+        self.inverse_time = False
+        self.f_word = math.nan
+        self.tool_axis = self.names.index(TOOL_AXIS) if TOOL_AXIS in self.names else -1
+        self.xyz_index = tuple(machine.index(c) if c in self.names else -1 for c in "XYZ")
+        #: 90 / 91 if the last block interpreted carried G90 / G91, else None
+        self.distance_word: int | None = None
+        #: the last block was a G28/G30 with axis words (read in the distance mode in force)
+        self.distance_sensitive = False
+        #: the last block carried a G word (the output's motion mode is then re-stated)
+        self.had_g = False
+        #: the last block was a drilling cycle line (passed through)
+        self.cycle_line = False
+
+    @property
+    def frame(self) -> int:
+        return frame_code(self.wcs, self.tool)
+
+    @property
+    def python_only(self) -> bool:
+        """Lines the compiled scanner must not take (cycle or inverse-time mode in force)."""
+        return self.cycle is not None or self.inverse_time
+
+    def _err(self, msg, line):
+        return InputError(msg, self.path, line)
+
+    def _forget(self, idx=None):
+        """The program's position of these axes (all by default) is unknown from here on."""
+        if idx is None:
+            self.known[:] = False
+        elif idx >= 0:
+            self.known[idx] = False
+
+    def block(self, line: int, text: str) -> MotionBlock | None:
+        """Interpret one line (text without line ending). Returns its motion, or None.
+
+        The steps, in the order their errors are found: the line's flags are cleared, lines without
+        words pass through, the words are read, the G and M codes change the modes, the axis words
+        are checked, the feed is set; then a home move, a drilling cycle or a motion block follows.
+        """
+        self._clear_line_flags()
+        text = self._text_with_words(line, text)
+        if text is None:
+            return None
+        tokens = tokenize(text, self.path, line)
+        if not tokens:
+            return None
+        values, gcodes, mcodes, number = self._read_words(tokens, line)
+        motion, nonmotion_axes, home_move, cycle = self._apply_codes(gcodes, mcodes, values,
+                                                                     tokens, line)
+        axes_given = self._axis_words(values, line)
+        if home_move is not None and motion is not None and not (home_move == 53 and motion < 2):
+            raise self._err(f"G{home_move} and motion G{motion} in one block", line)
+        self._set_feed(values, line)
+        if nonmotion_axes:
+            self.distance_sensitive = home_move in (28, 30) and bool(axes_given)
+            if home_move is not None:
+                if motion is not None:      # G53 G0 Z0: a move in machine coordinates
+                    self.motion = motion
+                    self.cycle = None
+                self._home_move(home_move, values, axes_given, line)
+            return None
+        if motion is not None:
+            self.motion = motion
+            self.cycle = None
+        self._set_cycle_mode(cycle, values)
+        if self.cycle is not None and axes_given:
+            return self._cycle_block(line, values, axes_given, tokens, number)
+        return self._motion_block(line, values, axes_given, tokens, number)
+
+    def _clear_line_flags(self) -> None:
+        """Forget what the previous line said about itself (the flags the writer reads)."""
+        self.distance_word = None
+        self.distance_sensitive = False
+        self.had_g = False
+        self.cycle_line = False
+        self.cycle_start = False
+
+    def _text_with_words(self, line: int, text: str) -> str | None:
+        """The line's text to tokenize, or None for a line without words, which passes through (an
+        empty line, '%', a ':' program number, the DOS end-of-file mark, a grbl '$' command)."""
+        if line == 1 and text.startswith("\xef\xbb\xbf"):      # a UTF-8 byte order mark
+            text = text[3:]
+        s = text.lstrip(" \t")
+        if not s or s[0] == "%":
+            return None
+        if s[0] == ":" and _COLON_PROGRAM_RE.match(s):    # ':0097': ISO's O, a program number
+            return None
+        if not s.strip("\x1a \t"):        # DOS end-of-file mark (Ctrl-Z) after the program
+            return None
+        if s[0] == "$":               # grbl system command: passes through; $H homes every axis
+            if s[1:2].upper() in ("H", "J"):
+                self._forget()
+            return None
+        if s[0] == "/":
+            raise self._err("block delete '/' is not supported", line)
+        return text
+
+    def _read_words(self, tokens, line: int) -> tuple[dict, list, list, str]:
+        """(values, G codes, M codes, N word as written) of a line's tokens; a T word selects the
+        tool. values : letter -> number of the words that may appear once (and H, L)."""
+        values: dict[str, float] = {}
+        gcodes: list[float] = []
+        mcodes: list[float] = []
+        number = ""
+        for letter, num, raw in tokens:
+            if letter in "(;":
+                continue
+            try:
+                v = float(num)
+            except ValueError:  # pragma: no cover - the token pattern only lets numbers through
+                raise self._err(f"garbled number in {raw!r}", line) from None
+            if letter == "G":
+                gcodes.append(v)
+                continue
+            if letter == "M":
+                mcodes.append(v)
+                continue
+            if letter == "T":
+                self.selected_tool = int(v)
+            if letter in _UNIQUE_LETTERS:
+                if letter in values:
+                    raise self._err(f"word {letter} appears twice", line)
+                values[letter] = v
+                if letter == "N":
+                    number = raw
+            elif letter in "HL":
+                values[letter] = v
+        return values, gcodes, mcodes, number
+
+    def _apply_codes(self, gcodes, mcodes, values, tokens, line: int):
+        """Refuse the G and M codes mtcomp does not follow and set the modes the others change.
+
+        Returns (motion code of the line or None, the axis words are no motion (G4, G28, G30,
+        G53), the home move G28/G30/G53 or None, the drilling cycle code of the line or None).
+        """
+        for m in mcodes:
+            if m in _REFUSED_M:
+                raise self._err(f"{_REFUSED_M[m]} is not supported", line)
+        motion = None
+        nonmotion_axes = False     # G4 dwell (X/P is time), G28/G30/G53: axis words are no motion
+        home_move = None
+        cycle = None
+        tool_change = any(m == 6 for m in mcodes)
+        self.had_g = bool(gcodes)
+        for g in gcodes:
+            gi = round(g)
+            if g in _REFUSED_G:
+                raise self._err(f"{_REFUSED_G[g]} is not supported", line)
+            if g in _CURVE_WITH_COORDINATES:
+                name, words = _CURVE_WITH_COORDINATES[g]
+                if any(letter in words for letter, _num, _raw in tokens):
+                    raise self._err(f"{name} is not supported", line)
+            if g != gi:
+                self._apply_decimal_code(g)
+                continue
+            if gi in (0, 1, 2, 3):
+                if motion is not None:
+                    raise self._err(f"two motion codes G{motion} and G{gi} in one block", line)
+                motion = gi
+            elif gi == 4:
+                nonmotion_axes = True
+            elif gi in (28, 30, 53):
+                nonmotion_axes = True
+                home_move = gi
+            elif gi in _CANNED_CYCLES:
+                cycle = gi
+            else:
+                self._apply_modal_code(gi, values)
+        if tool_change:
+            self._forget(self.tool_axis)
+        return motion, nonmotion_axes, home_move, cycle
+
+    def _apply_decimal_code(self, g: float) -> None:
+        """A G code with a decimal part that is not refused: a work coordinate system G59.1-G59.3,
+        or one that changes offsets the program's positions are given in (G92.1, G92.2, G43.1,
+        G54.1: every axis unknown); the others (G28.1, G30.1 ...) change nothing followed here."""
+        if g in _WCS_INDEX:
+            self._set_wcs(_WCS_INDEX[g])
+        elif round(g, 1) in (28.1, 30.1, 92.1, 92.2, 43.1, 54.1):
+            if round(g, 1) in (92.1, 92.2, 43.1, 54.1):
+                self._forget()
+
+    def _apply_modal_code(self, gi: int, values) -> None:
+        """A whole G code that only changes a mode: plane, units, distance mode, feed mode, retract
+        level, cycle cancel, work coordinate system, tool length (others change nothing here)."""
+        if gi in (17, 18, 19):
+            self.plane = gi
+        elif gi == 20:
+            self.inch = True
+        elif gi == 21:
+            self.inch = False
+        elif gi == 90:
+            self.incremental = False
+            self.distance_word = 90
+        elif gi == 91:
+            self.incremental = True
+            self.distance_word = 91
+        elif gi == 93:
+            self.inverse_time = True
+        elif gi == 94:
+            self.inverse_time = False
+        elif gi in (98, 99):
+            self.retract = gi
+        elif gi == 80:
+            self.motion = None
+            self.cycle = None
+        elif gi in _WCS_INDEX:
+            self._set_wcs(_WCS_INDEX[gi])
+        elif gi in (43, 44):
+            self.tool = int(values.get("H", self.selected_tool))
+            self._forget(self.tool_axis)
+        elif gi == 49:
+            self.tool = 0
+            self._forget(self.tool_axis)
+
+    def _axis_words(self, values, line: int) -> list[str]:
+        """The axis letters the line names (X Y Z A B C order); refuses axes the machine has not."""
+        for letter in "UVW":
+            if letter in values:
+                raise self._err(f"axis word {letter}: machine {self.machine.name} has no {letter} axis",
+                                line)
+        axes_given = [c for c in _AXIS_LETTERS if c in values]
+        for c in axes_given:
+            if c not in self.names:
+                raise self._err(f"axis word {c}: machine {self.machine.name} has no {c} axis "
+                                f"(axes: {' '.join(self.names)})", line)
+        return axes_given
+
+    def _set_feed(self, values, line: int) -> None:
+        """An F word: the feed (mm/min), or under G93 the inverse time (1/min) of the block."""
+        if "F" in values:
+            if self.inverse_time:
+                if not values["F"] > 0:
+                    raise self._err(f"feed F must be positive, got {values['F']:g}", line)
+                self.f_word = values["F"]
+            else:
+                f = values["F"] * (MM_PER_INCH if self.inch else 1.0)
+                if not f > 0:
+                    raise self._err(f"feed F must be positive, got {values['F']:g}", line)
+                self.feed = f
+
+    def _set_cycle_mode(self, cycle: int | None, values) -> None:
+        """A drilling cycle code starts (or continues) the cycle mode; in it, R and Z are sticky."""
+        if cycle is not None:
+            if self.cycle is None:
+                self.cycle_start = True
+                z = self.tool_axis
+                self.cycle_init = (float(self.position[z]), bool(self.known[z])) if z >= 0 \
+                    else (math.nan, False)
+            self.cycle = cycle
+            self.motion = None
+        if self.cycle is not None:
+            scale = MM_PER_INCH if self.inch else 1.0
+            if "R" in values:
+                self.cycle_r = (values["R"] * scale, self.incremental)
+            if "Z" in values:
+                self.cycle_z = (values["Z"] * scale, self.incremental)
+
+    def _motion_block(self, line, values, axes_given, tokens, number) -> MotionBlock | None:
+        """The line's move in the motion mode in force (G0 to G3), or None when it does not move."""
+        arc_words = [c for c in "IJKR" if c in values]
+        is_motion = bool(axes_given) or (self.motion in (2, 3) and bool(arc_words))
+        if not is_motion:
+            if arc_words and self.cycle is None:
+                raise self._err(f"{arc_words[0]} word outside an arc block", line)
+            return None
+        self._check_motion_mode(values, arc_words, line)
+        start = self.position.copy()
+        end, given = self._targets(start, axes_given, values, line)
+        raw_axes = {}
+        if not self.incremental:
+            raw_axes = {letter: raw for letter, _num, raw in tokens if letter in _AXIS_LETTERS}
+        centre = None
+        if self.motion in (2, 3):
+            pts, centre = self._arc_block(start, end, values, tokens, line)
+        else:
+            pts = end[None, :]
+        start_known = bool(self.known.all())
+        self.known |= given
+        dirs = self._directions(start, pts)
+        feed = self._block_feed(start, pts)
+        self.position = end
+        words = [raw for letter, num, raw in tokens
+                 if not (letter == "N" or letter in _AXIS_LETTERS or letter in "IJKR"
+                         or (letter == "G" and float(num) in (0, 1, 2, 3, 90, 91)))]
+        motion_word = any(letter == "G" and float(num) in (0, 1, 2, 3) for letter, num, _r in tokens)
+        return MotionBlock(line, self.motion, start, end, feed, pts, dirs, centre, self.plane,
+                           self.inch, words, number, self.known.copy(), given, raw_axes,
+                           motion_word, self.incremental, self.inverse_time and self.motion != 0,
+                           self.f_word, self.frame, start_known=start_known)
+
+    def _check_motion_mode(self, values, arc_words, line: int) -> None:
+        """A move needs a motion mode, arc words only in G2/G3, and an F on each G93 feed move."""
+        if self.motion is None:
+            raise self._err("coordinates without a motion mode (no G0/G1/G2/G3 in force; a controller's "
+                            "power-on mode is not assumed: write G0 or G1 in this block)", line)
+        if self.motion in (0, 1) and arc_words:
+            raise self._err(f"{arc_words[0]} word in a G{self.motion} block (only G2/G3 take I J K R)",
+                            line)
+        if self.inverse_time and self.motion != 0 and "F" not in values:
+            raise self._err(f"G93 (inverse time feed): the G{self.motion} block has no F word", line)
+
+    def _targets(self, start, axes_given, values, line: int) -> tuple[np.ndarray, np.ndarray]:
+        """(end (na,) mm and rad, given (na,) bool): where the named axes go (G90 or G91)."""
+        end = start.copy()
+        scale = MM_PER_INCH if self.inch else 1.0
+        given = np.zeros(self.na, bool)
+        for c in axes_given:
+            i = self.names.index(c)
+            if self.incremental and not self.known[i]:
+                raise self._err(f"incremental (G91) move of axis {c}, whose position the program "
+                                "has not given (at the start, or after a home move, tool change "
+                                "or offset change)", line)
+            v = math.radians(values[c]) if c in "ABC" else values[c] * scale
+            end[i] = start[i] + v if self.incremental else v
+            given[i] = True
+        return end, given
+
+    def _arc_block(self, start, end, values, tokens, line: int):
+        """(chord ends (k, na), centre (3,) mm) of a G2/G3 move from a known position in its plane."""
+        # LinuxCNC's P turns: even P1 (the plain arc) is refused, since a corrected arc is written
+        # as straight G1 chords, which may not carry a P word
+        if any(letter == "P" for letter, _num, _raw in tokens):
+            raise self._err(f"arc G{self.motion} with a P word (a number of turns) is not supported",
+                            line)
+        i0, i1, _ = PLANE_AXES[self.plane]
+        plane_idx = [self.xyz_index[i0], self.xyz_index[i1]]
+        if min(self.xyz_index) >= 0 and not all(self.known[i] for i in plane_idx):
+            raise self._err(f"arc G{self.motion} from a position the program has not given "
+                            f"(axes {self.names[plane_idx[0]]} {self.names[plane_idx[1]]})",
+                            line)
+        return self._arc(start, end, values, line)
+
+    def _block_feed(self, start, pts) -> float:
+        """The block's feed, mm/min: nan for a rapid; under G93 its path length in X Y Z times the
+        block's F (nan without motion in X Y Z)."""
+        if self.motion == 0:
+            return math.nan
+        if self.inverse_time:
+            length = float(np.sum(np.linalg.norm(np.diff(
+                np.vstack([start, pts])[:, [i for i in self.xyz_index if i >= 0]], axis=0), axis=1)))
+            return length * self.f_word if length > 0 else math.nan
+        return self.feed
+
+    def _set_wcs(self, index: int):
+        if index != self.wcs:
+            self.wcs = index
+            self._forget()
+
+    def _cycle_unclear(self, inc: bool) -> str | None:
+        """Why a drilling cycle line cannot be kept as a corrected cycle (None: it can)."""
+        if min(self.xyz_index) < 0:
+            return "a machine without X, Y and Z"
+        if self.plane != 17:
+            return f"drilling along another axis than Z (G{self.plane})"
+        if self.cycle == 87:
+            return "back boring G87"
+        if self.inverse_time:
+            return "inverse time feed G93"
+        if self.cycle_r is None or self.cycle_z is None:
+            return "no R or Z word given for the cycle"
+        if self.cycle_r[1] != inc or self.cycle_z[1] != inc:
+            return "its R or Z was given in the other distance mode (G90/G91)"
+        return None
+
+    def _cycle_block(self, line, values, axes_given, tokens, number) -> MotionBlock | None:
+        """A drilling cycle line. Where the hole is clear (X, Y, the R plane and the bottom known,
+        plane G17) it becomes a :class:`CycleBlock` whose points are the bottoms of its holes;
+        otherwise it passes through uncorrected (G90) or is refused (G91: an incremental cycle
+        passed through would be read against an absolute output)."""
+        rot = [c for c in axes_given if c in "ABC"]
+        if rot:
+            raise self._err(f"drilling cycle G{self.cycle} with a rotary axis word {rot[0]} is not "
+                            "supported", line)
+        inc = self.incremental
+        reason = self._cycle_unclear(inc)
+        xi, yi, zi = self.xyz_index
+        if reason is None and not inc and not all(self.known[i] or c in values
+                                                  for i, c in ((xi, "X"), (yi, "Y"))):
+            reason = "its X or Y position is not known"
+        if reason is not None:
+            if inc:
+                raise self._err(f"incremental (G91) drilling cycle G{self.cycle}: {reason}", line)
+            self._cycle_move(values, axes_given)
+            return None
+        scale = MM_PER_INCH if self.inch else 1.0
+        # the repeat count: L (LinuxCNC, Haas, Siemens ISO mode); K on Fanuc, but only where the
+        # line has no L and no I/J (Haas G73/G83 write I J K as first peck, peck reduction and
+        # minimum peck)
+        count_letter = "L" if "L" in values else (
+            "K" if "K" in values and "I" not in values and "J" not in values else None)
+        reps = values.get(count_letter, 1.0) if count_letter else 1.0
+        if reps != int(reps) or reps < 1:
+            raise self._err(f"drilling cycle repeat count {reps:g} is not supported (a whole number "
+                            ">= 1)", line)
+        reps = int(reps)
+        start = self.position.copy()
+        start_known = bool(self.known.all())
+        init_z, init_known = self.cycle_init
+        if inc:
+            if not (self.known[xi] and self.known[yi] and self.known[zi]):
+                raise self._err(f"incremental (G91) drilling cycle G{self.cycle} from a position the "
+                                "program has not given", line)
+            if not self.cycle_start and self.retract != 98:
+                raise self._err(f"incremental (G91) drilling cycle G{self.cycle} continued without "
+                                "G98: where its R plane lies differs between controllers", line)
+            r_level = start[zi] + self.cycle_r[0]
+            z_bottom = r_level + self.cycle_z[0]
+            steps = np.arange(1, reps + 1)
+            xs = start[xi] + steps * values.get("X", 0.0) * scale
+            ys = start[yi] + steps * values.get("Y", 0.0) * scale
+        else:
+            r_level, z_bottom = self.cycle_r[0], self.cycle_z[0]
+            xs = np.array([values["X"] * scale if "X" in values else start[xi]])
+            ys = np.array([values["Y"] * scale if "Y" in values else start[yi]])
+        pts = np.repeat(start[None, :], xs.shape[0], axis=0)
+        pts[:, xi], pts[:, yi], pts[:, zi] = xs, ys, z_bottom
+        given = np.zeros(self.na, bool)
+        given[[xi, yi, zi]] = True
+        known = self.known | given
+        dirs = self._directions(start, pts)
+        # where the cycle leaves the tool: the R plane (G99) or the initial level (G98; controllers
+        # differ when the R plane lies above it, and neither stated leaves it open)
+        if self.retract == 99:
+            z_after, z_known = r_level, True
+        elif self.retract == 98 and init_known and r_level <= init_z + 1e-9:
+            z_after, z_known = init_z, True
+        else:
+            z_after, z_known = r_level, False
+        end = pts[-1].copy()
+        end[zi] = z_after
+        self.dirs[zi] = 1                  # the retract moves Z up last
+        self.position = end
+        self.known = known.copy()
+        self.known[zi] = z_known
+        feed = self.feed
+        info = CycleBlock(self.cycle, r_level, z_bottom, self.retract, self.cycle_start, inc,
+                          [t for t in tokens if t[0] != "N"],
+                          frozenset(c for c in "XYZR" if c in values), z_known, count_letter)
+        return MotionBlock(line, self.cycle, start, end, feed, pts, dirs, None, self.plane,
+                           self.inch, [], number, known, given, {}, True, inc, False, self.f_word,
+                           self.frame, info, start_known)
+
+    def _cycle_move(self, values, axes_given):
+        """A drilling cycle line passed through: X/Y go where it says (absolute) or stay unknown; the
+        tool axis ends at the R plane or the start height: unknown."""
+        scale = MM_PER_INCH if self.inch else 1.0
+        self.cycle_line = True
+        for c in axes_given:
+            i = self.names.index(c)
+            if c == TOOL_AXIS:
+                continue
+            v = math.radians(values[c]) if c in "ABC" else values[c] * scale
+            if self.incremental:
+                self.position[i] += v
+            else:
+                self.position[i] = v
+                self.known[i] = True
+        self._forget(self.tool_axis)
+
+    def _home_move(self, g, values, axes_given, line):
+        """G28/G30: named axes (all without any) go home; G53: named axes go to a machine position.
+        Either way the program's frame no longer knows where they are."""
+        new = self.position.copy()
+        idx = [self.names.index(c) for c in axes_given]
+        for i in idx:
+            if g != 53:
+                new[i] = self.home[i]
+            self.known[i] = False
+        if g != 53 and not axes_given:      # G28 / G30 alone: every axis goes home
+            new = self.home.copy()
+            self._forget()
+        self.dirs = self._directions(self.position, new[None, :])[-1]
+        self.position = new
+
+    def _arc(self, start, end, values, line):
+        plane = self.plane
+        i0, i1, _ = PLANE_AXES[plane]
+        if min(self.xyz_index) < 0:
+            raise self._err("arc on a machine without X, Y and Z axes", line)
+        a, b = self.xyz_index[i0], self.xyz_index[i1]
+        scale = MM_PER_INCH if self.inch else 1.0
+        ccw = self.motion == 3
+        l0, l1 = PLANE_OFFSET_LETTERS[plane]
+        s2 = np.array([start[a], start[b]])
+        try:
+            if "R" in values:
+                if any(c in values for c in "IJK"):
+                    raise ArcError("both R and I/J/K in one arc block")
+                centre2 = centre_from_radius(s2, np.array([end[a], end[b]]), values["R"] * scale, ccw)
+            else:
+                other = set("IJK") - {l0, l1}
+                bad = [c for c in other if values.get(c, 0.0) != 0.0]   # K0 in G17: harmless
+                if bad:
+                    raise ArcError(f"{bad[0]} word is not an offset in plane G{plane}")
+                if l0 not in values and l1 not in values:
+                    raise ArcError(f"arc without centre: give {l0}/{l1} or R in plane G{plane}")
+                centre2 = s2 + scale * np.array([values.get(l0, 0.0), values.get(l1, 0.0)])
+            pts = arc_chords(start, end, centre2, plane, ccw, self.chord_tol, self.xyz_index)
+        except ArcError as exc:
+            raise self._err(str(exc), line) from None
+        centre = np.zeros(3)
+        xyz = [start[i] for i in self.xyz_index]
+        centre[:] = xyz
+        centre[i0], centre[i1] = centre2
+        return pts, centre
+
+    def _directions(self, start: np.ndarray, pts: np.ndarray) -> np.ndarray:
+        """(k, na) int8 approach directions at the end of each segment; updates self.dirs."""
+        if pts.shape[0] == 1:                 # the common straight move, without array arithmetic
+            cur = self.dirs
+            for j, (a, b) in enumerate(zip(start.tolist(), pts[0].tolist())):
+                step = b - a
+                if step > DIR_EPS:
+                    cur[j] = 1
+                elif step < -DIR_EPS:
+                    cur[j] = -1
+            return cur[None, :].copy()
+        prev = np.vstack([start[None, :], pts[:-1]])
+        step = pts - prev
+        sign = np.where(step > DIR_EPS, 1, np.where(step < -DIR_EPS, -1, 0)).astype(np.int8)
+        out = np.empty_like(sign)
+        cur = self.dirs.copy()
+        for r in range(sign.shape[0]):
+            moving = sign[r] != 0
+            cur[moving] = sign[r][moving]
+            out[r] = cur
+        self.dirs = cur.copy()
+        return out

@@ -1,0 +1,193 @@
+"""G-code words: the lowest layer of the reader (after pygcode: word -> block -> program).
+
+A line of a program (ISO 6983 / RS-274, the subset in docs/toolpaths.md) is cut here into *tokens*:
+words such as ``X-1.5`` and comments. This module also holds what the layers above share about
+words: the units and tolerances, the tables of features refused by name (G and M codes, the
+keywords of other languages), the drilling cycle codes, and the *frame code* that packs the active
+work coordinate system and tool length number into one int (:func:`frame_code`).
+
+Nothing here keeps state: :mod:`.modal` turns the tokens of a line into motion.
+"""
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from ..errors import InputError
+
+MM_PER_INCH = 25.4
+#: an axis moving less than this (mm or rad) in a segment keeps its previous approach direction
+DIR_EPS = 1e-9
+DEFAULT_CHORD_TOL_MM = 1e-3
+DEFAULT_CHUNK_SIZE = 65536
+#: an arc stays one G2/G3 line when its corrections agree along it within this (mm; or within the
+#: chord tolerance, if that is smaller): the shifted arc then misses no planned point by more
+ARC_KEEP_TOL_MM = 1e-4
+#: the axis along the tool: a tool change or a tool length change leaves its position unknown
+TOOL_AXIS = "Z"
+
+_NUM = r"[+-]?(?:\d+\.?\d*|\.\d+)"
+_TOKEN_RE = re.compile(r"[ \t]+|\([^()]*\)|;.*|([A-Za-z])(" + _NUM + r")|(.)", re.S)
+_AXIS_LETTERS = "XYZABC"
+_UNIQUE_LETTERS = frozenset("XYZABCIJKRFNUVW")
+#: G codes that would change geometry in a way mtcomp does not follow: refused, never guessed
+_REFUSED_G = {
+    10: "G10 (programmable data input)", 52: "G52 (local coordinate system)",
+    92: "G92 (coordinate system offset set by the program; give the offset as a work offset G54-G59 "
+        "instead)",
+    92.3: "G92.3 (restored coordinate system offset)",
+    68: "G68 (coordinate rotation)", 51: "G51 (scaling)",
+    51.1: "G51.1 (mirroring)", 95: "G95 (feed per revolution)",
+    74: "canned cycle G74 (left-hand tapping)", 76: "canned cycle G76 (threading)",
+    90.1: "G90.1 (absolute arc centres)",
+    43.4: "G43.4 (tool centre point control: the program gives tool-tip positions, not axis "
+          "positions)",
+    43.5: "G43.5 (tool centre point control: the program gives tool-tip positions, not axis "
+          "positions)",
+    68.2: "G68.2 (tilted working plane)", 68.3: "G68.3 (tilted working plane)",
+    53.1: "G53.1 (tool axis direction control)",
+    65: "G65 (macro call)", 66: "G66 (modal macro call)",
+    # moves that stop where a signal comes (the position after them is not the program's), and
+    # coordinates that are not axis positions
+    31: "G31 (skip function: the move stops where the signal comes, and later positions are unknown)",
+    31.1: "G31.1 (multi-step skip: the move stops where the signal comes)",
+    31.2: "G31.2 (multi-step skip: the move stops where the signal comes)",
+    31.3: "G31.3 (multi-step skip: the move stops where the signal comes)",
+    31.4: "G31.4 (multi-step skip: the move stops where the signal comes)",
+    37: "G37 (automatic tool length measurement: the move stops at the sensor and sets the offset)",
+    38.2: "G38.2 (probing move: it stops where the probe touches, and later positions are unknown)",
+    38.3: "G38.3 (probing move: it stops where the probe touches, and later positions are unknown)",
+    38.4: "G38.4 (probing move: it stops where the probe leaves, and later positions are unknown)",
+    38.5: "G38.5 (probing move: it stops where the probe leaves, and later positions are unknown)",
+    16: "G16 (polar coordinates: X and Y are a radius and an angle)",
+    12.1: "G12.1 (polar coordinate interpolation)", 112: "G112 (polar coordinate interpolation)",
+    7.1: "G7.1 (cylindrical interpolation)", 107: "G107 (cylindrical interpolation)",
+    5.2: "G5.2 (NURBS)", 6.2: "G6.2 (NURBS)",
+}
+#: codes that are a curve when the block has coordinates, and a mode switch without them (Fanuc's
+#: G05 P10000 high-precision contour control, G05.1 Q1 AI contour control pass through)
+_CURVE_WITH_COORDINATES = {5: ("G5 (cubic spline)", frozenset("XYZABCIJKR")),
+                           5.1: ("G5.1 (quadratic spline)", frozenset("XYZABCIJK"))}
+#: M codes refused (subprograms, tool centre point control)
+_REFUSED_M = {98: "M98 (subprogram call)", 99: "M99 (subprogram end)",
+              128: "M128 (tool centre point control: the program gives tool-tip positions, not axis "
+                   "positions)",
+              428: "M428 (LinuxCNC switchable kinematics to tool centre point: the program gives "
+                   "tool-tip positions, not axis positions)",
+              430: "M430 (LinuxCNC switchable kinematics: the program does not give axis positions)"}
+#: drilling cycles: their lines pass through unchanged (not corrected), see docs/toolpaths.md
+_CANNED_CYCLES = frozenset({73, 81, 82, 83, 84, 85, 86, 87, 88, 89})
+#: work coordinate systems, in the order of their index in ``frame`` codes
+WORK_SYSTEMS = ("G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3")
+_WCS_INDEX = {54: 0, 55: 1, 56: 2, 57: 3, 58: 4, 59: 5, 59.1: 6, 59.2: 7, 59.3: 8}
+_NEG_ZERO_RE = re.compile(r"-(0\.0+)(?![0-9])")
+#: a program number written with ':' (the ISO code's O), alone or with comments
+_COLON_PROGRAM_RE = re.compile(r":\s*\d+\s*(?:\([^()]*\)\s*)*(?:;.*)?$")
+#: features of other languages, refused with their name (checked on lines that do not tokenize)
+_O_WORD_RE = re.compile(r"^\s*(?:[Nn]\s*\d+\s*)?[Oo]\s*(?:\d+|<[^>]*>)\s*([A-Za-z]+)")
+_KEYWORDS = {
+    "TRAORI": "TRAORI (Siemens 5-axis transformation: tool centre point control)",
+    "TRAFOOF": "TRAFOOF (Siemens transformation off)", "CYCLE": "Siemens cycle calls",
+    "IF": "macro statement IF", "GOTO": "macro statement GOTO", "WHILE": "macro statement WHILE",
+    "END": "macro statement END", "DO": "macro statement DO", "CALL": "subprogram CALL",
+    "TOOL": "Heidenhain TOOL CALL",
+    "BEGIN": "Heidenhain conversational program (BEGIN PGM)",
+}
+
+
+def frame_code(wcs: int, tool: int) -> int:
+    """Pack the work coordinate system index (0 = G54 .. 8 = G59.3) and the active tool length
+    number H (0: none, G49) into one int: ``wcs + 16 * tool``."""
+    return int(wcs) + 16 * int(tool)
+
+
+def frame_wcs(code):
+    """Work coordinate system index (0 = G54 ...) of frame codes (int or array)."""
+    return np.asarray(code) % 16
+
+
+def frame_tool(code):
+    """Active tool length number H (0: none) of frame codes (int or array)."""
+    return np.asarray(code) // 16
+
+
+# --------------------------------------------------------------------------------------- tokens
+def _strip_blanks(text: str) -> str:
+    """The line without blanks outside comments: RS-274 ignores them (``Z 10`` is ``Z10``)."""
+    if " " not in text and "\t" not in text:
+        return text
+    out = []
+    pos, n = 0, len(text)
+    while pos < n:
+        ch = text[pos]
+        if ch == "(":
+            e = text.find(")", pos)
+            e = n if e < 0 else e + 1
+            out.append(text[pos:e])
+            pos = e
+        elif ch == ";":
+            out.append(text[pos:])
+            break
+        else:
+            if ch not in " \t":
+                out.append(ch)
+            pos += 1
+    return "".join(out)
+
+
+def _foreign_feature(text: str) -> str | None:
+    """Name of a language feature mtcomp does not interpret, if the line uses one."""
+    m = _O_WORD_RE.match(text)
+    if m:
+        return f"O-word {m.group(1).lower()} (subroutines and control flow)"
+    code = text.split(";", 1)[0]
+    code = re.sub(r"\([^()]*\)", "", code)
+    if "#" in code:
+        return "#-parameters"
+    if "[" in code:
+        return "expressions in [ ]"
+    for word in re.findall(r"[A-Za-z]{2,}", code):
+        key = word.upper()
+        for k, name in _KEYWORDS.items():
+            if len(k) >= 2 and key.startswith(k):
+                return name
+    return None
+
+
+def tokenize(text: str, path=None, line: int | None = None) -> list[tuple[str, str, str]]:
+    """Cut one line (without its line ending) into tokens ``(letter, number, raw)``.
+
+    letter is the upper-case word letter, or '(' / ';' for a comment (number '' then). Blanks
+    inside words are ignored, as RS-274 prescribes (``Z 10`` is ``Z10``; raw is then ``Z10``).
+    Raises InputError for anything that is not a word, a comment or blank; a line in a language
+    mtcomp does not interpret (O-word subroutines, #-parameters, macro statements) is refused with
+    the feature's name.
+    """
+    out = []
+    pos, n = 0, len(text)
+    compact = None
+    while pos < n:
+        m = _TOKEN_RE.match(text, pos)
+        raw = m.group(0)
+        if m.group(3) is not None:
+            if compact is None:
+                feature = _foreign_feature(text)
+                if feature is not None:
+                    raise InputError(f"{feature} not supported: {text.strip()[:40]!r}", path, line)
+                compact = _strip_blanks(text)
+                if compact != text:          # blanks inside words: read the line without them
+                    return tokenize(compact, path, line)
+            ch = m.group(3)
+            if ch == "(":
+                raise InputError("comment '(' is not closed on this line (or is nested)", path, line)
+            if ch.isalpha() and ch.isascii():
+                raise InputError(f"word {ch.upper()} without a valid number: "
+                                 f"{text[pos:pos + 12].strip()!r}", path, line)
+            raise InputError(f"unexpected character {ch!r} at column {pos + 1}", path, line)
+        if m.group(1) is not None:
+            out.append((m.group(1).upper(), m.group(2), raw))
+        elif raw[0] in "(;":
+            out.append((raw[0], "", raw))
+        pos = m.end()
+    return out
