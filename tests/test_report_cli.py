@@ -122,7 +122,7 @@ def test_predict_leaves_blank_what_the_model_does_not_determine(x_laser, tmp_pat
         else:
             assert all(p and s for p, s in cells)
     err = capsys.readouterr().err
-    assert "20 prediction(s) of y_pos rest on what the model's data did not determine" in err
+    assert "20 prediction(s) of y_pos rest only on what the model's data did not determine" in err
 
 
 @pytest.mark.skipif(not ISO230_2.is_dir(), reason=f"real ISO 230-2 runs absent ({ISO230_2})")
@@ -172,3 +172,39 @@ def test_diagnose_prints_components_and_residuals_parameters_only_verbose(x_lase
     assert "EXX_b1" not in out
     assert main(args + ["--verbose"]) == 0
     assert re.search(r"^EXX_b1\s", capsys.readouterr().out, re.M)
+
+
+def test_rotary_axis_components_match_the_fourier_series(tmp_path):
+    """A 5-axis campaign (tracker points, laser runs, ball bar): the angular positioning range of A
+    and C over the angles the data reached, against the documented series
+    ECC(c) = ECC_0 + sum_k ECC_ck cos(k c) + ECC_sk sin(k c) (urad); error motions the model does not
+    carry get no row; the location errors are the fitted values."""
+    from mtcomp.identification.fit import identify
+    from mtcomp.identification.report import GRID_POINTS, component_ranges
+    from mtcomp.machine import load_machine
+    from mtcomp.models import ErrorModel
+    from mtcomp.sim import random_campaign, random_parameters, simulate
+
+    machine = load_machine("cafxyz")
+    model = ErrorModel(machine)
+    rng = np.random.default_rng(5)
+    truth = random_parameters(model, rng)
+    camp = random_campaign(machine, rng, n_points=150, laser_offsets=1)
+    res = identify(model, [simulate(model, d, truth, noise_um=0.3, noise_urad=0.5, rng=rng)
+                           for d in camp.values()])
+    ranges, values, _ = component_ranges(res.fitted_model)
+    for axis in ("A", "C"):
+        rows = [r for r in ranges if r.axis == axis]
+        comp = f"E{axis}{axis}"
+        assert [r.component for r in rows] == [comp] and rows[0].meaning == "angular positioning"
+        lo, hi = res.fitted_model.support[axis]
+        angle = np.linspace(lo, hi, GRID_POINTS)
+        order = res.fitted_model.machine.axis(axis).fourier_order     # the harmonics the data chose
+        e = res.value(f"{comp}_0")[0] + sum(res.value(f"{comp}_c{k}")[0] * np.cos(k * angle)
+                                            + res.value(f"{comp}_s{k}")[0] * np.sin(k * angle)
+                                            for k in range(1, order + 1))
+        np.testing.assert_allclose(rows[0].range, np.ptp(e), rtol=1e-6, atol=1e-6)
+        np.testing.assert_allclose([rows[0].lo, rows[0].hi], np.degrees([lo, hi]), rtol=0, atol=1e-9)
+        assert rows[0].status == "fitted" and 0 < rows[0].sd < 0.1 * rows[0].range
+    x0c = next(v for v in values if v.name == "X0C")
+    np.testing.assert_allclose([x0c.value, x0c.sd], res.value("X0C"), rtol=1e-6, atol=1e-9)

@@ -118,11 +118,14 @@ def run(args) -> int:
         print(f"wrote {plot_path}")
     return 0
 
+
 def _details(result, machine, datasets, verbose: bool) -> list[str]:
     """The final model in a metrologist's terms (mtcomp.identification.report): its error components
     per axis, the rms residual of every file and the laser readings per target; with ``verbose`` its
-    parameters. Nothing for a thermal record's drift model, which has no axis errors."""
-    if result.thermal is not None:
+    parameters. Nothing for a thermal record alone, whose drift model has no axis errors; beside
+    geometric files, of those files."""
+    datasets = [d for d in datasets if d.kind != "thermal"]
+    if not datasets:
         return []
     from ..identification.predict import predict_readings
     from ..identification.report import (component_lines, file_rms_lines, laser_target_tables,

@@ -54,27 +54,34 @@ class Undetermined:
 
     def std(self, J: np.ndarray, setup: np.ndarray | None = None) -> np.ndarray:
         """(n,) standard error of n predictions whose Jacobian with respect to the model's parameters
-        is J (n, n_params; file units per internal unit), from the model's covariance; NaN where a
-        prediction moves by more than 0.01 (um, urad) along an undetermined direction, or has no
-        variance at all while it moves with fitted parameters (:attr:`NO_VARIANCE`), or where the
-        model carries no uncertainty.
+        is J (n, n_params; file units per internal unit), from the model's covariance; NaN where the
+        data behind the model do not determine a prediction (:meth:`assess`), or where the model
+        carries no uncertainty."""
+        return self.assess(J, setup)[0]
+
+    def assess(self, J: np.ndarray, setup: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(sd (n,), unknown (n,) bool) of n predictions whose Jacobian is J (:meth:`std`).
+
+        sd is NaN where a prediction moves by more than 0.01 (um, urad) along an undetermined
+        direction, or where it is unknown. unknown: the prediction rests only on what the fit held
+        (its standard error is no more than :attr:`NO_VARIANCE` of the model's largest while it
+        moves with the fitted parameters): the model knows nothing of it, and the number it holds
+        there (zero, or 1e-9) is no prediction. False everywhere for a model without uncertainty.
 
         setup : (n, k) the predictions' derivatives with respect to their file's set-up (a laser's
-            zero, a tracker's frame): readings are compared up to their set-up, so what a set-up
-            would absorb (a constant on every reading of a laser component) is taken out of each
-            direction's effect before the test; and a prediction that shares a set-up parameter with
-            an undetermined one is undetermined too (the set-up they are compared up to is open:
-            the reading of a Y laser run at Y = 0, where a profile is zero by its reference, is no
-            better known than the others).
+            zero, a tracker's frame). Readings are compared up to their set-up: what a set-up would
+            absorb (a constant on every reading of a laser component) is taken out of each
+            direction's effect before the 0.01 test; and the rows of one set-up parameter are
+            unknown together when none of them with any content is known (the reading of a Y laser
+            run at Y = 0, where a profile is zero by its reference, is no better known than the
+            others); a row that shares no set-up parameter is judged on its own.
         """
         J = np.atleast_2d(np.asarray(J, dtype=float))
         if self.factor is None:
-            return np.full(J.shape[0], np.nan)
+            return np.full(J.shape[0], np.nan), np.zeros(J.shape[0], dtype=bool)
         idx, F = self.factor
         sd = np.linalg.norm(J[:, idx] @ F, axis=1)
-        # no variance at all: the prediction rests only on what the fit held
-        size = np.linalg.norm(J[:, self.index] / self.to_file, axis=1) * self.largest_sd
-        open_ = (size > 0) & (sd < self.NO_VARIANCE * size)
+        open_ = np.zeros(J.shape[0], dtype=bool)
         if self.directions.shape[1]:
             moved = J[:, self.index] @ self.directions
             if setup is not None and setup.shape[1]:
@@ -82,15 +89,19 @@ class Undetermined:
                 D = setup[rows]
                 moved[rows] -= D @ np.linalg.lstsq(D, moved[rows], rcond=None)[0]
             open_ |= np.abs(moved).max(axis=1) > 0.01
-        if setup is not None and setup.shape[1] and open_.any():
+        size = np.linalg.norm(J[:, self.index] / self.to_file, axis=1) * self.largest_sd
+        content = size > 0
+        held_only = content & (sd < self.NO_VARIANCE * size)
+        if setup is None or not setup.shape[1]:
+            unknown = held_only
+        else:
             acts = np.abs(np.nan_to_num(setup)) > 1e-6 * np.abs(np.nan_to_num(setup)).max(axis=0)
-            open_ |= np.any(acts[:, np.any(acts[open_], axis=0)], axis=1)
-        return np.where(open_, np.nan, sd)
-
-    def blanks(self, sd: np.ndarray) -> np.ndarray:
-        """(n,) bool: the predictions whose standard error ``sd`` is NaN because they rest on what the
-        data did not determine (none when the model carries no uncertainty)."""
-        return np.isnan(sd) if self.directions is not None else np.zeros(np.shape(sd), dtype=bool)
+            unknown = held_only & ~acts.any(axis=1)
+            for k in range(acts.shape[1]):
+                group = acts[:, k]
+                if np.any(group & content) and np.all(held_only[group & content]):
+                    unknown |= group
+        return np.where(open_ | unknown, np.nan, sd), unknown
 
 
 @dataclass
@@ -98,8 +109,9 @@ class Prediction:
     """What :func:`predict_readings` returns.
 
     columns : 'pred_<column>' -> (n_rows,) predicted readings, FILE units, and 'pred_<column>_sd'
-        -> its standard error; both NaN where the data behind the model do not determine the
-        prediction (it rests on a combination of parameters the fit held at zero error).
+        -> its standard error: NaN where the prediction depends on what the data behind the model
+        do not determine; both NaN where it rests only on that (the model knows nothing of it:
+        :meth:`Undetermined.assess`).
     setup_known : True when the file was part of the fit and its fitted set-up (laser zero, tracker
         frame, bar calibration) is used; False: the set-up is unknown and taken as zero.
     notes : lines for the user.
@@ -158,16 +170,16 @@ def predict_readings(fitted: FittedModel, data: MeasurementSet, machine: Machine
     blank = 0
     for name in list(columns):
         if name in jac:
-            sd = undetermined.std(np.nan_to_num(jac[name]), setup.get(name))
-            # what the model does not determine is no number (not the zero it is held at)
-            open_ = undetermined.blanks(sd) & np.isfinite(columns[name])
-            blank += int(open_.sum())
-            columns[name] = np.where(open_, np.nan, columns[name])
+            sd, unknown = undetermined.assess(np.nan_to_num(jac[name]), setup.get(name))
+            # what the model knows nothing of is no number (not the zero it is held at)
+            unknown &= np.isfinite(columns[name])
+            blank += int(unknown.sum())
+            columns[name] = np.where(unknown, np.nan, columns[name])
             columns[f"{name}_sd"] = np.where(np.isfinite(columns[name]), sd, np.nan)
         else:
             columns[f"{name}_sd"] = np.full(len(data), np.nan)
     if blank:
-        notes.append(f"{blank} prediction(s) of {mm.tag} rest on what the model's data did not "
+        notes.append(f"{blank} prediction(s) of {mm.tag} rest only on what the model's data did not "
                      "determine: left blank")
     if fitted.uncertainty is None:
         notes.append("the model carries no uncertainty (mtcomp identify and diagnose write one; a "

@@ -191,6 +191,8 @@ def component_ranges(fitted: FittedModel, undetermined: Undetermined | None = No
         f_pos = 180.0 / math.pi if ax.is_rotary else 1.0
         names = [f"E{d}{ax.name}" for d in TRANSLATION_LETTERS + ANGLE_LETTERS]
         for j, comp in enumerate(names):
+            if not np.any(dE[:, j, :]):
+                continue            # not part of the model (a rotary axis's error motions of order 0)
             angular = comp[1] in ANGLE_LETTERS
             unit, scale = ("urad", 1e6) if angular else ("um", 1e3)
             e, J = E[:, j] * scale, dE[:, j, :] * scale
@@ -372,7 +374,9 @@ def laser_target_tables(fitted: FittedModel, datasets, machine=None, verbose: bo
                 m_up, m_dn, p_up, p_dn = cells
                 row = [m_up, m_dn, p_up, p_dn, m_up - p_up, m_dn - p_dn]
                 widths = (11, 11, 9, 9, 9, 9)
-                text = " ".join(f"{v:{w}.3f}" if np.isfinite(v) else " " * w for v, w in zip(row, widths))
+                # + 0.0: no "-0.000" for a residual that rounds to zero
+                text = " ".join(f"{round(v, 3) + 0.0:{w}.3f}" if np.isfinite(v) else " " * w
+                                for v, w in zip(row, widths))
                 lines.append(f"  {t:11.4f} {text}")
         lines += more
     return lines

@@ -252,9 +252,9 @@ class IdentificationResult:
         if verbose:
             lines += self._parameter_lines()
         elif self.undetermined:
-            lines.append(f"{len(self.undetermined)} combination(s) of parameters the data cannot "
-                         "determine are held where they predict the least error (--verbose lists them, with every "
-                         "parameter's value)")
+            lines += [f"{len(self.undetermined)} combination(s) of parameters the data cannot "
+                      "determine are held where they predict the least error",
+                      "(--verbose lists them, with every parameter's value)"]
         else:
             lines.append("every fitted parameter is determined by the data (--verbose lists them)")
         while lines and not lines[-1]:
