@@ -47,7 +47,8 @@ def test_map_matches_the_reference_image(tmp_path):
 def test_comparison_fails_when_the_colour_scale_changes(tmp_path):
     lo, hi = render(synthetic_surface_map(), tmp_path / "a.png").clim
     res = render(synthetic_surface_map(), tmp_path / "map.png", clim=(0.7 * lo, 0.7 * hi))
-    assert image_difference(res.png, REFERENCE) > 5 * TOLERANCE
+    # the part fills about a third of the picture (axes, ticks and colour bar around it)
+    assert image_difference(res.png, REFERENCE) > 2 * TOLERANCE
 
 
 def test_comparison_fails_when_the_data_change(tmp_path):

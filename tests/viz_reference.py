@@ -30,7 +30,7 @@ def synthetic_surface_map(n: int = 25) -> SurfaceMap:
 
 
 def main(argv=None) -> int:
-    from .render import render_error_map
+    from mtcomp.viz.render import render_error_map
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) != 1:
         sys.stderr.write("usage: python tests/viz_reference.py OUT.png\n")

@@ -52,6 +52,35 @@ def add_arguments(parser):
                         help="renderer (auto: pyvista off-screen, matplotlib if VTK cannot render)")
 
 
+class Progress:
+    """Progress lines on ``stream`` for a render that takes a while: nothing in the first
+    ``quiet_s`` seconds; after that, one line per stage (``mtcomp render: 4.2 s: <stage> ...``)
+    and a last one when done. Called with the stage's text."""
+
+    def __init__(self, stream, quiet_s: float = 2.0, clock=None):
+        import time
+        self.stream = stream
+        self.quiet_s = quiet_s
+        self.clock = clock or time.monotonic
+        self.t0 = self.clock()
+        self.stage = ""
+        self.said = False
+
+    def _say(self, text):
+        self.stream.write(f"mtcomp render: {self.clock() - self.t0:.1f} s: {text}\n")
+        self.stream.flush()
+        self.said = True
+
+    def __call__(self, stage: str) -> None:
+        if self.stage and self.clock() - self.t0 > self.quiet_s:
+            self._say(f"{self.stage} done; {stage} ...")
+        self.stage = stage
+
+    def done(self) -> None:
+        if self.said or self.clock() - self.t0 > self.quiet_s:
+            self._say(f"{self.stage} done" if self.stage else "done")
+
+
 def _size(text: str) -> tuple[int, int]:
     try:
         w, h = (int(v) for v in text.lower().split("x"))
@@ -65,13 +94,10 @@ def _size(text: str) -> tuple[int, int]:
 def run(args) -> int:
     import sys
 
-    import numpy as np
-
     from ..io.atomic import check_output_path
     from ..machine import load_machine
     from ..models import load_model
-    from ..viz.surface import (planar_levels, program_error_map, program_hints,
-                               read_program_points)
+    from ..viz.surface import program_error_map, program_hints, read_program_points
 
     out = Path(args.output)
     if args.glyph_scale is not None and not args.glyph_scale > 0:
@@ -90,8 +116,11 @@ def run(args) -> int:
             raise InputError("no such file", p)
     check_output_path(out, inputs, ".png", "the map")
     check_output_path(out.with_suffix(".vtp"), inputs)
+    progress = Progress(sys.stderr)
+    progress("reading the model")
     machine = load_machine(args.machine)
     fitted = load_model(args.model, machine)
+    progress("reading the program")
     program = read_program_points(args.program, machine)
     try:
         machine.check_travel(program.q, program.line, program.known, args.program)
@@ -101,32 +130,41 @@ def run(args) -> int:
               "compensate, given the work offsets, checks the travel)", file=sys.stderr)
     smap = program_error_map(machine, fitted, program, args.compensated,
                              tool_radius_mm=args.tool_radius_mm, flank_length_mm=args.flank_mm,
-                             flank_side=args.flank_side, report=args.report, normal=args.normal)
-    from ..viz.render import render_error_map
+                             flank_side=args.flank_side, report=args.report, normal=args.normal,
+                             progress=progress)
+    from ..viz.render import map_notes, render_error_map, uncorrected_legend
     clim = None if args.range_um is None else (-args.range_um, args.range_um)
+    progress(f"drawing {smap.points.shape[0]} points")
     res = render_error_map(smap, out, glyphs=args.glyphs or args.glyph_scale is not None,
                            glyph_scale=args.glyph_scale, clim=clim, window_size=size,
                            backend=args.backend)
+    progress.done()
     st = res.stats
     hints = program_hints(args.program)
     flank = args.flank_mm if args.flank_mm is not None else hints.get("flank_length_mm", 0.0)
+    info = smap.info
     if smap.normal_kind == "in-plane":
-        levels = planar_levels(program, machine)
-        print(f"contour: {st['n_triangles'] // 2} wall segments in {levels or 'no'} plane"
+        levels = info.get("levels", 0)
+        print(f"contour: {len(smap.segments)} wall segments in {levels or 'no'} plane"
               f"{'' if levels == 1 else 's'} across the tool axis (in-plane map"
               + ("" if args.normal == "in-plane" else ": a planar program; --normal surface maps "
                  "the deviation along the tool axis instead") + ")")
+        if info.get("clearing_moves"):
+            print(f"  {info['clearing_moves']} moves with cut path on both sides (raster or "
+                  "offset passes clearing material: no wall) left out")
         along = "the contour's normal in its plane"
     else:
         what = f"flank contact lines, {flank:g} mm" if flank > 0 else "tool-tip surface"
         print(f"surface: {st['n_points']} points, {st['n_triangles']} triangles ({what}"
               + (f"; recognised the {hints['part']}" if hints else "") + ")")
+        if info.get("steep_triangles"):
+            print(f"  {info['steep_triangles']} triangles steeper than 80 deg left out (walls seen "
+                  "from above: slivers between their levels; --normal in-plane maps a wall)")
         along = "the surface normal"
-        flat = smap.normals.size and np.all(np.abs(smap.normals[:, 2]) >= np.cos(np.radians(1.0)))
-        if flank == 0 and (flat or planar_levels(program, machine)):
-            print("warning: the map's normals all lie along the tool axis (a flat or 2-D "
-                  "program): it shows the deviation along Z only, not the error across it (where "
-                  "a contour or a hole lies in its plane; --normal in-plane maps contours)")
+    for line in map_notes(smap):
+        print(line)
+    for line in uncorrected_legend(smap):
+        print(f"{line}: drawn grey, marked")
     print(f"model prediction before: RMS {st['rms_before_um']:.3f} um, max {st['max_before_um']:.3f} "
           f"um (deviation along {along})")
     if "rms_after_um" in st:

@@ -34,13 +34,16 @@ _EGL_SET_BY_US = [False]
 
 @dataclass
 class RenderResult:
-    """What :func:`render_error_map` wrote. clim : (lo, hi) um, the colour scale of both panels."""
+    """What :func:`render_error_map` wrote. clim : (lo, hi) um, the colour scale of both panels.
+    view : '3-D' (pyvista's perspective, or matplotlib's top view of a surface as the fallback) or
+    'top' (an in-plane map: the contour seen along the tool axis)."""
 
     png: Path
     vtp: Path | None
     backend: str
     clim: tuple[float, float]
     stats: dict = field(default_factory=dict)
+    view: str = "3-D"
 
 
 def prepare_offscreen() -> None:
@@ -105,6 +108,12 @@ def to_polydata(smap: SurfaceMap):
     poly.point_data["normal"] = smap.normals
     poly.point_data["nominal_tip_mm"] = smap.tips
     poly.point_data["line"] = smap.line.astype(np.int64)
+    if smap.status is not None:
+        status = np.asarray(smap.status, np.int8)
+        poly.point_data["uncorrected_reason"] = status
+        poly.point_data["uncorrected"] = (status > 0).astype(np.int8)
+        if smap.triangles.shape[0]:
+            poly.cell_data["uncorrected"] = np.any(status[smap.triangles] > 0, axis=1).astype(np.int8)
     return poly
 
 
@@ -163,6 +172,11 @@ def render_error_map(smap: SurfaceMap, out_png, *, glyphs: bool = False,
     clim = (float(clim[0]), float(clim[1]))
     scale = _glyph_scale(smap, glyph_scale) if glyphs else None
     used = None
+    if smap.normal_kind == "in-plane" and smap.segments is not None and backend != "pyvista":
+        # a contour reads best from above, to scale, in mm: its walls are lines, not bands
+        build_contour_figure_and_save(smap, panels, out_png, clim, scale, window_size, title)
+        vtp_path = write_vtp(smap, out_png.with_suffix(".vtp")) if vtp else None
+        return RenderResult(out_png, vtp_path, "matplotlib", clim, smap.stats(), "top")
     if backend in ("auto", "pyvista"):
         try:
             _render_pyvista(smap, panels, out_png, clim, scale, window_size, title)
@@ -193,53 +207,134 @@ def render_error_map(smap: SurfaceMap, out_png, *, glyphs: bool = False,
     return RenderResult(out_png, vtp_path, used, clim, smap.stats())
 
 
-def _render_pyvista(smap, panels, out_png, clim, scale, window_size, title):
+#: colour of the blocks left uncorrected (they are drawn apart, off the colour scale)
+UNCORRECTED_COLOUR = "#9a9a9a"
+#: text colour of the warnings drawn on the map
+NOTE_COLOUR = "#b00000"
+
+
+def uncorrected_legend(smap: SurfaceMap) -> list[str]:
+    """One legend line per reason present among the map's uncorrected points, with their count."""
+    from .surface import STATUS_REASONS
+    if smap.status is None:
+        return []
+    status = np.asarray(smap.status)
+    how = "" if smap.status_source == "report" else ", by the planner's rules"
+    out = []
+    for code, why in STATUS_REASONS.items():
+        k = int(np.count_nonzero(status == code))
+        if k:
+            out.append(f"not corrected: {why} ({k} points{how})")
+    return out
+
+
+def map_notes(smap: SurfaceMap) -> list[str]:
+    """The warnings drawn on the map (and printed by the command)."""
+    return [f"warning: {n}" for n in smap.notes]
+
+
+def build_plotter(smap, panels, clim, scale, window_size, title):
+    """The pyvista Plotter of the map, not yet rendered (tests look at its actors): per panel the
+    surface coloured by dn (um) with its axes in mm (cube axes, ticks), the uncorrected cells grey
+    with their points marked and a legend saying why; a colour bar in um under the panels; the
+    warnings of the map under it."""
     pv = _pyvista()
     poly = to_polydata(smap)
     n = len(panels)
     # text sized to the panel: a title line of ~28 characters fits its width
     font = int(np.clip(window_size[0] / n / 60.0, 6, 12))
-    plotter = pv.Plotter(off_screen=True, shape=(2, n), row_weights=[1.0, 0.16],
+    plotter = pv.Plotter(off_screen=True, shape=(2, n), row_weights=[1.0, 0.22],
                          groups=[(1, np.s_[:])], border=False, window_size=list(window_size))
-    try:
-        plotter.set_background("white")
-        rng = np.random.default_rng(0)
-        glyph_idx = None
-        if scale is not None and smap.points.shape[0] > MAX_GLYPHS:
-            glyph_idx = np.sort(rng.choice(smap.points.shape[0], MAX_GLYPHS, replace=False))
-        mapper = None
-        for k, (label, dn, dev) in enumerate(panels):
-            plotter.subplot(0, k)
-            mesh = poly.copy()
-            mesh.point_data["dn_um"] = dn
-            style = ({} if smap.triangles.shape[0] else
-                     {"style": "points", "point_size": 6, "render_points_as_spheres": True})
-            actor = plotter.add_mesh(mesh, scalars="dn_um", cmap=CMAP, clim=clim,
-                                     show_scalar_bar=False, ambient=0.45, diffuse=0.6, specular=0.0,
-                                     smooth_shading=True, **style)
+    plotter.set_background("white")
+    rng = np.random.default_rng(0)
+    glyph_idx = None
+    if scale is not None and smap.points.shape[0] > MAX_GLYPHS:
+        glyph_idx = np.sort(rng.choice(smap.points.shape[0], MAX_GLYPHS, replace=False))
+    bad = smap.uncorrected
+    legend = uncorrected_legend(smap)
+    mapper = None
+    for k, (label, dn, dev) in enumerate(panels):
+        plotter.subplot(0, k)
+        mesh = poly.copy()
+        mesh.point_data["dn_um"] = dn
+        surface = bool(smap.triangles.shape[0])
+        style = ({} if surface else
+                 {"style": "points", "point_size": 6, "render_points_as_spheres": True})
+        good = mesh
+        if bad.any() and surface:
+            good = mesh.extract_cells(np.flatnonzero(mesh.cell_data["uncorrected"] == 0))
+        elif bad.any():
+            good = mesh.extract_points(np.flatnonzero(~bad), adjacent_cells=False)
+        if good.n_points:
+            actor = plotter.add_mesh(good, scalars="dn_um", cmap=CMAP, clim=clim,
+                                     show_scalar_bar=False, ambient=0.45, diffuse=0.6,
+                                     specular=0.0, smooth_shading=surface, **style)
             mapper = actor.mapper
-            text = panel_title(label, dn)
-            if k == 0 and title:
-                text = f"{title}\n{text}"
-            plotter.add_text(text, position="upper_edge", font_size=font, color="black")
-            if scale is not None:
-                idx = slice(None) if glyph_idx is None else glyph_idx
-                pts = pv.PolyData(np.ascontiguousarray(smap.points[idx]))
-                pts.point_data["vec"] = dev[idx] * scale
-                arrows = pts.glyph(orient="vec", scale="vec", factor=1.0, geom=pv.Arrow())
-                plotter.add_mesh(arrows, color="black")
-                plotter.add_text(f"arrows: deviation x {scale:.3g}", position="lower_left",
-                                 font_size=max(font - 3, 5), color="black")
-            plotter.view_vector((-0.5, -1.0, 0.75), viewup=(0, 0, 1))
-            plotter.camera.zoom(1.15)
-        plotter.subplot(1, 0)
-        plotter.add_scalar_bar(title=" ", mapper=mapper, vertical=False, position_x=0.2,
-                               position_y=0.45, width=0.6, height=0.5, color="black",
-                               label_font_size=max(font + 1, 8), n_labels=7, fmt="%.2f")
-        plotter.add_text(SCALAR_BAR_TITLES[smap.normal_kind], position="lower_edge", font_size=max(font - 1, 6),
-                         color="black")
-        if n > 1:
-            plotter.link_views()
+        if bad.any():
+            grey = (mesh.extract_cells(np.flatnonzero(mesh.cell_data["uncorrected"] == 1))
+                    if surface else mesh.extract_points(np.flatnonzero(bad), adjacent_cells=False))
+            if grey.n_points:
+                # grey, and hatched by its own edges where the cells are few enough to show them
+                plotter.add_mesh(grey, color=UNCORRECTED_COLOUR, ambient=0.6, diffuse=0.4,
+                                 show_edges=surface and grey.n_cells <= 2000,
+                                 edge_color="#6e6e6e", line_width=0.5, **style)
+            marks = smap.points[bad]
+            if marks.shape[0] > MAX_GLYPHS // 3:
+                marks = marks[np.sort(rng.choice(marks.shape[0], MAX_GLYPHS // 3, replace=False))]
+            plotter.add_points(np.ascontiguousarray(marks), color="black", point_size=3,
+                               render_points_as_spheres=True)
+        if mapper is None:      # every block uncorrected: the colour bar still needs the scale
+            stub = pv.PolyData(np.ascontiguousarray(smap.points[:1], dtype=float))
+            stub.point_data["dn_um"] = np.zeros(1)
+            mapper = plotter.add_mesh(stub, scalars="dn_um", cmap=CMAP, clim=clim, opacity=0.0,
+                                      show_scalar_bar=False).mapper
+        text = panel_title(label, dn)
+        if k == 0 and title:
+            text = f"{title}\n{text}"
+        plotter.add_text(text, position="upper_edge", font_size=font, color="black")
+        if scale is not None:
+            idx = slice(None) if glyph_idx is None else glyph_idx
+            pts = pv.PolyData(np.ascontiguousarray(smap.points[idx]))
+            pts.point_data["vec"] = dev[idx] * scale
+            arrows = pts.glyph(orient="vec", scale="vec", factor=1.0, geom=pv.Arrow())
+            plotter.add_mesh(arrows, color="black")
+            plotter.add_text(f"arrows: deviation x {scale:.3g}", position="lower_right",
+                             font_size=max(font - 3, 5), color="black")
+        # the part's coordinates: axes in mm with ticks, on the outer edges of its bounding box
+        plotter.show_bounds(mesh=mesh, xtitle="X (mm)", ytitle="Y (mm)", ztitle="Z (mm)",
+                            color="black", font_size=max(font - 2, 6), location="outer",
+                            ticks="outside", n_xlabels=4, n_ylabels=4, n_zlabels=3, fmt="%.0f",
+                            use_2d=False, minor_ticks=False)
+        plotter.view_vector((-0.5, -1.0, 0.75), viewup=(0, 0, 1))
+        plotter.camera.zoom(0.95)
+    plotter.subplot(1, 0)
+    plotter.add_scalar_bar(title=" ", mapper=mapper, vertical=False, position_x=0.25,
+                           position_y=0.5, width=0.5, height=0.45, color="black",
+                           label_font_size=max(font + 1, 8), n_labels=7, fmt="%.2f")
+    plotter.add_text(SCALAR_BAR_TITLES[smap.normal_kind], position="lower_edge",
+                     font_size=max(font - 1, 6), color="black")
+    # under the first panel's part: why blocks are grey (the legend), and the map's warnings
+    import textwrap
+    small = max(font - 3, 6)
+    width = max(int(window_size[0] / n / small * 1.3), 30)
+    lines = [textwrap.fill("grey, dotted: " + t, width) for t in legend]
+    notes = [textwrap.fill(t, width) for t in map_notes(smap)]
+    plotter.subplot(0, 0)
+    if lines:
+        plotter.add_text("\n".join(lines), position="lower_left", font_size=small,
+                         color="#404040", name="legend")
+    if notes:
+        rows = sum(t.count("\n") + 1 for t in lines)
+        plotter.add_text("\n".join(notes), position=(4, 4 + int(1.6 * small * rows) + (4 if rows else 0)),
+                         font_size=small, color=NOTE_COLOUR, name="notes")
+    if n > 1:
+        plotter.link_views()
+    return plotter
+
+
+def _render_pyvista(smap, panels, out_png, clim, scale, window_size, title):
+    plotter = build_plotter(smap, panels, clim, scale, window_size, title)
+    try:
         img = plotter.screenshot(None, return_img=True)
         from PIL import Image
         with atomic_write(out_png, "wb") as f:
@@ -248,27 +343,142 @@ def _render_pyvista(smap, panels, out_png, clim, scale, window_size, title):
         plotter.close()
 
 
-def _render_matplotlib(smap, panels, out_png, clim, scale, window_size, title):
+def _matplotlib():
     import matplotlib
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
+    return plt
+
+
+def _finish_figure(fig, axes, im, smap, out_png, legend_handles):
+    """The colour bar in um under the panels, the legend of the uncorrected blocks, the warnings;
+    then the PNG, atomically."""
+    plt = _matplotlib()
+    if im is not None:
+        fig.colorbar(im, ax=list(axes), orientation="horizontal",
+                     label=SCALAR_BAR_TITLES[smap.normal_kind], shrink=0.6, aspect=40)
+    if legend_handles:
+        fig.legend(handles=legend_handles, loc="outside lower center", fontsize="small",
+                   frameon=False)
+    notes = map_notes(smap)
+    if notes:
+        fig.suptitle("\n".join(notes), color=NOTE_COLOUR, fontsize="medium")
+    try:
+        with atomic_write(out_png, "wb") as f:
+            fig.savefig(f, dpi=fig.dpi, format="png")
+    finally:
+        plt.close(fig)
+
+
+def _legend_handles(smap, marker):
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+    lines = uncorrected_legend(smap)
+    if marker:
+        return [Line2D([], [], color=UNCORRECTED_COLOUR, lw=2.5, ls=(0, (2, 1)), marker="x",
+                       markeredgecolor="black", label=line) for line in lines]
+    return [Patch(facecolor=UNCORRECTED_COLOUR, edgecolor="black", hatch="///", label=line)
+            for line in lines]
+
+
+def build_contour_figure(smap, panels, clim, scale, window_size, title):
+    """The matplotlib Figure of an in-plane map (tests look at it): per panel the contour seen along
+    the tool axis, to scale, axes in mm; each segment drawn as a line in two halves, each coloured
+    by the dn (um) of its own end (a corner keeps both walls' values); where several levels lie
+    on each other, the largest |dn| is drawn on top. Blocks left uncorrected: grey, dashed,
+    marked x, in a legend that says why."""
+    from matplotlib.collections import LineCollection
+    from matplotlib.colors import Normalize
+    plt = _matplotlib()
+    dpi = 100
+    fig, axes = plt.subplots(1, len(panels), figsize=(window_size[0] / dpi, window_size[1] / dpi),
+                             dpi=dpi, squeeze=False, constrained_layout=True,
+                             sharex=True, sharey=True)
+    axes = axes[0]
+    seg = smap.segments
+    a, b = seg[:, 0], seg[:, 1]
+    pa, pb = smap.points[a, :2], smap.points[b, :2]
+    half = np.concatenate([np.stack([pa, 0.5 * (pa + pb)], axis=1),
+                           np.stack([0.5 * (pa + pb), pb], axis=1)])
+    end = np.concatenate([a, b])
+    bad = smap.uncorrected[end]
+    norm = Normalize(clim[0], clim[1])
+    width = float(np.clip(window_size[0] / len(panels) / 250.0, 1.2, 3.5))
+    levels = smap.info.get("levels", 0)
+    im = None
+    for ax, (label, dn, dev) in zip(axes, panels):
+        value = dn[end]
+        order = np.argsort(np.abs(value[~bad]))
+        good = np.flatnonzero(~bad)[order]
+        lc = LineCollection(half[good], array=value[good], cmap=CMAP, norm=norm, linewidths=width,
+                            capstyle="round")
+        ax.add_collection(lc)
+        im = lc
+        if bad.any():
+            ax.add_collection(LineCollection(half[bad], colors=UNCORRECTED_COLOUR,
+                                             linewidths=width, linestyles=(0, (2, 1))))
+            marks = smap.points[end[bad], :2]
+            step = max(1, marks.shape[0] // 300)
+            ax.plot(marks[::step, 0], marks[::step, 1], "x", color="black", ms=4, mew=0.8)
+        if scale is not None:
+            step = max(1, smap.points.shape[0] // MAX_GLYPHS)
+            ax.quiver(smap.points[::step, 0], smap.points[::step, 1], dev[::step, 0] * scale,
+                      dev[::step, 1] * scale, angles="xy", scale_units="xy", scale=1.0, width=0.002)
+        ax.set_aspect("equal")
+        ax.autoscale_view()
+        ax.margins(0.04)
+        ax.set_xlabel("X (mm)")
+        ax.set_ylabel("Y (mm)")
+        ax.grid(True, color="#dddddd", lw=0.5)
+        ax.set_axisbelow(True)
+        text = panel_title(label, dn)
+        if levels > 1:
+            lo, hi = smap.info.get("level_range_mm") or (0.0, 0.0)
+            text += f"\n{levels} levels, Z {lo:g} .. {hi:g} mm (largest |dn| on top)"
+        ax.set_title(text if not (title and ax is axes[0]) else f"{title}\n{text}")
+    return fig, axes, im
+
+
+def build_contour_figure_and_save(smap, panels, out_png, clim, scale, window_size, title):
+    fig, axes, im = build_contour_figure(smap, panels, clim, scale, window_size, title)
+    _finish_figure(fig, axes, im, smap, out_png, _legend_handles(smap, marker=True))
+
+
+def build_surface_figure(smap, panels, clim, scale, window_size, title):
+    """The matplotlib Figure of a surface map (when VTK cannot render): a top view, ``tripcolor``,
+    axes in mm, the uncorrected triangles grey and hatched."""
+    from matplotlib.collections import PolyCollection
     from matplotlib.tri import Triangulation
+    plt = _matplotlib()
     dpi = 100
     fig, axes = plt.subplots(1, len(panels), figsize=(window_size[0] / dpi, window_size[1] / dpi),
                              dpi=dpi, squeeze=False, constrained_layout=True)
+    axes = axes[0]
     tri = (Triangulation(smap.points[:, 0], smap.points[:, 1], smap.triangles)
            if smap.triangles.shape[0] else None)
+    bad = smap.uncorrected
+    bad_tri = (np.any(bad[smap.triangles], axis=1) if tri is not None
+               else np.zeros(0, bool))
     im = None
     names = "XY"
-    for ax, (label, dn, dev) in zip(axes[0], panels):
+    for ax, (label, dn, dev) in zip(axes, panels):
         if tri is None:         # a path, not a surface: its points, seen along the axis it spans
             span = np.ptp(smap.points, axis=0) if smap.points.size else np.zeros(3)
             u, v = (0, 1) if span[1] > 0 or span[2] == 0 else (0, 2)
             names = "XYZ"[u] + "XYZ"[v]
-            im = ax.scatter(smap.points[:, u], smap.points[:, v], c=dn, s=8, cmap=CMAP,
+            im = ax.scatter(smap.points[~bad, u], smap.points[~bad, v], c=dn[~bad], s=8, cmap=CMAP,
                             vmin=clim[0], vmax=clim[1])
+            if bad.any():
+                ax.scatter(smap.points[bad, u], smap.points[bad, v], c=UNCORRECTED_COLOUR, s=10,
+                           marker="x")
         else:
             im = ax.tripcolor(tri, dn, shading="gouraud", cmap=CMAP, vmin=clim[0], vmax=clim[1])
+            if bad_tri.any():
+                verts = smap.points[smap.triangles[bad_tri]][:, :, :2]
+                ax.add_collection(PolyCollection(verts, facecolors=UNCORRECTED_COLOUR,
+                                                 edgecolors="none"))
+                ax.add_collection(PolyCollection(verts, facecolors="none", edgecolors="black",
+                                                 hatch="///", linewidths=0.0))
         if scale is not None:
             step = max(1, smap.points.shape[0] // MAX_GLYPHS)
             ax.quiver(smap.points[::step, 0], smap.points[::step, 1], dev[::step, 0] * scale,
@@ -276,13 +486,11 @@ def _render_matplotlib(smap, panels, out_png, clim, scale, window_size, title):
         ax.set_aspect("equal")
         ax.set_xlabel(f"{names[0]} (mm)")
         ax.set_ylabel(f"{names[1]} (mm)")
-        ax.set_title(panel_title(label, dn) if not (title and ax is axes[0][0])
+        ax.set_title(panel_title(label, dn) if not (title and ax is axes[0])
                      else f"{title}\n{panel_title(label, dn)}")
-    fig.colorbar(im, ax=axes[0].tolist(), orientation="horizontal",
-                 label=SCALAR_BAR_TITLES[smap.normal_kind],
-                 shrink=0.6)
-    try:
-        with atomic_write(out_png, "wb") as f:
-            fig.savefig(f, dpi=dpi, format="png")
-    finally:
-        plt.close(fig)
+    return fig, axes, im
+
+
+def _render_matplotlib(smap, panels, out_png, clim, scale, window_size, title):
+    fig, axes, im = build_surface_figure(smap, panels, clim, scale, window_size, title)
+    _finish_figure(fig, axes, im, smap, out_png, _legend_handles(smap, marker=False))

@@ -29,7 +29,7 @@ import math
 import os
 import re
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -46,8 +46,22 @@ MAX_EDGE_FACTOR = 5.0
 PLANAR_SHARE = 0.95
 PLANAR_MAX_LEVELS = 10
 PLANAR_TOL_MM = 1e-3
-#: width of the band an in-plane map is drawn as, as a share of the contour's extent (display only)
+#: height of the band a contour of one level is drawn as, as a share of its extent (display only)
 BAND_SHARE = 0.015
+#: an in-plane map draws the contour with segments no shorter than this share of its extent (the
+#: chords of arcs merged): the deviation is smooth on that scale, and 10k arcs stay a few seconds
+MIN_SEGMENT_SHARE = 1.0 / 1000
+#: a move with cut path on both sides, at about the same distance and within this share of the
+#: contour's extent, clears material (a raster or offset pass inside a pocket): no wall, left out
+#: of an in-plane map
+CLEARING_SHARE = 0.05
+#: triangles of a tool-tip surface steeper than this (deg from the plane across the tool axis) are
+#: walls seen edge-on: slivers between the levels of a wall, left out
+MAX_SURFACE_SLOPE_DEG = 80.0
+#: why a block is left uncorrected (SurfaceMap.status)
+STATUS_REASONS = {1: "an axis position the program has not given",
+                  2: "outside the region the model's data reached",
+                  3: "the model unsure (correction's standard error over the limit)"}
 
 
 @dataclass
@@ -102,6 +116,13 @@ class SurfaceMap:
         contact height on a flank. dev_before/dev_after are the deviations of that point.
     normal_kind : 'surface' (the normal of the cut surface, or of the flank) or 'in-plane' (the
         normal of a planar contour in its plane, across the tool axis).
+    status : (N,) int8 or None, why the point's block is left uncorrected (:data:`STATUS_REASONS`:
+        0 corrected, 1 an axis position the program has not given, 2 outside the region the model's
+        data reached, 3 the model unsure of the correction). status_source : 'report' (the
+        compensation report's columns) or 'planner' (the planner's rules, default bounds).
+    notes : sentences the map must show (warnings), info : counts the command prints (levels,
+        clearing moves and steep triangles left out, ...). segments : (S, 2) int or None, an
+        in-plane map's contour: the point indices of each segment's two ends.
     """
 
     points: np.ndarray
@@ -115,6 +136,18 @@ class SurfaceMap:
     compensated: str | None = None
     offsets: np.ndarray | None = None
     normal_kind: str = "surface"
+    status: np.ndarray | None = None
+    status_source: str = ""
+    notes: list = field(default_factory=list)
+    info: dict = field(default_factory=dict)
+    segments: np.ndarray | None = None
+
+    @property
+    def uncorrected(self) -> np.ndarray:
+        """(N,) bool: the point's block is left uncorrected (``status`` > 0)."""
+        if self.status is None:
+            return np.zeros(self.points.shape[0], bool)
+        return self.status > 0
 
     @property
     def dn_before_um(self) -> np.ndarray:
@@ -402,10 +435,25 @@ def _tip_geometry(orig: ProgramPoints, machine: Machine, radius: float, max_edge
     keep = select_surface_points(tips_all)
     tips, axis = tips_all[keep], axes_all[keep]
     tri = triangulate_xy(tips, max_edge_factor)
+    steep = steep_triangles(tips, tri, axis)
+    if steep.any() and not steep.all():
+        tri = tri[~steep]
     normals = vertex_normals(tips, tri, axis)
     # a ball end cuts with its surface: the contact point's deviation along n is the ball centre's
     draw = tips + radius * (axis - normals) if radius > 0 else tips.copy()
-    return _Geometry(cut[keep], draw, radius * axis, normals, tri)
+    return _Geometry(cut[keep], draw, radius * axis, normals, tri), int(np.count_nonzero(steep))
+
+
+def steep_triangles(points: np.ndarray, triangles: np.ndarray, axis: np.ndarray,
+                    max_slope_deg: float = MAX_SURFACE_SLOPE_DEG) -> np.ndarray:
+    """(M,) bool: triangles steeper than ``max_slope_deg`` against the plane across the tool axis
+    ``axis`` (N, 3), and degenerate ones. On a surface triangulated as seen along the tool axis
+    these join the levels of a wall: slivers, not a surface."""
+    a, b, c = (points[triangles[:, i]] for i in range(3))
+    fn = np.cross(b - a, c - a)
+    size = np.linalg.norm(fn, axis=1)
+    along = np.abs(np.einsum("ij,ij->i", fn, axis[triangles[:, 0]]))
+    return along <= np.cos(np.radians(max_slope_deg)) * size
 
 
 def planar_levels(orig: ProgramPoints, machine: Machine) -> int:
@@ -415,7 +463,10 @@ def planar_levels(orig: ProgramPoints, machine: Machine) -> int:
     at every cutting point, at least ``PLANAR_SHARE`` of the cutting path's length runs across it
     (moves whose height along it changes by at most ``PLANAR_TOL_MM``), and at least that share of
     the cutting points lies on at most ``PLANAR_MAX_LEVELS`` heights (ramps and plunges may lie
-    between). A sloped or curved surface, or waterline finishing on many levels, is not planar."""
+    between). A sloped or curved surface, or waterline finishing on many levels, is not planar.
+
+    The shares are of path length across the tool axis, not of points: a helical entry or a ramp
+    written as an arc puts hundreds of chord ends between two levels on a few mm of path."""
     feed = np.flatnonzero(~orig.rapid)
     feed = feed[feed > 0]
     if feed.size < 2:
@@ -428,60 +479,176 @@ def planar_levels(orig: ProgramPoints, machine: Machine) -> int:
     dh = step @ axis
     across = np.linalg.norm(step - dh[:, None] * axis, axis=1)
     flat = np.abs(dh) <= PLANAR_TOL_MM
-    if across.sum() <= 0 or across[flat].sum() < PLANAR_SHARE * across.sum():
+    total = across.sum()
+    if total <= 0 or across[flat].sum() < PLANAR_SHARE * total:
         return 0
-    h = np.round(tips[feed] @ axis / PLANAR_TOL_MM).astype(np.int64)
-    _, counts = np.unique(h, return_counts=True)
-    top = np.sort(counts)[::-1][:PLANAR_MAX_LEVELS]
-    return int(top.size) if top.sum() >= PLANAR_SHARE * feed.size else 0
+    h = np.round(tips[feed[flat]] @ axis / PLANAR_TOL_MM).astype(np.int64)
+    _, where = np.unique(h, return_inverse=True)
+    length = np.bincount(where.ravel(), weights=across[flat])
+    top = np.sort(length[length > 0])[::-1][:PLANAR_MAX_LEVELS]
+    return int(top.size) if top.sum() >= PLANAR_SHARE * total else 0
 
 
 def _inplane_geometry(orig: ProgramPoints, machine: Machine, radius: float, side: str):
-    """A planar program's contour: every feed move with a length across the tool axis is a wall
-    segment whose normal lies in the plane (perpendicular to the move and the tool axis), pointing
+    """A planar program's contour: the feed moves with a length across the tool axis, as wall
+    segments whose normal lies in the plane (perpendicular to the move and the tool axis), pointing
     away from the middle of its pass (``side`` 'outer', a boss) or towards it ('inner', a pocket).
-    The deviation is the tip's (or the tool axis point's, for a cutter of ``radius``: the same for
-    a tool that does not tilt); each segment is drawn as a band of its own two end points, so a
-    corner keeps the normals of both walls."""
+
+    * Runs of moves shorter than ``MIN_SEGMENT_SHARE`` of the contour's extent (the chords of an
+      arc) are merged into one segment, up to a turn of 20 deg: the deviation is evaluated at the
+      ends of the merged segments, which are segment ends of the program.
+    * A move with cut path on both sides (:func:`_clearing_segments`: a raster or an offset pass
+      inside a pocket, a face's raster) leaves no wall: it is left out (all are kept when every
+      move is such).
+    * The deviation is the tip's (or the tool axis point's, for a cutter of ``radius``: the same for
+      a tool that does not tilt); each segment is drawn as a band up the tool axis from its contact
+      line (to the next level above, for a wall cut in step-downs, else ``BAND_SHARE`` of the extent)
+      with the deviation of its own two end points, so a corner keeps the normals of both walls.
+
+    Returns (geometry, segments (S, 2) point indices of the contour, info dict)."""
     tips, axes = forward(machine, orig.q)
-    feed = ~orig.rapid
-    seg = []                                  # row j: the move from point j-1 to point j
-    for j in np.flatnonzero(feed):
-        if j == 0:
-            continue
-        d = tips[j] - tips[j - 1]
-        d = d - (d @ axes[j]) * axes[j]
-        length = float(np.linalg.norm(d))
-        if length > 1e-6:
-            seg.append((j, d / length, length))
-    if not seg:
+    j = np.flatnonzero(~orig.rapid)
+    j = j[j > 0]
+    d = tips[j] - tips[j - 1]
+    d -= np.einsum("ij,ij->i", d, axes[j])[:, None] * axes[j]
+    length = np.linalg.norm(d, axis=1)
+    keep = length > 1e-6
+    j, d, length = j[keep], d[keep], length[keep]
+    if j.size == 0:
         raise InputError("in-plane map: the program has no feed move across the tool axis",
                          orig.path)
-    rows = np.array([j for j, _t, _l in seg])
-    t = np.array([t for _j, t, _l in seg])
-    n = np.cross(t, axes[rows])
-    mid = 0.5 * (tips[rows] + tips[rows - 1])
-    # passes: segments that follow each other without a rapid or a move along the axis between
-    new_pass = np.ones(rows.size, bool)
-    new_pass[1:] = rows[1:] != rows[:-1] + 1
-    pass_id = np.cumsum(new_pass) - 1
-    lengths = np.array([l for _j, _t, l in seg])
-    for k in range(int(pass_id[-1]) + 1):
-        m = pass_id == k
-        centre = np.average(mid[m], axis=0, weights=lengths[m])
-        sign = np.sign(np.sum(lengths[m] * np.einsum("ij,ij->i", mid[m] - centre, n[m]))) or 1.0
-        n[m] *= sign if side == "outer" else -sign
-    span = np.ptp(tips[np.concatenate([rows, rows - 1])], axis=0)
-    width = BAND_SHARE * max(float(np.max(span)), 1e-3)
-    s = rows.size
-    index = np.concatenate([rows - 1, rows, rows - 1, rows])
+    extent = max(float(np.max(np.ptp(tips[np.concatenate([j - 1, j])], axis=0))), 1e-3)
+    unit = d / length[:, None]
+    # passes: moves that follow each other without a rapid or a move along the axis between
+    new_pass = np.ones(j.size, bool)
+    new_pass[1:] = j[1:] != j[:-1] + 1
+    last = np.ones(j.size, bool)
+    last[:-1] = new_pass[1:]
+    turn = np.zeros(j.size, bool)
+    turn[:-1] = np.einsum("ij,ij->i", unit[:-1], unit[1:]) < np.cos(np.radians(20.0))
+    cum = np.cumsum(length)
+    bucket = np.floor(cum / (MIN_SEGMENT_SHARE * extent)).astype(np.int64)
+    crossed = bucket != np.concatenate([[0], bucket[:-1]])
+    ends = np.flatnonzero(last | turn | crossed)          # moves whose end closes a segment
+    first = np.empty_like(ends)      # the first move of each segment (a pass's last move is an end)
+    first[0] = 0
+    first[1:] = ends[:-1] + 1
+    a_idx, b_idx = j[first] - 1, j[ends]                    # program rows of each segment's ends
+    t = tips[b_idx] - tips[a_idx]
+    ax = axes[b_idx]
+    t -= np.einsum("ij,ij->i", t, ax)[:, None] * ax
+    seg_len = np.linalg.norm(t, axis=1)
+    t /= np.maximum(seg_len, 1e-300)[:, None]
+    n = np.cross(t, ax)
+    mid = 0.5 * (tips[a_idx] + tips[b_idx])
+    pass_id = np.cumsum(new_pass)[ends] - 1
+    wall = ~_clearing_segments(tips[j - 1], tips[j], tips[a_idx], tips[b_idx], n, axes[j[0]],
+                               extent)
+    info = {"levels": 0, "clearing_moves": 0}
+    if wall.any() and not wall.all():
+        info["clearing_moves"] = int(np.count_nonzero(~wall))
+        a_idx, b_idx, n, mid, seg_len, pass_id = (v[wall] for v in (a_idx, b_idx, n, mid, seg_len,
+                                                                     pass_id))
+    _, pass_id = np.unique(pass_id, return_inverse=True)
+    w = seg_len + 1e-12
+    total = np.bincount(pass_id, weights=w)
+    centre = np.column_stack([np.bincount(pass_id, weights=w * mid[:, i]) for i in range(3)])
+    centre /= total[:, None]
+    sign = np.sign(np.bincount(pass_id, weights=w * np.einsum("ij,ij->i", mid - centre[pass_id], n)))
+    sign[sign == 0] = 1.0
+    n *= (sign if side == "outer" else -sign)[pass_id][:, None]
+    # the band's height: up to the next level above (a wall cut in step-downs reads as one wall)
+    axis = axes[b_idx[0]]
+    height = mid @ axis
+    flat_seg = np.abs((tips[b_idx] - tips[a_idx]) @ axis) <= PLANAR_TOL_MM
+    levels = np.unique(np.round(height[flat_seg] / PLANAR_TOL_MM)) * PLANAR_TOL_MM
+    info["levels"] = int(levels.size)
+    info["level_range_mm"] = ((float(levels[0]), float(levels[-1])) if levels.size else None)
+    band = BAND_SHARE * extent
+    above = np.searchsorted(levels, height + 0.5 * PLANAR_TOL_MM)
+    gap = np.where(above < levels.size, levels[np.minimum(above, max(levels.size - 1, 0))] - height
+                   if levels.size else np.inf, np.inf)
+    up = np.where(flat_seg & (gap <= 4 * band), gap, band)
+    s = a_idx.size
+    index = np.concatenate([a_idx, b_idx, a_idx, b_idx])
     normals = np.tile(n, (4, 1))
     contact = tips[index] - radius * normals
-    draw = contact + np.concatenate([np.zeros((2 * s, 1)), np.full((2 * s, 1), width)]) * normals
+    lift = np.concatenate([np.zeros(2 * s), up, up])
+    draw = contact + lift[:, None] * axes[index]
     a, b = np.arange(s), np.arange(s) + s                   # start, end on the contour
-    c, e = a + 2 * s, b + 2 * s                              # start, end on the band's far edge
+    c, e = a + 2 * s, b + 2 * s                              # start, end at the band's top
     tris = np.vstack([np.column_stack([a, b, e]), np.column_stack([a, e, c])])
-    return _Geometry(index, draw, radius * axes[index], normals, tris)
+    return (_Geometry(index, draw, radius * axes[index], normals, tris), np.column_stack([a, b]),
+            info)
+
+
+def _clearing_segments(start: np.ndarray, end: np.ndarray, seg_start: np.ndarray,
+                       seg_end: np.ndarray, normal: np.ndarray, axis: np.ndarray,
+                       extent: float) -> np.ndarray:
+    """(S,) bool: the segments (``seg_start`` -> ``seg_end`` (S, 3) mm, in-plane normals
+    ``normal``) of a contour that clear material: cut path on both sides, at about the same
+    distance (within a factor of 2.5) and within ``CLEARING_SHARE`` of the extent, as a raster or
+    an offset pass inside a pocket has, at 3 or more of 5 places along the segment.
+
+    The cutting moves (``start`` -> ``end``, (m, 3) mm) are drawn into a grid of extent/1000 per
+    cell on each of the (at most ``PLANAR_MAX_LEVELS``) main levels; the distance to the path
+    (scipy's Euclidean distance transform) is read at probes 8, 16, ... cells out along each
+    normal: a probe at distance d closer than 0.75 d to the path has found path beyond the
+    segment's own (between 0.25 d and 1.75 d from it). Segments on other heights (ramps,
+    helices) count as walls."""
+    from scipy.ndimage import distance_transform_edt
+    u = np.cross(axis, [1.0, 0.0, 0.0])
+    if np.linalg.norm(u) < 0.5:
+        u = np.cross(axis, [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    basis = np.column_stack([u, np.cross(axis, u)])           # (3, 2): the plane across the axis
+    cell = extent / 1000.0
+    # from 8 cells out: the grid's rounding (a cell) never makes the segment's own path look near
+    probes = cell * 2.0 ** np.arange(3, 10)
+    probes = probes[probes <= max(CLEARING_SHARE * extent, 8 * cell)]
+    margin = probes[-1] + 2 * cell
+    level = np.round(0.5 * (seg_start + seg_end) @ axis / PLANAR_TOL_MM).astype(np.int64)
+    move_level = np.round(0.5 * (start + end) @ axis / PLANAR_TOL_MM).astype(np.int64)
+    move_len = np.linalg.norm(end - start, axis=1)
+    flat = np.abs((end - start) @ axis) <= PLANAR_TOL_MM
+    names, where = np.unique(move_level[flat], return_inverse=True)
+    weight = np.bincount(where.ravel(), weights=move_len[flat])
+    clearing = np.zeros(seg_start.shape[0], bool)
+    for lev in names[np.argsort(weight)[::-1][:PLANAR_MAX_LEVELS]]:
+        moves = np.flatnonzero(flat & (move_level == lev))
+        segs = np.flatnonzero(level == lev)
+        if segs.size == 0:
+            continue
+        a2, b2 = start[moves] @ basis, end[moves] @ basis
+        lo = np.minimum(a2.min(axis=0), b2.min(axis=0)) - margin
+        shape = (np.ceil((np.maximum(a2.max(axis=0), b2.max(axis=0)) + margin - lo) / cell)
+                 .astype(np.int64) + 1)
+        count = np.maximum(np.ceil(move_len[moves] / (0.5 * cell)).astype(np.int64), 1) + 1
+        owner = np.repeat(np.arange(moves.size), count)
+        frac = (np.arange(owner.size) - np.repeat(np.cumsum(count) - count, count)) / (count[owner] - 1)
+        pts = a2[owner] + frac[:, None] * (b2[owner] - a2[owner])
+        cells = np.floor((pts - lo) / cell).astype(np.int64)
+        free = np.ones(tuple(shape), bool)
+        free[cells[:, 0], cells[:, 1]] = False
+        dist = distance_transform_edt(free) * cell
+        n2 = normal[segs] @ basis
+        votes = np.zeros(segs.size)
+        for at in (0.1, 0.3, 0.5, 0.7, 0.9):            # along the segment: a majority decides
+            m2 = ((1.0 - at) * seg_start[segs] + at * seg_end[segs]) @ basis
+            found = []
+            for sgn in (1.0, -1.0):
+                first = np.full(segs.size, np.inf)
+                for d in probes[::-1]:                  # the nearest probe that finds path wins
+                    c = np.floor((m2 + sgn * d * n2 - lo) / cell).astype(np.int64)
+                    inside = np.all((c >= 0) & (c < shape), axis=1)
+                    hit = np.zeros(segs.size, bool)
+                    hit[inside] = dist[c[inside, 0], c[inside, 1]] < 0.75 * d
+                    first[hit] = d
+                found.append(first)
+            near, far = np.minimum(*found), np.maximum(*found)
+            votes += np.isfinite(far) & (far <= 2.5 * near)
+        clearing[segs] = votes >= 3
+    return clearing
 
 
 def cutting_runs(tips: np.ndarray, gap_factor: float = 5.0, corner_deg: float = 60.0
@@ -579,7 +746,8 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
                       tool_radius_mm: float | None = None, flank_length_mm: float | None = None,
                       flank_side: str = "outer", max_edge_factor: float = MAX_EDGE_FACTOR,
                       flank_levels: int | None = None, report=None,
-                      normal: str = "surface") -> SurfaceMap:
+                      normal: str = "surface", uncorrected: bool = True,
+                      progress=None) -> SurfaceMap:
     """The surface ``program`` cuts, with the deviation predicted by ``fitted`` (a FittedModel).
 
     program, compensated : paths of NC files (or :class:`ProgramPoints`); the compensated program
@@ -595,6 +763,9 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
     normal : 'surface' (the cut surface's normal), 'in-plane' (a planar contour's normal in its
         plane: :func:`_inplane_geometry`) or 'auto' (in-plane for a program :func:`planar_levels`
         finds planar, else surface). A flank length > 0 maps the flank whatever this says.
+    uncorrected : mark the blocks left uncorrected (``SurfaceMap.status``): from the report's
+        columns when a report is given, else by the planner's rules (:func:`planner_status`).
+    progress : callable(stage text) told at each stage, or None.
     Raises InputError for programs without a surface or a compensated program that does not match.
     """
     hints = program_hints(program) if not isinstance(program, ProgramPoints) else {}
@@ -617,35 +788,115 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
         comp = (compensated if isinstance(compensated, ProgramPoints)
                 else read_program_points(compensated, machine))
         pair = pair_compensated(orig, comp, machine)
+    say = progress or (lambda _stage: None)
     kind = "surface"
-    g = None
+    g, segments, info = None, None, {}
     if length > 0:
         g = _flank_geometry(orig, machine, radius, length, flank_side, flank_levels)
-    elif normal == "in-plane" or (normal == "auto" and planar_levels(orig, machine)):
-        try:
-            g = _inplane_geometry(orig, machine, radius, flank_side)
-            kind = "in-plane"
-        except InputError:
-            if normal == "in-plane":
-                raise
+    else:
+        levels = planar_levels(orig, machine) if normal != "in-plane" else 0
+        info["planar_levels"] = levels
+        if normal == "in-plane" or (normal == "auto" and levels):
+            say(f"contour of {len(orig)} segment ends")
+            try:
+                g, segments, more = _inplane_geometry(orig, machine, radius, flank_side)
+                info.update(more)
+                kind = "in-plane"
+            except InputError:
+                if normal == "in-plane":
+                    raise
     if g is None:
         try:
-            g = _tip_geometry(orig, machine, radius, max_edge_factor)
+            g, info["steep_triangles"] = _tip_geometry(orig, machine, radius, max_edge_factor)
         except InputError:      # no surface seen along Z (a lathe profile, one point, no cutting)
             g = _path_geometry(orig, machine)
-    sel = g.index
+    # each distinct tool point once (a contour's band repeats its ends four times)
+    key = np.column_stack([g.index.astype(float), g.offset])
+    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.ravel()
+    sel = g.index[first]
     T0 = tool2wp(machine, orig.q[sel])
     tips = T0[:, :3, 3]
-    offset_tool = np.einsum("nji,nj->ni", T0[:, :3, :3], g.offset)   # R0^T offset: tool frame
+    offset_tool = np.einsum("nji,nj->ni", T0[:, :3, :3], g.offset[first])   # R0^T offset: tool frame
     # referenced to the part's datum, as compensate references its corrections: the program's
     # origin (the machine zero: the map knows no work offsets), where the machinist probed the part
-    nominal = tips + g.offset + fitted.datum_deviation(np.zeros((1, machine.n_axes)), machine.tool_length)
+    nominal = tips + g.offset[first] + fitted.datum_deviation(np.zeros((1, machine.n_axes)),
+                                                              machine.tool_length)
+    say(f"deviation at {sel.size} points")
     dev_before = predicted_points(fitted, orig.q[sel], orig.feed[sel], orig.dirs[sel],
                                   offset_tool) - nominal
     dev_after = None
     if comp is not None:
+        say(f"deviation after compensation at {sel.size} points")
         j = pair[sel]
         dev_after = predicted_points(fitted, comp.q[j], comp.feed[j], comp.dirs[j],
                                      offset_tool) - nominal
-    return SurfaceMap(g.draw, tips, g.normals, g.triangles, orig.line[sel].copy(), dev_before,
-                      dev_after, orig.path, None if comp is None else comp.path, g.offset, kind)
+    status, source = None, ""
+    if report is not None:
+        status, source = report_status(report, len(orig))[sel], "report"
+    elif uncorrected and hasattr(fitted, "support"):
+        say(f"finding the blocks the planner leaves uncorrected ({sel.size} points)")
+        status, source = planner_status(fitted, orig, sel), "planner"
+    notes = []
+    normals = g.normals
+    if kind == "surface" and length == 0 and normals.size:
+        tip_axes = forward(machine, orig.q[g.index])[1]
+        along = np.abs(np.einsum("ij,ij->i", normals, tip_axes)) >= np.cos(np.radians(1.0))
+        if along.all() or info.get("planar_levels"):
+            notes.append("the normals all lie along the tool axis (a flat or 2-D program): the map "
+                         "shows the deviation along the tool axis only, not the error across it "
+                         "(--normal in-plane maps contours)")
+    smap = SurfaceMap(g.draw, tips[inverse], normals, g.triangles, orig.line[g.index].copy(),
+                      dev_before[inverse], None if dev_after is None else dev_after[inverse],
+                      orig.path, None if comp is None else comp.path, g.offset, kind,
+                      None if status is None else status[inverse], source, notes, info)
+    smap.segments = segments
+    return smap
+
+
+def report_status(report, n: int) -> np.ndarray:
+    """(n,) int8 :data:`STATUS_REASONS` of the program's segment ends from the compensation report's
+    columns ``unknown_axes``, ``outside_support``, ``uncertain`` and ``corrected`` (its rows that are
+    not inserted nodes, checked against the program by :func:`report_points` before)."""
+    import csv
+    with open(os.fspath(report), newline="") as f:
+        rows = [r for r in csv.DictReader(f) if r.get("inserted", "0") == "0"]
+    status = np.zeros(n, np.int8)
+    for i, r in enumerate(rows[:n]):
+        if r.get("corrected", "1") not in ("0", "0.0"):
+            continue
+        status[i] = (1 if r.get("unknown_axes") else 3 if r.get("uncertain") in ("1", "1.0")
+                     else 2)
+    return status
+
+
+def planner_status(fitted, orig: ProgramPoints, sel: np.ndarray) -> np.ndarray:
+    """(len(sel),) int8 :data:`STATUS_REASONS`: which of the blocks ``sel`` the planner would leave
+    uncorrected under the model's and the machine's defaults (no --extrapolate, the default limit on
+    a correction's standard error), by the planner's own rules, the part's datum at the program's
+    origin as render takes it."""
+    from ..planner import CompensationProblem, Planner, PlannerOptions
+    planner = Planner(CompensationProblem.from_machine(fitted), PlannerOptions(threads=1))
+    q = orig.q[sel]
+    known = np.ones(q.shape, bool) if orig.known is None else np.asarray(orig.known[sel], bool)
+    unknown = ~known
+    outside = planner._outside(q, known)
+    # the standard error changes slowly with position: evaluated once per cell of 1/100 of the
+    # part's extent (0.1 deg for rotary axes) and approach direction, at the cell's first block
+    rotary = np.array([a.is_rotary for a in fitted.machine.axes])
+    extent = max(float(np.max(np.ptp(q[:, ~rotary], axis=0))) if q.size and (~rotary).any() else 0.0,
+                 1e-3)
+    step = np.where(rotary, np.radians(0.1), extent / 100.0)
+    key = np.column_stack([np.round(q / step), orig.dirs[sel], known])
+    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    ctx = planner._context(orig.feed[sel][first], orig.dirs[sel][first], first.size)
+    sd = planner._sd_um(q[first], ctx, unknown[first], outside[first],
+                        np.zeros_like(q[first]))[inverse.ravel()]
+    status = np.zeros(q.shape[0], np.int8)
+    limit = planner.options.max_correction_sd_um
+    if limit:
+        with np.errstate(invalid="ignore"):
+            status[sd > limit] = 3
+    status[outside.any(axis=1)] = 2
+    status[unknown.any(axis=1)] = 1
+    return status
