@@ -499,3 +499,34 @@ def test_weak_directions_hand_case():
     W, _ = _Problem._weak_directions(prob, np.diag([100.0, 4.0, 1.0]), B, scale, 1.0,
                                      np.array([5.0, 0.5, 0.0]))
     assert W.shape == (3, 0)                        # y3 independent: standard error 0.5 um, not weak
+
+
+def test_undetermined_directions_keep_every_machine_only_combination(tmp_path):
+    """An X positioning run says nothing of Y's straightness: every free EYY coefficient is a
+    direction the data leave open, and the model file must record it (predictions along it have no
+    standard error). The null space also holds directions that trade a constant of EXX against the
+    laser's zero; its SVD basis mixes both kinds, and testing basis vectors one by one lost most
+    machine-only directions."""
+    from laser_files import write_x_positioning
+    from mtcomp.measurement.files import read_measurements
+    machine = load_machine("xfyz")
+    path = write_x_positioning(tmp_path / "x.csv", (-100, -50, 0, 50, 100, 150), lambda t, d: 1e-4 * t ** 2,
+                               2, 0.3, np.random.default_rng(3))
+    fitted = identify(machine, [read_measurements(path)]).fitted_model
+    u = fitted.uncertainty
+    names = list(u["names"])
+    N = np.asarray(u["undetermined"])               # (k, m)
+    Q, _ = np.linalg.qr(N) if N.shape[1] else (np.zeros((len(names), 0)), None)
+    eyy = [i for i, n in enumerate(names) if n.startswith("EYY")]
+    assert eyy, names
+    for i in eyy:
+        e = np.zeros(len(names))
+        e[i] = 1.0
+        # the unit direction of the coefficient lies in the recorded span
+        np.testing.assert_allclose(np.linalg.norm(Q.T @ e), 1.0, rtol=0, atol=1e-6)
+    # and the positioning of X, which the run determines, lies outside it
+    exx = [i for i, n in enumerate(names) if n.startswith("EXX")]
+    for i in exx:
+        e = np.zeros(len(names))
+        e[i] = 1.0
+        assert np.linalg.norm(Q.T @ e) < 0.99

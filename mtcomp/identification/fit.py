@@ -704,11 +704,18 @@ class _Problem:
             res.smoothing = self.smoothing
         params = ParameterSet(model.param_specs, values, std)
         nf = self.n_free
-        null_p = (sol.scale[:, None] * sol.null)[:nf]
         # directions that trade machine errors against a file's set-up (a constant against a laser
         # zero ...) change readings only as a set-up would: predictions "up to the set-up" do not
-        # depend on them. Only directions among machine parameters alone leave predictions open.
-        keep = np.linalg.norm(sol.null[nf:], axis=0) < 1e-6
+        # depend on them. Only directions among machine parameters alone leave predictions open:
+        # the combinations of the null space with no set-up part (an SVD basis of the null space
+        # mixes the two kinds, so testing its vectors one by one lost most machine-only directions:
+        # 44 of 54 on a real X laser run)
+        pure = sol.null
+        if sol.null.shape[1] and sol.null.shape[0] > nf:
+            _, sv_n, Vt = np.linalg.svd(sol.null[nf:])
+            pure = sol.null @ Vt[int(np.sum(sv_n > 1e-6)):].T
+        null_p = (sol.scale[:, None] * pure)[:nf]
+        keep = np.ones(null_p.shape[1], dtype=bool)
         if self.metric is not None and null_p.shape[1]:
             # each direction scaled to 1 um rms tool-tip error over the travel; those that move the
             # tip nowhere (a turn about the tool axis ...) cannot change a prediction and are dropped
