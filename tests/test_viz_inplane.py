@@ -86,9 +86,14 @@ def test_planar_levels(tmp_path):
     assert levels("G0 X0 Y0 Z1\nG1 Z-1 F100\nX20\nY20\nX0\nY0\nX5 Z-2\nX20\nY20\nX0\nY0\nX5\n") == 2
     # a sloped raster: few heights, but every cut climbs: a surface, not a contour
     assert levels("G0 X0 Y0 Z1\nG1 Z0 F100\nX10 Z1\nY5\nX0 Z0\nY10\nX10 Z1\n") == 0
-    # waterline levels on more than ten heights: a surface
-    rings = "".join(f"G1 Z{-z}\nX10\nY10\nX0\nY0\n" for z in range(12))
+    # waterline passes over a form on more than ten heights (a 45 deg pyramid: each ring 1 mm
+    # inside the one below): a surface
+    rings = "".join(f"G1 X{z} Y{z} Z{z - 12}\nX{20 - z}\nY{20 - z}\nX{z}\nY{z}\n" for z in range(12))
     assert levels("G0 X0 Y0 Z1\nF100\n" + rings) == 0
+    # the same square on twelve heights (a profile in twelve step-downs): each level's contour on
+    # the one below, a wall: planar
+    rings = "".join(f"G1 Z{-z}\nX10\nY10\nX0\nY0\n" for z in range(12))
+    assert levels("G0 X0 Y0 Z1\nF100\n" + rings) == 12
 
 
 def test_render_says_what_it_maps(tmp_path, exx, capsys):

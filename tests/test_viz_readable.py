@@ -114,6 +114,22 @@ def test_a_pocket_with_helical_entries_is_mapped_in_its_plane_by_default(tmp_pat
         np.testing.assert_allclose(np.abs(dn), 0.04 * x0, rtol=0, atol=1e-9)
 
 
+def test_a_real_profile_in_34_step_downs_is_mapped_in_its_plane(exx):
+    """CamBam's electric turtle (tests/data/gcode_corpus): a profile and small features cut in
+    0.1 mm steps down to 3.4 mm, on 34 levels. Its surface map was flat and all grey."""
+    from pathlib import Path
+    machine, fitted = exx
+    path = Path(__file__).parent / "data" / "gcode_corpus" / "ugs_electric_turtle.nc"
+    prog = read_program_points(path, machine)
+    assert viz_surface.planar_levels(prog, machine) == 34
+    smap = program_error_map(machine, fitted, prog, normal="auto")
+    assert smap.normal_kind == "in-plane" and smap.info["levels"] == 34
+    # the outer circle (radius 55.6 mm about the origin) is there, as the outermost wall
+    r = np.hypot(smap.tips[:, 0], smap.tips[:, 1])
+    assert r.max() == pytest.approx(55.6, abs=0.5)
+    assert smap.stats()["max_before_um"] > 1.0          # the X error across the walls shows
+
+
 def test_clearing_passes_are_left_out_of_the_in_plane_map(tmp_path, exx):
     machine, fitted = exx
     (tmp_path / "pocket.nc").write_text(pocket_program(levels=2))

@@ -57,7 +57,7 @@ class Progress:
     ``quiet_s`` seconds; after that, one line per stage (``mtcomp render: 4.2 s: <stage> ...``)
     and a last one when done. Called with the stage's text."""
 
-    def __init__(self, stream, quiet_s: float = 2.0, clock=None):
+    def __init__(self, stream, quiet_s: float = 3.0, clock=None):
         import time
         self.stream = stream
         self.quiet_s = quiet_s

@@ -306,7 +306,8 @@ def build_plotter(smap, panels, clim, scale, window_size, title):
                             ticks="outside", n_xlabels=4, n_ylabels=4, n_zlabels=3, fmt="%.0f",
                             use_2d=False, minor_ticks=False)
         plotter.view_vector((-0.5, -1.0, 0.75), viewup=(0, 0, 1))
-        plotter.camera.zoom(0.95)
+        # room under the part for the legend and the warnings, when there are any
+        plotter.camera.zoom(0.8 if (legend or smap.notes) else 0.95)
     plotter.subplot(1, 0)
     plotter.add_scalar_bar(title=" ", mapper=mapper, vertical=False, position_x=0.25,
                            position_y=0.5, width=0.5, height=0.45, color="black",
@@ -316,7 +317,7 @@ def build_plotter(smap, panels, clim, scale, window_size, title):
     # under the first panel's part: why blocks are grey (the legend), and the map's warnings
     import textwrap
     small = max(font - 3, 6)
-    width = max(int(window_size[0] / n / small * 1.3), 30)
+    width = max(int(window_size[0] / n / small * 0.95), 30)     # a character is about a font size wide
     lines = [textwrap.fill("grey, dotted: " + t, width) for t in legend]
     notes = [textwrap.fill(t, width) for t in map_notes(smap)]
     plotter.subplot(0, 0)

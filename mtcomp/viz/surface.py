@@ -463,7 +463,9 @@ def planar_levels(orig: ProgramPoints, machine: Machine) -> int:
     at every cutting point, at least ``PLANAR_SHARE`` of the cutting path's length runs across it
     (moves whose height along it changes by at most ``PLANAR_TOL_MM``), and at least that share of
     the cutting points lies on at most ``PLANAR_MAX_LEVELS`` heights (ramps and plunges may lie
-    between). A sloped or curved surface, or waterline finishing on many levels, is not planar.
+    between), or on more heights of which each repeats, for at least half the length, the contour
+    of the one below (a profile or a pocket cut in many step-downs). A sloped or curved surface,
+    or waterline finishing over a form (each level's contour beside the one below), is not planar.
 
     The shares are of path length across the tool axis, not of points: a helical entry or a ramp
     written as an arc puts hundreds of chord ends between two levels on a few mm of path."""
@@ -483,10 +485,57 @@ def planar_levels(orig: ProgramPoints, machine: Machine) -> int:
     if total <= 0 or across[flat].sum() < PLANAR_SHARE * total:
         return 0
     h = np.round(tips[feed[flat]] @ axis / PLANAR_TOL_MM).astype(np.int64)
-    _, where = np.unique(h, return_inverse=True)
+    names, where = np.unique(h, return_inverse=True)
     length = np.bincount(where.ravel(), weights=across[flat])
     top = np.sort(length[length > 0])[::-1][:PLANAR_MAX_LEVELS]
-    return int(top.size) if top.sum() >= PLANAR_SHARE * total else 0
+    if top.sum() >= PLANAR_SHARE * total:
+        return int(top.size)
+    # more levels: a profile or a pocket cut in many step-downs (each level's contour on the one
+    # below: walls) is planar; waterline passes over a form (each level's contour beside the one
+    # below, as the form slopes) are a surface
+    if _stacked_share(tips[feed[flat] - 1], tips[feed[flat]], where.ravel(), names * PLANAR_TOL_MM,
+                      axis) >= 0.5:
+        return int(np.count_nonzero(length > 0))
+    return 0
+
+
+def _samples(start, end, spacing):
+    """Points along the moves ``start`` -> ``end`` (m, 3), at most ``spacing`` apart (ends
+    included), and the length each stands for."""
+    seg_len = np.linalg.norm(end - start, axis=1)
+    count = np.maximum(np.ceil(seg_len / spacing).astype(np.int64), 1) + 1
+    owner = np.repeat(np.arange(start.shape[0]), count)
+    frac = (np.arange(owner.size) - np.repeat(np.cumsum(count) - count, count)) / (count[owner] - 1)
+    return start[owner] + frac[:, None] * (end[owner] - start[owner]), seg_len[owner] / count[owner]
+
+
+def _stacked_share(start, end, level, heights, axis) -> float:
+    """Share of the length of flat moves (``start`` -> ``end`` (m, 3) mm, on level index ``level``
+    of ``heights`` (mm along ``axis``)) that lies on the path of the next level below, to within
+    tan(10 deg) of the step between them: the levels of a wall steeper than 80 deg."""
+    from scipy.spatial import cKDTree
+    flat_start = start - (start @ axis)[:, None] * axis
+    flat_end = end - (end @ axis)[:, None] * axis
+    order = np.argsort(heights)
+    total = float(np.linalg.norm(end - start, axis=1).sum())
+    extent = float(np.ptp(np.vstack([flat_start, flat_end]), axis=0).max())
+    stacked = 0.0
+    for k in range(1, order.size):
+        above = level == order[k]
+        hit = None
+        # the three levels below: small features may be cut on levels between a contour's
+        for lower in order[max(k - 3, 0):k]:
+            below = level == lower
+            tol = np.tan(np.radians(10.0)) * abs(float(heights[order[k]] - heights[lower]))
+            # the path below to within a third of the tolerance (at most 200k points per level)
+            spacing = max(tol / 3.0, np.linalg.norm(end[below] - start[below], axis=1).sum() / 2e5,
+                          1e-6 * max(extent, 1.0))
+            upper_pts, weight = _samples(flat_start[above], flat_end[above], extent / 500.0)
+            lower_pts, _ = _samples(flat_start[below], flat_end[below], spacing)
+            d, _ = cKDTree(lower_pts).query(upper_pts, distance_upper_bound=tol + 0.5 * spacing)
+            hit = np.isfinite(d) if hit is None else hit | np.isfinite(d)
+        stacked += float(weight[hit].sum())
+    return stacked / max(total, 1e-300)
 
 
 def _inplane_geometry(orig: ProgramPoints, machine: Machine, radius: float, side: str):
