@@ -139,8 +139,10 @@ def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int 
         raise InputError(f"--channel-axis applies to one thermal record, alone or beside geometric "
                          f"files, not to several: {join}")
     for d in datasets:
+        if d.kind != "thermal":
+            continue
         named = [h.strip() for h in d.header if h.strip().lower().startswith("axis_")]
-        if d.kind == "thermal" and named:
+        if named:
             raise InputError(f"column {named[0]}: a channel's axis is read from one thermal record, "
                              f"alone or beside geometric files, not from several: {join}", str(d.path))
     from ._resolution import MAX_REFINEMENTS
