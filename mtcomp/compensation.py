@@ -199,6 +199,24 @@ def _has_g(text: bytes, code: bytes = b"20") -> bool:
     return False
 
 
+#: the speed of rapid moves (mm/min) in a program's run time (:func:`block_times`); machine files
+#: do not state one
+RAPID_MM_MIN = 10000.0
+
+
+def block_times(machine, chunk, t0: float = 0.0, rapid_seen: bool = False) -> tuple[np.ndarray, bool]:
+    """((n,) seconds from the program's start at which it reaches each row's end, whether a rapid
+    was timed): feed moves at their feed (mm/min, the path length over the linear axes), rapids at
+    :data:`RAPID_MM_MIN`; a move without a feed, or one of rotary axes alone, takes no time."""
+    lin = [j for j, a in enumerate(machine.axes) if not a.is_rotary]
+    length = np.sqrt(np.sum((chunk.end[:, lin] - chunk.start[:, lin]) ** 2, axis=1))
+    rapid = np.asarray(chunk.rapid, bool)
+    feed = np.where(rapid, RAPID_MM_MIN, np.asarray(chunk.feed, dtype=float))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dt = np.where(np.isfinite(feed) & (feed > 0), 60.0 * length / feed, 0.0)
+    return t0 + np.cumsum(dt), rapid_seen or bool(np.any(rapid & (length > 0)))
+
+
 class Judge:
     """The tool-tip deviation of the planned blocks under another model of the same machine (a later
     re-measurement, or a draw of the model from its covariance): before correction and after it,
@@ -232,6 +250,8 @@ class Judge:
             cols[f"dir_{a}"] = dirs[:, j].astype(float)
         if chunk.tool_length is not None:
             cols["tool_length"] = np.asarray(chunk.tool_length)[rows]
+        for name, values in (chunk.context or {}).items():
+            cols[name] = np.asarray(values)[rows]
         ctx = self.fitted.context(rows.size, cols)
         q = res.nominal[done]
         x = res.correction[done] * self.ev.D
@@ -286,11 +306,14 @@ class CompensationRun:
 
 
 def compensate_program(fitted, program, output, settings: CompensationSettings, setup=None,
-                       report=None, progress=None, judges=()) -> CompensationRun:
+                       report=None, progress=None, judges=(), temperature_series=None) -> CompensationRun:
     """Compensate ``program`` with the model ``fitted`` into ``output`` (written atomically, with
     the BLOCKS.csv ``report`` when given). ``setup``: the program's work offsets and tool lengths
     (:func:`mtcomp.toolpaths.offsets.load_setup`; None: none). ``progress``: callable(blocks done)
     every few seconds. ``judges``: :class:`Judge` objects that evaluate the plan under their models.
+    ``temperature_series``: a :class:`~mtcomp.thermal.context.TemperatureSeries`, the temperatures
+    along the program's run time (each block at the time the program reaches its end at its feeds,
+    :func:`block_times`); a sensor also in ``settings.temperatures`` keeps that value.
     InputError, with nothing written, for a program without motion."""
     from .thermal.context import thermal_context
     from .toolpaths.offsets import ProgramSetup
@@ -299,6 +322,14 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     settings.check()
     thermal, assumed = thermal_context(fitted, settings.temperatures, settings.spindle_rpm,
                                        settings.extrapolate)
+    series = None
+    if temperature_series is not None:
+        series = type(temperature_series)(temperature_series.t_s, {
+            k: v for k, v in temperature_series.temps.items() if k not in settings.temperatures})
+        for state in series.extremes():         # the range check of every reading, and the sensors
+            thermal_context(fitted, {**settings.temperatures, **state}, settings.spindle_rpm,
+                            settings.extrapolate)
+    clock = {"t": 0.0, "rapid": False}
     fitted.context_defaults.update(thermal)
     setup = setup if setup is not None else ProgramSetup(machine)
     notes = []
@@ -346,6 +377,10 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
                     no_feed["blocks"] += int(feedless.sum())
                     no_feed["line"] = no_feed["line"] or int(chunk.line[np.argmax(feedless)])
                 mchunk, off = setup.apply(chunk)
+                if series is not None:
+                    t_end, clock["rapid"] = block_times(machine, chunk, clock["t"], clock["rapid"])
+                    clock["t"] = float(t_end[-1]) if len(t_end) else clock["t"]
+                    mchunk.context = {f"temp_{k}": v for k, v in series.at(t_end).items()}
                 offsets_of[id(mchunk)] = (chunk, off)
                 yield mchunk
 
@@ -386,6 +421,16 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
                      f"from line {no_feed['line']} on have no feed (no F word before them): the model's "
                      f"feed terms ({', '.join(feed_terms)}) take them at 0 mm/min")
     notes += setup.notes()
+    if series is not None:
+        first = {k: float(v[0]) for k, v in series.temps.items()}
+        start = thermal_context(fitted, {**settings.temperatures, **first}, settings.spindle_rpm,
+                                True)[1]
+        assumed = (f"{start}; from there {', '.join(series.temps)} follow the readings along the "
+                   f"program's run time ({len(series.t_s)} readings over "
+                   f"{float(series.t_s[-1] - series.t_s[0]):g} s; the program takes {clock['t']:.0f} s "
+                   "at its feeds" + (f", rapids at {RAPID_MM_MIN:g} mm/min" if clock["rapid"] else "")
+                   + ("; the last reading holds after it" if clock["t"] > series.t_s[-1] else "")
+                   + ")")
     return CompensationRun(summary, written, notes, assumed, planner.stats,
                            {j.label: j.as_dict() for j in judges},
                            math.sqrt(effort["sum_sq"] / max(effort["n"], 1)), effort["max"],

@@ -42,3 +42,56 @@ def test_drift_correction_and_its_standard_error_are_the_drift_prediction(tmp_pa
         assert float(r["correction_sd_um"]) == pytest.approx(float(pred["pred_disp_ch3_um_sd"]),
                                                              rel=2e-3, abs=1e-3)
     assert float(blocks[0]["correction_sd_um"]) < 0.5      # was 4.04: the intercept's alone
+
+
+def test_a_time_series_of_temperatures_is_followed_along_the_program(tmp_path, capsys):
+    """Readings at 0, 300 and 600 s; a program whose blocks end at 0.06 s (a 10 mm rapid at
+    10 m/min), 1.86 s (15 mm at 500 mm/min), 601.86 s and 1201.86 s (100 mm at 10 mm/min each):
+    each block's drift is the model's prediction at the temperatures interpolated at its end time
+    (held after the last reading). Oracle: `mtcomp predict` on record rows at those temperatures."""
+    import numpy as np
+    model = tmp_path / "M.json"
+    assert main(["diagnose", "xfyz", str(THERMAL), "--channel-axis", "ch3=Z", "--json",
+                 str(tmp_path / "R.json"), "-o", str(model)]) == 0
+    record = _rows(THERMAL)
+    temps = [c for c in record[0] if c.startswith("temp_")]
+    picks = [record[i] for i in (2000, 4000, 6000)]
+    lines = ["t_s," + ",".join(temps)] + [f"{300 * k}," + ",".join(r[c] for c in temps)
+                                          for k, r in enumerate(picks)]
+    (tmp_path / "S.csv").write_text("\n".join(lines) + "\n")
+    prog = tmp_path / "p.nc"
+    prog.write_text("G21 G90\nG0 X0 Y0 Z10\nG1 Z-5 F500\nG1 X100 F10\nG1 Y100\nM30\n")
+    assert main(["compensate", "xfyz", str(model), str(prog), "-o", str(tmp_path / "o.nc"),
+                 "--temperatures", str(tmp_path / "S.csv"), "--report", str(tmp_path / "B.csv"),
+                 "--max-correction-um", "200", "--max-step-um", "200"]) == 0
+    said = capsys.readouterr().out
+    assert "follow the readings along the program's run time (3 readings over 600 s; the program " \
+           "takes 1202 s at its feeds, rapids at 10000 mm/min; the last reading holds after it)" in said
+    ends = np.array([0.06, 1.86, 601.86, 1201.86])
+    rows = []
+    for t in ends:
+        row = dict(record[0], t_s="0", spindle_rpm="0")
+        for c in temps:
+            row[c] = repr(float(np.interp(t, [0, 300, 600], [float(r[c]) for r in picks])))
+        rows.append(row)
+    (tmp_path / "rows.csv").write_text(",".join(rows[0]) + "\n"
+                                       + "\n".join(",".join(r.values()) for r in rows) + "\n")
+    assert main(["predict", "xfyz", str(model), str(tmp_path / "rows.csv"), "-o",
+                 str(tmp_path / "P.csv")]) == 0
+    want = [float(r["pred_disp_ch3_um"]) for r in _rows(tmp_path / "P.csv")]
+    blocks = [r for r in _rows(tmp_path / "B.csv") if r["inserted"] == "0"]
+    got = [float(r["ez_before_um"]) for r in blocks]
+    np.testing.assert_allclose(got, want, rtol=0, atol=2e-3)
+    assert max(want) - min(want) > 5.0        # the drift does change along the program
+
+
+def test_a_time_series_without_t_s_or_with_time_going_back_is_one_line(tmp_path, capsys):
+    from mtcomp.thermal.context import read_temperature_row
+    from mtcomp.errors import InputError
+    bad = tmp_path / "S.csv"
+    bad.write_text("temp_t1_c\n25\n26\n")
+    with pytest.raises(InputError, match="no t_s column"):
+        read_temperature_row(bad)
+    bad.write_text("t_s,temp_t1_c\n0,25\n60,26\n30,27\n")
+    with pytest.raises(InputError, match=r"row 3.*t_s must be a time in seconds, increasing"):
+        read_temperature_row(bad)

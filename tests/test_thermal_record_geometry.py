@@ -261,7 +261,7 @@ def test_a_row_of_readings_from_a_file_is_the_same_as_the_flags(tmp_path, capsys
 
 
 @pytest.mark.parametrize("text,needles", [
-    ("t_s,temp_s_c\n0,20.5\n600,20.9\n", ["row 2", "time series", "not supported yet"]),
+    ("t_s,temp_s_c\n0,20.5\n600,\n", ["row 2", "every reading of a time series"]),
     ("t_s,disp_a_um\n0,1.0\n", ["no temperature", "temp_<name>_c"]),
     ("temp_s_c,t_s\n,0\n", ["row 1", "no temperature"]),
     ("temp_s_c\nwarm\n", ["row 1", "temp_s_c"]),

@@ -50,9 +50,10 @@ def add_arguments(parser):
                              "given keep the model's reference; refused outside the range of the "
                              "model's thermal record unless --extrapolate)")
     parser.add_argument("--temperatures", metavar="READINGS.csv", default=None,
-                        help="one row of temperature readings while the program runs, a column "
-                             "temp_NAME_c per sensor as in the thermal file (--temperature wins for "
-                             "a sensor given both ways; a time series is not supported yet)")
+                        help="temperature readings, a column temp_NAME_c per sensor as in the "
+                             "thermal file: one row while the program runs, or a time series (a t_s "
+                             "column, seconds from the program's start) followed along the program's "
+                             "run time at its feeds (--temperature wins for a sensor given both ways)")
     parser.add_argument("--spindle-rpm", type=float, metavar="RPM", default=None,
                         help="spindle speed the machine has run at long enough to be warm, for the "
                              "model's spindle-heat drift (default: spindle stopped for long)")
@@ -129,10 +130,14 @@ def run(args) -> int:
             raise InputError("--json names the same file as -o or --report", args.json)
     machine = load_machine(args.machine)
     fitted = load_model(args.model, machine)
-    temperatures, unread = {}, []
+    temperatures, unread, series = {}, [], None
     if args.temperatures:
-        from ..thermal.context import read_temperature_row
-        temperatures, unread = read_temperature_row(args.temperatures)
+        from ..thermal.context import TemperatureSeries, read_temperature_row
+        readings, unread = read_temperature_row(args.temperatures)
+        if isinstance(readings, TemperatureSeries):
+            series = readings
+        else:
+            temperatures = readings
     temperatures.update(parse_assignments(args.temperature, "--temperature"))
     # the thermal state is checked against the model before any work, the model file named
     thermal_context(fitted, temperatures, args.spindle_rpm, args.extrapolate, source=args.model)
@@ -154,7 +159,7 @@ def run(args) -> int:
     # the summary JSON is written after the program and BLOCKS.csv, which are complete by then: a
     # failed run leaves none of the three (the first two are renamed into place only on success)
     run_ = compensate_program(fitted, args.program, out, settings, setup, report=report,
-                              progress=None if args.quiet else progress)
+                              progress=None if args.quiet else progress, temperature_series=series)
     if summary_json is not None:
         import json
         figures = run_.summary.as_dict()

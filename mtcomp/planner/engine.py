@@ -194,8 +194,11 @@ class Planner:
         self._split = self.threads          # parts a chunk's per-block work is cut into
 
     # ------------------------------------------------------------------ nodes
-    def _context(self, feed, dirs, n, tool_length=None):
-        cols = {"feed": feed}
+    def _context(self, feed, dirs, n, tool_length=None, extra=None):
+        """(n, n_context) the blocks' context: feed, approach directions, tool lengths and the
+        chunk's further columns (``extra``: name -> (n,), e.g. temperatures along the run)."""
+        cols = dict(extra or {})
+        cols["feed"] = feed
         for j, a in enumerate(self.machine.axis_names):
             cols[f"dir_{a}"] = dirs[:, j].astype(float)
         if tool_length is not None:
@@ -294,7 +297,8 @@ class Planner:
         end = self.bounds.snap(chunk.end)
         known = np.asarray(chunk.known, bool)
         self._check_travel(end, chunk.line, known)
-        ctx = self._context(chunk.feed, chunk.dirs, nrows, chunk.tool_length)
+        ctx = self._context(chunk.feed, chunk.dirs, nrows, chunk.tool_length,
+                            getattr(chunk, "context", None))
         rapid = np.asarray(chunk.rapid, bool)
         # a drilling cycle's hole: one block, reached by rapids, never subdivided
         cycle = np.zeros(nrows, bool) if chunk.cycle is None else np.asarray(chunk.cycle, bool)

@@ -1,5 +1,6 @@
 """The thermal state a program is compensated for: temperatures and spindle speed given on the
-command line (or one row of readings, :func:`read_temperature_row`) become the context of the
+command line (or a file of readings, :func:`read_temperature_row`: one row, or a time series along
+the program's run time, :class:`TemperatureSeries`) become the context of the
 model's drift terms (``temp_<name>`` in degC, ``spindle_lag_<tau>`` / ``spindle_heat_<tau>`` in
 1000 rpm at steady state), checked against the range of the thermal record the model was fitted on
 (MODEL.json's ``info["context_ranges"]``, docs/thermal.md)."""
@@ -7,6 +8,9 @@ from __future__ import annotations
 
 import math
 import re
+from dataclasses import dataclass
+
+import numpy as np
 
 from ..errors import InputError
 
@@ -29,27 +33,62 @@ def parse_assignments(items, flag: str) -> dict:
     return out
 
 
-def read_temperature_row(path) -> tuple[dict, list]:
-    """(sensor name -> degC, columns not read) of ``--temperatures FILE``: a CSV file with a header
-    and one row of readings, one column ``temp_<name>_c`` per sensor (as in the thermal file; a blank
-    cell gives no reading). Columns other than the temperatures (``t_s``, ``spindle_rpm``, ...) are
-    not read. A time series (several rows) is refused: not supported yet. InputError naming the file
-    and the row otherwise."""
-    from ..io.csvtable import parse_floats, read_csv_table
+@dataclass(frozen=True)
+class TemperatureSeries:
+    """Readings along the program's run time: ``t_s`` (k,) seconds from the program's start,
+    increasing; ``temps`` sensor name -> (k,) degC. Between readings the temperatures are
+    interpolated linearly; before the first and after the last the nearest reading holds."""
+
+    t_s: np.ndarray
+    temps: dict
+
+    def at(self, t_s) -> dict:
+        """sensor name -> (n,) degC at the times ``t_s`` (n,) seconds."""
+        t = np.asarray(t_s, dtype=float)
+        return {s: np.interp(t, self.t_s, v) for s, v in self.temps.items()}
+
+    def extremes(self) -> list[dict]:
+        """The lowest and the highest reading of every sensor, as two states (for range checks)."""
+        return [{s: float(np.min(v)) for s, v in self.temps.items()},
+                {s: float(np.max(v)) for s, v in self.temps.items()}]
+
+
+def read_temperature_row(path) -> tuple[dict | TemperatureSeries, list]:
+    """(readings, columns not read) of ``--temperatures FILE``: a CSV file with a header and one
+    column ``temp_<name>_c`` per sensor (as in the thermal file). One row: the temperatures while the
+    program runs, sensor name -> degC (a blank cell gives no reading). Several rows: a time series
+    with a ``t_s`` column (seconds from the program's start, increasing), returned as a
+    :class:`TemperatureSeries` (every cell given). Columns other than these (``spindle_rpm``, ...)
+    are not read. InputError naming the file and the row otherwise."""
+    from ..io.csvtable import read_csv_table
     table = read_csv_table(path)
+    names = [n for n in table.names if _TEMP_COLUMN.match(n)]
+    other = [n for n in table.names if n not in names and not (n == "t_s" and len(table.rows) > 1)]
+    if not names:
+        table.fail("no temperature column: expected columns temp_<name>_c (degC), as in the "
+                   "thermal file")
     if len(table.rows) > 1:
-        what = "a time series of readings (t_s)" if table.has("t_s") else "several rows of readings"
-        table.fail(f"{len(table.rows)} rows: {what} is not supported yet; give one row, the "
-                   "temperatures while the program runs", 1)
-    temps, other = {}, []
-    for name in table.names:
-        m = _TEMP_COLUMN.match(name)
-        if not m:
-            other.append(name)
-            continue
-        v = float(parse_floats(table.cells(name), name, table.path, table.row)[0])
+        if not table.has("t_s"):
+            table.fail(f"{len(table.rows)} rows of readings and no t_s column: a time series needs "
+                       "the time of each reading (seconds from the program's start); one row gives "
+                       "the temperatures while the program runs")
+        t = table.floats("t_s")
+        bad = np.flatnonzero(~np.isfinite(t) | np.concatenate([[False], ~(np.diff(t) > 0)]))
+        if bad.size:
+            table.fail("t_s must be a time in seconds, increasing from row to row", int(bad[0]))
+        temps = {}
+        for name in names:
+            v = table.floats(name)
+            if not np.all(np.isfinite(v)):
+                table.fail(f"column {name}: every reading of a time series must be given",
+                           int(np.flatnonzero(~np.isfinite(v))[0]))
+            temps[_TEMP_COLUMN.match(name).group(1)] = v
+        return TemperatureSeries(t, temps), other
+    temps = {}
+    for name in names:
+        v = float(table.floats(name)[0])
         if math.isfinite(v):
-            temps[m.group(1)] = v
+            temps[_TEMP_COLUMN.match(name).group(1)] = v
     if not temps:
         table.fail("no temperature in the row: expected columns temp_<name>_c (degC) with a value, "
                    "as in the thermal file", 0)

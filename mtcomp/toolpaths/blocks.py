@@ -44,6 +44,8 @@ class SegmentChunk:
         the row, or None (the machine zero); set by the caller that knows the work offsets. The
         corrections are referenced to it (mtcomp.planner: what the machinist's probing of the
         part's datum already removes is not corrected again).
+    context : dict or None, more of the model's context per row, name -> (n,) float (e.g.
+        ``temp_t1``: the temperatures along the program's run time); set by the caller.
     """
 
     line: np.ndarray
@@ -59,6 +61,7 @@ class SegmentChunk:
     jump: np.ndarray | None = None
     tool_length: np.ndarray | None = None
     datum: np.ndarray | None = None
+    context: dict | None = None
 
     FIELDS = ("line", "start", "end", "feed", "dirs", "rapid", "from_arc", "known", "frame", "cycle",
               "jump")
@@ -86,6 +89,10 @@ class SegmentChunk:
         # what the caller set (tool lengths, the datum) is kept when every chunk has it
         optional = {f: np.concatenate([getattr(c, f) for c in chunks]) for f in SegmentChunk.OPTIONAL
                     if all(getattr(c, f) is not None for c in chunks)}
+        if all(c.context is not None for c in chunks) and \
+                len({tuple(sorted(c.context)) for c in chunks}) == 1:
+            optional["context"] = {k: np.concatenate([c.context[k] for c in chunks])
+                                   for k in chunks[0].context}
         return SegmentChunk(*(np.concatenate([getattr(c, f) for c in chunks])
                               for f in SegmentChunk.FIELDS), **optional)
 
