@@ -305,6 +305,97 @@ class CompensationRun:
     bound_blocks: dict = field(default_factory=dict)
 
 
+class _Tally:
+    """What a compensation counts beside the planner's Summary, chunk by chunk: feed moves without a
+    feed, the correction effort, the blocks a bound held, and the program's run time at its feeds
+    (for temperatures along it)."""
+
+    def __init__(self, machine):
+        self.machine = machine
+        self.linear = np.array([not a.is_rotary for a in machine.axes])
+        self.no_feed_blocks, self.no_feed_line = 0, 0
+        self.sum_sq, self.max, self.n = 0.0, 0.0, 0
+        self.bound_blocks = dict.fromkeys(_BOUND_KINDS, 0)
+        self.t_s, self.rapid_timed = 0.0, False
+
+    def read(self, chunk) -> None:
+        """A chunk as read (program frame): its feed moves without a feed."""
+        feedless = ~np.asarray(chunk.rapid, bool) & np.isnan(chunk.feed)
+        if feedless.any():
+            self.no_feed_blocks += int(feedless.sum())
+            self.no_feed_line = self.no_feed_line or int(chunk.line[np.argmax(feedless)])
+
+    def clock(self, chunk) -> np.ndarray:
+        """(n,) seconds from the program's start at each row's end (:func:`block_times`)."""
+        t_end, self.rapid_timed = block_times(self.machine, chunk, self.t_s, self.rapid_timed)
+        self.t_s = float(t_end[-1]) if len(t_end) else self.t_s
+        return t_end
+
+    def planned(self, res) -> None:
+        """A chunk's PlanResult: the bounds that acted, the corrections' size."""
+        flags = res.flags[~res.unknown.any(axis=1)]
+        for kind, cols in _BOUND_KINDS.items():
+            self.bound_blocks[kind] += int(flags[:, :, cols].any(axis=(1, 2)).sum())
+        done = ~res.pinned
+        if done.any():
+            c = np.sqrt(np.sum(res.correction[done][:, self.linear] ** 2, axis=1)) * 1e3
+            self.sum_sq += float(np.sum(c ** 2))
+            self.max = max(self.max, float(c.max()))
+            self.n += int(done.sum())
+
+    def feed_note(self, fitted) -> list[str]:
+        feed_terms = [t.key() for t in fitted.model.terms if t.uses_feed]
+        if not feed_terms or not self.no_feed_blocks:
+            return []
+        k = self.no_feed_blocks
+        return [f"warning: {k} feed move{'s' if k != 1 else ''} from line {self.no_feed_line} on have "
+                f"no feed (no F word before them): the model's feed terms ({', '.join(feed_terms)}) "
+                "take them at 0 mm/min"]
+
+
+def _program_units(program, settings: CompensationSettings, machine) -> tuple[bool, bool, list]:
+    """(the program starts in inch, it holds inch anywhere (the output grid), notes on what was
+    taken for a program that states no units)."""
+    if states_units(program):
+        return False, uses_inches(program), []
+    units = settings.units or machine.units
+    if units is None:
+        note = ("warning: the program has no G20/G21 and neither --units nor the machine file's "
+                "'units' says which: taken as mm")
+        units = "mm"
+    else:
+        note = (f"the program has no G20/G21: taken as {units} "
+                f"({'--units' if settings.units else 'machine file'})")
+    start_inch = units == "inch"
+    return start_inch, start_inch or uses_inches(program), [note]
+
+
+def _checked_series(fitted, settings: CompensationSettings, series):
+    """The temperature series without the sensors the settings give (a flag wins), every reading
+    checked against the model's record (InputError beyond it unless ``settings.extrapolate``)."""
+    from .thermal.context import thermal_context
+    if series is None:
+        return None
+    series = type(series)(series.t_s, {k: v for k, v in series.temps.items()
+                                       if k not in settings.temperatures})
+    for state in series.extremes():
+        thermal_context(fitted, {**settings.temperatures, **state}, settings.spindle_rpm,
+                        settings.extrapolate)
+    return series
+
+
+def _series_sentence(fitted, settings: CompensationSettings, series, tally: _Tally) -> str:
+    """What was assumed of the thermal state when the temperatures follow a series."""
+    from .thermal.context import thermal_context
+    first = {k: float(v[0]) for k, v in series.temps.items()}
+    start = thermal_context(fitted, {**settings.temperatures, **first}, settings.spindle_rpm, True)[1]
+    return (f"{start}; from there {', '.join(series.temps)} follow the readings along the program's "
+            f"run time ({len(series.t_s)} readings over {float(series.t_s[-1] - series.t_s[0]):g} s; "
+            f"the program takes {tally.t_s:.0f} s at its feeds"
+            + (f", rapids at {RAPID_MM_MIN:g} mm/min" if tally.rapid_timed else "")
+            + ("; the last reading holds after it" if tally.t_s > series.t_s[-1] else "") + ")")
+
+
 def compensate_program(fitted, program, output, settings: CompensationSettings, setup=None,
                        report=None, progress=None, judges=(), temperature_series=None) -> CompensationRun:
     """Compensate ``program`` with the model ``fitted`` into ``output`` (written atomically, with
@@ -322,119 +413,67 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     settings.check()
     thermal, assumed = thermal_context(fitted, settings.temperatures, settings.spindle_rpm,
                                        settings.extrapolate)
-    series = None
-    if temperature_series is not None:
-        series = type(temperature_series)(temperature_series.t_s, {
-            k: v for k, v in temperature_series.temps.items() if k not in settings.temperatures})
-        for state in series.extremes():         # the range check of every reading, and the sensors
-            thermal_context(fitted, {**settings.temperatures, **state}, settings.spindle_rpm,
-                            settings.extrapolate)
-    clock = {"t": 0.0, "rapid": False}
+    series = _checked_series(fitted, settings, temperature_series)
     fitted.context_defaults.update(thermal)
     setup = setup if setup is not None else ProgramSetup(machine)
-    notes = []
-    start_inch = False
-    if not states_units(program):
-        units = settings.units or machine.units
-        if units is None:
-            units = "mm"
-            notes.append("warning: the program has no G20/G21 and neither --units nor the machine "
-                         "file's 'units' says which: taken as mm")
-        else:
-            notes.append(f"the program has no G20/G21: taken as {units} "
-                         f"({'--units' if settings.units else 'machine file'})")
-        start_inch = units == "inch"
-    inch = start_inch or uses_inches(program)
+    start_inch, inch, notes = _program_units(program, settings, machine)
     start_pos, start_known = start_position(machine, settings.start_position)
-    problem = build_problem(fitted, settings, inch)
     sd_limit = settings.sd_limit()
     options = PlannerOptions(method=settings.method, subdivide_tol_um=settings.subdivide_tol_um or None,
                              progress=progress, extrapolate=settings.extrapolate,
                              max_correction_sd_um=sd_limit, threads=settings.threads)
     chord_tol = settings.chord_tol_um * 1e-3
-    planner = Planner(problem, options, source=str(program))
+    planner = Planner(build_problem(fitted, settings, inch), options, source=str(program))
     summary = Summary(machine.axis_names, extrapolate=settings.extrapolate,
                       support_known=fitted.support is not None, max_correction_sd_um=sd_limit,
                       has_covariance=fitted.uncertainty is not None)
+    tally = _Tally(machine)
     offsets_of = {}
-    no_feed = {"blocks": 0, "line": 0}        # feed moves before any F word
-    effort = {"sum_sq": 0.0, "max": 0.0, "n": 0}
-    bound_blocks = dict.fromkeys(_BOUND_KINDS, 0)
-    linear = np.array([not a.is_rotary for a in machine.axes])
+    read = dict(chord_tol_mm=chord_tol, initial_position=start_pos, inch=start_inch,
+                initial_known=start_known)
 
+    def machine_chunks():
+        for chunk in iter_segment_chunks(program, machine, **read):
+            tally.read(chunk)
+            mchunk, off = setup.apply(chunk)
+            if series is not None:
+                mchunk.context = {f"temp_{k}": v for k, v in series.at(tally.clock(chunk)).items()}
+            offsets_of[id(mchunk)] = (chunk, off)
+            yield mchunk
+
+    def corrections(rep):
+        for mchunk, res in planner.iter_chunks(machine_chunks()):
+            chunk, off = offsets_of.pop(id(mchunk))
+            for judge in judges:
+                judge.add(mchunk, res)
+            tally.planned(res)
+            # back to the program's frame: what is written and reported
+            node_off = np.repeat(off, res.counts, axis=0)
+            res.corrected = res.corrected - node_off
+            res.nominal = res.nominal - node_off
+            summary.add(res)
+            if rep is not None:
+                rep.writelines(report_rows(res, machine.axis_names, sd_limit))
+            yield chunk, res.corrected, res.counts
+        if summary.blocks == 0:
+            # raised while the outputs are still temporary files: nothing is written
+            raise InputError("no motion block in the program: nothing to compensate", program)
+
+    written = {}
     with contextlib.ExitStack() as stack:
         rep = None
         if report is not None:
             rep = stack.enter_context(atomic_write(report, "w", newline=""))
             rep.write(",".join(report_columns(machine.axis_names, machine.is_five_axis)) + "\n")
-
-        def machine_chunks():
-            for chunk in iter_segment_chunks(program, machine, chord_tol_mm=chord_tol,
-                                             initial_position=start_pos, inch=start_inch,
-                                             initial_known=start_known):
-                feedless = ~np.asarray(chunk.rapid, bool) & np.isnan(chunk.feed)
-                if feedless.any():
-                    no_feed["blocks"] += int(feedless.sum())
-                    no_feed["line"] = no_feed["line"] or int(chunk.line[np.argmax(feedless)])
-                mchunk, off = setup.apply(chunk)
-                if series is not None:
-                    t_end, clock["rapid"] = block_times(machine, chunk, clock["t"], clock["rapid"])
-                    clock["t"] = float(t_end[-1]) if len(t_end) else clock["t"]
-                    mchunk.context = {f"temp_{k}": v for k, v in series.at(t_end).items()}
-                offsets_of[id(mchunk)] = (chunk, off)
-                yield mchunk
-
-        def corrections():
-            for mchunk, res in planner.iter_chunks(machine_chunks()):
-                chunk, off = offsets_of.pop(id(mchunk))
-                for judge in judges:
-                    judge.add(mchunk, res)
-                flags = res.flags[~res.unknown.any(axis=1)]
-                for kind, cols in _BOUND_KINDS.items():
-                    bound_blocks[kind] += int(flags[:, :, cols].any(axis=(1, 2)).sum())
-                done = ~res.pinned
-                if done.any():
-                    c = np.sqrt(np.sum(res.correction[done][:, linear] ** 2, axis=1)) * 1e3
-                    effort["sum_sq"] += float(np.sum(c ** 2))
-                    effort["max"] = max(effort["max"], float(c.max()))
-                    effort["n"] += int(done.sum())
-                # back to the program's frame: what is written and reported
-                node_off = np.repeat(off, res.counts, axis=0)
-                res.corrected = res.corrected - node_off
-                res.nominal = res.nominal - node_off
-                summary.add(res)
-                if rep is not None:
-                    rep.writelines(report_rows(res, machine.axis_names, sd_limit))
-                yield chunk, res.corrected, res.counts
-            if summary.blocks == 0:
-                # raised while the outputs are still temporary files: nothing is written
-                raise InputError("no motion block in the program: nothing to compensate", program)
-
-        written = {}
-        write_corrected(program, output, machine, corrections(), chord_tol_mm=chord_tol,
-                        initial_position=start_pos, inch=start_inch, initial_known=start_known,
-                        stats=written)
-    notes += _cycle_notes(written) + datum_notes(fitted, setup)
-    feed_terms = [t.key() for t in fitted.model.terms if t.uses_feed]
-    if feed_terms and no_feed["blocks"]:
-        notes.append(f"warning: {no_feed['blocks']} feed move{'s' if no_feed['blocks'] != 1 else ''} "
-                     f"from line {no_feed['line']} on have no feed (no F word before them): the model's "
-                     f"feed terms ({', '.join(feed_terms)}) take them at 0 mm/min")
+        write_corrected(program, output, machine, corrections(rep), stats=written, **read)
+    notes += _cycle_notes(written) + datum_notes(fitted, setup) + tally.feed_note(fitted)
     notes += setup.notes()
     if series is not None:
-        first = {k: float(v[0]) for k, v in series.temps.items()}
-        start = thermal_context(fitted, {**settings.temperatures, **first}, settings.spindle_rpm,
-                                True)[1]
-        assumed = (f"{start}; from there {', '.join(series.temps)} follow the readings along the "
-                   f"program's run time ({len(series.t_s)} readings over "
-                   f"{float(series.t_s[-1] - series.t_s[0]):g} s; the program takes {clock['t']:.0f} s "
-                   "at its feeds" + (f", rapids at {RAPID_MM_MIN:g} mm/min" if clock["rapid"] else "")
-                   + ("; the last reading holds after it" if clock["t"] > series.t_s[-1] else "")
-                   + ")")
+        assumed = _series_sentence(fitted, settings, series, tally)
     return CompensationRun(summary, written, notes, assumed, planner.stats,
                            {j.label: j.as_dict() for j in judges},
-                           math.sqrt(effort["sum_sq"] / max(effort["n"], 1)), effort["max"],
-                           time.perf_counter() - t0, bound_blocks)
+                           math.sqrt(tally.sum_sq / max(tally.n, 1)), tally.max,
+                           time.perf_counter() - t0, tally.bound_blocks)
 
 
 def _cycle_notes(written: dict) -> list[str]:

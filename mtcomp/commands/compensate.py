@@ -95,27 +95,10 @@ def _positive(value, flag, allow_zero=False):
     return value
 
 
-def run(args) -> int:
-    import sys
-    import time
-
-    from ..compensation import CompensationSettings, compensate_program, parse_start_position
+def _output_paths(args):
+    """(OUT.nc, BLOCKS.csv or None, SUMMARY.json or None), none of them an input nor each other."""
     from ..errors import InputError
-    from ..io.atomic import atomic_write, check_output_path
-    from ..machine import load_machine
-    from ..models.model_file import load_model
-    from ..thermal.context import parse_assignments, thermal_context
-    from ..toolpaths.offsets import load_setup
-
-    t0 = time.perf_counter()
-    for flag, v in (("--max-correction-um", args.max_correction_um),
-                    ("--max-correction-urad", args.max_correction_urad),
-                    ("--max-step-um", args.max_step_um), ("--max-step-urad", args.max_step_urad),
-                    ("--chord-tol-um", args.chord_tol_um),
-                    ("--orientation-weight", args.orientation_weight)):
-        _positive(v, flag)
-    _positive(args.subdivide_tol_um, "--subdivide-tol-um", allow_zero=True)
-    _positive(args.max_correction_sd_um, "--max-correction-sd-um", allow_zero=True)
+    from ..io.atomic import check_output_path
     inputs = [args.program, args.model] + ([args.temperatures] if args.temperatures else [])
     out = check_output_path(args.output, inputs)
     report = None
@@ -128,26 +111,91 @@ def run(args) -> int:
         summary_json = check_output_path(args.json, inputs)
         if summary_json.resolve() in {out.resolve()} | ({report.resolve()} if report else set()):
             raise InputError("--json names the same file as -o or --report", args.json)
-    machine = load_machine(args.machine)
-    fitted = load_model(args.model, machine)
+    return out, report, summary_json
+
+
+def _thermal_state(args, fitted):
+    """(temperatures sensor -> degC, a TemperatureSeries or None, columns of the readings file not
+    read), checked against the model before any work (the model file named)."""
+    from ..thermal.context import (TemperatureSeries, parse_assignments, read_temperature_row,
+                                   thermal_context)
     temperatures, unread, series = {}, [], None
     if args.temperatures:
-        from ..thermal.context import TemperatureSeries, read_temperature_row
         readings, unread = read_temperature_row(args.temperatures)
         if isinstance(readings, TemperatureSeries):
             series = readings
         else:
             temperatures = readings
     temperatures.update(parse_assignments(args.temperature, "--temperature"))
-    # the thermal state is checked against the model before any work, the model file named
     thermal_context(fitted, temperatures, args.spindle_rpm, args.extrapolate, source=args.model)
+    return temperatures, series, unread
+
+
+def _write_summary(path, run_) -> None:
+    import json
+
+    from ..io.atomic import atomic_write
+    figures = run_.summary.as_dict()
+    figures["drilling_cycles"] = {"kept_lines": run_.written.get("cycle_blocks", 0),
+                                  "passed_through_lines": run_.written.get("cycle_lines", 0)}
+    with atomic_write(path, "w") as f:
+        json.dump(figures, f, indent=2)
+        f.write("\n")
+
+
+def _print_run(args, machine, fitted, run_, seconds, unread, written) -> None:
+    from ..export import reversal_note
+    print(f"mtcomp compensate: method {args.method}, {machine.name} ({machine.topology}), "
+          f"{seconds:.1f} s")
+    if run_.assumed:
+        print(run_.assumed)
+    if "spindle_rpm" in unread:
+        print(f"note: {args.temperatures}: column spindle_rpm not read (the spindle's state is "
+              "--spindle-rpm)")
+    print(run_.summary.text())
+    for line in run_.notes:
+        print(line)
+    reversal = reversal_note(fitted)
+    if reversal:
+        print(f"note: {reversal}")
+    st = run_.stats
+    if args.method == "qp" and st["windows"]:
+        print(f"qp: {st['windows_qp']} of {st['windows']} windows needed OSQP "
+              f"({st['qp_solves']} solves)")
+    if st.get("qp_failed"):
+        print(f"warning: OSQP failed on {st['qp_failed']} windows; their corrections were clamped "
+              "to the bounds instead (reported as active bounds)")
+    print(f"wrote {written[0]}" + (f" and {' and '.join(map(str, written[1:]))}" if written[1:] else ""))
+
+
+def run(args) -> int:
+    import sys
+    import time
+
+    from ..compensation import CompensationSettings, compensate_program, parse_start_position
+    from ..machine import load_machine
+    from ..models.model_file import load_model
+    from ..toolpaths.offsets import load_setup
+
+    t0 = time.perf_counter()
+    for flag, v in (("--max-correction-um", args.max_correction_um),
+                    ("--max-correction-urad", args.max_correction_urad),
+                    ("--max-step-um", args.max_step_um), ("--max-step-urad", args.max_step_urad),
+                    ("--chord-tol-um", args.chord_tol_um),
+                    ("--orientation-weight", args.orientation_weight)):
+        _positive(v, flag)
+    _positive(args.subdivide_tol_um, "--subdivide-tol-um", allow_zero=True)
+    _positive(args.max_correction_sd_um, "--max-correction-sd-um", allow_zero=True)
+    out, report, summary_json = _output_paths(args)
+    machine = load_machine(args.machine)
+    fitted = load_model(args.model, machine)
+    temperatures, series, unread = _thermal_state(args, fitted)
     settings = CompensationSettings(
         method=args.method, max_correction_um=args.max_correction_um,
         max_correction_urad=args.max_correction_urad, max_step_um=args.max_step_um,
         max_step_urad=args.max_step_urad, orientation_weight=args.orientation_weight,
         subdivide_tol_um=args.subdivide_tol_um, chord_tol_um=args.chord_tol_um,
-        temperatures=temperatures,
-        spindle_rpm=args.spindle_rpm, extrapolate=args.extrapolate,
+        temperatures=temperatures, spindle_rpm=args.spindle_rpm, extrapolate=args.extrapolate,
         max_correction_sd_um=args.max_correction_sd_um, units=args.units,
         start_position=parse_start_position(machine, args.start_position))
     setup = load_setup(machine, args.offsets, args.work_offset, args.tool_length)
@@ -161,34 +209,7 @@ def run(args) -> int:
     run_ = compensate_program(fitted, args.program, out, settings, setup, report=report,
                               progress=None if args.quiet else progress, temperature_series=series)
     if summary_json is not None:
-        import json
-        figures = run_.summary.as_dict()
-        figures["drilling_cycles"] = {"kept_lines": run_.written.get("cycle_blocks", 0),
-                                      "passed_through_lines": run_.written.get("cycle_lines", 0)}
-        with atomic_write(summary_json, "w") as f:
-            json.dump(figures, f, indent=2)
-            f.write("\n")
-    print(f"mtcomp compensate: method {args.method}, {machine.name} ({machine.topology}), "
-          f"{time.perf_counter() - t0:.1f} s")
-    if run_.assumed:
-        print(run_.assumed)
-    if "spindle_rpm" in unread:
-        print(f"note: {args.temperatures}: column spindle_rpm not read (the spindle's state is "
-              "--spindle-rpm)")
-    print(run_.summary.text())
-    for line in run_.notes:
-        print(line)
-    from ..export import reversal_note
-    reversal = reversal_note(fitted)
-    if reversal:
-        print(f"note: {reversal}")
-    st = run_.stats
-    if args.method == "qp" and st["windows"]:
-        print(f"qp: {st['windows_qp']} of {st['windows']} windows needed OSQP "
-              f"({st['qp_solves']} solves)")
-    if st.get("qp_failed"):
-        print(f"warning: OSQP failed on {st['qp_failed']} windows; their corrections were clamped "
-              "to the bounds instead (reported as active bounds)")
-    extra = [str(p) for p in (report, summary_json) if p is not None]
-    print(f"wrote {out}" + (f" and {' and '.join(extra)}" if extra else ""))
+        _write_summary(summary_json, run_)
+    _print_run(args, machine, fitted, run_, time.perf_counter() - t0, unread,
+               [p for p in (out, report, summary_json) if p is not None])
     return 0
