@@ -120,7 +120,7 @@ def test_inverse_time_feed_recomputed_for_split_blocks(tmp_path):
 
 def test_blanks_inside_words_zero_offsets_and_grbl_lines(tmp_path):
     p = tmp_path / "in.nc"
-    p.write_text("$H\n$X\nG21 G90\nG0 X 1 Y2 Z 10\nG1 Z - 1 F 200\nG17 G2 X3 Y2 I1 J0 K0.000\n")
+    p.write_text("$H\n$X\nG21 G90\nG0 X 1 Y2 Z 10\n?\nG1 Z - 1 F 200\n ~ \n!\nG17 G2 X3 Y2 I1 J0 K0.000\n")
     b = read_program(p, XFYZ).blocks
     np.testing.assert_allclose(b[0].end, [1, 2, 10], rtol=0, atol=0)
     np.testing.assert_allclose(b[1].end, [1, 2, -1], rtol=0, atol=0)

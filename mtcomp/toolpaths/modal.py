@@ -24,6 +24,11 @@ from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _COLON_PROGRAM_RE, _CURVE_WIT
                     DIR_EPS, MM_PER_INCH, TOOL_AXIS, frame_code, tokenize)
 
 
+#: grbl's real-time commands (status query, cycle start/resume, feed hold, soft reset): sent as
+#: single characters, they have no effect on the program's geometry (grbl v1.1 interface docs)
+_REALTIME = frozenset({"?", "~", "!", "\x18"})
+
+
 class ModalState:
     """The machine's modal state while a program is read, and the interpreter of one block.
 
@@ -149,7 +154,8 @@ class ModalState:
 
     def _text_with_words(self, line: int, text: str) -> str | None:
         """The line's text to tokenize, or None for a line without words, which passes through (an
-        empty line, '%', a ':' program number, the DOS end-of-file mark, a grbl '$' command)."""
+        empty line, '%', a ':' program number, the DOS end-of-file mark, a grbl '$' command or
+        real-time command: '?' status, '~' resume, '!' feed hold, Ctrl-X reset)."""
         if line == 1 and text.startswith("\xef\xbb\xbf"):      # a UTF-8 byte order mark
             text = text[3:]
         s = text.lstrip(" \t")
@@ -162,6 +168,8 @@ class ModalState:
         if s[0] == "$":               # grbl system command: passes through; $H homes every axis
             if s[1:2].upper() in ("H", "J"):
                 self._forget()
+            return None
+        if s.rstrip(" \t") in _REALTIME:     # a grbl real-time command alone on its line
             return None
         if s[0] == "/":
             raise self._err("block delete '/' is not supported", line)
