@@ -151,9 +151,15 @@ def test_inch_and_incremental(tmp_path):
     assert lines[1] == "G90 G1 X1.00000 Y-0.50000 F10"
     assert lines[2] == "X2.00000"
     assert lines[3] == "G21 G90 G1 X1"
-    # without initial_known the program has not said where X is: an incremental move is refused
-    with pytest.raises(InputError, match="incremental .G91. move of axis X"):
-        read_program(tmp_path / "in.nc", XFYZ)
+    # without initial_known the program has not said where X is: the controller moves it from
+    # wherever it stands, so the incremental lines pass through uncorrected, X Y Z unknown until
+    # line 4 gives X
+    b = read_program(tmp_path / "in.nc", XFYZ).blocks
+    assert [x.line for x in b] == [4] and b[0].known.tolist() == [True, False, False]
+    write_corrected(tmp_path / "in.nc", out, XFYZ, None)
+    lines = out.read_text().splitlines()
+    assert lines[:3] == text.splitlines()[:3]
+    assert lines[3] == "G90 G1 X1 G21"      # the same words (an absolute line after G91 ones)
 
 
 def test_rotary_words_in_degrees(tmp_path):
@@ -200,7 +206,6 @@ def test_home_moves_and_dwell(tmp_path):
     ("G0 X1\nG43.4 H1\n", 2, "G43.4 .tool centre point"),
     ("G0 X1\nM128\n", 2, "M128 .tool centre point"),
     ("G0 X1\nM98 P1000\n", 2, "M98 .subprogram call"),
-    ("G91 G1 X1 F100\n", 1, "incremental .G91. move of axis X"),
     ("G0 X1\nG2 X2 Y0 I0.5 F100\n", 2, "arc G2 from a position the program has not given"),
     ("G93\nG0 X0 Y0\nG1 X1\n", 3, "G93 .inverse time feed.: the G1 block has no F word"),
     ("G0 X1\nG0 A10\n", 2, "no A axis"),

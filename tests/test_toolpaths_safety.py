@@ -176,3 +176,36 @@ def test_fanuc_colon_program_number_and_dos_end_mark_pass_through(tmp_path):
     p.write_text(":0097 X1\n")                 # a colon line with more than a number is refused
     with pytest.raises(InputError, match=":1: unexpected character ':'"):
         read_program(p, XFYZ)
+
+
+def test_incremental_move_of_an_unknown_axis_passes_through_and_keeps_it_unknown(tmp_path):
+    """Haas: G43 H01 without Z, then G91 G0 Z-10.: the controller moves Z from wherever it stands.
+    The line passes through as written (incremental), Z stays unknown until the program gives it,
+    X and Y named in the same line move by their increments and stay known; in a G91 program whose
+    output is absolute, a G91 line goes before it."""
+    p = tmp_path / "in.nc"
+    p.write_text("G21 G90\nG0 X10 Y10 Z50\nT1 M6\nG43 H01\nG91 G0 X5 Z-10.\nG0 Y1\nG90 G0 Z20.\n"
+                 "G1 X30 F100\n")
+    b = read_program(p, XFYZ).blocks
+    assert [x.line for x in b] == [2, 6, 7, 8]
+    assert b[1].known.tolist() == [True, True, False]
+    np.testing.assert_allclose(b[1].end[:2], [15.0, 11.0], rtol=0, atol=0)
+    assert b[2].known.tolist() == [True, True, True]
+    out = _shifted(p, XFYZ)
+    src = p.read_text().splitlines()
+    assert out[4] == src[4]                       # as written: the controller's own move
+    # X and Y known (X where the passed line took it: the controller's 10.002 + 5), Z not written
+    assert out[5] == "G90 G0 X15.0020 Y11.0020"
+    assert out[6] == "G0 Z20.0020"
+    q = tmp_path / "inc.nc"
+    q.write_text("G21 G90\nG0 X0 Y0 Z5\nG91\nG0 X10 Y10\nT1 M6\nG0 Z-10.\nG90 G0 Z20.\n")
+    res = _shifted(q, XFYZ)
+    # the known increments are written absolute; the passed line gets its G91 back before it
+    assert res[3:] == ["G90 G0 X10.0020 Y10.0020", "T1 M6", "G91", "G0 Z-10.", "G90 G0 Z20.0020"]
+
+
+def test_incremental_arc_of_an_unknown_axis_is_still_refused(tmp_path):
+    p = tmp_path / "in.nc"
+    p.write_text("G21 G91 G17\nG2 X10 Y0 I5 J0\n")
+    with pytest.raises(InputError, match="incremental \(G91\) move of axis X, whose position"):
+        read_program(p, XFYZ)

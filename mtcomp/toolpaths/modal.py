@@ -345,6 +345,9 @@ class ModalState:
                 raise self._err(f"{arc_words[0]} word outside an arc block", line)
             return None
         self._check_motion_mode(values, arc_words, line)
+        if self.incremental and self.motion in (0, 1) and \
+                any(not self.known[self.names.index(c)] for c in axes_given):
+            return self._blind_increment(values, axes_given)
         start = self.position.copy()
         end, given = self._targets(start, axes_given, values, line)
         raw_axes = {}
@@ -368,6 +371,23 @@ class ModalState:
                            self.inch, words, number, self.known.copy(), given, raw_axes,
                            motion_word, self.incremental, self.inverse_time and self.motion != 0,
                            self.f_word, self.frame, start_known=start_known)
+
+    def _blind_increment(self, values, axes_given) -> None:
+        """An incremental G0/G1 move of an axis whose position the program has not given (a Haas
+        ``G91 G0 Z-10.`` after ``G43 H01``, before any Z): the controller moves it from wherever
+        it stands, so the line passes through uncorrected and that axis stays unknown; the known
+        axes it names move by their increments, and every named axis's approach direction is the
+        sign of its increment. The writer keeps the line incremental (``distance_sensitive``)."""
+        scale = MM_PER_INCH if self.inch else 1.0
+        start = self.position.copy()
+        end = start.copy()
+        for c in axes_given:
+            i = self.names.index(c)
+            end[i] += math.radians(values[c]) if c in "ABC" else values[c] * scale
+        self._directions(start, end[None, :])
+        self.position = end
+        self.distance_sensitive = True
+        return None
 
     def _check_motion_mode(self, values, arc_words, line: int) -> None:
         """A move needs a motion mode, arc words only in G2/G3, and an F on each G93 feed move."""
