@@ -228,6 +228,7 @@ class Judge:
         from .planner._evaluate import Evaluator
         from .thermal.context import thermal_context
         self.label = label
+        fitted = _thermal_model(fitted, settings)[0]
         self.fitted = fitted
         thermal, _ = thermal_context(fitted, settings.temperatures, settings.spindle_rpm,
                                      settings.extrapolate)
@@ -370,6 +371,21 @@ def _program_units(program, settings: CompensationSettings, machine) -> tuple[bo
     return start_inch, start_inch or uses_inches(program), [note]
 
 
+def _thermal_model(fitted, settings: CompensationSettings, series=None) -> tuple:
+    """(the model to compensate with, '' or the sentence saying the drift is not compensated): with
+    no temperature, readings or spindle speed given, the machine's thermal state while the program
+    runs is not known, so the drift terms correct nothing (the model's reference temperatures are
+    the mean over its record, not the machine's state now: they would correct a drift nobody
+    measured, about 10 um on the real record)."""
+    from .thermal.context import has_tip_drift
+    given = bool(settings.temperatures) or settings.spindle_rpm is not None or series is not None
+    if given or not has_tip_drift(fitted.model):
+        return fitted, ""
+    return fitted.without_drift(), ("thermal drift not compensated: no temperature or spindle speed "
+                                    "given, so the machine's thermal state is not known (give "
+                                    "--temperature, --temperatures or --spindle-rpm)")
+
+
 def _checked_series(fitted, settings: CompensationSettings, series):
     """The temperature series without the sensors the settings give (a flag wins), every reading
     checked against the model's record (InputError beyond it unless ``settings.extrapolate``)."""
@@ -411,8 +427,10 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     t0 = time.perf_counter()
     machine = fitted.machine
     settings.check()
+    fitted, unknown_state = _thermal_model(fitted, settings, temperature_series)
     thermal, assumed = thermal_context(fitted, settings.temperatures, settings.spindle_rpm,
                                        settings.extrapolate)
+    assumed = unknown_state or assumed
     series = _checked_series(fitted, settings, temperature_series)
     fitted.context_defaults.update(thermal)
     setup = setup if setup is not None else ProgramSetup(machine)

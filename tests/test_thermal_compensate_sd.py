@@ -95,3 +95,27 @@ def test_a_time_series_without_t_s_or_with_time_going_back_is_one_line(tmp_path,
     bad.write_text("t_s,temp_t1_c\n0,25\n60,26\n30,27\n")
     with pytest.raises(InputError, match=r"row 3.*t_s must be a time in seconds, increasing"):
         read_temperature_row(bad)
+
+
+def test_without_a_thermal_state_the_drift_is_not_compensated(tmp_path, capsys):
+    """No temperature, readings or spindle speed: the machine's state is not known, so nothing of the
+    drift is corrected (its reference, the record's mean temperatures, would correct ~10 um nobody
+    measured) and none of its uncertainty gates a block; the output says so. With a state given the
+    drift is there."""
+    model = tmp_path / "M.json"
+    assert main(["diagnose", "xfyz", str(THERMAL), "--channel-axis", "ch3=Z", "--json",
+                 str(tmp_path / "R.json"), "-o", str(model)]) == 0
+    prog = tmp_path / "p.nc"
+    prog.write_text("G21 G90\nG0 X0 Y0 Z10\nG1 Z-5 F500\nG1 X100\nM30\n")
+    capsys.readouterr()
+    assert main(["compensate", "xfyz", str(model), str(prog), "-o", str(tmp_path / "o.nc"),
+                 "--report", str(tmp_path / "B.csv"), "--quiet"]) == 0
+    said = capsys.readouterr().out
+    assert "thermal drift not compensated: no temperature or spindle speed given" in said
+    blocks = [r for r in _rows(tmp_path / "B.csv") if r["unknown_axes"] == ""]
+    assert blocks and all(float(r["e_before_um"]) == 0.0 for r in blocks)
+    assert (tmp_path / "o.nc").read_text() == prog.read_text()
+    assert main(["compensate", "xfyz", str(model), str(prog), "-o", str(tmp_path / "o2.nc"),
+                 "--report", str(tmp_path / "B2.csv"), "--temperature", "t1=26", "--quiet"]) == 0
+    warm = [r for r in _rows(tmp_path / "B2.csv") if r["unknown_axes"] == ""]
+    assert all(abs(float(r["ez_before_um"])) > 1.0 for r in warm)

@@ -76,6 +76,25 @@ class FittedModel:
                 if isinstance(term, (ThermalDrift, ChannelDrift))
                 for spec in term.param_specs(self.machine)]
 
+    def without_drift(self) -> "FittedModel":
+        """A copy whose drift terms contribute nothing (their parameters at zero and out of the
+        covariance): the model to use where the thermal state is not known, so that no drift is
+        corrected and none of its uncertainty counts. ``self`` when it has no drift terms."""
+        idx = self.drift_param_indices()
+        if not idx:
+            return self
+        params = self.params.copy()
+        params.values[idx] = 0.0
+        uncertainty = self.uncertainty
+        if uncertainty is not None:
+            drift = {self.params.names[i] for i in idx}
+            keep = [k for k, n in enumerate(uncertainty["names"]) if n not in drift]
+            uncertainty = {"names": [uncertainty["names"][k] for k in keep],
+                           "covariance": np.asarray(uncertainty["covariance"])[np.ix_(keep, keep)],
+                           "undetermined": np.asarray(uncertainty["undetermined"])[keep]}
+        return replace(self, params=params, uncertainty=uncertainty,
+                       context_defaults=dict(self.context_defaults))
+
     def datum_params(self) -> np.ndarray:
         """(n_params,) the values with every drift term's at zero: the machine as the part's datum
         was probed (the drift terms' own zero, the start of the thermal record)."""

@@ -25,7 +25,7 @@ from ..compensation import CompensationSettings
 from ..errors import InputError
 
 #: bumped when a task's result changes for the same inputs (new columns, another evaluation)
-RESULT_VERSION = 1
+RESULT_VERSION = 2
 
 _TOP_KEYS = {"machine", "programs", "models", "judge", "methods", "draws", "seed", "temperatures",
              "offsets", "compensate", "bounds"}
@@ -118,8 +118,8 @@ class Study:
 
 
 def temperature_label(temps: dict) -> str:
-    """{'t1': 25.0} -> 't1=25'; {} -> 'reference' (the model's reference temperatures)."""
-    return ",".join(f"{k}={v:g}" for k, v in sorted(temps.items())) or "reference"
+    """{'t1': 25.0} -> 't1=25'; {} -> 'none' (no thermal state: the drift is not compensated)."""
+    return ",".join(f"{k}={v:g}" for k, v in sorted(temps.items())) or "none"
 
 
 def _sha256(path) -> str:

@@ -95,6 +95,12 @@ def read_temperature_row(path) -> tuple[dict | TemperatureSeries, list]:
     return temps, other
 
 
+def has_tip_drift(model) -> bool:
+    """The model has a drift term that moves the tool tip (a thermal record's channel mapped to an
+    axis)."""
+    return bool(_drift_terms(model)[0])
+
+
 def _drift_terms(model):
     from ..models.terms import ChannelDrift, ThermalDrift
     tip = [t for t in model.terms if isinstance(t, ThermalDrift)]
