@@ -15,7 +15,7 @@ import contextlib
 import math
 import re
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -133,7 +133,6 @@ def build_problem(fitted, settings: CompensationSettings, inch: bool) -> Compens
         orientation_weight=settings.orientation_weight)
     if not settings.axis_max_correction and not settings.axis_max_step:
         return problem
-    from dataclasses import replace
     corr, step = problem.max_correction.copy(), problem.max_step.copy()
     for table, out in ((settings.axis_max_correction, corr), (settings.axis_max_step, step)):
         for a, v in table.items():
@@ -380,7 +379,8 @@ def _thermal_model(fitted, settings: CompensationSettings, series=None) -> tuple
     from .thermal.context import has_tip_drift
     given = bool(settings.temperatures) or settings.spindle_rpm is not None or series is not None
     if given or not has_tip_drift(fitted.model):
-        return fitted, ""
+        # a copy of what the thermal state is written into: the caller's model is not changed
+        return replace(fitted, context_defaults=dict(fitted.context_defaults)), ""
     return fitted.without_drift(), ("thermal drift not compensated: no temperature or spindle speed "
                                     "given, so the machine's thermal state is not known (give "
                                     "--temperature, --temperatures or --spindle-rpm)")

@@ -537,3 +537,17 @@ def test_a_datum_outside_the_data_is_said(tmp_path, capsys):
     code, stdout, err = _run(args + ["--work-offset", "G54=X10,Y0,Z0"], capsys)
     assert code == 0, err
     assert "the part's datum" not in stdout
+
+
+def test_a_program_with_no_corrected_block_says_so(tmp_path, capsys):
+    """Every block outside the region the model's data reached: the figures over the corrected
+    blocks are of none, and a warning says that nothing was corrected (it was silent: 'over the 0
+    blocks corrected: ... 0.000 um', exit 0)."""
+    _, _, path = _model_with_support(tmp_path, {"X": (-1.0, 1.0)})
+    prog = tmp_path / "far.nc"
+    prog.write_text("G21 G90\nG0 X100 Y0 Z0\nG1 X150 F500\nM30\n")
+    assert main(["compensate", "xfyz", str(path), str(prog), "-o", str(tmp_path / "o.nc")]) == 0
+    out = capsys.readouterr().out
+    assert "warning: no block was corrected (for the reasons above): the output carries no " \
+           "correction" in out
+    assert (tmp_path / "o.nc").read_text() == prog.read_text()

@@ -157,3 +157,14 @@ def test_compensate_says_it_too(tmp_path, capsys):
     said = [line for line in capsys.readouterr().out.splitlines() if "reversal" in line]
     assert len(said) == 1 and "mtcomp diagnose" in said[0]
     assert _size(said[0]) == pytest.approx(-25.0, abs=0.5)
+
+
+def test_diagnose_records_the_reversal_its_data_show(tmp_path, capsys):
+    """A diagnosed model records the data's reversal too, so that export can name one diagnose did
+    not keep (it was recorded by identify only)."""
+    laser = _laser(tmp_path, lambda t: -25.0)
+    assert main(["diagnose", "xfyz", str(laser), "--json", str(tmp_path / "r.json"), "-o",
+                 str(tmp_path / "m.json")]) == 0
+    rec = json.loads((tmp_path / "m.json").read_text())["info"]["reversal"]
+    assert rec["X"]["B_mean_um"] == pytest.approx(-25.0, abs=0.5)
+    assert rec["X"]["p_value"] < REVERSAL_P

@@ -154,7 +154,7 @@ def test_study_rows_match_direct_compensate_runs_and_an_independent_judge(tmp_pa
     # a draw plans with another model: its own prediction and the judge's differ
     d1 = [r for r in rows if r["draw"] == "1" and r["bounds"] == "wide"][0]
     assert float(d1["rms_after_um"]) > float(d1["plan_rms_after_um"]) + 1e-3
-    # the tight setting's per-axis bound on Z holds: Z corrections never exceed 1 um, the others do
+    # the tight setting (4 um, Z 1 um per axis) holds corrections back on every program
     tight = [r for r in rows if r["bounds"] == "tight" and r["draw"] == "0"]
     assert all(float(r["share_max_correction"]) > 0 for r in tight)
     assert all(float(r["rms_after_um"]) > float(w["rms_after_um"]) for r, w in
@@ -249,6 +249,11 @@ def test_a_failing_task_records_its_error_and_the_study_goes_on(tmp_path, capsys
     assert all("no motion block" in r["error"] and "\n" not in r["error"] for r in bad)
     assert sum(r["status"] == "ok" for r in rows) == 4
     assert "failed: progs/c.nc" in capsys.readouterr().out
+    # a failed task is not kept: fixed, it runs again, and only it
+    (tmp_path / "progs" / "c.nc").write_text("G21 G90\nG0 X5 Y5 Z5\nG1 X20 F300\nM30\n")
+    assert main(["study", str(study), "-o", str(out), "--workers", "1", "--quiet"]) == 0
+    said = capsys.readouterr().out
+    assert "2 computed" in said and "4 kept from before" in said and "0 failed" in said
 
 
 @pytest.mark.parametrize("text, message", [
@@ -301,6 +306,7 @@ def test_an_unreachable_scheduler_is_one_line(tmp_path, capsys):
                  "tcp://127.0.0.1:1", "--quiet"]) == 2
     err = capsys.readouterr().err.strip()
     assert "cannot reach the Dask scheduler" in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "R").exists()
 
 
 def test_progress_shows_done_of_total_and_the_time_left():
@@ -308,11 +314,48 @@ def test_progress_shows_done_of_total_and_the_time_left():
     from mtcomp.study.runner import Progress
     stream = io.StringIO()
     bar = Progress(10, 4, stream=stream, every=0.0)
-    bar.t0 -= 6.0                       # 6 s into the run
+    bar.t0 -= 6.0                       # 6 s into the run (the cluster's start included)
     bar.update()
+    bar.t_first -= 4.0                  # the first task finished 4 s ago
     bar.update(failed=True)
     lines = stream.getvalue().splitlines()
-    assert "5/10 tasks (4 kept from before)" in lines[0]
+    assert "5/10 tasks (4 kept from before)" in lines[0] and "? left" in lines[0]
     assert "6/10 tasks (4 kept from before), 1 failed" in lines[1]
-    # 2 computed in 6 s, 4 to go: 12 s left
-    assert "0m06s elapsed, 0m12s left" in lines[1]
+    # one task in the 4 s since the first finished, 4 to go: 16 s left (the start not counted)
+    assert "0m06s elapsed, 0m16s left" in lines[1]
+
+
+def test_a_judge_model_judges_every_compensation(tmp_path, capsys):
+    """judge = a second model (a re-measurement): each row's before/after are that model's tip error
+    at the nominal and at the written positions (independent evaluation on a direct compensate run),
+    while plan_* stay the compensating model's."""
+    text = STUDY.replace("draws = 2", 'draws = 0\njudge = "LATER.json"')
+    study = _write_study(tmp_path, text, models=(("MODEL.json", 3), ("LATER.json", 4)))
+    out = tmp_path / "R"
+    assert main(["study", str(study), "-o", str(out), "--workers", "1", "--quiet"]) == 0
+    rows = [r for r in _rows(out / "results.csv") if r["bounds"] == "wide"]
+    assert rows and all(r["judge"] == "LATER.json" for r in rows)
+    machine = load_machine("xfyz")
+    later = load_model(tmp_path / "LATER.json", machine)
+    for r in rows:
+        blocks = tmp_path / "b.csv"
+        assert main(["compensate", "xfyz", str(tmp_path / "MODEL.json"), str(tmp_path / r["program"]),
+                     "-o", str(tmp_path / "o.nc"), "--max-correction-um", "100", "--report",
+                     str(blocks), "--json", str(tmp_path / "s.json"), "--quiet"]) == 0
+        before, after = _blocks_judged(blocks, later, machine)
+        assert float(r["rms_before_um"]) == pytest.approx(before, rel=1e-4, abs=1e-5)
+        assert float(r["rms_after_um"]) == pytest.approx(after, rel=1e-4, abs=1e-5)
+        s = json.loads((tmp_path / "s.json").read_text())
+        assert float(r["plan_rms_after_um"]) == pytest.approx(s["corrected"]["rms_after_um"],
+                                                              rel=1e-5, abs=1e-6)
+        assert float(r["rms_after_um"]) > 10 * float(r["plan_rms_after_um"])   # another machine
+
+
+def test_a_program_with_no_corrected_block_has_no_remaining_error(tmp_path):
+    study = _write_study(tmp_path, STUDY.replace("draws = 2", "draws = 0"))
+    (tmp_path / "progs" / "x.nc").write_text("G21 G90\nG0 X10\nG1 X20 F100\nM30\n")  # Y, Z unknown
+    out = tmp_path / "R"
+    assert main(["study", str(study), "-o", str(out), "--workers", "1", "--quiet"]) == 0
+    rows = [r for r in _rows(out / "results.csv") if r["program"].endswith("x.nc")]
+    assert rows and all(r["status"] == "ok" and r["corrected_blocks"] == "0" for r in rows)
+    assert all(r["rms_after_um"] == "" and r["plan_rms_after_um"] == "" for r in rows)

@@ -119,3 +119,11 @@ def test_without_a_thermal_state_the_drift_is_not_compensated(tmp_path, capsys):
                  "--report", str(tmp_path / "B2.csv"), "--temperature", "t1=26", "--quiet"]) == 0
     warm = [r for r in _rows(tmp_path / "B2.csv") if r["unknown_axes"] == ""]
     assert all(abs(float(r["ez_before_um"])) > 1.0 for r in warm)
+
+
+def test_a_sensor_given_twice_is_refused():
+    from mtcomp.errors import InputError
+    from mtcomp.thermal.context import parse_assignments
+    assert parse_assignments(["t1=25", "t2=26"], "--temperature") == {"t1": 25.0, "t2": 26.0}
+    with pytest.raises(InputError, match="t1 is given twice .25 and 26."):
+        parse_assignments(["t1=25", "t1=26"], "--temperature")

@@ -197,6 +197,7 @@ def test_home_moves_and_dwell(tmp_path):
 
 @pytest.mark.parametrize("text, line, msg", [
     ("G0 X1\nG1 X1.2.3\n", 2, "unexpected character '.'"),
+    ("axis,component,target_mm,dir\nX,EXX,0,1\n", 1, "looks like a CSV file"),
     ("G0 X1\nG1 X--1\n", 2, "word X without a valid number"),
     ("G1 X1 F100\nG1 Y#1\n", 2, "#-parameters not supported"),
     ("G0 X1\no200 sub\n", 2, "O-word sub .subroutines"),

@@ -36,17 +36,18 @@ def run(args) -> int:
                          "has its own workers")
     check_study(study)
     n = len(study.tasks())
+    draws = (f"{study.draws + 1} draws (the model, and {study.draws} from its covariance)"
+             if study.draws else "1 model (no draws)")
     print(f"mtcomp study: {n} tasks ({len(study.programs)} programs x {len(study.models)} models x "
           f"{len(study.methods)} methods x {len(study.bounds)} bound settings x "
-          f"{len(study.temperatures)} temperatures x {study.draws + 1} "
-          f"{'draws (the model, and ' + str(study.draws) + ' from its covariance)' if study.draws else 'model (no draws)'})")
-    out.mkdir(parents=True, exist_ok=True)
+          f"{len(study.temperatures)} temperatures x {draws})")
     try:
         result = run_study(study, out, scheduler=args.scheduler, workers=args.workers,
                            progress=not args.quiet)
     except KeyboardInterrupt:
+        import sys
         print(f"mtcomp study: interrupted; every finished task is kept in {out / 'tasks'}: run the "
-              "same command again to go on")
+              "same command again to go on", file=sys.stderr)
         return 130
     tables = write_tables(result.rows, out)
     plots = plot_summary(result.rows, out)
@@ -56,14 +57,18 @@ def run(args) -> int:
                 "nothing new to compute")
     print(f"mtcomp study: {computed}, {result.cached} kept from before, {result.failed} failed; "
           f"{result.seconds:.1f} s")
-    ok = [r for r in result.rows if r["status"] == "ok"]
+    ok = [r for r in result.rows if r["status"] == "ok" and r["rms_after_um"] is not None]
     if ok:
         import numpy as np
         before = np.median([r["rms_before_um"] for r in ok])
         after = np.median([r["rms_after_um"] for r in ok])
         print(f"median over the finished tasks: rms error {before:.3f} um before, {after:.3f} um "
               "after (corrected blocks)")
-    for r in [r for r in result.rows if r["status"] != "ok"][:5]:
-        print(f"failed: {r['program']} ({r['bounds']}, draw {r['draw']}): {r['error']}")
+    bad = [r for r in result.rows if r["status"] != "ok"]
+    for r in bad[:5]:
+        print(f"failed: {r['program']} ({r['model']}, {r['method']}, {r['bounds']}, "
+              f"temperature {r['temperature']}, draw {r['draw']}): {r['error']}")
+    if len(bad) > 5:
+        print(f"... and {len(bad) - 5} more failed tasks (results.csv, index.html)")
     print(f"wrote {', '.join(str(p) for p in tables + plots + [page])}")
     return 0

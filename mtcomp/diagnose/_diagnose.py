@@ -433,6 +433,9 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     from ..measurement.readings import data_held, data_support
     model.support = data_support(st.machine, datasets)
     model.held = data_held(st.machine, datasets)
+    # what the data show of a reversal, so that export can say when the model leaves one out
+    from ..identification.reversal import data_reversal
+    model.info["reversal"] = data_reversal(datasets)
     diag.seconds = time.perf_counter() - t0
     model.info["diagnose"] = diag.to_dict()
     return diag, finer

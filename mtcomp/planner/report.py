@@ -283,4 +283,7 @@ class Summary:
         if not self.support_known:
             lines.append("note: the model does not state the region its data reached; every "
                          "block was corrected as if inside it")
+        if self.blocks and not self.corrected_blocks:
+            lines.append("warning: no block was corrected (for the reasons above): the output "
+                         "carries no correction")
         return "\n".join(lines)

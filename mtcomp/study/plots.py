@@ -1,12 +1,14 @@
 """A study's summary at a glance: three PNG plots and one HTML page that holds them and the table.
 
-* ``remaining_vs_bounds.png``: per program, the remaining rms error (over the corrected blocks,
-  under the judging model) for each bound setting, the error before correction drawn dashed;
-* ``draws_spread.png``: per bound setting, the spread of the remaining rms error over the draws of
-  the model from its covariance (box: quartiles, whiskers: range; with no draws, one point each);
+* ``remaining_vs_bounds.png``: per program (and model, method, temperature where the study has
+  several), the remaining rms error (over the corrected blocks, under the judging model) for each
+  bound setting, draw 0, the error before correction drawn dashed;
+* ``draws_spread.png``: per bound setting, what the draws of the model from its covariance change:
+  each draw's remaining rms error less draw 0's of the same program and settings (box: quartiles,
+  whiskers: range);
 * ``pareto.png``: the correction effort (rms length of the linear corrections) against the
-  remaining rms error, one point per program, method, temperature and bound setting (medians over
-  the draws), coloured by bound setting; the points no other beats in both joined.
+  remaining rms error, one point per bound setting (and method, temperature), medians over programs
+  and draws; the settings no other beats in both joined (the Pareto front).
 
 matplotlib with the Agg backend (no screen needed).
 """
@@ -19,6 +21,10 @@ from pathlib import Path
 import numpy as np
 
 from ..io.atomic import atomic_write
+
+
+#: the plots' file names, in the order :func:`plot_summary` returns them
+PLOTS = ("remaining_vs_bounds.png", "draws_spread.png", "pareto.png")
 
 
 def _ok(rows):
@@ -44,74 +50,94 @@ def _save(fig, path: Path) -> Path:
     return path
 
 
+def _case(r) -> tuple:
+    """What a row compensated, draws aside: (program, model, method, temperature)."""
+    return (r["program"], r["model"], r["method"], r["temperature"])
+
+
+def _case_label(case, cases) -> str:
+    """The parts of ``case`` that differ between ``cases``, joined (the program at least)."""
+    parts = [case[0]] + [v for k, v in enumerate(case[1:], 1) if len({c[k] for c in cases}) > 1]
+    return ", ".join(parts)
+
+
 def plot_summary(rows: list[dict], out) -> list[Path]:
-    """Write the three plots under ``out``; returns their paths (none without a finished task)."""
+    """Write the three plots under ``out``; returns their paths (none without a finished task, and
+    the plots of an earlier run are removed then, so that none describes another study)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     out = Path(out)
     ok = _ok(rows)
     if not ok:
+        for name in PLOTS:
+            (out / name).unlink(missing_ok=True)
         return []
     bounds = list(dict.fromkeys(r["bounds"] for r in rows))
-    programs = list(dict.fromkeys(r["program"] for r in rows))
+    cases = list(dict.fromkeys(_case(r) for r in ok))
+    colours = plt.cm.tab10(np.linspace(0, 1, 10))
+    x = np.arange(len(bounds))
     paths = []
 
     fig, ax = plt.subplots(figsize=(8, 4.8), constrained_layout=True)
-    x = np.arange(len(bounds))
-    colours = plt.cm.tab10(np.linspace(0, 1, 10))
-    for k, prog in enumerate(programs):
-        mine = [r for r in ok if r["program"] == prog and r["draw"] == 0]
+    for k, case in enumerate(cases):
+        mine = [r for r in ok if _case(r) == case and r["draw"] == 0]
         if not mine:
             continue
         c = colours[k % 10]
-        after = [np.mean([r["rms_after_um"] for r in mine if r["bounds"] == b] or [np.nan])
-                 for b in bounds]
-        before = np.mean([r["rms_before_um"] for r in mine])
-        ax.plot(x, after, "o-", color=c, label=prog)
-        ax.axhline(before, color=c, ls="--", lw=0.8)
+        after = [next((r["rms_after_um"] for r in mine if r["bounds"] == b), np.nan) for b in bounds]
+        ax.plot(x, after, "o-", color=c, label=_case_label(case, cases))
+        ax.axhline(np.median([r["rms_before_um"] for r in mine]), color=c, ls="--", lw=0.8)
     ax.set_xticks(x, bounds, rotation=20, ha="right")
     ax.set_xlabel("bound setting")
     ax.set_ylabel("remaining rms error, um (dashed: before)")
     ax.set_title("Remaining error against each bound setting (corrected blocks, draw 0)")
     ax.grid(alpha=0.3)
-    if len(programs) <= 12:
+    if len(cases) <= 12:
         ax.legend(fontsize=7, loc="best")
-    paths.append(_save(fig, out / "remaining_vs_bounds.png"))
+    paths.append(_save(fig, out / PLOTS[0]))
     plt.close(fig)
 
+    # the draws' own effect: each draw's remaining error less draw 0's of the same case and setting
     fig, ax = plt.subplots(figsize=(8, 4.8), constrained_layout=True)
-    data = [[r["rms_after_um"] for r in ok if r["bounds"] == b] for b in bounds]
-    ax.boxplot([d if d else [np.nan] for d in data], whis=(0, 100))
-    ax.set_xticks(np.arange(1, len(bounds) + 1), bounds, rotation=20, ha="right")
+    base = {(_case(r), r["bounds"]): r["rms_after_um"] for r in ok if r["draw"] == 0}
+    data = [[r["rms_after_um"] - base[(_case(r), b)] for r in ok
+             if r["bounds"] == b and r["draw"] > 0 and (_case(r), b) in base] for b in bounds]
     n_draws = max(r["draw"] for r in rows)
+    ax.boxplot([d if d else [np.nan] for d in data], whis=(0, 100))
+    ax.axhline(0.0, color="k", lw=0.6)
+    ax.set_xticks(np.arange(1, len(bounds) + 1), bounds, rotation=20, ha="right")
     ax.set_xlabel("bound setting")
-    ax.set_ylabel("remaining rms error, um")
-    ax.set_title(f"Spread over {n_draws} draws of the model from its covariance, all programs"
-                 if n_draws else "Remaining error over all programs (no draws asked)")
+    ax.set_ylabel("remaining rms error, um, less draw 0's")
+    ax.set_title(f"What {n_draws} draws of the model from its covariance change "
+                 f"(over {len(cases)} program{'s' if len(cases) != 1 else ''} and settings)"
+                 if n_draws else "No draws asked (draws = 0)")
     ax.grid(alpha=0.3, axis="y")
-    paths.append(_save(fig, out / "draws_spread.png"))
+    paths.append(_save(fig, out / PLOTS[1]))
     plt.close(fig)
 
+    # one point per bound setting (and method, temperature): medians over programs and draws, so
+    # that the front compares settings, not programs of different sizes
     fig, ax = plt.subplots(figsize=(8, 4.8), constrained_layout=True)
-    # one point per program, method, temperature and bound setting: the medians over the draws
     groups = {}
     for r in ok:
-        groups.setdefault((r["program"], r["method"], r["temperature"], r["bounds"]), []).append(r)
-    effort = np.array([np.median([r["correction_rms_um"] for r in g]) for g in groups.values()])
-    error = np.array([np.median([r["rms_after_um"] for r in g]) for g in groups.values()])
-    which = np.array([bounds.index(k[3]) for k in groups])
-    for j, b in enumerate(bounds):
-        sel = which == j
-        ax.scatter(effort[sel], error[sel], s=18, alpha=0.7, color=colours[j % 10], label=b)
+        groups.setdefault((r["bounds"], r["method"], r["temperature"]), []).append(r)
+    keys = list(groups)
+    effort = np.array([np.median([r["correction_rms_um"] for r in groups[k]]) for k in keys])
+    error = np.array([np.median([r["rms_after_um"] for r in groups[k]]) for k in keys])
+    for i, k in enumerate(keys):
+        label = ", ".join([k[0]] + [v for j, v in enumerate(k[1:], 1) if len({q[j] for q in keys}) > 1])
+        ax.scatter(effort[i], error[i], s=30, color=colours[bounds.index(k[0]) % 10])
+        ax.annotate(label, (effort[i], error[i]), fontsize=7, xytext=(4, 4),
+                    textcoords="offset points")
     front = pareto_front(effort, error)
     ax.plot(effort[front], error[front], "k-", lw=0.8, label="Pareto front")
-    ax.set_xlabel("correction effort: rms correction, um")
-    ax.set_ylabel("remaining rms error, um")
-    ax.set_title("Correction effort against remaining error (medians over draws)")
+    ax.set_xlabel("correction effort: rms correction, um (median over programs and draws)")
+    ax.set_ylabel("remaining rms error, um (median)")
+    ax.set_title("Correction effort against remaining error, per bound setting")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, title="bound setting", title_fontsize=7)
-    paths.append(_save(fig, out / "pareto.png"))
+    ax.legend(fontsize=7)
+    paths.append(_save(fig, out / PLOTS[2]))
     plt.close(fig)
     return paths
 
@@ -135,23 +161,26 @@ def write_html(rows: list[dict], plots: list[Path], out, title: str) -> Path:
     ok = _ok(rows)
     if ok:
         parts.append("<h2>Remaining rms error (um), median over draws</h2><table><tr><th>program"
-                     "</th><th>bounds</th><th>before</th><th>after</th><th>after, worst draw</th>"
+                     "</th><th>model</th><th>method</th><th>temperature</th><th>bounds</th>"
+                     "<th>before</th><th>after</th><th>after, worst draw</th>"
                      "<th>corrected blocks</th></tr>")
-        keys = list(dict.fromkeys((r["program"], r["bounds"]) for r in ok))
-        for prog, b in keys:
-            mine = [r for r in ok if r["program"] == prog and r["bounds"] == b]
+        keys = list(dict.fromkeys(_case(r) + (r["bounds"],) for r in ok))
+        for key in keys:
+            mine = [r for r in ok if _case(r) + (r["bounds"],) == key]
             after = [r["rms_after_um"] for r in mine]
-            parts.append(f"<tr><td>{html.escape(prog)}</td><td>{html.escape(b)}</td>"
-                         f"<td>{np.median([r['rms_before_um'] for r in mine]):.3f}</td>"
+            cells = "".join(f"<td>{html.escape(str(v))}</td>" for v in key)
+            parts.append(f"<tr>{cells}<td>{np.median([r['rms_before_um'] for r in mine]):.3f}</td>"
                          f"<td>{np.median(after):.3f}</td><td>{max(after):.3f}</td>"
                          f"<td>{mine[0]['corrected_blocks']}</td></tr>")
         parts.append("</table>")
     bad = [r for r in rows if r["status"] != "ok"]
     if bad:
-        parts.append("<h2>Failed tasks</h2><ul>")
+        parts.append(f"<h2>Failed tasks ({len(bad)})</h2><ul>")
         for r in bad[:200]:
-            parts.append(f"<li>{html.escape(r['program'])}, {html.escape(r['bounds'])}, draw "
-                         f"{r['draw']}: {html.escape(r['error'] or '')}</li>")
+            what = ", ".join(html.escape(str(v)) for v in _case(r) + (r["bounds"], f"draw {r['draw']}"))
+            parts.append(f"<li>{what}: {html.escape(r['error'] or '')}</li>")
+        if len(bad) > 200:
+            parts.append(f"<li>... and {len(bad) - 200} more (results.csv lists them all)</li>")
         parts.append("</ul>")
     parts.append("</body></html>\n")
     path = out / "index.html"

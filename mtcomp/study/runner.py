@@ -7,13 +7,14 @@ at ``scheduler`` (its workers need mtcomp installed and the study's files at the
 Every task's row is kept in ``RESULTS/tasks/<key>.json`` the moment it is finished: written by the
 worker itself where it can reach RESULTS/ (always on a LocalCluster), and by this driver when the
 row arrives. A re-run, a widened grid, or a run after a kill loads those rows and submits only the
-tasks that have none. A row whose task failed on bad input is kept too (the same inputs fail the
-same way); a task that failed otherwise (a worker lost, an internal error) is recorded in the table
-and tried again on the next run. The driver holds result rows only, never a program's blocks.
+tasks that have none. A task that failed (bad input, a worker lost) is recorded in the table with
+its one-line error and tried again on the next run. The driver holds result rows only, never a
+program's blocks.
 """
 from __future__ import annotations
 
 import json
+import math
 import os
 import sys
 import time
@@ -31,7 +32,8 @@ TASKS_DIR = "tasks"
 
 @dataclass
 class StudyRun:
-    """What :func:`run_study` did: the rows in task order, and how they were obtained."""
+    """What :func:`run_study` did: the rows in task order, and how they were obtained (``computed``
+    now, ``cached``: kept from an earlier run; ``failed``: the rows with an error, of either)."""
 
     rows: list
     computed: int
@@ -46,8 +48,9 @@ def _row_path(out: Path, task: Task) -> Path:
 
 
 def _keep(row: dict) -> bool:
-    """A row worth keeping: a result, or an error on bad input (the same inputs fail again)."""
-    return row["status"] == "ok" or row.get("_input_error", False)
+    """A row worth keeping: a result. A failed task is tried again on the next run (a file that was
+    missing may be back; an error is quick to find again)."""
+    return row["status"] == "ok"
 
 
 def _write_row(path: Path, row: dict) -> None:
@@ -60,12 +63,11 @@ def run_task_kept(task: Task, tasks_dir: str | None) -> dict:
     """:func:`run_task`, its row written to ``tasks_dir/<key>.json`` when that folder is reachable
     from here (the worker): a finished task survives the driver being killed."""
     row = run_task(task)
-    row["_input_error"] = row["status"] == "error"
     if tasks_dir is not None and os.path.isdir(tasks_dir) and _keep(row):
         try:
             _write_row(Path(tasks_dir) / f"{task.key}.json", row)
         except OSError:
-            pass                # the driver writes it when the row arrives
+            pass                # not writable from this worker: the driver writes it on arrival
     return row
 
 
@@ -84,12 +86,26 @@ def check_study(study: Study) -> None:
     when draws are asked, an axis the machine does not have."""
     from ..machine import load_machine
     from ..models.model_file import load_model
-    machine = load_machine(study.machine)
+    from ..thermal.context import thermal_context
+    from ..toolpaths.offsets import load_setup
+    try:
+        machine = load_machine(study.machine)
+    except InputError as exc:
+        raise InputError(f"machine: {exc}", study.path) from None
+    if study.offsets:
+        load_setup(machine, study.offsets)
     for path in study.models + ([study.judge] if study.judge else []):
         fitted = load_model(path, machine)
         if study.draws and path in study.models and fitted.uncertainty is None:
             raise InputError(f"draws = {study.draws}: the model carries no covariance to draw from "
                              "(identify, diagnose and a thermal diagnosis write one)", path)
+        for temps in study.temperatures:
+            try:
+                thermal_context(fitted, temps, study.compensate.get("spindle_rpm"),
+                                study.compensate.get("extrapolate", False))
+            except InputError as exc:
+                raise InputError(f"temperatures {temps}: {exc.args[0] if exc.args else exc} "
+                                 f"(model {Path(path).name})", study.path) from None
     axes = set(machine.axis_names)
     for i, b in enumerate(study.bounds):
         for key in ("axis_max_correction", "axis_max_step"):
@@ -113,16 +129,23 @@ class Progress:
         self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
         self.every = 0.5 if self.tty else every
         self.t0 = time.monotonic()
+        self.t_first = None     # when the first task finished: the time left is reckoned from it
         self.last = 0.0
         self.done = 0
         self.failed = 0
         self.shown = -1         # done when last shown
 
+    def say(self, text: str) -> None:
+        self.stream.write(text + "\n")
+        self.stream.flush()
+
     def update(self, failed: bool = False, final: bool = False) -> None:
+        now = time.monotonic()
         if not final:
             self.done += 1
             self.failed += bool(failed)
-        now = time.monotonic()
+            if self.t_first is None:
+                self.t_first = now
         if final and self.shown == self.done and not self.tty:
             return
         if not final and now - self.last < self.every and self.done < self.total - self.cached:
@@ -130,20 +153,23 @@ class Progress:
         self.last, self.shown = now, self.done
         todo = self.total - self.cached
         elapsed = now - self.t0
-        left = elapsed / self.done * (todo - self.done) if self.done else float("nan")
+        # from the first finished task on: the cluster's start and the workers' first loading of
+        # the model are not a task's time
+        rate = (self.done - 1) / (now - self.t_first) if self.done > 1 and now > self.t_first else 0
+        left = (todo - self.done) / rate if rate else (0.0 if self.done >= todo else math.nan)
         width = 30
         filled = int(width * (self.cached + self.done) / max(self.total, 1))
         bar = "#" * filled + "." * (width - filled)
         text = (f"mtcomp study: [{bar}] {self.cached + self.done}/{self.total} tasks"
                 f"{f' ({self.cached} kept from before)' if self.cached else ''}"
                 f"{f', {self.failed} failed' if self.failed else ''}, "
-                f"{_duration(elapsed)} elapsed, {_duration(left) if self.done else '?'} left")
+                f"{_duration(elapsed)} elapsed, {_duration(left)} left")
         self.stream.write(("\r" + text + (" " * 4) + ("\n" if final else "")) if self.tty else text + "\n")
         self.stream.flush()
 
 
 def _duration(s: float) -> str:
-    if s != s:
+    if math.isnan(s):
         return "?"
     s = int(round(s))
     return f"{s // 3600}h{s // 60 % 60:02d}m" if s >= 3600 else f"{s // 60}m{s % 60:02d}s"
@@ -158,19 +184,22 @@ def run_study(study: Study, out, scheduler: str | None = None, workers: int | No
     t0 = time.monotonic()
     out = Path(out)
     tasks = study.tasks()
-    (out / TASKS_DIR).mkdir(parents=True, exist_ok=True)
     rows: dict[str, dict] = {}
     for t in tasks:
         row = _load_row(_row_path(out, t))
         if row is not None:
             rows[t.key] = row
-    todo = [t for t in tasks if t.key not in rows]
-    todo = list({t.key: t for t in todo}.values())          # the same task twice in a grid runs once
-    bar = Progress(len(tasks), len(tasks) - len(todo)) if progress else None
-    computed = failed = 0
+    unique = {t.key: t for t in tasks}                      # the same task twice in a grid runs once
+    todo = [t for k, t in unique.items() if k not in rows]
+    kept = len(unique) - len(todo)
+    bar = Progress(len(unique), kept) if progress else None
+    computed = 0
     n_workers = 0
     if todo:
         tasks_dir = str((out / TASKS_DIR).resolve())
+        if bar and not scheduler:
+            bar.say(f"mtcomp study: starting {workers or len(os.sched_getaffinity(0))} local "
+                    f"worker{'s' if (workers or 2) > 1 else ''} for {len(todo)} tasks ...")
         if scheduler:
             try:
                 client = Client(scheduler, timeout="20s")
@@ -184,6 +213,7 @@ def run_study(study: Study, out, scheduler: str | None = None, workers: int | No
                                    dashboard_address=None, silence_logs=40)
             client = Client(cluster)
         try:
+            (out / TASKS_DIR).mkdir(parents=True, exist_ok=True)      # once the cluster is there
             n_workers = len(client.scheduler_info()["workers"]) or n_workers
             futures = client.map(run_task_kept, todo, tasks_dir=tasks_dir,
                                  key=[f"mtcomp-study-{t.key}" for t in todo])
@@ -195,13 +225,11 @@ def run_study(study: Study, out, scheduler: str | None = None, workers: int | No
                 except Exception as exc:            # a worker lost, an internal error: not kept
                     row = {c: None for c in COLUMNS}
                     row.update(task.labels, task=task.key[:16], status="error",
-                               error=f"{type(exc).__name__}: {exc}".splitlines()[0],
-                               _input_error=False)
+                               error=f"{type(exc).__name__}: {exc}".splitlines()[0])
                 if _keep(row) and not _row_path(out, task).exists():
                     _write_row(_row_path(out, task), row)
                 rows[task.key] = row
                 computed += 1
-                failed += row["status"] != "ok"
                 fut.release()
                 if bar:
                     bar.update(failed=row["status"] != "ok")
@@ -214,8 +242,8 @@ def run_study(study: Study, out, scheduler: str | None = None, workers: int | No
     ordered = [{c: rows[t.key].get(c) for c in COLUMNS} for t in tasks]
     for row, t in zip(ordered, tasks):
         row.update(t.labels, task=t.key[:16])        # labels as this study names them
-    return StudyRun(ordered, computed, len(tasks) - len(todo), failed,
-                    time.monotonic() - t0, n_workers)
+    failed = sum(r["status"] != "ok" for r in ordered)
+    return StudyRun(ordered, computed, kept, failed, time.monotonic() - t0, n_workers)
 
 
 def write_tables(rows: list[dict], out) -> list[Path]:

@@ -49,6 +49,8 @@ class Task:
     draw : 0 compensates with the model itself; k > 0 with the k-th draw of the model from its
         covariance (seeded by ``seed``, the draw and ``model_hash``, the SHA-256 of the model file:
         draw k is the same model in every task of the study).
+    judge_hash, machine_id : the judge file's SHA-256, the machine's name or its file's SHA-256 (a
+        worker keeps what it loaded under these, so a file changed in place is read anew).
     key : SHA-256 hex of the inputs (see the module's docstring).
     """
 
@@ -63,6 +65,8 @@ class Task:
     labels: dict
     model_hash: str = ""
     key: str = ""
+    judge_hash: str | None = None
+    machine_id: str = ""
 
 
 @dataclass
@@ -84,7 +88,9 @@ class Study:
 
     def tasks(self) -> list[Task]:
         """Every task of the grid, in a fixed order (program, model, method, bounds, temperature,
-        draw), each with its key."""
+        draw), each with its key (the files are hashed once: later calls give the same list)."""
+        if getattr(self, "_tasks", None) is not None:
+            return self._tasks
         base = self.path.parent
         digest = {}
 
@@ -113,7 +119,9 @@ class Study:
                      "draw": draw, "seed": self.seed if draw else 0}
             key = hashlib.sha256(json.dumps(ident, sort_keys=True).encode()).hexdigest()
             out.append(Task(prog, model, self.judge, self.machine, self.offsets, settings, draw,
-                            self.seed, labels, file_hash(model), key))
+                            self.seed, labels, file_hash(model), key, file_hash(self.judge),
+                            machine_id))
+        self._tasks = out
         return out
 
 
@@ -124,9 +132,12 @@ def temperature_label(temps: dict) -> str:
 
 def _sha256(path) -> str:
     h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
+    try:
+        with open(path, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                h.update(block)
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror}", path) from None
     return h.hexdigest()
 
 
@@ -229,7 +240,8 @@ def _files(v, key, base: Path, fail) -> list[str]:
 def _number(v, where, fail, allow_zero=False) -> float:
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0 \
             or (v == 0 and not allow_zero):
-        fail(f"{where} must be a positive number, got {v!r}")
+        fail(f"{where} must be a {'number of 0 or more' if allow_zero else 'positive number'}, "
+             f"got {v!r}")
     return float(v)
 
 

@@ -15,7 +15,8 @@ The row (units in the names; docs/study.md):
   ``uncorrected_uncertain``;
 * the predicted tool-tip error over the corrected blocks, under the judging model (the judge model,
   else the model itself): ``rms_before_um, max_before_um, rms_after_um, max_after_um``; the same
-  under the model the compensation was planned with: ``plan_rms_after_um, plan_max_after_um``;
+  under the model the compensation was planned with: ``plan_rms_after_um, plan_max_after_um``
+  (all blank when no block was corrected);
 * the share of evaluated blocks held by each kind of bound: ``share_max_correction``,
   ``share_max_step``, ``share_travel`` (0..1);
 * the correction effort: ``correction_rms_um, correction_max_um`` (length of the linear correction
@@ -45,22 +46,25 @@ COLUMNS = ("task", "program", "model", "judge", "method", "bounds", "temperature
 
 
 @functools.lru_cache(maxsize=8)
-def _machine(name: str):
+def _machine(name: str, machine_id: str):
+    """The machine, loaded once per worker process and machine (``machine_id``: its name, or its
+    file's hash, so that a file changed in place is read anew)."""
     from ..machine import load_machine
     return load_machine(name)
 
 
 @functools.lru_cache(maxsize=16)
-def _model(path: str, machine_name: str, mtime_ns: int):
-    """The model file, loaded once per worker process (``mtime_ns``: a changed file is read anew);
-    callers take a copy before changing it."""
+def _model(path: str, model_hash: str, machine_name: str, machine_id: str):
+    """The model file, loaded once per worker process and content (``model_hash``: its SHA-256, so
+    that a file replaced in place, whatever its time stamp, is read anew); callers take a copy
+    before changing it."""
     from ..models.model_file import load_model
-    return load_model(path, _machine(machine_name))
+    return load_model(path, _machine(machine_name, machine_id))
 
 
-def load_fitted(path: str, machine_name: str):
+def load_fitted(path: str, model_hash: str, machine_name: str, machine_id: str):
     """A fresh FittedModel of ``path`` (its CasADi functions shared with earlier loads)."""
-    m = _model(path, machine_name, os.stat(path).st_mtime_ns)
+    m = _model(path, model_hash, machine_name, machine_id)
     return replace(m, params=m.params.copy(), context_defaults=dict(m.context_defaults))
 
 
@@ -93,10 +97,12 @@ def run_task(task: Task) -> dict:
     row.update(task.labels, task=task.key[:16], status="ok", error="")
     t0 = time.perf_counter()
     try:
-        machine = _machine(task.machine)
-        fitted = draw_model(load_fitted(task.model, task.machine), task.draw, task.seed,
-                            task.model_hash)
-        judging = load_fitted(task.judge if task.judge else task.model, task.machine)
+        machine = _machine(task.machine, task.machine_id)
+        fitted = draw_model(load_fitted(task.model, task.model_hash, task.machine, task.machine_id),
+                            task.draw, task.seed, task.model_hash)
+        judging = (load_fitted(task.judge, task.judge_hash, task.machine, task.machine_id)
+                   if task.judge else load_fitted(task.model, task.model_hash, task.machine,
+                                                  task.machine_id))
         setup = load_setup(machine, task.offsets)
         judge = Judge(judging, task.settings)
         fd, tmp = tempfile.mkstemp(suffix=".nc", prefix="mtcomp-study-")
@@ -113,6 +119,10 @@ def run_task(task: Task) -> dict:
     judged = run.judges[judge.label]
     n = max(s["evaluated_blocks"], 1)
     shares = {f"share_{k}": v / n for k, v in run.bound_blocks.items()}
+    if judged["blocks"] == 0:
+        # no block corrected: there is no remaining error to show, not a perfect one
+        judged = dict.fromkeys(judged, None)
+        s["corrected"].update(rms_after_um=None, max_after_um=None)
     row.update(blocks=s["blocks"], evaluated_blocks=s["evaluated_blocks"],
                corrected_blocks=s["corrected"]["blocks"],
                uncorrected_unknown_axes=s["uncorrected"]["unknown_axes"],

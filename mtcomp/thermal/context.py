@@ -29,6 +29,8 @@ def parse_assignments(items, flag: str) -> dict:
             v = math.nan
         if not sep or not name or not math.isfinite(v):
             raise InputError(f"{flag} {item!r}: write NAME=VALUE with a number, e.g. t1=24.5")
+        if name in out:
+            raise InputError(f"{flag} {item!r}: {name} is given twice ({out[name]:g} and {v:g})")
         out[name] = v
     return out
 

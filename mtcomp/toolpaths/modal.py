@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 
 import numpy as np
 
@@ -23,6 +24,9 @@ from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _COLON_PROGRAM_RE, _CURVE_WIT
                     _REFUSED_G, _REFUSED_M, _UNIQUE_LETTERS, _WCS_INDEX, DEFAULT_CHORD_TOL_MM,
                     DIR_EPS, MM_PER_INCH, TOOL_AXIS, frame_code, tokenize)
 
+
+#: a CSV header line (names separated by commas), given where G-code was meant
+_CSV_HEADER = re.compile(r"^[A-Za-z_][\w ]*(?:,[\w ]*){2,}$")
 
 #: grbl's real-time commands (status query, cycle start/resume, feed hold, soft reset): sent as
 #: single characters, they have no effect on the program's geometry (grbl v1.1 interface docs)
@@ -173,6 +177,9 @@ class ModalState:
             return None
         if s[0] == "/":
             raise self._err("block delete '/' is not supported", line)
+        if line == 1 and _CSV_HEADER.match(s):
+            raise self._err("this looks like a CSV file (a header of comma-separated names), not "
+                            "G-code: give the NC program here", line)
         return text
 
     def _read_words(self, tokens, line: int) -> tuple[dict, list, list, str]:
