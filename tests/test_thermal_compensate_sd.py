@@ -127,3 +127,25 @@ def test_a_sensor_given_twice_is_refused():
     assert parse_assignments(["t1=25", "t2=26"], "--temperature") == {"t1": 25.0, "t2": 26.0}
     with pytest.raises(InputError, match="t1 is given twice .25 and 26."):
         parse_assignments(["t1=25", "t1=26"], "--temperature")
+
+
+def test_beside_a_record_the_geometric_files_residuals_are_the_fits_own(tmp_path, capsys):
+    """diagnose of the record with a laser file: the laser file's rms in the per-file table is the
+    final model's rms (it was predicted with the record's drift at its mean temperatures, a
+    constant shift of several um), and `predict` of the laser file says the drift is left out."""
+    import re
+
+    import numpy as np
+    from laser_files import write_x_positioning
+    laser = write_x_positioning(tmp_path / "x.csv", (-100, -50, 0, 50, 100, 150),
+                                lambda t, d: 1e-4 * t ** 2 + 3.0 * d, 3, 0.3,
+                                np.random.default_rng(5))
+    model = tmp_path / "M.json"
+    assert main(["diagnose", "xfyz", str(THERMAL), str(laser), "--channel-axis", "ch1=X",
+                 "--json", str(tmp_path / "R.json"), "-o", str(model)]) == 0
+    out = capsys.readouterr().out
+    final = float(re.search(r"final model \(\d+ parameters\): rms ([\d.]+) um", out).group(1))
+    table = float(re.search(r"^x\s+laser\s+\d+\s+value_um ([\d.]+)", out, re.M).group(1))
+    assert table == pytest.approx(final, rel=0, abs=2e-3)
+    assert main(["predict", "xfyz", str(model), str(laser), "-o", str(tmp_path / "P.csv")]) == 0
+    assert "predicted without the model's thermal drift" in capsys.readouterr().err

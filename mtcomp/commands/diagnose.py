@@ -130,7 +130,9 @@ def _details(result, machine, datasets, verbose: bool) -> list[str]:
     from ..identification.predict import predict_readings
     from ..identification.report import (component_lines, file_rms_lines, laser_target_tables,
                                          parameter_lines)
-    model = result.model
+    # geometric files carry no thermal state: predicted without the drift a record beside them
+    # brought (at the record's mean temperatures it would shift every file by a constant)
+    model = result.model.without_drift()
     predictions = [predict_readings(model, d, machine) for d in datasets]
     excluded = [(o.path, o.row, o.column) for o in result.outliers]
     lines = [""] + component_lines(model) + [""]

@@ -28,6 +28,8 @@ def add_arguments(parser):
 def run(args) -> int:
     import sys
 
+    import numpy as np
+
     from . import attach_cmm_cuts, cmm_programs, note_cmm_gaps, note_outside_travel
     from ..identification.predict import predict_readings
     from ..io.atomic import check_output_path
@@ -42,6 +44,14 @@ def run(args) -> int:
     attach_cmm_cuts(args, [data])
     note_outside_travel("predict", machine, [data])
     note_cmm_gaps("predict", machine, [data])
+    from ..thermal.context import has_tip_drift
+    if data.kind != "thermal" and has_tip_drift(fitted.model) and not data.context.temperatures \
+            and not np.isfinite(data.context.spindle_rpm).any():
+        # no thermal state in the file: its drift is not known, and the model's reference (the
+        # record's mean temperatures) is no state of this measurement
+        fitted = fitted.without_drift()
+        print(f"note: {args.data}: no temperatures or spindle speed: predicted without the model's "
+              "thermal drift", file=sys.stderr)
     pred = predict_readings(fitted, data, machine)
     columns = pred.columns
     for note in pred.notes:
