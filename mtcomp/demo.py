@@ -116,15 +116,7 @@ def write_bowl(path: Path) -> dict:
 
 def run_demo(out_dir=DEFAULT_OUT, seed: int = 2026, say=print) -> DemoResult:
     """Run the demo into ``out_dir`` (created if needed). ``say``: where progress lines go."""
-    from . import sim
-    from .diagnose import diagnose
-    from .sim import campaign_plans
-    from .identification.fit import identify
-    from .io.atomic import atomic_write
     from .machine import load_machine
-    from .models import Backlash, save_model
-    from .viz.render import render_error_map
-    from .viz.surface import program_error_map, read_program_points
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -134,86 +126,111 @@ def run_demo(out_dir=DEFAULT_OUT, seed: int = 2026, say=print) -> DemoResult:
     steps = _Steps(say, 6)
     machine = load_machine("xfyz")
     rng = np.random.default_rng(seed)
-
-    # 1. simulate -------------------------------------------------------------------------------
     with steps.step("simulate", f"simulating a measurement campaign on {machine.name} "
                     f"({machine.topology}) with a hidden effect"):
-        truth = sim.random_truth(machine, rng, terms=(Backlash("X"),))
-        truth.params.set_file_value("BL_X", HIDDEN_BACKLASH_UM)
-        vm = sim.VirtualMachine(machine, truth, noise_um=NOISE_UM, noise_urad=NOISE_URAD, rng=rng)
-        plans = campaign_plans(machine, "small")
-        data = vm.campaign(plans, camp)
-        datasets = list(data.values())
-        n_read = sum(len(d) for d in datasets)
-        res.files += [f"campaign/{name}.csv" for name in data]
-        res.hidden = {"effect": "backlash", "axis": "X", "magnitude_um": HIDDEN_BACKLASH_UM}
-        say(f"      {len(datasets)} files, {n_read} readings, noise {NOISE_UM} um / {NOISE_URAD} urad "
-            f"-> {camp}")
-
-    # 2. identify the base model ------------------------------------------------------------------
+        truth, datasets = _simulate(machine, rng, camp, res, say)
     with steps.step("identify", "identifying the base model (rigid-body geometry)"):
-        ident = identify(machine, datasets, info={"command": "mtcomp demo"})
-        save_model(out / "MODEL_base.json", ident.fitted_model)
-        (out / "identify.txt").write_text(ident.summary() + "\n", encoding="utf-8")
-        res.files += ["MODEL_base.json", "identify.txt"]
-        say(f"      {ident.n_params} unknowns, rank {ident.rank}, sigma {ident.sigma:.3g} "
-            "(1 = residuals at the noise)")
-
-    # 3. diagnose ---------------------------------------------------------------------------------
+        _identify_base(machine, datasets, out, res, say)
     with steps.step("diagnose", "diagnosing what the base model gets wrong"):
-        diag = diagnose(machine, datasets, progress=lambda s: say(f"      {s}"))
-        report = diag.to_dict()
-        with atomic_write(out / "REPORT.json") as f:
-            json.dump(report, f, indent=1)
-            f.write("\n")
-        save_model(out / "MODEL.json", diag.model)
-        (out / "diagnose.txt").write_text(diag.summary() + "\n", encoding="utf-8")
-        res.files += ["REPORT.json", "MODEL.json", "diagnose.txt"]
-        res.findings = report["findings"]
-
-    # 4. the part ---------------------------------------------------------------------------------
+        diag, report = _diagnose_campaign(machine, datasets, out, res, say)
     bowl = out / "bowl.nc"
     with steps.step("bowl", "writing the bowl program (Qi and Yang 2016)"):
         res.bowl = write_bowl(bowl)
         res.files.append("bowl.nc")
-
-    # 5. compensate -------------------------------------------------------------------------------
     comp = out / "bowl_compensated.nc"
     comp_base = out / "bowl_compensated_base.nc"
     with steps.step("compensate", "compensating the bowl (mtcomp compensate, bounded QP)"):
-        _run_command(["compensate", "xfyz", str(out / "MODEL.json"), str(bowl), "-o", str(comp),
-                      "--report", str(out / "BLOCKS.csv"), "--quiet"], out / "compensate.txt")
-        _run_command(["compensate", "xfyz", str(out / "MODEL_base.json"), str(bowl), "-o",
-                      str(comp_base), "--quiet"], out / "compensate_base.txt")
-        res.files += ["bowl_compensated.nc", "BLOCKS.csv", "compensate.txt",
-                      "bowl_compensated_base.nc", "compensate_base.txt"]
-
-    # 6. render and check against the truth --------------------------------------------------------
+        _compensate_bowl(out, bowl, comp, comp_base, res)
     with steps.step("render", "rendering the error map and cutting the bowl on the virtual machine"):
-        prog, prog_c, prog_b = (read_program_points(p, machine) for p in (bowl, comp, comp_base))
-        r = BOWL_TOOL_RADIUS_MM
-        smap = program_error_map(machine, diag.model, prog, prog_c, tool_radius_mm=r)
-        rr = render_error_map(smap, out / "map.png")
-        actual = program_error_map(machine, truth, prog, prog_c, tool_radius_mm=r)
-        # what the virtual machine really cut, labelled so: not the model's own residual
-        render_error_map(actual, out / "map_cut.png", shows="truth")
-        res.files += ["map.png", "map.vtp", "map_cut.png", "map_cut.vtp"]
-        actual_base = program_error_map(machine, truth, prog, prog_b, tool_radius_mm=r)
-        st = smap.stats()
-        res.bowl.update({
-            "points": st["n_points"], "renderer": rr.backend,
-            "predicted_before": (st["rms_before_um"], st["max_before_um"]),
-            "predicted_after": (st["rms_after_um"], st["max_after_um"]),
-            "truth_uncompensated": _rms_max(form_error(actual.dn_before_um, actual.points,
-                                                       actual.normals)),
-            "truth_base_model": _rms_max(form_error(actual_base.dn_after_um, actual_base.points,
-                                                    actual_base.normals)),
-            "truth_extended_model": _rms_max(form_error(actual.dn_after_um, actual.points,
-                                                        actual.normals))})
+        _render_and_check(machine, diag, truth, out, (bowl, comp, comp_base), res)
     res.timings = steps.timings
     res.seconds = time.perf_counter() - steps.t0
     res.table = summary_rows(res, report, diag)
     return res
+
+
+def _simulate(machine, rng, camp: Path, res: DemoResult, say):
+    """Step 1: a measurement campaign on the virtual machine with a hidden backlash of X, written
+    into ``camp``. Returns (the true model, the measurement sets)."""
+    from . import sim
+    from .models import Backlash
+    from .sim import campaign_plans
+    truth = sim.random_truth(machine, rng, terms=(Backlash("X"),))
+    truth.params.set_file_value("BL_X", HIDDEN_BACKLASH_UM)
+    vm = sim.VirtualMachine(machine, truth, noise_um=NOISE_UM, noise_urad=NOISE_URAD, rng=rng)
+    plans = campaign_plans(machine, "small")
+    data = vm.campaign(plans, camp)
+    datasets = list(data.values())
+    n_read = sum(len(d) for d in datasets)
+    res.files += [f"campaign/{name}.csv" for name in data]
+    res.hidden = {"effect": "backlash", "axis": "X", "magnitude_um": HIDDEN_BACKLASH_UM}
+    say(f"      {len(datasets)} files, {n_read} readings, noise {NOISE_UM} um / {NOISE_URAD} urad "
+        f"-> {camp}")
+    return truth, datasets
+
+
+def _identify_base(machine, datasets, out: Path, res: DemoResult, say) -> None:
+    """Step 2: identify the base model (MODEL_base.json, identify.txt)."""
+    from .identification.fit import identify
+    from .models import save_model
+    ident = identify(machine, datasets, info={"command": "mtcomp demo"})
+    save_model(out / "MODEL_base.json", ident.fitted_model)
+    (out / "identify.txt").write_text(ident.summary() + "\n", encoding="utf-8")
+    res.files += ["MODEL_base.json", "identify.txt"]
+    say(f"      {ident.n_params} unknowns, rank {ident.rank}, sigma {ident.sigma:.3g} "
+        "(1 = residuals at the noise)")
+
+
+def _diagnose_campaign(machine, datasets, out: Path, res: DemoResult, say):
+    """Step 3: diagnose (REPORT.json, MODEL.json, diagnose.txt). Returns (diagnosis, report dict)."""
+    from .diagnose import diagnose
+    from .io.atomic import atomic_write
+    from .models import save_model
+    diag = diagnose(machine, datasets, progress=lambda s: say(f"      {s}"))
+    report = diag.to_dict()
+    with atomic_write(out / "REPORT.json") as f:
+        json.dump(report, f, indent=1)
+        f.write("\n")
+    save_model(out / "MODEL.json", diag.model)
+    (out / "diagnose.txt").write_text(diag.summary() + "\n", encoding="utf-8")
+    res.files += ["REPORT.json", "MODEL.json", "diagnose.txt"]
+    res.findings = report["findings"]
+    return diag, report
+
+
+def _compensate_bowl(out: Path, bowl: Path, comp: Path, comp_base: Path, res: DemoResult) -> None:
+    """Step 5: compensate the bowl with the extended model (``comp``) and the base one (``comp_base``)."""
+    _run_command(["compensate", "xfyz", str(out / "MODEL.json"), str(bowl), "-o", str(comp),
+                  "--report", str(out / "BLOCKS.csv"), "--quiet"], out / "compensate.txt")
+    _run_command(["compensate", "xfyz", str(out / "MODEL_base.json"), str(bowl), "-o",
+                  str(comp_base), "--quiet"], out / "compensate_base.txt")
+    res.files += ["bowl_compensated.nc", "BLOCKS.csv", "compensate.txt",
+                  "bowl_compensated_base.nc", "compensate_base.txt"]
+
+
+def _render_and_check(machine, diag, truth, out: Path, programs: tuple, res: DemoResult) -> None:
+    """Step 6: render the error map and cut the bowl (the programs (bowl, compensated with the
+    extended model, with the base model)) on the virtual machine; the figures go into ``res.bowl``."""
+    from .viz.render import render_error_map
+    from .viz.surface import program_error_map, read_program_points
+    prog, prog_c, prog_b = (read_program_points(p, machine) for p in programs)
+    r = BOWL_TOOL_RADIUS_MM
+    smap = program_error_map(machine, diag.model, prog, prog_c, tool_radius_mm=r)
+    rr = render_error_map(smap, out / "map.png")
+    actual = program_error_map(machine, truth, prog, prog_c, tool_radius_mm=r)
+    # what the virtual machine really cut, labelled so: not the model's own residual
+    render_error_map(actual, out / "map_cut.png", shows="truth")
+    res.files += ["map.png", "map.vtp", "map_cut.png", "map_cut.vtp"]
+    actual_base = program_error_map(machine, truth, prog, prog_b, tool_radius_mm=r)
+    st = smap.stats()
+    res.bowl.update({
+        "points": st["n_points"], "renderer": rr.backend,
+        "predicted_before": (st["rms_before_um"], st["max_before_um"]),
+        "predicted_after": (st["rms_after_um"], st["max_after_um"]),
+        "truth_uncompensated": _rms_max(form_error(actual.dn_before_um, actual.points, actual.normals)),
+        "truth_base_model": _rms_max(form_error(actual_base.dn_after_um, actual_base.points,
+                                                actual_base.normals)),
+        "truth_extended_model": _rms_max(form_error(actual.dn_after_um, actual.points, actual.normals))})
 
 
 def summary_rows(res: DemoResult, report: dict, diag) -> list:

@@ -286,57 +286,75 @@ def machine_from_dict(data: dict, path: str | None = None) -> Machine:
         if not isinstance(ad, dict):
             raise InputError(f"[axes.{letter}] must be a table", path)
         side = "workpiece" if letter in wp_chain else "tool"
-        if letter in LINEAR:
-            allowed = {"travel_mm", "degree", "basis", "spline_range_mm", "spline_intervals"}
-            for k in ad:
-                if k not in allowed:
-                    raise InputError(f"[axes.{letter}]: unknown key {k!r} for a linear axis "
-                                     f"(known: {', '.join(sorted(allowed))})", path)
-            if "travel_mm" not in ad:
-                raise InputError(f"[axes.{letter}]: linear axis without travel_mm", path)
-            lo, hi = _number_list(ad["travel_mm"], 2, f"[axes.{letter}] travel_mm", path)
-            if not lo < hi:
-                raise InputError(f"[axes.{letter}] travel_mm: lower {lo} must be below upper {hi}", path)
-            degree = _positive_int(ad.get("degree", 3), f"[axes.{letter}] degree", path, 1)
-            basis = ad.get("basis", "bspline")
-            if basis not in BASES:
-                raise InputError(f"[axes.{letter}] basis must be one of {', '.join(BASES)}, got {basis!r}",
-                                 path)
-            if basis == "bspline" and degree > 3:
-                raise InputError(f"[axes.{letter}] degree of a spline must be 1, 2 or 3, got {degree}", path)
-            srange = None
-            if "spline_range_mm" in ad:
-                srange = tuple(_number_list(ad["spline_range_mm"], 2, f"[axes.{letter}] spline_range_mm",
-                                            path))
-                if not srange[0] < srange[1]:
-                    raise InputError(f"[axes.{letter}] spline_range_mm: lower must be below upper", path)
-            nint = None
-            if "spline_intervals" in ad:
-                nint = _positive_int(ad["spline_intervals"], f"[axes.{letter}] spline_intervals", path, 1)
-            axes.append(Axis(letter, side, (lo, hi), degree=degree, basis=basis, spline_range=srange,
-                             spline_intervals=nint))
-        else:
-            allowed = {"travel_deg", "axis_point_mm", "fourier_order", "error_motion_order"}
-            for k in ad:
-                if k not in allowed:
-                    raise InputError(f"[axes.{letter}]: unknown key {k!r} for a rotary axis "
-                                     f"(known: {', '.join(sorted(allowed))})", path)
-            if "travel_deg" not in ad:
-                raise InputError(f"[axes.{letter}]: rotary axis without travel_deg", path)
-            if "axis_point_mm" not in ad:
-                raise InputError(f"[axes.{letter}]: rotary axis without axis_point_mm (a point on its "
-                                 "nominal axis line)", path)
-            lo, hi = _number_list(ad["travel_deg"], 2, f"[axes.{letter}] travel_deg", path)
-            if not lo < hi:
-                raise InputError(f"[axes.{letter}] travel_deg: lower {lo} must be below upper {hi}", path)
-            point = _number_list(ad["axis_point_mm"], 3, f"[axes.{letter}] axis_point_mm", path)
-            order = _positive_int(ad.get("fourier_order", 2), f"[axes.{letter}] fourier_order", path)
-            fourier_from_data = "fourier_order" not in ad
-            emo = _positive_int(ad.get("error_motion_order", 0), f"[axes.{letter}] error_motion_order",
-                                path)
-            axes.append(Axis(letter, side, (math.radians(lo), math.radians(hi)), tuple(point),
-                             fourier_order=order, error_motion_order=emo,
-                             fourier_from_data=fourier_from_data))
+        axes.append(_linear_axis(letter, side, ad, path) if letter in LINEAR
+                    else _rotary_axis(letter, side, ad, path))
+    comp = _compensation(data, path)
+    return Machine(name=name, topology=str(data["topology"]).strip().upper(), axes=tuple(axes),
+                   workpiece_chain=wp_chain, tool_chain=tool_chain, tool_length=float(tool_length),
+                   compensation=comp, source=path or "", units=units)
+
+
+def _refuse_unknown_keys(table: dict, allowed: set, where: str, what: str, path) -> None:
+    """InputError naming the first key of ``table`` not in ``allowed`` (``where``: the table's name,
+    ``what``: what it describes)."""
+    for k in table:
+        if k not in allowed:
+            raise InputError(f"{where}: unknown key {k!r} for {what} "
+                             f"(known: {', '.join(sorted(allowed))})", path)
+
+
+def _linear_axis(letter: str, side: str, ad: dict, path) -> Axis:
+    """The linear axis ``letter`` of its table ``ad`` (travel in mm)."""
+    _refuse_unknown_keys(ad, {"travel_mm", "degree", "basis", "spline_range_mm", "spline_intervals"},
+                         f"[axes.{letter}]", "a linear axis", path)
+    if "travel_mm" not in ad:
+        raise InputError(f"[axes.{letter}]: linear axis without travel_mm", path)
+    lo, hi = _number_list(ad["travel_mm"], 2, f"[axes.{letter}] travel_mm", path)
+    if not lo < hi:
+        raise InputError(f"[axes.{letter}] travel_mm: lower {lo} must be below upper {hi}", path)
+    degree = _positive_int(ad.get("degree", 3), f"[axes.{letter}] degree", path, 1)
+    basis = ad.get("basis", "bspline")
+    if basis not in BASES:
+        raise InputError(f"[axes.{letter}] basis must be one of {', '.join(BASES)}, got {basis!r}",
+                         path)
+    if basis == "bspline" and degree > 3:
+        raise InputError(f"[axes.{letter}] degree of a spline must be 1, 2 or 3, got {degree}", path)
+    srange = None
+    if "spline_range_mm" in ad:
+        srange = tuple(_number_list(ad["spline_range_mm"], 2, f"[axes.{letter}] spline_range_mm",
+                                    path))
+        if not srange[0] < srange[1]:
+            raise InputError(f"[axes.{letter}] spline_range_mm: lower must be below upper", path)
+    nint = None
+    if "spline_intervals" in ad:
+        nint = _positive_int(ad["spline_intervals"], f"[axes.{letter}] spline_intervals", path, 1)
+    return Axis(letter, side, (lo, hi), degree=degree, basis=basis, spline_range=srange,
+                spline_intervals=nint)
+
+
+def _rotary_axis(letter: str, side: str, ad: dict, path) -> Axis:
+    """The rotary axis ``letter`` of its table ``ad`` (travel in deg in the file, rad in the Axis)."""
+    _refuse_unknown_keys(ad, {"travel_deg", "axis_point_mm", "fourier_order", "error_motion_order"},
+                         f"[axes.{letter}]", "a rotary axis", path)
+    if "travel_deg" not in ad:
+        raise InputError(f"[axes.{letter}]: rotary axis without travel_deg", path)
+    if "axis_point_mm" not in ad:
+        raise InputError(f"[axes.{letter}]: rotary axis without axis_point_mm (a point on its "
+                         "nominal axis line)", path)
+    lo, hi = _number_list(ad["travel_deg"], 2, f"[axes.{letter}] travel_deg", path)
+    if not lo < hi:
+        raise InputError(f"[axes.{letter}] travel_deg: lower {lo} must be below upper {hi}", path)
+    point = _number_list(ad["axis_point_mm"], 3, f"[axes.{letter}] axis_point_mm", path)
+    order = _positive_int(ad.get("fourier_order", 2), f"[axes.{letter}] fourier_order", path)
+    fourier_from_data = "fourier_order" not in ad
+    emo = _positive_int(ad.get("error_motion_order", 0), f"[axes.{letter}] error_motion_order",
+                        path)
+    return Axis(letter, side, (math.radians(lo), math.radians(hi)), tuple(point),
+                fourier_order=order, error_motion_order=emo, fourier_from_data=fourier_from_data)
+
+
+def _compensation(data: dict, path) -> dict:
+    """The [compensation] table over the defaults (each a positive number)."""
     comp = dict(DEFAULT_COMPENSATION)
     comp_data = data.get("compensation", {})
     if not isinstance(comp_data, dict):
@@ -348,9 +366,7 @@ def machine_from_dict(data: dict, path: str | None = None) -> Machine:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
             raise InputError(f"[compensation] {k} must be a positive number, got {v!r}", path)
         comp[k] = float(v)
-    return Machine(name=name, topology=str(data["topology"]).strip().upper(), axes=tuple(axes),
-                   workpiece_chain=wp_chain, tool_chain=tool_chain, tool_length=float(tool_length),
-                   compensation=comp, source=path or "", units=units)
+    return comp
 
 
 def load_machine(name_or_path: str | os.PathLike) -> Machine:

@@ -28,7 +28,7 @@ from mtcomp.models import deviation
 from truth import Context, TruthMachine
 from truth import campaigns as tc
 
-REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / "iso230_2"
+from real_data import ISO230_2 as REAL  # noqa: E402  ($MTCOMP_REAL_DATA, else ../shared/data/real)
 needs_real = pytest.mark.skipif(not REAL.is_dir(), reason=f"real data folder {REAL} is absent")
 
 

@@ -15,7 +15,7 @@ from mtcomp.cli import main
 from mtcomp.identification.iso230_2 import ARCSEC_PER_RAD, DRIFT_ALPHA, evaluate_axis, evaluate_iso230_2
 from mtcomp.measurement.files import read_measurements
 
-REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / "iso230_2"
+from real_data import ISO230_2 as REAL  # noqa: E402  ($MTCOMP_REAL_DATA, else ../shared/data/real)
 
 
 def _laser(tmp_path, readings, axis="X", name="laser.csv"):

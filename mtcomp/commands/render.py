@@ -97,17 +97,10 @@ def run(args) -> int:
     from ..io.atomic import check_output_path
     from ..machine import load_machine
     from ..models import load_model
-    from ..viz.surface import program_error_map, program_hints, read_program_points
+    from ..viz.surface import program_error_map, read_program_points
 
     out = Path(args.output)
-    if args.glyph_scale is not None and not args.glyph_scale > 0:
-        raise InputError(f"--glyph-scale must be > 0, got {args.glyph_scale}")
-    if args.tool_radius_mm is not None and not args.tool_radius_mm >= 0:
-        raise InputError(f"--tool-radius-mm must be >= 0, got {args.tool_radius_mm}")
-    if args.flank_mm is not None and not args.flank_mm >= 0:
-        raise InputError(f"--flank-mm must be >= 0, got {args.flank_mm}")
-    if args.range_um is not None and not args.range_um > 0:
-        raise InputError(f"--range-um must be > 0, got {args.range_um}")
+    _check_numbers(args)
     size = _size(args.size)
     inputs = [args.model, args.program] + ([args.compensated] if args.compensated else []) \
         + ([args.report] if args.report else [])
@@ -132,13 +125,35 @@ def run(args) -> int:
                              tool_radius_mm=args.tool_radius_mm, flank_length_mm=args.flank_mm,
                              flank_side=args.flank_side, report=args.report, normal=args.normal,
                              progress=progress)
-    from ..viz.render import map_notes, render_error_map, uncorrected_legend
+    from ..viz.render import render_error_map
     clim = None if args.range_um is None else (-args.range_um, args.range_um)
     progress(f"drawing {smap.points.shape[0]} points")
     res = render_error_map(smap, out, glyphs=args.glyphs or args.glyph_scale is not None,
                            glyph_scale=args.glyph_scale, clim=clim, window_size=size,
                            backend=args.backend)
     progress.done()
+    _print_summary(args, smap, res)
+    print(f"wrote {res.png} ({res.backend}) and {res.vtp}")
+    return 0
+
+
+def _check_numbers(args) -> None:
+    """InputError for a glyph scale, tool radius, flank length or colour range out of its bounds."""
+    if args.glyph_scale is not None and not args.glyph_scale > 0:
+        raise InputError(f"--glyph-scale must be > 0, got {args.glyph_scale}")
+    if args.tool_radius_mm is not None and not args.tool_radius_mm >= 0:
+        raise InputError(f"--tool-radius-mm must be >= 0, got {args.tool_radius_mm}")
+    if args.flank_mm is not None and not args.flank_mm >= 0:
+        raise InputError(f"--flank-mm must be >= 0, got {args.flank_mm}")
+    if args.range_um is not None and not args.range_um > 0:
+        raise InputError(f"--range-um must be > 0, got {args.range_um}")
+
+
+def _print_summary(args, smap, res) -> None:
+    """What the map shows, printed: its surface or contour, its warnings and legend, the
+    predicted deviation before and after, and the files written (``res``: the RenderResult)."""
+    from ..viz.render import map_notes, uncorrected_legend
+    from ..viz.surface import program_hints
     st = res.stats
     hints = program_hints(args.program)
     flank = args.flank_mm if args.flank_mm is not None else hints.get("flank_length_mm", 0.0)
@@ -170,5 +185,3 @@ def run(args) -> int:
     if "rms_after_um" in st:
         print(f"model prediction after:  RMS {st['rms_after_um']:.3f} um, max "
               f"{st['max_after_um']:.3f} um")
-    print(f"wrote {res.png} ({res.backend}) and {res.vtp}")
-    return 0

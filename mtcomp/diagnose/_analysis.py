@@ -537,7 +537,7 @@ def forward_folds(n_rows: int, n_folds: int = N_FOLDS) -> list[tuple[slice, slic
 
 # ------------------------------------------------------------------ what a candidate must gain
 #: a candidate must lower the held-out weighted sum of squares by CV_Z sqrt(2 k) + k (k: the
-#: parameters it adds; besides a lower BIC, mtcomp.diagnose._diagnose.BIC_MARGIN)
+#: parameters it adds; besides a lower BIC, mtcomp.diagnose._selection.BIC_MARGIN)
 CV_Z = 4.0
 
 

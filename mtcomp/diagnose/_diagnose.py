@@ -17,8 +17,7 @@ Steps (docs/diagnose.md explains them for a metrologist):
 from __future__ import annotations
 
 import time
-from dataclasses import replace
-from typing import NamedTuple
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -29,18 +28,15 @@ from ..models.model_file import FittedModel
 from ..models.params import ParameterSet
 from . import _analysis as an
 from ._analysis import cv_threshold
-from ._candidates import Candidate, generate, temperature_regression, without_params
+from ._candidates import Candidate, generate, temperature_regression
 from ._refusal import moved_axes, refusal
 from ._linalg import Design, determined_subspace, rms, solve_normal
+from ._selection import (BIC_MARGIN, MIN_EXCESS_SHARE, _axis_ties, _backward,  # noqa: F401
+                         _drop_undetermined_offsets, _forward_in_time, _joint_abbe, _parsimony)
 from ._stack import Stack, build_stack
 from ._covariance import _cov_diag, _uncertainty
 from .result import UNIT_KEYS, Diagnosis, Finding, _r
 
-#: a candidate must lower the BIC by at least this much
-BIC_MARGIN = 10.0
-#: ... and remove at least this share of the held-out excess over the noise (a cause must be material:
-#: with large unexplained structure, a column that merely leans on it gains a little everywhere)
-MIN_EXCESS_SHARE = 0.05
 #: the held-out rms may exceed the noise floor by this factor (times the inflation expected of a right
 #: model, sqrt(1 + parameters / readings fitted)) before the excess counts as structure
 EXCESS_RATIO = 1.3
@@ -214,6 +210,49 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     say = progress or (lambda s: None)
     if not datasets:
         raise InputError("no measurement files given")
+    machine, values = _base_machine(machine, datasets, start, refine)
+    datasets, outliers = _without_outliers(datasets, say)
+    st = build_stack(machine, datasets)
+    say(f"{len(st)} observations in {len(datasets)} file(s); probe model with {st.probe.n_params} "
+        "parameters")
+    T0 = _base_fit(st, values, start is not None, say)
+    design, noise, folds, how = _weighted_design(st, T0, say)
+    n_base = int(st.probe.base_mask.sum())
+    current = design.fit()
+    base_metrics = _metrics(st, current, n_base)
+    if refine:
+        base_metrics["refined"] = {a: b.n_basis for a, b in refine.items()}
+    say(f"base model: rms {base_metrics['rms_um']} um, held-out {base_metrics['heldout_rms_um']} um")
+    sel = _Selection(current, np.zeros((len(st), 0)), _not_tried(st, say))
+    reference = _reference(st, design, n_base)
+    noise_main = noise.get(_heldout_unit(st)) or next(iter(noise.values()))
+    _forward_selection(st, design, sel, noise, noise_main, max_findings, say)
+    if sel.chosen:
+        design = _backward_selection(st, design, sel, say)
+    chosen, findings, current = sel.chosen, sel.findings, sel.current
+    final_metrics = _metrics(st, current, n_base + sum(c.columns.shape[1] for c in chosen))
+    verdict, finer = _what_remains(st, design, sel, noise, noise_main, may_refine, say)
+    model = _fitted_model(st, design, chosen, current)
+    diag = Diagnosis(verdict, noise, base_metrics, findings, final_metrics, model, how, len(st),
+                     rejected=sel.rejected, reference=reference)
+    diag.folds_of_observations = folds
+    diag.heldout_resid, diag.units, diag.rank = current.cv_resid, st.unit, current.rank
+    diag.outliers = outliers
+    from ..measurement.readings import data_held, data_support
+    model.support = data_support(st.machine, datasets)
+    model.held = data_held(st.machine, datasets)
+    # what the data show of a reversal, so that export can say when the model leaves one out
+    from ..identification.reversal import data_reversal
+    model.info["reversal"] = data_reversal(datasets)
+    diag.seconds = time.perf_counter() - t0
+    model.info["diagnose"] = diag.to_dict()
+    return diag, finer
+
+
+def _base_machine(machine, datasets, start, refine):
+    """(machine, {parameter name: start value}): the machine whose base is diagnosed (the start
+    model's, its resolution chosen by the data as identify's is, ``refine``'s bases put in) and the
+    start values of its parameters (none without a start model)."""
     values = {}
     if start is not None:
         machine, values = _start_point(machine, start)
@@ -233,31 +272,36 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
         if start is not None:
             other = {ps.name for ps in start.model.param_specs if ps.group.split(":")[0] in refine}
             values = {k: v for k, v in values.items() if k not in other}
+    return machine, values
+
+
+def _without_outliers(datasets, say):
+    """(datasets without their outlying readings, the outliers left out)."""
     from ..measurement.outliers import OUTLIER_K, find_outliers
     cleaned, outliers = [], []
     for d in datasets:
         d, found = find_outliers(d)
         cleaned.append(d)
         outliers += found
-    datasets = cleaned
     if outliers:
         say(f"{len(outliers)} reading(s) more than {OUTLIER_K:g} robust standard deviations off their "
             f"repeats left out: " + "; ".join(str(o) for o in outliers[:5])
             + ("; ..." if len(outliers) > 5 else ""))
-    st = build_stack(machine, datasets)
-    say(f"{len(st)} observations in {len(datasets)} file(s); probe model with {st.probe.n_params} "
-        "parameters")
-    # base fit: Gauss-Newton from zero, or from the start model (the chain is nearly linear in its
-    # small errors)
+    return cleaned, outliers
+
+
+def _base_fit(st: Stack, values: dict, from_start: bool, say) -> np.ndarray:
+    """Fit the base model: Gauss-Newton from zero, or from the start model's ``values`` (the chain is
+    nearly linear in its small errors). Leaves ``st`` evaluated at the fit; returns the basis of the
+    directions the data determine (fixed at the start point, as identify does)."""
     p0 = np.zeros(st.probe.n_params)
     base_names = [nm for nm, b in zip(st.probe.param_names, st.probe.base_mask) if b]
     taken = [nm for nm in base_names if nm in values]
     for nm in taken:
         p0[st.probe.param_names.index(nm)] = values[nm]
-    if start is not None:
+    if from_start:
         say(f"start: {len(taken)} of the base's {len(base_names)} parameters from the start model")
     st.evaluate(p0, np.zeros(len(st.nuisance_names)))
-    # the directions the data determine, fixed at the start point (as identify does)
     T0 = determined_subspace(_common_block(st), setup=_setup_columns(st))
     point, cost = (p0, np.zeros(len(st.nuisance_names))), _cost(st)
     for _ in range(2):
@@ -271,6 +315,12 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
             st.evaluate(*point)
             break
         point, cost = (p, nu), _cost(st)
+    return T0
+
+
+def _weighted_design(st: Stack, T0: np.ndarray, say):
+    """(design weighted by the noise floor of each unit with held-out folds, noise floors by unit,
+    folds of the observations, how the folds were made), at the stack's current point."""
     A = _common_block(st)
     z = _linear_target(st)
     first = Design(A, z, np.ones(len(st)), np.zeros(len(st), dtype=np.int64), T0).fit(cv=False)
@@ -283,133 +333,187 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     w = np.array([1.0 / sigma[u] for u in st.unit])
     folds, how = an.make_folds(st)
     say(f"held-out evaluation: {how}")
-    design = Design(A, z, w, folds, T0)
-    n_base = int(st.probe.base_mask.sum())
-    current = design.fit()
-    base_metrics = _metrics(st, current, n_base)
-    if refine:
-        base_metrics["refined"] = {a: b.n_basis for a, b in refine.items()}
-    say(f"base model: rms {base_metrics['rms_um']} um, held-out {base_metrics['heldout_rms_um']} um")
-    reference = {}
+    return Design(A, z, w, folds, T0), noise, folds, how
+
+
+def _not_tried(st: Stack, say) -> list:
+    """The report's ``rejected`` lines of what is not tried: extensions of axes the data do not move."""
     still = [a for a in st.machine.axis_names if a not in moved_axes(st)]
-    not_tried = []
-    if still:
-        not_tried.append({"effect": "every extension", "axis": ", ".join(still), "variant": "",
-                          "reason": "the data do not move " + ("this axis" if len(still) == 1 else
-                                                                "these axes")})
-        say(f"not tried: any extension on {', '.join(still)} (the data do not move them)")
+    if not still:
+        return []
+    say(f"not tried: any extension on {', '.join(still)} (the data do not move them)")
+    return [{"effect": "every extension", "axis": ", ".join(still), "variant": "",
+             "reason": "the data do not move " + ("this axis" if len(still) == 1 else "these axes")}]
+
+
+def _reference(st: Stack, design: Design, n_base: int) -> dict:
+    """The report's reference fits: a linear regression on every temperature, when there are any."""
+    reference = {}
     treg = temperature_regression(st)
     if treg is not None:
         fit = design.fit(treg.columns)
         reference["linear_regression_all_temperatures"] = {
             **_metrics(st, fit, n_base + treg.columns.shape[1]), "temperatures": treg.info["temperatures"]}
-    chosen: list[Candidate] = []
-    findings: list[Finding] = []
-    rejected: list[dict] = list(not_tried)
-    extra = np.zeros((len(st), 0))
-    noise_main = noise.get(_heldout_unit(st)) or next(iter(noise.values()))
+    return reference
+
+
+@dataclass
+class _Selection:
+    """The state of the greedy selection: the fit of the model so far and its extra columns, the
+    report's rejected lines, the candidates chosen and their findings, the (effect, axis) the data
+    cannot tell from another one, and the (finding, rejected line) of rivals the data do not tell
+    apart (reported once the backward pass has kept the finding)."""
+
+    current: object
+    extra: np.ndarray
+    rejected: list
+    chosen: list = field(default_factory=list)
+    findings: list = field(default_factory=list)
+    undecided: set = field(default_factory=set)
+    alike_entries: list = field(default_factory=list)
+
+
+def _forward_selection(st, design, sel: _Selection, noise, noise_main, max_findings, say) -> None:
+    """Add the strongest significant extension until none is left, the held-out residual is at the
+    noise floor or ``max_findings`` are chosen (module docstring, step 4)."""
     n = len(st)
-    undecided: set = set()                # (effect, axis) the data cannot tell from another one
-    alike_entries: list = []              # (finding, rejected line) of rivals the data do not tell apart
-    while len(chosen) < max_findings:
-        if _heldout(st, current) <= noise_main.sigma:
+    while len(sel.chosen) < max_findings:
+        if _heldout(st, sel.current) <= noise_main.sigma:
             say("held-out residual is at the noise floor: stop")
             break
-        keys = {c.key for c in chosen}
-        used_terms = {t.key() for c in chosen for t in c.terms}
-        # one drift finding: its driver is chosen among the rivals, not added driver after driver
-        drift_chosen = any(c.effect == "thermal_drift" for c in chosen)
-        cands = [c for c in generate(st, design, extra, current.resid, keys)
-                 if not ({t.key() for t in c.terms} & used_terms)
-                 and not (drift_chosen and c.effect == "thermal_drift")
-                 and (c.effect, c.axis) not in undecided]
-        _forward_in_time(st, design, extra, cands)
-        scored = []
-        for c in cands:
-            fit = design.fit(np.hstack([extra, c.columns]))
-            dk = fit.rank - current.rank
-            if dk < c.columns.shape[1]:
-                c, fit = _drop_undetermined_offsets(design, extra, current, c, fit)
-                dk = fit.rank - current.rank
-            gain = current.cv_sse - fit.cv_sse
-            dbic = fit.bic(n) - current.bic(n)
-            pen = c.info.get("search_penalty", 0.0)
-            excess = max(current.cv_sse - n, 0.0)
-            ok = (dk >= 1 and gain > cv_threshold(dk) + pen and dbic < -BIC_MARGIN - pen
-                  and gain >= MIN_EXCESS_SHARE * excess)
-            if ok and c.veto is None:
-                c.veto = refusal(st, c, fit.theta[-c.columns.shape[1]:], dk)
-            scored.append((c, fit, dk, gain, dbic, ok))
+        scored = _score_candidates(st, design, sel, n)
         good = [s for s in scored if s[5] and s[0].veto is None]
         for s in scored:
             if s[5] and s[0].veto is not None:
                 entry = {"effect": s[0].effect, "axis": s[0].axis, "variant": s[0].variant,
                          "reason": s[0].veto}
-                rejected = [r for r in rejected if (r["effect"], r["axis"]) != (entry["effect"], entry["axis"])]
-                rejected.append(entry)
+                sel.rejected = [r for r in sel.rejected
+                                if (r["effect"], r["axis"]) != (entry["effect"], entry["axis"])]
+                sel.rejected.append(entry)
         if not good:
             say("no further candidate is significant on held-out data")
             break
-        # a feed-dependent Abbe effect can need several parts at once (see _joint_abbe): each axis's
-        # best one is completed before the axes compete, else one part of one axis's effect may be
-        # better explained by a single part of another axis (every reading carries the block's feed,
-        # whichever axes move)
-        abbe_axes = sorted({s[0].axis for s in good if s[0].effect == "feed_dependent_abbe"})
-        pool = list(good)
-        for a in abbe_axes:
-            top = max((s for s in good if s[0].effect == "feed_dependent_abbe" and s[0].axis == a),
-                      key=lambda s: s[3])
-            joint = _joint_abbe(design, extra, current, top, good, n, st)
-            if joint is not top:
-                pool.append(joint)
-        best = max(pool, key=lambda s: s[3])
-        best, alike = _parsimony(best, pool)
-        tied = _axis_ties(design, extra, best, good)
+        pool = _with_joint_abbe(st, design, sel, good, n)
+        best, alike = _parsimony(max(pool, key=lambda s: s[3]), pool)
+        tied = _axis_ties(design, sel.extra, best, good)
         if tied:
-            # the same effect on another axis explains the same residual exactly (a program that moves
-            # X and Z together on a slope): the data cannot say which axis it is; none is named
-            axes = " or ".join(sorted({best[0].axis} | {t[0].axis for t in tied}))
-            for s_ in [best] + tied:           # every variant of the effect on these axes
-                undecided.add((s_[0].effect, s_[0].axis))
-            rejected.append({"effect": best[0].effect, "axis": axes, "variant": "",
-                             "reason": f"the data cannot tell which axis: their readings reverse (or "
-                                       f"change) together, so {axes} explain the same residual alike"})
-            say(f"not named: {best[0].effect} on {axes} (the data cannot tell which)")
+            _name_no_axis(sel, best, tied, say)
             continue
-        c, fit, dk, gain, dbic, _ = best
-        rivals = [s for s in good if s[0].rivals and s[0].rivals == c.rivals and s[0] is not c]
-        before = _heldout(st, current)
-        finding = _finding(st, c, current, fit, before, _heldout(st, fit), rivals, noise)
-        if alike is not None:
-            # held-out data and the BIC both lean to the more specific rival, only one decisively:
-            # naming either would be a guess. The simpler term holds the residual (so that no third
-            # candidate takes it); the report names neither (benchmark seed 9180: a moving centre times a
-            # pitch no run measures reads almost as a feed offset)
-            finding.rival_alike = f"{alike[0].effect} {alike[0].axis}"
-            undecided.add((alike[0].effect, alike[0].axis))
-            alike_entries.append((finding, _alike_entry(best, alike)))
-            say(f"not named: {c.effect} {c.axis} or {finding.rival_alike} (only one selection test is decisive); "
-                f"the model holds the first")
-        else:
-            say(f"found {finding.effect} {finding.axis}: held-out {before:.4g} -> "
-                f"{finding.heldout_rms_after:.4g} {finding.unit} (BIC {dbic:+.1f}, {dk} parameter(s))")
-        findings.append(finding)
-        chosen.append(c)
-        extra = np.hstack([extra, c.columns])
-        current = fit
-    if chosen:
-        design, current = _refine(st, design, chosen, current)
-        say(f"extended model re-linearised at its own fit: held-out {_heldout(st, current):.4g} um")
-        dropped = _backward(design, chosen, findings, current, n)
-        if dropped:
-            for f in dropped:
-                say(f"dropped {f.effect} {f.axis}: no longer significant in the re-linearised model")
-            design, current = _refine(st, design, chosen, design.fit(np.hstack([c.columns for c in chosen])))
-        _final_params(st, design, findings, current)
-        # rivals told apart by neither test decisively: reported once the backward pass has kept them
-        rejected += [e for f, e in alike_entries if f in findings]
-        findings = [_not_named(f) if f.rival_alike else f for f in findings]
-    final_metrics = _metrics(st, current, n_base + sum(c.columns.shape[1] for c in chosen))
+        _take(st, design, sel, best, alike, good, noise, say)
+
+
+def _score_candidates(st, design, sel: _Selection, n: int) -> list:
+    """Every candidate not yet chosen, scored against the model so far: (candidate, fit, dk, gain,
+    dbic, ok), with a veto on those that pass the tests but are refused."""
+    current = sel.current
+    keys = {c.key for c in sel.chosen}
+    used_terms = {t.key() for c in sel.chosen for t in c.terms}
+    # one drift finding: its driver is chosen among the rivals, not added driver after driver
+    drift_chosen = any(c.effect == "thermal_drift" for c in sel.chosen)
+    cands = [c for c in generate(st, design, sel.extra, current.resid, keys)
+             if not ({t.key() for t in c.terms} & used_terms)
+             and not (drift_chosen and c.effect == "thermal_drift")
+             and (c.effect, c.axis) not in sel.undecided]
+    _forward_in_time(st, design, sel.extra, cands)
+    scored = []
+    for c in cands:
+        fit = design.fit(np.hstack([sel.extra, c.columns]))
+        dk = fit.rank - current.rank
+        if dk < c.columns.shape[1]:
+            c, fit = _drop_undetermined_offsets(design, sel.extra, current, c, fit)
+            dk = fit.rank - current.rank
+        gain = current.cv_sse - fit.cv_sse
+        dbic = fit.bic(n) - current.bic(n)
+        pen = c.info.get("search_penalty", 0.0)
+        excess = max(current.cv_sse - n, 0.0)
+        ok = (dk >= 1 and gain > cv_threshold(dk) + pen and dbic < -BIC_MARGIN - pen
+              and gain >= MIN_EXCESS_SHARE * excess)
+        if ok and c.veto is None:
+            c.veto = refusal(st, c, fit.theta[-c.columns.shape[1]:], dk)
+        scored.append((c, fit, dk, gain, dbic, ok))
+    return scored
+
+
+def _with_joint_abbe(st, design, sel: _Selection, good: list, n: int) -> list:
+    """``good`` and, for each axis, its best feed-dependent Abbe candidate completed with others."""
+    # a feed-dependent Abbe effect can need several parts at once (see _joint_abbe): each axis's
+    # best one is completed before the axes compete, else one part of one axis's effect may be
+    # better explained by a single part of another axis (every reading carries the block's feed,
+    # whichever axes move)
+    abbe_axes = sorted({s[0].axis for s in good if s[0].effect == "feed_dependent_abbe"})
+    pool = list(good)
+    for a in abbe_axes:
+        top = max((s for s in good if s[0].effect == "feed_dependent_abbe" and s[0].axis == a),
+                  key=lambda s: s[3])
+        joint = _joint_abbe(design, sel.extra, sel.current, top, good, n, st)
+        if joint is not top:
+            pool.append(joint)
+    return pool
+
+
+def _name_no_axis(sel: _Selection, best, tied: list, say) -> None:
+    """The same effect on another axis explains the same residual exactly (a program that moves X and
+    Z together on a slope): the data cannot say which axis it is; none is named."""
+    axes = " or ".join(sorted({best[0].axis} | {t[0].axis for t in tied}))
+    for s_ in [best] + tied:           # every variant of the effect on these axes
+        sel.undecided.add((s_[0].effect, s_[0].axis))
+    sel.rejected.append({"effect": best[0].effect, "axis": axes, "variant": "",
+                         "reason": f"the data cannot tell which axis: their readings reverse (or "
+                                   f"change) together, so {axes} explain the same residual alike"})
+    say(f"not named: {best[0].effect} on {axes} (the data cannot tell which)")
+
+
+def _take(st, design, sel: _Selection, best, alike, good, noise, say) -> None:
+    """Add the scored candidate ``best`` to the model, with its finding."""
+    current = sel.current
+    c, fit, dk, gain, dbic, _ = best
+    rivals = [s for s in good if s[0].rivals and s[0].rivals == c.rivals and s[0] is not c]
+    before = _heldout(st, current)
+    finding = _finding(st, c, current, fit, before, _heldout(st, fit), rivals, noise)
+    if alike is not None:
+        # held-out data and the BIC both lean to the more specific rival, only one decisively:
+        # naming either would be a guess. The simpler term holds the residual (so that no third
+        # candidate takes it); the report names neither (benchmark seed 9180: a moving centre times a
+        # pitch no run measures reads almost as a feed offset)
+        finding.rival_alike = f"{alike[0].effect} {alike[0].axis}"
+        sel.undecided.add((alike[0].effect, alike[0].axis))
+        sel.alike_entries.append((finding, _alike_entry(best, alike)))
+        say(f"not named: {c.effect} {c.axis} or {finding.rival_alike} (only one selection test is decisive); "
+            f"the model holds the first")
+    else:
+        say(f"found {finding.effect} {finding.axis}: held-out {before:.4g} -> "
+            f"{finding.heldout_rms_after:.4g} {finding.unit} (BIC {dbic:+.1f}, {dk} parameter(s))")
+    sel.findings.append(finding)
+    sel.chosen.append(c)
+    sel.extra = np.hstack([sel.extra, c.columns])
+    sel.current = fit
+
+
+def _backward_selection(st, design, sel: _Selection, say) -> Design:
+    """Re-linearise the extended model at its own fit, drop what is no longer significant in it, and
+    report the findings' parameters at the final fit. Returns the final design."""
+    chosen, findings = sel.chosen, sel.findings
+    design, current = _refine(st, design, chosen, sel.current)
+    say(f"extended model re-linearised at its own fit: held-out {_heldout(st, current):.4g} um")
+    dropped = _backward(design, chosen, findings, current, len(st))
+    if dropped:
+        for f in dropped:
+            say(f"dropped {f.effect} {f.axis}: no longer significant in the re-linearised model")
+        design, current = _refine(st, design, chosen, design.fit(np.hstack([c.columns for c in chosen])))
+    _final_params(st, design, findings, current)
+    # rivals told apart by neither test decisively: reported once the backward pass has kept them
+    sel.rejected += [e for f, e in sel.alike_entries if f in findings]
+    sel.findings = [_not_named(f) if f.rival_alike else f for f in findings]
+    sel.current = current
+    return design
+
+
+def _what_remains(st, design, sel: _Selection, noise, noise_main, may_refine, say):
+    """(verdict, finer base or None): the structure the final fit leaves, as an ``unexplained``
+    finding appended to ``sel.findings`` when there is any."""
+    current, chosen, findings = sel.current, sel.chosen, sel.findings
+    sigma = {u: nz.sigma for u, nz in noise.items()}
+    n = len(st)
     structure = an.find_structure(st, current.resid, sigma)
     excess = _heldout(st, current) / noise_main.sigma
     # a right model still predicts held-out readings a little worse than the noise: sqrt(1 + p/n_fit)
@@ -424,98 +528,7 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
         verdict = "unexplained"
         findings.append(_unexplained(st, current, structure, excess, noise_main, inflation))
         say(f"structure remains: {findings[-1].params['where']}")
-    model = _fitted_model(st, design, chosen, current)
-    diag = Diagnosis(verdict, noise, base_metrics, findings, final_metrics, model, how, len(st),
-                     rejected=rejected, reference=reference)
-    diag.folds_of_observations = folds
-    diag.heldout_resid, diag.units, diag.rank = current.cv_resid, st.unit, current.rank
-    diag.outliers = outliers
-    from ..measurement.readings import data_held, data_support
-    model.support = data_support(st.machine, datasets)
-    model.held = data_held(st.machine, datasets)
-    # what the data show of a reversal, so that export can say when the model leaves one out
-    from ..identification.reversal import data_reversal
-    model.info["reversal"] = data_reversal(datasets)
-    diag.seconds = time.perf_counter() - t0
-    model.info["diagnose"] = diag.to_dict()
-    return diag, finer
-
-
-def _forward_in_time(st, design, extra, cands) -> None:
-    """A drift (in time, temperature or spindle history) must predict later readings from earlier
-    ones: the model with each thermal_drift candidate and the model without it are fitted on the
-    past and scored on the future (forward-chained blocks in time, :func:`mtcomp.diagnose._analysis.forward_folds`);
-    a candidate that does not lower the future's weighted sum of squares by more than noise could
-    gets a veto saying so.
-
-    Only future readings that repeat a past one are scored (same series, same row of the model's
-    columns: same axis positions, optic arm, tool, balls): there the past has fixed the geometry and
-    the file's set-up, and what the future
-    adds is the change in time, which is the drift's to predict. A reading at a position or of a
-    file the past has not seen would be predicted by extrapolating the geometry, with or without a
-    drift (a laser run of X cannot predict a later run of Y)."""
-    from ._analysis import N_FOLDS, forward_folds
-    drift = [c for c in cands if c.effect == "thermal_drift"]
-    timed = np.flatnonzero(np.isfinite(st.t))
-    if not drift or timed.size < 2 * (N_FOLDS + 1) or np.ptp(st.t[timed]) <= 0:
-        return
-    order = timed[np.argsort(st.t[timed], kind="stable")]
-    Bw = np.hstack([design.Aw, extra * design.w[:, None]])
-    # a repeat: the same series and the same row of the model's columns (same axis positions, optic
-    # arm, tool, ball positions, approach directions ...), to 1e-6 of each column's largest entry
-    _, series = np.unique(st.series.astype(str), return_inverse=True)
-    scale = np.max(np.abs(Bw), axis=0)
-    rows = np.round(Bw / np.where(scale > 0, scale, 1.0), 6)
-    _, key = np.unique(np.column_stack([series, rows]), axis=0, return_inverse=True)
-    key = key.ravel()
-    zw = design.zw
-    folds = []
-    for tr, te in forward_folds(order.size, N_FOLDS):
-        tr, te = order[tr], order[te]
-        scored = te[np.isin(key[te], key[tr])]
-        if scored.size:
-            folds.append((tr, scored))
-    if not folds:
-        return
-
-    def sse(M):
-        out = 0.0
-        for tr, te in folds:
-            theta, _ = solve_normal(M[tr].T @ M[tr], M[tr].T @ zw[tr])
-            out += float(np.sum((zw[te] - M[te] @ theta) ** 2))
-        return out
-    without = sse(Bw)
-    for c in drift:
-        with_c = sse(np.hstack([Bw, c.columns * design.w[:, None]]))
-        if not without - with_c > cv_threshold(c.columns.shape[1]):
-            c.veto = (f"predicted forward in time (fitted on earlier readings, scored on later ones "
-                      f"that repeat them) it does not beat the model without it (weighted sum of "
-                      f"squares {with_c:.4g} against {without:.4g})")
-
-
-def _backward(design, chosen, findings, fit, n) -> list:
-    """One backward pass after re-linearisation: a term chosen earlier that no longer passes the
-    selection tests against the model without it (a later, better-placed term or the refined
-    profiles now explain its share) is removed from ``chosen`` and ``findings``. Returns the
-    removed findings."""
-    dropped = []
-    for c in list(chosen)[::-1]:
-        if len(chosen) < 2:
-            break
-        rest = [x for x in chosen if x is not c]
-        without = design.fit(np.hstack([x.columns for x in rest]))
-        dk = fit.rank - without.rank
-        gain = without.cv_sse - fit.cv_sse
-        dbic = fit.bic(n) - without.bic(n)
-        excess = max(without.cv_sse - n, 0.0)
-        if not (dk >= 1 and gain > cv_threshold(dk) and dbic < -BIC_MARGIN
-                and gain >= MIN_EXCESS_SHARE * excess):
-            chosen.remove(c)
-            f = next(f for f in findings if f.candidate is c)
-            findings.remove(f)
-            dropped.append(f)
-            fit = without
-    return dropped
+    return verdict, finer
 
 
 def _final_params(st, design, findings, fit):
@@ -559,118 +572,6 @@ def _refine(st: Stack, design: Design, chosen: list[Candidate], fit, iterations:
         design = design.__class__(A, z, design.w, design.folds, design.T)
         fit = design.fit(np.hstack([c.columns for c in chosen]))
     return design, fit
-
-
-def _drop_undetermined_offsets(design, extra, current, c: Candidate, fit):
-    """An Abbe candidate brings feed offsets along the directions its moved centre or its scaled
-    constant angle translates (see ``_abbe_candidates``); where the data cannot tell such an offset
-    from the rest of the model (a direction read at one feed only, or read only where another column
-    already moves it), the offset is dropped rather than the cause refused for it. Returns the candidate
-    and its fit; unchanged when no offset is undetermined."""
-    if c.effect != "feed_dependent_abbe":
-        return c, fit
-    dropped = False
-    for name in [p for p in c.params if p.startswith("FOFF_")]:
-        if fit.rank - current.rank >= c.columns.shape[1]:
-            break
-        trial = without_params(c, [name])
-        f = design.fit(np.hstack([extra, trial.columns]), cv=False)
-        if f.rank == fit.rank:               # the offset added no direction the data determine
-            c, fit, dropped = trial, f, True
-    if dropped:
-        fit = design.fit(np.hstack([extra, c.columns]))
-    return c, fit
-
-
-def _joint_abbe(design, extra, current, best, good, n, st, max_parts: int = 4):
-    """A carriage's angular errors can depend on feed in more than one way at once (its rotation
-    centre moves, shifting every angular error's centre, while one angle also grows with feed), and two
-    angular errors can have profiles so alike that either alone explains most of the residual. So the
-    other significant feed-dependent Abbe candidates of the same axis are added to the best one, one
-    at a time (the one that gains most first, up to ``max_parts``), each kept only when it earns its
-    extra parameters on held-out data and in BIC and is not refused."""
-    from ._candidates import joint_abbe
-    c = best[0]
-    if c.effect != "feed_dependent_abbe":
-        return best
-    others = [s[0] for s in good if s[0].effect == c.effect and s[0].axis == c.axis and s[0] is not c]
-    parts = 1
-    while others and parts < max_parts:
-        tried = []
-        for o in others:
-            pair = joint_abbe(best[0], o)
-            if len(pair.params) == len(best[0].params):
-                continue
-            fit = design.fit(np.hstack([extra, pair.columns]))
-            dk = fit.rank - current.rank
-            gain = current.cv_sse - fit.cv_sse
-            dbic = fit.bic(n) - current.bic(n)
-            if (dk > best[2] and gain - best[3] > cv_threshold(dk - best[2]) and dbic < best[4] - BIC_MARGIN
-                    and refusal(st, pair, fit.theta[-pair.columns.shape[1]:], dk) is None):
-                tried.append(((pair, fit, dk, gain, dbic, True), o))
-        if not tried:
-            break
-        (step, o) = max(tried, key=lambda t: t[0][3])
-        best = step
-        others = [x for x in others if x is not o]
-        parts += 1
-    return best
-
-
-def _complexity(c: Candidate, dk: int) -> float:
-    return dk + 0.1 * c.info.get("complexity", 0)
-
-
-def _axis_ties(design, extra, best, good) -> list:
-    """The scored candidates of ``best``'s effect on other axes that the data cannot tell from it:
-    columns that add no direction to its own (to the design's rank tolerance), and a held-out gain
-    that noise alone could make up (within the threshold one parameter must pass)."""
-    c, fit = best[0], best[1]
-    out = []
-    for s in good:
-        if s[0].effect != c.effect or s[0].axis == c.axis or not s[0].axis:
-            continue
-        if best[3] - s[3] > cv_threshold(1):
-            continue
-        if design.fit(np.hstack([extra, c.columns, s[0].columns])).rank == fit.rank:
-            out.append(s)
-    return out
-
-
-class Choice(NamedTuple):
-    """What :func:`_parsimony` picks among rivals: the scored candidate to add, and the more specific
-    rival the data do not tell from it (None when they do)."""
-
-    pick: tuple
-    rival_alike: tuple | None
-
-
-def _parsimony(best, good) -> Choice:
-    """Among rivals of ``best`` (explanations of the same residual), prefer the simplest one (fewer
-    parameters; then uniform offset before direction lag before an Abbe term) whose held-out gain is
-    not significantly smaller, or whose BIC is not worse by ``BIC_MARGIN``: a more specific cause must
-    be earned by a margin in the data. ``rival_alike`` of the result is ``best`` when both tests lean
-    to it against the simpler pick of another name (effect or axis), a larger held-out gain and a
-    lower BIC, but only one by its margin: the data then do not tell the two names apart. Only the
-    final pick is compared with ``best`` so."""
-    c = best[0]
-    pick, alike = best, None
-    for s in good:
-        # rivals: the same residual's explanations, or a candidate made of part of this one's terms
-        # (a feed offset beside an IRC shift that carries that offset)
-        related = (c.rivals and s[0].rivals == c.rivals) or set(s[0].params) < set(c.params)
-        if not related or _complexity(s[0], s[2]) >= _complexity(pick[0], pick[2]):
-            continue
-        # the more specific cause must pass both selection tests against the simpler one: its extra
-        # parameters must gain more than noise could held out, and lower the BIC by the margin
-        gain_earned = s[3] < best[3] - cv_threshold(max(best[2] - s[2], 1))
-        bic_earned = s[4] > best[4] + BIC_MARGIN
-        if not (gain_earned and bic_earned):
-            pick = s
-            lean = s[3] < best[3] and s[4] > best[4]
-            other_name = (s[0].effect, s[0].axis) != (c.effect, c.axis)
-            alike = best if lean and gain_earned != bic_earned and other_name else None
-    return Choice(pick, alike)
 
 
 # --------------------------------------------------------------------------------------- findings

@@ -26,132 +26,162 @@ def _rival_text(c, rivals, after_fit, before_fit):
             "held-out")
 
 
+def _backlash(st, c, theta, resid, rt):
+    """(params, evidence) of a reversal step (linear or rotary axis), constant or varying along the axis."""
+    a = c.axis
+    rotary = c.effect == "rotary_backlash"
+    scale, unit = (1e6, "urad") if rotary else (1e3, "um")
+    mag = float(theta[0] * scale)
+    stp = an.step_test(st, resid, a)
+    params = {f"magnitude_{unit}": round(mag, 4)}
+    if stp is not None:
+        # residuals are in um (or urad for angular readings); the step of the positioning error
+        params["step_at_matched_positions"] = round(stp.step, 4)
+        ev = (f"At {stp.n_pairs} matched positions of {a}, readings approached in + minus those "
+              f"approached in - differ by {stp.step:.3g} {unit} on average (standard error "
+              f"{stp.se:.2g}); the base model has no direction dependence")
+    else:
+        ev = f"Readings of {a} split by approach direction with a step of {mag:.3g} {unit}"
+    if c.variant == "profile":
+        ax = st.machine.axis(a)
+        s_grid = np.linspace(*ax.spline_range, 101) if ax.spline_range else np.linspace(*ax.travel, 101)
+        phis = np.array(axis_spline(ax).functions(s_grid, False))
+        prof = (theta[0] + theta[1:] @ phis) * scale
+        params.update({f"reversal_min_{unit}": round(float(prof.min()), 4),
+                       f"reversal_max_{unit}": round(float(prof.max()), 4)})
+        ev += (f"; the reversal varies along {a} from {prof.min():.3g} to {prof.max():.3g} {unit}"
+               f" (held-out data prefer this profile to a constant step)")
+    return params, ev
+
+
+def _periodic_error(st, c, theta, resid, rt):
+    """(params, evidence) of a periodic error of a linear axis."""
+    a = c.axis
+    amp = float(np.hypot(theta[0], theta[1]) * 1e3)
+    ln = c.info["line"]
+    params = {"period_mm": round(c.info["period_mm"], 5), "amplitude_um": round(amp, 4),
+              "phase_deg": round(float(np.degrees(np.arctan2(theta[1], theta[0]))), 2)}
+    ev = (f"The {a} residual against {a} position has a Lomb-Scargle line at {ln.period:.4g} mm "
+          f"(refined to {c.info['period_mm']:.4g} mm; power {ln.power:.2f}, false-alarm probability "
+          f"{ln.fap:.1e}) with {c.info['parts']}")
+    return params, ev
+
+
+def _feed_dependent_offset(st, c, theta, resid, rt):
+    """(params, evidence) of a positioning offset proportional to feed."""
+    a = c.axis
+    v = float(theta[0] * 1e3)
+    params = {"um_per_m_min": round(v, 4), "follows_direction": c.variant == "lag"}
+    ev = (f"The {a} positioning residual changes by {v:.3g} um per m/min of feed, the same all along "
+          f"the axis{' and with the sign of the approach direction' if c.variant == 'lag' else ''}"
+          f"{rt}")
+    return params, ev
+
+
+def _feed_dependent_abbe(st, c, theta, resid, rt):
+    """(params, evidence) of an angular error that changes with feed, read through its Abbe arm."""
+    a = c.axis
+    params = {"axis": a}
+    # name the part that acts most on the readings (size of its contribution), with its value
+    contrib = np.sqrt(np.mean((c.columns * theta) ** 2, axis=0))
+    for prefix, what, unit, nd in (("IRC_", "irc_shift", "_mm", 4), ("AG_", "angle_gain", "", 6)):
+        idx = [i for i, n in enumerate(c.params) if n.startswith(prefix)]
+        if not idx:
+            continue
+        big = max(idx, key=lambda i: contrib[i])
+        params[f"{what}{unit}_per_m_min"] = round(float(theta[big]), nd)
+        params[f"{what}_component"] = c.params[big]
+        params[f"{what}s{unit}_per_m_min"] = {c.params[i]: round(float(theta[i]), nd) for i in idx}
+    parts = []
+    for n in [n for n in c.params if n.startswith(("IRC_", "AG_"))]:
+        comp = "E" + n.split("_")[1]
+        parts.append(f"the rotation centre of {comp} moves along {n.split('_')[2].upper()} with feed"
+                     if n.startswith("IRC_") else f"{comp} grows with feed")
+    what = " and ".join(parts)
+    const = [i for i, n in enumerate(c.params) if n.startswith("AF_")]
+    if const:
+        # the angle's constant part times its gain (the base model holds no constant angle)
+        params["constant_angle_urad_per_m_min"] = {"E" + c.params[i][3:]: round(float(theta[i] * 1e6), 4)
+                                                   for i in const}
+        what += ", with " + " and ".join(
+            f"{v:.3g} urad per m/min of {n} uniform along the axis"
+            for n, v in params["constant_angle_urad_per_m_min"].items()) + \
+            " from the angle's constant part"
+    off = [i for i, n in enumerate(c.params) if n.startswith("FOFF_")]
+    if off:
+        # the moving centre times the angular error's constant part (not in the base model)
+        params["uniform_um_per_m_min"] = {c.params[i][5:]: round(float(theta[i] * 1e3), 4) for i in off}
+        what += ", with a uniform " + " and ".join(
+            f"{v:.3g} um per m/min along {d}" for d, v in params["uniform_um_per_m_min"].items()) + \
+            " from the angular error's constant part"
+    ev = (f"The feed-dependent part of the {a} residual follows the fitted angular error profile of "
+          f"{a} times the Abbe arm ({what}; Yang et al. 2020){rt}")
+    return params, ev
+
+
+def _rotary_pdge(st, c, theta, resid, rt):
+    """(params, evidence) of a rotary axis's error motion beyond its location errors."""
+    a = c.axis
+    comp = c.info["component"]
+    unit, scale = ("urad", 1e6) if comp[1] in "ABC" else ("um", 1e3)
+    harm = theta.reshape(-1, 2) * scale
+    amps = np.hypot(harm[:, 0], harm[:, 1])
+    params = {"component": comp, f"harmonic_amplitudes_{unit}": [round(float(x), 4) for x in amps]}
+    ev = (f"The residual varies with the {a} angle at harmonics 1-{len(amps)} beyond the location "
+          f"errors of {a}; as the error motion {comp} they reach {amps.max():.3g} {unit}")
+    return params, ev
+
+
+def _thermal_drift(st, c, theta, resid, rt):
+    """(params, evidence) of a drift in time, temperature or spindle history."""
+    driver = c.info["driver"]
+    feats = c.info["features"]
+    params = {"driver": driver, "features": feats}
+    if "tau_s" in c.info:
+        params["time_constant_s"] = c.info["tau_s"]
+    if "temperatures" in c.info:
+        params["temperatures"] = c.info["temperatures"]
+    drift = c.columns @ theta
+    ranges = {}
+    for d in list("XYZ") + sorted(st.hc):
+        drift_d = np.zeros(len(st))
+        for i, nm in enumerate(c.params):
+            f = next((f for f in feats if nm == f"TD_{d}_{f}"), None)
+            if f is not None:
+                drift_d = drift_d + st.feature(f) * theta[i]
+        if np.any(drift_d):
+            ranges[d] = float(np.ptp(drift_d) * 1e3)
+    if ranges:
+        top = max(ranges, key=ranges.get)
+        params["direction" if top in ("X", "Y", "Z") else "channel"] = top
+        params["drift_range_by_direction_um"] = {d: round(v, 4) for d, v in ranges.items()}
+    params["drift_range_um"] = round(float(np.ptp(drift[st.unit == "um"])) if np.any(st.unit == "um")
+                                     else float(np.ptp(drift)), 4)
+    sel = np.isfinite(st.t)
+    r = np.corrcoef(drift[sel], resid[sel])[0, 1] if np.std(drift[sel]) > 0 else 0.0
+    by = {"time": "time since the start" + (f" (settling with a {c.info['tau_s'] / 3600:.3g} h time "
+                                              "constant)" if "tau_s" in c.info else ""),
+          "spindle": "the spindle's speed history",
+          "temperature": "the temperature(s) " + ", ".join(c.info.get("temperatures", []))}[driver]
+    ev = (f"The residual drifts with {by} (correlation {r:.2f} with the fitted drift, range "
+          f"{params['drift_range_um']:.3g} um){rt}")
+    return params, ev
+
+
+#: effect -> its params and evidence: function(stack, candidate, theta (internal units), residual
+#: before the candidate, rival sentence) -> (params in file units, evidence sentence)
+_EFFECT_REPORTS = {"backlash": _backlash, "rotary_backlash": _backlash, "periodic_error": _periodic_error,
+                   "feed_dependent_offset": _feed_dependent_offset, "feed_dependent_abbe": _feed_dependent_abbe,
+                   "rotary_pdge": _rotary_pdge, "thermal_drift": _thermal_drift}
+
+
 def evidence_and_params(st, c, theta, before_fit, after_fit, rivals, noise):
     """(params dict in file units, evidence sentence) of a chosen candidate ``c`` with coefficients
-    ``theta`` (internal units), given the fits before and after adding it."""
-    resid = before_fit.resid
-    eff, a = c.effect, c.axis
+    ``theta`` (internal units), given the fits before and after adding it; ({}, "") for an effect
+    with no words of its own."""
     rt = _rival_text(c, rivals, after_fit, before_fit)
-    if eff in ("backlash", "rotary_backlash"):
-        rotary = eff == "rotary_backlash"
-        scale, unit = (1e6, "urad") if rotary else (1e3, "um")
-        mag = float(theta[0] * scale)
-        stp = an.step_test(st, resid, a)
-        params = {f"magnitude_{unit}": round(mag, 4)}
-        if stp is not None:
-            # residuals are in um (or urad for angular readings); the step of the positioning error
-            params["step_at_matched_positions"] = round(stp.step, 4)
-            ev = (f"At {stp.n_pairs} matched positions of {a}, readings approached in + minus those "
-                  f"approached in - differ by {stp.step:.3g} {unit} on average (standard error "
-                  f"{stp.se:.2g}); the base model has no direction dependence")
-        else:
-            ev = f"Readings of {a} split by approach direction with a step of {mag:.3g} {unit}"
-        if c.variant == "profile":
-            ax = st.machine.axis(a)
-            s_grid = np.linspace(*ax.spline_range, 101) if ax.spline_range else np.linspace(*ax.travel, 101)
-            phis = np.array(axis_spline(ax).functions(s_grid, False))
-            prof = (theta[0] + theta[1:] @ phis) * scale
-            params.update({f"reversal_min_{unit}": round(float(prof.min()), 4),
-                           f"reversal_max_{unit}": round(float(prof.max()), 4)})
-            ev += (f"; the reversal varies along {a} from {prof.min():.3g} to {prof.max():.3g} {unit}"
-                   f" (held-out data prefer this profile to a constant step)")
-        return params, ev
-    if eff == "periodic_error":
-        amp = float(np.hypot(theta[0], theta[1]) * 1e3)
-        ln = c.info["line"]
-        params = {"period_mm": round(c.info["period_mm"], 5), "amplitude_um": round(amp, 4),
-                  "phase_deg": round(float(np.degrees(np.arctan2(theta[1], theta[0]))), 2)}
-        ev = (f"The {a} residual against {a} position has a Lomb-Scargle line at {ln.period:.4g} mm "
-              f"(refined to {c.info['period_mm']:.4g} mm; power {ln.power:.2f}, false-alarm probability "
-              f"{ln.fap:.1e}) with {c.info['parts']}")
-        return params, ev
-    if eff == "feed_dependent_offset":
-        v = float(theta[0] * 1e3)
-        params = {"um_per_m_min": round(v, 4), "follows_direction": c.variant == "lag"}
-        ev = (f"The {a} positioning residual changes by {v:.3g} um per m/min of feed, the same all along "
-              f"the axis{' and with the sign of the approach direction' if c.variant == 'lag' else ''}"
-              f"{rt}")
-        return params, ev
-    if eff == "feed_dependent_abbe":
-        params = {"axis": a}
-        # name the part that acts most on the readings (size of its contribution), with its value
-        contrib = np.sqrt(np.mean((c.columns * theta) ** 2, axis=0))
-        for prefix, what, unit, nd in (("IRC_", "irc_shift", "_mm", 4), ("AG_", "angle_gain", "", 6)):
-            idx = [i for i, n in enumerate(c.params) if n.startswith(prefix)]
-            if not idx:
-                continue
-            big = max(idx, key=lambda i: contrib[i])
-            params[f"{what}{unit}_per_m_min"] = round(float(theta[big]), nd)
-            params[f"{what}_component"] = c.params[big]
-            params[f"{what}s{unit}_per_m_min"] = {c.params[i]: round(float(theta[i]), nd) for i in idx}
-        parts = []
-        for n in [n for n in c.params if n.startswith(("IRC_", "AG_"))]:
-            comp = "E" + n.split("_")[1]
-            parts.append(f"the rotation centre of {comp} moves along {n.split('_')[2].upper()} with feed"
-                         if n.startswith("IRC_") else f"{comp} grows with feed")
-        what = " and ".join(parts)
-        const = [i for i, n in enumerate(c.params) if n.startswith("AF_")]
-        if const:
-            # the angle's constant part times its gain (the base model holds no constant angle)
-            params["constant_angle_urad_per_m_min"] = {"E" + c.params[i][3:]: round(float(theta[i] * 1e6), 4)
-                                                       for i in const}
-            what += ", with " + " and ".join(
-                f"{v:.3g} urad per m/min of {n} uniform along the axis"
-                for n, v in params["constant_angle_urad_per_m_min"].items()) + \
-                " from the angle's constant part"
-        off = [i for i, n in enumerate(c.params) if n.startswith("FOFF_")]
-        if off:
-            # the moving centre times the angular error's constant part (not in the base model)
-            params["uniform_um_per_m_min"] = {c.params[i][5:]: round(float(theta[i] * 1e3), 4) for i in off}
-            what += ", with a uniform " + " and ".join(
-                f"{v:.3g} um per m/min along {d}" for d, v in params["uniform_um_per_m_min"].items()) + \
-                " from the angular error's constant part"
-        ev = (f"The feed-dependent part of the {a} residual follows the fitted angular error profile of "
-              f"{a} times the Abbe arm ({what}; Yang et al. 2020){rt}")
-        return params, ev
-    if eff == "rotary_pdge":
-        comp = c.info["component"]
-        unit, scale = ("urad", 1e6) if comp[1] in "ABC" else ("um", 1e3)
-        harm = theta.reshape(-1, 2) * scale
-        amps = np.hypot(harm[:, 0], harm[:, 1])
-        params = {"component": comp, f"harmonic_amplitudes_{unit}": [round(float(x), 4) for x in amps]}
-        ev = (f"The residual varies with the {a} angle at harmonics 1-{len(amps)} beyond the location "
-              f"errors of {a}; as the error motion {comp} they reach {amps.max():.3g} {unit}")
-        return params, ev
-    if eff == "thermal_drift":
-        driver = c.info["driver"]
-        feats = c.info["features"]
-        params = {"driver": driver, "features": feats}
-        if "tau_s" in c.info:
-            params["time_constant_s"] = c.info["tau_s"]
-        if "temperatures" in c.info:
-            params["temperatures"] = c.info["temperatures"]
-        drift = c.columns @ theta
-        ranges = {}
-        for d in list("XYZ") + sorted(st.hc):
-            drift_d = np.zeros(len(st))
-            for i, nm in enumerate(c.params):
-                f = next((f for f in feats if nm == f"TD_{d}_{f}"), None)
-                if f is not None:
-                    drift_d = drift_d + st.feature(f) * theta[i]
-            if np.any(drift_d):
-                ranges[d] = float(np.ptp(drift_d) * 1e3)
-        if ranges:
-            top = max(ranges, key=ranges.get)
-            params["direction" if top in ("X", "Y", "Z") else "channel"] = top
-            params["drift_range_by_direction_um"] = {d: round(v, 4) for d, v in ranges.items()}
-        params["drift_range_um"] = round(float(np.ptp(drift[st.unit == "um"])) if np.any(st.unit == "um")
-                                         else float(np.ptp(drift)), 4)
-        sel = np.isfinite(st.t)
-        r = np.corrcoef(drift[sel], resid[sel])[0, 1] if np.std(drift[sel]) > 0 else 0.0
-        by = {"time": "time since the start" + (f" (settling with a {c.info['tau_s'] / 3600:.3g} h time "
-                                                  "constant)" if "tau_s" in c.info else ""),
-              "spindle": "the spindle's speed history",
-              "temperature": "the temperature(s) " + ", ".join(c.info.get("temperatures", []))}[driver]
-        ev = (f"The residual drifts with {by} (correlation {r:.2f} with the fitted drift, range "
-              f"{params['drift_range_um']:.3g} um){rt}")
-        return params, ev
-    return {}, ""
+    report = _EFFECT_REPORTS.get(c.effect)
+    return report(st, c, theta, before_fit.resid, rt) if report is not None else ({}, "")
 
 
 def _runs(st, sel) -> np.ndarray:

@@ -191,8 +191,6 @@ class Stack:
 
 def build_stack(machine: Machine, datasets: list[MeasurementSet], extra_context=None) -> Stack:
     """Stack the observations of ``datasets`` and bind them to the probe model (not yet evaluated)."""
-    from ..measurement.readings import measurement_model
-
     probe = ErrorModel(machine, probe_terms(machine))
     parts = {k: [] for k in ("y", "unit", "file", "series", "column", "component", "row", "q", "moving",
                              "dirs", "feed", "t", "run", "spindle", "arm", "setup")}
@@ -201,72 +199,13 @@ def build_stack(machine: Machine, datasets: list[MeasurementSet], extra_context=
     models, nuis_names, kinds = [], [], []
     tags = _unique_tags(datasets)
     for fi, data in enumerate(datasets):
-        n_rows = len(data)
-        # the probe reads each axis's backlash column at dir +1 where the file does not say; a cut
-        # part's approach directions are the program's (its measurement model finds them)
-        extra = {} if data.kind == "cmm" else {
-            f"dir_{a}": np.where(data.context.dir_of(a) == 0, 1.0, data.context.dir_of(a).astype(float))
-            for a in machine.axis_names}
-        extra[ONE] = np.ones(n_rows)
-        try:
-            mm = measurement_model(probe, data, None, tag=tags[fi], extra_context=extra)
-        except InputError:
-            raise
-        if mm.n_obs == 0:
-            raise InputError("the file has no measured values", data.path)
-        r = mm.obs_row
-        cols = np.asarray(mm.obs_column, dtype=object).astype(str)
-        scale = np.asarray(mm.obs_unit_scale, dtype=float).copy()
-        from ..identification.result import error_unit
-        unit = np.array([error_unit(c) for c in cols], dtype=object).astype(str)
-        scale = np.where(scale == 1.0, 1e3, scale)     # ball-bar lengths: mm -> um
-        n = mm.n_obs
-        parts["y"].append(mm.observed * scale)
-        parts["unit"].append(unit)
-        parts["file"].append(np.full(n, fi))
-        parts["column"].append(cols)
-        parts["row"].append(r)
-        q = getattr(mm, "q", None)
-        parts["q"].append(q[r] if isinstance(q, np.ndarray) and q.ndim == 2
-                          else np.zeros((n, machine.n_axes)))
-        if data.kind == "laser":
-            comp = data.component[r].astype(str)
-            moving = data.axis[r].astype(str)
-            series = np.array([f"{tags[fi]}:{a}:{c}" for a, c in zip(moving, comp)], dtype=object)
-            arm = data.optic[r]
-        else:
-            comp = np.array([c[5:-3] if c.startswith("disp_") else "" for c in cols], dtype=object)
-            moving = np.asarray(getattr(data, "axis", np.full(n_rows, "", dtype=object)))[r].astype(str) \
-                if data.kind == "velocity" else np.full(n, "")
-            series = np.array([f"{tags[fi]}:{c}" for c in cols], dtype=object)
-            arm = np.zeros((n, 3))
-        parts["component"].append(np.asarray(comp, dtype=object))
-        parts["moving"].append(np.asarray(moving, dtype=object))
-        parts["series"].append(series)
-        parts["arm"].append(arm)
-        setup = np.zeros((n, 7))
-        setup[:, 0] = machine.tool_length
-        if data.kind == "points":
-            setup[:, 0] = data.tool_lengths(machine)[r]
-        elif data.kind == "ballbar":
-            setup[:, 1:4] = data.table_ball[r]
-            setup[:, 4:7] = data.tool_ball[r]
-        parts["setup"].append(setup)
-        ctx = data.context
-        if data.kind == "cmm":
-            # a cut part's block context is the program's (the cutter location that made each point),
-            # not the CMM file's own columns
-            names = probe.context_names
-            parts["dirs"].append(np.column_stack([mm.c[r, names.index(f"dir_{a}")] for a in machine.axis_names]))
-            parts["feed"].append(mm.c[r, names.index("feed")])
-        else:
-            parts["dirs"].append(np.column_stack([ctx.dir_of(a)[r].astype(float) for a in machine.axis_names]))
-            parts["feed"].append(ctx.feed[r])
-        parts["t"].append(ctx.t[r])
-        parts["run"].append(ctx.run[r])
-        parts["spindle"].append(ctx.spindle_rpm[r])
+        mm = _probe_measurement_model(machine, probe, data, tags[fi])
+        r, n = mm.obs_row, mm.n_obs
+        rows, scale = _file_rows(machine, probe, data, mm, tags[fi], fi)
+        for k, v in rows.items():
+            parts[k].append(v)
         for name in temp_names:
-            v = ctx.temperatures.get(name)
+            v = data.context.temperatures.get(name)
             temps[name].append(v[r] if v is not None else np.full(n, np.nan))
         nsl = slice(len(nuis_names), len(nuis_names) + mm.n_nuisance)
         nuis_names.extend(mm.nuisance_names)
@@ -282,6 +221,80 @@ def build_stack(machine: Machine, datasets: list[MeasurementSet], extra_context=
     st._models = models
     st.datasets = list(datasets)
     return st
+
+
+def _probe_measurement_model(machine: Machine, probe, data, tag: str):
+    """The measurement model of one file on the probe model; InputError when it has no readings."""
+    from ..measurement.readings import measurement_model
+    # the probe reads each axis's backlash column at dir +1 where the file does not say; a cut
+    # part's approach directions are the program's (its measurement model finds them)
+    extra = {} if data.kind == "cmm" else {
+        f"dir_{a}": np.where(data.context.dir_of(a) == 0, 1.0, data.context.dir_of(a).astype(float))
+        for a in machine.axis_names}
+    extra[ONE] = np.ones(len(data))
+    mm = measurement_model(probe, data, None, tag=tag, extra_context=extra)
+    if mm.n_obs == 0:
+        raise InputError("the file has no measured values", data.path)
+    return mm
+
+
+def _file_rows(machine: Machine, probe, data, mm, tag: str, fi: int) -> tuple[dict, np.ndarray]:
+    """({stack column: this file's rows}, scale of each observation to um or urad) of one file."""
+    from ..identification.result import error_unit
+    r = mm.obs_row
+    cols = np.asarray(mm.obs_column, dtype=object).astype(str)
+    scale = np.asarray(mm.obs_unit_scale, dtype=float).copy()
+    unit = np.array([error_unit(c) for c in cols], dtype=object).astype(str)
+    scale = np.where(scale == 1.0, 1e3, scale)     # ball-bar lengths: mm -> um
+    n = mm.n_obs
+    q = getattr(mm, "q", None)
+    comp, moving, series, arm = _series_rows(data, tag, cols, r, n)
+    dirs, feed = _block_context(machine, probe, data, mm, r)
+    ctx = data.context
+    rows = {"y": mm.observed * scale, "unit": unit, "file": np.full(n, fi), "column": cols, "row": r,
+            "q": q[r] if isinstance(q, np.ndarray) and q.ndim == 2 else np.zeros((n, machine.n_axes)),
+            "component": np.asarray(comp, dtype=object), "moving": np.asarray(moving, dtype=object),
+            "series": series, "arm": arm, "setup": _setup_rows(machine, data, r, n),
+            "dirs": dirs, "feed": feed, "t": ctx.t[r], "run": ctx.run[r], "spindle": ctx.spindle_rpm[r]}
+    return rows, scale
+
+
+def _series_rows(data, tag: str, cols: np.ndarray, r: np.ndarray, n: int):
+    """(component, moving axis, series, optic arm (n, 3) mm) of a file's observations."""
+    if data.kind == "laser":
+        comp = data.component[r].astype(str)
+        moving = data.axis[r].astype(str)
+        series = np.array([f"{tag}:{a}:{c}" for a, c in zip(moving, comp)], dtype=object)
+        return comp, moving, series, data.optic[r]
+    comp = np.array([c[5:-3] if c.startswith("disp_") else "" for c in cols], dtype=object)
+    moving = np.asarray(getattr(data, "axis", np.full(len(data), "", dtype=object)))[r].astype(str) \
+        if data.kind == "velocity" else np.full(n, "")
+    series = np.array([f"{tag}:{c}" for c in cols], dtype=object)
+    return comp, moving, series, np.zeros((n, 3))
+
+
+def _setup_rows(machine: Machine, data, r: np.ndarray, n: int) -> np.ndarray:
+    """(n, 7) set-up of each observation, mm: tool length, table ball, tool ball."""
+    setup = np.zeros((n, 7))
+    setup[:, 0] = machine.tool_length
+    if data.kind == "points":
+        setup[:, 0] = data.tool_lengths(machine)[r]
+    elif data.kind == "ballbar":
+        setup[:, 1:4] = data.table_ball[r]
+        setup[:, 4:7] = data.tool_ball[r]
+    return setup
+
+
+def _block_context(machine: Machine, probe, data, mm, r: np.ndarray):
+    """((n, n_axes) approach directions, (n,) feed mm/min) of a file's observations."""
+    if data.kind == "cmm":
+        # a cut part's block context is the program's (the cutter location that made each point),
+        # not the CMM file's own columns
+        names = probe.context_names
+        return (np.column_stack([mm.c[r, names.index(f"dir_{a}")] for a in machine.axis_names]),
+                mm.c[r, names.index("feed")])
+    ctx = data.context
+    return (np.column_stack([ctx.dir_of(a)[r].astype(float) for a in machine.axis_names]), ctx.feed[r])
 
 
 def _unique_tags(datasets) -> list[str]:

@@ -33,7 +33,7 @@ class Finding:
     candidate: Candidate | None = None
     step: tuple | None = None
     unit: str = "um"
-    #: "effect axis" of a rival the data do not tell from this finding (see mtcomp.diagnose._diagnose._parsimony): the
+    #: "effect axis" of a rival the data do not tell from this finding (see mtcomp.diagnose._selection._parsimony): the
     #: model holds this finding's term, the report names neither cause
     rival_alike: str = ""
 

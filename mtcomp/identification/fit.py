@@ -96,6 +96,30 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
     (:func:`mtcomp.models.basis.with_data_basis`): the fitted model's structure follows what was measured.
     """
     t0 = time.perf_counter()
+    datasets = list(datasets)
+    model, p0, ctx_defaults = _model_and_start(machine_or_model, datasets, initial, context_defaults)
+    mask = _free_mask(model, free, hold)
+    mms = build_measurement_models(model, datasets, ctx_defaults, known_setup=known_setup)
+    if not mms or sum(m.n_obs for m in mms) == 0:
+        paths = [str(m.data.path) for m in mms if getattr(m.data, "path", None)]
+        raise InputError("no observations to fit: every measured cell is blank"
+                         + (f" in {', '.join(paths)}" if len(paths) > 1 else ""),
+                         paths[0] if len(paths) == 1 else None)
+    problem = _Problem(model, mms, mask, p0)
+    problem.metric = travel_metric(model, problem.free_idx, problem.n_unknowns)
+    w, label = _weights(problem, weights, rcond, max_iterations, tol)
+    sol = problem.solve(w, rcond, max_iterations, tol)
+    result = problem.result(sol, w, label, ctx_defaults, time.perf_counter() - t0, info)
+    _record_data(result, model, mask, mms, datasets)
+    if problem.weak_fallback:
+        result.info["weak_directions"] = ("not held: holding them would have spoiled the fit of the "
+                                          "data; the data's own least-squares fit is kept")
+    return result
+
+
+def _model_and_start(machine_or_model, datasets: list, initial, context_defaults):
+    """(model fitted, its data's basis; (n_params,) start values, internal units; context defaults)
+    of :func:`identify`'s arguments."""
     fitted_in = machine_or_model if isinstance(machine_or_model, FittedModel) else None
     if isinstance(machine_or_model, Machine):
         model = ErrorModel(machine_or_model)
@@ -107,27 +131,21 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
         raise TypeError("machine_or_model must be a Machine, ErrorModel or FittedModel")
     ctx_defaults = dict(fitted_in.context_defaults) if fitted_in is not None else {}
     ctx_defaults.update(context_defaults or {})
-    datasets = list(datasets)
     model = model_for_data(model, datasets)
     p0 = np.zeros(model.n_params)
     if fitted_in is not None:
         p0 = fitted_in.params.reindexed(model.param_specs).values
     if initial is not None:
         p0 = np.asarray(initial, dtype=float).reshape(model.n_params).copy()
-    mask = _free_mask(model, free, hold)
-    mms = build_measurement_models(model, datasets, ctx_defaults, known_setup=known_setup)
-    if not mms or sum(m.n_obs for m in mms) == 0:
-        paths = [str(m.data.path) for m in mms if getattr(m.data, "path", None)]
-        raise InputError("no observations to fit: every measured cell is blank"
-                         + (f" in {', '.join(paths)}" if len(paths) > 1 else ""),
-                         paths[0] if len(paths) == 1 else None)
-    problem = _Problem(model, mms, mask, p0)
-    problem.metric = travel_metric(model, problem.free_idx, problem.n_unknowns)
+    return model, p0, ctx_defaults
 
+
+def _weights(problem, weights, rcond: float, max_iterations: int, tol: float):
+    """((n_obs,) weights of the observations, their label for the report) of :func:`identify`'s
+    ``weights``."""
     if isinstance(weights, str) and weights == "unit":
-        w = problem.unit_weights()
-        label = "unit (um, urad)"
-    elif isinstance(weights, str) and weights == "noise":
+        return problem.unit_weights(), "unit (um, urad)"
+    if isinstance(weights, str) and weights == "noise":
         w = problem.unit_weights()
         for _ in range(NOISE_PASSES):
             sol = problem.solve(w, rcond, max_iterations, tol, leverage=True)
@@ -136,14 +154,15 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
             w = w_new
             if change < 0.01:
                 break
-        label = "1/noise per file"
-    elif isinstance(weights, dict):
-        w = problem.dict_weights(weights)
-        label = "given noise per file"
-    else:
-        raise ValueError(f"weights must be 'unit', 'noise' or a dict, not {weights!r}")
-    sol = problem.solve(w, rcond, max_iterations, tol)
-    result = problem.result(sol, w, label, ctx_defaults, time.perf_counter() - t0, info)
+        return w, "1/noise per file"
+    if isinstance(weights, dict):
+        return problem.dict_weights(weights), "given noise per file"
+    raise ValueError(f"weights must be 'unit', 'noise' or a dict, not {weights!r}")
+
+
+def _record_data(result, model, mask, mms, datasets) -> None:
+    """Record in the fitted model where its data reached, what they held, the files whose set-up is
+    known and what the data show of a reversal."""
     # an axis none of whose own errors were fitted (all held: the user says the controller already
     # compensates it) does not bound the model: what was fitted (a rotary table's motion) holds for
     # the rigid body wherever that axis stands
@@ -157,10 +176,6 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
                                 if a in fitted_axes}
     # what the data show of a reversal, so that export can say when the model leaves it out
     result.fitted_model.info["reversal"] = data_reversal(datasets)
-    if problem.weak_fallback:
-        result.info["weak_directions"] = ("not held: holding them would have spoiled the fit of the "
-                                          "data; the data's own least-squares fit is kept")
-    return result
 
 
 #: Gauss-Newton stops at a step that moves every combination of the unknowns by less than this
@@ -483,7 +498,7 @@ class _Problem:
         undetermined too: the second pass holds them at the least predicted error
         (:meth:`_weak_directions`), so that noise is never amplified into invented errors.
         """
-        from .penalty import Smoothing, reml_weights
+        from .penalty import Smoothing
         self.smoothing, self.smoothing_rho = None, {}
         x = np.zeros(self.n_unknowns)
         x[:self.n_free] = self.p0[self.free_idx]
@@ -498,6 +513,22 @@ class _Problem:
         cond = float(rel[0] / rel[keep][-1]) if data_rank else np.inf
         start = (x, r, A, g)
         B1 = held_complement(null, np.arange(self.n_unknowns) < self.n_free)
+        first = self._penalised_fit(start, w, max_iterations, tol, B1, scale, penalties)
+        first += (null, self.n_unknowns - null.shape[1])
+        x, r, A, g, B, AB, iterations, converged, null, rank = self._hold_weak(
+            start, first, w, max_iterations, tol, B1, scale, data_rank)
+        lev, edf, cov = self._posterior(x, r, w, scale, B, AB, rank, leverage)
+        if self.S is not None:
+            lam = {k: float(np.exp(v)) for k, v in self.smoothing_rho.items()}
+            self.smoothing = Smoothing(lam, dict(self.smoothing_rho), edf)
+        return _Solution(x, r, cov, null, scale, rel, rank, cond, iterations, converged, lev, edf)
+
+    def _penalised_fit(self, start, w, max_iterations, tol, B1, scale, penalties: dict) -> tuple:
+        """The first pass of :meth:`solve`: Gauss-Newton from ``start`` (x, r, A, g) along B1, with
+        the penalty's weights chosen by REML (sets ``S`` and ``smoothing_rho``). Returns (x, r, A, g,
+        B, AB, iterations, converged) as :meth:`_gauss_newton`."""
+        from .penalty import reml_weights
+        x, r, A, g = start
         self.S = None
         iterations = 0
         # REML on the problem linearised at the start, then again at that fit: there the residuals
@@ -527,50 +558,58 @@ class _Problem:
             x, r, A, g, B, AB, more, converged = self._gauss_newton(
                 x, r, A, g, w, max_iterations, tol, B1, scale)
             iterations += more
-        rank = self.n_unknowns - null.shape[1]
+        return x, r, A, g, B, AB, iterations, converged
+
+    def _hold_weak(self, start, first, w, max_iterations, tol, B1, scale, data_rank: int) -> tuple:
+        """The second pass of :meth:`solve`: the weak directions of the first pass's fit ``first``
+        (x, r, A, g, B, AB, iterations, converged, null, rank) held at the least predicted error,
+        fitted again from ``start``. Returns the same tuple: the second pass's, or ``first`` when
+        there is no weak direction or holding them spoils the fit (then ``weak_fallback``)."""
+        x, r, A, g, B, AB, iterations, converged, null, rank = first
         sigma_w = self._repeat_scale(r, min(rank, data_rank))
         y1 = B1.T @ ((x - start[0]) / scale)
         weak, Q = self._weak_directions(AB + self._reduced_penalty(B), B1, scale, sigma_w, y1)
-        first = (x, r, A, g, B, AB, iterations, converged, null, rank)
-        if weak.shape[1]:
-            # reported as undetermined: the weak directions, in scaled coordinates, orthonormalised
-            U_, sv_, _ = np.linalg.svd(B1 @ weak, full_matrices=False)
-            null = np.hstack([null, U_[:, sv_ > 1e-9 * sv_.max()]])
-            rank = self.n_unknowns - null.shape[1]
-            # from the start again (the data-only pass may have wandered far along the weak
-            # directions), in the directions the data see less the weak ones: W^T Q y = 0
-            C = weak.T @ Q
-            _, sv_c, Vt = np.linalg.svd(C, full_matrices=True)
-            k_c = int(np.sum(sv_c > 1e-9 * max(float(sv_c.max()), 1e-300)))
-            B2 = B1 @ Vt[k_c:].T
-            x, r, A, g, B, AB, more, converged = self._gauss_newton(
-                *start, w, max_iterations, tol, B2, scale)
-            iterations += more
-            # holding weak directions may cost the data fit about one noise variance each; much more
-            # means the split into weak and strong went wrong numerically: keep the data's own fit
-            allowed = float(first[1] @ first[1]) + 4.0 * weak.shape[1] * sigma_w ** 2 + 1e-300
-            if not converged or float(r @ r) > 1.01 * allowed:
-                x, r, A, g, B, AB, iterations, converged, null, rank = first
-                self.weak_fallback = True
+        if not weak.shape[1]:
+            return first
+        # reported as undetermined: the weak directions, in scaled coordinates, orthonormalised
+        U_, sv_, _ = np.linalg.svd(B1 @ weak, full_matrices=False)
+        null = np.hstack([null, U_[:, sv_ > 1e-9 * sv_.max()]])
+        rank = self.n_unknowns - null.shape[1]
+        # from the start again (the data-only pass may have wandered far along the weak
+        # directions), in the directions the data see less the weak ones: W^T Q y = 0
+        C = weak.T @ Q
+        _, sv_c, Vt = np.linalg.svd(C, full_matrices=True)
+        k_c = int(np.sum(sv_c > 1e-9 * max(float(sv_c.max()), 1e-300)))
+        B2 = B1 @ Vt[k_c:].T
+        x, r, A, g, B, AB, more, converged = self._gauss_newton(
+            *start, w, max_iterations, tol, B2, scale)
+        iterations += more
+        # holding weak directions may cost the data fit about one noise variance each; much more
+        # means the split into weak and strong went wrong numerically: keep the data's own fit
+        allowed = float(first[1] @ first[1]) + 4.0 * weak.shape[1] * sigma_w ** 2 + 1e-300
+        if not converged or float(r @ r) > 1.01 * allowed:
+            self.weak_fallback = True
+            return first
+        return x, r, A, g, B, AB, iterations, converged, null, rank
+
+    def _posterior(self, x, r, w, scale, B, AB, rank: int, leverage: bool):
+        """((n_obs,) leverages (zeros unless ``leverage``), effective degrees of freedom, (n_unknowns,
+        n_unknowns) covariance of the unknowns, NaN when nothing is fitted) of a fit along B."""
         lev = np.zeros(self.n_obs)
         edf = float(rank)
-        if B.shape[1]:
-            # the Bayesian posterior covariance of a penalised fit (Wood 2006): phi (AB + S)^-1, phi
-            # the residual variance over the effective degrees of freedom tr((AB + S)^-1 AB)
-            H = AB + self._reduced_penalty(B)
-            Hinv = scipy.linalg.pinvh(H)
-            edf = float(np.trace(Hinv @ AB)) if self.S is not None else float(rank)
-            dof = self.n_obs - edf
-            s2 = float(r @ r) / dof if dof > 0 else np.nan
-            cov = s2 * (scale[:, None] * (B @ Hinv @ B.T) * scale[None, :])
-            if leverage:
-                lev = self.leverages(x, w, scale, B, np.linalg.cholesky(H))
-        else:
-            cov = np.full((self.n_unknowns, self.n_unknowns), np.nan)
-        if self.S is not None:
-            lam = {k: float(np.exp(v)) for k, v in self.smoothing_rho.items()}
-            self.smoothing = Smoothing(lam, dict(self.smoothing_rho), edf)
-        return _Solution(x, r, cov, null, scale, rel, rank, cond, iterations, converged, lev, edf)
+        if not B.shape[1]:
+            return lev, edf, np.full((self.n_unknowns, self.n_unknowns), np.nan)
+        # the Bayesian posterior covariance of a penalised fit (Wood 2006): phi (AB + S)^-1, phi
+        # the residual variance over the effective degrees of freedom tr((AB + S)^-1 AB)
+        H = AB + self._reduced_penalty(B)
+        Hinv = scipy.linalg.pinvh(H)
+        edf = float(np.trace(Hinv @ AB)) if self.S is not None else float(rank)
+        dof = self.n_obs - edf
+        s2 = float(r @ r) / dof if dof > 0 else np.nan
+        cov = s2 * (scale[:, None] * (B @ Hinv @ B.T) * scale[None, :])
+        if leverage:
+            lev = self.leverages(x, w, scale, B, np.linalg.cholesky(H))
+        return lev, edf, cov
 
     def _reduced_penalty(self, B) -> np.ndarray:
         """B^T S B: the penalty in the directions B (zeros without one)."""

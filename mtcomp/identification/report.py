@@ -170,10 +170,9 @@ def component_ranges(fitted: FittedModel, undetermined: Undetermined | None = No
     its least-squares line over [lo, hi] (ISO 230-1's reference line), so its slope, which is the
     squareness's, does not count in its range.
     """
-    machine, model = fitted.machine, fitted.model
+    machine = fitted.machine
     und = undetermined if undetermined is not None else Undetermined.of(fitted)
     mask = _fitted_mask(fitted)
-    p = fitted.params.values
     ranges, notes = [], []
     support = fitted.support
     if support is None:
@@ -183,33 +182,7 @@ def component_ranges(fitted: FittedModel, undetermined: Undetermined | None = No
     for ax in machine.axes:
         if ax.name not in support or not support[ax.name][0] < support[ax.name][1]:
             continue
-        lo, hi = support[ax.name]
-        s = np.linspace(lo, hi, GRID_POINTS)
-        fn = _component_function(model, ax)
-        E, dE = casadi_map_call(fn, s[:, None], p, fitted.context(s.size))
-        dE = dE.reshape(s.size, model.n_params, 6).transpose(0, 2, 1)     # (n, 6, n_params)
-        f_pos = 180.0 / math.pi if ax.is_rotary else 1.0
-        names = [f"E{d}{ax.name}" for d in TRANSLATION_LETTERS + ANGLE_LETTERS]
-        for j, comp in enumerate(names):
-            if not np.any(dE[:, j, :]):
-                continue            # not part of the model (a rotary axis's error motions of order 0)
-            angular = comp[1] in ANGLE_LETTERS
-            unit, scale = ("urad", 1e6) if angular else ("um", 1e3)
-            e, J = E[:, j] * scale, dE[:, j, :] * scale
-            if not ax.is_rotary and not angular and comp[1] != ax.name:
-                # straightness about its least-squares line
-                X = np.column_stack([np.ones_like(s), s - s.mean()])
-                e = e - X @ np.linalg.lstsq(X, e, rcond=None)[0]
-                J = J - X @ np.linalg.lstsq(X, J, rcond=None)[0]
-            D = J - J[0]
-            sd_along = und.std(D)
-            i_max, i_min = int(np.argmax(e)), int(np.argmin(e))
-            sd = float(und.std((J[i_max] - J[i_min])[None, :])[0])
-            status = _status(D, sd_along, mask)
-            ranges.append(ComponentRange(ax.name, comp, component_meaning(ax.name, comp), unit, lo * f_pos,
-                                         hi * f_pos, float(e[i_max] - e[i_min]), sd,
-                                         float(np.nanmax(sd_along)) if np.any(np.isfinite(sd_along))
-                                         else float("nan"), status))
+        ranges += _axis_ranges(fitted, ax, *support[ax.name], und, mask)
     moved = {r.axis for r in ranges}
     still = [a for a in machine.axis_names if a not in moved]
     if still:
@@ -219,6 +192,45 @@ def component_ranges(fitted: FittedModel, undetermined: Undetermined | None = No
         notes.append(f"axes the data did not move: {', '.join(still)}"
                      + (f" (held {', '.join(at)})" if at else "")
                      + ": how their errors vary along them is not known")
+    return ranges, _location_values(fitted, und, mask), notes
+
+
+def _axis_ranges(fitted: FittedModel, ax, lo: float, hi: float, und: Undetermined, mask) -> list:
+    """:class:`ComponentRange` of every component of axis ``ax`` over [lo, hi] (mm or rad)."""
+    model, p = fitted.model, fitted.params.values
+    ranges = []
+    s = np.linspace(lo, hi, GRID_POINTS)
+    fn = _component_function(model, ax)
+    E, dE = casadi_map_call(fn, s[:, None], p, fitted.context(s.size))
+    dE = dE.reshape(s.size, model.n_params, 6).transpose(0, 2, 1)     # (n, 6, n_params)
+    f_pos = 180.0 / math.pi if ax.is_rotary else 1.0
+    names = [f"E{d}{ax.name}" for d in TRANSLATION_LETTERS + ANGLE_LETTERS]
+    for j, comp in enumerate(names):
+        if not np.any(dE[:, j, :]):
+            continue            # not part of the model (a rotary axis's error motions of order 0)
+        angular = comp[1] in ANGLE_LETTERS
+        unit, scale = ("urad", 1e6) if angular else ("um", 1e3)
+        e, J = E[:, j] * scale, dE[:, j, :] * scale
+        if not ax.is_rotary and not angular and comp[1] != ax.name:
+            # straightness about its least-squares line
+            X = np.column_stack([np.ones_like(s), s - s.mean()])
+            e = e - X @ np.linalg.lstsq(X, e, rcond=None)[0]
+            J = J - X @ np.linalg.lstsq(X, J, rcond=None)[0]
+        D = J - J[0]
+        sd_along = und.std(D)
+        i_max, i_min = int(np.argmax(e)), int(np.argmin(e))
+        sd = float(und.std((J[i_max] - J[i_min])[None, :])[0])
+        status = _status(D, sd_along, mask)
+        ranges.append(ComponentRange(ax.name, comp, component_meaning(ax.name, comp), unit, lo * f_pos,
+                                     hi * f_pos, float(e[i_max] - e[i_min]), sd,
+                                     float(np.nanmax(sd_along)) if np.any(np.isfinite(sd_along))
+                                     else float("nan"), status))
+    return ranges
+
+
+def _location_values(fitted: FittedModel, und: Undetermined, mask) -> list:
+    """:class:`LocationValue` of the squareness, spindle tilt and rotary location errors."""
+    machine, p = fitted.machine, fitted.params.values
     values = []
     singles = [(n, f"squareness {n}") for n in squareness_names(machine)]
     singles += [(n, f"tilt of the tool axis about {about}") for n, about in zip(SPINDLE_TILT, "XY")]
@@ -240,7 +252,7 @@ def component_ranges(fitted: FittedModel, undetermined: Undetermined | None = No
             status = "undetermined"       # the fit gave it no standard error: part of a held combination
         values.append(LocationValue(name, meaning, spec.unit, float(p[i] * spec.to_file), float(sd[0]),
                                     status))
-    return ranges, values, notes
+    return values
 
 
 def _pm(value, sd, status, unit, width=9) -> str:

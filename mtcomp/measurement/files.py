@@ -24,10 +24,9 @@ import numpy as np
 from ..errors import InputError
 from ..machine import AXIS_ORDER, LINEAR, ROTARY, Machine
 from ..io.csvtable import CsvTable, parse_ints, parse_signs, read_csv_table
+# the units of the files, and the writing of a file back (also read from here)
+from .units import DEG, UM, URAD, file_unit_scale, format_cell, write_csv_with_columns  # noqa: F401
 
-UM = 1e-3                      #: mm per um
-URAD = 1e-6                    #: rad per urad
-DEG = math.pi / 180.0          #: rad per deg
 #: relative tolerance on the length of a unit normal (nx, ny, nz)
 NORMAL_TOLERANCE = 1e-3
 
@@ -761,62 +760,3 @@ def split_runs(data: MeasurementSet, held_out: Iterable[int]) -> tuple[Measureme
     """(fit part, held-out part): rows whose run is in ``held_out`` go to the second set."""
     mask = np.isin(data.context.run, np.asarray(list(held_out), dtype=np.int64))
     return data.subset(~mask), data.subset(mask)
-
-
-# --------------------------------------------------------------------------------------------------
-# writing
-
-#: column-name suffix -> factor from internal units to file units
-_SUFFIX_SCALE = (("_mm_min", 1.0), ("_urad", 1.0 / URAD), ("_um", 1.0 / UM), ("_mm", 1.0),
-                 ("_deg", 1.0 / DEG), ("_s", 1.0), ("_c", 1.0), ("_rpm", 1.0))
-
-
-def file_unit_scale(column: str) -> float:
-    """Factor from internal units (mm, rad, mm/min, s, degC) to the unit a column name's suffix says.
-
-    ``dx_um`` -> 1000 (mm to um), ``value_urad`` -> 1e6, ``a_deg`` -> 180/pi, ``x_mm`` -> 1.
-    A name with no known unit suffix raises ValueError (a programming error, not bad input).
-    """
-    for suffix, scale in _SUFFIX_SCALE:
-        if column.endswith(suffix):
-            return scale
-    raise ValueError(f"column name {column!r} carries no known unit suffix "
-                     f"({', '.join(s for s, _ in _SUFFIX_SCALE)})")
-
-
-def format_cell(value: float) -> str:
-    """A number for a CSV cell: up to 10 significant digits; NaN -> blank (not measured)."""
-    if value is None or not math.isfinite(value):
-        return ""
-    return f"{value:.10g}"
-
-
-def write_csv_with_columns(path: str | os.PathLike, data: MeasurementSet,
-                           new_columns: dict[str, np.ndarray], internal_units: bool = True) -> None:
-    """Write every input column of ``data`` verbatim, then ``new_columns``, atomically.
-
-    path : the output CSV; refused (InputError) when it is the input file or its folder is missing.
-    data : the measurement set whose header and rows are repeated.
-    new_columns : column name -> (n,) values, one per row of ``data``. With ``internal_units`` the
-        values are in mm, rad, mm/min, s and are converted by the name's suffix (``pred_dx_um``:
-        mm -> um); otherwise they are written as given. NaN is written as a blank cell.
-    """
-    import csv
-
-    from ..io.atomic import atomic_write, check_output_path
-
-    out = check_output_path(path, [data.path])
-    existing = {h.strip().lower() for h in data.header}
-    columns = []
-    for name, values in new_columns.items():
-        if name.lower() in existing:
-            raise InputError(f"the input already has a column {name}; cannot add it again", data.path)
-        values = np.asarray(values, dtype=float)
-        if values.shape != (len(data),):
-            raise ValueError(f"column {name}: {values.shape} values for {len(data)} rows")
-        columns.append(values * (file_unit_scale(name) if internal_units else 1.0))
-    with atomic_write(out, newline="") as f:
-        writer = csv.writer(f, lineterminator="\n")
-        writer.writerow([*data.header, *new_columns])
-        for i, cells in enumerate(data.rows):
-            writer.writerow([*cells, *(format_cell(float(c[i])) for c in columns)])

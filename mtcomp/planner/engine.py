@@ -205,12 +205,37 @@ class Planner:
             cols["tool_length"] = tool_length
         return self.problem.fitted.context(n, cols)
 
-    def _outside(self, q, known):
-        """(n, na) bool: known axes outside the model's support (SUPPORT_TOL of slack)."""
+    def outside_support(self, q, known) -> np.ndarray:
+        """(n, na) bool: the axes of the blocks at ``q`` ((n, na) axis positions, mm and rad) whose
+        position is given (``known``, (n, na) bool) and lies outside the region the model's data
+        reached (:attr:`support`, with ``SUPPORT_TOL`` of slack: mm or rad); all False when the model
+        does not say where its data reached. A block with such an axis is left uncorrected unless
+        the options extrapolate."""
         if self.support is None:
             return np.zeros(q.shape, bool)
         lo, hi = self.support
         return known & ((q < lo - SUPPORT_TOL) | (q > hi + SUPPORT_TOL))
+
+    def block_status(self, q, known, feed, dirs, datum=None, tool_length=None):
+        """What the planner's rules say of each block, before any correction is planned.
+
+        q : (n, na) nominal axis positions, mm and rad. known : (n, na) bool, the program has given
+        that axis's position. feed : (n,) mm/min (NaN: the model's default). dirs : (n, na) approach
+        directions, +-1 or 0 (unknown). datum : (n, na) machine positions of the part's datum, mm and
+        rad (the corrections are referenced to it), or None (the raw deviation). tool_length : (n,)
+        mm or None (the model's default).
+
+        Returns (unknown, outside, sd_um): (n, na) bool, the axis positions the program has not
+        given; (n, na) bool, the known axes outside the model's support (:meth:`outside_support`);
+        (n,) the standard error of each block's correction, um, NaN for blocks not corrected anyway
+        (an unknown axis, or outside the support unless the options extrapolate) and for every block
+        when the options set no limit on it (``max_correction_sd_um``). A block is left uncorrected
+        when any of the three says so."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        unknown = ~np.asarray(known, bool)
+        outside = self.outside_support(q, ~unknown)
+        ctx = self._context(feed, np.asarray(dirs), q.shape[0], tool_length)
+        return unknown, outside, self._sd_um(q, ctx, unknown, outside, datum)
 
     def _pinned(self, unknown, outside, sd_um):
         pinned = unknown.any(axis=1)
@@ -280,7 +305,7 @@ class Planner:
             exempt = exempt.copy()
             exempt[0] = True
         unknown = np.zeros(q.shape, bool)
-        outside = self._outside(q, ~unknown)
+        outside = self.outside_support(q, ~unknown)
         ctx = self._context(feed, dirs, n)
         datum = None if datum is None else np.broadcast_to(np.asarray(datum, dtype=float), q.shape)
         sd = self._sd_um(q, ctx, unknown, outside, datum)
@@ -311,7 +336,7 @@ class Planner:
             no_line[0] |= self._after_cycle
             self._after_cycle = bool(cycle[-1])
         unknown = ~known
-        outside = self._outside(end, known)
+        outside = self.outside_support(end, known)
         sd = self._sd_um(end, ctx, unknown, outside, chunk.datum)
         pinned = self._pinned(unknown, outside, sd)
         ref = self._reference(chunk.datum, ctx)

@@ -220,19 +220,27 @@ def random_campaign(machine, rng, n_points: int = 300, tool_lengths=(0.0, 100.0,
     lo_c = np.where([n in "ABC" for n in names], rot_lo, lo)
     hi_c = np.where([n in "ABC" for n in names], rot_hi, hi)
     q = rng.uniform(lo_c, hi_c, size=(n_points, na))
-
-    def full(qrows):
-        xyz = np.zeros((len(qrows), 3))
-        abc = np.zeros((len(qrows), 3))
-        for k, n in enumerate(names):
-            (xyz if n in "XYZ" else abc)[:, "XYZABC".index(n) % 3] = qrows[:, k]
-        return xyz, abc
-
-    xyz, abc = full(q)
+    xyz, abc = _xyz_abc(names, q)
     rotary = any(n in "ABC" for n in names)
     points = make_points(xyz, abc if rotary else None, tool=rng.choice(np.asarray(tool_lengths), n_points),
                          path="points.csv")
+    laser = _random_laser(names, rng, lo_c, hi_c, laser_offsets, laser_steps)
+    ballbar = _random_ballbar(names, rng, lo, hi, ballbar_radius, ballbar_steps)
+    return {"points": points, "laser": laser, "ballbar": ballbar}
 
+
+def _xyz_abc(names, qrows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """((n, 3) X, Y, Z mm, (n, 3) A, B, C rad) of axis positions ``qrows`` (n, len(names)); the
+    machine's missing axes at zero."""
+    xyz = np.zeros((len(qrows), 3))
+    abc = np.zeros((len(qrows), 3))
+    for k, n in enumerate(names):
+        (xyz if n in "XYZ" else abc)[:, "XYZABC".index(n) % 3] = qrows[:, k]
+    return xyz, abc
+
+
+def _random_laser(names, rng, lo_c, hi_c, laser_offsets: int, laser_steps: int) -> MeasurementSet:
+    """The laser runs of :func:`random_campaign`."""
     rows = {k: [] for k in ("axis", "component", "target", "direction", "run", "static", "optic")}
     for a_i, a in enumerate(names):
         comps = [f"E{d}{a}" for d in "XYZABC"]
@@ -253,9 +261,14 @@ def random_campaign(machine, rng, n_points: int = 300, tool_lengths=(0.0, 100.0,
                         rows["run"].append(setup)
                         rows["static"].append(static)
                         rows["optic"].append(optic)
-    laser = make_laser(rows["axis"], rows["component"], rows["target"], rows["direction"], rows["run"],
-                       np.array(rows["static"]), np.array(rows["optic"]), path="laser.csv")
+    return make_laser(rows["axis"], rows["component"], rows["target"], rows["direction"], rows["run"],
+                      np.array(rows["static"]), np.array(rows["optic"]), path="laser.csv")
 
+
+def _random_ballbar(names, rng, lo, hi, ballbar_radius: float, ballbar_steps: int) -> MeasurementSet:
+    """The ball-bar circles of :func:`random_campaign`."""
+    na = len(names)
+    rotary = any(n in "ABC" for n in names)
     ang = np.linspace(0.0, 2 * np.pi, ballbar_steps, endpoint=False)
     bq, tb = [], []
     for i, j in ((0, 1), (0, 2), (1, 2)):
@@ -272,15 +285,14 @@ def random_campaign(machine, rng, n_points: int = 300, tool_lengths=(0.0, 100.0,
             qq[:, ki[0]] += ballbar_radius * np.cos(ang)
             qq[:, kj[0]] += ballbar_radius * np.sin(ang)
             bq.append(qq)
-            centre_xyz, _ = full(c[None, :])
+            centre_xyz, _ = _xyz_abc(names, c[None, :])
             tb.append(np.tile(centre_xyz, (ballbar_steps, 1)))
     bq = np.vstack(bq)
     tb = np.vstack(tb)
-    bxyz, babc = full(bq)
+    bxyz, babc = _xyz_abc(names, bq)
     tool_ball = np.array([0.0, 0.0, 0.0])
-    ballbar = make_ballbar(bxyz, tb, tool_ball, babc if rotary else None,
-                           length=np.linalg.norm(bxyz - tb, axis=1), path="ballbar.csv")
-    return {"points": points, "laser": laser, "ballbar": ballbar}
+    return make_ballbar(bxyz, tb, tool_ball, babc if rotary else None,
+                        length=np.linalg.norm(bxyz - tb, axis=1), path="ballbar.csv")
 
 
 def write_measurements(path, data: MeasurementSet) -> None:

@@ -168,30 +168,7 @@ def diagnose_thermal(machine, data, channel_axes: dict | None = None, progress=N
     final = {"n_params": k * len(fit.channels), "n_determined": k * len(fit.channels), "n_nuisance": 0,
              "rms_um": _r(_rms(fit.fitted_um - fit.measured_um)),
              "heldout_rms_um": _r(_rms(c.forward_rms_um))}
-    findings = []
-    if c.driver != "none":
-        params = {"driver": c.driver, "drivers": c.drivers, "features": list(c.features),
-                  "time_constants_s": c.time_constants_s, "ridge_penalty": c.penalty,
-                  "channels": {ch: axes.get(ch, "") for ch in fit.channels},
-                  "max_drift_um": {ch: _r(v, 3) for ch, v in zip(fit.channels, fit.max_drift_um)},
-                  "forward_rms_um": {ch: _r(v, 3) for ch, v in zip(fit.channels, c.forward_rms_um)},
-                  "temperatures_left_out": fit.left_out}
-        # the keys every drift finding has (docs/diagnose.md): the temperatures it uses, the channel
-        # that drifts most (and its tip direction, when it reads one) and that channel's drift
-        params["temperatures"] = [f[len("temp_"):] for f in c.features if f.startswith("temp_")]
-        worst = int(np.argmax(fit.max_drift_um))
-        params["channel"] = fit.channels[worst]
-        if fit.channels[worst] in axes:
-            params["direction"] = axes[fit.channels[worst]]
-        params["drift_range_um"] = _r(float(fit.max_drift_um[worst]), 3)
-        runner_up = sorted((s for s in fit.scores if s is not c), key=lambda s: s.total_sse)[0]
-        evidence = (f"predicting each next block of the record from the readings before it, "
-                    f"{c.label} leaves {_rms(c.forward_rms_um):.3g} um rms against "
-                    f"{_rms(none.forward_rms_um):.3g} um without a drift model and "
-                    f"{_rms(runner_up.forward_rms_um):.3g} um for the next best ({runner_up.label})")
-        axis = params.get("direction", "")
-        findings.append(Finding("thermal_drift", axis, params, evidence,
-                                _rms(none.forward_rms_um), _rms(c.forward_rms_um)))
+    findings = [_drift_finding(fit, axes)] if c.driver != "none" else []
     ratio = _rms(c.forward_rms_um) / fit.noise_um if fit.noise_um > 0 else np.inf
     verdict = "none" if c.driver == "none" and ratio <= 1.5 else ("explained" if ratio <= 1.5 else "unexplained")
     if verdict == "unexplained":
@@ -203,6 +180,48 @@ def diagnose_thermal(machine, data, channel_axes: dict | None = None, progress=N
                                 f"the forward-validated rms {_rms(c.forward_rms_um):.3g} um is "
                                 f"{ratio:.3g} times the noise of one reading", _rms(c.forward_rms_um),
                                 _rms(c.forward_rms_um)))
+    fitted = _thermal_model(machine, fit, axes)
+    how = (f"forward-chained in time: the readings cut into {fit.n_folds + 1} blocks, each of the last "
+           f"{fit.n_folds} predicted from the blocks before it")
+    reference = {"linear_regression_all_temperatures": _temperature_regression(data, fit)}
+    diag = Diagnosis(verdict, noise, base, findings, final, fitted, how, n_obs, reference=reference)
+    diag.thermal = fit
+    diag.seconds = time.perf_counter() - t0
+    fitted.info["diagnose"] = diag.to_dict()
+    return diag
+
+
+def _drift_finding(fit, axes: dict):
+    """The thermal_drift finding of the chosen drift model of ``fit`` (channel -> axis ``axes``)."""
+    from ..diagnose.result import Finding, _r
+    c = fit.chosen
+    none = next(s for s in fit.scores if s.driver == "none")
+    params = {"driver": c.driver, "drivers": c.drivers, "features": list(c.features),
+              "time_constants_s": c.time_constants_s, "ridge_penalty": c.penalty,
+              "channels": {ch: axes.get(ch, "") for ch in fit.channels},
+              "max_drift_um": {ch: _r(v, 3) for ch, v in zip(fit.channels, fit.max_drift_um)},
+              "forward_rms_um": {ch: _r(v, 3) for ch, v in zip(fit.channels, c.forward_rms_um)},
+              "temperatures_left_out": fit.left_out}
+    # the keys every drift finding has (docs/diagnose.md): the temperatures it uses, the channel
+    # that drifts most (and its tip direction, when it reads one) and that channel's drift
+    params["temperatures"] = [f[len("temp_"):] for f in c.features if f.startswith("temp_")]
+    worst = int(np.argmax(fit.max_drift_um))
+    params["channel"] = fit.channels[worst]
+    if fit.channels[worst] in axes:
+        params["direction"] = axes[fit.channels[worst]]
+    params["drift_range_um"] = _r(float(fit.max_drift_um[worst]), 3)
+    runner_up = sorted((s for s in fit.scores if s is not c), key=lambda s: s.total_sse)[0]
+    evidence = (f"predicting each next block of the record from the readings before it, "
+                f"{c.label} leaves {_rms(c.forward_rms_um):.3g} um rms against "
+                f"{_rms(none.forward_rms_um):.3g} um without a drift model and "
+                f"{_rms(runner_up.forward_rms_um):.3g} um for the next best ({runner_up.label})")
+    axis = params.get("direction", "")
+    return Finding("thermal_drift", axis, params, evidence, _rms(none.forward_rms_um), _rms(c.forward_rms_um))
+
+
+def _thermal_model(machine, fit, axes: dict) -> FittedModel:
+    """The fitted model of a thermal diagnosis: the base model at zero plus the chosen drift terms."""
+    c = fit.chosen
     terms, values = drift_terms_and_values(fit, axes) if c.driver != "none" else ([], {})
     model = ErrorModel(machine, terms)
     params = ParameterSet(model.param_specs)
@@ -214,14 +233,7 @@ def diagnose_thermal(machine, data, channel_axes: dict | None = None, progress=N
             "context_ranges": context_ranges(fit) if c.driver != "none" else {}}
     fitted = FittedModel(model, params, defaults, info,
                          uncertainty=drift_uncertainty(fit, axes) if c.driver != "none" else None)
-    how = (f"forward-chained in time: the readings cut into {fit.n_folds + 1} blocks, each of the last "
-           f"{fit.n_folds} predicted from the blocks before it")
-    reference = {"linear_regression_all_temperatures": _temperature_regression(data, fit)}
-    diag = Diagnosis(verdict, noise, base, findings, final, fitted, how, n_obs, reference=reference)
-    diag.thermal = fit
-    diag.seconds = time.perf_counter() - t0
-    fitted.info["diagnose"] = diag.to_dict()
-    return diag
+    return fitted
 
 
 def _temperature_regression(data, fit) -> dict | None:

@@ -32,7 +32,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..machine import Machine
-from .gcode import WORK_SYSTEMS, SegmentChunk, frame_tool, frame_wcs
+from .blocks import SegmentChunk
+from .words import WORK_SYSTEMS, frame_tool, frame_wcs
 
 _WCS_NAME = {name: i for i, name in enumerate(WORK_SYSTEMS)}
 _AXIS_VALUE_RE = re.compile(r"^\s*([A-Za-z])\s*=?\s*([+-]?(?:\d+\.?\d*|\.\d+))\s*$")

@@ -250,39 +250,14 @@ def build_plotter(smap, panels, clim, scale, window_size, title):
     glyph_idx = None
     if scale is not None and smap.points.shape[0] > MAX_GLYPHS:
         glyph_idx = np.sort(rng.choice(smap.points.shape[0], MAX_GLYPHS, replace=False))
-    bad = smap.uncorrected
     legend = uncorrected_legend(smap)
     mapper = None
     for k, (label, dn, dev) in enumerate(panels):
         plotter.subplot(0, k)
         mesh = poly.copy()
         mesh.point_data["dn_um"] = dn
-        surface = bool(smap.triangles.shape[0])
-        style = ({} if surface else
-                 {"style": "points", "point_size": 6, "render_points_as_spheres": True})
-        good = mesh
-        if bad.any() and surface:
-            good = mesh.extract_cells(np.flatnonzero(mesh.cell_data["uncorrected"] == 0))
-        elif bad.any():
-            good = mesh.extract_points(np.flatnonzero(~bad), adjacent_cells=False)
-        if good.n_points:
-            actor = plotter.add_mesh(good, scalars="dn_um", cmap=CMAP, clim=clim,
-                                     show_scalar_bar=False, ambient=0.45, diffuse=0.6,
-                                     specular=0.0, smooth_shading=surface, **style)
-            mapper = actor.mapper
-        if bad.any():
-            grey = (mesh.extract_cells(np.flatnonzero(mesh.cell_data["uncorrected"] == 1))
-                    if surface else mesh.extract_points(np.flatnonzero(bad), adjacent_cells=False))
-            if grey.n_points:
-                # grey, and hatched by its own edges where the cells are few enough to show them
-                plotter.add_mesh(grey, color=UNCORRECTED_COLOUR, ambient=0.6, diffuse=0.4,
-                                 show_edges=surface and grey.n_cells <= 2000,
-                                 edge_color="#6e6e6e", line_width=0.5, **style)
-            marks = smap.points[bad]
-            if marks.shape[0] > MAX_GLYPHS // 3:
-                marks = marks[np.sort(rng.choice(marks.shape[0], MAX_GLYPHS // 3, replace=False))]
-            plotter.add_points(np.ascontiguousarray(marks), color="black", point_size=3,
-                               render_points_as_spheres=True)
+        drawn = _add_surface(plotter, mesh, smap, clim, rng)
+        mapper = drawn if drawn is not None else mapper
         if mapper is None:      # every block uncorrected: the colour bar still needs the scale
             stub = pv.PolyData(np.ascontiguousarray(smap.points[:1], dtype=float))
             stub.point_data["dn_um"] = np.zeros(1)
@@ -293,13 +268,7 @@ def build_plotter(smap, panels, clim, scale, window_size, title):
             text = f"{title}\n{text}"
         plotter.add_text(text, position="upper_edge", font_size=font, color="black")
         if scale is not None:
-            idx = slice(None) if glyph_idx is None else glyph_idx
-            pts = pv.PolyData(np.ascontiguousarray(smap.points[idx]))
-            pts.point_data["vec"] = dev[idx] * scale
-            arrows = pts.glyph(orient="vec", scale="vec", factor=1.0, geom=pv.Arrow())
-            plotter.add_mesh(arrows, color="black")
-            plotter.add_text(f"arrows: deviation x {scale:.3g}", position="lower_right",
-                             font_size=max(font - 3, 5), color="black")
+            _add_arrows(pv, plotter, smap, dev, scale, glyph_idx, font)
         # the part's coordinates: axes in mm with ticks, on the outer edges of its bounding box
         plotter.show_bounds(mesh=mesh, xtitle="X (mm)", ytitle="Y (mm)", ztitle="Z (mm)",
                             color="black", font_size=max(font - 2, 6), location="outer",
@@ -314,10 +283,65 @@ def build_plotter(smap, panels, clim, scale, window_size, title):
                            label_font_size=max(font + 1, 8), n_labels=7, fmt="%.2f")
     plotter.add_text(SCALAR_BAR_TITLES[smap.normal_kind], position="lower_edge",
                      font_size=max(font - 1, 6), color="black")
-    # under the first panel's part: why blocks are grey (the legend), and the map's warnings
+    _add_legend_and_notes(plotter, smap, legend, window_size[0] / n, font)
+    if n > 1:
+        plotter.link_views()
+    return plotter
+
+
+def _add_surface(plotter, mesh, smap, clim, rng):
+    """Draw one panel's ``mesh``: the corrected part coloured by dn (um), the uncorrected part grey
+    with its points marked (at most MAX_GLYPHS / 3, drawn with ``rng``). Returns the colour mapper
+    of the coloured part, or None when every block is uncorrected."""
+    bad = smap.uncorrected
+    surface = bool(smap.triangles.shape[0])
+    style = ({} if surface else
+             {"style": "points", "point_size": 6, "render_points_as_spheres": True})
+    mapper = None
+    good = mesh
+    if bad.any() and surface:
+        good = mesh.extract_cells(np.flatnonzero(mesh.cell_data["uncorrected"] == 0))
+    elif bad.any():
+        good = mesh.extract_points(np.flatnonzero(~bad), adjacent_cells=False)
+    if good.n_points:
+        actor = plotter.add_mesh(good, scalars="dn_um", cmap=CMAP, clim=clim,
+                                 show_scalar_bar=False, ambient=0.45, diffuse=0.6,
+                                 specular=0.0, smooth_shading=surface, **style)
+        mapper = actor.mapper
+    if bad.any():
+        grey = (mesh.extract_cells(np.flatnonzero(mesh.cell_data["uncorrected"] == 1))
+                if surface else mesh.extract_points(np.flatnonzero(bad), adjacent_cells=False))
+        if grey.n_points:
+            # grey, and hatched by its own edges where the cells are few enough to show them
+            plotter.add_mesh(grey, color=UNCORRECTED_COLOUR, ambient=0.6, diffuse=0.4,
+                             show_edges=surface and grey.n_cells <= 2000,
+                             edge_color="#6e6e6e", line_width=0.5, **style)
+        marks = smap.points[bad]
+        if marks.shape[0] > MAX_GLYPHS // 3:
+            marks = marks[np.sort(rng.choice(marks.shape[0], MAX_GLYPHS // 3, replace=False))]
+        plotter.add_points(np.ascontiguousarray(marks), color="black", point_size=3,
+                           render_points_as_spheres=True)
+    return mapper
+
+
+def _add_arrows(pv, plotter, smap, dev, scale: float, glyph_idx, font: int) -> None:
+    """Arrows of the deviation ``dev`` (N, 3) mm times ``scale`` at the map's points (those of
+    ``glyph_idx`` when not None), and a note saying the scale (``pv``: the pyvista module)."""
+    idx = slice(None) if glyph_idx is None else glyph_idx
+    pts = pv.PolyData(np.ascontiguousarray(smap.points[idx]))
+    pts.point_data["vec"] = dev[idx] * scale
+    arrows = pts.glyph(orient="vec", scale="vec", factor=1.0, geom=pv.Arrow())
+    plotter.add_mesh(arrows, color="black")
+    plotter.add_text(f"arrows: deviation x {scale:.3g}", position="lower_right",
+                     font_size=max(font - 3, 5), color="black")
+
+
+def _add_legend_and_notes(plotter, smap, legend: list, panel_width: float, font: int) -> None:
+    """Under the first panel's part: why blocks are grey (the legend), and the map's warnings,
+    wrapped to the panel's width (pixels)."""
     import textwrap
     small = max(font - 3, 6)
-    width = max(int(window_size[0] / n / small * 0.95), 30)     # a character is about a font size wide
+    width = max(int(panel_width / small * 0.95), 30)     # a character is about a font size wide
     lines = [textwrap.fill("grey, dotted: " + t, width) for t in legend]
     notes = [textwrap.fill(t, width) for t in map_notes(smap)]
     plotter.subplot(0, 0)
@@ -328,9 +352,6 @@ def build_plotter(smap, panels, clim, scale, window_size, title):
         rows = sum(t.count("\n") + 1 for t in lines)
         plotter.add_text("\n".join(notes), position=(4, 4 + int(1.6 * small * rows) + (4 if rows else 0)),
                          font_size=small, color=NOTE_COLOUR, name="notes")
-    if n > 1:
-        plotter.link_views()
-    return plotter
 
 
 def _render_pyvista(smap, panels, out_png, clim, scale, window_size, title):

@@ -1,0 +1,213 @@
+"""The tests of diagnose's greedy selection: a candidate against the model without it, rivals
+against each other (parsimony, ties between axes), drifts forward in time, and the backward pass
+after re-linearisation. The loop that runs them is :func:`mtcomp.diagnose._diagnose._diagnose`.
+
+A scored candidate is a tuple ``(candidate, fit, dk, gain, dbic, ok)``: its fit with the model so
+far, the directions it adds, the held-out gain and the BIC change (both in noise variances), and
+whether it passes the selection tests.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ._analysis import cv_threshold
+from ._candidates import Candidate, without_params
+from ._linalg import solve_normal
+from ._refusal import refusal
+
+#: a candidate must lower the BIC by at least this much
+BIC_MARGIN = 10.0
+#: ... and remove at least this share of the held-out excess over the noise (a cause must be material:
+#: with large unexplained structure, a column that merely leans on it gains a little everywhere)
+MIN_EXCESS_SHARE = 0.05
+
+
+def _forward_in_time(st, design, extra, cands) -> None:
+    """A drift (in time, temperature or spindle history) must predict later readings from earlier
+    ones: the model with each thermal_drift candidate and the model without it are fitted on the
+    past and scored on the future (forward-chained blocks in time, :func:`mtcomp.diagnose._analysis.forward_folds`);
+    a candidate that does not lower the future's weighted sum of squares by more than noise could
+    gets a veto saying so.
+
+    Only future readings that repeat a past one are scored (same series, same row of the model's
+    columns: same axis positions, optic arm, tool, balls): there the past has fixed the geometry and
+    the file's set-up, and what the future
+    adds is the change in time, which is the drift's to predict. A reading at a position or of a
+    file the past has not seen would be predicted by extrapolating the geometry, with or without a
+    drift (a laser run of X cannot predict a later run of Y)."""
+    from ._analysis import N_FOLDS, forward_folds
+    drift = [c for c in cands if c.effect == "thermal_drift"]
+    timed = np.flatnonzero(np.isfinite(st.t))
+    if not drift or timed.size < 2 * (N_FOLDS + 1) or np.ptp(st.t[timed]) <= 0:
+        return
+    order = timed[np.argsort(st.t[timed], kind="stable")]
+    Bw = np.hstack([design.Aw, extra * design.w[:, None]])
+    # a repeat: the same series and the same row of the model's columns (same axis positions, optic
+    # arm, tool, ball positions, approach directions ...), to 1e-6 of each column's largest entry
+    _, series = np.unique(st.series.astype(str), return_inverse=True)
+    scale = np.max(np.abs(Bw), axis=0)
+    rows = np.round(Bw / np.where(scale > 0, scale, 1.0), 6)
+    _, key = np.unique(np.column_stack([series, rows]), axis=0, return_inverse=True)
+    key = key.ravel()
+    zw = design.zw
+    folds = []
+    for tr, te in forward_folds(order.size, N_FOLDS):
+        tr, te = order[tr], order[te]
+        scored = te[np.isin(key[te], key[tr])]
+        if scored.size:
+            folds.append((tr, scored))
+    if not folds:
+        return
+
+    def sse(M):
+        out = 0.0
+        for tr, te in folds:
+            theta, _ = solve_normal(M[tr].T @ M[tr], M[tr].T @ zw[tr])
+            out += float(np.sum((zw[te] - M[te] @ theta) ** 2))
+        return out
+    without = sse(Bw)
+    for c in drift:
+        with_c = sse(np.hstack([Bw, c.columns * design.w[:, None]]))
+        if not without - with_c > cv_threshold(c.columns.shape[1]):
+            c.veto = (f"predicted forward in time (fitted on earlier readings, scored on later ones "
+                      f"that repeat them) it does not beat the model without it (weighted sum of "
+                      f"squares {with_c:.4g} against {without:.4g})")
+
+
+def _backward(design, chosen, findings, fit, n) -> list:
+    """One backward pass after re-linearisation: a term chosen earlier that no longer passes the
+    selection tests against the model without it (a later, better-placed term or the refined
+    profiles now explain its share) is removed from ``chosen`` and ``findings``. Returns the
+    removed findings."""
+    dropped = []
+    for c in list(chosen)[::-1]:
+        if len(chosen) < 2:
+            break
+        rest = [x for x in chosen if x is not c]
+        without = design.fit(np.hstack([x.columns for x in rest]))
+        dk = fit.rank - without.rank
+        gain = without.cv_sse - fit.cv_sse
+        dbic = fit.bic(n) - without.bic(n)
+        excess = max(without.cv_sse - n, 0.0)
+        if not (dk >= 1 and gain > cv_threshold(dk) and dbic < -BIC_MARGIN
+                and gain >= MIN_EXCESS_SHARE * excess):
+            chosen.remove(c)
+            f = next(f for f in findings if f.candidate is c)
+            findings.remove(f)
+            dropped.append(f)
+            fit = without
+    return dropped
+
+
+def _drop_undetermined_offsets(design, extra, current, c: Candidate, fit):
+    """An Abbe candidate brings feed offsets along the directions its moved centre or its scaled
+    constant angle translates (see ``_abbe_candidates``); where the data cannot tell such an offset
+    from the rest of the model (a direction read at one feed only, or read only where another column
+    already moves it), the offset is dropped rather than the cause refused for it. Returns the candidate
+    and its fit; unchanged when no offset is undetermined."""
+    if c.effect != "feed_dependent_abbe":
+        return c, fit
+    dropped = False
+    for name in [p for p in c.params if p.startswith("FOFF_")]:
+        if fit.rank - current.rank >= c.columns.shape[1]:
+            break
+        trial = without_params(c, [name])
+        f = design.fit(np.hstack([extra, trial.columns]), cv=False)
+        if f.rank == fit.rank:               # the offset added no direction the data determine
+            c, fit, dropped = trial, f, True
+    if dropped:
+        fit = design.fit(np.hstack([extra, c.columns]))
+    return c, fit
+
+
+def _joint_abbe(design, extra, current, best, good, n, st, max_parts: int = 4):
+    """A carriage's angular errors can depend on feed in more than one way at once (its rotation
+    centre moves, shifting every angular error's centre, while one angle also grows with feed), and two
+    angular errors can have profiles so alike that either alone explains most of the residual. So the
+    other significant feed-dependent Abbe candidates of the same axis are added to the best one, one
+    at a time (the one that gains most first, up to ``max_parts``), each kept only when it earns its
+    extra parameters on held-out data and in BIC and is not refused."""
+    from ._candidates import joint_abbe
+    c = best[0]
+    if c.effect != "feed_dependent_abbe":
+        return best
+    others = [s[0] for s in good if s[0].effect == c.effect and s[0].axis == c.axis and s[0] is not c]
+    parts = 1
+    while others and parts < max_parts:
+        tried = []
+        for o in others:
+            pair = joint_abbe(best[0], o)
+            if len(pair.params) == len(best[0].params):
+                continue
+            fit = design.fit(np.hstack([extra, pair.columns]))
+            dk = fit.rank - current.rank
+            gain = current.cv_sse - fit.cv_sse
+            dbic = fit.bic(n) - current.bic(n)
+            if (dk > best[2] and gain - best[3] > cv_threshold(dk - best[2]) and dbic < best[4] - BIC_MARGIN
+                    and refusal(st, pair, fit.theta[-pair.columns.shape[1]:], dk) is None):
+                tried.append(((pair, fit, dk, gain, dbic, True), o))
+        if not tried:
+            break
+        (step, o) = max(tried, key=lambda t: t[0][3])
+        best = step
+        others = [x for x in others if x is not o]
+        parts += 1
+    return best
+
+
+def _complexity(c: Candidate, dk: int) -> float:
+    return dk + 0.1 * c.info.get("complexity", 0)
+
+
+def _axis_ties(design, extra, best, good) -> list:
+    """The scored candidates of ``best``'s effect on other axes that the data cannot tell from it:
+    columns that add no direction to its own (to the design's rank tolerance), and a held-out gain
+    that noise alone could make up (within the threshold one parameter must pass)."""
+    c, fit = best[0], best[1]
+    out = []
+    for s in good:
+        if s[0].effect != c.effect or s[0].axis == c.axis or not s[0].axis:
+            continue
+        if best[3] - s[3] > cv_threshold(1):
+            continue
+        if design.fit(np.hstack([extra, c.columns, s[0].columns])).rank == fit.rank:
+            out.append(s)
+    return out
+
+
+class Choice(NamedTuple):
+    """What :func:`_parsimony` picks among rivals: the scored candidate to add, and the more specific
+    rival the data do not tell from it (None when they do)."""
+
+    pick: tuple
+    rival_alike: tuple | None
+
+
+def _parsimony(best, good) -> Choice:
+    """Among rivals of ``best`` (explanations of the same residual), prefer the simplest one (fewer
+    parameters; then uniform offset before direction lag before an Abbe term) whose held-out gain is
+    not significantly smaller, or whose BIC is not worse by ``BIC_MARGIN``: a more specific cause must
+    be earned by a margin in the data. ``rival_alike`` of the result is ``best`` when both tests lean
+    to it against the simpler pick of another name (effect or axis), a larger held-out gain and a
+    lower BIC, but only one by its margin: the data then do not tell the two names apart. Only the
+    final pick is compared with ``best`` so."""
+    c = best[0]
+    pick, alike = best, None
+    for s in good:
+        # rivals: the same residual's explanations, or a candidate made of part of this one's terms
+        # (a feed offset beside an IRC shift that carries that offset)
+        related = (c.rivals and s[0].rivals == c.rivals) or set(s[0].params) < set(c.params)
+        if not related or _complexity(s[0], s[2]) >= _complexity(pick[0], pick[2]):
+            continue
+        # the more specific cause must pass both selection tests against the simpler one: its extra
+        # parameters must gain more than noise could held out, and lower the BIC by the margin
+        gain_earned = s[3] < best[3] - cv_threshold(max(best[2] - s[2], 1))
+        bic_earned = s[4] > best[4] + BIC_MARGIN
+        if not (gain_earned and bic_earned):
+            pick = s
+            lean = s[3] < best[3] and s[4] > best[4]
+            other_name = (s[0].effect, s[0].axis) != (c.effect, c.axis)
+            alike = best if lean and gain_earned != bic_earned and other_name else None
+    return Choice(pick, alike)

@@ -1,0 +1,163 @@
+"""The segment ends of an NC program as the error maps read them, and the pairing of a program with
+its compensated version (through the programs' line structure, or the compensation report's source
+lines)."""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..machine import Machine
+
+
+@dataclass
+class ProgramPoints:
+    """The segment end points of a program, in program order (all motion, rapids included).
+
+    q : (n, na) axis positions, mm and rad. line : (n,) 1-based source lines. feed : (n,) mm/min
+    (nan for rapids). dirs : (n, na) approach directions. rapid : (n,) bool. known : (n, na) bool, the
+    program has given that axis's position (None: all).
+    """
+
+    path: str
+    q: np.ndarray
+    line: np.ndarray
+    feed: np.ndarray
+    dirs: np.ndarray
+    rapid: np.ndarray
+    known: np.ndarray | None = None
+
+    def __len__(self):
+        return int(self.line.shape[0])
+
+
+def read_program_points(path, machine: Machine) -> ProgramPoints:
+    """Every segment end of the program at ``path`` (arcs as chords). Raises InputError."""
+    from ..toolpaths import SegmentChunk, iter_segment_chunks
+    chunks = list(iter_segment_chunks(path, machine))
+    seg = SegmentChunk.concatenate(chunks, machine.n_axes)
+    if len(seg.end) == 0:
+        from ..errors import InputError
+        raise InputError("no motion block in the program: nothing to draw", path)
+    return ProgramPoints(os.fspath(path), seg.end.copy(), seg.line.copy(), seg.feed.copy(),
+                         seg.dirs.copy(), seg.rapid.copy(), seg.known.copy())
+
+
+def _motion_runs(original: ProgramPoints, compensated: ProgramPoints) -> tuple[np.ndarray, np.ndarray]:
+    """Run number of every segment end of both programs, from their line structure.
+
+    The compensated program keeps every non-motion line of the original byte for byte and in order
+    (mtcomp compensate writes it so); the motion lines between two such kept lines form a run, and
+    a run of the original and the same run of the compensated program hold the same blocks, in the
+    same order. Raises InputError where a kept line is missing."""
+    def lines(path):
+        with open(path, "rb") as f:
+            return f.read().split(b"\n")
+    a, b = lines(original.path), lines(compensated.path)
+    a_motion, b_motion = set(original.line.tolist()), set(compensated.line.tolist())
+    run_a = np.zeros(len(a) + 2, np.int64)
+    run_b = np.zeros(len(b) + 2, np.int64)
+    j, run = 0, 0
+    for k, raw in enumerate(a, 1):
+        if k in a_motion:
+            run_a[k] = run
+            continue
+        start = j
+        while j < len(b) and ((j + 1) in b_motion or b[j] != raw):
+            j += 1
+        if j >= len(b):
+            raise InputError(f"line {k} of {original.path} is not in the compensated program (is it "
+                             "compensated from that program?)", compensated.path)
+        run_b[start + 1:j + 1] = run
+        run += 1
+        j += 1
+    run_b[j + 1:] = run
+    return run_a[original.line], run_b[compensated.line]
+
+
+def pair_compensated(original: ProgramPoints, compensated: ProgramPoints, machine: Machine,
+                     tol_mm: float | None = None, tol_rad: float | None = None) -> np.ndarray:
+    """For each segment end of ``original``, the index of its corrected counterpart in ``compensated``.
+
+    Blocks are paired through the programs' line structure (:func:`_motion_runs`): within a run of
+    motion lines, one to one when both have as many segment ends; else (the compensated program
+    may split a move, or write an arc as chords or a piece that changes nothing not at all) each
+    original end is paired with the nearest compensated end of the same run after the one paired
+    before it, no further ahead than the run's surplus of compensated ends allows. The pair must agree within a tolerance (default: four times the machine's
+    largest correction, at least 0.05 mm / 50 urad). Raises InputError when the programs do not
+    correspond.
+    """
+    comp = machine.compensation
+    tol_mm = max(4e-3 * comp.get("max_correction_um", 50.0), 0.05) if tol_mm is None else tol_mm
+    tol_rad = max(4e-6 * comp.get("max_correction_urad", 500.0), 5e-5) if tol_rad is None else tol_rad
+    rotary = np.array([a.is_rotary for a in machine.axes])
+    tol = np.where(rotary, tol_rad, tol_mm)
+    n, m = len(original), len(compensated)
+    idx = np.empty(n, np.int64)
+    run_a, run_b = _motion_runs(original, compensated)
+    for r in np.unique(run_a):
+        ia = np.flatnonzero(run_a == r)
+        ib = np.flatnonzero(run_b == r)
+        if ib.size == 0:
+            raise InputError(f"the compensated program has no motion where line "
+                             f"{int(original.line[ia[0]])} of {original.path} moves",
+                             compensated.path)
+        if ia.size == ib.size:
+            idx[ia] = ib
+            continue
+        # the compensated run has `slack` more ends than the original one: an original end lies
+        # at most that many ends ahead of the place the ends before it left off
+        slack = max(ib.size - ia.size, 0) + 1
+        j = 0
+        for i in ia:
+            window = compensated.q[ib[j:j + slack + 1]]
+            dist = np.max(np.abs(window - original.q[i]) / tol, axis=1)
+            step = int(np.argmin(dist))
+            idx[i] = ib[j + step]
+            slack -= step
+            j = min(j + step + 1, ib.size - 1)
+    if n and m:
+        diff = np.abs(compensated.q[idx] - original.q) > tol
+        bad = np.flatnonzero(np.any(diff, axis=1))
+        if bad.size:
+            i = int(bad[0])
+            d = np.abs(compensated.q[idx[i]] - original.q[i])
+            what = ", ".join(f"{a} by {d[k] * (1e6 if rotary[k] else 1e3):.4g} "
+                             f"{'urad' if rotary[k] else 'um'}"
+                             for k, a in enumerate(machine.axis_names) if d[k] > tol[k])
+            raise InputError(f"line {int(compensated.line[idx[i]])} differs from line "
+                             f"{int(original.line[i])} of {original.path} ({what}): not a compensated "
+                             "version of that program", compensated.path)
+    return idx
+
+
+def report_points(original: ProgramPoints, report, machine: Machine) -> ProgramPoints:
+    """The corrected positions of the original's segment ends, from the BLOCKS.csv of
+    ``mtcomp compensate`` (its rows that are not inserted nodes, in order, by source line)."""
+    import csv
+    path = os.fspath(report)
+    cols = [f"{a.lower()}_deg" if a in "ABC" else f"{a.lower()}_mm" for a in machine.axis_names]
+    try:
+        with open(path, newline="") as f:
+            rows = [r for r in csv.DictReader(f) if r.get("inserted", "0") == "0"]
+    except FileNotFoundError:
+        raise InputError("no such report file", path) from None
+    if len(rows) != len(original):
+        raise InputError(f"the report has {len(rows)} blocks, the program {len(original)} segment "
+                         "ends: not the report of that program", path)
+    try:
+        # a blank cell: an axis the program had not positioned there, which the block leaves alone
+        q = np.array([[float(r[c]) if r[c] != "" else np.nan for c in cols] for r in rows])
+        q = np.where(np.isnan(q), original.q, q)
+        line = np.array([int(r["line"]) for r in rows])
+    except (KeyError, ValueError, TypeError):
+        raise InputError(f"not a report of mtcomp compensate (columns line, inserted, "
+                         f"{', '.join(cols)})", path) from None
+    q[:, [a.is_rotary for a in machine.axes]] = np.radians(q[:, [a.is_rotary for a in machine.axes]])
+    bad = np.flatnonzero(line != original.line)
+    if bad.size:
+        raise InputError(f"row {int(bad[0]) + 2} is for line {int(line[bad[0]])}, the program's "
+                         f"segment end there is on line {int(original.line[bad[0]])}", path)
+    return ProgramPoints(path, q, line, original.feed, original.dirs, original.rapid)
