@@ -530,3 +530,38 @@ def test_undetermined_directions_keep_every_machine_only_combination(tmp_path):
         e = np.zeros(len(names))
         e[i] = 1.0
         assert np.linalg.norm(Q.T @ e) < 0.99
+
+
+@pytest.mark.parametrize("how", ["identify", "diagnose"])
+def test_a_positioning_run_is_the_positioning_error_not_a_pitch(tmp_path, how):
+    """A laser positioning run of Y (an axis carrying the tool on XFYZ) at one tool length reads EYY
+    plus the tool length times Y's pitch: the data fix the sum only. The component the file names
+    takes it; the angles no file names stay at zero (the minimum norm had made a 2,600 urad pitch out
+    of a real stage's positioning run of Y, and the controller tables wrote it). The readings are
+    fitted as well either way: the model's reading follows the readings' mean per target."""
+    from mtcomp.diagnose import diagnose
+    from mtcomp.identification.predict import predict_readings
+    from mtcomp.measurement.files import read_measurements
+    machine = load_machine("xfyz")
+    targets = (-150, -100, -50, 0, 50, 100, 150)
+    rng = np.random.default_rng(11)
+    rows = ["axis,component,target_mm,dir,run,value_um"]
+    for run in (1, 2, 3):
+        for d, seq in ((1, targets), (-1, targets[::-1])):
+            rows += [f"Y,EYY,{t},{d},{run},{2e-4 * t ** 2 + 0.05 * t + rng.normal(0, 0.2):.4f}"
+                     for t in seq]
+    path = tmp_path / "y.csv"
+    path.write_text("\n".join(rows) + "\n")
+    data = read_measurements(path)
+    fitted = (identify(machine, [data]).fitted_model if how == "identify"
+              else diagnose(machine, [data]).model)
+    angles = [n for n in fitted.params.names if n[:3] in ("EAY", "EBY", "ECY")]
+    assert angles
+    assert max(abs(fitted.params[n]) for n in angles) < 1e-9          # rad: none invented
+    pred = np.asarray(predict_readings(fitted, data, machine).columns["pred_value_um"], float)
+    y = np.asarray(data.value, float) * 1e3                              # mm -> um
+    t = data.target
+    # mean per target of readings and of the fit, up to the laser's zero
+    means = np.array([y[t == s].mean() for s in targets])
+    fit = np.array([pred[t == s].mean() for s in targets])
+    np.testing.assert_allclose(fit - fit.mean(), means - means.mean(), rtol=0, atol=0.3)

@@ -55,6 +55,18 @@ def _setup_columns(st: Stack) -> np.ndarray:
     return np.r_[np.zeros(int(st.probe.base_mask.sum()), dtype=bool), np.ones(st.D.shape[1], dtype=bool)]
 
 
+def _unmeasured_columns(st: Stack) -> np.ndarray:
+    """(m,) bool: the common block's base columns whose error component no laser file names
+    (:mod:`mtcomp.identification.unmeasured`), False for the set-ups."""
+    from ..identification.unmeasured import VOLUMETRIC_KINDS, unmeasured_mask
+    laser = np.char.startswith(st.component.astype(str), "E") & (st.moving != "")
+    named = {f"{a}:{c}" for a, c in zip(st.moving[laser].tolist(), st.component[laser].tolist())}
+    if set(st.kinds) & VOLUMETRIC_KINDS:
+        named = set()       # volumetric data see every component: none counts as unmeasured
+    specs = [s for s, b in zip(st.probe.param_specs, st.probe.base_mask) if b]
+    return np.r_[unmeasured_mask(specs, named), np.zeros(st.D.shape[1], dtype=bool)]
+
+
 def _theta0(st: Stack) -> np.ndarray:
     base = np.flatnonzero(st.probe.base_mask)
     return np.concatenate([st.p[base], st.nuisance])
@@ -302,7 +314,8 @@ def _base_fit(st: Stack, values: dict, from_start: bool, say) -> np.ndarray:
     if from_start:
         say(f"start: {len(taken)} of the base's {len(base_names)} parameters from the start model")
     st.evaluate(p0, np.zeros(len(st.nuisance_names)))
-    T0 = determined_subspace(_common_block(st), setup=_setup_columns(st))
+    T0 = determined_subspace(_common_block(st), setup=_setup_columns(st),
+                             unmeasured=_unmeasured_columns(st))
     point, cost = (p0, np.zeros(len(st.nuisance_names))), _cost(st)
     for _ in range(2):
         Ar = _common_block(st) @ T0

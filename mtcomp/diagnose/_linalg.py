@@ -117,12 +117,14 @@ def _fold_solve(Gk: np.ndarray, bk: np.ndarray, G: np.ndarray) -> np.ndarray:
 
 
 def determined_subspace(A: np.ndarray, w: np.ndarray | None = None,
-                        setup: np.ndarray | None = None) -> np.ndarray:
+                        setup: np.ndarray | None = None,
+                        unmeasured: np.ndarray | None = None) -> np.ndarray:
     """(m, r) basis T of the parameter directions a fit moves in: T = S B with S the inverse column
     norms and B the directions of the scaled problem complementary to its null space (eigenvalues
     of the scaled normal matrix not above RANK_TOLERANCE of the largest), chosen as identify does
     (:func:`mtcomp.identification.fit.held_complement`): ``setup`` (m,) bool marks set-up columns,
-    which take what an undetermined combination trades with machine parameters (None: all machine).
+    which take what an undetermined combination trades with machine parameters (None: all machine);
+    ``unmeasured`` (m,) bool marks machine columns no laser file names, held at zero there.
     Fixed once, at the start point of a fit, so that combinations determined only through
     second-order effects of the errors stay undetermined."""
     from ..identification._linalg import _column_scale, held_complement
@@ -134,7 +136,7 @@ def determined_subspace(A: np.ndarray, w: np.ndarray | None = None,
     ev, V = _eigh(G0)
     ok = ev > RANK_TOLERANCE * max(ev.max(), 1e-300)
     machine = np.ones(A.shape[1], dtype=bool) if setup is None else ~np.asarray(setup, dtype=bool)
-    return S[:, None] * held_complement(V[:, ~ok], machine)
+    return S[:, None] * held_complement(V[:, ~ok], machine, unmeasured)
 
 
 class Design:

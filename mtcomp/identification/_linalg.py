@@ -21,21 +21,32 @@ NAME_SHARE = 0.1
 #: weight of a set-up unknown (a file's zero offset, its alignment) against a machine parameter when a
 #: combination the data cannot determine is held: the set-up takes what it trades with machine errors
 SETUP_WEIGHT = 1e-3
+#: weight (against 1) of a machine parameter no laser file names in :func:`held_complement`
+UNMEASURED_WEIGHT = 1e3
 
 
-def held_complement(null: np.ndarray, machine: np.ndarray) -> np.ndarray:
+def held_complement(null: np.ndarray, machine: np.ndarray,
+                    unmeasured: np.ndarray | None = None) -> np.ndarray:
     """(n, n - k) orthonormal directions a fit moves in, given the k orthonormal directions ``null``
     (column-scaled coordinates) the data do not determine and ``machine`` (n,) bool, True for machine
-    parameters, False for set-up unknowns: ``{z : null^T W z = 0}`` with W = 1 on machine parameters
-    and SETUP_WEIGHT^2 on set-ups. W is positive definite, so these directions and ``null`` together
-    span everything: every fit of the data is reached, with the least machine part of each
-    undetermined combination. A constant the readings share between a laser's zero offset and the
-    angle of an axis that never moved (through its Abbe arm) is the offset's: the plain minimum norm
-    split it three ways and made a pitch of Z of 105 urad out of a laser run of X."""
+    parameters, False for set-up unknowns: ``{z : null^T W z = 0}`` with W = 1 on machine parameters,
+    SETUP_WEIGHT^2 on set-ups and UNMEASURED_WEIGHT^2 on the machine parameters ``unmeasured`` (n,)
+    bool marks (error components no laser file names; None: none). W is positive definite, so these
+    directions and ``null`` together span everything: every fit of the data is reached, with the
+    least weighted machine part of each undetermined combination.
+
+    A constant the readings share between a laser's zero offset and the angle of an axis that never
+    moved (through its Abbe arm) is the offset's: the plain minimum norm split it three ways and made
+    a pitch of Z of 105 urad out of a laser run of X. Likewise a positioning run of Y at one tool
+    length reads EYY plus the tool length times the pitch EAY: the positioning error the file names
+    takes it, the pitch nobody measured stays at zero (the minimum norm made half of a real stage's
+    84 um a pitch of 430 urad, which the controller tables then wrote)."""
     k = null.shape[1]
     if k == 0:
         return np.eye(null.shape[0])
     w = np.where(machine, 1.0, SETUP_WEIGHT ** 2)
+    if unmeasured is not None:
+        w = np.where(np.asarray(unmeasured, bool) & machine, UNMEASURED_WEIGHT ** 2, w)
     _, _, Vt = np.linalg.svd((w[:, None] * null).T, full_matrices=True)
     return Vt[k:].T
 

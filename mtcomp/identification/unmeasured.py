@@ -1,0 +1,47 @@
+"""What no file measured stays at zero error, also inside a combination the data do determine.
+
+A laser positioning run of Y reads the tool tip's Y motion at one tool length: the positioning
+error EYY plus the tool length times the pitch EAY. The data fix that sum, not its parts; a fit
+that takes the smallest parameters along such an undetermined combination splits the reading
+between the two (half into a pitch nobody measured, which a controller's table then "corrects"
+at every other tool length). The physical reading of such a run is the positioning error with no
+pitch: the component the file names carries it, the one no file names stays at zero.
+
+Both fits (identify's and diagnose's base) hold an undetermined combination with the least weighted
+machine part (:func:`mtcomp.identification._linalg.held_complement`); :func:`unmeasured_mask`
+marks the parameters that weigh most there. The fitted readings are the same whichever way a
+combination is held, and the combination stays undetermined: a prediction that depends on it (the
+same reading at another tool length) keeps a blank standard error.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+#: kinds of file that measure the tool tip's whole deviation, every component in combination: with
+#: one of them among the data no component counts as unmeasured
+VOLUMETRIC_KINDS = frozenset({"points", "ballbar", "cmm"})
+
+
+def named_components(datasets) -> set[str]:
+    """The error components the laser files name, as parameter groups ('Y:EYY', ...); empty when a
+    file of a volumetric kind (points, ball bar, CMM) is among the data, since those see every
+    component (in combination) and name none."""
+    if any(getattr(d, "kind", None) in VOLUMETRIC_KINDS for d in datasets):
+        return set()
+    out = set()
+    for d in datasets:
+        if getattr(d, "kind", None) != "laser":
+            continue
+        for axis, comp in zip(np.asarray(d.axis).tolist(), np.asarray(d.component).tolist()):
+            out.add(f"{axis}:{comp}")
+    return out
+
+
+def unmeasured_mask(specs, named: set) -> np.ndarray:
+    """(len(specs),) bool: base-model parameters whose error component no laser file names
+    (``named`` from :func:`named_components`); all False when no laser file names one (points,
+    ball-bar and CMM data name no component)."""
+    if not named:
+        return np.zeros(len(specs), dtype=bool)
+    return np.array([s.base and s.group not in named for s in specs], dtype=bool)
