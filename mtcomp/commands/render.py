@@ -8,7 +8,10 @@ See docs/render.md.
 """
 from __future__ import annotations
 
+import sys
 from pathlib import Path
+
+import numpy as np
 
 from ..errors import InputError
 
@@ -47,6 +50,12 @@ def add_arguments(parser):
                         help="arrow exaggeration factor (default: largest arrow = 1/10 of the part)")
     parser.add_argument("--range-um", type=float, default=None, metavar="U",
                         help="colour scale -U..U um (default: the largest |deviation| of both maps)")
+    parser.add_argument("--offsets", metavar="OFFSETS.toml", default=None,
+                        help="work offsets of the program, as for compensate (the map takes G54, "
+                             "or the one work system the file gives)")
+    parser.add_argument("--work-offset", metavar="G54=X..,Y..,Z..", action="append", default=[],
+                        help="where the program's zero sits in machine axis positions (mm), as "
+                             "given to compensate: the model is evaluated there")
     parser.add_argument("--size", default="1400x700", metavar="WxH", help="image size in pixels")
     parser.add_argument("--backend", choices=("auto", "pyvista", "matplotlib"), default="auto",
                         help="renderer (auto: pyvista off-screen, matplotlib if VTK cannot render)")
@@ -124,7 +133,7 @@ def run(args) -> int:
     smap = program_error_map(machine, fitted, program, args.compensated,
                              tool_radius_mm=args.tool_radius_mm, flank_length_mm=args.flank_mm,
                              flank_side=args.flank_side, report=args.report, normal=args.normal,
-                             progress=progress)
+                             progress=progress, work_offset=_work_offset(args, machine))
     from ..viz.render import render_error_map
     clim = None if args.range_um is None else (-args.range_um, args.range_um)
     progress(f"drawing {smap.points.shape[0]} points")
@@ -135,6 +144,22 @@ def run(args) -> int:
     _print_summary(args, smap, res)
     print(f"wrote {res.png} ({res.backend}) and {res.vtp}")
     return 0
+
+
+def _work_offset(args, machine):
+    """(na,) the program origin's machine position from --offsets / --work-offset (one work
+    system: the one given, G54 when several are), or None."""
+    if not args.offsets and not args.work_offset:
+        return None
+    from ..toolpaths.offsets import WORK_SYSTEMS, load_setup
+    setup = load_setup(machine, args.offsets, args.work_offset)
+    if not setup.work_offsets:
+        return None
+    index = 0 if 0 in setup.work_offsets or len(setup.work_offsets) > 1 else next(iter(setup.work_offsets))
+    if len(setup.work_offsets) > 1:
+        print(f"mtcomp render: note: the map takes the program's origin at {WORK_SYSTEMS[index]} "
+              "(render draws one work system)", file=sys.stderr)
+    return setup.work_offsets.get(index, np.zeros(machine.n_axes))
 
 
 def _check_numbers(args) -> None:

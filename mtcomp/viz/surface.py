@@ -222,7 +222,7 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
                       flank_side: str = "outer", max_edge_factor: float = MAX_EDGE_FACTOR,
                       flank_levels: int | None = None, report=None,
                       normal: str = "surface", uncorrected: bool = True,
-                      progress=None) -> SurfaceMap:
+                      progress=None, work_offset=None) -> SurfaceMap:
     """The surface ``program`` cuts, with the deviation predicted by ``fitted`` (a FittedModel).
 
     program, compensated : paths of NC files (or :class:`ProgramPoints`); the compensated program
@@ -241,6 +241,10 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
     uncorrected : mark the blocks left uncorrected (``SurfaceMap.status``): from the report's
         columns when a report is given, else by the planner's rules (:func:`planner_status`).
     progress : callable(stage text) told at each stage, or None.
+    work_offset : (na,) mm (linear axes only) where the program's origin sits in machine axis
+        positions (its G54 ...), as compensate was given it: the model is evaluated at the machine
+        positions and the map referenced to the deviation there (the part's datum); None: the
+        program's coordinates are machine positions. The map is drawn in the program's frame.
     Raises InputError for programs without a surface or a compensated program that does not match.
     """
     radius, length = _tool(program, tool_radius_mm, flank_length_mm)
@@ -258,28 +262,30 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
     _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
     inverse = inverse.ravel()
     sel = g.index[first]
+    off = _work_offset(machine, work_offset)
     T0 = tool2wp(machine, orig.q[sel])
     tips = T0[:, :3, 3]
     offset_tool = np.einsum("nji,nj->ni", T0[:, :3, :3], g.offset[first])   # R0^T offset: tool frame
     # referenced to the part's datum, as compensate references its corrections: the program's
-    # origin (the machine zero: the map knows no work offsets), where the machinist probed the part
-    nominal = tips + g.offset[first] + fitted.datum_deviation(np.zeros((1, machine.n_axes)),
-                                                              machine.tool_length)
+    # origin (its work offset, else the machine zero), where the machinist probed the part; the
+    # model evaluated at machine positions
+    nominal = (tool2wp(machine, orig.q[sel] + off)[:, :3, 3] + g.offset[first]
+               + fitted.datum_deviation(off[None, :], machine.tool_length))
     say(f"deviation at {sel.size} points")
-    dev_before = predicted_points(fitted, orig.q[sel], orig.feed[sel], orig.dirs[sel],
+    dev_before = predicted_points(fitted, orig.q[sel] + off, orig.feed[sel], orig.dirs[sel],
                                   offset_tool) - nominal
     dev_after = None
     if comp is not None:
         say(f"deviation after compensation at {sel.size} points")
         j = pair[sel]
-        dev_after = predicted_points(fitted, comp.q[j], comp.feed[j], comp.dirs[j],
+        dev_after = predicted_points(fitted, comp.q[j] + off, comp.feed[j], comp.dirs[j],
                                      offset_tool) - nominal
     status, source = None, ""
     if report is not None:
         status, source = report_status(report, len(orig))[sel], "report"
     elif uncorrected and hasattr(fitted, "support"):
         say(f"finding the blocks the planner leaves uncorrected ({sel.size} points)")
-        status, source = planner_status(fitted, orig, sel), "planner"
+        status, source = planner_status(fitted, orig, sel, off), "planner"
     notes = []
     if kind == "surface" and length == 0 and g.normals.size and _along_tool_axis(machine, orig, g, info):
         notes.append("the normals all lie along the tool axis (a flat or 2-D program): the map "
@@ -291,6 +297,17 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
                       None if status is None else status[inverse], source, notes, info)
     smap.segments = segments
     return smap
+
+
+def _work_offset(machine: Machine, work_offset) -> np.ndarray:
+    """(na,) the program origin's machine position (zeros for None); InputError for a rotary one
+    (a map drawn in a turned frame is not what the program cut: not supported)."""
+    off = np.zeros(machine.n_axes) if work_offset is None else np.asarray(work_offset, dtype=float)
+    turned = [a.name for a, v in zip(machine.axes, off) if a.is_rotary and v != 0.0]
+    if turned:
+        raise InputError(f"a work offset of rotary axis {turned[0]} is not supported by render "
+                         "(linear axes only)")
+    return off
 
 
 def _tool(program, tool_radius_mm, flank_length_mm) -> tuple[float, float]:
@@ -369,14 +386,15 @@ def report_status(report, n: int) -> np.ndarray:
     return status
 
 
-def planner_status(fitted, orig: ProgramPoints, sel: np.ndarray) -> np.ndarray:
+def planner_status(fitted, orig: ProgramPoints, sel: np.ndarray, work_offset=None) -> np.ndarray:
     """(len(sel),) int8 :data:`STATUS_REASONS`: which of the blocks ``sel`` the planner would leave
     uncorrected under the model's and the machine's defaults (no --extrapolate, the default limit on
     a correction's standard error), by the planner's own rules, the part's datum at the program's
-    origin as render takes it."""
+    origin as render takes it (``work_offset`` (na,): its machine position; None: machine zero)."""
     from ..planner import CompensationProblem, Planner, PlannerOptions
     planner = Planner(CompensationProblem.from_machine(fitted), PlannerOptions(threads=1))
-    q = orig.q[sel]
+    off = _work_offset(fitted.machine, work_offset)
+    q = orig.q[sel] + off
     known = np.ones(q.shape, bool) if orig.known is None else np.asarray(orig.known[sel], bool)
     unknown = ~known
     outside = planner.outside_support(q, known)
@@ -389,7 +407,7 @@ def planner_status(fitted, orig: ProgramPoints, sel: np.ndarray) -> np.ndarray:
     key = np.column_stack([np.round(q / step), orig.dirs[sel], known])
     _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
     _, _, sd = planner.block_status(q[first], known[first], orig.feed[sel][first], orig.dirs[sel][first],
-                                    datum=np.zeros_like(q[first]))
+                                    datum=np.broadcast_to(off, q[first].shape))
     sd = sd[inverse.ravel()]
     status = np.zeros(q.shape[0], np.int8)
     limit = planner.options.max_correction_sd_um
