@@ -19,6 +19,14 @@ def note_outside_travel(command: str, machine, datasets) -> None:
                   "taken in the axis's sense (negated)", file=sys.stderr)
 
 
+def add_offset_arguments(parser, offsets_help: str, work_offset_help: str) -> None:
+    """``--offsets OFFSETS.toml`` and ``--work-offset G54=X..,Y..,Z..`` (repeatable): where the
+    program's zero sits on the machine (docs/toolpaths.md)."""
+    parser.add_argument("--offsets", metavar="OFFSETS.toml", default=None, help=offsets_help)
+    parser.add_argument("--work-offset", metavar="G54=X..,Y..,Z..", action="append", default=[],
+                        help=work_offset_help)
+
+
 def add_cmm_arguments(parser) -> None:
     """``--cmm-program`` and ``--cmm-tool-radius``: what cut the part of a cmm file (docs/measurements.md)."""
     parser.add_argument("--cmm-program", metavar="[CMM.csv=]PART.nc", action="append", default=[],

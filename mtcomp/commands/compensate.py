@@ -9,6 +9,7 @@ from __future__ import annotations
 
 
 def add_arguments(parser):
+    from . import add_offset_arguments
     from ..planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
     parser.add_argument("machine", metavar="MACHINE", help="built-in machine name or machine TOML file")
     parser.add_argument("model", metavar="MODEL.json", help="fitted error model")
@@ -69,12 +70,10 @@ def add_arguments(parser):
     parser.add_argument("--units", choices=("mm", "inch"), default=None,
                         help="what a program without G20/G21 is written in (default: the machine "
                              "file's 'units', else mm with a warning)")
-    parser.add_argument("--offsets", metavar="OFFSETS.toml", default=None,
-                        help="work offsets (G54 ...) and tool lengths (H1 ...) of the program; "
-                             "see docs/toolpaths.md")
-    parser.add_argument("--work-offset", metavar="G54=X..,Y..,Z..", action="append", default=[],
-                        help="a work offset: where the program's zero sits in machine axis "
-                             "positions (mm, deg; repeatable; wins over --offsets)")
+    add_offset_arguments(parser, "work offsets (G54 ...) and tool lengths (H1 ...) of the program; "
+                                 "see docs/toolpaths.md",
+                         "a work offset: where the program's zero sits in machine axis positions "
+                         "(mm, deg; repeatable; wins over --offsets)")
     parser.add_argument("--tool-length", metavar="H1=L", action="append", default=[],
                         help="length (mm) of the tool of G43 H1 (repeatable; wins over --offsets)")
     parser.add_argument("--start-position", metavar="A=0,C=0", action="append", default=[],

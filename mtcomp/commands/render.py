@@ -17,6 +17,7 @@ from ..errors import InputError
 
 
 def add_arguments(parser):
+    from . import add_offset_arguments
     parser.add_argument("machine", help="built-in machine name or machine TOML file")
     parser.add_argument("model", help="MODEL.json (from identify or diagnose)")
     parser.add_argument("program", help="the NC program (G-code) as written for the part")
@@ -50,12 +51,10 @@ def add_arguments(parser):
                         help="arrow exaggeration factor (default: largest arrow = 1/10 of the part)")
     parser.add_argument("--range-um", type=float, default=None, metavar="U",
                         help="colour scale -U..U um (default: the largest |deviation| of both maps)")
-    parser.add_argument("--offsets", metavar="OFFSETS.toml", default=None,
-                        help="work offsets of the program, as for compensate (the map takes G54, "
-                             "or the one work system the file gives)")
-    parser.add_argument("--work-offset", metavar="G54=X..,Y..,Z..", action="append", default=[],
-                        help="where the program's zero sits in machine axis positions (mm), as "
-                             "given to compensate: the model is evaluated there")
+    add_offset_arguments(parser, "work offsets of the program, as for compensate (the map takes "
+                                 "G54, or the one work system the file gives)",
+                         "where the program's zero sits in machine axis positions (mm), as given "
+                         "to compensate: the model is evaluated there")
     parser.add_argument("--size", default="1400x700", metavar="WxH", help="image size in pixels")
     parser.add_argument("--backend", choices=("auto", "pyvista", "matplotlib"), default="auto",
                         help="renderer (auto: pyvista off-screen, matplotlib if VTK cannot render)")
