@@ -74,7 +74,7 @@ def test_identify_prints_components_and_per_target_table_not_parameter_rows(x_la
     # run cannot see is said so, never printed as a number like 1e-10
     assert re.search(r"positioning\s+EXX\s+range\s+\d+\.?\d* \+- [\d.e-]+ um", out), out
     for comp in ("EYX", "EZX", "EAX", "EBX", "ECX"):
-        assert re.search(rf"{comp}\s+range not determined by the data", out), out
+        assert re.search(rf"{comp}\s+range not measured: held at zero", out), out
     assert re.search(r"C0Y\s+not determined by the data", out)
     assert "axes the data did not move: Y, Z" in out
     # no parameter rows, no null space: only their count
@@ -138,7 +138,7 @@ def test_real_run_report_and_predict(tmp_path, capsys):
     m = _means(ISO230_2 / "ess_b02_x.csv")
     both = [0.5 * (m[(t, 1)] + m[(t, -1)]) for t in sorted({t for t, _ in m})]
     assert 0.8 * np.ptp(both) < rng_um < 1.1 * np.ptp(both)
-    assert re.search(r"EYX\s+range not determined by the data", out)
+    assert re.search(r"EYX\s+range not measured: held at zero", out)
     pred = tmp_path / "pred.csv"
     assert main(["predict", "xfyz", str(model), str(ISO230_2 / "ess_b02_y.csv"), "-o", str(pred)]) == 0
     with open(pred, newline="") as f:
@@ -163,7 +163,7 @@ def test_diagnose_prints_components_and_residuals_parameters_only_verbose(x_lase
     assert main(args) == 0
     out = capsys.readouterr().out
     assert re.search(r"positioning\s+EXX\s+range\s+[\d.]+ \+- [\d.e-]+ um", out), out
-    assert re.search(r"EYX\s+range not determined by the data", out)
+    assert re.search(r"EYX\s+range not measured: held at zero", out)
     final = float(re.search(r"final model \(\d+ parameters, dof \d+\): rms ([\d.]+) um", out).group(1))
     file_rms = float(re.search(r"^x_pos\s+laser\s+\d+\s+value_um ([\d.]+)", out, re.M).group(1))
     np.testing.assert_allclose(file_rms, final, rtol=2e-3, atol=0)
@@ -208,3 +208,31 @@ def test_rotary_axis_components_match_the_fourier_series(tmp_path):
         assert rows[0].status == "fitted" and 0 < rows[0].sd < 0.1 * rows[0].range
     x0c = next(v for v in values if v.name == "X0C")
     np.testing.assert_allclose([x0c.value, x0c.sd], res.value("X0C"), rtol=1e-6, atol=1e-9)
+
+
+def test_a_positioning_run_reports_the_positioning_error_and_what_was_not_measured(tmp_path, capsys):
+    """One laser positioning run of Y (tool side of XFYZ, one tool length): the report gives EYY's
+    range, which the readings' means per target show (the ISO 230-2 systematic deviation M), and
+    says of the pitch and the rest that no file measured them (it printed 'not determined' for all,
+    or half of EYY as a pitch)."""
+    import re
+
+    import numpy as np
+    from mtcomp.cli import main
+    targets = (-150, -100, -50, 0, 50, 100, 150)
+    rng = np.random.default_rng(3)
+    rows = ["axis,component,target_mm,dir,run,value_um"]
+    for run in (1, 2, 3):
+        for d, seq in ((1, targets), (-1, targets[::-1])):
+            rows += [f"Y,EYY,{t},{d},{run},{2e-4 * t ** 2 + 0.05 * t + rng.normal(0, 0.2):.4f}"
+                     for t in seq]
+    path = tmp_path / "y.csv"
+    path.write_text("\n".join(rows) + "\n")
+    assert main(["identify", "xfyz", str(path), "-o", str(tmp_path / "m.json")]) == 0
+    out = capsys.readouterr().out
+    m = re.search(r"positioning\s+EYY\s+range\s+([\d.]+) \+- ([\d.]+) um", out)
+    assert m, out
+    t = np.array(targets, float)
+    truth = 2e-4 * t ** 2 + 0.05 * t
+    assert float(m.group(1)) == pytest.approx(np.ptp(truth), abs=max(3 * float(m.group(2)), 0.5))
+    assert re.search(r"pitch\s+EAY\s+range not measured: held at zero", out), out

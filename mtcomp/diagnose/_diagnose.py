@@ -255,7 +255,11 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     model.held = data_held(st.machine, datasets)
     # what the data show of a reversal, so that export can say when the model leaves one out
     from ..identification.reversal import data_reversal
+    from ..identification.unmeasured import unmeasured_groups
     model.info["reversal"] = data_reversal(datasets)
+    unmeasured = unmeasured_groups([s for s in model.model.param_specs if s.base], datasets)
+    if unmeasured:
+        model.info["unmeasured"] = unmeasured
     diag.seconds = time.perf_counter() - t0
     model.info["diagnose"] = diag.to_dict()
     return diag, finer

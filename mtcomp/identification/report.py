@@ -74,8 +74,9 @@ class ComponentRange:
         file units; sd : its standard error (NaN without a covariance).
     largest_sd : the largest standard error of the profile along [lo, hi], relative to its value at
         the first position (straightness: about its least-squares line).
-    status : 'fitted', 'undetermined' (the data do not determine the profile) or 'held' (none of its
-        parameters was fitted: held at zero).
+    status : 'fitted', 'undetermined' (the data do not determine the profile), 'held' (none of its
+        parameters was fitted: held at zero) or 'unmeasured' (no laser file names it and the data
+        leave it open: held at zero, :mod:`mtcomp.identification.unmeasured`).
     """
 
     axis: str
@@ -171,7 +172,9 @@ def component_ranges(fitted: FittedModel, undetermined: Undetermined | None = No
     squareness's, does not count in its range.
     """
     machine = fitted.machine
-    und = undetermined if undetermined is not None else Undetermined.of(fitted)
+    unmeasured = set(fitted.info.get("unmeasured", ())) if isinstance(fitted.info, dict) else set()
+    und = undetermined if undetermined is not None else _resolved(Undetermined.of(fitted), fitted,
+                                                                   unmeasured)
     mask = _fitted_mask(fitted)
     ranges, notes = [], []
     support = fitted.support
@@ -192,7 +195,29 @@ def component_ranges(fitted: FittedModel, undetermined: Undetermined | None = No
         notes.append(f"axes the data did not move: {', '.join(still)}"
                      + (f" (held {', '.join(at)})" if at else "")
                      + ": how their errors vary along them is not known")
+    for r in ranges:
+        # held at zero by the rule (a value the data gave it through another set-up stays fitted)
+        if f"{r.axis}:{r.component}" in unmeasured and (r.status != "fitted" or abs(r.range) < 1e-3):
+            r.status = "unmeasured"
+    if unmeasured:
+        notes.append("components no laser file measures are held at zero where the data leave "
+                     "them open (a positioning run at one tool length is the positioning error, "
+                     "with no pitch): the components they measure are given on that assumption")
     return ranges, _location_values(fitted, und, mask), notes
+
+
+def _resolved(und: Undetermined, fitted: FittedModel, unmeasured: set) -> Undetermined:
+    """``und`` without the undetermined directions that move a component no laser file measures:
+    the fit held those components at zero (:mod:`mtcomp.identification.unmeasured`), so what the
+    others show is determined on that assumption."""
+    if not unmeasured or und.directions is None or not und.directions.shape[1]:
+        return und
+    from dataclasses import replace
+    D = und.directions
+    um = np.array([fitted.params.specs[i].group in unmeasured for i in und.index])
+    big = np.abs(D).max(axis=0)
+    keep = ~(np.abs(D[um]).max(axis=0, initial=0.0) > 1e-6 * np.where(big > 0, big, 1.0))
+    return replace(und, directions=D[:, keep])
 
 
 def _axis_ranges(fitted: FittedModel, ax, lo: float, hi: float, und: Undetermined, mask) -> list:
@@ -258,6 +283,8 @@ def _location_values(fitted: FittedModel, und: Undetermined, mask) -> list:
 def _pm(value, sd, status, unit, width=9) -> str:
     if status == "undetermined":
         return "not determined by the data"
+    if status == "unmeasured":
+        return "not measured: held at zero (no laser file names it)"
     if status == "held":
         return "held at zero (not fitted)"
     err = f" +- {sd:.2g}" if np.isfinite(sd) else ""

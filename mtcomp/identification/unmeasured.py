@@ -45,3 +45,10 @@ def unmeasured_mask(specs, named: set) -> np.ndarray:
     if not named:
         return np.zeros(len(specs), dtype=bool)
     return np.array([s.base and s.group not in named for s in specs], dtype=bool)
+
+
+def unmeasured_groups(specs, datasets) -> list[str]:
+    """The groups of the base parameters ``specs`` whose component no laser file among
+    ``datasets`` names (what MODEL.json records as ``info["unmeasured"]``)."""
+    mask = unmeasured_mask(specs, named_components(datasets))
+    return sorted({s.group for s, m in zip(specs, mask) if m})
