@@ -545,13 +545,9 @@ def test_a_positioning_run_is_the_positioning_error_not_a_pitch(tmp_path, how):
     machine = load_machine("xfyz")
     targets = (-150, -100, -50, 0, 50, 100, 150)
     rng = np.random.default_rng(11)
-    rows = ["axis,component,target_mm,dir,run,value_um"]
-    for run in (1, 2, 3):
-        for d, seq in ((1, targets), (-1, targets[::-1])):
-            rows += [f"Y,EYY,{t},{d},{run},{2e-4 * t ** 2 + 0.05 * t + rng.normal(0, 0.2):.4f}"
-                     for t in seq]
-    path = tmp_path / "y.csv"
-    path.write_text("\n".join(rows) + "\n")
+    from laser_files import write_positioning
+    path = write_positioning(tmp_path / "y.csv", "Y", targets, lambda t, d: 2e-4 * t ** 2 + 0.05 * t,
+                             3, 0.2, rng)
     data = read_measurements(path)
     fitted = (identify(machine, [data]).fitted_model if how == "identify"
               else diagnose(machine, [data]).model)

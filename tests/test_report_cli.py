@@ -221,13 +221,9 @@ def test_a_positioning_run_reports_the_positioning_error_and_what_was_not_measur
     from mtcomp.cli import main
     targets = (-150, -100, -50, 0, 50, 100, 150)
     rng = np.random.default_rng(3)
-    rows = ["axis,component,target_mm,dir,run,value_um"]
-    for run in (1, 2, 3):
-        for d, seq in ((1, targets), (-1, targets[::-1])):
-            rows += [f"Y,EYY,{t},{d},{run},{2e-4 * t ** 2 + 0.05 * t + rng.normal(0, 0.2):.4f}"
-                     for t in seq]
-    path = tmp_path / "y.csv"
-    path.write_text("\n".join(rows) + "\n")
+    from laser_files import write_positioning
+    path = write_positioning(tmp_path / "y.csv", "Y", targets, lambda t, d: 2e-4 * t ** 2 + 0.05 * t,
+                             3, 0.2, rng)
     assert main(["identify", "xfyz", str(path), "-o", str(tmp_path / "m.json")]) == 0
     out = capsys.readouterr().out
     m = re.search(r"positioning\s+EYY\s+range\s+([\d.]+) \+- ([\d.]+) um", out)

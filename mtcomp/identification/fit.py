@@ -52,6 +52,7 @@ from ..models.chain import ErrorModel
 from ..models.model_file import FittedModel
 from ..models.params import ParameterSet
 from .reversal import data_reversal
+from .unmeasured import record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
 from ._linalg import (NULL_WEIGHT, _column_scale, _eliminate, _error_scales, _gram, _name_null_space,
                       _relative_singular_values, _seen_columns, _solver, _step, held_complement)
 from .problem import _free_mask, build_measurement_models, model_for_data, travel_metric
@@ -117,15 +118,6 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
     return result
 
 
-def _record_unmeasured(fitted, datasets) -> None:
-    """``info["unmeasured"]``: the components no laser file names, held at zero where the data
-    leave them open (:mod:`mtcomp.identification.unmeasured`); the report says so."""
-    from .unmeasured import unmeasured_groups
-    groups = unmeasured_groups(fitted.model.param_specs, datasets)
-    if groups:
-        fitted.info["unmeasured"] = groups
-
-
 def _model_and_start(machine_or_model, datasets: list, initial, context_defaults):
     """(model fitted, its data's basis; (n_params,) start values, internal units; context defaults)
     of :func:`identify`'s arguments."""
@@ -185,7 +177,7 @@ def _record_data(result, model, mask, mms, datasets) -> None:
                                 if a in fitted_axes}
     # what the data show of a reversal, so that export can say when the model leaves it out
     result.fitted_model.info["reversal"] = data_reversal(datasets)
-    _record_unmeasured(result.fitted_model, datasets)
+    record_unmeasured(result.fitted_model, datasets)
 
 
 #: Gauss-Newton stops at a step that moves every combination of the unknowns by less than this
@@ -522,43 +514,18 @@ class _Problem:
         data_rank = int(keep.sum())
         cond = float(rel[0] / rel[keep][-1]) if data_rank else np.inf
         start = (x, r, A, g)
-        B1 = held_complement(null, np.arange(self.n_unknowns) < self.n_free, self.unmeasured())
+        B1 = held_complement(null, np.arange(self.n_unknowns) < self.n_free,
+                             unmeasured_unknowns(self))
         first = self._penalised_fit(start, w, max_iterations, tol, B1, scale, penalties)
         first += (null, self.n_unknowns - null.shape[1])
         x, r, A, g, B, AB, iterations, converged, null, rank = self._hold_weak(
             start, first, w, max_iterations, tol, B1, scale, data_rank)
-        x, r = self._unmeasured_to_zero(x, r, w, scale[:, None] * V[:, ~keep])
+        x, r = unmeasured_to_zero(self, x, r, w, scale[:, None] * V[:, ~keep])
         lev, edf, cov = self._posterior(x, r, w, scale, B, AB, rank, leverage)
         if self.S is not None:
             lam = {k: float(np.exp(v)) for k, v in self.smoothing_rho.items()}
             self.smoothing = Smoothing(lam, dict(self.smoothing_rho), edf)
         return _Solution(x, r, cov, null, scale, rel, rank, cond, iterations, converged, lev, edf)
-
-    def unmeasured(self) -> np.ndarray:
-        """(n_unknowns,) bool: the free base parameters whose error component no laser file names
-        (:mod:`mtcomp.identification.unmeasured`): held at zero in what the data leave open."""
-        from .unmeasured import named_components, unmeasured_mask
-        named = named_components([m.data for m in self.mms])
-        specs = [self.model.param_specs[i] for i in self.free_idx]
-        return np.concatenate([unmeasured_mask(specs, named),
-                               np.zeros(self.n_unknowns - self.n_free, dtype=bool)])
-
-    def _unmeasured_to_zero(self, x, r, w, data_null) -> tuple:
-        """(x, r) moved along ``data_null`` (n_unknowns, k): directions the data do not see (at the
-        start point, in unknowns' units), so that the parameters of components no laser file names
-        are as near zero as those directions allow. The penalty had shared the curvature of such a
-        combination (a positioning run's EYY + tool length x pitch EAY) between its parts; the
-        readings do not change, to the chain's second order (kept only if the weighted sum of
-        squares grows by less than 1e-5 of it: 5e-7 on three real laser runs)."""
-        u = self.unmeasured()
-        if not u.any() or data_null.shape[1] == 0:
-            return x, r
-        c, *_ = np.linalg.lstsq(data_null[u], x[u], rcond=1e-10)
-        moved = x - data_null @ c
-        r_moved = w * (self.observed - self.evaluate(moved))
-        if float(r_moved @ r_moved) > float(r @ r) * (1 + 1e-5) + 1e-300:
-            return x, r
-        return moved, r_moved
 
     def _penalised_fit(self, start, w, max_iterations, tol, B1, scale, penalties: dict) -> tuple:
         """The first pass of :meth:`solve`: Gauss-Newton from ``start`` (x, r, A, g) along B1, with

@@ -52,3 +52,38 @@ def unmeasured_groups(specs, datasets) -> list[str]:
     ``datasets`` names (what MODEL.json records as ``info["unmeasured"]``)."""
     mask = unmeasured_mask(specs, named_components(datasets))
     return sorted({s.group for s, m in zip(specs, mask) if m})
+
+
+def record_unmeasured(fitted, datasets) -> None:
+    """``fitted.info["unmeasured"]``: the components no laser file names, held at zero where the
+    data leave them open; the report says so."""
+    groups = unmeasured_groups(fitted.model.param_specs, datasets)
+    if groups:
+        fitted.info["unmeasured"] = groups
+
+
+def unmeasured_unknowns(problem) -> np.ndarray:
+    """(n_unknowns,) bool of identify's problem (``mtcomp.identification.fit._Problem``): the free
+    base parameters whose component no laser file names; False for the set-ups."""
+    named = named_components([m.data for m in problem.mms])
+    specs = [problem.model.param_specs[i] for i in problem.free_idx]
+    return np.concatenate([unmeasured_mask(specs, named),
+                           np.zeros(problem.n_unknowns - problem.n_free, dtype=bool)])
+
+
+def unmeasured_to_zero(problem, x, r, w, data_null) -> tuple:
+    """(x, r) of identify's fit moved along ``data_null`` (n_unknowns, k): directions the data do
+    not see (at the start point, in unknowns' units), so that the parameters of components no laser
+    file names are as near zero as those directions allow. The penalty had shared the curvature of
+    such a combination (a positioning run's EYY + tool length x pitch EAY) between its parts; the
+    readings do not change, to the chain's second order (kept only if the weighted sum of squares
+    grows by less than 1e-5 of it: 5e-7 on three real laser runs)."""
+    u = unmeasured_unknowns(problem)
+    if not u.any() or data_null.shape[1] == 0:
+        return x, r
+    c, *_ = np.linalg.lstsq(data_null[u], x[u], rcond=1e-10)
+    moved = x - data_null @ c
+    r_moved = w * (problem.observed - problem.evaluate(moved))
+    if float(r_moved @ r_moved) > float(r @ r) * (1 + 1e-5) + 1e-300:
+        return x, r
+    return moved, r_moved
