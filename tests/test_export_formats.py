@@ -464,3 +464,11 @@ def test_siemens_writes_no_table_of_zeros(tmp_path):
     assert "$AA_ENC_COMP[0,0,AX1]" in (out / "AX_EEC.INI").read_text()
     readme = (out / "README.txt").read_text()
     assert "no CEC table for AX1 -> AX2" in readme and "no CEC table for AX1 -> AX3" in readme
+
+
+def test_heidenhain_cells_never_print_minus_zero():
+    from mtcomp.export.heidenhain import com_table
+    import numpy as np
+    text = com_table("X.COM", np.array([0.0, 10.0]), {"X": np.array([-1e-7, 0.00123456])})
+    assert "-0.00000" not in text
+    assert "+0.00000" in text and "+0.00123" in text

@@ -66,6 +66,11 @@ def slope(tables, moving: str, column: int) -> float | None:
     return fit_line(t.positions, t.mean[:, column])[1]
 
 
+#: what is left out is said from this size on (um, urad): below it a fit's rounding (a component
+#: the data held at zero, to 1e-3 urad), no error a table would carry
+LEFT_OUT_FLOOR = 0.01
+
+
 def left_out(tables, carried: dict) -> tuple[list, dict]:
     """Lines on what the tables do not carry, and the peak remaining translation per axis (mm).
 
@@ -100,7 +105,7 @@ def left_out(tables, carried: dict) -> tuple[list, dict]:
                     lines.append(f"{name} of axis {a}: not evaluated (the model's rotations are not available)")
                 continue
             scale, unit = (URAD_PER_RAD, "urad") if j >= 3 else (UM_PER_MM, "um")
-            if peak * scale < 0.0005:
+            if peak * scale < LEFT_OUT_FLOOR:
                 continue
             what = {FULL: None, MEAN: "its direction dependence (backlash)",
                     LINEAR: "what a straight line leaves (curvature)"}.get(how, "all of it")

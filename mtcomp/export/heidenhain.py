@@ -36,7 +36,8 @@ def com_table(name: str, positions, columns: dict) -> str:
     lines = [f"BEGIN {name} MM", "  ".join(f"{c:<12}" for c in cols).rstrip()]
     for n, p in enumerate(positions):
         row = [f"{n:<12d}", f"{p:<+12.{DECIMALS}f}"]
-        row += [f"{v[n] + 0.0:<+12.{DECIMALS}f}" for v in columns.values()]
+        # rounded first: a value of -1e-7 would print as "-0.00000"
+        row += [f"{round(float(v[n]), DECIMALS) + 0.0:<+12.{DECIMALS}f}" for v in columns.values()]
         lines.append("  ".join(row).rstrip())
     lines.append("[END]")
     return "\n".join(lines) + "\n"
