@@ -601,7 +601,9 @@ def runs_figure(reports):
         pl.set_xlabel(f"target ({'deg' if ax.rotary else 'mm'})")
         pl.set_ylabel(f"deviation ({u})")
         pl.grid(alpha=0.3)
-        pl.legend(fontsize=7, ncol=4)
+        # below the axes: inside, it hid the readings it explains
+        pl.legend(fontsize=7, ncol=5, loc="upper center", bbox_to_anchor=(0.5, -0.24),
+                  frameon=False)
         _draw_run_means(pr, ax, runs, colours)
     fig.tight_layout()
     return fig
@@ -629,5 +631,5 @@ def _draw_run_means(pr, ax: AxisPositioning, runs, colours) -> None:
         pr.plot(x, fit * s, "--", color="tab:orange", lw=1, label=f"trend {dr.trend * s:+.2f} {u}/run")
     pr.set_xticks(x)
     verdict = "drift" if dr.drift else "no drift detected"
-    pr.set_title(f"{verdict}: range {dr.size * s:.2f} {u}, p = {dr.p:.1g}", fontsize=9)
-    pr.legend(fontsize=7)
+    pr.set_title(f"{verdict}\nrange {dr.size * s:.2f} {u}, p = {dr.p:.1g}", fontsize=9)
+    pr.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.24), frameon=False)
