@@ -151,11 +151,6 @@ def uses_inches(path, block: int = 1 << 22) -> bool:
     return _has_word(path, b"20", block)
 
 
-def states_units(path, block: int = 1 << 22) -> bool:
-    """True if the program contains a G20 or a G21 word anywhere."""
-    return _has_word(path, b"20", block) or _has_word(path, b"21", block)
-
-
 def _has_word(path, code: bytes, block: int) -> bool:
     try:
         f = open(path, "rb")
@@ -356,8 +351,9 @@ class _Tally:
 def _program_units(program, settings: CompensationSettings, machine) -> tuple[bool, bool, list]:
     """(the program starts in inch, it holds inch anywhere (the output grid), notes on what was
     taken for a program that states no units)."""
-    if states_units(program):
-        return False, uses_inches(program), []
+    inch_anywhere = uses_inches(program)          # one pass for G20, a second only for G21
+    if inch_anywhere or _has_word(program, b"21", 1 << 22):
+        return False, inch_anywhere, []
     units = settings.units or machine.units
     if units is None:
         note = ("warning: the program has no G20/G21 and neither --units nor the machine file's "
@@ -367,7 +363,7 @@ def _program_units(program, settings: CompensationSettings, machine) -> tuple[bo
         note = (f"the program has no G20/G21: taken as {units} "
                 f"({'--units' if settings.units else 'machine file'})")
     start_inch = units == "inch"
-    return start_inch, start_inch or uses_inches(program), [note]
+    return start_inch, start_inch, [note]
 
 
 def _thermal_model(fitted, settings: CompensationSettings, series=None) -> tuple:
