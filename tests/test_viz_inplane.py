@@ -117,4 +117,5 @@ def test_in_plane_map_of_a_program_without_a_contour_is_refused(tmp_path, exx):
     p.write_text("G21 G90\nG0 X1 Y1 Z5\nG1 Z-1 F100\nG0 Z5\nX2\nG1 Z-1\nG0 Z5\n")
     with pytest.raises(InputError, match="no feed move across the tool axis"):
         program_error_map(machine, fitted, p, normal="in-plane")
-    assert program_error_map(machine, fitted, p, normal="auto").normal_kind == "surface"
+    # auto: a program that only plunges along the tool axis drills holes (tests/test_viz_holes.py)
+    assert program_error_map(machine, fitted, p, normal="auto").normal_kind == "holes"

@@ -39,12 +39,15 @@ def add_arguments(parser):
     parser.add_argument("--flank-side", choices=("outer", "inner"), default="outer",
                         help="with --flank-mm or an in-plane map: the tool works outside the "
                              "contour (a boss, default) or inside it (a pocket)")
-    parser.add_argument("--normal", choices=("auto", "surface", "in-plane"), default="auto",
+    parser.add_argument("--normal", choices=("auto", "surface", "in-plane", "holes"),
+                        default="auto",
                         help="the direction the deviation is measured along: surface (the normal "
                              "of the cut surface), in-plane (a planar contour's normal in its "
                              "plane, across the tool axis: the error of the contour's position), "
-                             "auto (default: in-plane when the program cuts in planes across the "
-                             "tool axis, a 2-D contour; else surface)")
+                             "holes (each drilled hole's position error across the tool axis, "
+                             "with arrows; its depth error in the titles), auto (default: holes "
+                             "for a drilling program, in-plane when the program cuts in planes "
+                             "across the tool axis, a 2-D contour; else surface)")
     parser.add_argument("--glyphs", action="store_true",
                         help="draw the deviation vectors as exaggerated arrows")
     parser.add_argument("--glyph-scale", type=float, default=None, metavar="K",
@@ -192,6 +195,11 @@ def _print_summary(args, smap, res) -> None:
             print(f"  {info['clearing_moves']} moves with cut path on both sides (raster or "
                   "offset passes clearing material: no wall) left out")
         along = "the contour's normal in its plane"
+    elif smap.normal_kind == "holes":
+        how = "drilling cycles" if info.get("drilling_cycles") else "plunges along the tool axis"
+        print(f"holes: {st['n_points']} ({how}); the map shows each hole's position error across "
+              "the tool axis, its direction as an arrow")
+        along = None
     else:
         what = f"flank contact lines, {flank:g} mm" if flank > 0 else "tool-tip surface"
         print(f"surface: {st['n_points']} points, {st['n_triangles']} triangles ({what}"
@@ -204,6 +212,13 @@ def _print_summary(args, smap, res) -> None:
         print(line)
     for line in uncorrected_legend(smap):
         print(f"{line}: drawn grey, marked")
+    if along is None:
+        for key, label in (("before", "before"), ("after", "after: ")):
+            if f"rms_{key}_um" in st:
+                print(f"model prediction {label} hole position RMS {st[f'rms_{key}_um']:.3f} um, "
+                      f"max {st[f'max_{key}_um']:.3f} um; depth RMS "
+                      f"{st[f'depth_rms_{key}_um']:.3f} um, max {st[f'depth_max_{key}_um']:.3f} um")
+        return
     print(f"model prediction before: RMS {st['rms_before_um']:.3f} um, max {st['max_before_um']:.3f} "
           f"um (deviation along {along})")
     if "rms_after_um" in st:

@@ -1,7 +1,7 @@
 """The surfaces an error map is drawn on (:func:`mtcomp.viz.surface.program_error_map`): the tool-tip
-surface triangulated as seen along Z, the points of the path when there is no such surface, and the
-flank of a tool in 5-axis side milling. The in-plane contour of a planar program is
-:mod:`mtcomp.viz.inplane`'s."""
+surface triangulated as seen along Z, the points of the path when there is no such surface, the
+flank of a tool in 5-axis side milling, and the holes of a drilling program. The in-plane contour
+of a planar program is :mod:`mtcomp.viz.inplane`'s."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -111,6 +111,36 @@ def path_geometry(orig: ProgramPoints, machine: Machine) -> SurfaceGeometry:
         idx = np.arange(len(orig))
     tips, axes = forward(machine, orig.q[idx])
     return SurfaceGeometry(idx, tips, np.zeros_like(tips), axes, np.zeros((0, 3), np.int64))
+
+
+def hole_rows(orig: ProgramPoints, machine: Machine) -> np.ndarray:
+    """Indices of the segment ends that are the bottoms of drilled holes: the holes of drilling cycles
+    (G73, G81-G89); in a program without cycles whose every feed move runs along the tool axis (holes
+    plunged with G1), the ends of the plunges into the part. Empty when the program is no drilling
+    program (a feed move across the tool axis cuts, so its map is a surface or a contour)."""
+    feed = ~orig.rapid
+    cycle = np.zeros(len(orig), bool) if orig.cycle is None else np.asarray(orig.cycle, bool)
+    if cycle.any():
+        return np.flatnonzero(cycle)
+    idx = np.flatnonzero(feed)
+    if idx.size == 0:
+        return idx
+    tips, axes = forward(machine, orig.q)
+    prev = np.maximum(idx - 1, 0)
+    step = tips[idx] - tips[prev]
+    step[idx == 0] = 0.0
+    along = np.einsum("ij,ij->i", step, axes[idx])
+    across = np.linalg.norm(step - along[:, None] * axes[idx], axis=1)
+    if np.any(across > 1e-3):
+        return np.zeros(0, np.int64)
+    return idx[along < -1e-3]
+
+
+def hole_geometry(orig: ProgramPoints, machine: Machine, rows: np.ndarray) -> SurfaceGeometry:
+    """The holes' bottoms (``rows`` from :func:`hole_rows`), drawn where they are, with the tool
+    axis as their 'normal': a hole map shows each hole's position error across the tool axis."""
+    tips, axes = forward(machine, orig.q[rows])
+    return SurfaceGeometry(rows, tips, np.zeros_like(tips), axes, np.zeros((0, 3), np.int64))
 
 
 def tip_geometry(orig: ProgramPoints, machine: Machine, radius: float, max_edge_factor: float):

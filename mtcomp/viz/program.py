@@ -18,7 +18,8 @@ class ProgramPoints:
 
     q : (n, na) axis positions, mm and rad. line : (n,) 1-based source lines. feed : (n,) mm/min
     (nan for rapids). dirs : (n, na) approach directions. rapid : (n,) bool. known : (n, na) bool, the
-    program has given that axis's position (None: all).
+    program has given that axis's position (None: all). cycle : (n,) bool, the bottom of a hole of a
+    drilling cycle (G73, G81-G89) (None: none).
     """
 
     path: str
@@ -28,6 +29,7 @@ class ProgramPoints:
     dirs: np.ndarray
     rapid: np.ndarray
     known: np.ndarray | None = None
+    cycle: np.ndarray | None = None
 
     def __len__(self):
         return int(self.line.shape[0])
@@ -42,7 +44,7 @@ def read_program_points(path, machine: Machine) -> ProgramPoints:
         from ..errors import InputError
         raise InputError("no motion block in the program: nothing to draw", path)
     return ProgramPoints(os.fspath(path), seg.end.copy(), seg.line.copy(), seg.feed.copy(),
-                         seg.dirs.copy(), seg.rapid.copy(), seg.known.copy())
+                         seg.dirs.copy(), seg.rapid.copy(), seg.known.copy(), seg.cycle.copy())
 
 
 def _motion_runs(original: ProgramPoints, compensated: ProgramPoints) -> tuple[np.ndarray, np.ndarray]:

@@ -25,7 +25,10 @@ CMAP = "coolwarm"
 SCALAR_BAR_TITLE = "deviation along surface normal (um)"
 #: the scale bar's title per SurfaceMap.normal_kind
 SCALAR_BAR_TITLES = {"surface": SCALAR_BAR_TITLE,
-                     "in-plane": "deviation across the contour, in its plane (um)"}
+                     "in-plane": "deviation across the contour, in its plane (um)",
+                     "holes": "hole position error across the tool axis (um)"}
+#: sequential colour map of a hole map (a position error's size is >= 0)
+HOLE_CMAP = "viridis"
 DEFAULT_WINDOW = (1400, 700)
 MAX_GLYPHS = 600
 #: whether prepare_offscreen chose EGL (so a failed render may retry without it)
@@ -36,7 +39,7 @@ _EGL_SET_BY_US = [False]
 class RenderResult:
     """What :func:`render_error_map` wrote. clim : (lo, hi) um, the colour scale of both panels.
     view : '3-D' (pyvista's perspective, or matplotlib's top view of a surface as the fallback) or
-    'top' (an in-plane map: the contour seen along the tool axis)."""
+    'top' (an in-plane or hole map: the contour or the holes seen along the tool axis)."""
 
     png: Path
     vtp: Path | None
@@ -137,7 +140,10 @@ def _glyph_scale(smap: SurfaceMap, glyph_scale: float | None) -> float:
     if glyph_scale is not None:
         return float(glyph_scale)
     ext = np.ptp(smap.points[:, :2], axis=0).max() if smap.points.size else 1.0
+    ext = ext if ext > 0 else 10.0          # one point (one hole): arrows on a 10 mm scale
     devs = [smap.dev_before] + ([smap.dev_after] if smap.dev_after is not None else [])
+    if smap.normal_kind == "holes":         # the arrows show the error across the tool axis
+        devs = [d - np.einsum("ij,ij->i", d, smap.normals)[:, None] * smap.normals for d in devs]
     big = max(float(np.max(np.linalg.norm(d, axis=1))) for d in devs) if smap.points.size else 0.0
     return 0.1 * ext / big if big > 0 else 1.0
 
@@ -170,6 +176,13 @@ def render_error_map(smap: SurfaceMap, out_png, *, glyphs: bool = False,
     if clim is None:
         clim = symmetric_clim(*[p[1] for p in panels])
     clim = (float(clim[0]), float(clim[1]))
+    if smap.normal_kind == "holes":
+        # a position error's size: from 0; its direction always drawn (arrows)
+        clim = (0.0, clim[1])
+        build_holes_figure_and_save(smap, panels, out_png, clim, _glyph_scale(smap, glyph_scale),
+                                    window_size, title)
+        vtp_path = write_vtp(smap, out_png.with_suffix(".vtp")) if vtp else None
+        return RenderResult(out_png, vtp_path, "matplotlib", clim, smap.stats(), "top")
     scale = _glyph_scale(smap, glyph_scale) if glyphs else None
     used = None
     if smap.normal_kind == "in-plane" and smap.segments is not None and backend != "pyvista":
@@ -403,6 +416,15 @@ def _legend_handles(smap, marker):
             for line in lines]
 
 
+def _top_view_panels(n: int, window_size):
+    """(figure, n axes) side by side sharing their X and Y: maps seen along the tool axis."""
+    plt = _matplotlib()
+    dpi = 100
+    fig, axes = plt.subplots(1, n, figsize=(window_size[0] / dpi, window_size[1] / dpi), dpi=dpi,
+                             squeeze=False, constrained_layout=True, sharex=True, sharey=True)
+    return fig, axes[0]
+
+
 def build_contour_figure(smap, panels, clim, scale, window_size, title):
     """The matplotlib Figure of an in-plane map (tests look at it): per panel the contour seen along
     the tool axis, to scale, axes in mm; each segment drawn as a line in two halves, each coloured
@@ -411,12 +433,7 @@ def build_contour_figure(smap, panels, clim, scale, window_size, title):
     marked x, in a legend that says why."""
     from matplotlib.collections import LineCollection
     from matplotlib.colors import Normalize
-    plt = _matplotlib()
-    dpi = 100
-    fig, axes = plt.subplots(1, len(panels), figsize=(window_size[0] / dpi, window_size[1] / dpi),
-                             dpi=dpi, squeeze=False, constrained_layout=True,
-                             sharex=True, sharey=True)
-    axes = axes[0]
+    fig, axes = _top_view_panels(len(panels), window_size)
     seg = smap.segments
     a, b = seg[:, 0], seg[:, 1]
     pa, pb = smap.points[a, :2], smap.points[b, :2]
@@ -463,6 +480,48 @@ def build_contour_figure(smap, panels, clim, scale, window_size, title):
 
 def build_contour_figure_and_save(smap, panels, out_png, clim, scale, window_size, title):
     fig, axes, im = build_contour_figure(smap, panels, clim, scale, window_size, title)
+    _finish_figure(fig, axes, im, smap, out_png, _legend_handles(smap, marker=True))
+
+
+def build_holes_figure(smap, panels, clim, scale, window_size, title):
+    """The matplotlib Figure of a hole map (tests look at it): per panel the holes seen along the
+    tool axis at their programmed positions, axes in mm, each a disc coloured by the size of its
+    position error across the tool axis (um) with an arrow showing that error's direction,
+    exaggerated ``scale`` times (said in the title); the depth error (along the tool axis) in the
+    title. Holes left uncorrected: grey, marked x, in a legend that says why."""
+    fig, axes = _top_view_panels(len(panels), window_size)
+    xy = smap.tips[:, :2]
+    bad = smap.uncorrected
+    im = None
+    for ax, (label, dn, dev) in zip(axes, panels):
+        across = dev - np.einsum("ij,ij->i", dev, smap.normals)[:, None] * smap.normals
+        im = ax.scatter(xy[~bad, 0], xy[~bad, 1], c=dn[~bad], s=60, cmap=HOLE_CMAP, vmin=clim[0],
+                        vmax=clim[1], edgecolors="black", linewidths=0.4, zorder=2)
+        if bad.any():
+            ax.scatter(xy[bad, 0], xy[bad, 1], s=60, c=UNCORRECTED_COLOUR, edgecolors="black",
+                       linewidths=0.4, zorder=2)
+            ax.plot(xy[bad, 0], xy[bad, 1], "x", color="black", ms=5, mew=0.9, zorder=3)
+        step = max(1, xy.shape[0] // MAX_GLYPHS)
+        ax.quiver(xy[::step, 0], xy[::step, 1], across[::step, 0] * scale, across[::step, 1] * scale,
+                  angles="xy", scale_units="xy", scale=1.0, width=0.003, color="#c00000", zorder=4)
+        ax.update_datalim(xy + across[:, :2] * scale)      # the arrows inside the panel
+        ax.set_aspect("equal")
+        ax.autoscale_view()
+        ax.margins(0.08)
+        ax.set_xlabel("X (mm)")
+        ax.set_ylabel("Y (mm)")
+        ax.grid(True, color="#dddddd", lw=0.5)
+        ax.set_axisbelow(True)
+        depth = smap.depth_um(dev)
+        text = (panel_title(label, dn).replace("RMS", "position error RMS")
+                + f"\ndepth error RMS {float(np.sqrt(np.mean(depth ** 2))) if depth.size else 0.0:.2f}"
+                f" um; arrows x{scale:.3g}")
+        ax.set_title(text if not (title and ax is axes[0]) else f"{title}\n{text}")
+    return fig, axes, im
+
+
+def build_holes_figure_and_save(smap, panels, out_png, clim, scale, window_size, title):
+    fig, axes, im = build_holes_figure(smap, panels, clim, scale, window_size, title)
     _finish_figure(fig, axes, im, smap, out_png, _legend_handles(smap, marker=True))
 
 

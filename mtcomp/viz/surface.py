@@ -15,6 +15,9 @@ point, only rapids -- is mapped as the points of its path, the deviation along t
 * flank surface (``flank_length_mm``, 5-axis side milling): per run of cutting points, contact lines
   along the tool axis over the flank length, offset by the cutter radius; normals perpendicular to
   the path and the tool axis.
+* holes (a drilling program: canned cycles, or only plunges along the tool axis): each hole's bottom,
+  where it is; the map shows the size of its deviation across the tool axis (its position error),
+  ``SurfaceMap.depth_um`` the deviation along it.
 
 The deviation at a point is that of the tool point that cuts there -- the tip, the ball centre, or
 the axis point at the contact height on a flank -- actual minus nominal, in the workpiece frame , from the model's tool frame (tip and rotation); ``dn`` is its component along the normal
@@ -36,8 +39,9 @@ import numpy as np
 from ..errors import InputError
 from ..kinematics import forward, tool2wp
 from ..machine import Machine
-from .geometry import (MAX_EDGE_FACTOR, cutting_runs, flank_geometry, path_geometry, select_surface_points,
-                       steep_triangles, tip_geometry, triangulate_xy, vertex_normals)
+from .geometry import (MAX_EDGE_FACTOR, cutting_runs, flank_geometry, hole_geometry, hole_rows,
+                       path_geometry, select_surface_points, steep_triangles, tip_geometry,
+                       triangulate_xy, vertex_normals)
 from .inplane import inplane_geometry, planar_levels
 from .program import ProgramPoints, pair_compensated, read_program_points, report_points
 
@@ -70,8 +74,10 @@ class SurfaceMap:
     offsets : (N, 3) mm, the tool point whose deviation is mapped, relative to the nominal tip
         (workpiece frame): zero for the tip, the ball centre for a ball end, the axis point at the
         contact height on a flank. dev_before/dev_after are the deviations of that point.
-    normal_kind : 'surface' (the normal of the cut surface, or of the flank) or 'in-plane' (the
-        normal of a planar contour in its plane, across the tool axis).
+    normal_kind : 'surface' (the normal of the cut surface, or of the flank), 'in-plane' (the
+        normal of a planar contour in its plane, across the tool axis) or 'holes' (the bottoms of
+        drilled holes; ``normals`` holds the tool axis, and ``dn`` is the size of a hole's position
+        error across it, ``depth`` the error along it).
     status : (N,) int8 or None, why the point's block is left uncorrected (:data:`STATUS_REASONS`:
         0 corrected, 1 an axis position the program has not given, 2 outside the region the model's
         data reached, 3 the model unsure of the correction). status_source : 'report' (the
@@ -105,25 +111,45 @@ class SurfaceMap:
             return np.zeros(self.points.shape[0], bool)
         return self.status > 0
 
+    def _shown_um(self, dev: np.ndarray) -> np.ndarray:
+        """(N,) um, what the map shows of the deviations ``dev`` (N, 3) mm: the component along
+        the normal; for a hole map the size of the component across the tool axis (>= 0)."""
+        along = np.einsum("ij,ij->i", dev, self.normals)
+        if self.normal_kind == "holes":
+            return 1e3 * np.linalg.norm(dev - along[:, None] * self.normals, axis=1)
+        return 1e3 * along
+
     @property
     def dn_before_um(self) -> np.ndarray:
-        """(N,) um, deviation along the normal before compensation."""
-        return 1e3 * np.einsum("ij,ij->i", self.dev_before, self.normals)
+        """(N,) um, deviation along the normal before compensation (a hole map: the size of each
+        hole's position error across the tool axis)."""
+        return self._shown_um(self.dev_before)
 
     @property
     def dn_after_um(self) -> np.ndarray | None:
-        """(N,) um, deviation along the normal of the compensated program, or None."""
+        """(N,) um, as :attr:`dn_before_um` for the compensated program, or None."""
         if self.dev_after is None:
             return None
-        return 1e3 * np.einsum("ij,ij->i", self.dev_after, self.normals)
+        return self._shown_um(self.dev_after)
+
+    def depth_um(self, dev: np.ndarray) -> np.ndarray:
+        """(N,) um, a hole map's depth error: the deviation along the tool axis (positive: the tool
+        stops short, the hole is too shallow)."""
+        return 1e3 * np.einsum("ij,ij->i", dev, self.normals)
 
     def stats(self) -> dict:
         """RMS and largest magnitude of dn (um), before and (if present) after."""
         out = {"n_points": int(self.points.shape[0]), "n_triangles": int(self.triangles.shape[0])}
-        for key, dn in (("before", self.dn_before_um), ("after", self.dn_after_um)):
-            if dn is not None:
-                out[f"rms_{key}_um"] = float(np.sqrt(np.mean(dn ** 2))) if dn.size else 0.0
-                out[f"max_{key}_um"] = float(np.max(np.abs(dn))) if dn.size else 0.0
+        for key, dev in (("before", self.dev_before), ("after", self.dev_after)):
+            if dev is None:
+                continue
+            dn = self._shown_um(dev)
+            out[f"rms_{key}_um"] = float(np.sqrt(np.mean(dn ** 2))) if dn.size else 0.0
+            out[f"max_{key}_um"] = float(np.max(np.abs(dn))) if dn.size else 0.0
+            if self.normal_kind == "holes":
+                depth = self.depth_um(dev)
+                out[f"depth_rms_{key}_um"] = float(np.sqrt(np.mean(depth ** 2))) if depth.size else 0.0
+                out[f"depth_max_{key}_um"] = float(np.max(np.abs(depth))) if depth.size else 0.0
         return out
 
 
@@ -236,8 +262,8 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
         header of a built-in part, else the tip surface. flank_side : 'outer' (the tool works
         outside the contour, e.g. a boss) or 'inner' (a pocket); also the side of an in-plane map.
     normal : 'surface' (the cut surface's normal), 'in-plane' (a planar contour's normal in its
-        plane: :func:`mtcomp.viz.inplane.inplane_geometry`) or 'auto' (in-plane for a program :func:`planar_levels`
-        finds planar, else surface). A flank length > 0 maps the flank whatever this says.
+        plane), 'holes' (a drilled hole's position error across the tool axis) or 'auto' (holes,
+        in-plane or surface, as :func:`_map_geometry` finds). A flank length > 0 maps the flank.
     uncorrected : mark the blocks left uncorrected (``SurfaceMap.status``): from the report's
         columns when a report is given, else by the planner's rules (:func:`planner_status`).
     progress : callable(stage text) told at each stage, or None.
@@ -250,8 +276,8 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
     radius, length = _tool(program, tool_radius_mm, flank_length_mm)
     if flank_side not in ("outer", "inner"):
         raise InputError(f"flank side must be 'outer' or 'inner', not {flank_side!r}")
-    if normal not in ("surface", "in-plane", "auto"):
-        raise InputError(f"normal must be 'surface', 'in-plane' or 'auto', not {normal!r}")
+    if normal not in ("surface", "in-plane", "holes", "auto"):
+        raise InputError(f"normal must be 'surface', 'in-plane', 'holes' or 'auto', not {normal!r}")
     orig = program if isinstance(program, ProgramPoints) else read_program_points(program, machine)
     comp, pair = _compensated_points(orig, compensated, report, machine)
     say = progress or (lambda _stage: None)
@@ -336,11 +362,22 @@ def _compensated_points(orig: ProgramPoints, compensated, report, machine: Machi
 
 def _map_geometry(orig: ProgramPoints, machine: Machine, radius: float, length: float, normal: str,
                   flank_side: str, flank_levels, max_edge_factor: float, say):
-    """(geometry, in-plane segments or None, info dict, normal kind 'surface' or 'in-plane') of the
-    surface :func:`program_error_map` draws: the flank, the in-plane contour, the tool-tip surface,
-    or the points of the path when there is no surface seen along Z."""
+    """(geometry, in-plane segments or None, info dict, normal kind 'surface', 'in-plane' or
+    'holes') of the surface :func:`program_error_map` draws: the holes of a drilling program
+    (:func:`mtcomp.viz.geometry.hole_rows`), the flank, the in-plane contour of a program
+    :func:`planar_levels` finds planar (:func:`mtcomp.viz.inplane.inplane_geometry`), the tool-tip
+    surface, or the points of the path when there is no surface seen along Z."""
     kind = "surface"
     g, segments, info = None, None, {}
+    holes = hole_rows(orig, machine) if length == 0 and normal in ("holes", "auto") else None
+    if normal == "holes" and not holes.size:
+        raise InputError("the program drills no hole (no drilling cycle, and feed moves across the "
+                         "tool axis): --normal holes maps drilling programs", orig.path)
+    if holes is not None and holes.size:
+        say(f"{holes.size} holes")
+        info["holes"] = int(holes.size)
+        info["drilling_cycles"] = bool(orig.cycle is not None and np.any(orig.cycle))
+        return hole_geometry(orig, machine, holes), None, info, "holes"
     if length > 0:
         g = flank_geometry(orig, machine, radius, length, flank_side, flank_levels)
     else:

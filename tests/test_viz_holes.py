@@ -1,0 +1,130 @@
+"""Hole maps: a drilling program is mapped as its holes, where they are, coloured by each hole's
+position error across the tool axis, with the depth error in the titles.
+
+The model has one term: EXX, the positioning error of X, 40 um per metre (``EXX_1 = 40``): the tip
+stands at x + 40e-6 x, so a hole at x = X0 is off by 0.04 X0 um along X, and not at all in depth
+(hand-derived, as in tests/test_viz_inplane.py)."""
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from mtcomp.cli import main
+from mtcomp.viz.surface import program_error_map
+from test_viz_inplane import exx as exx_square  # noqa: F401  (the fixture: the EXX model)
+
+#: holes by a canned cycle: the first line names the cycle, the next ones are more holes
+CYCLE = """G21 G90 G17
+G0 X0 Y0 Z10
+G81 X10. Y5. Z-3. R2. F100
+X50. Y5.
+X100. Y20.
+G80
+G0 Z10
+M30
+"""
+#: the same holes plunged with G1 (no cycle)
+PLUNGED = """G21 G90
+G0 X0 Y0 Z10
+G0 X10 Y5
+G1 Z-3 F100
+G0 Z2
+G0 X50 Y5
+G1 Z-3
+G0 Z2
+G0 X100 Y20
+G1 Z-3
+G0 Z10
+M30
+"""
+#: a milled slot: a feed move across the tool axis, no hole
+SLOT = """G21 G90
+G0 X0 Y0 Z5
+G1 Z-1 F100
+G1 X40
+G0 Z5
+M30
+"""
+_XY = re.compile(r"X([-\d.]+)\s*Y([-\d.]+)")
+
+
+@pytest.fixture()
+def exx(tmp_path, exx_square):
+    for name, text in (("cycle.nc", CYCLE), ("plunged.nc", PLUNGED), ("slot.nc", SLOT)):
+        (tmp_path / name).write_text(text)
+    return exx_square
+
+
+def _holes_of(text: str) -> np.ndarray:
+    """(n, 2) the holes' X Y as the program writes them (the lines that drill: the cycle's, or the
+    rapid before each plunge), read here from the text."""
+    lines = text.splitlines()
+    if "G81" in text:
+        rows = [m for ln in lines if (m := _XY.search(ln)) and not ln.startswith("G0")]
+    else:
+        rows = [_XY.search(lines[i - 1]) for i, ln in enumerate(lines) if ln.startswith("G1 Z")]
+    return np.array([[float(m.group(1)), float(m.group(2))] for m in rows])
+
+
+@pytest.mark.parametrize("name, text", [("cycle.nc", CYCLE), ("plunged.nc", PLUNGED)])
+def test_a_drilling_program_maps_its_holes_with_their_position_error(tmp_path, exx, name, text):
+    machine, fitted = exx
+    smap = program_error_map(machine, fitted, tmp_path / name, normal="auto")
+    assert smap.normal_kind == "holes"
+    holes = _holes_of(text)
+    np.testing.assert_allclose(smap.tips[:, :2], holes, rtol=0, atol=1e-9)
+    # EXX: 0.04 um per mm of X, along X: the position error is 0.04 |x|, the depth error 0
+    np.testing.assert_allclose(smap.dn_before_um, 0.04 * np.abs(holes[:, 0]), rtol=0, atol=1e-6)
+    np.testing.assert_allclose(smap.depth_um(smap.dev_before), 0.0, rtol=0, atol=1e-6)
+    st = smap.stats()
+    np.testing.assert_allclose(st["max_before_um"], 4.0, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(st["rms_before_um"], np.sqrt(np.mean((0.04 * holes[:, 0]) ** 2)),
+                               rtol=1e-9, atol=0)
+
+
+def test_a_milled_program_is_no_hole_map(tmp_path, exx):
+    machine, fitted = exx
+    assert program_error_map(machine, fitted, tmp_path / "slot.nc", normal="auto").normal_kind != "holes"
+
+
+def test_the_hole_figure_draws_each_hole_and_its_arrow(tmp_path, exx):
+    pytest.importorskip("matplotlib")
+    from mtcomp.viz.render import _panels, build_holes_figure
+    machine, fitted = exx
+    smap = program_error_map(machine, fitted, tmp_path / "cycle.nc", normal="auto")
+    fig, axes, im = build_holes_figure(smap, _panels(smap), (0.0, 4.0), 1000.0, (800, 400), None)
+    try:
+        ax = axes[0]
+        np.testing.assert_allclose(im.get_offsets(), _holes_of(CYCLE), rtol=0, atol=1e-9)
+        np.testing.assert_allclose(im.get_array(), [0.4, 2.0, 4.0], rtol=0, atol=1e-6)
+        quiver = [c for c in ax.collections if type(c).__name__ == "Quiver"][0]
+        # the arrows: 1000 times the error across the tool axis, in mm (0.04 x um along X)
+        np.testing.assert_allclose(quiver.U, [0.4e-3 * 1000, 2.0e-3 * 1000, 4.0e-3 * 1000],
+                                   rtol=1e-6, atol=0)
+        np.testing.assert_allclose(quiver.V, 0.0, rtol=0, atol=1e-9)
+        assert "position error RMS" in ax.get_title() and "depth error RMS 0.00 um" in ax.get_title()
+        assert ax.get_xlabel() == "X (mm)" and ax.get_ylabel() == "Y (mm)"
+    finally:
+        import matplotlib.pyplot as plt
+        plt.close(fig)
+
+
+def test_render_of_a_drilling_program_writes_a_hole_map(tmp_path, exx, capsys):
+    pytest.importorskip("matplotlib")
+    out = tmp_path / "map.png"
+    rc = main(["render", "xfyz", str(tmp_path / "model.json"), str(tmp_path / "cycle.nc"),
+               "-o", str(out)])
+    text = capsys.readouterr().out
+    assert rc == 0 and out.is_file() and out.with_suffix(".vtp").is_file()
+    assert "holes: 3 (drilling cycles)" in text
+    assert "hole position RMS" in text and "max 4.000 um" in text
+
+
+def test_holes_asked_of_a_program_without_holes_is_one_line(tmp_path, exx, capsys):
+    rc = main(["render", "xfyz", str(tmp_path / "model.json"), str(tmp_path / "slot.nc"),
+               "-o", str(tmp_path / "map.png"), "--normal", "holes"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "drills no hole" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "map.png").exists()
