@@ -111,3 +111,18 @@ def test_demo_refuses_a_file_as_its_folder(tmp_path):
     assert res.returncode == 2
     assert res.stderr.count("\n") == 1 and "taken" in res.stderr
     assert f.read_text() == "x"
+
+
+def test_the_summary_docs_demo_quotes_is_the_one_printed(demo_run):
+    """docs/demo.md quotes the summary of the default seed: every line and figure of it is printed
+    today (figures to their last quoted digit or 1 %)."""
+    from pathlib import Path
+
+    from test_docs_examples import check_quoted
+    res = demo_run[0]
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "demo.md").read_text()
+    block = re.search(r"```\n(summary\n.*?)```", doc, re.S)
+    assert block, "docs/demo.md has no summary block"
+    printed = res.stdout.splitlines()
+    start = printed.index("summary")
+    assert check_quoted(block.group(1).splitlines(), printed[start:]) == []

@@ -1,5 +1,6 @@
 """Every example runs as a script, writes nothing where it is run, and prints its key figures (which
-are checked against what the virtual machine's truth implies)."""
+are checked against what the virtual machine's truth implies); the figures docs/demo.md's table
+quotes of each are the ones it prints today."""
 from __future__ import annotations
 
 import re
@@ -10,7 +11,21 @@ from pathlib import Path
 import pytest
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+DEMO_DOC = EXAMPLES.parent / "docs" / "demo.md"
 NUM = r"(-?\d+(?:\.\d+)?)"
+
+
+def assert_doc_quotes(script: str, printed: list[float], skip: int = 0) -> None:
+    """The numbers of the 'mtcomp' cell of ``script``'s row in docs/demo.md's table (after the
+    first ``skip``) are ``printed``, each to its last quoted digit."""
+    row = next(r for r in DEMO_DOC.read_text().splitlines() if r.startswith(f"| `{script}`"))
+    cell = row.split(" | ")[2]
+    quoted = re.findall(r"\d+(?:\.\d+)?", cell)[skip:]
+    assert len(quoted) == len(printed), (cell, printed)
+    for q, v in zip(quoted, printed):
+        digits = len(q.split(".")[1]) if "." in q else 0
+        assert abs(float(q) - v) <= 0.5 * 10.0 ** -digits + 1e-9, \
+            f"docs/demo.md quotes {q} for {script}, the script prints {v}"
 
 
 def run_example(name, tmp_path, *args):
@@ -39,6 +54,7 @@ def test_seed000_irc_beats_traditional_abbe_compensation(tmp_path):
     # the truth's IRC moves away from the scale with feed, so the IRC advantage grows with feed
     assert rows["180"][7] < rows["300"][7]
     assert rows["180"][0] < rows["240"][0] < rows["300"][0]
+    assert_doc_quotes("seed000_irc_abbe.py", [rows[f][7] for f in ("180", "240", "300")])
 
 
 def test_seed002_compensation_removes_positioning_error_and_backlash(tmp_path):
@@ -54,6 +70,7 @@ def test_seed002_compensation_removes_positioning_error_and_backlash(tmp_path):
     m = re.search(rf"backlash: truth {NUM} arcsec, measured {NUM} arcsec", out)
     assert m, out
     assert float(m.group(2)) == pytest.approx(float(m.group(1)), abs=0.3)  # 1 urad noise, 60 readings
+    assert_doc_quotes("seed002_rotary_laser.py", [*fig["A"], *fig["B"], float(m.group(1))])
     assert sorted(p.name for p in out_dir.iterdir()) == ["rotary_laser_c_after.csv",
                                                          "rotary_laser_c_before.csv"]
 
@@ -64,6 +81,7 @@ def test_seed003_prediction_error_is_at_the_papers_level(tmp_path):
     mx = re.search(rf"^max \(um\)\s+{NUM}\s+0\.78\s*$", out, re.M)
     assert mean and mx, out
     assert 0 < float(mean.group(1)) < float(mx.group(1)) < 1.5
+    assert_doc_quotes("seed003_three_sphere.py", [float(mean.group(1)), float(mx.group(1))])
     for comp in ("EXC", "EYC", "EZC", "EAC", "EBC"):
         assert re.search(rf"^{comp}\s+{NUM}\s+{NUM}\s+u(m|rad)\s*$", out, re.M), out
 
@@ -83,6 +101,7 @@ def test_seed001_compensation_reduces_the_cmm_total_error(tmp_path):
     assert rows["rms (um)"][1] < 0.8
     m = re.search(rf"total error reduced by {NUM} % \(paper: about 30 % on a real cut\)", out)
     assert m and float(m.group(1)) == pytest.approx(100 * (1 - total_after / total_before), abs=0.6)
+    assert_doc_quotes("seed001_bowl.py", [total_before, total_after, float(m.group(1))])
     for name in ("bowl.nc", "bowl_pinv.nc", "MODEL.json", "cmm_uncompensated.csv",
                  "cmm_compensated.csv"):
         assert (out_dir / name).is_file()
