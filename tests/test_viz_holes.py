@@ -1,5 +1,6 @@
-"""Hole maps: a drilling program is mapped as its holes, where they are, coloured by each hole's
-position error across the tool axis, with the depth error in the titles.
+"""Hole and path maps: a drilling program is mapped as its holes, where they are, coloured by each
+hole's position error across the tool axis, with the depth error in the titles; a path in space that
+is no surface is drawn as its lines, coloured by the deviation across the path.
 
 The model has one term: EXX, the positioning error of X, 40 um per metre (``EXX_1 = 40``): the tip
 stands at x + 40e-6 x, so a hole at x = X0 is off by 0.04 X0 um along X, and not at all in depth
@@ -7,6 +8,7 @@ stands at x + 40e-6 x, so a hole at x = X0 is off by 0.04 X0 um along X, and not
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -128,3 +130,55 @@ def test_holes_asked_of_a_program_without_holes_is_one_line(tmp_path, exx, capsy
     err = capsys.readouterr().err
     assert rc == 2 and "drills no hole" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "map.png").exists()
+
+
+# ------------------------------------------------------------------------------ paths in space
+#: two fences of moves along Y and Z at x = 10 and 30 mm (rapids between them)
+FENCES = """G21 G90
+G0 X10 Y0 Z5
+G1 Z-10 F100
+G1 Y10
+G1 Z0
+G1 Y20
+G0 Z5
+G0 X30 Y0
+G1 Z-10
+G1 Y10
+G0 Z5
+M30
+"""
+TORT = Path(__file__).parent / "data" / "gcode_corpus" / "linuxcnc_tort.ngc"
+
+
+def test_a_path_map_shows_the_deviation_across_the_path(tmp_path, exx):
+    """EXX moves the tip along X only: across moves along Y and Z that is all of it, 0.04 x um."""
+    machine, fitted = exx
+    (tmp_path / "fences.nc").write_text(FENCES)
+    smap = program_error_map(machine, fitted, tmp_path / "fences.nc", normal="path")
+    assert smap.normal_kind == "path"
+    np.testing.assert_allclose(smap.dn_before_um, 0.04 * smap.tips[:, 0], rtol=0, atol=1e-6)
+    assert sorted(set(smap.tips[:, 0].round(6))) == [10.0, 30.0]
+    # the lines are the feed moves: 4 at x = 10, 2 at x = 30 (the rapids between are not drawn)
+    assert smap.segments.shape == (6, 2)
+    ends = smap.tips[smap.segments]
+    assert np.all(ends[:, 0, 0] == ends[:, 1, 0])
+
+
+def test_a_path_along_the_error_shows_none(tmp_path, exx):
+    machine, fitted = exx
+    (tmp_path / "along.nc").write_text("G21 G90\nG0 X0 Y0 Z0\nG1 X50 F100\nG1 X100\nM30\n")
+    smap = program_error_map(machine, fitted, tmp_path / "along.nc", normal="path")
+    np.testing.assert_allclose(smap.dn_before_um, 0.0, rtol=0, atol=1e-9)
+
+
+def test_a_tortuous_path_is_drawn_as_lines_not_slivers(exx):
+    """LinuxCNC's tort.ngc wanders in space: as a tool-tip surface most of it would be walls seen
+    edge-on (slivers); auto draws the path."""
+    machine, fitted = exx
+    smap = program_error_map(machine, fitted, TORT, normal="auto")
+    assert smap.normal_kind == "path" and smap.info.get("path_segments")
+    assert smap.triangles.shape[0] == 0 and smap.segments.shape[0] > 1000
+    pytest.importorskip("pyvista")
+    from mtcomp.viz.render import to_polydata
+    poly = to_polydata(smap)
+    assert poly.n_lines == smap.segments.shape[0] and poly.faces.size == 0

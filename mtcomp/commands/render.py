@@ -39,15 +39,17 @@ def add_arguments(parser):
     parser.add_argument("--flank-side", choices=("outer", "inner"), default="outer",
                         help="with --flank-mm or an in-plane map: the tool works outside the "
                              "contour (a boss, default) or inside it (a pocket)")
-    parser.add_argument("--normal", choices=("auto", "surface", "in-plane", "holes"),
+    parser.add_argument("--normal", choices=("auto", "surface", "in-plane", "holes", "path"),
                         default="auto",
                         help="the direction the deviation is measured along: surface (the normal "
                              "of the cut surface), in-plane (a planar contour's normal in its "
                              "plane, across the tool axis: the error of the contour's position), "
                              "holes (each drilled hole's position error across the tool axis, "
-                             "with arrows; its depth error in the titles), auto (default: holes "
+                             "with arrows; its depth error in the titles), path (a 3-D path drawn "
+                             "as its lines: the deviation across the path), auto (default: holes "
                              "for a drilling program, in-plane when the program cuts in planes "
-                             "across the tool axis, a 2-D contour; else surface)")
+                             "across the tool axis, a 2-D contour; path when the tool-tip surface "
+                             "would be mostly walls seen edge-on; else surface)")
     parser.add_argument("--glyphs", action="store_true",
                         help="draw the deviation vectors as exaggerated arrows")
     parser.add_argument("--glyph-scale", type=float, default=None, metavar="K",
@@ -194,12 +196,18 @@ def _print_summary(args, smap, res) -> None:
         if info.get("clearing_moves"):
             print(f"  {info['clearing_moves']} moves with cut path on both sides (raster or "
                   "offset passes clearing material: no wall) left out")
-        along = "the contour's normal in its plane"
+        along = "along the contour's normal in its plane"
     elif smap.normal_kind == "holes":
         how = "drilling cycles" if info.get("drilling_cycles") else "plunges along the tool axis"
         print(f"holes: {st['n_points']} ({how}); the map shows each hole's position error across "
               "the tool axis, its direction as an arrow")
         along = None
+    elif smap.normal_kind == "path":
+        print(f"path: {len(smap.segments)} feed moves drawn as lines in space"
+              + (" (no surface: most of the tool-tip surface would be walls seen edge-on)"
+                 if info.get("path_segments") else "")
+              + "; the map shows the size of the deviation across the path")
+        along = "across the path: its size"
     else:
         what = f"flank contact lines, {flank:g} mm" if flank > 0 else "tool-tip surface"
         print(f"surface: {st['n_points']} points, {st['n_triangles']} triangles ({what}"
@@ -207,7 +215,7 @@ def _print_summary(args, smap, res) -> None:
         if info.get("steep_triangles"):
             print(f"  {info['steep_triangles']} triangles steeper than 80 deg left out (walls seen "
                   "from above: slivers between their levels; --normal in-plane maps a wall)")
-        along = "the surface normal"
+        along = "along the surface normal"
     for line in map_notes(smap):
         print(line)
     for line in uncorrected_legend(smap):
@@ -220,7 +228,7 @@ def _print_summary(args, smap, res) -> None:
                       f"{st[f'depth_rms_{key}_um']:.3f} um, max {st[f'depth_max_{key}_um']:.3f} um")
         return
     print(f"model prediction before: RMS {st['rms_before_um']:.3f} um, max {st['max_before_um']:.3f} "
-          f"um (deviation along {along})")
+          f"um (deviation {along})")
     if "rms_after_um" in st:
         print(f"model prediction after:  RMS {st['rms_after_um']:.3f} um, max "
               f"{st['max_after_um']:.3f} um")

@@ -1,6 +1,7 @@
 """The surfaces an error map is drawn on (:func:`mtcomp.viz.surface.program_error_map`): the tool-tip
-surface triangulated as seen along Z, the points of the path when there is no such surface, the
-flank of a tool in 5-axis side milling, and the holes of a drilling program. The in-plane contour
+surface triangulated as seen along Z, the path itself when it is no such surface (or its points,
+when it does not cut), the flank of a tool in 5-axis side milling, and the holes of a drilling
+program. The in-plane contour
 of a planar program is :mod:`mtcomp.viz.inplane`'s."""
 from __future__ import annotations
 
@@ -141,6 +142,29 @@ def hole_geometry(orig: ProgramPoints, machine: Machine, rows: np.ndarray) -> Su
     axis as their 'normal': a hole map shows each hole's position error across the tool axis."""
     tips, axes = forward(machine, orig.q[rows])
     return SurfaceGeometry(rows, tips, np.zeros_like(tips), axes, np.zeros((0, 3), np.int64))
+
+
+def path_line_geometry(orig: ProgramPoints, machine: Machine):
+    """(geometry, segments (S, 2)) of a 3-D path that is no surface seen along the tool axis (steep
+    walls, a path wandering in space): the feed moves as lines between their end points, each point
+    with the direction of the move that reaches it (of the move that leaves it, for a move's start)
+    as its 'normal'; a path map shows the size of the deviation across that direction (the error of
+    the path's shape, not of its timing along it)."""
+    tips, _ = forward(machine, orig.q)
+    feed = np.flatnonzero(~orig.rapid)
+    feed = feed[feed > 0]
+    rows = np.unique(np.concatenate([feed - 1, feed]))
+    pos = np.full(len(orig), -1, np.int64)
+    pos[rows] = np.arange(rows.size)
+    segments = np.column_stack([pos[feed - 1], pos[feed]])
+    step = tips[feed] - tips[feed - 1]
+    length = np.linalg.norm(step, axis=1)
+    unit = np.divide(step, length[:, None], out=np.zeros_like(step), where=length[:, None] > 0)
+    tangent = np.zeros((rows.size, 3))
+    tangent[pos[feed - 1]] = unit          # a move's start: the move that leaves it ...
+    tangent[pos[feed]] = unit              # ... unless a move ends there
+    return (SurfaceGeometry(rows, tips[rows], np.zeros((rows.size, 3)), tangent,
+                            np.zeros((0, 3), np.int64)), segments)
 
 
 def tip_geometry(orig: ProgramPoints, machine: Machine, radius: float, max_edge_factor: float):

@@ -26,9 +26,12 @@ SCALAR_BAR_TITLE = "deviation along surface normal (um)"
 #: the scale bar's title per SurfaceMap.normal_kind
 SCALAR_BAR_TITLES = {"surface": SCALAR_BAR_TITLE,
                      "in-plane": "deviation across the contour, in its plane (um)",
-                     "holes": "hole position error across the tool axis (um)"}
-#: sequential colour map of a hole map (a position error's size is >= 0)
+                     "holes": "hole position error across the tool axis (um)",
+                     "path": "deviation across the path (um)"}
+#: sequential colour map of a hole or path map (the size of a deviation is >= 0)
 HOLE_CMAP = "viridis"
+#: map kinds that show the size of a deviation (>= 0), not a signed component
+SIZE_KINDS = ("holes", "path")
 DEFAULT_WINDOW = (1400, 700)
 MAX_GLYPHS = 600
 #: whether prepare_offscreen chose EGL (so a failed render may retry without it)
@@ -98,9 +101,15 @@ def _panels(smap: SurfaceMap, shows: str = "model"):
 def to_polydata(smap: SurfaceMap):
     """The map as a pyvista PolyData with point arrays (um and mm as named)."""
     pv = _pyvista()
+    cells = None
     if smap.triangles.shape[0]:
+        cells = smap.triangles
         faces = np.hstack([np.full((smap.triangles.shape[0], 1), 3), smap.triangles]).ravel()
         poly = pv.PolyData(np.ascontiguousarray(smap.points, dtype=float), faces)
+    elif smap.normal_kind == "path" and smap.segments is not None and smap.segments.shape[0]:
+        cells = smap.segments       # a path in space: its lines
+        lines = np.hstack([np.full((cells.shape[0], 1), 2), cells]).ravel()
+        poly = pv.PolyData(np.ascontiguousarray(smap.points, dtype=float), lines=lines)
     else:       # a path, not a surface: its points
         poly = pv.PolyData(np.ascontiguousarray(smap.points, dtype=float))
     poly.point_data["dn_before_um"] = smap.dn_before_um
@@ -115,8 +124,8 @@ def to_polydata(smap: SurfaceMap):
         status = np.asarray(smap.status, np.int8)
         poly.point_data["uncorrected_reason"] = status
         poly.point_data["uncorrected"] = (status > 0).astype(np.int8)
-        if smap.triangles.shape[0]:
-            poly.cell_data["uncorrected"] = np.any(status[smap.triangles] > 0, axis=1).astype(np.int8)
+        if cells is not None:
+            poly.cell_data["uncorrected"] = np.any(status[cells] > 0, axis=1).astype(np.int8)
     return poly
 
 
@@ -176,9 +185,9 @@ def render_error_map(smap: SurfaceMap, out_png, *, glyphs: bool = False,
     if clim is None:
         clim = symmetric_clim(*[p[1] for p in panels])
     clim = (float(clim[0]), float(clim[1]))
-    if smap.normal_kind == "holes":
-        # a position error's size: from 0; its direction always drawn (arrows)
+    if smap.normal_kind in SIZE_KINDS:         # the size of a deviation: from 0
         clim = (0.0, clim[1])
+    if smap.normal_kind == "holes":             # its direction always drawn (arrows)
         build_holes_figure_and_save(smap, panels, out_png, clim, _glyph_scale(smap, glyph_scale),
                                     window_size, title)
         vtp_path = write_vtp(smap, out_png.with_suffix(".vtp")) if vtp else None
@@ -274,7 +283,7 @@ def build_plotter(smap, panels, clim, scale, window_size, title):
         if mapper is None:      # every block uncorrected: the colour bar still needs the scale
             stub = pv.PolyData(np.ascontiguousarray(smap.points[:1], dtype=float))
             stub.point_data["dn_um"] = np.zeros(1)
-            mapper = plotter.add_mesh(stub, scalars="dn_um", cmap=CMAP, clim=clim, opacity=0.0,
+            mapper = plotter.add_mesh(stub, scalars="dn_um", cmap=_cmap(smap), clim=clim, opacity=0.0,
                                       show_scalar_bar=False).mapper
         text = panel_title(label, dn)
         if k == 0 and title:
@@ -302,28 +311,36 @@ def build_plotter(smap, panels, clim, scale, window_size, title):
     return plotter
 
 
+def _cmap(smap) -> str:
+    """The colour map of the map's kind: sequential for a size (>= 0), diverging for a component."""
+    return HOLE_CMAP if smap.normal_kind in SIZE_KINDS else CMAP
+
+
 def _add_surface(plotter, mesh, smap, clim, rng):
     """Draw one panel's ``mesh``: the corrected part coloured by dn (um), the uncorrected part grey
     with its points marked (at most MAX_GLYPHS / 3, drawn with ``rng``). Returns the colour mapper
     of the coloured part, or None when every block is uncorrected."""
     bad = smap.uncorrected
+    lines = smap.normal_kind == "path" and "uncorrected" in mesh.cell_data and mesh.n_lines > 0
     surface = bool(smap.triangles.shape[0])
-    style = ({} if surface else
+    cells = surface or lines
+    style = ({} if surface else {"line_width": 4, "render_lines_as_tubes": True} if lines else
              {"style": "points", "point_size": 6, "render_points_as_spheres": True})
+    cmap = _cmap(smap)
     mapper = None
     good = mesh
-    if bad.any() and surface:
+    if bad.any() and cells:
         good = mesh.extract_cells(np.flatnonzero(mesh.cell_data["uncorrected"] == 0))
     elif bad.any():
         good = mesh.extract_points(np.flatnonzero(~bad), adjacent_cells=False)
     if good.n_points:
-        actor = plotter.add_mesh(good, scalars="dn_um", cmap=CMAP, clim=clim,
+        actor = plotter.add_mesh(good, scalars="dn_um", cmap=cmap, clim=clim,
                                  show_scalar_bar=False, ambient=0.45, diffuse=0.6,
                                  specular=0.0, smooth_shading=surface, **style)
         mapper = actor.mapper
     if bad.any():
         grey = (mesh.extract_cells(np.flatnonzero(mesh.cell_data["uncorrected"] == 1))
-                if surface else mesh.extract_points(np.flatnonzero(bad), adjacent_cells=False))
+                if cells else mesh.extract_points(np.flatnonzero(bad), adjacent_cells=False))
         if grey.n_points:
             # grey, and hatched by its own edges where the cells are few enough to show them
             plotter.add_mesh(grey, color=UNCORRECTED_COLOUR, ambient=0.6, diffuse=0.4,
@@ -547,7 +564,7 @@ def build_surface_figure(smap, panels, clim, scale, window_size, title):
             span = np.ptp(smap.points, axis=0) if smap.points.size else np.zeros(3)
             u, v = (0, 1) if span[1] > 0 or span[2] == 0 else (0, 2)
             names = "XYZ"[u] + "XYZ"[v]
-            im = ax.scatter(smap.points[~bad, u], smap.points[~bad, v], c=dn[~bad], s=8, cmap=CMAP,
+            im = ax.scatter(smap.points[~bad, u], smap.points[~bad, v], c=dn[~bad], s=8, cmap=_cmap(smap),
                             vmin=clim[0], vmax=clim[1])
             if bad.any():
                 ax.scatter(smap.points[bad, u], smap.points[bad, v], c=UNCORRECTED_COLOUR, s=10,

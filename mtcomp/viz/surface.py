@@ -40,8 +40,8 @@ from ..errors import InputError
 from ..kinematics import forward, tool2wp
 from ..machine import Machine
 from .geometry import (MAX_EDGE_FACTOR, cutting_runs, flank_geometry, hole_geometry, hole_rows,
-                       path_geometry, select_surface_points, steep_triangles, tip_geometry,
-                       triangulate_xy, vertex_normals)
+                       path_geometry, path_line_geometry, select_surface_points, steep_triangles,
+                       tip_geometry, triangulate_xy, vertex_normals)
 from .inplane import inplane_geometry, planar_levels
 from .program import ProgramPoints, pair_compensated, read_program_points, report_points
 
@@ -75,9 +75,11 @@ class SurfaceMap:
         (workpiece frame): zero for the tip, the ball centre for a ball end, the axis point at the
         contact height on a flank. dev_before/dev_after are the deviations of that point.
     normal_kind : 'surface' (the normal of the cut surface, or of the flank), 'in-plane' (the
-        normal of a planar contour in its plane, across the tool axis) or 'holes' (the bottoms of
+        normal of a planar contour in its plane, across the tool axis), 'holes' (the bottoms of
         drilled holes; ``normals`` holds the tool axis, and ``dn`` is the size of a hole's position
-        error across it, ``depth`` the error along it).
+        error across it, ``depth`` the error along it) or 'path' (a 3-D path that is no surface,
+        drawn as its lines ``segments``; ``normals`` holds the path's direction, and ``dn`` is the
+        size of the deviation across it).
     status : (N,) int8 or None, why the point's block is left uncorrected (:data:`STATUS_REASONS`:
         0 corrected, 1 an axis position the program has not given, 2 outside the region the model's
         data reached, 3 the model unsure of the correction). status_source : 'report' (the
@@ -113,9 +115,10 @@ class SurfaceMap:
 
     def _shown_um(self, dev: np.ndarray) -> np.ndarray:
         """(N,) um, what the map shows of the deviations ``dev`` (N, 3) mm: the component along
-        the normal; for a hole map the size of the component across the tool axis (>= 0)."""
+        the normal; for a hole or path map the size of the component across the tool axis or the
+        path (>= 0)."""
         along = np.einsum("ij,ij->i", dev, self.normals)
-        if self.normal_kind == "holes":
+        if self.normal_kind in ("holes", "path"):
             return 1e3 * np.linalg.norm(dev - along[:, None] * self.normals, axis=1)
         return 1e3 * along
 
@@ -261,9 +264,8 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
         along the tool axis from the tip over this length, offset by the tool radius; None: from the
         header of a built-in part, else the tip surface. flank_side : 'outer' (the tool works
         outside the contour, e.g. a boss) or 'inner' (a pocket); also the side of an in-plane map.
-    normal : 'surface' (the cut surface's normal), 'in-plane' (a planar contour's normal in its
-        plane), 'holes' (a drilled hole's position error across the tool axis) or 'auto' (holes,
-        in-plane or surface, as :func:`_map_geometry` finds). A flank length > 0 maps the flank.
+    normal : 'surface', 'in-plane', 'holes', 'path' (:attr:`SurfaceMap.normal_kind`) or 'auto'
+        (as :func:`_map_geometry` finds). A flank length > 0 maps the flank.
     uncorrected : mark the blocks left uncorrected (``SurfaceMap.status``): from the report's
         columns when a report is given, else by the planner's rules (:func:`planner_status`).
     progress : callable(stage text) told at each stage, or None.
@@ -276,8 +278,9 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
     radius, length = _tool(program, tool_radius_mm, flank_length_mm)
     if flank_side not in ("outer", "inner"):
         raise InputError(f"flank side must be 'outer' or 'inner', not {flank_side!r}")
-    if normal not in ("surface", "in-plane", "holes", "auto"):
-        raise InputError(f"normal must be 'surface', 'in-plane', 'holes' or 'auto', not {normal!r}")
+    if normal not in ("surface", "in-plane", "holes", "path", "auto"):
+        raise InputError(f"normal must be 'surface', 'in-plane', 'holes', 'path' or 'auto', not "
+                         f"{normal!r}")
     orig = program if isinstance(program, ProgramPoints) else read_program_points(program, machine)
     comp, pair = _compensated_points(orig, compensated, report, machine)
     say = progress or (lambda _stage: None)
@@ -363,10 +366,12 @@ def _compensated_points(orig: ProgramPoints, compensated, report, machine: Machi
 def _map_geometry(orig: ProgramPoints, machine: Machine, radius: float, length: float, normal: str,
                   flank_side: str, flank_levels, max_edge_factor: float, say):
     """(geometry, in-plane segments or None, info dict, normal kind 'surface', 'in-plane' or
-    'holes') of the surface :func:`program_error_map` draws: the holes of a drilling program
-    (:func:`mtcomp.viz.geometry.hole_rows`), the flank, the in-plane contour of a program
+    'holes' or 'path') of the surface :func:`program_error_map` draws: the holes of a drilling
+    program (:func:`mtcomp.viz.geometry.hole_rows`), the flank, the in-plane contour of a program
     :func:`planar_levels` finds planar (:func:`mtcomp.viz.inplane.inplane_geometry`), the tool-tip
-    surface, or the points of the path when there is no surface seen along Z."""
+    surface, or, when most of that surface would be walls seen edge-on, the path's lines
+    (:func:`mtcomp.viz.geometry.path_line_geometry`); the points of the path when there is no
+    surface seen along Z."""
     kind = "surface"
     g, segments, info = None, None, {}
     holes = hole_rows(orig, machine) if length == 0 and normal in ("holes", "auto") else None
@@ -392,11 +397,19 @@ def _map_geometry(orig: ProgramPoints, machine: Machine, radius: float, length: 
             except InputError:
                 if normal == "in-plane":
                     raise
+    if normal == "path":
+        g, segments = path_line_geometry(orig, machine)
+        return g, segments, info, "path"
     if g is None:
         try:
             g, info["steep_triangles"] = tip_geometry(orig, machine, radius, max_edge_factor)
         except InputError:      # no surface seen along Z (a lathe profile, one point, no cutting)
             g = path_geometry(orig, machine)
+        if normal == "auto" and info.get("steep_triangles", 0) > g.triangles.shape[0]:
+            # most of the "surface" would be walls seen edge-on: the path is no surface
+            info["path_segments"] = True
+            g, segments = path_line_geometry(orig, machine)
+            return g, segments, info, "path"
     return g, segments, info, kind
 
 
