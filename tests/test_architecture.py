@@ -28,8 +28,7 @@ ONE_WAY = {("thermal", "diagnose")}
 #: what the package still does against these rules, each with the reason it is left (a new one fails)
 KNOWN_UPWARD = {("measurement", "toolpaths"): "a cmm file's measurement model reads the G-code that "
                                               "cut the part"}
-KNOWN_CYCLES = [{"mtcomp.measurement.files", "mtcomp.measurement.readings",
-                 "mtcomp.measurement.readings_extra"}]
+KNOWN_CYCLES: list = []
 #: the layers of the G-code reader and writer in mtcomp.toolpaths, lowest first (gcode is the
 #: public face: it re-exports them and chooses the compiled or the Python path)
 GCODE_LAYERS = ["words", "blocks", "modal", "reader", "writer", "_fast", "gcode"]

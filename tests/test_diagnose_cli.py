@@ -11,7 +11,7 @@ import pytest
 from mtcomp.cli import main
 from sim_hidden import hidden_case
 from mtcomp.measurement.readings import measurement_model
-from mtcomp.measurement.readings_extra import drift_context
+from mtcomp.measurement.drift import drift_context
 from mtcomp.measurement.files import read_measurements
 from mtcomp.machine import load_machine
 from mtcomp.models import load_model

@@ -6,7 +6,7 @@ import pytest
 from mtcomp import load_machine
 from mtcomp import sim
 from mtcomp.measurement.readings import model_class_for
-from mtcomp.measurement.readings_extra import drift_context
+from mtcomp.measurement.drift import drift_context
 from mtcomp.measurement.files import read_measurements
 from mtcomp.models import AbbeIRC, Backlash, ChannelDrift, FeedOffset, PeriodicError, ThermalDrift
 

@@ -8,7 +8,7 @@ import pytest
 from mtcomp import load_machine
 from mtcomp.errors import InputError
 from mtcomp.measurement.readings import model_class_for
-from mtcomp.measurement.readings_extra import spindle_heat, thermal_features
+from mtcomp.measurement.drift import spindle_heat, thermal_features
 from mtcomp.measurement.files import Context
 from mtcomp.models import (AbbeIRC, Backlash, ChannelDrift, ErrorModel, FittedModel, ParameterSet,
                            ThermalDrift, deviation)

@@ -12,7 +12,7 @@ import pytest
 from mtcomp.cli import main
 from mtcomp.measurement.files import read_measurements
 from mtcomp.measurement.readings import model_class_for
-from mtcomp.measurement.readings_extra import spindle_heat
+from mtcomp.measurement.drift import spindle_heat
 from mtcomp.models import ChannelDrift, ErrorModel, ThermalDrift
 from mtcomp.models.evaluate import deviation
 from mtcomp.models.model_file import FittedModel

@@ -130,7 +130,7 @@ def note_cmm_gaps(command: str, machine, datasets) -> None:
     """Tell the user (stderr) of a cmm file whose points sit off the program's ball-centre path along
     their normals: a wrong ``--cmm-tool-radius`` (a wall cut with a 3 mm ball read as 4 mm lies 1 mm
     off) or a part not where the program put it. Not an error: the fit would take a radius offset."""
-    from ..measurement.readings_extra import cut_poses, path_offsets
+    from ..measurement.cut import cut_poses, path_offsets
     for d in datasets:
         if d.kind != "cmm" or d.program is None or d.tool_radius_mm is None or not len(d):
             continue

@@ -12,7 +12,7 @@ that need a shape chosen later (a period, a drift feature) are built from two pr
 * ``h[d]`` (n,): derivative with respect to a tool-tip translation along d (X, Y, Z), from a
   ThermalDrift term with a constant feature; ``hc[channel]`` the same for the other channels of
   thermal files (ChannelDrift). Thermal files read drift relative to their first reading
-  (readings_extra.ThermalModel), so their drift columns use features minus the feature at
+  (mtcomp.measurement.readings_extra.ThermalModel), so their drift columns use features minus the feature at
   that reading (``Stack.feature``).
 
 Units: observations ``y`` in error units (um for lengths, urad for angles, um/min for velocities;
@@ -131,11 +131,11 @@ class Stack:
 
     def feature(self, name: str) -> np.ndarray:
         """(n,) drift feature ``name`` of every observation (names and definitions of
-        :func:`mtcomp.measurement.readings_extra.feature_value`); 0 where unknown.
+        :func:`mtcomp.measurement.drift.feature_value`); 0 where unknown.
         Thermal files get the feature minus its value at their first reading (they read drift
         relative to it)."""
         if name not in self._features:
-            from ..measurement.readings_extra import _time_order, feature_value
+            from ..measurement.drift import _time_order, feature_value
             out = np.zeros(len(self))
             for fi, data in enumerate(self.datasets):
                 sel = self.file == fi

@@ -316,7 +316,7 @@ class CmmData(MeasurementSet):
         if self.program is None or self.tool_radius_mm is None:
             raise InputError("a cmm file needs the G-code that cut the part and the radius of its "
                              "ball-end tool: give --cmm-program and --cmm-tool-radius", self.path)
-        from .readings_extra import cut_poses
+        from .cut import cut_poses
         return cut_poses(machine, self, self.program, float(self.tool_radius_mm))[0]
 
 

@@ -28,7 +28,8 @@ equations):
   (workpiece frame) and b the tool-ball centre relative to the nominal tool tip; nuisance: one length
   offset per file (calibration of the bar).
 
-Other kinds (cmm, thermal, velocity) register here from ``readings_extra``.
+Other kinds (cmm, thermal, velocity) register here from :mod:`.readings_extra`, which the package
+imports with this module (so every kind is registered whichever module is imported first).
 """
 from __future__ import annotations
 
@@ -40,6 +41,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import InputError
+from .drift import feature_value
 from .files import MeasurementSet
 from ..models.chain import ErrorModel, context_defaults as base_context_defaults
 from ..models.params import ParamSpec
@@ -56,19 +58,8 @@ def register(cls):
     return cls
 
 
-def _load_extra_models():
-    """Import the optional module of extra kinds (cmm, thermal, velocity) so that it registers."""
-    try:
-        from . import readings_extra  # noqa: F401
-    except ModuleNotFoundError as exc:
-        if exc.name != f"{__package__}.readings_extra":
-            raise
-
-
 def model_class_for(kind: str, path=None) -> type:
     """The registered measurement model class of a kind; InputError when none is registered."""
-    if kind not in MEASUREMENT_MODELS:
-        _load_extra_models()
     if kind not in MEASUREMENT_MODELS:
         raise InputError(f"no measurement model for {kind} files yet (available: "
                          f"{', '.join(sorted(MEASUREMENT_MODELS))})", path)
@@ -209,7 +200,7 @@ def context_matrix(model: ErrorModel, data: MeasurementSet, context_defaults: di
     ``temp_<name>_c``. Blank cells and absent columns take ``context_defaults[name]`` when given, else
     the model's default (feed 0, t 0, dir 0, the machine's tool length). Drift features of a
     ThermalDrift term (``time_h``, ``dtemp_<s>``, ``spindle_heat_<tau>``) are computed from the file's
-    ``t_s``, temperature and spindle columns (:func:`readings_extra.feature_value`).
+    ``t_s``, temperature and spindle columns (:func:`mtcomp.measurement.drift.feature_value`).
     ``extra``: name -> (n_rows,) arrays for channels computed elsewhere; they win over everything.
     """
     machine = machine if machine is not None else model.machine
@@ -235,7 +226,6 @@ def context_matrix(model: ErrorModel, data: MeasurementSet, context_defaults: di
         if col is None:
             # drift features of a ThermalDrift term (time_h, dtemp_<s>, spindle_heat_<tau>) come
             # from the file's own time, temperature and spindle columns
-            from .readings_extra import feature_value
             col = feature_value(name, ctx)
         if col is None:
             out[:, i] = default

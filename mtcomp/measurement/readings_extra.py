@@ -1,4 +1,4 @@
-"""Measurement models of the kinds cmm, thermal and velocity, and drift features.
+"""Measurement models of the kinds cmm, thermal and velocity.
 
 These register into :data:`mtcomp.measurement.readings.MEASUREMENT_MODELS` like the
 points, laser and ballbar models, with the same interface (``predict``, ``jacobian``,
@@ -26,139 +26,27 @@ equations, docs/measurements.md the file formats.
   and O the carriage's reference point shifted by the :class:`~mtcomp.models.AbbeIRC` centre of its
   E_C rotation. No nuisance.
 
-Drift features (:func:`thermal_features`, :func:`feature_value`): ``time_h`` (t / 3600),
-``time_exp_<tau>`` (1 - exp(-t / tau), tau in s: a first-order warm-up),
-``dtemp_<name>`` (K, temperature rise over the first reading of the file), ``spindle_heat_<tau>``
-(spindle speed in 1000 rpm through a first-order lag of time constant tau seconds, from 0 at the
-first reading). Any measurement model fills these context channels from its file.
+The drift features every model fills from its file are :mod:`.drift`'s; the cut poses of a cmm file
+:mod:`.cut`'s.
 """
 from __future__ import annotations
 
-import math
-import re
 import weakref
 
 import casadi as ca
 import numpy as np
 
 from ..errors import InputError
-from .files import Context, MeasurementSet
 from ..kinematics import forward
 from ..models.chain import ErrorModel
 from ..models.params import ParamSpec
 from ..models.terms import ANGLE_LETTERS, TRANSLATION_LETTERS, ChannelDrift
 from .readings import MeasurementModel, context_matrix, frame_setup_specs, register
+from .cut import cut_poses, path_offsets
+from .drift import _time_order, drift_context
 
-#: default time constants (s) of the spindle heat features
-DEFAULT_TIME_CONSTANTS_S = (900.0, 3600.0)
-FEATURE_KINDS = ("time", "temperature", "spindle")
-_HEAT = re.compile(r"^spindle_heat_(\d+(?:\.\d+)?)$")
-_LAG = re.compile(r"^spindle_lag_(\d+(?:\.\d+)?)$")
-_TEMP = re.compile(r"^temp_(.+)$")
-_DTEMP = re.compile(r"^dtemp_(.+)$")
-_TEXP = re.compile(r"^time_exp_(\d+(?:\.\d+)?)$")
 #: tip-direction channels of thermal files
 TIP_CHANNELS = {"x": 0, "y": 1, "z": 2}
-
-
-# --------------------------------------------------------------------------------- drift features
-def _time_order(t: np.ndarray) -> np.ndarray:
-    """Indices of the rows with a finite time, in increasing time (stable)."""
-    idx = np.flatnonzero(np.isfinite(t))
-    return idx[np.argsort(t[idx], kind="stable")]
-
-
-def spindle_heat(t: np.ndarray, rpm: np.ndarray, tau_s: float, steady_start: bool = False) -> np.ndarray:
-    """(n,) spindle speed (1000 rpm) through a first-order lag of time constant ``tau_s`` (s).
-
-    h' = (rpm/1000 - h) / tau, h = 0 at the first reading (``steady_start``: h = the first reading's
-    speed, as if the spindle had run at it for long); the speed is held between readings (exact
-    discretisation: h_k = h_{k-1} + (1 - exp(-dt/tau)) (u_{k-1} - h_{k-1})). Rows are processed in time
-    order; rows without a time get NaN. A blank speed counts as 0.
-    """
-    t = np.asarray(t, dtype=float)
-    u = np.nan_to_num(np.asarray(rpm, dtype=float)) / 1000.0
-    out = np.full(t.shape, np.nan)
-    order = _time_order(t)
-    h = float(u[order[0]]) if steady_start and order.size else 0.0
-    for k, i in enumerate(order):
-        if k > 0:
-            j = order[k - 1]
-            h += (1.0 - math.exp(-(t[i] - t[j]) / tau_s)) * (u[j] - h)
-        out[i] = h
-    return out
-
-
-def feature_value(name: str, context: Context, reference_temperatures: dict | None = None):
-    """(n,) values of drift feature ``name`` for the rows of ``context``, or None if ``name`` is not a
-    drift feature. ``time_h``: h; ``dtemp_<s>``: K above ``reference_temperatures[s]`` or else the
-    first reading in time order; ``temp_<s>``: degC as read; ``spindle_heat_<tau>``: 1000 rpm (see
-    :func:`spindle_heat`), ``spindle_lag_<tau>`` the same started at the first reading's speed."""
-    t = np.asarray(context.t, dtype=float)
-    if name == "time_h":
-        return t / 3600.0
-    m = _TEXP.match(name)
-    if m:                                   # warm-up: 1 - exp(-t / tau), tau in s (diagnose)
-        return 1.0 - np.exp(-t / float(m.group(1)))
-    m = _DTEMP.match(name)
-    if m:
-        sensor = m.group(1)
-        if sensor not in context.temperatures:
-            return np.full(t.shape, np.nan)
-        temp = np.asarray(context.temperatures[sensor], dtype=float)
-        ref = (reference_temperatures or {}).get(sensor)
-        if ref is None:
-            order = _time_order(t)
-            if order.size == 0:
-                order = np.arange(len(temp))
-            finite = order[np.isfinite(temp[order])]
-            ref = temp[finite[0]] if finite.size else np.nan
-        return temp - ref
-    m = _HEAT.match(name) or _LAG.match(name)
-    if m:
-        return spindle_heat(t, context.spindle_rpm, float(m.group(1)), steady_start=m.re is _LAG)
-    m = _TEMP.match(name)
-    if m:
-        temp = context.temperatures.get(m.group(1))
-        return np.full(t.shape, np.nan) if temp is None else np.asarray(temp, dtype=float)
-    return None
-
-
-def feature_names(context: Context, kinds=FEATURE_KINDS,
-                  time_constants_s=DEFAULT_TIME_CONSTANTS_S) -> list[str]:
-    """Names of the drift features a file's context supports, for the given kinds."""
-    names = []
-    has_t = np.isfinite(context.t).any()
-    if "time" in kinds and has_t:
-        names.append("time_h")
-    if "temperature" in kinds:
-        names += [f"dtemp_{s}" for s in context.temperatures]
-    if "spindle" in kinds and has_t and np.isfinite(context.spindle_rpm).any():
-        names += [f"spindle_heat_{tau:g}" for tau in time_constants_s]
-    return names
-
-
-def thermal_features(context: Context, kinds=FEATURE_KINDS, time_constants_s=DEFAULT_TIME_CONSTANTS_S,
-                     reference_temperatures: dict | None = None) -> dict[str, np.ndarray]:
-    """Drift features of any file with ``t_s`` / ``temp_<name>_c`` / ``spindle_rpm``: name -> (n,).
-
-    kinds : subset of ('time', 'temperature', 'spindle'). time_constants_s : lags of the spindle heat
-    states (s). Units: time_h in h, dtemp_<name> in K, spindle_heat_<tau> in 1000 rpm.
-    """
-    return {name: feature_value(name, context, reference_temperatures)
-            for name in feature_names(context, kinds, time_constants_s)}
-
-
-def drift_context(model: ErrorModel, data: MeasurementSet, reference_temperatures: dict | None = None
-                  ) -> dict[str, np.ndarray]:
-    """The drift-feature channels among ``model.context_names`` computed from ``data`` (name -> (n,)),
-    for ``context_matrix(..., extra=...)``. NaN where a file lacks the input (the default applies)."""
-    out = {}
-    for name in model.context_names:
-        v = feature_value(name, data.context, reference_temperatures)
-        if v is not None:
-            out[name] = v
-    return out
 
 
 # --------------------------------------------------------------------------------- chain projections
@@ -518,110 +406,3 @@ def velocity_function(model: ErrorModel, axis: str) -> ca.Function:
         out += [ca.jacobian(dx, s) * V, ca.jacobian(dy, s) * V]
     v = ca.vertcat(*out)
     return ca.Function(f"velocity_{axis}", [inp, p, c], [v, ca.jacobian(v, p)])
-
-
-# --------------------------------------------------------------------------------- cutter locations
-class CutterLocations:
-    """Densely sampled ball-centre path of a program (cutting moves only).
-
-    start, end : (m, na) segment ends (mm, rad); line, feed, dirs : per segment.
-    samples : (k, 3) mm ball centres (workpiece frame); seg : (k,) segment of each sample;
-    u : (k,) position of the sample along its segment (0..1).
-    """
-
-    def __init__(self, machine, start, end, line, feed, dirs, radius, sample_mm):
-        from scipy.spatial import cKDTree
-        self.machine, self.start, self.end = machine, start, end
-        self.line, self.feed, self.dirs, self.radius = line, feed, dirs, radius
-        tip_s, ax_s = forward(machine, start)
-        tip_e, ax_e = forward(machine, end)
-        length = np.linalg.norm(tip_e - tip_s + radius * (ax_e - ax_s), axis=1)
-        count = np.maximum(1, np.ceil(length / sample_mm).astype(int))
-        seg = np.repeat(np.arange(len(start)), count + 1)
-        first = np.repeat(np.cumsum(count + 1) - (count + 1), count + 1)
-        u = (np.arange(seg.size) - first) / np.repeat(count, count + 1)
-        self.seg, self.u = seg, u
-        self.samples = self._centres(seg, u)
-        self.tree = cKDTree(self.samples)
-
-    def _q(self, seg, u):
-        return self.start[seg] + u[:, None] * (self.end[seg] - self.start[seg])
-
-    def _centres(self, seg, u):
-        tip, axis = forward(self.machine, self._q(seg, u))
-        return tip + self.radius * axis
-
-    def nearest(self, target: np.ndarray):
-        """For each (n, 3) target ball centre: (q (n, na) cutter location, segment (n,), distance (n,)
-        mm from the target to that ball centre). The nearest sample is refined on its segment by
-        projecting the target on the sampled centre polyline around it."""
-        dist, idx = self.tree.query(target)
-        seg = self.seg[idx]
-        u = self.u[idx].copy()
-        best = dist.copy()
-        for nb in (-1, 1):
-            j = np.clip(idx + nb, 0, len(self.seg) - 1)
-            same = self.seg[j] == seg
-            a, b = self.samples[idx], self.samples[j]
-            ab = b - a
-            den = np.einsum("ij,ij->i", ab, ab)
-            lam = np.clip(np.einsum("ij,ij->i", target - a, ab) / np.where(den > 0, den, 1.0), 0, 1)
-            pt = a + lam[:, None] * ab
-            dd = np.linalg.norm(target - pt, axis=1)
-            better = same & (den > 0) & (dd < best)
-            u[better] = (self.u[idx] + lam * (self.u[j] - self.u[idx]))[better]
-            best[better] = dd[better]
-        return self._q(seg, u), seg, best
-
-
-def path_offsets(machine, data, q, radius: float) -> np.ndarray:
-    """(n,) mm how far the program's nominal ball centre at the cutter locations ``q`` sits from the
-    cmm points' own ball centre ``x + r n``, along each normal: ``n . (c0 - (x + r n))``. Zero for a
-    program that follows the nominal surface; a compensated program's corrections; a wrong radius or
-    a misplaced part as a whole."""
-    tip0, axis0 = forward(machine, q)
-    return np.einsum("ij,ij->i", tip0 + radius * axis0 - (data.xyz + radius * data.normal), data.normal)
-
-
-#: cmm data set -> (key, cut poses): the last poses found for it (the knots are placed from them
-#: before the fit's measurement model finds them again)
-_CUT_POSES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
-def cut_poses(machine, data, program, radius: float, sample_mm: float = 0.1, max_gap_mm: float = 2.0):
-    """(q (n, na), segment (n,), CutterLocations) of the cmm file ``data``: for each surface point the
-    cutter location of ``program`` whose ball centre is nearest to ``x + r n``. InputError naming the
-    row of a point no cutter location comes within ``max_gap_mm`` of. Remembered for the same data,
-    machine geometry, program and radius (:data:`_CUT_POSES`)."""
-    geometry = tuple((a.name, tuple(getattr(a, "axis_point", None) or ())) for a in machine.axes)
-    key = (machine.topology, geometry, str(program), float(radius), float(sample_mm), float(max_gap_mm))
-    cached = _CUT_POSES.get(data)
-    if cached is not None and cached[0] == key:
-        return cached[1]
-    if not radius > 0:
-        raise InputError(f"tool radius must be positive, got {radius!r}", data.path)
-    loc = cutter_locations(machine, program, radius, sample_mm)
-    q, k, gap = loc.nearest(data.xyz + radius * data.normal)
-    far = np.flatnonzero(gap > max_gap_mm)
-    if far.size:
-        data.fail(f"no cutter location of {program} within {max_gap_mm:g} mm of this point's "
-                  f"ball centre (nearest {gap[far[0]]:.3g} mm): the program did not cut it", far[0])
-    _CUT_POSES[data] = (key, (q, k, loc))
-    return q, k, loc
-
-
-def cutter_locations(machine, program, radius: float, sample_mm: float = 0.1) -> CutterLocations:
-    """Sample the cutting moves (not G0) of ``program`` as ball centres every ``sample_mm`` mm."""
-    from ..toolpaths import iter_segment_chunks
-    chunks = list(iter_segment_chunks(program, machine))
-    if not chunks:
-        raise InputError("the program has no motion", str(program))
-    start = np.concatenate([c.start for c in chunks])
-    end = np.concatenate([c.end for c in chunks])
-    keep = ~np.concatenate([c.rapid for c in chunks])
-    if not keep.any():
-        raise InputError("the program has no cutting moves (only G0)", str(program))
-    cat = lambda f: np.concatenate([getattr(c, f) for c in chunks])[keep]  # noqa: E731
-    return CutterLocations(machine, start[keep], end[keep], cat("line"), cat("feed"), cat("dirs"),
-                           radius, sample_mm)
-

@@ -375,7 +375,7 @@ class ChannelDrift(Term):
 
     For channels that are not tool-tip directions (a thermal file's ``disp_ch1_um`` ...), each channel
     drifts by ``sum_f TD_<channel>_<f> * feature_f`` (um per unit of feature, see
-    :func:`mtcomp.measurement.readings_extra.thermal_features` for the features); with ``absolute``
+    :func:`mtcomp.measurement.drift.thermal_features` for the features); with ``absolute``
     the reading is ``TD_<channel>_zero + sum_f ...`` (see :class:`ThermalDrift`), else its change since
     the file's first reading. The term does not act on the tool tip (channels that read the tip: use
     :class:`ThermalDrift`); only the thermal measurement model reads its parameters.

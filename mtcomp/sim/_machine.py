@@ -119,7 +119,7 @@ class VirtualMachine:
     def measurement_model(self, plan: Plan, data: MeasurementSet):
         """The registered measurement model of the plan's kind, bound to the truth and ``data``."""
         from ..measurement.readings import model_class_for
-        from ..measurement.readings_extra import drift_context
+        from ..measurement.drift import drift_context
         options = dict(plan.options)
         options.setdefault("extra_context", drift_context(self.truth.model, data))
         return model_class_for(plan.kind, data.path)(self.truth.model, data, self.truth.context_defaults,

@@ -384,7 +384,7 @@ def thermal_plan(machine: Machine, duration_h: float = 8.0, interval_s: float = 
         :class:`~mtcomp.models.ChannelDrift` channels). temperatures : sensor -> (ambient degC, K per
         1000 rpm of heat, lag s); default a spindle sensor and a bed sensor. setup_q : (na,) set-up pose.
     """
-    from ..measurement.readings_extra import spindle_heat
+    from ..measurement.drift import spindle_heat
     t = np.arange(0.0, duration_h * 3600.0 + 1e-9, interval_s)
     rpm = np.zeros_like(t)
     for ts, r in spindle_profile:

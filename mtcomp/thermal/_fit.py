@@ -17,7 +17,7 @@ from scipy.optimize import minimize_scalar
 
 from ..diagnose._analysis import N_FOLDS, forward_folds
 from ..errors import InputError
-from ..measurement.readings_extra import feature_value
+from ..measurement.drift import feature_value
 
 #: time constants (s) of the spindle heat lags combined with the temperatures
 DEFAULT_LAGS_S = (900.0, 3600.0)
@@ -122,7 +122,7 @@ class CandidateScore:
 
 
 def feature_matrix(context, names) -> np.ndarray:
-    """(n, len(names)) drift features of a file's context (readings_extra.feature_value)."""
+    """(n, len(names)) drift features of a file's context (mtcomp.measurement.drift.feature_value)."""
     cols = [feature_value(nm, context) for nm in names]
     return np.column_stack(cols) if cols else np.zeros((len(context.t), 0))
 

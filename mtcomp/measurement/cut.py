@@ -1,0 +1,116 @@
+"""Where a program cut a measured part: the cutter locations of a G-code program (ball centres sampled
+along its cutting moves) and, for each point of a CMM file, the pose of the program that cut it
+(:func:`cut_poses`). The CMM measurement model and the knot placement of a fit use them."""
+from __future__ import annotations
+
+import weakref
+
+import numpy as np
+
+from ..errors import InputError
+from ..kinematics import forward
+
+
+class CutterLocations:
+    """Densely sampled ball-centre path of a program (cutting moves only).
+
+    start, end : (m, na) segment ends (mm, rad); line, feed, dirs : per segment.
+    samples : (k, 3) mm ball centres (workpiece frame); seg : (k,) segment of each sample;
+    u : (k,) position of the sample along its segment (0..1).
+    """
+
+    def __init__(self, machine, start, end, line, feed, dirs, radius, sample_mm):
+        from scipy.spatial import cKDTree
+        self.machine, self.start, self.end = machine, start, end
+        self.line, self.feed, self.dirs, self.radius = line, feed, dirs, radius
+        tip_s, ax_s = forward(machine, start)
+        tip_e, ax_e = forward(machine, end)
+        length = np.linalg.norm(tip_e - tip_s + radius * (ax_e - ax_s), axis=1)
+        count = np.maximum(1, np.ceil(length / sample_mm).astype(int))
+        seg = np.repeat(np.arange(len(start)), count + 1)
+        first = np.repeat(np.cumsum(count + 1) - (count + 1), count + 1)
+        u = (np.arange(seg.size) - first) / np.repeat(count, count + 1)
+        self.seg, self.u = seg, u
+        self.samples = self._centres(seg, u)
+        self.tree = cKDTree(self.samples)
+
+    def _q(self, seg, u):
+        return self.start[seg] + u[:, None] * (self.end[seg] - self.start[seg])
+
+    def _centres(self, seg, u):
+        tip, axis = forward(self.machine, self._q(seg, u))
+        return tip + self.radius * axis
+
+    def nearest(self, target: np.ndarray):
+        """For each (n, 3) target ball centre: (q (n, na) cutter location, segment (n,), distance (n,)
+        mm from the target to that ball centre). The nearest sample is refined on its segment by
+        projecting the target on the sampled centre polyline around it."""
+        dist, idx = self.tree.query(target)
+        seg = self.seg[idx]
+        u = self.u[idx].copy()
+        best = dist.copy()
+        for nb in (-1, 1):
+            j = np.clip(idx + nb, 0, len(self.seg) - 1)
+            same = self.seg[j] == seg
+            a, b = self.samples[idx], self.samples[j]
+            ab = b - a
+            den = np.einsum("ij,ij->i", ab, ab)
+            lam = np.clip(np.einsum("ij,ij->i", target - a, ab) / np.where(den > 0, den, 1.0), 0, 1)
+            pt = a + lam[:, None] * ab
+            dd = np.linalg.norm(target - pt, axis=1)
+            better = same & (den > 0) & (dd < best)
+            u[better] = (self.u[idx] + lam * (self.u[j] - self.u[idx]))[better]
+            best[better] = dd[better]
+        return self._q(seg, u), seg, best
+
+
+def path_offsets(machine, data, q, radius: float) -> np.ndarray:
+    """(n,) mm how far the program's nominal ball centre at the cutter locations ``q`` sits from the
+    cmm points' own ball centre ``x + r n``, along each normal: ``n . (c0 - (x + r n))``. Zero for a
+    program that follows the nominal surface; a compensated program's corrections; a wrong radius or
+    a misplaced part as a whole."""
+    tip0, axis0 = forward(machine, q)
+    return np.einsum("ij,ij->i", tip0 + radius * axis0 - (data.xyz + radius * data.normal), data.normal)
+
+
+#: cmm data set -> (key, cut poses): the last poses found for it (the knots are placed from them
+#: before the fit's measurement model finds them again)
+_CUT_POSES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def cut_poses(machine, data, program, radius: float, sample_mm: float = 0.1, max_gap_mm: float = 2.0):
+    """(q (n, na), segment (n,), CutterLocations) of the cmm file ``data``: for each surface point the
+    cutter location of ``program`` whose ball centre is nearest to ``x + r n``. InputError naming the
+    row of a point no cutter location comes within ``max_gap_mm`` of. Remembered for the same data,
+    machine geometry, program and radius (:data:`_CUT_POSES`)."""
+    geometry = tuple((a.name, tuple(getattr(a, "axis_point", None) or ())) for a in machine.axes)
+    key = (machine.topology, geometry, str(program), float(radius), float(sample_mm), float(max_gap_mm))
+    cached = _CUT_POSES.get(data)
+    if cached is not None and cached[0] == key:
+        return cached[1]
+    if not radius > 0:
+        raise InputError(f"tool radius must be positive, got {radius!r}", data.path)
+    loc = cutter_locations(machine, program, radius, sample_mm)
+    q, k, gap = loc.nearest(data.xyz + radius * data.normal)
+    far = np.flatnonzero(gap > max_gap_mm)
+    if far.size:
+        data.fail(f"no cutter location of {program} within {max_gap_mm:g} mm of this point's "
+                  f"ball centre (nearest {gap[far[0]]:.3g} mm): the program did not cut it", far[0])
+    _CUT_POSES[data] = (key, (q, k, loc))
+    return q, k, loc
+
+
+def cutter_locations(machine, program, radius: float, sample_mm: float = 0.1) -> CutterLocations:
+    """Sample the cutting moves (not G0) of ``program`` as ball centres every ``sample_mm`` mm."""
+    from ..toolpaths import iter_segment_chunks
+    chunks = list(iter_segment_chunks(program, machine))
+    if not chunks:
+        raise InputError("the program has no motion", str(program))
+    start = np.concatenate([c.start for c in chunks])
+    end = np.concatenate([c.end for c in chunks])
+    keep = ~np.concatenate([c.rapid for c in chunks])
+    if not keep.any():
+        raise InputError("the program has no cutting moves (only G0)", str(program))
+    cat = lambda f: np.concatenate([getattr(c, f) for c in chunks])[keep]  # noqa: E731
+    return CutterLocations(machine, start[keep], end[keep], cat("line"), cat("feed"), cat("dirs"),
+                           radius, sample_mm)
