@@ -77,14 +77,15 @@ def _machine_file(tmp_path, topology):
     return path
 
 
-def _model_file(tmp_path, machine_path, seed=1):
+def _model_file(tmp_path, machine_path, seed=1, factor=1.0):
+    """A fitted model of random parameters (seeded), `factor` times the usual size of each."""
     from mtcomp.machine import load_machine
     machine = load_machine(machine_path)
     model = ErrorModel(machine)
     fitted = FittedModel.zero(model)
     rng = np.random.default_rng(seed)
     scale = {"um": 3e-3, "urad": 5e-6, "mm": 50.0, "1": 0.05}
-    fitted.params.values[:] = rng.normal(size=model.n_params) * np.array(
+    fitted.params.values[:] = factor * rng.normal(size=model.n_params) * np.array(
         [scale[s.unit] for s in model.param_specs])
     path = tmp_path / "model.json"
     save_model(path, fitted)
