@@ -6,10 +6,10 @@ correction.
 Replay: modal G0/G1/G2/G3 (I J K or R), G90/G91, G20/G21 (everything in mm and degrees), G17/G18/
 G19, drilling cycles G73 and G81-G89 expanded into their moves (to X Y at the current level, to the
 R plane, to the bottom, back to R with G99 or to the higher of R and the initial level with G98;
-incremental R from the current level and Z from R under G91, L repeats), G28/G30 and G53 moves leave
-the axes they move (G28/G30 without axis words: every axis) at an unknown position, so do a tool
-change or tool length change (Z) and a change of work coordinate system (every axis); G92 sets the
-named axes. Comments `( )` and `;`, `%`, `:` program numbers, `$` lines and a DOS end-of-file mark
+incremental R from the current level and Z from R under G91, L repeats), G28/G30 and G53 moves
+leave the axes they move (G28/G30 without axis words: every axis) at an unknown position, so do a
+tool change or tool length change (Z) and a change of work coordinate system (every axis); G92 sets
+the named axes; G4 dwells and moves too when the block has axis words. Comments `( )` and `;`, `%`, `:` program numbers, `$` lines and a DOS end-of-file mark
 make no move.
 
 A position is a dict axis -> value (mm or deg) or None where the controller's position in the
@@ -277,7 +277,8 @@ def _near_end(piece: Move, move: Move, tol: Tolerance):
 def _point_to_segment(p, a, b):
     d = [bi - ai for ai, bi in zip(a, b)]
     dd = sum(v * v for v in d)
-    t = 0.0 if dd == 0 else max(0.0, min(1.0, sum((pi - ai) * v for pi, ai, v in zip(p, a, d)) / dd))
+    along = sum((pi - ai) * v for pi, ai, v in zip(p, a, d))
+    t = 0.0 if dd == 0 else max(0.0, min(1.0, along / dd))
     return math.dist(p, [ai + t * v for ai, v in zip(a, d)])
 
 

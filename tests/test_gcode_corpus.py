@@ -1,7 +1,7 @@
 """Real programs from public repositories (tests/data/gcode_corpus, SOURCES.md there), compensated
 end to end: no output line writes an axis the program had not positioned, every non-motion line is
-kept byte for byte and in order, at least MIN_ACCEPTED are accepted, every refusal is one line naming the
-feature and the line, and every accepted program renders with its compensated version.
+kept byte for byte and in order, at least MIN_ACCEPTED are accepted, every refusal is one line
+naming the feature and the line, and every accepted program renders with its compensated version.
 
 The oracle of "positioned" is written here from the RS-274 rules, independently of the reader: an
 axis is positioned once a motion block names it, and no longer after a home move (G28/G30) or a move

@@ -74,8 +74,8 @@ def _median_ratio(tmp_path_factory):
     return statistics.median(ratios)
 
 
-@pytest.mark.xfail(strict=False, reason="median output 2.3x the input today with this model (the writer is being "
-                                        "rewritten to change only corrected words)")
+@pytest.mark.xfail(strict=False, reason="median output 2.3x the input today with this model "
+                   "(the writer is being rewritten to change only corrected words)")
 def test_median_output_within_1_2_times_the_input(tmp_path_factory, capsys):
     median = _median_ratio(tmp_path_factory)
     with capsys.disabled():
