@@ -1,0 +1,402 @@
+"""A controller-style replay of an NC program, written for the tests from the RS-274 rules and
+independently of mtcomp's reader: a program becomes the moves a controller makes and the lines
+that make none. Then `compare` checks that a compensated program moves like its source up to the
+correction.
+
+Replay: modal G0/G1/G2/G3 (I J K or R), G90/G91, G20/G21 (everything in mm and degrees), G17/G18/
+G19, drilling cycles G73 and G81-G89 expanded into their moves (to X Y at the current level, to the
+R plane, to the bottom, back to R with G99 or to the higher of R and the initial level with G98;
+incremental R from the current level and Z from R under G91, L repeats), G28/G30 and G53 moves
+leave the axes they move (G28/G30 without axis words: every axis) at an unknown position, so do a
+tool change or tool length change (Z) and a change of work coordinate system (every axis); G92 sets
+the named axes; G4 dwells and moves too when the block has axis words. Comments `( )` and `;`, `%`, `:` program numbers, `$` lines and a DOS end-of-file mark
+make no move.
+
+A position is a dict axis -> value (mm or deg) or None where the controller's position in the
+program's frame is unknown."""
+import math
+import re
+from dataclasses import dataclass, field
+
+AXES = "XYZABC"
+LINEAR = "XYZ"
+_COMMENT = re.compile(r"\([^)]*\)|;.*")
+_WORD = re.compile(r"([A-Z])\s*([-+]?\s*(?:\d+\.?\d*|\.\d+))")
+_CYCLES = {73, 81, 82, 83, 84, 85, 86, 87, 88, 89}
+#: plane -> (first, second, normal axis) of a right-handed frame, and the centre offset letters
+_PLANES = {17: ("X", "Y", "Z", "I", "J"), 18: ("Z", "X", "Y", "K", "I"),
+           19: ("Y", "Z", "X", "J", "K")}
+
+
+@dataclass
+class Move:
+    """One move of the controller: `line` (0-based source line), `kind` ('rapid', 'feed', 'arc',
+    'home'), `start` and `end` positions (mm, deg; None = unknown), and for an arc its plane,
+    centre (first, second; mm) and signed sweep (rad, counter-clockwise positive)."""
+    line: int
+    kind: str
+    start: dict
+    end: dict
+    plane: int = 17
+    centre: tuple = None
+    sweep: float = 0.0
+
+
+@dataclass
+class Replay:
+    """The moves of a program and its lines without motion (index, bytes as written)."""
+    moves: list = field(default_factory=list)
+    still: list = field(default_factory=list)
+
+
+@dataclass
+class _State:
+    pos: dict = field(default_factory=lambda: {a: None for a in AXES})
+    scale: float = 1.0          # mm per program unit (linear axes)
+    absolute: bool = True
+    plane: int = 17
+    motion: int = None          # 0, 1, 2, 3 or a cycle number
+    before_cycle: int = None    # the group-01 motion in force when a cycle started
+    retract: int = 98
+    init_z: float = None
+    cycle_r: float = None
+    cycle_z: float = None
+    wcs: str = "G54"
+
+
+def _words(code):
+    return [(m.group(1), float(m.group(2).replace(" ", ""))) for m in _WORD.finditer(code)]
+
+
+def _code(raw: bytes) -> str:
+    text = raw.decode("latin-1").replace("\r", "").replace("\x1a", "")
+    return _COMMENT.sub("", text).upper().strip()
+
+
+def replay(data: bytes, units_mm: bool = True) -> Replay:
+    """The moves and motionless lines of a program (its bytes); `units_mm`: what a program
+    without G20/G21 is in."""
+    st = _State(scale=1.0 if units_mm else 25.4)
+    out = Replay()
+    for index, raw in enumerate(data.split(b"\n")):
+        code = _code(raw)
+        moves = [] if (not code or code[0] in "%:$") else _block(st, index, _words(code))
+        if moves:
+            out.moves.extend(moves)
+        else:
+            out.still.append((index, raw))
+    return out
+
+
+def _value(st, letter, v):
+    return v * st.scale if letter in LINEAR else v
+
+
+def _target(st, words):
+    """The end position of the axis words (absolute or incremental), None where unknown."""
+    end = dict(st.pos)
+    for letter, v in words:
+        if letter in AXES:
+            v = _value(st, letter, v)
+            if st.absolute:
+                end[letter] = v
+            else:
+                end[letter] = None if st.pos[letter] is None else st.pos[letter] + v
+    return end
+
+
+def _modal(st, gs, words):
+    """Apply the modal words of a block; True when the block changes the tool length (Z)."""
+    for g in gs:
+        if g in (20, 21):
+            st.scale = 25.4 if g == 20 else 1.0
+        elif g in (90, 91):
+            st.absolute = g == 90
+        elif g in (17, 18, 19):
+            st.plane = int(g)
+        elif g in (98, 99):
+            st.retract = int(g)
+        elif g in (54, 55, 56, 57, 58, 59) and f"G{g:g}" != st.wcs:
+            st.wcs = f"G{g:g}"
+            st.pos = {a: None for a in AXES}
+    tool = any(c == "M" and v == 6 for c, v in words) or any(g in (43, 49) for g in gs)
+    if tool:
+        st.pos["Z"] = None
+    return tool
+
+
+def _block(st, index, words):
+    """The moves of one block, the machine state updated."""
+    gs = [v for c, v in words if c == "G"]
+    _modal(st, gs, words)
+    axes = [c for c, _ in words if c in AXES]
+    _motion_mode(st, gs)
+    if any(g in (28, 30) for g in gs):
+        end = dict(st.pos)
+        for a in (axes or AXES):
+            end[a] = None
+        return _go(st, Move(index, "home", dict(st.pos), end))
+    if 53 in gs:
+        end = dict(st.pos)
+        for a in axes:
+            end[a] = None
+        return _go(st, Move(index, "home", dict(st.pos), end)) if axes else []
+    if 92 in gs:
+        for letter, v in words:
+            if letter in AXES:
+                st.pos[letter] = _value(st, letter, v)
+        return []
+    if 10 in gs:            # G10 L..: the axis words are data, not a move (G4 is a dwell only)
+        return []
+    if st.motion in _CYCLES:
+        return _cycle(st, index, words) if (axes or "L" in dict(words)) else []
+    arc_words = any(c in "IJKR" for c, _ in words)
+    if st.motion in (2, 3) and (axes or arc_words):
+        return _go(st, _arc(st, index, words))
+    if axes and st.motion in (0, 1):
+        kind = "rapid" if st.motion == 0 else "feed"
+        return _go(st, Move(index, kind, dict(st.pos), _target(st, words)))
+    return []
+
+
+def _motion_mode(st, gs):
+    for g in gs:
+        if g in (0, 1, 2, 3):
+            st.motion = int(g)
+        elif g in _CYCLES:
+            if st.motion not in _CYCLES:
+                st.before_cycle, st.init_z = st.motion, st.pos["Z"]
+            st.motion = int(g)
+        elif g == 80:
+            # Fanuc and Haas keep the motion in force before the cycle; LinuxCNC refuses axis words
+            st.motion = st.before_cycle if st.motion in _CYCLES else st.motion
+
+
+def _go(st, move):
+    st.pos = dict(move.end)
+    return [move]
+
+
+def _arc(st, index, words):
+    first, second, _normal, off1, off2 = _PLANES[st.plane]
+    end = _target(st, words)
+    value = dict(words)
+    start = st.pos
+    known = all(p[a] is not None for p in (start, end) for a in (first, second))
+    move = Move(index, "arc", dict(start), end, plane=st.plane)
+    if not known:
+        return move
+    x0, y0, x1, y1 = start[first], start[second], end[first], end[second]
+    ccw = st.motion == 3
+    if "R" in value:
+        r = value["R"] * st.scale
+        d = math.hypot(x1 - x0, y1 - y0)
+        h = math.sqrt(max(r * r - d * d / 4.0, 0.0))
+        # the centre on the left of the chord for a short CCW arc (R > 0), on the right for CW
+        side = (1.0 if ccw else -1.0) * (1.0 if r > 0 else -1.0)
+        mx, my = (x0 + x1) / 2.0, (y0 + y1) / 2.0
+        cx, cy = mx - side * h * (y1 - y0) / d, my + side * h * (x1 - x0) / d
+    else:
+        cx = x0 + value.get(off1, 0.0) * st.scale
+        cy = y0 + value.get(off2, 0.0) * st.scale
+    a0 = math.atan2(y0 - cy, x0 - cx)
+    a1 = math.atan2(y1 - cy, x1 - cx)
+    sweep = (a1 - a0) % (2 * math.pi) if ccw else -((a0 - a1) % (2 * math.pi))
+    if abs(sweep) < 1e-12:
+        sweep = 2 * math.pi if ccw else -2 * math.pi     # a full circle
+    move.centre, move.sweep = (cx, cy), sweep
+    return move
+
+
+def _cycle(st, index, words):
+    """The moves of one drilling cycle block: per hole to X Y, to R, to the bottom, and back."""
+    value = dict(words)
+    z_now = st.pos["Z"]
+    if st.absolute:
+        if "R" in value:
+            st.cycle_r = value["R"] * st.scale
+        if "Z" in value:
+            st.cycle_z = value["Z"] * st.scale
+    else:
+        if "R" in value:
+            st.cycle_r = None if z_now is None else z_now + value["R"] * st.scale
+        if "Z" in value and st.cycle_r is not None:
+            st.cycle_z = st.cycle_r + value["Z"] * st.scale
+    r, bottom = st.cycle_r, st.cycle_z
+    moves = []
+    xy = [(c, v) for c, v in words if c in AXES and c != "Z"]
+    for _ in range(max(int(value.get("L", 1)), 1)):
+        moves += _hole(st, index, xy, r, bottom)
+    return moves
+
+
+def _hole(st, index, xy, r, bottom):
+    moves = []
+    if st.pos["Z"] is not None and r is not None and st.pos["Z"] < r:
+        moves += _go(st, Move(index, "rapid", dict(st.pos), {**st.pos, "Z": r}))
+    if xy:
+        moves += _go(st, Move(index, "rapid", dict(st.pos), _target(st, xy)))
+    moves += _go(st, Move(index, "rapid", dict(st.pos), {**st.pos, "Z": r}))
+    moves += _go(st, Move(index, "feed", dict(st.pos), {**st.pos, "Z": bottom}))
+    if st.retract == 99 or r is None:
+        up = r
+    else:
+        up = None if st.init_z is None else max(st.init_z, r)
+    moves += _go(st, Move(index, "rapid", dict(st.pos), {**st.pos, "Z": up}))
+    return moves
+
+
+# ---------------------------------------------------------------------------------------------
+# comparison of a program and its compensated version
+
+@dataclass
+class Tolerance:
+    """What the output may differ by: `axis_mm` per linear axis and `axis_deg` per rotary axis at
+    a corresponding end point (the correction bound plus rounding), `path_mm` for a piece of a
+    split block off the source block's path (chord tolerance plus the correction)."""
+    axis_mm: float
+    axis_deg: float
+    path_mm: float
+
+
+def _known_same(a: dict, b: dict):
+    return all((a[x] is None) == (b[x] is None) for x in AXES)
+
+
+def _near_end(piece: Move, move: Move, tol: Tolerance):
+    if not _known_same(piece.end, move.end):
+        return False
+    for x in AXES:
+        if move.end[x] is not None:
+            limit = tol.axis_mm if x in LINEAR else tol.axis_deg
+            if abs(piece.end[x] - move.end[x]) > limit:
+                return False
+    return True
+
+
+def _point_to_segment(p, a, b):
+    d = [bi - ai for ai, bi in zip(a, b)]
+    dd = sum(v * v for v in d)
+    along = sum((pi - ai) * v for pi, ai, v in zip(p, a, d))
+    t = 0.0 if dd == 0 else max(0.0, min(1.0, along / dd))
+    return math.dist(p, [ai + t * v for ai, v in zip(a, d)])
+
+
+def _point_to_arc(p: dict, move: Move):
+    """Distance (mm) of a point to an arc's helix, over the linear axes."""
+    first, second, normal = _PLANES[move.plane][:3]
+    cx, cy = move.centre
+    r = math.hypot(move.start[first] - cx, move.start[second] - cy)
+    r_end = math.hypot(move.end[first] - cx, move.end[second] - cy)
+    angle = math.atan2(p[second] - cy, p[first] - cx)
+    a0 = math.atan2(move.start[second] - cy, move.start[first] - cx)
+    turn = (angle - a0) % (2 * math.pi) if move.sweep > 0 else -((a0 - angle) % (2 * math.pi))
+    frac = turn / move.sweep if move.sweep else 0.0
+    if not 0.0 <= frac <= 1.0:
+        return min(_dist(p, m) for m in (move.start, move.end))
+    radial = math.hypot(p[first] - cx, p[second] - cy) - (r + frac * (r_end - r))
+    w0, w1 = move.start[normal], move.end[normal]
+    axial = 0.0 if None in (w0, w1, p[normal]) else p[normal] - (w0 + frac * (w1 - w0))
+    return math.hypot(radial, axial)
+
+
+def _dist(p: dict, q: dict):
+    """Distance (mm) over the linear axes known in both."""
+    return math.dist(*zip(*[(p[x], q[x]) for x in LINEAR if None not in (p[x], q[x])] or [(0, 0)]))
+
+
+def _off_path(point: dict, move: Move):
+    """Distance (mm) of a point to a source move's path, over the linear axes known on both."""
+    axes = [x for x in LINEAR if None not in (move.start[x], move.end[x], point[x])]
+    first, second = _PLANES[move.plane][:2]
+    if move.kind == "arc" and move.centre is not None and None not in (point[first],
+                                                                       point[second]):
+        return _point_to_arc(point, move)
+    return _point_to_segment([point[x] for x in axes], [move.start[x] for x in axes],
+                             [move.end[x] for x in axes])
+
+
+def _midpoint(piece: Move):
+    if piece.kind == "arc" and piece.centre is not None:
+        first, second, normal = _PLANES[piece.plane][:3]
+        cx, cy = piece.centre
+        a0 = math.atan2(piece.start[second] - cy, piece.start[first] - cx) + piece.sweep / 2
+        r0 = math.hypot(piece.start[first] - cx, piece.start[second] - cy)
+        r1 = math.hypot(piece.end[first] - cx, piece.end[second] - cy)
+        mid = {x: None if piece.start[x] is None or piece.end[x] is None
+               else (piece.start[x] + piece.end[x]) / 2 for x in AXES}
+        mid[first] = cx + (r0 + r1) / 2 * math.cos(a0)
+        mid[second] = cy + (r0 + r1) / 2 * math.sin(a0)
+        return mid
+    return {x: None if piece.start[x] is None or piece.end[x] is None
+            else (piece.start[x] + piece.end[x]) / 2 for x in AXES}
+
+
+def _on_path(piece: Move, move: Move, tol: Tolerance):
+    """A piece of the output lies along a source move: its end and its middle."""
+    if not _known_same(piece.end, move.end) and not _known_same(piece.end, move.start):
+        return False
+    return all(_off_path(p, move) <= tol.path_mm for p in (piece.end, _midpoint(piece)))
+
+
+def _align(src: list, dst: list, tol: Tolerance, where: str):
+    """Each source move matched by one or more consecutive output moves, the last ending at the
+    source move's end up to the correction, the others along its path (a split block)."""
+    reach = {0}
+    for move in src:
+        nxt = set()
+        for j in sorted(reach):
+            for k in range(j, len(dst)):
+                if _near_end(dst[k], move, tol) and _off_path(_midpoint(dst[k]), move) \
+                        <= tol.path_mm:
+                    nxt.add(k + 1)
+                if not _on_path(dst[k], move, tol):
+                    break
+        if not nxt:
+            j = min(reach)
+            got = f"output line {dst[j].line + 1}" if j < len(dst) else "no output move"
+            raise AssertionError(f"{where}: source line {move.line + 1} ({move.kind} to "
+                                 f"{_show(move.end)}) has no matching output motion; {got}: "
+                                 f"{_show(dst[j].end) if j < len(dst) else ''}")
+        reach = nxt
+    if len(dst) not in reach:
+        extra = dst[max(reach)] if max(reach) < len(dst) else dst[-1]
+        raise AssertionError(f"{where}: output line {extra.line + 1} moves where the source "
+                             f"does not ({_show(extra.end)})")
+
+
+def _show(pos):
+    return " ".join(f"{a}{'?' if v is None else f'{v:.4f}'}" for a, v in pos.items()
+                    if v is not None or a in LINEAR)
+
+
+def compare(src: bytes, out: bytes, tol: Tolerance, units_mm: bool = True, name: str = ""):
+    """Raise AssertionError unless `out` moves like `src` up to the correction and keeps every
+    line without motion byte for byte and in order. Returns (source moves, output moves)."""
+    a, b = replay(src, units_mm), replay(out, units_mm)
+    a_still = [raw for _, raw in a.still]
+    b_still = [raw for _, raw in b.still]
+    for i, (x, y) in enumerate(zip(a_still, b_still)):
+        if x != y:
+            raise AssertionError(f"{name}: line without motion {a.still[i][0] + 1} is "
+                                 f"{x[:60]!r} in the source, output line {b.still[i][0] + 1} "
+                                 f"is {y[:60]!r}")
+    if len(a_still) != len(b_still):
+        raise AssertionError(f"{name}: {len(a_still)} lines without motion in the source, "
+                             f"{len(b_still)} in the output")
+    # motion between the same two motionless lines corresponds
+    for run, (src_run, dst_run) in enumerate(zip(_runs(a), _runs(b))):
+        _align(src_run, dst_run, tol, name)
+    return a.moves, b.moves
+
+
+def _runs(rep: Replay):
+    """The moves grouped by the motionless lines between them."""
+    runs = [[] for _ in range(len(rep.still) + 1)]
+    stills = [i for i, _ in rep.still]
+    k = 0
+    for move in rep.moves:
+        while k < len(stills) and stills[k] < move.line:
+            k += 1
+        runs[k].append(move)
+    return runs

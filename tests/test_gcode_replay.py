@@ -1,0 +1,147 @@
+"""Every accepted program of the corpus (tests/data/gcode_corpus) and its compensated version
+replayed as a controller would (tests/replay.py, written from the RS-274 rules without mtcomp's
+reader): the same motion up to the correction, block by block (a block may be split into pieces
+along its path), no motion the source lacks, every line without motion kept byte for byte, and the
+size of the output against the input's."""
+import math
+import statistics
+
+import numpy as np
+import pytest
+
+from mtcomp.cli import main
+from replay import Tolerance, compare, replay
+from test_gcode_corpus import PROGRAMS, REFUSED, _machine_file, _model_file, _topology
+
+#: the correction bounds passed to compensate; the model's errors are larger, so they bind
+BOUND_UM, BOUND_URAD = 20.0, 500.0
+#: a corrected word rounded to the writer's decimals (at worst 4 in inch: 1.27 um)
+ROUNDING_MM = 1.3e-3
+CHORD_UM = 1.0
+TOL = Tolerance(axis_mm=BOUND_UM * 1e-3 + ROUNDING_MM,
+                axis_deg=math.degrees(BOUND_URAD * 1e-6) + 1e-4,
+                path_mm=math.sqrt(3) * (BOUND_UM * 1e-3 + ROUNDING_MM) + CHORD_UM * 1e-3 + 1e-3)
+ACCEPTED = [p for p in PROGRAMS if p.name not in REFUSED]
+#: accepted programs whose output today does not move like the source, and why
+KNOWN_WRONG = {
+    "linuxcnc_skeleton.ngc": "the reader takes 'G04 P.001 G0 X1.0 Y1.0' for a dwell only and "
+                             "writes 'G0 X-0.00009 Y0.00008 Z0.24999' for 'G0 Z0.25' two lines "
+                             "on: the controller, at X1 Y1, would move 1 inch",
+}
+_OUTPUTS: dict = {}
+
+
+def _compensated(prog, tmp_path_factory) -> bytes:
+    """A corpus program compensated by a model whose corrections reach the bound."""
+    if prog.name not in _OUTPUTS:
+        tmp = tmp_path_factory.mktemp("replay")
+        machine = _machine_file(tmp, _topology(prog.read_text(encoding="latin-1")))
+        model = _model_file(tmp, machine, factor=30.0)
+        out = tmp / "out.nc"
+        code = main(["compensate", str(machine), str(model), str(prog), "-o", str(out),
+                     "--quiet", "--units", "mm", "--max-correction-um", str(BOUND_UM),
+                     "--max-correction-urad", str(BOUND_URAD), "--chord-tol-um", str(CHORD_UM)])
+        assert code == 0, prog.name
+        _OUTPUTS[prog.name] = out.read_bytes()
+    return _OUTPUTS[prog.name]
+
+
+@pytest.mark.parametrize("prog", [
+    pytest.param(p, marks=pytest.mark.xfail(strict=False, reason=KNOWN_WRONG[p.name]))
+    if p.name in KNOWN_WRONG else p for p in ACCEPTED], ids=[p.name for p in ACCEPTED])
+def test_output_moves_like_the_source_up_to_the_correction(prog, tmp_path_factory, capsys):
+    out = _compensated(prog, tmp_path_factory)
+    capsys.readouterr()
+    src_moves, out_moves = compare(prog.read_bytes(), out, TOL, name=prog.name)
+    assert src_moves, f"{prog.name}: the replay found no motion"
+
+
+def test_the_correction_is_not_zero(tmp_path_factory, capsys):
+    # the model is strong enough that most programs get corrected end points somewhere
+    moved = 0
+    for prog in ACCEPTED:
+        a = replay(prog.read_bytes()).moves
+        b = replay(_compensated(prog, tmp_path_factory)).moves
+        ends_a = {tuple(m.end.items()) for m in a}
+        moved += any(tuple(m.end.items()) not in ends_a for m in b)
+    capsys.readouterr()
+    assert moved >= len(ACCEPTED) // 2, moved
+
+
+def _median_ratio(tmp_path_factory):
+    ratios = [len(_compensated(p, tmp_path_factory)) / p.stat().st_size for p in ACCEPTED]
+    print("output size / input size:", " ".join(f"{r:.2f}" for r in sorted(ratios)))
+    return statistics.median(ratios)
+
+
+@pytest.mark.xfail(strict=False, reason="median output 2.3x the input today with this model "
+                   "(the writer is being rewritten to change only corrected words)")
+def test_median_output_within_1_2_times_the_input(tmp_path_factory, capsys):
+    median = _median_ratio(tmp_path_factory)
+    with capsys.disabled():
+        print(f"\nmedian output / input size: {median:.2f}")
+    assert median <= 1.2
+
+
+# ---------------------------------------------------------------------------------------------
+# the replay and the comparison against hand-derived cases
+
+def _ends(program: bytes):
+    return [tuple(m.end[a] for a in "XYZ") for m in replay(program).moves]
+
+
+def test_replay_follows_units_increments_and_planes():
+    moves = replay(b"G20 G90\nG0 X1 Y2 Z3\nG91 G1 X1\nG90 G18 G2 X3 Z2 I1 K0\n").moves
+    np.testing.assert_allclose([[m.end[a] for a in "XYZ"] for m in moves],
+                               [[25.4, 50.8, 76.2], [50.8, 50.8, 76.2], [76.2, 50.8, 50.8]],
+                               rtol=0, atol=1e-12)
+    # the arc in the ZX plane (Z first, X second, Y the normal): centre (Z, X) = (3 in, 3 in) from
+    # the offsets; from (0, -1) in to (-1, 0) in about it, clockwise: a quarter turn
+    np.testing.assert_allclose(moves[2].centre, (76.2, 76.2), rtol=0, atol=1e-12)
+    assert moves[2].sweep == pytest.approx(-math.pi / 2, rel=0, abs=1e-12)
+
+
+def test_replay_expands_drilling_cycles_with_their_retract():
+    # G99: back to R after each hole; G98: back to the initial level 10 (above R 2)
+    g99 = _ends(b"G21 G0 X0 Y0 Z10\nG99 G81 X1 Y1 Z-3 R2 F100\nX2\nG80\n")
+    assert g99[1:] == [(1, 1, 10), (1, 1, 2), (1, 1, -3), (1, 1, 2),
+                       (2, 1, 2), (2, 1, 2), (2, 1, -3), (2, 1, 2)]
+    g98 = _ends(b"G21 G0 X0 Y0 Z10\nG98 G81 X1 Y1 Z-3 R2 F100\nX2\n")
+    assert g98[4] == (1, 1, 10) and g98[-1] == (2, 1, 10)
+    # G91: R from the current level, Z from R, L holes 1 apart
+    g91 = _ends(b"G21 G0 X0 Y0 Z10\nG91 G99 G81 X1 R-8 Z-5 L2\n")
+    assert g91[1:] == [(1, 0, 10), (1, 0, 2), (1, 0, -3), (1, 0, 2),
+                       (2, 0, 2), (2, 0, 2), (2, 0, -3), (2, 0, 2)]
+
+
+def test_replay_forgets_positions_after_home_moves_and_tool_changes():
+    moves = replay(b"G21 G0 X1 Y1 Z1\nG28 G91 Z0\nG90 G0 X2\nT2 M6\nG0 X3\n"
+                   b"G53 G0 Y0\nG04 P1 G0 X4\n").moves
+    assert [tuple(m.end[a] for a in "XYZ") for m in moves] == [
+        (1, 1, 1), (1, 1, None), (2, 1, None), (3, 1, None), (3, None, None), (4, None, None)]
+
+
+SRC = b"G21\nG0 X0 Y0 Z5\nG1 Z0 F100\nG1 X10 (cut)\nG2 X20 Y0 I5 J0\nM30\n"
+
+
+def test_compare_accepts_a_correction_and_a_split_block():
+    compare(SRC, SRC.replace(b"X10 (cut)", b"X10.015 (cut)"), TOL)
+    split = SRC.replace(b"G1 X10 (cut)", b"G1 X5.01 (cut)\nX10.01")
+    assert split.count(b"\n") == SRC.count(b"\n") + 1
+    compare(SRC, split, TOL)
+    # the arc as two arcs
+    compare(SRC, SRC.replace(b"G2 X20 Y0 I5 J0", b"G2 X15 Y5 I5 J0\nX20 Y0 I0 J-5"), TOL)
+
+
+@pytest.mark.parametrize("out, message", [
+    (SRC.replace(b"X10 (cut)", b"X10.03 (cut)"), "no matching output motion"),
+    (SRC.replace(b"M30", b"M30 (end)"), "line without motion"),
+    (SRC.replace(b"M30", b"G1 X30\nM30"), "moves where the source does not"),
+    (SRC.replace(b"G1 X10 (cut)", b"G1 X5 Y1 (cut)\nX10"), "no matching output motion"),
+    (SRC.replace(b"G2 X20", b"G3 X20"), "no matching output motion"),      # the other half circle
+    (SRC.replace(b"G0 X0 Y0 Z5", b"G0 X0 Y0 Z5 A0"), "no matching output motion"),
+    (SRC.replace(b"G21\n", b"G20\n"), "line without motion"),
+])
+def test_compare_sees_motion_the_source_lacks(out, message):
+    with pytest.raises(AssertionError, match=message):
+        compare(SRC, out, TOL)
