@@ -481,16 +481,13 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
 
     written, src = {}, []
     with contextlib.ExitStack() as stack:
-        # the one place the program becomes the flat lines that are planned and written
         src.append(stack.enter_context(open_program(program, settings.dialect)))
         rep = None
         if report is not None:
             rep = stack.enter_context(atomic_write(report, "w", newline=""))
             rep.write(",".join(report_columns(machine.axis_names, machine.is_five_axis)) + "\n")
         write_corrected(src[0], output, machine, corrections(rep), stats=written, **read)
-    notes += _expansion_notes(src[0])
-    notes += _cycle_notes(written) + datum_notes(fitted, setup) + tally.feed_note(fitted)
-    notes += setup.notes()
+    notes += _run_notes(src[0], written, fitted, setup, tally)
     if series is not None:
         assumed = _series_sentence(fitted, settings, series, tally)
     return CompensationRun(summary, written, notes, assumed, planner.stats,
@@ -499,12 +496,15 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
                            time.perf_counter() - t0, tally.bound_blocks, src[0].summary())
 
 
-def _expansion_notes(program) -> list[str]:
-    if not program.expanded:
-        return []
-    return [f"the program's code was run: {program.executed} lines executed from its "
-            f"{program.source_lines}; the output is that expansion, corrected (its first line says "
-            "so)"]
+def _run_notes(program, written, fitted, setup, tally) -> list[str]:
+    """The notes after a run: the program's expansion, drilling cycles, datums, feeds, set-up."""
+    notes = []
+    if program.expanded:
+        notes.append(f"the program's code was run: {program.executed} lines executed from its "
+                     f"{program.source_lines}; the output is that expansion, corrected (its first "
+                     "line says so)")
+    return notes + _cycle_notes(written) + datum_notes(fitted, setup) + tally.feed_note(fitted) \
+        + setup.notes()
 
 
 def _cycle_notes(written: dict) -> list[str]:

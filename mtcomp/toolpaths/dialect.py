@@ -39,7 +39,7 @@ DIALECTS = {
     "fanuc": Dialect("fanuc", g80_keeps_motion=True, language="macro"),
     "haas": Dialect("haas", g80_keeps_motion=True, language="macro"),
     "grbl": Dialect("grbl"),
-    "generic": Dialect("generic"),
+    "generic": Dialect("generic", language="ngc"),
 }
 GENERIC = DIALECTS["generic"]
 
@@ -99,7 +99,7 @@ def dialect_named(name: str | None, path) -> tuple[Dialect, str]:
     return DIALECTS[key], "given"
 
 
-def needs_expansion(path, block: int = 1 << 22) -> bool:
+def needs_expansion(path, block: int = 1 << 16) -> bool:
     """True if the program has code to compute: an O-word or macro statement at a line's start, or
     '#', '[', '@', '^' outside comments. Reads the file in blocks (memory stays flat)."""
     try:

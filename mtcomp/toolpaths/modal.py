@@ -530,10 +530,7 @@ class ModalState:
             if not (self.known[xi] and self.known[yi] and self.known[zi]):
                 raise self._err(f"incremental (G91) drilling cycle G{self.cycle} from a position the "
                                 "program has not given", line)
-            if not self.cycle_start and self.retract != 98:
-                raise self._err(f"incremental (G91) drilling cycle G{self.cycle} continued without "
-                                "G98: where its R plane lies differs between controllers", line)
-            r_level = start[zi] + self.cycle_r[0]
+            r_level = self._incremental_r_level(start[zi], line)
             z_bottom = r_level + self.cycle_z[0]
             steps = np.arange(1, reps + 1)
             xs = start[xi] + steps * values.get("X", 0.0) * scale
@@ -549,11 +546,13 @@ class ModalState:
         known = self.known | given
         dirs = self._directions(start, pts)
         # where the cycle leaves the tool: the R plane (G99) or the initial level (G98; controllers
-        # differ when the R plane lies above it, and neither stated leaves it open)
+        # differ when the R plane lies above it, LinuxCNC takes the higher of the two; neither
+        # stated leaves it open)
         if self.retract == 99:
             z_after, z_known = r_level, True
-        elif self.retract == 98 and init_known and r_level <= init_z + 1e-9:
-            z_after, z_known = init_z, True
+        elif self.retract == 98 and init_known and (r_level <= init_z + 1e-9
+                                                    or self.dialect.g98_to_higher):
+            z_after, z_known = max(init_z, r_level), True
         else:
             z_after, z_known = r_level, False
         end = pts[-1].copy()
@@ -569,6 +568,19 @@ class ModalState:
         return MotionBlock(line, self.cycle, start, end, feed, pts, dirs, None, self.plane,
                            self.inch, [], number, known, given, {}, True, inc, False, self.f_word,
                            self.frame, info, start_known)
+
+    def _incremental_r_level(self, z: float, line: int) -> float:
+        """The R plane (mm) of a G91 cycle line started at height z: LinuxCNC measures every hole's
+        R from the series' initial level; elsewhere the controllers differ once the tool stands at
+        the R plane (G99), so a series continued without G98 is refused."""
+        init_z, init_known = self.cycle_init
+        if self.dialect.incremental_r_from_initial and init_known:
+            return init_z + self.cycle_r[0]
+        if not self.cycle_start and self.retract != 98:
+            raise self._err(f"incremental (G91) drilling cycle G{self.cycle} continued without "
+                            "G98: where its R plane lies differs between controllers (give "
+                            "--dialect linuxcnc if LinuxCNC runs it)", line)
+        return z + self.cycle_r[0]
 
     def _cycle_move(self, values, axes_given):
         """A drilling cycle line passed through: X/Y go where it says (absolute) or stay unknown; the
