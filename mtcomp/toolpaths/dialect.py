@@ -52,10 +52,12 @@ _STATEMENT_LINE = re.compile(
 _CLUES = [
     ("linuxcnc", re.compile(r"(?i)^\s*(?:n\s*\d+\s*)?" + _OWORD_KEYWORD + r"|o\s*<|#\s*<")),
     ("fanuc", re.compile(r"(?i)^\s*(?:n\s*\d+\s*)?(?:" + _MACRO_STATEMENT + r")")),
-    ("fanuc", re.compile(r"^\s*[Oo]\s*\d+\s*(?:\([^()]*\)\s*)*$")),     # a program number O1234
+    ("fanuc", re.compile(r"^\s*[Oo:]\s*\d+\s*(?:\([^()]*\)\s*)*$")),   # a program number O1234
     ("grbl", re.compile(r"^\s*(?:\$[A-Za-z$#]|[?~!]\s*$)")),
 ]
 _HAAS = re.compile(r"(?i)haas")
+#: a comment that names the controller
+_NAMED = re.compile(r"(?i)[(;][^)]*\b(fanuc|haas|linuxcnc|grbl)\b")
 _HEAD = 1 << 16          # bytes of the program's start read for its dialect
 
 
@@ -79,7 +81,8 @@ def detect(path) -> tuple[Dialect, str]:
         lines = lines[:-1]
     for k, line in enumerate(lines, 1):
         code = _strip_comments(line) if not line.lstrip().startswith(("$", "?", "~", "!")) else line
-        for name, clue in _CLUES:
+        named = _NAMED.search(line)
+        for name, clue in _CLUES + ([(named.group(1).lower(), re.compile(""))] if named else []):
             if clue.search(code):
                 if name == "fanuc" and _HAAS.search(text):
                     name = "haas"

@@ -116,6 +116,9 @@ def _apply(line: str, code: Code, spans) -> str:
         out.append(line[last:a])
         out.append("\0" if text is None else text)
         last = b
+        if text == "":                  # a removed assignment takes its blanks with it
+            while last < len(line) and line[last] in " \t":
+                last += 1
     out.append(line[last:])
     return "".join(out)
 
@@ -125,7 +128,8 @@ def place_polar(text: str, xy: tuple[float, float], upper: bool) -> str:
     x, y = (format_value(v) for v in xy)
     words = f"{'X' if upper else 'x'}{x} {'Y' if upper else 'y'}{y}"
     first = text.index("\0")
-    return (text[:first] + words + text[first + 1:]).replace("\0", "")
+    rest = re.sub("\0[ \t]*", "", text[first + 1:])
+    return text[:first] + words + rest
 
 
 def polar_target(polar: dict, words: dict, xy, incremental: bool) -> tuple[float, float]:

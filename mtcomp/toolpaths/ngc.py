@@ -238,8 +238,14 @@ class NgcRun:
             text = r.text
             if r.polar:
                 self.xy.follow({}, gcodes_of(line_code(text).text))      # G90/G91 of the line first
+                if "l" in r.words:
+                    raise ExprError("polar words @ ^ with a repeat count L (each repeat turns the "
+                                    "angle again) are not supported")
                 xy = polar_target(r.polar, r.words, self.xy.xy, self.xy.incremental)
-                text = place_polar(text, xy, any(ch.isupper() for ch in self.texts[i]))
+                written = xy                # in G91 the words are the increments
+                if self.xy.incremental:
+                    written = (xy[0] - self.xy.xy[0], xy[1] - self.xy.xy[1])
+                text = place_polar(text, written, any(ch.isupper() for ch in self.texts[i]))
                 self.xy.set(xy)
             else:
                 self.xy.follow(r.words, gcodes_of(line_code(text).text if text else code.text))

@@ -73,7 +73,8 @@ def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int):
     """(temporary file, line map, lines written, source lines), or None when nothing changes."""
     run_cls, language = _LANGUAGE[dialect.language]
     with open(source, "rb") as f:
-        raws = f.read().splitlines(keepends=True)
+        raws = f.read().split(b"\n")          # lines as the reader counts them ('\n' ends one)
+    raws = [r + b"\n" for r in raws[:-1]] + ([raws[-1]] if raws[-1] else [])
     if raws and raws[0].startswith(b"\xef\xbb\xbf"):
         raws[0] = raws[0][3:]
     texts = [r.decode("latin-1").rstrip("\r\n") for r in raws]
