@@ -102,7 +102,7 @@ def dialect_named(name: str | None, path) -> tuple[Dialect, str]:
     return DIALECTS[key], "given"
 
 
-def needs_expansion(path, block: int = 1 << 16) -> bool:
+def needs_expansion(path, block: int = 1 << 20) -> bool:
     """True if the program has code to compute: an O-word or macro statement at a line's start, or
     '#', '[', '@', '^' outside comments. Reads the file in blocks (memory stays flat)."""
     try:
@@ -122,17 +122,29 @@ def needs_expansion(path, block: int = 1 << 16) -> bool:
             tail = chunk[cut:]
 
 
+
+
 def _has_code(chunk: bytes) -> bool:
-    if _STATEMENT_LINE.search(chunk):
-        return True
-    for ch in (b"#", b"[", b"@", b"^"):
-        pos = chunk.find(ch)
-        while pos >= 0:
+    """Whether a block of whole lines has code to compute. Cheap searches find the lines that may
+    (a '#', '[', '@', '^', an 'O' before a number or label); only those lines are read. A GOTO
+    without any of these is left to the reader, which refuses it by name."""
+    for ch in (b"#", b"[", b"@", b"^", b"o", b"O"):
+        for pos in _finds(chunk, ch):
+            if ch in b"oO" and chunk[pos + 1:pos + 3].lstrip(b" \t")[:1] not in b"0123456789<[":
+                continue
             start = chunk.rfind(b"\n", 0, pos) + 1
             end = chunk.find(b"\n", pos)
-            end = len(chunk) if end < 0 else end
-            line = chunk[start:end].decode("latin-1")
-            if ch.decode() in _strip_comments(line):
+            line = chunk[start:len(chunk) if end < 0 else end]
+            if _STATEMENT_LINE.match(line):
                 return True
-            pos = chunk.find(ch, end)
+            if ch in (b"#", b"[", b"@", b"^") and ch.decode() in _strip_comments(line.decode("latin-1")):
+                return True
     return False
+
+
+def _finds(chunk: bytes, what: bytes):
+    """Positions of ``what`` in ``chunk`` (bytes.find: memchr speed)."""
+    pos = chunk.find(what)
+    while pos >= 0:
+        yield pos
+        pos = chunk.find(what, pos + 1)
