@@ -102,7 +102,7 @@ def dialect_named(name: str | None, path) -> tuple[Dialect, str]:
     return DIALECTS[key], "given"
 
 
-def needs_expansion(path, block: int = 1 << 20) -> bool:
+def needs_expansion(path, block: int = 1 << 16) -> bool:
     """True if the program has code to compute: an O-word or macro statement at a line's start, or
     '#', '[', '@', '^' outside comments. Reads the file in blocks (memory stays flat)."""
     try:
