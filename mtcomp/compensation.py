@@ -26,6 +26,7 @@ from .planner import (CompensationProblem, Planner, PlannerOptions, Summary, out
 from .planner._bounds import FLAG_KINDS
 from .planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
 from .toolpaths import iter_segment_chunks, write_corrected
+from .toolpaths.source import open_program
 
 _DIGITS = b"0123456789."
 #: kinds of bound -> their columns in PlanResult.flags
@@ -53,6 +54,8 @@ class CompensationSettings:
     units : 'mm' or 'inch' for a program without G20/G21 (None: the machine file's, else mm).
     start_position : axis name -> position (mm, deg) of axes known before the program starts.
     threads : planner threads (0: automatic; a study's worker uses 1).
+    dialect : the controller's dialect ('linuxcnc', 'fanuc', 'haas', 'grbl', 'generic'; None:
+        detected from the program), see :mod:`mtcomp.toolpaths.dialect`.
     """
 
     method: str = "qp"
@@ -72,6 +75,7 @@ class CompensationSettings:
     units: str | None = None
     start_position: dict = field(default_factory=dict)
     threads: int = 0
+    dialect: str | None = None
 
     def sd_limit(self) -> float | None:
         """The limit on a correction's standard error the plan uses (um), None for none."""
@@ -286,6 +290,7 @@ class CompensationRun:
     bound_blocks : {'max_correction', 'max_step', 'travel'} -> blocks (every axis known) at which a
         bound of that kind acted on some axis.
     seconds : wall time.
+    dialect : 'dialect: NAME (how it was found)'.
     """
 
     summary: Summary
@@ -298,6 +303,7 @@ class CompensationRun:
     correction_max_um: float
     seconds: float
     bound_blocks: dict = field(default_factory=dict)
+    dialect: str = ""
 
 
 class _Tally:
@@ -447,7 +453,7 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
                 initial_known=start_known)
 
     def machine_chunks():
-        for chunk in iter_segment_chunks(program, machine, **read):
+        for chunk in iter_segment_chunks(src[0], machine, **read):
             tally.read(chunk)
             mchunk, off = setup.apply(chunk)
             if series is not None:
@@ -473,21 +479,32 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
             # raised while the outputs are still temporary files: nothing is written
             raise InputError("no motion block in the program: nothing to compensate", program)
 
-    written = {}
+    written, src = {}, []
     with contextlib.ExitStack() as stack:
+        src.append(stack.enter_context(open_program(program, settings.dialect)))
         rep = None
         if report is not None:
             rep = stack.enter_context(atomic_write(report, "w", newline=""))
             rep.write(",".join(report_columns(machine.axis_names, machine.is_five_axis)) + "\n")
-        write_corrected(program, output, machine, corrections(rep), stats=written, **read)
-    notes += _cycle_notes(written) + datum_notes(fitted, setup) + tally.feed_note(fitted)
-    notes += setup.notes()
+        write_corrected(src[0], output, machine, corrections(rep), stats=written, **read)
+    notes += _run_notes(src[0], written, fitted, setup, tally)
     if series is not None:
         assumed = _series_sentence(fitted, settings, series, tally)
     return CompensationRun(summary, written, notes, assumed, planner.stats,
                            {j.label: j.as_dict() for j in judges},
                            math.sqrt(tally.sum_sq / max(tally.n, 1)), tally.max,
-                           time.perf_counter() - t0, tally.bound_blocks)
+                           time.perf_counter() - t0, tally.bound_blocks, src[0].summary())
+
+
+def _run_notes(program, written, fitted, setup, tally) -> list[str]:
+    """The notes after a run: the program's expansion, drilling cycles, datums, feeds, set-up."""
+    notes = []
+    if program.expanded:
+        notes.append(f"the program's code was run: {program.executed} lines executed from its "
+                     f"{program.source_lines}; the output is that expansion, corrected (its first "
+                     "line says so)")
+    return notes + _cycle_notes(written) + datum_notes(fitted, setup) + tally.feed_note(fitted) \
+        + setup.notes()
 
 
 def _cycle_notes(written: dict) -> list[str]:

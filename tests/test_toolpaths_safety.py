@@ -132,10 +132,10 @@ def test_blanks_inside_words_zero_offsets_and_grbl_lines(tmp_path):
 
 
 @pytest.mark.parametrize("text, msg", [
-    ("G0 X1\no200 sub\n", "O-word sub (subroutines and control flow) not supported: 'o200 sub'"),
+    ("G0 X1\no200 sub\n", "o200 sub without its o200 endsub"),
     ("G0 X1 Y1 Z1\nG43.4 H1\n", "G43.4 (tool centre point control"),
     ("M428 ;TCP:xyzac\nG0 X1\n", "M428 (LinuxCNC switchable kinematics to tool centre point"),
-    ("G0 X1\n#1 = 2\n", "#-parameters not supported"),
+    ("G0 X1\nG1 X#5221\n", "parameter #5221 holds controller state"),
 ])
 def test_refusals_name_the_feature_and_the_line(tmp_path, text, msg):
     p = tmp_path / "in.nc"

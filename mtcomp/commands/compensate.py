@@ -80,6 +80,12 @@ def add_arguments(parser):
                         help="axes that stand at a known position (program frame; mm, deg) before "
                              "the program starts, e.g. the rotary axes of a 5-axis machine that a "
                              "3-axis program never names (default: no axis is known at the start)")
+    parser.add_argument("--dialect", choices=("linuxcnc", "fanuc", "haas", "grbl", "generic"),
+                        default=None,
+                        help="the controller that runs the program, for the rules that differ "
+                             "between controllers (G80, G98, LinuxCNC O-words and parameters, Fanuc "
+                             "macro B; see docs/toolpaths.md). Default: detected from the program "
+                             "(generic when nothing in it names a controller)")
     parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
 
 
@@ -146,6 +152,8 @@ def _print_run(args, machine, fitted, run_, seconds, unread, written) -> None:
     from ..export import reversal_note
     print(f"mtcomp compensate: method {args.method}, {machine.name} ({machine.topology}), "
           f"{seconds:.1f} s")
+    if run_.dialect:
+        print(run_.dialect)
     if run_.assumed:
         print(run_.assumed)
     if "spindle_rpm" in unread:
@@ -196,7 +204,7 @@ def run(args) -> int:
         subdivide_tol_um=args.subdivide_tol_um, chord_tol_um=args.chord_tol_um,
         temperatures=temperatures, spindle_rpm=args.spindle_rpm, extrapolate=args.extrapolate,
         max_correction_sd_um=args.max_correction_sd_um, units=args.units,
-        start_position=parse_start_position(machine, args.start_position))
+        start_position=parse_start_position(machine, args.start_position), dialect=args.dialect)
     setup = load_setup(machine, args.offsets, args.work_offset, args.tool_length)
 
     def progress(done):

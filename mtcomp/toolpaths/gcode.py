@@ -11,6 +11,9 @@ pygcode: word -> block -> program, with the modal state of the machine in one pl
 * :mod:`.modal`: :class:`ModalState`, the machine's modal state (motion mode, plane, units,
   distance mode, feed, position, approach directions ...), which turns each line into motion or
   leaves it as a pass-through line;
+* :mod:`.dialect`, :mod:`.expr`, :mod:`.lines`, :mod:`.ngc`, :mod:`.macro`, :mod:`.source`: the
+  program's dialect, and the LinuxCNC and Fanuc macro code run into the flat lines the controller
+  executes (:func:`open_program`, :class:`ProgramSource`), which every reader goes through;
 * :mod:`.reader`: lines -> blocks -> program (:func:`iter_blocks`, :func:`read_program`) and the
   pure-Python segment stream;
 * :mod:`.writer`: the corrected program written back (:class:`OutputState`,
@@ -37,6 +40,7 @@ from . import _fast, reader, writer
 from .blocks import CycleBlock, MotionBlock, Program, SegmentChunk
 from .modal import ModalState
 from .reader import iter_blocks, new_state, read_program
+from .source import ProgramSource, open_program
 from .words import (ARC_KEEP_TOL_MM, DEFAULT_CHORD_TOL_MM, DEFAULT_CHUNK_SIZE, DIR_EPS, MM_PER_INCH,
                     TOOL_AXIS, WORK_SYSTEMS, frame_code, frame_tool, frame_wcs, tokenize)
 from .writer import CorrectionCursor, OutputState, format_motion_lines, write_pass_through
@@ -45,15 +49,18 @@ __all__ = ["ARC_KEEP_TOL_MM", "DEFAULT_CHORD_TOL_MM", "DEFAULT_CHUNK_SIZE", "DIR
            "TOOL_AXIS", "WORK_SYSTEMS", "frame_code", "frame_tool", "frame_wcs", "tokenize",
            "CycleBlock", "MotionBlock", "Program", "SegmentChunk", "ModalState", "iter_blocks",
            "new_state", "read_program", "iter_segment_chunks", "CorrectionCursor", "OutputState",
-           "format_motion_lines", "write_pass_through", "write_corrected"]
+           "format_motion_lines", "write_pass_through", "write_corrected", "ProgramSource",
+           "open_program"]
 
 
 def iter_segment_chunks(path, machine: Machine, chord_tol_mm: float = DEFAULT_CHORD_TOL_MM,
                         chunk_size: int = DEFAULT_CHUNK_SIZE,
                         initial_position=None, *, inch: bool = False,
-                        initial_known=None) -> Iterator[SegmentChunk]:
+                        initial_known=None, dialect: str | None = None) -> Iterator[SegmentChunk]:
     """Stream a program as :class:`SegmentChunk` objects of at most ``chunk_size`` rows.
 
+    path : the program's file, or a :class:`ProgramSource` from :func:`open_program` (its
+    expansion is then read as it is). dialect : see :func:`open_program` (None: detected).
     initial_position : (na,) axis positions before the first block, also where G28/G30 send the
     axes (mm, rad; default all zero). chord_tol_mm : largest sagitta of an arc's chords (mm).
     inch, initial_known : see :func:`iter_blocks`.
@@ -63,12 +70,13 @@ def iter_segment_chunks(path, machine: Machine, chord_tol_mm: float = DEFAULT_CH
     stream is exhausted, which :func:`write_corrected` guarantees through atomic_write).
     """
     kw = dict(inch=inch, initial_known=initial_known)
-    if _fast.available():
-        yield from _fast.iter_segment_chunks(path, machine, chord_tol_mm, chunk_size,
-                                             initial_position, **kw)
-        return
-    yield from reader.iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_position,
-                                          **kw)
+    with open_program(path, dialect) as src:
+        if _fast.available():
+            yield from _fast.iter_segment_chunks(src, machine, chord_tol_mm, chunk_size,
+                                                 initial_position, **kw)
+            return
+        yield from reader.iter_segment_chunks(src, machine, chord_tol_mm, chunk_size,
+                                              initial_position, **kw)
 
 
 def _uncorrected(path, machine, chord_tol_mm, chunk_size, initial_position, **kw):
@@ -79,10 +87,13 @@ def _uncorrected(path, machine, chord_tol_mm, chunk_size, initial_position, **kw
 def write_corrected(in_path, out_path, machine: Machine,
                     corrections: Iterable[tuple[SegmentChunk, np.ndarray, np.ndarray]] | None,
                     chord_tol_mm: float = DEFAULT_CHORD_TOL_MM, initial_position=None, *,
-                    inch: bool = False, initial_known=None, stats: dict | None = None) -> int:
+                    inch: bool = False, initial_known=None, stats: dict | None = None,
+                    dialect: str | None = None) -> int:
     """Write ``in_path`` to ``out_path`` with corrected motion lines; returns the number of segment
     rows written.
 
+    in_path : the program's file, or a :class:`ProgramSource` (an expanded program is written as
+    its expansion, first line the comment that says so). dialect : see :func:`open_program`.
     corrections : iterator of ``(chunk, points, counts)`` per SegmentChunk of
         :func:`iter_segment_chunks` (same order): points (M, na) corrected axis positions (mm, rad)
         to emit as G0/G1 moves, counts (n,) int >= 1: how many of ``points`` belong to each segment
@@ -99,12 +110,13 @@ def write_corrected(in_path, out_path, machine: Machine,
     Raises InputError for a bad program or output path, ValueError for corrections that do not
     match the program's segment rows (or hold a non-finite point).
     """
-    check_output_path(out_path, [in_path])
+    check_output_path(out_path, [getattr(in_path, "source", in_path)])
     kw = dict(inch=inch, initial_known=initial_known)
-    if corrections is None:
-        corrections = _uncorrected(in_path, machine, chord_tol_mm, DEFAULT_CHUNK_SIZE,
-                                   initial_position, **kw)
-    cursor = CorrectionCursor(corrections, machine.n_axes, in_path)
-    write = _fast.write_corrected if _fast.available() else writer.write_corrected
-    return write(in_path, out_path, machine, cursor, chord_tol_mm, initial_position, stats=stats,
-                 **kw)
+    with open_program(in_path, dialect) as src:
+        if corrections is None:
+            corrections = _uncorrected(src, machine, chord_tol_mm, DEFAULT_CHUNK_SIZE,
+                                       initial_position, **kw)
+        cursor = CorrectionCursor(corrections, machine.n_axes, src.source)
+        write = _fast.write_corrected if _fast.available() else writer.write_corrected
+        return write(src, out_path, machine, cursor, chord_tol_mm, initial_position, stats=stats,
+                     **kw)

@@ -20,6 +20,7 @@ from ..errors import InputError
 from ..machine import Machine
 from ._arcs import PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, centre_from_radius
 from .blocks import CycleBlock, MotionBlock
+from .dialect import GENERIC
 from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _COLON_PROGRAM_RE, _CURVE_WITH_COORDINATES,
                     _REFUSED_G, _REFUSED_M, _UNIQUE_LETTERS, _WCS_INDEX, DEFAULT_CHORD_TOL_MM,
                     DIR_EPS, MM_PER_INCH, TOOL_AXIS, frame_code, tokenize)
@@ -41,7 +42,9 @@ class ModalState:
     dirs : (na,) int8 approach directions. known : (na,) bool, the program has given the axis's
     position in its frame (see :class:`~.blocks.SegmentChunk`). wcs : active work coordinate system index
     (0 = G54). tool : active tool length number (G43 H; 0 = none). cycle : the drilling cycle in
-    force (G81 ...) or None. inverse_time : G93 in force.
+    force (G81 ...) or None. inverse_time : G93 in force. dialect : the controller's rules
+    (:class:`~.dialect.Dialect`), taken from ``path`` when it is a :class:`~.source.ProgramSource`
+    (generic otherwise), which also names the source's lines in errors.
     """
 
     def __init__(self, machine: Machine, path=None, chord_tol: float = DEFAULT_CHORD_TOL_MM,
@@ -49,6 +52,8 @@ class ModalState:
                  initial_known=None):
         self.machine = machine
         self.path = None if path is None else os.fspath(path)
+        self.dialect = getattr(path, "dialect", None) or GENERIC
+        self._locate = getattr(path, "locate", None)
         self.chord_tol = float(chord_tol)
         if not self.chord_tol > 0:
             raise ValueError("chord_tol_mm must be positive")
@@ -79,6 +84,9 @@ class ModalState:
         self.cycle_init: tuple[float, bool] = (math.nan, False)
         #: the last block began a series of drilling cycles
         self.cycle_start = False
+        #: the group-01 motion mode in force when the drilling cycles began (G80 restores it
+        #: where the dialect says so)
+        self.cycle_motion: int | None = None
         self.inverse_time = False
         self.f_word = math.nan
         self.tool_axis = self.names.index(TOOL_AXIS) if TOOL_AXIS in self.names else -1
@@ -102,7 +110,14 @@ class ModalState:
         return self.cycle is not None or self.inverse_time
 
     def _err(self, msg, line):
-        return InputError(msg, self.path, line)
+        path, line, suffix = self._where(line)
+        return InputError(msg + suffix, path, line)
+
+    def _where(self, line):
+        """(file, line, message suffix) naming a line: the source's for an expanded program."""
+        if self._locate is None:
+            return self.path, line, ""
+        return self._locate(line)
 
     def _forget(self, idx=None):
         """The program's position of these axes (all by default) is unknown from here on."""
@@ -122,7 +137,10 @@ class ModalState:
         text = self._text_with_words(line, text)
         if text is None:
             return None
-        tokens = tokenize(text, self.path, line)
+        try:
+            tokens = tokenize(text, self.path, line)
+        except InputError as exc:
+            raise self._err(exc.message, line) from None
         if not tokens:
             return None
         values, gcodes, mcodes, number = self._read_words(tokens, line)
@@ -289,7 +307,10 @@ class ModalState:
         elif gi in (98, 99):
             self.retract = gi
         elif gi == 80:
-            self.motion = None
+            if not self.dialect.g80_keeps_motion:
+                self.motion = None
+            elif self.cycle is not None:
+                self.motion = self.cycle_motion
             self.cycle = None
         elif gi in _WCS_INDEX:
             self._set_wcs(_WCS_INDEX[gi])
@@ -330,6 +351,7 @@ class ModalState:
         """A drilling cycle code starts (or continues) the cycle mode; in it, R and Z are sticky."""
         if cycle is not None:
             if self.cycle is None:
+                self.cycle_motion = self.motion
                 self.cycle_start = True
                 z = self.tool_axis
                 self.cycle_init = (float(self.position[z]), bool(self.known[z])) if z >= 0 \
@@ -508,10 +530,7 @@ class ModalState:
             if not (self.known[xi] and self.known[yi] and self.known[zi]):
                 raise self._err(f"incremental (G91) drilling cycle G{self.cycle} from a position the "
                                 "program has not given", line)
-            if not self.cycle_start and self.retract != 98:
-                raise self._err(f"incremental (G91) drilling cycle G{self.cycle} continued without "
-                                "G98: where its R plane lies differs between controllers", line)
-            r_level = start[zi] + self.cycle_r[0]
+            r_level = self._incremental_r_level(start[zi], line)
             z_bottom = r_level + self.cycle_z[0]
             steps = np.arange(1, reps + 1)
             xs = start[xi] + steps * values.get("X", 0.0) * scale
@@ -527,11 +546,13 @@ class ModalState:
         known = self.known | given
         dirs = self._directions(start, pts)
         # where the cycle leaves the tool: the R plane (G99) or the initial level (G98; controllers
-        # differ when the R plane lies above it, and neither stated leaves it open)
+        # differ when the R plane lies above it, LinuxCNC takes the higher of the two; neither
+        # stated leaves it open)
         if self.retract == 99:
             z_after, z_known = r_level, True
-        elif self.retract == 98 and init_known and r_level <= init_z + 1e-9:
-            z_after, z_known = init_z, True
+        elif self.retract == 98 and init_known and (r_level <= init_z + 1e-9
+                                                    or self.dialect.g98_to_higher):
+            z_after, z_known = max(init_z, r_level), True
         else:
             z_after, z_known = r_level, False
         end = pts[-1].copy()
@@ -547,6 +568,19 @@ class ModalState:
         return MotionBlock(line, self.cycle, start, end, feed, pts, dirs, None, self.plane,
                            self.inch, [], number, known, given, {}, True, inc, False, self.f_word,
                            self.frame, info, start_known)
+
+    def _incremental_r_level(self, z: float, line: int) -> float:
+        """The R plane (mm) of a G91 cycle line started at height z: LinuxCNC measures every hole's
+        R from the series' initial level; elsewhere the controllers differ once the tool stands at
+        the R plane (G99), so a series continued without G98 is refused."""
+        init_z, init_known = self.cycle_init
+        if self.dialect.incremental_r_from_initial and init_known:
+            return init_z + self.cycle_r[0]
+        if not self.cycle_start and self.retract != 98:
+            raise self._err(f"incremental (G91) drilling cycle G{self.cycle} continued without "
+                            "G98: where its R plane lies differs between controllers (give "
+                            "--dialect linuxcnc if LinuxCNC runs it)", line)
+        return z + self.cycle_r[0]
 
     def _cycle_move(self, values, axes_given):
         """A drilling cycle line passed through: X/Y go where it says (absolute) or stay unknown; the

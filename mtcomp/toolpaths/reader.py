@@ -1,6 +1,8 @@
 """Reading a G-code program: lines -> blocks (through the modal state) -> program or segment stream.
 
-The top layer of the reader (after pygcode: word -> block -> program). :func:`iter_blocks` feeds
+The top layer of the reader (after pygcode: word -> block -> program). Every program is first
+opened by :func:`~.source.open_program` (its dialect, and the expansion of LinuxCNC O-words and
+parameters or Fanuc macro B into the lines the controller executes). :func:`iter_blocks` feeds
 the lines of a file one by one to one :class:`~.modal.ModalState`; :func:`read_program` keeps the
 blocks in memory; :func:`iter_segment_chunks` here is the pure-Python segment stream (the public
 :func:`mtcomp.toolpaths.gcode.iter_segment_chunks` runs the compiled one when it can, with the same
@@ -17,6 +19,7 @@ from ..errors import InputError
 from ..machine import Machine
 from .blocks import MotionBlock, Program, SegmentChunk, _empty_chunk
 from .modal import ModalState
+from .source import open_program
 from .words import DEFAULT_CHORD_TOL_MM, DEFAULT_CHUNK_SIZE
 
 
@@ -38,34 +41,40 @@ def _open_lines(path) -> Iterator[tuple[int, bytes, str]]:
 
 def new_state(machine: Machine, path, chord_tol_mm=DEFAULT_CHORD_TOL_MM, initial_position=None,
               inch: bool = False, initial_known=None) -> ModalState:
-    """The reader's state before the first line (see :class:`ModalState`)."""
+    """The reader's state before the first line (see :class:`ModalState`). path : a file name, or
+    the :class:`~.source.ProgramSource` whose dialect and line map the state follows."""
     return ModalState(machine, path, chord_tol_mm, initial_position, inch, initial_known)
 
 
 def iter_blocks(path, machine: Machine, chord_tol_mm: float = DEFAULT_CHORD_TOL_MM,
-                initial_position=None, *, inch: bool = False, initial_known=None
+                initial_position=None, *, inch: bool = False, initial_known=None,
+                dialect: str | None = None
                 ) -> Iterator[tuple[int, bytes, MotionBlock | None, ModalState]]:
     """Every line of a program: (line number, raw bytes, its motion block or None, the state after it).
 
     The state is the same object throughout (it is the reader's modal state, updated in place).
     inch : the units before any G20/G21 (False: mm). initial_known : (na,) bool or bool, axes whose
     position is known before the first line (default: known if initial_position is given).
+    dialect : the controller's dialect (None: detected; see :mod:`.dialect`). For an expanded
+    program the lines are those of the expansion (see :mod:`.source`).
     """
-    state = new_state(machine, path, chord_tol_mm, initial_position, inch, initial_known)
-    for k, raw, text in _open_lines(path):
-        yield k, raw, state.block(k, text), state
+    with open_program(path, dialect) as src:
+        state = new_state(machine, src, chord_tol_mm, initial_position, inch, initial_known)
+        for k, raw, text in _open_lines(src):
+            yield k, raw, state.block(k, text), state
 
 
 def read_program(path, machine: Machine, chord_tol_mm: float = DEFAULT_CHORD_TOL_MM,
-                 initial_position=None, *, inch: bool = False, initial_known=None) -> Program:
+                 initial_position=None, *, inch: bool = False, initial_known=None,
+                 dialect: str | None = None) -> Program:
     """All motion blocks of a program, in memory. Raises InputError naming file and line."""
     blocks = []
     n = 0
     for n, _raw, b, _state in iter_blocks(path, machine, chord_tol_mm, initial_position, inch=inch,
-                                          initial_known=initial_known):
+                                          initial_known=initial_known, dialect=dialect):
         if b is not None:
             blocks.append(b)
-    return Program(os.fspath(path), machine.axis_names, blocks, n)
+    return Program(getattr(path, "source", None) or os.fspath(path), machine.axis_names, blocks, n)
 
 
 class _ChunkBuilder:
@@ -108,12 +117,12 @@ class _ChunkBuilder:
 def iter_segment_chunks(path, machine: Machine, chord_tol_mm: float = DEFAULT_CHORD_TOL_MM,
                         chunk_size: int = DEFAULT_CHUNK_SIZE,
                         initial_position=None, *, inch: bool = False,
-                        initial_known=None) -> Iterator[SegmentChunk]:
+                        initial_known=None, dialect: str | None = None) -> Iterator[SegmentChunk]:
     """Pure-Python path of :func:`mtcomp.toolpaths.gcode.iter_segment_chunks` (same arguments and
     chunks): the program's blocks from :func:`iter_blocks`, cut into rows."""
     builder = _ChunkBuilder(machine.n_axes, chunk_size)
     for _k, _raw, b, _state in iter_blocks(path, machine, chord_tol_mm, initial_position, inch=inch,
-                                           initial_known=initial_known):
+                                           initial_known=initial_known, dialect=dialect):
         if b is not None:
             yield from builder.add(b)
     if builder.n:

@@ -1,0 +1,196 @@
+"""One line of a program with parameters and expressions: its values computed, its text rewritten.
+
+Shared by the LinuxCNC front end (:mod:`.ngc`) and Fanuc macro B (:mod:`.macro`). A line's code (the
+text outside comments, lower case and without blanks, as both controllers read it) is parsed once;
+every word whose value is a parameter or an expression gets the computed number, parameter
+assignments are taken out (they take effect after the line is read: LinuxCNC G-code reference,
+Numbered Parameters), and LinuxCNC's polar words ``@`` (distance) and ``^`` (angle) become X and Y
+words. Everything else of the line (letters, case, blanks, comments, plain numbers) is kept as
+written.
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+
+from .expr import Evaluator, ExprError, format_value
+
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
+
+
+@dataclass
+class Code:
+    """The code of a line: ``text`` (lower case, no blanks, no comments) and for each of its
+    characters the column in the original line."""
+
+    text: str
+    cols: list = field(default_factory=list)
+
+
+def line_code(line: str) -> Code:
+    """The code of a line outside ``( )`` and ``;`` comments."""
+    chars, cols = [], []
+    pos, n = 0, len(line)
+    while pos < n:
+        ch = line[pos]
+        if ch == "(":
+            e = line.find(")", pos)
+            pos = n if e < 0 else e + 1
+            continue
+        if ch == ";":
+            break
+        if ch not in " \t":
+            chars.append(ch.lower())
+            cols.append(pos)
+        pos += 1
+    return Code("".join(chars), cols)
+
+
+@dataclass
+class Rewritten:
+    """A line after its values were computed: ``text`` (None: unchanged), the assignments to make
+    after it (key -> value), the words it names (letter -> value), its polar words."""
+
+    text: str | None
+    assignments: list
+    words: dict
+    polar: dict
+
+
+def _is_computed(s: str, p: int) -> bool:
+    if p >= len(s):
+        return False
+    if s[p] in "[#":
+        return True
+    return s[p] in "+-" and p + 1 < len(s) and (s[p + 1] in "[#" or s[p + 1].isalpha())
+
+
+def rewrite(line: str, code: Code, ev: Evaluator, *, fanuc: bool = False) -> Rewritten:
+    """Compute a line's word values and take out its assignments (see the module docstring).
+    Raises ExprError."""
+    s = code.text
+    spans = []                 # (start, end) in code positions, replacement text
+    assignments, words, polar = [], {}, {}
+    pos = 0
+    while pos < len(s):
+        ch = s[pos]
+        if ch == "#":
+            key, p = ev.parameter_key(s, pos)
+            if p >= len(s) or s[p] != "=":
+                raise ExprError("a parameter outside a word must be assigned: #1=...")
+            v, p2 = (ev.expression(s, p + 1) if fanuc else ev.value(s, p + 1))
+            assignments.append((key, v))
+            spans.append((pos, p2, ""))
+            pos = p2
+        elif ch in "@^" or ch.isalpha():
+            p = pos + 1
+            if _is_computed(s, p):
+                v, p2 = ev.value(s, p)
+                spans.append((p, p2, format_value(v)))
+            else:
+                m = _NUMBER.match(s, p)
+                if not m:
+                    pos = p
+                    continue        # left for the tokenizer to name
+                v, p2 = float(m.group(0)), m.end()
+            if ch in "@^":
+                polar[ch] = v
+                spans.append((pos, p2, None))
+            else:
+                words.setdefault(ch, v)
+            pos = p2
+        else:
+            pos += 1
+    if not spans:
+        return Rewritten(None, assignments, words, polar)
+    return Rewritten(_apply(line, code, spans), assignments, words, polar)
+
+
+def _apply(line: str, code: Code, spans) -> str:
+    """The line with each span of code replaced (None: the polar placeholder, kept as '\\0')."""
+    out, last = [], 0
+    for start, end, text in spans:
+        a = code.cols[start]
+        b = code.cols[end - 1] + 1
+        out.append(line[last:a])
+        out.append("\0" if text is None else text)
+        last = b
+        if text == "":                  # a removed assignment takes its blanks with it
+            while last < len(line) and line[last] in " \t":
+                last += 1
+    out.append(line[last:])
+    return "".join(out)
+
+
+def place_polar(text: str, xy: tuple[float, float], upper: bool) -> str:
+    """The rewritten line with its polar words replaced by X and Y words (at the first one)."""
+    x, y = (format_value(v) for v in xy)
+    words = f"{'X' if upper else 'x'}{x} {'Y' if upper else 'y'}{y}"
+    first = text.index("\0")
+    rest = re.sub("\0[ \t]*", "", text[first + 1:])
+    return text[:first] + words + rest
+
+
+def polar_target(polar: dict, words: dict, xy, incremental: bool) -> tuple[float, float]:
+    """Where LinuxCNC's polar words send X and Y (LinuxCNC G-code reference, Polar Coordinates):
+    from the XY zero of the program, the angle in degrees counter-clockwise from +X; in G91 the
+    distance and the angle are added to those of the current position. xy : the current X Y in
+    the program's frame (None: not known)."""
+    if "x" in words or "y" in words:
+        raise ExprError("polar words @ ^ and X or Y words in one line")
+    if not incremental and "@" in polar and "^" in polar:
+        r, t = polar["@"], math.radians(polar["^"])
+        return r * math.cos(t), r * math.sin(t)
+    if xy is None:
+        raise ExprError("polar word from an X Y position the program has not given")
+    if xy[0] == 0.0 and xy[1] == 0.0:
+        raise ExprError("polar word with a missing distance or angle, or in G91, at the origin")
+    r, t = math.hypot(xy[1], xy[0]), math.atan2(xy[1], xy[0])
+    if incremental:
+        r += polar.get("@", 0.0)
+        t += math.radians(polar.get("^", 0.0))
+    else:
+        r = polar.get("@", r)
+        t = math.radians(polar["^"]) if "^" in polar else t
+    return r * math.cos(t), r * math.sin(t)
+
+
+class XYTracker:
+    """The X Y position in the program's frame along the expanded lines, for polar words: G90/G91,
+    G20/G21, and the X Y words of moves; unknown after G28, G30, G53, G92, G10 and the like."""
+
+    def __init__(self):
+        self.xy = None            # (x, y) or None
+        self.incremental = False
+
+    def follow(self, words: dict, gcodes: list) -> None:
+        for g in gcodes:
+            if g == 90:
+                self.incremental = False
+            elif g == 91:
+                self.incremental = True
+            elif g in (20, 21) and self.xy is not None:
+                f = 1 / 25.4 if g == 20 else 25.4
+                self.xy = (self.xy[0] * f, self.xy[1] * f)
+        if any(round(g) in (10, 28, 30, 52, 53, 92) for g in gcodes):
+            self.xy = None
+            return
+        if any(round(g, 1) == 4.0 for g in gcodes):
+            return
+        if "x" in words or "y" in words:
+            if self.incremental:
+                if self.xy is not None:
+                    self.xy = (self.xy[0] + words.get("x", 0.0), self.xy[1] + words.get("y", 0.0))
+            elif "x" in words and "y" in words:
+                self.xy = (words["x"], words["y"])
+            elif self.xy is not None:
+                self.xy = (words.get("x", self.xy[0]), words.get("y", self.xy[1]))
+
+    def set(self, xy) -> None:
+        self.xy = xy
+
+
+def gcodes_of(code: str) -> list[float]:
+    """The G codes of a line's code (numbers only; computed ones are in the rewritten text)."""
+    return [float(m.group(1)) for m in re.finditer(r"g([+-]?(?:\d+\.?\d*|\.\d+))", code)]

@@ -1,0 +1,130 @@
+"""Where a program becomes the flat text the reader reads: its dialect, and its expansion.
+
+:func:`open_program` is the one place every reader of programs goes through (the segment stream,
+the writer, ``read_program``; so ``compensate``, ``render`` and the CMM measurement model). It
+finds the program's dialect (given, or :func:`~.dialect.detect`), and when the program has code
+to compute (LinuxCNC O-words, parameters and expressions, polar words; Fanuc macro B) it runs
+that code (:mod:`.ngc`, :mod:`.macro`) into a temporary file of the lines the controller executes,
+whose first line is a comment saying so. A program without such code is read as it is, byte for
+byte. The :class:`ProgramSource` handed on is path-like (the file to read) and carries the
+dialect, and the map from expanded lines to the source's lines that errors are named by.
+"""
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from array import array
+from dataclasses import dataclass, field
+
+from .dialect import Dialect, dialect_named, needs_expansion
+from .macro import MacroRun
+from .ngc import MAX_LINES, MAX_STEPS, NgcRun
+
+_LANGUAGE = {"ngc": (NgcRun, "O-word control flow, parameters and expressions"),
+             "macro": (MacroRun, "macro variables, IF, GOTO and WHILE")}
+
+
+@dataclass
+class ProgramSource(os.PathLike):
+    """A program as the reader reads it.
+
+    path : the file read (the source, or its expansion). source : the user's file. dialect : its
+    :class:`~.dialect.Dialect`; why : how it was found ('given', 'detected from line N: ...').
+    line_map : for an expanded program, the source line (1-based) of each of its lines (0 for
+    the first, the comment), else None. executed : lines written by the expansion.
+    """
+
+    path: str
+    source: str
+    dialect: Dialect
+    why: str
+    line_map: array | None = None
+    executed: int = 0
+    source_lines: int = 0
+    notes: list = field(default_factory=list)
+
+    def __fspath__(self) -> str:
+        return self.path
+
+    @property
+    def expanded(self) -> bool:
+        return self.line_map is not None
+
+    def locate(self, line: int | None) -> tuple[str, int | None, str]:
+        """(file, line, suffix for the message) to name a line of ``path`` by."""
+        if self.line_map is None or line is None:
+            return self.source, line, ""
+        src = self.line_map[line - 1] if 0 < line <= len(self.line_map) else 0
+        return self.source, (src or None), f" (line {line} of the expanded program)"
+
+    def summary(self) -> str:
+        """'dialect: fanuc (detected from line 2: O1234)'."""
+        return f"dialect: {self.dialect.name} ({self.why})"
+
+
+def _header(source: str, language: str) -> str:
+    name = os.path.basename(source).replace("(", "[").replace(")", "]")
+    return (f"(expanded by mtcomp from {name}: {language} computed, one line for each line the "
+            "controller executes)")
+
+
+def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int):
+    """(temporary file, line map, lines written, source lines), or None when nothing changes."""
+    run_cls, language = _LANGUAGE[dialect.language]
+    with open(source, "rb") as f:
+        raws = f.read().split(b"\n")          # lines as the reader counts them ('\n' ends one)
+    raws = [r + b"\n" for r in raws[:-1]] + ([raws[-1]] if raws[-1] else [])
+    if raws and raws[0].startswith(b"\xef\xbb\xbf"):
+        raws[0] = raws[0][3:]
+    texts = [r.decode("latin-1").rstrip("\r\n") for r in raws]
+    ending = "\r\n" if raws and raws[0].endswith(b"\r\n") else "\n"
+    run = run_cls(texts, source, max_steps=max_steps, max_lines=max_lines)
+    line_map = array("l", [0])
+    same = True
+    fd, tmp = tempfile.mkstemp(prefix="mtcomp-expanded-", suffix=".nc")
+    try:
+        with os.fdopen(fd, "wb") as out:
+            out.write((_header(source, language) + ending).encode("latin-1"))
+            for i, text in run.run():
+                same = same and text is None and i == len(line_map) - 1
+                line_map.append(i + 1)
+                if text is None:
+                    raw = raws[i]
+                    out.write(raw if raw.endswith(b"\n") else raw + ending.encode())
+                else:
+                    own = raws[i][len(raws[i].rstrip(b"\r\n")):] or ending.encode()
+                    out.write(text.encode("latin-1", "replace") + own)
+        if same and len(line_map) - 1 == len(raws):
+            os.unlink(tmp)
+            return None
+    except BaseException:
+        os.unlink(tmp)
+        raise
+    return tmp, line_map, len(line_map) - 1, len(raws)
+
+
+@contextlib.contextmanager
+def open_program(path, dialect: str | None = None, *, max_steps: int = MAX_STEPS,
+                 max_lines: int = MAX_LINES):
+    """The program at ``path`` as a :class:`ProgramSource` (see the module docstring); a
+    ProgramSource is handed back as it is. ``dialect``: a name of :data:`~.dialect.DIALECTS`, or
+    None to detect it. The temporary file of an expansion is removed on leaving the context.
+    Raises InputError (file and source line named) for code that cannot be run."""
+    if isinstance(path, ProgramSource):
+        yield path
+        return
+    source = os.fspath(path)
+    d, why = dialect_named(dialect, source)
+    expansion = None
+    if d.language is not None and os.path.isfile(source) and needs_expansion(source):
+        expansion = _expand(source, d, max_steps, max_lines)
+    if expansion is None:
+        yield ProgramSource(source, source, d, why)
+        return
+    tmp, line_map, executed, n = expansion
+    try:
+        yield ProgramSource(tmp, source, d, why, line_map, executed, n)
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)

@@ -1,0 +1,136 @@
+"""Controller dialects: detection on real headers, the G80 and G98 rules per dialect (on both reader
+paths), Fanuc macro B expanded or refused per construct."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mtcomp.errors import InputError
+from mtcomp.machine import load_machine
+from mtcomp.toolpaths import _fast, iter_segment_chunks, read_program
+from mtcomp.toolpaths.dialect import detect
+from mtcomp.toolpaths.source import open_program
+
+CORPUS = Path(__file__).parent / "data" / "gcode_corpus"
+XFYZ = load_machine("xfyz")
+G80_PROGRAM = ("G90 G21\nG0 X0 Y0 Z10\nG1 F100 Z5\nG81 X1 Y1 Z-2 R1 F100\nX3 Y3\nG80\nZ5.533\n"
+               "X10 Y10\nM30\n")
+
+
+@pytest.fixture(params=["compiled", "python"])
+def mode(request, monkeypatch):
+    if request.param == "python":
+        monkeypatch.setenv("MTCOMP_NO_FAST_GCODE", "1")
+    elif not _fast.available():
+        pytest.skip("no C compiler: the compiled G-code path is not available")
+    return request.param
+
+
+@pytest.mark.parametrize("name, dialect, line", [
+    ("gcodeworkshop_HAAS.nc", "haas", 2), ("gcodeworkshop_FANUC0M.nc", "fanuc", 2),
+    ("gcodes_simple_mill.gcode", "fanuc", 4), ("linuxcnc_cone.ngc", "linuxcnc", 4),
+    ("ugs_square.nc", "generic", None),
+])
+def test_detection_on_real_headers(name, dialect, line):
+    d, why = detect(CORPUS / name)
+    assert d.name == dialect
+    assert why.startswith(f"detected from line {line}:") if line else "nothing" in why
+
+
+def test_grbl_is_detected_and_its_commands_pass_through(tmp_path):
+    p = tmp_path / "g.nc"
+    p.write_text("$H\nG21 G90\nG0 X1 Y1 Z1\n?\nG1 X2 F100\n")
+    assert detect(p)[0].name == "grbl"
+    assert len(read_program(p, XFYZ).blocks) == 2
+
+
+@pytest.mark.parametrize("dialect", ["fanuc", "haas"])
+def test_g80_brings_back_the_motion_mode_on_fanuc_and_haas(tmp_path, mode, dialect):
+    p = tmp_path / "p.nc"
+    p.write_text(G80_PROGRAM)
+    rows = np.vstack([c.end for c in iter_segment_chunks(p, XFYZ, dialect=dialect)])
+    feed = np.concatenate([c.feed for c in iter_segment_chunks(p, XFYZ, dialect=dialect)])
+    # after G80 the G1 of line 3 is in force again: Z5.533 is a feed move at F100, then X10 Y10
+    np.testing.assert_allclose(rows[-2:], [[3, 3, 5.533], [10, 10, 5.533]], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(feed[-2:], [100.0, 100.0], rtol=0, atol=0)
+
+
+@pytest.mark.parametrize("dialect", ["linuxcnc", "generic", "grbl"])
+def test_g80_leaves_no_motion_mode_elsewhere(tmp_path, mode, dialect):
+    p = tmp_path / "p.nc"
+    p.write_text(G80_PROGRAM)
+    with pytest.raises(InputError, match="coordinates without a motion mode") as exc:
+        list(iter_segment_chunks(p, XFYZ, dialect=dialect))
+    assert exc.value.line == 7
+
+
+@pytest.mark.parametrize("dialect, z_known", [("linuxcnc", True), ("fanuc", False),
+                                              ("generic", False)])
+def test_g98_with_the_r_plane_above_the_initial_level(tmp_path, mode, dialect, z_known):
+    # LinuxCNC retracts to the higher of the two (here R2 above the initial Z1); the others are
+    # not followed there, so Z stays unknown after the cycle
+    p = tmp_path / "p.nc"
+    p.write_text("G90 G21\nG0 X0 Y0 Z1\nG98 G81 X1 Y1 Z-2 R2 F100\nG80\nG0 X5\n")
+    prog = read_program(p, XFYZ, dialect=dialect)
+    last = prog.blocks[-1]
+    assert bool(last.known[XFYZ.index("Z")]) == z_known
+    if z_known:
+        assert last.end[XFYZ.index("Z")] == pytest.approx(2.0, rel=0, abs=1e-12)
+
+
+def test_linuxcnc_incremental_cycles_measure_r_from_the_initial_level(tmp_path):
+    # LinuxCNC (interp_cycles.cc): r = R + initial level for every hole of the series, so the second
+    # hole under G99 drills from R = 10 - 2 = 8 to 8 - 3 = 5, as the first
+    p = tmp_path / "p.nc"
+    p.write_text("G90 G21\nG0 X0 Y0 Z10\nG91 G99 G81 X1 Z-3 R-2 F100\nX1\nG80\n")
+    blocks = read_program(p, XFYZ, dialect="linuxcnc").blocks
+    np.testing.assert_allclose([b.cycle.z_bottom for b in blocks[1:]], [5.0, 5.0], rtol=0, atol=1e-12)
+    with pytest.raises(InputError, match="continued without G98"):
+        read_program(p, XFYZ, dialect="fanuc")
+
+
+def test_fanuc_macro_b_while_if_goto_expanded(tmp_path):
+    p = tmp_path / "m.nc"
+    p.write_text("%\nO1234\nG90 G21 G0 X0 Y0 Z5\n#100=0\n#101=2.5\nWHILE [#100 LT 3] DO1\n"
+                 "G1 X[#100*#101] Y#100 F100\n#100=#100+1\nEND1\nIF [#101 GT 2] GOTO 20\n"
+                 "G1 X99\nN20 G0 Z#101\nM30\n%\n")
+    with open_program(p) as src:
+        assert src.dialect.name == "fanuc" and src.expanded
+        lines = Path(src.path).read_text().splitlines()
+    assert lines[1:] == ["%", "O1234", "G90 G21 G0 X0 Y0 Z5", "G1 X0 Y0 F100", "G1 X2.5 Y1 F100",
+                         "G1 X5 Y2 F100", "N20 G0 Z2.5", "M30"]
+
+
+@pytest.mark.parametrize("text, line, msg", [
+    ("O1\nG0 X#1\n", 2, "variable #1 is read before it is set"),
+    ("O1\n#1=#5001\n", 2, "system variable #5001"),
+    ("O1\n#1=[3 AND 5]\n", 2, "bitwise on a Fanuc"),
+    ("O1\nWHILE [1 EQ 1] DO1\nG0 X1\n", 2, "WHILE ... DO1 without its END1"),
+    ("O1\nGOTO 50\n", 2, "no line with sequence number N50"),
+    ("O1\nIF [1 EQ 1] THEN G0 X1\n", 2, "THEN takes one assignment"),
+    ("O1\nG0 X0 Y0 Z0\nM98 P1000\n", 3, "M98 .subprogram call"),
+])
+def test_fanuc_macro_constructs_refused_in_one_line(tmp_path, text, line, msg):
+    p = tmp_path / "m.nc"
+    p.write_text(text)
+    with pytest.raises(InputError, match=msg) as exc:
+        read_program(p, XFYZ, dialect="fanuc")
+    assert exc.value.line == line and str(exc.value).count("\n") == 0
+
+
+def test_compensate_prints_the_dialect(tmp_path, capsys):
+    from mtcomp.cli import main
+    from mtcomp.models import ErrorModel, FittedModel, save_model
+    fitted = FittedModel.zero(ErrorModel(XFYZ))
+    save_model(tmp_path / "model.json", fitted)
+    p = tmp_path / "p.nc"
+    p.write_text("%\nO0001\n" + G80_PROGRAM)
+    out = tmp_path / "out.nc"
+    code = main(["compensate", "xfyz", str(tmp_path / "model.json"), str(p), "-o", str(out),
+                 "--quiet"])
+    stdout = capsys.readouterr().out
+    assert code == 0
+    assert "dialect: fanuc (detected from line 2: O0001)" in stdout
+    code = main(["compensate", "xfyz", str(tmp_path / "model.json"), str(p), "-o", str(out),
+                 "--quiet", "--dialect", "linuxcnc"])
+    assert code == 2 and "p.nc:9: coordinates without a motion mode" in capsys.readouterr().err
