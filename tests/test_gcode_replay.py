@@ -11,7 +11,7 @@ import pytest
 
 from mtcomp.cli import main
 from replay import Tolerance, compare, replay
-from test_gcode_corpus import PROGRAMS, REFUSED, _machine_file, _model_file, _topology
+from test_gcode_corpus import PROGRAMS, REFUSED, _machine_file, _model_file, _topology, source_bytes
 
 #: the correction bounds passed to compensate; the model's errors are larger, so they bind
 BOUND_UM, BOUND_URAD = 20.0, 500.0
@@ -23,11 +23,7 @@ TOL = Tolerance(axis_mm=BOUND_UM * 1e-3 + ROUNDING_MM,
                 path_mm=math.sqrt(3) * (BOUND_UM * 1e-3 + ROUNDING_MM) + CHORD_UM * 1e-3 + 1e-3)
 ACCEPTED = [p for p in PROGRAMS if p.name not in REFUSED]
 #: accepted programs whose output today does not move like the source, and why
-KNOWN_WRONG = {
-    "linuxcnc_skeleton.ngc": "the reader takes 'G04 P.001 G0 X1.0 Y1.0' for a dwell only and "
-                             "writes 'G0 X-0.00009 Y0.00008 Z0.24999' for 'G0 Z0.25' two lines "
-                             "on: the controller, at X1 Y1, would move 1 inch",
-}
+KNOWN_WRONG: dict = {}
 _OUTPUTS: dict = {}
 
 
@@ -52,7 +48,7 @@ def _compensated(prog, tmp_path_factory) -> bytes:
 def test_output_moves_like_the_source_up_to_the_correction(prog, tmp_path_factory, capsys):
     out = _compensated(prog, tmp_path_factory)
     capsys.readouterr()
-    src_moves, out_moves = compare(prog.read_bytes(), out, TOL, name=prog.name)
+    src_moves, out_moves = compare(source_bytes(prog), out, TOL, name=prog.name)
     assert src_moves, f"{prog.name}: the replay found no motion"
 
 

@@ -134,3 +134,26 @@ def test_compensate_prints_the_dialect(tmp_path, capsys):
     code = main(["compensate", "xfyz", str(tmp_path / "model.json"), str(p), "-o", str(out),
                  "--quiet", "--dialect", "linuxcnc"])
     assert code == 2 and "p.nc:9: coordinates without a motion mode" in capsys.readouterr().err
+
+
+DWELL_AND_MOVE = "G20 G90\nG0 X0 Y0 Z1\nG04 P.001 G0 X1.0 Y1.0\nG0 Z0.25\nM30\n"
+
+
+@pytest.mark.parametrize("dialect", ["linuxcnc", "generic", "grbl"])
+def test_a_dwell_with_a_move_in_one_block_moves(tmp_path, mode, dialect):
+    """LinuxCNC's skeleton.ngc: 'G04 P.001 G0 X1.0 Y1.0' dwells (P) and moves to X1 Y1 (LinuxCNC
+    G-code reference, G4: the dwell time is P); the next Z move starts there."""
+    p = tmp_path / "p.nc"
+    p.write_text(DWELL_AND_MOVE)
+    rows = np.vstack([c.end for c in iter_segment_chunks(p, XFYZ, dialect=dialect)])
+    np.testing.assert_allclose(rows[-2:], [[25.4, 25.4, 25.4], [25.4, 25.4, 6.35]], rtol=0,
+                               atol=1e-12)
+
+
+@pytest.mark.parametrize("dialect", ["fanuc", "haas"])
+def test_a_dwell_with_a_move_is_refused_where_x_is_the_dwell_time(tmp_path, mode, dialect):
+    p = tmp_path / "p.nc"
+    p.write_text(DWELL_AND_MOVE)
+    with pytest.raises(InputError, match="G4 with G0 and axis words in one block") as exc:
+        list(iter_segment_chunks(p, XFYZ, dialect=dialect))
+    assert exc.value.line == 3

@@ -245,6 +245,7 @@ class ModalState:
         nonmotion_axes = False     # G4 dwell (X/P is time), G28/G30/G53: axis words are no motion
         home_move = None
         cycle = None
+        dwell = False
         tool_change = any(m == 6 for m in mcodes)
         self.had_g = bool(gcodes)
         for g in gcodes:
@@ -263,7 +264,7 @@ class ModalState:
                     raise self._err(f"two motion codes G{motion} and G{gi} in one block", line)
                 motion = gi
             elif gi == 4:
-                nonmotion_axes = True
+                nonmotion_axes = dwell = True
             elif gi in (28, 30, 53):
                 nonmotion_axes = True
                 home_move = gi
@@ -271,9 +272,22 @@ class ModalState:
                 cycle = gi
             else:
                 self._apply_modal_code(gi, values)
+        if dwell and motion is not None and home_move is None:
+            nonmotion_axes = self._dwell_with_motion(motion, tokens, line)
         if tool_change:
             self._forget(self.tool_axis)
         return motion, nonmotion_axes, home_move, cycle
+
+    def _dwell_with_motion(self, motion: int, tokens, line: int) -> bool:
+        """A G4 dwell with a motion code in one block (``G04 P.001 G0 X1 Y1``): LinuxCNC and grbl
+        take the dwell time from P and move to the axis words (False: the axis words are motion);
+        Fanuc and Haas read X as the dwell time, so such a block is refused."""
+        if self.dialect.name in ("fanuc", "haas") \
+                and any(letter.upper() in "XYZABCUVW" for letter, _num, _raw in tokens):
+            raise self._err(f"G4 with G{motion} and axis words in one block ({self.dialect.name} "
+                            "reads X as the dwell time): write the dwell on a line of its own",
+                            line)
+        return False
 
     def _apply_decimal_code(self, g: float) -> None:
         """A G code with a decimal part that is not refused: a work coordinate system G59.1-G59.3,

@@ -40,6 +40,7 @@ _REFUSED_G = {
     68: "G68 (coordinate rotation)", 51: "G51 (scaling)",
     51.1: "G51.1 (mirroring)", 95: "G95 (feed per revolution)",
     74: "canned cycle G74 (left-hand tapping)", 76: "canned cycle G76 (threading)",
+    33: "G33 (spindle-synchronised motion)", 33.1: "G33.1 (rigid tapping)",
     90.1: "G90.1 (absolute arc centres)",
     43.4: "G43.4 (tool centre point control: the program gives tool-tip positions, not axis "
           "positions)",

@@ -55,7 +55,10 @@ def _motion_runs(original: ProgramPoints, compensated: ProgramPoints) -> tuple[n
     a run of the original and the same run of the compensated program hold the same blocks, in the
     same order. Raises InputError where a kept line is missing."""
     def lines(path):
-        with open(path, "rb") as f:
+        # a program with code to compute is paired as the flat program it expands to (the lines
+        # its segment ends are numbered by, and those compensate wrote with its corrections)
+        from ..toolpaths.source import open_program
+        with open_program(path) as src, open(src, "rb") as f:
             return f.read().split(b"\n")
     a, b = lines(original.path), lines(compensated.path)
     a_motion, b_motion = set(original.line.tolist()), set(compensated.line.tolist())
