@@ -43,6 +43,8 @@ from functools import cached_property
 import casadi as ca
 import numpy as np
 
+from .. import kinematics
+from ..kinematics import CASADI
 from ..machine import AXIS_DIRECTION, Machine
 from .basis import SLOPE_CARRIED_BY_SQUARENESS, axis_spline
 from .params import ParamSpec
@@ -61,27 +63,18 @@ def context_defaults(machine: Machine) -> dict[str, float]:
 
 
 # --------------------------------------------------------------------------------- rigid transforms
-# A transform is a pair (R 3x3, t 3x1) of SX: x_parent = R x_child + t.
+# A transform is a pair (R 3x3, t 3x1) of SX: x_parent = R x_child + t. The elementary rotation,
+# composition and inverse are those of the nominal kinematics (mtcomp.kinematics, CasADi form).
 
-def rot(axis_index: int, angle):
-    """Elementary rotation about machine direction 0, 1 or 2 (SX 3x3)."""
-    c, s = ca.cos(angle), ca.sin(angle)
-    R = ca.SX.eye(3)
-    j, k = (axis_index + 1) % 3, (axis_index + 2) % 3
-    R[j, j] = c
-    R[k, k] = c
-    R[k, j] = s
-    R[j, k] = -s
-    return R
+rot = CASADI.rotation   # rot(axis_index, angle): elementary rotation about machine direction 0, 1 or 2
 
 
 def compose(A, B):
-    return (ca.mtimes(A[0], B[0]), ca.mtimes(A[0], B[1]) + A[1])
+    return kinematics.compose(A, B, CASADI)
 
 
 def inverse(A):
-    Rt = A[0].T
-    return (Rt, -ca.mtimes(Rt, A[1]))
+    return kinematics.inverse(A, CASADI)
 
 
 def trans(v):
@@ -294,60 +287,53 @@ class ErrorModel:
 
     # ----------------------------------------------------------------- symbolic chain
     def symbolic(self, q, p, c, errors: bool = True):
-        """Tool-tip frame in the workpiece frame for SX/MX inputs.
+        """Tool-tip frame in the workpiece frame for SX inputs.
 
         Returns (tip (3,), axis (3,), R (3, 3)): tool tip position (mm), tool axis (unit), and the tool
-        frame's rotation, all in the workpiece frame. ``errors=False`` gives the nominal chain.
+        frame's rotation, all in the workpiece frame. ``errors=False`` gives the nominal chain, that of
+        :func:`mtcomp.kinematics.symbolic_pose`.
         """
         m = self.machine
+        if not errors:
+            return kinematics.symbolic_pose(m, q)
         P = {name: p[i] for i, name in enumerate(self.param_names)}
         C = {name: c[i] for i, name in enumerate(self.context_names)}
-        Z = ca.SX(0)
-
-        def par(name):
-            return P[name] if errors else Z
-
+        par = P.__getitem__
         wp = (ca.SX.eye(3), ca.SX.zeros(3))
         for name in m.workpiece_chain:
-            wp = compose(wp, self._axis_transform(name, q[m.index(name)], P, C, par, errors))
+            wp = compose(wp, self._axis_transform(name, q[m.index(name)], P, C))
         tl = (ca.SX.eye(3), ca.SX.zeros(3))
         for name in m.tool_chain:
-            tl = compose(tl, self._axis_transform(name, q[m.index(name)], P, C, par, errors))
+            tl = compose(tl, self._axis_transform(name, q[m.index(name)], P, C))
         # the tool axis tilted by the spindle tilt about the gauge point (0, 0, tool_length)
         tilt = ca.mtimes(rot(1, par("B0S")), rot(0, par("A0S")))
         tl = compose(tl, rot_about_point(tilt, ca.vertcat(0, 0, C["tool_length"])))
         tool2wp = compose(inverse(wp), tl)
         tip_local = ca.vertcat(0, 0, -par("TOOL_dL"))
         tip = ca.mtimes(tool2wp[0], tip_local) + tool2wp[1]
-        if errors:
-            for t in self.terms:
-                off = t.tip_offset(m, q, C, P)
-                if off is not None:
-                    tip = tip + off
+        for t in self.terms:
+            off = t.tip_offset(m, q, C, P)
+            if off is not None:
+                tip = tip + off
         return tip, tool2wp[0][:, 2], tool2wp[0]
 
-    def linear_parts(self, name, s, P, C, par=None, errors: bool = True):
+    def linear_parts(self, name, s, P, C):
         """The pieces of linear axis ``name``'s carriage transform at position s (SX), in the axis's own
         sense (tool relative to workpiece): (u, comps, centres, r) with u (3,) the axis direction tilted
         by the squareness errors, comps the six component errors (base plus every extension term's
         ``axis_errors``), centres {'A'|'B'|'C': (3,) shift of that rotation's centre (AbbeIRC)} and r
-        (3,) the carriage's reference point. ``P``/``C`` map parameter/context names to symbols;
-        ``par(name)`` gives a parameter (default ``P[name]``; zero for the nominal chain)."""
+        (3,) the carriage's reference point. ``P``/``C`` map parameter/context names to symbols."""
         m = self.machine
         ax = m.axis(name)
         d = ax.direction_index
-        par = par or P.__getitem__
-        if errors:
-            comps = linear_components(m, name, s, par, ca.SX(0))
-        else:
-            comps = {comp: ca.SX(0) for comp in linear_component_names(name)}
+        par = P.__getitem__
+        comps = linear_components(m, name, s, par, ca.SX(0))
         centres = {a: ca.SX.zeros(3) for a in ANGLE_LETTERS}
-        if errors:
-            for t in self.terms:
-                for comp, e in t.axis_errors(m, ax, s, C, P, comps).items():
-                    comps[comp] = comps[comp] + e
-                for a, o in t.abbe_centres(m, ax, s, C, P).items():
-                    centres[a] = centres[a] + o
+        for t in self.terms:
+            for comp, e in t.axis_errors(m, ax, s, C, P, comps).items():
+                comps[comp] = comps[comp] + e
+            for a, o in t.abbe_centres(m, ax, s, C, P).items():
+                centres[a] = centres[a] + o
         u = unit(d)
         if name == "Y":
             u = ca.mtimes(rot(2, par("C0Y")), u) if "C0Y" in P else u
@@ -358,8 +344,10 @@ class ErrorModel:
         r = ca.vertcat(0, 0, C["tool_length"]) if ax.side == "tool" else ca.SX.zeros(3)
         return u, comps, centres, r
 
-    def _axis_transform(self, name, s, P, C, par, errors):
+    def _axis_transform(self, name, s, P, C):
+        """One axis's carriage transform with its errors (the chain of the module notes)."""
         m = self.machine
+        par = P.__getitem__
         ax = m.axis(name)
         d = ax.direction_index
         if ax.is_rotary:
@@ -373,10 +361,9 @@ class ErrorModel:
                 for k in range(1, ax.error_motion_order + 1):
                     e = e + par(f"{comp}_c{k}") * ca.cos(k * s) + par(f"{comp}_s{k}") * ca.sin(k * s)
                 comps[comp] = e
-            if errors:
-                for t in self.terms:
-                    for comp, e in t.axis_errors(m, ax, s, C, P, comps).items():
-                        comps[comp] = comps[comp] + e
+            for t in self.terms:
+                for comp, e in t.axis_errors(m, ax, s, C, P, comps).items():
+                    comps[comp] = comps[comp] + e
             offsets, tilts = rotary_location_names(name)
             point = ca.SX(np.asarray(ax.axis_point, dtype=float))
             others = [j for j in range(3) if j != d]
@@ -395,7 +382,7 @@ class ErrorModel:
             return (R, point + delta_m - ca.mtimes(R, point))
 
         # linear axis
-        u, comps, centres, r = self.linear_parts(name, s, P, C, par, errors)
+        u, comps, centres, r = self.linear_parts(name, s, P, C)
         A = trans(s * u)
         A = compose(A, trans(ca.vertcat(*[comps[f"E{TRANSLATION_LETTERS[j]}{name}"] for j in range(3)])))
         for j, a in enumerate(ANGLE_LETTERS):
