@@ -47,6 +47,7 @@ from .. import kinematics
 from ..kinematics import CASADI
 from ..machine import AXIS_DIRECTION, Machine
 from .basis import SLOPE_CARRIED_BY_SQUARENESS, axis_spline
+from .function_cache import model_function
 from .params import ParamSpec
 from .terms import ANGLE_LETTERS, TRANSLATION_LETTERS, Term, positioning_component
 
@@ -272,12 +273,16 @@ class ErrorModel:
         return np.array([s.base for s in self.param_specs])
 
     def structure_key(self) -> str:
-        """A string that identifies the model's structure (for caches of compiled code)."""
-        import hashlib
-        import json
-        blob = json.dumps({"machine": self.machine.to_dict(), "terms": [t.to_dict() for t in self.terms],
-                           "params": self.param_names, "ctx": self.context_names}, sort_keys=True)
-        return hashlib.sha256(blob.encode()).hexdigest()[:16]
+        """A string that identifies the model's structure (for the caches of its CasADi functions and
+        compiled code); computed once (the model is a frozen description)."""
+        key = self.__dict__.get("_structure_key")
+        if key is None:
+            import hashlib
+            import json
+            blob = json.dumps({"machine": self.machine.to_dict(), "terms": [t.to_dict() for t in self.terms],
+                               "params": self.param_names, "ctx": self.context_names}, sort_keys=True)
+            key = self._structure_key = hashlib.sha256(blob.encode()).hexdigest()[:16]
+        return key
 
     def default_context(self, n: int = 1) -> np.ndarray:
         """(n, n_context) context with every channel at its default (feed 0, dir unknown ...)."""
@@ -400,46 +405,50 @@ class ErrorModel:
         dev = ca.vertcat(tip - tip0, axis - axis0)
         return {"tip": tip, "axis": axis, "tip0": tip0, "axis0": axis0, "dev": dev}
 
+    def _function(self, name: str, outputs, out_names) -> ca.Function:
+        """ca.Function ``name`` of (q, p, c) -> ``outputs(expressions)``, built once per model
+        structure (:func:`mtcomp.models.function_cache.model_function`)."""
+        def build():
+            return ca.Function(name, [self._q, self._p, self._c], outputs(self._expressions),
+                               ["q", "p", "c"], out_names)
+        return model_function(self, name, build)
+
     @cached_property
     def pose_function(self) -> ca.Function:
         """(q, p, c) -> (tip (3,) mm, axis (3,)): actual tool tip and tool axis in the workpiece frame."""
-        e = self._expressions
-        return ca.Function("pose", [self._q, self._p, self._c], [e["tip"], e["axis"]],
-                           ["q", "p", "c"], ["tip", "axis"])
+        return self._function("pose", lambda e: [e["tip"], e["axis"]], ["tip", "axis"])
 
     @cached_property
     def nominal_function(self) -> ca.Function:
-        e = self._expressions
-        return ca.Function("nominal", [self._q], [e["tip0"], e["axis0"]], ["q"], ["tip", "axis"])
+        """q -> (tip (3,) mm, axis (3,)): the nominal tool pose (:func:`mtcomp.kinematics.forward`)."""
+        def build():
+            e = self._expressions
+            return ca.Function("nominal", [self._q], [e["tip0"], e["axis0"]], ["q"], ["tip", "axis"])
+        return model_function(self, "nominal", build)
 
     @cached_property
     def deviation_function(self) -> ca.Function:
         """(q, p, c) -> dev (6,): tip deviation (mm) and tool-axis deviation (actual minus nominal)."""
-        return ca.Function("deviation", [self._q, self._p, self._c], [self._expressions["dev"]],
-                           ["q", "p", "c"], ["dev"])
+        return self._function("deviation", lambda e: [e["dev"]], ["dev"])
 
     @cached_property
     def deviation_jacobian_function(self) -> ca.Function:
         """(q, p, c) -> (dev (6,), J_q (6, n_axes), J_p (6, n_params))."""
-        dev = self._expressions["dev"]
-        return ca.Function("deviation_jac", [self._q, self._p, self._c],
-                           [dev, ca.jacobian(dev, self._q), ca.jacobian(dev, self._p)],
-                           ["q", "p", "c"], ["dev", "J_q", "J_p"])
+        return self._function("deviation_jac", lambda e: [e["dev"], ca.jacobian(e["dev"], self._q),
+                                                          ca.jacobian(e["dev"], self._p)],
+                              ["dev", "J_q", "J_p"])
 
     @cached_property
     def tip_pjacobian_function(self) -> ca.Function:
         """(q, p, c) -> J_p (3, n_params): the tip deviation's (mm) Jacobian with respect to the
         parameters, for the standard error of a correction."""
-        tip = self._expressions["dev"][:3]
-        return ca.Function("tip_pjac", [self._q, self._p, self._c], [ca.jacobian(tip, self._p)],
-                           ["q", "p", "c"], ["J_p"])
+        return self._function("tip_pjac", lambda e: [ca.jacobian(e["dev"][:3], self._p)], ["J_p"])
 
     @cached_property
     def deviation_qjacobian_function(self) -> ca.Function:
         """(q, p, c) -> (dev (6,), J_q (6, n_axes)): what the planner needs per block."""
-        dev = self._expressions["dev"]
-        return ca.Function("deviation_qjac", [self._q, self._p, self._c],
-                           [dev, ca.jacobian(dev, self._q)], ["q", "p", "c"], ["dev", "J_q"])
+        return self._function("deviation_qjac", lambda e: [e["dev"], ca.jacobian(e["dev"], self._q)],
+                              ["dev", "J_q"])
 
     def with_terms(self, *terms: Term) -> "ErrorModel":
         """A new model with extra terms appended (the base model is unchanged)."""
