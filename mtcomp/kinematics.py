@@ -93,7 +93,6 @@ class _Numpy:
         return q[:, j]
 
 
-
 class _CasADi:
     """One symbolic pose: q an SX n_axes-vector, R an SX 3x3, t an SX 3-vector (casadi is imported
     on first use, so that numpy users of this module do not load it)."""
@@ -142,7 +141,6 @@ class _CasADi:
     @staticmethod
     def coordinate(q, j: int):
         return q[j]
-
 
 
 #: numpy, vectorised over poses
