@@ -248,16 +248,21 @@ def plan_grids(machine, region: dict, max_points: int, step_mm: float | None = N
 # ------------------------------------------------------------------------------------ evaluation
 def _rotation_function(model):
     """CasADi function (q, p, c) -> (3,): rotation vector of the tool relative to the workpiece,
-    actual times nominal transposed, vee((R - R^T) / 2) (exact to third order in the angle)."""
-    import casadi as ca
-    q = ca.SX.sym("q", model.machine.n_axes)
-    p = ca.SX.sym("p", model.n_params)
-    c = ca.SX.sym("c", model.n_context)
-    _, _, R = model.symbolic(q, p, c, errors=True)
-    _, _, R0 = model.symbolic(q, p, c, errors=False)
-    Rr = ca.mtimes(R, R0.T)
-    w = 0.5 * ca.vertcat(Rr[2, 1] - Rr[1, 2], Rr[0, 2] - Rr[2, 0], Rr[1, 0] - Rr[0, 1])
-    return ca.Function("tool_rotation", [q, p, c], [w])
+    actual times nominal transposed, vee((R - R^T) / 2) (exact to third order in the angle). Built
+    once per model structure (:func:`mtcomp.models.function_cache.model_function`)."""
+    from ..models.function_cache import model_function
+
+    def build():
+        import casadi as ca
+        q = ca.SX.sym("q", model.machine.n_axes)
+        p = ca.SX.sym("p", model.n_params)
+        c = ca.SX.sym("c", model.n_context)
+        _, _, R = model.symbolic(q, p, c, errors=True)
+        _, _, R0 = model.symbolic(q, p, c, errors=False)
+        Rr = ca.mtimes(R, R0.T)
+        w = 0.5 * ca.vertcat(Rr[2, 1] - Rr[1, 2], Rr[0, 2] - Rr[2, 0], Rr[1, 0] - Rr[0, 1])
+        return ca.Function("tool_rotation", [q, p, c], [w])
+    return model_function(model, "tool_rotation", build)
 
 
 def model_errors(fitted, q: np.ndarray, directions: dict | None = None) -> tuple[np.ndarray, bool]:

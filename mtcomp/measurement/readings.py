@@ -33,7 +33,6 @@ imports with this module (so every kind is registered whichever module is import
 """
 from __future__ import annotations
 
-from collections import OrderedDict
 from pathlib import Path
 from typing import ClassVar
 
@@ -44,6 +43,7 @@ from ..errors import InputError
 from .drift import feature_value
 from .files import MeasurementSet
 from ..models.chain import ErrorModel, context_defaults as base_context_defaults
+from ..models.function_cache import model_function
 from ..models.params import ParamSpec
 
 #: kind -> measurement model class (filled by :func:`register`)
@@ -236,14 +236,14 @@ def context_matrix(model: ErrorModel, data: MeasurementSet, context_defaults: di
 
 
 # ------------------------------------------------------------------------- batched CasADi evaluation
-#: structure key -> {name: CasADi function}: models of one structure (identify builds a new model with
-#: the data's knots on every call) share their functions, the last few structures kept
-_FUNCTIONS: "OrderedDict[str, dict]" = OrderedDict()
-_FUNCTIONS_KEPT = 16
+#: what each chain function appends to the context: its length
+_EXTRA_CONTEXT = {"tip": 0, "tip_jac": 0, "tip_vjp": 3, "laser": 9, "laser_jac": 9, "ballbar": 6,
+                  "ballbar_jac": 6}
 
 
 def chain_function(model: ErrorModel, name: str) -> ca.Function:
-    """CasADi functions of (q, p, c) built once per model structure and cached (``c`` may be extended per row):
+    """CasADi functions of (q, p, c) (``c`` may be extended per row), built once per model structure
+    (:func:`mtcomp.models.function_cache.model_function`):
 
     * ``'tip'``: d (3,) tip deviation mm; ``'tip_jac'``: (d, J_d^T (n_params, 3)); ``'tip_vjp'``:
       c = [context, v (3)]: (d, J_d^T v (n_params, 1)), one reverse sweep instead of the Jacobian.
@@ -253,43 +253,38 @@ def chain_function(model: ErrorModel, name: str) -> ca.Function:
     * ``'ballbar'`` / ``'ballbar_jac'``: c = [context, T (3), b (3)]:
       L = | tip0 + d + R_rel b - T | (scalar) and its gradient (n_params, 1).
     """
-    key = model.structure_key()
-    cache = _FUNCTIONS.setdefault(key, {})
-    _FUNCTIONS.move_to_end(key)
-    while len(_FUNCTIONS) > _FUNCTIONS_KEPT:
-        _FUNCTIONS.popitem(last=False)
-    if name not in cache:
-        nc = model.n_context
-        q, p = ca.SX.sym("q", model.machine.n_axes), ca.SX.sym("p", model.n_params)
-        extra = {"tip": 0, "tip_jac": 0, "tip_vjp": 3, "laser": 9, "laser_jac": 9, "ballbar": 6,
-                 "ballbar_jac": 6}
-        if name not in extra:
-            raise KeyError(name)
-        cx = ca.SX.sym("c", nc + extra[name])
-        c = cx[:nc]
-        tip, _, R = model.symbolic(q, p, c, errors=True)
-        tip0, _, R0 = model.symbolic(q, p, c, errors=False)
-        d = tip - tip0
-        R_rel = ca.mtimes(R, R0.T)
-        if name.startswith("tip"):
-            outs = [d]
-        elif name.startswith("laser"):
-            o, sel = cx[nc:nc + 3], cx[nc + 3:nc + 9]
-            point = d + ca.mtimes(R_rel, o) - o
-            vee = 0.5 * ca.vertcat(R_rel[2, 1] - R_rel[1, 2], R_rel[0, 2] - R_rel[2, 0],
-                                   R_rel[1, 0] - R_rel[0, 1])
-            outs = [ca.dot(sel, ca.vertcat(point, vee))]
-        else:
-            T, b = cx[nc:nc + 3], cx[nc + 3:nc + 6]
-            outs = [ca.norm_2(tip0 + d + ca.mtimes(R_rel, b) - T)]
-        if name.endswith("_jac"):
-            # transposed (n_params, rows): column-major per pose = row-major (rows, n_params), so
-            # the stacked Jacobian of N poses is a reshape, not a copy
-            outs.append(ca.jacobian(outs[0], p).T)
-        elif name.endswith("_vjp"):
-            outs.append(ca.jtimes(outs[0], p, cx[nc:nc + 3], True))
-        cache[name] = ca.Function(f"mm_{name}", [q, p, cx], outs)
-    return cache[name]
+    if name not in _EXTRA_CONTEXT:
+        raise KeyError(name)
+    return model_function(model, f"mm_{name}", lambda: _build_chain_function(model, name))
+
+
+def _build_chain_function(model: ErrorModel, name: str) -> ca.Function:
+    nc = model.n_context
+    q, p = ca.SX.sym("q", model.machine.n_axes), ca.SX.sym("p", model.n_params)
+    cx = ca.SX.sym("c", nc + _EXTRA_CONTEXT[name])
+    c = cx[:nc]
+    tip, _, R = model.symbolic(q, p, c, errors=True)
+    tip0, _, R0 = model.symbolic(q, p, c, errors=False)
+    d = tip - tip0
+    R_rel = ca.mtimes(R, R0.T)
+    if name.startswith("tip"):
+        outs = [d]
+    elif name.startswith("laser"):
+        o, sel = cx[nc:nc + 3], cx[nc + 3:nc + 9]
+        point = d + ca.mtimes(R_rel, o) - o
+        vee = 0.5 * ca.vertcat(R_rel[2, 1] - R_rel[1, 2], R_rel[0, 2] - R_rel[2, 0],
+                               R_rel[1, 0] - R_rel[0, 1])
+        outs = [ca.dot(sel, ca.vertcat(point, vee))]
+    else:
+        T, b = cx[nc:nc + 3], cx[nc + 3:nc + 6]
+        outs = [ca.norm_2(tip0 + d + ca.mtimes(R_rel, b) - T)]
+    if name.endswith("_jac"):
+        # transposed (n_params, rows): column-major per pose = row-major (rows, n_params), so
+        # the stacked Jacobian of N poses is a reshape, not a copy
+        outs.append(ca.jacobian(outs[0], p).T)
+    elif name.endswith("_vjp"):
+        outs.append(ca.jtimes(outs[0], p, cx[nc:nc + 3], True))
+    return ca.Function(f"mm_{name}", [q, p, cx], outs)
 
 
 def evaluate_chain(model: ErrorModel, name: str, q: np.ndarray, p: np.ndarray, c: np.ndarray):

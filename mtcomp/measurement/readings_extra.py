@@ -39,6 +39,7 @@ import numpy as np
 from ..errors import InputError
 from ..kinematics import forward
 from ..models.chain import ErrorModel
+from ..models.function_cache import model_function
 from ..models.params import ParamSpec
 from ..models.terms import ANGLE_LETTERS, TRANSLATION_LETTERS, ChannelDrift
 from .readings import MeasurementModel, context_matrix, frame_setup_specs, register
@@ -50,15 +51,12 @@ TIP_CHANNELS = {"x": 0, "y": 1, "z": 2}
 
 
 # --------------------------------------------------------------------------------- chain projections
-_NORMAL_FUNCTIONS: "weakref.WeakKeyDictionary[ErrorModel, ca.Function]" = weakref.WeakKeyDictionary()
-
-
 def normal_deviation_function(model: ErrorModel) -> ca.Function:
     """CasADi (q, p, cx = [c, o (3), n (3)]) -> (v, dv/dp (1, n_params)) with
     ``v = n . (d + (R_rel - I) o)``: the deviation along n of the point carried by the tool at o from
     the nominal tip (workpiece frame; d tip deviation, R_rel the tool's rotation relative to nominal).
-    Built once per model."""
-    if model not in _NORMAL_FUNCTIONS:
+    Built once per model structure (:func:`mtcomp.models.function_cache.model_function`)."""
+    def build():
         nc = model.n_context
         q, p = ca.SX.sym("q", model.machine.n_axes), ca.SX.sym("p", model.n_params)
         cx = ca.SX.sym("c", nc + 6)
@@ -66,8 +64,8 @@ def normal_deviation_function(model: ErrorModel) -> ca.Function:
         tip, _, R = model.symbolic(q, p, c, errors=True)
         tip0, _, R0 = model.symbolic(q, p, c, errors=False)
         v = ca.dot(n, tip - tip0 + ca.mtimes(ca.mtimes(R, R0.T), o) - o)
-        _NORMAL_FUNCTIONS[model] = ca.Function("normal_deviation", [q, p, cx], [v, ca.jacobian(v, p)])
-    return _NORMAL_FUNCTIONS[model]
+        return ca.Function("normal_deviation", [q, p, cx], [v, ca.jacobian(v, p)])
+    return model_function(model, "normal_deviation", build)
 
 
 def normal_deviation(model: ErrorModel, q, p, c, offset, normal, jacobian: bool = False):
@@ -384,6 +382,12 @@ def _symbols(model: ErrorModel):
 
 
 def velocity_function(model: ErrorModel, axis: str) -> ca.Function:
+    """:func:`_build_velocity_function`, built once per model structure and axis
+    (:func:`mtcomp.models.function_cache.model_function`)."""
+    return model_function(model, f"velocity_{axis}", lambda: _build_velocity_function(model, axis))
+
+
+def _build_velocity_function(model: ErrorModel, axis: str) -> ca.Function:
     """CasADi (inp (6,) = [s mm, V mm/min, Mx, My, Nx, Ny], p, c) -> (v (4,) = [vMx, vMy, vNx, vNy]
     mm/min, dv/dp (4, n_params)) for a table moving along ``axis`` (X or Y).
 

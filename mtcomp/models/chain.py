@@ -43,8 +43,11 @@ from functools import cached_property
 import casadi as ca
 import numpy as np
 
+from .. import kinematics
+from ..kinematics import CASADI
 from ..machine import AXIS_DIRECTION, Machine
 from .basis import SLOPE_CARRIED_BY_SQUARENESS, axis_spline
+from .function_cache import model_function
 from .params import ParamSpec
 from .terms import ANGLE_LETTERS, TRANSLATION_LETTERS, Term, positioning_component
 
@@ -61,27 +64,18 @@ def context_defaults(machine: Machine) -> dict[str, float]:
 
 
 # --------------------------------------------------------------------------------- rigid transforms
-# A transform is a pair (R 3x3, t 3x1) of SX: x_parent = R x_child + t.
+# A transform is a pair (R 3x3, t 3x1) of SX: x_parent = R x_child + t. The elementary rotation,
+# composition and inverse are those of the nominal kinematics (mtcomp.kinematics, CasADi form).
 
-def rot(axis_index: int, angle):
-    """Elementary rotation about machine direction 0, 1 or 2 (SX 3x3)."""
-    c, s = ca.cos(angle), ca.sin(angle)
-    R = ca.SX.eye(3)
-    j, k = (axis_index + 1) % 3, (axis_index + 2) % 3
-    R[j, j] = c
-    R[k, k] = c
-    R[k, j] = s
-    R[j, k] = -s
-    return R
+rot = CASADI.rotation   # rot(axis_index, angle): elementary rotation about machine direction 0, 1 or 2
 
 
 def compose(A, B):
-    return (ca.mtimes(A[0], B[0]), ca.mtimes(A[0], B[1]) + A[1])
+    return kinematics.compose(A, B, CASADI)
 
 
 def inverse(A):
-    Rt = A[0].T
-    return (Rt, -ca.mtimes(Rt, A[1]))
+    return kinematics.inverse(A, CASADI)
 
 
 def trans(v):
@@ -279,12 +273,16 @@ class ErrorModel:
         return np.array([s.base for s in self.param_specs])
 
     def structure_key(self) -> str:
-        """A string that identifies the model's structure (for caches of compiled code)."""
-        import hashlib
-        import json
-        blob = json.dumps({"machine": self.machine.to_dict(), "terms": [t.to_dict() for t in self.terms],
-                           "params": self.param_names, "ctx": self.context_names}, sort_keys=True)
-        return hashlib.sha256(blob.encode()).hexdigest()[:16]
+        """A string that identifies the model's structure (for the caches of its CasADi functions and
+        compiled code); computed once (the model is a frozen description)."""
+        key = self.__dict__.get("_structure_key")
+        if key is None:
+            import hashlib
+            import json
+            blob = json.dumps({"machine": self.machine.to_dict(), "terms": [t.to_dict() for t in self.terms],
+                               "params": self.param_names, "ctx": self.context_names}, sort_keys=True)
+            key = self._structure_key = hashlib.sha256(blob.encode()).hexdigest()[:16]
+        return key
 
     def default_context(self, n: int = 1) -> np.ndarray:
         """(n, n_context) context with every channel at its default (feed 0, dir unknown ...)."""
@@ -294,60 +292,53 @@ class ErrorModel:
 
     # ----------------------------------------------------------------- symbolic chain
     def symbolic(self, q, p, c, errors: bool = True):
-        """Tool-tip frame in the workpiece frame for SX/MX inputs.
+        """Tool-tip frame in the workpiece frame for SX inputs.
 
         Returns (tip (3,), axis (3,), R (3, 3)): tool tip position (mm), tool axis (unit), and the tool
-        frame's rotation, all in the workpiece frame. ``errors=False`` gives the nominal chain.
+        frame's rotation, all in the workpiece frame. ``errors=False`` gives the nominal chain, that of
+        :func:`mtcomp.kinematics.symbolic_pose`.
         """
         m = self.machine
+        if not errors:
+            return kinematics.symbolic_pose(m, q)
         P = {name: p[i] for i, name in enumerate(self.param_names)}
         C = {name: c[i] for i, name in enumerate(self.context_names)}
-        Z = ca.SX(0)
-
-        def par(name):
-            return P[name] if errors else Z
-
+        par = P.__getitem__
         wp = (ca.SX.eye(3), ca.SX.zeros(3))
         for name in m.workpiece_chain:
-            wp = compose(wp, self._axis_transform(name, q[m.index(name)], P, C, par, errors))
+            wp = compose(wp, self._axis_transform(name, q[m.index(name)], P, C))
         tl = (ca.SX.eye(3), ca.SX.zeros(3))
         for name in m.tool_chain:
-            tl = compose(tl, self._axis_transform(name, q[m.index(name)], P, C, par, errors))
+            tl = compose(tl, self._axis_transform(name, q[m.index(name)], P, C))
         # the tool axis tilted by the spindle tilt about the gauge point (0, 0, tool_length)
         tilt = ca.mtimes(rot(1, par("B0S")), rot(0, par("A0S")))
         tl = compose(tl, rot_about_point(tilt, ca.vertcat(0, 0, C["tool_length"])))
         tool2wp = compose(inverse(wp), tl)
         tip_local = ca.vertcat(0, 0, -par("TOOL_dL"))
         tip = ca.mtimes(tool2wp[0], tip_local) + tool2wp[1]
-        if errors:
-            for t in self.terms:
-                off = t.tip_offset(m, q, C, P)
-                if off is not None:
-                    tip = tip + off
+        for t in self.terms:
+            off = t.tip_offset(m, q, C, P)
+            if off is not None:
+                tip = tip + off
         return tip, tool2wp[0][:, 2], tool2wp[0]
 
-    def linear_parts(self, name, s, P, C, par=None, errors: bool = True):
+    def linear_parts(self, name, s, P, C):
         """The pieces of linear axis ``name``'s carriage transform at position s (SX), in the axis's own
         sense (tool relative to workpiece): (u, comps, centres, r) with u (3,) the axis direction tilted
         by the squareness errors, comps the six component errors (base plus every extension term's
         ``axis_errors``), centres {'A'|'B'|'C': (3,) shift of that rotation's centre (AbbeIRC)} and r
-        (3,) the carriage's reference point. ``P``/``C`` map parameter/context names to symbols;
-        ``par(name)`` gives a parameter (default ``P[name]``; zero for the nominal chain)."""
+        (3,) the carriage's reference point. ``P``/``C`` map parameter/context names to symbols."""
         m = self.machine
         ax = m.axis(name)
         d = ax.direction_index
-        par = par or P.__getitem__
-        if errors:
-            comps = linear_components(m, name, s, par, ca.SX(0))
-        else:
-            comps = {comp: ca.SX(0) for comp in linear_component_names(name)}
+        par = P.__getitem__
+        comps = linear_components(m, name, s, par, ca.SX(0))
         centres = {a: ca.SX.zeros(3) for a in ANGLE_LETTERS}
-        if errors:
-            for t in self.terms:
-                for comp, e in t.axis_errors(m, ax, s, C, P, comps).items():
-                    comps[comp] = comps[comp] + e
-                for a, o in t.abbe_centres(m, ax, s, C, P).items():
-                    centres[a] = centres[a] + o
+        for t in self.terms:
+            for comp, e in t.axis_errors(m, ax, s, C, P, comps).items():
+                comps[comp] = comps[comp] + e
+            for a, o in t.abbe_centres(m, ax, s, C, P).items():
+                centres[a] = centres[a] + o
         u = unit(d)
         if name == "Y":
             u = ca.mtimes(rot(2, par("C0Y")), u) if "C0Y" in P else u
@@ -358,8 +349,10 @@ class ErrorModel:
         r = ca.vertcat(0, 0, C["tool_length"]) if ax.side == "tool" else ca.SX.zeros(3)
         return u, comps, centres, r
 
-    def _axis_transform(self, name, s, P, C, par, errors):
+    def _axis_transform(self, name, s, P, C):
+        """One axis's carriage transform with its errors (the chain of the module notes)."""
         m = self.machine
+        par = P.__getitem__
         ax = m.axis(name)
         d = ax.direction_index
         if ax.is_rotary:
@@ -373,10 +366,9 @@ class ErrorModel:
                 for k in range(1, ax.error_motion_order + 1):
                     e = e + par(f"{comp}_c{k}") * ca.cos(k * s) + par(f"{comp}_s{k}") * ca.sin(k * s)
                 comps[comp] = e
-            if errors:
-                for t in self.terms:
-                    for comp, e in t.axis_errors(m, ax, s, C, P, comps).items():
-                        comps[comp] = comps[comp] + e
+            for t in self.terms:
+                for comp, e in t.axis_errors(m, ax, s, C, P, comps).items():
+                    comps[comp] = comps[comp] + e
             offsets, tilts = rotary_location_names(name)
             point = ca.SX(np.asarray(ax.axis_point, dtype=float))
             others = [j for j in range(3) if j != d]
@@ -395,7 +387,7 @@ class ErrorModel:
             return (R, point + delta_m - ca.mtimes(R, point))
 
         # linear axis
-        u, comps, centres, r = self.linear_parts(name, s, P, C, par, errors)
+        u, comps, centres, r = self.linear_parts(name, s, P, C)
         A = trans(s * u)
         A = compose(A, trans(ca.vertcat(*[comps[f"E{TRANSLATION_LETTERS[j]}{name}"] for j in range(3)])))
         for j, a in enumerate(ANGLE_LETTERS):
@@ -413,46 +405,50 @@ class ErrorModel:
         dev = ca.vertcat(tip - tip0, axis - axis0)
         return {"tip": tip, "axis": axis, "tip0": tip0, "axis0": axis0, "dev": dev}
 
+    def _function(self, name: str, outputs, out_names) -> ca.Function:
+        """ca.Function ``name`` of (q, p, c) -> ``outputs(expressions)``, built once per model
+        structure (:func:`mtcomp.models.function_cache.model_function`)."""
+        def build():
+            return ca.Function(name, [self._q, self._p, self._c], outputs(self._expressions),
+                               ["q", "p", "c"], out_names)
+        return model_function(self, name, build)
+
     @cached_property
     def pose_function(self) -> ca.Function:
         """(q, p, c) -> (tip (3,) mm, axis (3,)): actual tool tip and tool axis in the workpiece frame."""
-        e = self._expressions
-        return ca.Function("pose", [self._q, self._p, self._c], [e["tip"], e["axis"]],
-                           ["q", "p", "c"], ["tip", "axis"])
+        return self._function("pose", lambda e: [e["tip"], e["axis"]], ["tip", "axis"])
 
     @cached_property
     def nominal_function(self) -> ca.Function:
-        e = self._expressions
-        return ca.Function("nominal", [self._q], [e["tip0"], e["axis0"]], ["q"], ["tip", "axis"])
+        """q -> (tip (3,) mm, axis (3,)): the nominal tool pose (:func:`mtcomp.kinematics.forward`)."""
+        def build():
+            e = self._expressions
+            return ca.Function("nominal", [self._q], [e["tip0"], e["axis0"]], ["q"], ["tip", "axis"])
+        return model_function(self, "nominal", build)
 
     @cached_property
     def deviation_function(self) -> ca.Function:
         """(q, p, c) -> dev (6,): tip deviation (mm) and tool-axis deviation (actual minus nominal)."""
-        return ca.Function("deviation", [self._q, self._p, self._c], [self._expressions["dev"]],
-                           ["q", "p", "c"], ["dev"])
+        return self._function("deviation", lambda e: [e["dev"]], ["dev"])
 
     @cached_property
     def deviation_jacobian_function(self) -> ca.Function:
         """(q, p, c) -> (dev (6,), J_q (6, n_axes), J_p (6, n_params))."""
-        dev = self._expressions["dev"]
-        return ca.Function("deviation_jac", [self._q, self._p, self._c],
-                           [dev, ca.jacobian(dev, self._q), ca.jacobian(dev, self._p)],
-                           ["q", "p", "c"], ["dev", "J_q", "J_p"])
+        return self._function("deviation_jac", lambda e: [e["dev"], ca.jacobian(e["dev"], self._q),
+                                                          ca.jacobian(e["dev"], self._p)],
+                              ["dev", "J_q", "J_p"])
 
     @cached_property
     def tip_pjacobian_function(self) -> ca.Function:
         """(q, p, c) -> J_p (3, n_params): the tip deviation's (mm) Jacobian with respect to the
         parameters, for the standard error of a correction."""
-        tip = self._expressions["dev"][:3]
-        return ca.Function("tip_pjac", [self._q, self._p, self._c], [ca.jacobian(tip, self._p)],
-                           ["q", "p", "c"], ["J_p"])
+        return self._function("tip_pjac", lambda e: [ca.jacobian(e["dev"][:3], self._p)], ["J_p"])
 
     @cached_property
     def deviation_qjacobian_function(self) -> ca.Function:
         """(q, p, c) -> (dev (6,), J_q (6, n_axes)): what the planner needs per block."""
-        dev = self._expressions["dev"]
-        return ca.Function("deviation_qjac", [self._q, self._p, self._c],
-                           [dev, ca.jacobian(dev, self._q)], ["q", "p", "c"], ["dev", "J_q"])
+        return self._function("deviation_qjac", lambda e: [e["dev"], ca.jacobian(e["dev"], self._q)],
+                              ["dev", "J_q"])
 
     def with_terms(self, *terms: Term) -> "ErrorModel":
         """A new model with extra terms appended (the base model is unchanged)."""

@@ -17,9 +17,10 @@
    the polynomial or glibc lane by lane and reruns such a batch (and the next 64, so that a
    function with a rotary axis does not pay for both bodies);
 3. compiles it with the system C compiler into a shared library in the cache directory, named by
-   the hash of source, compiler and flags (``$MTCOMP_CACHE_DIR``, else ``$XDG_CACHE_HOME/mtcomp``,
-   else ``~/.cache/mtcomp``), written to a temporary file and renamed so that concurrent processes
-   never load a half-written library; a small index file lets a later process find it without
+   the hash of source, compiler and flags (:mod:`mtcomp.io.cache`: ``$MTCOMP_CACHE_DIR``, else
+   ``$XDG_CACHE_HOME/mtcomp``, else ``~/.cache/mtcomp``, else a folder in the temporary
+   directory), written to a temporary file and renamed so that concurrent processes never load a
+   half-written library; a small index file lets a later process find it without
    generating the C again;
 4. loads it with ctypes and calls it on numpy arrays.
 
@@ -35,7 +36,7 @@ Environment:
 
 * ``MTCOMP_CC``: the compiler to use (default: ``$CC``, else ``cc``, ``gcc``, ``clang`` on PATH). A
   path that does not exist means "no compiler": evaluation falls back to CasADi's map.
-* ``MTCOMP_CACHE_DIR``: where libraries are kept.
+* ``MTCOMP_CACHE_DIR``: where libraries are kept (the G-code scanner's library too).
 * ``MTCOMP_COMPILE_MIN_POSES``: ``backend='auto'`` compiles a function that is not compiled yet
   once the process has evaluated it on this many poses in all (default 50,000). Compiling a 5-axis
   Jacobian takes tens of seconds, and the knots that the data choose make every campaign a new
@@ -59,6 +60,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from ..io.cache import CacheDirError, private_cache_dir
 # the batched pose body's C; TAYLOR_LIMIT and _TAYLOR are read from here too
 from ._simd import (_RUN_ONE, _RUN_TWO, TAYLOR_LIMIT, _TAYLOR, _Unsupported,  # noqa: F401
                     _trig_source, batched_body)
@@ -90,27 +92,13 @@ class CompileError(RuntimeError):
 
 
 def cache_dir() -> Path:
-    """Directory of compiled libraries (created on demand)."""
-    env = os.environ.get("MTCOMP_CACHE_DIR")
-    if env:
-        return Path(env)
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    base = Path(xdg) if xdg else Path.home() / ".cache"
-    return base / "mtcomp"
-
-
-def _private_cache_dir() -> Path:
-    """The cache directory, created if needed, after checking that only this user can write to it
-    (libraries are loaded from it). Raises CompileError otherwise."""
-    d = cache_dir()
+    """Directory of compiled libraries, created on demand: mtcomp's one cache folder
+    (:func:`mtcomp.io.cache.private_cache_dir`). Raises CompileError when no folder can be used
+    (code is only loaded from a folder that belongs to this user and nobody else can write to)."""
     try:
-        d.mkdir(parents=True, exist_ok=True, mode=0o700)
-        st = d.stat()
-    except OSError as exc:
-        raise CompileError(f"cannot create cache directory {d}: {exc}") from None
-    if hasattr(os, "getuid") and (st.st_uid != os.getuid() or st.st_mode & 0o022):
-        raise CompileError(f"cache directory {d} is writable by other users; not loading code from it")
-    return d
+        return private_cache_dir()
+    except CacheDirError as exc:
+        raise CompileError(str(exc)) from None
 
 
 def find_compiler() -> str | None:
@@ -395,7 +383,7 @@ def compile_source(src: str, compiler: str) -> Path:
     global compile_count
     flags = compile_flags(compiler, src)
     key = hashlib.sha256("\0".join([src, compiler, *flags]).encode()).hexdigest()[:24]
-    out_dir = _private_cache_dir()
+    out_dir = cache_dir()
     lib = out_dir / f"mtcomp_{key}.so"
     if lib.exists():
         return lib
@@ -524,7 +512,7 @@ def get_compiled(model, name: str, function: ca.Function, compile_if_missing: bo
         sizes = [function.numel_out(k) for k in range(function.n_out())]
         if not compile_if_missing and (skey, compiler) in _not_on_disk:
             return None             # looked for already in this process (a lookup hashes the function)
-        _private_cache_dir()
+        cache_dir()
         lib = _from_index(function, compiler)
         if lib is None:
             if not compile_if_missing:

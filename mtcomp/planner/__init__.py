@@ -9,10 +9,11 @@ Public names:
   :func:`plan_chunks` (SegmentChunks), :class:`PlanResult` (one row per output block).
 * :func:`build_cvxpy_problem`, :func:`plan_with_cvxpy`: the same bounded problem in cvxpy, to add
   constraints of one's own.
-* :func:`nominal_pose_jacobian`: nominal tool pose and its exact Jacobian.
+* :func:`nominal_pose_jacobian`: nominal tool pose and its exact Jacobian
+  (:func:`mtcomp.kinematics.pose_jacobian`).
 * BLOCKS.csv: :func:`report_columns`, :func:`report_rows`, :class:`Summary`.
 """
-from ._nominal import nominal_pose_jacobian
+from ..kinematics import pose_jacobian as nominal_pose_jacobian
 from .engine import NodeSet, Planner, PlanResult, plan_arrays, plan_chunks
 from .problem import METHODS, CompensationProblem, PlannerOptions, output_grid
 from .report import Summary, report_columns, report_rows

@@ -22,8 +22,9 @@ import threading
 
 import numpy as np
 
+from ..kinematics import forward as nominal_pose
+from ..kinematics import pose_jacobian as nominal_pose_jacobian
 from ..models.evaluate import evaluate
-from ._nominal import nominal_pose, nominal_pose_jacobian
 from .problem import CompensationProblem
 
 

@@ -43,9 +43,13 @@ _tried = False
 
 
 def _cache_dirs():
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    yield Path(base) / "mtcomp"
-    yield Path(tempfile.gettempdir()) / f"mtcomp-{os.getuid() if hasattr(os, 'getuid') else 'user'}"
+    """mtcomp's one cache folder (:func:`mtcomp.io.cache.private_cache_dir`: ``$MTCOMP_CACHE_DIR``,
+    else ``$XDG_CACHE_HOME/mtcomp`` or ``~/.cache/mtcomp``, else a temporary folder), or none."""
+    from ..io.cache import CacheDirError, private_cache_dir
+    try:
+        return [private_cache_dir()]
+    except CacheDirError:
+        return []
 
 
 def _private(d: Path) -> bool:

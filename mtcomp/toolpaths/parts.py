@@ -424,5 +424,6 @@ def write_cone_frustum_program(path, machine: Machine, base_diameter_mm: float =
 
 
 def tool_poses(machine: Machine, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Nominal tool tips (N, 3) and tool axes (N, 3) of axis positions q (N, n_axes)."""
+    """Nominal tool tips (N, 3) and tool axes (N, 3) of axis positions q (N, n_axes):
+    :func:`mtcomp.kinematics.forward`."""
     return forward(machine, q)

@@ -31,7 +31,6 @@ from __future__ import annotations
 import math
 import os
 import re
-import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -168,22 +167,20 @@ def _context(fitted, q_count, feed, dirs):
     return fitted.context(q_count, cols)
 
 
-_FRAME_FUNCTIONS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
-
-
 def _frame_function(model):
     """CasADi (q, p, c) -> (tip (3,), R (9,) column-major): the actual tool frame in the workpiece
-    frame, from the model's symbolic chain. Built once per model."""
-    f = _FRAME_FUNCTIONS.get(model)
-    if f is None:
+    frame, from the model's symbolic chain. Built once per model structure
+    (:func:`mtcomp.models.function_cache.model_function`)."""
+    from ..models.function_cache import model_function
+
+    def build():
         import casadi as ca
         q = ca.SX.sym("q", model.machine.n_axes)
         p = ca.SX.sym("p", model.n_params)
         c = ca.SX.sym("c", model.n_context)
         tip, _, R = model.symbolic(q, p, c, errors=True)
-        f = ca.Function("viz_tool_frame", [q, p, c], [tip, ca.reshape(R, 9, 1)])
-        _FRAME_FUNCTIONS[model] = f
-    return f
+        return ca.Function("viz_tool_frame", [q, p, c], [tip, ca.reshape(R, 9, 1)])
+    return model_function(model, "viz_tool_frame", build)
 
 
 def predicted_points(fitted, q: np.ndarray, feed: np.ndarray, dirs: np.ndarray,
