@@ -128,8 +128,8 @@ def _positioned_per_line(text: str):
             known = known - axes if axes else set()
         elif 53 in g:
             known -= axes
-        elif 4 in g or 10 in g:
-            pass
+        elif 10 in g or (4 in g and not any(v in (0, 1, 2, 3) for v in g)):
+            pass        # G10 data, a dwell alone (with a motion code, LinuxCNC dwells and moves)
         else:
             if any(v in (0, 1, 2, 3) for v in g):
                 motion, cycle = next(v for v in g if v in (0, 1, 2, 3)), False
