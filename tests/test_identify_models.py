@@ -202,7 +202,6 @@ def test_simulate_round_trip_and_unknown_kind(xfyz, monkeypatch):
     mm = measurement_model(model, data)
     np.testing.assert_allclose(mm.residuals(p, None), 0.0, rtol=0, atol=1e-9)
     monkeypatch.delitem(mmod.MEASUREMENT_MODELS, "points")
-    monkeypatch.setattr(mmod, "_load_extra_models", lambda: None)
     with pytest.raises(InputError, match="no measurement model for points files"):
         measurement_model(model, data)
 

@@ -116,7 +116,6 @@ def test_predict_kind_without_model_and_bad_input(model_file, capsys, monkeypatc
     write_measurements(src, make_points([[0.0, 0.0, 0.0]]))
     out = tmp / "never.csv"
     monkeypatch.delitem(mmod.MEASUREMENT_MODELS, "points")
-    monkeypatch.setattr(mmod, "_load_extra_models", lambda: None)
     assert main(["predict", "cafxyz", str(mpath), str(src), "-o", str(out)]) == 2
     err = capsys.readouterr().err
     assert "no measurement model for points files" in err and err.count("\n") == 1
