@@ -189,12 +189,12 @@ def test_real_pcb2gcode_drill_program_line_by_line(tmp_path):
     out = _write(p, shift=np.array([0.0001, -0.0002, 0.0003]) * 25.4)
     lines = src.read_text().splitlines()
     expected = list(lines)
-    expected[12] = "G0 Z1.00030 (Retract)"
+    expected[12] = "G00 Z1.00030 (Retract)"
     expected[20] = "G0 Z0.08030"                 # after M6 only Z; X and Y not given yet
     expected[23:26] = ["G81 R0.08030 Z-0.06269 F30.00000 X0.90010 Y-0.45020",
                        "X1.65010 Y-0.55020", "X1.65010 Y-0.80020"]
     # no G98/G99 in the program: Z after the cycle is not known until the retract names it
-    expected[28] = "G0 Z1.00030 ( All done -- retract )"
+    expected[28] = "G00 Z1.00030 ( All done -- retract )"
     assert out == expected
 
 
