@@ -335,7 +335,8 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                 }
                 char tmp[64], nom[64];
                 long long k0 = c_off[row], k1 = c_off[row + 1];
-                int added0 = -1;
+                char abuf[1024];
+                int ab = 0;
                 for (long long k = k0; k < k1; k++) {
                     int first = (k == k0);
                     const double *q = c_pts + k * na;
@@ -372,15 +373,10 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                             }
                             if (dec[j] != base) tn = fmt_value_back(tmp, q[j], is_rot[j], inch, dec[j], &back);
                             char L = lower ? (char)(letters[j] | 0x20) : letters[j];
-                            if (first) {
-                                if (added0 < 0) {
-                                    added0 = eb;
-                                    es[ne] = last_ax_e; ee[ne] = last_ax_e; ek[ne] = 2; eo[ne] = eb; el[ne] = 0; ne++;
-                                }
-                                if (blank) ebuf[eb++] = ' ';
-                                ebuf[eb++] = L;
-                                memcpy(ebuf + eb, tmp, (size_t)tn); eb += tn;
-                                el[ne - 1] = eb - added0;   /* the added words: the last edit made */
+                            if (first) {        /* added after the line's last axis word */
+                                if (blank) abuf[ab++] = ' ';
+                                abuf[ab++] = L;
+                                memcpy(abuf + ab, tmp, (size_t)tn); ab += tn;
                             } else {
                                 if (wrote && blank) *o++ = ' ';
                                 *o++ = L;
@@ -396,6 +392,11 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                         } else cache_inch[j] = -1;
                     }
                     if (first) {
+                        if (ab) {
+                            memcpy(ebuf + eb, abuf, (size_t)ab);
+                            es[ne] = last_ax_e; ee[ne] = last_ax_e; ek[ne] = 2; eo[ne] = eb; el[ne] = ab;
+                            eb += ab; ne++;
+                        }
                         /* the source line with its edits, in the order of their places */
                         for (int a = 1; a < ne; a++) {
                             for (int b = a; b > 0 && (es[b] < es[b - 1] || (es[b] == es[b - 1] && ek[b] < ek[b - 1])); b--) {
