@@ -465,6 +465,12 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
             node_off = np.repeat(off, res.counts, axis=0)
             res.corrected = res.corrected - node_off
             res.nominal = res.nominal - node_off
+            # the planner works on the output grid; a block's end is the program's own position plus
+            # its correction, so a word written with more decimals than the grid keeps them
+            ends = np.cumsum(res.counts) - 1
+            exact = chunk.end - res.nominal[ends]
+            res.nominal[ends] += exact
+            res.corrected[ends] += exact
             summary.add(res)
             if rep is not None:
                 rep.writelines(report_rows(res, machine.axis_names, sd_limit))
