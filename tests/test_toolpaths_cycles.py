@@ -158,7 +158,7 @@ def test_words_keep_their_places(tmp_path):
     p.write_text("G21 G90\nG0 X0 Y0 Z10\nG81 R5.00000 Z-2.50000 F1000.00000 X12.55500 Y10.94500\n"
                  "G98 G83 X-2.827 Z-4.000 F60.000 Q0.100 R3.000\nG80\n")
     out = _write(p)
-    assert out[2:4] == ["G81 R5.0033 Z-2.4967 F1000.00000 X12.5562 Y10.9429",
+    assert out[2:4] == ["G81 R5.00330 Z-2.49670 F1000.00000 X12.55620 Y10.94290",   # 5 decimals kept
                         "G98 G83 X-2.8258 Z-3.9967 F60.000 Q0.100 R3.0033"]
 
 

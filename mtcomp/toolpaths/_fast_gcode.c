@@ -171,7 +171,7 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
         /* tokens */
         const char *p = ls, *n_s = 0, *n_e = 0;
         const char *ax_s[6] = {0, 0, 0, 0, 0, 0}, *ax_e[6] = {0, 0, 0, 0, 0, 0};
-        int has_g = 0, g = -1, has_f = 0;
+        int has_g = 0, g = -1, has_f = 0, nwords = 0;
         unsigned seen = 0;
         double vals[6] = {0, 0, 0, 0, 0, 0}, fval = 0.0;
         int simple = 1;
@@ -190,6 +190,7 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                 continue;
             }
             if (!is_alpha(ch)) { simple = 0; break; }
+            nwords++;
             char L = (char)(ch & ~0x20);
             const char *ts = p;
             double v;
@@ -288,7 +289,7 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                 if (ending) state[18] = (ending == 2);
                 int incr = state[15] != 0.0;
                 /* the line's style: blank between words or none, letter case of its first axis word */
-                int blank = memchr(ls, ' ', (size_t)(ce - ls)) || memchr(ls, '\t', (size_t)(ce - ls));
+                int blank = nwords < 2 || memchr(ls, ' ', (size_t)(ce - ls)) || memchr(ls, '\t', (size_t)(ce - ls));
                 const char *first_ax = 0, *last_ax_e = 0;
                 int line_dec = 0, own_dec[6] = {0, 0, 0, 0, 0, 0};
                 for (int j = 0; j < na; j++) {

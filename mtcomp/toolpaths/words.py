@@ -240,8 +240,8 @@ class SourceLine:
     number of a word, a whole word, or insert words at a place; :meth:`render` applies them and
     leaves every other character as written. A line with blanks inside a number (``X1 0``) is
     taken without its blanks (RS-274 ignores them). ``sep`` is the blank put between inserted words
-    (none when the line has no blank); ``lower``: the line writes its letters in lower case
-    (judged by its first axis word, else its first G word).
+    (none when the line writes two words or more and no blank); ``lower``: the line writes its letters in lower case
+    (judged by its first axis word, else its first word).
     """
 
     def __init__(self, text: str):
@@ -253,9 +253,10 @@ class SourceLine:
         self.text = text
         self.words = words
         self.start = start
-        self.sep = " " if (" " in text or "\t" in text) else ""
+        letters = sum(w[0] not in "(;" for w in words)
+        self.sep = " " if (" " in text or "\t" in text or letters < 2) else ""
         first = next((w for w in words if w[0] in _AXIS_LETTERS), None) or \
-            next((w for w in words if w[0] == "G"), None)
+            next((w for w in words if w[0] not in "(;"), None)
         self.lower = first is not None and text[first[1]].islower()
         self.edits: list[tuple[int, int, int, str]] = []
 

@@ -255,6 +255,24 @@ def _line_text(block: MotionBlock, points: np.ndarray, letters: str, rotary: lis
     return separator.join(lines)
 
 
+def _cycle_head(line: SourceLine, out: OutputState, info) -> None:
+    """A drilling cycle line is written absolute: its G91 dropped (G90 where the output is in G91),
+    G90 put in front where needed, an incremental line's repeat count dropped."""
+    g = line.letter("G")
+    distance = [w for w in line.words if w[0] == "G" and float(line.number(w)) in (90, 91)]
+    for w in distance:
+        if float(line.number(w)) == 91:
+            if out.absolute:
+                line.delete(w)
+            else:
+                line.replace_word(w, g + "90")
+    if not out.absolute and not distance:
+        line.insert_head([g + "90"])
+    out.absolute = True
+    if info.incremental and info.count_letter is not None:
+        line.delete(line.find(info.count_letter))
+
+
 def _cycle_text(block: MotionBlock, points: np.ndarray, letters: str, out: OutputState, ending: str,
                 separator: str, source: str | None) -> str:
     """A drilling cycle line restated with corrected hole positions: points (k, na) are the
@@ -270,61 +288,45 @@ def _cycle_text(block: MotionBlock, points: np.ndarray, letters: str, out: Outpu
     if info.starting:
         out.cycle_init_z = out.values[zi]
     out.cycle_blocks += 1
-    raw = {} if info.incremental else {t[0]: t[2] for t in info.tokens if t[0] in "XYZR"}
+    line = SourceLine(source)
+    decs = dict(zip("XYZR", _decimals(line, "XYZR", [False] * 4, inch)))
+    raw = {} if info.incremental else {c: line.number(line.find(c)) for c in "XYZR"
+                                       if line.find(c) is not None}
     nominal = {"X": block.points[0, xi], "Y": block.points[0, yi], "Z": info.z_bottom,
                "R": info.r_level}
-    nominal = {c: _format_value(v, False, inch) for c, v in nominal.items()}
+    nominal = {c: _value_text(v, False, inch, decs[c]) for c, v in nominal.items()}
     lines = []
     for j in range(points.shape[0]):
         p = points[j]
-        r = info.r_level + (p[zi] - block.points[j, zi])
-        text = {c: _format_value(v, False, inch) for c, v in zip("XYZR", (p[xi], p[yi], p[zi], r))}
+        v = dict(zip("XYZR", (p[xi], p[yi], p[zi], info.r_level + (p[zi] - block.points[j, zi]))))
+        text = {c: _value_text(v[c], False, inch, decs[c]) for c in "XYZR"}
         current = {"X": out.last(xi, inch), "Y": out.last(yi, inch), "Z": out.cycle_z,
                    "R": out.cycle_r}
         named = info.named if j == 0 else frozenset("XY")
-        need = [c for c in "XYZR" if c in named or text[c] != current[c]]
+        need = [c for c in "XYZR" if c in named or _format_value(v[c], False, inch) != current[c]]
         # a coordinate that keeps its source value keeps its source spelling: the machine goes
         # where that spelling says
-        spelled = {c: raw[c][1:] for c in need if c in raw and text[c] == nominal[c]}
-        if j == 0 and points.shape[0] == 1 and source is not None and out.absolute \
-                and not info.incremental and all(text[c] == nominal[c] for c in "XYZR") \
-                and all(current[c] == nominal[c] for c in "XYZR" if c not in named):
-            lines.append(source)
+        said = {c: raw[c] if c in raw and text[c] == nominal[c] else text[c] for c in need}
+        if j == 0:
+            _cycle_head(line, out, info)
+            added = []
+            for c in need:
+                w = line.find(c)
+                if w is None:
+                    added.append(line.letter(c) + said[c])
+                elif said[c] != line.number(w):
+                    line.replace_number(w, said[c])
+            line.insert_at(line.append_pos("XYZR"), added)
+            lines.append(line.render())
         else:
-            words = [raw[c] if c in spelled else f"{c}{text[c]}" for c in need]
-            head = []
-            if j == 0:
-                if block.number:
-                    head.append(block.number)
-                if not out.absolute:
-                    head.append("G90")
-                    out.absolute = True
-                word_of = dict(zip(need, words))
-                in_source = [t[0] for t in info.tokens if t[0] in "XYZR"]
-                extra = [word_of[c] for c in need if c not in in_source]
-                body = []
-                for letter, num, rw in info.tokens:
-                    if letter == "G" and float(num) in (90, 91):
-                        continue
-                    if letter == info.count_letter and info.incremental:
-                        continue
-                    if letter in "XYZR":
-                        if letter in word_of:
-                            body.append(word_of[letter])
-                        in_source.remove(letter)
-                        if not in_source:      # after the source's last X Y Z R: the others
-                            body += extra
-                            extra = []
-                        continue
-                    body.append(rw)
-                body += extra
-                lines.append(" ".join(head + body))
+            lines.append(line.sep.join(line.letter(c) + said[c] for c in need))
+        for c, i in (("X", xi), ("Y", yi)):
+            if c in said:
+                out.set_last(i, said[c], inch)
             else:
-                lines.append(" ".join(words))
-        out.set_last(xi, spelled.get("X", text["X"]), inch)
-        out.set_last(yi, spelled.get("Y", text["Y"]), inch)
-        out.cycle_z, out.cycle_r = (_format_value(float(spelled[c]) * scale, False, inch)
-                                    if c in spelled else text[c] for c in "ZR")
+                out.set_last(i, text[c], inch)
+        out.cycle_z, out.cycle_r = (_format_value(float(said.get(c, text[c])) * scale, False, inch)
+                                    for c in "ZR")
     r_out = float(out.cycle_r) * scale
     init = out.cycle_init_z
     if info.retract == 99:
