@@ -350,19 +350,16 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                         int named = first && (seen & (1u << j));
                         double back;
                         if (named) {
+                            if (!incr && q[j] == end[j]) { last[j] = end[j]; continue; }
                             int tn = fmt_value_back(tmp, q[j], is_rot[j], inch, dec[j], &back);
-                            int keep = 0;
                             if (!incr) {
-                                if (q[j] == end[j]) keep = 1;
-                                else {
-                                    fmt_value(nom, end[j], is_rot[j], inch, dec[j]);
-                                    keep = strcmp(tmp, nom) == 0;
-                                }
+                                fmt_value(nom, end[j], is_rot[j], inch, dec[j]);
+                                if (strcmp(tmp, nom) == 0) { last[j] = end[j]; continue; }
                             }
-                            if (keep) { last[j] = end[j]; continue; }
                             es[ne] = ax_s[j] + 1; ee[ne] = ax_e[j]; ek[ne] = 1; eo[ne] = eb; el[ne] = tn;
                             memcpy(ebuf + eb, tmp, (size_t)tn); eb += tn; ne++;
                         } else {
+                            if (q[j] == last[j]) continue;          /* the same value: the same text */
                             int tn = fmt_value_back(tmp, q[j], is_rot[j], inch, base, &back);
                             if (!isnan(last[j])) {
                                 if (cache_inch[j] != inch || memcmp(&cache_val[j], &last[j], sizeof(double))) {
