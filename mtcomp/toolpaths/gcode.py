@@ -85,13 +85,13 @@ def write_corrected(in_path, out_path, machine: Machine,
 
     corrections : iterator of ``(chunk, points, counts)`` per SegmentChunk of
         :func:`iter_segment_chunks` (same order): points (M, na) corrected axis positions (mm, rad)
-        to emit as G0/G1 moves, counts (n,) int >= 1: how many of ``points`` belong to each segment
-        row, the last being the segment's corrected end. None writes the nominal program (arcs as
-        chords): the round trip.
-    Every line that is not a motion line is written byte for byte and in place. Motion lines carry
-    only the words they need (see :func:`format_motion_lines`); an axis whose position the program
-    has not given is never written. Output is absolute (G90), in the units of the input at that
-    line, 4 decimals for mm and deg, 5 for inch. The file is written atomically: nothing is left on
+        to emit, counts (n,) int >= 1: how many of ``points`` belong to each segment row, the last
+        being the segment's corrected end. None writes the nominal program: the round trip.
+    Every line that is not a motion line is written byte for byte and in place. In a motion line
+    only the numbers that carry a correction change, in place (see :func:`format_motion_lines`); an
+    axis whose position the program has not given is never written. Output is absolute (G90), in
+    the units of the input at that line, a corrected number with at least its source word's decimals
+    (and 4 for mm and deg, 5 for inch). The file is written atomically: nothing is left on
     failure and the input is never overwritten. inch, initial_known : see :func:`iter_blocks`.
     stats : a dict that receives ``cycle_lines``, the drilling cycle lines passed through unchanged
     (their positions are not corrected), and ``cycle_blocks``, those kept as cycles (with the

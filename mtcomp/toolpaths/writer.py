@@ -2,14 +2,16 @@
 
 :class:`OutputState` keeps what the written program has said so far (distance mode, motion mode,
 the last value written per axis); :func:`format_motion_lines` writes one motion line with its
-corrected points (G0/G1 pieces, one shifted G2/G3 arc, or a restated drilling cycle), and
+corrected points (the source line with its numbers replaced in place and later pieces, G2/G3 arcs
+fitted to the corrected points, or a restated drilling cycle), and
 :func:`write_pass_through` copies every other line byte for byte. :class:`CorrectionCursor` walks
 the corrections the planner hands over, row by row, and :func:`write_corrected` here is the
 pure-Python writer (the public :func:`mtcomp.toolpaths.gcode.write_corrected` prepares the cursor
 and runs the compiled writer when it can, with the same bytes).
 
-Output: absolute (G90), in the units of the input at each line, 4 decimals for mm and deg, 5 for
-inch; see docs/toolpaths.md for what is rewritten and what passes through.
+Output: the input with only the numbers that carry a correction changed (at least the source
+word's decimals, and 4 in mm and deg, 5 in inch), absolute (G90), in the units of the input at each
+line; see docs/toolpaths.md for what is rewritten and what passes through.
 """
 from __future__ import annotations
 
@@ -450,20 +452,23 @@ class _ArcFit:
             return None
         shift = 0.5 * ((self.samples[a] - self.nominal[a]) + (self.samples[b] - self.nominal[b]))
         shifted = self.centre2 + shift[cols]
-        radius = 0.5 * (math.hypot(*(self.nominal[a][cols] - self.centre2))
-                        + math.hypot(*(self.nominal[b][cols] - self.centre2)))
+        ra, rb = (math.hypot(*(self.nominal[i][cols] - self.centre2)) for i in (a, b))
+        radius = 0.5 * (ra + rb)
+        # the end radius may differ from the start radius as much as the source's did, and by the
+        # tolerance and the rounding of the centre words more
+        spiral = abs(rb - ra) + self.tol + 2.0 * 10.0 ** -min(self.cdecs) * self.scale
         inner = self.samples[a + 1:b]
         fitted = fit_arc_centre(s2, e2, inner[:, cols], self.ccw, full, shifted, radius)
         span = (self.u[b] - self.u[a]) * self.sweep
         for centre in (shifted, fitted):
             if centre is None or math.hypot(*(centre - s2)) > MAX_ARC_RADIUS_MM:
                 continue
-            for words, written in self._centre_words(a, s2, e2, centre, full):
-                if self._fits(start_w, end_w, written, full, inner, span):
+            for words, written in self._centre_words(s2, e2, centre, full):
+                if self._fits(start_w, end_w, written, full, inner, span, spiral):
                     return _ArcPiece(texts, end_w, words)
         return None
 
-    def _centre_words(self, a, s2, e2, centre, full):
+    def _centre_words(self, s2, e2, centre, full):
         """(centre words [(letter, text)], the centre they say (2,)): R where the source has R,
         then I J K."""
         scale = self.scale
@@ -480,10 +485,13 @@ class _ArcFit:
         texts = [format_number((centre[j] - s2[j]) / scale, self.cdecs[j]) for j in range(2)]
         yield list(zip(self.letters_c, texts)), s2 + np.array([float(t) for t in texts]) * scale
 
-    def _fits(self, start_w, end_w, centre, full, inner, span) -> bool:
+    def _fits(self, start_w, end_w, centre, full, inner, span, spiral) -> bool:
+        """The arc start_w -> end_w about centre misses none of the points inner by more than the
+        tolerance, sweeps within 45 deg of the source's span, and its end radius is within
+        ``spiral`` (mm) of its start radius (and within the reader's tolerance)."""
         cols = list(self.cols)
         r0, r1 = math.hypot(*(start_w[cols] - centre)), math.hypot(*(end_w[cols] - centre))
-        if abs(r1 - r0) > max(ARC_RADIUS_TOL_MM, ARC_RADIUS_TOL_REL * max(r0, r1)):
+        if abs(r1 - r0) > min(spiral, max(ARC_RADIUS_TOL_MM, ARC_RADIUS_TOL_REL * max(r0, r1))):
             return False
         _a0, sweep = arc_sweep(start_w[cols], end_w[cols], centre, self.ccw, full)
         if abs(sweep - span) > 0.25 * math.pi:
