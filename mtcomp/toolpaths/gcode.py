@@ -37,11 +37,11 @@ from . import _fast, reader, writer
 from .blocks import CycleBlock, MotionBlock, Program, SegmentChunk
 from .modal import ModalState
 from .reader import iter_blocks, new_state, read_program
-from .words import (ARC_KEEP_TOL_MM, DEFAULT_CHORD_TOL_MM, DEFAULT_CHUNK_SIZE, DIR_EPS, MM_PER_INCH,
-                    TOOL_AXIS, WORK_SYSTEMS, frame_code, frame_tool, frame_wcs, tokenize)
+from .words import (DEFAULT_CHORD_TOL_MM, DEFAULT_CHUNK_SIZE, DIR_EPS, MM_PER_INCH, TOOL_AXIS,
+                    WORK_SYSTEMS, frame_code, frame_tool, frame_wcs, tokenize)
 from .writer import CorrectionCursor, OutputState, format_motion_lines, write_pass_through
 
-__all__ = ["ARC_KEEP_TOL_MM", "DEFAULT_CHORD_TOL_MM", "DEFAULT_CHUNK_SIZE", "DIR_EPS", "MM_PER_INCH",
+__all__ = ["DEFAULT_CHORD_TOL_MM", "DEFAULT_CHUNK_SIZE", "DIR_EPS", "MM_PER_INCH",
            "TOOL_AXIS", "WORK_SYSTEMS", "frame_code", "frame_tool", "frame_wcs", "tokenize",
            "CycleBlock", "MotionBlock", "Program", "SegmentChunk", "ModalState", "iter_blocks",
            "new_state", "read_program", "iter_segment_chunks", "CorrectionCursor", "OutputState",

@@ -21,9 +21,6 @@ MM_PER_INCH = 25.4
 DIR_EPS = 1e-9
 DEFAULT_CHORD_TOL_MM = 1e-3
 DEFAULT_CHUNK_SIZE = 65536
-#: an arc stays one G2/G3 line when its corrections agree along it within this (mm; or within the
-#: chord tolerance, if that is smaller): the shifted arc then misses no planned point by more
-ARC_KEEP_TOL_MM = 1e-4
 #: the axis along the tool: a tool change or a tool length change leaves its position unknown
 TOOL_AXIS = "Z"
 
