@@ -477,11 +477,15 @@ class _ArcFit:
             _a0, sweep = arc_sweep(s2, e2, centre, self.ccw, False)
             dec = max(_base_decimals(False, self.block.inch),
                       number_decimals(self.line.number(self.r_word)))
-            t = format_number((-r if sweep > math.pi else r) / scale, dec)
-            try:
-                yield [("R", t)], centre_from_radius(s2, e2, float(t) * scale, self.ccw)
-            except ArcError:
-                pass
+            signs = [sweep > math.pi]
+            if abs(sweep - math.pi) < 1e-3:     # about a half circle: the source's sign first
+                signs = [float(self.line.number(self.r_word)) < 0, sweep <= math.pi]
+            for major in signs:
+                t = format_number((-r if major else r) / scale, dec)
+                try:
+                    yield [("R", t)], centre_from_radius(s2, e2, float(t) * scale, self.ccw)
+                except ArcError:
+                    pass
         texts = [format_number((centre[j] - s2[j]) / scale, self.cdecs[j]) for j in range(2)]
         yield list(zip(self.letters_c, texts)), s2 + np.array([float(t) for t in texts]) * scale
 
