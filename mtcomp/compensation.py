@@ -414,6 +414,20 @@ def _series_sentence(fitted, settings: CompensationSettings, series, tally: _Tal
             + ("; the last reading holds after it" if tally.t_s > series.t_s[-1] else "") + ")")
 
 
+def _to_program_frame(res, chunk, off) -> None:
+    """The planned nodes back in the program's frame (less the work offset ``off`` (n, na) of each
+    row): what is written and reported. The planner works on the output grid; a row's end is the
+    program's own position plus its correction, so a word written with more decimals than the
+    grid keeps them."""
+    node_off = np.repeat(off, res.counts, axis=0)
+    res.corrected = res.corrected - node_off
+    res.nominal = res.nominal - node_off
+    ends = np.cumsum(res.counts) - 1
+    exact = chunk.end - res.nominal[ends]
+    res.nominal[ends] += exact
+    res.corrected[ends] += exact
+
+
 def compensate_program(fitted, program, output, settings: CompensationSettings, setup=None,
                        report=None, progress=None, judges=(), temperature_series=None) -> CompensationRun:
     """Compensate ``program`` with the model ``fitted`` into ``output`` (written atomically, with
@@ -467,10 +481,7 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
             for judge in judges:
                 judge.add(mchunk, res)
             tally.planned(res)
-            # back to the program's frame: what is written and reported
-            node_off = np.repeat(off, res.counts, axis=0)
-            res.corrected = res.corrected - node_off
-            res.nominal = res.nominal - node_off
+            _to_program_frame(res, chunk, off)
             summary.add(res)
             if rep is not None:
                 rep.writelines(report_rows(res, machine.axis_names, sd_limit))

@@ -158,7 +158,7 @@ def test_words_keep_their_places(tmp_path):
     p.write_text("G21 G90\nG0 X0 Y0 Z10\nG81 R5.00000 Z-2.50000 F1000.00000 X12.55500 Y10.94500\n"
                  "G98 G83 X-2.827 Z-4.000 F60.000 Q0.100 R3.000\nG80\n")
     out = _write(p)
-    assert out[2:4] == ["G81 R5.0033 Z-2.4967 F1000.00000 X12.5562 Y10.9429",
+    assert out[2:4] == ["G81 R5.00330 Z-2.49670 F1000.00000 X12.55620 Y10.94290",   # 5 decimals kept
                         "G98 G83 X-2.8258 Z-3.9967 F60.000 Q0.100 R3.0033"]
 
 
@@ -189,12 +189,12 @@ def test_real_pcb2gcode_drill_program_line_by_line(tmp_path):
     out = _write(p, shift=np.array([0.0001, -0.0002, 0.0003]) * 25.4)
     lines = src.read_text().splitlines()
     expected = list(lines)
-    expected[12] = "G0 Z1.00030 (Retract)"
+    expected[12] = "G00 Z1.00030 (Retract)"
     expected[20] = "G0 Z0.08030"                 # after M6 only Z; X and Y not given yet
     expected[23:26] = ["G81 R0.08030 Z-0.06269 F30.00000 X0.90010 Y-0.45020",
                        "X1.65010 Y-0.55020", "X1.65010 Y-0.80020"]
     # no G98/G99 in the program: Z after the cycle is not known until the retract names it
-    expected[28] = "G0 Z1.00030 ( All done -- retract )"
+    expected[28] = "G00 Z1.00030 ( All done -- retract )"
     assert out == expected
 
 

@@ -159,7 +159,7 @@ def test_inch_and_incremental(tmp_path):
     write_corrected(tmp_path / "in.nc", out, XFYZ, None)
     lines = out.read_text().splitlines()
     assert lines[:3] == text.splitlines()[:3]
-    assert lines[3] == "G90 G1 X1 G21"      # the same words (an absolute line after G91 ones)
+    assert lines[3] == "G21 G90 G1 X1"      # as written (an absolute line after G91 ones)
 
 
 def test_rotary_words_in_degrees(tmp_path):

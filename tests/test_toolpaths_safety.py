@@ -33,7 +33,7 @@ def test_fusion_home_then_xy_then_tool_length(tmp_path):
     out = _shifted(p, XFYZ)
     # line 7 names X and Y only: Z is never written before line 8 gives it; then only what changes
     assert out == ["%", "O1001", "G90 G94 G17", "G21", "G28 G91 Z0.", "G90",
-                   "G0 X-31.1590 Y33.6910", "Z10.0020 G43 H1", "G1 Z-0.9980 F300.", "X-19.9980",
+                   "G0 X-31.1590 Y33.6910", "G43 Z10.0020 H1", "G1 Z-0.9980 F300.", "X-19.9980",
                    "M30", "%"]
 
 
@@ -113,7 +113,7 @@ def test_inverse_time_feed_recomputed_for_split_blocks(tmp_path):
     write_corrected(p, out, XFYZ, corr())
     lines = out.read_text().splitlines()
     # each piece keeps the block's time share: 1/2 min * (2.5/10) -> F8, the rest -> F2.66667
-    assert lines[1] == "G1 X2.5000 Z0.0010 G93 F8"
+    assert lines[1] == "G93 G1 X2.5000 Z0.0010 F8"
     assert lines[2] == "X10.0000 Z0.0000 F2.66667"
     assert lines[3] == "G94 G1 X20 F100"
 
@@ -171,7 +171,7 @@ def test_fanuc_colon_program_number_and_dos_end_mark_pass_through(tmp_path):
     b = read_program(p, XFYZ).blocks
     assert [x.line for x in b] == [4]
     out = _shifted(p, XFYZ)
-    assert out == ["% ", ":0097", ":0098 (SECOND)", "N10 G0 X2.0020 Y0.0020 Z5.0020 G21", "M30", "%",
+    assert out == ["% ", ":0097", ":0098 (SECOND)", "N10 G21 G90 G0 X2.0020 Y0.0020 Z5.0020", "M30", "%",
                    "\x1a"]
     p.write_text(":0097 X1\n")                 # a colon line with more than a number is refused
     with pytest.raises(InputError, match=":1: unexpected character ':'"):
@@ -195,8 +195,8 @@ def test_incremental_move_of_an_unknown_axis_passes_through_and_keeps_it_unknown
     src = p.read_text().splitlines()
     assert out[4] == src[4]                       # as written: the controller's own move
     # X and Y known (X where the passed line took it: the controller's 10.002 + 5), Z not written
-    assert out[5] == "G90 G0 X15.0020 Y11.0020"
-    assert out[6] == "G0 Z20.0020"
+    assert out[5] == "G90 G0 Y11.0020 X15.0020"      # X added after the line's Y
+    assert out[6] == "G90 G0 Z20.0020"                # its own G90 kept
     q = tmp_path / "inc.nc"
     q.write_text("G21 G90\nG0 X0 Y0 Z5\nG91\nG0 X10 Y10\nT1 M6\nG0 Z-10.\nG90 G0 Z20.\n")
     res = _shifted(q, XFYZ)

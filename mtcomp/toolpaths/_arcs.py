@@ -103,3 +103,120 @@ def arc_chords(start: np.ndarray, end: np.ndarray, centre2: np.ndarray, plane: i
     pts[:, b] = centre2[1] + rad * np.sin(ang)
     pts[-1] = end
     return pts
+
+
+# ------------------------------------------------------------------------ arcs of corrected points
+def arc_sweep(s2, e2, centre2, ccw: bool, full: bool) -> tuple[float, float]:
+    """(start angle, swept angle > 0) rad of the arc from s2 to e2 (2,) about centre2 (2,)."""
+    a0 = math.atan2(s2[1] - centre2[1], s2[0] - centre2[0])
+    if full:
+        return a0, 2.0 * math.pi
+    a1 = math.atan2(e2[1] - centre2[1], e2[0] - centre2[0])
+    sweep = (a1 - a0) % (2.0 * math.pi) if ccw else (a0 - a1) % (2.0 * math.pi)
+    return a0, (2.0 * math.pi if sweep == 0.0 else sweep)
+
+
+def arc_points_at(start, end, centre2, cols, ccw: bool, full: bool, u) -> np.ndarray:
+    """(m, na) points of the arc from start to end (na,) about centre2 at swept fractions u (m,):
+    in the plane the radius goes linearly from its start value to its end value, every other axis
+    moves linearly with the angle (as :func:`arc_chords`). cols : the two in-plane columns."""
+    a, b = cols
+    s2, e2 = np.array([start[a], start[b]]), np.array([end[a], end[b]])
+    a0, sweep = arc_sweep(s2, e2, centre2, ccw, full)
+    r0, r1 = float(np.hypot(*(s2 - centre2))), float(np.hypot(*(e2 - centre2)))
+    u = np.asarray(u, dtype=float)
+    ang = a0 + (sweep if ccw else -sweep) * u
+    rad = r0 + (r1 - r0) * u
+    pts = start[None, :] + (end - start)[None, :] * u[:, None]
+    pts[:, a] = centre2[0] + rad * np.cos(ang)
+    pts[:, b] = centre2[1] + rad * np.sin(ang)
+    return pts
+
+
+def fit_arc_centre(s2, e2, inner, ccw: bool, full: bool, hint, radius: float):
+    """Centre (2,) of the circle through s2 and e2 (2,) closest to the points ``inner`` (m, 2)
+    (algebraic least squares: the centre on the perpendicular bisector of s2 e2, or anywhere for a
+    full circle through s2). Without inner points: the circle of ``radius`` through s2 and e2 whose
+    centre lies on the side of ``hint`` (2,), or ``hint`` for a full circle. None when there is no
+    such circle."""
+    q = np.asarray(inner, dtype=float).reshape(-1, 2) - s2
+    if full:
+        if q.shape[0] < 2:
+            return np.asarray(hint, dtype=float) if q.shape[0] == 0 else None
+        c, *_ = np.linalg.lstsq(q, 0.5 * np.sum(q * q, axis=1), rcond=None)
+        return s2 + c
+    d = e2 - s2
+    length = float(np.hypot(*d))
+    if length == 0.0:
+        return None
+    mid = 0.5 * d
+    nperp = np.array([-d[1], d[0]]) / length
+    if q.shape[0] == 0:
+        h2 = radius * radius - 0.25 * length * length
+        if h2 < 0.0:
+            return None
+        side = 1.0 if float(np.dot(np.asarray(hint) - s2 - mid, nperp)) >= 0.0 else -1.0
+        return s2 + mid + side * math.sqrt(h2) * nperp
+    a = -2.0 * (q @ nperp)
+    bb = -np.sum(q * q, axis=1) + 2.0 * (q @ mid)
+    aa = float(a @ a)
+    if aa == 0.0:
+        return None
+    return s2 + mid + (float(a @ bb) / aa) * nperp
+
+
+def arc_misses(start, end, centre2, cols, ccw: bool, full: bool, samples, linear) -> tuple:
+    """(largest distance mm over the linear axes, largest deviation rad over the rotary axes) of the
+    points ``samples`` (m, na) from the arc start -> end (na,) about centre2: each point against
+    the arc's point at its own angle (clamped to the arc's ends). linear : (na,) bool."""
+    a, b = cols
+    samples = np.asarray(samples, dtype=float)
+    if samples.shape[0] == 0:
+        return 0.0, 0.0
+    s2, e2 = np.array([start[a], start[b]]), np.array([end[a], end[b]])
+    a0, sweep = arc_sweep(s2, e2, centre2, ccw, full)
+    phi = np.arctan2(samples[:, b] - centre2[1], samples[:, a] - centre2[0])
+    turn = (phi - a0) if ccw else (a0 - phi)
+    frac = np.mod(turn, 2.0 * math.pi) / sweep
+    # just before the start reads as almost a full turn: take whichever end is nearer
+    back = frac - 2.0 * math.pi / sweep
+    frac = np.where((frac > 1.0) & (np.abs(back) < frac - 1.0), back, frac)
+    expect = arc_points_at(start, end, centre2, cols, ccw, full, np.clip(frac, 0.0, 1.0))
+    dev = samples - expect
+    lin = np.asarray(linear, bool)
+    dist = float(np.max(np.sqrt(np.sum(dev[:, lin] ** 2, axis=1)))) if lin.any() else 0.0
+    rot = float(np.max(np.abs(dev[:, ~lin]))) if (~lin).any() else 0.0
+    return dist, rot
+
+
+def arc_samples(start, end, chord_ends, points, counts, centre2, cols, ccw: bool, full: bool):
+    """The corrected path of an arc block as points along the arc.
+
+    start, end : (na,) the block's nominal start and end. chord_ends : (n, na) its nominal chord
+    ends. points : (M, na) the corrected points, counts (n,) of them per chord (None: one each),
+    the last of each chord its corrected end; the others lie on the chord (nodes the planner
+    inserted) and are moved by the chord's distance from the arc there, so that every point is
+    the nominal arc's point plus its correction. Returns (intended points (M, na), their nominal
+    places on the arc (M, na), their swept fractions (M,) in (0, 1]), or None when counts do not
+    match."""
+    n = chord_ends.shape[0]
+    points = np.asarray(points, dtype=float)
+    counts = np.ones(n, np.int64) if counts is None else np.asarray(counts, dtype=np.int64)
+    if counts.shape[0] != n or int(counts.sum()) != points.shape[0]:
+        return None
+    row = np.repeat(np.arange(n), counts)
+    is_end = np.zeros(points.shape[0], bool)
+    is_end[np.cumsum(counts) - 1] = True
+    s = np.vstack([start[None, :], chord_ends[:-1]])[row]
+    d = chord_ends[row] - s
+    c = list(cols)
+    dd = np.sum(d[:, c] ** 2, axis=1)
+    t = np.where(dd > 0, np.sum((points - s)[:, c] * d[:, c], axis=1) / np.where(dd > 0, dd, 1.0), 1.0)
+    t = np.clip(t, 0.0, 1.0)
+    t[is_end] = 1.0
+    u = (row + t) / n
+    on_arc = arc_points_at(start, end, centre2, cols, ccw, full, u)
+    on_arc[is_end] = chord_ends[row[is_end]]
+    intended = points + (on_arc - (s + t[:, None] * d))
+    intended[is_end] = points[is_end]
+    return intended, on_arc, u

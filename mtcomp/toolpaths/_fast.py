@@ -338,7 +338,8 @@ def write_corrected(in_path, out_path, machine, cursor, chord_tol_mm, initial_po
                     ending = _line_ending(raw)
                     separator = ending or ("\r\n" if d.st[18] else "\n")
                     text = format_motion_lines(block, pts, letters, rotary, ostate, ending, separator,
-                                               raw.decode("latin-1").rstrip("\r\n"), chord_tol_mm)
+                                               raw.decode("latin-1").rstrip("\r\n"), chord_tol_mm,
+                                               cursor.counts)
                     d.st[17] = float(ostate.absolute)
                     d.st[22] = float(ostate.motion)
                     if ending:

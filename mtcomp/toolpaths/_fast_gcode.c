@@ -15,18 +15,18 @@
  * last (double[na]): per axis the position last written (mm, rad, read back from its text; NaN:
  * none yet). A coordinate is written when its text differs from the text of that value.
  *
- * Motion lines are written as gcode.format_motion_lines does: N, G90 if needed, the motion word if
- * the line had one or the output's mode differs, the named axes and the axes whose text changes
- * (never an axis not known), a named coordinate that keeps its source value in its source spelling,
- * then the kept words; later pieces of a split block only if they change a coordinate.
+ * Motion lines are written as writer.format_motion_lines does: the source line with the numbers of
+ * its named axes replaced in place where their value changes (at least the word's decimals, and 4,
+ * 5 in inch), G90 and the motion word put after the N word where the output needs them, the axes
+ * the line does not name whose text changes (never an axis not known) added after its last axis
+ * word in the line's letter case; later pieces of a split block are new lines, written only if they
+ * change a coordinate. A line whose axis word has more than 15 decimals goes to Python.
  */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-
-#define MAX_KEPT 16
 
 enum { NEED_INPUT = 0, FALLBACK = 1, ROWS_FULL = 2, NEED_CORR = 3, OUT_FULL = 4, MISMATCH = 5 };
 
@@ -111,24 +111,24 @@ static __thread double cache_val[6];
 static __thread int cache_inch[6] = {-1, -1, -1, -1, -1, -1};
 static __thread char cache_txt[6][40];
 
-/* One coordinate's text (without the letter), NUL-terminated; returns its length. */
-static int fmt_value(char *o, double q, int rot, int inch) {
+/* One coordinate's text (without the letter) with dec decimals, NUL-terminated; returns its length. */
+static int fmt_value(char *o, double q, int rot, int inch, int dec) {
     static const double RAD2DEG = 180.0 / 3.14159265358979323846;
     int n;
-    if (rot) n = fmt_fixed(o, RAD2DEG * q, 4);
-    else if (inch) n = fmt_fixed(o, q / 25.4, 5);
-    else n = fmt_fixed(o, q, 4);
+    if (rot) n = fmt_fixed(o, RAD2DEG * q, dec);
+    else if (inch) n = fmt_fixed(o, q / 25.4, dec);
+    else n = fmt_fixed(o, q, dec);
     o[n] = 0;
     return n;
 }
 
 /* As fmt_value, and *back: the position the text says (mm, rad), as Python's float() of the text
  * would read it: m / 10^dec is that correctly rounded value when the digits are known exactly. */
-static int fmt_value_back(char *o, double q, int rot, int inch, double *back) {
+static int fmt_value_back(char *o, double q, int rot, int inch, int dec, double *back) {
     static const double RAD2DEG = 180.0 / 3.14159265358979323846;
     static const double DEG2RAD_ = 3.14159265358979323846 / 180.0;
     long long m = 0;
-    int exact = 0, n, dec = (!rot && inch) ? 5 : 4;
+    int exact = 0, n;
     double v = rot ? RAD2DEG * q : (inch ? q / 25.4 : q);
     n = fmt_fixed_m(o, v, dec, &m, &exact);
     o[n] = 0;
@@ -170,10 +170,8 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
 
         /* tokens */
         const char *p = ls, *n_s = 0, *n_e = 0;
-        const char *kept_s[MAX_KEPT], *kept_e[MAX_KEPT];
         const char *ax_s[6] = {0, 0, 0, 0, 0, 0}, *ax_e[6] = {0, 0, 0, 0, 0, 0};
-        int nk = 0;
-        int has_g = 0, g = -1, has_f = 0;
+        int has_g = 0, g = -1, has_f = 0, nwords = 0;
         unsigned seen = 0;
         double vals[6] = {0, 0, 0, 0, 0, 0}, fval = 0.0;
         int simple = 1;
@@ -188,12 +186,11 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                     if (q >= ce || *q == '(') { simple = 0; break; }
                     q++;
                 }
-                if (nk == MAX_KEPT) { simple = 0; break; }
-                kept_s[nk] = p; kept_e[nk] = q; nk++;
                 p = q;
                 continue;
             }
             if (!is_alpha(ch)) { simple = 0; break; }
+            nwords++;
             char L = (char)(ch & ~0x20);
             const char *ts = p;
             double v;
@@ -208,12 +205,13 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                 if (has_g || !(v == 0.0 || v == 1.0)) { simple = 0; break; }
                 has_g = 1; g = (v == 1.0);
             } else if (L == 'F') {
-                if (has_f || !(v > 0.0) || nk == MAX_KEPT) { simple = 0; break; }
+                if (has_f || !(v > 0.0)) { simple = 0; break; }
                 has_f = 1; fval = v;
-                kept_s[nk] = ts; kept_e[nk] = p; nk++;
             } else if (L == 'X' || L == 'Y' || L == 'Z' || L == 'A' || L == 'B' || L == 'C') {
                 int col = letter_col[L - 'A'];
                 if (col < 0 || (seen & (1u << col))) { simple = 0; break; }
+                const char *dot = memchr(ts, '.', (size_t)(p - ts));
+                if (dot && p - dot - 1 > 15) { simple = 0; break; }   /* more decimals: Python */
                 seen |= 1u << col;
                 vals[col] = v;
                 ax_s[col] = ts; ax_e[col] = p;
@@ -223,10 +221,7 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
             } else if (L == 'T' || (L == 'M' && (v == 6.0 || v == 98.0 || v == 99.0 || v == 128.0 || v == 428.0 ||
                                           v == 430.0))) {
                 simple = 0; break;                  /* tool changes, subprograms: Python */
-            } else {                                /* M S H D P Q O E ...: kept, in order */
-                if (nk == MAX_KEPT) { simple = 0; break; }
-                kept_s[nk] = ts; kept_e[nk] = p; nk++;
-            }
+            }                                       /* M S H D P Q O E ...: kept as written */
         }
         if (!simple) { *consumed = pos; return FALLBACK; }
         int motion = has_g ? g : (int)state[13];
@@ -288,94 +283,136 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
             if (out) {
                 long long row = *c_row;
                 char *o = out + *out_n;
-                const char *word = motion == 0 ? "G0" : "G1";
                 const char *sep = ending == 2 ? "\r\n" : ending == 1 ? "\n"
                                   : (state[18] != 0.0 ? "\r\n" : "\n");
                 size_t sl = strlen(sep);
                 if (ending) state[18] = (ending == 2);
-                long long npieces = c_off[row + 1] - c_off[row];
                 int incr = state[15] != 0.0;
-                char tmp[64], nom[64];
-                char *line_start = o;
-                int verbatim = npieces == 1 && state[17] != 0.0 && (has_g || state[22] == (double)motion);
-                int nraw = 0;
-                for (long long k = c_off[row]; k < c_off[row + 1]; k++) {
-                    int first = (k == c_off[row]);
-                    char *mark = o;                 /* a later piece without change is undone */
-                    int sp = 0;                      /* a word was written: the next needs a space */
-                    int nparts = 0;
-                    if (!first) { memcpy(o, sep, sl); o += sl; }
-                    if (first) {
-                        if (n_s) { memcpy(o, n_s, (size_t)(n_e - n_s)); o += n_e - n_s; sp = 1; }
-                        if (state[17] == 0.0) {
-                            if (sp) *o++ = ' ';
-                            memcpy(o, "G90", 3); o += 3; sp = 1;
-                            state[17] = 1.0;
-                        }
+                /* the line's style: blank between words or none, letter case of its first axis word */
+                int blank = nwords < 2 || memchr(ls, ' ', (size_t)(ce - ls)) || memchr(ls, '\t', (size_t)(ce - ls));
+                const char *first_ax = 0, *last_ax_e = 0;
+                int line_dec = 0, own_dec[6] = {0, 0, 0, 0, 0, 0};
+                for (int j = 0; j < na; j++) {
+                    if (!(seen & (1u << j))) continue;
+                    if (!first_ax || ax_s[j] < first_ax) first_ax = ax_s[j];
+                    if (!last_ax_e || ax_e[j] > last_ax_e) last_ax_e = ax_e[j];
+                    const char *dot = memchr(ax_s[j], '.', (size_t)(ax_e[j] - ax_s[j]));
+                    own_dec[j] = dot ? (int)(ax_e[j] - dot - 1) : 0;
+                    if (own_dec[j] > line_dec) line_dec = own_dec[j];
+                }
+                int lower = first_ax && *first_ax >= 'a';
+                char gl = lower ? 'g' : 'G';
+                int dec[6];
+                for (int j = 0; j < na; j++) {
+                    int base = (!is_rot[j] && inch) ? 5 : 4;
+                    int d = (seen & (1u << j)) ? own_dec[j] : line_dec;
+                    dec[j] = d > base ? d : base;
+                }
+                /* edits of the first piece: (start, end, kind, text): 0 head, 1 number, 2 added */
+                char ebuf[2048];
+                int eb = 0, ne = 0;
+                const char *es[10], *ee[10];
+                int ek[10], eo[10], el[10];
+                {   /* head: G90 where the output is in G91, the motion word where its mode differs */
+                    int h0 = eb;
+                    if (state[17] == 0.0) {
+                        if (n_s && blank) ebuf[eb++] = ' ';
+                        ebuf[eb++] = gl; ebuf[eb++] = '9'; ebuf[eb++] = '0';
+                        state[17] = 1.0;
                     }
-                    double prev_motion = state[22];
-                    if ((first && has_g) || state[22] != (double)motion) {
-                        if (sp) *o++ = ' ';
-                        memcpy(o, word, 2); o += 2; sp = 1;
-                        state[22] = (double)motion;
+                    if (!has_g && state[22] != (double)motion) {
+                        if ((eb > h0 || n_s) && blank) ebuf[eb++] = ' ';
+                        ebuf[eb++] = gl; ebuf[eb++] = (char)('0' + motion);
                     }
-                    const double *q = c_pts + k * na;
-                    for (int j = 0; j < na; j++) {
-                        if (!(known & (1u << j))) continue;
-                        double back;
-                        int tn = fmt_value_back(tmp, q[j], is_rot[j], inch, &back);
-                        int named = first && (seen & (1u << j));
-                        if (!named && !isnan(last[j])) {
-                            if (cache_inch[j] != inch || memcmp(&cache_val[j], &last[j], sizeof(double))) {
-                                fmt_value(cache_txt[j], last[j], is_rot[j], inch);
-                                cache_val[j] = last[j];
-                                cache_inch[j] = inch;
-                            }
-                            if (strcmp(tmp, cache_txt[j]) == 0) continue;
+                    state[22] = (double)motion;
+                    if (eb > h0) {
+                        const char *at = n_s ? n_e : ls;
+                        if (!n_s) {
+                            while (at < ce && (*at == ' ' || *at == '\t')) at++;
+                            if (blank) ebuf[eb++] = ' ';
                         }
-                        if (sp) *o++ = ' ';
-                        sp = 1;
-                        nparts++;
-                        int use_raw = 0;
-                        if (named && npieces == 1 && !incr && ax_s[j]) {
-                            if (q[j] == end[j]) use_raw = 1;      /* the same value: same text */
-                            else {
-                                fmt_value(nom, end[j], is_rot[j], inch);
-                                use_raw = strcmp(tmp, nom) == 0;
-                            }
-                        }
-                        if (use_raw) {
-                            memcpy(o, ax_s[j], (size_t)(ax_e[j] - ax_s[j])); o += ax_e[j] - ax_s[j];
-                            nraw++;
-                        } else {
-                            verbatim = 0;
-                            *o++ = letters[j];
-                            memcpy(o, tmp, (size_t)tn); o += tn;
-                        }
-                        /* the machine goes where the written spelling says (the source's: its
-                         * parsed value, the block's end) */
-                        last[j] = use_raw ? end[j] : back;
-                        if (!use_raw) {         /* its text is the one just written */
-                            memcpy(cache_txt[j], tmp, (size_t)tn + 1);
-                            cache_val[j] = last[j];
-                            cache_inch[j] = inch;
-                        }
-                    }
-                    if (!first && nparts == 0) { o = mark; state[22] = prev_motion; continue; }
-                    if (first) {
-                        for (int t = 0; t < nk; t++) {
-                            if (sp) *o++ = ' ';
-                            sp = 1;
-                            memcpy(o, kept_s[t], (size_t)(kept_e[t] - kept_s[t]));
-                            o += kept_e[t] - kept_s[t];
-                        }
+                        es[ne] = at; ee[ne] = at; ek[ne] = 0; eo[ne] = h0; el[ne] = eb - h0; ne++;
                     }
                 }
-                if (verbatim && nraw == __builtin_popcount(seen)) {
-                    /* written with the very words of the source: the source line itself */
-                    o = line_start;
-                    memcpy(o, ls, (size_t)(ce - ls)); o += ce - ls;
-                    state[22] = (double)motion;
+                char tmp[64], nom[64];
+                long long k0 = c_off[row], k1 = c_off[row + 1];
+                char abuf[1024];
+                int ab = 0;
+                for (long long k = k0; k < k1; k++) {
+                    int first = (k == k0);
+                    const double *q = c_pts + k * na;
+                    char *mark = o;
+                    int wrote = 0;
+                    if (!first) { memcpy(o, sep, sl); o += sl; }
+                    for (int j = 0; j < na; j++) {
+                        if (!(known & (1u << j))) continue;
+                        int base = (!is_rot[j] && inch) ? 5 : 4;
+                        int named = first && (seen & (1u << j));
+                        double back;
+                        if (named) {
+                            if (!incr && q[j] == end[j]) { last[j] = end[j]; continue; }
+                            int tn = fmt_value_back(tmp, q[j], is_rot[j], inch, dec[j], &back);
+                            if (!incr) {
+                                fmt_value(nom, end[j], is_rot[j], inch, dec[j]);
+                                if (strcmp(tmp, nom) == 0) { last[j] = end[j]; continue; }
+                            }
+                            es[ne] = ax_s[j] + 1; ee[ne] = ax_e[j]; ek[ne] = 1; eo[ne] = eb; el[ne] = tn;
+                            memcpy(ebuf + eb, tmp, (size_t)tn); eb += tn; ne++;
+                        } else {
+                            if (q[j] == last[j]) continue;          /* the same value: the same text */
+                            int tn = fmt_value_back(tmp, q[j], is_rot[j], inch, base, &back);
+                            if (!isnan(last[j])) {
+                                if (cache_inch[j] != inch || memcmp(&cache_val[j], &last[j], sizeof(double))) {
+                                    fmt_value(cache_txt[j], last[j], is_rot[j], inch, base);
+                                    cache_val[j] = last[j];
+                                    cache_inch[j] = inch;
+                                }
+                                if (strcmp(tmp, cache_txt[j]) == 0) continue;
+                            }
+                            if (dec[j] != base) tn = fmt_value_back(tmp, q[j], is_rot[j], inch, dec[j], &back);
+                            char L = lower ? (char)(letters[j] | 0x20) : letters[j];
+                            if (first) {        /* added after the line's last axis word */
+                                if (blank) abuf[ab++] = ' ';
+                                abuf[ab++] = L;
+                                memcpy(abuf + ab, tmp, (size_t)tn); ab += tn;
+                            } else {
+                                if (wrote && blank) *o++ = ' ';
+                                *o++ = L;
+                                memcpy(o, tmp, (size_t)tn); o += tn;
+                                wrote = 1;
+                            }
+                        }
+                        last[j] = back;
+                        if (dec[j] == base && !named) {   /* its text is the one just made */
+                            memcpy(cache_txt[j], tmp, strlen(tmp) + 1);
+                            cache_val[j] = last[j];
+                            cache_inch[j] = inch;
+                        } else cache_inch[j] = -1;
+                    }
+                    if (first) {
+                        if (ab) {
+                            memcpy(ebuf + eb, abuf, (size_t)ab);
+                            es[ne] = last_ax_e; ee[ne] = last_ax_e; ek[ne] = 2; eo[ne] = eb; el[ne] = ab;
+                            eb += ab; ne++;
+                        }
+                        /* the source line with its edits, in the order of their places */
+                        for (int a = 1; a < ne; a++) {
+                            for (int b = a; b > 0 && (es[b] < es[b - 1] || (es[b] == es[b - 1] && ek[b] < ek[b - 1])); b--) {
+                                const char *t1 = es[b]; es[b] = es[b - 1]; es[b - 1] = t1;
+                                t1 = ee[b]; ee[b] = ee[b - 1]; ee[b - 1] = t1;
+                                int t2 = ek[b]; ek[b] = ek[b - 1]; ek[b - 1] = t2;
+                                t2 = eo[b]; eo[b] = eo[b - 1]; eo[b - 1] = t2;
+                                t2 = el[b]; el[b] = el[b - 1]; el[b - 1] = t2;
+                            }
+                        }
+                        const char *src = ls;
+                        for (int a = 0; a < ne; a++) {
+                            memcpy(o, src, (size_t)(es[a] - src)); o += es[a] - src;
+                            memcpy(o, ebuf + eo[a], (size_t)el[a]); o += el[a];
+                            src = ee[a];
+                        }
+                        memcpy(o, src, (size_t)(ce - src)); o += ce - src;
+                    } else if (!wrote) o = mark;      /* a later piece that changes nothing */
                 }
                 if (ending == 2) { *o++ = '\r'; *o++ = '\n'; }
                 else if (ending == 1) *o++ = '\n';

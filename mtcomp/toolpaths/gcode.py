@@ -41,11 +41,11 @@ from .blocks import CycleBlock, MotionBlock, Program, SegmentChunk
 from .modal import ModalState
 from .reader import iter_blocks, new_state, read_program
 from .source import ProgramSource, open_program
-from .words import (ARC_KEEP_TOL_MM, DEFAULT_CHORD_TOL_MM, DEFAULT_CHUNK_SIZE, DIR_EPS, MM_PER_INCH,
-                    TOOL_AXIS, WORK_SYSTEMS, frame_code, frame_tool, frame_wcs, tokenize)
+from .words import (DEFAULT_CHORD_TOL_MM, DEFAULT_CHUNK_SIZE, DIR_EPS, MM_PER_INCH, TOOL_AXIS,
+                    WORK_SYSTEMS, frame_code, frame_tool, frame_wcs, tokenize)
 from .writer import CorrectionCursor, OutputState, format_motion_lines, write_pass_through
 
-__all__ = ["ARC_KEEP_TOL_MM", "DEFAULT_CHORD_TOL_MM", "DEFAULT_CHUNK_SIZE", "DIR_EPS", "MM_PER_INCH",
+__all__ = ["DEFAULT_CHORD_TOL_MM", "DEFAULT_CHUNK_SIZE", "DIR_EPS", "MM_PER_INCH",
            "TOOL_AXIS", "WORK_SYSTEMS", "frame_code", "frame_tool", "frame_wcs", "tokenize",
            "CycleBlock", "MotionBlock", "Program", "SegmentChunk", "ModalState", "iter_blocks",
            "new_state", "read_program", "iter_segment_chunks", "CorrectionCursor", "OutputState",
@@ -96,13 +96,13 @@ def write_corrected(in_path, out_path, machine: Machine,
     its expansion, first line the comment that says so). dialect : see :func:`open_program`.
     corrections : iterator of ``(chunk, points, counts)`` per SegmentChunk of
         :func:`iter_segment_chunks` (same order): points (M, na) corrected axis positions (mm, rad)
-        to emit as G0/G1 moves, counts (n,) int >= 1: how many of ``points`` belong to each segment
-        row, the last being the segment's corrected end. None writes the nominal program (arcs as
-        chords): the round trip.
-    Every line that is not a motion line is written byte for byte and in place. Motion lines carry
-    only the words they need (see :func:`format_motion_lines`); an axis whose position the program
-    has not given is never written. Output is absolute (G90), in the units of the input at that
-    line, 4 decimals for mm and deg, 5 for inch. The file is written atomically: nothing is left on
+        to emit, counts (n,) int >= 1: how many of ``points`` belong to each segment row, the last
+        being the segment's corrected end. None writes the nominal program: the round trip.
+    Every line that is not a motion line is written byte for byte and in place. In a motion line
+    only the numbers that carry a correction change, in place (see :func:`format_motion_lines`); an
+    axis whose position the program has not given is never written. Output is absolute (G90), in
+    the units of the input at that line, a corrected number with at least its source word's decimals
+    (and 4 for mm and deg, 5 for inch). The file is written atomically: nothing is left on
     failure and the input is never overwritten. inch, initial_known : see :func:`iter_blocks`.
     stats : a dict that receives ``cycle_lines``, the drilling cycle lines passed through unchanged
     (their positions are not corrected), and ``cycle_blocks``, those kept as cycles (with the

@@ -21,9 +21,6 @@ MM_PER_INCH = 25.4
 DIR_EPS = 1e-9
 DEFAULT_CHORD_TOL_MM = 1e-3
 DEFAULT_CHUNK_SIZE = 65536
-#: an arc stays one G2/G3 line when its corrections agree along it within this (mm; or within the
-#: chord tolerance, if that is smaller): the shifted arc then misses no planned point by more
-ARC_KEEP_TOL_MM = 1e-4
 #: the axis along the tool: a tool change or a tool length change leaves its position unknown
 TOOL_AXIS = "Z"
 
@@ -192,3 +189,150 @@ def tokenize(text: str, path=None, line: int | None = None) -> list[tuple[str, s
             out.append((raw[0], "", raw))
         pos = m.end()
     return out
+
+
+# ------------------------------------------------------------------- the source line, rewritten
+#: a word with blanks anywhere in it (RS-274 ignores them: ``Z - 1`` is ``Z-1``)
+_SPAN_RE = re.compile(r"[ \t]+|\([^()]*\)|;.*|([A-Za-z])[ \t]*"
+                      r"([+-]?[ \t]*(?:\d[\d \t]*\.?[\d \t]*|\.[ \t]*\d[\d \t]*))|(.)", re.S)
+_BOM = "\xef\xbb\xbf"
+
+
+def number_decimals(number: str) -> int:
+    """Digits after the decimal point of a number as written (``'10.'`` -> 0, ``'1.25'`` -> 2)."""
+    dot = number.find(".")
+    return 0 if dot < 0 else len(number) - dot - 1
+
+
+def format_number(value: float, decimals: int) -> str:
+    """``value`` with ``decimals`` digits after the point; ``-0.000`` is written ``0.000``."""
+    s = f"{value:.{decimals}f}"
+    if s.startswith("-0") and _NEG_ZERO_RE.fullmatch(s):
+        s = s[1:]
+    return s
+
+
+def _line_words(text: str, pos: int) -> list | None:
+    out = []
+    n = len(text)
+    while pos < n:
+        m = _SPAN_RE.match(text, pos)
+        if m.group(3) is not None:
+            return None
+        if m.group(1) is not None:
+            end = m.start(2) + len(m.group(2).rstrip(" \t"))
+            out.append((m.group(1).upper(), m.start(), m.start(2), end))
+            pos = end
+            continue
+        if text[pos] in "(;":
+            out.append((text[pos], pos, pos, m.end()))
+        pos = m.end()
+    return out
+
+
+class SourceLine:
+    """A source line to be rewritten in place: its words with their places, and the edits to it.
+
+    words : ``(letter, letter position, number start, number end)`` per word in line order (the
+    letter upper-case; comments as ``('(' or ';', start, start, end)``). The edits replace the
+    number of a word, a whole word, or insert words at a place; :meth:`render` applies them and
+    leaves every other character as written. A line with blanks inside a number (``X1 0``) is
+    taken without its blanks (RS-274 ignores them). ``sep`` is the blank put between inserted words
+    (none when the line writes two words or more and no blank); ``lower``: the line writes its letters in lower case
+    (judged by its first axis word, else its first word).
+    """
+
+    def __init__(self, text: str):
+        start = 3 if text.startswith(_BOM) else 0
+        words = _line_words(text, start)
+        if words is None:
+            text = text[:start] + _strip_blanks(text[start:])
+            words = _line_words(text, start) or []
+        self.text = text
+        self.words = words
+        self.start = start
+        letters = sum(w[0] not in "(;" for w in words)
+        self.sep = " " if (" " in text or "\t" in text or letters < 2) else ""
+        first = next((w for w in words if w[0] in _AXIS_LETTERS), None) or \
+            next((w for w in words if w[0] not in "(;"), None)
+        self.lower = first is not None and text[first[1]].islower()
+        self.edits: list[tuple[int, int, int, str]] = []
+
+    def letter(self, c: str) -> str:
+        """A letter in the line's case."""
+        return c.lower() if self.lower else c
+
+    def find(self, letter: str):
+        """The first word with this letter (upper case), or None."""
+        for w in self.words:
+            if w[0] == letter:
+                return w
+        return None
+
+    def number(self, w) -> str:
+        """The number of a word as written, without blanks."""
+        return self.text[w[2]:w[3]].replace(" ", "").replace("\t", "")
+
+    def replace_number(self, w, number: str) -> None:
+        self.edits.append((w[2], w[3], 1, number))
+
+    def replace_word(self, w, text: str) -> None:
+        self.edits.append((w[1], w[3], 1, text))
+
+    def delete(self, w) -> None:
+        """Remove a word and the blanks after it (or before it, at the end of the line)."""
+        s, e = w[1], w[3]
+        t = self.text
+        while e < len(t) and t[e] in " \t":
+            e += 1
+        if e == len(t):
+            e = w[3]
+            while s > self.start and t[s - 1] in " \t":
+                s -= 1
+        self.edits.append((s, e, 1, ""))
+
+    def insert_head(self, words: list[str]) -> None:
+        """Words at the start of the line's block: after its N word, else before its first word."""
+        if not words:
+            return
+        n = self.find("N")
+        if n is not None:
+            self.edits.append((n[3], n[3], 0, self.sep + self.sep.join(words)))
+            return
+        pos = self.words[0][1] if self.words else len(self.text)
+        self.edits.append((pos, pos, 0, self.sep.join(words) + self.sep))
+
+    def append_pos(self, letters: str = _AXIS_LETTERS) -> int:
+        """Where appended words go: after the line's last word with one of these letters (its
+        axis words), else after its motion word, else before its first comment, else at the end
+        (as a negative position: words go before a comment, ``-1 - pos``)."""
+        last = [w for w in self.words if w[0] in letters]
+        if last:
+            return last[-1][3]
+        motion = [w for w in self.words if w[0] == "G" and float(self.number(w)) in (0, 1, 2, 3)]
+        if motion:
+            return motion[0][3]
+        comment = [w for w in self.words if w[0] in "(;"]
+        if comment:
+            return -1 - comment[0][1]
+        return len(self.text.rstrip(" \t"))
+
+    def insert_at(self, pos: int, words: list[str]) -> None:
+        if not words:
+            return
+        if pos < 0:
+            self.edits.append((-1 - pos, -1 - pos, 2, self.sep.join(words) + self.sep))
+        else:
+            self.edits.append((pos, pos, 2, self.sep + self.sep.join(words)))
+
+    def render(self) -> str:
+        if not self.edits:
+            return self.text
+        out = []
+        pos = 0
+        for s, e, _kind, new in sorted(self.edits, key=lambda x: (x[0], x[2])):
+            out.append(self.text[pos:s])
+            out.append(new)
+            pos = max(pos, e)
+        out.append(self.text[pos:])
+        return "".join(out)

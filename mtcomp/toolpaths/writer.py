@@ -2,14 +2,16 @@
 
 :class:`OutputState` keeps what the written program has said so far (distance mode, motion mode,
 the last value written per axis); :func:`format_motion_lines` writes one motion line with its
-corrected points (G0/G1 pieces, one shifted G2/G3 arc, or a restated drilling cycle), and
+corrected points (the source line with its numbers replaced in place and later pieces, G2/G3 arcs
+fitted to the corrected points, or a restated drilling cycle), and
 :func:`write_pass_through` copies every other line byte for byte. :class:`CorrectionCursor` walks
 the corrections the planner hands over, row by row, and :func:`write_corrected` here is the
 pure-Python writer (the public :func:`mtcomp.toolpaths.gcode.write_corrected` prepares the cursor
 and runs the compiled writer when it can, with the same bytes).
 
-Output: absolute (G90), in the units of the input at each line, 4 decimals for mm and deg, 5 for
-inch; see docs/toolpaths.md for what is rewritten and what passes through.
+Output: the input with only the numbers that carry a correction changed (at least the source
+word's decimals, and 4 in mm and deg, 5 in inch), absolute (G90), in the units of the input at each
+line; see docs/toolpaths.md for what is rewritten and what passes through.
 """
 from __future__ import annotations
 
@@ -19,11 +21,14 @@ import numpy as np
 
 from ..io.atomic import atomic_write
 from ..machine import Machine
-from ._arcs import FULL_CIRCLE_TOL_MM, PLANE_AXES, PLANE_OFFSET_LETTERS
+from ._arcs import (ARC_RADIUS_TOL_MM, ARC_RADIUS_TOL_REL, FULL_CIRCLE_TOL_MM, PLANE_AXES,
+                    PLANE_OFFSET_LETTERS, ArcError, arc_misses, arc_samples, arc_sweep,
+                    centre_from_radius, fit_arc_centre)
 from .blocks import MotionBlock
 from .modal import ModalState
 from .reader import iter_blocks, new_state
-from .words import _NEG_ZERO_RE, ARC_KEEP_TOL_MM, DEFAULT_CHORD_TOL_MM, MM_PER_INCH
+from .words import (DEFAULT_CHORD_TOL_MM, MM_PER_INCH, SourceLine, format_number,
+                    number_decimals)
 
 
 class OutputState:
@@ -60,16 +65,18 @@ class OutputState:
         self.values[j] = math.radians(v) if self.rotary[j] else v * (MM_PER_INCH if inch else 1.0)
 
 
+def _base_decimals(rot: bool, inch: bool) -> int:
+    """The fewest decimals a corrected coordinate is written with: 4 in mm and deg, 5 in inch."""
+    return 5 if inch and not rot else 4
+
+
+def _value_text(v: float, rot: bool, inch: bool, decimals: int) -> str:
+    """The text of an axis position v (mm, rad) in the program's units (mm, inch, deg)."""
+    return format_number(math.degrees(v) if rot else (v / MM_PER_INCH if inch else v), decimals)
+
+
 def _format_value(v: float, rot: bool, inch: bool) -> str:
-    if rot:
-        s = f"{math.degrees(v):.4f}"
-    elif inch:
-        s = f"{v / MM_PER_INCH:.5f}"
-    else:
-        s = f"{v:.4f}"
-    if s.startswith("-0.") and _NEG_ZERO_RE.fullmatch(s):
-        s = s[1:]
-    return s
+    return _value_text(v, rot, inch, _base_decimals(rot, inch))
 
 
 def _piece_feeds(block: MotionBlock, points: np.ndarray, xyz: list[int]) -> np.ndarray:
@@ -82,83 +89,190 @@ def _piece_feeds(block: MotionBlock, points: np.ndarray, xyz: list[int]) -> np.n
     return share
 
 
+def _decimals(line: SourceLine, letters: str, rotary: list[bool], inch: bool) -> list[int]:
+    """Per axis the decimals its corrected coordinate is written with: at least those of its word
+    in the line, else of the line's axis and centre words with most, and at least 4 (5 in inch)."""
+    own = {}
+    most = 0
+    for w in line.words:
+        if w[0] in "XYZABCIJKR":
+            d = number_decimals(line.number(w))
+            most = max(most, d)
+            own.setdefault(w[0], d)
+    return [max(_base_decimals(rot, inch), own.get(c, most)) for c, rot in zip(letters, rotary)]
+
+
+def _edit_head(line: SourceLine, out: OutputState, code: int) -> None:
+    """The output is absolute: a G91 of the line is dropped (or becomes G90 where the output is in
+    G91), G90 is put in front where the output is in G91; the motion word is kept as written (a
+    G2/G3 written as lines gets G1 in its place) and put in front where the output's mode differs."""
+    head = []
+    g91 = g90 = motion = None
+    for w in line.words:
+        if w[0] == "G":
+            v = float(line.number(w))
+            if v == 91:
+                g91 = w
+            elif v == 90:
+                g90 = w
+            elif v in (0, 1, 2, 3):
+                motion = w
+    g = line.letter("G")
+    if g91 is not None:
+        if out.absolute:
+            line.delete(g91)
+        else:
+            line.replace_word(g91, g + "90")
+    elif not out.absolute and g90 is None:
+        head.append(g + "90")
+    out.absolute = True
+    if motion is not None:
+        if float(line.number(motion)) != code:
+            line.replace_word(motion, f"{g}{code}")
+    elif out.motion != code:
+        head.append(f"{g}{code}")
+    out.motion = code
+    line.insert_head(head)
+
+
+def _axis_texts(block: MotionBlock, p: np.ndarray, rotary: list[bool], out: OutputState,
+                decs: list[int], named) -> list[tuple[int, str | None]]:
+    """The axes a piece writes, ``(axis, text)``: a named axis always (text None: its source
+    word, whose value it keeps), any other known axis whose text at 4 (5) decimals differs from
+    the output's last; never an axis the program has not positioned. named : (na,) bool or None."""
+    inch = block.inch
+    res = []
+    for i, rot in enumerate(rotary):
+        if not block.known[i]:
+            continue
+        if named is not None and named[i]:
+            t = _value_text(p[i], rot, inch, decs[i])
+            keep = not block.incremental and t == _value_text(block.end[i], rot, inch, decs[i])
+            res.append((i, None if keep else t))
+        elif _format_value(p[i], rot, inch) != out.last(i, inch):
+            res.append((i, _value_text(p[i], rot, inch, decs[i])))
+    return res
+
+
+def _written(block: MotionBlock, texts, out: OutputState) -> np.ndarray:
+    """(na,) where the machine stands after a piece that writes ``texts`` (its values read back)."""
+    v = out.values.copy()
+    unknown = np.isnan(v)
+    v[unknown] = block.start[unknown]
+    for i, t in texts:
+        if t is None:
+            v[i] = block.end[i]
+        else:
+            x = float(t)
+            v[i] = math.radians(x) if out.rotary[i] else x * (MM_PER_INCH if block.inch else 1.0)
+    return v
+
+
+def _apply_axes(block: MotionBlock, line: SourceLine, texts, letters: str, out: OutputState,
+                first: bool) -> list[str]:
+    """Set the output's last values; on the first piece replace the named words' numbers in
+    place. Returns the words to add (those the line does not name, in the line's case)."""
+    added = []
+    for i, t in texts:
+        if t is None:
+            out.values[i] = block.end[i]
+            continue
+        w = line.find(letters[i]) if first and block.given[i] else None
+        if w is not None:
+            line.replace_number(w, t)
+        else:
+            added.append(line.letter(letters[i]) + t)
+        out.set_last(i, t, block.inch)
+    return added
+
+
 def format_motion_lines(block: MotionBlock, points: np.ndarray, letters: str, rotary: list[bool],
                         out: OutputState, ending: str, separator: str = "\n",
-                        source: str | None = None, chord_tol: float = DEFAULT_CHORD_TOL_MM) -> str:
-    """The rewritten text of one motion line: ``points`` (m, na) become up to m lines G0/G1 (or one
-    arc), absolute. Updates ``out``.
+                        source: str | None = None, chord_tol: float = DEFAULT_CHORD_TOL_MM,
+                        counts: np.ndarray | None = None) -> str:
+    """The rewritten text of one motion line whose corrected points are ``points`` (m, na); updates
+    ``out``.
 
-    Only the words a line needs are written: the N word, G90 when the output is not yet absolute,
-    the motion word where the source line had one or the output's motion mode differs, the axes the
-    source line named and any other axis whose written value changes (never an axis whose position
-    the program has not given), then the kept words and comments in their original order (on the
-    first line). A coordinate that keeps its source value keeps its source spelling, and a line
-    that would be written with the very words of its source is written as the source (``source``:
-    the line's text without its ending). A piece of a split block that changes no coordinate is left
-    out. Under G93 each piece gets its own F. An arc whose correction is the same along it within
-    ``ARC_KEEP_TOL_MM`` (or ``chord_tol``, mm, if smaller) stays one G2/G3 line (the arc shifted by
-    its correction); otherwise it is written as its chords. ``ending`` is the line's own ending
-    (kept, '' for a last line without one); ``separator`` goes between the lines of a split block.
+    The first piece is the source line itself (``source``, without its ending) with only the
+    numbers of the axis words (and arc centre words) whose value changes replaced in place, at
+    least with the decimals the word had and at least 4 (5 in inch); an axis the line does not
+    name whose written value changes is added after the line's last axis word, in the line's letter
+    case; never an axis whose position the program has not given. Word order, case, spacing,
+    comments, the N word and the motion word stay as written; a G91 on the line is dropped (the
+    output is absolute) and G90 or a motion word are put after the N word only where the output
+    needs them. Later pieces of a block split into several (inserted nodes, G93 pieces) are new
+    lines with what changes. A G2/G3 block stays one arc where the corrected path lies within
+    ``chord_tol`` (mm) of one, else it becomes consecutive arcs (:func:`_arc_text`); ``counts`` (k,)
+    are the corrected points per chord of the arc (None: one each). A drilling cycle is restated
+    by :func:`_cycle_text`. ``ending`` is the line's own ending (kept, '' for a last line without
+    one); ``separator`` goes between the lines of a split block.
     """
+    if source is None:
+        source = " ".join([block.number, f"G{block.motion}"] + list(block.raw.values()) +
+                          block.words).strip()
     if block.cycle is not None:
         return _cycle_text(block, points, letters, out, ending, separator, source)
     if block.from_arc:
-        text = _arc_text(block, points, letters, rotary, out, source, min(chord_tol, ARC_KEEP_TOL_MM))
+        text = _arc_text(block, points, counts, letters, rotary, out, source, chord_tol, separator)
         if text is not None:
             return text + ending
+    return _line_text(block, points, letters, rotary, out, source, ending or separator) + ending
+
+
+def _line_text(block: MotionBlock, points: np.ndarray, letters: str, rotary: list[bool],
+               out: OutputState, source: str, separator: str) -> str:
+    """A G0/G1 block (or an arc written as straight pieces): see :func:`format_motion_lines`."""
     code = 0 if block.rapid else 1
-    word = "G0" if code == 0 else "G1"
+    line = SourceLine(source)
+    decs = _decimals(line, letters, rotary, block.inch)
     k = points.shape[0]
-    na = len(letters)
-    out_lines = []
     g93 = block.inverse_time and k > 1
     if g93:
         share = _piece_feeds(block, points, [i for i, c in enumerate(letters) if c in "XYZ"])
+    _edit_head(line, out, code)
+    if block.from_arc:
+        for w in [w for w in line.words if w[0] in "IJKR"]:
+            line.delete(w)
+    added = _apply_axes(block, line, _axis_texts(block, points[0], rotary, out, decs, block.given),
+                        letters, out, True)
+    line.insert_at(line.append_pos(), added)
+    if g93:
+        line.replace_number(line.find("F"), f"{block.f_word / share[0]:.6g}")
         carried = 0.0
-    verbatim = k == 1 and source is not None and out.absolute and not block.from_arc \
-        and (block.motion_word or out.motion == code)
-    for j in range(k):
-        first = j == 0
-        parts = []
-        for i in range(na):
-            if not block.known[i]:
-                continue
-            t = _format_value(points[j, i], rotary[i], block.inch)
-            named = first and block.given[i]
-            if named or t != out.last(i, block.inch):
-                raw = block.raw.get(letters[i]) if (k == 1 and named) else None
-                if raw is not None and t == _format_value(block.end[i], rotary[i], block.inch):
-                    parts.append(raw)
-                    t = raw[1:]         # the machine goes where the source spelling says
-                else:
-                    parts.append(letters[i] + t)
-                    verbatim = False
-                out.set_last(i, t, block.inch)
+    lines = [line.render()]
+    for j in range(1, k):
+        parts = _apply_axes(block, line, _axis_texts(block, points[j], rotary, out, decs, None),
+                            letters, out, False)
         if g93:
             carried += share[j]
-        if not first and not parts:
+        if not parts:
             continue
-        if verbatim and len(parts) == int(block.given.sum()):
+        if out.motion != code:
+            parts.insert(0, f"{line.letter('G')}{code}")
             out.motion = code
-            return source + ending
-        head = []
-        if first:
-            if block.number:
-                head.append(block.number)
-            if not out.absolute:
-                head.append("G90")
-                out.absolute = True
-        if (first and block.motion_word) or out.motion != code:
-            head.append(word)
-            out.motion = code
-        tail = []
-        if first:
-            tail = [w for w in block.words if not (g93 and w[:1] in "Ff")]
         if g93:
-            tail.append(f"F{block.f_word / carried:.6g}")
+            parts.append(f"{line.letter('F')}{block.f_word / carried:.6g}")
             carried = 0.0
-        out_lines.append(" ".join(head + parts + tail))
-    return (ending or separator).join(out_lines) + ending
+        lines.append((line.sep or "").join(parts))
+    return separator.join(lines)
+
+
+def _cycle_head(line: SourceLine, out: OutputState, info) -> None:
+    """A drilling cycle line is written absolute: its G91 dropped (G90 where the output is in G91),
+    G90 put in front where needed, an incremental line's repeat count dropped."""
+    g = line.letter("G")
+    distance = [w for w in line.words if w[0] == "G" and float(line.number(w)) in (90, 91)]
+    for w in distance:
+        if float(line.number(w)) == 91:
+            if out.absolute:
+                line.delete(w)
+            else:
+                line.replace_word(w, g + "90")
+    if not out.absolute and not distance:
+        line.insert_head([g + "90"])
+    out.absolute = True
+    if info.incremental and info.count_letter is not None:
+        line.delete(line.find(info.count_letter))
 
 
 def _cycle_text(block: MotionBlock, points: np.ndarray, letters: str, out: OutputState, ending: str,
@@ -176,61 +290,45 @@ def _cycle_text(block: MotionBlock, points: np.ndarray, letters: str, out: Outpu
     if info.starting:
         out.cycle_init_z = out.values[zi]
     out.cycle_blocks += 1
-    raw = {} if info.incremental else {t[0]: t[2] for t in info.tokens if t[0] in "XYZR"}
+    line = SourceLine(source)
+    decs = dict(zip("XYZR", _decimals(line, "XYZR", [False] * 4, inch)))
+    raw = {} if info.incremental else {c: line.number(line.find(c)) for c in "XYZR"
+                                       if line.find(c) is not None}
     nominal = {"X": block.points[0, xi], "Y": block.points[0, yi], "Z": info.z_bottom,
                "R": info.r_level}
-    nominal = {c: _format_value(v, False, inch) for c, v in nominal.items()}
+    nominal = {c: _value_text(v, False, inch, decs[c]) for c, v in nominal.items()}
     lines = []
     for j in range(points.shape[0]):
         p = points[j]
-        r = info.r_level + (p[zi] - block.points[j, zi])
-        text = {c: _format_value(v, False, inch) for c, v in zip("XYZR", (p[xi], p[yi], p[zi], r))}
+        v = dict(zip("XYZR", (p[xi], p[yi], p[zi], info.r_level + (p[zi] - block.points[j, zi]))))
+        text = {c: _value_text(v[c], False, inch, decs[c]) for c in "XYZR"}
         current = {"X": out.last(xi, inch), "Y": out.last(yi, inch), "Z": out.cycle_z,
                    "R": out.cycle_r}
         named = info.named if j == 0 else frozenset("XY")
-        need = [c for c in "XYZR" if c in named or text[c] != current[c]]
+        need = [c for c in "XYZR" if c in named or _format_value(v[c], False, inch) != current[c]]
         # a coordinate that keeps its source value keeps its source spelling: the machine goes
         # where that spelling says
-        spelled = {c: raw[c][1:] for c in need if c in raw and text[c] == nominal[c]}
-        if j == 0 and points.shape[0] == 1 and source is not None and out.absolute \
-                and not info.incremental and all(text[c] == nominal[c] for c in "XYZR") \
-                and all(current[c] == nominal[c] for c in "XYZR" if c not in named):
-            lines.append(source)
+        said = {c: raw[c] if c in raw and text[c] == nominal[c] else text[c] for c in need}
+        if j == 0:
+            _cycle_head(line, out, info)
+            added = []
+            for c in need:
+                w = line.find(c)
+                if w is None:
+                    added.append(line.letter(c) + said[c])
+                elif said[c] != line.number(w):
+                    line.replace_number(w, said[c])
+            line.insert_at(line.append_pos("XYZR"), added)
+            lines.append(line.render())
         else:
-            words = [raw[c] if c in spelled else f"{c}{text[c]}" for c in need]
-            head = []
-            if j == 0:
-                if block.number:
-                    head.append(block.number)
-                if not out.absolute:
-                    head.append("G90")
-                    out.absolute = True
-                word_of = dict(zip(need, words))
-                in_source = [t[0] for t in info.tokens if t[0] in "XYZR"]
-                extra = [word_of[c] for c in need if c not in in_source]
-                body = []
-                for letter, num, rw in info.tokens:
-                    if letter == "G" and float(num) in (90, 91):
-                        continue
-                    if letter == info.count_letter and info.incremental:
-                        continue
-                    if letter in "XYZR":
-                        if letter in word_of:
-                            body.append(word_of[letter])
-                        in_source.remove(letter)
-                        if not in_source:      # after the source's last X Y Z R: the others
-                            body += extra
-                            extra = []
-                        continue
-                    body.append(rw)
-                body += extra
-                lines.append(" ".join(head + body))
+            lines.append(line.sep.join(line.letter(c) + said[c] for c in need))
+        for c, i in (("X", xi), ("Y", yi)):
+            if c in said:
+                out.set_last(i, said[c], inch)
             else:
-                lines.append(" ".join(words))
-        out.set_last(xi, spelled.get("X", text["X"]), inch)
-        out.set_last(yi, spelled.get("Y", text["Y"]), inch)
-        out.cycle_z, out.cycle_r = (_format_value(float(spelled[c]) * scale, False, inch)
-                                    if c in spelled else text[c] for c in "ZR")
+                out.set_last(i, text[c], inch)
+        out.cycle_z, out.cycle_r = (_format_value(float(said.get(c, text[c])) * scale, False, inch)
+                                    for c in "ZR")
     r_out = float(out.cycle_r) * scale
     init = out.cycle_init_z
     if info.retract == 99:
@@ -243,100 +341,208 @@ def _cycle_text(block: MotionBlock, points: np.ndarray, letters: str, out: Outpu
     return (ending or separator).join(lines) + ending
 
 
-def _arc_shift(block, points, rotary, out, chord_tol):
-    """(written start (na,), correction d_end (na,)) when the arc block's corrections (points minus
-    the chord ends) agree within chord_tol along the arc and with the correction of the written
-    start, so that the corrected arc is the arc shifted by d_end; None otherwise."""
-    na = len(rotary)
-    start = np.empty(na)
-    for i in range(na):
-        if not block.known[i]:
-            start[i] = block.start[i]
-            continue
-        start[i] = block.start[i] if np.isnan(out.values[i]) else out.values[i]
-    d = points - block.points
-    d_end = d[-1]
-    lin = np.array([not r for r in rotary])
-    known = np.asarray(block.known, bool)
-    spread = np.abs(d - d_end)
-    d_start = start - block.start
-    if np.any(spread[:, lin & known] > chord_tol) or np.any(spread[:, ~lin & known] > 1e-9):
-        return None
-    # the written start is rounded to the output's resolution (and re-told after G20/G21)
-    slack = chord_tol + (MM_PER_INCH * 1e-5 if block.inch else 1e-4)
-    if np.any(np.abs(d_start - d_end)[lin & known] > slack) \
-            or np.any(np.abs(d_start - d_end)[~lin & known] > math.radians(1e-4)):
-        return None
-    return start, d_end
-
-
-def _arc_text(block, points, letters, rotary, out, source, chord_tol) -> str | None:
-    """One G2/G3 line for an arc block whose corrections agree along it (:func:`_arc_shift`);
-    None otherwise."""
-    k = points.shape[0]
-    if k != block.points.shape[0] or block.centre is None or block.inverse_time:
-        return None
-    shift = _arc_shift(block, points, rotary, out, chord_tol)
-    if shift is None:
-        return None
-    start, d_end = shift
-    na = len(letters)
-    scale = MM_PER_INCH if block.inch else 1.0
-    known = np.asarray(block.known, bool)
-    code = block.motion
-    texts = [_format_value(points[-1, i], rotary[i], block.inch) for i in range(na)]
-    # a full circle (end = start in the plane) must stay one, and an arc must not become one
+def _arc_geometry(block: MotionBlock, letters: str):
+    """(in-plane columns (2,), nominal centre (2,), the source arc is a full circle)."""
     xyz = [letters.index(c) for c in "XYZ"]
-    pa, pb = xyz[PLANE_AXES[block.plane][0]], xyz[PLANE_AXES[block.plane][1]]
-    full = math.hypot(block.end[pa] - block.start[pa], block.end[pb] - block.start[pb]) \
-        <= FULL_CIRCLE_TOL_MM
-    if full:
-        for i in (pa, pb):
-            texts[i] = _format_value(start[i], False, block.inch)
-            if abs(float(texts[i]) * scale - start[i]) > FULL_CIRCLE_TOL_MM:
-                return None             # the start was written in a spelling this cannot repeat
-    elif math.hypot(float(texts[pa]) * scale - start[pa], float(texts[pb]) * scale - start[pb]) \
-            <= FULL_CIRCLE_TOL_MM:
-        return None
-    unchanged = all(texts[i] == _format_value(block.end[i], rotary[i], block.inch)
-                    and (out.last(i, block.inch) or _format_value(block.start[i], rotary[i], block.inch))
-                    == _format_value(block.start[i], rotary[i], block.inch)
-                    for i in range(na) if known[i])
-    if unchanged and source is not None and out.absolute and not block.incremental \
-            and (block.motion_word or out.motion == code):
-        out.values[known] = block.end[known]     # where the source's own spelling goes
-        out.motion = code
-        return source
-    head = []
-    if block.number:
-        head.append(block.number)
-    if not out.absolute:
-        head.append("G90")
-        out.absolute = True
-    if block.motion_word or out.motion != code:
-        head.append(f"G{code}")
-        out.motion = code
     i0, i1, _ = PLANE_AXES[block.plane]
-    plane_cols = (pa, pb)
-    parts = []
-    for i in range(na):
-        if not known[i]:
-            continue
-        if i in plane_cols or block.given[i] or texts[i] != out.last(i, block.inch):
-            parts.append(letters[i] + texts[i])
-            out.set_last(i, texts[i], block.inch)
-    centre = np.asarray(block.centre) + d_end[xyz]
-    offsets = {}
-    for axis_i, letter in zip((i0, i1), PLANE_OFFSET_LETTERS[block.plane]):
-        col = xyz[axis_i]
-        offsets[letter] = (centre[axis_i] - start[col]) / scale
-    fmt = "{:.5f}" if block.inch else "{:.4f}"
-    for letter in sorted(offsets):
-        t = fmt.format(offsets[letter])
-        if _NEG_ZERO_RE.fullmatch(t):
-            t = t[1:]
-        parts.append(letter + t)
-    return " ".join(head + parts + block.words)
+    cols = (xyz[i0], xyz[i1])
+    centre2 = np.asarray(block.centre, dtype=float)[[i0, i1]]
+    full = math.hypot(block.end[cols[0]] - block.start[cols[0]],
+                      block.end[cols[1]] - block.start[cols[1]]) <= FULL_CIRCLE_TOL_MM
+    return cols, centre2, full
+
+
+class _ArcPiece:
+    """One written piece of an arc block: its axis texts, where it ends, its centre words (letter,
+    text) or None for a straight piece."""
+
+    def __init__(self, texts, end, centre_words):
+        self.texts, self.end, self.centre_words = texts, end, centre_words
+
+
+def _arc_text(block, points, counts, letters, rotary, out, source, chord_tol, separator):
+    """One G2/G3 line where the corrected arc (its corrected points, :func:`arc_samples`) lies within
+    chord_tol (mm) of an arc from the written start, else consecutive arcs (the corrected points
+    halved recursively); None where the block is better written as straight pieces (G93, a rotary
+    axis that does not move linearly with the angle, a first piece that is no arc)."""
+    if block.centre is None or block.inverse_time and block.points.shape[0] != points.shape[0]:
+        return None
+    cols, centre2, full = _arc_geometry(block, letters)
+    ccw = block.motion == 3
+    start_w = _written(block, [], out)
+    samples = arc_samples(block.start, block.end, block.points, points, counts, centre2, cols, ccw,
+                          full)
+    if samples is None:
+        return None
+    intended, nominal, u = samples
+    samples = (np.vstack([start_w[None, :], intended]), np.vstack([block.start[None, :], nominal]),
+               np.concatenate([[0.0], u]))
+    line = SourceLine(source)
+    decs = _decimals(line, letters, rotary, block.inch)
+    ctx = _ArcFit(block, line, letters, rotary, out, decs, cols, centre2, full, chord_tol, samples)
+    pieces = ctx.plan(0, samples[0].shape[0] - 1, start_w)
+    if not pieces or pieces[0].centre_words is None or (block.inverse_time and len(pieces) > 1):
+        return None
+    return ctx.render(pieces, separator)
+
+
+#: a rotary axis moving along an arc: its corrected values must follow the written arc's linear
+#: interpolation within this (rad: the 1e-4 deg the output writes)
+ROTARY_ARC_TOL_RAD = math.radians(1e-4)
+#: a fitted arc with a larger radius (mm) is written as straight pieces
+MAX_ARC_RADIUS_MM = 1e6
+
+
+class _ArcFit:
+    """The arcs (or, where unavoidable, straight pieces) an arc block is written as.
+
+    samples : (m + 1, na) the written start, then the intended corrected points along the arc
+    (:func:`arc_samples`); the pieces end at samples, each checked against the samples it spans."""
+
+    def __init__(self, block, line, letters, rotary, out, decs, cols, centre2, full, chord_tol,
+                 samples):
+        self.block, self.line, self.letters, self.rotary, self.out = block, line, letters, rotary, out
+        self.decs, self.cols, self.centre2, self.full = decs, cols, centre2, full
+        self.tol = chord_tol
+        self.samples, self.nominal, self.u = samples
+        self.ccw = block.motion == 3
+        self.scale = MM_PER_INCH if block.inch else 1.0
+        self.letters_c = PLANE_OFFSET_LETTERS[block.plane]
+        self.cdecs = _decimals(line, "".join(self.letters_c), [False, False], block.inch)
+        self.r_word = line.find("R")
+        self.linear = np.array([not r for r in rotary])
+        _a0, self.sweep = arc_sweep(block.start[list(cols)], block.end[list(cols)], centre2, self.ccw,
+                                    full)
+
+    def plan(self, a: int, b: int, start_w: np.ndarray) -> list:
+        """The pieces from sample a (where the machine stands: start_w) to sample b."""
+        piece = self.arc_piece(a, b, start_w)
+        if piece is not None:
+            return [piece]
+        if b - a < 2:
+            shadow = self._shadow(a, start_w)
+            texts = _axis_texts(self.block, self.samples[b], self.rotary, shadow, self.decs,
+                                self.block.given if a == 0 else None)
+            return [_ArcPiece(texts, _written(self.block, texts, shadow), None)]
+        mid = (a + b) // 2
+        first = self.plan(a, mid, start_w)
+        return first + self.plan(mid, b, first[-1].end)
+
+    def _shadow(self, a, start_w):
+        if a == 0:
+            return self.out
+        shadow = OutputState(len(self.rotary))
+        shadow.rotary = self.rotary
+        shadow.values = np.where(self.block.known, start_w, np.nan)
+        return shadow
+
+    def arc_piece(self, a: int, b: int, start_w: np.ndarray):
+        """The arc from start_w through samples a+1 .. b within the tolerance, or None."""
+        block, cols = self.block, list(self.cols)
+        full = self.full and a == 0 and b == self.samples.shape[0] - 1
+        p = self.samples[b].copy()
+        if full:
+            p[cols] = start_w[cols]
+        shadow = self._shadow(a, start_w)
+        texts = _axis_texts(block, p, self.rotary, shadow, self.decs, block.given if a == 0 else None)
+        end_w = _written(block, texts, shadow)
+        s2, e2 = start_w[cols], end_w[cols]
+        gap = math.hypot(*(e2 - s2))
+        if (gap > FULL_CIRCLE_TOL_MM) if full else (gap <= FULL_CIRCLE_TOL_MM):
+            return None
+        shift = 0.5 * ((self.samples[a] - self.nominal[a]) + (self.samples[b] - self.nominal[b]))
+        shifted = self.centre2 + shift[cols]
+        ra, rb = (math.hypot(*(self.nominal[i][cols] - self.centre2)) for i in (a, b))
+        radius = 0.5 * (ra + rb)
+        # the end radius may differ from the start radius as much as the source's did, and by the
+        # tolerance and the rounding of the centre words more
+        spiral = abs(rb - ra) + self.tol + 2.0 * 10.0 ** -min(self.cdecs) * self.scale
+        inner = self.samples[a + 1:b]
+        fitted = fit_arc_centre(s2, e2, inner[:, cols], self.ccw, full, shifted, radius)
+        span = (self.u[b] - self.u[a]) * self.sweep
+        for centre in (shifted, fitted):
+            if centre is None or math.hypot(*(centre - s2)) > MAX_ARC_RADIUS_MM:
+                continue
+            for words, written in self._centre_words(s2, e2, centre, full):
+                if self._fits(start_w, end_w, written, full, inner, span, spiral):
+                    return _ArcPiece(texts, end_w, words)
+        return None
+
+    def _centre_words(self, s2, e2, centre, full):
+        """(centre words [(letter, text)], the centre they say (2,)): R where the source has R,
+        then I J K."""
+        scale = self.scale
+        if self.r_word is not None and not full:
+            r = math.hypot(*(centre - s2))
+            _a0, sweep = arc_sweep(s2, e2, centre, self.ccw, False)
+            dec = max(_base_decimals(False, self.block.inch),
+                      number_decimals(self.line.number(self.r_word)))
+            signs = [sweep > math.pi]
+            if abs(sweep - math.pi) < 1e-3:     # about a half circle: the source's sign first
+                signs = [float(self.line.number(self.r_word)) < 0, sweep <= math.pi]
+            for major in signs:
+                t = format_number((-r if major else r) / scale, dec)
+                try:
+                    yield [("R", t)], centre_from_radius(s2, e2, float(t) * scale, self.ccw)
+                except ArcError:
+                    pass
+        texts = [format_number((centre[j] - s2[j]) / scale, self.cdecs[j]) for j in range(2)]
+        yield list(zip(self.letters_c, texts)), s2 + np.array([float(t) for t in texts]) * scale
+
+    def _fits(self, start_w, end_w, centre, full, inner, span, spiral) -> bool:
+        """The arc start_w -> end_w about centre misses none of the points inner by more than the
+        tolerance, sweeps within 45 deg of the source's span, and its end radius is within
+        ``spiral`` (mm) of its start radius (and within the reader's tolerance)."""
+        cols = list(self.cols)
+        r0, r1 = math.hypot(*(start_w[cols] - centre)), math.hypot(*(end_w[cols] - centre))
+        if abs(r1 - r0) > min(spiral, max(ARC_RADIUS_TOL_MM, ARC_RADIUS_TOL_REL * max(r0, r1))):
+            return False
+        _a0, sweep = arc_sweep(start_w[cols], end_w[cols], centre, self.ccw, full)
+        if abs(sweep - span) > 0.25 * math.pi:
+            return False
+        dist, rot = arc_misses(start_w, end_w, centre, self.cols, self.ccw, full, inner,
+                               self.linear)
+        return dist <= self.tol and rot <= ROTARY_ARC_TOL_RAD
+
+    def render(self, pieces: list, separator: str) -> str:
+        """The block's text: the first piece in the source's layout, the others as new lines."""
+        line, block, out = self.line, self.block, self.out
+        code = block.motion
+        _edit_head(line, out, code)
+        first = pieces[0]
+        added = _apply_axes(block, line, first.texts, self.letters, out, True)
+        pos = line.append_pos()
+        line.insert_at(pos, added)
+        self._centre_in_place(first.centre_words)
+        lines = [line.render()]
+        sep = line.sep or ""
+        for piece in pieces[1:]:
+            parts = _apply_axes(block, line, piece.texts, self.letters, out, False)
+            c = code if piece.centre_words is not None else 1
+            if out.motion != c:
+                parts.insert(0, f"{line.letter('G')}{c}")
+                out.motion = c
+            if piece.centre_words is not None:
+                parts += [line.letter(letter) + t for letter, t in piece.centre_words]
+            lines.append(sep.join(parts))
+        return separator.join(lines)
+
+    def _centre_in_place(self, words) -> None:
+        """The first piece's centre words: numbers replaced where they change, R replaced by I J
+        where R could not say the arc, missing offsets added after the last centre word."""
+        line = self.line
+        if words[0][0] != "R" and self.r_word is not None:
+            line.replace_word(self.r_word, line.sep.join(line.letter(c) + t for c, t in words))
+            return
+        missing = []
+        for letter, t in words:
+            w = line.find(letter)
+            if w is None:
+                if float(t) != 0.0:
+                    missing.append(line.letter(letter) + t)
+            elif float(t) != float(line.number(w)):
+                line.replace_number(w, t)
+        line.insert_at(line.append_pos("XYZABCIJK"), missing)
 
 
 def _line_ending(raw: bytes) -> str:
@@ -394,6 +600,8 @@ class CorrectionCursor:
         self.points = np.zeros((0, n_axes))
         self.row = 0
         self.n = 0
+        #: corrected points per segment row of the last :meth:`take`
+        self.counts = np.zeros(0, np.int64)
 
     def advance(self, line_no: int) -> None:
         """Load the next chunk (the current one is used up)."""
@@ -415,8 +623,10 @@ class CorrectionCursor:
         self.offsets, self.points, self.row, self.n = offsets, points, 0, len(chunk)
 
     def take(self, line_no: int, k: int) -> np.ndarray:
-        """The corrected points of the next k segment rows, which must belong to line_no."""
+        """The corrected points of the next k segment rows, which must belong to line_no (how many
+        per row: ``counts``)."""
         parts = []
+        counts = []
         while k > 0:
             if self.row >= self.n:
                 self.advance(line_no)
@@ -426,8 +636,10 @@ class CorrectionCursor:
             if np.any(self.line[r:r + take] != line_no):
                 self.mismatch(line_no)
             parts.append(self.points[self.offsets[r]:self.offsets[r + take]])
+            counts.append(np.diff(self.offsets[r:r + take + 1]))
             self.row = r + take
             k -= take
+        self.counts = counts[0] if len(counts) == 1 else np.concatenate(counts)
         return parts[0] if len(parts) == 1 else np.vstack(parts)
 
     def mismatch(self, line_no: int):
@@ -466,7 +678,8 @@ def write_corrected(in_path, out_path, machine: Machine, cursor: CorrectionCurso
             ending = _line_ending(raw)
             separator = ending or separator
             text = format_motion_lines(block, pts, letters, rotary, out, ending, separator,
-                                       raw.decode("latin-1").rstrip("\r\n"), chord_tol_mm)
+                                       raw.decode("latin-1").rstrip("\r\n"), chord_tol_mm,
+                                       cursor.counts)
             rows_written += block.points.shape[0]
             f.write(text.encode("latin-1"))
         cursor.finish()

@@ -1,0 +1,82 @@
+"""`mtcomp compensate` against a plain read-and-write of the same file: wall time and peak memory.
+
+    python benchmarks/bench_compensate_copy.py [--blocks 1280000] [--repeat 5]
+
+The program (generated in a temporary folder, nothing is kept) is bench_gcode.py's: X Y Z lines with
+4 decimals, a G1 with F every 50 blocks, a comment line every 1000, and a G2 arc every 5000 blocks
+(so the arc path of the writer is exercised). The model is bench_compensate.py's synthetic base
+model of machine-tool size (seeded). Every figure is the median of ``--repeat`` fresh subprocesses
+after one warm-up (which compiles the model's and the reader's C code into the cache):
+
+* copy: the file read line by line and written to another file by a plain Python loop;
+* compensate: ``python -m mtcomp compensate xfyz MODEL PROGRAM -o OUT --quiet`` (method qp).
+
+Peak memory is ru_maxrss of each subprocess (os.wait4). The ratio is compensate / copy of wall
+times.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from bench_compensate import write_model
+from bench_gcode import make_program
+
+COPY = ("import sys\n"
+        "with open(sys.argv[1], 'rb') as f, open(sys.argv[2], 'wb') as g:\n"
+        "    for line in f:\n"
+        "        g.write(line)\n")
+
+
+def run(cmd: list[str]) -> tuple[float, float]:
+    """(wall s, peak rss MB) of one subprocess."""
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, ru = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t0
+    err = proc.stderr.read().decode()
+    proc.stderr.close()
+    if os.waitstatus_to_exitcode(status) != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed: {err}")
+    return wall, ru.ru_maxrss / 1024.0
+
+
+def measure(cmd, repeat):
+    run(cmd)
+    runs = [run(cmd) for _ in range(repeat)]
+    return statistics.median(r[0] for r in runs), statistics.median(r[1] for r in runs)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--blocks", type=int, default=1_280_000)
+    ap.add_argument("--repeat", type=int, default=5)
+    args = ap.parse_args(argv)
+    py = sys.executable
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        prog, model, out = tmp / "p.nc", tmp / "m.json", tmp / "out.nc"
+        make_program(prog, args.blocks)
+        write_model(model, "xfyz")
+        size = prog.stat().st_size / 1e6
+        copy = measure([py, "-c", COPY, str(prog), str(tmp / "copy.nc")], args.repeat)
+        comp = measure([py, "-m", "mtcomp", "compensate", "xfyz", str(model), str(prog), "-o",
+                        str(out), "--quiet"], args.repeat)
+        out_size = out.stat().st_size / 1e6
+    print(f"program: {args.blocks} blocks, {size:.1f} MB (output {out_size:.1f} MB)")
+    print(f"{'what':12s} {'wall s':>8s} {'peak MB':>8s} {'x copy':>7s}")
+    for what, (wall, mb) in (("copy", copy), ("compensate", comp)):
+        print(f"{what:12s} {wall:8.2f} {mb:8.0f} {wall / copy[0]:7.1f}")
+    print(f"(median of {args.repeat} runs after a warm-up; {os.cpu_count()} cpus, load average "
+          f"{os.getloadavg()[0]:.1f})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
