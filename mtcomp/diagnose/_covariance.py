@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..models.chain import ErrorModel
-from ._linalg import Design, _eigh
+from ._linalg import RANK_TOLERANCE, Design, _eigh
 
 
 def _covariance(design: Design, extra: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -25,7 +25,7 @@ def _covariance(design: Design, extra: np.ndarray) -> tuple[np.ndarray, np.ndarr
     d = np.sqrt(np.clip(np.diag(H), 0, None))
     d = np.where(d > 0, d, 1.0)
     wv, V = _eigh(H / np.outer(d, d))
-    ok = wv > 1e-10 * wv.max()
+    ok = wv > RANK_TOLERANCE * wv.max()
     Hinv = ((V[:, ok] / wv[ok]) @ V[:, ok].T) / np.outer(d, d)
     cov = B @ Hinv @ B.T
     # a parameter is determined when its unit vector lies in the span of B (scaled coordinates)
@@ -53,7 +53,6 @@ def _uncertainty(model: ErrorModel, design: Design, extra: np.ndarray, names: li
 
     names : the machine parameters' names. theta_idx : their positions among the common block and
     the extras. machine_cols : (m,) bool, the common block's machine (not set-up) columns."""
-    from ..identification.fit import DEFAULT_RCOND
     from ..identification.problem import travel_metric
     cov, _ = _covariance(design, extra)
     idx = np.asarray(theta_idx, dtype=int)
@@ -67,8 +66,8 @@ def _uncertainty(model: ErrorModel, design: Design, extra: np.ndarray, names: li
     seen = norms > 1e-9 * max(float(norms.max()) if norms.size else 0.0, 1e-300)
     s = np.where(seen, 1.0 / np.where(seen, norms, 1.0), 1.0)
     w, V = _eigh((A * s).T @ (A * s))
-    # identify's rule: a relative singular value at most DEFAULT_RCOND (these are its squares)
-    N = s[:, None] * V[:, w <= DEFAULT_RCOND ** 2 * max(float(w.max()), 1e-300)]
+    # the one rank rule: a relative singular value at most DEFAULT_RCOND (these are its squares)
+    N = s[:, None] * V[:, w <= RANK_TOLERANCE * max(float(w.max()), 1e-300)]
     free = np.array([model.param_names.index(n) for n in names], dtype=int)
     if N.shape[1]:
         M = travel_metric(model, free, free.size)
