@@ -53,7 +53,7 @@ def _uncertainty(model: ErrorModel, design: Design, extra: np.ndarray, names: li
 
     names : the machine parameters' names. theta_idx : their positions among the common block and
     the extras. machine_cols : (m,) bool, the common block's machine (not set-up) columns."""
-    from ..identification.problem import travel_metric
+    from ..identification.problem import DEFAULT_RCOND, travel_metric
     cov, _ = _covariance(design, extra)
     idx = np.asarray(theta_idx, dtype=int)
     C = cov[np.ix_(idx, idx)]
@@ -66,8 +66,8 @@ def _uncertainty(model: ErrorModel, design: Design, extra: np.ndarray, names: li
     seen = norms > 1e-9 * max(float(norms.max()) if norms.size else 0.0, 1e-300)
     s = np.where(seen, 1.0 / np.where(seen, norms, 1.0), 1.0)
     w, V = _eigh((A * s).T @ (A * s))
-    # the one rank rule: a relative singular value at most DEFAULT_RCOND (these are its squares)
-    N = s[:, None] * V[:, w <= RANK_TOLERANCE * max(float(w.max()), 1e-300)]
+    # identify's rule: a relative singular value at most DEFAULT_RCOND (these are its squares)
+    N = s[:, None] * V[:, w <= DEFAULT_RCOND ** 2 * max(float(w.max()), 1e-300)]
     free = np.array([model.param_names.index(n) for n in names], dtype=int)
     if N.shape[1]:
         M = travel_metric(model, free, free.size)

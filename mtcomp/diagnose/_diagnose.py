@@ -294,7 +294,8 @@ def _base_fit(st: Stack, values: dict, from_start: bool, say) -> np.ndarray:
     returns the basis of the directions the data determine (the fit's ``directions``, fixed at the
     start point as identify fixes them)."""
     from ..identification.fit import solve
-    from ..identification.problem import FitProblem
+    from ..identification.problem import FitProblem, SolverOptions
+    from ._linalg import RCOND
     p0 = np.zeros(st.probe.n_params)
     base_names = [nm for nm, b in zip(st.probe.param_names, st.probe.base_mask) if b]
     taken = [nm for nm in base_names if nm in values]
@@ -304,7 +305,7 @@ def _base_fit(st: Stack, values: dict, from_start: bool, say) -> np.ndarray:
         say(f"start: {len(taken)} of the base's {len(base_names)} parameters from the start model")
     problem = FitProblem(st.probe, [mm for mm, _, _ in st._models], st.probe.base_mask.copy(), p0,
                          weights="unit", penalty=False, hold_weak=False)
-    fit = solve(problem)
+    fit = solve(problem, SolverOptions(rcond=RCOND))
     st.evaluate(fit.values, fit.nuisance_values)
     return fit.directions
 

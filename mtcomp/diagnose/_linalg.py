@@ -15,11 +15,13 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from ..identification.problem import DEFAULT_RCOND
-
-#: relative eigenvalue of the (column-scaled) normal matrix at or below which a direction is not
-#: determined: the fit's one rank rule (relative singular value DEFAULT_RCOND), squared
-RANK_TOLERANCE = DEFAULT_RCOND ** 2
+#: the fit engine's rank rule with diagnose's threshold: a relative singular value of the
+#: column-scaled weighted Jacobian at or below this is undetermined (identify's 1e-6 determines
+#: directions the held-out selection then follows into noise: a feed-dependent Abbe error's moving
+#: centre was lost)
+RCOND = 1e-5
+#: the same on the eigenvalues of the normal matrix
+RANK_TOLERANCE = RCOND ** 2
 #: share of the information on a direction that a fold must keep for that direction to be fitted
 FOLD_TOLERANCE = 1e-4
 
