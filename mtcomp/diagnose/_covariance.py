@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..models.chain import ErrorModel
-from ._linalg import Design, _eigh
+from ._linalg import RANK_TOLERANCE, Design, _eigh
 
 
 def _covariance(design: Design, extra: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -25,7 +25,7 @@ def _covariance(design: Design, extra: np.ndarray) -> tuple[np.ndarray, np.ndarr
     d = np.sqrt(np.clip(np.diag(H), 0, None))
     d = np.where(d > 0, d, 1.0)
     wv, V = _eigh(H / np.outer(d, d))
-    ok = wv > 1e-10 * wv.max()
+    ok = wv > RANK_TOLERANCE * wv.max()
     Hinv = ((V[:, ok] / wv[ok]) @ V[:, ok].T) / np.outer(d, d)
     cov = B @ Hinv @ B.T
     # a parameter is determined when its unit vector lies in the span of B (scaled coordinates)
@@ -53,8 +53,7 @@ def _uncertainty(model: ErrorModel, design: Design, extra: np.ndarray, names: li
 
     names : the machine parameters' names. theta_idx : their positions among the common block and
     the extras. machine_cols : (m,) bool, the common block's machine (not set-up) columns."""
-    from ..identification.fit import DEFAULT_RCOND
-    from ..identification.problem import travel_metric
+    from ..identification.problem import DEFAULT_RCOND, travel_metric
     cov, _ = _covariance(design, extra)
     idx = np.asarray(theta_idx, dtype=int)
     C = cov[np.ix_(idx, idx)]

@@ -30,7 +30,7 @@ from . import _analysis as an
 from ._analysis import cv_threshold
 from ._candidates import Candidate, generate, temperature_regression
 from ._refusal import moved_axes, refusal
-from ._linalg import Design, determined_subspace, rms, solve_normal
+from ._linalg import Design, rms
 from ._selection import (BIC_MARGIN, MIN_EXCESS_SHARE, _axis_ties, _backward,  # noqa: F401
                          _drop_undetermined_offsets, _forward_in_time, _joint_abbe, _parsimony)
 from ._stack import Stack, build_stack
@@ -55,18 +55,6 @@ def _setup_columns(st: Stack) -> np.ndarray:
     return np.r_[np.zeros(int(st.probe.base_mask.sum()), dtype=bool), np.ones(st.D.shape[1], dtype=bool)]
 
 
-def _unmeasured_columns(st: Stack) -> np.ndarray:
-    """(m,) bool: the common block's base columns whose error component no laser file names
-    (:mod:`mtcomp.identification.unmeasured`), False for the set-ups."""
-    from ..identification.unmeasured import VOLUMETRIC_KINDS, unmeasured_mask
-    laser = np.char.startswith(st.component.astype(str), "E") & (st.moving != "")
-    named = {f"{a}:{c}" for a, c in zip(st.moving[laser].tolist(), st.component[laser].tolist())}
-    if set(st.kinds) & VOLUMETRIC_KINDS:
-        named = set()       # volumetric data see every component: none counts as unmeasured
-    specs = [s for s, b in zip(st.probe.param_specs, st.probe.base_mask) if b]
-    return np.r_[unmeasured_mask(specs, named), np.zeros(st.D.shape[1], dtype=bool)]
-
-
 def _theta0(st: Stack) -> np.ndarray:
     base = np.flatnonzero(st.probe.base_mask)
     return np.concatenate([st.p[base], st.nuisance])
@@ -74,12 +62,6 @@ def _theta0(st: Stack) -> np.ndarray:
 
 def _linear_target(st: Stack) -> np.ndarray:
     return st.y - st.pred + _common_block(st) @ _theta0(st)
-
-
-def _cost(st: Stack) -> float:
-    """Sum of squared residuals at the stack's current point (file units: um, urad, um/min)."""
-    r = st.y - st.pred
-    return float(r @ r)
 
 
 def _apply(st: Stack, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -292,13 +274,11 @@ def _base_machine(machine, datasets, start, refine):
 
 
 def _without_outliers(datasets, say):
-    """(datasets without their outlying readings, the outliers left out)."""
-    from ..measurement.outliers import OUTLIER_K, find_outliers
-    cleaned, outliers = [], []
-    for d in datasets:
-        d, found = find_outliers(d)
-        cleaned.append(d)
-        outliers += found
+    """(datasets without their outlying readings, the outliers left out): the fit's ``"repeats"``
+    outlier policy (:func:`mtcomp.identification.problem.without_outliers`)."""
+    from ..identification.problem import without_outliers
+    from ..measurement.outliers import OUTLIER_K
+    cleaned, outliers = without_outliers(datasets, "repeats")
     if outliers:
         say(f"{len(outliers)} reading(s) more than {OUTLIER_K:g} robust standard deviations off their "
             f"repeats left out: " + "; ".join(str(o) for o in outliers[:5])
@@ -307,9 +287,15 @@ def _without_outliers(datasets, say):
 
 
 def _base_fit(st: Stack, values: dict, from_start: bool, say) -> np.ndarray:
-    """Fit the base model: Gauss-Newton from zero, or from the start model's ``values`` (the chain is
-    nearly linear in its small errors). Leaves ``st`` evaluated at the fit; returns the basis of the
-    directions the data determine (fixed at the start point, as identify does)."""
+    """Fit the base model with the package's one fit (:func:`mtcomp.identification.fit.solve`, the
+    probe's base parameters and the files' set-ups, from zero or from the start model's ``values``;
+    without the roughness penalty and the weak-direction pass, so that the held-out comparison of
+    extensions starts from the data's own least squares). Leaves ``st`` evaluated at the fit;
+    returns the basis of the directions the data determine (the fit's ``directions``, fixed at the
+    start point as identify fixes them)."""
+    from ..identification.fit import solve
+    from ..identification.problem import FitProblem, SolverOptions
+    from ._linalg import RCOND
     p0 = np.zeros(st.probe.n_params)
     base_names = [nm for nm, b in zip(st.probe.param_names, st.probe.base_mask) if b]
     taken = [nm for nm in base_names if nm in values]
@@ -317,22 +303,11 @@ def _base_fit(st: Stack, values: dict, from_start: bool, say) -> np.ndarray:
         p0[st.probe.param_names.index(nm)] = values[nm]
     if from_start:
         say(f"start: {len(taken)} of the base's {len(base_names)} parameters from the start model")
-    st.evaluate(p0, np.zeros(len(st.nuisance_names)))
-    T0 = determined_subspace(_common_block(st), setup=_setup_columns(st),
-                             unmeasured=_unmeasured_columns(st))
-    point, cost = (p0, np.zeros(len(st.nuisance_names))), _cost(st)
-    for _ in range(2):
-        Ar = _common_block(st) @ T0
-        phi, _ = solve_normal(Ar.T @ Ar, Ar.T @ _linear_target(st))
-        p, nu = _apply(st, T0 @ phi)
-        st.evaluate(p, nu)
-        if not _cost(st) < cost:
-            # a step that does not lower the misfit (weakly determined directions followed into the
-            # chain's non-linearity) is not taken: back to the last point that did
-            st.evaluate(*point)
-            break
-        point, cost = (p, nu), _cost(st)
-    return T0
+    problem = FitProblem(st.probe, [mm for mm, _, _ in st._models], st.probe.base_mask.copy(), p0,
+                         weights="unit", penalty=False, hold_weak=False)
+    fit = solve(problem, SolverOptions(rcond=RCOND))
+    st.evaluate(fit.values, fit.nuisance_values)
+    return fit.directions
 
 
 def _weighted_design(st: Stack, T0: np.ndarray, say):

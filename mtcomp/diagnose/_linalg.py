@@ -15,8 +15,13 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-#: relative eigenvalue below which a direction of the (column-scaled) normal matrix is not determined
-RANK_TOLERANCE = 1e-10
+#: the fit engine's rank rule with diagnose's threshold: a relative singular value of the
+#: column-scaled weighted Jacobian at or below this is undetermined (identify's 1e-6 determines
+#: directions the held-out selection then follows into noise: a feed-dependent Abbe error's moving
+#: centre was lost)
+RCOND = 1e-5
+#: the same on the eigenvalues of the normal matrix
+RANK_TOLERANCE = RCOND ** 2
 #: share of the information on a direction that a fold must keep for that direction to be fitted
 FOLD_TOLERANCE = 1e-4
 
@@ -127,11 +132,11 @@ def determined_subspace(A: np.ndarray, w: np.ndarray | None = None,
     ``unmeasured`` (m,) bool marks machine columns no laser file names, held at zero there.
     Fixed once, at the start point of a fit, so that combinations determined only through
     second-order effects of the errors stay undetermined."""
-    from ..identification._linalg import _column_scale, held_complement
+    from ..identification._linalg import column_scale, held_complement
     Aw = A if w is None else A * np.asarray(w, dtype=float)[:, None]
     # identify's rule: a column at round-off level (a rotary location error the data never turn,
     # seen only through the rounding of the chain) is not scaled up to pass for information
-    S = _column_scale(np.diag(np.sum(Aw ** 2, axis=0)))
+    S = column_scale(np.diag(np.sum(Aw ** 2, axis=0)))
     G0 = (Aw * S).T @ (Aw * S)
     ev, V = _eigh(G0)
     ok = ev > RANK_TOLERANCE * max(ev.max(), 1e-300)

@@ -197,7 +197,8 @@ def build_stack(machine: Machine, datasets: list[MeasurementSet], extra_context=
     temp_names = sorted({n for d in datasets for n in d.context.temperatures})
     temps = {n: [] for n in temp_names}
     models, nuis_names, kinds = [], [], []
-    tags = _unique_tags(datasets)
+    from ..identification.problem import unique_tags
+    tags = unique_tags(datasets)
     for fi, data in enumerate(datasets):
         mm = _probe_measurement_model(machine, probe, data, tags[fi])
         r, n = mm.obs_row, mm.n_obs
@@ -295,16 +296,3 @@ def _block_context(machine: Machine, probe, data, mm, r: np.ndarray):
                 mm.c[r, names.index("feed")])
     ctx = data.context
     return (np.column_stack([ctx.dir_of(a)[r].astype(float) for a in machine.axis_names]), ctx.feed[r])
-
-
-def _unique_tags(datasets) -> list[str]:
-    from ..measurement.readings import file_tag
-    tags = []
-    for d in datasets:
-        base = file_tag(d)
-        tag, k = base, 2
-        while tag in tags:
-            tag = f"{base}_{k}"
-            k += 1
-        tags.append(tag)
-    return tags

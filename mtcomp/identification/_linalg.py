@@ -60,7 +60,7 @@ def _error_scales(columns) -> np.ndarray:
     return out
 
 
-def _column_scale(A: np.ndarray) -> np.ndarray:
+def column_scale(A: np.ndarray) -> np.ndarray:
     """1 / sqrt(diag A): unit columns for the eigen-analysis. A column at round-off level (below
     1e-9 of the largest: a straightness no file measures, seen only through the rounding of the
     chain) keeps scale 1, so that it stays at zero size and counts as undetermined; scaled to unit

@@ -1,9 +1,11 @@
 """Identification: one weighted least-squares fit of an error model to any mix of measurement files.
 
-:func:`identify` fits the parameters of an :class:`~mtcomp.models.ErrorModel` (by default its base
-parameters, ``model.base_mask``) and every file's nuisance parameters (laser zero offsets and optic
-slopes, ball-bar length offsets ...) to all observations at once, and returns an
-:class:`IdentificationResult`.
+:func:`solve` is the one fit engine of the package: it solves a :class:`~.problem.FitProblem` (what
+is fitted) with :class:`~.problem.SolverOptions` (how) and returns a :class:`~.result.FitResult`.
+:func:`identify` builds the problem from files and fits the parameters of an
+:class:`~mtcomp.models.ErrorModel` (by default its base parameters, ``model.base_mask``) and every
+file's nuisance parameters (laser zero offsets and optic slopes, ball-bar length offsets ...) to all
+observations at once; diagnose's base fit solves the problem of its probe model the same way.
 
 Method (docs/identification.md):
 
@@ -46,20 +48,15 @@ import numpy as np
 import scipy.linalg
 
 from ..errors import InputError
-from ..machine import Machine
 from ..measurement.readings import data_held, data_support
-from ..models.chain import ErrorModel
 from ..models.model_file import FittedModel
 from ..models.params import ParameterSet
 from .reversal import data_reversal
 from .unmeasured import record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
-from ._linalg import (NULL_WEIGHT, _column_scale, _eliminate, _error_scales, _gram, _name_null_space,
+from ._linalg import (NULL_WEIGHT, column_scale, _eliminate, _error_scales, _gram, _name_null_space,
                       _relative_singular_values, _seen_columns, _solver, _step, held_complement)
-from .problem import _free_mask, build_measurement_models, model_for_data, travel_metric
-from .result import FileResiduals, IdentificationResult, error_unit
-
-#: relative singular-value threshold below which a direction counts as undetermined
-DEFAULT_RCOND = 1e-6
+from .problem import DEFAULT_RCOND, FitProblem, SolverOptions, travel_metric  # noqa: F401
+from .result import FileResiduals, FitResult, error_unit
 #: most fits with weights='noise' (each re-estimates the noise of every file and unit)
 NOISE_PASSES = 5
 
@@ -68,8 +65,9 @@ NOISE_PASSES = 5
 def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, weights="unit",
              rcond: float = DEFAULT_RCOND, max_iterations: int = 20, tol: float = 1e-10,
              context_defaults: dict | None = None, info: dict | None = None,
-             known_setup=()) -> IdentificationResult:
-    """Fit an error model to measurement files (all at once).
+             known_setup=()) -> FitResult:
+    """Fit an error model to measurement files (all at once): :meth:`FitProblem.from_data` solved by
+    :func:`solve`, with what the data reached and held recorded in the fitted model.
 
     Parameters
     ----------
@@ -91,54 +89,45 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
         instrument frame is the workpiece frame (no set-up translation and rotation is fitted), ball-bar
         files of a calibrated bar (no length offset). Recorded in the model (``info["known_setup"]``)
         so that predict treats those files alike.
-    Returns an :class:`IdentificationResult`.
+    Returns a :class:`FitResult`.
 
     Spline axes without fixed knots get them from the data first
     (:func:`mtcomp.models.basis.with_data_basis`): the fitted model's structure follows what was measured.
     """
     t0 = time.perf_counter()
     datasets = list(datasets)
-    model, p0, ctx_defaults = _model_and_start(machine_or_model, datasets, initial, context_defaults)
-    mask = _free_mask(model, free, hold)
-    mms = build_measurement_models(model, datasets, ctx_defaults, known_setup=known_setup)
+    problem = FitProblem.from_data(machine_or_model, datasets, free=free, hold=hold, initial=initial,
+                                   weights=weights, context_defaults=context_defaults,
+                                   known_setup=known_setup)
+    result = solve(problem, SolverOptions(rcond, max_iterations, tol), info=info, t0=t0)
+    _record_data(result, problem.model, problem.free, problem.measurements, datasets)
+    return result
+
+
+def solve(problem: FitProblem, options: SolverOptions = SolverOptions(), info: dict | None = None,
+          t0: float | None = None) -> FitResult:
+    """Solve a :class:`FitProblem`: the one fit of the package (identify, diagnose's base fit).
+    Returns a :class:`FitResult` (its ``directions`` the determined directions the fit moved in)."""
+    t0 = time.perf_counter() if t0 is None else t0
+    mms = problem.measurements
     if not mms or sum(m.n_obs for m in mms) == 0:
         paths = [str(m.data.path) for m in mms if getattr(m.data, "path", None)]
         raise InputError("no observations to fit: every measured cell is blank"
                          + (f" in {', '.join(paths)}" if len(paths) > 1 else ""),
                          paths[0] if len(paths) == 1 else None)
-    problem = _Problem(model, mms, mask, p0)
-    problem.metric = travel_metric(model, problem.free_idx, problem.n_unknowns)
-    w, label = _weights(problem, weights, rcond, max_iterations, tol)
-    sol = problem.solve(w, rcond, max_iterations, tol)
-    result = problem.result(sol, w, label, ctx_defaults, time.perf_counter() - t0, info)
-    _record_data(result, model, mask, mms, datasets)
-    if problem.weak_fallback:
+    stacked = _Problem(problem.model, mms, np.asarray(problem.free, dtype=bool), problem.start)
+    stacked.use_penalty, stacked.hold_weak = problem.penalty, problem.hold_weak
+    stacked.metric = travel_metric(problem.model, stacked.free_idx, stacked.n_unknowns)
+    o = options
+    w, label = _weights(stacked, problem.weights, o.rcond, o.max_iterations, o.tol)
+    sol = stacked.solve(w, o.rcond, o.max_iterations, o.tol)
+    result = stacked.result(sol, w, label, problem.context_defaults, time.perf_counter() - t0, info)
+    if stacked.weak_fallback:
         result.info["weak_directions"] = ("not held: holding them would have spoiled the fit of the "
                                           "data; the data's own least-squares fit is kept")
+    if problem.removed:
+        result.info["outliers"] = [str(o) for o in problem.removed]
     return result
-
-
-def _model_and_start(machine_or_model, datasets: list, initial, context_defaults):
-    """(model fitted, its data's basis; (n_params,) start values, internal units; context defaults)
-    of :func:`identify`'s arguments."""
-    fitted_in = machine_or_model if isinstance(machine_or_model, FittedModel) else None
-    if isinstance(machine_or_model, Machine):
-        model = ErrorModel(machine_or_model)
-    elif isinstance(machine_or_model, ErrorModel):
-        model = machine_or_model
-    elif fitted_in is not None:
-        model = fitted_in.model
-    else:
-        raise TypeError("machine_or_model must be a Machine, ErrorModel or FittedModel")
-    ctx_defaults = dict(fitted_in.context_defaults) if fitted_in is not None else {}
-    ctx_defaults.update(context_defaults or {})
-    model = model_for_data(model, datasets)
-    p0 = np.zeros(model.n_params)
-    if fitted_in is not None:
-        p0 = fitted_in.params.reindexed(model.param_specs).values
-    if initial is not None:
-        p0 = np.asarray(initial, dtype=float).reshape(model.n_params).copy()
-    return model, p0, ctx_defaults
 
 
 def _weights(problem, weights, rcond: float, max_iterations: int, tol: float):
@@ -210,6 +199,7 @@ class _Solution:
     converged: bool
     leverage: np.ndarray        # (n_obs,) diagonal of the hat matrix (sums to the edf)
     edf: float = float("nan")   # effective degrees of freedom (the rank without a penalty)
+    B: np.ndarray = None        # (n_unknowns, r) directions fitted, scaled coordinates
 
 
 class _Problem:
@@ -217,6 +207,8 @@ class _Problem:
 
     #: profiles carry a roughness penalty (mtcomp.identification.penalty)
     use_penalty = True
+    #: directions fixed only to worse than WEAK_SD_UM are held at the least error (second pass)
+    hold_weak = True
 
     def __init__(self, model, mms, mask, p0):
         self.model = model
@@ -506,7 +498,7 @@ class _Problem:
         x[:self.n_free] = self.p0[self.free_idx]
         pred, A, g = self.normal_equations(x, w)
         r = w * (self.observed - pred)
-        scale = _column_scale(A)
+        scale = column_scale(A)
         rel, V = _relative_singular_values(A * np.outer(scale, scale))
         keep = rel > rcond
         penalties = self.scaled_penalties(A, scale) if self.use_penalty else {}
@@ -519,13 +511,13 @@ class _Problem:
         first = self._penalised_fit(start, w, max_iterations, tol, B1, scale, penalties)
         first += (null, self.n_unknowns - null.shape[1])
         x, r, A, g, B, AB, iterations, converged, null, rank = self._hold_weak(
-            start, first, w, max_iterations, tol, B1, scale, data_rank)
+            start, first, w, max_iterations, tol, B1, scale, data_rank) if self.hold_weak else first
         x, r = unmeasured_to_zero(self, x, r, w, scale[:, None] * V[:, ~keep])
         lev, edf, cov = self._posterior(x, r, w, scale, B, AB, rank, leverage)
         if self.S is not None:
             lam = {k: float(np.exp(v)) for k, v in self.smoothing_rho.items()}
             self.smoothing = Smoothing(lam, dict(self.smoothing_rho), edf)
-        return _Solution(x, r, cov, null, scale, rel, rank, cond, iterations, converged, lev, edf)
+        return _Solution(x, r, cov, null, scale, rel, rank, cond, iterations, converged, lev, edf, B)
 
     def _penalised_fit(self, start, w, max_iterations, tol, B1, scale, penalties: dict) -> tuple:
         """The first pass of :meth:`solve`: Gauss-Newton from ``start`` (x, r, A, g) along B1, with
@@ -702,7 +694,7 @@ class _Problem:
         return x, r, A, g, B, AB, iterations, converged
 
     # --------------------------------------------------------------- result
-    def result(self, sol: _Solution, w, label, ctx_defaults, seconds, info) -> IdentificationResult:
+    def result(self, sol: _Solution, w, label, ctx_defaults, seconds, info) -> FitResult:
         model = self.model
         nuis_specs = [s for m in self.mms for s in m.nuisance_specs]
         unknown_specs = [model.param_specs[i] for i in self.free_idx] + nuis_specs
@@ -735,14 +727,15 @@ class _Problem:
         # a penalised fit spends its effective degrees of freedom, not its rank
         dof = max(self.n_obs - (sol.edf if np.isfinite(sol.edf) else sol.rank), 0)
         cost = float(sol.r @ sol.r)
-        res = IdentificationResult(
+        res = FitResult(
             model=model, specs=model.param_specs, values=values, std_errors=std, free=self.mask.copy(),
             determined=determined, nuisance_specs=nuis_specs, nuisance_values=sol.x[self.n_free:].copy(),
             nuisance_std_errors=se[self.n_free:].copy(), unknown_names=unknown_names, covariance=cov,
             undetermined=combos, rank=sol.rank, condition_number=sol.cond, singular_values=sol.sv,
             files=files, n_obs=self.n_obs, n_params=self.n_unknowns, dof=dof,
             sigma=float(np.sqrt(cost / dof)) if dof else float("nan"), iterations=sol.iterations,
-            converged=sol.converged, cost=cost, seconds=seconds, weighting=label, info=dict(info or {}))
+            converged=sol.converged, cost=cost, seconds=seconds, weighting=label, info=dict(info or {}),
+            directions=sol.scale[:, None] * sol.B, residual=sol.r.copy())
         if self.smoothing is not None:
             res.smoothing = self.smoothing
         params = ParameterSet(model.param_specs, values, std)

@@ -10,7 +10,7 @@ from ..machine import Machine
 from ..measurement.files import MeasurementSet
 from ..measurement.readings import MeasurementModel
 from ..models.model_file import FittedModel
-from .problem import KNOWN_SETUP_KINDS, _unique_tags, build_measurement_models
+from .problem import KNOWN_SETUP_KINDS, unique_tags, build_measurement_models
 
 
 @dataclass
@@ -156,7 +156,7 @@ def predict_readings(fitted: FittedModel, data: MeasurementSet, machine: Machine
     """Predict every row of a measurement file with a fitted model: the same measurement model,
     context defaults and set-up that :func:`identify` used, so that a file that was fitted is
     reproduced exactly (its readings minus the prediction are the fit's residuals)."""
-    tag = _unique_tags([data])[0]
+    tag = unique_tags([data])[0]
     known = [tag] if tag in fitted.info.get("known_setup", ()) and data.kind in KNOWN_SETUP_KINDS else []
     mm = build_measurement_models(fitted.model, [data], fitted.context_defaults, machine=machine,
                                   known_setup=known)[0]

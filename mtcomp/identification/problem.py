@@ -1,17 +1,122 @@
-"""What a fit fits: the free and held parameters of a model, the measurement model of every file
-(with unique tags and declared set-ups), the model's knots from the data, and the physical metric
+"""What a fit fits, kept apart from how it is solved: :class:`FitProblem` (the model, the measurement
+model of every file with one tag rule and the declared set-ups, the free and held parameters, the
+start values, the weights, the outlier policy, the roughness penalty) and :class:`SolverOptions`
+(rank threshold, iterations, tolerance); the model's knots from the data, and the physical metric
 (tool-tip error over the travel) in which what the data leave open is measured."""
 from __future__ import annotations
+
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import InputError
 from ..io.atomic import same_file
+from ..machine import Machine
 from ..measurement.files import MeasurementSet
 from ..measurement.readings import (MeasurementModel, data_positions, data_spline_sizes,
                                     measurement_model)
 from ..models.basis import with_data_basis
 from ..models.chain import ErrorModel
+from ..models.model_file import FittedModel
+
+#: relative singular value of the column-scaled weighted Jacobian at or below which a direction
+#: counts as undetermined: the one rank rule of every fit (identify, diagnose, thermal)
+DEFAULT_RCOND = 1e-6
+
+
+@dataclass(frozen=True)
+class SolverOptions:
+    """How :func:`mtcomp.identification.fit.solve` solves a :class:`FitProblem`: ``rcond`` the
+    rank threshold (relative singular value), Gauss-Newton's ``max_iterations`` and ``tol`` (relative
+    step at which it stops)."""
+
+    rcond: float = DEFAULT_RCOND
+    max_iterations: int = 20
+    tol: float = 1e-10
+
+
+@dataclass
+class FitProblem:
+    """One weighted least-squares problem: a model, the files' measurement models and what is fitted.
+
+    model : the error model. measurements : one MeasurementModel per file (unique tags:
+    :func:`unique_tags`). free : (n_params,) bool, the parameters fitted (the rest held at ``start``).
+    start : (n_params,) start values, internal units. weights : ``"unit"`` (residuals in um and urad),
+    ``"noise"`` (1/noise per file and unit, re-estimated) or {tag: noise}. penalty : the profiles
+    carry a roughness penalty whose weights REML chooses (:mod:`.penalty`). hold_weak : directions the
+    data fix only to worse than 1 um of tool-tip error over the travel are held at the least error.
+    outliers : the policy the files were read with (``"keep"``, or ``"repeats"``: readings far off
+    their repeats left out, :func:`without_outliers`); ``removed`` the readings it left out.
+    context_defaults : values of context channels the files lack.
+    """
+
+    model: ErrorModel
+    measurements: list
+    free: np.ndarray
+    start: np.ndarray
+    weights: object = "unit"
+    penalty: bool = True
+    hold_weak: bool = True
+    outliers: str = "keep"
+    removed: list = field(default_factory=list)
+    context_defaults: dict = field(default_factory=dict)
+
+    @classmethod
+    def from_data(cls, machine_or_model, datasets, *, free=None, hold=(), initial=None, weights="unit",
+                  context_defaults=None, known_setup=(), outliers="keep", penalty=True,
+                  hold_weak=True) -> "FitProblem":
+        """The problem of fitting ``machine_or_model`` (Machine: its base model; ErrorModel; or
+        FittedModel: its values are the start and the held values, its context defaults are used)
+        to ``datasets`` (MeasurementSet or MeasurementModel), with the spline knots the data choose
+        (:func:`model_for_data`); ``free``/``hold`` as :func:`_free_mask`, ``known_setup`` as
+        :func:`build_measurement_models`."""
+        datasets = list(datasets)
+        datasets, removed = without_outliers(datasets, outliers)
+        model, p0, ctx = _model_and_start(machine_or_model, datasets, initial, context_defaults)
+        mask = _free_mask(model, free, hold)
+        mms = build_measurement_models(model, datasets, ctx, known_setup=known_setup)
+        return cls(model, mms, mask, p0, weights, penalty, hold_weak, outliers, removed, ctx)
+
+
+def without_outliers(datasets: list, policy: str = "repeats") -> tuple[list, list]:
+    """(datasets, readings left out) under an outlier ``policy``: ``"keep"`` every reading, or
+    ``"repeats"``: readings more than :data:`mtcomp.measurement.outliers.OUTLIER_K` robust standard
+    deviations off their repeats left out (measurement models are passed through)."""
+    if policy == "keep":
+        return list(datasets), []
+    if policy != "repeats":
+        raise ValueError(f"outlier policy must be 'keep' or 'repeats', not {policy!r}")
+    from ..measurement.outliers import find_outliers
+    cleaned, outliers = [], []
+    for d in datasets:
+        if isinstance(d, MeasurementSet):
+            d, found = find_outliers(d)
+            outliers += found
+        cleaned.append(d)
+    return cleaned, outliers
+
+
+def _model_and_start(machine_or_model, datasets: list, initial, context_defaults):
+    """(model fitted, its data's basis; (n_params,) start values, internal units; context defaults)
+    of :meth:`FitProblem.from_data`'s arguments."""
+    fitted_in = machine_or_model if isinstance(machine_or_model, FittedModel) else None
+    if isinstance(machine_or_model, Machine):
+        model = ErrorModel(machine_or_model)
+    elif isinstance(machine_or_model, ErrorModel):
+        model = machine_or_model
+    elif fitted_in is not None:
+        model = fitted_in.model
+    else:
+        raise TypeError("machine_or_model must be a Machine, ErrorModel or FittedModel")
+    ctx_defaults = dict(fitted_in.context_defaults) if fitted_in is not None else {}
+    ctx_defaults.update(context_defaults or {})
+    model = model_for_data(model, datasets)
+    p0 = np.zeros(model.n_params)
+    if fitted_in is not None:
+        p0 = fitted_in.params.reindexed(model.param_specs).values
+    if initial is not None:
+        p0 = np.asarray(initial, dtype=float).reshape(model.n_params).copy()
+    return model, p0, ctx_defaults
 
 
 def _free_mask(model: ErrorModel, free, hold) -> np.ndarray:
@@ -63,7 +168,9 @@ def held_parameters(model: ErrorModel, name: str) -> np.ndarray:
     return (groups == name) | (component == name) | ((axis == name) & (component != ""))
 
 
-def _unique_tags(datasets) -> list[str]:
+def unique_tags(datasets) -> list[str]:
+    """The one tag rule of every fit: a file's tag is its stem (a measurement model's own tag), with
+    ``#2``, ``#3`` ... appended on repeats."""
     from ..measurement.readings import file_tag
     tags, seen = [], {}
     for d in datasets:
@@ -87,7 +194,7 @@ def build_measurement_models(model: ErrorModel, datasets, context_defaults=None,
     out = []
     known = [str(k) for k in known_setup]
     used: set[str] = set()
-    for d, tag in zip(datasets, _unique_tags(datasets)):
+    for d, tag in zip(datasets, unique_tags(datasets)):
         if isinstance(d, MeasurementModel):
             out.append(d)
         elif isinstance(d, MeasurementSet):

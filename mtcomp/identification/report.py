@@ -343,10 +343,10 @@ def file_residuals(fitted: FittedModel, data, machine=None, prediction=None) -> 
 def file_rms_lines(fitted: FittedModel, datasets, machine=None, excluded=(), predictions=None) -> list[str]:
     """The rms residual of every file (measured minus the model's prediction, with the file's fitted
     set-up), per measured column; ``excluded``: (path, row, column) cells left out of the fit."""
-    from .problem import _unique_tags
+    from .problem import unique_tags
     skip = {(str(p), int(r), str(c)) for p, r, c in excluded}
     lines = [f"{'file':<24} {'kind':<8} {'n_obs':>7}  rms residual"]
-    for k, (tag, data) in enumerate(zip(_unique_tags(datasets), datasets)):
+    for k, (tag, data) in enumerate(zip(unique_tags(datasets), datasets)):
         pred = predictions[k] if predictions is not None else None
         res = file_residuals(fitted, data, machine, pred)
         parts, n = [], 0
@@ -370,9 +370,9 @@ def laser_target_tables(fitted: FittedModel, datasets, machine=None, verbose: bo
     residual (mean reading minus prediction). Without ``verbose``: only components with at most
     :data:`COMPACT_TARGETS` targets, and of a file with more than :data:`COMPACT_COMPONENTS`
     components only the positioning ones (ISO 230-2), the others counted in one line."""
-    from .problem import _unique_tags
+    from .problem import unique_tags
     lines = []
-    for k, (tag, data) in enumerate(zip(_unique_tags(datasets), datasets)):
+    for k, (tag, data) in enumerate(zip(unique_tags(datasets), datasets)):
         if data.kind != "laser":
             continue
         pred = predictions[k] if predictions is not None else predict_readings(fitted, data, machine)

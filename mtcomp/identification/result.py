@@ -1,7 +1,8 @@
-"""The result of :func:`mtcomp.identification.fit.identify`: :class:`IdentificationResult` (values,
-standard errors, covariance, undetermined combinations, residuals per file, a readable summary and
-an F test against an extension), with :class:`FileResiduals` and :class:`UndeterminedCombination`;
-the error units of reading columns."""
+"""The one result type of a fit (:func:`mtcomp.identification.fit.solve`, what identify, diagnose's
+base fit and thermal's drift fit return): :class:`FitResult` (values, standard errors, covariance,
+undetermined combinations, residuals per file, the figures of lmfit's MinimizerResult, a readable
+summary and an F test against an extension), with :class:`FileResiduals` and
+:class:`UndeterminedCombination`; the error units of reading columns."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -10,7 +11,7 @@ import numpy as np
 
 from ..models.chain import ErrorModel
 from ..models.model_file import FittedModel
-from ..models.params import ParamSpec
+from ..models.params import ParameterSet, ParamSpec
 
 
 def error_unit(column: str) -> str:
@@ -107,8 +108,11 @@ class UndeterminedCombination:
 
 
 @dataclass
-class IdentificationResult:
-    """What :func:`identify` returns (values in internal units; ``summary()`` prints file units).
+class FitResult:
+    """What a fit returns (values in internal units; ``summary()`` prints file units), in the manner
+    of lmfit's MinimizerResult: ``params`` (value, stderr, vary of every model parameter),
+    ``covar``, ``ndata``, ``nvarys`` (the effective number of parameters), ``nfree``, ``chisqr``,
+    ``redchi``, ``aic``, ``bic``.
 
     model : the error model. specs : ParamSpec of every model parameter (``model.param_specs``).
     values : (n_params,) fitted values (held parameters keep their start values).
@@ -123,6 +127,9 @@ class IdentificationResult:
     sigma : sqrt(weighted residual sum of squares / dof) (1 means residuals match the weights).
     iterations, converged, cost (weighted residual sum of squares), seconds.
     fitted_model : FittedModel (values and std errors) for save_model.
+    directions : (n_unknowns, r) the directions of the unknowns (internal units) the fit moved in:
+        what the data (and, for a penalised fit, the penalty) determine; the rest was held.
+    residual : (n_obs,) weighted residuals at the solution (in units of the weights).
     """
 
     model: ErrorModel
@@ -154,6 +161,68 @@ class IdentificationResult:
     info: dict = field(default_factory=dict)
     #: the roughness penalty's weights (mtcomp.identification.penalty.Smoothing), None without one
     smoothing: object = None
+    directions: np.ndarray = None
+    residual: np.ndarray = None
+
+    # ------------------------------------------------------------ lmfit's MinimizerResult figures
+    @property
+    def params(self) -> ParameterSet:
+        """The model's parameters: value, stderr (NaN where held or undetermined), vary (fitted)."""
+        return ParameterSet(self.specs, self.values, self.std_errors, vary=self.free)
+
+    @property
+    def nuisance(self) -> ParameterSet:
+        """The files' set-up (nuisance) parameters, all varied."""
+        return ParameterSet(self.nuisance_specs, self.nuisance_values, self.nuisance_std_errors,
+                            vary=np.ones(len(self.nuisance_specs), dtype=bool))
+
+    @property
+    def var_names(self) -> tuple[str, ...]:
+        return self.unknown_names
+
+    @property
+    def covar(self) -> np.ndarray:
+        return self.covariance
+
+    @property
+    def ndata(self) -> int:
+        return self.n_obs
+
+    @property
+    def nfree(self) -> float:
+        """Degrees of freedom left: ndata - nvarys."""
+        return self.dof
+
+    @property
+    def nvarys(self) -> float:
+        """The effective number of parameters: the rank, or for a penalised fit the trace of its hat
+        matrix."""
+        return float(self.n_obs - self.dof)
+
+    @property
+    def chisqr(self) -> float:
+        """Weighted residual sum of squares."""
+        return self.cost
+
+    @property
+    def redchi(self) -> float:
+        return self.cost / self.dof if self.dof > 0 else float("nan")
+
+    @property
+    def success(self) -> bool:
+        return self.converged
+
+    @property
+    def aic(self) -> float:
+        """Akaike's criterion as lmfit writes it: ndata ln(chisqr / ndata) + 2 nvarys."""
+        n = self.n_obs
+        return float(n * np.log(max(self.cost, 1e-300) / n) + 2.0 * self.nvarys)
+
+    @property
+    def bic(self) -> float:
+        """Bayesian criterion as lmfit writes it: ndata ln(chisqr / ndata) + ln(ndata) nvarys."""
+        n = self.n_obs
+        return float(n * np.log(max(self.cost, 1e-300) / n) + np.log(n) * self.nvarys)
 
     @property
     def param_names(self) -> tuple[str, ...]:
@@ -180,7 +249,7 @@ class IdentificationResult:
         """tag -> column -> rms residual, file units."""
         return {f.tag: f.rms() for f in self.files}
 
-    def compare(self, extended: "IdentificationResult") -> dict:
+    def compare(self, extended: "FitResult") -> dict:
         """F-test of this fit against an ``extended`` one of the same observations (statsmodels'
         ``compare_f_test``): does the extension lower the weighted residual sum of squares by more
         than its extra parameters would by chance?

@@ -48,12 +48,14 @@ class ParamSpec:
 
 @dataclass
 class ParameterSet:
-    """Values (internal units) of an ordered list of parameters, with optional standard errors."""
+    """Values (internal units) of an ordered list of parameters, with optional standard errors and
+    which of them a fit varied (``vary``, None: not recorded), in the manner of lmfit's Parameters."""
 
     specs: tuple[ParamSpec, ...]
     values: np.ndarray = None
     std_errors: np.ndarray | None = None
     meta: dict = field(default_factory=dict)
+    vary: np.ndarray | None = None
 
     def __post_init__(self):
         self.specs = tuple(self.specs)
@@ -66,6 +68,15 @@ class ParameterSet:
         if len(set(names)) != len(names):
             raise ValueError("duplicate parameter names")
         self._index = {n: i for i, n in enumerate(names)}
+        if self.vary is not None:
+            self.vary = np.asarray(self.vary, dtype=bool).copy()
+            if self.vary.shape != (len(self.specs),):
+                raise ValueError(f"vary must have shape ({len(self.specs)},), got {self.vary.shape}")
+
+    @property
+    def stderr(self) -> np.ndarray:
+        """(n,) standard errors, internal units (NaN where not known: held or undetermined)."""
+        return np.full(len(self.specs), np.nan) if self.std_errors is None else self.std_errors
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -94,7 +105,8 @@ class ParameterSet:
 
     def copy(self) -> "ParameterSet":
         return ParameterSet(self.specs, self.values.copy(),
-                            None if self.std_errors is None else self.std_errors.copy(), dict(self.meta))
+                            None if self.std_errors is None else self.std_errors.copy(), dict(self.meta),
+                            None if self.vary is None else self.vary.copy())
 
     def reindexed(self, specs) -> "ParameterSet":
         """The same values on another list of specs (new names get 0, dropped names are lost)."""

@@ -57,34 +57,33 @@ def fit_ridge(X: np.ndarray, Y: np.ndarray, penalty: float) -> Ridge:
     return Ridge(coef, my - mx @ coef, penalty)
 
 
-def ridge_covariance(X: np.ndarray, Y: np.ndarray, ridge: Ridge) -> np.ndarray:
-    """(m, k + 1, k + 1) the Bayesian posterior covariance of each channel's (coef..., intercept)
-    (feature units; um^2 per feature unit^2) of :func:`fit_ridge`'s fit: the penalty on the
-    standardised coefficients is a Gaussian prior, so cov(B) = s^2 (Xs^T Xs + penalty n I)^-1 with
-    s^2 the channel's residual variance over its effective degrees of freedom, the centred
-    intercept independent of B with variance s^2 / n (Wood 2006's posterior, for a ridge). The
-    residuals of a drift record are correlated in time, so this is a lower bound of the spread
-    a new record shows (docs/thermal.md)."""
+def channel_fits(X: np.ndarray, Y: np.ndarray, penalty: float, channels=None) -> list:
+    """The ridge of :func:`fit_ridge` solved by the package's fit engine
+    (:func:`mtcomp.identification.linear.solve_linear`), one :class:`FitResult` per channel: in raw
+    feature units with the intercept a column of ones, the penalty is ``penalty n sum_i s_i^2 c_i^2``
+    (s_i the feature's standard deviation, the intercept free). Parameters ``TD_<channel>_<k>``
+    (the k-th feature's coefficient, um per feature unit) and ``TD_<channel>_zero`` (um); the
+    covariance is the Bayesian posterior (Wood 2006), s^2 (X1^T X1 + P)^-1 with s^2 the channel's
+    residual variance over its effective degrees of freedom. The residuals of a drift record are
+    correlated in time, so this is a lower bound of the spread a new record shows (docs/thermal.md)."""
+    from ..identification.linear import solve_linear
+    from ..models.params import ParamSpec
     n, k = X.shape
-    m = Y.shape[1]
-    mx = X.mean(axis=0) if k else np.zeros(0)
-    sx = X.std(axis=0) if k else np.zeros(0)
-    sx = np.where(sx > 0, sx, 1.0)
-    Xs = (X - mx) / sx
-    G = Xs.T @ Xs
-    Ginv = np.linalg.pinv(G + ridge.penalty * n * np.eye(k)) if k else np.zeros((0, 0))
-    edf = 1.0 + float(np.trace(Ginv @ G))
-    resid = Y - ridge.predict(X)
-    s2 = np.sum(resid ** 2, axis=0) / max(n - edf, 1.0)
-    # (coef, intercept) = T (B, my): coef = B / sx, intercept = my - mx . coef
-    T = np.zeros((k + 1, k + 1))
-    T[:k, :k] = np.diag(1.0 / sx)
-    T[k, :k] = -mx / sx
-    T[k, k] = 1.0
-    base = np.zeros((k + 1, k + 1))
-    base[:k, :k] = Ginv
-    base[k, k] = 1.0 / n
-    return np.array([s2[j] * (T @ base @ T.T) for j in range(m)])
+    channels = [str(j) for j in range(Y.shape[1])] if channels is None else list(channels)
+    X1 = np.column_stack([X, np.ones(n)])
+    P = np.diag(np.r_[penalty * n * (X.std(axis=0) ** 2 if k else np.zeros(0)), 0.0])
+    out = []
+    for j, ch in enumerate(channels):
+        specs = [ParamSpec(f"TD_{ch}_{i}", "um", f"thermal:{ch}", False) for i in range(k)]
+        specs.append(ParamSpec(f"TD_{ch}_zero", "um", f"thermal:{ch}", False))
+        out.append(solve_linear(X1, Y[:, j], specs, P))
+    return out
+
+
+def ridge_covariance(X: np.ndarray, Y: np.ndarray, ridge: Ridge) -> np.ndarray:
+    """(m, k + 1, k + 1) the posterior covariance of each channel's (coef..., intercept) (feature
+    units; um^2 per feature unit^2) of :func:`fit_ridge`'s fit (:func:`channel_fits`)."""
+    return np.array([r.covariance * 1e6 for r in channel_fits(X, Y, ridge.penalty)])
 
 
 def forward_predictions(X: np.ndarray, Y: np.ndarray, penalty: float, folds) -> np.ndarray:
@@ -180,7 +179,9 @@ class ThermalFit:
     """The drift model chosen for a thermal file, and how it was chosen.
 
     channels : channel names (``disp_<name>_um``). chosen : the :class:`CandidateScore` kept.
-    scores : every candidate tried. ridge : the chosen model refitted on every reading (um).
+    scores : every candidate tried. ridge : the chosen model refitted on every reading (um), by the
+    package's fit engine: ``results``, one :class:`~mtcomp.identification.result.FitResult` per
+    channel (:func:`channel_fits`; the ridge is its penalty).
     noise_um : robust noise of one reading (1.4826 MAD of successive differences / sqrt 2), pooled.
     max_drift_um : (m,) largest |reading - first reading| per channel (ISO 230-3 drift).
     fitted_um : (n, m) the model's readings at the file's rows; measured_um : (n, m) the readings.
@@ -208,6 +209,7 @@ class ThermalFit:
     #: per feature unit (:func:`ridge_covariance`)
     covariance: np.ndarray | None = None
     temperature_ranges: dict = field(default_factory=dict)
+    results: list = field(default_factory=list)
 
     def summary(self) -> str:
         lines = [f"thermal drift ({len(self.t_s)} readings over {np.ptp(self.t_s) / 3600:.3g} h, "
@@ -285,7 +287,9 @@ def fit_thermal(data, lags_s=DEFAULT_LAGS_S, n_folds: int = N_FOLDS, penalties=P
         s.forward_rms_um = np.sqrt(s.forward_sse / n_test)
     chosen = choose(scores)
     X = feature_matrix(ctx, chosen.features)
-    ridge = fit_ridge(X, Y, chosen.penalty)
+    results = channel_fits(X, Y, chosen.penalty, channels)
+    ridge = Ridge(np.array([r.values[:-1] * 1e3 for r in results]).T.reshape(X.shape[1], len(channels)),
+                  np.array([r.values[-1] * 1e3 for r in results]), chosen.penalty)
     temps = [(f[5:], X[:, i]) for i, f in enumerate(chosen.features) if f.startswith("temp_")]
     temp_means = {s: float(np.mean(v)) for s, v in temps}
     return ThermalFit(channels, chosen, scores, ridge, robust_noise_um(Y),
@@ -293,8 +297,8 @@ def fit_thermal(data, lags_s=DEFAULT_LAGS_S, n_folds: int = N_FOLDS, penalties=P
                       np.asarray(ctx.t, dtype=float), forward_predictions(X, Y, chosen.penalty, folds),
                       np.asarray(ctx.spindle_rpm, dtype=float), n_folds, temp_means,
                       [s for s in ctx.temperatures if s not in usable_temperatures(ctx)],
-                      ridge_covariance(X, Y, ridge),
-                      {s: (float(np.min(v)), float(np.max(v))) for s, v in temps})
+                      np.array([r.covariance * 1e6 for r in results]),
+                      {s: (float(np.min(v)), float(np.max(v))) for s, v in temps}, results)
 
 
 def choose(scores: list[CandidateScore]) -> CandidateScore:
