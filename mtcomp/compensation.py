@@ -467,10 +467,9 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
             for judge in judges:
                 judge.add(mchunk, res)
             tally.planned(res)
-            # back to the program's frame: what is written and reported
-            node_off = np.repeat(off, res.counts, axis=0)
-            res.corrected = res.corrected - node_off
-            res.nominal = res.nominal - node_off
+            # back to the program's frame and words: what is written and reported
+            res.corrected = setup.to_program(chunk, res.corrected, res.counts, off)
+            res.nominal = setup.to_program(chunk, res.nominal, res.counts, off)
             summary.add(res)
             if rep is not None:
                 rep.writelines(report_rows(res, machine.axis_names, sd_limit))
