@@ -414,14 +414,14 @@ def _series_sentence(fitted, settings: CompensationSettings, series, tally: _Tal
             + ("; the last reading holds after it" if tally.t_s > series.t_s[-1] else "") + ")")
 
 
-def _to_program_frame(res, chunk, off) -> None:
-    """The planned nodes back in the program's frame (less the work offset ``off`` (n, na) of each
-    row): what is written and reported. The planner works on the output grid; a row's end is the
+def _to_program_frame(res, chunk, off, setup) -> None:
+    """The planned nodes back in the program's frame and words (less the work offset ``off`` (n,
+    na) of each row; a tool centre point row's axes as its tip and angles: ``setup.to_program``):
+    what is written and reported. The planner works on the output grid; a row's end is the
     program's own position plus its correction, so a word written with more decimals than the
     grid keeps them."""
-    node_off = np.repeat(off, res.counts, axis=0)
-    res.corrected = res.corrected - node_off
-    res.nominal = res.nominal - node_off
+    res.corrected = setup.to_program(chunk, res.corrected, res.counts, off)
+    res.nominal = setup.to_program(chunk, res.nominal, res.counts, off)
     ends = np.cumsum(res.counts) - 1
     exact = chunk.end - res.nominal[ends]
     res.nominal[ends] += exact
@@ -481,7 +481,7 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
             for judge in judges:
                 judge.add(mchunk, res)
             tally.planned(res)
-            _to_program_frame(res, chunk, off)
+            _to_program_frame(res, chunk, off, setup)
             summary.add(res)
             if rep is not None:
                 rep.writelines(report_rows(res, machine.axis_names, sd_limit))

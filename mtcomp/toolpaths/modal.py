@@ -23,7 +23,7 @@ from .blocks import CycleBlock, MotionBlock
 from .dialect import GENERIC
 from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _COLON_PROGRAM_RE, _CURVE_WITH_COORDINATES,
                     _REFUSED_G, _REFUSED_M, _UNIQUE_LETTERS, _WCS_INDEX, DEFAULT_CHORD_TOL_MM,
-                    DIR_EPS, MM_PER_INCH, TOOL_AXIS, frame_code, tokenize)
+                    DIR_EPS, MM_PER_INCH, TCP_OFF_M, TCP_ON_M, TOOL_AXIS, frame_code, tokenize)
 
 
 #: a CSV header line (names separated by commas), given where G-code was meant
@@ -88,6 +88,9 @@ class ModalState:
         #: where the dialect says so)
         self.cycle_motion: int | None = None
         self.inverse_time = False
+        #: tool centre point mode (M428, G43.4, M128): the words are the tool tip in the workpiece
+        #: frame and the rotary axes' angles (:mod:`.tcp`)
+        self.tcp = False
         self.f_word = math.nan
         self.tool_axis = self.names.index(TOOL_AXIS) if TOOL_AXIS in self.names else -1
         self.xyz_index = tuple(machine.index(c) if c in self.names else -1 for c in "XYZ")
@@ -102,12 +105,13 @@ class ModalState:
 
     @property
     def frame(self) -> int:
-        return frame_code(self.wcs, self.tool)
+        return frame_code(self.wcs, self.tool, self.tcp)
 
     @property
     def python_only(self) -> bool:
-        """Lines the compiled scanner must not take (cycle or inverse-time mode in force)."""
-        return self.cycle is not None or self.inverse_time
+        """Lines the compiled scanner must not take (cycle, inverse-time or tool centre point mode
+        in force)."""
+        return self.cycle is not None or self.inverse_time or self.tcp
 
     def _err(self, msg, line):
         path, line, suffix = self._where(line)
@@ -247,6 +251,9 @@ class ModalState:
         cycle = None
         dwell = False
         tool_change = any(m == 6 for m in mcodes)
+        for m in mcodes:
+            if m in TCP_ON_M or m in TCP_OFF_M:
+                self._set_tcp(m in TCP_ON_M)
         self.had_g = bool(gcodes)
         for g in gcodes:
             gi = round(g)
@@ -257,7 +264,7 @@ class ModalState:
                 if any(letter in words for letter, _num, _raw in tokens):
                     raise self._err(f"{name} is not supported", line)
             if g != gi:
-                self._apply_decimal_code(g)
+                self._apply_decimal_code(g, values)
                 continue
             if gi in (0, 1, 2, 3):
                 if motion is not None:
@@ -289,12 +296,22 @@ class ModalState:
                             line)
         return False
 
-    def _apply_decimal_code(self, g: float) -> None:
+    def _set_tcp(self, on: bool) -> None:
+        """Tool centre point mode on or off: the words change meaning (tool tip against axis
+        positions), so no position is known until the program names it again."""
+        if on != self.tcp:
+            self.tcp = on
+            self._forget()
+
+    def _apply_decimal_code(self, g: float, values) -> None:
         """A G code with a decimal part that is not refused: a work coordinate system G59.1-G59.3,
         or one that changes offsets the program's positions are given in (G92.1, G92.2, G43.1,
         G54.1: every axis unknown); the others (G28.1, G30.1 ...) change nothing followed here."""
         if g in _WCS_INDEX:
             self._set_wcs(_WCS_INDEX[g])
+        elif round(g, 1) == 43.4:                # Fanuc's tool centre point control with H
+            self.tool = int(values.get("H", self.selected_tool))
+            self._set_tcp(True)
         elif round(g, 1) in (28.1, 30.1, 92.1, 92.2, 43.1, 54.1):
             if round(g, 1) in (92.1, 92.2, 43.1, 54.1):
                 self._forget()
@@ -334,6 +351,7 @@ class ModalState:
         elif gi == 49:
             self.tool = 0
             self._forget(self.tool_axis)
+            self._set_tcp(False)
 
     def _axis_words(self, values, line: int) -> list[str]:
         """The axis letters the line names (X Y Z A B C order); refuses axes the machine has not."""

@@ -33,7 +33,8 @@ import numpy as np
 from ..errors import InputError
 from ..machine import Machine
 from .blocks import SegmentChunk
-from .words import WORK_SYSTEMS, frame_tool, frame_wcs
+from .tcp import axes_of_tcp, tcp_of_axes
+from .words import WORK_SYSTEMS, frame_tcp, frame_tool, frame_wcs
 
 _WCS_NAME = {name: i for i, name in enumerate(WORK_SYSTEMS)}
 _AXIS_VALUE_RE = re.compile(r"^\s*([A-Za-z])\s*=?\s*([+-]?(?:\d+\.?\d*|\.\d+))\s*$")
@@ -73,8 +74,31 @@ class ProgramSetup:
         lengths = np.full(len(chunk), np.nan)
         for h, length in self.tool_lengths.items():
             lengths[tool == h] = length
-        return replace(chunk, start=chunk.start + off, end=chunk.end + off, tool_length=lengths,
-                       datum=off), off
+        start, end, datum = chunk.start + off, chunk.end + off, off
+        tcp = frame_tcp(chunk.frame)
+        if tcp.any():
+            # tool centre point rows: the words (plus the offset) are the tip in the workpiece
+            # frame and the angles; the axes are where the controller's kinematics puts them
+            # (rows whose every axis the program has given: the others are not corrected)
+            rows = tcp & chunk.known.all(axis=1)
+            end, datum = end.copy(), datum.copy()
+            end[rows] = axes_of_tcp(self.machine, end[rows])
+            datum[tcp] = axes_of_tcp(self.machine, datum[tcp])
+            from_known = rows & ~chunk.jump
+            start = start.copy()
+            start[from_known] = axes_of_tcp(self.machine, start[from_known])
+        return replace(chunk, start=start, end=end, tool_length=lengths, datum=datum), off
+
+    def to_program(self, chunk: SegmentChunk, points: np.ndarray, counts: np.ndarray,
+                   off: np.ndarray) -> np.ndarray:
+        """Machine axis positions ``points`` (the rows of ``chunk``, ``counts`` points each) back to
+        the program's words: the offsets ``off`` (from :meth:`apply`) taken off, and in tool centre
+        point rows the axes turned into the tip and angles the controller turns into them."""
+        tcp = np.repeat(frame_tcp(chunk.frame) & chunk.known.all(axis=1), counts)
+        out = np.array(points, dtype=float)
+        if tcp.any():
+            out[tcp] = tcp_of_axes(self.machine, out[tcp])
+        return out - np.repeat(off, counts, axis=0)
 
     def notes(self) -> list[str]:
         """What was assumed for what the program used and nobody said (one line each)."""

@@ -39,10 +39,8 @@ _REFUSED_G = {
     74: "canned cycle G74 (left-hand tapping)", 76: "canned cycle G76 (threading)",
     33: "G33 (spindle-synchronised motion)", 33.1: "G33.1 (rigid tapping)",
     90.1: "G90.1 (absolute arc centres)",
-    43.4: "G43.4 (tool centre point control: the program gives tool-tip positions, not axis "
-          "positions)",
-    43.5: "G43.5 (tool centre point control: the program gives tool-tip positions, not axis "
-          "positions)",
+    43.5: "G43.5 (tool centre point control with a tool axis vector I J K: only G43.4, with the "
+          "rotary axes' angles, is followed)",
     68.2: "G68.2 (tilted working plane)", 68.3: "G68.3 (tilted working plane)",
     53.1: "G53.1 (tool axis direction control)",
     65: "G65 (macro call)", 66: "G66 (modal macro call)",
@@ -69,11 +67,11 @@ _CURVE_WITH_COORDINATES = {5: ("G5 (cubic spline)", frozenset("XYZABCIJKR")),
                            5.1: ("G5.1 (quadratic spline)", frozenset("XYZABCIJK"))}
 #: M codes refused (subprograms, tool centre point control)
 _REFUSED_M = {98: "M98 (subprogram call)", 99: "M99 (subprogram end)",
-              128: "M128 (tool centre point control: the program gives tool-tip positions, not axis "
-                   "positions)",
-              428: "M428 (LinuxCNC switchable kinematics to tool centre point: the program gives "
-                   "tool-tip positions, not axis positions)",
               430: "M430 (LinuxCNC switchable kinematics: the program does not give axis positions)"}
+#: M codes that switch tool centre point mode on (LinuxCNC's switchable kinematics M428, Heidenhain's
+#: M128 in ISO programs) and off (M429: LinuxCNC's identity kinematics again; M129)
+TCP_ON_M = frozenset({428, 128})
+TCP_OFF_M = frozenset({429, 129})
 #: drilling cycles: their lines pass through unchanged (not corrected), see docs/toolpaths.md
 _CANNED_CYCLES = frozenset({73, 81, 82, 83, 84, 85, 86, 87, 88, 89})
 #: work coordinate systems, in the order of their index in ``frame`` codes
@@ -94,10 +92,15 @@ _KEYWORDS = {
 }
 
 
-def frame_code(wcs: int, tool: int) -> int:
-    """Pack the work coordinate system index (0 = G54 .. 8 = G59.3) and the active tool length
-    number H (0: none, G49) into one int: ``wcs + 16 * tool``."""
-    return int(wcs) + 16 * int(tool)
+#: the bit of a frame code set in tool centre point mode (the words are the tool tip in the
+#: workpiece frame and the rotary axes' angles, not axis positions: :mod:`.tcp`)
+TCP_FRAME = 1 << 24
+
+
+def frame_code(wcs: int, tool: int, tcp: bool = False) -> int:
+    """Pack the work coordinate system index (0 = G54 .. 8 = G59.3), the active tool length number H
+    (0: none, G49) and the tool centre point mode into one int: ``wcs + 16 * tool (+ TCP_FRAME)``."""
+    return int(wcs) + 16 * int(tool) + (TCP_FRAME if tcp else 0)
 
 
 def frame_wcs(code):
@@ -107,7 +110,12 @@ def frame_wcs(code):
 
 def frame_tool(code):
     """Active tool length number H (0: none) of frame codes (int or array)."""
-    return np.asarray(code) // 16
+    return np.asarray(code) % TCP_FRAME // 16
+
+
+def frame_tcp(code):
+    """Whether frame codes (int or array) are in tool centre point mode."""
+    return np.asarray(code) // TCP_FRAME % 2 == 1
 
 
 # --------------------------------------------------------------------------------------- tokens

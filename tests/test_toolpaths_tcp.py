@@ -1,0 +1,117 @@
+"""Tool centre point programs: the axes the controller reaches for a tip and angles, and back.
+
+Checked against the independent virtual machine (tests/truth, which shares no code with mtcomp):
+its nominal tool tip at the axes :func:`axes_of_tcp` finds is the tip the words asked for, and the
+words :func:`tcp_of_axes` writes are its nominal tip at those axes."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mtcomp.cli import main
+from mtcomp.errors import InputError
+from mtcomp.machine import load_machine
+from mtcomp.toolpaths.tcp import axes_of_tcp, tcp_of_axes
+from test_kinematics_single import TOPOLOGIES, _random_q, machine_pair  # noqa: F401
+from replay import _runs, replay
+from truth.machine import TruthMachine
+
+
+def _tcp_words(truth: TruthMachine, m, q):
+    """The TCP words of axes q by the truth's own nominal kinematics: its tip, the angles kept."""
+    words = np.array(q, dtype=float)
+    tip, _ = truth.nominal_pose(q)
+    for k, a in enumerate("XYZ"):
+        words[:, m.axis_names.index(a)] = tip[:, k]
+    return words
+
+
+def test_the_words_are_the_truths_nominal_tip(machine_pair):
+    m, truth = machine_pair
+    q = _random_q(m, 5)
+    np.testing.assert_allclose(tcp_of_axes(m, q), _tcp_words(truth, m, q), rtol=0, atol=1e-9)
+
+
+def test_the_axes_reach_the_tip_the_words_ask_for(machine_pair):
+    m, truth = machine_pair
+    q = _random_q(m, 6)
+    words = _tcp_words(truth, m, q)
+    axes = axes_of_tcp(m, words)
+    np.testing.assert_allclose(axes, q, rtol=0, atol=1e-9)
+    tip, _ = truth.nominal_pose(axes)
+    np.testing.assert_allclose(tip, words[:, [m.axis_names.index(a) for a in "XYZ"]], rtol=0,
+                               atol=1e-9)
+
+
+def test_a_machine_without_z_is_refused():
+    import dataclasses
+    m = load_machine("xfyz")
+    flat = dataclasses.replace(m, axes=tuple(a for a in m.axes if a.name != "Z"))
+    with pytest.raises(InputError, match="need the axes X, Y and Z"):
+        axes_of_tcp(flat, np.zeros((1, 2)))
+
+
+# ------------------------------------------------------------- a TCP program on an independent machine
+BOAT = Path(__file__).parent / "data" / "gcode_corpus" / "linuxcnc_boat-xyzac.ngc"
+
+
+def _paired_ends(src: bytes, out: bytes) -> tuple[list[dict], list[dict]]:
+    """(source move ends, their output counterparts) in word space (mm, deg), replayed as a controller
+    reads the words (tests/replay.py, no mtcomp): within each run of moves between the same two
+    motionless lines, each source move's end and the output move ending nearest to it (the
+    correction is um, the moves mm apart; an arc split into pieces ends where its last piece does).
+    Moves with an axis the program has not given are left out."""
+    a, b = replay(src), replay(out)
+    ends_src, ends_out = [], []
+    for run_a, run_b in zip(_runs(a), _runs(b)):
+        ends = [m.end for m in run_b if all(m.end.get(k) is not None for k in "XYZAC")]
+        for move in run_a:
+            if not ends or any(move.end.get(k) is None for k in "XYZAC"):
+                continue
+            near = min(ends, key=lambda e: sum((e[k] - move.end[k]) ** 2 for k in "XYZAC"))
+            ends_src.append(move.end)
+            ends_out.append(near)
+    return ends_src, ends_out
+
+
+def _truth_axes(truth: TruthMachine, moves: list[dict]) -> np.ndarray:
+    """The axes the truth machine's nominal kinematics puts the tip at each move's X Y Z with its
+    A and C (its own inverse: for fixed angles the tip is affine in X Y Z)."""
+    q = np.array([[m["X"], m["Y"], m["Z"], np.radians(m["A"]), np.radians(m["C"])] for m in moves])
+    base = q.copy()
+    base[:, :3] = 0.0
+    b = truth.nominal_pose(base)[0]
+    M = np.stack([truth.nominal_pose(base + np.eye(5)[k])[0] - b for k in range(3)], axis=2)
+    out = q.copy()
+    out[:, :3] = np.linalg.solve(M, (q[:, :3] - b)[:, :, None])[:, :, 0]
+    return out
+
+
+def test_a_tcp_program_is_compensated_on_an_independent_machine(tmp_path, capsys):
+    """LinuxCNC's 5-axis TCP demo (M428: X Y Z the tip on the table, A C the table's angles),
+    compensated with a model identified from a campaign on the truth machine, then 'cut' on it:
+    the tip error (relative to the part's datum, the workpiece origin) drops to a third or less."""
+    from independent_cases import clean_campaign
+    truth, paths = clean_campaign("CAFXYZ", 11, tmp_path / "campaign")
+    model = tmp_path / "model.json"
+    assert main(["identify", "cafxyz", *map(str, paths), "-o", str(model)]) == 0
+    out = tmp_path / "boat.ngc"
+    # bounds wide enough for this machine's errors (up to 70 um at the largest tilts)
+    assert main(["compensate", "cafxyz", str(model), str(BOAT), "-o", str(out), "--units", "mm",
+                 "--max-correction-um", "200", "--max-step-um", "200",
+                 "--max-correction-urad", "2000"]) == 0
+    capsys.readouterr()
+    src, dst = _paired_ends(BOAT.read_bytes(), out.read_bytes())
+    assert len(src) > 1800
+    q_src, q_out = _truth_axes(truth, src), _truth_axes(truth, dst)
+    datum = _truth_axes(truth, [dict.fromkeys("XYZAC", 0.0)])
+    err_datum = truth.true_pose(datum)[0] - truth.nominal_pose(datum)[0]
+    aim = truth.nominal_pose(q_src)[0]
+    before = truth.true_pose(q_src)[0] - aim - err_datum
+    after = truth.true_pose(q_out)[0] - aim - err_datum
+    rms = lambda e: 1e3 * float(np.sqrt(np.mean(np.sum(e ** 2, axis=1))))   # noqa: E731 (um)
+    print(f"TCP demo on the truth machine: tip error rms {rms(before):.3f} -> {rms(after):.3f} um")
+    assert rms(before) > 5.0                        # the machine's error is material here
+    assert rms(after) <= rms(before) / 3
