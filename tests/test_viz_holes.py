@@ -182,3 +182,27 @@ def test_a_tortuous_path_is_drawn_as_lines_not_slivers(exx):
     from mtcomp.viz.render import to_polydata
     poly = to_polydata(smap)
     assert poly.n_lines == smap.segments.shape[0] and poly.faces.size == 0
+
+
+# ------------------------------------------------------------------ pairing a split program
+def test_the_alignment_is_the_least_total_difference_over_every_monotone_pairing():
+    """Random runs (ends a few um apart, corrected, with pieces added): the alignment's total
+    difference equals the least over every increasing choice (brute force)."""
+    from itertools import combinations
+
+    from mtcomp.viz.program import _aligned
+    rng = np.random.default_rng(3)
+    tol = np.array([0.05, 0.05])
+    for _ in range(30):
+        n, extra = int(rng.integers(2, 6)), int(rng.integers(1, 4))
+        a = np.cumsum(rng.uniform(0.001, 0.02, (n, 2)), axis=0)
+        keep = np.sort(rng.choice(n + extra, n, replace=False))
+        b = np.cumsum(rng.uniform(0.001, 0.02, (n + extra, 2)), axis=0)
+        b[keep] = a + rng.normal(0, 0.002, a.shape)
+
+        def cost(js):
+            return sum(np.max(np.abs(b[j] - a[i]) / tol) for i, j in enumerate(js))
+        got = _aligned(a, b, tol)
+        assert np.all(np.diff(got) > 0)
+        best = min(cost(c) for c in combinations(range(n + extra), n))
+        np.testing.assert_allclose(cost(got), best, rtol=1e-12, atol=0)

@@ -43,7 +43,16 @@ def read_program_points(path, machine: Machine) -> ProgramPoints:
     if len(seg.end) == 0:
         from ..errors import InputError
         raise InputError("no motion block in the program: nothing to draw", path)
-    return ProgramPoints(os.fspath(path), seg.end.copy(), seg.line.copy(), seg.feed.copy(),
+    q = seg.end.copy()
+    # tool centre point rows: the words are the tip and the angles; the map works on the axes the
+    # controller reaches (the workpiece origin taken at the kinematics' own: render's work offset
+    # moves the linear axes only)
+    from ..toolpaths.tcp import axes_of_tcp
+    from ..toolpaths.words import frame_tcp
+    tcp = frame_tcp(seg.frame) & seg.known.all(axis=1)
+    if tcp.any():
+        q[tcp] = axes_of_tcp(machine, q[tcp])
+    return ProgramPoints(os.fspath(path), q, seg.line.copy(), seg.feed.copy(),
                          seg.dirs.copy(), seg.rapid.copy(), seg.known.copy(), seg.cycle.copy())
 
 
@@ -88,9 +97,7 @@ def pair_compensated(original: ProgramPoints, compensated: ProgramPoints, machin
 
     Blocks are paired through the programs' line structure (:func:`_motion_runs`): within a run of
     motion lines, one to one when both have as many segment ends; else (the compensated program
-    may split a move, or write an arc as chords or a piece that changes nothing not at all) each
-    original end is paired with the nearest compensated end of the same run after the one paired
-    before it, no further ahead than the run's surplus of compensated ends allows. The pair must agree within a tolerance (default: four times the machine's
+    may split a move into pieces) by the monotone alignment that differs least (:func:`_aligned`). The pair must agree within a tolerance (default: four times the machine's
     largest correction, at least 0.05 mm / 50 urad). Raises InputError when the programs do not
     correspond.
     """
@@ -112,17 +119,7 @@ def pair_compensated(original: ProgramPoints, compensated: ProgramPoints, machin
         if ia.size == ib.size:
             idx[ia] = ib
             continue
-        # the compensated run has `slack` more ends than the original one: an original end lies
-        # at most that many ends ahead of the place the ends before it left off
-        slack = max(ib.size - ia.size, 0) + 1
-        j = 0
-        for i in ia:
-            window = compensated.q[ib[j:j + slack + 1]]
-            dist = np.max(np.abs(window - original.q[i]) / tol, axis=1)
-            step = int(np.argmin(dist))
-            idx[i] = ib[j + step]
-            slack -= step
-            j = min(j + step + 1, ib.size - 1)
+        idx[ia] = ib[_aligned(original.q[ia], compensated.q[ib], tol)]
     if n and m:
         diff = np.abs(compensated.q[idx] - original.q) > tol
         bad = np.flatnonzero(np.any(diff, axis=1))
@@ -136,6 +133,37 @@ def pair_compensated(original: ProgramPoints, compensated: ProgramPoints, machin
                              f"{int(original.line[i])} of {original.path} ({what}): not a compensated "
                              "version of that program", compensated.path)
     return idx
+
+
+def _aligned(a: np.ndarray, b: np.ndarray, tol: np.ndarray) -> np.ndarray:
+    """For the ends ``a`` (n, na) of a run of the original, the indices into the compensated run's
+    ends ``b`` (m, na), m >= n (a split block adds ends), increasing, that differ least in all (the
+    sum over the run of each pair's largest difference in units of ``tol``): a monotone alignment
+    by dynamic programming over how far ahead of its own place each original end is matched (ends
+    a few um apart, as in a 5-axis program's short moves, would mislead a nearest match)."""
+    n, m = a.shape[0], b.shape[0]
+    slack = max(m - n, 0)
+    if slack == 0:
+        return np.arange(n)
+    shift = np.arange(slack + 1)
+    cost = np.empty((n, slack + 1))
+    for i in range(n):
+        j = np.minimum(i + shift, m - 1)
+        cost[i] = np.max(np.abs(b[j] - a[i]) / tol, axis=1)
+    total = cost[0].copy()
+    back = np.zeros((n, slack + 1), np.int64)
+    for i in range(1, n):
+        # the shift never decreases: the best total over the shifts up to each one
+        best = np.minimum.accumulate(total)
+        before = np.concatenate([[np.inf], best[:-1]])
+        back[i] = np.maximum.accumulate(np.where(total < before, shift, 0))
+        total = best + cost[i]
+    d = int(np.argmin(total))
+    out = np.empty(n, np.int64)
+    for i in range(n - 1, -1, -1):
+        out[i] = i + d
+        d = int(back[i, d])
+    return out
 
 
 def report_points(original: ProgramPoints, report, machine: Machine) -> ProgramPoints:
