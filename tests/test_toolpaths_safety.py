@@ -133,8 +133,8 @@ def test_blanks_inside_words_zero_offsets_and_grbl_lines(tmp_path):
 
 @pytest.mark.parametrize("text, msg", [
     ("G0 X1\no200 sub\n", "o200 sub without its o200 endsub"),
-    ("G0 X1 Y1 Z1\nG43.4 H1\n", "G43.4 (tool centre point control"),
-    ("M428 ;TCP:xyzac\nG0 X1\n", "M428 (LinuxCNC switchable kinematics to tool centre point"),
+    ("G0 X1 Y1 Z1\nG43.5 H1 I0 J0 K1\n", "G43.5 (tool centre point control with a tool axis vector"),
+    ("M430\nG0 X1\n", "M430 (LinuxCNC switchable kinematics"),
     ("G0 X1\nG1 X#5221\n", "parameter #5221 holds controller state"),
 ])
 def test_refusals_name_the_feature_and_the_line(tmp_path, text, msg):
@@ -143,7 +143,7 @@ def test_refusals_name_the_feature_and_the_line(tmp_path, text, msg):
     with pytest.raises(InputError) as exc:
         read_program(p, XFYZ)
     assert msg in str(exc.value) and str(exc.value).count("\n") == 0
-    assert exc.value.line == (1 if text.startswith("M428") else 2)
+    assert exc.value.line == (1 if text.startswith("M430") else 2)
 
 
 def test_full_circle_stays_full_and_raw_spelling_is_where_the_machine_is(tmp_path):

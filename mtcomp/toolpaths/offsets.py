@@ -65,7 +65,9 @@ class ProgramSetup:
         """The chunk in machine axis positions, and the (n, na) offsets added to each row.
 
         The returned chunk carries ``tool_length`` (mm per row; nan: the machine's tool length) and
-        ``datum`` (the machine position of the program's origin per row: its work offset)."""
+        ``datum`` (the machine position of the program's origin per row: its work offset). Tool
+        centre point rows (:mod:`.tcp`) are turned into the axes the controller reaches, and marked
+        ``jump``: between two of them the axes do not move along a straight line."""
         wcs = frame_wcs(chunk.frame)
         tool = frame_tool(chunk.frame)
         self.used_wcs.update(np.unique(wcs).tolist())
@@ -74,7 +76,7 @@ class ProgramSetup:
         lengths = np.full(len(chunk), np.nan)
         for h, length in self.tool_lengths.items():
             lengths[tool == h] = length
-        start, end, datum = chunk.start + off, chunk.end + off, off
+        start, end, datum, jump = chunk.start + off, chunk.end + off, off, chunk.jump
         tcp = frame_tcp(chunk.frame)
         if tcp.any():
             # tool centre point rows: the words (plus the offset) are the tip in the workpiece
@@ -87,7 +89,11 @@ class ProgramSetup:
             from_known = rows & ~chunk.jump
             start = start.copy()
             start[from_known] = axes_of_tcp(self.machine, start[from_known])
-        return replace(chunk, start=start, end=end, tool_length=lengths, datum=datum), off
+            # the controller moves the tip straight, not the axes: no point of the axes' straight
+            # line between two blocks is on the path (the planner puts no node on it)
+            jump = jump | tcp
+        return replace(chunk, start=start, end=end, tool_length=lengths, datum=datum,
+                       jump=jump), off
 
     def to_program(self, chunk: SegmentChunk, points: np.ndarray, counts: np.ndarray,
                    off: np.ndarray) -> np.ndarray:
