@@ -44,6 +44,22 @@ def test_reversal_of_a_real_stage_is_found_as_backlash(name, axis):
     assert found[0].heldout_rms_after < found[0].heldout_rms_before
 
 
+@needs_real
+def test_three_stages_diagnosed_together_keep_each_reversal():
+    """X, Y and Z of one real stage in one diagnosis: Z's floor (0.36 um) is far below X's and Y's
+    (2-3 um), and its 1.5 um reversal, found when Z is diagnosed alone, must be found here too (the
+    pooled floor, 2.13 um, hid it). Oracle: the ISO 230-2 mean reversal of each file."""
+    datasets = [read_measurements(REAL / "iso230_2" / f"ess_b02_{a}.csv") for a in "xyz"]
+    d = diagnose(load_machine("xfyz"), datasets)
+    found = {f.axis: f.params["magnitude_um"] for f in d.findings if f.effect == "backlash"}
+    assert sorted(found) == ["X", "Y", "Z"]
+    for data, axis in zip(datasets, "XYZ"):
+        iso = evaluate_iso230_2(data).axes[axis]
+        assert found[axis] == pytest.approx(iso.B_mean * 1e3, rel=0.1, abs=0)
+    assert "ess_b02_z:Z:EZZ" in d.noise["um"].by_series
+    assert d.noise["um"].by_series["ess_b02_z:Z:EZZ"] < 0.5 * d.noise["um"].sigma
+
+
 def _forward_temperature_regression(data) -> float:
     """Forward-chained rms (um) of channel = offset + sum_k c_k T_k, per channel: the readings cut into
     6 blocks in time, each of the last 5 predicted by least squares on the blocks before it. The usual

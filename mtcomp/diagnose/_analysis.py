@@ -5,7 +5,7 @@ um for lengths, urad for angles).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import signal, stats
@@ -17,6 +17,9 @@ POSITION_DECIMALS = 4
 #: the repeats must give at least this many degrees of freedom for their noise floor (with 12, a
 #: standard deviation is off by a third one time in ten: a few poses two circles share are no floor)
 MIN_REPEAT_DOF = 30
+#: a series (file, axis, component) whose own repeats give a noise floor off the pooled one by more
+#: than this factor is weighted by its own (a laser run of Z at 0.36 um beside X and Y at 2-3 um)
+SERIES_NOISE_FACTOR = 2.0
 
 
 # ------------------------------------------------------------------------------------ noise floor
@@ -27,7 +30,9 @@ class Noise:
     sigma : standard deviation of one reading, file units. dof : degrees of freedom behind it.
     source : 'repeats' (pooled standard deviation of repeated readings at the same pose, direction
         and conditions) or 'robust' (no repeats: 1.4826 MAD of successive differences / sqrt 2).
-    n_groups : number of repeat groups used.
+    n_groups : number of repeat groups used. by_series : series -> its own floor (file units), for
+        the series whose repeats give one (at least ``MIN_REPEAT_DOF`` dof) off the pooled one by
+        more than ``SERIES_NOISE_FACTOR``: those readings are weighted by their own floor.
     """
 
     unit: str
@@ -35,6 +40,14 @@ class Noise:
     dof: int
     source: str
     n_groups: int = 0
+    by_series: dict = field(default_factory=dict)
+
+    def sigma_of(self, series) -> np.ndarray:
+        """(n,) the floor each reading of ``series`` (n,) is weighted by."""
+        out = np.full(len(series), self.sigma)
+        for name, sigma in self.by_series.items():
+            out[np.asarray(series) == name] = sigma
+        return out
 
 
 def _pose_keys(st, sel):
@@ -101,12 +114,29 @@ def noise_floor(st, resid: np.ndarray, n_params: int = 0) -> dict[str, Noise]:
             if dof >= MIN_REPEAT_DOF:
                 sigma = float(np.sqrt(np.sum(dev[rep] ** 2) / dof))
         if np.isfinite(sigma) and sigma > 0:
-            out[unit] = Noise(unit, sigma, dof, "repeats", groups)
+            out[unit] = Noise(unit, sigma, dof, "repeats", groups,
+                              _series_floors(st.series[ps], inv, dev, rep, sigma))
         else:
             share = n_params * sel.size / max(len(resid), 1)      # the class's share of the parameters
             dof = max(sel.size - share, 1.0)
             out[unit] = Noise(unit, robust_sigma(st, resid, sel) * np.sqrt(sel.size / dof), int(dof),
                               "robust")
+    return out
+
+
+def _series_floors(series, inv, dev, rep, pooled: float) -> dict:
+    """series -> its own noise floor from its repeats (deviations ``dev`` from their group means,
+    groups ``inv``, repeated ``rep``), for the series with at least MIN_REPEAT_DOF degrees of freedom
+    whose floor is off ``pooled`` by more than SERIES_NOISE_FACTOR."""
+    out = {}
+    for name in np.unique(series[rep]):
+        m = rep & (series == name)
+        dof = int(m.sum()) - np.unique(inv[m]).size
+        if dof < MIN_REPEAT_DOF:
+            continue
+        sigma = float(np.sqrt(np.sum(dev[m] ** 2) / dof))
+        if sigma > 0 and not 1.0 / SERIES_NOISE_FACTOR <= sigma / pooled <= SERIES_NOISE_FACTOR:
+            out[str(name)] = sigma
     return out
 
 

@@ -317,12 +317,15 @@ def _weighted_design(st: Stack, T0: np.ndarray, say):
     z = _linear_target(st)
     first = Design(A, z, np.ones(len(st)), np.zeros(len(st), dtype=np.int64), T0).fit(cv=False)
     noise = an.noise_floor(st, first.resid, first.rank)
+    w = np.ones(len(st))
     for u, nz in noise.items():
         say(f"noise floor ({u}): {nz.sigma:.4g} {u} from {nz.source}"
             + (f" ({nz.n_groups} repeat groups, {nz.dof} dof)" if nz.source == "repeats" else
                " (no repeated readings: robust estimate from successive differences)"))
-    sigma = {u: nz.sigma for u, nz in noise.items()}
-    w = np.array([1.0 / sigma[u] for u in st.unit])
+        for name, sigma in nz.by_series.items():
+            say(f"  {name}: its own noise floor {sigma:.4g} {u} (its readings weighted by it)")
+        rows = np.asarray(st.unit) == u
+        w[rows] = 1.0 / nz.sigma_of(np.asarray(st.series)[rows])
     folds, how = an.make_folds(st)
     say(f"held-out evaluation: {how}")
     return Design(A, z, w, folds, T0), noise, folds, how

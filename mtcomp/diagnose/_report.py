@@ -247,6 +247,7 @@ def summary(diag, details=()) -> str:
     """Human-readable report; ``details`` (lines) go before the verdict."""
     lines = []
     nz = [f"{n.sigma:.3g} {u} ({n.source}{', %d repeat groups' % n.n_groups if n.source == 'repeats' else ''})"
+          + "".join(f", {name} {sigma:.3g} {u} (its own)" for name, sigma in n.by_series.items())
           for u, n in diag.noise.items()]
     lines.append(f"observations: {diag.n_obs}; noise floor: {'; '.join(nz)}")
     lines.append(f"held-out evaluation: {diag.folds}")

@@ -103,7 +103,9 @@ class Diagnosis:
 
     def to_dict(self) -> dict:
         """REPORT.json (the stable keys of docs/diagnose.md plus a few more)."""
-        noise = {u: {"sigma": _r(n.sigma), "source": n.source, "dof": n.dof, "repeat_groups": n.n_groups}
+        noise = {u: {"sigma": _r(n.sigma), "source": n.source, "dof": n.dof, "repeat_groups": n.n_groups,
+                     **({"by_series": {k: _r(v) for k, v in n.by_series.items()}}
+                        if getattr(n, "by_series", None) else {})}
                  for u, n in self.noise.items()}
         extra = {f"noise_{UNIT_KEYS[u]}": _r(n.sigma) for u, n in self.noise.items() if u != "um"}
         return _finite({"verdict": self.verdict, "noise_um": _r(self.noise_um), **extra,
