@@ -259,7 +259,8 @@ def test_corpus_compensated_safely(tmp_path, capsys):
     assert len(accepted) / len(PROGRAMS) >= MIN_ACCEPTED
     # modal output, unchanged lines as written, arcs kept where the correction allows
     print("output size / input size:", " ".join(f"{g:.2f}" for g in growth))
-    assert np.median(growth) <= 3.0
+    # only corrected words change (a program with code to compute is written as its expansion)
+    assert np.median(growth) <= 1.2
 
 
 def test_the_oracle_catches_a_written_unknown_axis():
