@@ -115,3 +115,22 @@ def test_a_tcp_program_is_compensated_on_an_independent_machine(tmp_path, capsys
     print(f"TCP demo on the truth machine: tip error rms {rms(before):.3f} -> {rms(after):.3f} um")
     assert rms(before) > 5.0                        # the machine's error is material here
     assert rms(after) <= rms(before) / 3
+
+
+def test_render_of_a_tcp_program_maps_its_report_as_its_compensated_program(tmp_path, capsys):
+    """BLOCKS.csv holds a TCP block's words (tip and angles); render pairs them with the program
+    at the axes the controller reaches, so --report and --compensated give one 'after' map."""
+    from test_gcode_corpus import _machine_file, _model_file
+    machine = _machine_file(tmp_path, "CAFXYZ")
+    model = _model_file(tmp_path, machine)
+    out, report = tmp_path / "boat.ngc", tmp_path / "blocks.csv"
+    assert main(["compensate", str(machine), str(model), str(BOAT), "-o", str(out), "--report",
+                 str(report), "--units", "mm", "--quiet"]) == 0
+    after = []
+    for extra in (["--compensated", str(out)], ["--report", str(report)]):
+        assert main(["render", str(machine), str(model), str(BOAT), *extra, "-o",
+                     str(tmp_path / "map.png"), "--backend", "matplotlib", "--size", "300x150"]) == 0
+        line = next(x for x in capsys.readouterr().out.splitlines() if "prediction after" in x)
+        after.append(float(line.split("RMS")[1].split()[0]))
+    assert after[0] < 1.0
+    np.testing.assert_allclose(after[1], after[0], rtol=0.05, atol=0.01)

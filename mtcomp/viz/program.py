@@ -19,7 +19,8 @@ class ProgramPoints:
     q : (n, na) axis positions, mm and rad. line : (n,) 1-based source lines. feed : (n,) mm/min
     (nan for rapids). dirs : (n, na) approach directions. rapid : (n,) bool. known : (n, na) bool, the
     program has given that axis's position (None: all). cycle : (n,) bool, the bottom of a hole of a
-    drilling cycle (G73, G81-G89) (None: none).
+    drilling cycle (G73, G81-G89) (None: none). tcp : (n,) bool, a tool centre point block: its
+    words were the tip and angles, ``q`` holds the axes the controller reaches (None: none).
     """
 
     path: str
@@ -30,6 +31,7 @@ class ProgramPoints:
     rapid: np.ndarray
     known: np.ndarray | None = None
     cycle: np.ndarray | None = None
+    tcp: np.ndarray | None = None
 
     def __len__(self):
         return int(self.line.shape[0])
@@ -53,7 +55,7 @@ def read_program_points(path, machine: Machine) -> ProgramPoints:
     if tcp.any():
         q[tcp] = axes_of_tcp(machine, q[tcp])
     return ProgramPoints(os.fspath(path), q, seg.line.copy(), seg.feed.copy(),
-                         seg.dirs.copy(), seg.rapid.copy(), seg.known.copy(), seg.cycle.copy())
+                         seg.dirs.copy(), seg.rapid.copy(), seg.known.copy(), seg.cycle.copy(), tcp)
 
 
 def _motion_runs(original: ProgramPoints, compensated: ProgramPoints) -> tuple[np.ndarray, np.ndarray]:
@@ -189,6 +191,10 @@ def report_points(original: ProgramPoints, report, machine: Machine) -> ProgramP
         raise InputError(f"not a report of mtcomp compensate (columns line, inserted, "
                          f"{', '.join(cols)})", path) from None
     q[:, [a.is_rotary for a in machine.axes]] = np.radians(q[:, [a.is_rotary for a in machine.axes]])
+    if original.tcp is not None and original.tcp.any():
+        # the report holds a tool centre point block's words: the tip and angles it writes
+        from ..toolpaths.tcp import axes_of_tcp
+        q[original.tcp] = axes_of_tcp(machine, q[original.tcp])
     bad = np.flatnonzero(line != original.line)
     if bad.size:
         raise InputError(f"row {int(bad[0]) + 2} is for line {int(line[bad[0]])}, the program's "
