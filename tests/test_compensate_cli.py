@@ -331,6 +331,27 @@ def test_blocks_outside_the_support_are_not_corrected_unless_asked(tmp_path, cap
     assert "corrected anyway (--extrapolate)" in stdout
 
 
+def test_nodes_inserted_outside_the_support_are_not_corrected(tmp_path, capsys):
+    """A move from outside the region the data reached into it: the nodes the planner inserts on
+    its way are blocks like any other, so those outside the region keep zero correction (a new
+    user's trial found +15 um written at x = -86 mm with data from -20 to 20 mm)."""
+    machine, fitted, model_path = _model_with_support(tmp_path, {"X": (-20.0, 20.0),
+                                                                 "Y": (-20.0, 20.0)})
+    prog = tmp_path / "in.nc"
+    prog.write_text("G21 G90\nG0 X-100 Y0 Z0\nG1 X10 F100\nM30\n")
+    out, rep = tmp_path / "out.nc", tmp_path / "b.csv"
+    code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o", str(out),
+                              "--report", str(rep), "--subdivide-tol-um", "0.01"], capsys)
+    assert code == 0, err
+    rows = _read_report(rep)
+    nodes = [r for r in rows if r["inserted"] == "1"]
+    assert nodes, "the move was not subdivided: the test does not test"
+    for r in rows:
+        if float(r["x_mm"]) < -20.0 - 1e-6:
+            assert r["corrected"] == "0" and r["outside_support"] == "X", r
+            assert float(r["cx_um"]) == 0 and float(r["cy_um"]) == 0 and float(r["cz_um"]) == 0
+
+
 def test_figures_over_the_corrected_blocks_only(tmp_path, capsys):
     import json
     machine, fitted, model_path = _model_with_support(tmp_path, {"X": (-20.0, 20.0),

@@ -397,9 +397,14 @@ class Planner:
         firsts = np.ones(row_sorted.size, bool)
         firsts[1:] = row_sorted[1:] != row_sorted[:-1]
         ex_all = firsts & exempt[row_sorted]
+        # an inserted node outside the region the data reached (a move from outside into it) is
+        # not corrected, as a block ending there would not be
+        out_i = self.outside_support(q_i, known[rows_i])
+        pin_i = pinned[rows_i] | (out_i.any(axis=1) & (not self.options.extrapolate))
         nodes = NodeSet(q_all, ctx_all, ex_all, np.asarray(chunk.line)[row_sorted], ins_all,
-                        rapid[row_sorted], unknown[row_sorted], outside[row_sorted],
-                        pinned[row_sorted], sd[row_sorted])
+                        rapid[row_sorted], unknown[row_sorted],
+                        np.concatenate([out_i, outside])[order],
+                        np.concatenate([pin_i, pinned])[order], sd[row_sorted])
         lin = Linearization.concatenate([lin_i, lin_end]).take(order)
         return nodes, lin, counts
 
