@@ -275,3 +275,31 @@ def test_a_readings_file_that_is_not_one_row_of_temperatures_exits_2(tmp_path, c
     rc, _, out = _compensate(tmp_path, model, "--temperatures", str(readings))
     assert rc == 2 and not out.exists()
     _one_line(capsys, "now.csv", *needles)
+
+
+def test_render_maps_the_drift_at_the_temperatures_compensate_was_given(tmp_path, capsys,
+                                                                        record_model):
+    """The drift moves Y by 3 um per degC. Compensated at s = 24 degC: render given the same
+    temperature maps 'after' at ~0 and 'before' with the drift; without it render maps no drift
+    (as compensate corrects none without a state) and says so, not a 'worse after' map."""
+    _, _, temp, model = record_model
+    t = float(np.round(temp.max() - 0.5, 1))
+    rc, rows, out = _compensate(tmp_path, model, "--temperature", f"s={t}")
+    assert rc == 0
+    capsys.readouterr()
+    args = ["render", "xfyz", str(model), str(tmp_path / "in.nc"), "--compensated", str(out),
+            "-o", str(tmp_path / "map.png"), "--backend", "matplotlib", "--size", "400x200",
+            "--normal", "path"]          # the deviation across the path: Y's drift
+    assert main(args + ["--temperature", f"s={t}"]) == 0
+    with_state = capsys.readouterr().out
+    assert main(args) == 0
+    without = capsys.readouterr().out
+
+    def figures(text):
+        return {k: float(text.split(f"model prediction {k}")[1].split("RMS")[1].split()[0])
+                for k in ("before", "after")}
+    a, b = figures(with_state), figures(without)
+    # the path runs across Y: the drift at s, above the record's reference, is seen whole
+    assert a["before"] > 5.0 and a["after"] < 0.05
+    assert b["before"] < 0.05           # no drift mapped without a state
+    assert "thermal drift not mapped" in without and "thermal drift not mapped" not in with_state

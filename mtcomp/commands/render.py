@@ -60,6 +60,15 @@ def add_arguments(parser):
                                  "G54, or the one work system the file gives)",
                          "where the program's zero sits in machine axis positions (mm), as given "
                          "to compensate: the model is evaluated there")
+    parser.add_argument("--temperature", metavar="NAME=DEGC", action="append", default=[],
+                        help="the machine's temperatures while the program runs, as given to "
+                             "compensate (repeatable): the model's thermal drift is mapped at them "
+                             "(default: no drift mapped, as compensate corrects none without them)")
+    parser.add_argument("--spindle-rpm", type=float, metavar="RPM", default=None,
+                        help="the spindle speed given to compensate, for a spindle-heat drift")
+    parser.add_argument("--extrapolate", action="store_true",
+                        help="accept temperatures and spindle speeds outside the range of the "
+                             "model's thermal record (default: refused, as compensate does)")
     parser.add_argument("--size", default="1400x700", metavar="WxH", help="image size in pixels")
     parser.add_argument("--backend", choices=("auto", "pyvista", "matplotlib"), default="auto",
                         help="renderer (auto: pyvista off-screen, matplotlib if VTK cannot render)")
@@ -126,6 +135,7 @@ def run(args) -> int:
     progress("reading the model")
     machine = load_machine(args.machine)
     fitted = load_model(args.model, machine)
+    fitted, drift_note = _thermal_state(args, fitted)
     progress("reading the program")
     program = read_program_points(args.program, machine)
     try:
@@ -138,6 +148,8 @@ def run(args) -> int:
                              tool_radius_mm=args.tool_radius_mm, flank_length_mm=args.flank_mm,
                              flank_side=args.flank_side, report=args.report, normal=args.normal,
                              progress=progress, work_offset=_work_offset(args, machine))
+    if drift_note:
+        smap.notes.append(drift_note)
     from ..viz.render import render_error_map
     clim = None if args.range_um is None else (-args.range_um, args.range_um)
     progress(f"drawing {smap.points.shape[0]} points")
@@ -148,6 +160,27 @@ def run(args) -> int:
     _print_summary(args, smap, res)
     print(f"wrote {res.png} ({res.backend}) and {res.vtp}")
     return 0
+
+
+def _thermal_state(args, fitted):
+    """(the model to map with, '' or the note saying the drift is not mapped): the model's thermal
+    drift at the temperatures and spindle speed given, as compensate takes them; with none given,
+    no drift, as compensate corrects none (its reference state is no state the machine was in)."""
+    from dataclasses import replace
+
+    from ..thermal.context import has_tip_drift, parse_assignments, thermal_context
+    temperatures = parse_assignments(args.temperature, "--temperature")
+    if temperatures or args.spindle_rpm is not None:
+        fitted = replace(fitted, context_defaults=dict(fitted.context_defaults))
+        thermal, _ = thermal_context(fitted, temperatures, args.spindle_rpm, args.extrapolate,
+                                     source=args.model)
+        fitted.context_defaults.update(thermal)
+        return fitted, ""
+    if not has_tip_drift(fitted.model):
+        return fitted, ""
+    return fitted.without_drift(), ("thermal drift not mapped: no temperature or spindle speed "
+                                    "given (give render the --temperature / --spindle-rpm that "
+                                    "compensate was given)")
 
 
 def _work_offset(args, machine):
