@@ -352,6 +352,25 @@ def test_nodes_inserted_outside_the_support_are_not_corrected(tmp_path, capsys):
             assert float(r["cx_um"]) == 0 and float(r["cy_um"]) == 0 and float(r["cz_um"]) == 0
 
 
+def test_a_program_no_block_of_which_is_known_gets_no_figures_and_the_fix(tmp_path, capsys):
+    """A 3-axis program on a 5-axis machine: A and C are never named, so no block is evaluated;
+    the summary says so (not 'max 0.000 um', which reads as a perfect machine) and names
+    --start-position; with it the blocks are evaluated and corrected."""
+    _, _, model_path = _model(tmp_path, "cafxyz")
+    prog = tmp_path / "in.nc"
+    prog.write_text("G21 G90\nG0 X10 Y10 Z5\nG1 Z0 F300\nX30\nM30\n")
+    out = tmp_path / "out.nc"
+    code, stdout, err = _run(["compensate", "cafxyz", str(model_path), str(prog), "-o", str(out)],
+                             capsys)
+    assert code == 0, err
+    assert "predicted tool-tip deviation: not evaluated" in stdout and "max 0.000" not in stdout
+    assert "--start-position, e.g. A=0,C=0" in stdout
+    code, stdout, err = _run(["compensate", "cafxyz", str(model_path), str(prog), "-o", str(out),
+                              "--start-position", "A=0,C=0"], capsys)
+    assert code == 0, err
+    assert "predicted tool-tip deviation before: max" in stdout and "not evaluated" not in stdout
+
+
 def test_figures_over_the_corrected_blocks_only(tmp_path, capsys):
     import json
     machine, fitted, model_path = _model_with_support(tmp_path, {"X": (-20.0, 20.0),

@@ -235,11 +235,15 @@ class Summary:
 
         def blocks(k: int) -> str:
             return f"{k} block" if k == 1 else f"{k} blocks"
-        lines = [f"{blocks(self.blocks)} planned ({self.inserted} internal nodes inserted)",
-                 f"predicted tool-tip deviation before: max {self.max_before_um:.3f} um, "
-                 f"rms {np.sqrt(self.sum_sq_before / n):.3f} um",
-                 f"predicted tool-tip deviation after:  max {self.max_after_um:.3f} um "
-                 f"(line {self.worst_line}), rms {np.sqrt(self.sum_sq_after / n):.3f} um"]
+        lines = [f"{blocks(self.blocks)} planned ({self.inserted} internal nodes inserted)"]
+        if self.evaluated:
+            lines += [f"predicted tool-tip deviation before: max {self.max_before_um:.3f} um, "
+                      f"rms {np.sqrt(self.sum_sq_before / n):.3f} um",
+                      f"predicted tool-tip deviation after:  max {self.max_after_um:.3f} um "
+                      f"(line {self.worst_line}), rms {np.sqrt(self.sum_sq_after / n):.3f} um"]
+        else:       # no figure rather than a 0.000 that reads as a perfect machine
+            lines.append("predicted tool-tip deviation: not evaluated (no block has every axis "
+                         "position given)")
         # blocks with an unknown axis are not in the figures; those outside the region are
         included = self.evaluated - self.corrected_blocks
         if included > 0:
@@ -264,7 +268,10 @@ class Summary:
         if self.unknown_blocks:
             lines.append(f"{blocks(self.unknown_blocks)} not corrected: an axis position the program "
                          "had not given (at the start, after a home move, tool change or offset "
-                         "change); those axes are not written")
+                         "change); those axes are not written"
+                         + ("; an axis the program never names (a 3-axis program on a 5-axis "
+                            "machine) is told by --start-position, e.g. A=0,C=0"
+                            if self.unknown_blocks == self.blocks else ""))
         if self.outside_blocks:
             axes = ", ".join(f"{a} {k}" for a, k in self.outside_axes.items())
             what = ("corrected anyway (--extrapolate)" if self.extrapolate
