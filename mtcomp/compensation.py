@@ -482,6 +482,9 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
                 judge.add(mchunk, res)
             tally.planned(res)
             _to_program_frame(res, chunk, off, setup)
+            if src[0].expanded:
+                # the source line of each block (the report and the summary name the user's file)
+                res.line = np.asarray(src[0].line_map, np.int64)[np.asarray(res.line) - 1]
             summary.add(res)
             if rep is not None:
                 rep.writelines(report_rows(res, machine.axis_names, sd_limit))

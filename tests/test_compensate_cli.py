@@ -371,6 +371,31 @@ def test_a_program_no_block_of_which_is_known_gets_no_figures_and_the_fix(tmp_pa
     assert "predicted tool-tip deviation before: max" in stdout and "not evaluated" not in stdout
 
 
+def test_an_expanded_program_reports_the_lines_of_its_source(tmp_path, capsys):
+    """A subroutine called twice: BLOCKS.csv names the subroutine's lines (twice) and the calls'
+    own lines, the lines of the user's file, not of the expansion; render pairs that report."""
+    _, _, model_path = _model(tmp_path, "xfyz")
+    prog = tmp_path / "in.ngc"
+    prog.write_text("G21 G90\n"                 # 1
+                    "o100 sub\n"                # 2
+                    "  G1 X#1 F100\n"           # 3
+                    "  G1 Y#1\n"                # 4
+                    "o100 endsub\n"             # 5
+                    "G0 X0 Y0 Z0\n"             # 6
+                    "o100 call [5]\n"           # 7
+                    "o100 call [9]\n"           # 8
+                    "M30\n")
+    out, rep = tmp_path / "out.nc", tmp_path / "b.csv"
+    code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o", str(out),
+                              "--report", str(rep), "--subdivide-tol-um", "0"], capsys)
+    assert code == 0, err
+    assert [int(r["line"]) for r in _read_report(rep)] == [6, 3, 4, 3, 4]
+    code, _, err = _run(["render", "xfyz", str(model_path), str(prog), "--report", str(rep), "-o",
+                         str(tmp_path / "m.png"), "--backend", "matplotlib", "--size", "300x150"],
+                        capsys)
+    assert code == 0, err
+
+
 def test_figures_over_the_corrected_blocks_only(tmp_path, capsys):
     import json
     machine, fitted, model_path = _model_with_support(tmp_path, {"X": (-20.0, 20.0),

@@ -168,6 +168,16 @@ def _aligned(a: np.ndarray, b: np.ndarray, tol: np.ndarray) -> np.ndarray:
     return out
 
 
+def _source_lines(original: ProgramPoints) -> np.ndarray:
+    """(n,) the source line of each segment end: its line, or for a program with code to compute
+    the line of the user's file its expanded line came from (the compensation report's ``line``)."""
+    from ..toolpaths.source import open_program
+    with open_program(original.path) as src:
+        if not src.expanded:
+            return original.line
+        return np.asarray(src.line_map, np.int64)[original.line - 1]
+
+
 def report_points(original: ProgramPoints, report, machine: Machine) -> ProgramPoints:
     """The corrected positions of the original's segment ends, from the BLOCKS.csv of
     ``mtcomp compensate`` (its rows that are not inserted nodes, in order, by source line)."""
@@ -191,12 +201,13 @@ def report_points(original: ProgramPoints, report, machine: Machine) -> ProgramP
         raise InputError(f"not a report of mtcomp compensate (columns line, inserted, "
                          f"{', '.join(cols)})", path) from None
     q[:, [a.is_rotary for a in machine.axes]] = np.radians(q[:, [a.is_rotary for a in machine.axes]])
+    program_line = _source_lines(original)
     if original.tcp is not None and original.tcp.any():
         # the report holds a tool centre point block's words: the tip and angles it writes
         from ..toolpaths.tcp import axes_of_tcp
         q[original.tcp] = axes_of_tcp(machine, q[original.tcp])
-    bad = np.flatnonzero(line != original.line)
+    bad = np.flatnonzero(line != program_line)
     if bad.size:
         raise InputError(f"row {int(bad[0]) + 2} is for line {int(line[bad[0]])}, the program's "
-                         f"segment end there is on line {int(original.line[bad[0]])}", path)
+                         f"segment end there is on line {int(program_line[bad[0]])}", path)
     return ProgramPoints(path, q, line, original.feed, original.dirs, original.rapid)
