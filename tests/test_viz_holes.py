@@ -206,3 +206,23 @@ def test_the_alignment_is_the_least_total_difference_over_every_monotone_pairing
         assert np.all(np.diff(got) > 0)
         best = min(cost(c) for c in combinations(range(n + extra), n))
         np.testing.assert_allclose(cost(got), best, rtol=1e-12, atol=0)
+
+
+def test_a_long_thin_part_is_drawn_stretched_and_says_so(tmp_path, exx):
+    """A 900 x 20 mm contour to scale is a hairline: drawn stretched, 'not to scale' in the title;
+    a 20 x 20 mm square stays to scale."""
+    pytest.importorskip("matplotlib")
+    import matplotlib.pyplot as plt
+
+    from mtcomp.viz.render import _panels, build_contour_figure
+    machine, fitted = exx
+    for name, (w, h), stretched in (("long.nc", (900, 20), True), ("square.nc", (20, 20), False)):
+        (tmp_path / name).write_text(f"G21 G90\nG0 X0 Y0 Z5\nG1 Z-1 F100\nX{w}\nY{h}\nX0\nY0\n"
+                                     "G0 Z5\nM30\n")
+        smap = program_error_map(machine, fitted, tmp_path / name, normal="in-plane")
+        fig, axes, _ = build_contour_figure(smap, _panels(smap), (-1.0, 1.0), None, (800, 400), None)
+        try:
+            assert (axes[0].get_aspect() == "auto") == stretched
+            assert ("not to scale" in axes[0].get_title()) == stretched
+        finally:
+            plt.close(fig)

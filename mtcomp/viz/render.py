@@ -433,6 +433,22 @@ def _legend_handles(smap, marker):
             for line in lines]
 
 
+#: a top view whose extent in X and Y differ by more than this factor is drawn stretched (a
+#: 950 x 20 mm part to scale is a hairline)
+MAX_TO_SCALE_RATIO = 8.0
+
+
+def _top_view_aspect(ax, xy: np.ndarray) -> str:
+    """Draw the panel to scale, unless its extents differ by more than MAX_TO_SCALE_RATIO: then
+    stretched to fill it. Returns '' or the words the title gets ('; not to scale')."""
+    span = np.ptp(xy, axis=0) if xy.size else np.zeros(2)
+    if span.min() > 0 and span.max() / span.min() > MAX_TO_SCALE_RATIO:
+        ax.set_aspect("auto")
+        return "; not to scale"
+    ax.set_aspect("equal")
+    return ""
+
+
 def _top_view_panels(n: int, window_size):
     """(figure, n axes) side by side sharing their X and Y: maps seen along the tool axis."""
     plt = _matplotlib()
@@ -480,14 +496,14 @@ def build_contour_figure(smap, panels, clim, scale, window_size, title):
             step = max(1, smap.points.shape[0] // MAX_GLYPHS)
             ax.quiver(smap.points[::step, 0], smap.points[::step, 1], dev[::step, 0] * scale,
                       dev[::step, 1] * scale, angles="xy", scale_units="xy", scale=1.0, width=0.002)
-        ax.set_aspect("equal")
+        to_scale = _top_view_aspect(ax, smap.points[:, :2])
         ax.autoscale_view()
         ax.margins(0.04)
         ax.set_xlabel("X (mm)")
         ax.set_ylabel("Y (mm)")
         ax.grid(True, color="#dddddd", lw=0.5)
         ax.set_axisbelow(True)
-        text = panel_title(label, dn)
+        text = panel_title(label, dn) + to_scale
         if levels > 1:
             lo, hi = smap.info.get("level_range_mm") or (0.0, 0.0)
             text += f"\n{levels} levels, Z {lo:g} .. {hi:g} mm (largest |dn| on top)"
@@ -522,7 +538,7 @@ def build_holes_figure(smap, panels, clim, scale, window_size, title):
         ax.quiver(xy[::step, 0], xy[::step, 1], across[::step, 0] * scale, across[::step, 1] * scale,
                   angles="xy", scale_units="xy", scale=1.0, width=0.003, color="#c00000", zorder=4)
         ax.update_datalim(xy + across[:, :2] * scale)      # the arrows inside the panel
-        ax.set_aspect("equal")
+        to_scale = _top_view_aspect(ax, xy)
         ax.autoscale_view()
         ax.margins(0.08)
         ax.set_xlabel("X (mm)")
@@ -532,7 +548,7 @@ def build_holes_figure(smap, panels, clim, scale, window_size, title):
         depth = smap.depth_um(dev)
         text = (panel_title(label, dn).replace("RMS", "position error RMS")
                 + f"\ndepth error RMS {float(np.sqrt(np.mean(depth ** 2))) if depth.size else 0.0:.2f}"
-                f" um; arrows x{scale:.3g}")
+                f" um; arrows x{scale:.3g}{to_scale}")
         ax.set_title(text if not (title and ax is axes[0]) else f"{title}\n{text}")
     return fig, axes, im
 
