@@ -596,3 +596,17 @@ def test_values_in_mm_under_value_um_are_flagged(tmp_path):
     short = _laser(tmp_path, {(t, d): [0.001 * t, 0.002, 0.003] for t in (0, 20) for d in (1, -1)},
                    name="short.csv")
     assert not any("value_um" in n for n in evaluate_iso230_2(read_measurements(short)).notices)
+
+
+def test_a_run_drift_below_0_1_um_is_no_drift_however_significant():
+    """Values in mm read as um have scatter so small that run means 0.001 um apart pass the F
+    test: no drift is said below 0.1 um of range; 0.2 um is (hand-made runs)."""
+    from mtcomp.identification.iso230_2 import run_drift
+    rng = np.random.default_rng(0)
+    runs, targets = np.repeat(np.arange(1, 6), 10), np.tile(np.repeat(np.arange(5.0), 2), 5)
+    direction = np.tile([1, -1], 25)
+    cell = (targets * 2 + (direction < 0)).astype(int)
+    for step_mm, said in ((1e-6, False), (2e-4 / 4, True)):
+        value = 1e-3 * targets + step_mm * (runs - 1) + rng.normal(0, 1e-9, runs.size)
+        dr = run_drift("X", cell, targets, direction, runs, value)
+        assert dr.p < 1e-6 and dr.drift == said

@@ -66,6 +66,10 @@ TARGET_TOLERANCE = 1e-9
 OUTLIER_K = 4.0
 #: run-to-run drift is reported when the F test of the runs has a p-value below this
 DRIFT_ALPHA = 0.01
+#: run means that differ by less than this are no drift to warn of, however significant (mm for a
+#: linear axis: 0.1 um; rad for a rotary one: 0.5 urad): values in mm read as um have scatter so
+#: small that a 0.001 um change passes the test
+MIN_DRIFT = {"linear": 1e-4, "rotary": 5e-7}
 #: unit check: a linear axis whose targets span at least UNIT_CHECK_TRAVEL_MM and whose readings all
 #: stay below max(UNIT_CHECK_FLOOR_UM, UNIT_CHECK_PPM x travel) in magnitude reads less than a laser
 #: measures reliably over that travel (about 0.5 ppm with air compensation): its values were likely
@@ -457,7 +461,9 @@ def run_drift(axis: str, cell: np.ndarray, target: np.ndarray, direction: np.nda
     without = evaluate_axis(axis, target, direction, run, value - effect[r_index], with_drift=False)
     return RunDrift(runs=runs, run_means=run_means, size=float(np.ptp(run_means)),
                     trend=float(np.polyfit(runs.astype(float), run_means, 1)[0]),
-                    within_s=math.sqrt(ss_full / df2), F=float(F), p=p, drift=bool(p < DRIFT_ALPHA),
+                    within_s=math.sqrt(ss_full / df2), F=float(F), p=p,
+                    drift=bool(p < DRIFT_ALPHA and np.ptp(run_means) >= MIN_DRIFT[
+                        "rotary" if axis.upper() in "ABC" else "linear"]),
                     R_without=without.R)
 
 
