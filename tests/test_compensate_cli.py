@@ -396,6 +396,18 @@ def test_an_expanded_program_reports_the_lines_of_its_source(tmp_path, capsys):
     assert code == 0, err
 
 
+def test_cutter_radius_compensation_is_said(tmp_path, capsys):
+    _, _, model_path = _model(tmp_path, "xfyz")
+    for text, said in (("G21 G90\nG0 X0 Y0 Z5\nG42 D1 G1 X10 F100\nG40 X20\nM30\n", True),
+                       ("G21 G90\nG0 X0 Y0 Z5\nG1 X10 F100\nX20\nM30\n", False)):
+        prog = tmp_path / "in.nc"
+        prog.write_text(text)
+        code, stdout, err = _run(["compensate", "xfyz", str(model_path), str(prog), "-o",
+                                  str(tmp_path / "out.nc")], capsys)
+        assert code == 0, err
+        assert ("cutter radius compensation (G41/G42)" in stdout) == said
+
+
 def test_figures_over_the_corrected_blocks_only(tmp_path, capsys):
     import json
     machine, fitted, model_path = _model_with_support(tmp_path, {"X": (-20.0, 20.0),
