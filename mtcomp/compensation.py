@@ -517,7 +517,8 @@ def _run_notes(program, written, fitted, setup, tally) -> list[str]:
         notes.append(f"the program's code was run: {program.executed} lines executed from its "
                      f"{program.source_lines}; the output is that expansion, corrected (its first "
                      "line says so)")
-    if _has_word(program, b"41", 1 << 22) or _has_word(program, b"42", 1 << 22):
+    user_file = program.source       # the user's file (an expansion is gone by now)
+    if _has_word(user_file, b"41", 1 << 22) or _has_word(user_file, b"42", 1 << 22):
         notes.append("note: the program uses cutter radius compensation (G41/G42): the corrections "
                      "are those of the programmed contour, while the tool centre runs a radius off "
                      "it (the error there differs by the model's change over that distance)")
