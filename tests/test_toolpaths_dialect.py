@@ -157,3 +157,14 @@ def test_a_dwell_with_a_move_is_refused_where_x_is_the_dwell_time(tmp_path, mode
     with pytest.raises(InputError, match="G4 with G0 and axis words in one block") as exc:
         list(iter_segment_chunks(p, XFYZ, dialect=dialect))
     assert exc.value.line == 3
+
+
+@pytest.mark.parametrize("text", ["G21 G90\nG0 X1 Y1 Z1\nN4 M30\nN5 %\n",
+                                  "G21 G90\nG0 X1 Y1 Z1\nM99\n"])
+def test_a_numbered_end_of_tape_mark_and_a_main_program_m99_pass_through(tmp_path, mode, text):
+    """'N194 %' (a post that numbers every line) and M99 ending a main program (Centroid) are read
+    as the program's end marks, not refused; the motion is the program's."""
+    p = tmp_path / "p.nc"
+    p.write_text(text)
+    rows = np.vstack([c.end for c in iter_segment_chunks(p, XFYZ)])
+    np.testing.assert_allclose(rows, [[1.0, 1.0, 1.0]], rtol=0, atol=0)

@@ -22,6 +22,7 @@ from ._arcs import PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, centr
 from .blocks import CycleBlock, MotionBlock
 from .dialect import GENERIC
 from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _COLON_PROGRAM_RE, _CURVE_WITH_COORDINATES,
+                    _NUMBERED_PERCENT_RE,
                     _REFUSED_G, _REFUSED_M, _UNIQUE_LETTERS, _WCS_INDEX, DEFAULT_CHORD_TOL_MM,
                     DIR_EPS, MM_PER_INCH, TCP_OFF_M, TCP_ON_M, TOOL_AXIS, frame_code, tokenize)
 
@@ -188,6 +189,8 @@ class ModalState:
         if not s or s[0] == "%":
             return None
         if s[0] == ":" and _COLON_PROGRAM_RE.match(s):    # ':0097': ISO's O, a program number
+            return None
+        if _NUMBERED_PERCENT_RE.match(s):                  # 'N194 %': the end-of-tape mark
             return None
         if not s.strip("\x1a \t"):        # DOS end-of-file mark (Ctrl-Z) after the program
             return None

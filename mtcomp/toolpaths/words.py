@@ -66,7 +66,7 @@ _REFUSED_G = {
 _CURVE_WITH_COORDINATES = {5: ("G5 (cubic spline)", frozenset("XYZABCIJKR")),
                            5.1: ("G5.1 (quadratic spline)", frozenset("XYZABCIJK"))}
 #: M codes refused (subprograms, tool centre point control)
-_REFUSED_M = {98: "M98 (subprogram call)", 99: "M99 (subprogram end)",
+_REFUSED_M = {98: "M98 (subprogram call)",
               430: "M430 (LinuxCNC switchable kinematics: the program does not give axis positions)"}
 #: M codes that switch tool centre point mode on (LinuxCNC's switchable kinematics M428, Heidenhain's
 #: M128 in ISO programs) and off (M429: LinuxCNC's identity kinematics again; M129)
@@ -80,6 +80,8 @@ _WCS_INDEX = {54: 0, 55: 1, 56: 2, 57: 3, 58: 4, 59: 5, 59.1: 6, 59.2: 7, 59.3: 
 _NEG_ZERO_RE = re.compile(r"-(0\.0+)(?![0-9])")
 #: a program number written with ':' (the ISO code's O), alone or with comments
 _COLON_PROGRAM_RE = re.compile(r":\s*\d+\s*(?:\([^()]*\)\s*)*(?:;.*)?$")
+#: a block number before the end-of-tape mark ('N194 %', as some posts number every line)
+_NUMBERED_PERCENT_RE = re.compile(r"[Nn]\s*\d+\s*%\s*$")
 #: features of other languages, refused with their name (checked on lines that do not tokenize)
 _O_WORD_RE = re.compile(r"^\s*(?:[Nn]\s*\d+\s*)?[Oo]\s*(?:\d+|<[^>]*>)\s*([A-Za-z]+)")
 _KEYWORDS = {
