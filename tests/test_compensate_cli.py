@@ -408,6 +408,20 @@ def test_cutter_radius_compensation_is_said(tmp_path, capsys):
         assert ("cutter radius compensation (G41/G42)" in stdout) == said
 
 
+def test_the_program_given_for_the_model_is_named_as_such(tmp_path, capsys):
+    _, _, model_path = _model(tmp_path, "xfyz")
+    prog = tmp_path / "in.nc"
+    prog.write_text("%\nO1000\nG21 G90\nG0 X0 Y0\nM30\n%\n")
+    code, _, err = _run(["compensate", "xfyz", str(prog), str(model_path), "-o",
+                         str(tmp_path / "o.nc")], capsys)
+    assert code == 2 and "looks like a G-code program" in err and err.count("\n") == 1
+    broken = tmp_path / "broken.json"
+    broken.write_text('{"format": ')
+    code, _, err = _run(["compensate", "xfyz", str(broken), str(prog), "-o",
+                         str(tmp_path / "o.nc")], capsys)
+    assert code == 2 and "not valid JSON" in err and "G-code" not in err
+
+
 def test_figures_over_the_corrected_blocks_only(tmp_path, capsys):
     import json
     machine, fitted, model_path = _model_with_support(tmp_path, {"X": (-20.0, 20.0),

@@ -306,6 +306,19 @@ def _json_default(o):
     raise TypeError(f"not JSON serialisable: {type(o)}")
 
 
+def _looks_like_gcode(path: str) -> bool:
+    """Whether the file's first lines read as G-code: a G, M or N word, or a '%' or 'O' header."""
+    import re
+    try:
+        with open(path, encoding="latin-1") as f:
+            head = [f.readline() for _ in range(20)]
+    except OSError:
+        return False
+    word = re.compile(r"^\s*(%|[OoNn]\d|[GgMm]\d|\(.*\)\s*$)")
+    lines = [ln for ln in head if ln.strip()]
+    return bool(lines) and sum(bool(word.match(ln)) for ln in lines) >= max(1, len(lines) // 2)
+
+
 def load_model(path: str | os.PathLike, machine: Machine | None = None) -> FittedModel:
     """Read MODEL.json. With ``machine``, check that the file was made for a machine of that topology
     and the same axes (the machine given on the command line wins for travel and compensation)."""
@@ -316,7 +329,11 @@ def load_model(path: str | os.PathLike, machine: Machine | None = None) -> Fitte
     except FileNotFoundError:
         raise InputError("no such model file", p) from None
     except json.JSONDecodeError as exc:
-        raise InputError(f"not valid JSON (line {exc.lineno}: {exc.msg})", p) from None
+        hint = ""
+        if _looks_like_gcode(p):
+            hint = ("; it looks like a G-code program: the model file (from identify or diagnose) "
+                    "comes before the program")
+        raise InputError(f"not valid JSON (line {exc.lineno}: {exc.msg}){hint}", p) from None
     except UnicodeDecodeError:
         raise InputError("not a text file", p) from None
     if not isinstance(data, dict) or data.get("format") != FORMAT:
