@@ -19,7 +19,7 @@ import re
 from ..errors import InputError
 from .expr import Evaluator, ExprError
 from .lines import line_code, rewrite
-from .ngc import _END, MAX_LINES, MAX_STEPS
+from .ngc import _END, MAX_LINES, MAX_STEPS, check_steps, check_written
 
 _STATEMENT = re.compile(r"(?:n(\d+))?(if\[|goto|while\[|end(\d))")
 _SEQUENCE = re.compile(r"n(\d+)")
@@ -145,16 +145,13 @@ class MacroRun:
         pc, steps, written = 0, 0, 0
         while pc < len(self.texts):
             steps += 1
-            if steps > self.max_steps:
-                raise self.error(f"more than {self.max_steps} lines executed: a loop that does not "
-                                 "end? (mtcomp expands at most that many)", pc)
+            check_steps(self, steps, pc)
             st = self.statements.get(pc)
             if st is None:
                 text = self._code_line(pc)
                 if text is not False:
                     written += 1
-                    if written > self.max_lines:
-                        raise self.error(f"the expanded program passes {self.max_lines} lines", pc)
+                    check_written(self, written, pc)
                     yield pc, text
                 if _END.search(self.codes[pc].text):
                     return

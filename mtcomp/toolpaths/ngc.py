@@ -163,6 +163,22 @@ def structure(statements: dict, err) -> dict:
     return subs
 
 
+def check_steps(run, steps: int, pc: int, loop_line: int | None = None) -> None:
+    """The runaway guard of a program run (LinuxCNC's or Fanuc macro B's): ``run.error`` when more
+    than ``run.max_steps`` lines were executed (naming the loop at ``loop_line``, 0-based)."""
+    if steps > run.max_steps:
+        where = f" (the loop at line {loop_line + 1})" if loop_line is not None else ""
+        raise run.error(f"more than {run.max_steps} lines executed{where}: a loop that does not "
+                        "end? (mtcomp expands at most that many)", pc)
+
+
+def check_written(run, written: int, pc: int) -> None:
+    """The size guard of a program run: ``run.error`` past ``run.max_lines`` lines written."""
+    if written > run.max_lines:
+        raise run.error(f"the expanded program passes {run.max_lines} lines: a loop that does not "
+                        "end?", pc)
+
+
 @dataclass
 class _Frame:
     return_to: int
@@ -211,18 +227,13 @@ class NgcRun:
         n = len(self.texts)
         while pc < n:
             steps += 1
-            if steps > self.max_steps:
-                where = f" (the loop at line {self.loop_line + 1})" if self.loop_line is not None else ""
-                raise self.error(f"more than {self.max_steps} lines executed{where}: a loop that "
-                                 "does not end? (mtcomp expands at most that many)", pc)
+            check_steps(self, steps, pc, self.loop_line)
             st = self.statements.get(pc)
             if st is None:
                 text = self._code_line(pc)
                 if text is not False:
                     written += 1
-                    if written > self.max_lines:
-                        raise self.error(f"the expanded program passes {self.max_lines} lines: "
-                                         "a loop that does not end?", pc)
+                    check_written(self, written, pc)
                     yield pc, text
                 if not self.frames and _END.search(self.codes[pc].text):
                     return                     # M2 / M30 ends the program
