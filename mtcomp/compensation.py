@@ -155,7 +155,10 @@ def uses_inches(path, block: int = 1 << 22) -> bool:
     return _has_word(path, b"20", block)
 
 
-def _has_word(path, code: bytes, block: int) -> bool:
+def _has_word(path, code, block: int) -> bool:
+    """True if the file holds G ``code`` (bytes, or a tuple of them: any) as :func:`_has_g` reads
+    it, read in blocks."""
+    codes = (code,) if isinstance(code, bytes) else tuple(code)
     try:
         f = open(path, "rb")
     except FileNotFoundError:
@@ -167,9 +170,9 @@ def _has_word(path, code: bytes, block: int) -> bool:
         while True:
             data = f.read(block)
             if not data:
-                return _has_g(tail + b" ", code)
+                return any(_has_g(tail + b" ", c) for c in codes)
             text = tail + data
-            if _has_g(text[:-8], code):
+            if any(_has_g(text[:-8], c) for c in codes):
                 return True
             tail = text[-16:]
 
@@ -482,9 +485,8 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
                 judge.add(mchunk, res)
             tally.planned(res)
             _to_program_frame(res, chunk, off, setup)
-            if src[0].expanded:
-                # the source line of each block (the report and the summary name the user's file)
-                res.line = np.asarray(src[0].line_map, np.int64)[np.asarray(res.line) - 1]
+            # the source line of each block (the report and the summary name the user's file)
+            res.line = src[0].source_lines_of(res.line)
             summary.add(res)
             if rep is not None:
                 rep.writelines(report_rows(res, machine.axis_names, sd_limit))
@@ -517,8 +519,8 @@ def _run_notes(program, written, fitted, setup, tally) -> list[str]:
         notes.append(f"the program's code was run: {program.executed} lines executed from its "
                      f"{program.source_lines}; the output is that expansion, corrected (its first "
                      "line says so)")
-    user_file = program.source       # the user's file (an expansion is gone by now)
-    if _has_word(user_file, b"41", 1 << 22) or _has_word(user_file, b"42", 1 << 22):
+    # the user's file (an expansion is gone by now), read once for both codes
+    if _has_word(program.source, (b"41", b"42"), 1 << 22):
         notes.append("note: the program uses cutter radius compensation (G41/G42): the corrections "
                      "are those of the programmed contour, while the tool centre runs a radius off "
                      "it (the error there differs by the model's change over that distance)")

@@ -43,6 +43,7 @@ class ProgramSource(os.PathLike):
     executed: int = 0
     source_lines: int = 0
     notes: list = field(default_factory=list)
+    _map_array: object = field(default=None, repr=False)     # line_map as an int64 array, once
 
     def __fspath__(self) -> str:
         return self.path
@@ -57,6 +58,17 @@ class ProgramSource(os.PathLike):
             return self.source, line, ""
         src = self.line_map[line - 1] if 0 < line <= len(self.line_map) else 0
         return self.source, (src or None), f" (line {line} of the expanded program)"
+
+    def source_lines_of(self, lines):
+        """(n,) int64: the source line of each of ``lines`` (lines of ``path``, 1-based); the lines
+        themselves for a program read as it is. The map is turned into an array once."""
+        import numpy as np
+        lines = np.asarray(lines, np.int64)
+        if self.line_map is None:
+            return lines
+        if self._map_array is None:
+            self._map_array = np.asarray(self.line_map, np.int64)
+        return self._map_array[lines - 1]
 
     def summary(self) -> str:
         """'dialect: fanuc (detected from line 2: O1234)'."""

@@ -173,9 +173,7 @@ def _source_lines(original: ProgramPoints) -> np.ndarray:
     the line of the user's file its expanded line came from (the compensation report's ``line``)."""
     from ..toolpaths.source import open_program
     with open_program(original.path) as src:
-        if not src.expanded:
-            return original.line
-        return np.asarray(src.line_map, np.int64)[original.line - 1]
+        return src.source_lines_of(original.line)
 
 
 def report_points(original: ProgramPoints, report, machine: Machine) -> ProgramPoints:
