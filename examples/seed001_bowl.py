@@ -34,6 +34,7 @@ from mtcomp.identification.fit import identify
 from mtcomp.models import save_model
 from mtcomp.models.evaluate import deviation
 from mtcomp.sim import VirtualMachine, cmm_plan, random_truth
+from mtcomp.toolpaths.cutter import read_cut_program
 from mtcomp.toolpaths.parts import bowl_normal, bowl_surface, write_bowl_program
 
 BALL_RADIUS_MM = 3.0
@@ -87,8 +88,8 @@ def main(argv=None) -> int:
         for label, program in (("uncompensated", "bowl.nc"), ("compensated", "bowl_pinv.nc")):
             # the CMM measures the part against the nominal surface: the corrections of the
             # compensated program are part of what it cut (include_path_offset)
-            plan = cmm_plan(pts, nrm, out / program, BALL_RADIUS_MM, name=f"cmm_{label}",
-                            include_path_offset=True)
+            cut = read_cut_program(out / program, machine)        # the moves that cut the part
+            plan = cmm_plan(pts, nrm, cut, BALL_RADIUS_MM, name=f"cmm_{label}", include_path_offset=True)
             # measured against the part's datum: the machine's error there is in it
             parts[label] = (vm.measure(plan, out / f"cmm_{label}.csv").normal_deviation
                             - nrm @ datum_error) * 1e3                               # um

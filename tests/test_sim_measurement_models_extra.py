@@ -13,6 +13,7 @@ from mtcomp.measurement.files import Context
 from mtcomp.models import (AbbeIRC, Backlash, ChannelDrift, ErrorModel, FittedModel, ParameterSet,
                            ThermalDrift, deviation)
 from mtcomp.sim import VirtualMachine, cmm_plan, random_truth, thermal_plan, velocity_plan
+from mtcomp.toolpaths.cutter import read_cut_program
 
 
 def fd_jacobian(mm, p, nu, step=1e-5):
@@ -154,7 +155,8 @@ def test_cmm_dn_is_the_ball_centre_deviation_along_the_normal(tmp_path):
     # the wall on the +x side of the tool: surface x = r, outward normal -x
     pts = np.column_stack([np.full(y.size, 300.0 + r), y, np.full(y.size, -7.0)])
     nrm = np.tile([-1.0, 0.0, 0.0], (y.size, 1))
-    data = VirtualMachine(m, truth, noise_um=0.0).measure(cmm_plan(pts, nrm, prog, r), tmp_path / "c.csv")
+    cut = read_cut_program(prog, m)
+    data = VirtualMachine(m, truth, noise_um=0.0).measure(cmm_plan(pts, nrm, cut, r), tmp_path / "c.csv")
     # second formulation: the official deviation (tip and tool axis) at the cutter location the
     # program gives by hand: x = 300, z = -10, y = the point's y; feed 1000, X never moved (+1), Y up,
     # Z down, the machine's tool length
@@ -166,7 +168,7 @@ def test_cmm_dn_is_the_ball_centre_deviation_along_the_normal(tmp_path):
     dev = deviation(model, q, truth.params.values, c)
     oracle = np.einsum("ij,ij->i", nrm, dev[:, :3] + r * dev[:, 3:]) * 1e3
     assert np.abs(np.einsum("ij,ij->i", nrm, r * dev[:, 3:])).max() * 1e3 > 1e-3   # the tilt acts
-    mm = model_class_for("cmm")(truth.model, data, program=str(prog), tool_radius_mm=r)
+    mm = model_class_for("cmm")(truth.model, data, cut=cut, tool_radius_mm=r)
     np.testing.assert_array_equal(mm.line, np.full(y.size, 5))           # the G1 Y30 block
     # nuisance: the tool's radius error (dn -= dr), then the CMM frame's translation and rotation
     # (about the points' centroid): dn += n . (t + w x (x - c))
@@ -187,7 +189,8 @@ def test_cmm_point_the_program_did_not_cut_is_refused(tmp_path):
     m = load_machine("xfyz").with_basis("polynomial")
     prog = tmp_path / "wall.nc"
     prog.write_text(WALL)
-    plan = cmm_plan([[303.0, 0.0, -7.0], [303.0, 80.0, -7.0]], [[-1.0, 0, 0], [-1.0, 0, 0]], prog, 3.0)
+    plan = cmm_plan([[303.0, 0.0, -7.0], [303.0, 80.0, -7.0]], [[-1.0, 0, 0], [-1.0, 0, 0]],
+                    read_cut_program(prog, m), 3.0)
     vm = VirtualMachine(m, random_truth(m, np.random.default_rng(0)))
     with pytest.raises(InputError, match=r"row 2.*did not cut|did not cut"):
         vm.measure(plan)
@@ -199,7 +202,8 @@ def test_cmm_on_the_seed001_bowl_finds_the_cutter_locations(tmp_path):
     bowl = write_bowl_program(tmp_path / "bowl.nc", stepover_mm=1.0, step_mm=1.0)
     pick = np.random.default_rng(5).choice(len(bowl.contact_points), 100, replace=False)
     truth = random_truth(m, np.random.default_rng(6))
-    plan = cmm_plan(bowl.contact_points[pick], bowl.normals[pick], bowl.path, bowl.ball_radius)
+    plan = cmm_plan(bowl.contact_points[pick], bowl.normals[pick], read_cut_program(bowl.path, m),
+                    bowl.ball_radius)
     data = VirtualMachine(m, truth, noise_um=0.0).measure(plan, tmp_path / "cmm.csv")
     mm = model_class_for("cmm")(truth.model, data, **plan.options)
     # each point was cut where the program put the ball centre on it: the programmed tip (the

@@ -56,15 +56,17 @@ def cmm_programs(args) -> list[str]:
     return [_split_file_value(value, args.data)[1] for value in args.cmm_program]
 
 
-def attach_cmm_cuts(args, datasets) -> None:
-    """Give each cmm data set the program and tool radius of ``--cmm-program`` /
-    ``--cmm-tool-radius`` (``CMM.csv=VALUE``, or ``VALUE`` alone when there is one cmm file).
-    InputError (one line) for a flag that names no cmm file, a program that does not exist, a radius
-    that is not a positive number, a value given twice, or a cmm file left without either."""
+def attach_cmm_cuts(args, machine, datasets) -> None:
+    """Give each cmm data set the cutting moves of the program ``--cmm-program`` names, read here on
+    ``machine`` (the measurement model reads no G-code), and the tool radius of ``--cmm-tool-radius``
+    (``CMM.csv=VALUE``, or ``VALUE`` alone when there is one cmm file). InputError (one line) for a
+    flag that names no cmm file, a program that does not exist or has no cutting moves, a radius that
+    is not a positive number, a value given twice, or a cmm file left without either."""
     from pathlib import Path
 
     from ..errors import InputError
     from ..io.atomic import same_file
+    from ..toolpaths.cutter import read_cut_program
     cmm = [d for d in datasets if d.kind == "cmm"]
 
     def target(flag, value):
@@ -84,6 +86,7 @@ def attach_cmm_cuts(args, datasets) -> None:
         return cmm[0], value
 
     given = set()
+    programs = {}
 
     def once(flag, value, d):
         if (flag, id(d)) in given:
@@ -99,7 +102,7 @@ def attach_cmm_cuts(args, datasets) -> None:
             raise InputError(f"--cmm-program {value}: a folder, not a G-code file", program)
         if not Path(program).is_file():
             raise InputError(f"--cmm-program {value}: no such file", program)
-        d.program = program
+        programs[id(d)] = program
     for value in args.cmm_tool_radius:
         d, text = target("--cmm-tool-radius", value)
         once("--cmm-tool-radius", value, d)
@@ -114,11 +117,13 @@ def attach_cmm_cuts(args, datasets) -> None:
         raise InputError("--cmm-path-offset: no cmm file among the data")
     for d in cmm:
         d.include_path_offset = bool(args.cmm_path_offset)
-        missing = [f for f, v in (("--cmm-program", d.program), ("--cmm-tool-radius", d.tool_radius_mm))
-                   if v is None]
+        missing = [f for f, v in (("--cmm-program", programs.get(id(d))),
+                                  ("--cmm-tool-radius", d.tool_radius_mm)) if v is None]
         if missing:
             raise InputError(f"a cmm file is read with the G-code that cut the part and the radius of "
                              f"its ball-end tool: give {' and '.join(missing)}", d.path)
+    for d in cmm:
+        d.cut = read_cut_program(programs[id(d)], machine)
 
 
 #: a cmm file's points lying further than this (mm, median along their normals) from the ball-centre
@@ -132,13 +137,13 @@ def note_cmm_gaps(command: str, machine, datasets) -> None:
     off) or a part not where the program put it. Not an error: the fit would take a radius offset."""
     from ..measurement.cut import cut_poses, path_offsets
     for d in datasets:
-        if d.kind != "cmm" or d.program is None or d.tool_radius_mm is None or not len(d):
+        if d.kind != "cmm" or d.cut is None or d.tool_radius_mm is None or not len(d):
             continue
         radius = float(d.tool_radius_mm)
-        q = cut_poses(machine, d, d.program, radius)[0]
+        q = cut_poses(machine, d, d.cut, radius)[0]
         med = -float(np.median(path_offsets(machine, d, q, radius)))   # points off the path, mm
         if abs(med) > CMM_GAP_NOTE_MM:
             print(f"mtcomp {command}: note: {d.path}: the points lie a median {med:+.3f} mm off the "
-                  f"ball-centre path of {d.program} along their normals: is the tool radius "
+                  f"ball-centre path of {d.cut.path} along their normals: is the tool radius "
                   f"{d.tool_radius_mm:g} mm right (it would be {d.tool_radius_mm - med:.3g} mm), and the "
                   "part where the program put it?", file=sys.stderr)

@@ -72,7 +72,7 @@ def run(args) -> int:
         from ..models.model_file import load_model
         start = load_model(args.start, machine)
     datasets = [read_measurements(path) for path in args.data]
-    attach_cmm_cuts(args, datasets)
+    attach_cmm_cuts(args, machine, datasets)
     note_outside_travel("diagnose", machine, datasets)
     note_cmm_gaps("diagnose", machine, datasets)
 

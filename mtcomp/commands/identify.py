@@ -60,7 +60,7 @@ def run(args) -> int:
     if not (0.0 < rcond < 1.0):
         raise InputError(f"--rcond must lie between 0 and 1, got {rcond}")
     datasets = [read_measurements(path) for path in args.data]
-    attach_cmm_cuts(args, datasets)
+    attach_cmm_cuts(args, machine, datasets)
     note_outside_travel("identify", machine, datasets)
     note_cmm_gaps("identify", machine, datasets)
     result = identify(machine, datasets, hold=hold, weights=args.weights, rcond=rcond,

@@ -41,7 +41,7 @@ def run(args) -> int:
     machine = load_machine(args.machine)
     fitted = load_model(args.model, machine)
     data = read_measurements(args.data)
-    attach_cmm_cuts(args, [data])
+    attach_cmm_cuts(args, machine, [data])
     note_outside_travel("predict", machine, [data])
     note_cmm_gaps("predict", machine, [data])
     from ..thermal.context import has_tip_drift

@@ -1,9 +1,12 @@
-"""Where a program cut a measured part: the cutter locations of a G-code program (ball centres sampled
-along its cutting moves) and, for each point of a CMM file, the pose of the program that cut it
-(:func:`cut_poses`). The CMM measurement model and the knot placement of a fit use them."""
+"""Where a program cut a measured part: the cutting moves of the G-code program that cut a CMM part
+(:class:`CutProgram`, read from the G-code by the caller: :func:`mtcomp.toolpaths.cutter.read_cut_program`),
+their cutter locations (ball centres sampled along the moves) and, for each point of a CMM file, the
+pose of the program that cut it (:func:`cut_poses`). The CMM measurement model and the knot
+placement of a fit use them. Nothing here reads G-code: the program is handed in already read."""
 from __future__ import annotations
 
 import weakref
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -11,18 +14,44 @@ from ..errors import InputError
 from ..kinematics import forward
 
 
+@dataclass(frozen=True, eq=False)
+class CutProgram:
+    """The cutting moves (G0 left out) of the program that cut a part, in program order.
+
+    path : the program's file as the user named it (for messages).
+    start, end : (m, na) axis positions at each move's ends, ``machine.axis_names`` order, mm and rad.
+    line : (m,) int, 1-based source line of each move's block.
+    feed : (m,) mm/min commanded feed. dirs : (m, na) +1/-1 approach direction of each axis.
+    Compared and hashed by identity: a cut program read once is one key of the cut poses' memory.
+    """
+
+    path: str
+    start: np.ndarray
+    end: np.ndarray
+    line: np.ndarray
+    feed: np.ndarray
+    dirs: np.ndarray
+
+    def __str__(self) -> str:
+        return self.path
+
+
 class CutterLocations:
-    """Densely sampled ball-centre path of a program (cutting moves only).
+    """Densely sampled ball-centre path of a program's cutting moves (:class:`CutProgram`).
 
     start, end : (m, na) segment ends (mm, rad); line, feed, dirs : per segment.
     samples : (k, 3) mm ball centres (workpiece frame); seg : (k,) segment of each sample;
     u : (k,) position of the sample along its segment (0..1).
     """
 
-    def __init__(self, machine, start, end, line, feed, dirs, radius, sample_mm):
+    def __init__(self, machine, cut: CutProgram, radius: float, sample_mm: float = 0.1):
         from scipy.spatial import cKDTree
-        self.machine, self.start, self.end = machine, start, end
-        self.line, self.feed, self.dirs, self.radius = line, feed, dirs, radius
+        if cut.start.shape[1] != len(machine.axes):
+            raise ValueError(f"the cut program {cut.path} has {cut.start.shape[1]} axes, the machine "
+                             f"{len(machine.axes)}")
+        self.machine, self.start, self.end = machine, cut.start, cut.end
+        self.line, self.feed, self.dirs, self.radius = cut.line, cut.feed, cut.dirs, radius
+        start, end = cut.start, cut.end
         tip_s, ax_s = forward(machine, start)
         tip_e, ax_e = forward(machine, end)
         length = np.linalg.norm(tip_e - tip_s + radius * (ax_e - ax_s), axis=1)
@@ -78,39 +107,24 @@ def path_offsets(machine, data, q, radius: float) -> np.ndarray:
 _CUT_POSES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def cut_poses(machine, data, program, radius: float, sample_mm: float = 0.1, max_gap_mm: float = 2.0):
+def cut_poses(machine, data, cut: CutProgram, radius: float, sample_mm: float = 0.1,
+              max_gap_mm: float = 2.0):
     """(q (n, na), segment (n,), CutterLocations) of the cmm file ``data``: for each surface point the
-    cutter location of ``program`` whose ball centre is nearest to ``x + r n``. InputError naming the
-    row of a point no cutter location comes within ``max_gap_mm`` of. Remembered for the same data,
-    machine geometry, program and radius (:data:`_CUT_POSES`)."""
+    cutter location of the program's moves ``cut`` whose ball centre is nearest to ``x + r n``.
+    InputError naming the row of a point no cutter location comes within ``max_gap_mm`` of.
+    Remembered for the same data, machine geometry, cut program and radius (:data:`_CUT_POSES`)."""
     geometry = tuple((a.name, tuple(getattr(a, "axis_point", None) or ())) for a in machine.axes)
-    key = (machine.topology, geometry, str(program), float(radius), float(sample_mm), float(max_gap_mm))
+    key = (machine.topology, geometry, cut, float(radius), float(sample_mm), float(max_gap_mm))
     cached = _CUT_POSES.get(data)
     if cached is not None and cached[0] == key:
         return cached[1]
     if not radius > 0:
         raise InputError(f"tool radius must be positive, got {radius!r}", data.path)
-    loc = cutter_locations(machine, program, radius, sample_mm)
+    loc = CutterLocations(machine, cut, radius, sample_mm)
     q, k, gap = loc.nearest(data.xyz + radius * data.normal)
     far = np.flatnonzero(gap > max_gap_mm)
     if far.size:
-        data.fail(f"no cutter location of {program} within {max_gap_mm:g} mm of this point's "
+        data.fail(f"no cutter location of {cut.path} within {max_gap_mm:g} mm of this point's "
                   f"ball centre (nearest {gap[far[0]]:.3g} mm): the program did not cut it", far[0])
     _CUT_POSES[data] = (key, (q, k, loc))
     return q, k, loc
-
-
-def cutter_locations(machine, program, radius: float, sample_mm: float = 0.1) -> CutterLocations:
-    """Sample the cutting moves (not G0) of ``program`` as ball centres every ``sample_mm`` mm."""
-    from ..toolpaths import iter_segment_chunks
-    chunks = list(iter_segment_chunks(program, machine))
-    if not chunks:
-        raise InputError("the program has no motion", str(program))
-    start = np.concatenate([c.start for c in chunks])
-    end = np.concatenate([c.end for c in chunks])
-    keep = ~np.concatenate([c.rapid for c in chunks])
-    if not keep.any():
-        raise InputError("the program has no cutting moves (only G0)", str(program))
-    cat = lambda f: np.concatenate([getattr(c, f) for c in chunks])[keep]  # noqa: E731
-    return CutterLocations(machine, start[keep], end[keep], cat("line"), cat("feed"), cat("dirs"),
-                           radius, sample_mm)

@@ -17,7 +17,7 @@ import math
 import os
 import re
 from dataclasses import dataclass, field
-from typing import ClassVar, Iterable
+from typing import TYPE_CHECKING, ClassVar, Iterable
 
 import numpy as np
 
@@ -26,6 +26,9 @@ from ..machine import AXIS_ORDER, LINEAR, ROTARY, Machine
 from ..io.csvtable import CsvTable, parse_ints, parse_signs, read_csv_table
 # the units of the files, and the writing of a file back (also read from here)
 from .units import DEG, UM, URAD, file_unit_scale, format_cell, write_csv_with_columns  # noqa: F401
+
+if TYPE_CHECKING:
+    from .cut import CutProgram
 
 #: relative tolerance on the length of a unit normal (nx, ny, nz)
 NORMAL_TOLERANCE = 1e-3
@@ -289,9 +292,10 @@ class CmmData(MeasurementSet):
     xyz : (n, 3) mm nominal surface point, workpiece frame.
     normal : (n, 3) outward unit normal.
     normal_deviation : (n,) mm deviation along the normal (positive: material outside), NaN if blank.
-    program, tool_radius_mm : the G-code that cut the part and the radius of its ball-end tool (mm);
-        not in the file (docs/measurements.md): the commands take them from ``--cmm-program`` and
-        ``--cmm-tool-radius`` (:func:`mtcomp.commands.attach_cmm_cuts`).
+    cut, tool_radius_mm : the cutting moves of the G-code that cut the part
+        (:class:`~mtcomp.measurement.cut.CutProgram`, already read from the program) and the radius
+        of its ball-end tool (mm); not in the file (docs/measurements.md): the commands read them
+        from ``--cmm-program`` and ``--cmm-tool-radius`` (:func:`mtcomp.commands.attach_cmm_cuts`).
     include_path_offset : ``--cmm-path-offset``: the program's ball centres are not on the nominal
         surface's offset (a compensated program): their offset along the normal is part of what it cut.
     """
@@ -300,7 +304,7 @@ class CmmData(MeasurementSet):
     xyz: np.ndarray = None
     normal: np.ndarray = None
     normal_deviation: np.ndarray = None
-    program: str | None = None
+    cut: CutProgram | None = None
     tool_radius_mm: float | None = None
     #: the program's own offset from the nominal surface counts (a compensated program's corrections)
     include_path_offset: bool = False
@@ -310,14 +314,14 @@ class CmmData(MeasurementSet):
         return ("pred_dn_um",)
 
     def axis_positions(self, machine: Machine) -> np.ndarray:
-        """(n, na) mm and rad: the pose of ``program`` that cut each surface point (its ball centre
-        nearest to ``x + r n``), so that the part counts where the model's knots go and what the data
-        cover. InputError when the program or the radius is not attached."""
-        if self.program is None or self.tool_radius_mm is None:
+        """(n, na) mm and rad: the pose of the program's moves ``cut`` that cut each surface point
+        (its ball centre nearest to ``x + r n``), so that the part counts where the model's knots go
+        and what the data cover. InputError when the program or the radius is not given."""
+        if self.cut is None or self.tool_radius_mm is None:
             raise InputError("a cmm file needs the G-code that cut the part and the radius of its "
                              "ball-end tool: give --cmm-program and --cmm-tool-radius", self.path)
         from .cut import cut_poses
-        return cut_poses(machine, self, self.program, float(self.tool_radius_mm))[0]
+        return cut_poses(machine, self, self.cut, float(self.tool_radius_mm))[0]
 
 
 @dataclass(eq=False)

@@ -9,7 +9,9 @@ equations, docs/measurements.md the file formats.
   centre of the cutter that touched it, along the outward normal: ``dn = n . (d + r (R_rel - I) a0)``
   with d the tool-tip deviation, ``R_rel`` the tool's rotation relative to nominal, ``a0`` the nominal
   tool axis and r the ball radius (positive: tool displaced outward, material left outside). The
-  cutter location is found on the G-code that cut the part: the ball centre nearest to ``x + r n``.
+  cutter location is found on the cutting moves of the G-code that cut the part (a
+  :class:`~mtcomp.measurement.cut.CutProgram`, read from the program by the caller): the ball centre
+  nearest to ``x + r n``.
   Nuisance: ``<tag>:radius_offset`` (um), the tool radius error (``dn -= dr``), and the CMM frame's
   set-up, a translation and a rotation about the points' centroid (``dn += n . (t + w x (x - c))``).
 * ``thermal``: channel ``disp_<name>_um`` drifts. Channels ``x``, ``y``, ``z``, and the
@@ -287,8 +289,9 @@ class VelocityModel(MeasurementModel):
 class CmmModel(MeasurementModel):
     """CMM files (docs/measurements.md) with the program that cut the part (module docstring).
 
-    Options: ``program`` (G-code path) and ``tool_radius_mm`` (ball radius), required here or as
-    the data's fields of the same names,
+    Options: ``cut`` (the program's cutting moves, a :class:`~mtcomp.measurement.cut.CutProgram`:
+    :func:`mtcomp.toolpaths.cutter.read_cut_program` reads them from the G-code) and
+    ``tool_radius_mm`` (ball radius), required here or as the data's fields of the same names,
     ``tool_mm`` (tool length, default the machine's), ``sample_mm`` (spacing of the sampled
     cutter locations, default 0.1), ``max_gap_mm`` (largest distance from ``x + r n`` to the
     nearest ball centre before the point counts as not cut by the program, default 2),
@@ -303,13 +306,13 @@ class CmmModel(MeasurementModel):
     def _setup(self):
         data = self.data
         m = self.machine
-        program = self.options.get("program", data.program)
+        cut = self.options.get("cut", data.cut)
         radius = self.options.get("tool_radius_mm", data.tool_radius_mm)
-        if program is None or radius is None:
+        if cut is None or radius is None:
             raise InputError("a cmm file needs the G-code that cut the part and the radius of its "
                              "ball-end tool: give --cmm-program and --cmm-tool-radius", data.path)
         self.radius = radius = float(radius)
-        q, k, loc = cut_poses(m, data, program, radius, float(self.options.get("sample_mm", 0.1)),
+        q, k, loc = cut_poses(m, data, cut, radius, float(self.options.get("sample_mm", 0.1)),
                               float(self.options.get("max_gap_mm", 2.0)))
         self.q = q
         self.segment = k

@@ -8,13 +8,13 @@ their names and docstrings give.
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..errors import InputError
 from ..machine import Machine
+from ..measurement.cut import CutProgram
 
 
 @dataclass
@@ -27,7 +27,7 @@ class Plan:
         measured columns are left out (the virtual machine adds them).
     measured : the measured columns to fill (``dx_um``, ``value_um``, ``length_mm`` ...). A reading
         the measurement model predicts as NaN (e.g. ``value_um`` of an angular row) stays blank.
-    options : options of the measurement model (cmm: ``program``, ``tool_radius_mm``; thermal:
+    options : options of the measurement model (cmm: ``cut``, ``tool_radius_mm``; thermal:
         ``setup_q``).
     """
 
@@ -434,15 +434,21 @@ def velocity_plan(machine: Machine, axis: str = "X", start_mm: float | None = No
 def cmm_plan(points_mm, normals, program, tool_radius_mm: float, name: str = "cmm",
              **options) -> Plan:
     """A machined part measured on a CMM (a cmm file): nominal surface points (n, 3) mm with outward
-    unit normals (n, 3), cut by ``program`` (G-code path) with a ball-end tool of ``tool_radius_mm``.
+    unit normals (n, 3), cut by ``program`` with a ball-end tool of ``tool_radius_mm``. ``program``
+    is the program's cutting moves (a :class:`~mtcomp.measurement.cut.CutProgram`), read from its
+    G-code by :func:`mtcomp.toolpaths.cutter.read_cut_program`: the simulator reads no G-code.
     Extra ``options`` go to the cmm measurement model (``sample_mm``, ``max_gap_mm``, ``tool_mm``)."""
+    if not isinstance(program, CutProgram):
+        raise TypeError("cmm_plan takes the program's cutting moves, "
+                        "mtcomp.toolpaths.cutter.read_cut_program(path, machine), not "
+                        f"{type(program).__name__}")
     pts = np.asarray(points_mm, dtype=float)
     nrm = np.asarray(normals, dtype=float)
     nrm = nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
     cols = {"kind": ["cmm"] * len(pts), "x_mm": pts[:, 0], "y_mm": pts[:, 1], "z_mm": pts[:, 2],
             "nx": nrm[:, 0], "ny": nrm[:, 1], "nz": nrm[:, 2]}
     return Plan("cmm", name, cols, ("dn_um",),
-                {"program": os.fspath(program), "tool_radius_mm": float(tool_radius_mm), **options})
+                {"cut": program, "tool_radius_mm": float(tool_radius_mm), **options})
 
 
 def standard_campaign(machine: Machine, n_runs: int = 1, thermal: bool = False) -> list[Plan]:

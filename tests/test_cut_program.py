@@ -1,0 +1,65 @@
+"""The program that cut a CMM part is read at the G-code level and handed to the measurement model as
+its cutting moves (mtcomp.toolpaths.cutter.read_cut_program -> mtcomp.measurement.cut.CutProgram):
+the moves checked against a program read by hand, the moves going into the cmm model as they are, and
+a program with nothing to cut refused on the command line."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mtcomp import load_machine
+from mtcomp.cli import main
+from mtcomp.errors import InputError
+from mtcomp.measurement.cut import CutProgram
+from mtcomp.sim import cmm_plan
+from mtcomp.toolpaths.cutter import read_cut_program
+
+# G0 to (10, 0, 5), plunge to Z0 at F500, cut to X20 at F800, then leave with G0
+PROGRAM = "G21 G90\nG0 X10 Y0 Z5\nG1 Z0 F500\nG1 X20 F800\nG0 Z5\nM30\n"
+
+
+def test_the_cutting_moves_are_the_g1_blocks_read_by_hand(tmp_path):
+    path = tmp_path / "cut.nc"
+    path.write_text(PROGRAM)
+    cut = read_cut_program(path, load_machine("xfyz"))        # axes X, Y, Z
+    assert isinstance(cut, CutProgram) and str(cut) == cut.path == str(path)
+    np.testing.assert_array_equal(cut.line, [3, 4])           # the G0 lines 2 and 5 are left out
+    np.testing.assert_allclose(cut.start, [[10, 0, 5], [10, 0, 0]], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(cut.end, [[10, 0, 0], [20, 0, 0]], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(cut.feed, [500, 800], rtol=0, atol=0)
+    # X and Z last moved up by the G0, then Z down; Y never moved (+1)
+    np.testing.assert_array_equal(cut.dirs, [[1, 1, -1], [1, 1, -1]])
+
+
+@pytest.mark.parametrize("text, problem", [("G21 G90\nM30\n", "no motion"),
+                                           ("G21 G90\nG0 X10\nG0 Z5\nM30\n", "only G0")])
+def test_a_program_with_nothing_to_cut_is_refused_naming_it(tmp_path, text, problem):
+    path = tmp_path / "empty.nc"
+    path.write_text(text)
+    with pytest.raises(InputError, match=problem) as err:
+        read_cut_program(path, load_machine("xfyz"))
+    assert err.value.path == str(path)
+
+
+def test_the_simulated_cmm_plan_hands_the_read_moves_to_the_cmm_model(tmp_path):
+    path = tmp_path / "cut.nc"
+    path.write_text(PROGRAM)
+    cut = read_cut_program(path, load_machine("xfyz"))
+    plan = cmm_plan([[15.0, 3.0, 3.0]], [[0.0, 1.0, 0.0]], cut, 3.0, sample_mm=0.5)
+    assert plan.options["cut"] is cut and plan.options["tool_radius_mm"] == 3.0
+    assert plan.options["sample_mm"] == 0.5
+    with pytest.raises(TypeError, match="read_cut_program"):     # the simulator reads no G-code
+        cmm_plan([[15.0, 3.0, 3.0]], [[0.0, 1.0, 0.0]], path, 3.0)
+
+
+def test_a_cmm_program_with_only_rapids_fails_the_command_writing_nothing(tmp_path, capsys):
+    program = tmp_path / "rapids.nc"
+    program.write_text("G21 G90\nG0 X10 Y0 Z5\nG0 Z0\nM30\n")
+    part = tmp_path / "part.csv"
+    part.write_text("x_mm,y_mm,z_mm,nx,ny,nz,dn_um,kind\n10,0,0,0,0,1,1.5,cmm\n12,0,0,0,0,1,1.0,cmm\n")
+    out = tmp_path / "model.json"
+    rc = main(["identify", "xfyz", str(part), "-o", str(out), "--cmm-program", str(program),
+               "--cmm-tool-radius", "3"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and not out.exists()
+    assert len(err) == 1 and str(program) in err[0] and "only G0" in err[0], err
