@@ -1,6 +1,7 @@
-"""A part cut and measured on a CMM (docs/measurements.md), through the command line: the program that cut it and
-the ball radius come with --cmm-program / --cmm-tool-radius. The part is cut on the independent
-machine (tests/truth), whose Z straightness along X and Y the CMM reads on the floor of the part."""
+"""A part cut and measured on a CMM (docs/measurements.md), through the command line: the program
+that cut it and the ball radius come with --cmm-program / --cmm-tool-radius. The part is cut on the
+independent machine (tests/truth), whose Z straightness along X and Y the CMM reads on the floor of
+the part."""
 from __future__ import annotations
 
 import csv
