@@ -11,19 +11,23 @@ figure of merit is the error left after a rigid alignment in the plane (3 dof, l
 * mtcomp    `mtcomp identify` on the other plates' points files (written from the QIF file by
             examples/qif_holes_to_points.py, each with its fitted set-up, i.e. its CMM alignment),
             `mtcomp predict` for the left-out plate; rigid-aligned rms of (predicted - measured),
-            over rigid
+            over rigid. Twice: with the machine file's travel (examples/hurco_vmx_plates.toml, a
+            610 x 508 mm table) and with the travel cut to the plate's region (the holes' extent
+            plus 5 mm): the fit holds what the data fix only weakly over the travel, and a profile
+            of yaw fixed over a 120 mm plate is weak over a 610 mm travel
 * cubic     the users' map: per component a full cubic polynomial in (x, y) (10 terms), least
             squares over every hole of the other plates pooled; the same ratio
-* mean      the per-hole mean of the other plates' errors (no model at all: what any map of
-            position can at best repeat); the same ratio
+* mean      the per-hole mean of the other plates' errors (no model: the batch's common pattern,
+            hole by hole); the same ratio
 
 and the repeatability of the batch: the rms over its plates of each plate's rigid-aligned error
 about the batch's mean pattern, against that pattern's own rigid-aligned rms.
 
     python benchmarks/bench_plates.py [--batch short|long|operator|all]... [--machine TOML]
+                                      [--travel machine|region]...
 
-Default batches: `short` (plates 1-9, one tool length) and `all` (the 20 plates). Each left-out
-plate costs one `mtcomp identify` and one `mtcomp predict` run (about 10 to 30 s on this machine).
+Default: the batch `short` (plates 1-9, one tool length), both travels. Each left-out plate costs
+one `mtcomp identify` and one `mtcomp predict` run per travel (20 to 40 s on this machine).
 """
 from __future__ import annotations
 
@@ -99,39 +103,63 @@ def mtcomp_prediction(machine: Path, files: dict[int, Path], left_out: int, work
     return read_points(pred, ("pred_dx_um", "pred_dy_um"))[1]
 
 
-def batch_figures(name, plates, files, machine, work):
+def region_machine(machine_toml: Path, xy: np.ndarray, target: Path) -> Path:
+    """The machine file with its X and Y travel cut to the holes' extent plus 5 mm (Z to +-5 mm)."""
+    lo, hi = xy.min(axis=0) - 5.0, xy.max(axis=0) + 5.0
+    travel = {"X": (lo[0], hi[0]), "Y": (lo[1], hi[1]), "Z": (-5.0, 5.0)}
+    lines, axis = [], None
+    for line in machine_toml.read_text().splitlines():
+        if line.startswith("[axes."):
+            axis = line[6]
+        elif line.startswith("travel_mm") and axis in travel:
+            line = f"travel_mm = [{travel[axis][0]:.3f}, {travel[axis][1]:.3f}]"
+        lines.append(line)
+    target.write_text("\n".join(lines) + "\n")
+    return target
+
+
+def batch_figures(name, plates, files, machines, work):
+    """Per left-out plate: the rigid-aligned error and the ratios of mtcomp on each of ``machines``,
+    the cubic map and the per-hole mean; returns the medians of the ratios."""
     xy = {p: read_points(files[p])[0] for p in plates}
     err = {p: read_points(files[p])[1] for p in plates}
     if any(not np.array_equal(xy[p], xy[plates[0]]) for p in plates):
         raise SystemExit("the plates' holes differ; the per-hole mean needs the same holes")
     print(f"\nbatch {name}: plates {plates[0]}-{plates[-1]} ({len(plates)}), left out one at a time")
-    print(f"{'plate':>5} {'rigid um':>9} {'mtcomp':>7} {'cubic':>7} {'mean':>7}")
+    print(f"{'plate':>6} {'rigid um':>9} " + " ".join(f"{m:>15}" for m in machines)
+          + f" {'cubic':>7} {'mean':>7}")
     ratios = []
     for p in plates:
         others = [q for q in plates if q != p]
         rigid = rigid_aligned_rms(xy[p], err[p])
         train_xy = np.vstack([xy[q] for q in others])
         train_err = np.vstack([err[q] for q in others])
-        predictions = (mtcomp_prediction(machine, {q: files[q] for q in plates}, p, work),
-                       cubic_prediction(train_xy, train_err, xy[p]),
-                       np.mean([err[q] for q in others], axis=0))
+        predictions = [mtcomp_prediction(machines[m], {q: files[q] for q in plates}, p, work)
+                       for m in machines]
+        predictions += [cubic_prediction(train_xy, train_err, xy[p]),
+                        np.mean([err[q] for q in others], axis=0)]
         row = [rigid_aligned_rms(xy[p], pred - err[p]) / rigid for pred in predictions]
         ratios.append(row)
-        print(f"{p:5d} {rigid:9.2f} " + " ".join(f"{r:7.2f}" for r in row), flush=True)
+        widths = [15] * len(machines) + [7, 7]
+        print(f"{p:6d} {rigid:9.2f} " + " ".join(f"{r:{w}.2f}" for r, w in zip(row, widths)),
+              flush=True)
     median = np.median(ratios, axis=0)
-    print(f"{'median':>5} {np.median([rigid_aligned_rms(xy[p], err[p]) for p in plates]):9.2f} "
-          + " ".join(f"{r:7.2f}" for r in median))
+    print(f"{'median':>6} {np.median([rigid_aligned_rms(xy[p], err[p]) for p in plates]):9.2f} "
+          + " ".join(f"{r:{w}.2f}" for r, w in zip(median, widths)))
     pattern = np.mean([err[p] for p in plates], axis=0)
     scatter = np.sqrt(np.mean([rigid_aligned_rms(xy[p], err[p] - pattern) ** 2 for p in plates]))
-    print(f"common pattern (mean of the batch, rigid-aligned) {rigid_aligned_rms(xy[plates[0]], pattern):.2f} um;"
-          f" plate-to-plate scatter about it {scatter:.2f} um rms")
+    common = rigid_aligned_rms(xy[plates[0]], pattern)
+    print(f"common pattern (mean of the batch, rigid-aligned) {common:.2f} um; "
+          f"plate-to-plate scatter about it {scatter:.2f} um rms")
     return median
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--batch", action="append", choices=sorted(BATCHES))
-    parser.add_argument("--machine", type=Path, default=MACHINE)
+    parser.add_argument("--machine", type=Path, default=MACHINE, help="machine TOML file")
+    parser.add_argument("--travel", action="append", choices=("machine", "region"),
+                        help="mtcomp on the machine's travel, on the plate's region (default both)")
     args = parser.parse_args(argv)
     if not QIF.exists():
         print(f"skipped: {QIF} is absent (the NIST plate data, see tests/data/real/plates)")
@@ -141,12 +169,16 @@ def main(argv=None) -> int:
         run([str(CONVERTER), str(QIF), str(work / "plates"), "--part-to-program", PART_TO_PROGRAM,
              "--top-z", "4.5"], work)
         files = {p: work / "plates" / f"part{p:02d}.csv" for p in range(1, 21)}
-        medians = {}
-        for name in args.batch or ["short", "all"]:
-            medians[name] = batch_figures(name, list(BATCHES[name]), files, args.machine, work)
+        region = region_machine(args.machine, read_points(files[1])[0], work / "region.toml")
+        choices = {"machine": ("mtcomp travel", args.machine.resolve()),
+                   "region": ("mtcomp region", region)}
+        machines = dict(choices[t] for t in (args.travel or ["machine", "region"]))
+        medians = {name: batch_figures(name, list(BATCHES[name]), files, machines, work)
+                   for name in args.batch or ["short"]}
     print("\nmedian remaining / rigid-aligned error (goal <= 0.75):")
-    for name, (ours, cubic, mean) in medians.items():
-        print(f"  {name:9s} mtcomp {ours:.2f}   cubic map {cubic:.2f}   per-hole mean {mean:.2f}")
+    for name, median in medians.items():
+        print(f"  {name:9s} " + "   ".join(f"{label} {r:.2f}" for label, r in
+                                          zip([*machines, "cubic map", "per-hole mean"], median)))
     return 0
 
 

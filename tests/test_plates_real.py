@@ -58,9 +58,11 @@ def _qif_text(unit="mm"):
                     f"{slot}</FeatureActuals></MeasuredFeatures><ActualComponentIds n='1'>"
                     f"<Id>{60 + p}</Id></ActualComponentIds></MeasurementResults>")
         serial = "<SerialNumber>PLATE_A01</SerialNumber>" if p == 0 else ""
-        components += f"<ActualComponentSet><ActualComponent id='{60 + p}'>{serial}</ActualComponent></ActualComponentSet>"
+        components += (f"<ActualComponentSet><ActualComponent id='{60 + p}'>{serial}"
+                       f"</ActualComponent></ActualComponentSet>")
     return (f'<?xml version="1.0"?><QIFDocument xmlns="http://qifstandards.org/xsd/qif2">'
-            f"<FileUnits><PrimaryUnits><LinearUnit><UnitName>{unit}</UnitName></LinearUnit></PrimaryUnits></FileUnits>"
+            f"<FileUnits><PrimaryUnits><LinearUnit><UnitName>{unit}</UnitName></LinearUnit>"
+            f"</PrimaryUnits></FileUnits>"
             f"<Features><FeatureDefinitions>{defs}</FeatureDefinitions><FeatureNominals>{noms}"
             f"</FeatureNominals><FeatureItems>{items}</FeatureItems></Features><MeasurementsResults>"
             f"<MeasurementResultsSet>{results}</MeasurementResultsSet><ActualComponentSets>{components}"
