@@ -21,6 +21,7 @@ from ..machine import Machine
 from ._arcs import PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, centre_from_radius
 from .blocks import CycleBlock, MotionBlock
 from .dialect import GENERIC
+from .programmed import ProgrammedOffsets, apply_g10
 from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _COLON_PROGRAM_RE, _CURVE_WITH_COORDINATES,
                     _NUMBERED_PERCENT_RE,
                     _REFUSED_G, _REFUSED_M, _UNIQUE_LETTERS, _WCS_INDEX, DEFAULT_CHORD_TOL_MM,
@@ -33,6 +34,9 @@ _CSV_HEADER = re.compile(r"^[A-Za-z_][\w ]*(?:,[\w ]*){2,}$")
 #: grbl's real-time commands (status query, cycle start/resume, feed hold, soft reset): sent as
 #: single characters, they have no effect on the program's geometry (grbl v1.1 interface docs)
 _REALTIME = frozenset({"?", "~", "!", "\x18"})
+#: a Fanuc / Haas alarm-only IF (``IF [#5405 GE 6000] THEN #3000=15``): left in the program by
+#: the macro run only where its condition reads system variables (:mod:`.macro`); no motion
+_ALARM_IF = re.compile(r"(?i)^\s*(?:n\s*\d+\s*)?if\s*\[.*\]\s*then\s*#\s*3000\s*=")
 
 
 class ModalState:
@@ -103,10 +107,13 @@ class ModalState:
         self.had_g = False
         #: the last block was a drilling cycle line (passed through)
         self.cycle_line = False
+        #: work offsets the program sets itself (G10 L2/L20); their sets are numbered alike in
+        #: every pass over one ProgramSource
+        self.offsets = ProgrammedOffsets(self.na, getattr(path, "work_offset_sets", None))
 
     @property
     def frame(self) -> int:
-        return frame_code(self.wcs, self.tool, self.tcp)
+        return frame_code(self.wcs, self.tool, self.tcp, self.offsets.index)
 
     @property
     def python_only(self) -> bool:
@@ -202,6 +209,8 @@ class ModalState:
             return None
         if s[0] == "/":
             raise self._err("block delete '/' is not supported", line)
+        if self.dialect.language == "macro" and _ALARM_IF.match(s):
+            return None
         if line == 1 and _CSV_HEADER.match(s):
             raise self._err("this looks like a CSV file (a header of comma-separated names), not "
                             "G-code: give the NC program here", line)
@@ -252,7 +261,7 @@ class ModalState:
         nonmotion_axes = False     # G4 dwell (X/P is time), G28/G30/G53: axis words are no motion
         home_move = None
         cycle = None
-        dwell = False
+        dwell = g10 = False
         tool_change = any(m == 6 for m in mcodes)
         for m in mcodes:
             if m in TCP_ON_M or m in TCP_OFF_M:
@@ -280,12 +289,16 @@ class ModalState:
                 home_move = gi
             elif gi in _CANNED_CYCLES:
                 cycle = gi
+            elif gi == 10:
+                nonmotion_axes = g10 = True          # the axis words are offsets
             else:
                 self._apply_modal_code(gi, values)
         if dwell and motion is not None and home_move is None:
             nonmotion_axes = self._dwell_with_motion(motion, tokens, line)
         if tool_change:
             self._forget(self.tool_axis)
+        if g10:
+            apply_g10(self, values, tokens, line)
         return motion, nonmotion_axes, home_move, cycle
 
     def _dwell_with_motion(self, motion: int, tokens, line: int) -> bool:

@@ -43,6 +43,9 @@ class ProgramSource(os.PathLike):
     executed: int = 0
     source_lines: int = 0
     notes: list = field(default_factory=list)
+    #: the distinct sets of work offsets the program sets itself (G10 L2/L20), numbered by the
+    #: reader (:mod:`.programmed`) and applied by :meth:`~.offsets.ProgramSetup.apply`
+    work_offset_sets: list = field(default_factory=list)
     _map_array: object = field(default=None, repr=False)     # line_map as an int64 array, once
 
     def __fspath__(self) -> str:
