@@ -4,7 +4,7 @@ that make none. Then `compare` checks that a compensated program moves like its 
 correction.
 
 Replay: modal G0/G1/G2/G3 (I J K or R), G90/G91, G20/G21 (everything in mm and degrees), G17/G18/
-G19, drilling cycles G73 and G81-G89 expanded into their moves (to X Y at the current level, to the
+G19, G90.1/G91.1 (absolute or incremental arc centres), drilling cycles G73 and G81-G89 expanded into their moves (to X Y at the current level, to the
 R plane, to the bottom, back to R with G99 or to the higher of R and the initial level with G98;
 incremental R from the current level and Z from R under G91, L repeats), G28/G30 and G53 moves
 leave the axes they move (G28/G30 without axis words: every axis) at an unknown position, so do a
@@ -62,6 +62,7 @@ class _State:
     cycle_r: float = None
     cycle_z: float = None
     wcs: str = "G54"
+    arc_absolute: bool = False   # G90.1: I J K are the centre's position
 
 
 def _words(code):
@@ -112,6 +113,8 @@ def _modal(st, gs, words):
             st.scale = 25.4 if g == 20 else 1.0
         elif g in (90, 91):
             st.absolute = g == 90
+        elif g in (90.1, 91.1):
+            st.arc_absolute = g == 90.1
         elif g in (17, 18, 19):
             st.plane = int(g)
         elif g in (98, 99):
@@ -197,8 +200,9 @@ def _arc(st, index, words):
         mx, my = (x0 + x1) / 2.0, (y0 + y1) / 2.0
         cx, cy = mx - side * h * (y1 - y0) / d, my + side * h * (x1 - x0) / d
     else:
-        cx = x0 + value.get(off1, 0.0) * st.scale
-        cy = y0 + value.get(off2, 0.0) * st.scale
+        base = (0.0, 0.0) if st.arc_absolute else (x0, y0)
+        cx = base[0] + value.get(off1, 0.0) * st.scale
+        cy = base[1] + value.get(off2, 0.0) * st.scale
     a0 = math.atan2(y0 - cy, x0 - cx)
     a1 = math.atan2(y1 - cy, x1 - cx)
     sweep = (a1 - a0) % (2 * math.pi) if ccw else -((a0 - a1) % (2 * math.pi))

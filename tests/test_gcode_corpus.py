@@ -39,12 +39,11 @@ REFUSED = {
     # (read as RS274/NGC, Sinumerik 850's @ codes are polar words)
     "gcodeworkshop_SINUMERIK850.nc": ["SINUMERIK850.nc:9:", "polar word"],
     "gcodeworkshop_OSP5020M.nc": ["OSP5020M.nc:3:", "OSTRT"],
-    "pygcode_Mach3 write.tap": ["write.tap:3:", "G90.1 (absolute arc centres)"],
     # a CAM's 3-decimal inch arcs: end radius 0.0009 in off the start radius
     "pygcode_Smiley002.nc": ["Smiley002.nc:10:", "arc radius inconsistent"],
 }
-#: the share of the corpus accepted today (47 of 57); the goal is 95 %
-MIN_ACCEPTED = 0.82
+#: the share of the corpus accepted today (48 of 57); the goal is 95 %
+MIN_ACCEPTED = 0.84
 _COMMENT = re.compile(r"\([^)]*\)|;.*")
 _WORD = re.compile(r"([A-Z])\s*([-+]?\s*(?:\d+\.?\d*|\.\d+))")
 

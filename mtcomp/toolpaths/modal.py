@@ -74,6 +74,8 @@ class ModalState:
         self.dirs = np.ones(self.na, np.int8)
         self.motion: int | None = None
         self.plane = 17
+        #: G90.1 in force: arc centre words I J K are positions, not offsets from the start
+        self.arc_absolute = False
         self.inch = bool(inch)
         self.incremental = False
         self.feed = math.nan
@@ -325,6 +327,8 @@ class ModalState:
         G54.1: every axis unknown); the others (G28.1, G30.1 ...) change nothing followed here."""
         if g in _WCS_INDEX:
             self._set_wcs(_WCS_INDEX[g])
+        elif round(g, 1) in (90.1, 91.1):          # arc centres absolute / incremental
+            self.arc_absolute = round(g, 1) == 90.1
         elif round(g, 1) == 43.4:                # Fanuc's tool centre point control with H
             self.tool = int(values.get("H", self.selected_tool))
             self._set_tcp(True)
@@ -447,7 +451,8 @@ class ModalState:
         return MotionBlock(line, self.motion, start, end, feed, pts, dirs, centre, self.plane,
                            self.inch, words, number, self.known.copy(), given, raw_axes,
                            motion_word, self.incremental, self.inverse_time and self.motion != 0,
-                           self.f_word, self.frame, start_known=start_known)
+                           self.f_word, self.frame, start_known=start_known,
+                           absolute_centre=self.arc_absolute and centre is not None)
 
     def _blind_increment(self, values, axes_given) -> None:
         """An incremental G0/G1 move of an axis whose position the program has not given (a Haas
@@ -684,7 +689,10 @@ class ModalState:
                     raise ArcError(f"{bad[0]} word is not an offset in plane G{plane}")
                 if l0 not in values and l1 not in values:
                     raise ArcError(f"arc without centre: give {l0}/{l1} or R in plane G{plane}")
-                centre2 = s2 + scale * np.array([values.get(l0, 0.0), values.get(l1, 0.0)])
+                offset = scale * np.array([values.get(l0, 0.0), values.get(l1, 0.0)])
+                if self.arc_absolute and not (l0 in values and l1 in values):
+                    raise ArcError(f"arc in G90.1 (absolute centre) without both {l0} and {l1}")
+                centre2 = offset if self.arc_absolute else s2 + offset
             pts = arc_chords(start, end, centre2, plane, ccw, self.chord_tol, self.xyz_index)
         except ArcError as exc:
             raise self._err(str(exc), line) from None

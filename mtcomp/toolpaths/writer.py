@@ -486,8 +486,11 @@ class _ArcFit:
                     yield [("R", t)], centre_from_radius(s2, e2, float(t) * scale, self.ccw)
                 except ArcError:
                     pass
-        texts = [format_number((centre[j] - s2[j]) / scale, self.cdecs[j]) for j in range(2)]
-        yield list(zip(self.letters_c, texts)), s2 + np.array([float(t) for t in texts]) * scale
+        # I J K: the centre less the start, or in G90.1 the centre itself (it moves with the
+        # correction like an end point)
+        base = np.zeros(2) if self.block.absolute_centre else s2
+        texts = [format_number((centre[j] - base[j]) / scale, self.cdecs[j]) for j in range(2)]
+        yield list(zip(self.letters_c, texts)), base + np.array([float(t) for t in texts]) * scale
 
     def _fits(self, start_w, end_w, centre, full, inner, span, spiral) -> bool:
         """The arc start_w -> end_w about centre misses none of the points inner by more than the
