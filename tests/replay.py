@@ -9,7 +9,9 @@ R plane, to the bottom, back to R with G99 or to the higher of R and the initial
 incremental R from the current level and Z from R under G91, L repeats), G28/G30 and G53 moves
 leave the axes they move (G28/G30 without axis words: every axis) at an unknown position, so do a
 tool change or tool length change (Z) and a change of work coordinate system (every axis); G92 sets
-the named axes; G4 dwells and moves too when the block has axis words. Comments `( )` and `;`, `%`, `:` program numbers, `$` lines and a DOS end-of-file mark
+the named axes; G10 L2/L20 set a work system's origin (the active system's position moves by the
+change where the old origin is known, else becomes unknown); G4 dwells and moves too when the
+block has axis words. Comments `( )` and `;`, `%`, `:` program numbers, `$` lines and a DOS end-of-file mark
 make no move.
 
 A position is a dict axis -> value (mm or deg) or None where the controller's position in the
@@ -63,6 +65,7 @@ class _State:
     cycle_z: float = None
     wcs: str = "G54"
     arc_absolute: bool = False   # G90.1: I J K are the centre's position
+    offsets: dict = field(default_factory=dict)   # (wcs, axis) -> offset set by G10 L2/L20
 
 
 def _words(code):
@@ -150,6 +153,7 @@ def _block(st, index, words):
                 st.pos[letter] = _value(st, letter, v)
         return []
     if 10 in gs:            # G10 L..: the axis words are data, not a move (G4 is a dwell only)
+        _g10(st, words)
         return []
     if st.motion in _CYCLES:
         return _cycle(st, index, words) if (axes or "L" in dict(words)) else []
@@ -160,6 +164,30 @@ def _block(st, index, words):
         kind = "rapid" if st.motion == 0 else "feed"
         return _go(st, Move(index, kind, dict(st.pos), _target(st, words)))
     return []
+
+
+def _g10(st, words):
+    """G10 L2 / L20 P: set the origin of a work system (P0: the active one). The active system's
+    position changes with it: by the change where the old offset is known, to the given value
+    under L20, unknown otherwise."""
+    value = dict(words)
+    p = int(value.get("P", -1))
+    wcs = st.wcs if p == 0 else f"G{53 + p}" if 1 <= p <= 6 else f"P{p}"
+    for letter, v in words:
+        if letter not in AXES:
+            continue
+        v = _value(st, letter, v)
+        old = st.offsets.get((wcs, letter))
+        pos = st.pos[letter]
+        if value.get("L") == 20:
+            new = None if old is None or pos is None else pos + old - v
+            if wcs == st.wcs:
+                st.pos[letter] = v
+        else:
+            new = v
+            if wcs == st.wcs:
+                st.pos[letter] = None if old is None or pos is None else pos + old - new
+        st.offsets[(wcs, letter)] = new
 
 
 def _motion_mode(st, gs):
@@ -222,8 +250,10 @@ def _cycle(st, index, words):
         if "Z" in value:
             st.cycle_z = value["Z"] * st.scale
     else:
+        # R from the series' initial level (LinuxCNC: its cycle_il; mtcomp refuses a series
+        # where other controllers differ)
         if "R" in value:
-            st.cycle_r = None if z_now is None else z_now + value["R"] * st.scale
+            st.cycle_r = None if st.init_z is None else st.init_z + value["R"] * st.scale
         if "Z" in value and st.cycle_r is not None:
             st.cycle_z = st.cycle_r + value["Z"] * st.scale
     r, bottom = st.cycle_r, st.cycle_z

@@ -1,5 +1,6 @@
 """What controllers accept that a strict reading of RS-274 would not, each against a hand-derived
-case on both reader and writer paths: absolute arc centres (G90.1)."""
+case on both reader and writer paths: absolute arc centres (G90.1), arcs whose end radius is off
+the start radius within LinuxCNC's tolerance (a spiral)."""
 import numpy as np
 import pytest
 
@@ -38,3 +39,46 @@ def test_g90_1_centre_moves_with_the_correction(tmp_path, gcode_path):
     # incremental offsets of the next arc (G91.1) do not change
     assert out[2] == "G2 X8.0010 Y0.0020 I5.0010 J0.0020 F100"
     assert out[4] == "G3 X2.0010 Y0.0020 I-3 J0"
+
+
+def test_an_arc_whose_end_radius_is_off_is_the_controllers_spiral(tmp_path, gcode_path):
+    # a quarter turn counter-clockwise from (1, 0) in about the origin to (0, 1.002) in: 0.002 in
+    # is within LinuxCNC's 2 sqrt(2) * 0.001 in, so the controller runs a spiral whose radius goes
+    # linearly with the angle from 1 to 1.002 in
+    ends = _ends(tmp_path, "G20 G90\nG0 X1 Y0 Z0\nG3 X0 Y1.002 I-1 J0 F10\nM30\n")[1:] / 25.4
+    angle = np.arctan2(ends[:, 1], ends[:, 0])
+    assert len(ends) > 10 and angle.min() > 0
+    np.testing.assert_allclose(np.hypot(ends[:, 0], ends[:, 1]), 1 + 0.002 * angle / (np.pi / 2),
+                               rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("text, accepted", [
+    ("G21\nG0 X10 Y0\nG3 X0 Y10.025 I-10 J0", True),       # 0.025 mm < 0.0283 mm
+    ("G21\nG0 X10 Y0\nG3 X0 Y10.03 I-10 J0", False),       # over it, and over 0.1 % of 10 mm
+    ("G21\nG0 X100 Y0\nG3 X0 Y100.09 I-100 J0", True),     # over it, within 0.1 % of 100 mm
+    ("G20\nG0 X1 Y0\nG3 X0 Y1.0028 I-1 J0", True),         # 0.0028 in < 0.00283 in
+    ("G20\nG0 X1 Y0\nG3 X0 Y1.0029 I-1 J0", False),
+    ("G20\nG0 X1000 Y0\nG3 X0 Y1000.29 I-1000 J0", False),  # over 100 times 0.00283 in
+])
+def test_the_arc_radius_rule_is_linuxcncs(tmp_path, text, accepted):
+    if accepted:
+        assert len(_ends(tmp_path, text + " F100\nM30\n")) > 2
+    else:
+        with pytest.raises(InputError, match="arc radius inconsistent"):
+            _ends(tmp_path, text + " F100\nM30\n")
+
+
+def test_polar_words_with_a_repeat_count_drill_the_circle(tmp_path, gcode_path):
+    # LinuxCNC's bolt circle: from (1.5, 0) in, six holes 60 deg apart on the 1.5 in radius,
+    # R 0.1 in above the initial level 0 each time, the bottom 0.5 in below R
+    p = tmp_path / "p.ngc"
+    p.write_text("G20 G17 G90\nG0 X1.5 Y0 Z0\nG91 G81 R.1 Z-.5 ^60 L6 F10\nM2\n")
+    chunks = list(iter_segment_chunks(p, XFYZ))
+    holes = np.vstack([c.end[c.cycle] for c in chunks]) / 25.4
+    angle = np.radians(60.0 * np.arange(1, 7))
+    np.testing.assert_allclose(holes, np.stack([1.5 * np.cos(angle), 1.5 * np.sin(angle),
+                                                np.full(6, -0.4)], axis=1), rtol=0, atol=1e-6)
+    # in G90 each repeat would drill the same place: not what the program means, refused
+    p.write_text("G20 G17 G90\nG0 X1.5 Y0 Z0\nG81 R.1 Z-.5 ^60 L6 F10\nM2\n")
+    with pytest.raises(InputError, match="incremental"):
+        list(iter_segment_chunks(p, XFYZ))

@@ -601,11 +601,16 @@ class ModalState:
         # where the cycle leaves the tool: the R plane (G99) or the initial level (G98; controllers
         # differ when the R plane lies above it, LinuxCNC takes the higher of the two; neither
         # stated leaves it open)
+        # (neither stated, LinuxCNC: the R plane at or above the initial level is where either
+        # leaves it)
         if self.retract == 99:
             z_after, z_known = r_level, True
         elif self.retract == 98 and init_known and (r_level <= init_z + 1e-9
                                                     or self.dialect.g98_to_higher):
             z_after, z_known = max(init_z, r_level), True
+        elif self.retract is None and init_known and self.dialect.g98_to_higher \
+                and r_level >= init_z - 1e-9:
+            z_after, z_known = r_level, True
         else:
             z_after, z_known = r_level, False
         end = pts[-1].copy()
@@ -693,7 +698,8 @@ class ModalState:
                 if self.arc_absolute and not (l0 in values and l1 in values):
                     raise ArcError(f"arc in G90.1 (absolute centre) without both {l0} and {l1}")
                 centre2 = offset if self.arc_absolute else s2 + offset
-            pts = arc_chords(start, end, centre2, plane, ccw, self.chord_tol, self.xyz_index)
+            pts = arc_chords(start, end, centre2, plane, ccw, self.chord_tol, self.xyz_index,
+                             self.inch)
         except ArcError as exc:
             raise self._err(str(exc), line) from None
         centre = np.zeros(3)

@@ -21,9 +21,8 @@ import numpy as np
 
 from ..io.atomic import atomic_write
 from ..machine import Machine
-from ._arcs import (ARC_RADIUS_TOL_MM, ARC_RADIUS_TOL_REL, FULL_CIRCLE_TOL_MM, PLANE_AXES,
-                    PLANE_OFFSET_LETTERS, ArcError, arc_misses, arc_samples, arc_sweep,
-                    centre_from_radius, fit_arc_centre)
+from ._arcs import (FULL_CIRCLE_TOL_MM, PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_misses,
+                    arc_samples, arc_sweep, centre_from_radius, fit_arc_centre, radius_refused)
 from .blocks import MotionBlock
 from .modal import ModalState
 from .reader import iter_blocks, new_state
@@ -498,7 +497,7 @@ class _ArcFit:
         ``spiral`` (mm) of its start radius (and within the reader's tolerance)."""
         cols = list(self.cols)
         r0, r1 = math.hypot(*(start_w[cols] - centre)), math.hypot(*(end_w[cols] - centre))
-        if abs(r1 - r0) > min(spiral, max(ARC_RADIUS_TOL_MM, ARC_RADIUS_TOL_REL * max(r0, r1))):
+        if abs(r1 - r0) > spiral or radius_refused(r0, r1, self.block.inch):
             return False
         _a0, sweep = arc_sweep(start_w[cols], end_w[cols], centre, self.ccw, full)
         if abs(sweep - span) > 0.25 * math.pi:
