@@ -514,7 +514,7 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
 
 def _run_notes(program, written, fitted, setup, tally) -> list[str]:
     """The notes after a run: the program's expansion, drilling cycles, datums, feeds, set-up."""
-    notes = []
+    notes = list(program.notes)
     if program.expanded:
         notes.append(f"the program's code was run: {program.executed} lines executed from its "
                      f"{program.source_lines}; the output is that expansion, corrected (its first "

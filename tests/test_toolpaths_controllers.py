@@ -1,6 +1,7 @@
 """What controllers accept that a strict reading of RS-274 would not, each against a hand-derived
 case on both reader and writer paths: absolute arc centres (G90.1), arcs whose end radius is off
-the start radius within LinuxCNC's tolerance (a spiral)."""
+the start radius within LinuxCNC's tolerance (a spiral), polar words with a repeat count in a G91
+drilling cycle, U V W words of axes the model does not have."""
 import numpy as np
 import pytest
 
@@ -82,3 +83,26 @@ def test_polar_words_with_a_repeat_count_drill_the_circle(tmp_path, gcode_path):
     p.write_text("G20 G17 G90\nG0 X1.5 Y0 Z0\nG81 R.1 Z-.5 ^60 L6 F10\nM2\n")
     with pytest.raises(InputError, match="incremental"):
         list(iter_segment_chunks(p, XFYZ))
+
+
+def test_u_v_w_words_pass_through_and_the_other_axes_are_corrected(tmp_path, gcode_path):
+    # a quill W: the line with W alone is no motion of the model (kept byte for byte), a line with
+    # X and W gets its X corrected and its W as written; no W word is ever added
+    text = "G21 G90\nG0 X1 Y2 Z3\ng1 w100 f2000 (drill)\nG0 X4 W0\nG91 W-5\nM30\n"
+    shift = lambda p: np.tile([0.001, 0.0, 0.0], (len(p), 1))      # noqa: E731
+    out = _write_with(tmp_path, text, field=shift).splitlines()
+    assert out == ["G21 G90", "G0 X1.0010 Y2 Z3", "g1 w100 f2000 (drill)", "G0 X4.0010 W0",
+                   "G91 W-5", "M30"]
+    np.testing.assert_allclose(_ends(tmp_path, text), [[1, 2, 3], [4, 2, 3]], rtol=0, atol=0)
+
+
+def test_u_v_w_words_are_said_once(tmp_path, capsys):
+    from test_compensate_cli import _model, _run
+    _machine, _fitted, model = _model(tmp_path, "xfyz", seed=8)
+    p = tmp_path / "w.nc"
+    p.write_text("G21 G90\nG0 X1 Y2 Z3\nG1 W100 F2000\nG0 W0\nG1 X4 F100\nM30\n")
+    code, stdout, err = _run(["compensate", "xfyz", str(model), str(p), "-o",
+                              str(tmp_path / "o.nc")], capsys)
+    assert code == 0, err
+    assert stdout.count("axis words U, V, W (axes the machine model does not have) pass through "
+                        "unchanged and uncorrected") == 1

@@ -58,6 +58,7 @@ class ModalState:
         self.machine = machine
         self.path = None if path is None else os.fspath(path)
         self.dialect = getattr(path, "dialect", None) or GENERIC
+        self._source = path
         self._locate = getattr(path, "locate", None)
         self.chord_tol = float(chord_tol)
         if not self.chord_tol > 0:
@@ -375,16 +376,25 @@ class ModalState:
 
     def _axis_words(self, values, line: int) -> list[str]:
         """The axis letters the line names (X Y Z A B C order); refuses axes the machine has not."""
-        for letter in "UVW":
-            if letter in values:
-                raise self._err(f"axis word {letter}: machine {self.machine.name} has no {letter} axis",
-                                line)
+        foreign = [c for c in "UVW" if c in values]
+        if foreign:
+            self._note_foreign(foreign)
         axes_given = [c for c in _AXIS_LETTERS if c in values]
         for c in axes_given:
             if c not in self.names:
                 raise self._err(f"axis word {c}: machine {self.machine.name} has no {c} axis "
                                 f"(axes: {' '.join(self.names)})", line)
         return axes_given
+
+    def _note_foreign(self, letters) -> None:
+        """U V W words (axes parallel to X Y Z that the machine model does not have, e.g. a quill
+        W) pass through as written and uncorrected: said once, in the program's notes."""
+        note = ("note: axis words U, V, W (axes the machine model does not have) pass through "
+                "unchanged and uncorrected; the other axes' corrections are those at their "
+                "positions")
+        notes = getattr(self._source, "notes", None)
+        if notes is not None and note not in notes:
+            notes.append(note)
 
     def _set_feed(self, values, line: int) -> None:
         """An F word: the feed (mm/min), or under G93 the inverse time (1/min) of the block."""
