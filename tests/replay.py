@@ -4,15 +4,16 @@ that make none. Then `compare` checks that a compensated program moves like its 
 correction.
 
 Replay: modal G0/G1/G2/G3 (I J K or R), G90/G91, G20/G21 (everything in mm and degrees), G17/G18/
-G19, G90.1/G91.1 (absolute or incremental arc centres), drilling cycles G73 and G81-G89 expanded into their moves (to X Y at the current level, to the
-R plane, to the bottom, back to R with G99 or to the higher of R and the initial level with G98;
-incremental R from the current level and Z from R under G91, L repeats), G28/G30 and G53 moves
+G19, G90.1/G91.1 (absolute or incremental arc centres), G33.1 rigid tapping (to the point and
+back), drilling cycles G73 and G81-G89 expanded into their moves (to X Y at the current level, to
+the R plane, to the bottom, back to R with G99 or to the higher of R and the initial level with
+G98; under G91 R from the series' initial level and Z from R, L repeats), G28/G30 and G53 moves
 leave the axes they move (G28/G30 without axis words: every axis) at an unknown position, so do a
 tool change or tool length change (Z) and a change of work coordinate system (every axis); G92 sets
 the named axes; G10 L2/L20 set a work system's origin (the active system's position moves by the
 change where the old origin is known, else becomes unknown); G4 dwells and moves too when the
-block has axis words. Comments `( )` and `;`, `%`, `:` program numbers, `$` lines and a DOS end-of-file mark
-make no move.
+block has axis words. Comments `( )` and `;`, `%`, `:` program numbers, `$` lines and a DOS
+end-of-file mark make no move.
 
 A position is a dict axis -> value (mm or deg) or None where the controller's position in the
 program's frame is unknown."""
@@ -155,6 +156,11 @@ def _block(st, index, words):
     if 10 in gs:            # G10 L..: the axis words are data, not a move (G4 is a dwell only)
         _g10(st, words)
         return []
+    if st.motion == 33.1:       # rigid tapping: to the point and back to where it started
+        if not axes:
+            return []
+        there = _target(st, words)
+        return [Move(index, "feed", dict(st.pos), there), Move(index, "feed", there, dict(st.pos))]
     if st.motion in _CYCLES:
         return _cycle(st, index, words) if (axes or "L" in dict(words)) else []
     arc_words = any(c in "IJKR" for c, _ in words)
@@ -194,6 +200,8 @@ def _motion_mode(st, gs):
     for g in gs:
         if g in (0, 1, 2, 3):
             st.motion = int(g)
+        elif g == 33.1:
+            st.motion = g
         elif g in _CYCLES:
             if st.motion not in _CYCLES:
                 st.before_cycle, st.init_z = st.motion, st.pos["Z"]

@@ -106,3 +106,19 @@ def test_u_v_w_words_are_said_once(tmp_path, capsys):
     assert code == 0, err
     assert stdout.count("axis words U, V, W (axes the machine model does not have) pass through "
                         "unchanged and uncorrected") == 1
+
+
+def test_rigid_tapping_passes_through_and_ends_where_it_started(tmp_path, gcode_path):
+    # G33.1: to Z-10 synchronised with the spindle and back to Z5, the line as written; Z is
+    # known at 5 after it (the next block may write its corrected Z); X Y in the tapping mode
+    # are another tap at the given X Y and back
+    text = "G21 G90\nG0 X1 Y2 Z5\nG33.1 Z-10 K1.25\nZ-12\nG0 X3\nM30\n"
+    np.testing.assert_allclose(_ends(tmp_path, text), [[1, 2, 5], [3, 2, 5]], rtol=0, atol=0)
+    out = _write_with(tmp_path, text).splitlines()
+    # by hand: field (1e-4 z, -2e-4 z, 3e-4 x) mm at each end (Y's written value is unchanged)
+    assert out == ["G21 G90", "G0 X1.0005 Y1.9990 Z5.0003", "G33.1 Z-10 K1.25", "Z-12",
+                   "G0 X3.0005 Z5.0009", "M30"]
+    # in G91 the line stays incremental where the output is absolute
+    out = _write_with(tmp_path, "G21 G90\nG0 X1 Y2 Z5\nG91 G0 X1\nG33.1 Z-15 K1.25\nG0 X1\nM30\n")
+    assert out.splitlines()[2:] == ["G0 X2.0005 Z5.0006", "G91", "G33.1 Z-15 K1.25",
+                                    "G90 G0 X3.0005 Z5.0009", "M30"]

@@ -110,6 +110,10 @@ class ModalState:
         self.had_g = False
         #: the last block was a drilling cycle line (passed through)
         self.cycle_line = False
+        #: G33.1 (rigid tapping) is the motion mode in force (``motion`` is then None); the line
+        #: read carries G33.1
+        self.tapping = False
+        self.tap_line = False
         #: work offsets the program sets itself (G10 L2/L20); their sets are numbered alike in
         #: every pass over one ProgramSource
         self.offsets = ProgrammedOffsets(self.na, getattr(path, "work_offset_sets", None))
@@ -176,6 +180,10 @@ class ModalState:
         if motion is not None:
             self.motion = motion
             self.cycle = None
+            self.tapping = False
+        if self.tap_line or (self.tapping and self.motion is None and cycle is None
+                             and self.cycle is None and axes_given):
+            return self._rigid_tap(values, axes_given)
         self._set_cycle_mode(cycle, values)
         if self.cycle is not None and axes_given:
             return self._cycle_block(line, values, axes_given, tokens, number)
@@ -188,6 +196,7 @@ class ModalState:
         self.had_g = False
         self.cycle_line = False
         self.cycle_start = False
+        self.tap_line = False
 
     def _text_with_words(self, line: int, text: str) -> str | None:
         """The line's text to tokenize, or None for a line without words, which passes through (an
@@ -328,6 +337,8 @@ class ModalState:
         G54.1: every axis unknown); the others (G28.1, G30.1 ...) change nothing followed here."""
         if g in _WCS_INDEX:
             self._set_wcs(_WCS_INDEX[g])
+        elif round(g, 1) == 33.1:
+            self.tap_line = True
         elif round(g, 1) in (90.1, 91.1):          # arc centres absolute / incremental
             self.arc_absolute = round(g, 1) == 90.1
         elif round(g, 1) == 43.4:                # Fanuc's tool centre point control with H
@@ -359,6 +370,7 @@ class ModalState:
         elif gi in (98, 99):
             self.retract = gi
         elif gi == 80:
+            self.tapping = False
             if not self.dialect.g80_keeps_motion:
                 self.motion = None
             elif self.cycle is not None:
@@ -463,6 +475,26 @@ class ModalState:
                            motion_word, self.incremental, self.inverse_time and self.motion != 0,
                            self.f_word, self.frame, start_known=start_known,
                            absolute_centre=self.arc_absolute and centre is not None)
+
+    def _rigid_tap(self, values, axes_given) -> None:
+        """A G33.1 rigid tapping line (or an axis line in its mode): the spindle-synchronised move
+        to the given point and back; the line passes through unchanged and uncorrected (its
+        overshoot past both ends follows the spindle's reversal, which the program does not give),
+        and every axis ends where it started (LinuxCNC G-code reference, G33.1: the moves end at
+        the original coordinate), approached in the direction of the tap's last move. In G91 the
+        writer keeps the line incremental (``distance_sensitive``)."""
+        self.tapping = True
+        self.motion = None
+        self.cycle = None
+        scale = MM_PER_INCH if self.inch else 1.0
+        for c in axes_given:
+            i = self.names.index(c)
+            v = math.radians(values[c]) if c in "ABC" else values[c] * scale
+            step = v if self.incremental else (v - self.position[i] if self.known[i] else 0.0)
+            if abs(step) > DIR_EPS:
+                self.dirs[i] = 1 if step > 0 else -1
+        self.distance_sensitive = self.incremental and bool(axes_given)
+        return None
 
     def _blind_increment(self, values, axes_given) -> None:
         """An incremental G0/G1 move of an axis whose position the program has not given (a Haas

@@ -37,7 +37,7 @@ _REFUSED_G = {
     68: "G68 (coordinate rotation)", 51: "G51 (scaling)",
     51.1: "G51.1 (mirroring)", 95: "G95 (feed per revolution)",
     74: "canned cycle G74 (left-hand tapping)", 76: "canned cycle G76 (threading)",
-    33: "G33 (spindle-synchronised motion)", 33.1: "G33.1 (rigid tapping)",
+    33: "G33 (spindle-synchronised motion)",
     43.5: "G43.5 (tool centre point control with a tool axis vector I J K: only G43.4, with the "
           "rotary axes' angles, is followed)",
     68.2: "G68.2 (tilted working plane)", 68.3: "G68.3 (tilted working plane)",
