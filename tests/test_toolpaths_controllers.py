@@ -122,3 +122,14 @@ def test_rigid_tapping_passes_through_and_ends_where_it_started(tmp_path, gcode_
     out = _write_with(tmp_path, "G21 G90\nG0 X1 Y2 Z5\nG91 G0 X1\nG33.1 Z-15 K1.25\nG0 X1\nM30\n")
     assert out.splitlines()[2:] == ["G0 X2.0005 Z5.0006", "G91", "G33.1 Z-15 K1.25",
                                     "G90 G0 X3.0005 Z5.0009", "M30"]
+
+
+def test_a_file_of_subroutines_only_is_refused_by_name(tmp_path):
+    # nothing in it runs (an ngcgui file is called by another program, with its arguments)
+    body = "(a library)\no<hole> sub\nG0 X#1 Y#2\nG1 Z-1 F100\no<hole> endsub\n"
+    with pytest.raises(InputError, match="a file of subroutines only .o<hole> sub") as exc:
+        _ends(tmp_path, body)
+    assert exc.value.line == 2
+    # called once from the same file, it runs
+    ends = _ends(tmp_path, "G21 G90\n" + body + "o<hole> call [1] [2]\nM2\n")
+    np.testing.assert_allclose(ends, [[1, 2, 0], [1, 2, -1]], rtol=0, atol=0)

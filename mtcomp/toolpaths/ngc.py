@@ -207,9 +207,22 @@ class NgcRun:
         self.xy = XYTracker()
         self.loop_line = None
         self.main_repeats: dict = {}
+        #: a line with words was executed (a file of subroutine definitions only runs none)
+        self.ran_code = False
 
     def error(self, message: str, index: int) -> InputError:
         return InputError(message, self.path, index + 1)
+
+    def check_ran(self) -> None:
+        """InputError for a file of subroutine definitions that nothing in it calls: no line of
+        words runs (an ngcgui subroutine file runs when another program calls it, with that
+        program's arguments, which this file does not give)."""
+        if self.ran_code or not self.subs:
+            return
+        label, first = min(self.subs.items(), key=lambda item: item[1])
+        raise self.error(f"a file of subroutines only (o{label} sub ... endsub, called by no line "
+                         "of it): nothing in it runs, so nothing is compensated; compensate the "
+                         "program that calls it", first)
 
     def _eval(self, text: str, index: int, what: str) -> float:
         try:
@@ -233,6 +246,7 @@ class NgcRun:
                 text = self._code_line(pc)
                 for t in (text if isinstance(text, list) else [text]):
                     if t is not False:
+                        self.ran_code = self.ran_code or bool(self.codes[pc].text)
                         written += 1
                         check_written(self, written, pc)
                         yield pc, t

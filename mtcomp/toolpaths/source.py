@@ -110,6 +110,8 @@ def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int):
                 else:
                     own = raws[i][len(raws[i].rstrip(b"\r\n")):] or ending.encode()
                     out.write(text.encode("latin-1", "replace") + own)
+            if hasattr(run, "check_ran"):
+                run.check_ran()
         if same and len(line_map) - 1 == len(raws):
             os.unlink(tmp)
             return None
