@@ -251,7 +251,6 @@ def _arc(st, index, words):
 def _cycle(st, index, words):
     """The moves of one drilling cycle block: per hole to X Y, to R, to the bottom, and back."""
     value = dict(words)
-    z_now = st.pos["Z"]
     if st.absolute:
         if "R" in value:
             st.cycle_r = value["R"] * st.scale

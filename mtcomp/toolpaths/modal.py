@@ -620,7 +620,6 @@ class ModalState:
         reps = int(reps)
         start = self.position.copy()
         start_known = bool(self.known.all())
-        init_z, init_known = self.cycle_init
         if inc:
             if not (self.known[xi] and self.known[yi] and self.known[zi]):
                 raise self._err(f"incremental (G91) drilling cycle G{self.cycle} from a position the "
@@ -640,21 +639,7 @@ class ModalState:
         given[[xi, yi, zi]] = True
         known = self.known | given
         dirs = self._directions(start, pts)
-        # where the cycle leaves the tool: the R plane (G99) or the initial level (G98; controllers
-        # differ when the R plane lies above it, LinuxCNC takes the higher of the two; neither
-        # stated leaves it open)
-        # (neither stated, LinuxCNC: the R plane at or above the initial level is where either
-        # leaves it)
-        if self.retract == 99:
-            z_after, z_known = r_level, True
-        elif self.retract == 98 and init_known and (r_level <= init_z + 1e-9
-                                                    or self.dialect.g98_to_higher):
-            z_after, z_known = max(init_z, r_level), True
-        elif self.retract is None and init_known and self.dialect.g98_to_higher \
-                and r_level >= init_z - 1e-9:
-            z_after, z_known = r_level, True
-        else:
-            z_after, z_known = r_level, False
+        z_after, z_known = self._retract_level(r_level)
         end = pts[-1].copy()
         end[zi] = z_after
         self.dirs[zi] = 1                  # the retract moves Z up last
@@ -668,6 +653,22 @@ class ModalState:
         return MotionBlock(line, self.cycle, start, end, feed, pts, dirs, None, self.plane,
                            self.inch, [], number, known, given, {}, True, inc, False, self.f_word,
                            self.frame, info, start_known)
+
+    def _retract_level(self, r_level: float) -> tuple[float, bool]:
+        """(Z where the cycle leaves the tool, mm; whether that is known): the R plane (G99) or
+        the initial level (G98; controllers differ when the R plane lies above it, LinuxCNC takes
+        the higher of the two). Neither stated leaves it open, except on LinuxCNC with the R plane
+        at or above the initial level, where either leaves the tool at the R plane."""
+        init_z, init_known = self.cycle_init
+        if self.retract == 99:
+            return r_level, True
+        if self.retract == 98 and init_known and (r_level <= init_z + 1e-9
+                                                  or self.dialect.g98_to_higher):
+            return max(init_z, r_level), True
+        if self.retract is None and init_known and self.dialect.g98_to_higher \
+                and r_level >= init_z - 1e-9:
+            return r_level, True
+        return r_level, False
 
     def _incremental_r_level(self, z: float, line: int) -> float:
         """The R plane (mm) of a G91 cycle line started at height z: LinuxCNC measures every hole's

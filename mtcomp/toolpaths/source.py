@@ -78,10 +78,13 @@ class ProgramSource(os.PathLike):
         return f"dialect: {self.dialect.name} ({self.why})"
 
 
-def _header(source: str, language: str) -> str:
+def _header(source: str, language: str, dialect: Dialect) -> str:
+    """The expansion's first line; it names the dialect (but generic), so that the written program
+    is read with the same rules when it is read again (``dialect.detect``: a comment naming it)."""
     name = os.path.basename(source).replace("(", "[").replace(")", "]")
-    return (f"(expanded by mtcomp from {name}: {language} computed, one line for each line the "
-            "controller executes)")
+    rules = "" if dialect.name == "generic" else f" for {dialect.name}"
+    return (f"(expanded by mtcomp from {name}{rules}: {language} computed, one line for each line "
+            "the controller executes)")
 
 
 def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int):
@@ -100,7 +103,7 @@ def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int):
     fd, tmp = tempfile.mkstemp(prefix="mtcomp-expanded-", suffix=".nc")
     try:
         with os.fdopen(fd, "wb") as out:
-            out.write((_header(source, language) + ending).encode("latin-1"))
+            out.write((_header(source, language, dialect) + ending).encode("latin-1"))
             for i, text in run.run():
                 same = same and text is None and i == len(line_map) - 1
                 line_map.append(i + 1)
