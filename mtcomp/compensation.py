@@ -472,7 +472,7 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     def machine_chunks():
         for chunk in iter_segment_chunks(src[0], machine, **read):
             tally.read(chunk)
-            mchunk, off = setup.apply(chunk)
+            mchunk, off = setup.apply(chunk, src[0])
             if series is not None:
                 mchunk.context = {f"temp_{k}": v for k, v in series.at(tally.clock(chunk)).items()}
             offsets_of[id(mchunk)] = (chunk, off)
@@ -514,7 +514,7 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
 
 def _run_notes(program, written, fitted, setup, tally) -> list[str]:
     """The notes after a run: the program's expansion, drilling cycles, datums, feeds, set-up."""
-    notes = []
+    notes = list(program.notes)
     if program.expanded:
         notes.append(f"the program's code was run: {program.executed} lines executed from its "
                      f"{program.source_lines}; the output is that expansion, corrected (its first "

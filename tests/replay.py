@@ -4,13 +4,16 @@ that make none. Then `compare` checks that a compensated program moves like its 
 correction.
 
 Replay: modal G0/G1/G2/G3 (I J K or R), G90/G91, G20/G21 (everything in mm and degrees), G17/G18/
-G19, drilling cycles G73 and G81-G89 expanded into their moves (to X Y at the current level, to the
-R plane, to the bottom, back to R with G99 or to the higher of R and the initial level with G98;
-incremental R from the current level and Z from R under G91, L repeats), G28/G30 and G53 moves
+G19, G90.1/G91.1 (absolute or incremental arc centres), G33.1 rigid tapping (to the point and
+back), drilling cycles G73 and G81-G89 expanded into their moves (to X Y at the current level, to
+the R plane, to the bottom, back to R with G99 or to the higher of R and the initial level with
+G98; under G91 R from the series' initial level and Z from R, L repeats), G28/G30 and G53 moves
 leave the axes they move (G28/G30 without axis words: every axis) at an unknown position, so do a
 tool change or tool length change (Z) and a change of work coordinate system (every axis); G92 sets
-the named axes; G4 dwells and moves too when the block has axis words. Comments `( )` and `;`, `%`, `:` program numbers, `$` lines and a DOS end-of-file mark
-make no move.
+the named axes; G10 L2/L20 set a work system's origin (the active system's position moves by the
+change where the old origin is known, else becomes unknown); G4 dwells and moves too when the
+block has axis words. Comments `( )` and `;`, `%`, `:` program numbers, `$` lines and a DOS
+end-of-file mark make no move.
 
 A position is a dict axis -> value (mm or deg) or None where the controller's position in the
 program's frame is unknown."""
@@ -62,6 +65,8 @@ class _State:
     cycle_r: float = None
     cycle_z: float = None
     wcs: str = "G54"
+    arc_absolute: bool = False   # G90.1: I J K are the centre's position
+    offsets: dict = field(default_factory=dict)   # (wcs, axis) -> offset set by G10 L2/L20
 
 
 def _words(code):
@@ -112,6 +117,8 @@ def _modal(st, gs, words):
             st.scale = 25.4 if g == 20 else 1.0
         elif g in (90, 91):
             st.absolute = g == 90
+        elif g in (90.1, 91.1):
+            st.arc_absolute = g == 90.1
         elif g in (17, 18, 19):
             st.plane = int(g)
         elif g in (98, 99):
@@ -147,7 +154,13 @@ def _block(st, index, words):
                 st.pos[letter] = _value(st, letter, v)
         return []
     if 10 in gs:            # G10 L..: the axis words are data, not a move (G4 is a dwell only)
+        _g10(st, words)
         return []
+    if st.motion == 33.1:       # rigid tapping: to the point and back to where it started
+        if not axes:
+            return []
+        there = _target(st, words)
+        return [Move(index, "feed", dict(st.pos), there), Move(index, "feed", there, dict(st.pos))]
     if st.motion in _CYCLES:
         return _cycle(st, index, words) if (axes or "L" in dict(words)) else []
     arc_words = any(c in "IJKR" for c, _ in words)
@@ -159,10 +172,36 @@ def _block(st, index, words):
     return []
 
 
+def _g10(st, words):
+    """G10 L2 / L20 P: set the origin of a work system (P0: the active one). The active system's
+    position changes with it: by the change where the old offset is known, to the given value
+    under L20, unknown otherwise."""
+    value = dict(words)
+    p = int(value.get("P", -1))
+    wcs = st.wcs if p == 0 else f"G{53 + p}" if 1 <= p <= 6 else f"P{p}"
+    for letter, v in words:
+        if letter not in AXES:
+            continue
+        v = _value(st, letter, v)
+        old = st.offsets.get((wcs, letter))
+        pos = st.pos[letter]
+        if value.get("L") == 20:
+            new = None if old is None or pos is None else pos + old - v
+            if wcs == st.wcs:
+                st.pos[letter] = v
+        else:
+            new = v
+            if wcs == st.wcs:
+                st.pos[letter] = None if old is None or pos is None else pos + old - new
+        st.offsets[(wcs, letter)] = new
+
+
 def _motion_mode(st, gs):
     for g in gs:
         if g in (0, 1, 2, 3):
             st.motion = int(g)
+        elif g == 33.1:
+            st.motion = g
         elif g in _CYCLES:
             if st.motion not in _CYCLES:
                 st.before_cycle, st.init_z = st.motion, st.pos["Z"]
@@ -197,8 +236,9 @@ def _arc(st, index, words):
         mx, my = (x0 + x1) / 2.0, (y0 + y1) / 2.0
         cx, cy = mx - side * h * (y1 - y0) / d, my + side * h * (x1 - x0) / d
     else:
-        cx = x0 + value.get(off1, 0.0) * st.scale
-        cy = y0 + value.get(off2, 0.0) * st.scale
+        base = (0.0, 0.0) if st.arc_absolute else (x0, y0)
+        cx = base[0] + value.get(off1, 0.0) * st.scale
+        cy = base[1] + value.get(off2, 0.0) * st.scale
     a0 = math.atan2(y0 - cy, x0 - cx)
     a1 = math.atan2(y1 - cy, x1 - cx)
     sweep = (a1 - a0) % (2 * math.pi) if ccw else -((a0 - a1) % (2 * math.pi))
@@ -211,15 +251,16 @@ def _arc(st, index, words):
 def _cycle(st, index, words):
     """The moves of one drilling cycle block: per hole to X Y, to R, to the bottom, and back."""
     value = dict(words)
-    z_now = st.pos["Z"]
     if st.absolute:
         if "R" in value:
             st.cycle_r = value["R"] * st.scale
         if "Z" in value:
             st.cycle_z = value["Z"] * st.scale
     else:
+        # R from the series' initial level (LinuxCNC: its cycle_il; mtcomp refuses a series
+        # where other controllers differ)
         if "R" in value:
-            st.cycle_r = None if z_now is None else z_now + value["R"] * st.scale
+            st.cycle_r = None if st.init_z is None else st.init_z + value["R"] * st.scale
         if "Z" in value and st.cycle_r is not None:
             st.cycle_z = st.cycle_r + value["Z"] * st.scale
     r, bottom = st.cycle_r, st.cycle_z

@@ -209,7 +209,7 @@ def test_home_moves_and_dwell(tmp_path):
     ("G0 X1\nG2 X2 Y0 I0.5 F100\n", 2, "arc G2 from a position the program has not given"),
     ("G93\nG0 X0 Y0\nG1 X1\n", 3, "G93 .inverse time feed.: the G1 block has no F word"),
     ("G0 X1\nG0 A10\n", 2, "no A axis"),
-    ("G0 X1\nG1 U10\n", 2, "no U axis"),
+    ("G0 X1\nG1 B10\n", 2, "no B axis"),
     ("G0 X0 Y0\nG2 X10 Y0 I4 J0 F100\n", 2, "radius inconsistent"),
     ("G0 X0 Y0\nG2 X30 Y0 R10 F100\n", 2, "R arc impossible"),
     ("G0 X0 Y0\nG2 X0 Y0 R10 F100\n", 2, "start = end"),

@@ -16,11 +16,19 @@ PLANE_AXES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
 #: plane G code -> (offset letter of the first in-plane axis, of the second)
 PLANE_OFFSET_LETTERS = {17: ("I", "J"), 18: ("K", "I"), 19: ("J", "K")}
 
-#: an arc whose end radius differs from its start radius by more than this is refused (mm; a
-#: 4-decimal inch program is off by up to 4 um through rounding alone) ...
+#: an R arc whose chord is longer than its diameter by more than this (mm) ...
 ARC_RADIUS_TOL_MM = 1e-2
-#: ... or by more than this fraction of the radius, whichever is larger
+#: ... or by more than this fraction of the radius, whichever is larger, is refused
 ARC_RADIUS_TOL_REL = 1e-4
+#: an I J K arc whose radius to the end differs from its radius to the start is followed as the
+#: controller does (a spiral: the radius changes linearly with the angle) unless LinuxCNC would
+#: refuse it (interp_arc.cc, arc_data_ijk; constants of interp_internal.hh): a difference over 100
+#: times the absolute tolerance, or over both the absolute tolerance and 0.1 % of the radius. The
+#: absolute tolerance is in the program's units: 2 * sqrt(2) * 0.001 in, or 2 * sqrt(2) * 0.01 mm
+#: (any end point and centre rounded to 0.001 in or 0.01 mm passes)
+SPIRAL_ABS_TOL_INCH = 2 * 0.001 * math.sqrt(2)
+SPIRAL_ABS_TOL_MM = 2 * 0.01 * math.sqrt(2)
+SPIRAL_REL_TOL = 0.001
 #: start and end closer than this (mm) make an I/J/K arc a full circle
 FULL_CIRCLE_TOL_MM = 1e-9
 #: at most this many chords per arc (a guard against absurd radii and tolerances)
@@ -29,6 +37,13 @@ MAX_CHORDS = 1_000_000
 
 class ArcError(ValueError):
     """The arc cannot be interpolated; the message says why (the reader adds file and line)."""
+
+
+def radius_refused(r0: float, r1: float, inch: bool) -> bool:
+    """Whether an arc of start radius r0 and end radius r1 (mm) is refused (the rule above)."""
+    abs_tol = SPIRAL_ABS_TOL_INCH * 25.4 if inch else SPIRAL_ABS_TOL_MM
+    err = abs(r1 - r0)
+    return err > 100.0 * abs_tol or (err > abs_tol and err > SPIRAL_REL_TOL * max(r0, r1))
 
 
 def centre_from_radius(s: np.ndarray, e: np.ndarray, radius: float, ccw: bool) -> np.ndarray:
@@ -59,14 +74,15 @@ def centre_from_radius(s: np.ndarray, e: np.ndarray, radius: float, ccw: bool) -
 
 
 def arc_chords(start: np.ndarray, end: np.ndarray, centre2: np.ndarray, plane: int, ccw: bool,
-               chord_tol: float, xyz_index: tuple[int, int, int]) -> np.ndarray:
+               chord_tol: float, xyz_index: tuple[int, int, int], inch: bool = False) -> np.ndarray:
     """End points (k, n_axes) of the chords of an arc, the last one exactly ``end``.
 
     start, end : (n_axes,) axis positions, mm and rad. centre2 : (2,) centre in the plane, mm.
     plane : 17, 18 or 19. xyz_index : where X, Y and Z sit in the axis vector.
     Every axis outside the plane (the helix axis, rotary axes) moves linearly with the swept angle.
-    The radius may change slightly from start to end (a spiral, within the reader's tolerance): the
-    chords follow the spiral, so both end points are exact. Sagitta of every chord <= chord_tol (mm).
+    The radius may change from start to end (a spiral, within the controller's tolerance,
+    :func:`radius_refused`; ``inch``: the program's units, which the tolerance is in): the chords
+    follow the spiral, so both end points are exact. Sagitta of every chord <= chord_tol (mm).
     """
     i0, i1, _ = PLANE_AXES[plane]
     a, b = xyz_index[i0], xyz_index[i1]
@@ -76,8 +92,9 @@ def arc_chords(start: np.ndarray, end: np.ndarray, centre2: np.ndarray, plane: i
     r1 = float(math.hypot(*(e - centre2)))
     if r0 == 0.0 or r1 == 0.0:
         raise ArcError("arc with zero radius (start or end at the centre)")
-    if abs(r1 - r0) > max(ARC_RADIUS_TOL_MM, ARC_RADIUS_TOL_REL * max(r0, r1)):
-        raise ArcError(f"arc radius inconsistent: {r0:.6g} mm at the start, {r1:.6g} mm at the end")
+    if radius_refused(r0, r1, inch):
+        raise ArcError(f"arc radius inconsistent: {r0:.6g} mm at the start, {r1:.6g} mm at the end "
+                       "(more than a controller accepts)")
     a0 = math.atan2(s[1] - centre2[1], s[0] - centre2[0])
     a1 = math.atan2(e[1] - centre2[1], e[0] - centre2[0])
     if math.hypot(*(e - s)) <= FULL_CIRCLE_TOL_MM:

@@ -126,6 +126,8 @@ class MotionBlock:
         are then the bottoms of its holes (one per hole) and ``end`` where the cycle leaves the tool.
     start_known : every axis's position was known before the block (``start`` is where the machine
         stands, not a placeholder).
+    absolute_centre : an arc written in G90.1 (its I J K are the centre's position in the program's
+        frame, not offsets from the start); the writer writes its centre words the same way.
     """
 
     line: int
@@ -150,6 +152,7 @@ class MotionBlock:
     frame: int = 0
     cycle: "CycleBlock | None" = None
     start_known: bool = True
+    absolute_centre: bool = False
 
     def __post_init__(self):
         if self.known is None:

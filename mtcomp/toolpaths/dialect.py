@@ -51,6 +51,7 @@ _STATEMENT_LINE = re.compile(
     + _MACRO_STATEMENT.encode() + rb")")
 _CLUES = [
     ("linuxcnc", re.compile(r"(?i)^\s*(?:n\s*\d+\s*)?" + _OWORD_KEYWORD + r"|o\s*<|#\s*<")),
+    ("linuxcnc", re.compile(r"\^\s*[-+.\d\[#]")),         # a polar angle word: LinuxCNC's alone
     ("fanuc", re.compile(r"(?i)^\s*(?:n\s*\d+\s*)?(?:" + _MACRO_STATEMENT + r")")),
     ("fanuc", re.compile(r"^\s*[Oo:]\s*\d+\s*(?:\([^()]*\)\s*)*$")),   # a program number O1234
     ("grbl", re.compile(r"^\s*(?:\$[A-Za-z$#]|[?~!]\s*$)")),

@@ -10,6 +10,12 @@ come out, in order, as in :mod:`.ngc`.
 Refused, each by name: a variable read before it is set (a Fanuc's *vacant* variable, which leaves
 out the word that uses it), system variables #1000 and above (signals, tool offsets, modal
 information, positions), and AND / OR / XOR on values other than 0 and 1 (bitwise on a Fanuc).
+One use of system variables passes: ``IF [cond] THEN #3000=n`` whose condition reads them (Haas'
+tool life check ``IF [#5405 GE 6000] THEN #3000=15``). #3000 raises an alarm that stops the
+program (Fanuc 0i-MF, custom macro, alarm #3000; Haas, macros, #3000 programmable alarm): either
+way the motion that is executed is the program's own, up to where it stops, so the line is written
+unchanged (the reader passes it through) and nothing else of the run depends on it. A condition
+that holds without system variables stops the program there, and is refused as such.
 Subprogram and macro calls (M98, M99, G65, G66) are refused by the reader.
 """
 from __future__ import annotations
@@ -23,6 +29,13 @@ from .ngc import _END, MAX_LINES, MAX_STEPS, check_steps, check_written
 
 _STATEMENT = re.compile(r"(?:n(\d+))?(if\[|goto|while\[|end(\d))")
 _SEQUENCE = re.compile(r"n(\d+)")
+#: the action of an alarm-only IF: an assignment to #3000 (the programmable alarm), which stops
+#: the program
+_ALARM = re.compile(r"#3000=")
+
+
+class SystemVariable(ExprError):
+    """A system variable (#1000 and above) was read: controller state the program does not hold."""
 
 
 class MacroParams:
@@ -35,7 +48,7 @@ class MacroParams:
         if isinstance(key, str):
             raise ExprError(f"named parameter #<{key}> is LinuxCNC's, not a Fanuc macro variable")
         if key >= 1000:
-            raise ExprError(f"system variable #{key} (signals, offsets, modal state or positions) "
+            raise SystemVariable(f"system variable #{key} (signals, offsets, modal state or positions) "
                             "is not known here")
         if key not in self.values:
             raise ExprError(f"variable #{key} is read before it is set (vacant: a Fanuc leaves "
@@ -157,7 +170,13 @@ class MacroRun:
                     return
                 pc += 1
                 continue
-            pc = self._statement(pc, st)
+            nxt = self._statement(pc, st)
+            if nxt is None:               # an alarm-only IF on system variables: written as it is
+                written += 1
+                check_written(self, written, pc)
+                yield pc, None
+                nxt = pc + 1
+            pc = nxt
 
     def _statement(self, i: int, st: tuple) -> int:
         kind = st[0]
@@ -165,6 +184,8 @@ class MacroRun:
             return self._goto(st[1], i)
         if kind == "end":
             return self.partner[i]
+        if kind == "if" and st[2] == "then" and _ALARM.match(st[3]):
+            return self._alarm(st, i)
         true = self._value(st[1], i, kind.upper()) != 0.0
         if kind == "while":
             return i + 1 if true else self.partner[i] + 1
@@ -173,6 +194,20 @@ class MacroRun:
         if st[2] == "goto":
             return self._goto(st[3], i)
         self._assign(st[3], i)
+        return i + 1
+
+    def _alarm(self, st: tuple, i: int) -> int | None:
+        """``IF [cond] THEN #3000=n``: None (pass the line through) when the condition reads system
+        variables, the next line when it does not hold; refused when it holds (the program stops)."""
+        try:
+            v, _end = self.ev.bracket(st[1], 0)
+        except SystemVariable:
+            return None
+        except ExprError as exc:
+            raise self.error(f"IF: {exc}", i) from None
+        if v != 0.0:
+            raise self.error("IF ... THEN #3000: the condition holds, so the program stops here with "
+                             "its alarm (nothing after this line runs)", i)
         return i + 1
 
     def _assign(self, code: str, i: int) -> None:

@@ -21,6 +21,7 @@ from ..machine import Machine
 from ._arcs import PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, centre_from_radius
 from .blocks import CycleBlock, MotionBlock
 from .dialect import GENERIC
+from .programmed import ProgrammedOffsets, apply_g10
 from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _COLON_PROGRAM_RE, _CURVE_WITH_COORDINATES,
                     _NUMBERED_PERCENT_RE,
                     _REFUSED_G, _REFUSED_M, _UNIQUE_LETTERS, _WCS_INDEX, DEFAULT_CHORD_TOL_MM,
@@ -33,6 +34,9 @@ _CSV_HEADER = re.compile(r"^[A-Za-z_][\w ]*(?:,[\w ]*){2,}$")
 #: grbl's real-time commands (status query, cycle start/resume, feed hold, soft reset): sent as
 #: single characters, they have no effect on the program's geometry (grbl v1.1 interface docs)
 _REALTIME = frozenset({"?", "~", "!", "\x18"})
+#: a Fanuc / Haas alarm-only IF (``IF [#5405 GE 6000] THEN #3000=15``): left in the program by
+#: the macro run only where its condition reads system variables (:mod:`.macro`); no motion
+_ALARM_IF = re.compile(r"(?i)^\s*(?:n\s*\d+\s*)?if\s*\[.*\]\s*then\s*#\s*3000\s*=")
 
 
 class ModalState:
@@ -54,6 +58,7 @@ class ModalState:
         self.machine = machine
         self.path = None if path is None else os.fspath(path)
         self.dialect = getattr(path, "dialect", None) or GENERIC
+        self._source = path
         self._locate = getattr(path, "locate", None)
         self.chord_tol = float(chord_tol)
         if not self.chord_tol > 0:
@@ -70,6 +75,8 @@ class ModalState:
         self.dirs = np.ones(self.na, np.int8)
         self.motion: int | None = None
         self.plane = 17
+        #: G90.1 in force: arc centre words I J K are positions, not offsets from the start
+        self.arc_absolute = False
         self.inch = bool(inch)
         self.incremental = False
         self.feed = math.nan
@@ -103,10 +110,17 @@ class ModalState:
         self.had_g = False
         #: the last block was a drilling cycle line (passed through)
         self.cycle_line = False
+        #: G33.1 (rigid tapping) is the motion mode in force (``motion`` is then None); the line
+        #: read carries G33.1
+        self.tapping = False
+        self.tap_line = False
+        #: work offsets the program sets itself (G10 L2/L20); their sets are numbered alike in
+        #: every pass over one ProgramSource
+        self.offsets = ProgrammedOffsets(self.na, getattr(path, "work_offset_sets", None))
 
     @property
     def frame(self) -> int:
-        return frame_code(self.wcs, self.tool, self.tcp)
+        return frame_code(self.wcs, self.tool, self.tcp, self.offsets.index)
 
     @property
     def python_only(self) -> bool:
@@ -166,6 +180,10 @@ class ModalState:
         if motion is not None:
             self.motion = motion
             self.cycle = None
+            self.tapping = False
+        if self.tap_line or (self.tapping and self.motion is None and cycle is None
+                             and self.cycle is None and axes_given):
+            return self._rigid_tap(values, axes_given)
         self._set_cycle_mode(cycle, values)
         if self.cycle is not None and axes_given:
             return self._cycle_block(line, values, axes_given, tokens, number)
@@ -178,6 +196,7 @@ class ModalState:
         self.had_g = False
         self.cycle_line = False
         self.cycle_start = False
+        self.tap_line = False
 
     def _text_with_words(self, line: int, text: str) -> str | None:
         """The line's text to tokenize, or None for a line without words, which passes through (an
@@ -202,6 +221,8 @@ class ModalState:
             return None
         if s[0] == "/":
             raise self._err("block delete '/' is not supported", line)
+        if self.dialect.language == "macro" and _ALARM_IF.match(s):
+            return None
         if line == 1 and _CSV_HEADER.match(s):
             raise self._err("this looks like a CSV file (a header of comma-separated names), not "
                             "G-code: give the NC program here", line)
@@ -252,7 +273,7 @@ class ModalState:
         nonmotion_axes = False     # G4 dwell (X/P is time), G28/G30/G53: axis words are no motion
         home_move = None
         cycle = None
-        dwell = False
+        dwell = g10 = False
         tool_change = any(m == 6 for m in mcodes)
         for m in mcodes:
             if m in TCP_ON_M or m in TCP_OFF_M:
@@ -280,12 +301,16 @@ class ModalState:
                 home_move = gi
             elif gi in _CANNED_CYCLES:
                 cycle = gi
+            elif gi == 10:
+                nonmotion_axes = g10 = True          # the axis words are offsets
             else:
                 self._apply_modal_code(gi, values)
         if dwell and motion is not None and home_move is None:
             nonmotion_axes = self._dwell_with_motion(motion, tokens, line)
         if tool_change:
             self._forget(self.tool_axis)
+        if g10:
+            apply_g10(self, values, tokens, line)
         return motion, nonmotion_axes, home_move, cycle
 
     def _dwell_with_motion(self, motion: int, tokens, line: int) -> bool:
@@ -312,6 +337,10 @@ class ModalState:
         G54.1: every axis unknown); the others (G28.1, G30.1 ...) change nothing followed here."""
         if g in _WCS_INDEX:
             self._set_wcs(_WCS_INDEX[g])
+        elif round(g, 1) == 33.1:
+            self.tap_line = True
+        elif round(g, 1) in (90.1, 91.1):          # arc centres absolute / incremental
+            self.arc_absolute = round(g, 1) == 90.1
         elif round(g, 1) == 43.4:                # Fanuc's tool centre point control with H
             self.tool = int(values.get("H", self.selected_tool))
             self._set_tcp(True)
@@ -341,6 +370,7 @@ class ModalState:
         elif gi in (98, 99):
             self.retract = gi
         elif gi == 80:
+            self.tapping = False
             if not self.dialect.g80_keeps_motion:
                 self.motion = None
             elif self.cycle is not None:
@@ -358,16 +388,25 @@ class ModalState:
 
     def _axis_words(self, values, line: int) -> list[str]:
         """The axis letters the line names (X Y Z A B C order); refuses axes the machine has not."""
-        for letter in "UVW":
-            if letter in values:
-                raise self._err(f"axis word {letter}: machine {self.machine.name} has no {letter} axis",
-                                line)
+        foreign = [c for c in "UVW" if c in values]
+        if foreign:
+            self._note_foreign(foreign)
         axes_given = [c for c in _AXIS_LETTERS if c in values]
         for c in axes_given:
             if c not in self.names:
                 raise self._err(f"axis word {c}: machine {self.machine.name} has no {c} axis "
                                 f"(axes: {' '.join(self.names)})", line)
         return axes_given
+
+    def _note_foreign(self, letters) -> None:
+        """U V W words (axes parallel to X Y Z that the machine model does not have, e.g. a quill
+        W) pass through as written and uncorrected: said once, in the program's notes."""
+        note = ("note: axis words U, V, W (axes the machine model does not have) pass through "
+                "unchanged and uncorrected; the other axes' corrections are those at their "
+                "positions")
+        notes = getattr(self._source, "notes", None)
+        if notes is not None and note not in notes:
+            notes.append(note)
 
     def _set_feed(self, values, line: int) -> None:
         """An F word: the feed (mm/min), or under G93 the inverse time (1/min) of the block."""
@@ -434,7 +473,28 @@ class ModalState:
         return MotionBlock(line, self.motion, start, end, feed, pts, dirs, centre, self.plane,
                            self.inch, words, number, self.known.copy(), given, raw_axes,
                            motion_word, self.incremental, self.inverse_time and self.motion != 0,
-                           self.f_word, self.frame, start_known=start_known)
+                           self.f_word, self.frame, start_known=start_known,
+                           absolute_centre=self.arc_absolute and centre is not None)
+
+    def _rigid_tap(self, values, axes_given) -> None:
+        """A G33.1 rigid tapping line (or an axis line in its mode): the spindle-synchronised move
+        to the given point and back; the line passes through unchanged and uncorrected (its
+        overshoot past both ends follows the spindle's reversal, which the program does not give),
+        and every axis ends where it started (LinuxCNC G-code reference, G33.1: the moves end at
+        the original coordinate), approached in the direction of the tap's last move. In G91 the
+        writer keeps the line incremental (``distance_sensitive``)."""
+        self.tapping = True
+        self.motion = None
+        self.cycle = None
+        scale = MM_PER_INCH if self.inch else 1.0
+        for c in axes_given:
+            i = self.names.index(c)
+            v = math.radians(values[c]) if c in "ABC" else values[c] * scale
+            step = v if self.incremental else (v - self.position[i] if self.known[i] else 0.0)
+            if abs(step) > DIR_EPS:
+                self.dirs[i] = 1 if step > 0 else -1
+        self.distance_sensitive = self.incremental and bool(axes_given)
+        return None
 
     def _blind_increment(self, values, axes_given) -> None:
         """An incremental G0/G1 move of an axis whose position the program has not given (a Haas
@@ -560,7 +620,6 @@ class ModalState:
         reps = int(reps)
         start = self.position.copy()
         start_known = bool(self.known.all())
-        init_z, init_known = self.cycle_init
         if inc:
             if not (self.known[xi] and self.known[yi] and self.known[zi]):
                 raise self._err(f"incremental (G91) drilling cycle G{self.cycle} from a position the "
@@ -580,16 +639,7 @@ class ModalState:
         given[[xi, yi, zi]] = True
         known = self.known | given
         dirs = self._directions(start, pts)
-        # where the cycle leaves the tool: the R plane (G99) or the initial level (G98; controllers
-        # differ when the R plane lies above it, LinuxCNC takes the higher of the two; neither
-        # stated leaves it open)
-        if self.retract == 99:
-            z_after, z_known = r_level, True
-        elif self.retract == 98 and init_known and (r_level <= init_z + 1e-9
-                                                    or self.dialect.g98_to_higher):
-            z_after, z_known = max(init_z, r_level), True
-        else:
-            z_after, z_known = r_level, False
+        z_after, z_known = self._retract_level(r_level)
         end = pts[-1].copy()
         end[zi] = z_after
         self.dirs[zi] = 1                  # the retract moves Z up last
@@ -603,6 +653,22 @@ class ModalState:
         return MotionBlock(line, self.cycle, start, end, feed, pts, dirs, None, self.plane,
                            self.inch, [], number, known, given, {}, True, inc, False, self.f_word,
                            self.frame, info, start_known)
+
+    def _retract_level(self, r_level: float) -> tuple[float, bool]:
+        """(Z where the cycle leaves the tool, mm; whether that is known): the R plane (G99) or
+        the initial level (G98; controllers differ when the R plane lies above it, LinuxCNC takes
+        the higher of the two). Neither stated leaves it open, except on LinuxCNC with the R plane
+        at or above the initial level, where either leaves the tool at the R plane."""
+        init_z, init_known = self.cycle_init
+        if self.retract == 99:
+            return r_level, True
+        if self.retract == 98 and init_known and (r_level <= init_z + 1e-9
+                                                  or self.dialect.g98_to_higher):
+            return max(init_z, r_level), True
+        if self.retract is None and init_known and self.dialect.g98_to_higher \
+                and r_level >= init_z - 1e-9:
+            return r_level, True
+        return r_level, False
 
     def _incremental_r_level(self, z: float, line: int) -> float:
         """The R plane (mm) of a G91 cycle line started at height z: LinuxCNC measures every hole's
@@ -671,8 +737,12 @@ class ModalState:
                     raise ArcError(f"{bad[0]} word is not an offset in plane G{plane}")
                 if l0 not in values and l1 not in values:
                     raise ArcError(f"arc without centre: give {l0}/{l1} or R in plane G{plane}")
-                centre2 = s2 + scale * np.array([values.get(l0, 0.0), values.get(l1, 0.0)])
-            pts = arc_chords(start, end, centre2, plane, ccw, self.chord_tol, self.xyz_index)
+                offset = scale * np.array([values.get(l0, 0.0), values.get(l1, 0.0)])
+                if self.arc_absolute and not (l0 in values and l1 in values):
+                    raise ArcError(f"arc in G90.1 (absolute centre) without both {l0} and {l1}")
+                centre2 = offset if self.arc_absolute else s2 + offset
+            pts = arc_chords(start, end, centre2, plane, ccw, self.chord_tol, self.xyz_index,
+                             self.inch)
         except ArcError as exc:
             raise self._err(str(exc), line) from None
         centre = np.zeros(3)

@@ -207,9 +207,22 @@ class NgcRun:
         self.xy = XYTracker()
         self.loop_line = None
         self.main_repeats: dict = {}
+        #: a line with words was executed (a file of subroutine definitions only runs none)
+        self.ran_code = False
 
     def error(self, message: str, index: int) -> InputError:
         return InputError(message, self.path, index + 1)
+
+    def check_ran(self) -> None:
+        """InputError for a file of subroutine definitions that nothing in it calls: no line of
+        words runs (an ngcgui subroutine file runs when another program calls it, with that
+        program's arguments, which this file does not give)."""
+        if self.ran_code or not self.subs:
+            return
+        label, first = min(self.subs.items(), key=lambda item: item[1])
+        raise self.error(f"a file of subroutines only (o{label} sub ... endsub, called by no line "
+                         "of it): nothing in it runs, so nothing is compensated; compensate the "
+                         "program that calls it", first)
 
     def _eval(self, text: str, index: int, what: str) -> float:
         try:
@@ -231,10 +244,12 @@ class NgcRun:
             st = self.statements.get(pc)
             if st is None:
                 text = self._code_line(pc)
-                if text is not False:
-                    written += 1
-                    check_written(self, written, pc)
-                    yield pc, text
+                for t in (text if isinstance(text, list) else [text]):
+                    if t is not False:
+                        self.ran_code = self.ran_code or bool(self.codes[pc].text)
+                        written += 1
+                        check_written(self, written, pc)
+                        yield pc, t
                 if not self.frames and _END.search(self.codes[pc].text):
                     return                     # M2 / M30 ends the program
                 pc += 1
@@ -250,8 +265,7 @@ class NgcRun:
             if r.polar:
                 self.xy.follow({}, gcodes_of(line_code(text).text))      # G90/G91 of the line first
                 if "l" in r.words:
-                    raise ExprError("polar words @ ^ with a repeat count L (each repeat turns the "
-                                    "angle again) are not supported")
+                    return self._polar_repeats(text, r)
                 xy = polar_target(r.polar, r.words, self.xy.xy, self.xy.incremental)
                 written = xy                # in G91 the words are the increments
                 if self.xy.incremental:
@@ -267,6 +281,29 @@ class NgcRun:
         if text is not None and not text.strip(" \t"):
             return False
         return text
+
+    def _polar_repeats(self, text: str, r) -> list[str]:
+        """A drilling cycle in G91 with polar words and a repeat count L (``G91 G81 R.1 Z-.5 ^60
+        L6``): LinuxCNC repeats the cycle L times, each time applying the incremental polar move
+        (LinuxCNC G-code reference, Polar Coordinates and G81; its R measured from the series'
+        initial level each time). Written as L lines without L, one hole each, their X Y the
+        increments, each marked with a comment."""
+        count = r.words["l"]
+        code = text.split("(", 1)[0].split(";", 1)[0]
+        words = re.findall(r"(?i)l[ \t]*\+?\d+\.?\d*", code)
+        if not self.xy.incremental or count != int(count) or count < 1 or len(words) != 1 \
+                or not any(round(g) in range(73, 90) for g in gcodes_of(line_code(text).text)):
+            raise ExprError("polar words @ ^ with a repeat count L are followed in an incremental "
+                            "(G91) drilling cycle only")
+        text = text.replace(words[0], "", 1).replace("\0 ", "\0").rstrip(" \t")
+        upper = any(ch.isupper() for ch in text)
+        out = []
+        for k in range(1, int(count) + 1):
+            xy = polar_target(r.polar, {}, self.xy.xy, True)
+            step = (xy[0] - self.xy.xy[0], xy[1] - self.xy.xy[1])
+            out.append(place_polar(text, step, upper) + f" (repeat {k} of {int(count)})")
+            self.xy.set(xy)
+        return out
 
     def _statement(self, i: int, st: Statement) -> int:
         """Execute an O-word line; returns the next line index."""

@@ -34,7 +34,7 @@ from ..errors import InputError
 from ..machine import Machine
 from .blocks import SegmentChunk
 from .tcp import axes_of_tcp, tcp_of_axes
-from .words import WORK_SYSTEMS, frame_tcp, frame_tool, frame_wcs
+from .words import WORK_SYSTEMS, frame_offset_set, frame_tcp, frame_tool, frame_wcs
 
 _WCS_NAME = {name: i for i, name in enumerate(WORK_SYSTEMS)}
 _AXIS_VALUE_RE = re.compile(r"^\s*([A-Za-z])\s*=?\s*([+-]?(?:\d+\.?\d*|\.\d+))\s*$")
@@ -46,7 +46,8 @@ class ProgramSetup:
 
     work_offsets : wcs index (0 = G54 ... 8 = G59.3) -> (na,) offset, mm and rad (machine order).
     tool_lengths : H number -> tool length, mm.
-    used_wcs, used_tools : the work systems and H numbers the program used (filled by :meth:`apply`).
+    used_wcs, used_tools : the work systems and H numbers the program used (filled by :meth:`apply`;
+    a system whose every axis the program set itself with G10 is in ``programmed_wcs`` instead).
     """
 
     machine: Machine
@@ -54,6 +55,7 @@ class ProgramSetup:
     tool_lengths: dict = field(default_factory=dict)
     used_wcs: set = field(default_factory=set)
     used_tools: set = field(default_factory=set)
+    programmed_wcs: set = field(default_factory=set)
 
     def _offset_table(self) -> np.ndarray:
         table = np.zeros((len(WORK_SYSTEMS), self.machine.n_axes))
@@ -61,8 +63,28 @@ class ProgramSetup:
             table[i] = v
         return table
 
-    def apply(self, chunk: SegmentChunk) -> tuple[SegmentChunk, np.ndarray]:
+    def _row_offsets(self, chunk: SegmentChunk, wcs: np.ndarray, source) -> np.ndarray:
+        """(n, na) the work offset of each row: this setup's, where the program set an axis of
+        its system itself (G10 L2/L20, the sets ``source.work_offset_sets``) the program's."""
+        off = self._offset_table()[wcs]
+        sets = getattr(source, "work_offset_sets", None) or []
+        which = frame_offset_set(chunk.frame)
+        full = np.zeros(len(chunk), bool)
+        for k in np.unique(which[which > 0]).tolist():
+            for w, vec in sets[k - 1].items():
+                rows = (which == k) & (wcs == w)
+                given = ~np.isnan(vec)
+                off[np.ix_(rows, given)] = vec[given]
+                if given.all():
+                    full |= rows
+        self.programmed_wcs.update(np.unique(wcs[full]).tolist())
+        self.used_wcs.update(np.unique(wcs[~full]).tolist())
+        return off
+
+    def apply(self, chunk: SegmentChunk, source=None) -> tuple[SegmentChunk, np.ndarray]:
         """The chunk in machine axis positions, and the (n, na) offsets added to each row.
+        ``source``: the :class:`~.source.ProgramSource` read, whose program may set its own work
+        offsets (G10 L2/L20: they replace this setup's from their line on).
 
         The returned chunk carries ``tool_length`` (mm per row; nan: the machine's tool length) and
         ``datum`` (the machine position of the program's origin per row: its work offset). Tool
@@ -70,9 +92,8 @@ class ProgramSetup:
         ``jump``: between two of them the axes do not move along a straight line."""
         wcs = frame_wcs(chunk.frame)
         tool = frame_tool(chunk.frame)
-        self.used_wcs.update(np.unique(wcs).tolist())
         self.used_tools.update(t for t in np.unique(tool).tolist() if t > 0)
-        off = self._offset_table()[wcs]
+        off = self._row_offsets(chunk, wcs, source)
         lengths = np.full(len(chunk), np.nan)
         for h, length in self.tool_lengths.items():
             lengths[tool == h] = length
@@ -109,6 +130,10 @@ class ProgramSetup:
     def notes(self) -> list[str]:
         """What was assumed for what the program used and nobody said (one line each)."""
         out = []
+        if self.programmed_wcs:
+            names = ", ".join(WORK_SYSTEMS[w] for w in sorted(self.programmed_wcs))
+            out.append(f"work offset {names} as the program sets it (G10 L2/L20): the corrections "
+                       "are referenced to that origin")
         missing = sorted(w for w in self.used_wcs if w not in self.work_offsets)
         if missing:
             names = ", ".join(WORK_SYSTEMS[w] for w in missing)

@@ -43,6 +43,9 @@ class ProgramSource(os.PathLike):
     executed: int = 0
     source_lines: int = 0
     notes: list = field(default_factory=list)
+    #: the distinct sets of work offsets the program sets itself (G10 L2/L20), numbered by the
+    #: reader (:mod:`.programmed`) and applied by :meth:`~.offsets.ProgramSetup.apply`
+    work_offset_sets: list = field(default_factory=list)
     _map_array: object = field(default=None, repr=False)     # line_map as an int64 array, once
 
     def __fspath__(self) -> str:
@@ -75,10 +78,13 @@ class ProgramSource(os.PathLike):
         return f"dialect: {self.dialect.name} ({self.why})"
 
 
-def _header(source: str, language: str) -> str:
+def _header(source: str, language: str, dialect: Dialect) -> str:
+    """The expansion's first line; it names the dialect (but generic), so that the written program
+    is read with the same rules when it is read again (``dialect.detect``: a comment naming it)."""
     name = os.path.basename(source).replace("(", "[").replace(")", "]")
-    return (f"(expanded by mtcomp from {name}: {language} computed, one line for each line the "
-            "controller executes)")
+    rules = "" if dialect.name == "generic" else f" for {dialect.name}"
+    return (f"(expanded by mtcomp from {name}{rules}: {language} computed, one line for each line "
+            "the controller executes)")
 
 
 def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int):
@@ -97,7 +103,7 @@ def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int):
     fd, tmp = tempfile.mkstemp(prefix="mtcomp-expanded-", suffix=".nc")
     try:
         with os.fdopen(fd, "wb") as out:
-            out.write((_header(source, language) + ending).encode("latin-1"))
+            out.write((_header(source, language, dialect) + ending).encode("latin-1"))
             for i, text in run.run():
                 same = same and text is None and i == len(line_map) - 1
                 line_map.append(i + 1)
@@ -107,6 +113,8 @@ def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int):
                 else:
                     own = raws[i][len(raws[i].rstrip(b"\r\n")):] or ending.encode()
                     out.write(text.encode("latin-1", "replace") + own)
+            if hasattr(run, "check_ran"):
+                run.check_ran()
         if same and len(line_map) - 1 == len(raws):
             os.unlink(tmp)
             return None

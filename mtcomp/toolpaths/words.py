@@ -30,15 +30,14 @@ _AXIS_LETTERS = "XYZABC"
 _UNIQUE_LETTERS = frozenset("XYZABCIJKRFNUVW")
 #: G codes that would change geometry in a way mtcomp does not follow: refused, never guessed
 _REFUSED_G = {
-    10: "G10 (programmable data input)", 52: "G52 (local coordinate system)",
+    52: "G52 (local coordinate system)",
     92: "G92 (coordinate system offset set by the program; give the offset as a work offset G54-G59 "
         "instead)",
     92.3: "G92.3 (restored coordinate system offset)",
     68: "G68 (coordinate rotation)", 51: "G51 (scaling)",
     51.1: "G51.1 (mirroring)", 95: "G95 (feed per revolution)",
     74: "canned cycle G74 (left-hand tapping)", 76: "canned cycle G76 (threading)",
-    33: "G33 (spindle-synchronised motion)", 33.1: "G33.1 (rigid tapping)",
-    90.1: "G90.1 (absolute arc centres)",
+    33: "G33 (spindle-synchronised motion)",
     43.5: "G43.5 (tool centre point control with a tool axis vector I J K: only G43.4, with the "
           "rotary axes' angles, is followed)",
     68.2: "G68.2 (tilted working plane)", 68.3: "G68.3 (tilted working plane)",
@@ -97,12 +96,18 @@ _KEYWORDS = {
 #: the bit of a frame code set in tool centre point mode (the words are the tool tip in the
 #: workpiece frame and the rotary axes' angles, not axis positions: :mod:`.tcp`)
 TCP_FRAME = 1 << 24
+#: the lowest bit of the work offsets the program set itself (G10 L2/L20) in a frame code: the
+#: index + 1 of the set in force (0: none), at most MAX_OFFSET_SETS distinct sets
+OFFSET_SET_FRAME = 1 << 25
+MAX_OFFSET_SETS = 63
 
 
-def frame_code(wcs: int, tool: int, tcp: bool = False) -> int:
+def frame_code(wcs: int, tool: int, tcp: bool = False, offset_set: int = 0) -> int:
     """Pack the work coordinate system index (0 = G54 .. 8 = G59.3), the active tool length number H
-    (0: none, G49) and the tool centre point mode into one int: ``wcs + 16 * tool (+ TCP_FRAME)``."""
-    return int(wcs) + 16 * int(tool) + (TCP_FRAME if tcp else 0)
+    (0: none, G49), the tool centre point mode and the set of work offsets the program gave itself
+    (0: none; k: the k-th distinct set, :mod:`.programmed`) into one int:
+    ``wcs + 16 * tool (+ TCP_FRAME) + OFFSET_SET_FRAME * offset_set``."""
+    return int(wcs) + 16 * int(tool) + (TCP_FRAME if tcp else 0) + OFFSET_SET_FRAME * int(offset_set)
 
 
 def frame_wcs(code):
@@ -118,6 +123,11 @@ def frame_tool(code):
 def frame_tcp(code):
     """Whether frame codes (int or array) are in tool centre point mode."""
     return np.asarray(code) // TCP_FRAME % 2 == 1
+
+
+def frame_offset_set(code):
+    """The set of programmed work offsets (0: none, k: the k-th) of frame codes (int or array)."""
+    return np.asarray(code) // OFFSET_SET_FRAME
 
 
 # --------------------------------------------------------------------------------------- tokens

@@ -21,9 +21,8 @@ import numpy as np
 
 from ..io.atomic import atomic_write
 from ..machine import Machine
-from ._arcs import (ARC_RADIUS_TOL_MM, ARC_RADIUS_TOL_REL, FULL_CIRCLE_TOL_MM, PLANE_AXES,
-                    PLANE_OFFSET_LETTERS, ArcError, arc_misses, arc_samples, arc_sweep,
-                    centre_from_radius, fit_arc_centre)
+from ._arcs import (FULL_CIRCLE_TOL_MM, PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_misses,
+                    arc_samples, arc_sweep, centre_from_radius, fit_arc_centre, radius_refused)
 from .blocks import MotionBlock
 from .modal import ModalState
 from .reader import iter_blocks, new_state
@@ -486,8 +485,11 @@ class _ArcFit:
                     yield [("R", t)], centre_from_radius(s2, e2, float(t) * scale, self.ccw)
                 except ArcError:
                     pass
-        texts = [format_number((centre[j] - s2[j]) / scale, self.cdecs[j]) for j in range(2)]
-        yield list(zip(self.letters_c, texts)), s2 + np.array([float(t) for t in texts]) * scale
+        # I J K: the centre less the start, or in G90.1 the centre itself (it moves with the
+        # correction like an end point)
+        base = np.zeros(2) if self.block.absolute_centre else s2
+        texts = [format_number((centre[j] - base[j]) / scale, self.cdecs[j]) for j in range(2)]
+        yield list(zip(self.letters_c, texts)), base + np.array([float(t) for t in texts]) * scale
 
     def _fits(self, start_w, end_w, centre, full, inner, span, spiral) -> bool:
         """The arc start_w -> end_w about centre misses none of the points inner by more than the
@@ -495,7 +497,7 @@ class _ArcFit:
         ``spiral`` (mm) of its start radius (and within the reader's tolerance)."""
         cols = list(self.cols)
         r0, r1 = math.hypot(*(start_w[cols] - centre)), math.hypot(*(end_w[cols] - centre))
-        if abs(r1 - r0) > min(spiral, max(ARC_RADIUS_TOL_MM, ARC_RADIUS_TOL_REL * max(r0, r1))):
+        if abs(r1 - r0) > spiral or radius_refused(r0, r1, self.block.inch):
             return False
         _a0, sweep = arc_sweep(start_w[cols], end_w[cols], centre, self.ccw, full)
         if abs(sweep - span) > 0.25 * math.pi:

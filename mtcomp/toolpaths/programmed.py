@@ -1,0 +1,132 @@
+"""Work offsets a program sets itself: G10 L2 and G10 L20 (programmable data input).
+
+``G10 L2 P- X- Y- ...`` sets the origin of work coordinate system P (1 = G54 ... 9 = G59.3) to the
+given machine positions, axis by axis (axes not named keep their offset); ``G10 L20 P- X- ...``
+sets it so that the current position reads the given values in that system (LinuxCNC G-code
+reference, G10 L2 and G10 L20; Fanuc Series 0i-MF operator's manual, "Changing workpiece
+coordinate system" by G10 L2; Haas mill operator's manual, G10 Set Offsets). The values are in the
+program's units (G20/G21), degrees for rotary axes. Where the controllers differ, the line is
+refused unless the program's dialect is known:
+
+* ``P0``: LinuxCNC's active system; on Fanuc the external work offset that shifts every system.
+* under G91: LinuxCNC ignores G91 for G10; Fanuc adds the values to the offsets in force.
+* ``L20``: LinuxCNC as above; on Fanuc the additional work offsets G54.1 P1-P48.
+
+The line itself moves nothing and passes through unchanged. From it on, the blocks of that system
+are placed on the machine with the offsets the program set (:class:`~.offsets.ProgramSetup`
+applies them where the command line's work offsets would apply), so the corrections stay
+referenced to the program's own work-offset origin. The program's position in the active system
+changes with its offset: an axis whose old offset the program had set moves by the difference, an
+axis whose old offset came from outside the program becomes unknown (never written until the
+program names it again); after L20 the named axes read the given values.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .words import MAX_OFFSET_SETS, MM_PER_INCH, WORK_SYSTEMS
+
+
+class ProgrammedOffsets:
+    """The work offsets the program has set so far, and the distinct sets of them in order.
+
+    current : wcs index (0 = G54) -> (na,) offset, mm and rad, nan where the program has not set
+    that axis. sets : the distinct states of ``current`` met so far (shared by every reader of one
+    :class:`~.source.ProgramSource`, so that a frame code names the same set in each pass).
+    index : the set in force (0: the program has set none; k: ``sets[k - 1]``).
+    """
+
+    def __init__(self, na: int, sets: list | None = None):
+        self.na = na
+        self.current: dict[int, np.ndarray] = {}
+        self.sets = sets if sets is not None else []
+        self.index = 0
+
+    def offset(self, wcs: int, axis: int) -> float:
+        """The offset of one axis of one system as the program set it (nan: not set)."""
+        v = self.current.get(wcs)
+        return math.nan if v is None else float(v[axis])
+
+    def assign(self, wcs: int, values: dict) -> bool:
+        """Set axes (index -> mm or rad) of system ``wcs``; False when more than MAX_OFFSET_SETS
+        distinct sets would be needed."""
+        vec = self.current.get(wcs, np.full(self.na, np.nan)).copy()
+        for i, v in values.items():
+            vec[i] = v
+        self.current[wcs] = vec
+        key = _key(self.current)
+        for k, known in enumerate(self.sets):
+            if _key(known) == key:
+                self.index = k + 1
+                return True
+        if len(self.sets) >= MAX_OFFSET_SETS:
+            return False
+        self.sets.append({w: v.copy() for w, v in self.current.items()})
+        self.index = len(self.sets)
+        return True
+
+
+def _key(table: dict) -> tuple:
+    return tuple(sorted((w, tuple(None if math.isnan(x) else round(x, 12) for x in v))
+                        for w, v in table.items()))
+
+
+def apply_g10(state, values: dict, tokens, line: int) -> None:
+    """Interpret a G10 line on ``state`` (a :class:`~.modal.ModalState`): L2 and L20 set work
+    offsets (see the module docstring); every other G10 (tool table, parameters) is refused."""
+    dialect = state.dialect.name
+    level = values.get("L")
+    if level not in (2.0, 20.0):
+        what = "no L word" if level is None else f"L{level:g}"
+        raise state._err(f"G10 {what} (programmable data input other than work offsets L2/L20: "
+                         "tool table or parameters) is not supported", line)
+    level = int(level)
+    p_words = [float(num) for letter, num, _raw in tokens if letter == "P"]
+    if len(p_words) != 1 or p_words[0] != int(p_words[0]) or not 0 <= p_words[0] <= 9:
+        raise state._err(f"G10 L{level} needs one P word 0-9 (the work coordinate system)", line)
+    p = int(p_words[0])
+    if values.get("R", 0.0) != 0.0:
+        raise state._err(f"G10 L{level} with R (a rotation of the work coordinate system) is not "
+                         "supported", line)
+    if dialect != "linuxcnc":
+        if p == 0:
+            raise state._err(f"G10 L{level} P0: the active system on LinuxCNC, the external work "
+                             f"offset on Fanuc (dialect {dialect}; give --dialect linuxcnc if "
+                             "LinuxCNC runs it)", line)
+        if state.incremental:
+            raise state._err(f"G10 L{level} under G91: LinuxCNC sets the offsets, Fanuc adds to them "
+                             f"(dialect {dialect}; give --dialect linuxcnc if LinuxCNC runs it)", line)
+        if level == 20:
+            raise state._err("G10 L20: LinuxCNC's offset set from the current position, Fanuc's "
+                             f"additional work offsets G54.1 (dialect {dialect}; give --dialect "
+                             "linuxcnc if LinuxCNC runs it)", line)
+    wcs = state.wcs if p == 0 else p - 1
+    scale = MM_PER_INCH if state.inch else 1.0
+    given = {state.names.index(c): (math.radians(values[c]) if c in "ABC" else values[c] * scale)
+             for c in "XYZABC" if c in values and c in state.names}
+    new = {}
+    for i, v in given.items():
+        if level == 2:
+            new[i] = v
+            continue
+        old = state.offsets.offset(state.wcs, i)
+        if not state.known[i] or math.isnan(old):
+            raise state._err(f"G10 L20 on axis {state.names[i]}: its position or the active "
+                             f"system's offset ({WORK_SYSTEMS[state.wcs]}) is not given by the "
+                             "program", line)
+        new[i] = state.position[i] + old - v          # the machine position less the value
+    if wcs == state.wcs:
+        state.position = state.position.copy()        # the last block holds the old array
+        for i, v in new.items():
+            old = state.offsets.offset(wcs, i)
+            if level == 20:
+                state.position[i] = given[i]
+            elif math.isnan(old):
+                state.known[i] = False
+            else:
+                state.position[i] += old - v
+    if not state.offsets.assign(wcs, new):
+        raise state._err(f"G10: the program sets more than {MAX_OFFSET_SETS} different sets of work "
+                         "offsets (not followed)", line)
