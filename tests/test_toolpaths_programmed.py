@@ -43,11 +43,13 @@ def test_g10_l2_places_the_blocks_at_the_offset_the_program_sets(tmp_path, mode)
     assert setup.programmed_wcs == {0, 1}
 
 
-def test_g10_l20_makes_the_current_position_read_the_values(tmp_path, mode):
+@pytest.mark.parametrize("dialect", ["linuxcnc", "grbl"])     # grbl's gcode.c does as LinuxCNC
+def test_g10_l20_makes_the_current_position_read_the_values(tmp_path, mode, dialect):
     p = tmp_path / "p.nc"
-    p.write_text("G21 G90\nG10 L2 P1 X100 Y0 Z0\nG0 X1 Y2 Z3\nG10 L20 P1 X0\nG0 X4\n"
+    # G91 on the G10 line changes nothing: its values are set, not added
+    p.write_text("G21 G90\nG10 L2 P1 X100 Y0 Z0\nG0 X1 Y2 Z3\nG91 G10 L20 P1 X0\nG90 G0 X4\n"
                  "G10 L20 P0 Y10\nG0 Y11\nM30\n")
-    ends, known = _machine_rows(p, ProgramSetup(XFYZ), "linuxcnc")
+    ends, known = _machine_rows(p, ProgramSetup(XFYZ), dialect)
     # X offset 1 + 100 - 0 = 101: X4 is 105; Y offset 2 + 0 - 10 = -8: Y11 is 3
     np.testing.assert_allclose(ends, [[101, 2, 3], [105, 2, 3], [105, 3, 3]], rtol=0, atol=1e-12)
     assert known.all()

@@ -6,7 +6,9 @@ sets it so that the current position reads the given values in that system (Linu
 reference, G10 L2 and G10 L20; Fanuc Series 0i-MF operator's manual, "Changing workpiece
 coordinate system" by G10 L2; Haas mill operator's manual, G10 Set Offsets). The values are in the
 program's units (G20/G21), degrees for rotary axes. Where the controllers differ, the line is
-refused unless the program's dialect is known:
+refused unless the program's dialect is LinuxCNC or grbl (grbl follows LinuxCNC here: P0 is the
+active system, the values are set whatever the distance mode, L20 as above; grbl 1.1 source,
+gcode.c, "L20: Update coordinate system axis at current position"):
 
 * ``P0``: LinuxCNC's active system; on Fanuc the external work offset that shifts every system.
 * under G91: LinuxCNC ignores G91 for G10; Fanuc adds the values to the offsets in force.
@@ -90,7 +92,7 @@ def apply_g10(state, values: dict, tokens, line: int) -> None:
     if values.get("R", 0.0) != 0.0:
         raise state._err(f"G10 L{level} with R (a rotation of the work coordinate system) is not "
                          "supported", line)
-    if dialect != "linuxcnc":
+    if dialect not in ("linuxcnc", "grbl"):
         if p == 0:
             raise state._err(f"G10 L{level} P0: the active system on LinuxCNC, the external work "
                              f"offset on Fanuc (dialect {dialect}; give --dialect linuxcnc if "
