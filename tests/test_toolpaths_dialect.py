@@ -168,3 +168,30 @@ def test_a_numbered_end_of_tape_mark_and_a_main_program_m99_pass_through(tmp_pat
     p.write_text(text)
     rows = np.vstack([c.end for c in iter_segment_chunks(p, XFYZ)])
     np.testing.assert_allclose(rows, [[1.0, 1.0, 1.0]], rtol=0, atol=0)
+
+
+@pytest.mark.parametrize("head, line, name", [
+    ("%_N_PART_MPF\n;$PATH=/_N_MPF_DIR\nG0 X1\n", 1, "Siemens Sinumerik program"),
+    ("%MPF  90\n( SINUMERIK 850 )\nG0 X1\n", 1, "Siemens Sinumerik program"),
+    ("$OKUMA.MIN%\nOSTRT\nG0 X1\n", 1, "an Okuma OSP program"),
+    ("\n0 BEGIN PGM 12 MM\n1 L X+1 FMAX\n", 2, "Heidenhain conversational program"),
+])
+def test_other_controller_languages_refused_at_their_first_line(tmp_path, head, line, name):
+    p = tmp_path / "p.nc"
+    p.write_text(head)
+    with pytest.raises(InputError) as exc:
+        with open_program(p):
+            pass
+    assert exc.value.line == line and name in exc.value.message
+
+
+def test_plain_programs_with_a_percent_line_are_not_taken_for_another_language(tmp_path):
+    p = tmp_path / "p.nc"
+    p.write_text("%\nO1000 (MPF)\nG0 X1 Y2\n%\n")
+    with open_program(p) as src:
+        assert src.dialect.name == "fanuc"
+    # and a Sinumerik program of plain G-code is read when the dialect is given
+    q = tmp_path / "q.nc"
+    q.write_text("%_N_PART_MPF\nG0 X1 Y2\nM30\n")
+    rows = [c for c in iter_segment_chunks(q, load_machine("xfyz"), dialect="generic")]
+    assert rows

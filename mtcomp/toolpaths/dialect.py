@@ -56,6 +56,17 @@ _CLUES = [
     ("fanuc", re.compile(r"^\s*[Oo:]\s*\d+\s*(?:\([^()]*\)\s*)*$")),   # a program number O1234
     ("grbl", re.compile(r"^\s*(?:\$[A-Za-z$#]|[?~!]\s*$)")),
 ]
+#: controllers whose own language mtcomp does not read, known from a program's first lines:
+#: (pattern, the language's name, what in it differs from RS274 / ISO G-code)
+_FOREIGN = [
+    (re.compile(r"^\s*%(?:_N_\w+_(?:MPF|SPF)|MPF|SPF)\b"), "Siemens Sinumerik",
+     "DEF variables, R parameters, L subprograms, @ codes"),
+    (re.compile(r"(?i)^\s*\$[\w.-]+\.(?:MIN|SSB|SDF)%?\s*$"), "Okuma OSP",
+     "named programs and labels, VC variables, IF/GOTO"),
+    (re.compile(r"(?i)^\s*\d+\s+BEGIN\s+PGM\b"), "Heidenhain conversational",
+     "L/CC/C blocks, CYCL DEF, TOOL CALL: not G-code"),
+]
+_FOREIGN_LINES = 3      # the first lines looked at for them
 _HAAS = re.compile(r"(?i)haas")
 #: a comment that names the controller
 _NAMED = re.compile(r"(?i)[(;][^)]*\b(fanuc|haas|linuxcnc|grbl)\b")
@@ -91,6 +102,22 @@ def detect(path) -> tuple[Dialect, str]:
                 shown = shown if len(shown) <= 40 else shown[:37] + "..."
                 return DIALECTS[name], f"detected from line {k}: {shown}"
     return GENERIC, "nothing in the program names a controller"
+
+
+def foreign_language(path) -> tuple[int, str, str, str] | None:
+    """(line, the line, the language's name, what differs) when one of a program's first lines
+    shows a controller language mtcomp does not read (Siemens Sinumerik ``%_N_NAME_MPF``, Okuma
+    ``$NAME.MIN%``, Heidenhain ``0 BEGIN PGM``), else None."""
+    try:
+        with open(os.fspath(path), "rb") as f:
+            head = [f.readline().decode("latin-1") for _ in range(_FOREIGN_LINES)]
+    except OSError:
+        return None
+    for k, line in enumerate(head, 1):
+        for pattern, name, what in _FOREIGN:
+            if pattern.search(line):
+                return k, line.strip(), name, what
+    return None
 
 
 def dialect_named(name: str | None, path) -> tuple[Dialect, str]:

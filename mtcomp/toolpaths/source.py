@@ -17,7 +17,8 @@ import tempfile
 from array import array
 from dataclasses import dataclass, field
 
-from .dialect import Dialect, dialect_named, needs_expansion
+from ..errors import InputError
+from .dialect import Dialect, dialect_named, foreign_language, needs_expansion
 from .macro import MacroRun
 from .ngc import MAX_LINES, MAX_STEPS, NgcRun
 
@@ -135,6 +136,13 @@ def open_program(path, dialect: str | None = None, *, max_steps: int = MAX_STEPS
         yield path
         return
     source = os.fspath(path)
+    foreign = foreign_language(source) if dialect is None else None
+    if foreign is not None:
+        line, text, name, what = foreign
+        hint = "" if "not G-code" in what else "; give --dialect generic to read it as plain G-code"
+        article = "an" if name[0] in "AEIOU" else "a"
+        raise InputError(f"{article} {name} program ({text!r}): its language ({what}) is not read "
+                         f"by mtcomp{hint}", source, line=line)
     d, why = dialect_named(dialect, source)
     expansion = None
     if d.language is not None and os.path.isfile(source) and needs_expansion(source):

@@ -88,7 +88,7 @@ _KEYWORDS = {
     "TRAFOOF": "TRAFOOF (Siemens transformation off)", "CYCLE": "Siemens cycle calls",
     "IF": "macro statement IF", "GOTO": "macro statement GOTO", "WHILE": "macro statement WHILE",
     "END": "macro statement END", "DO": "macro statement DO", "CALL": "subprogram CALL",
-    "TOOL": "Heidenhain TOOL CALL",
+    "TOOL": "Heidenhain TOOL CALL", "DEF": "Siemens variable definition DEF",
     "BEGIN": "Heidenhain conversational program (BEGIN PGM)",
 }
 
