@@ -8,6 +8,8 @@ axis is positioned once a motion block names it, and no longer after a home move
 in machine coordinates (G53) of that axis, a tool change or tool length change (Z), a change of
 work coordinate system or grbl homing (every axis); after a drilling cycle Z stands where the
 cycle's retract leaves it (see _positioned_per_line)."""
+import contextlib
+import io
 import re
 from pathlib import Path
 
@@ -30,14 +32,21 @@ REFUSED = {
     "linuxcnc_db25.ngc": ["db25.ngc:3:", "a file of subroutines only"],
     # the 5-axis TCP demo reads the kinematics' pivot from the controller's HAL pins
     "linuxcnc_xyzab-tdr-demo.ngc": ["xyzab-tdr-demo.ngc:10:", "#<_hal[xyzab_tdr_kins.x-rot-point]>"],
-    # other controllers' languages and end-of-program marks (dialects)
-    "gcodeworkshop_SINUMERIK840D.nc": ["SINUMERIK840D.nc:6:", "DEFREALWYSSK"],
-    # (read as RS274/NGC, Sinumerik 850's @ codes are polar words)
-    "gcodeworkshop_SINUMERIK850.nc": ["SINUMERIK850.nc:9:", "polar word"],
-    "gcodeworkshop_OSP5020M.nc": ["OSP5020M.nc:3:", "OSTRT"],
+    # other controllers' languages, known from the first line: the motion of their variables,
+    # subprograms and labels cannot be followed (Sinumerik 840D calls L54/L55, 850 L100, which
+    # are not in the file; Okuma reads VC variables nothing sets; Heidenhain's is not G-code)
+    "gcodeworkshop_SINUMERIK840D.nc": ["SINUMERIK840D.nc:1:", "Siemens Sinumerik program"],
+    "gcodeworkshop_SINUMERIK850.nc": ["SINUMERIK850.nc:1:", "Siemens Sinumerik program"],
+    "gcodeworkshop_OSP5020M.nc": ["OSP5020M.nc:1:", "Okuma OSP program"],
+    "aptpostprocessor_Dem-target2-11.h": ["11.h:1:", "Heidenhain conversational program"],
+    "aptpostprocessor_Teste-Metrologia-12.h": ["12.h:1:", "Heidenhain conversational program"],
+    # grbl's G10 L20 after homing ($H): the machine position there is the controller's settings
+    "gsender_KB-219 test.gcode": ["test.gcode:8:", "G10 L20 on axis X"],
+    # full circles of zero radius (I0.000 after the post's own "HOLE IS TOO SMALL")
+    "uaf_sensor_v2_drill.nc": ["drill.nc:612:", "arc with zero radius"],
 }
-#: the share of the corpus accepted today (52 of 57); the goal is 95 %
-MIN_ACCEPTED = 0.91
+#: the share of the corpus accepted today (63 of 72); the goal is 95 %
+MIN_ACCEPTED = 0.87
 _COMMENT = re.compile(r"\([^)]*\)|;.*")
 _WORD = re.compile(r"([A-Z])\s*([-+]?\s*(?:\d+\.?\d*|\.\d+))")
 
@@ -207,46 +216,66 @@ def test_corpus_is_the_documented_one():
     assert sum(p.stat().st_size for p in PROGRAMS) < 2_000_000
 
 
-def test_corpus_compensated_safely(tmp_path, capsys):
-    accepted, refused, growth = [], [], []
-    for prog in PROGRAMS:
-        text = prog.read_text(encoding="latin-1")
-        topology = _topology(text)
-        machine = _machine_file(tmp_path, topology)
-        model = _model_file(tmp_path, machine)
-        out = tmp_path / f"{prog.stem}.out.nc"
+def _compensate(prog, tmp_path) -> tuple:
+    """(exit status, stdout, stderr, output path, machine, model) of compensating a corpus program
+    with the corpus model."""
+    machine = _machine_file(tmp_path, _topology(prog.read_text(encoding="latin-1")))
+    model = _model_file(tmp_path, machine)
+    out = tmp_path / f"{prog.stem}.out.nc"
+    out_buf, err_buf = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out_buf), contextlib.redirect_stderr(err_buf):
         code = main(["compensate", str(machine), str(model), str(prog), "-o", str(out),
                      "--quiet", "--units", "mm"])
-        stdout, err = capsys.readouterr()
-        if code != 0:
-            assert code == 2 and not out.exists()
-            lines = err.strip().splitlines()
-            assert len(lines) == 1 and "Traceback" not in err, err
-            assert prog.name in REFUSED, f"{prog.name} refused: {lines[0]}"
-            for word in REFUSED[prog.name]:
-                assert word in lines[0], (word, lines[0])
-            refused.append(prog.name)
-            continue
-        accepted.append(prog.name)
+    return code, out_buf.getvalue(), err_buf.getvalue(), out, machine, model
+
+
+@pytest.mark.parametrize("prog", PROGRAMS, ids=[p.name for p in PROGRAMS])
+def test_corpus_program_compensated_safely(prog, tmp_path, capsys):
+    """Refused exactly when listed in REFUSED, in one line naming the construct; accepted: the
+    output's non-motion lines as in the source, no axis word for an axis not positioned, cycles
+    kept, and the map of the compensated program drawn."""
+    code, stdout, err, out, machine, model = _compensate(prog, tmp_path)
+    if code != 0:
+        assert code == 2 and not out.exists()
+        lines = err.strip().splitlines()
+        assert len(lines) == 1 and "Traceback" not in err, err
+        assert prog.name in REFUSED, f"{prog.name} refused: {lines[0]}"
+        for word in REFUSED[prog.name]:
+            assert word in lines[0], (word, lines[0])
+        return
+    assert prog.name not in REFUSED, f"{prog.name} is accepted now: take it off REFUSED"
+    text = prog.read_text(encoding="latin-1")
+    _check_output(source_bytes(prog), out.read_bytes())
+    if re.search(r"^[^(;]*\bG(?:73|8[1-9])\b", text, re.M | re.I):    # drilling cycles
+        assert "kept as cycles, each hole corrected" in stdout, prog.name
+    # the map of the compensated program, paired with the original through its lines
+    code = main(["render", str(machine), str(model), str(prog), "--compensated", str(out),
+                 "-o", str(tmp_path / f"{prog.stem}.png"), "--backend", "matplotlib",
+                 "--size", "300x150"])
+    stdout, err = capsys.readouterr()
+    assert code == 0, (prog.name, err)
+    assert "model prediction after" in stdout
+
+
+def test_corpus_share_accepted():
+    """Every program is refused exactly when REFUSED lists it (the test above), so the share
+    accepted is the share not listed."""
+    accepted = len(PROGRAMS) - len(REFUSED)
+    print(f"accepted {accepted} of {len(PROGRAMS)}")
+    assert accepted / len(PROGRAMS) >= MIN_ACCEPTED
+
+
+def test_corpus_median_output_size(tmp_path):
+    """Only corrected words change (a program with code to compute is written as its expansion):
+    the median output is at most 1.2 times the input."""
+    growth = []
+    for prog in PROGRAMS:
         if prog.name in REFUSED:
-            print("now accepted, to be taken off REFUSED:", prog.name)
-        _check_output(source_bytes(prog), out.read_bytes())
-        if re.search(r"^[^(;]*\bG(?:73|8[1-9])\b", text, re.M | re.I):    # drilling cycles
-            assert "kept as cycles, each hole corrected" in stdout, prog.name
-        growth.append(out.stat().st_size / prog.stat().st_size)
-        # the map of the compensated program, paired with the original through its lines
-        code = main(["render", str(machine), str(model), str(prog), "--compensated", str(out),
-                     "-o", str(tmp_path / f"{prog.stem}.png"), "--backend", "matplotlib",
-                     "--size", "300x150"])
-        stdout, err = capsys.readouterr()
+            continue
+        code, _out, err, out, _m, _model = _compensate(prog, tmp_path)
         assert code == 0, (prog.name, err)
-        assert "model prediction after" in stdout
-    assert set(refused) <= set(REFUSED)
-    print(f"accepted {len(accepted)} of {len(PROGRAMS)}")
-    assert len(accepted) / len(PROGRAMS) >= MIN_ACCEPTED
-    # modal output, unchanged lines as written, arcs kept where the correction allows
-    print("output size / input size:", " ".join(f"{g:.2f}" for g in growth))
-    # only corrected words change (a program with code to compute is written as its expansion)
+        growth.append(out.stat().st_size / prog.stat().st_size)
+    print("output size / input size:", " ".join(f"{g:.2f}" for g in sorted(growth)))
     assert np.median(growth) <= 1.2
 
 
