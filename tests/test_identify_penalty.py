@@ -297,3 +297,33 @@ def test_f_test_of_penalised_fits_counts_effective_degrees_of_freedom(tmp_path):
     assert cmp["df_num"] == pytest.approx(base.dof - full.dof, rel=1e-12)
     assert full.smoothing is not None and abs(cmp["df_num"] - (full.rank - base.rank)) > 0.1
     assert cmp["p_value"] < 1e-6
+
+
+def test_common_weight_grid_is_the_criterion_at_a_common_weight():
+    """The grid search's fast values (one eigen-decomposition, each weight in O(k^2)) against the
+    criterion itself (a Cholesky factor per weight) at one weight shared by two penalties, with an
+    unpenalised part (the penalties' straight lines) and a start point away from zero; and the grid's
+    choice is the exact criterion's least grid point."""
+    from mtcomp.identification.penalty import _common_weight_grid, _grid_start, _ranks, reml_criterion
+    rng = np.random.default_rng(4)
+    k, n = 20, 200
+    X = rng.normal(size=(n, k))
+    X[:, 5:8] *= 1e-2                              # weakly seen coefficients: the penalty matters
+    D = np.diff(np.eye(10), 2, axis=0)
+    S1, S2 = np.zeros((k, k)), np.zeros((k, k))
+    S1[:10, :10] = D.T @ D
+    S2[10:, 10:] = 3.0 * D.T @ D
+    y, z0 = rng.normal(size=n), 0.1 * rng.normal(size=k)
+    args = (X.T @ X, X.T @ y, float(y @ y), [S1, S2], [S1 @ z0, S2 @ z0],
+            [float(z0 @ S1 @ z0), float(z0 @ S2 @ z0)], n)
+    grid = np.arange(-12.0, 12.1, 2.0)
+    fast = _common_weight_grid(grid, args, _ranks(args[3]))
+    exact = np.array([reml_criterion(np.full(2, r), *args, gradient=False)[0] for r in grid])
+    np.testing.assert_allclose(fast, exact, rtol=1e-10, atol=1e-9)
+    assert np.ptp(exact) > 1.0                     # the values vary: the comparison means something
+    full = np.arange(-30.0, 30.1, 2.0)
+    values = [reml_criterion(np.full(2, r), *args, gradient=False)[0] for r in full]
+
+    def criterion(rho):
+        return reml_criterion(rho, *args, gradient=False)[0]
+    assert _grid_start(full, criterion, args, _ranks(args[3]), 2) == full[int(np.argmin(values))]

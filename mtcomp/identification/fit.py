@@ -523,10 +523,13 @@ class _Problem:
         """The first pass of :meth:`solve`: Gauss-Newton from ``start`` (x, r, A, g) along B1, with
         the penalty's weights chosen by REML (sets ``S`` and ``smoothing_rho``). Returns (x, r, A, g,
         B, AB, iterations, converged) as :meth:`_gauss_newton`."""
-        from .penalty import reml_weights
+        from .penalty import penalty_ranks, reml_weights
         x, r, A, g = start
         self.S = None
         iterations = 0
+        Ss = list(penalties.values())
+        SB = [B1.T @ S @ B1 for S in Ss]            # the same penalties in both REML rounds
+        ranks = penalty_ranks(SB) if penalties else None
         # REML on the problem linearised at the start, then again at that fit: there the residuals
         # are small, so the criterion's residual sum of squares (the start's less what the step
         # explains) does not lose its digits to a large start misfit (a misaligned CMM frame)
@@ -540,11 +543,10 @@ class _Problem:
             if penalties:
                 z0 = x / scale
                 AB0 = B1.T @ (A * np.outer(scale, scale)) @ B1
-                Ss = list(penalties.values())
                 before = rho
-                rho, _ = reml_weights(AB0, B1.T @ (scale * g), float(r @ r), [B1.T @ S @ B1 for S in Ss],
+                rho, _ = reml_weights(AB0, B1.T @ (scale * g), float(r @ r), SB,
                                       [B1.T @ (S @ z0) for S in Ss], [float(z0 @ S @ z0) for S in Ss],
-                                      self.n_obs, start=rho)
+                                      self.n_obs, start=rho, ranks=ranks, with_edf=False)
                 if before is not None and np.max(np.abs(rho - before)) < RHO_SETTLED:
                     # the weights at the fit are those the fit used: it stands
                     rho = before
@@ -760,7 +762,8 @@ class _Problem:
             null_p = null_p * (1e-3 / np.where(rms > 0, rms, 1.0))
         else:
             keep &= np.linalg.norm(null_p, axis=0) > 0
-        uncertainty = {"names": tuple(model.param_names[i] for i in self.free_idx),
+        names = model.param_names           # a property that builds the tuple on each call
+        uncertainty = {"names": tuple(names[i] for i in self.free_idx),
                        "covariance": np.nan_to_num(sol.cov[:nf, :nf]), "undetermined": null_p[:, keep]}
         res.fitted_model = FittedModel(model, params, dict(ctx_defaults),
                                        {"identify": res.to_dict(), **(info or {})},

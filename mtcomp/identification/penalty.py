@@ -49,6 +49,11 @@ from ..models.basis import axis_spline
 CLASSES = ("positioning", "straightness", "angular", "rotary angular", "rotary translational")
 #: log weights are searched in [-RHO_BOUND, RHO_BOUND] about the class's normalised penalty
 RHO_BOUND = 30.0
+#: grid weights whose fast criterion is within this (relative to the least, and at least 1e3 times
+#: this absolute) of the least are compared by the exact one: above the two formulations' difference
+#: (both lose digits to the residual sum's cancellation at the grid's largest weights, ~6e-6
+#: relative), far below a difference that would matter to REML
+GRID_SHORTLIST = 1e-5
 
 
 def component_class(machine, group: str) -> str | None:
@@ -195,33 +200,112 @@ def reml_criterion(rho: np.ndarray, AB: np.ndarray, gB: np.ndarray, rss0: float,
 
 
 def _ranks(SB) -> np.ndarray:
-    return np.array([np.linalg.matrix_rank(S, tol=1e-9 * max(np.abs(S).max(), 1e-300)) for S in SB])
+    """The ranks of the penalties: their eigenvalues above 1e-9 of the largest entry (a symmetric
+    matrix's singular values are its eigenvalues' magnitudes; eigenvalues cost a third of an SVD)."""
+    return np.array([int(np.sum(np.abs(scipy.linalg.eigvalsh(S)) > 1e-9 * max(np.abs(S).max(), 1e-300)))
+                     for S in SB])
+
+
+def penalty_ranks(SB: list[np.ndarray]) -> np.ndarray:
+    """(m,) ranks of the penalties SB, to pass to :func:`reml_weights` when it runs more than once on
+    the same penalties."""
+    return _ranks(SB)
+
+
+def _common_weight_grid(grid: np.ndarray, args: tuple, ranks: np.ndarray) -> np.ndarray | None:
+    """(len(grid),) the REML criterion at one common log weight r for every class, at each r of
+    ``grid``, from one eigen-decomposition (None where it does not exist).
+
+    In the eigenvectors U of the summed penalty S (null part 0, range p with eigenvalues L), the
+    unpenalised coefficients are eliminated (Schur complement C of the data's normal matrix on
+    them); with ``L^-1/2 C L^-1/2 = Q diag(w) Q^T`` the penalised matrix ``AB + lam S`` has
+    log-determinant ``log|A_00| + log|L| + sum log(w + lam)`` and its solve is a division by
+    ``w + lam``: each weight costs O(k^2) where a Cholesky factor per weight costs O(k^3) (Wood 2011,
+    section 3.2, diagonalises the same way for one smoothing parameter). The null part is exactly
+    unpenalised, so the values stay accurate at the largest weights."""
+    AB, gB, rss0, SB, bz, cz, n_obs = args
+    S = sum(SB)
+    ev, U = np.linalg.eigh(0.5 * (S + S.T))
+    on = ev > 1e-9 * max(float(np.abs(S).max()), 1e-300)
+    if not on.any():
+        return None
+    U0, Up, lam_p = U[:, ~on], U[:, on], ev[on]
+    A00, A0p, App = U0.T @ AB @ U0, U0.T @ AB @ Up, Up.T @ AB @ Up
+    bt = sum(bz)
+    try:
+        if U0.shape[1]:
+            f00 = scipy.linalg.cho_factor(A00)
+            logdet_00 = 2.0 * float(np.sum(np.log(np.diag(f00[0]))))
+            G = scipy.linalg.cho_solve(f00, np.column_stack([A0p, U0.T @ gB, U0.T @ bt]))
+            G, e1, e2 = G[:, :-2], G[:, -2], G[:, -1]
+        else:
+            logdet_00, G, e1, e2 = 0.0, np.zeros((0, Up.shape[1])), np.zeros(0), np.zeros(0)
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+    C = App - A0p.T @ G
+    d = 1.0 / np.sqrt(lam_p)
+    w, Q = np.linalg.eigh(0.5 * (d[:, None] * (C + C.T) * d[None, :]))
+    R = d[:, None] * Q                          # y_p = R u
+    q1 = R.T @ (Up.T @ gB - A0p.T @ e1)
+    q2 = R.T @ (Up.T @ bt - A0p.T @ e2)
+    mp = AB.shape[0] - int(ranks.sum())
+    logdet_fixed = logdet_00 + float(np.sum(np.log(lam_p)))
+    out = np.empty(len(grid))
+    for i, r in enumerate(grid):
+        lam = np.exp(r)
+        if np.any(w + lam <= 0):
+            return None
+        yp = R @ ((q1 - lam * q2) / (w + lam))
+        y = Up @ yp + U0 @ (e1 - lam * e2 - G @ yp)
+        pen = float(y @ S @ y + 2.0 * y @ bt) + float(sum(cz))
+        total = max(rss0 - 2.0 * float(gB @ y) + float(y @ AB @ y) + lam * pen, 1e-300)
+        out[i] = (0.5 * (n_obs - mp) * np.log(total) + 0.5 * (logdet_fixed + float(np.sum(np.log(w + lam))))
+                  - 0.5 * float(ranks.sum()) * r)
+    return out
+
+
+def _grid_start(grid: np.ndarray, criterion, args: tuple, ranks: np.ndarray, m: int) -> float:
+    """The grid's common log weight with the least criterion (the first of equals, in grid order).
+    The fast values of :func:`_common_weight_grid` shortlist the points within round-off of their
+    least; those are compared by the exact criterion, so the choice is the exact criterion's."""
+    fast = _common_weight_grid(grid, args, ranks)
+    if fast is None or not np.all(np.isfinite(fast)):
+        return float(min(grid, key=lambda r: criterion(np.full(m, r))))
+    near = np.flatnonzero(fast <= fast.min() + GRID_SHORTLIST * max(abs(float(fast.min())), 1e3))
+    return float(min(grid[near], key=lambda r: criterion(np.full(m, r))))
 
 
 def reml_weights(AB: np.ndarray, gB: np.ndarray, rss0: float, SB: list[np.ndarray],
                  bz: list[np.ndarray], cz: list[float], n_obs: int,
-                 start: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+                 start: np.ndarray | None = None, ranks: np.ndarray | None = None,
+                 with_edf: bool = True) -> tuple[np.ndarray, float]:
     """Log weights rho (one per penalty) minimising the REML criterion of the module docstring, and
-    the effective degrees of freedom at them.
+    the effective degrees of freedom at them (NaN when ``with_edf`` is False: the caller computes
+    them at its own fit).
 
     AB : (k, k) data normal matrix in the fitted directions. gB : (k,) gradient of the data term
     (J^T r at the linearisation point). rss0 : the residual sum of squares there. SB : the penalties
     (k, k) in those directions, each normalised. bz, cz : the penalties' linear and constant parts
     from a non-zero start point, pen_k(y) = y^T SB_k y + 2 y^T bz_k + cz_k. start : log weights to
-    refine from (skips the coarse grid).
+    refine from (skips the coarse grid). ranks : the penalties' ranks (:func:`penalty_ranks`;
+    computed when not given).
     """
     m = len(SB)
     args = (AB, gB, rss0, SB, bz, cz, n_obs)
-    ranks = _ranks(SB)
+    ranks = _ranks(SB) if ranks is None else np.asarray(ranks)
+    values = {}
 
     def criterion(rho):
-        return reml_criterion(rho, *args, gradient=False, ranks=ranks)[0]
+        key = tuple(np.asarray(rho, dtype=float).tolist())
+        if key not in values:
+            values[key] = reml_criterion(rho, *args, gradient=False, ranks=ranks)[0]
+        return values[key]
 
     # a common weight on a coarse grid first (the criterion is flat far out and may have shallow
     # local minima), then every class's own from there, with the exact gradient
     if start is None:
         grid = np.arange(-RHO_BOUND, RHO_BOUND + 1e-9, 2.0)
-        rho = np.full(m, min(grid, key=lambda r: criterion(np.full(m, r))))
+        rho = np.full(m, _grid_start(grid, criterion, args, ranks, m))
     else:
         rho = np.asarray(start, dtype=float)
     res = scipy.optimize.minimize(lambda r: reml_criterion(r, *args, ranks=ranks)[:2], rho, jac=True,
@@ -229,6 +313,8 @@ def reml_weights(AB: np.ndarray, gB: np.ndarray, rss0: float, SB: list[np.ndarra
                                   options={"maxiter": 500, "ftol": 1e-12, "gtol": 1e-6})
     if res.fun <= criterion(rho):
         rho = res.x
+    if not with_edf:
+        return rho, float("nan")
     H = reml_criterion(rho, *args, gradient=False, ranks=ranks)[2]
     edf = float(np.trace(_logdet_solve(H, AB)[1]))
     return rho, edf
