@@ -25,7 +25,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
 
 try:
     from resolution_cases import (abbe_case, abbe_fine_case, pdge_case, periodic_backlash_case,
