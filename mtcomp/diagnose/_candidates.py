@@ -20,7 +20,7 @@ from ..models.terms import (AbbeIRC, Backlash, ChannelDrift, FeedOffset, Periodi
 from ..models.basis import axis_spline
 from . import _analysis as an
 from ._analysis import cv_threshold
-from ._stack import MOTION_LETTERS, PDGE_ORDER
+from ._stack import MOTION_LETTERS
 
 #: false-alarm probability below which a spectral line makes a periodic candidate
 LINE_FAP = 1e-3
@@ -347,22 +347,30 @@ def _finer_profile_veto(st, design, extra, a: str, cand: Candidate) -> str | Non
             "a smooth profile the base's resolution does not follow, not a periodic error")
 
 
+#: the orders (highest harmonic) of the error-motion candidates offered per component, up to the
+#: probe's; held-out data choose among them (the simplest whose gain the others do not beat by more
+#: than noise could, ``_selection._parsimony``)
+PDGE_LADDER = (1, 2, 3, 4, 5, 6, 8)
+
+
 def _pdge_candidates(st, a: str) -> list[Candidate]:
+    """Error motions of rotary axis ``a`` beyond its location errors, one candidate per component and
+    order: Fourier series of the angle up to each order of ``PDGE_LADDER`` that the probe holds and
+    the data's distinct angles determine (2 order + 1 of them)."""
     k = st.machine.axis_names.index(a)
-    angles = np.unique(np.round(st.q[:, k], 4))
-    if angles.size < 2 * PDGE_ORDER + 1:
-        return []
+    angles = np.unique(np.round(np.mod(st.q[:, k], 2 * np.pi), 4))
     out = []
     for letters in MOTION_LETTERS:
         comp = f"{letters}{a}"
         if comp == positioning_component(a):
             continue
-        names = [f"{comp}_{cs}{h}" for h in range(1, PDGE_ORDER + 1) for cs in "cs"]
-        if not all(n in st.probe.param_names for n in names):
-            continue
-        out.append(Candidate("rotary_pdge", a, comp, st.columns(names),
-                             [RotaryErrorMotion(comp, order=PDGE_ORDER)], names, rivals=f"pdge:{a}",
-                             info={"component": comp}, build=_probe_columns(names)))
+        top = max((t.order for t in st.probe.terms
+                   if isinstance(t, RotaryErrorMotion) and t.component == comp), default=0)
+        for order in [o for o in PDGE_LADDER if o <= top and angles.size >= 2 * o + 1]:
+            names = [f"{comp}_{cs}{h}" for h in range(1, order + 1) for cs in "cs"]
+            out.append(Candidate("rotary_pdge", a, f"{comp}:{order}", st.columns(names),
+                                 [RotaryErrorMotion(comp, order=order)], names, rivals=f"pdge:{a}",
+                                 info={"component": comp, "order": order}, build=_probe_columns(names)))
     return out
 
 

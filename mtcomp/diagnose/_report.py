@@ -126,8 +126,11 @@ def _rotary_pdge(st, c, theta, resid, rt):
     unit, scale = ("urad", 1e6) if comp[1] in "ABC" else ("um", 1e3)
     harm = theta.reshape(-1, 2) * scale
     amps = np.hypot(harm[:, 0], harm[:, 1])
-    params = {"component": comp, f"harmonic_amplitudes_{unit}": [round(float(x), 4) for x in amps]}
-    ev = (f"The residual varies with the {a} angle at harmonics 1-{len(amps)} beyond the location "
+    orders = [int(n.rsplit("_", 1)[1][1:]) for n in c.params[::2]]
+    span = f"{orders[0]}-{orders[-1]}" if len(orders) > 1 else f"{orders[0]}"
+    params = {"component": comp, "harmonics": orders,
+              f"harmonic_amplitudes_{unit}": [round(float(x), 4) for x in amps]}
+    ev = (f"The residual varies with the {a} angle at harmonics {span} beyond the location "
           f"errors of {a}; as the error motion {comp} they reach {amps.max():.3g} {unit}")
     return params, ev
 

@@ -39,22 +39,47 @@ MIN_DEFECT_POSITIONS = 4
 LOCAL_SHARE = 2.0 / 3.0
 
 
-def finer_base_columns(st, a: str):
+#: a component other than the positioning error may be refined below ``MIN_KNOT_MM``, to knots this
+#: many times the spacing of the positions read (a screw's period shows in positioning, which keeps
+#: the floor, so that diagnose names it; an angular or straightness profile has no such rival)
+DATA_SPACING_KNOTS = 1.0
+
+
+def data_spacing_mm(st, a: str) -> float:
+    """The median spacing (mm) of the distinct positions of linear axis ``a`` in the readings that
+    depend on its errors; inf when fewer than two."""
+    from ._analysis import POSITION_DECIMALS
+    k = st.machine.axis_names.index(a)
+    reads = np.abs(st.g[a]) > 0 if a in st.g else np.ones(len(st), dtype=bool)
+    x = np.unique(np.round(st.q[reads, k], POSITION_DECIMALS))
+    return float(np.median(np.diff(x))) if x.size >= 2 else float("inf")
+
+
+def finer_base_columns(st, a: str, beyond_floor: bool = False):
     """({component: ((n, m) columns, (m,) centre of each column's function, mm)}, the finer
     SplineBasis) of linear axis ``a`` at twice the base's intervals (fewer when knots would come
     closer than ``MIN_KNOT_MM``); components the data do not read are absent. None when the axis has
-    no B-spline base or none finer is allowed."""
+    no B-spline base or none finer is allowed. ``beyond_floor``: knots as close as
+    ``DATA_SPACING_KNOTS`` times the data's spacing instead, for every component but the positioning
+    error."""
     ax = st.machine.axis(a)
     if ax.is_rotary or ax.basis != "bspline":
         return None
     base = axis_spline(ax)
-    n_int = min(2 * base.n_intervals, max_intervals(base.lo, base.hi))
+    if beyond_floor:
+        h_min = DATA_SPACING_KNOTS * data_spacing_mm(st, a)
+        most = int((base.hi - base.lo) // h_min) if np.isfinite(h_min) and h_min > 0 else 0
+    else:
+        most = max_intervals(base.lo, base.hi)
+    n_int = min(2 * base.n_intervals, most)
     if n_int <= base.n_intervals:
         return None
     fine = spline_basis(base.lo, base.hi, n_int, base.degree)
     s = st.q[:, st.machine.axis_names.index(a)]
     out = {}
     for comp in linear_component_names(a):
+        if beyond_floor and comp == f"E{a}{a}":
+            continue
         carried = slope_carried(st.machine, comp)
         names = [f"{comp}_{t}" for t in component_terms(st.machine, a, comp)]
         if not names:
@@ -102,6 +127,8 @@ def finer_base(st, design, extra, current, structure):
             continue
         seen.add(a)
         got = finer_base_columns(st, a)
+        if got is None:
+            got = finer_base_columns(st, a, beyond_floor=True)
         if got is None:
             continue
         by_comp, basis = got

@@ -105,17 +105,23 @@ def _drop_undetermined_offsets(design, extra, current, c: Candidate, fit):
     """An Abbe candidate brings feed offsets along the directions its moved centre or its scaled
     constant angle translates (see ``_abbe_candidates``); where the data cannot tell such an offset
     from the rest of the model (a direction read at one feed only, or read only where another column
-    already moves it), the offset is dropped rather than the cause refused for it. Returns the candidate
-    and its fit; unchanged when no offset is undetermined."""
-    if c.effect != "feed_dependent_abbe":
+    already moves it), the offset is dropped rather than the cause refused for it. A rotary error
+    motion's first harmonic trades with the axis's location errors and the other components' first
+    harmonics; where the data cannot tell it apart, it is dropped (held at zero) and the higher
+    harmonics kept. Returns the candidate and its fit; unchanged when nothing is undetermined."""
+    if c.effect == "feed_dependent_abbe":
+        groups = [[p] for p in c.params if p.startswith("FOFF_")]
+    elif c.effect == "rotary_pdge":
+        groups = [[p for p in c.params if p.endswith(("_c1", "_s1"))]]
+    else:
         return c, fit
     dropped = False
-    for name in [p for p in c.params if p.startswith("FOFF_")]:
-        if fit.rank - current.rank >= c.columns.shape[1]:
+    for names in groups:
+        if fit.rank - current.rank >= c.columns.shape[1] or not names or len(names) == len(c.params):
             break
-        trial = without_params(c, [name])
+        trial = without_params(c, names)
         f = design.fit(np.hstack([extra, trial.columns]), cv=False)
-        if f.rank == fit.rank:               # the offset added no direction the data determine
+        if f.rank - current.rank >= fit.rank - current.rank - (len(names) - 1) and f.rank <= fit.rank:
             c, fit, dropped = trial, f, True
     if dropped:
         fit = design.fit(np.hstack([extra, c.columns]))

@@ -35,12 +35,28 @@ from ..models.terms import AbbeIRC, Backlash, RotaryErrorMotion, ThermalDrift, p
 ONE = "_one"
 #: the rotary error motions diagnose can add (ISO 230-1 letters before the axis letter)
 MOTION_LETTERS = ("EX", "EY", "EZ", "EA", "EB")
-#: harmonics of a rotary error-motion candidate (Tan et al. 2026: one revolution carries them all)
+#: harmonics of a rotary error-motion candidate when the data hold few angles (Tan et al. 2026: one
+#: revolution carries them all)
 PDGE_ORDER = 3
+#: the most harmonics a rotary error-motion candidate may have; within it, the data's distinct angles
+#: set the highest (:func:`pdge_orders`) and held-out data choose among the orders (``_candidates``)
+MAX_PDGE_ORDER = 8
 
 
-def probe_terms(machine: Machine) -> list:
-    """The extension terms of the probe model (see module docstring), in a fixed order."""
+def pdge_orders(machine: Machine, datasets) -> dict:
+    """Rotary axis -> the highest harmonic of its error-motion candidates: as many as the distinct
+    angles the data hold determine (:func:`mtcomp.models.basis.auto_fourier_order`), at least
+    ``PDGE_ORDER`` and at most ``MAX_PDGE_ORDER``."""
+    from ..measurement.readings import data_positions
+    from ..models.basis import auto_fourier_order
+    pos = data_positions(machine, datasets)
+    return {ax.name: int(min(MAX_PDGE_ORDER, max(PDGE_ORDER, auto_fourier_order(pos.get(ax.name, ())))))
+            for ax in machine.rotary_axes}
+
+
+def probe_terms(machine: Machine, orders: dict | None = None) -> list:
+    """The extension terms of the probe model (see module docstring), in a fixed order. ``orders``:
+    rotary axis -> harmonics of its error-motion terms (default ``PDGE_ORDER``)."""
     terms = [Backlash(a) for a in machine.axis_names]
     for ax in machine.linear_axes:
         terms.append(AbbeIRC(ax.name, angles="ABC", feed=True, angle_gain=True, angle_feed=True))
@@ -50,7 +66,7 @@ def probe_terms(machine: Machine) -> list:
         for letters in MOTION_LETTERS:
             comp = f"{letters}{ax.name}"
             if comp != positioning_component(ax.name):
-                terms.append(RotaryErrorMotion(comp, order=PDGE_ORDER))
+                terms.append(RotaryErrorMotion(comp, order=(orders or {}).get(ax.name, PDGE_ORDER)))
     terms.append(ThermalDrift("probe", (ONE,), "XYZ"))
     return terms
 
@@ -191,7 +207,7 @@ class Stack:
 
 def build_stack(machine: Machine, datasets: list[MeasurementSet], extra_context=None) -> Stack:
     """Stack the observations of ``datasets`` and bind them to the probe model (not yet evaluated)."""
-    probe = ErrorModel(machine, probe_terms(machine))
+    probe = ErrorModel(machine, probe_terms(machine, pdge_orders(machine, datasets)))
     parts = {k: [] for k in ("y", "unit", "file", "series", "column", "component", "row", "q", "moving",
                              "dirs", "feed", "t", "run", "spindle", "arm", "setup")}
     temp_names = sorted({n for d in datasets for n in d.context.temperatures})

@@ -179,19 +179,20 @@ def hidden_case(seed: int, effect: str, kind: str, topology: str, folder, hidden
 
 
 def seed000_case(seed: int, folder, irc_shift_mm_per_m_min: float = -800.0,
-                 velocity_noise_mm_min: float | None = None) -> HiddenCase:
+                 velocity_noise_mm_min: float | None = None, effects: tuple = ()) -> HiddenCase:
     """Seed 000's experiment on a random XFYZ machine: laser runs of the table axis X over 200 mm in
     5 mm steps, three runs both ways at 180, 240 and 300 mm/min: positioning at 0 and at 210 mm Abbe
     offset (along Y), yaw (ECX) and pitch (EBX). The table yaws about a centre that moves along Y by
     ``irc_shift_mm_per_m_min`` per m/min of feed (the default, -800, moves it 144-240 mm over the
     paper's feeds: a traditional model's error at the 210 mm line is then of the order the paper
     reports, about 1 um). ``velocity_noise_mm_min``: also the paper's two-point velocities over the
-    same 200 mm at the same feeds (SPEC 3.6), with that noise (mm/min)."""
+    same 200 mm at the same feeds (SPEC 3.6), with that noise (mm/min). ``effects``: further effects
+    of the machine besides the feed-dependent Abbe error."""
     rng = np.random.default_rng(seed)
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     eff = FeedAbbe("X", angles="C", irc_shift_mm_per_m_min=(0.0, irc_shift_mm_per_m_min, 0.0))
-    m = TruthMachine.random("xfyz", rng, effects=[eff], error_motions=False)
+    m = TruthMachine.random("xfyz", rng, effects=[eff, *effects], error_motions=False)
     paths = []
     t = 0.0
     for name, comps, optic in (("pos_0", ("EXX",), (0.0, 0.0, 0.0)),

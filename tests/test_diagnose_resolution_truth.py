@@ -1,0 +1,65 @@
+"""diagnose's resolution on the independent machine (tests/truth, which shares no code with mtcomp):
+rotary error motions of harmonics 2-4, seed 003 through the generic path, a screw period beside a
+backlash, a feed-dependent Abbe error whose angular profile is finer than the base's knot floor.
+The cases are written in tests/resolution_cases.py; benchmarks/bench_diagnose_resolution.py runs
+them on more machines."""
+import numpy as np
+import pytest
+
+from diagnose_truth import run, score
+from resolution_cases import abbe_fine_case, pdge_case, pitch_line_case, seed003_diagnosed
+
+
+def test_rotary_error_motions_of_harmonics_2_to_4_are_explained(tmp_path):
+    """Five error motions of C (radial pair, axial, tilt pair), harmonics 2, 3 and 4, seen by the
+    three-sphere set-up: each is named, with the harmonics the data ask for, and the held-out rms is
+    within 1.1 times the noise (with harmonics up to 3 only it stayed at 2.3 times, 'unexplained')."""
+    case = pdge_case(0, tmp_path, circles=False)
+    d, _ = run(case)
+    sc = score(case, d)
+    assert d.verdict == "explained" and not sc.wrong, d.summary()
+    assert sorted(f.params["component"] for f in d.findings) == ["EAC", "EBC", "EXC", "EYC", "EZC"]
+    assert sc.ratio <= 1.1
+    # the truth has harmonics 2-4: every component's series reaches 4, none stops below it
+    assert all(max(f.params["harmonics"]) >= 4 for f in d.findings), [f.params for f in d.findings]
+
+
+def test_seed003_axis_points_through_diagnose(tmp_path):
+    """Seed 003's three-sphere file (C error motions of harmonics 2-5) on the built-in machine, which
+    declares no error motions: diagnose finds them, and the C-axis points over the turn are within the
+    paper's 0.3 um mean and 0.78 um max. Each point's offset over the turn is removed: X, Y and Z
+    stand still at the bar's positions, so their errors there trade with the axis's location (the
+    paper compensated them first; identify is told so, diagnose is not)."""
+    d, raw, turn = seed003_diagnosed(0, tmp_path)
+    assert {f.effect for f in d.findings} == {"rotary_pdge"}, d.summary()
+    assert turn.mean() <= 0.3 and turn.max() <= 0.78, (turn.mean(), turn.max())
+    # the offset left open is the same at every angle: removing it changes each point by one vector
+    assert raw.mean() > turn.mean()
+
+
+def test_periodic_error_and_backlash_of_one_axis_are_both_named(tmp_path):
+    """A 20 mm screw period (1.5 um) beside a 5 um backlash of X, read as a pitch table (every 5 mm,
+    three runs both ways): both are named and nothing else."""
+    case = pitch_line_case(0, tmp_path)
+    d, _ = run(case)
+    assert sorted((f.effect, f.axis) for f in d.findings) == [("backlash", "X"), ("periodic_error", "X")]
+    assert d.verdict == "explained" and score(case, d).ratio < 1.1
+    bl = next(f for f in d.findings if f.effect == "backlash")
+    assert bl.params["magnitude_um"] == pytest.approx(5.0, abs=0.3)
+    per = next(f for f in d.findings if f.effect == "periodic_error")
+    assert per.params["period_mm"] == pytest.approx(20.0, rel=0.01)
+
+
+def test_feed_abbe_with_a_yaw_finer_than_the_knot_floor_is_explained(tmp_path):
+    """Seed 000's set-up on a machine whose yaw of X carries a 25 mm wave (4 urad): the base's knots
+    may come no closer than 16 mm for the positioning error (a screw period is diagnose's to name),
+    but the yaw is refined to the data's 5 mm spacing, and the feed-dependent Abbe error is explained
+    (it ended 'unexplained' at 4.7 times the noise)."""
+    case = abbe_fine_case(0, tmp_path)
+    d, _ = run(case)
+    assert [(f.effect, f.axis) for f in d.findings] == [("feed_dependent_abbe", "X")], d.summary()
+    assert d.verdict == "explained"
+    assert score(case, d, noise_um=0.2).ratio < 1.1
+    x = d.model.model.machine.axis("X")
+    assert (x.spline_range[1] - x.spline_range[0]) / x.spline_intervals < 16.0
+    assert np.isfinite(d.final["heldout_rms_um"])
