@@ -12,7 +12,11 @@ after one warm-up (which compiles the model's and the reader's C code into the c
 * compensate: ``python -m mtcomp compensate xfyz MODEL PROGRAM -o OUT --quiet`` (method qp).
 
 Peak memory is ru_maxrss of each subprocess (os.wait4). The ratio is compensate / copy of wall
-times.
+times. The subprocesses import mtcomp as this process's environment finds it (``PYTHONPATH=.`` from a
+checkout runs that checkout); the folder is printed. ``import`` is the floor of any compensation:
+a process that imports what compensate imports (numpy, CasADi, the package) and exits; ``+ osqp``
+adds OSQP and scipy.sparse, imported when a window of the program needs the bounded QP (this
+program's do).
 """
 from __future__ import annotations
 
@@ -28,6 +32,7 @@ from pathlib import Path
 from bench_compensate import write_model
 from bench_gcode import make_program
 
+IMPORTS = "import mtcomp.commands.compensate, mtcomp.compensation, casadi"
 COPY = ("import sys\n"
         "with open(sys.argv[1], 'rb') as f, open(sys.argv[2], 'wb') as g:\n"
         "    for line in f:\n"
@@ -66,12 +71,18 @@ def main(argv=None) -> int:
         write_model(model, "xfyz")
         size = prog.stat().st_size / 1e6
         copy = measure([py, "-c", COPY, str(prog), str(tmp / "copy.nc")], args.repeat)
+        floor = measure([py, "-c", IMPORTS], args.repeat)
+        floor_qp = measure([py, "-c", IMPORTS + ", osqp, scipy.sparse"], args.repeat)
         comp = measure([py, "-m", "mtcomp", "compensate", "xfyz", str(model), str(prog), "-o",
                         str(out), "--quiet"], args.repeat)
         out_size = out.stat().st_size / 1e6
+    where = subprocess.run([py, "-c", "import mtcomp; print(mtcomp.__file__)"], capture_output=True,
+                           text=True, check=True).stdout.strip()
+    print(f"mtcomp from {Path(where).parent}")
     print(f"program: {args.blocks} blocks, {size:.1f} MB (output {out_size:.1f} MB)")
     print(f"{'what':12s} {'wall s':>8s} {'peak MB':>8s} {'x copy':>7s}")
-    for what, (wall, mb) in (("copy", copy), ("compensate", comp)):
+    for what, (wall, mb) in (("copy", copy), ("import", floor), ("+ osqp", floor_qp),
+                             ("compensate", comp)):
         print(f"{what:12s} {wall:8.2f} {mb:8.0f} {wall / copy[0]:7.1f}")
     print(f"(median of {args.repeat} runs after a warm-up; {os.cpu_count()} cpus, load average "
           f"{os.getloadavg()[0]:.1f})")
