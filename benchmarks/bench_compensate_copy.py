@@ -12,7 +12,13 @@ after one warm-up (which compiles the model's and the reader's C code into the c
 * compensate: ``python -m mtcomp compensate xfyz MODEL PROGRAM -o OUT --quiet`` (method qp).
 
 Peak memory is ru_maxrss of each subprocess (os.wait4). The ratio is compensate / copy of wall
-times.
+times ("x copy"), and of CPU times, user and system ("cpu x": less sensitive to other work on the
+machine, but blind to what threads gain). The subprocesses import mtcomp from the current folder first (``python -m`` and ``-c`` put
+it at the head of sys.path), then from PYTHONPATH: run this from the checkout to be measured, with
+``PYTHONPATH=.``; the folder they imported is printed. ``import`` is the floor of any compensation:
+a process that imports what compensate imports (numpy, CasADi, the package) and exits; ``+ osqp``
+adds OSQP and scipy.sparse, imported when a window of the program needs the bounded QP (this
+program's do).
 """
 from __future__ import annotations
 
@@ -28,14 +34,15 @@ from pathlib import Path
 from bench_compensate import write_model
 from bench_gcode import make_program
 
+IMPORTS = "import mtcomp.commands.compensate, mtcomp.compensation, casadi"
 COPY = ("import sys\n"
         "with open(sys.argv[1], 'rb') as f, open(sys.argv[2], 'wb') as g:\n"
         "    for line in f:\n"
         "        g.write(line)\n")
 
 
-def run(cmd: list[str]) -> tuple[float, float]:
-    """(wall s, peak rss MB) of one subprocess."""
+def run(cmd: list[str]) -> tuple[float, float, float]:
+    """(wall s, peak rss MB, CPU s (user + system)) of one subprocess."""
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     _, status, ru = os.wait4(proc.pid, 0)
@@ -44,13 +51,13 @@ def run(cmd: list[str]) -> tuple[float, float]:
     proc.stderr.close()
     if os.waitstatus_to_exitcode(status) != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed: {err}")
-    return wall, ru.ru_maxrss / 1024.0
+    return wall, ru.ru_maxrss / 1024.0, ru.ru_utime + ru.ru_stime
 
 
 def measure(cmd, repeat):
     run(cmd)
     runs = [run(cmd) for _ in range(repeat)]
-    return statistics.median(r[0] for r in runs), statistics.median(r[1] for r in runs)
+    return tuple(statistics.median(r[k] for r in runs) for k in range(3))
 
 
 def main(argv=None) -> int:
@@ -66,13 +73,20 @@ def main(argv=None) -> int:
         write_model(model, "xfyz")
         size = prog.stat().st_size / 1e6
         copy = measure([py, "-c", COPY, str(prog), str(tmp / "copy.nc")], args.repeat)
+        floor = measure([py, "-c", IMPORTS], args.repeat)
+        floor_qp = measure([py, "-c", IMPORTS + ", osqp, scipy.sparse"], args.repeat)
         comp = measure([py, "-m", "mtcomp", "compensate", "xfyz", str(model), str(prog), "-o",
                         str(out), "--quiet"], args.repeat)
         out_size = out.stat().st_size / 1e6
+    where = subprocess.run([py, "-c", "import mtcomp; print(mtcomp.__file__)"], capture_output=True,
+                           text=True, check=True).stdout.strip()
+    print(f"mtcomp from {Path(where).parent}")
     print(f"program: {args.blocks} blocks, {size:.1f} MB (output {out_size:.1f} MB)")
-    print(f"{'what':12s} {'wall s':>8s} {'peak MB':>8s} {'x copy':>7s}")
-    for what, (wall, mb) in (("copy", copy), ("compensate", comp)):
-        print(f"{what:12s} {wall:8.2f} {mb:8.0f} {wall / copy[0]:7.1f}")
+    print(f"{'what':12s} {'wall s':>8s} {'peak MB':>8s} {'x copy':>7s} {'cpu s':>7s} {'cpu x':>6s}")
+    for what, (wall, mb, cpu) in (("copy", copy), ("import", floor), ("+ osqp", floor_qp),
+                             ("compensate", comp)):
+        print(f"{what:12s} {wall:8.2f} {mb:8.0f} {wall / copy[0]:7.1f} {cpu:7.2f} "
+              f"{cpu / copy[2]:6.1f}")
     print(f"(median of {args.repeat} runs after a warm-up; {os.cpu_count()} cpus, load average "
           f"{os.getloadavg()[0]:.1f})")
     return 0

@@ -24,6 +24,7 @@ from .io.atomic import atomic_write
 from .planner import (CompensationProblem, Planner, PlannerOptions, Summary, output_grid,
                       report_columns, report_rows)
 from .planner._bounds import FLAG_KINDS
+from .planner._parallel import read_ahead
 from .planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
 from .toolpaths import iter_segment_chunks, write_corrected
 from .toolpaths.source import open_program
@@ -152,29 +153,30 @@ def build_problem(fitted, settings: CompensationSettings, inch: bool) -> Compens
 def uses_inches(path, block: int = 1 << 22) -> bool:
     """True if the program contains a G20 word anywhere (comments included: a cautious guess that
     only sets the rounding grid of the output). Reads the file in blocks: memory stays flat."""
-    return _has_word(path, b"20", block)
+    return bool(words_in(path, (b"20",), block))
 
 
-def _has_word(path, code, block: int) -> bool:
-    """True if the file holds G ``code`` (bytes, or a tuple of them: any) as :func:`_has_g` reads
-    it, read in blocks."""
-    codes = (code,) if isinstance(code, bytes) else tuple(code)
+def words_in(path, codes, block: int = 1 << 22) -> set:
+    """The G ``codes`` (bytes, e.g. b"20") the file holds as :func:`_has_g` reads them, in one pass
+    of blocks that stops once every code is found. InputError when the file cannot be read."""
     try:
         f = open(path, "rb")
     except FileNotFoundError:
         raise InputError("no such file", path) from None
     except OSError as exc:
         raise InputError(f"cannot open: {exc.strerror}", path) from None
-    tail = b""
+    found, tail = set(), b""
     with f:
-        while True:
+        while len(found) < len(codes):
             data = f.read(block)
+            text = tail + data if data else tail + b" "
+            # a word cut by the block's end is read with the next block (the last 16 bytes again)
+            found.update(c for c in codes if c not in found and _has_g(text if not data else
+                                                                       text[:-8], c))
             if not data:
-                return any(_has_g(tail + b" ", c) for c in codes)
-            text = tail + data
-            if any(_has_g(text[:-8], c) for c in codes):
-                return True
+                break
             tail = text[-16:]
+    return found
 
 
 def _has_g(text: bytes, code: bytes = b"20") -> bool:
@@ -199,6 +201,10 @@ def _has_g(text: bytes, code: bytes = b"20") -> bool:
             return True
     return False
 
+
+#: rows of the chunks a program is read and planned in: the memory a compensation holds grows with it
+#: (about 2.4 kB a row: 280 MB at 65536, 200 MB at this), its time hardly changes
+CHUNK_ROWS = 32768
 
 #: the speed of rapid moves (mm/min) in a program's run time (:func:`block_times`); machine files
 #: do not state one
@@ -357,11 +363,12 @@ class _Tally:
                 "take them at 0 mm/min"]
 
 
-def _program_units(program, settings: CompensationSettings, machine) -> tuple[bool, bool, list]:
+def _program_units(found: set, settings: CompensationSettings, machine) -> tuple[bool, bool, list]:
     """(the program starts in inch, it holds inch anywhere (the output grid), notes on what was
-    taken for a program that states no units)."""
-    inch_anywhere = uses_inches(program)          # one pass for G20, a second only for G21
-    if inch_anywhere or _has_word(program, b"21", 1 << 22):
+    taken for a program that states no units); ``found``: the program's G codes of
+    :func:`words_in`, G20 and G21 among them when it has them."""
+    inch_anywhere = b"20" in found
+    if b"20" in found or b"21" in found:
         return False, inch_anywhere, []
     units = settings.units or machine.units
     if units is None:
@@ -453,24 +460,19 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     series = _checked_series(fitted, settings, temperature_series)
     fitted.context_defaults.update(thermal)
     setup = setup if setup is not None else ProgramSetup(machine)
-    start_inch, inch, notes = _program_units(program, settings, machine)
+    # one pass over the user's file for its units and for cutter radius compensation (the note)
+    found = words_in(program, (b"20", b"21", b"41", b"42"))
+    start_inch, inch, notes = _program_units(found, settings, machine)
     start_pos, start_known = start_position(machine, settings.start_position)
     sd_limit = settings.sd_limit()
-    options = PlannerOptions(method=settings.method, subdivide_tol_um=settings.subdivide_tol_um or None,
-                             progress=progress, extrapolate=settings.extrapolate,
-                             max_correction_sd_um=sd_limit, threads=settings.threads)
-    chord_tol = settings.chord_tol_um * 1e-3
-    planner = Planner(build_problem(fitted, settings, inch), options, source=str(program))
-    summary = Summary(machine.axis_names, extrapolate=settings.extrapolate,
-                      support_known=fitted.support is not None, max_correction_sd_um=sd_limit,
-                      has_covariance=fitted.uncertainty is not None)
+    planner, summary = _planner(fitted, settings, inch, program, progress)
     tally = _Tally(machine)
     offsets_of = {}
-    read = dict(chord_tol_mm=chord_tol, initial_position=start_pos, inch=start_inch,
-                initial_known=start_known)
+    read = dict(chord_tol_mm=settings.chord_tol_um * 1e-3, initial_position=start_pos,
+                inch=start_inch, initial_known=start_known)
 
     def machine_chunks():
-        for chunk in iter_segment_chunks(src[0], machine, **read):
+        for chunk in iter_segment_chunks(src[0], machine, chunk_size=CHUNK_ROWS, **read):
             tally.read(chunk)
             mchunk, off = setup.apply(chunk, src[0])
             if series is not None:
@@ -479,7 +481,12 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
             yield mchunk
 
     def corrections(rep):
-        for mchunk, res in planner.iter_chunks(machine_chunks()):
+        # with threads to spare the program is read in a thread of its own: the planner's thread,
+        # the longest of the three, only plans
+        chunks = machine_chunks()
+        if planner.threads > 1:
+            chunks = read_ahead(chunks, name="mtcomp-reader")
+        for mchunk, res in planner.iter_chunks(chunks):
             chunk, off = offsets_of.pop(id(mchunk))
             for judge in judges:
                 judge.add(mchunk, res)
@@ -503,7 +510,7 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
             rep = stack.enter_context(atomic_write(report, "w", newline=""))
             rep.write(",".join(report_columns(machine.axis_names, machine.is_five_axis)) + "\n")
         write_corrected(src[0], output, machine, corrections(rep), stats=written, **read)
-    notes += _run_notes(src[0], written, fitted, setup, tally)
+    notes += _run_notes(src[0], written, fitted, setup, tally, found)
     if series is not None:
         assumed = _series_sentence(fitted, settings, series, tally)
     return CompensationRun(summary, written, notes, assumed, planner.stats,
@@ -512,15 +519,28 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
                            time.perf_counter() - t0, tally.bound_blocks, src[0].summary())
 
 
-def _run_notes(program, written, fitted, setup, tally) -> list[str]:
+def _planner(fitted, settings: CompensationSettings, inch: bool, program, progress) -> tuple:
+    """(the Planner of this compensation, the Summary its results are added to)."""
+    sd_limit = settings.sd_limit()
+    options = PlannerOptions(method=settings.method, subdivide_tol_um=settings.subdivide_tol_um or None,
+                             progress=progress, extrapolate=settings.extrapolate,
+                             max_correction_sd_um=sd_limit, threads=settings.threads)
+    planner = Planner(build_problem(fitted, settings, inch), options, source=str(program))
+    summary = Summary(fitted.machine.axis_names, extrapolate=settings.extrapolate,
+                      support_known=fitted.support is not None, max_correction_sd_um=sd_limit,
+                      has_covariance=fitted.uncertainty is not None)
+    return planner, summary
+
+
+def _run_notes(program, written, fitted, setup, tally, found) -> list[str]:
     """The notes after a run: the program's expansion, drilling cycles, datums, feeds, set-up."""
     notes = list(program.notes)
     if program.expanded:
         notes.append(f"the program's code was run: {program.executed} lines executed from its "
                      f"{program.source_lines}; the output is that expansion, corrected (its first "
                      "line says so)")
-    # the user's file (an expansion is gone by now), read once for both codes
-    if _has_word(program.source, (b"41", b"42"), 1 << 22):
+    # found in the user's file (an expansion is gone by now)
+    if b"41" in found or b"42" in found:
         notes.append("note: the program uses cutter radius compensation (G41/G42): the corrections "
                      "are those of the programmed contour, while the tool centre runs a radius off "
                      "it (the error there differs by the model's change over that distance)")

@@ -66,8 +66,9 @@ def split_rows(fn, n: int, threads: int, *arrays):
 _DONE = object()
 
 
-def read_ahead(iterator, depth: int = 1):
-    """Yield the items of ``iterator`` while a thread already computes the next ``depth`` of them.
+def read_ahead(iterator, depth: int = 1, name: str = "mtcomp-read-ahead"):
+    """Yield the items of ``iterator`` while a thread (named ``name``) already computes the next
+    ``depth`` of them.
 
     Exceptions of the iterator are raised here, in order. Closing this generator stops the thread
     at its next item (it never runs more than ``depth`` + 1 items ahead).
@@ -93,7 +94,7 @@ def read_ahead(iterator, depth: int = 1):
         except BaseException as exc:     # handed to the consumer, raised there
             put((False, exc))
 
-    thread = threading.Thread(target=work, name="mtcomp-read-ahead", daemon=True)
+    thread = threading.Thread(target=work, name=name, daemon=True)
     thread.start()
     try:
         while True:

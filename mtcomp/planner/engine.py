@@ -612,9 +612,9 @@ class Planner:
         gen = self._iter_chunks(chunks)
         if self.threads < 2:
             return gen
-        # the consumer keeps one thread busy: the planning thread cuts chunks into one part fewer
-        self._split = self.threads - 1
-        return read_ahead(gen)
+        # the chunks are still cut into ``threads`` parts: the planning thread is the longest by far
+        # (the consumer, the writer of the program, waits for it most of the time)
+        return read_ahead(gen, name="mtcomp-planner")
 
     def _iter_chunks(self, chunks: Iterable) -> Iterator[tuple[object, PlanResult]]:
         pending: deque = deque()   # (chunk, counts, n_nodes) planned but not yet yielded
