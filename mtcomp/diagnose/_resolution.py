@@ -46,12 +46,20 @@ DATA_SPACING_KNOTS = 1.0
 
 
 def data_spacing_mm(st, a: str) -> float:
-    """The median spacing (mm) of the distinct positions of linear axis ``a`` in the readings that
-    depend on its errors; inf when fewer than two."""
-    from ._analysis import POSITION_DECIMALS
+    """The median spacing (mm) of the distinct positions of linear axis ``a`` that are read again
+    (a repeat: the same series, pose, directions, feed and arm, in another run or pass) by readings
+    that depend on its errors; inf when fewer than two. Only repeated positions count: a profile as
+    fine as the positions can be checked, held out, only against other readings at the same
+    positions. Read once (a CMM part's rows, each cut in one direction), a profile that fine would
+    follow whatever alternates from row to row, a reversal included, and nothing could tell."""
+    from ._analysis import POSITION_DECIMALS, _pose_keys
     k = st.machine.axis_names.index(a)
-    reads = np.abs(st.g[a]) > 0 if a in st.g else np.ones(len(st), dtype=bool)
-    x = np.unique(np.round(st.q[reads, k], POSITION_DECIMALS))
+    reads = np.flatnonzero(np.abs(st.g[a]) > 0 if a in st.g else np.ones(len(st), dtype=bool))
+    if reads.size < 2:
+        return float("inf")
+    inv = _pose_keys(st, reads)
+    repeated = reads[np.bincount(inv)[inv] >= 2]
+    x = np.unique(np.round(st.q[repeated, k], POSITION_DECIMALS))
     return float(np.median(np.diff(x))) if x.size >= 2 else float("inf")
 
 
