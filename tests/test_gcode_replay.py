@@ -59,7 +59,7 @@ def _tolerance(src: bytes) -> Tolerance:
     turning table) TOL widened by what the rotary axes' corrections move the tip: at most the
     table's turn by the angle bound (each of its rotary axes), times the tip's largest distance
     from the origin, through which this machine's rotary axis lines pass."""
-    if not re.search(rb"(?im)^[^(;]*\b(M428|M128|G43\.4)\b", src):
+    if not re.search(rb"(?im)^[^(;\n]*\b(M428|M128|G43\.4)\b", src):
         return TOL
     r = max(math.sqrt(sum(m.end[k] ** 2 for k in "XYZ")) for m in replay(src).moves
             if all(m.end.get(k) is not None for k in "XYZ"))
