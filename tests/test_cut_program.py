@@ -63,3 +63,16 @@ def test_a_cmm_program_with_only_rapids_fails_the_command_writing_nothing(tmp_pa
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and not out.exists()
     assert len(err) == 1 and str(program) in err[0] and "only G0" in err[0], err
+
+
+@pytest.mark.parametrize("text, line, words", [
+    ("G21 G90\nG10 L2 P1 X100 Y0 Z0\nG0 X1 Y2 Z3\nG1 X20 F500\nM30\n", 3, "work offsets the program sets itself"),
+    ("G21 G90\nG0 X1 Y2 Z3\nG1 X20 W-2 F500\nM30\n", None, "U, V or W"),
+])
+def test_a_cut_program_the_ball_centres_cannot_follow_is_refused(tmp_path, text, line, words):
+    """Before, the G10 program's moves were matched to the part as if its origin had not moved."""
+    p = tmp_path / "p.nc"
+    p.write_text(text)
+    with pytest.raises(InputError) as exc:
+        read_cut_program(p, load_machine("xfyz"))
+    assert words in exc.value.message and exc.value.line == line

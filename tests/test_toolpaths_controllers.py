@@ -133,3 +133,25 @@ def test_a_file_of_subroutines_only_is_refused_by_name(tmp_path):
     # called once from the same file, it runs
     ends = _ends(tmp_path, "G21 G90\n" + body + "o<hole> call [1] [2]\nM2\n")
     np.testing.assert_allclose(ends, [[1, 2, 0], [1, 2, -1]], rtol=0, atol=0)
+
+
+@pytest.mark.parametrize("dialect", ["fanuc", "haas"])
+def test_u_w_words_are_refused_where_lathes_read_them_as_incremental_x_z(tmp_path, dialect):
+    p = tmp_path / "p.nc"
+    p.write_text("G21 G90\nG0 X10 Y0 Z5\nG1 U2 W-1 F100\nM30\n")
+    with pytest.raises(InputError) as exc:
+        list(iter_segment_chunks(p, XFYZ, dialect=dialect))
+    assert exc.value.line == 3 and "incremental X and Z" in exc.value.message
+    list(iter_segment_chunks(p, XFYZ, dialect="linuxcnc"))          # a quill elsewhere
+
+
+def test_applying_a_program_offset_without_its_source_is_a_clear_error(tmp_path):
+    from mtcomp.toolpaths.offsets import ProgramSetup
+    from mtcomp.toolpaths.source import open_program
+    p = tmp_path / "p.nc"
+    p.write_text("G21 G90\nG10 L2 P1 X100 Y0 Z0\nG0 X1 Y2 Z3\nM30\n")
+    with open_program(p) as src:
+        chunk = next(iter(iter_segment_chunks(src, XFYZ)))
+        with pytest.raises(ValueError, match="needs the ProgramSource"):
+            ProgramSetup(XFYZ).apply(chunk)
+        ProgramSetup(XFYZ).apply(chunk, src)

@@ -389,6 +389,10 @@ class ModalState:
     def _axis_words(self, values, line: int) -> list[str]:
         """The axis letters the line names (X Y Z A B C order); refuses axes the machine has not."""
         foreign = [c for c in "UVW" if c in values]
+        if foreign and self.dialect.name in ("fanuc", "haas"):
+            # on Fanuc and Haas lathes U and W are X and Z given incrementally, not other axes
+            raise self._err(f"axis word {foreign[0]} on {self.dialect.name} (on its lathes U and "
+                            "W are incremental X and Z) is not supported", line)
         if foreign:
             self._note_foreign(foreign)
         axes_given = [c for c in _AXIS_LETTERS if c in values]

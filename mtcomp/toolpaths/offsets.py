@@ -71,6 +71,9 @@ class ProgramSetup:
         which = frame_offset_set(chunk.frame)
         full = np.zeros(len(chunk), bool)
         for k in np.unique(which[which > 0]).tolist():
+            if k > len(sets):
+                raise ValueError("the chunk's rows carry work offsets the program set itself (G10): "
+                                 "apply(chunk, source) needs the ProgramSource that read them")
             for w, vec in sets[k - 1].items():
                 rows = (which == k) & (wcs == w)
                 given = ~np.isnan(vec)

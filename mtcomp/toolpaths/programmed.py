@@ -25,10 +25,14 @@ program names it again); after L20 the named axes read the given values.
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 
 from .words import MAX_OFFSET_SETS, MM_PER_INCH, WORK_SYSTEMS
+
+
+_SETS_LOCK = threading.Lock()
 
 
 class ProgrammedOffsets:
@@ -59,14 +63,17 @@ class ProgrammedOffsets:
             vec[i] = v
         self.current[wcs] = vec
         key = _key(self.current)
-        for k, known in enumerate(self.sets):
-            if _key(known) == key:
-                self.index = k + 1
-                return True
-        if len(self.sets) >= MAX_OFFSET_SETS:
-            return False
-        self.sets.append({w: v.copy() for w, v in self.current.items()})
-        self.index = len(self.sets)
+        # the sets are shared by the passes over one program (compensate reads it in one thread
+        # and writes it in another): find-or-append at once, so both number a set alike
+        with _SETS_LOCK:
+            for k, known in enumerate(self.sets):
+                if _key(known) == key:
+                    self.index = k + 1
+                    return True
+            if len(self.sets) >= MAX_OFFSET_SETS:
+                return False
+            self.sets.append({w: v.copy() for w, v in self.current.items()})
+            self.index = len(self.sets)
         return True
 
 
