@@ -107,8 +107,9 @@ def _drop_undetermined_offsets(design, extra, current, c: Candidate, fit):
     from the rest of the model (a direction read at one feed only, or read only where another column
     already moves it), the offset is dropped rather than the cause refused for it. A rotary error
     motion's first harmonic trades with the axis's location errors and the other components' first
-    harmonics; where the data cannot tell it apart, it is dropped (held at zero) and the higher
-    harmonics kept. Returns the candidate and its fit; unchanged when nothing is undetermined."""
+    harmonics; where the data cannot tell it apart (the rank the candidate adds falls short of its
+    columns), its cosine and sine terms are dropped together (held at zero, even when the data
+    would determine one of the two: the conservative choice) and the higher harmonics kept. Returns the candidate and its fit; unchanged when nothing is undetermined."""
     if c.effect == "feed_dependent_abbe":
         groups = [[p] for p in c.params if p.startswith("FOFF_")]
     elif c.effect == "rotary_pdge":
