@@ -394,7 +394,7 @@ class ModalState:
             raise self._err(f"axis word {foreign[0]} on {self.dialect.name} (on its lathes U and "
                             "W are incremental X and Z) is not supported", line)
         if foreign:
-            self._note_foreign(foreign)
+            self._note_foreign()
         axes_given = [c for c in _AXIS_LETTERS if c in values]
         for c in axes_given:
             if c not in self.names:
@@ -402,7 +402,7 @@ class ModalState:
                                 f"(axes: {' '.join(self.names)})", line)
         return axes_given
 
-    def _note_foreign(self, letters) -> None:
+    def _note_foreign(self) -> None:
         """U V W words (axes parallel to X Y Z that the machine model does not have, e.g. a quill
         W) pass through as written and uncorrected: said once, in the program's notes."""
         note = ("note: axis words U, V, W (axes the machine model does not have) pass through "
