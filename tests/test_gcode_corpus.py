@@ -45,8 +45,8 @@ REFUSED = {
     # full circles of zero radius (I0.000 after the post's own "HOLE IS TOO SMALL")
     "uaf_sensor_v2_drill.nc": ["drill.nc:612:", "arc with zero radius"],
 }
-#: the share of the corpus accepted today (63 of 72); the goal is 95 %
-MIN_ACCEPTED = 0.87
+#: the share of the corpus accepted today (71 of 80); the goal is 95 %
+MIN_ACCEPTED = 0.88
 _COMMENT = re.compile(r"\([^)]*\)|;.*")
 _WORD = re.compile(r"([A-Z])\s*([-+]?\s*(?:\d+\.?\d*|\.\d+))")
 
@@ -213,7 +213,7 @@ def test_corpus_is_the_documented_one():
     assert len({p.name.split("_")[0] for p in PROGRAMS}) >= 10
     for p in PROGRAMS:
         assert f"`{p.name}`" in sources, f"{p.name} is not in SOURCES.md"
-    assert sum(p.stat().st_size for p in PROGRAMS) < 2_000_000
+    assert sum(p.stat().st_size for p in PROGRAMS) < 2_600_000
 
 
 def _compensate(prog, tmp_path) -> tuple:
