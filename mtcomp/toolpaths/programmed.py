@@ -20,7 +20,9 @@ applies them where the command line's work offsets would apply), so the correcti
 referenced to the program's own work-offset origin. The program's position in the active system
 changes with its offset: an axis whose old offset the program had set moves by the difference, an
 axis whose old offset came from outside the program becomes unknown (never written until the
-program names it again); after L20 the named axes read the given values.
+program names it again); after L20 the named axes read the given values. An L20 where the program
+has not given the position (after homing) is a touch-off: its offset comes from outside the program
+(the command line's, as for an offset the program never set), said once in a note.
 """
 from __future__ import annotations
 
