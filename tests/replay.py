@@ -11,9 +11,13 @@ G98; under G91 R from the series' initial level and Z from R, L repeats), G28/G3
 leave the axes they move (G28/G30 without axis words: every axis) at an unknown position, so do a
 tool change or tool length change (Z) and a change of work coordinate system (every axis); G92 sets
 the named axes; G10 L2/L20 set a work system's origin (the active system's position moves by the
-change where the old origin is known, else becomes unknown); G4 dwells and moves too when the
-block has axis words. Comments `( )` and `;`, `%`, `:` program numbers, `$` lines and a DOS
-end-of-file mark make no move.
+change where the old origin is known, else becomes unknown; after L20 the named axes read the
+given values, and where their position was unknown, as after grbl's homing `$H`, the new origin
+is the operator's, from outside the program); G4 dwells and moves too when the block has axis
+words; a full circle of zero radius about its start (I J K 0, the end at the start) is a move of
+kind 'none': grbl runs it without motion. Comments `( )` and `;`, `%`, `:` program numbers, `$`
+lines (`$H` homing and `$J=` jogging leave every axis unknown) and a DOS end-of-file mark make no
+move.
 
 A position is a dict axis -> value (mm or deg) or None where the controller's position in the
 program's frame is unknown."""
@@ -34,7 +38,8 @@ _PLANES = {17: ("X", "Y", "Z", "I", "J"), 18: ("Z", "X", "Y", "K", "I"),
 @dataclass
 class Move:
     """One move of the controller: `line` (0-based source line), `kind` ('rapid', 'feed', 'arc',
-    'home'), `start` and `end` positions (mm, deg; None = unknown), and for an arc its plane,
+    'home', or 'none': a block that names a position and does not move), `start` and `end`
+    positions (mm, deg; None = unknown), and for an arc its plane,
     centre (first, second; mm) and signed sweep (rad, counter-clockwise positive)."""
     line: int
     kind: str
@@ -85,6 +90,9 @@ def replay(data: bytes, units_mm: bool = True) -> Replay:
     out = Replay()
     for index, raw in enumerate(data.split(b"\n")):
         code = _code(raw)
+        if code[:2] in ("$H", "$J"):
+            # grbl homing ($H) or jogging ($J=): the machine moves where the program does not say
+            st.pos = {a: None for a in AXES}
         moves = [] if (not code or code[0] in "%:$") else _block(st, index, _words(code))
         if moves:
             out.moves.extend(moves)
@@ -175,7 +183,8 @@ def _block(st, index, words):
 def _g10(st, words):
     """G10 L2 / L20 P: set the origin of a work system (P0: the active one). The active system's
     position changes with it: by the change where the old offset is known, to the given value
-    under L20, unknown otherwise."""
+    under L20, unknown otherwise. An L20 where the position is unknown (after homing) sets an
+    origin from outside the program (None), as the operator's touch-off at the panel would."""
     value = dict(words)
     p = int(value.get("P", -1))
     wcs = st.wcs if p == 0 else f"G{53 + p}" if 1 <= p <= 6 else f"P{p}"
@@ -222,6 +231,11 @@ def _arc(st, index, words):
     value = dict(words)
     start = st.pos
     known = all(p[a] is not None for p in (start, end) for a in (first, second))
+    if known and "R" not in value and end == start and not st.arc_absolute \
+            and value.get(off1, 0.0) == 0.0 and value.get(off2, 0.0) == 0.0:
+        # a full circle of zero radius about its own start: grbl runs it without moving (its
+        # planner drops zero-length pieces); a move of kind 'none', so its words still compare
+        return Move(index, "none", dict(start), end, plane=st.plane)
     move = Move(index, "arc", dict(start), end, plane=st.plane)
     if not known:
         return move

@@ -157,3 +157,22 @@ def test_compare_accepts_a_correction_and_a_split_block():
 def test_compare_sees_motion_the_source_lacks(out, message):
     with pytest.raises(AssertionError, match=message):
         compare(SRC, out, TOL)
+
+
+def test_replay_runs_a_zero_radius_circle_as_a_block_that_does_not_move():
+    moves = replay(b"G21 G0 X1 Y2 Z3\nG3 X1 Y2 I0.000 F100\nG3 X1 Y2 I0.5\n").moves
+    assert [m.kind for m in moves] == ["rapid", "none", "arc"]
+    assert moves[1].start == moves[1].end == moves[0].end and moves[1].centre is None
+    assert moves[2].sweep == pytest.approx(2 * math.pi, rel=0, abs=1e-12)
+    # the circle written at the corrected point of the move before matches; elsewhere it does not
+    src = b"G21\nG0 X1 Y2 Z3\nG3 X1 Y2 I0.000 F100\nM30\n"
+    compare(src, src.replace(b"X1 Y2", b"X1.01 Y2"), TOL)
+    with pytest.raises(AssertionError, match="no matching output motion"):
+        compare(src, src.replace(b"G3 X1 Y2", b"G3 X1.03 Y2"), TOL)
+
+
+def test_replay_reads_a_touch_off_after_homing():
+    # $H leaves every axis unknown; G10 L20 makes the named ones read the values
+    moves = replay(b"G21 G0 X1 Y2 Z3\n$H\nG0 X4\nG10 L20 P1 X0 Y0\nG0 X5\n").moves
+    assert [tuple(m.end[a] for a in "XYZ") for m in moves] == [
+        (1, 2, 3), (4, None, None), (5, 0, None)]

@@ -72,7 +72,9 @@ def test_g10_l2_shifts_a_known_position_by_the_change(tmp_path, mode):
     ("G91 G10 L2 P1 X5", "fanuc", "under G91"),
     ("G10 L20 P1 X5", "haas", "G54.1"),
     ("G10 L2 P12 X5", "linuxcnc", "P word 0-9"),
-    ("G10 L20 P1 Z5", "linuxcnc", "axis Z"),
+    # X is known, but G54's offset is the command line's: the new one would be that one shifted
+    ("G10 L20 P1 X5", "linuxcnc", "axis X: the active system's offset (G54) comes from outside"),
+    ("G10 L20 P1 Y5", "grbl", "shifted by -3 mm"),
 ])
 def test_g10_where_it_is_not_clear_is_refused_by_name(tmp_path, line, dialect, words):
     p = tmp_path / "p.nc"
@@ -82,29 +84,79 @@ def test_g10_where_it_is_not_clear_is_refused_by_name(tmp_path, line, dialect, w
     assert exc.value.line == 3 and words in exc.value.message
 
 
+TOUCH_OFF = "G21\n$H\nG10 L20 P1 X0 Y0 Z50\nG54\nG0 X10 Y20 Z40\nG1 X15 F100\nM30\n"
+
+
+def test_g10_l20_after_homing_takes_the_offset_from_the_command_line(tmp_path, mode):
+    """After $H the program does not say where the machine is: the L20 is a touch-off, its offset
+    the command line's (G54 X100 Y200 Z-300), and X Y Z read 0 0 50 from there on."""
+    p = tmp_path / "p.nc"
+    p.write_text(TOUCH_OFF)
+    setup = load_setup(XFYZ, work_offset_flags=["G54=X100,Y200,Z-300"])
+    ends, known = _machine_rows(p, setup)
+    # program position + the command line's offset, by hand
+    np.testing.assert_allclose(ends, [[110, 220, -260], [115, 220, -260]], rtol=0, atol=0)
+    assert known.all()
+    assert setup.used_wcs == {0} and not setup.programmed_wcs
+    # the axes the L20 names are known after it: a move naming X alone comes from Y0 Z50
+    p.write_text(TOUCH_OFF.replace("G0 X10 Y20 Z40", "G0 X10"))
+    ends, known = _machine_rows(p, setup)
+    np.testing.assert_allclose(ends[0], [110, 200, -250], rtol=0, atol=0)
+    assert known.all()
+
+
+def test_g10_l20_after_homing_replaces_an_offset_the_program_set(tmp_path, mode):
+    """G54 X was the program's (L2, 100) until homing and a touch-off of X: from then on X's offset
+    is the command line's (7); Y and Z keep the program's (0, 0)."""
+    p = tmp_path / "p.nc"
+    p.write_text("G21\nG10 L2 P1 X100 Y0 Z0\nG0 X1 Y2 Z3\n$H\nG10 L20 P1 X0\nG0 X4 Y5 Z6\nM30\n")
+    ends, _known = _machine_rows(p, load_setup(XFYZ, work_offset_flags=["G54=X7,Y70,Z700"]))
+    np.testing.assert_allclose(ends, [[101, 2, 3], [11, 5, 6]], rtol=0, atol=0)
+
+
+#: moves that name every axis first, compensated after different ways of setting G54
+BODY = "G0 X-50 Y-40 Z20\nG1 Z-5 F800\nX60\nG2 X60 Y40 I0 J40\nG1 X-50\nM30\n"
+
+
+def _compensated(tmp_path, capsys, name, text, extra) -> tuple[list, str]:
+    """(output lines, stdout) of compensating ``text`` with the xfyz model of seed 8."""
+    _machine, _fitted, model = _model(tmp_path, "xfyz", seed=8)
+    prog, out = tmp_path / f"{name}.nc", tmp_path / f"{name}.out.nc"
+    prog.write_text(text)
+    code, stdout, err = _run(["compensate", "xfyz", str(model), str(prog), "-o", str(out)] + extra,
+                             capsys)
+    assert code == 0, err
+    return out.read_text().splitlines(), stdout
+
+
+def test_compensate_after_a_touch_off_is_as_with_the_offset_given(tmp_path, capsys):
+    """A program that homes and touches off, and the same moves without: with the same
+    --work-offset the same corrections; the note names the line and the flag, once."""
+    flag = ["--work-offset", "G54=X100,Y50,Z-200"]
+    touch, stdout = _compensated(tmp_path, capsys, "touch",
+                                 "G21 G90\n$H\nG10 L20 P1 X0 Y0 Z50\n" + BODY, flag)
+    plain, _ = _compensated(tmp_path, capsys, "plain", "G21 G90\n" + BODY, flag)
+    notes = [n for n in stdout.splitlines() if "G10 L20" in n]
+    assert notes == ["note: G10 L20 at line 3 sets G54 X Y Z where the program has not given the "
+                     "position (a touch-off, as after homing): that offset is taken as given on "
+                     "the command line (--work-offset G54=..., or --offsets)"]
+    assert touch[1:3] == ["$H", "G10 L20 P1 X0 Y0 Z50"]
+    assert touch[:1] + touch[3:] == plain
+    assert plain[1] != "G0 X-50 Y-40 Z20"          # corrected
+
+
 def test_compensate_corrects_as_with_the_same_offset_given(tmp_path, capsys):
     """The program's own G10 offset and the same offset given with --work-offset give the same
     output (corrections referenced to the same origin); a different offset does not."""
-    _machine, _fitted, model = _model(tmp_path, "xfyz", seed=8)
-    body = "G0 X-50 Y-40 Z20\nG1 Z-5 F800\nX60\nG2 X60 Y40 I0 J40\nG1 X-50\nM30\n"
-    own = tmp_path / "own.nc"
-    own.write_text("G21 G90\nG10 L2 P1 X100 Y50 Z-200\nG54\n" + body)
-    given = tmp_path / "given.nc"
-    given.write_text("G21 G90\nG54\n" + body)
-    outs = {}
-    for name, prog, extra in (("own", own, []), ("given", given, ["--work-offset",
-                                                                   "G54=X100,Y50,Z-200"]),
-                              ("zero", given, [])):
-        out = tmp_path / f"{name}.out.nc"
-        code, stdout, err = _run(["compensate", "xfyz", str(model), str(prog), "-o", str(out)]
-                                 + extra, capsys)
-        assert code == 0, err
-        outs[name] = out.read_text().splitlines()
-        if name == "own":
-            assert "G54 as the program sets it (G10" in stdout and "assumed: work offset" not in stdout
-    assert outs["own"][1] == "G10 L2 P1 X100 Y50 Z-200"
-    assert outs["own"][:1] + outs["own"][2:] == outs["given"]
-    assert outs["given"] != outs["zero"]
+    own, stdout = _compensated(tmp_path, capsys, "own",
+                               "G21 G90\nG10 L2 P1 X100 Y50 Z-200\nG54\n" + BODY, [])
+    assert "G54 as the program sets it (G10" in stdout and "assumed: work offset" not in stdout
+    given, _ = _compensated(tmp_path, capsys, "given", "G21 G90\nG54\n" + BODY,
+                            ["--work-offset", "G54=X100,Y50,Z-200"])
+    zero, _ = _compensated(tmp_path, capsys, "zero", "G21 G90\nG54\n" + BODY, [])
+    assert own[1] == "G10 L2 P1 X100 Y50 Z-200"
+    assert own[:1] + own[2:] == given
+    assert given != zero
 
 
 HAAS = ("%\nO00094 ( HAAS )\nN10 G17 G40 G21 G90\nN30 T5 M06\n"

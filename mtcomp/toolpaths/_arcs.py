@@ -39,6 +39,30 @@ class ArcError(ValueError):
     """The arc cannot be interpolated; the message says why (the reader adds file and line)."""
 
 
+def is_point_circle(start: np.ndarray, end: np.ndarray, centre2: np.ndarray,
+                    cols: tuple[int, int]) -> bool:
+    """Whether an I/J/K arc from ``start`` to ``end`` (na,) about ``centre2`` (2,) is a full circle
+    of zero radius that does not move the tool: the end is the start on every axis and the centre
+    is the start, each within ``FULL_CIRCLE_TOL_MM`` (the same numbers as written; a program's
+    resolution is 1e-4 mm at the finest). ``cols``: the two in-plane columns."""
+    a, b = cols
+    return (float(np.max(np.abs(end - start), initial=0.0)) <= FULL_CIRCLE_TOL_MM
+            and math.hypot(start[a] - centre2[0], start[b] - centre2[1]) <= FULL_CIRCLE_TOL_MM)
+
+
+def point_circle(start: np.ndarray, dialect: str) -> np.ndarray:
+    """The one end point (1, na) of a full circle of zero radius (:func:`is_point_circle`): the
+    start, so the block does not move and keeps the approach directions of the motion before it.
+    grbl runs such a block without motion (gcode.c accepts it, both radii being 0; the planner
+    drops its zero-length pieces); LinuxCNC refuses it (interp_arc.cc, arc_data_ijk: "Zero-radius
+    arc"), so does the reader under its dialect."""
+    if dialect == "linuxcnc":
+        raise ArcError("arc with zero radius (a full circle about its own start): LinuxCNC refuses "
+                       "it (\"Zero-radius arc\"); grbl runs it as a block that does not move (give "
+                       "--dialect grbl if grbl runs it)")
+    return np.asarray(start, dtype=float).copy()[None, :]
+
+
 def radius_refused(r0: float, r1: float, inch: bool) -> bool:
     """Whether an arc of start radius r0 and end radius r1 (mm) is refused (the rule above)."""
     abs_tol = SPIRAL_ABS_TOL_INCH * 25.4 if inch else SPIRAL_ABS_TOL_MM

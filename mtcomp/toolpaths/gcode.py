@@ -30,6 +30,7 @@ mm/min. Positions are axis positions in ``machine.axis_names`` order (tool-tip p
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Iterable, Iterator
 
 import numpy as np
@@ -72,11 +73,30 @@ def iter_segment_chunks(path, machine: Machine, chord_tol_mm: float = DEFAULT_CH
     kw = dict(inch=inch, initial_known=initial_known)
     with open_program(path, dialect) as src:
         if _fast.available():
-            yield from _fast.iter_segment_chunks(src, machine, chord_tol_mm, chunk_size,
-                                                 initial_position, **kw)
-            return
-        yield from reader.iter_segment_chunks(src, machine, chord_tol_mm, chunk_size,
-                                              initial_position, **kw)
+            chunks = _fast.iter_segment_chunks(src, machine, chord_tol_mm, chunk_size,
+                                               initial_position, **kw)
+        else:
+            chunks = reader.iter_segment_chunks(src, machine, chord_tol_mm, chunk_size,
+                                                initial_position, **kw)
+        yield from _still_arcs_at_the_last_feed(chunks)
+
+
+def _still_arcs_at_the_last_feed(chunks: Iterable[SegmentChunk]) -> Iterator[SegmentChunk]:
+    """The chunks, the rows of arc blocks that do not move (a full circle of zero radius about its
+    start, :func:`~._arcs.is_point_circle`) at the feed of the row before: the tool stands as the
+    last move left it (the compiled scanner does not follow the feed of the moves it reads)."""
+    last = np.nan
+    for chunk in chunks:
+        if len(chunk):
+            still = np.flatnonzero(np.asarray(chunk.from_arc, bool)
+                                   & ~np.any(chunk.end != chunk.start, axis=1))
+            if still.size:
+                feed = np.array(chunk.feed, dtype=float)
+                for r in still.tolist():
+                    feed[r] = feed[r - 1] if r else last
+                chunk = replace(chunk, feed=feed)
+            last = float(chunk.feed[-1])
+        yield chunk
 
 
 def _uncorrected(path, machine, chord_tol_mm, chunk_size, initial_position, **kw):

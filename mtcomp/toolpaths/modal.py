@@ -18,7 +18,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..machine import Machine
-from ._arcs import PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, centre_from_radius
+from ._arcs import (PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, centre_from_radius,
+                    is_point_circle, point_circle)
 from .blocks import CycleBlock, MotionBlock
 from .dialect import GENERIC
 from .programmed import ProgrammedOffsets, apply_g10
@@ -80,6 +81,8 @@ class ModalState:
         self.inch = bool(inch)
         self.incremental = False
         self.feed = math.nan
+        #: the feed of the last G0-G3 move (mm/min, nan for a rapid)
+        self.last_feed = math.nan
         self.wcs = 0
         self.tool = 0
         self.selected_tool = 0
@@ -468,7 +471,10 @@ class ModalState:
         start_known = bool(self.known.all())
         self.known |= given
         dirs = self._directions(start, pts)
-        feed = self._block_feed(start, pts)
+        # a circle of zero radius does not move: the tool stands as the last move left it
+        still = centre is not None and pts.shape[0] == 1 and not np.any(pts[0] != start)
+        feed = self.last_feed if still else self._block_feed(start, pts)
+        self.last_feed = feed
         self.position = end
         words = [raw for letter, num, raw in tokens
                  if not (letter == "N" or letter in _AXIS_LETTERS or letter in "IJKR"
@@ -745,8 +751,11 @@ class ModalState:
                 if self.arc_absolute and not (l0 in values and l1 in values):
                     raise ArcError(f"arc in G90.1 (absolute centre) without both {l0} and {l1}")
                 centre2 = offset if self.arc_absolute else s2 + offset
-            pts = arc_chords(start, end, centre2, plane, ccw, self.chord_tol, self.xyz_index,
-                             self.inch)
+            if "R" not in values and is_point_circle(start, end, centre2, (a, b)):
+                pts = point_circle(start, self.dialect.name)
+            else:
+                pts = arc_chords(start, end, centre2, plane, ccw, self.chord_tol, self.xyz_index,
+                                 self.inch)
         except ArcError as exc:
             raise self._err(str(exc), line) from None
         centre = np.zeros(3)

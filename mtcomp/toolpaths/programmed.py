@@ -20,7 +20,9 @@ applies them where the command line's work offsets would apply), so the correcti
 referenced to the program's own work-offset origin. The program's position in the active system
 changes with its offset: an axis whose old offset the program had set moves by the difference, an
 axis whose old offset came from outside the program becomes unknown (never written until the
-program names it again); after L20 the named axes read the given values.
+program names it again); after L20 the named axes read the given values. An L20 where the program
+has not given the position (after homing) is a touch-off: its offset comes from outside the program
+(the command line's, as for an offset the program never set), said once in a note.
 """
 from __future__ import annotations
 
@@ -115,23 +117,14 @@ def apply_g10(state, values: dict, tokens, line: int) -> None:
     scale = MM_PER_INCH if state.inch else 1.0
     given = {state.names.index(c): (math.radians(values[c]) if c in "ABC" else values[c] * scale)
              for c in "XYZABC" if c in values and c in state.names}
-    new = {}
-    for i, v in given.items():
-        if level == 2:
-            new[i] = v
-            continue
-        old = state.offsets.offset(state.wcs, i)
-        if not state.known[i] or math.isnan(old):
-            raise state._err(f"G10 L20 on axis {state.names[i]}: its position or the active "
-                             f"system's offset ({WORK_SYSTEMS[state.wcs]}) is not given by the "
-                             "program", line)
-        new[i] = state.position[i] + old - v          # the machine position less the value
+    new = dict(given) if level == 2 else _l20_offsets(state, given, wcs, line)
     if wcs == state.wcs:
         state.position = state.position.copy()        # the last block holds the old array
         for i, v in new.items():
             old = state.offsets.offset(wcs, i)
             if level == 20:
                 state.position[i] = given[i]
+                state.known[i] = True
             elif math.isnan(old):
                 state.known[i] = False
             else:
@@ -139,3 +132,44 @@ def apply_g10(state, values: dict, tokens, line: int) -> None:
     if not state.offsets.assign(wcs, new):
         raise state._err(f"G10: the program sets more than {MAX_OFFSET_SETS} different sets of work "
                          "offsets (not followed)", line)
+
+
+def _l20_offsets(state, given: dict, wcs: int, line: int) -> dict:
+    """The offsets (axis index -> mm or rad, nan: from outside the program) G10 L20 sets in system
+    ``wcs``: the machine position less the value (grbl 1.1 gcode.c: the current position in machine
+    coordinates less the programmed value; LinuxCNC likewise). Where the program has not given the
+    axis's position (after homing, a home move or a tool change) the controller's offset there is
+    a touch-off, as an operator's at the panel: it comes from outside the program, as an offset the
+    program never set (the command line's, said once in a note). A known position in a system
+    whose offset came from outside would give that outside offset shifted: refused."""
+    new, touched = {}, []
+    for i, v in given.items():
+        old = state.offsets.offset(state.wcs, i)
+        if not state.known[i]:
+            new[i] = math.nan
+            touched.append(state.names[i])
+            continue
+        if math.isnan(old):
+            raise state._err(f"G10 L20 on axis {state.names[i]}: the active system's offset "
+                             f"({WORK_SYSTEMS[state.wcs]}) comes from outside the program (the "
+                             "command line's), and the new one would be that offset shifted by "
+                             f"{state.position[i] - v:.6g} mm (not followed: set the offset with G10 L2 "
+                             "or give the position after homing)", line)
+        new[i] = state.position[i] + old - v          # the machine position less the value
+    if touched:
+        _note_touch_off(state, wcs, touched, line)
+    return new
+
+
+def _note_touch_off(state, wcs: int, axes: list, line: int) -> None:
+    """Say once, in the program's notes, that a G10 L20 offset is taken from the command line."""
+    notes = getattr(state._source, "notes", None)
+    if notes is None:
+        return
+    name = WORK_SYSTEMS[wcs]
+    where = state._where(line)[1]
+    note = (f"note: G10 L20 at line {where} sets {name} {' '.join(axes)} where the program has not "
+            "given the position (a touch-off, as after homing): that offset is taken as given on "
+            f"the command line (--work-offset {name}=..., or --offsets)")
+    if note not in notes:
+        notes.append(note)
