@@ -27,7 +27,7 @@ from .planner._bounds import FLAG_KINDS
 from .planner._parallel import read_ahead
 from .planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
 from .toolpaths import iter_segment_chunks, write_corrected
-from .toolpaths.source import open_program
+from .toolpaths.source import conversational_units, open_program
 
 _DIGITS = b"0123456789."
 #: kinds of bound -> their columns in PlanResult.flags
@@ -462,6 +462,10 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     setup = setup if setup is not None else ProgramSetup(machine)
     # one pass over the user's file for its units and for cutter radius compensation (the note)
     found = words_in(program, (b"20", b"21", b"41", b"42"))
+    if conversational_units(program, settings.dialect):
+        # a Heidenhain program states its units on BEGIN PGM, and its blocks stay one to one
+        found.add(conversational_units(program, settings.dialect))
+        settings = replace(settings, subdivide_tol_um=0.0)
     start_inch, inch, notes = _program_units(found, settings, machine)
     start_pos, start_known = start_position(machine, settings.start_position)
     sd_limit = settings.sd_limit()
