@@ -123,7 +123,9 @@ class HeidenhainWriter:
                 t = signed(u, dec, sign)
                 value = float(t)
             if t == signed(float(number), dec, sign):
-                self.written[j] = block.end[j]
+                # the source's spelling: the machine goes where it says
+                self.written[j] = self._internal(j, value, info.shift) if m.group(1) \
+                    else block.end[j]
                 continue
             edits.append((m.start(4), m.end(4), t))
             self.written[j] = self._internal(j, value, info.shift)
