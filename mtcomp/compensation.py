@@ -27,7 +27,7 @@ from .planner._bounds import FLAG_KINDS
 from .planner._parallel import read_ahead
 from .planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
 from .toolpaths import iter_segment_chunks, write_corrected
-from .toolpaths.source import open_program
+from .toolpaths.source import conversational_units, open_program
 
 _DIGITS = b"0123456789."
 #: kinds of bound -> their columns in PlanResult.flags
@@ -55,7 +55,7 @@ class CompensationSettings:
     units : 'mm' or 'inch' for a program without G20/G21 (None: the machine file's, else mm).
     start_position : axis name -> position (mm, deg) of axes known before the program starts.
     threads : planner threads (0: automatic; a study's worker uses 1).
-    dialect : the controller's dialect ('linuxcnc', 'fanuc', 'haas', 'grbl', 'generic'; None:
+    dialect : the controller's dialect ('linuxcnc', 'fanuc', 'haas', 'grbl', 'heidenhain', 'generic'; None:
         detected from the program), see :mod:`mtcomp.toolpaths.dialect`.
     """
 
@@ -461,7 +461,7 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     fitted.context_defaults.update(thermal)
     setup = setup if setup is not None else ProgramSetup(machine)
     # one pass over the user's file for its units and for cutter radius compensation (the note)
-    found = words_in(program, (b"20", b"21", b"41", b"42"))
+    found, settings = _program_words(program, settings)
     start_inch, inch, notes = _program_units(found, settings, machine)
     start_pos, start_known = start_position(machine, settings.start_position)
     sd_limit = settings.sd_limit()
@@ -517,6 +517,18 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
                            {j.label: j.as_dict() for j in judges},
                            math.sqrt(tally.sum_sq / max(tally.n, 1)), tally.max,
                            time.perf_counter() - t0, tally.bound_blocks, src[0].summary())
+
+
+def _program_words(program, settings: CompensationSettings) -> tuple[set, CompensationSettings]:
+    """(the G codes of units and cutter radius compensation the program holds, the settings): a
+    Heidenhain conversational program states its units on its BEGIN PGM line, and its blocks stay
+    one to one (it is planned without internal nodes)."""
+    found = words_in(program, (b"20", b"21", b"41", b"42"))
+    units = conversational_units(program, settings.dialect)
+    if units:
+        found.add(units)
+        settings = replace(settings, subdivide_tol_um=0.0)
+    return found, settings
 
 
 def _planner(fitted, settings: CompensationSettings, inch: bool, program, progress) -> tuple:

@@ -80,7 +80,8 @@ def add_arguments(parser):
                         help="axes that stand at a known position (program frame; mm, deg) before "
                              "the program starts, e.g. the rotary axes of a 5-axis machine that a "
                              "3-axis program never names (default: no axis is known at the start)")
-    parser.add_argument("--dialect", choices=("linuxcnc", "fanuc", "haas", "grbl", "generic"),
+    parser.add_argument("--dialect", choices=("linuxcnc", "fanuc", "haas", "grbl", "heidenhain",
+                                              "generic"),
                         default=None,
                         help="the controller that runs the program, for the rules that differ "
                              "between controllers (G80, G98, LinuxCNC O-words and parameters, Fanuc "

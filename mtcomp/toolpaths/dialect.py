@@ -11,7 +11,8 @@ A :class:`Dialect` holds what the reader needs to know of the controller that ru
 * ``incremental_r_from_initial``: in G91 the R of every hole of a series is measured from the
   series' initial level (LinuxCNC), so a series may continue under G99.
 * ``language``: 'ngc' (LinuxCNC's O-words and parameters, :mod:`.ngc`), 'macro' (Fanuc macro B,
-  :mod:`.macro`) or None (nothing is expanded).
+  :mod:`.macro`), 'heidenhain' (a conversational program, read through its G-code equivalent:
+  :mod:`.heidenhain`) or None (nothing is expanded).
 
 :func:`detect` reads the start of a program (and :func:`needs_expansion` all of it, in blocks).
 """
@@ -39,6 +40,8 @@ DIALECTS = {
     "fanuc": Dialect("fanuc", g80_keeps_motion=True, language="macro"),
     "haas": Dialect("haas", g80_keeps_motion=True, language="macro"),
     "grbl": Dialect("grbl"),
+    # Heidenhain TNC conversational (Klartext): read through its G-code equivalent (.heidenhain)
+    "heidenhain": Dialect("heidenhain", language="heidenhain"),
     "generic": Dialect("generic", language="ngc"),
 }
 GENERIC = DIALECTS["generic"]
@@ -55,6 +58,7 @@ _CLUES = [
     ("fanuc", re.compile(r"(?i)^\s*(?:n\s*\d+\s*)?(?:" + _MACRO_STATEMENT + r")")),
     ("fanuc", re.compile(r"^\s*[Oo:]\s*\d+\s*(?:\([^()]*\)\s*)*$")),   # a program number O1234
     ("grbl", re.compile(r"^\s*(?:\$[A-Za-z$#]|[?~!]\s*$)")),
+    ("heidenhain", re.compile(r"(?i)^\s*\d+\s+BEGIN\s+PGM\b")),
 ]
 #: controllers whose own language mtcomp does not read, known from a program's first lines:
 #: (pattern, the language's name, what in it differs from RS274 / ISO G-code)
@@ -63,8 +67,6 @@ _FOREIGN = [
      "DEF variables, R parameters, L subprograms, @ codes"),
     (re.compile(r"(?i)^\s*\$[\w.-]+\.(?:MIN|SSB|SDF)%?\s*$"), "Okuma OSP",
      "named programs and labels, VC variables, IF/GOTO"),
-    (re.compile(r"(?i)^\s*\d+\s+BEGIN\s+PGM\b"), "Heidenhain conversational",
-     "L/CC/C blocks, CYCL DEF, TOOL CALL: not G-code"),
 ]
 _FOREIGN_LINES = 3      # the first lines looked at for them
 _HAAS = re.compile(r"(?i)haas")
@@ -107,7 +109,7 @@ def detect(path) -> tuple[Dialect, str]:
 def foreign_language(path) -> tuple[int, str, str, str] | None:
     """(line, the line, the language's name, what differs) when one of a program's first lines
     shows a controller language mtcomp does not read (Siemens Sinumerik ``%_N_NAME_MPF``, Okuma
-    ``$NAME.MIN%``, Heidenhain ``0 BEGIN PGM``), else None."""
+    ``$NAME.MIN%``), else None."""
     try:
         with open(os.fspath(path), "rb") as f:
             head = [f.readline().decode("latin-1") for _ in range(_FOREIGN_LINES)]

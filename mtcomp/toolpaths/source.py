@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 from ..errors import InputError
 from .dialect import Dialect, dialect_named, foreign_language, needs_expansion
+from .heidenhain import is_conversational, translate
 from .macro import MacroRun
 from .ngc import MAX_LINES, MAX_STEPS, NgcRun
 
@@ -48,6 +49,9 @@ class ProgramSource(os.PathLike):
     #: reader (:mod:`.programmed`) and applied by :meth:`~.offsets.ProgramSetup.apply`
     work_offset_sets: list = field(default_factory=list)
     _map_array: object = field(default=None, repr=False)     # line_map as an int64 array, once
+    #: a Heidenhain conversational program: its :class:`~.heidenhain.Translation` (``path`` is
+    #: then its G-code equivalent, line for line; the writer writes the conversational form)
+    heidenhain: object = None
 
     def __fspath__(self) -> str:
         return self.path
@@ -125,6 +129,32 @@ def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int):
     return tmp, line_map, len(line_map) - 1, len(raws)
 
 
+def conversational_units(path, dialect: str | None = None) -> bytes | None:
+    """For a Heidenhain conversational program (given as the dialect, or detected), the G code of
+    its units (b"21" for MM, b"20" for INCH on its BEGIN PGM line); None for any other program."""
+    if dialect not in (None, "heidenhain") or not is_conversational(path):
+        return None
+    with open(path, "rb") as f:
+        head = f.read(4096).upper()
+    return b"20" if b" INCH" in head.split(b"\n", 3)[0] + b"".join(head.split(b"\n")[1:3]) \
+        else b"21"
+
+
+def _conversational(source: str, d: Dialect, why: str):
+    """A Heidenhain conversational program as a ProgramSource of its G-code equivalent."""
+    if not os.path.isfile(source):
+        raise InputError("no such file", source)
+    translation = translate(source)
+    fd, tmp = tempfile.mkstemp(prefix="mtcomp-heidenhain-", suffix=".nc")
+    try:
+        with os.fdopen(fd, "w", encoding="latin-1", newline="\n") as out:
+            out.write("".join(g + "\n" for g in translation.gcode))
+        yield ProgramSource(tmp, source, d, why, heidenhain=translation)
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+
+
 @contextlib.contextmanager
 def open_program(path, dialect: str | None = None, *, max_steps: int = MAX_STEPS,
                  max_lines: int = MAX_LINES):
@@ -144,6 +174,9 @@ def open_program(path, dialect: str | None = None, *, max_steps: int = MAX_STEPS
         raise InputError(f"{article} {name} program ({text!r}): its language ({what}) is not read "
                          f"by mtcomp{hint}", source, line=line)
     d, why = dialect_named(dialect, source)
+    if d.language == "heidenhain":
+        yield from _conversational(source, d, why)
+        return
     expansion = None
     if d.language is not None and os.path.isfile(source) and needs_expansion(source):
         expansion = _expand(source, d, max_steps, max_lines)

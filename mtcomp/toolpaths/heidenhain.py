@@ -1,0 +1,394 @@
+"""Heidenhain TNC conversational programs (Klartext, ``.h``): read as the motion mtcomp knows.
+
+A conversational program is turned, line for line, into equivalent G-code that mtcomp's reader
+reads (one G-code line per source line, so every line keeps its number); the corrected program
+is written back in the conversational form by :mod:`.heidenhain_out`. The rules followed are those
+of HEIDENHAIN's user's manuals for conversational programming (iTNC 530, HEIDENHAIN 2004-2010;
+TNC 640, HEIDENHAIN 2015-2022; TNC 370, HEIDENHAIN 1995 for the direction of rotation):
+
+* ``BEGIN PGM name MM|INCH``: the program's units; ``END PGM``, ``BLK FORM``, ``TOOL DEF``, ``;``
+  and ``*`` comments, ``STOP`` and lines of M functions alone make no move.
+* ``L``: a straight move to the given coordinates (``IX`` ... incremental from the last
+  programmed position); ``FMAX`` rapid in that block only, ``F..`` a feed that stays; ``R0`` no
+  radius compensation. ``M91``/``M92``: the coordinates are machine positions (as G53: passed
+  through, those axes unknown afterwards).
+* ``CC X Y``: the circle centre (modal); ``C X Y DR+`` / ``DR-``: an arc about it to the end point,
+  counter-clockwise / clockwise (``C DR-`` without coordinates: a full circle).
+* ``TOOL CALL n Z``: a tool change (as ``T n M6 G43 H n``: the tool length of H n, Z unknown).
+* ``CYCL DEF 7`` datum shift: the program's coordinates are shifted by it from then on (relative
+  to the workpiece datum, ``IX`` relative to the last shift); read here as positions in the
+  workpiece datum's frame (the G-code gets coordinate plus shift).
+* ``CYCL DEF 1`` pecking, called by ``M99`` on an ``L FMAX`` line: a hole from the
+  tool's position (its set-up clearance above the surface) to the depth, back to that position
+  (as a G99 G81 cycle with R at the start level and Z at the bottom). ``CYCL DEF 9`` dwell.
+
+Everything else is refused in one line naming the construct: other cycles, ``RL``/``RR`` radius
+compensation, ``CR``/``CT``/polar and FK contours, ``RND``/``CHF``, ``APPR``/``DEP``, ``LBL`` and
+``CALL``, ``CYCL CALL``, ``FN`` and Q parameters, ``PLANE``, incremental or empty ``CC``, the TNC's path functions
+``M89`` and ``M90`` and up (but M91, M92, M99), tools by name, ``DL`` deltas, other tool axes.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+from ..errors import InputError
+
+AXES = "XYZABC"
+_BLOCK = re.compile(r"^\s*(\d+)\s*(.*?)\s*$")
+#: an axis word of a block: optional I (incremental), the letter, blanks, a signed number
+WORD = re.compile(r"(?<![A-Z])(I?)([XYZABC])(\s*)([+-]?\s*(?:\d+\.?\d*|\.\d+))")
+_NUMBER = r"[+-]?\s*(?:\d+\.?\d*|\.\d+)"
+_KEYWORD = re.compile(r"^(BEGIN PGM|END PGM|BLK FORM|TOOL DEF|TOOL CALL|CYCLE? DEF|CYCL CALL|"
+                      r"CC|CR|CTP|CT|CP|C|LP|LN|L|STOP|M)(?![A-Z])")
+#: keywords of constructs refused by name, and what they are
+_REFUSED = {"CR": "an arc by its radius (CR)", "CT": "a tangential arc (CT)",
+            "CP": "a polar arc (CP)", "CTP": "a polar tangential arc (CTP)",
+            "LP": "a polar straight line (LP)", "LN": "a straight line with a normal vector (LN)",
+            "RND": "a rounding (RND)", "CHF": "a chamfer (CHF)", "APPR": "an approach (APPR)",
+            "DEP": "a departure (DEP)", "FL": "an FK free contour", "FLT": "an FK free contour",
+            "FC": "an FK free contour", "FCT": "an FK free contour", "FPOL": "an FK pole (FPOL)",
+            "LBL": "a label (LBL)", "CALL": "a subprogram or program call (CALL)",
+            "FN": "a Q parameter function (FN)", "PLANE": "a tilted working plane (PLANE)",
+            "TCH": "a touch probe cycle (TCH PROBE)", "TRANS": "a coordinate transformation",
+            "SEL": "a program selection (SEL)", "Q": "Q parameters", "SPL": "a spline (SPL)",
+            "CYCL CALL": "CYCL CALL (the hole's position is not in the block: call the cycle "
+                         "with M99 on its positioning block L)"}
+_CYCLES = {1: "PECKING", 7: "DATUM SHIFT", 9: "DWELL TIME"}
+
+
+@dataclass
+class LineInfo:
+    """What a source line is, for the writer: ``kind`` (None: no motion and nothing rewritten;
+    'L', 'C', 'CC', 'hole' (an L that calls a pecking cycle with M99)), the datum shift in force (3,) in
+    program units, the axes given incrementally, the circle centre (CC: absolute, program
+    frame) and for a C the index of its CC line."""
+
+    kind: str | None = None
+    shift: tuple = (0.0, 0.0, 0.0)
+    incremental: frozenset = frozenset()
+    centre: tuple | None = None
+    cc_line: int | None = None
+
+
+@dataclass
+class Translation:
+    """A conversational program as G-code: ``gcode`` (one line per source line), ``lines`` (a
+    :class:`LineInfo` per source line), ``inch``."""
+
+    gcode: list = field(default_factory=list)
+    lines: list = field(default_factory=list)
+    inch: bool = False
+
+
+def _num(text: str) -> float:
+    return float(text.replace(" ", ""))
+
+
+def _fmt(v: float) -> str:
+    s = f"{v:.10f}".rstrip("0").rstrip(".")
+    return "0" if s in ("-0", "") else s
+
+
+@dataclass
+class _Cycle:
+    dist: float
+    depth: float
+    feed: float | None
+
+
+class _Reader:
+    """The state a conversational program carries from line to line (see the module docstring)."""
+
+    def __init__(self, path):
+        self.path = path
+        self.out = Translation()
+        self.pos = dict.fromkeys(AXES)          # program frame, program units; None: unknown
+        self.shift = [0.0, 0.0, 0.0]
+        self.cc = None                           # (x, y, line index)
+        self.cycle_def: dict = {}                # the CYCL DEF 1 being read
+        self.cycle: _Cycle | None = None
+        self.started = False
+
+    def err(self, message: str, k: int) -> InputError:
+        return InputError(message, self.path, line=k + 1)
+
+    def line(self, k: int, text: str) -> tuple[str, LineInfo]:
+        """(G-code, info) of source line k (0-based)."""
+        info = LineInfo(shift=tuple(self.shift))
+        body = text.strip()
+        if not body:
+            return "", info
+        m = _BLOCK.match(body)
+        if not m:
+            raise self.err(f"a Heidenhain block without its block number: {body[:40]!r}", k)
+        body = m.group(2)
+        code = body.split(";", 1)[0].strip().upper()
+        if not code or code.startswith("*"):
+            return "", info
+        if not self.started:
+            return self._begin(code, k), info
+        key = _KEYWORD.match(code)
+        if key is None:
+            word = re.match(r"[A-Z]+", code)
+            what = _REFUSED.get(word.group(0)) if word else None
+            if what is None and word and word.group(0).startswith("Q"):
+                what = "Q parameters"
+            raise self.err(f"{what or repr(code[:30])} is not read by mtcomp (Heidenhain "
+                           "conversational)", k)
+        name, rest = key.group(1), code[key.end():].strip()
+        if name in _REFUSED:
+            raise self.err(f"{_REFUSED[name]} is not read by mtcomp (Heidenhain conversational)", k)
+        if re.search(r"\bQ\d|\bFN\b", rest):
+            raise self.err("Q parameters are not read by mtcomp (Heidenhain conversational)", k)
+        handler = {"L": self._l, "C": self._c, "CC": self._cc, "TOOL CALL": self._tool_call,
+                   "CYCL DEF": self._cycl_def, "CYCLE DEF": self._cycl_def,
+                   "M": self._m_only}.get(name)
+        if handler is None:         # END PGM, BLK FORM, TOOL DEF, STOP
+            return "", info
+        return handler(rest, k, info)
+
+    def _begin(self, code: str, k: int) -> str:
+        m = re.fullmatch(r"BEGIN PGM\s+\S+\s+(MM|INCH)", code)
+        if not m:
+            raise self.err("a Heidenhain conversational program starts with BEGIN PGM name MM "
+                           f"(or INCH), not {code[:40]!r}", k)
+        self.started = True
+        self.out.inch = m.group(1) == "INCH"
+        return "G20" if self.out.inch else "G21"
+
+    def _mcodes(self, rest: str, k: int) -> list[int]:
+        codes = [int(v) for v in re.findall(r"(?<![A-Z])M\s*(\d+)", rest)]
+        for c in codes:
+            if c == 89 or (c >= 90 and c not in (91, 92, 99)):
+                raise self.err(f"M{c} (a TNC path or cycle function) is not read by mtcomp "
+                               "(Heidenhain conversational)", k)
+        return codes
+
+    def _m_only(self, rest: str, k: int, info: LineInfo) -> tuple[str, LineInfo]:
+        codes = self._mcodes("M" + rest, k)
+        if 99 in codes or 91 in codes or 92 in codes:
+            raise self.err("M91, M92 or M99 without a positioning block L", k)
+        return "", info
+
+    def _words(self, rest: str, k: int, allowed: str) -> dict:
+        """letter -> (value, incremental) of the axis words; refuses other axes and repeats."""
+        out = {}
+        for m in WORD.finditer(rest):
+            letter = m.group(2)
+            if letter not in allowed:
+                raise self.err(f"axis word {m.group(1)}{letter} is not read in this block", k)
+            if letter in out:
+                raise self.err(f"axis {letter} twice in one block", k)
+            out[letter] = (_num(m.group(4)), bool(m.group(1)))
+        return out
+
+    def _leftover(self, rest: str, k: int, extra: str) -> None:
+        """Refuse what a block holds besides axis words and the ``extra`` words (a regex)."""
+        left = WORD.sub(" ", rest)
+        left = re.sub(extra, " ", left).strip()
+        if left:
+            word = re.match(r"[A-Z]+", left)
+            what = _REFUSED.get(word.group(0)) if word else None
+            if word and word.group(0) in ("RL", "RR"):
+                what = f"radius compensation {word.group(0)}"
+            raise self.err(f"{what or repr(left[:30])} is not read by mtcomp (Heidenhain "
+                           "conversational)", k)
+
+    def _absolute(self, words: dict, k: int) -> dict:
+        """letter -> absolute value (program frame), from absolute or incremental words."""
+        out = {}
+        for letter, (v, inc) in words.items():
+            if inc:
+                if self.pos[letter] is None:
+                    raise self.err(f"incremental I{letter} from a position the program has not "
+                                   "given", k)
+                v = self.pos[letter] + v
+            out[letter] = v
+        return out
+
+    def _coords(self, target: dict) -> str:
+        return " ".join(f"{a}{_fmt(v + (self.shift['XYZ'.index(a)] if a in 'XYZ' else 0.0))}"
+                        for a, v in target.items())
+
+    def _feed(self, rest: str, k: int):
+        """(rapid, feed or None) of a block: FMAX, F number, or neither."""
+        if re.search(r"\bF\s*(?:AUTO|U|Z)", rest):
+            raise self.err("FAUTO and feeds per revolution or tooth (FU, FZ) are not read", k)
+        if re.search(r"\bFMAX\b", rest):
+            return True, None
+        m = re.search(r"(?<![A-Z])F\s*(" + _NUMBER + ")", rest)
+        return False, (None if m is None else _num(m.group(1)))
+
+    def _l(self, rest: str, k: int, info: LineInfo) -> tuple[str, LineInfo]:
+        words = self._words(rest, k, AXES)
+        self._leftover(rest, k, r"\bFMAX\b|\bR0\b|(?<![A-Z])F\s*" + _NUMBER + r"|(?<![A-Z])M\s*\d+")
+        mcodes = self._mcodes(rest, k)
+        rapid, feed = self._feed(rest, k)
+        f_word = "" if feed is None else f" F{_fmt(feed)}"
+        if 91 in mcodes or 92 in mcodes:
+            if any(inc for _v, inc in words.values()) or 99 in mcodes:
+                raise self.err("an incremental or drilling block with M91/M92 is not read", k)
+            for a in words:
+                self.pos[a] = None
+            axes = " ".join(f"{a}{_fmt(v)}" for a, (v, _i) in words.items())
+            return (f"G53 G{0 if rapid else 1} {axes}{f_word}" if words else ""), info
+        target = self._absolute(words, k)
+        info.incremental = frozenset(a for a, (_v, inc) in words.items() if inc)
+        if 99 in mcodes:
+            if words and not rapid:
+                raise self.err("a cycle call M99 on a feed move (the cycle is reached at FMAX)", k)
+            self.pos.update(target)
+            info.kind = "hole"
+            return self._hole(k, feed), info
+        self.pos.update(target)
+        if not words:
+            return (f"F{_fmt(feed)}" if feed is not None else ""), info
+        info.kind = "L"
+        return f"G{0 if rapid else 1} {self._coords(target)}{f_word}", info
+
+    def _cc(self, rest: str, k: int, info: LineInfo) -> tuple[str, LineInfo]:
+        words = self._words(rest, k, "XY")
+        self._leftover(rest, k, r"$^")
+        if len(words) != 2 or any(inc for _v, inc in words.values()):
+            raise self.err("a circle centre CC needs absolute X and Y (CC alone or incremental "
+                           "IX IY is not read)", k)
+        self.cc = (words["X"][0], words["Y"][0], k)
+        info.kind, info.centre = "CC", self.cc[:2]
+        return "", info
+
+    def _c(self, rest: str, k: int, info: LineInfo) -> tuple[str, LineInfo]:
+        direction = re.search(r"\bDR\s*([+-])", rest)
+        words = self._words(rest.replace("DR", "  "), k, "XY")
+        self._leftover(rest, k, r"\bDR\s*[+-]|\bR0\b|(?<![A-Z])F\s*" + _NUMBER
+                       + r"|(?<![A-Z])M\s*\d+")
+        self._mcodes(rest, k)
+        rapid, feed = self._feed(rest, k)
+        if direction is None or rapid:
+            raise self.err("an arc C needs its direction DR+ or DR- (and no FMAX)", k)
+        if self.cc is None:
+            raise self.err("an arc C before any circle centre CC", k)
+        if self.pos["X"] is None or self.pos["Y"] is None:
+            raise self.err("an arc C from a position the program has not given", k)
+        target = {"X": self.pos["X"], "Y": self.pos["Y"], **self._absolute(words, k)}
+        sx, sy = self.pos["X"], self.pos["Y"]
+        info.kind, info.cc_line, info.centre = "C", self.cc[2], self.cc[:2]
+        info.incremental = frozenset(a for a, (_v, inc) in words.items() if inc)
+        self.pos.update(target)
+        f_word = "" if feed is None else f" F{_fmt(feed)}"
+        g = 3 if direction.group(1) == "+" else 2
+        return (f"G{g} {self._coords(target)} I{_fmt(self.cc[0] - sx)} J{_fmt(self.cc[1] - sy)}"
+                f"{f_word}"), info
+
+    def _tool_call(self, rest: str, k: int, info: LineInfo) -> tuple[str, LineInfo]:
+        m = re.match(r"(\d+)\s*(?:([XYZ])(?![A-Z]))?", rest)
+        if m is None:
+            raise self.err("TOOL CALL by tool name (not number) is not read", k)
+        if m.group(2) not in (None, "Z"):
+            raise self.err(f"TOOL CALL with tool axis {m.group(2)} (only Z is read)", k)
+        for word in ("DL", "DR"):
+            d = re.search(r"\b" + word + r"\s*(" + _NUMBER + ")", rest)
+            if d and _num(d.group(1)) != 0.0:
+                raise self.err(f"TOOL CALL with a delta {word} is not read", k)
+        n = int(m.group(1))
+        self.pos["Z"] = None
+        return f"T{n} M6 G43 H{n}", info
+
+    def _cycl_def(self, rest: str, k: int, info: LineInfo) -> tuple[str, LineInfo]:
+        m = re.match(r"(\d+)(?:\.(\d+))?\s*(.*)$", rest)
+        if m is None:
+            raise self.err(f"a cycle definition {rest[:30]!r} is not read", k)
+        number, part, tail = int(m.group(1)), int(m.group(2) or 0), m.group(3)
+        if number not in _CYCLES:
+            raise self.err(f"CYCL DEF {number} is not read by mtcomp (of the cycles only 1 "
+                           "pecking, 7 datum shift and 9 dwell are)", k)
+        if number == 7 and part > 0:
+            self._datum_shift(tail, k)
+            info.shift = tuple(self.shift)
+        elif number == 1:
+            self._pecking(part, tail, k)
+        return "", info
+
+    def _datum_shift(self, tail: str, k: int) -> None:
+        if "#" in tail:
+            raise self.err("a datum shift from a datum table (#) is not read", k)
+        words = self._words(tail, k, "XYZ")
+        self._leftover(tail, k, r"$^")
+        for a, (v, inc) in words.items():
+            i = "XYZ".index(a)
+            self.shift[i] = self.shift[i] + v if inc else v
+
+    def _pecking(self, part: int, tail: str, k: int) -> None:
+        names = {1: "DIST", 2: "DEPTH", 3: "PLNGNG", 4: "DWELL", 5: "F"}
+        if part == 0:
+            self.cycle_def, self.cycle = {}, None
+            return
+        name = names.get(part)
+        m = re.fullmatch(name + r"\s*(" + _NUMBER + ")", tail) if name else None
+        if m is None:
+            raise self.err(f"CYCL DEF 1.{part} {tail[:30]!r} is not read", k)
+        self.cycle_def[name] = _num(m.group(1))
+        if part == 5 or {"DIST", "DEPTH"} <= set(self.cycle_def):
+            if self.cycle_def.get("DEPTH", 0.0) >= 0.0:
+                raise self.err("a pecking cycle with a depth that is not negative is not read", k)
+            self.cycle = _Cycle(self.cycle_def["DIST"], self.cycle_def["DEPTH"],
+                                self.cycle_def.get("F"))
+
+    def _hole(self, k: int, feed) -> str:
+        """The G-code of a cycle call at the current position: G99 G81 from the start level."""
+        if self.cycle is None:
+            raise self.err("a cycle call without a pecking cycle CYCL DEF 1 defined", k)
+        if any(self.pos[a] is None for a in "XYZ"):
+            raise self.err("a cycle call at a position the program has not given", k)
+        start = self.pos["Z"]
+        bottom = start - self.cycle.dist + self.cycle.depth
+        f = self.cycle.feed if self.cycle.feed is not None else feed
+        xy = self._coords({"X": self.pos["X"], "Y": self.pos["Y"]})
+        return (f"G99 G81 {xy} R{_fmt(start + self.shift[2])} Z{_fmt(bottom + self.shift[2])}"
+                + ("" if f is None else f" F{_fmt(f)}"))
+
+
+def read_lines(path) -> list[bytes]:
+    """The source's lines as the reader counts them ('\\n' ends one), each with its ending."""
+    with open(path, "rb") as f:
+        raws = f.read().split(b"\n")
+    return [r + b"\n" for r in raws[:-1]] + ([raws[-1]] if raws[-1] else [])
+
+
+def translate(path) -> Translation:
+    """The program at ``path`` as G-code (see the module docstring). Raises InputError naming the
+    line and the construct for what is not read."""
+    raws = read_lines(path)
+    reader = _Reader(path)
+    for k, raw in enumerate(raws):
+        text = raw.decode("latin-1").rstrip("\r\n")
+        if k == 0 and text.startswith("\ufeff"):
+            text = text[1:]
+        g, info = reader.line(k, text)
+        reader.out.gcode.append(g)
+        reader.out.lines.append(info)
+    if not reader.started:
+        raise InputError("no BEGIN PGM line: not a Heidenhain conversational program", path)
+    return reader.out
+
+
+def is_conversational(path) -> bool:
+    """Whether a program's first lines hold Heidenhain's ``BEGIN PGM``."""
+    try:
+        with open(path, "rb") as f:
+            head = [f.readline().decode("latin-1") for _ in range(3)]
+    except OSError:
+        return False
+    return any(re.match(r"(?i)^\s*\d+\s+BEGIN\s+PGM\b", line) for line in head)
+
+
+def signed(value: float, decimals: int, sign: bool = True) -> str:
+    """A coordinate in Heidenhain's form: ``+107.5032``, ``-0.0100`` (``+0.0000``, never -0)."""
+    s = f"{value:.{decimals}f}"
+    if float(s) == 0.0:
+        s = s.lstrip("-")
+    if sign and not s.startswith("-"):
+        s = "+" + s
+    return s
+
+

@@ -1,0 +1,283 @@
+"""A Heidenhain conversational program written back with corrected coordinates.
+
+The program is read through its G-code equivalent (:mod:`.heidenhain`), planned as any program,
+and written here in its own form: every line is the source line, byte for byte, except the
+numbers that carry a correction. In an ``L`` block the axis words are replaced in place (an
+incremental ``IX`` word gets the corrected end less the corrected start), an axis the block does
+not name is added after its last axis word where its written value changes (never an axis whose
+position the program has not given); a drilling call (``L ... M99``, ``CYCL CALL``) gets the hole's
+corrected X Y and its start level moved by the correction at the bottom (the cycle's depth below
+it is kept, as G-code cycles keep the depth below R). An arc ``C`` gets its corrected end point
+and its circle centre ``CC`` is moved: one centre for the arcs that use it, taken as the nominal
+centre shifted by the mean correction at their ends (or, for one arc, the circle through its
+corrected ends closest to its corrected path), kept only when every one of those arcs lies within
+the chord tolerance of its corrected path; otherwise the arc is refused (one line naming it).
+Numbers are written in Heidenhain's signed form (``X+107.5032``), with at least the source word's
+decimals and at least 4 in mm and degrees, 5 in inch. A block is never split: a conversational
+program's blocks stay one to one, so internal nodes of the planner are not written (compensate
+plans such programs without them).
+"""
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+
+from ..errors import InputError
+from ..io.atomic import atomic_write
+from ._arcs import arc_misses, arc_samples, arc_sweep, fit_arc_centre, radius_refused
+from .heidenhain import WORD, read_lines, signed
+from .reader import iter_blocks
+from .words import MM_PER_INCH, number_decimals
+
+#: a rotary axis on an arc must stay within this of its written value (rad: 1e-4 deg)
+ROTARY_ARC_TOL_RAD = math.radians(1e-4)
+
+
+#: the end of a motion block's keyword, after its block number
+_KEY_END = re.compile(r"^\s*\d+\s*(?:L|C)(?![A-Z])")
+
+
+def _code_end(text: str) -> int:
+    """Where a line's comment starts (its length when it has none)."""
+    pos = text.find(";")
+    return len(text) if pos < 0 else pos
+
+
+class _Arc:
+    """One C block as written: its line, written start and end (na,), the samples of its
+    corrected path (m, na), its nominal start and end, centre (2,), direction, full circle."""
+
+    def __init__(self, line, start_w, end_w, samples, block, centre2, full):
+        self.line, self.start_w, self.end_w, self.samples = line, start_w, end_w, samples
+        self.block, self.centre2, self.full = block, centre2, full
+        self.ccw = block.motion == 3
+
+
+class HeidenhainWriter:
+    """Writes one conversational program (see the module docstring)."""
+
+    def __init__(self, src, machine, chord_tol_mm: float):
+        self.src, self.tr = src, src.heidenhain
+        self.letters = "".join(machine.axis_names)
+        self.rotary = [c in "ABC" for c in self.letters]
+        self.linear = np.array([not r for r in self.rotary])
+        self.na = machine.n_axes
+        self.tol = chord_tol_mm
+        self.scale = MM_PER_INCH if self.tr.inch else 1.0
+        self.base = 5 if self.tr.inch else 4
+        self.raws = read_lines(src.source)
+        self.texts = [r.decode("latin-1") for r in self.raws]
+        self.written = np.full(self.na, np.nan)       # the G-code frame: mm, rad
+        self.arcs: dict[int, list] = {}
+        self.holes = 0
+        self.dropped = 0
+        self.cols = [self.letters.index(c) for c in "XY"]
+
+    # ------------------------------------------------------------------ numbers and words
+    def _units(self, j: int, v: float, shift) -> float:
+        """An axis value (mm, rad; G-code frame) in the program's units and frame."""
+        if self.rotary[j]:
+            return math.degrees(v)
+        k = "XYZ".find(self.letters[j])
+        return v / self.scale - (shift[k] if k >= 0 else 0.0)
+
+    def _internal(self, j: int, u: float, shift) -> float:
+        if self.rotary[j]:
+            return math.radians(u)
+        k = "XYZ".find(self.letters[j])
+        return (u + (shift[k] if k >= 0 else 0.0)) * self.scale
+
+    def _rewrite(self, i: int, block, end, info, write=None) -> str:
+        """The text of line i with the axis words of ``end`` (na,) written (see the module
+        docstring); ``write`` : (na,) bool, the axes that may be written (default: known)."""
+        text = self.texts[i].rstrip("\r\n")
+        ending = self.texts[i][len(text):]
+        code = _code_end(text)
+        named = {m.group(2): m for m in WORD.finditer(text, 0, code)}
+        most = max([number_decimals(m.group(4).replace(" ", "")) for m in named.values()] + [0])
+        edits, added = [], []
+        for j, letter in enumerate(self.letters):
+            if not block.known[j] or (write is not None and not write[j]):
+                continue
+            u = self._units(j, end[j], info.shift)
+            m = named.get(letter)
+            if m is None:
+                last = self.written[j]
+                if last == last and signed(self._units(j, last, info.shift), self.base) == \
+                        signed(u, self.base):
+                    continue
+                t = signed(u, max(self.base, most))
+                added.append(letter + t)
+                self.written[j] = self._internal(j, float(t), info.shift)
+                continue
+            number = m.group(4).replace(" ", "")
+            dec = max(self.base, number_decimals(number))
+            sign = number[0] in "+-"
+            if m.group(1):           # incremental: the corrected end less the written start
+                start = self._units(j, self.written[j], info.shift)
+                t = signed(u - start, dec, sign)
+                value = start + float(t)
+            else:
+                t = signed(u, dec, sign)
+                value = float(t)
+            if t == signed(float(number), dec, sign):
+                # the source's spelling: the machine goes where it says
+                self.written[j] = self._internal(j, value, info.shift) if m.group(1) \
+                    else block.end[j]
+                continue
+            edits.append((m.start(4), m.end(4), t))
+            self.written[j] = self._internal(j, value, info.shift)
+        if added:
+            pos = max([m.end() for m in named.values()], default=None)
+            if pos is None:
+                pos = _KEY_END.match(text).end()
+            edits.append((pos, pos, " " + " ".join(added)))
+        for a, b, t in sorted(edits, reverse=True):
+            text = text[:a] + t + text[b:]
+        return text + ending
+
+    # ------------------------------------------------------------------ blocks
+    def block(self, i: int, block, pts: np.ndarray, counts) -> None:
+        """A motion block of line i (0-based) and its corrected points."""
+        info = self.tr.lines[i]
+        if info.kind == "C":
+            self._arc(i, block, pts, counts, info)
+            return
+        if pts.shape[0] > 1:
+            self.dropped += pts.shape[0] - 1
+        end = pts[-1].copy()
+        if info.kind == "hole":
+            z = self.letters.index("Z")
+            end[z] = block.cycle.r_level + (pts[-1, z] - block.points[-1, z])
+            self.holes += 1
+        self.texts[i] = self._rewrite(i, block, end, info)
+
+    def _arc(self, i, block, pts, counts, info) -> None:
+        cols = self.cols
+        start_w = np.where(np.isnan(self.written), block.start, self.written)
+        if np.isnan(self.written[cols]).any():
+            raise InputError("an arc C from a position the output has not written", self.src.source,
+                             line=i + 1)
+        centre2 = np.asarray(block.centre, float)[:2]
+        full = math.hypot(*(block.end[cols] - block.start[cols])) <= 1e-9
+        plane = np.zeros(self.na, bool)
+        plane[cols] = True
+        if full:
+            end_w = start_w.copy()
+        else:
+            self.texts[i] = self._rewrite(i, block, pts[-1], info, write=plane)
+            end_w = start_w.copy()
+            end_w[cols] = self.written[cols]
+        self.written = np.where(plane, end_w, self.written)
+        got = arc_samples(block.start, block.end, block.points, pts, counts, centre2, tuple(cols),
+                          block.motion == 3, full)
+        samples = pts if got is None else got[0]
+        self.arcs.setdefault(info.cc_line, []).append(
+            _Arc(i, start_w, end_w, samples, block, centre2, full))
+
+    # ------------------------------------------------------------------ circle centres
+    def centres(self) -> None:
+        """Every CC line that arcs use, written with one centre that holds for all of them."""
+        for cc, arcs in self.arcs.items():
+            shifts = [0.5 * ((a.start_w - a.block.start) + (a.end_w - a.block.end))[self.cols]
+                      for a in arcs]
+            nominal = arcs[0].centre2
+            candidates = [nominal + np.mean(shifts, axis=0)]
+            if len(arcs) == 1:
+                a = arcs[0]
+                s2, e2 = a.start_w[self.cols], a.end_w[self.cols]
+                r = math.hypot(*(a.block.start[self.cols] - nominal))
+                fitted = fit_arc_centre(s2, e2, a.samples[:-1, self.cols], a.ccw, a.full,
+                                        candidates[0], r)
+                if fitted is not None:
+                    candidates.append(fitted)
+            worst = None
+            for c in candidates:
+                text, said = self._centre_text(cc, c)
+                miss = max(self._miss(a, said) for a in arcs)
+                if miss[0] <= 0.0:
+                    self.texts[cc] = text
+                    break
+                worst = miss if worst is None or miss[0] < worst[0] else worst
+            else:
+                raise InputError(
+                    f"the corrected arc C of line {worst[1] + 1} is not within the chord tolerance "
+                    f"({self.tol * 1e3:g} um) of an arc about one circle centre (CC of line "
+                    f"{cc + 1}): it misses its corrected path by {worst[2] * 1e3:.2f} um "
+                    "(a larger --chord-tol-um or a CC before each arc)", self.src.source,
+                    line=worst[1] + 1)
+
+    def _centre_text(self, cc: int, centre) -> tuple[str, np.ndarray]:
+        """(the CC line with the centre (2,) G-code frame, mm) written, the centre it says)."""
+        info = self.tr.lines[cc]
+        text = self.texts[cc].rstrip("\r\n")
+        ending = self.texts[cc][len(text):]
+        said = np.zeros(2)
+        edits = []
+        for m in WORD.finditer(text, 0, _code_end(text)):
+            k = "XY".index(m.group(2))
+            number = m.group(4).replace(" ", "")
+            dec = max(self.base, number_decimals(number))
+            sign = number[0] in "+-"
+            t = signed(centre[k] / self.scale - info.shift[k], dec, sign)
+            if t == signed(float(number), dec, sign):
+                t = number
+            else:
+                edits.append((m.start(4), m.end(4), t))
+            said[k] = (float(t) + info.shift[k]) * self.scale
+        for a, b, t in sorted(edits, reverse=True):
+            text = text[:a] + t + text[b:]
+        return text + ending, said
+
+    def _miss(self, a: _Arc, centre) -> tuple:
+        """(excess over the tolerance (<= 0: holds), line, distance mm) of an arc about centre."""
+        s2, e2 = a.start_w[self.cols], a.end_w[self.cols]
+        r0, r1 = math.hypot(*(s2 - centre)), math.hypot(*(e2 - centre))
+        if radius_refused(r0, r1, self.tr.inch):
+            return abs(r1 - r0), a.line, abs(r1 - r0)
+        _a, sweep = arc_sweep(s2, e2, centre, a.ccw, a.full)
+        _a, span = arc_sweep(a.block.start[self.cols], a.block.end[self.cols], a.centre2, a.ccw,
+                             a.full)
+        if abs(sweep - span) > 0.25 * math.pi:
+            return math.inf, a.line, math.inf
+        dist, rot = arc_misses(a.start_w, a.end_w, centre, tuple(self.cols), a.ccw, a.full,
+                               a.samples, self.linear)
+        excess = max(dist - self.tol, (rot - ROTARY_ARC_TOL_RAD) if rot > ROTARY_ARC_TOL_RAD else -1)
+        return excess, a.line, dist
+
+
+def write_corrected(src, out_path, machine, cursor, chord_tol_mm: float, initial_position=None,
+                    *, inch: bool = False, initial_known=None, stats: dict | None = None) -> int:
+    """Write the conversational program of ``src`` (a :class:`~.source.ProgramSource` with its
+    ``heidenhain`` translation) with the corrections of ``cursor`` (see
+    :func:`mtcomp.toolpaths.gcode.write_corrected`); returns the segment rows written."""
+    w = HeidenhainWriter(src, machine, chord_tol_mm)
+    rows = 0
+    for k, _raw, block, state in iter_blocks(src, machine, chord_tol_mm, initial_position,
+                                             inch=inch, initial_known=initial_known):
+        if block is None:
+            # an axis the reader forgets (M91/M92, TOOL CALL) is not where the output wrote it
+            w.written[~state.known] = np.nan
+            continue
+        pts = np.array(cursor.take(k, block.points.shape[0]))
+        w.block(k - 1, block, pts, cursor.counts.copy())
+        rows += block.points.shape[0]
+    cursor.finish()
+    w.centres()
+    with atomic_write(out_path, "wb") as f:
+        f.write("".join(w.texts).encode("latin-1"))
+    if w.dropped:
+        src.notes.append(f"note: {w.dropped} internal node{'s' if w.dropped != 1 else ''} of the "
+                         "plan not written: a Heidenhain program's blocks stay one to one (only "
+                         "the blocks' ends are corrected)")
+    if w.holes:
+        src.notes.append(f"{w.holes} drilling call{'s' if w.holes != 1 else ''} (L ... M99 of a "
+                         "pecking cycle) corrected at the hole's bottom: X Y of the hole, the "
+                         "start level moved by the Z correction (the depth below it kept)")
+    if stats is not None:
+        stats["cycle_lines"] = 0
+        stats["cycle_blocks"] = 0
+        stats["heidenhain_holes"] = w.holes
+    return rows
