@@ -27,6 +27,20 @@ def add_offset_arguments(parser, offsets_help: str, work_offset_help: str) -> No
                         help=work_offset_help)
 
 
+#: the controllers whose rules differ, for ``--dialect`` (docs/toolpaths.md)
+DIALECT_CHOICES = ("linuxcnc", "fanuc", "haas", "grbl", "heidenhain", "generic")
+
+
+def add_dialect_argument(parser) -> None:
+    """``--dialect``: the controller that runs the program (default: detected from it)."""
+    parser.add_argument("--dialect", choices=DIALECT_CHOICES, default=None,
+                        help="the controller that runs the program, for the rules that differ "
+                             "between controllers (G80, G98, LinuxCNC O-words and parameters, Fanuc "
+                             "macro B, Heidenhain conversational; see docs/toolpaths.md). Default: "
+                             "detected from the program (generic when nothing in it names a "
+                             "controller)")
+
+
 def add_cmm_arguments(parser) -> None:
     """``--cmm-program`` and ``--cmm-tool-radius``: what cut the part of a cmm file (docs/measurements.md)."""
     parser.add_argument("--cmm-program", metavar="[CMM.csv=]PART.nc", action="append", default=[],

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 
 def add_arguments(parser):
-    from . import add_offset_arguments
+    from . import add_dialect_argument, add_offset_arguments
     from ..planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
     parser.add_argument("machine", metavar="MACHINE", help="built-in machine name or machine TOML file")
     parser.add_argument("model", metavar="MODEL.json", help="fitted error model")
@@ -80,13 +80,7 @@ def add_arguments(parser):
                         help="axes that stand at a known position (program frame; mm, deg) before "
                              "the program starts, e.g. the rotary axes of a 5-axis machine that a "
                              "3-axis program never names (default: no axis is known at the start)")
-    parser.add_argument("--dialect", choices=("linuxcnc", "fanuc", "haas", "grbl", "heidenhain",
-                                              "generic"),
-                        default=None,
-                        help="the controller that runs the program, for the rules that differ "
-                             "between controllers (G80, G98, LinuxCNC O-words and parameters, Fanuc "
-                             "macro B; see docs/toolpaths.md). Default: detected from the program "
-                             "(generic when nothing in it names a controller)")
+    add_dialect_argument(parser)
     parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
 
 

@@ -17,7 +17,7 @@ from ..errors import InputError
 
 
 def add_arguments(parser):
-    from . import add_offset_arguments
+    from . import add_dialect_argument, add_offset_arguments
     parser.add_argument("machine", help="built-in machine name or machine TOML file")
     parser.add_argument("model", help="MODEL.json (from identify or diagnose)")
     parser.add_argument("program", help="the NC program (G-code) as written for the part")
@@ -60,6 +60,7 @@ def add_arguments(parser):
                                  "G54, or the one work system the file gives)",
                          "where the program's zero sits in machine axis positions (mm), as given "
                          "to compensate: the model is evaluated there")
+    add_dialect_argument(parser)
     parser.add_argument("--temperature", metavar="NAME=DEGC", action="append", default=[],
                         help="the machine's temperatures while the program runs, as given to "
                              "compensate (repeatable): the model's thermal drift is mapped at them "
@@ -137,7 +138,7 @@ def run(args) -> int:
     fitted = load_model(args.model, machine)
     fitted, drift_note = _thermal_state(args, fitted)
     progress("reading the program")
-    program = read_program_points(args.program, machine)
+    program = read_program_points(args.program, machine, args.dialect)
     try:
         machine.check_travel(program.q, program.line, program.known, args.program)
     except InputError as e:

@@ -21,6 +21,7 @@ class ProgramPoints:
     program has given that axis's position (None: all). cycle : (n,) bool, the bottom of a hole of a
     drilling cycle (G73, G81-G89) (None: none). tcp : (n,) bool, a tool centre point block: its
     words were the tip and angles, ``q`` holds the axes the controller reaches (None: none).
+    dialect : the controller's rules the program was read by (``--dialect``; None: detected).
     """
 
     path: str
@@ -32,15 +33,17 @@ class ProgramPoints:
     known: np.ndarray | None = None
     cycle: np.ndarray | None = None
     tcp: np.ndarray | None = None
+    dialect: str | None = None
 
     def __len__(self):
         return int(self.line.shape[0])
 
 
-def read_program_points(path, machine: Machine) -> ProgramPoints:
-    """Every segment end of the program at ``path`` (arcs as chords). Raises InputError."""
+def read_program_points(path, machine: Machine, dialect: str | None = None) -> ProgramPoints:
+    """Every segment end of the program at ``path`` (arcs as chords), read by the rules of
+    ``dialect`` (None: detected from the program). Raises InputError."""
     from ..toolpaths import SegmentChunk, iter_segment_chunks
-    chunks = list(iter_segment_chunks(path, machine))
+    chunks = list(iter_segment_chunks(path, machine, dialect=dialect))
     seg = SegmentChunk.concatenate(chunks, machine.n_axes)
     if len(seg.end) == 0:
         from ..errors import InputError
@@ -55,7 +58,8 @@ def read_program_points(path, machine: Machine) -> ProgramPoints:
     if tcp.any():
         q[tcp] = axes_of_tcp(machine, q[tcp])
     return ProgramPoints(os.fspath(path), q, seg.line.copy(), seg.feed.copy(),
-                         seg.dirs.copy(), seg.rapid.copy(), seg.known.copy(), seg.cycle.copy(), tcp)
+                         seg.dirs.copy(), seg.rapid.copy(), seg.known.copy(), seg.cycle.copy(), tcp,
+                         dialect)
 
 
 def _motion_runs(original: ProgramPoints, compensated: ProgramPoints) -> tuple[np.ndarray, np.ndarray]:
@@ -69,7 +73,7 @@ def _motion_runs(original: ProgramPoints, compensated: ProgramPoints) -> tuple[n
         # a program with code to compute is paired as the flat program it expands to (the lines
         # its segment ends are numbered by, and those compensate wrote with its corrections)
         from ..toolpaths.source import open_program
-        with open_program(path) as src, open(src, "rb") as f:
+        with open_program(path, original.dialect) as src, open(src, "rb") as f:
             return f.read().split(b"\n")
     a, b = lines(original.path), lines(compensated.path)
     a_motion, b_motion = set(original.line.tolist()), set(compensated.line.tolist())
@@ -172,7 +176,7 @@ def _source_lines(original: ProgramPoints) -> np.ndarray:
     """(n,) the source line of each segment end: its line, or for a program with code to compute
     the line of the user's file its expanded line came from (the compensation report's ``line``)."""
     from ..toolpaths.source import open_program
-    with open_program(original.path) as src:
+    with open_program(original.path, original.dialect) as src:
         return src.source_lines_of(original.line)
 
 
