@@ -108,7 +108,7 @@ def test_fanuc_macro_b_while_if_goto_expanded(tmp_path):
     ("O1\nWHILE [1 EQ 1] DO1\nG0 X1\n", 2, "WHILE ... DO1 without its END1"),
     ("O1\nGOTO 50\n", 2, "no line with sequence number N50"),
     ("O1\nIF [1 EQ 1] THEN G0 X1\n", 2, "THEN takes one assignment"),
-    ("O1\nG0 X0 Y0 Z0\nM98 P1000\n", 3, "M98 .subprogram call"),
+    ("O1\nG0 X0 Y0 Z0\nM98 P1000\n", 3, "M98 P1000: no program O1000 in this file"),
 ])
 def test_fanuc_macro_constructs_refused_in_one_line(tmp_path, text, line, msg):
     p = tmp_path / "m.nc"

@@ -52,6 +52,8 @@ _MACRO_STATEMENT = r"if[ \t]*\[|goto[ \t]*[#\d]|while[ \t]*\[|end[ \t]*\d[ \t]*(
 _STATEMENT_LINE = re.compile(
     rb"(?im)^[ \t]*(?:n[ \t]*\d+[ \t]*)?(?:" + _OWORD_KEYWORD.encode() + rb"|"
     + _MACRO_STATEMENT.encode() + rb")")
+#: a subprogram call: M98, or Haas' M97
+_CALL = re.compile(rb"(?i)m[ \t]*0*9[78](?![\d.])")
 _CLUES = [
     ("linuxcnc", re.compile(r"(?i)^\s*(?:n\s*\d+\s*)?" + _OWORD_KEYWORD + r"|o\s*<|#\s*<")),
     ("linuxcnc", re.compile(r"\^\s*[-+.\d\[#]")),         # a polar angle word: LinuxCNC's alone
@@ -157,7 +159,14 @@ def needs_expansion(path, block: int = 1 << 16) -> bool:
 def _has_code(chunk: bytes) -> bool:
     """Whether a block of whole lines has code to compute. Cheap searches find the lines that may
     (a '#', '[', '@', '^', an 'O' before a number or label); only those lines are read. A GOTO
-    without any of these is left to the reader, which refuses it by name."""
+    without any of these is left to the reader, which refuses it by name. A subprogram call (M98,
+    Haas' M97) counts too: the macro runner expands it."""
+    for m in _CALL.finditer(chunk):
+        start = chunk.rfind(b"\n", 0, m.start()) + 1
+        end = chunk.find(b"\n", m.start())
+        line = chunk[start:len(chunk) if end < 0 else end].decode("latin-1")
+        if _CALL.search(_strip_comments(line).encode("latin-1")):
+            return True
     for ch in (b"#", b"[", b"@", b"^", b"o", b"O"):
         for pos in _finds(chunk, ch):
             if ch in b"oO" and chunk[pos + 1:pos + 3].lstrip(b" \t")[:1] not in b"0123456789<[":

@@ -16,7 +16,18 @@ program (Fanuc 0i-MF, custom macro, alarm #3000; Haas, macros, #3000 programmabl
 way the motion that is executed is the program's own, up to where it stops, so the line is written
 unchanged (the reader passes it through) and nothing else of the run depends on it. A condition
 that holds without system variables stops the program there, and is refused as such.
-Subprogram and macro calls (M98, M99, G65, G66) are refused by the reader.
+Subprograms in the same file are expanded where they are called (Fanuc 0i-MF, "Subprogram";
+Haas mill operator's manual, M97 local subprogram call, M98 subprogram call, M99 return):
+``M98 P1000`` runs the program ``O1000`` of the file from the line after its O line, ``M98 P1000
+L3`` (or Fanuc's ``M98 P00031000``: the repetitions in front of the 4-digit number) three times,
+and Haas' ``M97 P100`` the lines from the block ``N100`` of this program on; ``M99`` returns to
+the line after the call. A subprogram called at two places comes out twice, each with its own
+correction; the call and return lines are not written (the flat program holds what they did).
+Refused by name: a program number the file does not hold (a subprogram in the controller's memory),
+``M99 P`` (a return to a sequence number), a call or return with other words on its line, calls
+nested more than 10 deep. An ``M99`` in the main program (no call to return from: the controller
+runs the program again from its start) passes through; one pass is what is corrected.
+Macro calls (G65, G66) are refused by the reader.
 """
 from __future__ import annotations
 
@@ -25,13 +36,17 @@ import re
 from ..errors import InputError
 from .expr import Evaluator, ExprError
 from .lines import line_code, rewrite
-from .ngc import _END, MAX_LINES, MAX_STEPS, check_steps, check_written
+from .ngc import _END, MAX_DEPTH, MAX_LINES, MAX_STEPS, check_steps, check_written
 
 _STATEMENT = re.compile(r"(?:n(\d+))?(if\[|goto|while\[|end(\d))")
 _SEQUENCE = re.compile(r"n(\d+)")
 #: the action of an alarm-only IF: an assignment to #3000 (the programmable alarm), which stops
 #: the program
 _ALARM = re.compile(r"#3000=")
+#: a subprogram call (M98; Haas' local call M97) or return (M99)
+_SUBPROGRAM = re.compile(r"m0*(9[789])(?![\d.])")
+#: the line that starts program O<n> (its number, at the start of the line's code)
+_PROGRAM = re.compile(r"o0*(\d+)$")
 
 
 class SystemVariable(ExprError):
@@ -78,8 +93,14 @@ class MacroRun:
     :class:`~.ngc.NgcRun`."""
 
     def __init__(self, texts: list[str], path, max_steps: int = MAX_STEPS,
-                 max_lines: int = MAX_LINES):
+                 max_lines: int = MAX_LINES, dialect: str = "fanuc"):
         self.texts, self.path = texts, path
+        #: Haas' M97 calls a subprogram at a sequence number of this program
+        self.local_calls = dialect == "haas"
+        #: subprogram calls in progress: (the line to return to, the subprogram's first line,
+        #: repetitions left)
+        self.calls: list[list[int]] = []
+        self.programs: dict[int, int] = {}
         self.max_steps, self.max_lines = max_steps, max_lines
         self.ev = Evaluator(MacroParams(), logical_only=True)
         self.codes = [line_code(t) for t in texts]
@@ -88,6 +109,9 @@ class MacroRun:
         loops: list[tuple[int, int]] = []
         self.partner: dict[int, int] = {}
         for i, c in enumerate(self.codes):
+            p = _PROGRAM.match(c.text)
+            if p:
+                self.programs.setdefault(int(p.group(1)), i)
             m = _SEQUENCE.match(c.text)
             if m:
                 self.sequence.setdefault(int(m.group(1)), []).append(i)
@@ -107,6 +131,10 @@ class MacroRun:
         if loops:
             raise self.error(f"WHILE ... DO{loops[-1][0]} without its END{loops[-1][0]}",
                              loops[-1][1])
+        #: the lines that start a program (O<n>); the first is the main program's, which ends
+        #: where the next one starts (the controller keeps the file's programs apart)
+        self.starts = frozenset(self.programs.values())
+        self.first = min(self.starts, default=-1)
 
     def error(self, message: str, index: int) -> InputError:
         return InputError(message, self.path, index + 1)
@@ -160,6 +188,15 @@ class MacroRun:
             steps += 1
             check_steps(self, steps, pc)
             st = self.statements.get(pc)
+            if pc in self.starts and pc != self.first:    # the next program of the file
+                if self.calls:
+                    raise self.error("a subprogram runs into the next program without its M99 "
+                                     f"(called at line {self.calls[-1][0]})", pc)
+                return
+            jump = self._subprogram(pc) if st is None else None
+            if jump is not None:
+                pc = jump
+                continue
             if st is None:
                 text = self._code_line(pc)
                 if text is not False:
@@ -177,6 +214,58 @@ class MacroRun:
                 yield pc, None
                 nxt = pc + 1
             pc = nxt
+
+    def _subprogram(self, i: int) -> int | None:
+        """The line to run next when line ``i`` calls a subprogram (M98, Haas' M97) or returns from
+        one (M99); None for any other line (an M99 of the main program included)."""
+        m = _SUBPROGRAM.search(self.codes[i].text)
+        kind = int(m.group(1)) if m else 0
+        if kind == 0 or (kind == 97 and not self.local_calls) or (kind == 99 and not self.calls):
+            return None
+        try:
+            r = rewrite(self.texts[i], self.codes[i], self.ev, fanuc=True)
+        except ExprError as exc:
+            raise self.error(str(exc), i) from None
+        others = sorted(set(r.words) - {"n", "m", "p", "l"})
+        if r.assignments or others or len(_SUBPROGRAM.findall(self.codes[i].text)) > 1:
+            raise self.error(f"M{kind} with other words on its line ({', '.join(others) or 'M'}): "
+                             "put the call or return on a line of its own", i)
+        if kind == 99:
+            if "p" in r.words:
+                raise self.error("M99 P (a return to a sequence number of the calling program) is "
+                                 "not followed", i)
+            call = self.calls[-1]
+            call[2] -= 1
+            if call[2] > 0:
+                return call[1]
+            self.calls.pop()
+            return call[0]
+        return self._call(kind, r.words, i)
+
+    def _call(self, kind: int, words: dict, i: int) -> int:
+        """The first line of the subprogram that line ``i`` calls (M98 P.. [L..], M97 P.. [L..])."""
+        if "p" not in words:
+            raise self.error(f"M{kind} without P (the subprogram to call)", i)
+        number, reps = words["p"], words.get("l", 1.0)
+        if kind == 98 and "l" not in words and number > 9999:      # Fanuc's P<reps><4 digits>
+            reps, number = divmod(number, 10000)
+        if number != int(number) or reps != int(reps) or reps < 1:
+            raise self.error(f"M{kind} P{number:g} L{reps:g}: the number and the repetitions must be "
+                             "whole, the repetitions at least 1", i)
+        if kind == 98:
+            if int(number) not in self.programs:
+                raise self.error(f"M98 P{number:g}: no program O{number:g} in this file (a subprogram "
+                                 "in the controller's memory: its motion is not in the file)", i)
+            start = self.programs[int(number)] + 1
+        else:
+            lines = self.sequence.get(int(number))
+            if not lines:
+                raise self.error(f"M97 P{number:g}: no block N{number:g} in this program", i)
+            start = lines[0]
+        if len(self.calls) >= MAX_DEPTH:
+            raise self.error(f"M{kind}: subprograms nested more than {MAX_DEPTH} deep", i)
+        self.calls.append([i + 1, start, int(reps)])
+        return start
 
     def _statement(self, i: int, st: tuple) -> int:
         kind = st[0]

@@ -102,7 +102,8 @@ def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int):
         raws[0] = raws[0][3:]
     texts = [r.decode("latin-1").rstrip("\r\n") for r in raws]
     ending = "\r\n" if raws and raws[0].endswith(b"\r\n") else "\n"
-    run = run_cls(texts, source, max_steps=max_steps, max_lines=max_lines)
+    extra = {"dialect": dialect.name} if run_cls is MacroRun else {}
+    run = run_cls(texts, source, max_steps=max_steps, max_lines=max_lines, **extra)
     line_map = array("l", [0])
     same = True
     fd, tmp = tempfile.mkstemp(prefix="mtcomp-expanded-", suffix=".nc")

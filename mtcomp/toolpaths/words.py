@@ -65,7 +65,9 @@ _REFUSED_G = {
 _CURVE_WITH_COORDINATES = {5: ("G5 (cubic spline)", frozenset("XYZABCIJKR")),
                            5.1: ("G5.1 (quadratic spline)", frozenset("XYZABCIJK"))}
 #: M codes refused (subprograms, tool centre point control)
-_REFUSED_M = {98: "M98 (subprogram call)",
+_REFUSED_M = {98: "M98 (subprogram call; in a Fanuc or Haas program whose subprogram is in the "
+                  "file, give --dialect fanuc or haas)",
+              97: "M97 (Haas' local subprogram call; give --dialect haas if a Haas runs it)",
               430: "M430 (LinuxCNC switchable kinematics: the program does not give axis positions)"}
 #: M codes that switch tool centre point mode on (LinuxCNC's switchable kinematics M428, Heidenhain's
 #: M128 in ISO programs) and off (M429: LinuxCNC's identity kinematics again; M129)

@@ -1,0 +1,126 @@
+"""Subprograms in the same file (Fanuc M98 / M99, Haas' local M97), expanded where they are called:
+the hand-derived positions of every block on both reader paths, the compensated program equal to
+the compensation of the same program flattened by hand (a second formulation), and the refusals,
+each in one line naming the line and the construct. Before, a Haas M97 passed through as an
+unknown M code: its subprogram's motion was missed and the next block got a Y word that moved the
+machine back to where it stood before the call."""
+import numpy as np
+import pytest
+
+from mtcomp.machine import load_machine
+from mtcomp.toolpaths import iter_segment_chunks
+from mtcomp.toolpaths.source import open_program
+from test_compensate_cli import _model, _run
+from test_toolpaths_dialect import mode  # noqa: F401  (the fixture: both reader paths)
+
+XFYZ = load_machine("xfyz")
+
+FANUC = """%
+O0001 (MAIN)
+G90 G21 G17
+G0 X0 Y0 Z5
+G1 Z-1 F200
+M98 P00021000
+G1 X40 F300
+M98 P1000
+G0 Z5
+M30
+O1000 (STEP)
+G91 G1 X10 Y5 F300
+G90
+M99
+%
+"""
+#: the same program as the controller runs it, flattened by hand: the subprogram twice, then once
+FANUC_FLAT = """%
+O0001 (MAIN)
+G90 G21 G17
+G0 X0 Y0 Z5
+G1 Z-1 F200
+G91 G1 X10 Y5 F300
+G90
+G91 G1 X10 Y5 F300
+G90
+G1 X40 F300
+G91 G1 X10 Y5 F300
+G90
+G0 Z5
+M30
+"""
+FANUC_ENDS = [[0, 0, 5], [0, 0, -1], [10, 5, -1], [20, 10, -1], [40, 10, -1], [50, 15, -1],
+              [50, 15, 5]]
+
+HAAS = """O01000 (HAAS)
+G90 G21 G17
+G0 X0 Y0 Z5
+M97 P100 L2
+G1 X20 F100
+M30
+N100 G91 G1 Y30 F100
+G90
+M99
+"""
+HAAS_ENDS = [[0, 0, 5], [0, 30, 5], [0, 60, 5], [20, 60, 5]]
+
+
+def _ends(path, dialect):
+    with open_program(path, dialect) as src:
+        return np.vstack([c.end for c in iter_segment_chunks(src, XFYZ)])
+
+
+@pytest.mark.parametrize("text, dialect, ends", [(FANUC, "fanuc", FANUC_ENDS),
+                                                  (HAAS, "haas", HAAS_ENDS)])
+def test_the_blocks_of_a_called_subprogram_come_where_it_is_called(tmp_path, mode, text, dialect,
+                                                                   ends):
+    p = tmp_path / "p.nc"
+    p.write_text(text)
+    np.testing.assert_allclose(_ends(p, dialect), ends, rtol=0, atol=1e-9)
+
+
+def test_compensated_as_the_program_flattened_by_hand(tmp_path, capsys):
+    _, _, model = _model(tmp_path, "xfyz", seed=5, scale=3.0)
+    written = {}
+    for name, text in (("sub", FANUC), ("flat", FANUC_FLAT)):
+        p, out = tmp_path / f"{name}.nc", tmp_path / f"{name}.out.nc"
+        p.write_text(text)
+        code, _o, err = _run(["compensate", "xfyz", str(model), str(p), "-o", str(out), "--quiet",
+                              "--dialect", "fanuc"], capsys)
+        assert code == 0, err
+        written[name] = out.read_text().splitlines()
+    sub, flat = written["sub"], written["flat"]
+    # the expansion says so on its first line; the rest is the hand-flattened program's output
+    assert sub[0].startswith("(expanded by mtcomp from sub.nc for fanuc")
+    assert sub[1:] == flat
+    # and the corrections are there: the corrected ends differ from the source's
+    assert flat != FANUC_FLAT.splitlines()
+
+
+@pytest.mark.parametrize("text, dialect, words", [
+    ("O1\nG0 X0 Y0 Z5\nM98 P2000\nM30\n", "fanuc", ["p.nc:3:", "no program O2000 in this file"]),
+    ("O1\nG0 X0 Y0 Z5\nM98 P2\nM30\nO2\nG1 X5 F100\nM99 P10\n", "fanuc",
+     ["p.nc:7:", "M99 P"]),
+    ("O1\nG0 X0 Y0 Z5\nG1 X3 F100 M98 P2\nM30\nO2\nG1 X5 F100\nM99\n", "fanuc",
+     ["p.nc:3:", "M98 with other words on its line"]),
+    ("O1\nG0 X0 Y0 Z5\nM98 P2\nM30\nO2\nG1 X5 F100\nM98 P2\nM99\n", "fanuc",
+     ["p.nc:7:", "nested more than 10 deep"]),
+    ("O1\nG0 X0 Y0 Z5\nM98 P2\nM30\nO2\nG1 X5 F100\nO3\nG1 X6\nM99\n", "fanuc",
+     ["p.nc:7:", "without its M99"]),
+    ("G0 X0 Y0 Z5\nM97 P100\nM30\nN100 G1 X5 F100\nM99\n", "haas", None),
+    ("G0 X0 Y0 Z5\nM97 P200\nM30\nN100 G1 X5 F100\nM99\n", "haas", ["p.nc:2:", "no block N200"]),
+    ("G0 X0 Y0 Z5\nM97 P100\nM30\nN100 G1 X5 F100\nM99\n", "fanuc", ["p.nc:2:", "M97 (Haas'"]),
+    ("G0 X0 Y0 Z5\nM97 P100\nM30\nN100 G1 X5 F100\nM99\n", None, ["p.nc:2:", "M97 (Haas'"]),
+    ("G0 X0 Y0 Z5\nM98 P100\nM30\n", "linuxcnc", ["p.nc:2:", "M98 (subprogram call"]),
+])
+def test_calls_refused_in_one_line(tmp_path, capsys, text, dialect, words):
+    _, _, model = _model(tmp_path, "xfyz", seed=5)
+    p, out = tmp_path / "p.nc", tmp_path / "out.nc"
+    p.write_text(text)
+    args = ["compensate", "xfyz", str(model), str(p), "-o", str(out), "--quiet"]
+    code, _o, err = _run(args + (["--dialect", dialect] if dialect else []), capsys)
+    if words is None:            # the accepted case beside the refused ones
+        assert code == 0, err
+        return
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1, err
+    assert all(w in lines[0] for w in words), lines[0]
+    assert not out.exists()
