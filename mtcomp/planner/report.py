@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._bounds import FLAG_KINDS, flag_name
-from ._small import row_norm
+from ._small import any_rows, row_norm
 from .engine import PlanResult
 
 
@@ -56,7 +56,7 @@ def report_rows(result: PlanResult, axis_names, max_correction_sd_um: float | No
     # an axis the program has not positioned has no position to show, and a deviation predicted there
     # means nothing: blank cells (not a made-up 0)
     pos = np.where(result.unknown, np.nan, pos)
-    blank = result.unknown.any(axis=1)
+    blank = any_rows(result.unknown)
     corr = np.where(rot, result.correction * 1e6, result.correction * 1e3)
     corr = np.where(result.unknown, np.nan, corr)
     cols = [result.line.astype(np.int64), result.inserted.astype(int), result.rapid.astype(int)]
@@ -100,7 +100,7 @@ def _uncertain(result: PlanResult, limit: float | None) -> np.ndarray:
 def _axis_letters(mask, axis_names) -> list[str]:
     """Per row the letters of the axes set in mask (n, na) ('' when none)."""
     out = [""] * mask.shape[0]
-    for i in np.flatnonzero(mask.any(axis=1)):
+    for i in np.flatnonzero(any_rows(mask)):
         out[i] = "".join(a for a, m in zip(axis_names, mask[i]) if m)
     return out
 
@@ -148,9 +148,9 @@ class Summary:
             return
         self.blocks += n
         self.inserted += int(r.inserted.sum())
-        unknown = r.unknown.any(axis=1)
+        unknown = any_rows(r.unknown)
         self.unknown_blocks += int(unknown.sum())
-        outside = r.outside.any(axis=1) & ~unknown
+        outside = any_rows(r.outside) & ~unknown
         uncertain = _uncertain(r, self.max_correction_sd_um) & ~unknown & ~(outside & ~self.extrapolate)
         self.uncertain_blocks += int(uncertain.sum())
         if np.isfinite(r.sd_um).any():
@@ -170,7 +170,7 @@ class Summary:
                 return
         self.evaluated += len(r)
         if r.flags.any():
-            self.bounded_blocks += int(r.flags.any(axis=(1, 2)).sum())
+            self.bounded_blocks += int(any_rows(r.flags).sum())
             counts = r.flags.sum(axis=0)
             for j, a in enumerate(self.axis_names):
                 for k, kind in enumerate(FLAG_KINDS):
