@@ -32,7 +32,7 @@ STAGES = {
     "nominal kinematics": [("mtcomp.planner._evaluate", "nominal_pose"),
                            ("mtcomp.planner._evaluate", "nominal_pose_jacobian")],
     "osqp solve": [("mtcomp.planner._qp", "WindowQP.solve")],
-    "report rows": [("mtcomp.compensation", "report_rows")],
+    "report rows": [("mtcomp.compensation", "_report_lines")],
 }
 
 

@@ -23,11 +23,13 @@ from .errors import InputError
 from .io.atomic import atomic_write
 from .planner import (CompensationProblem, Planner, PlannerOptions, Summary, output_grid,
                       report_columns, report_rows)
+from .planner.report import report_table
 from .planner._bounds import FLAG_KINDS
 from .planner._parallel import read_ahead
 from .planner._small import any_rows
 from .planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
 from .toolpaths import iter_segment_chunks, write_corrected
+from .toolpaths._fast import format_table
 from .toolpaths.source import open_program
 
 _DIGITS = b"0123456789."
@@ -440,6 +442,22 @@ def _series_sentence(fitted, settings: CompensationSettings, series, tally: _Tal
             + ("; the last reading holds after it" if tally.t_s > series.t_s[-1] else "") + ")")
 
 
+def _report_lines(res, axis_names, sd_limit) -> list[str]:
+    """BLOCKS.csv's lines of one planned chunk (:func:`~mtcomp.planner.report_rows`): the numbers
+    written by the compiled formatter when there is one (a million rows took 10 s in Python's
+    ``%``), the few rows with text in them by report_rows."""
+    values, decimals, blank, special = report_table(res, axis_names, sd_limit)
+    text = format_table(values, decimals, blank)
+    if text is None:
+        return report_rows(res, axis_names, sd_limit)
+    lines = text.splitlines(keepends=True)
+    rows = np.flatnonzero(special)
+    if rows.size:
+        for i, line in zip(rows.tolist(), report_rows(res.take(rows), axis_names, sd_limit)):
+            lines[i] = line
+    return lines
+
+
 def _to_program_frame(res, chunk, off, setup) -> None:
     """The planned nodes back in the program's frame and words (less the work offset ``off`` (n,
     na) of each row; a tool centre point row's axes as its tip and angles: ``setup.to_program``):
@@ -517,7 +535,7 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
             res.line = src[0].source_lines_of(res.line)
             summary.add(res)
             if rep is not None:
-                rep.writelines(report_rows(res, machine.axis_names, sd_limit))
+                rep.writelines(_report_lines(res, machine.axis_names, sd_limit))
             yield chunk, res.corrected, res.counts
         if summary.blocks == 0:
             # raised while the outputs are still temporary files: nothing is written

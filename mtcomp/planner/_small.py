@@ -53,7 +53,7 @@ def any_rows(a: np.ndarray) -> np.ndarray:
     an or over the few columns (numpy's any along short axes took 50 ms per million blocks, the
     column loop 2 ms), and nothing more when no entry at all is true (the usual case)."""
     n = a.shape[0]
-    flat = a.reshape(n, -1)
+    flat = a.reshape(n, int(np.prod(a.shape[1:])))
     out = np.zeros(n, bool)
     if flat.shape[1] == 0 or not flat.any():
         return out
