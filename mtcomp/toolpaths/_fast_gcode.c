@@ -65,6 +65,22 @@ static int parse_num(const char *p, const char *e, double *out, const char **nex
     return 1;
 }
 
+/* m / 10^dec (m >= 0) with dec decimals (no point when dec is 0); returns the end. */
+static char *put_fixed(char *s, long long m, int dec) {
+    long long p = (long long)POW10[dec];
+    long long ip = m / p, fp = m % p;
+    char buf[32];
+    int k = 0;
+    do { buf[k++] = (char)('0' + ip % 10); ip /= 10; } while (ip);
+    while (k) *s++ = buf[--k];
+    if (dec > 0) {
+        *s++ = '.';
+        for (int i = dec - 1; i >= 0; i--) { s[i] = (char)('0' + fp % 10); fp /= 10; }
+        s += dec;
+    }
+    return s;
+}
+
 /* Python's f"{v:.{dec}f}" (dec 4 or 5), with "-0.000.." written as "0.000..". */
 static int fmt_fixed_m(char *o, double v, int dec, long long *mout, int *exact) {
     double t = v * POW10[dec];
@@ -87,16 +103,7 @@ static int fmt_fixed_m(char *o, double v, int dec, long long *mout, int *exact) 
     *exact = 1;
     char *s = o;
     if (m < 0) { *s++ = '-'; m = -m; }
-    long long p = (long long)POW10[dec];
-    long long ip = m / p, fp = m % p;
-    char buf[32];
-    int k = 0;
-    do { buf[k++] = (char)('0' + ip % 10); ip /= 10; } while (ip);
-    while (k) *s++ = buf[--k];
-    *s++ = '.';
-    for (int i = dec - 1; i >= 0; i--) { s[i] = (char)('0' + fp % 10); fp /= 10; }
-    s += dec;
-    return (int)(s - o);
+    return (int)(put_fixed(s, m, dec) - o);
 }
 
 static int fmt_fixed(char *o, double v, int dec) {
@@ -442,18 +449,7 @@ static int fmt_py_fixed(char *o, double v, int dec) {
     long long m = (long long)(fr < 0.5 ? fl : fl + 1.0);
     char *s = o;
     if (signbit(v)) *s++ = '-';
-    long long p = (long long)POW10[dec];
-    long long ip = m / p, fp = m % p;
-    char buf[32];
-    int k = 0;
-    do { buf[k++] = (char)('0' + ip % 10); ip /= 10; } while (ip);
-    while (k) *s++ = buf[--k];
-    if (dec > 0) {
-        *s++ = '.';
-        for (int i = dec - 1; i >= 0; i--) { s[i] = (char)('0' + fp % 10); fp /= 10; }
-        s += dec;
-    }
-    return (int)(s - o);
+    return (int)(put_fixed(s, m, dec) - o);
 }
 
 /* Rows of a CSV table: vals (n, k) row-major; per column dec[j] >= 0 writes "%.{dec}f" % v (0 to
