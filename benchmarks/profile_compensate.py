@@ -7,7 +7,9 @@ Runs the compensation in this process, with one planner thread (``MTCOMP_THREADS
 on the main thread, so that the stages add up), on bench_compensate_copy.py's program and model
 unless ``--program`` and ``--model`` are given. Each stage is the inclusive time of the functions
 named in ``STAGES`` (a stage called inside another is subtracted from it, see ``_Clock``); what no
-stage claims is "planner (rest)". The import of what compensate uses is timed before it.
+stage claims is "planner (rest)". The import of what compensate uses is timed before it. The
+checkout profiled is the one on PYTHONPATH (``PYTHONPATH=/other/checkout:benchmarks`` profiles
+another).
 """
 from __future__ import annotations
 
@@ -32,7 +34,8 @@ STAGES = {
     "nominal kinematics": [("mtcomp.planner._evaluate", "nominal_pose"),
                            ("mtcomp.planner._evaluate", "nominal_pose_jacobian")],
     "osqp solve": [("mtcomp.planner._qp", "WindowQP.solve")],
-    "report rows": [("mtcomp.compensation", "_report_lines")],
+    "report rows": [("mtcomp.compensation", "_report_lines"),
+                    ("mtcomp.compensation", "report_rows")],
 }
 
 
@@ -67,7 +70,8 @@ def _install(clock: _Clock) -> None:
             if "." in qual:
                 cls, attr = qual.split(".")
                 owner = getattr(mod, cls)
-            setattr(owner, attr, clock.wrap(stage, getattr(owner, attr)))
+            if hasattr(owner, attr):        # an older checkout may not have it
+                setattr(owner, attr, clock.wrap(stage, getattr(owner, attr)))
 
 
 def main(argv=None) -> int:
