@@ -1,6 +1,6 @@
 """`mtcomp compensate` against a plain read-and-write of the same file: wall time and peak memory.
 
-    python benchmarks/bench_compensate_copy.py [--blocks 1280000] [--repeat 5]
+    python benchmarks/bench_compensate_copy.py [--blocks 1280000] [--repeat 5] [--report]
 
 The program (generated in a temporary folder, nothing is kept) is bench_gcode.py's: X Y Z lines with
 4 decimals, a G1 with F every 50 blocks, a comment line every 1000, and a G2 arc every 5000 blocks
@@ -9,7 +9,8 @@ model of machine-tool size (seeded). Every figure is the median of ``--repeat`` 
 after one warm-up (which compiles the model's and the reader's C code into the cache):
 
 * copy: the file read line by line and written to another file by a plain Python loop;
-* compensate: ``python -m mtcomp compensate xfyz MODEL PROGRAM -o OUT --quiet`` (method qp).
+* compensate: ``python -m mtcomp compensate xfyz MODEL PROGRAM -o OUT --quiet`` (method qp);
+* with ``--report``, also the same with ``--report BLOCKS.csv`` (one row per block).
 
 Peak memory is ru_maxrss of each subprocess (os.wait4). The ratio is compensate / copy of wall
 times ("x copy"), and of CPU times, user and system ("cpu x": less sensitive to other work on the
@@ -64,6 +65,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--blocks", type=int, default=1_280_000)
     ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--report", action="store_true", help="also time compensate --report")
     args = ap.parse_args(argv)
     py = sys.executable
     with tempfile.TemporaryDirectory() as tmp:
@@ -75,16 +77,20 @@ def main(argv=None) -> int:
         copy = measure([py, "-c", COPY, str(prog), str(tmp / "copy.nc")], args.repeat)
         floor = measure([py, "-c", IMPORTS], args.repeat)
         floor_qp = measure([py, "-c", IMPORTS + ", osqp, scipy.sparse"], args.repeat)
-        comp = measure([py, "-m", "mtcomp", "compensate", "xfyz", str(model), str(prog), "-o",
-                        str(out), "--quiet"], args.repeat)
+        cmd = [py, "-m", "mtcomp", "compensate", "xfyz", str(model), str(prog), "-o", str(out),
+               "--quiet"]
+        comp = measure(cmd, args.repeat)
         out_size = out.stat().st_size / 1e6
+        rows = [("copy", copy), ("import", floor), ("+ osqp", floor_qp), ("compensate", comp)]
+        if args.report:
+            rows.append(("+ --report", measure(cmd + ["--report", str(tmp / "b.csv")],
+                                               args.repeat)))
     where = subprocess.run([py, "-c", "import mtcomp; print(mtcomp.__file__)"], capture_output=True,
                            text=True, check=True).stdout.strip()
     print(f"mtcomp from {Path(where).parent}")
     print(f"program: {args.blocks} blocks, {size:.1f} MB (output {out_size:.1f} MB)")
     print(f"{'what':12s} {'wall s':>8s} {'peak MB':>8s} {'x copy':>7s} {'cpu s':>7s} {'cpu x':>6s}")
-    for what, (wall, mb, cpu) in (("copy", copy), ("import", floor), ("+ osqp", floor_qp),
-                             ("compensate", comp)):
+    for what, (wall, mb, cpu) in rows:
         print(f"{what:12s} {wall:8.2f} {mb:8.0f} {wall / copy[0]:7.1f} {cpu:7.2f} "
               f"{cpu / copy[2]:6.1f}")
     print(f"(median of {args.repeat} runs after a warm-up; {os.cpu_count()} cpus, load average "

@@ -23,10 +23,13 @@ from .errors import InputError
 from .io.atomic import atomic_write
 from .planner import (CompensationProblem, Planner, PlannerOptions, Summary, output_grid,
                       report_columns, report_rows)
+from .planner.report import report_table
 from .planner._bounds import FLAG_KINDS
 from .planner._parallel import read_ahead
+from .planner._small import any_rows
 from .planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
 from .toolpaths import iter_segment_chunks, write_corrected
+from .toolpaths._fast import format_table
 from .toolpaths.source import conversational_units, open_program
 
 _DIGITS = b"0123456789."
@@ -171,8 +174,8 @@ def words_in(path, codes, block: int = 1 << 22) -> set:
             data = f.read(block)
             text = tail + data if data else tail + b" "
             # a word cut by the block's end is read with the next block (the last 16 bytes again)
-            found.update(c for c in codes if c not in found and _has_g(text if not data else
-                                                                       text[:-8], c))
+            found |= _g_codes(text if not data else text[:-8],
+                              [c for c in codes if c not in found])
             if not data:
                 break
             tail = text[-16:]
@@ -181,25 +184,36 @@ def words_in(path, codes, block: int = 1 << 22) -> set:
 
 def _has_g(text: bytes, code: bytes = b"20") -> bool:
     """True if ``text`` holds G20, G020 or G0020 (G or g; ``code`` instead of 20) not followed by a
-    digit or '.' (the end of the text counts as not followed). Vectorised over the G letters."""
+    digit or '.' (the end of the text counts as not followed)."""
+    return bool(_g_codes(text, [code]))
+
+
+def _g_codes(text: bytes, codes) -> set:
+    """The ``codes`` (two-digit bytes) that :func:`_has_g` finds in ``text``, from one pass over the
+    text for its G letters: the few bytes after each are compared, vectorised over the letters."""
     a = np.frombuffer(text, np.uint8)
     g = np.flatnonzero((a | 0x20) == ord("g"))        # G or g
-    if g.size == 0:
-        return False
-    pad = np.concatenate([a, np.full(6, ord(" "), np.uint8)])     # room after the last G
-    after_ok = np.ones(256, bool)
-    after_ok[np.frombuffer(_DIGITS, np.uint8)] = False
+    if g.size == 0 or not codes:
+        return set()
     n = a.size
-    for zeros in range(3):
-        word = g + 1
-        ok = np.ones(g.size, bool)
-        for k, ch in enumerate(b"0" * zeros + code):
-            ok &= (word + k < n) & (pad[word + k] == ch)
-        end = word + zeros + 2
-        ok &= (end >= n) | after_ok[pad[np.minimum(end, n)]]
-        if ok.any():
-            return True
-    return False
+    # the 5 bytes after each G, a space past the end of the text
+    after = []
+    for k in range(1, 6):
+        at = g + k
+        after.append(np.where(at < n, a[np.minimum(at, n - 1)], ord(" ")))
+    ends_ok = np.ones(256, bool)
+    ends_ok[np.frombuffer(_DIGITS, np.uint8)] = False
+    found = set()
+    for code in codes:
+        for zeros in range(3):
+            word = b"0" * zeros + code
+            ok = ends_ok[after[len(word)]]
+            for k, ch in enumerate(word):
+                ok &= after[k] == ch
+            if ok.any():
+                found.add(code)
+                break
+    return found
 
 
 #: rows of the chunks a program is read and planned in: the memory a compensation holds grows with it
@@ -343,9 +357,13 @@ class _Tally:
 
     def planned(self, res) -> None:
         """A chunk's PlanResult: the bounds that acted, the corrections' size."""
-        flags = res.flags[~res.unknown.any(axis=1)]
-        for kind, cols in _BOUND_KINDS.items():
-            self.bound_blocks[kind] += int(flags[:, :, cols].any(axis=(1, 2)).sum())
+        if res.flags.any():
+            known = ~any_rows(res.unknown)
+            for kind, cols in _BOUND_KINDS.items():
+                hit = np.zeros(len(known), bool)
+                for k in cols:
+                    hit |= any_rows(res.flags[:, :, k])
+                self.bound_blocks[kind] += int(np.count_nonzero(hit & known))
         done = ~res.pinned
         if done.any():
             c = np.sqrt(np.sum(res.correction[done][:, self.linear] ** 2, axis=1)) * 1e3
@@ -424,6 +442,22 @@ def _series_sentence(fitted, settings: CompensationSettings, series, tally: _Tal
             + ("; the last reading holds after it" if tally.t_s > series.t_s[-1] else "") + ")")
 
 
+def _report_lines(res, axis_names, sd_limit) -> list[str]:
+    """BLOCKS.csv's lines of one planned chunk (:func:`~mtcomp.planner.report_rows`): the numbers
+    written by the compiled formatter when there is one (a million rows took 10 s in Python's
+    ``%``), the few rows with text in them by report_rows."""
+    values, decimals, blank, special = report_table(res, axis_names, sd_limit)
+    text = format_table(values, decimals, blank)
+    if text is None:
+        return report_rows(res, axis_names, sd_limit)
+    lines = text.splitlines(keepends=True)
+    rows = np.flatnonzero(special)
+    if rows.size:
+        for i, line in zip(rows.tolist(), report_rows(res.take(rows), axis_names, sd_limit)):
+            lines[i] = line
+    return lines
+
+
 def _to_program_frame(res, chunk, off, setup) -> None:
     """The planned nodes back in the program's frame and words (less the work offset ``off`` (n,
     na) of each row; a tool centre point row's axes as its tip and angles: ``setup.to_program``):
@@ -432,6 +466,11 @@ def _to_program_frame(res, chunk, off, setup) -> None:
     grid keeps them."""
     res.corrected = setup.to_program(chunk, res.corrected, res.counts, off)
     res.nominal = setup.to_program(chunk, res.nominal, res.counts, off)
+    if len(res.nominal) == len(chunk):         # one node a row (no internal nodes): every row
+        exact = chunk.end - res.nominal
+        res.nominal += exact
+        res.corrected += exact
+        return
     ends = np.cumsum(res.counts) - 1
     exact = chunk.end - res.nominal[ends]
     res.nominal[ends] += exact
@@ -496,7 +535,7 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
             res.line = src[0].source_lines_of(res.line)
             summary.add(res)
             if rep is not None:
-                rep.writelines(report_rows(res, machine.axis_names, sd_limit))
+                rep.writelines(_report_lines(res, machine.axis_names, sd_limit))
             yield chunk, res.corrected, res.counts
         if summary.blocks == 0:
             # raised while the outputs are still temporary files: nothing is written

@@ -38,7 +38,8 @@ Environment:
   path that does not exist means "no compiler": evaluation falls back to CasADi's map.
 * ``MTCOMP_CACHE_DIR``: where libraries are kept (the G-code scanner's library too).
 * ``MTCOMP_COMPILE_MIN_POSES``: ``backend='auto'`` compiles a function that is not compiled yet
-  once the process has evaluated it on this many poses in all (default 50,000). Compiling a 5-axis
+  once the process has evaluated it on this many poses in all (default 50,000; 5,000 for the tip
+  deviation's parameter Jacobian, :data:`MIN_POSES_OF`). Compiling a 5-axis
   Jacobian takes tens of seconds, and the knots that the data choose make every campaign a new
   structure: a diagnosis of a 10,500-row 5-axis campaign (five evaluations of each file) took 42 s
   with compilation and 20 s on CasADi's map (10 s once compiled). A large fit (100,000 points)
@@ -116,14 +117,22 @@ def find_compiler() -> str | None:
 
 #: a function is compiled once it has been evaluated at this many poses (MTCOMP_COMPILE_MIN_POSES)
 MIN_POSES = 50_000
+#: the same for the functions named here. The standard error of the tip deviation
+#: (``tip_pjacobian_function``) is what compensate's check of a correction's standard error evaluates
+#: at every block of every program run with one model, and nothing else does: compiling it (3-6 s
+#: once per model structure, then cached on disk) costs what CasADi's map takes on 8,000-15,000
+#: poses, so a shop's programs of a few thousand blocks pay it once instead of at every run
+MIN_POSES_OF = {"tip_pjacobian_function": 5_000}
 
 
-def _min_poses() -> int:
-    """MTCOMP_COMPILE_MIN_POSES when it is an integer, else MIN_POSES."""
+def _min_poses(name: str | None = None) -> int:
+    """MTCOMP_COMPILE_MIN_POSES when it is an integer, else the threshold of the function ``name``
+    (:data:`MIN_POSES_OF`, else :data:`MIN_POSES`)."""
+    default = MIN_POSES_OF.get(name, MIN_POSES)
     try:
-        return int(os.environ.get("MTCOMP_COMPILE_MIN_POSES", MIN_POSES))
+        return int(os.environ.get("MTCOMP_COMPILE_MIN_POSES", default))
     except ValueError:
-        return MIN_POSES
+        return default
 
 
 def _notice():
@@ -550,7 +559,7 @@ def call(model, name, function, q, p, c, required=False):
     _poses_used[used] = _poses_used.get(used, 0) + n
     try:
         comp = get_compiled(model, name, function,
-                            compile_if_missing=required or _poses_used[used] >= _min_poses())
+                            compile_if_missing=required or _poses_used[used] >= _min_poses(name))
     except CompileError as exc:
         if required:
             raise RuntimeError(f"compiled backend not available: {exc}") from None

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._small import column_extremes
 from .problem import CompensationProblem
 
 #: the kinds of bound, in the order of the flag array's last axis
@@ -103,8 +104,9 @@ class Bounds:
         with q, so those of the per-axis extremes of q bound every node's)."""
         if q.shape[0] == 0 or (pinned is not None and np.any(pinned)):
             return self.limits(q, pinned)
-        tlo, _ = self.travel_x(q.min(axis=0)[None, :])
-        _, thi = self.travel_x(q.max(axis=0)[None, :])
+        q_min, q_max = column_extremes(q)
+        tlo, _ = self.travel_x(q_min[None, :])
+        _, thi = self.travel_x(q_max[None, :])
         if np.all(tlo[0] <= -self.B) and np.all(thi[0] >= self.B):
             return (np.broadcast_to(-self.B, q.shape), np.broadcast_to(self.B, q.shape), None, None)
         return self.limits(q)

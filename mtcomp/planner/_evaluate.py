@@ -25,6 +25,7 @@ import numpy as np
 from ..kinematics import forward as nominal_pose
 from ..kinematics import pose_jacobian as nominal_pose_jacobian
 from ..models.evaluate import evaluate
+from ._small import any_rows
 from .problem import CompensationProblem
 
 
@@ -61,7 +62,7 @@ def _unique_rows(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     n = a.shape[0]
     new_run = np.ones(n, bool)
     if n > 1:
-        new_run[1:] = np.any(a[1:] != a[:-1], axis=1)
+        new_run[1:] = any_rows(a[1:] != a[:-1])
     firsts = np.flatnonzero(new_run)
     uniq, inv = np.unique(a[firsts], axis=0, return_inverse=True)
     return uniq, inv.reshape(-1)[np.cumsum(new_run) - 1]
@@ -81,6 +82,8 @@ class Evaluator:
         self.evaluations = 0
         self._count_lock = threading.Lock()     # parts of a chunk are evaluated in threads
         self._factor = problem.fitted.covariance_factor()
+        #: the model carries a covariance: :meth:`correction_sd_um` is NaN everywhere without one
+        self.has_uncertainty = self._factor is not None
 
     def _count(self, n: int):
         with self._count_lock:

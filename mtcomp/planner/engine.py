@@ -32,7 +32,7 @@ from ._evaluate import Evaluator, objective_residual
 from ._parallel import read_ahead, resolve_threads, split_rows
 from ._pointwise import Linearization, solve_newton, solve_pinv
 from ._qp import WindowQP
-from ._small import a_x, at_b, gram, row_max_abs, row_norm
+from ._small import a_x, any_rows, at_b, gram, row_max_abs, row_norm
 from .problem import CompensationProblem, PlannerOptions
 
 #: slack of the support test (mm for linear axes, rad for rotary ones): a block this close to the
@@ -147,7 +147,7 @@ class PlanResult:
     def active_bounds(self, axis_names) -> list[str]:
         """Per node the active bounds as text, e.g. 'cx_max;step_y' ('' when none)."""
         out = [""] * len(self)
-        rows = np.flatnonzero(self.flags.any(axis=(1, 2)))
+        rows = np.flatnonzero(any_rows(self.flags))
         for i in rows:
             names = [flag_name(FLAG_KINDS[k], axis_names[j])
                      for j in range(self.flags.shape[1]) for k in range(self.flags.shape[2])
@@ -255,9 +255,9 @@ class Planner:
         return unknown, outside, self._sd_um(q, ctx, unknown, outside, datum)
 
     def _pinned(self, unknown, outside, sd_um):
-        pinned = unknown.any(axis=1)
+        pinned = any_rows(unknown)
         if not self.options.extrapolate:
-            pinned |= outside.any(axis=1)
+            pinned |= any_rows(outside)
         limit = self.options.max_correction_sd_um
         if limit:
             pinned |= sd_um > limit            # NaN (not evaluated) compares False
@@ -267,11 +267,11 @@ class Planner:
         """(n,) the standard error of each block's correction (um), NaN for blocks that are not
         corrected anyway (an unknown axis, outside the support) and when no limit is asked."""
         sd = np.full(q.shape[0], np.nan)
-        if not self.options.max_correction_sd_um:
+        if not self.options.max_correction_sd_um or not self.ev.has_uncertainty:
             return sd
-        todo = ~unknown.any(axis=1)
+        todo = ~any_rows(unknown)
         if not self.options.extrapolate:
-            todo &= ~outside.any(axis=1)
+            todo &= ~any_rows(outside)
         if todo.any():
             qt, ct = q[todo], ctx[todo]
             if datum is None:
@@ -400,7 +400,7 @@ class Planner:
         # an inserted node outside the region the data reached (a move from outside into it) is
         # not corrected, as a block ending there would not be
         out_i = self.outside_support(q_i, known[rows_i])
-        pin_i = pinned[rows_i] | (out_i.any(axis=1) & (not self.options.extrapolate))
+        pin_i = pinned[rows_i] | (any_rows(out_i) & (not self.options.extrapolate))
         nodes = NodeSet(q_all, ctx_all, ex_all, np.asarray(chunk.line)[row_sorted], ins_all,
                         rapid[row_sorted], unknown[row_sorted],
                         np.concatenate([out_i, outside])[order],

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._bounds import FLAG_KINDS, flag_name
-from ._small import row_norm
+from ._small import any_rows, row_norm
 from .engine import PlanResult
 
 
@@ -48,15 +48,15 @@ def report_columns(axis_names, five_axis: bool) -> list[str]:
     return cols
 
 
-def report_rows(result: PlanResult, axis_names, max_correction_sd_um: float | None = None) -> list[str]:
-    """CSV text lines (with newline) of one planned result (``max_correction_sd_um``: the limit
-    the plan used, for the ``uncertain`` column)."""
+def _numeric_columns(result: PlanResult, axis_names) -> tuple[list, list, np.ndarray]:
+    """(the numeric columns of BLOCKS.csv before the text ones, each (n,), their printf formats,
+    (n,) bool: the rows whose position is blank, an axis not known)."""
     rot = np.array([a in "ABC" for a in axis_names])
     pos = np.where(rot, np.degrees(result.corrected), result.corrected)
     # an axis the program has not positioned has no position to show, and a deviation predicted there
     # means nothing: blank cells (not a made-up 0)
     pos = np.where(result.unknown, np.nan, pos)
-    blank = result.unknown.any(axis=1)
+    blank = any_rows(result.unknown)
     corr = np.where(rot, result.correction * 1e6, result.correction * 1e3)
     corr = np.where(result.unknown, np.nan, corr)
     cols = [result.line.astype(np.int64), result.inserted.astype(int), result.rapid.astype(int)]
@@ -76,6 +76,13 @@ def report_rows(result: PlanResult, axis_names, max_correction_sd_um: float | No
             ur = np.where(blank[:, None], np.nan, dax * 1e6)
             cols += [ur[:, 0], ur[:, 1], ur[:, 2], np.sqrt(np.sum(ur ** 2, axis=1))]
             fmts += ["%.4f"] * 4
+    return cols, fmts, blank
+
+
+def report_rows(result: PlanResult, axis_names, max_correction_sd_um: float | None = None) -> list[str]:
+    """CSV text lines (with newline) of one planned result (``max_correction_sd_um``: the limit
+    the plan used, for the ``uncertain`` column)."""
+    cols, fmts, blank = _numeric_columns(result, axis_names)
     bounds = result.active_bounds(axis_names)
     unknown = _axis_letters(result.unknown, axis_names)
     outside = _axis_letters(result.outside, axis_names)
@@ -89,6 +96,25 @@ def report_rows(result: PlanResult, axis_names, max_correction_sd_um: float | No
     return lines
 
 
+def report_table(result: PlanResult, axis_names, max_correction_sd_um: float | None = None):
+    """:func:`report_rows` as numbers, for a compiled formatter: (values (n, k), decimals (k,),
+    blank (k,), special (n,) bool). Row i of BLOCKS.csv is column j of values written as
+    ``"%.{decimals[j]}f"`` (an empty field where decimals[j] < 0, and for NaN where blank[j]),
+    joined by commas, except for the ``special`` rows (an active bound, an axis not known or
+    outside the model's region: text in the columns of letters), which :func:`report_rows`
+    writes."""
+    cols, fmts, unknown = _numeric_columns(result, axis_names)
+    n = len(result)
+    special = unknown | any_rows(result.flags) | any_rows(result.outside)
+    empty = np.zeros(n)
+    cols = cols + [empty, empty, empty, (~result.pinned).astype(float), result.sd_um,
+                   _uncertain(result, max_correction_sd_um).astype(float)]
+    decimals = [0 if f == "%d" else int(f[2]) for f in fmts] + [-1, -1, -1, 0, 4, 0]
+    blank = np.zeros(len(cols), bool)
+    blank[-2] = True
+    return np.column_stack(cols), np.array(decimals), blank, special
+
+
 def _uncertain(result: PlanResult, limit: float | None) -> np.ndarray:
     """(n,) bool: blocks left uncorrected because their correction's standard error exceeds limit."""
     if not limit:
@@ -100,7 +126,7 @@ def _uncertain(result: PlanResult, limit: float | None) -> np.ndarray:
 def _axis_letters(mask, axis_names) -> list[str]:
     """Per row the letters of the axes set in mask (n, na) ('' when none)."""
     out = [""] * mask.shape[0]
-    for i in np.flatnonzero(mask.any(axis=1)):
+    for i in np.flatnonzero(any_rows(mask)):
         out[i] = "".join(a for a, m in zip(axis_names, mask[i]) if m)
     return out
 
@@ -148,9 +174,9 @@ class Summary:
             return
         self.blocks += n
         self.inserted += int(r.inserted.sum())
-        unknown = r.unknown.any(axis=1)
+        unknown = any_rows(r.unknown)
         self.unknown_blocks += int(unknown.sum())
-        outside = r.outside.any(axis=1) & ~unknown
+        outside = any_rows(r.outside) & ~unknown
         uncertain = _uncertain(r, self.max_correction_sd_um) & ~unknown & ~(outside & ~self.extrapolate)
         self.uncertain_blocks += int(uncertain.sum())
         if np.isfinite(r.sd_um).any():
@@ -170,7 +196,7 @@ class Summary:
                 return
         self.evaluated += len(r)
         if r.flags.any():
-            self.bounded_blocks += int(r.flags.any(axis=(1, 2)).sum())
+            self.bounded_blocks += int(any_rows(r.flags).sum())
             counts = r.flags.sum(axis=0)
             for j, a in enumerate(self.axis_names):
                 for k, kind in enumerate(FLAG_KINDS):

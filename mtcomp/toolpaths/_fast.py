@@ -105,6 +105,8 @@ def _load():
     lib.mt_process.argtypes = [ctypes.c_char_p, LL, ctypes.c_int, P, P, ctypes.c_int, P, P,
                                ctypes.c_char_p, P, P, P, P, P, P, P, P, LL, P, P, P, P, LL, P, P, LL,
                                P, P]
+    lib.mt_format_table.restype = LL
+    lib.mt_format_table.argtypes = [P, LL, ctypes.c_int, P, P, P, LL]
     _lib = lib
     return _lib
 
@@ -114,6 +116,29 @@ def available() -> bool:
     if os.environ.get("MTCOMP_NO_FAST_GCODE"):
         return False
     return _load() is not None
+
+
+def format_table(values: np.ndarray, decimals, blank) -> str | None:
+    """The rows of a CSV table as text, each ending with a newline, or None without the compiled
+    path. values : (n, k) floats; decimals : (k,) per column, >= 0 writes ``"%.{d}f" % v`` (at most
+    6), < 0 an empty field; blank : (k,) bool, an empty field for NaN or an infinity in that column.
+    The text is the one Python's ``%`` writes (tests compare them)."""
+    if not available():
+        return None
+    values = np.ascontiguousarray(values, dtype=np.float64)
+    n, k = values.shape
+    dec = np.ascontiguousarray(decimals, dtype=np.int32)
+    if dec.shape != (k,) or np.any(dec > 6):
+        raise ValueError("format_table: one decimals entry per column, at most 6")
+    blank = np.ascontiguousarray(blank, dtype=np.int32)
+    cap = n * (k * 24 + 2) + 1024
+    while True:
+        out = np.empty(cap, np.uint8)
+        size = _lib.mt_format_table(values.ctypes.data, n, k, dec.ctypes.data, blank.ctypes.data,
+                                    out.ctypes.data, cap)
+        if size >= 0:
+            return out[:size].tobytes().decode("ascii")
+        cap *= 4                                  # values too large for 24 characters: room for more
 
 
 def _ptr(a: np.ndarray | None):

@@ -65,6 +65,22 @@ static int parse_num(const char *p, const char *e, double *out, const char **nex
     return 1;
 }
 
+/* m / 10^dec (m >= 0) with dec decimals (no point when dec is 0); returns the end. */
+static char *put_fixed(char *s, long long m, int dec) {
+    long long p = (long long)POW10[dec];
+    long long ip = m / p, fp = m % p;
+    char buf[32];
+    int k = 0;
+    do { buf[k++] = (char)('0' + ip % 10); ip /= 10; } while (ip);
+    while (k) *s++ = buf[--k];
+    if (dec > 0) {
+        *s++ = '.';
+        for (int i = dec - 1; i >= 0; i--) { s[i] = (char)('0' + fp % 10); fp /= 10; }
+        s += dec;
+    }
+    return s;
+}
+
 /* Python's f"{v:.{dec}f}" (dec 4 or 5), with "-0.000.." written as "0.000..". */
 static int fmt_fixed_m(char *o, double v, int dec, long long *mout, int *exact) {
     double t = v * POW10[dec];
@@ -87,16 +103,7 @@ static int fmt_fixed_m(char *o, double v, int dec, long long *mout, int *exact) 
     *exact = 1;
     char *s = o;
     if (m < 0) { *s++ = '-'; m = -m; }
-    long long p = (long long)POW10[dec];
-    long long ip = m / p, fp = m % p;
-    char buf[32];
-    int k = 0;
-    do { buf[k++] = (char)('0' + ip % 10); ip /= 10; } while (ip);
-    while (k) *s++ = buf[--k];
-    *s++ = '.';
-    for (int i = dec - 1; i >= 0; i--) { s[i] = (char)('0' + fp % 10); fp /= 10; }
-    s += dec;
-    return (int)(s - o);
+    return (int)(put_fixed(s, m, dec) - o);
 }
 
 static int fmt_fixed(char *o, double v, int dec) {
@@ -427,4 +434,40 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
         state[16] = (double)line_no;
         pos = raw_end - buf;
     }
+}
+
+/* Python's "%.{dec}f" % v, sign kept ("-0.0000" stays), "nan", "inf", "-inf" as Python writes them.
+ * Away from a tie of the last digit (by 1e-6 of it) the rounding of |v| * 10^dec, below 1e9, is
+ * decided exactly; at a tie, or beyond, printf rounds the exact value (as Python does). */
+static int fmt_py_fixed(char *o, double v, int dec) {
+    if (isnan(v)) { memcpy(o, "nan", 3); return 3; }
+    if (isinf(v)) { if (v < 0) { memcpy(o, "-inf", 4); return 4; } memcpy(o, "inf", 3); return 3; }
+    double t = fabs(v) * POW10[dec];
+    double fl = floor(t);
+    double fr = t - fl;
+    if (!(t < 1e9) || fabs(fr - 0.5) < 1e-6) return sprintf(o, "%.*f", dec, v);
+    long long m = (long long)(fr < 0.5 ? fl : fl + 1.0);
+    char *s = o;
+    if (signbit(v)) *s++ = '-';
+    return (int)(put_fixed(s, m, dec) - o);
+}
+
+/* Rows of a CSV table: vals (n, k) row-major; per column dec[j] >= 0 writes "%.{dec}f" % v (0 to
+ * 6 decimals), dec[j] < 0 an empty field; blank[j] != 0 writes an empty field for a NaN or an
+ * infinity. Each row ends with '\n'. Returns the bytes written, or -1 when cap is too small. */
+long long mt_format_table(const double *vals, long long n, int k, const int *dec, const int *blank,
+                          char *out, long long cap) {
+    char *o = out, *end = out + cap;
+    for (long long i = 0; i < n; i++) {
+        const double *row = vals + i * k;
+        for (int j = 0; j < k; j++) {
+            if (end - o < 400) return -1;           /* room for the longest printf of a double */
+            if (j) *o++ = ',';
+            if (dec[j] < 0 || (blank[j] && !isfinite(row[j]))) continue;
+            o += fmt_py_fixed(o, row[j], dec[j] > 6 ? 6 : dec[j]);
+        }
+        if (o >= end) return -1;
+        *o++ = '\n';
+    }
+    return (long long)(o - out);
 }

@@ -124,11 +124,14 @@ class ProgramSetup:
         """Machine axis positions ``points`` (the rows of ``chunk``, ``counts`` points each) back to
         the program's words: the offsets ``off`` (from :meth:`apply`) taken off, and in tool centre
         point rows the axes turned into the tip and angles the controller turns into them."""
-        tcp = np.repeat(frame_tcp(chunk.frame) & chunk.known.all(axis=1), counts)
+        tcp = frame_tcp(chunk.frame)
         out = np.array(points, dtype=float)
+        one = out.shape[0] == len(counts)           # one point a row: no repeats
         if tcp.any():
+            tcp = tcp & chunk.known.all(axis=1)
+            tcp = tcp if one else np.repeat(tcp, counts)
             out[tcp] = tcp_of_axes(self.machine, out[tcp])
-        return out - np.repeat(off, counts, axis=0)
+        return out - (off if one else np.repeat(off, counts, axis=0))
 
     def notes(self) -> list[str]:
         """What was assumed for what the program used and nobody said (one line each)."""
