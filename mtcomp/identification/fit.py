@@ -55,7 +55,7 @@ from .reversal import data_reversal
 from .unmeasured import record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
 from ._linalg import (NULL_WEIGHT, column_scale, _eliminate, _error_scales, _gram, _name_null_space,
                       _relative_singular_values, _seen_columns, _solver, _step, held_complement)
-from .problem import DEFAULT_RCOND, FitProblem, SolverOptions, travel_metric  # noqa: F401
+from .problem import DEFAULT_RCOND, FitProblem, SolverOptions, data_region, travel_metric  # noqa: F401
 from .result import FileResiduals, FitResult, error_unit
 #: most fits with weights='noise' (each re-estimates the noise of every file and unit)
 NOISE_PASSES = 5
@@ -117,7 +117,10 @@ def solve(problem: FitProblem, options: SolverOptions = SolverOptions(), info: d
                          paths[0] if len(paths) == 1 else None)
     stacked = _Problem(problem.model, mms, np.asarray(problem.free, dtype=bool), problem.start)
     stacked.use_penalty, stacked.hold_weak = problem.penalty, problem.hold_weak
-    stacked.metric = travel_metric(problem.model, stacked.free_idx, stacked.n_unknowns)
+    stacked.travel_metric = travel_metric(problem.model, stacked.free_idx, stacked.n_unknowns)
+    # what the data fix only weakly is judged where the model is used: the data's region
+    stacked.metric = travel_metric(problem.model, stacked.free_idx, stacked.n_unknowns,
+                                   data_region(problem.model.machine, mms))
     o = options
     w, label = _weights(stacked, problem.weights, o.rcond, o.max_iterations, o.tol)
     sol = stacked.solve(w, o.rcond, o.max_iterations, o.tol)
@@ -230,7 +233,8 @@ class _Problem:
             k += m.n_obs
         self.n_obs = k
         self.observed = np.concatenate([m.observed for m in mms])
-        self.metric = None      # (n_unknowns, n_unknowns) mean squared tip error over the travel, mm^2
+        self.metric = None      # (n_unknowns, n_unknowns) mean squared tip error over the data's region, mm^2
+        self.travel_metric = None   # the same over the machine's travel
         self.weak_fallback = False  # the weak-direction pass was refused (see solve)
         self.S = None               # the penalty in scaled coordinates at the chosen weights
         self.smoothing = None       # penalty.Smoothing of the last solve
@@ -754,10 +758,10 @@ class _Problem:
             pure = sol.null @ Vt[int(np.sum(sv_n > 1e-6)):].T
         null_p = (sol.scale[:, None] * pure)[:nf]
         keep = np.ones(null_p.shape[1], dtype=bool)
-        if self.metric is not None and null_p.shape[1]:
+        if self.travel_metric is not None and null_p.shape[1]:
             # each direction scaled to 1 um rms tool-tip error over the travel; those that move the
             # tip nowhere (a turn about the tool axis ...) cannot change a prediction and are dropped
-            rms = np.sqrt(np.clip(np.einsum("ik,ij,jk->k", null_p, self.metric[:nf, :nf], null_p), 0.0, None))
+            rms = np.sqrt(np.clip(np.einsum("ik,ij,jk->k", null_p, self.travel_metric[:nf, :nf], null_p), 0.0, None))
             keep &= rms > 1e-12 * np.linalg.norm(null_p, axis=0)
             null_p = null_p * (1e-3 / np.where(rms > 0, rms, 1.0))
         else:
