@@ -175,7 +175,7 @@ def _record_data(result, model, mask, mms, datasets) -> None:
 #: Gauss-Newton stops at a step that moves every combination of the unknowns by less than this
 #: many of its standard errors (or by less than ``tol`` relative)
 STEP_SE = 1e-3
-#: a combination of parameters whose rms tool-tip error over the travel the data fix only to worse
+#: a combination of parameters whose rms tool-tip error over the data's region they fix only to worse
 #: than this standard error (um) is held at the least error, like one they do not see at all
 WEAK_SD_UM = 1.0
 #: ... unless the first fit puts it further from the start than this many of its standard errors:
@@ -444,13 +444,13 @@ class _Problem:
         data barely see, to be held at the least predicted error.
 
         The search space is x = x0 + scale * B y (B: the directions the data see, orthonormal in the
-        scaled unknowns; AB = B^T As B, the data's normal matrix there). The travel metric
-        ``Q = B^T D M D B`` measures a step's rms tool-tip error over the travel (um^2); steps it
+        scaled unknowns; AB = B^T As B, the data's normal matrix there). The metric
+        ``Q = B^T D M D B`` measures a step's rms tool-tip error over the data's region (um^2); steps it
         does not see (the files' set-ups, a thermal channel's drift ...) have no physical size and
         are marginalised out (Schur complement of AB). In the rest, whitened by Q, a direction
         whose standard error ``sigma_w / s`` (sigma_w the rms weighted residual, s^2 the data's
         information per um^2) exceeds :data:`WEAK_SD_UM` is weak: the data would fix its error over
-        the travel only to worse than that; unless the first fit ``y`` moved it by more than
+        the region only to worse than that; unless the first fit ``y`` moved it by more than
         :data:`WEAK_SIGNIFICANT` of those standard errors (then the data see it after all). The
         second pass holds each weak one at the start's value, zero error: directions the data see
         are fitted without bias. Weak and strong directions are orthogonal in the metric, so the
@@ -492,7 +492,7 @@ class _Problem:
         was measured a profile follows the smoothest curve. What neither sees stays at its start
         values, set-ups taking what they trade with machine errors (:func:`held_complement`). The
         first pass fits the data and the penalty. Knowing the residual scale, the directions whose
-        rms tool-tip error over the travel is fixed only to worse than :data:`WEAK_SD_UM` count as
+        rms tool-tip error over the data's region is fixed only to worse than :data:`WEAK_SD_UM` count as
         undetermined too: the second pass holds them at the least predicted error
         (:meth:`_weak_directions`), so that noise is never amplified into invented errors.
         """

@@ -2,7 +2,8 @@
 model of every file with one tag rule and the declared set-ups, the free and held parameters, the
 start values, the weights, the outlier policy, the roughness penalty) and :class:`SolverOptions`
 (rank threshold, iterations, tolerance); the model's knots from the data, and the physical metric
-(tool-tip error over the travel) in which what the data leave open is measured."""
+(tool-tip error over the travel, or over the region the data cover) in which what the data leave
+open is measured."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -44,7 +45,8 @@ class FitProblem:
     start : (n_params,) start values, internal units. weights : ``"unit"`` (residuals in um and urad),
     ``"noise"`` (1/noise per file and unit, re-estimated) or {tag: noise}. penalty : the profiles
     carry a roughness penalty whose weights REML chooses (:mod:`.penalty`). hold_weak : directions the
-    data fix only to worse than 1 um of tool-tip error over the travel are held at the least error.
+    data fix only to worse than 1 um of tool-tip error over the region they cover are held at the
+    least error.
     outliers : the policy the files were read with (``"keep"``, or ``"repeats"``: readings far off
     their repeats left out, :func:`without_outliers`); ``removed`` the readings it left out.
     context_defaults : values of context channels the files lack.
