@@ -55,7 +55,8 @@ from .reversal import data_reversal
 from .unmeasured import record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
 from ._linalg import (NULL_WEIGHT, column_scale, _eliminate, _error_scales, _gram, _name_null_space,
                       _relative_singular_values, _seen_columns, _solver, _step, held_complement)
-from .problem import DEFAULT_RCOND, FitProblem, SolverOptions, data_region, travel_metric  # noqa: F401
+from .problem import DEFAULT_RCOND, FitProblem, SolverOptions, data_region
+from .problem import travel_metric  # noqa: F401
 from .result import FileResiduals, FitResult, error_unit
 #: most fits with weights='noise' (each re-estimates the noise of every file and unit)
 NOISE_PASSES = 5
@@ -761,7 +762,8 @@ class _Problem:
         if self.travel_metric is not None and null_p.shape[1]:
             # each direction scaled to 1 um rms tool-tip error over the travel; those that move the
             # tip nowhere (a turn about the tool axis ...) cannot change a prediction and are dropped
-            rms = np.sqrt(np.clip(np.einsum("ik,ij,jk->k", null_p, self.travel_metric[:nf, :nf], null_p), 0.0, None))
+            M = self.travel_metric[:nf, :nf]
+            rms = np.sqrt(np.clip(np.einsum("ik,ij,jk->k", null_p, M, null_p), 0.0, None))
             keep &= rms > 1e-12 * np.linalg.norm(null_p, axis=0)
             null_p = null_p * (1e-3 / np.where(rms > 0, rms, 1.0))
         else:
