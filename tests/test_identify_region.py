@@ -2,7 +2,8 @@
 machine file states.
 
 * ``data_region``: an axis the files move spans the positions they reached, an axis they hold at
-  one position is that position (hand-made files).
+  one position is that position, an axis none of whose errors are fitted its travel (hand-made
+  files).
 * The metric over a region is the mean squared tool-tip error there: a squareness C0Y moves the tip
   by ``-C0Y y`` in X, so its metric is the mean of y^2 over the region (hand-derived).
 * Plates measured on a small region of a large machine (the independent truth machine, tests/truth,
@@ -57,6 +58,10 @@ def test_data_region_is_the_range_moved_and_the_position_held(tmp_path):
     lo, hi = data_region(machine, [read_measurements(a), read_measurements(b)])
     np.testing.assert_allclose(lo, [10.0, -5.0, 3.0], rtol=0, atol=1e-12)
     np.testing.assert_allclose(hi, [40.0, 60.0, 3.0], rtol=0, atol=1e-12)
+    # an axis none of whose errors are fitted keeps its travel: it does not bound the model
+    lo, hi = data_region(machine, [read_measurements(a), read_measurements(b)], axes={"X"})
+    np.testing.assert_allclose(lo, [10.0, TRAVEL["Y"][0], TRAVEL["Z"][0]], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(hi, [40.0, TRAVEL["Y"][1], TRAVEL["Z"][1]], rtol=0, atol=1e-12)
 
 
 def test_region_metric_of_a_squareness_is_the_mean_square_arm(tmp_path):

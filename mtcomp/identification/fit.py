@@ -55,7 +55,7 @@ from .reversal import data_reversal
 from .unmeasured import record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
 from ._linalg import (NULL_WEIGHT, column_scale, _eliminate, _error_scales, _gram, _name_null_space,
                       _relative_singular_values, _seen_columns, _solver, _step, held_complement)
-from .problem import DEFAULT_RCOND, FitProblem, SolverOptions, data_region
+from .problem import DEFAULT_RCOND, FitProblem, SolverOptions, data_region, fitted_axes
 from .problem import travel_metric  # noqa: F401
 from .result import FileResiduals, FitResult, error_unit
 #: most fits with weights='noise' (each re-estimates the noise of every file and unit)
@@ -120,8 +120,8 @@ def solve(problem: FitProblem, options: SolverOptions = SolverOptions(), info: d
     stacked.use_penalty, stacked.hold_weak = problem.penalty, problem.hold_weak
     stacked.travel_metric = travel_metric(problem.model, stacked.free_idx, stacked.n_unknowns)
     # what the data fix only weakly is judged where the model is used: the data's region
-    stacked.metric = travel_metric(problem.model, stacked.free_idx, stacked.n_unknowns,
-                                   data_region(problem.model.machine, mms))
+    region = data_region(problem.model.machine, mms, fitted_axes(problem.model, problem.free))
+    stacked.metric = travel_metric(problem.model, stacked.free_idx, stacked.n_unknowns, region)
     o = options
     w, label = _weights(stacked, problem.weights, o.rcond, o.max_iterations, o.tol)
     sol = stacked.solve(w, o.rcond, o.max_iterations, o.tol)
@@ -160,14 +160,14 @@ def _record_data(result, model, mask, mms, datasets) -> None:
     # an axis none of whose own errors were fitted (all held: the user says the controller already
     # compensates it) does not bound the model: what was fitted (a rotary table's motion) holds for
     # the rigid body wherever that axis stands
-    fitted_axes = {model.param_specs[i].group.split(":", 1)[0] for i in np.flatnonzero(mask)}
+    fitted = fitted_axes(model, mask)
     result.fitted_model.support = {a: r for a, r in data_support(model.machine, datasets).items()
-                                   if a in fitted_axes}
+                                   if a in fitted}
     known = [m.tag for m in mms if m.options.get("setup") == "known"]
     if known:
         result.fitted_model.info["known_setup"] = known
     result.fitted_model.held = {a: v for a, v in data_held(model.machine, datasets).items()
-                                if a in fitted_axes}
+                                if a in fitted}
     # what the data show of a reversal, so that export can say when the model leaves it out
     result.fitted_model.info["reversal"] = data_reversal(datasets)
     record_unmeasured(result.fitted_model, datasets)

@@ -238,18 +238,25 @@ def model_for_data(model: ErrorModel, datasets) -> ErrorModel:
 METRIC_POSES = 256
 
 
-def data_region(machine, datasets) -> tuple[np.ndarray, np.ndarray]:
+def fitted_axes(model: ErrorModel, free) -> set[str]:
+    """The axes some of whose own errors are among the ``free`` ((n_params,) bool) parameters."""
+    return {model.param_specs[i].group.split(":", 1)[0] for i in np.flatnonzero(free)}
+
+
+def data_region(machine, datasets, axes=None) -> tuple[np.ndarray, np.ndarray]:
     """(lower, upper), each (n_axes,), mm and rad: where the data put each axis, the region whose
     predictions the fitted model is used for. An axis the data moved spans the range they reached
     (the model's ``support``: compensate and export apply the model there and nowhere else unless
     asked); an axis they hold at one position is that position (the model is evaluated there,
-    ``held``); an axis no file positions keeps its travel."""
+    ``held``); an axis no file positions keeps its travel, and so does one not among ``axes`` (when
+    given: the fitted axes, :func:`fitted_axes`): an axis none of whose errors were fitted does not
+    bound the model (a rotary table's motion holds wherever the linear axes stand)."""
     lo, hi = machine.travel_bounds()
     lo, hi = lo.copy(), hi.copy()
     reached = {**data_support(machine, datasets),
                **{a: (v, v) for a, v in data_held(machine, datasets).items()}}
     for j, a in enumerate(machine.axis_names):
-        if a in reached:
+        if a in reached and (axes is None or a in axes):
             lo[j], hi[j] = reached[a]
     return lo, hi
 
