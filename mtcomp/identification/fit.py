@@ -55,7 +55,8 @@ from .reversal import data_reversal
 from .unmeasured import record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
 from ._linalg import (NULL_WEIGHT, column_scale, _eliminate, _error_scales, _gram, _name_null_space,
                       _relative_singular_values, _seen_columns, _solver, _step, held_complement)
-from .problem import DEFAULT_RCOND, FitProblem, SolverOptions, travel_metric  # noqa: F401
+from .problem import DEFAULT_RCOND, FitProblem, SolverOptions, data_region, fitted_axes
+from .problem import travel_metric  # noqa: F401
 from .result import FileResiduals, FitResult, error_unit
 #: most fits with weights='noise' (each re-estimates the noise of every file and unit)
 NOISE_PASSES = 5
@@ -117,7 +118,10 @@ def solve(problem: FitProblem, options: SolverOptions = SolverOptions(), info: d
                          paths[0] if len(paths) == 1 else None)
     stacked = _Problem(problem.model, mms, np.asarray(problem.free, dtype=bool), problem.start)
     stacked.use_penalty, stacked.hold_weak = problem.penalty, problem.hold_weak
-    stacked.metric = travel_metric(problem.model, stacked.free_idx, stacked.n_unknowns)
+    stacked.travel_metric = travel_metric(problem.model, stacked.free_idx, stacked.n_unknowns)
+    # what the data fix only weakly is judged where the model is used: the data's region
+    region = data_region(problem.model.machine, mms, fitted_axes(problem.model, problem.free))
+    stacked.metric = travel_metric(problem.model, stacked.free_idx, stacked.n_unknowns, region)
     o = options
     w, label = _weights(stacked, problem.weights, o.rcond, o.max_iterations, o.tol)
     sol = stacked.solve(w, o.rcond, o.max_iterations, o.tol)
@@ -156,14 +160,14 @@ def _record_data(result, model, mask, mms, datasets) -> None:
     # an axis none of whose own errors were fitted (all held: the user says the controller already
     # compensates it) does not bound the model: what was fitted (a rotary table's motion) holds for
     # the rigid body wherever that axis stands
-    fitted_axes = {model.param_specs[i].group.split(":", 1)[0] for i in np.flatnonzero(mask)}
+    fitted = fitted_axes(model, mask)
     result.fitted_model.support = {a: r for a, r in data_support(model.machine, datasets).items()
-                                   if a in fitted_axes}
+                                   if a in fitted}
     known = [m.tag for m in mms if m.options.get("setup") == "known"]
     if known:
         result.fitted_model.info["known_setup"] = known
     result.fitted_model.held = {a: v for a, v in data_held(model.machine, datasets).items()
-                                if a in fitted_axes}
+                                if a in fitted}
     # what the data show of a reversal, so that export can say when the model leaves it out
     result.fitted_model.info["reversal"] = data_reversal(datasets)
     record_unmeasured(result.fitted_model, datasets)
@@ -172,7 +176,7 @@ def _record_data(result, model, mask, mms, datasets) -> None:
 #: Gauss-Newton stops at a step that moves every combination of the unknowns by less than this
 #: many of its standard errors (or by less than ``tol`` relative)
 STEP_SE = 1e-3
-#: a combination of parameters whose rms tool-tip error over the travel the data fix only to worse
+#: a combination of parameters whose rms tool-tip error over the data's region they fix only to worse
 #: than this standard error (um) is held at the least error, like one they do not see at all
 WEAK_SD_UM = 1.0
 #: ... unless the first fit puts it further from the start than this many of its standard errors:
@@ -230,7 +234,8 @@ class _Problem:
             k += m.n_obs
         self.n_obs = k
         self.observed = np.concatenate([m.observed for m in mms])
-        self.metric = None      # (n_unknowns, n_unknowns) mean squared tip error over the travel, mm^2
+        self.metric = None      # (n_unknowns, n_unknowns) mean squared tip error over the data's region, mm^2
+        self.travel_metric = None   # the same over the machine's travel
         self.weak_fallback = False  # the weak-direction pass was refused (see solve)
         self.S = None               # the penalty in scaled coordinates at the chosen weights
         self.smoothing = None       # penalty.Smoothing of the last solve
@@ -440,13 +445,13 @@ class _Problem:
         data barely see, to be held at the least predicted error.
 
         The search space is x = x0 + scale * B y (B: the directions the data see, orthonormal in the
-        scaled unknowns; AB = B^T As B, the data's normal matrix there). The travel metric
-        ``Q = B^T D M D B`` measures a step's rms tool-tip error over the travel (um^2); steps it
+        scaled unknowns; AB = B^T As B, the data's normal matrix there). The metric
+        ``Q = B^T D M D B`` measures a step's rms tool-tip error over the data's region (um^2); steps it
         does not see (the files' set-ups, a thermal channel's drift ...) have no physical size and
         are marginalised out (Schur complement of AB). In the rest, whitened by Q, a direction
         whose standard error ``sigma_w / s`` (sigma_w the rms weighted residual, s^2 the data's
         information per um^2) exceeds :data:`WEAK_SD_UM` is weak: the data would fix its error over
-        the travel only to worse than that; unless the first fit ``y`` moved it by more than
+        the region only to worse than that; unless the first fit ``y`` moved it by more than
         :data:`WEAK_SIGNIFICANT` of those standard errors (then the data see it after all). The
         second pass holds each weak one at the start's value, zero error: directions the data see
         are fitted without bias. Weak and strong directions are orthogonal in the metric, so the
@@ -488,7 +493,7 @@ class _Problem:
         was measured a profile follows the smoothest curve. What neither sees stays at its start
         values, set-ups taking what they trade with machine errors (:func:`held_complement`). The
         first pass fits the data and the penalty. Knowing the residual scale, the directions whose
-        rms tool-tip error over the travel is fixed only to worse than :data:`WEAK_SD_UM` count as
+        rms tool-tip error over the data's region is fixed only to worse than :data:`WEAK_SD_UM` count as
         undetermined too: the second pass holds them at the least predicted error
         (:meth:`_weak_directions`), so that noise is never amplified into invented errors.
         """
@@ -754,10 +759,11 @@ class _Problem:
             pure = sol.null @ Vt[int(np.sum(sv_n > 1e-6)):].T
         null_p = (sol.scale[:, None] * pure)[:nf]
         keep = np.ones(null_p.shape[1], dtype=bool)
-        if self.metric is not None and null_p.shape[1]:
+        if self.travel_metric is not None and null_p.shape[1]:
             # each direction scaled to 1 um rms tool-tip error over the travel; those that move the
             # tip nowhere (a turn about the tool axis ...) cannot change a prediction and are dropped
-            rms = np.sqrt(np.clip(np.einsum("ik,ij,jk->k", null_p, self.metric[:nf, :nf], null_p), 0.0, None))
+            M = self.travel_metric[:nf, :nf]
+            rms = np.sqrt(np.clip(np.einsum("ik,ij,jk->k", null_p, M, null_p), 0.0, None))
             keep &= rms > 1e-12 * np.linalg.norm(null_p, axis=0)
             null_p = null_p * (1e-3 / np.where(rms > 0, rms, 1.0))
         else:

@@ -2,7 +2,8 @@
 model of every file with one tag rule and the declared set-ups, the free and held parameters, the
 start values, the weights, the outlier policy, the roughness penalty) and :class:`SolverOptions`
 (rank threshold, iterations, tolerance); the model's knots from the data, and the physical metric
-(tool-tip error over the travel) in which what the data leave open is measured."""
+(tool-tip error over the travel, or over the region the data cover) in which what the data leave
+open is measured."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -13,8 +14,8 @@ from ..errors import InputError
 from ..io.atomic import same_file
 from ..machine import Machine
 from ..measurement.files import MeasurementSet
-from ..measurement.readings import (MeasurementModel, data_positions, data_spline_sizes,
-                                    measurement_model)
+from ..measurement.readings import (MeasurementModel, data_held, data_positions, data_spline_sizes,
+                                    data_support, measurement_model)
 from ..models.basis import with_data_basis
 from ..models.chain import ErrorModel
 from ..models.model_file import FittedModel
@@ -44,7 +45,8 @@ class FitProblem:
     start : (n_params,) start values, internal units. weights : ``"unit"`` (residuals in um and urad),
     ``"noise"`` (1/noise per file and unit, re-estimated) or {tag: noise}. penalty : the profiles
     carry a roughness penalty whose weights REML chooses (:mod:`.penalty`). hold_weak : directions the
-    data fix only to worse than 1 um of tool-tip error over the travel are held at the least error.
+    data fix only to worse than 1 um of tool-tip error over the region they cover are held at the
+    least error.
     outliers : the policy the files were read with (``"keep"``, or ``"repeats"``: readings far off
     their repeats left out, :func:`without_outliers`); ``removed`` the readings it left out.
     context_defaults : values of context channels the files lack.
@@ -236,20 +238,47 @@ def model_for_data(model: ErrorModel, datasets) -> ErrorModel:
 METRIC_POSES = 256
 
 
-def travel_metric(model: ErrorModel, free_idx: np.ndarray, n_unknowns: int) -> np.ndarray:
+def fitted_axes(model: ErrorModel, free) -> set[str]:
+    """The axes some of whose own errors are among the ``free`` ((n_params,) bool) parameters."""
+    return {model.param_specs[i].group.split(":", 1)[0] for i in np.flatnonzero(free)}
+
+
+def data_region(machine, datasets, axes=None) -> tuple[np.ndarray, np.ndarray]:
+    """(lower, upper), each (n_axes,), mm and rad: where the data put each axis, the region whose
+    predictions the fitted model is used for. An axis the data moved spans the range they reached
+    (the model's ``support``: compensate and export apply the model there and nowhere else unless
+    asked); an axis they hold at one position is that position (the model is evaluated there,
+    ``held``); an axis no file positions keeps its travel, and so does one not among ``axes`` (when
+    given: the fitted axes, :func:`fitted_axes`): an axis none of whose errors were fitted does not
+    bound the model (a rotary table's motion holds wherever the linear axes stand)."""
+    lo, hi = machine.travel_bounds()
+    lo, hi = lo.copy(), hi.copy()
+    reached = {**data_support(machine, datasets),
+               **{a: (v, v) for a, v in data_held(machine, datasets).items()}}
+    for j, a in enumerate(machine.axis_names):
+        if a in reached and (axes is None or a in axes):
+            lo[j], hi[j] = reached[a]
+    return lo, hi
+
+
+def travel_metric(model: ErrorModel, free_idx: np.ndarray, n_unknowns: int,
+                  region: tuple | None = None) -> np.ndarray:
     """(n_unknowns, n_unknowns) M with ``x^T M x`` the mean squared tool-tip error (mm^2) over the
-    machine's travel that the fitted parameters x predict (to first order); zero for nuisance
-    parameters, which are not machine errors.
+    machine's travel (or over ``region``, (lower, upper) axis positions as :func:`data_region`
+    gives) that the fitted parameters x predict (to first order); zero for nuisance parameters,
+    which are not machine errors.
 
     The poses are drawn uniformly over the travel of every axis (fixed seed), at the machine's tool
     length and 100 mm longer, with random approach directions and feeds up to 5 m/min, so that
     every term that acts somewhere in normal use has its weight. What the data do not determine is
-    resolved by the smallest ``x^T M x``: the smallest predicted error, in physical terms.
+    resolved by the smallest ``x^T M x``: the smallest predicted error, in physical terms. Over the
+    data's region it is the metric in which the fit judges what the data fix only weakly
+    (:func:`mtcomp.identification.fit.solve`).
     """
     from ..measurement.readings import evaluate_chain
     m = model.machine
     rng = np.random.default_rng(20261123)
-    lo, hi = m.travel_bounds()
+    lo, hi = m.travel_bounds() if region is None else region
     q = lo + (hi - lo) * rng.random((METRIC_POSES, m.n_axes))
     c = model.default_context(METRIC_POSES)
     names = model.context_names

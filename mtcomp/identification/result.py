@@ -355,7 +355,7 @@ class FitResult:
         lines.append("")
         if self.undetermined:
             lines.append(f"{len(self.undetermined)} combination(s) the data cannot determine, or only "
-                         "worse than 1 um of error over the travel (held where they predict the least "
+                         "worse than 1 um of error where the data are (held where they predict the least "
                          "error; file units):")
             for u in self.undetermined:
                 lines.append(f"  {u}")
