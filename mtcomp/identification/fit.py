@@ -54,7 +54,8 @@ from ..models.params import ParameterSet
 from .reversal import data_reversal
 from .unmeasured import record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
 from ._linalg import (NULL_WEIGHT, column_scale, _eliminate, _error_scales, _gram, _name_null_space,
-                      _relative_singular_values, _seen_columns, _solver, _step, held_complement)
+                      _relative_singular_values, _seen_columns, _solver, _step, held_complement,
+                      penalised_inverse)
 from .problem import DEFAULT_RCOND, FitProblem, SolverOptions, data_region, fitted_axes
 from .problem import travel_metric  # noqa: F401
 from .result import FileResiduals, FitResult, error_unit
@@ -605,7 +606,7 @@ class _Problem:
         # the Bayesian posterior covariance of a penalised fit (Wood 2006): phi (AB + S)^-1, phi
         # the residual variance over the effective degrees of freedom tr((AB + S)^-1 AB)
         H = AB + self._reduced_penalty(B)
-        Hinv = scipy.linalg.pinvh(H)
+        Hinv = penalised_inverse(H)
         edf = float(np.trace(Hinv @ AB)) if self.S is not None else float(rank)
         dof = self.n_obs - edf
         s2 = float(r @ r) / dof if dof > 0 else np.nan

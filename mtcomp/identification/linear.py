@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from ._linalg import _relative_singular_values, column_scale
+from ._linalg import _relative_singular_values, column_scale, penalised_inverse
 from .problem import DEFAULT_RCOND
 from .result import FitResult
 
@@ -40,7 +40,7 @@ def solve_linear(X: np.ndarray, y: np.ndarray, specs, penalty: np.ndarray | None
     B = scipy.linalg.null_space(null.T) if null.shape[1] else np.eye(k)
     Gs = B.T @ (G * np.outer(d, d)) @ B
     H = Gs + B.T @ Ps @ B
-    Hinv = scipy.linalg.pinvh(H)
+    Hinv = penalised_inverse(H)
     b = d * (B @ (Hinv @ (B.T @ (d * (X.T @ y)))))
     resid = y - X @ b
     cost = float(resid @ resid)
