@@ -51,6 +51,19 @@ def held_complement(null: np.ndarray, machine: np.ndarray,
     return Vt[k:].T
 
 
+def one_blas_thread():
+    """A context in which BLAS (numpy's and scipy's) runs on one thread, restored on exit.
+
+    A fit's dense algebra is on matrices of a few hundred unknowns (eigen-decompositions, Cholesky
+    factors, the penalty weights' search): too small for threads to pay, while threads that wait for
+    a core, or spin after each call, cost processor time the fit's own thread needed. On a shared
+    2-core machine the 100,000-point fit of benchmarks/bench_identify.py took 10 s of processor
+    time with two BLAS threads and 2.6 s with one; its large Gram products on one thread too (the
+    Jacobian is formed block by block, each block in cache)."""
+    from threadpoolctl import threadpool_limits
+    return threadpool_limits(limits=1, user_api="blas")
+
+
 def _error_scales(columns) -> np.ndarray:
     """(n,) :func:`error_scale` of each column name (computed once per distinct name)."""
     columns = np.asarray(columns, dtype=object)
@@ -108,6 +121,41 @@ def _gram(J: np.ndarray) -> np.ndarray:
         upper = dsyrk(1.0, J.T, trans=0, lower=0)      # J.T is Fortran-ordered: no copy
         return np.triu(upper) + np.triu(upper, 1).T
     return J.T @ J
+
+
+#: bytes of one block of a file's Jacobian (:func:`file_normal_equations`): a block small enough to
+#: stay in the processor's cache while it is weighted, multiplied and added to the normal equations
+BLOCK_BYTES = 8 << 20
+
+
+def block_obs(n_params: int) -> int:
+    """Observations per block of a Jacobian with ``n_params`` columns (:data:`BLOCK_BYTES`)."""
+    return max(64, BLOCK_BYTES // (8 * max(n_params, 1)))
+
+
+def file_normal_equations(m, p, nuisance, ww, observed, pred, g_n, A_nn):
+    """One file's part of the normal equations, block by block (``m.jacobian_blocks``): returns
+    (J_p^T W r (n_params,), J_p^T W^2 J_p (n_params, n_params) or None, J_p^T W^2 J_n (n_params,
+    n_nuisance) or None) and fills, in place, ``pred`` (the file's predictions), ``g_n`` (+= J_n^T W r)
+    and ``A_nn`` (+= J_n^T W^2 J_n; None: the Gram matrices are skipped). ww: the file's weights."""
+    n_p = m.model.n_params
+    gp = np.zeros(n_p)
+    App = np.zeros((n_p, n_p)) if A_nn is not None else None
+    Apn = np.zeros((n_p, m.n_nuisance)) if A_nn is not None else None
+    for blk, y, Jp, Jn in m.jacobian_blocks(p, nuisance, block_obs(n_p)):
+        pred[blk] = y
+        wb = ww[blk]
+        rw = wb * (observed[blk] - y)
+        gp += Jp.T @ (wb * rw)
+        g_n += Jn.T @ (wb * rw)
+        if A_nn is None:
+            continue
+        Jw = np.multiply(Jp, wb[:, None], out=Jp if Jp.flags.writeable else None)
+        Jnw = Jn * wb[:, None]
+        App += _gram(Jw)
+        Apn += Jw.T @ Jnw
+        A_nn += Jnw.T @ Jnw
+    return gp, App, Apn
 
 
 def _solver(AB):
