@@ -128,6 +128,11 @@ def _gram(J: np.ndarray) -> np.ndarray:
 BLOCK_BYTES = 8 << 20
 
 
+#: a block (of more rows than 4 times its columns) whose share of non-zero Jacobian columns is at
+#: most this has the Gram matrix of those columns only
+SPARSE_SHARE = 0.8
+
+
 def block_obs(n_params: int) -> int:
     """Observations per block of a Jacobian with ``n_params`` columns (:data:`BLOCK_BYTES`)."""
     return max(64, BLOCK_BYTES // (8 * max(n_params, 1)))
@@ -152,9 +157,17 @@ def file_normal_equations(m, p, nuisance, ww, observed, pred, g_n, A_nn):
             continue
         Jw = np.multiply(Jp, wb[:, None], out=Jp if Jp.flags.writeable else None)
         Jnw = Jn * wb[:, None]
-        App += _gram(Jw)
-        Apn += Jw.T @ Jnw
         A_nn += Jnw.T @ Jnw
+        on = np.flatnonzero(Jw.any(axis=0)) if Jw.shape[0] > 4 * n_p else np.arange(n_p)
+        if on.size > SPARSE_SHARE * n_p:
+            App += _gram(Jw)
+            Apn += Jw.T @ Jnw
+            continue
+        # the columns that are zero all through the block add nothing: a Gram matrix of the rest
+        # (a block of one reading direction sees about a third of the parameters)
+        Jon = Jw[:, on]
+        App[np.ix_(on, on)] += _gram(Jon)
+        Apn[on] += Jon.T @ Jnw
     return gp, App, Apn
 
 

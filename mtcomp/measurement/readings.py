@@ -389,10 +389,11 @@ class MeasurementModel:
         return self._evaluate(p, nuisance, jacobian=True)
 
     def jacobian_blocks(self, p: np.ndarray, nuisance: np.ndarray, max_obs: int):
-        """Yield (observation slice, prediction, J_p, J_nuisance) of consecutive blocks of the
-        observations, each of about ``max_obs`` or fewer, together :meth:`predict_and_jacobian`: the
-        normal equations of a large file without its whole Jacobian in memory. One block unless a
-        kind evaluates its rows in blocks; a block's arrays are the caller's to overwrite."""
+        """Yield (observations (a slice), prediction, J_p, J_nuisance) of blocks of the observations,
+        each of about ``max_obs`` or fewer, together every observation once and
+        :meth:`predict_and_jacobian`: the normal equations of a large file without its whole
+        Jacobian in memory. One block unless a kind evaluates its rows in blocks; a block's arrays
+        are the caller's to overwrite."""
         pred, J, Jn = self.predict_and_jacobian(p, nuisance)
         yield slice(0, self.n_obs), pred, J, Jn
 
@@ -544,19 +545,22 @@ class PointsModel(MeasurementModel):
         return pred, J, self._setup_design
 
     def jacobian_blocks(self, p, nuisance, max_obs):
+        # each block of rows yields its dx, dy and dz readings apart: each sees about a third of
+        # the parameters (a straightness of X moves no dx), and the zero columns are skipped
         rows = max(1, max_obs // 3)
-        if not self._all_xyz or len(self.data) <= rows or not compiled_ready(self.model, "tip_jac"):
+        n, n_p = len(self.data), self.model.n_params
+        if not self._all_xyz or n <= rows or not compiled_ready(self.model, "tip_jac"):
             yield from super().jacobian_blocks(p, nuisance, max_obs)
             return
         p, nuisance = self._check_p(p, nuisance)
         setup = self._setup_design @ nuisance if self.n_nuisance else np.zeros(self.n_obs)
-        n, n_p = len(self.data), self.model.n_params
         for s in range(0, n, rows):
             e = min(n, s + rows)
             d, Jd = evaluate_chain(self.model, "tip_jac", self.q[s:e], p, self.c[s:e])
-            obs = slice(3 * s, 3 * e)       # observations are rows x (dx, dy, dz), row-major
-            yield obs, d.reshape(-1) + setup[obs], Jd.transpose(0, 2, 1).reshape(-1, n_p), \
-                self._setup_design[obs]
+            Jd = Jd.transpose(0, 2, 1)                      # (rows, 3, n_params)
+            for j in range(3):
+                obs = slice(3 * s + j, 3 * e, 3)            # rows x (dx, dy, dz), row-major
+                yield obs, d[:, j] + setup[obs], Jd[:, j], self._setup_design[obs]
 
     fast_gradient = True
     #: rows per evaluation of the gradient: each row's (n_params,) part is summed while in cache
