@@ -151,23 +151,24 @@ def file_normal_equations(m, p, nuisance, ww, observed, pred, g_n, A_nn):
         pred[blk] = y
         wb = ww[blk]
         rw = wb * (observed[blk] - y)
-        gp += Jp.T @ (wb * rw)
         g_n += Jn.T @ (wb * rw)
-        if A_nn is None:
+        Jnw = Jn * wb[:, None] if A_nn is not None else None
+        if A_nn is not None:
+            A_nn += Jnw.T @ Jnw
+        on = np.flatnonzero(Jp.any(axis=0)) if A_nn is not None and Jp.shape[0] > 4 * n_p else None
+        if on is not None and on.size <= SPARSE_SHARE * n_p:
+            # the columns that are zero all through the block add nothing: the products of the
+            # rest (a block of one reading direction sees about a third of the parameters)
+            Jon = Jp[:, on] * wb[:, None]
+            gp[on] += Jon.T @ rw
+            App[np.ix_(on, on)] += _gram(Jon)
+            Apn[on] += Jon.T @ Jnw
             continue
-        Jw = np.multiply(Jp, wb[:, None], out=Jp if Jp.flags.writeable else None)
-        Jnw = Jn * wb[:, None]
-        A_nn += Jnw.T @ Jnw
-        on = np.flatnonzero(Jw.any(axis=0)) if Jw.shape[0] > 4 * n_p else np.arange(n_p)
-        if on.size > SPARSE_SHARE * n_p:
+        gp += Jp.T @ (wb * rw)
+        if A_nn is not None:
+            Jw = np.multiply(Jp, wb[:, None], out=Jp if Jp.flags.writeable else None)
             App += _gram(Jw)
             Apn += Jw.T @ Jnw
-            continue
-        # the columns that are zero all through the block add nothing: a Gram matrix of the rest
-        # (a block of one reading direction sees about a third of the parameters)
-        Jon = Jw[:, on]
-        App[np.ix_(on, on)] += _gram(Jon)
-        Apn[on] += Jon.T @ Jnw
     return gp, App, Apn
 
 
