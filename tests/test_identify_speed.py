@@ -55,25 +55,35 @@ def _stacked(problem, x, w):
     return pred, Jw.T @ Jw, Jw.T @ rw
 
 
-def test_normal_equations_in_blocks_are_those_of_the_whole_jacobian(small_blocks):
-    model, data = _campaign(1)
+@pytest.mark.parametrize("block_rows", [None, 1100])
+def test_normal_equations_in_blocks_are_those_of_the_whole_jacobian(small_blocks, monkeypatch, block_rows):
+    """Blocks of 64 observations (dense products), and blocks of 1100 rows per reading direction
+    (more than 4 times the columns: the products of the non-zero columns only; the last block of 100
+    rows dense)."""
+    model, data = _campaign(1, N_POINTS if block_rows is None else 2300)
     fp = FitProblem.from_data(model, [data])
     problem = fit._Problem(fp.model, fp.measurements, np.asarray(fp.free, dtype=bool), fp.start)
+    if block_rows is not None:
+        monkeypatch.setattr(_linalg, "BLOCK_BYTES", 8 * fp.model.n_params * 3 * block_rows)
+        assert block_rows > 4 * fp.model.n_params
     rng = np.random.default_rng(2)
-    # away from zero (every term of the chain counts) and with unequal weights
-    x = rng.normal(0.0, 1e-4, problem.n_unknowns)
     w = problem.unit_weights() * rng.uniform(0.5, 2.0, problem.n_obs)
-    assert _linalg.block_obs(model.n_params) < problem.n_obs / 10
-    pred, A, g = problem.normal_equations(x, w)
-    pred0, A0, g0 = _stacked(problem, x, w)
-    np.testing.assert_allclose(pred, pred0, rtol=0, atol=1e-15 * np.abs(pred0).max())
-    np.testing.assert_allclose(A, A0, rtol=0, atol=1e-12 * np.abs(A0).max())
-    np.testing.assert_allclose(g, g0, rtol=0, atol=1e-12 * np.abs(g0).max())
-    # the gradient alone (the Gauss-Newton steps after the first): the reverse sweep in blocks
-    pred1, A1, g1 = problem.normal_equations(x, w, gram=False)
-    assert A1 is None
-    np.testing.assert_allclose(pred1, pred0, rtol=0, atol=1e-15 * np.abs(pred0).max())
-    np.testing.assert_allclose(g1, g0, rtol=0, atol=1e-12 * np.abs(g0).max())
+    assert _linalg.block_obs(fp.model.n_params) < problem.n_obs / 2
+    # at the start (machine errors zero: a reading direction's Jacobian has zero columns; set-up
+    # not zero) and away from it (every term of the chain counts: no column is zero)
+    at_start = np.zeros(problem.n_unknowns)
+    at_start[problem.n_free:] = rng.normal(0.0, 1e-3, problem.n_unknowns - problem.n_free)
+    for x in (at_start, rng.normal(0.0, 1e-4, problem.n_unknowns)):
+        pred, A, g = problem.normal_equations(x, w)
+        pred0, A0, g0 = _stacked(problem, x, w)
+        np.testing.assert_allclose(pred, pred0, rtol=0, atol=1e-15 * np.abs(pred0).max())
+        np.testing.assert_allclose(A, A0, rtol=0, atol=1e-12 * np.abs(A0).max())
+        np.testing.assert_allclose(g, g0, rtol=0, atol=1e-12 * np.abs(g0).max())
+        # the gradient alone (the Gauss-Newton steps after the first): the reverse sweep in blocks
+        pred1, A1, g1 = problem.normal_equations(x, w, gram=False)
+        assert A1 is None
+        np.testing.assert_allclose(pred1, pred0, rtol=0, atol=1e-15 * np.abs(pred0).max())
+        np.testing.assert_allclose(g1, g0, rtol=0, atol=1e-12 * np.abs(g0).max())
 
 
 def test_leverages_in_blocks_are_the_hat_matrix_diagonal(small_blocks):

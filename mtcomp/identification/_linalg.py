@@ -57,9 +57,9 @@ def one_blas_thread():
     A fit's dense algebra is on matrices of a few hundred unknowns (eigen-decompositions, Cholesky
     factors, the penalty weights' search): too small for threads to pay, while threads that wait for
     a core, or spin after each call, cost processor time the fit's own thread needed. On a shared
-    2-core machine the 100,000-point fit of benchmarks/bench_identify.py took 10 s of processor
-    time with two BLAS threads and 2.6 s with one; its large Gram products on one thread too (the
-    Jacobian is formed block by block, each block in cache)."""
+    2-core machine the 100,000-point fit of benchmarks/bench_identify.py took 12 s of processor
+    time with two BLAS threads and 2.1 s with one (docs/identification.md, *Performance*); its
+    large products run on one thread too (block by block, each block in cache)."""
     from threadpoolctl import threadpool_limits
     return threadpool_limits(limits=1, user_api="blas")
 
@@ -128,8 +128,8 @@ def _gram(J: np.ndarray) -> np.ndarray:
 BLOCK_BYTES = 8 << 20
 
 
-#: a block (of more rows than 4 times its columns) whose share of non-zero Jacobian columns is at
-#: most this has the Gram matrix of those columns only
+#: a block (of a file of several blocks, and of more rows than 4 times its columns) whose share of
+#: non-zero Jacobian columns is at most this has the Gram matrix of those columns only
 SPARSE_SHARE = 0.8
 
 
@@ -147,7 +147,11 @@ def file_normal_equations(m, p, nuisance, ww, observed, pred, g_n, A_nn):
     gp = np.zeros(n_p)
     App = np.zeros((n_p, n_p)) if A_nn is not None else None
     Apn = np.zeros((n_p, m.n_nuisance)) if A_nn is not None else None
-    for blk, y, Jp, Jn in m.jacobian_blocks(p, nuisance, block_obs(n_p)):
+    size = block_obs(n_p)
+    # a file of one block (a few thousand readings or fewer) keeps one dense product, bit for bit
+    # the earlier result: whether diagnose refines a small file's knots can turn on round-off
+    sparse = A_nn is not None and m.n_obs > size
+    for blk, y, Jp, Jn in m.jacobian_blocks(p, nuisance, size):
         pred[blk] = y
         wb = ww[blk]
         rw = wb * (observed[blk] - y)
@@ -155,7 +159,7 @@ def file_normal_equations(m, p, nuisance, ww, observed, pred, g_n, A_nn):
         Jnw = Jn * wb[:, None] if A_nn is not None else None
         if A_nn is not None:
             A_nn += Jnw.T @ Jnw
-        on = np.flatnonzero(Jp.any(axis=0)) if A_nn is not None and Jp.shape[0] > 4 * n_p else None
+        on = np.flatnonzero(Jp.any(axis=0)) if sparse and Jp.shape[0] > 4 * n_p else None
         if on is not None and on.size <= SPARSE_SHARE * n_p:
             # the columns that are zero all through the block add nothing: the products of the
             # rest (a block of one reading direction sees about a third of the parameters)

@@ -17,7 +17,8 @@ Method (docs/identification.md):
   the noise per file.
 * Gauss-Newton on the unknowns x = (free parameters, nuisance parameters), with the exact CasADi
   Jacobian, columns scaled to unit norm (``D``), the normal equations of the scaled problem
-  (accumulated file by file: the stacked Jacobian is never formed) solved in the subspace of
+  (accumulated file by file, a large one block by block: the stacked Jacobian is never formed; the
+  dense algebra on one BLAS thread, :func:`._linalg.one_blas_thread`) solved in the subspace of
   well-determined directions. Each iteration recomputes the residuals exactly, which refines the
   normal-equation solution like iterative refinement. The model is nearly linear in p, so 2-3
   iterations converge; a step that increases the cost is halved (down to 1e-6).
