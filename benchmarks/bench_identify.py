@@ -1,15 +1,15 @@
 """Benchmark of identify(): a 3-axis fit of 100,000 points and a 5-axis fit of 20,000 points.
 
-Prints, per case, the wall time of one identify() call (median of 3 runs after one warm-up run that
+Prints, per case, the wall time of one identify() call (median of 5 runs after one warm-up run that
 also compiles the model's C code when a compiler is there), its processor time (all threads of the
-process: on a shared machine the wall time also counts the waits for a core, and BLAS threads that
-spin while they wait count here), the Gauss-Newton iterations, the number of observations and
-unknowns, and the rms residual against the simulated noise (0.5 um). The data
+process: on a shared machine the wall time also counts the waits for a core; the fit runs BLAS on
+one thread), the Gauss-Newton iterations, the number of observations and unknowns, and the rms
+residual against the simulated noise (0.5 um). The data
 come from mtcomp's own simulator (a speed figure; accuracy is checked on the independent machine,
 bench_identify_independent.py); the fitted model's knots are chosen from the data, as a user's are.
 The first line names the package that ran (the one on the path).
 
-    python benchmarks/bench_identify.py [--runs 3]
+    python benchmarks/bench_identify.py [--runs 5]
 """
 from __future__ import annotations
 
@@ -62,7 +62,7 @@ def case(machine_name: str, n_points: int, runs: int, rng) -> None:
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--runs", type=int, default=5)
     args = ap.parse_args()
     rng = np.random.default_rng(0)
     print(f"mtcomp from {Path(mtcomp.__file__).parent}")

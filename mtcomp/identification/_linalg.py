@@ -51,6 +51,19 @@ def held_complement(null: np.ndarray, machine: np.ndarray,
     return Vt[k:].T
 
 
+def one_blas_thread():
+    """A context in which BLAS (numpy's and scipy's) runs on one thread, restored on exit.
+
+    A fit's dense algebra is on matrices of a few hundred unknowns (eigen-decompositions, Cholesky
+    factors, the penalty weights' search): too small for threads to pay, while threads that wait for
+    a core, or spin after each call, cost processor time the fit's own thread needed. On a shared
+    2-core machine the 100,000-point fit of benchmarks/bench_identify.py took 12 s of processor
+    time with two BLAS threads and 2.1 s with one (docs/identification.md, *Performance*); its
+    large products run on one thread too (block by block, each block in cache)."""
+    from threadpoolctl import threadpool_limits
+    return threadpool_limits(limits=1, user_api="blas")
+
+
 def _error_scales(columns) -> np.ndarray:
     """(n,) :func:`error_scale` of each column name (computed once per distinct name)."""
     columns = np.asarray(columns, dtype=object)
@@ -108,6 +121,59 @@ def _gram(J: np.ndarray) -> np.ndarray:
         upper = dsyrk(1.0, J.T, trans=0, lower=0)      # J.T is Fortran-ordered: no copy
         return np.triu(upper) + np.triu(upper, 1).T
     return J.T @ J
+
+
+#: bytes of one block of a file's Jacobian (:func:`file_normal_equations`): a block small enough to
+#: stay in the processor's cache while it is weighted, multiplied and added to the normal equations
+BLOCK_BYTES = 8 << 20
+
+
+#: a block (of a file of several blocks, and of more rows than 4 times its columns) whose share of
+#: non-zero Jacobian columns is at most this has the Gram matrix of those columns only
+SPARSE_SHARE = 0.8
+
+
+def block_obs(n_params: int) -> int:
+    """Observations per block of a Jacobian with ``n_params`` columns (:data:`BLOCK_BYTES`)."""
+    return max(64, BLOCK_BYTES // (8 * max(n_params, 1)))
+
+
+def file_normal_equations(m, p, nuisance, ww, observed, pred, g_n, A_nn):
+    """One file's part of the normal equations, block by block (``m.jacobian_blocks``): returns
+    (J_p^T W r (n_params,), J_p^T W^2 J_p (n_params, n_params) or None, J_p^T W^2 J_n (n_params,
+    n_nuisance) or None) and fills, in place, ``pred`` (the file's predictions), ``g_n`` (+= J_n^T W r)
+    and ``A_nn`` (+= J_n^T W^2 J_n; None: the Gram matrices are skipped). ww: the file's weights."""
+    n_p = m.model.n_params
+    gp = np.zeros(n_p)
+    App = np.zeros((n_p, n_p)) if A_nn is not None else None
+    Apn = np.zeros((n_p, m.n_nuisance)) if A_nn is not None else None
+    size = block_obs(n_p)
+    # a file of one block (a few thousand readings or fewer) keeps one dense product, bit for bit
+    # the earlier result: whether diagnose refines a small file's knots can turn on round-off
+    sparse = A_nn is not None and m.n_obs > size
+    for blk, y, Jp, Jn in m.jacobian_blocks(p, nuisance, size):
+        pred[blk] = y
+        wb = ww[blk]
+        rw = wb * (observed[blk] - y)
+        g_n += Jn.T @ (wb * rw)
+        Jnw = Jn * wb[:, None] if A_nn is not None else None
+        if A_nn is not None:
+            A_nn += Jnw.T @ Jnw
+        on = np.flatnonzero(Jp.any(axis=0)) if sparse and Jp.shape[0] > 4 * n_p else None
+        if on is not None and on.size <= SPARSE_SHARE * n_p:
+            # the columns that are zero all through the block add nothing: the products of the
+            # rest (a block of one reading direction sees about a third of the parameters)
+            Jon = Jp[:, on] * wb[:, None]
+            gp[on] += Jon.T @ rw
+            App[np.ix_(on, on)] += _gram(Jon)
+            Apn[on] += Jon.T @ Jnw
+            continue
+        gp += Jp.T @ (wb * rw)
+        if A_nn is not None:
+            Jw = np.multiply(Jp, wb[:, None], out=Jp if Jp.flags.writeable else None)
+            App += _gram(Jw)
+            Apn += Jw.T @ Jnw
+    return gp, App, Apn
 
 
 def _solver(AB):

@@ -17,7 +17,8 @@ Method (docs/identification.md):
   the noise per file.
 * Gauss-Newton on the unknowns x = (free parameters, nuisance parameters), with the exact CasADi
   Jacobian, columns scaled to unit norm (``D``), the normal equations of the scaled problem
-  (accumulated file by file: the stacked Jacobian is never formed) solved in the subspace of
+  (accumulated file by file, a large one block by block: the stacked Jacobian is never formed; the
+  dense algebra on one BLAS thread, :func:`._linalg.one_blas_thread`) solved in the subspace of
   well-determined directions. Each iteration recomputes the residuals exactly, which refines the
   normal-equation solution like iterative refinement. The model is nearly linear in p, so 2-3
   iterations converge; a step that increases the cost is halved (down to 1e-6).
@@ -53,9 +54,9 @@ from ..models.model_file import FittedModel
 from ..models.params import ParameterSet
 from .reversal import data_reversal
 from .unmeasured import record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
-from ._linalg import (NULL_WEIGHT, column_scale, _eliminate, _error_scales, _gram, _name_null_space,
-                      _relative_singular_values, _seen_columns, _solver, _step, held_complement,
-                      penalised_inverse)
+from ._linalg import (NULL_WEIGHT, column_scale, _eliminate, _error_scales, _name_null_space,
+                      _relative_singular_values, _seen_columns, _solver, _step, block_obs,
+                      file_normal_equations, held_complement, one_blas_thread, penalised_inverse)
 from .problem import DEFAULT_RCOND, FitProblem, SolverOptions, data_region, fitted_axes
 from .problem import travel_metric  # noqa: F401
 from .result import FileResiduals, FitResult, error_unit
@@ -111,6 +112,11 @@ def solve(problem: FitProblem, options: SolverOptions = SolverOptions(), info: d
     """Solve a :class:`FitProblem`: the one fit of the package (identify, diagnose's base fit).
     Returns a :class:`FitResult` (its ``directions`` the determined directions the fit moved in)."""
     t0 = time.perf_counter() if t0 is None else t0
+    with one_blas_thread():
+        return _solve(problem, options, info, t0)
+
+
+def _solve(problem: FitProblem, options: SolverOptions, info: dict | None, t0: float) -> FitResult:
     mms = problem.measurements
     if not mms or sum(m.n_obs for m in mms) == 0:
         paths = [str(m.data.path) for m in mms if getattr(m.data, "path", None)]
@@ -312,27 +318,21 @@ class _Problem:
         for m, so, sn in zip(self.mms, self.obs_slices, self.nuis_slices):
             if m.n_obs == 0:
                 continue
-            ww = w[so]
             if not gram and m.fast_gradient:
+                ww = w[so]
                 y = m.predict(p, x[sn])
                 pred[so] = y
                 gp, gn = m.gradient(p, x[sn], ww * ww * (self.observed[so] - y))
                 g[:nf] += gp[fi]
                 g[sn] += gn
                 continue
-            y, Jp, Jn = m.predict_and_jacobian(p, x[sn])
-            pred[so] = y
-            rw = ww * (self.observed[so] - y)
-            g[:nf] += (Jp.T @ (ww * rw))[fi]
-            g[sn] += Jn.T @ (ww * rw)
+            gp, App, Apn = file_normal_equations(m, p, x[sn], w[so], self.observed[so], pred[so], g[sn],
+                                                  A[sn, sn] if gram else None)
+            g[:nf] += gp[fi]
             if gram:
-                Jw = np.multiply(Jp, ww[:, None], out=Jp if Jp.flags.writeable else None)
-                Jnw = Jn * ww[:, None]
-                A[:nf, :nf] += _gram(Jw)[np.ix_(fi, fi)]
-                Apn = (Jw.T @ Jnw)[fi]
-                A[:nf, sn] += Apn
-                A[sn, :nf] += Apn.T
-                A[sn, sn] += Jnw.T @ Jnw
+                A[:nf, :nf] += App[np.ix_(fi, fi)]
+                A[:nf, sn] += Apn[fi]
+                A[sn, :nf] += Apn[fi].T
         return pred, A, g
 
     def leverages(self, x, w, scale, B, L):
@@ -342,13 +342,14 @@ class _Problem:
         for m, so, sn in zip(self.mms, self.obs_slices, self.nuis_slices):
             if m.n_obs == 0:
                 continue
-            Jp, Jn = m.jacobian(p, x[sn])
-            Js = np.zeros((m.n_obs, self.n_unknowns))
-            Js[:, :self.n_free] = Jp[:, self.free_idx]
-            Js[:, sn] = Jn
-            Js *= w[so][:, None] * scale[None, :]
-            M = scipy.linalg.solve_triangular(L, (Js @ B).T, lower=True)
-            out[so] = np.einsum("ij,ij->j", M, M)
+            lev, ww = out[so], w[so]
+            for blk, _, Jp, Jn in m.jacobian_blocks(p, x[sn], block_obs(m.model.n_params)):
+                Js = np.zeros((Jp.shape[0], self.n_unknowns))
+                Js[:, :self.n_free] = Jp[:, self.free_idx]
+                Js[:, sn] = Jn
+                Js *= ww[blk][:, None] * scale[None, :]
+                M = scipy.linalg.solve_triangular(L, (Js @ B).T, lower=True)
+                lev[blk] = np.einsum("ij,ij->j", M, M)
         return out
 
     def _repeat_scale(self, r, rank) -> float:

@@ -313,6 +313,18 @@ def evaluate_chain(model: ErrorModel, name: str, q: np.ndarray, p: np.ndarray, c
     return result
 
 
+def compiled_ready(model: ErrorModel, name: str) -> bool:
+    """True when :func:`chain_function` ``name`` of the model is compiled and loaded (or found in the
+    cache): then evaluating its poses block by block costs no more than all at once. Until then a
+    file is evaluated whole, so that its first evaluation decides compilation on all of its poses."""
+    from ..models import compiled
+    f = chain_function(model, name)
+    try:
+        return compiled.get_compiled(model, f.name(), f, compile_if_missing=False) is not None
+    except compiled.CompileError:
+        return False
+
+
 # ------------------------------------------------------------------------------------- base class
 def file_tag(data: MeasurementSet) -> str:
     """Short name of a file for nuisance parameter names: its stem."""
@@ -375,6 +387,15 @@ class MeasurementModel:
     def predict_and_jacobian(self, p, nuisance):
         """(prediction (n_obs,), J_p (n_obs, n_params), J_nuisance (n_obs, n_nuisance)) in one pass."""
         return self._evaluate(p, nuisance, jacobian=True)
+
+    def jacobian_blocks(self, p: np.ndarray, nuisance: np.ndarray, max_obs: int):
+        """Yield (observations (a slice), prediction, J_p, J_nuisance) of blocks of the observations,
+        each of about ``max_obs`` or fewer, together every observation once and
+        :meth:`predict_and_jacobian`: the normal equations of a large file without its whole
+        Jacobian in memory. One block unless a kind evaluates its rows in blocks; a block's arrays
+        are the caller's to overwrite."""
+        pred, J, Jn = self.predict_and_jacobian(p, nuisance)
+        yield slice(0, self.n_obs), pred, J, Jn
 
     def _evaluate(self, p, nuisance, jacobian: bool):
         raise NotImplementedError
@@ -523,7 +544,27 @@ class PointsModel(MeasurementModel):
                 J[sel] = np.einsum("kj,kjp->kp", self._A[sel], Jd[self._rows[sel]])
         return pred, J, self._setup_design
 
+    def jacobian_blocks(self, p, nuisance, max_obs):
+        # each block of rows yields its dx, dy and dz readings apart: each sees about a third of
+        # the parameters (a straightness of X moves no dx), and the zero columns are skipped
+        rows = max(1, max_obs // 3)
+        n, n_p = len(self.data), self.model.n_params
+        if not self._all_xyz or n <= rows or not compiled_ready(self.model, "tip_jac"):
+            yield from super().jacobian_blocks(p, nuisance, max_obs)
+            return
+        p, nuisance = self._check_p(p, nuisance)
+        setup = self._setup_design @ nuisance if self.n_nuisance else np.zeros(self.n_obs)
+        for s in range(0, n, rows):
+            e = min(n, s + rows)
+            d, Jd = evaluate_chain(self.model, "tip_jac", self.q[s:e], p, self.c[s:e])
+            Jd = Jd.transpose(0, 2, 1)                      # (rows, 3, n_params)
+            for j in range(3):
+                obs = slice(3 * s + j, 3 * e, 3)            # rows x (dx, dy, dz), row-major
+                yield obs, d[:, j] + setup[obs], Jd[:, j], self._setup_design[obs]
+
     fast_gradient = True
+    #: rows per evaluation of the gradient: each row's (n_params,) part is summed while in cache
+    GRADIENT_ROWS = 4096
 
     def gradient(self, p, nuisance, v):
         p, nuisance = self._check_p(p, nuisance)
@@ -532,8 +573,12 @@ class PointsModel(MeasurementModel):
         # observation k = A_k . d[row_k]: the seed of each row's d is the sum of v_k A_k over its rows
         seeds = np.column_stack([np.bincount(self._rows, weights=v * self._A[:, j], minlength=n)
                                  for j in range(3)])
-        g = evaluate_chain(self.model, "tip_vjp", self.q, p, np.hstack([self.c, seeds]))[1]
-        return g.sum(axis=0), self._setup_design.T @ v
+        c = np.hstack([self.c, seeds])
+        blocks = n > self.GRADIENT_ROWS and compiled_ready(self.model, "tip_vjp")
+        step = self.GRADIENT_ROWS if blocks else max(n, 1)
+        g = sum(evaluate_chain(self.model, "tip_vjp", self.q[s:s + step], p, c[s:s + step])[1].sum(axis=0)
+                for s in range(0, n, step))
+        return g, self._setup_design.T @ v
 
     def column_jacobians(self, p):
         _, Jd = self.tip_deviation(np.asarray(p, dtype=float), jacobian=True)
