@@ -180,3 +180,26 @@ def test_a_gcode_program_given_as_heidenhain_is_refused_at_its_first_line(tmp_pa
         with open_program(p, "heidenhain"):
             pass
     assert exc.value.line == 1 and "Heidenhain" in exc.value.message
+
+
+@pytest.mark.parametrize("shift_um, noted", [(0.0, False), (20.0, True)])
+def test_an_arc_kept_within_a_larger_tolerance_says_how_far_it_misses(tmp_path, shift_um, noted):
+    """The same two arcs with a chord tolerance of 25 um: one centre holds both, and the note says
+    by how much the written arcs miss their corrected path (at most the tolerance; none when the
+    correction is constant and the arcs follow it exactly)."""
+    text = ("0 BEGIN PGM T MM\n1 L X+0 Y+0 Z+0 FMAX\n2 CC X+10 Y+0\n3 C X+20 Y+0 DR-\n"
+            "4 C X+0 Y+0 DR-\n5 END PGM T MM\n")
+    p = _write(tmp_path, text)
+    with open_program(p) as src:
+        def corrections():
+            for chunk in iter_segment_chunks(src, XFYZ, chord_tol_mm=0.025):
+                pts = chunk.end.copy()
+                pts[:, 1] += np.where(chunk.line == 5, shift_um * 1e-3, 0.0) + 0.001
+                yield chunk, pts, np.ones(len(chunk), np.int64)
+        write_corrected(src, tmp_path / "o.h", XFYZ, corrections(), chord_tol_mm=0.025)
+        notes = [n for n in src.notes if "miss their corrected path" in n]
+    assert (tmp_path / "o.h").is_file()
+    assert bool(notes) == noted, src.notes
+    if noted:
+        miss = float(notes[0].split("by up to ")[1].split(" um")[0])
+        assert 0.5 < miss <= 25.0, notes[0]

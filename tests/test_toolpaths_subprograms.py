@@ -46,6 +46,7 @@ G91 G1 X10 Y5 F300
 G90
 G0 Z5
 M30
+%
 """
 FANUC_ENDS = [[0, 0, 5], [0, 0, -1], [10, 5, -1], [20, 10, -1], [40, 10, -1], [50, 15, -1],
               [50, 15, 5]]
@@ -61,6 +62,15 @@ G90
 M99
 """
 HAAS_ENDS = [[0, 0, 5], [0, 30, 5], [0, 60, 5], [20, 60, 5]]
+#: a second program in the file holds the block N100 the first one's M97 names: not its own
+HAAS_OTHER = """O01000 (HAAS)
+G0 X0 Y0 Z5
+M97 P100
+M30
+O02000
+N100 G1 Y30 F100
+M99
+"""
 
 
 def _ends(path, dialect):
@@ -88,7 +98,8 @@ def test_compensated_as_the_program_flattened_by_hand(tmp_path, capsys):
         assert code == 0, err
         written[name] = out.read_text().splitlines()
     sub, flat = written["sub"], written["flat"]
-    # the expansion says so on its first line; the rest is the hand-flattened program's output
+    # the expansion says so on its first line; the rest, the tape's end % included, is the
+    # hand-flattened program's output
     assert sub[0].startswith("(expanded by mtcomp from sub.nc for fanuc")
     assert sub[1:] == flat
     # and the corrections are there: the corrected ends differ from the source's
@@ -100,13 +111,14 @@ def test_compensated_as_the_program_flattened_by_hand(tmp_path, capsys):
     ("O1\nG0 X0 Y0 Z5\nM98 P2\nM30\nO2\nG1 X5 F100\nM99 P10\n", "fanuc",
      ["p.nc:7:", "M99 P"]),
     ("O1\nG0 X0 Y0 Z5\nG1 X3 F100 M98 P2\nM30\nO2\nG1 X5 F100\nM99\n", "fanuc",
-     ["p.nc:3:", "M98 with other words on its line"]),
+     ["p.nc:3:", "M98 with other words on its line (F, G, X)"]),
     ("O1\nG0 X0 Y0 Z5\nM98 P2\nM30\nO2\nG1 X5 F100\nM98 P2\nM99\n", "fanuc",
      ["p.nc:7:", "nested more than 10 deep"]),
     ("O1\nG0 X0 Y0 Z5\nM98 P2\nM30\nO2\nG1 X5 F100\nO3\nG1 X6\nM99\n", "fanuc",
      ["p.nc:7:", "without its M99"]),
     ("G0 X0 Y0 Z5\nM97 P100\nM30\nN100 G1 X5 F100\nM99\n", "haas", None),
     ("G0 X0 Y0 Z5\nM97 P200\nM30\nN100 G1 X5 F100\nM99\n", "haas", ["p.nc:2:", "no block N200"]),
+    (HAAS_OTHER, "haas", ["p.nc:3:", "no block N100 in this program"]),
     ("G0 X0 Y0 Z5\nM97 P100\nM30\nN100 G1 X5 F100\nM99\n", "fanuc", ["p.nc:2:", "M97 (Haas'"]),
     ("G0 X0 Y0 Z5\nM97 P100\nM30\nN100 G1 X5 F100\nM99\n", None, ["p.nc:2:", "M97 (Haas'"]),
     ("G0 X0 Y0 Z5\nM98 P100\nM30\n", "linuxcnc", ["p.nc:2:", "M98 (subprogram call"]),

@@ -41,3 +41,34 @@ def test_render_reads_the_program_by_the_dialect_given(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "square.nc:6:" in err[0] and "zero radius" in err[0].lower(), err
     assert not png.exists() and not png.with_suffix(".vtp").exists()
+
+
+ARCS = """G21 G90 G17
+G0 X0 Y0 Z5
+G1 Z-1 F300
+G2 X100 Y0 I50 J0
+G2 X0 Y0 I-50 J0
+G0 Z5
+M2
+"""
+
+
+def test_render_reads_arcs_at_the_chord_tolerance_compensate_was_given(tmp_path, capsys):
+    """A report of compensate --chord-tol-um 10 holds the chords of that tolerance: render pairs it
+    with the program read at the same tolerance, and at another names the likely cause."""
+    _, _, model = _model(tmp_path, "xfyz", seed=5, scale=3.0)
+    prog = tmp_path / "arcs.nc"
+    prog.write_text(ARCS)
+    comp, rep = tmp_path / "arcs_c.nc", tmp_path / "b.csv"
+    assert main(["compensate", "xfyz", str(model), str(prog), "-o", str(comp), "--quiet",
+                 "--report", str(rep), "--chord-tol-um", "10"]) == 0
+    png = tmp_path / "map.png"
+    args = ["render", "xfyz", str(model), str(prog), "--report", str(rep), "-o", str(png),
+            "--backend", "matplotlib"]
+    capsys.readouterr()
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "b.csv" in err[0] and "--chord-tol-um" in err[0], err
+    assert not png.exists()
+    assert main(args + ["--chord-tol-um", "10"]) == 0
+    assert png.is_file()

@@ -44,7 +44,9 @@ def add_arguments(parser):
                         help="insert internal nodes in a feed move where the corrected path would "
                              "miss its midpoint by more than T um (default 0.5; 0: end points only)")
     parser.add_argument("--chord-tol-um", type=float, metavar="T", default=1.0,
-                        help="chord tolerance for arcs written as G1 polylines (um, default 1)")
+                        help="chord tolerance (um, default 1): arcs are read as chords within it, and an "
+                             "arc is written as an arc (or arcs) where the corrected path stays within "
+                             "it of one, else as G1 chords within it (a Heidenhain arc: refused)")
     parser.add_argument("--temperature", metavar="NAME=DEGC", action="append", default=[],
                         help="temperature of sensor NAME (as in temp_NAME_c of the thermal file) while "
                              "the program runs, for the model's thermal drift (repeatable; sensors not "

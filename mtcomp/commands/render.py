@@ -61,6 +61,10 @@ def add_arguments(parser):
                          "where the program's zero sits in machine axis positions (mm), as given "
                          "to compensate: the model is evaluated there")
     add_dialect_argument(parser)
+    parser.add_argument("--chord-tol-um", type=float, metavar="T", default=None,
+                        help="the chord tolerance compensate was given (um): the program's arcs are "
+                             "read as the same chords, which the report's blocks follow (default: "
+                             "compensate's default, 1)")
     parser.add_argument("--temperature", metavar="NAME=DEGC", action="append", default=[],
                         help="the machine's temperatures while the program runs, as given to "
                              "compensate (repeatable): the model's thermal drift is mapped at them "
@@ -138,7 +142,8 @@ def run(args) -> int:
     fitted = load_model(args.model, machine)
     fitted, drift_note = _thermal_state(args, fitted)
     progress("reading the program")
-    program = read_program_points(args.program, machine, args.dialect)
+    tol = None if args.chord_tol_um is None else args.chord_tol_um * 1e-3
+    program = read_program_points(args.program, machine, args.dialect, tol)
     try:
         machine.check_travel(program.q, program.line, program.known, args.program)
     except InputError as e:
@@ -201,7 +206,10 @@ def _work_offset(args, machine):
 
 
 def _check_numbers(args) -> None:
-    """InputError for a glyph scale, tool radius, flank length or colour range out of its bounds."""
+    """InputError for a glyph scale, tool radius, flank length, colour range or chord tolerance out
+    of its bounds."""
+    if args.chord_tol_um is not None and not args.chord_tol_um > 0:
+        raise InputError(f"--chord-tol-um must be > 0, got {args.chord_tol_um}")
     if args.glyph_scale is not None and not args.glyph_scale > 0:
         raise InputError(f"--glyph-scale must be > 0, got {args.glyph_scale}")
     if args.tool_radius_mm is not None and not args.tool_radius_mm >= 0:

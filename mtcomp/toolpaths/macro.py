@@ -228,7 +228,8 @@ class MacroRun:
             raise self.error(str(exc), i) from None
         others = sorted(set(r.words) - {"n", "m", "p", "l"})
         if r.assignments or others or len(_SUBPROGRAM.findall(self.codes[i].text)) > 1:
-            raise self.error(f"M{kind} with other words on its line ({', '.join(others) or 'M'}): "
+            raise self.error(f"M{kind} with other words on its line "
+                             f"({', '.join(others).upper() or 'M'}): "
                              "put the call or return on a line of its own", i)
         if kind == 99:
             if "p" in r.words:
@@ -258,7 +259,8 @@ class MacroRun:
                                  "in the controller's memory: its motion is not in the file)", i)
             start = self.programs[int(number)] + 1
         else:
-            lines = self.sequence.get(int(number))
+            first, end = self._program_of(i)
+            lines = [j for j in self.sequence.get(int(number), []) if first <= j < end]
             if not lines:
                 raise self.error(f"M97 P{number:g}: no block N{number:g} in this program", i)
             start = lines[0]
@@ -266,6 +268,12 @@ class MacroRun:
             raise self.error(f"M{kind}: subprograms nested more than {MAX_DEPTH} deep", i)
         self.calls.append([i + 1, start, int(reps)])
         return start
+
+    def _program_of(self, i: int) -> tuple[int, int]:
+        """(first line, line after the last) of the program of the file that holds line ``i``."""
+        first = max((s for s in self.starts if s <= i), default=0)
+        end = min((s for s in self.starts if s > i), default=len(self.texts))
+        return first, end
 
     def _statement(self, i: int, st: tuple) -> int:
         kind = st[0]

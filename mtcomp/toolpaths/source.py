@@ -24,7 +24,7 @@ from .macro import MacroRun
 from .ngc import MAX_LINES, MAX_STEPS, NgcRun
 
 _LANGUAGE = {"ngc": (NgcRun, "O-word control flow, parameters and expressions"),
-             "macro": (MacroRun, "macro variables, IF, GOTO and WHILE")}
+             "macro": (MacroRun, "macro variables, IF, GOTO, WHILE and subprogram calls")}
 
 
 @dataclass
@@ -104,21 +104,34 @@ def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int):
     ending = "\r\n" if raws and raws[0].endswith(b"\r\n") else "\n"
     extra = {"dialect": dialect.name} if run_cls is MacroRun else {}
     run = run_cls(texts, source, max_steps=max_steps, max_lines=max_lines, **extra)
-    line_map = array("l", [0])
-    same = True
+    # the expanded program's lines (0-based) -> the source's lines (1-based; 0: the header)
+    line_map = array("l")
+    header = (_header(source, language, dialect) + ending).encode("latin-1")   # the first line
+    # a tape's end % stays its last line (what follows the program's end is not run, but the
+    # controller reads the tape to it)
+    tape = bool(raws) and raws[0].strip() == b"%"
+    same, last = True, -1
     fd, tmp = tempfile.mkstemp(prefix="mtcomp-expanded-", suffix=".nc")
     try:
         with os.fdopen(fd, "wb") as out:
-            out.write((_header(source, language, dialect) + ending).encode("latin-1"))
-            for i, text in run.run():
-                same = same and text is None and i == len(line_map) - 1
-                line_map.append(i + 1)
+            def write(i, text):
                 if text is None:
                     raw = raws[i]
                     out.write(raw if raw.endswith(b"\n") else raw + ending.encode())
                 else:
                     own = raws[i][len(raws[i].rstrip(b"\r\n")):] or ending.encode()
                     out.write(text.encode("latin-1", "replace") + own)
+                line_map.append(i + 1)
+            out.write(header)
+            line_map.append(0)
+            for i, text in run.run():
+                same = same and text is None and i == last + 1
+                write(i, text)
+                last = i
+            end = next((k for k in range(len(raws) - 1, last, -1) if raws[k].strip() == b"%"), None)
+            if tape and end is not None and raws[last].strip() != b"%":
+                write(end, None)
+                same = same and end == last + 1
             if hasattr(run, "check_ran"):
                 run.check_ran()
         if same and len(line_map) - 1 == len(raws):

@@ -22,6 +22,7 @@ class ProgramPoints:
     drilling cycle (G73, G81-G89) (None: none). tcp : (n,) bool, a tool centre point block: its
     words were the tip and angles, ``q`` holds the axes the controller reaches (None: none).
     dialect : the controller's rules the program was read by (``--dialect``; None: detected).
+    chord_tol_mm : the chord tolerance its arcs were read with (None: the reader's default).
     """
 
     path: str
@@ -34,16 +35,20 @@ class ProgramPoints:
     cycle: np.ndarray | None = None
     tcp: np.ndarray | None = None
     dialect: str | None = None
+    chord_tol_mm: float | None = None
 
     def __len__(self):
         return int(self.line.shape[0])
 
 
-def read_program_points(path, machine: Machine, dialect: str | None = None) -> ProgramPoints:
-    """Every segment end of the program at ``path`` (arcs as chords), read by the rules of
-    ``dialect`` (None: detected from the program). Raises InputError."""
+def read_program_points(path, machine: Machine, dialect: str | None = None,
+                        chord_tol_mm: float | None = None) -> ProgramPoints:
+    """Every segment end of the program at ``path`` (arcs as chords within ``chord_tol_mm``, None:
+    the reader's default), read by the rules of ``dialect`` (None: detected from the program).
+    Raises InputError."""
     from ..toolpaths import SegmentChunk, iter_segment_chunks
-    chunks = list(iter_segment_chunks(path, machine, dialect=dialect))
+    tol = {} if chord_tol_mm is None else {"chord_tol_mm": chord_tol_mm}
+    chunks = list(iter_segment_chunks(path, machine, dialect=dialect, **tol))
     seg = SegmentChunk.concatenate(chunks, machine.n_axes)
     if len(seg.end) == 0:
         from ..errors import InputError
@@ -59,7 +64,7 @@ def read_program_points(path, machine: Machine, dialect: str | None = None) -> P
         q[tcp] = axes_of_tcp(machine, q[tcp])
     return ProgramPoints(os.fspath(path), q, seg.line.copy(), seg.feed.copy(),
                          seg.dirs.copy(), seg.rapid.copy(), seg.known.copy(), seg.cycle.copy(), tcp,
-                         dialect)
+                         dialect, chord_tol_mm)
 
 
 def _motion_runs(original: ProgramPoints, compensated: ProgramPoints) -> tuple[np.ndarray, np.ndarray]:
@@ -193,7 +198,8 @@ def report_points(original: ProgramPoints, report, machine: Machine) -> ProgramP
         raise InputError("no such report file", path) from None
     if len(rows) != len(original):
         raise InputError(f"the report has {len(rows)} blocks, the program {len(original)} segment "
-                         "ends: not the report of that program", path)
+                         "ends: not the report of that program (or compensate was given another "
+                         "--chord-tol-um: give render the same)", path)
     try:
         # a blank cell: an axis the program had not positioned there, which the block leaves alone
         q = np.array([[float(r[c]) if r[c] != "" else np.nan for c in cols] for r in rows])

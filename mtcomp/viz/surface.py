@@ -355,7 +355,7 @@ def _compensated_points(orig: ProgramPoints, compensated, report, machine: Machi
         return report_points(orig, report, machine), np.arange(len(orig))
     if compensated is not None:
         comp = (compensated if isinstance(compensated, ProgramPoints)
-                else read_program_points(compensated, machine, orig.dialect))
+                else read_program_points(compensated, machine, orig.dialect, orig.chord_tol_mm))
         return comp, pair_compensated(orig, comp, machine)
     return None, None
 
