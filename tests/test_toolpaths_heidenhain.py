@@ -164,6 +164,7 @@ def test_refused_in_one_line_naming_the_construct(tmp_path, block, words):
     lines = err.getvalue().strip().splitlines()
     assert code == 2 and not out.exists() and len(lines) == 1, err.getvalue()
     assert "p.h:3:" in lines[0] and words in lines[0], lines[0]
+    assert lines[0].endswith("(block 2)"), lines[0]        # the TNC's block number of line 3
 
 
 def _zero_model(tmp_path) -> str:

@@ -109,14 +109,20 @@ class _Reader:
         self.cycle_def: dict = {}                # the CYCL DEF 1 being read
         self.cycle: _Cycle | None = None
         self.started = False
+        self.current = (-1, "")                  # (line index, its block number) being read
 
     def err(self, message: str, k: int) -> InputError:
-        return InputError(message, self.path, line=k + 1)
+        """InputError at source line k (0-based), naming the TNC's block number too (the number a
+        TNC user searches by)."""
+        block = f" (block {self.current[1]})" if self.current[0] == k and self.current[1] else ""
+        return InputError(message + block, self.path, line=k + 1)
 
     def line(self, k: int, text: str) -> tuple[str, LineInfo]:
         """(G-code, info) of source line k (0-based)."""
         info = LineInfo(shift=tuple(self.shift))
         body = text.strip()
+        first = body.split(maxsplit=1)[0] if body else ""
+        self.current = (k, first if first.isdigit() else "")
         if not body:
             return "", info
         m = _BLOCK.match(body)
