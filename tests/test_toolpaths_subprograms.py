@@ -136,3 +136,33 @@ def test_calls_refused_in_one_line(tmp_path, capsys, text, dialect, words):
     assert code == 2 and len(lines) == 1, err
     assert all(w in lines[0] for w in words), lines[0]
     assert not out.exists()
+
+
+@pytest.mark.parametrize("code", ["G150 P100 Q0.5", "G47 P0", "G22 X5", "G241", "G200", "G60 X5",
+                                  "G50 X0 Z0", "G64.7"])
+def test_a_g_code_mtcomp_does_not_follow_is_refused(tmp_path, capsys, code):
+    """Haas' pocket (G150) and engraving (G47) cycles, Fanuc's stroke limit (G22 X5: the X is a
+    limit, not a move) and codes no reader knows were passed as if they changed nothing: the next
+    block could then get a word for a position the machine never had. Refused, naming the code."""
+    _, _, model = _model(tmp_path, "xfyz", seed=5)
+    p, out = tmp_path / "p.nc", tmp_path / "out.nc"
+    p.write_text(f"G90 G17 G21\nG0 X0 Y0 Z5\n{code}\nG1 Y10 F100\nM30\n")
+    code_, _o, err = _run(["compensate", "xfyz", str(model), str(p), "-o", str(out), "--quiet",
+                           "--dialect", "haas"], capsys)
+    lines = err.strip().splitlines()
+    assert code_ == 2 and len(lines) == 1 and "p.nc:3:" in lines[0], err
+    assert code.split()[0] in lines[0] and "not a code mtcomp follows" in lines[0], lines[0]
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("code", ["G154 P1", "G110"])
+def test_a_haas_work_system_change_forgets_the_positions(tmp_path, capsys, code):
+    """After a change to one of Haas' additional work systems the next block names X only: Y and Z
+    are not known in the new system, so the block is neither corrected nor given Y or Z words."""
+    _, _, model = _model(tmp_path, "xfyz", seed=5, scale=3.0)
+    p, out = tmp_path / "p.nc", tmp_path / "out.nc"
+    p.write_text(f"G90 G17 G21\nG0 X0 Y0 Z5\n{code}\nG1 X10 F100\nM30\n")
+    code_, _o, err = _run(["compensate", "xfyz", str(model), str(p), "-o", str(out), "--quiet",
+                           "--dialect", "haas"], capsys)
+    assert code_ == 0, err
+    assert out.read_text().splitlines()[3] == "G1 X10 F100"
