@@ -32,11 +32,11 @@ _UNIQUE_LETTERS = frozenset("XYZABCIJKRFNUVW")
 #: P10000 / G08 high-speed and look-ahead modes (LinuxCNC's G8: radius mode), G09 exact stop, G11
 #: data setting off, G15 polar coordinates off, G40-G42 cutter compensation (G41/G42 noted where
 #: the program is read), G50 scaling off (without axis words), G61-G64 path control, G67 modal macro
-#: off, G69 rotation off, G95 feed per revolution, G96/G97 spindle speed modes, Haas' G100 mirror
+#: off, G69 rotation off, G96/G97 spindle speed modes, Haas' G100 mirror
 #: off, G103 look-ahead, G187 smoothness, G113 polar interpolation off. Any whole G code that is
 #: neither this nor one the reader follows (motion, planes, units, distance and feed modes, work
 #: systems, tool length, cycles, dwell, home moves) is refused: its motion cannot be known.
-MODE_ONLY_G = frozenset({5, 8, 9, 11, 15, 40, 41, 42, 50, 61, 62, 63, 64, 67, 69, 95, 96, 97,
+MODE_ONLY_G = frozenset({5, 8, 9, 11, 15, 40, 41, 42, 50, 61, 62, 63, 64, 67, 69, 96, 97,
                          100, 103, 113, 187})
 #: G codes with a decimal part the reader follows or that change nothing it follows
 KNOWN_DECIMAL_G = frozenset({5.1, 28.1, 30.1, 33.1, 43.1, 43.4, 50.1, 54.1, 59.1, 59.2, 59.3,
