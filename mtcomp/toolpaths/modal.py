@@ -24,7 +24,7 @@ from .blocks import CycleBlock, MotionBlock
 from .dialect import GENERIC
 from .programmed import ProgrammedOffsets, apply_g10
 from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _COLON_PROGRAM_RE, _CURVE_WITH_COORDINATES,
-                    _NUMBERED_PERCENT_RE, KNOWN_DECIMAL_G, MODE_ONLY_G, OTHER_WCS_G,
+                    _NUMBERED_PERCENT_RE, KNOWN_DECIMAL_G, OTHER_WCS_G, mode_followed,
                     _REFUSED_G, _REFUSED_M, _UNIQUE_LETTERS, _WCS_INDEX, DEFAULT_CHORD_TOL_MM,
                     DIR_EPS, MM_PER_INCH, TCP_OFF_M, TCP_ON_M, TOOL_AXIS, frame_code, tokenize)
 
@@ -310,7 +310,9 @@ class ModalState:
             elif gi == 10:
                 nonmotion_axes = g10 = True          # the axis words are offsets
             else:
-                self._known_mode(gi, tokens, line)
+                if not mode_followed(gi, [t[0] for t in tokens]):
+                    raise self._err(f"G{gi} is not a code mtcomp follows (its effect on the motion "
+                                    "cannot be known)", line)
                 self._apply_modal_code(gi, values)
         if dwell and motion is not None and home_move is None:
             nonmotion_axes = self._dwell_with_motion(motion, tokens, line)
@@ -319,16 +321,6 @@ class ModalState:
         if g10:
             apply_g10(self, values, tokens, line)
         return motion, nonmotion_axes, home_move, cycle
-
-    def _known_mode(self, gi: int, tokens, line: int) -> None:
-        """Refuse a whole G code that is neither followed nor a mode that changes no motion."""
-        followed = gi in (17, 18, 19, 20, 21, 43, 44, 49, 80, 90, 91, 93, 94, 98, 99) \
-            or gi in _WCS_INDEX or gi in OTHER_WCS_G
-        if followed or gi in MODE_ONLY_G and not (
-                gi == 50 and any(t[0].upper() in "XYZABCIJK" for t in tokens)):
-            return
-        raise self._err(f"G{gi} is not a code mtcomp follows (its effect on the motion cannot be "
-                        "known)", line)
 
     def _dwell_with_motion(self, motion: int, tokens, line: int) -> bool:
         """A G4 dwell with a motion code in one block (``G04 P.001 G0 X1 Y1``): LinuxCNC and grbl

@@ -44,6 +44,17 @@ KNOWN_DECIMAL_G = frozenset({5.1, 28.1, 30.1, 33.1, 43.1, 43.4, 50.1, 54.1, 59.1
 #: Haas' additional work coordinate systems (G154 P1-P99, G110-G129): positions are unknown after
 #: a change to one, as after Fanuc's G54.1
 OTHER_WCS_G = frozenset({154, *range(110, 130)})
+#: whole G codes of modes the reader follows (planes, units, tool length, cycle cancel, distance
+#: and feed modes, retract levels; the work systems apart)
+FOLLOWED_MODE_G = frozenset({17, 18, 19, 20, 21, 43, 44, 49, 80, 90, 91, 93, 94, 98, 99})
+
+
+def mode_followed(gi: int, letters) -> bool:
+    """Whether the whole G code ``gi`` of a block whose word letters are ``letters`` is a mode the
+    reader follows or one that changes no motion (G50 only without axis words)."""
+    if gi in FOLLOWED_MODE_G or gi in _WCS_INDEX or gi in OTHER_WCS_G:
+        return True
+    return gi in MODE_ONLY_G and not (gi == 50 and any(c.upper() in "XYZABCIJK" for c in letters))
 #: G codes that would change geometry in a way mtcomp does not follow: refused, never guessed
 _REFUSED_G = {
     52: "G52 (local coordinate system)",
