@@ -30,7 +30,7 @@ from .planner._small import any_rows
 from .planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
 from .toolpaths import iter_segment_chunks, write_corrected
 from .toolpaths._fast import format_table
-from .toolpaths.source import conversational_units, open_program
+from .toolpaths.source import open_program
 
 _DIGITS = b"0123456789."
 #: kinds of bound -> their columns in PlanResult.flags
@@ -499,8 +499,23 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     series = _checked_series(fitted, settings, temperature_series)
     fitted.context_defaults.update(thermal)
     setup = setup if setup is not None else ProgramSetup(machine)
-    # one pass over the user's file for its units and for cutter radius compensation (the note)
-    found, settings = _program_words(program, settings)
+    with contextlib.ExitStack() as stack:
+        src = stack.enter_context(open_program(program, settings.dialect))
+        # one pass over the program as read (an expansion, a conversational program's G-code) for
+        # its units and for cutter radius compensation (the note); a conversational program's
+        # blocks stay one to one, so it is planned without internal nodes
+        found = words_in(src, (b"20", b"21", b"41", b"42"))
+        if src.heidenhain is not None:
+            settings = replace(settings, subdivide_tol_um=0.0)
+        return _compensate_source(fitted, src, output, settings, setup, report, progress, judges,
+                                  series, assumed, found, stack, t0)
+
+
+def _compensate_source(fitted, src, output, settings, setup, report, progress, judges, series,
+                       assumed, found, stack, t0) -> CompensationRun:
+    """:func:`compensate_program` once the program is open (``src``, closed by ``stack``)."""
+    machine = fitted.machine
+    program = src.source
     start_inch, inch, notes = _program_units(found, settings, machine)
     start_pos, start_known = start_position(machine, settings.start_position)
     sd_limit = settings.sd_limit()
@@ -511,9 +526,9 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
                 inch=start_inch, initial_known=start_known)
 
     def machine_chunks():
-        for chunk in iter_segment_chunks(src[0], machine, chunk_size=CHUNK_ROWS, **read):
+        for chunk in iter_segment_chunks(src, machine, chunk_size=CHUNK_ROWS, **read):
             tally.read(chunk)
-            mchunk, off = setup.apply(chunk, src[0])
+            mchunk, off = setup.apply(chunk, src)
             if series is not None:
                 mchunk.context = {f"temp_{k}": v for k, v in series.at(tally.clock(chunk)).items()}
             offsets_of[id(mchunk)] = (chunk, off)
@@ -532,7 +547,7 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
             tally.planned(res)
             _to_program_frame(res, chunk, off, setup)
             # the source line of each block (the report and the summary name the user's file)
-            res.line = src[0].source_lines_of(res.line)
+            res.line = src.source_lines_of(res.line)
             summary.add(res)
             if rep is not None:
                 rep.writelines(_report_lines(res, machine.axis_names, sd_limit))
@@ -541,33 +556,18 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
             # raised while the outputs are still temporary files: nothing is written
             raise InputError("no motion block in the program: nothing to compensate", program)
 
-    written, src = {}, []
-    with contextlib.ExitStack() as stack:
-        src.append(stack.enter_context(open_program(program, settings.dialect)))
-        rep = None
-        if report is not None:
-            rep = stack.enter_context(atomic_write(report, "w", newline=""))
-            rep.write(",".join(report_columns(machine.axis_names, machine.is_five_axis)) + "\n")
-        write_corrected(src[0], output, machine, corrections(rep), stats=written, **read)
-    notes += _run_notes(src[0], written, fitted, setup, tally, found)
+    written, rep = {}, None
+    if report is not None:        # committed when the caller's stack closes, after the output
+        rep = stack.enter_context(atomic_write(report, "w", newline=""))
+        rep.write(",".join(report_columns(machine.axis_names, machine.is_five_axis)) + "\n")
+    write_corrected(src, output, machine, corrections(rep), stats=written, **read)
+    notes += _run_notes(src, written, fitted, setup, tally, found)
     if series is not None:
         assumed = _series_sentence(fitted, settings, series, tally)
     return CompensationRun(summary, written, notes, assumed, planner.stats,
                            {j.label: j.as_dict() for j in judges},
                            math.sqrt(tally.sum_sq / max(tally.n, 1)), tally.max,
-                           time.perf_counter() - t0, tally.bound_blocks, src[0].summary())
-
-
-def _program_words(program, settings: CompensationSettings) -> tuple[set, CompensationSettings]:
-    """(the G codes of units and cutter radius compensation the program holds, the settings): a
-    Heidenhain conversational program states its units on its BEGIN PGM line, and its blocks stay
-    one to one (it is planned without internal nodes)."""
-    found = words_in(program, (b"20", b"21", b"41", b"42"))
-    units = conversational_units(program, settings.dialect)
-    if units:
-        found.add(units)
-        settings = replace(settings, subdivide_tol_um=0.0)
-    return found, settings
+                           time.perf_counter() - t0, tally.bound_blocks, src.summary())
 
 
 def _planner(fitted, settings: CompensationSettings, inch: bool, program, progress) -> tuple:

@@ -378,16 +378,6 @@ def translate(path) -> Translation:
     return reader.out
 
 
-def is_conversational(path) -> bool:
-    """Whether a program's first lines hold Heidenhain's ``BEGIN PGM``."""
-    try:
-        with open(path, "rb") as f:
-            head = [f.readline().decode("latin-1") for _ in range(3)]
-    except OSError:
-        return False
-    return any(re.match(r"(?i)^\s*\d+\s+BEGIN\s+PGM\b", line) for line in head)
-
-
 def signed(value: float, decimals: int, sign: bool = True) -> str:
     """A coordinate in Heidenhain's form: ``+107.5032``, ``-0.0100`` (``+0.0000``, never -0)."""
     s = f"{value:.{decimals}f}"

@@ -198,10 +198,11 @@ class HeidenhainWriter:
             worst = None
             for c in candidates:
                 text, said = self._centre_text(cc, c)
-                miss = max(self._miss(a, said) for a in arcs)
+                misses = [self._miss(a, said) for a in arcs]
+                miss = max(misses)
                 if miss[0] <= 0.0:
                     self.texts[cc] = text
-                    self.arc_miss = max(self.arc_miss, max(self._miss(a, said)[2] for a in arcs))
+                    self.arc_miss = max(self.arc_miss, *(m[2] for m in misses))
                     break
                 worst = miss if worst is None or miss[0] < worst[0] else worst
             else:

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 from ..errors import InputError
 from .dialect import Dialect, dialect_named, foreign_language, needs_expansion
-from .heidenhain import is_conversational, translate
+from .heidenhain import translate
 from .macro import MacroRun
 from .ngc import MAX_LINES, MAX_STEPS, NgcRun
 
@@ -143,17 +143,6 @@ def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int):
     return tmp, line_map, len(line_map) - 1, len(raws)
 
 
-def conversational_units(path, dialect: str | None = None) -> bytes | None:
-    """For a Heidenhain conversational program (given as the dialect, or detected), the G code of
-    its units (b"21" for MM, b"20" for INCH on its BEGIN PGM line); None for any other program."""
-    if dialect not in (None, "heidenhain") or not is_conversational(path):
-        return None
-    with open(path, "rb") as f:
-        head = f.read(4096).upper()
-    return b"20" if b" INCH" in head.split(b"\n", 3)[0] + b"".join(head.split(b"\n")[1:3]) \
-        else b"21"
-
-
 def _conversational(source: str, d: Dialect, why: str):
     """A Heidenhain conversational program as a ProgramSource of its G-code equivalent."""
     if not os.path.isfile(source):
@@ -183,10 +172,10 @@ def open_program(path, dialect: str | None = None, *, max_steps: int = MAX_STEPS
     foreign = foreign_language(source) if dialect is None else None
     if foreign is not None:
         line, text, name, what = foreign
-        hint = "" if "not G-code" in what else "; give --dialect generic to read it as plain G-code"
         article = "an" if name[0] in "AEIOU" else "a"
         raise InputError(f"{article} {name} program ({text!r}): its language ({what}) is not read "
-                         f"by mtcomp{hint}", source, line=line)
+                         "by mtcomp; give --dialect generic to read it as plain G-code", source,
+                         line=line)
     d, why = dialect_named(dialect, source)
     if d.language == "heidenhain":
         yield from _conversational(source, d, why)
