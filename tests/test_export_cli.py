@@ -174,3 +174,24 @@ def test_compensate_and_export_correct_alike_up_to_the_datum(tmp_path, work_offs
     # the program's origin (the first block, at the datum) has nothing to correct
     assert float(rows[2]["ex_before_um"]) == pytest.approx(0.0, abs=1e-4)
     assert np.ptp(before) > 5.0                              # um: there was an error to correct
+
+
+def test_data_outside_the_machines_travel_get_no_table_and_another_machine_is_named(tmp_path, capsys):
+    """A model made on another machine of the same topology: its data's region (X -20:20 mm) lies
+    outside the given machine's X travel (30:600 mm): no X table, and a note naming both machines;
+    Y's region (0:10) reaches beyond the travel (5:300): the table stops at the travel."""
+    p = _model(tmp_path, {"X": (-20.0, 20.0), "Y": (0.0, 10.0)})
+    mill = tmp_path / "mill2.toml"
+    mill.write_text('name = "mill2"\ntopology = "XFYZ"\ntool_length_mm = 150.0\n'
+                    "[axes.X]\ntravel_mm = [30.0, 600.0]\n[axes.Y]\ntravel_mm = [5.0, 300.0]\n"
+                    "[axes.Z]\ntravel_mm = [-250.0, 150.0]\n")
+    assert main(["export", str(mill), str(p), "--format", "linuxcnc", "-o", str(tmp_path / "lc")]) == 0
+    err = capsys.readouterr().err
+    assert "was made for the machine 'carver800t-like'" in err and "'mill2'" in err
+    assert "axis X: the region of the data -20:20 mm lies outside the machine's travel 30:600 mm" in err
+    assert not (tmp_path / "lc" / "x.comp").exists()
+    nom = _nominals(tmp_path / "lc" / "y.comp")
+    assert (nom[0], nom[-1]) == (5.0, 10.0)
+    # the machine the model was made for: no such note
+    assert main(["export", "xfyz", str(p), "--format", "linuxcnc", "-o", str(tmp_path / "lc2")]) == 0
+    assert "was made for the machine" not in capsys.readouterr().err

@@ -83,7 +83,7 @@ def add_arguments(parser):
                              "the program starts, e.g. the rotary axes of a 5-axis machine that a "
                              "3-axis program never names (default: no axis is known at the start)")
     add_dialect_argument(parser)
-    parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
 
 
 def _positive(value, flag, allow_zero=False):
@@ -192,7 +192,10 @@ def run(args) -> int:
     _positive(args.max_correction_sd_um, "--max-correction-sd-um", allow_zero=True)
     out, report, summary_json = _output_paths(args)
     machine = load_machine(args.machine)
-    fitted = load_model(args.model, machine)
+    model_notes: list = []
+    fitted = load_model(args.model, machine, model_notes)
+    for n in model_notes:
+        sys.stderr.write(f"note: {n}\n")
     temperatures, series, unread = _thermal_state(args, fitted)
     settings = CompensationSettings(
         method=args.method, max_correction_um=args.max_correction_um,

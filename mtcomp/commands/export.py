@@ -61,7 +61,10 @@ def run(args) -> int:
     from ..models.model_file import load_model
 
     machine = load_machine(args.machine)
-    fitted = load_model(args.model, machine)
+    model_notes: list = []
+    fitted = load_model(args.model, machine, model_notes)
+    for n in model_notes:
+        sys.stderr.write(f"note: {n}\n")
     fmt = exporter(args.format)
     max_points = fmt.MAX_POINTS if args.max_points is None else args.max_points
     if max_points < 2:

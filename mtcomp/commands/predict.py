@@ -39,7 +39,10 @@ def run(args) -> int:
 
     out = check_output_path(args.output, [args.data, args.model] + cmm_programs(args))
     machine = load_machine(args.machine)
-    fitted = load_model(args.model, machine)
+    model_notes: list = []
+    fitted = load_model(args.model, machine, model_notes)
+    for n in model_notes:
+        sys.stderr.write(f"note: {n}\n")
     data = read_measurements(args.data)
     attach_cmm_cuts(args, machine, [data])
     note_outside_travel("predict", machine, [data])

@@ -139,7 +139,10 @@ def run(args) -> int:
     progress = Progress(sys.stderr)
     progress("reading the model")
     machine = load_machine(args.machine)
-    fitted = load_model(args.model, machine)
+    model_notes: list = []
+    fitted = load_model(args.model, machine, model_notes)
+    for n in model_notes:
+        sys.stderr.write(f"note: {n}\n")
     fitted, drift_note = _thermal_state(args, fitted)
     progress("reading the program")
     tol = None if args.chord_tol_um is None else args.chord_tol_um * 1e-3

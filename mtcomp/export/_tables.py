@@ -178,6 +178,17 @@ def table_region(fitted, ranges: dict | None = None) -> tuple[dict, dict, list]:
         if not lo < hi:
             notes.append(f"axis {a}: no table: the data reached only one position ({lo * f:g} {u})")
             continue
+        t_lo, t_hi = ax.travel
+        if lo < t_lo or hi > t_hi:
+            c_lo, c_hi = max(lo, t_lo), min(hi, t_hi)
+            what = (f"axis {a}: the region of the data {lo * f:g}:{hi * f:g} {u} "
+                    f"{'lies outside' if not c_lo < c_hi else 'reaches beyond'} the machine's travel "
+                    f"{t_lo * f:g}:{t_hi * f:g} {u}")
+            if not c_lo < c_hi:
+                notes.append(f"{what}: no table (was the model made on another machine?)")
+                continue
+            notes.append(f"{what}: the table stops at the travel")
+            lo, hi = c_lo, c_hi
         region[a], source[a] = (float(lo), float(hi)), "data"
     return region, source, notes
 

@@ -319,9 +319,11 @@ def _looks_like_gcode(path: str) -> bool:
     return bool(lines) and sum(bool(word.match(ln)) for ln in lines) >= max(1, len(lines) // 2)
 
 
-def load_model(path: str | os.PathLike, machine: Machine | None = None) -> FittedModel:
+def load_model(path: str | os.PathLike, machine: Machine | None = None,
+               notes: list | None = None) -> FittedModel:
     """Read MODEL.json. With ``machine``, check that the file was made for a machine of that topology
-    and the same axes (the machine given on the command line wins for travel and compensation)."""
+    and the same axes (the machine given on the command line wins for travel and compensation);
+    ``notes`` (a list) gets a sentence for the user when the file names another machine."""
     p = os.fspath(path)
     try:
         with open(p, encoding="utf-8") as f:
@@ -345,6 +347,10 @@ def load_model(path: str | os.PathLike, machine: Machine | None = None) -> Fitte
         if machine.topology != file_machine.topology:
             raise InputError(f"model was made for a {file_machine.topology} machine, not "
                              f"{machine.topology}", p)
+        if notes is not None and machine.name != file_machine.name:
+            notes.append(f"{p} was made for the machine {file_machine.name!r}; its errors are used "
+                         f"on {machine.name!r}, the machine given (its travel, tool length and axis "
+                         "points): give the machine the model was made for if that is not meant")
         # travel, tool length and compensation limits: the given machine's; the error-model
         # structure (bases, knots, Fourier orders): the model file's, which its parameters belong to
         axes = tuple(replace(a, travel=b.travel, axis_point=b.axis_point)

@@ -231,7 +231,9 @@ def _thermal_model(machine, fit, axes: dict) -> FittedModel:
     info = {"fitted_by": "mtcomp diagnose (thermal drift)", "drift_features": list(c.features),
             "time_constants_s": c.time_constants_s,
             "context_ranges": context_ranges(fit) if c.driver != "none" else {}}
-    fitted = FittedModel(model, params, defaults, info,
+    # support {}: the record moved no axis, and the drift model has no error that varies along one
+    # (no region bounds where it applies)
+    fitted = FittedModel(model, params, defaults, info, support={},
                          uncertainty=drift_uncertainty(fit, axes) if c.driver != "none" else None)
     return fitted
 
