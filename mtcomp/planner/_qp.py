@@ -8,9 +8,17 @@ Variables of a window: the corrections of ``n + 1`` blocks in optimisation units
     subject to  l_i <= x_i <= u_i                         (correction bound and travel, per block)
                 -S_j <= x_i,j - x_(i-1),j <= S_j          (step bound; +-inf where exempt)
 
-with b_i, A_i the objective's residual and Jacobian (``Linearization.objective``) and lam the
-per-axis regularisation (``CompensationProblem.regularization_weights``). P is block diagonal (upper
-triangle stored, fixed pattern), A is constant: identity rows then difference rows. Only P's values, q, l and u change between windows and SQP iterations.
+                |b_i + A_i (x_i - x_lin,i)| <= |b0_i| + tau        (never worse, per row, i >= 1)
+
+with b_i, A_i the objective's residual and Jacobian (``Linearization.objective``), b0_i the residual
+of the uncorrected block, and lam the per-axis regularisation
+(``CompensationProblem.regularization_weights``). The last rows keep every block at least as good
+as uncorrected in each direction the objective counts (to ``tau``, the output grid's rounding):
+where the bounds do not let a correction follow the error (a backlash reversal under the step
+bound), the blocks on either side are corrected partly rather than pushed past their error. P is
+block diagonal (upper triangle stored, fixed pattern); A is identity rows, difference rows (both
+constant) and the blocks' Jacobians (values change, pattern fixed). Only P's and A's values, q, l
+and u change between windows and SQP iterations.
 """
 from __future__ import annotations
 
@@ -20,10 +28,10 @@ import numpy as np
 class WindowQP:
     """An OSQP problem for windows of ``n_nodes`` blocks (anchor included) of ``na`` axes."""
 
-    def __init__(self, n_nodes: int, na: int, eps: float = 1e-7):
+    def __init__(self, n_nodes: int, na: int, rows: int, eps: float = 1e-7):
         import osqp                      # imported here: most programs never need a QP
         import scipy.sparse as sp
-        self.N, self.na = int(n_nodes), int(na)
+        self.N, self.na, self.rows = int(n_nodes), int(na), int(rows)
         N, na = self.N, self.na
         nv = N * na
         # upper triangle of each na x na block, column-major, as (row, col) within the block
@@ -43,11 +51,19 @@ class WindowQP:
         H0 = np.broadcast_to(np.eye(na), (N, na, na))
         P = sp.csc_matrix((self._p_data(H0), np.array(indices), np.array(indptr)), shape=(nv, nv))
         rows = np.arange((N - 1) * na)
-        D = sp.csc_matrix((np.concatenate([np.ones(rows.size), -np.ones(rows.size)]),
+        # marks: -1 for +1 entries, -3 for -1 entries (told apart from the Jacobian's ids >= 2)
+        D = sp.csc_matrix((np.concatenate([-np.ones(rows.size), -3 * np.ones(rows.size)]),
                            (np.concatenate([rows, rows]), np.concatenate([rows + na, rows]))),
                           shape=((N - 1) * na, nv))
-        A = sp.vstack([sp.identity(nv, format="csc"), D], format="csc")
+        A = sp.vstack([-sp.identity(nv, format="csc"), D, self._jacobian_rows(sp)], format="csc")
+        # where each Jacobian entry sits in A.data (CSC order): entry k of the blocks (node-major,
+        # row-major within a block) was stored as the value k + 2 in the pattern matrix above
+        order = np.rint(A.data).astype(np.int64)
+        self._fixed = np.where(order == -1, 1.0, -1.0)    # the identity and difference rows
+        self._jac_pos = np.flatnonzero(order >= 2)
+        self._jac_src = order[self._jac_pos] - 2
         self.m = A.shape[0]
+        A.data = self._values(np.zeros((N - 1, self.rows, na)))
         self.solver = osqp.OSQP()
         self.solver.setup(P, np.zeros(nv), A, -np.ones(self.m), np.ones(self.m), verbose=False,
                           eps_abs=eps, eps_rel=eps, polishing=True, max_iter=200000,
@@ -57,16 +73,37 @@ class WindowQP:
     def _p_data(self, H: np.ndarray) -> np.ndarray:
         return np.ascontiguousarray(H[:, self._tri_r, self._tri_c]).reshape(-1)
 
-    def solve(self, H, g, lower, upper, step_lo, step_hi, x0):
+    def _jacobian_rows(self, sp):
+        """The pattern of the never-worse rows: block i (rows x na) of nodes 1..N-1 at columns of node
+        i, its entries numbered 2, 3, ... node-major and row-major."""
+        N, na, r = self.N, self.na, self.rows
+        node, row, col = np.meshgrid(np.arange(1, N), np.arange(r), np.arange(na), indexing="ij")
+        ids = np.arange(node.size, dtype=float) + 2
+        return sp.csc_matrix((ids, (((node - 1) * r + row).reshape(-1),
+                                    (node * na + col).reshape(-1))), shape=((N - 1) * r, N * na))
+
+    def _values(self, J: np.ndarray) -> np.ndarray:
+        """A.data (CSC order) with the Jacobian blocks J (N - 1, rows, na) of nodes 1..N-1."""
+        data = self._fixed.copy()
+        data[self._jac_pos] = J.reshape(-1)[self._jac_src]
+        return data
+
+    def solve(self, H, g, lower, upper, step_lo, step_hi, x0, J=None, worse_lo=None, worse_hi=None):
         """Solve one window.
 
         H : (N, na, na) Hessian blocks. g : (N, na) linear term. lower, upper : (N, na) bounds of x.
         step_lo, step_hi : (N - 1, na) bounds of x_i - x_(i-1), i = 1..N-1. x0 : (N, na) warm start.
-        Returns (x (N, na), status string).
+        J : (N - 1, rows, na) the objective's Jacobian of nodes 1..N-1, worse_lo, worse_hi :
+        (N - 1, rows) bounds of J x (None: no never-worse rows). Returns (x (N, na), status string).
         """
-        l = np.concatenate([lower.reshape(-1), step_lo.reshape(-1)])
-        u = np.concatenate([upper.reshape(-1), step_hi.reshape(-1)])
-        self.solver.update(Px=self._p_data(H), q=np.ascontiguousarray(g.reshape(-1)), l=l, u=u)
+        if J is None:
+            J = np.zeros((self.N - 1, self.rows, self.na))
+            worse_lo = np.full((self.N - 1, self.rows), -1e30)
+            worse_hi = -worse_lo
+        l = np.concatenate([lower.reshape(-1), step_lo.reshape(-1), worse_lo.reshape(-1)])
+        u = np.concatenate([upper.reshape(-1), step_hi.reshape(-1), worse_hi.reshape(-1)])
+        self.solver.update(Px=self._p_data(H), q=np.ascontiguousarray(g.reshape(-1)), l=l, u=u,
+                           Ax=self._values(J))
         self.solver.warm_start(x=np.ascontiguousarray(x0.reshape(-1)))
         res = self.solver.solve(raise_error=False)
         self.solves += 1

@@ -20,8 +20,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._evaluate import objective_residual
 from ._pointwise import Linearization
-from .engine import NodeSet, Planner
+from .engine import NEVER_WORSE_TOL, NodeSet, Planner
 from .problem import CompensationProblem, PlannerOptions
 
 
@@ -86,8 +87,12 @@ def build_cvxpy_problem(problem: CompensationProblem, q, feed=None, dirs=None, r
         d = x[idx, :] - x[idx - 1, :]
         Sm = np.broadcast_to(b.S, (idx.size, na))
         cons += [d <= Sm, d >= -Sm]
+    # never worse than uncorrected, per row the objective counts (the QP's last rows, :mod:`._qp`)
+    lin0 = linearization or lin
+    room = np.abs(objective_residual(lin0.orientation_rows, lin0.b0)) + NEVER_WORSE_TOL
+    cons += [cp.abs(resid[k]) <= room[:, k] for k in range(rows)]
     cq = CvxpyProblem(cp.Problem(objective, cons), x, nodes, cons, A, c, b.D, objective)
-    cq.update(linearization or lin)
+    cq.update(lin0)
     return cq
 
 

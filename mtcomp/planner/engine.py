@@ -38,6 +38,10 @@ from .problem import CompensationProblem, PlannerOptions
 #: slack of the support test (mm for linear axes, rad for rotary ones): a block this close to the
 #: edge of the region the model's data reached counts as inside
 SUPPORT_TOL = 1e-6
+#: a bounded window keeps every block's deviation, per direction the objective counts, within this
+#: (um, or the weighted urad of the tool axis) of the uncorrected one: half the output grid (the
+#: written correction is rounded to it)
+NEVER_WORSE_TOL = 0.05
 #: a rotary axis whose data reached all of a turn but a gap this wide (rad) counts as measured all
 #: around: its profiles are periodic, so the gap is between data on both sides like any other
 WRAP_GAP_RAD = np.radians(45.0)
@@ -511,11 +515,35 @@ class Planner:
             cb(self._done)
 
     # ------------------------------------------------------------------ windows (qp)
-    def _window_qp(self, n_nodes: int) -> WindowQP:
-        qp = self._qps.get(n_nodes)
+    def _window_qp(self, n_nodes: int, rows: int) -> WindowQP:
+        qp = self._qps.get((n_nodes, rows))
         if qp is None:
-            qp = self._qps[n_nodes] = WindowQP(n_nodes, self.na, self.options.osqp_eps)
+            qp = self._qps[(n_nodes, rows)] = WindowQP(n_nodes, self.na, rows, self.options.osqp_eps)
         return qp
+
+    def _never_worse(self, lin: Linearization, c, A, reachable):
+        """(J, lo, hi) of the QP's never-worse rows (:mod:`._qp`): |c + A x| <= |b0| + NEVER_WORSE_TOL
+        per objective row; no rows (None) where a node cannot reach zero correction from the
+        window's anchor under the step bound (``reachable`` False)."""
+        b0 = objective_residual(lin.orientation_rows, lin.b0)
+        room = np.abs(b0) + NEVER_WORSE_TOL
+        lo, hi = -room - c, room - c
+        lo[~reachable], hi[~reachable] = -INF, INF
+        return A, lo, hi
+
+    def _reachable(self, free: np.ndarray, S: np.ndarray) -> np.ndarray:
+        """(n,) bool: nodes of a window that zero correction can reach from its anchor through the
+        step bound (the anchor's distance from zero, in steps; a node free of the step bound resets it)."""
+        prev = self._prev
+        n = free.size
+        if prev is None:
+            return np.ones(n, dtype=bool)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            need = np.max(np.where(S > 0, np.abs(prev) / S, 0.0))
+        since = np.arange(1, n + 1, dtype=float)
+        last_free = np.maximum.accumulate(np.where(free, np.arange(n), -1))
+        since = np.where(last_free >= 0, 0.0, since)
+        return since >= need - 1e-9
 
     def _solve_window(self, nodes: NodeSet, lin: Linearization, limits) -> np.ndarray:
         """Corrections x (n, na) of one window; updates lin in place when re-linearised."""
@@ -527,7 +555,8 @@ class Planner:
             return lin.x.copy()
         self.stats["windows_qp"] += 1
         n, na = lin.x.shape
-        qp = self._window_qp(n + 1)
+        qp = self._window_qp(n + 1, lin.b.shape[1] if lin.orientation_rows.shape[1] == 0
+                             else objective_residual(lin.orientation_rows[:1], lin.b[:1]).shape[1])
         lam = self.problem.regularization_weights
         lower = np.vstack([np.zeros((1, na)) if prev is None else prev[None, :], l])
         upper = np.vstack([np.zeros((1, na)) if prev is None else prev[None, :], u])
@@ -539,6 +568,7 @@ class Planner:
         step_hi = np.where(free[:, None], INF, S)
         eye = np.eye(na)
         x = np.clip(lin.x, l, u)
+        reachable = self._reachable(free, np.asarray(b.S, dtype=float))
         for _it in range(o.max_iterations):
             c, A = lin.objective()
             H = gram(A, lam)
@@ -546,7 +576,13 @@ class Planner:
             Hall = np.concatenate([eye[None], H])
             gall = np.vstack([np.zeros((1, na)), g])
             x0 = np.vstack([lower[:1], x])
-            sol, status = qp.solve(Hall, gall, lower, upper, step_lo, step_hi, x0)
+            worse = self._never_worse(lin, c, A, reachable)
+            sol, status = qp.solve(Hall, gall, lower, upper, step_lo, step_hi, x0, *worse)
+            if status not in ("solved", "solved inaccurate"):
+                # never worse is out of reach (the bounds forbid leaving a block as it was): the
+                # least error within the bounds, the blocks made worse counted in the summary
+                self.stats["never_worse_dropped"] = self.stats.get("never_worse_dropped", 0) + 1
+                sol, status = qp.solve(Hall, gall, lower, upper, step_lo, step_hi, x0)
             self.stats["qp_solves"] += 1
             self.stats["qp_status"][status] = self.stats["qp_status"].get(status, 0) + 1
             if status not in ("solved", "solved inaccurate"):

@@ -32,7 +32,11 @@ import numpy as np
 
 from ._bounds import FLAG_KINDS, flag_name
 from ._small import any_rows, row_norm
-from .engine import PlanResult
+from .engine import NEVER_WORSE_TOL, PlanResult
+
+#: a block counts as made worse when its deviation along an axis grows by more than this (um): the
+#: planner's never-worse rows allow NEVER_WORSE_TOL (half the output grid), rounding as much again
+WORSE_TOL_UM = 2 * NEVER_WORSE_TOL
 
 
 def report_columns(axis_names, five_axis: bool) -> list[str]:
@@ -167,6 +171,11 @@ class Summary:
     corrected_max_after_um: float = 0.0
     corrected_sum_sq_before: float = 0.0
     corrected_sum_sq_after: float = 0.0
+    #: blocks whose deviation along some axis the correction made larger than uncorrected (by more
+    #: than WORSE_TOL_UM): where the bounds forbade both correcting and leaving the block as it was
+    worse_blocks: int = 0
+    worse_max_um: float = 0.0
+    worse_line: int = 0
 
     def add(self, r: PlanResult):
         n = len(r)
@@ -212,6 +221,7 @@ class Summary:
             self.worst_line = int(r.line[i])
         self.sum_sq_before += float(np.sum(eb ** 2))
         self.sum_sq_after += float(np.sum(ea ** 2))
+        self._add_worse(r)
         done = ~r.pinned
         if done.any():
             self.corrected_blocks += int(done.sum())
@@ -225,6 +235,15 @@ class Summary:
             self.max_axis_before_urad = max(self.max_axis_before_urad or 0.0, ab)
             self.max_axis_after_urad = max(self.max_axis_after_urad or 0.0, aa)
         self.not_converged += int(np.sum(~r.converged))
+
+    def _add_worse(self, r: PlanResult) -> None:
+        grown = (np.abs(r.after) - np.abs(r.before)).max(axis=1) * 1e3
+        worse = grown > WORSE_TOL_UM
+        if worse.any():
+            self.worse_blocks += int(worse.sum())
+            i = int(np.argmax(grown))
+            if grown[i] > self.worse_max_um:
+                self.worse_max_um, self.worse_line = float(grown[i]), int(r.line[i])
 
     def as_dict(self) -> dict:
         """The figures as the keys of ``mtcomp compensate --json`` (um; counts of blocks)."""
@@ -250,7 +269,10 @@ class Summary:
                "outside_support_blocks": self.outside_blocks,
                "bounded_blocks": self.bounded_blocks,
                "active_bounds": dict(sorted(self.flag_counts.items())),
-               "not_converged": self.not_converged}
+               "not_converged": self.not_converged,
+               "worse_than_uncorrected": {"blocks": self.worse_blocks,
+                                          "largest_um": self.worse_max_um,
+                                          "line": self.worse_line}}
         if self.max_axis_before_urad is not None:
             out["max_axis_before_urad"] = self.max_axis_before_urad
             out["max_axis_after_urad"] = self.max_axis_after_urad
@@ -288,6 +310,11 @@ class Summary:
                          f"predicted deviation {self.max_after_um:.3f} um at line {self.worst_line}")
         else:
             lines.append("0 blocks hit a bound")
+        if self.worse_blocks:
+            lines.append(f"warning: {blocks(self.worse_blocks)} left worse than uncorrected along an "
+                         f"axis (up to {self.worse_max_um:.3f} um more, at line {self.worse_line}): "
+                         "the bounds forbade both following the error and leaving the block as it "
+                         "was (a larger --max-step-um lets the correction follow)")
         if self.not_converged:
             lines.append(f"warning: {blocks(self.not_converged)} did not converge within the "
                          "iteration limit")

@@ -3,7 +3,8 @@
 No linearisation, no windows: the exact model over the whole program at once,
 
     minimise    1/2 sum_i ||M_i S (actual_pose(q_i + dq_i, c_i) - nominal_pose(q_i))||^2 + 1/2 sum_j lam_j ||x_j||^2
-    subject to  the same correction, travel and step bounds as the QP
+    subject to  the same correction, travel and step bounds as the QP, and its never-worse rows
+                |r_i| <= |r_i(dq = 0)| + tol per row
 
 with x the corrections in um / urad (see :mod:`mtcomp.planner._qp`) and M_i the identity on the tip
 rows and ``Evaluator.orientation_rows`` on the tool-axis rows (a constant of block i). Meant for small programs (tests
@@ -14,7 +15,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from mtcomp.planner.engine import Planner
+from mtcomp.planner.engine import NEVER_WORSE_TOL, Planner
 from mtcomp.planner.problem import CompensationProblem, PlannerOptions
 
 
@@ -38,6 +39,12 @@ def solve_reference(problem: CompensationProblem, q, feed=None, dirs=None, rapid
         e = r[3:6, :]
         r = ca.vertcat(r[:3, :], *[sum(ca.DM(M[:, k, j]).T * e[j, :] for j in range(3))
                                    for k in range(3)])
+    # never worse than uncorrected, per row the objective counts (the QP's last rows)
+    r0 = lin.b0 * 1.0
+    if rows == 6:
+        r0 = np.hstack([r0[:, :3], np.einsum("nkj,nj->nk", lin.orientation_rows, r0[:, 3:6])])
+    room = (np.abs(r0) + NEVER_WORSE_TOL).T
+    opti.subject_to(opti.bounded(-room, r, room))
     lam = problem.regularization_weights
     opti.minimize(0.5 * ca.sumsqr(r) + 0.5 * ca.sumsqr(np.sqrt(lam)[:, None] * X))
     l, u = b.box(nodes.q)

@@ -1,0 +1,58 @@
+"""Bounds never leave a block worse than uncorrected: at a backlash reversal under the step bound
+the correction cannot follow the error's jump; the blocks on either side are corrected partly
+(never pushed past their error), and a block the bounds do force worse is counted and named."""
+import csv
+
+import numpy as np
+
+from mtcomp.cli import main
+from mtcomp.models import Backlash, save_model
+from test_export_formats import random_model
+
+BL_UM = 30.0
+SLOPE = -40.0
+
+
+def _model(tmp_path):
+    fm = random_model("xfyz", (Backlash("X"),), 3, 0.0, None)     # every geometric error 0
+    fm.params.set_file_value("BL_X", BL_UM)
+    fm.params.set_file_value("EXX_1", SLOPE)      # a positioning error linear in X beside it
+    p = tmp_path / "model.json"
+    save_model(p, fm)
+    return p
+
+
+def _rows(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_a_reversal_under_the_step_bound_leaves_no_block_worse(tmp_path, capsys):
+    model = _model(tmp_path)
+    prog = tmp_path / "zig.nc"
+    prog.write_text("G21 G90 G54\nG0 X150 Y0 Z0\nG1 X200 F500\nG1 X150\nG1 X200\nG1 X150\nM30\n")
+    report = tmp_path / "B.csv"
+    assert main(["compensate", "xfyz", str(model), str(prog), "-o", str(tmp_path / "o.nc"),
+                 "--report", str(report), "--json", str(tmp_path / "S.json"),
+                 "--max-step-um", "5"]) == 0
+    said = capsys.readouterr()
+    rows = [r for r in _rows(report) if r["unknown_axes"] == ""]
+    before = np.array([float(r["ex_before_um"]) for r in rows])
+    after = np.array([float(r["ex_after_um"]) for r in rows])
+    cx = np.array([float(r["cx_um"]) for r in rows])
+    # a model of X's errors alone: a correction of X moves the deviation 1:1 (the oracle of the
+    # after column); the ends at X200 (approached +) and X150 (approached -) differ by the backlash
+    # and the positioning error between them, so a 5 um step cannot follow the reversal
+    ends = {int(r["line"]): float(r["ex_before_um"]) for r in rows if r["inserted"] == "0"}
+    assert abs(ends[3] - ends[4]) > 20.0
+    sign = min((1.0, -1.0), key=lambda s: np.max(np.abs(after - before - s * cx)))
+    np.testing.assert_allclose(after, before + sign * cx, rtol=0, atol=0.02)
+    # the step bound binds (the correction ramps 5 um a block across each 30 um reversal) ...
+    assert any(r["active_bounds"] for r in rows)
+    assert np.max(np.abs(np.diff(cx))) <= 5.0 + 1e-9
+    # ... and no block is worse than uncorrected (the rounding's 0.1 um aside)
+    assert np.all(np.abs(after) <= np.abs(before) + 0.1)
+    import json
+    summary = json.loads((tmp_path / "S.json").read_text())
+    assert summary["worse_than_uncorrected"]["blocks"] == 0
+    assert "worse than uncorrected" not in said.out + said.err
