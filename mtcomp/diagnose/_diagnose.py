@@ -477,7 +477,8 @@ def _take(st, design, sel: _Selection, best, alike, good, noise, say) -> None:
             f"the model holds the first")
     else:
         say(f"found {finding.effect} {finding.axis}: held-out {before:.4g} -> "
-            f"{finding.heldout_rms_after:.4g} {finding.unit} (BIC {dbic:+.1f}, {dk} parameter(s))")
+            f"{finding.heldout_rms_after:.4g} {finding.unit} (Bayesian information criterion "
+            f"{dbic:+.1f}: below 0 favours the term; {dk} parameter(s))")
     sel.findings.append(finding)
     sel.chosen.append(c)
     sel.extra = np.hstack([sel.extra, c.columns])

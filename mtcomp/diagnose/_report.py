@@ -277,7 +277,8 @@ def summary(diag, details=()) -> str:
         lines.append(f"refused: {r['effect']}{on}{variant}: {r['reason']}")
     fz = diag.final
     rank = getattr(diag, "rank", None)
-    dof = f", dof {diag.n_obs - rank}" if rank is not None else ""
+    dof = (f", {rank} of them determined by the data, {diag.n_obs - rank} degrees of freedom left"
+           if rank is not None else "")
     lines.append(f"final model ({fz['n_params']} parameters{dof}): rms {_num(fz.get('rms_um'))} um, "
                  f"held-out {_num(fz.get('heldout_rms_um'))} um"
                  + _other_units(fz))
@@ -289,8 +290,17 @@ def summary(diag, details=()) -> str:
     if diag.thermal is not None:
         lines.append(diag.thermal.summary())
     lines += list(details)
-    lines.append(f"verdict: {diag.verdict}")
+    lines.append(f"verdict: {diag.verdict} ({VERDICT_MEANING.get(diag.verdict, '')})")
     return "\n".join(lines)
+
+
+#: what each verdict says, printed beside it (docs/diagnose.md)
+VERDICT_MEANING = {
+    "none": "the base model explains the data down to the noise",
+    "explained": "the findings above bring the held-out residual down to the noise",
+    "unexplained": "structure remains that no candidate explains, or two explain it alike and the "
+                   "data cannot say which; see the findings above",
+}
 
 
 def _num(v):
