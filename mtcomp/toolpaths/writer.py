@@ -221,9 +221,9 @@ def format_motion_lines(block: MotionBlock, points: np.ndarray, letters: str, ro
     least with the decimals the word had and at least 4 (5 in inch); an axis the line does not
     name whose written value changes is added after the line's last axis word, in the line's letter
     case; never an axis whose position the program has not given. Word order, case, spacing,
-    comments, the N word and the motion word stay as written; a G91 on the line is dropped (the
-    output is absolute) and G90 or a motion word are put after the N word only where the output
-    needs them. Later pieces of a block split into several (inserted nodes, G93 pieces) are new
+    comments, the N word, the motion word and G90/G91 stay as written (in G91 a word is the
+    increment between corrected written ends), and G90/G91 or a motion word are put after the N
+    word only where the output needs them. Later pieces of a block split into several (inserted nodes, G93 pieces) are new
     lines with what changes. A G2/G3 block stays one arc where the corrected path lies within
     ``chord_tol`` (mm) of one, else it becomes consecutive arcs (:func:`_arc_text`); ``counts`` (k,)
     are the corrected points per chord of the arc (None: one each). A drilling cycle is restated
