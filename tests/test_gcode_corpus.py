@@ -89,6 +89,10 @@ def _model_file(tmp_path, machine_path, seed=1, factor=1.0):
 def _positioned_per_line(text: str):
     """Per source line (1-based): (is a motion line, axes positioned after it), from the rules.
 
+    In G91 an axis word moves the axis by its value: a G0/G1 line that names an axis not
+    positioned moves it from wherever it stands, so it stays unpositioned and the line is no
+    motion line (the controller's own move, kept as written). Nothing after M2/M30 runs (NIST
+    RS274/NGC: lines after the program's end are not executed): those lines are kept as written.
     A drilling cycle line with axis words is a motion line that may write X, Y (given or known) and
     Z and R of the cycle; after it Z stands at the R plane (G99) or at the initial level (G98, when
     that was known and the R plane is not above it), and is unknown otherwise."""
@@ -96,9 +100,13 @@ def _positioned_per_line(text: str):
     wcs, motion, cycle = "G54", None, False
     absolute, z_now, retract, cycle_z, cycle_r = True, None, None, None, None
     init_z = None
+    ended = False
     out = []
     for raw in text.splitlines():
         code = _COMMENT.sub("", raw).upper().strip()
+        if ended:
+            out.append((False, set(known)))
+            continue
         if code.startswith("$"):
             if code[1:2] in ("H", "J"):
                 known = set()
@@ -108,6 +116,7 @@ def _positioned_per_line(text: str):
         value = dict(words)
         g = [v for c, v in words if c == "G"]
         axes = {c for c, _ in words if c in "XYZABC"}
+        ended = any(c == "M" and v in (2, 30) for c, v in words)
         if any(c == "M" and v == 6 for c, v in words) or any(v in (43, 49) for v in g):
             known.discard("Z")
         for v in g:
@@ -153,11 +162,15 @@ def _positioned_per_line(text: str):
                     known.discard("Z")
                     z_now = None
                 continue
+            elif not absolute and motion in (0, 1) and axes - known:
+                if "Z" in axes and z_now is not None:
+                    z_now += value["Z"]
             elif axes or (motion in (2, 3) and any(c in "IJKR" for c, _ in words)):
                 known |= axes
                 moved = True
                 if "Z" in axes:
-                    z_now = value["Z"] if absolute else None
+                    z_now = value["Z"] if absolute else (None if z_now is None
+                                                         else z_now + value["Z"])
         out.append((moved, set(known)))
     return out
 
@@ -291,6 +304,20 @@ def test_the_oracle_catches_a_written_unknown_axis():
         _check_output(src, b"G21\nG0 X1 Y1 Z0\nG1 Z-1 F100\nM30\n")
     with pytest.raises(AssertionError, match="missing from the output"):
         _check_output(src, b"G0 X1 Y1\nG1 Z-1 F100\nM30\n")
+
+
+def test_the_oracle_reads_incremental_words_and_the_program_end():
+    # G91 X1 of a known X is a motion line; G91 Z-10 of Z unknown after M6 passes through as
+    # written and Z stays unknown; after M30 nothing is motion, every line kept as written
+    src = b"G21 G90\nG0 X0 Y0 Z5\nG91 G1 X1 F100\nM6 T1\nG0 Z-10 X1\nM30\nG0 X5\n"
+    info = _positioned_per_line(src.decode())
+    assert [m for m, _k in info] == [False, True, True, False, False, False, False]
+    assert info[4][1] == {"X", "Y"}
+    _check_output(src, src.replace(b"X1 F100", b"X1.001 F100"))
+    with pytest.raises(AssertionError, match="source line 5 is missing"):
+        _check_output(src, src.replace(b"G0 Z-10 X1", b"G0 Z-10 X1.001"))
+    with pytest.raises(AssertionError, match="source line 7 is missing"):
+        _check_output(src, src.replace(b"G0 X5", b"G0 X5.001"))
 
 
 def test_the_oracle_follows_the_retract_of_drilling_cycles():

@@ -168,6 +168,25 @@ def test_compare_sees_motion_the_source_lacks(out, message):
         compare(SRC, out, TOL)
 
 
+G91_SRC = b"G21 G90\nG0 X0 Y0 Z5\nG91 G1 X10. F100\nX10.\nY5. (up)\nG90 G0 Z5\nM30\n"
+
+
+def test_compare_replays_incremental_output():
+    # the output in G91 as the source: the first increment carries the correction (+15 um in X),
+    # the others as written; the replay adds them up to the corrected ends
+    out = G91_SRC.replace(b"G91 G1 X10.", b"G91 G1 X10.015")
+    src_moves, out_moves = compare(G91_SRC, out, TOL)
+    assert [m.end["X"] for m in out_moves[1:4]] == pytest.approx([10.015, 20.015, 20.015],
+                                                                 rel=0, abs=1e-12)
+    # an increment that keeps a correction twice lands 15 um further on: out of tolerance at the
+    # bound of 20 um plus rounding
+    with pytest.raises(AssertionError, match="no matching output motion"):
+        compare(G91_SRC, out.replace(b"\nX10.\n", b"\nX10.015\n"), TOL)
+    # twice as many increments of Y (no Y5 -> Y10): the replay sees it
+    with pytest.raises(AssertionError, match="no matching output motion"):
+        compare(G91_SRC, out.replace(b"Y5. (up)", b"Y10. (up)"), TOL)
+
+
 def test_replay_runs_a_zero_radius_circle_as_a_block_that_does_not_move():
     moves = replay(b"G21 G0 X1 Y2 Z3\nG3 X1 Y2 I0.000 F100\nG3 X1 Y2 I0.5\n").moves
     assert [m.kind for m in moves] == ["rapid", "none", "arc"]

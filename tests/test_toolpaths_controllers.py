@@ -118,10 +118,11 @@ def test_rigid_tapping_passes_through_and_ends_where_it_started(tmp_path, gcode_
     # by hand: field (1e-4 z, -2e-4 z, 3e-4 x) mm at each end (Y's written value is unchanged)
     assert out == ["G21 G90", "G0 X1.0005 Y1.9990 Z5.0003", "G33.1 Z-10 K1.25", "Z-12",
                    "G0 X3.0005 Z5.0009", "M30"]
-    # in G91 the line stays incremental where the output is absolute
+    # in G91 every line stays incremental: X2 -> X3 move by 1 with the same X correction (X1
+    # kept), Z's correction grows by 3e-4 * 1 at each (Z0.0003 added)
     out = _write_with(tmp_path, "G21 G90\nG0 X1 Y2 Z5\nG91 G0 X1\nG33.1 Z-15 K1.25\nG0 X1\nM30\n")
-    assert out.splitlines()[2:] == ["G0 X2.0005 Z5.0006", "G91", "G33.1 Z-15 K1.25",
-                                    "G90 G0 X3.0005 Z5.0009", "M30"]
+    assert out.splitlines()[2:] == ["G91 G0 X1 Z0.0003", "G33.1 Z-15 K1.25", "G0 X1 Z0.0003",
+                                    "M30"]
 
 
 def test_a_file_of_subroutines_only_is_refused_by_name(tmp_path):

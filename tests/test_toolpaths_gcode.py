@@ -146,11 +146,8 @@ def test_inch_and_incremental(tmp_path):
     out = tmp_path / "out.nc"
     write_corrected(tmp_path / "in.nc", out, XFYZ, None, initial_known=True)
     lines = out.read_text().splitlines()
-    # absolute output: G90 once; only the named axes and what changes; the same on both paths
-    assert lines[0] == "G20 G91"
-    assert lines[1] == "G90 G1 X1.00000 Y-0.50000 F10"
-    assert lines[2] == "X2.00000"
-    assert lines[3] == "G21 G90 G1 X1"
+    # incremental lines stay incremental: without a correction the program comes out as it is
+    assert lines == text.splitlines()
     # without initial_known the program has not said where X is: the controller moves it from
     # wherever it stands, so the incremental lines pass through uncorrected, X Y Z unknown until
     # line 4 gives X
@@ -359,18 +356,17 @@ def test_initial_position(tmp_path):
     np.testing.assert_allclose(c.end, [[6, 0, 2], [5, 1, 2]], rtol=0, atol=0)
     out = tmp_path / "out.nc"
     write_corrected(p, out, XFYZ, None, initial_position=init)
-    assert out.read_text() == "G1 X6.0000 F10\nG90 G28\nG1 Y1\n"
+    assert out.read_text() == "G91 G1 X1 F10\nG90 G28\nG1 Y1\n"      # G91 stays incremental
     # after G28 (every axis home) only Y is known again
     assert [b.known.tolist() for b in prog.blocks] == [[True] * 3, [False, True, False]]
 
 
 def test_incremental_home_move_keeps_its_meaning(tmp_path):
-    # the output drops the G91 of line 1 (it is absolute); G28 Z0 on line 2 relies on G91, so a
-    # G91 line is put before it, and the next motion line switches back to G90
+    # the output stays in G91 as the source is: G28 Z0 keeps its meaning with no line added
     p = _write(tmp_path, "G91 G1 X1 F100\nG28 Z0\nG1 X1\n(end)\n")
     out = tmp_path / "out.nc"
     write_corrected(p, out, XFYZ, None, initial_known=True)
-    assert out.read_text() == "G1 X1.0000 F100\nG91\nG28 Z0\nG90 G1 X2.0000\n(end)\n"
+    assert out.read_text() == "G91 G1 X1 F100\nG28 Z0\nG1 X1\n(end)\n"
 
 
 def test_fanuc_contour_control_modes_pass_through(tmp_path):

@@ -181,8 +181,8 @@ def test_fanuc_colon_program_number_and_dos_end_mark_pass_through(tmp_path):
 def test_incremental_move_of_an_unknown_axis_passes_through_and_keeps_it_unknown(tmp_path):
     """Haas: G43 H01 without Z, then G91 G0 Z-10.: the controller moves Z from wherever it stands.
     The line passes through as written (incremental), Z stays unknown until the program gives it,
-    X and Y named in the same line move by their increments and stay known; in a G91 program whose
-    output is absolute, a G91 line goes before it."""
+    X and Y named in the same line move by their increments and stay known; the output stays in
+    G91 as the source is."""
     p = tmp_path / "in.nc"
     p.write_text("G21 G90\nG0 X10 Y10 Z50\nT1 M6\nG43 H01\nG91 G0 X5 Z-10.\nG0 Y1\nG90 G0 Z20.\n"
                  "G1 X30 F100\n")
@@ -194,14 +194,15 @@ def test_incremental_move_of_an_unknown_axis_passes_through_and_keeps_it_unknown
     out = _shifted(p, XFYZ)
     src = p.read_text().splitlines()
     assert out[4] == src[4]                       # as written: the controller's own move
-    # X and Y known (X where the passed line took it: the controller's 10.002 + 5), Z not written
-    assert out[5] == "G90 G0 Y11.0020 X15.0020"      # X added after the line's Y
+    # X and Y known (X where the passed line took it: the controller's 10.002 + 5, where the
+    # shifted X is): the increment of Y is the source's, X and Z not written
+    assert out[5] == "G0 Y1"
     assert out[6] == "G90 G0 Z20.0020"                # its own G90 kept
     q = tmp_path / "inc.nc"
     q.write_text("G21 G90\nG0 X0 Y0 Z5\nG91\nG0 X10 Y10\nT1 M6\nG0 Z-10.\nG90 G0 Z20.\n")
     res = _shifted(q, XFYZ)
-    # the known increments are written absolute; the passed line gets its G91 back before it
-    assert res[3:] == ["G90 G0 X10.0020 Y10.0020", "T1 M6", "G91", "G0 Z-10.", "G90 G0 Z20.0020"]
+    # the known increments stay the source's (the shift is constant); the passed line as written
+    assert res[3:] == ["G0 X10 Y10", "T1 M6", "G0 Z-10.", "G90 G0 Z20.0020"]
 
 
 def test_incremental_arc_of_an_unknown_axis_is_still_refused(tmp_path):

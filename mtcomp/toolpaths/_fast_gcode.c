@@ -225,7 +225,7 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
             } else if (L == 'I' || L == 'J' || L == 'K' || L == 'R' || L == 'U' || L == 'V' ||
                        L == 'W') {
                 simple = 0; break;                  /* arcs and foreign axes: Python decides */
-            } else if (L == 'T' || (L == 'M' && (v == 6.0 || v == 97.0 || v == 98.0 || v == 99.0 || v == 128.0 || v == 428.0 ||
+            } else if (L == 'T' || (L == 'M' && (v == 2.0 || v == 30.0 || v == 6.0 || v == 97.0 || v == 98.0 || v == 99.0 || v == 128.0 || v == 428.0 ||
                                           v == 430.0))) {
                 simple = 0; break;                  /* tool changes, subprograms: Python */
             }                                       /* M S H D P Q O E ...: kept as written */
@@ -237,6 +237,8 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
         unsigned known = (unsigned)state[20];
         /* an incremental move of an axis not known: Python refuses it */
         if (seen && state[15] != 0.0 && (seen & ~known)) { *consumed = pos; return FALLBACK; }
+        /* the writer keeps an incremental line incremental: Python writes it */
+        if (out && seen && state[15] != 0.0) { *consumed = pos; return FALLBACK; }
         long long line_no = (long long)state[16] + 1;
         if (seen) {
             if (r_line && *r_n >= r_cap) { *consumed = pos; return ROWS_FULL; }

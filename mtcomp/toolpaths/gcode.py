@@ -120,9 +120,10 @@ def write_corrected(in_path, out_path, machine: Machine,
         being the segment's corrected end. None writes the nominal program: the round trip.
     Every line that is not a motion line is written byte for byte and in place. In a motion line
     only the numbers that carry a correction change, in place (see :func:`format_motion_lines`); an
-    axis whose position the program has not given is never written. Output is absolute (G90), in
-    the units of the input at that line, a corrected number with at least its source word's decimals
-    (and 4 for mm and deg, 5 for inch). The file is written atomically: nothing is left on
+    axis whose position the program has not given is never written. Output is in the distance
+    mode (G90/G91: an incremental word is the increment between corrected written ends) and the
+    units of the input at that line, a corrected number with at least its source word's decimals
+    (and 4 for mm and deg, 5 for inch); lines after M2/M30 are written as they are. The file is written atomically: nothing is left on
     failure and the input is never overwritten. inch, initial_known : see :func:`iter_blocks`.
     stats : a dict that receives ``cycle_lines``, the drilling cycle lines passed through unchanged
     (their positions are not corrected), and ``cycle_blocks``, those kept as cycles (with the

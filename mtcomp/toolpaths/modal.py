@@ -120,6 +120,7 @@ class ModalState:
         #: work offsets the program sets itself (G10 L2/L20); their sets are numbered alike in
         #: every pass over one ProgramSource
         self.offsets = ProgrammedOffsets(self.na, getattr(path, "work_offset_sets", None))
+        self.ended = False      # an M2/M30 was read: no later line runs (docs/toolpaths.md)
 
     @property
     def frame(self) -> int:
@@ -129,7 +130,7 @@ class ModalState:
     def python_only(self) -> bool:
         """Lines the compiled scanner must not take (cycle, inverse-time or tool centre point mode
         in force)."""
-        return self.cycle is not None or self.inverse_time or self.tcp
+        return self.cycle is not None or self.inverse_time or self.tcp or self.ended
 
     def _err(self, msg, line):
         path, line, suffix = self._where(line)
@@ -156,7 +157,7 @@ class ModalState:
         are checked, the feed is set; then a home move, a drilling cycle or a motion block follows.
         """
         self._clear_line_flags()
-        text = self._text_with_words(line, text)
+        text = None if self.ended else self._text_with_words(line, text)
         if text is None:
             return None
         try:
@@ -278,6 +279,7 @@ class ModalState:
         cycle = None
         dwell = g10 = False
         tool_change = any(m == 6 for m in mcodes)
+        self.ended = any(m in (2, 30) for m in mcodes)
         for m in mcodes:
             if m in TCP_ON_M or m in TCP_OFF_M:
                 self._set_tcp(m in TCP_ON_M)

@@ -10,12 +10,15 @@ pure-Python writer (the public :func:`mtcomp.toolpaths.gcode.write_corrected` pr
 and runs the compiled writer when it can, with the same bytes).
 
 Output: the input with only the numbers that carry a correction changed (at least the source
-word's decimals, and 4 in mm and deg, 5 in inch), absolute (G90), in the units of the input at each
-line; see docs/toolpaths.md for what is rewritten and what passes through.
+word's decimals, and 4 in mm and deg, 5 in inch), in the distance mode (G90/G91) and the units of
+the input at each line: an incremental word is the increment between the corrected written ends,
+both on the output's grid (:func:`_increment_text`); see docs/toolpaths.md for what is rewritten
+and what passes through.
 """
 from __future__ import annotations
 
 import math
+from decimal import Decimal
 
 import numpy as np
 
@@ -33,10 +36,13 @@ from .words import (DEFAULT_CHORD_TOL_MM, MM_PER_INCH, SourceLine, format_number
 class OutputState:
     """What the written program has said so far (shared with the compiled writer).
 
-    absolute : the output is in G90. motion : the motion word in force in the output (0, 1, 2, 3;
-    -1 when not known: before the first, after a line that changed it in another way). values :
-    (na,) float64, per axis the position last written (mm, rad, as read back from its text; nan:
-    none yet). A coordinate is written when its text differs from that of the last value.
+    absolute : the output is in G90. It follows the input's G90/G91 words, except after a G91
+    drilling cycle line, which is written absolute (:func:`_cycle_head`). motion : the motion word
+    in force in the output (0, 1, 2, 3; -1 when not known: before the first, after a line that
+    changed it in another way). values : (na,) float64, per axis where the output's machine stands
+    in the program's frame (mm, rad, as read back from the text written; nan: none yet, or the
+    program has lost the axis's position). A coordinate is written when its text differs from that
+    of the last value.
     """
 
     def __init__(self, na: int, state: ModalState | None = None):
@@ -78,6 +84,23 @@ def _format_value(v: float, rot: bool, inch: bool) -> str:
     return _value_text(v, rot, inch, _base_decimals(rot, inch))
 
 
+def _on_grid(v: float, rot: bool, inch: bool) -> Decimal:
+    """The position v (mm, rad) in the program's units as the decimal number that was written for
+    it (its text read back: 10 decimals give back every word of up to 10 decimals exactly)."""
+    x = math.degrees(v) if rot else (v / MM_PER_INCH if inch else v)
+    return Decimal(repr(round(float(x), 10)))
+
+
+def _increment_text(target: str, start: float, rot: bool, inch: bool) -> str:
+    """The incremental word from ``start`` (mm, rad: where the output stands) to the absolute
+    position ``target`` (its text, program units): their difference on the output's grid, with
+    the decimals of both, so that the increments written add up exactly to the written ends."""
+    prev = _on_grid(start, rot, inch)
+    end = Decimal(target)
+    decimals = max(-end.as_tuple().exponent, -prev.as_tuple().exponent, 0)
+    return format_number(end - prev, decimals)
+
+
 def _piece_feeds(block: MotionBlock, points: np.ndarray, xyz: list[int]) -> np.ndarray:
     """G93: the F (1/min) of each of the k pieces a block is written as, so that the block keeps its
     time: F / (share of the piece in the block's path length; equal shares without motion in XYZ)."""
@@ -101,30 +124,24 @@ def _decimals(line: SourceLine, letters: str, rotary: list[bool], inch: bool) ->
     return [max(_base_decimals(rot, inch), own.get(c, most)) for c, rot in zip(letters, rotary)]
 
 
-def _edit_head(line: SourceLine, out: OutputState, code: int) -> None:
-    """The output is absolute: a G91 of the line is dropped (or becomes G90 where the output is in
-    G91), G90 is put in front where the output is in G91; the motion word is kept as written (a
-    G2/G3 written as lines gets G1 in its place) and put in front where the output's mode differs."""
+def _edit_head(line: SourceLine, out: OutputState, code: int, incremental: bool) -> None:
+    """The line's G90/G91 stay as written; where the output's distance mode differs from the
+    line's (after a G91 drilling cycle written absolute) and the line does not say it, G90 or G91
+    is put in front. The motion word is kept as written (a G2/G3 written as lines gets G1 in its
+    place) and put in front where the output's mode differs."""
     head = []
-    g91 = g90 = motion = None
+    distance = motion = None
     for w in line.words:
         if w[0] == "G":
             v = float(line.number(w))
-            if v == 91:
-                g91 = w
-            elif v == 90:
-                g90 = w
+            if v in (90, 91):
+                distance = w
             elif v in (0, 1, 2, 3):
                 motion = w
     g = line.letter("G")
-    if g91 is not None:
-        if out.absolute:
-            line.delete(g91)
-        else:
-            line.replace_word(g91, g + "90")
-    elif not out.absolute and g90 is None:
-        head.append(g + "90")
-    out.absolute = True
+    if distance is None and out.absolute == incremental:
+        head.append(g + ("91" if incremental else "90"))
+    out.absolute = not incremental
     if motion is not None:
         if float(line.number(motion)) != code:
             line.replace_word(motion, f"{g}{code}")
@@ -177,10 +194,17 @@ def _apply_axes(block: MotionBlock, line: SourceLine, texts, letters: str, out: 
             out.values[i] = block.end[i]
             continue
         w = line.find(letters[i]) if first and block.given[i] else None
+        said = t
+        if block.incremental:       # G91: the increment from where the output stands
+            v = out.values[i]
+            said = _increment_text(t, block.start[i] if v != v else v, out.rotary[i], block.inch)
+            if w is not None and Decimal(said) == Decimal(line.number(w)):
+                said = None         # the source's own increment keeps its spelling
         if w is not None:
-            line.replace_number(w, t)
+            if said is not None:
+                line.replace_number(w, said)
         else:
-            added.append(line.letter(letters[i]) + t)
+            added.append(line.letter(letters[i]) + said)
         out.set_last(i, t, block.inch)
     return added
 
@@ -197,9 +221,9 @@ def format_motion_lines(block: MotionBlock, points: np.ndarray, letters: str, ro
     least with the decimals the word had and at least 4 (5 in inch); an axis the line does not
     name whose written value changes is added after the line's last axis word, in the line's letter
     case; never an axis whose position the program has not given. Word order, case, spacing,
-    comments, the N word and the motion word stay as written; a G91 on the line is dropped (the
-    output is absolute) and G90 or a motion word are put after the N word only where the output
-    needs them. Later pieces of a block split into several (inserted nodes, G93 pieces) are new
+    comments, the N word, the motion word and G90/G91 stay as written (in G91 a word is the
+    increment between corrected written ends), and G90/G91 or a motion word are put after the N
+    word only where the output needs them. Later pieces of a block split into several (inserted nodes, G93 pieces) are new
     lines with what changes. A G2/G3 block stays one arc where the corrected path lies within
     ``chord_tol`` (mm) of one, else it becomes consecutive arcs (:func:`_arc_text`); ``counts`` (k,)
     are the corrected points per chord of the arc (None: one each). A drilling cycle is restated
@@ -228,7 +252,7 @@ def _line_text(block: MotionBlock, points: np.ndarray, letters: str, rotary: lis
     g93 = block.inverse_time and k > 1
     if g93:
         share = _piece_feeds(block, points, [i for i, c in enumerate(letters) if c in "XYZ"])
-    _edit_head(line, out, code)
+    _edit_head(line, out, code, block.incremental)
     if block.from_arc:
         for w in [w for w in line.words if w[0] in "IJKR"]:
             line.delete(w)
@@ -510,7 +534,7 @@ class _ArcFit:
         """The block's text: the first piece in the source's layout, the others as new lines."""
         line, block, out = self.line, self.block, self.out
         code = block.motion
-        _edit_head(line, out, code)
+        _edit_head(line, out, code, block.incremental)
         first = pieces[0]
         added = _apply_axes(block, line, first.texts, self.letters, out, True)
         pos = line.append_pos()
@@ -558,14 +582,25 @@ def _line_ending(raw: bytes) -> str:
 def write_pass_through(f, raw: bytes, state: ModalState, out: OutputState, separator: str) -> None:
     """Write a non-motion line as it is; updates ``out``.
 
-    The output is absolute while the input may be incremental (a G91 on a motion line is dropped).
-    A G28/G30 whose axis words rely on that G91 gets a line ``G91`` inserted before it.
+    Where the output is absolute while the input is incremental (after a G91 drilling cycle
+    written absolute), a line whose axis words rely on G91 (G28/G30, an incremental move of an
+    axis not known, G33.1) gets a line ``G91`` inserted before it. The output stands where the
+    line leaves it: a known axis an incremental pass-through moves moves by the same increment
+    from the output's position; an axis whose position the program loses is lost to the output
+    too, and one the line gives again (G10 L20) reads what the program reads.
     """
     if state.distance_sensitive and state.distance_word is None and state.incremental \
             and out.absolute:
         f.write(("G91" + (_line_ending(raw) or separator)).encode("latin-1"))
         out.absolute = False
     f.write(raw)
+    if state.distance_sensitive and state.incremental and not state.tapping:
+        _follow_increments(raw, state, out)
+    lost = ~state.known
+    if lost.any():
+        out.values[lost] = math.nan
+    if state.had_g and (state.known & np.isnan(out.values)).any():
+        _touched_off(raw, state, out)
     if state.distance_word == 91:
         out.absolute = False
     elif state.distance_word == 90:
@@ -583,6 +618,30 @@ def write_pass_through(f, raw: bytes, state: ModalState, out: OutputState, separ
         for attr in ("cycle_r", "cycle_z"):
             v = getattr(state, attr)
             setattr(out, attr, "" if v is None or v[1] else _format_value(v[0], False, state.inch))
+
+
+def _follow_increments(raw: bytes, state: ModalState, out: OutputState) -> None:
+    """An incremental move passed through (an axis not known among its words): each known axis it
+    names moves by its increment from where the output stands, on the output's grid."""
+    line = SourceLine(raw.decode("latin-1").rstrip("\r\n"))
+    for i, c in enumerate(state.names):
+        w = line.find(c)
+        v = out.values[i]
+        if w is None or not state.known[i] or v != v:
+            continue
+        end = _on_grid(v, out.rotary[i], state.inch) + Decimal(line.number(w))
+        out.set_last(i, str(end), state.inch)
+
+
+def _touched_off(raw: bytes, state: ModalState, out: OutputState) -> None:
+    """A G10 L20 that gives the position of axes the output had lost: the output's own G10 L20
+    (the line as written) makes them read the given values, as the program's do."""
+    line = SourceLine(raw.decode("latin-1").rstrip("\r\n"))
+    if not any(w[0] == "G" and float(line.number(w)) == 10 for w in line.words):
+        return
+    for i, c in enumerate(state.names):
+        if state.known[i] and out.values[i] != out.values[i] and line.find(c) is not None:
+            out.values[i] = state.position[i]
 
 
 class CorrectionCursor:

@@ -1,0 +1,157 @@
+"""Incremental (G91) programs come out incremental, and nothing after the program's end changes.
+
+Expected lines are written by hand from the rule: a corrected G91 word is the increment between
+the corrected written ends of this block and the one before (both rounded to the output's
+decimals), so the increments add up exactly to the rounded corrected positions. Every test runs
+on the compiled and the pure-Python path (the ``gcode_path`` fixture)."""
+from decimal import Decimal
+
+import numpy as np
+import pytest
+
+from mtcomp import load_machine
+from mtcomp.toolpaths import iter_segment_chunks, read_program, write_corrected
+from test_toolpaths_gcode import gcode_path  # noqa: F401  (autouse: compiled and Python path)
+
+XFYZ = load_machine("xfyz")
+ORIGIN = np.zeros(3)
+
+
+def _write(tmp_path, text, field, *, counts=None, **kw):
+    """Write ``text`` with every segment end moved by ``field(end)`` (n, 3) mm; counts: points per
+    row given as (row -> list of (3,) corrected points) for split blocks."""
+    src = tmp_path / "in.nc"
+    src.write_text(text)
+    out = tmp_path / "out.nc"
+
+    def corrections():
+        for c in iter_segment_chunks(src, XFYZ, **kw):
+            yield c, c.end + field(c.end), np.ones(len(c), np.int64)
+    write_corrected(src, out, XFYZ, corrections() if counts is None else counts(src), **kw)
+    return out.read_text().splitlines()
+
+
+def _constant_x(end):
+    return np.where(np.arange(3) == 0, 0.001, 0.0) * np.ones_like(end)
+
+
+def _linear(end):
+    """dX = 1e-3 X, dY = 2e-4 X (mm)."""
+    d = np.zeros_like(end)
+    d[:, 0] = 1e-3 * end[:, 0]
+    d[:, 1] = 2e-4 * end[:, 0]
+    return d
+
+
+def test_constant_correction_changes_only_the_first_increment(tmp_path):
+    # from X0 (given as the start): X 1.5 -> 1.501, then every end moves by the same 1 um, so the
+    # later increments are the source's, as written
+    text = "G21 G91\nG1 X1.5 F100\nX2\ny-1 (c)\nG0 X-0.25\n"
+    out = _write(tmp_path, text, _constant_x, initial_position=ORIGIN)
+    assert out == ["G21 G91", "G1 X1.5010 F100", "X2", "y-1 (c)", "G0 X-0.25"]
+
+
+def test_linear_correction_changes_the_increments_by_its_difference(tmp_path):
+    # absolute X 10, 20, 15 -> corrected 10.01, 20.02, 15.015: increments 10.01, 10.01, -5.005;
+    # Y (not named) moves with 2e-4 X: 0.002, 0.004, 0.003 -> increments 0.002, 0.002, -0.001,
+    # added after the line's last axis word with 4 decimals
+    text = "G21 G91\nG1 X10. F100\nX10.\nX-5. (back)\n"
+    out = _write(tmp_path, text, _linear, initial_position=ORIGIN)
+    assert out == ["G21 G91", "G1 X10.0100 Y0.0020 F100", "X10.0100 Y0.0020",
+                   "X-5.0050 Y-0.0010 (back)"]
+
+
+def test_absolute_then_incremental_keeps_the_words_g90_and_g91_as_written(tmp_path):
+    text = "G21 G90\nG0 X0 Y0 Z5\nG91 G1 X1.5 F100\nX2\nG90 G0 X10\n"
+    out = _write(tmp_path, text, _constant_x)
+    assert out == ["G21 G90", "G0 X0.0010 Y0 Z5", "G91 G1 X1.5 F100", "X2", "G90 G0 X10.0010"]
+
+
+def test_increments_add_up_exactly_to_the_rounded_corrected_ends(tmp_path):
+    """A long incremental program under a smooth correction: at every block the sum of the
+    written increments equals the corrected end rounded to 4 decimals, exactly (decimal sums)."""
+    rng = np.random.default_rng(7)
+    steps = np.round(rng.uniform(-5, 5, size=(2000, 2)), 3)
+    lines = ["G21 G91 G1 F500"] + [f"X{x:.3f} Y{y:.3f}" for x, y in steps]
+
+    def field(end):
+        return np.stack([3e-3 * np.sin(end[:, 0] / 7.0), 2e-3 * np.cos(end[:, 1] / 5.0),
+                         np.zeros(len(end))], axis=1)
+
+    start = np.array([1.2345, -2.5, 0.0])
+    out = _write(tmp_path, "\n".join(lines) + "\n", field, initial_position=start)
+    assert len(out) == len(lines) and out[0] == lines[0]
+    ends = start[:2] + np.cumsum(steps, axis=0)
+    corrected = np.column_stack([ends, np.zeros(len(ends))])
+    corrected = corrected + field(corrected)
+    total = [Decimal("1.2345"), Decimal("-2.5")]
+    changed = 0
+    for k, line in enumerate(out[1:]):
+        words = dict((w[0], Decimal(w[1:])) for w in line.split())
+        changed += line != lines[k + 1]
+        for j, c in enumerate("XY"):
+            total[j] += words[c]
+            assert total[j] == Decimal(f"{corrected[k, j]:.4f}"), (k, c, line)
+    assert changed > 1000          # the correction changes most increments
+
+
+def test_a_split_block_writes_its_later_pieces_as_increments(tmp_path):
+    def counts(src):
+        for c in iter_segment_chunks(src, XFYZ, initial_position=ORIGIN):
+            pts = np.array([[5.002, 0.0, 0.0], [10.001, 0.0, 0.0]])
+            yield c, pts, np.array([2])
+    out = _write(tmp_path, "G21 G91\nG1 X10. F100\n", None, counts=counts,
+                 initial_position=ORIGIN)
+    assert out == ["G21 G91", "G1 X5.0020 F100", "X4.9990"]
+
+
+def test_a_passed_through_increment_moves_the_output_from_where_it_stands(tmp_path):
+    # Z is unknown after the tool change, so line 4 passes through as written: the output's X
+    # goes from 0 to 5 with the source's. Line 5 ends at X6, corrected 6.006: the increment is
+    # from 5 (1.006), not from the last corrected end written (0)
+    text = "G21 G90\nG0 X0 Y0 Z50\nT1 M6\nG91 G0 X5 Z-10.\nG1 X1 F100\n"
+    out = _write(tmp_path, text, _linear)
+    assert out == ["G21 G90", "G0 X0 Y0 Z50", "T1 M6", "G91 G0 X5 Z-10.",
+                   "G1 X1.0060 Y0.0012 F100"]
+
+
+def test_an_incremental_arc_keeps_its_centre_offsets_under_a_shift(tmp_path):
+    text = "G21 G90 G17\nG0 X0 Y0 Z0\nG91 G2 X10 Y0 I5 J0 F100\n"
+    out = _write(tmp_path, text, _constant_x)
+    assert out == ["G21 G90 G17", "G0 X0.0010 Y0 Z0", "G91 G2 X10 Y0 I5 J0 F100"]
+
+
+def test_an_incremental_drilling_cycle_is_written_absolute_and_g91_comes_back(tmp_path):
+    # G91 G99 G81 from Z10: R 10-8 = 2, bottom 2-5 = -3 at X 0+5; with +1 um in X the line is
+    # written absolute (G91 dropped, X Z R the cycle's levels; Y stays 0, not written), and the
+    # next incremental line gets its G91 in front (X: from the hole's 5.001 by 1, as written)
+    text = "G21 G90\nG0 X0 Y0 Z10\nG91 G99 G81 X5 R-8 Z-5 F100\nG80\nG0 X1\n"
+    out = _write(tmp_path, text, _constant_x)
+    assert out[:2] == ["G21 G90", "G0 X0.0010 Y0 Z10"]
+    assert out[2] == "G99 G81 X5.0010 R2.0000 Z-3.0000 F100"
+    assert out[3:] == ["G80", "G91 G0 X1"]
+
+
+def test_nothing_after_the_program_end_is_read_or_corrected(tmp_path):
+    text = "G21 G90\nG0 X1 Y1 Z1\nM30\nG0 X2 Y2\nG91 G1 X1 F100\n"
+    assert [b.line for b in read_program(_path(tmp_path, text), XFYZ).blocks] == [2]
+    out = _write(tmp_path, text, _constant_x)
+    assert out == ["G21 G90", "G0 X1.0010 Y1 Z1", "M30", "G0 X2 Y2", "G91 G1 X1 F100"]
+    # M2 ends it too; a move on the M2 line itself is run (and corrected)
+    text = "G21 G90\nG0 X1 Y1 Z1\nG1 X3 F100 M2\nG0 X2 Y2\n"
+    out = _write(tmp_path, text, _constant_x)
+    assert out == ["G21 G90", "G0 X1.0010 Y1 Z1", "G1 X3.0010 F100 M2", "G0 X2 Y2"]
+
+
+def _path(tmp_path, text):
+    p = tmp_path / "read.nc"
+    p.write_text(text)
+    return p
+
+
+@pytest.mark.parametrize("text", ["G21 G91\nG1 X1.5 F100\nX2\n", "G20 G91\nG1 X.5 Y-.25 F10\n"])
+def test_round_trip_of_an_incremental_program(tmp_path, text):
+    out = tmp_path / "out.nc"
+    _path(tmp_path, text)
+    write_corrected(tmp_path / "read.nc", out, XFYZ, None, initial_position=ORIGIN)
+    assert out.read_text() == text
