@@ -123,7 +123,10 @@ class FrameCodes:
 
     def __init__(self, state, values: dict, tokens, line: int):
         self.s = state
-        self.values = values
+        self.values = dict(values)
+        for letter, num, _raw in tokens:       # P (G51's scale) is not among the block's values
+            if letter == "P":
+                self.values["P"] = float(num)
         self.tokens = tokens
         self.line = line
         self.scale = MM_PER_INCH if state.inch else 1.0
@@ -167,6 +170,7 @@ class FrameCodes:
         if not self.axes:
             raise self.err("G52 without axis words is not supported")
         shift = list(cur.shift)
+        self.s.position = self.s.position.copy()     # the last block's end is not moved with it
         for k, c in enumerate("XYZ"):
             if c in self.values:
                 new = self.values[c] * self.scale

@@ -742,8 +742,9 @@ class ModalState:
             if "R" not in values and is_point_circle(start, end, centre2, (a, b)):
                 pts = point_circle(start, self.dialect.name)
             else:
-                pts = arc_chords(start, end, centre2, plane, ccw, self.chord_tol, self.xyz_index,
-                                 self.inch)
+                # under scaling the chords are cut for the machine's arc (the tolerance on it)
+                tol = self.chord_tol / self.local.scales().max()
+                pts = arc_chords(start, end, centre2, plane, ccw, tol, self.xyz_index, self.inch)
         except ArcError as exc:
             raise self._err(str(exc), line) from None
         centre = np.zeros(3)
