@@ -155,3 +155,14 @@ def test_round_trip_of_an_incremental_program(tmp_path, text):
     _path(tmp_path, text)
     write_corrected(tmp_path / "read.nc", out, XFYZ, None, initial_position=ORIGIN)
     assert out.read_text() == text
+
+
+def test_an_increment_after_g52_starts_where_the_machine_stands(tmp_path):
+    # G52 X10 moves nothing: the machine stays at X 0.001 (corrected), whose program coordinate
+    # becomes -9.999. The next G91 X5 ends at program -5 -> corrected -4.999: the increment from
+    # where the machine stands is 5.000, the source's (an output that forgot the shift wrote
+    # X-5.0000: 10 mm the wrong way)
+    text = "G21 G90 G54\nG0 X0 Y0 Z0\nG52 X10.\nG91 G1 X5. F100\nX5.\nG90 G1 X0\n"
+    out = _write(tmp_path, text, _constant_x, initial_position=ORIGIN, dialect="fanuc")
+    assert out == ["G21 G90 G54", "G0 X0.0010 Y0 Z0", "G52 X10.", "G91 G1 X5. F100", "X5.",
+                   "G90 G1 X0.0010"]

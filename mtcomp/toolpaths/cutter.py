@@ -9,7 +9,7 @@ from ..errors import InputError
 from ..measurement.cut import CutProgram
 from .gcode import iter_segment_chunks
 from .source import open_program
-from .words import frame_offset_set
+from .words import frame_local, frame_offset_set
 
 
 def read_cut_program(path, machine) -> CutProgram:
@@ -26,6 +26,11 @@ def read_cut_program(path, machine) -> CutProgram:
         if moved.any():
             raise InputError("a move placed by work offsets the program sets itself (G10 L2/L20): "
                              "a cut program that does so is not supported", str(path),
+                             line=int(c.line[np.argmax(moved)]))
+        moved = frame_local(c.frame)
+        if moved.any():
+            raise InputError("a move under G52, G68, a mirror image or scaling: a cut program that "
+                             "moves its own frame is not supported", str(path),
                              line=int(c.line[np.argmax(moved)]))
     if any("U, V, W" in n for n in notes):
         raise InputError("a cut program with U, V or W axis words is not supported (the ball "

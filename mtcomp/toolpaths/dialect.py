@@ -10,6 +10,10 @@ A :class:`Dialect` holds what the reader needs to know of the controller that ru
   elsewhere the Z after a G98 cycle is known only where the R plane lies below the initial level.
 * ``incremental_r_from_initial``: in G91 the R of every hole of a series is measured from the
   series' initial level (LinuxCNC), so a series may continue under G99.
+* ``local_shift``: G52 is a local shift of the work system (LinuxCNC, Fanuc; on a Haas its meaning
+  follows Setting 33). ``rotation``: G68/G69 coordinate rotation (Fanuc, Haas). ``mirror``: the
+  mirror image code ('G51.1': Fanuc's G51.1/G50.1; 'G101': Haas' G101/G100). ``scale_words``: the
+  words of G51 scaling ('PIJK' Fanuc, 'P' Haas, '' none): :mod:`.frames`.
 * ``language``: 'ngc' (LinuxCNC's O-words and parameters, :mod:`.ngc`), 'macro' (Fanuc macro B,
   :mod:`.macro`), 'heidenhain' (a conversational program, read through its G-code equivalent:
   :mod:`.heidenhain`) or None (nothing is expanded).
@@ -32,13 +36,19 @@ class Dialect:
     g98_to_higher: bool = False
     incremental_r_from_initial: bool = False
     language: str | None = None
+    local_shift: bool = False
+    rotation: bool = False
+    mirror: str | None = None
+    scale_words: str = ""
 
 
 DIALECTS = {
     "linuxcnc": Dialect("linuxcnc", g98_to_higher=True, incremental_r_from_initial=True,
-                        language="ngc"),
-    "fanuc": Dialect("fanuc", g80_keeps_motion=True, language="macro"),
-    "haas": Dialect("haas", g80_keeps_motion=True, language="macro"),
+                        language="ngc", local_shift=True),
+    "fanuc": Dialect("fanuc", g80_keeps_motion=True, language="macro", local_shift=True,
+                     rotation=True, mirror="G51.1", scale_words="PIJK"),
+    "haas": Dialect("haas", g80_keeps_motion=True, language="macro", rotation=True,
+                    mirror="G101", scale_words="P"),
     "grbl": Dialect("grbl"),
     # Heidenhain TNC conversational (Klartext): read through its G-code equivalent (.heidenhain)
     "heidenhain": Dialect("heidenhain", language="heidenhain"),

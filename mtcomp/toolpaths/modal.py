@@ -21,12 +21,16 @@ from ..machine import Machine
 from ._arcs import (PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, centre_from_radius,
                     is_point_circle, point_circle)
 from .blocks import CycleBlock, MotionBlock
+from .cycle_rules import cycle_move, cycle_unclear, incremental_r_level, retract_level
 from .dialect import GENERIC
+from .frames import (FRAME_G, IDENTITY, apply_frame_code, check_arc, check_block, check_cycle,
+                     mode_change, program_end)
 from .programmed import ProgrammedOffsets, apply_g10
 from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _COLON_PROGRAM_RE, _CURVE_WITH_COORDINATES,
                     _NUMBERED_PERCENT_RE, KNOWN_DECIMAL_G, OTHER_WCS_G, mode_followed,
                     _REFUSED_G, _REFUSED_M, _UNIQUE_LETTERS, _WCS_INDEX, DEFAULT_CHORD_TOL_MM,
-                    DIR_EPS, MM_PER_INCH, TCP_OFF_M, TCP_ON_M, TOOL_AXIS, frame_code, tokenize)
+                    DIR_EPS, MAX_TOOL, MM_PER_INCH, TCP_OFF_M, TCP_ON_M, TOOL_AXIS, frame_code,
+                    tokenize)
 
 
 #: a CSV header line (names separated by commas), given where G-code was meant
@@ -121,16 +125,25 @@ class ModalState:
         #: every pass over one ProgramSource
         self.offsets = ProgrammedOffsets(self.na, getattr(path, "work_offset_sets", None))
         self.ended = False      # an M2/M30 was read: no later line runs (docs/toolpaths.md)
+        #: the frame the program moved itself (G52, G68, mirror, scaling: :mod:`.frames`), its
+        #: changes by line (shared by the passes over one ProgramSource), and whether the program
+        #: ended (M2/M30) with one in force
+        self.local = IDENTITY
+        table = getattr(path, "local_frames", None)
+        self.local_frames = table if table is not None else []
+        self.local_ended = False
+        self._line = 0
 
     @property
     def frame(self) -> int:
-        return frame_code(self.wcs, self.tool, self.tcp, self.offsets.index)
+        return frame_code(self.wcs, self.tool, self.tcp, self.offsets.index, not self.local.identity)
 
     @property
     def python_only(self) -> bool:
         """Lines the compiled scanner must not take (cycle, inverse-time or tool centre point mode
         in force)."""
-        return self.cycle is not None or self.inverse_time or self.tcp or self.ended
+        return (self.cycle is not None or self.inverse_time or self.tcp or self.ended
+                or bool(self.local.kind))
 
     def _err(self, msg, line):
         path, line, suffix = self._where(line)
@@ -157,6 +170,7 @@ class ModalState:
         are checked, the feed is set; then a home move, a drilling cycle or a motion block follows.
         """
         self._clear_line_flags()
+        self._line = line
         text = None if self.ended else self._text_with_words(line, text)
         if text is None:
             return None
@@ -201,6 +215,15 @@ class ModalState:
         self.cycle_line = False
         self.cycle_start = False
         self.tap_line = False
+        #: how far this line moved the program's coordinates of the machine's point without any
+        #: motion (G52, a G10 of the active work system): the writer's position follows it
+        self.frame_shift = None
+
+    def shift_frame(self, i: int, delta: float) -> None:
+        """The program's coordinate of axis i moved by ``delta`` on this line, the machine still."""
+        if self.frame_shift is None:
+            self.frame_shift = np.zeros(self.na)
+        self.frame_shift[i] += delta
 
     def _text_with_words(self, line: int, text: str) -> str | None:
         """The line's text to tokenize, or None for a line without words, which passes through (an
@@ -278,6 +301,7 @@ class ModalState:
         home_move = None
         cycle = None
         dwell = g10 = False
+        frame_codes = []
         tool_change = any(m == 6 for m in mcodes)
         self.ended = any(m in (2, 30) for m in mcodes)
         for m in mcodes:
@@ -286,6 +310,10 @@ class ModalState:
         self.had_g = bool(gcodes)
         for g in gcodes:
             gi = round(g)
+            if g in FRAME_G:       # G52, G68/G69, mirror, scaling: their axis words are no motion
+                frame_codes.append(g)
+                nonmotion_axes = True
+                continue
             if g in _REFUSED_G:
                 raise self._err(f"{_REFUSED_G[g]} is not supported", line)
             if g in _CURVE_WITH_COORDINATES:
@@ -322,6 +350,12 @@ class ModalState:
             self._forget(self.tool_axis)
         if g10:
             apply_g10(self, values, tokens, line)
+        for g in frame_codes:
+            if motion is not None or home_move is not None or cycle is not None:
+                raise self._err(f"G{g:g} and a move in one block is not supported", line)
+            apply_frame_code(self, g, values, tokens, line)
+        if any(m in (2, 30) for m in mcodes):
+            program_end(self)
         return motion, nonmotion_axes, home_move, cycle
 
     def _dwell_with_motion(self, motion: int, tokens, line: int) -> bool:
@@ -339,6 +373,8 @@ class ModalState:
         """Tool centre point mode on or off: the words change meaning (tool tip against axis
         positions), so no position is known until the program names it again."""
         if on != self.tcp:
+            if on:
+                mode_change(self, "tcp", self._line)
             self.tcp = on
             self._forget()
 
@@ -357,12 +393,16 @@ class ModalState:
             self._set_tcp(True)
         elif round(g, 1) in (28.1, 30.1, 92.1, 92.2, 43.1, 54.1):
             if round(g, 1) in (92.1, 92.2, 43.1, 54.1):
+                if round(g, 1) != 43.1:
+                    mode_change(self, "g92" if round(g) == 92 else "wcs", self._line)
                 self._forget()
 
     def _apply_modal_code(self, gi: int, values) -> None:
         """A whole G code that only changes a mode: plane, units, distance mode, feed mode, retract
         level, cycle cancel, work coordinate system, tool length (others change nothing here)."""
         if gi in (17, 18, 19):
+            if gi != self.plane:
+                mode_change(self, "plane", self._line)
             self.plane = gi
         elif gi == 20:
             self.inch = True
@@ -390,9 +430,13 @@ class ModalState:
         elif gi in _WCS_INDEX:
             self._set_wcs(_WCS_INDEX[gi])
         elif gi in OTHER_WCS_G:
+            mode_change(self, "wcs", self._line)
             self._forget()
         elif gi in (43, 44):
             self.tool = int(values.get("H", self.selected_tool))
+            if not 0 <= self.tool < MAX_TOOL:
+                raise self._err(f"tool length number H{self.tool} is not supported (0 to "
+                                f"{MAX_TOOL - 1})", self._line)
             self._forget(self.tool_axis)
         elif gi == 49:
             self.tool = 0
@@ -465,6 +509,7 @@ class ModalState:
                 raise self._err(f"{arc_words[0]} word outside an arc block", line)
             return None
         self._check_motion_mode(values, arc_words, line)
+        check_block(self, line)
         if self.incremental and self.motion in (0, 1) and \
                 any(not self.known[self.names.index(c)] for c in axes_given):
             return self._blind_increment(values, axes_given)
@@ -569,6 +614,7 @@ class ModalState:
                             line)
         i0, i1, _ = PLANE_AXES[self.plane]
         plane_idx = [self.xyz_index[i0], self.xyz_index[i1]]
+        check_arc(self, line)
         if min(self.xyz_index) >= 0 and not all(self.known[i] for i in plane_idx):
             raise self._err(f"arc G{self.motion} from a position the program has not given "
                             f"(axes {self.names[plane_idx[0]]} {self.names[plane_idx[1]]})",
@@ -581,43 +627,33 @@ class ModalState:
         if self.motion == 0:
             return math.nan
         if self.inverse_time:
+            path = np.vstack([start, pts])
+            if self.local.kind:        # scaling: the machine's path is longer than the program's
+                path = self.local.to_machine(path, self.xyz_index)
             length = float(np.sum(np.linalg.norm(np.diff(
-                np.vstack([start, pts])[:, [i for i in self.xyz_index if i >= 0]], axis=0), axis=1)))
+                path[:, [i for i in self.xyz_index if i >= 0]], axis=0), axis=1)))
             return length * self.f_word if length > 0 else math.nan
         return self.feed
 
     def _set_wcs(self, index: int):
         if index != self.wcs:
+            mode_change(self, "wcs", self._line)
             self.wcs = index
             self._forget()
-
-    def _cycle_unclear(self, inc: bool) -> str | None:
-        """Why a drilling cycle line cannot be kept as a corrected cycle (None: it can)."""
-        if min(self.xyz_index) < 0:
-            return "a machine without X, Y and Z"
-        if self.plane != 17:
-            return f"drilling along another axis than Z (G{self.plane})"
-        if self.cycle == 87:
-            return "back boring G87"
-        if self.inverse_time:
-            return "inverse time feed G93"
-        if self.cycle_r is None or self.cycle_z is None:
-            return "no R or Z word given for the cycle"
-        if self.cycle_r[1] != inc or self.cycle_z[1] != inc:
-            return "its R or Z was given in the other distance mode (G90/G91)"
-        return None
 
     def _cycle_block(self, line, values, axes_given, tokens, number) -> MotionBlock | None:
         """A drilling cycle line. Where the hole is clear (X, Y, the R plane and the bottom known,
         plane G17) it becomes a :class:`CycleBlock` whose points are the bottoms of its holes;
         otherwise it passes through uncorrected (G90) or is refused (G91: an incremental cycle
         passed through would be read against an absolute output)."""
+        check_block(self, line)
+        check_cycle(self, line)
         rot = [c for c in axes_given if c in "ABC"]
         if rot:
             raise self._err(f"drilling cycle G{self.cycle} with a rotary axis word {rot[0]} is not "
                             "supported", line)
         inc = self.incremental
-        reason = self._cycle_unclear(inc)
+        reason = cycle_unclear(self, inc)
         xi, yi, zi = self.xyz_index
         if reason is None and not inc and not all(self.known[i] or c in values
                                                   for i, c in ((xi, "X"), (yi, "Y"))):
@@ -625,7 +661,7 @@ class ModalState:
         if reason is not None:
             if inc:
                 raise self._err(f"incremental (G91) drilling cycle G{self.cycle}: {reason}", line)
-            self._cycle_move(values, axes_given)
+            cycle_move(self, values, axes_given)
             return None
         scale = MM_PER_INCH if self.inch else 1.0
         # the repeat count: L (LinuxCNC, Haas, Siemens ISO mode); K on Fanuc, but only where the
@@ -644,7 +680,7 @@ class ModalState:
             if not (self.known[xi] and self.known[yi] and self.known[zi]):
                 raise self._err(f"incremental (G91) drilling cycle G{self.cycle} from a position the "
                                 "program has not given", line)
-            r_level = self._incremental_r_level(start[zi], line)
+            r_level = incremental_r_level(self, start[zi], line)
             z_bottom = r_level + self.cycle_z[0]
             steps = np.arange(1, reps + 1)
             xs = start[xi] + steps * values.get("X", 0.0) * scale
@@ -659,7 +695,7 @@ class ModalState:
         given[[xi, yi, zi]] = True
         known = self.known | given
         dirs = self._directions(start, pts)
-        z_after, z_known = self._retract_level(r_level)
+        z_after, z_known = retract_level(self, r_level)
         end = pts[-1].copy()
         end[zi] = z_after
         self.dirs[zi] = 1                  # the retract moves Z up last
@@ -673,52 +709,6 @@ class ModalState:
         return MotionBlock(line, self.cycle, start, end, feed, pts, dirs, None, self.plane,
                            self.inch, [], number, known, given, {}, True, inc, False, self.f_word,
                            self.frame, info, start_known)
-
-    def _retract_level(self, r_level: float) -> tuple[float, bool]:
-        """(Z where the cycle leaves the tool, mm; whether that is known): the R plane (G99) or
-        the initial level (G98; controllers differ when the R plane lies above it, LinuxCNC takes
-        the higher of the two). Neither stated leaves it open, except on LinuxCNC with the R plane
-        at or above the initial level, where either leaves the tool at the R plane."""
-        init_z, init_known = self.cycle_init
-        if self.retract == 99:
-            return r_level, True
-        if self.retract == 98 and init_known and (r_level <= init_z + 1e-9
-                                                  or self.dialect.g98_to_higher):
-            return max(init_z, r_level), True
-        if self.retract is None and init_known and self.dialect.g98_to_higher \
-                and r_level >= init_z - 1e-9:
-            return r_level, True
-        return r_level, False
-
-    def _incremental_r_level(self, z: float, line: int) -> float:
-        """The R plane (mm) of a G91 cycle line started at height z: LinuxCNC measures every hole's
-        R from the series' initial level; elsewhere the controllers differ once the tool stands at
-        the R plane (G99), so a series continued without G98 is refused."""
-        init_z, init_known = self.cycle_init
-        if self.dialect.incremental_r_from_initial and init_known:
-            return init_z + self.cycle_r[0]
-        if not self.cycle_start and self.retract != 98:
-            raise self._err(f"incremental (G91) drilling cycle G{self.cycle} continued without "
-                            "G98: where its R plane lies differs between controllers (give "
-                            "--dialect linuxcnc if LinuxCNC runs it)", line)
-        return z + self.cycle_r[0]
-
-    def _cycle_move(self, values, axes_given):
-        """A drilling cycle line passed through: X/Y go where it says (absolute) or stay unknown; the
-        tool axis ends at the R plane or the start height: unknown."""
-        scale = MM_PER_INCH if self.inch else 1.0
-        self.cycle_line = True
-        for c in axes_given:
-            i = self.names.index(c)
-            if c == TOOL_AXIS:
-                continue
-            v = math.radians(values[c]) if c in "ABC" else values[c] * scale
-            if self.incremental:
-                self.position[i] += v
-            else:
-                self.position[i] = v
-                self.known[i] = True
-        self._forget(self.tool_axis)
 
     def _home_move(self, g, values, axes_given, line):
         """G28/G30: named axes (all without any) go home; G53: named axes go to a machine position.
@@ -764,8 +754,9 @@ class ModalState:
             if "R" not in values and is_point_circle(start, end, centre2, (a, b)):
                 pts = point_circle(start, self.dialect.name)
             else:
-                pts = arc_chords(start, end, centre2, plane, ccw, self.chord_tol, self.xyz_index,
-                                 self.inch)
+                # under scaling the chords are cut for the machine's arc (the tolerance on it)
+                tol = self.chord_tol / self.local.scales().max()
+                pts = arc_chords(start, end, centre2, plane, ccw, tol, self.xyz_index, self.inch)
         except ArcError as exc:
             raise self._err(str(exc), line) from None
         centre = np.zeros(3)
@@ -775,7 +766,11 @@ class ModalState:
         return pts, centre
 
     def _directions(self, start: np.ndarray, pts: np.ndarray) -> np.ndarray:
-        """(k, na) int8 approach directions at the end of each segment; updates self.dirs."""
+        """(k, na) int8 approach directions at the end of each segment, of the machine's axes (under
+        G68 or a mirror image the program's steps turned onto them); updates self.dirs."""
+        if self.local.kind:
+            start = self.local.to_machine(start[None, :], self.xyz_index)[0]
+            pts = self.local.to_machine(pts, self.xyz_index)
         if pts.shape[0] == 1:                 # the common straight move, without array arithmetic
             cur = self.dirs
             for j, (a, b) in enumerate(zip(start.tolist(), pts[0].tolist())):

@@ -33,8 +33,9 @@ import numpy as np
 from ..errors import InputError
 from ..machine import Machine
 from .blocks import SegmentChunk
+from .frames import frames_of_rows
 from .tcp import axes_of_tcp, tcp_of_axes
-from .words import WORK_SYSTEMS, frame_offset_set, frame_tcp, frame_tool, frame_wcs
+from .words import WORK_SYSTEMS, frame_local, frame_offset_set, frame_tcp, frame_tool, frame_wcs
 
 _WCS_NAME = {name: i for i, name in enumerate(WORK_SYSTEMS)}
 _AXIS_VALUE_RE = re.compile(r"^\s*([A-Za-z])\s*=?\s*([+-]?(?:\d+\.?\d*|\.\d+))\s*$")
@@ -56,6 +57,8 @@ class ProgramSetup:
     used_wcs: set = field(default_factory=set)
     used_tools: set = field(default_factory=set)
     programmed_wcs: set = field(default_factory=set)
+    #: the frame changes of the program last applied (``source.local_frames``, :mod:`.frames`)
+    local_frames: list = field(default_factory=list, repr=False)
 
     def _offset_table(self) -> np.ndarray:
         table = np.zeros((len(WORK_SYSTEMS), self.machine.n_axes))
@@ -100,7 +103,8 @@ class ProgramSetup:
         lengths = np.full(len(chunk), np.nan)
         for h, length in self.tool_lengths.items():
             lengths[tool == h] = length
-        start, end, datum, jump = chunk.start + off, chunk.end + off, off, chunk.jump
+        start, end = self._local(chunk, chunk.start, source), self._local(chunk, chunk.end, source)
+        start, end, datum, jump = start + off, end + off, off, chunk.jump
         tcp = frame_tcp(chunk.frame)
         if tcp.any():
             # tool centre point rows: the words (plus the offset) are the tip in the workpiece
@@ -119,11 +123,32 @@ class ProgramSetup:
         return replace(chunk, start=start, end=end, tool_length=lengths, datum=datum,
                        jump=jump), off
 
+    def _local(self, chunk: SegmentChunk, pts: np.ndarray, source) -> np.ndarray:
+        """(n, na) the rows' program positions placed by the frame the program moved itself (G52,
+        G68, mirror, scaling: :mod:`.frames`), in the work system; ``pts`` itself without one."""
+        local = frame_local(chunk.frame)
+        if not local.any():
+            return pts
+        table = getattr(source, "local_frames", None)
+        if table is None:
+            raise ValueError("the chunk's rows carry frame changes the program made (G52, G68, "
+                             "mirror, scaling): apply(chunk, source) needs the ProgramSource")
+        self.local_frames = table
+        out = np.array(pts, dtype=float)
+        xyz = [self.machine.index(c) for c in "XYZ"]
+        for frame, rows in frames_of_rows(table, chunk.line):
+            rows = rows & local
+            out[rows] = frame.to_machine(out[rows], xyz)
+        return out
+
     def to_program(self, chunk: SegmentChunk, points: np.ndarray, counts: np.ndarray,
                    off: np.ndarray) -> np.ndarray:
         """Machine axis positions ``points`` (the rows of ``chunk``, ``counts`` points each) back to
-        the program's words: the offsets ``off`` (from :meth:`apply`) taken off, and in tool centre
-        point rows the axes turned into the tip and angles the controller turns into them."""
+        the program's words: the offsets ``off`` (from :meth:`apply`) taken off, in tool centre
+        point rows the axes turned into the tip and angles the controller turns into them, and
+        under a frame the program moved itself (:mod:`.frames`) the positions turned back into the
+        program's frame (a machine correction c is written as ``M^-1 c``: turned back under G68,
+        of opposite sign on a mirrored axis, divided by the scale)."""
         tcp = frame_tcp(chunk.frame)
         out = np.array(points, dtype=float)
         one = out.shape[0] == len(counts)           # one point a row: no repeats
@@ -131,7 +156,15 @@ class ProgramSetup:
             tcp = tcp & chunk.known.all(axis=1)
             tcp = tcp if one else np.repeat(tcp, counts)
             out[tcp] = tcp_of_axes(self.machine, out[tcp])
-        return out - (off if one else np.repeat(off, counts, axis=0))
+        out -= off if one else np.repeat(off, counts, axis=0)
+        local = frame_local(chunk.frame)
+        if local.any():
+            xyz = [self.machine.index(c) for c in "XYZ"]
+            for frame, rows in frames_of_rows(self.local_frames, chunk.line):
+                rows = rows & local
+                rows = rows if one else np.repeat(rows, counts)
+                out[rows] = frame.to_program(out[rows], xyz)
+        return out
 
     def notes(self) -> list[str]:
         """What was assumed for what the program used and nobody said (one line each)."""

@@ -123,12 +123,15 @@ def apply_g10(state, values: dict, tokens, line: int) -> None:
         for i, v in new.items():
             old = state.offsets.offset(wcs, i)
             if level == 20:
+                if state.known[i]:
+                    state.shift_frame(i, given[i] - state.position[i])
                 state.position[i] = given[i]
                 state.known[i] = True
             elif math.isnan(old):
                 state.known[i] = False
             else:
                 state.position[i] += old - v
+                state.shift_frame(i, old - v)
     if not state.offsets.assign(wcs, new):
         raise state._err(f"G10: the program sets more than {MAX_OFFSET_SETS} different sets of work "
                          "offsets (not followed)", line)

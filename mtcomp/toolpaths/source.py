@@ -48,6 +48,9 @@ class ProgramSource(os.PathLike):
     #: the distinct sets of work offsets the program sets itself (G10 L2/L20), numbered by the
     #: reader (:mod:`.programmed`) and applied by :meth:`~.offsets.ProgramSetup.apply`
     work_offset_sets: list = field(default_factory=list)
+    #: the frame changes the program makes itself (G52, G68, mirror, scaling), (line, frame) in
+    #: line order, recorded by the reader (:mod:`.frames`) and applied by ProgramSetup.apply
+    local_frames: list = field(default_factory=list)
     _map_array: object = field(default=None, repr=False)     # line_map as an int64 array, once
     #: a Heidenhain conversational program: its :class:`~.heidenhain.Translation` (``path`` is
     #: then its G-code equivalent, line for line; the writer writes the conversational form)

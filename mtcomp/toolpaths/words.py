@@ -31,15 +31,14 @@ _UNIQUE_LETTERS = frozenset("XYZABCIJKRFNUVW")
 #: whole G codes that change a mode mtcomp need not follow (nothing moves, the frame stays): G05
 #: P10000 / G08 high-speed and look-ahead modes (LinuxCNC's G8: radius mode), G09 exact stop, G11
 #: data setting off, G15 polar coordinates off, G40-G42 cutter compensation (G41/G42 noted where
-#: the program is read), G50 scaling off (without axis words), G61-G64 path control, G67 modal macro
-#: off, G69 rotation off, G96/G97 spindle speed modes, Haas' G100 mirror
-#: off, G103 look-ahead, G187 smoothness, G113 polar interpolation off. Any whole G code that is
+#: the program is read), G61-G64 path control, G67 modal macro off, G96/G97 spindle speed modes,
+#: G103 look-ahead, G187 smoothness, G113 polar interpolation off. Any whole G code that is
 #: neither this nor one the reader follows (motion, planes, units, distance and feed modes, work
 #: systems, tool length, cycles, dwell, home moves) is refused: its motion cannot be known.
-MODE_ONLY_G = frozenset({5, 8, 9, 11, 15, 40, 41, 42, 50, 61, 62, 63, 64, 67, 69, 96, 97,
-                         100, 103, 113, 187})
+MODE_ONLY_G = frozenset({5, 8, 9, 11, 15, 40, 41, 42, 61, 62, 63, 64, 67, 96, 97, 103, 113,
+                         187})
 #: G codes with a decimal part the reader follows or that change nothing it follows
-KNOWN_DECIMAL_G = frozenset({5.1, 28.1, 30.1, 33.1, 43.1, 43.4, 50.1, 54.1, 59.1, 59.2, 59.3,
+KNOWN_DECIMAL_G = frozenset({5.1, 28.1, 30.1, 33.1, 43.1, 43.4, 54.1, 59.1, 59.2, 59.3,
                              61.1, 90.1, 91.1, 92.1, 92.2})
 #: Haas' additional work coordinate systems (G154 P1-P99, G110-G129): positions are unknown after
 #: a change to one, as after Fanuc's G54.1
@@ -51,18 +50,17 @@ FOLLOWED_MODE_G = frozenset({17, 18, 19, 20, 21, 43, 44, 49, 80, 90, 91, 93, 94,
 
 def mode_followed(gi: int, letters) -> bool:
     """Whether the whole G code ``gi`` of a block whose word letters are ``letters`` is a mode the
-    reader follows or one that changes no motion (G50 only without axis words)."""
+    reader follows or one that changes no motion (the frame changes G50-G52, G68/G69, G100/G101
+    are :mod:`.frames`')."""
     if gi in FOLLOWED_MODE_G or gi in _WCS_INDEX or gi in OTHER_WCS_G:
         return True
-    return gi in MODE_ONLY_G and not (gi == 50 and any(c.upper() in "XYZABCIJK" for c in letters))
+    return gi in MODE_ONLY_G
 #: G codes that would change geometry in a way mtcomp does not follow: refused, never guessed
 _REFUSED_G = {
-    52: "G52 (local coordinate system)",
     92: "G92 (coordinate system offset set by the program; give the offset as a work offset G54-G59 "
         "instead)",
     92.3: "G92.3 (restored coordinate system offset)",
-    68: "G68 (coordinate rotation)", 51: "G51 (scaling)",
-    51.1: "G51.1 (mirroring)", 95: "G95 (feed per revolution)",
+    95: "G95 (feed per revolution)",
     74: "canned cycle G74 (left-hand tapping)", 76: "canned cycle G76 (threading)",
     33: "G33 (spindle-synchronised motion)",
     43.5: "G43.5 (tool centre point control with a tool axis vector I J K: only G43.4, with the "
@@ -122,6 +120,10 @@ _KEYWORDS = {
 }
 
 
+#: the bit of a frame code set where the program's frame is moved on the work system by the
+#: program itself (G52, G68, a mirror image, scaling: :mod:`.frames`); the tool length number
+#: stays below it
+LOCAL_FRAME = 1 << 23
 #: the bit of a frame code set in tool centre point mode (the words are the tool tip in the
 #: workpiece frame and the rotary axes' angles, not axis positions: :mod:`.tcp`)
 TCP_FRAME = 1 << 24
@@ -131,12 +133,19 @@ OFFSET_SET_FRAME = 1 << 25
 MAX_OFFSET_SETS = 63
 
 
-def frame_code(wcs: int, tool: int, tcp: bool = False, offset_set: int = 0) -> int:
+#: tool length numbers H below this fit in a frame code
+MAX_TOOL = LOCAL_FRAME // 16
+
+
+def frame_code(wcs: int, tool: int, tcp: bool = False, offset_set: int = 0,
+               local: bool = False) -> int:
     """Pack the work coordinate system index (0 = G54 .. 8 = G59.3), the active tool length number H
-    (0: none, G49), the tool centre point mode and the set of work offsets the program gave itself
-    (0: none; k: the k-th distinct set, :mod:`.programmed`) into one int:
-    ``wcs + 16 * tool (+ TCP_FRAME) + OFFSET_SET_FRAME * offset_set``."""
-    return int(wcs) + 16 * int(tool) + (TCP_FRAME if tcp else 0) + OFFSET_SET_FRAME * int(offset_set)
+    (0: none, G49; below MAX_TOOL), the tool centre point mode, the set of work offsets the program
+    gave itself (0: none; k: the k-th distinct set, :mod:`.programmed`) and whether the program
+    moved its frame (G52, G68, mirror, scaling) into one int:
+    ``wcs + 16 * tool (+ LOCAL_FRAME) (+ TCP_FRAME) + OFFSET_SET_FRAME * offset_set``."""
+    return (int(wcs) + 16 * int(tool) + (LOCAL_FRAME if local else 0) + (TCP_FRAME if tcp else 0)
+            + OFFSET_SET_FRAME * int(offset_set))
 
 
 def frame_wcs(code):
@@ -146,7 +155,12 @@ def frame_wcs(code):
 
 def frame_tool(code):
     """Active tool length number H (0: none) of frame codes (int or array)."""
-    return np.asarray(code) % TCP_FRAME // 16
+    return np.asarray(code) % LOCAL_FRAME // 16
+
+
+def frame_local(code):
+    """Whether frame codes (int or array) are under a frame the program moved (:mod:`.frames`)."""
+    return np.asarray(code) // LOCAL_FRAME % 2 == 1
 
 
 def frame_tcp(code):

@@ -53,6 +53,11 @@ def read_program_points(path, machine: Machine, dialect: str | None = None,
     if len(seg.end) == 0:
         from ..errors import InputError
         raise InputError("no motion block in the program: nothing to draw", path)
+    from ..toolpaths.words import frame_local
+    moved = frame_local(seg.frame)
+    if moved.any():
+        raise InputError("a move under G52, G68, a mirror image or scaling: render does not place a "
+                         "program that moves its own frame", path, int(seg.line[np.argmax(moved)]))
     q = seg.end.copy()
     # tool centre point rows: the words are the tip and the angles; the map works on the axes the
     # controller reaches (the workpiece origin taken at the kinematics' own: render's work offset

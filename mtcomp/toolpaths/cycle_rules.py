@@ -1,0 +1,75 @@
+"""The drilling cycle rules of the reader's modal state that depend on the controller: whether a
+cycle line is clear enough to be kept as a corrected cycle, where the tool is left after it, where
+an incremental cycle's R plane lies, and a cycle line passed through (docs/toolpaths.md, "Drilling
+cycles"). Functions of a :class:`~.modal.ModalState` (``state``), kept apart from it for size."""
+from __future__ import annotations
+
+import math
+
+from .words import MM_PER_INCH, TOOL_AXIS
+
+
+def cycle_unclear(state, inc: bool) -> str | None:
+    """Why a drilling cycle line cannot be kept as a corrected cycle (None: it can)."""
+    if min(state.xyz_index) < 0:
+        return "a machine without X, Y and Z"
+    if state.plane != 17:
+        return f"drilling along another axis than Z (G{state.plane})"
+    if state.cycle == 87:
+        return "back boring G87"
+    if state.inverse_time:
+        return "inverse time feed G93"
+    if state.cycle_r is None or state.cycle_z is None:
+        return "no R or Z word given for the cycle"
+    if state.cycle_r[1] != inc or state.cycle_z[1] != inc:
+        return "its R or Z was given in the other distance mode (G90/G91)"
+    return None
+
+
+def retract_level(state, r_level: float) -> tuple[float, bool]:
+    """(Z where the cycle leaves the tool, mm; whether that is known): the R plane (G99) or
+    the initial level (G98; controllers differ when the R plane lies above it, LinuxCNC takes
+    the higher of the two). Neither stated leaves it open, except on LinuxCNC with the R plane
+    at or above the initial level, where either leaves the tool at the R plane."""
+    init_z, init_known = state.cycle_init
+    if state.retract == 99:
+        return r_level, True
+    if state.retract == 98 and init_known and (r_level <= init_z + 1e-9
+                                              or state.dialect.g98_to_higher):
+        return max(init_z, r_level), True
+    if state.retract is None and init_known and state.dialect.g98_to_higher \
+            and r_level >= init_z - 1e-9:
+        return r_level, True
+    return r_level, False
+
+
+def incremental_r_level(state, z: float, line: int) -> float:
+    """The R plane (mm) of a G91 cycle line started at height z: LinuxCNC measures every hole's
+    R from the series' initial level; elsewhere the controllers differ once the tool stands at
+    the R plane (G99), so a series continued without G98 is refused."""
+    init_z, init_known = state.cycle_init
+    if state.dialect.incremental_r_from_initial and init_known:
+        return init_z + state.cycle_r[0]
+    if not state.cycle_start and state.retract != 98:
+        raise state._err(f"incremental (G91) drilling cycle G{state.cycle} continued without "
+                        "G98: where its R plane lies differs between controllers (give "
+                        "--dialect linuxcnc if LinuxCNC runs it)", line)
+    return z + state.cycle_r[0]
+
+
+def cycle_move(state, values, axes_given):
+    """A drilling cycle line passed through: X/Y go where it says (absolute) or stay unknown; the
+    tool axis ends at the R plane or the start height: unknown."""
+    scale = MM_PER_INCH if state.inch else 1.0
+    state.cycle_line = True
+    for c in axes_given:
+        i = state.names.index(c)
+        if c == TOOL_AXIS:
+            continue
+        v = math.radians(values[c]) if c in "ABC" else values[c] * scale
+        if state.incremental:
+            state.position[i] += v
+        else:
+            state.position[i] = v
+            state.known[i] = True
+    state._forget(state.tool_axis)
