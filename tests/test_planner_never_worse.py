@@ -56,3 +56,18 @@ def test_a_reversal_under_the_step_bound_leaves_no_block_worse(tmp_path, capsys)
     summary = json.loads((tmp_path / "S.json").read_text())
     assert summary["worse_than_uncorrected"]["blocks"] == 0
     assert "worse than uncorrected" not in said.out + said.err
+
+
+def test_nodes_zero_correction_can_reach_from_the_anchor_by_hand():
+    """Anchor 12 um, step 5 um: zero is out of reach for the first two nodes (5, 10 um of the way),
+    reached from the third; a node the step bound does not apply into (after a rapid) resets it."""
+    from mtcomp.planner._qp import reachable_nodes
+    free = np.zeros(6, bool)
+    np.testing.assert_array_equal(reachable_nodes(np.array([12.0, 0.0, -3.0]), free,
+                                                  np.array([5.0, 5.0, 5.0])),
+                                  [False, False, True, True, True, True])
+    free[1] = True
+    np.testing.assert_array_equal(reachable_nodes(np.array([12.0, 0.0, -3.0]), free,
+                                                  np.array([5.0, 5.0, 5.0])),
+                                  [False, True, True, True, True, True])
+    assert reachable_nodes(None, free, np.ones(3)).all()       # the program's first window

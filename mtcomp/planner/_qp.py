@@ -24,6 +24,38 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._bounds import INF
+
+#: a bounded window keeps every block's deviation, per direction the objective counts, within this
+#: (um, or the weighted urad of the tool axis) of the uncorrected one: half the output grid (the
+#: written correction is rounded to it)
+NEVER_WORSE_TOL = 0.05
+
+
+def never_worse_rows(b0: np.ndarray, c: np.ndarray, A: np.ndarray, reachable: np.ndarray):
+    """(J, lo, hi) of the never-worse rows of a window's nodes: ``|c + A x| <= |b0| + NEVER_WORSE_TOL``
+    per objective row (b0 (n, rows) the objective's residual of the uncorrected blocks, c + A x its
+    linearisation); no bound where a node cannot reach zero correction (``reachable`` False)."""
+    room = np.abs(b0) + NEVER_WORSE_TOL
+    lo, hi = -room - c, room - c
+    lo[~reachable], hi[~reachable] = -INF, INF
+    return A, lo, hi
+
+
+def reachable_nodes(prev: np.ndarray | None, free: np.ndarray, S: np.ndarray) -> np.ndarray:
+    """(n,) bool: nodes of a window that zero correction can reach from its anchor ``prev`` (the
+    last committed correction, None at the start) through the step bound S: the anchor's distance
+    from zero in steps; a node free of the step bound (``free``) resets it."""
+    n = free.size
+    if prev is None:
+        return np.ones(n, dtype=bool)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        need = np.max(np.where(S > 0, np.abs(prev) / S, 0.0))
+    since = np.arange(1, n + 1, dtype=float)
+    last_free = np.maximum.accumulate(np.where(free, np.arange(n), -1))
+    since = np.where(last_free >= 0, np.inf, since)
+    return since >= need - 1e-9
+
 
 class WindowQP:
     """An OSQP problem for windows of ``n_nodes`` blocks (anchor included) of ``na`` axes."""

@@ -31,17 +31,13 @@ from ._bounds import FLAG_KINDS, INF, Bounds, flag_name
 from ._evaluate import Evaluator, objective_residual
 from ._parallel import read_ahead, resolve_threads, split_rows
 from ._pointwise import Linearization, solve_newton, solve_pinv
-from ._qp import WindowQP
+from ._qp import NEVER_WORSE_TOL, WindowQP, never_worse_rows, reachable_nodes  # noqa: F401
 from ._small import a_x, any_rows, at_b, gram, row_max_abs, row_norm
 from .problem import CompensationProblem, PlannerOptions
 
 #: slack of the support test (mm for linear axes, rad for rotary ones): a block this close to the
 #: edge of the region the model's data reached counts as inside
 SUPPORT_TOL = 1e-6
-#: a bounded window keeps every block's deviation, per direction the objective counts, within this
-#: (um, or the weighted urad of the tool axis) of the uncorrected one: half the output grid (the
-#: written correction is rounded to it)
-NEVER_WORSE_TOL = 0.05
 #: a rotary axis whose data reached all of a turn but a gap this wide (rad) counts as measured all
 #: around: its profiles are periodic, so the gap is between data on both sides like any other
 WRAP_GAP_RAD = np.radians(45.0)
@@ -521,30 +517,6 @@ class Planner:
             qp = self._qps[(n_nodes, rows)] = WindowQP(n_nodes, self.na, rows, self.options.osqp_eps)
         return qp
 
-    def _never_worse(self, lin: Linearization, c, A, reachable):
-        """(J, lo, hi) of the QP's never-worse rows (:mod:`._qp`): |c + A x| <= |b0| + NEVER_WORSE_TOL
-        per objective row; no rows (None) where a node cannot reach zero correction from the
-        window's anchor under the step bound (``reachable`` False)."""
-        b0 = objective_residual(lin.orientation_rows, lin.b0)
-        room = np.abs(b0) + NEVER_WORSE_TOL
-        lo, hi = -room - c, room - c
-        lo[~reachable], hi[~reachable] = -INF, INF
-        return A, lo, hi
-
-    def _reachable(self, free: np.ndarray, S: np.ndarray) -> np.ndarray:
-        """(n,) bool: nodes of a window that zero correction can reach from its anchor through the
-        step bound (the anchor's distance from zero, in steps; a node free of the step bound resets it)."""
-        prev = self._prev
-        n = free.size
-        if prev is None:
-            return np.ones(n, dtype=bool)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            need = np.max(np.where(S > 0, np.abs(prev) / S, 0.0))
-        since = np.arange(1, n + 1, dtype=float)
-        last_free = np.maximum.accumulate(np.where(free, np.arange(n), -1))
-        since = np.where(last_free >= 0, 0.0, since)
-        return since >= need - 1e-9
-
     def _solve_window(self, nodes: NodeSet, lin: Linearization, limits) -> np.ndarray:
         """Corrections x (n, na) of one window; updates lin in place when re-linearised."""
         b, o = self.bounds, self.options
@@ -568,7 +540,7 @@ class Planner:
         step_hi = np.where(free[:, None], INF, S)
         eye = np.eye(na)
         x = np.clip(lin.x, l, u)
-        reachable = self._reachable(free, np.asarray(b.S, dtype=float))
+        reachable = reachable_nodes(self._prev, free, np.asarray(b.S, dtype=float))
         for _it in range(o.max_iterations):
             c, A = lin.objective()
             H = gram(A, lam)
@@ -576,7 +548,8 @@ class Planner:
             Hall = np.concatenate([eye[None], H])
             gall = np.vstack([np.zeros((1, na)), g])
             x0 = np.vstack([lower[:1], x])
-            worse = self._never_worse(lin, c, A, reachable)
+            worse = never_worse_rows(objective_residual(lin.orientation_rows, lin.b0), c, A,
+                                     reachable)
             sol, status = qp.solve(Hall, gall, lower, upper, step_lo, step_hi, x0, *worse)
             if status not in ("solved", "solved inaccurate"):
                 # never worse is out of reach (the bounds forbid leaving a block as it was): the

@@ -374,9 +374,6 @@ def apply_frame_code(state, g: float, values: dict, tokens, line: int) -> None:
     record the change with its line."""
     fc = FrameCodes(state, values, tokens, line)
     cur = state.local
-    if state.local_ended:
-        raise fc.err(f"G{g:g} after the program's end (M2/M30) with a frame change in force is "
-                     "not supported")
     if g == 52:
         new = fc.g52(cur)
     elif g == 68:
@@ -401,14 +398,6 @@ def set_frame(state, new: LocalFrame, line: int) -> None:
     record(state.local_frames, line, new)
 
 
-def check_block(state, line: int) -> None:
-    """Refuse a move the frame in force leaves open (after M2/M30 with a frame in force)."""
-    if state.local_ended:
-        raise state._err("a move after the program's end (M2/M30) with G52, G68, a mirror image "
-                         "or scaling in force (controllers differ whether the end cancels it) is "
-                         "not supported", line)
-
-
 def check_arc(state, line: int) -> None:
     """An arc under unequal scales of its plane's axes is not a circle on the machine: refused."""
     f = state.local
@@ -429,12 +418,6 @@ def check_cycle(state, line: int) -> None:
     if f.kind == "scale" or (f.kind == "mirror" and f.mirrored[2]):
         what = "scaling" if f.kind == "scale" else "a mirror image of Z"
         raise state._err(f"drilling cycle G{state.cycle} under {what} is not supported", line)
-
-
-def program_end(state) -> None:
-    """M2 / M30: a frame change still in force leaves the frame of what follows open."""
-    if not state.local.identity:
-        state.local_ended = True
 
 
 def mode_change(state, what: str, line: int) -> None:

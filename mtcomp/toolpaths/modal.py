@@ -23,8 +23,7 @@ from ._arcs import (PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, cent
 from .blocks import CycleBlock, MotionBlock
 from .cycle_rules import cycle_move, cycle_unclear, incremental_r_level, retract_level
 from .dialect import GENERIC
-from .frames import (FRAME_G, IDENTITY, apply_frame_code, check_arc, check_block, check_cycle,
-                     mode_change, program_end)
+from .frames import FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle, mode_change
 from .programmed import ProgrammedOffsets, apply_g10
 from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _COLON_PROGRAM_RE, _CURVE_WITH_COORDINATES,
                     _NUMBERED_PERCENT_RE, KNOWN_DECIMAL_G, OTHER_WCS_G, mode_followed,
@@ -126,12 +125,11 @@ class ModalState:
         self.offsets = ProgrammedOffsets(self.na, getattr(path, "work_offset_sets", None))
         self.ended = False      # an M2/M30 was read: no later line runs (docs/toolpaths.md)
         #: the frame the program moved itself (G52, G68, mirror, scaling: :mod:`.frames`), its
-        #: changes by line (shared by the passes over one ProgramSource), and whether the program
-        #: ended (M2/M30) with one in force
+        #: changes by line (shared by the passes over one ProgramSource); after M2/M30 no line runs
+        #: (``ended``), so a frame in force at the end leaves nothing open
         self.local = IDENTITY
         table = getattr(path, "local_frames", None)
         self.local_frames = table if table is not None else []
-        self.local_ended = False
         self._line = 0
 
     @property
@@ -354,8 +352,6 @@ class ModalState:
             if motion is not None or home_move is not None or cycle is not None:
                 raise self._err(f"G{g:g} and a move in one block is not supported", line)
             apply_frame_code(self, g, values, tokens, line)
-        if any(m in (2, 30) for m in mcodes):
-            program_end(self)
         return motion, nonmotion_axes, home_move, cycle
 
     def _dwell_with_motion(self, motion: int, tokens, line: int) -> bool:
@@ -509,7 +505,6 @@ class ModalState:
                 raise self._err(f"{arc_words[0]} word outside an arc block", line)
             return None
         self._check_motion_mode(values, arc_words, line)
-        check_block(self, line)
         if self.incremental and self.motion in (0, 1) and \
                 any(not self.known[self.names.index(c)] for c in axes_given):
             return self._blind_increment(values, axes_given)
@@ -646,7 +641,6 @@ class ModalState:
         plane G17) it becomes a :class:`CycleBlock` whose points are the bottoms of its holes;
         otherwise it passes through uncorrected (G90) or is refused (G91: an incremental cycle
         passed through would be read against an absolute output)."""
-        check_block(self, line)
         check_cycle(self, line)
         rot = [c for c in axes_given if c in "ABC"]
         if rot:
