@@ -155,6 +155,34 @@ def test_a_g_code_mtcomp_does_not_follow_is_refused(tmp_path, capsys, code):
     assert not out.exists()
 
 
+@pytest.mark.parametrize("dialect", ["linuxcnc", "fanuc", "generic"])
+def test_haas_work_systems_are_refused_on_other_controllers(tmp_path, capsys, dialect):
+    """G110-G129 are Haas' additional work systems; elsewhere G122 is no code at all (a typo of G1 or
+    G2): refused, naming it, rather than read as a change of work system."""
+    _, _, model = _model(tmp_path, "xfyz", seed=5)
+    p, out = tmp_path / "p.nc", tmp_path / "out.nc"
+    p.write_text("G90 G17 G21\nG0 X0 Y0 Z5\nG122 X5 Y3\nM30\n")
+    code_, _o, err = _run(["compensate", "xfyz", str(model), str(p), "-o", str(out), "--quiet",
+                           "--dialect", dialect], capsys)
+    lines = err.strip().splitlines()
+    assert code_ == 2 and len(lines) == 1 and "p.nc:3: G122 is not a code" in lines[0], err
+    assert "--dialect haas" in lines[0] and not out.exists()
+
+
+@pytest.mark.parametrize("line", ["G1 X1O.5 Y2 F500", "G1 X10.5 O1"])
+def test_an_o_word_inside_a_line_is_refused(tmp_path, capsys, line):
+    """A letter O typed for a zero (X1O.5): the line was read as X1 and the O.5 kept beside the
+    corrected X. A program number opens its line (O0001 stays accepted)."""
+    _, _, model = _model(tmp_path, "xfyz", seed=5)
+    p, out = tmp_path / "p.nc", tmp_path / "out.nc"
+    p.write_text(f"O0001 (ok)\nG90 G17 G21\nG0 X0 Y0 Z5\n{line}\nM30\n")
+    code_, _o, err = _run(["compensate", "xfyz", str(model), str(p), "-o", str(out), "--quiet"],
+                          capsys)
+    lines = err.strip().splitlines()
+    assert code_ == 2 and len(lines) == 1 and "p.nc:4: word O" in lines[0], err
+    assert "inside a line" in lines[0] and not out.exists()
+
+
 @pytest.mark.parametrize("code", ["G154 P1", "G110"])
 def test_a_haas_work_system_change_forgets_the_positions(tmp_path, capsys, code):
     """After a change to one of Haas' additional work systems the next block names X only: Y and Z

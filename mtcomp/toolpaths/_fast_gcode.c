@@ -225,9 +225,9 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
             } else if (L == 'I' || L == 'J' || L == 'K' || L == 'R' || L == 'U' || L == 'V' ||
                        L == 'W') {
                 simple = 0; break;                  /* arcs and foreign axes: Python decides */
-            } else if (L == 'T' || (L == 'M' && (v == 2.0 || v == 30.0 || v == 6.0 || v == 97.0 || v == 98.0 || v == 99.0 || v == 128.0 || v == 428.0 ||
+            } else if (L == 'O' || L == 'T' || (L == 'M' && (v == 2.0 || v == 30.0 || v == 6.0 || v == 97.0 || v == 98.0 || v == 99.0 || v == 128.0 || v == 428.0 ||
                                           v == 430.0))) {
-                simple = 0; break;                  /* tool changes, subprograms: Python */
+                simple = 0; break;          /* program numbers, tool changes, subprograms: Python */
             }                                       /* M S H D P Q O E ...: kept as written */
         }
         if (!simple) { *consumed = pos; return FALLBACK; }

@@ -260,9 +260,13 @@ class ModalState:
         gcodes: list[float] = []
         mcodes: list[float] = []
         number = ""
-        for letter, num, raw in tokens:
+        for k, (letter, num, raw) in enumerate(tokens):
             if letter in "(;":
                 continue
+            if letter == "O" and any(t[0] not in "(;" for t in tokens[:k]):
+                # a program number opens its line; inside one it is a typo (X1O.5 for X10.5)
+                raise self._err(f"word {raw} inside a line (a program number O opens its line; "
+                                "a letter O typed for a zero?)", line)
             try:
                 v = float(num)
             except ValueError:  # pragma: no cover - the token pattern only lets numbers through
@@ -338,6 +342,10 @@ class ModalState:
             elif gi == 10:
                 nonmotion_axes = g10 = True          # the axis words are offsets
             else:
+                if gi in OTHER_WCS_G and self.dialect.name != "haas":
+                    raise self._err(f"G{gi} is not a code mtcomp follows on {self.dialect.name} "
+                                    "(G110-G129 and G154 select Haas' additional work systems: "
+                                    "give --dialect haas for a Haas program)", line)
                 if not mode_followed(gi, [t[0] for t in tokens]):
                     raise self._err(f"G{gi} is not a code mtcomp follows (its effect on the motion "
                                     "cannot be known)", line)
