@@ -71,3 +71,24 @@ def test_nodes_zero_correction_can_reach_from_the_anchor_by_hand():
                                                   np.array([5.0, 5.0, 5.0])),
                                   [False, True, True, True, True, True])
     assert reachable_nodes(None, free, np.ones(3)).all()       # the program's first window
+
+
+def test_a_move_from_a_position_not_given_comes_from_an_unknown_direction(tmp_path, capsys):
+    """Backlash alone (BL 30 um: +-15 um by approach direction). The first move of a program starts
+    where the program has not said: the direction it arrives from is not known, so the backlash
+    term takes the mean of both (0): the datum X0 gets no correction (it got -15 um, as if X had come
+    from below). The next move, from a known X, has its direction: +-15 um."""
+    fm = random_model("xfyz", (Backlash("X"),), 3, 0.0, None)
+    fm.params.set_file_value("BL_X", BL_UM)
+    model = tmp_path / "model.json"
+    save_model(model, fm)
+    prog = tmp_path / "p.nc"
+    prog.write_text("G21 G90 G54\nG0 X0 Y0 Z5\nG1 X10 F500\nG1 X0\nM30\n")
+    report = tmp_path / "B.csv"
+    assert main(["compensate", "xfyz", str(model), str(prog), "-o", str(tmp_path / "o.nc"),
+                 "--report", str(report), "--max-step-um", "100", "--quiet"]) == 0
+    ends = {int(r["line"]): float(r["ex_before_um"]) for r in _rows(report) if r["inserted"] == "0"}
+    assert ends[2] == 0.0
+    assert abs(abs(ends[3] - ends[4]) - BL_UM) < 1e-3 and abs(ends[3] + ends[4]) < 1e-3
+    lines = (tmp_path / "o.nc").read_text().splitlines()
+    assert lines[1] == "G0 X0 Y0 Z5"

@@ -68,8 +68,10 @@ def test_g68_approach_directions_are_the_machine_axes(tmp_path, mode):
     p.write_text(SQUARE)
     with open_program(p, "fanuc") as src:
         dirs = np.vstack([c.dirs for c in iter_segment_chunks(src, XFYZ)])
-    # machine moves: (0,10,5) from the start, then -X -Z, then -Y, then +X
-    assert dirs[1].tolist() == [-1, 1, -1] and dirs[2].tolist() == [-1, -1, -1]
+    # machine moves: (0,10,5) from a start not given (directions not known), then -X -Z (Y still
+    # not known), then -Y, then +X
+    assert dirs[0].tolist() == [0, 0, 0]
+    assert dirs[1].tolist() == [-1, 0, -1] and dirs[2].tolist() == [-1, -1, -1]
     assert dirs[3].tolist() == [1, -1, -1]
 
 

@@ -54,8 +54,9 @@ def test_blocks_hand_derived(tmp_path):
     assert b[1].feed == 200.0 and b[1].words == ["F200", "M8"] and b[1].number == "N30"
     # modal continuation: G1 and F200 still in force
     assert b[2].motion == 1 and b[2].feed == 200.0
-    # dirs: Z went down at line 5 and stays -1; X, Y went up at line 4
-    np.testing.assert_array_equal(b[2].dirs[-1], [1, 1, -1])
+    # dirs: Z went down at line 5 and stays -1, X went up at line 6; Y has moved only from a
+    # position the program had not given (line 4): the direction it arrived from is not known (0)
+    np.testing.assert_array_equal(b[2].dirs[-1], [1, 0, -1])
     # G2 from (20,10) about (20,20) clockwise to (30,20): 270 deg through (10,20) and (20,30)
     np.testing.assert_allclose(b[3].centre, [20, 20, -1], rtol=0, atol=1e-12)
     np.testing.assert_allclose(b[3].end, [30, 20, -1], rtol=0, atol=0)
@@ -164,7 +165,9 @@ def test_rotary_words_in_degrees(tmp_path):
     prog = read_program(_write(tmp_path, text), CAFXYZ)
     np.testing.assert_allclose(prog.blocks[0].end, [1, 2, 3, math.radians(-30), math.radians(370.5)],
                                rtol=0, atol=1e-15)
-    np.testing.assert_array_equal(prog.blocks[1].dirs[-1], [1, 1, 1, -1, -1])
+    # the first line moves every axis from a position not given: directions not known (0); C then
+    # turns down
+    np.testing.assert_array_equal(prog.blocks[1].dirs[-1], [0, 0, 0, 0, -1])
     out = tmp_path / "out.nc"
     write_corrected(tmp_path / "in.nc", out, CAFXYZ, None)
     # unchanged blocks are written as they are (their own spelling of the numbers)

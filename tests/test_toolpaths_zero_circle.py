@@ -39,8 +39,8 @@ def test_the_circle_is_one_row_that_does_not_move(tmp_path, mode):
     assert line.tolist() == [2, 3, 5, 6]
     np.testing.assert_allclose(start[2], [40, 10, -1], rtol=0, atol=0)
     np.testing.assert_allclose(end[2], [40, 10, -1], rtol=0, atol=0)
-    # X last moved in -, Z in -, Y has not moved (+1, the initial direction): kept by the circle
-    assert dirs[2].tolist() == dirs[1].tolist() == [-1, 1, -1]
+    # X last moved in -, Z in -, Y only from a position not given (0: not known): kept by the circle
+    assert dirs[2].tolist() == dirs[1].tolist() == [-1, 0, -1]
     # the tool stands where the feed move left it: that move's feed, not the circle's F360
     assert feed[2] == pytest.approx(100.0, rel=0, abs=0)
     # the F360 of the circle's line is the next move's

@@ -157,7 +157,7 @@ class _Driver:
         self.bits = 1 << np.arange(self.na)
         st = np.zeros(24)
         st[:self.na] = self.state.position
-        st[6:12] = 1.0
+        st[6:6 + self.na] = self.state.dirs      # approach directions: the reader's (not known yet)
         st[12] = math.nan
         st[13] = -1.0
         st[14] = float(self.state.inch)

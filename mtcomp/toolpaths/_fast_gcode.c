@@ -7,7 +7,7 @@
  * so Python interprets it (and raises the errors). Positions, directions and the formatting of
  * numbers reproduce the Python code bit for bit; tests compare both paths.
  *
- * state (double[24]): 0..5 position (mm, rad, per column), 6..11 dirs (+-1), 12 feed (mm/min),
+ * state (double[24]): 0..5 position (mm, rad, per column), 6..11 dirs (+-1, 0 not known), 12 feed (mm/min),
  * 13 motion (-1 none, 0..3), 14 inch, 15 incremental, 16 lines done, 17 output is absolute,
  * 18 separator is CRLF, 19 Python takes every line (drilling cycle or G93 in force), 20 bit mask of
  * the axes whose position the program has given, 21 frame code (work offset, tool length number),
@@ -267,11 +267,13 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
             /* a start the program has not given on every axis: bit 7 of the row's known mask */
             unsigned all = (1u << na) - 1u;
             unsigned jump = (known & all) != all ? 128u : 0u;
+            unsigned fresh = seen & ~known;   /* moved from a position not given: direction unknown */
             known |= seen;
             state[20] = (double)known;
             for (int j = 0; j < na; j++) {
                 double step = end[j] - start[j];
-                if (step > 1e-9) state[6 + j] = 1.0;
+                if (fresh & (1u << j)) state[6 + j] = 0.0;
+                else if (step > 1e-9) state[6 + j] = 1.0;
                 else if (step < -1e-9) state[6 + j] = -1.0;
                 state[j] = end[j];
             }

@@ -76,7 +76,8 @@ class ModalState:
         if initial_known is None:
             initial_known = initial_position is not None
         self.known = np.broadcast_to(np.asarray(initial_known, bool), (self.na,)).copy()
-        self.dirs = np.ones(self.na, np.int8)
+        #: approach direction per axis: +1, -1, 0 (not known before a move from a known position)
+        self.dirs = np.zeros(self.na, np.int8)
         self.motion: int | None = None
         self.plane = 17
         #: G90.1 in force: arc centre words I J K are positions, not offsets from the start
@@ -213,8 +214,7 @@ class ModalState:
         self.cycle_line = False
         self.cycle_start = False
         self.tap_line = False
-        #: how far this line moved the program's coordinates of the machine's point without any
-        #: motion (G52, a G10 of the active work system): the writer's position follows it
+        #: how far G52 or a G10 moved the program's coordinates on this line (the writer follows)
         self.frame_shift = None
 
     def shift_frame(self, i: int, delta: float) -> None:
@@ -264,7 +264,6 @@ class ModalState:
             if letter in "(;":
                 continue
             if letter == "O" and any(t[0] not in "(;" for t in tokens[:k]):
-                # a program number opens its line; inside one it is a typo (X1O.5 for X10.5)
                 raise self._err(f"word {raw} inside a line (a program number O opens its line; "
                                 "a letter O typed for a zero?)", line)
             try:
@@ -527,8 +526,9 @@ class ModalState:
         else:
             pts = end[None, :]
         start_known = bool(self.known.all())
+        fresh = given & ~self.known
         self.known |= given
-        dirs = self._directions(start, pts)
+        dirs = self._directions(start, pts, fresh)
         # a circle of zero radius does not move: the tool stands as the last move left it
         still = centre is not None and pts.shape[0] == 1 and not np.any(pts[0] != start)
         feed = self.last_feed if still else self._block_feed(start, pts)
@@ -696,7 +696,7 @@ class ModalState:
         given = np.zeros(self.na, bool)
         given[[xi, yi, zi]] = True
         known = self.known | given
-        dirs = self._directions(start, pts)
+        dirs = self._directions(start, pts, given & ~self.known)
         z_after, z_known = retract_level(self, r_level)
         end = pts[-1].copy()
         end[zi] = z_after
@@ -767,9 +767,10 @@ class ModalState:
         centre[i0], centre[i1] = centre2
         return pts, centre
 
-    def _directions(self, start: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    def _directions(self, start: np.ndarray, pts: np.ndarray, fresh=None) -> np.ndarray:
         """(k, na) int8 approach directions at the end of each segment, of the machine's axes (under
-        G68 or a mirror image the program's steps turned onto them); updates self.dirs."""
+        G68 or a mirror image the program's steps turned onto them); updates self.dirs. ``fresh``:
+        axes moving from a position not given, whose direction is not known (0) until their next."""
         if self.local.kind:
             start = self.local.to_machine(start[None, :], self.xyz_index)[0]
             pts = self.local.to_machine(pts, self.xyz_index)
@@ -781,6 +782,8 @@ class ModalState:
                     cur[j] = 1
                 elif step < -DIR_EPS:
                     cur[j] = -1
+            if fresh is not None:
+                cur[fresh] = 0
             return cur[None, :].copy()
         prev = np.vstack([start[None, :], pts[:-1]])
         step = pts - prev
@@ -790,6 +793,8 @@ class ModalState:
         for r in range(sign.shape[0]):
             moving = sign[r] != 0
             cur[moving] = sign[r][moving]
+            if r == 0 and fresh is not None:
+                cur[fresh] = 0
             out[r] = cur
         self.dirs = cur.copy()
         return out
