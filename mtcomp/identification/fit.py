@@ -56,8 +56,9 @@ from .reversal import data_reversal
 from .unmeasured import record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
 from ._linalg import (NULL_WEIGHT, column_scale, _eliminate, _error_scales, _name_null_space,
                       _relative_singular_values, _seen_columns, _solver, _step, block_obs,
-                      file_normal_equations, held_complement, one_blas_thread, penalised_inverse)
-from .problem import DEFAULT_RCOND, FitProblem, SolverOptions, data_region, fitted_axes
+                      file_normal_equations, one_blas_thread, penalised_inverse)
+from .problem import (DEFAULT_RCOND, FitProblem, SolverOptions, data_region, fitted_axes,
+                      frame_rotations, frame_rule_complement)
 from .problem import travel_metric  # noqa: F401
 from .result import FileResiduals, FitResult, error_unit
 #: most fits with weights='noise' (each re-estimates the noise of every file and unit)
@@ -513,8 +514,9 @@ class _Problem:
         data_rank = int(keep.sum())
         cond = float(rel[0] / rel[keep][-1]) if data_rank else np.inf
         start = (x, r, A, g)
-        B1 = held_complement(null, np.arange(self.n_unknowns) < self.n_free,
-                             unmeasured_unknowns(self))
+        B1 = frame_rule_complement(null, scale, np.arange(self.n_unknowns) < self.n_free,
+                                   unmeasured_unknowns(self), self.metric,
+                                   frame_rotations(self.mms, self.n_free))
         first = self._penalised_fit(start, w, max_iterations, tol, B1, scale, penalties)
         first += (null, self.n_unknowns - null.shape[1])
         x, r, A, g, B, AB, iterations, converged, null, rank = self._hold_weak(

@@ -291,3 +291,82 @@ def travel_metric(model: ErrorModel, free_idx: np.ndarray, n_unknowns: int,
     M = np.zeros((n_unknowns, n_unknowns))
     M[:free_idx.size, :free_idx.size] = G.T @ G / METRIC_POSES
     return M
+
+
+# ----------------------------------------------------------------- set-ups judged by displacement
+#: a null direction of the fit whose frame rotations weigh less than this (orthonormal, scaled
+#: coordinates) trades no frame rotation: it is held by the set-ups' rule alone
+FRAME_SHARE = 1e-6
+
+
+def frame_rotations(mms, n_free: int) -> list[tuple[np.ndarray, np.ndarray, int]]:
+    """Per file whose instrument frame is fitted (points and cmm files not declared known): (the
+    indices of its rotation unknowns ``rx ry rz`` among the fit's unknowns (the ``n_free`` machine
+    parameters, then each file's set-up in order), G (3, 3) in mm^2 per rad^2, the number of its
+    measured rows). ``w^T G w`` is the mean squared displacement that a rotation w (rad) of the
+    frame makes over the file's measured points: the mean of ``|w x r|^2 = w^T (|r|^2 I - r r^T) w``
+    over the points' arms r (mm) about the centre the rotation turns about."""
+    out, k = [], n_free
+    for m in mms:
+        names = [s.name for s in m.nuisance_specs]
+        arm = getattr(m, "_setup_arm", None)
+        wanted = [f"{m.tag}:setup:{a}" for a in ("rx", "ry", "rz")]
+        if arm is not None and all(n in names for n in wanted) and m.n_obs:
+            r = np.asarray(arm, dtype=float)[np.unique(m._rows)]
+            G = np.sum(r * r) * np.eye(3) - r.T @ r
+            out.append((np.array([k + names.index(n) for n in wanted]), G / len(r), len(r)))
+        k += m.n_nuisance
+    return out
+
+
+def frame_rule_complement(null: np.ndarray, scale: np.ndarray, machine: np.ndarray,
+                          unmeasured: np.ndarray | None, metric: np.ndarray | None,
+                          rotations: list) -> np.ndarray:
+    """(n, n - k) orthonormal directions (column-scaled coordinates) a fit moves in, given the k
+    orthonormal directions ``null`` the data do not determine: the rule of
+    :func:`mtcomp.identification._linalg.held_complement` (the set-ups take what they trade with
+    machine parameters), except where a combination turns an instrument's frame (``rotations``, from
+    :func:`frame_rotations`). There it goes to whichever side makes the smaller displacement where
+    it acts: the machine parameters by their rms tool-tip error over the data's region (``metric``,
+    mm^2, :func:`travel_metric`), the frames' rotations by their rms displacement over their own
+    files' points. A machine's error is judged by the same measure everywhere else in the fit.
+
+    In the null directions that turn a frame, both measures are made diagonal (a generalised
+    eigenproblem), so each such direction is judged by itself: where the frames move more than the
+    machine, the frames' rotations are held at their start along it and the machine takes it
+    (the constraint is the frames' displacement form, orthogonal to every other null direction);
+    elsewhere, the set-ups' rule holds. ``scale`` (n,) the column scaling D (unknown = D z);
+    ``machine``, ``unmeasured`` as for ``held_complement``."""
+    from ._linalg import held_complement
+    n, k = null.shape
+    if k == 0 or not rotations or metric is None:
+        return held_complement(null, machine, unmeasured)
+    idx = np.concatenate([i for i, _, _ in rotations])
+    total = float(sum(c for _, _, c in rotations))
+    G = np.zeros((n, n))
+    for i, Gf, count in rotations:
+        G[np.ix_(i, i)] = Gf * (count / total)         # rms over all the frames' points
+    G = scale[:, None] * G * scale[None, :]             # mm^2 per scaled unit^2
+    M = scale[:, None] * metric * scale[None, :]
+    # the null directions that turn a frame (Nr), and those that do not (held as before)
+    _, s, Vt = np.linalg.svd(null[idx], full_matrices=True)
+    m_r = int(np.sum(s > FRAME_SHARE))
+    if m_r == 0:
+        return held_complement(null, machine, unmeasured)
+    Nr, N0 = null @ Vt[:m_r].T, null @ Vt[m_r:].T
+    Ps, Pm = Nr.T @ G @ Nr, Nr.T @ M @ Nr
+    T = 0.5 * (Ps + Pm + (Ps + Pm).T)
+    t, Q = np.linalg.eigh(T)
+    on = t > 1e-12 * max(float(t.max()), 1e-300)
+    C = Q[:, on] / np.sqrt(t[on])
+    mu, E = np.linalg.eigh(0.5 * (C.T @ (Pm + Pm.T) @ C))   # machine's share d_m^2 / (d_m^2 + d_s^2)
+    directions = Nr @ (C @ E)
+    to_machine = mu < 0.5
+    held = np.hstack([N0, Nr @ Q[:, ~on], directions[:, ~to_machine]])
+    B = held_complement(held, machine, unmeasured) if held.shape[1] else np.eye(n)
+    if not to_machine.any():
+        return B
+    # the frames' rotations held along the directions the machine takes: G n^T z = 0
+    K = (G @ directions[:, to_machine]).T @ B
+    _, _, Wt = np.linalg.svd(K, full_matrices=True)
+    return B @ Wt[int(to_machine.sum()):].T
