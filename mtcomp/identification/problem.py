@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.linalg
 
 from ..errors import InputError
 from ..io.atomic import same_file
@@ -297,15 +298,27 @@ def travel_metric(model: ErrorModel, free_idx: np.ndarray, n_unknowns: int,
 #: a null direction of the fit whose frame rotations weigh less than this (orthonormal, scaled
 #: coordinates) trades no frame rotation: it is held by the set-ups' rule alone
 FRAME_SHARE = 1e-6
+#: the machine takes a combination that turns a frame only where its displacement is at most this
+#: share of the frames': clearly smaller. A turn of the region about an axis through it is the same
+#: motion whether the machine or the frame makes it (a tracker's turn about Z against a squareness
+#: with a straightness's slope); it stays the set-up's, and the 256 sampled poses of the machine's
+#: metric cannot tell displacements apart to better than about 10 %
+FRAME_MACHINE_SHARE = 0.5
 
 
 def frame_rotations(mms, n_free: int) -> list[tuple[np.ndarray, np.ndarray, int]]:
     """Per file whose instrument frame is fitted (points and cmm files not declared known): (the
     indices of its rotation unknowns ``rx ry rz`` among the fit's unknowns (the ``n_free`` machine
     parameters, then each file's set-up in order), G (3, 3) in mm^2 per rad^2, the number of its
-    measured rows). ``w^T G w`` is the mean squared displacement that a rotation w (rad) of the
-    frame makes over the file's measured points: the mean of ``|w x r|^2 = w^T (|r|^2 I - r r^T) w``
-    over the points' arms r (mm) about the centre the rotation turns about."""
+    measured rows).
+
+    ``w^T G w`` is the mean squared displacement that a rotation w (rad) of the frame makes over the
+    file's extent, the box its measured points span (the machine's errors are measured over the
+    box of the data's region in the same way): the mean of ``|w x r|^2 = w^T (|r|^2 I - r r^T) w``
+    over the box, r the arm (mm) from the box's centre, so G = tr(S) I - S with S = diag(L^2 / 12),
+    L the box's sides. A turn about another centre is this turn and a translation, which is the
+    set-up's anyway; over the points themselves, a grid's points at the box's faces would count a
+    turn as larger than the same turn of the machine over the region it spans."""
     out, k = [], n_free
     for m in mms:
         names = [s.name for s in m.nuisance_specs]
@@ -313,8 +326,9 @@ def frame_rotations(mms, n_free: int) -> list[tuple[np.ndarray, np.ndarray, int]
         wanted = [f"{m.tag}:setup:{a}" for a in ("rx", "ry", "rz")]
         if arm is not None and all(n in names for n in wanted) and m.n_obs:
             r = np.asarray(arm, dtype=float)[np.unique(m._rows)]
-            G = np.sum(r * r) * np.eye(3) - r.T @ r
-            out.append((np.array([k + names.index(n) for n in wanted]), G / len(r), len(r)))
+            S = np.diag(np.ptp(r, axis=0) ** 2 / 12.0)
+            out.append((np.array([k + names.index(n) for n in wanted]), np.trace(S) * np.eye(3) - S,
+                        len(r)))
         k += m.n_nuisance
     return out
 
@@ -355,13 +369,19 @@ def frame_rule_complement(null: np.ndarray, scale: np.ndarray, machine: np.ndarr
         return held_complement(null, machine, unmeasured)
     Nr, N0 = null @ Vt[:m_r].T, null @ Vt[m_r:].T
     Ps, Pm = Nr.T @ G @ Nr, Nr.T @ M @ Nr
+    if N0.shape[1]:
+        # the machine's part of a combination is any of its equivalents (adding what the machine
+        # alone leaves open changes no reading): judged by the one that moves the tool tip least
+        Mr0 = Nr.T @ M @ N0
+        Pm = Pm - Mr0 @ scipy.linalg.pinvh(N0.T @ M @ N0) @ Mr0.T
     T = 0.5 * (Ps + Pm + (Ps + Pm).T)
     t, Q = np.linalg.eigh(T)
     on = t > 1e-12 * max(float(t.max()), 1e-300)
     C = Q[:, on] / np.sqrt(t[on])
     mu, E = np.linalg.eigh(0.5 * (C.T @ (Pm + Pm.T) @ C))   # machine's share d_m^2 / (d_m^2 + d_s^2)
     directions = Nr @ (C @ E)
-    to_machine = mu < 0.5
+    # mu = d_m^2 / (d_m^2 + d_s^2) < s^2 / (1 + s^2)  <=>  d_m < s d_s
+    to_machine = mu < FRAME_MACHINE_SHARE ** 2 / (1.0 + FRAME_MACHINE_SHARE ** 2)
     held = np.hstack([N0, Nr @ Q[:, ~on], directions[:, ~to_machine]])
     B = held_complement(held, machine, unmeasured) if held.shape[1] else np.eye(n)
     if not to_machine.any():
