@@ -1,20 +1,20 @@
 """A combination the data cannot determine that turns an instrument's frame (a CMM's or a
 tracker's set-up rotation) goes to whichever side makes the smaller displacement where it acts: the
 machine parameters by their rms tool-tip error over the data's region, the frames by their rms
-displacement over their own files' points.
+displacement over their own files' extents (the machine only where it moves at most half as much).
 
 * The rule itself on a hand-built problem: one machine parameter m and a frame rotation ry that the
-  readings see only as the sum m + ry; the held directions and the solution derived by hand (the
-  side that moves less takes it; with two files the machine takes the files' mean, weighted by
-  their points).
+  readings see only as the sum m + ry; the solution derived by hand (the side that moves less takes
+  it; with two files the machine takes the files' mean, weighted by their points).
 * Plates with holes at two depths 2.2 mm apart, read in X and Y only, each plate with its own
   (known to the test) set-up translation and turn about Z and no tilt; every deep hole is off the
   shallow ones by the same (dX, dY), which the machine's Z motion makes (a squareness or a
-  straightness of Z over 2.2 mm). The frames' tilts about X and Y would move a plate's 100 mm extent
-  by 45 times more than the machine term moves the tool tip over the 2.2 mm the data cover, so the
-  machine takes the offset: every fitted tilt is zero and a new plate (set-up unknown) is predicted
-  with its deep holes off by (dX, dY). Before, every frame was tilted by dX / 2.2 mm (1360 urad)
-  and the new plate was predicted without the offset.
+  straightness of Z over 2.2 mm). The frames' tilts about X and Y would move a plate's 90 x 55 mm
+  box by 16 and 26 mm per rad (rms), the machine's term moves the tool tip over the 2.2 mm of Z the
+  data cover by 1.3 mm per rad, so the machine takes the offset: every fitted tilt is zero (to
+  0.5 urad) and a new plate (set-up unknown) is predicted with its deep holes off by (dX, dY).
+  Before, every frame was tilted by dY / 2.2 mm about X and dX / 2.2 mm about Y (682 and
+  1364 urad) and the new plate was predicted without the offset.
 * What the data determine of a set-up is still fitted: each plate's turn about Z (which the
   machine's squareness and straightness of X in Y could carry only by a rotation about the machine's
   origin, which moves the region's points more than the turn about the plate's centre moves

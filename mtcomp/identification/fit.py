@@ -26,8 +26,9 @@ Method (docs/identification.md):
   of its normal matrix). Directions with ``s / s_max <= rcond`` (default 1e-6) are the combinations the
   data cannot determine: they are named (the parameters with weight above 10 % of the largest in
   each direction, in file units, normalised on a pivot parameter) and held at their start values
-  (zero by default) by solving only in the orthogonal complement, i.e. the minimum-norm solution of
-  the scaled problem. The null space is fixed at the start point so that combinations that would be
+  (zero by default) by solving only in a complement: the set-ups take what they trade with machine
+  parameters, except a turn of a points or cmm file's frame that the machine makes with a clearly
+  smaller displacement (:func:`.problem.frame_rule_complement`). The null space is fixed at the start point so that combinations that would be
   determined only by second-order effects of the errors themselves stay undetermined.
 * Profiles carry a roughness penalty whose weights REML chooses (:mod:`.penalty`): what the data
   leave open between what they measured follows the smoothest curve.
@@ -494,7 +495,8 @@ class _Problem:
         matrix at the start point. Of what they leave open, the profiles' roughness penalty
         (:mod:`mtcomp.identification.penalty`, weights by REML) fixes the curvature: between what
         was measured a profile follows the smoothest curve. What neither sees stays at its start
-        values, set-ups taking what they trade with machine errors (:func:`held_complement`). The
+        values, set-ups taking what they trade with machine errors, except a frame's turn that the
+        machine makes with a clearly smaller displacement (:func:`.problem.frame_rule_complement`). The
         first pass fits the data and the penalty. Knowing the residual scale, the directions whose
         rms tool-tip error over the data's region is fixed only to worse than :data:`WEAK_SD_UM` count as
         undetermined too: the second pass holds them at the least predicted error
