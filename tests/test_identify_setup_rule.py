@@ -29,8 +29,9 @@ import pytest
 
 from mtcomp.identification.fit import identify
 from mtcomp.identification.predict import predict_readings
-from mtcomp.identification.problem import frame_rule_complement
+from mtcomp.identification.problem import build_measurement_models, frame_rotations, frame_rule_complement
 from mtcomp.machine import load_machine
+from mtcomp.models.chain import ErrorModel
 from mtcomp.sim import make_points
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -100,6 +101,29 @@ def test_the_machine_takes_the_files_mean_weighted_by_their_points():
     assert m == pytest.approx((k1 + 3.0 * k2) / 4.0, rel=1e-12, abs=0.0)
     assert ry1 == pytest.approx(k1 - m, rel=1e-12, abs=0.0)
     assert ry2 == pytest.approx(k2 - m, rel=1e-12, abs=0.0)
+
+
+def test_a_frames_turn_is_measured_over_the_box_its_points_span(tmp_path):
+    # a 120 x 60 mm plate at one height (5 x 3 points, one row without readings), a tracker line;
+    # mean of |w x r|^2 over the box about its centre: G = tr(S) I - S, S = diag(L^2 / 12)
+    machine = load_machine(str(MACHINE))
+    xy = np.array([(x, y, 0.0) for x in np.linspace(0.0, 120.0, 5) for y in (-60.0, -30.0, 0.0)])
+    dev = np.zeros((len(xy), 3))
+    dev[:, 2] = np.nan
+    dev[-1] = np.nan                                   # x 120, y 0 read nothing: the box stays 120 x 60
+    plate = make_points(xy, deviation=dev, path=str(tmp_path / "plate.csv"))
+    line = make_points(np.column_stack([np.linspace(10, 50, 5), np.zeros(5), np.full(5, -20.0)]),
+                       path=str(tmp_path / "line.csv"))
+    known = make_points(xy, path=str(tmp_path / "known.csv"))
+    mms = build_measurement_models(ErrorModel(machine), [plate, known, line], known_setup=["known"])
+    (i1, G1, n1), (i2, G2, n2) = frame_rotations(mms, n_free=7)
+    np.testing.assert_array_equal(i1, [7 + 3, 7 + 4, 7 + 5])       # rx ry rz after tx ty tz
+    np.testing.assert_array_equal(i2, [7 + 6 + 3, 7 + 6 + 4, 7 + 6 + 5])   # the known file has none
+    assert (n1, n2) == (14, 5)                          # measured rows
+    np.testing.assert_allclose(G1, np.diag([60.0 ** 2, 120.0 ** 2, 120.0 ** 2 + 60.0 ** 2]) / 12.0,
+                               rtol=1e-12, atol=0.0)
+    # a line along X: a turn about X moves none of it
+    np.testing.assert_allclose(G2, np.diag([0.0, 40.0 ** 2, 40.0 ** 2]) / 12.0, rtol=1e-12, atol=1e-12)
 
 
 # --------------------------------------------------------------------------- plates at two depths

@@ -342,14 +342,15 @@ def frame_rule_complement(null: np.ndarray, scale: np.ndarray, machine: np.ndarr
     machine parameters), except where a combination turns an instrument's frame (``rotations``, from
     :func:`frame_rotations`). There it goes to whichever side makes the smaller displacement where
     it acts: the machine parameters by their rms tool-tip error over the data's region (``metric``,
-    mm^2, :func:`travel_metric`), the frames' rotations by their rms displacement over their own
-    files' points. A machine's error is judged by the same measure everywhere else in the fit.
+    mm^2, :func:`travel_metric`; of the machine parts equivalent in the readings, the least), the
+    frames' rotations by their rms displacement over their own files' extents. A machine's error is
+    judged by the same measure everywhere else in the fit.
 
     In the null directions that turn a frame, both measures are made diagonal (a generalised
-    eigenproblem), so each such direction is judged by itself: where the frames move more than the
-    machine, the frames' rotations are held at their start along it and the machine takes it
-    (the constraint is the frames' displacement form, orthogonal to every other null direction);
-    elsewhere, the set-ups' rule holds. ``scale`` (n,) the column scaling D (unknown = D z);
+    eigenproblem), so each such direction is judged by itself: where the machine moves at most
+    :data:`FRAME_MACHINE_SHARE` of what the frames move, the frames' rotations are held at their
+    start along it and the machine takes it (the constraint is the frames' displacement form,
+    orthogonal to every other null direction); elsewhere, the set-ups' rule holds. ``scale`` (n,) the column scaling D (unknown = D z);
     ``machine``, ``unmeasured`` as for ``held_complement``."""
     from ._linalg import held_complement
     n, k = null.shape
@@ -386,7 +387,7 @@ def frame_rule_complement(null: np.ndarray, scale: np.ndarray, machine: np.ndarr
     B = held_complement(held, machine, unmeasured) if held.shape[1] else np.eye(n)
     if not to_machine.any():
         return B
-    # the frames' rotations held along the directions the machine takes: G n^T z = 0
+    # the frames' rotations held along the directions the machine takes: (G n)^T z = 0
     K = (G @ directions[:, to_machine]).T @ B
     _, _, Wt = np.linalg.svd(K, full_matrices=True)
     return B @ Wt[int(to_machine.sum()):].T
