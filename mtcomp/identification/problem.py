@@ -302,7 +302,7 @@ FRAME_SHARE = 1e-6
 #: share of the frames': clearly smaller. A turn of the region about an axis through it is the same
 #: motion whether the machine or the frame makes it (a tracker's turn about Z against a squareness
 #: with a straightness's slope); it stays the set-up's, and the 256 sampled poses of the machine's
-#: metric cannot tell displacements apart to better than about 10 %
+#: metric tell displacements apart only to a few per cent
 FRAME_MACHINE_SHARE = 0.5
 
 
