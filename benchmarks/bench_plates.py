@@ -28,10 +28,12 @@ about the batch's mean pattern, against that pattern's own rigid-aligned rms.
                                       [--travel machine|region]...
 
 Default: the batch `short` (plates 1-9, one tool length), the machine's travel. Each left-out plate
-costs one `mtcomp identify` and one `mtcomp predict` run per travel (20 to 40 s on this machine).
-The penalty weight REML picks for the angular profiles lies where its criterion is nearly flat on
-these data, so BLAS's threading (``OPENBLAS_NUM_THREADS=1`` or not) moves a plate's figure by up to
-0.2 and the batch's median by about 0.02.
+costs one `mtcomp identify` and one `mtcomp predict` run per travel (a few seconds on this machine
+when it is idle; `--batch short --batch long --batch all` about 2.5 minutes). The fit runs its
+algebra on one BLAS thread. Before each plate's CMM frame was judged by the displacement it makes
+over its plate (docs/identification.md, *Rank*), the penalty weight REML picked for the angular
+profiles lay where its criterion is nearly flat on these data, and BLAS's threading moved a
+plate's figure by up to 0.2 and the batch's median by about 0.02.
 """
 from __future__ import annotations
 

@@ -26,8 +26,9 @@ Method (docs/identification.md):
   of its normal matrix). Directions with ``s / s_max <= rcond`` (default 1e-6) are the combinations the
   data cannot determine: they are named (the parameters with weight above 10 % of the largest in
   each direction, in file units, normalised on a pivot parameter) and held at their start values
-  (zero by default) by solving only in the orthogonal complement, i.e. the minimum-norm solution of
-  the scaled problem. The null space is fixed at the start point so that combinations that would be
+  (zero by default) by solving only in a complement: the set-ups take what they trade with machine
+  parameters, except a turn of a points or cmm file's frame that the machine makes with a clearly
+  smaller displacement (:func:`.problem.frame_rule_complement`). The null space is fixed at the start point so that combinations that would be
   determined only by second-order effects of the errors themselves stay undetermined.
 * Profiles carry a roughness penalty whose weights REML chooses (:mod:`.penalty`): what the data
   leave open between what they measured follows the smoothest curve.
@@ -56,8 +57,9 @@ from .reversal import data_reversal
 from .unmeasured import record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
 from ._linalg import (NULL_WEIGHT, column_scale, _eliminate, _error_scales, _name_null_space,
                       _relative_singular_values, _seen_columns, _solver, _step, block_obs,
-                      file_normal_equations, held_complement, one_blas_thread, penalised_inverse)
-from .problem import DEFAULT_RCOND, FitProblem, SolverOptions, data_region, fitted_axes
+                      file_normal_equations, one_blas_thread, penalised_inverse)
+from .problem import (DEFAULT_RCOND, FitProblem, SolverOptions, data_region, fitted_axes,
+                      frame_rotations, frame_rule_complement)
 from .problem import travel_metric  # noqa: F401
 from .result import FileResiduals, FitResult, error_unit
 #: most fits with weights='noise' (each re-estimates the noise of every file and unit)
@@ -493,7 +495,8 @@ class _Problem:
         matrix at the start point. Of what they leave open, the profiles' roughness penalty
         (:mod:`mtcomp.identification.penalty`, weights by REML) fixes the curvature: between what
         was measured a profile follows the smoothest curve. What neither sees stays at its start
-        values, set-ups taking what they trade with machine errors (:func:`held_complement`). The
+        values, set-ups taking what they trade with machine errors, except a frame's turn that the
+        machine makes with a clearly smaller displacement (:func:`.problem.frame_rule_complement`). The
         first pass fits the data and the penalty. Knowing the residual scale, the directions whose
         rms tool-tip error over the data's region is fixed only to worse than :data:`WEAK_SD_UM` count as
         undetermined too: the second pass holds them at the least predicted error
@@ -513,8 +516,9 @@ class _Problem:
         data_rank = int(keep.sum())
         cond = float(rel[0] / rel[keep][-1]) if data_rank else np.inf
         start = (x, r, A, g)
-        B1 = held_complement(null, np.arange(self.n_unknowns) < self.n_free,
-                             unmeasured_unknowns(self))
+        B1 = frame_rule_complement(null, scale, np.arange(self.n_unknowns) < self.n_free,
+                                   unmeasured_unknowns(self), self.metric,
+                                   frame_rotations(self.mms, self.n_free))
         first = self._penalised_fit(start, w, max_iterations, tol, B1, scale, penalties)
         first += (null, self.n_unknowns - null.shape[1])
         x, r, A, g, B, AB, iterations, converged, null, rank = self._hold_weak(

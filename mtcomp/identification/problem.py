@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.linalg
 
 from ..errors import InputError
 from ..io.atomic import same_file
@@ -291,3 +292,102 @@ def travel_metric(model: ErrorModel, free_idx: np.ndarray, n_unknowns: int,
     M = np.zeros((n_unknowns, n_unknowns))
     M[:free_idx.size, :free_idx.size] = G.T @ G / METRIC_POSES
     return M
+
+
+# ----------------------------------------------------------------- set-ups judged by displacement
+#: a null direction of the fit whose frame rotations weigh less than this (orthonormal, scaled
+#: coordinates) trades no frame rotation: it is held by the set-ups' rule alone
+FRAME_SHARE = 1e-6
+#: the machine takes a combination that turns a frame only where its displacement is at most this
+#: share of the frames': clearly smaller. A turn of the region about an axis through it is the same
+#: motion whether the machine or the frame makes it (a tracker's turn about Z against a squareness
+#: with a straightness's slope); it stays the set-up's, and the 256 sampled poses of the machine's
+#: metric tell displacements apart only to a few per cent
+FRAME_MACHINE_SHARE = 0.5
+
+
+def frame_rotations(mms, n_free: int) -> list[tuple[np.ndarray, np.ndarray, int]]:
+    """Per file whose instrument frame is fitted (points and cmm files not declared known): (the
+    indices of its rotation unknowns ``rx ry rz`` among the fit's unknowns (the ``n_free`` machine
+    parameters, then each file's set-up in order), G (3, 3) in mm^2 per rad^2, the number of its
+    measured rows).
+
+    ``w^T G w`` is the mean squared displacement that a rotation w (rad) of the frame makes over the
+    file's extent, the box its measured points span (the machine's errors are measured over the
+    box of the data's region in the same way): the mean of ``|w x r|^2 = w^T (|r|^2 I - r r^T) w``
+    over the box, r the arm (mm) from the box's centre, so G = tr(S) I - S with S = diag(L^2 / 12),
+    L the box's sides. A turn about another centre is this turn and a translation, which is the
+    set-up's anyway; over the points themselves, a grid's points at the box's faces would count a
+    turn as larger than the same turn of the machine over the region it spans."""
+    out, k = [], n_free
+    for m in mms:
+        names = [s.name for s in m.nuisance_specs]
+        arm = getattr(m, "_setup_arm", None)
+        wanted = [f"{m.tag}:setup:{a}" for a in ("rx", "ry", "rz")]
+        if arm is not None and all(n in names for n in wanted) and m.n_obs:
+            r = np.asarray(arm, dtype=float)[np.unique(m._rows)]
+            S = np.diag(np.ptp(r, axis=0) ** 2 / 12.0)
+            out.append((np.array([k + names.index(n) for n in wanted]), np.trace(S) * np.eye(3) - S,
+                        len(r)))
+        k += m.n_nuisance
+    return out
+
+
+def frame_rule_complement(null: np.ndarray, scale: np.ndarray, machine: np.ndarray,
+                          unmeasured: np.ndarray | None, metric: np.ndarray | None,
+                          rotations: list) -> np.ndarray:
+    """(n, n - k) orthonormal directions (column-scaled coordinates) a fit moves in, given the k
+    orthonormal directions ``null`` the data do not determine: the rule of
+    :func:`mtcomp.identification._linalg.held_complement` (the set-ups take what they trade with
+    machine parameters), except where a combination turns an instrument's frame (``rotations``, from
+    :func:`frame_rotations`). There it goes to whichever side makes the smaller displacement where
+    it acts: the machine parameters by their rms tool-tip error over the data's region (``metric``,
+    mm^2, :func:`travel_metric`; of the machine parts equivalent in the readings, the least), the
+    frames' rotations by their rms displacement over their own files' extents. A machine's error is
+    judged by the same measure everywhere else in the fit.
+
+    In the null directions that turn a frame, both measures are made diagonal (a generalised
+    eigenproblem), so each such direction is judged by itself: where the machine moves at most
+    :data:`FRAME_MACHINE_SHARE` of what the frames move, the frames' rotations are held at their
+    start along it and the machine takes it (the constraint is the frames' displacement form,
+    orthogonal to every other null direction); elsewhere, the set-ups' rule holds. ``scale`` (n,) the column scaling D (unknown = D z);
+    ``machine``, ``unmeasured`` as for ``held_complement``."""
+    from ._linalg import held_complement
+    n, k = null.shape
+    if k == 0 or not rotations or metric is None:
+        return held_complement(null, machine, unmeasured)
+    idx = np.concatenate([i for i, _, _ in rotations])
+    total = float(sum(c for _, _, c in rotations))
+    G = np.zeros((n, n))
+    for i, Gf, count in rotations:
+        G[np.ix_(i, i)] = Gf * (count / total)         # rms over all the frames' points
+    G = scale[:, None] * G * scale[None, :]             # mm^2 per scaled unit^2
+    M = scale[:, None] * metric * scale[None, :]
+    # the null directions that turn a frame (Nr), and those that do not (held as before)
+    _, s, Vt = np.linalg.svd(null[idx], full_matrices=True)
+    m_r = int(np.sum(s > FRAME_SHARE))
+    if m_r == 0:
+        return held_complement(null, machine, unmeasured)
+    Nr, N0 = null @ Vt[:m_r].T, null @ Vt[m_r:].T
+    Ps, Pm = Nr.T @ G @ Nr, Nr.T @ M @ Nr
+    if N0.shape[1]:
+        # the machine's part of a combination is any of its equivalents (adding what the machine
+        # alone leaves open changes no reading): judged by the one that moves the tool tip least
+        Mr0 = Nr.T @ M @ N0
+        Pm = Pm - Mr0 @ scipy.linalg.pinvh(N0.T @ M @ N0) @ Mr0.T
+    T = 0.5 * (Ps + Pm + (Ps + Pm).T)
+    t, Q = np.linalg.eigh(T)
+    on = t > 1e-12 * max(float(t.max()), 1e-300)
+    C = Q[:, on] / np.sqrt(t[on])
+    mu, E = np.linalg.eigh(0.5 * (C.T @ (Pm + Pm.T) @ C))   # machine's share d_m^2 / (d_m^2 + d_s^2)
+    directions = Nr @ (C @ E)
+    # mu = d_m^2 / (d_m^2 + d_s^2) < s^2 / (1 + s^2)  <=>  d_m < s d_s
+    to_machine = mu < FRAME_MACHINE_SHARE ** 2 / (1.0 + FRAME_MACHINE_SHARE ** 2)
+    held = np.hstack([N0, Nr @ Q[:, ~on], directions[:, ~to_machine]])
+    B = held_complement(held, machine, unmeasured) if held.shape[1] else np.eye(n)
+    if not to_machine.any():
+        return B
+    # the frames' rotations held along the directions the machine takes: (G n)^T z = 0
+    K = (G @ directions[:, to_machine]).T @ B
+    _, _, Wt = np.linalg.svd(K, full_matrices=True)
+    return B @ Wt[int(to_machine.sum()):].T
