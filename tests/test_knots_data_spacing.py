@@ -14,7 +14,7 @@ from scipy.interpolate import BSpline
 from mtcomp.identification.fit import identify
 from mtcomp.machine import load_machine
 from mtcomp.measurement.files import read_measurements
-from mtcomp.models.basis import MAX_BASIS, MIN_KNOT_MM, auto_spline, axis_spline
+from mtcomp.models.basis import MAX_BASIS, MIN_KNOT_MM, auto_spline, axis_spline, with_data_basis
 from mtcomp.models.chain import linear_components
 
 
@@ -86,3 +86,17 @@ def test_a_straightness_at_the_lines_spacing_is_followed(tmp_path):
     off = _rms_about_line(s, eyx - _sine(s) * 1e3)
     assert _best_fit_rms_um(-360.0, 360.0, 16, s) > 1.0          # the oracle: 16 functions miss it
     assert off < 0.1, off
+
+
+def test_an_unpenalised_fit_keeps_sixteen_functions():
+    """diagnose's base fit carries no roughness penalty: the data's spacing gives it no more than 16
+    functions per axis (its held-out comparisons refine an axis where the data ask), while a
+    penalised fit of the same 41 positions gets one function per position."""
+    machine = load_machine("xfyz")
+    positions = {"X": np.linspace(-360.0, 360.0, 41), "Y": np.zeros(41), "Z": np.zeros(41)}
+    n_basis = {penalised: axis_spline(with_data_basis(machine, positions, penalised=penalised).axis("X")).n_basis
+               for penalised in (True, False)}
+    assert n_basis == {True: 41, False: 16}
+    # a large data set keeps 16 whether penalised or not: 100,000 rows over the budget
+    rows = {a: np.resize(v, 100_000) for a, v in positions.items()}
+    assert axis_spline(with_data_basis(machine, rows).axis("X")).n_basis == 16

@@ -404,7 +404,7 @@ def axis_spline(axis) -> SplineBasis:
 
 
 def with_data_basis(machine: Machine, positions: dict, fourier: bool = True,
-                    sizes: dict | None = None) -> Machine:
+                    sizes: dict | None = None, penalised: bool = True) -> Machine:
     """The machine with the spline knots of every 'bspline' axis without fixed knots, and the Fourier
     order of every rotary axis whose machine file leaves it open, chosen from the data
     (:func:`mtcomp.models.basis.auto_spline`, :func:`~mtcomp.models.basis.auto_fourier_order`).
@@ -414,15 +414,18 @@ def with_data_basis(machine: Machine, positions: dict, fourier: bool = True,
     sizes : axis name -> the most spline functions for that axis (default: ``auto_spline``'s cap),
         e.g. from :func:`mtcomp.measurement.readings.data_spline_sizes`.
 
-    The other axes get as many functions as their distinct positions, knots ``MIN_KNOT_MM`` apart
-    at the closest, and at most as many as :func:`finest_within_budget` allows the data's rows.
+    penalised : the fit carries the roughness penalty (identify). The other axes then get as many
+        functions as their distinct positions, knots ``MIN_KNOT_MM`` apart at the closest, and at
+        most as many as :func:`finest_within_budget` allows the data's rows; False (an unpenalised
+        fit, diagnose's base, whose held-out comparisons refine an axis where the data ask): at most
+        ``DEFAULT_MAX_BASIS``.
     """
     from dataclasses import replace
 
     chosen = [a for a in machine.axes if not a.is_rotary and a.basis_from_data]
     distinct = {a.name: _distinct(positions.get(a.name, ())) for a in chosen}
     rows = max((np.size(v) for v in positions.values()), default=0)
-    finest = finest_within_budget(machine, distinct, sizes, rows)
+    finest = finest_within_budget(machine, distinct, sizes, rows) if penalised else DEFAULT_MAX_BASIS
     axes = []
     for a in machine.axes:
         if a.is_rotary and a.fourier_from_data and fourier:
