@@ -65,7 +65,9 @@ def run(seed: int, wave, folder: Path, max_sd=None) -> dict:
     return {"before": form_error(before, tip0).rms_um, "after": form_error(after, tip0).rms_um,
             "misfit": misfit.rms_um, "beyond_2sd": float(np.mean(off > 2.0 * sd)),
             "component_beyond_2sd": float(np.mean(np.abs(misfit.residual_um) > 2.0 * sd[:, None])),
-            "sd_median": float(np.nanmedian(sd)), "sd_max": float(np.nanmax(sd)),
+            # no standard errors at all with --max-correction-sd-um 0 (compensate then computes none)
+            "sd_median": float(np.nanmedian(sd)) if np.isfinite(sd).any() else float("nan"),
+            "sd_max": float(np.nanmax(sd)) if np.isfinite(sd).any() else float("nan"),
             "uncorrected": sum(r["corrected"] == "0" for r in rows), "blocks": len(rows)}
 
 
