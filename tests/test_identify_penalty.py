@@ -157,14 +157,15 @@ def _blocks(path):
         return [r for r in csv.DictReader(f) if r["inserted"] == "0" and r["rapid"] == "0"]
 
 
-@pytest.mark.parametrize("seed, rough", [(1, None), (2, None), (3, 60.0)])
+@pytest.mark.parametrize("seed, rough", [(1, None), (2, None), (4, None), (11, None), (3, 60.0)])
 def test_a_tool_length_the_campaign_did_not_measure(seed, rough, tmp_path):
     """The tracker campaign of the identification issue on the independent machine: dense lines
     with a 100 mm stylus, a coarse 7 x 5 x 4 grid with 50 and 200 mm styli; the bowl is cut with
     tool length 0. With angular profiles smooth on the scale of the grid, the predicted form at
     tool length 0 is within 0.3 um rms (rigid motion removed) and compensation removes at least 85 %
-    of the form error; with a 60 mm wave on them (finer than the grid) compensation is still never
-    worse."""
+    of the form error (seeds 4 and 11 missed it, by 0.34 and 0.74 um, while the knots were capped at
+    16 functions per axis: straightnesses with waves the lines read and the knots could not follow);
+    with a 60 mm wave on them (finer than the grid) compensation is still never worse."""
     from independent_cases import tool_length_case
     from truth import Context, form_error
     case = tool_length_case(seed, tmp_path, rough)
@@ -175,7 +176,8 @@ def test_a_tool_length_the_campaign_did_not_measure(seed, rough, tmp_path):
         run = subprocess.run([sys.executable, "-m", "mtcomp", *cmd], capture_output=True, text=True)
         assert run.returncode == 0, run.stderr
     rows = _blocks(rep)
-    assert all(r["corrected"] == "1" for r in rows)
+    # with the wave, blocks whose correction's standard error passes the default limit are left
+    assert rough is not None or all(r["corrected"] == "1" for r in rows)
     q = np.array([[float(r[f"{a}_mm"]) for a in "xyz"] for r in rows])
     corr = np.array([[float(r[f"c{a}_um"]) for a in "xyz"] for r in rows])
     pred = np.array([[float(r[f"e{a}_before_um"]) for a in "xyz"] for r in rows])

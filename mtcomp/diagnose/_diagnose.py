@@ -259,8 +259,9 @@ def _base_machine(machine, datasets, start, refine):
     from ..measurement.readings import data_positions, data_spline_sizes
     # (the Fourier orders of rotary axes too, as identify chooses them: with identify's column-scale
     # rule and steps that must lower the misfit, the weak high harmonics no longer run away)
+    # (no finer knots than 16 functions per axis by the data's spacing: the base fit is unpenalised)
     machine = with_data_basis(machine, data_positions(machine, datasets), fourier=True,
-                              sizes=data_spline_sizes(machine, datasets))
+                              sizes=data_spline_sizes(machine, datasets), penalised=False)
     if refine:
         machine = replace(machine, axes=tuple(
             replace(ax, spline_range=(refine[ax.name].lo, refine[ax.name].hi),

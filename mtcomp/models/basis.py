@@ -162,25 +162,95 @@ def spline_basis(lo: float, hi: float, n_intervals: int, degree: int) -> SplineB
     return SplineBasis(lo, hi, n_intervals, degree)
 
 
-def auto_spline(positions, travel: tuple[float, float], max_basis: int = 16,
-                resolution_mm: float = 1e-3) -> tuple[float, float, int, int]:
+#: the closest knots the data choose (mm): a cubic spline on knots h apart follows little of a sine
+#: shorter than 2.5 h, so the base leaves what repeats at a ball screw's lead (5 to 40 mm) to
+#: diagnose, which names it a periodic error
+MIN_KNOT_MM = 16.0
+#: the functions an axis may always have, whatever its range (on a short axis knots closer than
+#: ``MIN_KNOT_MM``: as many functions as a short laser run's targets, up to this)
+DEFAULT_MAX_BASIS = 16
+#: the most functions per axis that the data's spacing chooses (single-axis runs may ask for more,
+#: :data:`SPLINE_SIZES`)
+MAX_BASIS = 48
+#: functions beyond ``DEFAULT_MAX_BASIS`` are given only while the fit's rows times the square of
+#: the functions summed over the linear axes stays within this: the normal matrix's cost grows so.
+#: 1,500 rows of tracker lines take up to ``MAX_BASIS`` per axis; 20,000 rows and more keep 16, so a
+#: fit of 100,000 points keeps its time
+FIT_SIZE_BUDGET = 4e7
+
+
+def max_intervals(lo: float, hi: float) -> int:
+    """The most equal knot intervals over [lo, hi] whose knots stay ``MIN_KNOT_MM`` apart."""
+    return int((hi - lo) // MIN_KNOT_MM)
+
+
+def auto_spline(positions, travel: tuple[float, float], max_basis: int | None = None,
+                resolution_mm: float = 1e-3, finest: int = MAX_BASIS) -> tuple[float, float, int, int]:
     """Knots that the data can determine: (lo, hi, n_intervals, degree) for one linear axis.
 
     positions : every position the axis took in the data (mm). The range is that of the data; the
-    number of basis functions is the number of distinct positions (at ``resolution_mm``), at most
-    ``max_basis``, so that a laser run over m targets is followed at every target (a pitch table's
-    resolution), and a dense scan gets a smooth fit. Degree 3 when there are four or more functions,
-    less below. An axis that did not move gets the travel and one linear piece (its errors are
-    undetermined and held at zero).
+    number of basis functions is the number of distinct positions (at ``resolution_mm``), so that a
+    laser run over m targets is followed at every target (a pitch table's resolution) and a dense
+    line of points at its own spacing; the roughness penalty, not the knot count, sets how smooth
+    the fitted profile is. ``max_basis`` : at most this many functions (single-axis runs' choice,
+    :func:`spline_size_by_cv`); by default the knots stay ``MIN_KNOT_MM`` apart and there are at
+    most ``finest`` functions (never fewer than ``DEFAULT_MAX_BASIS`` allowed). Degree 3 when there
+    are four or more functions, less below.
+    An axis that did not move gets the travel and one linear piece (its errors are undetermined and
+    held at zero).
     """
-    pos = np.asarray(positions, dtype=float)
-    pos = pos[np.isfinite(pos)]
-    distinct = np.unique(np.round(pos / resolution_mm)) * resolution_mm if pos.size else pos
+    distinct = _distinct(positions, resolution_mm)
     if distinct.size < 2:
         return float(travel[0]), float(travel[1]), 1, 1
-    n_basis = int(min(distinct.size, max_basis))
+    n_basis = _n_functions(distinct, max_basis, finest)
     degree = min(3, n_basis - 1)
     return float(distinct[0]), float(distinct[-1]), n_basis - degree, degree
+
+
+def _distinct(positions, resolution_mm: float = 1e-3) -> np.ndarray:
+    """The distinct finite positions (mm) at ``resolution_mm``, sorted."""
+    pos = np.asarray(positions, dtype=float)
+    pos = pos[np.isfinite(pos)]
+    return np.unique(np.round(pos / resolution_mm)) * resolution_mm if pos.size else pos
+
+
+def _n_functions(distinct: np.ndarray, max_basis: int | None, finest: int) -> int:
+    """The functions :func:`auto_spline` gives an axis with these distinct positions (two or more)."""
+    if max_basis is None:
+        max_basis = max(DEFAULT_MAX_BASIS, min(finest, max_intervals(distinct[0], distinct[-1]) + 3))
+    return int(min(distinct.size, max_basis))
+
+
+def finest_within_budget(machine: Machine, distinct: dict, sizes: dict | None, rows: int) -> int:
+    """The most functions per axis (``finest`` of :func:`auto_spline`, from ``DEFAULT_MAX_BASIS`` to
+    ``MAX_BASIS``) for which ``rows`` times the square of the functions summed over the linear axes
+    stays within ``FIT_SIZE_BUDGET``; ``DEFAULT_MAX_BASIS`` when even that does not.
+
+    distinct : axis name -> the distinct positions of every linear axis whose knots the data choose.
+    sizes : axis name -> single-axis runs' cap (:func:`with_data_basis`). rows : the data's rows.
+    """
+    def total(finest):
+        n = 0
+        for a in machine.axes:
+            if a.is_rotary:
+                continue
+            if a.name in distinct:
+                if a.spline_intervals is not None:
+                    n += a.spline_intervals + a.degree
+                elif distinct[a.name].size >= 2:
+                    n += _n_functions(distinct[a.name], (sizes or {}).get(a.name), finest)
+                else:
+                    n += 2
+            else:
+                n += axis_spline(a).n_basis if a.basis == "bspline" else a.degree
+        return n
+
+    best = DEFAULT_MAX_BASIS
+    for finest in range(DEFAULT_MAX_BASIS + 1, MAX_BASIS + 1):
+        if rows * total(finest) ** 2 > FIT_SIZE_BUDGET:
+            break
+        best = finest
+    return best
 
 
 #: basis sizes (functions per linear axis) that single-axis runs may choose beyond ``auto_spline``'s
@@ -189,17 +259,6 @@ SPLINE_SIZES = (16, 20, 24, 32, 40, 48, 64)
 #: a larger basis must lower the held-out sum of squares (in noise variances) by this many standard
 #: deviations of a chi-square with the added functions as degrees of freedom, plus their number
 SIZE_CV_Z = 2.0
-#: the closest knots a finer basis may have (mm): a cubic spline on knots h apart follows little of a
-#: sine shorter than 2.5 h, so the base leaves what repeats at a ball screw's lead (5 to 40 mm) to
-#: diagnose, which names it a periodic error
-MIN_KNOT_MM = 16.0
-
-
-def max_intervals(lo: float, hi: float) -> int:
-    """The most equal knot intervals over [lo, hi] whose knots stay ``MIN_KNOT_MM`` apart."""
-    return int((hi - lo) // MIN_KNOT_MM)
-
-
 #: a line whose finer bases gain (held-out) at most 1 / this share more than one window of fine
 #: functions gains does not ask for a finer basis
 RIVAL_SHARE = 0.9
@@ -345,7 +404,7 @@ def axis_spline(axis) -> SplineBasis:
 
 
 def with_data_basis(machine: Machine, positions: dict, fourier: bool = True,
-                    sizes: dict | None = None) -> Machine:
+                    sizes: dict | None = None, penalised: bool = True) -> Machine:
     """The machine with the spline knots of every 'bspline' axis without fixed knots, and the Fourier
     order of every rotary axis whose machine file leaves it open, chosen from the data
     (:func:`mtcomp.models.basis.auto_spline`, :func:`~mtcomp.models.basis.auto_fourier_order`).
@@ -354,9 +413,19 @@ def with_data_basis(machine: Machine, positions: dict, fourier: bool = True,
     fourier : also choose the Fourier orders (False keeps the machine's).
     sizes : axis name -> the most spline functions for that axis (default: ``auto_spline``'s cap),
         e.g. from :func:`mtcomp.measurement.readings.data_spline_sizes`.
+
+    penalised : the fit carries the roughness penalty (identify). The other axes then get as many
+        functions as their distinct positions, knots ``MIN_KNOT_MM`` apart at the closest, and at
+        most as many as :func:`finest_within_budget` allows the data's rows; False (an unpenalised
+        fit, diagnose's base, whose held-out comparisons refine an axis where the data ask): at most
+        ``DEFAULT_MAX_BASIS``.
     """
     from dataclasses import replace
 
+    chosen = [a for a in machine.axes if not a.is_rotary and a.basis_from_data]
+    distinct = {a.name: _distinct(positions.get(a.name, ())) for a in chosen}
+    rows = max((np.size(v) for v in positions.values()), default=0)
+    finest = finest_within_budget(machine, distinct, sizes, rows) if penalised else DEFAULT_MAX_BASIS
     axes = []
     for a in machine.axes:
         if a.is_rotary and a.fourier_from_data and fourier:
@@ -364,7 +433,7 @@ def with_data_basis(machine: Machine, positions: dict, fourier: bool = True,
                         fourier_from_data=False)
         if not a.is_rotary and a.basis_from_data:
             cap = {"max_basis": int(sizes[a.name])} if sizes and a.name in sizes else {}
-            lo, hi, n, degree = auto_spline(positions.get(a.name, ()), a.travel, **cap)
+            lo, hi, n, degree = auto_spline(distinct[a.name], a.travel, finest=finest, **cap)
             if a.spline_range is not None:
                 lo, hi = a.spline_range
             if a.spline_intervals is not None:
