@@ -505,7 +505,9 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
         # its units and for cutter radius compensation (the note); a conversational program's
         # blocks stay one to one, so it is planned without internal nodes
         found = words_in(src, (b"20", b"21", b"41", b"42"))
-        if src.heidenhain is not None:
+        if src.heidenhain is not None or b"41" in found or b"42" in found:
+            # one output block per source block: a conversational program's blocks, and a program
+            # under cutter radius compensation, whose controller offsets the moves as written
             settings = replace(settings, subdivide_tol_um=0.0)
         return _compensate_source(fitted, src, output, settings, setup, report, progress, judges,
                                   series, assumed, found, stack, t0)
@@ -592,9 +594,13 @@ def _run_notes(program, written, fitted, setup, tally, found) -> list[str]:
                      "line says so)")
     # found in the user's file (an expansion is gone by now)
     if b"41" in found or b"42" in found:
+        miss = written.get("cutter_arc_miss_mm", 0.0) * 1e3
         notes.append("note: the program uses cutter radius compensation (G41/G42): the corrections "
                      "are those of the programmed contour, while the tool centre runs a radius off "
-                     "it (the error there differs by the model's change over that distance)")
+                     "it (the error there differs by the model's change over that distance); no "
+                     "block is split (the controller offsets the moves as written)"
+                     + (f", and an arc under it is kept whole: the written arcs miss their "
+                        f"corrected path by up to {miss:.2f} um" if miss > 0 else ""))
     return notes + _cycle_notes(written) + datum_notes(fitted, setup) + tally.feed_note(fitted) \
         + setup.notes()
 

@@ -18,6 +18,7 @@ and what passes through.
 from __future__ import annotations
 
 import math
+import re
 from decimal import Decimal
 
 import numpy as np
@@ -56,6 +57,11 @@ class OutputState:
         self.cycle_z = ""
         self.cycle_init_z = math.nan
         self.values = np.full(na, np.nan)
+        #: cutter radius compensation (G41/G42) in force, and how far an arc kept whole under it
+        #: misses its corrected path (mm): the controller offsets the moves as written, so a block
+        #: there is never split (a short entry move or arc piece alarms or gouges)
+        self.cutter_comp = False
+        self.cutter_arc_miss = 0.0
         self.rotary = [False] * na if state is None else state.rotary
         if state is not None:       # axes known before the first line stand where the reader says
             self.values[state.known] = state.position[state.known]
@@ -233,9 +239,15 @@ def format_motion_lines(block: MotionBlock, points: np.ndarray, letters: str, ro
     if source is None:
         source = " ".join([block.number, f"G{block.motion}"] + list(block.raw.values()) +
                           block.words).strip()
+    whole = _cutter_comp(out, source)
     if block.cycle is not None:
         return _cycle_text(block, points, letters, out, ending, separator, source)
     if block.from_arc:
+        if whole:
+            text = _whole_arc_text(block, points, counts, letters, rotary, out, source, chord_tol,
+                                   separator)
+            if text is not None:
+                return text + ending
         text = _arc_text(block, points, counts, letters, rotary, out, source, chord_tol, separator)
         if text is not None:
             return text + ending
@@ -383,7 +395,7 @@ class _ArcPiece:
         self.texts, self.end, self.centre_words = texts, end, centre_words
 
 
-def _arc_text(block, points, counts, letters, rotary, out, source, chord_tol, separator):
+def _arc_text(block, points, counts, letters, rotary, out, source, chord_tol, separator, whole=None):
     """One G2/G3 line where the corrected arc (its corrected points, :func:`arc_samples`) lies within
     chord_tol (mm) of an arc from the written start, else consecutive arcs (the corrected points
     halved recursively); None where the block is better written as straight pieces (G93, a rotary
@@ -403,10 +415,45 @@ def _arc_text(block, points, counts, letters, rotary, out, source, chord_tol, se
     line = SourceLine(source)
     decs = _decimals(line, letters, rotary, block.inch)
     ctx = _ArcFit(block, line, letters, rotary, out, decs, cols, centre2, full, chord_tol, samples)
+    if whole is not None:                 # one arc or none: the path's tolerance lifted
+        ctx.path_tol = math.inf
+        piece = ctx.arc_piece(0, samples[0].shape[0] - 1, start_w)
+        if piece is None:
+            return None
+        whole["miss"] = ctx.miss
+        return ctx.render([piece], separator)
     pieces = ctx.plan(0, samples[0].shape[0] - 1, start_w)
     if not pieces or pieces[0].centre_words is None or (block.inverse_time and len(pieces) > 1):
         return None
     return ctx.render(pieces, separator)
+
+
+_CUTTER_COMP_RE = re.compile(r"(?i)g0*4([012])(?![\d.])")
+_COMMENTS_RE = re.compile(r"\([^)]*\)|;.*")
+
+
+def _cutter_comp(out: OutputState, text: str) -> bool:
+    """Whether the line ``text`` is written under cutter radius compensation (it is in force, or the
+    line switches it on or off: its entry and exit moves); follows G40/G41/G42 in ``out``."""
+    if "4" not in text:
+        return out.cutter_comp
+    codes = _CUTTER_COMP_RE.findall(_COMMENTS_RE.sub("", text))
+    if not codes:
+        return out.cutter_comp
+    out.cutter_comp = codes[-1] != "0"
+    return True
+
+
+def _whole_arc_text(block, points, counts, letters, rotary, out, source, chord_tol, separator):
+    """An arc under cutter radius compensation kept as one arc (:func:`_arc_text` with the path
+    tolerance lifted; the radius and sweep checks stay), its miss of the corrected path kept in
+    ``out.cutter_arc_miss``; None where no single arc passes those checks."""
+    fit = {}
+    text = _arc_text(block, points, counts, letters, rotary, out, source, chord_tol, separator,
+                     whole=fit)
+    if text is not None:
+        out.cutter_arc_miss = max(out.cutter_arc_miss, fit.get("miss", 0.0))
+    return text
 
 
 #: a rotary axis moving along an arc: its corrected values must follow the written arc's linear
@@ -426,7 +473,8 @@ class _ArcFit:
                  samples):
         self.block, self.line, self.letters, self.rotary, self.out = block, line, letters, rotary, out
         self.decs, self.cols, self.centre2, self.full = decs, cols, centre2, full
-        self.tol = chord_tol
+        self.tol = self.path_tol = chord_tol
+        self.miss = 0.0                   # of the last arc that fitted (mm)
         self.samples, self.nominal, self.u = samples
         self.ccw = block.motion == 3
         self.scale = MM_PER_INCH if block.inch else 1.0
@@ -528,7 +576,8 @@ class _ArcFit:
             return False
         dist, rot = arc_misses(start_w, end_w, centre, self.cols, self.ccw, full, inner,
                                self.linear)
-        return dist <= self.tol and rot <= ROTARY_ARC_TOL_RAD
+        self.miss = dist
+        return dist <= self.path_tol and rot <= ROTARY_ARC_TOL_RAD
 
     def render(self, pieces: list, separator: str) -> str:
         """The block's text: the first piece in the source's layout, the others as new lines."""
@@ -594,6 +643,7 @@ def write_pass_through(f, raw: bytes, state: ModalState, out: OutputState, separ
         f.write(("G91" + (_line_ending(raw) or separator)).encode("latin-1"))
         out.absolute = False
     f.write(raw)
+    _cutter_comp(out, raw.decode("latin-1"))
     if state.frame_shift is not None:
         # G52 or a G10 of the active work system: the machine stays, the program's coordinates of
         # it move, and so do the output's (an incremental word after it starts from there)
@@ -751,4 +801,5 @@ def write_corrected(in_path, out_path, machine: Machine, cursor: CorrectionCurso
     if stats is not None:
         stats["cycle_lines"] = 0 if out is None else out.cycle_lines
         stats["cycle_blocks"] = 0 if out is None else out.cycle_blocks
+        stats["cutter_arc_miss_mm"] = 0.0 if out is None else out.cutter_arc_miss
     return rows_written
