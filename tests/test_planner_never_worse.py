@@ -92,3 +92,24 @@ def test_a_move_from_a_position_not_given_comes_from_an_unknown_direction(tmp_pa
     assert abs(abs(ends[3] - ends[4]) - BL_UM) < 1e-3 and abs(ends[3] + ends[4]) < 1e-3
     lines = (tmp_path / "o.nc").read_text().splitlines()
     assert lines[1] == "G0 X0 Y0 Z5"
+
+
+def test_a_block_after_a_home_move_does_not_hold_back_the_cut_before_it(tmp_path):
+    """After `G91 G28 Y0` the next block's Y is not known: it is left uncorrected. The machine went
+    home in between, not along the cut, so the step bound does not tie the two: the cut before the
+    home move ends fully corrected (it was ramped down to the uncorrected block's 0)."""
+    fm = random_model("xfyz", (Backlash("X"),), 3, 0.0, None)
+    fm.params.set_file_value("EXX_1", SLOPE)
+    model = tmp_path / "model.json"
+    save_model(model, fm)
+    prog = tmp_path / "p.nc"
+    prog.write_text("G21 G90 G54\nG0 X150 Y0 Z0\nG1 X200 F500\nG91 G28 Y0\nG90 G1 X150\nM30\n")
+    report = tmp_path / "B.csv"
+    assert main(["compensate", "xfyz", str(model), str(prog), "-o", str(tmp_path / "o.nc"),
+                 "--report", str(report), "--max-step-um", "5", "--quiet"]) == 0
+    rows = _rows(report)
+    end = [r for r in rows if r["line"] == "3" and r["inserted"] == "0"][0]
+    assert abs(float(end["ex_before_um"])) > 6.0           # more than one step of the bound
+    assert abs(float(end["ex_after_um"])) < 0.1 and end["active_bounds"] == ""
+    after = [r for r in rows if r["line"] == "5"][0]
+    assert after["unknown_axes"] == "Y" and after["active_bounds"] == ""

@@ -49,8 +49,8 @@ class NodeSet:
 
     q : (n, na) nominal axis positions, mm and rad (on the output grid when the problem has one).
     context : (n, n_context) block context in the model's context_names order.
-    exempt : (n,) bool, no step bound from the block before (the move into it is a rapid, or it is
-        the first block of the program).
+    exempt : (n,) bool, no step bound from the block before (the move into it is a rapid, a hole,
+        one from a position the program has not given, or it is the first block of the program).
     line : (n,) source line. inserted : (n,) bool, an internal node the planner added.
     rapid : (n,) bool, the node ends (or lies in) a G0 move.
     unknown : (n, na) bool, axes whose position the program has not given at this block.
@@ -359,7 +359,10 @@ class Planner:
         ref = self._reference(chunk.datum, ctx)
         lin_end = self._solve_free(end, ctx, ref)
         first = self._last_end is None
-        exempt = (rapid | cycle) & (not self.problem.step_across_rapids)
+        # no step bound into a rapid, a hole, or a move that starts where the program has not said
+        # (after a home move or a tool change: the machine did not come along the cut)
+        jump = np.zeros(nrows, bool) if chunk.jump is None else np.asarray(chunk.jump, bool)
+        exempt = (rapid | cycle | jump) & (not self.problem.step_across_rapids)
         if first and nrows:
             exempt = exempt.copy()
             exempt[0] = True
