@@ -28,6 +28,7 @@ from .planner._bounds import FLAG_KINDS
 from .planner._parallel import read_ahead
 from .planner._small import any_rows
 from .planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
+from .toolpaths.words import frame_local
 from .toolpaths import iter_segment_chunks, write_corrected
 from .toolpaths._fast import format_table
 from .toolpaths.source import open_program
@@ -466,6 +467,12 @@ def _to_program_frame(res, chunk, off, setup) -> None:
     grid keeps them."""
     res.corrected = setup.to_program(chunk, res.corrected, res.counts, off)
     res.nominal = setup.to_program(chunk, res.nominal, res.counts, off)
+    local = frame_local(chunk.frame)
+    if local.any():
+        # under G52, G68, a mirror or scaling the correction reported is the written one, in the
+        # program's frame, like the positions (the planner's is along the machine's axes)
+        rows = local if len(res.nominal) == len(chunk) else np.repeat(local, res.counts)
+        res.correction[rows] = res.corrected[rows] - res.nominal[rows]
     if len(res.nominal) == len(chunk):         # one node a row (no internal nodes): every row
         exact = chunk.end - res.nominal
         res.nominal += exact

@@ -47,3 +47,4 @@ def test_switching_on_in_the_move_itself_counts(tmp_path, capsys, on):
             f"G1 {on} X-150 Y-100 F300\nG1 X150\nG1 G40 X180 Y-150\nM2\n")
     crc, said = _compensate(tmp_path, capsys, text, "inline")
     assert len(crc) == len(text.splitlines())
+

@@ -399,3 +399,13 @@ class SourceLine:
             pos = max(pos, e)
         out.append(self.text[pos:])
         return "".join(out)
+
+
+_CUTTER_COMP_RE = re.compile(r"(?i)g0*4([012])(?![\d.])")
+_COMMENT_TEXT_RE = re.compile(r"\([^)]*\)|;.*")
+
+
+def cutter_comp_code(text: str) -> int | None:
+    """The last of G40, G41, G42 a line's words give (comments left out), or None."""
+    codes = _CUTTER_COMP_RE.findall(_COMMENT_TEXT_RE.sub("", text))
+    return 40 + int(codes[-1]) if codes else None

@@ -18,7 +18,6 @@ and what passes through.
 from __future__ import annotations
 
 import math
-import re
 from decimal import Decimal
 
 import numpy as np
@@ -30,8 +29,8 @@ from ._arcs import (FULL_CIRCLE_TOL_MM, PLANE_AXES, PLANE_OFFSET_LETTERS, ArcErr
 from .blocks import MotionBlock
 from .modal import ModalState
 from .reader import iter_blocks, new_state
-from .words import (DEFAULT_CHORD_TOL_MM, MM_PER_INCH, SourceLine, format_number,
-                    number_decimals)
+from .words import (DEFAULT_CHORD_TOL_MM, MM_PER_INCH, SourceLine, cutter_comp_code,
+                    format_number, number_decimals)
 
 
 class OutputState:
@@ -57,9 +56,7 @@ class OutputState:
         self.cycle_z = ""
         self.cycle_init_z = math.nan
         self.values = np.full(na, np.nan)
-        #: cutter radius compensation (G41/G42) in force, and how far an arc kept whole under it
-        #: misses its corrected path (mm): the controller offsets the moves as written, so a block
-        #: there is never split (a short entry move or arc piece alarms or gouges)
+        #: G41/G42 in force (no block split there), and how far an arc kept whole misses (mm)
         self.cutter_comp = False
         self.cutter_arc_miss = 0.0
         self.rotary = [False] * na if state is None else state.rotary
@@ -428,19 +425,13 @@ def _arc_text(block, points, counts, letters, rotary, out, source, chord_tol, se
     return ctx.render(pieces, separator)
 
 
-_CUTTER_COMP_RE = re.compile(r"(?i)g0*4([012])(?![\d.])")
-_COMMENTS_RE = re.compile(r"\([^)]*\)|;.*")
-
-
 def _cutter_comp(out: OutputState, text: str) -> bool:
     """Whether the line ``text`` is written under cutter radius compensation (it is in force, or the
     line switches it on or off: its entry and exit moves); follows G40/G41/G42 in ``out``."""
-    if "4" not in text:
+    code = cutter_comp_code(text) if "4" in text else None
+    if code is None:
         return out.cutter_comp
-    codes = _CUTTER_COMP_RE.findall(_COMMENTS_RE.sub("", text))
-    if not codes:
-        return out.cutter_comp
-    out.cutter_comp = codes[-1] != "0"
+    out.cutter_comp = code != 40
     return True
 
 
