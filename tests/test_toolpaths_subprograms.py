@@ -98,10 +98,11 @@ def test_compensated_as_the_program_flattened_by_hand(tmp_path, capsys):
         assert code == 0, err
         written[name] = out.read_text().splitlines()
     sub, flat = written["sub"], written["flat"]
-    # the expansion says so on its first line; the rest, the tape's end % included, is the
-    # hand-flattened program's output
-    assert sub[0].startswith("(expanded by mtcomp from sub.nc for fanuc")
-    assert sub[1:] == flat
+    # the expansion says so right after the tape's opening %; then the hand-flattened program's
+    # output, and what follows its M30 as it is in the file (the subprogram, the tape's end %)
+    assert sub[0] == "%" and sub[1].startswith("(expanded by mtcomp from sub.nc for fanuc")
+    assert sub[2:-5] == flat[1:-1]
+    assert sub[-5:] == ["O1000 (STEP)", "G91 G1 X10 Y5 F300", "G90", "M99", "%"]
     # and the corrections are there: the corrected ends differ from the source's
     assert flat != FANUC_FLAT.splitlines()
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import tempfile
 from array import array
 from dataclasses import dataclass, field
@@ -95,6 +96,10 @@ def _header(source: str, language: str, dialect: Dialect) -> str:
             "the controller executes)")
 
 
+_PROGRAM_END_RE = re.compile(r"(?i)\bm0*(?:2|30)(?![\d.])")
+_COMMENTS_RE = re.compile(r"\([^)]*\)|;.*")
+
+
 def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int):
     """(temporary file, line map, lines written, source lines), or None when nothing changes."""
     run_cls, language = _LANGUAGE[dialect.language]
@@ -125,16 +130,27 @@ def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int):
                     own = raws[i][len(raws[i].rstrip(b"\r\n")):] or ending.encode()
                     out.write(text.encode("latin-1", "replace") + own)
                 line_map.append(i + 1)
-            out.write(header)
-            line_map.append(0)
             for i, text in run.run():
+                if last == -1 and not (tape and i == 0):
+                    out.write(header)             # first, or right after a tape's opening %
+                    line_map.append(0)
                 same = same and text is None and i == last + 1
                 write(i, text)
+                if last == -1 and tape and i == 0:
+                    out.write(header)
+                    line_map.append(0)
                 last = i
-            end = next((k for k in range(len(raws) - 1, last, -1) if raws[k].strip() == b"%"), None)
-            if tape and end is not None and raws[last].strip() != b"%":
-                write(end, None)
-                same = same and end == last + 1
+            if last >= 0 and _PROGRAM_END_RE.search(_COMMENTS_RE.sub("", texts[last])):
+                # what follows the program's end (M2/M30) is kept as it is: the controller runs
+                # none of it (its subprograms, a tape's %, notes), and the reader passes it through
+                for k in range(last + 1, len(raws)):
+                    write(k, None)
+            else:
+                end = next((k for k in range(len(raws) - 1, last, -1) if raws[k].strip() == b"%"),
+                           None)
+                if tape and end is not None and raws[last].strip() != b"%":
+                    write(end, None)
+                    same = same and end == last + 1
             if hasattr(run, "check_ran"):
                 run.check_ran()
         if same and len(line_map) - 1 == len(raws):
