@@ -88,7 +88,8 @@ class NgcParams:
             return self.numbered.get(key, 0.0)
         table = self.globals if key.startswith("_") else self.frames[-1]
         if key not in table:
-            what = ("a predefined parameter of the controller's state, not known here"
+            what = ("a global parameter used before the program sets it (or one of the "
+                    "controller's predefined ones, whose state the file does not give)"
                     if key.startswith("_") else "used before it is set")
             raise ExprError(f"named parameter #<{key}>: {what}")
         return table[key]
