@@ -27,8 +27,9 @@ def test_the_cutting_moves_are_the_g1_blocks_read_by_hand(tmp_path):
     np.testing.assert_allclose(cut.start, [[10, 0, 5], [10, 0, 0]], rtol=0, atol=1e-12)
     np.testing.assert_allclose(cut.end, [[10, 0, 0], [20, 0, 0]], rtol=0, atol=1e-12)
     np.testing.assert_allclose(cut.feed, [500, 800], rtol=0, atol=0)
-    # X and Z last moved up by the G0, then Z down; Y never moved (+1)
-    np.testing.assert_array_equal(cut.dirs, [[1, 1, -1], [1, 1, -1]])
+    # the G0 moves every axis from a position the program has not given: directions not known
+    # (0); then Z down, then X up; Y never moves from a known position (0)
+    np.testing.assert_array_equal(cut.dirs, [[0, 0, -1], [1, 0, -1]])
 
 
 @pytest.mark.parametrize("text, problem", [("G21 G90\nM30\n", "no motion"),

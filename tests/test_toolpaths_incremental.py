@@ -166,3 +166,13 @@ def test_an_increment_after_g52_starts_where_the_machine_stands(tmp_path):
     out = _write(tmp_path, text, _constant_x, initial_position=ORIGIN, dialect="fanuc")
     assert out == ["G21 G90 G54", "G0 X0.0010 Y0 Z0", "G52 X10.", "G91 G1 X5. F100", "X5.",
                    "G90 G1 X0.0010"]
+
+
+@pytest.mark.parametrize("dialect,last", [("grbl", "G0 X5.0010"), ("linuxcnc", "G0 X5")])
+def test_grbl_runs_on_after_m30_with_its_modes_reset(tmp_path, dialect, last):
+    # grbl 1.1 (gcode.c) resets G1 G17 G90 G94 G54 at M2/M30 and runs the lines a sender streams
+    # after it: X5 is absolute again and corrected; LinuxCNC runs nothing after M30
+    text = "G21 G90\nG0 X0 Y0 Z5\nG91 G0 X1\nM30\nG0 X5\n"
+    out = _write(tmp_path, text, _constant_x, initial_position=ORIGIN, dialect=dialect)
+    assert out[:4] == ["G21 G90", "G0 X0.0010 Y0 Z5", "G91 G0 X1", "M30"]
+    assert out[4] == last

@@ -120,8 +120,11 @@ def test_a_real_profile_in_34_step_downs_is_mapped_in_its_plane(exx):
     from pathlib import Path
     machine, fitted = exx
     path = Path(__file__).parent / "data" / "gcode_corpus" / "ugs_electric_turtle.nc"
-    prog = read_program_points(path, machine)
+    # a program streamed to grbl by Universal Gcode Sender: grbl runs on after its M30s (the
+    # last level comes after one); read by the other controllers' rules it ends at the first
+    prog = read_program_points(path, machine, dialect="grbl")
     assert viz_surface.planar_levels(prog, machine) == 34
+    assert viz_surface.planar_levels(read_program_points(path, machine), machine) == 33
     smap = program_error_map(machine, fitted, prog, normal="auto")
     assert smap.normal_kind == "in-plane" and smap.info["levels"] == 34
     # the outer circle (radius 55.6 mm about the origin) is there, as the outermost wall

@@ -379,5 +379,6 @@ def write_corrected(in_path, out_path, machine, cursor, chord_tol_mm, initial_po
     if stats is not None:
         stats["cycle_lines"] = ostate.cycle_lines
         stats["cycle_blocks"] = ostate.cycle_blocks
-        stats["cutter_arc_miss_mm"] = ostate.cutter_arc_miss
+        if ostate.cutter_arc_miss > 0:
+            stats["cutter_arc_miss_mm"] = ostate.cutter_arc_miss
     return rows_done

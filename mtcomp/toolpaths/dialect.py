@@ -197,3 +197,13 @@ def _finds(chunk: bytes, what: bytes):
     while pos >= 0:
         yield pos
         pos = chunk.find(what, pos + 1)
+
+
+def grbl_program_end(state) -> None:
+    """grbl after M2/M30 (grbl 1.1, gcode.c, program flow): it goes on with the lines a sender
+    streams after it, its modes reset to G1 G17 G90 G94 G54 (positions kept, G92 kept)."""
+    from .words import _WCS_INDEX
+    state.ended = False
+    state.motion, state.incremental, state.inverse_time = 1, False, False
+    state._apply_modal_code(17, {})
+    state._set_wcs(_WCS_INDEX[54])

@@ -22,7 +22,7 @@ from ._arcs import (PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, cent
                     is_point_circle, point_circle)
 from .blocks import CycleBlock, MotionBlock
 from .cycle_rules import cycle_move, cycle_unclear, incremental_r_level, retract_level
-from .dialect import GENERIC
+from .dialect import GENERIC, grbl_program_end
 from .frames import FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle, mode_change
 from .programmed import ProgrammedOffsets, apply_g10
 from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _COLON_PROGRAM_RE, _CURVE_WITH_COORDINATES,
@@ -162,14 +162,14 @@ class ModalState:
             self.known[idx] = False
 
     def block(self, line: int, text: str) -> MotionBlock | None:
-        """Interpret one line (text without line ending). Returns its motion, or None.
-
-        The steps, in the order their errors are found: the line's flags are cleared, lines without
-        words pass through, the words are read, the G and M codes change the modes, the axis words
-        are checked, the feed is set; then a home move, a drilling cycle or a motion block follows.
-        """
+        """Interpret one line (text without line ending): its motion, or None. In the order errors
+        are found: flags cleared, lines without words (all after M2/M30 but on grbl, which resets
+        its modes and runs on) pass, words read, G/M codes change modes, axis words checked, feed
+        set; then a home move, a drilling cycle or a motion block."""
         self._clear_line_flags()
         self._line = line
+        if self.ended and self.dialect.name == "grbl":
+            grbl_program_end(self)
         text = None if self.ended else self._text_with_words(line, text)
         if text is None:
             return None

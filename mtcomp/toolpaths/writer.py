@@ -56,9 +56,7 @@ class OutputState:
         self.cycle_z = ""
         self.cycle_init_z = math.nan
         self.values = np.full(na, np.nan)
-        #: G41/G42 in force (no block split there), and how far an arc kept whole misses (mm)
-        self.cutter_comp = False
-        self.cutter_arc_miss = 0.0
+        self.cutter_comp, self.cutter_arc_miss = False, 0.0   # G41/G42 on; a whole arc's miss (mm)
         self.rotary = [False] * na if state is None else state.rotary
         if state is not None:       # axes known before the first line stand where the reader says
             self.values[state.known] = state.position[state.known]
@@ -100,6 +98,11 @@ def _increment_text(target: str, start: float, rot: bool, inch: bool) -> str:
     the decimals of both, so that the increments written add up exactly to the written ends."""
     prev = _on_grid(start, rot, inch)
     end = Decimal(target)
+    if -prev.as_tuple().exponent > 8:
+        # not a position written in these units (the program changed them, G20/G21): taken on
+        # the target's grid, the machine's own position carried on by out.values
+        prev = prev.quantize(Decimal(1).scaleb(-max(-end.as_tuple().exponent,
+                                                    _base_decimals(rot, inch))))
     decimals = max(-end.as_tuple().exponent, -prev.as_tuple().exponent, 0)
     return format_number(end - prev, decimals)
 
@@ -200,7 +203,9 @@ def _apply_axes(block: MotionBlock, line: SourceLine, texts, letters: str, out: 
         said = t
         if block.incremental:       # G91: the increment from where the output stands
             v = out.values[i]
-            said = _increment_text(t, block.start[i] if v != v else v, out.rotary[i], block.inch)
+            start = block.start[i] if v != v else v
+            said = _increment_text(t, start, out.rotary[i], block.inch)
+            step = float(said)
             if w is not None and Decimal(said) == Decimal(line.number(w)):
                 said = None         # the source's own increment keeps its spelling
         if w is not None:
@@ -208,7 +213,13 @@ def _apply_axes(block: MotionBlock, line: SourceLine, texts, letters: str, out: 
                 line.replace_number(w, said)
         else:
             added.append(line.letter(letters[i]) + said)
-        out.set_last(i, t, block.inch)
+        if block.incremental:
+            # the machine moves by the increment written from where it stands (which, after a
+            # change of units, need not lie on this unit's grid)
+            out.values[i] = start + (math.radians(step) if out.rotary[i]
+                                     else step * (MM_PER_INCH if block.inch else 1.0))
+        else:
+            out.set_last(i, t, block.inch)
     return added
 
 
@@ -240,12 +251,14 @@ def format_motion_lines(block: MotionBlock, points: np.ndarray, letters: str, ro
     if block.cycle is not None:
         return _cycle_text(block, points, letters, out, ending, separator, source)
     if block.from_arc:
-        if whole:
-            text = _whole_arc_text(block, points, counts, letters, rotary, out, source, chord_tol,
-                                   separator)
-            if text is not None:
-                return text + ending
-        text = _arc_text(block, points, counts, letters, rotary, out, source, chord_tol, separator)
+        fit = {} if whole else None       # under G41/G42 one arc, its miss noted; else pieces
+        text = _arc_text(block, points, counts, letters, rotary, out, source, chord_tol, separator,
+                         fit)
+        if text is not None:
+            out.cutter_arc_miss = max(out.cutter_arc_miss, fit.get("miss", 0.0) if fit else 0.0)
+            return text + ending
+        text = None if not whole else _arc_text(block, points, counts, letters, rotary, out,
+                                                source, chord_tol, separator)
         if text is not None:
             return text + ending
     return _line_text(block, points, letters, rotary, out, source, ending or separator) + ending
@@ -433,18 +446,6 @@ def _cutter_comp(out: OutputState, text: str) -> bool:
         return out.cutter_comp
     out.cutter_comp = code != 40
     return True
-
-
-def _whole_arc_text(block, points, counts, letters, rotary, out, source, chord_tol, separator):
-    """An arc under cutter radius compensation kept as one arc (:func:`_arc_text` with the path
-    tolerance lifted; the radius and sweep checks stay), its miss of the corrected path kept in
-    ``out.cutter_arc_miss``; None where no single arc passes those checks."""
-    fit = {}
-    text = _arc_text(block, points, counts, letters, rotary, out, source, chord_tol, separator,
-                     whole=fit)
-    if text is not None:
-        out.cutter_arc_miss = max(out.cutter_arc_miss, fit.get("miss", 0.0))
-    return text
 
 
 #: a rotary axis moving along an arc: its corrected values must follow the written arc's linear
@@ -652,6 +653,8 @@ def write_pass_through(f, raw: bytes, state: ModalState, out: OutputState, separ
         out.absolute = True
     if state.had_g:
         out.motion = state.motion if state.motion in (0, 1) and state.cycle is None else -1
+    if state.ended and state.dialect.name == "grbl":     # its M2/M30 resets G1 G90 (dialect.py)
+        out.absolute, out.motion = True, 1
     if state.cycle_line:
         out.cycle_lines += 1
         xi, yi, zi = state.xyz_index
@@ -666,8 +669,7 @@ def write_pass_through(f, raw: bytes, state: ModalState, out: OutputState, separ
 
 
 def _follow_increments(raw: bytes, state: ModalState, out: OutputState) -> None:
-    """An incremental move passed through (an axis not known among its words): each known axis it
-    names moves by its increment from where the output stands, on the output's grid."""
+    """An incremental move passed through: each known axis it names moves by its increment."""
     line = SourceLine(raw.decode("latin-1").rstrip("\r\n"))
     for i, c in enumerate(state.names):
         w = line.find(c)
@@ -792,5 +794,6 @@ def write_corrected(in_path, out_path, machine: Machine, cursor: CorrectionCurso
     if stats is not None:
         stats["cycle_lines"] = 0 if out is None else out.cycle_lines
         stats["cycle_blocks"] = 0 if out is None else out.cycle_blocks
-        stats["cutter_arc_miss_mm"] = 0.0 if out is None else out.cutter_arc_miss
+        if out is not None and out.cutter_arc_miss > 0:
+            stats["cutter_arc_miss_mm"] = out.cutter_arc_miss
     return rows_written
