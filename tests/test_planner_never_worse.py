@@ -13,13 +13,24 @@ BL_UM = 30.0
 SLOPE = -40.0
 
 
-def _model(tmp_path):
+def _model(tmp_path, backlash=BL_UM, slope=SLOPE):
+    """Errors of X alone: a backlash and a positioning error linear in X (every other 0)."""
     fm = random_model("xfyz", (Backlash("X"),), 3, 0.0, None)     # every geometric error 0
-    fm.params.set_file_value("BL_X", BL_UM)
-    fm.params.set_file_value("EXX_1", SLOPE)      # a positioning error linear in X beside it
+    fm.params.set_file_value("BL_X", backlash)
+    fm.params.set_file_value("EXX_1", slope)
     p = tmp_path / "model.json"
     save_model(p, fm)
     return p
+
+
+def _compensate(tmp_path, model, program: str, step_um: float, *extra) -> list:
+    """Compensate ``program``; the rows of its BLOCKS.csv."""
+    prog = tmp_path / "p.nc"
+    prog.write_text(program)
+    report = tmp_path / "B.csv"
+    assert main(["compensate", "xfyz", str(model), str(prog), "-o", str(tmp_path / "o.nc"),
+                 "--report", str(report), "--max-step-um", str(step_um), "--quiet", *extra]) == 0
+    return _rows(report)
 
 
 def _rows(path):
@@ -78,16 +89,9 @@ def test_a_move_from_a_position_not_given_comes_from_an_unknown_direction(tmp_pa
     where the program has not said: the direction it arrives from is not known, so the backlash
     term takes the mean of both (0): the datum X0 gets no correction (it got -15 um, as if X had come
     from below). The next move, from a known X, has its direction: +-15 um."""
-    fm = random_model("xfyz", (Backlash("X"),), 3, 0.0, None)
-    fm.params.set_file_value("BL_X", BL_UM)
-    model = tmp_path / "model.json"
-    save_model(model, fm)
-    prog = tmp_path / "p.nc"
-    prog.write_text("G21 G90 G54\nG0 X0 Y0 Z5\nG1 X10 F500\nG1 X0\nM30\n")
-    report = tmp_path / "B.csv"
-    assert main(["compensate", "xfyz", str(model), str(prog), "-o", str(tmp_path / "o.nc"),
-                 "--report", str(report), "--max-step-um", "100", "--quiet"]) == 0
-    ends = {int(r["line"]): float(r["ex_before_um"]) for r in _rows(report) if r["inserted"] == "0"}
+    rows = _compensate(tmp_path, _model(tmp_path, slope=0.0),
+                       "G21 G90 G54\nG0 X0 Y0 Z5\nG1 X10 F500\nG1 X0\nM30\n", 100)
+    ends = {int(r["line"]): float(r["ex_before_um"]) for r in rows if r["inserted"] == "0"}
     assert ends[2] == 0.0
     assert abs(abs(ends[3] - ends[4]) - BL_UM) < 1e-3 and abs(ends[3] + ends[4]) < 1e-3
     lines = (tmp_path / "o.nc").read_text().splitlines()
@@ -98,16 +102,8 @@ def test_a_block_after_a_home_move_does_not_hold_back_the_cut_before_it(tmp_path
     """After `G91 G28 Y0` the next block's Y is not known: it is left uncorrected. The machine went
     home in between, not along the cut, so the step bound does not tie the two: the cut before the
     home move ends fully corrected (it was ramped down to the uncorrected block's 0)."""
-    fm = random_model("xfyz", (Backlash("X"),), 3, 0.0, None)
-    fm.params.set_file_value("EXX_1", SLOPE)
-    model = tmp_path / "model.json"
-    save_model(model, fm)
-    prog = tmp_path / "p.nc"
-    prog.write_text("G21 G90 G54\nG0 X150 Y0 Z0\nG1 X200 F500\nG91 G28 Y0\nG90 G1 X150\nM30\n")
-    report = tmp_path / "B.csv"
-    assert main(["compensate", "xfyz", str(model), str(prog), "-o", str(tmp_path / "o.nc"),
-                 "--report", str(report), "--max-step-um", "5", "--quiet"]) == 0
-    rows = _rows(report)
+    rows = _compensate(tmp_path, _model(tmp_path, backlash=0.0),
+                       "G21 G90 G54\nG0 X150 Y0 Z0\nG1 X200 F500\nG91 G28 Y0\nG90 G1 X150\nM30\n", 5)
     end = [r for r in rows if r["line"] == "3" and r["inserted"] == "0"][0]
     assert abs(float(end["ex_before_um"])) > 6.0           # more than one step of the bound
     assert abs(float(end["ex_after_um"])) < 0.1 and end["active_bounds"] == ""

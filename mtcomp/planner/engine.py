@@ -347,7 +347,8 @@ class Planner:
         # internal nodes lie on the line from the previous node: not where the move starts from a
         # position the program has not given (an axis unknown before it), nor after a hole (the
         # cycle leaves the tool at its retract plane, not at the hole's bottom)
-        no_line = np.zeros(nrows, bool) if chunk.jump is None else np.asarray(chunk.jump, bool).copy()
+        jump = np.zeros(nrows, bool) if chunk.jump is None else np.asarray(chunk.jump, bool)
+        no_line = jump.copy()
         if nrows:
             no_line[1:] |= cycle[:-1]
             no_line[0] |= self._after_cycle
@@ -361,7 +362,6 @@ class Planner:
         first = self._last_end is None
         # no step bound into a rapid, a hole, or a move that starts where the program has not said
         # (after a home move or a tool change: the machine did not come along the cut)
-        jump = np.zeros(nrows, bool) if chunk.jump is None else np.asarray(chunk.jump, bool)
         exempt = (rapid | cycle | jump) & (not self.problem.step_across_rapids)
         if first and nrows:
             exempt = exempt.copy()

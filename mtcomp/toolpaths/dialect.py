@@ -27,6 +27,7 @@ import re
 from dataclasses import dataclass
 
 from ..errors import InputError
+from .words import _WCS_INDEX, strip_comments
 
 
 @dataclass(frozen=True)
@@ -87,10 +88,6 @@ _NAMED = re.compile(r"(?i)[(;][^)]*\b(fanuc|haas|linuxcnc|grbl)\b")
 _HEAD = 1 << 16          # bytes of the program's start read for its dialect
 
 
-def _strip_comments(line: str) -> str:
-    return re.sub(r"\([^()]*\)|;.*", "", line)
-
-
 def detect(path) -> tuple[Dialect, str]:
     """(the program's dialect, why: 'detected from line N: ...' or what was taken). The first
     clue in the first 64 kB wins: LinuxCNC's O-words or named parameters, a Fanuc macro statement
@@ -106,7 +103,7 @@ def detect(path) -> tuple[Dialect, str]:
     if len(head) == _HEAD:
         lines = lines[:-1]
     for k, line in enumerate(lines, 1):
-        code = _strip_comments(line) if not line.lstrip().startswith(("$", "?", "~", "!")) else line
+        code = strip_comments(line) if not line.lstrip().startswith(("$", "?", "~", "!")) else line
         named = _NAMED.search(line)
         for name, clue in _CLUES + ([(named.group(1).lower(), re.compile(""))] if named else []):
             if clue.search(code):
@@ -175,7 +172,7 @@ def _has_code(chunk: bytes) -> bool:
         start = chunk.rfind(b"\n", 0, m.start()) + 1
         end = chunk.find(b"\n", m.start())
         line = chunk[start:len(chunk) if end < 0 else end].decode("latin-1")
-        if _CALL.search(_strip_comments(line).encode("latin-1")):
+        if _CALL.search(strip_comments(line).encode("latin-1")):
             return True
     for ch in (b"#", b"[", b"@", b"^", b"o", b"O"):
         for pos in _finds(chunk, ch):
@@ -186,7 +183,7 @@ def _has_code(chunk: bytes) -> bool:
             line = chunk[start:len(chunk) if end < 0 else end]
             if _STATEMENT_LINE.match(line):
                 return True
-            if ch in (b"#", b"[", b"@", b"^") and ch.decode() in _strip_comments(line.decode("latin-1")):
+            if ch in (b"#", b"[", b"@", b"^") and ch.decode() in strip_comments(line.decode("latin-1")):
                 return True
     return False
 
@@ -202,7 +199,6 @@ def _finds(chunk: bytes, what: bytes):
 def grbl_program_end(state) -> None:
     """grbl after M2/M30 (grbl 1.1, gcode.c, program flow): it goes on with the lines a sender
     streams after it, its modes reset to G1 G17 G90 G94 G54 (positions kept, G92 kept)."""
-    from .words import _WCS_INDEX
     state.ended = False
     state.motion, state.incremental, state.inverse_time = 1, False, False
     state._apply_modal_code(17, {})

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 from ..errors import InputError
 from .dialect import Dialect, dialect_named, foreign_language, needs_expansion
+from .words import strip_comments
 from .heidenhain import translate
 from .macro import MacroRun
 from .ngc import MAX_LINES, MAX_STEPS, NgcRun
@@ -97,7 +98,6 @@ def _header(source: str, language: str, dialect: Dialect) -> str:
 
 
 _PROGRAM_END_RE = re.compile(r"(?i)\bm0*(?:2|30)(?![\d.])")
-_COMMENTS_RE = re.compile(r"\([^)]*\)|;.*")
 
 
 def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int):
@@ -140,7 +140,7 @@ def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int):
                     out.write(header)
                     line_map.append(0)
                 last = i
-            if last >= 0 and _PROGRAM_END_RE.search(_COMMENTS_RE.sub("", texts[last])):
+            if last >= 0 and _PROGRAM_END_RE.search(strip_comments(texts[last])):
                 # what follows the program's end (M2/M30) is kept as it is: the controller runs
                 # none of it (its subprograms, a tape's %, notes), and the reader passes it through
                 for k in range(last + 1, len(raws)):

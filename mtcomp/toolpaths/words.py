@@ -402,10 +402,15 @@ class SourceLine:
 
 
 _CUTTER_COMP_RE = re.compile(r"(?i)g0*4([012])(?![\d.])")
-_COMMENT_TEXT_RE = re.compile(r"\([^)]*\)|;.*")
+_COMMENT_TEXT_RE = re.compile(r"\([^()]*\)|;.*")
+
+
+def strip_comments(line: str) -> str:
+    """A line's text without its comments ('( )' and ';' to the end)."""
+    return _COMMENT_TEXT_RE.sub("", line)
 
 
 def cutter_comp_code(text: str) -> int | None:
     """The last of G40, G41, G42 a line's words give (comments left out), or None."""
-    codes = _CUTTER_COMP_RE.findall(_COMMENT_TEXT_RE.sub("", text))
+    codes = _CUTTER_COMP_RE.findall(strip_comments(text))
     return 40 + int(codes[-1]) if codes else None

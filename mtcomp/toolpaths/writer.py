@@ -635,7 +635,8 @@ def write_pass_through(f, raw: bytes, state: ModalState, out: OutputState, separ
         f.write(("G91" + (_line_ending(raw) or separator)).encode("latin-1"))
         out.absolute = False
     f.write(raw)
-    _cutter_comp(out, raw.decode("latin-1"))
+    if b"4" in raw:
+        _cutter_comp(out, raw.decode("latin-1"))
     if state.frame_shift is not None:
         # G52 or a G10 of the active work system: the machine stays, the program's coordinates of
         # it move, and so do the output's (an incremental word after it starts from there)
