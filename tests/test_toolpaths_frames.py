@@ -243,23 +243,39 @@ CASES = {
 }
 
 
+def programs_of(code: str) -> dict:
+    """{'frame': the part under the frame change ``code``, 'flat': the same motion written flat}."""
+    _dialect, on, off, placer = CASES[code]
+    return {"frame": "G21 G90 G17\n" + on + PART + off + "M30\n",
+            "flat": "G21 G90 G17\n" + _flat(on, PART, placer) + "M30\n"}
+
+
+def compensated_both(tmp_path, capsys, code: str, scale: float, more=()):
+    """[(name, text, program, output, model)] of both programs of :func:`programs_of` compensated
+    with one model of the given scale (seeded), no subdivision."""
+    dialect = CASES[code][0]
+    _machine, _fitted, model = _model(tmp_path, "xfyz", seed=8, scale=scale)
+    out_list = []
+    for name, text in programs_of(code).items():
+        prog, out = tmp_path / f"{name}.nc", tmp_path / f"{name}.out.nc"
+        prog.write_text(text)
+        code_, _o, err = _run(["compensate", "xfyz", str(model), str(prog), "-o", str(out),
+                               "--dialect", dialect, "--subdivide-tol-um", "0", "--quiet", *more],
+                              capsys)
+        assert code_ == 0, err
+        out_list.append((name, text, prog, out, model))
+    return out_list
+
+
 @pytest.mark.parametrize("code", list(CASES))
 def test_compensated_under_the_frame_is_the_flat_program_compensated(tmp_path, capsys, code):
     """The same machine moves, once under the frame change and once written flat by hand: the
     planner sees the same machine positions, so both outputs, replayed on the machine by the
     interpreter above, put every end point and arc centre at the same place (to the 6 decimals
     written, times the scale)."""
-    dialect, on, off, placer = CASES[code]
-    _machine, _fitted, model = _model(tmp_path, "xfyz", seed=8, scale=60.0)
     outs = {}
-    for name, text in (("frame", "G21 G90 G17\n" + on + PART + off + "M30\n"),
-                       ("flat", "G21 G90 G17\n" + _flat(on, PART, placer) + "M30\n")):
-        prog, out = tmp_path / f"{name}.nc", tmp_path / f"{name}.out.nc"
-        prog.write_text(text)
-        code_, _o, err = _run(["compensate", "xfyz", str(model), str(prog), "-o", str(out),
-                               "--dialect", dialect, "--subdivide-tol-um", "0", "--chord-tol-um", "30",
-                               "--quiet"], capsys)
-        assert code_ == 0, err
+    for name, text, _prog, out, _model_path in compensated_both(tmp_path, capsys, code, 60.0,
+                                                                ["--chord-tol-um", "30"]):
         outs[name] = _replay(out.read_text().splitlines())
         moved = [e for e, _c in outs[name]][:8]
         nominal = [e for e, _c in _replay(text.splitlines())]

@@ -47,18 +47,15 @@ def read_program_points(path, machine: Machine, dialect: str | None = None,
     the reader's default), read by the rules of ``dialect`` (None: detected from the program).
     Raises InputError."""
     from ..toolpaths import SegmentChunk, iter_segment_chunks
+    from ..toolpaths.source import open_program
     tol = {} if chord_tol_mm is None else {"chord_tol_mm": chord_tol_mm}
-    chunks = list(iter_segment_chunks(path, machine, dialect=dialect, **tol))
+    with open_program(path, dialect) as src:
+        chunks = list(iter_segment_chunks(src, machine, **tol))
+        frames = list(getattr(src, "local_frames", None) or [])
     seg = SegmentChunk.concatenate(chunks, machine.n_axes)
     if len(seg.end) == 0:
-        from ..errors import InputError
         raise InputError("no motion block in the program: nothing to draw", path)
-    from ..toolpaths.words import frame_local
-    moved = frame_local(seg.frame)
-    if moved.any():
-        raise InputError("a move under G52, G68, a mirror image or scaling: render does not place a "
-                         "program that moves its own frame", path, int(seg.line[np.argmax(moved)]))
-    q = seg.end.copy()
+    q = _placed(seg, frames, machine)
     # tool centre point rows: the words are the tip and the angles; the map works on the axes the
     # controller reaches (the workpiece origin taken at the kinematics' own: render's work offset
     # moves the linear axes only)
@@ -70,6 +67,22 @@ def read_program_points(path, machine: Machine, dialect: str | None = None,
     return ProgramPoints(os.fspath(path), q, seg.line.copy(), seg.feed.copy(),
                          seg.dirs.copy(), seg.rapid.copy(), seg.known.copy(), seg.cycle.copy(), tcp,
                          dialect, chord_tol_mm)
+
+
+def _placed(seg, frames: list, machine: Machine) -> np.ndarray:
+    """(n, na) the rows' positions in the work system: under a frame the program moved itself (G52,
+    G68, a mirror image, scaling) its words placed where the controller puts them, so that the map
+    and the pairing with the compensated program (read the same way) see the machine's positions."""
+    from ..toolpaths.frames import frames_of_rows
+    from ..toolpaths.words import frame_local
+    q = seg.end.copy()
+    local = frame_local(seg.frame)
+    if local.any():
+        xyz = [machine.index(c) for c in "XYZ"]
+        for frame, rows in frames_of_rows(frames, seg.line):
+            rows = rows & local
+            q[rows] = frame.to_machine(q[rows], xyz)
+    return q
 
 
 def _motion_runs(original: ProgramPoints, compensated: ProgramPoints) -> tuple[np.ndarray, np.ndarray]:
