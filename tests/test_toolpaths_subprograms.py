@@ -195,3 +195,19 @@ def test_a_haas_work_system_change_forgets_the_positions(tmp_path, capsys, code)
                            "--dialect", "haas"], capsys)
     assert code_ == 0, err
     assert out.read_text().splitlines()[3] == "G1 X10 F100"
+
+
+@pytest.mark.parametrize("lines, calls", [
+    (["G0 X1", "M98 P1000", "M30"], True), (["G0 X1", "m097 p2", "M30"], True),
+    (["G0 X1 (M98 P1000)", "M30"], False), (["G0 X1 ; M98", "M30"], False),
+    (["M980", "M9.8", "M3 S1000", "M9"], False), (["G1 X1 M98P1"], True),
+    (["(a comment)", "mm98", "M 98 P1"], True)])
+def test_a_subprogram_call_is_found_in_any_block(tmp_path, lines, calls):
+    """needs_expansion finds M98/M97 outside comments, in whichever 64 kB block it lies (the call
+    placed after enough plain lines that it falls in the second block, across the boundary)."""
+    from mtcomp.toolpaths.dialect import needs_expansion
+    filler = "G1 X1.2345 Y-2.3456 Z-3.4567\n" * 3000      # 87 kB
+    for head in ("", filler):
+        p = tmp_path / "p.nc"
+        p.write_text(head + "\n".join(lines) + "\n")
+        assert needs_expansion(p) is calls, (head[:5], lines)

@@ -168,9 +168,12 @@ def _has_code(chunk: bytes) -> bool:
     (a '#', '[', '@', '^', an 'O' before a number or label); only those lines are read. A GOTO
     without any of these is left to the reader, which refuses it by name. A subprogram call (M98,
     Haas' M97) counts too: the macro runner expands it."""
-    for m in _CALL.finditer(chunk):
-        start = chunk.rfind(b"\n", 0, m.start()) + 1
-        end = chunk.find(b"\n", m.start())
+    # an M is rare in a program (a regular expression over the whole block took 1.5 ms per 64 kB)
+    for pos in (p for ch in (b"M", b"m") for p in _finds(chunk, ch)):
+        if not _CALL.match(chunk, pos):
+            continue
+        start = chunk.rfind(b"\n", 0, pos) + 1
+        end = chunk.find(b"\n", pos)
         line = chunk[start:len(chunk) if end < 0 else end].decode("latin-1")
         if _CALL.search(strip_comments(line).encode("latin-1")):
             return True
