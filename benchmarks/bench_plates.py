@@ -25,7 +25,19 @@ and the repeatability of the batch: the rms over its plates of each plate's rigi
 about the batch's mean pattern, against that pattern's own rigid-aligned rms.
 
     python benchmarks/bench_plates.py [--batch short|long|operator|all]... [--machine TOML]
-                                      [--travel machine|region]...
+                                      [--travel machine|region]... [--without-diameter MM]
+                                      [--explain]
+
+``--without-diameter 4`` leaves the 4 mm holes out of every plate (with long tools they came out
+oversized and their centres scatter from plate to plate). ``--explain`` runs no mtcomp fit and
+says what explains the error from plate to plate (a second): each plate's error about the batch's
+mean, rms by nominal hole diameter; held out one plate at a time, per-hole predictors that use only
+what is known before a plate is measured (a line per hole in the cutting order or in the hours
+since the first plate or the day's first plate was started, from the machine's logs; the mean of
+the plates cut with the same tool length, speed or feed, plate_setups.csv), on every hole and
+without the 4 mm holes; and, fitted on the plate itself and so no prediction, the batch's mean with
+the plate among the plates averaged and an alignment extended by an isotropic scale (a thermal
+expansion) or by every linear map.
 
 Default: the batch `short` (plates 1-9, one tool length), the machine's travel. Each left-out plate
 costs one `mtcomp identify` and one `mtcomp predict` run per travel (a few seconds on this machine
