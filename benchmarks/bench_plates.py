@@ -25,7 +25,19 @@ and the repeatability of the batch: the rms over its plates of each plate's rigi
 about the batch's mean pattern, against that pattern's own rigid-aligned rms.
 
     python benchmarks/bench_plates.py [--batch short|long|operator|all]... [--machine TOML]
-                                      [--travel machine|region]...
+                                      [--travel machine|region]... [--without-diameter MM]
+                                      [--explain]
+
+``--without-diameter 4`` leaves the 4 mm holes out of every plate (with long tools they came out
+oversized and their centres scatter from plate to plate). ``--explain`` runs no mtcomp fit and
+says what explains the error from plate to plate (a second): each plate's error about the batch's
+mean, rms by nominal hole diameter; held out one plate at a time, per-hole predictors that use only
+what is known before a plate is measured (a line per hole in the cutting order or in the hours
+since the first plate or the day's first plate was started, from the machine's logs; the mean of
+the plates cut with the same tool length, speed or feed, plate_setups.csv), on every hole and
+without the 4 mm holes; and, fitted on the plate itself and so no prediction, the batch's mean with
+the plate among the plates averaged and an alignment extended by an isotropic scale (a thermal
+expansion) or by every linear map.
 
 Default: the batch `short` (plates 1-9, one tool length), the machine's travel. Each left-out plate
 costs one `mtcomp identify` and one `mtcomp predict` run per travel (a few seconds on this machine
@@ -43,6 +55,7 @@ import os
 import subprocess
 import sys
 import tempfile
+from datetime import datetime
 from pathlib import Path
 
 import numpy as np
@@ -74,19 +87,43 @@ def read_points(path: Path, columns=("dx_um", "dy_um")):
     return xy, np.array([[float(r[c]) for c in columns] for r in rows])
 
 
-def rigid_aligned_rms(xy: np.ndarray, error_um: np.ndarray) -> float:
-    """rms length (um) of ``error_um`` (n, 2) after the least-squares translation and rotation in
-    the plane (small angle: the rotations of interest are microradians)."""
+def alignment_design(xy: np.ndarray, kind: str = "rigid") -> np.ndarray:
+    """(2n, k) columns of an alignment in the plane at the holes ``xy`` (n, 2) mm, rows x0, y0,
+    x1, y1, ...: ``rigid`` a translation and a small rotation (k 3); ``scale`` those and an
+    isotropic scale about the holes' centroid (k 4: a thermal expansion of the part or the
+    machine); ``affine`` a translation and every linear map (k 6)."""
     d = xy - xy.mean(axis=0)
-    design = np.zeros((2 * len(xy), 3))
-    design[0::2, 0] = 1.0
-    design[1::2, 1] = 1.0
-    design[0::2, 2] = -d[:, 1]
-    design[1::2, 2] = d[:, 0]
+    columns = [np.tile([1.0, 0.0], len(xy)), np.tile([0.0, 1.0], len(xy))]
+    if kind in ("rigid", "scale"):
+        columns.append(np.column_stack([-d[:, 1], d[:, 0]]).reshape(-1))
+    if kind == "scale":
+        columns.append(d.reshape(-1))
+    if kind == "affine":
+        for reading, along in ((0, 0), (0, 1), (1, 0), (1, 1)):
+            column = np.zeros_like(d)
+            column[:, reading] = d[:, along]
+            columns.append(column.reshape(-1))
+    return np.column_stack(columns)
+
+
+def aligned_residual(xy: np.ndarray, error_um: np.ndarray, kind: str = "rigid") -> np.ndarray:
+    """(n, 2) what is left of ``error_um`` (n, 2) after the least-squares alignment ``kind``
+    (:func:`alignment_design`; small angle: the rotations of interest are microradians)."""
+    design = alignment_design(xy, kind)
     b = error_um.reshape(-1)
     coef, *_ = np.linalg.lstsq(design, b, rcond=None)
-    r = (b - design @ coef).reshape(-1, 2)
-    return float(np.sqrt(np.mean(np.sum(r ** 2, axis=1))))
+    return (b - design @ coef).reshape(-1, 2)
+
+
+def aligned_rms(xy: np.ndarray, error_um: np.ndarray, kind: str = "rigid") -> float:
+    """rms length (um) of ``error_um`` (n, 2) after the least-squares alignment ``kind``."""
+    return float(np.sqrt(np.mean(np.sum(aligned_residual(xy, error_um, kind) ** 2, axis=1))))
+
+
+def rigid_aligned_rms(xy: np.ndarray, error_um: np.ndarray) -> float:
+    """rms length (um) of ``error_um`` (n, 2) after the least-squares translation and rotation in
+    the plane."""
+    return aligned_rms(xy, error_um, "rigid")
 
 
 def cubic_design(xy: np.ndarray, centre: np.ndarray) -> np.ndarray:
@@ -107,6 +144,17 @@ def mtcomp_prediction(machine: Path, files: dict[int, Path], left_out: int, work
     run(["-m", "mtcomp", "predict", str(machine), str(model), str(files[left_out]), "-o", str(pred)],
         work)
     return read_points(pred, ("pred_dx_um", "pred_dy_um"))[1]
+
+
+def drop_holes(path: Path, diameter_mm: float) -> None:
+    """Rewrite the points file ``path`` without its holes of nominal diameter ``diameter_mm``."""
+    with open(path, newline="") as handle:
+        reader = csv.DictReader(handle)
+        fields, rows = reader.fieldnames, list(reader)
+    with open(path, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=fields)
+        writer.writeheader()
+        writer.writerows(r for r in rows if float(r["diameter_mm"]) != diameter_mm)
 
 
 def region_machine(machine_toml: Path, xy: np.ndarray, target: Path) -> Path:
@@ -160,12 +208,136 @@ def batch_figures(name, plates, files, machines, work):
     return median
 
 
+#: The plates' cutting order is their number, and these are the starts of their first operation
+#: (UTC as logged): the part counter and the time stamps of the machine's MTConnect logs in the
+#: NIST test bed's repository (tdp/mtc/PartData/Plate-Hurco04-01of20.txt ... 20of20.txt). The
+#: back faces were cut on 2017-02-06 between 12:39 and 14:31, after every plate's first operation.
+CUT_START = {1: "2017-02-01T13:59:35", 2: "2017-02-01T14:59:08", 3: "2017-02-01T15:49:42",
+             4: "2017-02-01T16:31:27", 5: "2017-02-01T17:42:26", 6: "2017-02-01T18:22:07",
+             7: "2017-02-01T18:42:15", 8: "2017-02-01T19:22:03", 9: "2017-02-01T19:41:37",
+             10: "2017-02-02T16:30:58", 11: "2017-02-02T16:51:40", 12: "2017-02-02T17:58:54",
+             13: "2017-02-02T18:26:37", 14: "2017-02-02T19:03:25", 15: "2017-02-02T19:24:23",
+             16: "2017-02-06T10:02:36", 17: "2017-02-06T10:22:19", 18: "2017-02-06T10:48:37",
+             19: "2017-02-06T11:16:48", 20: "2017-02-06T11:58:28"}
+#: the holes milled with the 1/8 in end mill that came out oversized with long tools
+OVERSIZED_DIAMETER_MM = 4.0
+
+
+def plate_covariates(plates) -> dict[str, dict[int, float]]:
+    """What is known of each plate before it is measured: its cutting order, the hours since the
+    first plate and since the day's first plate were started (``CUT_START``)."""
+    start = {p: datetime.fromisoformat(CUT_START[p]) for p in plates}
+    first = min(start.values())
+    day_first = {p: min(t for t in start.values() if t.date() == start[p].date()) for p in plates}
+    return {"cutting order": {p: float(p) for p in plates},
+            "hours since the first plate": {p: (start[p] - first).total_seconds() / 3600.0
+                                            for p in plates},
+            "hours since the day's first plate": {
+                p: (start[p] - day_first[p]).total_seconds() / 3600.0 for p in plates}}
+
+
+def plate_levels(path: Path = DATA / "plate_setups.csv") -> dict[str, dict[int, str]]:
+    """The designed experiment's factors per plate (plate_setups.csv): tool length, cutting speed
+    and feed."""
+    with open(path, newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    return {column.replace("_", " "): {int(r["part"]): r[column] for r in rows}
+            for column in ("tool_length", "cutting_speed", "feed")}
+
+
+def per_hole_mean(err, others, plate):
+    """The per-hole mean of the ``others`` plates' errors (no model)."""
+    return np.mean([err[q] for q in others], axis=0)
+
+
+def per_hole_line(covariate: dict[int, float]):
+    """A predictor: per hole and component, the least-squares line in ``covariate`` through the
+    other plates' errors, at the left-out plate's value."""
+    def predict(err, others, plate):
+        design = np.column_stack([np.ones(len(others)), [covariate[q] for q in others]])
+        targets = np.array([err[q].reshape(-1) for q in others])
+        coef, *_ = np.linalg.lstsq(design, targets, rcond=None)
+        return (np.array([1.0, covariate[plate]]) @ coef).reshape(err[plate].shape)
+    return predict
+
+
+def same_level_mean(level: dict[int, str]):
+    """A predictor: the per-hole mean of the other plates cut at the left-out plate's level of a
+    factor (of all the others when none was)."""
+    def predict(err, others, plate):
+        alike = [q for q in others if level[q] == level[plate]]
+        return per_hole_mean(err, alike or others, plate)
+    return predict
+
+
+def held_out_median(xy, err, plates, predict, holes) -> float:
+    """Median over ``plates``, each left out in turn, of the rigid-aligned rms of (predicted -
+    measured) over its own, on the ``holes`` (index array) only."""
+    ratios = []
+    for p in plates:
+        pred = predict(err, [q for q in plates if q != p], p)
+        ratios.append(rigid_aligned_rms(xy[holes], (pred - err[p])[holes])
+                      / rigid_aligned_rms(xy[holes], err[p][holes]))
+    return float(np.median(ratios))
+
+
+def _read_batch(plates, files):
+    """The holes (n, 2) mm, their nominal diameters (n,) mm and each plate's errors (n, 2) um."""
+    with open(files[plates[0]], newline="") as handle:
+        diameter = np.array([float(r["diameter_mm"]) for r in csv.DictReader(handle)])
+    xy = read_points(files[plates[0]])[0]
+    return xy, diameter, {p: read_points(files[p])[1] for p in plates}
+
+
+def _print_scatter(name, plates, xy, diameter, err):
+    pattern = np.mean([err[p] for p in plates], axis=0)
+    deviation = np.array([aligned_residual(xy, err[p] - pattern) for p in plates])
+    print(f"\nbatch {name}: plates {plates[0]}-{plates[-1]}; each plate's error about the batch's "
+          f"mean pattern, rigid-aligned, rms over the plates by nominal hole diameter:")
+    for d in np.unique(diameter):
+        sel = diameter == d
+        rms = np.sqrt(np.mean(np.sum(deviation[:, sel] ** 2, axis=2)))
+        print(f"  {d:5.1f} mm ({sel.sum():2d} holes) {rms:6.1f} um")
+    return pattern
+
+
+def explain_batch(name, plates, files):
+    """What explains the plates' error from plate to plate: the scatter by hole diameter, the
+    held-out figure of per-hole predictors that use only what is known before a plate is measured,
+    and, not predictions, what fits on the plate itself leave."""
+    xy, diameter, err = _read_batch(plates, files)
+    pattern = _print_scatter(name, plates, xy, diameter, err)
+    every, others = np.arange(len(xy)), np.flatnonzero(diameter != OVERSIZED_DIAMETER_MM)
+    predictors = {"per-hole mean of the other plates": per_hole_mean}
+    predictors |= {f"per-hole line in {k}": per_hole_line(v)
+                   for k, v in plate_covariates(plates).items()}
+    predictors |= {f"mean of the plates at the same {k}": same_level_mean(v)
+                   for k, v in plate_levels().items()}
+    print(f"held out, median remaining / rigid-aligned error {'all holes':>14} "
+          f"{'without ' + f'{OVERSIZED_DIAMETER_MM:g}' + ' mm':>12}")
+    for label, predict in predictors.items():
+        figures = [held_out_median(xy, err, plates, predict, h) for h in (every, others)]
+        print(f"  {label:50s} {figures[0]:9.2f} {figures[1]:12.2f}")
+    rigid = {p: rigid_aligned_rms(xy, err[p]) for p in plates}
+    fits = {"the batch's mean pattern, the plate among them":
+            [rigid_aligned_rms(xy, err[p] - pattern) / rigid[p] for p in plates]}
+    fits |= {f"an alignment with {label}":
+             [aligned_rms(xy, err[p], kind) / rigid[p] for p in plates] for kind, label in (("scale", "an isotropic scale"), ("affine", "every linear map"))}
+    print("fitted on the plate itself (no prediction), median remaining / rigid-aligned error:")
+    for label, ratios in fits.items():
+        print(f"  {label:50s} {np.median(ratios):9.2f}")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--batch", action="append", choices=sorted(BATCHES))
     parser.add_argument("--machine", type=Path, default=MACHINE, help="machine TOML file")
     parser.add_argument("--travel", action="append", choices=("machine", "region"),
                         help="mtcomp on the machine's travel (default), on the plate's region")
+    parser.add_argument("--explain", action="store_true",
+                        help="what explains the error from plate to plate (no mtcomp runs)")
+    parser.add_argument("--without-diameter", type=float, metavar="MM",
+                        help="leave out the holes of this nominal diameter (e.g. 4)")
     args = parser.parse_args(argv)
     if not QIF.exists():
         print(f"skipped: {QIF} is absent (the NIST plate data, see tests/data/real/plates)")
@@ -175,6 +347,12 @@ def main(argv=None) -> int:
         run([str(CONVERTER), str(QIF), str(work / "plates"), "--part-to-program", PART_TO_PROGRAM,
              "--top-z", "4.5"], work)
         files = {p: work / "plates" / f"part{p:02d}.csv" for p in range(1, 21)}
+        for path in files.values() if args.without_diameter is not None else ():
+            drop_holes(path, args.without_diameter)
+        if args.explain:
+            for name in args.batch or ["short"]:
+                explain_batch(name, list(BATCHES[name]), files)
+            return 0
         region = region_machine(args.machine, read_points(files[1])[0], work / "region.toml")
         choices = {"machine": ("mtcomp travel", args.machine.resolve()),
                    "region": ("mtcomp region", region)}
