@@ -1,5 +1,11 @@
 """Predictions of a fitted model for the rows of any measurement file, with their standard errors
-(what ``mtcomp predict`` writes), blank where the model's data do not determine them."""
+(what ``mtcomp predict`` writes), blank where the model's data do not determine them.
+
+A standard error comes from the model's covariance, which includes the variance the data leave
+along the directions the fit held because the data fix them only weakly (the model file's
+``uncertainty.held``, with ``held_sd_um``): such a prediction gets that variance, the square of its
+change along each held direction times the square of the direction's standard error. Only the
+directions the data do not determine at all (``uncertainty.undetermined``) blank it."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -13,14 +19,22 @@ from ..models.model_file import FittedModel
 from .problem import KNOWN_SETUP_KINDS, unique_tags, build_measurement_models
 
 
+#: :meth:`Undetermined.given_zero` conditions on the combinations of the parameters set to zero
+#: whose singular value (file units) is above this share of the largest; the rest is round-off
+CONDITION_RCOND = 1e-6
+
+
 @dataclass
 class Undetermined:
-    """What the data behind a model left undetermined, to blank predictions that rest on it.
+    """What the data behind a model left undetermined, to blank predictions that rest on it, and the
+    covariance that gives the others their standard errors.
 
     index : (k,) positions in the model's parameters of the fitted ones (the covariance's order).
     directions : (k, m) directions of those parameters the data did not determine (the model
         file's ``uncertainty.undetermined``), internal units, each scaled to 1 um rms tool-tip error
-        over the machine's travel. None: the model carries no uncertainty.
+        over the machine's travel. None: the model carries no uncertainty. The directions the fit
+        held because the data fix them only weakly are not among them: their variance is in the
+        covariance (``factor``).
     to_file : (k,) file unit per internal unit of each fitted parameter.
     largest_sd : the largest standard error of any combination of unit size of the fitted
         parameters in file units (um, urad): the scale against which a standard error counts as
@@ -51,6 +65,26 @@ class Undetermined:
         scaled = factor[1] * f[:, None]          # the same parameters, in the same order
         top = float(np.linalg.norm(scaled, 2)) if scaled.size else 0.0
         return cls(idx, np.asarray(u["undetermined"], dtype=float).reshape(idx.size, -1), f, top, factor)
+
+    def given_zero(self, mask: np.ndarray) -> "Undetermined":
+        """The same, with the covariance conditioned on the fitted parameters where ``mask`` ((k,)
+        bool, the covariance's order) is True being exactly zero: what the others show on the
+        assumption that those are no error (the components no laser file names, which the fit holds
+        at zero where the data leave them open). Their rows of the factor become zero."""
+        if self.factor is None or not np.any(mask):
+            return self
+        from dataclasses import replace
+        idx, F = self.factor
+        held = np.isin(idx, self.index[np.asarray(mask, dtype=bool)])
+        # in file units (um, urad), where sizes compare: the combinations of the factor that move
+        # those parameters by less than 1e-6 of the most are round-off, and conditioning on them
+        # would wipe out what the others show (they came out at 1e-7 to 1e-12 on a real Y run)
+        f = np.array([self.to_file[list(self.index).index(i)] for i in idx[held]])
+        _, s, Vt = np.linalg.svd(F[held] * f[:, None], full_matrices=False)
+        V = Vt[s > CONDITION_RCOND * max(float(s.max()) if s.size else 0.0, 1e-300)].T
+        Fc = F - (F @ V) @ V.T
+        Fc[held] = 0.0
+        return replace(self, factor=(idx, Fc))
 
     def std(self, J: np.ndarray, setup: np.ndarray | None = None) -> np.ndarray:
         """(n,) standard error of n predictions whose Jacobian with respect to the model's parameters

@@ -207,14 +207,18 @@ def component_ranges(fitted: FittedModel, undetermined: Undetermined | None = No
 
 
 def _resolved(und: Undetermined, fitted: FittedModel, unmeasured: set) -> Undetermined:
-    """``und`` without the undetermined directions that move a component no laser file measures:
-    the fit held those components at zero (:mod:`mtcomp.identification.unmeasured`), so what the
-    others show is determined on that assumption."""
-    if not unmeasured or und.directions is None or not und.directions.shape[1]:
+    """``und`` without the undetermined directions that move a component no laser file measures,
+    and its covariance conditioned on those components being zero: the fit held them at zero
+    (:mod:`mtcomp.identification.unmeasured`), so what the others show is determined on that
+    assumption, to the standard error it leaves."""
+    if not unmeasured or und.directions is None:
         return und
     from dataclasses import replace
-    D = und.directions
     um = np.array([fitted.params.specs[i].group in unmeasured for i in und.index])
+    und = und.given_zero(um)
+    if not und.directions.shape[1]:
+        return und
+    D = und.directions
     big = np.abs(D).max(axis=0)
     keep = ~(np.abs(D[um]).max(axis=0, initial=0.0) > 1e-6 * np.where(big > 0, big, 1.0))
     return replace(und, directions=D[:, keep])

@@ -163,6 +163,9 @@ class FitResult:
     smoothing: object = None
     directions: np.ndarray = None
     residual: np.ndarray = None
+    #: (k,) standard errors (um of rms tool-tip error over the data's region) of the combinations
+    #: the data fix only weakly, held at the least error; their variance is in ``covariance``
+    held_sd_um: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     # ------------------------------------------------------------ lmfit's MinimizerResult figures
     @property
