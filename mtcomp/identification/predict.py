@@ -19,11 +19,6 @@ from ..models.model_file import FittedModel
 from .problem import KNOWN_SETUP_KINDS, unique_tags, build_measurement_models
 
 
-#: :meth:`Undetermined.given_zero` conditions on the combinations of the parameters set to zero
-#: whose singular value (file units) is above this share of the largest; the rest is round-off
-CONDITION_RCOND = 1e-6
-
-
 @dataclass
 class Undetermined:
     """What the data behind a model left undetermined, to blank predictions that rest on it, and the
@@ -66,25 +61,29 @@ class Undetermined:
         top = float(np.linalg.norm(scaled, 2)) if scaled.size else 0.0
         return cls(idx, np.asarray(u["undetermined"], dtype=float).reshape(idx.size, -1), f, top, factor)
 
-    def given_zero(self, mask: np.ndarray) -> "Undetermined":
-        """The same, with the covariance conditioned on the fitted parameters where ``mask`` ((k,)
-        bool, the covariance's order) is True being exactly zero: what the others show on the
-        assumption that those are no error (the components no laser file names, which the fit holds
-        at zero where the data leave them open). Their rows of the factor become zero."""
-        if self.factor is None or not np.any(mask):
+    def without_held(self, fitted: FittedModel, mask: np.ndarray) -> "Undetermined":
+        """The same, with the variance of the held weak combinations (the model file's
+        ``uncertainty.held``) that move a parameter where ``mask`` ((k,) bool, the covariance's order)
+        is True taken out of the covariance: the report gives the components on the assumption that
+        those parameters (the components no laser file names) are zero, and such a combination is
+        the split between a measured component and one no file names, which that assumption fixes."""
+        u = fitted.uncertainty
+        if self.factor is None or u is None or "held" not in u or not np.any(mask):
+            return self
+        G = np.asarray(u["held"], dtype=float).reshape(self.index.size, -1)
+        sd = np.asarray(u["held_sd_um"], dtype=float)
+        big = np.abs(G).max(axis=0, initial=0.0)
+        touch = np.abs(G[np.asarray(mask, dtype=bool)]).max(axis=0, initial=0.0) > 1e-6 * np.where(big > 0, big, 1.0)
+        if not touch.any():
             return self
         from dataclasses import replace
         idx, F = self.factor
-        held = np.isin(idx, self.index[np.asarray(mask, dtype=bool)])
-        # in file units (um, urad), where sizes compare: the combinations of the factor that move
-        # those parameters by less than 1e-6 of the most are round-off, and conditioning on them
-        # would wipe out what the others show (they came out at 1e-7 to 1e-12 on a real Y run)
-        f = np.array([self.to_file[list(self.index).index(i)] for i in idx[held]])
-        _, s, Vt = np.linalg.svd(F[held] * f[:, None], full_matrices=False)
-        V = Vt[s > CONDITION_RCOND * max(float(s.max()) if s.size else 0.0, 1e-300)].T
-        Fc = F - (F @ V) @ V.T
-        Fc[held] = 0.0
-        return replace(self, factor=(idx, Fc))
+        pos = {int(p): k for k, p in enumerate(self.index)}
+        Gf = G[[pos[int(i)] for i in idx]][:, touch] * sd[touch]
+        C = F @ F.T - Gf @ Gf.T
+        w, V = np.linalg.eigh(0.5 * (C + C.T))
+        keep = w > 1e-12 * max(float(w.max()) if w.size else 0.0, 1e-300)
+        return replace(self, factor=(idx, V[:, keep] * np.sqrt(w[keep])))
 
     def std(self, J: np.ndarray, setup: np.ndarray | None = None) -> np.ndarray:
         """(n,) standard error of n predictions whose Jacobian with respect to the model's parameters
