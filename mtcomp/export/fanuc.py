@@ -81,6 +81,26 @@ def _axis_tables(t, j: int, s: float, bidir: bool) -> tuple[int, list]:
     return i_ref, [("+", corr_f - base), ("-", corr_r - base)]
 
 
+def _general_notes(sign_note: str, max_value: int, machine) -> list:
+    """The lines on signs, placement, limits and rotary axes every Fanuc export carries."""
+    notes = [sign_note,
+             "point 3620 sits on each axis's reference position (machine coordinate 0 after a reference "
+             "return, as in the example of the FANUC Series 0i-PB parameter manual) and point n at "
+             "reference + (n - 3620) * 3624; if your machine's reference position is not its machine "
+             "zero, the table is placed off by that distance: pitch_points.csv lists the positions assumed",
+             "the compensation is 0 at the reference point for positive travel: a constant offset of the "
+             "whole table is absorbed by the reference position; reference return in the positive "
+             "direction is assumed for 3627",
+             f"one increment holds at most +-{max_value} units (--fanuc-max-value; the range depends on "
+             "the series); the magnification 3623 was chosen to fit",
+             "no smallest interval 3624 is applied: if your series' parameter manual sets one, give "
+             "--grid-mm at least that large"]
+    rotary = [ax.name for ax in machine.rotary_axes]
+    if rotary:
+        notes.append(f"rotary axes {' '.join(rotary)}: no table (not written by this exporter)")
+    return notes
+
+
 def export(tables, sign: str | None = None, unit_um: float = 1.0, max_value: int = 127, **_) -> ExportResult:
     m = tables.machine
     s, sign_note = sign_factor_and_note(sign, "values")
@@ -136,19 +156,7 @@ def export(tables, sign: str | None = None, unit_um: float = 1.0, max_value: int
     files["pitch_error.txt"] = "\n".join(par + ["; pitch error data: N(10000 + point number) P(value)"]
                                          + data) + "\n"
     files["pitch_points.csv"] = "\n".join(csv) + "\n"
-    notes.append(sign_note)
-    notes.append("point 3620 sits on each axis's reference position (machine coordinate 0 after a "
-                 "reference return, as in the example of the FANUC Series 0i-PB parameter manual) and point n at reference + "
-                 "(n - 3620) * 3624; if your machine's reference position is not its machine zero, "
-                 "the table is placed off by that distance: pitch_points.csv lists the positions assumed")
-    notes.append("the compensation is 0 at the reference point for positive travel: a constant offset "
-                 "of the whole table is absorbed by the reference position; reference return in the "
-                 "positive direction is assumed for 3627")
-    notes.append(f"one increment holds at most +-{max_value} units (--fanuc-max-value; the range depends "
-                 "on the series); the magnification 3623 was chosen to fit")
-    rotary = [ax.name for ax in m.rotary_axes]
-    if rotary:
-        notes.append(f"rotary axes {' '.join(rotary)}: no table (not written by this exporter)")
+    notes += _general_notes(sign_note, max_value, m)
     result = ExportResult(NAME, files, False, carried, notes)
     header = ["mtcomp export: Fanuc stored pitch error compensation",
               "",
