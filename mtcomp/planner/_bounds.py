@@ -48,6 +48,9 @@ class Bounds:
         # how close to a bound counts as on it
         self.took_tol = 0.5 * self.unit + 1e-9 if self.grid is not None else np.full(len(self.D), 1e-4)
         self.on_tol = 1e-9 * self.unit if self.grid is not None else np.full(len(self.D), 1e-6)
+        # a step counts as on its bound within one grid step: the planner puts two neighbours S
+        # apart, and rounding each to the grid changes their difference by up to one step
+        self.step_on_tol = (1 + 1e-9) * self.unit if self.grid is not None else self.on_tol
         self.B = self._floor(problem.max_correction * self.D)
         self.S = self._floor(problem.max_step * self.D)
 
@@ -168,6 +171,7 @@ class Bounds:
         has_prev = ~exempt.copy()
         if prev is None and n:
             has_prev[0] = False
+        tol = self.step_on_tol
         step_in = has_prev[:, None] & (np.abs(y - prev_rows) >= self.S - tol)
         # a block held back by the step bound towards the block after it (a ramp into a bound)
         step_out = np.zeros_like(step_in)

@@ -32,6 +32,7 @@ from ._evaluate import Evaluator, objective_residual
 from ._parallel import read_ahead, resolve_threads, split_rows
 from ._pointwise import Linearization, solve_newton, solve_pinv
 from ._qp import NEVER_WORSE_TOL, WindowQP, never_worse_rows, reachable_nodes  # noqa: F401
+from ._rotary_grid import rotary_columns, round_rotary, solve_with_rotary_fixed
 from ._small import a_x, any_rows, at_b, gram, row_max_abs, row_norm
 from .problem import CompensationProblem, PlannerOptions
 
@@ -172,6 +173,7 @@ class Planner:
         self.bounds = Bounds(problem)
         self.machine = problem.machine
         self.na = self.machine.n_axes
+        self._rotary = rotary_columns(self.machine)
         self._qps: dict[int, WindowQP] = {}
         self._prev: np.ndarray | None = None        # last committed correction (x units)
         self._last_end: tuple | None = None         # (q, x_free) of the last node of the last chunk
@@ -470,8 +472,9 @@ class Planner:
         """Round, enforce bounds exactly, predict the deviation after correction."""
         if limits is None:
             limits = self.bounds.limits(nodes.q, nodes.pinned)
-        # flags compare with the unbounded correction: what the bounds took away
-        y, flags = self.bounds.enforce(x, nodes.q, nodes.exempt, self._prev, desired=lin.x,
+        # flags compare with the unbounded correction (its turn on the grid): what the bounds took
+        y, flags = self.bounds.enforce(x, nodes.q, nodes.exempt, self._prev,
+                                       desired=self._round_rotary(lin, lin.x),
                                        following=following, limits=limits)
         if len(nodes):
             self._prev = y[-1].copy()
@@ -527,7 +530,9 @@ class Planner:
         l, u = limits[:2]
         prev = self._prev
         if not o.always_qp and b.feasible(lin.x, l, u, nodes.exempt, prev):
-            return lin.x.copy()
+            x = self._round_rotary(lin, lin.x)
+            if b.feasible(x, l, u, nodes.exempt, prev):
+                return x
         self.stats["windows_qp"] += 1
         n, na = lin.x.shape
         qp = self._window_qp(n + 1, lin.b.shape[1] if lin.orientation_rows.shape[1] == 0
@@ -564,7 +569,7 @@ class Planner:
             if status not in ("solved", "solved inaccurate"):
                 # keep going with the unbounded solution; enforce() clamps it and flags the bounds
                 self.stats["qp_failed"] = self.stats.get("qp_failed", 0) + 1
-                return np.clip(lin.x, l, u)
+                return self._round_rotary(lin, np.clip(lin.x, l, u))
             x = sol[1:]
             moved = row_max_abs(x - lin.x_lin) >= o.step_tol_um
             if not np.any(moved):
@@ -574,7 +579,12 @@ class Planner:
                                                   lin.target[idx])
             lin.b[idx], lin.A[idx], lin.x_lin[idx] = bb, AA, x[idx]
             lin.iterations[idx] += 1
-        return x
+        return solve_with_rotary_fixed(qp, b, lin, x, (lower, upper), (step_lo, step_hi), reachable,
+                                       lam, self._rotary)
+
+    def _round_rotary(self, lin: Linearization, x: np.ndarray) -> np.ndarray:
+        """x with the rotary corrections on the output grid, the linear ones re-solved for them."""
+        return round_rotary(self.bounds, lin, x, self._rotary, self.problem.regularization_weights)
 
     def _feasible_run(self, nodes: NodeSet, lin: Linearization, pos: int, total: int, final: bool):
         """Commit at once the run of full windows from ``pos`` on whose unbounded solution keeps every
@@ -591,7 +601,7 @@ class Planner:
             return None, 0
         count = room // W + 1
         end = pos + count * W + O
-        x = lin.x[pos:end]
+        x = self._round_rotary(lin.take(slice(pos, end)), lin.x[pos:end])
         exempt = nodes.exempt[pos:end]
         limits = self.bounds.limits_lazy(nodes.q[pos:end], nodes.pinned[pos:end])
         b = self.bounds
@@ -667,8 +677,7 @@ class Planner:
         node is committed; otherwise qp keeps the last ``overlap`` (or fewer) for the next call."""
         o = self.options
         if o.method != "qp":
-            x = lin.x.copy()
-            return self._commit(nodes, lin, x)
+            return self._commit(nodes, lin, self._round_rotary(lin, lin.x))
         results = []
         if self._buffer:
             (prev_n, prev_l), = self._buffer

@@ -1,0 +1,88 @@
+"""Rotary corrections on the output grid, and the linear corrections re-solved for the rounded turn.
+
+A rotary axis is written to 1e-4 deg (1.75 urad). One step of it moves the tool tip by r * 1.75 urad
+(0.17 um at r = 100 mm from the table's axis), much more than a step of a linear axis (0.1 um, 0.05 um
+at most by rounding). The planner's corrections pair rotary and linear moves: a turn of the table
+that holds the tip while X or Y ramp in under the step bound, or a turn against a tool-axis error
+with the X/Y/Z moves that bring the tip back. Rounding the turn on its own breaks the pair: a
+correction of -0.7 urad of A rounds to 0 while the 0.16 um of Y that went with it stays, and the
+block ends 0.2 um worse than uncorrected. So the rotary columns are rounded first and the linear
+columns re-solved for the rounded turn:
+
+    x_L' = x_L - (A_L^T A_L + diag(lam_L))^-1 A_L^T A_R (round(x_R) - x_R)
+
+per block (first order; A the objective's Jacobian, lam the regularisation), the least change of
+the linear corrections that gives back the objective's residual the unrounded pair had; in a
+bounded window of the QP the window is solved again with the rotary corrections fixed at their
+rounded values (:func:`solve_with_rotary_fixed`), so the step and never-worse bounds hold for the
+re-solved linear corrections too. The linear corrections are then rounded as before (0.05 um at
+most per axis).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ._evaluate import objective_jacobian, objective_residual
+from ._qp import never_worse_rows
+from ._small import NormalFactor, a_x, at_b, gram, row_max_abs
+
+
+def rotary_columns(machine) -> np.ndarray:
+    """(na,) bool: the machine's rotary axes."""
+    return np.array([a.is_rotary for a in machine.axes], bool)
+
+
+def round_rotary(bounds, lin, x: np.ndarray, rotary: np.ndarray, lam) -> np.ndarray:
+    """x (n, na, um and urad) with its rotary columns rounded to the output grid and its linear
+    columns re-solved for the rounded turn (module docstring), to first order around ``lin``
+    (:class:`~mtcomp.planner._pointwise.Linearization`); x itself (a copy) without a grid or a
+    rotary axis. lam : (na,) the regularisation weights."""
+    x = np.array(x, dtype=float, copy=True)
+    if bounds.grid is None or not rotary.any() or x.shape[0] == 0:
+        return x
+    xr = bounds.quantize(x)[:, rotary]
+    d_r = xr - x[:, rotary]
+    x[:, rotary] = xr
+    rows = np.flatnonzero(row_max_abs(d_r) > 0)
+    if rows.size == 0:
+        return x
+    linear = ~rotary
+    Aw = objective_jacobian(lin.orientation_rows[rows], lin.A[rows])
+    shift = a_x(Aw[:, :, rotary], d_r[rows])            # what the rounding did to the residual
+    x[rows[:, None], np.flatnonzero(linear)[None, :]] += NormalFactor(
+        Aw[:, :, linear], np.asarray(lam, dtype=float)[linear]).step(shift)
+    return x
+
+
+def solve_with_rotary_fixed(qp, bounds, lin, x, box, steps, reachable, lam, rotary):
+    """A bounded window's corrections x (n, na) with the rotary ones rounded to the grid and fixed
+    there, the linear ones solved again under every bound (``qp``: the window's
+    :class:`~mtcomp.planner._qp.WindowQP`; ``box`` = (lower, upper) and ``steps`` = (step_lo,
+    step_hi) as it takes them, anchor row first). The never-worse rows keep their tolerance where the
+    linear axes can keep it; a row only the rotary axes move (the tool axis) may take what the
+    rounded turn gives it. Returns the per-block re-solve (:func:`round_rotary`) when that QP has no
+    solution."""
+    start = round_rotary(bounds, lin, x, rotary, lam)
+    if bounds.grid is None or not rotary.any() or np.array_equal(start[:, rotary], x[:, rotary]):
+        return start
+    lower, upper = (np.array(a, dtype=float, copy=True) for a in box)
+    lower[1:, rotary] = start[:, rotary]
+    upper[1:, rotary] = start[:, rotary]
+    c, A = lin.objective()
+    na = x.shape[1]
+    H = np.concatenate([np.eye(na)[None], gram(A, lam)])
+    g = np.vstack([np.zeros((1, na)), at_b(A, c)])
+    J, lo, hi = never_worse_rows(objective_residual(lin.orientation_rows, lin.b0), c, A, reachable)
+    # the rows as the rounded turn leaves them, the linear axes re-solved: a row beyond its room
+    # there (the tool axis, which no linear axis turns) gets that much room
+    at = a_x(A, start)
+    lo = np.minimum(lo, at - 1e-9)
+    hi = np.maximum(hi, at + 1e-9)
+    x0 = np.vstack([lower[:1], start])
+    sol, status = qp.solve(H, g, lower, upper, steps[0], steps[1], x0, J, lo, hi)
+    if status not in ("solved", "solved inaccurate"):
+        return start
+    out = sol[1:].copy()
+    out[:, rotary] = start[:, rotary]       # exactly on the grid (OSQP meets l = u to its tolerance)
+    return out
+
