@@ -166,3 +166,27 @@ def test_rounding_a_turn_re_solves_the_linear_corrections_by_hand():
     np.testing.assert_allclose(y[0, :4], [0.0, -0.3 * step, 0.0, 0.0], rtol=0, atol=1e-5)
     # the tip as the pair left it: 0
     assert abs(y[0, 1] + 0.3 * y[0, 4]) < 1e-5
+
+
+def test_a_turn_under_half_a_grid_step_leaves_the_block_as_it_was(tmp_path, capsys):
+    """A spindle tilted 0.8 urad about X (A0S) and no other error, tool length 0: the tip is where it
+    should be everywhere, the tool axis 0.8 urad off. Turning A by -0.8 urad would remove that, with a
+    Y move holding the tip (the A axis's lever); but 0.8 urad is under half a step of the written
+    A (1e-4 deg = 1.745 urad): A is written as it was, so Y must be too, and the program comes out
+    byte for byte. Before, the Y partner (0.3 um at Z 290) was written without its turn: every block
+    0.3 um worse than uncorrected."""
+    fm = random_model("cafxyz", (), 3, 0.0, None)
+    fm.params.set_file_value("A0S", 0.8)
+    model = tmp_path / "m.json"
+    save_model(model, fm)
+    text = "G21 G90 G17 G54\nG0 X100 Y0 Z290 A0 C0\nG1 Z280 F500\nG1 X50\nG0 Z295\nM30\n"
+    prog, out, js = tmp_path / "p.nc", tmp_path / "o.nc", tmp_path / "S.json"
+    prog.write_text(text)
+    assert main(["compensate", "cafxyz", str(model), str(prog), "-o", str(out), "--json", str(js),
+                 "--subdivide-tol-um", "0"]) == 0
+    assert out.read_text() == text
+    summary = json.loads(js.read_text())
+    assert summary["max_after_um"] == pytest.approx(0.0, abs=1e-6)
+    assert summary["worse_than_uncorrected"]["blocks"] == 0
+    assert summary["max_axis_after_urad"] == pytest.approx(0.8, abs=1e-3)   # left, and said
+    assert "worse than uncorrected" not in capsys.readouterr().out
