@@ -46,11 +46,16 @@ def round_rotary(bounds, lin, x: np.ndarray, rotary: np.ndarray, lam) -> np.ndar
     rows = np.flatnonzero(row_max_abs(d_r) > 0)
     if rows.size == 0:
         return x
-    linear = ~rotary
-    Aw = objective_jacobian(lin.orientation_rows[rows], lin.A[rows])
-    shift = a_x(Aw[:, :, rotary], d_r[rows])            # what the rounding did to the residual
-    x[rows[:, None], np.flatnonzero(linear)[None, :]] += NormalFactor(
-        Aw[:, :, linear], np.asarray(lam, dtype=float)[linear]).step(shift)
+    sel = slice(None) if rows.size == x.shape[0] else rows     # no copies in the usual case
+    linear = np.flatnonzero(~rotary)
+    M, A = lin.orientation_rows[sel], lin.A[sel]
+    shift = a_x(objective_jacobian(M, A[:, :, rotary]), d_r[sel])   # what the rounding did
+    step = NormalFactor(objective_jacobian(M, A[:, :, linear]),
+                        np.asarray(lam, dtype=float)[linear]).step(shift)
+    if rows.size == x.shape[0]:
+        x[:, linear] += step
+    else:
+        x[np.ix_(rows, linear)] += step
     return x
 
 
@@ -78,6 +83,20 @@ def solve_with_rotary_fixed(qp, bounds, lin, x, box, steps, reachable, lam, rota
     at = a_x(A, start)
     lo = np.minimum(lo, at - 1e-9)
     hi = np.maximum(hi, at + 1e-9)
+    # the usual case: each block's own best linear correction for the rounded turn, clipped to the
+    # box (the tip's Jacobian in X, Y, Z is a rotation: clipping is the box's optimum), keeps every
+    # step bound and never-worse row; the objective being a sum over blocks, it is then the window's
+    # optimum, and OSQP is not needed
+    linear = ~rotary
+    y = start.copy()
+    y[:, linear] = NormalFactor(A[:, :, linear], np.asarray(lam, dtype=float)[linear]).step(
+        c + a_x(A[:, :, rotary], start[:, rotary]))
+    y = np.clip(y, lower[1:], upper[1:])
+    d = np.diff(np.vstack([lower[:1], y]), axis=0)
+    ay = a_x(A, y)
+    if (np.all(d >= steps[0] - 1e-9) and np.all(d <= steps[1] + 1e-9)
+            and np.all(ay >= lo - 1e-9) and np.all(ay <= hi + 1e-9)):
+        return y
     x0 = np.vstack([lower[:1], start])
     sol, status = qp.solve(H, g, lower, upper, steps[0], steps[1], x0, J, lo, hi)
     if status not in ("solved", "solved inaccurate"):

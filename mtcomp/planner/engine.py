@@ -579,8 +579,11 @@ class Planner:
                                                   lin.target[idx])
             lin.b[idx], lin.A[idx], lin.x_lin[idx] = bb, AA, x[idx]
             lin.iterations[idx] += 1
-        return solve_with_rotary_fixed(qp, b, lin, x, (lower, upper), (step_lo, step_hi), reachable,
-                                       lam, self._rotary)
+        solves = qp.solves
+        x = solve_with_rotary_fixed(qp, b, lin, x, (lower, upper), (step_lo, step_hi), reachable,
+                                    lam, self._rotary)
+        self.stats["qp_solves"] += qp.solves - solves
+        return x
 
     def _round_rotary(self, lin: Linearization, x: np.ndarray) -> np.ndarray:
         """x with the rotary corrections on the output grid, the linear ones re-solved for them."""
