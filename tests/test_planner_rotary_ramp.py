@@ -190,3 +190,63 @@ def test_a_turn_under_half_a_grid_step_leaves_the_block_as_it_was(tmp_path, caps
     assert summary["worse_than_uncorrected"]["blocks"] == 0
     assert summary["max_axis_after_urad"] == pytest.approx(0.8, abs=1e-3)   # left, and said
     assert "worse than uncorrected" not in capsys.readouterr().out
+
+
+def test_the_box_shortcut_is_the_window_qp_with_the_turn_fixed(monkeypatch):
+    """Scattered blocks on a CA table at A = C = 0 (no step bound between them; the workpiece axes
+    are the machine's, so a correction clipped to its box leaves no tip component worse), corrections
+    bounded to 3 um so that the box binds: the window needs OSQP, and its rounded turn is solved
+    again. Each block's own best X/Y/Z for the rounded turn, clipped to the box, must be what OSQP
+    finds for the whole window with the turn fixed (the second formulation here, forced by refusing
+    the shortcut)."""
+    from mtcomp.machine import load_machine
+    from mtcomp.planner import CompensationProblem, PlannerOptions, output_grid, plan_arrays
+    from mtcomp.planner import _rotary_grid
+    machine = load_machine("cafxyz")
+    fitted = random_model("cafxyz", (), 11, 4.0, None)
+    problem = CompensationProblem.from_machine(fitted, max_correction_um=3.0,
+                                               grid=output_grid(machine))
+    rng = np.random.default_rng(5)
+    n = 40
+    q = np.column_stack([rng.uniform(-200, 200, n), rng.uniform(-150, 150, n),
+                         rng.uniform(-100, 100, n), np.zeros(n), np.zeros(n)])
+    rapid = np.ones(n, bool)
+    taken = []
+    shortcut = _rotary_grid.box_optimum
+
+    def spy(*args):
+        y = shortcut(*args)
+        taken.append(y is not None)
+        return y
+    monkeypatch.setattr(_rotary_grid, "box_optimum", spy)
+    fast = plan_arrays(problem, q, rapid=rapid, options=PlannerOptions(always_qp=True))
+    assert taken == [True] and fast.flags.any()
+    monkeypatch.setattr(_rotary_grid, "box_optimum", lambda *args: None)
+    slow = plan_arrays(problem, q, rapid=rapid, options=PlannerOptions(always_qp=True))
+    grid = np.asarray(output_grid(machine))
+    assert np.all(np.abs(fast.correction - slow.correction) <= grid + 1e-12)
+    np.testing.assert_allclose(fast.after * 1e3, slow.after * 1e3, rtol=0, atol=0.06)
+    np.testing.assert_array_equal(fast.correction[:, 3:], slow.correction[:, 3:])
+
+
+def test_a_step_the_plan_put_on_its_bound_is_named_after_the_turn_moved_it_off():
+    """Grid 0.1 um, S = 5 um. The plan (before its turn was rounded) ramps Y from -1.6 to -6.6 um,
+    on the step bound; re-solved for the rounded turn, the pair is written -1.7 and -6.6 (4.9 apart).
+    The first block wanted 0 (its own error), the second -5.7: the step bound caused both, and
+    step_y names it with the plan; from the written pair alone nothing would be named."""
+    from mtcomp.machine import load_machine
+    from mtcomp.planner import CompensationProblem, output_grid
+    from mtcomp.planner._bounds import Bounds
+    fitted = random_model("cafxyz", (), 3, 0.0, None)
+    b = Bounds(CompensationProblem.from_machine(fitted, max_step_um=5.0,
+                                                grid=output_grid(load_machine("cafxyz"))))
+    x, desired, planned = (np.zeros((2, 5)) for _ in range(3))
+    x[:, 1] = [-1.7, -6.6]
+    desired[:, 1] = [0.0, -5.7]
+    planned[:, 1] = [-1.6, -6.6]
+    exempt, q = np.array([True, False]), np.zeros((2, 5))
+    y, flags = b.enforce(x, q, exempt, None, desired=desired, planned=planned)
+    np.testing.assert_allclose(y[:, 1], [-1.7, -6.6], rtol=0, atol=1e-9)
+    assert flags[:, 1, 4].tolist() == [True, True] and not flags[:, [0, 2, 3, 4]].any()
+    _, alone = b.enforce(x, q, exempt, None, desired=desired)
+    assert not alone.any()

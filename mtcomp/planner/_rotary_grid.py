@@ -74,29 +74,18 @@ def solve_with_rotary_fixed(qp, bounds, lin, x, box, steps, reachable, lam, rota
     lower[1:, rotary] = start[:, rotary]
     upper[1:, rotary] = start[:, rotary]
     c, A = lin.objective()
-    na = x.shape[1]
-    H = np.concatenate([np.eye(na)[None], gram(A, lam)])
-    g = np.vstack([np.zeros((1, na)), at_b(A, c)])
     J, lo, hi = never_worse_rows(objective_residual(lin.orientation_rows, lin.b0), c, A, reachable)
     # the rows as the rounded turn leaves them, the linear axes re-solved: a row beyond its room
     # there (the tool axis, which no linear axis turns) gets that much room
     at = a_x(A, start)
     lo = np.minimum(lo, at - 1e-9)
     hi = np.maximum(hi, at + 1e-9)
-    # the usual case: each block's own best linear correction for the rounded turn, clipped to the
-    # box (the tip's Jacobian in X, Y, Z is a rotation: clipping is the box's optimum), keeps every
-    # step bound and never-worse row; the objective being a sum over blocks, it is then the window's
-    # optimum, and OSQP is not needed
-    linear = ~rotary
-    y = start.copy()
-    y[:, linear] = NormalFactor(A[:, :, linear], np.asarray(lam, dtype=float)[linear]).step(
-        c + a_x(A[:, :, rotary], start[:, rotary]))
-    y = np.clip(y, lower[1:], upper[1:])
-    d = np.diff(np.vstack([lower[:1], y]), axis=0)
-    ay = a_x(A, y)
-    if (np.all(d >= steps[0] - 1e-9) and np.all(d <= steps[1] + 1e-9)
-            and np.all(ay >= lo - 1e-9) and np.all(ay <= hi + 1e-9)):
+    y = box_optimum(A, c, lam, rotary, start, (lower, upper), steps, (lo, hi))
+    if y is not None:
         return y
+    na = x.shape[1]
+    H = np.concatenate([np.eye(na)[None], gram(A, lam)])
+    g = np.vstack([np.zeros((1, na)), at_b(A, c)])
     x0 = np.vstack([lower[:1], start])
     sol, status = qp.solve(H, g, lower, upper, steps[0], steps[1], x0, J, lo, hi)
     if status not in ("solved", "solved inaccurate"):
@@ -105,3 +94,22 @@ def solve_with_rotary_fixed(qp, bounds, lin, x, box, steps, reachable, lam, rota
     out[:, rotary] = start[:, rotary]       # exactly on the grid (OSQP meets l = u to its tolerance)
     return out
 
+
+def box_optimum(A, c, lam, rotary, start, box, steps, worse):
+    """The usual case of :func:`solve_with_rotary_fixed` without OSQP: each block's own best linear
+    correction for the rounded turn ``start[:, rotary]``, clipped to the box (the tip's Jacobian in
+    X, Y, Z is a rotation, so clipping gives the box's optimum). Where that keeps every step bound
+    and never-worse row (``worse`` = (lo, hi) of ``A x``), it is the window's optimum, the objective
+    being a sum over blocks; None where it does not (then OSQP solves the window)."""
+    lower, upper = box
+    linear = ~rotary
+    y = start.copy()
+    y[:, linear] = NormalFactor(A[:, :, linear], np.asarray(lam, dtype=float)[linear]).step(
+        c + a_x(A[:, :, rotary], start[:, rotary]))
+    y = np.clip(y, lower[1:], upper[1:])
+    d = np.diff(np.vstack([lower[:1], y]), axis=0)
+    ay = a_x(A, y)
+    if (np.all(d >= steps[0] - 1e-9) and np.all(d <= steps[1] + 1e-9)
+            and np.all(ay >= worse[0] - 1e-9) and np.all(ay <= worse[1] + 1e-9)):
+        return y
+    return None

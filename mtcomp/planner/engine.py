@@ -468,14 +468,15 @@ class Planner:
 
     # ------------------------------------------------------------------ committing
     def _commit(self, nodes: NodeSet, lin: Linearization, x: np.ndarray,
-                following: np.ndarray | None = None, limits=None) -> PlanResult:
-        """Round, enforce bounds exactly, predict the deviation after correction."""
+                following: np.ndarray | None = None, limits=None, planned=None) -> PlanResult:
+        """Round, enforce bounds exactly, predict the deviation after correction (``planned``: the
+        window's plan before its turn was rounded, whose step bounds the flags name too)."""
         if limits is None:
             limits = self.bounds.limits(nodes.q, nodes.pinned)
         # flags compare with the unbounded correction (its turn on the grid): what the bounds took
         y, flags = self.bounds.enforce(x, nodes.q, nodes.exempt, self._prev,
                                        desired=self._round_rotary(lin, lin.x),
-                                       following=following, limits=limits)
+                                       following=following, limits=limits, planned=planned)
         if len(nodes):
             self._prev = y[-1].copy()
         D = self.bounds.D
@@ -523,8 +524,9 @@ class Planner:
             qp = self._qps[(n_nodes, rows)] = WindowQP(n_nodes, self.na, rows, self.options.osqp_eps)
         return qp
 
-    def _solve_window(self, nodes: NodeSet, lin: Linearization, limits) -> np.ndarray:
-        """Corrections x (n, na) of one window; updates lin in place when re-linearised."""
+    def _solve_window(self, nodes: NodeSet, lin: Linearization, limits):
+        """(x, planned): corrections (n, na) of one window, and the QP's before its turn was rounded
+        (None when the QP was not needed); updates lin in place when re-linearised."""
         b, o = self.bounds, self.options
         self.stats["windows"] += 1
         l, u = limits[:2]
@@ -532,7 +534,7 @@ class Planner:
         if not o.always_qp and b.feasible(lin.x, l, u, nodes.exempt, prev):
             x = self._round_rotary(lin, lin.x)
             if b.feasible(x, l, u, nodes.exempt, prev):
-                return x
+                return x, None
         self.stats["windows_qp"] += 1
         n, na = lin.x.shape
         qp = self._window_qp(n + 1, lin.b.shape[1] if lin.orientation_rows.shape[1] == 0
@@ -569,7 +571,7 @@ class Planner:
             if status not in ("solved", "solved inaccurate"):
                 # keep going with the unbounded solution; enforce() clamps it and flags the bounds
                 self.stats["qp_failed"] = self.stats.get("qp_failed", 0) + 1
-                return self._round_rotary(lin, np.clip(lin.x, l, u))
+                return self._round_rotary(lin, np.clip(lin.x, l, u)), None
             x = sol[1:]
             moved = row_max_abs(x - lin.x_lin) >= o.step_tol_um
             if not np.any(moved):
@@ -580,10 +582,10 @@ class Planner:
             lin.b[idx], lin.A[idx], lin.x_lin[idx] = bb, AA, x[idx]
             lin.iterations[idx] += 1
         solves = qp.solves
-        x = solve_with_rotary_fixed(qp, b, lin, x, (lower, upper), (step_lo, step_hi), reachable,
-                                    lam, self._rotary)
+        fixed = solve_with_rotary_fixed(qp, b, lin, x, (lower, upper), (step_lo, step_hi), reachable,
+                                        lam, self._rotary)
         self.stats["qp_solves"] += qp.solves - solves
-        return x
+        return fixed, x
 
     def _round_rotary(self, lin: Linearization, x: np.ndarray) -> np.ndarray:
         """x with the rotary corrections on the output grid, the linear ones re-solved for them."""
@@ -745,13 +747,14 @@ class Planner:
             sl = slice(pos, pos + nw)
             wn, wl = nodes.take(sl), lin.take(sl)
             limits = self.bounds.limits(wn.q, wn.pinned)
-            x = self._solve_window(wn, wl, limits)
+            x, planned = self._solve_window(wn, wl, limits)
             # keep the re-linearisation for the overlap nodes of the next window
             lin.b[sl], lin.A[sl], lin.x_lin[sl], lin.iterations[sl] = wl.b, wl.A, wl.x_lin, wl.iterations
             csl = slice(0, nc)
             following = x[nc] if nc < nw and not wn.exempt[nc] else None
             results.append(self._commit(wn.take(csl), wl.take(csl), x[:nc], following,
-                                        tuple(a[csl] for a in limits)))
+                                        tuple(a[csl] for a in limits),
+                                        None if planned is None else planned[:nc]))
             pos += nc
         return results, pos
 
