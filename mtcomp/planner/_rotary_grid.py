@@ -12,11 +12,12 @@ columns re-solved for the rounded turn:
     x_L' = x_L - (A_L^T A_L + diag(lam_L))^-1 A_L^T A_R (round(x_R) - x_R)
 
 per block (first order; A the objective's Jacobian, lam the regularisation), the least change of
-the linear corrections that gives back the objective's residual the unrounded pair had; in a
-bounded window of the QP the window is solved again with the rotary corrections fixed at their
-rounded values (:func:`solve_with_rotary_fixed`), so the step and never-worse bounds hold for the
-re-solved linear corrections too. The linear corrections are then rounded as before (0.05 um at
-most per axis).
+the linear corrections that gives back the objective's residual the unrounded pair had. In a
+window the bounds made OSQP solve, the linear corrections are solved again with the rotary ones
+fixed at their rounded values (:func:`solve_with_rotary_fixed`), so the step and never-worse bounds
+hold for them too: each block's own best X/Y/Z, clipped to the box, where that keeps every bound
+(:func:`box_optimum`, the usual case), OSQP over the window otherwise. The linear corrections are
+then rounded as before (0.05 um at most per axis).
 """
 from __future__ import annotations
 
