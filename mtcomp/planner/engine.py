@@ -32,6 +32,7 @@ from ._evaluate import Evaluator, objective_residual
 from ._parallel import read_ahead, resolve_threads, split_rows
 from ._pointwise import Linearization, solve_newton, solve_pinv
 from ._qp import NEVER_WORSE_TOL, WindowQP, never_worse_rows, reachable_nodes  # noqa: F401
+from ._rotary_grid import rotary_columns, round_rotary, solve_with_rotary_fixed
 from ._small import a_x, any_rows, at_b, gram, row_max_abs, row_norm
 from .problem import CompensationProblem, PlannerOptions
 
@@ -172,6 +173,7 @@ class Planner:
         self.bounds = Bounds(problem)
         self.machine = problem.machine
         self.na = self.machine.n_axes
+        self._rotary = rotary_columns(self.machine)
         self._qps: dict[int, WindowQP] = {}
         self._prev: np.ndarray | None = None        # last committed correction (x units)
         self._last_end: tuple | None = None         # (q, x_free) of the last node of the last chunk
@@ -466,13 +468,15 @@ class Planner:
 
     # ------------------------------------------------------------------ committing
     def _commit(self, nodes: NodeSet, lin: Linearization, x: np.ndarray,
-                following: np.ndarray | None = None, limits=None) -> PlanResult:
-        """Round, enforce bounds exactly, predict the deviation after correction."""
+                following: np.ndarray | None = None, limits=None, planned=None) -> PlanResult:
+        """Round, enforce bounds exactly, predict the deviation after correction (``planned``: the
+        window's plan before its turn was rounded, whose step bounds the flags name too)."""
         if limits is None:
             limits = self.bounds.limits(nodes.q, nodes.pinned)
-        # flags compare with the unbounded correction: what the bounds took away
-        y, flags = self.bounds.enforce(x, nodes.q, nodes.exempt, self._prev, desired=lin.x,
-                                       following=following, limits=limits)
+        # flags compare with the unbounded correction (its turn on the grid): what the bounds took
+        y, flags = self.bounds.enforce(x, nodes.q, nodes.exempt, self._prev,
+                                       desired=self._round_rotary(lin, lin.x),
+                                       following=following, limits=limits, planned=planned)
         if len(nodes):
             self._prev = y[-1].copy()
         D = self.bounds.D
@@ -520,14 +524,17 @@ class Planner:
             qp = self._qps[(n_nodes, rows)] = WindowQP(n_nodes, self.na, rows, self.options.osqp_eps)
         return qp
 
-    def _solve_window(self, nodes: NodeSet, lin: Linearization, limits) -> np.ndarray:
-        """Corrections x (n, na) of one window; updates lin in place when re-linearised."""
+    def _solve_window(self, nodes: NodeSet, lin: Linearization, limits):
+        """(x, planned): corrections (n, na) of one window, and the QP's before its turn was rounded
+        (None when the QP was not needed); updates lin in place when re-linearised."""
         b, o = self.bounds, self.options
         self.stats["windows"] += 1
         l, u = limits[:2]
         prev = self._prev
         if not o.always_qp and b.feasible(lin.x, l, u, nodes.exempt, prev):
-            return lin.x.copy()
+            x = self._round_rotary(lin, lin.x)
+            if b.feasible(x, l, u, nodes.exempt, prev):
+                return x, None
         self.stats["windows_qp"] += 1
         n, na = lin.x.shape
         qp = self._window_qp(n + 1, lin.b.shape[1] if lin.orientation_rows.shape[1] == 0
@@ -564,7 +571,7 @@ class Planner:
             if status not in ("solved", "solved inaccurate"):
                 # keep going with the unbounded solution; enforce() clamps it and flags the bounds
                 self.stats["qp_failed"] = self.stats.get("qp_failed", 0) + 1
-                return np.clip(lin.x, l, u)
+                return self._round_rotary(lin, np.clip(lin.x, l, u)), None
             x = sol[1:]
             moved = row_max_abs(x - lin.x_lin) >= o.step_tol_um
             if not np.any(moved):
@@ -574,7 +581,15 @@ class Planner:
                                                   lin.target[idx])
             lin.b[idx], lin.A[idx], lin.x_lin[idx] = bb, AA, x[idx]
             lin.iterations[idx] += 1
-        return x
+        solves = qp.solves
+        fixed = solve_with_rotary_fixed(qp, b, lin, x, (lower, upper), (step_lo, step_hi), reachable,
+                                        lam, self._rotary)
+        self.stats["qp_solves"] += qp.solves - solves
+        return fixed, x
+
+    def _round_rotary(self, lin: Linearization, x: np.ndarray) -> np.ndarray:
+        """x with the rotary corrections on the output grid, the linear ones re-solved for them."""
+        return round_rotary(self.bounds, lin, x, self._rotary, self.problem.regularization_weights)
 
     def _feasible_run(self, nodes: NodeSet, lin: Linearization, pos: int, total: int, final: bool):
         """Commit at once the run of full windows from ``pos`` on whose unbounded solution keeps every
@@ -591,7 +606,7 @@ class Planner:
             return None, 0
         count = room // W + 1
         end = pos + count * W + O
-        x = lin.x[pos:end]
+        x = self._round_rotary(lin.take(slice(pos, end)), lin.x[pos:end])
         exempt = nodes.exempt[pos:end]
         limits = self.bounds.limits_lazy(nodes.q[pos:end], nodes.pinned[pos:end])
         b = self.bounds
@@ -667,8 +682,7 @@ class Planner:
         node is committed; otherwise qp keeps the last ``overlap`` (or fewer) for the next call."""
         o = self.options
         if o.method != "qp":
-            x = lin.x.copy()
-            return self._commit(nodes, lin, x)
+            return self._commit(nodes, lin, self._round_rotary(lin, lin.x))
         results = []
         if self._buffer:
             (prev_n, prev_l), = self._buffer
@@ -733,13 +747,14 @@ class Planner:
             sl = slice(pos, pos + nw)
             wn, wl = nodes.take(sl), lin.take(sl)
             limits = self.bounds.limits(wn.q, wn.pinned)
-            x = self._solve_window(wn, wl, limits)
+            x, planned = self._solve_window(wn, wl, limits)
             # keep the re-linearisation for the overlap nodes of the next window
             lin.b[sl], lin.A[sl], lin.x_lin[sl], lin.iterations[sl] = wl.b, wl.A, wl.x_lin, wl.iterations
             csl = slice(0, nc)
             following = x[nc] if nc < nw and not wn.exempt[nc] else None
             results.append(self._commit(wn.take(csl), wl.take(csl), x[:nc], following,
-                                        tuple(a[csl] for a in limits)))
+                                        tuple(a[csl] for a in limits),
+                                        None if planned is None else planned[:nc]))
             pos += nc
         return results, pos
 
