@@ -35,13 +35,7 @@ from ._qp import NEVER_WORSE_TOL, WindowQP, never_worse_rows, reachable_nodes  #
 from ._rotary_grid import rotary_columns, round_rotary, solve_with_rotary_fixed
 from ._small import a_x, any_rows, at_b, gram, row_max_abs, row_norm
 from .problem import CompensationProblem, PlannerOptions
-
-#: slack of the support test (mm for linear axes, rad for rotary ones): a block this close to the
-#: edge of the region the model's data reached counts as inside
-SUPPORT_TOL = 1e-6
-#: a rotary axis whose data reached all of a turn but a gap this wide (rad) counts as measured all
-#: around: its profiles are periodic, so the gap is between data on both sides like any other
-WRAP_GAP_RAD = np.radians(45.0)
+from ..models.region import outside_bounds, support_bounds
 
 
 @dataclass
@@ -183,24 +177,8 @@ class Planner:
         self._last_progress = time.monotonic()
         self.stats = {"windows": 0, "windows_qp": 0, "qp_solves": 0, "qp_status": {}}
         self.threads = resolve_threads(self.options.threads)
-        support = problem.fitted.support
         #: (lo, hi) each (na,): the model's support, +-inf for axes it does not limit; None: unknown
-        self.support = None
-        if support is not None:
-            lo = np.full(self.na, -np.inf)
-            hi = np.full(self.na, np.inf)
-            held = problem.fitted.held or {}
-            for j, a in enumerate(self.machine.axis_names):
-                if a in support:
-                    lo[j], hi[j] = support[a]
-                elif a in held and self.machine.axis(a).is_rotary:
-                    lo[j] = hi[j] = held[a]      # measured at one angle only: no other is corrected
-            for j, a in enumerate(self.machine.axes):
-                # a rotary axis measured around its turn but for a gap of at most WRAP_GAP_RAD
-                # (sampled every 10 deg from 0 to 350): its periodic profiles reach across the gap
-                if a.is_rotary and np.isfinite(lo[j]) and 2 * np.pi - (hi[j] - lo[j]) <= WRAP_GAP_RAD:
-                    hi[j] = lo[j] + 2 * np.pi
-            self.support = (lo, hi)
+        self.support = support_bounds(problem.fitted)
         self._split = self.threads          # parts a chunk's per-block work is cut into
 
     # ------------------------------------------------------------------ nodes
@@ -218,22 +196,10 @@ class Planner:
     def outside_support(self, q, known) -> np.ndarray:
         """(n, na) bool: the axes of the blocks at ``q`` ((n, na) axis positions, mm and rad) whose
         position is given (``known``, (n, na) bool) and lies outside the region the model's data
-        reached (:attr:`support`, with ``SUPPORT_TOL`` of slack: mm or rad; a rotary axis's angle
-        taken modulo a turn, its error profiles being periodic); all False when the model does not
-        say where its data reached. A block with such an axis is left uncorrected unless the
-        options extrapolate."""
-        if self.support is None:
-            return np.zeros(q.shape, bool)
-        lo, hi = self.support
-        q = np.asarray(q, dtype=float)
-        rotary = np.array([a.is_rotary for a in self.machine.axes]) & np.isfinite(lo)
-        if rotary.any():
-            # a rotary axis's error profiles are periodic (Fourier series): an angle a turn away from
-            # one the data reached is that angle (C at 270 deg is C at -90 deg)
-            q = q.copy()
-            q[:, rotary] = lo[rotary] - SUPPORT_TOL + np.mod(q[:, rotary] - lo[rotary] + SUPPORT_TOL,
-                                                            2.0 * np.pi)
-        return known & ((q < lo - SUPPORT_TOL) | (q > hi + SUPPORT_TOL))
+        reached (:attr:`support`: :func:`mtcomp.models.region.outside_bounds`); all False when
+        the model does not say where its data reached. A block with such an axis is left
+        uncorrected unless the options extrapolate."""
+        return outside_bounds(self.machine, self.support, q, known)
 
     def block_status(self, q, known, feed, dirs, datum=None, tool_length=None):
         """What the planner's rules say of each block, before any correction is planned.
