@@ -163,6 +163,7 @@ class _Driver:
         st[14] = float(self.state.inch)
         st[20] = float(self._mask(self.state.known))
         st[21] = float(self.state.frame)
+        st[19] = float(self.state.python_only)      # a dialect read in Python from the first line
         st[17] = float(self.out.absolute)
         st[22] = -1.0
         self.st = st

@@ -51,6 +51,8 @@ DIALECTS = {
     "haas": Dialect("haas", g80_keeps_motion=True, language="macro", rotation=True,
                     mirror="G101", scale_words="P"),
     "grbl": Dialect("grbl"),
+    # RepRapFirmware (Duet3D): quoted string parameters, codes it runs as macro files (.rrf)
+    "rrf": Dialect("rrf"),
     # Heidenhain TNC conversational (Klartext): read through its G-code equivalent (.heidenhain)
     "heidenhain": Dialect("heidenhain", language="heidenhain"),
     "generic": Dialect("generic", language="ngc"),
@@ -72,6 +74,8 @@ _CLUES = [
     ("fanuc", re.compile(r"^\s*[Oo:]\s*\d+\s*(?:\([^()]*\)\s*)*$")),   # a program number O1234
     ("grbl", re.compile(r"^\s*(?:\$[A-Za-z$#]|[?~!]\s*$)")),
     ("heidenhain", re.compile(r"(?i)^\s*\d+\s+BEGIN\s+PGM\b")),
+    # a quoted string parameter (M98 P"file.g", M4000 S"name"): RepRapFirmware's alone
+    ("rrf", re.compile(r'(?i)^\s*(?:n\s*\d+\s*)?[gmt]\s*\d[^"]*"')),
 ]
 #: controllers whose own language mtcomp does not read, known from a program's first lines:
 #: (pattern, the language's name, what in it differs from RS274 / ISO G-code)
@@ -84,7 +88,9 @@ _FOREIGN = [
 _FOREIGN_LINES = 3      # the first lines looked at for them
 _HAAS = re.compile(r"(?i)haas")
 #: a comment that names the controller
-_NAMED = re.compile(r"(?i)[(;][^)]*\b(fanuc|haas|linuxcnc|grbl)\b")
+_NAMED = re.compile(r"(?i)[(;][^)]*\b(fanuc|haas|linuxcnc|grbl|rrf|reprapfirmware|millenniumos)\b")
+#: names of a controller in a comment -> its dialect
+_NAME_DIALECT = {"reprapfirmware": "rrf", "millenniumos": "rrf"}
 _HEAD = 1 << 16          # bytes of the program's start read for its dialect
 
 
@@ -105,7 +111,8 @@ def detect(path) -> tuple[Dialect, str]:
     for k, line in enumerate(lines, 1):
         code = strip_comments(line) if not line.lstrip().startswith(("$", "?", "~", "!")) else line
         named = _NAMED.search(line)
-        for name, clue in _CLUES + ([(named.group(1).lower(), re.compile(""))] if named else []):
+        by_name = _NAME_DIALECT.get(named.group(1).lower(), named.group(1).lower()) if named else ""
+        for name, clue in _CLUES + ([(by_name, re.compile(""))] if named else []):
             if clue.search(code):
                 if name == "fanuc" and _HAAS.search(text):
                     name = "haas"
