@@ -93,21 +93,25 @@ def is_macro_m(m: float) -> bool:
 
 def macro_codes(state, gcodes: list, mcodes: list, values: dict, tokens, line: int) -> bool:
     """Take out of a line's G and M codes those RepRapFirmware runs as macro files, and the native
-    codes that change nothing followed (G31, G60); True when the line runs a macro or changes the
-    tool (a T word): every axis unknown, the work offsets the controller's, the line's words the
-    macro's parameters (``values`` emptied). Refused with a move in the same block."""
+    codes that change nothing followed (G31, G60); True when the line holds one of them or a T
+    word: its words are parameters (``values`` emptied), and after a macro or a tool change every
+    axis is unknown and the work offsets are the controller's. Refused with a move in the same
+    block."""
     macros = [f"G{g:g}" for g in gcodes if is_macro_g(g)]
     macros += [f"M{m:g}" for m in mcodes if is_macro_m(m)]
-    gcodes[:] = [g for g in gcodes if not is_macro_g(g) and round(g) not in _NO_MOTION_G]
+    own = [f"G{g:g}" for g in gcodes if g in _NO_MOTION_G]
+    gcodes[:] = [g for g in gcodes if not is_macro_g(g) and g not in _NO_MOTION_G]
     tool = any(t[0] == "T" for t in tokens)
-    if not macros and not tool:
+    if not macros and not tool and not own:
         return False
     if any(round(g) in (0, 1, 2, 3) for g in gcodes):
-        raise state._err(f"{(macros or ['T'])[0]} (a RepRapFirmware macro or tool change, whose "
-                         "moves are not in the program) and a move in one block is not supported",
-                         line)
-    mcodes[:] = [m for m in mcodes if not is_macro_m(m)]
+        raise state._err(f"{(macros + own or ['T'])[0]} (a RepRapFirmware macro, tool change or "
+                         "setting, whose words are no move) and a move in one block is not "
+                         "supported", line)
     values.clear()
+    if not macros and not tool:
+        return True
+    mcodes[:] = [m for m in mcodes if not is_macro_m(m)]
     state._forget()
     _offsets_from_outside(state)
     notes = getattr(state._source, "notes", None)
