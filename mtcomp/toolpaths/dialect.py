@@ -16,7 +16,8 @@ A :class:`Dialect` holds what the reader needs to know of the controller that ru
   words of G51 scaling ('PIJK' Fanuc, 'P' Haas, '' none): :mod:`.frames`.
 * ``language``: 'ngc' (LinuxCNC's O-words and parameters, :mod:`.ngc`), 'macro' (Fanuc macro B,
   :mod:`.macro`), 'heidenhain' (a conversational program, read through its G-code equivalent:
-  :mod:`.heidenhain`) or None (nothing is expanded).
+  :mod:`.heidenhain`) or None (nothing is expanded). RepRapFirmware's rules (quoted strings, the
+  codes it runs as macro files) are :mod:`.rrf`'s, for the dialect named 'rrf'.
 
 :func:`detect` reads the start of a program (and :func:`needs_expansion` all of it, in blocks).
 """
@@ -98,7 +99,8 @@ def detect(path) -> tuple[Dialect, str]:
     """(the program's dialect, why: 'detected from line N: ...' or what was taken). The first
     clue in the first 64 kB wins: LinuxCNC's O-words or named parameters, a Fanuc macro statement
     or program number (Haas where the program names Haas), grbl's '$' commands or real-time
-    characters; nothing: generic."""
+    characters, RepRapFirmware's quoted string parameters, a comment naming the controller (rrf
+    for RepRapFirmware, RRF or MillenniumOS); nothing: generic."""
     try:
         with open(os.fspath(path), "rb") as f:
             head = f.read(_HEAD)
