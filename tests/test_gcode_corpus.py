@@ -343,3 +343,18 @@ def test_corpus_is_not_shipped_in_the_package():
     manifest = root / "MANIFEST.in"
     assert not manifest.exists() or not re.search(r"^\s*(graft|recursive-include)\s+tests",
                                                    manifest.read_text(), re.M)
+
+
+def test_the_oracle_reads_reprapfirmware_strings_and_macros():
+    # a string's letters are no words (R90 and X9 in it are not an arc radius or a move), G6600 (a
+    # macro file on the controller) leaves every axis unknown, and so does T2 (a tool change)
+    src = (b'(RepRapFirmware)\nG0 X1 Y1 Z1\nM291 P"D6-R90 X9" S2\nG1 Z-1 F100\nG6600\n'
+           b'G1 Z-2\nT2\nG1 X5 Y5\n')
+    info = _positioned_per_line(src.decode())
+    assert [m for m, _k in info] == [False, True, False, True, False, True, False, True]
+    assert info[5][1] == {"Z"} and info[7][1] == {"X", "Y"}
+    _check_output(src, src.replace(b"G1 Z-1 F100", b"G1 Z-1 F100 X1.001"))
+    with pytest.raises(AssertionError, match="writes \\['X'\\]"):
+        _check_output(src, src.replace(b"G1 Z-2", b"G1 Z-2 X1.001"))
+    with pytest.raises(AssertionError, match="writes \\['Z'\\]"):
+        _check_output(src, src.replace(b"G1 X5 Y5", b"G1 X5 Y5 Z-2"))

@@ -44,12 +44,12 @@ def _axes(line: str) -> set:
 
 
 def test_string_parameters_pass_through_as_written(tmp_path, mode):
-    text = "G21 G90\n" + STRINGS + "G0 X1 Y2 Z3\nG1 X4 F100\n"
+    text = "G21 G90\n" + STRINGS + 'G0 X1 Y2 Z3\nG1 X4 F100 K"a;(b)"\n'
     out = _written(tmp_path, text)
     assert out[:3] == text.splitlines()[:3]          # byte for byte, quotes and all
     # the moves after them read as usual: by hand, X 1 + 0.010 + 0.006, Y 2 + 0.020 + 0.009; the
-    # second keeps Z: Y's written value stays in force
-    assert out[3:] == ["G0 X1.0160 Y2.0290 Z3.0300", "G1 X4.0160 F100"]
+    # second keeps Z: Y's written value stays in force; its string stays as written
+    assert out[3:] == ["G0 X1.0160 Y2.0290 Z3.0300", 'G1 X4.0160 F100 K"a;(b)"']
 
 
 @pytest.mark.parametrize("dialect", ["generic", "fanuc"])
