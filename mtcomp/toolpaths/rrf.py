@@ -1,16 +1,16 @@
 """RepRapFirmware (RRF): quoted string parameters, and the codes the firmware runs as macro files.
 
 RepRapFirmware reads a parameter's value in double quotes as a string (``M4000 P11 S"Face Mill"``:
-Duet3D, RepRapFirmware G-code dictionary, "Quoted strings"; a doubled quote ``""`` inside is one
-quote character, and a ``;`` or ``(`` inside is part of the string). Such a parameter moves
-nothing: :func:`without_strings` takes it out of the text the reader tokenizes, the line itself
-passes through as written.
+Duet3D, RepRapFirmware G-code dictionary, docs.duet3d.com; RepRapFirmware 3.5, StringParser.cpp: a
+doubled quote ``""`` inside is one quote character, and a ``;`` or ``(`` inside is part of the
+string). Such a parameter moves nothing: :func:`without_strings` takes it out of the text the
+reader tokenizes; the line is written as it is (in a move only the corrected words change).
 
 A G or M code the firmware does not implement itself is a call of the macro file ``/sys/G<n>.g``
 or ``/sys/M<n>.g`` (``G<n>.<f>.g`` with a decimal part), and a T word is a tool change that runs the
-tool change macros ``tfree``, ``tpre`` and ``tpost`` (Duet3D, RepRapFirmware G-code dictionary,
-"Macro files" and "T: Select Tool"; RepRapFirmware 3.5 ``GCodes2.cpp``: ``TryMacroFile`` for every
-code its ``HandleGcode``/``HandleMcode`` do not list). The macros live on the controller, not in
+tool change macros ``tfree``, ``tpre`` and ``tpost`` (Duet3D, RepRapFirmware G-code dictionary, T;
+RepRapFirmware 3.5 ``GCodes2.cpp``: ``TryMacroFile`` for every code its ``HandleGcode`` and
+``HandleMcode`` do not list). The macros live on the controller, not in
 the program: after one, every axis's position is unknown until the program names it again (as
 after a subprogram not in the file), and a work offset the macro sets (MillenniumOS's ``G6600``
 probes the work system's origin) is the controller's, taken from the work offsets given on the
