@@ -12,7 +12,7 @@ import pytest
 
 from mtcomp.errors import InputError
 from mtcomp.machine import load_machine
-from mtcomp.toolpaths import iter_segment_chunks
+from mtcomp.toolpaths import _fast, iter_segment_chunks
 from mtcomp.toolpaths.dialect import detect
 from mtcomp.toolpaths.gcode import write_corrected
 from mtcomp.toolpaths.reader import iter_blocks
@@ -169,3 +169,18 @@ def test_rotation_compensation_is_taken_as_no_turn_and_said_once(tmp_path, capsy
     assert len(notes) == 1 and "line 4" in notes[0]
     assert f"1 degree: {100 * math.pi / 180:.2f} % of its size" in notes[0]
     assert not any("M5011" in n for n in stdouts[1].splitlines())
+
+
+def test_a_line_across_the_block_read_in_a_python_only_mode(tmp_path, monkeypatch):
+    """Under G93 (inverse time) the compiled scanner hands every line to Python; a line cut by the
+    end of a block read (100 bytes here) is read whole on both paths, reading and writing (it was
+    read cut: 'unexpected character')."""
+    if not _fast.available():
+        pytest.skip("no C compiler: the compiled G-code path is not available")
+    text = "G21 G90\nG0 X0 Y0 Z0\nG93\n" + "".join(f"G1 X{k}.125 Y{k}.25 Z-1 F10\n"
+                                                   for k in range(1, 60))
+    monkeypatch.setattr(_fast, "_BLOCK", 100)
+    compiled = _written(tmp_path, text, dialect="generic")
+    monkeypatch.setenv("MTCOMP_NO_FAST_GCODE", "1")
+    assert compiled == _written(tmp_path, text, dialect="generic")
+    assert compiled[-1] == "G1 X59.1330 Y59.2670 Z-0.9700 F10"

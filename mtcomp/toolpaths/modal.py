@@ -130,9 +130,9 @@ class ModalState:
     @property
     def python_only(self) -> bool:
         """Lines the compiled scanner must not take (cycle, inverse-time or tool centre point mode
-        in force; every line of a RepRapFirmware program, whose codes it does not know)."""
+        in force)."""
         return (self.cycle is not None or self.inverse_time or self.tcp or self.ended
-                or bool(self.local.kind) or self.dialect.name == "rrf")
+                or bool(self.local.kind))
 
     def _err(self, msg, line):
         path, line, suffix = self._where(line)
