@@ -255,9 +255,11 @@ def tokenize(text: str, path=None, line: int | None = None) -> list[tuple[str, s
 
 
 # ------------------------------------------------------------------- the source line, rewritten
-#: a word with blanks anywhere in it (RS-274 ignores them: ``Z - 1`` is ``Z-1``)
+#: a word with blanks anywhere in it (RS-274 ignores them: ``Z - 1`` is ``Z-1``); a quoted string
+#: parameter (RepRapFirmware's ``S"..."``, ``""`` one quote inside: :mod:`.rrf`) is kept as written
 _SPAN_RE = re.compile(r"[ \t]+|\([^()]*\)|;.*|([A-Za-z])[ \t]*"
-                      r"([+-]?[ \t]*(?:\d[\d \t]*\.?[\d \t]*|\.[ \t]*\d[\d \t]*))|(.)", re.S)
+                      r"([+-]?[ \t]*(?:\d[\d \t]*\.?[\d \t]*|\.[ \t]*\d[\d \t]*))|"
+                      r'[A-Za-z]?"(?:[^"]|"")*"|(.)', re.S)
 _BOM = "\xef\xbb\xbf"
 
 

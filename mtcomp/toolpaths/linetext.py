@@ -1,0 +1,76 @@
+"""Lines that hold no words for the reader, and the text of the others that it tokenizes.
+
+Split from :mod:`.modal`: :func:`text_with_words` says which lines pass through without being read
+(empty lines, tape marks, program numbers, grbl's commands, a Fanuc alarm-only IF, a line
+RepRapFirmware answers "Bad command") and gives the others' text as the tokenizer is to see it (on
+RepRapFirmware without its quoted string parameters: :mod:`.rrf`).
+"""
+from __future__ import annotations
+
+import re
+
+from ..errors import InputError
+from .rrf import without_strings
+from .words import _COLON_PROGRAM_RE, _NUMBERED_PERCENT_RE, strip_comments
+
+#: a CSV header line (names separated by commas), given where G-code was meant
+_CSV_HEADER = re.compile(r"^[A-Za-z_][\w ]*(?:,[\w ]*){2,}$")
+#: grbl's real-time commands (status query, cycle start/resume, feed hold, soft reset): sent as
+#: single characters, they have no effect on the program's geometry (grbl v1.1 interface docs)
+_REALTIME = frozenset({"?", "~", "!", "\x18"})
+#: a Fanuc / Haas alarm-only IF (``IF [#5405 GE 6000] THEN #3000=15``): left in the program by
+#: the macro run only where its condition reads system variables (:mod:`.macro`); no motion
+_ALARM_IF = re.compile(r"(?i)^\s*(?:n\s*\d+\s*)?if\s*\[.*\]\s*then\s*#\s*3000\s*=")
+
+
+def text_with_words(state, line: int, text: str) -> str | None:
+    """The line's text to tokenize, or None for a line without words, which passes through (an
+    empty line, '%', a ':' program number, the DOS end-of-file mark, a grbl '$' command or
+    real-time command: '?' status, '~' resume, '!' feed hold, Ctrl-X reset). state : the
+    :class:`~.modal.ModalState` reading the line."""
+    if line == 1 and text.startswith("\xef\xbb\xbf"):      # a UTF-8 byte order mark
+        text = text[3:]
+    s = text.lstrip(" \t")
+    if not s or s[0] == "%":
+        return None
+    if s[0] == ":" and _COLON_PROGRAM_RE.match(s):    # ':0097': ISO's O, a program number
+        return None
+    if _NUMBERED_PERCENT_RE.match(s):                  # 'N194 %': the end-of-tape mark
+        return None
+    if not s.strip("\x1a \t"):        # DOS end-of-file mark (Ctrl-Z) after the program
+        return None
+    if s[0] == "$":               # grbl system command: passes through; $H homes every axis
+        if s[1:2].upper() in ("H", "J"):
+            state._forget()
+        return None
+    if s.rstrip(" \t") in _REALTIME:     # a grbl real-time command alone on its line
+        return None
+    if s[0] == "/":
+        raise state._err("block delete '/' is not supported", line)
+    if state.dialect.language == "macro" and _ALARM_IF.match(s):
+        return None
+    if line == 1 and _CSV_HEADER.match(s):
+        raise state._err("this looks like a CSV file (a header of comma-separated names), not "
+                         "G-code: give the NC program here", line)
+    if state.dialect.name == "rrf":
+        try:
+            text = without_strings(text, state.path, line)
+        except InputError as exc:
+            raise state._err(exc.message, line) from None
+        return None if _bad_command(state, line, text) else text
+    return text
+
+
+def _bad_command(state, line: int, text: str) -> bool:
+    """A line whose code holds no letter and no digit ('...'): RepRapFirmware answers it "Bad
+    command", moves nothing and runs on (RepRapFirmware 3.5, StringParser.cpp, DecodeCommand;
+    GCodes.cpp reports the error and goes on with the file): it passes through, said once."""
+    code = strip_comments(text).strip(" \t")
+    if not code or any(c.isalnum() for c in code):
+        return False
+    notes = getattr(state._source, "notes", None)
+    if notes is not None and not any(n.startswith("note: RepRapFirmware answers") for n in notes):
+        notes.append(f"note: RepRapFirmware answers line {state._where(line)[1]} ({code[:20]!r}: no "
+                     "command) 'Bad command', moves nothing and runs on: it passes through as "
+                     "written")
+    return True
