@@ -1,5 +1,11 @@
 """Predictions of a fitted model for the rows of any measurement file, with their standard errors
-(what ``mtcomp predict`` writes), blank where the model's data do not determine them."""
+(what ``mtcomp predict`` writes), blank where the model's data do not determine them.
+
+A standard error comes from the model's covariance, which includes the variance the data leave
+along the directions the fit held because the data fix them only weakly (the model file's
+``uncertainty.held``, with ``held_sd_um``): such a prediction gets that variance, the square of its
+change along each held direction times the square of the direction's standard error. Only the
+directions the data do not determine at all (``uncertainty.undetermined``) blank it."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -15,12 +21,15 @@ from .problem import KNOWN_SETUP_KINDS, unique_tags, build_measurement_models
 
 @dataclass
 class Undetermined:
-    """What the data behind a model left undetermined, to blank predictions that rest on it.
+    """What the data behind a model left undetermined, to blank predictions that rest on it, and the
+    covariance that gives the others their standard errors.
 
     index : (k,) positions in the model's parameters of the fitted ones (the covariance's order).
     directions : (k, m) directions of those parameters the data did not determine (the model
         file's ``uncertainty.undetermined``), internal units, each scaled to 1 um rms tool-tip error
-        over the machine's travel. None: the model carries no uncertainty.
+        over the machine's travel. None: the model carries no uncertainty. The directions the fit
+        held because the data fix them only weakly are not among them: their variance is in the
+        covariance (``factor``).
     to_file : (k,) file unit per internal unit of each fitted parameter.
     largest_sd : the largest standard error of any combination of unit size of the fitted
         parameters in file units (um, urad): the scale against which a standard error counts as
@@ -51,6 +60,30 @@ class Undetermined:
         scaled = factor[1] * f[:, None]          # the same parameters, in the same order
         top = float(np.linalg.norm(scaled, 2)) if scaled.size else 0.0
         return cls(idx, np.asarray(u["undetermined"], dtype=float).reshape(idx.size, -1), f, top, factor)
+
+    def without_held(self, fitted: FittedModel, mask: np.ndarray) -> "Undetermined":
+        """The same, with the variance of the held weak combinations (the model file's
+        ``uncertainty.held``) that move a parameter where ``mask`` ((k,) bool, the covariance's order)
+        is True taken out of the covariance: the report gives the components on the assumption that
+        those parameters (the components no laser file names) are zero, and such a combination is
+        the split between a measured component and one no file names, which that assumption fixes."""
+        u = fitted.uncertainty
+        if self.factor is None or u is None or "held" not in u or not np.any(mask):
+            return self
+        G = np.asarray(u["held"], dtype=float).reshape(self.index.size, -1)
+        sd = np.asarray(u["held_sd_um"], dtype=float)
+        big = np.abs(G).max(axis=0, initial=0.0)
+        touch = np.abs(G[np.asarray(mask, dtype=bool)]).max(axis=0, initial=0.0) > 1e-6 * np.where(big > 0, big, 1.0)
+        if not touch.any():
+            return self
+        from dataclasses import replace
+        idx, F = self.factor
+        pos = {int(p): k for k, p in enumerate(self.index)}
+        Gf = G[[pos[int(i)] for i in idx]][:, touch] * sd[touch]
+        C = F @ F.T - Gf @ Gf.T
+        w, V = np.linalg.eigh(0.5 * (C + C.T))
+        keep = w > 1e-12 * max(float(w.max()) if w.size else 0.0, 1e-300)
+        return replace(self, factor=(idx, V[:, keep] * np.sqrt(w[keep])))
 
     def std(self, J: np.ndarray, setup: np.ndarray | None = None) -> np.ndarray:
         """(n,) standard error of n predictions whose Jacobian with respect to the model's parameters

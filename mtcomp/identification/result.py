@@ -163,6 +163,9 @@ class FitResult:
     smoothing: object = None
     directions: np.ndarray = None
     residual: np.ndarray = None
+    #: (k,) standard errors (um of rms tool-tip error over the data's region) of the combinations
+    #: the data fix only weakly, held at the least error; their variance is in ``covariance``
+    held_sd_um: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     # ------------------------------------------------------------ lmfit's MinimizerResult figures
     @property
@@ -318,6 +321,11 @@ class FitResult:
         if targets:
             lines += [""] + list(targets)
         lines.append("")
+        if self.held_sd_um.size:
+            lo, hi = float(np.min(self.held_sd_um)), float(np.max(self.held_sd_um))
+            lines += [f"{self.held_sd_um.size} combination(s) the data fix only weakly (standard error "
+                      f"{lo:.2g} to {hi:.2g} um of rms tool-tip error over the region the data cover) are "
+                      "held at the least error; every +- and standard error includes their variance"]
         if verbose:
             lines += self._parameter_lines()
         elif self.undetermined:
@@ -354,9 +362,8 @@ class FitResult:
                 lines.append(f"{s.name:<28} {v * s.to_file:12.5g} {es}  {s.unit}")
         lines.append("")
         if self.undetermined:
-            lines.append(f"{len(self.undetermined)} combination(s) the data cannot determine, or only "
-                         "worse than 1 um of error where the data are (held where they predict the least "
-                         "error; file units):")
+            lines.append(f"{len(self.undetermined)} combination(s) the data cannot determine (held where "
+                         "they predict the least error; file units):")
             for u in self.undetermined:
                 lines.append(f"  {u}")
         else:
