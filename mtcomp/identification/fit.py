@@ -249,6 +249,7 @@ class _Problem:
         self.smoothing_rho = {}     # class -> log weight of the last solve
         self.gradient_stale = False  # the last Gauss-Newton pass stopped on a step it did not evaluate
         self.held = None            # (directions (n_unknowns, k) scaled, variances (k,)) of the held weak ones
+        self.held_assumed = 0       # of those, how many the unmeasured components' assumption fixes
 
     # --------------------------------------------------------------- weights
     def unit_weights(self):
@@ -486,12 +487,11 @@ class _Problem:
         self.held = None
         x, r, A, g, B, AB, iterations, converged, null, rank = hold_weak(
             self, start, first, w, max_iterations, tol, B1, scale, data_rank) if self.hold_weak else first
-        x, r = unmeasured_to_zero(self, x, r, w, scale[:, None] * V[:, ~keep])
-        lev, edf, cov, held_sd = self._posterior(x, r, w, scale, B, AB, rank, leverage)
+        x, r, P = unmeasured_to_zero(self, x, r, w, scale[:, None] * V[:, ~keep])
+        lev, edf, cov, held, held_sd = self._posterior(x, r, w, scale, B, AB, rank, leverage, P)
         if self.S is not None:
             lam = {k: float(np.exp(v)) for k, v in self.smoothing_rho.items()}
             self.smoothing = Smoothing(lam, dict(self.smoothing_rho), edf)
-        held = np.zeros((self.n_unknowns, 0)) if self.held is None else scale[:, None] * self.held[0]
         return _Solution(x, r, cov, null, scale, rel, rank, cond, iterations, converged, lev, edf, B,
                          held, held_sd)
 
@@ -534,15 +534,20 @@ class _Problem:
             iterations += more
         return x, r, A, g, B, AB, iterations, converged
 
-    def _posterior(self, x, r, w, scale, B, AB, rank: int, leverage: bool):
+    def _posterior(self, x, r, w, scale, B, AB, rank: int, leverage: bool, P=None):
         """((n_obs,) leverages (zeros unless ``leverage``), effective degrees of freedom, (n_unknowns,
-        n_unknowns) covariance of the unknowns, NaN when nothing is fitted, (k,) standard errors of
-        the held directions, um) of a fit along B. The covariance includes the variance the data
-        leave along each held direction (:func:`._weak.held_variance`): held, not undetermined."""
+        n_unknowns) covariance of the unknowns, NaN when nothing is fitted, (n_unknowns, k) held
+        directions (internal units, each 1 um rms tool-tip error over the data's region) and (k,)
+        their standard errors, um) of a fit along B. The covariance includes the variance the data
+        leave along each held direction (:func:`._weak.held_variance`): held, not undetermined. It
+        goes through ``P``, the move that took the components no laser file names to zero
+        (:func:`.unmeasured.assumption_map`; None: none), as the values did."""
         lev = np.zeros(self.n_obs)
         edf = float(rank)
+        self.held_assumed = 0
         if not B.shape[1]:
-            return lev, edf, np.full((self.n_unknowns, self.n_unknowns), np.nan), np.zeros(0)
+            return (lev, edf, np.full((self.n_unknowns, self.n_unknowns), np.nan),
+                    np.zeros((self.n_unknowns, 0)), np.zeros(0))
         # the Bayesian posterior covariance of a penalised fit (Wood 2006): phi (AB + S)^-1, phi
         # the residual variance over the effective degrees of freedom tr((AB + S)^-1 AB)
         H = AB + self._reduced_penalty(B)
@@ -551,10 +556,12 @@ class _Problem:
         dof = self.n_obs - edf
         s2 = float(r @ r) / dof if dof > 0 else np.nan
         cov = s2 * (scale[:, None] * (B @ Hinv @ B.T) * scale[None, :])
-        held_cov, held_sd = held_variance(self.held, scale, s2)
+        if P is not None:
+            cov = P @ cov @ P.T
+        held_cov, held, held_sd, self.held_assumed = held_variance(self.held, scale, s2, P, self.metric)
         if leverage:
             lev = self.leverages(x, w, scale, B, np.linalg.cholesky(H))
-        return lev, edf, cov + held_cov, held_sd
+        return lev, edf, cov + held_cov, held, held_sd
 
     def _reduced_penalty(self, B) -> np.ndarray:
         """B^T S B: the penalty in the directions B (zeros without one)."""
@@ -684,7 +691,8 @@ class _Problem:
             files=files, n_obs=self.n_obs, n_params=self.n_unknowns, dof=dof,
             sigma=float(np.sqrt(cost / dof)) if dof else float("nan"), iterations=sol.iterations,
             converged=sol.converged, cost=cost, seconds=seconds, weighting=label, info=dict(info or {}),
-            directions=sol.scale[:, None] * sol.B, residual=sol.r.copy(), held_sd_um=sol.held_sd)
+            directions=sol.scale[:, None] * sol.B, residual=sol.r.copy(), held_sd_um=sol.held_sd,
+            held_assumed=self.held_assumed)
         if self.smoothing is not None:
             res.smoothing = self.smoothing
         params = ParameterSet(model.param_specs, values, std)

@@ -4,8 +4,10 @@
 A standard error comes from the model's covariance, which includes the variance the data leave
 along the directions the fit held because the data fix them only weakly (the model file's
 ``uncertainty.held``, with ``held_sd_um``): such a prediction gets that variance, the square of its
-change along each held direction times the square of the direction's standard error. Only the
-directions the data do not determine at all (``uncertainty.undetermined``) blank it."""
+change along each held direction times the square of the direction's standard error. That variance
+is on the assumption that the components no laser file names are zero (what only splits readings
+between a named component and one of those has none). Only the directions the data do not
+determine at all (``uncertainty.undetermined``) blank a prediction."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -60,30 +62,6 @@ class Undetermined:
         scaled = factor[1] * f[:, None]          # the same parameters, in the same order
         top = float(np.linalg.norm(scaled, 2)) if scaled.size else 0.0
         return cls(idx, np.asarray(u["undetermined"], dtype=float).reshape(idx.size, -1), f, top, factor)
-
-    def without_held(self, fitted: FittedModel, mask: np.ndarray) -> "Undetermined":
-        """The same, with the variance of the held weak combinations (the model file's
-        ``uncertainty.held``) that move a parameter where ``mask`` ((k,) bool, the covariance's order)
-        is True taken out of the covariance: the report gives the components on the assumption that
-        those parameters (the components no laser file names) are zero, and such a combination is
-        the split between a measured component and one no file names, which that assumption fixes."""
-        u = fitted.uncertainty
-        if self.factor is None or u is None or "held" not in u or not np.any(mask):
-            return self
-        G = np.asarray(u["held"], dtype=float).reshape(self.index.size, -1)
-        sd = np.asarray(u["held_sd_um"], dtype=float)
-        big = np.abs(G).max(axis=0, initial=0.0)
-        touch = np.abs(G[np.asarray(mask, dtype=bool)]).max(axis=0, initial=0.0) > 1e-6 * np.where(big > 0, big, 1.0)
-        if not touch.any():
-            return self
-        from dataclasses import replace
-        idx, F = self.factor
-        pos = {int(p): k for k, p in enumerate(self.index)}
-        Gf = G[[pos[int(i)] for i in idx]][:, touch] * sd[touch]
-        C = F @ F.T - Gf @ Gf.T
-        w, V = np.linalg.eigh(0.5 * (C + C.T))
-        keep = w > 1e-12 * max(float(w.max()) if w.size else 0.0, 1e-300)
-        return replace(self, factor=(idx, V[:, keep] * np.sqrt(w[keep])))
 
     def std(self, J: np.ndarray, setup: np.ndarray | None = None) -> np.ndarray:
         """(n,) standard error of n predictions whose Jacobian with respect to the model's parameters

@@ -209,14 +209,13 @@ def component_ranges(fitted: FittedModel, undetermined: Undetermined | None = No
 def _resolved(und: Undetermined, fitted: FittedModel, unmeasured: set) -> Undetermined:
     """``und`` without the undetermined directions that move a component no laser file measures:
     the fit held those components at zero (:mod:`mtcomp.identification.unmeasured`), so what the
-    others show is determined on that assumption; nor with the variance of the weakly fixed
-    combinations the fit held that move such a component (:meth:`Undetermined.without_held`)."""
-    if not unmeasured or und.directions is None:
+    others show is determined on that assumption. The covariance is already on it (the fit's
+    :func:`mtcomp.identification.unmeasured.assumption_map`)."""
+    if not unmeasured or und.directions is None or not und.directions.shape[1]:
         return und
     from dataclasses import replace
-    um = np.array([fitted.params.specs[i].group in unmeasured for i in und.index])
-    und = und.without_held(fitted, um)
     D = und.directions
+    um = np.array([fitted.params.specs[i].group in unmeasured for i in und.index])
     big = np.abs(D).max(axis=0)
     keep = ~(np.abs(D[um]).max(axis=0, initial=0.0) > 1e-6 * np.where(big > 0, big, 1.0))
     return replace(und, directions=D[:, keep])

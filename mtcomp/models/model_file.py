@@ -155,14 +155,23 @@ class FittedModel:
             q[:, j] = held[a]
         return q, cols
 
-    def covariance_factor(self) -> tuple[np.ndarray, np.ndarray] | None:
+    def covariance_factor(self, held: bool = True) -> tuple[np.ndarray, np.ndarray] | None:
         """(indices into ``params``, F) with F F^T the covariance of those parameters (internal
         units), from its positive eigenvalues; None when the model carries no uncertainty. What the
-        data left undetermined is not in it: it is held at zero and corrects nothing."""
+        data left undetermined is not in it: it is held at zero and corrects nothing.
+
+        held : False leaves out the variance of the directions the fit held because the data fix
+            them only weakly (``uncertainty["held"]``): the fitted values do not move along them
+            whatever the data say, so a correction made from the model has none of that variance
+            (it is the error left uncorrected there, which a prediction's standard error counts)."""
         if self.uncertainty is None:
             return None
         idx = np.array([self.params.index(n) for n in self.uncertainty["names"]], dtype=int)
         C = np.nan_to_num(np.asarray(self.uncertainty["covariance"], dtype=float))
+        if not held and "held" in self.uncertainty:
+            Gs = np.asarray(self.uncertainty["held"], dtype=float).reshape(idx.size, -1)
+            Gs = Gs * np.asarray(self.uncertainty["held_sd_um"], dtype=float)[None, :]
+            C = C - Gs @ Gs.T
         w, V = np.linalg.eigh(0.5 * (C + C.T))
         keep = w > 1e-12 * max(float(w.max()) if w.size else 0.0, 1e-300)
         return idx, V[:, keep] * np.sqrt(w[keep])
