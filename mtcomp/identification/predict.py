@@ -1,5 +1,13 @@
 """Predictions of a fitted model for the rows of any measurement file, with their standard errors
-(what ``mtcomp predict`` writes), blank where the model's data do not determine them."""
+(what ``mtcomp predict`` writes), blank where the model's data do not determine them.
+
+A standard error comes from the model's covariance, which includes the variance the data leave
+along the directions the fit held because the data fix them only weakly (the model file's
+``uncertainty.held``, with ``held_sd_um``): such a prediction gets that variance, the square of its
+change along each held direction times the square of the direction's standard error. That variance
+is on the assumption that the components no laser file names are zero (what only splits readings
+between a named component and one of those has none). Only the directions the data do not
+determine at all (``uncertainty.undetermined``) blank a prediction."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -15,12 +23,15 @@ from .problem import KNOWN_SETUP_KINDS, unique_tags, build_measurement_models
 
 @dataclass
 class Undetermined:
-    """What the data behind a model left undetermined, to blank predictions that rest on it.
+    """What the data behind a model left undetermined, to blank predictions that rest on it, and the
+    covariance that gives the others their standard errors.
 
     index : (k,) positions in the model's parameters of the fitted ones (the covariance's order).
     directions : (k, m) directions of those parameters the data did not determine (the model
         file's ``uncertainty.undetermined``), internal units, each scaled to 1 um rms tool-tip error
-        over the machine's travel. None: the model carries no uncertainty.
+        over the machine's travel. None: the model carries no uncertainty. The directions the fit
+        held because the data fix them only weakly are not among them: their variance is in the
+        covariance (``factor``).
     to_file : (k,) file unit per internal unit of each fitted parameter.
     largest_sd : the largest standard error of any combination of unit size of the fitted
         parameters in file units (um, urad): the scale against which a standard error counts as

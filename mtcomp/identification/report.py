@@ -209,7 +209,8 @@ def component_ranges(fitted: FittedModel, undetermined: Undetermined | None = No
 def _resolved(und: Undetermined, fitted: FittedModel, unmeasured: set) -> Undetermined:
     """``und`` without the undetermined directions that move a component no laser file measures:
     the fit held those components at zero (:mod:`mtcomp.identification.unmeasured`), so what the
-    others show is determined on that assumption."""
+    others show is determined on that assumption. The covariance is already on it (the fit's
+    :func:`mtcomp.identification.unmeasured.assumption_map`)."""
     if not unmeasured or und.directions is None or not und.directions.shape[1]:
         return und
     from dataclasses import replace
