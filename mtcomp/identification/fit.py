@@ -171,8 +171,11 @@ def _record_data(result, model, mask, mms, datasets) -> None:
     # compensates it) does not bound the model: what was fitted (a rotary table's motion) holds for
     # the rigid body wherever that axis stands
     fitted = fitted_axes(model, mask)
-    result.fitted_model.support = {a: r for a, r in data_support(model.machine, datasets).items()
-                                   if a in fitted}
+    moved = data_support(model.machine, datasets)
+    result.fitted_model.support = {a: r for a, r in moved.items() if a in fitted}
+    held_axes = [a for a in moved if a not in fitted]
+    if held_axes:
+        result.fitted_model.info["held_axes"] = held_axes
     known = [m.tag for m in mms if m.options.get("setup") == "known"]
     if known:
         result.fitted_model.info["known_setup"] = known

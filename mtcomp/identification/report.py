@@ -187,7 +187,13 @@ def component_ranges(fitted: FittedModel, undetermined: Undetermined | None = No
             continue
         ranges += _axis_ranges(fitted, ax, *support[ax.name], und, mask)
     moved = {r.axis for r in ranges}
-    still = [a for a in machine.axis_names if a not in moved]
+    info = fitted.info if isinstance(fitted.info, dict) else {}
+    given = [a for a in info.get("held_axes", ()) if a not in moved]
+    if given:
+        notes.append(f"axes whose errors were held as given (--hold): {', '.join(given)}: the data "
+                     "moved them; their errors stay where the start model puts them (zero without "
+                     "--start)")
+    still = [a for a in machine.axis_names if a not in moved and a not in given]
     if still:
         held = fitted.held or {}
         at = [f"{a} at {held[a] * (180.0 / math.pi if machine.axis(a).is_rotary else 1.0):g} "
