@@ -8,7 +8,9 @@ axis is positioned once a motion block names it, and no longer after a home move
 in machine coordinates (G53) of that axis, a tool change or tool length change (Z), a change of
 work coordinate system or grbl homing (every axis), a block of a RepRapFirmware program that runs
 the controller's macro files (every axis: tests/replay.py, rrf_runs_macro); after a drilling cycle
-Z stands where the cycle's retract leaves it (see _positioned_per_line)."""
+Z stands where the cycle's retract leaves it (see _positioned_per_line). A comment holding
+parentheses is read as both of its readings read it where they agree (tests/replay.py,
+without_comments)."""
 import contextlib
 import io
 import re

@@ -3,7 +3,9 @@
 Split from :mod:`.modal`: :func:`text_with_words` says which lines pass through without being read
 (empty lines, tape marks, program numbers, grbl's commands, a Fanuc alarm-only IF, a line
 RepRapFirmware answers "Bad command") and gives the others' text as the tokenizer is to see it (on
-RepRapFirmware without its quoted string parameters: :mod:`.rrf`).
+RepRapFirmware without its quoted string parameters: :mod:`.rrf`). A comment holding parentheses
+(``(HSS Twist Drill, 3mm (R))``) is refused where the controller stops on it (LinuxCNC, grbl) and
+said once elsewhere, where the tokenizer reads it as one comment (:func:`.words.comment_end`).
 """
 from __future__ import annotations
 
