@@ -15,7 +15,8 @@ change where the old origin is known, else becomes unknown; after L20 the named 
 given values, and where their position was unknown, as after grbl's homing `$H`, the new origin
 is the operator's, from outside the program); G4 dwells and moves too when the block has axis
 words; a full circle of zero radius about its start (I J K 0, the end at the start) is a move of
-kind 'none': grbl runs it without motion. Comments `( )` and `;`, `%`, `:` program numbers, `$`
+kind 'none': grbl runs it without motion. Comments `( )` and `;` (a comment holding parentheses:
+see `without_comments`), `%`, `:` program numbers, `$`
 lines (`$H` homing and `$J=` jogging leave every axis unknown) and a DOS end-of-file mark make no
 move. A RepRapFirmware program (see `is_rrf`) is read without its quoted strings, and a block that
 runs the controller's macro files (see `rrf_runs_macro`) leaves every axis unknown.
@@ -28,7 +29,10 @@ from dataclasses import dataclass, field
 
 AXES = "XYZABC"
 LINEAR = "XYZ"
+#: a comment as a control that ends it at its first ')' reads it ('(' inside is its text)
 _COMMENT = re.compile(r"\([^)]*\)|;.*")
+#: a comment that holds no parenthesis: the innermost of nested ones
+_INNERMOST = re.compile(r"\([^()]*\)")
 _WORD = re.compile(r"([A-Z])\s*([-+]?\s*(?:\d+\.?\d*|\.\d+))")
 _CYCLES = {73, 81, 82, 83, 84, 85, 86, 87, 88, 89}
 #: RepRapFirmware (Duet3D, G-code dictionary): a parameter's value may be a string in double quotes
@@ -89,11 +93,32 @@ def _words(code):
     return [(m.group(1), float(m.group(2).replace(" ", ""))) for m in _WORD.finditer(code)]
 
 
+def without_comments(text: str) -> str:
+    """A line without its comments. A comment that holds parentheses (`(Drill, 3mm (R))`) has two
+    readings: a control that nests them takes it whole (innermost comments removed until none is
+    left), one that ends it at its first ')' reads what follows as code (lone ')' skipped). Where
+    the two give different words the program is not one to compensate: ValueError."""
+    first_close = _COMMENT.sub("", text)
+    if not re.search(r"\([^()]*\(", text):      # no '(' inside a comment: one reading
+        return first_close
+    nested = text.split(";", 1)[0] if text.find(";") < text.find("(") else text
+    while True:
+        fewer = _INNERMOST.sub("", nested)
+        if fewer == nested:
+            break
+        nested = fewer
+    nested = re.sub(";.*", "", nested)
+    rest = first_close.replace(")", "")
+    if re.sub(r"[ \t]", "", rest.upper()) != re.sub(r"[ \t]", "", nested.upper()):
+        raise ValueError(f"the readings of a comment holding parentheses differ: {text!r}")
+    return rest
+
+
 def _code(raw: bytes, rrf: bool = False) -> str:
     text = raw.decode("latin-1").replace("\r", "").replace("\x1a", "")
     if rrf:
         text = RRF_STRING.sub(" ", text)
-    return _COMMENT.sub("", text).upper().strip()
+    return without_comments(text).upper().strip()
 
 
 def is_rrf(data: bytes) -> bool:

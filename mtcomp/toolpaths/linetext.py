@@ -3,7 +3,9 @@
 Split from :mod:`.modal`: :func:`text_with_words` says which lines pass through without being read
 (empty lines, tape marks, program numbers, grbl's commands, a Fanuc alarm-only IF, a line
 RepRapFirmware answers "Bad command") and gives the others' text as the tokenizer is to see it (on
-RepRapFirmware without its quoted string parameters: :mod:`.rrf`).
+RepRapFirmware without its quoted string parameters: :mod:`.rrf`). A comment holding parentheses
+(``(HSS Twist Drill, 3mm (R))``) is refused where the controller stops on it (LinuxCNC, grbl) and
+said once elsewhere, where the tokenizer reads it as one comment (:func:`.words.comment_end`).
 """
 from __future__ import annotations
 
@@ -11,7 +13,8 @@ import re
 
 from ..errors import InputError
 from .rrf import without_strings
-from .words import _COLON_PROGRAM_RE, _NUMBERED_PERCENT_RE, strip_comments
+from .words import (_COLON_PROGRAM_RE, _NUMBERED_PERCENT_RE, NESTED_COMMENT_RE, comment_end,
+                    nested_comment_problem, strip_comments)
 
 #: a CSV header line (names separated by commas), given where G-code was meant
 _CSV_HEADER = re.compile(r"^[A-Za-z_][\w ]*(?:,[\w ]*){2,}$")
@@ -52,6 +55,8 @@ def text_with_words(state, line: int, text: str) -> str | None:
     if line == 1 and _CSV_HEADER.match(s):
         raise state._err("this looks like a CSV file (a header of comma-separated names), not "
                          "G-code: give the NC program here", line)
+    if "(" in text and NESTED_COMMENT_RE.search(text):
+        _comment_with_parentheses(state, line, text)
     if state.dialect.name == "rrf":
         try:
             text = without_strings(text, state.path, line)
@@ -74,3 +79,50 @@ def _bad_command(state, line: int, text: str) -> bool:
                      "command) 'Bad command', moves nothing and runs on: it passes through as "
                      "written")
     return True
+
+
+#: controllers that stop on a comment holding parentheses, and their rule
+_REFUSE_NESTED = {
+    "linuxcnc": "LinuxCNC stops on a '(' inside a comment ('Nested comment found': comments do "
+                "not nest in RS274/NGC)",
+    "grbl": "grbl ends the comment at its first ')' and answers the ')' left after it with error 1 "
+            "(a word letter expected)",
+}
+
+
+def _comment_with_parentheses(state, line: int, text: str) -> None:
+    """A comment that holds parentheses (``(HSS Twist Drill, 3mm (R))``): refused on a controller
+    that stops on it (LinuxCNC, grbl); elsewhere read as one comment where every reading agrees
+    that it holds no word (:func:`~.words.nested_comment_problem`), said once in the notes."""
+    pos = _first_nested(text)
+    if pos < 0:
+        return
+    end = comment_end(text, pos)
+    shown = text[pos:end if end > 0 else len(text)][:50]
+    rule = _REFUSE_NESTED.get(state.dialect.name)
+    if rule is not None and end > 0:
+        raise state._err(f"comment '(' holds parentheses, {shown!r}: {rule}", line)
+    if end < 0 or nested_comment_problem(text, pos, end) is not None:
+        return                          # the tokenizer names the problem
+    notes = getattr(state._source, "notes", None)
+    if notes is not None and not any(n.startswith("note: a comment holding") for n in notes):
+        notes.append(f"note: a comment holding parentheses (first at line {state._where(line)[1]}: "
+                     f"{shown!r}) is read as one comment: a control that nests parentheses reads "
+                     "it so, and one that ends it at its first ')' finds only ')' after it; no "
+                     "word either way, and the line passes as written")
+
+
+def _first_nested(text: str) -> int:
+    """Where the line's first comment holding parentheses opens (-1: none; ';' ends the code)."""
+    pos, n = 0, len(text)
+    while pos < n:
+        ch = text[pos]
+        if ch == ";":
+            return -1
+        if ch == "(":
+            e = text.find(")", pos)
+            if e < 0 or text.find("(", pos + 1, e) >= 0:
+                return pos
+            pos = e
+        pos += 1
+    return -1
