@@ -57,7 +57,7 @@ def run(args) -> int:
               "thermal drift", file=sys.stderr)
     pred = predict_readings(fitted, data, machine)
     columns = pred.columns
-    for note in pred.notes + _blank_outside_region(fitted, data, machine, columns):
+    for note in pred.notes:
         print(f"note: {note}", file=sys.stderr)
     ordered = {}
     for name in list(data.prediction_columns) + [k for k in columns if not k.endswith("_sd")]:
@@ -69,30 +69,3 @@ def run(args) -> int:
     print(f"wrote {out}: {len(data)} rows, columns {', '.join(ordered)}")
     return 0
 
-
-def _blank_outside_region(fitted, data, machine, columns: dict) -> list:
-    """Blank the standard errors (``*_sd`` columns) of the rows whose axis positions lie outside the
-    region the model's data reached (there the model holds its profiles' end values: a guess its
-    posterior does not size, and compensate and export do not correct there); the note saying so."""
-    import numpy as np
-
-    from ..models.region import outside_bounds, support_bounds
-    bounds = support_bounds(fitted)
-    if bounds is None or not hasattr(data, "axis_positions"):
-        return []
-    out = outside_bounds(machine, bounds, data.axis_positions(machine))
-    rows = out.any(axis=1)
-    if not rows.any():
-        return []
-    for name, values in columns.items():
-        if name.endswith("_sd"):
-            values[rows] = np.nan
-    lo, hi = bounds
-    axes = []
-    for j, a in enumerate(machine.axes):
-        if out[:, j].any():
-            f, unit = (np.degrees(1.0), "deg") if a.is_rotary else (1.0, "mm")
-            axes.append(f"{a.name} {lo[j] * f:g} .. {hi[j] * f:g} {unit}: {int(out[:, j].sum())}")
-    return [f"{data.path}: {int(rows.sum())} row(s) lie outside the region the model's data reached "
-            f"({'; '.join(axes)}): the model holds its profiles' end values there, a guess its "
-            "standard error does not size: left blank (compensate and export do not correct there)"]

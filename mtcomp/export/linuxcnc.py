@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._output import FULL, LINEAR, ExportResult, readme_text, slope
-from ._tables import component_names, own_column
+from ._tables import ZERO, component_names, own_column
 
 MAX_POINTS = 256
 NAME = "linuxcnc"
@@ -39,7 +39,7 @@ def comp_lines(table, column: int, comp_type: int, factor: float) -> list[str]:
 def measured(table, column: int) -> bool:
     """False when the component ``column`` of ``table`` is zero everywhere (to 1e-12 mm): the model
     holds it at zero, no data determined it."""
-    return bool(np.nanmax(np.abs(table.mean[:, column])) > 1e-12)
+    return bool(np.nanmax(np.abs(table.mean[:, column])) > ZERO)
 
 
 def backlash_comment(tables, a: str) -> str:

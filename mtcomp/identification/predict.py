@@ -192,6 +192,7 @@ def predict_readings(fitted: FittedModel, data: MeasurementSet, machine: Machine
     if blank:
         notes.append(f"{blank} prediction(s) of {mm.tag} rest only on what the model's data did not "
                      "determine: left blank")
+    notes += _blank_outside_region(fitted, data, machine or fitted.machine, columns)
     if fitted.uncertainty is None:
         notes.append("the model carries no uncertainty (mtcomp identify and diagnose write one; a "
                      "model file of an older mtcomp may not): the _sd columns are blank")
@@ -199,3 +200,29 @@ def predict_readings(fitted: FittedModel, data: MeasurementSet, machine: Machine
         notes.append(f"{mm.tag} was not part of the fit: its set-up ({', '.join(s.name.split(':', 1)[1] for s in mm.nuisance_specs)}) "
                      "is unknown and taken as zero; compare readings up to that set-up")
     return Prediction(columns, known, notes)
+
+
+def _blank_outside_region(fitted, data, machine, columns: dict) -> list:
+    """Blank the standard errors (``*_sd`` columns) of the rows whose axis positions lie outside the
+    region the model's data reached (there the model holds its profiles' end values: a guess its
+    posterior does not size, and compensate and export do not correct there); the note saying so."""
+    from ..models.region import outside_bounds, support_bounds
+    bounds = support_bounds(fitted)
+    if bounds is None or not hasattr(data, "axis_positions"):
+        return []
+    out = outside_bounds(machine, bounds, data.axis_positions(machine))
+    rows = out.any(axis=1)
+    if not rows.any():
+        return []
+    for name, values in columns.items():
+        if name.endswith("_sd"):
+            values[rows] = np.nan
+    lo, hi = bounds
+    axes = []
+    for j, a in enumerate(machine.axes):
+        if out[:, j].any():
+            f, unit = (np.degrees(1.0), "deg") if a.is_rotary else (1.0, "mm")
+            axes.append(f"{a.name} {lo[j] * f:g} .. {hi[j] * f:g} {unit}: {int(out[:, j].sum())}")
+    return [f"{data.path}: {int(rows.sum())} row(s) lie outside the region the model's data reached "
+            f"({'; '.join(axes)}): the model holds its profiles' end values there, a guess its "
+            "standard error does not size: left blank (compensate and export do not correct there)"]

@@ -31,7 +31,7 @@ from ._bounds import FLAG_KINDS, INF, Bounds, flag_name
 from ._evaluate import Evaluator, objective_residual
 from ._parallel import read_ahead, resolve_threads, split_rows
 from ._pointwise import Linearization, solve_newton, solve_pinv
-from ._qp import NEVER_WORSE_TOL, WindowQP, never_worse_rows, reachable_nodes  # noqa: F401
+from ._qp import WindowQP, never_worse_rows, reachable_nodes
 from ._rotary_grid import rotary_columns, round_rotary, solve_with_rotary_fixed
 from ._small import a_x, any_rows, at_b, gram, row_max_abs, row_norm
 from .problem import CompensationProblem, PlannerOptions
@@ -168,7 +168,7 @@ class Planner:
         self.machine = problem.machine
         self.na = self.machine.n_axes
         self._rotary = rotary_columns(self.machine)
-        self._qps: dict[int, WindowQP] = {}
+        self._qps: dict[tuple[int, int], WindowQP] = {}
         self._prev: np.ndarray | None = None        # last committed correction (x units)
         self._last_end: tuple | None = None         # (q, x_free) of the last node of the last chunk
         self._after_cycle = False                   # the last row of the last chunk was a hole
@@ -434,14 +434,17 @@ class Planner:
 
     # ------------------------------------------------------------------ committing
     def _commit(self, nodes: NodeSet, lin: Linearization, x: np.ndarray,
-                following: np.ndarray | None = None, limits=None, planned=None) -> PlanResult:
+                following: np.ndarray | None = None, limits=None, planned=None,
+                desired=None) -> PlanResult:
         """Round, enforce bounds exactly, predict the deviation after correction (``planned``: the
-        window's plan before its turn was rounded, whose step bounds the flags name too)."""
+        window's plan before its turn was rounded, whose step bounds the flags name too;
+        ``desired``: the unbounded correction with its turn on the grid, when the caller has it)."""
         if limits is None:
             limits = self.bounds.limits(nodes.q, nodes.pinned)
         # flags compare with the unbounded correction (its turn on the grid): what the bounds took
-        y, flags = self.bounds.enforce(x, nodes.q, nodes.exempt, self._prev,
-                                       desired=self._round_rotary(lin, lin.x),
+        if desired is None:
+            desired = self._round_rotary(lin, lin.x)
+        y, flags = self.bounds.enforce(x, nodes.q, nodes.exempt, self._prev, desired=desired,
                                        following=following, limits=limits, planned=planned)
         if len(nodes):
             self._prev = y[-1].copy()
@@ -503,8 +506,7 @@ class Planner:
                 return x, None
         self.stats["windows_qp"] += 1
         n, na = lin.x.shape
-        qp = self._window_qp(n + 1, lin.b.shape[1] if lin.orientation_rows.shape[1] == 0
-                             else objective_residual(lin.orientation_rows[:1], lin.b[:1]).shape[1])
+        qp = self._window_qp(n + 1, lin.b.shape[1])      # objective_residual keeps b's shape
         lam = self.problem.regularization_weights
         lower = np.vstack([np.zeros((1, na)) if prev is None else prev[None, :], l])
         upper = np.vstack([np.zeros((1, na)) if prev is None else prev[None, :], u])
@@ -590,8 +592,9 @@ class Planner:
         self.stats["windows"] += count
         following = x[nc] if nc < x.shape[0] and not exempt[nc] else None
         csl = slice(pos, pos + nc)
+        # x is the run's unbounded correction with its turn on the grid: the flags' reference too
         res = self._commit(nodes.take(csl), lin.take(csl), x[:nc].copy(), following,
-                           tuple(None if a is None else a[:nc] for a in limits))
+                           tuple(None if a is None else a[:nc] for a in limits), desired=x[:nc])
         return res, nc
 
     # ------------------------------------------------------------------ driving
@@ -648,7 +651,8 @@ class Planner:
         node is committed; otherwise qp keeps the last ``overlap`` (or fewer) for the next call."""
         o = self.options
         if o.method != "qp":
-            return self._commit(nodes, lin, self._round_rotary(lin, lin.x))
+            x = self._round_rotary(lin, lin.x)
+            return self._commit(nodes, lin, x, desired=x)
         results = []
         if self._buffer:
             (prev_n, prev_l), = self._buffer

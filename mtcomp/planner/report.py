@@ -32,7 +32,8 @@ import numpy as np
 
 from ._bounds import FLAG_KINDS, flag_name
 from ._small import any_rows, row_norm
-from .engine import NEVER_WORSE_TOL, PlanResult
+from ._qp import NEVER_WORSE_TOL
+from .engine import PlanResult
 
 #: a block counts as made worse when its deviation along an axis grows by more than this (um): the
 #: planner's never-worse rows allow NEVER_WORSE_TOL (half the output grid), rounding as much again

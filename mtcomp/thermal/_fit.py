@@ -243,10 +243,6 @@ class ThermalFit:
     covariance: np.ndarray | None = None
     temperature_ranges: dict = field(default_factory=dict)
     results: list = field(default_factory=list)
-    #: (m,) lag-1 autocorrelation of each channel's residuals (:func:`residual_autocorrelation`)
-    residual_rho: np.ndarray | None = None
-    #: (m,) the model error of a forward prediction, um: the chosen candidate's forward-validated rms
-    model_error_um: np.ndarray | None = None
 
     def summary(self) -> str:
         lines = [f"thermal drift ({len(self.t_s)} readings over {np.ptp(self.t_s) / 3600:.3g} h, "
@@ -338,8 +334,7 @@ def fit_thermal(data, lags_s=DEFAULT_LAGS_S, n_folds: int = N_FOLDS, penalties=P
                       np.asarray(ctx.t, dtype=float), forward_predictions(X, Y, chosen.penalty, folds),
                       np.asarray(ctx.spindle_rpm, dtype=float), n_folds, temp_means,
                       [s for s in ctx.temperatures if s not in usable_temperatures(ctx)], covariance,
-                      {s: (float(np.min(v)), float(np.max(v))) for s, v in temps}, results, rho,
-                      np.asarray(chosen.forward_rms_um, dtype=float))
+                      {s: (float(np.min(v)), float(np.max(v))) for s, v in temps}, results)
 
 
 def choose(scores: list[CandidateScore]) -> CandidateScore:

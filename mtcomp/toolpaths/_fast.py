@@ -28,7 +28,6 @@ import numpy as np
 from ..errors import InputError
 from ..io.atomic import atomic_write
 from .blocks import SegmentChunk
-from . import reader as _reader, writer as _writer
 from .reader import new_state
 from .writer import OutputState, _line_ending, format_motion_lines, write_pass_through
 
@@ -253,24 +252,8 @@ def _new_rows(cap, na):
             np.empty(cap, np.int32), np.zeros(cap, bool), np.zeros(cap, bool))
 
 
-def _read_in_python(path) -> bool:
-    """Whether a program is read and written by the pure-Python reader and writer throughout: a
-    RepRapFirmware program (the scanner would take M codes and T words as codes that move nothing,
-    where the firmware may run a macro file for them: :mod:`.rrf`)."""
-    dialect = getattr(path, "dialect", None)
-    return dialect is not None and dialect.name == "rrf"
-
-
 def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_position=None, **kw):
-    """Compiled counterpart of :func:`mtcomp.toolpaths.gcode.iter_segment_chunks` (the Python one
-    for a program :func:`_read_in_python` names)."""
-    if _read_in_python(path):
-        return _reader.iter_segment_chunks(path, machine, chord_tol_mm, chunk_size,
-                                           initial_position, **kw)
-    return _compiled_chunks(path, machine, chord_tol_mm, chunk_size, initial_position, **kw)
-
-
-def _compiled_chunks(path, machine, chord_tol_mm, chunk_size, initial_position=None, **kw):
+    """Compiled counterpart of :func:`mtcomp.toolpaths.gcode.iter_segment_chunks`."""
     cap = int(chunk_size)
     if cap < 1:
         raise ValueError("chunk_size must be >= 1")
@@ -337,17 +320,7 @@ def _compiled_chunks(path, machine, chord_tol_mm, chunk_size, initial_position=N
 
 def write_corrected(in_path, out_path, machine, cursor, chord_tol_mm, initial_position=None,
                     stats=None, **kw):
-    """Compiled counterpart of :func:`mtcomp.toolpaths.gcode.write_corrected` (cursor prepared;
-    the Python one for a program :func:`_read_in_python` names)."""
-    if _read_in_python(in_path):
-        return _writer.write_corrected(in_path, out_path, machine, cursor, chord_tol_mm,
-                                       initial_position, stats=stats, **kw)
-    return _compiled_write(in_path, out_path, machine, cursor, chord_tol_mm, initial_position,
-                           stats, **kw)
-
-
-def _compiled_write(in_path, out_path, machine, cursor, chord_tol_mm, initial_position=None,
-                    stats=None, **kw):
+    """Compiled counterpart of :func:`mtcomp.toolpaths.gcode.write_corrected` (cursor prepared)."""
     letters = "".join(machine.axis_names)
     rotary = [c in "ABC" for c in letters]
     d = _Driver(in_path, machine, chord_tol_mm, initial_position, **kw)
