@@ -630,7 +630,8 @@ def passed_move_notes(program, written) -> list[str]:
             f"BLOCKS.csv row: " + "; ".join(parts)]
 
 
-_TCP_ON_RE = re.compile(r"(?i)\b(?:M0*(?:" + "|".join(map(str, sorted(TCP_ON_M)))
+#: a code that switches tool centre point mode on (as the reader reads it: ``N10M428`` too)
+_TCP_ON_RE = re.compile(r"(?i)(?:M0*(?:" + "|".join(map(str, sorted(TCP_ON_M)))
                         + r")|G0*43\.40*)(?![\d.])")
 
 
@@ -640,8 +641,8 @@ def tcp_note(program, tally) -> list[str]:
     if not tally.tcp_blocks:
         return []
     switches, runs = [], tally.tcp_runs[:3]
+    last = None
     with open(program, "rb") as f:
-        k, last = 0, None
         for k, raw in enumerate(f, 1):
             if k > runs[-1][1]:
                 break

@@ -727,15 +727,16 @@ def write_corrected(in_path, out_path, machine: Machine, cursor: CorrectionCurso
             rows_written += block.points.shape[0]
             f.write(text.encode("latin-1"))
         cursor.finish()
-    if stats is not None and out is not None:
-        stats.update(writer_stats(out))
+    if stats is not None:
+        stats.update(writer_stats(out) if out is not None else {"cycle_lines": 0, "cycle_blocks": 0})
     return rows_written
 
 
 def writer_stats(out: OutputState) -> dict:
     """What the writer counted (``stats`` of :func:`mtcomp.toolpaths.gcode.write_corrected`)."""
-    stats = {"cycle_lines": out.cycle_lines, "cycle_blocks": out.cycle_blocks,
-             "passed_moves": {why: tuple(v) for why, v in out.passed_moves.items()}}
+    stats = {"cycle_lines": out.cycle_lines, "cycle_blocks": out.cycle_blocks}
+    if out.passed_moves:        # why -> (lines, first line)
+        stats["passed_moves"] = {why: tuple(v) for why, v in out.passed_moves.items()}
     if out.cutter_arc_miss > 0:
         stats["cutter_arc_miss_mm"] = out.cutter_arc_miss
     return stats
