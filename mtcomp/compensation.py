@@ -607,7 +607,8 @@ def _planner(fitted, settings: CompensationSettings, inch: bool, program, progre
 #: the moves the writer passes through uncorrected (``passed_moves`` of its stats), in this order
 _PASSED_MOVES = {"increment": "{n} incremental (G91) move{s} of an axis whose position the program "
                               "has not given ({at}: the controller moves it from wherever it stands)",
-                 "home": "{n} move{s} to the home position (G28/G30, {at})",
+                 "home": "{n} move{s} to the home position (G28/G30, grbl's $H; {at})",
+                 "jog": "{n} grbl jog{s} ($J=, {at})",
                  "machine": "{n} move{s} in machine coordinates (G53, {at})",
                  "tap": "{n} rigid tapping move{s} (G33.1, {at}: the spindle's reversal sets its ends)"}
 

@@ -34,7 +34,7 @@ M30
 PASSED_LINE = ("4 motion lines passed through uncorrected, with no BLOCKS.csv row: 2 incremental "
                "(G91) moves of an axis whose position the program has not given (first at line 6: "
                "the controller moves it from wherever it stands); 1 move to the home position "
-               "(G28/G30, line 10); 1 move in machine coordinates (G53, line 11)")
+               "(G28/G30, grbl's $H; line 10); 1 move in machine coordinates (G53, line 11)")
 
 #: LinuxCNC with a subroutine: the expanded program's lines are not the source's; the blind
 #: increment is source line 9 (expanded line 7)
@@ -115,6 +115,15 @@ def test_the_moves_are_named_by_their_source_lines_in_an_expanded_program(tmp_pa
             "move of an axis whose position the program has not given (line 9: the controller "
             "moves it from wherever it stands)") in out
     assert [int(r["line"]) for r in rows] == [5, 3, 10]
+
+
+def test_grbl_homing_and_jogging_are_counted(tmp_path, capsys):
+    text = "G21 G90\n$H\nG0 X1 Y1 Z1\n$J=G91 X5 F500\nG1 X2 F100\nM30\n"
+    out, rows = _compensate(tmp_path, "xfyz", text, capsys, "--dialect", "grbl")
+    assert ("2 motion lines passed through uncorrected, with no BLOCKS.csv row: 1 move to the home "
+            "position (G28/G30, grbl's $H; line 2); 1 grbl jog ($J=, line 4)") in out
+    # after the jog no axis is known: line 5 has its row, uncorrected, Y and Z unknown
+    assert [(int(r["line"]), r["unknown_axes"]) for r in rows] == [(3, ""), (5, "YZ")]
 
 
 def test_a_program_without_such_moves_has_no_such_line(tmp_path, capsys):

@@ -112,8 +112,8 @@ class ModalState:
         self.tapping = False
         self.tap_line = False
         #: (why, line) when the line read moves the machine and passes through uncorrected: why
-        #: 'increment' (G91 of an axis not known), 'home' (G28/G30), 'machine' (G53), 'tap'
-        #: (G33.1); else None
+        #: 'increment' (G91 of an axis not known), 'home' (G28/G30, grbl's $H), 'machine' (G53),
+        #: 'tap' (G33.1), 'jog' (grbl's $J=); else None
         self.passed_move = None
         #: work offsets the program sets itself (G10 L2/L20); their sets are numbered alike in
         #: every pass over one ProgramSource
