@@ -29,7 +29,8 @@ from ..errors import InputError
 from ..io.atomic import atomic_write
 from .blocks import SegmentChunk
 from .reader import new_state
-from .writer import OutputState, _line_ending, format_motion_lines, write_pass_through
+from .writer import (OutputState, _line_ending, format_motion_lines, write_pass_through,
+                     writer_stats)
 
 _SRC = Path(__file__).with_name("_fast_gcode.c")
 _BLOCK = 4 << 20           # bytes read from the input at a time
@@ -381,8 +382,5 @@ def write_corrected(in_path, out_path, machine, cursor, chord_tol_mm, initial_po
     finally:
         d.close()
     if stats is not None:
-        stats["cycle_lines"] = ostate.cycle_lines
-        stats["cycle_blocks"] = ostate.cycle_blocks
-        if ostate.cutter_arc_miss > 0:
-            stats["cutter_arc_miss_mm"] = ostate.cutter_arc_miss
+        stats.update(writer_stats(ostate))
     return rows_done

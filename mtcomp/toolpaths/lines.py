@@ -14,8 +14,8 @@ import math
 import re
 from dataclasses import dataclass, field
 
-from .expr import Evaluator, ExprError, format_value
-from .words import comment_end
+from .expr import Evaluator, ExprError, Number, decimals_of, format_value
+from .words import comment_end, number_decimals
 
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
 
@@ -80,21 +80,21 @@ def rewrite(line: str, code: Code, ev: Evaluator, *, fanuc: bool = False) -> Rew
             key, p = ev.parameter_key(s, pos)
             if p >= len(s) or s[p] != "=":
                 raise ExprError("a parameter outside a word must be assigned: #1=...")
-            v, p2 = (ev.expression(s, p + 1) if fanuc else ev.value(s, p + 1))
+            v, p2 = ev.counted(ev.expression if fanuc else ev.value, s, p + 1)
             assignments.append((key, v))
             spans.append((pos, p2, ""))
             pos = p2
         elif ch in "@^" or ch.isalpha():
             p = pos + 1
             if _is_computed(s, p):
-                v, p2 = ev.value(s, p)
+                v, p2 = ev.counted(ev.value, s, p)
                 spans.append((p, p2, format_value(v)))
             else:
                 m = _NUMBER.match(s, p)
                 if not m:
                     pos = p
                     continue        # left for the tokenizer to name
-                v, p2 = float(m.group(0)), m.end()
+                v, p2 = Number(float(m.group(0)), number_decimals(m.group(0))), m.end()
             if ch in "@^":
                 polar[ch] = v
                 spans.append((pos, p2, None))
@@ -124,9 +124,11 @@ def _apply(line: str, code: Code, spans) -> str:
     return "".join(out)
 
 
-def place_polar(text: str, xy: tuple[float, float], upper: bool) -> str:
-    """The rewritten line with its polar words replaced by X and Y words (at the first one)."""
-    x, y = (format_value(v) for v in xy)
+def place_polar(text: str, xy: tuple[float, float], upper: bool, polar: dict | None = None) -> str:
+    """The rewritten line with its polar words replaced by X and Y words (at the first one), with
+    the decimals of the polar words (``polar``: their values, :class:`~.expr.Number` s)."""
+    decimals = max((decimals_of(v) for v in (polar or {}).values()), default=0)
+    x, y = (format_value(v, decimals) for v in xy)
     words = f"{'X' if upper else 'x'}{x} {'Y' if upper else 'y'}{y}"
     first = text.index("\0")
     rest = re.sub("\0[ \t]*", "", text[first + 1:])

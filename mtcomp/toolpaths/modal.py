@@ -111,6 +111,10 @@ class ModalState:
         #: read carries G33.1
         self.tapping = False
         self.tap_line = False
+        #: (why, line) when the line read moves the machine and passes through uncorrected: why
+        #: 'increment' (G91 of an axis not known), 'home' (G28/G30, grbl's $H), 'machine' (G53),
+        #: 'tap' (G33.1), 'jog' (grbl's $J=); else None
+        self.passed_move = None
         #: work offsets the program sets itself (G10 L2/L20); their sets are numbered alike in
         #: every pass over one ProgramSource
         self.offsets = ProgrammedOffsets(self.na, getattr(path, "work_offset_sets", None))
@@ -183,6 +187,8 @@ class ModalState:
                     self.motion = motion
                     self.cycle = None
                 self._home_move(home_move, values, axes_given, line)
+                if home_move != 53 or axes_given:
+                    self.passed_move = ("machine" if home_move == 53 else "home", line)
             return None
         if motion is not None:
             self.motion = motion
@@ -204,6 +210,7 @@ class ModalState:
         self.cycle_line = False
         self.cycle_start = False
         self.tap_line = False
+        self.passed_move = None
         #: how far G52 or a G10 moved the program's coordinates on this line (the writer follows)
         self.frame_shift = None
 
@@ -516,6 +523,7 @@ class ModalState:
         self.tapping = True
         self.motion = None
         self.cycle = None
+        self.passed_move = ("tap", self._line) if axes_given else None
         scale = MM_PER_INCH if self.inch else 1.0
         for c in axes_given:
             i = self.names.index(c)
@@ -541,6 +549,7 @@ class ModalState:
         self._directions(start, end[None, :])
         self.position = end
         self.distance_sensitive = True
+        self.passed_move = ("increment", self._line)
         return None
 
     def _check_motion_mode(self, values, arc_words, line: int) -> None:
