@@ -57,13 +57,22 @@ def test_expanded_words_keep_the_decimals_of_their_numbers(tmp_path):
     ("[#1 * 2]", "#1 = 1.5", "3.0"),            # one decimal in 1.5
     ("[#1 / 3]", "#1 = 1.000", "0.333333"),     # more than the numbers have: up to 6
     ("[#1 + 0.25]", "#1 = 1", "1.25"),          # the literal's two
-    ("[2 * 3]", "", "6"),                       # no decimals anywhere
+    ("[2 * 3]", "", "6"),                       # no decimals anywhere (LinuxCNC reads X6 as 6 mm)
     ("[#2]", "#1 = 1.00000000\n#2 = [#1 * 2]", "2.00000000"),   # through a parameter, 8 kept
     ("[-#1 + 0.1]", "#1 = 0.100", "0.000"),     # zero: no '-0'
 ])
 def test_a_computed_word_has_the_most_decimals_of_what_it_reads(tmp_path, expr, params, text):
     lines = _expanded(tmp_path, f"G21 G90\n{params}\nG0 X{expr} Y0 Z5\nM2\n")
     assert lines[-2] == f"G0 X{text} Y0 Z5"
+
+
+def test_a_computed_whole_dimension_has_a_point_and_other_words_do_not(tmp_path):
+    """Fanuc reads a program's 'X6' as 6 least input increments (6 um in mm) and a macro variable
+    of 6 in 'X#1' as 6 mm: the expanded word must say 'X6.'; a tool number or a dwell keeps none."""
+    text = "%\nO1000\nG21 G90\n#1 = 2\n#2 = 3\nG0 X[#1 * 3] Y#2 Z[#1] T#2\nG4 P#1\nM30\n%\n"
+    lines = _expanded(tmp_path, text, "fanuc", "in.nc")
+    assert "G0 X6. Y3. Z2. T3" in lines
+    assert "G4 P2" in lines
 
 
 def test_format_value_pads_to_the_decimals_asked():

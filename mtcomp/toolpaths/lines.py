@@ -19,6 +19,19 @@ from .words import comment_end, number_decimals
 
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
 
+#: the letters of dimension words: in a Fanuc-style program a computed one is written with a
+#: decimal point (a whole number without one is read in the least input increment by Fanuc and
+#: Haas, as they read a program's own 'X6': FANUC Series 0i-MODEL F operator's manual,
+#: B-64604EN, decimal point programming; a macro variable's value in a word is the value itself)
+_DIMENSION = frozenset("XYZABCUVWIJKRQ")
+
+
+def dimension_text(v: float, decimals: int | None = None) -> str:
+    """A computed dimension word's value in a Fanuc-style program (:func:`~.expr.format_value`),
+    with a point when whole."""
+    text = format_value(v, decimals)
+    return text if "." in text else text + "."
+
 
 @dataclass
 class Code:
@@ -88,7 +101,8 @@ def rewrite(line: str, code: Code, ev: Evaluator, *, fanuc: bool = False) -> Rew
             p = pos + 1
             if _is_computed(s, p):
                 v, p2 = ev.counted(ev.value, s, p)
-                spans.append((p, p2, format_value(v)))
+                spans.append((p, p2, dimension_text(v) if fanuc and ch.upper() in _DIMENSION
+                              else format_value(v)))
             else:
                 m = _NUMBER.match(s, p)
                 if not m:
