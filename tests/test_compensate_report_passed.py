@@ -9,6 +9,7 @@ comments)."""
 from __future__ import annotations
 
 import csv
+import json
 
 import pytest
 
@@ -106,6 +107,15 @@ def test_moves_that_are_no_block_are_counted_with_their_lines(tmp_path, capsys, 
     assert [int(r["line"]) for r in rows] == [2, 3, 8, 9]
     # line 8 (Z after the tool change) gives Z again: every axis known, the block corrected
     assert [r["unknown_axes"] for r in rows] == ["", "", "", ""]
+
+
+def test_the_summary_file_counts_them_by_why(tmp_path, capsys):
+    _compensate(tmp_path, "xfyz", PASSED, capsys, "--json", str(tmp_path / "summary.json"))
+    figures = json.loads((tmp_path / "summary.json").read_text())
+    assert figures["passed_through_moves"] == {"increment": 2, "home": 1, "machine": 1}
+    _compensate(tmp_path, "xfyz", "G21 G90\nG0 X1 Y1 Z1\nG1 X2 F100\nM30\n", capsys, "--json",
+                str(tmp_path / "summary.json"))
+    assert json.loads((tmp_path / "summary.json").read_text())["passed_through_moves"] == {}
 
 
 def test_the_moves_are_named_by_their_source_lines_in_an_expanded_program(tmp_path, capsys):

@@ -140,6 +140,9 @@ def _write_summary(path, run_) -> None:
     figures = run_.summary.as_dict()
     figures["drilling_cycles"] = {"kept_lines": run_.written.get("cycle_blocks", 0),
                                   "passed_through_lines": run_.written.get("cycle_lines", 0)}
+    # motion lines passed through uncorrected with no BLOCKS.csv row, by why (the summary's line)
+    figures["passed_through_moves"] = {why: n for why, (n, _line) in
+                                       (run_.written.get("passed_moves") or {}).items()}
     with atomic_write(path, "w") as f:
         json.dump(figures, f, indent=2)
         f.write("\n")
