@@ -29,6 +29,7 @@ import numpy as np
 
 from ._bounds import FLAG_KINDS, INF, Bounds, flag_name
 from ._evaluate import Evaluator, objective_residual
+from ._local_qp import LazyQP, solve_stretches
 from ._parallel import read_ahead, resolve_threads, split_rows
 from ._pointwise import Linearization, solve_newton, solve_pinv
 from ._qp import WindowQP, never_worse_rows, reachable_nodes
@@ -506,7 +507,6 @@ class Planner:
                 return x, None
         self.stats["windows_qp"] += 1
         n, na = lin.x.shape
-        qp = self._window_qp(n + 1, lin.b.shape[1])      # objective_residual keeps b's shape
         lam = self.problem.regularization_weights
         lower = np.vstack([np.zeros((1, na)) if prev is None else prev[None, :], l])
         upper = np.vstack([np.zeros((1, na)) if prev is None else prev[None, :], u])
@@ -516,9 +516,43 @@ class Planner:
             free[0] = True
         step_lo = np.where(free[:, None], -INF, -S)
         step_hi = np.where(free[:, None], INF, S)
-        eye = np.eye(na)
-        x = np.clip(lin.x, l, u)
         reachable = reachable_nodes(self._prev, free, np.asarray(b.S, dtype=float))
+        full = LazyQP(lambda: self._window_qp(n + 1, lin.b.shape[1]))   # b's rows: the objective's
+
+        def relinearise(idx, xi):
+            return self.ev.residual_jacobian(nodes.q[idx], xi, nodes.context[idx],
+                                             lin.target[idx])[:2]
+
+        local = None if o.always_qp else solve_stretches(
+            lin, (lower, upper), (step_lo, step_hi), reachable, lam, o.step_tol_um, o.max_iterations,
+            self._window_qp, relinearise)
+        if local is not None:
+            x, solves = local
+            self.stats["qp_solves"] += solves
+            self.stats["qp_status"]["solved"] = self.stats["qp_status"].get("solved", 0) + solves
+        else:
+            x = self._solve_whole_window(lin, full, (lower, upper), (step_lo, step_hi), reachable,
+                                         relinearise)
+            if x is None:
+                # keep going with the unbounded solution; enforce() clamps it and flags the bounds
+                self.stats["qp_failed"] = self.stats.get("qp_failed", 0) + 1
+                return self._round_rotary(lin, np.clip(lin.x, l, u)), None
+        solves = full.solves
+        fixed = solve_with_rotary_fixed(full, b, lin, x, (lower, upper), (step_lo, step_hi), reachable,
+                                        lam, self._rotary)
+        self.stats["qp_solves"] += full.solves - solves
+        return fixed, x
+
+    def _solve_whole_window(self, lin: Linearization, qp, box, steps, reachable, relinearise):
+        """The bounded window's corrections (n, na) from OSQP on the whole window, re-linearised until
+        they stop moving (lin updated in place); None when OSQP fails."""
+        o = self.options
+        lower, upper = box
+        step_lo, step_hi = steps
+        lam = self.problem.regularization_weights
+        na = lin.x.shape[1]
+        eye = np.eye(na)
+        x = np.clip(lin.x, lower[1:], upper[1:])
         for _it in range(o.max_iterations):
             c, A = lin.objective()
             H = gram(A, lam)
@@ -537,23 +571,16 @@ class Planner:
             self.stats["qp_solves"] += 1
             self.stats["qp_status"][status] = self.stats["qp_status"].get(status, 0) + 1
             if status not in ("solved", "solved inaccurate"):
-                # keep going with the unbounded solution; enforce() clamps it and flags the bounds
-                self.stats["qp_failed"] = self.stats.get("qp_failed", 0) + 1
-                return self._round_rotary(lin, np.clip(lin.x, l, u)), None
+                return None
             x = sol[1:]
             moved = row_max_abs(x - lin.x_lin) >= o.step_tol_um
             if not np.any(moved):
                 break
             idx = np.flatnonzero(moved)
-            bb, AA, _ = self.ev.residual_jacobian(nodes.q[idx], x[idx], nodes.context[idx],
-                                                  lin.target[idx])
-            lin.b[idx], lin.A[idx], lin.x_lin[idx] = bb, AA, x[idx]
+            lin.b[idx], lin.A[idx] = relinearise(idx, x[idx])
+            lin.x_lin[idx] = x[idx]
             lin.iterations[idx] += 1
-        solves = qp.solves
-        fixed = solve_with_rotary_fixed(qp, b, lin, x, (lower, upper), (step_lo, step_hi), reachable,
-                                        lam, self._rotary)
-        self.stats["qp_solves"] += qp.solves - solves
-        return fixed, x
+        return x
 
     def _round_rotary(self, lin: Linearization, x: np.ndarray) -> np.ndarray:
         """x with the rotary corrections on the output grid, the linear ones re-solved for them."""
