@@ -7,16 +7,9 @@ import pytest
 from mtcomp import load_machine
 from mtcomp.models import ErrorModel, compiled
 from mtcomp.models.evaluate import casadi_map_call
+from test_models_compiled import cache  # noqa: F401  (the fixture: a cache folder of the test's own)
 
 pytestmark = pytest.mark.skipif(compiled.find_compiler() is None, reason="no C compiler here")
-
-
-@pytest.fixture
-def cache(tmp_path, monkeypatch):
-    monkeypatch.setenv("MTCOMP_CACHE_DIR", str(tmp_path / "cache"))
-    compiled.forget_loaded()
-    yield tmp_path / "cache"
-    compiled.forget_loaded()
 
 
 def _both(f):
