@@ -588,7 +588,8 @@ class Planner:
 
     def _feasible_run(self, nodes: NodeSet, lin: Linearization, pos: int, total: int, final: bool):
         """Commit at once the run of full windows from ``pos`` on whose unbounded solution keeps every
-        bound: ``(result, nodes committed)``, or ``(None, 0)`` when fewer than two such windows.
+        bound (those before the first block that breaks one): ``(result, nodes committed)``, or
+        ``(None, 0)`` when fewer than two such windows.
 
         The same plan as window by window: each of these windows would be its unbounded solution
         (checked here as :meth:`_solve_window` does, the anchor of a window being the written,
@@ -605,8 +606,15 @@ class Planner:
         exempt = nodes.exempt[pos:end]
         limits = self.bounds.limits_lazy(nodes.q[pos:end], nodes.pinned[pos:end])
         b = self.bounds
-        if not b.feasible(x, limits[0], limits[1], exempt, self._prev):
-            return None, 0
+        k = b.first_violation(x, limits[0], limits[1], exempt, self._prev)
+        if k is not None:
+            # the windows wholly before the first block that breaks a bound, as window by window
+            # (without a rotary axis x is the unbounded solution _solve_window checks first too)
+            count = 0 if self._rotary.any() else (k - O) // W
+            if count < 2:
+                return None, 0
+            x, exempt = x[:count * W + O], exempt[:count * W + O]
+            limits = tuple(None if a is None else a[:count * W + O] for a in limits)
         # window k > 0 starts at k * W, anchored at the rounded correction of the node before it
         starts = np.arange(1, count) * W
         anchor = b.quantize(x[starts - 1])
