@@ -29,6 +29,7 @@ import numpy as np
 
 from ._bounds import FLAG_KINDS, INF, Bounds, flag_name
 from ._evaluate import Evaluator, objective_residual
+from ._interleave import placed, positions
 from ._local_qp import LazyQP, solve_stretches
 from ._parallel import read_ahead, resolve_threads, split_rows
 from ._pointwise import Linearization, solve_newton, solve_pinv
@@ -357,27 +358,23 @@ class Planner:
             return nodes, lin_end, counts
         rows_i, t_i, q_i, lin_i = inner
         np.add.at(counts, rows_i, 1)
-        all_rows = np.concatenate([rows_i, np.arange(nrows)])
-        all_t = np.concatenate([t_i, np.ones(nrows)])
-        order = np.lexsort((all_t, all_rows))
-        m = rows_i.size
-        q_all = np.concatenate([q_i, end])[order]
-        ctx_all = np.concatenate([ctx[rows_i], ctx])[order]
+        pos_end, pos_i = positions(counts, rows_i, t_i)
+        row_sorted = np.repeat(np.arange(nrows), counts)
         # the first node of a row (inserted or its end) takes the row's exemption
-        ins_all = np.concatenate([np.ones(m, bool), np.zeros(nrows, bool)])[order]
-        row_sorted = all_rows[order]
-        firsts = np.ones(row_sorted.size, bool)
-        firsts[1:] = row_sorted[1:] != row_sorted[:-1]
-        ex_all = firsts & exempt[row_sorted]
+        ex_all = np.zeros(row_sorted.size, bool)
+        ex_all[np.cumsum(counts) - counts] = exempt
+        ins_all = np.zeros(row_sorted.size, bool)
+        ins_all[pos_i] = True
         # an inserted node outside the region the data reached (a move from outside into it) is
         # not corrected, as a block ending there would not be
         out_i = self.outside_support(q_i, known[rows_i])
         pin_i = pinned[rows_i] | (any_rows(out_i) & (not self.options.extrapolate))
-        nodes = NodeSet(q_all, ctx_all, ex_all, np.asarray(chunk.line)[row_sorted], ins_all,
-                        rapid[row_sorted], unknown[row_sorted],
-                        np.concatenate([out_i, outside])[order],
-                        np.concatenate([pin_i, pinned])[order], sd[row_sorted])
-        lin = Linearization.concatenate([lin_i, lin_end]).take(order)
+        nodes = NodeSet(placed(end, q_i, pos_end, pos_i), ctx[row_sorted], ex_all,
+                        np.asarray(chunk.line)[row_sorted], ins_all, rapid[row_sorted],
+                        unknown[row_sorted], placed(outside, out_i, pos_end, pos_i),
+                        placed(pinned, pin_i, pos_end, pos_i), sd[row_sorted])
+        lin = Linearization(*(placed(getattr(lin_end, f), getattr(lin_i, f), pos_end, pos_i)
+                              for f in Linearization.FIELDS))
         return nodes, lin, counts
 
     def _subdivide(self, start, end, x_start, x_end, ctx, ref, skip):
