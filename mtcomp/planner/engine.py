@@ -605,8 +605,7 @@ class Planner:
         b = self.bounds
         k = b.first_violation(x, limits[0], limits[1], exempt, self._prev)
         if k is not None:
-            # the windows wholly before the first block that breaks a bound, as window by window
-            # (without a rotary axis x is the unbounded solution _solve_window checks first too)
+            # the windows wholly before it, as window by window (x is lin.x without a rotary axis)
             count = 0 if self._rotary.any() else (k - O) // W
             if count < 2:
                 return None, 0
@@ -667,20 +666,20 @@ class Planner:
                 continue
             nodes, lin, counts = self.nodes_from_chunk(chunk)
             pending.append((chunk, counts, len(nodes)))
-            res = self.plan_nodes(nodes, lin, final=False)
-            if res is not None:
+            for res in _as_list(self.plan_nodes(nodes, lin, final=False, join=False)):
                 done.append(res)
                 n_done += len(res)
             yield from ready()
-        res = self.plan_nodes(_empty_nodes(self), _empty_lin(self), final=True)
-        if res is not None and len(res):
+        for res in _as_list(self.plan_nodes(_empty_nodes(self), _empty_lin(self), join=False)):
             done.append(res)
             n_done += len(res)
         yield from ready()
 
-    def plan_nodes(self, nodes: NodeSet, lin: Linearization, final: bool = True) -> PlanResult | None:
+    def plan_nodes(self, nodes: NodeSet, lin: Linearization, final: bool = True,
+                   join: bool = True) -> PlanResult | list[PlanResult] | None:
         """Plan a batch of nodes (program order, after the ones planned before). With ``final`` every
-        node is committed; otherwise qp keeps the last ``overlap`` (or fewer) for the next call."""
+        node is committed; otherwise qp keeps the last ``overlap`` (or fewer) for the next call
+        (``join=False``: qp's results as the list of its committed runs, not copied into one)."""
         o = self.options
         if o.method != "qp":
             x = self._round_rotary(lin, lin.x)
@@ -700,8 +699,8 @@ class Planner:
         total = len(nodes)
         self._buffer = [(nodes.take(slice(pos, total)), lin.take(slice(pos, total)))] if pos < total \
             else []
-        if not results:
-            return None
+        if not results or not join:
+            return results or None
         return results[0] if len(results) == 1 else PlanResult.concatenate(results)
 
     def _plan_head(self, prev_n: NodeSet, prev_l: Linearization, nodes: NodeSet, lin: Linearization,
@@ -779,6 +778,10 @@ def plan_chunks(problem: CompensationProblem, chunks: Iterable, options: Planner
     ``result.counts`` gives the output blocks per segment row (``write_corrected``'s counts) and
     ``result.corrected`` the points to write."""
     return Planner(problem, options, source).iter_chunks(chunks)
+
+
+def _as_list(res) -> list:
+    return [r for r in (res if isinstance(res, list) else [res]) if r is not None and len(r)]
 
 
 def _empty_nodes(planner: Planner) -> NodeSet:
