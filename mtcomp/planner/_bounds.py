@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._small import column_extremes
+from ._small import any_rows, column_extremes
 from .problem import CompensationProblem
 
 #: the kinds of bound, in the order of the flag array's last axis
@@ -215,13 +215,20 @@ class Bounds:
 
     def feasible(self, x, l, u, exempt, prev, tol=1e-9):
         """True if corrections x (n, na) keep box bounds l, u and the step bound (from prev too)."""
-        if np.any(x < l - tol) or np.any(x > u + tol):
-            return False
-        if x.shape[0] > 1:
-            d = np.abs(np.diff(x, axis=0)) > self.S + tol
-            if np.any(d[~exempt[1:]]):
-                return False
-        if prev is not None and x.shape[0] and not exempt[0]:
-            if np.any(np.abs(x[0] - prev) > self.S + tol):
-                return False
-        return True
+        return self.first_violation(x, l, u, exempt, prev, tol) is None
+
+    def first_violation(self, x, l, u, exempt, prev, tol=1e-9) -> int | None:
+        """The first block whose correction (x (n, na)) breaks its box bounds l, u or the step bound
+        from the block before it (from prev for the first), or None when every block keeps them."""
+        n = x.shape[0]
+        bad = any_rows(x < l - tol)
+        bad |= any_rows(x > u + tol)
+        if n > 1:
+            d = np.diff(x, axis=0)
+            np.abs(d, out=d)
+            step = any_rows(d > self.S + tol)
+            step &= ~exempt[1:]
+            bad[1:] |= step
+        if prev is not None and n and not exempt[0]:
+            bad[0] |= bool(np.any(np.abs(x[0] - prev) > self.S + tol))
+        return int(np.argmax(bad)) if bad.any() else None

@@ -29,6 +29,8 @@ import numpy as np
 
 from ._bounds import FLAG_KINDS, INF, Bounds, flag_name
 from ._evaluate import Evaluator, objective_residual
+from ._interleave import placed, positions
+from ._local_qp import LazyQP, solve_stretches
 from ._parallel import read_ahead, resolve_threads, split_rows
 from ._pointwise import Linearization, solve_newton, solve_pinv
 from ._qp import WindowQP, never_worse_rows, reachable_nodes
@@ -356,27 +358,23 @@ class Planner:
             return nodes, lin_end, counts
         rows_i, t_i, q_i, lin_i = inner
         np.add.at(counts, rows_i, 1)
-        all_rows = np.concatenate([rows_i, np.arange(nrows)])
-        all_t = np.concatenate([t_i, np.ones(nrows)])
-        order = np.lexsort((all_t, all_rows))
-        m = rows_i.size
-        q_all = np.concatenate([q_i, end])[order]
-        ctx_all = np.concatenate([ctx[rows_i], ctx])[order]
+        pos_end, pos_i = positions(counts, rows_i, t_i)
+        row_sorted = np.repeat(np.arange(nrows), counts)
         # the first node of a row (inserted or its end) takes the row's exemption
-        ins_all = np.concatenate([np.ones(m, bool), np.zeros(nrows, bool)])[order]
-        row_sorted = all_rows[order]
-        firsts = np.ones(row_sorted.size, bool)
-        firsts[1:] = row_sorted[1:] != row_sorted[:-1]
-        ex_all = firsts & exempt[row_sorted]
+        ex_all = np.zeros(row_sorted.size, bool)
+        ex_all[np.cumsum(counts) - counts] = exempt
+        ins_all = np.zeros(row_sorted.size, bool)
+        ins_all[pos_i] = True
         # an inserted node outside the region the data reached (a move from outside into it) is
         # not corrected, as a block ending there would not be
         out_i = self.outside_support(q_i, known[rows_i])
         pin_i = pinned[rows_i] | (any_rows(out_i) & (not self.options.extrapolate))
-        nodes = NodeSet(q_all, ctx_all, ex_all, np.asarray(chunk.line)[row_sorted], ins_all,
-                        rapid[row_sorted], unknown[row_sorted],
-                        np.concatenate([out_i, outside])[order],
-                        np.concatenate([pin_i, pinned])[order], sd[row_sorted])
-        lin = Linearization.concatenate([lin_i, lin_end]).take(order)
+        nodes = NodeSet(placed(end, q_i, pos_end, pos_i), ctx[row_sorted], ex_all,
+                        np.asarray(chunk.line)[row_sorted], ins_all, rapid[row_sorted],
+                        unknown[row_sorted], placed(outside, out_i, pos_end, pos_i),
+                        placed(pinned, pin_i, pos_end, pos_i), sd[row_sorted])
+        lin = Linearization(*(placed(getattr(lin_end, f), getattr(lin_i, f), pos_end, pos_i)
+                              for f in Linearization.FIELDS))
         return nodes, lin, counts
 
     def _subdivide(self, start, end, x_start, x_end, ctx, ref, skip):
@@ -506,7 +504,6 @@ class Planner:
                 return x, None
         self.stats["windows_qp"] += 1
         n, na = lin.x.shape
-        qp = self._window_qp(n + 1, lin.b.shape[1])      # objective_residual keeps b's shape
         lam = self.problem.regularization_weights
         lower = np.vstack([np.zeros((1, na)) if prev is None else prev[None, :], l])
         upper = np.vstack([np.zeros((1, na)) if prev is None else prev[None, :], u])
@@ -516,9 +513,43 @@ class Planner:
             free[0] = True
         step_lo = np.where(free[:, None], -INF, -S)
         step_hi = np.where(free[:, None], INF, S)
-        eye = np.eye(na)
-        x = np.clip(lin.x, l, u)
         reachable = reachable_nodes(self._prev, free, np.asarray(b.S, dtype=float))
+        full = LazyQP(lambda: self._window_qp(n + 1, lin.b.shape[1]))   # b's rows: the objective's
+
+        def relinearise(idx, xi):
+            return self.ev.residual_jacobian(nodes.q[idx], xi, nodes.context[idx],
+                                             lin.target[idx])[:2]
+
+        local = None if o.always_qp else solve_stretches(
+            lin, (lower, upper), (step_lo, step_hi), reachable, lam, o.step_tol_um, o.max_iterations,
+            self._window_qp, relinearise)
+        if local is not None:
+            x, solves = local
+            self.stats["qp_solves"] += solves
+            self.stats["qp_status"]["solved"] = self.stats["qp_status"].get("solved", 0) + solves
+        else:
+            x = self._solve_whole_window(lin, full, (lower, upper), (step_lo, step_hi), reachable,
+                                         relinearise)
+            if x is None:
+                # keep going with the unbounded solution; enforce() clamps it and flags the bounds
+                self.stats["qp_failed"] = self.stats.get("qp_failed", 0) + 1
+                return self._round_rotary(lin, np.clip(lin.x, l, u)), None
+        solves = full.solves
+        fixed = solve_with_rotary_fixed(full, b, lin, x, (lower, upper), (step_lo, step_hi), reachable,
+                                        lam, self._rotary)
+        self.stats["qp_solves"] += full.solves - solves
+        return fixed, x
+
+    def _solve_whole_window(self, lin: Linearization, qp, box, steps, reachable, relinearise):
+        """The bounded window's corrections (n, na) from OSQP on the whole window, re-linearised until
+        they stop moving (lin updated in place); None when OSQP fails."""
+        o = self.options
+        lower, upper = box
+        step_lo, step_hi = steps
+        lam = self.problem.regularization_weights
+        na = lin.x.shape[1]
+        eye = np.eye(na)
+        x = np.clip(lin.x, lower[1:], upper[1:])
         for _it in range(o.max_iterations):
             c, A = lin.objective()
             H = gram(A, lam)
@@ -537,23 +568,16 @@ class Planner:
             self.stats["qp_solves"] += 1
             self.stats["qp_status"][status] = self.stats["qp_status"].get(status, 0) + 1
             if status not in ("solved", "solved inaccurate"):
-                # keep going with the unbounded solution; enforce() clamps it and flags the bounds
-                self.stats["qp_failed"] = self.stats.get("qp_failed", 0) + 1
-                return self._round_rotary(lin, np.clip(lin.x, l, u)), None
+                return None
             x = sol[1:]
             moved = row_max_abs(x - lin.x_lin) >= o.step_tol_um
             if not np.any(moved):
                 break
             idx = np.flatnonzero(moved)
-            bb, AA, _ = self.ev.residual_jacobian(nodes.q[idx], x[idx], nodes.context[idx],
-                                                  lin.target[idx])
-            lin.b[idx], lin.A[idx], lin.x_lin[idx] = bb, AA, x[idx]
+            lin.b[idx], lin.A[idx] = relinearise(idx, x[idx])
+            lin.x_lin[idx] = x[idx]
             lin.iterations[idx] += 1
-        solves = qp.solves
-        fixed = solve_with_rotary_fixed(qp, b, lin, x, (lower, upper), (step_lo, step_hi), reachable,
-                                        lam, self._rotary)
-        self.stats["qp_solves"] += qp.solves - solves
-        return fixed, x
+        return x
 
     def _round_rotary(self, lin: Linearization, x: np.ndarray) -> np.ndarray:
         """x with the rotary corrections on the output grid, the linear ones re-solved for them."""
@@ -561,7 +585,8 @@ class Planner:
 
     def _feasible_run(self, nodes: NodeSet, lin: Linearization, pos: int, total: int, final: bool):
         """Commit at once the run of full windows from ``pos`` on whose unbounded solution keeps every
-        bound: ``(result, nodes committed)``, or ``(None, 0)`` when fewer than two such windows.
+        bound (those before the first block that breaks one): ``(result, nodes committed)``, or
+        ``(None, 0)`` when fewer than two such windows.
 
         The same plan as window by window: each of these windows would be its unbounded solution
         (checked here as :meth:`_solve_window` does, the anchor of a window being the written,
@@ -578,8 +603,14 @@ class Planner:
         exempt = nodes.exempt[pos:end]
         limits = self.bounds.limits_lazy(nodes.q[pos:end], nodes.pinned[pos:end])
         b = self.bounds
-        if not b.feasible(x, limits[0], limits[1], exempt, self._prev):
-            return None, 0
+        k = b.first_violation(x, limits[0], limits[1], exempt, self._prev)
+        if k is not None:
+            # the windows wholly before it, as window by window (x is lin.x without a rotary axis)
+            count = 0 if self._rotary.any() else (k - O) // W
+            if count < 2:
+                return None, 0
+            x, exempt = x[:count * W + O], exempt[:count * W + O]
+            limits = tuple(None if a is None else a[:count * W + O] for a in limits)
         # window k > 0 starts at k * W, anchored at the rounded correction of the node before it
         starts = np.arange(1, count) * W
         anchor = b.quantize(x[starts - 1])
@@ -635,20 +666,20 @@ class Planner:
                 continue
             nodes, lin, counts = self.nodes_from_chunk(chunk)
             pending.append((chunk, counts, len(nodes)))
-            res = self.plan_nodes(nodes, lin, final=False)
-            if res is not None:
+            for res in _as_list(self.plan_nodes(nodes, lin, final=False, join=False)):
                 done.append(res)
                 n_done += len(res)
             yield from ready()
-        res = self.plan_nodes(_empty_nodes(self), _empty_lin(self), final=True)
-        if res is not None and len(res):
+        for res in _as_list(self.plan_nodes(_empty_nodes(self), _empty_lin(self), join=False)):
             done.append(res)
             n_done += len(res)
         yield from ready()
 
-    def plan_nodes(self, nodes: NodeSet, lin: Linearization, final: bool = True) -> PlanResult | None:
+    def plan_nodes(self, nodes: NodeSet, lin: Linearization, final: bool = True,
+                   join: bool = True) -> PlanResult | list[PlanResult] | None:
         """Plan a batch of nodes (program order, after the ones planned before). With ``final`` every
-        node is committed; otherwise qp keeps the last ``overlap`` (or fewer) for the next call."""
+        node is committed; otherwise qp keeps the last ``overlap`` (or fewer) for the next call
+        (``join=False``: qp's results as the list of its committed runs, not copied into one)."""
         o = self.options
         if o.method != "qp":
             x = self._round_rotary(lin, lin.x)
@@ -668,8 +699,8 @@ class Planner:
         total = len(nodes)
         self._buffer = [(nodes.take(slice(pos, total)), lin.take(slice(pos, total)))] if pos < total \
             else []
-        if not results:
-            return None
+        if not results or not join:
+            return results or None
         return results[0] if len(results) == 1 else PlanResult.concatenate(results)
 
     def _plan_head(self, prev_n: NodeSet, prev_l: Linearization, nodes: NodeSet, lin: Linearization,
@@ -747,6 +778,10 @@ def plan_chunks(problem: CompensationProblem, chunks: Iterable, options: Planner
     ``result.counts`` gives the output blocks per segment row (``write_corrected``'s counts) and
     ``result.corrected`` the points to write."""
     return Planner(problem, options, source).iter_chunks(chunks)
+
+
+def _as_list(res) -> list:
+    return [r for r in (res if isinstance(res, list) else [res]) if r is not None and len(r)]
 
 
 def _empty_nodes(planner: Planner) -> NodeSet:
