@@ -68,11 +68,25 @@ def test_a_computed_word_has_the_most_decimals_of_what_it_reads(tmp_path, expr, 
 
 def test_a_computed_whole_dimension_has_a_point_and_other_words_do_not(tmp_path):
     """Fanuc reads a program's 'X6' as 6 least input increments (6 um in mm) and a macro variable
-    of 6 in 'X#1' as 6 mm: the expanded word must say 'X6.'; a tool number or a dwell keeps none."""
-    text = "%\nO1000\nG21 G90\n#1 = 2\n#2 = 3\nG0 X[#1 * 3] Y#2 Z[#1] T#2\nG4 P#1\nM30\n%\n"
+    of 6 in 'X#1' as 6 mm: the expanded word must say 'X6.'. A code, a tool, a dwell or a repeat
+    count takes no point and no decimals, whatever its variable carries: Fanuc alarms on 'T3.'
+    and Haas reads 'G4 P2.' as 2 s, 'G4 P2' as 2 ms; a drilling cycle's K is a repeat count, an
+    arc's K a centre offset."""
+    text = ("%\nO1000\nG21 G90\n#1 = 2\n#2 = 3\n#3 = 3.0\nG0 X[#1 * 3] Y#2 Z[#1] T#2\n"
+            "T#3 M#3 H#3 S[#3 * 400]\nG4 P#3\nG81 X1. Y1. Z-#1 R1. K#3 F100.\nG80\n"
+            "G18 G2 X0. Z0. I1. K#3\nM30\n%\n")
     lines = _expanded(tmp_path, text, "fanuc", "in.nc")
     assert "G0 X6. Y3. Z2. T3" in lines
-    assert "G4 P2" in lines
+    assert "T3 M3 H3 S1200" in lines
+    assert "G4 P3" in lines
+    assert "G81 X1. Y1. Z-2. R1. K3 F100." in lines
+    assert "G18 G2 X0. Z0. I1. K3.0" in lines
+
+
+def test_linuxcnc_codes_computed_from_decimals_take_no_point(tmp_path):
+    text = "G21 G90\n#1 = 3.0\nT#1 M6\nG4 P#1\nG0 X[#1] Y0 Z5\nM2\n"
+    lines = _expanded(tmp_path, text)
+    assert lines[1:4] == ["T3 M6", "G4 P3", "G0 X3.0 Y0 Z5"]
 
 
 def test_format_value_pads_to_the_decimals_asked():

@@ -16,6 +16,8 @@ from __future__ import annotations
 import math
 import re
 
+from .words import number_decimals
+
 #: two values are equal within this (LinuxCNC's TOLERANCE_EQUAL)
 TOLERANCE_EQUAL = 1e-6
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
@@ -47,11 +49,6 @@ class Number(float):
 def decimals_of(v) -> int:
     """The decimals a value carries (0 for a plain float)."""
     return getattr(v, "decimals", 0)
-
-
-def _literal_decimals(text: str) -> int:
-    dot = text.find(".")
-    return 0 if dot < 0 else len(text) - dot - 1
 
 
 def _deg(f):
@@ -152,7 +149,7 @@ class Evaluator:
         m = _NUMBER.match(s, pos)
         if not m:
             raise ExprError(f"a number is expected at {s[pos:pos + 12]!r}")
-        self.decimals = max(self.decimals, _literal_decimals(m.group(0)))
+        self.decimals = max(self.decimals, number_decimals(m.group(0)))
         return float(m.group(0)), m.end()
 
     def parameter_key(self, s: str, pos: int) -> tuple[int | str, int]:

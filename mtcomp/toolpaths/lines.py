@@ -26,11 +26,27 @@ _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
 _DIMENSION = frozenset("XYZABCUVWIJKRQ")
 
 
+#: a Fanuc drilling cycle's code, whose K is a repeat count, not a dimension
+_FANUC_CYCLE = re.compile(r"(?i)g0*(?:7[346]|8\d)(?![\d.])")
+
+
 def dimension_text(v: float, decimals: int | None = None) -> str:
     """A computed dimension word's value in a Fanuc-style program (:func:`~.expr.format_value`),
     with a point when whole."""
     text = format_value(v, decimals)
     return text if "." in text else text + "."
+
+
+def _word_value(letter: str, v, code: str, fanuc: bool) -> str:
+    """A computed word's value as written: a dimension word or a feed with the decimals of what it
+    was computed from (with a point when whole in a Fanuc-style program, except K, a drilling
+    cycle's repeat count, on a cycle's line); a code, a number or a count (G M T H D S P L ...) as
+    a plain number, '3' not '3.0' (Fanuc alarms on a point in T M H D; Haas reads G04 P500. as
+    seconds and P500 as milliseconds)."""
+    count = fanuc and letter == "K" and _FANUC_CYCLE.search(code) is not None
+    if count or (letter not in _DIMENSION and letter != "F"):
+        return format_value(v, 0)
+    return dimension_text(v) if fanuc and letter in _DIMENSION else format_value(v)
 
 
 @dataclass
@@ -101,8 +117,7 @@ def rewrite(line: str, code: Code, ev: Evaluator, *, fanuc: bool = False) -> Rew
             p = pos + 1
             if _is_computed(s, p):
                 v, p2 = ev.counted(ev.value, s, p)
-                spans.append((p, p2, dimension_text(v) if fanuc and ch.upper() in _DIMENSION
-                              else format_value(v)))
+                spans.append((p, p2, _word_value(ch.upper(), v, s, fanuc)))
             else:
                 m = _NUMBER.match(s, p)
                 if not m:
