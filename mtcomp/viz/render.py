@@ -418,7 +418,7 @@ def _finish_figure(fig, axes, im, smap, out_png, legend_handles):
         # panels drawn to scale fill their width, so their height gives way only so (a suptitle
         # overlapped the titles of a hole map's panels)
         text = "\n".join(notes)
-        h = (18 * (text.count("\n") + 1) + 6) / (fig.get_figheight() * fig.dpi)
+        h = min(0.3, (18 * (text.count("\n") + 1) + 6) / (fig.get_figheight() * fig.dpi))
         fig.get_layout_engine().set(rect=(h, h, 1 - 2 * h, 1 - h))
         fig.text(0.5, 0.005, text, ha="center", va="bottom", color=NOTE_COLOUR, fontsize="medium")
     try:
