@@ -29,6 +29,9 @@ import numpy as np
 
 from ._bounds import FLAG_KINDS, INF, Bounds, flag_name
 from ._evaluate import Evaluator, objective_residual
+from ._grouped import GroupedQP, tied
+from ._links import LinkRules, run_start
+from ._nodes import NodeSet
 from ._parallel import read_ahead, resolve_threads, split_rows
 from ._pointwise import Linearization, solve_newton, solve_pinv
 from ._qp import WindowQP, never_worse_rows, reachable_nodes
@@ -36,50 +39,6 @@ from ._rotary_grid import rotary_columns, round_rotary, solve_with_rotary_fixed
 from ._small import a_x, any_rows, at_b, gram, row_max_abs, row_norm
 from .problem import CompensationProblem, PlannerOptions
 from ..models.region import outside_bounds, support_bounds
-
-
-@dataclass
-class NodeSet:
-    """Output blocks in program order.
-
-    q : (n, na) nominal axis positions, mm and rad (on the output grid when the problem has one).
-    context : (n, n_context) block context in the model's context_names order.
-    exempt : (n,) bool, no step bound from the block before (the move into it is a rapid, a hole,
-        one from a position the program has not given, or it is the first block of the program).
-    line : (n,) source line. inserted : (n,) bool, an internal node the planner added.
-    rapid : (n,) bool, the node ends (or lies in) a G0 move.
-    unknown : (n, na) bool, axes whose position the program has not given at this block.
-    outside : (n, na) bool, axes outside the region the model's data reached (its ``support``).
-    pinned : (n,) bool, the block gets no correction (an unknown axis, outside the support without
-        ``PlannerOptions.extrapolate``, or a correction less certain than
-        ``PlannerOptions.max_correction_sd_um``): its correction bounds are zero.
-    sd_um : (n,) standard error of the block's correction (um; NaN where not evaluated: unknown
-        axes, outside the support, or a model without uncertainty).
-    """
-
-    q: np.ndarray
-    context: np.ndarray
-    exempt: np.ndarray
-    line: np.ndarray
-    inserted: np.ndarray
-    rapid: np.ndarray
-    unknown: np.ndarray
-    outside: np.ndarray
-    pinned: np.ndarray
-    sd_um: np.ndarray
-
-    FIELDS = ("q", "context", "exempt", "line", "inserted", "rapid", "unknown", "outside", "pinned",
-              "sd_um")
-
-    def __len__(self):
-        return int(self.q.shape[0])
-
-    def take(self, idx) -> "NodeSet":
-        return NodeSet(*(getattr(self, f)[idx] for f in self.FIELDS))
-
-    @staticmethod
-    def concatenate(parts: list["NodeSet"]) -> "NodeSet":
-        return NodeSet(*(np.concatenate([getattr(p, f) for p in parts]) for f in NodeSet.FIELDS))
 
 
 @dataclass
@@ -180,6 +139,9 @@ class Planner:
         #: (lo, hi) each (na,): the model's support, +-inf for axes it does not limit; None: unknown
         self.support = support_bounds(problem.fitted)
         self._split = self.threads          # parts a chunk's per-block work is cut into
+        #: the link bounds (:mod:`._links`): each axis keeps the direction the model evaluated it
+        #: with, one correction along an arc under cutter radius compensation
+        self.links = LinkRules(problem, self.bounds)
 
     # ------------------------------------------------------------------ nodes
     def _context(self, feed, dirs, n, tool_length=None, extra=None):
@@ -294,8 +256,9 @@ class Planner:
         ctx = self._context(feed, dirs, n)
         datum = None if datum is None else np.broadcast_to(np.asarray(datum, dtype=float), q.shape)
         sd = self._sd_um(q, ctx, unknown, outside, datum)
+        links = self.links.arrays(q, dirs, None if self._last_end is None else self._last_end[0])
         nodes = NodeSet(q, ctx, exempt, line, np.zeros(n, bool), rapid, unknown, outside,
-                        self._pinned(unknown, outside, sd), sd)
+                        self._pinned(unknown, outside, sd), sd, *(links or ()))
         lin = self._solve_free(nodes.q, nodes.context, self._reference(datum, ctx))
         if n:
             self._last_end = (nodes.q[-1], lin.x[-1])
@@ -351,8 +314,9 @@ class Planner:
                                 rapid | pinned | cycle | no_line)
         counts = np.ones(nrows, np.int64)
         if inner is None:
+            links = self.links.chunk(chunk, end, np.arange(nrows), np.ones(nrows, bool), first, cycle)
             nodes = NodeSet(end, ctx, exempt, np.asarray(chunk.line), np.zeros(nrows, bool), rapid,
-                            unknown, outside, pinned, sd)
+                            unknown, outside, pinned, sd, *(links or ()))
             return nodes, lin_end, counts
         rows_i, t_i, q_i, lin_i = inner
         np.add.at(counts, rows_i, 1)
@@ -372,10 +336,11 @@ class Planner:
         # not corrected, as a block ending there would not be
         out_i = self.outside_support(q_i, known[rows_i])
         pin_i = pinned[rows_i] | (any_rows(out_i) & (not self.options.extrapolate))
+        links = self.links.chunk(chunk, q_all, row_sorted, firsts, first, cycle)
         nodes = NodeSet(q_all, ctx_all, ex_all, np.asarray(chunk.line)[row_sorted], ins_all,
                         rapid[row_sorted], unknown[row_sorted],
                         np.concatenate([out_i, outside])[order],
-                        np.concatenate([pin_i, pinned])[order], sd[row_sorted])
+                        np.concatenate([pin_i, pinned])[order], sd[row_sorted], *(links or ()))
         lin = Linearization.concatenate([lin_i, lin_end]).take(order)
         return nodes, lin, counts
 
@@ -445,7 +410,8 @@ class Planner:
         if desired is None:
             desired = self._round_rotary(lin, lin.x)
         y, flags = self.bounds.enforce(x, nodes.q, nodes.exempt, self._prev, desired=desired,
-                                       following=following, limits=limits, planned=planned)
+                                       following=following, limits=limits, planned=planned,
+                                       links=nodes.links)
         if len(nodes):
             self._prev = y[-1].copy()
         D = self.bounds.D
@@ -500,9 +466,10 @@ class Planner:
         self.stats["windows"] += 1
         l, u = limits[:2]
         prev = self._prev
-        if not o.always_qp and b.feasible(lin.x, l, u, nodes.exempt, prev):
+        links = nodes.links
+        if not o.always_qp and b.feasible(lin.x, l, u, nodes.exempt, prev, links=links):
             x = self._round_rotary(lin, lin.x)
-            if b.feasible(x, l, u, nodes.exempt, prev):
+            if b.feasible(x, l, u, nodes.exempt, prev, links=links):
                 return x, None
         self.stats["windows_qp"] += 1
         n, na = lin.x.shape
@@ -518,7 +485,13 @@ class Planner:
         step_hi = np.where(free[:, None], INF, S)
         eye = np.eye(na)
         x = np.clip(lin.x, l, u)
-        reachable = reachable_nodes(self._prev, free, np.asarray(b.S, dtype=float))
+        if links is None:
+            reachable = reachable_nodes(self._prev, free, np.asarray(b.S, dtype=float))
+        else:
+            step_lo, step_hi, reachable = self.links.window(links, prev, l, u, step_lo, step_hi,
+                                                                self.stats)
+            if tied(step_lo, step_hi).any():      # one variable per run of tied nodes
+                qp = GroupedQP(o.osqp_eps)
         for _it in range(o.max_iterations):
             c, A = lin.objective()
             H = gram(A, lam)
@@ -578,12 +551,16 @@ class Planner:
         exempt = nodes.exempt[pos:end]
         limits = self.bounds.limits_lazy(nodes.q[pos:end], nodes.pinned[pos:end])
         b = self.bounds
-        if not b.feasible(x, limits[0], limits[1], exempt, self._prev):
+        links = None if nodes.link_lo is None else tuple(a[pos:end] for a in nodes.links)
+        if not b.feasible(x, limits[0], limits[1], exempt, self._prev, links=links):
             return None, 0
         # window k > 0 starts at k * W, anchored at the rounded correction of the node before it
         starts = np.arange(1, count) * W
         anchor = b.quantize(x[starts - 1])
         bad = np.any(np.abs(x[starts] - anchor) > b.S + 1e-9, axis=1) & ~exempt[starts]
+        if links is not None:
+            d = x[starts] - anchor
+            bad |= np.any((d < links[0][starts] - 1e-9) | (d > links[1][starts] + 1e-9), axis=1)
         if np.any(bad):
             count = 1 + int(np.flatnonzero(bad)[0])
             if count < 2:
@@ -661,8 +638,11 @@ class Planner:
                 nodes = NodeSet.concatenate([prev_n, nodes])
                 lin = Linearization.concatenate([prev_l, lin])
             else:
-                results, start = head
+                results, start, left = head
                 nodes, lin = nodes.take(slice(start, None)), lin.take(slice(start, None))
+                if left is not None:
+                    nodes = NodeSet.concatenate([left[0], nodes])
+                    lin = Linearization.concatenate([left[1], lin])
         more, pos = self._plan_windows(nodes, lin, final)
         results += more
         total = len(nodes)
@@ -676,8 +656,10 @@ class Planner:
                    final: bool):
         """The windows that start in the nodes kept from the last call (r of them), planned on those
         joined with only the first new nodes they need: k = ceil(r / window) full windows, which end
-        exactly k * window - r nodes into the new batch. Returns (results, that offset), or None when
-        the new batch is too short (then the windows would not be the same as on the whole).
+        exactly k * window - r nodes into the new batch. Returns (results, that offset, None), or
+        None when the new batch is too short (then the windows would not be the same as on the
+        whole); where a run of tied nodes held the last commit back into the kept nodes,
+        (results, 0, (the kept nodes not committed, their linearisation)).
 
         Saves joining (copying) every new batch to the few nodes kept from the last one."""
         W, O = self.options.window, self.options.overlap
@@ -689,11 +671,13 @@ class Planner:
         hn = NodeSet.concatenate([prev_n, nodes.take(slice(0, h))])
         hl = Linearization.concatenate([prev_l, lin.take(slice(0, h))])
         results, pos = self._plan_windows(hn, hl, final=False)
-        assert pos == k * W, "head windows"
         # re-linearisations of new nodes made there (the overlap of the last head window)
         for f in ("b", "A", "x_lin", "iterations"):
             getattr(lin, f)[:h] = getattr(hl, f)[r:]
-        return results, k * W - r
+        if pos >= r:
+            return results, pos - r, None
+        # a run of tied nodes held the last commit back into the kept nodes: they go on first
+        return results, 0, (hn.take(slice(pos, r)), hl.take(slice(pos, r)))
 
     def _plan_windows(self, nodes: NodeSet, lin: Linearization, final: bool):
         """Windows over ``nodes`` from the first on: (results, nodes committed)."""
@@ -714,6 +698,10 @@ class Planner:
                     continue
             nw = min(left, W + O)
             nc = nw if (final and left <= W + O) else min(W, nw)
+            if nc < nw and nodes.link_lo is not None:
+                # no commit inside a run of tied nodes (an arc under cutter radius compensation):
+                # the next window would find the run's correction fixed by its anchor
+                nc = run_start(nodes.link_lo, nodes.link_hi, pos + nc, pos + 1) - pos
             sl = slice(pos, pos + nw)
             wn, wl = nodes.take(sl), lin.take(sl)
             limits = self.bounds.limits(wn.q, wn.pinned)

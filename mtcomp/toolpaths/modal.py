@@ -111,6 +111,9 @@ class ModalState:
         #: read carries G33.1
         self.tapping = False
         self.tap_line = False
+        #: cutter radius compensation (G41/G42) is in force; the line read switches it (G40-G42)
+        self.cutter_comp = False
+        self.cutter_comp_line = False
         #: work offsets the program sets itself (G10 L2/L20); their sets are numbered alike in
         #: every pass over one ProgramSource
         self.offsets = ProgrammedOffsets(self.na, getattr(path, "work_offset_sets", None))
@@ -170,6 +173,7 @@ class ModalState:
         if not tokens:
             return None
         values, gcodes, mcodes, number = self._read_words(tokens, line)
+        self._cutter_comp_codes(gcodes)
         motion, nonmotion_axes, home_move, cycle = self._apply_codes(gcodes, mcodes, values,
                                                                      tokens, line)
         axes_given = self._axis_words(values, line)
@@ -193,8 +197,20 @@ class ModalState:
             return self._rigid_tap(values, axes_given)
         self._set_cycle_mode(cycle, values)
         if self.cycle is not None and axes_given:
-            return self._cycle_block(line, values, axes_given, tokens, number)
-        return self._motion_block(line, values, axes_given, tokens, number)
+            b = self._cycle_block(line, values, axes_given, tokens, number)
+        else:
+            b = self._motion_block(line, values, axes_given, tokens, number)
+        if b is not None:
+            # as the writer keeps it whole: in force, or the line's own entry or exit move
+            b.cutter_comp = self.cutter_comp or self.cutter_comp_line
+        return b
+
+    def _cutter_comp_codes(self, gcodes) -> None:
+        """Follow G40 (off), G41/G42 (on; the last of them on the line counts)."""
+        codes = [g for g in gcodes if g in (40.0, 41.0, 42.0)]
+        self.cutter_comp_line = bool(codes)
+        if codes:
+            self.cutter_comp = codes[-1] != 40.0
 
     def _clear_line_flags(self) -> None:
         """Forget what the previous line said about itself (the flags the writer reads)."""
