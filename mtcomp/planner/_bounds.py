@@ -19,6 +19,8 @@ from .problem import CompensationProblem
 #: the kinds of bound, in the order of the flag array's last axis
 FLAG_KINDS = ("max", "min", "travel_max", "travel_min", "step", "reversal", "arc")
 INF = 1e30
+#: kinds of link bound (:mod:`._links`), as stored per node and axis (0: none)
+REVERSAL, ARC = 1, 2
 
 
 def flag_name(kind: str, axis: str) -> str:
@@ -132,7 +134,6 @@ class Bounds:
         if links is None or self.grid is None:
             return y
         coarse = self.unit > 0.1 + 1e-9
-        from ._links import ARC
         arc = np.any(links[2] == ARC, axis=1)
         if not coarse.any() or not arc.any():
             return y
@@ -213,7 +214,6 @@ class Bounds:
     def _link_flags(self, flags, took, y, prev_rows, has_prev, links, tol):
         """Set the reversal and arc flags: the bound took something away and the change of the
         correction into the block sits on the link bound."""
-        from ._links import ARC, REVERSAL
         lo, hi, kind = links
         d = y - prev_rows
         on = (np.abs(d - lo) <= tol + 1e-6) | (np.abs(d - hi) <= tol + 1e-6)

@@ -31,10 +31,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._bounds import INF
+from ._bounds import ARC, INF, REVERSAL
 
-#: link kinds, as stored per node and axis (0: no link bound)
-REVERSAL, ARC = 1, 2
+__all__ = ["ARC", "REVERSAL", "LinkRules", "direction_axes", "node_links", "propagate", "run_start"]
 
 
 def direction_axes(model) -> np.ndarray:
