@@ -45,7 +45,7 @@ def direction_axes(model) -> np.ndarray:
     out = np.zeros(m.n_axes, bool)
     wanted = [(j, names.index(f"dir_{a}")) for j, a in enumerate(m.axis_names)
               if f"dir_{a}" in names]
-    if not wanted:
+    if not wanted or not model.terms:      # the base model has no dependence on direction
         return out
     q = ca.SX.sym("q", m.n_axes)
     p = ca.SX.sym("p", model.n_params)
