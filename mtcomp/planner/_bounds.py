@@ -159,7 +159,7 @@ class Bounds:
         links : (lo, hi, kind) each (n, na), the link bounds of x_i - x_(i-1) (:mod:`._links`), or
         None; they apply into every block but the first of a program, and the box wins over them.
 
-        Returns (y (n, na) on the grid, flags (n, na, 5) bool, see FLAG_KINDS): a flag is set where
+        Returns (y (n, na) on the grid, flags (n, na, 7) bool, see FLAG_KINDS): a flag is set where
         y sits on that bound and differs from ``desired`` by more than half a grid step (the bound
         took something away); ``step`` also where the step to the next block is on its bound.
         """
