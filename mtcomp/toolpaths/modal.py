@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import math
 import os
-import re
 
 import numpy as np
 
@@ -80,18 +79,7 @@ class ModalState:
         self.wcs = 0
         self.tool = 0
         self.selected_tool = 0
-        self.cycle: int | None = None
-        #: drilling cycles: G98/G99 in force (None: neither stated), the sticky R and Z words
-        #: (mm, given in G91), the initial level of the series (mm, known)
-        self.retract: int | None = None
-        self.cycle_r: tuple[float, bool] | None = None
-        self.cycle_z: tuple[float, bool] | None = None
-        self.cycle_init: tuple[float, bool] = (math.nan, False)
-        #: the last block began a series of drilling cycles
-        self.cycle_start = False
-        #: the group-01 motion mode in force when the drilling cycles began (G80 restores it
-        #: where the dialect says so)
-        self.cycle_motion: int | None = None
+        self._init_cycles()
         self.inverse_time = False
         #: tool centre point mode (M428, G43.4, M128): the words are the tool tip in the workpiece
         #: frame and the rotary axes' angles (:mod:`.tcp`)
@@ -115,6 +103,9 @@ class ModalState:
         #: 'increment' (G91 of an axis not known), 'home' (G28/G30, grbl's $H), 'machine' (G53),
         #: 'tap' (G33.1), 'jog' (grbl's $J=); else None
         self.passed_move = None
+        #: cutter radius compensation (G41/G42) is in force; the line read switches it (G40-G42)
+        self.cutter_comp = False
+        self.cutter_comp_line = False
         #: work offsets the program sets itself (G10 L2/L20); their sets are numbered alike in
         #: every pass over one ProgramSource
         self.offsets = ProgrammedOffsets(self.na, getattr(path, "work_offset_sets", None))
@@ -126,6 +117,21 @@ class ModalState:
         table = getattr(path, "local_frames", None)
         self.local_frames = table if table is not None else []
         self._line = 0
+
+    def _init_cycles(self) -> None:
+        """The drilling cycles' state at the program's start."""
+        self.cycle: int | None = None
+        #: drilling cycles: G98/G99 in force (None: neither stated), the sticky R and Z words
+        #: (mm, given in G91), the initial level of the series (mm, known)
+        self.retract: int | None = None
+        self.cycle_r: tuple[float, bool] | None = None
+        self.cycle_z: tuple[float, bool] | None = None
+        self.cycle_init: tuple[float, bool] = (math.nan, False)
+        #: the last block began a series of drilling cycles
+        self.cycle_start = False
+        #: the group-01 motion mode in force when the drilling cycles began (G80 restores it
+        #: where the dialect says so)
+        self.cycle_motion: int | None = None
 
     @property
     def frame(self) -> int:
@@ -174,6 +180,7 @@ class ModalState:
         if not tokens:
             return None
         values, gcodes, mcodes, number = self._read_words(tokens, line)
+        self._cutter_comp_codes(gcodes)
         motion, nonmotion_axes, home_move, cycle = self._apply_codes(gcodes, mcodes, values,
                                                                      tokens, line)
         axes_given = self._axis_words(values, line)
@@ -199,8 +206,20 @@ class ModalState:
             return self._rigid_tap(values, axes_given)
         self._set_cycle_mode(cycle, values)
         if self.cycle is not None and axes_given:
-            return self._cycle_block(line, values, axes_given, tokens, number)
-        return self._motion_block(line, values, axes_given, tokens, number)
+            b = self._cycle_block(line, values, axes_given, tokens, number)
+        else:
+            b = self._motion_block(line, values, axes_given, tokens, number)
+        if b is not None:
+            # as the writer keeps it whole: in force, or the line's own entry or exit move
+            b.cutter_comp = self.cutter_comp or self.cutter_comp_line
+        return b
+
+    def _cutter_comp_codes(self, gcodes) -> None:
+        """Follow G40 (off), G41/G42 (on; the last of them on the line counts)."""
+        codes = [g for g in gcodes if g in (40.0, 41.0, 42.0)]
+        self.cutter_comp_line = bool(codes)
+        if codes:
+            self.cutter_comp = codes[-1] != 40.0
 
     def _clear_line_flags(self) -> None:
         """Forget what the previous line said about itself (the flags the writer reads)."""
