@@ -492,9 +492,10 @@ def forget_loaded():
 
 
 def _source(skey, function, merge: bool):
-    if (skey, merge) not in _sources:
-        _sources[(skey, merge)] = generate_source(function, merge=merge)
-    return _sources[(skey, merge)]
+    key = (skey, merge, wide_simd())      # the lanes the C is written for are part of it
+    if key not in _sources:
+        _sources[key] = generate_source(function, merge=merge)
+    return _sources[key]
 
 
 def _generator_fingerprint() -> str:

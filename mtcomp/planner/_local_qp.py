@@ -162,7 +162,7 @@ def solve_stretches(work, box, steps, reachable, lam, step_tol, max_iterations, 
                 for a, b in parts:
                     inside[a:b + 1] = True
                 if 2 * inside.sum() > n:
-                    break                      # no gain over the whole window
+                    return None                # no gain over the whole window (nor at a wider margin)
             elif np.any(bad & ~inside):
                 break
             solves += 1
