@@ -676,7 +676,7 @@ def _run_notes(program, written, fitted, setup, tally, found) -> list[str]:
                      "it (the error there differs by the model's change over that distance); no "
                      "block is split (the controller offsets the moves as written)"
                      + (f", and an arc under it is kept whole: the written arcs miss their "
-                        f"corrected path by up to {miss:.2f} um" if miss > 0 else ""))
+                        f"corrected path by up to {miss:.2f} um" if miss >= 0.005 else ""))
     return notes + _cycle_notes(written) + datum_notes(fitted, setup) + tally.feed_note(fitted) \
         + setup.notes()
 

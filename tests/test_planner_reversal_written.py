@@ -159,3 +159,25 @@ def test_propagate_gives_way_where_the_links_cannot_hold():
     assert relaxed == 1
     np.testing.assert_allclose(lo2[:, 0], [0.0, 0.0, -5.0, 0.0], rtol=0, atol=0)
     assert reach.tolist() == [False, False, True, True]
+
+
+def test_compensate_says_where_the_rule_gave_way(tmp_path, capsys, monkeypatch):
+    """The planner's count of blocks where the rule gave way (``propagate``'s, checked by hand in
+    the test above) reaches the user: here every window is made to report one."""
+    from mtcomp.planner import _links
+    real = _links.propagate
+
+    def one_more(*args):
+        lo, hi, reachable, relaxed = real(*args)
+        return lo, hi, reachable, relaxed + 1
+    monkeypatch.setattr(_links, "propagate", one_more)
+    prog = tmp_path / "p.nc"
+    prog.write_text(ZIG)
+    assert main(["compensate", "xfyz", str(_model(tmp_path)), str(prog), "-o",
+                 str(tmp_path / "o.nc"), "--max-step-um", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "note: at 1 block the rule that a correction keeps each axis's direction" in out
+    monkeypatch.setattr(_links, "propagate", real)
+    assert main(["compensate", "xfyz", str(_model(tmp_path)), str(prog), "-o",
+                 str(tmp_path / "o2.nc"), "--max-step-um", "1"]) == 0
+    assert "gave way" not in capsys.readouterr().out
