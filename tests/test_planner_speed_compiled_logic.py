@@ -102,3 +102,22 @@ def test_four_lanes_where_the_cpu_has_avx2_and_the_flags_say_so(cache, monkeypat
     monkeypatch.delenv(compiled.NO_WIDE_ENV)
     monkeypatch.setattr(compiled, "_wide", False)
     assert "vector_size(16)" in compiled.generate_source(f)[0]
+
+
+def test_the_avx2_reading_agrees_with_the_compiler(monkeypatch):
+    """The CPU's AVX2 as /proc/cpuinfo names it (wide_simd) against a second source: whether the
+    compiler, told to build for this CPU (-march=native), defines __AVX2__."""
+    import platform
+    import subprocess
+    if platform.machine() not in ("x86_64", "AMD64"):
+        pytest.skip("AVX2 is an x86-64 extension")
+    monkeypatch.delenv(compiled.NO_WIDE_ENV, raising=False)
+    monkeypatch.setattr(compiled, "_wide", None)         # read again
+    try:
+        macros = subprocess.run([compiled.find_compiler(), "-march=native", "-dM", "-E", "-x", "c",
+                                 "/dev/null"], capture_output=True, text=True, timeout=60)
+    except (OSError, subprocess.TimeoutExpired) as e:
+        pytest.skip(f"the compiler could not list its macros: {e}")
+    if macros.returncode != 0:
+        pytest.skip(f"the compiler does not take -march=native: {macros.stderr.strip()[:80]}")
+    assert compiled.wide_simd() == ("#define __AVX2__ 1" in macros.stdout)
