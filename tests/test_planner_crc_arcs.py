@@ -84,17 +84,10 @@ def test_without_cutter_compensation_the_circle_is_corrected_piecewise(tmp_path)
     assert not any("arc_" in row["active_bounds"] for row in rows)
 
 
-def test_blocks_carry_cutter_compensation(tmp_path, monkeypatch):
-    """The reader puts G41/G42 on the blocks (in force, or switched on or off by the line itself,
-    as the writer keeps them whole), and the compiled and the Python readers agree."""
-    from mtcomp.machine import load_machine
+def _both_readers(p, m, monkeypatch):
+    """The program's segments as the compiled and the Python reader read them."""
     from mtcomp.toolpaths import gcode
     from mtcomp.toolpaths.source import open_program
-    p = tmp_path / "c.ngc"
-    p.write_text(CIRCLE.format(on="G41 D1 ", off="G40 "))
-    m = load_machine("xfyz")
-    blocks = gcode.read_program(p, m).blocks
-    assert [b.cutter_comp for b in blocks] == [False, False, True, True, True, False, False]
     chunks = []
     for fast in (True, False):
         if fast:
@@ -103,7 +96,26 @@ def test_blocks_carry_cutter_compensation(tmp_path, monkeypatch):
             monkeypatch.setenv("MTCOMP_NO_FAST_GCODE", "1")
         with open_program(p, None) as src:
             chunks.append(gcode.SegmentChunk.concatenate(list(gcode.iter_segment_chunks(src, m)), 3))
-    fast, slow = chunks
+    return chunks
+
+
+def test_blocks_carry_cutter_compensation(tmp_path, monkeypatch):
+    """The reader puts G41/G42 on the blocks (in force, or switched on or off by the line itself,
+    as the writer keeps them whole), and the compiled and the Python readers agree."""
+    from mtcomp.machine import load_machine
+    from mtcomp.toolpaths import gcode
+    p = tmp_path / "c.ngc"
+    p.write_text(CIRCLE.format(on="G41 D1 ", off="G40 "))
+    m = load_machine("xfyz")
+    blocks = gcode.read_program(p, m).blocks
+    assert [b.cutter_comp for b in blocks] == [False, False, True, True, True, False, False]
+    fast, slow = _both_readers(p, m, monkeypatch)
     np.testing.assert_array_equal(fast.cutter_comp, slow.cutter_comp)
     assert fast.cutter_comp[fast.from_arc].all() and not fast.cutter_comp[fast.line == 8].any()
+    # plain feed lines under G41 (lines 5 and 6), which the compiled scanner reads itself
+    p.write_text("G21 G90 G17 G54\nG0 X140 Y-30 Z5\nG1 Z-2 F100\nG41 D1 G1 X150 Y0 F300\n"
+                 "G1 X150 Y10\nG1 X160 Y10\nG40 G1 X140 Y-30\nG0 Z5\nM2\n")
+    for c in _both_readers(p, m, monkeypatch):
+        assert c.cutter_comp[np.isin(c.line, [4, 5, 6, 7])].all()
+        assert not c.cutter_comp[np.isin(c.line, [2, 3, 8])].any()
     assert os.environ.get("MTCOMP_NO_FAST_GCODE") == "1"

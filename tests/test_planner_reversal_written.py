@@ -106,20 +106,30 @@ def test_an_axis_whose_direction_is_not_known_keeps_its_correction(tmp_path):
     assert cx[3] != 0.0          # once X moves (-X), its correction goes in with the move
 
 
-def test_a_model_without_a_direction_term_writes_the_same_bytes(tmp_path, monkeypatch):
-    """Only axes with a direction-dependent error get the bound: a model without one writes the
-    bytes the planner writes with the rule taken out altogether."""
+def test_a_model_without_a_direction_term_gets_no_link(tmp_path, monkeypatch):
+    """Only axes with a direction-dependent error get the bound: for a model without one (and a
+    program without G41/G42) no link is made at all, so the planner runs as it did before the
+    rule; for the backlash model the links are made and change what is written."""
     from mtcomp.planner import _links
     fm = random_model("xfyz", (), 11, 1.0, None)        # a base model: errors, no direction term
     model = tmp_path / "base.json"
     save_model(model, fm)
     assert not _links.direction_axes(fm.model).any()
     assert _links.direction_axes(_load(_model(tmp_path)).model).tolist() == [True, False, False]
-    text, rows = _compensate(tmp_path, model, ZIG, "--max-step-um", "2")
+    made, real = [], _links.node_links
+
+    def spy(*args, **kwargs):
+        made.append(1)
+        return real(*args, **kwargs)
+    monkeypatch.setattr(_links, "node_links", spy)
+    _text, rows = _compensate(tmp_path, model, ZIG, "--max-step-um", "2")
+    assert not made and any(float(r["cx_um"]) != 0.0 for r in rows)
+    backlash = _model(tmp_path)
+    text, _rows = _compensate(tmp_path, backlash, ZIG, "--max-step-um", "2")
+    assert made
     monkeypatch.setattr(_links, "node_links", lambda *a, **k: None)
-    text0, rows0 = _compensate(tmp_path, model, ZIG, "--max-step-um", "2")
-    assert text == text0 and rows == rows0
-    assert any(float(r["cx_um"]) != 0.0 for r in rows)
+    text_without, _rows = _compensate(tmp_path, backlash, ZIG, "--max-step-um", "2")
+    assert text_without != text
 
 
 def _load(path):
@@ -156,7 +166,7 @@ def test_propagate_gives_way_where_the_links_cannot_hold():
     plain_lo, plain_hi = np.full((n, 1), -5.0), np.full((n, 1), 5.0)
     lo, hi = np.zeros((n, 1)), plain_hi.copy()
     lo2, hi2, reach, relaxed = propagate(np.array([3.0]), lower, upper, lo, hi, plain_lo, plain_hi)
-    assert relaxed == 1
+    assert relaxed.tolist() == [False, False, True, False]          # node 2 only
     np.testing.assert_allclose(lo2[:, 0], [0.0, 0.0, -5.0, 0.0], rtol=0, atol=0)
     assert reach.tolist() == [False, False, True, True]
 
@@ -169,7 +179,9 @@ def test_compensate_says_where_the_rule_gave_way(tmp_path, capsys, monkeypatch):
 
     def one_more(*args):
         lo, hi, reachable, relaxed = real(*args)
-        return lo, hi, reachable, relaxed + 1
+        relaxed = relaxed.copy()
+        relaxed[0] = True
+        return lo, hi, reachable, relaxed
     monkeypatch.setattr(_links, "propagate", one_more)
     prog = tmp_path / "p.nc"
     prog.write_text(ZIG)

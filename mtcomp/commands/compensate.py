@@ -170,7 +170,7 @@ def _print_run(args, machine, fitted, run_, seconds, unread, written) -> None:
         print(f"qp: {st['windows_qp']} of {st['windows']} windows needed OSQP "
               f"({st['qp_solves']} solves)")
     if st.get("links_relaxed"):
-        n = st["links_relaxed"]
+        n = len(st["links_relaxed"])
         print(f"note: at {n} block{'' if n == 1 else 's'} the rule that a correction keeps each "
               "axis's direction (or an arc's one correction under G41/G42) gave way to the other "
               "bounds from where a window starts; the written motion there may differ in "

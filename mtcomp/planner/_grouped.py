@@ -6,8 +6,11 @@ An arc under cutter radius compensation carries one correction over all its node
 mostly such arcs took minutes per window). Here every run of tied nodes is one variable: its
 Hessian and linear term are the sums of its nodes', its box the intersection of theirs, the step
 and link bounds apply between runs, and every node keeps its own never-worse rows on its run's
-variable. The solution is the same problem's; it is built for each solve (the pattern changes with
-the ties), which costs little against the iterations it saves.
+variable, except that a run's rows of one direction that differ by at most ``MERGE_TOL_UM`` are
+merged into one, tightened by at most that much (:func:`merged_rows`): the solution is that of the
+equality-constrained problem with those rows tightened by at most 0.01 um, feasible for it, its
+optimum where no merged row is active. It is built for each solve (the pattern changes with the ties),
+which costs little against the iterations it saves.
 """
 from __future__ import annotations
 

@@ -109,7 +109,7 @@ def propagate(prev, lower, upper, step_lo, step_hi, plain_lo, plain_hi):
     plain_hi : the same without them (the step bound alone). Per axis the correction a node can
     take lies in an interval carried forward from the anchor; where the links would empty it, they
     give way to the step bound at that node. Returns (step_lo, step_hi, reachable (n,) bool: zero
-    correction is within every axis's interval, the never-worse rows can hold) and the number of
+    correction is within every axis's interval, the never-worse rows can hold) and (n,) bool, the
     nodes whose links gave way.
     """
     n, na = lower.shape
@@ -121,7 +121,7 @@ def propagate(prev, lower, upper, step_lo, step_hi, plain_lo, plain_hi):
     else:
         a = np.asarray(prev, dtype=float).copy()
         b = a.copy()
-    relaxed = 0
+    relaxed = np.zeros(n, bool)
     lo_l, hi_l = lower.tolist(), upper.tolist()
     slo, shi = step_lo.tolist(), step_hi.tolist()
     a, b = a.tolist(), b.tolist()
@@ -132,7 +132,7 @@ def propagate(prev, lower, upper, step_lo, step_hi, plain_lo, plain_hi):
             bj = min(b[j] + shi[i][j], hi_l[i][j])
             if aj > bj:             # the links cannot be kept from here: the step bound alone
                 step_lo[i, j], step_hi[i, j] = plain_lo[i, j], plain_hi[i, j]
-                relaxed += 1
+                relaxed[i] = True
                 aj = max(a[j] + plain_lo[i, j], lo_l[i][j])
                 bj = min(b[j] + plain_hi[i, j], hi_l[i][j])
                 if aj > bj:         # not even so (the step bound's own conflict): the box
@@ -220,12 +220,13 @@ class LinkRules:
         return node_links(self.steps(q - before), np.asarray(chunk.dirs)[rows], self.reversal_axes,
                           tie & ~jump, no_link, self.unit)
 
-    def window(self, links, prev, l, u, step_lo, step_hi, stats):
+    def window(self, links, prev, l, u, step_lo, step_hi, stats, lines):
         """A window's step bounds with its link bounds, made feasible from the anchor
-        (:func:`propagate`; the nodes where the links gave way are counted in ``stats``), and the
-        nodes that can reach zero correction."""
+        (:func:`propagate`; the program lines of the nodes where the links gave way are kept in
+        ``stats['links_relaxed']``, a set: a node in two windows' overlap counts once), and the
+        nodes that can reach zero correction. lines : (n,) the nodes' program lines."""
         lo, hi = combined_steps(step_lo, step_hi, links)
         lo, hi, reachable, relaxed = propagate(prev, l, u, lo, hi, step_lo, step_hi)
-        if relaxed:
-            stats["links_relaxed"] = stats.get("links_relaxed", 0) + relaxed
+        if relaxed.any():
+            stats.setdefault("links_relaxed", set()).update(np.asarray(lines)[relaxed].tolist())
         return lo, hi, reachable

@@ -489,7 +489,7 @@ class Planner:
             reachable = reachable_nodes(self._prev, free, np.asarray(b.S, dtype=float))
         else:
             step_lo, step_hi, reachable = self.links.window(links, prev, l, u, step_lo, step_hi,
-                                                            self.stats)
+                                                            self.stats, nodes.line)
             if tied(step_lo, step_hi).any():      # one variable per run of tied nodes
                 qp = GroupedQP(o.osqp_eps)
 
@@ -601,6 +601,8 @@ class Planner:
             if count < 2:
                 return None, 0
         nc = count * W
+        if nodes.link_lo is not None:           # no commit inside a run of tied nodes
+            nc = run_start(nodes.link_lo, nodes.link_hi, pos + nc, pos + 1) - pos
         self.stats["windows"] += count
         following = x[nc] if nc < x.shape[0] and not exempt[nc] else None
         csl = slice(pos, pos + nc)
