@@ -52,8 +52,15 @@ REFUSED = {
                                   "Nested comment found"],
     "cluck2sesame_2-Spool.nc": ["2-Spool.nc:12:", "comment '(' holds parentheses",
                                 "Nested comment found"],
+    # G92 before any move (`G92 z50 x-10`, `G92 Y200 z50`): the offset makes wherever the machine
+    # happens to stand the given position, so the machine positions of every later move depend on
+    # a place the program does not name; grbl runs it, but no correction can be computed for it
+    "cncwebsim_fresa.gcode": ["fresa.gcode:5:", "G92 (coordinate system offset",
+                              "give the offset as a work offset G54-G59 instead"],
+    "cncwebsim_fresa2.cnc": ["fresa2.cnc:6:", "G92 (coordinate system offset",
+                             "give the offset as a work offset G54-G59 instead"],
 }
-#: the share of the corpus accepted today (92 of 99: 0.929); the goal is 95 %
+#: the share of the corpus accepted today (116 of 125: 0.928); the goal is 95 %
 MIN_ACCEPTED = 0.92
 _WORD = re.compile(r"([A-Z])\s*([-+]?\s*(?:\d+\.?\d*|\.\d+))")
 
