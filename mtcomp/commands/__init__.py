@@ -28,7 +28,8 @@ def add_offset_arguments(parser, offsets_help: str, work_offset_help: str) -> No
 
 
 #: the controllers whose rules differ, for ``--dialect`` (docs/toolpaths.md)
-DIALECT_CHOICES = ("linuxcnc", "fanuc", "haas", "grbl", "heidenhain", "rrf", "generic")
+DIALECT_CHOICES = ("linuxcnc", "fanuc", "haas", "grbl", "heidenhain", "sinumerik", "rrf",
+                   "generic")
 
 
 def add_dialect_argument(parser) -> None:
