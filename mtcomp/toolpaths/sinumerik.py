@@ -161,7 +161,7 @@ class _Reader:
             raise KeyError(name)
         v = self.vars[name]
         if v is None:
-            raise ExpressionError(f"{name} holds a value a subprogram set, which mtcomp cannot "
+            raise ExpressionError(f"{name} may hold a value a subprogram set, which mtcomp cannot "
                                   "see")
         return v
 
