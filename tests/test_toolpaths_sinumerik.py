@@ -46,6 +46,15 @@ def test_a_sinumerik_program_is_detected_from_its_header_or_a_def(tmp_path):
     assert detect(plain)[0].name == "sinumerik"
 
 
+@pytest.mark.parametrize("head", ["%_N_PART_MPF\n;$PATH=/_N_MPF_DIR\nG0 X1\n",
+                                  "%MPF  90\n( SINUMERIK 850 )\nG0 X1\n"])
+def test_the_840d_and_850_headers_are_read_as_sinumerik(tmp_path, head):
+    p = tmp_path / "p.nc"
+    p.write_text(head)
+    with open_program(p) as src:
+        assert src.dialect.name == "sinumerik" and src.sinumerik.gcode == ["G0 X1"]
+
+
 def test_def_real_and_r_parameters_give_the_value_of_an_expression(tmp_path):
     # A = 12.5, B = 2 * 12.5 + 1. = 26, R1 = (26 - 6) / 4 = 5: by hand
     path = _write(tmp_path, "DEF REAL A=12.5\nDEF REAL B=A*2+1.\nN10 R1=(B-6)/4\n"

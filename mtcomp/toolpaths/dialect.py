@@ -16,7 +16,8 @@ A :class:`Dialect` holds what the reader needs to know of the controller that ru
   words of G51 scaling ('PIJK' Fanuc, 'P' Haas, '' none): :mod:`.frames`.
 * ``language``: 'ngc' (LinuxCNC's O-words and parameters, :mod:`.ngc`), 'macro' (Fanuc macro B,
   :mod:`.macro`), 'heidenhain' (a conversational program, read through its G-code equivalent:
-  :mod:`.heidenhain`), 'sinumerik' (a Siemens Sinumerik program, likewise: :mod:`.sinumerik`) or None (nothing is expanded). RepRapFirmware's rules (quoted strings, the
+  :mod:`.heidenhain`), 'sinumerik' (a Siemens Sinumerik program, likewise: :mod:`.sinumerik`) or
+  None (nothing is expanded). RepRapFirmware's rules (quoted strings, the
   codes it runs as macro files) are :mod:`.rrf`'s, for the dialect named 'rrf'.
 
 :func:`detect` reads the start of a program (and :func:`needs_expansion` all of it, in blocks).

@@ -32,7 +32,7 @@ _DEF = re.compile(r"(?i)\s*DEF\s+(REAL|INT|BOOL)\s+(.*)$")
 #: control (no change to the path as programmed), feed per minute, cutter radius compensation
 _MOTION_G = {0, 1, 2, 3}
 _PASSED_G = {17, 18, 19, 40, 41, 42, 54, 55, 56, 57, 90, 94, 71, 710}
-_IGNORED_G = {9, 60, 64, 601, 602, 603, 641, 642, 643, 644, 645}
+_IGNORED_G = {9, 60, 64, 601, 602, 603}
 _REFUSED_WORDS = {
     "GOTO": "program jumps (GOTO)", "GOTOF": "program jumps (GOTOF)",
     "GOTOB": "program jumps (GOTOB)", "GOTOC": "program jumps (GOTOC)",
@@ -311,13 +311,16 @@ class _Reader:
             elif code == 91:
                 raise self.err("incremental dimensions G91 are not read by mtcomp's Sinumerik "
                                "dialect")
+            elif code in (641, 642, 643, 644, 645):
+                raise self.err(f"corner rounding G{code} (it changes the path as programmed) is not "
+                               "read by mtcomp")
             elif code not in _PASSED_G and code not in _IGNORED_G:
                 raise self.err(f"G{code} is not read by mtcomp")
         if "D0" in other:
             self.pos["Z"] = None
 
     def _g_codes(self, g: list[int]) -> str:
-        return " ".join(f"G{c}" for c in g if c in _PASSED_G and c not in (71, 710))
+        return " ".join("G21" if c in (71, 710) else f"G{c}" for c in g if c in _PASSED_G)
 
     def _target(self, axes: dict) -> dict:
         return {a: self.value(w.text) for a, w in axes.items()}
