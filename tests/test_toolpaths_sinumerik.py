@@ -12,7 +12,7 @@ from mtcomp.cli import main
 from mtcomp.errors import InputError
 from mtcomp.machine import load_machine
 from mtcomp.toolpaths.dialect import detect
-from mtcomp.toolpaths.gcode import read_program
+from mtcomp.toolpaths.gcode import iter_segment_chunks, read_program, write_corrected
 from mtcomp.toolpaths.sinumerik import translate
 from mtcomp.toolpaths.source import open_program
 from mtcomp.toolpaths.sinumerik_lang import evaluate
@@ -200,3 +200,37 @@ def test_a_compensated_program_drills_where_the_plan_says(tmp_path, capsys):
                              Tolerance(axis_mm=0.06, axis_deg=0.1, path_mm=0.1), name="t")
     # nothing after the L call names an axis
     assert text.splitlines()[-2:] == ["N170 L55", "N180 M30"]
+
+
+def _shifted(path, machine, shift):
+    """The corrections that move every point by ``shift(points)`` (mm), for write_corrected."""
+    for chunk in iter_segment_chunks(path, machine):
+        yield chunk, chunk.end + shift(chunk.end), np.ones(len(chunk), np.int64)
+
+
+def test_a_holes2_circle_with_one_correction_gets_its_centre_moved(tmp_path):
+    # every point 10 um further in X: the circle's centre CPA 0 becomes 0.0100, the hole depth
+    # and the call stay (no Z correction), the move before gets X10.0100
+    machine = load_machine("xfyz")
+    path = _write(tmp_path, "N10 G0 X10 Y0 Z20 F300\nN20 MCALL CYCLE81(15,5,1,,3)\n"
+                            "N30 HOLES2(0,0,10,0,60,6)\nN40 MCALL\nM30\n")
+    out = tmp_path / "out.mpf"
+    write_corrected(path, out, machine, _shifted(path, machine, lambda p: [0.01, 0, 0]))
+    lines = out.read_text(encoding="latin-1").splitlines()
+    assert lines[2:6] == ["N10 G0 X10.0100 Y0 Z20 F300", "N20 MCALL CYCLE81(15,5,1,,3)",
+                          "N30 HOLES2(0.0100,0,10,0,60,6)", "N40 MCALL"]
+
+
+def test_holes_of_one_call_at_different_depths_restate_the_call(tmp_path):
+    # Z corrected by x / 1000 (mm): the holes at X 10, 20 and 20 need RFP 5.0100, 5.0200, 5.0200:
+    # the call carries the first, is restated before the second, and holds for the third
+    machine = load_machine("xfyz")
+    path = _write(tmp_path, "N10 G0 X0 Y0 Z20 F300\nN20 MCALL CYCLE81(15,5,1,,3)\nN30 X10\n"
+                            "N40 X20\nN50 Y5\nN60 MCALL\nM30\n")
+    out = tmp_path / "out.mpf"
+    write_corrected(path, out, machine, _shifted(path, machine,
+                                                 lambda p: np.outer([0, 0, 1e-3], p[:, 0]).T))
+    lines = out.read_text(encoding="latin-1").splitlines()
+    assert lines[2].startswith("; mtcomp: 1 block added")
+    assert lines[4:9] == ["N20 MCALL CYCLE81(15,5.0100,1,,3)", "N30 X10",
+                          "MCALL CYCLE81(15,5.0200,1,,3)", "N40 X20", "N50 Y5"]

@@ -87,6 +87,7 @@ class SinumerikWriter(HeidenhainWriter):
         self.replaced: dict[int, list] = {}     # source line -> the lines written instead
         self.dz: dict[int, float] = {}          # hole (G-code line index) -> Z correction, mm
         self.xy: dict[int, np.ndarray] = {}     # hole -> its corrected X Y as written
+        self.dxy: dict[int, np.ndarray] = {}    # a HOLES2 hole -> its X Y correction, mm
         self.retracts = 0
         self.added = 0
         self.zi = self.letters.index("Z")
@@ -175,6 +176,7 @@ class SinumerikWriter(HeidenhainWriter):
         elif info.pattern is not None:               # a HOLES2 position of another subprogram
             self.xy[g] = np.array([float(_number(self._units(j, pts[-1][j], info.shift), 4))
                                    for j in self.cols])
+            self.dxy[g] = (pts[-1] - block.end)[self.cols]
             self.written[self.cols] = self.xy[g]
         elif info.kind == "approach":
             write = np.ones(self.na, bool)
@@ -188,6 +190,7 @@ class SinumerikWriter(HeidenhainWriter):
         self.dz[g] = float(_number(end[self.zi] - nominal[self.zi], 4))
         xy = np.array([float(_number(self._units(j, end[j], info.shift), 4)) for j in self.cols])
         self.xy[g] = xy
+        self.dxy[g] = (end - nominal)[self.cols]
         if info.pattern is None and info.call.line != i:      # a positioning block under MCALL
             write = np.zeros(self.na, bool)
             write[self.cols] = True
@@ -253,14 +256,14 @@ class SinumerikWriter(HeidenhainWriter):
     def _pattern_expands(self, p) -> bool:
         """Whether a HOLES2 circle must be written as explicit positions: its holes' corrections
         differ (X Y, or Z)."""
-        d = [self.xy[h] - np.asarray(pos) for h, pos in zip(p.holes, p.positions)]
-        same_xy = all(np.allclose(x, d[0], rtol=0, atol=5e-5) for x in d)
+        d = {tuple(_number(v, 4) for v in self.dxy[h]) for h in p.holes}
+        same_xy = len(d) == 1
         dz = [self.dz[h] for h in p.holes if h in self.dz]
         return not same_xy or len(set(dz)) > 1 or any(h in self.restate for h in p.holes)
 
     def _shift_centre(self, p) -> None:
         """A HOLES2 circle whose holes share one correction: its centre CPA CPO moved by it."""
-        d = self.xy[p.holes[0]] - np.asarray(p.positions[0])
+        d = [float(_number(v, 4)) for v in self.dxy[p.holes[0]]]
         text = self.texts[p.line].rstrip("\r\n")
         edits = []
         for k in (0, 1):
