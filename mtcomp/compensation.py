@@ -524,7 +524,7 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
         # its units and for cutter radius compensation (the note); a conversational program's
         # blocks stay one to one, so it is planned without internal nodes
         found = words_in(src, (b"20", b"21", b"41", b"42"))
-        if src.heidenhain is not None or b"41" in found or b"42" in found:
+        if src.translated or b"41" in found or b"42" in found:
             # one output block per source block: a conversational program's blocks, and a program
             # under cutter radius compensation, whose controller offsets the moves as written
             settings = replace(settings, subdivide_tol_um=0.0)
@@ -610,7 +610,9 @@ _PASSED_MOVES = {"increment": "{n} incremental (G91) move{s} of an axis whose po
                  "home": "{n} move{s} to the home position (G28/G30, grbl's $H; {at})",
                  "jog": "{n} grbl jog{s} ($J=, {at})",
                  "machine": "{n} move{s} in machine coordinates (G53, {at})",
-                 "tap": "{n} rigid tapping move{s} (G33.1, {at}: the spindle's reversal sets its ends)"}
+                 "tap": "{n} rigid tapping move{s} (G33.1, {at}: the spindle's reversal sets its ends)",
+                 "subprogram": "{n} call{s} of a subprogram not in the file ({at}: its moves are "
+                               "not seen)"}
 
 
 def passed_move_notes(program, written) -> list[str]:

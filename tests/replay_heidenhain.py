@@ -103,13 +103,18 @@ def _line(tnc, index, code):
 def _arc(tnc, index, code):
     start = dict(tnc.pos)
     end = tnc.target(code)
-    cx, cy = tnc.cc
-    ccw = "DR+" in code
+    tnc.pos = end
+    return arc_move(index, start, end, tnc.cc, "DR+" in code)
+
+
+def arc_move(index, start, end, centre, ccw):
+    """The move of an arc in G17 about centre (x, y) from start to end (the same: the full
+    circle), counter-clockwise or not."""
+    cx, cy = centre
     a0 = math.atan2(start["Y"] - cy, start["X"] - cx)
     a1 = math.atan2(end["Y"] - cy, end["X"] - cx)
     full = math.hypot(end["X"] - start["X"], end["Y"] - start["Y"]) < 1e-9
     sweep = 2 * math.pi if full else ((a1 - a0) % (2 * math.pi) if ccw else (a0 - a1) % (2 * math.pi))
-    tnc.pos = end
     return Move(index, "arc", start, end, 17, (cx, cy), sweep if ccw else -sweep)
 
 

@@ -175,8 +175,6 @@ def test_a_numbered_end_of_tape_mark_and_a_main_program_m99_pass_through(tmp_pat
 
 
 @pytest.mark.parametrize("head, line, name", [
-    ("%_N_PART_MPF\n;$PATH=/_N_MPF_DIR\nG0 X1\n", 1, "Siemens Sinumerik program"),
-    ("%MPF  90\n( SINUMERIK 850 )\nG0 X1\n", 1, "Siemens Sinumerik program"),
     ("$OKUMA.MIN%\nOSTRT\nG0 X1\n", 1, "an Okuma OSP program"),
 ])
 def test_other_controller_languages_refused_at_their_first_line(tmp_path, head, line, name):

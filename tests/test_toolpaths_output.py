@@ -410,9 +410,11 @@ def _small_field(p):
                      0.003 * np.sin(p[:, 2] / 10)], axis=1)
 
 
-# Heidenhain conversational programs (.h) are written in their own form, not G-code: they are
-# checked by tests/test_toolpaths_heidenhain.py, the corpus test and their own replay
-@pytest.mark.parametrize("prog", [p for p in PROGRAMS if p.name not in REFUSED and p.suffix != ".h"],
+# Heidenhain conversational (.h) and Sinumerik programs are written in their own form, not G-code:
+# they are checked by tests/test_toolpaths_heidenhain.py, test_toolpaths_sinumerik.py, the corpus
+# test and their own replays
+@pytest.mark.parametrize("prog", [p for p in PROGRAMS if p.name not in REFUSED and p.suffix != ".h"
+                                  and not p.read_bytes().startswith(b"%_N_")],
                          ids=lambda p: p.name)
 def test_corpus_output_differs_only_by_the_correction(tmp_path, monkeypatch, prog):
     # a program with code to compute is written as its expansion (tests/test_toolpaths_ngc.py)

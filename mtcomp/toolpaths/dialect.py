@@ -16,7 +16,8 @@ A :class:`Dialect` holds what the reader needs to know of the controller that ru
   words of G51 scaling ('PIJK' Fanuc, 'P' Haas, '' none): :mod:`.frames`.
 * ``language``: 'ngc' (LinuxCNC's O-words and parameters, :mod:`.ngc`), 'macro' (Fanuc macro B,
   :mod:`.macro`), 'heidenhain' (a conversational program, read through its G-code equivalent:
-  :mod:`.heidenhain`) or None (nothing is expanded). RepRapFirmware's rules (quoted strings, the
+  :mod:`.heidenhain`), 'sinumerik' (a Siemens Sinumerik program, likewise: :mod:`.sinumerik`) or
+  None (nothing is expanded). RepRapFirmware's rules (quoted strings, the
   codes it runs as macro files) are :mod:`.rrf`'s, for the dialect named 'rrf'.
 
 :func:`detect` reads the start of a program (and :func:`needs_expansion` all of it, in blocks).
@@ -56,6 +57,8 @@ DIALECTS = {
     "rrf": Dialect("rrf"),
     # Heidenhain TNC conversational (Klartext): read through its G-code equivalent (.heidenhain)
     "heidenhain": Dialect("heidenhain", language="heidenhain"),
+    # Siemens Sinumerik 840D: read through its G-code equivalent (.sinumerik)
+    "sinumerik": Dialect("sinumerik", language="sinumerik"),
     "generic": Dialect("generic", language="ngc"),
 }
 GENERIC = DIALECTS["generic"]
@@ -75,14 +78,16 @@ _CLUES = [
     ("fanuc", re.compile(r"^\s*[Oo:]\s*\d+\s*(?:\([^()]*\)\s*)*$")),   # a program number O1234
     ("grbl", re.compile(r"^\s*(?:\$[A-Za-z$#]|[?~!]\s*$)")),
     ("heidenhain", re.compile(r"(?i)^\s*\d+\s+BEGIN\s+PGM\b")),
+    # Sinumerik: its file header, its path line, a DEF of a variable, a standard cycle call
+    ("sinumerik", re.compile(r"(?i)^\s*%(?:_N_\w+_(?:MPF|SPF)|MPF|SPF)\b|^\s*;\s*\$PATH=|"
+                             r"^\s*(?:N\d+\s*)?DEF\s+(?:REAL|INT|BOOL)\b|"
+                             r"^\s*(?:N\d+\s*)?(?:MCALL\s+)?CYCLE\d+\s*\(")),
     # a quoted string parameter (M98 P"file.g", M4000 S"name"): RepRapFirmware's alone
     ("rrf", re.compile(r'(?i)^\s*(?:n\s*\d+\s*)?[gmt]\s*\d[^"]*"')),
 ]
 #: controllers whose own language mtcomp does not read, known from a program's first lines:
 #: (pattern, the language's name, what in it differs from RS274 / ISO G-code)
 _FOREIGN = [
-    (re.compile(r"^\s*%(?:_N_\w+_(?:MPF|SPF)|MPF|SPF)\b"), "Siemens Sinumerik",
-     "DEF variables, R parameters, L subprograms, @ codes"),
     (re.compile(r"(?i)^\s*\$[\w.-]+\.(?:MIN|SSB|SDF)%?\s*$"), "Okuma OSP",
      "named programs and labels, VC variables, IF/GOTO"),
 ]
@@ -99,7 +104,8 @@ def detect(path) -> tuple[Dialect, str]:
     """(the program's dialect, why: 'detected from line N: ...' or what was taken). The first
     clue in the first 64 kB wins: LinuxCNC's O-words or named parameters, a Fanuc macro statement
     or program number (Haas where the program names Haas), grbl's '$' commands or real-time
-    characters, RepRapFirmware's quoted string parameters, a comment naming the controller (rrf
+    characters, RepRapFirmware's quoted string parameters, Sinumerik's file header
+    ``%_N_NAME_MPF``, ``;$PATH=``, a DEF or a CYCLE call, a comment naming the controller (rrf
     for RepRapFirmware, RRF or MillenniumOS); nothing: generic."""
     try:
         with open(os.fspath(path), "rb") as f:
@@ -115,7 +121,7 @@ def detect(path) -> tuple[Dialect, str]:
         named = _NAMED.search(line)
         by_name = _NAME_DIALECT.get(named.group(1).lower(), named.group(1).lower()) if named else ""
         for name, clue in _CLUES + ([(by_name, re.compile(""))] if named else []):
-            if clue.search(code):
+            if clue.search(line if name == "sinumerik" else code):
                 if name == "fanuc" and _HAAS.search(text):
                     name = "haas"
                 shown = line.strip()
@@ -126,8 +132,7 @@ def detect(path) -> tuple[Dialect, str]:
 
 def foreign_language(path) -> tuple[int, str, str, str] | None:
     """(line, the line, the language's name, what differs) when one of a program's first lines
-    shows a controller language mtcomp does not read (Siemens Sinumerik ``%_N_NAME_MPF``, Okuma
-    ``$NAME.MIN%``), else None."""
+    shows a controller language mtcomp does not read (Okuma ``$NAME.MIN%``), else None."""
     try:
         with open(os.fspath(path), "rb") as f:
             head = [f.readline().decode("latin-1") for _ in range(_FOREIGN_LINES)]

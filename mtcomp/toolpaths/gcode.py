@@ -37,7 +37,7 @@ import numpy as np
 
 from ..io.atomic import check_output_path
 from ..machine import Machine
-from . import _fast, heidenhain_out, reader, writer
+from . import _fast, heidenhain_out, reader, sinumerik_out, writer
 from .blocks import CycleBlock, MotionBlock, Program, SegmentChunk
 from .modal import ModalState
 from .reader import iter_blocks, new_state, read_program
@@ -149,5 +149,7 @@ def write_corrected(in_path, out_path, machine: Machine,
         write = _fast.write_corrected if _compiled(src) else writer.write_corrected
         if src.heidenhain is not None:          # written back in its conversational form
             write = heidenhain_out.write_corrected
+        if src.sinumerik is not None:           # written back in its own form
+            write = sinumerik_out.write_corrected
         return write(src, out_path, machine, cursor, chord_tol_mm, initial_position, stats=stats,
                      **kw)

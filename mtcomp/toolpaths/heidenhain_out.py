@@ -58,8 +58,12 @@ class _Arc:
 class HeidenhainWriter:
     """Writes one conversational program (see the module docstring)."""
 
-    def __init__(self, src, machine, chord_tol_mm: float):
-        self.src, self.tr = src, src.heidenhain
+    #: how a refused arc is named: the arc, its centre, what would let it through
+    ARC, CENTRE, HINT = "arc C", "CC", "a larger --chord-tol-um or a CC before each arc"
+
+    def __init__(self, src, machine, chord_tol_mm: float, translation=None):
+        self.src = src
+        self.tr = src.heidenhain if translation is None else translation
         self.letters = "".join(machine.axis_names)
         self.rotary = [c in "ABC" for c in self.letters]
         self.linear = np.array([not r for r in self.rotary])
@@ -207,11 +211,10 @@ class HeidenhainWriter:
                 worst = miss if worst is None or miss[0] < worst[0] else worst
             else:
                 raise InputError(
-                    f"the corrected arc C of line {worst[1] + 1} is not within the chord tolerance "
-                    f"({self.tol * 1e3:g} um) of an arc about one circle centre (CC of line "
-                    f"{cc + 1}): it misses its corrected path by {worst[2] * 1e3:.2f} um "
-                    "(a larger --chord-tol-um or a CC before each arc)", self.src.source,
-                    line=worst[1] + 1)
+                    f"the corrected {self.ARC} of line {worst[1] + 1} is not within the chord "
+                    f"tolerance ({self.tol * 1e3:g} um) of an arc about one circle centre "
+                    f"({self.CENTRE} of line {cc + 1}): it misses its corrected path by "
+                    f"{worst[2] * 1e3:.2f} um ({self.HINT})", self.src.source, line=worst[1] + 1)
 
     def _centre_text(self, cc: int, centre) -> tuple[str, np.ndarray]:
         """(the CC line with the centre (2,) G-code frame, mm) written, the centre it says)."""
@@ -252,17 +255,16 @@ class HeidenhainWriter:
         return excess, a.line, dist
 
 
-def write_corrected(src, out_path, machine, cursor, chord_tol_mm: float, initial_position=None,
-                    *, inch: bool = False, initial_known=None, stats: dict | None = None) -> int:
-    """Write the conversational program of ``src`` (a :class:`~.source.ProgramSource` with its
-    ``heidenhain`` translation) with the corrections of ``cursor`` (see
-    :func:`mtcomp.toolpaths.gcode.write_corrected`); returns the segment rows written."""
-    w = HeidenhainWriter(src, machine, chord_tol_mm)
+def plan_blocks(w, src, machine, cursor, chord_tol_mm, initial_position, inch, initial_known):
+    """Hand every block of the program read through its G-code equivalent, with its corrected
+    points, to the writer ``w`` (its ``block``), then the circle centres (``centres``); returns
+    the segment rows written."""
     rows = 0
     for k, _raw, block, state in iter_blocks(src, machine, chord_tol_mm, initial_position,
                                              inch=inch, initial_known=initial_known):
         if block is None:
-            # an axis the reader forgets (M91/M92, TOOL CALL) is not where the output wrote it
+            # an axis the reader forgets (M91/M92, TOOL CALL, a subprogram) is not where the
+            # output wrote it
             w.written[~state.known] = np.nan
             continue
         pts = np.array(cursor.take(k, block.points.shape[0]))
@@ -270,6 +272,17 @@ def write_corrected(src, out_path, machine, cursor, chord_tol_mm: float, initial
         rows += block.points.shape[0]
     cursor.finish()
     w.centres()
+    return rows
+
+
+def write_corrected(src, out_path, machine, cursor, chord_tol_mm: float, initial_position=None,
+                    *, inch: bool = False, initial_known=None, stats: dict | None = None) -> int:
+    """Write the conversational program of ``src`` (a :class:`~.source.ProgramSource` with its
+    ``heidenhain`` translation) with the corrections of ``cursor`` (see
+    :func:`mtcomp.toolpaths.gcode.write_corrected`); returns the segment rows written."""
+    w = HeidenhainWriter(src, machine, chord_tol_mm)
+    rows = plan_blocks(w, src, machine, cursor, chord_tol_mm, initial_position, inch,
+                       initial_known)
     with atomic_write(out_path, "wb") as f:
         f.write("".join(w.texts).encode("latin-1"))
     if w.dropped:

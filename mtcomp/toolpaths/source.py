@@ -22,6 +22,7 @@ from ..errors import InputError
 from .dialect import Dialect, dialect_named, foreign_language, needs_expansion
 from .words import strip_comments
 from .heidenhain import translate
+from .sinumerik import translate as translate_sinumerik
 from .macro import MacroRun
 from .ngc import MAX_LINES, MAX_STEPS, NgcRun
 
@@ -57,19 +58,31 @@ class ProgramSource(os.PathLike):
     #: a Heidenhain conversational program: its :class:`~.heidenhain.Translation` (``path`` is
     #: then its G-code equivalent, line for line; the writer writes the conversational form)
     heidenhain: object = None
+    #: a Siemens Sinumerik program: its :class:`~.sinumerik.Translation` (``path`` is then its
+    #: G-code equivalent, ``line_map`` the source line of each of its lines; the writer writes
+    #: the Sinumerik form)
+    sinumerik: object = None
 
     def __fspath__(self) -> str:
         return self.path
 
     @property
     def expanded(self) -> bool:
-        return self.line_map is not None
+        return self.line_map is not None and self.sinumerik is None
+
+    @property
+    def translated(self) -> bool:
+        """A program read through its G-code equivalent and written back in its own form, one
+        output block per source block (Heidenhain conversational, Sinumerik)."""
+        return self.heidenhain is not None or self.sinumerik is not None
 
     def locate(self, line: int | None) -> tuple[str, int | None, str]:
         """(file, line, suffix for the message) to name a line of ``path`` by."""
         if self.line_map is None or line is None:
             return self.source, line, ""
         src = self.line_map[line - 1] if 0 < line <= len(self.line_map) else 0
+        if self.sinumerik is not None:
+            return self.source, (src or None), ""
         return self.source, (src or None), f" (line {line} of the expanded program)"
 
     def source_lines_of(self, lines):
@@ -162,16 +175,22 @@ def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int):
     return tmp, line_map, len(line_map) - 1, len(raws)
 
 
-def _conversational(source: str, d: Dialect, why: str):
-    """A Heidenhain conversational program as a ProgramSource of its G-code equivalent."""
+def _translated(source: str, d: Dialect, why: str):
+    """A program in a controller's own language (Heidenhain conversational, Siemens Sinumerik)
+    as a ProgramSource of its G-code equivalent."""
     if not os.path.isfile(source):
         raise InputError("no such file", source)
-    translation = translate(source)
-    fd, tmp = tempfile.mkstemp(prefix="mtcomp-heidenhain-", suffix=".nc")
+    sinumerik = d.language == "sinumerik"
+    translation = translate_sinumerik(source) if sinumerik else translate(source)
+    fd, tmp = tempfile.mkstemp(prefix=f"mtcomp-{d.language}-", suffix=".nc")
     try:
         with os.fdopen(fd, "w", encoding="latin-1", newline="\n") as out:
             out.write("".join(g + "\n" for g in translation.gcode))
-        yield ProgramSource(tmp, source, d, why, heidenhain=translation)
+        if sinumerik:
+            yield ProgramSource(tmp, source, d, why, line_map=translation.line_map,
+                                sinumerik=translation)
+        else:
+            yield ProgramSource(tmp, source, d, why, heidenhain=translation)
     finally:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
@@ -196,8 +215,8 @@ def open_program(path, dialect: str | None = None, *, max_steps: int = MAX_STEPS
                          "by mtcomp; give --dialect generic to read it as plain G-code", source,
                          line=line)
     d, why = dialect_named(dialect, source)
-    if d.language == "heidenhain":
-        yield from _conversational(source, d, why)
+    if d.language in ("heidenhain", "sinumerik"):
+        yield from _translated(source, d, why)
         return
     expansion = None
     if d.language is not None and os.path.isfile(source) and needs_expansion(source):

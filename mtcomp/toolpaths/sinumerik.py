@@ -1,0 +1,523 @@
+"""Siemens Sinumerik programs (840D, ``%_N_NAME_MPF``): read as the motion mtcomp knows.
+
+A Sinumerik program is turned into equivalent G-code that mtcomp's reader reads, each source line
+into the G-code lines of the moves the controller makes for it (a hole of a drilling cycle is
+three: the cycle, its cancel and the retract to the cycle's retract plane); the map from G-code
+lines to source lines names the source in every message and report. The corrected program is
+written back in its own form by :mod:`.sinumerik_out`. The rules are those of Siemens AG, SINUMERIK
+840D sl Programming Manual, Fundamentals (2013) and Job planning (2013), and of its Cycles manual
+(SINUMERIK 840D sl / 828D Cycles, Programming Manual, 2013) for CYCLE81, CYCLE84 and HOLES2;
+docs/toolpaths.md, "Siemens Sinumerik", lists them with what is refused.
+"""
+from __future__ import annotations
+
+import math
+import re
+from array import array
+from dataclasses import dataclass, field
+
+from ..errors import InputError
+from .heidenhain import read_lines
+from .sinumerik_lang import (ExpressionError, Word, code_end, evaluate, split_arguments,
+                             split_words)
+
+AXES = "XYZABC"
+_HEADER = re.compile(r"^\s*%")
+#: what stands before a block's words: a block skip, its number, a label
+BLOCK_START = re.compile(r"\s*/?\s*(?:(?:N\d+|:\d+)\s*)?(?:[A-Za-z_][A-Za-z0-9_]*:(?!=)\s*)?")
+_BLOCK_NUMBER = re.compile(r"\s*(?:N\d+|:\d+)\s*")
+_LABEL = re.compile(r"\s*[A-Za-z_][A-Za-z0-9_]*:(?!=)\s*")
+_DEF = re.compile(r"(?i)\s*DEF\s+(REAL|INT|BOOL)\s+(.*)$")
+#: G codes read (others refused by name): motion, plane, distance, units, work offsets, path
+#: control (no change to the path as programmed), feed per minute, cutter radius compensation
+_MOTION_G = {0, 1, 2, 3}
+_PASSED_G = {17, 18, 19, 40, 41, 42, 54, 55, 56, 57, 90, 94, 71, 710}
+_IGNORED_G = {9, 60, 64, 601, 602, 603}
+_REFUSED_WORDS = {
+    "GOTO": "program jumps (GOTO)", "GOTOF": "program jumps (GOTOF)",
+    "GOTOB": "program jumps (GOTOB)", "GOTOC": "program jumps (GOTOC)",
+    "IF": "IF control structures", "WHILE": "WHILE loops", "FOR": "FOR loops",
+    "REPEAT": "REPEAT loops", "LOOP": "LOOP loops", "CASE": "CASE jumps",
+    "PROC": "a subprogram definition (PROC)", "TRANS": "a programmable frame (TRANS)",
+    "ATRANS": "a programmable frame (ATRANS)", "ROT": "a programmable frame (ROT)",
+    "AROT": "a programmable frame (AROT)", "SCALE": "a programmable frame (SCALE)",
+    "ASCALE": "a programmable frame (ASCALE)", "MIRROR": "a programmable frame (MIRROR)",
+    "AMIRROR": "a programmable frame (AMIRROR)", "TRAORI": "5-axis transformation (TRAORI)",
+    "TRANSMIT": "a transformation (TRANSMIT)", "TRACYL": "a transformation (TRACYL)",
+    "CIP": "a circle through an intermediate point (CIP)", "CT": "a tangential circle (CT)",
+    "CR": "a circle by its radius (CR=)", "AR": "a circle by its opening angle (AR=)",
+    "AP": "polar coordinates (AP=)", "RP": "polar coordinates (RP=)",
+    "RND": "a rounding (RND)", "CHF": "a chamfer (CHF)", "CHR": "a chamfer (CHR)",
+    "SPOS": "spindle positioning (SPOS)", "SUPA": "a block in machine coordinates (SUPA)",
+}
+#: the drilling cycles read: their moves are a hole from RFP+SDIS to the depth, back to RTP
+_DRILLING = {"CYCLE81", "CYCLE84"}
+
+
+@dataclass
+class GInfo:
+    """What a G-code line of the translation is, for the writer: ``source`` its source line
+    (0-based); ``kind`` None (no move), 'move' (a straight move of the line's axis words), 'arc',
+    'hole' (a hole of a drilling cycle, at its bottom), 'retract' (to the cycle's RTP: kept as
+    written), 'approach' (a call's own move, kept); for an arc its ``centre`` and ``cc_line`` (its own
+    line); for a hole its ``call`` (:class:`Call`) and ``pattern`` (:class:`Pattern` or None)."""
+
+    source: int
+    kind: str | None = None
+    shift: tuple = (0.0, 0.0, 0.0)
+    incremental: frozenset = frozenset()
+    centre: tuple | None = None
+    cc_line: int | None = None
+    call: object = None
+    pattern: object = None
+
+
+@dataclass
+class Call:
+    """A drilling cycle call: its line (0-based), name, argument texts and where they stand in
+    the line (start, end), whether modal (MCALL), the levels RTP, RFP, SDIS and the hole's
+    bottom (mm), and its holes (G-code line indices)."""
+
+    line: int
+    name: str
+    args: list
+    spans: list
+    modal: bool
+    rtp: float
+    rfp: float
+    sdis: float
+    bottom: float
+    holes: list = field(default_factory=list)
+
+
+@dataclass
+class Pattern:
+    """A HOLES2 hole circle: its line, the argument texts and spans, its holes' positions."""
+
+    line: int
+    args: list
+    spans: list
+    positions: list
+    centre: tuple = (0.0, 0.0)
+    motion: int | None = 0
+    holes: list = field(default_factory=list)
+
+
+@dataclass
+class Translation:
+    """A Sinumerik program as G-code: ``gcode`` lines, ``lines`` a :class:`GInfo` per G-code line,
+    ``line_map`` (the source line, 1-based, of each G-code line), ``calls``, ``patterns``, and
+    ``subprograms``: (line, text) of the calls whose moves mtcomp cannot see."""
+
+    gcode: list = field(default_factory=list)
+    lines: list = field(default_factory=list)
+    line_map: array = field(default_factory=lambda: array("l"))
+    calls: list = field(default_factory=list)
+    patterns: list = field(default_factory=list)
+    subprograms: list = field(default_factory=list)
+    inch: bool = False
+
+
+def fmt(v: float) -> str:
+    s = f"{v:.10f}".rstrip("0").rstrip(".")
+    return "0" if s in ("-0", "") else s
+
+
+class _Reader:
+    """The state a Sinumerik program carries from line to line."""
+
+    def __init__(self, path):
+        self.path = path
+        self.out = Translation()
+        self.vars: dict = {}                    # DEF variables and R parameters: value or None
+        self.pos = dict.fromkeys(AXES)          # program frame (mm, deg); None: unknown
+        self.motion: int | None = None
+        self.plane = 17
+        self.tool = 0
+        self.wcs = 500                          # the basic setting: no settable work offset
+        self.modal_call: Call | str | None = None   # a drilling Call, or the name of another
+        self.ended = False
+        self.r_lost = False                     # a subprogram may have set any R parameter
+        self.k = 0
+
+    def err(self, message: str) -> InputError:
+        return InputError(message + " (Sinumerik)", self.path, line=self.k + 1)
+
+    def emit(self, text: str, kind=None, **kw) -> GInfo:
+        info = GInfo(self.k, kind, **kw)
+        self.out.gcode.append(text)
+        self.out.lines.append(info)
+        self.out.line_map.append(self.k + 1)
+        return info
+
+    # ------------------------------------------------------------------ values
+    def lookup(self, name: str) -> float:
+        if name not in self.vars:
+            if re.fullmatch(r"R\d+", name):
+                if self.r_lost:
+                    raise ExpressionError(f"{name} may hold a value a subprogram set, which mtcomp "
+                                          "cannot see")
+                raise ExpressionError(f"the R parameter {name} is read before the program sets it")
+            raise KeyError(name)
+        v = self.vars[name]
+        if v is None:
+            raise ExpressionError(f"{name} may hold a value a subprogram set, which mtcomp cannot "
+                                  "see")
+        return v
+
+    def value(self, text: str) -> float:
+        try:
+            return evaluate(text, self.lookup)
+        except ExpressionError as exc:
+            raise self.err(str(exc)) from None
+
+    def assign(self, name: str, text: str) -> None:
+        """A variable or R parameter set; a value that cannot be computed now is None (refused
+        where a move uses it)."""
+        try:
+            self.vars[name] = evaluate(text, self.lookup)
+        except ExpressionError:
+            self.vars[name] = None
+
+    # ------------------------------------------------------------------ lines
+    def line(self, k: int, text: str) -> None:
+        self.k = k
+        if self.ended or _HEADER.match(text):
+            return
+        end = code_end(text)
+        start = len(text) - len(text.lstrip())
+        if start < end and text[start] == "/":
+            self._block_skip(text, start + 1, end)
+            return
+        m = _BLOCK_NUMBER.match(text, start)
+        start = m.end() if m else start
+        m = _LABEL.match(text, start)
+        start = m.end() if m else start
+        if "@" in text[start:end]:
+            code = re.search(r"@\d*", text[start:end]).group(0)
+            raise self.err(f"the computation instruction {code} (Sinumerik 8xx) is not read by "
+                           "mtcomp")
+        d = _DEF.match(text[start:end])
+        if d:
+            self._define(d.group(2))
+            return
+        if re.match(r"(?i)\s*DEF\b", text[start:end]):
+            raise self.err("a DEF of a type other than REAL, INT or BOOL is not read by mtcomp")
+        try:
+            words = split_words(text, start, end)
+        except ValueError as exc:
+            raise self.err(f"{exc}") from None
+        if words:
+            self._block(words)
+
+    def _block_skip(self, text: str, start: int, end: int) -> None:
+        """A skippable block '/': passed through when it moves nothing and changes no mode the
+        moves depend on (it runs or not: the same motion either way); refused otherwise."""
+        m = _BLOCK_NUMBER.match(text, start)
+        try:
+            words = split_words(text, m.end() if m else start, end)
+        except ValueError as exc:
+            raise self.err(f"{exc}") from None
+        if any(w.kind != "address" or w.name not in "MSH" or
+               (w.name == "M" and w.text.strip() in ("2", "02", "30", "6", "06", "17"))
+               for w in words):
+            raise self.err("a skippable block '/' that moves or changes a mode is not read by "
+                           "mtcomp (the operator's block-skip switch decides whether it runs)")
+
+    def _define(self, rest: str) -> None:
+        for item in split_arguments(rest):
+            name, _eq, expr = item.partition("=")
+            name = name.strip().upper()
+            if not re.fullmatch(r"[A-Z_][A-Z0-9_]*", name):
+                raise self.err(f"DEF {item!r} is not read by mtcomp")
+            if expr.strip():
+                self.assign(name, expr)
+            else:
+                self.vars[name] = 0.0
+
+    def _block(self, words: list[Word]) -> None:
+        for w in words:
+            if w.name in _REFUSED_WORDS and (w.kind in ("keyword", "call")
+                                             or (w.kind == "assign" and w.name in ("CR", "AR", "AP",
+                                                                                  "RP", "RND", "CHF", "CHR"))):
+                raise self.err(f"{_REFUSED_WORDS[w.name]} is not read by mtcomp")
+        g, axes, centre, other = self._classify(words)
+        calls = [w for w in words if w.kind == "call" or (w.kind == "address" and w.name == "L")]
+        mcall = any(w.kind == "keyword" and w.name == "MCALL" for w in words)
+        self._modes(g, other)
+        if mcall:
+            self._mcall(calls, words, axes)
+            return
+        if calls:
+            if axes or centre:
+                raise self.err("a call and a move in one block are not read by mtcomp")
+            self._call(calls[0])
+            return
+        self._move(g, axes, centre, other)
+        if "M6" in other:
+            self.pos["Z"] = None
+            self.emit(f"T{self.tool} M6 " + (f"G43 H{self.tool}" if self.tool else "G49"))
+        if "END" in other:
+            self.ended = True
+            self.emit("M30")
+
+    def _classify(self, words):
+        """(G codes, axis words {letter: Word}, centre words, other: set of 'M6', 'END', ...)."""
+        g, axes, centre, other = [], {}, {}, set()
+        for w in words:
+            if w.kind == "address" and w.name == "G":
+                g.append(int(float(w.text)))
+            elif w.kind in ("address", "assign") and w.name in AXES:
+                if w.name in axes:
+                    raise self.err(f"axis {w.name} twice in one block")
+                axes[w.name] = w
+            elif w.kind in ("address", "assign") and w.name in "IJK":
+                centre[w.name] = w
+            elif w.kind == "address" and w.name == "M":
+                m = int(float(w.text))
+                other.add({6: "M6", 2: "END", 30: "END", 17: "END"}.get(m, f"M{m}"))
+            elif w.kind == "address" and w.name == "T":
+                self.tool = int(float(w.text))
+            elif w.kind == "address" and w.name == "D":
+                other.add("D0" if int(float(w.text)) == 0 else "D")
+            elif w.kind == "address" and w.name == "F":
+                other.add(f"F{fmt(self.value(w.text))}")
+            elif w.kind == "assign" and w.name == "F":
+                other.add(f"F{fmt(self.value(w.text))}")
+            elif w.kind == "assign" and w.name == "T":
+                raise self.err("a tool called by name (T=\"...\") is not read by mtcomp")
+            elif w.kind == "assign" and w.name not in ("S", "M", "H"):
+                self.assign(w.name, w.text)
+            elif w.kind == "keyword" and w.name not in ("MCALL",):
+                raise self.err(f"{w.name} is not read by mtcomp")
+            elif w.kind == "address" and w.name not in "SHNLP":
+                raise self.err(f"the word {w.name}{w.text} is not read by mtcomp")
+        return g, axes, centre, other
+
+    def _modes(self, g: list[int], other: set) -> None:
+        for code in g:
+            if code in _MOTION_G:
+                self.motion = code
+            elif code in (17, 18, 19):
+                self.plane = code
+            elif code in (54, 55, 56, 57) and code != self.wcs:
+                # every position in the new frame is unknown (the G-code reader is told so)
+                self.wcs = code
+                self.pos = dict.fromkeys(AXES)
+                self.emit("G43.1")
+            elif code in (70, 700):
+                raise self.err("inch programs (G70, G700) are not read by mtcomp's Sinumerik "
+                               "dialect")
+            elif code == 91:
+                raise self.err("incremental dimensions G91 are not read by mtcomp's Sinumerik "
+                               "dialect")
+            elif code in (641, 642, 643, 644, 645):
+                raise self.err(f"corner rounding G{code} (it changes the path as programmed) is not "
+                               "read by mtcomp")
+            elif code not in _PASSED_G and code not in _IGNORED_G:
+                raise self.err(f"G{code} is not read by mtcomp")
+        if "D0" in other:
+            self.pos["Z"] = None
+
+    def _g_codes(self, g: list[int]) -> str:
+        return " ".join("G21" if c in (71, 710) else f"G{c}" for c in g if c in _PASSED_G)
+
+    def _target(self, axes: dict) -> dict:
+        return {a: self.value(w.text) for a, w in axes.items()}
+
+    def _check_axis_words(self, axes: dict) -> None:
+        for a, w in axes.items():
+            if w.kind == "assign" and re.match(r"(?i)\s*(AC|IC|DC|ACP|ACN|CAC|CIC)\s*\(", w.text):
+                raise self.err(f"{a}={w.text.split('(')[0].strip().upper()}(...) is not read by "
+                               "mtcomp (give the position as a value or an expression)")
+
+    def _move(self, g, axes, centre, other) -> None:
+        self._check_axis_words(axes)
+        codes = self._g_codes(g)
+        feed = " ".join(o for o in sorted(other) if o.startswith("F"))
+        tool = " G49" if "D0" in other else ""
+        if self.motion in (2, 3) and (axes or centre):
+            self._arc(axes, centre, codes, feed)
+            return
+        if centre:
+            raise self.err("I, J or K outside a circle G2/G3")
+        if not axes:
+            text = " ".join(t for t in (codes, feed) if t) + tool
+            if text.strip():
+                self.emit(text.strip())
+            return
+        if self.motion is None:
+            raise self.err("a move before any G0/G1/G2/G3")
+        target = self._target(axes)
+        line = " ".join(t for t in (codes, f"G{self.motion}",
+                                    " ".join(f"{a}{fmt(v)}" for a, v in target.items()), feed) if t)
+        self.pos.update(target)
+        if self.modal_call is not None:
+            self._modal_hole(line + tool, axes, target)
+            return
+        self.emit(line + tool, "move")
+
+    def _arc(self, axes, centre, codes, feed) -> None:
+        if self.plane != 17:
+            raise self.err("a circle outside the G17 plane is not read by mtcomp's Sinumerik "
+                           "dialect")
+        if self.pos["X"] is None or self.pos["Y"] is None:
+            raise self.err("a circle from a position the program has not given")
+        if "K" in centre or set(centre) != {"I", "J"}:
+            raise self.err("a circle needs its centre I and J (in the G17 plane)")
+        sx, sy = self.pos["X"], self.pos["Y"]
+        c = []
+        for letter, s in (("I", sx), ("J", sy)):
+            w = centre[letter]
+            m = re.fullmatch(r"(?i)\s*AC\s*\((.*)\)\s*", w.text) if w.kind == "assign" else None
+            if w.kind == "assign" and m is None and re.match(r"(?i)\s*[A-Z]+\s*\(", w.text) \
+                    and not re.match(r"(?i)\s*IC\s*\(", w.text):
+                raise self.err(f"{letter}={w.text[:20]} is not read by mtcomp")
+            if m is not None:
+                c.append(self.value(m.group(1)))
+            else:
+                inner = re.fullmatch(r"(?i)\s*IC\s*\((.*)\)\s*", w.text)
+                c.append(s + self.value(inner.group(1) if inner else w.text))
+        target = self._target(axes)
+        if set(target) - {"X", "Y", "Z"}:
+            raise self.err("a circle with a rotary axis word is not read by mtcomp")
+        end = {"X": sx, "Y": sy, **target}
+        self.pos.update(end)
+        words = " ".join(f"{a}{fmt(end[a])}" for a in ("X", "Y", "Z") if a in end)
+        text = " ".join(t for t in (codes, f"G{self.motion}", words,
+                                    f"I{fmt(c[0] - sx)} J{fmt(c[1] - sy)}", feed) if t)
+        self.emit(text, "arc", centre=(c[0], c[1]), cc_line=self.k)
+
+    # ------------------------------------------------------------------ calls
+    def _call(self, w: Word) -> None:
+        if w.kind == "address":                 # L54: a subprogram not in the file
+            self._unknown(f"L{w.text}")
+        elif w.name in _DRILLING:
+            call = self._drilling(w, modal=False)
+            self._hole(call, self.pos["X"], self.pos["Y"], None)
+        elif w.name == "HOLES2":
+            self._holes2(w)
+        else:
+            self._unknown(w.name)
+
+    def _unknown(self, name: str) -> None:
+        """A subprogram the program does not hold: the controller runs it, mtcomp cannot see its
+        moves: every position and every R parameter is unknown after it (the modes are taken as
+        the subprogram leaves them, restored: SAVE)."""
+        self.out.subprograms.append((self.k, name))
+        self.pos = dict.fromkeys(AXES)
+        for key in list(self.vars):
+            if re.fullmatch(r"R\d+", key):
+                self.vars[key] = None
+        self.r_lost = True
+        self.emit("G43.1")
+
+    def _mcall(self, calls, words, axes) -> None:
+        if axes or len(calls) > 1:
+            raise self.err("MCALL with a move or more than one call is not read by mtcomp")
+        if not calls:
+            self.modal_call = None
+            return
+        w = calls[0]
+        if w.kind == "address" or w.name not in _DRILLING:
+            self.modal_call = w.name if w.kind == "call" else f"L{w.text}"
+            return
+        self.modal_call = self._drilling(w, modal=True)
+
+    def _drilling(self, w: Word, modal: bool) -> Call:
+        """CYCLE81 / CYCLE84 (RTP, RFP, SDIS, DP, DPR, ...): the levels of its holes."""
+        args = split_arguments(w.text)
+        spans, pos = [], w.start
+        for part in w.text.split(","):
+            spans.append((pos, pos + len(part)))
+            pos += len(part) + 1
+        if len(spans) != len(args):           # a comma inside parentheses: no in-place edit
+            spans = []
+        names = ("RTP", "RFP", "SDIS", "DP", "DPR")
+        vals = [self.value(a) if i < len(args) and args[i] else None for i, a in
+                enumerate(args[:5] + [""] * (5 - len(args[:5])))]
+        rtp, rfp, sdis, dp, dpr = vals
+        missing = [n for n, v in zip(names[:2], (rtp, rfp)) if v is None]
+        if missing or (dp is None and dpr is None):
+            raise self.err(f"{w.name} without {', '.join(missing) or 'DP or DPR'}")
+        bottom = rfp - abs(dpr) if dpr is not None else dp
+        sdis = abs(sdis or 0.0)
+        if not rtp >= rfp + sdis > bottom:
+            raise self.err(f"{w.name} whose levels are not RTP >= RFP+SDIS > depth (drilling "
+                           "down along Z) is not read by mtcomp")
+        if self.plane != 17:
+            raise self.err(f"{w.name} outside the G17 plane is not read by mtcomp")
+        call = Call(self.k, w.name, args, spans, modal, rtp, rfp, sdis, bottom)
+        self.out.calls.append(call)
+        return call
+
+    def _modal_hole(self, line: str, axes: dict, target: dict) -> None:
+        """A positioning block under MCALL: its move, then the call at its end."""
+        call = self.modal_call
+        if not isinstance(call, Call):            # another subprogram: its moves are not seen
+            self.emit(line, "move")
+            self._unknown(call)
+            return
+        if set(axes) - {"X", "Y"}:
+            self.emit(line, "approach")
+        self._hole(call, self.pos["X"], self.pos["Y"], None)
+
+    def _hole(self, call: Call, x, y, pattern) -> None:
+        if x is None or y is None:
+            raise self.err(f"a hole of {call.name} at a position the program has not given")
+        g = f"G99 G81 X{fmt(x)} Y{fmt(y)} R{fmt(call.rfp + call.sdis)} Z{fmt(call.bottom)}"
+        self.emit(g, "hole", call=call, pattern=pattern)
+        call.holes.append(len(self.out.gcode) - 1)
+        if pattern is not None:
+            pattern.holes.append(len(self.out.gcode) - 1)
+        self.emit("G80")
+        self.emit(f"G0 Z{fmt(call.rtp)}", "retract")
+        if self.motion not in (0, None):
+            self.emit(f"G{self.motion}")
+        self.pos.update({"X": x, "Y": y, "Z": call.rtp})
+
+    def _holes2(self, w: Word) -> None:
+        """HOLES2(CPA, CPO, RAD, STA1, INDA, NUM): NUM holes on a circle about (CPA, CPO) of
+        radius RAD, the first at the angle STA1 from X, the next INDA further (0: evenly)."""
+        if self.modal_call is None:
+            raise self.err("HOLES2 without a modal call (MCALL) is not read by mtcomp")
+        args = split_arguments(w.text)
+        if len(args) != 6 or not all(args):
+            raise self.err("HOLES2 needs its six values CPA, CPO, RAD, STA1, INDA, NUM")
+        cpa, cpo, rad, sta1, inda, num = (self.value(a) for a in args)
+        n = int(round(num))
+        if n < 1 or n != num:
+            raise self.err("HOLES2 with a number of holes NUM that is not a positive integer")
+        step = 360.0 / n if inda == 0 else inda
+        positions = [(cpa + rad * math.cos(math.radians(sta1 + i * step)),
+                      cpo + rad * math.sin(math.radians(sta1 + i * step))) for i in range(n)]
+        spans, pos = [], w.start
+        for part in w.text.split(","):
+            spans.append((pos, pos + len(part)))
+            pos += len(part) + 1
+        pattern = Pattern(self.k, args, spans, positions, (cpa, cpo), self.motion)
+        self.out.patterns.append(pattern)
+        for x, y in positions:
+            if isinstance(self.modal_call, Call):
+                self._hole(self.modal_call, x, y, pattern)
+                continue
+            # another subprogram called at each position: the move there, then its unseen moves
+            self.emit(f"G0 X{fmt(x)} Y{fmt(y)}", "move", pattern=pattern)
+            pattern.holes.append(len(self.out.gcode) - 1)
+            self._unknown(self.modal_call)
+            if self.motion not in (0, None):
+                self.emit(f"G{self.motion}")
+
+
+def translate(path) -> Translation:
+    """The program at ``path`` as G-code (see the module docstring). Raises InputError naming the
+    line and the construct for what is not read."""
+    reader = _Reader(path)
+    texts = [raw.decode("latin-1").rstrip("\r\n") for raw in read_lines(path)]
+    if texts and texts[0].startswith("\ufeff"):
+        texts[0] = texts[0][1:]
+    for k, text in enumerate(texts):
+        reader.line(k, text)
+    if not reader.out.gcode:
+        raise InputError("no move in the program (Sinumerik)", path)
+    return reader.out

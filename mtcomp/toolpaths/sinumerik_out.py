@@ -1,0 +1,361 @@
+"""A Siemens Sinumerik program written back with corrected coordinates.
+
+The program is read through its G-code equivalent (:mod:`.sinumerik`), planned as any program, and
+written here in its own form: every line is the source line, byte for byte, except the values
+that carry a correction. An axis word given as a number (``X57``) gets the corrected number, with
+at least the source's decimals and at least 4; an axis word given as an expression
+(``Z=WYSSRU+60``) keeps its expression and gets the correction appended (``Z=WYSSRU+60+0.0012``),
+so the variables the programmer wrote stay visible (the controller computes in double precision:
+the written value is exact to far below a micrometre). An axis the block does not name is added
+after its last axis word where its written value changes (never one the program has not
+positioned). A circle's centre ``I=AC(..) J=AC(..)`` (or incremental ``I J``) is moved as a
+Heidenhain ``CC`` is (:mod:`.heidenhain_out`): one centre per circle, kept when the circle lies
+within the chord tolerance of its corrected path, otherwise refused in one line.
+
+A drilling cycle's hole is corrected at its bottom: X Y on the positioning block under ``MCALL``;
+the cycle's reference plane RFP (and an absolute depth DP) moved by the Z correction, in the call's
+line when every hole of the call gets the same; otherwise the call is repeated (``MCALL
+CYCLE81(...)`` with that hole's levels) before each hole whose levels differ. A single call's hole
+(at the position the block before left) gets a positioning block ``X.. Y..`` before the call where
+its corrected position differs from the written one. A ``HOLES2`` circle whose holes share one
+correction gets its centre CPA CPO moved; otherwise it is written as explicit positions, one block
+each. The retract plane RTP is kept as written (a clearance, not a cut). Where lines are added the
+output's first line after the file header says so.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ..io.atomic import atomic_write
+from .heidenhain_out import HeidenhainWriter, plan_blocks
+from .heidenhain import read_lines
+from .sinumerik import AXES, BLOCK_START
+from .sinumerik_lang import code_end, split_words
+from .words import number_decimals
+
+_PLAIN = "0123456789+-. "
+
+
+def _plain(text: str) -> bool:
+    return bool(text.strip()) and all(c in _PLAIN for c in text)
+
+
+def _number(value: float, decimals: int) -> str:
+    s = f"{value:.{decimals}f}"
+    return s.lstrip("-") if float(s) == 0.0 else s
+
+
+def corrected_text(text: str, nominal: float, corrected: float) -> tuple[str, float]:
+    """(the value's new text, the value it says): a plain number is rewritten with at least its
+    decimals and at least 4; an expression gets the correction appended (``A+60`` ->
+    ``A+60+0.0012``); the text stays as it is when the correction rounds to zero."""
+    if _plain(text):
+        number = text.replace(" ", "")
+        dec = max(4, number_decimals(number))
+        t = _number(corrected, dec)
+        if t == _number(float(number), dec):
+            return text, nominal
+        if number.startswith("+") and not t.startswith("-"):
+            t = "+" + t
+        return t, float(t)
+    c = _number(corrected - nominal, 4)
+    if float(c) == 0.0:
+        return text, nominal
+    c = c if c.startswith("-") else "+" + c
+    return text + c, nominal + float(c)
+
+
+def _edit(text: str, edits) -> str:
+    for a, b, t in sorted(edits, reverse=True):
+        text = text[:a] + t + text[b:]
+    return text
+
+
+class SinumerikWriter(HeidenhainWriter):
+    """Writes one Sinumerik program (see the module docstring)."""
+
+    ARC, CENTRE, HINT = "circle G2/G3", "its I J", "a larger --chord-tol-um"
+
+    def __init__(self, src, machine, chord_tol_mm: float):
+        super().__init__(src, machine, chord_tol_mm, translation=src.sinumerik)
+        self.raws = read_lines(src.source)
+        self.texts = [r.decode("latin-1") for r in self.raws]
+        self.orig = list(self.texts)             # the source's lines (the calls' spans)
+        self.restate: dict[int, str] = {}       # a HOLES2 hole -> the call restated before it
+        self.before: dict[int, list] = {}       # source line -> lines inserted before it
+        self.replaced: dict[int, list] = {}     # source line -> the lines written instead
+        self.dz: dict[int, float] = {}          # hole (G-code line index) -> Z correction, mm
+        self.xy: dict[int, np.ndarray] = {}     # hole -> its corrected X Y as written
+        self.dxy: dict[int, np.ndarray] = {}    # a HOLES2 hole -> its X Y correction, mm
+        self.retracts = 0
+        self.added = 0
+        self.zi = self.letters.index("Z")
+
+    # ------------------------------------------------------------------ words
+    def _words(self, text: str):
+        end = code_end(text)
+        start = BLOCK_START.match(text).end()
+        try:
+            return split_words(text, start, end)
+        except ValueError:
+            return []
+
+    def _rewrite(self, i: int, block, end, info, write=None, nominal=None) -> str:
+        """Line i with the axis words of ``end`` (na,) written (see the module docstring);
+        ``write`` (na,) bool: the axes that may be written (default: known); ``nominal`` (na,) the
+        positions the line's words say (default: the block's end)."""
+        nominal = block.end if nominal is None else nominal
+        text = self.texts[i].rstrip("\r\n")
+        ending = self.texts[i][len(text):]
+        words = self._words(text)
+        named = {w.name: w for w in words if w.name in AXES and w.kind in ("address", "assign")}
+        edits, added = [], []
+        for j, letter in enumerate(self.letters):
+            if not block.known[j] or (write is not None and not write[j]):
+                continue
+            u = self._units(j, end[j], info.shift)
+            w = named.get(letter)
+            if w is None:
+                last = self.written[j]
+                t = _number(u, 4)
+                if last == last and _number(self._units(j, last, info.shift), 4) == t:
+                    continue
+                added.append(letter + t)
+                self.written[j] = self._internal(j, float(t), info.shift)
+                continue
+            t, said = corrected_text(w.text, self._units(j, nominal[j], info.shift), u)
+            if t != w.text:
+                edits.append((w.start, w.end, t))
+            self.written[j] = self._internal(j, said, info.shift)
+        if added:
+            last = max([w.end for w in named.values()], default=None)
+            if last is None:
+                last = len(text[:code_end(text)].rstrip())
+                edits.append((last, last, " " + " ".join(added)))
+            else:
+                edits.append((last, last, " " + " ".join(added)))
+        return _edit(text, edits) + ending
+
+    def _centre_text(self, cc: int, centre) -> tuple[str, np.ndarray]:
+        """(line cc with its circle centre (2,) G-code frame, mm, written; the centre it says)."""
+        arc = self.arcs[cc][0]
+        text = self.texts[cc].rstrip("\r\n")
+        ending = self.texts[cc][len(text):]
+        said = np.zeros(2)
+        edits = []
+        named = {w.name: w for w in self._words(text) if w.name in "IJ"}
+        for k, letter in enumerate("IJ"):
+            w = named[letter]
+            head = w.text.strip().upper()[:2] if w.kind == "assign" else ""
+            a, b = w.start, w.end
+            if head in ("AC", "IC"):
+                a, b = w.start + w.text.find("(") + 1, w.start + w.text.rfind(")")
+            col = self.cols[k]
+            start, base = (0.0, 0.0) if head == "AC" else (arc.block.start[col], arc.start_w[col])
+            t, value_said = corrected_text(text[a:b], arc.centre2[k] - start, centre[k] - base)
+            if t != text[a:b]:
+                edits.append((a, b, t))
+            said[k] = value_said + base
+        return _edit(text, edits) + ending, said
+
+    # ------------------------------------------------------------------ blocks
+    def block(self, g: int, block, pts: np.ndarray, _counts=None) -> None:
+        """A motion block of G-code line g (0-based) and its corrected points."""
+        info = self.tr.lines[g]
+        i = info.source
+        if pts.shape[0] > 1 and info.kind != "arc":
+            self.dropped += pts.shape[0] - 1
+        if info.kind == "arc":
+            self._arc(i, block, pts, None, info)
+        elif info.kind == "hole":
+            self._hole(g, i, block, pts[-1], info)
+        elif info.kind == "retract":
+            self.retracts += 1
+            self.written[self.zi] = block.end[self.zi]
+        elif info.pattern is not None:               # a HOLES2 position of another subprogram
+            self.xy[g] = np.array([float(_number(self._units(j, pts[-1][j], info.shift), 4))
+                                   for j in self.cols])
+            self.dxy[g] = (pts[-1] - block.end)[self.cols]
+            self.written[self.cols] = self.xy[g]
+        elif info.kind == "approach":
+            write = np.ones(self.na, bool)
+            write[self.cols] = False
+            self.texts[i] = self._rewrite(i, block, pts[-1], info, write=write)
+        else:
+            self.texts[i] = self._rewrite(i, block, pts[-1], info)
+
+    def _hole(self, g, i, block, end, info) -> None:
+        nominal = block.points[-1]
+        self.dz[g] = float(_number(end[self.zi] - nominal[self.zi], 4))
+        xy = np.array([float(_number(self._units(j, end[j], info.shift), 4)) for j in self.cols])
+        self.xy[g] = xy
+        self.dxy[g] = (end - nominal)[self.cols]
+        if info.pattern is None and info.call.line != i:      # a positioning block under MCALL
+            write = np.zeros(self.na, bool)
+            write[self.cols] = True
+            self.texts[i] = self._rewrite(i, block, end, info, write=write, nominal=nominal)
+        elif info.pattern is None:                             # a single call at the position
+            now = self.written[self.cols]
+            if np.isnan(now).any() or not np.allclose(now, xy, rtol=0, atol=1e-9):
+                words = " ".join(f"{a}{_number(v, 4)}" for a, v in zip("XY", xy))
+                self.before.setdefault(i, []).append(words)
+                self.added += 1
+        self.written[self.cols] = xy
+        self.written[self.zi] = info.call.rtp
+
+    # ------------------------------------------------------------------ cycle calls and patterns
+    def _call_edits(self, call, dz: float) -> dict:
+        """Argument index -> its text with RFP (and DP when the depth is DP's) moved by dz."""
+        edits = {}
+        which = [1] if len(call.args) > 4 and call.args[4] else [1, 3]
+        for n in which:
+            if dz == 0.0 or n >= len(call.args) or not call.args[n] or not call.spans:
+                continue
+            a, b = call.spans[n]
+            nominal = call.rfp if n == 1 else call.bottom
+            edits[n] = corrected_text(self.orig[call.line][a:b], nominal, nominal + dz)[0]
+        return edits
+
+    def _call_line(self, call, dz: float) -> str:
+        """The modal call restated with the levels of a hole corrected by dz."""
+        edits = self._call_edits(call, dz)
+        args = [edits.get(n, self.orig[call.line][a:b]) for n, (a, b) in enumerate(call.spans)]
+        return f"MCALL {call.name}({','.join(args)})"
+
+    def finish(self) -> None:
+        """The cycle calls' levels and the HOLES2 circles, once every hole is planned."""
+        for call in self.tr.calls:
+            holes = [h for h in call.holes if h in self.dz]
+            if not holes:
+                continue
+            if call.modal and len({self.dz[h] for h in holes}) > 1 and not call.spans:
+                raise InputError(f"the holes of {call.name} need different corrections of its "
+                                 "levels, and its arguments cannot be restated", self.src.source,
+                                 line=call.line + 1)
+            force = self.dz[holes[0]]
+            for h in holes[1:]:
+                if call.modal and self.dz[h] != force:
+                    force = self.dz[h]
+                    if self.tr.lines[h].pattern is not None:
+                        self.restate[h] = self._call_line(call, force)
+                    else:
+                        self.before.setdefault(self.tr.lines[h].source, []).append(
+                            self._call_line(call, force))
+                        self.added += 1
+            edits = self._call_edits(call, self.dz[holes[0]])
+            self.texts[call.line] = self._with_ending(call.line, _edit(
+                self.texts[call.line].rstrip("\r\n"),
+                [(*call.spans[n], t) for n, t in edits.items()]))
+        for p in self.tr.patterns:
+            if self._pattern_expands(p):
+                self._expand(p)
+            else:
+                self._shift_centre(p)
+
+    def _pattern_expands(self, p) -> bool:
+        """Whether a HOLES2 circle must be written as explicit positions: its holes' corrections
+        differ (X Y, or Z)."""
+        d = {tuple(_number(v, 4) for v in self.dxy[h]) for h in p.holes}
+        same_xy = len(d) == 1
+        dz = [self.dz[h] for h in p.holes if h in self.dz]
+        return not same_xy or len(set(dz)) > 1 or any(h in self.restate for h in p.holes)
+
+    def _shift_centre(self, p) -> None:
+        """A HOLES2 circle whose holes share one correction: its centre CPA CPO moved by it."""
+        d = [float(_number(v, 4)) for v in self.dxy[p.holes[0]]]
+        text = self.texts[p.line].rstrip("\r\n")
+        edits = []
+        for k in (0, 1):
+            a, b = p.spans[k]
+            t, _said = corrected_text(text[a:b], p.centre[k], p.centre[k] + float(d[k]))
+            if t != text[a:b]:
+                edits.append((a, b, t))
+        self.texts[p.line] = self._with_ending(p.line, _edit(text, edits))
+
+    def _expand(self, p) -> None:
+        text = self.texts[p.line].rstrip("\r\n")
+        call_start = text.upper().rfind("HOLES2", 0, p.spans[0][0])
+        lines = []
+        for n, h in enumerate(p.holes):
+            if h in self.restate:
+                lines.append(self.restate[h])
+            words = " ".join(f"{a}{_number(v, 4)}" for a, v in zip("XY", self.xy[h]))
+            if n == 0 and p.motion not in (0, None):
+                words = "G0 " + words
+            if n == 0:
+                lines.append(text[:call_start] + words + text[p.spans[-1][1] + 1:])
+            else:
+                lines.append(words)
+        if p.motion not in (0, None):
+            lines.append(f"G{p.motion}")
+        self.added += len(lines) - 1
+        self.replaced[p.line] = lines
+
+    def _with_ending(self, i: int, text: str) -> str:
+        return text + self.texts[i][len(self.texts[i].rstrip("\r\n")):]
+
+    def output(self) -> str:
+        """The program's text, with the lines added and a comment saying so."""
+        out = []
+        ending = "\r\n" if self.texts and self.texts[0].endswith("\r\n") else "\n"
+        head = 0
+        while head < len(self.texts) and (self.texts[head].lstrip().startswith("%") or
+                                          self.texts[head].lstrip().upper().startswith(";$PATH")):
+            head += 1
+        for i, text in enumerate(self.texts):
+            if i == head and (self.added or self.replaced):
+                out.append(f"; mtcomp: {self.added} block{'s' if self.added != 1 else ''} added to "
+                           "write corrected holes (a cycle call restated, a hole's position, "
+                           "a HOLES2 circle written as explicit positions)" + ending)
+            own = text[len(text.rstrip("\r\n")):] or ending
+            out.extend(t + own for t in self.before.get(i, []))
+            if i in self.replaced:
+                out.extend(t + own for t in self.replaced[i])
+            else:
+                out.append(text)
+        return "".join(out)
+
+
+def write_corrected(src, out_path, machine, cursor, chord_tol_mm: float, initial_position=None,
+                    *, inch: bool = False, initial_known=None, stats: dict | None = None) -> int:
+    """Write the Sinumerik program of ``src`` (a :class:`~.source.ProgramSource` with its
+    ``sinumerik`` translation) with the corrections of ``cursor`` (see
+    :func:`mtcomp.toolpaths.gcode.write_corrected`); returns the segment rows written."""
+    w = SinumerikWriter(src, machine, chord_tol_mm)
+    rows = plan_blocks(w, src, machine, cursor, chord_tol_mm, initial_position, inch,
+                       initial_known)
+    w.finish()
+    with atomic_write(out_path, "wb") as f:
+        f.write(w.output().encode("latin-1"))
+    _notes(src, w, stats)
+    return rows
+
+
+def _notes(src, w: SinumerikWriter, stats) -> None:
+    subs = src.sinumerik.subprograms
+    if subs:
+        named = ", ".join(f"{name} at line {k + 1}" for k, name in subs[:6])
+        src.notes.append(
+            f"warning: {len(subs)} call{'s' if len(subs) != 1 else ''} of subprograms or cycles "
+            f"not in the file ({named}{', ...' if len(subs) > 6 else ''}): passed through "
+            "uncorrected, every axis unknown after each until the program names it again; the "
+            "modes are taken as before the call (a Siemens subprogram with SAVE restores them)")
+    holes = len(w.dz)
+    if holes:
+        src.notes.append(
+            f"{holes} hole{'s' if holes != 1 else ''} of drilling cycles (CYCLE81, CYCLE84) "
+            "corrected at the bottom: X Y of the hole, the reference plane RFP moved by the Z "
+            f"correction (the depth below it kept); the retract plane RTP kept as written "
+            f"({w.retracts} retract{'s' if w.retracts != 1 else ''}: BLOCKS.csv gives their "
+            "planned correction, not written)")
+    if w.arc_miss >= 1e-4:
+        src.notes.append(f"note: the circles written miss their corrected path by up to "
+                         f"{w.arc_miss * 1e3:.2f} um (within --chord-tol-um {w.tol * 1e3:g})")
+    if stats is not None:
+        stats["cycle_lines"] = 0
+        stats["cycle_blocks"] = 0
+        if subs:
+            first = next(n for n, info in enumerate(src.sinumerik.lines)
+                         if info.source == subs[0][0]) + 1
+            stats["passed_moves"] = {"subprogram": [len(subs), first]}

@@ -1,0 +1,236 @@
+"""The Siemens Sinumerik dialect (mtcomp.toolpaths.sinumerik, sinumerik_out) against hand-derived
+cases, and a compensated program against the independent replay of tests/replay_sinumerik.py."""
+import csv
+import math
+
+import numpy as np
+import pytest
+
+import replay_sinumerik
+from replay import Tolerance
+from mtcomp.cli import main
+from mtcomp.errors import InputError
+from mtcomp.machine import load_machine
+from mtcomp.toolpaths.dialect import detect
+from mtcomp.toolpaths.gcode import iter_segment_chunks, read_program, write_corrected
+from mtcomp.toolpaths.sinumerik import translate
+from mtcomp.toolpaths.source import open_program
+from mtcomp.toolpaths.sinumerik_lang import evaluate
+from mtcomp.toolpaths.sinumerik_out import corrected_text
+from test_gcode_corpus import _machine_file, _model_file
+
+HEAD = "%_N_TEST_MPF\r\n;$PATH=/_N_MPF_DIR\r\n"
+
+
+def _write(tmp_path, body: str, name="t.mpf"):
+    path = tmp_path / name
+    path.write_bytes((HEAD + body.replace("\n", "\r\n")).encode("latin-1"))
+    return path
+
+
+def _blocks(path, machine="xfyz"):
+    return read_program(path, load_machine(machine)).blocks
+
+
+def _source_lines(path, lines):
+    """The source lines (1-based) of lines of the program's G-code equivalent."""
+    with open_program(path) as src:
+        return src.source_lines_of(lines).tolist()
+
+
+def test_a_sinumerik_program_is_detected_from_its_header_or_a_def(tmp_path):
+    d, why = detect(_write(tmp_path, "G0 X1\n"))
+    assert d.name == "sinumerik" and why == "detected from line 1: %_N_TEST_MPF"
+    plain = tmp_path / "p.nc"
+    plain.write_text("N10 DEF REAL A=1\nG0 X=A\n")
+    assert detect(plain)[0].name == "sinumerik"
+
+
+@pytest.mark.parametrize("head", ["%_N_PART_MPF\n;$PATH=/_N_MPF_DIR\nG0 X1\n",
+                                  "%MPF  90\n( SINUMERIK 850 )\nG0 X1\n"])
+def test_the_840d_and_850_headers_are_read_as_sinumerik(tmp_path, head):
+    p = tmp_path / "p.nc"
+    p.write_text(head)
+    with open_program(p) as src:
+        assert src.dialect.name == "sinumerik" and src.sinumerik.gcode == ["G0 X1"]
+
+
+def test_def_real_and_r_parameters_give_the_value_of_an_expression(tmp_path):
+    # A = 12.5, B = 2 * 12.5 + 1. = 26, R1 = (26 - 6) / 4 = 5: by hand
+    path = _write(tmp_path, "DEF REAL A=12.5\nDEF REAL B=A*2+1.\nN10 R1=(B-6)/4\n"
+                            "N20 G0 X=B Y=R1 Z=A+60 F1000\nN30 M30\n")
+    (block,) = _blocks(path)
+    np.testing.assert_allclose(block.end[:3], [26.0, 5.0, 72.5], rtol=0, atol=1e-12)
+    assert _source_lines(path, [block.line]) == [6]     # the source line (1-based)
+    # the manual's functions take degrees
+    assert evaluate("SIN(30)+SQRT(16)", {}.__getitem__) == pytest.approx(4.5, rel=0, abs=1e-15)
+
+
+def test_a_full_circle_about_an_absolute_centre_ends_where_it_starts(tmp_path):
+    # from (0, 140) about (0, 92.07), G3 without an end point: the full circle, radius 47.93
+    path = _write(tmp_path, "DEF REAL H=143.35\nN10 G0 G17 X0 Y140 Z=H F500\n"
+                            "N20 G1 Y140.\nN30 G3 I=AC(0) J=AC(92.07)\nN40 G2 I0 J-47.93\nM30\n")
+    blocks = _blocks(path)
+    for arc, ccw in zip(blocks[-2:], (True, False)):
+        np.testing.assert_allclose(arc.end[:3], [0.0, 140.0, 143.35], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(arc.centre[:2], [0.0, 92.07], rtol=0, atol=1e-12)
+        assert arc.motion == (3 if ccw else 2)
+        # its chords go once around: the point across from the start is on it
+        assert np.min(np.hypot(arc.points[:, 0], arc.points[:, 1] - (92.07 - 47.93))) < 0.5
+
+
+def test_holes2_drills_its_six_holes_on_the_circle(tmp_path):
+    # HOLES2(CPA 0, CPO 0, RAD 10, STA1 0, INDA 60, NUM 6): the holes at 0, 60, ... 300 deg, by
+    # hand (10 cos, 10 sin) with sin 60 = sqrt(3)/2; each drilled to RFP 5 less DPR 3 = 2 (the
+    # G-code equivalent holds 10 decimals)
+    s = 10 * math.sqrt(3) / 2
+    path = _write(tmp_path, "N10 G0 X0 Y0 Z20 F300\nN20 MCALL CYCLE81(15,5,1,,3)\n"
+                            "N30 HOLES2(0,0,10,0,60,6)\nN40 MCALL\nM30\n")
+    holes = [b for b in _blocks(path) if b.cycle is not None]
+    want = [(10, 0), (5, s), (-5, s), (-10, 0), (-5, -s), (5, -s)]
+    np.testing.assert_allclose([b.points[-1][:3] for b in holes],
+                               [(x, y, 2.0) for x, y in want], rtol=0, atol=1e-9)
+    assert all(b.cycle.r_level == pytest.approx(6.0, rel=0, abs=1e-12) for b in holes)
+    # after each hole the tool stands at RTP 15 (the retract the translation adds)
+    moves = replay_sinumerik.replay(path.read_bytes()).moves
+    assert [m.end["Z"] for m in moves if m.line == 4][-1] == 15
+
+
+def test_a_subprogram_not_in_the_file_makes_every_axis_unknown(tmp_path):
+    path = _write(tmp_path, "N10 G0 X1 Y2 Z3 F100\nN20 L54\nN30 X4\nN40 Y5 Z6\nM30\n")
+    blocks = _blocks(path)
+    assert _source_lines(path, [b.line for b in blocks]) == [3, 5, 6]
+    assert blocks[1].known.tolist() == [True, False, False]
+    assert blocks[2].known.tolist() == [True, True, True]
+    # an R parameter the subprogram may have set is refused where a move uses it
+    bad = _write(tmp_path, "N10 R1=5\nN20 L54\nN30 G0 X=R1\n", "r.mpf")
+    with pytest.raises(InputError, match="R1 may hold a value a subprogram set") as e:
+        translate(bad)
+    assert e.value.line == 5
+
+
+@pytest.mark.parametrize("body, line, words", [
+    ("N10 @371 R52 K2 K0\n", 3, "the computation instruction @371"),
+    ("N10 G0 X1\nN20 GOTOF END\n", 4, "program jumps (GOTOF)"),
+    ("/N10 G0 X1\n", 3, "skippable block '/' that moves"),
+    ("N10 G0 X1\nN20 G3 X2 Y2 CR=5\n", 4, "a circle by its radius (CR=)"),
+    ("N10 G91 G0 X1\n", 3, "incremental dimensions G91"),
+])
+def test_what_is_not_read_is_refused_in_one_line(tmp_path, capsys, body, line, words):
+    path = _write(tmp_path, body)
+    out = tmp_path / "out.mpf"
+    machine = _machine_file(tmp_path, "XFYZ")
+    code = main(["compensate", str(machine), str(_model_file(tmp_path, machine)), str(path),
+                 "-o", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and not out.exists()
+    assert len(err) == 1 and f"t.mpf:{line}:" in err[0] and words in err[0], err
+
+
+def test_a_skippable_block_that_moves_nothing_passes(tmp_path):
+    path = _write(tmp_path, "N10 G0 X1 Y1 Z1 F100\n/N20 M90\nN30 X2\nM30\n")
+    assert _source_lines(path, [b.line for b in _blocks(path)]) == [3, 5]
+
+
+@pytest.mark.parametrize("text, nominal, corrected, want", [
+    ("WYSSRU+60", 186.55, 186.5512, ("WYSSRU+60+0.0012", 186.5512)),
+    ("WYSSRU+60", 186.55, 186.54876, ("WYSSRU+60-0.0012", 186.5488)),
+    ("WYSSRU", 126.55, 126.55004, ("WYSSRU", 126.55)),         # rounds to nothing: kept
+    ("57", 57.0, 57.00123, ("57.0012", 57.0012)),
+    ("-8.", -8.0, -8.00004, ("-8.", -8.0)),
+    ("92.07125", 92.07125, 92.0713, ("92.07130", 92.0713)),      # the source's 5 decimals
+])
+def test_a_corrected_word_keeps_its_form(text, nominal, corrected, want):
+    got, said = corrected_text(text, nominal, corrected)
+    assert got == want[0]
+    assert said == pytest.approx(want[1], rel=0, abs=1e-12)
+
+
+PROGRAM = """DEF REAL TOP=40
+N10 T1
+N20 M6
+N30 G0 G54 X10 Y10 Z=TOP+20 F500
+N40 MCALL CYCLE81(TOP+10,TOP,2,,6)
+N50 X120 Y15
+N60 Y80
+N70 X100
+N80 MCALL
+N90 G0 X60 Y60 Z=TOP+30
+N100 CYCLE81(TOP+30,TOP,2,,6)
+N110 MCALL CYCLE81(TOP+10,TOP,2,,6)
+N120 HOLES2(60,60,25,0,90,4)
+N130 MCALL
+N140 G1 X10 Y60 Z=TOP+2
+N150 G3 I=AC(40) J=AC(60)
+N160 G0 Z=TOP+50
+N170 L55
+N180 M30
+"""
+
+
+def test_a_compensated_program_drills_where_the_plan_says(tmp_path, capsys):
+    """The compensated program replayed as the controller runs it (tests/replay_sinumerik.py)
+    drills every hole at the corrected bottom of BLOCKS.csv (each written number rounds to 0.05
+    um), cuts the same circles up to the correction, and writes no axis after the L call."""
+    machine = _machine_file(tmp_path, "XFYZ")
+    model = _model_file(tmp_path, machine, factor=5.0)
+    src = _write(tmp_path, PROGRAM)
+    out, report = tmp_path / "out.mpf", tmp_path / "blocks.csv"
+    code = main(["compensate", str(machine), str(model), str(src), "-o", str(out), "--report",
+                 str(report), "--chord-tol-um", "5", "--units", "mm"])
+    stdout, err = capsys.readouterr()
+    assert code == 0, err
+    assert "1 call of a subprogram not in the file (line 20" in stdout
+    assert "warning: 1 call of subprograms or cycles not in the file (L55 at line 20)" in stdout
+    with open(report, newline="") as f:
+        rows = list(csv.DictReader(f))
+    # the holes' rows: nominal Z at a bottom (RFP 40 less DPR 6 = 34)
+    bottoms = [[float(r[c]) for c in ("x_mm", "y_mm", "z_mm")] for r in rows
+               if r["z_mm"] and abs(float(r["z_mm"]) - float(r["cz_um"]) * 1e-3 - 34) < 1e-9]
+    assert len(bottoms) == 3 + 1 + 4
+    assert max(abs(float(r["cz_um"])) for r in rows if r["cz_um"]) > 1.0   # a Z correction
+    drilled = [[m.end[a] for a in "XYZ"] for m in replay_sinumerik.replay(out.read_bytes()).moves
+               if m.kind == "feed" and m.start["Z"] is not None and m.end["Z"] < m.start["Z"]
+               and m.start["X"] == m.end["X"]]
+    np.testing.assert_allclose(drilled, bottoms, rtol=0, atol=1.5e-4)
+    # HOLES2 with four different corrections is written as explicit positions, and said so
+    text = out.read_text(encoding="latin-1")
+    assert text.splitlines()[2].startswith("; mtcomp:") and "HOLES2(" not in text
+    replay_sinumerik.compare(src.read_bytes(), out.read_bytes(),
+                             Tolerance(axis_mm=0.06, axis_deg=0.1, path_mm=0.1), name="t")
+    # nothing after the L call names an axis
+    assert text.splitlines()[-2:] == ["N170 L55", "N180 M30"]
+
+
+def _shifted(path, machine, shift):
+    """The corrections that move every point by ``shift(points)`` (mm), for write_corrected."""
+    for chunk in iter_segment_chunks(path, machine):
+        yield chunk, chunk.end + shift(chunk.end), np.ones(len(chunk), np.int64)
+
+
+def test_a_holes2_circle_with_one_correction_gets_its_centre_moved(tmp_path):
+    # every point 10 um further in X: the circle's centre CPA 0 becomes 0.0100, the hole depth
+    # and the call stay (no Z correction), the move before gets X10.0100
+    machine = load_machine("xfyz")
+    path = _write(tmp_path, "N10 G0 X10 Y0 Z20 F300\nN20 MCALL CYCLE81(15,5,1,,3)\n"
+                            "N30 HOLES2(0,0,10,0,60,6)\nN40 MCALL\nM30\n")
+    out = tmp_path / "out.mpf"
+    write_corrected(path, out, machine, _shifted(path, machine, lambda p: [0.01, 0, 0]))
+    lines = out.read_text(encoding="latin-1").splitlines()
+    assert lines[2:6] == ["N10 G0 X10.0100 Y0 Z20 F300", "N20 MCALL CYCLE81(15,5,1,,3)",
+                          "N30 HOLES2(0.0100,0,10,0,60,6)", "N40 MCALL"]
+
+
+def test_holes_of_one_call_at_different_depths_restate_the_call(tmp_path):
+    # Z corrected by x / 1000 (mm): the holes at X 10, 20 and 20 need RFP 5.0100, 5.0200, 5.0200:
+    # the call carries the first, is restated before the second, and holds for the third
+    machine = load_machine("xfyz")
+    path = _write(tmp_path, "N10 G0 X0 Y0 Z20 F300\nN20 MCALL CYCLE81(15,5,1,,3)\nN30 X10\n"
+                            "N40 X20\nN50 Y5\nN60 MCALL\nM30\n")
+    out = tmp_path / "out.mpf"
+    write_corrected(path, out, machine, _shifted(path, machine,
+                                                 lambda p: np.outer([0, 0, 1e-3], p[:, 0]).T))
+    lines = out.read_text(encoding="latin-1").splitlines()
+    assert lines[2].startswith("; mtcomp: 1 block added")
+    assert lines[4:9] == ["N20 MCALL CYCLE81(15,5.0100,1,,3)", "N30 X10",
+                          "MCALL CYCLE81(15,5.0200,1,,3)", "N40 X20", "N50 Y5"]
