@@ -297,7 +297,8 @@ def test_f_test_of_penalised_fits_counts_effective_degrees_of_freedom(tmp_path):
     full = identify(ext_model, data, free=ext_model.base_mask | np.isin(ext_model.param_names, ["BL_X"]))
     cmp = base.compare(full)
     assert cmp["df_num"] == pytest.approx(base.dof - full.dof, rel=1e-12)
-    assert full.smoothing is not None and abs(cmp["df_num"] - (full.rank - base.rank)) > 0.1
+    # the two differ by more than the tolerance above: counting ranks would fail it
+    assert full.smoothing is not None and abs(cmp["df_num"] - (full.rank - base.rank)) > 1e-3
     assert cmp["p_value"] < 1e-6
 
 

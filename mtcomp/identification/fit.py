@@ -33,7 +33,9 @@ Method (docs/identification.md):
 * Profiles carry a roughness penalty whose weights REML chooses (:mod:`.penalty`): what the data
   leave open between what they measured follows the smoothest curve.
 * Covariance of the unknowns: the posterior ``s2 D B (B^T Js^T Js B + B^T S B)^-1 B^T D`` with B the
-  directions fitted, S the penalty and ``s2 = sum r^2 / (n_obs - edf)``; standard errors are its
+  directions fitted, S the penalty and ``s2 = sum r^2 / (n_obs - edf)``, less the reversal at
+  targets a laser file reads from both sides (one degree of freedom each: a reversal the model does
+  not hold is error it leaves, not uncertainty of what it fits); standard errors are its
   diagonal. A parameter with weight in an undetermined direction gets std error NaN and
   ``determined = False``.
 
@@ -53,7 +55,7 @@ from ..errors import InputError
 from ..measurement.readings import data_held, data_support
 from ..models.model_file import FittedModel
 from ..models.params import ParameterSet
-from .reversal import data_reversal
+from .reversal import DirectionContrast, data_reversal
 from .unmeasured import record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
 from ._linalg import (NULL_WEIGHT, column_scale, _eliminate, _error_scales, _name_null_space,
                       _relative_singular_values, _seen_columns, _solver, _step, block_obs,
@@ -253,6 +255,7 @@ class _Problem:
         self.gradient_stale = False  # the last Gauss-Newton pass stopped on a step it did not evaluate
         self.held = None            # (directions (n_unknowns, k) scaled, variances (k,)) of the held weak ones
         self.held_assumed = 0       # of those, how many the unmeasured components' assumption fixes
+        self._contrast = None       # reversal.DirectionContrast of the files, made when first needed
 
     # --------------------------------------------------------------- weights
     def unit_weights(self):
@@ -523,9 +526,10 @@ class _Problem:
                 z0 = x / scale
                 AB0 = B1.T @ (A * np.outer(scale, scale)) @ B1
                 before = rho
-                rho, _ = reml_weights(AB0, B1.T @ (scale * g), float(r @ r), SB,
+                rss, n = self._noise_sum_of_squares(r)
+                rho, _ = reml_weights(AB0, B1.T @ (scale * g), rss, SB,
                                       [B1.T @ (S @ z0) for S in Ss], [float(z0 @ S @ z0) for S in Ss],
-                                      self.n_obs, start=rho, ranks=ranks, with_edf=False)
+                                      n, start=rho, ranks=ranks, with_edf=False)
                 if before is not None and np.max(np.abs(rho - before)) < RHO_SETTLED:
                     # the weights at the fit are those the fit used: it stands
                     rho = before
@@ -556,8 +560,7 @@ class _Problem:
         H = AB + self._reduced_penalty(B)
         Hinv = penalised_inverse(H)
         edf = float(np.trace(Hinv @ AB)) if self.S is not None else float(rank)
-        dof = self.n_obs - edf
-        s2 = float(r @ r) / dof if dof > 0 else np.nan
+        s2 = self._residual_variance(r, edf)
         cov = s2 * (scale[:, None] * (B @ Hinv @ B.T) * scale[None, :])
         if P is not None:
             cov = P @ cov @ P.T
@@ -565,6 +568,21 @@ class _Problem:
         if leverage:
             lev = self.leverages(x, w, scale, B, np.linalg.cholesky(H))
         return lev, edf, cov + held_cov, held, held_sd
+
+    def _noise_sum_of_squares(self, r) -> tuple[float, int]:
+        """(sum of squares, number) of the residuals ``r`` that noise makes: all of them, less what a
+        reversal at the laser files' targets read from both sides explains, and one for each such
+        target (:class:`.reversal.DirectionContrast`: a reversal the model does not hold is error it
+        leaves, not noise; REML and the posterior's s2 take it as unpenalised nuisance terms)."""
+        if self._contrast is None:
+            self._contrast = DirectionContrast(self.mms, self.obs_slices)
+        return float(r @ r) - self._contrast.sum_of_squares(r), self.n_obs - self._contrast.n_groups
+
+    def _residual_variance(self, r, edf: float) -> float:
+        """s2 of the posterior: the noise's sum of squares over its number less the edf
+        (:meth:`_noise_sum_of_squares`); NaN without degrees of freedom."""
+        rss, n = self._noise_sum_of_squares(r)
+        return rss / (n - edf) if n - edf > 0 else np.nan
 
     def _reduced_penalty(self, B) -> np.ndarray:
         """B^T S B: the penalty in the directions B (zeros without one)."""

@@ -98,3 +98,54 @@ def data_reversal(datasets) -> dict:
                   "p_value": reversal_p_value(B, n_up, n_down, float(ss.sum()), int(dof.sum())),
                   "n_targets": int(B.size), "files": list(dict.fromkeys(entry["files"]))}
     return out
+
+
+class DirectionContrast:
+    """The reversal a base model does not hold, taken out of its residual variance.
+
+    A base model is the same in both approach directions; where a laser file reads a target from
+    both sides, the readings' mean up minus mean down (the reversal, ISO 230-2) is error the model
+    leaves, not noise: as noise it would make the fitted profile look as uncertain as the reversal
+    is large, though balanced runs fix the profile's mean as well as their repeats allow. Each such
+    target contributes one centred contrast ``c = dir - mean(dir)`` over its readings (the group:
+    one file, column, target and static position of the other axes, every approach direction and
+    run); :meth:`sum_of_squares` is the part of residuals ``r`` those contrasts explain,
+    ``sum_g (c_g . r_g)^2 / (c_g . c_g)``, and :attr:`n_groups` the degrees of freedom it takes. A
+    model that does hold a reversal leaves contrasts of noise alone, and the variance
+    ``(r.r - sum_of_squares) / (dof - n_groups)`` stays an unbiased estimate of it."""
+
+    def __init__(self, mms, obs_slices):
+        from ..measurement.files import LaserData
+        from ..measurement.outliers import setup_keys
+        idx, contrast, group, n = [], [], [], 0
+        for m, so in zip(mms, obs_slices):
+            d = getattr(m, "data", None)
+            if not isinstance(d, LaserData) or m.n_obs == 0:
+                continue
+            _, cols = np.unique(np.asarray(m.obs_column, dtype=str), return_inverse=True)
+            keys = setup_keys(d, directions=False)[m.obs_row] * (cols.max() + 1) + cols
+            _, g = np.unique(keys, return_inverse=True)
+            direction = d.dir[m.obs_row].astype(float)
+            both = (np.bincount(g, weights=direction > 0) > 0) & (np.bincount(g, weights=direction < 0) > 0)
+            keep = both[g]
+            if not keep.any():
+                continue
+            _, g = np.unique(g[keep], return_inverse=True)
+            direction = direction[keep]
+            mean = np.bincount(g, weights=direction) / np.bincount(g)
+            idx.append(np.arange(so.start, so.stop)[keep])
+            contrast.append(direction - mean[g])
+            group.append(g + n)
+            n += int(g.max()) + 1
+        self.n_groups = n
+        self._idx = np.concatenate(idx) if idx else np.zeros(0, dtype=int)
+        self._c = np.concatenate(contrast) if contrast else np.zeros(0)
+        self._g = np.concatenate(group) if group else np.zeros(0, dtype=int)
+
+    def sum_of_squares(self, r: np.ndarray) -> float:
+        """The part of the sum of squares of ``r`` (n_obs,) the groups' contrasts explain."""
+        if not self.n_groups:
+            return 0.0
+        num = np.bincount(self._g, weights=self._c * r[self._idx], minlength=self.n_groups)
+        den = np.bincount(self._g, weights=self._c ** 2, minlength=self.n_groups)
+        return float(np.sum(num ** 2 / den))

@@ -36,19 +36,25 @@ class Outlier:
                 f"({self.deviation:+.3g} off the median of its repeats)")
 
 
-def setup_keys(data: MeasurementSet) -> np.ndarray | None:
+def setup_keys(data: MeasurementSet, directions: bool = True) -> np.ndarray | None:
     """(n,) integer id of each row's set-up (everything but the run, time and the reading): rows with
-    the same id are repeats. None for kinds without that structure (only laser and points files)."""
+    the same id are repeats. ``directions=False`` leaves the approach directions out of the set-up
+    (rows read at one target from both sides share an id). None for kinds without that structure
+    (only laser and points files)."""
     if not isinstance(data, (LaserData, PointsData)):
         return None
     ctx = data.context
-    parts = [np.round(np.nan_to_num(ctx.feed, nan=-1.0), 3)[:, None], ctx.dirs.astype(float)]
+    parts = [np.round(np.nan_to_num(ctx.feed, nan=-1.0), 3)[:, None]]
+    if directions:
+        parts.append(ctx.dirs.astype(float))
     if isinstance(data, LaserData):
         parts += [np.unique(data.axis, return_inverse=True)[1][:, None].astype(float),
                   np.unique(data.component, return_inverse=True)[1][:, None].astype(float),
-                  np.round(data.target, 9)[:, None], data.dir.astype(float)[:, None],
-                  np.round(np.nan_to_num(data.xyz, nan=-1e9), 6), np.round(np.nan_to_num(data.abc, nan=-1e9), 9),
-                  np.round(data.optic, 6)]
+                  np.round(data.target, 9)[:, None]]
+        if directions:
+            parts.append(data.dir.astype(float)[:, None])
+        parts += [np.round(np.nan_to_num(data.xyz, nan=-1e9), 6),
+                  np.round(np.nan_to_num(data.abc, nan=-1e9), 9), np.round(data.optic, 6)]
     else:
         parts += [np.round(data.xyz, 6), np.round(data.abc, 9), np.round(np.nan_to_num(data.tool, nan=-1.0), 6)[:, None]]
     return row_groups(np.hstack(parts))
