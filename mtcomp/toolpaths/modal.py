@@ -117,8 +117,7 @@ class ModalState:
         self.local = IDENTITY
         table = getattr(path, "local_frames", None)
         self.local_frames = table if table is not None else []
-        #: G92 (:mod:`.frames`): the axes given since the start or their last home move, whose
-        #: shift is in force ('G52', 'G92' or ''), the axes the line read declared
+        #: G92 (.frames): axes given since their last home move, 'G52'/'G92' shift, axes declared
         self.was_known = self.known.copy()
         self.shift_by = ""
         self.declared: list[int] = []
