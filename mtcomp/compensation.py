@@ -489,11 +489,12 @@ def _to_program_frame(res, chunk, off, setup) -> None:
         exact = chunk.end - res.nominal
         res.nominal += exact
         res.corrected += exact
-        return
-    ends = np.cumsum(res.counts) - 1
-    exact = chunk.end - res.nominal[ends]
-    res.nominal[ends] += exact
-    res.corrected[ends] += exact
+    else:
+        ends = np.cumsum(res.counts) - 1
+        exact = chunk.end - res.nominal[ends]
+        res.nominal[ends] += exact
+        res.corrected[ends] += exact
+    res.corrected = setup.written(chunk, res.corrected, res.nominal, res.counts)
 
 
 def compensate_program(fitted, program, output, settings: CompensationSettings, setup=None,

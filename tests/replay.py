@@ -9,8 +9,12 @@ back), drilling cycles G73 and G81-G89 expanded into their moves (to X Y at the 
 the R plane, to the bottom, back to R with G99 or to the higher of R and the initial level with
 G98; under G91 R from the series' initial level and Z from R, L repeats), G28/G30 and G53 moves
 leave the axes they move (G28/G30 without axis words: every axis) at an unknown position, so do a
-tool change or tool length change (Z) and a change of work coordinate system (every axis); G92 sets
-the named axes; G10 L2/L20 set a work system's origin (the active system's position moves by the
+tool change or tool length change (Z) and a change of work coordinate system (every axis); G92
+declares the named axes' positions by an offset of every work system (the old position less the
+value where the position is known, 0 where it is not: the same unknown in a program and its
+compensated version), G92.1/G92.2 set the offsets to 0 (the positions then read the work
+system's), and the moves are given in the work system (program position plus that offset); G10
+L2/L20 set a work system's origin (the active system's position moves by the
 change where the old origin is known, else becomes unknown; after L20 the named axes read the
 given values, and where their position was unknown, as after grbl's homing `$H`, the new origin
 is the operator's, from outside the program); G4 dwells and moves too when the block has axis
@@ -86,6 +90,7 @@ class _State:
     wcs: str = "G54"
     arc_absolute: bool = False   # G90.1: I J K are the centre's position
     offsets: dict = field(default_factory=dict)   # (wcs, axis) -> offset set by G10 L2/L20
+    g92: dict = field(default_factory=lambda: {a: 0.0 for a in LINEAR})   # G92 offsets, mm
     rrf: bool = False            # a RepRapFirmware program: its strings and macro codes
 
 
@@ -153,10 +158,22 @@ def replay(data: bytes, units_mm: bool = True) -> Replay:
             st.pos = {a: None for a in AXES}
         moves = [] if (not code or code[0] in "%:$") else _block(st, index, _words(code))
         if moves:
-            out.moves.extend(moves)
+            out.moves.extend(_in_work_system(m, st.g92) for m in moves)
         else:
             out.still.append((index, raw))
     return out
+
+
+def _in_work_system(move, g92):
+    """A move with its positions (and arc centre) in the work system: plus the G92 offsets."""
+    def placed(pos):
+        return {a: v if v is None or a not in LINEAR else v + g92[a] for a, v in pos.items()}
+    centre = move.centre
+    if centre is not None:
+        first, second = _PLANES[move.plane][:2]
+        centre = (centre[0] + g92[first], centre[1] + g92[second])
+    return Move(move.line, move.kind, placed(move.start), placed(move.end), move.plane, centre,
+                move.sweep)
 
 
 def _value(st, letter, v):
@@ -221,7 +238,16 @@ def _block(st, index, words):
     if 92 in gs:
         for letter, v in words:
             if letter in AXES:
-                st.pos[letter] = _value(st, letter, v)
+                v = _value(st, letter, v)
+                old = st.pos[letter]
+                st.g92[letter] = 0.0 if old is None else st.g92[letter] + old - v
+                st.pos[letter] = v
+        return []
+    if 92.1 in gs or 92.2 in gs:
+        for a in LINEAR:
+            if st.pos[a] is not None:
+                st.pos[a] += st.g92[a]
+            st.g92[a] = 0.0
         return []
     if 10 in gs:            # G10 L..: the axis words are data, not a move (G4 is a dwell only)
         _g10(st, words)

@@ -51,13 +51,13 @@ REFUSED = {
                                   "Nested comment found"],
     "cluck2sesame_2-Spool.nc": ["2-Spool.nc:12:", "comment '(' holds parentheses",
                                 "Nested comment found"],
-    # G92 before any move (`G92 z50 x-10`, `G92 Y200 z50`): the offset makes wherever the machine
-    # happens to stand the given position, so the machine positions of every later move depend on
-    # a place the program does not name; grbl runs it, but no correction can be computed for it
-    "cncwebsim_fresa.gcode": ["fresa.gcode:5:", "G92 (coordinate system offset",
-                              "give the offset as a work offset G54-G59 instead"],
-    "cncwebsim_fresa2.cnc": ["fresa2.cnc:6:", "G92 (coordinate system offset",
-                             "give the offset as a work offset G54-G59 instead"],
+    # G92 before any move (`G92 z50 x-10`, `G92 Y200 z50`) is followed (its offset assumed 0,
+    # said once); these two are refused further on. fresa.gcode ends line 98 with a byte 0x01
+    # (grbl 1.1's protocol.c throws control characters away; mtcomp refuses it). fresa2.cnc has
+    # `G1 X145 Y-36.4 R20`: grbl 1.1 refuses an R word a G1 does not use (gcode.c, unused value
+    # words, error 36), as mtcomp does
+    "cncwebsim_fresa.gcode": ["fresa.gcode:98:", "unexpected character"],
+    "cncwebsim_fresa2.cnc": ["fresa2.cnc:145:", "R word in a G1 block"],
 }
 #: the share of the corpus accepted today (117 of 125: 0.936); the goal is 95 %
 MIN_ACCEPTED = 0.93

@@ -217,7 +217,7 @@ def test_home_moves_and_dwell(tmp_path):
     ("X10\n", 1, "without a motion mode"),
     ("G0 G1 X1\n", 1, "two motion codes"),
     ("G0 X1 X2\n", 1, "appears twice"),
-    ("G92 X0\n", 1, "G92"),
+    ("G92.3\n", 1, "G92.3"),
     # moves that stop where a signal comes: the position after them is not the program's (a corrected
     # later block once carried the probe's target Z)
     ("G0 X10 Y0 Z5\nG38.2 Z-10 F100\nG1 X20 Y3\n", 2, "G38.2 .probing move"),

@@ -3,7 +3,10 @@
 The C source ``_fast_gcode.c`` handles the common lines (``N.. G0/G1 X.. Y.. Z.. F..``, with
 comments and words such as M, S, T that do not touch the geometry) and hands every other line back
 to :class:`~mtcomp.toolpaths.modal.ModalState`, which is kept in step through a small state vector;
-the writer hands those lines to :mod:`.writer`'s formatting. It is compiled once with the system C
+the writer hands those lines to :mod:`.writer`'s formatting. A line with any G code but G0/G1
+(``G52``, ``G92`` ...) goes back to Python, which follows the frame it sets; the rows after it are
+read here again, carrying the frame code the state vector holds (the offsets themselves are looked
+up by line, :mod:`.frames`). It is compiled once with the system C
 compiler (``$CC`` or ``gcc``) into a per-user cache folder (``$XDG_CACHE_HOME/mtcomp`` or
 ``~/.cache/mtcomp``) and loaded with ctypes. Without a compiler, or with ``MTCOMP_NO_FAST_GCODE=1``
 in the environment, the pure-Python path runs instead (:mod:`.gcode` chooses). The tests check

@@ -7,6 +7,13 @@ manual):
 * ``G52 X Y Z`` (LinuxCNC, Fanuc): the local coordinate system, shifted by the given amounts from
   the work system's origin; ``G52 X0 Y0 Z0`` cancels it. Nothing moves: the program's position of
   the named axes changes by the shift, and stays known.
+* ``G92 X Y Z`` (every dialect): the named axes' current positions declared to have the given
+  coordinates, by an offset of every work system; ``G92.1``/``G92.2`` cancel it. A known position
+  gives the offset exactly (the old position less the value: the same shift as a G52 of that
+  amount, and on LinuxCNC the same offset); at a position the program has not given, the offset is
+  assumed 0 (as an unstated work offset), said once in the notes. The compensated program's
+  G92 line is the source's, so its offset is set where the *corrected* tool stands: off by the
+  correction there, which the written words after it take back (:func:`output_shifts`).
 * ``G68 X Y R`` (Fanuc, Haas; G17 only): the program's X Y turned by R degrees counter-clockwise
   about the centre X Y (the current position where the block gives none); ``G69`` cancels it.
 * ``G51.1 X Y Z`` / ``G50.1`` (Fanuc) and ``G101`` / ``G100`` (Haas): the named axes mirrored about
@@ -51,6 +58,11 @@ class LocalFrame:
     matrix: tuple = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
     centre: tuple = (0.0, 0.0, 0.0)
     mirrored: tuple = (False, False, False)
+    #: what the line that set this frame did to the shared offset of X Y Z in the *output*, where
+    #: it differs from the program's (G92 at a known position): 0 nothing, 1 set from where the
+    #: tool stands (the output stands off by the correction there), 2 set to a given value (G52,
+    #: G92 at a position not given, G92.1/G92.2: the output's offset is the program's)
+    g92: tuple = (0, 0, 0)
     _m: np.ndarray = field(default=None, repr=False, compare=False)
 
     def __post_init__(self):
@@ -181,7 +193,10 @@ class FrameCodes:
         self.refuse_other_axes("G52")
         if not self.axes:
             raise self.err("G52 without axis words is not supported")
-        shift = list(cur.shift)
+        if self.s.shift_by == "G92" and d.name != "linuxcnc":
+            raise self.err("G52 while a G92 offset is in force (LinuxCNC shares their offsets; "
+                           f"how {d.name} composes them is not followed) is not supported")
+        shift, codes = list(cur.shift), [0, 0, 0]
         self.s.position = self.s.position.copy()     # the last block's end is not moved with it
         for k, c in enumerate("XYZ"):
             if c in self.values:
@@ -191,7 +206,53 @@ class FrameCodes:
                 self.s.position[i] -= new - shift[k]
                 self.s.shift_frame(i, shift[k] - new)
                 shift[k] = new
-        return LocalFrame(tuple(shift))
+                codes[k] = 2
+        self.s.shift_by = "G52" if any(shift) else ""
+        return LocalFrame(tuple(shift), g92=tuple(codes))
+
+    def g92(self, cur: LocalFrame) -> LocalFrame:
+        """G92: the named axes' positions declared (nothing moves). A known position moves the
+        offset by the old position less the value; one the program has not given is assumed to
+        have offset 0 (its program coordinate taken as the machine's, plus the work offset)."""
+        s = self.s
+        self.check_common("G92")
+        if cur.kind:
+            raise self.err("G92 while G68, a mirror image or scaling is in force (the order of the "
+                           "two is not followed) is not supported")
+        if s.incremental:
+            raise self.err("G92 under G91 (whether its values are increments differs between "
+                           "controllers) is not supported")
+        self.refuse_other_axes("G92")
+        if not self.axes:
+            raise self.err("G92 without axis words is not supported")
+        if s.shift_by == "G52" and s.dialect.name != "linuxcnc":
+            raise self.err(f"G92 while G52 is in force (LinuxCNC shares their offsets; how "
+                           f"{s.dialect.name} composes them is not followed) is not supported")
+        shift, codes, assumed = list(cur.shift), [0, 0, 0], []
+        s.position = s.position.copy()     # the last block's end is not moved with it
+        for k, c in enumerate("XYZ"):
+            if c not in self.values:
+                continue
+            i, new = s.xyz_index[k], self.values[c] * self.scale
+            if s.known[i]:
+                s.shift_frame(i, new - s.position[i])
+                shift[k] += s.position[i] - new
+                codes[k] = 1
+            elif s.was_known[i]:
+                raise self.err(f"G92 {c} where the program has lost the position of {c} after "
+                               "giving it (a tool change, a change of work system or offset: the "
+                               "compensated program stands off there by a correction not known) "
+                               f"is not supported (move {c} first, or home it)")
+            else:
+                shift[k], codes[k] = 0.0, 2
+                s.known[i] = True
+                assumed.append(c)
+            s.position[i] = new
+            s.declared.append(i)
+        if assumed:
+            _note_assumed(s, assumed, self.line)
+        s.shift_by = "G92"
+        return LocalFrame(tuple(shift), g92=tuple(codes))
 
     def g68(self, cur: LocalFrame) -> LocalFrame:
         s = self.s
@@ -378,7 +439,7 @@ def _mirror_frame(shift, signs, centre) -> LocalFrame:
 
 
 #: the G codes of frame changes the reader follows where the dialect has them
-FRAME_G = frozenset({52, 68, 69, 51, 50, 51.1, 50.1, 101, 100})
+FRAME_G = frozenset({52, 92, 68, 69, 51, 50, 51.1, 50.1, 101, 100})
 
 
 def apply_frame_code(state, g: float, values: dict, tokens, line: int) -> None:
@@ -388,6 +449,11 @@ def apply_frame_code(state, g: float, values: dict, tokens, line: int) -> None:
     cur = state.local
     if g == 52:
         new = fc.g52(cur)
+    elif g == 92:
+        # recorded even where the program's offset stays: the output's is set where it stands
+        state.local = fc.g92(cur)
+        record(state.local_frames, line, state.local)
+        return
     elif g == 68:
         new = fc.g68(cur)
     elif g == 69:
@@ -434,9 +500,16 @@ def check_cycle(state, line: int) -> None:
 
 def mode_change(state, what: str, line: int) -> None:
     """A mode change that meets a frame the program moved: ``what`` 'wcs' (another work system),
-    'g92' (G92.1/G92.2: LinuxCNC's G52 shares G92's offsets, so they cancel it), 'tcp' (tool centre
-    point mode on) or 'plane' (G17/G18/G19 under G68, which the Fanuc manual forbids)."""
+    'g92' (G92.1/G92.2: the G92 offset cancelled, and LinuxCNC's G52, which shares it), 'tcp'
+    (tool centre point mode on) or 'plane' (G17/G18/G19 under G68, which the Fanuc manual
+    forbids)."""
     f = state.local
+    if what == "g92" and not f.kind and (state.shift_by != "G52"
+                                         or state.dialect.name == "linuxcnc"):
+        # the offsets are 0 in the output too (recorded even where the program's were)
+        record(state.local_frames, line, LocalFrame(g92=(2, 2, 2)))
+        state.local, state.shift_by = IDENTITY, ""
+        return
     if f.identity:
         return
     if what == "plane":
@@ -447,13 +520,67 @@ def mode_change(state, what: str, line: int) -> None:
     if what == "tcp":
         raise state._err("tool centre point mode while G52, G68, a mirror image or scaling is in "
                          "force is not supported", line)
-    linuxcnc = state.dialect.name == "linuxcnc" and not f.kind
-    if what == "g92" and linuxcnc:
-        set_frame(state, IDENTITY, line)
-    elif what == "wcs" and linuxcnc:
-        return                   # LinuxCNC's G52 offset applies in every work system
-    else:
-        name = "G92.1/G92.2" if what == "g92" else "a change of work system"
-        raise state._err(f"{name} while G52, G68, a mirror image or scaling is in force "
-                         "(controllers differ whether it keeps, moves or cancels it) is not "
-                         "supported", line)
+    if what == "wcs" and not f.kind and (state.dialect.name == "linuxcnc"
+                                         or state.shift_by == "G92"):
+        return        # LinuxCNC's G52 and every controller's G92 offset apply in every system
+    name = "G92.1/G92.2" if what == "g92" else "a change of work system"
+    raise state._err(f"{name} while G52, G68, a mirror image or scaling is in force "
+                     "(controllers differ whether it keeps, moves or cancels it) is not "
+                     "supported", line)
+
+
+def follow_given(state) -> None:
+    """Before a line: which axes the program has given since the start or since their last home
+    or machine-coordinate move (``state.was_known``). Where such an axis is lost again (a tool
+    change, another work system), the compensated program stands there off by the last
+    correction, so a G92 of it cannot be followed."""
+    if state.passed_move is not None and state.passed_move[0] in ("home", "machine"):
+        state.was_known &= state.known
+    state.was_known |= state.known
+
+
+def _note_assumed(state, axes: list, line: int) -> None:
+    """Say once, in the program's notes, that a G92 at positions not given is taken with offset 0."""
+    notes = getattr(state._source, "notes", None)
+    if notes is None:
+        return
+    names = " ".join(axes)
+    note = (f"assumed: G92 at line {state._where(line)[1]} sets {names} where the program has not "
+            f"given the position: its offset of {names} = 0 (the program's coordinates after it "
+            "taken as machine axis positions, plus the work offset); where the machine stands "
+            "elsewhere, add the offset to --work-offset")
+    if note not in notes:
+        notes.append(note)
+
+
+def output_shifts(table: list, done: int, lines: np.ndarray, ends_correction: np.ndarray,
+                  shift: np.ndarray, last: np.ndarray) -> tuple[np.ndarray, int]:
+    """(n, 3) how far the compensated program's shared (G92) offset of X Y Z stands from the
+    source's at each row, and the entries of ``table`` handled so far.
+
+    A G92 at a known position sets the offset where the tool stands; in the output the tool stands
+    there off by the correction of the block before (``ends_correction`` (n, 3), the rows' end
+    corrections in the program's frame, ``last`` (3,) the one before the first row), so the
+    output's offset is off by that correction, and the words written after it must take it back.
+    G52, G92 at a position not given and G92.1/G92.2 set the same offset in both. ``shift`` (3,)
+    the difference before the rows (updated in place); ``done`` the entries already applied. An
+    entry after the last row waits for the next rows."""
+    snapshot = list(table)
+    n = len(lines)
+    out = np.empty((n, 3))
+    pos = 0
+    while done < len(snapshot):
+        line, frame = snapshot[done]
+        r = int(np.searchsorted(lines, line, side="right"))
+        if r == n:
+            break
+        out[pos:r] = shift
+        before = ends_correction[r - 1] if r > 0 else last
+        for k, code in enumerate(frame.g92):
+            if code == 1:
+                shift[k] = before[k]
+            elif code == 2:
+                shift[k] = 0.0
+        pos, done = r, done + 1
+    out[pos:] = shift
+    return out, done

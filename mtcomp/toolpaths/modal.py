@@ -22,7 +22,8 @@ from ._arcs import (PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, cent
 from .blocks import CycleBlock, MotionBlock
 from .cycle_rules import cycle_move, cycle_unclear, incremental_r_level, retract_level
 from .dialect import GENERIC, grbl_program_end
-from .frames import FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle, mode_change
+from .frames import (FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle, follow_given,
+                     mode_change)
 from .linetext import text_with_words
 from .programmed import ProgrammedOffsets, apply_g10
 from .rrf import macro_codes
@@ -116,6 +117,10 @@ class ModalState:
         self.local = IDENTITY
         table = getattr(path, "local_frames", None)
         self.local_frames = table if table is not None else []
+        #: G92 (.frames): axes given since their last home move, 'G52'/'G92' shift, axes declared
+        self.was_known = self.known.copy()
+        self.shift_by = ""
+        self.declared: list[int] = []
         self._line = 0
 
     def _init_cycles(self) -> None:
@@ -166,6 +171,7 @@ class ModalState:
         are found: flags cleared, lines without words (all after M2/M30 but on grbl, which resets
         its modes and runs on) pass, words read, G/M codes change modes, axis words checked, feed
         set; then a home move, a drilling cycle or a motion block."""
+        follow_given(self)
         self._clear_line_flags()
         self._line = line
         if self.ended and self.dialect.name == "grbl":
@@ -232,6 +238,7 @@ class ModalState:
         self.passed_move = None
         #: how far G52 or a G10 moved the program's coordinates on this line (the writer follows)
         self.frame_shift = None
+        self.declared = []
 
     def shift_frame(self, i: int, delta: float) -> None:
         """The program's coordinate of axis i moved by ``delta`` on this line, the machine still."""

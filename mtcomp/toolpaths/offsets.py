@@ -33,7 +33,7 @@ import numpy as np
 from ..errors import InputError
 from ..machine import Machine
 from .blocks import SegmentChunk
-from .frames import frames_of_rows, placed_by_frames
+from .frames import frames_of_rows, output_shifts, placed_by_frames
 from .tcp import axes_of_tcp, tcp_of_axes
 from .words import WORK_SYSTEMS, frame_local, frame_offset_set, frame_tcp, frame_tool, frame_wcs
 
@@ -59,6 +59,9 @@ class ProgramSetup:
     programmed_wcs: set = field(default_factory=set)
     #: the frame changes of the program last applied (``source.local_frames``, :mod:`.frames`)
     local_frames: list = field(default_factory=list, repr=False)
+    #: the program's ``local_frames`` written last, the compensated program's G92 offset less the
+    #: source's (X Y Z, mm), the entries applied, the correction of the last row (:meth:`written`)
+    _g92: tuple = field(default=(None,), repr=False)
 
     def _offset_table(self) -> np.ndarray:
         table = np.zeros((len(WORK_SYSTEMS), self.machine.n_axes))
@@ -100,6 +103,9 @@ class ProgramSetup:
         tool = frame_tool(chunk.frame)
         self.used_tools.update(t for t in np.unique(tool).tolist() if t > 0)
         off = self._row_offsets(chunk, wcs, source)
+        table = getattr(source, "local_frames", None)
+        if table is not None:
+            self.local_frames = table
         lengths = np.full(len(chunk), np.nan)
         for h, length in self.tool_lengths.items():
             lengths[tool == h] = length
@@ -159,6 +165,30 @@ class ProgramSetup:
                 rows = rows & local
                 rows = rows if one else np.repeat(rows, counts)
                 out[rows] = frame.to_program(out[rows], xyz)
+        return out
+
+    def written(self, chunk: SegmentChunk, corrected: np.ndarray, nominal: np.ndarray,
+                counts: np.ndarray) -> np.ndarray:
+        """The corrected program positions (:meth:`to_program`'s, ``counts`` a row) as the words
+        to write: after a G92 at a known position the compensated program's offset stands off by
+        the correction where it was set (its G92 line is the source's, read where the corrected
+        tool stands), so that correction is taken off every later word of the axis
+        (:func:`~.frames.output_shifts`). Called once a chunk, in program order."""
+        table = self.local_frames
+        if not table:
+            return corrected
+        if self._g92[0] is not table:          # a new program: nothing applied yet
+            self._g92 = (table, np.zeros(3), 0, np.zeros(3))
+        _table, shift, done, last = self._g92
+        xyz = [self.machine.index(c) for c in "XYZ"]
+        ends = np.cumsum(counts) - 1
+        corr = (corrected[ends] - nominal[ends])[:, xyz]
+        rows, done = output_shifts(table, done, chunk.line, corr, shift, last)
+        self._g92 = (table, shift, done, corr[-1].copy())
+        if not rows.any():
+            return corrected
+        out = np.array(corrected, dtype=float)
+        out[:, xyz] -= rows if len(ends) == out.shape[0] else np.repeat(rows, counts, axis=0)
         return out
 
     def notes(self) -> list[str]:

@@ -57,9 +57,8 @@ def mode_followed(gi: int, letters) -> bool:
     return gi in MODE_ONLY_G
 #: G codes that would change geometry in a way mtcomp does not follow: refused, never guessed
 _REFUSED_G = {
-    92: "G92 (coordinate system offset set by the program; give the offset as a work offset G54-G59 "
-        "instead)",
-    92.3: "G92.3 (restored coordinate system offset)",
+    92.3: "G92.3 (the G92 offset restored from the controller's parameters, which may come from "
+          "outside the program)",
     95: "G95 (feed per revolution)",
     74: "canned cycle G74 (left-hand tapping)", 76: "canned cycle G76 (threading)",
     33: "G33 (spindle-synchronised motion)",

@@ -644,6 +644,9 @@ def write_pass_through(f, raw: bytes, state: ModalState, out: OutputState, separ
         # G52 or a G10 of the active work system: the machine stays, the program's coordinates of
         # it move, and so do the output's (an incremental word after it starts from there)
         out.values += state.frame_shift
+    if state.declared:
+        # G92: the output's axes read the declared values too, wherever it stands
+        out.values[state.declared] = state.position[state.declared]
     if state.distance_sensitive and state.incremental and not state.tapping:
         _follow_increments(raw, state, out)
     lost = ~state.known
