@@ -168,3 +168,17 @@ def test_diagnose_records_the_reversal_its_data_show(tmp_path, capsys):
     rec = json.loads((tmp_path / "m.json").read_text())["info"]["reversal"]
     assert rec["X"]["B_mean_um"] == pytest.approx(-25.0, abs=0.5)
     assert rec["X"]["p_value"] < REVERSAL_P
+
+
+def test_identify_says_what_the_data_show_of_a_reversal(tmp_path, capsys):
+    """identify prints the same one line as export and compensate when its data reverse (here
+    -25 um at every target), and none when they do not."""
+    for reversal, said in ((-25.0, True), (0.0, False)):
+        folder = tmp_path / f"r{int(-reversal)}"
+        folder.mkdir()
+        data = _laser(folder, lambda t, r=reversal: r)
+        assert main(["identify", "xfyz", str(data), "-o", str(folder / "m.json")]) == 0
+        lines = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("note: the data show a reversal")]
+        assert len(lines) == (1 if said else 0), lines
+        if said:
+            assert re.search(r"X -25\.\d um", lines[0]), lines[0]

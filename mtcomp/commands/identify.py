@@ -75,5 +75,9 @@ def run(args) -> int:
     print(result.summary(verbose=args.verbose, components=component_lines(result.fitted_model),
                          targets=laser_target_tables(result.fitted_model, datasets, machine,
                                                      verbose=args.verbose)))
+    from ..export import reversal_note
+    reversal = reversal_note(result.fitted_model)
+    if reversal:
+        print(f"note: {reversal}")
     print(f"\nwrote {out}")
     return 0
