@@ -25,7 +25,6 @@ from ..errors import InputError
 from ..machine import Machine
 from ..models.chain import ErrorModel
 from ..models.model_file import FittedModel
-from ..models.params import ParameterSet
 from . import _analysis as an
 from ._analysis import cv_threshold
 from ._candidates import Candidate, generate, temperature_regression
@@ -34,7 +33,6 @@ from ._linalg import Design, rms
 from ._selection import (BIC_MARGIN, MIN_EXCESS_SHARE, _axis_ties, _backward,  # noqa: F401
                          _drop_undetermined_offsets, _forward_in_time, _joint_abbe, _parsimony)
 from ._stack import Stack, build_stack
-from ._covariance import _cov_diag, _uncertainty
 from .result import UNIT_KEYS, Diagnosis, Finding, _r
 
 #: the held-out rms may exceed the noise floor by this factor (times the inflation expected of a right
@@ -48,11 +46,6 @@ MAX_FINDINGS = 6
 def _common_block(st: Stack) -> np.ndarray:
     base = np.flatnonzero(st.probe.base_mask)
     return np.hstack([st.J[:, base], st.D])
-
-
-def _setup_columns(st: Stack) -> np.ndarray:
-    """(m,) bool: the common block's set-up (nuisance) columns, which follow the base's."""
-    return np.r_[np.zeros(int(st.probe.base_mask.sum()), dtype=bool), np.ones(st.D.shape[1], dtype=bool)]
 
 
 def _theta0(st: Stack) -> np.ndarray:
@@ -224,9 +217,8 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     if sel.chosen:
         design = _backward_selection(st, design, sel, say)
     chosen, findings, current = sel.chosen, sel.findings, sel.current
-    final_metrics = _metrics(st, current, n_base + sum(c.columns.shape[1] for c in chosen))
     verdict, finer = _what_remains(st, design, sel, noise, noise_main, may_refine, say)
-    model = _fitted_model(st, design, chosen, current)
+    model, final_metrics = _final_model(st, design, chosen, values, folds, say)
     diag = Diagnosis(verdict, noise, base_metrics, findings, final_metrics, model, how, len(st),
                      rejected=sel.rejected, reference=reference)
     diag.folds_of_observations = folds
@@ -627,43 +619,44 @@ def _unexplained(st, fit, structure, excess, noise_main, inflation: float = 1.0)
     return Finding("unexplained", axis, params, evidence, h, h, None, unit=_heldout_unit(st))
 
 
-def _fitted_model(st: Stack, design: Design, chosen: list[Candidate], fit) -> FittedModel:
+def _final_model(st: Stack, design: Design, chosen: list[Candidate], values: dict, folds, say):
+    """(FittedModel, the report's ``final`` figures): the base and the chosen terms fitted again
+    with the roughness penalty (:mod:`._penalised`), on knots finer than the data's spacing where
+    the data read an axis at few positions; its rms and held-out rms are that model's."""
+    from ._linalg import RCOND
+    from ._penalised import fine_machine, penalised_fit
     terms = []
     for c in chosen:
         for t in c.terms:
             if t.key() not in {x.key() for x in terms}:
                 terms.append(t)
-    model = ErrorModel(st.machine, terms)
-    params = ParameterSet(model.param_specs)
-    base = [n for n, s in zip(st.probe.param_names, st.probe.param_specs) if s.base]
-    m = design.A_original.shape[1]
-    theta = fit.theta
-    std = np.full(model.n_params, np.nan)
-    # standard errors from the weighted normal matrix (noise variance 1 after weighting)
-    extra = np.hstack([c.columns for c in chosen]) if chosen else np.zeros((design.n, 0))
-    cov_diag = _cov_diag(design, extra)
-    for i, name in enumerate(base):
-        params[name] = theta[i]
-        std[params.index(name)] = cov_diag[i]
-    k = m
-    for c in chosen:
-        for j, name in enumerate(c.params):
-            if name in params:
-                params[name] = theta[k + j]
-                std[params.index(name)] = cov_diag[k + j]
-        k += c.columns.shape[1]
-    params.std_errors = np.sqrt(np.where(np.isfinite(std), std, np.nan))
+    machine = fine_machine(st.machine, st.datasets, len(st))
+    refined = {a.name for a, b in zip(machine.axes, st.machine.axes) if a != b}
+    model = ErrorModel(machine, terms)
+    # the start model's values of what the finer knots keep (a spline coefficient of a refined axis
+    # is another function's)
+    specs = dict(zip(model.param_names, model.param_specs))
+    start = {n: v for n, v in values.items()
+             if n in specs and not (_is_spline(n) and refined & set(specs[n].group.split(":")))}
+    fit = penalised_fit(st, design.w, model, start, folds, RCOND)
+    res = fit.result
+    metrics = _metrics(st, fit, model.n_params)
+    metrics["edf"] = _r(res.smoothing.edf - len(st.nuisance_names)) if res.smoothing is not None else None
+    say(f"final model fitted with the roughness penalty ({model.n_params} parameters"
+        + (f", knots refined along {', '.join(sorted(refined))}" if refined else "")
+        + f"): rms {metrics['rms_um']} um, held-out {metrics['heldout_rms_um']} um")
+    fitted = res.fitted_model
     info = {"fitted_by": "mtcomp diagnose",
-            "nuisance": {n: float(v) for n, v in zip(st.nuisance_names, theta[len(base):m])}}
+            "nuisance": {n: float(v) for n, v in zip(res.unknown_names[int(res.free.sum()):],
+                                                     res.nuisance_values)},
+            "smoothing": res.smoothing.to_dict() if res.smoothing is not None else None}
     feats = sorted({f for c in chosen for f in c.info.get("features", [])})
     if feats:
         info["drift_features"] = feats
-    names, theta_idx, k = list(base), list(range(len(base))), m
-    for c in chosen:
-        for j, name in enumerate(c.params):
-            if name in params and name not in names:
-                names.append(name)
-                theta_idx.append(k + j)
-        k += c.columns.shape[1]
-    uncertainty = _uncertainty(model, design, extra, names, theta_idx, ~_setup_columns(st))
-    return FittedModel(model, params, {}, info, uncertainty=uncertainty)
+    return FittedModel(model, fitted.params, {}, info, uncertainty=fitted.uncertainty), metrics
+
+
+def _is_spline(name: str) -> bool:
+    """A spline coefficient (``EXX_b3``, ``BL_X_b3``): its function depends on the axis's knots."""
+    tail = name.rsplit("_", 1)[-1]
+    return tail[:1] == "b" and tail[1:].isdigit()

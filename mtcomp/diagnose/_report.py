@@ -279,6 +279,11 @@ def summary(diag, details=()) -> str:
     rank = getattr(diag, "rank", None)
     dof = (f", {rank} of them determined by the data, {diag.n_obs - rank} degrees of freedom left"
            if rank is not None else "")
+    if fz.get("edf") is not None:
+        # the penalised fit spends its effective degrees of freedom, not its rank
+        used = fz["edf"] + fz.get("n_nuisance", 0)
+        dof = (f", {fz['n_determined']} combinations determined by the data, {fz['edf']:.4g} effective "
+               f"degrees of freedom, {diag.n_obs - used:.4g} left; roughness penalty")
     lines.append(f"final model ({fz['n_params']} parameters{dof}): rms {_num(fz.get('rms_um'))} um, "
                  f"held-out {_num(fz.get('heldout_rms_um'))} um"
                  + _other_units(fz))

@@ -1,0 +1,84 @@
+"""The model diagnose writes is the penalised fit: between measured targets its profile follows the
+smoothest curve through them, and its standard error says where it rests on the penalty.
+
+The truth is a positioning profile written here (a sine and a slope, sharing no code with mtcomp's
+models), read by a laser at coarse targets with seeded noise; the oracle is that truth itself.
+"""
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+
+from mtcomp.diagnose import diagnose
+from mtcomp.identification.predict import predict_readings
+from mtcomp.machine import load_machine
+from mtcomp.measurement.files import read_measurements
+
+TARGETS = np.arange(0.0, 201.0, 20.0)       # mm: a pitch table's coarse targets
+NOISE_UM = 0.4
+
+
+def truth_um(x):
+    """The true positioning error of X, um: a 70 mm wave, 3.5 targets a period."""
+    return 9.0 * np.sin(2.0 * np.pi * x / 70.0 + 0.4) + 0.03 * x
+
+
+def _write(path, rows):
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["axis", "component", "target_mm", "dir", "run", "value_um"])
+        w.writerows(rows)
+
+
+@pytest.fixture(scope="module")
+def diagnosed(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("penalised")
+    rng = np.random.default_rng(20261)
+    rows = []
+    for run in range(1, 6):
+        for d in (1, -1):
+            for x in TARGETS[::d]:
+                rows.append(["X", "EXX", f"{x:.3f}", d, run, f"{truth_um(x) + rng.normal(0, NOISE_UM):.5f}"])
+    _write(tmp / "runs.csv", rows)
+    machine = load_machine("xfyz")
+    d = diagnose(machine, [read_measurements(tmp / "runs.csv")])
+    grid = np.arange(0.0, 200.5, 1.0)
+    _write(tmp / "grid.csv", [["X", "EXX", f"{x:.3f}", 1, 1, ""] for x in grid])
+    pred = predict_readings(d.model, read_measurements(tmp / "grid.csv"), machine)
+    return d, grid, pred.columns["pred_value_um"], pred.columns["pred_value_um_sd"]
+
+
+def test_between_targets_the_profile_stays_within_its_standard_error_of_the_truth(diagnosed):
+    d, grid, value, sd = diagnosed
+    assert [f.effect for f in d.findings] == []        # nothing beyond the base is in the data
+    at = np.isin(grid, TARGETS)
+    # a new file's zero is unknown to the model: compare up to the mean offset at the targets
+    offset = np.mean(value[at] - truth_um(grid[at]))
+    err = value - offset - truth_um(grid)
+    mid = np.isin(grid, TARGETS[:-1] + 10.0)
+    assert np.all(np.isfinite(sd))
+    assert np.max(np.abs(err[mid]) / sd[mid]) < 3.0, np.abs(err[mid]) / sd[mid]
+    # and the curve between targets is the truth's to a small share of its 18 um swing
+    assert np.max(np.abs(err)) < 3.0, np.max(np.abs(err))
+
+
+def test_standard_error_grows_between_targets(diagnosed):
+    _, grid, _, sd = diagnosed
+    at = np.isin(grid, TARGETS)
+    mid = np.isin(grid, TARGETS[:-1] + 10.0)
+    # every midpoint's sd above the larger of its two targets' (the data are there, not between)
+    sd_at = sd[at]
+    assert np.all(sd[mid] > 1.2 * np.maximum(sd_at[:-1], sd_at[1:])), (sd[mid], sd_at)
+
+
+def test_the_report_describes_the_penalised_model(diagnosed):
+    d, _, _, _ = diagnosed
+    fin = d.final
+    # the penalised fit spends fewer effective degrees of freedom than it has parameters, and its
+    # rms residual is that of the model written: the readings' noise, not less
+    assert 0 < fin["edf"] < fin["n_params"]
+    assert fin["rms_um"] == pytest.approx(NOISE_UM, rel=0.3, abs=0.0)
+    assert fin["heldout_rms_um"] >= fin["rms_um"]
+    assert d.model.info["smoothing"]["criterion"] == "REML"
