@@ -197,6 +197,9 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     say = progress or (lambda s: None)
     if not datasets:
         raise InputError("no measurement files given")
+    # the axes whose knots the data choose (not fixed by the machine file or a start model)
+    free_knots = {a.name for a in (start.model.machine if start is not None else machine).axes
+                  if a.basis_from_data}
     machine, values = _base_machine(machine, datasets, start, refine)
     datasets, outliers = _without_outliers(datasets, say)
     st = build_stack(machine, datasets)
@@ -218,7 +221,7 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
         design = _backward_selection(st, design, sel, say)
     chosen, findings, current = sel.chosen, sel.findings, sel.current
     verdict, finer = _what_remains(st, design, sel, noise, noise_main, may_refine, say)
-    model, final_metrics = _final_model(st, design, chosen, values, folds, say)
+    model, final_metrics = _final_model(st, design, chosen, values, folds, free_knots, say)
     diag = Diagnosis(verdict, noise, base_metrics, findings, final_metrics, model, how, len(st),
                      rejected=sel.rejected, reference=reference)
     diag.folds_of_observations = folds
@@ -619,10 +622,12 @@ def _unexplained(st, fit, structure, excess, noise_main, inflation: float = 1.0)
     return Finding("unexplained", axis, params, evidence, h, h, None, unit=_heldout_unit(st))
 
 
-def _final_model(st: Stack, design: Design, chosen: list[Candidate], values: dict, folds, say):
+def _final_model(st: Stack, design: Design, chosen: list[Candidate], values: dict, folds,
+                 free_knots: set, say):
     """(FittedModel, the report's ``final`` figures): the base and the chosen terms fitted again
     with the roughness penalty (:mod:`._penalised`), on knots finer than the data's spacing where
-    the data read an axis at few positions; its rms and held-out rms are that model's."""
+    the data read an axis at few positions (of the axes ``free_knots``, whose knots the data
+    choose); its rms and held-out rms are that model's."""
     from ._linalg import RCOND
     from ._penalised import fine_machine, penalised_fit
     terms = []
@@ -630,7 +635,7 @@ def _final_model(st: Stack, design: Design, chosen: list[Candidate], values: dic
         for t in c.terms:
             if t.key() not in {x.key() for x in terms}:
                 terms.append(t)
-    machine = fine_machine(st.machine, st.datasets, len(st))
+    machine = fine_machine(st.machine, st.datasets, len(st), free_knots)
     refined = {a.name for a, b in zip(machine.axes, st.machine.axes) if a != b}
     model = ErrorModel(machine, terms)
     # the start model's values of what the finer knots keep (a spline coefficient of a refined axis

@@ -40,8 +40,9 @@ class PenalisedFit:
         return self.data_rank
 
 
-def fine_machine(machine, datasets, rows: int):
-    """``machine`` with the linear axes the data read at few positions on knots
+def fine_machine(machine, datasets, rows: int, axes: set):
+    """``machine`` with the linear axes among ``axes`` (names: those whose knots the data choose,
+    not the machine file or a start model) that the data read at few positions on knots
     ``KNOTS_PER_SPACING`` to the median spacing of those positions (within the knots' range), at
     most ``MAX_BASIS`` functions per axis and within the fit's size budget (rows times the square of
     the functions summed over the linear axes, :data:`mtcomp.models.basis.FIT_SIZE_BUDGET`). An axis
@@ -51,7 +52,8 @@ def fine_machine(machine, datasets, rows: int):
     positions = data_positions(machine, datasets)
     wanted = {}
     for a in machine.axes:
-        if a.is_rotary or a.basis != "bspline" or a.spline_range is None or a.name not in positions:
+        if (a.is_rotary or a.basis != "bspline" or a.spline_range is None or a.name not in positions
+                or a.name not in axes):
             continue
         lo, hi = a.spline_range
         s = np.unique(np.round(positions[a.name][np.isfinite(positions[a.name])], 3))
@@ -71,9 +73,9 @@ def fine_machine(machine, datasets, rows: int):
     k = 1.0
     while wanted and k > 0.05 and rows * total(k) ** 2 > FIT_SIZE_BUDGET:
         k *= 0.8
-    axes = tuple(replace(a, spline_intervals=max(wanted[a.name][0], int(k * wanted[a.name][1])))
+    fine = tuple(replace(a, spline_intervals=max(wanted[a.name][0], int(k * wanted[a.name][1])))
                  if a.name in wanted else a for a in machine.axes)
-    return replace(machine, axes=axes)
+    return replace(machine, axes=fine)
 
 
 def penalised_fit(st, w: np.ndarray, model, start: dict, folds: np.ndarray, rcond: float) -> PenalisedFit:
