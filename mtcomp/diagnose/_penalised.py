@@ -84,7 +84,9 @@ def penalised_fit(st, w: np.ndarray, model, start: dict, folds: np.ndarray, rcon
     value, internal units; others from zero), each file weighted by its noise floor (``w``, (n,) the
     selection's weights, 1 / noise of each of the stack's observations); held out by ``folds``
     ((n,) fold of each of the stack's observations)."""
-    from ..identification.problem import build_measurement_models
+    from ..identification.problem import build_measurement_models, unique_tags
+    from ..measurement.drift import drift_context
+    from ..measurement.readings import measurement_model
     datasets = st.datasets
     weights = _file_noise(st, w)
     p0 = np.array([start.get(n, 0.0) for n in model.param_names], dtype=float)
@@ -95,13 +97,15 @@ def penalised_fit(st, w: np.ndarray, model, start: dict, folds: np.ndarray, rcon
     cv = np.full(len(st), np.nan)
     for k in np.unique(folds):
         out = folds == k
-        kept = []
-        for fi, d in enumerate(datasets):
+        sub = []
+        for fi, (d, tag) in enumerate(zip(datasets, unique_tags(datasets))):
             keep = np.ones(len(d), dtype=bool)
             keep[np.unique(st.row[(st.file == fi) & out])] = False
             if keep.any():
-                kept.append(d.subset(keep))
-        sub = build_measurement_models(model, kept)
+                # drift features computed on the whole file (a time since its first reading must not
+                # move when the fold leaves that reading out)
+                ctx = {n: v[keep] for n, v in drift_context(model, d).items()}
+                sub.append(measurement_model(model, d.subset(keep), None, tag=tag, extra_context=ctx))
         if sum(m.n_obs for m in sub) == 0:
             continue
         fold = _solve(model, sub, p0, weights, rcond)
