@@ -97,10 +97,11 @@ def penalised_fit(st, w: np.ndarray, model, start: dict, folds: np.ndarray, rcon
     cv = np.full(len(st), np.nan)
     for k in np.unique(folds):
         out = folds == k
-        sub = []
+        sub, keeps = [], []
         for fi, (d, tag) in enumerate(zip(datasets, unique_tags(datasets))):
             keep = np.ones(len(d), dtype=bool)
             keep[np.unique(st.row[(st.file == fi) & out])] = False
+            keeps.append(keep)
             if keep.any():
                 # drift features computed on the whole file (a time since its first reading must not
                 # move when the fold leaves that reading out)
@@ -109,9 +110,13 @@ def penalised_fit(st, w: np.ndarray, model, start: dict, folds: np.ndarray, rcon
         if sum(m.n_obs for m in sub) == 0:
             continue
         fold = _solve(model, sub, p0, weights, rcond)
-        # the fold's set-ups (a file the fold leaves without readings keeps the full fit's)
+        # each file's set-up refitted, at the fold's parameters, on the readings the fold keeps in
+        # the whole file's own terms (a thermal file reads drift since its first row, a set-up
+        # rotates about the points' centre: the fold's subset has its own first row and centre)
         fixed = dict(zip(fold.unknown_names[int(fold.free.sum()):], fold.nuisance_values))
-        cv[out] = _residuals(mms, fold.values, _nuisance(result, mms, fixed))[order][out]
+        kept = np.concatenate([keep[m.obs_row] for m, keep in zip(mms, keeps)])
+        nuisance = _setups_on_kept(mms, fold.values, _nuisance(result, mms, fixed), kept)
+        cv[out] = _residuals(mms, fold.values, nuisance)[order][out]
     data_rank = int(np.sum(result.singular_values > rcond))
     return PenalisedFit(result, resid, cv, data_rank)
 
@@ -144,6 +149,30 @@ def _nuisance(result, mms, fixed: dict) -> list:
     """Each file's set-up values: ``fixed``'s by name, else the fit ``result``'s."""
     full = dict(zip(result.unknown_names[int(result.free.sum()):], result.nuisance_values))
     return [np.array([fixed.get(n, full.get(n, 0.0)) for n in m.nuisance_names]) for m in mms]
+
+
+def _setups_on_kept(mms, values, nuisance: list, kept: np.ndarray, iterations: int = 3) -> list:
+    """Each file's set-up (``nuisance``, the start) fitted by Gauss-Newton at the parameters
+    ``values`` on its observations ``kept`` ((n,) bool over every file's observations in file
+    order; residuals in reading units, um or urad); a file with none kept keeps its start."""
+    out, k = [], 0
+    for m, nu in zip(mms, nuisance):
+        sel = kept[k:k + m.n_obs]
+        k += m.n_obs
+        nu = np.array(nu, dtype=float)
+        if not sel.any() or nu.size == 0:
+            out.append(nu)
+            continue
+        scale = np.where(m.obs_unit_scale == 1.0, 1e3, m.obs_unit_scale)[sel]
+        for _ in range(iterations):
+            pred, _, Jn = m.predict_and_jacobian(values, nu)
+            r = (m.observed - pred)[sel] * scale
+            step = np.linalg.lstsq(Jn[sel] * scale[:, None], r, rcond=None)[0]
+            nu = nu + step
+            if np.max(np.abs(step), initial=0.0) < 1e-12:
+                break
+        out.append(nu)
+    return out
 
 
 def _residuals(mms, values, nuisance: list) -> np.ndarray:
