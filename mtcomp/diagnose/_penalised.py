@@ -10,9 +10,9 @@ solve`) with the roughness penalty on every profile, a reversal profile included
 spacing, so that between what was measured a profile follows the smoothest curve through it, and
 the posterior standard error grows where it rests on the penalty rather than on data.
 
-Its held-out figure refits the same penalised problem without each fold (whole runs, as the
-selection holds them out) and predicts the fold's readings, each file's set-up fitted on the
-readings the fold keeps.
+Its held-out figure refits the same penalised problem, at the penalty weights chosen on all data,
+without each fold (whole runs, as the selection holds them out) and predicts the fold's readings,
+each file's set-up fitted on the readings the fold keeps (:func:`_held_out`).
 """
 from __future__ import annotations
 
@@ -83,42 +83,106 @@ def penalised_fit(st, w: np.ndarray, model, start: dict, folds: np.ndarray, rcon
     (``st.datasets``) with the roughness penalty, every parameter free, from ``start`` (name ->
     value, internal units; others from zero), each file weighted by its noise floor (``w``, (n,) the
     selection's weights, 1 / noise of each of the stack's observations); held out by ``folds``
-    ((n,) fold of each of the stack's observations)."""
-    from ..identification.problem import build_measurement_models, unique_tags
-    from ..measurement.drift import drift_context
-    from ..measurement.readings import measurement_model
-    datasets = st.datasets
+    ((n,) fold of each of the stack's observations: :func:`_held_out`)."""
+    from ..identification.problem import build_measurement_models
     weights = _file_noise(st, w)
     p0 = np.array([start.get(n, 0.0) for n in model.param_names], dtype=float)
-    mms = build_measurement_models(model, datasets)
+    mms = build_measurement_models(model, st.datasets)
     result = _solve(model, mms, p0, weights, rcond)
     order = _stack_order(st, mms)
     resid = _residuals(mms, result.values, _nuisance(result, mms, {}))[order]
-    cv = np.full(len(st), np.nan)
-    for k in np.unique(folds):
-        out = folds == k
-        sub, keeps = [], []
-        for fi, (d, tag) in enumerate(zip(datasets, unique_tags(datasets))):
-            keep = np.ones(len(d), dtype=bool)
-            keep[np.unique(st.row[(st.file == fi) & out])] = False
-            keeps.append(keep)
-            if keep.any():
-                # drift features computed on the whole file (a time since its first reading must not
-                # move when the fold leaves that reading out)
-                ctx = {n: v[keep] for n, v in drift_context(model, d).items()}
-                sub.append(measurement_model(model, d.subset(keep), None, tag=tag, extra_context=ctx))
-        if sum(m.n_obs for m in sub) == 0:
-            continue
-        fold = _solve(model, sub, p0, weights, rcond)
-        # each file's set-up refitted, at the fold's parameters, on the readings the fold keeps in
-        # the whole file's own terms (a thermal file reads drift since its first row, a set-up
-        # rotates about the points' centre: the fold's subset has its own first row and centre)
-        fixed = dict(zip(fold.unknown_names[int(fold.free.sum()):], fold.nuisance_values))
-        kept = np.concatenate([keep[m.obs_row] for m, keep in zip(mms, keeps)])
-        nuisance = _setups_on_kept(mms, fold.values, _nuisance(result, mms, fixed), kept)
-        cv[out] = _residuals(mms, fold.values, nuisance)[order][out]
+    cv = _held_out(st, result, mms, weights, folds, order)
     data_rank = int(np.sum(result.singular_values > rcond))
     return PenalisedFit(result, resid, cv, data_rank)
+
+
+def _held_out(st, result, mms, weights: dict, folds: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """(n,) each of the stack's readings predicted by the penalised fit refitted without its fold
+    (every reading of a row the fold touches left out), reading minus prediction, um or urad.
+
+    The refit keeps the penalty weights REML chose on all data and is exact for the problem
+    linearised at the full fit: a penalised least-squares fit is a linear smoother, and the
+    residuals of the readings o it leaves out are ``(I - H_oo)^-1 r_o`` (r the full fit's weighted
+    residuals, H_oo the block of its hat matrix, ``J_o C J_o^T`` with C the posterior covariance
+    over the residual variance; Wood 2017, the leave-one-out identity of a linear smoother, for a
+    group). Each file's set-up is refitted on the readings the fold keeps, in the whole file's own
+    terms (a thermal file reads drift since its first reading, a tracker's turn is about the centre
+    of all its points); the set-up of a file the fold leaves without readings keeps the full fit's."""
+    J, sigma, nuis_cols = _weighted_jacobian(result, mms, weights)
+    M = _posterior_inverse(result, mms, J)
+    r = np.asarray(result.residual, dtype=float)
+    # each observation's file and row, as integer keys
+    big = 1 + max(int(st.row.max(initial=0)), max((int(m.obs_row.max(initial=0)) for m in mms), default=0))
+    obs_key = np.concatenate([i * big + np.asarray(m.obs_row, dtype=np.int64) for i, m in enumerate(mms)])
+    stack_key = st.file.astype(np.int64) * big + st.row.astype(np.int64)
+    cv = np.full(len(st), np.nan)
+    for k in np.unique(folds):
+        o = np.isin(obs_key, stack_key[folds == k])
+        if not o.any():
+            continue
+        Mk = M
+        # a file with no reading left keeps its set-up (the refit cannot move it)
+        fixed = np.concatenate([nuis_cols[i] for i, m in enumerate(mms) if nuis_cols[i].size
+                                and o[_file_slice(mms, i)].all()] or [np.zeros(0, dtype=int)])
+        if fixed.size:
+            Mk = M - M[:, fixed] @ np.linalg.pinv(M[np.ix_(fixed, fixed)]) @ M[fixed, :]
+        Jo = J[o]
+        H = Jo @ Mk @ Jo.T
+        lev, V = np.linalg.eigh(0.5 * (H + H.T))
+        # a direction only the fold's readings fix (leverage 1) cannot be refitted without them
+        inv = np.where(lev < 1.0 - 1e-9, 1.0 / np.clip(1.0 - lev, 1e-9, None), 1.0)
+        e = V @ (inv * (V.T @ r[o])) * sigma[o]
+        full = np.full(len(r), np.nan)
+        full[o] = e
+        cv[folds == k] = full[order][folds == k]
+    return cv
+
+
+def _posterior_inverse(result, mms, J: np.ndarray) -> np.ndarray:
+    """(n_unknowns, n_unknowns) the inverse of the penalised normal matrix ``J^T J + S`` in the
+    directions the fit moved in (``result.directions``; zero across the rest, which the fit held),
+    internal units; J the weighted Jacobian at the fit and S the roughness penalty at the weights
+    REML chose (each class's penalty normalised as the fit normalises it): the posterior covariance
+    over the residual variance, also where the fit reports a parameter as undetermined."""
+    from ..identification._linalg import column_scale
+    from ..identification.fit import _Problem
+    A = J.T @ J
+    D = np.asarray(result.directions, dtype=float)
+    P = A.copy()
+    if result.smoothing is not None:
+        stacked = _Problem(result.model, mms, result.free, None)
+        scale = column_scale(A)
+        for cls, S in stacked.scaled_penalties(A, scale).items():
+            if cls in result.smoothing.weights:
+                P += result.smoothing.weights[cls] * S / np.outer(scale, scale)
+    H = D.T @ P @ D
+    return D @ np.linalg.pinv(0.5 * (H + H.T), hermitian=True) @ D.T
+
+
+def _file_slice(mms, i: int) -> slice:
+    start = sum(m.n_obs for m in mms[:i])
+    return slice(start, start + mms[i].n_obs)
+
+
+def _weighted_jacobian(result, mms, weights: dict):
+    """((n_obs, n_unknowns) Jacobian of the weighted residuals' predictions at the fit ``result``,
+    in the order of its unknowns; (n_obs,) each reading's noise (the file's, um or urad); per file
+    the indices of its set-up among the unknowns)."""
+    index = {n: i for i, n in enumerate(result.unknown_names)}
+    nuisance = _nuisance(result, mms, {})
+    blocks, sigma, cols = [], [], []
+    for m, nu in zip(mms, nuisance):
+        _, Jp, Jn = m.predict_and_jacobian(result.values, nu)
+        scale = np.where(m.obs_unit_scale == 1.0, 1e3, m.obs_unit_scale)
+        s = weights[m.tag]
+        Jfull = np.zeros((m.n_obs, len(result.unknown_names)))
+        Jfull[:, :int(result.free.sum())] = Jp[:, result.free]
+        c = np.array([index[n] for n in m.nuisance_names], dtype=int)
+        Jfull[:, c] = Jn
+        blocks.append(Jfull * (scale / s)[:, None])
+        sigma.append(np.full(m.n_obs, s))
+        cols.append(c)
+    return np.vstack(blocks), np.concatenate(sigma), cols
 
 
 def _solve(model, mms, p0, weights: dict, rcond: float):
@@ -149,30 +213,6 @@ def _nuisance(result, mms, fixed: dict) -> list:
     """Each file's set-up values: ``fixed``'s by name, else the fit ``result``'s."""
     full = dict(zip(result.unknown_names[int(result.free.sum()):], result.nuisance_values))
     return [np.array([fixed.get(n, full.get(n, 0.0)) for n in m.nuisance_names]) for m in mms]
-
-
-def _setups_on_kept(mms, values, nuisance: list, kept: np.ndarray, iterations: int = 3) -> list:
-    """Each file's set-up (``nuisance``, the start) fitted by Gauss-Newton at the parameters
-    ``values`` on its observations ``kept`` ((n,) bool over every file's observations in file
-    order; residuals in reading units, um or urad); a file with none kept keeps its start."""
-    out, k = [], 0
-    for m, nu in zip(mms, nuisance):
-        sel = kept[k:k + m.n_obs]
-        k += m.n_obs
-        nu = np.array(nu, dtype=float)
-        if not sel.any() or nu.size == 0:
-            out.append(nu)
-            continue
-        scale = np.where(m.obs_unit_scale == 1.0, 1e3, m.obs_unit_scale)[sel]
-        for _ in range(iterations):
-            pred, _, Jn = m.predict_and_jacobian(values, nu)
-            r = (m.observed - pred)[sel] * scale
-            step = np.linalg.lstsq(Jn[sel] * scale[:, None], r, rcond=None)[0]
-            nu = nu + step
-            if np.max(np.abs(step), initial=0.0) < 1e-12:
-                break
-        out.append(nu)
-    return out
 
 
 def _residuals(mms, values, nuisance: list) -> np.ndarray:
