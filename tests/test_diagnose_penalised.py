@@ -82,3 +82,22 @@ def test_the_report_describes_the_penalised_model(diagnosed):
     assert fin["rms_um"] == pytest.approx(NOISE_UM, rel=0.3, abs=0.0)
     assert fin["heldout_rms_um"] >= fin["rms_um"]
     assert d.model.info["smoothing"]["criterion"] == "REML"
+
+
+def test_left_out_residuals_are_those_of_a_fit_without_the_readings():
+    """The held-out figure's identity against its definition: a penalised least-squares fit solved
+    again, by numpy, without the readings left out (random design, penalty and readings)."""
+    from mtcomp.diagnose._penalised import left_out_residuals
+    rng = np.random.default_rng(7)
+    n, k = 60, 12
+    X = rng.normal(size=(n, k))
+    D = np.diff(np.eye(k), 2, axis=0)
+    S = 3.0 * D.T @ D                                   # a second-difference roughness penalty
+    y = X @ rng.normal(size=k) + rng.normal(0, 0.3, n)
+    M = np.linalg.inv(X.T @ X + S)
+    r = y - X @ (M @ X.T @ y)
+    out = np.zeros(n, dtype=bool)
+    out[rng.choice(n, 15, replace=False)] = True
+    b = np.linalg.solve(X[~out].T @ X[~out] + S, X[~out].T @ y[~out])
+    np.testing.assert_allclose(left_out_residuals(X[out], M, r[out]), y[out] - X[out] @ b,
+                               rtol=1e-9, atol=1e-12)

@@ -126,16 +126,22 @@ def _held_out(st, result, mms, weights: dict, folds: np.ndarray, order: np.ndarr
                                 and o[_file_slice(mms, i)].all()] or [np.zeros(0, dtype=int)])
         if fixed.size:
             Mk = M - M[:, fixed] @ np.linalg.pinv(M[np.ix_(fixed, fixed)]) @ M[fixed, :]
-        Jo = J[o]
-        H = Jo @ Mk @ Jo.T
-        lev, V = np.linalg.eigh(0.5 * (H + H.T))
-        # a direction only the fold's readings fix (leverage 1) cannot be refitted without them
-        inv = np.where(lev < 1.0 - 1e-9, 1.0 / np.clip(1.0 - lev, 1e-9, None), 1.0)
-        e = V @ (inv * (V.T @ r[o])) * sigma[o]
         full = np.full(len(r), np.nan)
-        full[o] = e
+        full[o] = left_out_residuals(J[o], Mk, r[o]) * sigma[o]
         cv[folds == k] = full[order][folds == k]
     return cv
+
+
+def left_out_residuals(J_o: np.ndarray, M: np.ndarray, r_o: np.ndarray) -> np.ndarray:
+    """(m,) the residuals of m readings left out of a penalised linear least-squares fit,
+    ``(I - H_oo)^-1 r_o``: J_o (m, k) their rows of the weighted design, M (k, k) the inverse of the
+    fit's penalised normal matrix ``J^T J + S`` (on all readings), r_o (m,) their weighted residuals
+    in that fit. A direction that only these readings fix (leverage 1) cannot be refitted without
+    them: there the fit's own residual is kept."""
+    H = J_o @ M @ J_o.T
+    lev, V = np.linalg.eigh(0.5 * (H + H.T))
+    inv = np.where(lev < 1.0 - 1e-9, 1.0 / np.clip(1.0 - lev, 1e-9, None), 1.0)
+    return V @ (inv * (V.T @ r_o))
 
 
 def _posterior_inverse(result, mms, J: np.ndarray) -> np.ndarray:
