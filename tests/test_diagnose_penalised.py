@@ -94,10 +94,19 @@ def test_left_out_residuals_are_those_of_a_fit_without_the_readings():
     D = np.diff(np.eye(k), 2, axis=0)
     S = 3.0 * D.T @ D                                   # a second-difference roughness penalty
     y = X @ rng.normal(size=k) + rng.normal(0, 0.3, n)
-    M = np.linalg.inv(X.T @ X + S)
-    r = y - X @ (M @ X.T @ y)
+    P = X.T @ X + S
+    r = y - X @ np.linalg.solve(P, X.T @ y)
     out = np.zeros(n, dtype=bool)
     out[rng.choice(n, 15, replace=False)] = True
     b = np.linalg.solve(X[~out].T @ X[~out] + S, X[~out].T @ y[~out])
-    np.testing.assert_allclose(left_out_residuals(X[out], M, r[out]), y[out] - X[out] @ b,
+    np.testing.assert_allclose(left_out_residuals(X[out], P, r[out]), y[out] - X[out] @ b,
                                rtol=1e-9, atol=1e-12)
+    # a coefficient held at the full fit's value in the refit
+    b_full = np.linalg.solve(P, X.T @ y)
+    keep = np.arange(1, k)
+    bk = np.linalg.solve((X[~out].T @ X[~out] + S)[np.ix_(keep, keep)],
+                         X[~out][:, keep].T @ (y[~out] - X[~out][:, 0] * b_full[0])
+                         - S[np.ix_(keep, [0])][:, 0] * b_full[0])
+    expected = y[out] - X[out][:, 0] * b_full[0] - X[out][:, keep] @ bk
+    np.testing.assert_allclose(left_out_residuals(X[out], P, r[out], np.eye(k)[:1]), expected,
+                               rtol=1e-6, atol=1e-9)

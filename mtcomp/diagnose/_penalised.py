@@ -109,7 +109,9 @@ def _held_out(st, result, mms, weights: dict, folds: np.ndarray, order: np.ndarr
     terms (a thermal file reads drift since its first reading, a tracker's turn is about the centre
     of all its points); the set-up of a file the fold leaves without readings keeps the full fit's."""
     J, sigma, nuis_cols = _weighted_jacobian(result, mms, weights)
-    M = _posterior_inverse(result, mms, J)
+    D = np.asarray(result.directions, dtype=float)
+    K = J @ D
+    P = _penalised_normal(result, mms, J, D)
     r = np.asarray(result.residual, dtype=float)
     # each observation's file and row, as integer keys
     big = 1 + max(int(st.row.max(initial=0)), max((int(m.obs_row.max(initial=0)) for m in mms), default=0))
@@ -120,40 +122,39 @@ def _held_out(st, result, mms, weights: dict, folds: np.ndarray, order: np.ndarr
         o = np.isin(obs_key, stack_key[folds == k])
         if not o.any():
             continue
-        Mk = M
         # a file with no reading left keeps its set-up (the refit cannot move it)
-        fixed = np.concatenate([nuis_cols[i] for i, m in enumerate(mms) if nuis_cols[i].size
-                                and o[_file_slice(mms, i)].all()] or [np.zeros(0, dtype=int)])
-        if fixed.size:
-            Mk = M - M[:, fixed] @ np.linalg.pinv(M[np.ix_(fixed, fixed)]) @ M[fixed, :]
+        held = [nuis_cols[i] for i, m in enumerate(mms) if nuis_cols[i].size and o[_file_slice(mms, i)].all()]
+        hold = D[np.concatenate(held), :] if held else None
         full = np.full(len(r), np.nan)
-        full[o] = left_out_residuals(J[o], Mk, r[o]) * sigma[o]
+        full[o] = left_out_residuals(K[o], P, r[o], hold) * sigma[o]
         cv[folds == k] = full[order][folds == k]
     return cv
 
 
-def left_out_residuals(J_o: np.ndarray, M: np.ndarray, r_o: np.ndarray) -> np.ndarray:
-    """(m,) the residuals of m readings left out of a penalised linear least-squares fit,
-    ``(I - H_oo)^-1 r_o``: J_o (m, k) their rows of the weighted design, M (k, k) the inverse of the
-    fit's penalised normal matrix ``J^T J + S`` (on all readings), r_o (m,) their weighted residuals
-    in that fit. A direction that only these readings fix (leverage 1) cannot be refitted without
-    them: there the fit's own residual is kept."""
-    H = J_o @ M @ J_o.T
-    lev, V = np.linalg.eigh(0.5 * (H + H.T))
-    inv = np.where(lev < 1.0 - 1e-9, 1.0 / np.clip(1.0 - lev, 1e-9, None), 1.0)
-    return V @ (inv * (V.T @ r_o))
+def left_out_residuals(K_o: np.ndarray, P: np.ndarray, r_o: np.ndarray, hold: np.ndarray | None = None
+                       ) -> np.ndarray:
+    """(m,) the residuals of m readings left out of a penalised linear least-squares fit:
+    ``(I - K_o P^-1 K_o^T)^-1 r_o = r_o + K_o (P - K_o^T K_o)^-1 K_o^T r_o`` (Woodbury), K_o (m, k)
+    their rows of the weighted design, P (k, k) the fit's penalised normal matrix ``K^T K + S`` on
+    all readings, r_o (m,) their weighted residuals in that fit. hold : (h, k) combinations held at
+    the fit's values in the refit. What only these readings fix cannot be refitted without them:
+    it keeps the fit's value (the least-squares solution of the refit's normal equations)."""
+    Pk = P - K_o.T @ K_o
+    if hold is not None and hold.size:
+        Pk = Pk + 1e10 * max(float(np.abs(np.diag(P)).max()), 1e-300) * (hold.T @ hold)
+    step = np.linalg.lstsq(0.5 * (Pk + Pk.T), K_o.T @ r_o, rcond=1e-12)[0]
+    return r_o + K_o @ step
 
 
-def _posterior_inverse(result, mms, J: np.ndarray) -> np.ndarray:
-    """(n_unknowns, n_unknowns) the inverse of the penalised normal matrix ``J^T J + S`` in the
-    directions the fit moved in (``result.directions``; zero across the rest, which the fit held),
-    internal units; J the weighted Jacobian at the fit and S the roughness penalty at the weights
-    REML chose (each class's penalty normalised as the fit normalises it): the posterior covariance
-    over the residual variance, also where the fit reports a parameter as undetermined."""
+def _penalised_normal(result, mms, J: np.ndarray, D: np.ndarray) -> np.ndarray:
+    """(k, k) the penalised normal matrix ``J^T J + S`` in the directions the fit moved in (D, (n_unknowns,
+    k), ``result.directions``): J the weighted Jacobian at the fit, S the roughness penalty at the
+    weights REML chose, each class's penalty normalised as the fit normalises it. Its inverse over the
+    residual variance is the fit's posterior covariance, also where the fit reports a parameter as
+    undetermined."""
     from ..identification._linalg import column_scale
     from ..identification.fit import _Problem
     A = J.T @ J
-    D = np.asarray(result.directions, dtype=float)
     P = A.copy()
     if result.smoothing is not None:
         stacked = _Problem(result.model, mms, result.free, None)
@@ -162,7 +163,7 @@ def _posterior_inverse(result, mms, J: np.ndarray) -> np.ndarray:
             if cls in result.smoothing.weights:
                 P += result.smoothing.weights[cls] * S / np.outer(scale, scale)
     H = D.T @ P @ D
-    return D @ np.linalg.pinv(0.5 * (H + H.T), hermitian=True) @ D.T
+    return 0.5 * (H + H.T)
 
 
 def _file_slice(mms, i: int) -> slice:
