@@ -221,7 +221,8 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
         design = _backward_selection(st, design, sel, say)
     chosen, findings, current = sel.chosen, sel.findings, sel.current
     verdict, finer = _what_remains(st, design, sel, noise, noise_main, may_refine, say)
-    model, final_metrics = _final_model(st, design, chosen, values, folds, free_knots, say)
+    start_values = {**values, **_selected_values(st, design, chosen, current)}
+    model, final_metrics = _final_model(st, design, chosen, start_values, folds, free_knots, say)
     diag = Diagnosis(verdict, noise, base_metrics, findings, final_metrics, model, how, len(st),
                      rejected=sel.rejected, reference=reference)
     diag.folds_of_observations = folds
@@ -659,6 +660,20 @@ def _final_model(st: Stack, design: Design, chosen: list[Candidate], values: dic
     if feats:
         info["drift_features"] = feats
     return FittedModel(model, fitted.params, {}, info, uncertainty=fitted.uncertainty), metrics
+
+
+def _selected_values(st: Stack, design: Design, chosen: list[Candidate], fit) -> dict:
+    """{name: value, internal units} of the selection's final fit (the base's parameters and the
+    chosen terms'): the penalised fit starts there, for a term that is not linear in its parameters
+    (an Abbe error's moving centre multiplies its angle) shows the data none of them at zero."""
+    base = [n for n, s in zip(st.probe.param_names, st.probe.param_specs) if s.base]
+    out = {name: float(fit.theta[i]) for i, name in enumerate(base)}
+    k = design.A_original.shape[1]
+    for c in chosen:
+        for j, name in enumerate(c.params):
+            out.setdefault(name, float(fit.theta[k + j]))
+        k += c.columns.shape[1]
+    return out
 
 
 def _is_spline(name: str) -> bool:
