@@ -14,12 +14,18 @@ judged segment's mean (a file's zero belongs to its set-up) and absolute, of
   `mtcomp predict xfyz MODEL.json TEST.csv -o PRED.csv`, run as commands on split files written to a
   temporary folder (the path a user takes).
 
+A second table sets mtcomp's standard errors (`pred_<column>_sd`) against its errors on the judged
+part: the rms error, the median standard error, their ratio, the rms of error / standard error over
+every reading and channel (about 1 when the standard errors are honest) and the share of readings
+within 2 standard errors.
+
 The three baselines are computed here with plain numpy, independently of mtcomp's code.
 
 With ``--truth N`` it also hides a drift (driven by a temperature, by spindle heat, settling or
 steady in time, or none) in N 16 h records of the independent truth machine (tests/truth; run with
 ``PYTHONPATH=tests``), diagnoses the first 10 h and predicts the last 6 h, and prints how often the
-driver is named right and the prediction rms over the noise of a reading.
+driver is named right, the prediction rms over the noise of a reading, and the rms of error / standard
+error with the share of readings within 2 standard errors.
 
     python benchmarks/bench_thermal.py [--data PATH/fl_thermal.csv]
     PYTHONPATH=tests python benchmarks/bench_thermal.py --truth 20
@@ -74,7 +80,9 @@ def forward_ridge(X, Y, lams=np.logspace(-6, 2, 17), folds=5):
     return ridge(X, Y, lams[int(np.argmin(errs))])
 
 
-def mtcomp_prediction(header, rows, s, tmp: Path, chans) -> tuple[np.ndarray, float]:
+def mtcomp_prediction(header, rows, s, tmp: Path, chans) -> tuple[np.ndarray, np.ndarray, float]:
+    """(predictions (n, m) um, their standard errors (n, m) um, seconds) of the readings after row s,
+    by `mtcomp diagnose` on the readings before it and `mtcomp predict`."""
     train, test = tmp / f"train_{s}.csv", tmp / f"test_{s}.csv"
     for path, part in ((train, rows[:s]), (test, rows[s:])):
         path.write_text("\n".join([header] + part) + "\n")
@@ -85,7 +93,18 @@ def mtcomp_prediction(header, rows, s, tmp: Path, chans) -> tuple[np.ndarray, fl
         subprocess.run([sys.executable, "-m", "mtcomp"] + cmd, check=True, stdout=subprocess.DEVNULL)
     seconds = time.perf_counter() - t0
     p = read_columns(tmp / "p.csv")
-    return np.column_stack([p["pred_" + k] for k in chans]), seconds
+    return (np.column_stack([p["pred_" + k] for k in chans]),
+            np.column_stack([p["pred_" + k + "_sd"] for k in chans]), seconds)
+
+
+def sd_columns(pred: np.ndarray, sd: np.ndarray, y: np.ndarray) -> str:
+    """The standard errors against the errors (absolute, every channel and reading): rms error, median
+    sd, their ratio, the rms of error / sd and the share of readings within 2 sd."""
+    err = pred - y
+    z = err / sd
+    rms = float(np.sqrt(np.mean(err ** 2)))
+    return (f"{rms:9.2f} {np.median(sd):9.2f} {rms / np.median(sd):7.2f} {np.sqrt(np.mean(z ** 2)):7.2f} "
+            f"{np.mean(np.abs(z) <= 2.0):9.1%}")
 
 
 def truth_sweep(n_seeds: int) -> None:
@@ -95,7 +114,7 @@ def truth_sweep(n_seeds: int) -> None:
     from mtcomp.thermal import diagnose_thermal
     from mtcomp.machine import load_machine
     from mtcomp.measurement.files import read_measurements
-    from mtcomp.measurement.readings import model_class_for
+    from mtcomp.identification.predict import predict_readings
     noise = 0.1
     schedule = SpindleSchedule(((0.0, 0.0), (1800.0, 2000.0), (5400.0, 6000.0), (12600.0, 0.0),
                                 (16200.0, 4000.0), (21600.0, 0.0), (43200.0, 5000.0), (50400.0, 0.0)))
@@ -103,7 +122,7 @@ def truth_sweep(n_seeds: int) -> None:
     print(f"truth machine, {n_seeds} records per driver: driver named right, later 6 h rms / noise")
     for driver, named in (("temperature", "temperature"), ("spindle", "spindle"), ("time", "time"),
                           ("linear", "time"), (None, None)):
-        right, ratios = 0, []
+        right, ratios, z = 0, [], []
         for seed in range(n_seeds):
             rng = np.random.default_rng(1000 + seed)
             effects = () if driver is None else (random_effect(
@@ -121,13 +140,15 @@ def truth_sweep(n_seeds: int) -> None:
                 val = read_measurements(tmp / "v.csv")
             right += [f.params["driver"] for f in d.findings if f.effect == "thermal_drift"] == \
                 ([named] if named else [])
-            mm = model_class_for("thermal", "v.csv")(d.model.model, val, d.model.context_defaults,
-                                                     machine=machine)
-            pred = mm.predict_columns(d.model.params.values, mm.zero_nuisance())
+            pred = predict_readings(d.model, val).columns
             err = np.concatenate([pred[f"pred_disp_{c}_um"] - val.channels[c] * 1e3 for c in "xyz"])
             ratios.append(float(np.sqrt(np.mean(err ** 2))) / noise)
+            if driver is not None:
+                z.append(err / np.concatenate([pred[f"pred_disp_{c}_um_sd"] for c in "xyz"]))
+        cover = (f"; error / sd rms {np.sqrt(np.mean(np.concatenate(z) ** 2)):.2f}, 2 sd cover "
+                 f"{np.mean(np.abs(np.concatenate(z)) <= 2.0):.1%}") if z else ""
         print(f"  {str(driver):<12s} named {right}/{n_seeds}; rms/noise median {np.median(ratios):.3f}, "
-              f"max {np.max(ratios):.3f}")
+              f"max {np.max(ratios):.3f}{cover}")
 
 
 def main(argv=None):
@@ -149,11 +170,13 @@ def main(argv=None):
     print(f"{args.data.name}: {n} readings, {len(chans)} channels, {len(temps)} temperatures; "
           "rms over the channels of the prediction error on the held-out part, um")
     print(f"{'split':>6s} {'model':<36s} {'about the mean':>14s} {'absolute':>9s}")
+    sd_table = []
     with tempfile.TemporaryDirectory(prefix="bench-thermal-") as tmp:
         for frac in SPLITS:
             s = int(round(frac * n))
             yte = Y[s:]
-            mt, seconds = mtcomp_prediction(header, rows, s, Path(tmp), chans)
+            mt, sd, seconds = mtcomp_prediction(header, rows, s, Path(tmp), chans)
+            sd_table.append(f"{round(frac * 100):3d}/{round((1 - frac) * 100):<2d} {sd_columns(mt, sd, yte)}")
             table = [("raw (no model)", np.zeros_like(yte)),
                      ("least squares, 16 temperatures", ridge(T[:s], Y[:s], 0.0)(T[s:])),
                      ("ridge, forward-validated penalty", forward_ridge(T[:s], Y[:s])(T[s:])),
@@ -162,6 +185,9 @@ def main(argv=None):
                 about, absolute = scores(pred, yte)
                 print(f"{round(frac * 100):3d}/{round((1 - frac) * 100):<2d} {name:<36s} {about:14.2f} "
                       f"{absolute:9.2f}")
+    print("mtcomp's standard errors (pred_..._sd) against its errors on the held-out part, absolute, um:")
+    print(f"{'split':>6s} {'rms error':>9s} {'median sd':>9s} {'ratio':>7s} {'rms z':>7s} {'2 sd cover':>9s}")
+    print("\n".join(sd_table))
 
 
 if __name__ == "__main__":

@@ -631,14 +631,15 @@ def datum_notes(fitted, setup) -> list[str]:
     """One line for each part's datum (the origin of a work offset the program used) outside the
     region the model's data reached: the corrections are referenced to the model's deviation there,
     which is then its continuation beyond the data."""
+    from .models.region import outside_bounds, support_bounds
     from .toolpaths.offsets import WORK_SYSTEMS
-    support = fitted.support or {}
+    bounds = support_bounds(fitted)
     machine = fitted.machine
     out = []
     for w in sorted(setup.used_wcs):
         datum = setup._offset_table()[w]
-        off = [a for a, v in zip(machine.axis_names, datum)
-               if a in support and not support[a][0] - 1e-6 <= v <= support[a][1] + 1e-6]
+        outside = outside_bounds(machine, bounds, np.asarray(datum, dtype=float)[None, :])[0]
+        off = [a for a, o in zip(machine.axis_names, outside) if o]
         if off:
             where = ", ".join(f"{a} {np.degrees(datum[machine.index(a)]) if machine.axis(a).is_rotary else datum[machine.index(a)]:g}"
                               for a in off)

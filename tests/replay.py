@@ -15,9 +15,11 @@ change where the old origin is known, else becomes unknown; after L20 the named 
 given values, and where their position was unknown, as after grbl's homing `$H`, the new origin
 is the operator's, from outside the program); G4 dwells and moves too when the block has axis
 words; a full circle of zero radius about its start (I J K 0, the end at the start) is a move of
-kind 'none': grbl runs it without motion. Comments `( )` and `;`, `%`, `:` program numbers, `$`
+kind 'none': grbl runs it without motion. Comments `( )` and `;` (a comment holding parentheses:
+see `without_comments`), `%`, `:` program numbers, `$`
 lines (`$H` homing and `$J=` jogging leave every axis unknown) and a DOS end-of-file mark make no
-move.
+move. A RepRapFirmware program (see `is_rrf`) is read without its quoted strings, and a block that
+runs the controller's macro files (see `rrf_runs_macro`) leaves every axis unknown.
 
 A position is a dict axis -> value (mm or deg) or None where the controller's position in the
 program's frame is unknown."""
@@ -27,9 +29,21 @@ from dataclasses import dataclass, field
 
 AXES = "XYZABC"
 LINEAR = "XYZ"
+#: a comment as a control that ends it at its first ')' reads it ('(' inside is its text)
 _COMMENT = re.compile(r"\([^)]*\)|;.*")
+#: a comment that holds no parenthesis: the innermost of nested ones
+_INNERMOST = re.compile(r"\([^()]*\)")
 _WORD = re.compile(r"([A-Z])\s*([-+]?\s*(?:\d+\.?\d*|\.\d+))")
 _CYCLES = {73, 81, 82, 83, 84, 85, 86, 87, 88, 89}
+#: RepRapFirmware (Duet3D, G-code dictionary): a parameter's value may be a string in double quotes
+#: ("" inside is one quote character; ; and ( inside belong to it); a program for it is known by
+#: such a string outside comments or by a comment naming the firmware or MillenniumOS
+RRF_STRING = re.compile(r'[A-Za-z]?"(?:[^"]|"")*"')
+_RRF_CLUE = re.compile(rb'(?im)^[^(;\n]*"|reprapfirmware|\brrf\b|millenniumos')
+#: the G codes RepRapFirmware carries out itself; any other runs the controller's macro file
+#: /sys/G<n>.g, and G29, G30, G32 probe: the moves are not in the program
+_RRF_OWN_G = {0, 1, 2, 3, 4, 10, 11, 17, 18, 19, 20, 21, 28, 31, 53, 54, 55, 56, 57, 58, 59, 60,
+              68, 69, 90, 91, 92, 93, 94}
 #: plane -> (first, second, normal axis) of a right-handed frame, and the centre offset letters
 _PLANES = {17: ("X", "Y", "Z", "I", "J"), 18: ("Z", "X", "Y", "K", "I"),
            19: ("Y", "Z", "X", "J", "K")}
@@ -72,24 +86,68 @@ class _State:
     wcs: str = "G54"
     arc_absolute: bool = False   # G90.1: I J K are the centre's position
     offsets: dict = field(default_factory=dict)   # (wcs, axis) -> offset set by G10 L2/L20
+    rrf: bool = False            # a RepRapFirmware program: its strings and macro codes
 
 
 def _words(code):
     return [(m.group(1), float(m.group(2).replace(" ", ""))) for m in _WORD.finditer(code)]
 
 
-def _code(raw: bytes) -> str:
+def without_comments(text: str) -> str:
+    """A line without its comments. A comment that holds parentheses (`(Drill, 3mm (R))`) has two
+    readings: a control that nests them takes it whole (innermost comments removed until none is
+    left), one that ends it at its first ')' reads what follows as code (lone ')' skipped). Where
+    the two give different words the program is not one to compensate: ValueError."""
+    first_close = _COMMENT.sub("", text)
+    if not re.search(r"\([^()]*\(", text):      # no '(' inside a comment: one reading
+        return first_close
+    nested = text.split(";", 1)[0] if text.find(";") < text.find("(") else text
+    while True:
+        fewer = _INNERMOST.sub("", nested)
+        if fewer == nested:
+            break
+        nested = fewer
+    nested = re.sub(";.*", "", nested)
+    rest = first_close.replace(")", "")
+    if re.sub(r"[ \t]", "", rest.upper()) != re.sub(r"[ \t]", "", nested.upper()):
+        raise ValueError(f"the readings of a comment holding parentheses differ: {text!r}")
+    return rest
+
+
+def _code(raw: bytes, rrf: bool = False) -> str:
     text = raw.decode("latin-1").replace("\r", "").replace("\x1a", "")
-    return _COMMENT.sub("", text).upper().strip()
+    if rrf:
+        text = RRF_STRING.sub(" ", text)
+    return without_comments(text).upper().strip()
+
+
+def is_rrf(data: bytes) -> bool:
+    """Whether a program is one for RepRapFirmware (see RRF_STRING)."""
+    return _RRF_CLUE.search(data) is not None
+
+
+def rrf_runs_macro(words) -> bool:
+    """Whether a RepRapFirmware block runs moves the program does not hold: a G code the firmware
+    does not carry out itself (a macro file) or one that probes; of the M codes, at least those
+    with a decimal part (M3.9: a macro file), M6 to M9 and M1000 up (macro files: the firmware has
+    none of them), M98 (a named macro); a T word (the tool change macros tfree, tpre, tpost)."""
+    for c, v in words:
+        if c == "T":
+            return True
+        if c == "G" and (int(v) not in _RRF_OWN_G or (v != int(v) and int(v) not in (38, 59))):
+            return True
+        if c == "M" and (v != int(v) or 6 <= v <= 9 or v >= 1000 or v == 98):
+            return True
+    return False
 
 
 def replay(data: bytes, units_mm: bool = True) -> Replay:
     """The moves and motionless lines of a program (its bytes); `units_mm`: what a program
     without G20/G21 is in."""
-    st = _State(scale=1.0 if units_mm else 25.4)
+    st = _State(scale=1.0 if units_mm else 25.4, rrf=is_rrf(data))
     out = Replay()
     for index, raw in enumerate(data.split(b"\n")):
-        code = _code(raw)
+        code = _code(raw, st.rrf)
         if code[:2] in ("$H", "$J"):
             # grbl homing ($H) or jogging ($J=): the machine moves where the program does not say
             st.pos = {a: None for a in AXES}
@@ -143,6 +201,10 @@ def _modal(st, gs, words):
 def _block(st, index, words):
     """The moves of one block, the machine state updated."""
     gs = [v for c, v in words if c == "G"]
+    if st.rrf and rrf_runs_macro(words):
+        # the controller's macro (its words are the macro's parameters): every axis unknown
+        st.pos = {a: None for a in AXES}
+        return []
     _modal(st, gs, words)
     axes = [c for c, _ in words if c in AXES]
     _motion_mode(st, gs)

@@ -188,3 +188,15 @@ def test_component_ranges_match_the_polynomial_profiles(files):
     assert checked == 18
     c0y = next(v for v in values if v.name == "C0Y")
     np.testing.assert_allclose([c0y.value, c0y.sd], res.value("C0Y"), rtol=1e-6, atol=1e-9)
+
+
+def test_an_axis_whose_errors_are_held_is_not_called_unmoved(files, capsys):
+    """--hold X holds every error of X: the data moved X, so the report says its errors were held
+    as given, not that the data did not move it (it said "axes the data did not move: X")."""
+    tmp, paths, _model = files
+    out = tmp / "held_x.json"
+    assert main(["identify", str(tmp / "poly.toml"), str(paths["points"]), "-o", str(out),
+                 "--hold", "X"]) == 0
+    text = capsys.readouterr().out
+    assert "axes whose errors were held as given (--hold): X:" in text
+    assert "axes the data did not move" not in text

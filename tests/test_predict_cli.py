@@ -179,3 +179,29 @@ def test_a_diagnosed_model_gives_every_prediction_its_standard_error(tmp_path):
     assert np.all(sd >= 0.9 * line), sd / line
     middle = np.abs(t) <= 100.0
     assert np.all(sd[middle] < 0.95 * own), sd[middle] / own
+
+
+def test_predictions_outside_the_region_get_no_standard_error(tmp_path, capsys):
+    """A model identified from X runs over -300..300 mm holds its profiles' end values beyond them, a
+    guess its posterior does not size: predict leaves those rows' standard errors blank (the rows at
+    |X| > 300, by hand) and says how many and where; inside every row gets one."""
+    from laser_files import write_x_positioning
+    runs = write_x_positioning(tmp_path / "laser_x.csv", np.arange(-300, 301, 50.0),
+                               lambda t, d: 10 * np.sin(t / 150), 3, 0.5, np.random.default_rng(3))
+    model = tmp_path / "m.json"
+    assert main(["identify", "xfyz", str(runs), "-o", str(model)]) == 0
+    targets = np.arange(-400, 401, 25.0)
+    grid = tmp_path / "grid.csv"
+    grid.write_text("axis,component,target_mm,dir,run,value_um\n"
+                    + "".join(f"X,EXX,{t},1,1,\n" for t in targets))
+    capsys.readouterr()
+    out = tmp_path / "p.csv"
+    assert main(["predict", "xfyz", str(model), str(grid), "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    header, rows = _read(out)
+    sd = _by_name(header, rows, ["pred_value_um_sd"])[:, 0]
+    value = _by_name(header, rows, ["pred_value_um"])[:, 0]
+    outside = np.abs(targets) > 300
+    assert np.isnan(sd[outside]).all() and np.isfinite(sd[~outside]).all()
+    assert np.isfinite(value).all()                  # the prediction itself is still written
+    assert f"{int(outside.sum())} row(s) lie outside the region" in err and "X -300 .. 300 mm" in err

@@ -28,7 +28,7 @@ def add_offset_arguments(parser, offsets_help: str, work_offset_help: str) -> No
 
 
 #: the controllers whose rules differ, for ``--dialect`` (docs/toolpaths.md)
-DIALECT_CHOICES = ("linuxcnc", "fanuc", "haas", "grbl", "heidenhain", "generic")
+DIALECT_CHOICES = ("linuxcnc", "fanuc", "haas", "grbl", "heidenhain", "rrf", "generic")
 
 
 def add_dialect_argument(parser) -> None:
@@ -36,7 +36,8 @@ def add_dialect_argument(parser) -> None:
     parser.add_argument("--dialect", choices=DIALECT_CHOICES, default=None,
                         help="the controller that runs the program, for the rules that differ "
                              "between controllers (G80, G98, LinuxCNC O-words and parameters, Fanuc "
-                             "macro B, Heidenhain conversational; see docs/toolpaths.md). Default: "
+                             "macro B, Heidenhain conversational, RepRapFirmware's macro codes; see "
+                             "docs/toolpaths.md). Default: "
                              "detected from the program (generic when nothing in it names a "
                              "controller)")
 

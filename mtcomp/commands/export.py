@@ -77,7 +77,7 @@ def run(args) -> int:
         for a in list(region):
             if machine.axis(a).is_rotary:
                 del region[a]
-    anchors = reference_positions(machine, region) if getattr(fmt, "ANCHOR_AT_REFERENCE", False) else None
+    anchors = reference_positions(machine) if getattr(fmt, "ANCHOR_AT_REFERENCE", False) else None
     grids = plan_grids(machine, region, max_points, args.grid_mm, args.grid_deg, fmt.INCLUDE_END,
                        what=args.format, anchors=anchors)
     for a in [a for a, g in grids.items() if len(g) < 2]:

@@ -68,3 +68,4 @@ def run(args) -> int:
     write_csv_with_columns(out, data, ordered, internal_units=False)
     print(f"wrote {out}: {len(data)} rows, columns {', '.join(ordered)}")
     return 0
+

@@ -121,22 +121,37 @@ def left_out(tables, carried: dict) -> tuple[list, dict]:
     return lines, worst
 
 
+def region_line(tables, a: str) -> str:
+    """One line on the table of axis ``a``: its span, points, where the data reached, what is held
+    beyond them, and its reference position."""
+    t = tables.tables[a]
+    u, f = ("deg", 180 / np.pi) if t.rotary else ("mm", 1.0)
+    src = {"data": "the data", "range": "--range", "travel": "the travel (NO data region known)"}
+    line = (f"{a}: {t.positions[0] * f:g} .. {t.positions[-1] * f:g} {u}, {len(t.positions)} points, "
+            f"from {src.get(tables.region_source.get(a), 'the given grid')}")
+    held = t.held
+    if held.any():
+        lo, hi = t.data_region
+        line += (f" (the data reach {lo * f:g} .. {hi * f:g} {u}; the {int(held.sum())} points beyond "
+                 "them hold the values at the nearest end)")
+    return line + f"; reference position {t.reference[a] * f:g} {u}"
+
+
 def readme_text(result: ExportResult, tables, header: list) -> str:
     """README.txt beside the tables: how to load them, the limits and signs, what was left out."""
     lines = list(header)
-    lines += ["", "Region of each table (where the model's data reached):"]
+    lines += ["", "Region of each table (where the model's data reached; positions are machine "
+              "coordinates):"]
     for a, t in tables.tables.items():
-        u, f = ("deg", 180 / np.pi) if t.rotary else ("mm", 1.0)
-        src = {"data": "the data", "range": "--range", "travel": "the travel (NO data region known)"}
-        lines.append(f"  {a}: {t.positions[0] * f:g} .. {t.positions[-1] * f:g} {u}, {len(t.positions)} "
-                     f"points, from {src.get(tables.region_source.get(a), 'the given grid')}; reference "
-                     f"position {t.reference[a] * f:g} {u}")
+        lines.append("  " + region_line(tables, a))
     ref = next(iter(tables.tables.values())).reference if tables.tables else {}
     if ref:
         lines.append("  component errors are the model's deviation when only that axis moves, every "
                      "other axis at its reference position (" + ", ".join(
                          f"{a}={v * (180 / np.pi if tables.machine.axis(a).is_rotary else 1):g}"
-                         for a, v in ref.items()) + f"), tool length {tables.machine.tool_length:g} mm")
+                         for a, v in ref.items()) + "; one outside its axis's data region at the "
+                     f"region's nearest end), tool length {tables.machine.tool_length:g} mm; each table "
+                     "is zero at its axis's reference position")
     lines += ["", "Notes:"] + [f"  - {n}" for n in tables.notes + result.notes]
     rest, worst = left_out(tables, result.carried)
     lines += ["", "What the controller cannot hold (left out of these files):"]

@@ -4,15 +4,21 @@ The model is evaluated, never parsed: every number comes from the model's own pr
 tool-tip deviation (:func:`mtcomp.models.evaluate.deviation`) and of the tool's rotation relative to
 the workpiece (the chain of :meth:`mtcomp.models.ErrorModel.symbolic`).
 
-Definition. Every axis has a *reference position*: 0 (the machine zero, where the workpiece frame
-coincides with the machine frame) clipped into the region the table covers. The component errors of
-axis L at position s, approached in direction dir, are what the model predicts when only L moves:
+Definition. Every axis has a *reference position*: its machine coordinate 0 (the machine zero,
+where the workpiece frame coincides with the machine frame; a controller's reference position), or
+the nearest end of its travel when 0 lies outside the travel (a reference return has to reach it).
+Every position is a machine coordinate. The model is used only inside the region its data reached:
+a position beyond that region takes the value at the region's nearest end (what nothing measured
+is held at the end value; controllers hold a table's end values beyond it the same way). The
+component errors of axis L at position s, approached in direction dir, are what the model predicts
+when only L moves:
 
     E(L, s, dir) = dev(q_ref with q_L = s, dir_L = dir) - dev(q_ref, all directions unknown)
 
 with ``dev`` = (tip deviation dx, dy, dz in mm; rotation of the tool relative to the workpiece about
 X, Y, Z in rad), the machine's tool length, every other axis at its reference position and its
-approach direction unknown (0: the mean of both directions). So
+approach direction unknown (0: the mean of both directions), each position taken into its axis's
+region as above. So
 
 * the positioning error of a linear axis L is the deviation along L: EXX = dx when X moves;
 * its straightness errors are the other two translations (EYX = dy, EZX = dz when X moves); they
@@ -22,7 +28,7 @@ approach direction unknown (0: the mean of both directions). So
   laser reads it: actual minus commanded angle of the axis (minus the tool's rotation for a rotary
   table, which turns the workpiece);
 * forward (dir = +1) and reverse (dir = -1) differ by the backlash; their mean is zero at the
-  reference position.
+  reference position (and, when that lies outside the data's region, at the region's nearest end).
 
 All arrays are in internal units (mm, rad).
 """
@@ -66,6 +72,8 @@ class AxisTable:
         position in the + / - direction. angular_known : False when the model's rotations could not
         be evaluated (columns 3..5 are then NaN).
     reference : the reference position of every axis (dict axis -> mm or rad).
+    region : (lo, hi) where the model's data reached along this axis (mm or rad); grid points beyond
+        it hold the values at its nearest end (default: the grid's ends).
     """
 
     axis: str
@@ -75,6 +83,22 @@ class AxisTable:
     reverse: np.ndarray
     reference: dict
     angular_known: bool = True
+    region: tuple | None = None
+
+    @property
+    def data_region(self) -> tuple[float, float]:
+        """(lo, hi): where the model's data reached (the grid's ends when not given)."""
+        if self.region is None:
+            return float(self.positions[0]), float(self.positions[-1])
+        return float(self.region[0]), float(self.region[1])
+
+    @property
+    def held(self) -> np.ndarray:
+        """(n,) bool: grid points outside the data's region (their values are the region's end
+        values, held)."""
+        lo, hi = self.data_region
+        tol = 1e-9 * max(1.0, abs(lo), abs(hi))
+        return (self.positions < lo - tol) | (self.positions > hi + tol)
 
     @property
     def mean(self) -> np.ndarray:
@@ -170,11 +194,16 @@ def table_region(fitted, ranges: dict | None = None) -> tuple[dict, dict, list]:
         lo, hi = support[a]
         if a in ranges:
             lo, hi = max(lo, ranges[a][0]), min(hi, ranges[a][1])
+            given = f"--range {ranges[a][0] * f:g}:{ranges[a][1] * f:g} {u}"
+            data = f"the region of the data {support[a][0] * f:g}:{support[a][1] * f:g} {u}"
             if not lo < hi:
-                notes.append(f"axis {a}: no table: --range {ranges[a][0] * f:g}:{ranges[a][1] * f:g} "
-                             f"{u} does not overlap the region of the data {support[a][0] * f:g}:"
-                             f"{support[a][1] * f:g} {u}")
+                notes.append(f"axis {a}: no table: {given} does not overlap {data}")
                 continue
+            if ranges[a][0] < support[a][0] or ranges[a][1] > support[a][1]:
+                notes.append(f"axis {a}: {given} reaches beyond {data}: the table covers "
+                             f"{lo * f:g}:{hi * f:g} {u} (beyond the data the model is not known; "
+                             "where a controller holds a table's end values beyond it, it holds "
+                             "them there)")
         if not lo < hi:
             notes.append(f"axis {a}: no table: the data reached only one position ({lo * f:g} {u})")
             continue
@@ -230,10 +259,14 @@ def plan_grids(machine, region: dict, max_points: int, step_mm: float | None = N
     An explicit step (``step_mm`` for linear axes, ``step_deg`` for rotary ones) is used as given and
     refused (InputError) when the grid would exceed ``max_points``; without one, the smallest of
     1, 2, 2.5, 5 x 10^k mm (deg) not below 1 mm (1 deg) whose grid fits ``max_points``.
-    ``anchors`` (axis -> position): grids through that position (:func:`grid_positions`).
+    ``anchors`` (axis -> position): grids through that position (:func:`grid_positions`), reaching
+    from it to the region when it lies outside the region.
     """
     grids = {}
     for a, (lo, hi) in region.items():
+        anchor = None if anchors is None else anchors.get(a)
+        if anchor is not None:
+            lo, hi = min(lo, anchor), max(hi, anchor)
         rotary = machine.axis(a).is_rotary
         f = math.pi / 180.0 if rotary else 1.0
         u = "deg" if rotary else "mm"
@@ -251,7 +284,6 @@ def plan_grids(machine, region: dict, max_points: int, step_mm: float | None = N
         else:
             smallest = max(1.0, span / (max_points - 1 - (1 if include_end else 0)))
             step = next(_nice_steps(smallest))
-        anchor = None if anchors is None else anchors.get(a)
         grids[a] = grid_positions(lo, hi, step * f, include_end and anchor is None, anchor)
     return grids
 
@@ -298,32 +330,54 @@ def model_errors(fitted, q: np.ndarray, directions: dict | None = None) -> tuple
     return out, True
 
 
-def reference_positions(machine, region: dict) -> dict:
-    """Reference position of every axis: 0 clipped into its region (or its travel)."""
-    ref = {}
-    for ax in machine.axes:
-        lo, hi = region.get(ax.name, ax.travel)
-        ref[ax.name] = float(min(max(0.0, lo), hi))
-    return ref
+def reference_positions(machine) -> dict:
+    """Reference position of every axis (mm or rad): its machine coordinate 0, or the nearest end of
+    its travel when 0 lies outside the travel (a reference return has to reach it)."""
+    return {ax.name: float(min(max(0.0, ax.travel[0]), ax.travel[1])) for ax in machine.axes}
+
+
+def _evaluation_pose(machine, region: dict) -> np.ndarray:
+    """(n_axes,) the reference positions, each taken into its axis's region (axis -> (lo, hi)):
+    the pose the model is evaluated at (beyond its data the model is held at the region's end)."""
+    ref = reference_positions(machine)
+    return np.array([min(max(ref[a], region[a][0]), region[a][1]) if a in region else ref[a]
+                     for a in machine.axis_names])
+
+
+def reference_notes(machine, axes) -> list:
+    """One line per axis of ``axes`` whose machine zero lies outside its travel: where its reference
+    position is taken instead, and why."""
+    notes = []
+    for a in axes:
+        ax = machine.axis(a)
+        lo, hi = ax.travel
+        if not lo <= 0.0 <= hi:
+            u, f = ("deg", 180.0 / math.pi) if ax.is_rotary else ("mm", 1.0)
+            end = lo if lo > 0 else hi
+            notes.append(f"axis {a}: the machine zero lies outside its travel {lo * f:g}:{hi * f:g} {u}: "
+                         f"its reference position is taken at the travel's nearest end, {end * f:g} {u} "
+                         "(a reference return has to reach it); the tables are zero there")
+    return notes
 
 
 def component_tables(fitted, grids: dict, region: dict | None = None,
                      notes: list | None = None, source: dict | None = None) -> ComponentTables:
     """Evaluate the component errors of every axis of ``grids`` (module docstring).
 
-    grids : axis -> (n,) positions, mm or rad. region : axis -> (lo, hi), for the reference
-    positions (default: the grids' ends).
+    grids : axis -> (n,) positions, mm or rad (machine coordinates). region : axis -> (lo, hi) where
+    the model's data reached (default: the grids' ends); grid points beyond it hold its end values.
     """
     machine = fitted.machine
     region = dict(region or {a: (float(g[0]), float(g[-1])) for a, g in grids.items()})
-    ref = reference_positions(machine, region)
-    q_ref = np.array([ref[a] for a in machine.axis_names])
+    ref = reference_positions(machine)
+    q_ref = _evaluation_pose(machine, region)
     zero, _ = model_errors(fitted, q_ref[None, :])
     tables, dropped = {}, []
     for a, g in grids.items():
         g = np.asarray(g, dtype=float)
+        lo, hi = region.get(a, (float(g[0]), float(g[-1])))
         q = np.tile(q_ref, (len(g), 1))
-        q[:, machine.index(a)] = g
+        q[:, machine.index(a)] = np.clip(g, lo, hi)     # beyond the data: the end value, held
         fwd, known = model_errors(fitted, q, {a: 1.0})
         rev, _ = model_errors(fitted, q, {a: -1.0})
         fwd, rev = fwd - zero, rev - zero
@@ -335,8 +389,8 @@ def component_tables(fitted, grids: dict, region: dict | None = None,
         if not (np.nanmax(np.abs(fwd)) > ZERO or np.nanmax(np.abs(rev)) > ZERO):
             dropped.append(a)
             continue
-        tables[a] = AxisTable(a, ax.is_rotary, g, fwd, rev, ref, known)
-    notes = list(notes or [])
+        tables[a] = AxisTable(a, ax.is_rotary, g, fwd, rev, ref, known, (float(lo), float(hi)))
+    notes = list(notes or []) + reference_notes(machine, tables)
     notes += [f"axis {a}: no table: the model predicts no error at all along it (its errors are held at "
               "zero: no data determined them)" for a in dropped]
     reversal = reversal_note(fitted)

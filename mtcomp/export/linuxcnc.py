@@ -10,8 +10,10 @@ commanded joint position. Nominals ascending, linear interpolation, at most 256 
 """
 from __future__ import annotations
 
+import numpy as np
+
 from ._output import FULL, LINEAR, ExportResult, readme_text, slope
-from ._tables import component_names, own_column
+from ._tables import ZERO, component_names, own_column
 
 MAX_POINTS = 256
 NAME = "linuxcnc"
@@ -32,6 +34,12 @@ def comp_lines(table, column: int, comp_type: int, factor: float) -> list[str]:
             fwd, rev = nom + ef * factor, nom + er * factor
         out.append(f"{nom:.{DECIMALS}f} {fwd:.{DECIMALS}f} {rev:.{DECIMALS}f}")
     return out
+
+
+def measured(table, column: int) -> bool:
+    """False when the component ``column`` of ``table`` is zero everywhere (to 1e-12 mm): the model
+    holds it at zero, no data determined it."""
+    return bool(np.nanmax(np.abs(table.mean[:, column])) > ZERO)
 
 
 def backlash_comment(tables, a: str) -> str:
@@ -69,15 +77,31 @@ def export(tables, comp_type: int = 1, **_) -> ExportResult:
            "# C = I - S, S[i][j] = slope of the deviation along i as axis j moves (least squares over "
            "its table); the diagonal stays 1 (the COMP_FILEs carry each axis's own scale)"]
     linear = [a for a in "XYZ" if a in tables.tables]
+    unmeasured = []
     for i in "XYZ":
         for jx in "XYZ":
             if i == jx or i not in m.axis_names or jx not in linear:
                 continue
             s = slope(tables, jx, "XYZ".index(i))
-            hal.append(f"setp matrixkins.C_{i.lower()}{jx.lower()} {-s:.9f}")
+            name = f"C_{i.lower()}{jx.lower()}"
+            if not measured(tables.tables[jx], "XYZ".index(i)):
+                hal.append(f"# {name}: not measured: the model holds E{i}{jx} at zero (no data determined "
+                           "it); written as 0")
+                unmeasured.append(name)
+            hal.append(f"setp matrixkins.{name} {round(-s, 9) + 0.0:.9f}")
             carried[(jx, f"E{i}{jx}")] = LINEAR
-    if len(hal) > 2:
+    missing = [f"C_{i.lower()}{jx.lower()}" for jx in "XYZ" if jx in m.axis_names and jx not in linear
+               for i in "XYZ" if i != jx and i in m.axis_names]
+    if missing:
+        hal.append(f"# {', '.join(missing)}: not written: not measured (no table of axis "
+                   f"{' '.join(sorted({c[-1].upper() for c in missing}))}); matrixkins keeps their values (0 unless set elsewhere)")
+    if any(line.startswith("setp") for line in hal):
         files["matrixkins.hal"] = "\n".join(hal) + "\n"
+    said = ([f"{', '.join(unmeasured)} written as 0 (the model holds those errors at zero: no data "
+             "determined them)"] if unmeasured else []) + (
+        [f"{', '.join(missing)} not written (those axes have no table)"] if missing else [])
+    if said:
+        notes.append("matrixkins.hal: not measured: " + "; ".join(said))
     notes.append(f"COMP_FILE_TYPE {comp_type}: " + (
         "columns are trims added to the command, -(actual - nominal)" if comp_type == 1 else
         "columns are the positions actually reached, nominal + (actual - nominal)"))

@@ -62,6 +62,7 @@ from .problem import (DEFAULT_RCOND, FitProblem, SolverOptions, data_region, fit
                       frame_rotations, frame_rule_complement)
 from .problem import travel_metric  # noqa: F401
 from .result import FileResiduals, FitResult, error_unit
+from ._weak import WEAK_SD_UM, WEAK_SIGNIFICANT, held_variance, hold_weak, weak_directions  # noqa: F401
 #: most fits with weights='noise' (each re-estimates the noise of every file and unit)
 NOISE_PASSES = 5
 
@@ -170,8 +171,11 @@ def _record_data(result, model, mask, mms, datasets) -> None:
     # compensates it) does not bound the model: what was fitted (a rotary table's motion) holds for
     # the rigid body wherever that axis stands
     fitted = fitted_axes(model, mask)
-    result.fitted_model.support = {a: r for a, r in data_support(model.machine, datasets).items()
-                                   if a in fitted}
+    moved = data_support(model.machine, datasets)
+    result.fitted_model.support = {a: r for a, r in moved.items() if a in fitted}
+    held_axes = [a for a in moved if a not in fitted]
+    if held_axes:
+        result.fitted_model.info["held_axes"] = held_axes
     known = [m.tag for m in mms if m.options.get("setup") == "known"]
     if known:
         result.fitted_model.info["known_setup"] = known
@@ -185,12 +189,6 @@ def _record_data(result, model, mask, mms, datasets) -> None:
 #: Gauss-Newton stops at a step that moves every combination of the unknowns by less than this
 #: many of its standard errors (or by less than ``tol`` relative)
 STEP_SE = 1e-3
-#: a combination of parameters whose rms tool-tip error over the data's region they fix only to worse
-#: than this standard error (um) is held at the least error, like one they do not see at all
-WEAK_SD_UM = 1.0
-#: ... unless the first fit puts it further from the start than this many of its standard errors:
-#: then the data do see it (a real error of 28 um fixed to 1.2 um is fitted, not held at zero)
-WEAK_SIGNIFICANT = 3.0
 #: log penalty weights that the REML at the fit moves by less than this are those the fit used (a
 #: factor 1.05: the profiles move by far less than their standard errors), and the fit stands
 RHO_SETTLED = 0.05
@@ -213,6 +211,9 @@ class _Solution:
     leverage: np.ndarray        # (n_obs,) diagonal of the hat matrix (sums to the edf)
     edf: float = float("nan")   # effective degrees of freedom (the rank without a penalty)
     B: np.ndarray = None        # (n_unknowns, r) directions fitted, scaled coordinates
+    held: np.ndarray = None     # (n_unknowns, k) directions held weak, internal units, each 1 um rms
+    #                             tool-tip error over the data's region
+    held_sd: np.ndarray = None  # (k,) their standard errors, um (their variance is in cov)
 
 
 class _Problem:
@@ -250,6 +251,8 @@ class _Problem:
         self.smoothing = None       # penalty.Smoothing of the last solve
         self.smoothing_rho = {}     # class -> log weight of the last solve
         self.gradient_stale = False  # the last Gauss-Newton pass stopped on a step it did not evaluate
+        self.held = None            # (directions (n_unknowns, k) scaled, variances (k,)) of the held weak ones
+        self.held_assumed = 0       # of those, how many the unmeasured components' assumption fixes
 
     # --------------------------------------------------------------- weights
     def unit_weights(self):
@@ -445,46 +448,8 @@ class _Problem:
 
     # --------------------------------------------------------------- weak directions
     def _weak_directions(self, AB, B, scale, sigma_w: float, y):
-        """(n_seen, k) the weak directions among those the data see, as coordinates on B: what the
-        data barely see, to be held at the least predicted error.
-
-        The search space is x = x0 + scale * B y (B: the directions the data see, orthonormal in the
-        scaled unknowns; AB = B^T As B, the data's normal matrix there). The metric
-        ``Q = B^T D M D B`` measures a step's rms tool-tip error over the data's region (um^2); steps it
-        does not see (the files' set-ups, a thermal channel's drift ...) have no physical size and
-        are marginalised out (Schur complement of AB). In the rest, whitened by Q, a direction
-        whose standard error ``sigma_w / s`` (sigma_w the rms weighted residual, s^2 the data's
-        information per um^2) exceeds :data:`WEAK_SD_UM` is weak: the data would fix its error over
-        the region only to worse than that; unless the first fit ``y`` moved it by more than
-        :data:`WEAK_SIGNIFICANT` of those standard errors (then the data see it after all). The
-        second pass holds each weak one at the start's value, zero error: directions the data see
-        are fitted without bias. Weak and strong directions are orthogonal in the metric, so the
-        result is the least-error completion of what the data determine.
-
-        Returns W (n_seen, k) with the constraint ``W^T Q y = 0`` holding them, Q-orthonormal.
-        """
-        k = B.shape[1]
-        if self.metric is None or k == 0:
-            return np.zeros((k, 0)), None
-        SB = scale[:, None] * B
-        Q = SB.T @ (self.metric * 1e6) @ SB                 # um^2 of mean squared tip error per y^2
-        Q = 0.5 * (Q + Q.T)
-        m, W = np.linalg.eigh(Q)
-        phys = m > 1e-9 * max(float(m.max()), 1e-300)
-        if not phys.any():
-            return np.zeros((k, 0)), Q
-        R, N0 = W[:, phys], W[:, ~phys]
-        H = R.T @ AB @ R
-        if N0.shape[1]:
-            Hrn = R.T @ AB @ N0
-            H = H - Hrn @ scipy.linalg.pinvh(N0.T @ AB @ N0) @ Hrn.T
-        d = 1.0 / np.sqrt(m[phys])
-        Hw = d[:, None] * H * d[None, :]
-        evals, U = np.linalg.eigh(0.5 * (Hw + Hw.T))
-        sd = sigma_w / np.sqrt(np.clip(evals, 1e-300, None))
-        c = U.T @ (np.sqrt(m[phys]) * (R.T @ y))            # each direction's size in the fit, um
-        is_weak = (sd > WEAK_SD_UM) & (np.abs(c) < WEAK_SIGNIFICANT * sd)
-        return R @ (d[:, None] * U[:, is_weak]), Q
+        """:func:`._weak.weak_directions` on this problem's metric over the data's region."""
+        return weak_directions(self.metric, AB, B, scale, sigma_w, y)
 
     # --------------------------------------------------------------- Gauss-Newton
     def solve(self, w, rcond, max_iterations, tol, leverage=False) -> _Solution:
@@ -498,9 +463,10 @@ class _Problem:
         values, set-ups taking what they trade with machine errors, except a frame's turn that the
         machine makes with a clearly smaller displacement (:func:`.problem.frame_rule_complement`). The
         first pass fits the data and the penalty. Knowing the residual scale, the directions whose
-        rms tool-tip error over the data's region is fixed only to worse than :data:`WEAK_SD_UM` count as
-        undetermined too: the second pass holds them at the least predicted error
-        (:meth:`_weak_directions`), so that noise is never amplified into invented errors.
+        rms tool-tip error over the data's region is fixed only to worse than :data:`WEAK_SD_UM` are
+        held: the second pass holds them at the least predicted error (:mod:`._weak`), so that noise
+        is never amplified into invented errors, and the posterior keeps their variance (they are
+        fixed weakly, not undetermined).
         """
         from .penalty import Smoothing
         self.smoothing, self.smoothing_rho = None, {}
@@ -521,14 +487,16 @@ class _Problem:
                                    frame_rotations(self.mms, self.n_free))
         first = self._penalised_fit(start, w, max_iterations, tol, B1, scale, penalties)
         first += (null, self.n_unknowns - null.shape[1])
-        x, r, A, g, B, AB, iterations, converged, null, rank = self._hold_weak(
-            start, first, w, max_iterations, tol, B1, scale, data_rank) if self.hold_weak else first
-        x, r = unmeasured_to_zero(self, x, r, w, scale[:, None] * V[:, ~keep])
-        lev, edf, cov = self._posterior(x, r, w, scale, B, AB, rank, leverage)
+        self.held = None
+        x, r, A, g, B, AB, iterations, converged, null, rank = hold_weak(
+            self, start, first, w, max_iterations, tol, B1, scale, data_rank) if self.hold_weak else first
+        x, r, P = unmeasured_to_zero(self, x, r, w, scale[:, None] * V[:, ~keep])
+        lev, edf, cov, held, held_sd = self._posterior(x, r, w, scale, B, AB, rank, leverage, P)
         if self.S is not None:
             lam = {k: float(np.exp(v)) for k, v in self.smoothing_rho.items()}
             self.smoothing = Smoothing(lam, dict(self.smoothing_rho), edf)
-        return _Solution(x, r, cov, null, scale, rel, rank, cond, iterations, converged, lev, edf, B)
+        return _Solution(x, r, cov, null, scale, rel, rank, cond, iterations, converged, lev, edf, B,
+                         held, held_sd)
 
     def _penalised_fit(self, start, w, max_iterations, tol, B1, scale, penalties: dict) -> tuple:
         """The first pass of :meth:`solve`: Gauss-Newton from ``start`` (x, r, A, g) along B1, with
@@ -569,45 +537,20 @@ class _Problem:
             iterations += more
         return x, r, A, g, B, AB, iterations, converged
 
-    def _hold_weak(self, start, first, w, max_iterations, tol, B1, scale, data_rank: int) -> tuple:
-        """The second pass of :meth:`solve`: the weak directions of the first pass's fit ``first``
-        (x, r, A, g, B, AB, iterations, converged, null, rank) held at the least predicted error,
-        fitted again from ``start``. Returns the same tuple: the second pass's, or ``first`` when
-        there is no weak direction or holding them spoils the fit (then ``weak_fallback``)."""
-        x, r, A, g, B, AB, iterations, converged, null, rank = first
-        sigma_w = self._repeat_scale(r, min(rank, data_rank))
-        y1 = B1.T @ ((x - start[0]) / scale)
-        weak, Q = self._weak_directions(AB + self._reduced_penalty(B), B1, scale, sigma_w, y1)
-        if not weak.shape[1]:
-            return first
-        # reported as undetermined: the weak directions, in scaled coordinates, orthonormalised
-        U_, sv_, _ = np.linalg.svd(B1 @ weak, full_matrices=False)
-        null = np.hstack([null, U_[:, sv_ > 1e-9 * sv_.max()]])
-        rank = self.n_unknowns - null.shape[1]
-        # from the start again (the data-only pass may have wandered far along the weak
-        # directions), in the directions the data see less the weak ones: W^T Q y = 0
-        C = weak.T @ Q
-        _, sv_c, Vt = np.linalg.svd(C, full_matrices=True)
-        k_c = int(np.sum(sv_c > 1e-9 * max(float(sv_c.max()), 1e-300)))
-        B2 = B1 @ Vt[k_c:].T
-        x, r, A, g, B, AB, more, converged = self._gauss_newton(
-            *start, w, max_iterations, tol, B2, scale)
-        iterations += more
-        # holding weak directions may cost the data fit about one noise variance each; much more
-        # means the split into weak and strong went wrong numerically: keep the data's own fit
-        allowed = float(first[1] @ first[1]) + 4.0 * weak.shape[1] * sigma_w ** 2 + 1e-300
-        if not converged or float(r @ r) > 1.01 * allowed:
-            self.weak_fallback = True
-            return first
-        return x, r, A, g, B, AB, iterations, converged, null, rank
-
-    def _posterior(self, x, r, w, scale, B, AB, rank: int, leverage: bool):
+    def _posterior(self, x, r, w, scale, B, AB, rank: int, leverage: bool, P=None):
         """((n_obs,) leverages (zeros unless ``leverage``), effective degrees of freedom, (n_unknowns,
-        n_unknowns) covariance of the unknowns, NaN when nothing is fitted) of a fit along B."""
+        n_unknowns) covariance of the unknowns, NaN when nothing is fitted, (n_unknowns, k) held
+        directions (internal units, each 1 um rms tool-tip error over the data's region) and (k,)
+        their standard errors, um) of a fit along B. The covariance includes the variance the data
+        leave along each held direction (:func:`._weak.held_variance`): held, not undetermined. It
+        goes through ``P``, the move that took the components no laser file names to zero
+        (:func:`.unmeasured.assumption_map`; None: none), as the values did."""
         lev = np.zeros(self.n_obs)
         edf = float(rank)
+        self.held_assumed = 0
         if not B.shape[1]:
-            return lev, edf, np.full((self.n_unknowns, self.n_unknowns), np.nan)
+            return (lev, edf, np.full((self.n_unknowns, self.n_unknowns), np.nan),
+                    np.zeros((self.n_unknowns, 0)), np.zeros(0))
         # the Bayesian posterior covariance of a penalised fit (Wood 2006): phi (AB + S)^-1, phi
         # the residual variance over the effective degrees of freedom tr((AB + S)^-1 AB)
         H = AB + self._reduced_penalty(B)
@@ -616,9 +559,12 @@ class _Problem:
         dof = self.n_obs - edf
         s2 = float(r @ r) / dof if dof > 0 else np.nan
         cov = s2 * (scale[:, None] * (B @ Hinv @ B.T) * scale[None, :])
+        if P is not None:
+            cov = P @ cov @ P.T
+        held_cov, held, held_sd, self.held_assumed = held_variance(self.held, scale, s2, P, self.metric)
         if leverage:
             lev = self.leverages(x, w, scale, B, np.linalg.cholesky(H))
-        return lev, edf, cov
+        return lev, edf, cov + held_cov, held, held_sd
 
     def _reduced_penalty(self, B) -> np.ndarray:
         """B^T S B: the penalty in the directions B (zeros without one)."""
@@ -748,7 +694,8 @@ class _Problem:
             files=files, n_obs=self.n_obs, n_params=self.n_unknowns, dof=dof,
             sigma=float(np.sqrt(cost / dof)) if dof else float("nan"), iterations=sol.iterations,
             converged=sol.converged, cost=cost, seconds=seconds, weighting=label, info=dict(info or {}),
-            directions=sol.scale[:, None] * sol.B, residual=sol.r.copy())
+            directions=sol.scale[:, None] * sol.B, residual=sol.r.copy(), held_sd_um=sol.held_sd,
+            held_assumed=self.held_assumed)
         if self.smoothing is not None:
             res.smoothing = self.smoothing
         params = ParameterSet(model.param_specs, values, std)
@@ -775,8 +722,11 @@ class _Problem:
         else:
             keep &= np.linalg.norm(null_p, axis=0) > 0
         names = model.param_names           # a property that builds the tuple on each call
+        # the covariance includes the held directions' variance; they are kept too, with their
+        # standard errors, so that a reader of the model can tell that share
         uncertainty = {"names": tuple(names[i] for i in self.free_idx),
-                       "covariance": np.nan_to_num(sol.cov[:nf, :nf]), "undetermined": null_p[:, keep]}
+                       "covariance": np.nan_to_num(sol.cov[:nf, :nf]), "undetermined": null_p[:, keep],
+                       "held": sol.held[:nf], "held_sd_um": np.asarray(sol.held_sd, dtype=float)}
         res.fitted_model = FittedModel(model, params, dict(ctx_defaults),
                                        {"identify": res.to_dict(), **(info or {})},
                                        uncertainty=uncertainty)

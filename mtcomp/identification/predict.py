@@ -1,5 +1,13 @@
 """Predictions of a fitted model for the rows of any measurement file, with their standard errors
-(what ``mtcomp predict`` writes), blank where the model's data do not determine them."""
+(what ``mtcomp predict`` writes), blank where the model's data do not determine them.
+
+A standard error comes from the model's covariance, which includes the variance the data leave
+along the directions the fit held because the data fix them only weakly (the model file's
+``uncertainty.held``, with ``held_sd_um``): such a prediction gets that variance, the square of its
+change along each held direction times the square of the direction's standard error. That variance
+is on the assumption that the components no laser file names are zero (what only splits readings
+between a named component and one of those has none). Only the directions the data do not
+determine at all (``uncertainty.undetermined``) blank a prediction."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -15,12 +23,15 @@ from .problem import KNOWN_SETUP_KINDS, unique_tags, build_measurement_models
 
 @dataclass
 class Undetermined:
-    """What the data behind a model left undetermined, to blank predictions that rest on it.
+    """What the data behind a model left undetermined, to blank predictions that rest on it, and the
+    covariance that gives the others their standard errors.
 
     index : (k,) positions in the model's parameters of the fitted ones (the covariance's order).
     directions : (k, m) directions of those parameters the data did not determine (the model
         file's ``uncertainty.undetermined``), internal units, each scaled to 1 um rms tool-tip error
-        over the machine's travel. None: the model carries no uncertainty.
+        over the machine's travel. None: the model carries no uncertainty. The directions the fit
+        held because the data fix them only weakly are not among them: their variance is in the
+        covariance (``factor``).
     to_file : (k,) file unit per internal unit of each fitted parameter.
     largest_sd : the largest standard error of any combination of unit size of the fitted
         parameters in file units (um, urad): the scale against which a standard error counts as
@@ -181,6 +192,7 @@ def predict_readings(fitted: FittedModel, data: MeasurementSet, machine: Machine
     if blank:
         notes.append(f"{blank} prediction(s) of {mm.tag} rest only on what the model's data did not "
                      "determine: left blank")
+    notes += _blank_outside_region(fitted, data, machine or fitted.machine, columns)
     if fitted.uncertainty is None:
         notes.append("the model carries no uncertainty (mtcomp identify and diagnose write one; a "
                      "model file of an older mtcomp may not): the _sd columns are blank")
@@ -188,3 +200,29 @@ def predict_readings(fitted: FittedModel, data: MeasurementSet, machine: Machine
         notes.append(f"{mm.tag} was not part of the fit: its set-up ({', '.join(s.name.split(':', 1)[1] for s in mm.nuisance_specs)}) "
                      "is unknown and taken as zero; compare readings up to that set-up")
     return Prediction(columns, known, notes)
+
+
+def _blank_outside_region(fitted, data, machine, columns: dict) -> list:
+    """Blank the standard errors (``*_sd`` columns) of the rows whose axis positions lie outside the
+    region the model's data reached (there the model holds its profiles' end values: a guess its
+    posterior does not size, and compensate and export do not correct there); the note saying so."""
+    from ..models.region import outside_bounds, support_bounds
+    bounds = support_bounds(fitted)
+    if bounds is None or not hasattr(data, "axis_positions"):
+        return []
+    out = outside_bounds(machine, bounds, data.axis_positions(machine))
+    rows = out.any(axis=1)
+    if not rows.any():
+        return []
+    for name, values in columns.items():
+        if name.endswith("_sd"):
+            values[rows] = np.nan
+    lo, hi = bounds
+    axes = []
+    for j, a in enumerate(machine.axes):
+        if out[:, j].any():
+            f, unit = (np.degrees(1.0), "deg") if a.is_rotary else (1.0, "mm")
+            axes.append(f"{a.name} {lo[j] * f:g} .. {hi[j] * f:g} {unit}: {int(out[:, j].sum())}")
+    return [f"{data.path}: {int(rows.sum())} row(s) lie outside the region the model's data reached "
+            f"({'; '.join(axes)}): the model holds its profiles' end values there, a guess its "
+            "standard error does not size: left blank (compensate and export do not correct there)"]

@@ -187,7 +187,13 @@ def component_ranges(fitted: FittedModel, undetermined: Undetermined | None = No
             continue
         ranges += _axis_ranges(fitted, ax, *support[ax.name], und, mask)
     moved = {r.axis for r in ranges}
-    still = [a for a in machine.axis_names if a not in moved]
+    info = fitted.info if isinstance(fitted.info, dict) else {}
+    given = [a for a in info.get("held_axes", ()) if a not in moved]
+    if given:
+        notes.append(f"axes whose errors were held as given (--hold): {', '.join(given)}: the data "
+                     "moved them; their errors stay where the start model puts them (zero without "
+                     "--start)")
+    still = [a for a in machine.axis_names if a not in moved and a not in given]
     if still:
         held = fitted.held or {}
         at = [f"{a} at {held[a] * (180.0 / math.pi if machine.axis(a).is_rotary else 1.0):g} "
@@ -209,7 +215,8 @@ def component_ranges(fitted: FittedModel, undetermined: Undetermined | None = No
 def _resolved(und: Undetermined, fitted: FittedModel, unmeasured: set) -> Undetermined:
     """``und`` without the undetermined directions that move a component no laser file measures:
     the fit held those components at zero (:mod:`mtcomp.identification.unmeasured`), so what the
-    others show is determined on that assumption."""
+    others show is determined on that assumption. The covariance is already on it (the fit's
+    :func:`mtcomp.identification.unmeasured.assumption_map`)."""
     if not unmeasured or und.directions is None or not und.directions.shape[1]:
         return und
     from dataclasses import replace

@@ -163,6 +163,26 @@ class FitResult:
     smoothing: object = None
     directions: np.ndarray = None
     residual: np.ndarray = None
+    #: (k,) standard errors (um of rms tool-tip error over the data's region) of the combinations
+    #: the data fix only weakly, held at the least error; their variance is in ``covariance``
+    held_sd_um: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    #: how many more held combinations only split readings between a component a laser file names
+    #: and one none names: held at zero by the assumption that those are zero, with no variance
+    held_assumed: int = 0
+
+    def _held_lines(self) -> list[str]:
+        """The summary's sentences on the combinations held because the data fix them weakly."""
+        lines = []
+        if self.held_sd_um.size:
+            lo, hi = float(np.min(self.held_sd_um)), float(np.max(self.held_sd_um))
+            lines.append(f"{self.held_sd_um.size} combination(s) the data fix only weakly are held at the "
+                         f"least error (standard error {lo:.2g} to {hi:.2g} um of rms tool-tip error over the "
+                         "region the data cover, with the components no laser file names at zero); every "
+                         "+- and standard error includes their variance")
+        if self.held_assumed:
+            lines.append(f"{self.held_assumed} more only split readings between a component a laser file "
+                         "names and one none names: held at zero by that assumption, with no variance")
+        return lines
 
     # ------------------------------------------------------------ lmfit's MinimizerResult figures
     @property
@@ -318,6 +338,7 @@ class FitResult:
         if targets:
             lines += [""] + list(targets)
         lines.append("")
+        lines += self._held_lines()
         if verbose:
             lines += self._parameter_lines()
         elif self.undetermined:
@@ -354,9 +375,8 @@ class FitResult:
                 lines.append(f"{s.name:<28} {v * s.to_file:12.5g} {es}  {s.unit}")
         lines.append("")
         if self.undetermined:
-            lines.append(f"{len(self.undetermined)} combination(s) the data cannot determine, or only "
-                         "worse than 1 um of error where the data are (held where they predict the least "
-                         "error; file units):")
+            lines.append(f"{len(self.undetermined)} combination(s) the data cannot determine (held where "
+                         "they predict the least error; file units):")
             for u in self.undetermined:
                 lines.append(f"  {u}")
         else:

@@ -71,19 +71,39 @@ def unmeasured_unknowns(problem) -> np.ndarray:
                            np.zeros(problem.n_unknowns - problem.n_free, dtype=bool)])
 
 
-def unmeasured_to_zero(problem, x, r, w, data_null) -> tuple:
-    """(x, r) of identify's fit moved along ``data_null`` (n_unknowns, k): directions the data do
-    not see (at the start point, in unknowns' units), so that the parameters of components no laser
-    file names are as near zero as those directions allow. The penalty had shared the curvature of
-    such a combination (a positioning run's EYY + tool length x pitch EAY) between its parts; the
-    readings do not change, to the chain's second order (kept only if the weighted sum of squares
-    grows by less than 1e-5 of it: 5e-7 on three real laser runs)."""
+def assumption_map(problem, data_null) -> np.ndarray | None:
+    """(n_unknowns, n_unknowns) P, the linear move ``x -> P x`` along ``data_null`` (n_unknowns, k:
+    directions the data do not see, unknowns' units) that takes the parameters of components no
+    laser file names as near zero as those directions allow; None when there is nothing to move.
+
+    It is what :func:`unmeasured_to_zero` does to the values, and what the fit's covariance goes
+    through with them: the variance of a split between a named component and one no file names
+    (only the roughness penalty saw it) is the assumption's, not the data's, and goes; what the
+    data fix of the named component stays. Readings the fit saw do not change (J P = J), so their
+    standard errors stay. Unlike conditioning the covariance on those parameters being zero, which
+    also took the variance of the named component along with them (a combination of a positioning
+    profile and a pitch the data see only in sum), this keeps it."""
     u = unmeasured_unknowns(problem)
     if not u.any() or data_null.shape[1] == 0:
-        return x, r
-    c, *_ = np.linalg.lstsq(data_null[u], x[u], rcond=1e-10)
-    moved = x - data_null @ c
+        return None
+    P = np.eye(data_null.shape[0])
+    P[:, u] -= data_null @ np.linalg.pinv(data_null[u], rcond=1e-10)
+    return P
+
+
+def unmeasured_to_zero(problem, x, r, w, data_null) -> tuple:
+    """(x, r, P) of identify's fit moved along ``data_null`` (n_unknowns, k): directions the data do
+    not see (at the start point, in unknowns' units), so that the parameters of components no laser
+    file names are as near zero as those directions allow (P the move, :func:`assumption_map`; None
+    when nothing moved). The penalty had shared the curvature of such a combination (a positioning
+    run's EYY + tool length x pitch EAY) between its parts; the readings do not change, to the
+    chain's second order (kept only if the weighted sum of squares grows by less than 1e-5 of it:
+    5e-7 on three real laser runs)."""
+    P = assumption_map(problem, data_null)
+    if P is None:
+        return x, r, None
+    moved = P @ x
     r_moved = w * (problem.observed - problem.evaluate(moved))
     if float(r_moved @ r_moved) > float(r @ r) * (1 + 1e-5) + 1e-300:
-        return x, r
-    return moved, r_moved
+        return x, r, None
+    return moved, r_moved, P

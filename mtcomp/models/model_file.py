@@ -59,7 +59,11 @@ class FittedModel:
         ``{"names": (k,) fitted parameter names, "covariance": (k, k), "undetermined": (k, m)}``,
         the covariance of those parameters and the m directions of them the data did not determine
         (moving the parameters along one leaves every fitted reading unchanged), each scaled to the
-        size that predicts 1 um rms tool-tip error over the machine's travel.
+        size that predicts 1 um rms tool-tip error over the machine's travel; optionally ``"held"``
+        (k, h) and ``"held_sd_um"`` (h,): the directions the data fix only weakly, which the fit held
+        at the least error (each 1 um rms tool-tip error over the data's region), with their
+        standard errors (um). Their variance is already in the covariance: they are listed so that
+        its share can be told, and they are not undetermined.
     """
 
     model: ErrorModel
@@ -91,7 +95,9 @@ class FittedModel:
             keep = [k for k, n in enumerate(uncertainty["names"]) if n not in drift]
             uncertainty = {"names": [uncertainty["names"][k] for k in keep],
                            "covariance": np.asarray(uncertainty["covariance"])[np.ix_(keep, keep)],
-                           "undetermined": np.asarray(uncertainty["undetermined"])[keep]}
+                           "undetermined": np.asarray(uncertainty["undetermined"])[keep],
+                           **({"held": np.asarray(uncertainty["held"])[keep],
+                               "held_sd_um": uncertainty["held_sd_um"]} if "held" in uncertainty else {})}
         return replace(self, params=params, uncertainty=uncertainty,
                        context_defaults=dict(self.context_defaults))
 
@@ -149,14 +155,23 @@ class FittedModel:
             q[:, j] = held[a]
         return q, cols
 
-    def covariance_factor(self) -> tuple[np.ndarray, np.ndarray] | None:
+    def covariance_factor(self, held: bool = True) -> tuple[np.ndarray, np.ndarray] | None:
         """(indices into ``params``, F) with F F^T the covariance of those parameters (internal
         units), from its positive eigenvalues; None when the model carries no uncertainty. What the
-        data left undetermined is not in it: it is held at zero and corrects nothing."""
+        data left undetermined is not in it: it is held at zero and corrects nothing.
+
+        held : False leaves out the variance of the directions the fit held because the data fix
+            them only weakly (``uncertainty["held"]``): the fitted values do not move along them
+            whatever the data say, so a correction made from the model has none of that variance
+            (it is the error left uncorrected there, which a prediction's standard error counts)."""
         if self.uncertainty is None:
             return None
         idx = np.array([self.params.index(n) for n in self.uncertainty["names"]], dtype=int)
         C = np.nan_to_num(np.asarray(self.uncertainty["covariance"], dtype=float))
+        if not held and "held" in self.uncertainty:
+            Gs = np.asarray(self.uncertainty["held"], dtype=float).reshape(idx.size, -1)
+            Gs = Gs * np.asarray(self.uncertainty["held_sd_um"], dtype=float)[None, :]
+            C = C - Gs @ Gs.T
         w, V = np.linalg.eigh(0.5 * (C + C.T))
         keep = w > 1e-12 * max(float(w.max()) if w.size else 0.0, 1e-300)
         return idx, V[:, keep] * np.sqrt(w[keep])
@@ -219,8 +234,12 @@ def uncertainty_to_file(fitted: "FittedModel") -> dict:
     u = fitted.uncertainty
     f = _file_factors(fitted.params, u["names"])
     N = f[:, None] * u["undetermined"]
-    return {"parameters": list(u["names"]), "covariance": (u["covariance"] * np.outer(f, f)).tolist(),
-            "undetermined": N.T.tolist()}
+    out = {"parameters": list(u["names"]), "covariance": (u["covariance"] * np.outer(f, f)).tolist(),
+           "undetermined": N.T.tolist()}
+    if "held" in u and np.asarray(u["held"]).size:
+        out["held"] = (f[:, None] * np.asarray(u["held"])).T.tolist()
+        out["held_sd_um"] = np.asarray(u["held_sd_um"], dtype=float).tolist()
+    return out
 
 
 def _uncertainty_from_file(params: ParameterSet, data, path) -> dict | None:
@@ -237,7 +256,16 @@ def _uncertainty_from_file(params: ParameterSet, data, path) -> dict | None:
     if unknown:
         raise InputError(f"'uncertainty' names parameter {unknown[0]!r}, which the model lacks", path)
     f = _file_factors(params, names)
-    return {"names": tuple(names), "covariance": cov / np.outer(f, f), "undetermined": null / f[:, None]}
+    out = {"names": tuple(names), "covariance": cov / np.outer(f, f), "undetermined": null / f[:, None]}
+    if "held" in data:      # optional (older files have none): weakly fixed directions, their sd
+        try:
+            held = np.asarray(data["held"], dtype=float).reshape(-1, len(names)).T
+            sd = np.asarray(data["held_sd_um"], dtype=float).reshape(held.shape[1])
+        except (KeyError, TypeError, ValueError):
+            raise InputError("'uncertainty' 'held' must be directions over its parameters with one "
+                             "'held_sd_um' each", path) from None
+        out.update(held=held / f[:, None], held_sd_um=sd)
+    return out
 
 
 def support_to_file(machine: Machine, support: dict) -> dict:

@@ -117,7 +117,7 @@ class Bounds:
             return np.array(x, dtype=float)
         return _round_to(x, self.unit)
 
-    def enforce(self, x, q, exempt, prev, desired=None, following=None, limits=None):
+    def enforce(self, x, q, exempt, prev, desired=None, following=None, limits=None, planned=None):
         """The written corrections and the bounds that acted.
 
         x : (n, na) corrections found (x units). q : (n, na) nominal positions (mm, rad).
@@ -125,6 +125,9 @@ class Bounds:
         before (x units), or None. desired : (n, na) the corrections the blocks would take without
         bounds (default x), to tell which bounds acted. following : (na,) correction of the block
         after when it is known and not exempt, else None. limits : :meth:`limits` of q if known.
+        planned : (n, na) the plan before its rotary corrections were rounded and its linear ones
+        solved again for them, or None: a step it put on its bound is named too (the re-solve can
+        move the written pair off the bound, the ramp being the step bound's all the same).
 
         Returns (y (n, na) on the grid, flags (n, na, 5) bool, see FLAG_KINDS): a flag is set where
         y sits on that bound and differs from ``desired`` by more than half a grid step (the bound
@@ -168,15 +171,23 @@ class Bounds:
         has_prev = ~exempt.copy()
         if prev is None and n:
             has_prev[0] = False
+        flags[..., 4] = took & self._on_step(y, prev_rows, has_prev, exempt, following, tol)
+        if planned is not None:
+            pp = np.vstack([prev[None, :] if prev is not None else planned[:1], planned[:-1]])
+            flags[..., 4] |= took & self._on_step(planned, pp, has_prev, exempt, None, tol)
+        return y, flags
+
+    def _on_step(self, y, prev_rows, has_prev, exempt, following, tol):
+        """(n, na) bool: the step into a block (from prev_rows) or out of it to the next is on its
+        bound: a block held back by the step bound (a ramp into a bound) either way."""
+        n = y.shape[0]
         step_in = has_prev[:, None] & (np.abs(y - prev_rows) >= self.S - tol)
-        # a block held back by the step bound towards the block after it (a ramp into a bound)
         step_out = np.zeros_like(step_in)
         if n > 1:
             step_out[:-1] = ~exempt[1:, None] & (np.abs(y[1:] - y[:-1]) >= self.S - tol)
         if n and following is not None:
             step_out[-1] = np.abs(following - y[-1]) >= self.S - tol
-        flags[..., 4] = took & (step_in | step_out)
-        return y, flags
+        return step_in | step_out
 
     def _next_violation(self, y, exempt, prev, start, tol, block=8192):
         n = y.shape[0]

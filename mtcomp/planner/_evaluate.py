@@ -81,7 +81,8 @@ class Evaluator:
         self.D = problem.axis_scale
         self.evaluations = 0
         self._count_lock = threading.Lock()     # parts of a chunk are evaluated in threads
-        self._factor = problem.fitted.covariance_factor()
+        # the correction's own variance: not that of what the fit held (it corrects nothing there)
+        self._factor = problem.fitted.covariance_factor(held=False)
         #: the model carries a covariance: :meth:`correction_sd_um` is NaN everywhere without one
         self.has_uncertainty = self._factor is not None
 

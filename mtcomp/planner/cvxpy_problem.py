@@ -22,7 +22,8 @@ import numpy as np
 
 from ._evaluate import objective_residual
 from ._pointwise import Linearization
-from .engine import NEVER_WORSE_TOL, NodeSet, Planner
+from ._qp import NEVER_WORSE_TOL
+from .engine import NodeSet, Planner
 from .problem import CompensationProblem, PlannerOptions
 
 

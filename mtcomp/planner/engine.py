@@ -31,16 +31,11 @@ from ._bounds import FLAG_KINDS, INF, Bounds, flag_name
 from ._evaluate import Evaluator, objective_residual
 from ._parallel import read_ahead, resolve_threads, split_rows
 from ._pointwise import Linearization, solve_newton, solve_pinv
-from ._qp import NEVER_WORSE_TOL, WindowQP, never_worse_rows, reachable_nodes  # noqa: F401
+from ._qp import WindowQP, never_worse_rows, reachable_nodes
+from ._rotary_grid import rotary_columns, round_rotary, solve_with_rotary_fixed
 from ._small import a_x, any_rows, at_b, gram, row_max_abs, row_norm
 from .problem import CompensationProblem, PlannerOptions
-
-#: slack of the support test (mm for linear axes, rad for rotary ones): a block this close to the
-#: edge of the region the model's data reached counts as inside
-SUPPORT_TOL = 1e-6
-#: a rotary axis whose data reached all of a turn but a gap this wide (rad) counts as measured all
-#: around: its profiles are periodic, so the gap is between data on both sides like any other
-WRAP_GAP_RAD = np.radians(45.0)
+from ..models.region import outside_bounds, support_bounds
 
 
 @dataclass
@@ -172,7 +167,8 @@ class Planner:
         self.bounds = Bounds(problem)
         self.machine = problem.machine
         self.na = self.machine.n_axes
-        self._qps: dict[int, WindowQP] = {}
+        self._rotary = rotary_columns(self.machine)
+        self._qps: dict[tuple[int, int], WindowQP] = {}
         self._prev: np.ndarray | None = None        # last committed correction (x units)
         self._last_end: tuple | None = None         # (q, x_free) of the last node of the last chunk
         self._after_cycle = False                   # the last row of the last chunk was a hole
@@ -181,24 +177,8 @@ class Planner:
         self._last_progress = time.monotonic()
         self.stats = {"windows": 0, "windows_qp": 0, "qp_solves": 0, "qp_status": {}}
         self.threads = resolve_threads(self.options.threads)
-        support = problem.fitted.support
         #: (lo, hi) each (na,): the model's support, +-inf for axes it does not limit; None: unknown
-        self.support = None
-        if support is not None:
-            lo = np.full(self.na, -np.inf)
-            hi = np.full(self.na, np.inf)
-            held = problem.fitted.held or {}
-            for j, a in enumerate(self.machine.axis_names):
-                if a in support:
-                    lo[j], hi[j] = support[a]
-                elif a in held and self.machine.axis(a).is_rotary:
-                    lo[j] = hi[j] = held[a]      # measured at one angle only: no other is corrected
-            for j, a in enumerate(self.machine.axes):
-                # a rotary axis measured around its turn but for a gap of at most WRAP_GAP_RAD
-                # (sampled every 10 deg from 0 to 350): its periodic profiles reach across the gap
-                if a.is_rotary and np.isfinite(lo[j]) and 2 * np.pi - (hi[j] - lo[j]) <= WRAP_GAP_RAD:
-                    hi[j] = lo[j] + 2 * np.pi
-            self.support = (lo, hi)
+        self.support = support_bounds(problem.fitted)
         self._split = self.threads          # parts a chunk's per-block work is cut into
 
     # ------------------------------------------------------------------ nodes
@@ -216,22 +196,10 @@ class Planner:
     def outside_support(self, q, known) -> np.ndarray:
         """(n, na) bool: the axes of the blocks at ``q`` ((n, na) axis positions, mm and rad) whose
         position is given (``known``, (n, na) bool) and lies outside the region the model's data
-        reached (:attr:`support`, with ``SUPPORT_TOL`` of slack: mm or rad; a rotary axis's angle
-        taken modulo a turn, its error profiles being periodic); all False when the model does not
-        say where its data reached. A block with such an axis is left uncorrected unless the
-        options extrapolate."""
-        if self.support is None:
-            return np.zeros(q.shape, bool)
-        lo, hi = self.support
-        q = np.asarray(q, dtype=float)
-        rotary = np.array([a.is_rotary for a in self.machine.axes]) & np.isfinite(lo)
-        if rotary.any():
-            # a rotary axis's error profiles are periodic (Fourier series): an angle a turn away from
-            # one the data reached is that angle (C at 270 deg is C at -90 deg)
-            q = q.copy()
-            q[:, rotary] = lo[rotary] - SUPPORT_TOL + np.mod(q[:, rotary] - lo[rotary] + SUPPORT_TOL,
-                                                            2.0 * np.pi)
-        return known & ((q < lo - SUPPORT_TOL) | (q > hi + SUPPORT_TOL))
+        reached (:attr:`support`: :func:`mtcomp.models.region.outside_bounds`); all False when
+        the model does not say where its data reached. A block with such an axis is left
+        uncorrected unless the options extrapolate."""
+        return outside_bounds(self.machine, self.support, q, known)
 
     def block_status(self, q, known, feed, dirs, datum=None, tool_length=None):
         """What the planner's rules say of each block, before any correction is planned.
@@ -466,13 +434,18 @@ class Planner:
 
     # ------------------------------------------------------------------ committing
     def _commit(self, nodes: NodeSet, lin: Linearization, x: np.ndarray,
-                following: np.ndarray | None = None, limits=None) -> PlanResult:
-        """Round, enforce bounds exactly, predict the deviation after correction."""
+                following: np.ndarray | None = None, limits=None, planned=None,
+                desired=None) -> PlanResult:
+        """Round, enforce bounds exactly, predict the deviation after correction (``planned``: the
+        window's plan before its turn was rounded, whose step bounds the flags name too;
+        ``desired``: the unbounded correction with its turn on the grid, when the caller has it)."""
         if limits is None:
             limits = self.bounds.limits(nodes.q, nodes.pinned)
-        # flags compare with the unbounded correction: what the bounds took away
-        y, flags = self.bounds.enforce(x, nodes.q, nodes.exempt, self._prev, desired=lin.x,
-                                       following=following, limits=limits)
+        # flags compare with the unbounded correction (its turn on the grid): what the bounds took
+        if desired is None:
+            desired = self._round_rotary(lin, lin.x)
+        y, flags = self.bounds.enforce(x, nodes.q, nodes.exempt, self._prev, desired=desired,
+                                       following=following, limits=limits, planned=planned)
         if len(nodes):
             self._prev = y[-1].copy()
         D = self.bounds.D
@@ -520,18 +493,20 @@ class Planner:
             qp = self._qps[(n_nodes, rows)] = WindowQP(n_nodes, self.na, rows, self.options.osqp_eps)
         return qp
 
-    def _solve_window(self, nodes: NodeSet, lin: Linearization, limits) -> np.ndarray:
-        """Corrections x (n, na) of one window; updates lin in place when re-linearised."""
+    def _solve_window(self, nodes: NodeSet, lin: Linearization, limits):
+        """(x, planned): corrections (n, na) of one window, and the QP's before its turn was rounded
+        (None when the QP was not needed); updates lin in place when re-linearised."""
         b, o = self.bounds, self.options
         self.stats["windows"] += 1
         l, u = limits[:2]
         prev = self._prev
         if not o.always_qp and b.feasible(lin.x, l, u, nodes.exempt, prev):
-            return lin.x.copy()
+            x = self._round_rotary(lin, lin.x)
+            if b.feasible(x, l, u, nodes.exempt, prev):
+                return x, None
         self.stats["windows_qp"] += 1
         n, na = lin.x.shape
-        qp = self._window_qp(n + 1, lin.b.shape[1] if lin.orientation_rows.shape[1] == 0
-                             else objective_residual(lin.orientation_rows[:1], lin.b[:1]).shape[1])
+        qp = self._window_qp(n + 1, lin.b.shape[1])      # objective_residual keeps b's shape
         lam = self.problem.regularization_weights
         lower = np.vstack([np.zeros((1, na)) if prev is None else prev[None, :], l])
         upper = np.vstack([np.zeros((1, na)) if prev is None else prev[None, :], u])
@@ -564,7 +539,7 @@ class Planner:
             if status not in ("solved", "solved inaccurate"):
                 # keep going with the unbounded solution; enforce() clamps it and flags the bounds
                 self.stats["qp_failed"] = self.stats.get("qp_failed", 0) + 1
-                return np.clip(lin.x, l, u)
+                return self._round_rotary(lin, np.clip(lin.x, l, u)), None
             x = sol[1:]
             moved = row_max_abs(x - lin.x_lin) >= o.step_tol_um
             if not np.any(moved):
@@ -574,7 +549,15 @@ class Planner:
                                                   lin.target[idx])
             lin.b[idx], lin.A[idx], lin.x_lin[idx] = bb, AA, x[idx]
             lin.iterations[idx] += 1
-        return x
+        solves = qp.solves
+        fixed = solve_with_rotary_fixed(qp, b, lin, x, (lower, upper), (step_lo, step_hi), reachable,
+                                        lam, self._rotary)
+        self.stats["qp_solves"] += qp.solves - solves
+        return fixed, x
+
+    def _round_rotary(self, lin: Linearization, x: np.ndarray) -> np.ndarray:
+        """x with the rotary corrections on the output grid, the linear ones re-solved for them."""
+        return round_rotary(self.bounds, lin, x, self._rotary, self.problem.regularization_weights)
 
     def _feasible_run(self, nodes: NodeSet, lin: Linearization, pos: int, total: int, final: bool):
         """Commit at once the run of full windows from ``pos`` on whose unbounded solution keeps every
@@ -591,7 +574,7 @@ class Planner:
             return None, 0
         count = room // W + 1
         end = pos + count * W + O
-        x = lin.x[pos:end]
+        x = self._round_rotary(lin.take(slice(pos, end)), lin.x[pos:end])
         exempt = nodes.exempt[pos:end]
         limits = self.bounds.limits_lazy(nodes.q[pos:end], nodes.pinned[pos:end])
         b = self.bounds
@@ -609,8 +592,9 @@ class Planner:
         self.stats["windows"] += count
         following = x[nc] if nc < x.shape[0] and not exempt[nc] else None
         csl = slice(pos, pos + nc)
+        # x is the run's unbounded correction with its turn on the grid: the flags' reference too
         res = self._commit(nodes.take(csl), lin.take(csl), x[:nc].copy(), following,
-                           tuple(None if a is None else a[:nc] for a in limits))
+                           tuple(None if a is None else a[:nc] for a in limits), desired=x[:nc])
         return res, nc
 
     # ------------------------------------------------------------------ driving
@@ -667,8 +651,8 @@ class Planner:
         node is committed; otherwise qp keeps the last ``overlap`` (or fewer) for the next call."""
         o = self.options
         if o.method != "qp":
-            x = lin.x.copy()
-            return self._commit(nodes, lin, x)
+            x = self._round_rotary(lin, lin.x)
+            return self._commit(nodes, lin, x, desired=x)
         results = []
         if self._buffer:
             (prev_n, prev_l), = self._buffer
@@ -733,13 +717,14 @@ class Planner:
             sl = slice(pos, pos + nw)
             wn, wl = nodes.take(sl), lin.take(sl)
             limits = self.bounds.limits(wn.q, wn.pinned)
-            x = self._solve_window(wn, wl, limits)
+            x, planned = self._solve_window(wn, wl, limits)
             # keep the re-linearisation for the overlap nodes of the next window
             lin.b[sl], lin.A[sl], lin.x_lin[sl], lin.iterations[sl] = wl.b, wl.A, wl.x_lin, wl.iterations
             csl = slice(0, nc)
             following = x[nc] if nc < nw and not wn.exempt[nc] else None
             results.append(self._commit(wn.take(csl), wl.take(csl), x[:nc], following,
-                                        tuple(a[csl] for a in limits)))
+                                        tuple(a[csl] for a in limits),
+                                        None if planned is None else planned[:nc]))
             pos += nc
         return results, pos
 

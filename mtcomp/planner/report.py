@@ -32,7 +32,8 @@ import numpy as np
 
 from ._bounds import FLAG_KINDS, flag_name
 from ._small import any_rows, row_norm
-from .engine import NEVER_WORSE_TOL, PlanResult
+from ._qp import NEVER_WORSE_TOL
+from .engine import PlanResult
 
 #: a block counts as made worse when its deviation along an axis grows by more than this (um): the
 #: planner's never-worse rows allow NEVER_WORSE_TOL (half the output grid), rounding as much again
@@ -176,6 +177,10 @@ class Summary:
     worse_blocks: int = 0
     worse_max_um: float = 0.0
     worse_line: int = 0
+    #: blocks the step bound moved by more than their own error asks for (the ramp in or out of a
+    #: larger correction of a block after or before them), and the first one's line
+    ramp_blocks: int = 0
+    ramp_line: int = 0
 
     def add(self, r: PlanResult):
         n = len(r)
@@ -222,6 +227,7 @@ class Summary:
         self.sum_sq_before += float(np.sum(eb ** 2))
         self.sum_sq_after += float(np.sum(ea ** 2))
         self._add_worse(r)
+        self._add_ramps(r)
         done = ~r.pinned
         if done.any():
             self.corrected_blocks += int(done.sum())
@@ -244,6 +250,20 @@ class Summary:
             i = int(np.argmax(grown))
             if grown[i] > self.worse_max_um:
                 self.worse_max_um, self.worse_line = float(grown[i]), int(r.line[i])
+
+    def _add_ramps(self, r: PlanResult) -> None:
+        """Count the blocks whose step flag is set and whose linear correction is longer than their
+        own tip deviation by more than WORSE_TOL_UM: they carry part of a neighbour's correction."""
+        step = r.flags[..., FLAG_KINDS.index("step")]
+        if not step.any():
+            return
+        linear = [j for j, a in enumerate(self.axis_names) if a not in "ABC"]
+        longer = row_norm(r.correction[:, linear]) * 1e3 > row_norm(r.before) * 1e3 + WORSE_TOL_UM
+        ramp = any_rows(step) & longer
+        if ramp.any():
+            if not self.ramp_blocks:
+                self.ramp_line = int(r.line[np.argmax(ramp)])
+            self.ramp_blocks += int(ramp.sum())
 
     def as_dict(self) -> dict:
         """The figures as the keys of ``mtcomp compensate --json`` (um; counts of blocks)."""
@@ -272,7 +292,8 @@ class Summary:
                "not_converged": self.not_converged,
                "worse_than_uncorrected": {"blocks": self.worse_blocks,
                                           "largest_um": self.worse_max_um,
-                                          "line": self.worse_line}}
+                                          "line": self.worse_line},
+               "ramped_blocks": {"blocks": self.ramp_blocks, "line": self.ramp_line}}
         if self.max_axis_before_urad is not None:
             out["max_axis_before_urad"] = self.max_axis_before_urad
             out["max_axis_after_urad"] = self.max_axis_after_urad
@@ -310,6 +331,12 @@ class Summary:
                          f"predicted deviation {self.max_after_um:.3f} um at line {self.worst_line}")
         else:
             lines.append("0 blocks hit a bound")
+        if self.ramp_blocks:
+            lines.append(f"{blocks(self.ramp_blocks)} corrected by more than their own error "
+                         f"(first at line {self.ramp_line}): the step bound (--max-step-um, "
+                         "--max-step-urad) ramps a larger correction in over the blocks before it "
+                         "and out over those after, the other axes holding those blocks' own tip "
+                         "(BLOCKS.csv: step_<axis> in active_bounds)")
         if self.worse_blocks:
             lines.append(f"warning: {blocks(self.worse_blocks)} left worse than uncorrected along an "
                          f"axis (up to {self.worse_max_um:.3f} um more, at line {self.worse_line}): "

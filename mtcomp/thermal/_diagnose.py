@@ -103,8 +103,9 @@ def context_ranges(fit) -> dict:
 
 
 def drift_uncertainty(fit, axes: dict) -> dict | None:
-    """The model file's ``uncertainty`` of a drift model (as identify writes it): the posterior
-    covariance of every channel's coefficients and intercept (:func:`ridge_covariance`, um -> mm;
+    """The model file's ``uncertainty`` of a drift model (as identify writes it): the covariance of
+    every channel's coefficients and intercept for forward predictions (``ThermalFit.covariance``:
+    the posterior for residuals correlated in time, the model error on the intercept; um -> mm;
     channels independent), nothing undetermined."""
     if fit.covariance is None:
         return None

@@ -25,6 +25,9 @@ DEFAULT_LAGS_S = (900.0, 3600.0)
 PENALTIES = (0.0, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1, 3e-1, 1.0)
 #: a more complex candidate must lower the forward-validated sum of squares by this share
 PARSIMONY = 0.05
+#: the residuals' lag-1 autocorrelation is taken no closer to 1 than this (an effective count of at
+#: least n / 1999 independent readings)
+RHO_MAX = 0.999
 
 
 # ------------------------------------------------------------------------------------ linear algebra
@@ -64,8 +67,8 @@ def channel_fits(X: np.ndarray, Y: np.ndarray, penalty: float, channels=None) ->
     (s_i the feature's standard deviation, the intercept free). Parameters ``TD_<channel>_<k>``
     (the k-th feature's coefficient, um per feature unit) and ``TD_<channel>_zero`` (um); the
     covariance is the Bayesian posterior (Wood 2006), s^2 (X1^T X1 + P)^-1 with s^2 the channel's
-    residual variance over its effective degrees of freedom. The residuals of a drift record are
-    correlated in time, so this is a lower bound of the spread a new record shows (docs/thermal.md)."""
+    residual variance over its effective degrees of freedom. It takes the residuals as independent;
+    :func:`forward_covariance` makes it fit residuals correlated in time (docs/thermal.md)."""
     from ..identification.linear import solve_linear
     from ..models.params import ParamSpec
     n, k = X.shape
@@ -84,6 +87,35 @@ def ridge_covariance(X: np.ndarray, Y: np.ndarray, ridge: Ridge) -> np.ndarray:
     """(m, k + 1, k + 1) the posterior covariance of each channel's (coef..., intercept) (feature
     units; um^2 per feature unit^2) of :func:`fit_ridge`'s fit (:func:`channel_fits`)."""
     return np.array([r.covariance * 1e6 for r in channel_fits(X, Y, ridge.penalty)])
+
+
+def residual_autocorrelation(resid: np.ndarray) -> np.ndarray:
+    """(m,) lag-1 autocorrelation of each channel's residuals (n, m) in time order, clipped to
+    [0, ``RHO_MAX``]: residuals that alternate in sign are not taken as worth more than independent
+    ones, and a channel whose residual barely changes from reading to reading keeps a finite
+    effective count."""
+    r = resid - resid.mean(axis=0)
+    num, den = np.sum(r[1:] * r[:-1], axis=0), np.sum(r * r, axis=0)
+    rho = np.divide(num, den, out=np.zeros_like(num), where=den > 0)
+    return np.clip(rho, 0.0, RHO_MAX)
+
+
+def forward_covariance(covariance: np.ndarray, rho: np.ndarray, model_error_um: np.ndarray) -> np.ndarray:
+    """(m, k + 1, k + 1) the covariance of each channel's (coefficients..., intercept) that a
+    forward prediction's standard error is computed from, um^2 per feature unit^2.
+
+    covariance : (m, k + 1, k + 1) the posterior of :func:`channel_fits` (independent residuals).
+    rho : (m,) lag-1 autocorrelation of the residuals (:func:`residual_autocorrelation`): the
+        readings are worth an effective count n (1 - rho) / (1 + rho) of independent ones (AR(1)),
+        so the posterior is scaled by (1 + rho) / (1 - rho).
+    model_error_um : (m,) the forward-validated rms of each channel: what the model misses at a
+        reading it was not fitted on, correlated in time like the residuals, so at any one time an
+        unknown offset. It is added to the intercept's variance (every prediction moves one to one
+        with the intercept), so a prediction's variance is the parameters' share plus its square.
+    """
+    out = np.asarray(covariance, dtype=float) * ((1.0 + rho) / (1.0 - rho))[:, None, None]
+    out[:, -1, -1] += np.asarray(model_error_um, dtype=float) ** 2
+    return out
 
 
 def forward_predictions(X: np.ndarray, Y: np.ndarray, penalty: float, folds) -> np.ndarray:
@@ -205,8 +237,9 @@ class ThermalFit:
     n_folds: int = N_FOLDS
     temperature_means: dict = field(default_factory=dict)
     left_out: list = field(default_factory=list)
-    #: (m, k + 1, k + 1) posterior covariance of each channel's (coefficients, intercept), um
-    #: per feature unit (:func:`ridge_covariance`)
+    #: (m, k + 1, k + 1) covariance of each channel's (coefficients, intercept) for forward
+    #: predictions, um per feature unit (:func:`forward_covariance`: the posterior of
+    #: :func:`channel_fits` for residuals correlated in time, the model error on the intercept)
     covariance: np.ndarray | None = None
     temperature_ranges: dict = field(default_factory=dict)
     results: list = field(default_factory=list)
@@ -292,12 +325,15 @@ def fit_thermal(data, lags_s=DEFAULT_LAGS_S, n_folds: int = N_FOLDS, penalties=P
                   np.array([r.values[-1] * 1e3 for r in results]), chosen.penalty)
     temps = [(f[5:], X[:, i]) for i, f in enumerate(chosen.features) if f.startswith("temp_")]
     temp_means = {s: float(np.mean(v)) for s, v in temps}
+    fitted = ridge.predict(X)
+    rho = residual_autocorrelation(Y - fitted)
+    covariance = forward_covariance(np.array([r.covariance * 1e6 for r in results]), rho,
+                                    chosen.forward_rms_um)
     return ThermalFit(channels, chosen, scores, ridge, robust_noise_um(Y),
-                      np.max(np.abs(Y - Y[0]), axis=0), ridge.predict(X), Y,
+                      np.max(np.abs(Y - Y[0]), axis=0), fitted, Y,
                       np.asarray(ctx.t, dtype=float), forward_predictions(X, Y, chosen.penalty, folds),
                       np.asarray(ctx.spindle_rpm, dtype=float), n_folds, temp_means,
-                      [s for s in ctx.temperatures if s not in usable_temperatures(ctx)],
-                      np.array([r.covariance * 1e6 for r in results]),
+                      [s for s in ctx.temperatures if s not in usable_temperatures(ctx)], covariance,
                       {s: (float(np.min(v)), float(np.max(v))) for s, v in temps}, results)
 
 

@@ -216,6 +216,10 @@ class _Driver:
         """Interpret the line at the current position in Python: (line number, raw bytes, block)."""
         pos = self.consumed.value
         nl = self.buf.find(b"\n", pos)
+        while nl < 0 and not self.eof:       # the line runs past the block read (the scanner
+            self.fill()                       # hands lines over unread in Python-only modes)
+            pos = self.consumed.value
+            nl = self.buf.find(b"\n", pos)
         end = len(self.buf) if nl < 0 else nl + 1
         raw = self.buf[pos:end]
         k = int(self.st[16]) + 1

@@ -16,7 +16,8 @@ A :class:`Dialect` holds what the reader needs to know of the controller that ru
   words of G51 scaling ('PIJK' Fanuc, 'P' Haas, '' none): :mod:`.frames`.
 * ``language``: 'ngc' (LinuxCNC's O-words and parameters, :mod:`.ngc`), 'macro' (Fanuc macro B,
   :mod:`.macro`), 'heidenhain' (a conversational program, read through its G-code equivalent:
-  :mod:`.heidenhain`) or None (nothing is expanded).
+  :mod:`.heidenhain`) or None (nothing is expanded). RepRapFirmware's rules (quoted strings, the
+  codes it runs as macro files) are :mod:`.rrf`'s, for the dialect named 'rrf'.
 
 :func:`detect` reads the start of a program (and :func:`needs_expansion` all of it, in blocks).
 """
@@ -51,6 +52,8 @@ DIALECTS = {
     "haas": Dialect("haas", g80_keeps_motion=True, language="macro", rotation=True,
                     mirror="G101", scale_words="P"),
     "grbl": Dialect("grbl"),
+    # RepRapFirmware (Duet3D): quoted string parameters, codes it runs as macro files (.rrf)
+    "rrf": Dialect("rrf"),
     # Heidenhain TNC conversational (Klartext): read through its G-code equivalent (.heidenhain)
     "heidenhain": Dialect("heidenhain", language="heidenhain"),
     "generic": Dialect("generic", language="ngc"),
@@ -72,6 +75,8 @@ _CLUES = [
     ("fanuc", re.compile(r"^\s*[Oo:]\s*\d+\s*(?:\([^()]*\)\s*)*$")),   # a program number O1234
     ("grbl", re.compile(r"^\s*(?:\$[A-Za-z$#]|[?~!]\s*$)")),
     ("heidenhain", re.compile(r"(?i)^\s*\d+\s+BEGIN\s+PGM\b")),
+    # a quoted string parameter (M98 P"file.g", M4000 S"name"): RepRapFirmware's alone
+    ("rrf", re.compile(r'(?i)^\s*(?:n\s*\d+\s*)?[gmt]\s*\d[^"]*"')),
 ]
 #: controllers whose own language mtcomp does not read, known from a program's first lines:
 #: (pattern, the language's name, what in it differs from RS274 / ISO G-code)
@@ -84,7 +89,9 @@ _FOREIGN = [
 _FOREIGN_LINES = 3      # the first lines looked at for them
 _HAAS = re.compile(r"(?i)haas")
 #: a comment that names the controller
-_NAMED = re.compile(r"(?i)[(;][^)]*\b(fanuc|haas|linuxcnc|grbl)\b")
+_NAMED = re.compile(r"(?i)[(;][^)]*\b(fanuc|haas|linuxcnc|grbl|rrf|reprapfirmware|millenniumos)\b")
+#: names of a controller in a comment -> its dialect
+_NAME_DIALECT = {"reprapfirmware": "rrf", "millenniumos": "rrf"}
 _HEAD = 1 << 16          # bytes of the program's start read for its dialect
 
 
@@ -92,7 +99,8 @@ def detect(path) -> tuple[Dialect, str]:
     """(the program's dialect, why: 'detected from line N: ...' or what was taken). The first
     clue in the first 64 kB wins: LinuxCNC's O-words or named parameters, a Fanuc macro statement
     or program number (Haas where the program names Haas), grbl's '$' commands or real-time
-    characters; nothing: generic."""
+    characters, RepRapFirmware's quoted string parameters, a comment naming the controller (rrf
+    for RepRapFirmware, RRF or MillenniumOS); nothing: generic."""
     try:
         with open(os.fspath(path), "rb") as f:
             head = f.read(_HEAD)
@@ -105,7 +113,8 @@ def detect(path) -> tuple[Dialect, str]:
     for k, line in enumerate(lines, 1):
         code = strip_comments(line) if not line.lstrip().startswith(("$", "?", "~", "!")) else line
         named = _NAMED.search(line)
-        for name, clue in _CLUES + ([(named.group(1).lower(), re.compile(""))] if named else []):
+        by_name = _NAME_DIALECT.get(named.group(1).lower(), named.group(1).lower()) if named else ""
+        for name, clue in _CLUES + ([(by_name, re.compile(""))] if named else []):
             if clue.search(code):
                 if name == "fanuc" and _HAAS.search(text):
                     name = "haas"

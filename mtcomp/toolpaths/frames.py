@@ -116,6 +116,18 @@ def frames_of_rows(table: list, lines: np.ndarray) -> list[tuple[LocalFrame, np.
     return out
 
 
+def placed_by_frames(table: list, local: np.ndarray, lines: np.ndarray, pts: np.ndarray,
+                     xyz: list) -> np.ndarray:
+    """(n, na) the rows' program positions ``pts`` placed by the frame in force at each (the rows
+    ``local`` marks, looked up by their ``lines`` in ``table``: :func:`frames_of_rows`), in the work
+    system; ``xyz`` the columns of X, Y, Z."""
+    out = np.array(pts, dtype=float)
+    for frame, rows in frames_of_rows(table, lines):
+        rows = rows & local
+        out[rows] = frame.to_machine(out[rows], xyz)
+    return out
+
+
 # ------------------------------------------------------------------------- the reader's side
 class FrameCodes:
     """The frame codes of one line, read for one :class:`~.modal.ModalState` (``state``): what the
@@ -140,9 +152,9 @@ class FrameCodes:
         if bad:
             raise self.err(f"{name} with a word {bad[0]} is not supported")
 
-    def check_common(self, name: str, cur: LocalFrame) -> None:
+    def check_common(self, name: str) -> None:
         """Refused everywhere: a frame change in tool centre point mode, in a drilling cycle's
-        mode, or with a different frame change of rotation, mirror or scaling in force."""
+        mode, or on a machine without X, Y and Z (each code checks the frame in force itself)."""
         if self.s.tcp:
             raise self.err(f"{name} in tool centre point mode is not supported")
         if self.s.cycle is not None:
@@ -159,7 +171,7 @@ class FrameCodes:
                     if d.name == "haas" else
                     " (give --dialect linuxcnc or fanuc if one of them runs the program)")
             raise self.err(f"G52 (local coordinate system) is not supported on {d.name}{hint}")
-        self.check_common("G52", cur)
+        self.check_common("G52")
         if cur.kind:
             raise self.err("G52 while G68, a mirror image or scaling is in force (the order of the "
                            "two is not followed) is not supported")
@@ -186,7 +198,7 @@ class FrameCodes:
         if not s.dialect.rotation:
             raise self.err(f"G68 (coordinate rotation) is not supported on {s.dialect.name} (give "
                            "--dialect fanuc or haas if one of them runs the program)")
-        self.check_common("G68", cur)
+        self.check_common("G68")
         if cur.kind == "rotation":
             raise self.err("G68 while a rotation is in force (give G69 first) is not supported")
         if cur.kind:
@@ -253,7 +265,7 @@ class FrameCodes:
             raise self.err(f"{name} (mirror image) is not supported on {s.dialect.name} (give "
                            f"--dialect {'fanuc' if g == 51.1 else 'haas'} if "
                            f"{'a Fanuc' if g == 51.1 else 'a Haas'} runs the program)")
-        self.check_common(name, cur)
+        self.check_common(name)
         if cur.kind in ("rotation", "scale"):
             raise self.err(f"{name} while {'G68' if cur.kind == 'rotation' else 'scaling'} is in "
                            "force (the order of the two differs between controllers) is not "
@@ -299,7 +311,7 @@ class FrameCodes:
         if not words:
             raise self.err(f"G51 (scaling) is not supported on {s.dialect.name} (give --dialect "
                            "fanuc or haas if one of them runs the program)")
-        self.check_common("G51", cur)
+        self.check_common("G51")
         if cur.kind:
             raise self.err(f"G51 while {'G68' if cur.kind == 'rotation' else 'a mirror image'} or "
                            "scaling is in force (the order of the two differs between controllers) "

@@ -54,6 +54,14 @@ __all__ = ["DEFAULT_CHORD_TOL_MM", "DEFAULT_CHUNK_SIZE", "DIR_EPS", "MM_PER_INCH
            "open_program"]
 
 
+def _compiled(src) -> bool:
+    """Whether the compiled scanner reads and writes the program: when it is built, and not for a
+    RepRapFirmware program (the scanner takes M codes and T words as codes that move nothing, where
+    the firmware may run a macro file for them: :mod:`.rrf`), which the Python reader and writer
+    read and write throughout."""
+    return _fast.available() and src.dialect.name != "rrf"
+
+
 def iter_segment_chunks(path, machine: Machine, chord_tol_mm: float = DEFAULT_CHORD_TOL_MM,
                         chunk_size: int = DEFAULT_CHUNK_SIZE,
                         initial_position=None, *, inch: bool = False,
@@ -72,7 +80,7 @@ def iter_segment_chunks(path, machine: Machine, chord_tol_mm: float = DEFAULT_CH
     """
     kw = dict(inch=inch, initial_known=initial_known)
     with open_program(path, dialect) as src:
-        if _fast.available():
+        if _compiled(src):
             chunks = _fast.iter_segment_chunks(src, machine, chord_tol_mm, chunk_size,
                                                initial_position, **kw)
         else:
@@ -138,7 +146,7 @@ def write_corrected(in_path, out_path, machine: Machine,
             corrections = _uncorrected(src, machine, chord_tol_mm, DEFAULT_CHUNK_SIZE,
                                        initial_position, **kw)
         cursor = CorrectionCursor(corrections, machine.n_axes, src.source)
-        write = _fast.write_corrected if _fast.available() else writer.write_corrected
+        write = _fast.write_corrected if _compiled(src) else writer.write_corrected
         if src.heidenhain is not None:          # written back in its conversational form
             write = heidenhain_out.write_corrected
         return write(src, out_path, machine, cursor, chord_tol_mm, initial_position, stats=stats,

@@ -15,6 +15,7 @@ import re
 from dataclasses import dataclass, field
 
 from .expr import Evaluator, ExprError, format_value
+from .words import comment_end
 
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
 
@@ -35,8 +36,8 @@ def line_code(line: str) -> Code:
     while pos < n:
         ch = line[pos]
         if ch == "(":
-            e = line.find(")", pos)
-            pos = n if e < 0 else e + 1
+            e = comment_end(line, pos)        # a comment holding parentheses: to where they balance
+            pos = n if e < 0 else e
             continue
         if ch == ";":
             break

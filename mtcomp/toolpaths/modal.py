@@ -24,23 +24,13 @@ from .blocks import CycleBlock, MotionBlock
 from .cycle_rules import cycle_move, cycle_unclear, incremental_r_level, retract_level
 from .dialect import GENERIC, grbl_program_end
 from .frames import FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle, mode_change
+from .linetext import text_with_words
 from .programmed import ProgrammedOffsets, apply_g10
-from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _COLON_PROGRAM_RE, _CURVE_WITH_COORDINATES,
-                    _NUMBERED_PERCENT_RE, KNOWN_DECIMAL_G, OTHER_WCS_G, mode_followed,
-                    _REFUSED_G, _REFUSED_M, _UNIQUE_LETTERS, _WCS_INDEX, DEFAULT_CHORD_TOL_MM,
+from .rrf import macro_codes
+from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _CURVE_WITH_COORDINATES, KNOWN_DECIMAL_G,
+                    OTHER_WCS_G, mode_followed, _REFUSED_G, _REFUSED_M, _UNIQUE_LETTERS, _WCS_INDEX, DEFAULT_CHORD_TOL_MM,
                     DIR_EPS, MAX_TOOL, MM_PER_INCH, TCP_OFF_M, TCP_ON_M, TOOL_AXIS, frame_code,
                     tokenize)
-
-
-#: a CSV header line (names separated by commas), given where G-code was meant
-_CSV_HEADER = re.compile(r"^[A-Za-z_][\w ]*(?:,[\w ]*){2,}$")
-
-#: grbl's real-time commands (status query, cycle start/resume, feed hold, soft reset): sent as
-#: single characters, they have no effect on the program's geometry (grbl v1.1 interface docs)
-_REALTIME = frozenset({"?", "~", "!", "\x18"})
-#: a Fanuc / Haas alarm-only IF (``IF [#5405 GE 6000] THEN #3000=15``): left in the program by
-#: the macro run only where its condition reads system variables (:mod:`.macro`); no motion
-_ALARM_IF = re.compile(r"(?i)^\s*(?:n\s*\d+\s*)?if\s*\[.*\]\s*then\s*#\s*3000\s*=")
 
 
 class ModalState:
@@ -170,7 +160,7 @@ class ModalState:
         self._line = line
         if self.ended and self.dialect.name == "grbl":
             grbl_program_end(self)
-        text = None if self.ended else self._text_with_words(line, text)
+        text = None if self.ended else text_with_words(self, line, text)
         if text is None:
             return None
         try:
@@ -223,36 +213,6 @@ class ModalState:
             self.frame_shift = np.zeros(self.na)
         self.frame_shift[i] += delta
 
-    def _text_with_words(self, line: int, text: str) -> str | None:
-        """The line's text to tokenize, or None for a line without words, which passes through (an
-        empty line, '%', a ':' program number, the DOS end-of-file mark, a grbl '$' command or
-        real-time command: '?' status, '~' resume, '!' feed hold, Ctrl-X reset)."""
-        if line == 1 and text.startswith("\xef\xbb\xbf"):      # a UTF-8 byte order mark
-            text = text[3:]
-        s = text.lstrip(" \t")
-        if not s or s[0] == "%":
-            return None
-        if s[0] == ":" and _COLON_PROGRAM_RE.match(s):    # ':0097': ISO's O, a program number
-            return None
-        if _NUMBERED_PERCENT_RE.match(s):                  # 'N194 %': the end-of-tape mark
-            return None
-        if not s.strip("\x1a \t"):        # DOS end-of-file mark (Ctrl-Z) after the program
-            return None
-        if s[0] == "$":               # grbl system command: passes through; $H homes every axis
-            if s[1:2].upper() in ("H", "J"):
-                self._forget()
-            return None
-        if s.rstrip(" \t") in _REALTIME:     # a grbl real-time command alone on its line
-            return None
-        if s[0] == "/":
-            raise self._err("block delete '/' is not supported", line)
-        if self.dialect.language == "macro" and _ALARM_IF.match(s):
-            return None
-        if line == 1 and _CSV_HEADER.match(s):
-            raise self._err("this looks like a CSV file (a header of comma-separated names), not "
-                            "G-code: give the NC program here", line)
-        return text
-
     def _read_words(self, tokens, line: int) -> tuple[dict, list, list, str]:
         """(values, G codes, M codes, N word as written) of a line's tokens; a T word selects the
         tool. values : letter -> number of the words that may appear once (and H, L)."""
@@ -294,11 +254,13 @@ class ModalState:
         Returns (motion code of the line or None, the axis words are no motion (G4, G28, G30,
         G53), the home move G28/G30/G53 or None, the drilling cycle code of the line or None).
         """
+        # RepRapFirmware's macro codes and tool changes: their words are the macro's parameters
+        macro = self.dialect.name == "rrf" and macro_codes(self, gcodes, mcodes, values, tokens, line)
         for m in mcodes:
             if m in _REFUSED_M:
                 raise self._err(f"{_REFUSED_M[m]} is not supported", line)
         motion = None
-        nonmotion_axes = False     # G4 dwell (X/P is time), G28/G30/G53: axis words are no motion
+        nonmotion_axes = macro     # G4 dwell (X/P is time), G28/G30/G53: axis words are no motion
         home_move = None
         cycle = None
         dwell = g10 = False

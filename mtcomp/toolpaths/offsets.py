@@ -33,7 +33,7 @@ import numpy as np
 from ..errors import InputError
 from ..machine import Machine
 from .blocks import SegmentChunk
-from .frames import frames_of_rows
+from .frames import frames_of_rows, placed_by_frames
 from .tcp import axes_of_tcp, tcp_of_axes
 from .words import WORK_SYSTEMS, frame_local, frame_offset_set, frame_tcp, frame_tool, frame_wcs
 
@@ -134,12 +134,7 @@ class ProgramSetup:
             raise ValueError("the chunk's rows carry frame changes the program made (G52, G68, "
                              "mirror, scaling): apply(chunk, source) needs the ProgramSource")
         self.local_frames = table
-        out = np.array(pts, dtype=float)
-        xyz = [self.machine.index(c) for c in "XYZ"]
-        for frame, rows in frames_of_rows(table, chunk.line):
-            rows = rows & local
-            out[rows] = frame.to_machine(out[rows], xyz)
-        return out
+        return placed_by_frames(table, local, chunk.line, pts, [self.machine.index(c) for c in "XYZ"])
 
     def to_program(self, chunk: SegmentChunk, points: np.ndarray, counts: np.ndarray,
                    off: np.ndarray) -> np.ndarray:

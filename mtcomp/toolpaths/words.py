@@ -174,6 +174,50 @@ def frame_offset_set(code):
 
 
 # --------------------------------------------------------------------------------------- tokens
+def comment_end(text: str, pos: int) -> int:
+    """Where the '(' comment that opens at ``pos`` ends (the index after its ')'), or -1 where it
+    is not closed on the line. A comment is closed by its first ')' (RS-274); one that holds a
+    '(' before that (a comment holding parentheses, ``(HSS Twist Drill, 3mm (R))``) is taken to
+    where its parentheses balance (see :func:`nested_comment_problem`)."""
+    e = text.find(")", pos)
+    if e < 0:
+        return -1
+    if text.find("(", pos + 1, e) < 0:
+        return e + 1
+    depth = 0
+    for i in range(pos, len(text)):
+        c = text[i]
+        if c == "(":
+            depth += 1
+        elif c == ")":
+            depth -= 1
+            if depth == 0:
+                return i + 1
+    return -1
+
+
+#: what a control that ends a comment at its first ')' reads as further comments (a '(' opens
+#: one, and the next ')' closes it whatever '(' come between)
+_FIRST_CLOSE_COMMENT_RE = re.compile(r"\([^)]*\)")
+#: a comment that holds a '(' before its first ')'
+NESTED_COMMENT_RE = re.compile(r"\([^()]*\(")
+
+
+def nested_comment_problem(text: str, pos: int, end: int) -> str | None:
+    """Why the comment ``text[pos:end]``, whose parentheses nest and balance, cannot be read as one
+    comment whatever the controller's rule, or None when it can. A control that nests parentheses
+    reads it as one comment; a control that ends it at its first ')' reads what follows as code:
+    the two agree when that is only ')', blanks and further comments (``(2D Contour (cutout))``
+    leaves one ')', and no word either way)."""
+    first = text.index(")", pos) + 1
+    rest = _FIRST_CLOSE_COMMENT_RE.sub("", text[first:end])
+    left = rest.replace(")", "").strip(" \t")
+    if not left:
+        return None
+    return (f"comment '(' holds parentheses, and a control that ends it at its first ')' reads "
+            f"{left[:20]!r} after it as code: {text[pos:end][:50]!r}")
+
+
 def _strip_blanks(text: str) -> str:
     """The line without blanks outside comments: RS-274 ignores them (``Z 10`` is ``Z10``)."""
     if " " not in text and "\t" not in text:
@@ -183,8 +227,8 @@ def _strip_blanks(text: str) -> str:
     while pos < n:
         ch = text[pos]
         if ch == "(":
-            e = text.find(")", pos)
-            e = n if e < 0 else e + 1
+            e = comment_end(text, pos)
+            e = n if e < 0 else e
             out.append(text[pos:e])
             pos = e
         elif ch == ";":
@@ -202,8 +246,7 @@ def _foreign_feature(text: str) -> str | None:
     m = _O_WORD_RE.match(text)
     if m:
         return f"O-word {m.group(1).lower()} (subroutines and control flow)"
-    code = text.split(";", 1)[0]
-    code = re.sub(r"\([^()]*\)", "", code)
+    code = strip_comments(text)
     if "#" in code:
         return "#-parameters"
     if "[" in code:
@@ -241,7 +284,9 @@ def tokenize(text: str, path=None, line: int | None = None) -> list[tuple[str, s
                     return tokenize(compact, path, line)
             ch = m.group(3)
             if ch == "(":
-                raise InputError("comment '(' is not closed on this line (or is nested)", path, line)
+                out.append(("(", "", _nested_comment(text, pos, path, line)))
+                pos += len(out[-1][2])
+                continue
             if ch.isalpha() and ch.isascii():
                 raise InputError(f"word {ch.upper()} without a valid number: "
                                  f"{text[pos:pos + 12].strip()!r}", path, line)
@@ -254,10 +299,24 @@ def tokenize(text: str, path=None, line: int | None = None) -> list[tuple[str, s
     return out
 
 
+def _nested_comment(text: str, pos: int, path, line) -> str:
+    """The comment holding parentheses that opens at ``pos``, where every reading of it agrees
+    (:func:`nested_comment_problem`); InputError where it is not closed or where they differ."""
+    end = comment_end(text, pos)
+    if end < 0:
+        raise InputError("comment '(' is not closed on this line", path, line)
+    problem = nested_comment_problem(text, pos, end)
+    if problem is not None:
+        raise InputError(problem, path, line)
+    return text[pos:end]
+
+
 # ------------------------------------------------------------------- the source line, rewritten
-#: a word with blanks anywhere in it (RS-274 ignores them: ``Z - 1`` is ``Z-1``)
+#: a word with blanks anywhere in it (RS-274 ignores them: ``Z - 1`` is ``Z-1``); a quoted string
+#: parameter (RepRapFirmware's ``S"..."``, ``""`` one quote inside: :mod:`.rrf`) is kept as written
 _SPAN_RE = re.compile(r"[ \t]+|\([^()]*\)|;.*|([A-Za-z])[ \t]*"
-                      r"([+-]?[ \t]*(?:\d[\d \t]*\.?[\d \t]*|\.[ \t]*\d[\d \t]*))|(.)", re.S)
+                      r"([+-]?[ \t]*(?:\d[\d \t]*\.?[\d \t]*|\.[ \t]*\d[\d \t]*))|"
+                      r'[A-Za-z]?"(?:[^"]|"")*"|(.)', re.S)
 _BOM = "\xef\xbb\xbf"
 
 
@@ -281,7 +340,12 @@ def _line_words(text: str, pos: int) -> list | None:
     while pos < n:
         m = _SPAN_RE.match(text, pos)
         if m.group(3) is not None:
-            return None
+            end = comment_end(text, pos) if text[pos] == "(" else -1
+            if end < 0:
+                return None
+            out.append(("(", pos, pos, end))          # a comment holding parentheses
+            pos = end
+            continue
         if m.group(1) is not None:
             end = m.start(2) + len(m.group(2).rstrip(" \t"))
             out.append((m.group(1).upper(), m.start(), m.start(2), end))
@@ -406,8 +470,23 @@ _COMMENT_TEXT_RE = re.compile(r"\([^()]*\)|;.*")
 
 
 def strip_comments(line: str) -> str:
-    """A line's text without its comments ('( )' and ';' to the end)."""
-    return _COMMENT_TEXT_RE.sub("", line)
+    """A line's text without its comments ('( )' and ';' to the end; a comment holding
+    parentheses to where they balance, :func:`comment_end`; one not closed is kept)."""
+    if "(" not in line or not NESTED_COMMENT_RE.search(line):
+        return _COMMENT_TEXT_RE.sub("", line)
+    out = []
+    pos, n = 0, len(line)
+    while pos < n:
+        ch = line[pos]
+        if ch == ";":
+            break
+        end = comment_end(line, pos) if ch == "(" else -1
+        if ch == "(" and end > 0:
+            pos = end
+            continue
+        out.append(ch)
+        pos += 1
+    return "".join(out)
 
 
 def cutter_comp_code(text: str) -> int | None:

@@ -73,16 +73,12 @@ def _placed(seg, frames: list, machine: Machine) -> np.ndarray:
     """(n, na) the rows' positions in the work system: under a frame the program moved itself (G52,
     G68, a mirror image, scaling) its words placed where the controller puts them, so that the map
     and the pairing with the compensated program (read the same way) see the machine's positions."""
-    from ..toolpaths.frames import frames_of_rows
+    from ..toolpaths.frames import placed_by_frames
     from ..toolpaths.words import frame_local
-    q = seg.end.copy()
     local = frame_local(seg.frame)
-    if local.any():
-        xyz = [machine.index(c) for c in "XYZ"]
-        for frame, rows in frames_of_rows(frames, seg.line):
-            rows = rows & local
-            q[rows] = frame.to_machine(q[rows], xyz)
-    return q
+    if not local.any():
+        return seg.end.copy()
+    return placed_by_frames(frames, local, seg.line, seg.end, [machine.index(c) for c in "XYZ"])
 
 
 def _motion_runs(original: ProgramPoints, compensated: ProgramPoints) -> tuple[np.ndarray, np.ndarray]:

@@ -15,7 +15,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from mtcomp.planner.engine import NEVER_WORSE_TOL, Planner
+from mtcomp.planner._qp import NEVER_WORSE_TOL
+from mtcomp.planner.engine import Planner
 from mtcomp.planner.problem import CompensationProblem, PlannerOptions
 
 

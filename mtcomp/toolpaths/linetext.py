@@ -1,0 +1,128 @@
+"""Lines that hold no words for the reader, and the text of the others that it tokenizes.
+
+Split from :mod:`.modal`: :func:`text_with_words` says which lines pass through without being read
+(empty lines, tape marks, program numbers, grbl's commands, a Fanuc alarm-only IF, a line
+RepRapFirmware answers "Bad command") and gives the others' text as the tokenizer is to see it (on
+RepRapFirmware without its quoted string parameters: :mod:`.rrf`). A comment holding parentheses
+(``(HSS Twist Drill, 3mm (R))``) is refused where the controller stops on it (LinuxCNC, grbl) and
+said once elsewhere, where the tokenizer reads it as one comment (:func:`.words.comment_end`).
+"""
+from __future__ import annotations
+
+import re
+
+from ..errors import InputError
+from .rrf import without_strings
+from .words import (_COLON_PROGRAM_RE, _NUMBERED_PERCENT_RE, NESTED_COMMENT_RE, comment_end,
+                    nested_comment_problem, strip_comments)
+
+#: a CSV header line (names separated by commas), given where G-code was meant
+_CSV_HEADER = re.compile(r"^[A-Za-z_][\w ]*(?:,[\w ]*){2,}$")
+#: grbl's real-time commands (status query, cycle start/resume, feed hold, soft reset): sent as
+#: single characters, they have no effect on the program's geometry (grbl v1.1 interface docs)
+_REALTIME = frozenset({"?", "~", "!", "\x18"})
+#: a Fanuc / Haas alarm-only IF (``IF [#5405 GE 6000] THEN #3000=15``): left in the program by
+#: the macro run only where its condition reads system variables (:mod:`.macro`); no motion
+_ALARM_IF = re.compile(r"(?i)^\s*(?:n\s*\d+\s*)?if\s*\[.*\]\s*then\s*#\s*3000\s*=")
+
+
+def text_with_words(state, line: int, text: str) -> str | None:
+    """The line's text to tokenize, or None for a line without words, which passes through (an
+    empty line, '%', a ':' program number, the DOS end-of-file mark, a grbl '$' command or
+    real-time command: '?' status, '~' resume, '!' feed hold, Ctrl-X reset). state : the
+    :class:`~.modal.ModalState` reading the line."""
+    if line == 1 and text.startswith("\xef\xbb\xbf"):      # a UTF-8 byte order mark
+        text = text[3:]
+    s = text.lstrip(" \t")
+    if not s or s[0] == "%":
+        return None
+    if s[0] == ":" and _COLON_PROGRAM_RE.match(s):    # ':0097': ISO's O, a program number
+        return None
+    if _NUMBERED_PERCENT_RE.match(s):                  # 'N194 %': the end-of-tape mark
+        return None
+    if not s.strip("\x1a \t"):        # DOS end-of-file mark (Ctrl-Z) after the program
+        return None
+    if s[0] == "$":               # grbl system command: passes through; $H homes every axis
+        if s[1:2].upper() in ("H", "J"):
+            state._forget()
+        return None
+    if s.rstrip(" \t") in _REALTIME:     # a grbl real-time command alone on its line
+        return None
+    if s[0] == "/":
+        raise state._err("block delete '/' is not supported", line)
+    if state.dialect.language == "macro" and _ALARM_IF.match(s):
+        return None
+    if line == 1 and _CSV_HEADER.match(s):
+        raise state._err("this looks like a CSV file (a header of comma-separated names), not "
+                         "G-code: give the NC program here", line)
+    if "(" in text and NESTED_COMMENT_RE.search(text):
+        _comment_with_parentheses(state, line, text)
+    if state.dialect.name == "rrf":
+        try:
+            text = without_strings(text, state.path, line)
+        except InputError as exc:
+            raise state._err(exc.message, line) from None
+        return None if _bad_command(state, line, text) else text
+    return text
+
+
+def _bad_command(state, line: int, text: str) -> bool:
+    """A line whose code holds no letter and no digit ('...'): RepRapFirmware answers it "Bad
+    command", moves nothing and runs on (RepRapFirmware 3.5, StringParser.cpp, DecodeCommand;
+    GCodes.cpp reports the error and goes on with the file): it passes through, said once."""
+    code = strip_comments(text).strip(" \t")
+    if not code or any(c.isalnum() for c in code):
+        return False
+    notes = getattr(state._source, "notes", None)
+    if notes is not None and not any(n.startswith("note: RepRapFirmware answers") for n in notes):
+        notes.append(f"note: RepRapFirmware answers line {state._where(line)[1]} ({code[:20]!r}: no "
+                     "command) 'Bad command', moves nothing and runs on: it passes through as "
+                     "written")
+    return True
+
+
+#: controllers that stop on a comment holding parentheses, and their rule
+_REFUSE_NESTED = {
+    "linuxcnc": "LinuxCNC stops on a '(' inside a comment ('Nested comment found': comments do "
+                "not nest in RS274/NGC)",
+    "grbl": "grbl ends the comment at its first ')' and answers the ')' left after it with error 1 "
+            "(a word letter expected)",
+}
+
+
+def _comment_with_parentheses(state, line: int, text: str) -> None:
+    """A comment that holds parentheses (``(HSS Twist Drill, 3mm (R))``): refused on a controller
+    that stops on it (LinuxCNC, grbl); elsewhere read as one comment where every reading agrees
+    that it holds no word (:func:`~.words.nested_comment_problem`), said once in the notes."""
+    pos = _first_nested(text)
+    if pos < 0:
+        return
+    end = comment_end(text, pos)
+    shown = text[pos:end if end > 0 else len(text)][:50]
+    rule = _REFUSE_NESTED.get(state.dialect.name)
+    if rule is not None and end > 0:
+        raise state._err(f"comment '(' holds parentheses, {shown!r}: {rule}", line)
+    if end < 0 or nested_comment_problem(text, pos, end) is not None:
+        return                          # the tokenizer names the problem
+    notes = getattr(state._source, "notes", None)
+    if notes is not None and not any(n.startswith("note: a comment holding") for n in notes):
+        notes.append(f"note: a comment holding parentheses (first at line {state._where(line)[1]}: "
+                     f"{shown!r}) is read as one comment: a control that nests parentheses reads "
+                     "it so, and one that ends it at its first ')' finds only ')' after it; no "
+                     "word either way, and the line passes as written")
+
+
+def _first_nested(text: str) -> int:
+    """Where the line's first comment holding parentheses opens (-1: none; ';' ends the code)."""
+    pos, n = 0, len(text)
+    while pos < n:
+        ch = text[pos]
+        if ch == ";":
+            return -1
+        if ch == "(":
+            e = text.find(")", pos)
+            if e < 0 or text.find("(", pos + 1, e) >= 0:
+                return pos
+            pos = e
+        pos += 1
+    return -1
