@@ -663,15 +663,20 @@ def _final_model(st: Stack, design: Design, chosen: list[Candidate], values: dic
 
 
 def _selected_values(st: Stack, design: Design, chosen: list[Candidate], fit) -> dict:
-    """{name: value, internal units} of the selection's final fit (the base's parameters and the
-    chosen terms'): the penalised fit starts there, for a term that is not linear in its parameters
-    (an Abbe error's moving centre multiplies its angle) shows the data none of them at zero."""
-    base = [n for n, s in zip(st.probe.param_names, st.probe.param_specs) if s.base]
-    out = {name: float(fit.theta[i]) for i, name in enumerate(base)}
+    """{name: value, internal units} of the chosen terms' parameters in the selection's final fit:
+    the penalised fit starts there, for a term that is not linear in its parameters (an Abbe
+    error's moving centre multiplies its angle) shows the data none of them at zero. The base's
+    parameters start where identify's do (zero, or a start model's determined values): the
+    selection's values of the combinations the finer knots and the penalty leave open (a squareness
+    traded against a straightness's slope, 680 urad on one campaign) would stay there, and their
+    products with the other errors kept Gauss-Newton from converging."""
+    base = {n for n, s in zip(st.probe.param_names, st.probe.param_specs) if s.base}
+    out = {}
     k = design.A_original.shape[1]
     for c in chosen:
         for j, name in enumerate(c.params):
-            out.setdefault(name, float(fit.theta[k + j]))
+            if name not in base:
+                out.setdefault(name, float(fit.theta[k + j]))
         k += c.columns.shape[1]
     return out
 
