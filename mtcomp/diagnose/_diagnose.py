@@ -221,8 +221,9 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
         design = _backward_selection(st, design, sel, say)
     chosen, findings, current = sel.chosen, sel.findings, sel.current
     verdict, finer = _what_remains(st, design, sel, noise, noise_main, may_refine, say)
-    start_values = {**values, **_selected_values(st, design, chosen, current)}
-    model, final_metrics = _final_model(st, design, chosen, start_values, folds, free_knots, say)
+    selected, terms_only = _selected_values(st, design, chosen, current)
+    starts = ({**values, **selected}, {**values, **terms_only})
+    model, final_metrics = _final_model(st, design, chosen, starts, folds, free_knots, say)
     diag = Diagnosis(verdict, noise, base_metrics, findings, final_metrics, model, how, len(st),
                      rejected=sel.rejected, reference=reference)
     diag.folds_of_observations = folds
@@ -623,12 +624,14 @@ def _unexplained(st, fit, structure, excess, noise_main, inflation: float = 1.0)
     return Finding("unexplained", axis, params, evidence, h, h, None, unit=_heldout_unit(st))
 
 
-def _final_model(st: Stack, design: Design, chosen: list[Candidate], values: dict, folds,
+def _final_model(st: Stack, design: Design, chosen: list[Candidate], starts: tuple, folds,
                  free_knots: set, say):
     """(FittedModel, the report's ``final`` figures): the base and the chosen terms fitted again
     with the roughness penalty (:mod:`._penalised`), on knots finer than the data's spacing where
     the data read an axis at few positions (of the axes ``free_knots``, whose knots the data
-    choose); its rms and held-out rms are that model's."""
+    choose), from the first of ``starts`` (name -> value dicts) and, when that fit does not
+    converge, from the others too (:func:`._penalised.penalised_fit`); its rms and held-out rms are
+    that model's."""
     from ._linalg import RCOND
     from ._penalised import fine_machine, penalised_fit
     terms = []
@@ -642,9 +645,10 @@ def _final_model(st: Stack, design: Design, chosen: list[Candidate], values: dic
     # the start model's values of what the finer knots keep (a spline coefficient of a refined axis
     # is another function's)
     specs = dict(zip(model.param_names, model.param_specs))
-    start = {n: v for n, v in values.items()
-             if n in specs and not (_is_spline(n) and refined & set(specs[n].group.split(":")))}
-    fit = penalised_fit(st, design.w, model, start, folds, RCOND)
+    starts = [{n: v for n, v in values.items()
+               if n in specs and not (_is_spline(n) and refined & set(specs[n].group.split(":")))}
+              for values in starts]
+    fit = penalised_fit(st, design.w, model, starts, folds, RCOND)
     res = fit.result
     metrics = _metrics(st, fit, model.n_params)
     metrics["edf"] = _r(res.smoothing.edf - len(st.nuisance_names)) if res.smoothing is not None else None
@@ -662,23 +666,25 @@ def _final_model(st: Stack, design: Design, chosen: list[Candidate], values: dic
     return FittedModel(model, fitted.params, {}, info, uncertainty=fitted.uncertainty), metrics
 
 
-def _selected_values(st: Stack, design: Design, chosen: list[Candidate], fit) -> dict:
-    """{name: value, internal units} of the chosen terms' parameters in the selection's final fit:
-    the penalised fit starts there, for a term that is not linear in its parameters (an Abbe
-    error's moving centre multiplies its angle) shows the data none of them at zero. The base's
-    parameters start where identify's do (zero, or a start model's determined values): the
-    selection's values of the combinations the finer knots and the penalty leave open (a squareness
-    traded against a straightness's slope, 680 urad on one campaign) would stay there, and their
-    products with the other errors kept Gauss-Newton from converging."""
-    base = {n for n, s in zip(st.probe.param_names, st.probe.param_specs) if s.base}
-    out = {}
+def _selected_values(st: Stack, design: Design, chosen: list[Candidate], fit) -> tuple[dict, dict]:
+    """({name: value, internal units} of the selection's final fit, the base's parameters and the
+    chosen terms'; the same of the chosen terms alone). The penalised fit starts at the first: a term
+    that is not linear in its parameters (an Abbe error's moving centre multiplies its angle) shows
+    the data none of them at zero, nor do a rotary axis's error motions about a location 10 mm off
+    its nominal line. The second is its other start (the base where identify starts it): the
+    selection's values of combinations that the finer knots and the penalty leave open (a
+    squareness of 680 urad traded against a straightness's slope) stay where they start, and their
+    products with the other errors can keep Gauss-Newton from converging."""
+    base = [n for n, s in zip(st.probe.param_names, st.probe.param_specs) if s.base]
+    out = {name: float(fit.theta[i]) for i, name in enumerate(base)}
+    terms = {}
     k = design.A_original.shape[1]
     for c in chosen:
         for j, name in enumerate(c.params):
-            if name not in base:
-                out.setdefault(name, float(fit.theta[k + j]))
+            if name not in out:
+                terms.setdefault(name, float(fit.theta[k + j]))
         k += c.columns.shape[1]
-    return out
+    return {**out, **terms}, terms
 
 
 def _is_spline(name: str) -> bool:

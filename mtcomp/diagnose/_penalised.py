@@ -84,17 +84,25 @@ def fine_machine(machine, datasets, rows: int, axes: set):
     return replace(machine, axes=fine)
 
 
-def penalised_fit(st, w: np.ndarray, model, start: dict, folds: np.ndarray, rcond: float) -> PenalisedFit:
+def penalised_fit(st, w: np.ndarray, model, starts: list, folds: np.ndarray, rcond: float) -> PenalisedFit:
     """Fit ``model`` (ErrorModel: the fine base and the chosen terms) to the stack's data sets
-    (``st.datasets``) with the roughness penalty, every parameter free, from ``start`` (name ->
-    value, internal units; others from zero), each file weighted by its noise floor (``w``, (n,) the
-    selection's weights, 1 / noise of each of the stack's observations); held out by ``folds``
-    ((n,) fold of each of the stack's observations: :func:`_held_out`)."""
+    (``st.datasets``) with the roughness penalty, every parameter free, from the first of ``starts``
+    (dicts name -> value, internal units; others from zero); when Gauss-Newton does not converge
+    from there, from each of the others too, keeping the fit with the least weighted residual sum of
+    squares. Each file is weighted by its noise floor (``w``, (n,) the selection's weights, 1 / noise
+    of each of the stack's observations); held out by ``folds`` ((n,) fold of each of the stack's
+    observations: :func:`_held_out`)."""
     from ..identification.problem import build_measurement_models
     weights = _file_noise(st, w)
-    p0 = np.array([start.get(n, 0.0) for n in model.param_names], dtype=float)
-    mms = build_measurement_models(model, st.datasets)
-    result = _solve(model, mms, p0, weights, rcond)
+    result = None
+    for start in starts:
+        p0 = np.array([start.get(n, 0.0) for n in model.param_names], dtype=float)
+        these = build_measurement_models(model, st.datasets)
+        fit = _solve(model, these, p0, weights, rcond)
+        if result is None or fit.cost < result.cost:
+            result, mms = fit, these
+        if fit.converged:
+            break
     order = _stack_order(st, mms)
     resid = _residuals(mms, result.values, _nuisance(result, mms, {}))[order]
     cv = _held_out(st, result, mms, weights, folds, order)
