@@ -110,3 +110,24 @@ def test_left_out_residuals_are_those_of_a_fit_without_the_readings():
     expected = y[out] - X[out][:, 0] * b_full[0] - X[out][:, keep] @ bk
     np.testing.assert_allclose(left_out_residuals(X[out], P, r[out], np.eye(k)[:1]), expected,
                                rtol=1e-6, atol=1e-9)
+
+
+def _knots_of_x(tmp_path, targets):
+    """(base intervals of X, the final fit's intervals of X) for a laser run of X over ``targets``."""
+    from mtcomp.diagnose._diagnose import _base_machine
+    from mtcomp.diagnose._penalised import fine_machine
+    rows = [["X", "EXX", f"{x:.3f}", d, 1, "0.0"] for d in (1, -1) for x in targets]
+    _write(tmp_path / "run.csv", rows)
+    data = [read_measurements(tmp_path / "run.csv")]
+    base, _ = _base_machine(load_machine("xfyz"), data, None, None)
+    fine = fine_machine(base, data, len(rows), {"X"})
+    return base.axis("X").spline_intervals, fine.axis("X").spline_intervals
+
+
+def test_only_an_axis_read_at_few_positions_gets_finer_knots(tmp_path):
+    # nine targets 5 mm apart: nine functions (six cubic intervals), then knots a quarter of the
+    # spacing apart over the 40 mm: 40 / 1.25 = 32 intervals
+    assert _knots_of_x(tmp_path, np.arange(-20.0, 20.5, 5.0)) == (6, 32)
+    # 41 positions 1 mm apart: more positions than the base's 16 functions, whose profile the
+    # readings already fix between its knots; the knots stay
+    assert _knots_of_x(tmp_path, np.arange(0.0, 40.5, 1.0)) == (13, 13)
