@@ -222,8 +222,8 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     chosen, findings, current = sel.chosen, sel.findings, sel.current
     verdict, finer = _what_remains(st, design, sel, noise, noise_main, may_refine, say)
     selected, terms_only = _selected_values(st, design, chosen, current)
-    starts = ({**values, **selected}, {**values, **terms_only})
-    model, final_metrics = _final_model(st, design, chosen, starts, folds, free_knots, say)
+    starts = ({**values, **terms_only}, {**values, **selected})
+    model, final_metrics = _final_model(st, design, chosen, starts, folds, free_knots, say, current.resid)
     diag = Diagnosis(verdict, noise, base_metrics, findings, final_metrics, model, how, len(st),
                      rejected=sel.rejected, reference=reference)
     diag.folds_of_observations = folds
@@ -625,13 +625,14 @@ def _unexplained(st, fit, structure, excess, noise_main, inflation: float = 1.0)
 
 
 def _final_model(st: Stack, design: Design, chosen: list[Candidate], starts: tuple, folds,
-                 free_knots: set, say):
+                 free_knots: set, say, selected_resid: np.ndarray):
     """(FittedModel, the report's ``final`` figures): the base and the chosen terms fitted again
     with the roughness penalty (:mod:`._penalised`), on knots finer than the data's spacing where
     the data read an axis at few positions (of the axes ``free_knots``, whose knots the data
     choose), from the first of ``starts`` (name -> value dicts) and, when that fit does not
-    converge, from the others too (:func:`._penalised.penalised_fit`); its rms and held-out rms are
-    that model's."""
+    converge or fits far worse than the selection (``selected_resid``, (n,) its final residuals),
+    from the others too (:func:`._penalised.penalised_fit`); its rms and held-out rms are that
+    model's."""
     from ._linalg import RCOND
     from ._penalised import fine_machine, penalised_fit
     terms = []
@@ -648,7 +649,7 @@ def _final_model(st: Stack, design: Design, chosen: list[Candidate], starts: tup
     starts = [{n: v for n, v in values.items()
                if n in specs and not (_is_spline(n) and refined & set(specs[n].group.split(":")))}
               for values in starts]
-    fit = penalised_fit(st, design.w, model, starts, folds, RCOND)
+    fit = penalised_fit(st, design.w, model, starts, folds, RCOND, selected_resid)
     res = fit.result
     metrics = _metrics(st, fit, model.n_params)
     metrics["edf"] = _r(res.smoothing.edf - len(st.nuisance_names)) if res.smoothing is not None else None
@@ -668,13 +669,14 @@ def _final_model(st: Stack, design: Design, chosen: list[Candidate], starts: tup
 
 def _selected_values(st: Stack, design: Design, chosen: list[Candidate], fit) -> tuple[dict, dict]:
     """({name: value, internal units} of the selection's final fit, the base's parameters and the
-    chosen terms'; the same of the chosen terms alone). The penalised fit starts at the first: a term
-    that is not linear in its parameters (an Abbe error's moving centre multiplies its angle) shows
-    the data none of them at zero, nor do a rotary axis's error motions about a location 10 mm off
-    its nominal line. The second is its other start (the base where identify starts it): the
-    selection's values of combinations that the finer knots and the penalty leave open (a
-    squareness of 680 urad traded against a straightness's slope) stay where they start, and their
-    products with the other errors can keep Gauss-Newton from converging."""
+    chosen terms'; the same of the chosen terms alone). The penalised fit starts from the second
+    (the base where identify starts it, a term's values where the selection found them: an Abbe
+    error's moving centre multiplies its angle and shows the data nothing at zero); the selection's
+    values of combinations that the finer knots and the penalty leave open (a squareness of 680
+    urad traded against a straightness's slope) would stay where they start, and their products
+    with the other errors led Gauss-Newton astray. The first is the other start, for a fit that
+    needs the base's values to get anywhere (a rotary axis's error motions about a location 10 mm
+    off its nominal line)."""
     base = [n for n, s in zip(st.probe.param_names, st.probe.param_specs) if s.base]
     out = {name: float(fit.theta[i]) for i, name in enumerate(base)}
     terms = {}
