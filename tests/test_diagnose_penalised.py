@@ -131,3 +131,25 @@ def test_only_an_axis_read_at_few_positions_gets_finer_knots(tmp_path):
     # 41 positions 1 mm apart: more positions than the base's 16 functions, whose profile the
     # readings already fix between its knots; the knots stay
     assert _knots_of_x(tmp_path, np.arange(0.0, 40.5, 1.0)) == (13, 13)
+
+
+def test_setups_carry_no_variance_and_readings_keep_theirs():
+    """Two profile values p1, p2 and a laser zero s; a reading is p + s, so (1, 0, -1) is left open.
+    Moved along it, the zero's variance goes to zero and every reading keeps its variance (hand
+    derived: P x = (p1 + s, p2 + s, 0), so var(p1') = var(p1 + s))."""
+    from mtcomp.identification.unmeasured import setups_without_variance
+    rng = np.random.default_rng(3)
+    L = rng.normal(size=(3, 3))
+    cov = L @ L.T
+    null = np.array([[1.0], [1.0], [-1.0]])          # the levels of p1, p2 against the zero
+    held = rng.normal(size=(3, 1))
+    moved, held2, sd2 = setups_without_variance(cov, held, np.array([2.0]), null, n_free=2)
+    J = np.array([[1.0, 0.0, 1.0], [0.0, 1.0, 1.0], [1.0, -1.0, 0.0]])     # J @ null == 0
+    np.testing.assert_allclose(np.diag(J @ moved @ J.T), np.diag(J @ cov @ J.T), rtol=1e-12, atol=0)
+    np.testing.assert_allclose(moved[2], 0.0, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(moved[0, 0], cov[0, 0] + 2 * cov[0, 2] + cov[2, 2], rtol=1e-12, atol=0)
+    # the held direction moved with it, its variance unchanged in the product
+    np.testing.assert_allclose(sd2[0] ** 2 * np.outer(held2[:, 0], held2[:, 0]),
+                               4.0 * np.outer(*(2 * [np.array([held[0, 0] + held[2, 0],
+                                                               held[1, 0] + held[2, 0], 0.0])])),
+                               rtol=1e-12, atol=1e-12)
