@@ -34,6 +34,8 @@ STAGES = {
     "nominal kinematics": [("mtcomp.planner._evaluate", "nominal_pose"),
                            ("mtcomp.planner._evaluate", "nominal_pose_jacobian")],
     "osqp solve": [("mtcomp.planner._qp", "WindowQP.solve")],
+    # OSQP's set-up of a window size, and the import of osqp and scipy.sparse the first one does
+    "osqp setup+import": [("mtcomp.planner._qp", "WindowQP.__init__")],
     "report rows": [("mtcomp.compensation", "_report_lines"),
                     ("mtcomp.compensation", "report_rows")],
 }

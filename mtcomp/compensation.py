@@ -28,7 +28,7 @@ from .planner._bounds import FLAG_KINDS
 from .planner._parallel import read_ahead
 from .planner._small import any_rows
 from .planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
-from .toolpaths.words import frame_local
+from .toolpaths.words import TCP_ON_M, frame_local, frame_tcp, strip_comments
 from .toolpaths import iter_segment_chunks, write_corrected
 from .toolpaths._fast import format_table
 from .toolpaths.source import open_program
@@ -342,13 +342,25 @@ class _Tally:
         self.sum_sq, self.max, self.n = 0.0, 0.0, 0
         self.bound_blocks = dict.fromkeys(_BOUND_KINDS, 0)
         self.t_s, self.rapid_timed = 0.0, False
+        #: tool centre point blocks; (line before, first line) of each run of them (lines read)
+        self.tcp_blocks, self.tcp_runs, self._last = 0, [], (0, False)
 
     def read(self, chunk) -> None:
-        """A chunk as read (program frame): its feed moves without a feed."""
+        """A chunk as read (program frame): its feed moves without a feed, its tool centre point
+        blocks."""
         feedless = ~np.asarray(chunk.rapid, bool) & np.isnan(chunk.feed)
         if feedless.any():
             self.no_feed_blocks += int(feedless.sum())
             self.no_feed_line = self.no_feed_line or int(chunk.line[np.argmax(feedless)])
+        if not len(chunk):
+            return
+        tcp = frame_tcp(chunk.frame)
+        self.tcp_blocks += int(np.count_nonzero(tcp))
+        lines = np.asarray(chunk.line, np.int64)
+        before = np.concatenate([[self._last[1]], tcp[:-1]])
+        for i in np.flatnonzero(tcp & ~before).tolist():
+            self.tcp_runs.append((int(lines[i - 1]) if i else self._last[0], int(lines[i])))
+        self._last = (int(lines[-1]), bool(tcp[-1]))
 
     def clock(self, chunk) -> np.ndarray:
         """(n,) seconds from the program's start at each row's end (:func:`block_times`)."""
@@ -592,9 +604,66 @@ def _planner(fitted, settings: CompensationSettings, inch: bool, program, progre
     return planner, summary
 
 
+#: the moves the writer passes through uncorrected (``passed_moves`` of its stats), in this order
+_PASSED_MOVES = {"increment": "{n} incremental (G91) move{s} of an axis whose position the program "
+                              "has not given ({at}: the controller moves it from wherever it stands)",
+                 "home": "{n} move{s} to the home position (G28/G30, grbl's $H; {at})",
+                 "jog": "{n} grbl jog{s} ($J=, {at})",
+                 "machine": "{n} move{s} in machine coordinates (G53, {at})",
+                 "tap": "{n} rigid tapping move{s} (G33.1, {at}: the spindle's reversal sets its ends)"}
+
+
+def passed_move_notes(program, written) -> list[str]:
+    """The line counting the motion lines passed through uncorrected that are no block of the plan
+    (so no BLOCKS.csv row), by why, each with its (first) source line; none when there are none."""
+    passed = written.get("passed_moves") or {}
+    parts = []
+    for why, text in _PASSED_MOVES.items():
+        if why in passed:
+            n, line = passed[why]
+            at = int(program.source_lines_of([line])[0])
+            parts.append(text.format(n=n, s="" if n == 1 else "s",
+                                     at=f"{'first at ' if n > 1 else ''}line {at}"))
+    total = sum(n for n, _line in passed.values())
+    if not total:
+        return []
+    return [f"{total} motion line{'' if total == 1 else 's'} passed through uncorrected, with no "
+            f"BLOCKS.csv row: " + "; ".join(parts)]
+
+
+#: a code that switches tool centre point mode on (as the reader reads it: ``N10M428`` too)
+_TCP_ON_RE = re.compile(r"(?i)(?:M0*(?:" + "|".join(map(str, sorted(TCP_ON_M)))
+                        + r")|G0*43\.40*)(?![\d.])")
+
+
+def tcp_note(program, tally) -> list[str]:
+    """The line saying how many blocks were compensated in tool centre point mode and which code
+    switched it on at which source line (found on the lines up to each run's first block)."""
+    if not tally.tcp_blocks:
+        return []
+    switches, runs = [], tally.tcp_runs[:3]
+    last = None
+    with open(program, "rb") as f:
+        for k, raw in enumerate(f, 1):
+            if k > runs[-1][1]:
+                break
+            m = _TCP_ON_RE.search(strip_comments(raw.decode("latin-1")))
+            if m:
+                last = (m.group(0).upper(), k)
+            for a, b in runs:
+                if k == b and last is not None and last[1] > a:
+                    switches.append(f"{last[0]} at line {int(program.source_lines_of([last[1]])[0])}")
+    n = tally.tcp_blocks
+    said = ", ".join(switches) + (", ..." if len(tally.tcp_runs) > 3 else "")
+    return [f"{n} block{'' if n == 1 else 's'} in tool centre point mode"
+            + (f" ({said})" if said else "") + ": tip positions and tool angles in the workpiece "
+            "frame, compensated there and written so; the controller solves the kinematics"]
+
+
 def _run_notes(program, written, fitted, setup, tally, found) -> list[str]:
-    """The notes after a run: the program's expansion, drilling cycles, datums, feeds, set-up."""
-    notes = list(program.notes)
+    """The notes after a run: moves passed through, tool centre point mode, the program's
+    expansion, drilling cycles, datums, feeds, set-up."""
+    notes = passed_move_notes(program, written) + tcp_note(program, tally) + list(program.notes)
     if program.expanded:
         notes.append(f"the program's code was run: {program.executed} lines executed from its "
                      f"{program.source_lines}; the output is that expansion, corrected (its first "
@@ -607,7 +676,7 @@ def _run_notes(program, written, fitted, setup, tally, found) -> list[str]:
                      "it (the error there differs by the model's change over that distance); no "
                      "block is split (the controller offsets the moves as written)"
                      + (f", and an arc under it is kept whole: the written arcs miss their "
-                        f"corrected path by up to {miss:.2f} um" if miss > 0 else ""))
+                        f"corrected path by up to {miss:.2f} um" if miss >= 0.005 else ""))
     return notes + _cycle_notes(written) + datum_notes(fitted, setup) + tally.feed_note(fitted) \
         + setup.notes()
 

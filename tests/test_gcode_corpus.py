@@ -13,6 +13,8 @@ parentheses is read as both of its readings read it where they agree (tests/repl
 without_comments)."""
 import contextlib
 import io
+import json
+import os
 import re
 from pathlib import Path
 
@@ -20,7 +22,6 @@ import numpy as np
 import pytest
 
 from mtcomp.cli import main
-from mtcomp.machine import machine_from_dict
 from mtcomp.models import ErrorModel, FittedModel, save_model
 from replay import RRF_STRING, is_rrf, rrf_runs_macro, without_comments
 
@@ -245,27 +246,50 @@ def test_corpus_is_the_documented_one():
     assert sum(p.stat().st_size for p in PROGRAMS) < 2_600_000
 
 
-def _compensate(prog, tmp_path) -> tuple:
-    """(exit status, stdout, stderr, output path, machine, model) of compensating a corpus program
-    with the corpus model."""
-    machine = _machine_file(tmp_path, _topology(prog.read_text(encoding="latin-1")))
-    model = _model_file(tmp_path, machine)
-    out = tmp_path / f"{prog.stem}.out.nc"
-    out_buf, err_buf = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out_buf), contextlib.redirect_stderr(err_buf):
-        code = main(["compensate", str(machine), str(model), str(prog), "-o", str(out),
-                     "--quiet", "--units", "mm"])
-    return code, out_buf.getvalue(), err_buf.getvalue(), out, machine, model
+def run_once(tmp_path_factory, key: str, argv_for) -> tuple:
+    """(exit status, stdout, stderr, output bytes or None) of ``main(argv_for(folder))``, run once
+    per test session for each ``key`` and kept on disk where every worker of the session finds it
+    (the aggregate tests read the programs' outputs again: compensating the corpus twice doubled
+    its time). ``argv_for`` gets a new folder to write its machine, model and output ("out.nc")."""
+    shared = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):       # the session's folder, above the worker's own
+        shared = shared.parent
+    done = shared / "compensated-once" / f"{key}.json"
+    if not done.exists():
+        folder = tmp_path_factory.mktemp("once")
+        out_buf, err_buf = io.StringIO(), io.StringIO()
+        with contextlib.redirect_stdout(out_buf), contextlib.redirect_stderr(err_buf):
+            code = main(argv_for(folder))
+        out = folder / "out.nc"
+        record = {"code": code, "stdout": out_buf.getvalue(), "stderr": err_buf.getvalue(),
+                  "out": str(out) if out.exists() else None}
+        done.parent.mkdir(exist_ok=True)
+        part = done.with_name(f"{done.name}.{os.getpid()}")
+        part.write_text(json.dumps(record))
+        os.replace(part, done)                      # another worker's identical run may win
+    record = json.loads(done.read_text())
+    out = Path(record["out"]).read_bytes() if record["out"] else None
+    return record["code"], record["stdout"], record["stderr"], out
+
+
+def _compensate(prog, tmp_path_factory) -> tuple:
+    """(exit status, stdout, stderr, output bytes or None) of compensating a corpus program with
+    the corpus model, once a session."""
+    def argv(folder):
+        machine = _machine_file(folder, _topology(prog.read_text(encoding="latin-1")))
+        return ["compensate", str(machine), str(_model_file(folder, machine)), str(prog),
+                "-o", str(folder / "out.nc"), "--quiet", "--units", "mm"]
+    return run_once(tmp_path_factory, f"corpus-{prog.name}", argv)
 
 
 @pytest.mark.parametrize("prog", PROGRAMS, ids=[p.name for p in PROGRAMS])
-def test_corpus_program_compensated_safely(prog, tmp_path, capsys):
+def test_corpus_program_compensated_safely(prog, tmp_path, tmp_path_factory, capsys):
     """Refused exactly when listed in REFUSED, in one line naming the construct; accepted: the
     output's non-motion lines as in the source, no axis word for an axis not positioned, cycles
     kept, and the map of the compensated program drawn."""
-    code, stdout, err, out, machine, model = _compensate(prog, tmp_path)
+    code, stdout, err, out = _compensate(prog, tmp_path_factory)
     if code != 0:
-        assert code == 2 and not out.exists()
+        assert code == 2 and out is None
         lines = err.strip().splitlines()
         assert len(lines) == 1 and "Traceback" not in err, err
         assert prog.name in REFUSED, f"{prog.name} refused: {lines[0]}"
@@ -274,11 +298,15 @@ def test_corpus_program_compensated_safely(prog, tmp_path, capsys):
         return
     assert prog.name not in REFUSED, f"{prog.name} is accepted now: take it off REFUSED"
     text = prog.read_text(encoding="latin-1")
-    _check_output(source_bytes(prog), out.read_bytes())
+    _check_output(source_bytes(prog), out)
     if re.search(r"^[^(;\n]*\bG(?:73|8[1-9])\b", text, re.M | re.I):    # drilling cycles
         assert "kept as cycles, each hole corrected" in stdout, prog.name
     # the map of the compensated program, paired with the original through its lines
-    code = main(["render", str(machine), str(model), str(prog), "--compensated", str(out),
+    machine = _machine_file(tmp_path, _topology(text))
+    model = _model_file(tmp_path, machine)
+    compensated = tmp_path / f"{prog.stem}.out.nc"
+    compensated.write_bytes(out)
+    code = main(["render", str(machine), str(model), str(prog), "--compensated", str(compensated),
                  "-o", str(tmp_path / f"{prog.stem}.png"), "--backend", "matplotlib",
                  "--size", "300x150"])
     stdout, err = capsys.readouterr()
@@ -294,16 +322,16 @@ def test_corpus_share_accepted():
     assert accepted / len(PROGRAMS) >= MIN_ACCEPTED
 
 
-def test_corpus_median_output_size(tmp_path):
+def test_corpus_median_output_size(tmp_path_factory):
     """Only corrected words change (a program with code to compute is written as its expansion):
     the median output is at most 1.2 times the input."""
     growth = []
     for prog in PROGRAMS:
         if prog.name in REFUSED:
             continue
-        code, _out, err, out, _m, _model = _compensate(prog, tmp_path)
+        code, _out, err, out = _compensate(prog, tmp_path_factory)
         assert code == 0, (prog.name, err)
-        growth.append(out.stat().st_size / prog.stat().st_size)
+        growth.append(len(out) / prog.stat().st_size)
     print("output size / input size:", " ".join(f"{g:.2f}" for g in sorted(growth)))
     assert np.median(growth) <= 1.2
 

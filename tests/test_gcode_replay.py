@@ -10,10 +10,10 @@ import statistics
 import numpy as np
 import pytest
 
-from mtcomp.cli import main
 import replay_heidenhain
 from replay import Tolerance, compare, replay
-from test_gcode_corpus import PROGRAMS, REFUSED, _machine_file, _model_file, _topology, source_bytes
+from test_gcode_corpus import (PROGRAMS, REFUSED, _machine_file, _model_file, _topology, run_once,
+                               source_bytes)
 
 #: the correction bounds passed to compensate; the model's errors are larger, so they bind
 BOUND_UM, BOUND_URAD = 20.0, 500.0
@@ -26,25 +26,23 @@ TOL = Tolerance(axis_mm=BOUND_UM * 1e-3 + ROUNDING_MM,
 ACCEPTED = [p for p in PROGRAMS if p.name not in REFUSED]
 #: accepted programs whose output today does not move like the source, and why
 KNOWN_WRONG: dict = {}
-_OUTPUTS: dict = {}
 
 
 def _compensated(prog, tmp_path_factory) -> bytes:
-    """A corpus program compensated by a model whose corrections reach the bound."""
-    if prog.name not in _OUTPUTS:
-        tmp = tmp_path_factory.mktemp("replay")
-        machine = _machine_file(tmp, _topology(prog.read_text(encoding="latin-1")))
+    """A corpus program compensated by a model whose corrections reach the bound (once a
+    session: the aggregate tests below read it again)."""
+    def argv(folder):
+        machine = _machine_file(folder, _topology(prog.read_text(encoding="latin-1")))
         # a conversational program's arc cannot be split (no block can be added), so under this
         # strong model, whose correction changes by tens of um around one arc, its arcs are
         # refused (tests/test_toolpaths_heidenhain.py); it is replayed at the usual size
-        model = _model_file(tmp, machine, factor=1.0 if prog.suffix == ".h" else 30.0)
-        out = tmp / "out.nc"
-        code = main(["compensate", str(machine), str(model), str(prog), "-o", str(out),
-                     "--quiet", "--units", "mm", "--max-correction-um", str(BOUND_UM),
-                     "--max-correction-urad", str(BOUND_URAD), "--chord-tol-um", str(CHORD_UM)])
-        assert code == 0, prog.name
-        _OUTPUTS[prog.name] = out.read_bytes()
-    return _OUTPUTS[prog.name]
+        model = _model_file(folder, machine, factor=1.0 if prog.suffix == ".h" else 30.0)
+        return ["compensate", str(machine), str(model), str(prog), "-o", str(folder / "out.nc"),
+                "--quiet", "--units", "mm", "--max-correction-um", str(BOUND_UM),
+                "--max-correction-urad", str(BOUND_URAD), "--chord-tol-um", str(CHORD_UM)]
+    code, _stdout, err, out = run_once(tmp_path_factory, f"replay-{prog.name}", argv)
+    assert code == 0, (prog.name, err)
+    return out
 
 
 @pytest.mark.parametrize("prog", [

@@ -46,8 +46,10 @@ def test_datum_reference_is_the_deviation_at_each_rows_datum():
     fitted = fitted_model("xfyz", 12)
     ev = Evaluator(CompensationProblem.from_machine(fitted))
     rng = np.random.default_rng(4)
-    datums = np.array([[0.0, 0.0, 0.0], [120.0, -40.0, -100.0], [-250.0, 80.0, 20.0]])
-    tools = np.array([0.0, 35.0, 35.0])
+    # the last datum twice, with another tool length: a run that changes only in its tool
+    datums = np.array([[0.0, 0.0, 0.0], [120.0, -40.0, -100.0], [-250.0, 80.0, 20.0],
+                       [-250.0, 80.0, 20.0]])
+    tools = np.array([0.0, 35.0, 35.0, 80.0])
     pick = _runs(rng, 300, np.column_stack([datums, tools]))
     names = fitted.model.context_names
     ctx = fitted.context(300, {"tool_length": pick[:, 3]} if "tool_length" in names else None)
@@ -57,6 +59,8 @@ def test_datum_reference_is_the_deviation_at_each_rows_datum():
                       for i in range(300)])[:, :3]
     np.testing.assert_allclose(got[:, :3], want, rtol=0, atol=1e-15)
     assert np.ptp(got[:, 0]) > 1e-4                 # the datums differ in their deviation
+    same = np.all(pick[:, :3] == datums[2], axis=1)
+    assert np.ptp(tool[same]) > 0 and np.ptp(got[same, :3], axis=0).max() > 1e-6   # tools too
     np.testing.assert_array_equal(got[:, 3:], 0.0)
 
 

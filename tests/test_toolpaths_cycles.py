@@ -133,7 +133,8 @@ def test_cycle_at_unknown_position_passes_through(tmp_path):
     src = p.read_text().splitlines()
     assert out[0] == src[0] and out[2:5] == src[2:5]
     assert out[5] == "X10.0012 Y4.9979 Z-2.9967 R2.0033"
-    assert stats == {"cycle_lines": 1, "cycle_blocks": 1}
+    # the G28 of line 3 moves X and Y home: a move passed through uncorrected, counted
+    assert stats == {"cycle_lines": 1, "cycle_blocks": 1, "passed_moves": {"home": (1, 3)}}
 
 
 @pytest.mark.parametrize("text, line, words", [

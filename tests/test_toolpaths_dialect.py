@@ -99,8 +99,10 @@ def test_fanuc_macro_b_while_if_goto_expanded(tmp_path):
         lines = Path(src.path).read_text().splitlines()
     # the header comment after the tape's opening % (which Fanuc wants first)
     assert lines[0] == "%" and lines[1].startswith("(expanded by mtcomp from m.nc for fanuc")
-    assert lines[2:] == ["O1234", "G90 G21 G0 X0 Y0 Z5", "G1 X0 Y0 F100", "G1 X2.5 Y1 F100",
-                         "G1 X5 Y2 F100", "N20 G0 Z2.5", "M30", "%"]
+    # X[#100*#101] has the one decimal of #101 = 2.5; Y#100 is whole and gets its point (Fanuc
+    # reads 'Y1' as 1 least input increment, the variable's 1 as 1 mm)
+    assert lines[2:] == ["O1234", "G90 G21 G0 X0 Y0 Z5", "G1 X0.0 Y0. F100", "G1 X2.5 Y1. F100",
+                         "G1 X5.0 Y2. F100", "N20 G0 Z2.5", "M30", "%"]
 
 
 @pytest.mark.parametrize("text, line, msg", [

@@ -36,7 +36,8 @@ def test_sub_called_twice_appears_twice_with_its_arguments(tmp_path):
             "M2\n")
     lines, expanded, line_map = _expanded(tmp_path, text)
     assert expanded and lines[0].startswith("(expanded by mtcomp from in.ngc")
-    assert lines[1:] == ["G21 G90", "G0 X0 Y0 Z5", "  G1 X3 Y-2 F100 (side)",
+    # X[#1 * 2] with #1 = 1.5: the decimals of the numbers it is computed from (one)
+    assert lines[1:] == ["G21 G90", "G0 X0 Y0 Z5", "  G1 X3.0 Y-2 F100 (side)",
                          "  G1 X6 Y4 F100 (side)", "M2"]
     assert line_map == [0, 1, 5, 3, 3, 8]
     # two corrections: the reader sees two moves, both from source line 3

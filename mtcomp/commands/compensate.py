@@ -140,6 +140,9 @@ def _write_summary(path, run_) -> None:
     figures = run_.summary.as_dict()
     figures["drilling_cycles"] = {"kept_lines": run_.written.get("cycle_blocks", 0),
                                   "passed_through_lines": run_.written.get("cycle_lines", 0)}
+    # motion lines passed through uncorrected with no BLOCKS.csv row, by why (the summary's line)
+    figures["passed_through_moves"] = {why: n for why, (n, _line) in
+                                       (run_.written.get("passed_moves") or {}).items()}
     with atomic_write(path, "w") as f:
         json.dump(figures, f, indent=2)
         f.write("\n")
@@ -166,6 +169,12 @@ def _print_run(args, machine, fitted, run_, seconds, unread, written) -> None:
     if args.method == "qp" and st["windows"]:
         print(f"qp: {st['windows_qp']} of {st['windows']} windows needed OSQP "
               f"({st['qp_solves']} solves)")
+    if st.get("links_relaxed"):
+        n = len(st["links_relaxed"])
+        print(f"note: at {n} block{'' if n == 1 else 's'} the rule that a correction keeps each "
+              "axis's direction (or an arc's one correction under G41/G42) gave way to the other "
+              "bounds from where a window starts; the written motion there may differ in "
+              "direction from the one the model was evaluated with")
     if st.get("qp_failed"):
         print(f"warning: OSQP failed on {st['qp_failed']} windows; their corrections were clamped "
               "to the bounds instead (reported as active bounds)")

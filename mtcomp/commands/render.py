@@ -47,7 +47,8 @@ def add_arguments(parser):
                              "holes (each drilled hole's position error across the tool axis, "
                              "with arrows; its depth error in the titles), path (a 3-D path drawn "
                              "as its lines: the deviation across the path), auto (default: holes "
-                             "for a drilling program, in-plane when the program cuts in planes "
+                             "for a drilling program (one that also mills is mapped by what it "
+                             "mills, the holes left out and said), in-plane when the program cuts in planes "
                              "across the tool axis, a 2-D contour; path when the tool-tip surface "
                              "would be mostly walls seen edge-on; else surface)")
     parser.add_argument("--glyphs", action="store_true",

@@ -20,6 +20,19 @@ _BINARY = {"OP_ADD": "({0}+{1})", "OP_SUB": "({0}-{1})", "OP_MUL": "({0}*{1})", 
           "OP_FMIN": "fmin({0},{1})", "OP_FMAX": "fmax({0},{1})"}
 
 
+#: comparisons, not and if_else_zero: (scalar C, as CasADi's generated code has them; vector C
+#: on two vectors of lanes). A vector comparison gives all-ones lanes where true: and-ed with the
+#: bits of 1.0 it is 1.0 or +0.0, the double the scalar code converts its int to; if_else_zero(c, x)
+#: keeps x's bits where c != 0 (NaN included, as C's c ? x : 0) and +0.0 elsewhere
+_ONE_BITS = "0x3ff0000000000000LL"
+_LOGIC = {"OP_LT": ("({0}<{1})", f"(vd)(({{0}}<{{1}})&{_ONE_BITS})"),
+          "OP_LE": ("({0}<={1})", f"(vd)(({{0}}<={{1}})&{_ONE_BITS})"),
+          "OP_EQ": ("({0}=={1})", f"(vd)(({{0}}=={{1}})&{_ONE_BITS})"),
+          "OP_NE": ("({0}!={1})", f"(vd)(({{0}}!={{1}})&{_ONE_BITS})"),
+          "OP_NOT": ("(!{0})", f"(vd)(({{0}}==0.)&{_ONE_BITS})"),
+          "OP_IF_ELSE_ZERO": ("({0}?{1}:0)", "(vd)(({0}!=0.)&(vl)({1}))")}
+
+
 class _Unsupported(Exception):
     """The batched emitter does not know an operation of the function."""
 
@@ -63,21 +76,20 @@ def batched_body(body: ca.Function, lanes: int, varying_inputs: set, out_map: di
         return f"v{i}" if lane["j"] is None else f"v{i}[{lane['j']}]"
 
     def assign(o, is_uni, expr, fn=None):
-        uni[o] = is_uni
-        if is_uni:
-            used_u.add(o)
-            lines.append(f"  u{o}={expr};")
-        elif fn is None:  # vector arithmetic
-            used_v.add(o)
-            lines.append(f"  v{o}={expr};")
-        else:  # lane by lane
-            used_v.add(o)
+        if fn is not None:  # lane by lane; the operands read before o changes kind (o may be one)
             parts = []
             for jj in range(L):
                 lane["j"] = jj
                 parts.append(fn())
             lane["j"] = None
-            lines.append(f"  v{o}=(vd){{{', '.join(parts)}}};")
+            expr = f"(vd){{{', '.join(parts)}}}"
+        uni[o] = is_uni
+        if is_uni:
+            used_u.add(o)
+            lines.append(f"  u{o}={expr};")
+        else:
+            used_v.add(o)
+            lines.append(f"  v{o}={expr};")
 
     for k in range(n):
         op = ids[k]
@@ -119,6 +131,14 @@ def batched_body(body: ca.Function, lanes: int, varying_inputs: set, out_map: di
                 else:
                     lines.append(f"  mt_sincos_small(v{i},&vs{t},&vc{t},&large);")
             assign(o, False, f"vs{t}" if op == "OP_SIN" else f"vc{t}")
+        elif op in _LOGIC:
+            o = body.instruction_output(k)[0]
+            args = ins[:1] if op == "OP_NOT" else ins[:2]
+            if all(uni[i] for i in args):
+                assign(o, True, _LOGIC[op][0].format(*(opnd(i) for i in args)))
+            else:       # a value shared by the poses enters as a vector of copies of it
+                vec = [f"(vd){{{', '.join([opnd(i)] * L)}}}" if uni[i] else opnd(i) for i in args]
+                assign(o, False, _LOGIC[op][1].format(*vec))
         elif op in _UNARY:
             i, o = ins[0], body.instruction_output(k)[0]
             if op in ARITH or uni[i]:

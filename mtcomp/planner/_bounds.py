@@ -2,7 +2,9 @@
 
 Per block and axis: ``|x| <= B`` (max correction), ``lo <= q + x / scale <= hi`` (travel), and between
 consecutive blocks ``|x_i - x_(i-1)| <= S`` (max step; not into the end of a rapid unless the problem
-says so). With an output grid every bound is first rounded inwards to whole grid steps; corrections
+says so), and the link bounds of :mod:`._links` on the same differences (a correction that keeps each
+axis's direction where the model's error depends on it; one correction along an arc under cutter
+radius compensation). With an output grid every bound is first rounded inwards to whole grid steps; corrections
 rounded to the nearest grid step then keep every bound (rounding is monotone and commutes with
 shifts by whole steps), and :meth:`Bounds.enforce` makes sure of it, clamping what a method without
 bounds (pinv, newton) produced and saying which bound acted.
@@ -11,19 +13,24 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._small import column_extremes
+from ._small import any_rows, column_extremes
 from .problem import CompensationProblem
 
 #: the kinds of bound, in the order of the flag array's last axis
-FLAG_KINDS = ("max", "min", "travel_max", "travel_min", "step")
+FLAG_KINDS = ("max", "min", "travel_max", "travel_min", "step", "reversal", "arc")
 INF = 1e30
+#: kinds of link bound (:mod:`._links`), as stored per node and axis (0: none)
+REVERSAL, ARC = 1, 2
 
 
 def flag_name(kind: str, axis: str) -> str:
-    """Column text of one active bound: cx_max, cx_min, travel_x_max, travel_x_min, step_x."""
+    """Column text of one active bound: cx_max, cx_min, travel_x_max, travel_x_min, step_x,
+    reversal_x (the correction held so that X keeps its direction), arc_x (one correction along an
+    arc under cutter radius compensation)."""
     a = axis.lower()
     return {"max": f"c{a}_max", "min": f"c{a}_min", "travel_max": f"travel_{a}_max",
-            "travel_min": f"travel_{a}_min", "step": f"step_{a}"}[kind]
+            "travel_min": f"travel_{a}_min", "step": f"step_{a}", "reversal": f"reversal_{a}",
+            "arc": f"arc_{a}"}[kind]
 
 
 
@@ -117,7 +124,28 @@ class Bounds:
             return np.array(x, dtype=float)
         return _round_to(x, self.unit)
 
-    def enforce(self, x, q, exempt, prev, desired=None, following=None, limits=None, planned=None):
+    def _quantize_runs(self, x, links):
+        """:meth:`quantize`, but on a grid coarser than the millimetre one (inch programs: 0.254 um,
+        more than twice the never-worse rows' room) a run of nodes tied into one correction (an arc
+        under cutter radius compensation, its start included) is rounded towards zero: its
+        correction sits on the never-worse rows of its tightest node, which the nearest grid step
+        can overstep, while every node's rows hold between zero and the planned correction."""
+        y = self.quantize(x)
+        if links is None or self.grid is None:
+            return y
+        coarse = self.unit > 0.1 + 1e-9
+        arc = np.any(links[2] == ARC, axis=1)
+        if not coarse.any() or not arc.any():
+            return y
+        rows = arc.copy()
+        rows[:-1] |= arc[1:]
+        sel = np.ix_(rows, coarse)
+        t = np.divide(x[sel], self.unit[coarse])
+        y[sel] = np.trunc(t + np.sign(t) * 1e-6) * self.unit[coarse]
+        return y
+
+    def enforce(self, x, q, exempt, prev, desired=None, following=None, limits=None, planned=None,
+                links=None):
         """The written corrections and the bounds that acted.
 
         x : (n, na) corrections found (x units). q : (n, na) nominal positions (mm, rad).
@@ -128,20 +156,22 @@ class Bounds:
         planned : (n, na) the plan before its rotary corrections were rounded and its linear ones
         solved again for them, or None: a step it put on its bound is named too (the re-solve can
         move the written pair off the bound, the ramp being the step bound's all the same).
+        links : (lo, hi, kind) each (n, na), the link bounds of x_i - x_(i-1) (:mod:`._links`), or
+        None; they apply into every block but the first of a program, and the box wins over them.
 
-        Returns (y (n, na) on the grid, flags (n, na, 5) bool, see FLAG_KINDS): a flag is set where
+        Returns (y (n, na) on the grid, flags (n, na, 7) bool, see FLAG_KINDS): a flag is set where
         y sits on that bound and differs from ``desired`` by more than half a grid step (the bound
         took something away); ``step`` also where the step to the next block is on its bound.
         """
         desired = x if desired is None else desired
         l, u, tlo, thi = self.limits(q) if limits is None else limits
-        base = np.clip(self.quantize(x), l, u)
+        base = np.clip(self._quantize_runs(x, links), l, u)
         y = base.copy()
         n = y.shape[0]
         tol = 1e-9 * np.maximum(self.unit, 1.0)
         start = 0
         while True:
-            j = self._next_violation(y, exempt, prev, start, tol)
+            j = self._next_violation(y, exempt, prev, start, tol, links)
             if j is None:
                 break
             while j < n:
@@ -150,6 +180,8 @@ class Bounds:
                     new = base[j]
                 else:
                     new = np.clip(np.clip(base[j], before - self.S, before + self.S), l[j], u[j])
+                if links is not None and before is not None:
+                    new = np.clip(np.clip(new, before + links[0][j], before + links[1][j]), l[j], u[j])
                 unchanged = np.all(new == base[j])
                 y[j] = new
                 if unchanged:
@@ -175,7 +207,20 @@ class Bounds:
         if planned is not None:
             pp = np.vstack([prev[None, :] if prev is not None else planned[:1], planned[:-1]])
             flags[..., 4] |= took & self._on_step(planned, pp, has_prev, exempt, None, tol)
+        if links is not None:
+            self._link_flags(flags, took, y, prev_rows, prev is not None, links, tol)
         return y, flags
+
+    def _link_flags(self, flags, took, y, prev_rows, has_prev, links, tol):
+        """Set the reversal and arc flags: the bound took something away and the change of the
+        correction into the block sits on the link bound."""
+        lo, hi, kind = links
+        d = y - prev_rows
+        on = (np.abs(d - lo) <= tol + 1e-6) | (np.abs(d - hi) <= tol + 1e-6)
+        if not has_prev and y.shape[0]:
+            on[0] = False
+        flags[..., FLAG_KINDS.index("reversal")] = took & on & (kind == REVERSAL)
+        flags[..., FLAG_KINDS.index("arc")] = took & on & (kind == ARC)
 
     def _on_step(self, y, prev_rows, has_prev, exempt, following, tol):
         """(n, na) bool: the step into a block (from prev_rows) or out of it to the next is on its
@@ -189,7 +234,7 @@ class Bounds:
             step_out[-1] = np.abs(following - y[-1]) >= self.S - tol
         return step_in | step_out
 
-    def _next_violation(self, y, exempt, prev, start, tol, block=8192):
+    def _next_violation(self, y, exempt, prev, start, tol, links=None, block=8192):
         n = y.shape[0]
         s = max(start, 0)
         while s < n:
@@ -205,6 +250,9 @@ class Bounds:
                 before = y[s - 1:e - 1]
                 ok0 = None
             viol = np.any(np.abs(y[s:e] - before) > self.S + tol, axis=1) & ~exempt[s:e]
+            if links is not None:
+                d = y[s:e] - before
+                viol |= np.any((d < links[0][s:e] - tol) | (d > links[1][s:e] + tol), axis=1)
             if ok0 is not None and s == 0:
                 viol[0] = False
             idx = np.flatnonzero(viol)
@@ -213,15 +261,28 @@ class Bounds:
             s = e
         return None
 
-    def feasible(self, x, l, u, exempt, prev, tol=1e-9):
-        """True if corrections x (n, na) keep box bounds l, u and the step bound (from prev too)."""
-        if np.any(x < l - tol) or np.any(x > u + tol):
-            return False
-        if x.shape[0] > 1:
-            d = np.abs(np.diff(x, axis=0)) > self.S + tol
-            if np.any(d[~exempt[1:]]):
-                return False
-        if prev is not None and x.shape[0] and not exempt[0]:
-            if np.any(np.abs(x[0] - prev) > self.S + tol):
-                return False
-        return True
+    def feasible(self, x, l, u, exempt, prev, tol=1e-9, links=None):
+        """True if corrections x (n, na) keep box bounds l, u, the step bound (from prev too) and
+        the link bounds ``links`` ((lo, hi, kind) of :mod:`._links`, or None)."""
+        return self.first_violation(x, l, u, exempt, prev, tol, links) is None
+
+    def first_violation(self, x, l, u, exempt, prev, tol=1e-9, links=None) -> int | None:
+        """The first block whose correction (x (n, na)) breaks its box bounds l, u, the step bound
+        from the block before it (from prev for the first) or its link bounds ``links``, or None
+        when every block keeps them."""
+        n = x.shape[0]
+        bad = any_rows(x < l - tol)
+        bad |= any_rows(x > u + tol)
+        if n > 1:
+            d = np.diff(x, axis=0)
+            np.abs(d, out=d)
+            step = any_rows(d > self.S + tol)
+            step &= ~exempt[1:]
+            bad[1:] |= step
+        if prev is not None and n and not exempt[0]:
+            bad[0] |= bool(np.any(np.abs(x[0] - prev) > self.S + tol))
+        if links is not None and n:
+            d = np.diff(np.vstack([x[:1] if prev is None else prev[None, :], x]), axis=0)
+            bad |= any_rows(d < links[0] - tol)
+            bad |= any_rows(d > links[1] + tol)
+        return int(np.argmax(bad)) if bad.any() else None

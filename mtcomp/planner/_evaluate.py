@@ -54,18 +54,29 @@ def objective_jacobian(M: np.ndarray, A: np.ndarray) -> np.ndarray:
     return out
 
 
+def _run_starts(a: np.ndarray) -> np.ndarray:
+    """(n,) bool: the rows of ``a`` (n, ...) that differ from the row before (the first row too)."""
+    n = a.shape[0]
+    new_run = np.ones(n, bool)
+    if n > 1:
+        new_run[1:] = any_rows(a[1:] != a[:-1])
+    return new_run
+
+
+def _unique_runs(first_rows: np.ndarray, new_run: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_unique_rows` from the first row of each run (``first_rows``, in order) and where the
+    runs start (``new_run`` (n,) bool)."""
+    uniq, inv = np.unique(first_rows, axis=0, return_inverse=True)
+    return uniq, inv.reshape(-1)[np.cumsum(new_run) - 1]
+
+
 def _unique_rows(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(the distinct rows of ``a`` (n, k) in sorted order, (n,) the index of each row's among them):
     ``np.unique(a, axis=0, return_inverse=True)``, sorting only the first row of each run of equal
     rows (a program's datum and tool length change a few times in a million blocks; sorting every
     row took a third of a compensation)."""
-    n = a.shape[0]
-    new_run = np.ones(n, bool)
-    if n > 1:
-        new_run[1:] = any_rows(a[1:] != a[:-1])
-    firsts = np.flatnonzero(new_run)
-    uniq, inv = np.unique(a[firsts], axis=0, return_inverse=True)
-    return uniq, inv.reshape(-1)[np.cumsum(new_run) - 1]
+    new_run = _run_starts(a)
+    return _unique_runs(a[new_run], new_run)
 
 
 class Evaluator:
@@ -203,7 +214,11 @@ class Evaluator:
         ctx = np.atleast_2d(ctx)
         names = self.model.context_names
         tool = ctx[:, names.index("tool_length")] if "tool_length" in names else np.zeros(ctx.shape[0])
-        uniq, inv = _unique_rows(np.column_stack([datum, tool]))
+        # the runs of equal (datum, tool length) found on each apart: no (n, k + 1) copy of them
+        new_run = _run_starts(datum)
+        new_run |= _run_starts(tool)
+        firsts = np.flatnonzero(new_run)
+        uniq, inv = _unique_runs(np.column_stack([datum[firsts], tool[firsts]]), new_run)
         return self.problem.fitted.at_datum(name, uniq[:, :-1], uniq[:, -1])[inv]
 
     def residual_jacobian(self, q, x, ctx, target=None, _with_nominal=False):

@@ -88,6 +88,7 @@ def build_cvxpy_problem(problem: CompensationProblem, q, feed=None, dirs=None, r
         d = x[idx, :] - x[idx - 1, :]
         Sm = np.broadcast_to(b.S, (idx.size, na))
         cons += [d <= Sm, d >= -Sm]
+    cons += _link_constraints(x, nodes)
     # never worse than uncorrected, per row the objective counts (the QP's last rows, :mod:`._qp`)
     lin0 = linearization or lin
     room = np.abs(objective_residual(lin0.orientation_rows, lin0.b0)) + NEVER_WORSE_TOL
@@ -95,6 +96,20 @@ def build_cvxpy_problem(problem: CompensationProblem, q, feed=None, dirs=None, r
     cq = CvxpyProblem(cp.Problem(objective, cons), x, nodes, cons, A, c, b.D, objective)
     cq.update(lin0)
     return cq
+
+
+def _link_constraints(x, nodes) -> list:
+    """The link bounds of :mod:`._links` on x_i - x_(i-1) (each axis keeps its direction where the
+    model's error depends on it), as the QP has them."""
+    if nodes.link_lo is None or x.shape[0] < 2:
+        return []
+    cons = []
+    for bound, sign in ((nodes.link_lo, 1.0), (nodes.link_hi, -1.0)):
+        for j in range(x.shape[1]):
+            idx = np.flatnonzero(np.abs(bound[1:, j]) < 1e29) + 1
+            if idx.size:
+                cons.append(sign * (x[idx, j] - x[idx - 1, j]) >= sign * bound[idx, j])
+    return cons
 
 
 def plan_with_cvxpy(problem: CompensationProblem, q, feed=None, dirs=None, rapid=None,

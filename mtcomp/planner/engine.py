@@ -29,6 +29,11 @@ import numpy as np
 
 from ._bounds import FLAG_KINDS, INF, Bounds, flag_name
 from ._evaluate import Evaluator, objective_residual
+from ._grouped import GroupedQP, tied
+from ._interleave import placed, positions
+from ._links import LinkRules, run_start
+from ._local_qp import LazyQP, solve_stretches
+from ._nodes import NodeSet
 from ._parallel import read_ahead, resolve_threads, split_rows
 from ._pointwise import Linearization, solve_newton, solve_pinv
 from ._qp import WindowQP, never_worse_rows, reachable_nodes
@@ -36,50 +41,6 @@ from ._rotary_grid import rotary_columns, round_rotary, solve_with_rotary_fixed
 from ._small import a_x, any_rows, at_b, gram, row_max_abs, row_norm
 from .problem import CompensationProblem, PlannerOptions
 from ..models.region import outside_bounds, support_bounds
-
-
-@dataclass
-class NodeSet:
-    """Output blocks in program order.
-
-    q : (n, na) nominal axis positions, mm and rad (on the output grid when the problem has one).
-    context : (n, n_context) block context in the model's context_names order.
-    exempt : (n,) bool, no step bound from the block before (the move into it is a rapid, a hole,
-        one from a position the program has not given, or it is the first block of the program).
-    line : (n,) source line. inserted : (n,) bool, an internal node the planner added.
-    rapid : (n,) bool, the node ends (or lies in) a G0 move.
-    unknown : (n, na) bool, axes whose position the program has not given at this block.
-    outside : (n, na) bool, axes outside the region the model's data reached (its ``support``).
-    pinned : (n,) bool, the block gets no correction (an unknown axis, outside the support without
-        ``PlannerOptions.extrapolate``, or a correction less certain than
-        ``PlannerOptions.max_correction_sd_um``): its correction bounds are zero.
-    sd_um : (n,) standard error of the block's correction (um; NaN where not evaluated: unknown
-        axes, outside the support, or a model without uncertainty).
-    """
-
-    q: np.ndarray
-    context: np.ndarray
-    exempt: np.ndarray
-    line: np.ndarray
-    inserted: np.ndarray
-    rapid: np.ndarray
-    unknown: np.ndarray
-    outside: np.ndarray
-    pinned: np.ndarray
-    sd_um: np.ndarray
-
-    FIELDS = ("q", "context", "exempt", "line", "inserted", "rapid", "unknown", "outside", "pinned",
-              "sd_um")
-
-    def __len__(self):
-        return int(self.q.shape[0])
-
-    def take(self, idx) -> "NodeSet":
-        return NodeSet(*(getattr(self, f)[idx] for f in self.FIELDS))
-
-    @staticmethod
-    def concatenate(parts: list["NodeSet"]) -> "NodeSet":
-        return NodeSet(*(np.concatenate([getattr(p, f) for p in parts]) for f in NodeSet.FIELDS))
 
 
 @dataclass
@@ -93,7 +54,7 @@ class PlanResult:
     before, after : (n, 3) tip deviation (mm) of the uncorrected and corrected block, workpiece frame;
     before_axis, after_axis : (n, 3) tool-axis deviation (actual minus nominal unit vector), 5-axis
         machines only (None otherwise).
-    flags : (n, na, 5) bool, bounds that acted (see ``FLAG_KINDS``).
+    flags : (n, na, 7) bool, bounds that acted (see ``FLAG_KINDS``).
     iterations : (n,) model linearisations used per node. converged : (n,) bool.
     unknown, outside : (n, na) bool, axes not known / outside the model's support (see NodeSet).
     pinned : (n,) bool, the block was given no correction (bounds zero) for any of the reasons.
@@ -180,6 +141,9 @@ class Planner:
         #: (lo, hi) each (na,): the model's support, +-inf for axes it does not limit; None: unknown
         self.support = support_bounds(problem.fitted)
         self._split = self.threads          # parts a chunk's per-block work is cut into
+        #: the link bounds (:mod:`._links`): each axis keeps the direction the model evaluated it
+        #: with, one correction along an arc under cutter radius compensation
+        self.links = LinkRules(problem, self.bounds)
 
     # ------------------------------------------------------------------ nodes
     def _context(self, feed, dirs, n, tool_length=None, extra=None):
@@ -294,8 +258,9 @@ class Planner:
         ctx = self._context(feed, dirs, n)
         datum = None if datum is None else np.broadcast_to(np.asarray(datum, dtype=float), q.shape)
         sd = self._sd_um(q, ctx, unknown, outside, datum)
+        links = self.links.arrays(q, dirs, None if self._last_end is None else self._last_end[0])
         nodes = NodeSet(q, ctx, exempt, line, np.zeros(n, bool), rapid, unknown, outside,
-                        self._pinned(unknown, outside, sd), sd)
+                        self._pinned(unknown, outside, sd), sd, *(links or ()))
         lin = self._solve_free(nodes.q, nodes.context, self._reference(datum, ctx))
         if n:
             self._last_end = (nodes.q[-1], lin.x[-1])
@@ -351,32 +316,33 @@ class Planner:
                                 rapid | pinned | cycle | no_line)
         counts = np.ones(nrows, np.int64)
         if inner is None:
+            links = self.links.chunk(chunk, end, np.arange(nrows), np.ones(nrows, bool), first, cycle)
             nodes = NodeSet(end, ctx, exempt, np.asarray(chunk.line), np.zeros(nrows, bool), rapid,
-                            unknown, outside, pinned, sd)
+                            unknown, outside, pinned, sd, *(links or ()))
             return nodes, lin_end, counts
         rows_i, t_i, q_i, lin_i = inner
         np.add.at(counts, rows_i, 1)
-        all_rows = np.concatenate([rows_i, np.arange(nrows)])
-        all_t = np.concatenate([t_i, np.ones(nrows)])
-        order = np.lexsort((all_t, all_rows))
-        m = rows_i.size
-        q_all = np.concatenate([q_i, end])[order]
-        ctx_all = np.concatenate([ctx[rows_i], ctx])[order]
+        pos_end, pos_i = positions(counts, rows_i, t_i)
+        row_sorted = np.repeat(np.arange(nrows), counts)
         # the first node of a row (inserted or its end) takes the row's exemption
-        ins_all = np.concatenate([np.ones(m, bool), np.zeros(nrows, bool)])[order]
-        row_sorted = all_rows[order]
-        firsts = np.ones(row_sorted.size, bool)
-        firsts[1:] = row_sorted[1:] != row_sorted[:-1]
-        ex_all = firsts & exempt[row_sorted]
+        ex_all = np.zeros(row_sorted.size, bool)
+        ex_all[np.cumsum(counts) - counts] = exempt
+        ins_all = np.zeros(row_sorted.size, bool)
+        ins_all[pos_i] = True
         # an inserted node outside the region the data reached (a move from outside into it) is
         # not corrected, as a block ending there would not be
         out_i = self.outside_support(q_i, known[rows_i])
         pin_i = pinned[rows_i] | (any_rows(out_i) & (not self.options.extrapolate))
-        nodes = NodeSet(q_all, ctx_all, ex_all, np.asarray(chunk.line)[row_sorted], ins_all,
-                        rapid[row_sorted], unknown[row_sorted],
-                        np.concatenate([out_i, outside])[order],
-                        np.concatenate([pin_i, pinned])[order], sd[row_sorted])
-        lin = Linearization.concatenate([lin_i, lin_end]).take(order)
+        q_all = placed(end, q_i, pos_end, pos_i)
+        firsts = np.zeros(row_sorted.size, bool)
+        firsts[np.cumsum(counts) - counts] = True
+        links = self.links.chunk(chunk, q_all, row_sorted, firsts, first, cycle)
+        nodes = NodeSet(q_all, ctx[row_sorted], ex_all, np.asarray(chunk.line)[row_sorted],
+                        ins_all, rapid[row_sorted], unknown[row_sorted],
+                        placed(outside, out_i, pos_end, pos_i),
+                        placed(pinned, pin_i, pos_end, pos_i), sd[row_sorted], *(links or ()))
+        lin = Linearization(*(placed(getattr(lin_end, f), getattr(lin_i, f), pos_end, pos_i)
+                              for f in Linearization.FIELDS))
         return nodes, lin, counts
 
     def _subdivide(self, start, end, x_start, x_end, ctx, ref, skip):
@@ -445,7 +411,8 @@ class Planner:
         if desired is None:
             desired = self._round_rotary(lin, lin.x)
         y, flags = self.bounds.enforce(x, nodes.q, nodes.exempt, self._prev, desired=desired,
-                                       following=following, limits=limits, planned=planned)
+                                       following=following, limits=limits, planned=planned,
+                                       links=nodes.links)
         if len(nodes):
             self._prev = y[-1].copy()
         D = self.bounds.D
@@ -500,13 +467,13 @@ class Planner:
         self.stats["windows"] += 1
         l, u = limits[:2]
         prev = self._prev
-        if not o.always_qp and b.feasible(lin.x, l, u, nodes.exempt, prev):
+        links = nodes.links
+        if not o.always_qp and b.feasible(lin.x, l, u, nodes.exempt, prev, links=links):
             x = self._round_rotary(lin, lin.x)
-            if b.feasible(x, l, u, nodes.exempt, prev):
+            if b.feasible(x, l, u, nodes.exempt, prev, links=links):
                 return x, None
         self.stats["windows_qp"] += 1
         n, na = lin.x.shape
-        qp = self._window_qp(n + 1, lin.b.shape[1])      # objective_residual keeps b's shape
         lam = self.problem.regularization_weights
         lower = np.vstack([np.zeros((1, na)) if prev is None else prev[None, :], l])
         upper = np.vstack([np.zeros((1, na)) if prev is None else prev[None, :], u])
@@ -516,9 +483,50 @@ class Planner:
             free[0] = True
         step_lo = np.where(free[:, None], -INF, -S)
         step_hi = np.where(free[:, None], INF, S)
+        full = LazyQP(lambda: self._window_qp(n + 1, lin.b.shape[1]))   # b's rows: the objective's
+        qp, local = full, None
+        if links is None:
+            reachable = reachable_nodes(self._prev, free, np.asarray(b.S, dtype=float))
+        else:
+            step_lo, step_hi, reachable = self.links.window(links, prev, l, u, step_lo, step_hi,
+                                                            self.stats, nodes.line)
+            if tied(step_lo, step_hi).any():      # one variable per run of tied nodes
+                qp = GroupedQP(o.osqp_eps)
+
+        def relinearise(idx, xi):
+            return self.ev.residual_jacobian(nodes.q[idx], xi, nodes.context[idx],
+                                             lin.target[idx])[:2]
+
+        if not o.always_qp and qp is full:        # tied runs: GroupedQP on the whole window
+            local = solve_stretches(lin, (lower, upper), (step_lo, step_hi), reachable, lam,
+                                    o.step_tol_um, o.max_iterations, self._window_qp, relinearise)
+        if local is not None:
+            x, solves = local
+            self.stats["qp_solves"] += solves
+            self.stats["qp_status"]["solved"] = self.stats["qp_status"].get("solved", 0) + solves
+        else:
+            x = self._solve_whole_window(lin, qp, (lower, upper), (step_lo, step_hi), reachable,
+                                         relinearise)
+            if x is None:
+                # keep going with the unbounded solution; enforce() clamps it and flags the bounds
+                self.stats["qp_failed"] = self.stats.get("qp_failed", 0) + 1
+                return self._round_rotary(lin, np.clip(lin.x, l, u)), None
+        solves = qp.solves
+        fixed = solve_with_rotary_fixed(qp, b, lin, x, (lower, upper), (step_lo, step_hi), reachable,
+                                        lam, self._rotary)
+        self.stats["qp_solves"] += qp.solves - solves
+        return fixed, x
+
+    def _solve_whole_window(self, lin: Linearization, qp, box, steps, reachable, relinearise):
+        """The bounded window's corrections (n, na) from OSQP on the whole window, re-linearised until
+        they stop moving (lin updated in place); None when OSQP fails."""
+        o = self.options
+        lower, upper = box
+        step_lo, step_hi = steps
+        lam = self.problem.regularization_weights
+        na = lin.x.shape[1]
         eye = np.eye(na)
-        x = np.clip(lin.x, l, u)
-        reachable = reachable_nodes(self._prev, free, np.asarray(b.S, dtype=float))
+        x = np.clip(lin.x, lower[1:], upper[1:])
         for _it in range(o.max_iterations):
             c, A = lin.objective()
             H = gram(A, lam)
@@ -537,23 +545,16 @@ class Planner:
             self.stats["qp_solves"] += 1
             self.stats["qp_status"][status] = self.stats["qp_status"].get(status, 0) + 1
             if status not in ("solved", "solved inaccurate"):
-                # keep going with the unbounded solution; enforce() clamps it and flags the bounds
-                self.stats["qp_failed"] = self.stats.get("qp_failed", 0) + 1
-                return self._round_rotary(lin, np.clip(lin.x, l, u)), None
+                return None
             x = sol[1:]
             moved = row_max_abs(x - lin.x_lin) >= o.step_tol_um
             if not np.any(moved):
                 break
             idx = np.flatnonzero(moved)
-            bb, AA, _ = self.ev.residual_jacobian(nodes.q[idx], x[idx], nodes.context[idx],
-                                                  lin.target[idx])
-            lin.b[idx], lin.A[idx], lin.x_lin[idx] = bb, AA, x[idx]
+            lin.b[idx], lin.A[idx] = relinearise(idx, x[idx])
+            lin.x_lin[idx] = x[idx]
             lin.iterations[idx] += 1
-        solves = qp.solves
-        fixed = solve_with_rotary_fixed(qp, b, lin, x, (lower, upper), (step_lo, step_hi), reachable,
-                                        lam, self._rotary)
-        self.stats["qp_solves"] += qp.solves - solves
-        return fixed, x
+        return x
 
     def _round_rotary(self, lin: Linearization, x: np.ndarray) -> np.ndarray:
         """x with the rotary corrections on the output grid, the linear ones re-solved for them."""
@@ -561,7 +562,8 @@ class Planner:
 
     def _feasible_run(self, nodes: NodeSet, lin: Linearization, pos: int, total: int, final: bool):
         """Commit at once the run of full windows from ``pos`` on whose unbounded solution keeps every
-        bound: ``(result, nodes committed)``, or ``(None, 0)`` when fewer than two such windows.
+        bound (those before the first block that breaks one): ``(result, nodes committed)``, or
+        ``(None, 0)`` when fewer than two such windows.
 
         The same plan as window by window: each of these windows would be its unbounded solution
         (checked here as :meth:`_solve_window` does, the anchor of a window being the written,
@@ -578,17 +580,29 @@ class Planner:
         exempt = nodes.exempt[pos:end]
         limits = self.bounds.limits_lazy(nodes.q[pos:end], nodes.pinned[pos:end])
         b = self.bounds
-        if not b.feasible(x, limits[0], limits[1], exempt, self._prev):
-            return None, 0
+        links = None if nodes.link_lo is None else tuple(a[pos:end] for a in nodes.links)
+        k = b.first_violation(x, limits[0], limits[1], exempt, self._prev, links=links)
+        if k is not None:
+            # the windows wholly before it, as window by window (x is lin.x without a rotary axis)
+            count = 0 if self._rotary.any() else (k - O) // W
+            if count < 2:
+                return None, 0
+            x, exempt = x[:count * W + O], exempt[:count * W + O]
+            limits = tuple(None if a is None else a[:count * W + O] for a in limits)
         # window k > 0 starts at k * W, anchored at the rounded correction of the node before it
         starts = np.arange(1, count) * W
         anchor = b.quantize(x[starts - 1])
         bad = np.any(np.abs(x[starts] - anchor) > b.S + 1e-9, axis=1) & ~exempt[starts]
+        if links is not None:
+            d = x[starts] - anchor
+            bad |= np.any((d < links[0][starts] - 1e-9) | (d > links[1][starts] + 1e-9), axis=1)
         if np.any(bad):
             count = 1 + int(np.flatnonzero(bad)[0])
             if count < 2:
                 return None, 0
         nc = count * W
+        if nodes.link_lo is not None:           # no commit inside a run of tied nodes
+            nc = run_start(nodes.link_lo, nodes.link_hi, pos + nc, pos + 1) - pos
         self.stats["windows"] += count
         following = x[nc] if nc < x.shape[0] and not exempt[nc] else None
         csl = slice(pos, pos + nc)
@@ -635,20 +649,20 @@ class Planner:
                 continue
             nodes, lin, counts = self.nodes_from_chunk(chunk)
             pending.append((chunk, counts, len(nodes)))
-            res = self.plan_nodes(nodes, lin, final=False)
-            if res is not None:
+            for res in _as_list(self.plan_nodes(nodes, lin, final=False, join=False)):
                 done.append(res)
                 n_done += len(res)
             yield from ready()
-        res = self.plan_nodes(_empty_nodes(self), _empty_lin(self), final=True)
-        if res is not None and len(res):
+        for res in _as_list(self.plan_nodes(_empty_nodes(self), _empty_lin(self), join=False)):
             done.append(res)
             n_done += len(res)
         yield from ready()
 
-    def plan_nodes(self, nodes: NodeSet, lin: Linearization, final: bool = True) -> PlanResult | None:
+    def plan_nodes(self, nodes: NodeSet, lin: Linearization, final: bool = True,
+                   join: bool = True) -> PlanResult | list[PlanResult] | None:
         """Plan a batch of nodes (program order, after the ones planned before). With ``final`` every
-        node is committed; otherwise qp keeps the last ``overlap`` (or fewer) for the next call."""
+        node is committed; otherwise qp keeps the last ``overlap`` (or fewer) for the next call
+        (``join=False``: qp's results as the list of its committed runs, not copied into one)."""
         o = self.options
         if o.method != "qp":
             x = self._round_rotary(lin, lin.x)
@@ -661,23 +675,28 @@ class Planner:
                 nodes = NodeSet.concatenate([prev_n, nodes])
                 lin = Linearization.concatenate([prev_l, lin])
             else:
-                results, start = head
+                results, start, left = head
                 nodes, lin = nodes.take(slice(start, None)), lin.take(slice(start, None))
+                if left is not None:
+                    nodes = NodeSet.concatenate([left[0], nodes])
+                    lin = Linearization.concatenate([left[1], lin])
         more, pos = self._plan_windows(nodes, lin, final)
         results += more
         total = len(nodes)
         self._buffer = [(nodes.take(slice(pos, total)), lin.take(slice(pos, total)))] if pos < total \
             else []
-        if not results:
-            return None
+        if not results or not join:
+            return results or None
         return results[0] if len(results) == 1 else PlanResult.concatenate(results)
 
     def _plan_head(self, prev_n: NodeSet, prev_l: Linearization, nodes: NodeSet, lin: Linearization,
                    final: bool):
         """The windows that start in the nodes kept from the last call (r of them), planned on those
         joined with only the first new nodes they need: k = ceil(r / window) full windows, which end
-        exactly k * window - r nodes into the new batch. Returns (results, that offset), or None when
-        the new batch is too short (then the windows would not be the same as on the whole).
+        exactly k * window - r nodes into the new batch. Returns (results, that offset, None), or
+        None when the new batch is too short (then the windows would not be the same as on the
+        whole); where a run of tied nodes held the last commit back into the kept nodes,
+        (results, 0, (the kept nodes not committed, their linearisation)).
 
         Saves joining (copying) every new batch to the few nodes kept from the last one."""
         W, O = self.options.window, self.options.overlap
@@ -689,11 +708,13 @@ class Planner:
         hn = NodeSet.concatenate([prev_n, nodes.take(slice(0, h))])
         hl = Linearization.concatenate([prev_l, lin.take(slice(0, h))])
         results, pos = self._plan_windows(hn, hl, final=False)
-        assert pos == k * W, "head windows"
         # re-linearisations of new nodes made there (the overlap of the last head window)
         for f in ("b", "A", "x_lin", "iterations"):
             getattr(lin, f)[:h] = getattr(hl, f)[r:]
-        return results, k * W - r
+        if pos >= r:
+            return results, pos - r, None
+        # a run of tied nodes held the last commit back into the kept nodes: they go on first
+        return results, 0, (hn.take(slice(pos, r)), hl.take(slice(pos, r)))
 
     def _plan_windows(self, nodes: NodeSet, lin: Linearization, final: bool):
         """Windows over ``nodes`` from the first on: (results, nodes committed)."""
@@ -714,6 +735,10 @@ class Planner:
                     continue
             nw = min(left, W + O)
             nc = nw if (final and left <= W + O) else min(W, nw)
+            if nc < nw and nodes.link_lo is not None:
+                # no commit inside a run of tied nodes (an arc under cutter radius compensation):
+                # the next window would find the run's correction fixed by its anchor
+                nc = run_start(nodes.link_lo, nodes.link_hi, pos + nc, pos + 1) - pos
             sl = slice(pos, pos + nw)
             wn, wl = nodes.take(sl), lin.take(sl)
             limits = self.bounds.limits(wn.q, wn.pinned)
@@ -747,6 +772,10 @@ def plan_chunks(problem: CompensationProblem, chunks: Iterable, options: Planner
     ``result.counts`` gives the output blocks per segment row (``write_corrected``'s counts) and
     ``result.corrected`` the points to write."""
     return Planner(problem, options, source).iter_chunks(chunks)
+
+
+def _as_list(res) -> list:
+    return [r for r in (res if isinstance(res, list) else [res]) if r is not None and len(r)]
 
 
 def _empty_nodes(planner: Planner) -> NodeSet:

@@ -29,7 +29,8 @@ from ..errors import InputError
 from ..io.atomic import atomic_write
 from .blocks import SegmentChunk
 from .reader import new_state
-from .writer import OutputState, _line_ending, format_motion_lines, write_pass_through
+from .writer import (OutputState, _line_ending, format_motion_lines, write_pass_through,
+                     writer_stats)
 
 _SRC = Path(__file__).with_name("_fast_gcode.c")
 _BLOCK = 4 << 20           # bytes read from the input at a time
@@ -249,7 +250,7 @@ class _Driver:
 def _new_rows(cap, na):
     return (np.empty(cap, np.int64), np.empty((cap, na)), np.empty((cap, na)), np.empty(cap),
             np.empty((cap, na), np.int8), np.empty(cap, np.uint8), np.empty(cap, np.uint8),
-            np.empty(cap, np.int32), np.zeros(cap, bool), np.zeros(cap, bool))
+            np.empty(cap, np.int32), np.zeros(cap, bool), np.zeros(cap, bool), np.zeros(cap, bool))
 
 
 def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_position=None, **kw):
@@ -264,14 +265,17 @@ def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_positio
 
     def chunk():
         k = n.value
-        line, start, end, feed, dirs, rapid, known, frame, arc, cycle = rows
+        line, start, end, feed, dirs, rapid, known, frame, arc, cycle, crc = rows
         jump = (known[:k] & START_UNKNOWN) != 0
         known = (known[:k, None].astype(np.int64) & d.bits) != 0
         return SegmentChunk(line[:k], start[:k], end[:k], feed[:k], dirs[:k], rapid[:k].view(bool),
-                            arc[:k], known, frame[:k], cycle[:k], jump)
+                            arc[:k], known, frame[:k], cycle[:k], jump, cutter_comp=crc[:k])
     try:
         while True:
+            before = n.value
             status = d.call(rows[:8], cap, n)
+            # the scanner's rows: every line that switches G40-G42 is Python's, so the state holds
+            rows[10][before:n.value] = d.state.cutter_comp
             if status == NEED_INPUT:
                 if d.eof:
                     break
@@ -294,8 +298,9 @@ def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_positio
                         n.value = 0
                     r = n.value
                     take = min(kb - done, cap - r)
-                    line, start, end, feed, dirs, rapid, known, frame, arc, cycle = rows
+                    line, start, end, feed, dirs, rapid, known, frame, arc, cycle, crc = rows
                     sl = slice(done, done + take)
+                    crc[r:r + take] = b.cutter_comp
                     known[r:r + take] = d._mask(b.known)
                     if done == 0 and not b.start_known:
                         known[r] |= START_UNKNOWN
@@ -381,8 +386,5 @@ def write_corrected(in_path, out_path, machine, cursor, chord_tol_mm, initial_po
     finally:
         d.close()
     if stats is not None:
-        stats["cycle_lines"] = ostate.cycle_lines
-        stats["cycle_blocks"] = ostate.cycle_blocks
-        if ostate.cutter_arc_miss > 0:
-            stats["cutter_arc_miss_mm"] = ostate.cutter_arc_miss
+        stats.update(writer_stats(ostate))
     return rows_done

@@ -46,6 +46,9 @@ class SegmentChunk:
         part's datum already removes is not corrected again).
     context : dict or None, more of the model's context per row, name -> (n,) float (e.g.
         ``temp_t1``: the temperatures along the program's run time); set by the caller.
+    cutter_comp : (n,) bool, the row's block runs under cutter radius compensation (G41/G42 in
+        force, or its line switches it on or off); the controller offsets such a block as written,
+        so an arc under it is written as one arc (:attr:`MotionBlock.cutter_comp`).
     """
 
     line: np.ndarray
@@ -62,6 +65,7 @@ class SegmentChunk:
     tool_length: np.ndarray | None = None
     datum: np.ndarray | None = None
     context: dict | None = None
+    cutter_comp: np.ndarray | None = None
 
     FIELDS = ("line", "start", "end", "feed", "dirs", "rapid", "from_arc", "known", "frame", "cycle",
               "jump")
@@ -78,6 +82,8 @@ class SegmentChunk:
             self.cycle = np.zeros(n, bool)
         if self.jump is None:
             self.jump = np.zeros(n, bool)
+        if self.cutter_comp is None:
+            self.cutter_comp = np.zeros(n, bool)
 
     def __len__(self) -> int:
         return int(self.line.shape[0])
@@ -93,6 +99,7 @@ class SegmentChunk:
                 len({tuple(sorted(c.context)) for c in chunks}) == 1:
             optional["context"] = {k: np.concatenate([c.context[k] for c in chunks])
                                    for k in chunks[0].context}
+        optional["cutter_comp"] = np.concatenate([c.cutter_comp for c in chunks])
         return SegmentChunk(*(np.concatenate([getattr(c, f) for c in chunks])
                               for f in SegmentChunk.FIELDS), **optional)
 
@@ -128,6 +135,9 @@ class MotionBlock:
         stands, not a placeholder).
     absolute_centre : an arc written in G90.1 (its I J K are the centre's position in the program's
         frame, not offsets from the start); the writer writes its centre words the same way.
+    cutter_comp : cutter radius compensation (G41/G42) is in force at the block, or its line
+        switches it on or off (G40-G42: the entry and exit moves); the controller offsets the block
+        as written, so the writer keeps such an arc one arc.
     """
 
     line: int
@@ -153,6 +163,7 @@ class MotionBlock:
     cycle: "CycleBlock | None" = None
     start_known: bool = True
     absolute_centre: bool = False
+    cutter_comp: bool = False
 
     def __post_init__(self):
         if self.known is None:
@@ -219,4 +230,4 @@ def _block_rows(b: MotionBlock) -> SegmentChunk:
                         np.full(k, b.feed), b.dirs.copy(), np.full(k, b.rapid), np.full(k, b.from_arc),
                         np.repeat(b.known[None, :], k, axis=0), np.full(k, b.frame, np.int32),
                         np.full(k, b.cycle is not None), np.arange(k) == 0 if not b.start_known
-                        else np.zeros(k, bool))
+                        else np.zeros(k, bool), cutter_comp=np.full(k, b.cutter_comp))

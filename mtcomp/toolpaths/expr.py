@@ -16,6 +16,8 @@ from __future__ import annotations
 import math
 import re
 
+from .words import number_decimals
+
 #: two values are equal within this (LinuxCNC's TOLERANCE_EQUAL)
 TOLERANCE_EQUAL = 1e-6
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
@@ -30,6 +32,23 @@ _RANK = {op: r for r, g in enumerate(_GROUPS) for op in g}
 
 class ExprError(ValueError):
     """A bad expression or parameter use (message only: the caller names file and line)."""
+
+
+class Number(float):
+    """A computed value that remembers ``decimals``: the most digits after the point of the numbers
+    it was computed from (literals, and the parameters read, each with its own). A word written
+    from it in the expanded program keeps them (``#<_depth> = -0.062500`` ... ``Z#<_depth>`` is
+    written ``Z-0.062500``, as the program writes its numbers)."""
+
+    def __new__(cls, value: float, decimals: int = 0):
+        self = super().__new__(cls, value)
+        self.decimals = int(decimals)
+        return self
+
+
+def decimals_of(v) -> int:
+    """The decimals a value carries (0 for a plain float)."""
+    return getattr(v, "decimals", 0)
 
 
 def _deg(f):
@@ -95,6 +114,18 @@ class Evaluator:
         self.params = params
         #: AND / OR / XOR only on 0 and 1 (a Fanuc computes them bitwise on other values)
         self.logical_only = logical_only
+        #: the most decimals of the numbers and parameters read since :meth:`counted` started
+        self.decimals = 0
+
+    def counted(self, read, *args) -> tuple[Number, int]:
+        """``read(*args)`` (one of the readers below: ``value``, ``bracket``, ``expression``) with
+        its value as a :class:`Number` carrying the decimals of what it read."""
+        outer, self.decimals = self.decimals, 0
+        try:
+            v, pos = read(*args)
+            return Number(v, self.decimals), pos
+        finally:
+            self.decimals = max(outer, self.decimals)
 
     # ------------------------------------------------------------------ values
     def value(self, s: str, pos: int) -> tuple[float, int]:
@@ -107,7 +138,9 @@ class Evaluator:
             return self.bracket(s, pos)
         if c == "#":
             key, pos = self.parameter_key(s, pos)
-            return self.params.get(key), pos
+            v = self.params.get(key)
+            self.decimals = max(self.decimals, decimals_of(v))
+            return v, pos
         if c in "+-" and pos + 1 < len(s) and not (s[pos + 1].isdigit() or s[pos + 1] == "."):
             v, pos = self.value(s, pos + 1)
             return (-v if c == "-" else v), pos
@@ -116,6 +149,7 @@ class Evaluator:
         m = _NUMBER.match(s, pos)
         if not m:
             raise ExprError(f"a number is expected at {s[pos:pos + 12]!r}")
+        self.decimals = max(self.decimals, number_decimals(m.group(0)))
         return float(m.group(0)), m.end()
 
     def parameter_key(self, s: str, pos: int) -> tuple[int | str, int]:
@@ -214,8 +248,13 @@ def compact(code: str) -> str:
     return code.lower().replace(" ", "").replace("\t", "")
 
 
-def format_value(v: float) -> str:
-    """A computed word value as written into the expanded program: up to 6 decimals, no trailing
-    zeros, no '-0'."""
-    text = f"{v:.6f}".rstrip("0").rstrip(".")
-    return "0" if text in ("-0", "") else text
+def format_value(v: float, decimals: int | None = None) -> str:
+    """A computed word value as written into the expanded program: ``decimals`` digits after the
+    point (None: those ``v`` carries, :func:`decimals_of`), more where the value has more, up to 6
+    (or ``decimals`` when more); no '-0'."""
+    keep = decimals_of(v) if decimals is None else decimals
+    whole, _dot, frac = f"{v:.{max(6, keep)}f}".partition(".")
+    frac = frac.rstrip("0").ljust(keep, "0")
+    if whole == "-0" and not frac.strip("0"):
+        whole = "0"
+    return whole + ("." + frac if frac else "")

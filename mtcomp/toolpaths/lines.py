@@ -14,10 +14,39 @@ import math
 import re
 from dataclasses import dataclass, field
 
-from .expr import Evaluator, ExprError, format_value
-from .words import comment_end
+from .expr import Evaluator, ExprError, Number, decimals_of, format_value
+from .words import comment_end, number_decimals
 
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
+
+#: the letters of dimension words: in a Fanuc-style program a computed one is written with a
+#: decimal point (a whole number without one is read in the least input increment by Fanuc and
+#: Haas, as they read a program's own 'X6': FANUC Series 0i-MODEL F operator's manual,
+#: B-64604EN, decimal point programming; a macro variable's value in a word is the value itself)
+_DIMENSION = frozenset("XYZABCUVWIJKRQ")
+
+
+#: a Fanuc drilling cycle's code, whose K is a repeat count, not a dimension
+_FANUC_CYCLE = re.compile(r"(?i)g0*(?:7[346]|8\d)(?![\d.])")
+
+
+def dimension_text(v: float, decimals: int | None = None) -> str:
+    """A computed dimension word's value in a Fanuc-style program (:func:`~.expr.format_value`),
+    with a point when whole."""
+    text = format_value(v, decimals)
+    return text if "." in text else text + "."
+
+
+def _word_value(letter: str, v, code: str, fanuc: bool) -> str:
+    """A computed word's value as written: a dimension word or a feed with the decimals of what it
+    was computed from (with a point when whole in a Fanuc-style program, except K, a drilling
+    cycle's repeat count, on a cycle's line); a code, a number or a count (G M T H D S P L ...) as
+    a plain number, '3' not '3.0' (Fanuc alarms on a point in T M H D; Haas reads G04 P500. as
+    seconds and P500 as milliseconds)."""
+    count = fanuc and letter == "K" and _FANUC_CYCLE.search(code) is not None
+    if count or (letter not in _DIMENSION and letter != "F"):
+        return format_value(v, 0)
+    return dimension_text(v) if fanuc and letter in _DIMENSION else format_value(v)
 
 
 @dataclass
@@ -80,21 +109,21 @@ def rewrite(line: str, code: Code, ev: Evaluator, *, fanuc: bool = False) -> Rew
             key, p = ev.parameter_key(s, pos)
             if p >= len(s) or s[p] != "=":
                 raise ExprError("a parameter outside a word must be assigned: #1=...")
-            v, p2 = (ev.expression(s, p + 1) if fanuc else ev.value(s, p + 1))
+            v, p2 = ev.counted(ev.expression if fanuc else ev.value, s, p + 1)
             assignments.append((key, v))
             spans.append((pos, p2, ""))
             pos = p2
         elif ch in "@^" or ch.isalpha():
             p = pos + 1
             if _is_computed(s, p):
-                v, p2 = ev.value(s, p)
-                spans.append((p, p2, format_value(v)))
+                v, p2 = ev.counted(ev.value, s, p)
+                spans.append((p, p2, _word_value(ch.upper(), v, s, fanuc)))
             else:
                 m = _NUMBER.match(s, p)
                 if not m:
                     pos = p
                     continue        # left for the tokenizer to name
-                v, p2 = float(m.group(0)), m.end()
+                v, p2 = Number(float(m.group(0)), number_decimals(m.group(0))), m.end()
             if ch in "@^":
                 polar[ch] = v
                 spans.append((pos, p2, None))
@@ -124,9 +153,11 @@ def _apply(line: str, code: Code, spans) -> str:
     return "".join(out)
 
 
-def place_polar(text: str, xy: tuple[float, float], upper: bool) -> str:
-    """The rewritten line with its polar words replaced by X and Y words (at the first one)."""
-    x, y = (format_value(v) for v in xy)
+def place_polar(text: str, xy: tuple[float, float], upper: bool, polar: dict | None = None) -> str:
+    """The rewritten line with its polar words replaced by X and Y words (at the first one), with
+    the decimals of the polar words (``polar``: their values, :class:`~.expr.Number` s)."""
+    decimals = max((decimals_of(v) for v in (polar or {}).values()), default=0)
+    x, y = (format_value(v, decimals) for v in xy)
     words = f"{'X' if upper else 'x'}{x} {'Y' if upper else 'y'}{y}"
     first = text.index("\0")
     rest = re.sub("\0[ \t]*", "", text[first + 1:])

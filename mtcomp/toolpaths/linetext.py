@@ -45,6 +45,7 @@ def text_with_words(state, line: int, text: str) -> str | None:
     if s[0] == "$":               # grbl system command: passes through; $H homes every axis
         if s[1:2].upper() in ("H", "J"):
             state._forget()
+            state.passed_move = ("home" if s[1:2].upper() == "H" else "jog", line)
         return None
     if s.rstrip(" \t") in _REALTIME:     # a grbl real-time command alone on its line
         return None

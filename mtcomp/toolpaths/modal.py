@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import math
 import os
-import re
 
 import numpy as np
 
@@ -80,18 +79,7 @@ class ModalState:
         self.wcs = 0
         self.tool = 0
         self.selected_tool = 0
-        self.cycle: int | None = None
-        #: drilling cycles: G98/G99 in force (None: neither stated), the sticky R and Z words
-        #: (mm, given in G91), the initial level of the series (mm, known)
-        self.retract: int | None = None
-        self.cycle_r: tuple[float, bool] | None = None
-        self.cycle_z: tuple[float, bool] | None = None
-        self.cycle_init: tuple[float, bool] = (math.nan, False)
-        #: the last block began a series of drilling cycles
-        self.cycle_start = False
-        #: the group-01 motion mode in force when the drilling cycles began (G80 restores it
-        #: where the dialect says so)
-        self.cycle_motion: int | None = None
+        self._init_cycles()
         self.inverse_time = False
         #: tool centre point mode (M428, G43.4, M128): the words are the tool tip in the workpiece
         #: frame and the rotary axes' angles (:mod:`.tcp`)
@@ -111,6 +99,13 @@ class ModalState:
         #: read carries G33.1
         self.tapping = False
         self.tap_line = False
+        #: (why, line) when the line read moves the machine and passes through uncorrected: why
+        #: 'increment' (G91 of an axis not known), 'home' (G28/G30, grbl's $H), 'machine' (G53),
+        #: 'tap' (G33.1), 'jog' (grbl's $J=); else None
+        self.passed_move = None
+        #: cutter radius compensation (G41/G42) is in force; the line read switches it (G40-G42)
+        self.cutter_comp = False
+        self.cutter_comp_line = False
         #: work offsets the program sets itself (G10 L2/L20); their sets are numbered alike in
         #: every pass over one ProgramSource
         self.offsets = ProgrammedOffsets(self.na, getattr(path, "work_offset_sets", None))
@@ -122,6 +117,21 @@ class ModalState:
         table = getattr(path, "local_frames", None)
         self.local_frames = table if table is not None else []
         self._line = 0
+
+    def _init_cycles(self) -> None:
+        """The drilling cycles' state at the program's start."""
+        self.cycle: int | None = None
+        #: drilling cycles: G98/G99 in force (None: neither stated), the sticky R and Z words
+        #: (mm, given in G91), the initial level of the series (mm, known)
+        self.retract: int | None = None
+        self.cycle_r: tuple[float, bool] | None = None
+        self.cycle_z: tuple[float, bool] | None = None
+        self.cycle_init: tuple[float, bool] = (math.nan, False)
+        #: the last block began a series of drilling cycles
+        self.cycle_start = False
+        #: the group-01 motion mode in force when the drilling cycles began (G80 restores it
+        #: where the dialect says so)
+        self.cycle_motion: int | None = None
 
     @property
     def frame(self) -> int:
@@ -170,6 +180,7 @@ class ModalState:
         if not tokens:
             return None
         values, gcodes, mcodes, number = self._read_words(tokens, line)
+        self._cutter_comp_codes(gcodes)
         motion, nonmotion_axes, home_move, cycle = self._apply_codes(gcodes, mcodes, values,
                                                                      tokens, line)
         axes_given = self._axis_words(values, line)
@@ -183,6 +194,8 @@ class ModalState:
                     self.motion = motion
                     self.cycle = None
                 self._home_move(home_move, values, axes_given, line)
+                if home_move != 53 or axes_given:
+                    self.passed_move = ("machine" if home_move == 53 else "home", line)
             return None
         if motion is not None:
             self.motion = motion
@@ -193,8 +206,20 @@ class ModalState:
             return self._rigid_tap(values, axes_given)
         self._set_cycle_mode(cycle, values)
         if self.cycle is not None and axes_given:
-            return self._cycle_block(line, values, axes_given, tokens, number)
-        return self._motion_block(line, values, axes_given, tokens, number)
+            b = self._cycle_block(line, values, axes_given, tokens, number)
+        else:
+            b = self._motion_block(line, values, axes_given, tokens, number)
+        if b is not None:
+            # as the writer keeps it whole: in force, or the line's own entry or exit move
+            b.cutter_comp = self.cutter_comp or self.cutter_comp_line
+        return b
+
+    def _cutter_comp_codes(self, gcodes) -> None:
+        """Follow G40 (off), G41/G42 (on; the last of them on the line counts)."""
+        codes = [g for g in gcodes if g in (40.0, 41.0, 42.0)]
+        self.cutter_comp_line = bool(codes)
+        if codes:
+            self.cutter_comp = codes[-1] != 40.0
 
     def _clear_line_flags(self) -> None:
         """Forget what the previous line said about itself (the flags the writer reads)."""
@@ -204,6 +229,7 @@ class ModalState:
         self.cycle_line = False
         self.cycle_start = False
         self.tap_line = False
+        self.passed_move = None
         #: how far G52 or a G10 moved the program's coordinates on this line (the writer follows)
         self.frame_shift = None
 
@@ -516,6 +542,7 @@ class ModalState:
         self.tapping = True
         self.motion = None
         self.cycle = None
+        self.passed_move = ("tap", self._line) if axes_given else None
         scale = MM_PER_INCH if self.inch else 1.0
         for c in axes_given:
             i = self.names.index(c)
@@ -541,6 +568,7 @@ class ModalState:
         self._directions(start, end[None, :])
         self.position = end
         self.distance_sensitive = True
+        self.passed_move = ("increment", self._line)
         return None
 
     def _check_motion_mode(self, values, arc_words, line: int) -> None:

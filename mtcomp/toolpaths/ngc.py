@@ -229,7 +229,7 @@ class NgcRun:
         try:
             if not text.startswith("["):
                 raise ExprError(f"{what}: a value in [ ] is expected")
-            v, end = self.ev.bracket(text, 0)
+            v, end = self.ev.counted(self.ev.bracket, text, 0)
             if end != len(text):
                 raise ExprError(f"{what}: text after the value: {text[end:end + 12]!r}")
             return v
@@ -271,7 +271,8 @@ class NgcRun:
                 written = xy                # in G91 the words are the increments
                 if self.xy.incremental:
                     written = (xy[0] - self.xy.xy[0], xy[1] - self.xy.xy[1])
-                text = place_polar(text, written, any(ch.isupper() for ch in self.texts[i]))
+                upper = any(ch.isupper() for ch in self.texts[i])
+                text = place_polar(text, written, upper, r.polar)
                 self.xy.set(xy)
             else:
                 self.xy.follow(r.words, gcodes_of(line_code(text).text if text else code.text))
@@ -302,7 +303,7 @@ class NgcRun:
         for k in range(1, int(count) + 1):
             xy = polar_target(r.polar, {}, self.xy.xy, True)
             step = (xy[0] - self.xy.xy[0], xy[1] - self.xy.xy[1])
-            out.append(place_polar(text, step, upper) + f" (repeat {k} of {int(count)})")
+            out.append(place_polar(text, step, upper, r.polar) + f" (repeat {k} of {int(count)})")
             self.xy.set(xy)
         return out
 
@@ -376,7 +377,7 @@ class NgcRun:
             while pos < len(rest):
                 if rest[pos] != "[":
                     raise ExprError(f"call arguments must each be in [ ], got {rest[pos:pos + 12]!r}")
-                v, pos = self.ev.bracket(rest, pos)
+                v, pos = self.ev.counted(self.ev.bracket, rest, pos)
                 args.append(v)
         except ExprError as exc:
             raise self.error(str(exc), i) from None

@@ -88,7 +88,7 @@ class _ChunkBuilder:
 
     def _reset(self):
         self.rows: list[tuple] = []   # (line, start, end, feed, dirs, rapid, arc, known, frame,
-        #                                cycle, jump)
+        #                                cycle, jump, cutter_comp)
         self.n = 0
 
     def add(self, b: MotionBlock) -> Iterator[SegmentChunk]:
@@ -96,7 +96,8 @@ class _ChunkBuilder:
         starts = b.segment_starts() if k > 1 else b.start[None, :]
         for r in range(k):
             self.rows.append((b.line, starts[r], b.points[r], b.feed, b.dirs[r], b.rapid, b.from_arc,
-                              b.known, b.frame, b.cycle is not None, r == 0 and not b.start_known))
+                              b.known, b.frame, b.cycle is not None, r == 0 and not b.start_known,
+                              b.cutter_comp))
             self.n += 1
             if self.n == self.size:
                 yield self.flush()
@@ -104,12 +105,13 @@ class _ChunkBuilder:
     def flush(self) -> SegmentChunk:
         if self.n == 0:
             return _empty_chunk(self.na)
-        line, start, end, feed, dirs, rapid, arc, known, frame, cycle, jump = zip(*self.rows)
+        line, start, end, feed, dirs, rapid, arc, known, frame, cycle, jump, crc = zip(*self.rows)
         c = SegmentChunk(np.array(line, np.int64), np.array(start, float).reshape(-1, self.na),
                          np.array(end, float).reshape(-1, self.na), np.array(feed, float),
                          np.array(dirs, np.int8).reshape(-1, self.na), np.array(rapid, bool),
                          np.array(arc, bool), np.array(known, bool).reshape(-1, self.na),
-                         np.array(frame, np.int32), np.array(cycle, bool), np.array(jump, bool))
+                         np.array(frame, np.int32), np.array(cycle, bool), np.array(jump, bool),
+                         cutter_comp=np.array(crc, bool))
         self._reset()
         return c
 

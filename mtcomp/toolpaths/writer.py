@@ -4,9 +4,9 @@
 the last value written per axis); :func:`format_motion_lines` writes one motion line with its
 corrected points (the source line with its numbers replaced in place and later pieces, G2/G3 arcs
 fitted to the corrected points, or a restated drilling cycle), and
-:func:`write_pass_through` copies every other line byte for byte. :class:`CorrectionCursor` walks
-the corrections the planner hands over, row by row, and :func:`write_corrected` here is the
-pure-Python writer (the public :func:`mtcomp.toolpaths.gcode.write_corrected` prepares the cursor
+:func:`write_pass_through` copies every other line byte for byte (and counts the moves it passes
+through uncorrected). :class:`CorrectionCursor` (:mod:`.cursor`) walks the corrections the planner
+hands over, row by row, and :func:`write_corrected` is the pure-Python writer (the public :func:`mtcomp.toolpaths.gcode.write_corrected` prepares the cursor
 and runs the compiled writer when it can, with the same bytes).
 
 Output: the input with only the numbers that carry a correction changed (at least the source
@@ -27,6 +27,7 @@ from ..machine import Machine
 from ._arcs import (FULL_CIRCLE_TOL_MM, PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_misses,
                     arc_samples, arc_sweep, centre_from_radius, fit_arc_centre, radius_refused)
 from .blocks import MotionBlock
+from .cursor import CorrectionCursor
 from .modal import ModalState
 from .reader import iter_blocks, new_state
 from .words import (DEFAULT_CHORD_TOL_MM, MM_PER_INCH, SourceLine, cutter_comp_code,
@@ -50,6 +51,8 @@ class OutputState:
         self.motion = -1
         self.cycle_lines = 0        # drilling cycle lines passed through (not corrected)
         self.cycle_blocks = 0       # drilling cycle lines kept as cycles (holes corrected where given)
+        #: moves passed through uncorrected (ModalState.passed_move): why -> [lines, first line]
+        self.passed_moves = {}
         #: drilling cycles: the R and Z the output's cycle holds ('' : not known), and the Z where
         #: its current series began (mm; nan: not known)
         self.cycle_r = ""
@@ -656,6 +659,9 @@ def write_pass_through(f, raw: bytes, state: ModalState, out: OutputState, separ
         out.motion = state.motion if state.motion in (0, 1) and state.cycle is None else -1
     if state.ended and state.dialect.name == "grbl":     # its M2/M30 resets G1 G90 (dialect.py)
         out.absolute, out.motion = True, 1
+    if state.passed_move is not None:
+        why, line = state.passed_move
+        out.passed_moves.setdefault(why, [0, line])[0] += 1
     if state.cycle_line:
         out.cycle_lines += 1
         xi, yi, zi = state.xyz_index
@@ -692,77 +698,6 @@ def _touched_off(raw: bytes, state: ModalState, out: OutputState) -> None:
             out.values[i] = state.position[i]
 
 
-class CorrectionCursor:
-    """Walks the ``(chunk, points, counts)`` stream of corrections row by row (see
-    :func:`mtcomp.toolpaths.gcode.write_corrected`).
-
-    line (n,) int64, offsets (n+1,) int64 and points (M, na) float64 of the current chunk are
-    contiguous arrays (the compiled writer reads them directly); ``row`` is the next row to write.
-    """
-
-    def __init__(self, corrections, n_axes: int, in_path):
-        self._it = iter(corrections)
-        self.na = n_axes
-        self.in_path = in_path
-        self.line = np.zeros(0, np.int64)
-        self.offsets = np.zeros(1, np.int64)
-        self.points = np.zeros((0, n_axes))
-        self.row = 0
-        self.n = 0
-        #: corrected points per segment row of the last :meth:`take`
-        self.counts = np.zeros(0, np.int64)
-
-    def advance(self, line_no: int) -> None:
-        """Load the next chunk (the current one is used up)."""
-        try:
-            chunk, points, counts = next(self._it)
-        except StopIteration:
-            raise ValueError(f"corrections ended before line {line_no} of {self.in_path}") from None
-        counts = np.asarray(counts, dtype=np.int64).reshape(-1)
-        if counts.shape[0] != len(chunk) or np.any(counts < 1):
-            raise ValueError("counts must have one entry >= 1 per segment row")
-        offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-        points = np.ascontiguousarray(points, dtype=np.float64)
-        if points.shape != (offsets[-1], self.na):
-            raise ValueError(f"points must be ({offsets[-1]}, {self.na}), got {points.shape}")
-        if not np.all(np.isfinite(points)):
-            bad = int(np.searchsorted(offsets, np.argmax(~np.isfinite(points).all(axis=1)), "right")) - 1
-            raise ValueError(f"corrections hold a non-finite point for line {int(chunk.line[bad])}")
-        self.line = np.ascontiguousarray(chunk.line, dtype=np.int64)
-        self.offsets, self.points, self.row, self.n = offsets, points, 0, len(chunk)
-
-    def take(self, line_no: int, k: int) -> np.ndarray:
-        """The corrected points of the next k segment rows, which must belong to line_no (how many
-        per row: ``counts``)."""
-        parts = []
-        counts = []
-        while k > 0:
-            if self.row >= self.n:
-                self.advance(line_no)
-                continue
-            r = self.row
-            take = min(k, self.n - r)
-            if np.any(self.line[r:r + take] != line_no):
-                self.mismatch(line_no)
-            parts.append(self.points[self.offsets[r]:self.offsets[r + take]])
-            counts.append(np.diff(self.offsets[r:r + take + 1]))
-            self.row = r + take
-            k -= take
-        self.counts = counts[0] if len(counts) == 1 else np.concatenate(counts)
-        return parts[0] if len(parts) == 1 else np.vstack(parts)
-
-    def mismatch(self, line_no: int):
-        raise ValueError(f"corrections do not match the program at line {line_no}: the segment row "
-                         f"says line {int(self.line[self.row])}")
-
-    def finish(self) -> None:
-        if self.row < self.n:
-            raise ValueError("corrections have more segment rows than the program")
-        for extra in self._it:
-            if len(extra[0]):
-                raise ValueError("corrections have more segment rows than the program")
-
-
 def write_corrected(in_path, out_path, machine: Machine, cursor: CorrectionCursor,
                     chord_tol_mm: float = DEFAULT_CHORD_TOL_MM, initial_position=None, *,
                     inch: bool = False, initial_known=None, stats: dict | None = None) -> int:
@@ -793,8 +728,15 @@ def write_corrected(in_path, out_path, machine: Machine, cursor: CorrectionCurso
             f.write(text.encode("latin-1"))
         cursor.finish()
     if stats is not None:
-        stats["cycle_lines"] = 0 if out is None else out.cycle_lines
-        stats["cycle_blocks"] = 0 if out is None else out.cycle_blocks
-        if out is not None and out.cutter_arc_miss > 0:
-            stats["cutter_arc_miss_mm"] = out.cutter_arc_miss
+        stats.update(writer_stats(out) if out is not None else {"cycle_lines": 0, "cycle_blocks": 0})
     return rows_written
+
+
+def writer_stats(out: OutputState) -> dict:
+    """What the writer counted (``stats`` of :func:`mtcomp.toolpaths.gcode.write_corrected`)."""
+    stats = {"cycle_lines": out.cycle_lines, "cycle_blocks": out.cycle_blocks}
+    if out.passed_moves:        # why -> (lines, first line)
+        stats["passed_moves"] = {why: tuple(v) for why, v in out.passed_moves.items()}
+    if out.cutter_arc_miss > 0:
+        stats["cutter_arc_miss_mm"] = out.cutter_arc_miss
+    return stats

@@ -119,22 +119,31 @@ def hole_rows(orig: ProgramPoints, machine: Machine) -> np.ndarray:
     (G73, G81-G89); in a program without cycles whose every feed move runs along the tool axis (holes
     plunged with G1), the ends of the plunges into the part. Empty when the program is no drilling
     program (a feed move across the tool axis cuts, so its map is a surface or a contour)."""
-    feed = ~orig.rapid
     cycle = np.zeros(len(orig), bool) if orig.cycle is None else np.asarray(orig.cycle, bool)
     if cycle.any():
         return np.flatnonzero(cycle)
-    idx = np.flatnonzero(feed)
+    idx = np.flatnonzero(~orig.rapid)
+    if idx.size == 0 or cutting_rows(orig, machine).size:
+        return np.zeros(0, np.int64)
+    tips, axes = forward(machine, orig.q)
+    step = tips[idx] - tips[np.maximum(idx - 1, 0)]
+    step[idx == 0] = 0.0
+    return idx[np.einsum("ij,ij->i", step, axes[idx]) < -1e-3]
+
+
+def cutting_rows(orig: ProgramPoints, machine: Machine) -> np.ndarray:
+    """Indices of the feed moves, drilling cycles' holes aside, that move across the tool axis
+    (by more than 1 um): the moves that cut a surface or a contour."""
+    cycle = np.zeros(len(orig), bool) if orig.cycle is None else np.asarray(orig.cycle, bool)
+    idx = np.flatnonzero(~orig.rapid & ~cycle)
+    idx = idx[idx > 0]
     if idx.size == 0:
         return idx
-    tips, axes = forward(machine, orig.q)
-    prev = np.maximum(idx - 1, 0)
-    step = tips[idx] - tips[prev]
-    step[idx == 0] = 0.0
-    along = np.einsum("ij,ij->i", step, axes[idx])
-    across = np.linalg.norm(step - along[:, None] * axes[idx], axis=1)
-    if np.any(across > 1e-3):
-        return np.zeros(0, np.int64)
-    return idx[along < -1e-3]
+    tips, axes = forward(machine, orig.q[np.concatenate([idx - 1, idx])])
+    step = tips[idx.size:] - tips[:idx.size]
+    along = np.einsum("ij,ij->i", step, axes[idx.size:])
+    across = np.linalg.norm(step - along[:, None] * axes[idx.size:], axis=1)
+    return idx[across > 1e-3]
 
 
 def hole_geometry(orig: ProgramPoints, machine: Machine, rows: np.ndarray) -> SurfaceGeometry:

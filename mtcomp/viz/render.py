@@ -414,7 +414,17 @@ def _finish_figure(fig, axes, im, smap, out_png, legend_handles):
                    frameon=False)
     notes = map_notes(smap)
     if notes:
-        fig.suptitle("\n".join(notes), color=NOTE_COLOUR, fontsize="medium")
+        # under the colour bar, the layout kept above it and narrower by as much on each side:
+        # panels drawn to scale fill their width, so their height gives way only so (a suptitle
+        # overlapped the titles of a hole map's panels)
+        # wrapped to the figure's width (about 0.6 of a 10 pt character each; a note ran off both
+        # sides of a 300 px map)
+        import textwrap
+        chars = max(20, int(fig.get_figwidth() * 72 / 6))
+        text = "\n".join(textwrap.fill(n, chars) for n in notes)
+        h = min(0.3, (18 * (text.count("\n") + 1) + 6) / (fig.get_figheight() * fig.dpi))
+        fig.get_layout_engine().set(rect=(h, h, 1 - 2 * h, 1 - h))
+        fig.text(0.5, 0.005, text, ha="center", va="bottom", color=NOTE_COLOUR, fontsize="medium")
     try:
         with atomic_write(out_png, "wb") as f:
             fig.savefig(f, dpi=fig.dpi, format="png")

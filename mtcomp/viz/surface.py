@@ -38,7 +38,7 @@ import numpy as np
 from ..errors import InputError
 from ..kinematics import forward, tool2wp
 from ..machine import Machine
-from .geometry import (MAX_EDGE_FACTOR, cutting_runs, flank_geometry, hole_geometry, hole_rows,
+from .geometry import (MAX_EDGE_FACTOR, cutting_rows, cutting_runs, flank_geometry, hole_geometry, hole_rows,
                        path_geometry, path_line_geometry, select_surface_points, steep_triangles,
                        tip_geometry, triangulate_xy, vertex_normals)
 from .inplane import inplane_geometry, planar_levels
@@ -312,7 +312,7 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
     elif uncorrected and hasattr(fitted, "support"):
         say(f"finding the blocks the planner leaves uncorrected ({sel.size} points)")
         status, source = planner_status(fitted, orig, sel, off), "planner"
-    notes = []
+    notes = [info.pop("left_out")] if "left_out" in info else []
     if kind == "surface" and length == 0 and g.normals.size and _along_tool_axis(machine, orig, g, info):
         notes.append("the normals all lie along the tool axis (a flat or 2-D program): the map "
                      "shows the deviation along the tool axis only, not the error across it "
@@ -369,17 +369,42 @@ def _map_geometry(orig: ProgramPoints, machine: Machine, radius: float, length: 
     surface, or, when most of that surface would be walls seen edge-on, the path's lines
     (:func:`mtcomp.viz.geometry.path_line_geometry`); the points of the path when there is no
     surface seen along Z."""
-    kind = "surface"
-    g, segments, info = None, None, {}
     holes = hole_rows(orig, machine) if length == 0 and normal in ("holes", "auto") else None
     if normal == "holes" and not holes.size:
         raise InputError("the program drills no hole (no drilling cycle, and feed moves across the "
                          "tool axis): --normal holes maps drilling programs", orig.path)
-    if holes is not None and holes.size:
+    cycle = np.zeros(len(orig), bool) if orig.cycle is None else np.asarray(orig.cycle, bool)
+    cuts = cutting_rows(orig, machine) if cycle.any() else np.zeros(0, np.int64)
+    if holes is not None and holes.size and (normal == "holes" or not cuts.size):
         say(f"{holes.size} holes")
-        info["holes"] = int(holes.size)
-        info["drilling_cycles"] = bool(orig.cycle is not None and np.any(orig.cycle))
+        info = {"holes": int(holes.size), "drilling_cycles": bool(cycle.any())}
+        left = np.setdiff1d(np.flatnonzero(~orig.rapid), holes)
+        if left.size:       # the feed moves that drill no hole (a milled slot beside the holes)
+            info["left_out"] = (f"{left.size} feed move{'s' if left.size > 1 else ''} "
+                                f"({_lines_text(orig.line[left])}) not drawn: the map shows the "
+                                "holes only; --normal auto, in-plane, surface or path maps the "
+                                "moves that cut")
         return hole_geometry(orig, machine, holes), None, info, "holes"
+    if not cuts.size:
+        return _cut_geometry(orig, machine, radius, length, normal, flank_side, flank_levels,
+                             max_edge_factor, say)
+    # drilling cycles beside moves that cut: the map shows the cut, the holes are said
+    keep = np.flatnonzero(~cycle)
+    g, segments, info, kind = _cut_geometry(_rows(orig, keep), machine, radius, length, normal,
+                                            flank_side, flank_levels, max_edge_factor, say)
+    g.index = keep[g.index]
+    k = int(cycle.sum())
+    info["left_out"] = (f"{k} hole{'s' if k > 1 else ''} of drilling cycles "
+                        f"({_lines_text(orig.line[cycle])}) not drawn: the map shows the moves "
+                        "that cut; --normal holes maps the holes")
+    return g, segments, info, kind
+
+
+def _cut_geometry(orig: ProgramPoints, machine: Machine, radius: float, length: float, normal: str,
+                  flank_side: str, flank_levels, max_edge_factor: float, say):
+    """:func:`_map_geometry` of a program's moves that cut (no hole map)."""
+    kind = "surface"
+    g, segments, info = None, None, {}
     if length > 0:
         g = flank_geometry(orig, machine, radius, length, flank_side, flank_levels)
     else:
@@ -408,6 +433,22 @@ def _map_geometry(orig: ProgramPoints, machine: Machine, radius: float, length: 
             g, segments = path_line_geometry(orig, machine)
             return g, segments, info, "path"
     return g, segments, info, kind
+
+
+def _rows(orig: ProgramPoints, rows: np.ndarray) -> ProgramPoints:
+    """The program's segment ends ``rows`` only (in order), as a program of their own."""
+    def take(a):
+        return None if a is None else np.asarray(a)[rows]
+    return ProgramPoints(orig.path, orig.q[rows], orig.line[rows], orig.feed[rows], orig.dirs[rows],
+                         orig.rapid[rows], take(orig.known), take(orig.cycle), take(orig.tcp),
+                         orig.dialect, orig.chord_tol_mm)
+
+
+def _lines_text(lines) -> str:
+    """'line 8' or 'lines 8 to 21' (the first and the last of the lines given)."""
+    lines = np.asarray(lines)
+    lo, hi = int(lines.min()), int(lines.max())
+    return f"line {lo}" if lo == hi else f"lines {lo} to {hi}"
 
 
 def _along_tool_axis(machine: Machine, orig: ProgramPoints, g, info: dict) -> bool:

@@ -1,0 +1,232 @@
+"""Bounds that tie a block's correction to the one before it, besides the step bound: the written
+program must be the one the planner evaluated.
+
+Two rules, each a bound on the change of a correction between consecutive output blocks,
+``lo <= x_i - x_(i-1) <= hi`` (optimisation units: um, urad), of the same kind as the step bound:
+
+* **reversal** (axes whose error the model makes depend on the approach direction: a backlash or
+  reversal term, a lag that follows the motion). The model evaluates block i with the direction
+  state d_i of the nominal program (the sign of the axis's nominal move dp_i into the block, or
+  where the axis does not move nominally, the sign of its last move). The written move dp_i + dc_i
+  (dc_i the change of the correction) keeps that direction: ``d_i (dp_i + dc_i) >= m_i``, with the
+  margin m_i one output-grid step (at most |dp_i|) where the axis moves nominally (a written move
+  of zero would leave the machine in its old direction at a nominal reversal) and 0 where it does
+  not. A correction may then never move an axis backwards where the program moves it forwards, nor
+  move an axis that stands still against its last direction. Where the direction state is unknown
+  (the axis has not moved from a position the program gave) and the axis does not move nominally,
+  its correction does not change (dc_i = 0): the written program moves that axis exactly when the
+  program does, so the machine's state is the one the uncorrected program leaves.
+* **arc** (an arc block under cutter radius compensation, G41/G42): the controller offsets the
+  arc as written, so the writer writes it as one arc; every node of it (its start, its chord ends,
+  its end) carries the same correction (``x_i = x_(i-1)``), a translation of the arc, which one arc
+  with the same centre offsets writes exactly.
+
+Zero correction change always keeps both, so a plan from zero stays feasible; from a window's
+anchor (a committed correction) a rule can meet a bound it cannot get past (a block that gets no
+correction right after a stand-still with a correction on): :func:`propagate` finds such nodes
+and lets the step bound alone hold there, and tells which nodes can still reach zero correction
+(the never-worse rows of the QP need it).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ._bounds import ARC, INF, REVERSAL
+
+__all__ = ["ARC", "REVERSAL", "LinkRules", "direction_axes", "node_links", "propagate", "run_start"]
+
+
+def direction_axes(model) -> np.ndarray:
+    """(na,) bool: the axes whose approach direction (context ``dir_<axis>``) the error model's tool
+    pose depends on, read from its symbolic chain (a backlash term, a signed feed lag)."""
+    import casadi as ca
+    m = model.machine
+    names = list(model.context_names)
+    out = np.zeros(m.n_axes, bool)
+    wanted = [(j, names.index(f"dir_{a}")) for j, a in enumerate(m.axis_names)
+              if f"dir_{a}" in names]
+    if not wanted or not model.terms:      # the base model has no dependence on direction
+        return out
+    q = ca.SX.sym("q", m.n_axes)
+    p = ca.SX.sym("p", model.n_params)
+    c = ca.SX.sym("c", model.n_context)
+    tip, axis, _ = model.symbolic(q, p, c)
+    expr = ca.vertcat(tip, axis)
+    for j, k in wanted:
+        out[j] = bool(ca.depends_on(expr, c[k]))
+    return out
+
+
+def node_links(dp, dirs, reversal_axes, tie, no_link, unit):
+    """The link bounds of n nodes: ``(lo, hi, kind)``, each (n, na), or None when no node has one.
+
+    dp : (n, na) nominal move into each node from the node before (optimisation units, on the
+    output grid when there is one). dirs : (n, na) the direction state the model evaluates the node
+    with (+1, -1, 0 unknown). reversal_axes : (na,) bool, axes with a direction-dependent error.
+    tie : (n,) bool, nodes of an arc under cutter radius compensation. no_link : (n, na) bool, no
+    link bound (the first node of a program, a move from a position not given, a hole's tool axis).
+    unit : (na,) one output-grid step (optimisation units), the margin of a nominal move.
+    """
+    n, na = dp.shape
+    if n == 0 or not (reversal_axes.any() or tie.any()):
+        return None
+    lo = np.full((n, na), -INF)
+    hi = np.full((n, na), INF)
+    kind = np.zeros((n, na), np.int8)
+    for j in np.flatnonzero(reversal_axes):
+        p = dp[:, j]
+        s = np.sign(p)
+        d = np.where(s != 0, s, np.sign(dirs[:, j]))   # the written move follows the nominal one
+        margin = np.minimum(unit[j], np.abs(p))
+        lo[:, j] = np.where(d > 0, margin - p, np.where(d == 0, 0.0, -INF))
+        hi[:, j] = np.where(d < 0, -margin - p, np.where(d == 0, 0.0, INF))
+        kind[:, j] = REVERSAL
+    if tie.any():
+        lo[tie] = 0.0
+        hi[tie] = 0.0
+        kind[tie] = ARC
+    lo[no_link] = -INF
+    hi[no_link] = INF
+    kind[no_link] = 0
+    if not kind.any():
+        return None
+    return lo, hi, kind
+
+
+def combined_steps(step_lo, step_hi, links):
+    """The step bounds (n, na) intersected with the link bounds ``(lo, hi, kind)`` (or as they are
+    when ``links`` is None)."""
+    if links is None:
+        return step_lo, step_hi
+    return np.maximum(step_lo, links[0]), np.minimum(step_hi, links[1])
+
+
+def propagate(prev, lower, upper, step_lo, step_hi, plain_lo, plain_hi):
+    """Make a window's bounds feasible from its anchor and tell which nodes can reach zero.
+
+    prev : (na,) the anchor's correction or None (the start: free). lower, upper : (n, na) box of
+    the nodes. step_lo, step_hi : (n, na) bounds of x_i - x_(i-1) with the links; plain_lo,
+    plain_hi : the same without them (the step bound alone). Per axis the correction a node can
+    take lies in an interval carried forward from the anchor; where the links would empty it, they
+    give way to the step bound at that node. Returns (step_lo, step_hi, reachable (n,) bool: zero
+    correction is within every axis's interval, the never-worse rows can hold) and (n,) bool, the
+    nodes whose links gave way.
+    """
+    n, na = lower.shape
+    step_lo, step_hi = step_lo.copy(), step_hi.copy()
+    reachable = np.zeros(n, bool)
+    if prev is None:
+        a = np.full(na, -INF)
+        b = np.full(na, INF)
+    else:
+        a = np.asarray(prev, dtype=float).copy()
+        b = a.copy()
+    relaxed = np.zeros(n, bool)
+    lo_l, hi_l = lower.tolist(), upper.tolist()
+    slo, shi = step_lo.tolist(), step_hi.tolist()
+    a, b = a.tolist(), b.tolist()
+    for i in range(n):
+        ok = True
+        for j in range(na):
+            aj = max(a[j] + slo[i][j], lo_l[i][j])
+            bj = min(b[j] + shi[i][j], hi_l[i][j])
+            if aj > bj:             # the links cannot be kept from here: the step bound alone
+                step_lo[i, j], step_hi[i, j] = plain_lo[i, j], plain_hi[i, j]
+                relaxed[i] = True
+                aj = max(a[j] + plain_lo[i, j], lo_l[i][j])
+                bj = min(b[j] + plain_hi[i, j], hi_l[i][j])
+                if aj > bj:         # not even so (the step bound's own conflict): the box
+                    aj, bj = lo_l[i][j], hi_l[i][j]
+            a[j], b[j] = max(aj, -INF), min(bj, INF)
+            ok = ok and aj <= 1e-9 and bj >= -1e-9
+        reachable[i] = ok
+    return step_lo, step_hi, reachable, relaxed
+
+
+def run_start(link_lo, link_hi, k: int, lowest: int) -> int:
+    """The first node of the run of tied nodes (every correction equal to the one before) that node
+    k belongs to, k itself when it is not tied to the node before; k when the run reaches back to
+    ``lowest`` or before it (it cannot be kept whole)."""
+    j = k
+    while j >= lowest and not np.any(link_lo[j]) and not np.any(link_hi[j]):
+        j -= 1
+    return j if j >= lowest else k
+
+
+class LinkRules:
+    """The link bounds of one problem's nodes, as the planner makes them (module docstring).
+
+    reversal_axes : (na,) bool, the axes with a direction-dependent error (:func:`direction_axes`).
+    unit : (na,) the margin of a nominal move: one output-grid step (x units; 1e-3 without a grid).
+    """
+
+    def __init__(self, problem, bounds):
+        self.bounds = bounds
+        self.reversal_axes = direction_axes(problem.fitted.model)
+        self.unit = bounds.unit if bounds.grid is not None else np.full(problem.n_axes, 1e-3)
+        names = list(problem.machine.axis_names)
+        # the tool axis: a drilling cycle feeds it down to the hole whatever the correction
+        self.tool_axis = names.index("Z") if "Z" in names else -1
+        self._last_known = None       # the known axes of the last row of the last chunk
+
+    def steps(self, dq):
+        """(n, na) moves dq (mm, rad) in x units, whole output-grid steps when there is a grid."""
+        dx = dq * self.bounds.D
+        return dx if self.bounds.grid is None else self.bounds.quantize(dx)
+
+    def arrays(self, q, dirs, last):
+        """Links of nodes given as arrays (q (n, na), dirs (n, na)) after the node at ``last``
+        ((na,) or None: the program's start)."""
+        n = q.shape[0]
+        before = np.vstack([q[:1] if last is None else np.asarray(last)[None, :], q[:-1]])
+        no_link = np.zeros(q.shape, bool)
+        if last is None and n:
+            no_link[0] = True
+        return node_links(self.steps(q - before), dirs, self.reversal_axes, np.zeros(n, bool),
+                          no_link, self.unit)
+
+    def chunk(self, chunk, q, rows, firsts, first, cycle):
+        """Links of a SegmentChunk's nodes ``q`` (m, na): ``rows`` (m,) their rows, ``firsts`` (m,)
+        bool the first node of its row (its move starts at the row's start: after a drilling cycle
+        where the cycle left the tool), ``first`` the chunk starts the program, ``cycle`` (nrows,)
+        bool the rows that are holes."""
+        crc = getattr(chunk, "cutter_comp", None)
+        tie = np.zeros(rows.size, bool) if crc is None else \
+            (np.asarray(crc, bool) & np.asarray(chunk.from_arc, bool))[rows]
+        known_rows = np.asarray(chunk.known, bool)
+        last_known = self._last_known
+        if len(known_rows):
+            self._last_known = known_rows[-1].copy()
+        if rows.size == 0 or not (self.reversal_axes.any() or tie.any()):
+            return None
+        was_known = np.empty_like(known_rows)       # known at the row's start
+        was_known[1:] = known_rows[:-1]
+        was_known[0] = False if last_known is None else last_known
+        before = np.empty_like(q)
+        before[1:] = q[:-1]
+        before[firsts] = self.bounds.snap(np.asarray(chunk.start)[rows[firsts]])
+        # no link on an axis not known at the node or at its move's start, into the program's
+        # first node, into a move the axes do not make along a line from a known start (a tool
+        # centre point move), nor on a hole's tool axis
+        no_link = ~known_rows[rows]
+        no_link[firsts] |= ~was_known[rows[firsts]]
+        jump = np.zeros(rows.size, bool) if chunk.jump is None else np.asarray(chunk.jump, bool)[rows]
+        jump &= firsts
+        no_link[jump & was_known[rows].all(axis=1)] = True
+        if first:
+            no_link[0] = True
+        if self.tool_axis >= 0:
+            no_link[np.asarray(cycle, bool)[rows], self.tool_axis] = True
+        return node_links(self.steps(q - before), np.asarray(chunk.dirs)[rows], self.reversal_axes,
+                          tie & ~jump, no_link, self.unit)
+
+    def window(self, links, prev, l, u, step_lo, step_hi, stats, lines):
+        """A window's step bounds with its link bounds, made feasible from the anchor
+        (:func:`propagate`; the program lines of the nodes where the links gave way are kept in
+        ``stats['links_relaxed']``, a set: a node in two windows' overlap counts once), and the
+        nodes that can reach zero correction. lines : (n,) the nodes' program lines."""
+        lo, hi = combined_steps(step_lo, step_hi, links)
+        lo, hi, reachable, relaxed = propagate(prev, l, u, lo, hi, step_lo, step_hi)
+        if relaxed.any():
+            stats.setdefault("links_relaxed", set()).update(np.asarray(lines)[relaxed].tolist())
+        return lo, hi, reachable

@@ -1,0 +1,74 @@
+"""The planner's output blocks (nodes) in program order: :class:`NodeSet`."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._bounds import INF
+
+
+@dataclass
+class NodeSet:
+    """Output blocks in program order.
+
+    q : (n, na) nominal axis positions, mm and rad (on the output grid when the problem has one).
+    context : (n, n_context) block context in the model's context_names order.
+    exempt : (n,) bool, no step bound from the block before (the move into it is a rapid, a hole,
+        one from a position the program has not given, or it is the first block of the program).
+    line : (n,) source line. inserted : (n,) bool, an internal node the planner added.
+    rapid : (n,) bool, the node ends (or lies in) a G0 move.
+    unknown : (n, na) bool, axes whose position the program has not given at this block.
+    outside : (n, na) bool, axes outside the region the model's data reached (its ``support``).
+    pinned : (n,) bool, the block gets no correction (an unknown axis, outside the support without
+        ``PlannerOptions.extrapolate``, or a correction less certain than
+        ``PlannerOptions.max_correction_sd_um``): its correction bounds are zero.
+    sd_um : (n,) standard error of the block's correction (um; NaN where not evaluated: unknown
+        axes, outside the support, or a model without uncertainty).
+    link_lo, link_hi, link_kind : (n, na) the link bounds of the change of each correction into
+        the node (x units; :mod:`._links`: an axis keeping its direction, one correction along an
+        arc under cutter radius compensation) and their kind, or all None when no node has one.
+    """
+
+    q: np.ndarray
+    context: np.ndarray
+    exempt: np.ndarray
+    line: np.ndarray
+    inserted: np.ndarray
+    rapid: np.ndarray
+    unknown: np.ndarray
+    outside: np.ndarray
+    pinned: np.ndarray
+    sd_um: np.ndarray
+    link_lo: np.ndarray | None = None
+    link_hi: np.ndarray | None = None
+    link_kind: np.ndarray | None = None
+
+    FIELDS = ("q", "context", "exempt", "line", "inserted", "rapid", "unknown", "outside", "pinned",
+              "sd_um")
+    LINKS = ("link_lo", "link_hi", "link_kind")
+
+    def __len__(self):
+        return int(self.q.shape[0])
+
+    @property
+    def links(self):
+        """(lo, hi, kind) or None (:meth:`Bounds.enforce`'s ``links``)."""
+        return None if self.link_lo is None else (self.link_lo, self.link_hi, self.link_kind)
+
+    def take(self, idx) -> "NodeSet":
+        links = {} if self.link_lo is None else {f: getattr(self, f)[idx] for f in self.LINKS}
+        return NodeSet(*(getattr(self, f)[idx] for f in self.FIELDS), **links)
+
+    @staticmethod
+    def concatenate(parts: list["NodeSet"]) -> "NodeSet":
+        links = {}
+        if any(p.link_lo is not None for p in parts):
+            filled = [p.links or _no_links(p.q.shape) for p in parts]
+            links = {f: np.concatenate([t[k] for t in filled]) for k, f in enumerate(NodeSet.LINKS)}
+        return NodeSet(*(np.concatenate([getattr(p, f) for p in parts]) for f in NodeSet.FIELDS),
+                       **links)
+
+
+def _no_links(shape):
+    return np.full(shape, -INF), np.full(shape, INF), np.zeros(shape, np.int8)
