@@ -23,8 +23,6 @@ import numpy as np
 
 from ..errors import InputError
 from ..machine import Machine
-from ..models.chain import ErrorModel
-from ..models.model_file import FittedModel
 from . import _analysis as an
 from ._analysis import cv_threshold
 from ._candidates import Candidate, generate, temperature_regression
@@ -33,7 +31,10 @@ from ._linalg import Design, rms
 from ._selection import (BIC_MARGIN, MIN_EXCESS_SHARE, _axis_ties, _backward,  # noqa: F401
                          _drop_undetermined_offsets, _forward_in_time, _joint_abbe, _parsimony)
 from ._stack import Stack, build_stack
-from .result import UNIT_KEYS, Diagnosis, Finding, _r
+from ._written import final_model, selected_values
+from ._written import heldout_unit as _heldout_unit
+from ._written import metrics as _metrics
+from .result import Diagnosis, Finding
 
 #: the held-out rms may exceed the noise floor by this factor (times the inflation expected of a right
 #: model, sqrt(1 + parameters / readings fitted)) before the excess counts as structure
@@ -62,32 +63,6 @@ def _apply(st: Stack, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     p = np.zeros(st.probe.n_params)
     p[base] = theta[:base.size]
     return p, theta[base.size:]
-
-
-def _metrics(st: Stack, fit, n_params: int) -> dict:
-    um = st.unit == "um"
-    out = {"n_params": int(n_params), "n_determined": int(fit.rank) - len(st.nuisance_names),
-           "n_nuisance": len(st.nuisance_names),
-           "rms_um": _r(rms(fit.resid[um])) if um.any() else None,
-           "heldout_rms_um": _r(rms(fit.cv_resid[um])) if um.any() else None}
-    for unit in ("urad", "um/min"):
-        sel = st.unit == unit
-        if sel.any():
-            out[f"rms_{UNIT_KEYS[unit]}"] = _r(rms(fit.resid[sel]))
-            out[f"heldout_rms_{UNIT_KEYS[unit]}"] = _r(rms(fit.cv_resid[sel]))
-    return out
-
-
-#: report key suffix of each unit class: angular readings, velocities
-
-
-#: the unit whose held-out rms the selection follows: the first of these the data hold
-MAIN_UNITS = ("um", "urad", "um/min")
-
-
-def _heldout_unit(st) -> str:
-    """um, else urad (angular laser runs alone), else um/min (velocities alone)."""
-    return next((u for u in MAIN_UNITS if np.any(st.unit == u)), MAIN_UNITS[0])
 
 
 def _heldout(st, fit) -> float:
@@ -156,6 +131,10 @@ def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int 
                                                 f"({after:.4g} against {before:.4g} noise variances)"})
                 break
             diag, refine = again, {**refine, a: basis}
+        write_model = getattr(diag, "write_model", None)      # (a stand-in diagnosis has none)
+        if write_model is not None:
+            del diag.write_model
+            write_model()
         return diag
 
 
@@ -221,27 +200,38 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
         design = _backward_selection(st, design, sel, say)
     chosen, findings, current = sel.chosen, sel.findings, sel.current
     verdict, finer = _what_remains(st, design, sel, noise, noise_main, may_refine, say)
-    selected, terms_only = _selected_values(st, design, chosen, current)
-    starts = ({**values, **terms_only}, {**values, **selected})
-    model, final_metrics = _final_model(st, design, chosen, starts, folds, free_knots, say, current.resid)
-    diag = Diagnosis(verdict, noise, base_metrics, findings, final_metrics, model, how, len(st),
+    diag = Diagnosis(verdict, noise, base_metrics, findings, {}, None, how, len(st),
                      rejected=sel.rejected, reference=reference)
     diag.folds_of_observations = folds
     diag.heldout_resid, diag.units, diag.rank = current.cv_resid, st.unit, current.rank
     diag.outliers = outliers
+    diag.seconds = time.perf_counter() - t0
+
+    def write_model():
+        # the model written, fitted only for the diagnosis kept (a finer base's rerun replaces it)
+        t1 = time.perf_counter()
+        selected, terms_only = selected_values(st, design, chosen, current)
+        starts = ({**values, **terms_only}, {**values, **selected})
+        diag.model, diag.final = final_model(st, design, chosen, current, starts, folds, free_knots, say)
+        _model_info(diag.model, st.machine, datasets)
+        diag.seconds += time.perf_counter() - t1
+        diag.model.info["diagnose"] = diag.to_dict()
+    diag.write_model = write_model
+    return diag, finer
+
+
+def _model_info(model, machine, datasets):
+    """Where the data reach and what they hold, and the reversal they show (so that export can say
+    when the model leaves one out), into the written ``model``."""
     from ..measurement.readings import data_held, data_support
-    model.support = data_support(st.machine, datasets)
-    model.held = data_held(st.machine, datasets)
-    # what the data show of a reversal, so that export can say when the model leaves one out
     from ..identification.reversal import data_reversal
     from ..identification.unmeasured import unmeasured_groups
+    model.support = data_support(machine, datasets)
+    model.held = data_held(machine, datasets)
     model.info["reversal"] = data_reversal(datasets)
     unmeasured = unmeasured_groups([s for s in model.model.param_specs if s.base], datasets)
     if unmeasured:
         model.info["unmeasured"] = unmeasured
-    diag.seconds = time.perf_counter() - t0
-    model.info["diagnose"] = diag.to_dict()
-    return diag, finer
 
 
 def _base_machine(machine, datasets, start, refine):
@@ -622,74 +612,3 @@ def _unexplained(st, fit, structure, excess, noise_main, inflation: float = 1.0)
     params, evidence, axis = unexplained_params(st, fit, structure, excess, noise_main, inflation)
     h = _heldout(st, fit)
     return Finding("unexplained", axis, params, evidence, h, h, None, unit=_heldout_unit(st))
-
-
-def _final_model(st: Stack, design: Design, chosen: list[Candidate], starts: tuple, folds,
-                 free_knots: set, say, selected_resid: np.ndarray):
-    """(FittedModel, the report's ``final`` figures): the base and the chosen terms fitted again
-    with the roughness penalty (:mod:`._penalised`), on knots finer than the data's spacing where
-    the data read an axis at few positions (of the axes ``free_knots``, whose knots the data
-    choose), from the first of ``starts`` (name -> value dicts) and, when that fit does not
-    converge or fits far worse than the selection (``selected_resid``, (n,) its final residuals),
-    from the others too (:func:`._penalised.penalised_fit`); its rms and held-out rms are that
-    model's."""
-    from ._linalg import RCOND
-    from ._penalised import fine_machine, penalised_fit
-    terms = []
-    for c in chosen:
-        for t in c.terms:
-            if t.key() not in {x.key() for x in terms}:
-                terms.append(t)
-    machine = fine_machine(st.machine, st.datasets, len(st), free_knots)
-    refined = {a.name for a, b in zip(machine.axes, st.machine.axes) if a != b}
-    model = ErrorModel(machine, terms)
-    # the start model's values of what the finer knots keep (a spline coefficient of a refined axis
-    # is another function's)
-    specs = dict(zip(model.param_names, model.param_specs))
-    starts = [{n: v for n, v in values.items()
-               if n in specs and not (_is_spline(n) and refined & set(specs[n].group.split(":")))}
-              for values in starts]
-    fit = penalised_fit(st, design.w, model, starts, folds, RCOND, selected_resid)
-    res = fit.result
-    metrics = _metrics(st, fit, model.n_params)
-    metrics["edf"] = _r(res.smoothing.edf - len(st.nuisance_names)) if res.smoothing is not None else None
-    say(f"final model fitted with the roughness penalty ({model.n_params} parameters"
-        + (f", knots refined along {', '.join(sorted(refined))}" if refined else "")
-        + f"): rms {metrics['rms_um']} um, held-out {metrics['heldout_rms_um']} um")
-    fitted = res.fitted_model
-    info = {"fitted_by": "mtcomp diagnose",
-            "nuisance": {n: float(v) for n, v in zip(res.unknown_names[int(res.free.sum()):],
-                                                     res.nuisance_values)},
-            "smoothing": res.smoothing.to_dict() if res.smoothing is not None else None}
-    feats = sorted({f for c in chosen for f in c.info.get("features", [])})
-    if feats:
-        info["drift_features"] = feats
-    return FittedModel(model, fitted.params, {}, info, uncertainty=fitted.uncertainty), metrics
-
-
-def _selected_values(st: Stack, design: Design, chosen: list[Candidate], fit) -> tuple[dict, dict]:
-    """({name: value, internal units} of the selection's final fit, the base's parameters and the
-    chosen terms'; the same of the chosen terms alone). The penalised fit starts from the second
-    (the base where identify starts it, a term's values where the selection found them: an Abbe
-    error's moving centre multiplies its angle and shows the data nothing at zero); the selection's
-    values of combinations that the finer knots and the penalty leave open (a squareness of 680
-    urad traded against a straightness's slope) would stay where they start, and their products
-    with the other errors led Gauss-Newton astray. The first is the other start, for a fit that
-    needs the base's values to get anywhere (a rotary axis's error motions about a location 10 mm
-    off its nominal line)."""
-    base = [n for n, s in zip(st.probe.param_names, st.probe.param_specs) if s.base]
-    out = {name: float(fit.theta[i]) for i, name in enumerate(base)}
-    terms = {}
-    k = design.A_original.shape[1]
-    for c in chosen:
-        for j, name in enumerate(c.params):
-            if name not in out:
-                terms.setdefault(name, float(fit.theta[k + j]))
-        k += c.columns.shape[1]
-    return {**out, **terms}, terms
-
-
-def _is_spline(name: str) -> bool:
-    """A spline coefficient (``EXX_b3``, ``BL_X_b3``): its function depends on the axis's knots."""
-    tail = name.rsplit("_", 1)[-1]
-    return tail[:1] == "b" and tail[1:].isdigit()

@@ -287,6 +287,9 @@ def summary(diag, details=()) -> str:
     lines.append(f"final model ({fz['n_params']} parameters{dof}): rms {_num(fz.get('rms_um'))} um, "
                  f"held-out {_num(fz.get('heldout_rms_um'))} um"
                  + _other_units(fz))
+    if fz.get("written"):
+        from ._written import written_line
+        lines.append(f"model written: {written_line(fz['written'])}")
     ref = diag.reference.get("linear_regression_all_temperatures")
     if ref:
         lines.append(f"reference: plain linear regression on all {len(ref['temperatures'])} temperatures "
