@@ -153,3 +153,46 @@ def test_setups_carry_no_variance_and_readings_keep_theirs():
                                4.0 * np.outer(*(2 * [np.array([held[0, 0] + held[2, 0],
                                                                held[1, 0] + held[2, 0], 0.0])])),
                                rtol=1e-12, atol=1e-12)
+
+
+def test_the_penalised_fit_is_written_unless_it_predicts_held_out_readings_clearly_worse():
+    """The choice against its definition, by hand: the held-out sums of squares in noise variances
+    (each reading's residual over its own noise), the slack 2 sqrt(2 k) of the selection's k
+    determined directions; the penalised fit is written up to the slack, the least squares beyond."""
+    from types import SimpleNamespace
+
+    from mtcomp.diagnose._written import choose
+    rng = np.random.default_rng(7)
+    n, k = 60, 8                                   # slack 2 sqrt(16) = 8 noise variances
+    noise = np.where(np.arange(n) < 40, 0.5, 2.0)  # um: two files, each its own floor
+    st = SimpleNamespace(unit=np.array(["um"] * n))
+    design = SimpleNamespace(w=1.0 / noise)
+    ls = rng.normal(0.0, 1.0, n) * noise
+    ls[5] = np.nan                                 # a reading no fold held out counts in neither
+    ls[50] = 4.0                                   # 4 noise variances: room for an excess of -3
+    for excess, taken in ((7.9, "penalised"), (8.1, "least_squares"), (-3.0, "penalised")):
+        pen = ls.copy()
+        # the excess put on one reading of the 2 um file: (r^2 - r0^2) / 2^2 = excess
+        pen[50] = np.sqrt(ls[50] ** 2 + excess * 4.0)
+        current = SimpleNamespace(cv_resid=ls, rank=k)
+        w = choose(st, design, current, SimpleNamespace(cv_resid=pen))
+        assert w["model"] == taken, (excess, w)
+        assert w["heldout_excess_noise_variances"] == pytest.approx(excess, rel=0.0, abs=1e-3)
+        assert w["heldout_slack_noise_variances"] == pytest.approx(8.0, rel=0.0, abs=1e-3)
+        ok = np.isfinite(ls)
+        assert w["heldout_rms_least_squares_um"] == pytest.approx(np.sqrt(np.mean(ls[ok] ** 2)), rel=0.0,
+                                                                  abs=1e-4)
+        assert w["heldout_rms_penalised_um"] == pytest.approx(np.sqrt(np.mean(pen[ok] ** 2)), rel=0.0,
+                                                              abs=1e-4)
+
+
+def test_the_report_says_which_model_is_written(diagnosed):
+    """The smooth profile of the fixture: the penalised fit predicts held-out runs as well as the
+    least squares, and is written; REPORT.json's figures are that fit's, the summary says so."""
+    d, _, _, _ = diagnosed
+    w = d.final["written"]
+    assert w["model"] == "penalised"
+    assert w["heldout_rms_penalised_um"] == d.final["heldout_rms_um"]
+    assert w["heldout_excess_noise_variances"] <= w["heldout_slack_noise_variances"]
+    assert d.to_dict()["final"]["written"]["model"] == "penalised"
+    assert "model written: the penalised fit (held-out rms" in d.summary()

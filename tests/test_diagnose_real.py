@@ -147,3 +147,24 @@ def test_between_targets_the_model_written_claims_no_more_than_it_knows(tmp_path
     z = np.abs(value - offset - line)[:, ~at] / sd[:, ~at]
     assert z.max() <= 2.5, z.max()
     assert np.mean(z <= 2.0) >= 0.9, np.mean(z <= 2.0)
+
+
+@needs_real
+def test_a_penalty_that_predicts_held_out_runs_worse_is_not_written(tmp_path):
+    """ess_b02_y (runs that drift; REML draws the reversal toward a line the runs do not follow):
+    the penalised fit predicts the held-out runs worse than the selection's least squares by more
+    than noise could (measured 18.0 noise variances, 12 allowed), so the least squares is written:
+    its figures are the report's, and its predictions of the file are the selection's (the held-out
+    residuals' rms is the one the selection scored). ess_b02_x keeps the penalised fit (3.4 noise
+    variances worse, within the slack): the test above."""
+    path = REAL / "iso230_2" / "ess_b02_y.csv"
+    d = diagnose(load_machine("xfyz"), [read_measurements(path)])
+    w = d.final["written"]
+    assert w["model"] == "least_squares", w
+    assert w["heldout_excess_noise_variances"] > w["heldout_slack_noise_variances"]
+    assert d.final["heldout_rms_um"] == w["heldout_rms_least_squares_um"]
+    assert "edf" not in d.final
+    assert d.model.info.get("smoothing") is None
+    assert d.final["heldout_rms_um"] == pytest.approx(np.sqrt(np.mean(np.asarray(d.heldout_resid) ** 2)),
+                                                      rel=1e-3, abs=0.0)
+    assert "model written: the selection's least squares" in d.summary()
