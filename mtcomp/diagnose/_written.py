@@ -6,10 +6,10 @@ through them and a standard error that says the curve rests on the penalty there
 least squares (one function a target) claims more between targets than it knows. Held-out readings
 sit where readings were taken, so they cannot see that; they can see a penalty that smooths what the
 data hold (REML weights that flatten a rotary axis's error motions, a reversal drawn toward a line
-while the runs repeat each target's own). The refit is written unless its held-out sum of squares
-exceeds the selection's by more than twice the standard deviation of that difference over the folds
-(a paired comparison on the same readings, as Diebold and Mariano 1995 compare two forecasts), and
-the report gives both figures and the choice (``final.written``).
+while the runs repeat each target's own). Both are held out on the same folds; the refit is written
+unless its held-out sum of squares exceeds the selection's by more than two standard deviations of
+the chi-square scatter two equally good fits show in the selection's determined directions
+(:func:`choose`), and the report gives both figures and the choice (``final.written``).
 """
 from __future__ import annotations
 
