@@ -288,7 +288,6 @@ def summary(diag, details=()) -> str:
                  f"held-out {_num(fz.get('heldout_rms_um'))} um"
                  + _other_units(fz))
     if fz.get("written"):
-        from ._written import written_line
         lines.append(f"model written: {written_line(fz['written'])}")
     ref = diag.reference.get("linear_regression_all_temperatures")
     if ref:
@@ -324,3 +323,16 @@ def _short(v):
 
 
 __all__ = ["evidence_and_params", "unexplained_params", "summary", "rms"]
+
+
+def written_line(written: dict) -> str:
+    """One line of the summary: which model is written (the report's ``final.written``:
+    :func:`mtcomp.diagnose._written.choose`) and both fits' held-out rms."""
+    key, unit = next((k, u) for k, u in (("um", "um"), ("urad", "urad"), ("um_min", "um/min"))
+                     if f"heldout_rms_penalised_{k}" in written)
+    pen, ls = written[f"heldout_rms_penalised_{key}"], written[f"heldout_rms_least_squares_{key}"]
+    if written["model"] == "penalised":
+        return (f"the penalised fit (held-out rms {_num(pen)} {unit}; the selection's least squares "
+                f"{_num(ls)} {unit})")
+    return (f"the selection's least squares (held-out rms {_num(ls)} {unit}; the penalised fit "
+            f"{_num(pen)} {unit}, worse than noise could make it)")

@@ -19,6 +19,7 @@ from ..models.chain import ErrorModel
 from ..models.model_file import FittedModel
 from ..models.params import ParameterSet
 from ._linalg import Design, rms
+from ._report import written_line
 from .result import UNIT_KEYS, _r
 
 #: the penalised refit is written unless the selection's least squares predicts held-out readings
@@ -177,23 +178,6 @@ def final_model(st, design: Design, chosen: list, current, starts: tuple, folds,
     if feats:
         model.info["drift_features"] = feats
     return model, out
-
-
-def written_line(written: dict) -> str:
-    """One line of the summary: which model is written (``final.written``, :func:`choose`) and both
-    fits' held-out rms."""
-    unit = next(u for u, k in UNIT_KEYS.items() if f"heldout_rms_penalised_{k}" in written)
-    pen = written[f"heldout_rms_penalised_{UNIT_KEYS[unit]}"]
-    ls = written[f"heldout_rms_least_squares_{UNIT_KEYS[unit]}"]
-    if written["model"] == "penalised":
-        return (f"the penalised fit (held-out rms {_num(pen)} {unit}; the selection's least squares "
-                f"{_num(ls)} {unit})")
-    return (f"the selection's least squares (held-out rms {_num(ls)} {unit}; the penalised fit "
-            f"{_num(pen)} {unit}, worse than noise could make it)")
-
-
-def _num(v) -> str:
-    return "n/a" if v is None else f"{v:.4g}"
 
 
 def selected_values(st, design: Design, chosen: list, fit) -> tuple[dict, dict]:
