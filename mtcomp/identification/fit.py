@@ -581,7 +581,7 @@ class _Problem:
         target (:class:`.reversal.DirectionContrast`: a reversal the model does not hold is error it
         leaves, not noise; REML and the posterior's s2 take it as unpenalised nuisance terms)."""
         if self._contrast is None:
-            self._contrast = DirectionContrast(self.mms, self.obs_slices)
+            self._contrast = DirectionContrast(self.mms, self.obs_slices, self.model)
         return float(r @ r) - self._contrast.sum_of_squares(r), self.n_obs - self._contrast.n_groups
 
     def _residual_variance(self, r, edf: float) -> float:

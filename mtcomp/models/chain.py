@@ -291,6 +291,26 @@ class ErrorModel:
         return np.tile(row, (n, 1))
 
     # ----------------------------------------------------------------- symbolic chain
+    def direction_axes(self) -> np.ndarray:
+        """(n_axes,) bool: the axes whose approach direction (context ``dir_<axis>``) the tool pose
+        depends on, read from the symbolic chain (a backlash term, a signed feed lag); none for a
+        base model."""
+        m = self.machine
+        names = list(self.context_names)
+        out = np.zeros(m.n_axes, bool)
+        wanted = [(j, names.index(f"dir_{a}")) for j, a in enumerate(m.axis_names)
+                  if f"dir_{a}" in names]
+        if not wanted or not self.terms:      # the base model has no dependence on direction
+            return out
+        q = ca.SX.sym("q", m.n_axes)
+        p = ca.SX.sym("p", self.n_params)
+        c = ca.SX.sym("c", self.n_context)
+        tip, axis, _ = self.symbolic(q, p, c)
+        expr = ca.vertcat(tip, axis)
+        for j, k in wanted:
+            out[j] = bool(ca.depends_on(expr, c[k]))
+        return out
+
     def symbolic(self, q, p, c, errors: bool = True):
         """Tool-tip frame in the workpiece frame for SX inputs.
 

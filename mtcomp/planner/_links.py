@@ -37,24 +37,9 @@ __all__ = ["ARC", "REVERSAL", "LinkRules", "direction_axes", "node_links", "prop
 
 
 def direction_axes(model) -> np.ndarray:
-    """(na,) bool: the axes whose approach direction (context ``dir_<axis>``) the error model's tool
-    pose depends on, read from its symbolic chain (a backlash term, a signed feed lag)."""
-    import casadi as ca
-    m = model.machine
-    names = list(model.context_names)
-    out = np.zeros(m.n_axes, bool)
-    wanted = [(j, names.index(f"dir_{a}")) for j, a in enumerate(m.axis_names)
-              if f"dir_{a}" in names]
-    if not wanted or not model.terms:      # the base model has no dependence on direction
-        return out
-    q = ca.SX.sym("q", m.n_axes)
-    p = ca.SX.sym("p", model.n_params)
-    c = ca.SX.sym("c", model.n_context)
-    tip, axis, _ = model.symbolic(q, p, c)
-    expr = ca.vertcat(tip, axis)
-    for j, k in wanted:
-        out[j] = bool(ca.depends_on(expr, c[k]))
-    return out
+    """(na,) bool: the axes whose approach direction the error model's tool pose depends on
+    (:meth:`mtcomp.models.ErrorModel.direction_axes`)."""
+    return model.direction_axes()
 
 
 def node_links(dp, dirs, reversal_axes, tie, no_link, unit):
