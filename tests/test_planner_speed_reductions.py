@@ -59,3 +59,25 @@ def test_summary_counts_blocks_made_worse_as_a_replay():
     np.testing.assert_allclose(s.corrected_max_before_um, eb[~res.pinned].max(), rtol=0, atol=0)
     assert s.corrected_blocks == int((~res.pinned).sum())
     assert s.not_converged == int((~res.converged).sum())
+
+
+@pytest.mark.parametrize("datums", [1, 2])
+def test_datum_reference_is_the_deviation_at_each_blocks_datum(datums):
+    # one datum: one row broadcast over the blocks; two: a row per block. Oracle: the model's
+    # deviation at the datum evaluated block by block
+    from mtcomp.planner._evaluate import Evaluator
+    fitted = fitted_model("xfyz", 11)
+    ev = Evaluator(CompensationProblem.from_machine(fitted, max_correction_um=50.0))
+    n = 40
+    datum = np.zeros((n, 3))
+    datum[:] = [120.0, -35.0, -60.0]
+    if datums == 2:
+        datum[25:] = [-80.0, 40.0, -10.0]
+    ctx = fitted.context(n)
+    ref = ev.datum_reference(datum, ctx)
+    assert ref.shape == (n, 3)
+    names = fitted.model.context_names
+    tool = ctx[:, names.index("tool_length")] if "tool_length" in names else np.zeros(n)
+    want = np.concatenate([fitted.datum_deviation(datum[i:i + 1], tool[i:i + 1]) for i in range(n)])
+    np.testing.assert_allclose(ref, want, rtol=0, atol=1e-15)
+    assert np.ptp(want[:, 0]) > 0 if datums == 2 else np.ptp(want[:, 0]) == 0
