@@ -172,7 +172,10 @@ class Bounds:
         desired = x if desired is None else desired
         l, u, tlo, thi = self.limits(q) if limits is None else limits
         base = self._quantize_runs(x, links)          # a new array: clipped in place
-        np.clip(base, l, u, out=base)
+        # np.clip's arithmetic (the larger of base and l, then the smaller of that and u), on one
+        # row of a broadcast bound
+        np.maximum(base, _one_row(l), out=base)
+        np.minimum(base, _one_row(u), out=base)
         y = base.copy()
         n = y.shape[0]
         tol = 1e-9 * np.maximum(self.unit, 1.0)
