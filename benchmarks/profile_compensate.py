@@ -38,6 +38,24 @@ STAGES = {
     "osqp setup+import": [("mtcomp.planner._qp", "WindowQP.__init__")],
     "report rows": [("mtcomp.compensation", "_report_lines"),
                     ("mtcomp.compensation", "report_rows")],
+    # the planner's own numpy, stage by stage (what the model evaluation and the nominal
+    # kinematics inside them take is counted above, not here)
+    "newton (numpy)": [("mtcomp.planner.engine", "solve_newton"),
+                       ("mtcomp.planner.engine", "solve_pinv")],
+    "residual assembly": [("mtcomp.planner._evaluate", "Evaluator.residual"),
+                          ("mtcomp.planner._evaluate", "Evaluator.residual_jacobian")],
+    "datum reference": [("mtcomp.planner.engine", "Planner._reference")],
+    "block context": [("mtcomp.planner.engine", "Planner._context")],
+    "subdivide (numpy)": [("mtcomp.planner.engine", "Planner._subdivide")],
+    "nodes (numpy)": [("mtcomp.planner.engine", "Planner.nodes_from_chunk")],
+    "bounds enforce": [("mtcomp.planner._bounds", "Bounds.enforce")],
+    "commit (numpy)": [("mtcomp.planner.engine", "Planner._commit")],
+    "windows (numpy)": [("mtcomp.planner.engine", "Planner.plan_nodes")],
+    "results join": [("mtcomp.planner.engine", "PlanResult.concatenate"),
+                     ("mtcomp.planner.engine", "PlanResult.take")],
+    "summary+tally": [("mtcomp.planner.report", "Summary.add"),
+                      ("mtcomp.compensation", "_Tally.planned"),
+                      ("mtcomp.compensation", "_to_program_frame")],
 }
 
 

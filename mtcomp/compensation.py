@@ -26,7 +26,7 @@ from .planner import (CompensationProblem, Planner, PlannerOptions, Summary, out
 from .planner.report import report_table
 from .planner._bounds import FLAG_KINDS
 from .planner._parallel import read_ahead
-from .planner._small import any_rows
+from .planner._small import any_rows, row_norm
 from .planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
 from .toolpaths.words import TCP_ON_M, frame_local, frame_tcp, strip_comments
 from .toolpaths import iter_segment_chunks, write_corrected
@@ -378,11 +378,14 @@ class _Tally:
                     hit |= any_rows(res.flags[:, :, k])
                 self.bound_blocks[kind] += int(np.count_nonzero(hit & known))
         done = ~res.pinned
-        if done.any():
-            c = np.sqrt(np.sum(res.correction[done][:, self.linear] ** 2, axis=1)) * 1e3
+        k = int(np.count_nonzero(done))
+        if k:
+            # no copies when every block is corrected and every axis linear (the usual case)
+            c = res.correction if self.linear.all() else res.correction[:, self.linear]
+            c = row_norm(c if k == len(done) else c[done]) * 1e3
             self.sum_sq += float(np.sum(c ** 2))
             self.max = max(self.max, float(c.max()))
-            self.n += int(done.sum())
+            self.n += k
 
     def feed_note(self, fitted) -> list[str]:
         feed_terms = [t.key() for t in fitted.model.terms if t.uses_feed]

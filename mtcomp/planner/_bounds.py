@@ -41,6 +41,12 @@ def _round_to(x, step):
     t *= step
     return t
 
+def _one_row(a: np.ndarray) -> np.ndarray:
+    """a (n, m), or its first row (1, m) when a is one row broadcast over n (:meth:`Bounds.limits_lazy`):
+    what a comparison with a needs, without making the broadcast whole."""
+    return a[:1] if a.ndim == 2 and a.shape[0] > 1 and a.strides[0] == 0 else a
+
+
 class Bounds:
     """Bounds of one problem. Everything in optimisation units: um (linear), urad (rotary)."""
 
@@ -165,7 +171,11 @@ class Bounds:
         """
         desired = x if desired is None else desired
         l, u, tlo, thi = self.limits(q) if limits is None else limits
-        base = np.clip(self._quantize_runs(x, links), l, u)
+        base = self._quantize_runs(x, links)          # a new array: clipped in place
+        # np.clip's arithmetic (the larger of base and l, then the smaller of that and u), on one
+        # row of a broadcast bound
+        np.maximum(base, _one_row(l), out=base)
+        np.minimum(base, _one_row(u), out=base)
         y = base.copy()
         n = y.shape[0]
         tol = 1e-9 * np.maximum(self.unit, 1.0)
@@ -189,7 +199,9 @@ class Bounds:
                 j += 1
             start = j + 1
         flags = np.zeros((n, y.shape[1], len(FLAG_KINDS)), bool)
-        took = np.abs(desired - y) > self.took_tol
+        took = np.subtract(desired, y)
+        np.abs(took, out=took)
+        took = took > self.took_tol
         if not took.any():          # every flag needs the bound to have taken something away
             return y, flags
         if tlo is None:             # limits_lazy: the travel part was not computed
@@ -249,10 +261,11 @@ class Bounds:
             else:
                 before = y[s - 1:e - 1]
                 ok0 = None
-            viol = np.any(np.abs(y[s:e] - before) > self.S + tol, axis=1) & ~exempt[s:e]
+            d = y[s:e] - before
+            viol = any_rows(np.abs(d) > self.S + tol)
+            viol &= ~exempt[s:e]
             if links is not None:
-                d = y[s:e] - before
-                viol |= np.any((d < links[0][s:e] - tol) | (d > links[1][s:e] + tol), axis=1)
+                viol |= any_rows((d < links[0][s:e] - tol) | (d > links[1][s:e] + tol))
             if ok0 is not None and s == 0:
                 viol[0] = False
             idx = np.flatnonzero(viol)
@@ -271,8 +284,8 @@ class Bounds:
         from the block before it (from prev for the first) or its link bounds ``links``, or None
         when every block keeps them."""
         n = x.shape[0]
-        bad = any_rows(x < l - tol)
-        bad |= any_rows(x > u + tol)
+        bad = any_rows(x < _one_row(l) - tol)
+        bad |= any_rows(x > _one_row(u) + tol)
         if n > 1:
             d = np.diff(x, axis=0)
             np.abs(d, out=d)

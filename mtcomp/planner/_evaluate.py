@@ -182,6 +182,9 @@ class Evaluator:
 
     def target(self, q: np.ndarray) -> np.ndarray:
         """(n, rows) nominal pose (tip mm, tool axis) of q: what the program means."""
+        if self.rows == 3 and not self.machine.rotary_axes:
+            # the tip alone: the pose with its (constant, read-only) Jacobian, no copy of the axis
+            return nominal_pose_jacobian(self.machine, q)[0]
         tip, axis = nominal_pose(self.machine, q)
         return tip if self.rows == 3 else np.concatenate([tip, axis], axis=1)
 
@@ -202,15 +205,22 @@ class Evaluator:
         take their reference; a drift while the program runs is corrected), zero tool-axis rows.
         This much of every block's deviation is already in the probed offset: a block's correction
         removes its deviation less this (what a laser's zero or a constant left open cannot
-        change). Evaluated once per distinct datum and tool length."""
+        change). Evaluated once per distinct datum and tool length; one row broadcast (read-only)
+        over the blocks when they all share it (the usual case: no (n, rows) copies)."""
         datum = np.atleast_2d(np.asarray(datum, dtype=float))
+        dev = self._at_datum("deviation_function", datum, ctx)
+        if dev.strides[0] == 0 and dev.shape[0] > 1:
+            row = np.zeros(self.rows)
+            row[:3] = dev[0, :3]
+            return np.broadcast_to(row, (datum.shape[0], self.rows))
         out = np.zeros((datum.shape[0], self.rows))
-        out[:, :3] = self._at_datum("deviation_function", datum, ctx)[:, :3]
+        out[:, :3] = dev[:, :3]
         return out
 
     def _at_datum(self, name: str, datum, ctx) -> np.ndarray:
         """The model's function ``name`` at each block's datum in the datum's context, evaluated once
-        per distinct (datum, tool length): a program has one datum or a few."""
+        per distinct (datum, tool length): a program has one datum or a few (one: its value
+        broadcast over the blocks, read-only)."""
         ctx = np.atleast_2d(ctx)
         names = self.model.context_names
         tool = ctx[:, names.index("tool_length")] if "tool_length" in names else np.zeros(ctx.shape[0])
@@ -218,6 +228,9 @@ class Evaluator:
         new_run = _run_starts(datum)
         new_run |= _run_starts(tool)
         firsts = np.flatnonzero(new_run)
+        if firsts.size == 1:
+            value = self.problem.fitted.at_datum(name, datum[:1], tool[:1])
+            return np.broadcast_to(value[0], (datum.shape[0],) + value.shape[1:])
         uniq, inv = _unique_runs(np.column_stack([datum[firsts], tool[firsts]]), new_run)
         return self.problem.fitted.at_datum(name, uniq[:, :-1], uniq[:, -1])[inv]
 
@@ -245,9 +258,13 @@ class Evaluator:
         na = Jd.shape[2]
         scale = self.S[:, None] / self.D[None, :]
         Jt = np.empty((rows, na, q.shape[0]))
+        if Jn.shape[0] > 1 and Jn.strides[0] == 0:
+            Jn_ij = Jn[0]       # one Jacobian broadcast (no rotary axis): its entries as numbers
+        else:
+            Jn_ij = Jn.transpose(1, 2, 0)
         for i in range(rows):
             for j in range(na):
-                np.add(Jd[:, i, j], Jn[:, i, j], out=Jt[i, j])
+                np.add(Jd[:, i, j], Jn_ij[i, j], out=Jt[i, j])
                 if scale[i, j] != 1.0:
                     Jt[i, j] *= scale[i, j]
         if _with_nominal:

@@ -95,52 +95,137 @@ def solve_newton(ev: Evaluator, q: np.ndarray, ctx: np.ndarray, lam, tol: float,
                  max_iterations: int, reference=None) -> Linearization:
     """Per-block Newton iteration of the (regularised) pseudo-inverse step until the step is below tol.
 
-    Every block is iterated on its own; blocks that have converged are not evaluated again. The
-    Jacobian is kept while the step shrinks at least tenfold per iteration (the chord method: the
-    model's Jacobian changes by ~1e-4 over a correction, so this converges to the same point) and
-    re-evaluated with the residual otherwise.
+    Every block is iterated on its own; the Jacobian is kept while the step shrinks at least
+    tenfold per iteration (the chord method: the model's Jacobian changes by ~1e-4 over a
+    correction, so this converges to the same point) and re-evaluated with the residual otherwise.
+    Blocks that have converged keep their values. While most blocks still iterate, every block is
+    computed and only those still iterating are updated (:func:`_whole_iteration`: a few blocks
+    done early, e.g. where the deviation is zero, no longer make every array of the chunk copied
+    to and from the rest); once fewer than :data:`WHOLE_SHARE` do, only those are evaluated.
     """
     n, na = q.shape
-    x = np.zeros((n, na))
-    b, A, target, M = ev.residual_jacobian_rows(q, ctx, reference)
-    b0 = b.copy()
-    x_lin = x.copy()
-    iterations = np.ones(n, int)
-    converged = np.zeros(n, bool)
-    active = np.arange(n)
-    last = np.full(n, np.inf)
-    factor = None                         # of the blocks in sel, while their A is kept
+    st = _NewtonState(q, ctx, *ev.residual_jacobian_rows(q, ctx, reference), na)
     for _ in range(max_iterations):
-        every = active.size == n          # plain slices while every block is still iterating
-        sel = slice(None) if every else active
-        if factor is None:
-            factor = NormalFactor(objective_jacobian(M[sel], A[sel]), lam)
-        dx = factor.step(objective_residual(M[sel], b[sel]), x[sel])
-        x[sel] += dx
-        size = row_max_abs(dx)
-        done = size < tol
-        slow = size > 0.1 * last[sel]
-        last[sel] = size
-        if np.any(done):
-            converged[active[done]] = True
-            active, slow = active[~done], slow[~done]
-            every = False
-            factor = factor.take(~done) if active.size else None
-        if active.size == 0:
-            break
-        if not np.any(slow):
-            refresh, keep = None, (slice(None) if every else active)
-        elif np.all(slow):
-            refresh, keep = (slice(None) if every else active), None
+        if st.live is not None or st.active.size == n:
+            _whole_iteration(ev, st, lam, tol)
         else:
-            refresh, keep = active[slow], active[~slow]
-        if refresh is not None:
-            factor = None
-            bb, AA, _ = ev.residual_jacobian(q[refresh], x[refresh], ctx[refresh], target[refresh])
-            b[refresh], A[refresh], x_lin[refresh] = bb, AA, x[refresh]
-        if keep is not None:
-            # b(x) exactly, A from before: store the linearisation point so that predict() holds
-            bb = ev.residual(q[keep], x[keep], ctx[keep], target[keep])
-            b[keep], x_lin[keep] = bb, x[keep]
-        iterations[sel if every else active] += 1
-    return Linearization(x, x_lin, b, A, b0, target, iterations, converged, M)
+            _compact_iteration(ev, st, lam, tol)
+        if st.active.size == 0:
+            break
+    return Linearization(st.x, st.x_lin, st.b, st.A, st.b0, st.target, st.iterations, st.converged,
+                         st.M)
+
+
+#: the share of a chunk's blocks that must still iterate for :func:`solve_newton` to compute every
+#: block (an evaluation of a converged block costs less than copying the others out and back)
+WHOLE_SHARE = 0.75
+
+
+class _NewtonState:
+    """What :func:`solve_newton` iterates: the blocks' values, ``active`` (indices of the blocks
+    still iterating), ``live`` ((n,) bool of them while every block is computed; None at first,
+    when all iterate, and once only the active ones are), the factor of the kept Jacobians (of
+    every block, or of the active ones only) and each block's last step size."""
+
+    def __init__(self, q, ctx, b, A, target, M, na):
+        n = q.shape[0]
+        self.q, self.ctx, self.b, self.A, self.target, self.M = q, ctx, b, A, target, M
+        self.x = np.zeros((n, na))
+        self.b0 = b.copy()
+        self.x_lin = self.x.copy()
+        self.iterations = np.ones(n, int)
+        self.converged = np.zeros(n, bool)
+        self.active = np.arange(n)
+        self.live = None
+        self.last = np.full(n, np.inf)
+        self.factor = None
+
+
+def _whole_iteration(ev: Evaluator, st: _NewtonState, lam, tol: float) -> None:
+    """One Newton iteration computed on every block, kept for the live ones (all when st.live is
+    None): per block the same numbers as :func:`_compact_iteration` gives them."""
+    live = st.live
+    if st.factor is None:
+        st.factor = NormalFactor(objective_jacobian(st.M, st.A), lam)
+    dx = st.factor.step(objective_residual(st.M, st.b), st.x)
+    if live is None:
+        st.x += dx
+    else:
+        np.add(st.x, dx, out=st.x, where=live[:, None])
+    size = row_max_abs(dx)
+    done = size < tol
+    slow = size > 0.1 * st.last
+    if live is None:
+        st.last[:] = size
+    else:
+        np.copyto(st.last, size, where=live)
+        done &= live
+        slow &= live
+    if np.any(done):
+        st.converged[done] = True
+        live = ~st.converged if live is None else live & ~done
+        st.active = np.flatnonzero(live)
+        if st.active.size < WHOLE_SHARE * live.size:
+            # from here on only the active blocks are computed (positions in st.active)
+            st.live = None
+            st.factor = st.factor.take(st.active) if st.active.size else None
+            if st.active.size:
+                _relinearise(ev, st, st.active, slow[st.active])
+            return
+        st.live = live
+    if st.active.size == 0:
+        return
+    if np.any(slow):            # a Jacobian to evaluate again: as on the active blocks alone
+        _relinearise(ev, st, st.active, slow[st.active])
+        return
+    # b(x) exactly, A from before: store the linearisation point so that predict() holds
+    bb = ev.residual(st.q, st.x, st.ctx, st.target)
+    if st.live is None:
+        st.b[:] = bb
+        st.x_lin[:] = st.x
+        st.iterations += 1
+    else:
+        keep = st.live[:, None]
+        np.copyto(st.b, bb, where=keep)
+        np.copyto(st.x_lin, st.x, where=keep)
+        np.add(st.iterations, 1, out=st.iterations, where=st.live)
+
+
+def _compact_iteration(ev: Evaluator, st: _NewtonState, lam, tol: float) -> None:
+    """One Newton iteration on the active blocks only (st.factor is theirs)."""
+    active = st.active
+    if st.factor is None:
+        st.factor = NormalFactor(objective_jacobian(st.M[active], st.A[active]), lam)
+    dx = st.factor.step(objective_residual(st.M[active], st.b[active]), st.x[active])
+    st.x[active] += dx
+    size = row_max_abs(dx)
+    done = size < tol
+    slow = size > 0.1 * st.last[active]
+    st.last[active] = size
+    if np.any(done):
+        st.converged[active[done]] = True
+        st.active, slow = active[~done], slow[~done]
+        st.factor = st.factor.take(~done) if st.active.size else None
+    if st.active.size:
+        _relinearise(ev, st, st.active, slow)
+
+
+def _relinearise(ev: Evaluator, st: _NewtonState, active, slow) -> None:
+    """The residual at the new corrections of the active blocks (index array), with the Jacobian
+    again for the slow ones (their factor dropped)."""
+    if not np.any(slow):
+        refresh, keep = None, active
+    elif np.all(slow):
+        refresh, keep = active, None
+    else:
+        refresh, keep = active[slow], active[~slow]
+    if refresh is not None:
+        st.factor = None
+        bb, AA, _ = ev.residual_jacobian(st.q[refresh], st.x[refresh], st.ctx[refresh],
+                                         st.target[refresh])
+        st.b[refresh], st.A[refresh], st.x_lin[refresh] = bb, AA, st.x[refresh]
+    if keep is not None:
+        # b(x) exactly, A from before: store the linearisation point so that predict() holds
+        bb = ev.residual(st.q[keep], st.x[keep], st.ctx[keep], st.target[keep])
+        st.b[keep], st.x_lin[keep] = bb, st.x[keep]
+    st.iterations[active] += 1

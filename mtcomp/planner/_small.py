@@ -48,6 +48,15 @@ def row_max_abs(a: np.ndarray) -> np.ndarray:
     return out
 
 
+def row_max(a: np.ndarray) -> np.ndarray:
+    """(n,): the largest a_ij of each row of a (n, m), ``a.max(axis=1)`` (NaN where a row has one)
+    as a loop over the few columns, like :func:`row_max_abs`."""
+    out = a[:, 0].copy()
+    for j in range(1, a.shape[1]):
+        np.maximum(out, a[:, j], out=out)
+    return out
+
+
 def any_rows(a: np.ndarray) -> np.ndarray:
     """(n,) bool: whether any entry of each row of a (n, ...) is true, ``a.any(axis=(1, ...))``, as
     an or over the few columns (numpy's any along short axes took 50 ms per million blocks, the

@@ -438,7 +438,8 @@ class Planner:
                                             lin.target[far])
         S = self.ev.S
         before = lin.b0 / S
-        after = after_w / S
+        after = after_w                 # a new array: divided in place
+        after /= S
         five = self.problem.correct_orientation
         self._done += len(nodes)
         self._tick()

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._bounds import FLAG_KINDS, flag_name
-from ._small import any_rows, row_norm
+from ._small import any_rows, row_max, row_norm
 from ._qp import NEVER_WORSE_TOL
 from .engine import PlanResult
 
@@ -187,7 +187,7 @@ class Summary:
         if n == 0:
             return
         self.blocks += n
-        self.inserted += int(r.inserted.sum())
+        self.inserted += int(np.count_nonzero(r.inserted))
         unknown = any_rows(r.unknown)
         self.unknown_blocks += int(unknown.sum())
         outside = any_rows(r.outside) & ~unknown
@@ -209,7 +209,8 @@ class Summary:
             if len(r) == 0:
                 return
         self.evaluated += len(r)
-        if r.flags.any():
+        flagged = bool(r.flags.any())
+        if flagged:
             self.bounded_blocks += int(any_rows(r.flags).sum())
             counts = r.flags.sum(axis=0)
             for j, a in enumerate(self.axis_names):
@@ -227,23 +228,28 @@ class Summary:
         self.sum_sq_before += float(np.sum(eb ** 2))
         self.sum_sq_after += float(np.sum(ea ** 2))
         self._add_worse(r)
-        self._add_ramps(r)
+        if flagged:             # a ramp is a block the step bound held
+            self._add_ramps(r)
         done = ~r.pinned
-        if done.any():
-            self.corrected_blocks += int(done.sum())
-            self.corrected_max_before_um = max(self.corrected_max_before_um, float(eb[done].max()))
-            self.corrected_max_after_um = max(self.corrected_max_after_um, float(ea[done].max()))
-            self.corrected_sum_sq_before += float(np.sum(eb[done] ** 2))
-            self.corrected_sum_sq_after += float(np.sum(ea[done] ** 2))
+        k = int(np.count_nonzero(done))
+        if k:
+            if k < len(r):           # every block corrected (the usual case): no copies
+                eb, ea = eb[done], ea[done]
+            self.corrected_blocks += k
+            self.corrected_max_before_um = max(self.corrected_max_before_um, float(eb.max()))
+            self.corrected_max_after_um = max(self.corrected_max_after_um, float(ea.max()))
+            self.corrected_sum_sq_before += float(np.sum(eb ** 2))
+            self.corrected_sum_sq_after += float(np.sum(ea ** 2))
         if r.before_axis is not None:
             ab = float(np.sqrt(np.sum(r.before_axis ** 2, axis=1)).max()) * 1e6
             aa = float(np.sqrt(np.sum(r.after_axis ** 2, axis=1)).max()) * 1e6
             self.max_axis_before_urad = max(self.max_axis_before_urad or 0.0, ab)
             self.max_axis_after_urad = max(self.max_axis_after_urad or 0.0, aa)
-        self.not_converged += int(np.sum(~r.converged))
+        self.not_converged += len(r) - int(np.count_nonzero(r.converged))
 
     def _add_worse(self, r: PlanResult) -> None:
-        grown = (np.abs(r.after) - np.abs(r.before)).max(axis=1) * 1e3
+        grown = row_max(np.abs(r.after) - np.abs(r.before))
+        grown *= 1e3
         worse = grown > WORSE_TOL_UM
         if worse.any():
             self.worse_blocks += int(worse.sum())
