@@ -15,7 +15,6 @@ from mtcomp.measurement.drift import drift_context
 from mtcomp.measurement.files import read_measurements
 from mtcomp.machine import load_machine
 from mtcomp.models import load_model
-from mtcomp.identification.predict import predict_readings
 
 
 @pytest.fixture(scope="module")
@@ -46,15 +45,12 @@ def test_report_and_extended_model(campaign, tmp_path, capsys):
     assert (f["effect"], f["axis"]) == (h["effect"], h["axis"])
     assert f["params"]["magnitude_um"] == pytest.approx(h["params"][f"BL_{h['axis']}"] * 1e3, rel=0.05)
     assert rep["noise_um"] == pytest.approx(case.noise_um, rel=0.1)
+    assert rep["final"]["n_params"] == rep["base"]["n_params"] + 1
 
     # MODEL.json: the base model plus the backlash term, evaluated independently on every file;
     # its residual is the final rms of the report (the report's fit is linearised: tiny difference)
     fitted = load_model(model, load_machine("xfyz"))
     assert [t.to_dict()["kind"] for t in fitted.model.terms] == ["backlash"]
-    # the report's final figures are the model written's (its knots finer than the base's: the
-    # penalised fit, docs/diagnose.md), one parameter beyond its base
-    assert rep["final"]["n_params"] == fitted.model.n_params
-    assert sum(not s.base for s in fitted.model.param_specs) == 1
     nuisance = fitted.info["nuisance"]
     resid = []
     for path in files:
@@ -243,19 +239,9 @@ def test_start_model_values_the_data_did_not_determine_are_not_taken(tmp_path, c
                      str(tmp_path / f"{name}.json"), "-q", *extra]) == 0
         out[name] = json.loads((tmp_path / f"{name}.json").read_text())["parameters"]
     capsys.readouterr()
-    # the profiles of X differ in their knots (the plain diagnosis refines those its data choose, the
-    # started one keeps the start model's): they are compared by what they predict, every other
-    # parameter by its value
-    x_spline = re.compile(r"^E[XYZABC]X_b\d+$")
     for k, v in out["plain"].items():
-        if not x_spline.match(k):
-            assert out["started"][k]["value"] == pytest.approx(v["value"], abs=1e-3), k
+        assert out["started"][k]["value"] == pytest.approx(v["value"], abs=1e-3), k
     assert abs(out["started"]["TOOL_dL"]["value"]) < 1e-3
-    data = read_measurements(str(laser))
-    pred = {name: predict_readings(load_model(tmp_path / f"{name}.json", load_machine("xfyz")), data)
-            .columns["pred_value_um"] for name in out}
-    # a third of the readings' noise (0.3 um)
-    np.testing.assert_allclose(pred["started"], pred["plain"], rtol=0, atol=0.1)
 
 
 def test_start_from_identify_model(campaign, tmp_path, capsys):

@@ -126,32 +126,3 @@ def test_a_start_model_gives_no_values_to_a_refined_axis(tmp_path):
     # the rerun: at least the positioning error's 10 coefficients of X (8 + 3 functions, less the
     # mean) are not taken
     assert taken[-1][0] <= taken[0][0] - (8 + 3 - 1)
-
-
-def test_the_model_written_is_fitted_once_for_the_diagnosis_kept(monkeypatch):
-    """The rerun loop with stand-in diagnoses: the final model (the penalised refit, the costly part
-    of a diagnosis's end) is fitted for the diagnosis that is kept and for no other: neither for a
-    run a finer base replaces nor for a finer base's run that is refused."""
-    from types import SimpleNamespace
-
-    import mtcomp.diagnose._diagnose as D
-    from mtcomp.diagnose._analysis import Noise
-    from mtcomp.models.basis import spline_basis
-
-    fine = spline_basis(-300.0, 300.0, 16, 3)
-    written = []
-
-    def stub(name, resid_um, rank, finer):
-        d = SimpleNamespace(noise={"um": Noise("um", 0.5, 100, "repeats")}, heldout_resid=np.asarray(resid_um),
-                            units=np.array(["um"] * len(resid_um)), rank=rank, rejected=[], name=name)
-        d.write_model = lambda: written.append(name)
-        return d, finer
-
-    runs = iter([stub("first", [0.9] * 100, 10, ("X", fine, "finer X")),      # replaced
-                 stub("second", [0.5] * 100, 18, ("Y", fine, "finer Y")),     # kept
-                 stub("third", [0.9] * 100, 26, None)])                      # refused: worse
-    monkeypatch.setattr(D, "_diagnose", lambda *a, **k: next(runs))
-    d = D.diagnose(load_machine("xfyz"), [SimpleNamespace(kind="points")])
-    assert d.name == "second"
-    assert written == ["second"]
-    assert not hasattr(d, "write_model")

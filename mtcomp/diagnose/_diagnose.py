@@ -23,6 +23,9 @@ import numpy as np
 
 from ..errors import InputError
 from ..machine import Machine
+from ..models.chain import ErrorModel
+from ..models.model_file import FittedModel
+from ..models.params import ParameterSet
 from . import _analysis as an
 from ._analysis import cv_threshold
 from ._candidates import Candidate, generate, temperature_regression
@@ -31,10 +34,8 @@ from ._linalg import Design, rms
 from ._selection import (BIC_MARGIN, MIN_EXCESS_SHARE, _axis_ties, _backward,  # noqa: F401
                          _drop_undetermined_offsets, _forward_in_time, _joint_abbe, _parsimony)
 from ._stack import Stack, build_stack
-from ._written import final_model, selected_values
-from ._written import heldout_unit as _heldout_unit
-from ._written import metrics as _metrics
-from .result import Diagnosis, Finding
+from ._covariance import _cov_diag, _uncertainty
+from .result import UNIT_KEYS, Diagnosis, Finding, _r
 
 #: the held-out rms may exceed the noise floor by this factor (times the inflation expected of a right
 #: model, sqrt(1 + parameters / readings fitted)) before the excess counts as structure
@@ -47,6 +48,11 @@ MAX_FINDINGS = 6
 def _common_block(st: Stack) -> np.ndarray:
     base = np.flatnonzero(st.probe.base_mask)
     return np.hstack([st.J[:, base], st.D])
+
+
+def _setup_columns(st: Stack) -> np.ndarray:
+    """(m,) bool: the common block's set-up (nuisance) columns, which follow the base's."""
+    return np.r_[np.zeros(int(st.probe.base_mask.sum()), dtype=bool), np.ones(st.D.shape[1], dtype=bool)]
 
 
 def _theta0(st: Stack) -> np.ndarray:
@@ -63,6 +69,32 @@ def _apply(st: Stack, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     p = np.zeros(st.probe.n_params)
     p[base] = theta[:base.size]
     return p, theta[base.size:]
+
+
+def _metrics(st: Stack, fit, n_params: int) -> dict:
+    um = st.unit == "um"
+    out = {"n_params": int(n_params), "n_determined": int(fit.rank) - len(st.nuisance_names),
+           "n_nuisance": len(st.nuisance_names),
+           "rms_um": _r(rms(fit.resid[um])) if um.any() else None,
+           "heldout_rms_um": _r(rms(fit.cv_resid[um])) if um.any() else None}
+    for unit in ("urad", "um/min"):
+        sel = st.unit == unit
+        if sel.any():
+            out[f"rms_{UNIT_KEYS[unit]}"] = _r(rms(fit.resid[sel]))
+            out[f"heldout_rms_{UNIT_KEYS[unit]}"] = _r(rms(fit.cv_resid[sel]))
+    return out
+
+
+#: report key suffix of each unit class: angular readings, velocities
+
+
+#: the unit whose held-out rms the selection follows: the first of these the data hold
+MAIN_UNITS = ("um", "urad", "um/min")
+
+
+def _heldout_unit(st) -> str:
+    """um, else urad (angular laser runs alone), else um/min (velocities alone)."""
+    return next((u for u in MAIN_UNITS if np.any(st.unit == u)), MAIN_UNITS[0])
 
 
 def _heldout(st, fit) -> float:
@@ -131,10 +163,6 @@ def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int 
                                                 f"({after:.4g} against {before:.4g} noise variances)"})
                 break
             diag, refine = again, {**refine, a: basis}
-        write_model = getattr(diag, "write_model", None)      # (a stand-in diagnosis has none)
-        if write_model is not None:
-            del diag.write_model
-            write_model()
         return diag
 
 
@@ -176,9 +204,6 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     say = progress or (lambda s: None)
     if not datasets:
         raise InputError("no measurement files given")
-    # the axes whose knots the data choose (not fixed by the machine file or a start model)
-    free_knots = {a.name for a in (start.model.machine if start is not None else machine).axes
-                  if a.basis_from_data}
     machine, values = _base_machine(machine, datasets, start, refine)
     datasets, outliers = _without_outliers(datasets, say)
     st = build_stack(machine, datasets)
@@ -199,39 +224,27 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     if sel.chosen:
         design = _backward_selection(st, design, sel, say)
     chosen, findings, current = sel.chosen, sel.findings, sel.current
+    final_metrics = _metrics(st, current, n_base + sum(c.columns.shape[1] for c in chosen))
     verdict, finer = _what_remains(st, design, sel, noise, noise_main, may_refine, say)
-    diag = Diagnosis(verdict, noise, base_metrics, findings, {}, None, how, len(st),
+    model = _fitted_model(st, design, chosen, current)
+    diag = Diagnosis(verdict, noise, base_metrics, findings, final_metrics, model, how, len(st),
                      rejected=sel.rejected, reference=reference)
     diag.folds_of_observations = folds
     diag.heldout_resid, diag.units, diag.rank = current.cv_resid, st.unit, current.rank
     diag.outliers = outliers
-    diag.seconds = time.perf_counter() - t0
-
-    def write_model():
-        # the model written, fitted only for the diagnosis kept (a finer base's rerun replaces it)
-        t1 = time.perf_counter()
-        selected, terms_only = selected_values(st, design, chosen, current)
-        starts = ({**values, **terms_only}, {**values, **selected})
-        diag.model, diag.final = final_model(st, design, chosen, current, starts, folds, free_knots, say)
-        _model_info(diag.model, st.machine, datasets)
-        diag.seconds += time.perf_counter() - t1
-        diag.model.info["diagnose"] = diag.to_dict()
-    diag.write_model = write_model
-    return diag, finer
-
-
-def _model_info(model, machine, datasets):
-    """Where the data reach and what they hold, and the reversal they show (so that export can say
-    when the model leaves one out), into the written ``model``."""
     from ..measurement.readings import data_held, data_support
+    model.support = data_support(st.machine, datasets)
+    model.held = data_held(st.machine, datasets)
+    # what the data show of a reversal, so that export can say when the model leaves one out
     from ..identification.reversal import data_reversal
     from ..identification.unmeasured import unmeasured_groups
-    model.support = data_support(machine, datasets)
-    model.held = data_held(machine, datasets)
     model.info["reversal"] = data_reversal(datasets)
     unmeasured = unmeasured_groups([s for s in model.model.param_specs if s.base], datasets)
     if unmeasured:
         model.info["unmeasured"] = unmeasured
+    diag.seconds = time.perf_counter() - t0
+    model.info["diagnose"] = diag.to_dict()
+    return diag, finer
 
 
 def _base_machine(machine, datasets, start, refine):
@@ -612,3 +625,45 @@ def _unexplained(st, fit, structure, excess, noise_main, inflation: float = 1.0)
     params, evidence, axis = unexplained_params(st, fit, structure, excess, noise_main, inflation)
     h = _heldout(st, fit)
     return Finding("unexplained", axis, params, evidence, h, h, None, unit=_heldout_unit(st))
+
+
+def _fitted_model(st: Stack, design: Design, chosen: list[Candidate], fit) -> FittedModel:
+    terms = []
+    for c in chosen:
+        for t in c.terms:
+            if t.key() not in {x.key() for x in terms}:
+                terms.append(t)
+    model = ErrorModel(st.machine, terms)
+    params = ParameterSet(model.param_specs)
+    base = [n for n, s in zip(st.probe.param_names, st.probe.param_specs) if s.base]
+    m = design.A_original.shape[1]
+    theta = fit.theta
+    std = np.full(model.n_params, np.nan)
+    # standard errors from the weighted normal matrix (noise variance 1 after weighting)
+    extra = np.hstack([c.columns for c in chosen]) if chosen else np.zeros((design.n, 0))
+    cov_diag = _cov_diag(design, extra)
+    for i, name in enumerate(base):
+        params[name] = theta[i]
+        std[params.index(name)] = cov_diag[i]
+    k = m
+    for c in chosen:
+        for j, name in enumerate(c.params):
+            if name in params:
+                params[name] = theta[k + j]
+                std[params.index(name)] = cov_diag[k + j]
+        k += c.columns.shape[1]
+    params.std_errors = np.sqrt(np.where(np.isfinite(std), std, np.nan))
+    info = {"fitted_by": "mtcomp diagnose",
+            "nuisance": {n: float(v) for n, v in zip(st.nuisance_names, theta[len(base):m])}}
+    feats = sorted({f for c in chosen for f in c.info.get("features", [])})
+    if feats:
+        info["drift_features"] = feats
+    names, theta_idx, k = list(base), list(range(len(base))), m
+    for c in chosen:
+        for j, name in enumerate(c.params):
+            if name in params and name not in names:
+                names.append(name)
+                theta_idx.append(k + j)
+        k += c.columns.shape[1]
+    uncertainty = _uncertainty(model, design, extra, names, theta_idx, ~_setup_columns(st))
+    return FittedModel(model, params, {}, info, uncertainty=uncertainty)

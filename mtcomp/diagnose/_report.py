@@ -279,16 +279,9 @@ def summary(diag, details=()) -> str:
     rank = getattr(diag, "rank", None)
     dof = (f", {rank} of them determined by the data, {diag.n_obs - rank} degrees of freedom left"
            if rank is not None else "")
-    if fz.get("edf") is not None:
-        # the penalised fit spends its effective degrees of freedom, not its rank
-        used = fz["edf"] + fz.get("n_nuisance", 0)
-        dof = (f", {fz['n_determined']} combinations determined by the data, {fz['edf']:.4g} effective "
-               f"degrees of freedom, {diag.n_obs - used:.4g} left; roughness penalty")
     lines.append(f"final model ({fz['n_params']} parameters{dof}): rms {_num(fz.get('rms_um'))} um, "
                  f"held-out {_num(fz.get('heldout_rms_um'))} um"
                  + _other_units(fz))
-    if fz.get("written"):
-        lines.append(f"model written: {written_line(fz['written'])}")
     ref = diag.reference.get("linear_regression_all_temperatures")
     if ref:
         lines.append(f"reference: plain linear regression on all {len(ref['temperatures'])} temperatures "
@@ -323,16 +316,3 @@ def _short(v):
 
 
 __all__ = ["evidence_and_params", "unexplained_params", "summary", "rms"]
-
-
-def written_line(written: dict) -> str:
-    """One line of the summary: which model is written (the report's ``final.written``:
-    :func:`mtcomp.diagnose._written.choose`) and both fits' held-out rms."""
-    key, unit = next((k, u) for k, u in (("um", "um"), ("urad", "urad"), ("um_min", "um/min"))
-                     if f"heldout_rms_penalised_{k}" in written)
-    pen, ls = written[f"heldout_rms_penalised_{key}"], written[f"heldout_rms_least_squares_{key}"]
-    if written["model"] == "penalised":
-        return (f"the penalised fit (held-out rms {_num(pen)} {unit}; the selection's least squares "
-                f"{_num(ls)} {unit})")
-    return (f"the selection's least squares (held-out rms {_num(ls)} {unit}; the penalised fit "
-            f"{_num(pen)} {unit}, worse than noise could make it)")

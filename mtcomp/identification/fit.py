@@ -56,7 +56,7 @@ from ..measurement.readings import data_held, data_support
 from ..models.model_file import FittedModel
 from ..models.params import ParameterSet
 from .reversal import DirectionContrast, data_reversal
-from .unmeasured import record_unmeasured, setups_without_variance, unmeasured_to_zero, unmeasured_unknowns
+from .unmeasured import record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
 from ._linalg import (NULL_WEIGHT, column_scale, _eliminate, _error_scales, _name_null_space,
                       _relative_singular_values, _seen_columns, _solver, _step, block_obs,
                       file_normal_equations, one_blas_thread, penalised_inverse)
@@ -130,7 +130,6 @@ def _solve(problem: FitProblem, options: SolverOptions, info: dict | None, t0: f
                          paths[0] if len(paths) == 1 else None)
     stacked = _Problem(problem.model, mms, np.asarray(problem.free, dtype=bool), problem.start)
     stacked.use_penalty, stacked.hold_weak = problem.penalty, problem.hold_weak
-    stacked.setups_free = problem.setups_free
     stacked.travel_metric = travel_metric(problem.model, stacked.free_idx, stacked.n_unknowns)
     # what the data fix only weakly is judged where the model is used: the data's region
     region = data_region(problem.model.machine, mms, fitted_axes(problem.model, problem.free))
@@ -226,8 +225,6 @@ class _Problem:
     use_penalty = True
     #: directions fixed only to worse than WEAK_SD_UM are held at the least error (second pass)
     hold_weak = True
-    #: the set-ups carry no variance where the undetermined directions allow
-    setups_free = False
 
     def __init__(self, model, mms, mask, p0):
         self.model = model
@@ -498,9 +495,6 @@ class _Problem:
             self, start, first, w, max_iterations, tol, B1, scale, data_rank) if self.hold_weak else first
         x, r, P = unmeasured_to_zero(self, x, r, w, scale[:, None] * V[:, ~keep])
         lev, edf, cov, held, held_sd = self._posterior(x, r, w, scale, B, AB, rank, leverage, P)
-        if self.setups_free:
-            cov, held, held_sd = setups_without_variance(cov, held, held_sd, scale[:, None] * null,
-                                                         self.n_free, self.metric)
         if self.S is not None:
             lam = {k: float(np.exp(v)) for k, v in self.smoothing_rho.items()}
             self.smoothing = Smoothing(lam, dict(self.smoothing_rho), edf)

@@ -46,7 +46,7 @@ import scipy.optimize
 from ..models.basis import axis_spline
 
 #: the classes of component that share one penalty weight
-CLASSES = ("positioning", "straightness", "angular", "rotary angular", "rotary translational", "reversal")
+CLASSES = ("positioning", "straightness", "angular", "rotary angular", "rotary translational")
 #: log weights are searched in [-RHO_BOUND, RHO_BOUND] about the class's normalised penalty
 RHO_BOUND = 30.0
 #: grid weights whose fast criterion is within this (relative to the least, and at least 1e3 times
@@ -62,9 +62,6 @@ def component_class(machine, group: str) -> str | None:
     if ":" not in group:
         return None
     axis, comp = group.split(":", 1)
-    if axis == "backlash":
-        # a reversal that varies along a linear axis (Backlash(profile=True)): a profile like the others
-        return "reversal" if comp in machine.axis_names and not machine.axis(comp).is_rotary else None
     if len(comp) != 3 or not comp.startswith("E") or axis not in machine.axis_names:
         return None
     direction, of = comp[1], comp[2]
@@ -93,8 +90,7 @@ def penalty_matrices(model, free_idx: np.ndarray, n_unknowns: int) -> dict[str, 
         cls = component_class(machine, group)
         if cls is None:
             continue
-        name = group.split(":", 1)
-        axis = machine.axis(name[1] if cls == "reversal" else name[0])
+        axis = machine.axis(group.split(":", 1)[0])
         names = [specs[i].name.rsplit("_", 1)[1] for i in idx]
         block = _block(axis, names)
         if block is None:

@@ -47,8 +47,7 @@ class FitProblem:
     ``"noise"`` (1/noise per file and unit, re-estimated) or {tag: noise}. penalty : the profiles
     carry a roughness penalty whose weights REML chooses (:mod:`.penalty`). hold_weak : directions the
     data fix only to worse than 1 um of tool-tip error over the region they cover are held at the
-    least error. setups_free : the files' set-ups carry no variance where the undetermined directions
-    allow (:func:`.unmeasured.setups_without_variance`; diagnose's penalised fit on finer knots).
+    least error.
     outliers : the policy the files were read with (``"keep"``, or ``"repeats"``: readings far off
     their repeats left out, :func:`without_outliers`); ``removed`` the readings it left out.
     context_defaults : values of context channels the files lack.
@@ -64,7 +63,6 @@ class FitProblem:
     outliers: str = "keep"
     removed: list = field(default_factory=list)
     context_defaults: dict = field(default_factory=dict)
-    setups_free: bool = False
 
     @classmethod
     def from_data(cls, machine_or_model, datasets, *, free=None, hold=(), initial=None, weights="unit",

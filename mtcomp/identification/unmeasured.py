@@ -83,45 +83,12 @@ def assumption_map(problem, data_null) -> np.ndarray | None:
     standard errors stay. Unlike conditioning the covariance on those parameters being zero, which
     also took the variance of the named component along with them (a combination of a positioning
     profile and a pitch the data see only in sum), this keeps it."""
-    return null_move(data_null, unmeasured_unknowns(problem))
-
-
-def null_move(null, u: np.ndarray) -> np.ndarray | None:
-    """(n, n) P, the linear move ``x -> P x`` along ``null`` (n, k: directions the data do not see)
-    that takes the unknowns ``u`` ((n,) bool) as near zero as those directions allow; None when there
-    is nothing to move."""
-    if not u.any() or null.shape[1] == 0:
+    u = unmeasured_unknowns(problem)
+    if not u.any() or data_null.shape[1] == 0:
         return None
-    P = np.eye(null.shape[0])
-    P[:, u] -= null @ np.linalg.pinv(null[u], rcond=1e-10)
+    P = np.eye(data_null.shape[0])
+    P[:, u] -= data_null @ np.linalg.pinv(data_null[u], rcond=1e-10)
     return P
-
-
-def setups_without_variance(cov, held, held_sd, null, n_free: int, metric=None) -> tuple:
-    """(cov, held, held_sd) of a fit moved along ``null`` (n_unknowns, k, internal units: what
-    neither data nor penalty fixes, a profile's level against a laser's zero ...) so that the files'
-    set-ups (the unknowns from ``n_free`` on) carry no variance where those directions allow.
-
-    A combination the roughness penalty alone fixes can move a set-up against the machine errors (a
-    profile's values at a laser's targets, not between them, against its zero): its variance then
-    sits in a parameter and its set-up together, and the readings it leaves unchanged would get it
-    from the parameters alone. The posterior is flat along ``null``, so this is the same posterior,
-    written with the variance a set-up shares in the machine errors it trades with: the readings of
-    the fitted files keep their variance (J P = J). ``held`` (n_unknowns, h) held directions, each 1
-    um rms tool-tip error over the data's region (``metric``, mm^2; without one, as they are), and
-    their standard errors ``held_sd`` (h,) follow; one left with no size is dropped (its variance
-    went with it)."""
-    u = np.arange(null.shape[0]) >= n_free
-    P = null_move(null, u)
-    if P is None:
-        return cov, held, held_sd
-    moved = P @ held
-    if metric is None or not moved.shape[1]:
-        size = np.ones(moved.shape[1])
-    else:
-        size = np.sqrt(np.clip(np.einsum("ik,ij,jk->k", moved, metric * 1e6, moved), 0.0, None))
-    keep = size > 1e-12
-    return P @ cov @ P.T, moved[:, keep] / size[keep], np.asarray(held_sd)[keep] * size[keep]
 
 
 def unmeasured_to_zero(problem, x, r, w, data_null) -> tuple:
