@@ -39,13 +39,21 @@ def test_result_type_against_lstsq_on_a_hand_built_design(tmp_path):
                                    hold_weak=False)
     res = solve(problem, SolverOptions())
     # the oracle: columns (s/1m)^1..3 and 1, readings in um
-    rows = np.loadtxt(path, delimiter=",", skiprows=1, usecols=(2, 5))
-    s, y = rows[:, 0] / 1000.0, rows[:, 1]
+    rows = np.loadtxt(path, delimiter=",", skiprows=1, usecols=(2, 3, 5))
+    s, d, y = rows[:, 0] / 1000.0, rows[:, 1], rows[:, 2]
     X = np.column_stack([s, s ** 2, s ** 3, np.ones_like(s)])
     coef, sse, *_ = np.linalg.lstsq(X, y, rcond=None)
     n, p = X.shape
     s2 = float(sse[0]) / (n - p)
-    cov = s2 * np.linalg.inv(X.T @ X)
+    # its standard errors: the residual variance of the same design with one reversal column per
+    # target read from both sides (the approach direction there, 0 elsewhere), which the engine
+    # counts as error a base model leaves, not noise (balanced runs: the coefficients are the same)
+    R = np.column_stack([(rows[:, 0] == t) * d for t in np.unique(rows[:, 0])])
+    full = np.column_stack([X, R])
+    coef_full, sse_full, *_ = np.linalg.lstsq(full, y, rcond=None)
+    np.testing.assert_allclose(coef_full[:p], coef, rtol=1e-9, atol=1e-9)
+    s2_noise = float(sse_full[0]) / (n - p - R.shape[1])
+    cov = s2_noise * np.linalg.inv(full.T @ full)[:p, :p]
     params = res.params
     got = np.array([params[nm] for nm in free]) * 1e3                 # internal mm -> um
     np.testing.assert_allclose(got, coef[:3], rtol=1e-8, atol=1e-9)
