@@ -24,11 +24,13 @@ output's first line after the file header says so.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..errors import InputError
 from ..io.atomic import atomic_write
-from .heidenhain_out import HeidenhainWriter, plan_blocks
+from .heidenhain_out import ROTARY_ARC_TOL_RAD, HeidenhainWriter, plan_blocks
 from .heidenhain import read_lines
 from .sinumerik import AXES, BLOCK_START
 from .sinumerik_lang import code_end, split_words
@@ -159,6 +161,42 @@ class SinumerikWriter(HeidenhainWriter):
             said[k] = value_said + base
         return _edit(text, edits) + ending, said
 
+    def centres(self) -> None:
+        """The circles' centres (:meth:`HeidenhainWriter.centres`); a circle refused because a
+        rotary axis's correction varies along it is refused naming that cause: no chord tolerance
+        lets it through, since a circle holds the rotary axis at its written value."""
+        try:
+            super().centres()
+        except InputError as exc:
+            cause = self._rotary_cause(exc.line - 1) if exc.line is not None else None
+            if cause is None:
+                raise
+            raise InputError(cause, self.src.source, line=exc.line) from None
+
+    def _rotary_cause(self, line: int) -> str | None:
+        """Why the circle of ``line`` (0-based) is refused when its rotary axes are: the rotary
+        axis whose corrected path leaves the value the circle holds, and by how much; None when
+        every rotary axis stays within ROTARY_ARC_TOL_RAD of it."""
+        for arcs in self.arcs.values():
+            for a in arcs:
+                if a.line != line:
+                    continue
+                for j in np.flatnonzero(~self.linear):
+                    span = np.abs(a.samples[:, j] - a.start_w[j])
+                    if span.max() <= ROTARY_ARC_TOL_RAD:
+                        continue
+                    change = np.degrees(np.ptp(np.append(a.samples[:, j], a.start_w[j])))
+                    # corrections within +-bound differ by 2 bound along the circle, and the
+                    # written start (4 decimals of a degree) by up to half a step more
+                    bound = math.floor(0.25 * ROTARY_ARC_TOL_RAD * 1e7) / 10      # urad
+                    return (f"the correction of {self.letters[j]} varies along the circle G2/G3 of "
+                            f"line {line + 1} by {change:.5f} deg, and a circle holds "
+                            f"{self.letters[j]} at its written value (within "
+                            f"{np.degrees(ROTARY_ARC_TOL_RAD):g} deg): a larger --chord-tol-um does "
+                            f"not help; bound the rotary corrections with --max-correction-urad "
+                            f"{bound:.1f} (or less), which a circle holds")
+        return None
+
     # ------------------------------------------------------------------ blocks
     def block(self, g: int, block, pts: np.ndarray, _counts=None) -> None:
         """A motion block of G-code line g (0-based) and its corrected points."""
@@ -173,11 +211,6 @@ class SinumerikWriter(HeidenhainWriter):
         elif info.kind == "retract":
             self.retracts += 1
             self.written[self.zi] = block.end[self.zi]
-        elif info.pattern is not None:               # a HOLES2 position of another subprogram
-            self.xy[g] = np.array([float(_number(self._units(j, pts[-1][j], info.shift), 4))
-                                   for j in self.cols])
-            self.dxy[g] = (pts[-1] - block.end)[self.cols]
-            self.written[self.cols] = self.xy[g]
         elif info.kind == "approach":
             write = np.ones(self.na, bool)
             write[self.cols] = False
@@ -275,7 +308,7 @@ class SinumerikWriter(HeidenhainWriter):
 
     def _expand(self, p) -> None:
         text = self.texts[p.line].rstrip("\r\n")
-        call_start = text.upper().rfind("HOLES2", 0, p.spans[0][0])
+        call_start = text.upper().rfind(p.name, 0, p.spans[0][0])
         lines = []
         for n, h in enumerate(p.holes):
             if h in self.restate:
@@ -307,7 +340,7 @@ class SinumerikWriter(HeidenhainWriter):
             if i == head and (self.added or self.replaced):
                 out.append(f"; mtcomp: {self.added} block{'s' if self.added != 1 else ''} added to "
                            "write corrected holes (a cycle call restated, a hole's position, "
-                           "a HOLES2 circle written as explicit positions)" + ending)
+                           "a hole pattern HOLES1 or HOLES2 written as explicit positions)" + ending)
             own = text[len(text.rstrip("\r\n")):] or ending
             out.extend(t + own for t in self.before.get(i, []))
             if i in self.replaced:
@@ -343,8 +376,9 @@ def _notes(src, w: SinumerikWriter, stats) -> None:
             "modes are taken as before the call (a Siemens subprogram with SAVE restores them)")
     holes = len(w.dz)
     if holes:
+        names = ", ".join(sorted({call.name for call in src.sinumerik.calls if call.holes}))
         src.notes.append(
-            f"{holes} hole{'s' if holes != 1 else ''} of drilling cycles (CYCLE81, CYCLE84) "
+            f"{holes} hole{'s' if holes != 1 else ''} of drilling cycles ({names}) "
             "corrected at the bottom: X Y of the hole, the reference plane RFP moved by the Z "
             f"correction (the depth below it kept); the retract plane RTP kept as written "
             f"({w.retracts} retract{'s' if w.retracts != 1 else ''}: BLOCKS.csv gives their "
