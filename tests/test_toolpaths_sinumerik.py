@@ -2,6 +2,7 @@
 cases, and a compensated program against the independent replay of tests/replay_sinumerik.py."""
 import csv
 import math
+import re
 
 import numpy as np
 import pytest
@@ -203,9 +204,9 @@ def test_a_compensated_program_drills_where_the_plan_says(tmp_path, capsys):
     assert text.splitlines()[-2:] == ["N170 L55", "N180 M30"]
 
 
-def _shifted(path, machine, shift):
+def _shifted(path, machine, shift, chord_tol_mm=0.001):
     """The corrections that move every point by ``shift(points)`` (mm), for write_corrected."""
-    for chunk in iter_segment_chunks(path, machine):
+    for chunk in iter_segment_chunks(path, machine, chord_tol_mm):
         yield chunk, chunk.end + shift(chunk.end), np.ones(len(chunk), np.int64)
 
 
@@ -328,3 +329,30 @@ def test_g500_returns_to_the_basic_frame_and_every_axis_is_unknown(tmp_path):
     setup = ProgramSetup(load_machine("xfyz"), work_offsets={0: np.array([100.0, 0.0, 0.0])})
     ends = np.vstack([setup.apply(c)[0].end for c in chunks])
     np.testing.assert_allclose(ends[:, 0], [101.0, 5.0, 106.0], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("chord_tol_mm", [0.001, 0.05])
+def test_a_circle_whose_rotary_correction_varies_is_refused_for_that_cause(tmp_path, chord_tol_mm):
+    # B corrected by 1e-7 rad per mm of X along a full circle of radius 47.93 at B 90: its
+    # correction varies by about 2 * 47.93 * 1e-7 rad = 0.00055 deg along it (by hand), more than
+    # the 1e-4 deg a circle holds B within; no chord tolerance changes that
+    machine = load_machine(_machine_file(tmp_path, "BFXYZ"))
+    b = machine.axis_names.index("B")
+    path = _write(tmp_path, "N10 G0 B90\nN20 G0 X0 Y140 Z150 F500\nN30 G1 Y140.\n"
+                            "N40 G3 I=AC(0) J=AC(92.07)\nN50 G0 Z200\nM30\n")
+    unit = np.zeros(machine.n_axes)
+    unit[b] = 1e-7
+    out = tmp_path / "out.mpf"
+    with pytest.raises(InputError) as e:
+        write_corrected(path, out, machine, _shifted(path, machine, lambda p: np.outer(
+            p[:, machine.axis_names.index("X")], unit), chord_tol_mm), chord_tol_mm)
+    assert e.value.line == 6 and not out.exists()
+    got = re.search(r"the correction of B varies along the circle G2/G3 of line 6 by ([0-9.]+) "
+                    r"deg", e.value.message)
+    assert got is not None, e.value.message
+    assert float(got.group(1)) == pytest.approx(math.degrees(2 * 47.93e-7), rel=0.02, abs=0)
+    assert "--max-correction-urad 0.4" in e.value.message and "chord" in e.value.message
+    # what it advises: B corrected within +-0.4 urad, the same circle is written
+    write_corrected(path, out, machine, _shifted(path, machine, lambda p: np.outer(
+        np.clip(p[:, machine.axis_names.index("X")], -4, 4), unit), chord_tol_mm), chord_tol_mm)
+    assert out.read_text(encoding="latin-1").splitlines()[5] == "N40 G3 I=AC(0) J=AC(92.07)"
