@@ -17,9 +17,9 @@ the cycle's reference plane RFP (and an absolute depth DP) moved by the Z correc
 line when every hole of the call gets the same; otherwise the call is repeated (``MCALL
 CYCLE81(...)`` with that hole's levels) before each hole whose levels differ. A single call's hole
 (at the position the block before left) gets a positioning block ``X.. Y..`` before the call where
-its corrected position differs from the written one. A ``HOLES2`` circle whose holes share one
-correction gets its centre CPA CPO moved; otherwise it is written as explicit positions, one block
-each. The retract plane RTP is kept as written (a clearance, not a cut). Where lines are added the
+its corrected position differs from the written one. A hole pattern (``HOLES1`` row, ``HOLES2``
+circle) whose holes share one correction gets its reference point moved; otherwise it is written as
+explicit positions, one block each. The retract plane RTP is kept as written (a clearance, not a cut). Where lines are added the
 output's first line after the file header says so.
 """
 from __future__ import annotations
