@@ -356,3 +356,54 @@ def test_a_circle_whose_rotary_correction_varies_is_refused_for_that_cause(tmp_p
     write_corrected(path, out, machine, _shifted(path, machine, lambda p: np.outer(
         np.clip(p[:, machine.axis_names.index("X")], -4, 4), unit), chord_tol_mm), chord_tol_mm)
     assert out.read_text(encoding="latin-1").splitlines()[5] == "N40 G3 I=AC(0) J=AC(92.07)"
+
+
+def _along(move, n=400):
+    """Points (n, 3) along a replayed circle move: the angle and the radius go linearly from the
+    start to the end, Z too (a controller's helix)."""
+    cx, cy = move.centre
+    s, e = move.start, move.end
+    a0 = math.atan2(s["Y"] - cy, s["X"] - cx)
+    r0, r1 = math.hypot(s["X"] - cx, s["Y"] - cy), math.hypot(e["X"] - cx, e["Y"] - cy)
+    u = np.linspace(0.0, 1.0, n)
+    r = r0 + (r1 - r0) * u
+    return np.column_stack([cx + r * np.cos(a0 + move.sweep * u), cy + r * np.sin(a0 + move.sweep * u),
+                            s["Z"] + (e["Z"] - s["Z"]) * u])
+
+
+def test_a_circle_the_correction_bends_is_written_in_pieces_within_the_tolerance(tmp_path):
+    # a full circle of radius 20 about (0, 0) from (20, 0) at Z -1; every point moved by 2e-4 * y
+    # in X: the corrected path (20 cos t + 0.004 sin t, 20 sin t) is an ellipse whose radius
+    # about any centre changes by about 4 um (by hand: r = 20 + 0.002 sin 2t), which no circle
+    # holds within the 1 um default; the pieces written, replayed independently, stay within
+    # 1 um of it (and 0.1 um for the written decimals) and go once around
+    path = _write(tmp_path, "N10 G0 X20 Y0 Z5 F300\nN20 G1 Z-1\nN30 G3 I=AC(0) J=AC(0) F200\n"
+                            "N40 G0 Z20\nM30\n")
+    lines = _lines_after(path, load_machine("xfyz"), lambda p: np.outer(p[:, 1], [2e-4, 0, 0]))
+    assert lines[2].startswith("; mtcomp: ") and "circle written in pieces" in lines[2]
+    assert re.fullmatch(r"N30 G3 X\S+ Y\S+ I=AC\(\S+\) J=AC\(\S+\) F200", lines[5]), lines[5]
+    arcs = [m for m in replay_sinumerik.replay("\n".join(lines).encode("latin-1")).moves
+            if m.kind == "arc"]
+    assert len(arcs) >= 2 and all(re.fullmatch(r"X\S+ Y\S+ I=AC\(\S+\) J=AC\(\S+\)",
+                                               lines[m.line]) for m in arcs[1:])
+    assert sum(m.sweep for m in arcs) == pytest.approx(2 * math.pi, rel=0, abs=1e-3)
+    # each point's place on the ellipse (exact on it: x - 2e-4 y = 20 cos t), then searched about
+    # it in steps of 1e-6 rad (0.02 um)
+    got = np.vstack([_along(m) for m in arcs])
+    t = np.arctan2(got[:, 1], got[:, 0] - 2e-4 * got[:, 1])[:, None] + np.linspace(-2e-4, 2e-4, 401)
+    corrected = np.stack([20 * np.cos(t) + 0.004 * np.sin(t), 20 * np.sin(t), -np.ones_like(t)], -1)
+    nearest = np.min(np.linalg.norm(corrected - got[:, None, :], axis=2), axis=1)
+    assert nearest.max() <= 1.1e-3
+    assert nearest.max() > 0.3e-3            # the pieces do use the tolerance (it is not trivial)
+
+
+def test_a_circle_whose_z_correction_changes_gets_the_corrected_z(tmp_path):
+    # a half circle from (20, 0) to (-20, 0) about (0, 0), Z corrected by 1e-4 * x: from +2 um to
+    # -2 um along it, so one circle at the start's Z misses the end by 4 um; as a helix to the
+    # corrected Z -1.0020 it misses by at most 2 cos t - (2 - 4 t / pi) um, 0.42 um (by hand):
+    # one block, the end point and centre as the source wrote them
+    path = _write(tmp_path, "N10 G0 X20 Y0 Z5 F300\nN20 G1 Z-1\nN30 G3 X-20 Y0 I=AC(0) J=AC(0) F200\n"
+                            "N40 G0 Z20\nM30\n")
+    lines = _lines_after(path, load_machine("xfyz"), lambda p: np.outer(p[:, 0], [0, 0, 1e-4]))
+    assert lines[3:6] == ["N20 G1 Z-0.9980", "N30 G3 X-20 Y0 Z-1.0020 I=AC(0) J=AC(0) F200",
+                          "N40 G0 Z19.9980"]
