@@ -7,12 +7,15 @@ Rules: `;` comments; `N` numbers and `NAME:` labels; `%_N_..._MPF` header; `/` s
 (the block-skip switch off: the only ones the corpus has move nothing); `DEF REAL|INT name=value`
 and `R<n>=` parameters, `X=expr` (the four operations and parentheses); G0 G1 straight moves, G2 G3
 circles in G17 about `I=AC(..) J=AC(..)` (absolute) or `I J` (from the start), without an end
-point the full circle; a work offset change (G54 ..., from the basic setting G500) and a subprogram or cycle whose moves are not
-in the file (`L54`, `NAME(...)`, `MCALL NAME(...)` after each positioning block) leave every axis
-unknown, a tool change M6 leaves Z unknown. CYCLE81 / CYCLE84 (RTP, RFP, SDIS, DP, DPR): from the
-position, rapid to RFP+SDIS, feed to the depth (RFP-DPR when DPR is given, else DP), rapid to RTP;
-called once by `CYCLE81(...)` or after each positioning block of `MCALL CYCLE81(...)` until `MCALL`;
-`HOLES2(CPA, CPO, RAD, STA1, INDA, NUM)` positions at rapid on the circle, the modal call at each.
+point the full circle; a work offset change (G54 ..., and back to the basic frame G500) and a
+subprogram or cycle whose moves are not in the file (`L54`, `NAME(...)`, `MCALL NAME(...)` after
+each positioning block) leave every axis unknown, as does a tool change M6 (the machine maker's
+cycle). CYCLE81 ... CYCLE89 (RTP, RFP, SDIS, DP, DPR, ...): from the position, rapid to RFP+SDIS,
+feed to the depth (RFP-DPR when DPR is given, else DP), rapid to RTP; called once by
+`CYCLE81(...)` or after each positioning block of `MCALL CYCLE81(...)` until `MCALL`;
+`HOLES2(CPA, CPO, RAD, STA1, INDA, NUM)` positions at rapid on the circle, `HOLES1(SPCA, SPCO,
+STA1, FDIS, DBH, NUM)` on the line from (SPCA, SPCO) at STA1 degrees, FDIS to the first, DBH apart,
+the modal call at each.
 A line that holds a call, an `MCALL` or a circle's centre is a state line (its numbers move with
 the correction), so it is not among the lines without motion; nor is the output's note line
 `; mtcomp: ...`. `positioned_per_line` gives, per line, whether it may be rewritten and which
@@ -43,7 +46,7 @@ class _Controller:
         self.vars = {}
         self.motion = None
         self.modal = None           # the modal call: (name, argument texts)
-        self.wcs = 500              # the basic setting G500: no settable work offset
+        self.wcs = None             # no work system named yet
 
     def value(self, text):
         text = text.strip()
@@ -82,12 +85,12 @@ def _block(c, index, code):
             c.vars[name] = math.nan
     g = [int(v) for v in _G.findall(code)]
     for v in g:
-        if v in (54, 55, 56, 57) and v != c.wcs:
+        if v in (54, 55, 56, 57, 500) and v != c.wcs:
             c.wcs = v
             c.unknown()
     c.motion = next((v for v in g if v in (0, 1, 2, 3)), c.motion)
     if re.search(r"(?<![A-Z0-9_])M0*6(?!\d)", code):
-        c.pos = dict(c.pos, Z=None)
+        c.unknown()
     if code.startswith("MCALL"):
         m = _CALL.search(code)
         c.modal = (m.group(1), m.group(2).split(",")) if m else None
@@ -115,7 +118,7 @@ def _block(c, index, code):
 
 
 def _cycle(c, index, name, args):
-    if name not in ("CYCLE81", "CYCLE84"):
+    if not re.fullmatch(r"CYCLE8[1-9]", name):
         c.unknown()
         return []
     rtp, rfp, sdis = (c.value(a) for a in args[:3])
@@ -129,13 +132,15 @@ def _cycle(c, index, name, args):
 
 
 def _call(c, index, name, args):
-    if name == "HOLES2":
-        cpa, cpo, rad, sta, inda, num = (c.value(a) for a in args)
-        step = inda if inda else 360.0 / num
+    if name in ("HOLES1", "HOLES2"):
+        x0, y0, p, q, r, num = (c.value(a) for a in args)
+        if name == "HOLES1":        # p: the line's angle, q: to the first hole, r: between holes
+            at = [(q + i * r, math.radians(p)) for i in range(int(num))]
+        else:                       # p: the radius, q: the first angle, r: the step (0: evenly)
+            at = [(p, math.radians(q + i * (r if r else 360.0 / num))) for i in range(int(num))]
         moves = []
-        for i in range(int(num)):
-            a = math.radians(sta + i * step)
-            end = dict(c.pos, X=cpa + rad * math.cos(a), Y=cpo + rad * math.sin(a))
+        for d, a in at:
+            end = dict(c.pos, X=x0 + d * math.cos(a), Y=y0 + d * math.sin(a))
             moves.append(Move(index, "rapid", dict(c.pos), end))
             c.pos = end
             moves += _cycle(c, index, *c.modal)

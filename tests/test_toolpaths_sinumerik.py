@@ -2,6 +2,7 @@
 cases, and a compensated program against the independent replay of tests/replay_sinumerik.py."""
 import csv
 import math
+import re
 
 import numpy as np
 import pytest
@@ -13,6 +14,7 @@ from mtcomp.errors import InputError
 from mtcomp.machine import load_machine
 from mtcomp.toolpaths.dialect import detect
 from mtcomp.toolpaths.gcode import iter_segment_chunks, read_program, write_corrected
+from mtcomp.toolpaths.offsets import ProgramSetup
 from mtcomp.toolpaths.sinumerik import translate
 from mtcomp.toolpaths.source import open_program
 from mtcomp.toolpaths.sinumerik_lang import evaluate
@@ -202,9 +204,9 @@ def test_a_compensated_program_drills_where_the_plan_says(tmp_path, capsys):
     assert text.splitlines()[-2:] == ["N170 L55", "N180 M30"]
 
 
-def _shifted(path, machine, shift):
+def _shifted(path, machine, shift, chord_tol_mm=0.001):
     """The corrections that move every point by ``shift(points)`` (mm), for write_corrected."""
-    for chunk in iter_segment_chunks(path, machine):
+    for chunk in iter_segment_chunks(path, machine, chord_tol_mm):
         yield chunk, chunk.end + shift(chunk.end), np.ones(len(chunk), np.int64)
 
 
@@ -234,3 +236,174 @@ def test_holes_of_one_call_at_different_depths_restate_the_call(tmp_path):
     assert lines[2].startswith("; mtcomp: 1 block added")
     assert lines[4:9] == ["N20 MCALL CYCLE81(15,5.0100,1,,3)", "N30 X10",
                           "MCALL CYCLE81(15,5.0200,1,,3)", "N40 X20", "N50 Y5"]
+
+
+def _lines_after(path, machine, shift, name="out.mpf"):
+    """The program written with every point moved by ``shift(points)`` (mm): its lines."""
+    out = path.parent / name
+    write_corrected(path, out, machine, _shifted(path, machine, shift))
+    return out.read_text(encoding="latin-1").splitlines()
+
+
+def test_a_tool_change_makes_every_axis_unknown_until_named(tmp_path):
+    # the machine maker's tool change cycle may move X, Y and Z: after M6 the block that names Z
+    # alone writes Z alone, and X Y come back only where the program names them
+    machine = load_machine("xfyz")
+    path = _write(tmp_path, "N10 T1 M6\nN20 G54 G0 X80 Y90 Z50 F300\nN30 G1 X120 Y60\n"
+                            "N40 G0 Z100\nN50 T2 M6\nN60 D1\nN70 G0 Z20\nN80 G1 X100\nN90 Y50\n"
+                            "N100 M30\n")
+    blocks = _blocks(path)
+    assert [b.known.tolist() for b in blocks[-3:]] == [[False, False, True], [True, False, True],
+                                                       [True, True, True]]
+    # X and Y corrected by 1 um per 10 mm of Z: every block's written value differs from the
+    # last, so the writer would add X Y wherever it held them known
+    lines = _lines_after(path, machine, lambda p: np.outer(p[:, 2], [1e-4, -1e-4, 0.0]))
+    assert lines[7:11] == ["N60 D1", "N70 G0 Z20", "N80 G1 X100.0020", "N90 Y49.9980"]
+    # the replay of the output: Y unknown from the tool change until N90 names it
+    positioned = replay_sinumerik.positioned_per_line("\n".join(lines))
+    assert positioned[7][1] == set() and positioned[9][1] == {"X", "Z"}
+
+
+@pytest.mark.parametrize("cycle", ["CYCLE82", "CYCLE83", "CYCLE84", "CYCLE85", "CYCLE86",
+                                   "CYCLE87", "CYCLE88", "CYCLE89"])
+def test_the_standard_drilling_cycles_drill_the_hole_of_cycle81(tmp_path, cycle):
+    # (RTP 15, RFP 5, SDIS 1, DP -30) and the cycle's own parameters after them: the hole at
+    # the positioning block's X Y, from RFP+SDIS = 6 down to DP = -30, then back to RTP 15
+    more = {"CYCLE83": ",-5,,3,0.5,0.5,1,0", "CYCLE86": ",1,3,-1,-1,0,45"}.get(cycle, ",1")
+    path = _write(tmp_path, f"N10 G0 X0 Y0 Z20 F300\nN20 MCALL {cycle}(15,5,1,-30,{more})\n"
+                            "N30 X100 Y20\nN40 MCALL\nN50 G0 Z40\nM30\n")
+    blocks = _blocks(path)
+    (hole,) = [b for b in blocks if b.cycle is not None]
+    np.testing.assert_allclose(hole.points[-1][:3], [100.0, 20.0, -30.0], rtol=0, atol=1e-12)
+    assert hole.cycle.r_level == pytest.approx(6.0, rel=0, abs=1e-12)
+    np.testing.assert_allclose(blocks[-1].start[:3], [100.0, 20.0, 15.0], rtol=0, atol=1e-12)
+    # the output: the hole's levels moved by the Z correction, no Z word on the positioning block
+    lines = _lines_after(path, load_machine("xfyz"), lambda p: [0.0, 0.0, 0.002])
+    assert lines[3:5] == [f"N20 MCALL {cycle}(15,5.0020,1,-29.9980,{more})", "N30 X100 Y20"]
+
+
+def test_an_mcall_of_a_cycle_not_read_passes_its_blocks_through(tmp_path):
+    # POCKET4 runs at each positioning block: that block is kept as written (no correction, no
+    # Z word), every axis is unknown after it, and the block after the cancel writes Z alone
+    machine = load_machine("xfyz")
+    path = _write(tmp_path, "N10 G0 X0 Y0 Z20 F300\nN20 MCALL POCKET4(15,5,1,-3,20)\n"
+                            "N30 X100 Y20\nN40 Y60\nN50 MCALL\nN60 G0 Z40\nN70 X10\nM30\n")
+    lines = _lines_after(path, machine, lambda p: [0.01, -0.01, 0.002])
+    assert lines[2:9] == ["N10 G0 X0.0100 Y-0.0100 Z20.0020 F300",
+                           "N20 MCALL POCKET4(15,5,1,-3,20)", "N30 X100 Y20", "N40 Y60",
+                           "N50 MCALL", "N60 G0 Z40.0020", "N70 X10.0100"]
+    with open_program(path) as src:
+        assert [(k + 1, name) for k, name in src.sinumerik.subprograms] == [(5, "POCKET4"),
+                                                                            (6, "POCKET4")]
+
+
+def test_holes1_drills_its_row_of_holes(tmp_path):
+    # HOLES1(SPCA 20, SPCO 100, STA1 30, FDIS 10, DBH 15, NUM 3): the holes 10, 25 and 40 mm from
+    # (20, 100) along 30 deg, by hand with cos 30 = sqrt(3)/2, sin 30 = 1/2
+    c = math.sqrt(3) / 2
+    path = _write(tmp_path, "N10 G0 X0 Y0 Z20 F300\nN20 MCALL CYCLE81(15,5,1,,3)\n"
+                            "N30 HOLES1(20,100,30,10,15,3)\nN40 MCALL\nM30\n")
+    holes = [b.points[-1][:3] for b in _blocks(path) if b.cycle is not None]
+    want = [(20 + d * c, 100 + d / 2, 2.0) for d in (10, 25, 40)]
+    np.testing.assert_allclose(holes, want, rtol=0, atol=1e-9)
+    # one correction for the row: its reference point moved; different ones: explicit positions
+    machine = load_machine("xfyz")
+    lines = _lines_after(path, machine, lambda p: [0.01, 0, 0])
+    assert lines[4] == "N30 HOLES1(20.0100,100,30,10,15,3)"
+    lines = _lines_after(path, machine, lambda p: np.outer(p[:, 0], [1e-4, 0, 0]))
+    x = [f"{v * 1.0001:.4f}" for v, _y, _z in want]
+    assert lines[5:8] == [f"N30 X{x[0]} Y{want[0][1]:.4f}", f"X{x[1]} Y{want[1][1]:.4f}",
+                          f"X{x[2]} Y{want[2][1]:.4f}"]
+
+
+def test_g500_returns_to_the_basic_frame_and_every_axis_is_unknown(tmp_path):
+    # G54 moves everything by (100, 0, 0) mm; G500 has no settable work offset: X5 after it is
+    # the machine position 5, Y and Z are not known until named
+    path = _write(tmp_path, "N10 G17 G90 G71 G40 G500\nN20 G54 G0 X1 Y2 Z3 F100\nN30 G500\n"
+                            "N40 X5\nN50 G0 G54 X6 Y7 Z8\nM30\n")
+    blocks = _blocks(path)
+    assert [b.known.tolist() for b in blocks] == [[True] * 3, [True, False, False], [True] * 3]
+    with open_program(path) as src:
+        chunks = list(iter_segment_chunks(path, load_machine("xfyz")))
+        assert src.sinumerik.gcode.count("G59.3") == 2
+    setup = ProgramSetup(load_machine("xfyz"), work_offsets={0: np.array([100.0, 0.0, 0.0])})
+    ends = np.vstack([setup.apply(c)[0].end for c in chunks])
+    np.testing.assert_allclose(ends[:, 0], [101.0, 5.0, 106.0], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("chord_tol_mm", [0.001, 0.05])
+def test_a_circle_whose_rotary_correction_varies_is_refused_for_that_cause(tmp_path, chord_tol_mm):
+    # B corrected by 1e-7 rad per mm of X along a full circle of radius 47.93 at B 90: its
+    # correction varies by about 2 * 47.93 * 1e-7 rad = 0.00055 deg along it (by hand), more than
+    # the 1e-4 deg a circle holds B within; no chord tolerance changes that
+    machine = load_machine(_machine_file(tmp_path, "BFXYZ"))
+    b = machine.axis_names.index("B")
+    path = _write(tmp_path, "N10 G0 B90\nN20 G0 X0 Y140 Z150 F500\nN30 G1 Y140.\n"
+                            "N40 G3 I=AC(0) J=AC(92.07)\nN50 G0 Z200\nM30\n")
+    unit = np.zeros(machine.n_axes)
+    unit[b] = 1e-7
+    out = tmp_path / "out.mpf"
+    with pytest.raises(InputError) as e:
+        write_corrected(path, out, machine, _shifted(path, machine, lambda p: np.outer(
+            p[:, machine.axis_names.index("X")], unit), chord_tol_mm), chord_tol_mm)
+    assert e.value.line == 6 and not out.exists()
+    got = re.search(r"the correction of B varies along the circle G2/G3 of line 6 by ([0-9.]+) "
+                    r"deg", e.value.message)
+    assert got is not None, e.value.message
+    assert float(got.group(1)) == pytest.approx(math.degrees(2 * 47.93e-7), rel=0.02, abs=0)
+    assert "--max-correction-urad 0.4" in e.value.message and "chord" in e.value.message
+    # what it advises: B corrected within +-0.4 urad, the same circle is written
+    write_corrected(path, out, machine, _shifted(path, machine, lambda p: np.outer(
+        np.clip(p[:, machine.axis_names.index("X")], -4, 4), unit), chord_tol_mm), chord_tol_mm)
+    assert out.read_text(encoding="latin-1").splitlines()[5] == "N40 G3 I=AC(0) J=AC(92.07)"
+
+
+def _along(move, n=400):
+    """Points (n, 3) along a replayed circle move: the angle and the radius go linearly from the
+    start to the end, Z too (a controller's helix)."""
+    cx, cy = move.centre
+    s, e = move.start, move.end
+    a0 = math.atan2(s["Y"] - cy, s["X"] - cx)
+    r0, r1 = math.hypot(s["X"] - cx, s["Y"] - cy), math.hypot(e["X"] - cx, e["Y"] - cy)
+    u = np.linspace(0.0, 1.0, n)
+    r = r0 + (r1 - r0) * u
+    return np.column_stack([cx + r * np.cos(a0 + move.sweep * u), cy + r * np.sin(a0 + move.sweep * u),
+                            s["Z"] + (e["Z"] - s["Z"]) * u])
+
+
+def test_a_circle_the_correction_bends_is_written_in_pieces_within_the_tolerance(tmp_path):
+    # a full circle of radius 20 about (0, 0) from (20, 0) at Z -1; every point moved by 2e-4 * y
+    # in X: the corrected path (20 cos t + 0.004 sin t, 20 sin t) is an ellipse whose radius
+    # about any centre changes by about 4 um (by hand: r = 20 + 0.002 sin 2t), which no circle
+    # holds within the 1 um default; the pieces written, replayed independently, stay within
+    # 1 um of it (and 0.1 um for the written decimals) and go once around
+    path = _write(tmp_path, "N10 G0 X20 Y0 Z5 F300\nN20 G1 Z-1\nN30 G3 I=AC(0) J=AC(0) F200\n"
+                            "N40 G0 Z20\nM30\n")
+    lines = _lines_after(path, load_machine("xfyz"), lambda p: np.outer(p[:, 1], [2e-4, 0, 0]))
+    assert lines[2].startswith("; mtcomp: ") and "circle written in pieces" in lines[2]
+    assert re.fullmatch(r"N30 G3 X\S+ Y\S+ I=AC\(\S+\) J=AC\(\S+\) F200", lines[5]), lines[5]
+    arcs = [m for m in replay_sinumerik.replay("\n".join(lines).encode("latin-1")).moves
+            if m.kind == "arc"]
+    assert len(arcs) >= 2 and all(re.fullmatch(r"X\S+ Y\S+ I=AC\(\S+\) J=AC\(\S+\)",
+                                               lines[m.line]) for m in arcs[1:])
+    assert sum(m.sweep for m in arcs) == pytest.approx(2 * math.pi, rel=0, abs=1e-3)
+    # each point's place on the ellipse (exact on it: x - 2e-4 y = 20 cos t), then searched about
+    # it in steps of 1e-6 rad (0.02 um)
+    got = np.vstack([_along(m) for m in arcs])
+    t = np.arctan2(got[:, 1], got[:, 0] - 2e-4 * got[:, 1])[:, None] + np.linspace(-2e-4, 2e-4, 401)
+    corrected = np.stack([20 * np.cos(t) + 0.004 * np.sin(t), 20 * np.sin(t), -np.ones_like(t)], -1)
+    nearest = np.min(np.linalg.norm(corrected - got[:, None, :], axis=2), axis=1)
+    assert nearest.max() <= 1.1e-3
+    assert nearest.max() > 0.3e-3            # the pieces do use the tolerance (it is not trivial)
+
+
+def test_a_circle_whose_z_correction_changes_gets_the_corrected_z(tmp_path):
+    # a half circle from (20, 0) to (-20, 0) about (0, 0), Z corrected by 1e-4 * x: from +2 um to
+    # -2 um along it, so one circle at the start's Z misses the end by 4 um; as a helix to the
+    # corrected Z -1.0020 it misses by at most 2 cos t - (2 - 4 t / pi) um, 0.42 um (by hand):
+    # one block, the end point and centre as the source wrote them
+    path = _write(tmp_path, "N10 G0 X20 Y0 Z5 F300\nN20 G1 Z-1\nN30 G3 X-20 Y0 I=AC(0) J=AC(0) F200\n"
+                            "N40 G0 Z20\nM30\n")
+    lines = _lines_after(path, load_machine("xfyz"), lambda p: np.outer(p[:, 0], [0, 0, 1e-4]))
+    assert lines[3:6] == ["N20 G1 Z-0.9980", "N30 G3 X-20 Y0 Z-1.0020 I=AC(0) J=AC(0) F200",
+                          "N40 G0 Z19.9980"]

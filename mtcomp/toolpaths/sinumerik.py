@@ -6,7 +6,8 @@ three: the cycle, its cancel and the retract to the cycle's retract plane); the 
 lines to source lines names the source in every message and report. The corrected program is
 written back in its own form by :mod:`.sinumerik_out`. The rules are those of Siemens AG, SINUMERIK
 840D sl Programming Manual, Fundamentals (2013) and Job planning (2013), and of its Cycles manual
-(SINUMERIK 840D sl / 828D Cycles, Programming Manual, 2013) for CYCLE81, CYCLE84 and HOLES2;
+(SINUMERIK 840D sl / 828D Cycles, Programming Manual, 2013) for the drilling cycles CYCLE81 to
+CYCLE89 and the hole patterns HOLES1 and HOLES2;
 docs/toolpaths.md, "Siemens Sinumerik", lists them with what is refused.
 """
 from __future__ import annotations
@@ -50,8 +51,14 @@ _REFUSED_WORDS = {
     "RND": "a rounding (RND)", "CHF": "a chamfer (CHF)", "CHR": "a chamfer (CHR)",
     "SPOS": "spindle positioning (SPOS)", "SUPA": "a block in machine coordinates (SUPA)",
 }
-#: the drilling cycles read: their moves are a hole from RFP+SDIS to the depth, back to RTP
-_DRILLING = {"CYCLE81", "CYCLE84"}
+#: the drilling cycles read: their moves are a hole from RFP+SDIS to the depth, back to RTP. They
+#: share CYCLE81's first five parameters (RTP, RFP, SDIS, DP, DPR) and its hole; what else they do
+#: (pecks, dwells, the spindle stopped, a lift-off at the bottom, the way out) keeps the hole where
+#: it is (Cycles manual, 2013)
+_DRILLING = {f"CYCLE8{n}" for n in range(1, 10)}
+#: the hole patterns read under a modal call: their arguments
+_PATTERNS = {"HOLES1": ("SPCA", "SPCO", "STA1", "FDIS", "DBH", "NUM"),
+             "HOLES2": ("CPA", "CPO", "RAD", "STA1", "INDA", "NUM")}
 
 
 @dataclass
@@ -92,9 +99,11 @@ class Call:
 
 @dataclass
 class Pattern:
-    """A HOLES2 hole circle: its line, the argument texts and spans, its holes' positions."""
+    """A hole pattern (HOLES1 a row, HOLES2 a circle): its line, the argument texts and spans, its
+    holes' positions, its reference point (the first two arguments)."""
 
     line: int
+    name: str
     args: list
     spans: list
     positions: list
@@ -135,6 +144,9 @@ class _Reader:
         self.plane = 17
         self.tool = 0
         self.wcs = 500                          # the basic setting: no settable work offset
+        #: the G-code equivalent is in the basic frame (G500 named; before any work system is
+        #: named it reads the G-code default G54: the reset setting is a machine datum)
+        self.basic = False
         self.modal_call: Call | str | None = None   # a drilling Call, or the name of another
         self.ended = False
         self.r_lost = False                     # a subprogram may have set any R parameter
@@ -255,8 +267,11 @@ class _Reader:
             return
         self._move(g, axes, centre, other)
         if "M6" in other:
-            self.pos["Z"] = None
+            # the machine maker's tool change cycle moves the axes it needs (on a horizontal
+            # machine Y and Z, often X): every position is unknown until the program names it
+            self.pos = dict.fromkeys(AXES)
             self.emit(f"T{self.tool} M6 " + (f"G43 H{self.tool}" if self.tool else "G49"))
+            self.emit("G43.1")
         if "END" in other:
             self.ended = True
             self.emit("M30")
@@ -303,8 +318,14 @@ class _Reader:
             elif code in (54, 55, 56, 57) and code != self.wcs:
                 # every position in the new frame is unknown (the G-code reader is told so)
                 self.wcs = code
+                self.basic = False
                 self.pos = dict.fromkeys(AXES)
                 self.emit("G43.1")
+            elif code == 500:
+                if not self.basic:
+                    self.wcs = code
+                    self.pos = dict.fromkeys(AXES)
+                    self._basic_frame()
             elif code in (70, 700):
                 raise self.err("inch programs (G70, G700) are not read by mtcomp's Sinumerik "
                                "dialect")
@@ -318,6 +339,13 @@ class _Reader:
                 raise self.err(f"G{code} is not read by mtcomp")
         if "D0" in other:
             self.pos["Z"] = None
+
+    def _basic_frame(self) -> None:
+        """The basic frame G500 (no settable work offset) in the G-code equivalent: the work system
+        G59.3, which no Sinumerik program names, with its offset 0 unless one is given (a change
+        of work system: every position unknown)."""
+        self.basic = True
+        self.emit("G59.3")
 
     def _g_codes(self, g: list[int]) -> str:
         return " ".join("G21" if c in (71, 710) else f"G{c}" for c in g if c in _PASSED_G)
@@ -352,6 +380,11 @@ class _Reader:
         line = " ".join(t for t in (codes, f"G{self.motion}",
                                     " ".join(f"{a}{fmt(v)}" for a, v in target.items()), feed) if t)
         self.pos.update(target)
+        if self.modal_call is not None and not isinstance(self.modal_call, Call):
+            # a cycle mtcomp does not read runs at the position: the block passes uncorrected
+            self.emit(" ".join(t for t in (codes, f"G{self.motion}", feed) if t) + tool)
+            self._unknown(self.modal_call)
+            return
         if self.modal_call is not None:
             self._modal_hole(line + tool, axes, target)
             return
@@ -395,8 +428,8 @@ class _Reader:
         elif w.name in _DRILLING:
             call = self._drilling(w, modal=False)
             self._hole(call, self.pos["X"], self.pos["Y"], None)
-        elif w.name == "HOLES2":
-            self._holes2(w)
+        elif w.name in _PATTERNS:
+            self._pattern(w)
         else:
             self._unknown(w.name)
 
@@ -425,7 +458,7 @@ class _Reader:
         self.modal_call = self._drilling(w, modal=True)
 
     def _drilling(self, w: Word, modal: bool) -> Call:
-        """CYCLE81 / CYCLE84 (RTP, RFP, SDIS, DP, DPR, ...): the levels of its holes."""
+        """CYCLE81 ... CYCLE89 (RTP, RFP, SDIS, DP, DPR, ...): the levels of its holes."""
         args = split_arguments(w.text)
         spans, pos = [], w.start
         for part in w.text.split(","):
@@ -447,17 +480,16 @@ class _Reader:
                            "down along Z) is not read by mtcomp")
         if self.plane != 17:
             raise self.err(f"{w.name} outside the G17 plane is not read by mtcomp")
+        if w.name == "CYCLE83" and len(args) > 12 and args[12] \
+                and self.value(args[12]) in (1.0, 2.0):
+            raise self.err("CYCLE83 drilling along another axis than Z (_AXN) is not read by mtcomp")
         call = Call(self.k, w.name, args, spans, modal, rtp, rfp, sdis, bottom)
         self.out.calls.append(call)
         return call
 
     def _modal_hole(self, line: str, axes: dict, target: dict) -> None:
-        """A positioning block under MCALL: its move, then the call at its end."""
+        """A positioning block under MCALL of a drilling cycle: its move, then the hole."""
         call = self.modal_call
-        if not isinstance(call, Call):            # another subprogram: its moves are not seen
-            self.emit(line, "move")
-            self._unknown(call)
-            return
         if set(axes) - {"X", "Y"}:
             self.emit(line, "approach")
         self._hole(call, self.pos["X"], self.pos["Y"], None)
@@ -476,37 +508,41 @@ class _Reader:
             self.emit(f"G{self.motion}")
         self.pos.update({"X": x, "Y": y, "Z": call.rtp})
 
-    def _holes2(self, w: Word) -> None:
-        """HOLES2(CPA, CPO, RAD, STA1, INDA, NUM): NUM holes on a circle about (CPA, CPO) of
-        radius RAD, the first at the angle STA1 from X, the next INDA further (0: evenly)."""
+    def _pattern(self, w: Word) -> None:
+        """HOLES1(SPCA, SPCO, STA1, FDIS, DBH, NUM): NUM holes on a line from (SPCA, SPCO) at the
+        angle STA1 from X, the first FDIS from it, the next DBH further; HOLES2(CPA, CPO, RAD,
+        STA1, INDA, NUM): NUM holes on a circle about (CPA, CPO) of radius RAD, the first at the
+        angle STA1 from X, the next INDA further (0: evenly). The modal call runs at each."""
+        names = _PATTERNS[w.name]
         if self.modal_call is None:
-            raise self.err("HOLES2 without a modal call (MCALL) is not read by mtcomp")
+            raise self.err(f"{w.name} without a modal call (MCALL) is not read by mtcomp")
         args = split_arguments(w.text)
         if len(args) != 6 or not all(args):
-            raise self.err("HOLES2 needs its six values CPA, CPO, RAD, STA1, INDA, NUM")
-        cpa, cpo, rad, sta1, inda, num = (self.value(a) for a in args)
+            raise self.err(f"{w.name} needs its six values {', '.join(names)}")
+        x0, y0, a, b, c, num = (self.value(t) for t in args)
         n = int(round(num))
         if n < 1 or n != num:
-            raise self.err("HOLES2 with a number of holes NUM that is not a positive integer")
-        step = 360.0 / n if inda == 0 else inda
-        positions = [(cpa + rad * math.cos(math.radians(sta1 + i * step)),
-                      cpo + rad * math.sin(math.radians(sta1 + i * step))) for i in range(n)]
+            raise self.err(f"{w.name} with a number of holes NUM that is not a positive integer")
+        if not isinstance(self.modal_call, Call):
+            # a cycle mtcomp does not read runs at each position: passed through uncorrected
+            self._unknown(self.modal_call)
+            return
+        if w.name == "HOLES1":          # a, b, c: STA1, FDIS, DBH
+            d = [b + i * c for i in range(n)]
+            positions = [(x0 + t * math.cos(math.radians(a)), y0 + t * math.sin(math.radians(a)))
+                         for t in d]
+        else:                           # a, b, c: RAD, STA1, INDA
+            step = 360.0 / n if c == 0 else c
+            positions = [(x0 + a * math.cos(math.radians(b + i * step)),
+                          y0 + a * math.sin(math.radians(b + i * step))) for i in range(n)]
         spans, pos = [], w.start
         for part in w.text.split(","):
             spans.append((pos, pos + len(part)))
             pos += len(part) + 1
-        pattern = Pattern(self.k, args, spans, positions, (cpa, cpo), self.motion)
+        pattern = Pattern(self.k, w.name, args, spans, positions, (x0, y0), self.motion)
         self.out.patterns.append(pattern)
         for x, y in positions:
-            if isinstance(self.modal_call, Call):
-                self._hole(self.modal_call, x, y, pattern)
-                continue
-            # another subprogram called at each position: the move there, then its unseen moves
-            self.emit(f"G0 X{fmt(x)} Y{fmt(y)}", "move", pattern=pattern)
-            pattern.holes.append(len(self.out.gcode) - 1)
-            self._unknown(self.modal_call)
-            if self.motion not in (0, None):
-                self.emit(f"G{self.motion}")
+            self._hole(self.modal_call, x, y, pattern)
 
 
 def translate(path) -> Translation:

@@ -17,18 +17,21 @@ the cycle's reference plane RFP (and an absolute depth DP) moved by the Z correc
 line when every hole of the call gets the same; otherwise the call is repeated (``MCALL
 CYCLE81(...)`` with that hole's levels) before each hole whose levels differ. A single call's hole
 (at the position the block before left) gets a positioning block ``X.. Y..`` before the call where
-its corrected position differs from the written one. A ``HOLES2`` circle whose holes share one
-correction gets its centre CPA CPO moved; otherwise it is written as explicit positions, one block
-each. The retract plane RTP is kept as written (a clearance, not a cut). Where lines are added the
+its corrected position differs from the written one. A hole pattern (``HOLES1`` row, ``HOLES2``
+circle) whose holes share one correction gets its reference point moved; otherwise it is written as
+explicit positions, one block each. The retract plane RTP is kept as written (a clearance, not a cut). Where lines are added the
 output's first line after the file header says so.
 """
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
 from ..errors import InputError
 from ..io.atomic import atomic_write
-from .heidenhain_out import HeidenhainWriter, plan_blocks
+from ._arcs import arc_misses, arc_sweep, fit_arc_centre, radius_refused
+from .heidenhain_out import ROTARY_ARC_TOL_RAD, HeidenhainWriter, plan_blocks
 from .heidenhain import read_lines
 from .sinumerik import AXES, BLOCK_START
 from .sinumerik_lang import code_end, split_words
@@ -90,6 +93,7 @@ class SinumerikWriter(HeidenhainWriter):
         self.dxy: dict[int, np.ndarray] = {}    # a HOLES2 hole -> its X Y correction, mm
         self.retracts = 0
         self.added = 0
+        self.split_circles = 0
         self.zi = self.letters.index("Z")
 
     # ------------------------------------------------------------------ words
@@ -159,6 +163,191 @@ class SinumerikWriter(HeidenhainWriter):
             said[k] = value_said + base
         return _edit(text, edits) + ending, said
 
+    def _arc(self, i, block, pts, counts, info) -> None:
+        """A circle (:meth:`HeidenhainWriter._arc`) and at once its centre: each circle has its own
+        centre words, so it is settled here, before the blocks after it are written (a circle
+        written in pieces may leave Z where the corrected path has it)."""
+        super()._arc(i, block, pts, counts, info)
+        arcs = self.arcs.pop(info.cc_line)
+        every, self.arcs = self.arcs, {info.cc_line: arcs}
+        try:
+            super().centres()
+        except InputError as exc:
+            cause = self._rotary_cause(exc.line - 1) if exc.line is not None else None
+            if cause is not None:
+                raise InputError(cause, self.src.source, line=exc.line) from None
+            if len(arcs) != 1 or not self._split(arcs[0], info):
+                raise
+        finally:
+            self.arcs = every
+
+    def _split(self, a, info) -> bool:
+        """The circle ``a`` (a :class:`~.heidenhain_out._Arc`) written as circle pieces, each
+        within the chord tolerance of its part of the corrected path, Z (a linear axis off the
+        plane) written where the corrected path moves it: the first on the source line (its other
+        words kept), the others after it. False (nothing written) when the circle is a helix or
+        a piece cannot be found."""
+        off = self.linear & a.block.known
+        off[self.cols] = False
+        if np.any(np.abs(a.block.end - a.block.start)[off] > 1e-9):
+            return False
+        hint = a.centre2.copy()
+        if a.samples.shape == a.block.points.shape:          # the circle's mean correction
+            hint += np.mean((a.samples - a.block.points)[:, self.cols], axis=0)
+        radius = math.hypot(*(a.block.start[self.cols] - a.centre2))
+        pieces, start, first = [], a.start_w.copy(), 0
+        m = a.samples.shape[0]
+        while first < m:
+            best = None
+            for last in range(first, m):
+                end = self._rounded(a.samples[last], a.end_w if last == m - 1 else start, off,
+                                    info, last == m - 1)
+                centre = self._piece_centre(start, end, a.samples[first:last], a.ccw, hint,
+                                            radius, info)
+                span = self._nominal_sweep(a, first, last)
+                dist = None if centre is None else self._piece_miss(start, end, centre, a,
+                                                                    a.samples[first:last + 1], span)
+                if dist is None:
+                    break
+                best = (last, end, centre, dist)
+            if best is None:
+                return False
+            last, end, centre, dist = best
+            self.arc_miss = max(self.arc_miss, dist)
+            pieces.append((start, end, centre))
+            start, first = end, last + 1
+        lines = self._piece_lines(a, pieces, off, info)
+        if len(lines) == 1:
+            self.texts[a.line] = self._with_ending(a.line, lines[0])
+        else:
+            self.replaced[a.line] = lines
+        self.written[off] = start[off]
+        self.added += len(pieces) - 1
+        self.split_circles += 1
+        return True
+
+    def _rounded(self, point, like, off, info, last: bool) -> np.ndarray:
+        """A piece's end: ``like`` (na,) with the corrected point's (na,) X Y (unless ``last``:
+        the circle's end as written) and its axes ``off`` (na,) bool as written (4 decimals)."""
+        out = like.copy()
+        for j in np.flatnonzero(off) if last else list(self.cols) + list(np.flatnonzero(off)):
+            out[j] = self._internal(j, float(_number(self._units(j, point[j], info.shift), 4)),
+                                    info.shift)
+        return out
+
+    def _piece_centre(self, start, end, inner, ccw, hint, radius, info):
+        """The centre (2,) as written (4 decimals) of a piece from start to end (na,) closest to
+        its inner corrected points (k, na); None when there is none."""
+        c = fit_arc_centre(start[self.cols], end[self.cols], inner[:, self.cols], ccw, False, hint,
+                           radius)
+        if c is None:
+            return None
+        return np.array([self._internal(j, float(_number(self._units(j, v, info.shift), 4)),
+                                        info.shift) for j, v in zip(self.cols, c)])
+
+    def _nominal_sweep(self, a, first: int, last: int) -> float:
+        """The angle (rad) the nominal circle turns from before its chord end ``first`` to its
+        chord end ``last``."""
+        n = a.block.points.shape[0]
+        if a.samples.shape[0] != n:
+            return math.nan
+        _a0, sweep = arc_sweep(a.block.start[self.cols], a.block.end[self.cols], a.centre2,
+                               a.ccw, a.full)
+        return sweep * (last + 1 - first) / n
+
+    def _piece_miss(self, start, end, centre, a, samples, span) -> float | None:
+        """How far (mm) the piece about centre (2,) misses the corrected points ``samples``
+        (k, na) it stands for; None when that is more than the chord tolerance, when a controller
+        would refuse its radii, or when it turns otherwise than the nominal circle's part it
+        stands for (``span``, rad: a piece about a centre on the wrong side)."""
+        s2, e2 = start[self.cols], end[self.cols]
+        if radius_refused(math.hypot(*(s2 - centre)), math.hypot(*(e2 - centre)), self.tr.inch):
+            return None
+        if not abs(arc_sweep(s2, e2, centre, a.ccw, False)[1] - span) <= 0.25 * math.pi:
+            return None
+        dist, _rot = arc_misses(start, end, centre, tuple(self.cols), a.ccw, False, samples,
+                                self.linear)
+        return dist if dist <= self.tol else None
+
+    def _piece_lines(self, a, pieces, off, info) -> list[str]:
+        """The pieces' lines: the first is the source line with its end point and centre words
+        replaced (an end point added before I where it had none), the others ``X.. Y.. I=AC(..)
+        J=AC(..)`` (incremental ``I.. J..`` where the source's centre was), the last ending at
+        the circle's end as the source line's words wrote it; Z (the axes ``off``) on a piece
+        whose written value it changes."""
+        text = self.texts[a.line].rstrip("\r\n")
+        named = {w.name: w for w in self._words(text) if w.kind in ("address", "assign")}
+        absolute = [named[c].kind == "assign" and named[c].text.strip().upper().startswith("AC")
+                    for c in "IJ"]
+        lines = []
+        for n, (start, end, centre) in enumerate(pieces):
+            u = {self.letters[j]: _number(self._units(j, end[j], info.shift), 4)
+                 for j in list(self.cols) + list(np.flatnonzero(off))}
+            for j in np.flatnonzero(off):
+                if u[self.letters[j]] == _number(self._units(j, start[j], info.shift), 4):
+                    del u[self.letters[j]]
+            ij = [f"{c}=AC({_number(self._units(j, v, info.shift), 4)})" if ab else
+                  f"{c}{_number(self._units(j, v, info.shift) - self._units(j, s, info.shift), 4)}"
+                  for c, j, v, s, ab in zip("IJ", self.cols, centre, start[self.cols], absolute)]
+            if n == len(pieces) - 1 == 0:    # one piece: the source line's words, with Z
+                text = self._centre_text(a.line, centre)[0].rstrip("\r\n")
+                u = {c: v for c, v in u.items() if c not in "XY"}
+                named = {w.name: w for w in self._words(text) if w.kind in ("address", "assign")}
+                ij = [text[self._word_start(text, named[c]):named[c].end] for c in "IJ"]
+            if n == 0:
+                lines.append(self._first_piece(text, named, u, ij))
+                continue
+            if n == len(pieces) - 1:         # the circle's end as the source line wrote it
+                u.update({c: text[self._word_start(text, named[c]):named[c].end]
+                          for c in "XY" if c in named})
+            lines.append(" ".join([v if v[:1].isalpha() else f"{c}{v}" for c, v in u.items()]
+                                  + ij))
+        return lines
+
+    @staticmethod
+    def _word_start(text: str, w) -> int:
+        """Where word ``w``'s letter stands (before its ``=`` for an assign word)."""
+        return text.upper().rfind(w.name, 0, w.start)
+
+    def _first_piece(self, text, named, words, ij) -> str:
+        """The source line with the first piece's end point (``words``: letter -> value text)
+        and centre ``ij`` written."""
+        edits = [(self._word_start(text, named[c]), named[c].end, t) for c, t in zip("IJ", ij)]
+        missing = []
+        for c, v in words.items():
+            if c in named:
+                edits.append((self._word_start(text, named[c]), named[c].end, f"{c}{v}"))
+            else:
+                missing.append(f"{c}{v}")
+        if missing:
+            at = self._word_start(text, named["I"])
+            edits.append((at, at, " ".join(missing) + " "))
+        return _edit(text, edits)
+
+    def _rotary_cause(self, line: int) -> str | None:
+        """Why the circle of ``line`` (0-based) is refused when its rotary axes are: the rotary
+        axis whose corrected path leaves the value the circle holds, and by how much; None when
+        every rotary axis stays within ROTARY_ARC_TOL_RAD of it."""
+        for arcs in self.arcs.values():
+            for a in arcs:
+                if a.line != line:
+                    continue
+                for j in np.flatnonzero(~self.linear):
+                    span = np.abs(a.samples[:, j] - a.start_w[j])
+                    if span.max() <= ROTARY_ARC_TOL_RAD:
+                        continue
+                    change = np.degrees(np.ptp(np.append(a.samples[:, j], a.start_w[j])))
+                    # corrections within +-bound differ by 2 bound along the circle, and the
+                    # written start (4 decimals of a degree) by up to half a step more
+                    bound = math.floor(0.25 * ROTARY_ARC_TOL_RAD * 1e7) / 10      # urad
+                    return (f"the correction of {self.letters[j]} varies along the circle G2/G3 of "
+                            f"line {line + 1} by {change:.5f} deg, and a circle holds "
+                            f"{self.letters[j]} at its written value (within "
+                            f"{np.degrees(ROTARY_ARC_TOL_RAD):g} deg): a larger --chord-tol-um does "
+                            f"not help; bound the rotary corrections with --max-correction-urad "
+                            f"{bound:.1f} (or less), which a circle holds")
+        return None
+
     # ------------------------------------------------------------------ blocks
     def block(self, g: int, block, pts: np.ndarray, _counts=None) -> None:
         """A motion block of G-code line g (0-based) and its corrected points."""
@@ -173,11 +362,6 @@ class SinumerikWriter(HeidenhainWriter):
         elif info.kind == "retract":
             self.retracts += 1
             self.written[self.zi] = block.end[self.zi]
-        elif info.pattern is not None:               # a HOLES2 position of another subprogram
-            self.xy[g] = np.array([float(_number(self._units(j, pts[-1][j], info.shift), 4))
-                                   for j in self.cols])
-            self.dxy[g] = (pts[-1] - block.end)[self.cols]
-            self.written[self.cols] = self.xy[g]
         elif info.kind == "approach":
             write = np.ones(self.na, bool)
             write[self.cols] = False
@@ -275,7 +459,7 @@ class SinumerikWriter(HeidenhainWriter):
 
     def _expand(self, p) -> None:
         text = self.texts[p.line].rstrip("\r\n")
-        call_start = text.upper().rfind("HOLES2", 0, p.spans[0][0])
+        call_start = text.upper().rfind(p.name, 0, p.spans[0][0])
         lines = []
         for n, h in enumerate(p.holes):
             if h in self.restate:
@@ -306,8 +490,9 @@ class SinumerikWriter(HeidenhainWriter):
         for i, text in enumerate(self.texts):
             if i == head and (self.added or self.replaced):
                 out.append(f"; mtcomp: {self.added} block{'s' if self.added != 1 else ''} added to "
-                           "write corrected holes (a cycle call restated, a hole's position, "
-                           "a HOLES2 circle written as explicit positions)" + ending)
+                           "write corrected holes and circles (a cycle call restated, a hole's "
+                           "position, a hole pattern HOLES1 or HOLES2 written as explicit "
+                           "positions, a circle written in pieces)" + ending)
             own = text[len(text.rstrip("\r\n")):] or ending
             out.extend(t + own for t in self.before.get(i, []))
             if i in self.replaced:
@@ -343,12 +528,19 @@ def _notes(src, w: SinumerikWriter, stats) -> None:
             "modes are taken as before the call (a Siemens subprogram with SAVE restores them)")
     holes = len(w.dz)
     if holes:
+        names = ", ".join(sorted({call.name for call in src.sinumerik.calls if call.holes}))
         src.notes.append(
-            f"{holes} hole{'s' if holes != 1 else ''} of drilling cycles (CYCLE81, CYCLE84) "
+            f"{holes} hole{'s' if holes != 1 else ''} of drilling cycles ({names}) "
             "corrected at the bottom: X Y of the hole, the reference plane RFP moved by the Z "
             f"correction (the depth below it kept); the retract plane RTP kept as written "
             f"({w.retracts} retract{'s' if w.retracts != 1 else ''}: BLOCKS.csv gives their "
             "planned correction, not written)")
+    if w.split_circles:
+        src.notes.append(
+            f"{w.split_circles} circle{'s' if w.split_circles != 1 else ''} G2/G3 that one centre "
+            f"does not hold within --chord-tol-um {w.tol * 1e3:g}: written to the corrected Z (a "
+            "helix where Z's correction changes along it) and, where needed, in pieces (G2/G3 each, "
+            "with its own end point and centre)")
     if w.arc_miss >= 1e-4:
         src.notes.append(f"note: the circles written miss their corrected path by up to "
                          f"{w.arc_miss * 1e3:.2f} um (within --chord-tol-um {w.tol * 1e3:g})")
