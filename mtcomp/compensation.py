@@ -671,7 +671,8 @@ def _run_notes(program, written, fitted, setup, tally, found) -> list[str]:
     # found in the user's file (an expansion is gone by now)
     if b"41" in found or b"42" in found:
         miss = written.get("cutter_arc_miss_mm", 0.0) * 1e3
-        notes.append("note: the program uses cutter radius compensation (G41/G42): the corrections "
+        crc = "RL/RR" if program.heidenhain is not None else "G41/G42"
+        notes.append(f"note: the program uses cutter radius compensation ({crc}): the corrections "
                      "are those of the programmed contour, while the tool centre runs a radius off "
                      "it (the error there differs by the model's change over that distance); no "
                      "block is split (the controller offsets the moves as written)"
