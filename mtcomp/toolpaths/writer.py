@@ -512,9 +512,17 @@ class _ArcFit:
         if piece is not None:
             return piece, b
         ends = piece_ends(self.length, a, b, self.min_piece)
+        best = self._farthest(a, ends[:-1], start_w)
+        if best[0] is None:
+            # a shorter piece only where the corrected path turns within less (a correction that
+            # changes fast): the longest arc that holds there
+            best = self._farthest(a, list(range(a + 1, ends[0])), start_w)
+        return best
+
+    def _farthest(self, a: int, ends: list, start_w: np.ndarray):
+        """(piece, end) of the farthest of ``ends`` (increasing sample indices) an arc from sample
+        a reaches, by bisection; (None, None) when it reaches none."""
         lo, hi, best = 0, len(ends) - 1, (None, None)
-        if ends[hi] == b:
-            hi -= 1                       # b itself was tried above
         while lo <= hi:
             mid = (lo + hi) // 2
             piece = self.arc_piece(a, ends[mid], start_w)
@@ -522,10 +530,6 @@ class _ArcFit:
                 hi = mid - 1
             else:
                 best, lo = (piece, ends[mid]), mid + 1
-        if best[0] is None and ends[0] != a + 1:
-            piece = self.arc_piece(a, a + 1, start_w)    # a short arc where the path asks for one
-            if piece is not None:
-                best = (piece, a + 1)
         return best
 
     def _shadow(self, a, start_w):
