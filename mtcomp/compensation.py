@@ -28,7 +28,7 @@ from .planner._bounds import FLAG_KINDS
 from .planner._parallel import read_ahead
 from .planner._small import any_rows, row_norm
 from .planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
-from .toolpaths.words import TCP_ON_M, frame_local, frame_tcp, strip_comments
+from .toolpaths.words import frame_local, frame_tcp
 from .toolpaths import iter_segment_chunks, write_corrected
 from .toolpaths._fast import format_table
 from .toolpaths.source import open_program
@@ -637,28 +637,19 @@ def passed_move_notes(program, written) -> list[str]:
             f"BLOCKS.csv row: " + "; ".join(parts)]
 
 
-#: a code that switches tool centre point mode on (as the reader reads it: ``N10M428`` too)
-_TCP_ON_RE = re.compile(r"(?i)(?:M0*(?:" + "|".join(map(str, sorted(TCP_ON_M)))
-                        + r")|G0*43\.40*)(?![\d.])")
-
-
 def tcp_note(program, tally) -> list[str]:
     """The line saying how many blocks were compensated in tool centre point mode and which code
-    switched it on at which source line (found on the lines up to each run's first block)."""
+    switched it on at which source line (as the reader recorded it: the last switch on the lines
+    up to each run's first block)."""
     if not tally.tcp_blocks:
         return []
-    switches, runs = [], tally.tcp_runs[:3]
-    last = None
-    with open(program, "rb") as f:
-        for k, raw in enumerate(f, 1):
-            if k > runs[-1][1]:
-                break
-            m = _TCP_ON_RE.search(strip_comments(raw.decode("latin-1")))
-            if m:
-                last = (m.group(0).upper(), k)
-            for a, b in runs:
-                if k == b and last is not None and last[1] > a:
-                    switches.append(f"{last[0]} at line {int(program.source_lines_of([last[1]])[0])}")
+    switches = []
+    recorded = sorted(getattr(program, "tcp_switches", {}).items())
+    for before, first in tally.tcp_runs[:3]:
+        last = [(line, code) for line, code in recorded if line <= first]
+        if last and last[-1][0] > before:
+            line, code = last[-1]
+            switches.append(f"{code} at line {int(program.source_lines_of([line])[0])}")
     n = tally.tcp_blocks
     said = ", ".join(switches) + (", ..." if len(tally.tcp_runs) > 3 else "")
     return [f"{n} block{'' if n == 1 else 's'} in tool centre point mode"
@@ -677,7 +668,8 @@ def _run_notes(program, written, fitted, setup, tally, found) -> list[str]:
     # found in the user's file (an expansion is gone by now)
     if b"41" in found or b"42" in found:
         miss = written.get("cutter_arc_miss_mm", 0.0) * 1e3
-        notes.append("note: the program uses cutter radius compensation (G41/G42): the corrections "
+        crc = "RL/RR" if program.heidenhain is not None else "G41/G42"
+        notes.append(f"note: the program uses cutter radius compensation ({crc}): the corrections "
                      "are those of the programmed contour, while the tool centre runs a radius off "
                      "it (the error there differs by the model's change over that distance); no "
                      "block is split (the controller offsets the moves as written)"

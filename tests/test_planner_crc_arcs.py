@@ -46,15 +46,22 @@ def _written_circle(lines):
 def test_a_g41_circle_is_written_as_planned_and_never_worse(tmp_path):
     lines, rows = _run(tmp_path, CIRCLE.format(on="G41 D1 ", off="G40 "))
     start, centre, end = _written_circle(lines)
-    r = float(np.hypot(*(start - centre)))
     np.testing.assert_allclose(end, start, rtol=0, atol=1e-9)          # still a full circle
+    check_written_circle(start, centre, rows, "5", "4")
+
+
+def check_written_circle(start, centre, rows, arc_line, entry_line):
+    """The written full circle (start, centre (2,) mm) of the arc of line ``arc_line`` against
+    the plan (its corrected points on it) and the oracle (never worse than the backlash alone,
+    one correction along the arc, the tie named in the bounds)."""
+    r = float(np.hypot(*(start - centre)))
     # the plan's corrected points of the arc lie on the written circle (within the chord tolerance)
-    arc = [row for row in rows if row["line"] == "5"]
+    arc = [row for row in rows if row["line"] == arc_line]
     pts = np.array([[float(row["x_mm"]), float(row["y_mm"])] for row in arc])
     miss_um = np.abs(np.hypot(*(pts - centre).T) - r) * 1e3
     assert miss_um.max() <= 1.0, miss_um.max()
     # the oracle's sign from the entry move (+X: the backlash's + half): before = s * BL/2 * d_x
-    entry = next(row for row in rows if row["line"] == "4")
+    entry = next(row for row in rows if row["line"] == entry_line)
     s = math.copysign(1.0, float(entry["ex_before_um"]))
     assert abs(float(entry["ex_before_um"])) == pytest.approx(BL_UM / 2, abs=1e-6)
     # the written circle sampled (clockwise from its start), each sample paired with the nominal

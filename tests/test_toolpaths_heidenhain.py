@@ -140,7 +140,7 @@ def test_an_arc_that_no_centre_holds_is_refused(tmp_path):
 
 
 @pytest.mark.parametrize("block, words", [
-    ("L X+10 RL F100", "radius compensation RL"),
+    ("CC X+10 Y+0 RL", "radius compensation RL"),
     ("LBL 1", "label (LBL)"),
     ("CALL LBL 1", "(CALL)"),
     ("FN 0: Q1 = +5", "Q parameter function (FN)"),

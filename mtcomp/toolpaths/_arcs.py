@@ -261,3 +261,38 @@ def arc_samples(start, end, chord_ends, points, counts, centre2, cols, ccw: bool
     intended = points + (on_arc - (s + t[:, None] * d))
     intended[is_end] = points[is_end]
     return intended, on_arc, u
+
+
+# ------------------------------------------------------------------------ pieces of a split arc
+#: candidate centres tried between the source's radius and the fitted one (the fitted one last)
+BISECTOR_STEPS = 4
+
+
+def min_piece_length(radius: float, chord_tol: float) -> float:
+    """The shortest piece (mm) a split arc of ``radius`` (mm) is cut into where a longer one holds:
+    half the chord whose sagitta is ``chord_tol`` (mm), sqrt(tol (2 r - tol)). A piece shorter than
+    the whole chord lies within the tolerance of its own chord, so its path no longer says its
+    radius (any from r to a straight line fits), and half of it is a few interpolation cycles of
+    the controller at a cutting feed rather than a fraction of one."""
+    tol = min(chord_tol, radius)
+    return math.sqrt(tol * (2.0 * radius - tol))
+
+
+def piece_ends(length: np.ndarray, a: int, b: int, min_piece: float) -> list[int]:
+    """The samples a piece from sample a may end at, in order, the last one b: at least
+    ``min_piece`` (mm) along the path ``length`` (m,) from a, and leaving at least that much to b
+    (or b itself, which ends the block however short the rest is)."""
+    j = np.arange(a + 1, b)
+    keep = (length[j] - length[a] >= min_piece) & (length[b] - length[j] >= min_piece)
+    return [int(k) for k in j[keep]] + [b]
+
+
+def bisector_centres(s2, e2, radius: float, hint, fitted) -> list:
+    """Centres (2,) on the perpendicular bisector of s2 e2 (2,): the circle of ``radius`` (mm)
+    through both (its centre on the side of ``hint``), then steps towards ``fitted`` (2,) and
+    ``fitted`` itself (None: left out), nearest to the radius first."""
+    nominal = fit_arc_centre(s2, e2, np.empty((0, 2)), True, False, hint, radius)
+    if nominal is None or fitted is None:
+        return [c for c in (nominal, fitted) if c is not None]
+    f = np.arange(1, BISECTOR_STEPS + 1) / BISECTOR_STEPS
+    return [nominal] + [nominal + t * (fitted - nominal) for t in f]

@@ -9,9 +9,14 @@ TNC 640, HEIDENHAIN 2015-2022; TNC 370, HEIDENHAIN 1995 for the direction of rot
 * ``BEGIN PGM name MM|INCH``: the program's units; ``END PGM``, ``BLK FORM``, ``TOOL DEF``, ``;``
   and ``*`` comments, ``STOP`` and lines of M functions alone make no move.
 * ``L``: a straight move to the given coordinates (``IX`` ... incremental from the last
-  programmed position); ``FMAX`` rapid in that block only, ``F..`` a feed that stays; ``R0`` no
-  radius compensation. ``M91``/``M92``: the coordinates are machine positions (as G53: passed
-  through, those axes unknown afterwards).
+  programmed position); ``FMAX`` rapid in that block only, ``F..`` a feed that stays.
+  ``M91``/``M92``: the coordinates are machine positions (as G53: passed through, those axes
+  unknown afterwards).
+* ``RL`` / ``RR`` on an ``L`` block: tool radius compensation, the tool left / right of the
+  contour in the direction of travel, in force from that block until an ``L`` block with ``R0``
+  (TNC 640 User's Manual, "Tool radius compensation"); read as G41 / G42 and G40, so the blocks
+  carry it as G-code's do. A ``C`` block may repeat the compensation in force; one that changes it
+  is refused (switch it on a straight line ``L``).
 * ``CC X Y``: the circle centre (modal); ``C X Y DR+`` / ``DR-``: an arc about it to the end point,
   counter-clockwise / clockwise (``C DR-`` without coordinates: a full circle).
 * ``TOOL CALL n Z``: a tool change (as ``T n M6 G43 H n``: the tool length of H n, Z unknown).
@@ -22,8 +27,7 @@ TNC 640, HEIDENHAIN 2015-2022; TNC 370, HEIDENHAIN 1995 for the direction of rot
   tool's position (its set-up clearance above the surface) to the depth, back to that position
   (as a G99 G81 cycle with R at the start level and Z at the bottom). ``CYCL DEF 9`` dwell.
 
-Everything else is refused in one line naming the construct: other cycles, ``RL``/``RR`` radius
-compensation, ``CR``/``CT``/polar and FK contours, ``RND``/``CHF``, ``APPR``/``DEP``, ``LBL`` and
+Everything else is refused in one line naming the construct: other cycles, ``CR``/``CT``/polar and FK contours, ``RND``/``CHF``, ``APPR``/``DEP``, ``LBL`` and
 ``CALL``, ``CYCL CALL``, ``FN`` and Q parameters, ``PLANE``, incremental or empty ``CC``, the TNC's path functions
 ``M89`` and ``M90`` and up (but M91, M92, M99), tools by name, ``DL`` deltas, other tool axes.
 """
@@ -55,6 +59,8 @@ _REFUSED = {"CR": "an arc by its radius (CR)", "CT": "a tangential arc (CT)",
             "CYCL CALL": "CYCL CALL (the hole's position is not in the block: call the cycle "
                          "with M99 on its positioning block L)"}
 _CYCLES = {1: "PECKING", 7: "DATUM SHIFT", 9: "DWELL TIME"}
+#: radius compensation word -> the G code that says the same (G40 off, G41 left, G42 right)
+_RADIUS_COMP = {"R0": 40, "RL": 41, "RR": 42}
 
 
 @dataclass
@@ -106,6 +112,7 @@ class _Reader:
         self.pos = dict.fromkeys(AXES)          # program frame, program units; None: unknown
         self.shift = [0.0, 0.0, 0.0]
         self.cc = None                           # (x, y, line index)
+        self.radius_comp = "R0"                  # RL, RR or R0 in force
         self.cycle_def: dict = {}                # the CYCL DEF 1 being read
         self.cycle: _Cycle | None = None
         self.started = False
@@ -226,9 +233,30 @@ class _Reader:
         m = re.search(r"(?<![A-Z])F\s*(" + _NUMBER + ")", rest)
         return False, (None if m is None else _num(m.group(1)))
 
+    def _radius_comp(self, rest: str, k: int, arc: bool) -> str:
+        """The G-code word of a block's radius compensation word where it changes the one in force
+        (RL G41, RR G42, R0 G40) followed by a blank, else ''; an arc C may only repeat it."""
+        words = re.findall(r"\b(R0|RL|RR)\b", rest)
+        if len(words) > 1:
+            raise self.err("two radius compensation words in one block", k)
+        if not words or words[0] == self.radius_comp:
+            return ""
+        if arc:
+            raise self.err(f"radius compensation {words[0]} switched on an arc C is not read by "
+                           "mtcomp (switch it on a straight line L)", k)
+        self.radius_comp = words[0]
+        return f"G{_RADIUS_COMP[words[0]]} "
+
     def _l(self, rest: str, k: int, info: LineInfo) -> tuple[str, LineInfo]:
         words = self._words(rest, k, AXES)
-        self._leftover(rest, k, r"\bFMAX\b|\bR0\b|(?<![A-Z])F\s*" + _NUMBER + r"|(?<![A-Z])M\s*\d+")
+        self._leftover(rest, k, r"\bFMAX\b|\bR[0LR]\b|(?<![A-Z])F\s*" + _NUMBER
+                       + r"|(?<![A-Z])M\s*\d+")
+        comp = self._radius_comp(rest, k, False)
+        g, info = self._l_gcode(rest, k, info, words)
+        return (comp + g).strip(), info
+
+    def _l_gcode(self, rest: str, k: int, info: LineInfo, words: dict) -> tuple[str, LineInfo]:
+        """The G-code of an L block, its radius compensation left out."""
         mcodes = self._mcodes(rest, k)
         rapid, feed = self._feed(rest, k)
         f_word = "" if feed is None else f" F{_fmt(feed)}"
@@ -266,8 +294,9 @@ class _Reader:
     def _c(self, rest: str, k: int, info: LineInfo) -> tuple[str, LineInfo]:
         direction = re.search(r"\bDR\s*([+-])", rest)
         words = self._words(rest.replace("DR", "  "), k, "XY")
-        self._leftover(rest, k, r"\bDR\s*[+-]|\bR0\b|(?<![A-Z])F\s*" + _NUMBER
+        self._leftover(rest, k, r"\bDR\s*[+-]|\bR[0LR]\b|(?<![A-Z])F\s*" + _NUMBER
                        + r"|(?<![A-Z])M\s*\d+")
+        self._radius_comp(rest, k, True)
         self._mcodes(rest, k)
         rapid, feed = self._feed(rest, k)
         if direction is None or rapid:

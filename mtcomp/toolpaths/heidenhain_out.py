@@ -12,6 +12,8 @@ and its circle centre ``CC`` is moved: one centre for the arcs that use it, take
 centre shifted by the mean correction at their ends (or, for one arc, the circle through its
 corrected ends closest to its corrected path), kept only when every one of those arcs lies within
 the chord tolerance of its corrected path; otherwise the arc is refused (one line naming it).
+Under radius compensation (RL/RR, read as G41/G42) the planner gives all of an arc's nodes one
+correction, a translation, so the arc's moved centre carries it exactly and the C stays whole.
 Numbers are written in Heidenhain's signed form (``X+107.5032``), with at least the source word's
 decimals and at least 4 in mm and degrees, 5 in inch. A block is never split: a conversational
 program's blocks stay one to one, so internal nodes of the planner are not written (compensate

@@ -121,6 +121,10 @@ class ModalState:
         self.was_known = self.known.copy()
         self.shift_by = ""
         self.declared: list[int] = []
+        #: where tool centre point mode was switched on: line read -> the code ('M428', 'G43.4',
+        #: 'M128'), shared by the passes over one ProgramSource (compensate names them)
+        table = getattr(path, "tcp_switches", None)
+        self.tcp_switches = table if table is not None else {}
         self._line = 0
 
     def _init_cycles(self) -> None:
@@ -302,7 +306,7 @@ class ModalState:
         self.ended = any(m in (2, 30) for m in mcodes)
         for m in mcodes:
             if m in TCP_ON_M or m in TCP_OFF_M:
-                self._set_tcp(m in TCP_ON_M)
+                self._set_tcp(m in TCP_ON_M, f"M{m:g}")
         self.had_g = bool(gcodes)
         for g in gcodes:
             gi = round(g)
@@ -367,12 +371,14 @@ class ModalState:
                             line)
         return False
 
-    def _set_tcp(self, on: bool) -> None:
-        """Tool centre point mode on or off: the words change meaning (tool tip against axis
-        positions), so no position is known until the program names it again."""
+    def _set_tcp(self, on: bool, code: str = "") -> None:
+        """Tool centre point mode on or off (by the G or M ``code``): the words change meaning
+        (tool tip against axis positions), so no position is known until the program names it
+        again. Where it goes on, the line and the code are recorded (``tcp_switches``)."""
         if on != self.tcp:
             if on:
                 mode_change(self, "tcp", self._line)
+                self.tcp_switches[self._line] = code
             self.tcp = on
             self._forget()
 
@@ -388,7 +394,7 @@ class ModalState:
             self.arc_absolute = round(g, 1) == 90.1
         elif round(g, 1) == 43.4:                # Fanuc's tool centre point control with H
             self.tool = int(values.get("H", self.selected_tool))
-            self._set_tcp(True)
+            self._set_tcp(True, "G43.4")
         elif round(g, 1) in (28.1, 30.1, 92.1, 92.2, 43.1, 54.1):
             if round(g, 1) in (92.1, 92.2, 43.1, 54.1):
                 if round(g, 1) != 43.1:

@@ -54,6 +54,9 @@ class ProgramSource(os.PathLike):
     #: the frame changes the program makes itself (G52, G68, mirror, scaling), (line, frame) in
     #: line order, recorded by the reader (:mod:`.frames`) and applied by ProgramSetup.apply
     local_frames: list = field(default_factory=list)
+    #: where the program switches tool centre point mode on: line -> code ('M428', 'G43.4'),
+    #: recorded by the reader (:class:`~.modal.ModalState`)
+    tcp_switches: dict = field(default_factory=dict)
     _map_array: object = field(default=None, repr=False)     # line_map as an int64 array, once
     #: a Heidenhain conversational program: its :class:`~.heidenhain.Translation` (``path`` is
     #: then its G-code equivalent, line for line; the writer writes the conversational form)

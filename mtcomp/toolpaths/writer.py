@@ -25,7 +25,8 @@ import numpy as np
 from ..io.atomic import atomic_write
 from ..machine import Machine
 from ._arcs import (FULL_CIRCLE_TOL_MM, PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_misses,
-                    arc_samples, arc_sweep, centre_from_radius, fit_arc_centre, radius_refused)
+                    arc_samples, arc_sweep, bisector_centres, centre_from_radius, fit_arc_centre,
+                    min_piece_length, piece_ends, radius_refused)
 from .blocks import MotionBlock
 from .cursor import CorrectionCursor
 from .modal import ModalState
@@ -479,20 +480,57 @@ class _ArcFit:
         self.linear = np.array([not r for r in rotary])
         _a0, self.sweep = arc_sweep(block.start[list(cols)], block.end[list(cols)], centre2, self.ccw,
                                     full)
+        step = np.diff(self.samples[:, self.linear], axis=0)
+        #: (m + 1,) mm along the samples from the written start; pieces at least min_piece long
+        self.length = np.concatenate([[0.0], np.cumsum(np.sqrt(np.sum(step * step, axis=1)))])
+        self.min_piece = min_piece_length(math.hypot(*(block.start[list(cols)] - centre2)),
+                                          chord_tol)
 
     def plan(self, a: int, b: int, start_w: np.ndarray) -> list:
-        """The pieces from sample a (where the machine stands: start_w) to sample b."""
+        """The pieces from sample a (where the machine stands: start_w) to sample b: each the
+        longest arc from where the last one ended that holds, no shorter than ``min_piece`` where
+        an arc that long holds (:func:`~._arcs.piece_ends`); a straight piece to the next sample
+        only where no arc reaches it."""
+        pieces = []
+        while a < b:
+            piece, end = self._longest(a, b, start_w)
+            if piece is None:
+                end = a + 1
+                shadow = self._shadow(a, start_w)
+                texts = _axis_texts(self.block, self.samples[end], self.rotary, shadow, self.decs,
+                                    self.block.given if a == 0 else None)
+                piece = _ArcPiece(texts, _written(self.block, texts, shadow), None)
+            pieces.append(piece)
+            a, start_w = end, piece.end
+        return pieces
+
+    def _longest(self, a: int, b: int, start_w: np.ndarray):
+        """(the arc piece from sample a to the farthest sample that one arc reaches, that sample),
+        or (None, None) when no arc reaches even the next sample. Bisection over the candidate ends:
+        an arc that holds over a stretch holds over a shorter one from the same start."""
         piece = self.arc_piece(a, b, start_w)
         if piece is not None:
-            return [piece]
-        if b - a < 2:
-            shadow = self._shadow(a, start_w)
-            texts = _axis_texts(self.block, self.samples[b], self.rotary, shadow, self.decs,
-                                self.block.given if a == 0 else None)
-            return [_ArcPiece(texts, _written(self.block, texts, shadow), None)]
-        mid = (a + b) // 2
-        first = self.plan(a, mid, start_w)
-        return first + self.plan(mid, b, first[-1].end)
+            return piece, b
+        ends = piece_ends(self.length, a, b, self.min_piece)
+        best = self._farthest(a, ends[:-1], start_w)
+        if best[0] is None:
+            # a shorter piece only where the corrected path turns within less (a correction that
+            # changes fast): the longest arc that holds there
+            best = self._farthest(a, list(range(a + 1, ends[0])), start_w)
+        return best
+
+    def _farthest(self, a: int, ends: list, start_w: np.ndarray):
+        """(piece, end) of the farthest of ``ends`` (increasing sample indices) an arc from sample
+        a reaches, by bisection; (None, None) when it reaches none."""
+        lo, hi, best = 0, len(ends) - 1, (None, None)
+        while lo <= hi:
+            mid = (lo + hi) // 2
+            piece = self.arc_piece(a, ends[mid], start_w)
+            if piece is None:
+                hi = mid - 1
+            else:
+                best, lo = (piece, ends[mid]), mid + 1
+        return best
 
     def _shadow(self, a, start_w):
         if a == 0:
@@ -526,7 +564,12 @@ class _ArcFit:
         inner = self.samples[a + 1:b]
         fitted = fit_arc_centre(s2, e2, inner[:, cols], self.ccw, full, shifted, radius)
         span = (self.u[b] - self.u[a]) * self.sweep
-        for centre in (shifted, fitted):
+        centres = [shifted, fitted]
+        if not full and self.path_tol < math.inf:
+            # between the source's radius and the fitted one, nearest the source's first: a short
+            # piece fits almost any radius, and the controller's look-ahead likes the arc's own
+            centres = [shifted] + bisector_centres(s2, e2, radius, shifted, fitted)
+        for centre in centres:
             if centre is None or math.hypot(*(centre - s2)) > MAX_ARC_RADIUS_MM:
                 continue
             for words, written in self._centre_words(s2, e2, centre, full):
