@@ -111,18 +111,15 @@ class ModalState:
         #: every pass over one ProgramSource
         self.offsets = ProgrammedOffsets(self.na, getattr(path, "work_offset_sets", None))
         self.ended = False      # an M2/M30 was read: no later line runs (docs/toolpaths.md)
-        #: the frame the program moved itself (G52, G68, mirror, scaling: :mod:`.frames`), its
-        #: changes by line (shared by the passes over one ProgramSource); after M2/M30 no line runs
-        #: (``ended``), so a frame in force at the end leaves nothing open
+        #: the frame the program moved itself (G52, G68, mirror, scaling: :mod:`.frames`), its changes
+        #: by line (shared by the passes over one ProgramSource); none is left open after M2/M30
         self.local = IDENTITY
         table = getattr(path, "local_frames", None)
         self.local_frames = table if table is not None else []
         #: G92 (.frames): axes given since their last home move, 'G52'/'G92' shift, axes declared
         self.was_known = self.known.copy()
-        self.shift_by = ""
-        self.declared: list[int] = []
-        #: where tool centre point mode was switched on: line read -> the code ('M428', 'G43.4',
-        #: 'M128'), shared by the passes over one ProgramSource (compensate names them)
+        self.shift_by, self.declared = "", []
+        #: where TCP mode went on: line read -> code ('M428', 'G43.4', 'M128'), shared like these
         table = getattr(path, "tcp_switches", None)
         self.tcp_switches = table if table is not None else {}
         self._line = 0
