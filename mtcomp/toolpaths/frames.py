@@ -565,12 +565,12 @@ def output_shifts(table: list, done: int, lines: np.ndarray, ends_correction: np
     G52, G92 at a position not given and G92.1/G92.2 set the same offset in both. ``shift`` (3,)
     the difference before the rows (updated in place); ``done`` the entries already applied. An
     entry after the last row waits for the next rows."""
-    snapshot = list(table)
+    stop = len(table)           # the reader may append while this runs: entries never move
     n = len(lines)
     out = np.empty((n, 3))
     pos = 0
-    while done < len(snapshot):
-        line, frame = snapshot[done]
+    while done < stop:
+        line, frame = table[done]
         r = int(np.searchsorted(lines, line, side="right"))
         if r == n:
             break

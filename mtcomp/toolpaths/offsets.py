@@ -135,12 +135,11 @@ class ProgramSetup:
         local = frame_local(chunk.frame)
         if not local.any():
             return pts
-        table = getattr(source, "local_frames", None)
-        if table is None:
+        if getattr(source, "local_frames", None) is None:
             raise ValueError("the chunk's rows carry frame changes the program made (G52, G68, "
                              "mirror, scaling): apply(chunk, source) needs the ProgramSource")
-        self.local_frames = table
-        return placed_by_frames(table, local, chunk.line, pts, [self.machine.index(c) for c in "XYZ"])
+        return placed_by_frames(self.local_frames, local, chunk.line, pts,
+                                [self.machine.index(c) for c in "XYZ"])
 
     def to_program(self, chunk: SegmentChunk, points: np.ndarray, counts: np.ndarray,
                    off: np.ndarray) -> np.ndarray:
