@@ -94,8 +94,9 @@ def test_holes2_drills_its_six_holes_on_the_circle(tmp_path):
                                [(x, y, 2.0) for x, y in want], rtol=0, atol=1e-9)
     assert all(b.cycle.r_level == pytest.approx(6.0, rel=0, abs=1e-12) for b in holes)
     # after each hole the tool stands at RTP 15 (the retract the translation adds)
-    moves = replay_sinumerik.replay(path.read_bytes()).moves
-    assert [m.end["Z"] for m in moves if m.line == 4][-1] == 15
+    gcode = translate(path).gcode
+    ends = [k for k, g in enumerate(gcode) if g == "G80"]
+    assert len(ends) == 6 and all(gcode[k + 1] == "G0 Z15" for k in ends)
 
 
 def test_a_subprogram_not_in_the_file_makes_every_axis_unknown(tmp_path):
@@ -166,6 +167,7 @@ N140 G1 X10 Y60 Z=TOP+2
 N150 G3 I=AC(40) J=AC(60)
 N160 G0 Z=TOP+50
 N170 L55
+N175 G0 Z=TOP+60
 N180 M30
 """
 
@@ -200,8 +202,9 @@ def test_a_compensated_program_drills_where_the_plan_says(tmp_path, capsys):
     assert text.splitlines()[2].startswith("; mtcomp:") and "HOLES2(" not in text
     replay_sinumerik.compare(src.read_bytes(), out.read_bytes(),
                              Tolerance(axis_mm=0.06, axis_deg=0.1, path_mm=0.1), name="t")
-    # nothing after the L call names an axis
-    assert text.splitlines()[-2:] == ["N170 L55", "N180 M30"]
+    # after the L call no X or Y is written (their positions are the subprogram's), and the
+    # Z move is written as it stands (a block with an axis not known is not corrected)
+    assert text.splitlines()[-3:] == ["N170 L55", "N175 G0 Z=TOP+60", "N180 M30"]
 
 
 def _shifted(path, machine, shift, chord_tol_mm=0.001):
@@ -407,3 +410,17 @@ def test_a_circle_whose_z_correction_changes_gets_the_corrected_z(tmp_path):
     lines = _lines_after(path, load_machine("xfyz"), lambda p: np.outer(p[:, 0], [0, 0, 1e-4]))
     assert lines[3:6] == ["N20 G1 Z-0.9980", "N30 G3 X-20 Y0 Z-1.0020 I=AC(0) J=AC(0) F200",
                           "N40 G0 Z19.9980"]
+
+
+def test_work_offset_and_cutting_edge_changes_in_blocks_without_a_move(tmp_path):
+    """A G55 in a block that calls a cycle, and D0 / D1 blocks: the G-code equivalent changes the
+    work system there (every axis unknown), and a change of cutting edge changes the tool length
+    (Z unknown until named), where a Siemens controller does; a D that names the edge in force
+    changes nothing."""
+    path = _write(tmp_path, "N05 T3 M6\nN10 G0 X0 Y0 Z20 F300\nN20 G55 MCALL CYCLE81(50,0,2,-10)\n"
+                            "N30 X10 Y10\nN40 MCALL\nN50 D0\nN60 G0 X5 Z30\nN70 D1\nN75 D1\n"
+                            "N80 G0 Z40\nM30\n")
+    gcode = translate(path).gcode
+    assert gcode.index("G55 G43.1") < next(k for k, g in enumerate(gcode) if g.startswith("G99 G81"))
+    assert gcode.count("G49") == 1 and gcode.count("G43 H3") == 1      # D1 after D0, not N75's
+    assert gcode.index("G49") < gcode.index("G0 X5 Z30") < gcode.index("G43 H3") < gcode.index("G0 Z40")

@@ -32,7 +32,7 @@ _DEF = re.compile(r"(?i)\s*DEF\s+(REAL|INT|BOOL)\s+(.*)$")
 #: G codes read (others refused by name): motion, plane, distance, units, work offsets, path
 #: control (no change to the path as programmed), feed per minute, cutter radius compensation
 _MOTION_G = {0, 1, 2, 3}
-_PASSED_G = {17, 18, 19, 40, 41, 42, 54, 55, 56, 57, 90, 94, 71, 710}
+_PASSED_G = {17, 18, 19, 40, 41, 42, 90, 94, 71, 710}
 _IGNORED_G = {9, 60, 64, 601, 602, 603}
 _REFUSED_WORDS = {
     "GOTO": "program jumps (GOTO)", "GOTOF": "program jumps (GOTOF)",
@@ -143,6 +143,7 @@ class _Reader:
         self.motion: int | None = None
         self.plane = 17
         self.tool = 0
+        self.edge = 1                           # the tool's cutting edge D in force (0: D0)
         self.wcs = 500                          # the basic setting: no settable work offset
         #: the G-code equivalent is in the basic frame (G500 named; before any work system is
         #: named it reads the G-code default G54: the reset setting is a machine datum)
@@ -270,6 +271,7 @@ class _Reader:
             # the machine maker's tool change cycle moves the axes it needs (on a horizontal
             # machine Y and Z, often X): every position is unknown until the program names it
             self.pos = dict.fromkeys(AXES)
+            self.edge = 1                       # a new tool starts on its edge D1
             self.emit(f"T{self.tool} M6 " + (f"G43 H{self.tool}" if self.tool else "G49"))
             self.emit("G43.1")
         if "END" in other:
@@ -294,7 +296,7 @@ class _Reader:
             elif w.kind == "address" and w.name == "T":
                 self.tool = int(float(w.text))
             elif w.kind == "address" and w.name == "D":
-                other.add("D0" if int(float(w.text)) == 0 else "D")
+                other.add(f"D{int(float(w.text))}")
             elif w.kind == "address" and w.name == "F":
                 other.add(f"F{fmt(self.value(w.text))}")
             elif w.kind == "assign" and w.name == "F":
@@ -320,7 +322,7 @@ class _Reader:
                 self.wcs = code
                 self.basic = False
                 self.pos = dict.fromkeys(AXES)
-                self.emit("G43.1")
+                self.emit(f"G{code} G43.1")
             elif code == 500:
                 if not self.basic:
                     self.wcs = code
@@ -337,8 +339,12 @@ class _Reader:
                                "read by mtcomp")
             elif code not in _PASSED_G and code not in _IGNORED_G:
                 raise self.err(f"G{code} is not read by mtcomp")
-        if "D0" in other:
+        edges = [int(o[1:]) for o in other if o[0] == "D" and o[1:].isdigit()]
+        if edges and edges[-1] != self.edge:
+            # another cutting edge (D0: none) is another tool length: Z unknown until named
+            self.edge = edges[-1]
             self.pos["Z"] = None
+            self.emit(f"G43 H{self.tool}" if self.edge and self.tool else "G49")
 
     def _basic_frame(self) -> None:
         """The basic frame G500 (no settable work offset) in the G-code equivalent: the work system
@@ -363,14 +369,13 @@ class _Reader:
         self._check_axis_words(axes)
         codes = self._g_codes(g)
         feed = " ".join(o for o in sorted(other) if o.startswith("F"))
-        tool = " G49" if "D0" in other else ""
         if self.motion in (2, 3) and (axes or centre):
             self._arc(axes, centre, codes, feed)
             return
         if centre:
             raise self.err("I, J or K outside a circle G2/G3")
         if not axes:
-            text = " ".join(t for t in (codes, feed) if t) + tool
+            text = " ".join(t for t in (codes, feed) if t)
             if text.strip():
                 self.emit(text.strip())
             return
@@ -382,13 +387,13 @@ class _Reader:
         self.pos.update(target)
         if self.modal_call is not None and not isinstance(self.modal_call, Call):
             # a cycle mtcomp does not read runs at the position: the block passes uncorrected
-            self.emit(" ".join(t for t in (codes, f"G{self.motion}", feed) if t) + tool)
+            self.emit(" ".join(t for t in (codes, f"G{self.motion}", feed) if t))
             self._unknown(self.modal_call)
             return
         if self.modal_call is not None:
-            self._modal_hole(line + tool, axes, target)
+            self._modal_hole(line, axes, target)
             return
-        self.emit(line + tool, "move")
+        self.emit(line, "move")
 
     def _arc(self, axes, centre, codes, feed) -> None:
         if self.plane != 17:
