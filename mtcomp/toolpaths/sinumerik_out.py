@@ -32,7 +32,7 @@ from ..errors import InputError
 from ..io.atomic import atomic_write
 from ._arcs import arc_misses, arc_sweep, fit_arc_centre, radius_refused
 from .heidenhain_out import ROTARY_ARC_TOL_RAD, HeidenhainWriter, plan_blocks
-from .heidenhain import read_lines
+from .heidenhain import signed
 from .sinumerik import AXES, BLOCK_START
 from .sinumerik_lang import code_end, split_words
 from .words import number_decimals
@@ -45,8 +45,8 @@ def _plain(text: str) -> bool:
 
 
 def _number(value: float, decimals: int) -> str:
-    s = f"{value:.{decimals}f}"
-    return s.lstrip("-") if float(s) == 0.0 else s
+    """A plain number at ``decimals`` (never -0), unsigned where positive."""
+    return signed(value, decimals, sign=False)
 
 
 def corrected_text(text: str, nominal: float, corrected: float) -> tuple[str, float]:
@@ -82,8 +82,6 @@ class SinumerikWriter(HeidenhainWriter):
 
     def __init__(self, src, machine, chord_tol_mm: float):
         super().__init__(src, machine, chord_tol_mm, translation=src.sinumerik)
-        self.raws = read_lines(src.source)
-        self.texts = [r.decode("latin-1") for r in self.raws]
         self.orig = list(self.texts)             # the source's lines (the calls' spans)
         self.restate: dict[int, str] = {}       # a HOLES2 hole -> the call restated before it
         self.before: dict[int, list] = {}       # source line -> lines inserted before it
