@@ -418,9 +418,10 @@ def test_work_offset_and_cutting_edge_changes_in_blocks_without_a_move(tmp_path)
     (Z unknown until named), where a Siemens controller does; a D that names the edge in force
     changes nothing."""
     path = _write(tmp_path, "N05 T3 M6\nN10 G0 X0 Y0 Z20 F300\nN20 G55 MCALL CYCLE81(50,0,2,-10)\n"
-                            "N30 X10 Y10\nN40 MCALL\nN50 D0\nN60 G0 X5 Z30\nN70 D1\nN75 D1\n"
+                            "N30 X10 Y10\nN40 MCALL\nN45 G55 G0 Z60\nN50 D0\nN60 G0 X5 Z30\nN70 D1\nN75 D1\n"
                             "N80 G0 Z40\nM30\n")
     gcode = translate(path).gcode
     assert gcode.index("G55 G43.1") < next(k for k, g in enumerate(gcode) if g.startswith("G99 G81"))
+    assert gcode.count("G55 G43.1") == 1 and "G0 Z60" in gcode     # G55 named again: no change
     assert gcode.count("G49") == 1 and gcode.count("G43 H3") == 1      # D1 after D0, not N75's
     assert gcode.index("G49") < gcode.index("G0 X5 Z30") < gcode.index("G43 H3") < gcode.index("G0 Z40")

@@ -317,12 +317,13 @@ class _Reader:
                 self.motion = code
             elif code in (17, 18, 19):
                 self.plane = code
-            elif code in (54, 55, 56, 57) and code != self.wcs:
-                # every position in the new frame is unknown (the G-code reader is told so)
-                self.wcs = code
-                self.basic = False
-                self.pos = dict.fromkeys(AXES)
-                self.emit(f"G{code} G43.1")
+            elif code in (54, 55, 56, 57):
+                if code != self.wcs:
+                    # every position in the new frame is unknown (the G-code reader is told so)
+                    self.wcs = code
+                    self.basic = False
+                    self.pos = dict.fromkeys(AXES)
+                    self.emit(f"G{code} G43.1")
             elif code == 500:
                 if not self.basic:
                     self.wcs = code
