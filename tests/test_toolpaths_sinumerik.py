@@ -425,3 +425,14 @@ def test_work_offset_and_cutting_edge_changes_in_blocks_without_a_move(tmp_path)
     assert gcode.count("G55 G43.1") == 1 and "G0 Z60" in gcode     # G55 named again: no change
     assert gcode.count("G49") == 1 and gcode.count("G43 H3") == 1      # D1 after D0, not N75's
     assert gcode.index("G49") < gcode.index("G0 X5 Z30") < gcode.index("G43 H3") < gcode.index("G0 Z40")
+
+
+def test_a_pattern_argument_with_a_comma_in_parentheses_is_refused(tmp_path):
+    """HOLES1(MINVAL(A,B), ...): its arguments' places on the line cannot be told by its commas,
+    so the writer could not move its reference point in place: one line naming it, not a wrong
+    edit."""
+    path = _write(tmp_path, "DEF REAL A=1\nDEF REAL B=2\nN10 G0 X0 Y0 Z20 F300\n"
+                            "N20 MCALL CYCLE81(15,5,1,,3)\nN30 HOLES1(MINVAL(A,B),0,0,10,10,3)\n"
+                            "N40 MCALL\nM30\n")
+    with pytest.raises(InputError, match=r":7: HOLES1 with a comma inside an argument's parentheses"):
+        translate(path)

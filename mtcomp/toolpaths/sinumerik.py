@@ -466,12 +466,7 @@ class _Reader:
     def _drilling(self, w: Word, modal: bool) -> Call:
         """CYCLE81 ... CYCLE89 (RTP, RFP, SDIS, DP, DPR, ...): the levels of its holes."""
         args = split_arguments(w.text)
-        spans, pos = [], w.start
-        for part in w.text.split(","):
-            spans.append((pos, pos + len(part)))
-            pos += len(part) + 1
-        if len(spans) != len(args):           # a comma inside parentheses: no in-place edit
-            spans = []
+        spans = _spans(w, args)
         names = ("RTP", "RFP", "SDIS", "DP", "DPR")
         vals = [self.value(a) if i < len(args) and args[i] else None for i, a in
                 enumerate(args[:5] + [""] * (5 - len(args[:5])))]
@@ -541,14 +536,24 @@ class _Reader:
             step = 360.0 / n if c == 0 else c
             positions = [(x0 + a * math.cos(math.radians(b + i * step)),
                           y0 + a * math.sin(math.radians(b + i * step))) for i in range(n)]
-        spans, pos = [], w.start
-        for part in w.text.split(","):
-            spans.append((pos, pos + len(part)))
-            pos += len(part) + 1
+        spans = _spans(w, args)
+        if not spans:
+            raise self.err(f"{w.name} with a comma inside an argument's parentheses is not read by "
+                           "mtcomp (give the value as a variable or a number)")
         pattern = Pattern(self.k, w.name, args, spans, positions, (x0, y0), self.motion)
         self.out.patterns.append(pattern)
         for x, y in positions:
             self._hole(self.modal_call, x, y, pattern)
+
+
+def _spans(w: Word, args: list) -> list:
+    """[(start, end)] of each argument's text of the call ``w`` on its line, [] when a comma sits
+    inside an argument's parentheses (its arguments cannot be edited in place)."""
+    spans, pos = [], w.start
+    for part in w.text.split(","):
+        spans.append((pos, pos + len(part)))
+        pos += len(part) + 1
+    return spans if len(spans) == len(args) else []
 
 
 def translate(path) -> Translation:
