@@ -76,8 +76,30 @@ def run(args) -> int:
                          targets=laser_target_tables(result.fitted_model, datasets, machine,
                                                      verbose=args.verbose)))
     from ..export import reversal_note
-    reversal = reversal_note(result.fitted_model)
-    if reversal:
-        print(f"note: {reversal}")
+    for note in (reversal_note(result.fitted_model), _weights_note(result, args.weights)):
+        if note:
+            print(f"note: {note}")
     print(f"\nwrote {out}")
     return 0
+
+
+#: files whose rms residuals (um) differ by more than this factor under one shared variance get a note
+WEIGHTS_NOTE_RATIO = 3.0
+
+
+def _weights_note(result, weights: str) -> str | None:
+    """One line when, under ``--weights unit`` (one residual variance for every file), the files'
+    rms residuals in um differ by more than :data:`WEIGHTS_NOTE_RATIO`: the standard errors of what
+    the quieter files fix are then too large; ``--weights noise`` gives each file its own."""
+    if weights != "unit":
+        return None
+    rms = {tag: max(v for c, v in cols.items() if c.endswith("_um"))
+           for tag, cols in result.rms().items() if any(c.endswith("_um") for c in cols)}
+    rms = {t: v for t, v in rms.items() if v > 0}
+    if len(rms) < 2 or max(rms.values()) <= WEIGHTS_NOTE_RATIO * min(rms.values()):
+        return None
+    loud, quiet = max(rms, key=rms.get), min(rms, key=rms.get)
+    return (f"the files' rms residuals differ ({loud} {rms[loud]:.3g} um, {quiet} {rms[quiet]:.3g} "
+            "um): with --weights unit one residual variance serves every file, so the standard "
+            "errors of what the quieter files fix are too large; --weights noise weights each file "
+            "by its own noise")
