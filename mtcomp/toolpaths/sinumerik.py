@@ -72,7 +72,6 @@ class GInfo:
     source: int
     kind: str | None = None
     shift: tuple = (0.0, 0.0, 0.0)
-    incremental: frozenset = frozenset()
     centre: tuple | None = None
     cc_line: int | None = None
     call: object = None
@@ -259,7 +258,7 @@ class _Reader:
         mcall = any(w.kind == "keyword" and w.name == "MCALL" for w in words)
         self._modes(g, other)
         if mcall:
-            self._mcall(calls, words, axes)
+            self._mcall(calls, axes)
             return
         if calls:
             if axes or centre:
@@ -392,7 +391,7 @@ class _Reader:
             self._unknown(self.modal_call)
             return
         if self.modal_call is not None:
-            self._modal_hole(line, axes, target)
+            self._modal_hole(line, axes)
             return
         self.emit(line, "move")
 
@@ -451,7 +450,7 @@ class _Reader:
         self.r_lost = True
         self.emit("G43.1")
 
-    def _mcall(self, calls, words, axes) -> None:
+    def _mcall(self, calls, axes) -> None:
         if axes or len(calls) > 1:
             raise self.err("MCALL with a move or more than one call is not read by mtcomp")
         if not calls:
@@ -488,7 +487,7 @@ class _Reader:
         self.out.calls.append(call)
         return call
 
-    def _modal_hole(self, line: str, axes: dict, target: dict) -> None:
+    def _modal_hole(self, line: str, axes: dict) -> None:
         """A positioning block under MCALL of a drilling cycle: its move, then the hole."""
         call = self.modal_call
         if set(axes) - {"X", "Y"}:
