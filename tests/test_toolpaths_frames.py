@@ -23,6 +23,13 @@ XFYZ = load_machine("xfyz")
 def _corrected(tmp_path, text, dialect, correction, name="p"):
     """(machine ends (n, 3), known (n, 3), output lines) of ``text`` read by ``dialect`` and
     written with the machine-frame correction ``correction(machine ends) -> (n, 3) mm``."""
+    return corrected_with_notes(tmp_path, text, dialect, correction, name)[:3]
+
+
+def corrected_with_notes(tmp_path, text, dialect, correction, name="p"):
+    """:func:`_corrected` and the program's notes, through the same steps as compensate: the setup
+    places the rows, takes the correction back to the program's frame and to the words written
+    (:meth:`ProgramSetup.written`: a G92 set where the corrected tool stands)."""
     p, out = tmp_path / f"{name}.nc", tmp_path / f"{name}.out.nc"
     p.write_text(text)
     ends, known = [], []
@@ -37,9 +44,12 @@ def _corrected(tmp_path, text, dialect, correction, name="p"):
                 ones = np.ones(len(chunk), np.int64)
                 # as the planner does: a row with an axis the program has not given is not corrected
                 pts = mchunk.end + correction(mchunk.end) * chunk.known.all(axis=1)[:, None]
-                yield chunk, setup.to_program(chunk, pts, ones, off), ones
+                nominal = setup.to_program(chunk, mchunk.end, ones, off)
+                pts = setup.to_program(chunk, pts, ones, off)
+                yield chunk, setup.written(chunk, pts, nominal, ones), ones
         write_corrected(src, out, XFYZ, corrections())
-    return np.vstack(ends), np.vstack(known), out.read_text().splitlines()
+        notes = list(src.notes)
+    return np.vstack(ends), np.vstack(known), out.read_text().splitlines(), notes
 
 
 def _constant(c_mm):

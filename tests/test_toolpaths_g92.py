@@ -12,12 +12,12 @@ import pytest
 
 from mtcomp.errors import InputError
 from mtcomp.machine import load_machine
-from mtcomp.toolpaths import iter_segment_chunks, write_corrected
-from mtcomp.toolpaths.offsets import ProgramSetup
+from mtcomp.toolpaths import iter_segment_chunks
 from mtcomp.toolpaths.source import open_program
 from replay import Tolerance, compare, replay
 from test_compensate_cli import _model, _read_report, _run
 from test_toolpaths_dialect import mode  # noqa: F401  (the fixture: both reader paths)
+from test_toolpaths_frames import corrected_with_notes
 
 XFYZ = load_machine("xfyz")
 CORPUS = Path(__file__).parent / "data" / "gcode_corpus"
@@ -29,30 +29,9 @@ def _linear_x(q):
 
 
 def _corrected(tmp_path, text, dialect="grbl", correction=_linear_x):
-    """(machine ends (n, 3), known (n, 3), output lines) of ``text`` written with the machine-frame
-    correction ``correction(machine ends)``, through the same steps as compensate: the setup
-    places the rows, takes the correction back to the program's frame and to the words written
-    (:meth:`ProgramSetup.written`)."""
-    p, out = tmp_path / "p.nc", tmp_path / "p.out.nc"
-    p.write_text(text)
-    ends, known = [], []
-    with open_program(p, dialect) as src:
-        setup = ProgramSetup(XFYZ)
-
-        def corrections():
-            for chunk in iter_segment_chunks(src, XFYZ):
-                mchunk, off = setup.apply(chunk, src)
-                ends.append(mchunk.end)
-                known.append(chunk.known)
-                ones = np.ones(len(chunk), np.int64)
-                # as the planner does: a row with an axis the program has not given is not corrected
-                pts = mchunk.end + correction(mchunk.end) * chunk.known.all(axis=1)[:, None]
-                nominal = setup.to_program(chunk, mchunk.end, ones, off)
-                pts = setup.to_program(chunk, pts, ones, off)
-                yield chunk, setup.written(chunk, pts, nominal, ones), ones
-        write_corrected(src, out, XFYZ, corrections())
-        notes = list(src.notes)
-    return np.vstack(ends), np.vstack(known), out.read_text().splitlines(), notes
+    """(machine ends (n, 3), known (n, 3), output lines, notes) of ``text`` written with the
+    machine-frame correction ``correction(machine ends)``, through the same steps as compensate."""
+    return corrected_with_notes(tmp_path, text, dialect, correction)
 
 
 def test_g92_at_a_known_position_places_later_blocks_and_takes_its_correction_back(tmp_path, mode):
