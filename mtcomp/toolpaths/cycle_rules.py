@@ -73,3 +73,24 @@ def cycle_move(state, values, axes_given):
             state.position[i] = v
             state.known[i] = True
     state._forget(state.tool_axis)
+
+
+def home_with_motion(dialect: str, home_move: int, motion: int) -> bool:
+    """Whether a home move (G28/G30) or a move in machine coordinates (G53) may share its block with
+    the motion code ``motion`` (read as setting the motion mode for the blocks after it).
+
+    G53 with G0 or G1 on every dialect (``G53 G0 Z0``: the move itself, in machine coordinates).
+    G28/G30 with G0 or G1 on Fanuc and Haas (``G00 G91 G28 Z0``, written by many posts): their G
+    codes come in groups, group 00 one-shot (G28, G30) and group 01 the motion mode (G00-G03), and
+    codes of different groups may share a block (M. Lynch, "Taking advantage of G-code grouping",
+    Modern Machine Shop); the home move runs at rapid whatever the mode (M. Lynch, CNC Concepts, "How
+    the heck does G28 work?"), and the mode holds for the blocks after it. RS274/NGC (LinuxCNC and
+    grbl) makes it an error: two codes that use the axis words."""
+    if motion >= 2:
+        return False
+    return home_move == 53 or (home_move in (28, 30) and dialect in ("fanuc", "haas"))
+
+
+def has_axis_words(values: dict) -> bool:
+    """Whether a block's words (letter -> value) name an axis."""
+    return any(letter in values for letter in "XYZABCUVW")

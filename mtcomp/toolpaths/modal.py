@@ -20,7 +20,7 @@ from ..machine import Machine
 from ._arcs import (PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, centre_from_radius,
                     is_point_circle, point_circle)
 from .blocks import CycleBlock, MotionBlock
-from .cycle_rules import cycle_move, cycle_unclear, incremental_r_level, retract_level
+from .cycle_rules import cycle_move, cycle_unclear, has_axis_words, home_with_motion, incremental_r_level, retract_level
 from .dialect import GENERIC, grbl_program_end
 from .frames import (FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle, follow_given,
                      mode_change)
@@ -191,7 +191,7 @@ class ModalState:
         motion, nonmotion_axes, home_move, cycle = self._apply_codes(gcodes, mcodes, values,
                                                                      tokens, line)
         axes_given = self._axis_words(values, line)
-        if home_move is not None and motion is not None and not (home_move == 53 and motion < 2):
+        if home_move is not None and motion is not None and not home_with_motion(self.dialect.name, home_move, motion):
             raise self._err(f"G{home_move} and motion G{motion} in one block", line)
         self._set_feed(values, line)
         if nonmotion_axes:
@@ -352,7 +352,7 @@ class ModalState:
         if g10:
             apply_g10(self, values, tokens, line)
         for g in frame_codes:
-            if motion is not None or home_move is not None or cycle is not None:
+            if (motion is not None and has_axis_words(values)) or home_move is not None or cycle is not None:
                 raise self._err(f"G{g:g} and a move in one block is not supported", line)
             apply_frame_code(self, g, values, tokens, line)
         return motion, nonmotion_axes, home_move, cycle
