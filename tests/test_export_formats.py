@@ -300,6 +300,9 @@ def test_fanuc_pitch_error_parameters_reproduce_the_model(fitted, model_path, tm
             np.testing.assert_allclose(comp_r, -(e_r - ref_f), rtol=0, atol=0.5 * res + 1e-9)
         else:
             assert "-" not in tables[k]
+    # X reverses (its backlash is in the tables): the README says to keep 1851 at 0, once, for X
+    readme = (out / "README.txt").read_text()
+    assert readme.count("parameter 1851") == 1 and "axis X: the reversal (backlash)" in readme
 
 
 # ------------------------------------------------------------------------------------ ISG

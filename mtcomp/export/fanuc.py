@@ -150,6 +150,10 @@ def export(tables, sign: str | None = None, unit_um: float = 1.0, max_value: int
                 csv.append(f"{a},{first[label] + i},{pos[i]:.6f},{label},{int(inc[i])},"
                            f"{corr[i] * 1e3:.4f},{int(held[i])}")
         carried[(a, component_names(a)[j])] = FULL if bidir else MEAN
+        if bidir:
+            notes.append(f"axis {a}: the reversal (backlash) is in the bidirectional tables (3605#0 = 1, "
+                         "3626, 3627); the backlash compensation of parameter 1851 adds its own value "
+                         "at every reversal: set it to 0, or the reversal is corrected twice")
         line = held_note(t, a, first["+"])
         if line:
             notes.append(line)

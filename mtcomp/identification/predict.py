@@ -196,10 +196,47 @@ def predict_readings(fitted: FittedModel, data: MeasurementSet, machine: Machine
     if fitted.uncertainty is None:
         notes.append("the model carries no uncertainty (mtcomp identify and diagnose write one; a "
                      "model file of an older mtcomp may not): the _sd columns are blank")
-    if not known:
+    if getattr(mm, "kind", None) == "thermal":
+        notes += _thermal_notes(fitted, mm, known)
+    elif not known:
         notes.append(f"{mm.tag} was not part of the fit: its set-up ({', '.join(s.name.split(':', 1)[1] for s in mm.nuisance_specs)}) "
                      "is unknown and taken as zero; compare readings up to that set-up")
     return Prediction(columns, known, notes)
+
+
+def _thermal_notes(fitted: FittedModel, mm, known: bool) -> list:
+    """What a thermal file's predictions are referenced to, and the model's channels it lacks.
+
+    A channel the model reads as an absolute value (a drift term with a zero of its own) is
+    predicted in the zero of the record the model was fitted on, whatever file it is; any other
+    channel as the change since the file's first reading (docs/thermal.md)."""
+    from ..measurement.readings_extra import tip_channels
+    from ..models.terms import ChannelDrift, ThermalDrift
+    tip, absolute = tip_channels(fitted.model)
+    model_channels = set()
+    for t in fitted.model.terms:
+        if isinstance(t, ThermalDrift):
+            model_channels.update(t.channel_directions())
+        elif isinstance(t, ChannelDrift):
+            model_channels.update(t.channels)
+    notes = []
+    missing = sorted(model_channels - set(mm.channels))
+    if missing:
+        notes.append(f"{mm.tag} has no column for the model's channel(s) "
+                     f"{', '.join(missing)} ({', '.join(f'disp_{c}_um' for c in missing)}): not "
+                     "predicted (a misspelt column name?)")
+    if not known:
+        absolute_here = [c for c in mm.channels if c in absolute]
+        relative = [c for c in mm.channels if c not in absolute]
+        if absolute_here:
+            notes.append(f"{mm.tag} was not part of the fit: channel(s) {', '.join(absolute_here)} "
+                         "predicted in the zero of the record the model was fitted on (the "
+                         "sensors left in place since; if they were set to zero again, compare "
+                         "each channel up to its own offset)")
+        if relative:
+            notes.append(f"{mm.tag} was not part of the fit: channel(s) {', '.join(relative)} "
+                         "predicted as the change since this file's first reading")
+    return notes
 
 
 def _blank_outside_region(fitted, data, machine, columns: dict) -> list:

@@ -363,7 +363,9 @@ def load_model(path: str | os.PathLike, machine: Machine | None = None,
         if _looks_like_gcode(p):
             hint = ("; it looks like a G-code program: the model file (from identify or diagnose) "
                     "comes before the program")
-        raise InputError(f"not valid JSON (line {exc.lineno}: {exc.msg}){hint}", p) from None
+        what = exc.msg.removesuffix(" at")             # json's "Invalid control character at"
+        raise InputError(f"not valid JSON at line {exc.lineno}, column {exc.colno}: {what}{hint}",
+                         p) from None
     except UnicodeDecodeError:
         raise InputError("not a text file", p) from None
     if not isinstance(data, dict) or data.get("format") != FORMAT:
