@@ -187,3 +187,32 @@ def test_a_contour_straddling_the_limit_is_cut_without_a_dent(tmp_path, monkeypa
 def test_the_dent_measure_sees_a_dent():
     assert _dent_um([0, 10, 20, 30, 25, 0, 0, 5, 30, 20]) == pytest.approx(30.0, rel=0, abs=1e-12)
     assert _dent_um([10, 20, 30, 30, 20, 10]) == 0.0
+
+
+@pytest.mark.parametrize("limit_at_x", [220.0, None])
+def test_contours_across_chunks_are_planned_as_in_one_piece(tmp_path, monkeypatch, limit_at_x):
+    """The loop and the two contours in one program ending on a feed move (the last contour still
+    open when the program ends), read 5 rows at a time: the same BLOCKS.csv and output as in one
+    chunk, with the limit crossed in the loop (held back, then left uncorrected, then continued
+    uncorrected) and with no block over it (held back to the program's end, then corrected)."""
+    machine, fitted = _fitted(200.0)
+    limit = 100.0 if limit_at_x is None else \
+        float(_sd_oracle(fitted, np.array([[limit_at_x, 0.0, 0.0]]))[0])
+    path = tmp_path / "M.json"
+    save_model(path, fitted)
+    loop = _loop_program(tmp_path).read_text().splitlines()[:-2]        # no G0 Z10, M30
+    two = _program(tmp_path).read_text().splitlines()[1:-2]
+    prog = tmp_path / "both.nc"
+    prog.write_text("\n".join(loop + ["G0 Z10"] + two) + "\n")
+    outs = []
+    for rows in (None, 5):
+        if rows:
+            monkeypatch.setattr(mtcomp.compensation, "CHUNK_ROWS", rows)
+        o, b = tmp_path / f"o{rows}.nc", tmp_path / f"b{rows}.csv"
+        assert main(["compensate", "xfyz", str(path), str(prog), "-o", str(o), "--report", str(b),
+                     "--max-correction-sd-um", f"{limit:.6f}", "--quiet"]) == 0
+        outs.append((o.read_text(), b.read_text()))
+    assert outs[0] == outs[1]
+    rows = [r for r in _rows(tmp_path / "b5.csv") if r["unknown_axes"] == "" and r["rapid"] == "0"]
+    corrected = {r["corrected"] for r in rows}
+    assert corrected == ({"0", "1"} if limit_at_x else {"1"})

@@ -184,7 +184,7 @@ class Planner:
         (n,) the standard error of each block's correction, um, NaN for blocks not corrected anyway
         (an unknown axis, or outside the support unless the options extrapolate) and for every block
         when the options set no limit on it (``max_correction_sd_um``). A block is left uncorrected
-        when any of the three says so."""
+        when any of the three says so, and so is its contour when its sd is over (:mod:`._contours`)."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         unknown = ~np.asarray(known, bool)
         outside = self.outside_support(q, ~unknown)
