@@ -15,7 +15,9 @@ nominal positions, from the forward column when the target was approached moving
 reverse column otherwise, and added to the command; the corrected reading is reading + trim. The
 figure is the rms of the corrected held-out readings about their mean: a new file is a new laser
 set-up whose zero no fit can know. When the model file has no 'support' (the region of its data) the
-export gets --range from the training targets.
+export gets --range from the training targets. Each table is exported whatever its standard error
+(``--max-correction-sd-um 0``); a second list gives each table's largest standard error and whether
+export's default limit would have written it.
 
     python benchmarks/bench_export_real.py [--data DIR]
 
@@ -143,7 +145,10 @@ def mtcomp_table(train_csv: Path, axis: str, how: str, work: Path, grid_mm: floa
         if grid_mm is not None:
             extra += ["--grid-mm", f"{grid_mm:g}"]
         out = work / f"linuxcnc_{how}"
-        rc = main(["export", "xfyz", str(model), "--format", "linuxcnc", "-o", str(out), *extra])
+        # the table itself, whatever its standard error (largest_sd_um says whether the default
+        # limit would have written it)
+        rc = main(["export", "xfyz", str(model), "--format", "linuxcnc", "-o", str(out),
+                   "--max-correction-sd-um", "0", *extra])
         if rc != 0:
             raise RuntimeError(f"mtcomp export failed: {sink.getvalue()}")
     return out / f"{axis.lower()}.comp"
@@ -165,7 +170,24 @@ def compare(path: Path, grid_mm: float | None = None) -> dict:
         for how in ("identify", "diagnose"):
             comp = mtcomp_table(train_csv, axis, how, work, grid_mm)
             out[f"{how}_um"] = rms_about_mean(linuxcnc_residual(comp, test))
+            out[f"{how}_sd_um"] = largest_sd_um(work / f"model_{how}.json", axis)
     return out
+
+
+def largest_sd_um(model_path: Path, axis: str) -> float:
+    """The largest standard error (um) of the model's table of ``axis`` over the region of its
+    data, either direction (what export checks against --max-correction-sd-um), on 201 points."""
+    from mtcomp.export._tables import _evaluation_pose, table_region, table_sd_um
+    from mtcomp.models.model_file import load_model
+    fitted = load_model(model_path)
+    machine = fitted.machine
+    region, _, _ = table_region(fitted)
+    q_ref = _evaluation_pose(machine, region)
+    lo, hi = region[axis]
+    q = np.tile(q_ref, (201, 1))
+    q[:, machine.index(axis)] = np.linspace(lo, hi, 201)
+    sds = [table_sd_um(fitted, q, q_ref, {axis: d}) for d in (1.0, -1.0)]
+    return float("nan") if sds[0] is None else float(np.maximum(*sds).max())
 
 
 def main():
@@ -179,10 +201,18 @@ def main():
     print("held-out rms (runs 4-5, about their mean), um; tables from runs 1-3")
     print(f"{'file':16s} {'raw':>8s} {'pitch table':>12s} {'mtcomp identify':>16s} "
           f"{'mtcomp diagnose':>16s} {'diagnose/pitch':>15s}")
+    from mtcomp.planner.problem import DEFAULT_MAX_CORRECTION_SD_UM as limit
+    sds = []
     for name in FILES:
         r = compare(folder / f"{name}.csv", args.grid_mm)
         print(f"{r['file']:16s} {r['raw_um']:8.2f} {r['pitch_um']:12.2f} {r['identify_um']:16.2f} "
               f"{r['diagnose_um']:16.2f} {r['diagnose_um'] / r['pitch_um']:15.2f}")
+        sds.append((r["file"], r["identify_sd_um"], r["diagnose_sd_um"]))
+    print(f"largest standard error of each table, um (export's default limit {limit:g} um: "
+          "'left out' above it)")
+    for name, *sd in sds:
+        print(f"{name:16s} " + "  ".join(f"{how} {v:5.2f} {'left out' if v > limit else 'written'}"
+                                         for how, v in zip(("identify", "diagnose"), sd)))
 
 
 if __name__ == "__main__":

@@ -146,9 +146,10 @@ def rrf_runs_macro(words) -> bool:
     return False
 
 
-def replay(data: bytes, units_mm: bool = True) -> Replay:
+def replay(data: bytes, units_mm: bool = True, placed: bool = False) -> Replay:
     """The moves and motionless lines of a program (its bytes); `units_mm`: what a program
-    without G20/G21 is in."""
+    without G20/G21 is in. `placed`: the positions on the machine, plus the work offset the program
+    set for the system in force (G10 L2/L20; None where that offset is not the program's)."""
     st = _State(scale=1.0 if units_mm else 25.4, rrf=is_rrf(data))
     out = Replay()
     for index, raw in enumerate(data.split(b"\n")):
@@ -158,20 +159,33 @@ def replay(data: bytes, units_mm: bool = True) -> Replay:
             st.pos = {a: None for a in AXES}
         moves = [] if (not code or code[0] in "%:$") else _block(st, index, _words(code))
         if moves:
-            out.moves.extend(_in_work_system(m, st.g92) for m in moves)
+            out.moves.extend(_in_work_system(m, _offsets(st, placed)) for m in moves)
         else:
             out.still.append((index, raw))
     return out
 
 
-def _in_work_system(move, g92):
-    """A move with its positions (and arc centre) in the work system: plus the G92 offsets."""
+def _offsets(st, placed):
+    """axis -> what a program position is shifted by: the G92 offset, and with `placed` the work
+    offset the program set for the system in force (None where it did not)."""
+    out = {a: st.g92.get(a, 0.0) for a in AXES}
+    if placed:
+        for a in AXES:
+            off = st.offsets.get((st.wcs, a))
+            out[a] = None if off is None else out[a] + off
+    return out
+
+
+def _in_work_system(move, shift):
+    """A move with its positions (and arc centre) shifted by `shift` (axis -> mm or deg, None: the
+    position is not known)."""
     def placed(pos):
-        return {a: v if v is None or a not in LINEAR else v + g92[a] for a, v in pos.items()}
+        return {a: None if v is None or shift[a] is None else v + shift[a] for a, v in pos.items()}
     centre = move.centre
     if centre is not None:
         first, second = _PLANES[move.plane][:2]
-        centre = (centre[0] + g92[first], centre[1] + g92[second])
+        centre = None if shift[first] is None or shift[second] is None else (
+            centre[0] + shift[first], centre[1] + shift[second])
     return Move(move.line, move.kind, placed(move.start), placed(move.end), move.plane, centre,
                 move.sweep)
 
@@ -271,8 +285,12 @@ def _block(st, index, words):
 def _g10(st, words):
     """G10 L2 / L20 P: set the origin of a work system (P0: the active one). The active system's
     position changes with it: by the change where the old offset is known, to the given value
-    under L20, unknown otherwise. An L20 where the position is unknown (after homing) sets an
-    origin from outside the program (None), as the operator's touch-off at the panel would."""
+    under L20, unknown otherwise. L20 sets the origin so that the current position reads the value
+    (LinuxCNC G-code reference, G10 L20; grbl 1.1 gcode.c: WCS = MPos - G92 - TLO - WPos): the
+    machine position (the position plus G92's offset plus the active system's origin) less G92's
+    offset less the value, in system P whichever is active. An L20 where the position is unknown
+    (after homing) sets an origin from outside the program (None), as the operator's touch-off at
+    the panel would."""
     value = dict(words)
     p = int(value.get("P", -1))
     wcs = st.wcs if p == 0 else f"G{53 + p}" if 1 <= p <= 6 else f"P{p}"
@@ -283,7 +301,8 @@ def _g10(st, words):
         old = st.offsets.get((wcs, letter))
         pos = st.pos[letter]
         if value.get("L") == 20:
-            new = None if old is None or pos is None else pos + old - v
+            active = st.offsets.get((st.wcs, letter))
+            new = None if active is None or pos is None else pos + active - v
             if wcs == st.wcs:
                 st.pos[letter] = v
         else:

@@ -52,15 +52,60 @@ REFUSED = {
     "cluck2sesame_2-Spool.nc": ["2-Spool.nc:12:", "comment '(' holds parentheses",
                                 "Nested comment found"],
     # G92 before any move (`G92 z50 x-10`, `G92 Y200 z50`) is followed (its offset assumed 0,
-    # said once); these two are refused further on. fresa.gcode ends line 98 with a byte 0x01
-    # (grbl 1.1's protocol.c throws control characters away; mtcomp refuses it). fresa2.cnc has
-    # `G1 X145 Y-36.4 R20`: grbl 1.1 refuses an R word a G1 does not use (gcode.c, unused value
-    # words, error 36), as mtcomp does
-    "cncwebsim_fresa.gcode": ["fresa.gcode:98:", "unexpected character"],
+    # said once); these two are refused further on. fresa.gcode ends line 98 with a byte 0x01:
+    # grbl 1.1's protocol.c throws control characters away, and mtcomp drops it on grbl (with
+    # --dialect grbl the program is accepted), but nothing in the program names grbl (no '$'
+    # command, no real-time character, no comment naming it: it is read as generic G-code, and
+    # other controllers do not drop it). fresa2.cnc has `G1 X145 Y-36.4 R20`: grbl 1.1 refuses
+    # an R word a G1 does not use (gcode.c, unused value words, error 36), as mtcomp does
+    "cncwebsim_fresa.gcode": ["fresa.gcode:98:", "control character 0x01"],
     "cncwebsim_fresa2.cnc": ["fresa2.cnc:145:", "R word in a G1 block"],
+    # Siemens NX post-processor samples. Arcs whose end does not lie on their circle (the centre
+    # I J from the start is 0.2756 in away, the end 0.454 in; the Toyoda's 0.7874 in and 0.835 in):
+    # a controller alarms on such an arc (Fanuc: radius over tolerance), as mtcomp refuses it
+    "nxpost_4_axis_mill.ptp": ["4_axis_mill.ptp:24:", "arc radius inconsistent"],
+    "nxpost_Fadal_VMC6030_sample.ptp": ["Fadal_VMC6030_sample.ptp:24:", "arc radius inconsistent"],
+    "nxpost_Toyoda_sample_part.ptp": ["Toyoda_sample_part.ptp:53:", "arc radius inconsistent"],
+    # `G0 A0.0 B0.0` in a post for a Haas VF2 with an A table: a B word on a machine without B
+    # (the corpus machine has the program's A and C; mtcomp has no XYZAB topology)
+    "nxpost_4axis_test_only.cnc": ["4axis_test_only.cnc:13:", "has no B axis"],
+    # `ONONAME`: the post's placeholder where the program number belongs; a Haas takes O and
+    # digits only
+    "nxpost_BandB_mfg.cnc": ["BandB_mfg.cnc:2:", "word O without a valid number"],
+    # Sinumerik inch mode G70: mtcomp's Sinumerik reader reads metric programs only (a gap)
+    "nxpost_Cincinnati_Lamb_FTV5_840D_sample.ptp": ["840D_sample.ptp:2:", "inch programs (G70"],
+    # `G00G91G28Z0` on a Fanuc 0M: a home move and G0 in one block. RS274/NGC makes it an error
+    # (two G codes that use axis words); Fanuc-style programs write it commonly, and no Fanuc
+    # manual at hand says how the control takes it: refused (a gap to close with the manual)
+    "nxpost_LeBolondMakino_RCM-55_Fanuc0M_in_Sample.ptp": ["Fanuc0M_in_Sample.ptp:94:",
+                                                           "G28 and motion G0 in one block"],
+    # Fanuc G74 left-hand tapping (and, further on, G76 fine boring): cycles mtcomp does not follow
+    "nxpost_MS_NMV_sample_mm.ptp": ["MS_NMV_sample_mm.ptp:565:", "G74 (left-hand tapping)"],
+    # `BEGIN PGM 100 IN`: a Heidenhain program names its unit MM or INCH
+    "nxpost_Sample_mill.ptp": ["Sample_mill.ptp:1:", "BEGIN PGM name MM (or INCH)"],
+    # Sinumerik `G0 G53 Z0 D0` (a move in machine coordinates): not read by mtcomp's Sinumerik
+    # reader (a gap)
+    "nxpost_Training_Huron_KX20.MPF": ["Training_Huron_KX20.MPF:3:", "G53 is not read"],
+    # a Sinumerik program (MCALL CYCLE81) with Fanuc's `G43 H01`: no Sinumerik G code
+    "nxpost_sample_part.ptp": ["sample_part.ptp:8:", "G43 is not read"],
+    # Heidenhain lines without a block number (`;LE 30-11-2007 14:10`, a comment added by hand)
+    "nxpost_training_deckel.h": ["training_deckel.h:4:",
+                                 "a Heidenhain block without its block number"],
+    # `G1 R12.6 X15.9203 Y6`: an R word a G1 does not use (LinuxCNC and grbl refuse it)
+    "rocholl25000_clover.gcode": ["clover.gcode:24:", "R word in a G1 block"],
+    # `G0 ... G50 G90` (Fanuc: scaling off) with G0 and no axis word: refused as a move with G50
+    # (no move is made: a gap, in the frame codes' reader)
+    "vscodegcode_sample-circular-pocket.nc": ["sample-circular-pocket.nc:1:",
+                                              "G50 and a move in one block"],
+    # a syntax-colouring sample: `WHILE[ABS[#5+7.]]LT0.1]D02` (brackets that do not balance,
+    # D02 for DO2): a controller alarms on it
+    "vscodegcode_sample-colors.nc": ["sample-colors.nc:82:", "WHILE [...] without DOm"],
+    # Sinumerik 840D sl 5-axis CAM test: FNORM (and, further on, TRAFOOF, SUPA, a tool called by
+    # name, CYCLE800) are not read by mtcomp's Sinumerik reader (gaps)
+    "sinumerikcas_CAM TEST.MPF": ["CAM TEST.MPF:6:", "FNORM is not read"],
 }
-#: the share of the corpus accepted today (117 of 125: 0.936); the goal is 95 %
-MIN_ACCEPTED = 0.93
+#: the share of the corpus accepted today (122 of 146: 0.836); the goal is 95 %
+MIN_ACCEPTED = 0.83
 _WORD = re.compile(r"([A-Z])\s*([-+]?\s*(?:\d+\.?\d*|\.\d+))")
 
 

@@ -226,3 +226,30 @@ def test_a_long_thin_part_is_drawn_stretched_and_says_so(tmp_path, exx):
             assert ("not to scale" in axes[0].get_title()) == stretched
         finally:
             plt.close(fig)
+
+
+def test_a_program_of_walls_only_is_drawn_as_its_path_with_its_uncorrected_moves_grey(tmp_path):
+    """The real Sinumerik 840D program of the corpus, on a machine of its axes (B table): seen
+    along Z every triangle of its tool-tip surface is a wall (1458 of 1458 steeper than 80 deg),
+    which a map from above draws as nothing; auto draws the path. Two of its points stand where
+    the program has not given every axis (uncorrected): drawn grey as lines of the path's width
+    (the old code passed the line width twice there, and pyvista failed)."""
+    pv = pytest.importorskip("pyvista")
+    from test_gcode_corpus import _machine_file, _model_file
+
+    from mtcomp.machine import load_machine
+    from mtcomp.models import load_model
+    from mtcomp.viz.render import render_error_map
+    prog = Path(__file__).parent / "data" / "gcode_corpus" / "gcodeworkshop_SINUMERIK840D.nc"
+    machine_path = _machine_file(tmp_path, "BFXYZ")
+    machine = load_machine(machine_path)
+    fitted = load_model(_model_file(tmp_path, machine_path))
+    smap = program_error_map(machine, fitted, prog, normal="auto")
+    assert smap.normal_kind == "path" and smap.info.get("path_segments")
+    assert smap.triangles.shape[0] == 0 and smap.segments.shape[0] > 1000
+    assert smap.uncorrected.any()
+    res = render_error_map(smap, tmp_path / "m.png", window_size=(500, 300), backend="pyvista")
+    back = pv.read(res.vtp)
+    assert back.n_lines == smap.segments.shape[0]
+    np.testing.assert_array_equal(back.cell_data["uncorrected"],
+                                  np.any(smap.uncorrected[smap.segments], axis=1))

@@ -19,6 +19,7 @@ FORMAT_HELP = {
 
 def add_arguments(parser):
     from ..export import FORMAT_NAMES
+    from ..planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
     parser.add_argument("machine", metavar="MACHINE", help="built-in machine name or machine TOML file")
     parser.add_argument("model", metavar="MODEL.json", help="fitted model (identify or diagnose)")
     parser.add_argument("--format", required=True, choices=FORMAT_NAMES,
@@ -42,6 +43,11 @@ def add_arguments(parser):
                         help="siemens CEC, heidenhain, fanuc: enter the correction (minus the error, "
                              "the default) or the error itself; these signs are not public, check "
                              "one point on the machine")
+    parser.add_argument("--max-correction-sd-um", type=float, default=None, metavar="UM",
+                        help="an axis whose correction's standard error (the model's covariance) "
+                             "exceeds UM um anywhere on its table gets no table, as compensate leaves "
+                             f"such blocks uncorrected (default {DEFAULT_MAX_CORRECTION_SD_UM:g}; 0: "
+                             "no limit)")
     parser.add_argument("--fanuc-unit-um", type=float, default=1.0, metavar="U",
                         help="fanuc detection unit in um (default 1)")
     parser.add_argument("--fanuc-max-value", type=int, default=127, metavar="V",
@@ -50,6 +56,7 @@ def add_arguments(parser):
 
 
 def run(args) -> int:
+    import math
     import sys
 
     from ..errors import InputError
@@ -59,6 +66,7 @@ def run(args) -> int:
     from ..export._tables import reference_positions
     from ..machine import load_machine
     from ..models.model_file import load_model
+    from ..planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
 
     machine = load_machine(args.machine)
     model_notes: list = []
@@ -83,7 +91,10 @@ def run(args) -> int:
     for a in [a for a, g in grids.items() if len(g) < 2]:
         del grids[a]
         notes.append(f"axis {a}: no table: its region is shorter than one grid step")
-    tables = component_tables(fitted, grids, region, notes, source)
+    sd_limit = DEFAULT_MAX_CORRECTION_SD_UM if args.max_correction_sd_um is None else args.max_correction_sd_um
+    if not (sd_limit >= 0 and math.isfinite(sd_limit)):
+        raise InputError(f"--max-correction-sd-um must be 0 or a positive number, got {sd_limit:g}")
+    tables = component_tables(fitted, grids, region, notes, source, sd_limit)
     if not tables.tables:
         why = "; ".join(n for n in tables.notes if n.startswith("axis ")) or "no axis has a region"
         raise InputError(f"nothing to export: {why}", args.model)

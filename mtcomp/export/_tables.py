@@ -360,24 +360,74 @@ def reference_notes(machine, axes) -> list:
     return notes
 
 
+def table_sd_um(fitted, q: np.ndarray, q_ref: np.ndarray, directions: dict) -> np.ndarray | None:
+    """(N,) the standard error (um) of the tip deviation at poses ``q`` (N, n_axes) less that at
+    ``q_ref`` (the table's zero), under the model's covariance: the largest of its three components'
+    (as compensate's check of a correction, :meth:`mtcomp.planner._evaluate.Evaluator.correction_sd_um`,
+    takes it), with the context ``dir_<axis>`` of ``directions``; None when the model carries no
+    uncertainty. The directions the fit held are left out (they correct nothing)."""
+    from ..models.evaluate import evaluate
+    factor = fitted.covariance_factor(held=False)
+    if factor is None:
+        return None
+    idx, F = factor
+    n = q.shape[0]
+    cols = {f"dir_{a}": np.broadcast_to(np.asarray(v, dtype=float), (n,)) for a, v in directions.items()}
+    p = fitted.params.values
+    J = evaluate(fitted.model, "tip_pjacobian_function", fitted.clamp(q)[0], p, fitted.context(n, cols))[0]
+    J0 = evaluate(fitted.model, "tip_pjacobian_function", fitted.clamp(q_ref[None, :])[0], p,
+                  fitted.context(1, {}))[0]
+    G = (J - J0)[:, :, idx] @ F                     # (N, 3, rank), mm
+    return np.sqrt(np.max(np.einsum("nij,nij->ni", G, G), axis=1)) * 1e3
+
+
+def _too_uncertain(fitted, a: str, q: np.ndarray, q_ref: np.ndarray, max_sd_um: float | None):
+    """The note saying why axis ``a``'s table is not written (its largest standard error over the
+    grid ``q`` exceeds ``max_sd_um``), or None (written)."""
+    if not max_sd_um:
+        return None
+    sds = [table_sd_um(fitted, q, q_ref, {a: d}) for d in (1.0, -1.0)]
+    if sds[0] is None:
+        return None
+    sd = np.maximum(*sds)
+    if not sd.max() > max_sd_um:
+        return None
+    ax = fitted.machine.axis(a)
+    u, f = ("deg", 180.0 / math.pi) if ax.is_rotary else ("mm", 1.0)
+    at = q[int(np.argmax(sd)), fitted.machine.index(a)] * f
+    return (f"axis {a}: no table: its correction's standard error reaches {sd.max():.3g} um (at "
+            f"{at:g} {u}), above the limit of {max_sd_um:g} um (--max-correction-sd-um): the data do "
+            "not determine its errors well enough to correct them (compensate leaves such blocks "
+            "uncorrected too; a larger limit writes the table)")
+
+
 def component_tables(fitted, grids: dict, region: dict | None = None,
-                     notes: list | None = None, source: dict | None = None) -> ComponentTables:
+                     notes: list | None = None, source: dict | None = None,
+                     max_sd_um: float | None = None) -> ComponentTables:
     """Evaluate the component errors of every axis of ``grids`` (module docstring).
 
     grids : axis -> (n,) positions, mm or rad (machine coordinates). region : axis -> (lo, hi) where
     the model's data reached (default: the grids' ends); grid points beyond it hold its end values.
+    max_sd_um : an axis whose table's standard error (:func:`table_sd_um`, either direction) exceeds
+    this anywhere on its grid gets no table, and a note says why (None or 0: no limit). The whole
+    table, not the points over the limit: a controller interpolates between its points, and a table
+    zero at some points and not at their neighbours would put steps into the axis's motion.
     """
     machine = fitted.machine
     region = dict(region or {a: (float(g[0]), float(g[-1])) for a, g in grids.items()})
     ref = reference_positions(machine)
     q_ref = _evaluation_pose(machine, region)
     zero, _ = model_errors(fitted, q_ref[None, :])
-    tables, dropped = {}, []
+    tables, dropped, uncertain = {}, [], []
     for a, g in grids.items():
         g = np.asarray(g, dtype=float)
         lo, hi = region.get(a, (float(g[0]), float(g[-1])))
         q = np.tile(q_ref, (len(g), 1))
         q[:, machine.index(a)] = np.clip(g, lo, hi)     # beyond the data: the end value, held
+        why = _too_uncertain(fitted, a, q, q_ref, max_sd_um)
+        if why:
+            uncertain.append(why)
+            continue
         fwd, known = model_errors(fitted, q, {a: 1.0})
         rev, _ = model_errors(fitted, q, {a: -1.0})
         fwd, rev = fwd - zero, rev - zero
@@ -390,7 +440,11 @@ def component_tables(fitted, grids: dict, region: dict | None = None,
             dropped.append(a)
             continue
         tables[a] = AxisTable(a, ax.is_rotary, g, fwd, rev, ref, known, (float(lo), float(hi)))
-    notes = list(notes or []) + reference_notes(machine, tables)
+    notes = list(notes or []) + reference_notes(machine, tables) + uncertain
+    if max_sd_um and fitted.uncertainty is None:
+        notes.append("the model carries no covariance (identify, diagnose and a thermal diagnosis "
+                     "write one; an older model file may not): no table could be checked against "
+                     "--max-correction-sd-um")
     notes += [f"axis {a}: no table: the model predicts no error at all along it (its errors are held at "
               "zero: no data determined them)" for a in dropped]
     reversal = reversal_note(fitted)

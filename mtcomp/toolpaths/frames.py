@@ -13,7 +13,8 @@ manual):
   amount, and on LinuxCNC the same offset); at a position the program has not given, the offset is
   assumed 0 (as an unstated work offset), said once in the notes. The compensated program's
   G92 line is the source's, so its offset is set where the *corrected* tool stands: off by the
-  correction there, which the written words after it take back (:func:`output_shifts`).
+  correction there, which the written words after it take back
+  (:class:`~.offsets.OutputShifts`).
 * ``G68 X Y R`` (Fanuc, Haas; G17 only): the program's X Y turned by R degrees counter-clockwise
   about the centre X Y (the current position where the block gives none); ``G69`` cancels it.
 * ``G51.1 X Y Z`` / ``G50.1`` (Fanuc) and ``G101`` / ``G100`` (Haas): the named axes mirrored about
@@ -551,36 +552,3 @@ def _note_assumed(state, axes: list, line: int) -> None:
             "elsewhere, add the offset to --work-offset")
     if note not in notes:
         notes.append(note)
-
-
-def output_shifts(table: list, done: int, lines: np.ndarray, ends_correction: np.ndarray,
-                  shift: np.ndarray, last: np.ndarray) -> tuple[np.ndarray, int]:
-    """(n, 3) how far the compensated program's shared (G92) offset of X Y Z stands from the
-    source's at each row, and the entries of ``table`` handled so far.
-
-    A G92 at a known position sets the offset where the tool stands; in the output the tool stands
-    there off by the correction of the block before (``ends_correction`` (n, 3), the rows' end
-    corrections in the program's frame, ``last`` (3,) the one before the first row), so the
-    output's offset is off by that correction, and the words written after it must take it back.
-    G52, G92 at a position not given and G92.1/G92.2 set the same offset in both. ``shift`` (3,)
-    the difference before the rows (updated in place); ``done`` the entries already applied. An
-    entry after the last row waits for the next rows."""
-    stop = len(table)           # the reader may append while this runs: entries never move
-    n = len(lines)
-    out = np.empty((n, 3))
-    pos = 0
-    while done < stop:
-        line, frame = table[done]
-        r = int(np.searchsorted(lines, line, side="right"))
-        if r == n:
-            break
-        out[pos:r] = shift
-        before = ends_correction[r - 1] if r > 0 else last
-        for k, code in enumerate(frame.g92):
-            if code == 1:
-                shift[k] = before[k]
-            elif code == 2:
-                shift[k] = 0.0
-        pos, done = r, done + 1
-    out[pos:] = shift
-    return out, done

@@ -13,8 +13,8 @@ import re
 
 from ..errors import InputError
 from .rrf import without_strings
-from .words import (_COLON_PROGRAM_RE, _NUMBERED_PERCENT_RE, NESTED_COMMENT_RE, comment_end,
-                    nested_comment_problem, strip_comments)
+from .words import (_COLON_PROGRAM_RE, _NUMBERED_PERCENT_RE, GRBL_DROPPED, NESTED_COMMENT_RE,
+                    comment_end, nested_comment_problem, strip_comments)
 
 #: a CSV header line (names separated by commas), given where G-code was meant
 _CSV_HEADER = re.compile(r"^[A-Za-z_][\w ]*(?:,[\w ]*){2,}$")
@@ -58,6 +58,8 @@ def text_with_words(state, line: int, text: str) -> str | None:
                          "G-code: give the NC program here", line)
     if "(" in text and NESTED_COMMENT_RE.search(text):
         _comment_with_parentheses(state, line, text)
+    if state.dialect.name == "grbl":
+        return _grbl_without_controls(state, line, text)
     if state.dialect.name == "rrf":
         try:
             text = without_strings(text, state.path, line)
@@ -65,6 +67,29 @@ def text_with_words(state, line: int, text: str) -> str | None:
             raise state._err(exc.message, line) from None
         return None if _bad_command(state, line, text) else text
     return text
+
+
+#: the control characters grbl does not drop: Ctrl-X, its soft reset, and DEL
+_GRBL_KEPT_CONTROL = re.compile(r"[\x18\x7f]")
+
+
+def _grbl_without_controls(state, line: int, text: str) -> str:
+    """The line as grbl reads it: without the control characters it drops (grbl 1.1, protocol.c:
+    every byte up to the blank is thrown away as the line is read; CR and LF end it). The written
+    line keeps them (the controller drops them again). Ctrl-X (0x18) in a line is grbl's soft reset
+    (serial.c takes it from the stream: the motion not yet run is lost), and DEL (0x7F) is not
+    dropped: outside a comment grbl's parser answers it with an error (gcode.c, a word letter or
+    number expected); both are refused, naming the byte."""
+    if not GRBL_DROPPED.search(text) and not _GRBL_KEPT_CONTROL.search(text):
+        return text
+    if "\x18" in text:
+        raise state._err("control character 0x18 (Ctrl-X) in a line: grbl takes it as its soft "
+                         "reset (serial.c) and throws away the motion it has not run", line)
+    if "\x7f" in strip_comments(text):
+        raise state._err("control character 0x7F (DEL) outside a comment: grbl drops only the "
+                         "bytes up to the blank (protocol.c) and answers this one with an error",
+                         line)
+    return GRBL_DROPPED.sub("", text)
 
 
 def _bad_command(state, line: int, text: str) -> bool:

@@ -109,7 +109,7 @@ class ModalState:
         self.cutter_comp_line = False
         #: work offsets the program sets itself (G10 L2/L20); their sets are numbered alike in
         #: every pass over one ProgramSource
-        self.offsets = ProgrammedOffsets(self.na, getattr(path, "work_offset_sets", None))
+        self.offsets = ProgrammedOffsets(self.na, path)
         self.ended = False      # an M2/M30 was read: no later line runs (docs/toolpaths.md)
         #: the frame the program moved itself (G52, G68, mirror, scaling: :mod:`.frames`), its changes
         #: by line (shared by the passes over one ProgramSource); none is left open after M2/M30

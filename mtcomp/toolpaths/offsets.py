@@ -33,7 +33,7 @@ import numpy as np
 from ..errors import InputError
 from ..machine import Machine
 from .blocks import SegmentChunk
-from .frames import frames_of_rows, output_shifts, placed_by_frames
+from .frames import frames_of_rows, placed_by_frames
 from .tcp import axes_of_tcp, tcp_of_axes
 from .words import WORK_SYSTEMS, frame_local, frame_offset_set, frame_tcp, frame_tool, frame_wcs
 
@@ -59,9 +59,10 @@ class ProgramSetup:
     programmed_wcs: set = field(default_factory=set)
     #: the frame changes of the program last applied (``source.local_frames``, :mod:`.frames`)
     local_frames: list = field(default_factory=list, repr=False)
-    #: the program's ``local_frames`` written last, the compensated program's G92 offset less the
-    #: source's (X Y Z, mm), the entries applied, the correction of the last row (:meth:`written`)
-    _g92: tuple = field(default=(None,), repr=False)
+    #: the G10 lines of the program last applied (``source.offset_writes``, :mod:`.programmed`)
+    offset_writes: list = field(default_factory=list, repr=False)
+    #: how far the compensated program's offsets stand from the source's (:meth:`written`)
+    _shifts: object = field(default=None, repr=False)
 
     def _offset_table(self) -> np.ndarray:
         table = np.zeros((len(WORK_SYSTEMS), self.machine.n_axes))
@@ -106,6 +107,9 @@ class ProgramSetup:
         table = getattr(source, "local_frames", None)
         if table is not None:
             self.local_frames = table
+        writes = getattr(source, "offset_writes", None)
+        if writes is not None:
+            self.offset_writes = writes
         lengths = np.full(len(chunk), np.nan)
         for h, length in self.tool_lengths.items():
             lengths[tool == h] = length
@@ -169,26 +173,24 @@ class ProgramSetup:
     def written(self, chunk: SegmentChunk, corrected: np.ndarray, nominal: np.ndarray,
                 counts: np.ndarray) -> np.ndarray:
         """The corrected program positions (:meth:`to_program`'s, ``counts`` a row) as the words
-        to write: after a G92 at a known position the compensated program's offset stands off by
-        the correction where it was set (its G92 line is the source's, read where the corrected
-        tool stands), so that correction is taken off every later word of the axis
-        (:func:`~.frames.output_shifts`). Called once a chunk, in program order."""
-        table = self.local_frames
-        if not table:
+        to write. A G92 or a G10 L20 at a known position sets an offset where the tool stands; the
+        compensated program's line is the source's, read where the *corrected* tool stands, so
+        its offset stands off by the correction there, and that is taken off every later word
+        of the axis (in the work system the L20 set, in every system for G92:
+        :class:`OutputShifts`). Called once a chunk, in program order."""
+        frames, writes = self.local_frames, self.offset_writes
+        if not frames and not writes:
             return corrected
-        if self._g92[0] is not table:          # a new program: nothing applied yet
-            self._g92 = (table, np.zeros(3), 0, np.zeros(3))
-        _table, shift, done, last = self._g92
-        xyz = [self.machine.index(c) for c in "XYZ"]
+        shifts = self._shifts
+        if shifts is None or shifts.frames is not frames or shifts.writes is not writes:
+            shifts = self._shifts = OutputShifts(frames, writes, self.machine.n_axes,
+                                                 [self.machine.index(c) for c in "XYZ"])
         ends = np.cumsum(counts) - 1
-        corr = (corrected[ends] - nominal[ends])[:, xyz]
-        rows, done = output_shifts(table, done, chunk.line, corr, shift, last)
-        self._g92 = (table, shift, done, corr[-1].copy())
+        rows = shifts.rows(chunk.line, frame_wcs(chunk.frame), corrected[ends] - nominal[ends])
         if not rows.any():
             return corrected
-        out = np.array(corrected, dtype=float)
-        out[:, xyz] -= rows if len(ends) == out.shape[0] else np.repeat(rows, counts, axis=0)
-        return out
+        return corrected - (rows if len(ends) == corrected.shape[0]
+                            else np.repeat(rows, counts, axis=0))
 
     def notes(self) -> list[str]:
         """What was assumed for what the program used and nobody said (one line each)."""
@@ -208,6 +210,75 @@ class ProgramSetup:
             out.append(f"assumed: tool length of {names} = the machine's tool_length_mm "
                        f"({self.machine.tool_length:g} mm); give --tool-length or --offsets")
         return out
+
+
+class OutputShifts:
+    """How far the compensated program's offsets stand from the source's, walked through the rows
+    of one program in order.
+
+    A G92 or a G10 L20 at a known position sets an offset where the tool stands (the position less
+    the value, on LinuxCNC and grbl the G92 offset taken into account: grbl 1.1 ``gcode.c``,
+    ``WCS = MPos - G92 - TLO - WPos``); in the output the tool stands there off by the correction
+    of the block that brought it (c, in the program's frame and units), so the output's total
+    offset (G92 plus the work system's) differs from the source's by c there: the G92 one by c
+    less the system's, the L20 one by c less G92's. A G52, a G92 or L20 at a position not given,
+    a G10 L2 and G92.1/G92.2 set the same offset in both. ``frames``: the program's
+    ``local_frames`` (the G92 codes of :class:`~.frames.LocalFrame`), ``writes``: its
+    ``offset_writes`` (:mod:`.programmed`); an entry after the last row waits for the next rows.
+    """
+
+    def __init__(self, frames: list, writes: list, na: int, xyz: list):
+        self.frames, self.writes, self.xyz = frames, writes, xyz
+        self.g92 = np.zeros(na)                        # X Y Z columns only
+        self.wcs = np.zeros((len(WORK_SYSTEMS), na))   # each system's, G10 L20
+        self.done = [0, 0]                             # entries of writes, frames applied
+        self.last = np.zeros(na)                       # the correction of the last row
+        self.last_wcs = 0
+
+    def _pending(self) -> list:
+        """(line, 0 for a G10 line (read before a frame code of the same line) or 1, entry)."""
+        out = []
+        for kind, table in enumerate((self.writes, self.frames)):
+            stop = len(table)           # the reader may append while this runs: entries never move
+            out += [(table[k][0], kind, table[k][1]) for k in range(self.done[kind], stop)]
+        out.sort(key=lambda e: (e[0], e[1]))
+        return out
+
+    def rows(self, lines: np.ndarray, wcs: np.ndarray, correction: np.ndarray) -> np.ndarray:
+        """(n, na) the output's offset less the source's at each row (mm, rad; to be taken off the
+        words). lines, wcs : (n,) the rows' lines and work systems; correction : (n, na) the
+        corrections of the rows' ends in the program's frame."""
+        n = len(lines)
+        out = np.empty((n, len(self.last)))
+        pos = 0
+        for line, kind, entry in self._pending():
+            r = int(np.searchsorted(lines, line, side="right"))
+            if r == n:
+                break
+            out[pos:r] = self.g92 + self.wcs[wcs[pos:r]]
+            if r > pos:
+                self.last, self.last_wcs = correction[r - 1], int(wcs[r - 1])
+            if kind == 0:
+                self._g10(*entry)
+            else:
+                self._g92(entry.g92)
+            self.done[kind] += 1
+            pos = r
+        out[pos:] = self.g92 + self.wcs[wcs[pos:]]
+        if pos < n:
+            self.last, self.last_wcs = correction[-1].copy(), int(wcs[-1])
+        return out
+
+    def _g10(self, system: int, codes: tuple) -> None:
+        for i, code in enumerate(codes):
+            if code:
+                self.wcs[system, i] = self.last[i] - self.g92[i] if code == 1 else 0.0
+
+    def _g92(self, codes: tuple) -> None:
+        for k, code in enumerate(codes):
+            i = self.xyz[k]
+            if code:
+                self.g92[i] = self.last[i] - self.wcs[self.last_wcs, i] if code == 1 else 0.0
 
 
 def _axis_vector(machine: Machine, values: dict, where: str, path) -> np.ndarray:

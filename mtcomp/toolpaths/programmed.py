@@ -22,7 +22,17 @@ changes with its offset: an axis whose old offset the program had set moves by t
 axis whose old offset came from outside the program becomes unknown (never written until the
 program names it again); after L20 the named axes read the given values. An L20 where the program
 has not given the position (after homing) is a touch-off: its offset comes from outside the program
-(the command line's, as for an offset the program never set), said once in a note.
+(the command line's, as for an offset the program never set), said once in a note; one where the
+program has lost a position it had given (a tool change, another work system) is refused, as G92
+there (the compensated program stands off by a correction the controller may or may not have
+moved away from).
+
+The compensated program's G10 L20 line is the source's, read where the *corrected* tool stands:
+at a known position its offset differs from the source's by the correction there, and every later
+block of that system would be placed off by it. So each G10 line is recorded (``offset_writes``:
+the system and, per axis, 1 set where the tool stands, 2 set to a given value) and
+:meth:`~.offsets.ProgramSetup.written` takes that correction back from the words written in that
+system, as for G92 (:mod:`.frames`).
 """
 from __future__ import annotations
 
@@ -31,6 +41,7 @@ import threading
 
 import numpy as np
 
+from .frames import record
 from .words import MAX_OFFSET_SETS, MM_PER_INCH, WORK_SYSTEMS
 
 
@@ -43,13 +54,21 @@ class ProgrammedOffsets:
     current : wcs index (0 = G54) -> (na,) offset, mm and rad, nan where the program has not set
     that axis. sets : the distinct states of ``current`` met so far (shared by every reader of one
     :class:`~.source.ProgramSource`, so that a frame code names the same set in each pass).
-    index : the set in force (0: the program has set none; k: ``sets[k - 1]``).
+    index : the set in force (0: the program has set none; k: ``sets[k - 1]``). writes : what
+    each G10 line did, ``(line, (wcs, codes))`` with codes (na,) per axis 0 (not named), 1 (L20 at
+    a known position: set where the tool stands), 2 (L2, or a touch-off: set to a value given);
+    shared like ``sets`` (``source.offset_writes``). at_tool : wcs -> (na,) bool, the axes whose
+    offset an L20 at a known position set last.
     """
 
-    def __init__(self, na: int, sets: list | None = None):
+    def __init__(self, na: int, source=None):
         self.na = na
         self.current: dict[int, np.ndarray] = {}
+        sets = getattr(source, "work_offset_sets", None)
         self.sets = sets if sets is not None else []
+        writes = getattr(source, "offset_writes", None)
+        self.writes = writes if writes is not None else []
+        self.at_tool: dict[int, np.ndarray] = {}
         self.index = 0
 
     def offset(self, wcs: int, axis: int) -> float:
@@ -118,6 +137,8 @@ def apply_g10(state, values: dict, tokens, line: int) -> None:
     given = {state.names.index(c): (math.radians(values[c]) if c in "ABC" else values[c] * scale)
              for c in "XYZABC" if c in values and c in state.names}
     new = dict(given) if level == 2 else _l20_offsets(state, given, wcs, line)
+    codes = _record_write(state, wcs, [1 if level == 20 and state.known[i] else 2 for i in given],
+                          list(given), line)
     if wcs == state.wcs:
         state.position = state.position.copy()        # the last block holds the old array
         for i, v in new.items():
@@ -125,9 +146,12 @@ def apply_g10(state, values: dict, tokens, line: int) -> None:
             if level == 20:
                 if state.known[i]:
                     state.shift_frame(i, given[i] - state.position[i])
+                    state.declared.append(i)      # the output's axis reads the value too
                 state.position[i] = given[i]
                 state.known[i] = True
-            elif math.isnan(old):
+            elif math.isnan(old) or codes[1][i]:
+                # an offset from outside, or one an L20 set where the tool stood: the output's
+                # position in the system is not the source's plus a correction the writer knows
                 state.known[i] = False
             else:
                 state.position[i] += old - v
@@ -135,6 +159,21 @@ def apply_g10(state, values: dict, tokens, line: int) -> None:
     if not state.offsets.assign(wcs, new):
         raise state._err(f"G10: the program sets more than {MAX_OFFSET_SETS} different sets of work "
                          "offsets (not followed)", line)
+
+
+def _record_write(state, wcs: int, codes: list, axes: list, line: int) -> tuple:
+    """Record what a G10 line does to system ``wcs`` (``codes`` of the ``axes`` named: 1 set where
+    the tool stands, 2 set to a value given); returns (the recorded codes (na,), the axes whose
+    old offset an L20 at a known position had set)."""
+    offsets = state.offsets
+    full = np.zeros(offsets.na, np.int8)
+    full[axes] = codes
+    at_tool = offsets.at_tool.setdefault(wcs, np.zeros(offsets.na, bool))
+    before = at_tool.copy()
+    at_tool[axes] = full[axes] == 1
+    if axes:
+        record(offsets.writes, line, (wcs, tuple(full.tolist())))
+    return full, before
 
 
 def _l20_offsets(state, given: dict, wcs: int, line: int) -> dict:
@@ -149,6 +188,12 @@ def _l20_offsets(state, given: dict, wcs: int, line: int) -> dict:
     for i, v in given.items():
         old = state.offsets.offset(state.wcs, i)
         if not state.known[i]:
+            if state.was_known[i]:
+                raise state._err(f"G10 L20 {state.names[i]} where the program has lost the position "
+                                 f"of {state.names[i]} after giving it (a tool change, a change of "
+                                 "work system or offset: the compensated program stands off there "
+                                 "by a correction not known) is not supported (move "
+                                 f"{state.names[i]} first, or home it)", line)
             new[i] = math.nan
             touched.append(state.names[i])
             continue

@@ -51,6 +51,8 @@ class ProgramSource(os.PathLike):
     #: the distinct sets of work offsets the program sets itself (G10 L2/L20), numbered by the
     #: reader (:mod:`.programmed`) and applied by :meth:`~.offsets.ProgramSetup.apply`
     work_offset_sets: list = field(default_factory=list)
+    #: what each G10 line did to the offsets, (line, (wcs, codes)) in line order (:mod:`.programmed`)
+    offset_writes: list = field(default_factory=list)
     #: the frame changes the program makes itself (G52, G68, mirror, scaling), (line, frame) in
     #: line order, recorded by the reader (:mod:`.frames`) and applied by ProgramSetup.apply
     local_frames: list = field(default_factory=list)

@@ -25,6 +25,10 @@ DEFAULT_CHUNK_SIZE = 65536
 TOOL_AXIS = "Z"
 
 _NUM = r"[+-]?(?:\d+\.?\d*|\.\d+)"
+#: the control characters grbl drops as it reads a line (grbl 1.1, protocol.c: every byte up to
+#: the blank but CR and LF, which end the line; tab is a blank, Ctrl-X its soft reset, taken out
+#: of the stream before): :mod:`.linetext` drops them on grbl, other dialects refuse them
+GRBL_DROPPED = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x17\x19-\x1f]")
 _TOKEN_RE = re.compile(r"[ \t]+|\([^()]*\)|;.*|([A-Za-z])(" + _NUM + r")|(.)", re.S)
 _AXIS_LETTERS = "XYZABC"
 _UNIQUE_LETTERS = frozenset("XYZABCIJKRFNUVW")
@@ -289,6 +293,10 @@ def tokenize(text: str, path=None, line: int | None = None) -> list[tuple[str, s
             if ch.isalpha() and ch.isascii():
                 raise InputError(f"word {ch.upper()} without a valid number: "
                                  f"{text[pos:pos + 12].strip()!r}", path, line)
+            if ch < " " or ch == "\x7f":
+                hint = (" (grbl drops it as it reads the line; give --dialect grbl if a grbl runs "
+                        "the program)") if GRBL_DROPPED.match(ch) else ""
+                raise InputError(f"control character 0x{ord(ch):02X}{hint}", path, line)
             raise InputError(f"unexpected character {ch!r} at column {pos + 1}", path, line)
         if m.group(1) is not None:
             out.append((m.group(1).upper(), m.group(2), raw))
@@ -312,8 +320,10 @@ def _nested_comment(text: str, pos: int, path, line) -> str:
 
 # ------------------------------------------------------------------- the source line, rewritten
 #: a word with blanks anywhere in it (RS-274 ignores them: ``Z - 1`` is ``Z-1``); a quoted string
-#: parameter (RepRapFirmware's ``S"..."``, ``""`` one quote inside: :mod:`.rrf`) is kept as written
-_SPAN_RE = re.compile(r"[ \t]+|\([^()]*\)|;.*|([A-Za-z])[ \t]*"
+#: parameter (RepRapFirmware's ``S"..."``, ``""`` one quote inside: :mod:`.rrf`) is kept as written,
+#: and so are the control characters grbl drops between words
+_SPAN_RE = re.compile(r"[ \t\x00-\x08\x0b\x0c\x0e-\x17\x19-\x1f]+|\([^()]*\)|;.*|"
+                      r"([A-Za-z])[ \t]*"
                       r"([+-]?[ \t]*(?:\d[\d \t]*\.?[\d \t]*|\.[ \t]*\d[\d \t]*))|"
                       r'[A-Za-z]?"(?:[^"]|"")*"|(.)', re.S)
 _BOM = "\xef\xbb\xbf"
@@ -371,6 +381,9 @@ class SourceLine:
     def __init__(self, text: str):
         start = 3 if text.startswith(_BOM) else 0
         words = _line_words(text, start)
+        if words is None and GRBL_DROPPED.search(text):     # one inside a word (grbl drops it)
+            text = text[:start] + GRBL_DROPPED.sub("", text[start:])
+            words = _line_words(text, start)
         if words is None:
             text = text[:start] + _strip_blanks(text[start:])
             words = _line_words(text, start) or []

@@ -343,9 +343,10 @@ def _add_surface(plotter, mesh, smap, clim, rng):
                 if cells else mesh.extract_points(np.flatnonzero(bad), adjacent_cells=False))
         if grey.n_points:
             # grey, and hatched by its own edges where the cells are few enough to show them
+            # (the edges' width for a surface; a path's lines keep their own width)
             plotter.add_mesh(grey, color=UNCORRECTED_COLOUR, ambient=0.6, diffuse=0.4,
                              show_edges=surface and grey.n_cells <= 2000,
-                             edge_color="#6e6e6e", line_width=0.5, **style)
+                             **{"edge_color": "#6e6e6e", "line_width": 0.5, **style})
         marks = smap.points[bad]
         if marks.shape[0] > MAX_GLYPHS // 3:
             marks = marks[np.sort(rng.choice(marks.shape[0], MAX_GLYPHS // 3, replace=False))]

@@ -427,7 +427,7 @@ def _cut_geometry(orig: ProgramPoints, machine: Machine, radius: float, length: 
             g, info["steep_triangles"] = tip_geometry(orig, machine, radius, max_edge_factor)
         except InputError:      # no surface seen along Z (a lathe profile, one point, no cutting)
             g = path_geometry(orig, machine)
-        if normal == "auto" and info.get("steep_triangles", 0) > g.triangles.shape[0]:
+        if normal == "auto" and info.get("steep_triangles", 0) >= g.triangles.shape[0]:
             # most of the "surface" would be walls seen edge-on: the path is no surface
             info["path_segments"] = True
             g, segments = path_line_geometry(orig, machine)

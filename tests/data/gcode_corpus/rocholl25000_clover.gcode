@@ -1,0 +1,47 @@
+G17 ; Select XY plane for arcs
+G90 ; Absolute coordinates
+G92 X0 Y0 Z0
+G1 X0 Y0 Z0
+; Gasket screw holes
+G0 Z8
+G0 X-19 Y19
+G1 Z-2
+G0 Z8
+G0 X-19 Y-19
+G1 Z-2
+G0 Z8
+G0 X19 Y-19
+G1 Z-2
+G0 Z8
+G0 X19 Y19
+G1 Z-2
+G0 Z8
+G0 X-5 Y14.9203
+G1 Z-1
+; Motor cutout clover leaf
+G1 X-6 Y15.9203
+G2 I6 J6 X6
+G1 R12.6 X15.9203 Y6
+G2 I6 J-6 Y-6
+G1 R12.6 X6 Y-15.9203
+G2 I-6 J-6 X-6
+G1 R12.6 X-15.9203 Y-6
+G2 I-6 J6 Y6
+G1 R12.6 X-6 Y15.9203
+G1 X-5 Y16.9203
+G0 Z8
+G0 X-5 Y14.9203
+G1 Z-2.5
+; Motor cutout clover leaf
+G1 X-6 Y15.9203
+G2 I6 J6 X6
+G1 R12.6 X15.9203 Y6
+G2 I6 J-6 Y-6
+G1 R12.6 X6 Y-15.9203
+G2 I-6 J-6 X-6
+G1 R12.6 X-15.9203 Y-6
+G2 I-6 J6 Y6
+G1 R12.6 X-6 Y15.9203
+G1 X-5 Y16.9203
+; All done
+G0 Z8
