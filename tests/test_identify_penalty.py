@@ -220,8 +220,9 @@ def test_reml_gradient_is_the_finite_difference_of_its_criterion():
 
 def test_compensate_leaves_blocks_where_the_model_is_unsure(tmp_path):
     """The 200 mm gap between laser targets, bridged by the penalty: with --max-correction-sd-um
-    between the standard error at the targets and the one in the gap, the blocks in the gap are left
-    uncorrected (correction 0, corrected 0, uncertain 1) and the rest corrected. Each block's
+    between the standard error at the targets and the one in the gap, the blocks in the gap are over
+    it, and the program, one contour, is left uncorrected (correction 0, corrected 0, uncertain 1)
+    whole. Each block's
     correction_sd_um is the standard error of EXX there less EXX at the part's datum (X -300, the
     work offset: corrections are referenced to it) from the model's covariance, computed here from
     the basis functions (a second formulation: the planner takes the model's Jacobian)."""
@@ -255,11 +256,12 @@ def test_compensate_leaves_blocks_where_the_model_is_unsure(tmp_path):
     unsure = got > limit
     assert unsure.any() and (~unsure).any()
     assert np.all(np.abs(at[1:][unsure]) < 100.0)                        # in the gap only
-    for r, u in zip(rows, unsure):
-        assert r["uncertain"] == ("1" if u else "0") and r["corrected"] == ("0" if u else "1")
-        if u:
-            assert float(r["cx_um"]) == 0.0
+    # the program is one contour (one run of G1 moves): a block over the limit leaves all of it
+    # uncorrected (docs/planner.md, *The limit acts per contour*)
+    for r in rows:
+        assert r["uncertain"] == "1" and r["corrected"] == "0" and float(r["cx_um"]) == 0.0
     assert f"{int(unsure.sum())} blocks not corrected: the model is unsure there" in run.stdout
+    assert f"and {int((~unsure).sum())} blocks of the same contours" in run.stdout
 
 
 def test_coefficients_left_out_of_the_penalty_leave_a_line_free():

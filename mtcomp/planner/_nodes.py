@@ -25,6 +25,10 @@ class NodeSet:
         ``PlannerOptions.max_correction_sd_um``): its correction bounds are zero.
     sd_um : (n,) standard error of the block's correction (um; NaN where not evaluated: unknown
         axes, outside the support, or a model without uncertainty).
+    cut_start : (n,) bool, the node does not continue the cut of the node before: its move starts
+        elsewhere (a hole of a drilling cycle, the move after one, a move from a position the
+        program has not given); with ``rapid`` and ``unknown`` it ends a contour (:mod:`._contours`).
+    gated : (n,) bool, pinned only because its contour has a node over the standard-error limit.
     link_lo, link_hi, link_kind : (n, na) the link bounds of the change of each correction into
         the node (x units; :mod:`._links`: an axis keeping its direction, one correction along an
         arc under cutter radius compensation) and their kind, or all None when no node has one.
@@ -40,12 +44,14 @@ class NodeSet:
     outside: np.ndarray
     pinned: np.ndarray
     sd_um: np.ndarray
+    cut_start: np.ndarray
+    gated: np.ndarray
     link_lo: np.ndarray | None = None
     link_hi: np.ndarray | None = None
     link_kind: np.ndarray | None = None
 
     FIELDS = ("q", "context", "exempt", "line", "inserted", "rapid", "unknown", "outside", "pinned",
-              "sd_um")
+              "sd_um", "cut_start", "gated")
     LINKS = ("link_lo", "link_hi", "link_kind")
 
     def __len__(self):
@@ -68,6 +74,14 @@ class NodeSet:
             links = {f: np.concatenate([t[k] for t in filled]) for k, f in enumerate(NodeSet.LINKS)}
         return NodeSet(*(np.concatenate([getattr(p, f) for p in parts]) for f in NodeSet.FIELDS),
                        **links)
+
+
+    @staticmethod
+    def empty(na: int, n_context: int) -> "NodeSet":
+        """No nodes (na axes, n_context context columns)."""
+        b = np.zeros(0, bool)
+        return NodeSet(np.zeros((0, na)), np.zeros((0, n_context)), b, np.zeros(0, np.int64), b, b,
+                       np.zeros((0, na), bool), np.zeros((0, na), bool), b, np.zeros(0), b, b)
 
 
 def _no_links(shape):

@@ -63,6 +63,13 @@ class Linearization:
         return c, Aw
 
     @staticmethod
+    def empty(na: int, rows: int, k: int) -> "Linearization":
+        """No blocks (na axes, rows residual rows, k tool-axis rows of the objective)."""
+        z = np.zeros
+        return Linearization(z((0, na)), z((0, na)), z((0, rows)), z((0, rows, na)), z((0, rows)),
+                             z((0, rows)), z(0, int), z(0, bool), z((0, k, k)))
+
+    @staticmethod
     def concatenate(parts: list["Linearization"]) -> "Linearization":
         return Linearization(*(np.concatenate([getattr(p, f) for p in parts])
                                for f in Linearization.FIELDS))

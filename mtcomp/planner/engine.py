@@ -28,6 +28,7 @@ from typing import Iterable, Iterator
 import numpy as np
 
 from ._bounds import FLAG_KINDS, INF, Bounds, flag_name
+from ._contours import ContourGate
 from ._evaluate import Evaluator, objective_residual
 from ._grouped import GroupedQP, tied
 from ._interleave import placed, positions
@@ -58,6 +59,7 @@ class PlanResult:
     iterations : (n,) model linearisations used per node. converged : (n,) bool.
     unknown, outside : (n, na) bool, axes not known / outside the model's support (see NodeSet).
     pinned : (n,) bool, the block was given no correction (bounds zero) for any of the reasons.
+    gated : (n,) bool, pinned only because its contour has a block over the standard-error limit.
     sd_um : (n,) standard error of the block's correction, um (see NodeSet).
     counts : (rows,) nodes per segment row of the source chunk (for write_corrected), or None.
     """
@@ -79,11 +81,12 @@ class PlanResult:
     outside: np.ndarray
     pinned: np.ndarray
     sd_um: np.ndarray
+    gated: np.ndarray
     counts: np.ndarray | None = None
 
     FIELDS = ("line", "inserted", "rapid", "nominal", "corrected", "correction", "before", "after",
               "before_axis", "after_axis", "flags", "iterations", "converged", "unknown", "outside",
-              "pinned", "sd_um")
+              "pinned", "sd_um", "gated")
 
     def __len__(self):
         return int(self.line.shape[0])
@@ -144,6 +147,8 @@ class Planner:
         #: the link bounds (:mod:`._links`): each axis keeps the direction the model evaluated it
         #: with, one correction along an arc under cutter radius compensation
         self.links = LinkRules(problem, self.bounds)
+        #: the standard-error gate acts per contour (:mod:`._contours`)
+        self.gate = ContourGate(self.options.max_correction_sd_um, self.ev.has_uncertainty)
 
     # ------------------------------------------------------------------ nodes
     def _context(self, feed, dirs, n, tool_length=None, extra=None):
@@ -179,7 +184,7 @@ class Planner:
         (n,) the standard error of each block's correction, um, NaN for blocks not corrected anyway
         (an unknown axis, or outside the support unless the options extrapolate) and for every block
         when the options set no limit on it (``max_correction_sd_um``). A block is left uncorrected
-        when any of the three says so."""
+        when any of the three says so, and so is its contour when its sd is over (:mod:`._contours`)."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         unknown = ~np.asarray(known, bool)
         outside = self.outside_support(q, ~unknown)
@@ -260,8 +265,10 @@ class Planner:
         sd = self._sd_um(q, ctx, unknown, outside, datum)
         links = self.links.arrays(q, dirs, None if self._last_end is None else self._last_end[0])
         nodes = NodeSet(q, ctx, exempt, line, np.zeros(n, bool), rapid, unknown, outside,
-                        self._pinned(unknown, outside, sd), sd, *(links or ()))
+                        self._pinned(unknown, outside, sd), sd, np.zeros(n, bool), np.zeros(n, bool),
+                        *(links or ()))
         lin = self._solve_free(nodes.q, nodes.context, self._reference(datum, ctx))
+        nodes, lin = self.gate.feed(nodes, lin, final=True)     # the arrays are whole contours
         if n:
             self._last_end = (nodes.q[-1], lin.x[-1])
         return nodes, lin
@@ -299,26 +306,18 @@ class Planner:
         if first and nrows:
             exempt = exempt.copy()
             exempt[0] = True
-        # start of each row and its free correction
-        start = np.empty_like(end)
-        x_start = np.empty_like(lin_end.x)
-        if nrows:
-            start[1:] = end[:-1]
-            x_start[1:] = lin_end.x[:-1]
-            if first:
-                s0 = self.bounds.snap(chunk.start[:1])
-                start[0] = s0[0]
-                x_start[0] = self._solve_free(s0, ctx[:1], ref[:1]).x[0]
-            else:
-                start[0], x_start[0] = self._last_end
-            self._last_end = (end[-1], lin_end.x[-1])
+        start, x_start = self._row_starts(chunk, end, lin_end.x, ctx, ref)
+        # no internal nodes in a contour the standard-error gate leaves uncorrected either
+        cut_start = cycle | no_line
+        gated = self.gate.rows_gated(~rapid & known.all(axis=1), cut_start, sd)
         inner = self._subdivide(start, end, x_start, lin_end.x, ctx, ref,
-                                rapid | pinned | cycle | no_line)
+                                rapid | pinned | cycle | no_line | gated)
         counts = np.ones(nrows, np.int64)
         if inner is None:
             links = self.links.chunk(chunk, end, np.arange(nrows), np.ones(nrows, bool), first, cycle)
             nodes = NodeSet(end, ctx, exempt, np.asarray(chunk.line), np.zeros(nrows, bool), rapid,
-                            unknown, outside, pinned, sd, *(links or ()))
+                            unknown, outside, pinned, sd, cut_start, np.zeros(nrows, bool),
+                            *(links or ()))
             return nodes, lin_end, counts
         rows_i, t_i, q_i, lin_i = inner
         np.add.at(counts, rows_i, 1)
@@ -336,14 +335,32 @@ class Planner:
         q_all = placed(end, q_i, pos_end, pos_i)
         firsts = np.zeros(row_sorted.size, bool)
         firsts[np.cumsum(counts) - counts] = True
+        cut_all = np.repeat(cut_start, counts) & firsts
         links = self.links.chunk(chunk, q_all, row_sorted, firsts, first, cycle)
         nodes = NodeSet(q_all, ctx[row_sorted], ex_all, np.asarray(chunk.line)[row_sorted],
                         ins_all, rapid[row_sorted], unknown[row_sorted],
                         placed(outside, out_i, pos_end, pos_i),
-                        placed(pinned, pin_i, pos_end, pos_i), sd[row_sorted], *(links or ()))
+                        placed(pinned, pin_i, pos_end, pos_i), sd[row_sorted], cut_all,
+                        np.zeros(row_sorted.size, bool), *(links or ()))
         lin = Linearization(*(placed(getattr(lin_end, f), getattr(lin_i, f), pos_end, pos_i)
                               for f in Linearization.FIELDS))
         return nodes, lin, counts
+
+    def _row_starts(self, chunk, end, x_end, ctx, ref):
+        """(start, x_start) (n, na): where each row's move starts and its free correction there."""
+        start = np.empty_like(end)
+        x_start = np.empty_like(x_end)
+        if end.shape[0]:
+            start[1:] = end[:-1]
+            x_start[1:] = x_end[:-1]
+            if self._last_end is None:
+                s0 = self.bounds.snap(chunk.start[:1])
+                start[0] = s0[0]
+                x_start[0] = self._solve_free(s0, ctx[:1], ref[:1]).x[0]
+            else:
+                start[0], x_start[0] = self._last_end
+            self._last_end = (end[-1], x_end[-1])
+        return start, x_start
 
     def _subdivide(self, start, end, x_start, x_end, ctx, ref, skip):
         """Internal nodes (rows, t, q, lin) where the interpolated correction misses the midpoint.
@@ -446,7 +463,7 @@ class Planner:
         return PlanResult(nodes.line, nodes.inserted, nodes.rapid, nodes.q, corrected, correction,
                           before[:, :3], after[:, :3], before[:, 3:6] if five else None,
                           after[:, 3:6] if five else None, flags, lin.iterations, lin.converged,
-                          nodes.unknown, nodes.outside, nodes.pinned, nodes.sd_um)
+                          nodes.unknown, nodes.outside, nodes.pinned, nodes.sd_um, nodes.gated)
 
     def _tick(self):
         cb = self.options.progress
@@ -650,11 +667,15 @@ class Planner:
                 continue
             nodes, lin, counts = self.nodes_from_chunk(chunk)
             pending.append((chunk, counts, len(nodes)))
+            nodes, lin = self.gate.feed(nodes, lin)     # holds back a contour still open
             for res in _as_list(self.plan_nodes(nodes, lin, final=False, join=False)):
                 done.append(res)
                 n_done += len(res)
             yield from ready()
-        for res in _as_list(self.plan_nodes(_empty_nodes(self), _empty_lin(self), join=False)):
+        last = self.gate.finish() or (
+            NodeSet.empty(self.na, self.problem.fitted.model.n_context),
+            Linearization.empty(self.na, self.ev.rows, 3 if self.problem.correct_orientation else 0))
+        for res in _as_list(self.plan_nodes(*last, join=False)):
             done.append(res)
             n_done += len(res)
         yield from ready()
@@ -777,18 +798,3 @@ def plan_chunks(problem: CompensationProblem, chunks: Iterable, options: Planner
 
 def _as_list(res) -> list:
     return [r for r in (res if isinstance(res, list) else [res]) if r is not None and len(r)]
-
-
-def _empty_nodes(planner: Planner) -> NodeSet:
-    na, nc = planner.na, planner.problem.fitted.model.n_context
-    return NodeSet(np.zeros((0, na)), np.zeros((0, nc)), np.zeros(0, bool), np.zeros(0, np.int64),
-                   np.zeros(0, bool), np.zeros(0, bool), np.zeros((0, na), bool),
-                   np.zeros((0, na), bool), np.zeros(0, bool), np.zeros(0))
-
-
-def _empty_lin(planner: Planner) -> Linearization:
-    na, r = planner.na, planner.ev.rows
-    z = np.zeros
-    k = 3 if planner.problem.correct_orientation else 0
-    return Linearization(z((0, na)), z((0, na)), z((0, r)), z((0, r, na)), z((0, r)), z((0, r)),
-                         z(0, int), z(0, bool), z((0, k, k)))

@@ -182,8 +182,10 @@ class PlannerOptions:
         default False: they get no correction (their bounds are zero; the step bound ramps the
         corrections of their neighbours in and out).
     max_correction_sd_um : a block whose correction's standard error (the model's covariance, um)
-        exceeds this gets no correction, like one outside the support; None or 0: no such limit.
-        Models without a covariance are not limited.
+        exceeds this gets no correction, like one outside the support, and neither does the rest
+        of its contour (a run of feed moves cut one after the other: :mod:`._contours`); rapids
+        keep their own rule. None or 0: no such limit. Models without a covariance are not
+        limited.
     threads : threads for the per-block work and for planning ahead of the consumer of
         ``Planner.iter_chunks``; 0 (default): ``$MTCOMP_THREADS`` if set, else the CPUs available,
         at most 4; 1: everything in the calling thread. The plan is the same for any number.

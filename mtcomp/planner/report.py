@@ -21,8 +21,9 @@ One row per output block (every G0/G1 line written for a motion, internal nodes 
 * ``corrected``: 1 if the block could be corrected (0: no correction, for one of the reasons).
 * ``correction_sd_um``: the standard error of the block's correction (um, from the model's
   covariance; blank where it was not evaluated: an unknown axis, outside the support, a model
-  without a covariance, or no limit asked); ``uncertain``: 1 when that exceeds
-  ``--max-correction-sd-um`` and the block was left uncorrected for it.
+  without a covariance, or no limit asked); ``uncertain``: 1 when the block was left uncorrected
+  because that exceeds ``--max-correction-sd-um``, or because the block shares a contour (a run of
+  feed moves cut one after the other) with such a block: a contour is corrected whole or not at all.
 """
 from __future__ import annotations
 
@@ -121,11 +122,12 @@ def report_table(result: PlanResult, axis_names, max_correction_sd_um: float | N
 
 
 def _uncertain(result: PlanResult, limit: float | None) -> np.ndarray:
-    """(n,) bool: blocks left uncorrected because their correction's standard error exceeds limit."""
+    """(n,) bool: blocks left uncorrected because their correction's standard error exceeds limit,
+    or that of another block of their contour (``PlanResult.gated``)."""
     if not limit:
         return np.zeros(len(result), bool)
     with np.errstate(invalid="ignore"):
-        return result.sd_um > limit
+        return (result.sd_um > limit) | result.gated
 
 
 def _axis_letters(mask, axis_names) -> list[str]:
@@ -163,6 +165,8 @@ class Summary:
     #: the limit on a correction's standard error (um) the plan used, None: none
     max_correction_sd_um: float | None = None
     uncertain_blocks: int = 0
+    #: of those, the blocks left uncorrected only because their contour has a block over the limit
+    contour_blocks: int = 0
     max_sd_um: float = 0.0
     #: the model carries a covariance (without one no block's standard error is known)
     has_covariance: bool = True
@@ -193,6 +197,7 @@ class Summary:
         outside = any_rows(r.outside) & ~unknown
         uncertain = _uncertain(r, self.max_correction_sd_um) & ~unknown & ~(outside & ~self.extrapolate)
         self.uncertain_blocks += int(uncertain.sum())
+        self.contour_blocks += int(np.count_nonzero(uncertain & r.gated))
         if np.isfinite(r.sd_um).any():
             self.max_sd_um = max(self.max_sd_um, float(np.nanmax(r.sd_um)))
         if outside.any():
@@ -289,7 +294,8 @@ class Summary:
                              "rms_after_um": float(np.sqrt(self.corrected_sum_sq_after / nc))},
                "uncorrected": {"unknown_axes": self.unknown_blocks,
                                "outside_support": 0 if self.extrapolate else self.outside_blocks,
-                               "uncertain": self.uncertain_blocks},
+                               "uncertain": self.uncertain_blocks - self.contour_blocks,
+                               "uncertain_contour": self.contour_blocks},
                "max_correction_sd_um": self.max_correction_sd_um,
                "largest_correction_sd_um": self.max_sd_um if self.max_correction_sd_um else None,
                "outside_support_blocks": self.outside_blocks,
@@ -365,10 +371,15 @@ class Summary:
             lines.append(f"{blocks(self.outside_blocks)} outside the region the model's data reached "
                          f"({axes}; first at line {self.first_outside_line}): {what}")
         if self.uncertain_blocks:
-            lines.append(f"{blocks(self.uncertain_blocks)} not corrected: the model is unsure there "
+            own = self.uncertain_blocks - self.contour_blocks
+            shared = (f", and {blocks(self.contour_blocks)} of the same contours (a run of feed "
+                      "moves cut one after the other is corrected whole or not at all: corrected in "
+                      "part, it would step where the correction stops)" if self.contour_blocks else "")
+            lines.append(f"{blocks(own)} not corrected: the model is unsure there "
                          f"(a correction's standard error above {self.max_correction_sd_um:g} um, "
-                         f"largest {self.max_sd_um:.3f} um; BLOCKS.csv column correction_sd_um); "
-                         "more data there, or a larger --max-correction-sd-um, corrects them")
+                         f"largest {self.max_sd_um:.3f} um; BLOCKS.csv column correction_sd_um)"
+                         f"{shared}; more data there, or a larger --max-correction-sd-um, corrects "
+                         "them")
         if self.max_correction_sd_um and not self.has_covariance:
             lines.append("note: the model carries no covariance (identify, diagnose and a thermal "
                          "diagnosis write one; an older model file may not): no block's correction "

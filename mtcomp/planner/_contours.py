@@ -1,0 +1,128 @@
+"""The standard-error gate acts per contour: a cut is corrected whole or not at all.
+
+A block whose correction's standard error exceeds ``PlannerOptions.max_correction_sd_um`` gets no
+correction. Decided block by block, a contour whose blocks straddle the limit was cut with a dent:
+the blocks under it kept their corrections (on a real laser model about 50 um), those over it none,
+and the step bound ramped the correction down and up between them, a form error the uncorrected
+program does not have. So the gate leaves the whole contour uncorrected.
+
+A **contour** is a maximal run of consecutive feed nodes (not a rapid, every axis known) that the
+machine cuts one after the other: it ends at a rapid, at a block with an axis the program has not
+given, at a drilling cycle's hole (a contour of its own) and at a move that does not start where the
+node before it ended (after a home move, a tool change, a hole). Rapids are in no contour: each keeps
+its own rule, so the correction ramps in and out between contours as at the edge of the model's
+support. Nodes outside the support stay in their contour (they are not corrected anyway).
+
+The program is planned in batches (chunks), so the contour still open at a batch's end is held back
+until the batch that closes it, or until it is found over the limit, or until it is longer than
+``HOLD_NODES`` (then it is planned as it stands and a node over the limit later in it leaves only the
+rest of the contour uncorrected; counted in ``ContourGate.released_open``).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ._nodes import NodeSet
+from ._pointwise import Linearization
+from ._small import any_rows
+
+#: the longest open contour held back for the batch that closes it (nodes; about 250 bytes each)
+HOLD_NODES = 1 << 18
+
+
+def gated_contours(member, start, over, carry_open=False, carry_gated=False):
+    """Which nodes the gate leaves uncorrected for their contour.
+
+    member : (n,) bool, the node belongs to a contour (a feed node with every axis known).
+    start : (n,) bool, the node does not continue the cut of the node before (its move starts
+        elsewhere: after a hole, a home move ...); a member after a non-member starts one anyway.
+    over : (n,) bool, the node's own standard error exceeds the limit.
+    carry_open : the node before the first (an earlier batch) is a member whose contour may go on
+        here; carry_gated : that contour is left uncorrected.
+
+    Returns (gated, tail): (n,) bool, the members of a contour with a node over the limit (or
+    continuing a gated one); and the index of the first node of the last contour when the last node
+    is a member (the contour may go on in the next batch), else n.
+    """
+    member = np.asarray(member, bool)
+    n = member.size
+    if n == 0:
+        return np.zeros(0, bool), 0
+    prev = np.empty(n, bool)
+    prev[0] = carry_open
+    prev[1:] = member[:-1]
+    new = member & (np.asarray(start, bool) | ~prev)
+    cid = np.cumsum(new)                     # 0: the contour carried from the batch before
+    bad = np.bincount(cid[member & np.asarray(over, bool)], minlength=int(cid[-1]) + 1) > 0
+    bad[0] |= bool(carry_gated)
+    gated = member & bad[cid]
+    tail = int(np.searchsorted(cid, cid[-1])) if member[-1] else n
+    return gated, tail
+
+
+class ContourGate:
+    """The gate of one program's nodes, batch by batch (module docstring).
+
+    limit : the standard-error limit, um; None or 0, or ``active`` False (no limit, or a model
+    without a covariance): the gate does nothing and holds nothing back.
+    """
+
+    def __init__(self, limit: float | None, active: bool, hold: int = HOLD_NODES):
+        self.limit = limit
+        self.active = bool(limit) and active
+        self.hold = hold
+        self._held: tuple[NodeSet, Linearization] | None = None
+        self._open = False        # the last node passed on is a member: its contour may go on
+        self._gated = False       # ... and that contour is left uncorrected
+        #: open contours planned before their end because they were longer than ``hold``
+        self.released_open = 0
+
+    def _over(self, sd_um):
+        with np.errstate(invalid="ignore"):
+            return np.asarray(sd_um) > self.limit          # NaN (not evaluated) is never over
+
+    def _carry(self):
+        return (True, False) if self._held is not None else (self._open, self._gated)
+
+    def rows_gated(self, member, start, sd_um) -> np.ndarray:
+        """(n,) bool: the rows of a batch about to be made into nodes that the gate will leave
+        uncorrected as far as the batch tells (no internal nodes are placed in them); the state is
+        not changed. member, start : (n,) bool as in :func:`gated_contours`; sd_um : (n,)."""
+        if not self.active:
+            return np.zeros(len(member), bool)
+        return gated_contours(member, start, self._over(sd_um), *self._carry())[0]
+
+    def feed(self, nodes: NodeSet, lin: Linearization, final: bool = False):
+        """The nodes of the next batch (after those fed before) that can be planned now, with the
+        gate's decision in ``pinned`` and ``gated``: (nodes, lin). Without ``final`` the contour
+        open at the batch's end is held back (while no node of it is over the limit)."""
+        if not self.active:
+            return nodes, lin
+        carry = self._carry()
+        if self._held is not None:
+            hn, hl = self._held
+            self._held = None
+            nodes, lin = NodeSet.concatenate([hn, nodes]), Linearization.concatenate([hl, lin])
+        n = len(nodes)
+        if n == 0:
+            return nodes, lin
+        member = ~nodes.rapid & ~any_rows(nodes.unknown)
+        gated, tail = gated_contours(member, nodes.cut_start, self._over(nodes.sd_um), *carry)
+        if gated.any():
+            nodes.gated = nodes.gated | (gated & ~nodes.pinned)
+            nodes.pinned = nodes.pinned | gated
+        self._open, self._gated = bool(member[-1]), bool(gated[-1])
+        if final or tail == n or self._gated:
+            return nodes, lin
+        if n - tail > self.hold:
+            self.released_open += 1
+            return nodes, lin
+        self._held = (nodes.take(slice(tail, n)), lin.take(slice(tail, n)))
+        return nodes.take(slice(0, tail)), lin.take(slice(0, tail))
+
+    def finish(self):
+        """The nodes still held back at the end of the program, (nodes, lin) or None: their contour
+        ended there with no node over the limit."""
+        held, self._held = self._held, None
+        self._open = self._gated = False
+        return held
