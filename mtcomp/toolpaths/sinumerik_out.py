@@ -35,6 +35,7 @@ from .heidenhain_out import ROTARY_ARC_TOL_RAD, HeidenhainWriter, plan_blocks
 from .heidenhain import signed
 from .sinumerik import AXES, BLOCK_START
 from .sinumerik_lang import code_end, split_words
+from .sinumerik_paths import RadiusError, radius_centre, signed_radius
 from .words import number_decimals
 
 _PLAIN = "0123456789+-. "
@@ -92,6 +93,7 @@ class SinumerikWriter(HeidenhainWriter):
         self.retracts = 0
         self.added = 0
         self.split_circles = 0
+        self.arc_info: dict = {}                # a circle's line -> its GInfo
         self.zi = self.letters.index("Z")
 
     # ------------------------------------------------------------------ words
@@ -146,6 +148,9 @@ class SinumerikWriter(HeidenhainWriter):
         ending = self.texts[cc][len(text):]
         said = np.zeros(2)
         edits = []
+        info = self.arc_info[cc]
+        if info.radius is not None:
+            return self._radius_text(cc, centre, info)
         named = {w.name: w for w in self._words(text) if w.name in "IJ"}
         for k, letter in enumerate("IJ"):
             w = named[letter]
@@ -154,17 +159,43 @@ class SinumerikWriter(HeidenhainWriter):
             if head in ("AC", "IC"):
                 a, b = w.start + w.text.find("(") + 1, w.start + w.text.rfind(")")
             col = self.cols[k]
-            start, base = (0.0, 0.0) if head == "AC" else (arc.block.start[col], arc.start_w[col])
+            start, base = ((info.shift[k], info.shift[k]) if head == "AC" else
+                           (arc.block.start[col], arc.start_w[col]))
             t, value_said = corrected_text(text[a:b], arc.centre2[k] - start, centre[k] - base)
             if t != text[a:b]:
                 edits.append((a, b, t))
             said[k] = value_said + base
         return _edit(text, edits) + ending, said
 
+    def _radius_text(self, cc: int, centre, info) -> tuple[str, np.ndarray]:
+        """(line cc with the CR= of the circle through its written start and end whose centre is
+        the nearest to ``centre`` (2,) on the chord's bisector; the centre the controller makes of
+        the CR= written). A radius that rounds below half the chord says no centre (far away)."""
+        a = self.arcs[cc][0]
+        s2, e2 = a.start_w[self.cols], a.end_w[self.cols]
+        text = self.texts[cc].rstrip("\r\n")
+        ending = self.texts[cc][len(text):]
+        w = next(w for w in self._words(text) if w.kind == "assign" and w.name == "CR")
+        r = signed_radius(s2, e2, centre, a.ccw)
+        half = 0.5 * math.hypot(*(e2 - s2))
+        if abs(r) - half < 1e-4:
+            # a half circle: either sign turns the same within the written decimals (the
+            # source's kept), and a radius written below half the chord makes no circle
+            r = math.copysign(abs(r), info.radius)
+        t, said_r = corrected_text(w.text, info.radius, r)
+        if abs(said_r) < half - 1e-6:
+            t, said_r = corrected_text(w.text, info.radius, math.copysign(abs(r) + 1e-4, r))
+        try:
+            said = np.array(radius_centre(s2, e2, said_r, a.ccw))
+        except RadiusError:
+            said = np.full(2, 1e9)
+        return _edit(text, [(w.start, w.end, t)] if t != w.text else []) + ending, said
+
     def _arc(self, i, block, pts, counts, info) -> None:
         """A circle (:meth:`HeidenhainWriter._arc`) and at once its centre: each circle has its own
         centre words, so it is settled here, before the blocks after it are written (a circle
         written in pieces may leave Z where the corrected path has it)."""
+        self.arc_info[info.cc_line] = info
         super()._arc(i, block, pts, counts, info)
         arcs = self.arcs.pop(info.cc_line)
         every, self.arcs = self.arcs, {info.cc_line: arcs}
