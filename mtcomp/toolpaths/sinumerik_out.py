@@ -196,6 +196,7 @@ class SinumerikWriter(HeidenhainWriter):
         centre words, so it is settled here, before the blocks after it are written (a circle
         written in pieces may leave Z where the corrected path has it)."""
         self.arc_info[info.cc_line] = info
+        self.CENTRE = "its I J" if info.radius is None else "its radius CR="
         super()._arc(i, block, pts, counts, info)
         arcs = self.arcs.pop(info.cc_line)
         every, self.arcs = self.arcs, {info.cc_line: arcs}
@@ -303,11 +304,13 @@ class SinumerikWriter(HeidenhainWriter):
         replaced (an end point added before I where it had none), the others ``X.. Y.. I=AC(..)
         J=AC(..)`` (incremental ``I.. J..`` where the source's centre was), the last ending at
         the circle's end as the source line's words wrote it; Z (the axes ``off``) on a piece
-        whose written value it changes."""
+        whose written value it changes. A circle by its radius CR= becomes pieces about absolute
+        centres, its CR= word the first piece's I=AC(..) J=AC(..)."""
         text = self.texts[a.line].rstrip("\r\n")
         named = {w.name: w for w in self._words(text) if w.kind in ("address", "assign")}
-        absolute = [named[c].kind == "assign" and named[c].text.strip().upper().startswith("AC")
-                    for c in "IJ"]
+        radius = "I" not in named
+        absolute = [radius or named[c].kind == "assign" and
+                    named[c].text.strip().upper().startswith("AC") for c in "IJ"]
         lines = []
         for n, (start, end, centre) in enumerate(pieces):
             u = {self.letters[j]: _number(self._units(j, end[j], info.shift), 4)
@@ -318,7 +321,7 @@ class SinumerikWriter(HeidenhainWriter):
             ij = [f"{c}=AC({_number(self._units(j, v, info.shift), 4)})" if ab else
                   f"{c}{_number(self._units(j, v, info.shift) - self._units(j, s, info.shift), 4)}"
                   for c, j, v, s, ab in zip("IJ", self.cols, centre, start[self.cols], absolute)]
-            if n == len(pieces) - 1 == 0:    # one piece: the source line's words, with Z
+            if n == len(pieces) - 1 == 0 and not radius:    # one piece: its words, with Z
                 text = self._centre_text(a.line, centre)[0].rstrip("\r\n")
                 u = {c: v for c, v in u.items() if c not in "XY"}
                 named = {w.name: w for w in self._words(text) if w.kind in ("address", "assign")}
@@ -341,7 +344,10 @@ class SinumerikWriter(HeidenhainWriter):
     def _first_piece(self, text, named, words, ij) -> str:
         """The source line with the first piece's end point (``words``: letter -> value text)
         and centre ``ij`` written."""
-        edits = [(self._word_start(text, named[c]), named[c].end, t) for c, t in zip("IJ", ij)]
+        if "I" in named:
+            edits = [(self._word_start(text, named[c]), named[c].end, t) for c, t in zip("IJ", ij)]
+        else:                       # CR=: the pieces' centres are absolute
+            edits = [(self._word_start(text, named["CR"]), named["CR"].end, " ".join(ij))]
         missing = []
         for c, v in words.items():
             if c in named:
@@ -349,7 +355,7 @@ class SinumerikWriter(HeidenhainWriter):
             else:
                 missing.append(f"{c}{v}")
         if missing:
-            at = self._word_start(text, named["I"])
+            at = self._word_start(text, named["I" if "I" in named else "CR"])
             edits.append((at, at, " ".join(missing) + " "))
         return _edit(text, edits)
 
