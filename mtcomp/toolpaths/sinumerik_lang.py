@@ -82,10 +82,16 @@ def _closing(text: str, pos: int, end: int) -> int:
 
 
 def _expression_end(text: str, pos: int, end: int) -> int:
-    """The end of an expression starting at ``pos``: a blank outside parentheses ends it."""
+    """The end of an expression starting at ``pos``: a blank outside parentheses and strings
+    ``"..."`` ends it."""
     i = pos
     while i < end and text[i] not in " \t":
-        if text[i] == "(":
+        if text[i] == '"':                  # a string: its blanks are its own
+            close = text.find('"', i + 1, end)
+            if close < 0:
+                return -1
+            i = close + 1
+        elif text[i] == "(":
             close = _closing(text, i, end)
             if close < 0:
                 return -1
