@@ -1,5 +1,5 @@
-"""The Sinumerik constructs of real 840D programs besides the end points (mtcomp.toolpaths.sinumerik,
-sinumerik_paths, sinumerik_out): path control and settings that move nothing, circles by their
+"""The Sinumerik constructs of real 840D programs besides the end points (mtcomp.toolpaths:
+sinumerik, sinumerik_paths, sinumerik_out): path control and settings that move nothing, circles by their
 radius CR=, the programmable offset TRANS/ATRANS and blocks in machine coordinates SUPA/G53/G153,
 against hand-derived values and the independent replay of tests/replay_sinumerik.py."""
 import math
@@ -123,6 +123,7 @@ def test_a_circle_by_its_radius_has_the_centre_of_the_manual(tmp_path, move, cen
     ("TRANS X10 G1", "TRANS with other words than its axis values"),
     ("TRANS A10", "TRANS of a rotary axis"),
     ("ROT Z45", "a programmable frame (ROT with values)"),
+    ("ROT RPL=45", "a programmable frame (ROT with values)"),
     ("AROT Z45", "a programmable frame (AROT)"),
     ("ASCALE X2", "a programmable frame (ASCALE)"),
     ('T="DRILL 8.5" M6', 'a tool called by name (T="...")'),     # a string's blank is its own
@@ -136,7 +137,7 @@ QUARTER = "N10 G0 X10 Y0 Z5\nN20 G1 Z-1 F100\nN30 G3 X0 Y10 CR=10\nN40 G0 Z5\nM3
 
 
 def test_a_translated_circle_keeps_its_radius(tmp_path):
-    lines = _lines_after(_write(tmp_path, QUARTER), lambda p: np.tile([0.01, 0.0, 0.0], (len(p), 1)))
+    lines = _lines_after(_write(tmp_path, QUARTER), lambda p: np.tile([0.01, 0, 0], (len(p), 1)))
     assert lines[2:6] == ["N10 G0 X10.0100 Y0 Z5", "N20 G1 Z-1 F100", "N30 G3 X0.0100 Y10 CR=10",
                           "N40 G0 Z5"]
 
@@ -149,7 +150,8 @@ def _points(move, n=200):
     r1 = math.hypot(move.end["X"] - cx, move.end["Y"] - cy)
     u = np.linspace(0, 1, n)
     r = r0 + (r1 - r0) * u
-    return np.column_stack([cx + r * np.cos(a0 + move.sweep * u), cy + r * np.sin(a0 + move.sweep * u)])
+    a = a0 + move.sweep * u
+    return np.column_stack([cx + r * np.cos(a), cy + r * np.sin(a)])
 
 
 def test_a_scaled_circle_gets_the_radius_of_its_moved_centre(tmp_path):
@@ -243,8 +245,8 @@ def test_positions_stay_known_across_a_frame_change(tmp_path):
 def test_lines_under_a_frame_are_written_in_the_program_frame(tmp_path):
     path = _write(tmp_path, FRAMES)
     lines = _lines_after(path, lambda p: np.tile([0.01, 0.0, 0.0], (len(p), 1)))
-    assert lines[2:12] == ["N10 G54 G0 X0.0100 Y0 Z10", "N20 TRANS X100 Y50", "N30 G1 X0.0100 Y0 F100",
-                           "N40 ATRANS X10 Z-2", "N50 G1 X0.0100 Z0",
+    assert lines[2:12] == ["N10 G54 G0 X0.0100 Y0 Z10", "N20 TRANS X100 Y50",
+                           "N30 G1 X0.0100 Y0 F100", "N40 ATRANS X10 Z-2", "N50 G1 X0.0100 Z0",
                            "N60 G3 X10.0100 Y10 I=AC(10.0100) J=AC(0)", "N70 TRANS",
                            "N80 G1 X0.0100 Y0", "N90 ROT", "N100 M30"]
     src = path.read_bytes()

@@ -303,11 +303,11 @@ class _Reader:
         program's coordinates are shifted from here on; the positions stay where they are."""
         name = next(w.name for w in words if w.kind == "keyword" and w.name in FRAME_WORDS)
         values = [w for w in words if not (w.kind == "keyword" and w.name == name)]
+        if values and name not in ("TRANS", "ATRANS"):
+            raise self.err(f"a programmable frame ({name} with values) is not read by mtcomp")
         if any(w.kind not in ("address", "assign") or w.name not in AXES for w in values):
             raise self.err(f"{name} with other words than its axis values in its block is not read "
                            "by mtcomp (the manual gives it a block of its own)")
-        if values and name not in ("TRANS", "ATRANS"):
-            raise self.err(f"a programmable frame ({name} with values) is not read by mtcomp")
         if any(w.name not in "XYZ" for w in values):
             raise self.err(f"{name} of a rotary axis is not read by mtcomp")
         self._check_axis_words({w.name: w for w in values})
@@ -452,7 +452,8 @@ class _Reader:
         passed through uncorrected, the axes it names unknown afterwards."""
         self._check_axis_words(axes)
         if centre or self.motion in (2, 3) and axes:
-            raise self.err("a circle in machine coordinates (SUPA, G53, G153) is not read by mtcomp")
+            raise self.err("a circle in machine coordinates (SUPA, G53, G153) is not read by "
+                           "mtcomp")
         if self.modal_call is not None and axes:
             raise self.err("a block in machine coordinates (SUPA, G53, G153) under a modal call "
                            "(MCALL) is not read by mtcomp")
@@ -475,8 +476,8 @@ class _Reader:
         """G4 F.. (seconds) or G4 S.. (spindle revolutions), in a block of its own: the F or S is
         the dwell's, the feed and the spindle speed in force stay (Fundamentals, dwell time)."""
         if axes or centre:
-            raise self.err("a dwell G4 with axis words is not read by mtcomp (the manual gives it a "
-                           "block of its own)")
+            raise self.err("a dwell G4 with axis words is not read by mtcomp (the manual gives "
+                           "it a block of its own)")
         seconds = [o.split("F")[1] for o in other if o.startswith("dwell F")]
         if seconds:
             self.emit(f"G4 P{seconds[0]}")

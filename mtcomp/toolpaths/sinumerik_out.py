@@ -10,7 +10,13 @@ the written value is exact to far below a micrometre). An axis the block does no
 after its last axis word where its written value changes (never one the program has not
 positioned). A circle's centre ``I=AC(..) J=AC(..)`` (or incremental ``I J``) is moved as a
 Heidenhain ``CC`` is (:mod:`.heidenhain_out`): one centre per circle, kept when the circle lies
-within the chord tolerance of its corrected path, otherwise refused in one line.
+within the chord tolerance of its corrected path, otherwise refused in one line. A circle by its
+radius ``CR=`` gets the radius of the circle through its written ends whose centre is the moved
+centre's nearest on the chord's bisector (the centre the controller makes of it is the one checked
+against the corrected path); where none holds, it is written in pieces about ``I=AC J=AC`` centres.
+Under a programmable offset ``TRANS``/``ATRANS`` the positions are written in the program's
+coordinates (the offset taken off); the offset's lines, and blocks in machine coordinates
+(``SUPA``, ``G53``), are kept as written.
 
 A drilling cycle's hole is corrected at its bottom: X Y on the positioning block under ``MCALL``;
 the cycle's reference plane RFP (and an absolute depth DP) moved by the Z correction, in the call's
