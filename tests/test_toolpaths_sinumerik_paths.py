@@ -312,3 +312,34 @@ def test_machine_blocks_and_dwells_mtcomp_cannot_follow_are_refused(tmp_path, ca
 def test_a_circle_by_radius_from_an_unknown_position_is_refused(tmp_path):
     with pytest.raises(InputError, match="a circle from a position the program has not given"):
         translate(_write(tmp_path, "N10 G0 X0 Y0 Z0\nN20 G0 SUPA X0\nN30 G2 X6 Y0 CR=5\nM30\n"))
+
+
+# ---------------------------------------------------------------------------- helices
+def test_a_helix_gets_its_corrected_z(tmp_path):
+    # half a turn from (20, 0, -1) to (-20, 0, -2) about (0, 0), Z corrected by 1e-4 * x: +2 um
+    # at the start, -2 um at the end, so the end is Z-2.0020; the helix written (Z linear in the
+    # angle from -0.998 to -2.002) misses the corrected path z(u) = -1 - u + 0.002 cos(pi u) by
+    # -0.002 + 0.004 u + 0.002 cos(pi u), at most 0.42 um (u = 0.22, by hand)
+    path = _write(tmp_path, "N10 G0 X20 Y0 Z5\nN20 G1 Z-1 F100\n"
+                            "N30 G3 X-20 Y0 Z-2 I=AC(0) J=AC(0)\nN40 G0 Z5\nM30\n")
+    lines = _lines_after(path, lambda p: np.outer(p[:, 0], [0, 0, 1e-4]))
+    assert lines[3:6] == ["N20 G1 Z-0.9980 F100", "N30 G3 X-20 Y0 Z-2.0020 I=AC(0) J=AC(0)",
+                          "N40 G0 Z4.9980"]
+    arc = [m for m in replay_sinumerik.replay("\n".join(lines).encode()).moves if m.kind == "arc"]
+    u = np.linspace(0, 1, 401)
+    z = arc[0].start["Z"] + (arc[0].end["Z"] - arc[0].start["Z"]) * u
+    miss = np.abs(z - (-1 - u + 0.002 * np.cos(np.pi * u)))
+    assert 0.40e-3 < miss.max() <= 0.43e-3
+
+
+def test_a_helix_by_radius_gets_its_corrected_z(tmp_path):
+    path = _write(tmp_path, "N10 G0 X20 Y0 Z5\nN20 G1 Z-1 F100\nN30 G3 X0 Y20 Z-2 CR=20\n"
+                            "N40 G0 Z5\nM30\n")
+    lines = _lines_after(path, lambda p: np.tile([0.01, 0.0, 0.002], (len(p), 1)))
+    assert lines[4] == "N30 G3 X0.0100 Y20 Z-1.9980 CR=20"
+
+
+def test_a_helix_of_a_whole_turn_is_refused_in_one_line(tmp_path, capsys):
+    err = _refused(tmp_path, capsys, "N10 G0 X20 Y0 Z5\nN20 G1 Z-1 F100\n"
+                                     "N30 G3 Z-3 I=AC(0) J=AC(0)\nM30\n")
+    assert "p.mpf:5:" in err and "a helix of a whole turn" in err, err

@@ -204,6 +204,7 @@ class SinumerikWriter(HeidenhainWriter):
         self.arc_info[info.cc_line] = info
         self.CENTRE = "its I J" if info.radius is None else "its radius CR="
         super()._arc(i, block, pts, counts, info)
+        self._helix_end(i, block, pts[-1], info)
         arcs = self.arcs.pop(info.cc_line)
         every, self.arcs = self.arcs, {info.cc_line: arcs}
         try:
@@ -216,6 +217,22 @@ class SinumerikWriter(HeidenhainWriter):
                 raise
         finally:
             self.arcs = every
+
+    def _helix_end(self, i: int, block, end, info) -> None:
+        """A helix (a circle whose Z, a linear axis off the plane, changes; Fundamentals, helical
+        interpolation): its Z word gets the corrected end, and the circle is checked against its
+        corrected path as the helix it is (the off-plane axes going linearly with the angle)."""
+        off = self.linear & block.known
+        off[self.cols] = False
+        if not np.any(np.abs(block.end - block.start)[off] > 1e-9):
+            return
+        if math.hypot(*(block.end - block.start)[self.cols]) <= 1e-9:
+            raise InputError("a helix of a whole turn (a circle G2/G3 back to its start in the "
+                             "plane, Z changing) is not written by mtcomp (a circle's corrected "
+                             "path is matched by its angle, which a whole turn repeats)",
+                             self.src.source, line=i + 1)
+        self.texts[i] = self._rewrite(i, block, end, info, write=off)
+        self.arcs[info.cc_line][-1].end_w[off] = self.written[off]
 
     def _split(self, a, info) -> bool:
         """The circle ``a`` (a :class:`~.heidenhain_out._Arc`) written as circle pieces, each
