@@ -16,6 +16,15 @@ feed to the depth (RFP-DPR when DPR is given, else DP), rapid to RTP; called onc
 `HOLES2(CPA, CPO, RAD, STA1, INDA, NUM)` positions at rapid on the circle, `HOLES1(SPCA, SPCO,
 STA1, FDIS, DBH, NUM)` on the line from (SPCA, SPCO) at STA1 degrees, FDIS to the first, DBH apart,
 the modal call at each.
+Path control and settings move nothing: `G64`, `G641`-`G645` with `ADIS=`, `SOFT`, `FFWON`,
+`COMPCAD`, `CYCLE832(...)`, `MSG("...")`, `G4 F..` are lines without motion. A circle by its radius
+`G2/G3 X.. Y.. CR=r` turns about the centre at distance |r| from both ends, on the left of the chord
+for G3 and r > 0 (the right for G2), on the other side for a negative r (more than 180 degrees).
+`TRANS X.. Y.. Z..` sets the programmable offset (the axes not given 0), `ATRANS` adds to it,
+`TRANS` alone (or `ROT`, `SCALE`, `MIRROR` alone) clears it: the positions the program gives from
+then on are its own plus the offset (the moves here are in the work offset's frame). A block with
+`SUPA`, `G53` or `G153` moves in machine coordinates: a line without motion (kept as written), and
+the axes it names unknown afterwards.
 A line that holds a call, an `MCALL` or a circle's centre is a state line (its numbers move with
 the correction), so it is not among the lines without motion; nor is the output's note line
 `; mtcomp: ...`. `positioned_per_line` gives, per line, whether it may be rewritten and which
@@ -34,7 +43,8 @@ _ASSIGN = re.compile(r"(?<![A-Z0-9_])(R\d+|[A-Z_][A-Z0-9_]{2,})\s*=\s*(\S+)")
 
 
 def _code(raw: bytes) -> str:
-    text = raw.decode("latin-1").replace("\r", "").split(";")[0].upper()
+    # a ';' starts the comment, but not inside a string "..." (MSG("A;B"))
+    text = re.match(r'(?:[^;"]|"[^"]*")*', raw.decode("latin-1").replace("\r", "")).group(0).upper()
     if text.lstrip().startswith("%"):
         return ""
     return text[_START.match(text).end():].strip()
@@ -47,6 +57,11 @@ class _Controller:
         self.motion = None
         self.modal = None           # the modal call: (name, argument texts)
         self.wcs = None             # no work system named yet
+        self.shift = {"X": 0.0, "Y": 0.0, "Z": 0.0}     # TRANS / ATRANS
+
+    def at(self, axis, text):
+        """The position (work offset's frame) of an axis word's value."""
+        return self.value(text) + self.shift.get(axis, 0.0)
 
     def value(self, text):
         text = text.strip()
@@ -83,7 +98,16 @@ def _block(c, index, code):
             c.vars[name] = c.value(expr)
         except NameError:                      # a parameter a subprogram set
             c.vars[name] = math.nan
+    frame = re.match(r"(A?TRANS|ROT|SCALE|MIRROR)\b(.*)", code)
+    if frame:
+        given = {a: c.value(v) for a, v in _AXIS.findall(frame.group(2))}
+        for a in "XYZ":         # the tool stays where it is (positions are the work frame's)
+            c.shift[a] = given.get(a, 0.0) + (c.shift[a] if frame.group(1) == "ATRANS" else 0.0)
+        return False, []
     g = [int(v) for v in _G.findall(code)]
+    if re.search(r"(?<![A-Z0-9_])SUPA(?![A-Z0-9_])", code) or 53 in g or 153 in g:
+        c.pos = dict(c.pos, **{a: None for a, _v in _AXIS.findall(code)})
+        return False, []
     for v in g:
         if v in (54, 55, 56, 57, 500) and v != c.wcs:
             c.wcs = v
@@ -96,17 +120,22 @@ def _block(c, index, code):
         c.modal = (m.group(1), m.group(2).split(",")) if m else None
         return True, []
     call = _CALL.search(code)
+    if call and call.group(1) in ("MSG", "CYCLE832"):
+        return False, []
     if call and call.group(1) != "AC":
         return True, _call(c, index, call.group(1), call.group(2).split(","))
     if re.match(r"L\d+", code):
         c.unknown()
         return True, []
     words = {a: v for a, v in _AXIS.findall(code)}
+    radius = re.search(r"(?<![A-Z0-9_])CR\s*=\s*(\S+)", code)
+    if c.motion in (2, 3) and radius:
+        return True, [_radius_arc(c, index, words, c.value(radius.group(1)))]
     if c.motion in (2, 3) and ("I" in words or "J" in words):
         return True, [_arc(c, index, words)]
     target = dict(c.pos)
     for a, v in words.items():
-        target[a] = c.value(v)
+        target[a] = c.at(a, v)
     if target == c.pos and not words:
         return False, []
     move = Move(index, "rapid" if c.motion == 0 else "feed", dict(c.pos), target)
@@ -121,8 +150,9 @@ def _cycle(c, index, name, args):
     if not re.fullmatch(r"CYCLE8[1-9]", name):
         c.unknown()
         return []
-    rtp, rfp, sdis = (c.value(a) for a in args[:3])
-    bottom = rfp - c.value(args[4]) if len(args) > 4 and args[4].strip() else c.value(args[3])
+    rtp, rfp, sdis = (c.at("Z", a) for a in args[:3])
+    sdis -= c.shift["Z"]
+    bottom = rfp - c.value(args[4]) if len(args) > 4 and args[4].strip() else c.at("Z", args[3])
     moves = []
     for kind, z in (("rapid", rfp + sdis), ("feed", bottom), ("rapid", rtp)):
         end = dict(c.pos, Z=z)
@@ -134,6 +164,7 @@ def _cycle(c, index, name, args):
 def _call(c, index, name, args):
     if name in ("HOLES1", "HOLES2"):
         x0, y0, p, q, r, num = (c.value(a) for a in args)
+        x0, y0 = x0 + c.shift["X"], y0 + c.shift["Y"]
         if name == "HOLES1":        # p: the line's angle, q: to the first hole, r: between holes
             at = [(q + i * r, math.radians(p)) for i in range(int(num))]
         else:                       # p: the radius, q: the first angle, r: the step (0: evenly)
@@ -153,14 +184,31 @@ def _arc(c, index, words):
     end = dict(start)
     for a in "XYZ":
         if a in words:
-            end[a] = c.value(words[a])
+            end[a] = c.at(a, words[a])
     centre = []
-    for letter, s in (("I", start["X"]), ("J", start["Y"])):
+    for letter, a, s in (("I", "X", start["X"]), ("J", "Y", start["Y"])):
         v = words[letter]
         m = re.match(r"=\s*AC\((.*)\)$", v)
-        centre.append(c.value(m.group(1)) if m else s + c.value(v))
+        centre.append(c.at(a, m.group(1)) if m else s + c.value(v))
     c.pos = end
     return arc_move(index, start, end, centre, c.motion == 3)
+
+
+def _radius_arc(c, index, words, r):
+    """A circle G2/G3 to its end point with the radius CR= r: its centre found with complex
+    numbers, on the chord's bisector, |r| from both ends."""
+    start = dict(c.pos)
+    end = dict(start)
+    for a in "XYZ":
+        if a in words:
+            end[a] = c.at(a, words[a])
+    s, e = complex(start["X"], start["Y"]), complex(end["X"], end["Y"])
+    half = abs(e - s) / 2
+    left = 1j * (e - s) / abs(e - s)
+    towards = 1 if (c.motion == 3) == (r > 0) else -1
+    centre = (s + e) / 2 + towards * left * math.sqrt(max(r * r - half * half, 0.0))
+    c.pos = end
+    return arc_move(index, start, end, (centre.real, centre.imag), c.motion == 3)
 
 
 def compare(src: bytes, out: bytes, tol, name: str = ""):

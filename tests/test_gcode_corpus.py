@@ -72,15 +72,10 @@ REFUSED = {
     # `ONONAME`: the post's placeholder where the program number belongs; a Haas takes O and
     # digits only
     "nxpost_BandB_mfg.cnc": ["BandB_mfg.cnc:2:", "word O without a valid number"],
-    # Sinumerik inch mode G70: mtcomp's Sinumerik reader reads metric programs only (a gap)
-    "nxpost_Cincinnati_Lamb_FTV5_840D_sample.ptp": ["840D_sample.ptp:2:", "inch programs (G70"],
     # Fanuc G74 left-hand tapping (and, further on, G76 fine boring): cycles mtcomp does not follow
     "nxpost_MS_NMV_sample_mm.ptp": ["MS_NMV_sample_mm.ptp:565:", "G74 (left-hand tapping)"],
     # `BEGIN PGM 100 IN`: a Heidenhain program names its unit MM or INCH
     "nxpost_Sample_mill.ptp": ["Sample_mill.ptp:1:", "BEGIN PGM name MM (or INCH)"],
-    # Sinumerik `G0 G53 Z0 D0` (a move in machine coordinates): not read by mtcomp's Sinumerik
-    # reader (a gap)
-    "nxpost_Training_Huron_KX20.MPF": ["Training_Huron_KX20.MPF:3:", "G53 is not read"],
     # a Sinumerik program (MCALL CYCLE81) with Fanuc's `G43 H01`: no Sinumerik G code
     "nxpost_sample_part.ptp": ["sample_part.ptp:8:", "G43 is not read"],
     # Heidenhain lines without a block number (`;LE 30-11-2007 14:10`, a comment added by hand)
@@ -91,12 +86,19 @@ REFUSED = {
     # a syntax-colouring sample: `WHILE[ABS[#5+7.]]LT0.1]D02` (brackets that do not balance,
     # D02 for DO2): a controller alarms on it
     "vscodegcode_sample-colors.nc": ["sample-colors.nc:82:", "WHILE [...] without DOm"],
-    # Sinumerik 840D sl 5-axis CAM test: FNORM (and, further on, TRAFOOF, SUPA, a tool called by
-    # name, CYCLE800) are not read by mtcomp's Sinumerik reader (gaps)
-    "sinumerikcas_CAM TEST.MPF": ["CAM TEST.MPF:6:", "FNORM is not read"],
+    # Sinumerik 840D programs (Siemens NX's posts and a CAM output for an 840D sl): a thread
+    # milled as helices with additional turns (TURN=), inch programs (G70; the 5-axis ones use
+    # TRAORI too), a tool called by name (T="DRILL 8.5"), whose length no --tool-length names
+    "nxpost_Training_Huron_KX20.MPF": ["Training_Huron_KX20.MPF:210:",
+                                       "additional full turns (TURN=)"],
+    "nxpost_Cincinnati_Lamb_FTV5_840D_sample.mpf": ["FTV5_840D_sample.mpf:2:", "G70"],
+    "nxpost_Cincinnati_Lamb_FTV5_840D_sample.ptp": ["FTV5_840D_sample.ptp:2:",
+                                                    "inch programs (G70"],
+    "nxpost_DMU_70_eVo_840D_in_Sample_part.ptp": ["in_Sample_part.ptp:1:", "inch programs (G70"],
+    "sinumerikcas_CAM TEST.MPF": ["CAM TEST.MPF:10:", "a tool called by name"],
 }
-#: the share of the corpus accepted today (124 of 146: 0.849); the goal is 95 %
-MIN_ACCEPTED = 0.84
+#: the share of the corpus accepted today (124 of 148: 0.838); the goal is 95 %
+MIN_ACCEPTED = 0.83
 _WORD = re.compile(r"([A-Z])\s*([-+]?\s*(?:\d+\.?\d*|\.\d+))")
 
 
@@ -289,7 +291,7 @@ def test_corpus_is_the_documented_one():
     assert len({p.name.split("_")[0] for p in PROGRAMS}) >= 10
     for p in PROGRAMS:
         assert f"`{p.name}`" in sources, f"{p.name} is not in SOURCES.md"
-    assert sum(p.stat().st_size for p in PROGRAMS) < 2_600_000
+    assert sum(p.stat().st_size for p in PROGRAMS) < 2_700_000
 
 
 def run_once(tmp_path_factory, key: str, argv_for) -> tuple:

@@ -116,7 +116,7 @@ def test_a_subprogram_not_in_the_file_makes_every_axis_unknown(tmp_path):
     ("N10 @371 R52 K2 K0\n", 3, "the computation instruction @371"),
     ("N10 G0 X1\nN20 GOTOF END\n", 4, "program jumps (GOTOF)"),
     ("/N10 G0 X1\n", 3, "skippable block '/' that moves"),
-    ("N10 G0 X1\nN20 G3 X2 Y2 CR=5\n", 4, "a circle by its radius (CR=)"),
+    ("N10 G0 X1 Y1\nN20 G3 X2 Y2 AR=90\n", 4, "a circle by its opening angle (AR=)"),
     ("N10 G91 G0 X1\n", 3, "incremental dimensions G91"),
 ])
 def test_what_is_not_read_is_refused_in_one_line(tmp_path, capsys, body, line, words):

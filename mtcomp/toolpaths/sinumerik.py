@@ -21,6 +21,8 @@ from ..errors import InputError
 from .heidenhain import read_lines
 from .sinumerik_lang import (ExpressionError, Word, code_end, evaluate, split_arguments,
                              split_words)
+from .sinumerik_paths import (FRAME_WORDS, MACHINE_G, SETTING_CALLS, SETTING_VALUES,
+                              SETTING_WORDS, SMOOTHING_G, RadiusError, radius_centre)
 
 AXES = "XYZABC"
 _HEADER = re.compile(r"^\s*%")
@@ -30,27 +32,30 @@ _BLOCK_NUMBER = re.compile(r"\s*(?:N\d+|:\d+)\s*")
 _LABEL = re.compile(r"\s*[A-Za-z_][A-Za-z0-9_]*:(?!=)\s*")
 _DEF = re.compile(r"(?i)\s*DEF\s+(REAL|INT|BOOL)\s+(.*)$")
 #: G codes read (others refused by name): motion, plane, distance, units, work offsets, path
-#: control (no change to the path as programmed), feed per minute, cutter radius compensation
+#: control (exact stop, continuous path and its smoothing: within a tolerance of the path as
+#: programmed), feed per minute, cutter radius compensation
 _MOTION_G = {0, 1, 2, 3}
 _PASSED_G = {17, 18, 19, 40, 41, 42, 90, 94, 71, 710}
-_IGNORED_G = {9, 60, 64, 601, 602, 603}
+_IGNORED_G = {9, 60, 64, 601, 602, 603} | SMOOTHING_G
 _REFUSED_WORDS = {
     "GOTO": "program jumps (GOTO)", "GOTOF": "program jumps (GOTOF)",
     "GOTOB": "program jumps (GOTOB)", "GOTOC": "program jumps (GOTOC)",
     "IF": "IF control structures", "WHILE": "WHILE loops", "FOR": "FOR loops",
     "REPEAT": "REPEAT loops", "LOOP": "LOOP loops", "CASE": "CASE jumps",
-    "PROC": "a subprogram definition (PROC)", "TRANS": "a programmable frame (TRANS)",
-    "ATRANS": "a programmable frame (ATRANS)", "ROT": "a programmable frame (ROT)",
+    "PROC": "a subprogram definition (PROC)", "ROT": "a programmable frame (ROT)",
     "AROT": "a programmable frame (AROT)", "SCALE": "a programmable frame (SCALE)",
     "ASCALE": "a programmable frame (ASCALE)", "MIRROR": "a programmable frame (MIRROR)",
     "AMIRROR": "a programmable frame (AMIRROR)", "TRAORI": "5-axis transformation (TRAORI)",
     "TRANSMIT": "a transformation (TRANSMIT)", "TRACYL": "a transformation (TRACYL)",
     "CIP": "a circle through an intermediate point (CIP)", "CT": "a tangential circle (CT)",
-    "CR": "a circle by its radius (CR=)", "AR": "a circle by its opening angle (AR=)",
+    "AR": "a circle by its opening angle (AR=)",
     "AP": "polar coordinates (AP=)", "RP": "polar coordinates (RP=)",
     "RND": "a rounding (RND)", "CHF": "a chamfer (CHF)", "CHR": "a chamfer (CHR)",
-    "SPOS": "spindle positioning (SPOS)", "SUPA": "a block in machine coordinates (SUPA)",
+    "SPOS": "spindle positioning (SPOS)",
+    "TURN": "a helix with additional full turns (TURN=)",
 }
+#: the words refused where they are given a value (``AR=...``)
+_REFUSED_VALUES = {"AR", "AP", "RP", "RND", "CHF", "CHR", "TURN"}
 #: the drilling cycles read: their moves are a hole from RFP+SDIS to the depth, back to RTP. They
 #: share CYCLE81's first five parameters (RTP, RFP, SDIS, DP, DPR) and its hole; what else they do
 #: (pecks, dwells, the spindle stopped, a lift-off at the bottom, the way out) keeps the hole where
@@ -66,14 +71,17 @@ class GInfo:
     """What a G-code line of the translation is, for the writer: ``source`` its source line
     (0-based); ``kind`` None (no move), 'move' (a straight move of the line's axis words), 'arc',
     'hole' (a hole of a drilling cycle, at its bottom), 'retract' (to the cycle's RTP: kept as
-    written), 'approach' (a call's own move, kept); for an arc its ``centre`` and ``cc_line`` (its own
-    line); for a hole its ``call`` (:class:`Call`) and ``pattern`` (:class:`Pattern` or None)."""
+    written), 'approach' (a call's own move, kept); ``shift`` the programmable frame's translation
+    (mm, X Y Z) in force; for an arc its ``centre``, ``cc_line`` (its own line) and, for a circle
+    given by its radius, ``radius`` (the CR= value, mm); for a hole its ``call`` (:class:`Call`)
+    and ``pattern`` (:class:`Pattern` or None)."""
 
     source: int
     kind: str | None = None
     shift: tuple = (0.0, 0.0, 0.0)
     centre: tuple | None = None
     cc_line: int | None = None
+    radius: float | None = None
     call: object = None
     pattern: object = None
 
@@ -150,13 +158,16 @@ class _Reader:
         self.modal_call: Call | str | None = None   # a drilling Call, or the name of another
         self.ended = False
         self.r_lost = False                     # a subprogram may have set any R parameter
+        #: the programmable frame's translation TRANS/ATRANS (mm, X Y Z): the G-code equivalent's
+        #: coordinates are the program's plus this shift
+        self.shift = [0.0, 0.0, 0.0]
         self.k = 0
 
     def err(self, message: str) -> InputError:
         return InputError(message + " (Sinumerik)", self.path, line=self.k + 1)
 
     def emit(self, text: str, kind=None, **kw) -> GInfo:
-        info = GInfo(self.k, kind, **kw)
+        info = GInfo(self.k, kind, shift=tuple(self.shift), **kw)
         self.out.gcode.append(text)
         self.out.lines.append(info)
         self.out.line_map.append(self.k + 1)
@@ -248,13 +259,16 @@ class _Reader:
                 self.vars[name] = 0.0
 
     def _block(self, words: list[Word]) -> None:
+        if any(w.kind == "keyword" and w.name in FRAME_WORDS for w in words):
+            self._frame(words)
+            return
         for w in words:
             if w.name in _REFUSED_WORDS and (w.kind in ("keyword", "call")
-                                             or (w.kind == "assign" and w.name in ("CR", "AR", "AP",
-                                                                                  "RP", "RND", "CHF", "CHR"))):
+                                             or (w.kind == "assign" and w.name in _REFUSED_VALUES)):
                 raise self.err(f"{_REFUSED_WORDS[w.name]} is not read by mtcomp")
         g, axes, centre, other = self._classify(words)
-        calls = [w for w in words if w.kind == "call" or (w.kind == "address" and w.name == "L")]
+        calls = [w for w in words if (w.kind == "call" and w.name not in SETTING_CALLS)
+                 or (w.kind == "address" and w.name == "L")]
         mcall = any(w.kind == "keyword" and w.name == "MCALL" for w in words)
         self._modes(g, other)
         if mcall:
@@ -265,7 +279,12 @@ class _Reader:
                 raise self.err("a call and a move in one block are not read by mtcomp")
             self._call(calls[0])
             return
-        self._move(g, axes, centre, other)
+        if "machine" in other or MACHINE_G & set(g):
+            self._machine_block(g, axes, centre, other)
+        elif 4 in g:
+            self._dwell(axes, centre, other)
+        else:
+            self._move(g, axes, centre, other)
         if "M6" in other:
             # the machine maker's tool change cycle moves the axes it needs (on a horizontal
             # machine Y and Z, often X): every position is unknown until the program names it
@@ -277,9 +296,34 @@ class _Reader:
             self.ended = True
             self.emit("M30")
 
+    def _frame(self, words: list[Word]) -> None:
+        """TRANS X.. Y.. Z.. (the programmable frame's translation replaced, its other parts
+        cleared), ATRANS X.. Y.. Z.. (added to it), and TRANS, ROT, SCALE or MIRROR without values
+        (the programmable frame cleared): in a block of their own (Fundamentals, frames). The
+        program's coordinates are shifted from here on; the positions stay where they are."""
+        name = next(w.name for w in words if w.kind == "keyword" and w.name in FRAME_WORDS)
+        values = [w for w in words if not (w.kind == "keyword" and w.name == name)]
+        if values and name not in ("TRANS", "ATRANS"):
+            raise self.err(f"a programmable frame ({name} with values) is not read by mtcomp")
+        if any(w.kind not in ("address", "assign") or w.name not in AXES for w in values):
+            raise self.err(f"{name} with other words than its axis values in its block is not read "
+                           "by mtcomp (the manual gives it a block of its own)")
+        if any(w.name not in "XYZ" for w in values):
+            raise self.err(f"{name} of a rotary axis is not read by mtcomp")
+        self._check_axis_words({w.name: w for w in values})
+        given = {w.name: self.value(w.text) for w in values}
+        new = [0.0, 0.0, 0.0] if name != "ATRANS" else list(self.shift)
+        for k, a in enumerate("XYZ"):
+            new[k] += given.get(a, 0.0)
+            if self.pos[a] is not None:
+                self.pos[a] -= new[k] - self.shift[k]
+        self.shift = new
+
     def _classify(self, words):
-        """(G codes, axis words {letter: Word}, centre words, other: set of 'M6', 'END', ...)."""
+        """(G codes, axis words {letter: Word}, centre words (I J K, CR), other: a set of 'M6',
+        'END', 'F..', 'D..', 'machine' (SUPA), 'dwell F..' ...)."""
         g, axes, centre, other = [], {}, {}, set()
+        dwell = any(w.kind == "address" and w.name == "G" and float(w.text) == 4 for w in words)
         for w in words:
             if w.kind == "address" and w.name == "G":
                 g.append(int(float(w.text)))
@@ -287,7 +331,8 @@ class _Reader:
                 if w.name in axes:
                     raise self.err(f"axis {w.name} twice in one block")
                 axes[w.name] = w
-            elif w.kind in ("address", "assign") and w.name in "IJK":
+            elif w.kind in ("address", "assign") and w.name in "IJK" or \
+                    (w.kind == "assign" and w.name == "CR"):
                 centre[w.name] = w
             elif w.kind == "address" and w.name == "M":
                 m = int(float(w.text))
@@ -296,15 +341,19 @@ class _Reader:
                 self.tool = int(float(w.text))
             elif w.kind == "address" and w.name == "D":
                 other.add(f"D{int(float(w.text))}")
-            elif w.kind == "address" and w.name == "F":
-                other.add(f"F{fmt(self.value(w.text))}")
-            elif w.kind == "assign" and w.name == "F":
+            elif dwell and w.kind in ("address", "assign") and w.name in "FS":
+                other.add(f"dwell {w.name}{fmt(self.value(w.text))}")
+            elif w.kind in ("address", "assign") and w.name == "F":
                 other.add(f"F{fmt(self.value(w.text))}")
             elif w.kind == "assign" and w.name == "T":
                 raise self.err("a tool called by name (T=\"...\") is not read by mtcomp")
+            elif w.kind == "assign" and w.name in SETTING_VALUES:
+                self.value(w.text)              # a smoothing distance: set, moves nothing
             elif w.kind == "assign" and w.name not in ("S", "M", "H"):
                 self.assign(w.name, w.text)
-            elif w.kind == "keyword" and w.name not in ("MCALL",):
+            elif w.kind == "keyword" and w.name == "SUPA":
+                other.add("machine")
+            elif w.kind == "keyword" and w.name not in ("MCALL",) and w.name not in SETTING_WORDS:
                 raise self.err(f"{w.name} is not read by mtcomp")
             elif w.kind == "address" and w.name not in "SHNLP":
                 raise self.err(f"the word {w.name}{w.text} is not read by mtcomp")
@@ -334,10 +383,8 @@ class _Reader:
             elif code == 91:
                 raise self.err("incremental dimensions G91 are not read by mtcomp's Sinumerik "
                                "dialect")
-            elif code in (641, 642, 643, 644, 645):
-                raise self.err(f"corner rounding G{code} (it changes the path as programmed) is not "
-                               "read by mtcomp")
-            elif code not in _PASSED_G and code not in _IGNORED_G:
+            elif code not in _PASSED_G and code not in _IGNORED_G and code != 4 \
+                    and code not in MACHINE_G:
                 raise self.err(f"G{code} is not read by mtcomp")
         edges = [int(o[1:]) for o in other if o[0] == "D" and o[1:].isdigit()]
         if edges and edges[-1] != self.edge:
@@ -359,6 +406,11 @@ class _Reader:
     def _target(self, axes: dict) -> dict:
         return {a: self.value(w.text) for a, w in axes.items()}
 
+    def _words(self, values: dict) -> str:
+        """Axis words of the G-code equivalent for positions in the program's frame."""
+        return " ".join(f"{a}{fmt(v + (self.shift['XYZ'.index(a)] if a in 'XYZ' else 0.0))}"
+                        for a, v in values.items())
+
     def _check_axis_words(self, axes: dict) -> None:
         for a, w in axes.items():
             if w.kind == "assign" and re.match(r"(?i)\s*(AC|IC|DC|ACP|ACN|CAC|CIC)\s*\(", w.text):
@@ -373,7 +425,7 @@ class _Reader:
             self._arc(axes, centre, codes, feed)
             return
         if centre:
-            raise self.err("I, J or K outside a circle G2/G3")
+            raise self.err(f"{'CR=' if 'CR' in centre else 'I, J or K'} outside a circle G2/G3")
         if not axes:
             text = " ".join(t for t in (codes, feed) if t)
             if text.strip():
@@ -382,8 +434,7 @@ class _Reader:
         if self.motion is None:
             raise self.err("a move before any G0/G1/G2/G3")
         target = self._target(axes)
-        line = " ".join(t for t in (codes, f"G{self.motion}",
-                                    " ".join(f"{a}{fmt(v)}" for a, v in target.items()), feed) if t)
+        line = " ".join(t for t in (codes, f"G{self.motion}", self._words(target), feed) if t)
         self.pos.update(target)
         if self.modal_call is not None and not isinstance(self.modal_call, Call):
             # a cycle mtcomp does not read runs at the position: the block passes uncorrected
@@ -395,15 +446,76 @@ class _Reader:
             return
         self.emit(line, "move")
 
+    def _machine_block(self, g, axes, centre, other) -> None:
+        """A block with SUPA, G53 or G153: its positions are machine positions, every frame
+        suppressed in this block alone (Fundamentals, suppression of frames); as G53 of G-code:
+        passed through uncorrected, the axes it names unknown afterwards."""
+        self._check_axis_words(axes)
+        if centre or self.motion in (2, 3) and axes:
+            raise self.err("a circle in machine coordinates (SUPA, G53, G153) is not read by "
+                           "mtcomp")
+        if self.modal_call is not None and axes:
+            raise self.err("a block in machine coordinates (SUPA, G53, G153) under a modal call "
+                           "(MCALL) is not read by mtcomp")
+        codes = self._g_codes(g)
+        feed = " ".join(o for o in sorted(other) if o.startswith("F"))
+        if not axes:
+            text = " ".join(t for t in (codes, feed) if t)
+            if text:
+                self.emit(text)
+            return
+        if self.motion is None:
+            raise self.err("a move before any G0/G1/G2/G3")
+        target = self._target(axes)
+        words = " ".join(f"{a}{fmt(v)}" for a, v in target.items())
+        self.emit(" ".join(t for t in (codes, f"G53 G{self.motion}", words, feed) if t))
+        for a in axes:
+            self.pos[a] = None
+
+    def _dwell(self, axes, centre, other) -> None:
+        """G4 F.. (seconds) or G4 S.. (spindle revolutions), in a block of its own: the F or S is
+        the dwell's, the feed and the spindle speed in force stay (Fundamentals, dwell time)."""
+        if axes or centre:
+            raise self.err("a dwell G4 with axis words is not read by mtcomp (the manual gives "
+                           "it a block of its own)")
+        seconds = [o.split("F")[1] for o in other if o.startswith("dwell F")]
+        if seconds:
+            self.emit(f"G4 P{seconds[0]}")
+
     def _arc(self, axes, centre, codes, feed) -> None:
         if self.plane != 17:
             raise self.err("a circle outside the G17 plane is not read by mtcomp's Sinumerik "
                            "dialect")
         if self.pos["X"] is None or self.pos["Y"] is None:
             raise self.err("a circle from a position the program has not given")
+        target = self._target(axes)
+        if set(target) - {"X", "Y", "Z"}:
+            raise self.err("a circle with a rotary axis word is not read by mtcomp")
+        sx, sy = self.pos["X"], self.pos["Y"]
+        end = {"X": sx, "Y": sy, **target}
+        radius = None
+        if "CR" in centre:
+            if set(centre) != {"CR"}:
+                raise self.err("a circle with both its radius CR= and its centre I J K is not read "
+                               "by mtcomp")
+            radius = self.value(centre["CR"].text)
+            try:
+                c = radius_centre((sx, sy), (end["X"], end["Y"]), radius, self.motion == 3)
+            except RadiusError as exc:
+                raise self.err(str(exc)) from None
+        else:
+            c = self._centre(centre, sx, sy)
+        self.pos.update(end)
+        words = self._words({a: end[a] for a in ("X", "Y", "Z") if a in end})
+        text = " ".join(t for t in (codes, f"G{self.motion}", words,
+                                    f"I{fmt(c[0] - sx)} J{fmt(c[1] - sy)}", feed) if t)
+        self.emit(text, "arc", centre=(c[0], c[1]), cc_line=self.k, radius=radius)
+
+    def _centre(self, centre, sx: float, sy: float) -> list:
+        """The centre (x, y) of a circle given by I J (from the start, IC(..)) or I=AC(..)
+        J=AC(..) (absolute), in the program's frame."""
         if "K" in centre or set(centre) != {"I", "J"}:
             raise self.err("a circle needs its centre I and J (in the G17 plane)")
-        sx, sy = self.pos["X"], self.pos["Y"]
         c = []
         for letter, s in (("I", sx), ("J", sy)):
             w = centre[letter]
@@ -416,15 +528,7 @@ class _Reader:
             else:
                 inner = re.fullmatch(r"(?i)\s*IC\s*\((.*)\)\s*", w.text)
                 c.append(s + self.value(inner.group(1) if inner else w.text))
-        target = self._target(axes)
-        if set(target) - {"X", "Y", "Z"}:
-            raise self.err("a circle with a rotary axis word is not read by mtcomp")
-        end = {"X": sx, "Y": sy, **target}
-        self.pos.update(end)
-        words = " ".join(f"{a}{fmt(end[a])}" for a in ("X", "Y", "Z") if a in end)
-        text = " ".join(t for t in (codes, f"G{self.motion}", words,
-                                    f"I{fmt(c[0] - sx)} J{fmt(c[1] - sy)}", feed) if t)
-        self.emit(text, "arc", centre=(c[0], c[1]), cc_line=self.k)
+        return c
 
     # ------------------------------------------------------------------ calls
     def _call(self, w: Word) -> None:
@@ -497,13 +601,15 @@ class _Reader:
     def _hole(self, call: Call, x, y, pattern) -> None:
         if x is None or y is None:
             raise self.err(f"a hole of {call.name} at a position the program has not given")
-        g = f"G99 G81 X{fmt(x)} Y{fmt(y)} R{fmt(call.rfp + call.sdis)} Z{fmt(call.bottom)}"
+        dx, dy, dz = self.shift
+        g = (f"G99 G81 X{fmt(x + dx)} Y{fmt(y + dy)} R{fmt(call.rfp + call.sdis + dz)} "
+             f"Z{fmt(call.bottom + dz)}")
         self.emit(g, "hole", call=call, pattern=pattern)
         call.holes.append(len(self.out.gcode) - 1)
         if pattern is not None:
             pattern.holes.append(len(self.out.gcode) - 1)
         self.emit("G80")
-        self.emit(f"G0 Z{fmt(call.rtp)}", "retract")
+        self.emit(f"G0 Z{fmt(call.rtp + dz)}", "retract")
         if self.motion not in (0, None):
             self.emit(f"G{self.motion}")
         self.pos.update({"X": x, "Y": y, "Z": call.rtp})

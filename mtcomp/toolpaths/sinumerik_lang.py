@@ -51,16 +51,28 @@ class Word:
 
 
 def code_end(text: str) -> int:
-    """Where a line's ';' comment starts (its length when it has none)."""
-    pos = text.find(";")
-    return len(text) if pos < 0 else pos
+    """Where a line's ';' comment starts (its length when it has none); a ';' inside a string
+    ``"..."`` (``MSG("ROUGH; SIDE")``) is the string's."""
+    quoted = False
+    for i, ch in enumerate(text):
+        if ch == '"':
+            quoted = not quoted
+        elif ch == ";" and not quoted:
+            return i
+    return len(text)
 
 
 def _closing(text: str, pos: int, end: int) -> int:
-    """The index after the parenthesis that closes the one at ``pos`` (-1 when none does)."""
+    """The index after the parenthesis that closes the one at ``pos`` (-1 when none does); the
+    parentheses of a string ``"..."`` are the string's."""
     depth = 0
+    quoted = False
     for i in range(pos, end):
-        if text[i] == "(":
+        if text[i] == '"':
+            quoted = not quoted
+        elif quoted:
+            continue
+        elif text[i] == "(":
             depth += 1
         elif text[i] == ")":
             depth -= 1
@@ -70,10 +82,16 @@ def _closing(text: str, pos: int, end: int) -> int:
 
 
 def _expression_end(text: str, pos: int, end: int) -> int:
-    """The end of an expression starting at ``pos``: a blank outside parentheses ends it."""
+    """The end of an expression starting at ``pos``: a blank outside parentheses and strings
+    ``"..."`` ends it."""
     i = pos
     while i < end and text[i] not in " \t":
-        if text[i] == "(":
+        if text[i] == '"':                  # a string: its blanks are its own
+            close = text.find('"', i + 1, end)
+            if close < 0:
+                return -1
+            i = close + 1
+        elif text[i] == "(":
             close = _closing(text, i, end)
             if close < 0:
                 return -1

@@ -10,7 +10,13 @@ the written value is exact to far below a micrometre). An axis the block does no
 after its last axis word where its written value changes (never one the program has not
 positioned). A circle's centre ``I=AC(..) J=AC(..)`` (or incremental ``I J``) is moved as a
 Heidenhain ``CC`` is (:mod:`.heidenhain_out`): one centre per circle, kept when the circle lies
-within the chord tolerance of its corrected path, otherwise refused in one line.
+within the chord tolerance of its corrected path, otherwise refused in one line. A circle by its
+radius ``CR=`` gets the radius of the circle through its written ends whose centre is the moved
+centre's nearest on the chord's bisector (the centre the controller makes of it is the one checked
+against the corrected path); where none holds, it is written in pieces about ``I=AC J=AC`` centres.
+Under a programmable offset ``TRANS``/``ATRANS`` the positions are written in the program's
+coordinates (the offset taken off); the offset's lines, and blocks in machine coordinates
+(``SUPA``, ``G53``), are kept as written.
 
 A drilling cycle's hole is corrected at its bottom: X Y on the positioning block under ``MCALL``;
 the cycle's reference plane RFP (and an absolute depth DP) moved by the Z correction, in the call's
@@ -35,6 +41,7 @@ from .heidenhain_out import ROTARY_ARC_TOL_RAD, HeidenhainWriter, plan_blocks
 from .heidenhain import signed
 from .sinumerik import AXES, BLOCK_START
 from .sinumerik_lang import code_end, split_words
+from .sinumerik_paths import RadiusError, radius_centre, signed_radius
 from .words import number_decimals
 
 _PLAIN = "0123456789+-. "
@@ -92,6 +99,7 @@ class SinumerikWriter(HeidenhainWriter):
         self.retracts = 0
         self.added = 0
         self.split_circles = 0
+        self.arc_info: dict = {}                # a circle's line -> its GInfo
         self.zi = self.letters.index("Z")
 
     # ------------------------------------------------------------------ words
@@ -146,6 +154,9 @@ class SinumerikWriter(HeidenhainWriter):
         ending = self.texts[cc][len(text):]
         said = np.zeros(2)
         edits = []
+        info = self.arc_info[cc]
+        if info.radius is not None:
+            return self._radius_text(cc, centre, info)
         named = {w.name: w for w in self._words(text) if w.name in "IJ"}
         for k, letter in enumerate("IJ"):
             w = named[letter]
@@ -154,18 +165,46 @@ class SinumerikWriter(HeidenhainWriter):
             if head in ("AC", "IC"):
                 a, b = w.start + w.text.find("(") + 1, w.start + w.text.rfind(")")
             col = self.cols[k]
-            start, base = (0.0, 0.0) if head == "AC" else (arc.block.start[col], arc.start_w[col])
+            start, base = ((info.shift[k], info.shift[k]) if head == "AC" else
+                           (arc.block.start[col], arc.start_w[col]))
             t, value_said = corrected_text(text[a:b], arc.centre2[k] - start, centre[k] - base)
             if t != text[a:b]:
                 edits.append((a, b, t))
             said[k] = value_said + base
         return _edit(text, edits) + ending, said
 
+    def _radius_text(self, cc: int, centre, info) -> tuple[str, np.ndarray]:
+        """(line cc with the CR= of the circle through its written start and end whose centre is
+        the nearest to ``centre`` (2,) on the chord's bisector; the centre the controller makes of
+        the CR= written). A radius that rounds below half the chord says no centre (far away)."""
+        a = self.arcs[cc][0]
+        s2, e2 = a.start_w[self.cols], a.end_w[self.cols]
+        text = self.texts[cc].rstrip("\r\n")
+        ending = self.texts[cc][len(text):]
+        w = next(w for w in self._words(text) if w.kind == "assign" and w.name == "CR")
+        r = signed_radius(s2, e2, centre, a.ccw)
+        half = 0.5 * math.hypot(*(e2 - s2))
+        if abs(r) - half < 1e-4:
+            # a half circle: either sign turns the same within the written decimals (the
+            # source's kept), and a radius written below half the chord makes no circle
+            r = math.copysign(abs(r), info.radius)
+        t, said_r = corrected_text(w.text, info.radius, r)
+        if abs(said_r) < half - 1e-6:
+            t, said_r = corrected_text(w.text, info.radius, math.copysign(abs(r) + 1e-4, r))
+        try:
+            said = np.array(radius_centre(s2, e2, said_r, a.ccw))
+        except RadiusError:
+            said = np.full(2, 1e9)
+        return _edit(text, [(w.start, w.end, t)] if t != w.text else []) + ending, said
+
     def _arc(self, i, block, pts, counts, info) -> None:
         """A circle (:meth:`HeidenhainWriter._arc`) and at once its centre: each circle has its own
         centre words, so it is settled here, before the blocks after it are written (a circle
         written in pieces may leave Z where the corrected path has it)."""
+        self.arc_info[info.cc_line] = info
+        self.CENTRE = "its I J" if info.radius is None else "its radius CR="
         super()._arc(i, block, pts, counts, info)
+        self._helix_end(i, block, pts[-1], info)
         arcs = self.arcs.pop(info.cc_line)
         every, self.arcs = self.arcs, {info.cc_line: arcs}
         try:
@@ -178,6 +217,22 @@ class SinumerikWriter(HeidenhainWriter):
                 raise
         finally:
             self.arcs = every
+
+    def _helix_end(self, i: int, block, end, info) -> None:
+        """A helix (a circle whose Z, a linear axis off the plane, changes; Fundamentals, helical
+        interpolation): its Z word gets the corrected end, and the circle is checked against its
+        corrected path as the helix it is (the off-plane axes going linearly with the angle)."""
+        off = self.linear & block.known
+        off[self.cols] = False
+        if not np.any(np.abs(block.end - block.start)[off] > 1e-9):
+            return
+        if math.hypot(*(block.end - block.start)[self.cols]) <= 1e-9:
+            raise InputError("a helix of a whole turn (a circle G2/G3 back to its start in the "
+                             "plane, Z changing) is not written by mtcomp (a circle's corrected "
+                             "path is matched by its angle, which a whole turn repeats)",
+                             self.src.source, line=i + 1)
+        self.texts[i] = self._rewrite(i, block, end, info, write=off)
+        self.arcs[info.cc_line][-1].end_w[off] = self.written[off]
 
     def _split(self, a, info) -> bool:
         """The circle ``a`` (a :class:`~.heidenhain_out._Arc`) written as circle pieces, each
@@ -272,11 +327,13 @@ class SinumerikWriter(HeidenhainWriter):
         replaced (an end point added before I where it had none), the others ``X.. Y.. I=AC(..)
         J=AC(..)`` (incremental ``I.. J..`` where the source's centre was), the last ending at
         the circle's end as the source line's words wrote it; Z (the axes ``off``) on a piece
-        whose written value it changes."""
+        whose written value it changes. A circle by its radius CR= becomes pieces about absolute
+        centres, its CR= word the first piece's I=AC(..) J=AC(..)."""
         text = self.texts[a.line].rstrip("\r\n")
         named = {w.name: w for w in self._words(text) if w.kind in ("address", "assign")}
-        absolute = [named[c].kind == "assign" and named[c].text.strip().upper().startswith("AC")
-                    for c in "IJ"]
+        radius = "I" not in named
+        absolute = [radius or named[c].kind == "assign" and
+                    named[c].text.strip().upper().startswith("AC") for c in "IJ"]
         lines = []
         for n, (start, end, centre) in enumerate(pieces):
             u = {self.letters[j]: _number(self._units(j, end[j], info.shift), 4)
@@ -287,7 +344,7 @@ class SinumerikWriter(HeidenhainWriter):
             ij = [f"{c}=AC({_number(self._units(j, v, info.shift), 4)})" if ab else
                   f"{c}{_number(self._units(j, v, info.shift) - self._units(j, s, info.shift), 4)}"
                   for c, j, v, s, ab in zip("IJ", self.cols, centre, start[self.cols], absolute)]
-            if n == len(pieces) - 1 == 0:    # one piece: the source line's words, with Z
+            if n == len(pieces) - 1 == 0 and not radius:    # one piece: its words, with Z
                 text = self._centre_text(a.line, centre)[0].rstrip("\r\n")
                 u = {c: v for c, v in u.items() if c not in "XY"}
                 named = {w.name: w for w in self._words(text) if w.kind in ("address", "assign")}
@@ -310,7 +367,10 @@ class SinumerikWriter(HeidenhainWriter):
     def _first_piece(self, text, named, words, ij) -> str:
         """The source line with the first piece's end point (``words``: letter -> value text)
         and centre ``ij`` written."""
-        edits = [(self._word_start(text, named[c]), named[c].end, t) for c, t in zip("IJ", ij)]
+        if "I" in named:
+            edits = [(self._word_start(text, named[c]), named[c].end, t) for c, t in zip("IJ", ij)]
+        else:                       # CR=: the pieces' centres are absolute
+            edits = [(self._word_start(text, named["CR"]), named["CR"].end, " ".join(ij))]
         missing = []
         for c, v in words.items():
             if c in named:
@@ -318,7 +378,7 @@ class SinumerikWriter(HeidenhainWriter):
             else:
                 missing.append(f"{c}{v}")
         if missing:
-            at = self._word_start(text, named["I"])
+            at = self._word_start(text, named["I" if "I" in named else "CR"])
             edits.append((at, at, " ".join(missing) + " "))
         return _edit(text, edits)
 

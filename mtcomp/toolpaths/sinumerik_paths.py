@@ -1,0 +1,70 @@
+"""What a Siemens Sinumerik 840D block says about the path besides its end point: the settings of
+path control that move nothing, the circle given by its radius ``CR=``, the programmable zero
+offset ``TRANS``/``ATRANS`` and the blocks in machine coordinates ``SUPA``/``G53``/``G153``.
+
+The rules are those of Siemens AG, SINUMERIK 840D sl Programming Manual, Fundamentals (2013):
+continuous-path mode and smoothing (``G64``, ``G641``-``G645`` with ``ADIS=``/``ADISPOS=``),
+acceleration behaviour (``SOFT``, ``BRISK``, ``DRIVE``), feedforward control (``FFWON``,
+``FFWOF``), NC block compression (``COMPON``, ``COMPCURV``, ``COMPCAD``, ``COMPOF``), the feed
+profile ``FNORM``, the dwell ``G4``, the preprocessing stop ``STOPRE``, messages ``MSG``,
+circular interpolation with radius and end point (``CR=``), frames (``TRANS``, ``ATRANS``) and
+the suppression of frames (``G53``, ``G153``, ``SUPA``); the high-speed settings cycle CYCLE832
+is Siemens AG, SINUMERIK 840D sl / 828D Cycles, Programming Manual (2013). Each of these smooths,
+times or shifts the path the program states; none moves an axis by itself.
+"""
+from __future__ import annotations
+
+import math
+
+#: words that set how the controller follows the programmed path (within a tolerance the program
+#: or the machine data set) and move nothing: accepted, kept byte for byte
+SETTING_WORDS = {"SOFT", "BRISK", "DRIVE", "FFWON", "FFWOF", "COMPON", "COMPCURV", "COMPCAD",
+                 "COMPOF", "STOPRE", "TRAFOOF", "FNORM"}
+#: calls that set (CYCLE832: the tolerance and the smoothing of high-speed machining) or show
+#: (MSG: a message on the operator's screen) and move nothing
+SETTING_CALLS = {"CYCLE832", "MSG"}
+#: values that belong to a setting, not to a variable of the program
+SETTING_VALUES = {"ADIS", "ADISPOS"}
+#: the continuous-path modes with smoothing: the path between the programmed points is rounded
+#: within a tolerance; the corrections are written on the programmed points
+SMOOTHING_G = {641, 642, 643, 644, 645}
+#: the suppression of frames in one block: its positions are machine positions
+MACHINE_G = {53, 153}
+#: the frame instructions read: TRANS and ATRANS with X Y Z, and without values the ones that
+#: clear the programmable frame
+FRAME_WORDS = {"TRANS", "ATRANS", "ROT", "SCALE", "MIRROR"}
+
+
+class RadiusError(ValueError):
+    """A circle given by CR= that no controller can make (the message says why)."""
+
+
+def radius_centre(start, end, radius: float, ccw: bool) -> tuple[float, float]:
+    """The centre (x, y) of the circle from ``start`` to ``end`` (x, y) of radius ``|radius|``,
+    counter-clockwise (G3) or clockwise (G2); a positive radius turns at most 180 degrees, a
+    negative one more (Fundamentals, circular interpolation with radius and end point)."""
+    (sx, sy), (ex, ey) = start, end
+    dx, dy = ex - sx, ey - sy
+    chord = math.hypot(dx, dy)
+    if chord <= 1e-9:
+        raise RadiusError("a circle by its radius CR= that ends where it starts (a full circle is "
+                          "programmed with its centre)")
+    half = 0.5 * chord
+    if abs(radius) < half - 1e-6:
+        raise RadiusError(f"CR={abs(radius):g} is smaller than half the chord ({half:.6g} mm) to "
+                          "its end point")
+    rise = math.sqrt(max(radius * radius - half * half, 0.0))
+    side = 1.0 if ccw == (radius > 0) else -1.0      # +1: left of the chord from start to end
+    return (sx + 0.5 * dx - side * rise * dy / chord, sy + 0.5 * dy + side * rise * dx / chord)
+
+
+def signed_radius(start, end, centre, ccw: bool) -> float:
+    """The CR= value of the circle from ``start`` to ``end`` (x, y) whose centre is the point of
+    the chord's perpendicular bisector nearest ``centre``: its radius, negative where the circle
+    turns more than 180 degrees."""
+    (sx, sy), (ex, ey), (cx, cy) = start, end, centre
+    dx, dy = ex - sx, ey - sy
+    chord = math.hypot(dx, dy)
+    left = ((cx - sx - 0.5 * dx) * -dy + (cy - sy - 0.5 * dy) * dx) / chord
+    r = math.hypot(0.5 * chord, left)
+    return -r if (left < 0) == ccw else r
