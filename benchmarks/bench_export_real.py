@@ -177,7 +177,7 @@ def compare(path: Path, grid_mm: float | None = None) -> dict:
 def largest_sd_um(model_path: Path, axis: str) -> float:
     """The largest standard error (um) of the model's table of ``axis`` over the region of its
     data, either direction (what export checks against --max-correction-sd-um), on 201 points."""
-    from mtcomp.export._tables import _evaluation_pose, table_region, table_sd_um
+    from mtcomp.export._tables import _evaluation_pose, axis_table_sd_um, table_region
     from mtcomp.models.model_file import load_model
     fitted = load_model(model_path)
     machine = fitted.machine
@@ -186,8 +186,8 @@ def largest_sd_um(model_path: Path, axis: str) -> float:
     lo, hi = region[axis]
     q = np.tile(q_ref, (201, 1))
     q[:, machine.index(axis)] = np.linspace(lo, hi, 201)
-    sds = [table_sd_um(fitted, q, q_ref, {axis: d}) for d in (1.0, -1.0)]
-    return float("nan") if sds[0] is None else float(np.maximum(*sds).max())
+    sd = axis_table_sd_um(fitted, axis, q, q_ref)
+    return float("nan") if sd is None else float(sd.max())
 
 
 def main():

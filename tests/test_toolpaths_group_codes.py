@@ -55,6 +55,20 @@ def test_rs274ngc_refuses_a_home_move_with_a_motion_code(tmp_path, capsys, diale
     assert len(err.strip().splitlines()) == 1 and not out.exists()
 
 
+def _rapid_per_line(tmp_path, text, dialect) -> dict:
+    """source line -> whether its move is a rapid, as the reader reads it."""
+    from mtcomp.machine import load_machine
+    from mtcomp.toolpaths import iter_segment_chunks
+    from mtcomp.toolpaths.source import open_program
+    p = tmp_path / "r.nc"
+    p.write_text(text)
+    out = {}
+    with open_program(p, dialect) as src:
+        for chunk in iter_segment_chunks(src, load_machine("xfyz")):
+            out.update({int(ln): bool(r) for ln, r in zip(chunk.line, chunk.rapid)})
+    return out
+
+
 def test_a_frame_code_with_a_motion_code_and_no_axis_word_sets_the_mode(tmp_path, mode):
     """`G0 G50 G90` (Fanuc: scaling off; a header line of many posts): no move; the next block
     `X5. Y5.` moves at rapid. With an axis word (`G0 X1. G50`) it stays refused."""
@@ -62,6 +76,7 @@ def test_a_frame_code_with_a_motion_code_and_no_axis_word_sets_the_mode(tmp_path
     ends, known, out = _corrected(tmp_path, text, "fanuc", _constant([0.001, 0, 0]))
     assert "G0 G50 G90" in out and "X5.0010 Y5." in out
     np.testing.assert_allclose(ends[-1], [5.0, 5.0, 5.0], rtol=0, atol=0)
+    assert _rapid_per_line(tmp_path, text, "fanuc") == {2: True, 3: False, 5: True}
     with pytest.raises(Exception, match="G50 and a move in one block"):
         _corrected(tmp_path, text.replace("G0 G50 G90", "G0 X1. G50"), "fanuc",
                    _constant([0.001, 0, 0]), name="q")

@@ -360,25 +360,34 @@ def reference_notes(machine, axes) -> list:
     return notes
 
 
-def table_sd_um(fitted, q: np.ndarray, q_ref: np.ndarray, directions: dict) -> np.ndarray | None:
+def table_sd_um(fitted, q: np.ndarray, q_ref: np.ndarray, directions: dict,
+                factor=None) -> np.ndarray | None:
     """(N,) the standard error (um) of the tip deviation at poses ``q`` (N, n_axes) less that at
     ``q_ref`` (the table's zero), under the model's covariance: the largest of its three components'
-    (as compensate's check of a correction, :meth:`mtcomp.planner._evaluate.Evaluator.correction_sd_um`,
-    takes it), with the context ``dir_<axis>`` of ``directions``; None when the model carries no
-    uncertainty. The directions the fit held are left out (they correct nothing)."""
+    (:meth:`~mtcomp.models.model_file.FittedModel.tip_sd_um`, as compensate's check of a
+    correction takes it), with the context ``dir_<axis>`` of ``directions``; None when the model
+    carries no uncertainty. The directions the fit held are left out (they correct nothing).
+    ``factor``: the model's :meth:`covariance_factor` (held=False) when already computed."""
     from ..models.evaluate import evaluate
-    factor = fitted.covariance_factor(held=False)
+    factor = factor or fitted.covariance_factor(held=False)
     if factor is None:
         return None
-    idx, F = factor
     n = q.shape[0]
     cols = {f"dir_{a}": np.broadcast_to(np.asarray(v, dtype=float), (n,)) for a, v in directions.items()}
     p = fitted.params.values
     J = evaluate(fitted.model, "tip_pjacobian_function", fitted.clamp(q)[0], p, fitted.context(n, cols))[0]
     J0 = evaluate(fitted.model, "tip_pjacobian_function", fitted.clamp(q_ref[None, :])[0], p,
                   fitted.context(1, {}))[0]
-    G = (J - J0)[:, :, idx] @ F                     # (N, 3, rank), mm
-    return np.sqrt(np.max(np.einsum("nij,nij->ni", G, G), axis=1)) * 1e3
+    return fitted.tip_sd_um(J - J0, factor)
+
+
+def axis_table_sd_um(fitted, a: str, q: np.ndarray, q_ref: np.ndarray) -> np.ndarray | None:
+    """(N,) :func:`table_sd_um` of axis ``a``'s table at poses ``q``, the larger of its two approach
+    directions; None when the model carries no uncertainty."""
+    factor = fitted.covariance_factor(held=False)
+    if factor is None:
+        return None
+    return np.maximum(*(table_sd_um(fitted, q, q_ref, {a: d}, factor) for d in (1.0, -1.0)))
 
 
 def _too_uncertain(fitted, a: str, q: np.ndarray, q_ref: np.ndarray, max_sd_um: float | None):
@@ -386,11 +395,8 @@ def _too_uncertain(fitted, a: str, q: np.ndarray, q_ref: np.ndarray, max_sd_um: 
     grid ``q`` exceeds ``max_sd_um``), or None (written)."""
     if not max_sd_um:
         return None
-    sds = [table_sd_um(fitted, q, q_ref, {a: d}) for d in (1.0, -1.0)]
-    if sds[0] is None:
-        return None
-    sd = np.maximum(*sds)
-    if not sd.max() > max_sd_um:
+    sd = axis_table_sd_um(fitted, a, q, q_ref)
+    if sd is None or not sd.max() > max_sd_um:
         return None
     ax = fitted.machine.axis(a)
     u, f = ("deg", 180.0 / math.pi) if ax.is_rotary else ("mm", 1.0)

@@ -210,17 +210,10 @@ def _thermal_notes(fitted: FittedModel, mm, known: bool) -> list:
     A channel the model reads as an absolute value (a drift term with a zero of its own) is
     predicted in the zero of the record the model was fitted on, whatever file it is; any other
     channel as the change since the file's first reading (docs/thermal.md)."""
-    from ..measurement.readings_extra import tip_channels
-    from ..models.terms import ChannelDrift, ThermalDrift
-    tip, absolute = tip_channels(fitted.model)
-    model_channels = set()
-    for t in fitted.model.terms:
-        if isinstance(t, ThermalDrift):
-            model_channels.update(t.channel_directions())
-        elif isinstance(t, ChannelDrift):
-            model_channels.update(t.channels)
+    from ..measurement.readings_extra import model_channels, tip_channels
+    _, absolute = tip_channels(fitted.model)
     notes = []
-    missing = sorted(model_channels - set(mm.channels))
+    missing = sorted(model_channels(fitted.model) - set(mm.channels))
     if missing:
         notes.append(f"{mm.tag} has no column for the model's channel(s) "
                      f"{', '.join(missing)} ({', '.join(f'disp_{c}_um' for c in missing)}): not "

@@ -83,6 +83,18 @@ def normal_deviation(model: ErrorModel, q, p, c, offset, normal, jacobian: bool 
     return (v, J.reshape(q.shape[0], model.n_params)) if jacobian else v
 
 
+def model_channels(model: ErrorModel) -> set:
+    """The thermal channels the model's drift terms name."""
+    from ..models.terms import ThermalDrift
+    out = set()
+    for t in model.terms:
+        if isinstance(t, ThermalDrift):
+            out.update(t.channel_directions())
+        elif isinstance(t, ChannelDrift):
+            out.update(t.channels)
+    return out
+
+
 def tip_channels(model: ErrorModel) -> tuple[dict, set]:
     """(thermal channel -> tip direction index 0/1/2 it reads, channels read as absolute values):
     channels x, y, z, those the model's ThermalDrift terms name, and the channels of absolute terms."""

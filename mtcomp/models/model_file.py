@@ -176,6 +176,15 @@ class FittedModel:
         keep = w > 1e-12 * max(float(w.max()) if w.size else 0.0, 1e-300)
         return idx, V[:, keep] * np.sqrt(w[keep])
 
+    @staticmethod
+    def tip_sd_um(J: np.ndarray, factor: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+        """(n,) the standard error (um) of n tool-tip deviations whose Jacobian with respect to
+        ``params`` is J (n, 3, n_params), mm: the largest of the three components' standard
+        errors, under the covariance :meth:`covariance_factor` gives (``factor``)."""
+        idx, F = factor
+        G = J[:, :, idx] @ F                        # (n, 3, rank), mm
+        return np.sqrt(np.max(np.einsum("nij,nij->ni", G, G), axis=1)) * 1e3
+
     def prediction_std(self, J: np.ndarray) -> np.ndarray:
         """(n,) standard error of n predictions whose Jacobian with respect to ``params`` is J (n,
         n_params), internal units; NaN where a prediction depends on a direction the data did not

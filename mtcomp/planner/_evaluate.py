@@ -115,13 +115,11 @@ class Evaluator:
         q = np.atleast_2d(np.asarray(q, dtype=float))
         if self._factor is None:
             return np.full(q.shape[0], np.nan)
-        idx, F = self._factor
         fitted = self.problem.fitted
         J = evaluate(self.model, "tip_pjacobian_function", fitted.clamp(q)[0], self.p, ctx)[0]
         if datum is not None:
             J = J - self._at_datum("tip_pjacobian_function", datum, ctx)
-        G = J[:, :, idx] @ F                        # (n, 3, rank), mm
-        return np.sqrt(np.max(np.einsum("nij,nij->ni", G, G), axis=1)) * 1e3
+        return fitted.tip_sd_um(J, self._factor)
 
     def _deviation_and_qjacobian(self, q, ctx):
         """(deviation (n, 6), d deviation / d q (n, 6, n_axes)) as :meth:`_deviation`: along a held

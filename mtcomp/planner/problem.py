@@ -25,8 +25,9 @@ from ..models.model_file import FittedModel
 #: writes no table for an axis where it does: the model is unsure there (a profile bridged by the
 #: penalty over a gap, a tool length far from the measured ones, a ballbar circle alone, laser runs
 #: that drift from run to run). Set from real laser runs (docs/planner.md, *Blocks where the model
-#: is unsure*): models of stages whose runs repeat reach 1.5 to 4.3 um at the ends of their tables,
-#: those of runs drifting by up to 100 um 6 to 17 um, one circle's diagnosis thousands
+#: is unsure*): models of stages whose runs repeat reach 0.2 to 4.3 um over their travel (but
+#: identify's of one stage with two glitch readings, 6.7 um), those of runs drifting by up to
+#: 100 um 2.2 to 17.5 um, one ballbar circle's diagnosis thousands
 DEFAULT_MAX_CORRECTION_SD_UM = 5.0
 
 METHODS = ("qp", "pinv", "newton")

@@ -196,10 +196,10 @@ class ModalState:
         self._set_feed(values, line)
         if nonmotion_axes:
             self.distance_sensitive = home_move in (28, 30) and bool(axes_given)
+            if motion is not None:          # G53 G0 Z0 (a move in machine coordinates), G0 G50
+                self.motion = motion        # (nothing moves): the mode holds for the blocks after
+                self.cycle = None
             if home_move is not None:
-                if motion is not None:      # G53 G0 Z0: a move in machine coordinates
-                    self.motion = motion
-                    self.cycle = None
                 self._home_move(home_move, values, axes_given, line)
                 if home_move != 53 or axes_given:
                     self.passed_move = ("machine" if home_move == 53 else "home", line)
