@@ -58,6 +58,12 @@ def test_the_table_is_left_out_when_its_standard_error_passes_the_limit(gap, tmp
     assert len(err.strip().splitlines()) == 1 and "nothing to export" in err
     assert f"axis X: no table: its correction's standard error reaches {top:.3g} um" in err
     assert "--max-correction-sd-um" in err and not (tmp_path / "over").exists()
+    assert "more data there, or a larger --max-correction-sd-um, writes the table" in err
+    # far beyond the limit (more than 10 times): only more data is advised
+    assert _export(model, tmp_path / "far", "--max-correction-sd-um", f"{top / 11:.6g}") == 2
+    err = capsys.readouterr().err
+    assert "the data do not determine them (a standard error 11 times the limit)" in err
+    assert "or a larger" not in err
     # no limit: the same table as under a limit it passes
     assert _export(model, tmp_path / "none", "--max-correction-sd-um", "0") == 0
     assert (tmp_path / "none" / "x.comp").read_text() == written

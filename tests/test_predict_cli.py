@@ -195,3 +195,4 @@ def test_predictions_outside_the_region_get_no_standard_error(tmp_path, capsys):
     assert np.isnan(sd[outside]).all() and np.isfinite(sd[~outside]).all()
     assert np.isfinite(value).all()                  # the prediction itself is still written
     assert f"{int(outside.sum())} row(s) lie outside the region" in err and "X -300 .. 300 mm" in err
+    assert "the prediction is written, its _sd column left blank" in err

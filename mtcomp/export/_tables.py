@@ -41,6 +41,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..models.evaluate import casadi_map_call, deviation
+from ..planner.problem import unsure_advice
 from ._reversal import reversal_note, unheld_reversals
 
 #: below this (mm, rad) everywhere an axis table is zero: the model holds that axis's errors at zero
@@ -402,9 +403,9 @@ def _too_uncertain(fitted, a: str, q: np.ndarray, q_ref: np.ndarray, max_sd_um: 
     u, f = ("deg", 180.0 / math.pi) if ax.is_rotary else ("mm", 1.0)
     at = q[int(np.argmax(sd)), fitted.machine.index(a)] * f
     return (f"axis {a}: no table: its correction's standard error reaches {sd.max():.3g} um (at "
-            f"{at:g} {u}), above the limit of {max_sd_um:g} um (--max-correction-sd-um): the data do "
-            "not determine its errors well enough to correct them (compensate leaves such blocks "
-            "uncorrected too; a larger limit writes the table)")
+            f"{at:g} {u}), above the limit of {max_sd_um:g} um (--max-correction-sd-um), as "
+            "compensate leaves such blocks uncorrected; "
+            + unsure_advice(float(sd.max()), max_sd_um, "writes the table"))
 
 
 def component_tables(fitted, grids: dict, region: dict | None = None,

@@ -255,4 +255,5 @@ def _blank_outside_region(fitted, data, machine, columns: dict) -> list:
             axes.append(f"{a.name} {lo[j] * f:g} .. {hi[j] * f:g} {unit}: {int(out[:, j].sum())}")
     return [f"{data.path}: {int(rows.sum())} row(s) lie outside the region the model's data reached "
             f"({'; '.join(axes)}): the model holds its profiles' end values there, a guess its "
-            "standard error does not size: left blank (compensate and export do not correct there)"]
+            "standard error does not size: the prediction is written, its _sd column left blank "
+            "(compensate and export do not correct there)"]

@@ -34,6 +34,7 @@ import numpy as np
 from ._bounds import FLAG_KINDS, flag_name
 from ._small import any_rows, row_max, row_norm
 from ._qp import NEVER_WORSE_TOL
+from .problem import unsure_advice
 from .engine import PlanResult
 
 #: a block counts as made worse when its deviation along an axis grows by more than this (um): the
@@ -378,8 +379,7 @@ class Summary:
             lines.append(f"{blocks(own)} not corrected: the model is unsure there "
                          f"(a correction's standard error above {self.max_correction_sd_um:g} um, "
                          f"largest {self.max_sd_um:.3f} um; BLOCKS.csv column correction_sd_um)"
-                         f"{shared}; more data there, or a larger --max-correction-sd-um, corrects "
-                         "them")
+                         f"{shared}; {unsure_advice(self.max_sd_um, self.max_correction_sd_um)}")
         if self.max_correction_sd_um and not self.has_covariance:
             lines.append("note: the model carries no covariance (identify, diagnose and a thermal "
                          "diagnosis write one; an older model file may not): no block's correction "
