@@ -51,3 +51,28 @@ def test_render_draws_a_program_under_g68(tmp_path, capsys):
                           "-o", str(png), "--backend", "matplotlib", "--dialect", dialect], capsys)
     assert code == 0, err
     assert png.is_file()
+
+
+@pytest.mark.parametrize("code", ["G68", "G51", "G52"])
+def test_the_report_s_positions_are_placed_like_the_program_s(tmp_path, capsys, code):
+    """render --report: BLOCKS.csv gives a block's words, which under a frame the program set are
+    not where the machine goes; placed by that frame they are where the compensated program, read
+    the same way, puts the tool (within the tolerances below). Before, the
+    report's words were taken as positions: off by the frame (a new user saw 5 mm under G51 P1.5)."""
+    from mtcomp.viz.program import report_points
+    dialect = CASES[code][0]
+    _machine, _fitted, model = _model(tmp_path, "xfyz", seed=8, scale=5.0)
+    prog, out, rep = tmp_path / "p.nc", tmp_path / "o.nc", tmp_path / "b.csv"
+    prog.write_text(programs_of(code)["frame"])
+    code_, _o, err = _run(["compensate", "xfyz", str(model), str(prog), "-o", str(out), "--dialect",
+                           dialect, "--subdivide-tol-um", "0", "--quiet", "--report", str(rep)], capsys)
+    assert code_ == 0, err
+    original = read_program_points(prog, XFYZ, dialect)
+    assert original.local is not None and original.local.any()
+    placed = report_points(original, rep, XFYZ).q
+    written = read_program_points(out, XFYZ, dialect).q
+    assert placed.shape == written.shape
+    # the written arcs keep within 1 um of the corrected path in the program's frame (2 um on the
+    # machine under G51 P2), and each is read back as chords of its own: 5 um. Unplaced, the
+    # report's words were off by the frame: millimetres
+    np.testing.assert_allclose(placed, written, rtol=0, atol=5e-3)

@@ -23,6 +23,9 @@ class ProgramPoints:
     words were the tip and angles, ``q`` holds the axes the controller reaches (None: none).
     dialect : the controller's rules the program was read by (``--dialect``; None: detected).
     chord_tol_mm : the chord tolerance its arcs were read with (None: the reader's default).
+    frames, local : the frames the program set itself (G52, G68, a mirror image, scaling:
+    :func:`mtcomp.toolpaths.frames.placed_by_frames`'s table) and (n,) bool, the rows under one;
+    ``q`` holds those rows placed where the controller puts them (None: no frame).
     """
 
     path: str
@@ -36,6 +39,8 @@ class ProgramPoints:
     tcp: np.ndarray | None = None
     dialect: str | None = None
     chord_tol_mm: float | None = None
+    frames: list | None = None
+    local: np.ndarray | None = None
 
     def __len__(self):
         return int(self.line.shape[0])
@@ -55,7 +60,7 @@ def read_program_points(path, machine: Machine, dialect: str | None = None,
     seg = SegmentChunk.concatenate(chunks, machine.n_axes)
     if len(seg.end) == 0:
         raise InputError("no motion block in the program: nothing to draw", path)
-    q = _placed(seg, frames, machine)
+    q, local = _placed(seg, frames, machine)
     # tool centre point rows: the words are the tip and the angles; the map works on the axes the
     # controller reaches (the workpiece origin taken at the kinematics' own: render's work offset
     # moves the linear axes only)
@@ -66,19 +71,21 @@ def read_program_points(path, machine: Machine, dialect: str | None = None,
         q[tcp] = axes_of_tcp(machine, q[tcp])
     return ProgramPoints(os.fspath(path), q, seg.line.copy(), seg.feed.copy(),
                          seg.dirs.copy(), seg.rapid.copy(), seg.known.copy(), seg.cycle.copy(), tcp,
-                         dialect, chord_tol_mm)
+                         dialect, chord_tol_mm, frames if local.any() else None,
+                         local if local.any() else None)
 
 
-def _placed(seg, frames: list, machine: Machine) -> np.ndarray:
-    """(n, na) the rows' positions in the work system: under a frame the program moved itself (G52,
-    G68, a mirror image, scaling) its words placed where the controller puts them, so that the map
-    and the pairing with the compensated program (read the same way) see the machine's positions."""
+def _placed(seg, frames: list, machine: Machine) -> tuple[np.ndarray, np.ndarray]:
+    """((n, na) the rows' positions in the work system, (n,) bool the rows under a frame): under a
+    frame the program moved itself (G52, G68, a mirror image, scaling) its words placed where the
+    controller puts them, so that the map and the pairing with the compensated program (read the
+    same way) see the machine's positions."""
     from ..toolpaths.frames import placed_by_frames
     from ..toolpaths.words import frame_local
     local = frame_local(seg.frame)
     if not local.any():
-        return seg.end.copy()
-    return placed_by_frames(frames, local, seg.line, seg.end, [machine.index(c) for c in "XYZ"])
+        return seg.end.copy(), local
+    return placed_by_frames(frames, local, seg.line, seg.end, [machine.index(c) for c in "XYZ"]), local
 
 
 def _motion_runs(original: ProgramPoints, compensated: ProgramPoints) -> tuple[np.ndarray, np.ndarray]:
@@ -223,6 +230,11 @@ def report_points(original: ProgramPoints, report, machine: Machine) -> ProgramP
         raise InputError(f"not a report of mtcomp compensate (columns line, inserted, "
                          f"{', '.join(cols)})", path) from None
     q[:, [a.is_rotary for a in machine.axes]] = np.radians(q[:, [a.is_rotary for a in machine.axes]])
+    if original.local is not None:
+        # the report gives a block's words; under a frame the program set, placed as the program's
+        from ..toolpaths.frames import placed_by_frames
+        q = placed_by_frames(original.frames, original.local, original.line, q,
+                             [machine.index(c) for c in "XYZ"])
     program_line = _source_lines(original)
     if original.tcp is not None and original.tcp.any():
         # the report holds a tool centre point block's words: the tip and angles it writes
