@@ -24,11 +24,24 @@ def campaign(tmp_path_factory):
     return case, [str(p) for p in case.write(folder)]
 
 
-def test_report_and_extended_model(campaign, tmp_path, capsys):
+@pytest.fixture(scope="module")
+def diagnosed(campaign, tmp_path_factory):
+    """(REPORT.json, MODEL.json, standard output) of `diagnose xfyz` on the campaign, run once for
+    the tests that read the same diagnosis."""
+    import contextlib
+    import io
+    _, files = campaign
+    folder = tmp_path_factory.mktemp("diagnosed")
+    report, model = folder / "report.json", folder / "model.json"
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert main(["diagnose", "xfyz", *files, "--json", str(report), "-o", str(model), "-q"]) == 0
+    return report, model, out.getvalue()
+
+
+def test_report_and_extended_model(campaign, diagnosed):
     case, files = campaign
-    report, model = tmp_path / "report.json", tmp_path / "model.json"
-    assert main(["diagnose", "xfyz", *files, "--json", str(report), "-o", str(model), "-q"]) == 0
-    out = capsys.readouterr().out
+    report, model, out = diagnosed
     assert "verdict: explained" in out and "evidence:" in out
     def no_nan(token):
         raise AssertionError(f"REPORT.json holds {token}")
@@ -244,7 +257,7 @@ def test_start_model_values_the_data_did_not_determine_are_not_taken(tmp_path, c
     assert abs(out["started"]["TOOL_dL"]["value"]) < 1e-3
 
 
-def test_start_from_identify_model(campaign, tmp_path, capsys):
+def test_start_from_identify_model(campaign, diagnosed, tmp_path, capsys):
     """`--start MODEL.json`: identify's model is the base diagnosed (its knots, here fixed coarser by the
     machine file) and the start of the fit; the same effect is found as from the data's own base, and
     the start model is an input, never overwritten."""
@@ -256,8 +269,7 @@ def test_start_from_identify_model(campaign, tmp_path, capsys):
         for a, lo, hi in (("X", -400.0, 400.0), ("Y", -300.0, 300.0), ("Z", -250.0, 150.0))))
     base = tmp_path / "base.json"
     assert main(["identify", str(toml), *files, "-o", str(base)]) == 0
-    plain, started = tmp_path / "plain.json", tmp_path / "started.json"
-    assert main(["diagnose", "xfyz", *files, "--json", str(plain), "-q"]) == 0
+    plain, started = diagnosed[0], tmp_path / "started.json"      # from the data's own base
     capsys.readouterr()
     assert main(["diagnose", "xfyz", *files, "--json", str(started), "-o", str(tmp_path / "ext.json"),
                  "--start", str(base)]) == 0

@@ -8,7 +8,7 @@ import pytest
 from mtcomp import load_machine
 from mtcomp.models import ErrorModel, compiled
 from mtcomp.models.evaluate import casadi_map_call
-from test_models_compiled import cache  # noqa: F401  (the fixture: a cache folder of the test's own)
+from test_models_compiled import cache, small_model  # noqa: F401  (cache: a folder of the test's own)
 
 pytestmark = pytest.mark.skipif(compiled.find_compiler() is None, reason="no C compiler here")
 
@@ -69,10 +69,11 @@ def test_logic_operations_bit_for_bit(cache, lanes):
 
 @pytest.mark.parametrize("lanes", LANES)
 @pytest.mark.parametrize("name", ["xfyz", "cafxyz"])
-def test_model_functions_take_the_batched_path_and_match_per_pose(cache, name, lanes):
+def test_model_functions_take_the_batched_path_and_match_per_pose(shared_cache, name, lanes):
     """The deviation and its Jacobian in q, at poses inside and beyond the B-splines' range (the
-    clip's both branches and its ends), as the per-pose C gives them."""
-    model = ErrorModel(load_machine(name))
+    clip's both branches and its ends), as the per-pose C gives them (on a model with fewer spline
+    intervals than the machine file's, the same operations: test_models_compiled.small_model)."""
+    model = small_model(name)
     rng = np.random.default_rng(11)
     lo, hi = model.machine.travel_bounds()
     n = 301

@@ -301,12 +301,20 @@ def test_scheduler_runs_the_study_on_an_existing_cluster(tmp_path, capsys):
     assert len(rows) == 4 and {r["status"] for r in rows} == {"ok"}
 
 
-def test_an_unreachable_scheduler_is_one_line(tmp_path, capsys):
+def test_an_unreachable_scheduler_is_one_line(tmp_path, capsys, monkeypatch):
+    """A refused connection (nothing listens on port 1) fails at once: Dask's Client alone tries it
+    again until its timeout (20 s)."""
+    from mtcomp.study import runner
+    address = "tcp://127.0.0.1:1"
+    monkeypatch.setattr(runner, "SCHEDULER_TIMEOUT_S", 60.0)
     study = _write_study(tmp_path, STUDY.replace("draws = 2", "draws = 0"))
-    assert main(["study", str(study), "-o", str(tmp_path / "R"), "--scheduler",
-                 "tcp://127.0.0.1:1", "--quiet"]) == 2
+    t0 = time.monotonic()
+    assert main(["study", str(study), "-o", str(tmp_path / "R"), "--scheduler", address,
+                 "--quiet"]) == 2
+    assert time.monotonic() - t0 < 15.0                  # not the timeout waited out
     err = capsys.readouterr().err.strip()
     assert "cannot reach the Dask scheduler" in err and len(err.splitlines()) == 1
+    assert address in err and "Connection refused" in err
     assert not (tmp_path / "R").exists()
 
 

@@ -89,12 +89,22 @@ def _truth_axes(truth: TruthMachine, moves: list[dict]) -> np.ndarray:
     return out
 
 
+def _first_pass_only(points_csv):
+    """Keep the rows of run 1 of a points file (CSV with a ``run`` column)."""
+    lines = points_csv.read_text().splitlines(keepends=True)
+    run = lines[0].strip().split(",").index("run")
+    kept = [line for line in lines[1:] if float(line.split(",")[run]) == 1]
+    assert 0 < len(kept) < len(lines) - 1
+    points_csv.write_text(lines[0] + "".join(kept))
+
+
 def test_a_tcp_program_is_compensated_on_an_independent_machine(tmp_path, capsys):
     """LinuxCNC's 5-axis TCP demo (M428: X Y Z the tip on the table, A C the table's angles),
     compensated with a model identified from a campaign on the truth machine, then 'cut' on it:
     the tip error (relative to the part's datum, the workpiece origin) drops to a third or less."""
     from independent_cases import clean_campaign
     truth, paths = clean_campaign("CAFXYZ", 11, tmp_path / "campaign")
+    _first_pass_only(paths[0])          # the points file's second pass doubles the fit's time
     model = tmp_path / "model.json"
     assert main(["identify", "cafxyz", *map(str, paths), "-o", str(model)]) == 0
     out = tmp_path / "boat.ngc"

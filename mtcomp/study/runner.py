@@ -175,6 +175,35 @@ def _duration(s: float) -> str:
     return f"{s // 3600}h{s // 60 % 60:02d}m" if s >= 3600 else f"{s // 60}m{s % 60:02d}s"
 
 
+#: seconds the driver waits for the scheduler at ``--scheduler`` to take the connection and answer
+SCHEDULER_TIMEOUT_S = 20.0
+
+
+def _connect(scheduler: str):
+    """A dask Client of the cluster at ``scheduler``; InputError when it cannot be reached.
+
+    Dask's Client tries a refused connection again and again until its timeout (a scheduler may be
+    starting); a wrong port or host name would keep the user waiting :data:`SCHEDULER_TIMEOUT_S`.
+    A plain TCP connection is tried first, so that a refused one, or a host that does not resolve,
+    fails at once."""
+    import socket
+
+    from dask.distributed import Client
+    from distributed.comm.addressing import parse_address, parse_host_port
+    try:
+        scheme, location = parse_address(scheduler, strict=False)
+        host, port = parse_host_port(location, default_port=8786)
+    except ValueError:
+        scheme = None                   # not host:port: Dask's Client says what is wrong
+    try:
+        if scheme in ("tcp", "tls"):
+            socket.create_connection((host, port), timeout=SCHEDULER_TIMEOUT_S).close()
+        return Client(scheduler, timeout=f"{SCHEDULER_TIMEOUT_S}s")
+    except (OSError, TimeoutError) as exc:
+        why = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
+        raise InputError(f"--scheduler {scheduler}: cannot reach the Dask scheduler ({why})") from None
+
+
 def run_study(study: Study, out, scheduler: str | None = None, workers: int | None = None,
               progress: bool = True) -> StudyRun:
     """Run every task of ``study`` not yet kept under ``out`` (RESULTS/), on a LocalCluster of
@@ -201,12 +230,7 @@ def run_study(study: Study, out, scheduler: str | None = None, workers: int | No
             bar.say(f"mtcomp study: starting {workers or len(os.sched_getaffinity(0))} local "
                     f"worker{'s' if (workers or 2) > 1 else ''} for {len(todo)} tasks ...")
         if scheduler:
-            try:
-                client = Client(scheduler, timeout="20s")
-            except (OSError, TimeoutError) as exc:
-                raise InputError(f"--scheduler {scheduler}: cannot reach the Dask scheduler "
-                                 f"({exc})") from None
-            cluster = None
+            client, cluster = _connect(scheduler), None
         else:
             n_workers = workers or len(os.sched_getaffinity(0))
             cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
