@@ -161,3 +161,26 @@ def test_the_written_pieces_are_never_worse(compensated):
         keep = np.abs(np.sin(theta)) > 0.04
         assert np.all(after[keep] <= before[keep] + TOL_MM * 1e3 + 0.2), \
             np.max(after[keep] - before[keep])
+
+
+def test_the_summary_says_how_far_the_written_arcs_miss_their_path(tmp_path, capsys):
+    """compensate's note on the arcs it wrote in pieces: their largest miss off the corrected path,
+    which the test measures itself from the written pieces and the planned points (as above)."""
+    import re
+    prog, out, rep = tmp_path / "p.nc", tmp_path / "o.nc", tmp_path / "b.csv"
+    prog.write_text(TWO_CIRCLES)
+    assert main(["compensate", "xfyz", str(_model(tmp_path)), str(prog), "-o", str(out),
+                 "--report", str(rep), "--chord-tol-um", str(TOL_MM * 1e3)]) == 0
+    said = re.search(r"the arcs written miss their corrected path by up to ([0-9.]+) um",
+                     capsys.readouterr().out)
+    assert said, "no note on the written arcs"
+    with open(rep, newline="") as f:
+        rows = list(csv.DictReader(f))
+    data, gaps = out.read_bytes(), []
+    for line in ARC_LINES:
+        turn, corr = _planned(rows, line)
+        points = CENTRE + R * np.c_[np.cos(-turn[1:]), np.sin(-turn[1:])] + corr[1:]
+        dense = np.vstack([_sample(p, 20_000) for p in _pieces(data, line)])
+        gaps.append(_min_dist(points, dense).max())
+    assert 0.1 < max(gaps) * 1e3 <= 1.0 + 0.2
+    assert float(said.group(1)) == pytest.approx(max(gaps) * 1e3, abs=0.02)

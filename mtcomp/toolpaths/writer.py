@@ -61,6 +61,7 @@ class OutputState:
         self.cycle_init_z = math.nan
         self.values = np.full(na, np.nan)
         self.cutter_comp, self.cutter_arc_miss = False, 0.0   # G41/G42 on; a whole arc's miss (mm)
+        self.arc_miss = 0.0         # the largest miss of a written arc piece off its path (mm)
         self.rotary = [False] * na if state is None else state.rotary
         if state is not None:       # axes known before the first line stand where the reader says
             self.values[state.known] = state.position[state.known]
@@ -405,8 +406,8 @@ class _ArcPiece:
     """One written piece of an arc block: its axis texts, where it ends, its centre words (letter,
     text) or None for a straight piece."""
 
-    def __init__(self, texts, end, centre_words):
-        self.texts, self.end, self.centre_words = texts, end, centre_words
+    def __init__(self, texts, end, centre_words, miss=0.0):
+        self.texts, self.end, self.centre_words, self.miss = texts, end, centre_words, miss
 
 
 def _arc_text(block, points, counts, letters, rotary, out, source, chord_tol, separator, whole=None):
@@ -439,6 +440,7 @@ def _arc_text(block, points, counts, letters, rotary, out, source, chord_tol, se
     pieces = ctx.plan(0, samples[0].shape[0] - 1, start_w)
     if not pieces or pieces[0].centre_words is None or (block.inverse_time and len(pieces) > 1):
         return None
+    out.arc_miss = max(out.arc_miss, *(p.miss for p in pieces))
     return ctx.render(pieces, separator)
 
 
@@ -574,7 +576,7 @@ class _ArcFit:
                 continue
             for words, written in self._centre_words(s2, e2, centre, full):
                 if self._fits(start_w, end_w, written, full, inner, span, spiral):
-                    return _ArcPiece(texts, end_w, words)
+                    return _ArcPiece(texts, end_w, words, self.miss)
         return None
 
     def _centre_words(self, s2, e2, centre, full):
@@ -785,4 +787,6 @@ def writer_stats(out: OutputState) -> dict:
         stats["passed_moves"] = {why: tuple(v) for why, v in out.passed_moves.items()}
     if out.cutter_arc_miss > 0:
         stats["cutter_arc_miss_mm"] = out.cutter_arc_miss
+    if out.arc_miss > 0:
+        stats["arc_miss_mm"] = out.arc_miss
     return stats
