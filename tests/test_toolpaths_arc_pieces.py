@@ -184,3 +184,4 @@ def test_the_summary_says_how_far_the_written_arcs_miss_their_path(tmp_path, cap
         gaps.append(_min_dist(points, dense).max())
     assert 0.1 < max(gaps) * 1e3 <= 1.0 + 0.2
     assert float(said.group(1)) == pytest.approx(max(gaps) * 1e3, abs=0.02)
+

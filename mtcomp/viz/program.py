@@ -163,7 +163,8 @@ def pair_compensated(original: ProgramPoints, compensated: ProgramPoints, machin
                              for k, a in enumerate(machine.axis_names) if d[k] > tol[k])
             raise InputError(f"line {int(compensated.line[idx[i]])} differs from line "
                              f"{int(original.line[i])} of {original.path} ({what}): not a compensated "
-                             "version of that program", compensated.path)
+                             "version of that program (or compensate was given another "
+                             "--chord-tol-um: give render the same)", compensated.path)
     return idx
 
 
