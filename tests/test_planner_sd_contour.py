@@ -216,3 +216,27 @@ def test_contours_across_chunks_are_planned_as_in_one_piece(tmp_path, monkeypatc
     rows = [r for r in _rows(tmp_path / "b5.csv") if r["unknown_axes"] == "" and r["rapid"] == "0"]
     corrected = {r["corrected"] for r in rows}
     assert corrected == ({"0", "1"} if limit_at_x else {"1"})
+
+
+def test_render_leaves_out_the_contours_the_planner_leaves_out(tmp_path):
+    """render without a report guesses which blocks compensate leaves uncorrected by the planner's
+    rules: with the default limit (5 um) between the standard error at x = 250 mm and at 200 mm,
+    contour A's every block is marked uncertain (3), contour B's none; as compensate's BLOCKS.csv."""
+    from mtcomp.planner.problem import DEFAULT_MAX_CORRECTION_SD_UM as limit
+    from mtcomp.viz.surface import program_error_map
+    machine, fitted = _fitted(40.0)
+    q, _rapid = _two_contours()
+    scale = 1.2 * limit / _sd_oracle(fitted, q)[len(XA) - 1]        # sd(250 mm) = 1.2 x the limit
+    fitted.uncertainty["covariance"] = fitted.uncertainty["covariance"] * scale ** 2
+    sd = _sd_oracle(fitted, q) * scale                                # SIGMA scaled alike
+    assert sd[len(XA) - 1] > limit > np.delete(sd, len(XA) - 1).max()
+    prog = tmp_path / "p.nc"
+    prog.write_text("G21 G90\nG0 X0 Y0 Z0\n" + "".join(f"G1 X{x:g} F1000\n" for x in XA)
+                    + "G0 X-50\n" + "".join(f"G1 X{x:g}\n" for x in XB) + "M30\n")
+    smap = program_error_map(machine, fitted, prog, tool_radius_mm=0.0, normal="path")
+    assert smap.status_source == "planner"
+    x = smap.tips[:, 0]
+    in_a = (x > 1.0) & np.isin(np.round(x, 6), XA)
+    in_b = np.isin(np.round(x, 6), XB)
+    assert in_a.sum() >= 4 and in_b.sum() >= 3
+    assert np.all(smap.status[in_a] == 3) and np.all(smap.status[in_b] == 0)

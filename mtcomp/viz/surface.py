@@ -501,8 +501,13 @@ def planner_status(fitted, orig: ProgramPoints, sel: np.ndarray, work_offset=Non
     status = np.zeros(q.shape[0], np.int8)
     limit = planner.options.max_correction_sd_um
     if limit:
+        # as the planner: a contour (feed moves cut one after the other) is left whole
+        from ..planner._contours import gated_contours
         with np.errstate(invalid="ignore"):
-            status[sd > limit] = 3
+            over = sd > limit
+        member = ~np.asarray(orig.rapid[sel], bool) & known.all(axis=1)
+        jump = np.r_[True, np.diff(np.asarray(sel)) != 1]
+        status[over | gated_contours(member, jump, over)[0]] = 3
     status[outside.any(axis=1)] = 2
     status[unknown.any(axis=1)] = 1
     return status
