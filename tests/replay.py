@@ -38,7 +38,9 @@ _COMMENT = re.compile(r"\([^)]*\)|;.*")
 #: a comment that holds no parenthesis: the innermost of nested ones
 _INNERMOST = re.compile(r"\([^()]*\)")
 _WORD = re.compile(r"([A-Z])\s*([-+]?\s*(?:\d+\.?\d*|\.\d+))")
-_CYCLES = {73, 81, 82, 83, 84, 85, 86, 87, 88, 89}
+#: drilling cycles; G74 (left-hand tapping) and G76 (fine boring) are Fanuc's and Haas' (mtcomp
+#: refuses them on other controllers, so no other program reaches this replay with them)
+_CYCLES = {73, 74, 76, 81, 82, 83, 84, 85, 86, 87, 88, 89}
 #: RepRapFirmware (Duet3D, G-code dictionary): a parameter's value may be a string in double quotes
 #: ("" inside is one quote character; ; and ( inside belong to it); a program for it is known by
 #: such a string outside comments or by a comment naming the firmware or MillenniumOS

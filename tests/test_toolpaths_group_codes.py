@@ -80,3 +80,45 @@ def test_a_frame_code_with_a_motion_code_and_no_axis_word_sets_the_mode(tmp_path
     with pytest.raises(Exception, match="G50 and a move in one block"):
         _corrected(tmp_path, text.replace("G0 G50 G90", "G0 X1. G50"), "fanuc",
                    _constant([0.001, 0, 0]), name="q")
+
+
+# ------------------------------------------------------------------ Fanuc's G74 and G76 cycles
+CYCLE = ("O1000\nG21 G90 G17 G54\nG0 X10. Y5. Z20.\nZ3.\nG99 {code} Z-5. R2. F200.\nX30. Y8.\n"
+         "G98 X40. Y-4.\nG80\nM30\n")
+
+
+@pytest.mark.parametrize("dialect", ["fanuc", "haas"])
+@pytest.mark.parametrize("code, twin", [("G76", "G86"), ("G74", "G84")])
+def test_fanuc_g74_and_g76_are_drilling_cycles_like_g84_and_g86(tmp_path, mode, dialect, code, twin):
+    """G76 fine boring and G74 left-hand tapping have the holes of G86 and G84 (from R to Z at X Y):
+    the program with them is compensated exactly as the same program with G86 / G84, line for
+    line but the G code (a second formulation), its holes corrected."""
+    correction = _constant([0.002, -0.001, 0.003])
+    ends, known, out = _corrected(tmp_path, CYCLE.format(code=code), dialect, correction, name="a")
+    ends2, known2, out2 = _corrected(tmp_path, CYCLE.format(code=twin), dialect, correction, name="b")
+    np.testing.assert_array_equal(ends, ends2)
+    np.testing.assert_array_equal(known, known2)
+    assert [ln.replace(code, twin) for ln in out] == out2
+    assert f"G99 {code} Z-4.9970 R2.0030 F200." in out and "X30.0020 Y7.9990" in out
+
+
+@pytest.mark.parametrize("code", ["G74", "G76"])
+def test_g74_and_g76_are_refused_where_they_mean_something_else(tmp_path, capsys, code):
+    _, _, model = _model(tmp_path, "xfyz", seed=5)
+    p, out = tmp_path / "p.nc", tmp_path / "o.nc"
+    p.write_text(CYCLE.format(code=code))
+    rc, _o, err = _run(["compensate", "xfyz", str(model), str(p), "-o", str(out), "--quiet",
+                        "--dialect", "linuxcnc"], capsys)
+    assert rc == 2 and "p.nc:5:" in err and f"canned cycle {code}" in err and not out.exists()
+
+
+def test_a_cycle_passed_through_leaves_the_block_before_where_it_was(tmp_path, mode):
+    """A back boring G87 is passed through uncorrected; the block before it (Z3.) keeps its own
+    end, X15.114 Y0.143 (the pure-Python reader moved it to the next hole's X Y, by changing the
+    position it held in place)."""
+    text = "O1000\nG21 G90 G54\nG0 X15.114 Y.143\nZ3.\nG99 G87 Z-5. R3. F250.\nX9.977 Y-6.803\nG80\nM30\n"
+    ends, known, out = _corrected(tmp_path, text, "fanuc", _constant([0.001, 0.002, 0.003]))
+    np.testing.assert_allclose(ends[:2], [[15.114, 0.143, 0.0], [15.114, 0.143, 3.0]], rtol=0,
+                               atol=1e-12)
+    # its correction (the first block, Z unknown, has none): X and Y stated beside Z
+    assert out[3] == "Z3.0030 X15.1150 Y0.1450", out

@@ -62,6 +62,9 @@ def cycle_move(state, values, axes_given):
     tool axis ends at the R plane or the start height: unknown."""
     scale = MM_PER_INCH if state.inch else 1.0
     state.cycle_line = True
+    # new arrays: the block before holds the old ones as its end (changed in place, a passed-through
+    # back boring G87 moved the block before it to the next hole in the pure-Python reader)
+    state.position, state.known = state.position.copy(), state.known.copy()
     for c in axes_given:
         i = state.names.index(c)
         if c == TOOL_AXIS:

@@ -27,7 +27,7 @@ from .frames import (FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle
 from .linetext import text_with_words
 from .programmed import ProgrammedOffsets, apply_g10
 from .rrf import macro_codes
-from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _CURVE_WITH_COORDINATES, KNOWN_DECIMAL_G,
+from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _CURVE_WITH_COORDINATES, KNOWN_DECIMAL_G, FANUC_CYCLES, FANUC_DIALECTS,
                     OTHER_WCS_G, mode_followed, _REFUSED_G, _REFUSED_M, _UNIQUE_LETTERS, _WCS_INDEX, DEFAULT_CHORD_TOL_MM,
                     DIR_EPS, MAX_TOOL, MM_PER_INCH, TCP_OFF_M, TCP_ON_M, TOOL_AXIS, frame_code,
                     tokenize)
@@ -311,7 +311,7 @@ class ModalState:
                 frame_codes.append(g)
                 nonmotion_axes = True
                 continue
-            if g in _REFUSED_G:
+            if g in _REFUSED_G and not (g in FANUC_CYCLES and self.dialect.name in FANUC_DIALECTS):
                 raise self._err(f"{_REFUSED_G[g]} is not supported", line)
             if g in _CURVE_WITH_COORDINATES:
                 name, words = _CURVE_WITH_COORDINATES[g]
@@ -332,7 +332,7 @@ class ModalState:
             elif gi in (28, 30, 53):
                 nonmotion_axes = True
                 home_move = gi
-            elif gi in _CANNED_CYCLES:
+            elif gi in _CANNED_CYCLES or gi in FANUC_CYCLES:
                 cycle = gi
             elif gi == 10:
                 nonmotion_axes = g10 = True          # the axis words are offsets

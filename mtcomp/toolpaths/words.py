@@ -103,6 +103,13 @@ TCP_ON_M = frozenset({428, 128})
 TCP_OFF_M = frozenset({429, 129})
 #: drilling cycles: their lines pass through unchanged (not corrected), see docs/toolpaths.md
 _CANNED_CYCLES = frozenset({73, 81, 82, 83, 84, 85, 86, 87, 88, 89})
+#: the drilling cycles of Fanuc and Haas mills beyond RS274's: G74 left-hand (reverse) tapping and
+#: G76 fine boring, a hole from R to Z at X Y like G84 and G86 (G76's shift Q at the bottom moves
+#: the tool off the wall and back, the hole stays: Fanuc Series 0i-MF operator's manual, canned
+#: cycles; Haas mill operator's manual, G74 Reverse Tap, G76 Fine Boring). Elsewhere G74 and G76
+#: are other things (LinuxCNC's G76 is a lathe's threading cycle): refused
+FANUC_CYCLES = frozenset({74, 76})
+FANUC_DIALECTS = ("fanuc", "haas")
 #: work coordinate systems, in the order of their index in ``frame`` codes
 WORK_SYSTEMS = ("G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3")
 _WCS_INDEX = {54: 0, 55: 1, 56: 2, 57: 3, 58: 4, 59: 5, 59.1: 6, 59.2: 7, 59.3: 8}
