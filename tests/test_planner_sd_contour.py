@@ -218,7 +218,8 @@ def test_contours_across_chunks_are_planned_as_in_one_piece(tmp_path, monkeypatc
     assert corrected == ({"0", "1"} if limit_at_x else {"1"})
 
 
-def test_render_leaves_out_the_contours_the_planner_leaves_out(tmp_path):
+@pytest.mark.parametrize("flank", [None, 10.0])
+def test_render_leaves_out_the_contours_the_planner_leaves_out(tmp_path, flank):
     """render without a report guesses which blocks compensate leaves uncorrected by the planner's
     rules: with the default limit (5 um) between the standard error at x = 250 mm and at 200 mm,
     contour A's every block is marked uncertain (3), contour B's none; as compensate's BLOCKS.csv."""
@@ -233,10 +234,12 @@ def test_render_leaves_out_the_contours_the_planner_leaves_out(tmp_path):
     prog = tmp_path / "p.nc"
     prog.write_text("G21 G90\nG0 X0 Y0 Z0\n" + "".join(f"G1 X{x:g} F1000\n" for x in XA)
                     + "G0 X-50\n" + "".join(f"G1 X{x:g}\n" for x in XB) + "M30\n")
-    smap = program_error_map(machine, fitted, prog, tool_radius_mm=0.0, normal="path")
+    # a path map: one point a block; a flank map (a 10 mm flank): each block's point at every level
+    smap = (program_error_map(machine, fitted, prog, tool_radius_mm=0.0, normal="path") if flank is None
+            else program_error_map(machine, fitted, prog, tool_radius_mm=1.0, flank_length_mm=flank))
     assert smap.status_source == "planner"
-    x = smap.tips[:, 0]
-    in_a = (x > 1.0) & np.isin(np.round(x, 6), XA)
-    in_b = np.isin(np.round(x, 6), XB)
+    x = np.round(smap.tips[:, 0], 3)               # the nominal tip of each point's block
+    in_a = (x > 1.0) & np.isin(np.round(x, 3), XA)
+    in_b = np.isin(np.round(x, 3), XB)
     assert in_a.sum() >= 4 and in_b.sum() >= 3
     assert np.all(smap.status[in_a] == 3) and np.all(smap.status[in_b] == 0)

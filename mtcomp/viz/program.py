@@ -225,17 +225,18 @@ def report_points(original: ProgramPoints, report, machine: Machine) -> ProgramP
     try:
         # a blank cell: an axis the program had not positioned there, which the block leaves alone
         q = np.array([[float(r[c]) if r[c] != "" else np.nan for c in cols] for r in rows])
-        q = np.where(np.isnan(q), original.q, q)
         line = np.array([int(r["line"]) for r in rows])
     except (KeyError, ValueError, TypeError):
         raise InputError(f"not a report of mtcomp compensate (columns line, inserted, "
                          f"{', '.join(cols)})", path) from None
     q[:, [a.is_rotary for a in machine.axes]] = np.radians(q[:, [a.is_rotary for a in machine.axes]])
+    blank = np.isnan(q)
     if original.local is not None:
         # the report gives a block's words; under a frame the program set, placed as the program's
         from ..toolpaths.frames import placed_by_frames
-        q = placed_by_frames(original.frames, original.local, original.line, q,
+        q = placed_by_frames(original.frames, original.local, original.line, np.where(blank, 0.0, q),
                              [machine.index(c) for c in "XYZ"])
+    q = np.where(blank, original.q, q)     # already placed
     program_line = _source_lines(original)
     if original.tcp is not None and original.tcp.any():
         # the report holds a tool centre point block's words: the tip and angles it writes

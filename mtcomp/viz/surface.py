@@ -501,13 +501,19 @@ def planner_status(fitted, orig: ProgramPoints, sel: np.ndarray, work_offset=Non
     status = np.zeros(q.shape[0], np.int8)
     limit = planner.options.max_correction_sd_um
     if limit:
-        # as the planner: a contour (feed moves cut one after the other) is left whole
+        # as the planner: a contour (feed moves cut one after the other; a hole is one of its
+        # own) is left whole, found on the whole program (sel may repeat or skip blocks)
         from ..planner._contours import gated_contours
         with np.errstate(invalid="ignore"):
             over = sd > limit
-        member = ~np.asarray(orig.rapid[sel], bool) & known.all(axis=1)
-        jump = np.r_[True, np.diff(np.asarray(sel)) != 1]
-        status[over | gated_contours(member, jump, over)[0]] = 3
+        over_all = np.zeros(len(orig), bool)
+        np.logical_or.at(over_all, sel, over)
+        member = ~np.asarray(orig.rapid, bool)
+        if orig.known is not None:
+            member &= np.asarray(orig.known, bool).all(axis=1)
+        cyc = np.zeros(len(orig), bool) if orig.cycle is None else np.asarray(orig.cycle, bool)
+        start = cyc | np.r_[False, cyc[:-1]]
+        status[over | gated_contours(member, start, over_all)[0][sel]] = 3
     status[outside.any(axis=1)] = 2
     status[unknown.any(axis=1)] = 1
     return status
