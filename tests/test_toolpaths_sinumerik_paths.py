@@ -343,3 +343,16 @@ def test_a_helix_of_a_whole_turn_is_refused_in_one_line(tmp_path, capsys):
     err = _refused(tmp_path, capsys, "N10 G0 X20 Y0 Z5\nN20 G1 Z-1 F100\n"
                                      "N30 G3 Z-3 I=AC(0) J=AC(0)\nM30\n")
     assert "p.mpf:5:" in err and "a helix of a whole turn" in err, err
+
+
+@pytest.mark.parametrize("body", [
+    "N10 G0 X0 Y0 Z20\nN20 TRANS X5 Y7 Z-3\nN30 G0 X0 Y0\nN40 CYCLE81(10,0,2,-5)\nN50 G0 X20\nM30\n",
+    "N10 G0 X0 Y0 Z20\nN20 ATRANS X5 Y7\nN30 MCALL CYCLE81(10,0,2,-5)\nN40 G0 X0 Y0\nN50 X10 Y0\n"
+    "N60 MCALL\nN70 G0 X20\nM30\n",
+])
+def test_holes_under_trans_with_no_correction_write_the_program_unchanged(tmp_path, body):
+    """Under TRANS/ATRANS a hole's position in the program's frame was compared with (and stored
+    as) the writer's G-code-frame position: a block `X0.0000 Y0.0000` was added before the call,
+    and the next block got `Y0.0000`. With no correction the output is the input."""
+    lines = _lines_after(_write(tmp_path, body), lambda p: np.zeros((len(p), 3)))
+    assert lines == (HEAD + body).splitlines()

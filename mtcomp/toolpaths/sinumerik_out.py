@@ -438,13 +438,14 @@ class SinumerikWriter(HeidenhainWriter):
             write[self.cols] = True
             self.texts[i] = self._rewrite(i, block, end, info, write=write, nominal=nominal)
         elif info.pattern is None:                             # a single call at the position
-            now = self.written[self.cols]
+            # written: the G-code frame; xy: the program's (TRANS/ATRANS taken off)
+            now = np.array([self._units(j, v, info.shift) for j, v in zip(self.cols, self.written[self.cols])])
             if np.isnan(now).any() or not np.allclose(now, xy, rtol=0, atol=1e-9):
                 words = " ".join(f"{a}{_number(v, 4)}" for a, v in zip("XY", xy))
                 self.before.setdefault(i, []).append(words)
                 self.added += 1
-        self.written[self.cols] = xy
-        self.written[self.zi] = info.call.rtp
+        self.written[self.cols] = [self._internal(j, float(v), info.shift) for j, v in zip(self.cols, xy)]
+        self.written[self.zi] = self._internal(self.zi, info.call.rtp, info.shift)
 
     # ------------------------------------------------------------------ cycle calls and patterns
     def _call_edits(self, call, dz: float) -> dict:
