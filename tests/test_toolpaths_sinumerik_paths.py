@@ -356,3 +356,19 @@ def test_holes_under_trans_with_no_correction_write_the_program_unchanged(tmp_pa
     and the next block got `Y0.0000`. With no correction the output is the input."""
     lines = _lines_after(_write(tmp_path, body), lambda p: np.zeros((len(p), 3)))
     assert lines == (HEAD + body).splitlines()
+
+
+def test_a_half_circle_by_radius_rounded_by_a_fraction_of_a_micron_is_read():
+    """CR=5 to an end 10.0004 mm away (a CAM half circle, its end rounded): half the chord is 0.2 um
+    longer than the radius; taken as a half circle about the chord's middle, as the R arcs of the
+    G-code dialects are (within 0.01 mm); 0.03 mm longer is refused."""
+    from mtcomp.toolpaths.sinumerik_paths import RadiusError, radius_centre
+    np.testing.assert_allclose(radius_centre((0.0, 0.0), (10.0004, 0.0), 5.0, False), (5.0002, 0.0),
+                               rtol=0, atol=1e-12)
+    with pytest.raises(RadiusError, match="smaller than half the chord"):
+        radius_centre((0.0, 0.0), (10.06, 0.0), 5.0, False)
+    # the sides by hand (a 3-4-5 triangle): G2 CR=5 from (0,0) to (8,0) turns about (4,-3), G3 (4,3);
+    # CR=-5 the other side
+    np.testing.assert_allclose(radius_centre((0, 0), (8, 0), 5.0, False), (4, -3), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(radius_centre((0, 0), (8, 0), 5.0, True), (4, 3), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(radius_centre((0, 0), (8, 0), -5.0, True), (4, -3), rtol=0, atol=1e-12)

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 #: words that set how the controller follows the programmed path (within a tolerance the program
 #: or the machine data set) and move nothing: accepted, kept byte for byte
 SETTING_WORDS = {"SOFT", "BRISK", "DRIVE", "FFWON", "FFWOF", "COMPON", "COMPCURV", "COMPCAD",
@@ -42,20 +44,20 @@ class RadiusError(ValueError):
 def radius_centre(start, end, radius: float, ccw: bool) -> tuple[float, float]:
     """The centre (x, y) of the circle from ``start`` to ``end`` (x, y) of radius ``|radius|``,
     counter-clockwise (G3) or clockwise (G2); a positive radius turns at most 180 degrees, a
-    negative one more (Fundamentals, circular interpolation with radius and end point)."""
-    (sx, sy), (ex, ey) = start, end
-    dx, dy = ex - sx, ey - sy
-    chord = math.hypot(dx, dy)
-    if chord <= 1e-9:
+    negative one more (Fundamentals, circular interpolation with radius and end point): the rule
+    of an R arc (:func:`~._arcs.centre_from_radius`, with its tolerance on a half circle whose
+    chord is a little longer than the diameter), with Sinumerik's messages."""
+    from ._arcs import ARC_RADIUS_TOL_MM, ARC_RADIUS_TOL_REL, centre_from_radius
+    s, e = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
+    half = 0.5 * math.hypot(*(e - s))
+    if half <= 5e-10:
         raise RadiusError("a circle by its radius CR= that ends where it starts (a full circle is "
                           "programmed with its centre)")
-    half = 0.5 * chord
-    if abs(radius) < half - 1e-6:
+    if half - abs(radius) > max(ARC_RADIUS_TOL_MM, ARC_RADIUS_TOL_REL * abs(radius)):
         raise RadiusError(f"CR={abs(radius):g} is smaller than half the chord ({half:.6g} mm) to "
                           "its end point")
-    rise = math.sqrt(max(radius * radius - half * half, 0.0))
-    side = 1.0 if ccw == (radius > 0) else -1.0      # +1: left of the chord from start to end
-    return (sx + 0.5 * dx - side * rise * dy / chord, sy + 0.5 * dy + side * rise * dx / chord)
+    cx, cy = centre_from_radius(s, e, radius, ccw)
+    return float(cx), float(cy)
 
 
 def signed_radius(start, end, centre, ccw: bool) -> float:
