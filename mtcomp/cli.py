@@ -36,6 +36,28 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
+class _StoreOnce(argparse._StoreAction):
+    """An option that takes one value: given twice (``-o a.json -o b.json``, ``--format linuxcnc
+    --format siemens``) it is a usage error, where argparse would let the last one win silently.
+    Repeatable options (``--tool-length H1=.. --tool-length H2=..``) append and are not affected."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        given = getattr(namespace, "_given_once", set())
+        if self.dest in given:
+            parser.error(f"{'/'.join(self.option_strings)} given twice (it takes one value; the "
+                         "second would replace the first)")
+        given.add(self.dest)
+        setattr(namespace, "_given_once", given)
+        super().__call__(parser, namespace, values, option_string)
+
+
+def _store_once(parser: argparse.ArgumentParser) -> None:
+    """Make every single-valued option of ``parser`` a :class:`_StoreOnce`."""
+    for action in parser._actions:
+        if type(action) is argparse._StoreAction and action.option_strings:
+            action.__class__ = _StoreOnce
+
+
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
     parser = _Parser(prog="mtcomp", description="Compensation planner for the geometric errors of "
@@ -48,6 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
         mod = _command_module(module, optional=True)
         if mod is not None:
             mod.add_arguments(p)
+            _store_once(p)
         p.set_defaults(_module=module)
     return parser
 
@@ -64,6 +87,7 @@ def _command_module(module: str, optional: bool = False):
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    vars(args).pop("_given_once", None)
     mod = _command_module(args._module, optional=True)
     if mod is None:
         sys.stderr.write(f"mtcomp {args.command}: this command is not available in this build\n")

@@ -20,11 +20,15 @@ def note_outside_travel(command: str, machine, datasets) -> None:
 
 
 def add_offset_arguments(parser, offsets_help: str, work_offset_help: str) -> None:
-    """``--offsets OFFSETS.toml`` and ``--work-offset G54=X..,Y..,Z..`` (repeatable): where the
-    program's zero sits on the machine (docs/toolpaths.md)."""
+    """``--offsets OFFSETS.toml``, ``--work-offset G54=X..,Y..,Z..`` and ``--tool-length H1=L``
+    (both repeatable): where the program's zero sits on the machine and how long its tools are
+    (docs/toolpaths.md); compensate and render take the same, so that a map shows the program
+    compensate planned."""
     parser.add_argument("--offsets", metavar="OFFSETS.toml", default=None, help=offsets_help)
     parser.add_argument("--work-offset", metavar="G54=X..,Y..,Z..", action="append", default=[],
                         help=work_offset_help)
+    parser.add_argument("--tool-length", metavar="H1=L", action="append", default=[],
+                        help="length (mm) of the tool of G43 H1 (repeatable; wins over --offsets)")
 
 
 #: the controllers whose rules differ, for ``--dialect`` (docs/toolpaths.md)

@@ -157,7 +157,11 @@ def run(args) -> int:
     smap = program_error_map(machine, fitted, program, args.compensated,
                              tool_radius_mm=args.tool_radius_mm, flank_length_mm=args.flank_mm,
                              flank_side=args.flank_side, report=args.report, normal=args.normal,
-                             progress=progress, work_offset=_work_offset(args, machine))
+                             progress=progress, work_offset=_work_offset(args, machine),
+                             tool_lengths=_tool_lengths(args, machine))
+    for tool in smap.info.get("tools_assumed", ()):
+        print(f"assumed: tool length of H{tool} = the machine's tool_length_mm "
+              f"({machine.tool_length:g} mm); give --tool-length or --offsets")
     if drift_note:
         smap.notes.append(drift_note)
     from ..viz.render import render_error_map
@@ -199,7 +203,7 @@ def _work_offset(args, machine):
     if not args.offsets and not args.work_offset:
         return None
     from ..toolpaths.offsets import WORK_SYSTEMS, load_setup
-    setup = load_setup(machine, args.offsets, args.work_offset)
+    setup = load_setup(machine, args.offsets, args.work_offset, args.tool_length)
     if not setup.work_offsets:
         return None
     index = 0 if 0 in setup.work_offsets or len(setup.work_offsets) > 1 else next(iter(setup.work_offsets))
@@ -207,6 +211,15 @@ def _work_offset(args, machine):
         print(f"mtcomp render: note: the map takes the program's origin at {WORK_SYSTEMS[index]} "
               "(render draws one work system)", file=sys.stderr)
     return setup.work_offsets.get(index, np.zeros(machine.n_axes))
+
+
+def _tool_lengths(args, machine) -> dict:
+    """H number -> tool length (mm) from --offsets' [tool_lengths] and --tool-length, as compensate
+    takes them (the model's Abbe arm at the blocks of that G43 H)."""
+    if not args.offsets and not args.tool_length:
+        return {}
+    from ..toolpaths.offsets import load_setup
+    return dict(load_setup(machine, args.offsets, args.work_offset, args.tool_length).tool_lengths)
 
 
 def _check_numbers(args) -> None:
@@ -250,8 +263,10 @@ def _print_summary(args, smap, res) -> None:
         along = None
     elif smap.normal_kind == "path":
         print(f"path: {len(smap.segments)} feed moves drawn as lines in space"
-              + (" (no surface: most of the tool-tip surface would be walls seen edge-on)"
-                 if info.get("path_segments") else "")
+              + ({True: " (no surface: most of the tool-tip surface would be walls seen "
+                        "edge-on)",
+                  "tool axis": " (no surface seen along one axis: the tool axis turns against the "
+                               "part, a 5-axis program)"}.get(info.get("path_segments"), ""))
               + "; the map shows the size of the deviation across the path")
         along = "across the path: its size"
     else:

@@ -26,6 +26,8 @@ class ProgramPoints:
     frames, local : the frames the program set itself (G52, G68, a mirror image, scaling:
     :func:`mtcomp.toolpaths.frames.placed_by_frames`'s table) and (n,) bool, the rows under one;
     ``q`` holds those rows placed where the controller puts them (None: no frame).
+    tool : (n,) int, the tool length offset number (``G43 H``) in force at each row, 0 for none
+    (None: not read).
     """
 
     path: str
@@ -41,6 +43,7 @@ class ProgramPoints:
     chord_tol_mm: float | None = None
     frames: list | None = None
     local: np.ndarray | None = None
+    tool: np.ndarray | None = None
 
     def __len__(self):
         return int(self.line.shape[0])
@@ -65,14 +68,14 @@ def read_program_points(path, machine: Machine, dialect: str | None = None,
     # controller reaches (the workpiece origin taken at the kinematics' own: render's work offset
     # moves the linear axes only)
     from ..toolpaths.tcp import axes_of_tcp
-    from ..toolpaths.words import frame_tcp
+    from ..toolpaths.words import frame_tcp, frame_tool
     tcp = frame_tcp(seg.frame) & seg.known.all(axis=1)
     if tcp.any():
         q[tcp] = axes_of_tcp(machine, q[tcp])
     return ProgramPoints(os.fspath(path), q, seg.line.copy(), seg.feed.copy(),
                          seg.dirs.copy(), seg.rapid.copy(), seg.known.copy(), seg.cycle.copy(), tcp,
                          dialect, chord_tol_mm, frames if local.any() else None,
-                         local if local.any() else None)
+                         local if local.any() else None, np.asarray(frame_tool(seg.frame)).copy())
 
 
 def _placed(seg, frames: list, machine: Machine) -> tuple[np.ndarray, np.ndarray]:

@@ -159,12 +159,26 @@ class SurfaceMap:
 
 
 # ----------------------------------------------------------------------------------- deviations
-def _context(fitted, q_count, feed, dirs):
+def _context(fitted, q_count, feed, dirs, tool_length=None):
     machine = fitted.machine
     cols = {"feed": feed}
     for j, a in enumerate(machine.axis_names):
         cols[f"dir_{a}"] = dirs[:, j].astype(float)
+    if tool_length is not None and "tool_length" in fitted.model.context_names:
+        cols["tool_length"] = np.asarray(tool_length, dtype=float)
     return fitted.context(q_count, cols)
+
+
+def tool_lengths_of(orig: "ProgramPoints", machine: Machine, tool_lengths: dict | None) -> np.ndarray:
+    """(n,) mm: the tool length of each segment end, as compensate takes it: the length given for
+    the ``G43 H`` number in force (``tool_lengths``: H number -> mm, ``--tool-length`` and the
+    offsets file's ``[tool_lengths]``), else the machine's. It sets the model's Abbe arm only: the
+    controller's own tool length offset puts the tip where the program says."""
+    out = np.full(len(orig), float(machine.tool_length))
+    if orig.tool is not None:
+        for h, length in (tool_lengths or {}).items():
+            out[np.asarray(orig.tool) == h] = float(length)
+    return out
 
 
 def _frame_function(model):
@@ -184,16 +198,17 @@ def _frame_function(model):
 
 
 def predicted_points(fitted, q: np.ndarray, feed: np.ndarray, dirs: np.ndarray,
-                     offset_tool: np.ndarray | None = None) -> np.ndarray:
+                     offset_tool: np.ndarray | None = None, tool_length=None) -> np.ndarray:
     """(n, 3) mm: where the tool point at ``offset_tool`` (n, 3) mm, tool frame (None: the tip) really
     is in the workpiece frame at axis positions q (n, na), as the model ``fitted`` predicts it (its
-    tool tip and tool rotation, every term included; feed mm/min and approach directions as context).
+    tool tip and tool rotation, every term included; feed mm/min, approach directions and
+    ``tool_length`` (n,) mm (None: the machine's) as context).
     """
     from ..models.evaluate import casadi_map_call
     n = q.shape[0]
     if n == 0:
         return np.zeros((0, 3))
-    c = np.ascontiguousarray(_context(fitted, n, feed, dirs), dtype=float)
+    c = np.ascontiguousarray(_context(fitted, n, feed, dirs, tool_length), dtype=float)
     f = _frame_function(fitted.model)
     p = np.asarray(fitted.params.values, dtype=float)
     q = np.ascontiguousarray(q, dtype=float)
@@ -248,7 +263,7 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
                       flank_side: str = "outer", max_edge_factor: float = MAX_EDGE_FACTOR,
                       flank_levels: int | None = None, report=None,
                       normal: str = "surface", uncorrected: bool = True,
-                      progress=None, work_offset=None) -> SurfaceMap:
+                      progress=None, work_offset=None, tool_lengths=None) -> SurfaceMap:
     """The surface ``program`` cuts, with the deviation predicted by ``fitted`` (a FittedModel).
 
     program, compensated : paths of NC files (or :class:`ProgramPoints`); the compensated program
@@ -270,6 +285,9 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
         positions (its G54 ...), as compensate was given it: the model is evaluated at the machine
         positions and the map referenced to the deviation there (the part's datum); None: the
         program's coordinates are machine positions. The map is drawn in the program's frame.
+    tool_lengths : H number -> tool length, mm, as compensate was given them (``--tool-length``,
+        ``[tool_lengths]``): the model's Abbe arm at the blocks of that ``G43 H`` (None, or a tool
+        not listed: the machine's tool length, as compensate assumes).
     Raises InputError for programs without a surface or a compensated program that does not match.
     """
     radius, length = _tool(program, tool_radius_mm, flank_length_mm)
@@ -295,23 +313,30 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
     # referenced to the part's datum, as compensate references its corrections: the program's
     # origin (its work offset, else the machine zero), where the machinist probed the part; the
     # model evaluated at machine positions
+    length_of = tool_lengths_of(orig, machine, tool_lengths)
+    if tool_lengths is not None and orig.tool is not None:
+        used = set(np.unique(np.asarray(orig.tool)[sel]).tolist()) - {0}
+        info["tools_assumed"] = sorted(used - set(tool_lengths))
+    lengths = length_of[sel]
+    each, which = np.unique(lengths, return_inverse=True)      # a program has a tool or a few
+    datum_dev = fitted.datum_deviation(np.repeat(off[None, :], each.size, axis=0), each)
     nominal = (tool2wp(machine, orig.q[sel] + off)[:, :3, 3] + g.offset[first]
-               + fitted.datum_deviation(off[None, :], machine.tool_length))
+               + datum_dev[which.ravel()])
     say(f"deviation at {sel.size} points")
     dev_before = predicted_points(fitted, orig.q[sel] + off, orig.feed[sel], orig.dirs[sel],
-                                  offset_tool) - nominal
+                                  offset_tool, lengths) - nominal
     dev_after = None
     if comp is not None:
         say(f"deviation after compensation at {sel.size} points")
         j = pair[sel]
         dev_after = predicted_points(fitted, comp.q[j] + off, comp.feed[j], comp.dirs[j],
-                                     offset_tool) - nominal
+                                     offset_tool, lengths) - nominal
     status, source = None, ""
     if report is not None:
         status, source = report_status(report, len(orig))[sel], "report"
     elif uncorrected and hasattr(fitted, "support"):
         say(f"finding the blocks the planner leaves uncorrected ({sel.size} points)")
-        status, source = planner_status(fitted, orig, sel, off), "planner"
+        status, source = planner_status(fitted, orig, sel, off, length_of), "planner"
     notes = [info.pop("left_out")] if "left_out" in info else []
     if kind == "surface" and length == 0 and g.normals.size and _along_tool_axis(machine, orig, g, info):
         notes.append("the normals all lie along the tool axis (a flat or 2-D program): the map "
@@ -422,6 +447,12 @@ def _cut_geometry(orig: ProgramPoints, machine: Machine, radius: float, length: 
     if normal == "path":
         g, segments = path_line_geometry(orig, machine)
         return g, segments, info, "path"
+    if g is None and normal == "auto" and _tool_axis_turns(orig, machine):
+        # a tool that tilts against the part (5-axis) cuts no surface seen along one axis: a
+        # triangulation of its tips across Z would map a deviation along Z that nothing cuts
+        info["path_segments"] = "tool axis"
+        g, segments = path_line_geometry(orig, machine)
+        return g, segments, info, "path"
     if g is None:
         try:
             g, info["steep_triangles"] = tip_geometry(orig, machine, radius, max_edge_factor)
@@ -436,13 +467,28 @@ def _cut_geometry(orig: ProgramPoints, machine: Machine, radius: float, length: 
     return g, segments, info, kind
 
 
+def _tool_axis_turns(orig: ProgramPoints, machine: Machine, limit_deg: float = 1.0) -> bool:
+    """Whether the tool axis, seen from the workpiece, turns while the tool cuts: on at least a
+    tenth of the feed moves, by more than ``limit_deg`` over them all (simultaneous 5-axis). A 3+2
+    program, whose rotary axes index between faces, keeps it fixed while it cuts each face."""
+    feed = np.flatnonzero(~orig.rapid)
+    feed = feed[feed > 0]
+    if feed.size < 2:
+        return False
+    start = forward(machine, orig.q[feed - 1])[1]
+    end = forward(machine, orig.q[feed])[1]
+    turn = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", start, end), -1.0, 1.0)))
+    spread = np.degrees(np.arccos(np.clip(end @ end[0], -1.0, 1.0))).max()
+    return bool(np.mean(turn > 1e-3) >= 0.1 and spread > limit_deg)
+
+
 def _rows(orig: ProgramPoints, rows: np.ndarray) -> ProgramPoints:
     """The program's segment ends ``rows`` only (in order), as a program of their own."""
     def take(a):
         return None if a is None else np.asarray(a)[rows]
     return ProgramPoints(orig.path, orig.q[rows], orig.line[rows], orig.feed[rows], orig.dirs[rows],
                          orig.rapid[rows], take(orig.known), take(orig.cycle), take(orig.tcp),
-                         orig.dialect, orig.chord_tol_mm)
+                         orig.dialect, orig.chord_tol_mm, tool=take(orig.tool))
 
 
 def _lines_text(lines) -> str:
@@ -475,11 +521,13 @@ def report_status(report, n: int) -> np.ndarray:
     return status
 
 
-def planner_status(fitted, orig: ProgramPoints, sel: np.ndarray, work_offset=None) -> np.ndarray:
+def planner_status(fitted, orig: ProgramPoints, sel: np.ndarray, work_offset=None,
+                   tool_length=None) -> np.ndarray:
     """(len(sel),) int8 :data:`STATUS_REASONS`: which of the blocks ``sel`` the planner would leave
     uncorrected under the model's and the machine's defaults (no --extrapolate, the default limit on
     a correction's standard error), by the planner's own rules, the part's datum at the program's
-    origin as render takes it (``work_offset`` (na,): its machine position; None: machine zero)."""
+    origin as render takes it (``work_offset`` (na,): its machine position; None: machine zero),
+    ``tool_length`` (len(orig),) mm per segment end (None: the machine's)."""
     from ..planner import CompensationProblem, Planner, PlannerOptions
     planner = Planner(CompensationProblem.from_machine(fitted), PlannerOptions(threads=1))
     off = _work_offset(fitted.machine, work_offset)
@@ -493,10 +541,13 @@ def planner_status(fitted, orig: ProgramPoints, sel: np.ndarray, work_offset=Non
     extent = max(float(np.max(np.ptp(q[:, ~rotary], axis=0))) if q.size and (~rotary).any() else 0.0,
                  1e-3)
     step = np.where(rotary, np.radians(0.1), extent / 100.0)
-    key = np.column_stack([np.round(q / step), orig.dirs[sel], known])
+    lengths = (np.full(len(orig), float(fitted.machine.tool_length)) if tool_length is None
+               else np.asarray(tool_length, dtype=float))[sel]
+    key = np.column_stack([np.round(q / step), orig.dirs[sel], known, lengths])
     _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
     _, _, sd = planner.block_status(q[first], known[first], orig.feed[sel][first], orig.dirs[sel][first],
-                                    datum=np.broadcast_to(off, q[first].shape))
+                                    datum=np.broadcast_to(off, q[first].shape),
+                                    tool_length=lengths[first])
     sd = sd[inverse.ravel()]
     status = np.zeros(q.shape[0], np.int8)
     limit = planner.options.max_correction_sd_um
