@@ -76,6 +76,10 @@ def test_identify_prints_components_and_per_target_table_not_parameter_rows(x_la
     for comp in ("EYX", "EZX", "EAX", "EBX", "ECX"):
         assert re.search(rf"{comp}\s+range not measured: held at zero", out), out
     assert re.search(r"C0Y\s+not determined by the data", out)
+    # and how many such rows there are, with what the data may still determine: their combinations
+    n_open = len(re.findall(r"not determined by the data$", out, re.M))
+    assert n_open > 0
+    assert f"{n_open} of these are not determined by the data alone; combinations" in out
     assert "axes the data did not move: Y, Z" in out
     # no parameter rows, no null space: only their count
     assert "EXX_b1" not in out and "undeterm." not in out

@@ -315,6 +315,14 @@ def component_lines(fitted: FittedModel, undetermined: Undetermined | None = Non
         for v in fitted_values:
             lines.append(f"    {v.meaning:<36} {v.name:<5} {_pm(v.value, v.sd, v.status, v.unit)}")
     lines += [f"  {n}" for n in notes]
+    open_ = sum(r.status == "undetermined" for r in ranges) + \
+        sum(v.status == "undetermined" for v in fitted_values)
+    if open_:
+        # each alone: the data may still fix a combination of them (a squareness with a
+        # straightness, an axis's tilt with another's), which predictions use
+        lines.append(f"  {open_} of these are not determined by the data alone; combinations of "
+                     "them may be, and predictions use those (--verbose lists the parameters "
+                     "and the combinations the data leave open)")
     return lines
 
 
