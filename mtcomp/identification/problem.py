@@ -64,6 +64,12 @@ class FitProblem:
     removed: list = field(default_factory=list)
     context_defaults: dict = field(default_factory=dict)
 
+    def __post_init__(self):
+        # readings a fit cannot take (a ball bar's deviation in um under length_mm) are refused
+        # before any fit, identify's and diagnose's alike
+        for m in self.measurements:
+            m.check_readings()
+
     @classmethod
     def from_data(cls, machine_or_model, datasets, *, free=None, hold=(), initial=None, weights="unit",
                   context_defaults=None, known_setup=(), outliers="keep", penalty=True,

@@ -437,6 +437,10 @@ class MeasurementModel:
         """(n_obs,) observed minus predicted, internal units."""
         return self.observed - self.predict(p, nuisance)
 
+    def check_readings(self) -> None:
+        """InputError for readings a fit cannot take as they are (e.g. a ball bar's length that is
+        no length); nothing for most kinds. Called before a fit, not for predictions."""
+
     def context(self) -> np.ndarray:
         """(n_rows, n_context) context of the file's rows."""
         return context_matrix(self.model, self.data, self.context_defaults, self.machine,
@@ -707,6 +711,11 @@ class LaserModel(MeasurementModel):
 
 
 # ------------------------------------------------------------------------------------- ballbar
+#: a ball-bar reading further than this from the distance of the balls at its nominal pose is no
+#: bar length (a machine's errors and a bar's calibration are micrometres to a tenth of a millimetre)
+BAR_LENGTH_TOLERANCE_MM = 1.0
+
+
 @register
 class BallbarModel(MeasurementModel):
     """Ball-bar files (docs/measurements.md): centre distance of table ball and tool ball, plus a
@@ -728,6 +737,22 @@ class BallbarModel(MeasurementModel):
         self.nuisance_specs = [] if self._calibrated else [
             ParamSpec(f"{self.tag}:length_offset", "um", f"nuisance:{self.tag}", False,
                       f"length calibration offset of the ball bar of {self.tag}")]
+
+    def check_readings(self) -> None:
+        """InputError for a reading that is no bar length: further than
+        :data:`BAR_LENGTH_TOLERANCE_MM` from the distance of the balls at the row's nominal pose
+        (a deviation in um entered under ``length_mm``, a length in inches). Called before a fit
+        (predict takes any placeholder)."""
+        length = np.asarray(self.data.length, dtype=float)
+        nominal = self._lengths(np.zeros(self.model.n_params), False)[0]
+        with np.errstate(invalid="ignore"):
+            far = np.flatnonzero(np.abs(length - nominal) > BAR_LENGTH_TOLERANCE_MM)
+        if far.size:
+            i = int(far[0])
+            raise InputError(f"length_mm {length[i]:g} is {abs(length[i] - nominal[i]):.4g} mm from "
+                             f"the distance of the balls there ({nominal[i]:.4f} mm): length_mm is "
+                             "the bar's length in mm (its nominal length plus the reading, not the "
+                             "deviation in um)", self.data.path, row=int(self.data.row[i]))
 
     def _offset(self, nuisance) -> float:
         return 0.0 if self._calibrated else nuisance[0]
