@@ -204,3 +204,20 @@ def test_an_arc_kept_within_a_larger_tolerance_says_how_far_it_misses(tmp_path, 
     if noted:
         miss = float(notes[0].split("by up to ")[1].split(" um")[0])
         assert 0.5 < miss <= 25.0, notes[0]
+
+
+def test_the_pecking_cycle_in_the_tnc_english_dialogue_reads_as_the_short_words(tmp_path):
+    """CYCL DEF 1.1 SET UP and 1.3 PECKG (the TNC's English dialogue, as NX's Heidenhain posts
+    write them) are the set-up clearance and the plunging depth of DIST and PLNGNG: the same
+    hole (by hand above: from Z+5 down by 2 and 10 to Z-7) and, written back, the words kept."""
+    english = PROGRAM.replace("1.1 DIST2", "1.1 SET UP 2").replace("1.3 PLNGNG3", "1.3 PECKG 3")
+    assert english != PROGRAM
+    p = _write(tmp_path, english)
+    hole = next(b for b in read_program(p, XFYZ).blocks if b.line == 17)
+    assert hole.cycle.r_level == 5.0 and hole.points.tolist() == [[60, 10, -7]]
+    # corrected, the hole's start level moves with Z as with the short words; the rest is kept
+    out = tmp_path / "o.h"
+    write_corrected(p, out, XFYZ, _shifted(p, np.array([0.001, -0.002, 0.003])))
+    lines = out.read_text().splitlines()
+    assert lines[11] == "11 CYCL DEF 1.1 SET UP 2" and lines[13] == "13 CYCL DEF 1.3 PECKG 3"
+    assert lines[16] == "16 L X+50.0010 Y+9.9980 FMAX M99"

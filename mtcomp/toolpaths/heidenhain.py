@@ -354,12 +354,16 @@ class _Reader:
             self.shift[i] = self.shift[i] + v if inc else v
 
     def _pecking(self, part: int, tail: str, k: int) -> None:
-        names = {1: "DIST", 2: "DEPTH", 3: "PLNGNG", 4: "DWELL", 5: "F"}
+        # the words of each part: the TNC's English dialogue (SET UP, PECKG: HEIDENHAIN TNC 426
+        # User's Manual, Cycle 1 PECKING) and the shorter forms of other posts (DIST, PLNGNG)
+        names = {1: ("DIST", "SET UP"), 2: ("DEPTH",), 3: ("PLNGNG", "PECKG"), 4: ("DWELL",),
+                 5: ("F",)}
         if part == 0:
             self.cycle_def, self.cycle = {}, None
             return
-        name = names.get(part)
-        m = re.fullmatch(name + r"\s*(" + _NUMBER + ")", tail) if name else None
+        words = names.get(part)
+        name = words[0] if words else None
+        m = re.fullmatch("(?:" + "|".join(words) + r")\s*(" + _NUMBER + ")", tail) if words else None
         if m is None:
             raise self.err(f"CYCL DEF 1.{part} {tail[:30]!r} is not read", k)
         self.cycle_def[name] = _num(m.group(1))
