@@ -422,11 +422,13 @@ def _thermal_model(fitted, settings: CompensationSettings, series=None) -> tuple
     runs is not known, so the drift terms correct nothing (the model's reference temperatures are
     the mean over its record, not the machine's state now: they would correct a drift nobody
     measured, about 10 um on the real record)."""
-    from .thermal.context import has_tip_drift
+    from .thermal.context import TIME_DRIVEN, has_tip_drift, time_driven
     given = bool(settings.temperatures) or settings.spindle_rpm is not None or series is not None
     if given or not has_tip_drift(fitted.model):
         # a copy of what the thermal state is written into: the caller's model is not changed
         return replace(fitted, context_defaults=dict(fitted.context_defaults)), ""
+    if time_driven(fitted.model):
+        return fitted.without_drift(), f"thermal drift not compensated: {TIME_DRIVEN}"
     return fitted.without_drift(), ("thermal drift not compensated: no temperature or spindle speed "
                                     "given, so the machine's thermal state is not known (give "
                                     "--temperature, --temperatures or --spindle-rpm)")

@@ -15,6 +15,7 @@ import numpy as np
 from ..errors import InputError
 
 _LAG = re.compile(r"^spindle_(lag|heat)_\d+(\.\d+)?$")
+_TIME = re.compile(r"^time_(h|exp_\d+)$")
 _TEMP_COLUMN = re.compile(r"^temp_(.+)_c$")
 
 
@@ -103,6 +104,21 @@ def has_tip_drift(model) -> bool:
     return bool(_drift_terms(model)[0])
 
 
+def time_driven(model) -> bool:
+    """The model's tool-tip drift reads time alone (a steady ``time_h`` or settling ``time_exp_<tau>``
+    drift since its thermal record began): no temperature or spindle speed moves it."""
+    features = [f for t in _drift_terms(model)[0] for f in t.features]
+    return bool(features) and all(_TIME.match(f) for f in features)
+
+
+#: the sentence for a drift in time: compensate is told no time, and nothing else moves it
+TIME_DRIVEN = ("the model's thermal drift is a drift in time since its thermal record began (diagnose "
+               "chose a steady or settling drift in time): when in that time a program runs is not "
+               "known, and no temperature or spindle speed moves it, so compensate does not correct "
+               "it (diagnose's report lists the drift models it compared: one driven by "
+               "temperatures or spindle speed is one compensate can follow)")
+
+
 def _drift_terms(model):
     from ..models.terms import ChannelDrift, ThermalDrift
     tip = [t for t in model.terms if isinstance(t, ThermalDrift)]
@@ -163,6 +179,8 @@ def thermal_context(fitted, temperatures: dict | None = None, spindle_rpm: float
     ranges = fitted.info.get("context_ranges") if isinstance(fitted.info, dict) else None
     ranges = ranges if isinstance(ranges, dict) else None
     out, beyond = {}, {}
+    if given and time_driven(fitted.model):
+        raise InputError(f"a temperature or spindle speed was given, but {TIME_DRIVEN}", source)
     for sensor, v in (temperatures or {}).items():
         if sensor not in temps:
             raise InputError(f"temperature {sensor}: the model has no drift term that reads that "
