@@ -368,3 +368,13 @@ def test_a_program_with_no_corrected_block_has_no_remaining_error(tmp_path):
     rows = [r for r in _rows(out / "results.csv") if r["program"].endswith("x.nc")]
     assert rows and all(r["status"] == "ok" and r["corrected_blocks"] == "0" for r in rows)
     assert all(r["rms_after_um"] == "" and r["plan_rms_after_um"] == "" for r in rows)
+
+
+def test_plot_legends_name_programs_by_file_name_where_that_tells_them_apart():
+    from mtcomp.study.plots import _case_label
+    cases = [("/shop/jobs/a/PART.MPF", "m.json", "qp", ""), ("/shop/jobs/b/BRACKET.MPF", "m.json", "qp", "")]
+    assert [_case_label(c, cases) for c in cases] == ["PART.MPF", "BRACKET.MPF"]
+    same = [("/shop/a/PART.MPF", "m.json", "qp", ""), ("/shop/b/PART.MPF", "m.json", "qp", "")]
+    assert [_case_label(c, same) for c in same] == ["/shop/a/PART.MPF", "/shop/b/PART.MPF"]
+    methods = [("/shop/a/PART.MPF", "m.json", "qp", ""), ("/shop/a/PART.MPF", "m.json", "casadi", "")]
+    assert [_case_label(c, methods) for c in methods] == ["PART.MPF, qp", "PART.MPF, casadi"]

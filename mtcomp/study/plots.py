@@ -56,8 +56,12 @@ def _case(r) -> tuple:
 
 
 def _case_label(case, cases) -> str:
-    """The parts of ``case`` that differ between ``cases``, joined (the program at least)."""
-    parts = [case[0]] + [v for k, v in enumerate(case[1:], 1) if len({c[k] for c in cases}) > 1]
+    """The parts of ``case`` that differ between ``cases``, joined (the program at least, by its
+    file name where the names tell the programs apart: a legend of absolute paths is unreadable)."""
+    names = {Path(str(c[0])).name for c in cases}
+    programs = {str(c[0]) for c in cases}
+    program = Path(str(case[0])).name if len(names) == len(programs) else str(case[0])
+    parts = [program] + [v for k, v in enumerate(case[1:], 1) if len({c[k] for c in cases}) > 1]
     return ", ".join(parts)
 
 
