@@ -16,6 +16,7 @@ from mtcomp.toolpaths.gcode import iter_segment_chunks, read_program, write_corr
 from mtcomp.toolpaths.sinumerik import translate
 from replay import Tolerance
 from test_gcode_corpus import _machine_file, _model_file
+from test_toolpaths_sinumerik_840d import compensated
 
 HEAD = "%_N_PATHS_MPF\n;$PATH=/_N_MPF_DIR\n"
 
@@ -200,11 +201,7 @@ def test_a_circle_by_radius_compensated_against_the_replay(tmp_path, capsys):
             "N50 G1 Z-1 F100\nN60 G3 X0 Y10 CR=10\nN70 G2 X-10 Y20 CR=-10\nN80 G1 X-20\n"
             "N90 G0 Z5\nM30\n")
     src = _write(tmp_path, body)
-    machine = _machine_file(tmp_path, "XFYZ")
-    out = tmp_path / "out.mpf"
-    code = main(["compensate", str(machine), str(_model_file(tmp_path, machine, factor=5.0)),
-                 str(src), "-o", str(out), "--chord-tol-um", "5", "--units", "mm"])
-    assert code == 0, capsys.readouterr().err
+    out = compensated(tmp_path, capsys, src, "XFYZ", 5.0, "--units", "mm")
     replay_sinumerik.compare(src.read_bytes(), out.read_bytes(),
                              Tolerance(axis_mm=0.06, axis_deg=0.1, path_mm=0.1), name="cr")
     text = out.read_text(encoding="latin-1")

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 from ..errors import InputError
 from .heidenhain import read_lines
+from .words import MM_PER_INCH
 from .sinumerik_lang import (ExpressionError, Word, code_end, evaluate, split_arguments,
                              split_words)
 from .sinumerik_paths import (FRAME_WORDS, MACHINE_G, SETTING_CALLS, SETTING_VALUES,
@@ -35,7 +36,11 @@ _DEF = re.compile(r"(?i)\s*DEF\s+(REAL|INT|BOOL)\s+(.*)$")
 #: control (exact stop, continuous path and its smoothing: within a tolerance of the path as
 #: programmed), feed per minute, cutter radius compensation
 _MOTION_G = {0, 1, 2, 3}
-_PASSED_G = {17, 18, 19, 40, 41, 42, 90, 94, 71, 710}
+_PASSED_G = {17, 18, 19, 40, 41, 42, 90, 94, 70, 700, 71, 710}
+#: the units: G70 inch for the geometry (positions, centres, radii, TRANS), the feed in the basic
+#: system; G700 inch for the feed F too; G71, G710 metric (Fundamentals, "Dimensions in metric
+#: units and inches")
+_INCH_G = {70: (True, False), 700: (True, True), 71: (False, False), 710: (False, False)}
 _IGNORED_G = {9, 60, 64, 601, 602, 603} | SMOOTHING_G
 _REFUSED_WORDS = {
     "GOTO": "program jumps (GOTO)", "GOTOF": "program jumps (GOTOF)",
@@ -84,6 +89,7 @@ class GInfo:
     radius: float | None = None
     call: object = None
     pattern: object = None
+    inch: bool = False
 
 
 @dataclass
@@ -161,13 +167,16 @@ class _Reader:
         #: the programmable frame's translation TRANS/ATRANS (mm, X Y Z): the G-code equivalent's
         #: coordinates are the program's plus this shift
         self.shift = [0.0, 0.0, 0.0]
+        #: the units in force (G70/G700 inch, G71/G710 mm): of the geometry, of the feed F
+        self.inch = False
+        self.feed_inch = False
         self.k = 0
 
     def err(self, message: str) -> InputError:
         return InputError(message + " (Sinumerik)", self.path, line=self.k + 1)
 
     def emit(self, text: str, kind=None, **kw) -> GInfo:
-        info = GInfo(self.k, kind, shift=tuple(self.shift), **kw)
+        info = GInfo(self.k, kind, shift=tuple(self.shift), inch=self.inch, **kw)
         self.out.gcode.append(text)
         self.out.lines.append(info)
         self.out.line_map.append(self.k + 1)
@@ -377,9 +386,8 @@ class _Reader:
                     self.wcs = code
                     self.pos = dict.fromkeys(AXES)
                     self._basic_frame()
-            elif code in (70, 700):
-                raise self.err("inch programs (G70, G700) are not read by mtcomp's Sinumerik "
-                               "dialect")
+            elif code in _INCH_G:
+                self._units(*_INCH_G[code])
             elif code == 91:
                 raise self.err("incremental dimensions G91 are not read by mtcomp's Sinumerik "
                                "dialect")
@@ -401,7 +409,33 @@ class _Reader:
         self.emit("G59.3")
 
     def _g_codes(self, g: list[int]) -> str:
-        return " ".join("G21" if c in (71, 710) else f"G{c}" for c in g if c in _PASSED_G)
+        return " ".join("G20" if c in (70, 700) else "G21" if c in (71, 710) else f"G{c}"
+                        for c in g if c in _PASSED_G)
+
+    def _units(self, inch: bool, feed_inch: bool) -> None:
+        """G70, G700, G71, G710: the G-code equivalent says G20 or G21 and keeps the program's
+        numbers; the positions and the programmable offset carried here are turned into the new
+        units (the tool stays where it is). Under G70 the feed is the basic system's, taken as
+        metric (the manual's setting): written in inch/min for the G-code equivalent."""
+        if inch != self.inch:
+            if self.modal_call is not None:
+                raise self.err("a change of units (G70, G71, G700, G710) under a modal call "
+                               "(MCALL) is not read by mtcomp")
+            f = 1.0 / MM_PER_INCH if inch else MM_PER_INCH
+            for a in "XYZ":
+                if self.pos[a] is not None:
+                    self.pos[a] *= f
+            self.shift = [v * f for v in self.shift]
+            self.inch = inch
+            self.out.inch = self.out.inch or inch
+        self.feed_inch = feed_inch
+
+    def _feed(self, other: set) -> str:
+        """The block's feed word for the G-code equivalent (mm/min, or inch/min under G20)."""
+        feed = [o for o in sorted(other) if o.startswith("F")]
+        if feed and self.inch and not self.feed_inch:
+            return f"F{float(feed[0][1:]) / MM_PER_INCH:.15g}"
+        return " ".join(feed)
 
     def _target(self, axes: dict) -> dict:
         return {a: self.value(w.text) for a, w in axes.items()}
@@ -420,7 +454,7 @@ class _Reader:
     def _move(self, g, axes, centre, other) -> None:
         self._check_axis_words(axes)
         codes = self._g_codes(g)
-        feed = " ".join(o for o in sorted(other) if o.startswith("F"))
+        feed = self._feed(other)
         if self.motion in (2, 3) and (axes or centre):
             self._arc(axes, centre, codes, feed)
             return
@@ -458,7 +492,7 @@ class _Reader:
             raise self.err("a block in machine coordinates (SUPA, G53, G153) under a modal call "
                            "(MCALL) is not read by mtcomp")
         codes = self._g_codes(g)
-        feed = " ".join(o for o in sorted(other) if o.startswith("F"))
+        feed = self._feed(other)
         if not axes:
             text = " ".join(t for t in (codes, feed) if t)
             if text:
@@ -500,7 +534,8 @@ class _Reader:
                                "by mtcomp")
             radius = self.value(centre["CR"].text)
             try:
-                c = radius_centre((sx, sy), (end["X"], end["Y"]), radius, self.motion == 3)
+                c = radius_centre((sx, sy), (end["X"], end["Y"]), radius, self.motion == 3,
+                                  MM_PER_INCH if self.inch else 1.0)
             except RadiusError as exc:
                 raise self.err(str(exc)) from None
         else:

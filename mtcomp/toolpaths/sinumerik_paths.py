@@ -41,23 +41,25 @@ class RadiusError(ValueError):
     """A circle given by CR= that no controller can make (the message says why)."""
 
 
-def radius_centre(start, end, radius: float, ccw: bool) -> tuple[float, float]:
+def radius_centre(start, end, radius: float, ccw: bool, scale: float = 1.0) -> tuple[float, float]:
     """The centre (x, y) of the circle from ``start`` to ``end`` (x, y) of radius ``|radius|``,
     counter-clockwise (G3) or clockwise (G2); a positive radius turns at most 180 degrees, a
     negative one more (Fundamentals, circular interpolation with radius and end point): the rule
     of an R arc (:func:`~._arcs.centre_from_radius`, with its tolerance on a half circle whose
-    chord is a little longer than the diameter), with Sinumerik's messages."""
+    chord is a little longer than the diameter), with Sinumerik's messages. ``scale``: mm per
+    unit of the values (25.4 in inch: the tolerance is in mm)."""
     from ._arcs import ARC_RADIUS_TOL_MM, ARC_RADIUS_TOL_REL, centre_from_radius
-    s, e = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
+    s, e = np.asarray(start, dtype=float) * scale, np.asarray(end, dtype=float) * scale
     half = 0.5 * math.hypot(*(e - s))
     if half <= 5e-10:
         raise RadiusError("a circle by its radius CR= that ends where it starts (a full circle is "
                           "programmed with its centre)")
-    if half - abs(radius) > max(ARC_RADIUS_TOL_MM, ARC_RADIUS_TOL_REL * abs(radius)):
-        raise RadiusError(f"CR={abs(radius):g} is smaller than half the chord ({half:.6g} mm) to "
-                          "its end point")
-    cx, cy = centre_from_radius(s, e, radius, ccw)
-    return float(cx), float(cy)
+    if half - abs(radius) * scale > max(ARC_RADIUS_TOL_MM, ARC_RADIUS_TOL_REL * abs(radius) * scale):
+        unit = "in" if scale != 1.0 else "mm"
+        raise RadiusError(f"CR={abs(radius):g} is smaller than half the chord ({half / scale:.6g} "
+                          f"{unit}) to its end point")
+    cx, cy = centre_from_radius(s, e, radius * scale, ccw)
+    return float(cx) / scale, float(cy) / scale
 
 
 def signed_radius(start, end, centre, ccw: bool) -> float:

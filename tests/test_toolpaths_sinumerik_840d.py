@@ -1,0 +1,126 @@
+"""The Sinumerik 840D constructs of real programs that mtcomp once refused (mtcomp.toolpaths:
+sinumerik, sinumerik_out): inch programs (G70, G700, back to G71, G710), against hand-derived
+values and the independent replay of tests/replay_sinumerik.py, on both readers."""
+import numpy as np
+import pytest
+
+import replay_sinumerik
+from mtcomp.cli import main
+from mtcomp.machine import load_machine
+from mtcomp.toolpaths.gcode import iter_segment_chunks, read_program, write_corrected
+from mtcomp.toolpaths.sinumerik import translate
+from mtcomp.toolpaths.source import open_program
+from replay import Tolerance
+from test_gcode_corpus import _machine_file, _model_file
+from test_toolpaths_gcode import gcode_path  # noqa: F401 (autouse: both readers, every test)
+
+HEAD = "%_N_PART_MPF\n;$PATH=/_N_MPF_DIR\n"
+
+
+def _write(tmp_path, body: str, name="p.mpf"):
+    path = tmp_path / name
+    path.write_bytes((HEAD + body).encode("latin-1"))
+    return path
+
+
+def _moved(path, shift, machine="xfyz", chord_tol_mm=0.001):
+    """The program written with every point moved by ``shift`` (na,) mm: its lines."""
+    m = load_machine(machine)
+    out = path.parent / "out.mpf"
+
+    def chunks():
+        for chunk in iter_segment_chunks(path, m, chord_tol_mm):
+            yield chunk, chunk.end + np.asarray(shift), np.ones(len(chunk), np.int64)
+    write_corrected(path, out, m, chunks(), chord_tol_mm=chord_tol_mm)
+    return out.read_text(encoding="latin-1").splitlines()
+
+
+def compensated(tmp_path, capsys, src, topology="XFYZ", factor=1.0, *flags):
+    """The output of ``mtcomp compensate`` of ``src`` on a machine of ``topology`` with the
+    corpus's random model ``factor`` times its size, --chord-tol-um 5 (asserting exit 0)."""
+    machine = _machine_file(tmp_path, topology)
+    out = tmp_path / "out.mpf"
+    code = main(["compensate", str(machine), str(_model_file(tmp_path, machine, factor=factor)),
+                 str(src), "-o", str(out), "--chord-tol-um", "5", *flags])
+    assert code == 0, capsys.readouterr().err
+    capsys.readouterr()
+    return out
+
+
+# ---------------------------------------------------------------------------- inch programs
+INCH = """N10 G17 G90 G70 G94 G54
+N20 T1 M6
+N30 G0 X1. Y2. Z.5
+N40 G1 Z-.1 F20.
+N50 X3.25 Y2.
+N60 G2 X4.25 Y3. I=AC(3.25) J=AC(3.)
+N70 G3 X5.25 Y2. CR=1.
+N80 G700 G1 X6.125 F10.
+N90 TRANS X1.
+N100 G71 G1 X200. Y50.
+N110 TRANS
+N120 G0 Z20.
+N130 M30
+"""
+
+
+def test_an_inch_program_is_read_in_inches_and_the_feed_of_g70_in_mm(tmp_path):
+    # by hand: G70 gives the lengths in inch (X1 = 25.4 mm); the feed F20 of G70 is the basic
+    # system's, mm/min, while G700 makes F10 inch/min (254 mm/min); the circles are about
+    # (3.25, 3) in and (5.25, 3) in (CR=1 from (4.25, 3) to (5.25, 2): the chord's middle
+    # (4.75, 2.5) plus 0.5 sqrt(2) to its left, (0.5, 0.5)); TRANS X1 (inch) shifts N100's X by
+    # 25.4 mm, and after G71 the numbers are mm
+    blocks = read_program(_write(tmp_path, INCH), load_machine("xfyz")).blocks
+    ends = [b.end.tolist() for b in blocks]
+    np.testing.assert_allclose(ends, [
+        [25.4, 50.8, 12.7], [25.4, 50.8, -2.54], [82.55, 50.8, -2.54], [107.95, 76.2, -2.54],
+        [133.35, 50.8, -2.54], [155.575, 50.8, -2.54], [225.4, 50.0, -2.54],
+        [225.4, 50.0, 20.0]], rtol=0, atol=1e-9)
+    np.testing.assert_allclose([b.centre[:2] for b in blocks[3:5]],
+                               [[82.55, 76.2], [133.35, 76.2]], rtol=0, atol=1e-9)
+    np.testing.assert_allclose([b.feed for b in blocks[1:7]],
+                               [20.0, 20.0, 20.0, 20.0, 254.0, 254.0], rtol=1e-12, atol=0)
+
+
+def test_an_inch_program_is_written_in_inches_with_five_decimals(tmp_path):
+    # every point moved by (+0.0254, -0.01, +0.002) mm: +0.001 in, -0.000394 in, +0.0000787 in
+    # (5 decimals: +0.00100, -0.00039, +0.00008); the circle's absolute centre moves with them,
+    # its CR=1. stays (the circle through the moved ends about the moved centre has radius 1 in);
+    # after G71 the words are mm again with 4 decimals (TRANS's inch offset taken off)
+    lines = _moved(_write(tmp_path, INCH), [0.0254, -0.01, 0.002])
+    assert lines[2:] == [
+        "N10 G17 G90 G70 G94 G54", "N20 T1 M6", "N30 G0 X1.00100 Y1.99961 Z0.50008",
+        "N40 G1 Z-0.09992 F20.", "N50 X3.25100 Y1.99961",
+        "N60 G2 X4.25100 Y2.99961 I=AC(3.25100) J=AC(2.99961)",
+        "N70 G3 X5.25100 Y1.99961 CR=1.", "N80 G700 G1 X6.12600 F10.", "N90 TRANS X1.",
+        "N100 G71 G1 X200.0254 Y49.9900", "N110 TRANS", "N120 G0 Z20.0020", "N130 M30"]
+
+
+def test_a_change_of_units_under_a_modal_call_is_refused(tmp_path):
+    from mtcomp.errors import InputError
+    with pytest.raises(InputError, match="p.mpf:5: a change of units .* under a modal call"):
+        translate(_write(tmp_path, "N10 G0 X0 Y0 Z1\nN20 MCALL CYCLE81(1,0,.1,-.5)\nN30 G70\n"
+                                   "N40 X1\nN50 MCALL\nM30\n"))
+
+
+def test_a_compensated_inch_program_moves_like_its_source(tmp_path, capsys):
+    """compensate's output of an inch program with holes and circles, replayed independently (in mm,
+    tests/replay_sinumerik.py), moves like the source up to the correction; its words keep the
+    program's units (5 decimals in inch) and the hole's levels move in inch."""
+    body = ("N10 G17 G90 G70 G54\nN20 T1 M6\nN30 G0 X1. Y1. Z1.\nN40 G1 Z-.1 F20.\n"
+            "N50 G2 X2. Y2. CR=1.\nN60 G3 X3. Y1. I=AC(3.) J=AC(2.)\nN70 G0 Z.5\n"
+            "N80 MCALL CYCLE81(.5,0.,.1,-.3)\nN90 X4. Y1.\nN100 X5.\nN110 MCALL\n"
+            "N120 G71 G0 X200. Y0\nN130 G1 X250. F500.\nM30\n")
+    src = _write(tmp_path, body)
+    out = compensated(tmp_path, capsys, src, factor=3.0)
+    a, b = replay_sinumerik.compare(src.read_bytes(), out.read_bytes(),
+                                    Tolerance(axis_mm=0.05, axis_deg=0.1, path_mm=0.1), name="inch")
+    assert len(a) == len(b) == 15
+    # the correction is written (in inch: the ends differ by well under a thou)
+    moved = [max(abs(p.end[x] - q.end[x]) for x in "XYZ") for p, q in zip(a, b)]
+    assert 1e-4 < max(moved) < 0.05
+    text = {t.split()[0]: t for t in out.read_text(encoding="latin-1").splitlines()}
+    assert all(len(w.split(".")[1]) == 5 for w in text["N30"].split()[2:]), text["N30"]
+    assert text["N80"].startswith("N80 MCALL CYCLE81(.5,0.0000") and "-0.2999" in text["N80"]
+    # after G71 mm: 4 decimals
+    assert all(len(w.split(".")[1]) == 4 for w in text["N130"].split()[2:5]), text["N130"]
