@@ -124,3 +124,82 @@ def test_a_compensated_inch_program_moves_like_its_source(tmp_path, capsys):
     assert text["N80"].startswith("N80 MCALL CYCLE81(.5,0.0000") and "-0.2999" in text["N80"]
     # after G71 mm: 4 decimals
     assert all(len(w.split(".")[1]) == 4 for w in text["N130"].split()[2:5]), text["N130"]
+
+
+# ---------------------------------------------------------------------------- tools by name
+NAMED = """N10 G17 G90 G71 G54
+N20 T="DRILL 8.5" M6
+N30 G0 X10 Y10 Z50
+N40 G1 Z-5 F100
+N50 T="MILL 10"
+N60 G1 X20 D2
+N65 G1 Z-4
+N70 M6
+N80 G0 X0 Y0 Z20
+N90 T5 M6
+N100 G0 X1 Y1 Z5
+M30
+"""
+
+
+def _report(tmp_path, capsys, body, *flags):
+    """(BLOCKS.csv's lines, compensate's stdout) of the program ``body`` on the corpus machine."""
+    src = _write(tmp_path, body)
+    machine = _machine_file(tmp_path, "XFYZ")
+    report = tmp_path / "blocks.csv"
+    code = main(["compensate", str(machine), str(_model_file(tmp_path, machine, factor=3.0)),
+                 str(src), "-o", str(tmp_path / "out.mpf"), "--report", str(report), *flags])
+    out = capsys.readouterr()
+    assert code == 0, out.err
+    return report.read_text().splitlines(), out.out
+
+
+def test_a_tool_called_by_name_takes_the_length_given_by_its_name(tmp_path, capsys):
+    """The program with its tools by name and its twin with numbered tools (the length of H1,
+    H2 given instead) plan the same corrections, and so does the program that selects MILL 10
+    only before its change: N60's D2 is an edge of the tool in the spindle, DRILL 8.5
+    (T="MILL 10" only preselected the next one), so N65 is drilled with DRILL 8.5's length.
+    Without a length the model's error (its Abbe arm) is another, and the note names the tool."""
+    lengths = ["--tool-length", "DRILL 8.5=123.4", "--tool-length", "MILL 10=80",
+               "--tool-length", "H5=50"]
+    named, said = _report(tmp_path, capsys, NAMED, *lengths)
+    twin = NAMED.replace('T="DRILL 8.5"', "T1").replace('T="MILL 10"', "T2")
+    numbered, _ = _report(tmp_path, capsys, twin, "--tool-length", "H1=123.4", "--tool-length",
+                          "H2=80", "--tool-length", "H5=50")
+    late = NAMED.replace('N50 T="MILL 10"', "N50 ;").replace("N70 M6", 'N70 T="MILL 10" M6')
+    unselected, _ = _report(tmp_path, capsys, late, *lengths)
+    assert named == numbered == unselected and len(named) == 7
+    assert "assumed: tool length" not in said
+    short, said = _report(tmp_path, capsys, NAMED, "--tool-length", "H5=50")
+    by_line = {r.split(",")[0]: r.split(",")[9:12] for r in short[1:]}
+    for r in named[1:]:
+        line, err = r.split(",")[0], r.split(",")[9:12]
+        # the model's error before compensation: another where DRILL 8.5 is in the spindle
+        assert (by_line[line] == err) == (line in ("8", "13")), line     # N60 (Z unknown), N100
+    assert 'assumed: tool length of "MILL 10", "DRILL 8.5" = the machine\'s' in said
+
+
+@pytest.mark.parametrize("flag, words", [
+    ("DRILL 8.5", "write it as H1=82.35 (mm), or NAME=82.35"),
+    ("=12", "write it as H1=82.35"),
+    ("DRILL=-1", "tool length must be a number >= 0"),
+    ("H0=5", "'H0' is not a tool length number"),
+])
+def test_a_tool_length_flag_that_cannot_be_read_is_refused_in_one_line(tmp_path, capsys, flag,
+                                                                       words):
+    src = _write(tmp_path, NAMED)
+    machine = _machine_file(tmp_path, "XFYZ")
+    code = main(["compensate", str(machine), str(_model_file(tmp_path, machine)), str(src), "-o",
+                 str(tmp_path / "out.mpf"), "--tool-length", flag])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and words in err[0], err
+    assert not (tmp_path / "out.mpf").exists()
+
+
+def test_the_offsets_file_takes_a_tool_by_name(tmp_path):
+    from mtcomp.toolpaths.offsets import load_setup
+    path = tmp_path / "offsets.toml"
+    path.write_text('[tool_lengths]\nH1 = 82.35\n"DRILL 8.5" = 123.4\n')
+    setup = load_setup(load_machine("xfyz"), path, (), ["MILL 10=80"])
+    assert setup.tool_lengths == {1: 82.35}
+    assert setup.named_lengths == {"DRILL 8.5": 123.4, "MILL 10": 80.0}

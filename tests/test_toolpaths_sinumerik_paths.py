@@ -127,7 +127,8 @@ def test_a_circle_by_its_radius_has_the_centre_of_the_manual(tmp_path, move, cen
     ("ROT RPL=45", "a programmable frame (ROT with values)"),
     ("AROT Z45", "a programmable frame (AROT)"),
     ("ASCALE X2", "a programmable frame (ASCALE)"),
-    ('T="DRILL 8.5" M6', 'a tool called by name (T="...")'),     # a string's blank is its own
+    ('T="" M6', 'the tool name T="" is not read'),
+    ("T2.5 M6", "the tool number T2.5 is not a whole number"),
 ])
 def test_what_cannot_be_followed_is_refused_in_one_line(tmp_path, capsys, block, words):
     err = _refused(tmp_path, capsys, f"N10 G0 X0 Y0 Z0\nN20 {block}\nM30\n")

@@ -77,7 +77,9 @@ def add_arguments(parser):
                          "a work offset: where the program's zero sits in machine axis positions "
                          "(mm, deg; repeatable; wins over --offsets)")
     parser.add_argument("--tool-length", metavar="H1=L", action="append", default=[],
-                        help="length (mm) of the tool of G43 H1 (repeatable; wins over --offsets)")
+                        help="length (mm) of the tool of G43 H1, or of a tool a Sinumerik program "
+                             "calls by name: --tool-length \"DRILL 8.5=123.4\" for "
+                             "T=\"DRILL 8.5\" (repeatable; wins over --offsets)")
     parser.add_argument("--start-position", metavar="A=0,C=0", action="append", default=[],
                         help="axes that stand at a known position (program frame; mm, deg) before "
                              "the program starts, e.g. the rotary axes of a 5-axis machine that a "

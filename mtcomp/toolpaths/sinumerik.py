@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 from ..errors import InputError
 from .heidenhain import read_lines
-from .words import MM_PER_INCH
+from .words import MAX_TOOL, MM_PER_INCH
 from .sinumerik_lang import (ExpressionError, Word, code_end, evaluate, split_arguments,
                              split_words)
 from .sinumerik_paths import (FRAME_WORDS, MACHINE_G, SETTING_CALLS, SETTING_VALUES,
@@ -138,6 +138,9 @@ class Translation:
     patterns: list = field(default_factory=list)
     subprograms: list = field(default_factory=list)
     inch: bool = False
+    #: the tools called by name (``T="DRILL 8.5"``) -> the tool length number H that stands for
+    #: each in the G-code equivalent (its length: ``--tool-length "DRILL 8.5=L"``)
+    tool_names: dict = field(default_factory=dict)
 
 
 def fmt(v: float) -> str:
@@ -155,7 +158,8 @@ class _Reader:
         self.pos = dict.fromkeys(AXES)          # program frame (mm, deg); None: unknown
         self.motion: int | None = None
         self.plane = 17
-        self.tool = 0
+        self.tool: int | str = 0                # the tool T selects: a number or a name
+        self.active: int | str | None = None    # the tool M6 changed in (None: no M6 yet)
         self.edge = 1                           # the tool's cutting edge D in force (0: D0)
         self.wcs = 500                          # the basic setting: no settable work offset
         #: the G-code equivalent is in the basic frame (G500 named; before any work system is
@@ -299,7 +303,9 @@ class _Reader:
             # machine Y and Z, often X): every position is unknown until the program names it
             self.pos = dict.fromkeys(AXES)
             self.edge = 1                       # a new tool starts on its edge D1
-            self.emit(f"T{self.tool} M6 " + (f"G43 H{self.tool}" if self.tool else "G49"))
+            self.active = self.tool
+            h = self._length_number()
+            self.emit(f"T{h} M6 " + (f"G43 H{h}" if h else "G49"))
             self.emit("G43.1")
         if "END" in other:
             self.ended = True
@@ -346,16 +352,14 @@ class _Reader:
             elif w.kind == "address" and w.name == "M":
                 m = int(float(w.text))
                 other.add({6: "M6", 2: "END", 30: "END", 17: "END"}.get(m, f"M{m}"))
-            elif w.kind == "address" and w.name == "T":
-                self.tool = int(float(w.text))
+            elif w.kind in ("address", "assign") and w.name == "T":
+                self.tool = self._tool(w)
             elif w.kind == "address" and w.name == "D":
                 other.add(f"D{int(float(w.text))}")
             elif dwell and w.kind in ("address", "assign") and w.name in "FS":
                 other.add(f"dwell {w.name}{fmt(self.value(w.text))}")
             elif w.kind in ("address", "assign") and w.name == "F":
                 other.add(f"F{fmt(self.value(w.text))}")
-            elif w.kind == "assign" and w.name == "T":
-                raise self.err("a tool called by name (T=\"...\") is not read by mtcomp")
             elif w.kind == "assign" and w.name in SETTING_VALUES:
                 self.value(w.text)              # a smoothing distance: set, moves nothing
             elif w.kind == "assign" and w.name not in ("S", "M", "H"):
@@ -399,7 +403,34 @@ class _Reader:
             # another cutting edge (D0: none) is another tool length: Z unknown until named
             self.edge = edges[-1]
             self.pos["Z"] = None
-            self.emit(f"G43 H{self.tool}" if self.edge and self.tool else "G49")
+            h = self._length_number()
+            self.emit(f"G43 H{h}" if self.edge and h else "G49")
+
+    def _tool(self, w: Word) -> int | str:
+        """The tool a T word selects: ``T5``, ``T=5`` (a number) or ``T="DRILL 8.5"`` (a name, the
+        string's text; Fundamentals, tool change: tool selection by name or number)."""
+        text = w.text.strip()
+        if w.kind == "assign" and text.startswith('"'):
+            if len(text) < 3 or not text.endswith('"') or '"' in text[1:-1]:
+                raise self.err(f"the tool name T={text} is not read by mtcomp")
+            return text[1:-1]
+        number = self.value(text)
+        if number != int(number) or number < 0:
+            raise self.err(f"the tool number T{fmt(number)} is not a whole number")
+        return int(number)
+
+    def _length_number(self) -> int:
+        """The tool length number H of the G-code equivalent for the tool in the spindle (the
+        one M6 changed in; the one T selected before any M6): its number, or for a tool called
+        by name a number of its own (``Translation.tool_names``), counted down from the largest
+        (a program's numbered tools stay below them)."""
+        tool = self.tool if self.active is None else self.active
+        if isinstance(tool, int):
+            return tool
+        names = self.out.tool_names
+        if tool not in names:
+            names[tool] = MAX_TOOL - 1 - len(names)
+        return names[tool]
 
     def _basic_frame(self) -> None:
         """The basic frame G500 (no settable work offset) in the G-code equivalent: the work system
