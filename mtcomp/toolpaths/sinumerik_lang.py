@@ -33,6 +33,16 @@ _BINARY = {ast.Add: lambda a, b: a + b, ast.Sub: lambda a, b: a - b,
            ast.Mult: lambda a, b: a * b, ast.Div: lambda a, b: a / b}
 
 
+#: the axis letters of a Sinumerik program mtcomp reads
+AXES = "XYZABC"
+
+
+def fmt(v: float) -> str:
+    """A number of the G-code equivalent: up to 10 decimals, no trailing zeros (never -0)."""
+    s = f"{v:.10f}".rstrip("0").rstrip(".")
+    return "0" if s in ("-0", "") else s
+
+
 class ExpressionError(ValueError):
     """An expression that cannot be computed (the message says why)."""
 
