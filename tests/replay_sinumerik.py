@@ -17,7 +17,9 @@ feed to the depth (RFP-DPR when DPR is given, else DP), rapid to RTP; called onc
 STA1, FDIS, DBH, NUM)` on the line from (SPCA, SPCO) at STA1 degrees, FDIS to the first, DBH apart,
 the modal call at each.
 Path control and settings move nothing: `G64`, `G641`-`G645` with `ADIS=`, `SOFT`, `FFWON`,
-`COMPCAD`, `CYCLE832(...)`, `MSG("...")`, `G4 F..` are lines without motion. A circle by its radius
+`COMPCAD`, `CYCLE832(...)`, `MSG("...")`, `G4 F..` are lines without motion. A circle with
+`TURN=n` makes n full turns from its start, then the circle to its end point, Z going linearly with
+the angle over all of them (Fundamentals, helical interpolation). A circle by its radius
 `G2/G3 X.. Y.. CR=r` turns about the centre at distance |r| from both ends, on the left of the chord
 for G3 and r > 0 (the right for G2), on the other side for a negative r (more than 180 degrees).
 `TRANS X.. Y.. Z..` sets the programmable offset (the axes not given 0), `ATRANS` adds to it,
@@ -141,10 +143,11 @@ def _block(c, index, code):
         return True, []
     words = {a: v for a, v in _AXIS.findall(code)}
     radius = re.search(r"(?<![A-Z0-9_])CR\s*=\s*(\S+)", code)
-    if c.motion in (2, 3) and radius:
-        return True, [_radius_arc(c, index, words, c.length(radius.group(1)))]
-    if c.motion in (2, 3) and ("I" in words or "J" in words):
-        return True, [_arc(c, index, words)]
+    turns = re.search(r"(?<![A-Z0-9_])TURN\s*=\s*(\S+)", code)
+    if c.motion in (2, 3) and (radius or "I" in words or "J" in words):
+        move = (_radius_arc(c, index, words, c.length(radius.group(1))) if radius
+                else _arc(c, index, words))
+        return True, _turns(move, int(c.value(turns.group(1)))) if turns else [move]
     target = dict(c.pos)
     for a, v in words.items():
         target[a] = c.at(a, v)
@@ -205,6 +208,28 @@ def _arc(c, index, words):
         centre.append(c.at(a, m.group(1)) if m else s + c.length(v))
     c.pos = end
     return arc_move(index, start, end, centre, c.motion == 3)
+
+
+def _turns(move, n):
+    """A circle with n additional full turns (TURN=n): from its start n full turns, then the
+    circle to its end point, the axis off the plane and the radius going linearly with the angle
+    over all of them. n + 1 moves: each full turn one (its sweep 2 pi), then the circle's own."""
+    cx, cy = move.centre
+    r0 = math.hypot(move.start["X"] - cx, move.start["Y"] - cy)
+    r1 = math.hypot(move.end["X"] - cx, move.end["Y"] - cy)
+    a0 = math.atan2(move.start["Y"] - cy, move.start["X"] - cx)
+    total = abs(move.sweep) + 2 * math.pi * n
+    out, start = [], move.start
+    for k in range(1, n + 1):
+        u = 2 * math.pi * k / total
+        r = r0 + (r1 - r0) * u
+        end = dict(start, X=cx + r * math.cos(a0), Y=cy + r * math.sin(a0))
+        if move.start["Z"] is not None and move.end["Z"] is not None:
+            end["Z"] = move.start["Z"] + (move.end["Z"] - move.start["Z"]) * u
+        out.append(Move(move.line, "arc", start, end, 17, (cx, cy), math.copysign(2 * math.pi,
+                                                                                   move.sweep)))
+        start = end
+    return out + [arc_move(move.line, start, move.end, (cx, cy), move.sweep > 0)]
 
 
 def _radius_arc(c, index, words, r):

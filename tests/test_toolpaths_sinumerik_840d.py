@@ -24,13 +24,15 @@ def _write(tmp_path, body: str, name="p.mpf"):
 
 
 def _moved(path, shift, machine="xfyz", chord_tol_mm=0.001):
-    """The program written with every point moved by ``shift`` (na,) mm: its lines."""
+    """The program written with every point moved by ``shift`` (na,) mm, or by ``shift(points)``
+    (n, na) mm: its lines."""
     m = load_machine(machine)
     out = path.parent / "out.mpf"
+    move = shift if callable(shift) else (lambda p: np.asarray(shift))
 
     def chunks():
         for chunk in iter_segment_chunks(path, m, chord_tol_mm):
-            yield chunk, chunk.end + np.asarray(shift), np.ones(len(chunk), np.int64)
+            yield chunk, chunk.end + move(chunk.end), np.ones(len(chunk), np.int64)
     write_corrected(path, out, m, chunks(), chord_tol_mm=chord_tol_mm)
     return out.read_text(encoding="latin-1").splitlines()
 
@@ -203,3 +205,132 @@ def test_the_offsets_file_takes_a_tool_by_name(tmp_path):
     setup = load_setup(load_machine("xfyz"), path, (), ["MILL 10=80"])
     assert setup.tool_lengths == {1: 82.35}
     assert setup.named_lengths == {"DRILL 8.5": 123.4, "MILL 10": 80.0}
+
+
+# ---------------------------------------------------------------------------- TURN= helices
+THREAD = """N10 G0 X39 Y0 Z-8
+N20 G1 F100
+N30 G2 X39 Y0 Z-10 I=AC(0) J=AC(0) TURN=1
+N40 G0 X0 Y50 Z40
+N50 G3 X0 Y0 Z33 I0 J-25 TURN=3 F200
+N60 G0 Z50
+M30
+"""
+
+
+def test_a_helix_with_turns_is_read_as_half_turns_of_the_whole_helix(tmp_path):
+    # by hand: N30 is a full circle (its end is its start) and one turn more, 720 deg from Z-8 to
+    # Z-10: four half turns of 0.5 mm each about (0, 0); N50 (the manual's example) is half a
+    # circle about (0, 25) from (0, 50) to (0, 0) after three turns, 1260 deg from Z40 to Z33:
+    # seven half turns of 1 mm each
+    gcode = translate(_write(tmp_path, THREAD)).gcode
+    assert gcode[1:8] == ["F100", "G2 X-39 Y0 Z-8.5 I-39 J0", "G2 X39 Y0 Z-9 I39 J0",
+                          "G2 X-39 Y0 Z-9.5 I-39 J0", "G2 X39 Y0 Z-10 I39 J0",
+                          "G0 X0 Y50 Z40", "G3 X0 Y0 Z39 I0 J-25 F200"]
+    assert gcode[8:14] == [f"G3 X0 Y{50 * (k % 2 == 0)} Z{38 - k} I0 J{25 if k % 2 == 0 else -25}"
+                           for k in range(6)]
+
+
+def test_a_helix_with_turns_under_one_translation_keeps_its_turns(tmp_path):
+    # every point moved by (0.01, 0, 0.002): the helices are the nominal ones moved, TURN= stays
+    # and the end point and the absolute centre move (an incremental centre stays)
+    lines = _moved(_write(tmp_path, THREAD), [0.01, 0.0, 0.002])
+    assert lines[2:] == [
+        "N10 G0 X39.0100 Y0 Z-7.9980", "N20 G1 F100",
+        "N30 G2 X39.0100 Y0 Z-9.9980 I=AC(0.0100) J=AC(0) TURN=1", "N40 G0 X0.0100 Y50 Z40.0020",
+        "N50 G3 X0.0100 Y0 Z33.0020 I0 J-25 TURN=3 F200", "N60 G0 Z50.0020", "M30"]
+
+
+def test_a_helix_whose_correction_changes_along_its_turns_is_written_as_half_turns(tmp_path):
+    """X moved by 1e-4 z (-0.8 um at Z-8, -1 um at Z-10): one helix with TURN= cannot follow it;
+    each half turn is written about its own centre (X at its end's correction, by hand), and the
+    pieces, replayed independently, stay within the chord tolerance (1 um) of the corrected path
+    (x = 39 cos t + 1e-4 z(t), y = 39 sin t, z linear in t)."""
+    path = _write(tmp_path, THREAD.split("N40")[0] + "M30\n")
+    lines = _moved(path, lambda p: np.outer(p[:, 2], [1e-4, 0, 0]))
+    assert lines[3:9] == [
+        "N10 G0 X38.9992 Y0 Z-8", "N20 G1 F100",
+        "N30 G2 X-39.0008 Y0.0000 Z-8.5000 I=AC(-0.0008) J=AC(0.0000)",
+        "X38.9991 Y0.0000 Z-9.0000 I=AC(-0.0008) J=AC(0.0000)",
+        "X-39.0010 Y0.0000 Z-9.5000 I=AC(-0.0009) J=AC(0.0000)",
+        "X38.9990 Y0.0000 Z-10.0000 I=AC(-0.0010) J=AC(0.0000)"]
+    assert "3 blocks added" in lines[2]
+    moves = replay_sinumerik.replay("\n".join(lines).encode()).moves
+    arcs = [m for m in moves if m.kind == "arc"]
+    assert len(arcs) == 4 and sum(m.sweep for m in arcs) == pytest.approx(-4 * np.pi, rel=0,
+                                                                          abs=1e-4)
+    for m in arcs:
+        u = np.linspace(0, 1, 101)
+        cx, cy = m.centre
+        a0 = np.arctan2(m.start["Y"] - cy, m.start["X"] - cx)
+        r0 = np.hypot(m.start["X"] - cx, m.start["Y"] - cy)
+        r1 = np.hypot(m.end["X"] - cx, m.end["Y"] - cy)
+        x = cx + (r0 + (r1 - r0) * u) * np.cos(a0 + m.sweep * u)
+        y = cy + (r0 + (r1 - r0) * u) * np.sin(a0 + m.sweep * u)
+        z = m.start["Z"] + (m.end["Z"] - m.start["Z"]) * u
+        # the corrected path at the same height (z is linear in the angle on both)
+        t = -np.pi * (-8 - z) / 0.5
+        miss = np.hypot(x - (39 * np.cos(t) + 1e-4 * z), y - 39 * np.sin(t))
+        assert miss.max() <= 1e-3
+
+
+def _points(moves, n=64):
+    """Points (k, 3) along replayed moves from a known position (circles by their angle, the
+    radius and Z linear)."""
+    out = []
+    for m in moves:
+        if any(m.start[a] is None or m.end[a] is None for a in "XYZ"):
+            continue
+        u = np.linspace(0, 1, n)
+        if m.kind == "arc":
+            cx, cy = m.centre
+            a0 = np.arctan2(m.start["Y"] - cy, m.start["X"] - cx)
+            r0 = np.hypot(m.start["X"] - cx, m.start["Y"] - cy)
+            r1 = np.hypot(m.end["X"] - cx, m.end["Y"] - cy)
+            r, a = r0 + (r1 - r0) * u, a0 + m.sweep * u
+            xy = np.column_stack([cx + r * np.cos(a), cy + r * np.sin(a)])
+        else:
+            xy = np.outer(1 - u, [m.start["X"], m.start["Y"]]) + np.outer(u, [m.end["X"],
+                                                                              m.end["Y"]])
+        out.append(np.column_stack([xy, m.start["Z"] + (m.end["Z"] - m.start["Z"]) * u]))
+    return np.vstack(out)
+
+
+def test_a_compensated_thread_of_helices_with_turns_moves_like_its_source(tmp_path, capsys):
+    """A thread milled as helices with TURN= (as NX's post for a Huron KX20 writes it), compensated
+    and replayed independently: the correction changes over the thread's depth, so each helix is
+    written as its four half turns (12 blocks added, and the note line), each turn of the source
+    matched by two of them up to the correction, none off the source's helix by more than the
+    correction and the chord tolerance."""
+    body = ("N10 G17 G90 G71 G54\nN20 T1 M6\nN30 G0 X36 Y2.5 Z25\nN40 G1 Z-8 F100\nN50 Y3\n"
+            "N60 G2 X39 Y0 CR=3\n" + "".join(
+                f"N{70 + 10 * k} G2 X39 Y0 Z{-10 - 2 * k} I=AC(0.) J=AC(0.) TURN=1\n"
+                for k in range(4)) + "N110 G2 X-39 Y0 Z-17 I=AC(0.) J=AC(0.)\nN120 G0 Z25\n"
+            "M30\n")
+    src = _write(tmp_path, body)
+    out = compensated(tmp_path, capsys, src, "XFYZ", 3.0)
+    text = out.read_text(encoding="latin-1")
+    assert "TURN" not in text.split("\n", 3)[3] and text.count("\n") == body.count("\n") + 3 + 12
+    a, b = replay_sinumerik.compare(src.read_bytes(), out.read_bytes(),
+                                    Tolerance(axis_mm=0.02, axis_deg=0.1, path_mm=0.03),
+                                    name="thread")
+    assert sum(m.kind == "arc" for m in a) == 1 + 8 + 1
+    from replay import _off_path
+    known = [m for m in a if None not in (m.start["X"], m.start["Z"])]
+    dist = [min(_off_path(dict(zip("XYZ", p)), m) for m in known) for p in _points(b)]
+    print(f"the output's farthest point from the source's path: {max(dist) * 1e3:.2f} um")
+    assert max(dist) < 0.003
+
+
+
+@pytest.mark.parametrize("body, words", [
+    ("N10 G0 X39 Y0 Z0\nN20 G2 X39 Y0 Z-2 I=AC(0) J=AC(0) TURN=1000\n",
+     "p.mpf:4: TURN=1000 is not a whole number of additional turns (0 to 999)"),
+    ("N10 G0 X39 Y0 Z0\nN20 G0 SUPA Z0\nN30 G2 X39 Y0 Z-2 I=AC(0) J=AC(0) TURN=1\n",
+     "p.mpf:5: a helix with TURN= from a Z the program has not given"),
+])
+def test_a_helix_with_turns_mtcomp_cannot_follow_is_refused(tmp_path, body, words):
+    from mtcomp.errors import InputError
+    with pytest.raises(InputError) as err:
+        translate(_write(tmp_path, body + "M30\n"))
+    assert words in str(err.value)

@@ -12,6 +12,7 @@ docs/toolpaths.md, "Siemens Sinumerik", lists them with what is refused.
 """
 from __future__ import annotations
 
+import math
 import re
 from array import array
 from dataclasses import dataclass, field
@@ -56,19 +57,22 @@ _REFUSED_WORDS = {
     "AP": "polar coordinates (AP=)", "RP": "polar coordinates (RP=)",
     "RND": "a rounding (RND)", "CHF": "a chamfer (CHF)", "CHR": "a chamfer (CHR)",
     "SPOS": "spindle positioning (SPOS)",
-    "TURN": "a helix with additional full turns (TURN=)",
 }
 #: the words refused where they are given a value (``AR=...``)
-_REFUSED_VALUES = {"AR", "AP", "RP", "RND", "CHF", "CHR", "TURN"}
+_REFUSED_VALUES = {"AR", "AP", "RP", "RND", "CHF", "CHR"}
+#: the largest number of additional full turns TURN= of a helix (Fundamentals, helical
+#: interpolation: 0 to 999)
+MAX_TURNS = 999
 @dataclass
 class GInfo:
     """What a G-code line of the translation is, for the writer: ``source`` its source line
     (0-based); ``kind`` None (no move), 'move' (a straight move of the line's axis words), 'arc',
     'hole' (a hole of a drilling cycle, at its bottom), 'retract' (to the cycle's RTP: kept as
     written), 'approach' (a call's own move, kept); ``shift`` the programmable frame's translation
-    (mm, X Y Z) in force; for an arc its ``centre``, ``cc_line`` (its own line) and, for a circle
-    given by its radius, ``radius`` (the CR= value, mm); for a hole its ``call`` (:class:`Call`)
-    and ``pattern`` (:class:`Pattern` or None)."""
+    (X Y Z, the program's units) in force; for an arc its ``centre``, ``cc_line`` (its own line)
+    and, for a circle given by its radius, ``radius`` (the CR= value); for a piece of a helix with
+    additional turns ``turn`` (its index, the number of pieces); for a hole its ``call``
+    (:class:`Call`) and ``pattern`` (:class:`Pattern` or None); ``inch``: G70/G700 in force."""
 
     source: int
     kind: str | None = None
@@ -76,6 +80,7 @@ class GInfo:
     centre: tuple | None = None
     cc_line: int | None = None
     radius: float | None = None
+    turn: tuple | None = None
     call: object = None
     pattern: object = None
     inch: bool = False
@@ -298,7 +303,7 @@ class _Reader(CycleCalls):
                     raise self.err(f"axis {w.name} twice in one block")
                 axes[w.name] = w
             elif w.kind in ("address", "assign") and w.name in "IJK" or \
-                    (w.kind == "assign" and w.name == "CR"):
+                    (w.kind == "assign" and w.name in ("CR", "TURN")):
                 centre[w.name] = w
             elif w.kind == "address" and w.name == "M":
                 m = int(float(w.text))
@@ -441,7 +446,8 @@ class _Reader(CycleCalls):
             self._arc(axes, centre, codes, feed)
             return
         if centre:
-            raise self.err(f"{'CR=' if 'CR' in centre else 'I, J or K'} outside a circle G2/G3")
+            word = next((f"{n}=" for n in ("CR", "TURN") if n in centre), "I, J or K")
+            raise self.err(f"{word} outside a circle G2/G3")
         if not axes:
             text = " ".join(t for t in (codes, feed) if t)
             if text.strip():
@@ -510,6 +516,7 @@ class _Reader(CycleCalls):
         sx, sy = self.pos["X"], self.pos["Y"]
         end = {"X": sx, "Y": sy, **target}
         radius = None
+        turns = self._turns(centre.pop("TURN", None))
         if "CR" in centre:
             if set(centre) != {"CR"}:
                 raise self.err("a circle with both its radius CR= and its centre I J K is not read "
@@ -522,11 +529,64 @@ class _Reader(CycleCalls):
                 raise self.err(str(exc)) from None
         else:
             c = self._centre(centre, sx, sy)
+        if turns:
+            self._helix_turns(end, c, turns, codes, feed, radius)
+            return
         self.pos.update(end)
         words = self._words({a: end[a] for a in ("X", "Y", "Z") if a in end})
         text = " ".join(t for t in (codes, f"G{self.motion}", words,
                                     f"I{fmt(c[0] - sx)} J{fmt(c[1] - sy)}", feed) if t)
         self.emit(text, "arc", centre=(c[0], c[1]), cc_line=self.k, radius=radius)
+
+    def _turns(self, w: Word | None) -> int:
+        """The additional full turns of ``TURN=`` (0 without it): a whole number, 0 to 999."""
+        if w is None:
+            return 0
+        n = self.value(w.text)
+        if n != int(n) or not 0 <= n <= MAX_TURNS:
+            raise self.err(f"TURN={w.text.strip()} is not a whole number of additional turns "
+                           f"(0 to {MAX_TURNS})")
+        return int(n)
+
+    def _helix_turns(self, end: dict, c, turns: int, codes: str, feed: str, radius) -> None:
+        """A circle with ``turns`` additional full turns (Fundamentals, helical interpolation:
+        from the start the full turns, then the circle to its end point; a circle whose end is its
+        start is itself a full turn), Z (and the radius, where the ends' radii differ) going
+        linearly with the angle over all of them: in the G-code equivalent as pieces of half a
+        turn from the start's angle (the last one the circle's own part, two halves for a full
+        circle), each a circle G2/G3 with ``turn`` (its index, the pieces' number)."""
+        sx, sy, sz = self.pos["X"], self.pos["Y"], self.pos["Z"]
+        if "Z" in end and sz is None:
+            raise self.err("a helix with TURN= from a Z the program has not given")
+        ccw = self.motion == 3
+        a0 = math.atan2(sy - c[1], sx - c[0])
+        r0, r1 = math.hypot(sx - c[0], sy - c[1]), math.hypot(end["X"] - c[0], end["Y"] - c[1])
+        if math.hypot(end["X"] - sx, end["Y"] - sy) <= 1e-9:
+            own = [math.pi, 2.0 * math.pi]
+        else:
+            a1 = math.atan2(end["Y"] - c[1], end["X"] - c[0])
+            own = [(a1 - a0) % (2.0 * math.pi) if ccw else (a0 - a1) % (2.0 * math.pi)]
+        turned = [k * math.pi for k in range(1, 2 * turns + 1)] + [2 * math.pi * turns + t
+                                                                   for t in own]
+        total = turned[-1]
+        sign = 1.0 if ccw else -1.0
+        start = (sx, sy)
+        for k, t in enumerate(turned):
+            u = t / total
+            r = r0 + (r1 - r0) * u
+            at = {"X": c[0] + r * math.cos(a0 + sign * t), "Y": c[1] + r * math.sin(a0 + sign * t)}
+            if k == len(turned) - 1:
+                at = {"X": end["X"], "Y": end["Y"]}
+            if "Z" in end:
+                at["Z"] = end["Z"] if k == len(turned) - 1 else sz + (end["Z"] - sz) * u
+            first = (codes, f"G{self.motion}") if k == 0 else ("", f"G{self.motion}")
+            text = " ".join(t for t in (*first, self._words(at),
+                                        f"I{fmt(c[0] - start[0])} J{fmt(c[1] - start[1])}",
+                                        feed if k == 0 else "") if t)
+            self.emit(text, "arc", centre=(c[0], c[1]), cc_line=self.k, radius=radius,
+                      turn=(k, len(turned)))
+            start = (at["X"], at["Y"])
+        self.pos.update(end)
 
     def _centre(self, centre, sx: float, sy: float) -> list:
         """The centre (x, y) of a circle given by I J (from the start, IC(..)) or I=AC(..)

@@ -39,52 +39,19 @@ from ..errors import InputError
 from ..io.atomic import atomic_write
 from ._arcs import arc_misses, arc_sweep, fit_arc_centre, radius_refused
 from .heidenhain_out import ROTARY_ARC_TOL_RAD, HeidenhainWriter, plan_blocks
-from .heidenhain import signed
 from .sinumerik import AXES, BLOCK_START
-from .sinumerik_lang import code_end, split_words
+from .sinumerik_lang import code_end, corrected_text, split_words
+from .sinumerik_lang import edit_text as _edit
+from .sinumerik_lang import number_text as _number
 from .sinumerik_paths import RadiusError, radius_centre, signed_radius
-from .words import MM_PER_INCH, number_decimals
+from .sinumerik_turn import HelixTurns, turn_notes
+from .words import MM_PER_INCH
 
-_PLAIN = "0123456789+-. "
-
-
-def _plain(text: str) -> bool:
-    return bool(text.strip()) and all(c in _PLAIN for c in text)
+__all__ = ["SinumerikWriter", "corrected_text", "write_corrected"]
 
 
-def _number(value: float, decimals: int) -> str:
-    """A plain number at ``decimals`` (never -0), unsigned where positive."""
-    return signed(value, decimals, sign=False)
 
-
-def corrected_text(text: str, nominal: float, corrected: float, base: int = 4) -> tuple[str, float]:
-    """(the value's new text, the value it says): a plain number is rewritten with at least its
-    decimals and at least ``base`` (4 in mm and degrees, 5 in inch); an expression gets the
-    correction appended (``A+60`` -> ``A+60+0.0012``); the text stays as it is when the
-    correction rounds to zero."""
-    if _plain(text):
-        number = text.replace(" ", "")
-        dec = max(base, number_decimals(number))
-        t = _number(corrected, dec)
-        if t == _number(float(number), dec):
-            return text, nominal
-        if number.startswith("+") and not t.startswith("-"):
-            t = "+" + t
-        return t, float(t)
-    c = _number(corrected - nominal, base)
-    if float(c) == 0.0:
-        return text, nominal
-    c = c if c.startswith("-") else "+" + c
-    return text + c, nominal + float(c)
-
-
-def _edit(text: str, edits) -> str:
-    for a, b, t in sorted(edits, reverse=True):
-        text = text[:a] + t + text[b:]
-    return text
-
-
-class SinumerikWriter(HeidenhainWriter):
+class SinumerikWriter(HelixTurns, HeidenhainWriter):
     """Writes one Sinumerik program (see the module docstring)."""
 
     ARC, CENTRE, HINT = "circle G2/G3", "its I J", "a larger --chord-tol-um"
@@ -436,7 +403,9 @@ class SinumerikWriter(HeidenhainWriter):
         self._units_of(info)
         if pts.shape[0] > 1 and info.kind != "arc":
             self.dropped += pts.shape[0] - 1
-        if info.kind == "arc":
+        if info.kind == "arc" and info.turn is not None:
+            self._turn_piece(i, block, pts, info)
+        elif info.kind == "arc":
             self._arc(i, block, pts, None, info)
         elif info.kind == "hole":
             self._hole(g, i, block, pts[-1], info)
@@ -579,7 +548,9 @@ class SinumerikWriter(HeidenhainWriter):
                 out.append(f"; mtcomp: {self.added} block{'s' if self.added != 1 else ''} added to "
                            "write corrected holes and circles (a cycle call restated, a hole's "
                            "position, a hole pattern HOLES1 or HOLES2 written as explicit "
-                           "positions, a circle written in pieces)" + ending)
+                           "positions, a circle written in pieces, a helix with TURN= written as "
+                           "pieces)"
+                           + ending)
             own = text[len(text.rstrip("\r\n")):] or ending
             out.extend(t + own for t in self.before.get(i, []))
             if i in self.replaced:
@@ -622,6 +593,7 @@ def _notes(src, w: SinumerikWriter, stats) -> None:
             f"correction (the depth below it kept); the retract plane RTP kept as written "
             f"({w.retracts} retract{'s' if w.retracts != 1 else ''}: BLOCKS.csv gives their "
             "planned correction, not written)")
+    src.notes.extend(turn_notes(w))
     if w.split_circles:
         src.notes.append(
             f"{w.split_circles} circle{'s' if w.split_circles != 1 else ''} G2/G3 that one centre "
