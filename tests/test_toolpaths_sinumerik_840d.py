@@ -1,6 +1,8 @@
 """The Sinumerik 840D constructs of real programs that mtcomp once refused (mtcomp.toolpaths:
 sinumerik, sinumerik_out): inch programs (G70, G700, back to G71, G710), against hand-derived
 values and the independent replay of tests/replay_sinumerik.py, on both readers."""
+import re
+
 import numpy as np
 import pytest
 
@@ -334,3 +336,135 @@ def test_a_helix_with_turns_mtcomp_cannot_follow_is_refused(tmp_path, body, word
     with pytest.raises(InputError) as err:
         translate(_write(tmp_path, body + "M30\n"))
     assert words in str(err.value)
+
+
+# ---------------------------------------------------------------------------- TRAORI
+FIVE = """N10 G17 G90 G71 G54
+N20 T1 M6
+N30 G0 A0 C0
+N40 TRAORI
+N50 G0 X10 Y20 Z30 A10 C20
+N60 G1 X15 Y25 Z5 A20 C45 F500
+N70 X40 A30 C90
+N80 TRANS X5 Y-10
+N90 G1 X0 Y0 Z10 A-15 C120
+N100 G2 X20 Y0 I10 J0
+N110 TRANS
+N120 TRAFOOF
+N130 G0 Z100
+M30
+"""
+
+
+def test_traori_is_the_tool_centre_point_mode_of_g_code(tmp_path):
+    # by hand: TRAORI and TRAFOOF are M428 and M429, the axis words pass as they are, and the
+    # switch leaves every axis unknown (N30's A and C too) until a block names it
+    src = _write(tmp_path, FIVE)
+    gcode = translate(src).gcode
+    assert gcode[4:8] == ["G0 A0 C0", "M428", "G0 X10 Y20 Z30 A10 C20", "G1 X15 Y25 Z5 A20 C45 F500"]
+    assert gcode[-4:] == ["G2 X25 Y-10 I10 J0", "M429", "G0 Z100", "M30"]
+    with open_program(src) as prog:
+        blocks = read_program(prog, load_machine("cafxyz")).blocks
+    assert [b.known.all() for b in blocks] == [False, True, True, True, True, True, False]
+
+
+def test_traori_and_m428_are_compensated_alike(tmp_path, capsys):
+    """The program and its LinuxCNC twin in tool centre point mode (M428 ... M429, the frame's
+    shift written out) get the same corrected words on the same model."""
+    twin = ("G21 G90 G17\nT1 M6 G43 H1\nG0 A0 C0\nM428\nG0 X10 Y20 Z30 A10 C20\n"
+            "G1 X15 Y25 Z5 A20 C45 F500\nX40 A30 C90\nG1 X5 Y-10 Z10 A-15 C120\nG2 X25 Y-10 I10 J0\n"
+            "M429\nG0 Z100\nM30\n")
+    (tmp_path / "twin").mkdir()
+    ngc = tmp_path / "twin" / "twin.ngc"
+    ngc.write_text(twin)
+    ours = compensated(tmp_path, capsys, _write(tmp_path, FIVE), "CAFXYZ", 3.0, "--units", "mm")
+    theirs = compensated(tmp_path / "twin", capsys, ngc, "CAFXYZ", 3.0, "--units", "mm")
+    words = [line.split(" ", 1)[1] for line in ours.read_text().splitlines()
+             if re.match(r"N(5|6|7|9|10)0 ", line)]
+    other = theirs.read_text().splitlines()
+    assert words[:3] == other[4:7]
+    # under TRANS X5 Y-10 the program's words are the twin's less the shift (its centre I J from
+    # the start the same); the circle's end and centre alike (the twin's G-code writer also writes
+    # the Z and C its corrected path ends at, 0.2 um and 1e-4 deg off the written ones, within the
+    # chord tolerance and the rotary tolerance a Sinumerik circle keeps them at)
+    for ours_line, twin_line in ((words[3], other[7]), (words[4], other[8])):
+        got = dict(re.findall(r"([XYZACIJ])(-?[\d.]+)", ours_line))
+        want = dict(re.findall(r"([XYZACIJ])(-?[\d.]+)", twin_line))
+        assert set(got) <= set(want)
+        for k, v in got.items():
+            shift = {"X": 5.0, "Y": -10.0}.get(k, 0.0)
+            assert float(v) + shift == pytest.approx(float(want[k]), rel=0, abs=1e-9), k
+    assert words[3] != "G1 X0 Y0 Z10 A-15 C120"
+
+
+class _Axes:
+    """A judge (compensation.Judge's interface) that keeps the plan's nominal and corrected axes."""
+    label = "axes"
+
+    def __init__(self):
+        self.nominal, self.corrected, self.known = [], [], []
+
+    def add(self, chunk, res):
+        ends = np.cumsum(res.counts) - 1
+        self.nominal.append(np.asarray(chunk.end))
+        self.corrected.append(np.asarray(res.corrected)[ends])
+        self.known.append(np.asarray(chunk.known).all(axis=1))
+
+    def as_dict(self):
+        return {}
+
+
+def test_traori_words_reach_the_axes_of_an_independent_inverse_kinematics(tmp_path):
+    """The tool centre point words of the program and of its compensated version, turned into
+    axes by the independent machine's own nominal kinematics (tests/truth, as
+    tests/test_toolpaths_tcp.py does): the source's are the axes the plan was made for, the
+    output's the axes it planned (to the written decimals), with a work offset and TRANS."""
+    from mtcomp.compensation import CompensationSettings, compensate_program
+    from mtcomp.models import load_model
+    from mtcomp.toolpaths.offsets import load_setup
+    from test_toolpaths_tcp import _truth_axes
+    from truth.machine import TruthMachine
+    fitted = load_model(_model_file(tmp_path, "cafxyz", factor=3.0))
+    # a straight N100: on this machine and offset a circle's A correction varies along it by more
+    # than a circle can hold (refused, see docs/toolpaths.md)
+    src, out = _write(tmp_path, FIVE.replace("G2 X20 Y0 I10 J0", "G1 X20 Y0")), tmp_path / "out.mpf"
+    axes = _Axes()
+    setup = load_setup(fitted.machine, None, ["G54=X100,Y-50,Z-200"], [])
+    compensate_program(fitted, src, out, CompensationSettings(units="mm"), setup, judges=(axes,))
+    known = np.concatenate(axes.known)            # N50 to N100: every axis given, in TRAORI
+    nominal, corrected = np.vstack(axes.nominal)[known], np.vstack(axes.corrected)[known]
+    truth = TruthMachine("cafxyz")
+
+    def reached(program):
+        moves = [m.end for m in replay_sinumerik.replay(program.read_bytes()).moves
+                 if m.line in (6, 7, 8, 10, 11)]
+        words = [dict(m, X=m["X"] + 100, Y=m["Y"] - 50, Z=m["Z"] - 200) for m in moves]
+        return _truth_axes(truth, words)
+
+    q_src, q_out = reached(src), reached(out)
+    assert q_src.shape == nominal.shape == (5, 5)
+    # X Y Z (mm), then A C (rad): the written words to 1e-4 mm and 1e-4 deg (1.7e-6 rad), whose
+    # rounding the linear axes carry through the table's turn (about 0.1 um at 60 mm)
+    np.testing.assert_allclose(q_src[:, :3], nominal[:, :3], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(q_src[:, 3:], nominal[:, 3:], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(q_out[:, :3], corrected[:, :3], rtol=0, atol=2e-4)
+    np.testing.assert_allclose(q_out[:, 3:], corrected[:, 3:], rtol=0, atol=1e-6)
+    assert np.abs(q_out - q_src)[:, :3].max() > 5e-3             # corrections of microns written
+
+
+@pytest.mark.parametrize("block, words", [
+    ("TRAORI(2)", "TRAORI(2) is not read by mtcomp (TRAORI or TRAORI(1)"),
+    ("TRAORI(1,0,0,1)", "TRAORI(1,0,0,1) is not read"),
+    ("TRAORI G0 X1", "TRAORI and a move or a call in one block"),
+    ("G1 X1 A3=0 B3=0 C3=1", "the tool orientation by its direction vector (A3= B3= C3=)"),
+    ("G1 X1 A2=10 B2=0 C2=0", "the tool orientation by its Euler or RPY angles (A2= B2= C2=)"),
+    ("G1 X1 LEAD=10", "the tool orientation by its lead angle (LEAD=)"),
+    ("ORIWKS", "ORIWKS (orientation programming"),
+    ("ORIMKS", "ORIMKS (orientation programming"),
+    ("ORIVECT", "ORIVECT (orientation programming"),
+])
+def test_orientation_mtcomp_cannot_follow_is_refused_by_name(tmp_path, block, words):
+    from mtcomp.errors import InputError
+    with pytest.raises(InputError) as err:
+        translate(_write(tmp_path, f"N10 G0 X0 Y0 Z0 A0 C0\nN20 TRAORI\nN30 {block}\nM30\n"))
+    assert "p.mpf:5: " in str(err.value) and words in str(err.value), str(err.value)

@@ -50,7 +50,7 @@ _REFUSED_WORDS = {
     "PROC": "a subprogram definition (PROC)", "ROT": "a programmable frame (ROT)",
     "AROT": "a programmable frame (AROT)", "SCALE": "a programmable frame (SCALE)",
     "ASCALE": "a programmable frame (ASCALE)", "MIRROR": "a programmable frame (MIRROR)",
-    "AMIRROR": "a programmable frame (AMIRROR)", "TRAORI": "5-axis transformation (TRAORI)",
+    "AMIRROR": "a programmable frame (AMIRROR)",
     "TRANSMIT": "a transformation (TRANSMIT)", "TRACYL": "a transformation (TRACYL)",
     "CIP": "a circle through an intermediate point (CIP)", "CT": "a tangential circle (CT)",
     "AR": "a circle by its opening angle (AR=)",
@@ -60,6 +60,16 @@ _REFUSED_WORDS = {
 }
 #: the words refused where they are given a value (``AR=...``)
 _REFUSED_VALUES = {"AR", "AP", "RP", "RND", "CHF", "CHR"}
+#: the tool orientation given otherwise than by the rotary axes' positions (Job planning,
+#: orientation programming; 5-axis machining): refused by name under TRAORI and elsewhere
+_ORIENTATION = {"2": "its Euler or RPY angles (A2= B2= C2=)",
+                "3": "its direction vector (A3= B3= C3=)",
+                "4": "the surface normal at the block's start (A4= B4= C4=)",
+                "5": "the surface normal at the block's end (A5= B5= C5=)",
+                "6": "the axis of a cone of orientations (A6= B6= C6=)",
+                "7": "an intermediate orientation (A7= B7= C7=)",
+                "LEAD": "its lead angle (LEAD=)", "TILT": "its tilt angle (TILT=)",
+                "THETA": "its rotation angle (THETA=)"}
 #: the largest number of additional full turns TURN= of a helix (Fundamentals, helical
 #: interpolation: 0 to 999)
 MAX_TURNS = 999
@@ -130,6 +140,7 @@ class _Reader(CycleCalls):
         #: the units in force (G70/G700 inch, G71/G710 mm): of the geometry, of the feed F
         self.inch = False
         self.feed_inch = False
+        self.tcp = False                        # TRAORI in force
         self.k = 0
 
     def err(self, message: str) -> InputError:
@@ -235,11 +246,22 @@ class _Reader(CycleCalls):
             if w.name in _REFUSED_WORDS and (w.kind in ("keyword", "call")
                                              or (w.kind == "assign" and w.name in _REFUSED_VALUES)):
                 raise self.err(f"{_REFUSED_WORDS[w.name]} is not read by mtcomp")
+            self._orientation(w)
+        switch = self._switch(words)
         g, axes, centre, other = self._classify(words)
-        calls = [w for w in words if (w.kind == "call" and w.name not in SETTING_CALLS)
+        calls = [w for w in words if (w.kind == "call" and w.name not in SETTING_CALLS
+                                      and w.name != "TRAORI")
                  or (w.kind == "address" and w.name == "L")]
         mcall = any(w.kind == "keyword" and w.name == "MCALL" for w in words)
         self._modes(g, other)
+        if switch is not None:
+            if axes or centre or calls or mcall:
+                raise self.err(f"{'TRAORI' if switch else 'TRAFOOF'} and a move or a call in one "
+                               "block is not read by mtcomp")
+            if switch != self.tcp:
+                self.tcp = switch
+                self.pos = dict.fromkeys(AXES)
+                self.emit("M428" if switch else "M429")
         if mcall:
             self._mcall(calls, axes)
             return
@@ -261,11 +283,44 @@ class _Reader(CycleCalls):
             self.edge = 1                       # a new tool starts on its edge D1
             self.active = self.tool
             h = self._length_number()
-            self.emit(f"T{h} M6 " + (f"G43 H{h}" if h else "G49"))
+            self.emit(f"T{h} M6 {self._length_code(h)}")
             self.emit("G43.1")
         if "END" in other:
             self.ended = True
             self.emit("M30")
+
+    def _orientation(self, w: Word) -> None:
+        """Refuses the tool orientation given otherwise than by the rotary axes, by name (Job
+        planning, "Variants of orientation programming")."""
+        key = w.name if w.name in _ORIENTATION else w.name[1:] if re.fullmatch(r"[ABC][2-7]",
+                                                                                  w.name) else ""
+        if w.kind == "assign" and key:
+            raise self.err(f"the tool orientation by {_ORIENTATION[key]} is not read by mtcomp "
+                           "(give the rotary axes' positions)")
+        if w.kind in ("keyword", "call") and w.name.startswith("ORI"):
+            raise self.err(f"{w.name} (orientation programming: how the tool orientation is given "
+                           "or interpolated) is not read by mtcomp (give the rotary axes' "
+                           "positions)")
+
+    def _switch(self, words: list[Word]) -> bool | None:
+        """TRAORI (True: the 5-axis transformation, X Y Z the tool tip in the workpiece frame,
+        the rotary axes their machine positions; Job planning, "Three, four and five axis
+        transformation (TRAORI)"), TRAFOOF (False: off) or neither (None). Read as G-code's tool centre point mode, M428 and
+        M429 (docs/toolpaths.md, "Tool centre point programs"), in a block without a move; a
+        switch makes every position unknown (the words change meaning). ``TRAORI`` and
+        ``TRAORI(1)`` select the machine's first transformation, the machine file's kinematics;
+        another one, or one given an orientation or offsets in the call, is refused."""
+        switch = None
+        for w in words:
+            if w.name == "TRAORI" and w.kind in ("keyword", "call"):
+                if w.kind == "call" and w.text.strip() and split_arguments(w.text) != ["1"]:
+                    raise self.err(f"TRAORI({w.text.strip()}) is not read by mtcomp (TRAORI or "
+                                   "TRAORI(1): the machine's first transformation, which the "
+                                   "machine file describes)")
+                switch = True
+            elif w.name == "TRAFOOF" and w.kind == "keyword":
+                switch = False
+        return switch
 
     def _frame(self, words: list[Word]) -> None:
         """TRANS X.. Y.. Z.. (the programmable frame's translation replaced, its other parts
@@ -322,7 +377,8 @@ class _Reader(CycleCalls):
                 self.assign(w.name, w.text)
             elif w.kind == "keyword" and w.name == "SUPA":
                 other.add("machine")
-            elif w.kind == "keyword" and w.name not in ("MCALL",) and w.name not in SETTING_WORDS:
+            elif w.kind == "keyword" and w.name not in ("MCALL", "TRAORI") \
+                    and w.name not in SETTING_WORDS:
                 raise self.err(f"{w.name} is not read by mtcomp")
             elif w.kind == "address" and w.name not in "SHNLP":
                 raise self.err(f"the word {w.name}{w.text} is not read by mtcomp")
@@ -359,8 +415,12 @@ class _Reader(CycleCalls):
             # another cutting edge (D0: none) is another tool length: Z unknown until named
             self.edge = edges[-1]
             self.pos["Z"] = None
-            h = self._length_number()
-            self.emit(f"G43 H{h}" if self.edge and h else "G49")
+            self.emit(self._length_code(self._length_number() if self.edge else 0))
+
+    def _length_code(self, h: int) -> str:
+        """The tool length of H number h (0: none) in the G-code equivalent: G43 H.., G49 for
+        none (G43 H0 under TRAORI: G49 would end G-code's tool centre point mode)."""
+        return f"G43 H{h}" if h or self.tcp else "G49"
 
     def _tool(self, w: Word) -> int | str:
         """The tool a T word selects: ``T5``, ``T=5`` (a number) or ``T="DRILL 8.5"`` (a name, the
