@@ -46,6 +46,18 @@ _G = re.compile(r"(?<![A-Z0-9_])G(\d+)")
 _ASSIGN = re.compile(r"(?<![A-Z0-9_])(R\d+|[A-Z_][A-Z0-9_]{2,})\s*=\s*(\S+)")
 
 
+#: a Sinumerik program, known from its file header, its path line, or a DEF, a standard cycle call
+#: or a message MSG("...") at a block's start
+_SIEMENS = re.compile(rb'(?im)^\s*%(?:_N_\w+_MPF|MPF)|^\s*;\s*\$PATH=|'
+                      rb'^\s*(?:N\d+\s*)?(?:DEF\s+(?:REAL|INT|BOOL)\b|(?:MCALL\s+)?CYCLE\d+\s*\(|'
+                      rb'MSG\s*\(\s*")')
+
+
+def is_sinumerik(data: bytes) -> bool:
+    """Whether a program (its bytes) is a Sinumerik program (see _SIEMENS)."""
+    return _SIEMENS.search(data) is not None
+
+
 def _code(raw: bytes) -> str:
     # a ';' starts the comment, but not inside a string "..." (MSG("A;B"))
     text = re.match(r'(?:[^;"]|"[^"]*")*', raw.decode("latin-1").replace("\r", "")).group(0).upper()

@@ -243,6 +243,18 @@ def test_a_helix_with_turns_under_one_translation_keeps_its_turns(tmp_path):
         "N50 G3 X0.0100 Y0 Z33.0020 I0 J-25 TURN=3 F200", "N60 G0 Z50.0020", "M30"]
 
 
+def test_a_flat_circle_with_turns_keeps_the_z_written_before_it(tmp_path):
+    # two turns at Z-8.5 (its Z word the start's): moved by (0.01, 0, 0.002) the line keeps TURN=
+    # and its Z says where the tool stands, -8.4980 (Z-8.5 would move it back 2 um); with X moved
+    # by 1e-4 x the turns are written as half turns, the first saying Z-8.4980 too
+    body = "N10 G0 X39 Y0 Z-8.5\nN20 G2 X39 Y0 Z-8.5 I=AC(0) J=AC(0) TURN=1 F100\nM30\n"
+    lines = _moved(_write(tmp_path, body), [0.01, 0.0, 0.002])
+    assert lines[3] == "N20 G2 X39.0100 Y0 Z-8.4980 I=AC(0.0100) J=AC(0) TURN=1 F100"
+    lines = _moved(_write(tmp_path, body), lambda p: np.outer(p[:, 0], [1e-4, 0, 0]) + [0, 0, 0.002])
+    assert lines[4].startswith("N20 G2 X-39.0039 Y0.0000 Z-8.4980 I=AC(") and "TURN" not in lines[4]
+    assert len(lines) == 9 and not any(" Z" in line for line in lines[5:8])
+
+
 def test_a_helix_whose_correction_changes_along_its_turns_is_written_as_half_turns(tmp_path):
     """X moved by 1e-4 z (-0.8 um at Z-8, -1 um at Z-10): one helix with TURN= cannot follow it;
     each half turn is written about its own centre (X at its end's correction, by hand), and the
@@ -468,3 +480,15 @@ def test_orientation_mtcomp_cannot_follow_is_refused_by_name(tmp_path, block, wo
     with pytest.raises(InputError) as err:
         translate(_write(tmp_path, f"N10 G0 X0 Y0 Z0 A0 C0\nN20 TRAORI\nN30 {block}\nM30\n"))
     assert "p.mpf:5: " in str(err.value) and words in str(err.value), str(err.value)
+
+
+def test_a_program_that_begins_with_a_message_is_read_as_sinumerik(tmp_path):
+    # NX's Sinumerik posts start with MSG("...") and a G70 block, and may have no file header
+    from mtcomp.toolpaths.dialect import detect
+    path = tmp_path / "p.mpf"
+    path.write_text('MSG(" AUTEUR: X ")\nN10 G70 G90 G17\nG0 X1\n')
+    assert detect(path) == (detect(_write(tmp_path, "G0 X1\n"))[0],
+                            'detected from line 1: MSG(" AUTEUR: X ")')
+    plain = tmp_path / "q.nc"
+    plain.write_text("G0 X1\n(MSG, an operator message)\n")
+    assert detect(plain)[0].name == "generic"

@@ -23,7 +23,7 @@ from .words import MAX_TOOL, MM_PER_INCH
 from .sinumerik_cycles import Call, CycleCalls
 from .sinumerik_lang import (AXES, ExpressionError, Word, code_end, evaluate, fmt,
                              split_arguments, split_words)
-from .sinumerik_paths import (FRAME_WORDS, MACHINE_G, SETTING_CALLS, SETTING_VALUES,
+from .sinumerik_paths import (CORNER_G, FRAME_WORDS, MACHINE_G, SETTING_CALLS, SETTING_VALUES,
                               SETTING_WORDS, SMOOTHING_G, RadiusError, radius_centre)
 
 _HEADER = re.compile(r"^\s*%")
@@ -41,7 +41,7 @@ _PASSED_G = {17, 18, 19, 40, 41, 42, 90, 94, 70, 700, 71, 710}
 #: system; G700 inch for the feed F too; G71, G710 metric (Fundamentals, "Dimensions in metric
 #: units and inches")
 _INCH_G = {70: (True, False), 700: (True, True), 71: (False, False), 710: (False, False)}
-_IGNORED_G = {9, 60, 64, 601, 602, 603} | SMOOTHING_G
+_IGNORED_G = {9, 60, 64, 601, 602, 603} | SMOOTHING_G | CORNER_G
 _REFUSED_WORDS = {
     "GOTO": "program jumps (GOTO)", "GOTOF": "program jumps (GOTOF)",
     "GOTOB": "program jumps (GOTOB)", "GOTOC": "program jumps (GOTOC)",

@@ -79,27 +79,34 @@ class HelixTurns:
             words.append(f"{c}=AC({self._text(v)})")
         return " ".join(words)
 
-    def _shift(self, planned: str, written: str) -> dict:
+    def _shift(self, planned: str, written: str) -> dict | None:
         """Letter -> how far (program units, at the written decimals) the written piece stands
-        from the planned one (I J as X Y)."""
+        from the planned one (the centre's I J as 'Xc', 'Yc'); None where the written piece names
+        other axes (a Z its corrected path moves on a flat circle)."""
         a, b = _values(planned), _values(written)
-        return {{"I": "X", "J": "Y"}.get(c, c) + ("c" if c in "IJ" else ""):
-                round(b[c] - a[c], self.base + 1) for c in a}
+        if a.keys() != b.keys():
+            return None
+        return {{"I": "Xc", "J": "Yc"}.get(c, c): round(b[c] - a[c], self.base + 1) for c in a}
 
     def _settle_helix(self, i: int, block, info) -> None:
         h = self.helix
         shifts = [self._shift(p, lines[0]) for p, lines in h.pieces]
+        # how far the helix's start as written stands from the nominal one
         first = {a: round(self._units(j, h.start[j], info.shift)
                           - self._units(j, h.nominal[j], info.shift), self.base + 1)
-                 for a, j in ((a, self.letters.index(a)) for a in "XYZ") if a in shifts[0]}
-        one = all(len(lines) == 1 for _p, lines in h.pieces) and all(s == shifts[0]
-                                                                     for s in shifts)
+                 for a, j in ((a, self.letters.index(a)) for a in "XYZ") if h.start[j] == h.start[j]}
         d = shifts[0]
+        one = d is not None and all(len(lines) == 1 for _p, lines in h.pieces) and \
+            all(s == d for s in shifts)
+        if one and "Z" not in d:              # a flat circle: Z stays where it was written
+            d = dict(d, Z=first.get("Z", 0.0))
         if one and d["Xc"] == d["X"] and d["Yc"] == d["Y"] and first == {a: d[a] for a in first}:
             self.texts[i] = self._moved_helix(i, block, info, d)
             return
         lines = [line for _p, piece in h.pieces for line in piece]
-        lines[0] = self._first_of_helix(h.source.rstrip("\r\n"), lines[0])
+        z = self.letters.index("Z")
+        start_z = self._text(self._units(z, h.start[z], info.shift)) if "Z" in first else None
+        lines[0] = self._first_of_helix(h.source.rstrip("\r\n"), lines[0], start_z)
         self.replaced[i] = lines
         self.added += len(lines) - 1
         self.turn_split += 1
@@ -128,14 +135,18 @@ class HelixTurns:
                 edits.append((a, b, t))
         return edit_text(text, edits) + self.helix.source[len(text):]
 
-    def _first_of_helix(self, text: str, piece: str) -> str:
-        """The source line (``TURN=`` taken out) with the first piece's end point and centre."""
+    def _first_of_helix(self, text: str, piece: str, start_z: str | None) -> str:
+        """The source line (``TURN=`` taken out) with the first piece's end point and centre; a
+        Z word of a flat circle (the piece names none) says the Z written before it,
+        ``start_z``."""
         turn = next(w for w in self._words(text) if w.kind == "assign" and w.name == "TURN")
         at = self._word_start(text, turn)
         text = text[:at].rstrip(" \t") + text[turn.end:] if text[:at].strip() else \
             text[:at] + text[turn.end:].lstrip(" \t")
         named = {w.name: w for w in self._words(text) if w.kind in ("address", "assign")}
         words = {m.group(1): m.group(2) for m in re.finditer(r"([XYZ])(-?\d+\.?\d*)", piece)}
+        if "Z" in named and "Z" not in words and start_z is not None:
+            words["Z"] = start_z
         ij = re.findall(r"[IJ]=AC\([^)]*\)", piece)
         return self._first_piece(text, named, words, ij)
 
