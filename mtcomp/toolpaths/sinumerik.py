@@ -99,8 +99,9 @@ class GInfo:
 @dataclass
 class Translation:
     """A Sinumerik program as G-code: ``gcode`` lines, ``lines`` a :class:`GInfo` per G-code line,
-    ``line_map`` (the source line, 1-based, of each G-code line), ``calls``, ``patterns``, and
-    ``subprograms``: (line, text) of the calls whose moves mtcomp cannot see."""
+    ``line_map`` (the source line, 1-based, of each G-code line), ``calls``, ``patterns``,
+    ``subprograms``: (line, text) of the calls whose moves mtcomp cannot see, ``inch``: whether
+    the program gives lengths in inch anywhere (G70, G700), ``tool_names``: see below."""
 
     gcode: list = field(default_factory=list)
     lines: list = field(default_factory=list)
