@@ -647,6 +647,8 @@ def tcp_note(program, tally) -> list[str]:
         return []
     switches = []
     recorded = sorted(getattr(program, "tcp_switches", {}).items())
+    if getattr(program, "sinumerik", None) is not None:      # read as M428 (docs/toolpaths.md)
+        recorded = [(line, "TRAORI") for line, _code in recorded]
     for before, first in tally.tcp_runs[:3]:
         last = [(line, code) for line, code in recorded if line <= first]
         if last and last[-1][0] > before:

@@ -17,7 +17,9 @@ feed to the depth (RFP-DPR when DPR is given, else DP), rapid to RTP; called onc
 STA1, FDIS, DBH, NUM)` on the line from (SPCA, SPCO) at STA1 degrees, FDIS to the first, DBH apart,
 the modal call at each.
 Path control and settings move nothing: `G64`, `G641`-`G645` with `ADIS=`, `SOFT`, `FFWON`,
-`COMPCAD`, `CYCLE832(...)`, `MSG("...")`, `G4 F..` are lines without motion. A circle by its radius
+`COMPCAD`, `CYCLE832(...)`, `MSG("...")`, `G4 F..` are lines without motion. A circle with
+`TURN=n` makes n full turns from its start, then the circle to its end point, Z going linearly with
+the angle over all of them (Fundamentals, helical interpolation). A circle by its radius
 `G2/G3 X.. Y.. CR=r` turns about the centre at distance |r| from both ends, on the left of the chord
 for G3 and r > 0 (the right for G2), on the other side for a negative r (more than 180 degrees).
 `TRANS X.. Y.. Z..` sets the programmable offset (the axes not given 0), `ATRANS` adds to it,
@@ -25,6 +27,8 @@ for G3 and r > 0 (the right for G2), on the other side for a negative r (more th
 then on are its own plus the offset (the moves here are in the work offset's frame). A block with
 `SUPA`, `G53` or `G153` moves in machine coordinates: a line without motion (kept as written), and
 the axes it names unknown afterwards.
+Units: G70 and G700 give the lengths in inch (positions, centres, CR=, TRANS, the cycles' levels
+and the hole patterns' distances), G71 and G710 in mm, from their own block on; the moves are in mm.
 A line that holds a call, an `MCALL` or a circle's centre is a state line (its numbers move with
 the correction), so it is not among the lines without motion; nor is the output's note line
 `; mtcomp: ...`. `positioned_per_line` gives, per line, whether it may be rewritten and which
@@ -42,6 +46,18 @@ _G = re.compile(r"(?<![A-Z0-9_])G(\d+)")
 _ASSIGN = re.compile(r"(?<![A-Z0-9_])(R\d+|[A-Z_][A-Z0-9_]{2,})\s*=\s*(\S+)")
 
 
+#: a Sinumerik program, known from its file header, its path line, or a DEF, a standard cycle call
+#: or a message MSG("...") at a block's start
+_SIEMENS = re.compile(rb'(?im)^\s*%(?:_N_\w+_MPF|MPF)|^\s*;\s*\$PATH=|'
+                      rb'^\s*(?:N\d+\s*)?(?:DEF\s+(?:REAL|INT|BOOL)\b|(?:MCALL\s+)?CYCLE\d+\s*\(|'
+                      rb'MSG\s*\(\s*")')
+
+
+def is_sinumerik(data: bytes) -> bool:
+    """Whether a program (its bytes) is a Sinumerik program (see _SIEMENS)."""
+    return _SIEMENS.search(data) is not None
+
+
 def _code(raw: bytes) -> str:
     # a ';' starts the comment, but not inside a string "..." (MSG("A;B"))
     text = re.match(r'(?:[^;"]|"[^"]*")*', raw.decode("latin-1").replace("\r", "")).group(0).upper()
@@ -57,11 +73,18 @@ class _Controller:
         self.motion = None
         self.modal = None           # the modal call: (name, argument texts)
         self.wcs = None             # no work system named yet
-        self.shift = {"X": 0.0, "Y": 0.0, "Z": 0.0}     # TRANS / ATRANS
+        self.shift = {"X": 0.0, "Y": 0.0, "Z": 0.0}     # TRANS / ATRANS, mm
+        self.scale = 1.0            # mm per unit of length: G70/G700 inch, G71/G710 mm
 
     def at(self, axis, text):
-        """The position (work offset's frame) of an axis word's value."""
-        return self.value(text) + self.shift.get(axis, 0.0)
+        """The position (work offset's frame, mm or deg) of an axis word's value."""
+        if axis in "ABC":
+            return self.value(text)
+        return self.length(text) + self.shift.get(axis, 0.0)
+
+    def length(self, text):
+        """A length (mm) the program gives in its units."""
+        return self.value(text) * self.scale
 
     def value(self, text):
         text = text.strip()
@@ -100,11 +123,14 @@ def _block(c, index, code):
             c.vars[name] = math.nan
     frame = re.match(r"(A?TRANS|ROT|SCALE|MIRROR)\b(.*)", code)
     if frame:
-        given = {a: c.value(v) for a, v in _AXIS.findall(frame.group(2))}
+        given = {a: c.length(v) for a, v in _AXIS.findall(frame.group(2))}
         for a in "XYZ":         # the tool stays where it is (positions are the work frame's)
             c.shift[a] = given.get(a, 0.0) + (c.shift[a] if frame.group(1) == "ATRANS" else 0.0)
         return False, []
     g = [int(v) for v in _G.findall(code)]
+    for v in g:
+        if v in (70, 700, 71, 710):
+            c.scale = 25.4 if v in (70, 700) else 1.0
     if re.search(r"(?<![A-Z0-9_])SUPA(?![A-Z0-9_])", code) or 53 in g or 153 in g:
         c.pos = dict(c.pos, **{a: None for a, _v in _AXIS.findall(code)})
         return False, []
@@ -129,10 +155,11 @@ def _block(c, index, code):
         return True, []
     words = {a: v for a, v in _AXIS.findall(code)}
     radius = re.search(r"(?<![A-Z0-9_])CR\s*=\s*(\S+)", code)
-    if c.motion in (2, 3) and radius:
-        return True, [_radius_arc(c, index, words, c.value(radius.group(1)))]
-    if c.motion in (2, 3) and ("I" in words or "J" in words):
-        return True, [_arc(c, index, words)]
+    turns = re.search(r"(?<![A-Z0-9_])TURN\s*=\s*(\S+)", code)
+    if c.motion in (2, 3) and (radius or "I" in words or "J" in words):
+        move = (_radius_arc(c, index, words, c.length(radius.group(1))) if radius
+                else _arc(c, index, words))
+        return True, _turns(move, int(c.value(turns.group(1)))) if turns else [move]
     target = dict(c.pos)
     for a, v in words.items():
         target[a] = c.at(a, v)
@@ -150,9 +177,9 @@ def _cycle(c, index, name, args):
     if not re.fullmatch(r"CYCLE8[1-9]", name):
         c.unknown()
         return []
-    rtp, rfp, sdis = (c.at("Z", a) for a in args[:3])
-    sdis -= c.shift["Z"]
-    bottom = rfp - c.value(args[4]) if len(args) > 4 and args[4].strip() else c.at("Z", args[3])
+    rtp, rfp = (c.at("Z", a) for a in args[:2])
+    sdis = c.length(args[2])
+    bottom = rfp - c.length(args[4]) if len(args) > 4 and args[4].strip() else c.at("Z", args[3])
     moves = []
     for kind, z in (("rapid", rfp + sdis), ("feed", bottom), ("rapid", rtp)):
         end = dict(c.pos, Z=z)
@@ -164,11 +191,12 @@ def _cycle(c, index, name, args):
 def _call(c, index, name, args):
     if name in ("HOLES1", "HOLES2"):
         x0, y0, p, q, r, num = (c.value(a) for a in args)
-        x0, y0 = x0 + c.shift["X"], y0 + c.shift["Y"]
+        x0, y0 = c.at("X", args[0]), c.at("Y", args[1])
         if name == "HOLES1":        # p: the line's angle, q: to the first hole, r: between holes
-            at = [(q + i * r, math.radians(p)) for i in range(int(num))]
+            at = [((q + i * r) * c.scale, math.radians(p)) for i in range(int(num))]
         else:                       # p: the radius, q: the first angle, r: the step (0: evenly)
-            at = [(p, math.radians(q + i * (r if r else 360.0 / num))) for i in range(int(num))]
+            at = [(p * c.scale, math.radians(q + i * (r if r else 360.0 / num)))
+                  for i in range(int(num))]
         moves = []
         for d, a in at:
             end = dict(c.pos, X=x0 + d * math.cos(a), Y=y0 + d * math.sin(a))
@@ -189,9 +217,31 @@ def _arc(c, index, words):
     for letter, a, s in (("I", "X", start["X"]), ("J", "Y", start["Y"])):
         v = words[letter]
         m = re.match(r"=\s*AC\((.*)\)$", v)
-        centre.append(c.at(a, m.group(1)) if m else s + c.value(v))
+        centre.append(c.at(a, m.group(1)) if m else s + c.length(v))
     c.pos = end
     return arc_move(index, start, end, centre, c.motion == 3)
+
+
+def _turns(move, n):
+    """A circle with n additional full turns (TURN=n): from its start n full turns, then the
+    circle to its end point, the axis off the plane and the radius going linearly with the angle
+    over all of them. n + 1 moves: each full turn one (its sweep 2 pi), then the circle's own."""
+    cx, cy = move.centre
+    r0 = math.hypot(move.start["X"] - cx, move.start["Y"] - cy)
+    r1 = math.hypot(move.end["X"] - cx, move.end["Y"] - cy)
+    a0 = math.atan2(move.start["Y"] - cy, move.start["X"] - cx)
+    total = abs(move.sweep) + 2 * math.pi * n
+    out, start = [], move.start
+    for k in range(1, n + 1):
+        u = 2 * math.pi * k / total
+        r = r0 + (r1 - r0) * u
+        end = dict(start, X=cx + r * math.cos(a0), Y=cy + r * math.sin(a0))
+        if move.start["Z"] is not None and move.end["Z"] is not None:
+            end["Z"] = move.start["Z"] + (move.end["Z"] - move.start["Z"]) * u
+        out.append(Move(move.line, "arc", start, end, 17, (cx, cy), math.copysign(2 * math.pi,
+                                                                                   move.sweep)))
+        start = end
+    return out + [arc_move(move.line, start, move.end, (cx, cy), move.sweep > 0)]
 
 
 def _radius_arc(c, index, words, r):

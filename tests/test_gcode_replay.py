@@ -13,8 +13,8 @@ import pytest
 import replay_heidenhain
 import replay_sinumerik
 from replay import Tolerance, compare, replay
-from test_gcode_corpus import (PROGRAMS, REFUSED, _machine_file, _model_file, _topology, run_once,
-                               source_bytes)
+from test_gcode_corpus import (PROGRAMS, REFUSED, _machine_file, _model_file, _topology,
+                               axis_letters, run_once, source_bytes)
 
 #: the correction bounds passed to compensate; the model's errors are larger, so they bind
 BOUND_UM, BOUND_URAD = 20.0, 500.0
@@ -29,6 +29,13 @@ SINUMERIK_CHORD_UM = 5.0
 ACCEPTED = [p for p in PROGRAMS if p.name not in REFUSED]
 #: accepted programs whose output today does not move like the source, and why
 KNOWN_WRONG: dict = {}
+#: accepted programs in which no block can be corrected on the machine of their own axes, and why
+#: (their output is still replayed against the source)
+UNCORRECTED = {
+    # after CYCLE800() (the swivel cycle, which mtcomp cannot see: every axis unknown after it)
+    # the program never names its rotary axes A and C again, so no block has every axis given
+    "sinumerikcas_CAM TEST.MPF": "A and C unknown after CYCLE800() to the end",
+}
 
 
 def _compensated(prog, tmp_path_factory) -> bytes:
@@ -40,7 +47,10 @@ def _compensated(prog, tmp_path_factory) -> bytes:
         # a Sinumerik program on the machine of its own axes: on the corpus test's CBFXYZ machine
         # the C axis it never names is lost at its first subprogram call, and nothing would be
         # corrected (or checked here)
-        topology = "BFXYZ" if siemens else _topology(prog.read_text(encoding="latin-1"))
+        text = prog.read_text(encoding="latin-1")
+        own = axis_letters(text) & set("ABC")
+        topology = ("C" * ("C" in own) + "A" * ("A" in own) + "B" * ("B" in own and "A" not in own)
+                    + "FXYZ") if siemens else _topology(text)
         machine = _machine_file(folder, topology)
         # a conversational or Sinumerik program's arc is not split (its blocks stay one to one),
         # so under this strong model, whose correction changes by tens of um around one arc, its
@@ -74,14 +84,15 @@ def test_output_moves_like_the_source_up_to_the_correction(prog, tmp_path_factor
         assert src_moves, f"{prog.name}: the replay found no motion"
         # the model's corrections are written: most moves end elsewhere than in the source
         ends = {tuple(m.end.items()) for m in src_moves}
-        assert sum(tuple(m.end.items()) not in ends for m in out_moves) > len(src_moves) // 2
+        moved = sum(tuple(m.end.items()) not in ends for m in out_moves)
+        assert moved > len(src_moves) // 2 or (prog.name in UNCORRECTED and moved == 0)
         return
     src_moves, out_moves = compare(src, out, _tolerance(src), name=prog.name)
     assert src_moves, f"{prog.name}: the replay found no motion"
 
 
 def _is_sinumerik(src: bytes) -> bool:
-    return re.match(rb"\s*%(?:_N_\w+_MPF|MPF)", src) is not None
+    return replay_sinumerik.is_sinumerik(src)
 
 
 def _tolerance(src: bytes) -> Tolerance:

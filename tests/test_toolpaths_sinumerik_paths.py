@@ -16,6 +16,7 @@ from mtcomp.toolpaths.gcode import iter_segment_chunks, read_program, write_corr
 from mtcomp.toolpaths.sinumerik import translate
 from replay import Tolerance
 from test_gcode_corpus import _machine_file, _model_file
+from test_toolpaths_sinumerik_840d import compensated
 
 HEAD = "%_N_PATHS_MPF\n;$PATH=/_N_MPF_DIR\n"
 
@@ -65,10 +66,10 @@ N50 MSG("ROUGH; X10 (SIDE)")
 N60 G1 Z-1 F200
 N70 STOPRE
 N80 G4 F2
-N90 G645 BRISK FFWOF COMPCURV
+N90 G645 G62 BRISK FFWOF COMPCURV
 N100 G1 X10
 N110 G4 S30
-N120 DRIVE COMPON G641 G643 G644
+N120 DRIVE COMPON G641 G643 G644 G621 FENDNORM
 N130 COMPOF TRAFOOF G64 G60 G9
 N140 G1 Y10
 N150 M30
@@ -119,14 +120,16 @@ def test_a_circle_by_its_radius_has_the_centre_of_the_manual(tmp_path, move, cen
     ("G2 X0 Y0 CR=5", "ends where it starts"),
     ("G2 X6 Y0 CR=5 I=AC(3) J=AC(4)", "both its radius CR= and its centre"),
     ("G1 X6 Y0 CR=5", "CR= outside a circle"),
-    ("G2 X6 Y0 Z-4 I3 J4 TURN=2", "additional full turns (TURN=)"),
+    ("G2 X6 Y0 Z-4 I3 J4 TURN=.5", "TURN=.5 is not a whole number of additional turns"),
+    ("G1 X6 Y0 TURN=2", "TURN= outside a circle"),
     ("TRANS X10 G1", "TRANS with other words than its axis values"),
     ("TRANS A10", "TRANS of a rotary axis"),
     ("ROT Z45", "a programmable frame (ROT with values)"),
     ("ROT RPL=45", "a programmable frame (ROT with values)"),
     ("AROT Z45", "a programmable frame (AROT)"),
     ("ASCALE X2", "a programmable frame (ASCALE)"),
-    ('T="DRILL 8.5" M6', 'a tool called by name (T="...")'),     # a string's blank is its own
+    ('T="" M6', 'the tool name T="" is not read'),
+    ("T2.5 M6", "the tool number T2.5 is not a whole number"),
 ])
 def test_what_cannot_be_followed_is_refused_in_one_line(tmp_path, capsys, block, words):
     err = _refused(tmp_path, capsys, f"N10 G0 X0 Y0 Z0\nN20 {block}\nM30\n")
@@ -200,11 +203,7 @@ def test_a_circle_by_radius_compensated_against_the_replay(tmp_path, capsys):
             "N50 G1 Z-1 F100\nN60 G3 X0 Y10 CR=10\nN70 G2 X-10 Y20 CR=-10\nN80 G1 X-20\n"
             "N90 G0 Z5\nM30\n")
     src = _write(tmp_path, body)
-    machine = _machine_file(tmp_path, "XFYZ")
-    out = tmp_path / "out.mpf"
-    code = main(["compensate", str(machine), str(_model_file(tmp_path, machine, factor=5.0)),
-                 str(src), "-o", str(out), "--chord-tol-um", "5", "--units", "mm"])
-    assert code == 0, capsys.readouterr().err
+    out = compensated(tmp_path, capsys, src, "XFYZ", 5.0, "--units", "mm")
     replay_sinumerik.compare(src.read_bytes(), out.read_bytes(),
                              Tolerance(axis_mm=0.06, axis_deg=0.1, path_mm=0.1), name="cr")
     text = out.read_text(encoding="latin-1")

@@ -28,7 +28,9 @@ def add_offset_arguments(parser, offsets_help: str, work_offset_help: str) -> No
     parser.add_argument("--work-offset", metavar="G54=X..,Y..,Z..", action="append", default=[],
                         help=work_offset_help)
     parser.add_argument("--tool-length", metavar="H1=L", action="append", default=[],
-                        help="length (mm) of the tool of G43 H1 (repeatable; wins over --offsets)")
+                        help="length (mm) of the tool of G43 H1, or of a tool a Sinumerik program "
+                             "calls by name: --tool-length \"DRILL 8.5=123.4\" for "
+                             "T=\"DRILL 8.5\" (repeatable; wins over --offsets)")
 
 
 #: the controllers whose rules differ, for ``--dialect`` (docs/toolpaths.md)

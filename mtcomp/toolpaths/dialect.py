@@ -78,10 +78,12 @@ _CLUES = [
     ("fanuc", re.compile(r"^\s*[Oo:]\s*\d+\s*(?:\([^()]*\)\s*)*$")),   # a program number O1234
     ("grbl", re.compile(r"^\s*(?:\$[A-Za-z$#]|[?~!]\s*$)")),
     ("heidenhain", re.compile(r"(?i)^\s*\d+\s+BEGIN\s+PGM\b")),
-    # Sinumerik: its file header, its path line, a DEF of a variable, a standard cycle call
+    # Sinumerik: its file header, its path line, a DEF of a variable, a standard cycle call, a
+    # message to the operator MSG("...")
     ("sinumerik", re.compile(r"(?i)^\s*%(?:_N_\w+_(?:MPF|SPF)|MPF|SPF)\b|^\s*;\s*\$PATH=|"
                              r"^\s*(?:N\d+\s*)?DEF\s+(?:REAL|INT|BOOL)\b|"
-                             r"^\s*(?:N\d+\s*)?(?:MCALL\s+)?CYCLE\d+\s*\(")),
+                             r"^\s*(?:N\d+\s*)?(?:MCALL\s+)?CYCLE\d+\s*\(|"
+                             r"^\s*(?:N\d+\s*)?MSG\s*\(\s*\"")),
     # a quoted string parameter (M98 P"file.g", M4000 S"name"): RepRapFirmware's alone
     ("rrf", re.compile(r'(?i)^\s*(?:n\s*\d+\s*)?[gmt]\s*\d[^"]*"')),
 ]
@@ -105,7 +107,8 @@ def detect(path) -> tuple[Dialect, str]:
     clue in the first 64 kB wins: LinuxCNC's O-words or named parameters, a Fanuc macro statement
     or program number (Haas where the program names Haas), grbl's '$' commands or real-time
     characters, RepRapFirmware's quoted string parameters, Sinumerik's file header
-    ``%_N_NAME_MPF``, ``;$PATH=``, a DEF or a CYCLE call, a comment naming the controller (rrf
+    ``%_N_NAME_MPF``, ``;$PATH=``, a DEF, a CYCLE call or ``MSG("...")`` at a block's start, a
+    comment naming the controller (rrf
     for RepRapFirmware, RRF or MillenniumOS); nothing: generic."""
     try:
         with open(os.fspath(path), "rb") as f:

@@ -17,8 +17,10 @@ are 0)::
     [tool_lengths]            # mm, spindle gauge point to tool tip
     H1 = 82.35
     H2 = 104.0
+    "DRILL 8.5" = 123.4       # a tool a Sinumerik program calls by name (T="DRILL 8.5")
 
-Flags: ``--work-offset G54=X250,Y120,Z-310.5`` and ``--tool-length H1=82.35`` (each may be repeated).
+Flags: ``--work-offset G54=X250,Y120,Z-310.5`` and ``--tool-length H1=82.35`` (or by name:
+``--tool-length "DRILL 8.5=123.4"``; each may be repeated).
 """
 from __future__ import annotations
 
@@ -46,14 +48,19 @@ class ProgramSetup:
     """Work offsets and tool lengths of one program on one machine.
 
     work_offsets : wcs index (0 = G54 ... 8 = G59.3) -> (na,) offset, mm and rad (machine order).
-    tool_lengths : H number -> tool length, mm.
+    tool_lengths : H number -> tool length, mm; named_lengths : the same for the tools a program
+    calls by name (Sinumerik ``T="DRILL 8.5"``): name -> tool length, mm.
     used_wcs, used_tools : the work systems and H numbers the program used (filled by :meth:`apply`;
     a system whose every axis the program set itself with G10 is in ``programmed_wcs`` instead).
+    tool_names : the H numbers that stand for tools called by name in the program last applied
+    -> their names.
     """
 
     machine: Machine
     work_offsets: dict = field(default_factory=dict)
     tool_lengths: dict = field(default_factory=dict)
+    named_lengths: dict = field(default_factory=dict)
+    tool_names: dict = field(default_factory=dict)
     used_wcs: set = field(default_factory=set)
     used_tools: set = field(default_factory=set)
     programmed_wcs: set = field(default_factory=set)
@@ -111,7 +118,7 @@ class ProgramSetup:
         if writes is not None:
             self.offset_writes = writes
         lengths = np.full(len(chunk), np.nan)
-        for h, length in self.tool_lengths.items():
+        for h, length in self._lengths(source).items():
             lengths[tool == h] = length
         start, end = self._local(chunk, chunk.start, source), self._local(chunk, chunk.end, source)
         start, end, datum, jump = start + off, end + off, off, chunk.jump
@@ -132,6 +139,16 @@ class ProgramSetup:
             jump = jump | tcp
         return replace(chunk, start=start, end=end, tool_length=lengths, datum=datum,
                        jump=jump), off
+
+    def _lengths(self, source) -> dict:
+        """H number -> tool length (mm): the numbered tools', and those of the tools the program
+        calls by name, under the H numbers its translation gave them."""
+        names = getattr(getattr(source, "sinumerik", None), "tool_names", None) or {}
+        self.tool_names = {h: name for name, h in names.items()}
+        out = dict(self.tool_lengths)
+        out.update({h: self.named_lengths[name] for name, h in names.items()
+                    if name in self.named_lengths})
+        return out
 
     def _local(self, chunk: SegmentChunk, pts: np.ndarray, source) -> np.ndarray:
         """(n, na) the rows' program positions placed by the frame the program moved itself (G52,
@@ -204,9 +221,11 @@ class ProgramSetup:
             names = ", ".join(WORK_SYSTEMS[w] for w in missing)
             out.append(f"assumed: work offset {names} = 0 (the program's coordinates taken as machine "
                        "axis positions); give --work-offset or --offsets")
-        tools = sorted(t for t in self.used_tools if t not in self.tool_lengths)
+        given = {h for h, name in self.tool_names.items() if name in self.named_lengths}
+        tools = sorted(t for t in self.used_tools if t not in self.tool_lengths and t not in given)
         if tools:
-            names = ", ".join(f"H{t}" for t in tools)
+            names = ", ".join(f'"{self.tool_names[t]}"' if t in self.tool_names else f"H{t}"
+                              for t in tools)
             out.append(f"assumed: tool length of {names} = the machine's tool_length_mm "
                        f"({self.machine.tool_length:g} mm); give --tool-length or --offsets")
         return out
@@ -340,8 +359,7 @@ def load_setup(machine: Machine, path=None, work_offset_flags=(), tool_length_fl
                 raise InputError(f"{where} must be a table such as {{X = 250.0, Y = 120.0}}", p)
             setup.work_offsets[_wcs_index(name, where, p)] = _axis_vector(machine, values, where, p)
         for name, x in data.get("tool_lengths", {}).items():
-            where = f"[tool_lengths] {name}"
-            setup.tool_lengths[_tool_number(name, where, p)] = _length(x, where, p)
+            _set_length(setup, name, x, f"[tool_lengths] {name}", p)
     for flag in work_offset_flags:
         where = f"--work-offset {flag}"
         name, sep, rest = flag.partition("=")
@@ -356,12 +374,23 @@ def load_setup(machine: Machine, path=None, work_offset_flags=(), tool_length_fl
         setup.work_offsets[_wcs_index(name, where, None)] = _axis_vector(machine, values, where, None)
     for flag in tool_length_flags:
         where = f"--tool-length {flag}"
-        name, sep, rest = flag.partition("=")
+        name, sep, rest = flag.rpartition("=")
         try:
-            x = float(rest) if sep else None
+            x = float(rest) if sep and name.strip() else None
         except ValueError:
             x = None
         if x is None:
-            raise InputError(f"{where}: write it as H1=82.35 (mm)")
-        setup.tool_lengths[_tool_number(name, where, None)] = _length(x, where, None)
+            raise InputError(f"{where}: write it as H1=82.35 (mm), or NAME=82.35 for a tool "
+                             "called by name")
+        _set_length(setup, name, x, where, None)
     return setup
+
+
+def _set_length(setup: ProgramSetup, name: str, x, where: str, path) -> None:
+    """The length ``x`` (mm) of the tool ``name``: ``H1`` (or ``1``) a tool length number, any
+    other text the name of a tool a program calls by name (``DRILL 8.5``, as between the quotes
+    of ``T="DRILL 8.5"``)."""
+    if re.fullmatch(r"\s*[Hh]?\d+\s*", name):
+        setup.tool_lengths[_tool_number(name, where, path)] = _length(x, where, path)
+    else:
+        setup.named_lengths[name.strip()] = _length(x, where, path)

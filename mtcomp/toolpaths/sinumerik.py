@@ -19,12 +19,13 @@ from dataclasses import dataclass, field
 
 from ..errors import InputError
 from .heidenhain import read_lines
-from .sinumerik_lang import (ExpressionError, Word, code_end, evaluate, split_arguments,
-                             split_words)
-from .sinumerik_paths import (FRAME_WORDS, MACHINE_G, SETTING_CALLS, SETTING_VALUES,
+from .words import MAX_TOOL, MM_PER_INCH
+from .sinumerik_cycles import Call, CycleCalls
+from .sinumerik_lang import (AXES, ExpressionError, Word, code_end, evaluate, fmt,
+                             split_arguments, split_words)
+from .sinumerik_paths import (CORNER_G, FRAME_WORDS, MACHINE_G, SETTING_CALLS, SETTING_VALUES,
                               SETTING_WORDS, SMOOTHING_G, RadiusError, radius_centre)
 
-AXES = "XYZABC"
 _HEADER = re.compile(r"^\s*%")
 #: what stands before a block's words: a block skip, its number, a label
 BLOCK_START = re.compile(r"\s*/?\s*(?:(?:N\d+|:\d+)\s*)?(?:[A-Za-z_][A-Za-z0-9_]*:(?!=)\s*)?")
@@ -35,8 +36,12 @@ _DEF = re.compile(r"(?i)\s*DEF\s+(REAL|INT|BOOL)\s+(.*)$")
 #: control (exact stop, continuous path and its smoothing: within a tolerance of the path as
 #: programmed), feed per minute, cutter radius compensation
 _MOTION_G = {0, 1, 2, 3}
-_PASSED_G = {17, 18, 19, 40, 41, 42, 90, 94, 71, 710}
-_IGNORED_G = {9, 60, 64, 601, 602, 603} | SMOOTHING_G
+_PASSED_G = {17, 18, 19, 40, 41, 42, 90, 94, 70, 700, 71, 710}
+#: the units: G70 inch for the geometry (positions, centres, radii, TRANS), the feed in the basic
+#: system; G700 inch for the feed F too; G71, G710 metric (Fundamentals, "Dimensions in metric
+#: units and inches")
+_INCH_G = {70: (True, False), 700: (True, True), 71: (False, False), 710: (False, False)}
+_IGNORED_G = {9, 60, 64, 601, 602, 603} | SMOOTHING_G | CORNER_G
 _REFUSED_WORDS = {
     "GOTO": "program jumps (GOTO)", "GOTOF": "program jumps (GOTOF)",
     "GOTOB": "program jumps (GOTOB)", "GOTOC": "program jumps (GOTOC)",
@@ -45,36 +50,39 @@ _REFUSED_WORDS = {
     "PROC": "a subprogram definition (PROC)", "ROT": "a programmable frame (ROT)",
     "AROT": "a programmable frame (AROT)", "SCALE": "a programmable frame (SCALE)",
     "ASCALE": "a programmable frame (ASCALE)", "MIRROR": "a programmable frame (MIRROR)",
-    "AMIRROR": "a programmable frame (AMIRROR)", "TRAORI": "5-axis transformation (TRAORI)",
+    "AMIRROR": "a programmable frame (AMIRROR)",
     "TRANSMIT": "a transformation (TRANSMIT)", "TRACYL": "a transformation (TRACYL)",
     "CIP": "a circle through an intermediate point (CIP)", "CT": "a tangential circle (CT)",
     "AR": "a circle by its opening angle (AR=)",
     "AP": "polar coordinates (AP=)", "RP": "polar coordinates (RP=)",
     "RND": "a rounding (RND)", "CHF": "a chamfer (CHF)", "CHR": "a chamfer (CHR)",
     "SPOS": "spindle positioning (SPOS)",
-    "TURN": "a helix with additional full turns (TURN=)",
 }
 #: the words refused where they are given a value (``AR=...``)
-_REFUSED_VALUES = {"AR", "AP", "RP", "RND", "CHF", "CHR", "TURN"}
-#: the drilling cycles read: their moves are a hole from RFP+SDIS to the depth, back to RTP. They
-#: share CYCLE81's first five parameters (RTP, RFP, SDIS, DP, DPR) and its hole; what else they do
-#: (pecks, dwells, the spindle stopped, a lift-off at the bottom, the way out) keeps the hole where
-#: it is (Cycles manual, 2013)
-_DRILLING = {f"CYCLE8{n}" for n in range(1, 10)}
-#: the hole patterns read under a modal call: their arguments
-_PATTERNS = {"HOLES1": ("SPCA", "SPCO", "STA1", "FDIS", "DBH", "NUM"),
-             "HOLES2": ("CPA", "CPO", "RAD", "STA1", "INDA", "NUM")}
-
-
+_REFUSED_VALUES = {"AR", "AP", "RP", "RND", "CHF", "CHR"}
+#: the tool orientation given otherwise than by the rotary axes' positions (Job planning,
+#: orientation programming; 5-axis machining): refused by name under TRAORI and elsewhere
+_ORIENTATION = {"2": "its Euler or RPY angles (A2= B2= C2=)",
+                "3": "its direction vector (A3= B3= C3=)",
+                "4": "the surface normal at the block's start (A4= B4= C4=)",
+                "5": "the surface normal at the block's end (A5= B5= C5=)",
+                "6": "the axis of a cone of orientations (A6= B6= C6=)",
+                "7": "an intermediate orientation (A7= B7= C7=)",
+                "LEAD": "its lead angle (LEAD=)", "TILT": "its tilt angle (TILT=)",
+                "THETA": "its rotation angle (THETA=)"}
+#: the largest number of additional full turns TURN= of a helix (Fundamentals, helical
+#: interpolation: 0 to 999)
+MAX_TURNS = 999
 @dataclass
 class GInfo:
     """What a G-code line of the translation is, for the writer: ``source`` its source line
     (0-based); ``kind`` None (no move), 'move' (a straight move of the line's axis words), 'arc',
     'hole' (a hole of a drilling cycle, at its bottom), 'retract' (to the cycle's RTP: kept as
     written), 'approach' (a call's own move, kept); ``shift`` the programmable frame's translation
-    (mm, X Y Z) in force; for an arc its ``centre``, ``cc_line`` (its own line) and, for a circle
-    given by its radius, ``radius`` (the CR= value, mm); for a hole its ``call`` (:class:`Call`)
-    and ``pattern`` (:class:`Pattern` or None)."""
+    (X Y Z, the program's units) in force; for an arc its ``centre``, ``cc_line`` (its own line)
+    and, for a circle given by its radius, ``radius`` (the CR= value); for a piece of a helix with
+    additional turns ``turn`` (its index, the number of pieces); for a hole its ``call``
+    (:class:`Call`) and ``pattern`` (:class:`Pattern` or None); ``inch``: G70/G700 in force."""
 
     source: int
     kind: str | None = None
@@ -82,48 +90,18 @@ class GInfo:
     centre: tuple | None = None
     cc_line: int | None = None
     radius: float | None = None
+    turn: tuple | None = None
     call: object = None
     pattern: object = None
-
-
-@dataclass
-class Call:
-    """A drilling cycle call: its line (0-based), name, argument texts and where they stand in
-    the line (start, end), whether modal (MCALL), the levels RTP, RFP, SDIS and the hole's
-    bottom (mm), and its holes (G-code line indices)."""
-
-    line: int
-    name: str
-    args: list
-    spans: list
-    modal: bool
-    rtp: float
-    rfp: float
-    sdis: float
-    bottom: float
-    holes: list = field(default_factory=list)
-
-
-@dataclass
-class Pattern:
-    """A hole pattern (HOLES1 a row, HOLES2 a circle): its line, the argument texts and spans, its
-    holes' positions, its reference point (the first two arguments)."""
-
-    line: int
-    name: str
-    args: list
-    spans: list
-    positions: list
-    centre: tuple = (0.0, 0.0)
-    motion: int | None = 0
-    holes: list = field(default_factory=list)
+    inch: bool = False
 
 
 @dataclass
 class Translation:
     """A Sinumerik program as G-code: ``gcode`` lines, ``lines`` a :class:`GInfo` per G-code line,
-    ``line_map`` (the source line, 1-based, of each G-code line), ``calls``, ``patterns``, and
-    ``subprograms``: (line, text) of the calls whose moves mtcomp cannot see."""
+    ``line_map`` (the source line, 1-based, of each G-code line), ``calls``, ``patterns``,
+    ``subprograms``: (line, text) of the calls whose moves mtcomp cannot see, ``inch``: whether
+    the program gives lengths in inch anywhere (G70, G700), ``tool_names``: see below."""
 
     gcode: list = field(default_factory=list)
     lines: list = field(default_factory=list)
@@ -132,14 +110,12 @@ class Translation:
     patterns: list = field(default_factory=list)
     subprograms: list = field(default_factory=list)
     inch: bool = False
+    #: the tools called by name (``T="DRILL 8.5"``) -> the tool length number H that stands for
+    #: each in the G-code equivalent (its length: ``--tool-length "DRILL 8.5=L"``)
+    tool_names: dict = field(default_factory=dict)
 
 
-def fmt(v: float) -> str:
-    s = f"{v:.10f}".rstrip("0").rstrip(".")
-    return "0" if s in ("-0", "") else s
-
-
-class _Reader:
+class _Reader(CycleCalls):
     """The state a Sinumerik program carries from line to line."""
 
     def __init__(self, path):
@@ -149,7 +125,8 @@ class _Reader:
         self.pos = dict.fromkeys(AXES)          # program frame (mm, deg); None: unknown
         self.motion: int | None = None
         self.plane = 17
-        self.tool = 0
+        self.tool: int | str = 0                # the tool T selects: a number or a name
+        self.active: int | str | None = None    # the tool M6 changed in (None: no M6 yet)
         self.edge = 1                           # the tool's cutting edge D in force (0: D0)
         self.wcs = 500                          # the basic setting: no settable work offset
         #: the G-code equivalent is in the basic frame (G500 named; before any work system is
@@ -161,13 +138,17 @@ class _Reader:
         #: the programmable frame's translation TRANS/ATRANS (mm, X Y Z): the G-code equivalent's
         #: coordinates are the program's plus this shift
         self.shift = [0.0, 0.0, 0.0]
+        #: the units in force (G70/G700 inch, G71/G710 mm): of the geometry, of the feed F
+        self.inch = False
+        self.feed_inch = False
+        self.tcp = False                        # TRAORI in force
         self.k = 0
 
     def err(self, message: str) -> InputError:
         return InputError(message + " (Sinumerik)", self.path, line=self.k + 1)
 
     def emit(self, text: str, kind=None, **kw) -> GInfo:
-        info = GInfo(self.k, kind, shift=tuple(self.shift), **kw)
+        info = GInfo(self.k, kind, shift=tuple(self.shift), inch=self.inch, **kw)
         self.out.gcode.append(text)
         self.out.lines.append(info)
         self.out.line_map.append(self.k + 1)
@@ -266,11 +247,22 @@ class _Reader:
             if w.name in _REFUSED_WORDS and (w.kind in ("keyword", "call")
                                              or (w.kind == "assign" and w.name in _REFUSED_VALUES)):
                 raise self.err(f"{_REFUSED_WORDS[w.name]} is not read by mtcomp")
+            self._orientation(w)
+        switch = self._switch(words)
         g, axes, centre, other = self._classify(words)
-        calls = [w for w in words if (w.kind == "call" and w.name not in SETTING_CALLS)
+        calls = [w for w in words if (w.kind == "call" and w.name not in SETTING_CALLS
+                                      and w.name != "TRAORI")
                  or (w.kind == "address" and w.name == "L")]
         mcall = any(w.kind == "keyword" and w.name == "MCALL" for w in words)
         self._modes(g, other)
+        if switch is not None:
+            if axes or centre or calls or mcall:
+                raise self.err(f"{'TRAORI' if switch else 'TRAFOOF'} and a move or a call in one "
+                               "block is not read by mtcomp")
+            if switch != self.tcp:
+                self.tcp = switch
+                self.pos = dict.fromkeys(AXES)
+                self.emit("M428" if switch else "M429")
         if mcall:
             self._mcall(calls, axes)
             return
@@ -290,11 +282,46 @@ class _Reader:
             # machine Y and Z, often X): every position is unknown until the program names it
             self.pos = dict.fromkeys(AXES)
             self.edge = 1                       # a new tool starts on its edge D1
-            self.emit(f"T{self.tool} M6 " + (f"G43 H{self.tool}" if self.tool else "G49"))
+            self.active = self.tool
+            h = self._length_number()
+            self.emit(f"T{h} M6 {self._length_code(h)}")
             self.emit("G43.1")
         if "END" in other:
             self.ended = True
             self.emit("M30")
+
+    def _orientation(self, w: Word) -> None:
+        """Refuses the tool orientation given otherwise than by the rotary axes, by name (Job
+        planning, "Variants of orientation programming")."""
+        key = w.name if w.name in _ORIENTATION else w.name[1:] if re.fullmatch(r"[ABC][2-7]",
+                                                                                  w.name) else ""
+        if w.kind == "assign" and key:
+            raise self.err(f"the tool orientation by {_ORIENTATION[key]} is not read by mtcomp "
+                           "(give the rotary axes' positions)")
+        if w.kind in ("keyword", "call") and w.name.startswith("ORI"):
+            raise self.err(f"{w.name} (orientation programming: how the tool orientation is given "
+                           "or interpolated) is not read by mtcomp (give the rotary axes' "
+                           "positions)")
+
+    def _switch(self, words: list[Word]) -> bool | None:
+        """TRAORI (True: the 5-axis transformation, X Y Z the tool tip in the workpiece frame,
+        the rotary axes their machine positions; Job planning, "Three, four and five axis
+        transformation (TRAORI)"), TRAFOOF (False: off) or neither (None). Read as G-code's tool centre point mode, M428 and
+        M429 (docs/toolpaths.md, "Tool centre point programs"), in a block without a move; a
+        switch makes every position unknown (the words change meaning). ``TRAORI`` and
+        ``TRAORI(1)`` select the machine's first transformation, the machine file's kinematics;
+        another one, or one given an orientation or offsets in the call, is refused."""
+        switch = None
+        for w in words:
+            if w.name == "TRAORI" and w.kind in ("keyword", "call"):
+                if w.kind == "call" and w.text.strip() and split_arguments(w.text) != ["1"]:
+                    raise self.err(f"TRAORI({w.text.strip()}) is not read by mtcomp (TRAORI or "
+                                   "TRAORI(1): the machine's first transformation, which the "
+                                   "machine file describes)")
+                switch = True
+            elif w.name == "TRAFOOF" and w.kind == "keyword":
+                switch = False
+        return switch
 
     def _frame(self, words: list[Word]) -> None:
         """TRANS X.. Y.. Z.. (the programmable frame's translation replaced, its other parts
@@ -332,28 +359,27 @@ class _Reader:
                     raise self.err(f"axis {w.name} twice in one block")
                 axes[w.name] = w
             elif w.kind in ("address", "assign") and w.name in "IJK" or \
-                    (w.kind == "assign" and w.name == "CR"):
+                    (w.kind == "assign" and w.name in ("CR", "TURN")):
                 centre[w.name] = w
             elif w.kind == "address" and w.name == "M":
                 m = int(float(w.text))
                 other.add({6: "M6", 2: "END", 30: "END", 17: "END"}.get(m, f"M{m}"))
-            elif w.kind == "address" and w.name == "T":
-                self.tool = int(float(w.text))
+            elif w.kind in ("address", "assign") and w.name == "T":
+                self.tool = self._tool(w)
             elif w.kind == "address" and w.name == "D":
                 other.add(f"D{int(float(w.text))}")
             elif dwell and w.kind in ("address", "assign") and w.name in "FS":
                 other.add(f"dwell {w.name}{fmt(self.value(w.text))}")
             elif w.kind in ("address", "assign") and w.name == "F":
                 other.add(f"F{fmt(self.value(w.text))}")
-            elif w.kind == "assign" and w.name == "T":
-                raise self.err("a tool called by name (T=\"...\") is not read by mtcomp")
             elif w.kind == "assign" and w.name in SETTING_VALUES:
                 self.value(w.text)              # a smoothing distance: set, moves nothing
             elif w.kind == "assign" and w.name not in ("S", "M", "H"):
                 self.assign(w.name, w.text)
             elif w.kind == "keyword" and w.name == "SUPA":
                 other.add("machine")
-            elif w.kind == "keyword" and w.name not in ("MCALL",) and w.name not in SETTING_WORDS:
+            elif w.kind == "keyword" and w.name not in ("MCALL", "TRAORI") \
+                    and w.name not in SETTING_WORDS:
                 raise self.err(f"{w.name} is not read by mtcomp")
             elif w.kind == "address" and w.name not in "SHNLP":
                 raise self.err(f"the word {w.name}{w.text} is not read by mtcomp")
@@ -377,9 +403,8 @@ class _Reader:
                     self.wcs = code
                     self.pos = dict.fromkeys(AXES)
                     self._basic_frame()
-            elif code in (70, 700):
-                raise self.err("inch programs (G70, G700) are not read by mtcomp's Sinumerik "
-                               "dialect")
+            elif code in _INCH_G:
+                self._units(*_INCH_G[code])
             elif code == 91:
                 raise self.err("incremental dimensions G91 are not read by mtcomp's Sinumerik "
                                "dialect")
@@ -391,7 +416,38 @@ class _Reader:
             # another cutting edge (D0: none) is another tool length: Z unknown until named
             self.edge = edges[-1]
             self.pos["Z"] = None
-            self.emit(f"G43 H{self.tool}" if self.edge and self.tool else "G49")
+            self.emit(self._length_code(self._length_number() if self.edge else 0))
+
+    def _length_code(self, h: int) -> str:
+        """The tool length of H number h (0: none) in the G-code equivalent: G43 H.., G49 for
+        none (G43 H0 under TRAORI: G49 would end G-code's tool centre point mode)."""
+        return f"G43 H{h}" if h or self.tcp else "G49"
+
+    def _tool(self, w: Word) -> int | str:
+        """The tool a T word selects: ``T5``, ``T=5`` (a number) or ``T="DRILL 8.5"`` (a name, the
+        string's text; Fundamentals, tool change: tool selection by name or number)."""
+        text = w.text.strip()
+        if w.kind == "assign" and text.startswith('"'):
+            if len(text) < 3 or not text.endswith('"') or '"' in text[1:-1]:
+                raise self.err(f"the tool name T={text} is not read by mtcomp")
+            return text[1:-1]
+        number = self.value(text)
+        if number != int(number) or number < 0:
+            raise self.err(f"the tool number T{fmt(number)} is not a whole number")
+        return int(number)
+
+    def _length_number(self) -> int:
+        """The tool length number H of the G-code equivalent for the tool in the spindle (the
+        one M6 changed in; the one T selected before any M6): its number, or for a tool called
+        by name a number of its own (``Translation.tool_names``), counted down from the largest
+        (a program's numbered tools stay below them)."""
+        tool = self.tool if self.active is None else self.active
+        if isinstance(tool, int):
+            return tool
+        names = self.out.tool_names
+        if tool not in names:
+            names[tool] = MAX_TOOL - 1 - len(names)
+        return names[tool]
 
     def _basic_frame(self) -> None:
         """The basic frame G500 (no settable work offset) in the G-code equivalent: the work system
@@ -401,7 +457,33 @@ class _Reader:
         self.emit("G59.3")
 
     def _g_codes(self, g: list[int]) -> str:
-        return " ".join("G21" if c in (71, 710) else f"G{c}" for c in g if c in _PASSED_G)
+        return " ".join("G20" if c in (70, 700) else "G21" if c in (71, 710) else f"G{c}"
+                        for c in g if c in _PASSED_G)
+
+    def _units(self, inch: bool, feed_inch: bool) -> None:
+        """G70, G700, G71, G710: the G-code equivalent says G20 or G21 and keeps the program's
+        numbers; the positions and the programmable offset carried here are turned into the new
+        units (the tool stays where it is). Under G70 the feed is the basic system's, taken as
+        metric (the manual's setting): written in inch/min for the G-code equivalent."""
+        if inch != self.inch:
+            if self.modal_call is not None:
+                raise self.err("a change of units (G70, G71, G700, G710) under a modal call "
+                               "(MCALL) is not read by mtcomp")
+            f = 1.0 / MM_PER_INCH if inch else MM_PER_INCH
+            for a in "XYZ":
+                if self.pos[a] is not None:
+                    self.pos[a] *= f
+            self.shift = [v * f for v in self.shift]
+            self.inch = inch
+            self.out.inch = self.out.inch or inch
+        self.feed_inch = feed_inch
+
+    def _feed(self, other: set) -> str:
+        """The block's feed word for the G-code equivalent (mm/min, or inch/min under G20)."""
+        feed = [o for o in sorted(other) if o.startswith("F")]
+        if feed and self.inch and not self.feed_inch:
+            return f"F{float(feed[0][1:]) / MM_PER_INCH:.15g}"
+        return " ".join(feed)
 
     def _target(self, axes: dict) -> dict:
         return {a: self.value(w.text) for a, w in axes.items()}
@@ -420,12 +502,13 @@ class _Reader:
     def _move(self, g, axes, centre, other) -> None:
         self._check_axis_words(axes)
         codes = self._g_codes(g)
-        feed = " ".join(o for o in sorted(other) if o.startswith("F"))
+        feed = self._feed(other)
         if self.motion in (2, 3) and (axes or centre):
             self._arc(axes, centre, codes, feed)
             return
         if centre:
-            raise self.err(f"{'CR=' if 'CR' in centre else 'I, J or K'} outside a circle G2/G3")
+            word = next((f"{n}=" for n in ("CR", "TURN") if n in centre), "I, J or K")
+            raise self.err(f"{word} outside a circle G2/G3")
         if not axes:
             text = " ".join(t for t in (codes, feed) if t)
             if text.strip():
@@ -458,7 +541,7 @@ class _Reader:
             raise self.err("a block in machine coordinates (SUPA, G53, G153) under a modal call "
                            "(MCALL) is not read by mtcomp")
         codes = self._g_codes(g)
-        feed = " ".join(o for o in sorted(other) if o.startswith("F"))
+        feed = self._feed(other)
         if not axes:
             text = " ".join(t for t in (codes, feed) if t)
             if text:
@@ -494,22 +577,77 @@ class _Reader:
         sx, sy = self.pos["X"], self.pos["Y"]
         end = {"X": sx, "Y": sy, **target}
         radius = None
+        turns = self._turns(centre.pop("TURN", None))
         if "CR" in centre:
             if set(centre) != {"CR"}:
                 raise self.err("a circle with both its radius CR= and its centre I J K is not read "
                                "by mtcomp")
             radius = self.value(centre["CR"].text)
             try:
-                c = radius_centre((sx, sy), (end["X"], end["Y"]), radius, self.motion == 3)
+                c = radius_centre((sx, sy), (end["X"], end["Y"]), radius, self.motion == 3,
+                                  MM_PER_INCH if self.inch else 1.0)
             except RadiusError as exc:
                 raise self.err(str(exc)) from None
         else:
             c = self._centre(centre, sx, sy)
+        if turns:
+            self._helix_turns(end, c, turns, codes, feed, radius)
+            return
         self.pos.update(end)
         words = self._words({a: end[a] for a in ("X", "Y", "Z") if a in end})
         text = " ".join(t for t in (codes, f"G{self.motion}", words,
                                     f"I{fmt(c[0] - sx)} J{fmt(c[1] - sy)}", feed) if t)
         self.emit(text, "arc", centre=(c[0], c[1]), cc_line=self.k, radius=radius)
+
+    def _turns(self, w: Word | None) -> int:
+        """The additional full turns of ``TURN=`` (0 without it): a whole number, 0 to 999."""
+        if w is None:
+            return 0
+        n = self.value(w.text)
+        if n != int(n) or not 0 <= n <= MAX_TURNS:
+            raise self.err(f"TURN={w.text.strip()} is not a whole number of additional turns "
+                           f"(0 to {MAX_TURNS})")
+        return int(n)
+
+    def _helix_turns(self, end: dict, c, turns: int, codes: str, feed: str, radius) -> None:
+        """A circle with ``turns`` additional full turns (Fundamentals, helical interpolation:
+        from the start the full turns, then the circle to its end point; a circle whose end is its
+        start is itself a full turn), Z (and the radius, where the ends' radii differ) going
+        linearly with the angle over all of them: in the G-code equivalent as pieces of half a
+        turn from the start's angle (the last one the circle's own part, two halves for a full
+        circle), each a circle G2/G3 with ``turn`` (its index, the pieces' number)."""
+        sx, sy, sz = self.pos["X"], self.pos["Y"], self.pos["Z"]
+        if "Z" in end and sz is None:
+            raise self.err("a helix with TURN= from a Z the program has not given")
+        ccw = self.motion == 3
+        a0 = math.atan2(sy - c[1], sx - c[0])
+        r0, r1 = math.hypot(sx - c[0], sy - c[1]), math.hypot(end["X"] - c[0], end["Y"] - c[1])
+        if math.hypot(end["X"] - sx, end["Y"] - sy) <= 1e-9:
+            own = [math.pi, 2.0 * math.pi]
+        else:
+            a1 = math.atan2(end["Y"] - c[1], end["X"] - c[0])
+            own = [(a1 - a0) % (2.0 * math.pi) if ccw else (a0 - a1) % (2.0 * math.pi)]
+        turned = [k * math.pi for k in range(1, 2 * turns + 1)] + [2 * math.pi * turns + t
+                                                                   for t in own]
+        total = turned[-1]
+        sign = 1.0 if ccw else -1.0
+        start = (sx, sy)
+        for k, t in enumerate(turned):
+            u = t / total
+            r = r0 + (r1 - r0) * u
+            at = {"X": c[0] + r * math.cos(a0 + sign * t), "Y": c[1] + r * math.sin(a0 + sign * t)}
+            if k == len(turned) - 1:
+                at = {"X": end["X"], "Y": end["Y"]}
+            if "Z" in end:
+                at["Z"] = end["Z"] if k == len(turned) - 1 else sz + (end["Z"] - sz) * u
+            first = (codes, f"G{self.motion}") if k == 0 else ("", f"G{self.motion}")
+            text = " ".join(t for t in (*first, self._words(at),
+                                        f"I{fmt(c[0] - start[0])} J{fmt(c[1] - start[1])}",
+                                        feed if k == 0 else "") if t)
+            self.emit(text, "arc", centre=(c[0], c[1]), cc_line=self.k, radius=radius,
+                      turn=(k, len(turned)))
+            start = (at["X"], at["Y"])
+        self.pos.update(end)
 
     def _centre(self, centre, sx: float, sy: float) -> list:
         """The centre (x, y) of a circle given by I J (from the start, IC(..)) or I=AC(..)
@@ -529,136 +667,6 @@ class _Reader:
                 inner = re.fullmatch(r"(?i)\s*IC\s*\((.*)\)\s*", w.text)
                 c.append(s + self.value(inner.group(1) if inner else w.text))
         return c
-
-    # ------------------------------------------------------------------ calls
-    def _call(self, w: Word) -> None:
-        if w.kind == "address":                 # L54: a subprogram not in the file
-            self._unknown(f"L{w.text}")
-        elif w.name in _DRILLING:
-            call = self._drilling(w, modal=False)
-            self._hole(call, self.pos["X"], self.pos["Y"], None)
-        elif w.name in _PATTERNS:
-            self._pattern(w)
-        else:
-            self._unknown(w.name)
-
-    def _unknown(self, name: str) -> None:
-        """A subprogram the program does not hold: the controller runs it, mtcomp cannot see its
-        moves: every position and every R parameter is unknown after it (the modes are taken as
-        the subprogram leaves them, restored: SAVE)."""
-        self.out.subprograms.append((self.k, name))
-        self.pos = dict.fromkeys(AXES)
-        for key in list(self.vars):
-            if re.fullmatch(r"R\d+", key):
-                self.vars[key] = None
-        self.r_lost = True
-        self.emit("G43.1")
-
-    def _mcall(self, calls, axes) -> None:
-        if axes or len(calls) > 1:
-            raise self.err("MCALL with a move or more than one call is not read by mtcomp")
-        if not calls:
-            self.modal_call = None
-            return
-        w = calls[0]
-        if w.kind == "address" or w.name not in _DRILLING:
-            self.modal_call = w.name if w.kind == "call" else f"L{w.text}"
-            return
-        self.modal_call = self._drilling(w, modal=True)
-
-    def _drilling(self, w: Word, modal: bool) -> Call:
-        """CYCLE81 ... CYCLE89 (RTP, RFP, SDIS, DP, DPR, ...): the levels of its holes."""
-        args = split_arguments(w.text)
-        spans = _spans(w, args)
-        names = ("RTP", "RFP", "SDIS", "DP", "DPR")
-        vals = [self.value(a) if i < len(args) and args[i] else None for i, a in
-                enumerate(args[:5] + [""] * (5 - len(args[:5])))]
-        rtp, rfp, sdis, dp, dpr = vals
-        missing = [n for n, v in zip(names[:2], (rtp, rfp)) if v is None]
-        if missing or (dp is None and dpr is None):
-            raise self.err(f"{w.name} without {', '.join(missing) or 'DP or DPR'}")
-        bottom = rfp - abs(dpr) if dpr is not None else dp
-        sdis = abs(sdis or 0.0)
-        if not rtp >= rfp + sdis > bottom:
-            raise self.err(f"{w.name} whose levels are not RTP >= RFP+SDIS > depth (drilling "
-                           "down along Z) is not read by mtcomp")
-        if self.plane != 17:
-            raise self.err(f"{w.name} outside the G17 plane is not read by mtcomp")
-        if w.name == "CYCLE83" and len(args) > 12 and args[12] \
-                and self.value(args[12]) in (1.0, 2.0):
-            raise self.err("CYCLE83 drilling along another axis than Z (_AXN) is not read by mtcomp")
-        call = Call(self.k, w.name, args, spans, modal, rtp, rfp, sdis, bottom)
-        self.out.calls.append(call)
-        return call
-
-    def _modal_hole(self, line: str, axes: dict) -> None:
-        """A positioning block under MCALL of a drilling cycle: its move, then the hole."""
-        call = self.modal_call
-        if set(axes) - {"X", "Y"}:
-            self.emit(line, "approach")
-        self._hole(call, self.pos["X"], self.pos["Y"], None)
-
-    def _hole(self, call: Call, x, y, pattern) -> None:
-        if x is None or y is None:
-            raise self.err(f"a hole of {call.name} at a position the program has not given")
-        dx, dy, dz = self.shift
-        g = (f"G99 G81 X{fmt(x + dx)} Y{fmt(y + dy)} R{fmt(call.rfp + call.sdis + dz)} "
-             f"Z{fmt(call.bottom + dz)}")
-        self.emit(g, "hole", call=call, pattern=pattern)
-        call.holes.append(len(self.out.gcode) - 1)
-        if pattern is not None:
-            pattern.holes.append(len(self.out.gcode) - 1)
-        self.emit("G80")
-        self.emit(f"G0 Z{fmt(call.rtp + dz)}", "retract")
-        if self.motion not in (0, None):
-            self.emit(f"G{self.motion}")
-        self.pos.update({"X": x, "Y": y, "Z": call.rtp})
-
-    def _pattern(self, w: Word) -> None:
-        """HOLES1(SPCA, SPCO, STA1, FDIS, DBH, NUM): NUM holes on a line from (SPCA, SPCO) at the
-        angle STA1 from X, the first FDIS from it, the next DBH further; HOLES2(CPA, CPO, RAD,
-        STA1, INDA, NUM): NUM holes on a circle about (CPA, CPO) of radius RAD, the first at the
-        angle STA1 from X, the next INDA further (0: evenly). The modal call runs at each."""
-        names = _PATTERNS[w.name]
-        if self.modal_call is None:
-            raise self.err(f"{w.name} without a modal call (MCALL) is not read by mtcomp")
-        args = split_arguments(w.text)
-        if len(args) != 6 or not all(args):
-            raise self.err(f"{w.name} needs its six values {', '.join(names)}")
-        x0, y0, a, b, c, num = (self.value(t) for t in args)
-        n = int(round(num))
-        if n < 1 or n != num:
-            raise self.err(f"{w.name} with a number of holes NUM that is not a positive integer")
-        if not isinstance(self.modal_call, Call):
-            # a cycle mtcomp does not read runs at each position: passed through uncorrected
-            self._unknown(self.modal_call)
-            return
-        if w.name == "HOLES1":          # a, b, c: STA1, FDIS, DBH
-            d = [b + i * c for i in range(n)]
-            positions = [(x0 + t * math.cos(math.radians(a)), y0 + t * math.sin(math.radians(a)))
-                         for t in d]
-        else:                           # a, b, c: RAD, STA1, INDA
-            step = 360.0 / n if c == 0 else c
-            positions = [(x0 + a * math.cos(math.radians(b + i * step)),
-                          y0 + a * math.sin(math.radians(b + i * step))) for i in range(n)]
-        spans = _spans(w, args)
-        if not spans:
-            raise self.err(f"{w.name} with a comma inside an argument's parentheses is not read by "
-                           "mtcomp (give the value as a variable or a number)")
-        pattern = Pattern(self.k, w.name, args, spans, positions, (x0, y0), self.motion)
-        self.out.patterns.append(pattern)
-        for x, y in positions:
-            self._hole(self.modal_call, x, y, pattern)
-
-
-def _spans(w: Word, args: list) -> list:
-    """[(start, end)] of each argument's text of the call ``w`` on its line, [] when a comma sits
-    inside an argument's parentheses (its arguments cannot be edited in place)."""
-    spans, pos = [], w.start
-    for part in w.text.split(","):
-        spans.append((pos, pos + len(part)))
-        pos += len(part) + 1
-    return spans if len(spans) == len(args) else []
 
 
 def translate(path) -> Translation:

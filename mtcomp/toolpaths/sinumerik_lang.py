@@ -8,6 +8,7 @@ expression (``Z=WYSSRU+60``, ``R1=0+R102``, ``I=AC(0)``), a call with arguments 
 the writer can replace that text alone. :func:`evaluate` computes an expression with the four
 operations, parentheses and the manual's functions (``SIN``, ``COS`` ... in degrees), from the
 values of the program's variables; Python's own parser reads it (the grammar is the same for these).
+:func:`corrected_text` gives a value's text with a correction, as the writer writes it.
 """
 from __future__ import annotations
 
@@ -15,6 +16,9 @@ import ast
 import math
 import re
 from dataclasses import dataclass
+
+from .heidenhain import signed
+from .words import number_decimals
 
 _NAME = re.compile(r"[A-Za-z_$][A-Za-z0-9_]*")
 _ADDRESS = re.compile(r"([A-Za-z])\s*([+-]?\s*(?:\d+\.?\d*|\.\d+))(?![A-Za-z0-9_.])")
@@ -31,6 +35,16 @@ _FUNCTIONS = {
 }
 _BINARY = {ast.Add: lambda a, b: a + b, ast.Sub: lambda a, b: a - b,
            ast.Mult: lambda a, b: a * b, ast.Div: lambda a, b: a / b}
+
+
+#: the axis letters of a Sinumerik program mtcomp reads
+AXES = "XYZABC"
+
+
+def fmt(v: float) -> str:
+    """A number of the G-code equivalent: up to 10 decimals, no trailing zeros (never -0)."""
+    s = f"{v:.10f}".rstrip("0").rstrip(".")
+    return "0" if s in ("-0", "") else s
 
 
 class ExpressionError(ValueError):
@@ -205,3 +219,44 @@ def _value(node, lookup, expr):
             raise ExpressionError(f"{node.func.id} with these arguments in {expr!r}") from None
     raise ExpressionError(f"{expr!r} is not an expression mtcomp reads (the four operations, "
                           "parentheses, variables and SIN, COS, SQRT ...)")
+
+
+# ---------------------------------------------------------------------------- written values
+_PLAIN = "0123456789+-. "
+
+
+def _plain(text: str) -> bool:
+    return bool(text.strip()) and all(c in _PLAIN for c in text)
+
+
+def number_text(value: float, decimals: int) -> str:
+    """A plain number at ``decimals`` (never -0), unsigned where positive."""
+    return signed(value, decimals, sign=False)
+
+
+def corrected_text(text: str, nominal: float, corrected: float, base: int = 4) -> tuple[str, float]:
+    """(the value's new text, the value it says): a plain number is rewritten with at least its
+    decimals and at least ``base`` (4 in mm and degrees, 5 in inch); an expression gets the
+    correction appended (``A+60`` -> ``A+60+0.0012``); the text stays as it is when the
+    correction rounds to zero."""
+    if _plain(text):
+        number = text.replace(" ", "")
+        dec = max(base, number_decimals(number))
+        t = number_text(corrected, dec)
+        if t == number_text(float(number), dec):
+            return text, nominal
+        if number.startswith("+") and not t.startswith("-"):
+            t = "+" + t
+        return t, float(t)
+    c = number_text(corrected - nominal, base)
+    if float(c) == 0.0:
+        return text, nominal
+    c = c if c.startswith("-") else "+" + c
+    return text + c, nominal + float(c)
+
+
+def edit_text(text: str, edits) -> str:
+    """``text`` with each (start, end, new text) of ``edits`` put in (spans of the text as given)."""
+    for a, b, t in sorted(edits, reverse=True):
+        text = text[:a] + t + text[b:]
+    return text

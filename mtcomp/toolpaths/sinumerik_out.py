@@ -3,7 +3,8 @@
 The program is read through its G-code equivalent (:mod:`.sinumerik`), planned as any program, and
 written here in its own form: every line is the source line, byte for byte, except the values
 that carry a correction. An axis word given as a number (``X57``) gets the corrected number, with
-at least the source's decimals and at least 4; an axis word given as an expression
+at least the source's decimals and at least 4 (5 in inch: G70/G700 in force; every value is written
+in the units of its block); an axis word given as an expression
 (``Z=WYSSRU+60``) keeps its expression and gets the correction appended (``Z=WYSSRU+60+0.0012``),
 so the variables the programmer wrote stay visible (the controller computes in double precision:
 the written value is exact to far below a micrometre). An axis the block does not name is added
@@ -38,51 +39,19 @@ from ..errors import InputError
 from ..io.atomic import atomic_write
 from ._arcs import arc_misses, arc_sweep, fit_arc_centre, radius_refused
 from .heidenhain_out import ROTARY_ARC_TOL_RAD, HeidenhainWriter, plan_blocks
-from .heidenhain import signed
 from .sinumerik import AXES, BLOCK_START
-from .sinumerik_lang import code_end, split_words
+from .sinumerik_lang import code_end, corrected_text, split_words
+from .sinumerik_lang import edit_text as _edit
+from .sinumerik_lang import number_text as _number
 from .sinumerik_paths import RadiusError, radius_centre, signed_radius
-from .words import number_decimals
+from .sinumerik_turn import HelixTurns, turn_notes
+from .words import MM_PER_INCH
 
-_PLAIN = "0123456789+-. "
-
-
-def _plain(text: str) -> bool:
-    return bool(text.strip()) and all(c in _PLAIN for c in text)
+__all__ = ["SinumerikWriter", "corrected_text", "write_corrected"]
 
 
-def _number(value: float, decimals: int) -> str:
-    """A plain number at ``decimals`` (never -0), unsigned where positive."""
-    return signed(value, decimals, sign=False)
 
-
-def corrected_text(text: str, nominal: float, corrected: float) -> tuple[str, float]:
-    """(the value's new text, the value it says): a plain number is rewritten with at least its
-    decimals and at least 4; an expression gets the correction appended (``A+60`` ->
-    ``A+60+0.0012``); the text stays as it is when the correction rounds to zero."""
-    if _plain(text):
-        number = text.replace(" ", "")
-        dec = max(4, number_decimals(number))
-        t = _number(corrected, dec)
-        if t == _number(float(number), dec):
-            return text, nominal
-        if number.startswith("+") and not t.startswith("-"):
-            t = "+" + t
-        return t, float(t)
-    c = _number(corrected - nominal, 4)
-    if float(c) == 0.0:
-        return text, nominal
-    c = c if c.startswith("-") else "+" + c
-    return text + c, nominal + float(c)
-
-
-def _edit(text: str, edits) -> str:
-    for a, b, t in sorted(edits, reverse=True):
-        text = text[:a] + t + text[b:]
-    return text
-
-
-class SinumerikWriter(HeidenhainWriter):
+class SinumerikWriter(HelixTurns, HeidenhainWriter):
     """Writes one Sinumerik program (see the module docstring)."""
 
     ARC, CENTRE, HINT = "circle G2/G3", "its I J", "a larger --chord-tol-um"
@@ -103,6 +72,16 @@ class SinumerikWriter(HeidenhainWriter):
         self.zi = self.letters.index("Z")
 
     # ------------------------------------------------------------------ words
+    def _units_of(self, info) -> None:
+        """The units of the line of ``info`` (a :class:`~.sinumerik.GInfo`): G70/G700 inch (mm per
+        unit and at least 5 decimals) or mm (4 decimals)."""
+        self.scale = MM_PER_INCH if info.inch else 1.0
+        self.base = 5 if info.inch else 4
+
+    def _places(self, j: int) -> int:
+        """The fewest decimals of axis j's words: 4 in degrees, else the line's."""
+        return 4 if self.rotary[j] else self.base
+
     def _words(self, text: str):
         end = code_end(text)
         start = BLOCK_START.match(text).end()
@@ -128,13 +107,14 @@ class SinumerikWriter(HeidenhainWriter):
             w = named.get(letter)
             if w is None:
                 last = self.written[j]
-                t = _number(u, 4)
-                if last == last and _number(self._units(j, last, info.shift), 4) == t:
+                t = _number(u, self._places(j))
+                if last == last and _number(self._units(j, last, info.shift), self._places(j)) == t:
                     continue
                 added.append(letter + t)
                 self.written[j] = self._internal(j, float(t), info.shift)
                 continue
-            t, said = corrected_text(w.text, self._units(j, nominal[j], info.shift), u)
+            t, said = corrected_text(w.text, self._units(j, nominal[j], info.shift), u,
+                                     self._places(j))
             if t != w.text:
                 edits.append((w.start, w.end, t))
             self.written[j] = self._internal(j, said, info.shift)
@@ -165,12 +145,16 @@ class SinumerikWriter(HeidenhainWriter):
             if head in ("AC", "IC"):
                 a, b = w.start + w.text.find("(") + 1, w.start + w.text.rfind(")")
             col = self.cols[k]
-            start, base = ((info.shift[k], info.shift[k]) if head == "AC" else
+            # the word's value: the centre in the program's frame (AC) or from the start (mm,
+            # the G-code frame: the nominal start for the nominal centre, the written one else)
+            f = self.scale
+            start, base = ((info.shift[k] * f, info.shift[k] * f) if head == "AC" else
                            (arc.block.start[col], arc.start_w[col]))
-            t, value_said = corrected_text(text[a:b], arc.centre2[k] - start, centre[k] - base)
+            t, value_said = corrected_text(text[a:b], (arc.centre2[k] - start) / f,
+                                           (centre[k] - base) / f, self.base)
             if t != text[a:b]:
                 edits.append((a, b, t))
-            said[k] = value_said + base
+            said[k] = value_said * f + base
         return _edit(text, edits) + ending, said
 
     def _radius_text(self, cc: int, centre, info) -> tuple[str, np.ndarray]:
@@ -178,21 +162,23 @@ class SinumerikWriter(HeidenhainWriter):
         the nearest to ``centre`` (2,) on the chord's bisector; the centre the controller makes of
         the CR= written). A radius that rounds below half the chord says no centre (far away)."""
         a = self.arcs[cc][0]
-        s2, e2 = a.start_w[self.cols], a.end_w[self.cols]
+        f = self.scale                      # in the program's units here
+        s2, e2 = a.start_w[self.cols] / f, a.end_w[self.cols] / f
         text = self.texts[cc].rstrip("\r\n")
         ending = self.texts[cc][len(text):]
         w = next(w for w in self._words(text) if w.kind == "assign" and w.name == "CR")
-        r = signed_radius(s2, e2, centre, a.ccw)
+        r = signed_radius(s2, e2, np.asarray(centre) / f, a.ccw)
         half = 0.5 * math.hypot(*(e2 - s2))
-        if abs(r) - half < 1e-4:
+        if abs(r) - half < 10.0 ** -self.base:
             # a half circle: either sign turns the same within the written decimals (the
             # source's kept), and a radius written below half the chord makes no circle
             r = math.copysign(abs(r), info.radius)
-        t, said_r = corrected_text(w.text, info.radius, r)
+        t, said_r = corrected_text(w.text, info.radius, r, self.base)
         if abs(said_r) < half - 1e-6:
-            t, said_r = corrected_text(w.text, info.radius, math.copysign(abs(r) + 1e-4, r))
+            t, said_r = corrected_text(w.text, info.radius,
+                                       math.copysign(abs(r) + 10.0 ** -self.base, r), self.base)
         try:
-            said = np.array(radius_centre(s2, e2, said_r, a.ccw))
+            said = np.array(radius_centre(s2, e2, said_r, a.ccw, f)) * f
         except RadiusError:
             said = np.full(2, 1e9)
         return _edit(text, [(w.start, w.end, t)] if t != w.text else []) + ending, said
@@ -284,7 +270,8 @@ class SinumerikWriter(HeidenhainWriter):
         the circle's end as written) and its axes ``off`` (na,) bool as written (4 decimals)."""
         out = like.copy()
         for j in np.flatnonzero(off) if last else list(self.cols) + list(np.flatnonzero(off)):
-            out[j] = self._internal(j, float(_number(self._units(j, point[j], info.shift), 4)),
+            out[j] = self._internal(j, float(_number(self._units(j, point[j], info.shift),
+                                                     self._places(j))),
                                     info.shift)
         return out
 
@@ -295,7 +282,7 @@ class SinumerikWriter(HeidenhainWriter):
                            radius)
         if c is None:
             return None
-        return np.array([self._internal(j, float(_number(self._units(j, v, info.shift), 4)),
+        return np.array([self._internal(j, float(_number(self._units(j, v, info.shift), self.base)),
                                         info.shift) for j, v in zip(self.cols, c)])
 
     def _nominal_sweep(self, a, first: int, last: int) -> float:
@@ -314,7 +301,7 @@ class SinumerikWriter(HeidenhainWriter):
         would refuse its radii, or when it turns otherwise than the nominal circle's part it
         stands for (``span``, rad: a piece about a centre on the wrong side)."""
         s2, e2 = start[self.cols], end[self.cols]
-        if radius_refused(math.hypot(*(s2 - centre)), math.hypot(*(e2 - centre)), self.tr.inch):
+        if radius_refused(math.hypot(*(s2 - centre)), math.hypot(*(e2 - centre)), self.scale != 1.0):
             return None
         if not abs(arc_sweep(s2, e2, centre, a.ccw, False)[1] - span) <= 0.25 * math.pi:
             return None
@@ -336,13 +323,15 @@ class SinumerikWriter(HeidenhainWriter):
                     named[c].text.strip().upper().startswith("AC") for c in "IJ"]
         lines = []
         for n, (start, end, centre) in enumerate(pieces):
-            u = {self.letters[j]: _number(self._units(j, end[j], info.shift), 4)
+            u = {self.letters[j]: _number(self._units(j, end[j], info.shift), self._places(j))
                  for j in list(self.cols) + list(np.flatnonzero(off))}
             for j in np.flatnonzero(off):
-                if u[self.letters[j]] == _number(self._units(j, start[j], info.shift), 4):
+                if u[self.letters[j]] == _number(self._units(j, start[j], info.shift),
+                                                 self._places(j)):
                     del u[self.letters[j]]
-            ij = [f"{c}=AC({_number(self._units(j, v, info.shift), 4)})" if ab else
-                  f"{c}{_number(self._units(j, v, info.shift) - self._units(j, s, info.shift), 4)}"
+            b = self.base
+            ij = [f"{c}=AC({_number(self._units(j, v, info.shift), b)})" if ab else
+                  f"{c}{_number(self._units(j, v, info.shift) - self._units(j, s, info.shift), b)}"
                   for c, j, v, s, ab in zip("IJ", self.cols, centre, start[self.cols], absolute)]
             if n == len(pieces) - 1 == 0 and not radius:    # one piece: its words, with Z
                 text = self._centre_text(a.line, centre)[0].rstrip("\r\n")
@@ -411,9 +400,12 @@ class SinumerikWriter(HeidenhainWriter):
         """A motion block of G-code line g (0-based) and its corrected points."""
         info = self.tr.lines[g]
         i = info.source
+        self._units_of(info)
         if pts.shape[0] > 1 and info.kind != "arc":
             self.dropped += pts.shape[0] - 1
-        if info.kind == "arc":
+        if info.kind == "arc" and info.turn is not None:
+            self._turn_piece(i, block, pts, info)
+        elif info.kind == "arc":
             self._arc(i, block, pts, None, info)
         elif info.kind == "hole":
             self._hole(g, i, block, pts[-1], info)
@@ -429,10 +421,12 @@ class SinumerikWriter(HeidenhainWriter):
 
     def _hole(self, g, i, block, end, info) -> None:
         nominal = block.points[-1]
-        self.dz[g] = float(_number(end[self.zi] - nominal[self.zi], 4))
-        xy = np.array([float(_number(self._units(j, end[j], info.shift), 4)) for j in self.cols])
+        # dz, dxy: in the program's units
+        self.dz[g] = float(_number((end[self.zi] - nominal[self.zi]) / self.scale, self.base))
+        xy = np.array([float(_number(self._units(j, end[j], info.shift), self.base))
+                       for j in self.cols])
         self.xy[g] = xy
-        self.dxy[g] = (end - nominal)[self.cols]
+        self.dxy[g] = (end - nominal)[self.cols] / self.scale
         if info.pattern is None and info.call.line != i:      # a positioning block under MCALL
             write = np.zeros(self.na, bool)
             write[self.cols] = True
@@ -441,7 +435,7 @@ class SinumerikWriter(HeidenhainWriter):
             # written: the G-code frame; xy: the program's (TRANS/ATRANS taken off)
             now = np.array([self._units(j, v, info.shift) for j, v in zip(self.cols, self.written[self.cols])])
             if np.isnan(now).any() or not np.allclose(now, xy, rtol=0, atol=1e-9):
-                words = " ".join(f"{a}{_number(v, 4)}" for a, v in zip("XY", xy))
+                words = " ".join(f"{a}{_number(v, self.base)}" for a, v in zip("XY", xy))
                 self.before.setdefault(i, []).append(words)
                 self.added += 1
         self.written[self.cols] = [self._internal(j, float(v), info.shift) for j, v in zip(self.cols, xy)]
@@ -457,7 +451,8 @@ class SinumerikWriter(HeidenhainWriter):
                 continue
             a, b = call.spans[n]
             nominal = call.rfp if n == 1 else call.bottom
-            edits[n] = corrected_text(self.orig[call.line][a:b], nominal, nominal + dz)[0]
+            edits[n] = corrected_text(self.orig[call.line][a:b], nominal, nominal + dz,
+                                      self.base)[0]
         return edits
 
     def _call_line(self, call, dz: float) -> str:
@@ -472,6 +467,7 @@ class SinumerikWriter(HeidenhainWriter):
             holes = [h for h in call.holes if h in self.dz]
             if not holes:
                 continue
+            self._units_of(self.tr.lines[holes[0]])     # no change of units under a modal call
             if call.modal and len({self.dz[h] for h in holes}) > 1 and not call.spans:
                 raise InputError(f"the holes of {call.name} need different corrections of its "
                                  "levels, and its arguments cannot be restated", self.src.source,
@@ -491,6 +487,7 @@ class SinumerikWriter(HeidenhainWriter):
                 self.texts[call.line].rstrip("\r\n"),
                 [(*call.spans[n], t) for n, t in edits.items()]))
         for p in self.tr.patterns:
+            self._units_of(self.tr.lines[p.holes[0]])
             if self._pattern_expands(p):
                 self._expand(p)
             else:
@@ -499,19 +496,19 @@ class SinumerikWriter(HeidenhainWriter):
     def _pattern_expands(self, p) -> bool:
         """Whether a HOLES2 circle must be written as explicit positions: its holes' corrections
         differ (X Y, or Z)."""
-        d = {tuple(_number(v, 4) for v in self.dxy[h]) for h in p.holes}
+        d = {tuple(_number(v, self.base) for v in self.dxy[h]) for h in p.holes}
         same_xy = len(d) == 1
         dz = [self.dz[h] for h in p.holes if h in self.dz]
         return not same_xy or len(set(dz)) > 1 or any(h in self.restate for h in p.holes)
 
     def _shift_centre(self, p) -> None:
         """A HOLES2 circle whose holes share one correction: its centre CPA CPO moved by it."""
-        d = [float(_number(v, 4)) for v in self.dxy[p.holes[0]]]
+        d = [float(_number(v, self.base)) for v in self.dxy[p.holes[0]]]
         text = self.texts[p.line].rstrip("\r\n")
         edits = []
         for k in (0, 1):
             a, b = p.spans[k]
-            t, _said = corrected_text(text[a:b], p.centre[k], p.centre[k] + float(d[k]))
+            t, _said = corrected_text(text[a:b], p.centre[k], p.centre[k] + float(d[k]), self.base)
             if t != text[a:b]:
                 edits.append((a, b, t))
         self.texts[p.line] = self._with_ending(p.line, _edit(text, edits))
@@ -523,7 +520,7 @@ class SinumerikWriter(HeidenhainWriter):
         for n, h in enumerate(p.holes):
             if h in self.restate:
                 lines.append(self.restate[h])
-            words = " ".join(f"{a}{_number(v, 4)}" for a, v in zip("XY", self.xy[h]))
+            words = " ".join(f"{a}{_number(v, self.base)}" for a, v in zip("XY", self.xy[h]))
             if n == 0 and p.motion not in (0, None):
                 words = "G0 " + words
             if n == 0:
@@ -551,7 +548,9 @@ class SinumerikWriter(HeidenhainWriter):
                 out.append(f"; mtcomp: {self.added} block{'s' if self.added != 1 else ''} added to "
                            "write corrected holes and circles (a cycle call restated, a hole's "
                            "position, a hole pattern HOLES1 or HOLES2 written as explicit "
-                           "positions, a circle written in pieces)" + ending)
+                           "positions, a circle written in pieces, a helix with TURN= written as "
+                           "pieces)"
+                           + ending)
             own = text[len(text.rstrip("\r\n")):] or ending
             out.extend(t + own for t in self.before.get(i, []))
             if i in self.replaced:
@@ -594,6 +593,7 @@ def _notes(src, w: SinumerikWriter, stats) -> None:
             f"correction (the depth below it kept); the retract plane RTP kept as written "
             f"({w.retracts} retract{'s' if w.retracts != 1 else ''}: BLOCKS.csv gives their "
             "planned correction, not written)")
+    src.notes.extend(turn_notes(w))
     if w.split_circles:
         src.notes.append(
             f"{w.split_circles} circle{'s' if w.split_circles != 1 else ''} G2/G3 that one centre "
