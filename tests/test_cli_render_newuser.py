@@ -100,3 +100,22 @@ def test_a_simultaneous_five_axis_program_is_mapped_as_its_path(tmp_path, text, 
     (tmp_path / "p.nc").write_text(text)
     smap = program_error_map(machine, fitted, tmp_path / "p.nc", normal="auto")
     assert smap.normal_kind == kind
+
+
+#: the square of SQUARE_H1 in a Sinumerik program whose tool is called by name
+SQUARE_NAMED = ('G17 G71 G90\nT="CUTTER 10"\nM6\nD1\nG0 X-10 Y-10 Z5\nG1 Z0 F300\nG1 X10\nG1 Y10\n'
+                'G1 X-10\nG1 Y-10\nG0 Z5\nM30\n')
+
+
+def test_render_takes_the_length_of_a_tool_called_by_name(tmp_path, capsys):
+    """As above (0.75 um with 150 mm, 0.5 um at the machine's 100 mm), the tool given by name."""
+    _, _, model = _model(tmp_path, EBY_1=500.0)
+    (tmp_path / "sq.nc").write_text(SQUARE_NAMED)
+    named = _render_max(tmp_path, capsys, model, "--dialect", "sinumerik",
+                        "--tool-length", "CUTTER 10=150")
+    assert named == pytest.approx(0.750, rel=0, abs=1e-3)
+    assert main(["render", "xfyz", str(model), str(tmp_path / "sq.nc"), "-o", str(tmp_path / "m.png"),
+                 "--backend", "matplotlib", "--dialect", "sinumerik", "--tool-length", "H1=150"]) == 0
+    out = capsys.readouterr().out
+    assert "max 0.500 um" in out
+    assert 'assumed: tool length of "CUTTER 10" = the machine\'s tool_length_mm (100 mm)' in out

@@ -160,7 +160,7 @@ def run(args) -> int:
                              progress=progress, work_offset=_work_offset(args, machine),
                              tool_lengths=_tool_lengths(args, machine))
     for tool in smap.info.get("tools_assumed", ()):
-        print(f"assumed: tool length of H{tool} = the machine's tool_length_mm "
+        print(f"assumed: tool length of {tool} = the machine's tool_length_mm "
               f"({machine.tool_length:g} mm); give --tool-length or --offsets")
     if drift_note:
         smap.notes.append(drift_note)
@@ -214,12 +214,13 @@ def _work_offset(args, machine):
 
 
 def _tool_lengths(args, machine) -> dict:
-    """H number -> tool length (mm) from --offsets' [tool_lengths] and --tool-length, as compensate
-    takes them (the model's Abbe arm at the blocks of that G43 H)."""
+    """H number or tool name -> tool length (mm) from --offsets' [tool_lengths] and --tool-length,
+    as compensate takes them (the model's Abbe arm at the blocks of that tool)."""
     if not args.offsets and not args.tool_length:
         return {}
     from ..toolpaths.offsets import load_setup
-    return dict(load_setup(machine, args.offsets, args.work_offset, args.tool_length).tool_lengths)
+    setup = load_setup(machine, args.offsets, args.work_offset, args.tool_length)
+    return {**setup.tool_lengths, **setup.named_lengths}
 
 
 def _check_numbers(args) -> None:

@@ -27,7 +27,8 @@ class ProgramPoints:
     :func:`mtcomp.toolpaths.frames.placed_by_frames`'s table) and (n,) bool, the rows under one;
     ``q`` holds those rows placed where the controller puts them (None: no frame).
     tool : (n,) int, the tool length offset number (``G43 H``) in force at each row, 0 for none
-    (None: not read).
+    (None: not read). tool_names : the tools the program calls by name (a Sinumerik ``T="..."``)
+    -> the number ``tool`` holds for each.
     """
 
     path: str
@@ -44,6 +45,7 @@ class ProgramPoints:
     frames: list | None = None
     local: np.ndarray | None = None
     tool: np.ndarray | None = None
+    tool_names: dict | None = None
 
     def __len__(self):
         return int(self.line.shape[0])
@@ -60,6 +62,7 @@ def read_program_points(path, machine: Machine, dialect: str | None = None,
     with open_program(path, dialect) as src:
         chunks = list(iter_segment_chunks(src, machine, **tol))
         frames = list(getattr(src, "local_frames", None) or [])
+        names = dict(getattr(getattr(src, "sinumerik", None), "tool_names", None) or {})
     seg = SegmentChunk.concatenate(chunks, machine.n_axes)
     if len(seg.end) == 0:
         raise InputError("no motion block in the program: nothing to draw", path)
@@ -75,7 +78,8 @@ def read_program_points(path, machine: Machine, dialect: str | None = None,
     return ProgramPoints(os.fspath(path), q, seg.line.copy(), seg.feed.copy(),
                          seg.dirs.copy(), seg.rapid.copy(), seg.known.copy(), seg.cycle.copy(), tcp,
                          dialect, chord_tol_mm, frames if local.any() else None,
-                         local if local.any() else None, np.asarray(frame_tool(seg.frame)).copy())
+                         local if local.any() else None, np.asarray(frame_tool(seg.frame)).copy(),
+                         names)
 
 
 def _placed(seg, frames: list, machine: Machine) -> tuple[np.ndarray, np.ndarray]:

@@ -171,14 +171,37 @@ def _context(fitted, q_count, feed, dirs, tool_length=None):
 
 def tool_lengths_of(orig: "ProgramPoints", machine: Machine, tool_lengths: dict | None) -> np.ndarray:
     """(n,) mm: the tool length of each segment end, as compensate takes it: the length given for
-    the ``G43 H`` number in force (``tool_lengths``: H number -> mm, ``--tool-length`` and the
-    offsets file's ``[tool_lengths]``), else the machine's. It sets the model's Abbe arm only: the
-    controller's own tool length offset puts the tip where the program says."""
+    the ``G43 H`` number in force, or for the tool a program calls by name (``tool_lengths``: H
+    number or tool name -> mm, ``--tool-length`` and the offsets file's ``[tool_lengths]``), else
+    the machine's. It sets the model's Abbe arm only: the controller's own tool length offset puts
+    the tip where the program says."""
     out = np.full(len(orig), float(machine.tool_length))
     if orig.tool is not None:
-        for h, length in (tool_lengths or {}).items():
+        for h, length in _numbered(orig, tool_lengths).items():
             out[np.asarray(orig.tool) == h] = float(length)
     return out
+
+
+def _numbered(orig: "ProgramPoints", tool_lengths: dict | None) -> dict:
+    """``tool_lengths`` by the numbers ``orig.tool`` holds (a tool called by name under the number
+    the program's reading gave it; names the program does not call left out)."""
+    names = orig.tool_names or {}
+    out = {}
+    for key, length in (tool_lengths or {}).items():
+        if isinstance(key, str):
+            if key in names:
+                out[names[key]] = length
+        else:
+            out[int(key)] = length
+    return out
+
+
+def tools_assumed(orig: "ProgramPoints", sel: np.ndarray, tool_lengths: dict) -> list[str]:
+    """The tools in force at the segment ends ``sel`` whose length ``tool_lengths`` does not give,
+    as the program names them (``H1``, ``"DRILL 8.5"``)."""
+    used = set(np.unique(np.asarray(orig.tool)[sel]).tolist()) - {0} - set(_numbered(orig, tool_lengths))
+    by_number = {h: name for name, h in (orig.tool_names or {}).items()}
+    return [f'"{by_number[h]}"' if h in by_number else f"H{h}" for h in sorted(used)]
 
 
 def _frame_function(model):
@@ -315,8 +338,7 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
     # model evaluated at machine positions
     length_of = tool_lengths_of(orig, machine, tool_lengths)
     if tool_lengths is not None and orig.tool is not None:
-        used = set(np.unique(np.asarray(orig.tool)[sel]).tolist()) - {0}
-        info["tools_assumed"] = sorted(used - set(tool_lengths))
+        info["tools_assumed"] = tools_assumed(orig, sel, tool_lengths)
     lengths = length_of[sel]
     each, which = np.unique(lengths, return_inverse=True)      # a program has a tool or a few
     datum_dev = fitted.datum_deviation(np.repeat(off[None, :], each.size, axis=0), each)
@@ -488,7 +510,8 @@ def _rows(orig: ProgramPoints, rows: np.ndarray) -> ProgramPoints:
         return None if a is None else np.asarray(a)[rows]
     return ProgramPoints(orig.path, orig.q[rows], orig.line[rows], orig.feed[rows], orig.dirs[rows],
                          orig.rapid[rows], take(orig.known), take(orig.cycle), take(orig.tcp),
-                         orig.dialect, orig.chord_tol_mm, tool=take(orig.tool))
+                         orig.dialect, orig.chord_tol_mm, tool=take(orig.tool),
+                         tool_names=orig.tool_names)
 
 
 def _lines_text(lines) -> str:
