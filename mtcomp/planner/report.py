@@ -35,7 +35,7 @@ from ._bounds import FLAG_KINDS, flag_name
 from ._small import any_rows, row_max, row_norm
 from ._qp import NEVER_WORSE_TOL
 from .problem import unsure_advice
-from .engine import PlanResult
+from ._result import PlanResult
 
 #: a block counts as made worse when its deviation along an axis grows by more than this (um): the
 #: planner's never-worse rows allow NEVER_WORSE_TOL (half the output grid), rounding as much again
