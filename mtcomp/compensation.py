@@ -263,7 +263,7 @@ class Judge:
     def add(self, chunk, res) -> None:
         """Accumulate one planned chunk: ``chunk`` the machine-frame SegmentChunk the plan was made
         for, ``res`` its PlanResult (rows per node; ``res.counts`` nodes per chunk row)."""
-        done = ~res.pinned
+        done = res.corrected_blocks()
         if not done.any():
             return
         rows = np.repeat(np.arange(len(chunk)), res.counts)[done]
@@ -377,7 +377,7 @@ class _Tally:
                 for k in cols:
                     hit |= any_rows(res.flags[:, :, k])
                 self.bound_blocks[kind] += int(np.count_nonzero(hit & known))
-        done = ~res.pinned
+        done = res.corrected_blocks()
         k = int(np.count_nonzero(done))
         if k:
             # no copies when every block is corrected and every axis linear (the usual case)
@@ -689,8 +689,8 @@ def _cycle_notes(written: dict) -> list[str]:
     notes = []
     if written.get("cycle_blocks"):
         notes.append(f"{cycle_lines(written['cycle_blocks'])} kept as cycles, each hole corrected "
-                     "where the model applies (X Y Z to the hole's bottom, R moved with Z; BLOCKS.csv "
-                     "says which)")
+                     "where the model applies and the bounds let it (X Y Z to the hole's bottom, R "
+                     "moved with Z; BLOCKS.csv says which)")
     if written.get("cycle_lines"):
         notes.append(f"{cycle_lines(written['cycle_lines'])} passed through unchanged and "
                      "uncorrected: hole position, R or Z not known, or drilling along another "

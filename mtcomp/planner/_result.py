@@ -20,11 +20,13 @@ class PlanResult:
     before, after : (n, 3) tip deviation (mm) of the uncorrected and corrected block, workpiece frame;
     before_axis, after_axis : (n, 3) tool-axis deviation (actual minus nominal unit vector), 5-axis
         machines only (None otherwise).
-    flags : (n, na, 7) bool, bounds that acted (see ``FLAG_KINDS``).
+    flags : (n, na, 7) bool, bounds that acted (see ``FLAG_KINDS``); none on a pinned block.
     iterations : (n,) model linearisations used per node. converged : (n,) bool.
     unknown, outside : (n, na) bool, axes not known / outside the model's support (see NodeSet).
     pinned : (n,) bool, the block was given no correction (bounds zero) for any of the reasons.
     gated : (n,) bool, pinned only because its contour has a block over the standard-error limit.
+    held : (n, na) bool, the axes of a block (not pinned) whose whole correction a bound held: the
+        axis is written without correction though the block asked for one (``flags`` names the bound).
     sd_um : (n,) standard error of the block's correction, um (see NodeSet).
     counts : (rows,) nodes per segment row of the source chunk (for write_corrected), or None.
     """
@@ -47,11 +49,12 @@ class PlanResult:
     pinned: np.ndarray
     sd_um: np.ndarray
     gated: np.ndarray
+    held: np.ndarray
     counts: np.ndarray | None = None
 
     FIELDS = ("line", "inserted", "rapid", "nominal", "corrected", "correction", "before", "after",
               "before_axis", "after_axis", "flags", "iterations", "converged", "unknown", "outside",
-              "pinned", "sd_um", "gated")
+              "pinned", "sd_um", "gated", "held")
 
     def __len__(self):
         return int(self.line.shape[0])
@@ -67,6 +70,15 @@ class PlanResult:
             vals = [getattr(p, f) for p in parts]
             out.append(None if vals[0] is None else np.concatenate(vals))
         return PlanResult(*out)
+
+    def corrected_blocks(self) -> np.ndarray:
+        """(n,) bool: the blocks written with their correction on every axis that asked for one (in
+        full or as far as a bound let it: BLOCKS.csv ``corrected`` = 1); not a pinned block, nor one
+        with an axis whose whole correction a bound held (``held``)."""
+        done = ~self.pinned
+        if self.held.any():
+            done &= ~any_rows(self.held)
+        return done
 
     def active_bounds(self, axis_names) -> list[str]:
         """Per node the active bounds as text, e.g. 'cx_max;step_y' ('' when none)."""

@@ -26,7 +26,7 @@ from typing import Iterable, Iterator
 
 import numpy as np
 
-from ._bounds import INF, Bounds
+from ._bounds import HOLDING, INF, Bounds
 from ._contours import ContourGate
 from ._evaluate import Evaluator, objective_residual
 from ._grouped import GroupedQP, tied
@@ -359,6 +359,13 @@ class Planner:
         y, flags = self.bounds.enforce(x, nodes.q, nodes.exempt, self._prev, desired=desired,
                                        following=following, limits=limits, planned=planned,
                                        links=nodes.links)
+        held = np.zeros(y.shape, bool)
+        if flags.any():
+            # a pinned block is left alone for its own reason, not held by a bound; a bound that
+            # forbids the correction (all but the step bound, whose ramp only passes zero) holds
+            # an axis's whole correction where it acted and the axis is written without any
+            flags[nodes.pinned] = False
+            held = flags[..., HOLDING].any(axis=2) & (np.abs(y) <= self.bounds.on_tol)
         if len(nodes):
             self._prev = y[-1].copy()
         D = self.bounds.D
@@ -392,7 +399,8 @@ class Planner:
         return PlanResult(nodes.line, nodes.inserted, nodes.rapid, nodes.q, corrected, correction,
                           before[:, :3], after[:, :3], before[:, 3:6] if five else None,
                           after[:, 3:6] if five else None, flags, lin.iterations, lin.converged,
-                          nodes.unknown, nodes.outside, nodes.pinned, nodes.sd_um, nodes.gated)
+                          nodes.unknown, nodes.outside, nodes.pinned, nodes.sd_um, nodes.gated,
+                          held)
 
     def _tick(self):
         cb = self.options.progress
