@@ -6,6 +6,7 @@ import json
 import re
 
 import numpy as np
+import pytest
 
 from mtcomp.cli import main
 from mtcomp.models import Backlash, save_model
@@ -123,3 +124,49 @@ def test_render_tells_a_held_block_from_one_outside_the_region(tmp_path):
     assert report_status(tmp_path / "B.csv", 5).tolist() == [1, 3, 2, 4, 0]
     assert STATUS_REASONS[4] == "a bound held an axis's whole correction"
 
+
+# X's correction follows Y (a squareness of X and Y); X is not known before line 4
+SQUARENESS = ("G21 G90 G54\nG0 Y10 Z5\nG1 Z0 F300\nG0 X50\nG1 Y60\nG1 Y110 Z-1\nG1 X80\n"
+              "G1 Y10\nM30\n")
+
+
+@pytest.mark.parametrize("writer", ["compiled", "python"])
+def test_the_summary_counts_the_lines_given_axis_words_they_did_not_name(tmp_path, capsys,
+                                                                         monkeypatch, writer):
+    if writer == "python":
+        monkeypatch.setenv("MTCOMP_NO_FAST_GCODE", "1")
+    fm = random_model("xfyz", (), 3, 0.0, None)
+    fm.params.set_file_value("C0Y", 50.0)
+    model = tmp_path / "square.json"
+    save_model(model, fm)
+    text, _rows, printed, summary = _compensate(tmp_path, model, SQUARENESS, capsys)
+    src, out = SQUARENESS.splitlines(), text.splitlines()
+    assert len(out) == len(src)
+    added = [k + 1 for k, (a, b) in enumerate(zip(src, out)) if set(_axis_words(b)) - set(_axis_words(a))]
+    # X is never written before the program positions it (lines 2 and 3)
+    assert "X" not in _axis_words(out[1]) and "X" not in _axis_words(out[2])
+    assert len(added) >= 2 and added[0] >= 5, (added, out)
+    assert summary["added_axis_words"] == {"lines": len(added), "line": added[0]}
+    assert (f"{len(added)} lines written with axis words they did not name (first at line "
+            f"{added[0]}): the correction of that axis changes there") in printed
+    assert printed.count("written with axis words") == 1
+
+
+
+def test_a_heidenhain_program_counts_them_too(tmp_path, capsys):
+    """The conversational writer adds X to the L lines that move only Y, and says so the same way
+    (the lines of the file, its line 0 BEGIN PGM being line 1)."""
+    fm = random_model("xfyz", (), 3, 0.0, None)
+    fm.params.set_file_value("C0Y", 50.0)
+    model = tmp_path / "square.json"
+    save_model(model, fm)
+    prog = ("0 BEGIN PGM T MM\n1 TOOL CALL 1 Z S1000\n2 L X+0 Y+10 Z+5 FMAX\n3 L Z+0 F300\n"
+            "4 L X+50\n5 L Y+60\n6 L Y+110 Z-1\n7 L X+80\n8 END PGM T MM\n")
+    text, _rows, printed, summary = _compensate(tmp_path, model, prog, capsys)
+    src, out = prog.splitlines(), text.splitlines()
+    words = re.compile(r"\b([XYZ])[+-]")
+    added = [k + 1 for k, (a, b) in enumerate(zip(src, out))
+             if set(words.findall(b)) - set(words.findall(a))]
+    assert added == [6, 7], out
+    assert summary["added_axis_words"] == {"lines": 2, "line": 6}
+    assert "2 lines written with axis words they did not name (first at line 6)" in printed

@@ -63,6 +63,9 @@ class OutputState:
         self.values = np.full(na, np.nan)
         self.cutter_comp, self.cutter_arc_miss = False, 0.0   # G41/G42 on; a whole arc's miss (mm)
         self.arc_miss = 0.0         # the largest miss of a written arc piece off its path (mm)
+        #: source lines that got axis words they did not name (the correction of that axis changed
+        #: there), and the first of them (0: none)
+        self.added_lines, self.added_line = 0, 0
         self.rotary = [False] * na if state is None else state.rotary
         if state is not None:       # axes known before the first line stand where the reader says
             self.values[state.known] = state.position[state.known]
@@ -71,6 +74,13 @@ class OutputState:
         """The text of the last written position of axis j in the given units ('' if none)."""
         v = self.values[j]
         return "" if v != v else grid_text(v, self.rotary[j], inch)
+
+    def count_added(self, line: int, added: list, letters: str) -> None:
+        """Count source line ``line`` when ``added`` (the words put on it) holds an axis word (a
+        letter of ``letters``)."""
+        if any(w[:1].upper() in letters for w in added):
+            self.added_lines += 1
+            self.added_line = self.added_line or line
 
     def set_last(self, j: int, text: str, inch: bool) -> None:
         v = float(text)
@@ -250,6 +260,7 @@ def _line_text(block: MotionBlock, points: np.ndarray, letters: str, rotary: lis
             line.delete(w)
     added = _apply_axes(block, line, _axis_texts(block, points[0], rotary, out, decs, block.given),
                         letters, out, True)
+    out.count_added(block.line, added, letters)
     line.insert_at(line.append_pos(), added)
     if g93:
         line.replace_number(line.find("F"), f"{block.f_word / share[0]:.6g}")
@@ -333,6 +344,7 @@ def _cycle_text(block: MotionBlock, points: np.ndarray, letters: str, out: Outpu
                     added.append(line.letter(c) + said[c])
                 elif said[c] != line.number(w):
                     line.replace_number(w, said[c])
+            out.count_added(block.line, added, "XYZ")
             line.insert_at(line.append_pos("XYZR"), added)
             lines.append(line.render())
         else:
@@ -591,6 +603,7 @@ class _ArcFit:
         _edit_head(line, out, code, block.incremental)
         first = pieces[0]
         added = _apply_axes(block, line, first.texts, self.letters, out, True)
+        out.count_added(block.line, added, self.letters)
         pos = line.append_pos()
         line.insert_at(pos, added)
         self._centre_in_place(first.centre_words)
@@ -754,4 +767,6 @@ def writer_stats(out: OutputState) -> dict:
         stats["cutter_arc_miss_mm"] = out.cutter_arc_miss
     if out.arc_miss > 0:
         stats["arc_miss_mm"] = out.arc_miss
+    if out.added_lines:         # (lines, first line)
+        stats["added_axis_words"] = (out.added_lines, out.added_line)
     return stats
