@@ -170,3 +170,43 @@ def test_a_heidenhain_program_counts_them_too(tmp_path, capsys):
     assert added == [6, 7], out
     assert summary["added_axis_words"] == {"lines": 2, "line": 6}
     assert "2 lines written with axis words they did not name (first at line 6)" in printed
+
+
+@pytest.mark.parametrize("writer", ["compiled", "python"])
+def test_a_restart_at_the_number_of_a_split_block_runs_all_of_it(tmp_path, monkeypatch, writer):
+    """Block N3 split by two internal nodes: its N word (and G1, F) stay on the first piece, so the
+    lines from N3 to N4, which a restart at N3 runs, pass every node and end at N3's corrected end
+    (the lines are replayed here, absolute, carrying the axes they do not name)."""
+    from mtcomp import load_machine
+    from mtcomp.toolpaths import iter_segment_chunks, write_corrected
+    if writer == "python":
+        monkeypatch.setenv("MTCOMP_NO_FAST_GCODE", "1")
+    machine = load_machine("xfyz")
+    src = "N1 G90 G0 X0 Y0 Z0\nN2 G1 X10 F100\nN3 G1 X40 Y6 F200\nN4 G1 Y20\nN5 M30\n"
+    (tmp_path / "p.nc").write_text(src)
+    nodes = np.array([[20.0, 2.0, 0.0], [30.0, 4.0, 0.0]]) + [1e-3, -2e-3, 0.0]
+
+    def corrections():
+        for c in iter_segment_chunks(tmp_path / "p.nc", machine):
+            pts, counts = [], []
+            for r in range(len(c)):
+                if c.line[r] == 3:
+                    pts += list(nodes)
+                pts.append(c.end[r] + [1e-3, 1e-3, 0.0])
+                counts.append(3 if c.line[r] == 3 else 1)
+            yield c, np.array(pts), np.array(counts)
+    write_corrected(tmp_path / "p.nc", tmp_path / "o.nc", machine, corrections())
+    out = (tmp_path / "o.nc").read_text().splitlines()
+    k3 = [i for i, ln in enumerate(out) if ln.startswith("N3 ")]
+    k4 = [i for i, ln in enumerate(out) if ln.startswith("N4 ")]
+    assert len(k3) == len(k4) == 1
+    run = out[k3[0]:k4[0]]
+    assert run[0].startswith("N3 G1 ") and "F200" in run[0] and len(run) == 3
+    assert not any(re.match(r"\s*N", ln) for ln in run[1:])
+    pos = {"X": 10.001, "Y": 0.001, "Z": 0.0}           # where N2 left the output
+    reached = []
+    for ln in run:
+        pos.update({a: float(v) for a, v in _axis_words(ln).items()})
+        reached.append([pos["X"], pos["Y"], pos["Z"]])
+    want = np.vstack([nodes, [40.001, 6.001, 0.0]])
+    np.testing.assert_allclose(reached, want, rtol=0, atol=1e-9)
