@@ -210,3 +210,23 @@ def test_a_restart_at_the_number_of_a_split_block_runs_all_of_it(tmp_path, monke
         reached.append([pos["X"], pos["Y"], pos["Z"]])
     want = np.vstack([nodes, [40.001, 6.001, 0.0]])
     np.testing.assert_allclose(reached, want, rtol=0, atol=1e-9)
+
+
+def test_an_axis_that_gets_no_correction_by_design_does_not_make_a_block_uncorrected():
+    """A rotary axis the model's data held at one angle has a correction bound of zero: the plan
+    names the bound where the tool axis asks for a turn (cc_max ...), but the block, its X Y Z
+    corrected, is corrected; only the travel and the link bounds hold a block's correction."""
+    from mtcomp.planner import CompensationProblem, PlannerOptions, output_grid, plan_arrays
+    fm = random_model("cafxyz", (), 5, 20.0, None)
+    fm.held = {"A": 0.0, "C": 0.0}
+    problem = CompensationProblem.from_machine(fm, grid=output_grid(fm.machine))
+    rng = np.random.default_rng(2)
+    q = np.zeros((40, fm.machine.n_axes))
+    for a in "XYZ":
+        q[:, fm.machine.index(a)] = rng.uniform(-100.0, 100.0, 40)
+    res = plan_arrays(problem, q, options=PlannerOptions(threads=1))
+    rotary = [fm.machine.index(a) for a in "AC"]
+    assert res.flags[:, rotary].any()                    # the zero bound acted on the turns
+    np.testing.assert_array_equal(res.correction[:, rotary], 0.0)
+    assert not res.held.any() and res.corrected_blocks().all()
+    assert np.abs(res.correction[:, :3]).max() > 1e-3    # X Y Z corrected (mm)

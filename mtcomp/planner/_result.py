@@ -25,9 +25,9 @@ class PlanResult:
     unknown, outside : (n, na) bool, axes not known / outside the model's support (see NodeSet).
     pinned : (n,) bool, the block was given no correction (bounds zero) for any of the reasons.
     gated : (n,) bool, pinned only because its contour has a block over the standard-error limit.
-    held : (n, na) bool, the axes of a block (not pinned) whose whole correction a bound that
-        forbids it held (any but the step bound, whose ramp only passes zero: ``HOLDING``): the axis
-        is written without correction though the block asked for one (``flags`` names the bound).
+    held : (n, na) bool, the axes of a block (not pinned) whose whole correction a bound held (the
+        travel or a link bound: ``HOLDING``): the axis is written without correction though the
+        block asked for one (``flags`` names the bound).
     sd_um : (n,) standard error of the block's correction, um (see NodeSet).
     counts : (rows,) nodes per segment row of the source chunk (for write_corrected), or None.
     """

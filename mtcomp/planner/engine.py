@@ -361,9 +361,9 @@ class Planner:
                                        links=nodes.links)
         held = np.zeros(y.shape, bool)
         if flags.any():
-            # a pinned block is left alone for its own reason, not held by a bound; a bound that
-            # forbids the correction (all but the step bound, whose ramp only passes zero) holds
-            # an axis's whole correction where it acted and the axis is written without any
+            # a pinned block is left alone for its own reason, not held by a bound; the travel or
+            # a link bound holds an axis's whole correction where it acted and the axis is written
+            # without any (the step bound's ramp only passes zero: _bounds.HOLDING)
             flags[nodes.pinned] = False
             held = flags[..., HOLDING].any(axis=2) & (np.abs(y) <= self.bounds.on_tol)
         if len(nodes):
