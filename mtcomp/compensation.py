@@ -263,7 +263,7 @@ class Judge:
     def add(self, chunk, res) -> None:
         """Accumulate one planned chunk: ``chunk`` the machine-frame SegmentChunk the plan was made
         for, ``res`` its PlanResult (rows per node; ``res.counts`` nodes per chunk row)."""
-        done = ~res.pinned
+        done = res.corrected_blocks()
         if not done.any():
             return
         rows = np.repeat(np.arange(len(chunk)), res.counts)[done]
@@ -377,7 +377,7 @@ class _Tally:
                 for k in cols:
                     hit |= any_rows(res.flags[:, :, k])
                 self.bound_blocks[kind] += int(np.count_nonzero(hit & known))
-        done = ~res.pinned
+        done = res.corrected_blocks()
         k = int(np.count_nonzero(done))
         if k:
             # no copies when every block is corrected and every axis linear (the usual case)
@@ -639,6 +639,23 @@ def passed_move_notes(program, written) -> list[str]:
             f"BLOCKS.csv row: " + "; ".join(parts)]
 
 
+def added_words_note(program, written) -> list[str]:
+    """The line counting the motion lines written with axis words they did not name, and why
+    (the writer's count ``added_axis_words``: lines and the first line, which this puts in the
+    user's file's numbering)."""
+    n, line = written.get("added_axis_words") or (0, 0)
+    if not n:
+        return []
+    at = int(program.source_lines_of([line])[0])
+    written["added_axis_words"] = (n, at)       # the line of the user's file (SUMMARY.json too)
+    return [f"{n} line{'' if n == 1 else 's'} written with axis words {'it' if n == 1 else 'they'} "
+            f"did not name ({'first at ' if n > 1 else ''}line {at}): the correction of that axis "
+            "changes there (its error varies with the other axes' positions, or the step bound "
+            "ramps a correction in or out), and the controller keeps what a line does not say "
+            "(an axis where it stood, a drilling cycle's depth); never an axis whose position "
+            "the program has not given"]
+
+
 def tcp_note(program, tally) -> list[str]:
     """The line saying how many blocks were compensated in tool centre point mode and which code
     switched it on at which source line (as the reader recorded it: the last switch on the lines
@@ -664,7 +681,8 @@ def tcp_note(program, tally) -> list[str]:
 def _run_notes(program, written, fitted, setup, tally, found) -> list[str]:
     """The notes after a run: moves passed through, tool centre point mode, the program's
     expansion, drilling cycles, datums, feeds, set-up."""
-    notes = passed_move_notes(program, written) + tcp_note(program, tally) + list(program.notes)
+    notes = passed_move_notes(program, written) + added_words_note(program, written) \
+        + tcp_note(program, tally) + list(program.notes)
     if program.expanded:
         notes.append(f"the program's code was run: {program.executed} lines executed from its "
                      f"{program.source_lines}; the output is that expansion, corrected (its first "
@@ -693,8 +711,8 @@ def _cycle_notes(written: dict) -> list[str]:
     notes = []
     if written.get("cycle_blocks"):
         notes.append(f"{cycle_lines(written['cycle_blocks'])} kept as cycles, each hole corrected "
-                     "where the model applies (X Y Z to the hole's bottom, R moved with Z; BLOCKS.csv "
-                     "says which)")
+                     "where the model applies and the bounds let it (X Y Z to the hole's bottom, R "
+                     "moved with Z; BLOCKS.csv says which)")
     if written.get("cycle_lines"):
         notes.append(f"{cycle_lines(written['cycle_lines'])} passed through unchanged and "
                      "uncorrected: hole position, R or Z not known, or drilling along another "

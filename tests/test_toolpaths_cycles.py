@@ -133,8 +133,10 @@ def test_cycle_at_unknown_position_passes_through(tmp_path):
     src = p.read_text().splitlines()
     assert out[0] == src[0] and out[2:5] == src[2:5]
     assert out[5] == "X10.0012 Y4.9979 Z-2.9967 R2.0033"
-    # the G28 of line 3 moves X and Y home: a move passed through uncorrected, counted
-    assert stats == {"cycle_lines": 1, "cycle_blocks": 1, "passed_moves": {"home": (1, 3)}}
+    # the G28 of line 3 moves X and Y home: a move passed through uncorrected, counted; line 6
+    # gets the Z its hole's depth needs, a word it did not name: counted too
+    assert stats == {"cycle_lines": 1, "cycle_blocks": 1, "passed_moves": {"home": (1, 3)},
+                     "added_axis_words": (1, 6)}
 
 
 @pytest.mark.parametrize("text, line, words", [

@@ -141,6 +141,9 @@ def _write_summary(path, run_) -> None:
     # motion lines passed through uncorrected with no BLOCKS.csv row, by why (the summary's line)
     figures["passed_through_moves"] = {why: n for why, (n, _line) in
                                        (run_.written.get("passed_moves") or {}).items()}
+    # lines written with axis words they did not name (the summary's line), the first one's line
+    lines, first = run_.written.get("added_axis_words") or (0, 0)
+    figures["added_axis_words"] = {"lines": lines, "line": first}
     with atomic_write(path, "w") as f:
         json.dump(figures, f, indent=2)
         f.write("\n")

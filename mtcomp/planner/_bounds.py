@@ -18,6 +18,11 @@ from .problem import CompensationProblem
 
 #: the kinds of bound, in the order of the flag array's last axis
 FLAG_KINDS = ("max", "min", "travel_max", "travel_min", "step", "reversal", "arc")
+#: the kinds that can hold an axis's whole correction where the block asks for one: the travel
+#: and the link bounds (an axis one of them leaves at zero keeps its whole error). Not the step
+#: bound, whose ramp only passes zero, nor the correction bound, zero only where the axis gets no
+#: correction by design (a rotary axis the model's data held at one angle)
+HOLDING = np.array([kind in ("travel_max", "travel_min", "reversal", "arc") for kind in FLAG_KINDS])
 INF = 1e30
 #: kinds of link bound (:mod:`._links`), as stored per node and axis (0: none)
 REVERSAL, ARC = 1, 2

@@ -22,12 +22,11 @@ from __future__ import annotations
 
 import time
 from collections import deque
-from dataclasses import dataclass
 from typing import Iterable, Iterator
 
 import numpy as np
 
-from ._bounds import FLAG_KINDS, INF, Bounds, flag_name
+from ._bounds import HOLDING, INF, Bounds
 from ._contours import ContourGate
 from ._evaluate import Evaluator, objective_residual
 from ._grouped import GroupedQP, tied
@@ -38,81 +37,11 @@ from ._nodes import NodeSet
 from ._parallel import read_ahead, resolve_threads, split_rows
 from ._pointwise import Linearization, solve_newton, solve_pinv
 from ._qp import WindowQP, never_worse_rows, reachable_nodes
+from ._result import PlanResult
 from ._rotary_grid import rotary_columns, round_rotary, solve_with_rotary_fixed
 from ._small import a_x, any_rows, at_b, gram, row_max_abs, row_norm
 from .problem import CompensationProblem, PlannerOptions
 from ..models.region import outside_bounds, support_bounds
-
-
-@dataclass
-class PlanResult:
-    """Planned output blocks (one row per node), in program order.
-
-    line : (n,) source line. inserted, rapid : (n,) bool.
-    nominal : (n, na) nominal axis positions (mm, rad), as the uncorrected program would be written.
-    corrected : (n, na) corrected axis positions to write (mm, rad).
-    correction : (n, na) corrected minus nominal (mm, rad).
-    before, after : (n, 3) tip deviation (mm) of the uncorrected and corrected block, workpiece frame;
-    before_axis, after_axis : (n, 3) tool-axis deviation (actual minus nominal unit vector), 5-axis
-        machines only (None otherwise).
-    flags : (n, na, 7) bool, bounds that acted (see ``FLAG_KINDS``).
-    iterations : (n,) model linearisations used per node. converged : (n,) bool.
-    unknown, outside : (n, na) bool, axes not known / outside the model's support (see NodeSet).
-    pinned : (n,) bool, the block was given no correction (bounds zero) for any of the reasons.
-    gated : (n,) bool, pinned only because its contour has a block over the standard-error limit.
-    sd_um : (n,) standard error of the block's correction, um (see NodeSet).
-    counts : (rows,) nodes per segment row of the source chunk (for write_corrected), or None.
-    """
-
-    line: np.ndarray
-    inserted: np.ndarray
-    rapid: np.ndarray
-    nominal: np.ndarray
-    corrected: np.ndarray
-    correction: np.ndarray
-    before: np.ndarray
-    after: np.ndarray
-    before_axis: np.ndarray | None
-    after_axis: np.ndarray | None
-    flags: np.ndarray
-    iterations: np.ndarray
-    converged: np.ndarray
-    unknown: np.ndarray
-    outside: np.ndarray
-    pinned: np.ndarray
-    sd_um: np.ndarray
-    gated: np.ndarray
-    counts: np.ndarray | None = None
-
-    FIELDS = ("line", "inserted", "rapid", "nominal", "corrected", "correction", "before", "after",
-              "before_axis", "after_axis", "flags", "iterations", "converged", "unknown", "outside",
-              "pinned", "sd_um", "gated")
-
-    def __len__(self):
-        return int(self.line.shape[0])
-
-    def take(self, sl) -> "PlanResult":
-        return PlanResult(*(None if getattr(self, f) is None else getattr(self, f)[sl]
-                            for f in self.FIELDS))
-
-    @staticmethod
-    def concatenate(parts: list["PlanResult"]) -> "PlanResult":
-        out = []
-        for f in PlanResult.FIELDS:
-            vals = [getattr(p, f) for p in parts]
-            out.append(None if vals[0] is None else np.concatenate(vals))
-        return PlanResult(*out)
-
-    def active_bounds(self, axis_names) -> list[str]:
-        """Per node the active bounds as text, e.g. 'cx_max;step_y' ('' when none)."""
-        out = [""] * len(self)
-        rows = np.flatnonzero(any_rows(self.flags))
-        for i in rows:
-            names = [flag_name(FLAG_KINDS[k], axis_names[j])
-                     for j in range(self.flags.shape[1]) for k in range(self.flags.shape[2])
-                     if self.flags[i, j, k]]
-            out[i] = ";".join(names)
-        return out
 
 
 class Planner:
@@ -430,6 +359,13 @@ class Planner:
         y, flags = self.bounds.enforce(x, nodes.q, nodes.exempt, self._prev, desired=desired,
                                        following=following, limits=limits, planned=planned,
                                        links=nodes.links)
+        held = np.zeros(y.shape, bool)
+        if flags.any():
+            # a pinned block is left alone for its own reason, not held by a bound; the travel or
+            # a link bound holds an axis's whole correction where it acted and the axis is written
+            # without any (the step bound's ramp only passes zero: _bounds.HOLDING)
+            flags[nodes.pinned] = False
+            held = flags[..., HOLDING].any(axis=2) & (np.abs(y) <= self.bounds.on_tol)
         if len(nodes):
             self._prev = y[-1].copy()
         D = self.bounds.D
@@ -463,7 +399,8 @@ class Planner:
         return PlanResult(nodes.line, nodes.inserted, nodes.rapid, nodes.q, corrected, correction,
                           before[:, :3], after[:, :3], before[:, 3:6] if five else None,
                           after[:, 3:6] if five else None, flags, lin.iterations, lin.converged,
-                          nodes.unknown, nodes.outside, nodes.pinned, nodes.sd_um, nodes.gated)
+                          nodes.unknown, nodes.outside, nodes.pinned, nodes.sd_um, nodes.gated,
+                          held)
 
     def _tick(self):
         cb = self.options.progress

@@ -12,13 +12,17 @@ One row per output block (every G0/G1 line written for a motion, internal nodes 
   ``ei_before_urad, ej_before_urad, ek_before_urad, e_axis_before_urad`` and ``_after``;
 * ``active_bounds``: the bounds that kept the planner from removing the error at this block,
   separated by ``;``: ``cx_max`` / ``cx_min`` (max correction), ``travel_x_max`` / ``travel_x_min``
-  (travel), ``step_x`` (max change from the block before); empty when none.
+  (travel), ``step_x`` (max change from the block before), ``reversal_x``, ``arc_x``; empty when
+  none, and on a block left uncorrected for another reason (no bound acted there).
 * ``unknown_axes``: the axes whose position the program has not given at this block (e.g. ``Z``
   after a tool change); such a block gets no correction and those axes are not written: their
   position and correction cells, and the block's predicted deviations, are blank.
 * ``outside_support``: the axes outside the region the model's data reached; without
   ``--extrapolate`` such a block gets no correction.
-* ``corrected``: 1 if the block could be corrected (0: no correction, for one of the reasons).
+* ``corrected``: 1 if the block is written with its correction (in full, or as far as the bounds in
+  ``active_bounds`` let it); 0: not, or not on every axis that asked for one: an unknown axis,
+  outside the support, uncertain (below), or a bound held an axis's whole correction (named in
+  ``active_bounds``).
 * ``correction_sd_um``: the standard error of the block's correction (um, from the model's
   covariance; blank where it was not evaluated: an unknown axis, outside the support, a model
   without a covariance, or no limit asked); ``uncertain``: 1 when the block was left uncorrected
@@ -31,11 +35,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._bounds import FLAG_KINDS, flag_name
+from ._bounds import FLAG_KINDS, HOLDING, flag_name
 from ._small import any_rows, row_max, row_norm
 from ._qp import NEVER_WORSE_TOL
 from .problem import unsure_advice
-from .engine import PlanResult
+from ._result import PlanResult
 
 #: a block counts as made worse when its deviation along an axis grows by more than this (um): the
 #: planner's never-worse rows allow NEVER_WORSE_TOL (half the output grid), rounding as much again
@@ -97,7 +101,7 @@ def report_rows(result: PlanResult, axis_names, max_correction_sd_um: float | No
     uncertain = _uncertain(result, max_correction_sd_um).astype(int).tolist()
     fmt = ",".join(fmts) + ",%s,%s,%s,%d,%s,%d\n"
     lines = [fmt % row for row in zip(*[c.tolist() for c in cols], bounds, unknown, outside,
-                                        (~result.pinned).astype(int).tolist(), sd, uncertain)]
+                                        result.corrected_blocks().astype(int).tolist(), sd, uncertain)]
     for i in np.flatnonzero(blank):
         lines[i] = ",".join("" if f == "nan" else f for f in lines[i][:-1].split(",")) + "\n"
     return lines
@@ -114,7 +118,7 @@ def report_table(result: PlanResult, axis_names, max_correction_sd_um: float | N
     n = len(result)
     special = unknown | any_rows(result.flags) | any_rows(result.outside)
     empty = np.zeros(n)
-    cols = cols + [empty, empty, empty, (~result.pinned).astype(float), result.sd_um,
+    cols = cols + [empty, empty, empty, result.corrected_blocks().astype(float), result.sd_um,
                    _uncertain(result, max_correction_sd_um).astype(float)]
     decimals = [0 if f == "%d" else int(f[2]) for f in fmts] + [-1, -1, -1, 0, 4, 0]
     blank = np.zeros(len(cols), bool)
@@ -186,6 +190,11 @@ class Summary:
     #: larger correction of a block after or before them), and the first one's line
     ramp_blocks: int = 0
     ramp_line: int = 0
+    #: blocks written without the correction of an axis because a bound held all of it (not
+    #: corrected), per bound name how often it held an axis so, and the first one's line
+    held_blocks: int = 0
+    held_counts: dict = field(default_factory=dict)
+    held_line: int = 0
 
     def add(self, r: PlanResult):
         n = len(r)
@@ -218,12 +227,7 @@ class Summary:
         flagged = bool(r.flags.any())
         if flagged:
             self.bounded_blocks += int(any_rows(r.flags).sum())
-            counts = r.flags.sum(axis=0)
-            for j, a in enumerate(self.axis_names):
-                for k, kind in enumerate(FLAG_KINDS):
-                    if counts[j, k]:
-                        name = flag_name(kind, a)
-                        self.flag_counts[name] = self.flag_counts.get(name, 0) + int(counts[j, k])
+            self._count_flags(self.flag_counts, r.flags)
         eb = row_norm(r.before) * 1e3
         ea = row_norm(r.after) * 1e3
         self.max_before_um = max(self.max_before_um, float(eb.max()))
@@ -236,7 +240,8 @@ class Summary:
         self._add_worse(r)
         if flagged:             # a ramp is a block the step bound held
             self._add_ramps(r)
-        done = ~r.pinned
+            self._add_held(r)
+        done = r.corrected_blocks()
         k = int(np.count_nonzero(done))
         if k:
             if k < len(r):           # every block corrected (the usual case): no copies
@@ -262,6 +267,26 @@ class Summary:
             i = int(np.argmax(grown))
             if grown[i] > self.worse_max_um:
                 self.worse_max_um, self.worse_line = float(grown[i]), int(r.line[i])
+
+    def _add_held(self, r: PlanResult) -> None:
+        """Count the blocks with an axis whose whole correction a bound held (``PlanResult.held``),
+        and per bound name the axes it held so."""
+        held = any_rows(r.held)
+        if not held.any():
+            return
+        if not self.held_blocks:
+            self.held_line = int(r.line[np.argmax(held)])
+        self.held_blocks += int(held.sum())
+        self._count_flags(self.held_counts, r.flags & r.held[:, :, None] & HOLDING)
+
+    def _count_flags(self, into: dict, flags: np.ndarray) -> None:
+        """Add to ``into`` (bound name -> count) how often each bound is set in flags (n, na, 7)."""
+        counts = flags.sum(axis=0)
+        for j, a in enumerate(self.axis_names):
+            for k, kind in enumerate(FLAG_KINDS):
+                if counts[j, k]:
+                    name = flag_name(kind, a)
+                    into[name] = into.get(name, 0) + int(counts[j, k])
 
     def _add_ramps(self, r: PlanResult) -> None:
         """Count the blocks whose step flag is set and whose linear correction is longer than their
@@ -296,7 +321,8 @@ class Summary:
                "uncorrected": {"unknown_axes": self.unknown_blocks,
                                "outside_support": 0 if self.extrapolate else self.outside_blocks,
                                "uncertain": self.uncertain_blocks - self.contour_blocks,
-                               "uncertain_contour": self.contour_blocks},
+                               "uncertain_contour": self.contour_blocks,
+                               "held_by_bounds": self.held_blocks},
                "max_correction_sd_um": self.max_correction_sd_um,
                "largest_correction_sd_um": self.max_sd_um if self.max_correction_sd_um else None,
                "outside_support_blocks": self.outside_blocks,
@@ -358,28 +384,7 @@ class Summary:
         if self.not_converged:
             lines.append(f"warning: {blocks(self.not_converged)} did not converge within the "
                          "iteration limit")
-        if self.unknown_blocks:
-            lines.append(f"{blocks(self.unknown_blocks)} not corrected: an axis position the program "
-                         "had not given (at the start, after a home move, tool change or offset "
-                         "change); those axes are not written"
-                         + ("; an axis the program never names (a 3-axis program on a 5-axis "
-                            "machine) is told by --start-position, e.g. A=0,C=0"
-                            if self.unknown_blocks == self.blocks else ""))
-        if self.outside_blocks:
-            axes = ", ".join(f"{a} {k}" for a, k in self.outside_axes.items())
-            what = ("corrected anyway (--extrapolate)" if self.extrapolate
-                    else "not corrected (pass --extrapolate to correct them)")
-            lines.append(f"{blocks(self.outside_blocks)} outside the region the model's data reached "
-                         f"({axes}; first at line {self.first_outside_line}): {what}")
-        if self.uncertain_blocks:
-            own = self.uncertain_blocks - self.contour_blocks
-            shared = (f", and {blocks(self.contour_blocks)} of the same contours (a run of feed "
-                      "moves cut one after the other is corrected whole or not at all: corrected in "
-                      "part, it would step where the correction stops)" if self.contour_blocks else "")
-            lines.append(f"{blocks(own)} not corrected: the model is unsure there "
-                         f"(a correction's standard error above {self.max_correction_sd_um:g} um, "
-                         f"largest {self.max_sd_um:.3f} um; BLOCKS.csv column correction_sd_um)"
-                         f"{shared}; {unsure_advice(self.max_sd_um, self.max_correction_sd_um)}")
+        lines += self._not_corrected(blocks)
         if self.max_correction_sd_um and not self.has_covariance:
             lines.append("note: the model carries no covariance (identify, diagnose and a thermal "
                          "diagnosis write one; an older model file may not): no block's correction "
@@ -391,3 +396,44 @@ class Summary:
             lines.append("warning: no block was corrected (for the reasons above): the output "
                          "carries no correction")
         return "\n".join(lines)
+
+    def _not_corrected(self, blocks) -> list[str]:
+        """The summary's lines on the blocks left uncorrected, by why (``blocks(k)``: 'k blocks')."""
+        out = []
+        if self.unknown_blocks:
+            out.append(f"{blocks(self.unknown_blocks)} not corrected: an axis position the program "
+                       "had not given (at the start, after a home move, tool change or offset "
+                       "change); those axes are not written"
+                       + ("; an axis the program never names (a 3-axis program on a 5-axis "
+                          "machine) is told by --start-position, e.g. A=0,C=0"
+                          if self.unknown_blocks == self.blocks else ""))
+        if self.outside_blocks:
+            axes = ", ".join(f"{a} {k}" for a, k in self.outside_axes.items())
+            what = ("corrected anyway (--extrapolate)" if self.extrapolate
+                    else "not corrected (pass --extrapolate to correct them)")
+            out.append(f"{blocks(self.outside_blocks)} outside the region the model's data reached "
+                       f"({axes}; first at line {self.first_outside_line}): {what}")
+        if self.uncertain_blocks:
+            own = self.uncertain_blocks - self.contour_blocks
+            shared = (f", and {blocks(self.contour_blocks)} of the same contours (a run of feed "
+                      "moves cut one after the other is corrected whole or not at all: corrected in "
+                      "part, it would step where the correction stops)" if self.contour_blocks else "")
+            out.append(f"{blocks(own)} not corrected: the model is unsure there "
+                       f"(a correction's standard error above {self.max_correction_sd_um:g} um, "
+                       f"largest {self.max_sd_um:.3f} um; BLOCKS.csv column correction_sd_um)"
+                       f"{shared}; {unsure_advice(self.max_sd_um, self.max_correction_sd_um)}")
+        if self.held_blocks:
+            out.append(self._held_text(blocks(self.held_blocks)))
+        return out
+
+    def _held_text(self, counted: str) -> str:
+        """The summary's line on the blocks with an axis whose whole correction a bound held."""
+        detail = ", ".join(f"{k} {v}" for k, v in sorted(self.held_counts.items()))
+        why = ""
+        if any(k.startswith("reversal_") for k in self.held_counts):
+            why = ("; reversal: a correction there would move the axis against the direction it "
+                   "came to the block from, or, where that direction is not known (the first move "
+                   "or hole after a tool change or a home move), at all: the machine's play "
+                   "(backlash) would turn that move into an error of its own")
+        return (f"{counted} not corrected on every axis: a bound held the whole correction of an "
+                f"axis ({detail}; first at line {self.held_line}; BLOCKS.csv active_bounds){why}")

@@ -159,7 +159,7 @@ class _Driver:
         self.na = machine.n_axes
         self.out = OutputState(self.na, self.state)
         self.bits = 1 << np.arange(self.na)
-        st = np.zeros(24)
+        st = np.zeros(26)
         st[:self.na] = self.state.position
         st[6:6 + self.na] = self.state.dirs      # approach directions: the reader's (not known yet)
         st[12] = math.nan
@@ -388,6 +388,10 @@ def write_corrected(in_path, out_path, machine, cursor, chord_tol_mm, initial_po
             cursor.finish()
     finally:
         d.close()
+    if d.st[23]:            # lines the compiled writer gave axis words they did not name
+        ostate.added_lines += int(d.st[23])
+        first = int(d.st[24])
+        ostate.added_line = min(ostate.added_line, first) if ostate.added_line else first
     if stats is not None:
         stats.update(writer_stats(ostate))
     return rows_done

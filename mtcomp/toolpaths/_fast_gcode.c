@@ -7,11 +7,12 @@
  * so Python interprets it (and raises the errors). Positions, directions and the formatting of
  * numbers reproduce the Python code bit for bit; tests compare both paths.
  *
- * state (double[24]): 0..5 position (mm, rad, per column), 6..11 dirs (+-1, 0 not known), 12 feed (mm/min),
+ * state (double[26]): 0..5 position (mm, rad, per column), 6..11 dirs (+-1, 0 not known), 12 feed (mm/min),
  * 13 motion (-1 none, 0..3), 14 inch, 15 incremental, 16 lines done, 17 output is absolute,
  * 18 separator is CRLF, 19 Python takes every line (drilling cycle or G93 in force), 20 bit mask of
  * the axes whose position the program has given, 21 frame code (work offset, tool length number),
- * 22 motion word in force in the output (-1 unknown, 0, 1).
+ * 22 motion word in force in the output (-1 unknown, 0, 1), 23 lines written with axis words they
+ * did not name, 24 the first of them (0: none).
  * last (double[na]): per axis the position last written (mm, rad, read back from its text; NaN:
  * none yet). A coordinate is written when its text differs from the text of that value.
  *
@@ -402,6 +403,8 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                     }
                     if (first) {
                         if (ab) {
+                            state[23] += 1.0;
+                            if (state[24] == 0.0) state[24] = (double)line_no;
                             memcpy(ebuf + eb, abuf, (size_t)ab);
                             es[ne] = last_ax_e; ee[ne] = last_ax_e; ek[ne] = 2; eo[ne] = eb; el[ne] = ab;
                             eb += ab; ne++;

@@ -81,6 +81,8 @@ class HeidenhainWriter:
         self.arcs: dict[int, list] = {}
         self.holes = 0
         self.dropped = 0
+        #: lines written with axis words they did not name, and the first of them (1-based)
+        self.added_lines, self.added_line = 0, 0
         self.cols = [self.letters.index(c) for c in "XY"]
 
     # ------------------------------------------------------------------ numbers and words
@@ -138,6 +140,8 @@ class HeidenhainWriter:
             edits.append((m.start(4), m.end(4), t))
             self.written[j] = self._internal(j, value, info.shift)
         if added:
+            self.added_lines += 1
+            self.added_line = self.added_line or i + 1
             pos = max([m.end() for m in named.values()], default=None)
             if pos is None:
                 pos = _KEY_END.match(text).end()
@@ -304,4 +308,6 @@ def write_corrected(src, out_path, machine, cursor, chord_tol_mm: float, initial
         stats["cycle_lines"] = 0
         stats["cycle_blocks"] = 0
         stats["heidenhain_holes"] = w.holes
+        if w.added_lines:
+            stats["added_axis_words"] = (w.added_lines, w.added_line)
     return rows

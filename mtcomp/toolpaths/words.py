@@ -3,14 +3,17 @@
 A line of a program (ISO 6983 / RS-274, the subset in docs/toolpaths.md) is cut here into *tokens*:
 words such as ``X-1.5`` and comments. This module also holds what the layers above share about
 words: the units and tolerances, the tables of features refused by name (G and M codes, the
-keywords of other languages), the drilling cycle codes, and the *frame code* that packs the active
-work coordinate system and tool length number into one int (:func:`frame_code`).
+keywords of other languages), the drilling cycle codes, the *frame code* that packs the active
+work coordinate system and tool length number into one int (:func:`frame_code`), and the text of a
+written coordinate (:func:`position_text`, :func:`increment_text`).
 
 Nothing here keeps state: :mod:`.modal` turns the tokens of a line into motion.
 """
 from __future__ import annotations
 
+import math
 import re
+from decimal import Decimal
 
 import numpy as np
 
@@ -348,6 +351,44 @@ def format_number(value: float, decimals: int) -> str:
     if s.startswith("-0") and _NEG_ZERO_RE.fullmatch(s):
         s = s[1:]
     return s
+
+
+def base_decimals(rot: bool, inch: bool) -> int:
+    """The fewest decimals a corrected coordinate is written with: 4 in mm and deg, 5 in inch."""
+    return 5 if inch and not rot else 4
+
+
+def position_text(v: float, rot: bool, inch: bool, decimals: int) -> str:
+    """The text of an axis position v (mm, rad) in the program's units (mm, inch, deg)."""
+    return format_number(math.degrees(v) if rot else (v / MM_PER_INCH if inch else v), decimals)
+
+
+def grid_text(v: float, rot: bool, inch: bool) -> str:
+    """The text of an axis position v (mm, rad) at the fewest decimals of a corrected word (what
+    tells whether a written coordinate changes)."""
+    return position_text(v, rot, inch, base_decimals(rot, inch))
+
+
+def on_grid(v: float, rot: bool, inch: bool) -> Decimal:
+    """The position v (mm, rad) in the program's units as the decimal number that was written for
+    it (its text read back: 10 decimals give back every word of up to 10 decimals exactly)."""
+    x = math.degrees(v) if rot else (v / MM_PER_INCH if inch else v)
+    return Decimal(repr(round(float(x), 10)))
+
+
+def increment_text(target: str, start: float, rot: bool, inch: bool) -> str:
+    """The incremental word from ``start`` (mm, rad: where the output stands) to the absolute
+    position ``target`` (its text, program units): their difference on the output's grid, with
+    the decimals of both, so that the increments written add up exactly to the written ends."""
+    prev = on_grid(start, rot, inch)
+    end = Decimal(target)
+    if -prev.as_tuple().exponent > 8:
+        # not a position written in these units (the program changed them, G20/G21): taken on
+        # the target's grid, the machine's own position carried on by out.values
+        prev = prev.quantize(Decimal(1).scaleb(-max(-end.as_tuple().exponent,
+                                                    base_decimals(rot, inch))))
+    decimals = max(-end.as_tuple().exponent, -prev.as_tuple().exponent, 0)
+    return format_number(end - prev, decimals)
 
 
 def _line_words(text: str, pos: int) -> list | None:

@@ -31,8 +31,9 @@ from .blocks import MotionBlock
 from .cursor import CorrectionCursor
 from .modal import ModalState
 from .reader import iter_blocks, new_state
-from .words import (DEFAULT_CHORD_TOL_MM, MM_PER_INCH, SourceLine, cutter_comp_code,
-                    format_number, number_decimals)
+from .words import (DEFAULT_CHORD_TOL_MM, MM_PER_INCH, SourceLine, base_decimals,
+                    cutter_comp_code, format_number, grid_text, increment_text, number_decimals,
+                    on_grid, position_text)
 
 
 class OutputState:
@@ -62,6 +63,9 @@ class OutputState:
         self.values = np.full(na, np.nan)
         self.cutter_comp, self.cutter_arc_miss = False, 0.0   # G41/G42 on; a whole arc's miss (mm)
         self.arc_miss = 0.0         # the largest miss of a written arc piece off its path (mm)
+        #: source lines that got axis words they did not name (the correction of that axis changed
+        #: there), and the first of them (0: none)
+        self.added_lines, self.added_line = 0, 0
         self.rotary = [False] * na if state is None else state.rotary
         if state is not None:       # axes known before the first line stand where the reader says
             self.values[state.known] = state.position[state.known]
@@ -69,47 +73,18 @@ class OutputState:
     def last(self, j: int, inch: bool) -> str:
         """The text of the last written position of axis j in the given units ('' if none)."""
         v = self.values[j]
-        return "" if v != v else _format_value(v, self.rotary[j], inch)
+        return "" if v != v else grid_text(v, self.rotary[j], inch)
+
+    def count_added(self, line: int, added: list, letters: str) -> None:
+        """Count source line ``line`` when ``added`` (the words put on it) holds an axis word (a
+        letter of ``letters``)."""
+        if any(w[:1].upper() in letters for w in added):
+            self.added_lines += 1
+            self.added_line = self.added_line or line
 
     def set_last(self, j: int, text: str, inch: bool) -> None:
         v = float(text)
         self.values[j] = math.radians(v) if self.rotary[j] else v * (MM_PER_INCH if inch else 1.0)
-
-
-def _base_decimals(rot: bool, inch: bool) -> int:
-    """The fewest decimals a corrected coordinate is written with: 4 in mm and deg, 5 in inch."""
-    return 5 if inch and not rot else 4
-
-
-def _value_text(v: float, rot: bool, inch: bool, decimals: int) -> str:
-    """The text of an axis position v (mm, rad) in the program's units (mm, inch, deg)."""
-    return format_number(math.degrees(v) if rot else (v / MM_PER_INCH if inch else v), decimals)
-
-
-def _format_value(v: float, rot: bool, inch: bool) -> str:
-    return _value_text(v, rot, inch, _base_decimals(rot, inch))
-
-
-def _on_grid(v: float, rot: bool, inch: bool) -> Decimal:
-    """The position v (mm, rad) in the program's units as the decimal number that was written for
-    it (its text read back: 10 decimals give back every word of up to 10 decimals exactly)."""
-    x = math.degrees(v) if rot else (v / MM_PER_INCH if inch else v)
-    return Decimal(repr(round(float(x), 10)))
-
-
-def _increment_text(target: str, start: float, rot: bool, inch: bool) -> str:
-    """The incremental word from ``start`` (mm, rad: where the output stands) to the absolute
-    position ``target`` (its text, program units): their difference on the output's grid, with
-    the decimals of both, so that the increments written add up exactly to the written ends."""
-    prev = _on_grid(start, rot, inch)
-    end = Decimal(target)
-    if -prev.as_tuple().exponent > 8:
-        # not a position written in these units (the program changed them, G20/G21): taken on
-        # the target's grid, the machine's own position carried on by out.values
-        prev = prev.quantize(Decimal(1).scaleb(-max(-end.as_tuple().exponent,
-                                                    _base_decimals(rot, inch))))
-    decimals = max(-end.as_tuple().exponent, -prev.as_tuple().exponent, 0)
-    return format_number(end - prev, decimals)
 
 
 def _piece_feeds(block: MotionBlock, points: np.ndarray, xyz: list[int]) -> np.ndarray:
@@ -132,7 +107,7 @@ def _decimals(line: SourceLine, letters: str, rotary: list[bool], inch: bool) ->
             d = number_decimals(line.number(w))
             most = max(most, d)
             own.setdefault(w[0], d)
-    return [max(_base_decimals(rot, inch), own.get(c, most)) for c, rot in zip(letters, rotary)]
+    return [max(base_decimals(rot, inch), own.get(c, most)) for c, rot in zip(letters, rotary)]
 
 
 def _edit_head(line: SourceLine, out: OutputState, code: int, incremental: bool) -> None:
@@ -173,11 +148,11 @@ def _axis_texts(block: MotionBlock, p: np.ndarray, rotary: list[bool], out: Outp
         if not block.known[i]:
             continue
         if named is not None and named[i]:
-            t = _value_text(p[i], rot, inch, decs[i])
-            keep = not block.incremental and t == _value_text(block.end[i], rot, inch, decs[i])
+            t = position_text(p[i], rot, inch, decs[i])
+            keep = not block.incremental and t == position_text(block.end[i], rot, inch, decs[i])
             res.append((i, None if keep else t))
-        elif _format_value(p[i], rot, inch) != out.last(i, inch):
-            res.append((i, _value_text(p[i], rot, inch, decs[i])))
+        elif grid_text(p[i], rot, inch) != out.last(i, inch):
+            res.append((i, position_text(p[i], rot, inch, decs[i])))
     return res
 
 
@@ -209,7 +184,7 @@ def _apply_axes(block: MotionBlock, line: SourceLine, texts, letters: str, out: 
         if block.incremental:       # G91: the increment from where the output stands
             v = out.values[i]
             start = block.start[i] if v != v else v
-            said = _increment_text(t, start, out.rotary[i], block.inch)
+            said = increment_text(t, start, out.rotary[i], block.inch)
             step = float(said)
             if w is not None and Decimal(said) == Decimal(line.number(w)):
                 said = None         # the source's own increment keeps its spelling
@@ -285,6 +260,7 @@ def _line_text(block: MotionBlock, points: np.ndarray, letters: str, rotary: lis
             line.delete(w)
     added = _apply_axes(block, line, _axis_texts(block, points[0], rotary, out, decs, block.given),
                         letters, out, True)
+    out.count_added(block.line, added, letters)
     line.insert_at(line.append_pos(), added)
     if g93:
         line.replace_number(line.find("F"), f"{block.f_word / share[0]:.6g}")
@@ -346,16 +322,16 @@ def _cycle_text(block: MotionBlock, points: np.ndarray, letters: str, out: Outpu
                                        if line.find(c) is not None}
     nominal = {"X": block.points[0, xi], "Y": block.points[0, yi], "Z": info.z_bottom,
                "R": info.r_level}
-    nominal = {c: _value_text(v, False, inch, decs[c]) for c, v in nominal.items()}
+    nominal = {c: position_text(v, False, inch, decs[c]) for c, v in nominal.items()}
     lines = []
     for j in range(points.shape[0]):
         p = points[j]
         v = dict(zip("XYZR", (p[xi], p[yi], p[zi], info.r_level + (p[zi] - block.points[j, zi]))))
-        text = {c: _value_text(v[c], False, inch, decs[c]) for c in "XYZR"}
+        text = {c: position_text(v[c], False, inch, decs[c]) for c in "XYZR"}
         current = {"X": out.last(xi, inch), "Y": out.last(yi, inch), "Z": out.cycle_z,
                    "R": out.cycle_r}
         named = info.named if j == 0 else frozenset("XY")
-        need = [c for c in "XYZR" if c in named or _format_value(v[c], False, inch) != current[c]]
+        need = [c for c in "XYZR" if c in named or grid_text(v[c], False, inch) != current[c]]
         # a coordinate that keeps its source value keeps its source spelling: the machine goes
         # where that spelling says
         said = {c: raw[c] if c in raw and text[c] == nominal[c] else text[c] for c in need}
@@ -368,6 +344,7 @@ def _cycle_text(block: MotionBlock, points: np.ndarray, letters: str, out: Outpu
                     added.append(line.letter(c) + said[c])
                 elif said[c] != line.number(w):
                     line.replace_number(w, said[c])
+            out.count_added(block.line, added, "XYZ")
             line.insert_at(line.append_pos("XYZR"), added)
             lines.append(line.render())
         else:
@@ -377,7 +354,7 @@ def _cycle_text(block: MotionBlock, points: np.ndarray, letters: str, out: Outpu
                 out.set_last(i, said[c], inch)
             else:
                 out.set_last(i, text[c], inch)
-        out.cycle_z, out.cycle_r = (_format_value(float(said.get(c, text[c])) * scale, False, inch)
+        out.cycle_z, out.cycle_r = (grid_text(float(said.get(c, text[c])) * scale, False, inch)
                                     for c in "ZR")
     r_out = float(out.cycle_r) * scale
     init = out.cycle_init_z
@@ -586,7 +563,7 @@ class _ArcFit:
         if self.r_word is not None and not full:
             r = math.hypot(*(centre - s2))
             _a0, sweep = arc_sweep(s2, e2, centre, self.ccw, False)
-            dec = max(_base_decimals(False, self.block.inch),
+            dec = max(base_decimals(False, self.block.inch),
                       number_decimals(self.line.number(self.r_word)))
             signs = [sweep > math.pi]
             if abs(sweep - math.pi) < 1e-3:     # about a half circle: the source's sign first
@@ -626,6 +603,7 @@ class _ArcFit:
         _edit_head(line, out, code, block.incremental)
         first = pieces[0]
         added = _apply_axes(block, line, first.texts, self.letters, out, True)
+        out.count_added(block.line, added, self.letters)
         pos = line.append_pos()
         line.insert_at(pos, added)
         self._centre_in_place(first.centre_words)
@@ -720,7 +698,7 @@ def write_pass_through(f, raw: bytes, state: ModalState, out: OutputState, separ
         out.values[zi] = math.nan
         for attr in ("cycle_r", "cycle_z"):
             v = getattr(state, attr)
-            setattr(out, attr, "" if v is None or v[1] else _format_value(v[0], False, state.inch))
+            setattr(out, attr, "" if v is None or v[1] else grid_text(v[0], False, state.inch))
 
 
 def _follow_increments(raw: bytes, state: ModalState, out: OutputState) -> None:
@@ -731,7 +709,7 @@ def _follow_increments(raw: bytes, state: ModalState, out: OutputState) -> None:
         v = out.values[i]
         if w is None or not state.known[i] or v != v:
             continue
-        end = _on_grid(v, out.rotary[i], state.inch) + Decimal(line.number(w))
+        end = on_grid(v, out.rotary[i], state.inch) + Decimal(line.number(w))
         out.set_last(i, str(end), state.inch)
 
 
@@ -789,4 +767,6 @@ def writer_stats(out: OutputState) -> dict:
         stats["cutter_arc_miss_mm"] = out.cutter_arc_miss
     if out.arc_miss > 0:
         stats["arc_miss_mm"] = out.arc_miss
+    if out.added_lines:         # (lines, first line)
+        stats["added_axis_words"] = (out.added_lines, out.added_line)
     return stats

@@ -53,7 +53,8 @@ __all__ = ["STATUS_REASONS", "SurfaceMap", "ProgramPoints", "read_program_points
 #: why a block is left uncorrected (SurfaceMap.status)
 STATUS_REASONS = {1: "an axis position the program has not given",
                   2: "outside the region the model's data reached",
-                  3: "the model unsure (correction's standard error over the limit)"}
+                  3: "the model unsure (correction's standard error over the limit)",
+                  4: "a bound held an axis's whole correction"}
 
 
 @dataclass
@@ -530,8 +531,9 @@ def _along_tool_axis(machine: Machine, orig: ProgramPoints, g, info: dict) -> bo
 
 def report_status(report, n: int) -> np.ndarray:
     """(n,) int8 :data:`STATUS_REASONS` of the program's segment ends from the compensation report's
-    columns ``unknown_axes``, ``outside_support``, ``uncertain`` and ``corrected`` (its rows that are
-    not inserted nodes, checked against the program by :func:`report_points` before)."""
+    columns ``unknown_axes``, ``outside_support``, ``uncertain``, ``active_bounds`` and
+    ``corrected`` (its rows that are not inserted nodes, checked against the program by
+    :func:`report_points` before)."""
     import csv
     with open(os.fspath(report), newline="") as f:
         rows = [r for r in csv.DictReader(f) if r.get("inserted", "0") == "0"]
@@ -540,7 +542,7 @@ def report_status(report, n: int) -> np.ndarray:
         if r.get("corrected", "1") not in ("0", "0.0"):
             continue
         status[i] = (1 if r.get("unknown_axes") else 3 if r.get("uncertain") in ("1", "1.0")
-                     else 2)
+                     else 4 if r.get("active_bounds") else 2)
     return status
 
 

@@ -1,0 +1,93 @@
+"""The planner's result: one row per output block (node), in program order (:class:`PlanResult`)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._bounds import FLAG_KINDS, flag_name
+from ._small import any_rows
+
+
+@dataclass
+class PlanResult:
+    """Planned output blocks (one row per node), in program order.
+
+    line : (n,) source line. inserted, rapid : (n,) bool.
+    nominal : (n, na) nominal axis positions (mm, rad), as the uncorrected program would be written.
+    corrected : (n, na) corrected axis positions to write (mm, rad).
+    correction : (n, na) corrected minus nominal (mm, rad).
+    before, after : (n, 3) tip deviation (mm) of the uncorrected and corrected block, workpiece frame;
+    before_axis, after_axis : (n, 3) tool-axis deviation (actual minus nominal unit vector), 5-axis
+        machines only (None otherwise).
+    flags : (n, na, 7) bool, bounds that acted (see ``FLAG_KINDS``); none on a pinned block.
+    iterations : (n,) model linearisations used per node. converged : (n,) bool.
+    unknown, outside : (n, na) bool, axes not known / outside the model's support (see NodeSet).
+    pinned : (n,) bool, the block was given no correction (bounds zero) for any of the reasons.
+    gated : (n,) bool, pinned only because its contour has a block over the standard-error limit.
+    held : (n, na) bool, the axes of a block (not pinned) whose whole correction a bound held (the
+        travel or a link bound: ``HOLDING``): the axis is written without correction though the
+        block asked for one (``flags`` names the bound).
+    sd_um : (n,) standard error of the block's correction, um (see NodeSet).
+    counts : (rows,) nodes per segment row of the source chunk (for write_corrected), or None.
+    """
+
+    line: np.ndarray
+    inserted: np.ndarray
+    rapid: np.ndarray
+    nominal: np.ndarray
+    corrected: np.ndarray
+    correction: np.ndarray
+    before: np.ndarray
+    after: np.ndarray
+    before_axis: np.ndarray | None
+    after_axis: np.ndarray | None
+    flags: np.ndarray
+    iterations: np.ndarray
+    converged: np.ndarray
+    unknown: np.ndarray
+    outside: np.ndarray
+    pinned: np.ndarray
+    sd_um: np.ndarray
+    gated: np.ndarray
+    held: np.ndarray
+    counts: np.ndarray | None = None
+
+    FIELDS = ("line", "inserted", "rapid", "nominal", "corrected", "correction", "before", "after",
+              "before_axis", "after_axis", "flags", "iterations", "converged", "unknown", "outside",
+              "pinned", "sd_um", "gated", "held")
+
+    def __len__(self):
+        return int(self.line.shape[0])
+
+    def take(self, sl) -> "PlanResult":
+        return PlanResult(*(None if getattr(self, f) is None else getattr(self, f)[sl]
+                            for f in self.FIELDS))
+
+    @staticmethod
+    def concatenate(parts: list["PlanResult"]) -> "PlanResult":
+        out = []
+        for f in PlanResult.FIELDS:
+            vals = [getattr(p, f) for p in parts]
+            out.append(None if vals[0] is None else np.concatenate(vals))
+        return PlanResult(*out)
+
+    def corrected_blocks(self) -> np.ndarray:
+        """(n,) bool: the blocks written with their correction on every axis that asked for one (in
+        full or as far as a bound let it: BLOCKS.csv ``corrected`` = 1); not a pinned block, nor one
+        with an axis whose whole correction a bound held (``held``)."""
+        done = ~self.pinned
+        if self.held.any():
+            done &= ~any_rows(self.held)
+        return done
+
+    def active_bounds(self, axis_names) -> list[str]:
+        """Per node the active bounds as text, e.g. 'cx_max;step_y' ('' when none)."""
+        out = [""] * len(self)
+        rows = np.flatnonzero(any_rows(self.flags))
+        for i in rows:
+            names = [flag_name(FLAG_KINDS[k], axis_names[j])
+                     for j in range(self.flags.shape[1]) for k in range(self.flags.shape[2])
+                     if self.flags[i, j, k]]
+            out[i] = ";".join(names)
+        return out
