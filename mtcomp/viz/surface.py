@@ -331,29 +331,12 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
     inverse = inverse.ravel()
     sel = g.index[first]
     off = _work_offset(machine, work_offset)
-    T0 = tool2wp(machine, orig.q[sel])
-    tips = T0[:, :3, 3]
-    offset_tool = np.einsum("nji,nj->ni", T0[:, :3, :3], g.offset[first])   # R0^T offset: tool frame
-    # referenced to the part's datum, as compensate references its corrections: the program's
-    # origin (its work offset, else the machine zero), where the machinist probed the part; the
-    # model evaluated at machine positions
+    tips = tool2wp(machine, orig.q[sel])[:, :3, 3]
     length_of = tool_lengths_of(orig, machine, tool_lengths)
     if tool_lengths is not None and orig.tool is not None:
         info["tools_assumed"] = tools_assumed(orig, sel, tool_lengths)
-    lengths = length_of[sel]
-    each, which = np.unique(lengths, return_inverse=True)      # a program has a tool or a few
-    datum_dev = fitted.datum_deviation(np.repeat(off[None, :], each.size, axis=0), each)
-    nominal = (tool2wp(machine, orig.q[sel] + off)[:, :3, 3] + g.offset[first]
-               + datum_dev[which.ravel()])
-    say(f"deviation at {sel.size} points")
-    dev_before = predicted_points(fitted, orig.q[sel] + off, orig.feed[sel], orig.dirs[sel],
-                                  offset_tool, lengths) - nominal
-    dev_after = None
-    if comp is not None:
-        say(f"deviation after compensation at {sel.size} points")
-        j = pair[sel]
-        dev_after = predicted_points(fitted, comp.q[j] + off, comp.feed[j], comp.dirs[j],
-                                     offset_tool, lengths) - nominal
+    dev_before, dev_after = _deviations(machine, fitted, orig, comp, pair, sel, g.offset[first],
+                                        off, length_of[sel], say)
     status, source = None, ""
     if report is not None:
         status, source = report_status(report, len(orig))[sel], "report"
@@ -371,6 +354,29 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
                       None if status is None else status[inverse], source, notes, info)
     smap.segments = segments
     return smap
+
+
+def _deviations(machine, fitted, orig: ProgramPoints, comp, pair, sel, offset, off, lengths, say):
+    """(before (n, 3), after (n, 3) or None) mm: the deviation the model predicts of the tool point
+    ``offset`` (n, 3) mm, workpiece frame, carried by the tool at the segment ends ``sel`` of the
+    program (and at their corrected counterparts ``pair[sel]`` in ``comp``), tools of ``lengths``
+    (n,) mm. Referenced to the part's datum, as compensate references its corrections: the
+    program's origin (its work offset ``off``, else the machine zero), where the machinist probed
+    the part; the model evaluated at machine positions."""
+    T0 = tool2wp(machine, orig.q[sel])
+    offset_tool = np.einsum("nji,nj->ni", T0[:, :3, :3], offset)      # R0^T offset: tool frame
+    each, which = np.unique(lengths, return_inverse=True)      # a program has a tool or a few
+    datum_dev = fitted.datum_deviation(np.repeat(off[None, :], each.size, axis=0), each)
+    nominal = tool2wp(machine, orig.q[sel] + off)[:, :3, 3] + offset + datum_dev[which.ravel()]
+    say(f"deviation at {sel.size} points")
+    before = predicted_points(fitted, orig.q[sel] + off, orig.feed[sel], orig.dirs[sel],
+                              offset_tool, lengths) - nominal
+    if comp is None:
+        return before, None
+    say(f"deviation after compensation at {sel.size} points")
+    j = pair[sel]
+    return before, predicted_points(fitted, comp.q[j] + off, comp.feed[j], comp.dirs[j],
+                                    offset_tool, lengths) - nominal
 
 
 def _work_offset(machine: Machine, work_offset) -> np.ndarray:
