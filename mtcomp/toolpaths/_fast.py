@@ -288,7 +288,12 @@ def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_positio
                 rows = _new_rows(cap, na)
                 n.value = 0
             elif status == FALLBACK:
-                _k, _raw, b = d.fallback()
+                try:
+                    _k, _raw, b = d.fallback()
+                except InputError:
+                    if n.value:         # the rows before the bad line first, as reader.py does
+                        yield chunk()
+                    raise
                 if b is None:
                     continue
                 kb = b.points.shape[0]

@@ -75,8 +75,10 @@ def iter_segment_chunks(path, machine: Machine, chord_tol_mm: float = DEFAULT_CH
     inch, initial_known : see :func:`iter_blocks`.
     Memory stays flat for any program length: one chunk (and one arc) is held at a time. A block
     split into many chords may continue in the next chunk. Raises InputError naming file and line
-    (rows of earlier chunks have been yielded by then: consumers must not write output before the
-    stream is exhausted, which :func:`write_corrected` guarantees through atomic_write).
+    (rows of earlier chunks have been yielded by then, and the rows before the bad line, as a
+    chunk of their own, so that a consumer's check of them names an earlier line first: consumers
+    must not write output before the stream is exhausted, which :func:`write_corrected`
+    guarantees through atomic_write).
     """
     kw = dict(inch=inch, initial_known=initial_known)
     with open_program(path, dialect) as src:
