@@ -503,11 +503,15 @@ def _to_program_frame(res, chunk, off, setup) -> None:
 
 
 def compensate_program(fitted, program, output, settings: CompensationSettings, setup=None,
-                       report=None, progress=None, judges=(), temperature_series=None) -> CompensationRun:
+                       report=None, progress=None, judges=(), temperature_series=None,
+                       io_progress=None) -> CompensationRun:
     """Compensate ``program`` with the model ``fitted`` into ``output`` (written atomically, with
     the BLOCKS.csv ``report`` when given). ``setup``: the program's work offsets and tool lengths
     (:func:`mtcomp.toolpaths.offsets.load_setup`; None: none). ``progress``: callable(blocks done)
-    every few seconds. ``judges``: :class:`Judge` objects that evaluate the plan under their models.
+    every few seconds; ``io_progress``: callable(what, line), told the program lines read for the
+    plan as the reader goes (``'read'``, :func:`mtcomp.toolpaths.iter_segment_chunks`) and the line
+    up to which the output is written (``'written'``, a chunk at a time). ``judges``:
+    :class:`Judge` objects that evaluate the plan under their models.
     ``temperature_series``: a :class:`~mtcomp.thermal.context.TemperatureSeries`, the temperatures
     along the program's run time (each block at the time the program reaches its end at its feeds,
     :func:`block_times`); a sensor also in ``settings.temperatures`` keeps that value.
@@ -535,17 +539,18 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
             # under cutter radius compensation, whose controller offsets the moves as written
             settings = replace(settings, subdivide_tol_um=0.0)
         return _compensate_source(fitted, src, output, settings, setup, report, progress, judges,
-                                  series, assumed, found, stack, t0)
+                                  series, assumed, found, stack, t0, io_progress)
 
 
 def _compensate_source(fitted, src, output, settings, setup, report, progress, judges, series,
-                       assumed, found, stack, t0) -> CompensationRun:
+                       assumed, found, stack, t0, io_progress) -> CompensationRun:
     """:func:`compensate_program` once the program is open (``src``, closed by ``stack``)."""
     machine = fitted.machine
     program = src.source
     start_inch, inch, notes = _program_units(found, settings, machine)
     start_pos, start_known = start_position(machine, settings.start_position)
     sd_limit = settings.sd_limit()
+    read_progress = None if io_progress is None else (lambda lines: io_progress("read", lines))
     planner, summary = _planner(fitted, settings, inch, program, progress)
     tally = _Tally(machine)
     offsets_of = {}
@@ -553,7 +558,8 @@ def _compensate_source(fitted, src, output, settings, setup, report, progress, j
                 inch=start_inch, initial_known=start_known)
 
     def machine_chunks():
-        for chunk in iter_segment_chunks(src, machine, chunk_size=CHUNK_ROWS, **read):
+        for chunk in iter_segment_chunks(src, machine, chunk_size=CHUNK_ROWS, progress=read_progress,
+                                         **read):
             tally.read(chunk)
             mchunk, off = setup.apply(chunk, src)
             if series is not None:
@@ -579,6 +585,8 @@ def _compensate_source(fitted, src, output, settings, setup, report, progress, j
             if rep is not None:
                 rep.writelines(_report_lines(res, machine.axis_names, sd_limit))
             yield chunk, res.corrected, res.counts
+            if io_progress is not None and len(chunk):   # the writer is done with the chunk
+                io_progress("written", int(chunk.line[-1]))
         if summary.blocks == 0:
             # raised while the outputs are still temporary files: nothing is written
             raise InputError("no motion block in the program: nothing to compensate", program)

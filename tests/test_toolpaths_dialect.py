@@ -30,11 +30,29 @@ def mode(request, monkeypatch):
     ("gcodeworkshop_HAAS.nc", "haas", 2), ("gcodeworkshop_FANUC0M.nc", "fanuc", 2),
     ("gcodes_simple_mill.gcode", "fanuc", 4), ("linuxcnc_cone.ngc", "linuxcnc", 4),
     ("ugs_square.nc", "generic", None),
+    # LinuxCNC's 5-axis demo: its switchable kinematics M428 (tool centre point) is the clue
+    ("linuxcnc_boat-xyzac.ngc", "linuxcnc", 2),
 ])
 def test_detection_on_real_headers(name, dialect, line):
     d, why = detect(CORPUS / name)
     assert d.name == dialect
     assert why.startswith(f"detected from line {line}:") if line else "nothing" in why
+
+
+@pytest.mark.parametrize("text, dialect", [
+    ("G21 G90\nN50 M428 (tool centre point on)\nG0 X1\n", "linuxcnc"),
+    ("G21\nm0429\n", "linuxcnc"), ("G0 X1\nM430 ; identity kinematics\n", "linuxcnc"),
+    # in a comment, as another number or with a decimal part: no clue
+    ("G21\n(M428 on a LinuxCNC machine only)\nM3\n".replace("LinuxCNC", "our"), "generic"),
+    ("G21\nM4280\n", "generic"), ("G21\nM428.1\n", "generic"),
+])
+def test_linuxcnc_switchable_kinematics_codes_name_linuxcnc(tmp_path, text, dialect):
+    p = tmp_path / "p.ngc"
+    p.write_text(text)
+    d, why = detect(p)
+    assert d.name == dialect
+    if dialect == "linuxcnc":
+        assert why.startswith("detected from line 2:")
 
 
 def test_grbl_is_detected_and_its_commands_pass_through(tmp_path):

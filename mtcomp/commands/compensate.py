@@ -182,12 +182,82 @@ def _print_run(args, machine, fitted, run_, seconds, unread, written) -> None:
     print(f"wrote {written[0]}" + (f" and {' and '.join(map(str, written[1:]))}" if written[1:] else ""))
 
 
+class Progress:
+    """compensate's progress lines on ``stream`` (None: none), one every ``every_s`` seconds while
+    the work goes on, none in a shorter run: the program's lines read, the blocks planned, the
+    line up to which the output is written, and a compiler run of the model's C code under way
+    (once per model structure: a 5-axis model's Jacobian takes tens of seconds, and nothing else
+    reports during it). A thread of its own writes them, so that whatever runs (the reader of a
+    tool centre point program, which reads it line by line in Python, a compiler run, the
+    planner) the lines keep coming. ``t0``: the command's start (time.perf_counter)."""
+
+    #: seconds between two lines (and before the first)
+    EVERY_S = 3.0
+    _WHAT = {"tip_pjacobian_function": "standard-error function",
+             "deviation_qjacobian_function": "deviation and Jacobian",
+             "deviation_function": "deviation"}
+
+    def __init__(self, stream, t0: float, every_s: float | None = None):
+        import threading
+        self.stream, self.t0 = stream, t0
+        self.every_s = self.EVERY_S if every_s is None else every_s
+        self.lines = self.blocks = self.written = 0
+        self.compile = None                     # (what, since) of a compiler run under way
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="mtcomp-progress", daemon=True)
+
+    def io(self, what: str, line: int) -> None:
+        """The program read up to ``line`` for the plan (``what`` 'read'), or written up to it
+        ('written')."""
+        if what == "read":
+            self.lines = max(self.lines, int(line))
+        else:
+            self.written = max(self.written, int(line))
+
+    def planned(self, blocks: int) -> None:
+        self.blocks = int(blocks)
+
+    def compiling(self, name: str, started: bool) -> None:
+        import time
+        self.compile = (self._WHAT.get(name, name), time.perf_counter()) if started else None
+
+    def line(self, now: float) -> str:
+        """The progress line at ``now`` (time.perf_counter)."""
+        parts = [f"{self.lines} lines read" if self.lines else "reading the program"]
+        if self.blocks:
+            parts.append(f"{self.blocks} blocks planned")
+        if self.written:
+            parts.append(f"written up to line {self.written}")
+        compile_ = self.compile
+        if compile_ is not None:
+            parts.append(f"compiling the model's {compile_[0]} to C, {now - compile_[1]:.0f} s so "
+                         "far (once per model; later runs reuse it)")
+        return f"mtcomp compensate: {', '.join(parts)} ({now - self.t0:.0f} s)"
+
+    def _run(self):
+        import time
+        while not self._stop.wait(self.every_s):
+            self.stream.write(self.line(time.perf_counter()) + "\n")
+            self.stream.flush()
+
+    def __enter__(self):
+        if self.stream is not None:
+            self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join()
+
+
 def run(args) -> int:
     import sys
     import time
 
     from ..compensation import CompensationSettings, compensate_program, parse_start_position
     from ..machine import load_machine
+    from ..models.compiled import compile_notices
     from ..models.model_file import load_model
     from ..toolpaths.offsets import load_setup
 
@@ -217,14 +287,13 @@ def run(args) -> int:
         start_position=parse_start_position(machine, args.start_position), dialect=args.dialect)
     setup = load_setup(machine, args.offsets, args.work_offset, args.tool_length)
 
-    def progress(done):
-        sys.stderr.write(f"mtcomp compensate: {done} blocks planned ({time.perf_counter() - t0:.0f} s)\n")
-        sys.stderr.flush()
-
     # the summary JSON is written after the program and BLOCKS.csv, which are complete by then: a
     # failed run leaves none of the three (the first two are renamed into place only on success)
-    run_ = compensate_program(fitted, args.program, out, settings, setup, report=report,
-                              progress=None if args.quiet else progress, temperature_series=series)
+    with Progress(None if args.quiet else sys.stderr, t0) as progress, \
+            compile_notices(progress.compiling if not args.quiet else None):
+        run_ = compensate_program(fitted, args.program, out, settings, setup, report=report,
+                                  progress=progress.planned, temperature_series=series,
+                                  io_progress=progress.io)
     if summary_json is not None:
         _write_summary(summary_json, run_)
     _print_run(args, machine, fitted, run_, time.perf_counter() - t0, unread,

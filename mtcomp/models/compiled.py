@@ -50,6 +50,7 @@ Environment:
 """
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import hashlib
 import os
@@ -137,6 +138,24 @@ def _min_poses(name: str | None = None) -> int:
         return int(os.environ.get("MTCOMP_COMPILE_MIN_POSES", default))
     except ValueError:
         return default
+
+
+#: told ``(function name, True)`` before a compiler run and ``(name, False)`` after it, or None
+#: (:func:`compile_notices`: a command's progress lines say what the wait is)
+_on_compile = None
+
+
+@contextlib.contextmanager
+def compile_notices(callback):
+    """Within the context, ``callback(function name, started)`` is told before each compiler run
+    (``started`` True) and after it (False): a 5-axis model's Jacobian takes tens of seconds to
+    compile, once per model structure (then it comes from the cache). ``callback`` None: nobody."""
+    global _on_compile
+    before, _on_compile = _on_compile, callback
+    try:
+        yield
+    finally:
+        _on_compile = before
 
 
 def _notice():
@@ -427,8 +446,9 @@ def compile_flags(compiler: str, src: str = SCHEDULE_MARK) -> tuple[str, ...]:
     return CFLAGS + (GCC_FLAGS if _is_gcc[compiler] and src.startswith(SCHEDULE_MARK) else ())
 
 
-def compile_source(src: str, compiler: str) -> Path:
-    """Compile ``src`` into the cache (or reuse a cached library). Raises CompileError."""
+def compile_source(src: str, compiler: str, name: str = "") -> Path:
+    """Compile ``src`` (the function ``name``'s) into the cache (or reuse a cached library); the
+    run is told to :func:`compile_notices`' callback. Raises CompileError."""
     global compile_count
     flags = compile_flags(compiler, src)
     key = hashlib.sha256("\0".join([src, compiler, *flags]).encode()).hexdigest()[:24]
@@ -441,10 +461,16 @@ def compile_source(src: str, compiler: str) -> Path:
         c_file.write_text(src)
         tmp_lib = Path(tmp) / f"mtcomp_{key}.so"
         cmd = [compiler, *flags, str(c_file), "-o", str(tmp_lib), "-lm"]
+        told = _on_compile
+        if told is not None:
+            told(name, True)
         try:
             proc = subprocess.run(cmd, capture_output=True, text=True)
         except OSError as exc:
             raise CompileError(f"cannot run {compiler}: {exc}") from None
+        finally:
+            if told is not None:
+                told(name, False)
         compile_count += 1
         if proc.returncode != 0 or not tmp_lib.exists():
             raise CompileError(f"{compiler} failed: {proc.stderr.strip()[:2000]}")
@@ -574,7 +600,7 @@ def get_compiled(model, name: str, function: ca.Function, compile_if_missing: bo
             for merge in variants:
                 src, sizes = _source(skey, function, merge)
                 try:
-                    lib = compile_source(src, compiler)
+                    lib = compile_source(src, compiler, name)
                     break
                 except CompileError as exc:
                     _failed[(skey, compiler, "merged") if merge else (skey, compiler)] = str(exc)

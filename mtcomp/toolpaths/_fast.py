@@ -32,6 +32,7 @@ from ..errors import InputError
 from ..io.atomic import atomic_write
 from .blocks import SegmentChunk
 from .reader import new_state
+from .words import PROGRESS_LINES
 from .writer import (OutputState, _line_ending, format_motion_lines, write_pass_through,
                      writer_stats)
 
@@ -256,7 +257,8 @@ def _new_rows(cap, na):
             np.empty(cap, np.int32), np.zeros(cap, bool), np.zeros(cap, bool), np.zeros(cap, bool))
 
 
-def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_position=None, **kw):
+def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_position=None,
+                        progress=None, **kw):
     """Compiled counterpart of :func:`mtcomp.toolpaths.gcode.iter_segment_chunks`."""
     cap = int(chunk_size)
     if cap < 1:
@@ -282,13 +284,22 @@ def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_positio
             if status == NEED_INPUT:
                 if d.eof:
                     break
+                if progress is not None:
+                    progress(int(d.st[16]))
                 d.fill()
             elif status == ROWS_FULL:
                 yield chunk()
                 rows = _new_rows(cap, na)
                 n.value = 0
             elif status == FALLBACK:
-                _k, _raw, b = d.fallback()
+                try:
+                    k, _raw, b = d.fallback()
+                except InputError:
+                    if n.value:         # the rows before the bad line first, as reader.py does
+                        yield chunk()
+                    raise
+                if progress is not None and not k % PROGRESS_LINES:
+                    progress(k)
                 if b is None:
                     continue
                 kb = b.points.shape[0]
@@ -299,24 +310,9 @@ def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_positio
                         yield chunk()
                         rows = _new_rows(cap, na)
                         n.value = 0
-                    r = n.value
-                    take = min(kb - done, cap - r)
-                    line, start, end, feed, dirs, rapid, known, frame, arc, cycle, crc = rows
-                    sl = slice(done, done + take)
-                    crc[r:r + take] = b.cutter_comp
-                    known[r:r + take] = d._mask(b.known)
-                    if done == 0 and not b.start_known:
-                        known[r] |= START_UNKNOWN
-                    frame[r:r + take] = b.frame
-                    line[r:r + take] = b.line
-                    start[r:r + take] = starts[sl]
-                    end[r:r + take] = b.points[sl]
-                    feed[r:r + take] = b.feed
-                    dirs[r:r + take] = b.dirs[sl]
-                    rapid[r:r + take] = b.rapid
-                    arc[r:r + take] = b.from_arc
-                    cycle[r:r + take] = b.cycle is not None
-                    n.value = r + take
+                    take = min(kb - done, cap - n.value)
+                    _put_rows(rows, n.value, b, starts, slice(done, done + take), d._mask(b.known))
+                    n.value += take
                     done += take
             else:  # pragma: no cover - the reader asks for nothing else
                 raise RuntimeError(f"fast G-code reader: unexpected status {status}")
@@ -324,6 +320,26 @@ def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_positio
         d.close()
     if n.value:
         yield chunk()
+
+
+def _put_rows(rows, r, b, starts, sl, mask) -> None:
+    """Rows ``r``... of ``rows`` from the segments ``sl`` of the block ``b`` (segment starts
+    ``starts``, known axes as the bit ``mask``)."""
+    line, start, end, feed, dirs, rapid, known, frame, arc, cycle, crc = rows
+    take = sl.stop - sl.start
+    crc[r:r + take] = b.cutter_comp
+    known[r:r + take] = mask
+    if sl.start == 0 and not b.start_known:
+        known[r] |= START_UNKNOWN
+    frame[r:r + take] = b.frame
+    line[r:r + take] = b.line
+    start[r:r + take] = starts[sl]
+    end[r:r + take] = b.points[sl]
+    feed[r:r + take] = b.feed
+    dirs[r:r + take] = b.dirs[sl]
+    rapid[r:r + take] = b.rapid
+    arc[r:r + take] = b.from_arc
+    cycle[r:r + take] = b.cycle is not None
 
 
 def write_corrected(in_path, out_path, machine, cursor, chord_tol_mm, initial_position=None,

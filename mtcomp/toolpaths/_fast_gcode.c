@@ -2,7 +2,8 @@
  *
  * Handles only "simple" lines, exactly as mtcomp.toolpaths.gcode.ModalState would: lines made of
  * comments, the words N, G0/G1, F and the machine's axis words (each at most once) and words that
- * do not touch the geometry (M S T H D P Q O E ..., kept as written). Any other line (G codes
+ * do not touch the geometry (M S ..., kept as written; a value word D E H L P Q, which the dialect
+ * may refuse where no code of its block uses it, and T and O go to Python). Any other line (G codes
  * other than G0/G1, arcs, '%', errors of any kind) is handed back to Python (status FALLBACK) before the state is touched,
  * so Python interprets it (and raises the errors). Positions, directions and the formatting of
  * numbers reproduce the Python code bit for bit; tests compare both paths.
@@ -226,10 +227,12 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
             } else if (L == 'I' || L == 'J' || L == 'K' || L == 'R' || L == 'U' || L == 'V' ||
                        L == 'W') {
                 simple = 0; break;                  /* arcs and foreign axes: Python decides */
+            } else if (L == 'D' || L == 'E' || L == 'H' || L == 'L' || L == 'P' || L == 'Q') {
+                simple = 0; break;          /* value words: whether a code uses them is Python's */
             } else if (L == 'O' || L == 'T' || (L == 'M' && (v == 2.0 || v == 30.0 || v == 6.0 || v == 97.0 || v == 98.0 || v == 99.0 || v == 128.0 || v == 428.0 ||
                                           v == 430.0))) {
                 simple = 0; break;          /* program numbers, tool changes, subprograms: Python */
-            }                                       /* M S H D P Q O E ...: kept as written */
+            }                                       /* M S ...: kept as written */
         }
         if (!simple) { *consumed = pos; return FALLBACK; }
         int motion = has_g ? g : (int)state[13];

@@ -74,6 +74,8 @@ _CALL = re.compile(rb"(?i)m[ \t]*0*9[78](?![\d.])")
 _CLUES = [
     ("linuxcnc", re.compile(r"(?i)^\s*(?:n\s*\d+\s*)?" + _OWORD_KEYWORD + r"|o\s*<|#\s*<")),
     ("linuxcnc", re.compile(r"\^\s*[-+.\d\[#]")),         # a polar angle word: LinuxCNC's alone
+    # its switchable kinematics (M428 tool centre point on, M429 off, M430): LinuxCNC's own codes
+    ("linuxcnc", re.compile(r"(?i)(?<![a-z_])m\s*0*4(?:2[89]|30)(?![\d.])")),
     ("fanuc", re.compile(r"(?i)^\s*(?:n\s*\d+\s*)?(?:" + _MACRO_STATEMENT + r")")),
     ("fanuc", re.compile(r"^\s*[Oo:]\s*\d+\s*(?:\([^()]*\)\s*)*$")),   # a program number O1234
     ("grbl", re.compile(r"^\s*(?:\$[A-Za-z$#]|[?~!]\s*$)")),
@@ -104,7 +106,8 @@ _HEAD = 1 << 16          # bytes of the program's start read for its dialect
 
 def detect(path) -> tuple[Dialect, str]:
     """(the program's dialect, why: 'detected from line N: ...' or what was taken). The first
-    clue in the first 64 kB wins: LinuxCNC's O-words or named parameters, a Fanuc macro statement
+    clue in the first 64 kB wins: LinuxCNC's O-words, named parameters, polar angle word or
+    switchable kinematics codes (M428, M429, M430), a Fanuc macro statement
     or program number (Haas where the program names Haas), grbl's '$' commands or real-time
     characters, RepRapFirmware's quoted string parameters, Sinumerik's file header
     ``%_N_NAME_MPF``, ``;$PATH=``, a DEF, a CYCLE call or ``MSG("...")`` at a block's start, a

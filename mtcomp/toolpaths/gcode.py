@@ -65,27 +65,32 @@ def _compiled(src) -> bool:
 def iter_segment_chunks(path, machine: Machine, chord_tol_mm: float = DEFAULT_CHORD_TOL_MM,
                         chunk_size: int = DEFAULT_CHUNK_SIZE,
                         initial_position=None, *, inch: bool = False,
-                        initial_known=None, dialect: str | None = None) -> Iterator[SegmentChunk]:
+                        initial_known=None, dialect: str | None = None,
+                        progress=None) -> Iterator[SegmentChunk]:
     """Stream a program as :class:`SegmentChunk` objects of at most ``chunk_size`` rows.
 
     path : the program's file, or a :class:`ProgramSource` from :func:`open_program` (its
     expansion is then read as it is). dialect : see :func:`open_program` (None: detected).
     initial_position : (na,) axis positions before the first block, also where G28/G30 send the
     axes (mm, rad; default all zero). chord_tol_mm : largest sagitta of an arc's chords (mm).
-    inch, initial_known : see :func:`iter_blocks`.
+    inch, initial_known : see :func:`iter_blocks`. progress : callable(lines read), told after
+    every :data:`~.words.PROGRESS_LINES` lines interpreted in Python (a tool centre point program
+    is read so throughout) and every block of the file the compiled scanner reads, or None.
     Memory stays flat for any program length: one chunk (and one arc) is held at a time. A block
     split into many chords may continue in the next chunk. Raises InputError naming file and line
-    (rows of earlier chunks have been yielded by then: consumers must not write output before the
-    stream is exhausted, which :func:`write_corrected` guarantees through atomic_write).
+    (rows of earlier chunks have been yielded by then, and the rows before the bad line, as a
+    chunk of their own, so that a consumer's check of them names an earlier line first: consumers
+    must not write output before the stream is exhausted, which :func:`write_corrected`
+    guarantees through atomic_write).
     """
     kw = dict(inch=inch, initial_known=initial_known)
     with open_program(path, dialect) as src:
         if _compiled(src):
             chunks = _fast.iter_segment_chunks(src, machine, chord_tol_mm, chunk_size,
-                                               initial_position, **kw)
+                                               initial_position, progress, **kw)
         else:
             chunks = reader.iter_segment_chunks(src, machine, chord_tol_mm, chunk_size,
-                                                initial_position, **kw)
+                                                initial_position, progress, **kw)
         yield from _still_arcs_at_the_last_feed(chunks)
 
 

@@ -27,6 +27,7 @@ from .frames import (FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle
 from .linetext import text_with_words
 from .programmed import ProgrammedOffsets, apply_g10
 from .rrf import macro_codes
+from .word_use import check_motion_mode, check_value_words
 from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _CURVE_WITH_COORDINATES, KNOWN_DECIMAL_G, FANUC_CYCLES, FANUC_DIALECTS,
                     OTHER_WCS_G, mode_followed, _REFUSED_G, _REFUSED_M, _UNIQUE_LETTERS, _WCS_INDEX, DEFAULT_CHORD_TOL_MM,
                     DIR_EPS, MAX_TOOL, MM_PER_INCH, TCP_OFF_M, TCP_ON_M, TOOL_AXIS, frame_code,
@@ -191,6 +192,8 @@ class ModalState:
         motion, nonmotion_axes, home_move, cycle = self._apply_codes(gcodes, mcodes, values,
                                                                      tokens, line)
         axes_given = self._axis_words(values, line)
+        check_value_words(self, tokens, gcodes, mcodes, motion, cycle, axes_given,
+                          nonmotion_axes and home_move != 53, line)
         if home_move is not None and motion is not None and not home_with_motion(self.dialect.name, home_move, motion):
             raise self._err(f"G{home_move} and motion G{motion} in one block", line)
         self._set_feed(values, line)
@@ -509,7 +512,7 @@ class ModalState:
             if arc_words and self.cycle is None:
                 raise self._err(f"{arc_words[0]} word outside an arc block", line)
             return None
-        self._check_motion_mode(values, arc_words, line)
+        check_motion_mode(self, values, arc_words, line)
         if self.incremental and self.motion in (0, 1) and \
                 any(not self.known[self.names.index(c)] for c in axes_given):
             return self._blind_increment(values, axes_given)
@@ -580,17 +583,6 @@ class ModalState:
         self.distance_sensitive = True
         self.passed_move = ("increment", self._line)
         return None
-
-    def _check_motion_mode(self, values, arc_words, line: int) -> None:
-        """A move needs a motion mode, arc words only in G2/G3, and an F on each G93 feed move."""
-        if self.motion is None:
-            raise self._err("coordinates without a motion mode (no G0/G1/G2/G3 in force; a controller's "
-                            "power-on mode is not assumed: write G0 or G1 in this block)", line)
-        if self.motion in (0, 1) and arc_words:
-            raise self._err(f"{arc_words[0]} word in a G{self.motion} block (only G2/G3 take I J K R)",
-                            line)
-        if self.inverse_time and self.motion != 0 and "F" not in values:
-            raise self._err(f"G93 (inverse time feed): the G{self.motion} block has no F word", line)
 
     def _targets(self, start, axes_given, values, line: int) -> tuple[np.ndarray, np.ndarray]:
         """(end (na,) mm and rad, given (na,) bool): where the named axes go (G90 or G91)."""

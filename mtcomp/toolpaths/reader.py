@@ -20,7 +20,7 @@ from ..machine import Machine
 from .blocks import MotionBlock, Program, SegmentChunk, _empty_chunk
 from .modal import ModalState
 from .source import open_program
-from .words import DEFAULT_CHORD_TOL_MM, DEFAULT_CHUNK_SIZE
+from .words import DEFAULT_CHORD_TOL_MM, DEFAULT_CHUNK_SIZE, PROGRESS_LINES
 
 
 def _open_lines(path) -> Iterator[tuple[int, bytes, str]]:
@@ -118,14 +118,26 @@ class _ChunkBuilder:
 
 def iter_segment_chunks(path, machine: Machine, chord_tol_mm: float = DEFAULT_CHORD_TOL_MM,
                         chunk_size: int = DEFAULT_CHUNK_SIZE,
-                        initial_position=None, *, inch: bool = False,
+                        initial_position=None, progress=None, *, inch: bool = False,
                         initial_known=None, dialect: str | None = None) -> Iterator[SegmentChunk]:
     """Pure-Python path of :func:`mtcomp.toolpaths.gcode.iter_segment_chunks` (same arguments and
-    chunks): the program's blocks from :func:`iter_blocks`, cut into rows."""
+    chunks): the program's blocks from :func:`iter_blocks`, cut into rows. On a bad line the rows
+    before it come out (a chunk of their own) before its InputError."""
     builder = _ChunkBuilder(machine.n_axes, chunk_size)
-    for _k, _raw, b, _state in iter_blocks(path, machine, chord_tol_mm, initial_position, inch=inch,
-                                           initial_known=initial_known, dialect=dialect):
-        if b is not None:
-            yield from builder.add(b)
+    try:
+        for k, _raw, b, _state in iter_blocks(path, machine, chord_tol_mm, initial_position,
+                                              inch=inch, initial_known=initial_known,
+                                              dialect=dialect):
+            if progress is not None and not k % PROGRESS_LINES:
+                progress(k)
+            if b is not None:
+                yield from builder.add(b)
+    except InputError:
+        # the rows read before the bad line are handed out first: a consumer's own check of them
+        # (the machine's travel) names an earlier line, and the first error in program order is
+        # the one to tell
+        if builder.n:
+            yield builder.flush()
+        raise
     if builder.n:
         yield builder.flush()

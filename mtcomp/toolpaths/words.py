@@ -24,6 +24,9 @@ MM_PER_INCH = 25.4
 DIR_EPS = 1e-9
 DEFAULT_CHORD_TOL_MM = 1e-3
 DEFAULT_CHUNK_SIZE = 65536
+#: a reader's ``progress`` is told the lines read after every this many lines it interprets in
+#: Python (and the compiled scanner after every block of the file it reads)
+PROGRESS_LINES = 1024
 #: the axis along the tool: a tool change or a tool length change leaves its position unknown
 TOOL_AXIS = "Z"
 

@@ -1,0 +1,174 @@
+"""Value words that no code of their block uses (``G1 Y120. Q5``): refused where the controller
+refuses them, named with the word and the line.
+
+A value word (D E H I J K L P Q R) means something only with the codes that take it: Q is G83's
+peck, P G4's dwell time. Where none of the block's codes takes it the word is a typo or a leftover,
+and the controllers differ (docs/toolpaths.md, "Words no code of the block uses"):
+
+* LinuxCNC refuses the block (LinuxCNC source, ``src/emc/rs274ngc/interp_check.cc``,
+  ``check_other_codes``: "Q word with no G5, G10, G64, G73, G71, G76, G83, M19, M66, M67, M68 or
+  user M code that uses it", and so for every value word), as the NIST RS274/NGC interpreter does
+  (Kramer, Proctor and Messina 2000); mtcomp follows LinuxCNC's table on ``linuxcnc`` and
+  ``generic`` (RS274/NGC).
+* grbl 1.1 refuses a value word its block does not use (``grbl/gcode.c``, unused value words,
+  error 36) and has no D, E, H or Q word at all (unsupported command, error 20).
+* Fanuc keeps P, Q and R as modal data on its mills, the canned cycles' data (Fanuc Series
+  16/18/21 C Language Executor programming manual, B-62443EN-3, reading modal data: P, Q, R modal
+  on the M series; Fanuc Series 15i-MA operator's manual: "Q ... is modal information in a canned
+  cycle"): a Q on a G1 is held for a later cycle, not an alarm, and the word stays accepted on
+  ``fanuc`` and on ``haas``, whose manual names no alarm for it. RepRapFirmware's G0/G1 take words
+  of their own (H, E, S, P: RepRapFirmware G-code dictionary), and Heidenhain and Sinumerik
+  programs are read through the G-code mtcomp writes for them: not checked there.
+
+Which block's code takes a word is decided as the RS274/NGC interpreter does it: the motion of the
+block is its G0-G3, drilling cycle or G33.1 code, else, where the block names an axis, the motion
+mode in force (LinuxCNC source, ``interp_read.cc``/``rs274ngc_pre.cc``, ``enhance_block``:
+``motion_to_be``); every other code is the block's own.
+"""
+from __future__ import annotations
+
+#: the value words checked here (the axis words, F, N, S, T and the codes are not value words)
+VALUE_LETTERS = frozenset("DEHIJKLPQR")
+#: dialects that refuse a value word no code of its block uses
+CHECKED = frozenset({"linuxcnc", "generic", "grbl"})
+_CYCLES = (73.0, 74.0) + tuple(float(g) for g in range(81, 90))
+#: user M codes M100-M199 take P and Q (LinuxCNC G-code reference, M100 to M199)
+_USER_M = (100.0, 199.0)
+
+#: LinuxCNC (interp_check.cc, check_other_codes), letter -> (the motion codes that take it, the
+#: other G codes of the block that take it, the M codes of the block that take it, whether a user
+#: M code takes it). The splines G5, G5.1, G5.2 are LinuxCNC's motion codes; mtcomp refuses them
+#: with coordinates and passes Fanuc's G05 P10000 and G05.1 Q1 (contour control modes) through, so
+#: they count as codes of the block. So do the other codes mtcomp reads or passes through on every
+#: dialect with a word: G43.4 and G44 (H), G08 P (look-ahead), G54.1 P (Fanuc's added work
+#: systems), Haas' G103 P and G187 P E.
+_MODE_P = (5.0, 5.2, 8.0, 54.1, 103.0, 187.0)
+_NGC = {
+    "D": ((), (41.0, 41.1, 42.0, 42.1, 96.0), (), False),
+    "E": ((76.0,), (187.0,), (66.0, 67.0, 68.0), False),
+    "H": ((76.0,), (43.0, 43.2, 43.4, 44.0), (), False),
+    "I": ((2.0, 3.0, 71.0, 76.0, 87.0), (5.0, 5.1, 10.0), (), False),
+    "J": ((2.0, 3.0, 71.0, 76.0, 87.0), (5.0, 5.1, 10.0), (), False),
+    "K": ((2.0, 3.0, 33.0, 33.1, 71.0, 76.0, 87.0), (), (), False),
+    "L": ((71.0, 73.0, 76.0) + tuple(float(g) for g in range(81, 90)),
+          (5.2, 10.0, 41.0, 41.1, 42.0, 42.1), (66.0,), False),
+    "P": ((2.0, 3.0, 71.0, 74.0, 76.0, 82.0, 84.0, 86.0, 88.0, 89.0), (4.0, 10.0, 64.0) + _MODE_P,
+          (19.0, 50.0, 51.0, 52.0, 53.0, 62.0, 63.0, 64.0, 65.0, 66.0), True),
+    "Q": ((71.0, 73.0, 76.0, 83.0), (5.0, 5.1, 10.0, 64.0), (19.0, 61.0, 66.0, 67.0, 68.0), True),
+    "R": ((2.0, 3.0, 71.0, 76.0) + _CYCLES, (10.0, 41.1, 42.1), (19.0,), False),
+}
+#: grbl 1.1 (gcode.c): letter -> (motion codes, other G codes of the block) that take it; an arc's
+#: I J K only without R (with R they are unused: error 36)
+_GRBL = {
+    "I": ((2.0, 3.0), ()), "J": ((2.0, 3.0), ()), "K": ((2.0, 3.0), ()),
+    "L": ((), (10.0,)), "P": ((), (4.0, 10.0)), "R": ((2.0, 3.0), ()),
+}
+
+
+def block_motion(state, motion, cycle, axes_given, own_axes, letters) -> float | None:
+    """The motion code that takes the block's words (RS274/NGC's ``motion_to_be``): its own G0-G3,
+    drilling cycle or G33.1, else (where it names an axis its group-0 code does not take) the mode
+    in force; an arc's I J K alone continue the arc in force. None: no motion code."""
+    if motion is not None:
+        return float(motion)
+    if cycle is not None:
+        return float(cycle)
+    if state.tap_line:
+        return 33.1
+    if axes_given and not own_axes:
+        if state.cycle is not None:
+            return float(state.cycle)
+        if state.tapping:
+            return 33.1
+        return None if state.motion is None else float(state.motion)
+    if state.motion in (2, 3) and letters & set("IJK"):
+        return float(state.motion)
+    return None
+
+
+def check_motion_mode(state, values, arc_words, line: int) -> None:
+    """On every dialect: a move needs a motion mode, arc words only in G2/G3, and an F on each G93
+    feed move."""
+    if state.motion is None:
+        raise state._err("coordinates without a motion mode (no G0/G1/G2/G3 in force; a "
+                         "controller's power-on mode is not assumed: write G0 or G1 in this "
+                         "block)", line)
+    if state.motion in (0, 1) and arc_words:
+        raise state._err(f"{arc_words[0]} word in a G{state.motion} block (only G2/G3 take I J K "
+                         "R)", line)
+    if state.inverse_time and state.motion != 0 and "F" not in values:
+        raise state._err(f"G93 (inverse time feed): the G{state.motion} block has no F word", line)
+
+
+def check_value_words(state, tokens, gcodes, mcodes, motion, cycle, axes_given, own_axes,
+                      line: int) -> None:
+    """Refuse (InputError naming the word and the line) a value word that no code of the block
+    takes, on the dialects whose controller refuses it (:data:`CHECKED`). ``motion``, ``cycle``:
+    the block's own motion and drilling cycle codes (or None); ``own_axes``: a group-0 code of the
+    block (G4, G10, G28, G30, G52, G92 ...) takes its axis words."""
+    dialect = state.dialect.name
+    if dialect not in CHECKED:
+        return
+    words = [(t[0], float(t[1])) for t in tokens if t[0] in VALUE_LETTERS]
+    if not words:
+        return
+    letters = {letter for letter, _v in words}
+    mode = block_motion(state, motion, cycle, axes_given, own_axes, letters)
+    where = f"a G{mode:g} block" if mode is not None else "a block without motion"
+    for letter, value in words:
+        if dialect == "grbl" and mode not in _CYCLES:
+            # grbl has no drilling cycles; mtcomp reads them on every dialect, with their words
+            why = _grbl_problem(letter, mode, gcodes, letters)
+        elif dialect == "generic" and _generic_use(letter, value, mode, gcodes):
+            why = ""
+        else:
+            why = _ngc_problem(letter, mode, gcodes, mcodes, dialect)
+        if why:
+            raise state._err(f"{letter} word in {where}: no code of the block uses it ({why})",
+                             line)
+
+
+def _generic_use(letter, value, mode, gcodes) -> bool:
+    """The words a program that names no controller may hold beyond LinuxCNC's table, because
+    mtcomp reads them so on every dialect: I J K on a drilling cycle's line (Fanuc's repeat count
+    K, Haas' peck words I J K of G73/G83), and G49 H0 (Centroid's and Fanuc's posts: no offset,
+    as G49 says)."""
+    if letter in "IJK":
+        return mode in _CYCLES
+    return letter == "H" and value == 0 and 49.0 in gcodes
+
+
+def _ngc_problem(letter, mode, gcodes, mcodes, dialect) -> str:
+    """'' where a code of the block takes ``letter`` (LinuxCNC's table), else why not."""
+    motions, codes, ms, user = _NGC[letter]
+    if mode in motions or any(g in codes for g in gcodes) or any(m in ms for m in mcodes):
+        return ""
+    if user and any(_USER_M[0] <= m <= _USER_M[1] for m in mcodes):
+        return ""
+    takers = [f"G{g:g}" for g in _followed(letter, motions + codes)] + [f"M{m:g}" for m in ms]
+    takers += ["M100-M199"] if user else []
+    who = ("LinuxCNC refuses" if dialect == "linuxcnc"
+           else "RS274/NGC controllers (LinuxCNC) refuse")
+    return f"{letter} goes with {' '.join(takers)}; {who} such a block"
+
+
+def _followed(letter, codes):
+    """The codes of a word's table that mtcomp reads with it (the others are refused by name
+    anyway, and so is an arc's P, its turns)."""
+    refused = {5.0, 5.1, 5.2, 8.0, 33.0, 54.1, 71.0, 74.0, 76.0, 103.0, 187.0} | (
+        {2.0, 3.0} if letter == "P" else set())
+    return [g for g in codes if g not in refused]
+
+
+def _grbl_problem(letter, mode, gcodes, letters) -> str:
+    """'' where a code of the block takes ``letter`` on grbl 1.1, else why not."""
+    if letter not in _GRBL:
+        return f"grbl has no {letter} word: error 20, unsupported command"
+    motions, codes = _GRBL[letter]
+    used = mode in motions or any(g in codes for g in gcodes)
+    if used and letter in "IJK" and "R" in letters:
+        used = False                    # a radius arc: grbl leaves I J K unused
+    if used:
+        return ""
+    takers = " ".join(f"G{g:g}" for g in motions + codes)
+    return f"on grbl {letter} goes with {takers}; grbl refuses it: error 36, unused value word"
