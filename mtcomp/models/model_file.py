@@ -42,6 +42,11 @@ from .terms import ChannelDrift, ThermalDrift, term_from_dict
 
 FORMAT = "mtcomp-model"
 
+#: a prediction (um or urad) that moves by more than this along a direction the model's data left
+#: undetermined (at the size of 1 um rms tool-tip error over the travel) rests on it: predict
+#: leaves its standard error blank
+UNDETERMINED_UM = 0.01
+
 
 @dataclass
 class FittedModel:
@@ -172,7 +177,7 @@ class FittedModel:
             Gs = np.asarray(self.uncertainty["held"], dtype=float).reshape(idx.size, -1)
             Gs = Gs * np.asarray(self.uncertainty["held_sd_um"], dtype=float)[None, :]
             C = C - Gs @ Gs.T
-        w, V = np.linalg.eigh(0.5 * (C + C.T))
+        w, V = _eigh(0.5 * (C + C.T))
         keep = w > 1e-12 * max(float(w.max()) if w.size else 0.0, 1e-300)
         return idx, V[:, keep] * np.sqrt(w[keep])
 
@@ -201,7 +206,7 @@ class FittedModel:
             # travel, moves the prediction by more than 1 % of that (0.01 um or urad; J is in file
             # units per internal unit)
             along = np.abs(Jf @ N).max(axis=1)
-            sd = np.where(along > 0.01, np.nan, sd)
+            sd = np.where(along > UNDETERMINED_UM, np.nan, sd)
         return sd
 
     @property
@@ -232,6 +237,21 @@ class FittedModel:
                 **({"held": held_to_file(self.machine, self.held)} if self.held else {}),
                 **({} if self.uncertainty is None else {"uncertainty": uncertainty_to_file(self)}),
                 "info": self.info}
+
+
+def _one_blas_thread():
+    """A context in which BLAS runs on one thread: a covariance of a few hundred parameters is too
+    small for threads to pay, and on a busy 2-core machine threads waiting for a core made each
+    eigen-decomposition of one take 0.2 to 2.5 s instead of 0.04 s (as the fit's own algebra,
+    :func:`mtcomp.identification._linalg.one_blas_thread`)."""
+    from threadpoolctl import threadpool_limits
+    return threadpool_limits(limits=1, user_api="blas")
+
+
+def _eigh(C: np.ndarray):
+    """np.linalg.eigh on one BLAS thread (:func:`_one_blas_thread`)."""
+    with _one_blas_thread():
+        return np.linalg.eigh(C)
 
 
 def _file_factors(params: ParameterSet, names) -> np.ndarray:
