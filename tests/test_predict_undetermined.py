@@ -19,17 +19,25 @@ of a profile the data see weakly, at 1e8 urad, whose second-order effect moved e
   where they were off by 1.6 um).
 * predict's and compensate's standard errors of the same tool-tip deviation at the same pose agree
   (the largest of the three components, with the held directions' variance).
+* compensate and export leave uncorrected what moves with values along an undetermined direction:
+  a laser run of X (XFYZ) leaves X's straightness open; a model holding a bump of it (a start model
+  would) corrects, at the blocks where the bump moves the correction by more than 0.01 um (the
+  oracle: the two models' deviations there, less at the datum), with numbers no data determined.
 """
 from __future__ import annotations
 
+import copy
+import csv
 
 import numpy as np
 import pytest
 
+from mtcomp.cli import main
 from mtcomp.identification.fit import identify
 from mtcomp.identification.predict import predict_readings
 from mtcomp.machine import load_machine
 from mtcomp.measurement.files import read_measurements
+from mtcomp.models import deviation, save_model
 from mtcomp.models.evaluate import evaluate
 from truth import TruthMachine
 from truth import campaigns as tc
@@ -136,5 +144,69 @@ def test_predict_and_compensate_give_the_same_standard_error_at_the_same_pose(ca
                  fitted.context(len(q)))[0]
     np.testing.assert_allclose(fitted.tip_sd_um(J, fitted.covariance_factor()), sd[rows].max(axis=1),
                                rtol=1e-6, atol=1e-9)
-    gate = fitted.tip_sd_um(J, fitted.covariance_factor(held=False))
+    gate = fitted.tip_sd_um(J, fitted.covariance_factor(held=False), fitted.undetermined_values())
     assert np.all(gate <= sd[rows].max(axis=1) * (1 + 1e-6))
+
+
+@pytest.fixture(scope="module")
+def x_run(tmp_path_factory):
+    from laser_files import write_x_positioning
+    tmp = tmp_path_factory.mktemp("xrun")
+    path = write_x_positioning(tmp / "x.csv", (-100, -50, 0, 50, 100, 150),
+                               lambda t, d: 1e-4 * t ** 2, 2, 0.3, np.random.default_rng(3))
+    fitted = identify(load_machine("xfyz"), [read_measurements(path)]).fitted_model
+    u = fitted.uncertainty
+    names = list(u["names"])
+    idx = np.array([fitted.params.index(n) for n in names])
+    N = np.asarray(u["undetermined"])
+    # a bump of X's straightness in Y: the run of X positioning does not see it
+    e = np.array([n == "EYX_b3" for n in names], dtype=float)
+    v = N @ np.linalg.lstsq(N, e, rcond=None)[0]
+    assert abs(v[names.index("EYX_b3")]) > 0.5          # it lies in the recorded span
+    x = np.linspace(-100.0, 150.0, 26)
+    q = np.column_stack([x, np.zeros_like(x), np.zeros_like(x)])
+    moved = (deviation(fitted.model, q, fitted.params.values + np.bincount(idx, v, len(fitted.params)))
+             - deviation(fitted.model, q, fitted.params.values))[:, :3] * 1e3
+    moved -= moved[x == 0.0]                            # the program's datum at X0
+    scale = 3.0 / np.abs(moved).max()                   # a bump of 3 um at most
+    held = copy.deepcopy(fitted)
+    held.params.values[idx] += scale * v
+    save_model(tmp / "fitted.json", fitted)
+    save_model(tmp / "bump.json", held)
+    prog = tmp / "p.nc"
+    prog.write_text("G21 G90 G54\n" + "".join(f"G0 X{a:g} Y0 Z0\n" for a in x) + "M30\n")
+    return tmp, x, np.abs(moved * scale).max(axis=1)
+
+
+def _blocks(tmp, name):
+    rep = tmp / f"{name}.csv"
+    assert main(["compensate", "xfyz", str(tmp / f"{name}.json"), str(tmp / "p.nc"), "-o",
+                 str(tmp / f"{name}.nc"), "--report", str(rep), "--quiet", "--subdivide-tol-um", "0",
+                 "--work-offset", "G54=X0,Y0,Z0"]) == 0
+    with open(rep, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_compensate_leaves_out_what_moves_with_values_the_data_did_not_determine(x_run):
+    tmp, x, moved = x_run
+    plain = _blocks(tmp, "fitted")
+    assert all(r["corrected"] == "1" and r["uncertain"] == "0" for r in plain)
+    bump = _blocks(tmp, "bump")
+    assert [float(r["x_mm"]) for r in bump] == pytest.approx(x.tolist(), abs=0.01)
+    open_ = moved > 0.01
+    assert open_.any() and not open_.all()
+    for r, o in zip(bump, open_):
+        assert (r["uncertain"], r["corrected"]) == (("1", "0") if o else ("0", "1")), (r["x_mm"], o)
+        assert (r["correction_sd_um"] == "") == o
+
+
+def test_export_writes_no_table_that_rests_on_values_the_data_did_not_determine(x_run, capsys):
+    tmp, _, _ = x_run
+    args = ["--format", "linuxcnc", "--grid-mm", "25"]
+    assert main(["export", "xfyz", str(tmp / "fitted.json"), *args, "-o", str(tmp / "e1")]) == 0
+    assert (tmp / "e1" / "x.comp").is_file()
+    capsys.readouterr()
+    assert main(["export", "xfyz", str(tmp / "bump.json"), *args, "-o", str(tmp / "e2")]) == 2
+    err = capsys.readouterr().err
+    assert "axis X: no table: it moves with values of the model its data did not determine" in err
+    assert not (tmp / "e2").exists()
