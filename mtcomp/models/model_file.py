@@ -194,7 +194,7 @@ class FittedModel:
         whose values do lie along them (a start model's, a fit that set them by other means)
         corrects there with numbers no data determined, which its covariance does not see."""
         u = self.uncertainty
-        if u is None:
+        if u is None or not len(u["names"]):
             return None
         idx = np.array([self.params.index(n) for n in u["names"]], dtype=int)
         N = np.asarray(u["undetermined"], dtype=float).reshape(idx.size, -1)
