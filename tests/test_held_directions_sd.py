@@ -176,8 +176,10 @@ def _axis_contrast_z(fitted, truth, axis, folder) -> np.ndarray:
     err = np.asarray(predict_readings(fitted, d).columns["pred_value_um"], float) - check.ideal["value_um"]
     mm = build_measurement_models(fitted.model, [d], fitted.context_defaults)[0]
     J = np.nan_to_num(mm.column_jacobians(fitted.params.values)["pred_value_um"])
+    J0 = np.nan_to_num(mm.column_jacobians(np.zeros(len(fitted.params)))["pred_value_um"])
     ref = int(np.argmin(np.abs(np.asarray(d.target))))
-    sd = Undetermined.of(fitted).std(J - J[ref])
+    # what rests on an undetermined direction is judged at first order, as predict judges it
+    sd = Undetermined.of(fitted).std(J - J[ref], J_first=J0 - J0[ref])
     keep = np.abs(np.asarray(d.target)) > 1e-9
     assert np.all(np.isfinite(sd[keep]) & (sd[keep] > 0))
     return (err[keep] - err[ref]) / sd[keep]

@@ -362,15 +362,18 @@ def reference_notes(machine, axes) -> list:
 
 
 def table_sd_um(fitted, q: np.ndarray, q_ref: np.ndarray, directions: dict,
-                factor=None) -> np.ndarray | None:
+                factor=None, undetermined=None) -> np.ndarray | None:
     """(N,) the standard error (um) of the tip deviation at poses ``q`` (N, n_axes) less that at
     ``q_ref`` (the table's zero), under the model's covariance: the largest of its three components'
     (:meth:`~mtcomp.models.model_file.FittedModel.tip_sd_um`, as compensate's check of a
-    correction takes it), with the context ``dir_<axis>`` of ``directions``; None when the model
-    carries no uncertainty. The directions the fit held are left out (they correct nothing).
-    ``factor``: the model's :meth:`covariance_factor` (held=False) when already computed."""
+    correction takes it; infinite where the table moves with values the data left undetermined),
+    with the context ``dir_<axis>`` of ``directions``; None when the model carries no uncertainty.
+    The directions the fit held are left out (they correct nothing). ``factor``, ``undetermined``:
+    the model's :meth:`covariance_factor` (held=False) and :meth:`undetermined_values` when already
+    computed (both, or neither)."""
     from ..models.evaluate import evaluate
-    factor = factor or fitted.covariance_factor(held=False)
+    if factor is None:
+        factor, undetermined = fitted.covariance_factor(held=False), fitted.undetermined_values()
     if factor is None:
         return None
     n = q.shape[0]
@@ -379,7 +382,7 @@ def table_sd_um(fitted, q: np.ndarray, q_ref: np.ndarray, directions: dict,
     J = evaluate(fitted.model, "tip_pjacobian_function", fitted.clamp(q)[0], p, fitted.context(n, cols))[0]
     J0 = evaluate(fitted.model, "tip_pjacobian_function", fitted.clamp(q_ref[None, :])[0], p,
                   fitted.context(1, {}))[0]
-    return fitted.tip_sd_um(J - J0, factor)
+    return fitted.tip_sd_um(J - J0, factor, undetermined)
 
 
 def axis_table_sd_um(fitted, a: str, q: np.ndarray, q_ref: np.ndarray) -> np.ndarray | None:
@@ -388,7 +391,8 @@ def axis_table_sd_um(fitted, a: str, q: np.ndarray, q_ref: np.ndarray) -> np.nda
     factor = fitted.covariance_factor(held=False)
     if factor is None:
         return None
-    return np.maximum(*(table_sd_um(fitted, q, q_ref, {a: d}, factor) for d in (1.0, -1.0)))
+    und = fitted.undetermined_values()
+    return np.maximum(*(table_sd_um(fitted, q, q_ref, {a: d}, factor, und) for d in (1.0, -1.0)))
 
 
 def _too_uncertain(fitted, a: str, q: np.ndarray, q_ref: np.ndarray, max_sd_um: float | None):
@@ -402,6 +406,10 @@ def _too_uncertain(fitted, a: str, q: np.ndarray, q_ref: np.ndarray, max_sd_um: 
     ax = fitted.machine.axis(a)
     u, f = ("deg", 180.0 / math.pi) if ax.is_rotary else ("mm", 1.0)
     at = q[int(np.argmax(sd)), fitted.machine.index(a)] * f
+    if not np.isfinite(sd.max()):
+        return (f"axis {a}: no table: it moves with values of the model its data did not determine "
+                f"(at {at:g} {u}), as compensate leaves such blocks uncorrected; "
+                + unsure_advice(float(sd.max()), max_sd_um, "writes the table"))
     return (f"axis {a}: no table: its correction's standard error reaches {sd.max():.3g} um (at "
             f"{at:g} {u}), above the limit of {max_sd_um:g} um (--max-correction-sd-um), as "
             "compensate leaves such blocks uncorrected; "

@@ -17,7 +17,8 @@ import numpy as np
 from ..machine import Machine
 from ..measurement.files import MeasurementSet
 from ..measurement.readings import MeasurementModel
-from ..models.model_file import FittedModel
+from ..models.model_file import UNDETERMINED_UM, FittedModel
+from ._linalg import one_blas_thread
 from .problem import KNOWN_SETUP_KINDS, unique_tags, build_measurement_models
 
 
@@ -60,24 +61,29 @@ class Undetermined:
         f = np.array([fitted.params.specs[i].to_file for i in idx])
         factor = fitted.covariance_factor()
         scaled = factor[1] * f[:, None]          # the same parameters, in the same order
-        top = float(np.linalg.norm(scaled, 2)) if scaled.size else 0.0
+        with one_blas_thread():
+            top = float(np.linalg.norm(scaled, 2)) if scaled.size else 0.0
         return cls(idx, np.asarray(u["undetermined"], dtype=float).reshape(idx.size, -1), f, top, factor)
 
-    def std(self, J: np.ndarray, setup: np.ndarray | None = None) -> np.ndarray:
+    def std(self, J: np.ndarray, setup: np.ndarray | None = None,
+            J_first: np.ndarray | None = None) -> np.ndarray:
         """(n,) standard error of n predictions whose Jacobian with respect to the model's parameters
         is J (n, n_params; file units per internal unit), from the model's covariance; NaN where the
         data behind the model do not determine a prediction (:meth:`assess`), or where the model
         carries no uncertainty."""
-        return self.assess(J, setup)[0]
+        return self.assess(J, setup, J_first)[0]
 
-    def assess(self, J: np.ndarray, setup: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def assess(self, J: np.ndarray, setup: np.ndarray | None = None,
+               J_first: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(sd (n,), unknown (n,) bool) of n predictions whose Jacobian is J (:meth:`std`).
 
         sd is NaN where a prediction moves by more than 0.01 (um, urad) along an undetermined
-        direction, or where it is unknown. unknown: the prediction rests only on what the fit held
-        (its standard error is no more than :attr:`NO_VARIANCE` of the model's largest while it
-        moves with the fitted parameters): the model knows nothing of it, and the number it holds
-        there (zero, or 1e-9) is no prediction. False everywhere for a model without uncertainty.
+        direction (judged with the Jacobian ``J_first`` when given: at zero errors, see
+        :func:`predict_readings`), or where it is unknown. unknown: the prediction rests only on
+        what the fit held (its standard error is no more than :attr:`NO_VARIANCE` of the model's
+        largest while it moves with the fitted parameters): the model knows nothing of it, and the
+        number it holds there (zero, or 1e-9) is no prediction. False everywhere for a model
+        without uncertainty.
 
         setup : (n, k) the predictions' derivatives with respect to their file's set-up (a laser's
             zero, a tracker's frame). Readings are compared up to their set-up: what a set-up would
@@ -94,12 +100,12 @@ class Undetermined:
         sd = np.linalg.norm(J[:, idx] @ F, axis=1)
         open_ = np.zeros(J.shape[0], dtype=bool)
         if self.directions.shape[1]:
-            moved = J[:, self.index] @ self.directions
+            moved = (J if J_first is None else np.atleast_2d(J_first))[:, self.index] @ self.directions
             if setup is not None and setup.shape[1]:
                 rows = np.all(np.isfinite(setup), axis=1)
                 D = setup[rows]
                 moved[rows] -= D @ np.linalg.lstsq(D, moved[rows], rcond=None)[0]
-            open_ |= np.abs(moved).max(axis=1) > 0.01
+            open_ |= np.abs(moved).max(axis=1) > UNDETERMINED_UM
         size = np.linalg.norm(J[:, self.index] / self.to_file, axis=1) * self.largest_sd
         content = size > 0
         held_only = content & (sd < self.NO_VARIANCE * size)
@@ -177,21 +183,34 @@ def predict_readings(fitted: FittedModel, data: MeasurementSet, machine: Machine
     jac = mm.column_jacobians(p)
     setup = _setup_derivatives(mm, p, nuisance, columns)
     undetermined = Undetermined.of(fitted)
+    # whether a prediction rests on what the data left undetermined is a first-order question,
+    # asked where the fit asked which combinations its data determine: at zero errors (identify's
+    # start). At the fitted values a direction's effect also has a second-order part, its size times
+    # the fitted errors, which no data could have fixed: on a direction of 1e4 urad of pitch and
+    # yaw (1 um rms at the tool tip) it moved the fitted readings themselves by 0.03 um
+    some = undetermined.directions is not None and undetermined.directions.shape[1] > 0
+    jac0 = mm.column_jacobians(np.zeros_like(p)) if some else jac
     notes = []
-    blank = 0
+    blank = open_sd = 0
     for name in list(columns):
         if name in jac:
-            sd, unknown = undetermined.assess(np.nan_to_num(jac[name]), setup.get(name))
+            sd, unknown = undetermined.assess(np.nan_to_num(jac[name]), setup.get(name),
+                                              np.nan_to_num(jac0[name]))
             # what the model knows nothing of is no number (not the zero it is held at)
             unknown &= np.isfinite(columns[name])
             blank += int(unknown.sum())
             columns[name] = np.where(unknown, np.nan, columns[name])
             columns[f"{name}_sd"] = np.where(np.isfinite(columns[name]), sd, np.nan)
+            open_sd += int(np.sum(np.isnan(sd) & np.isfinite(columns[name])))
         else:
             columns[f"{name}_sd"] = np.full(len(data), np.nan)
     if blank:
         notes.append(f"{blank} prediction(s) of {mm.tag} rest only on what the model's data did not "
                      "determine: left blank")
+    if open_sd and fitted.uncertainty is not None:
+        notes.append(f"{open_sd} prediction(s) of {mm.tag} depend on a combination of the model's "
+                     "parameters its data did not determine (the model file's "
+                     "uncertainty.undetermined): written with a blank standard error")
     notes += _blank_outside_region(fitted, data, machine or fitted.machine, columns)
     if fitted.uncertainty is None:
         notes.append("the model carries no uncertainty (mtcomp identify and diagnose write one; a "

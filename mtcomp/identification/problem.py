@@ -300,6 +300,35 @@ def travel_metric(model: ErrorModel, free_idx: np.ndarray, n_unknowns: int,
     return M
 
 
+
+def undetermined_directions(null: np.ndarray, to_file: np.ndarray, metric: np.ndarray,
+                            rcond: float = DEFAULT_RCOND) -> np.ndarray:
+    """(n, j) a basis of span(``null``) (the combinations of the parameters the data leave open,
+    internal units, any basis) sized as a prediction is judged against it: each direction that
+    moves the tool tip scaled to 1 um rms tool-tip error over ``metric`` (mm^2 per internal unit^2,
+    :func:`travel_metric`), those that move it nowhere (a turn about the tool axis) to 1 um or urad
+    of their parameters (``to_file`` (n,): file unit per internal unit), tip-moving ones first.
+
+    The span is decomposed in the metric (an eigenproblem in file units, where an um and an urad
+    weigh alike), so that each direction either moves the tip or does not. A basis tested vector by
+    vector mixes the two: on a 5-axis campaign a roll of Z about the tool axis, which moves no tool
+    tip, carried 1e-10 of a weakly seen profile; scaled to 1 um rms it took 1e8 urad of roll, whose
+    second-order effect at the fitted values (1e8 urad times a 15 um offset) moved every prediction,
+    the fitted readings' too, by 1e8 um, and every standard error was blank. A direction moves the
+    tip when its rms tool-tip error per unit of its parameters is above ``rcond`` (the fit's rank
+    rule) of the largest that any combination of the parameters makes."""
+    if null.shape[1] == 0:
+        return np.zeros((null.shape[0], 0))
+    U, s, _ = np.linalg.svd(to_file[:, None] * null, full_matrices=False)
+    U = U[:, s > 1e-12 * s.max()]                          # orthonormal, file units
+    Mf = metric * 1e6 / np.outer(to_file, to_file)         # um^2 per file unit^2
+    top = float(np.linalg.eigvalsh(0.5 * (Mf + Mf.T))[-1])
+    Q = U.T @ Mf @ U
+    lam, E = np.linalg.eigh(0.5 * (Q + Q.T))
+    moves = (lam > rcond ** 2 * top) & (top > 0)
+    tip = (U @ E[:, moves]) / np.sqrt(lam[moves])[None, :]
+    return np.hstack([tip, U @ E[:, ~moves]]) / to_file[:, None]
+
 # ----------------------------------------------------------------- set-ups judged by displacement
 #: a null direction of the fit whose frame rotations weigh less than this (orthonormal, scaled
 #: coordinates) trades no frame rotation: it is held by the set-ups' rule alone

@@ -42,6 +42,12 @@ from .terms import ChannelDrift, ThermalDrift, term_from_dict
 
 FORMAT = "mtcomp-model"
 
+#: a prediction (um or urad) that moves by more than this along a direction the model's data left
+#: undetermined (at the size of 1 um rms tool-tip error over the travel) rests on it: predict
+#: leaves its standard error blank; a correction that moves by more than this with the part of the
+#: model's values along those directions is unsure (FittedModel.tip_sd_um)
+UNDETERMINED_UM = 0.01
+
 
 @dataclass
 class FittedModel:
@@ -172,18 +178,58 @@ class FittedModel:
             Gs = np.asarray(self.uncertainty["held"], dtype=float).reshape(idx.size, -1)
             Gs = Gs * np.asarray(self.uncertainty["held_sd_um"], dtype=float)[None, :]
             C = C - Gs @ Gs.T
-        w, V = np.linalg.eigh(0.5 * (C + C.T))
+        w, V = _eigh(0.5 * (C + C.T))
         keep = w > 1e-12 * max(float(w.max()) if w.size else 0.0, 1e-300)
         return idx, V[:, keep] * np.sqrt(w[keep])
 
+    def undetermined_values(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(indices into ``params``, v): the part of the values that lies along the directions the
+        data left undetermined (``uncertainty["undetermined"]``), internal units; None when the
+        model carries no uncertainty or no such direction.
+
+        The values are split into what the fit moved (the covariance's range: a fit moves only
+        along the directions it determines) and a combination of the undetermined directions; v is
+        the latter. identify holds those directions at their start values, zero by default, so v
+        is zero (to rounding) for its models: what the data left open corrects nothing. A model
+        whose values do lie along them (a start model's, a fit that set them by other means)
+        corrects there with numbers no data determined, which its covariance does not see."""
+        u = self.uncertainty
+        if u is None or not len(u["names"]):
+            return None
+        idx = np.array([self.params.index(n) for n in u["names"]], dtype=int)
+        N = np.asarray(u["undetermined"], dtype=float).reshape(idx.size, -1)
+        if not N.shape[1]:
+            return None
+        f = np.array([self.params.specs[i].to_file for i in idx])       # file units: um, urad
+        C = np.nan_to_num(np.asarray(u["covariance"], dtype=float)) * np.outer(f, f)
+        d = np.sqrt(np.clip(np.diag(C), 0.0, None))
+        d = np.where(d > 0, d, 1.0)
+        p, Nf = self.params.values[idx] * f, N * f[:, None]
+        with _one_blas_thread():
+            w, V = np.linalg.eigh(0.5 * (C + C.T) / np.outer(d, d))    # correlations: unit-free
+            Q = np.linalg.qr(d[:, None] * V[:, w > 1e-12 * max(float(w.max()), 1e-300)])[0]
+            c = np.linalg.lstsq(Nf - Q @ (Q.T @ Nf), p - Q @ (Q.T @ p), rcond=None)[0]
+        return idx, (Nf @ c) / f
+
     @staticmethod
-    def tip_sd_um(J: np.ndarray, factor: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    def tip_sd_um(J: np.ndarray, factor: tuple[np.ndarray, np.ndarray],
+                  undetermined: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
         """(n,) the standard error (um) of n tool-tip deviations whose Jacobian with respect to
         ``params`` is J (n, 3, n_params), mm: the largest of the three components' standard
-        errors, under the covariance :meth:`covariance_factor` gives (``factor``)."""
+        errors, under the covariance :meth:`covariance_factor` gives (``factor``).
+
+        undetermined : :meth:`undetermined_values`; where the deviation moves with that part of the
+            values by more than :data:`UNDETERMINED_UM` in some component, the standard error is
+            infinite: it rests on numbers the data did not determine (predict blanks its standard
+            error there, by the same rule)."""
         idx, F = factor
         G = J[:, :, idx] @ F                        # (n, 3, rank), mm
-        return np.sqrt(np.max(np.einsum("nij,nij->ni", G, G), axis=1)) * 1e3
+        sd = np.sqrt(np.max(np.einsum("nij,nij->ni", G, G), axis=1)) * 1e3
+        if undetermined is not None:
+            ui, v = undetermined
+            moved = np.abs(J[:, :, ui] @ v).max(axis=1) * 1e3
+            sd = np.where(moved > UNDETERMINED_UM, np.inf, sd)
+        return sd
 
     def prediction_std(self, J: np.ndarray) -> np.ndarray:
         """(n,) standard error of n predictions whose Jacobian with respect to ``params`` is J (n,
@@ -201,7 +247,7 @@ class FittedModel:
             # travel, moves the prediction by more than 1 % of that (0.01 um or urad; J is in file
             # units per internal unit)
             along = np.abs(Jf @ N).max(axis=1)
-            sd = np.where(along > 0.01, np.nan, sd)
+            sd = np.where(along > UNDETERMINED_UM, np.nan, sd)
         return sd
 
     @property
@@ -232,6 +278,21 @@ class FittedModel:
                 **({"held": held_to_file(self.machine, self.held)} if self.held else {}),
                 **({} if self.uncertainty is None else {"uncertainty": uncertainty_to_file(self)}),
                 "info": self.info}
+
+
+def _one_blas_thread():
+    """A context in which BLAS runs on one thread: a covariance of a few hundred parameters is too
+    small for threads to pay, and on a busy 2-core machine threads waiting for a core made each
+    eigen-decomposition of one take 0.2 to 2.5 s instead of 0.04 s (as the fit's own algebra,
+    :func:`mtcomp.identification._linalg.one_blas_thread`)."""
+    from threadpoolctl import threadpool_limits
+    return threadpool_limits(limits=1, user_api="blas")
+
+
+def _eigh(C: np.ndarray):
+    """np.linalg.eigh on one BLAS thread (:func:`_one_blas_thread`)."""
+    with _one_blas_thread():
+        return np.linalg.eigh(C)
 
 
 def _file_factors(params: ParameterSet, names) -> np.ndarray:

@@ -94,6 +94,9 @@ class Evaluator:
         self._count_lock = threading.Lock()     # parts of a chunk are evaluated in threads
         # the correction's own variance: not that of what the fit held (it corrects nothing there)
         self._factor = problem.fitted.covariance_factor(held=False)
+        # the part of the values along what the data left undetermined: a correction that moves
+        # with it is unsure (FittedModel.tip_sd_um)
+        self._open = problem.fitted.undetermined_values() if self._factor is not None else None
         #: the model carries a covariance: :meth:`correction_sd_um` is NaN everywhere without one
         self.has_uncertainty = self._factor is not None
 
@@ -110,8 +113,9 @@ class Evaluator:
         """(n,) standard error (um) of the correction at q: the largest of the three components'
         standard errors of the tip deviation (less the deviation at the part's datum, as
         :meth:`datum_reference` takes it, when ``datum`` (n, na) is given) under the model's
-        covariance, evaluated where :meth:`_deviation` evaluates it; NaN when the model carries no
-        uncertainty."""
+        covariance, evaluated where :meth:`_deviation` evaluates it; infinite where the correction
+        moves with values the data left undetermined (FittedModel.tip_sd_um); NaN when the model
+        carries no uncertainty."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         if self._factor is None:
             return np.full(q.shape[0], np.nan)
@@ -119,7 +123,7 @@ class Evaluator:
         J = evaluate(self.model, "tip_pjacobian_function", fitted.clamp(q)[0], self.p, ctx)[0]
         if datum is not None:
             J = J - self._at_datum("tip_pjacobian_function", datum, ctx)
-        return fitted.tip_sd_um(J, self._factor)
+        return fitted.tip_sd_um(J, self._factor, self._open)
 
     def _deviation_and_qjacobian(self, q, ctx):
         """(deviation (n, 6), d deviation / d q (n, 6, n_axes)) as :meth:`_deviation`: along a held
