@@ -182,9 +182,18 @@ def _blocks(tmp, name):
     rep = tmp / f"{name}.csv"
     assert main(["compensate", "xfyz", str(tmp / f"{name}.json"), str(tmp / "p.nc"), "-o",
                  str(tmp / f"{name}.nc"), "--report", str(rep), "--quiet", "--subdivide-tol-um", "0",
-                 "--work-offset", "G54=X0,Y0,Z0"]) == 0
+                 "--work-offset", "G54=X0,Y0,Z0", "--json", str(tmp / f"{name}_summary.json")]) == 0
     with open(rep, newline="") as f:
         return list(csv.DictReader(f))
+
+
+def _strict_json(path):
+    """SUMMARY.json as a strict parser reads it (no Infinity, no NaN)."""
+    import json
+
+    def refuse(name):
+        raise ValueError(f"{path}: {name} is no JSON")
+    return json.loads(path.read_text(), parse_constant=refuse)
 
 
 def test_compensate_leaves_out_what_moves_with_values_the_data_did_not_determine(x_run):
@@ -198,6 +207,11 @@ def test_compensate_leaves_out_what_moves_with_values_the_data_did_not_determine
     for r, o in zip(bump, open_):
         assert (r["uncertain"], r["corrected"]) == (("1", "0") if o else ("0", "1")), (r["x_mm"], o)
         assert (r["correction_sd_um"] == "") == o
+    # the summary says so in strict JSON (it once wrote Infinity for the largest standard error)
+    summary = _strict_json(tmp / "bump_summary.json")
+    assert summary["correction_sd_undetermined"] is True
+    assert np.isfinite(summary["largest_correction_sd_um"])
+    assert _strict_json(tmp / "fitted_summary.json")["correction_sd_undetermined"] is False
 
 
 def test_export_writes_no_table_that_rests_on_values_the_data_did_not_determine(x_run, capsys):

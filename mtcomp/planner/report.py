@@ -173,6 +173,7 @@ class Summary:
     #: of those, the blocks left uncorrected only because their contour has a block over the limit
     contour_blocks: int = 0
     max_sd_um: float = 0.0
+    sd_undetermined: bool = False
     #: the model carries a covariance (without one no block's standard error is known)
     has_covariance: bool = True
     #: the same figures over the corrected blocks only (``corrected`` = 1 in BLOCKS.csv)
@@ -208,8 +209,11 @@ class Summary:
         uncertain = _uncertain(r, self.max_correction_sd_um) & ~unknown & ~(outside & ~self.extrapolate)
         self.uncertain_blocks += int(uncertain.sum())
         self.contour_blocks += int(np.count_nonzero(uncertain & r.gated))
-        if np.isfinite(r.sd_um).any():
-            self.max_sd_um = max(self.max_sd_um, float(np.nanmax(r.sd_um)))
+        finite = np.isfinite(r.sd_um)
+        if finite.any():
+            self.max_sd_um = max(self.max_sd_um, float(np.max(r.sd_um[finite])))
+        # an infinite standard error: the correction moves with values the data did not determine
+        self.sd_undetermined |= bool(np.isposinf(r.sd_um).any())
         if outside.any():
             self.outside_blocks += int(outside.sum())
             if not self.first_outside_line:
@@ -324,7 +328,10 @@ class Summary:
                                "uncertain_contour": self.contour_blocks,
                                "held_by_bounds": self.held_blocks},
                "max_correction_sd_um": self.max_correction_sd_um,
+               # the largest finite one (strict JSON has no Infinity); whether any correction
+               # moved with values the data did not determine (an infinite one)
                "largest_correction_sd_um": self.max_sd_um if self.max_correction_sd_um else None,
+               "correction_sd_undetermined": self.sd_undetermined,
                "outside_support_blocks": self.outside_blocks,
                "bounded_blocks": self.bounded_blocks,
                "active_bounds": dict(sorted(self.flag_counts.items())),
@@ -420,8 +427,12 @@ class Summary:
                       "part, it would step where the correction stops)" if self.contour_blocks else "")
             out.append(f"{blocks(own)} not corrected: the model is unsure there "
                        f"(a correction's standard error above {self.max_correction_sd_um:g} um, "
-                       f"largest {self.max_sd_um:.3f} um; BLOCKS.csv column correction_sd_um)"
-                       f"{shared}; {unsure_advice(self.max_sd_um, self.max_correction_sd_um)}")
+                       f"largest finite {self.max_sd_um:.3f} um"
+                       + (", some not determined by the model's data at all" if self.sd_undetermined
+                          else "") + "; BLOCKS.csv column correction_sd_um)"
+                       f"{shared}; "
+                       + unsure_advice(float("inf") if self.sd_undetermined else self.max_sd_um,
+                                       self.max_correction_sd_um))
         if self.held_blocks:
             out.append(self._held_text(blocks(self.held_blocks)))
         return out
