@@ -224,3 +224,16 @@ def test_export_writes_no_table_that_rests_on_values_the_data_did_not_determine(
     err = capsys.readouterr().err
     assert "axis X: no table: it moves with values of the model its data did not determine" in err
     assert not (tmp / "e2").exists()
+
+
+def test_a_model_without_covariance_gives_no_largest_standard_error(tmp_path):
+    """No standard error was evaluated: SUMMARY.json says null, not 0.0 (a reviewer's finding)."""
+    from mtcomp.machine import load_machine
+    from mtcomp.models import ErrorModel, FittedModel, save_model
+    save_model(tmp_path / "zero.json", FittedModel.zero(ErrorModel(load_machine("xfyz"))))
+    (tmp_path / "p.nc").write_text("G21 G90\nG0 X0 Y0 Z0\nG1 X10 F500\nM30\n")
+    assert main(["compensate", "xfyz", str(tmp_path / "zero.json"), str(tmp_path / "p.nc"), "-o",
+                 str(tmp_path / "o.nc"), "--quiet", "--json", str(tmp_path / "s.json")]) == 0
+    summary = _strict_json(tmp_path / "s.json")
+    assert summary["largest_correction_sd_um"] is None
+    assert summary["correction_sd_undetermined"] is False

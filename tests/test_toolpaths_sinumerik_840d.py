@@ -188,6 +188,9 @@ def test_a_tool_called_by_name_takes_the_length_given_by_its_name(tmp_path, caps
     ("=12", "write it as H1=82.35"),
     ("DRILL=-1", "tool length must be a number >= 0"),
     ("H0=5", "'H0' is not a tool length number"),
+    # a letter and a number is a slip for H1, not a tool's name (a reviewer found T1=150 ignored)
+    ("T1=150", "'T1' is not a tool length number (H1, H2 ...)"),
+    ("H 1=150", "'H 1' is not a tool length number (H1, H2 ...)"),
 ])
 def test_a_tool_length_flag_that_cannot_be_read_is_refused_in_one_line(tmp_path, capsys, flag,
                                                                        words):
@@ -492,3 +495,14 @@ def test_a_program_that_begins_with_a_message_is_read_as_sinumerik(tmp_path):
     plain = tmp_path / "q.nc"
     plain.write_text("G0 X1\n(MSG, an operator message)\n")
     assert detect(plain)[0].name == "generic"
+
+
+def test_a_length_given_for_a_name_no_tool_is_called_by_is_said_unused(tmp_path, capsys):
+    """A G-code program calls no tool by name: a length given for one is not used, and said so."""
+    (tmp_path / "p.nc").write_text("G21 G90 G17\nT1 M6\nG0 G43 H1 Z50\nG0 X0 Y0\nG1 X20 F600\nM2\n")
+    machine = _machine_file(tmp_path, "XFYZ")
+    assert main(["compensate", str(machine), str(_model_file(tmp_path, machine)),
+                 str(tmp_path / "p.nc"), "-o", str(tmp_path / "o.nc"), "--quiet",
+                 "--tool-length", "CUTTER=150"]) == 0
+    out = capsys.readouterr().out
+    assert 'tool length given for "CUTTER", but the program calls no tool by that name: not used' in out

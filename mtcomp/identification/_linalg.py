@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
+from .._threads import one_blas_thread  # noqa: F401  (the fit's algebra runs under it)
 from .result import UndeterminedCombination, error_scale
 
 
@@ -49,19 +50,6 @@ def held_complement(null: np.ndarray, machine: np.ndarray,
         w = np.where(np.asarray(unmeasured, bool) & machine, UNMEASURED_WEIGHT ** 2, w)
     _, _, Vt = np.linalg.svd((w[:, None] * null).T, full_matrices=True)
     return Vt[k:].T
-
-
-def one_blas_thread():
-    """A context in which BLAS (numpy's and scipy's) runs on one thread, restored on exit.
-
-    A fit's dense algebra is on matrices of a few hundred unknowns (eigen-decompositions, Cholesky
-    factors, the penalty weights' search): too small for threads to pay, while threads that wait for
-    a core, or spin after each call, cost processor time the fit's own thread needed. On a shared
-    2-core machine the 100,000-point fit of benchmarks/bench_identify.py took 12 s of processor
-    time with two BLAS threads and 2.1 s with one (docs/identification.md, *Performance*); its
-    large products run on one thread too (block by block, each block in cache)."""
-    from threadpoolctl import threadpool_limits
-    return threadpool_limits(limits=1, user_api="blas")
 
 
 def _error_scales(columns) -> np.ndarray:

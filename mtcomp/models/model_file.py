@@ -33,6 +33,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .._threads import one_blas_thread
 from ..errors import InputError
 from ..io.atomic import atomic_write
 from ..machine import Machine, machine_from_dict
@@ -205,7 +206,7 @@ class FittedModel:
         d = np.sqrt(np.clip(np.diag(C), 0.0, None))
         d = np.where(d > 0, d, 1.0)
         p, Nf = self.params.values[idx] * f, N * f[:, None]
-        with _one_blas_thread():
+        with one_blas_thread():
             w, V = np.linalg.eigh(0.5 * (C + C.T) / np.outer(d, d))    # correlations: unit-free
             Q = np.linalg.qr(d[:, None] * V[:, w > 1e-12 * max(float(w.max()), 1e-300)])[0]
             c = np.linalg.lstsq(Nf - Q @ (Q.T @ Nf), p - Q @ (Q.T @ p), rcond=None)[0]
@@ -280,18 +281,11 @@ class FittedModel:
                 "info": self.info}
 
 
-def _one_blas_thread():
-    """A context in which BLAS runs on one thread: a covariance of a few hundred parameters is too
-    small for threads to pay, and on a busy 2-core machine threads waiting for a core made each
-    eigen-decomposition of one take 0.2 to 2.5 s instead of 0.04 s (as the fit's own algebra,
-    :func:`mtcomp.identification._linalg.one_blas_thread`)."""
-    from threadpoolctl import threadpool_limits
-    return threadpool_limits(limits=1, user_api="blas")
-
-
 def _eigh(C: np.ndarray):
-    """np.linalg.eigh on one BLAS thread (:func:`_one_blas_thread`)."""
-    with _one_blas_thread():
+    """np.linalg.eigh on one BLAS thread (:func:`mtcomp._threads.one_blas_thread`: a covariance of a
+    few hundred parameters is too small for threads to pay; on a busy 2-core machine each
+    eigen-decomposition took 0.2 to 2.5 s on several threads, 0.04 s on one)."""
+    with one_blas_thread():
         return np.linalg.eigh(C)
 
 

@@ -174,6 +174,7 @@ class Summary:
     contour_blocks: int = 0
     max_sd_um: float = 0.0
     sd_undetermined: bool = False
+    sd_seen: bool = False
     #: the model carries a covariance (without one no block's standard error is known)
     has_covariance: bool = True
     #: the same figures over the corrected blocks only (``corrected`` = 1 in BLOCKS.csv)
@@ -212,6 +213,7 @@ class Summary:
         finite = np.isfinite(r.sd_um)
         if finite.any():
             self.max_sd_um = max(self.max_sd_um, float(np.max(r.sd_um[finite])))
+            self.sd_seen = True
         # an infinite standard error: the correction moves with values the data did not determine
         self.sd_undetermined |= bool(np.isposinf(r.sd_um).any())
         if outside.any():
@@ -330,7 +332,8 @@ class Summary:
                "max_correction_sd_um": self.max_correction_sd_um,
                # the largest finite one (strict JSON has no Infinity); whether any correction
                # moved with values the data did not determine (an infinite one)
-               "largest_correction_sd_um": self.max_sd_um if self.max_correction_sd_um else None,
+               "largest_correction_sd_um": (self.max_sd_um if self.max_correction_sd_um
+                                            and self.sd_seen else None),
                "correction_sd_undetermined": self.sd_undetermined,
                "outside_support_blocks": self.outside_blocks,
                "bounded_blocks": self.bounded_blocks,
@@ -427,9 +430,10 @@ class Summary:
                       "part, it would step where the correction stops)" if self.contour_blocks else "")
             out.append(f"{blocks(own)} not corrected: the model is unsure there "
                        f"(a correction's standard error above {self.max_correction_sd_um:g} um, "
-                       f"largest finite {self.max_sd_um:.3f} um"
-                       + (", some not determined by the model's data at all" if self.sd_undetermined
-                          else "") + "; BLOCKS.csv column correction_sd_um)"
+                       + "; ".join(([f"largest finite {self.max_sd_um:.3f} um"] if self.sd_seen
+                                    else []) + (["some not determined by the model's data at all"]
+                                                if self.sd_undetermined else []))
+                       + "; BLOCKS.csv column correction_sd_um)"
                        f"{shared}; "
                        + unsure_advice(float("inf") if self.sd_undetermined else self.max_sd_um,
                                        self.max_correction_sd_um))

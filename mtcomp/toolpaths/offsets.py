@@ -221,6 +221,11 @@ class ProgramSetup:
             names = ", ".join(WORK_SYSTEMS[w] for w in missing)
             out.append(f"assumed: work offset {names} = 0 (the program's coordinates taken as machine "
                        "axis positions); give --work-offset or --offsets")
+        unused = sorted(n for n in self.named_lengths if n not in self.tool_names.values())
+        if unused:
+            names = ", ".join(f'"{n}"' for n in unused)
+            out.append(f"tool length given for {names}, but the program calls no tool by that name: "
+                       "not used")
         given = {h for h, name in self.tool_names.items() if name in self.named_lengths}
         tools = sorted(t for t in self.used_tools if t not in self.tool_lengths and t not in given)
         if tools:
@@ -392,5 +397,9 @@ def _set_length(setup: ProgramSetup, name: str, x, where: str, path) -> None:
     of ``T="DRILL 8.5"``)."""
     if re.fullmatch(r"\s*[Hh]?\d+\s*", name):
         setup.tool_lengths[_tool_number(name, where, path)] = _length(x, where, path)
+    elif re.fullmatch(r"\s*[A-Za-z]\s*\d+\s*", name):
+        # T1, D1, H 1: a slip for a tool length number, not a tool's name
+        raise InputError(f"{where}: {name.strip()!r} is not a tool length number (H1, H2 ...); a "
+                         "tool a Sinumerik program calls by name is given by that name", path)
     else:
         setup.named_lengths[name.strip()] = _length(x, where, path)

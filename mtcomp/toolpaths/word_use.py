@@ -55,7 +55,9 @@ _NGC = {
     "P": ((2.0, 3.0, 71.0, 74.0, 76.0, 82.0, 84.0, 86.0, 88.0, 89.0), (4.0, 10.0, 64.0) + _MODE_P,
           (19.0, 50.0, 51.0, 52.0, 53.0, 62.0, 63.0, 64.0, 65.0, 66.0), True),
     "Q": ((71.0, 73.0, 76.0, 83.0), (5.0, 5.1, 10.0, 64.0), (19.0, 61.0, 66.0, 67.0, 68.0), True),
-    "R": ((2.0, 3.0, 71.0, 76.0) + _CYCLES, (10.0, 41.1, 42.1), (19.0,), False),
+    # (LinuxCNC's M19 R, the orientation angle, is refused before this table: mtcomp reads R
+    # only on arcs, cycles and the frame codes)
+    "R": ((2.0, 3.0, 71.0, 76.0) + _CYCLES, (10.0, 41.1, 42.1), (), False),
 }
 #: grbl 1.1 (gcode.c): letter -> (motion codes, other G codes of the block) that take it; an arc's
 #: I J K only without R (with R they are unused: error 36)
@@ -147,9 +149,12 @@ def _ngc_problem(letter, mode, gcodes, mcodes, dialect) -> str:
         return ""
     takers = [f"G{g:g}" for g in _followed(letter, motions + codes)] + [f"M{m:g}" for m in ms]
     takers += ["M100-M199"] if user else []
-    who = ("LinuxCNC refuses" if dialect == "linuxcnc"
-           else "RS274/NGC controllers (LinuxCNC) refuse")
-    return f"{letter} goes with {' '.join(takers)}; {who} such a block"
+    if dialect == "linuxcnc":
+        return f"{letter} goes with {' '.join(takers)}; LinuxCNC refuses such a block"
+    # a program that names no controller: a Fanuc or Haas post's words (a G83 dwell P, G40 D0)
+    # are theirs to take
+    return (f"{letter} goes with {' '.join(takers)}; RS274/NGC controllers (LinuxCNC) refuse such "
+            "a block: give --dialect fanuc or haas if one of them runs the program")
 
 
 def _followed(letter, codes):
