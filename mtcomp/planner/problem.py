@@ -27,14 +27,15 @@ from ..models.model_file import FittedModel
 #: that drift from run to run). Set from real laser runs (docs/planner.md, *Blocks where the model
 #: is unsure*): models of stages whose runs repeat reach 0.2 to 4.3 um over their travel (but
 #: identify's of one stage with two glitch readings, 6.7 um), those of runs drifting by up to
-#: 100 um 2.2 to 17.5 um, one ballbar circle's diagnosis thousands
+#: 100 um 2.2 to 17.5 um, one ballbar circle's least squares thousands (diagnose writes identify's
+#: fit there: mtcomp.diagnose._open.OPEN_SD_UM is this limit)
 DEFAULT_MAX_CORRECTION_SD_UM = 5.0
 
 
 def unsure_advice(largest_sd_um: float, limit_um: float, what: str = "corrects them") -> str:
     """What to do about corrections left out for their standard error: a larger limit where it is
     near the limit; where it is far beyond (10 times), only more data (a ballbar circle alone leaves
-    the axes' profiles at standard errors of thousands of um: a larger limit would write them)."""
+    the axes' least squares at standard errors of thousands of um: a larger limit would write them)."""
     if largest_sd_um > 10.0 * limit_um:
         return (f"the data do not determine them (a standard error {largest_sd_um / limit_um:.0f} "
                 "times the limit): measure there (laser runs along the axes, ballbar circles in "
