@@ -35,7 +35,7 @@ DEFAULT_MAX_CORRECTION_SD_UM = 5.0
 def unsure_advice(largest_sd_um: float, limit_um: float, what: str = "corrects them") -> str:
     """What to do about corrections left out for their standard error: a larger limit where it is
     near the limit; where it is far beyond (10 times), only more data (a ballbar circle alone leaves
-    the axes' least squares at standard errors of thousands of um: a larger limit would write them)."""
+    the axes' profiles at standard errors of thousands of um: a larger limit would write them)."""
     if largest_sd_um > 10.0 * limit_um:
         return (f"the data do not determine them (a standard error {largest_sd_um / limit_um:.0f} "
                 "times the limit): measure there (laser runs along the axes, ballbar circles in "
