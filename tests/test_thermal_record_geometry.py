@@ -303,3 +303,19 @@ def test_render_maps_the_drift_at_the_temperatures_compensate_was_given(tmp_path
     assert a["before"] > 5.0 and a["after"] < 0.05
     assert b["before"] < 0.05           # no drift mapped without a state
     assert "thermal drift not mapped" in without and "thermal drift not mapped" not in with_state
+
+
+def test_the_geometric_fit_s_held_combinations_stay_apart_beside_a_drift():
+    """A geometric model that holds combinations its data fix only weakly (diagnose's model written
+    beside a ball-bar circle) keeps them, padded for the drift's parameters, when a thermal record's
+    drift is joined to it: compensate then leaves their variance out as it does without the record."""
+    from mtcomp.thermal._combined import _joined_uncertainty
+    held = np.array([[1.0], [2.0]])
+    geo = {"names": ("a", "b"), "covariance": np.diag([4.0, 9.0]) + 25.0 * held @ held.T,
+           "undetermined": np.zeros((2, 0)), "held": held, "held_sd_um": np.array([5.0])}
+    drift = {"names": ("d",), "covariance": np.array([[1.0]]), "undetermined": np.zeros((1, 0))}
+    out = _joined_uncertainty(geo, drift)
+    np.testing.assert_array_equal(out["held"], [[1.0], [2.0], [0.0]])
+    np.testing.assert_array_equal(out["held_sd_um"], [5.0])
+    G = out["held"] * out["held_sd_um"]
+    np.testing.assert_allclose(out["covariance"] - G @ G.T, np.diag([4.0, 9.0, 1.0]), rtol=0, atol=1e-12)

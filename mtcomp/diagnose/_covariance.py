@@ -9,25 +9,39 @@ from ..models.chain import ErrorModel
 from ._linalg import RANK_TOLERANCE, Design, _eigh
 
 
-def _covariance(design: Design, extra: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(covariance (m + k, m + k) of the common-block parameters and the extra columns'
-    coefficients, noise variance 1 after weighting; determined (m + k,) bool): a parameter is
-    determined unless it lies partly in a direction the data do not determine (outside the
-    subspace fixed at the start, or in the null space of the extras)."""
-    G = design.gram(extra)
+def _subspace(design: Design, k: int) -> np.ndarray:
+    """(m + k, r + k) the subspace a fit with k extra columns moves in: parameters = [T 0; 0 I]
+    (the common block's determined directions ``design.T``, the extras' coefficients)."""
     m = design.A_original.shape[1]
-    # in the determined subspace: parameters = [T 0; 0 I] (phi, extra coefficients)
-    k = extra.shape[1]
     B = np.zeros((m + k, design.T.shape[1] + k))
     B[:m, :design.T.shape[1]] = design.T
     B[m:, design.T.shape[1]:] = np.eye(k)
+    return B
+
+
+def _determined(design: Design, extra: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(G, E, lam): the weighted normal matrix G (m + k, m + k) of the common block's columns and the
+    extras (noise variance 1 after weighting), and the directions E (m + k, r) the data determine,
+    with ``E^T G E = diag(lam)``: the subspace fixed at the start (``design.T``) and the extras, less
+    what they leave undetermined between them (relative eigenvalue at most RANK_TOLERANCE)."""
+    G = design.gram(extra)
+    B = _subspace(design, extra.shape[1])
     H = B.T @ G @ B
     d = np.sqrt(np.clip(np.diag(H), 0, None))
     d = np.where(d > 0, d, 1.0)
     wv, V = _eigh(H / np.outer(d, d))
     ok = wv > RANK_TOLERANCE * wv.max()
-    Hinv = ((V[:, ok] / wv[ok]) @ V[:, ok].T) / np.outer(d, d)
-    cov = B @ Hinv @ B.T
+    return G, B @ (V[:, ok] / d[:, None]), wv[ok]
+
+
+def _covariance(design: Design, extra: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(covariance (m + k, m + k) of the common-block parameters and the extra columns'
+    coefficients, noise variance 1 after weighting; determined (m + k,) bool): a parameter is
+    determined unless it lies partly in a direction the data do not determine (outside the
+    subspace fixed at the start, or in the null space of the extras)."""
+    G, E, lam = _determined(design, extra)
+    cov = (E / lam) @ E.T
+    B = _subspace(design, extra.shape[1])
     # a parameter is determined when its unit vector lies in the span of B (scaled coordinates)
     scale = np.sqrt(np.clip(np.diag(G), 0, None))
     scale = np.where(scale > 0, scale, 1.0)
@@ -37,24 +51,17 @@ def _covariance(design: Design, extra: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return cov, np.sum(Qb ** 2, axis=1) > 0.999
 
 
-def _cov_diag(design: Design, extra: np.ndarray) -> np.ndarray:
-    """Variances (noise variance 1 after weighting) of the common-block parameters and the extra
-    columns' coefficients; NaN for a parameter the data do not determine (:func:`_covariance`)."""
-    cov, determined = _covariance(design, extra)
-    return np.where(determined, np.diag(cov), np.nan)
-
-
-def _uncertainty(model: ErrorModel, design: Design, extra: np.ndarray, names: list, theta_idx: list,
-                 machine_cols: np.ndarray) -> dict:
+def _uncertainty(model: ErrorModel, design: Design, extra: np.ndarray, cov: np.ndarray, names: list,
+                 theta_idx: list, machine_cols: np.ndarray) -> dict:
     """The model file's ``uncertainty`` of a diagnosed model (as identify writes it): the machine
     parameters' covariance (internal units, noise variance 1 after weighting) and the combinations
     of them the data do not see at all, each scaled to 1 um rms tool-tip error over the travel
     (mtcomp.identification.fit.travel_metric), so that a prediction resting on one is blank.
 
-    names : the machine parameters' names. theta_idx : their positions among the common block and
-    the extras. machine_cols : (m,) bool, the common block's machine (not set-up) columns."""
+    cov : the covariance of the common block's parameters and the extras' coefficients (the final
+    fit's). names : the machine parameters' names. theta_idx : their positions among the common block
+    and the extras. machine_cols : (m,) bool, the common block's machine (not set-up) columns."""
     from ..identification.problem import DEFAULT_RCOND, travel_metric
-    cov, _ = _covariance(design, extra)
     idx = np.asarray(theta_idx, dtype=int)
     C = cov[np.ix_(idx, idx)]
     # what the data do not see among the machine parameters alone (set-ups free to follow)

@@ -34,7 +34,8 @@ from ._linalg import Design, rms
 from ._selection import (BIC_MARGIN, MIN_EXCESS_SHARE, _axis_ties, _backward,  # noqa: F401
                          _drop_undetermined_offsets, _forward_in_time, _joint_abbe, _parsimony)
 from ._stack import Stack, build_stack
-from ._covariance import _cov_diag, _uncertainty
+from ._covariance import _covariance, _uncertainty
+from ._open import written_model
 from .result import UNIT_KEYS, Diagnosis, Finding, _r
 
 #: the held-out rms may exceed the noise floor by this factor (times the inflation expected of a right
@@ -163,7 +164,22 @@ def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int 
                                                 f"({after:.4g} against {before:.4g} noise variances)"})
                 break
             diag, refine = again, {**refine, a: basis}
+        return _written(diag)
+
+
+def _written(diag: Diagnosis) -> Diagnosis:
+    """``diag`` with its model the one written (:func:`._open.written_model`) and REPORT.json's
+    ``final.written`` saying what that model did where the data leave directions open."""
+    if getattr(diag, "written", None) is None:       # (a stand-in diagnosis made no final fit)
         return diag
+    t0 = time.perf_counter()
+    model, written = diag.written()
+    if written:
+        diag.final["written"] = written
+    diag.model = model
+    diag.seconds += time.perf_counter() - t0
+    model.info["diagnose"] = diag.to_dict()
+    return diag
 
 
 def _heldout_sse(diag, sigma: dict) -> float:
@@ -226,7 +242,7 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     chosen, findings, current = sel.chosen, sel.findings, sel.current
     final_metrics = _metrics(st, current, n_base + sum(c.columns.shape[1] for c in chosen))
     verdict, finer = _what_remains(st, design, sel, noise, noise_main, may_refine, say)
-    model = _fitted_model(st, design, chosen, current)
+    model, where = _fitted_model(st, design, chosen, current)
     diag = Diagnosis(verdict, noise, base_metrics, findings, final_metrics, model, how, len(st),
                      rejected=sel.rejected, reference=reference)
     diag.folds_of_observations = folds
@@ -244,6 +260,8 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
         model.info["unmeasured"] = unmeasured
     diag.seconds = time.perf_counter() - t0
     model.info["diagnose"] = diag.to_dict()
+    # the model written where the data leave directions open: made for the diagnosis kept only
+    diag.written = lambda: written_model(st, design, current, model, where, values, say)
     return diag, finer
 
 
@@ -627,7 +645,10 @@ def _unexplained(st, fit, structure, excess, noise_main, inflation: float = 1.0)
     return Finding("unexplained", axis, params, evidence, h, h, None, unit=_heldout_unit(st))
 
 
-def _fitted_model(st: Stack, design: Design, chosen: list[Candidate], fit) -> FittedModel:
+def _fitted_model(st: Stack, design: Design, chosen: list[Candidate], fit) -> tuple:
+    """(the final least squares as a model with its covariance, (the extras' columns, the machine
+    parameters' names, their positions among the fit's coefficients)): :func:`._open.written_model`
+    makes the model written from them."""
     terms = []
     for c in chosen:
         for t in c.terms:
@@ -637,27 +658,7 @@ def _fitted_model(st: Stack, design: Design, chosen: list[Candidate], fit) -> Fi
     params = ParameterSet(model.param_specs)
     base = [n for n, s in zip(st.probe.param_names, st.probe.param_specs) if s.base]
     m = design.A_original.shape[1]
-    theta = fit.theta
-    std = np.full(model.n_params, np.nan)
-    # standard errors from the weighted normal matrix (noise variance 1 after weighting)
     extra = np.hstack([c.columns for c in chosen]) if chosen else np.zeros((design.n, 0))
-    cov_diag = _cov_diag(design, extra)
-    for i, name in enumerate(base):
-        params[name] = theta[i]
-        std[params.index(name)] = cov_diag[i]
-    k = m
-    for c in chosen:
-        for j, name in enumerate(c.params):
-            if name in params:
-                params[name] = theta[k + j]
-                std[params.index(name)] = cov_diag[k + j]
-        k += c.columns.shape[1]
-    params.std_errors = np.sqrt(np.where(np.isfinite(std), std, np.nan))
-    info = {"fitted_by": "mtcomp diagnose",
-            "nuisance": {n: float(v) for n, v in zip(st.nuisance_names, theta[len(base):m])}}
-    feats = sorted({f for c in chosen for f in c.info.get("features", [])})
-    if feats:
-        info["drift_features"] = feats
     names, theta_idx, k = list(base), list(range(len(base))), m
     for c in chosen:
         for j, name in enumerate(c.params):
@@ -665,5 +666,18 @@ def _fitted_model(st: Stack, design: Design, chosen: list[Candidate], fit) -> Fi
                 names.append(name)
                 theta_idx.append(k + j)
         k += c.columns.shape[1]
-    uncertainty = _uncertainty(model, design, extra, names, theta_idx, ~_setup_columns(st))
-    return FittedModel(model, params, {}, info, uncertainty=uncertainty)
+    # standard errors from the weighted normal matrix (noise variance 1 after weighting)
+    cov, determined = _covariance(design, extra)
+    var = np.where(determined, np.diag(cov), np.nan)
+    variances = np.full(model.n_params, np.nan)
+    for name, i in zip(names, theta_idx):
+        params[name] = fit.theta[i]
+        variances[params.index(name)] = var[i]
+    params.std_errors = np.sqrt(np.where(np.isfinite(variances), variances, np.nan))
+    info = {"fitted_by": "mtcomp diagnose",
+            "nuisance": {n: float(v) for n, v in zip(st.nuisance_names, fit.theta[len(base):m])}}
+    feats = sorted({f for c in chosen for f in c.info.get("features", [])})
+    if feats:
+        info["drift_features"] = feats
+    uncertainty = _uncertainty(model, design, extra, cov, names, theta_idx, ~_setup_columns(st))
+    return FittedModel(model, params, {}, info, uncertainty=uncertainty), (extra, names, theta_idx)

@@ -282,6 +282,17 @@ def summary(diag, details=()) -> str:
     lines.append(f"final model ({fz['n_params']} parameters{dof}): rms {_num(fz.get('rms_um'))} um, "
                  f"held-out {_num(fz.get('heldout_rms_um'))} um"
                  + _other_units(fz))
+    written = fz.get("written")
+    if written:
+        weak = (f"its data fix {written['weak']} combination(s) of the least squares only weakly, to "
+                f"{written['largest_sd_um']:.3g} um of tool-tip error at worst")
+        lines.append(f"model written: the final model fitted as identify fits it ({weak}): its profiles follow "
+                     f"the smoothest curve where the data are silent, {written['held']} combination(s) the "
+                     f"smoothness does not fix either are held where they predict the least error; rms "
+                     f"{_num(written.get('rms_um'))} um (the figures above are the least squares')"
+                     if written["model"] == "penalised" else
+                     f"model written: the least squares ({weak}; identify's penalised fit of the same model "
+                     "fitted the data clearly worse): their standard errors say so")
     ref = diag.reference.get("linear_regression_all_temperatures")
     if ref:
         lines.append(f"reference: plain linear regression on all {len(ref['temperatures'])} temperatures "

@@ -163,7 +163,10 @@ def _weights(problem, weights, rcond: float, max_iterations: int, tol: float):
         return w, "1/noise per file"
     if isinstance(weights, dict):
         return problem.dict_weights(weights), "given noise per file"
-    raise ValueError(f"weights must be 'unit', 'noise' or a dict, not {weights!r}")
+    if isinstance(weights, np.ndarray) and weights.shape == (problem.n_obs,):
+        # each reading's noise in its error unit (um, urad, um/min): diagnose's floors
+        return problem.unit_weights() / weights, "given noise per reading"
+    raise ValueError(f"weights must be 'unit', 'noise', a dict or one noise per reading, not {weights!r}")
 
 
 def _record_data(result, model, mask, mms, datasets) -> None:

@@ -44,7 +44,8 @@ class FitProblem:
     model : the error model. measurements : one MeasurementModel per file (unique tags:
     :func:`unique_tags`). free : (n_params,) bool, the parameters fitted (the rest held at ``start``).
     start : (n_params,) start values, internal units. weights : ``"unit"`` (residuals in um and urad),
-    ``"noise"`` (1/noise per file and unit, re-estimated) or {tag: noise}. penalty : the profiles
+    ``"noise"`` (1/noise per file and unit, re-estimated), {tag: noise} or an (n_obs,) array of each
+    reading's noise (um, urad, um/min; the readings in the measurement models' order). penalty : the profiles
     carry a roughness penalty whose weights REML chooses (:mod:`.penalty`). hold_weak : directions the
     data fix only to worse than 1 um of tool-tip error over the region they cover are held at the
     least error.

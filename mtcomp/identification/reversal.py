@@ -15,6 +15,14 @@ positioning readings (laser files, component EXX, EYY, ... ECC),
   counts as well as a constant step. None when no target has repeated readings (nothing to judge
   the reversal values against).
 
+Ball-bar files read a position from both sides too (an ISO 230-4 circle run both ways): at every
+position read in two patterns of approach directions (rotary axes at 0) the length read one way
+less the other is, to first order, the sum over the linear axes whose direction changes of that
+axis's reversal B (up minus down) times the bar's direction cosine along it; a model the same in
+both directions predicts zero. The B of every such axis is the least-squares solution over all the
+pairs of the ball-bar files; its p-value the F test of B against the scatter the pairs leave
+(dof: pairs less the axes fitted). An axis that a laser file reads from both sides keeps the laser's.
+
 :data:`REVERSAL_P` is the level below which the data are said to show a reversal.
 """
 from __future__ import annotations
@@ -72,13 +80,15 @@ def reversal_p_value(B, n_up, n_down, ss: float, dof: int) -> float | None:
 
 
 def data_reversal(datasets) -> dict:
-    """What the laser files among ``datasets`` (MeasurementSet or measurement models) show of each
-    axis's reversal, in file units (module docstring)::
+    """What the laser and ball-bar files among ``datasets`` (MeasurementSet or measurement models)
+    show of each axis's reversal, in file units (module docstring)::
 
         {"X": {"B_um": -36.0, "B_mean_um": -26.0, "p_value": 3e-27, "n_targets": 9,
                "files": ["ess_b02_x"]}}
 
-    (``_urad`` for rotary axes). Axes without a target read in both directions are absent."""
+    (``_urad`` for rotary axes; from ball-bar files ``B`` and ``B_mean`` are the one fitted value and
+    ``n_targets`` the positions read both ways). Axes without a target read in both directions are
+    absent."""
     found: dict = {}
     for d in _laser_sets(datasets):
         tag = Path(str(d.path)).stem if getattr(d, "path", None) else "laser"
@@ -90,13 +100,72 @@ def data_reversal(datasets) -> dict:
                 entry = found.setdefault(a, {"groups": [], "files": []})
                 entry["groups"] += groups
                 entry["files"].append(tag)
-    out = {}
+    out = _ballbar_reversal(datasets)
     for a, entry in found.items():
         B, n_up, n_down, ss, dof = (np.array(c) for c in zip(*entry["groups"]))
         unit, scale = ("urad", 1e6) if a in ROTARY else ("um", 1e3)
         out[a] = {f"B_{unit}": float(B[np.argmax(np.abs(B))] * scale), f"B_mean_{unit}": float(B.mean() * scale),
                   "p_value": reversal_p_value(B, n_up, n_down, float(ss.sum()), int(dof.sum())),
                   "n_targets": int(B.size), "files": list(dict.fromkeys(entry["files"]))}
+    return out
+
+
+def _ballbar_pairs(d):
+    """(differences (m,) mm, directions (m, 3)) of ball-bar data ``d``: at every position (axis
+    positions, both balls; rotary axes at 0) read in exactly two patterns of the linear axes'
+    approach directions, the mean length of the first less the second's, and for each linear axis
+    its direction cosine along the bar times half the change of its direction (module docstring)."""
+    dirs = d.context.dirs[:, :3]
+    ok = np.isfinite(d.length) & np.all(d.abc == 0, axis=1) & np.all(dirs != 0, axis=1)
+    if not ok.any():
+        return np.zeros(0), np.zeros((0, 3))
+    key = np.round(np.column_stack([d.xyz, d.table_ball, d.tool_ball])[ok], 6)
+    _, label = np.unique(key, axis=0, return_inverse=True)
+    label = label.reshape(-1)
+    length, dirs = d.length[ok], dirs[ok]
+    arm = (d.xyz + d.tool_ball - d.table_ball)[ok]
+    diffs, cols = [], []
+    for k in range(label.max() + 1):
+        rows = np.flatnonzero(label == k)
+        patterns, which = np.unique(dirs[rows], axis=0, return_inverse=True)
+        which = which.reshape(-1)
+        norm = float(np.linalg.norm(arm[rows[0]]))
+        if len(patterns) != 2 or norm == 0.0:
+            continue
+        diffs.append(length[rows[which == 0]].mean() - length[rows[which == 1]].mean())
+        cols.append(arm[rows[0]] / norm * (patterns[0] - patterns[1]) / 2.0)
+    return np.array(diffs), np.array(cols).reshape(-1, 3)
+
+
+def _ballbar_reversal(datasets) -> dict:
+    """What the ball-bar files among ``datasets`` show of the linear axes' reversals, as
+    :func:`data_reversal` gives it (module docstring)."""
+    from scipy.stats import f as fisher_f
+    diffs, cols, files = [], [], []
+    for d in datasets:
+        d = getattr(d, "data", d)
+        if getattr(d, "kind", None) != "ballbar":
+            continue
+        dz, h = _ballbar_pairs(d)
+        if dz.size:
+            diffs.append(dz)
+            cols.append(h)
+            files.append(Path(str(d.path)).stem if getattr(d, "path", None) else "ballbar")
+    if not diffs:
+        return {}
+    dz, h = np.concatenate(diffs), np.vstack(cols)
+    on = np.flatnonzero(np.abs(h).max(axis=0) > 1e-9)
+    dof = dz.size - on.size
+    if on.size == 0 or dof <= 0:
+        return {}
+    B, *_ = np.linalg.lstsq(h[:, on], dz, rcond=None)
+    s2 = float(np.sum((dz - h[:, on] @ B) ** 2)) / dof
+    var = s2 * np.diag(np.linalg.pinv(h[:, on].T @ h[:, on]))
+    out = {}
+    for j, b in zip(on, B):
+        p = float(fisher_f.sf(b * b / var[list(on).index(j)], 1, dof)) if s2 > 0 else float(b != 0)
+        out["XYZ"[j]] = {"B_um": float(b * 1e3), "B_mean_um": float(b * 1e3), "p_value": p,
+                         "n_targets": int(dz.size), "files": files}
     return out
 
 

@@ -112,14 +112,23 @@ def _joined_model(geo: FittedModel, drift: FittedModel, record_path) -> FittedMo
 
 
 def _joined_uncertainty(a: dict | None, b: dict | None) -> dict | None:
-    """Two fits on different data: their covariances side by side, the undetermined directions of
-    each padded with zeros for the other's parameters."""
+    """Two fits on different data: their covariances side by side, the undetermined and held
+    directions of each padded with zeros for the other's parameters."""
     if a is None or b is None:
         return a if b is None else b
     import scipy.linalg
     na, nb = len(a["names"]), len(b["names"])
     und = scipy.linalg.block_diag(np.asarray(a["undetermined"]).reshape(na, -1),
                                   np.asarray(b["undetermined"]).reshape(nb, -1))
-    return {"names": tuple(a["names"]) + tuple(b["names"]),
-            "covariance": scipy.linalg.block_diag(a["covariance"], b["covariance"]),
-            "undetermined": und.reshape(na + nb, -1)}
+    out = {"names": tuple(a["names"]) + tuple(b["names"]),
+           "covariance": scipy.linalg.block_diag(a["covariance"], b["covariance"]),
+           "undetermined": und.reshape(na + nb, -1)}
+    if "held" in a or "held" in b:
+        # the combinations a fit held where its data fix them only weakly (diagnose's model written
+        # where a ball-bar circle leaves its profiles open): their variance stays apart
+        held = scipy.linalg.block_diag(np.asarray(a.get("held", np.zeros((na, 0)))).reshape(na, -1),
+                                       np.asarray(b.get("held", np.zeros((nb, 0)))).reshape(nb, -1))
+        out["held"] = held.reshape(na + nb, -1)
+        out["held_sd_um"] = np.concatenate([np.asarray(a.get("held_sd_um", ()), dtype=float),
+                                            np.asarray(b.get("held_sd_um", ()), dtype=float)])
+    return out

@@ -1,0 +1,172 @@
+"""The model diagnose writes where its data leave combinations of it open.
+
+The selection's final least squares (``_linalg.Design``) is the data's own fit in every direction
+the rank test keeps. Some of those directions the data fix only weakly: a ball-bar circle alone reads
+one radial deviation per angle, which the positioning, straightness and angular profiles of two axes
+share; the least squares splits it between them as the noise falls, a millimetre each, with standard
+errors of thousands of um. Identify's fit does not (:func:`mtcomp.identification.fit.solve`): its
+profiles carry the roughness penalty (Eilers and Marx 1996, eq. 5; weights by REML, Wood 2011,
+eq. 4), so that where the data are silent they follow the smoothest curve, and what the data then
+still fix only weakly is held at the least predicted error, its variance kept apart.
+
+The weak combinations are those of identify's rule (:func:`mtcomp.identification._weak.
+weak_directions`: a combination whose rms tool-tip error over the data's region the data fix only to
+worse than 1 um, and which the fit does not put more than 3 of its standard errors from zero), with
+the noise floor as the scale. When none of them is fixed worse than :data:`OPEN_SD_UM` (none at all,
+on every laser campaign of the benchmarks), the least squares is written, value for value: its
+corrections stand where compensate and export take them. Otherwise the model written is the same
+model (base and chosen terms, on the selection's knots) fitted by identify's engine, each reading
+weighted by the diagnosis's noise floor: the chosen terms start at the selection's values (a
+feed-dependent Abbe term's moving centre multiplies its angle: from zero it stays unseen), the base
+where the base fit started (zero, or a start model's determined values: at the least squares'
+millimetres the chain's products of errors would pass for information); what the data do not
+determine stays there. It is written with the fit's posterior covariance, unless it fits the data
+clearly worse than the least squares (:func:`open_fit`).
+
+The selection is untouched: its findings, their parameters and the final held-out figures are the
+least squares'.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+#: a combination the least squares' data fix only weakly, with a standard error over this (um of
+#: rms tool-tip error over the data's region), makes the model written identify's fit: the default
+#: limit of the standard error compensate and export accept (``--max-correction-sd-um``,
+#: mtcomp.planner.problem.DEFAULT_MAX_CORRECTION_SD_UM). Below it the least squares' corrections
+#: stand (the real laser runs' weakest combinations: 2.8 um at most)
+OPEN_SD_UM = 5.0
+#: the penalised fit is written unless its weighted sum of squares exceeds the least squares' by more
+#: than k + MISFIT_SD sqrt(2k) noise variances, k the directions it gives up (the least squares' rank
+#: less the fit's effective degrees of freedom: each costs one noise variance on average where the
+#: data hold nothing there); beyond it the fit went astray
+MISFIT_SD = 3.0
+
+
+@dataclass
+class OpenFit:
+    """Identify's fit of the model written: ``result`` (its
+    :class:`~mtcomp.identification.result.FitResult`), ``n_weak`` (combinations the least squares'
+    data fix only weakly), ``sse`` and ``sse_lsq`` (its weighted sum of squares and the least
+    squares', noise variances), ``rms_um`` (its rms residual of the readings in um, None without)."""
+
+    result: object
+    n_weak: int
+    sse: float
+    sse_lsq: float
+    rms_um: float | None = None
+
+    def report(self) -> dict:
+        """REPORT.json's ``final.written`` (docs/diagnose.md)."""
+        r = self.result
+        out = {"model": "penalised", "weak": int(self.n_weak), "held": int(len(r.held_sd_um)),
+               "rms_um": None if self.rms_um is None else round(self.rms_um, 4),
+               "sum_of_squares": round(float(self.sse), 4),
+               "sum_of_squares_least_squares": round(float(self.sse_lsq), 4)}
+        if r.smoothing is not None:
+            out["penalty_weights"] = {k: float(v) for k, v in r.smoothing.weights.items()}
+        return out
+
+
+def _metric(st, model, names: list, theta_idx: np.ndarray, size: int) -> np.ndarray:
+    """(size, size) the mean squared tool-tip error (mm^2) over the data's region per coefficient
+    (:func:`mtcomp.identification.problem.travel_metric`) at the machine parameters' positions
+    ``theta_idx`` among the coefficients; zero for the set-ups and what moves no tip."""
+    from ..identification.problem import data_region, fitted_axes, travel_metric
+    free = np.array([model.param_names.index(n) for n in names], dtype=int)
+    mask = np.zeros(model.n_params, dtype=bool)
+    mask[free] = True
+    region = data_region(model.machine, st.datasets, fitted_axes(model, mask))
+    M = np.zeros((size, size))
+    M[np.ix_(theta_idx, theta_idx)] = travel_metric(model, free, free.size, region)
+    return M
+
+
+def weak_combinations(st, design, extra: np.ndarray, theta: np.ndarray, model, names: list,
+                      theta_idx) -> np.ndarray:
+    """(k,) the standard errors (um of rms tool-tip error over the data's region) of the combinations
+    of the final least squares (``theta``: the common block's parameters, then the extras'
+    coefficients) its data fix only weakly, by identify's rule (module docstring), with the noise
+    floor as the residual scale (the design's weights are 1 / noise)."""
+    from ..identification._weak import held_directions, weak_directions
+    from ._covariance import _determined
+    theta_idx = np.asarray(theta_idx, dtype=int)
+    G, E, lam = _determined(design, extra)
+    if not lam.size:
+        return np.zeros(0)
+    M = _metric(st, model, names, theta_idx, G.shape[0])
+    y = (E.T @ (G @ theta)) / lam                      # the fit's coordinates on E
+    W, Q = weak_directions(M, np.diag(lam), E, np.ones(G.shape[0]), 1.0, y)
+    return np.sqrt(held_directions(np.diag(lam), W, Q)[1])
+
+
+def _stack_order(st, mms) -> np.ndarray:
+    """(n,) index of each of the stack's readings among the measurement models' readings."""
+    keys, k = {}, 0
+    for fi, m in enumerate(mms):
+        for r, c in zip(np.asarray(m.obs_row).tolist(), np.asarray(m.obs_column).tolist()):
+            keys[(fi, int(r), str(c))] = k
+            k += 1
+    return np.array([keys[(int(f), int(r), str(c))] for f, r, c in zip(st.file, st.row, st.column)],
+                    dtype=np.int64)
+
+
+def open_fit(st, model, start: np.ndarray, noise: np.ndarray, lsq: tuple, n_weak: int) -> OpenFit | None:
+    """Identify's fit of ``model`` (the base and the chosen terms) to the stack's files from
+    ``start`` ((n_params,) internal units), each reading weighted by its noise floor ``noise`` ((n,)
+    in the stack's order, um or urad ...); ``lsq``: the least squares' (weighted sum of squares,
+    rank). None when Gauss-Newton does not converge or the fit costs the data more than
+    :data:`MISFIT_SD` allows."""
+    from ..identification.fit import solve
+    from ..identification.problem import FitProblem, SolverOptions, build_measurement_models
+    from ._linalg import RCOND
+    mms = build_measurement_models(model, st.datasets)
+    n_obs = sum(m.n_obs for m in mms)
+    order = _stack_order(st, mms)
+    if order.size != n_obs:
+        return None
+    per_reading = np.empty(n_obs)
+    per_reading[order] = noise
+    problem = FitProblem(model, mms, np.ones(model.n_params, dtype=bool), start, weights=per_reading,
+                         penalty=True, hold_weak=True)
+    result = solve(problem, SolverOptions(rcond=RCOND))
+    sse = float(result.residual @ result.residual)
+    sse_lsq, rank = lsq
+    k = max(float(rank) - (n_obs - float(result.dof)), 1.0)
+    if not result.converged or not sse <= sse_lsq + k + MISFIT_SD * np.sqrt(2.0 * k):
+        return None
+    um = np.zeros(n_obs, dtype=bool)
+    um[order] = st.unit == "um"
+    resid = result.residual * per_reading               # reading less prediction, um or urad
+    return OpenFit(result, n_weak, sse, sse_lsq, float(np.sqrt(np.mean(resid[um] ** 2))) if um.any() else None)
+
+
+def written_model(st, design, fit, fitted, where: tuple, start: dict, say) -> tuple:
+    """(the model diagnose writes (module docstring), REPORT.json's ``final.written`` or None):
+    ``fitted`` (the final least squares ``fit`` as a model with its covariance) when its data fix
+    every combination well enough, else identify's fit of the same model, with ``fitted``'s support,
+    held axes and notes. ``where``: (the extras' columns, the machine parameters' names, their
+    positions among the fit's coefficients); ``start``: the base fit's start values (name ->
+    value)."""
+    extra, names, theta_idx = where
+    sd = weak_combinations(st, design, extra, fit.theta, fitted.model, names, theta_idx)
+    if not sd.size or sd.max() <= OPEN_SD_UM:
+        return fitted, None
+    model = fitted.model
+    p0 = np.array([start.get(n, 0.0) if s.base else v
+                   for n, s, v in zip(model.param_names, model.param_specs, fitted.params.values)])
+    done = open_fit(st, model, p0, 1.0 / design.w, (fit.sse, fit.rank), sd.size)
+    weakest = f"{sd.size} combination(s) of it only weakly, to {sd.max():.3g} um of tool-tip error at worst"
+    if done is None:
+        say(f"model written: the least squares (its data fix {weakest}; identify's penalised fit of "
+            "the same model fits the data clearly worse)")
+        return fitted, {"model": "least squares", "weak": int(sd.size), "largest_sd_um": round(float(sd.max()), 4)}
+    r = done.result
+    say(f"model written: identify's penalised fit of the final model (the data fix {weakest}; "
+        f"{len(r.held_sd_um)} held at the least error)")
+    info = dict(fitted.info)
+    info["nuisance"] = {n: float(v) for n, v in zip(r.unknown_names[model.n_params:], r.nuisance_values)}
+    return (replace(fitted, params=r.fitted_model.params, info=info, uncertainty=r.fitted_model.uncertainty),
+            {**done.report(), "largest_sd_um": round(float(sd.max()), 4)})
