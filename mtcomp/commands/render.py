@@ -140,6 +140,7 @@ def run(args) -> int:
     progress = Progress(sys.stderr)
     progress("reading the model")
     machine = load_machine(args.machine)
+    setup = _setup(args, machine)
     model_notes: list = []
     fitted = load_model(args.model, machine, model_notes)
     for n in model_notes:
@@ -157,8 +158,8 @@ def run(args) -> int:
     smap = program_error_map(machine, fitted, program, args.compensated,
                              tool_radius_mm=args.tool_radius_mm, flank_length_mm=args.flank_mm,
                              flank_side=args.flank_side, report=args.report, normal=args.normal,
-                             progress=progress, work_offset=_work_offset(args, machine),
-                             tool_lengths=_tool_lengths(args, machine))
+                             progress=progress, work_offset=_work_offset(setup, machine),
+                             setup=setup)
     for tool in smap.info.get("tools_assumed", ()):
         print(f"assumed: tool length of {tool} = the machine's tool_length_mm "
               f"({machine.tool_length:g} mm); give --tool-length or --offsets")
@@ -197,13 +198,17 @@ def _thermal_state(args, fitted):
                                     "compensate was given)")
 
 
-def _work_offset(args, machine):
-    """(na,) the program origin's machine position from --offsets / --work-offset (one work
-    system: the one given, G54 when several are), or None."""
-    if not args.offsets and not args.work_offset:
-        return None
-    from ..toolpaths.offsets import WORK_SYSTEMS, load_setup
-    setup = load_setup(machine, args.offsets, args.work_offset, args.tool_length)
+def _setup(args, machine):
+    """The program's set-up as compensate takes it: --offsets, --work-offset, --tool-length (read
+    once)."""
+    from ..toolpaths.offsets import load_setup
+    return load_setup(machine, args.offsets, args.work_offset, args.tool_length)
+
+
+def _work_offset(setup, machine):
+    """(na,) the program origin's machine position from the set-up (one work system: the one
+    given, G54 when several are), or None."""
+    from ..toolpaths.offsets import WORK_SYSTEMS
     if not setup.work_offsets:
         return None
     index = 0 if 0 in setup.work_offsets or len(setup.work_offsets) > 1 else next(iter(setup.work_offsets))
@@ -211,16 +216,6 @@ def _work_offset(args, machine):
         print(f"mtcomp render: note: the map takes the program's origin at {WORK_SYSTEMS[index]} "
               "(render draws one work system)", file=sys.stderr)
     return setup.work_offsets.get(index, np.zeros(machine.n_axes))
-
-
-def _tool_lengths(args, machine) -> dict:
-    """H number or tool name -> tool length (mm) from --offsets' [tool_lengths] and --tool-length,
-    as compensate takes them (the model's Abbe arm at the blocks of that tool)."""
-    if not args.offsets and not args.tool_length:
-        return {}
-    from ..toolpaths.offsets import load_setup
-    setup = load_setup(machine, args.offsets, args.work_offset, args.tool_length)
-    return {**setup.tool_lengths, **setup.named_lengths}
 
 
 def _check_numbers(args) -> None:

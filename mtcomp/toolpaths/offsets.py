@@ -145,6 +145,11 @@ class ProgramSetup:
         calls by name, under the H numbers its translation gave them."""
         names = getattr(getattr(source, "sinumerik", None), "tool_names", None) or {}
         self.tool_names = {h: name for name, h in names.items()}
+        return self.lengths_by_number(names)
+
+    def lengths_by_number(self, names: dict) -> dict:
+        """H number -> tool length (mm): the numbered tools', and those given by name for the tools
+        a program calls by name (``names``: name -> the H number its reading gave the tool)."""
         out = dict(self.tool_lengths)
         out.update({h: self.named_lengths[name] for name, h in names.items()
                     if name in self.named_lengths})

@@ -170,37 +170,21 @@ def _context(fitted, q_count, feed, dirs, tool_length=None):
     return fitted.context(q_count, cols)
 
 
-def tool_lengths_of(orig: "ProgramPoints", machine: Machine, tool_lengths: dict | None) -> np.ndarray:
-    """(n,) mm: the tool length of each segment end, as compensate takes it: the length given for
-    the ``G43 H`` number in force, or for the tool a program calls by name (``tool_lengths``: H
-    number or tool name -> mm, ``--tool-length`` and the offsets file's ``[tool_lengths]``), else
-    the machine's. It sets the model's Abbe arm only: the controller's own tool length offset puts
-    the tip where the program says."""
+def tool_lengths_of(orig: "ProgramPoints", machine: Machine, lengths: dict) -> np.ndarray:
+    """(n,) mm: the tool length of each segment end, as compensate takes it: the length ``lengths``
+    (H number -> mm) gives the ``G43 H`` number in force, else the machine's. It sets the model's
+    Abbe arm only: the controller's own tool length offset puts the tip where the program says."""
     out = np.full(len(orig), float(machine.tool_length))
     if orig.tool is not None:
-        for h, length in _numbered(orig, tool_lengths).items():
+        for h, length in lengths.items():
             out[np.asarray(orig.tool) == h] = float(length)
     return out
 
 
-def _numbered(orig: "ProgramPoints", tool_lengths: dict | None) -> dict:
-    """``tool_lengths`` by the numbers ``orig.tool`` holds (a tool called by name under the number
-    the program's reading gave it; names the program does not call left out)."""
-    names = orig.tool_names or {}
-    out = {}
-    for key, length in (tool_lengths or {}).items():
-        if isinstance(key, str):
-            if key in names:
-                out[names[key]] = length
-        else:
-            out[int(key)] = length
-    return out
-
-
-def tools_assumed(orig: "ProgramPoints", sel: np.ndarray, tool_lengths: dict) -> list[str]:
-    """The tools in force at the segment ends ``sel`` whose length ``tool_lengths`` does not give,
-    as the program names them (``H1``, ``"DRILL 8.5"``)."""
-    used = set(np.unique(np.asarray(orig.tool)[sel]).tolist()) - {0} - set(_numbered(orig, tool_lengths))
+def tools_assumed(orig: "ProgramPoints", sel: np.ndarray, lengths: dict) -> list[str]:
+    """The tools in force at the segment ends ``sel`` whose length ``lengths`` (H number -> mm)
+    does not give, as the program names them (``H1``, ``"DRILL 8.5"``)."""
+    used = set(np.unique(np.asarray(orig.tool)[sel]).tolist()) - {0} - set(lengths)
     by_number = {h: name for name, h in (orig.tool_names or {}).items()}
     return [f'"{by_number[h]}"' if h in by_number else f"H{h}" for h in sorted(used)]
 
@@ -287,7 +271,7 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
                       flank_side: str = "outer", max_edge_factor: float = MAX_EDGE_FACTOR,
                       flank_levels: int | None = None, report=None,
                       normal: str = "surface", uncorrected: bool = True,
-                      progress=None, work_offset=None, tool_lengths=None) -> SurfaceMap:
+                      progress=None, work_offset=None, setup=None) -> SurfaceMap:
     """The surface ``program`` cuts, with the deviation predicted by ``fitted`` (a FittedModel).
 
     program, compensated : paths of NC files (or :class:`ProgramPoints`); the compensated program
@@ -309,9 +293,10 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
         positions (its G54 ...), as compensate was given it: the model is evaluated at the machine
         positions and the map referenced to the deviation there (the part's datum); None: the
         program's coordinates are machine positions. The map is drawn in the program's frame.
-    tool_lengths : H number -> tool length, mm, as compensate was given them (``--tool-length``,
-        ``[tool_lengths]``): the model's Abbe arm at the blocks of that ``G43 H`` (None, or a tool
-        not listed: the machine's tool length, as compensate assumes).
+    setup : the :class:`mtcomp.toolpaths.offsets.ProgramSetup` compensate was given: the lengths of
+        its tools (``--tool-length``, ``[tool_lengths]``, by number or by name) are the model's Abbe
+        arm at the blocks of that tool (None, or a tool it does not list: the machine's tool length,
+        as compensate assumes; with a setup such tools are listed in ``info["tools_assumed"]``).
     Raises InputError for programs without a surface or a compensated program that does not match.
     """
     radius, length = _tool(program, tool_radius_mm, flank_length_mm)
@@ -332,9 +317,10 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
     sel = g.index[first]
     off = _work_offset(machine, work_offset)
     tips = tool2wp(machine, orig.q[sel])[:, :3, 3]
-    length_of = tool_lengths_of(orig, machine, tool_lengths)
-    if tool_lengths is not None and orig.tool is not None:
-        info["tools_assumed"] = tools_assumed(orig, sel, tool_lengths)
+    lengths = {} if setup is None else setup.lengths_by_number(orig.tool_names or {})
+    length_of = tool_lengths_of(orig, machine, lengths)
+    if setup is not None and orig.tool is not None:
+        info["tools_assumed"] = tools_assumed(orig, sel, lengths)
     dev_before, dev_after = _deviations(machine, fitted, orig, comp, pair, sel, g.offset[first],
                                         off, length_of[sel], say)
     status, source = None, ""
