@@ -742,7 +742,9 @@ class BallbarModel(MeasurementModel):
         """InputError for a reading that is no bar length: further than
         :data:`BAR_LENGTH_TOLERANCE_MM` from the distance of the balls at the row's nominal pose
         (a deviation in um entered under ``length_mm``, a length in inches). Called before a fit
-        (predict takes any placeholder)."""
+        (predict takes any placeholder). Once per model: diagnose builds many problems of it."""
+        if getattr(self, "_lengths_checked", False):
+            return
         length = np.asarray(self.data.length, dtype=float)
         nominal = self._lengths(np.zeros(self.model.n_params), False)[0]
         with np.errstate(invalid="ignore"):
@@ -753,6 +755,7 @@ class BallbarModel(MeasurementModel):
                              f"the distance of the balls there ({nominal[i]:.4f} mm): length_mm is "
                              "the bar's length in mm (its nominal length plus the reading, not the "
                              "deviation in um)", self.data.path, row=int(self.data.row[i]))
+        self._lengths_checked = True
 
     def _offset(self, nuisance) -> float:
         return 0.0 if self._calibrated else nuisance[0]
