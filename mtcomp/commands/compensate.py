@@ -149,8 +149,17 @@ def _write_summary(path, run_) -> None:
         f.write("\n")
 
 
-def _print_run(args, machine, fitted, run_, seconds, unread, written) -> None:
+def _reversal_note(fitted) -> str | None:
+    """:func:`mtcomp.export.reversal_note` of the model, for a model whose file records its data's
+    reversals (``info["reversal"]``); None without that record (export and the identification it
+    imports are not loaded)."""
+    if not (isinstance(fitted.info, dict) and fitted.info.get("reversal")):
+        return None
     from ..export import reversal_note
+    return reversal_note(fitted)
+
+
+def _print_run(args, machine, fitted, run_, seconds, unread, written) -> None:
     print(f"mtcomp compensate: method {args.method}, {machine.name} ({machine.topology}), "
           f"{seconds:.1f} s")
     if run_.dialect:
@@ -163,7 +172,7 @@ def _print_run(args, machine, fitted, run_, seconds, unread, written) -> None:
     print(run_.summary.text())
     for line in run_.notes:
         print(line)
-    reversal = reversal_note(fitted)
+    reversal = _reversal_note(fitted)
     if reversal:
         print(f"note: {reversal}")
     st = run_.stats

@@ -37,7 +37,7 @@ import numpy as np
 
 from ..io.atomic import check_output_path
 from ..machine import Machine
-from . import _fast, heidenhain_out, reader, sinumerik_out, writer
+from . import _fast, reader, writer
 from .blocks import CycleBlock, MotionBlock, Program, SegmentChunk
 from .modal import ModalState
 from .reader import iter_blocks, new_state, read_program
@@ -153,8 +153,8 @@ def write_corrected(in_path, out_path, machine: Machine,
         cursor = CorrectionCursor(corrections, machine.n_axes, src.source)
         write = _fast.write_corrected if _compiled(src) else writer.write_corrected
         if src.heidenhain is not None:          # written back in its conversational form
-            write = heidenhain_out.write_corrected
+            from .heidenhain_out import write_corrected as write
         if src.sinumerik is not None:           # written back in its own form
-            write = sinumerik_out.write_corrected
+            from .sinumerik_out import write_corrected as write
         return write(src, out_path, machine, cursor, chord_tol_mm, initial_position, stats=stats,
                      **kw)

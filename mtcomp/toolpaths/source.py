@@ -21,13 +21,11 @@ from dataclasses import dataclass, field
 from ..errors import InputError
 from .dialect import Dialect, dialect_named, foreign_language, needs_expansion
 from .words import strip_comments
-from .heidenhain import translate
-from .sinumerik import translate as translate_sinumerik
-from .macro import MacroRun
-from .ngc import MAX_LINES, MAX_STEPS, NgcRun
 
-_LANGUAGE = {"ngc": (NgcRun, "O-word control flow, parameters and expressions"),
-             "macro": (MacroRun, "macro variables, IF, GOTO, WHILE and subprogram calls")}
+# the languages' readers (.ngc, .macro, .heidenhain, .sinumerik) are imported where a program
+# needs one: a plain G-code program is read without them
+_LANGUAGE = {"ngc": "O-word control flow, parameters and expressions",
+             "macro": "macro variables, IF, GOTO, WHILE and subprogram calls"}
 
 
 @dataclass
@@ -118,9 +116,12 @@ def _header(source: str, language: str, dialect: Dialect) -> str:
 _PROGRAM_END_RE = re.compile(r"(?i)\bm0*(?:2|30)(?![\d.])")
 
 
-def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int):
+def _expand(source: str, dialect: Dialect, max_steps: int | None, max_lines: int | None):
     """(temporary file, line map, lines written, source lines), or None when nothing changes."""
-    run_cls, language = _LANGUAGE[dialect.language]
+    from . import macro, ngc
+    language = _LANGUAGE[dialect.language]
+    limits = {"max_steps": ngc.MAX_STEPS if max_steps is None else max_steps,
+              "max_lines": ngc.MAX_LINES if max_lines is None else max_lines}
     with open(source, "rb") as f:
         raws = f.read().split(b"\n")          # lines as the reader counts them ('\n' ends one)
     raws = [r + b"\n" for r in raws[:-1]] + ([raws[-1]] if raws[-1] else [])
@@ -128,8 +129,10 @@ def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int):
         raws[0] = raws[0][3:]
     texts = [r.decode("latin-1").rstrip("\r\n") for r in raws]
     ending = "\r\n" if raws and raws[0].endswith(b"\r\n") else "\n"
-    extra = {"dialect": dialect.name} if run_cls is MacroRun else {}
-    run = run_cls(texts, source, max_steps=max_steps, max_lines=max_lines, **extra)
+    if dialect.language == "ngc":
+        run = ngc.NgcRun(texts, source, **limits)
+    else:
+        run = macro.MacroRun(texts, source, **limits, dialect=dialect.name)
     # the expanded program's lines (0-based) -> the source's lines (1-based; 0: the header)
     line_map = array("l")
     header = (_header(source, language, dialect) + ending).encode("latin-1")   # the first line
@@ -186,7 +189,11 @@ def _translated(source: str, d: Dialect, why: str):
     if not os.path.isfile(source):
         raise InputError("no such file", source)
     sinumerik = d.language == "sinumerik"
-    translation = translate_sinumerik(source) if sinumerik else translate(source)
+    if sinumerik:
+        from .sinumerik import translate
+    else:
+        from .heidenhain import translate
+    translation = translate(source)
     fd, tmp = tempfile.mkstemp(prefix=f"mtcomp-{d.language}-", suffix=".nc")
     try:
         with os.fdopen(fd, "w", encoding="latin-1", newline="\n") as out:
@@ -202,11 +209,13 @@ def _translated(source: str, d: Dialect, why: str):
 
 
 @contextlib.contextmanager
-def open_program(path, dialect: str | None = None, *, max_steps: int = MAX_STEPS,
-                 max_lines: int = MAX_LINES):
+def open_program(path, dialect: str | None = None, *, max_steps: int | None = None,
+                 max_lines: int | None = None):
     """The program at ``path`` as a :class:`ProgramSource` (see the module docstring); a
     ProgramSource is handed back as it is. ``dialect``: a name of :data:`~.dialect.DIALECTS`, or
-    None to detect it. The temporary file of an expansion is removed on leaving the context.
+    None to detect it. ``max_steps``, ``max_lines``: the limits of an expansion (None:
+    :data:`.ngc.MAX_STEPS`, :data:`.ngc.MAX_LINES`). The temporary file of an expansion is
+    removed on leaving the context.
     Raises InputError (file and source line named) for code that cannot be run."""
     if isinstance(path, ProgramSource):
         yield path
