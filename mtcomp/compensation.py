@@ -496,9 +496,10 @@ def _to_program_frame(res, chunk, off, setup) -> None:
         res.corrected += exact
     else:
         ends = np.cumsum(res.counts) - 1
-        exact = chunk.end - res.nominal[ends]
-        res.nominal[ends] += exact
-        res.corrected[ends] += exact
+        for j in range(chunk.end.shape[1]):    # a column at a time: numpy takes rows one by one
+            exact = chunk.end[:, j] - res.nominal[ends, j]
+            res.nominal[ends, j] += exact
+            res.corrected[ends, j] += exact
     res.corrected = setup.written(chunk, res.corrected, res.nominal, res.counts)
 
 

@@ -25,7 +25,7 @@ import numpy as np
 from ..kinematics import forward as nominal_pose
 from ..kinematics import pose_jacobian as nominal_pose_jacobian
 from ..models.evaluate import evaluate
-from ._small import any_rows
+from ._small import any_rows, down_columns
 from .problem import CompensationProblem
 
 
@@ -196,8 +196,8 @@ class Evaluator:
         deviation at the part's datum (:meth:`datum_reference`); None: nothing."""
         b, A, target, Jn = self.residual_jacobian(q, None, ctx, _with_nominal=True)
         if reference is not None:
-            target = target + reference
-            b = b - reference * self.S
+            target = down_columns(np.add, target, reference)
+            b = b - down_columns(np.multiply, reference, self.S)
         return b, A, target, self.orientation_rows(q, Jn)
 
     def datum_reference(self, datum, ctx) -> np.ndarray:
@@ -244,7 +244,7 @@ class Evaluator:
         """
         q = np.asarray(q, dtype=float)
         zero = x is None or not np.any(x)
-        qq = q if zero else q + x / self.D
+        qq = q if zero else q + down_columns(np.divide, x, self.D)
         dev, Jd = self._deviation_and_qjacobian(qq, ctx)
         tip, axis, Jn = nominal_pose_jacobian(self.machine, qq)
         self._count(q.shape[0])
@@ -252,9 +252,10 @@ class Evaluator:
         if target is None:
             target = (tip if rows == 3 else np.concatenate([tip, axis], axis=1)) if zero \
                 else self.target(q)
-        r = dev[:, :rows] + tip if rows == 3 else dev + np.concatenate([tip, axis], axis=1)
+        r = down_columns(np.add, dev[:, :rows], tip) if rows == 3 \
+            else dev + np.concatenate([tip, axis], axis=1)
         r -= target
-        r *= self.S
+        down_columns(np.multiply, r, self.S, out=r)
         # stored entry by entry, (rows, n_axes, n) contiguous, returned as its (n, rows, n_axes)
         # view: every entry is one contiguous vector (as NormalFactor and a_x read them)
         na = Jd.shape[2]
@@ -276,13 +277,12 @@ class Evaluator:
     def residual(self, q, x, ctx, target):
         """Weighted residual b (n, rows) only (cheaper: no Jacobian of the model)."""
         q = np.asarray(q, dtype=float)
-        qq = q + x / self.D
+        qq = q + down_columns(np.divide, x, self.D)
         dev = self._deviation(qq, ctx)
         self._count(q.shape[0])
-        r = dev[:, :self.rows] + self.target(qq)
+        r = down_columns(np.add, dev[:, :self.rows], self.target(qq))
         r -= target
-        r *= self.S
-        return r
+        return down_columns(np.multiply, r, self.S, out=r)
 
     def deviation_only(self, q, ctx):
         """Weighted model deviation (n, rows) at q (the residual of the uncorrected program)."""

@@ -39,7 +39,7 @@ from ._pointwise import Linearization, solve_newton, solve_pinv
 from ._qp import WindowQP, never_worse_rows, reachable_nodes
 from ._result import PlanResult
 from ._rotary_grid import rotary_columns, round_rotary, solve_with_rotary_fixed
-from ._small import a_x, any_rows, at_b, gram, row_max_abs, row_norm
+from ._small import a_x, any_rows, at_b, down_columns, gram, row_max_abs, row_norm
 from .problem import CompensationProblem, PlannerOptions
 from ..models.region import outside_bounds, support_bounds
 
@@ -338,7 +338,7 @@ class Planner:
         the corrections x0 and x1 of the ends misses there."""
         qm = self.bounds.snap(start + t[:, None] * (end - start))
         target, M = self.ev.target_and_orientation_rows(qm)
-        target = target + ref
+        target = down_columns(np.add, target, ref)
         # as the objective counts it: a tool-axis deviation no rotary axis can remove there is
         # missed by any correction and says nothing about the interpolation
         miss = objective_residual(M, self.ev.residual(qm, 0.5 * (x0 + x1), c, target))
@@ -371,14 +371,15 @@ class Planner:
         D = self.bounds.D
         if self.bounds.grid is not None:
             g = self.bounds.grid
-            corrected = np.divide(nodes.q, g)            # in place from here: fewer temporaries
+            # in place from here: fewer temporaries
+            corrected = down_columns(np.divide, nodes.q, g)
             np.round(corrected, out=corrected)
-            steps = np.divide(y, self.bounds.unit)
+            steps = down_columns(np.divide, y, self.bounds.unit)
             np.round(steps, out=steps)
             corrected += steps
-            corrected *= g
+            down_columns(np.multiply, corrected, g, out=corrected)
         else:
-            corrected = nodes.q + y / D
+            corrected = nodes.q + down_columns(np.divide, y, D)
         correction = corrected - nodes.q
         # first order around the last linearisation where the written correction is close to it
         # (the iterations end there); the exact model where it is not (pinv, clamped blocks)
@@ -390,9 +391,8 @@ class Planner:
             after_w[far] = self.ev.residual(nodes.q[far], y[far], nodes.context[far],
                                             lin.target[far])
         S = self.ev.S
-        before = lin.b0 / S
-        after = after_w                 # a new array: divided in place
-        after /= S
+        before = down_columns(np.divide, lin.b0, S)
+        after = down_columns(np.divide, after_w, S, out=after_w)    # a new array: in place
         five = self.problem.correct_orientation
         self._done += len(nodes)
         self._tick()

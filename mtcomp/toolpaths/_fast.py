@@ -272,7 +272,9 @@ def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_positio
         k = n.value
         line, start, end, feed, dirs, rapid, known, frame, arc, cycle, crc = rows
         jump = (known[:k] & START_UNKNOWN) != 0
-        known = (known[:k, None].astype(np.int64) & d.bits) != 0
+        mask, known = known[:k], np.empty((k, na), bool)
+        for j in range(na):     # column by column: the bits broadcast over the rows go row by row
+            known[:, j] = (mask & (1 << j)) != 0
         return SegmentChunk(line[:k], start[:k], end[:k], feed[:k], dirs[:k], rapid[:k].view(bool),
                             arc[:k], known, frame[:k], cycle[:k], jump, cutter_comp=crc[:k])
     try:

@@ -80,7 +80,10 @@ class ProgramSetup:
     def _row_offsets(self, chunk: SegmentChunk, wcs: np.ndarray, source) -> np.ndarray:
         """(n, na) the work offset of each row: this setup's, where the program set an axis of
         its system itself (G10 L2/L20, the sets ``source.work_offset_sets``) the program's."""
-        off = self._offset_table()[wcs]
+        table = self._offset_table()
+        off = np.empty((len(wcs), table.shape[1]))
+        for j in range(table.shape[1]):     # a column at a time: numpy takes rows one by one
+            off[:, j] = table[wcs, j]
         sets = getattr(source, "work_offset_sets", None) or []
         which = frame_offset_set(chunk.frame)
         full = np.zeros(len(chunk), bool)
