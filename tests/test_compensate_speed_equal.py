@@ -128,16 +128,32 @@ def test_any_rows_matches_numpy():
     np.testing.assert_array_equal(any_rows(flags[:, :, 2]), flags[:, :, 2].any(axis=1))
 
 
-def test_g_codes_match_a_regular_expression():
+def test_distinct_work_systems_and_tools_are_numpys_unique():
+    from mtcomp.toolpaths.offsets import _distinct
+    rng = np.random.default_rng(6)
+    for n, runs in [(0, 1), (1, 1), (500, 1), (500, 4), (500, 400)]:
+        cuts = np.sort(rng.integers(0, n + 1, runs - 1))        # runs of equal values
+        a = np.repeat(rng.integers(0, 9, runs), np.diff(np.r_[0, cuts, n]))
+        assert _distinct(a) == np.unique(a).tolist()
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_g_codes_match_a_regular_expression(compiled, monkeypatch):
+    """In C and in numpy, over a text's first n bytes (those after read as a space)."""
     from mtcomp.compensation import _g_codes
+    if compiled and not _fast.available():
+        pytest.skip("no compiled G-code path here")
+    if not compiled:
+        monkeypatch.setenv("MTCOMP_NO_FAST_GCODE", "1")
     rng = np.random.default_rng(4)
     alphabet = list(b"gG0124. X\n")
     codes = [b"20", b"21", b"41", b"42"]
     for _ in range(3000):
         text = bytes(rng.choice(alphabet, int(rng.integers(0, 14))).tolist())
+        n = int(rng.integers(0, len(text) + 1))
         want = {c for c in codes
-                if re.search(rb"[Gg]0{0,2}" + c + rb"(?![0-9.])", text)}
-        assert _g_codes(text, codes) == want, text
+                if re.search(rb"[Gg]0{0,2}" + c + rb"(?![0-9.])", text[:n])}
+        assert _g_codes(text, codes, n) == want, (text, n)
 
 
 def test_sd_gate_jacobian_compiles_from_a_few_thousand_poses(monkeypatch):

@@ -112,6 +112,8 @@ def _load():
                                P, P]
     lib.mt_format_table.restype = LL
     lib.mt_format_table.argtypes = [P, LL, ctypes.c_int, P, P, P, LL]
+    lib.mt_g_codes.restype = ctypes.c_int
+    lib.mt_g_codes.argtypes = [P, LL, ctypes.c_char_p, ctypes.c_int, P]
     _lib = lib
     return _lib
 
@@ -144,6 +146,18 @@ def format_table(values: np.ndarray, decimals, blank) -> str | None:
         if size >= 0:
             return out[:size].tobytes().decode("ascii")
         cap *= 4                                  # values too large for 24 characters: room for more
+
+
+def g_codes(text, n: int, codes) -> set | None:
+    """The ``codes`` (two-digit bytes, e.g. b"20") that :func:`mtcomp.compensation._g_codes` finds in
+    the first ``n`` bytes of ``text`` (bytes or bytearray), in one compiled pass (numpy's took
+    60 ms for 37 MB), or None without the compiled path."""
+    if not available():
+        return None
+    found = np.zeros(len(codes), np.int32)
+    _lib.mt_g_codes(np.frombuffer(text, np.uint8).ctypes.data, n, b"".join(codes), len(codes),
+                    found.ctypes.data)
+    return {c for c, f in zip(codes, found.tolist()) if f}
 
 
 def _ptr(a: np.ndarray | None):
@@ -358,7 +372,7 @@ def write_corrected(in_path, out_path, machine, cursor, chord_tol_mm, initial_po
 
     def flush(f):
         if out_n.value:
-            f.write(out[:out_n.value].tobytes())
+            f.write(out[:out_n.value])
             out_n.value = 0
     try:
         with atomic_write(out_path, "wb") as f:

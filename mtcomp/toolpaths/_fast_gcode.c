@@ -481,3 +481,46 @@ long long mt_format_table(const double *vals, long long n, int k, const int *dec
     }
     return (long long)(o - out);
 }
+
+/* The codes of mt_g_codes that the letter at text[i] starts (set in found), how many new. */
+static int g_word_at(const char *text, long long len, long long i, const char *codes, int n_codes,
+                     int *found) {
+    char after[6];
+    int added = 0;
+    for (int j = 0; j < 6; j++) after[j] = i + 1 + j < len ? text[i + 1 + j] : ' ';
+    for (int k = 0; k < n_codes; k++) {
+        if (found[k]) continue;
+        for (int zeros = 0; zeros < 3; zeros++) {
+            int z = 0;
+            while (z < zeros && after[z] == '0') z++;
+            if (z < zeros) break;
+            char next = after[zeros + 2];
+            if (after[zeros] == codes[2 * k] && after[zeros + 1] == codes[2 * k + 1]
+                && !is_digit(next) && next != '.') {
+                found[k] = 1;
+                added++;
+                break;
+            }
+        }
+    }
+    return added;
+}
+
+/* Which of the n_codes two-digit G codes (codes: their digits one after the other, "20214142")
+ * the first len bytes of text hold: G or g, at most two zeros, the code, not followed by a digit or
+ * '.' (a byte at or past len reads as a space). found[k] is set to 1 for each code found; those
+ * already set are not looked for. Returns how many are set. (compensation._g_codes in numpy.) */
+int mt_g_codes(const char *text, long long len, const char *codes, int n_codes, int *found) {
+    int left = 0;
+    for (int k = 0; k < n_codes; k++) left += !found[k];
+    for (int letter = 0; letter < 2 && left; letter++) {     /* the G words, then the g words */
+        const char *p = text, *end = text + len;
+        while (left && (p = memchr(p, letter ? 'g' : 'G', (size_t)(end - p))) != NULL) {
+            left -= g_word_at(text, len, p - text, codes, n_codes, found);
+            p++;
+        }
+    }
+    int n = 0;
+    for (int k = 0; k < n_codes; k++) n += found[k] != 0;
+    return n;
+}
