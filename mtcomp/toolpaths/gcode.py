@@ -101,8 +101,8 @@ def _still_arcs_at_the_last_feed(chunks: Iterable[SegmentChunk]) -> Iterator[Seg
     last = np.nan
     for chunk in chunks:
         if len(chunk):
-            still = np.flatnonzero(np.asarray(chunk.from_arc, bool)
-                                   & ~np.any(chunk.end != chunk.start, axis=1))
+            arc = np.flatnonzero(chunk.from_arc)        # the few arc rows only
+            still = arc[~np.any(chunk.end[arc] != chunk.start[arc], axis=1)]
             if still.size:
                 feed = np.array(chunk.feed, dtype=float)
                 for r in still.tolist():

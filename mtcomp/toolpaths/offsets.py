@@ -43,6 +43,17 @@ _WCS_NAME = {name: i for i, name in enumerate(WORK_SYSTEMS)}
 _AXIS_VALUE_RE = re.compile(r"^\s*([A-Za-z])\s*=?\s*([+-]?(?:\d+\.?\d*|\.\d+))\s*$")
 
 
+
+def _distinct(a: np.ndarray) -> list:
+    """``np.unique(a).tolist()`` of a chunk's rows (1-D), sorting only the first row of each run of
+    equal ones: a program changes its work system and tool a few times in thousands of blocks
+    (sorting every row took about 1 ms a chunk, three times a chunk)."""
+    if a.size == 0:
+        return []
+    first = np.ones(a.size, bool)
+    first[1:] = a[1:] != a[:-1]
+    return np.unique(a[first]).tolist()
+
 @dataclass
 class ProgramSetup:
     """Work offsets and tool lengths of one program on one machine.
@@ -97,8 +108,8 @@ class ProgramSetup:
                 off[np.ix_(rows, given)] = vec[given]
                 if given.all():
                     full |= rows
-        self.programmed_wcs.update(np.unique(wcs[full]).tolist())
-        self.used_wcs.update(np.unique(wcs[~full]).tolist())
+        self.programmed_wcs.update(_distinct(wcs[full]))
+        self.used_wcs.update(_distinct(wcs[~full]))
         return off
 
     def apply(self, chunk: SegmentChunk, source=None) -> tuple[SegmentChunk, np.ndarray]:
@@ -112,7 +123,7 @@ class ProgramSetup:
         ``jump``: between two of them the axes do not move along a straight line."""
         wcs = frame_wcs(chunk.frame)
         tool = frame_tool(chunk.frame)
-        self.used_tools.update(t for t in np.unique(tool).tolist() if t > 0)
+        self.used_tools.update(t for t in _distinct(tool) if t > 0)
         off = self._row_offsets(chunk, wcs, source)
         table = getattr(source, "local_frames", None)
         if table is not None:
