@@ -590,11 +590,7 @@ class Planner:
             nonlocal n_done
             while pending and n_done >= pending[0][2]:
                 chunk, counts, n = pending.popleft()
-                allres = done[0] if len(done) == 1 else PlanResult.concatenate(done)
-                res, rest = allres.take(slice(0, n)), allres.take(slice(n, len(allres)))
-                done.clear()
-                if len(rest):
-                    done.append(rest)
+                res = _first_rows(done, n)
                 n_done -= n
                 res.counts = counts
                 yield chunk, res
@@ -731,6 +727,22 @@ def plan_chunks(problem: CompensationProblem, chunks: Iterable, options: Planner
     ``result.counts`` gives the output blocks per segment row (``write_corrected``'s counts) and
     ``result.corrected`` the points to write."""
     return Planner(problem, options, source).iter_chunks(chunks)
+
+
+def _first_rows(done: list, n: int) -> PlanResult:
+    """The first n (>= 1) rows of the results ``done`` (in program order) as one PlanResult, taken
+    off the list: the results they span joined, those after left as they are (of a result cut at
+    the n-th row, the rows after stay first, a view). Joining every result and cutting that copied
+    most rows twice: the windows of the next chunk are planned before this one is handed on."""
+    parts, got = [], 0
+    while got < n:
+        r = done.pop(0)
+        if got + len(r) > n:
+            done.insert(0, r.take(slice(n - got, len(r))))
+            r = r.take(slice(0, n - got))
+        parts.append(r)
+        got += len(r)
+    return parts[0] if len(parts) == 1 else PlanResult.concatenate(parts)
 
 
 def _as_list(res) -> list:
