@@ -176,3 +176,38 @@ def test_sd_gate_jacobian_compiles_from_a_few_thousand_poses(monkeypatch):
     assert compiled.MIN_POSES_OF["tip_pjacobian_function"] == 5000
     assert asked == [("tip_pjacobian_function", False), ("tip_pjacobian_function", True),
                      ("deviation_function", False), ("deviation_function", False)]
+
+
+def test_arc_directions_match_the_segment_by_segment_loop():
+    """ModalState._directions over an arc's chords (vectorised) gives what the loop over its
+    segments gave: each axis the sign of its last move, a fresh axis 0 until it moves again."""
+    from mtcomp.toolpaths.modal import ModalState
+    from mtcomp.toolpaths.words import DIR_EPS
+
+    def loop(dirs, start, pts, fresh):
+        step = pts - np.vstack([start[None, :], pts[:-1]])
+        sign = np.where(step > DIR_EPS, 1, np.where(step < -DIR_EPS, -1, 0))
+        out, cur = np.empty(sign.shape, np.int8), dirs.copy()
+        for r in range(sign.shape[0]):
+            cur[sign[r] != 0] = sign[r][sign[r] != 0]
+            if r == 0 and fresh is not None:
+                cur[fresh] = 0
+            out[r] = cur
+        return out
+
+    class State:                # what _directions reads: no local frame, the directions so far
+        local = type("NoFrame", (), {"kind": 0})()
+
+    rng = np.random.default_rng(9)
+    for _ in range(400):
+        na, k = int(rng.integers(1, 6)), int(rng.integers(2, 8))
+        state = State()
+        state.dirs = rng.integers(-1, 2, na).astype(np.int8)
+        start = rng.normal(size=na)
+        pts = start + np.cumsum(rng.choice([0.0, 0.0, 1.0, -1.0], size=(k, na)), axis=0)
+        fresh = None if rng.random() < 0.5 else rng.random(na) < 0.5
+        want = loop(state.dirs, start, pts, fresh)
+        got = ModalState._directions(state, start, pts, fresh)
+        assert got.dtype == np.int8
+        np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(state.dirs, want[-1])
