@@ -261,6 +261,7 @@ class Progress:
 
 
 def run(args) -> int:
+    import gc
     import sys
     import time
 
@@ -296,6 +297,9 @@ def run(args) -> int:
         start_position=parse_start_position(machine, args.start_position), dialect=args.dialect)
     setup = load_setup(machine, args.offsets, args.work_offset, args.tool_length)
 
+    # what this process holds by now (the modules imported, the model) lives to its end: Python's
+    # collector no longer goes through it at each full collection the planning sets off
+    gc.freeze()
     # the summary JSON is written after the program and BLOCKS.csv, which are complete by then: a
     # failed run leaves none of the three (the first two are renamed into place only on success)
     with Progress(None if args.quiet else sys.stderr, t0) as progress, \
