@@ -83,15 +83,24 @@ static char *put_fixed(char *s, long long m, int dec) {
     return s;
 }
 
-/* Python's f"{v:.{dec}f}" (dec 4 or 5), with "-0.000.." written as "0.000..". */
-static int fmt_fixed_m(char *o, double v, int dec, long long *mout, int *exact) {
+/* 1 and *m when v with dec decimals is written as the digits of m (m / 10^dec is |v| rounded to
+ * them; the text is then a function of m alone), 0 when printf rounds it: beyond 1e9 the rounding
+ * of v * 10^dec could hide a tie (values > 100 m), and near a tie printf rounds the exact value. */
+static int fixed_digits(double v, int dec, long long *m) {
     double t = v * POW10[dec];
-    *exact = 0;
-    /* beyond 1e9 the rounding of t itself could hide a tie: let printf do it (values > 100 m) */
-    if (!(fabs(t) < 1e9)) return sprintf(o, "%.*f", dec, v);
+    if (!(fabs(t) < 1e9)) return 0;
     double fl = floor(t);
     double fr = t - fl;
-    if (fabs(fr - 0.5) < 1e-6) {                 /* near a tie: let printf round the exact value */
+    if (fabs(fr - 0.5) < 1e-6) return 0;
+    *m = (long long)(fr < 0.5 ? fl : fl + 1.0);
+    return 1;
+}
+
+/* Python's f"{v:.{dec}f}" (dec 4 or 5), with "-0.000.." written as "0.000..". */
+static int fmt_fixed_m(char *o, double v, int dec, long long *mout, int *exact) {
+    long long m;
+    *exact = fixed_digits(v, dec, &m);
+    if (!*exact) {
         int n = sprintf(o, "%.*f", dec, v);
         if (o[0] == '-') {                        /* "-0.0000" -> "0.0000" */
             int zero = 1;
@@ -100,9 +109,7 @@ static int fmt_fixed_m(char *o, double v, int dec, long long *mout, int *exact) 
         }
         return n;
     }
-    long long m = (long long)(fr < 0.5 ? fl : fl + 1.0);
     *mout = m;
-    *exact = 1;
     char *s = o;
     if (m < 0) { *s++ = '-'; m = -m; }
     return (int)(put_fixed(s, m, dec) - o);
@@ -120,26 +127,36 @@ static __thread double cache_val[6];
 static __thread int cache_inch[6] = {-1, -1, -1, -1, -1, -1};
 static __thread char cache_txt[6][40];
 
+static const double RAD2DEG = 180.0 / 3.14159265358979323846;
+
+/* The number a coordinate's word shows for the position q (mm, rad): deg, inch or mm. */
+static double shown(double q, int rot, int inch) {
+    return rot ? RAD2DEG * q : (inch ? q / 25.4 : q);
+}
+
 /* One coordinate's text (without the letter) with dec decimals, NUL-terminated; returns its length. */
 static int fmt_value(char *o, double q, int rot, int inch, int dec) {
-    static const double RAD2DEG = 180.0 / 3.14159265358979323846;
-    int n;
-    if (rot) n = fmt_fixed(o, RAD2DEG * q, dec);
-    else if (inch) n = fmt_fixed(o, q / 25.4, dec);
-    else n = fmt_fixed(o, q, dec);
+    int n = fmt_fixed(o, shown(q, rot, inch), dec);
     o[n] = 0;
     return n;
+}
+
+/* Whether the positions a and b are written as different text with dec decimals: 1 or 0 when
+ * their digits say so, -1 when only their texts can (printf rounds one of them). */
+static int texts_differ(double a, double b, int rot, int inch, int dec) {
+    long long ma, mb;
+    if (!fixed_digits(shown(a, rot, inch), dec, &ma) || !fixed_digits(shown(b, rot, inch), dec, &mb))
+        return -1;
+    return ma != mb;
 }
 
 /* As fmt_value, and *back: the position the text says (mm, rad), as Python's float() of the text
  * would read it: m / 10^dec is that correctly rounded value when the digits are known exactly. */
 static int fmt_value_back(char *o, double q, int rot, int inch, int dec, double *back) {
-    static const double RAD2DEG = 180.0 / 3.14159265358979323846;
     static const double DEG2RAD_ = 3.14159265358979323846 / 180.0;
     long long m = 0;
     int exact = 0, n;
-    double v = rot ? RAD2DEG * q : (inch ? q / 25.4 : q);
-    n = fmt_fixed_m(o, v, dec, &m, &exact);
+    n = fmt_fixed_m(o, shown(q, rot, inch), dec, &m, &exact);
     o[n] = 0;
     double x = exact ? (double)m / POW10[dec] : strtod(o, NULL);
     *back = rot ? x * DEG2RAD_ : (inch ? x * 25.4 : x);
@@ -366,8 +383,11 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                         double back;
                         if (named) {
                             if (!incr && q[j] == end[j]) { last[j] = end[j]; continue; }
+                            /* a correction that leaves the word's text as it is: nothing to write */
+                            int differ = incr ? 1 : texts_differ(q[j], end[j], is_rot[j], inch, dec[j]);
+                            if (!differ) { last[j] = end[j]; continue; }
                             int tn = fmt_value_back(tmp, q[j], is_rot[j], inch, dec[j], &back);
-                            if (!incr) {
+                            if (differ < 0) {
                                 fmt_value(nom, end[j], is_rot[j], inch, dec[j]);
                                 if (strcmp(tmp, nom) == 0) { last[j] = end[j]; continue; }
                             }
