@@ -22,12 +22,16 @@ def test_down_columns_is_numpys_broadcast_bit_for_bit(op):
     a = rng.normal(size=(1000, 3)) * 10.0 ** rng.integers(-6, 6, size=(1000, 3))
     wide = rng.normal(size=(1000, 6))
     v = rng.normal(size=3)
+    same, zeros = np.full(3, 1e3), np.array([0.0, -0.0, 0.0])      # a row of one number, or not
     cases = [(a, v), (v, a), (a, v[None, :]), (a, np.broadcast_to(v, a.shape)), (wide[:, :3], a),
-             (a, wide[:, 3:]), (a, a[::-1].copy()), (a[:0], v)]
+             (a, wide[:, 3:]), (a, a[::-1].copy()), (a[:0], v), (a, same), (same[None, :], a),
+             (wide[:, :3], same), (-np.abs(a) * 0.0, zeros), (zeros, -np.abs(a) * 0.0)]
     for x, y in cases:
-        got, want = down_columns(op, x, y), op(x, y)
+        with np.errstate(invalid="ignore", divide="ignore"):      # 0 / 0 among the zeros
+            got, want = down_columns(op, x, y), op(x, y)
         assert got.dtype == want.dtype and got.flags.c_contiguous
         np.testing.assert_array_equal(got, want)
+        assert np.array_equal(np.signbit(got), np.signbit(want))        # -0.0 stays -0.0
     if op not in (np.greater, np.less):
         inplace = a.copy()
         assert down_columns(op, inplace, v, out=inplace) is inplace
