@@ -291,11 +291,11 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
             unsigned fresh = seen & ~known;   /* moved from a position not given: direction unknown */
             known |= seen;
             state[20] = (double)known;
-            for (int j = 0; j < na; j++) {
-                double step = end[j] - start[j];
-                if (fresh & (1u << j)) state[6 + j] = 0.0;
-                else if (step > 1e-9) state[6 + j] = 1.0;
-                else if (step < -1e-9) state[6 + j] = -1.0;
+            for (int j = 0; j < na; j++) {    /* selects, not branches: the signs vary */
+                double step = end[j] - start[j], d = state[6 + j];
+                d = step > 1e-9 ? 1.0 : d;
+                d = step < -1e-9 ? -1.0 : d;
+                state[6 + j] = (fresh & (1u << j)) ? 0.0 : d;
                 state[j] = end[j];
             }
             if (r_line) {
