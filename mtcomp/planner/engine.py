@@ -238,7 +238,7 @@ class Planner:
         start, x_start = self._row_starts(chunk, end, lin_end.x, ctx, ref)
         # no internal nodes in a contour the standard-error gate leaves uncorrected either
         cut_start = cycle | no_line
-        gated = self.gate.rows_gated(~rapid & known.all(axis=1), cut_start, sd)
+        gated = self.gate.rows_gated(~rapid & ~any_rows(unknown), cut_start, sd)
         inner = self._subdivide(start, end, x_start, lin_end.x, ctx, ref,
                                 rapid | pinned | cycle | no_line | gated)
         counts = np.ones(nrows, np.int64)
