@@ -99,6 +99,8 @@ class Evaluator:
         self._open = problem.fitted.undetermined_values() if self._factor is not None else None
         #: the model carries a covariance: :meth:`correction_sd_um` is NaN everywhere without one
         self.has_uncertainty = self._factor is not None
+        #: (function name, datum row, tool length) -> the function there (:meth:`_at_datum`)
+        self._datum_values: dict = {}
 
     def _count(self, n: int):
         with self._count_lock:
@@ -231,7 +233,12 @@ class Evaluator:
         new_run |= _run_starts(tool)
         firsts = np.flatnonzero(new_run)
         if firsts.size == 1:
-            value = self.problem.fitted.at_datum(name, datum[:1], tool[:1])
+            # the program's one datum and tool: evaluated once, not once a chunk
+            key = (name, datum[0].tobytes(), np.float64(tool[0]).tobytes())
+            value = self._datum_values.get(key)
+            if value is None:
+                value = self._datum_values[key] = self.problem.fitted.at_datum(name, datum[:1],
+                                                                               tool[:1])
             return np.broadcast_to(value[0], (datum.shape[0],) + value.shape[1:])
         uniq, inv = _unique_runs(np.column_stack([datum[firsts], tool[firsts]]), new_run)
         return self.problem.fitted.at_datum(name, uniq[:, :-1], uniq[:, -1])[inv]
