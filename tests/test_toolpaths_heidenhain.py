@@ -153,6 +153,8 @@ def test_an_arc_that_no_centre_holds_is_refused(tmp_path):
     ("TOOL CALL 1 X", "tool axis X"),
     ("L X+1 FMAX M99", "without a pecking cycle"),
     ("PLANE SPATIAL SPA+0 SPB+0 SPC+0", "PLANE"),
+    # the whole construct, never cut off mid-word
+    ("FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS", "'FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS' is not"),
 ])
 def test_refused_in_one_line_naming_the_construct(tmp_path, block, words):
     p = _write(tmp_path, f"0 BEGIN PGM T MM\n1 L X+0 Y+0 Z+5 FMAX\n2 {block}\n3 END PGM T MM\n")
