@@ -31,8 +31,8 @@ def _model(tmp_path, support=None, name="model.json"):
     return p
 
 
-def _compensate(tmp_path, model, text, capsys):
-    prog, out = tmp_path / "p.nc", tmp_path / "o.nc"
+def _compensate(tmp_path, model, text, capsys, name="p.nc"):
+    prog, out = tmp_path / name, tmp_path / ("o" + name[1:])
     rep, summ = tmp_path / "B.csv", tmp_path / "S.json"
     prog.write_text(text)
     capsys.readouterr()
@@ -153,23 +153,39 @@ def test_the_summary_counts_the_lines_given_axis_words_they_did_not_name(tmp_pat
 
 
 
-def test_a_heidenhain_program_counts_them_too(tmp_path, capsys):
-    """The conversational writer adds X to the L lines that move only Y, and says so the same way
-    (the lines of the file, its line 0 BEGIN PGM being line 1)."""
+#: programs in a controller's own form whose lines moving only Y get an X word (a squareness of X
+#: and Y): Heidenhain's (its line 0 BEGIN PGM being the file's line 1) and Sinumerik's (its file
+#: header and DEF line come before the first move: the lines of its G-code equivalent are not the
+#: file's). (file name, program, axis words, the lines given X)
+OWN_FORMS = {
+    "heidenhain": ("p.h", "0 BEGIN PGM T MM\n1 TOOL CALL 1 Z S1000\n2 L X+0 Y+10 Z+5 FMAX\n"
+                   "3 L Z+0 F300\n4 L X+50\n5 L Y+60\n6 L Y+110 Z-1\n7 L X+80\n8 END PGM T MM\n",
+                   r"\b([XYZ])[+-]", [6, 7]),
+    "sinumerik": ("p.mpf", "%_N_SQ_MPF\n;$PATH=/_N_MPF_DIR\nDEF REAL _Z=0\nN10 G90 G54 G17\n"
+                  "N20 T1 D1\nN30 M6\nN40 G0 X0 Y10 Z5\nN50 G1 Z=_Z F300\nN60 X50\nN70 Y60\n"
+                  "N80 Y110 Z-1\nN90 X80\nN100 M30\n", r"\b([XYZ])-?\d", [10, 11]),
+}
+
+
+@pytest.mark.parametrize("form", sorted(OWN_FORMS))
+def test_a_program_in_its_own_form_counts_them_too(tmp_path, capsys, form):
+    """The Heidenhain and Sinumerik writers add X to the lines that move only Y, and say so as the
+    G-code writer does, naming the lines of the user's file."""
+    name, prog, words, want = OWN_FORMS[form]
     fm = random_model("xfyz", (), 3, 0.0, None)
     fm.params.set_file_value("C0Y", 50.0)
     model = tmp_path / "square.json"
     save_model(model, fm)
-    prog = ("0 BEGIN PGM T MM\n1 TOOL CALL 1 Z S1000\n2 L X+0 Y+10 Z+5 FMAX\n3 L Z+0 F300\n"
-            "4 L X+50\n5 L Y+60\n6 L Y+110 Z-1\n7 L X+80\n8 END PGM T MM\n")
-    text, _rows, printed, summary = _compensate(tmp_path, model, prog, capsys)
+    text, _rows, printed, summary = _compensate(tmp_path, model, prog, capsys, name=name)
     src, out = prog.splitlines(), text.splitlines()
-    words = re.compile(r"\b([XYZ])[+-]")
+    assert len(out) == len(src)
+    words = re.compile(words)
     added = [k + 1 for k, (a, b) in enumerate(zip(src, out))
              if set(words.findall(b)) - set(words.findall(a))]
-    assert added == [6, 7], out
-    assert summary["added_axis_words"] == {"lines": 2, "line": 6}
-    assert "2 lines written with axis words they did not name (first at line 6)" in printed
+    assert added == want, out
+    assert summary["added_axis_words"] == {"lines": 2, "line": want[0]}
+    assert (f"2 lines written with axis words they did not name (first at line {want[0]})"
+            in printed)
 
 
 @pytest.mark.parametrize("writer", ["compiled", "python"])

@@ -81,8 +81,11 @@ class HeidenhainWriter:
         self.arcs: dict[int, list] = {}
         self.holes = 0
         self.dropped = 0
-        #: lines written with axis words they did not name, and the first of them (1-based)
-        self.added_lines, self.added_line = 0, 0
+        #: lines written with axis words they did not name, and the first of them (1-based, a line
+        #: of the program read: its G-code equivalent, line for line here), the last one counted
+        self.added_lines, self.added_line, self._counted = 0, 0, -1
+        #: the line of the program read (1-based) of the block being written
+        self.line_read = 0
         self.cols = [self.letters.index(c) for c in "XY"]
 
     # ------------------------------------------------------------------ numbers and words
@@ -140,8 +143,7 @@ class HeidenhainWriter:
             edits.append((m.start(4), m.end(4), t))
             self.written[j] = self._internal(j, value, info.shift)
         if added:
-            self.added_lines += 1
-            self.added_line = self.added_line or i + 1
+            self.count_added(i)
             pos = max([m.end() for m in named.values()], default=None)
             if pos is None:
                 pos = _KEY_END.match(text).end()
@@ -150,9 +152,19 @@ class HeidenhainWriter:
             text = text[:a] + t + text[b:]
         return text + ending
 
+    def count_added(self, i: int) -> None:
+        """Count line i (0-based), written with an axis word it did not name, once (the summary's
+        ``added_axis_words``: the lines, and the first as a line of the program read,
+        ``line_read``)."""
+        if i != self._counted:
+            self._counted = i
+            self.added_lines += 1
+            self.added_line = self.added_line or self.line_read
+
     # ------------------------------------------------------------------ blocks
     def block(self, i: int, block, pts: np.ndarray, counts) -> None:
         """A motion block of line i (0-based) and its corrected points."""
+        self.line_read = i + 1
         info = self.tr.lines[i]
         if info.kind == "C":
             self._arc(i, block, pts, counts, info)
