@@ -69,7 +69,7 @@ REFUSED = {
     # The Toyoda program is refused before its arc (line 53), at `N0250 H00`: an H word with no
     # G43 (nothing names its Fanuc-type control: read as RS274/NGC, whose interpreters refuse an H
     # no code of its block uses, LinuxCNC's "H word with no G43"); a Fanuc in G43 mode takes it
-    # as a change of the tool length offset, which mtcomp does not follow on any dialect
+    # as a change of the tool length offset, as mtcomp does with --dialect fanuc or haas
     "nxpost_Toyoda_sample_part.ptp": ["Toyoda_sample_part.ptp:26:", "H word in a block without "
                                       "motion: no code of the block uses it"],
     # `G0 A0.0 B0.0` in a post for a Haas VF2 with an A table: a B word on a machine without B
