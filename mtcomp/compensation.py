@@ -625,6 +625,8 @@ _PASSED_MOVES = {"increment": "{n} incremental (G91) move{s} of an axis whose po
                  "jog": "{n} grbl jog{s} ($J=, {at})",
                  "machine": "{n} move{s} in machine coordinates (G53, {at})",
                  "tap": "{n} rigid tapping move{s} (G33.1, {at}: the spindle's reversal sets its ends)",
+                 "restore": "{n} move{s} to a RepRapFirmware restore point (G0/G1 R, {at}: the "
+                            "controller saved it)",
                  "subprogram": "{n} call{s} of a subprogram not in the file ({at}: its moves are "
                                "not seen)"}
 

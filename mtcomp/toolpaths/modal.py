@@ -27,7 +27,7 @@ from .frames import (FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle
 from .lengths import length_number, lone_h, set_length
 from .linetext import text_with_words
 from .programmed import ProgrammedOffsets, apply_g10
-from .rrf import macro_codes
+from .rrf import macro_codes, restore_move
 from .word_use import check_motion_mode, check_value_words
 from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _CURVE_WITH_COORDINATES, KNOWN_DECIMAL_G, FANUC_CYCLES, FANUC_DIALECTS,
                     OTHER_WCS_G, mode_followed, _REFUSED_G, _REFUSED_M, _UNIQUE_LETTERS, _WCS_INDEX, DEFAULT_CHORD_TOL_MM,
@@ -505,6 +505,8 @@ class ModalState:
         """The line's move in the motion mode in force (G0 to G3), or None when it does not move."""
         arc_words = [c for c in "IJKR" if c in values]
         is_motion = bool(axes_given) or (self.motion in (2, 3) and bool(arc_words))
+        if self.dialect.name == "rrf" and self.motion in (0, 1) and "R" in values:
+            return restore_move(self, values, axes_given, line)
         if not is_motion:
             if arc_words and self.cycle is None:
                 raise self._err(f"{arc_words[0]} word outside an arc block", line)
