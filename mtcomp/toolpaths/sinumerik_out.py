@@ -55,6 +55,7 @@ class SinumerikWriter(HelixTurns, HeidenhainWriter):
     """Writes one Sinumerik program (see the module docstring)."""
 
     ARC, CENTRE, HINT = "circle G2/G3", "its I J", "a larger --chord-tol-um"
+    SPLITS = False          # a circle no centre holds is written in pieces by _split
 
     def __init__(self, src, machine, chord_tol_mm: float):
         super().__init__(src, machine, chord_tol_mm, translation=src.sinumerik)

@@ -160,9 +160,10 @@ NO_LENGTH = MAX_TOOL - 1
 def frame_code(wcs: int, tool: int, tcp: bool = False, offset_set: int = 0,
                local: bool = False) -> int:
     """Pack the work coordinate system index (0 = G54 .. 8 = G59.3), the active tool length number H
-    (0: none stated; NO_LENGTH: an offset of 0, G49; below MAX_TOOL), the tool centre point mode, the set of work offsets the program
-    gave itself (0: none; k: the k-th distinct set, :mod:`.programmed`) and whether the program
-    moved its frame (G52, G68, mirror, scaling) into one int:
+    (0: none stated; NO_LENGTH: an offset of 0, G49; below MAX_TOOL), the tool centre point mode,
+    the set of work offsets the program gave itself (0: none; k: the k-th distinct set,
+    :mod:`.programmed`) and whether the program moved its frame (G52, G68, mirror, scaling) into
+    one int:
     ``wcs + 16 * tool (+ LOCAL_FRAME) (+ TCP_FRAME) + OFFSET_SET_FRAME * offset_set``."""
     return (int(wcs) + 16 * int(tool) + (LOCAL_FRAME if local else 0) + (TCP_FRAME if tcp else 0)
             + OFFSET_SET_FRAME * int(offset_set))
