@@ -84,6 +84,24 @@ def test_a_hole_whose_x_correction_the_reversal_rule_holds_is_not_called_correct
             "(reversal_x 2; first at line 4;") in printed
 
 
+@pytest.mark.parametrize("approach, held", [("", 2), ("N21 G0 X140. Y10.\nN22 X150.\n", 1)])
+def test_the_summary_says_which_held_blocks_lacked_a_direction(tmp_path, capsys, approach, held):
+    """The G43 line and the first hole are held only because X had not moved since the tool
+    change (its direction not known): the summary and SUMMARY.json say how many held blocks are
+    such (uncorrected.held_direction_unknown). With X moved to the hole by the program after the G43
+    line (X140 then X150: +X), the hole is corrected, and only the G43 line is held so."""
+    text = DRILL.replace("N3 G98", approach + "N3 G98")
+    _text, rows, printed, summary = _compensate(tmp_path, _model(tmp_path), text, capsys)
+    assert summary["uncorrected"]["held_by_bounds"] == held
+    assert summary["uncorrected"]["held_direction_unknown"] == held
+    assert (f"; {held} of them only because the axis had not moved since the start, a tool change "
+            "or a home move (its direction not known; first at line 4, such as a G43 line's "
+            "approach of Z)") in printed
+    # the G43 line (line 4) is held either way; BLOCKS.csv says so
+    g43 = next(r for r in rows if r["line"] == "4")
+    assert g43["corrected"] == "0" and g43["active_bounds"] == "reversal_x"
+
+
 def test_no_bound_is_counted_where_no_block_was_corrected(tmp_path, capsys):
     """Every block outside the region the model's data reached: nothing corrected, so no bound
     held anything (the backlash's reversal rule was counted at 3 blocks)."""
