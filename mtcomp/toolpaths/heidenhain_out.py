@@ -94,8 +94,8 @@ class HeidenhainWriter:
         self.after: dict[int, list] = {}
         self.split_arcs = self.added_blocks = 0
         #: lines written with axis words they did not name, and the first of them (1-based, a line
-        #: of the program read: its G-code equivalent, line for line here), the last one counted
-        self.added_lines, self.added_line, self._counted = 0, 0, -1
+        #: of the program read: its G-code equivalent, line for line here), the lines counted
+        self.added_lines, self.added_line, self._counted = 0, 0, set()
         #: the line of the program read (1-based) of the block being written
         self.line_read = 0
         self.cols = [self.letters.index(c) for c in "XY"]
@@ -168,8 +168,8 @@ class HeidenhainWriter:
         """Count line i (0-based), written with an axis word it did not name, once (the summary's
         ``added_axis_words``: the lines, and the first as a line of the program read,
         ``line_read``)."""
-        if i != self._counted:
-            self._counted = i
+        if i not in self._counted:
+            self._counted.add(i)
             self.added_lines += 1
             self.added_line = self.added_line or self.line_read
 
@@ -299,7 +299,7 @@ class HeidenhainWriter:
             return False
         # the source line: the first piece's end, from where the arc starts as written
         written, self.written = self.written, a.start_w.copy()
-        self.texts[a.line] = text
+        self.texts[a.line], self.line_read = text, a.line + 1
         self.texts[a.line] = self._rewrite(a.line, a.block, pieces[0].end, info,
                                            write=np.isin(np.arange(self.na), self.cols))
         self.written = written
