@@ -57,6 +57,14 @@ def test_g43_h0_and_g49_per_dialect(tmp_path, reader_path, dialect, h0):
            9: (h0, True), 11: (0.0, True), 12: (0.0, True)})
 
 
+@pytest.mark.parametrize("dialect", ["linuxcnc", "generic", "fanuc"])
+def test_a_g49_before_any_offset_keeps_the_machines_tool_length(tmp_path, dialect):
+    """The safe-start line G17 G21 G40 G49 G80 G90 of a program that never applies an offset (a
+    router's, its Z touched off with the tool): the tip, the machine file's length, as before."""
+    text = "G17 G21 G40 G49 G80 G90\nG0 X10. Y10. Z50.\nG1 Z-1. F500\nG1 X20.\nM30\n"
+    _same(_lengths(tmp_path, text, dialect), {2: (NAN, True), 3: (NAN, True), 4: (NAN, True)})
+
+
 def test_grbl_g49_keeps_the_machines_tool_length(tmp_path, reader_path):
     """grbl's G49 cancels its dynamic offset (G43.1), relative to the tool the machine was zeroed
     with: the machine file's tool length stays."""

@@ -7,12 +7,15 @@ assumed), or :data:`~.words.NO_LENGTH` where the program cancelled the offset or
 number 0, whose value is 0: the point the program steers is then the spindle's gauge point (tool
 length 0 for the error model's Abbe arm). Where that is so:
 
-* ``G49`` cancels the offset: LinuxCNC, Fanuc, Haas and RS274/NGC (LinuxCNC G-code reference,
-  G49; Fanuc Series 0i-MF operator's manual, tool length compensation cancel; Haas mill operator's
-  manual, G49; Kramer, Proctor and Messina 2000, NIST RS274/NGC interpreter version 3, section
-  3.5.13). grbl's G49 cancels its dynamic offset ``G43.1`` (grbl v1.1 commands), whose values are
-  relative to the tool the machine was zeroed with, not lengths from the gauge point: unchanged
-  there.
+* ``G49`` cancels the offset the program applied: LinuxCNC, Fanuc, Haas and RS274/NGC (LinuxCNC
+  G-code reference, G49; Fanuc Series 0i-MF operator's manual, tool length compensation cancel;
+  Haas mill operator's manual, G49; Kramer, Proctor and Messina 2000, NIST RS274/NGC interpreter
+  version 3, section 3.5.13). A ``G49`` before the program applies any (the safe-start line of
+  many posts, ``G17 G21 G40 G49 G80 G90``) leaves none stated: a program that moves Z without ever
+  applying an offset has Z touched off with its tool in the spindle, the tip (the machine file's
+  tool length). grbl's G49 cancels its dynamic offset ``G43.1`` (grbl v1.1 commands), whose values
+  are relative to the tool the machine was zeroed with, not lengths from the gauge point:
+  unchanged there.
 * ``H0`` (``H00``) is an offset of 0 on Fanuc and Haas (Haas mill operator's manual, G49 and G143:
   "a G49 or H00 command will cancel" the compensation; Centroid M-series operator's manual, H: "H00
   is always a 0.0 length offset") and in RS274/NGC ("It is OK for the H number to be zero; an
@@ -62,7 +65,10 @@ def set_length(state, code: float, values) -> None:
     """Follow a ``G43``, ``G44`` or ``G49`` of the block: the number in force, the offset's mode;
     the tool axis is unknown after it (its position in the program's frame moves by the change)."""
     if code == 49.0:
-        state.tool = NO_LENGTH if state.dialect.name in G49_NO_LENGTH else 0
+        # a G49 before any offset (the safe-start line of many posts) leaves none stated: the
+        # machine's tool length, the program's Z touched off with the tool in the spindle
+        cancels = state.tool != 0 and state.dialect.name in G49_NO_LENGTH
+        state.tool = NO_LENGTH if cancels else 0
         state.length_on = False
     else:
         state.tool = length_number(state, values)
