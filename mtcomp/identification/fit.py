@@ -56,7 +56,7 @@ from ..measurement.readings import data_held, data_support
 from ..models.model_file import FittedModel
 from ..models.params import ParameterSet
 from .reversal import DirectionContrast, data_reversal
-from .unmeasured import record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
+from .unmeasured import assumption, record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
 from ._linalg import (NULL_WEIGHT, column_scale, _eliminate, _error_scales, _name_null_space,
                       _relative_singular_values, _seen_columns, _solver, _step, block_obs,
                       file_normal_equations, one_blas_thread, penalised_inverse)
@@ -488,15 +488,17 @@ class _Problem:
         data_rank = int(keep.sum())
         cond = float(rel[0] / rel[keep][-1]) if data_rank else np.inf
         start = (x, r, A, g)
-        B1 = frame_rule_complement(null, scale, np.arange(self.n_unknowns) < self.n_free,
+        assumed = assumption(self, V[:, ~keep], scale)
+        held_null = self.penalised_null(assumed.null, penalties) if assumed.fixed.shape[1] else null
+        B1 = frame_rule_complement(held_null, scale, np.arange(self.n_unknowns) < self.n_free,
                                    unmeasured_unknowns(self), self.metric,
-                                   frame_rotations(self.mms, self.n_free))
+                                   frame_rotations(self.mms, self.n_free), fixed=assumed.fixed)
         first = self._penalised_fit(start, w, max_iterations, tol, B1, scale, penalties)
-        first += (null, self.n_unknowns - null.shape[1])
+        first += (null, B1.shape[1])
         self.held = None
         x, r, A, g, B, AB, iterations, converged, null, rank = hold_weak(
             self, start, first, w, max_iterations, tol, B1, scale, data_rank) if self.hold_weak else first
-        x, r, P = unmeasured_to_zero(self, x, r, w, scale[:, None] * V[:, ~keep])
+        x, r, P = unmeasured_to_zero(self, x, r, w, assumed.move)
         lev, edf, cov, held, held_sd = self._posterior(x, r, w, scale, B, AB, rank, leverage, P)
         if self.S is not None:
             lam = {k: float(np.exp(v)) for k, v in self.smoothing_rho.items()}
@@ -606,7 +608,7 @@ class _Problem:
         converged = False
         iterations = 0
         AB = reduced(A)
-        solve = _solver(AB + SB)
+        solve = _solver(AB, SB)
         # The model is linear in p up to products of errors (1e-5 of the readings), so the Gram
         # matrix at the start serves every step (the chord method: the gradient is exact at each
         # step, so the minimum is the exact one). It is formed anew only when a step fails to
@@ -667,7 +669,7 @@ class _Problem:
                 _, A_new, g_new = self.normal_equations(x, w)
             if A_new is not A:
                 AB = reduced(A_new)
-                solve = _solver(AB + SB)
+                solve = _solver(AB, SB)
             A, g = A_new, g_new
         if A is None:
             _, A, g = self.normal_equations(x, w)
