@@ -92,6 +92,20 @@ def _seen_columns(A: np.ndarray) -> np.ndarray:
     return norms > 1e-9 * max(float(norms.max()) if norms.size else 0.0, 1e-300)
 
 
+def _unseen_apart(A: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """The column-scaled normal matrix ``D A D`` with the unknowns the data do not see at all
+    (:func:`_seen_columns`) cut off from the rest: their rows and columns zero, so that each is a
+    direction the data leave undetermined by itself. Left in, their round-off (1e-10 of a column,
+    against 1e7 of the largest) couples them to the weakest directions the data do fix, whose
+    eigenvalues are as small: a rotary axis's location error, seen by no reading while the axis
+    stands at 0, took 1e-5 of such a direction and moved with it to 48 mrad."""
+    As = A * np.outer(scale, scale)
+    unseen = ~_seen_columns(A)
+    As[unseen, :] = 0.0
+    As[:, unseen] = 0.0
+    return As
+
+
 def _relative_singular_values(As: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(relative singular values s / s_max descending, eigenvectors) of a scaled normal matrix."""
     evals, V = np.linalg.eigh(As)

@@ -52,6 +52,11 @@ class FitProblem:
     outliers : the policy the files were read with (``"keep"``, or ``"repeats"``: readings far off
     their repeats left out, :func:`without_outliers`); ``removed`` the readings it left out.
     context_defaults : values of context channels the files lack.
+    rank_point : (n_params,) the values at which what the data determine is judged (the rank and the
+    undetermined combinations), None: ``start``. diagnose starts its chosen terms at the selection's
+    values but judges at zero: their products with the base's columns are no information.
+    known_noise : the weights are each reading's known noise (diagnose's floors): the posterior's
+    residual variance is not taken below 1, that noise.
     """
 
     model: ErrorModel
@@ -64,6 +69,8 @@ class FitProblem:
     outliers: str = "keep"
     removed: list = field(default_factory=list)
     context_defaults: dict = field(default_factory=dict)
+    rank_point: np.ndarray | None = None
+    known_noise: bool = False
 
     def __post_init__(self):
         # readings a fit cannot take (a ball bar's deviation in um under length_mm) are refused
