@@ -521,9 +521,11 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     """Compensate ``program`` with the model ``fitted`` into ``output`` (written atomically, with
     the BLOCKS.csv ``report`` when given). ``setup``: the program's work offsets and tool lengths
     (:func:`mtcomp.toolpaths.offsets.load_setup`; None: none). ``progress``: callable(blocks done)
-    every few seconds; ``io_progress``: callable(what, line), told the program lines read for the
-    plan as the reader goes (``'read'``, :func:`mtcomp.toolpaths.iter_segment_chunks`) and the line
-    up to which the output is written (``'written'``, a chunk at a time). ``judges``:
+    every few seconds; ``io_progress``: callable(what, line), told the lines a program with code
+    has executed as it is expanded (``'expanded'``, :func:`mtcomp.toolpaths.open_program`), the
+    program lines read for the plan as the reader goes (``'read'``,
+    :func:`mtcomp.toolpaths.iter_segment_chunks`) and the line up to which the output is written
+    (``'written'``, a chunk at a time). ``judges``:
     :class:`Judge` objects that evaluate the plan under their models.
     ``temperature_series``: a :class:`~mtcomp.thermal.context.TemperatureSeries`, the temperatures
     along the program's run time (each block at the time the program reaches its end at its feeds,
@@ -542,7 +544,8 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     fitted.context_defaults.update(thermal)
     setup = setup if setup is not None else ProgramSetup(machine)
     with contextlib.ExitStack() as stack:
-        src = stack.enter_context(open_program(program, settings.dialect))
+        expanded = None if io_progress is None else (lambda lines: io_progress("expanded", lines))
+        src = stack.enter_context(open_program(program, settings.dialect, progress=expanded))
         # one pass over the program as read (an expansion, a conversational program's G-code) for
         # its units and for cutter radius compensation (the note); a conversational program's
         # blocks stay one to one, so it is planned without internal nodes
@@ -564,7 +567,7 @@ def _compensate_source(fitted, src, output, settings, setup, report, progress, j
     start_pos, start_known = start_position(machine, settings.start_position)
     sd_limit = settings.sd_limit()
     read_progress = None if io_progress is None else (lambda lines: io_progress("read", lines))
-    planner, summary = _planner(fitted, settings, inch, program, progress)
+    planner, summary = _planner(fitted, settings, inch, src, progress)
     tally = _Tally(machine)
     offsets_of = {}
     read = dict(chord_tol_mm=settings.chord_tol_um * 1e-3, initial_position=start_pos,
@@ -618,13 +621,14 @@ def _compensate_source(fitted, src, output, settings, setup, report, progress, j
                            time.perf_counter() - t0, tally.bound_blocks, src.summary())
 
 
-def _planner(fitted, settings: CompensationSettings, inch: bool, program, progress) -> tuple:
-    """(the Planner of this compensation, the Summary its results are added to)."""
+def _planner(fitted, settings: CompensationSettings, inch: bool, src, progress) -> tuple:
+    """(the Planner of this compensation, the Summary its results are added to); ``src``: the
+    program as read (its errors name the user's file and line)."""
     sd_limit = settings.sd_limit()
     options = PlannerOptions(method=settings.method, subdivide_tol_um=settings.subdivide_tol_um or None,
                              progress=progress, extrapolate=settings.extrapolate,
                              max_correction_sd_um=sd_limit, threads=settings.threads)
-    planner = Planner(build_problem(fitted, settings, inch), options, source=str(program))
+    planner = Planner(build_problem(fitted, settings, inch), options, source=src)
     summary = Summary(fitted.machine.axis_names, extrapolate=settings.extrapolate,
                       support_known=fitted.support is not None, max_correction_sd_um=sd_limit,
                       has_covariance=fitted.uncertainty is not None)
@@ -638,6 +642,8 @@ _PASSED_MOVES = {"increment": "{n} incremental (G91) move{s} of an axis whose po
                  "jog": "{n} grbl jog{s} ($J=, {at})",
                  "machine": "{n} move{s} in machine coordinates (G53, {at})",
                  "tap": "{n} rigid tapping move{s} (G33.1, {at}: the spindle's reversal sets its ends)",
+                 "restore": "{n} move{s} to a RepRapFirmware restore point (G0/G1 R, {at}: the "
+                            "controller saved it)",
                  "subprogram": "{n} call{s} of a subprogram not in the file ({at}: its moves are "
                                "not seen)"}
 

@@ -193,8 +193,9 @@ def _print_run(args, machine, fitted, run_, seconds, unread, written) -> None:
 
 class Progress:
     """compensate's progress lines on ``stream`` (None: none), one every ``every_s`` seconds while
-    the work goes on, none in a shorter run: the program's lines read, the blocks planned, the
-    line up to which the output is written, and a compiler run of the model's C code under way
+    the work goes on, none in a shorter run: the lines a program with code has executed while it
+    is expanded, the program's lines read, the blocks planned, the line up to which the output is
+    written, and a compiler run of the model's C code under way
     (once per model structure: a 5-axis model's Jacobian takes tens of seconds, and nothing else
     reports during it). A thread of its own writes them, so that whatever runs (the reader of a
     tool centre point program, which reads it line by line in Python, a compiler run, the
@@ -210,16 +211,18 @@ class Progress:
         import threading
         self.stream, self.t0 = stream, t0
         self.every_s = self.EVERY_S if every_s is None else every_s
-        self.lines = self.blocks = self.written = 0
+        self.lines = self.blocks = self.written = self.expanded = 0
         self.compile = None                     # (what, since) of a compiler run under way
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="mtcomp-progress", daemon=True)
 
     def io(self, what: str, line: int) -> None:
-        """The program read up to ``line`` for the plan (``what`` 'read'), or written up to it
-        ('written')."""
+        """The program read up to ``line`` for the plan (``what`` 'read'), written up to it
+        ('written'), or ``line`` lines of a program with code executed ('expanded')."""
         if what == "read":
             self.lines = max(self.lines, int(line))
+        elif what == "expanded":
+            self.expanded = max(self.expanded, int(line))
         else:
             self.written = max(self.written, int(line))
 
@@ -232,7 +235,9 @@ class Progress:
 
     def line(self, now: float) -> str:
         """The progress line at ``now`` (time.perf_counter)."""
-        parts = [f"{self.lines} lines read" if self.lines else "reading the program"]
+        parts = [f"{self.lines} lines read" if self.lines else
+                 f"running the program's code, {self.expanded} lines executed" if self.expanded
+                 else "reading the program"]
         if self.blocks:
             parts.append(f"{self.blocks} blocks planned")
         if self.written:

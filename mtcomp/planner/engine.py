@@ -31,7 +31,7 @@ from ._contours import ContourGate
 from ._evaluate import Evaluator, objective_residual
 from ._grouped import GroupedQP, tied
 from ._interleave import placed, positions
-from ._links import LinkRules, run_start
+from ._links import LinkRules, run_start, undirected_axes
 from ._local_qp import LazyQP, solve_stretches
 from ._nodes import NodeSet
 from ._parallel import read_ahead, resolve_threads, split_rows
@@ -400,7 +400,7 @@ class Planner:
                           before[:, :3], after[:, :3], before[:, 3:6] if five else None,
                           after[:, 3:6] if five else None, flags, lin.iterations, lin.converged,
                           nodes.unknown, nodes.outside, nodes.pinned, nodes.sd_um, nodes.gated,
-                          held)
+                          held, undirected=undirected_axes(nodes))
 
     def _tick(self):
         cb = self.options.progress

@@ -67,7 +67,8 @@ def diagnose_with_record(machine, datasets, channel_axes: dict | None = None, pr
     geo = diagnose(machine, geometric, progress=progress, start=start)
     say(f"thermal record {name}: drift models validated forward in time")
     th = diagnose_thermal(machine, record, channel_axes, progress)
-    model = _joined_model(geo.model, th.model, record.path)
+    dropped = _runs_own_drift(geo, th.model)
+    model = _joined_model(geo.model, th.model, record.path, dropped)
     verdicts = {geo.verdict, th.verdict}
     verdict = next(v for v in ("unexplained", "explained", "none") if v in verdicts)
     reference = dict(th.reference) if th.reference.get("linear_regression_all_temperatures") else {}
@@ -83,8 +84,33 @@ def diagnose_with_record(machine, datasets, channel_axes: dict | None = None, pr
     return diag
 
 
-def _joined_model(geo: FittedModel, drift: FittedModel, record_path) -> FittedModel:
-    """The geometric model plus the drift model's terms, values, covariance, defaults and ranges."""
+def _runs_own_drift(geo: Diagnosis, drift: FittedModel) -> set:
+    """The keys of the geometric model's drift terms, which the record's drift replaces in the model
+    written, each said in its finding's evidence.
+
+    A drift the geometric search found on its own files (a laser run that drifts with its readings'
+    times) is that campaign's drift on that campaign's clock: it belongs in the fit of those files
+    (their geometry is fitted net of it), but the model written has one drift of each kind, and the
+    record's, validated forward in time on the machine's own record, is the one to predict with
+    (two drifts, of the laser runs' spindle and of the record's time, would both correct Z)."""
+    kinds = ("thermal_drift", "channel_drift")
+    if not any(t.kind in kinds for t in drift.model.terms):
+        return set()
+    dropped = {t.key() for t in geo.model.model.terms if t.kind in kinds}
+    for f in geo.findings:
+        c = f.candidate
+        if c is not None and any(t.key() in dropped for t in c.terms):
+            f.evidence += ("; a drift of these files' readings in their own time: it is fitted with "
+                           "them, and the model written carries the thermal record's drift instead")
+    return dropped
+
+
+def _joined_model(geo: FittedModel, drift: FittedModel, record_path, dropped=frozenset()) -> FittedModel:
+    """The geometric model (without its terms whose keys are ``dropped``) plus the drift model's
+    terms, values, covariance, defaults and ranges."""
+    kept = [t for t in geo.model.terms if t.key() not in dropped]
+    if len(kept) < len(geo.model.terms):
+        geo = _without_terms(geo, kept)
     terms = list(geo.model.terms) + list(drift.model.terms)
     try:
         model = ErrorModel(geo.model.machine, terms)
@@ -109,6 +135,27 @@ def _joined_model(geo: FittedModel, drift: FittedModel, record_path) -> FittedMo
     info["thermal_record"] = str(record_path)
     return FittedModel(model, params, {**geo.context_defaults, **drift.context_defaults}, info,
                        geo.support, _joined_uncertainty(geo.uncertainty, drift.uncertainty), geo.held)
+
+
+def _without_terms(fm: FittedModel, terms: list) -> FittedModel:
+    """``fm`` with only ``terms``: the others' parameters and their rows of the covariance (and of
+    the undetermined and held directions) left out (the marginal of the kept parameters)."""
+    model = ErrorModel(fm.model.machine, terms)
+    params = ParameterSet(model.param_specs)
+    names = list(fm.params.names)
+    keep = [names.index(n) for n in params.names]
+    params.values[:] = np.asarray(fm.params.values)[keep]
+    if fm.params.std_errors is not None:
+        params.std_errors = np.asarray(fm.params.std_errors)[keep]
+    unc = fm.uncertainty
+    if unc is not None:
+        ix = [list(unc["names"]).index(n) for n in params.names if n in unc["names"]]
+        unc = dict(unc, names=tuple(unc["names"][i] for i in ix),
+                   covariance=np.asarray(unc["covariance"])[np.ix_(ix, ix)],
+                   undetermined=np.asarray(unc["undetermined"]).reshape(len(unc["names"]), -1)[ix])
+        if "held" in fm.uncertainty:
+            unc["held"] = np.asarray(fm.uncertainty["held"]).reshape(len(fm.uncertainty["names"]), -1)[ix]
+    return FittedModel(model, params, fm.context_defaults, fm.info, fm.support, unc, fm.held)
 
 
 def _joined_uncertainty(a: dict | None, b: dict | None) -> dict | None:

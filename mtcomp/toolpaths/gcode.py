@@ -92,6 +92,9 @@ def iter_segment_chunks(path, machine: Machine, chord_tol_mm: float = DEFAULT_CH
             chunks = reader.iter_segment_chunks(src, machine, chord_tol_mm, chunk_size,
                                                 initial_position, progress, **kw)
         yield from _still_arcs_at_the_last_feed(chunks)
+        # an error in the program's code that stopped its expansion comes after the rows of the
+        # lines executed before it (the first error in program order is the one told)
+        src.raise_error()
 
 
 def _still_arcs_at_the_last_feed(chunks: Iterable[SegmentChunk]) -> Iterator[SegmentChunk]:

@@ -37,7 +37,8 @@ from ..machine import Machine
 from .blocks import SegmentChunk
 from .frames import frames_of_rows, placed_by_frames
 from .tcp import axes_of_tcp, tcp_of_axes
-from .words import WORK_SYSTEMS, frame_local, frame_offset_set, frame_tcp, frame_tool, frame_wcs
+from .words import (NO_LENGTH, WORK_SYSTEMS, frame_local, frame_offset_set, frame_tcp, frame_tool,
+                    frame_wcs)
 
 _WCS_NAME = {name: i for i, name in enumerate(WORK_SYSTEMS)}
 _AXIS_VALUE_RE = re.compile(r"^\s*([A-Za-z])\s*=?\s*([+-]?(?:\d+\.?\d*|\.\d+))\s*$")
@@ -123,7 +124,7 @@ class ProgramSetup:
         ``jump``: between two of them the axes do not move along a straight line."""
         wcs = frame_wcs(chunk.frame)
         tool = frame_tool(chunk.frame)
-        self.used_tools.update(t for t in _distinct(tool) if t > 0)
+        self.used_tools.update(t for t in _distinct(tool) if 0 < t != NO_LENGTH)
         off = self._row_offsets(chunk, wcs, source)
         table = getattr(source, "local_frames", None)
         if table is not None:
@@ -162,9 +163,11 @@ class ProgramSetup:
         return self.lengths_by_number(names)
 
     def lengths_by_number(self, names: dict) -> dict:
-        """H number -> tool length (mm): the numbered tools', and those given by name for the tools
-        a program calls by name (``names``: name -> the H number its reading gave the tool)."""
+        """H number -> tool length (mm): the numbered tools', those given by name for the tools
+        a program calls by name (``names``: name -> the H number its reading gave the tool), and
+        0 for NO_LENGTH (the offset cancelled or of value 0: the gauge point steered)."""
         out = dict(self.tool_lengths)
+        out[NO_LENGTH] = 0.0
         out.update({h: self.named_lengths[name] for name, h in names.items()
                     if name in self.named_lengths})
         return out
