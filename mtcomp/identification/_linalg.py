@@ -71,17 +71,26 @@ def column_scale(A: np.ndarray) -> np.ndarray:
     return np.where(real, 1.0 / np.where(real, norms, 1.0), 1.0)
 
 
-def _eliminate(S: np.ndarray, drop: np.ndarray) -> np.ndarray:
-    """The penalty S with the coefficients ``drop`` left free: the Schur complement
-    ``S_kk - S_kd S_dd^+ S_dk`` on the others (zero rows and columns for the dropped), the least
-    penalty over every value of theirs. Cutting them out instead would price the kept ones as if the
-    dropped were 0, and a straight line through the kept ones would cost something."""
+#: singular values of the dropped coefficients' factor below this share of the largest are round-off
+#: in :func:`_eliminate` (the square of the 1e-15 at which a pseudo-inverse of their penalty cut)
+ELIMINATE_RCOND = 3e-8
+
+
+def _eliminate(F: np.ndarray, drop: np.ndarray) -> np.ndarray:
+    """The penalty ``F^T F`` (F its factor) with the coefficients ``drop`` left free, as a factor:
+    ``(I - Q Q^T) F_k`` on the others (zero columns for the dropped), Q an orthonormal basis of what
+    the dropped columns ``F_d`` reach, so that ``|F z|^2`` is the least penalty over every value of
+    theirs (the Schur complement ``S_kk - S_kd S_dd^+ S_dk`` of ``S = F^T F``). Cutting them out
+    instead would price the kept ones as if the dropped were 0, and a straight line through the kept
+    ones would cost something."""
     if not drop.any():
-        return S
+        return F
     keep = ~drop
-    out = np.zeros_like(S)
-    Skd = S[np.ix_(keep, drop)]
-    out[np.ix_(keep, keep)] = S[np.ix_(keep, keep)] - Skd @ np.linalg.pinv(S[np.ix_(drop, drop)]) @ Skd.T
+    U, s, _ = np.linalg.svd(F[:, drop], full_matrices=False)
+    Q = U[:, s > ELIMINATE_RCOND * max(float(s.max()) if s.size else 0.0, 1e-300)]
+    out = np.zeros_like(F)
+    Fk = F[:, keep]
+    out[:, keep] = Fk - Q @ (Q.T @ Fk)
     return out
 
 

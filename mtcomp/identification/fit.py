@@ -270,6 +270,7 @@ class _Problem:
         self.travel_metric = None   # the same over the machine's travel
         self.weak_fallback = False  # the weak-direction pass was refused (see solve)
         self.S = None               # the penalty in scaled coordinates at the chosen weights
+        self.S_factor = None        # its factor: S = S_factor^T S_factor (the penalty's value)
         self.smoothing = None       # penalty.Smoothing of the last solve
         self.smoothing_rho = {}     # class -> log weight of the last solve
         self.gradient_stale = False  # the last Gauss-Newton pass stopped on a step it did not evaluate
@@ -427,42 +428,50 @@ class _Problem:
 
     # --------------------------------------------------------------- penalty
     def penalty(self, x, scale) -> float:
-        """The roughness penalty ``z^T S z`` at the unknowns x (z = x / scale), 0 without one."""
+        """The roughness penalty ``z^T S z = |F z|^2`` at the unknowns x (z = x / scale), 0 without
+        one: the squared norm of its factor F (:attr:`S_factor`), never below zero. As ``z @ S @ z``
+        its round-off, about 1e-16 of ``|S| |z|^2``, made it -0.4 as often as +0.4 for a straight
+        profile at a weight of e^28 (entries of S 4e12), where the fit of a noise-free laser run
+        leaves a residual sum of 1e-9: the cost did not descend, Gauss-Newton never called its step
+        small (its test scales with the cost, then negative) and stopped after 20 iterations."""
         if self.S is None:
             return 0.0
-        z = x / scale
-        return float(z @ self.S @ z)
+        f = self.S_factor @ (x / scale)
+        return float(f @ f)
 
     def penalty_gradient(self, x, scale) -> np.ndarray:
-        """``S z``: half the gradient of the penalty in scaled coordinates (zeros without one)."""
+        """``S z = F^T (F z)``: half the gradient of the penalty in scaled coordinates (zeros without
+        one), through its factor as :meth:`penalty`: ``S @ z`` carried the same round-off (0.02 where
+        it is 0), which the steps then followed."""
         if self.S is None:
             return np.zeros_like(x)
-        return self.S @ (x / scale)
+        return self.S_factor.T @ (self.S_factor @ (x / scale))
 
     def scaled_penalties(self, A, scale) -> dict:
-        """{class: S_k} in scaled coordinates, each normalised so that a weight of 1 weighs a
+        """{class: F_k}, the factors of the penalties ``S_k = F_k^T F_k``
+        (:func:`.penalty.penalty_factors`) in scaled coordinates, each normalised so that a weight of 1 weighs a
         profile's curvature about as much as the data weigh one well-seen coefficient (the median
         penalty on the coefficients the data see). Classes none of whose coefficients the data see
         are left out, and so are the coefficients the data do not see at all (a rotary axis's
         positioning harmonics under balls on its axis): what no data touch stays at zero, held with
         the null space, never set by the penalty alone."""
-        from .penalty import penalty_matrices
+        from .penalty import penalty_factors
         seen = _seen_columns(A)
         out = {}
-        for cls, S in penalty_matrices(self.model, self.free_idx, self.n_unknowns).items():
-            on = np.diag(S) > 0
-            Ss = S * np.outer(scale, scale)
-            d = np.diag(Ss)
+        for cls, F in penalty_factors(self.model, self.free_idx, self.n_unknowns).items():
+            Fs = F * scale[None, :]
+            d = np.einsum("ij,ij->j", Fs, Fs)           # the diagonal of S_k, scaled
+            on = d > 0
             typical = d[on & seen]
             if typical.size == 0:
                 continue
-            Ss = Ss / float(np.median(typical))
+            median = float(np.median(typical))
             # a coefficient the data see a million times more weakly than the class's typical one
             # (a wall's angular profile seen through a 0.1 mm arm) is as good as unseen: its penalty
             # would dwarf every other direction and the solve would lose them to round-off
-            drop = on & (~seen | (np.diag(Ss) > PENALTY_RANGE))
-            out[cls] = _eliminate(Ss, drop)
-        return {cls: Ss for cls, Ss in out.items() if np.diag(Ss).any()}
+            drop = on & (~seen | (d / median > PENALTY_RANGE))
+            out[cls] = _eliminate(Fs / np.sqrt(median), drop)
+        return {cls: F for cls, F in out.items() if F.any()}
 
     def penalised_null(self, null, penalties: dict) -> np.ndarray:
         """The directions among ``null`` (the data's, orthonormal, scaled) that no penalty sees either
@@ -471,7 +480,7 @@ class _Problem:
             return null
         # each penalty is normalised to about 1 on a well-seen coefficient (scaled_penalties): a
         # direction it weighs below DEFAULT_RCOND of that is as good as unseen
-        M = sum(null.T @ S @ null for S in penalties.values())
+        M = sum((F @ null).T @ (F @ null) for F in penalties.values())
         ev, U = np.linalg.eigh(0.5 * (M + M.T))
         return null @ U[:, ev <= DEFAULT_RCOND]
 
@@ -535,10 +544,12 @@ class _Problem:
         B, AB, iterations, converged) as :meth:`_gauss_newton`."""
         from .penalty import penalty_ranks, reml_weights
         x, r, A, g = start
-        self.S = None
+        self.S = self.S_factor = None
         iterations = 0
-        Ss = list(penalties.values())
-        SB = [B1.T @ S @ B1 for S in Ss]            # the same penalties in both REML rounds
+        Fs = list(penalties.values())
+        Ss = [F.T @ F for F in Fs]
+        FB = [F @ B1 for F in Fs]
+        SB = [G.T @ G for G in FB]                  # the same penalties in both REML rounds
         ranks = penalty_ranks(SB) if penalties else None
         # REML on the problem linearised at the start, then again at that fit: there the residuals
         # are small, so the criterion's residual sum of squares (the start's less what the step
@@ -555,14 +566,16 @@ class _Problem:
                 AB0 = B1.T @ (A * np.outer(scale, scale)) @ B1
                 before = rho
                 rss, n = self._noise_sum_of_squares(r)
-                rho, _ = reml_weights(AB0, B1.T @ (scale * g), rss, SB,
-                                      [B1.T @ (S @ z0) for S in Ss], [float(z0 @ S @ z0) for S in Ss],
-                                      n, start=_refine_from(rho), ranks=ranks, with_edf=False)
+                f0 = [F @ z0 for F in Fs]           # the penalties at z0 through their factors
+                rho, _ = reml_weights(AB0, B1.T @ (scale * g), rss, SB, [G.T @ f for G, f in zip(FB, f0)],
+                                      [float(f @ f) for f in f0], n, start=_refine_from(rho),
+                                      ranks=ranks, with_edf=False)
                 if before is not None and np.max(np.abs(rho - before)) < RHO_SETTLED:
                     # the weights at the fit are those the fit used: it stands
                     rho = before
                     break
                 self.S = sum(np.exp(rk) * S for rk, S in zip(rho, Ss))
+                self.S_factor = np.vstack([np.exp(0.5 * rk) * F for rk, F in zip(rho, Fs)])
                 self.smoothing_rho = dict(zip(penalties, rho))
             x, r, A, g, B, AB, more, converged = self._gauss_newton(
                 x, r, A, g, w, max_iterations, tol, B1, scale)

@@ -74,10 +74,14 @@ def component_class(machine, group: str) -> str | None:
     return "positioning" if direction == axis else "straightness"
 
 
-def penalty_matrices(model, free_idx: np.ndarray, n_unknowns: int) -> dict[str, np.ndarray]:
-    """{class: (n_unknowns, n_unknowns) S_k} in internal units of the unknowns (free parameters in
-    the order of ``free_idx``, then nuisance: unpenalised). Classes without a penalised parameter
-    are left out."""
+def penalty_factors(model, free_idx: np.ndarray, n_unknowns: int) -> dict[str, np.ndarray]:
+    """{class: (m_k, n_unknowns) F_k}, the factors of the penalties: ``S_k = F_k^T F_k`` (the second
+    differences over h^1.5 of a spline's coefficients, sqrt(pi) k^2 of a harmonic), in internal
+    units of the unknowns (free parameters in the order of ``free_idx``, then nuisance: unpenalised).
+    A penalty is evaluated as ``|F_k z|^2``: never below zero, and without the round-off of ``z^T S_k
+    z``, which at REML's largest weights outgrew the fit's residual sum (a profile in the penalty's
+    null space, a straight line, costs exactly its second differences' round-off). Classes without a
+    penalised parameter are left out."""
     machine = model.machine
     specs = model.param_specs
     position = {int(i): k for k, i in enumerate(free_idx)}
@@ -85,7 +89,7 @@ def penalty_matrices(model, free_idx: np.ndarray, n_unknowns: int) -> dict[str, 
     for i, s in enumerate(specs):
         if i in position:
             groups.setdefault(s.group, []).append(i)
-    out: dict[str, np.ndarray] = {}
+    rows: dict[str, list[np.ndarray]] = {}
     for group, idx in groups.items():
         cls = component_class(machine, group)
         if cls is None:
@@ -96,21 +100,27 @@ def penalty_matrices(model, free_idx: np.ndarray, n_unknowns: int) -> dict[str, 
         if block is None:
             continue
         keep, P = block
-        S = out.setdefault(cls, np.zeros((n_unknowns, n_unknowns)))
-        pos = np.array([position[idx[j]] for j in keep], dtype=int)
-        S[np.ix_(pos, pos)] += P
-    return out
+        F = np.zeros((P.shape[0], n_unknowns))
+        F[:, [position[idx[j]] for j in keep]] = P
+        rows.setdefault(cls, []).append(F)
+    return {cls: np.vstack(Fs) for cls, Fs in rows.items()}
+
+
+def penalty_matrices(model, free_idx: np.ndarray, n_unknowns: int) -> dict[str, np.ndarray]:
+    """{class: (n_unknowns, n_unknowns) S_k = F_k^T F_k} of :func:`penalty_factors`."""
+    return {cls: F.T @ F for cls, F in penalty_factors(model, free_idx, n_unknowns).items()}
 
 
 def _block(axis, suffixes: list[str]):
-    """(indices into suffixes, penalty matrix) of one component's parameters, or None."""
+    """(indices into suffixes, (rows, len(indices)) factor F of the penalty F^T F) of one
+    component's parameters, or None."""
     if axis.is_rotary:
         # Fourier harmonics c<k>, s<k>: integral of f''^2 over a turn = pi sum k^4 (a_k^2 + b_k^2)
         keep, diag = [], []
         for j, suf in enumerate(suffixes):
             if suf[:1] in ("c", "s") and suf[1:].isdigit():
                 keep.append(j)
-                diag.append(np.pi * int(suf[1:]) ** 4)
+                diag.append(np.sqrt(np.pi) * int(suf[1:]) ** 2)
         return (keep, np.diag(diag)) if keep else None
     if axis.basis != "bspline":
         return None
@@ -126,8 +136,7 @@ def _block(axis, suffixes: list[str]):
     if not keep:
         return None
     D2 = np.diff(np.eye(n), 2, axis=0)
-    P = (D2.T @ D2)[np.ix_(cols, cols)] / spline.h ** 3
-    return keep, P
+    return keep, D2[:, cols] / spline.h ** 1.5
 
 
 @dataclass

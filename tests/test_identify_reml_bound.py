@@ -1,0 +1,57 @@
+"""A penalised fit whose REML weight stands at its bound converges, and `identify` says nothing of
+different machines: the penalty is evaluated as the squared norm of its factor, never below zero.
+
+Oracle: the independent truth machine (tests/truth), EXX = 20 um/m and nothing else, one laser
+positioning run of X (11 targets, 5 bidirectional runs, 0.2 um noise). A straight profile has no
+curvature, so REML puts the positioning weight at its bound (e^30); the fitted X error over the
+stroke is the truth's 20 um/m times the stroke, to the noise."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from mtcomp.cli import main
+from mtcomp.identification.predict import predict_readings
+from mtcomp.measurement.files import read_measurements
+from mtcomp.models import load_model
+from mtcomp.identification.penalty import RHO_BOUND
+from truth import TruthMachine
+from truth import campaigns as tc
+from truth import profiles as P
+
+SLOPE_UM_PER_MM = 0.020
+NOISE_UM = 0.2
+
+
+def _laser_run(path, seed: int):
+    """One positioning run of X on the truth machine with EXX = 20 um/m: (the run, its targets)."""
+    truth = TruthMachine.zero("xfyz")
+    truth.components["X"]["EXX"] = P.Linear(0.0, SLOPE_UM_PER_MM * 1e-3)
+    run = tc.laser(truth, path, np.random.default_rng(seed), "X", components=("EXX",),
+                   noise_um=NOISE_UM, n_targets=11)
+    return run, np.unique(run.columns["target_mm"])
+
+
+def test_a_clean_laser_run_at_the_weights_bound_converges_without_a_warning(tmp_path, capsys):
+    """Seed 10: the old code evaluated the penalty as z^T S z, whose round-off (+-0.4 at a weight of
+    e^30, against a residual sum of 4 um^2) kept Gauss-Newton from calling its step small: 20
+    iterations, not converged, and `identify` warned "files of different machines fitted as one?"."""
+    run, targets = _laser_run(tmp_path / "laser_x.csv", seed=10)
+    out = tmp_path / "model.json"
+    assert main(["identify", "xfyz", str(run.path), "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "did not converge" not in err and "different machines" not in err, err
+    info = json.loads(out.read_text())["info"]["identify"]
+    assert info["converged"] and info["iterations"] < 10
+    # the case this test is about: the weight at its bound
+    assert np.log(info["smoothing"]["weights"]["positioning"]) >= RHO_BOUND - 1e-6
+    # and the fit is the truth's: X error over the stroke, the laser's slope to its noise (the slope
+    # of 110 readings of 0.2 um: 0.06 um over the stroke; four of those)
+    pred = predict_readings(load_model(out), read_measurements(run.path)).columns["pred_value_um"]
+    pred = np.asarray(pred, dtype=float)
+    tg = np.asarray(run.columns["target_mm"], dtype=float)
+    stroke = pred[tg == targets[-1]].mean() - pred[tg == targets[0]].mean()
+    spread = np.sum((tg - tg.mean()) ** 2)
+    tol = 4.0 * NOISE_UM / np.sqrt(spread) * np.ptp(targets)
+    np.testing.assert_allclose(stroke, SLOPE_UM_PER_MM * np.ptp(targets), rtol=0, atol=tol)
