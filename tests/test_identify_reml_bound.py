@@ -55,3 +55,22 @@ def test_a_clean_laser_run_at_the_weights_bound_converges_without_a_warning(tmp_
     spread = np.sum((tg - tg.mean()) ** 2)
     tol = 4.0 * NOISE_UM / np.sqrt(spread) * np.ptp(targets)
     np.testing.assert_allclose(stroke, SLOPE_UM_PER_MM * np.ptp(targets), rtol=0, atol=tol)
+
+
+def test_laser_runs_of_two_machines_fitted_as_one_are_told(tmp_path, capsys):
+    """Two positioning runs of X from two truth machines with different errors (random profiles,
+    seeds drawn from one generator): the fit of both leaves each run's means at its targets about
+    1 um off where its repeats allow 0.06 um, and `identify` says the files do not agree. One
+    machine's two runs (another set-up, the same errors) say nothing. The old code said nothing of
+    either (it warned only when Gauss-Newton did not converge)."""
+    rng = np.random.default_rng(0)
+    a, b = TruthMachine.random("xfyz", rng), TruthMachine.random("xfyz", rng)
+    runs = [tc.laser(m, tmp_path / f"{name}.csv", rng, "X", components=("EXX",), noise_um=NOISE_UM).path
+            for m, name in ((a, "machine_a"), (b, "machine_b"), (a, "machine_a_again"))]
+    for files, told in ((runs[:2], True), (runs[::2], False)):
+        assert main(["identify", "xfyz", *map(str, files), "-o", str(tmp_path / "m.json")]) == 0
+        err = capsys.readouterr().err
+        assert ("the files do not agree" in err) == told, err
+        if told:
+            assert "machine_a" in err or "machine_b" in err
+

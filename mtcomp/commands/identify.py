@@ -69,8 +69,12 @@ def run(args) -> int:
                             else "mtcomp identify"})
     save_model(out, result.fitted_model)      # before printing: a closed pipe must not lose it
     if not result.converged:
-        print(f"warning: the fit did not converge in {result.iterations} iterations; check the data "
-              "(files of different machines fitted as one?)", file=sys.stderr)
+        print(f"warning: the fit did not converge in {result.iterations} iterations; check the data",
+              file=sys.stderr)
+    from ..identification.agreement import disagreement_note
+    disagree = disagreement_note(result, datasets)
+    if disagree:
+        print(f"warning: {disagree}", file=sys.stderr)
     from ..identification.report import component_lines, laser_target_tables
     print(result.summary(verbose=args.verbose, components=component_lines(result.fitted_model),
                          targets=laser_target_tables(result.fitted_model, datasets, machine,
