@@ -74,3 +74,36 @@ def test_laser_runs_of_two_machines_fitted_as_one_are_told(tmp_path, capsys):
         if told:
             assert "machine_a" in err or "machine_b" in err
 
+
+def test_reml_at_the_fit_restarts_from_its_grid_when_the_start_sent_it_to_the_bound(tmp_path, monkeypatch):
+    """REML runs twice: on the problem linearised at the start, then at that fit, from the first
+    round's weights. A start far from the fit (diagnose's model written starts its base terms at the
+    base fit's start, every set-up at zero: 3e7 noise variances of misfit) sent the first round to the
+    bound e^30, where the criterion is flat, and a second round started there stayed: profiles
+    straight, the fit of the data lost (a rotary table's ball-bar campaign of tests/resolution_cases,
+    pdge seed 2, did so before the penalty was a squared norm). The second round then starts from
+    its grid. Here the first round is sent to the bound by hand (a laser run of a truth machine with
+    curved profiles): the fit must be the one whose first round was left alone (the oracle: the
+    same fit undisturbed); without the restart its weights stay at e^30 and its sum of squares is
+    300 times as large."""
+    import mtcomp.identification.penalty as penalty
+    from mtcomp.identification.fit import RHO_SETTLED, identify
+    from mtcomp.machine import load_machine
+    rng = np.random.default_rng(0)
+    run = tc.laser(TruthMachine.random("xfyz", rng), tmp_path / "laser_x.csv", rng, "X", n_targets=11)
+    data = [read_measurements(run.path)]
+    alone = identify(load_machine("xfyz"), data)
+    assert max(alone.smoothing.rho.values()) < RHO_BOUND - 10       # the case: weights well inside
+    reml, rounds = penalty.reml_weights, []
+
+    def first_round_at_the_bound(*args, **kw):
+        rho, edf = reml(*args, **kw)
+        rounds.append(kw.get("start"))
+        return (np.full(rho.shape, RHO_BOUND), edf) if len(rounds) == 1 else (rho, edf)
+
+    monkeypatch.setattr(penalty, "reml_weights", first_round_at_the_bound)
+    sent = identify(load_machine("xfyz"), data)
+    assert len(rounds) == 2 and rounds[1] is None                   # the second round from its grid
+    for cls, rho in alone.smoothing.rho.items():
+        assert abs(sent.smoothing.rho[cls] - rho) < RHO_SETTLED, (cls, sent.smoothing.rho, alone.smoothing.rho)
+    np.testing.assert_allclose(sent.cost, alone.cost, rtol=1e-3, atol=0)
