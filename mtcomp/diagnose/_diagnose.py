@@ -105,6 +105,14 @@ def _heldout(st, fit, judged: np.ndarray | None = None) -> float:
     return rms(fit.cv_resid[sel if judged is None else sel & judged])
 
 
+def _heldout_in_noise(st, design, fit, judged: np.ndarray | None = None) -> float:
+    """:func:`_heldout` in noise floors: each reading's held-out residual over the floor it is
+    weighted by (``design.w``: its unit's, or its series' or file kind's own, :func:`.an.noise_floor`),
+    so that a ball bar noisier than the laser beside it is judged by its own noise."""
+    sel = st.unit == _heldout_unit(st)
+    return rms((fit.cv_resid * design.w)[sel if judged is None else sel & judged])
+
+
 def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int = MAX_FINDINGS,
              channel_axes: dict | None = None, start=None) -> Diagnosis:
     """Diagnose the base model of ``machine`` on ``datasets`` (measurement sets, mtcomp.io).
@@ -345,7 +353,7 @@ def _weighted_design(st: Stack, T0: np.ndarray, say):
             + (f" ({nz.n_groups} repeat groups, {nz.dof} dof)" if nz.source == "repeats" else
                " (no repeated readings: robust estimate from successive differences)"))
         for name, sigma in nz.by_series.items():
-            say(f"  {name}: its own noise floor {sigma:.4g} {u} (its readings weighted by it)")
+            say(f"  {name}: its own noise floor {sigma:.4g} {u} (its readings weighted and judged by it)")
         rows = np.asarray(st.unit) == u
         w[rows] = 1.0 / nz.sigma_of(np.asarray(st.series)[rows])
     folds, how = an.make_folds(st)
@@ -395,7 +403,7 @@ def _forward_selection(st, design, sel: _Selection, noise, noise_main, max_findi
     noise floor or ``max_findings`` are chosen (module docstring, step 4)."""
     n = len(st)
     while len(sel.chosen) < max_findings:
-        if _heldout(st, sel.current) <= noise_main.sigma:
+        if _heldout_in_noise(st, design, sel.current) <= 1.0:
             say("held-out residual is at the noise floor: stop")
             break
         scored = _score_candidates(st, design, sel, n)
@@ -531,12 +539,14 @@ def _what_remains(st, design, sel: _Selection, noise, noise_main, may_refine, sa
     finding appended to ``sel.findings`` when there is any."""
     current, chosen, findings = sel.current, sel.chosen, sel.findings
     sigma = {u: nz.sigma for u, nz in noise.items()}
+    for nz in noise.values():
+        sigma.update(nz.by_series)               # a series judged by its own floor
     n = len(st)
     structure = an.find_structure(st, current.resid, sigma)
     # a reading whose held-out prediction rests on what only its own fold determines shows what the
     # other folds cannot see, not what the model lacks: the excess is judged without it
     judged = ~design.extrapolated(current.theta)
-    excess = _heldout(st, current, judged) / noise_main.sigma
+    excess = _heldout_in_noise(st, design, current, judged)
     # a right model still predicts held-out readings a little worse than the noise: sqrt(1 + p/n_fit)
     inflation = np.sqrt(1.0 + current.rank / max(n * (design.K - 1) / max(design.K, 1), 1.0))
     verdict = "none" if not findings else ("unexplained" if any(f.rival_alike for f in findings) else "explained")
