@@ -77,3 +77,19 @@ def test_nominal_chain_is_exact_for_every_tool():
     got = np.array([np.array(model.pose_function(q[i], np.zeros(model.n_params), c[i])[0]).ravel()
                     for i in range(20)])
     assert np.array_equal(got, tip)
+
+
+def test_the_ram_s_knots_span_where_it_stood(tmp_path):
+    """A campaign's knots go where each axis stood on its guideway: for the ram q_Z + tool_mm - L0
+    (a 200 mm stylus at z = 50 read the ram's profiles at 150 mm); the region the model applies to
+    (data_support) stays that of the commanded tips."""
+    from mtcomp.measurement import read_measurements
+    from mtcomp.measurement.readings import data_positions, data_support
+    f = tmp_path / "p.csv"
+    f.write_text("x_mm,y_mm,z_mm,tool_mm,dx_um,dy_um,dz_um\n"
+                 "0,0,-100,0,1,1,1\n0,0,50,200,1,1,1\n10,0,0,,1,1,1\n")
+    data = read_measurements(f, "points")
+    m = load_machine("xfyz")
+    np.testing.assert_array_equal(data_positions(m, [data])["Z"], [-200.0, 150.0, 0.0])
+    np.testing.assert_array_equal(data_positions(m, [data])["X"], [0.0, 0.0, 10.0])
+    assert data_support(m, [data])["Z"] == (-100.0, 50.0)
