@@ -30,7 +30,7 @@ from .planner._small import any_rows, row_norm
 from .planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
 from .toolpaths.words import frame_local, frame_tcp
 from .toolpaths import iter_segment_chunks, write_corrected
-from .toolpaths._fast import format_table
+from .toolpaths._fast import format_table, g_codes
 from .toolpaths.source import open_program
 
 _DIGITS = b"0123456789."
@@ -169,17 +169,23 @@ def words_in(path, codes, block: int = 1 << 22) -> set:
         raise InputError("no such file", path) from None
     except OSError as exc:
         raise InputError(f"cannot open: {exc.strerror}", path) from None
-    found, tail = set(), b""
+    found = set()
+    # one buffer for every block (new ones cost more than the scan): the last 16 bytes of a block
+    # again at its front, so that a word cut by the block's end is read with the next block
+    text = bytearray(16 + block)
+    view = memoryview(text)
+    kept = 0
     with f:
         while len(found) < len(codes):
-            data = f.read(block)
-            text = tail + data if data else tail + b" "
-            # a word cut by the block's end is read with the next block (the last 16 bytes again)
-            found |= _g_codes(text if not data else text[:-8],
-                              [c for c in codes if c not in found])
-            if not data:
+            got = f.readinto(view[kept:kept + block])
+            n = kept + got
+            if not got:
+                text[n] = ord(" ")
+                found |= _g_codes(text, [c for c in codes if c not in found], n + 1)
                 break
-            tail = text[-16:]
+            found |= _g_codes(text, [c for c in codes if c not in found], n - 8)
+            kept = min(16, n)
+            text[:kept] = text[n - kept:n]
     return found
 
 
@@ -189,10 +195,16 @@ def _has_g(text: bytes, code: bytes = b"20") -> bool:
     return bool(_g_codes(text, [code]))
 
 
-def _g_codes(text: bytes, codes) -> set:
-    """The ``codes`` (two-digit bytes) that :func:`_has_g` finds in ``text``, from one pass over the
-    text for its G letters: the few bytes after each are compared, vectorised over the letters."""
-    a = np.frombuffer(text, np.uint8)
+def _g_codes(text: bytes, codes, n: int | None = None) -> set:
+    """The ``codes`` (two-digit bytes) that :func:`_has_g` finds in ``text`` (its first ``n`` bytes,
+    None: all), from one pass over the text for its G letters: the few bytes after each are
+    compared; in the G-code reader's compiled code (:func:`.toolpaths._fast.g_codes`) where it is
+    built, else vectorised over the letters."""
+    n = len(text) if n is None else n
+    found = g_codes(text, n, codes) if codes else set()
+    if found is not None:
+        return found
+    a = np.frombuffer(text, np.uint8, count=n)
     g = np.flatnonzero((a | 0x20) == ord("g"))        # G or g
     if g.size == 0 or not codes:
         return set()
@@ -496,9 +508,10 @@ def _to_program_frame(res, chunk, off, setup) -> None:
         res.corrected += exact
     else:
         ends = np.cumsum(res.counts) - 1
-        exact = chunk.end - res.nominal[ends]
-        res.nominal[ends] += exact
-        res.corrected[ends] += exact
+        for j in range(chunk.end.shape[1]):    # a column at a time: numpy takes rows one by one
+            exact = chunk.end[:, j] - res.nominal[ends, j]
+            res.nominal[ends, j] += exact
+            res.corrected[ends, j] += exact
     res.corrected = setup.written(chunk, res.corrected, res.nominal, res.counts)
 
 
@@ -508,9 +521,11 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     """Compensate ``program`` with the model ``fitted`` into ``output`` (written atomically, with
     the BLOCKS.csv ``report`` when given). ``setup``: the program's work offsets and tool lengths
     (:func:`mtcomp.toolpaths.offsets.load_setup`; None: none). ``progress``: callable(blocks done)
-    every few seconds; ``io_progress``: callable(what, line), told the program lines read for the
-    plan as the reader goes (``'read'``, :func:`mtcomp.toolpaths.iter_segment_chunks`) and the line
-    up to which the output is written (``'written'``, a chunk at a time). ``judges``:
+    every few seconds; ``io_progress``: callable(what, line), told the lines a program with code
+    has executed as it is expanded (``'expanded'``, :func:`mtcomp.toolpaths.open_program`), the
+    program lines read for the plan as the reader goes (``'read'``,
+    :func:`mtcomp.toolpaths.iter_segment_chunks`) and the line up to which the output is written
+    (``'written'``, a chunk at a time). ``judges``:
     :class:`Judge` objects that evaluate the plan under their models.
     ``temperature_series``: a :class:`~mtcomp.thermal.context.TemperatureSeries`, the temperatures
     along the program's run time (each block at the time the program reaches its end at its feeds,
@@ -529,7 +544,8 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     fitted.context_defaults.update(thermal)
     setup = setup if setup is not None else ProgramSetup(machine)
     with contextlib.ExitStack() as stack:
-        src = stack.enter_context(open_program(program, settings.dialect))
+        expanded = None if io_progress is None else (lambda lines: io_progress("expanded", lines))
+        src = stack.enter_context(open_program(program, settings.dialect, progress=expanded))
         # one pass over the program as read (an expansion, a conversational program's G-code) for
         # its units and for cutter radius compensation (the note); a conversational program's
         # blocks stay one to one, so it is planned without internal nodes
@@ -551,7 +567,7 @@ def _compensate_source(fitted, src, output, settings, setup, report, progress, j
     start_pos, start_known = start_position(machine, settings.start_position)
     sd_limit = settings.sd_limit()
     read_progress = None if io_progress is None else (lambda lines: io_progress("read", lines))
-    planner, summary = _planner(fitted, settings, inch, program, progress)
+    planner, summary = _planner(fitted, settings, inch, src, progress)
     tally = _Tally(machine)
     offsets_of = {}
     read = dict(chord_tol_mm=settings.chord_tol_um * 1e-3, initial_position=start_pos,
@@ -605,13 +621,14 @@ def _compensate_source(fitted, src, output, settings, setup, report, progress, j
                            time.perf_counter() - t0, tally.bound_blocks, src.summary())
 
 
-def _planner(fitted, settings: CompensationSettings, inch: bool, program, progress) -> tuple:
-    """(the Planner of this compensation, the Summary its results are added to)."""
+def _planner(fitted, settings: CompensationSettings, inch: bool, src, progress) -> tuple:
+    """(the Planner of this compensation, the Summary its results are added to); ``src``: the
+    program as read (its errors name the user's file and line)."""
     sd_limit = settings.sd_limit()
     options = PlannerOptions(method=settings.method, subdivide_tol_um=settings.subdivide_tol_um or None,
                              progress=progress, extrapolate=settings.extrapolate,
                              max_correction_sd_um=sd_limit, threads=settings.threads)
-    planner = Planner(build_problem(fitted, settings, inch), options, source=str(program))
+    planner = Planner(build_problem(fitted, settings, inch), options, source=src)
     summary = Summary(fitted.machine.axis_names, extrapolate=settings.extrapolate,
                       support_known=fitted.support is not None, max_correction_sd_um=sd_limit,
                       has_covariance=fitted.uncertainty is not None)
@@ -625,6 +642,8 @@ _PASSED_MOVES = {"increment": "{n} incremental (G91) move{s} of an axis whose po
                  "jog": "{n} grbl jog{s} ($J=, {at})",
                  "machine": "{n} move{s} in machine coordinates (G53, {at})",
                  "tap": "{n} rigid tapping move{s} (G33.1, {at}: the spindle's reversal sets its ends)",
+                 "restore": "{n} move{s} to a RepRapFirmware restore point (G0/G1 R, {at}: the "
+                            "controller saved it)",
                  "subprogram": "{n} call{s} of a subprogram not in the file ({at}: its moves are "
                                "not seen)"}
 

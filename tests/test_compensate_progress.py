@@ -39,6 +39,27 @@ def test_the_reader_tells_the_lines_it_reads_before_its_first_chunk(tmp_path, re
     assert events[first_chunk + 1:] == []
 
 
+def test_the_expansion_of_a_program_with_code_tells_the_lines_it_runs(tmp_path, monkeypatch):
+    """A program with code is run before its moves are read (a long loop takes minutes): the lines
+    executed are told as it runs, every PROGRESS_EVERY (here 16) lines of the expansion."""
+    from mtcomp.toolpaths import source
+    monkeypatch.setattr(source, "PROGRESS_EVERY", 16)
+    prog = tmp_path / "loop.ngc"
+    prog.write_text("G21 G90\nG0 X0 Y0 Z10\n#<k> = 0\no1 while [#<k> LT 50]\nG1 X[#<k>] F100\n"
+                    "#<k> = [#<k> + 1]\no1 endwhile\nM2\n")
+    told = []
+    with source.open_program(prog, progress=told.append) as src:
+        assert src.executed == 53               # G21, G0, 50 moves, M2
+    # the expansion's lines: its comment first, then the program's; told at 16, 32, 48
+    assert told == [15, 31, 47]
+    stream = io.StringIO()
+    with Progress(stream, time.perf_counter(), every_s=0.01) as progress:
+        progress.io("expanded", 47)
+        _wait_for(stream, "mtcomp compensate: running the program's code, 47 lines executed (")
+        progress.io("read", 20)
+        _wait_for(stream, "mtcomp compensate: 20 lines read (")
+
+
 def test_a_compiler_run_is_told_when_it_starts_and_ends(tmp_path, monkeypatch):
     compiler = compiled.find_compiler()
     if compiler is None:

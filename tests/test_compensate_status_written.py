@@ -31,8 +31,8 @@ def _model(tmp_path, support=None, name="model.json"):
     return p
 
 
-def _compensate(tmp_path, model, text, capsys):
-    prog, out = tmp_path / "p.nc", tmp_path / "o.nc"
+def _compensate(tmp_path, model, text, capsys, name="p.nc"):
+    prog, out = tmp_path / name, tmp_path / ("o" + name[1:])
     rep, summ = tmp_path / "B.csv", tmp_path / "S.json"
     prog.write_text(text)
     capsys.readouterr()
@@ -82,6 +82,24 @@ def test_a_hole_whose_x_correction_the_reversal_rule_holds_is_not_called_correct
     assert "over the 2 blocks corrected" in printed
     assert ("2 blocks not corrected on every axis: a bound held the whole correction of an axis "
             "(reversal_x 2; first at line 4;") in printed
+
+
+@pytest.mark.parametrize("approach, held", [("", 2), ("N21 G0 X140. Y10.\nN22 X150.\n", 1)])
+def test_the_summary_says_which_held_blocks_lacked_a_direction(tmp_path, capsys, approach, held):
+    """The G43 line and the first hole are held only because X had not moved since the tool
+    change (its direction not known): the summary and SUMMARY.json say how many held blocks are
+    such (uncorrected.held_direction_unknown). With X moved to the hole by the program after the G43
+    line (X140 then X150: +X), the hole is corrected, and only the G43 line is held so."""
+    text = DRILL.replace("N3 G98", approach + "N3 G98")
+    _text, rows, printed, summary = _compensate(tmp_path, _model(tmp_path), text, capsys)
+    assert summary["uncorrected"]["held_by_bounds"] == held
+    assert summary["uncorrected"]["held_direction_unknown"] == held
+    assert (f"; {held} of them only because the axis had not moved since the start, a tool change "
+            "or a home move (its direction not known; first at line 4, such as a G43 line's "
+            "approach of Z)") in printed
+    # the G43 line (line 4) is held either way; BLOCKS.csv says so
+    g43 = next(r for r in rows if r["line"] == "4")
+    assert g43["corrected"] == "0" and g43["active_bounds"] == "reversal_x"
 
 
 def test_no_bound_is_counted_where_no_block_was_corrected(tmp_path, capsys):
@@ -153,23 +171,39 @@ def test_the_summary_counts_the_lines_given_axis_words_they_did_not_name(tmp_pat
 
 
 
-def test_a_heidenhain_program_counts_them_too(tmp_path, capsys):
-    """The conversational writer adds X to the L lines that move only Y, and says so the same way
-    (the lines of the file, its line 0 BEGIN PGM being line 1)."""
+#: programs in a controller's own form whose lines moving only Y get an X word (a squareness of X
+#: and Y): Heidenhain's (its line 0 BEGIN PGM being the file's line 1) and Sinumerik's (its file
+#: header and DEF line come before the first move: the lines of its G-code equivalent are not the
+#: file's). (file name, program, axis words, the lines given X)
+OWN_FORMS = {
+    "heidenhain": ("p.h", "0 BEGIN PGM T MM\n1 TOOL CALL 1 Z S1000\n2 L X+0 Y+10 Z+5 FMAX\n"
+                   "3 L Z+0 F300\n4 L X+50\n5 L Y+60\n6 L Y+110 Z-1\n7 L X+80\n8 END PGM T MM\n",
+                   r"\b([XYZ])[+-]", [6, 7]),
+    "sinumerik": ("p.mpf", "%_N_SQ_MPF\n;$PATH=/_N_MPF_DIR\nDEF REAL _Z=0\nN10 G90 G54 G17\n"
+                  "N20 T1 D1\nN30 M6\nN40 G0 X0 Y10 Z5\nN50 G1 Z=_Z F300\nN60 X50\nN70 Y60\n"
+                  "N80 Y110 Z-1\nN90 X80\nN100 M30\n", r"\b([XYZ])-?\d", [10, 11]),
+}
+
+
+@pytest.mark.parametrize("form", sorted(OWN_FORMS))
+def test_a_program_in_its_own_form_counts_them_too(tmp_path, capsys, form):
+    """The Heidenhain and Sinumerik writers add X to the lines that move only Y, and say so as the
+    G-code writer does, naming the lines of the user's file."""
+    name, prog, words, want = OWN_FORMS[form]
     fm = random_model("xfyz", (), 3, 0.0, None)
     fm.params.set_file_value("C0Y", 50.0)
     model = tmp_path / "square.json"
     save_model(model, fm)
-    prog = ("0 BEGIN PGM T MM\n1 TOOL CALL 1 Z S1000\n2 L X+0 Y+10 Z+5 FMAX\n3 L Z+0 F300\n"
-            "4 L X+50\n5 L Y+60\n6 L Y+110 Z-1\n7 L X+80\n8 END PGM T MM\n")
-    text, _rows, printed, summary = _compensate(tmp_path, model, prog, capsys)
+    text, _rows, printed, summary = _compensate(tmp_path, model, prog, capsys, name=name)
     src, out = prog.splitlines(), text.splitlines()
-    words = re.compile(r"\b([XYZ])[+-]")
+    assert len(out) == len(src)
+    words = re.compile(words)
     added = [k + 1 for k, (a, b) in enumerate(zip(src, out))
              if set(words.findall(b)) - set(words.findall(a))]
-    assert added == [6, 7], out
-    assert summary["added_axis_words"] == {"lines": 2, "line": 6}
-    assert "2 lines written with axis words they did not name (first at line 6)" in printed
+    assert added == want, out
+    assert summary["added_axis_words"] == {"lines": 2, "line": want[0]}
+    assert (f"2 lines written with axis words they did not name (first at line {want[0]})"
+            in printed)
 
 
 @pytest.mark.parametrize("writer", ["compiled", "python"])

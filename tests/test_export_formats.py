@@ -10,8 +10,10 @@ mtcomp.export:
 * Siemens: ``$AA_ENC_COMP[0,N,AXk]`` at ``_MIN + N _STEP``; ``$AN_CEC[t,N]`` with its input / output
   axis and direction.
 * Heidenhain: BEGIN line, header of column names, rows, [END]; value + BACKLASH moving negative.
-* Fanuc: 3620 .. 3627 and incremental pitch data N(10000 + point): the compensation at point n is
-  the sum of the values from the reference point to n.
+* Fanuc: a parameter tape as the FANUC 30i parameter manual (B-63950EN/02, section 3.3) gives it,
+  every line checked: ``%``, parameter blocks ``N03620Q1A1P35A2P121``, pitch error data
+  ``N10001Q0P-1`` and ``%``, nothing else; 3620 .. 3627 and incremental pitch data N(10000 +
+  point): the compensation at point n is the sum of the values from the reference point to n.
 * ISG: ``//`` comments, a header of names, comma-separated rows.
 * Klipper: the INI section ``[skew_correction mtcomp]``; checked against slopes fitted here with
   numpy.polyfit.
@@ -247,13 +249,33 @@ def test_heidenhain_com_tables_reproduce_the_model_with_backlash(fitted, model_p
 
 
 # ------------------------------------------------------------------------------------ Fanuc
+_FANUC_PARAMETER = re.compile(r"N(\d{5})Q1((?:A\d+P-?\d+)+)")
+_FANUC_PITCH = re.compile(r"N(1\d{4})Q0P(-?\d+)")
+
+
+def parse_fanuc_tape(text):
+    """({(parameter, axis): value}, {point: value}) of a parameter tape; fails on any line a Fanuc
+    would not read as one of these blocks (a comment, a title after '%', a missing closing '%')."""
+    lines = text.split("\n")
+    assert lines[-1] == "" and lines[0] == "%" and lines[-2] == "%", text[:80]
+    par, data = {}, {}
+    for line in lines[1:-2]:
+        m = _FANUC_PARAMETER.fullmatch(line)
+        if m:
+            for a, v in re.findall(r"A(\d+)P(-?\d+)", m.group(2)):
+                assert (int(m.group(1)), int(a)) not in par, line
+                par[(int(m.group(1)), int(a))] = int(v)
+            continue
+        m = _FANUC_PITCH.fullmatch(line)
+        assert m, f"not a block of a Fanuc parameter tape: {line!r}"
+        data[int(m.group(1)) - 10000] = int(m.group(2))
+    return par, data
+
+
 def read_fanuc(text, unit_mm):
     """axis number -> {'+': (positions, compensation), '-': ...} from the parameters and the
-    incremental pitch data."""
-    par = {}
-    for n, a, v in re.findall(r"^N(\d{4}) A(\d+) P(-?\d+)$", text, flags=re.M):
-        par[(int(n), int(a))] = int(v)
-    data = {int(n) - 10000: int(v) for n, v in re.findall(r"^N(1\d{4}) P(-?\d+)$", text, flags=re.M)}
+    incremental pitch data (bidirectional where 3626 is given)."""
+    par, data = parse_fanuc_tape(text)
     out = {}
     for (n, a) in {k for k in par if k[0] == 3620}:
         ref, lo, hi, mag, itv = (par[(3620, a)], par[(3621, a)], par[(3622, a)], par[(3623, a)],
@@ -272,7 +294,7 @@ def read_fanuc(text, unit_mm):
             return (np.array(c) + offset) * mag * unit_mm
 
         out[a] = {"+": (pos, comp(lo))}
-        if par.get((3605, a)) == 1:
+        if (3626, a) in par:
             out[a]["-"] = (pos, comp(par[(3626, a)], par[(3627, a)]))
         out[a]["resolution"] = mag * unit_mm
     return out
@@ -303,6 +325,22 @@ def test_fanuc_pitch_error_parameters_reproduce_the_model(fitted, model_path, tm
     # X reverses (its backlash is in the tables): the README says to keep 1851 at 0, once, for X
     readme = (out / "README.txt").read_text()
     assert readme.count("parameter 1851") == 1 and "axis X: the reversal (backlash)" in readme
+
+
+def test_fanuc_tape_holds_only_what_a_fanuc_reads_and_the_readme_the_rest(model_path, tmp_path):
+    """pitch_error.txt is a parameter tape and nothing else (every line parsed strictly above: no
+    title after '%', no comment lines, the closing '%'); the bit parameter 3605 is not on it (a
+    tape sets its whole byte); the README says which axes need its bit 0 and how the axes are
+    numbered."""
+    out = export(model_path, tmp_path / "fa", "fanuc", "--grid-mm", "5")
+    text = (out / "pitch_error.txt").read_text()
+    par, data = parse_fanuc_tape(text)
+    assert {n for n, _ in par} == {3620, 3621, 3622, 3623, 3624, 3626, 3627}
+    assert {a for n, a in par if n == 3626} == {1}          # only X has a backlash
+    assert len(data) == max(data) + 1 and min(data) == 0
+    readme = (out / "README.txt").read_text()
+    assert "1 for X (A1) (bidirectional tables), 0 for Y (A2), Z (A3)" in readme
+    assert "A1 = X, A2 = Y, A3 = Z" in readme
 
 
 # ------------------------------------------------------------------------------------ ISG

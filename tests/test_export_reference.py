@@ -11,7 +11,6 @@ B-63980EN/01, parameters 3620-3624): the replay below puts the reference positio
 coordinate 0, as the controller does.
 """
 import csv
-import re
 
 import numpy as np
 import pytest
@@ -20,7 +19,7 @@ from mtcomp.cli import main
 from mtcomp.machine import load_machine
 from mtcomp.models import Backlash, ErrorModel, FittedModel, deviation, save_model
 from mtcomp.models.params import ParameterSet
-from test_export_formats import read_fanuc, read_heidenhain_table, read_isg, read_isg_ssfk, read_klipper, \
+from test_export_formats import parse_fanuc_tape, read_fanuc, read_heidenhain_table, read_isg, read_isg_ssfk, read_klipper, \
     read_linuxcnc_comp, read_siemens
 
 LO, HI = 15.0, 55.8
@@ -60,7 +59,7 @@ def test_fanuc_point_3620_is_the_machine_zero_and_the_table_reaches_the_data(tmp
     out = export(path, tmp_path / "fa", "fanuc")
     err = capsys.readouterr().err
     text = (out / "pitch_error.txt").read_text()
-    par = {int(n): int(v) for n, v in re.findall(r"^N(36\d\d) A1 P(-?\d+)$", text, flags=re.M)}
+    par = {n: v for (n, a), v in parse_fanuc_tape(text)[0].items() if a == 1}
     tables = read_fanuc(text, 1e-3)
     pos, comp = tables[1]["+"]
     # point 3620's position is the machine zero; the grid runs from it past the data's start
@@ -119,7 +118,7 @@ def test_fanuc_reference_outside_the_travel_is_the_travels_nearest_end(tmp_path,
             "taken at the travel's nearest end, 100 mm") in err
     rows = list(csv.DictReader(open(out / "pitch_points.csv", newline="")))
     text = (out / "pitch_error.txt").read_text()
-    p3620 = int(re.search(r"^N3620 A1 P(\d+)$", text, flags=re.M).group(1))
+    p3620 = parse_fanuc_tape(text)[0][(3620, 1)]
     by_point = {int(r["point"]): r for r in rows}
     assert float(by_point[p3620]["position_mm"]) == 100.0
     pos = np.array([float(r["position_mm"]) for r in rows])

@@ -36,8 +36,11 @@ REFUSED = {
     # a file of subroutines only (nothing calls them: nothing runs; the arguments come from the
     # program that calls it)
     "linuxcnc_db25.ngc": ["db25.ngc:3:", "a file of subroutines only"],
-    # the 5-axis TCP demo reads the kinematics' pivot from the controller's HAL pins
-    "linuxcnc_xyzab-tdr-demo.ngc": ["xyzab-tdr-demo.ngc:10:", "#<_hal[xyzab_tdr_kins.x-rot-point]>"],
+    # the 5-axis TCP demo of a table with A and B (mtcomp has no XYZAB topology: the corpus machine
+    # has the program's A and C), refused at its first B word (line 6), the first error in
+    # program order; its code reads the kinematics' pivot from the controller's HAL pins at line
+    # 10, which would be refused next
+    "linuxcnc_xyzab-tdr-demo.ngc": ["xyzab-tdr-demo.ngc:6:", "has no B axis"],
     # the Sinumerik 850's computation instructions (@371 ...), which the 840D no longer has
     "gcodeworkshop_SINUMERIK850.nc": ["SINUMERIK850.nc:9:", "@371"],
     # another controller's language, known from the first line: Okuma reads VC variables
@@ -69,7 +72,7 @@ REFUSED = {
     # The Toyoda program is refused before its arc (line 53), at `N0250 H00`: an H word with no
     # G43 (nothing names its Fanuc-type control: read as RS274/NGC, whose interpreters refuse an H
     # no code of its block uses, LinuxCNC's "H word with no G43"); a Fanuc in G43 mode takes it
-    # as a change of the tool length offset, which mtcomp does not follow on any dialect
+    # as a change of the tool length offset, as mtcomp does with --dialect fanuc or haas
     "nxpost_Toyoda_sample_part.ptp": ["Toyoda_sample_part.ptp:26:", "H word in a block without "
                                       "motion: no code of the block uses it"],
     # `G0 A0.0 B0.0` in a post for a Haas VF2 with an A table: a B word on a machine without B

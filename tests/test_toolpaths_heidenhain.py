@@ -121,22 +121,104 @@ def test_the_replay_sees_the_arc_and_the_hole():
         (60, 10, 5), (60, 10, -7), (60, 10, 5)]
 
 
-def test_an_arc_that_no_centre_holds_is_refused(tmp_path):
-    """Two arcs about one CC whose corrections differ by 20 um: no single centre holds both within
-    the chord tolerance, and no CC line can be added: refused, naming the arc."""
+def _written_with(tmp_path, text, shift):
+    """The program ``text`` written with the correction ``shift(chunk)`` (n, na) mm added to each
+    row's end; (its lines, the notes said)."""
+    p = _write(tmp_path, text)
+    with open_program(p) as src:
+        def corrections():
+            for chunk in iter_segment_chunks(src, XFYZ):
+                yield chunk, chunk.end + shift(chunk), np.ones(len(chunk), np.int64)
+        write_corrected(src, tmp_path / "o.h", XFYZ, corrections())
+        notes = list(src.notes)
+    return (tmp_path / "o.h").read_text().splitlines(), notes
+
+
+def _on_line(chunk, line, dx=0.0, dy=0.0):
+    """(n, 3) the correction (dx, dy, 0) mm on the rows of ``line``, 0 elsewhere."""
+    out = np.zeros(chunk.end.shape)
+    out[chunk.line == line, 0] = dx
+    out[chunk.line == line, 1] = dy
+    return out
+
+
+def test_an_arc_the_centre_of_its_cc_does_not_hold_gets_a_cc_of_its_own(tmp_path):
+    """Two arcs about one CC whose corrections differ by 20 um (Y, the second arc only): no centre
+    holds both within the chord tolerance, each one its own: the second gets a CC block before it
+    (its centre the source's moved by its correction, which the start 20 um below it lies on
+    within 0.02 um: the step is along the circle there), and the block after it is renumbered."""
     text = ("0 BEGIN PGM T MM\n1 L X+0 Y+0 Z+0 FMAX\n2 CC X+10 Y+0\n3 C X+20 Y+0 DR-\n"
             "4 C X+0 Y+0 DR-\n5 END PGM T MM\n")
-    p = _write(tmp_path, text)
+    lines, notes = _written_with(tmp_path, text, lambda c: _on_line(c, 5, dy=0.02))
+    assert lines == ["0 BEGIN PGM T MM", "1 L X+0 Y+0 Z+0 FMAX", "2 CC X+10 Y+0",
+                     "3 C X+20 Y+0 DR-", "4 CC X+10.0000 Y+0.0200", "5 C X+0 Y+0.0200 DR-",
+                     "6 END PGM T MM"]
+    assert any(n.startswith("0 arcs C that no one circle centre holds") and "1 block added" in n
+               for n in notes), notes
 
-    def corrections():
-        for chunk in iter_segment_chunks(p, XFYZ):
-            pts = chunk.end.copy()
-            pts[:, 1] += np.where(chunk.line == 5, 0.02, 0.0)
-            yield chunk, pts, np.ones(len(chunk), np.int64)
+
+# X moves up to the arc, which starts down in X: with play in X (a backlash), the correction of X
+# steps by its reversal there, across the circle (X is the radius at the arc's start)
+REVERSAL = ("0 BEGIN PGM T MM\n1 L X+0 Y+0 Z+0 FMAX\n2 L X+20 F500\n3 CC X+10 Y+0\n"
+            "4 C X+0 Y+0 DR-\n5 L Y+10\n6 END PGM T MM\n")
+
+
+def test_an_arc_with_a_reversal_at_its_start_is_written_in_pieces(tmp_path):
+    """X corrected by +3 um coming up (line 3) and by -3 um along the arc (line 5): the arc's start
+    lies 6 um off the circle its corrected path follows, so no one centre holds it. Written in
+    two pieces: the source's C line the first (its CC line with the piece's centre), a CC and a
+    C block the second, about the source's centre moved by -3 um in X, ending where the corrected
+    arc ends; the blocks after them renumbered."""
+    lines, notes = _written_with(
+        tmp_path, REVERSAL, lambda c: _on_line(c, 3, dx=0.003) + _on_line(c, 5, dx=-0.003))
+    assert lines[:3] == ["0 BEGIN PGM T MM", "1 L X+0 Y+0 Z+0 FMAX", "2 L X+20.0030 F500"]
+    assert lines[3].startswith("3 CC X") and lines[4].startswith("4 C X")
+    assert lines[4].endswith(" DR-")
+    assert lines[5:] == ["5 CC X+9.9970 Y+0.0000", "6 C X-0.0030 Y+0.0000 DR-",
+                         "7 L Y+10 X+0.0000", "8 END PGM T MM"]       # X back to 0 there
+    # the first piece: from the arc's written start to a point of the corrected circle, as the
+    # TNC replays it (tests/replay_heidenhain.py): one circle, both ends on it
+    moves = replay_heidenhain.replay("\n".join(lines).encode()).moves
+    arcs = [m for m in moves if m.kind == "arc"]
+    assert len(arcs) == 2
+    first, second = arcs
+    assert (first.start["X"], first.start["Y"]) == (20.003, 0.0)
+    r0 = np.hypot(first.start["X"] - first.centre[0], first.start["Y"] - first.centre[1])
+    r1 = np.hypot(first.end["X"] - first.centre[0], first.end["Y"] - first.centre[1])
+    np.testing.assert_allclose(r1, r0, rtol=0, atol=2e-4)
+    np.testing.assert_allclose(np.hypot(first.end["X"] - 9.997, first.end["Y"]), 10.0, rtol=0,
+                               atol=1e-4)
+    assert first.sweep < 0 and second.sweep < 0             # both clockwise (DR-)
+    assert second.centre == (9.997, 0.0) and (second.end["X"], second.end["Y"]) == (-0.003, 0.0)
+    assert any(n.startswith("1 arc C that no one circle centre holds") and "2 blocks added" in n
+               for n in notes), notes
+
+
+def test_a_full_circle_no_centre_holds_is_still_refused(tmp_path):
+    """A full circle C DR+ (no end point to cut it at): refused, naming it."""
+    text = REVERSAL.replace("4 C X+0 Y+0 DR-", "4 C DR-")
     with pytest.raises(InputError) as exc:
-        write_corrected(p, tmp_path / "o.h", XFYZ, corrections())
-    assert exc.value.line in (4, 5) and "circle centre (CC of line 3)" in exc.value.message
+        _written_with(tmp_path, text,
+                      lambda c: _on_line(c, 3, dx=0.003) + _on_line(c, 5, dx=-0.003))
+    assert exc.value.line == 5 and "circle centre (CC of line 4)" in exc.value.message
     assert not (tmp_path / "o.h").exists()
+
+
+def test_blocks_after_an_added_one_are_renumbered_only_where_needed():
+    """New blocks take the next free numbers; a later block keeps its number where it is larger
+    (a program numbered in steps of 10), else gets the next one, with its leading zeros."""
+    from mtcomp.toolpaths.heidenhain_pieces import renumbered
+    texts = ["0 BEGIN PGM T MM\n", "10 C X+1 Y+0 DR+\n", "20 L Y+5\n", "21 L Y+6\n",
+             "22 END PGM T MM\n"]
+    after = {1: ["CC X+0 Y+0", "C X+2 Y+0 DR+"]}
+    assert renumbered(texts, {}, after) == ("0 BEGIN PGM T MM\n10 C X+1 Y+0 DR+\n11 CC X+0 Y+0\n"
+                                            "12 C X+2 Y+0 DR+\n20 L Y+5\n21 L Y+6\n"
+                                            "22 END PGM T MM\n")
+    texts = ["0000 BEGIN PGM T MM\r\n", "0001 C X+1 Y+0 DR+\r\n", "0002 L Y+5\r\n",
+             "0003 END PGM T MM\r\n"]
+    assert renumbered(texts, {1: ["CC X+0 Y+0"]}, after) == (
+        "0000 BEGIN PGM T MM\r\n1 CC X+0 Y+0\r\n0002 C X+1 Y+0 DR+\r\n3 CC X+0 Y+0\r\n"
+        "4 C X+2 Y+0 DR+\r\n0005 L Y+5\r\n0006 END PGM T MM\r\n")
 
 
 @pytest.mark.parametrize("block, words", [
@@ -153,6 +235,8 @@ def test_an_arc_that_no_centre_holds_is_refused(tmp_path):
     ("TOOL CALL 1 X", "tool axis X"),
     ("L X+1 FMAX M99", "without a pecking cycle"),
     ("PLANE SPATIAL SPA+0 SPB+0 SPC+0", "PLANE"),
+    # the whole construct, never cut off mid-word
+    ("FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS", "'FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS' is not"),
 ])
 def test_refused_in_one_line_naming_the_construct(tmp_path, block, words):
     p = _write(tmp_path, f"0 BEGIN PGM T MM\n1 L X+0 Y+0 Z+5 FMAX\n2 {block}\n3 END PGM T MM\n")
@@ -221,3 +305,106 @@ def test_the_pecking_cycle_in_the_tnc_english_dialogue_reads_as_the_short_words(
     lines = out.read_text().splitlines()
     assert lines[11] == "11 CYCL DEF 1.1 SET UP 2" and lines[13] == "13 CYCL DEF 1.3 PECKG 3"
     assert lines[16] == "16 L X+50.0010 Y+9.9980 FMAX M99"
+
+
+# the shop's pocket (docs/toolpaths.md, "Heidenhain conversational"): four quarter arcs, each
+# where an axis reverses: Y at the arcs of lines 12 and 18, X at those of lines 15 and 21
+POCKET = """0 BEGIN PGM POCKET MM
+1 TOOL CALL 1 Z S8000
+2 L X-40 Y-25 Z+5 R0 FMAX M3
+3 L Z-5 F300
+4 L Y-26 F1200
+5 L Y-25
+6 L X+40
+7 CC X+40 Y-15
+8 C X+50 Y-15 DR+
+9 L Y+15
+10 CC X+40 Y+15
+11 C X+40 Y+25 DR+
+12 L X-40
+13 CC X-40 Y+15
+14 C X-50 Y+15 DR+
+15 L Y-15
+16 CC X-40 Y-15
+17 C X-40 Y-25 DR+
+18 L Z+5 FMAX
+19 END PGM POCKET MM
+"""
+
+
+def _distance_to_moves(p, moves) -> float:
+    """The distance (mm) of the point p (x, y) to the nearest of the XY paths of ``moves``."""
+    best = np.inf
+    for m in moves:
+        if None in (m.start["X"], m.start["Y"]):
+            continue
+        a = np.array([m.start["X"], m.start["Y"]])
+        b = np.array([m.end["X"], m.end["Y"]])
+        if m.kind != "arc":
+            t = np.clip(np.dot(p - a, b - a) / max(np.dot(b - a, b - a), 1e-30), 0.0, 1.0)
+            best = min(best, np.hypot(*(p - a - t * (b - a))))
+            continue
+        c = np.array(m.centre)
+        a0 = np.arctan2(*(a - c)[::-1])
+        turn = (np.arctan2(*(p - c)[::-1]) - a0) * np.sign(m.sweep) % (2 * np.pi)
+        if turn <= abs(m.sweep):
+            r = np.hypot(*(a - c)) + (np.hypot(*(b - c)) - np.hypot(*(a - c))) * turn / abs(m.sweep)
+            best = min(best, abs(np.hypot(*(p - c)) - r))
+        best = min(best, np.hypot(*(p - a)), np.hypot(*(p - b)))
+    return best
+
+
+def test_the_shops_pocket_under_a_backlash_is_written_with_its_arcs_in_pieces(tmp_path, capsys):
+    """A 6 um backlash of X and Y (the new user's study: 10 of 60 tasks refused, 'the corrected
+    arc C ... is not within the chord tolerance'): compensated, every arc where an axis reverses
+    written in pieces. Checked against the written program as the TNC replays it
+    (tests/replay_heidenhain.py): every corrected point of the plan (BLOCKS.csv) lies within the
+    chord tolerance (1 um) and the output's rounding of the written path; the source's lines stay
+    in order with only their numbers and corrected words changed; the numbers ascend."""
+    import csv
+    import re
+    from mtcomp.models import Backlash, save_model
+    from test_export_formats import random_model
+    fm = random_model("xfyz", (Backlash("X"), Backlash("Y")), 3, 0.0, None)
+    fm.params.set_file_value("BL_X", 6.0)
+    fm.params.set_file_value("BL_Y", 6.0)
+    model = tmp_path / "m.json"
+    save_model(model, fm)
+    prog = _write(tmp_path, POCKET)
+    out, rep = tmp_path / "o.h", tmp_path / "b.csv"
+    capsys.readouterr()
+    code = main(["compensate", "xfyz", str(model), str(prog), "-o", str(out), "--report", str(rep),
+                 "--max-step-um", "20", "--quiet"])
+    assert code == 0, capsys.readouterr().err
+    lines = out.read_text().splitlines()
+    numbers = [int(ln.split()[0]) for ln in lines]
+    assert numbers == list(range(len(lines)))
+    assert len(lines) > len(POCKET.splitlines())
+    # the source's lines, in order, with their words but the axis words (corrected, or added);
+    # the blocks between them are arcs' pieces: CC and C blocks
+    shape = re.compile(r"^\d+ | ?I?[XYZ][-+]\d+(?:\.\d+)?")
+    src = [shape.sub("", ln) for ln in POCKET.splitlines()]
+    written = [shape.sub("", ln) for ln in lines]
+    k = 0
+    for w in written:
+        if k < len(src) and w == src[k]:
+            k += 1
+        else:
+            assert w in ("CC", "C DR+"), (w, lines)
+    assert k == len(src), (written, src)
+    moves = replay_heidenhain.replay(out.read_bytes()).moves
+    with open(rep, newline="") as f:
+        rows = [r for r in csv.DictReader(f) if r["x_mm"] and r["y_mm"]]
+    arc_rows = [r for r in rows if int(r["line"]) in (9, 12, 15, 18)]
+    assert arc_rows
+    worst = max(_distance_to_moves(np.array([float(r["x_mm"]), float(r["y_mm"])]), moves)
+                for r in rows)
+    assert worst <= 1e-3 + 2e-4, worst
+    # render pairs the source's moves with the written ones (the added CC blocks read as blank
+    # lines of the G-code equivalent, which bound no run of moves), in order; the pieces are cut
+    # into chords of their own, so a chord end pairs with one less than a chord (0.28 mm) away
+    from mtcomp.viz.program import pair_compensated, read_program_points
+    orig, comp = read_program_points(prog, XFYZ), read_program_points(out, XFYZ)
+    idx = pair_compensated(orig, comp, XFYZ)
+    assert len(comp) > len(orig) and np.all(np.diff(idx) > 0)
+    assert np.max(np.abs(comp.q[idx] - orig.q)[orig.known]) < 0.28

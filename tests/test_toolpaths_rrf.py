@@ -88,6 +88,46 @@ def test_after_a_macro_a_move_writes_only_the_axes_it_names(tmp_path, mode, code
     assert plain[2] == "G1 Z-0.9700 X10.0080 Y20.0170 F100"
 
 
+def test_a_move_to_a_restore_point_passes_through_and_forgets_its_axes(tmp_path, mode):
+    """G1 R1 X0 Y0 Z5 (RepRapFirmware: 5 mm above restore point 1, which a pause or G60 S1 saved,
+    G90 or G91 alike): the line passes as written, X Y Z unknown afterwards, so the next move naming
+    Z only writes Z, and X Y come back when named. An R with no axis moves nothing (the firmware
+    restores only the axes named): X Y stay known."""
+    out = _written(tmp_path, "G21 G90\nG0 X10 Y20 Z5\nG60 S1\nG1 R1 X0 Y0 Z5 F6000\n"
+                   "G1 Z-1 F100\nG1 X30 Y40\nG1 R2 F300\nG1 Z2\n")
+    assert out[3] == "G1 R1 X0 Y0 Z5 F6000"
+    assert out[4] == "G1 Z-0.9700 F100"
+    assert out[5] == "G1 X30.0080 Y40.0170"
+    assert out[6] == "G1 R2 F300"
+    assert out[7] == "G1 Z2.0300 X30.0140 Y40.0260"
+
+
+@pytest.mark.parametrize("line3, dialect, message", [
+    ("G1 R6 X0", "rrf", "restore points are 0 to 5"),
+    ("G1 R1.5 X0", "rrf", "restore points are 0 to 5"),
+    ("G1 X0 R1", "generic", "R word in a G1 block")])
+def test_a_g1_r_rrf_does_not_take_is_refused(tmp_path, line3, dialect, message):
+    p = tmp_path / "p.gcode"
+    p.write_text(f"G21\nG0 X1 Y1 Z1\n{line3}\n")
+    with pytest.raises(InputError, match=message) as exc:
+        list(iter_segment_chunks(p, XFYZ, dialect=dialect))
+    assert exc.value.line == 3
+
+
+def test_the_summary_counts_the_restore_moves(tmp_path):
+    from mtcomp.compensation import passed_move_notes
+    from mtcomp.toolpaths.source import open_program
+    prog = tmp_path / "p.gcode"
+    prog.write_text("G21 G90\nG0 X10 Y20 Z5\nG1 Z-1 F100\nG1 R1 Z5\nG1 Z-2\nG1 R1 X0 Y0\nM2\n")
+    stats = {}
+    with open_program(prog, "rrf") as src:
+        write_corrected(src, tmp_path / "o.gcode", XFYZ, None, stats=stats)
+        said = passed_move_notes(src, stats)
+    assert said == ["2 motion lines passed through uncorrected, with no BLOCKS.csv row: 2 moves to "
+                    "a RepRapFirmware restore point (G0/G1 R, first at line 4: the controller "
+                    "saved it)"]
+
+
 def test_a_t_word_alone_changes_nothing_on_other_dialects(tmp_path):
     out = _written(tmp_path, "G21 G90\nG0 X10 Y20 Z5\nT11\nG1 Z-1 F100\n", dialect="generic")
     assert _axes(out[3]) == {"X", "Y", "Z"}

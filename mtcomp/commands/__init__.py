@@ -7,10 +7,13 @@ import numpy as np
 
 
 def note_outside_travel(command: str, machine, datasets) -> None:
-    """Tell the user (stderr, one line per file and axis) of readings beyond the machine's travel, and
-    of velocity files read in the bed's sense."""
+    """Tell the user (stderr, one line each) of readings beyond the machine's travel, of what the files
+    carry beyond what mtcomp reads (columns it does not read, a points file without tool_mm, values
+    that look like mm under *_um columns: mtcomp.measurement.columns), and of velocity files read in
+    the bed's sense."""
+    from ..measurement.columns import file_notes
     from ..measurement.readings import outside_travel
-    for note in outside_travel(machine, datasets):
+    for note in outside_travel(machine, datasets) + file_notes(machine, datasets):
         print(f"mtcomp {command}: note: {note}", file=sys.stderr)
     for d in datasets:
         if getattr(d, "bed_sense", False):

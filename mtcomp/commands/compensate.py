@@ -149,8 +149,17 @@ def _write_summary(path, run_) -> None:
         f.write("\n")
 
 
-def _print_run(args, machine, fitted, run_, seconds, unread, written) -> None:
+def _reversal_note(fitted) -> str | None:
+    """:func:`mtcomp.export.reversal_note` of the model, for a model whose file records its data's
+    reversals (``info["reversal"]``); None without that record (export and the identification it
+    imports are not loaded)."""
+    if not (isinstance(fitted.info, dict) and fitted.info.get("reversal")):
+        return None
     from ..export import reversal_note
+    return reversal_note(fitted)
+
+
+def _print_run(args, machine, fitted, run_, seconds, unread, written) -> None:
     print(f"mtcomp compensate: method {args.method}, {machine.name} ({machine.topology}), "
           f"{seconds:.1f} s")
     if run_.dialect:
@@ -163,7 +172,7 @@ def _print_run(args, machine, fitted, run_, seconds, unread, written) -> None:
     print(run_.summary.text())
     for line in run_.notes:
         print(line)
-    reversal = reversal_note(fitted)
+    reversal = _reversal_note(fitted)
     if reversal:
         print(f"note: {reversal}")
     st = run_.stats
@@ -184,8 +193,9 @@ def _print_run(args, machine, fitted, run_, seconds, unread, written) -> None:
 
 class Progress:
     """compensate's progress lines on ``stream`` (None: none), one every ``every_s`` seconds while
-    the work goes on, none in a shorter run: the program's lines read, the blocks planned, the
-    line up to which the output is written, and a compiler run of the model's C code under way
+    the work goes on, none in a shorter run: the lines a program with code has executed while it
+    is expanded, the program's lines read, the blocks planned, the line up to which the output is
+    written, and a compiler run of the model's C code under way
     (once per model structure: a 5-axis model's Jacobian takes tens of seconds, and nothing else
     reports during it). A thread of its own writes them, so that whatever runs (the reader of a
     tool centre point program, which reads it line by line in Python, a compiler run, the
@@ -201,16 +211,18 @@ class Progress:
         import threading
         self.stream, self.t0 = stream, t0
         self.every_s = self.EVERY_S if every_s is None else every_s
-        self.lines = self.blocks = self.written = 0
+        self.lines = self.blocks = self.written = self.expanded = 0
         self.compile = None                     # (what, since) of a compiler run under way
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="mtcomp-progress", daemon=True)
 
     def io(self, what: str, line: int) -> None:
-        """The program read up to ``line`` for the plan (``what`` 'read'), or written up to it
-        ('written')."""
+        """The program read up to ``line`` for the plan (``what`` 'read'), written up to it
+        ('written'), or ``line`` lines of a program with code executed ('expanded')."""
         if what == "read":
             self.lines = max(self.lines, int(line))
+        elif what == "expanded":
+            self.expanded = max(self.expanded, int(line))
         else:
             self.written = max(self.written, int(line))
 
@@ -223,7 +235,9 @@ class Progress:
 
     def line(self, now: float) -> str:
         """The progress line at ``now`` (time.perf_counter)."""
-        parts = [f"{self.lines} lines read" if self.lines else "reading the program"]
+        parts = [f"{self.lines} lines read" if self.lines else
+                 f"running the program's code, {self.expanded} lines executed" if self.expanded
+                 else "reading the program"]
         if self.blocks:
             parts.append(f"{self.blocks} blocks planned")
         if self.written:
@@ -252,6 +266,7 @@ class Progress:
 
 
 def run(args) -> int:
+    import gc
     import sys
     import time
 
@@ -287,6 +302,9 @@ def run(args) -> int:
         start_position=parse_start_position(machine, args.start_position), dialect=args.dialect)
     setup = load_setup(machine, args.offsets, args.work_offset, args.tool_length)
 
+    # what this process holds by now (the modules imported, the model) lives to its end: Python's
+    # collector no longer goes through it at each full collection the planning sets off
+    gc.freeze()
     # the summary JSON is written after the program and BLOCKS.csv, which are complete by then: a
     # failed run leaves none of the three (the first two are renamed into place only on success)
     with Progress(None if args.quiet else sys.stderr, t0) as progress, \

@@ -45,7 +45,6 @@ def run(args) -> int:
         sys.stderr.write(f"note: {n}\n")
     data = read_measurements(args.data)
     attach_cmm_cuts(args, machine, [data])
-    note_outside_travel("predict", machine, [data])
     note_cmm_gaps("predict", machine, [data])
     from ..thermal.context import has_tip_drift
     if data.kind != "thermal" and has_tip_drift(fitted.model) and not data.context.temperatures \
@@ -56,6 +55,7 @@ def run(args) -> int:
         print(f"note: {args.data}: no temperatures or spindle speed: predicted without the model's "
               "thermal drift", file=sys.stderr)
     pred = predict_readings(fitted, data, machine)
+    note_outside_travel("predict", machine, [data])     # once the file is predicted: a refusal is one line
     columns = pred.columns
     for note in pred.notes:
         print(f"note: {note}", file=sys.stderr)

@@ -236,8 +236,12 @@ class Step:
 
 def step_test(st, resid, axis: str, sel=None) -> Step | None:
     """Mean of (residual approached in +) minus (in -) at the same pose, for ``axis`` (the backlash
-    of Pi et al. (2017) / ISO 230-2 reversal), using residuals projected on the axis's positioning
-    direction."""
+    of Pi et al. (2017) / ISO 230-2 reversal), in the axis's own unit (um, urad for a rotary axis).
+
+    Each reading's residual is divided by its derivative with respect to the axis's positioning
+    error (a laser run of the axis reads it whole, a ball-bar length at an angle theta to the axis
+    only cos theta of it), so that every matched pair estimates the same reversal; the pairs are
+    averaged weighted by the square of that derivative (the information each carries)."""
     k = st.machine.axis_names.index(axis)
     g = st.g[axis]
     use = (np.abs(g) > 0.3 * np.max(np.abs(g))) & (st.dirs[:, k] != 0) & np.isfinite(resid)
@@ -246,7 +250,8 @@ def step_test(st, resid, axis: str, sel=None) -> Step | None:
     ix = np.flatnonzero(use)
     if ix.size < 4:
         return None
-    r = resid[ix] * np.sign(g[ix])
+    scale = 1e6 if st.machine.axis(axis).is_rotary else 1e3
+    r = resid[ix] / g[ix] * scale
     d = st.dirs[ix, k]
     setup = getattr(st, "setup", None)
     key_parts = np.column_stack([np.unique(st.series[ix].astype(str), return_inverse=True)[1],
@@ -255,22 +260,26 @@ def step_test(st, resid, axis: str, sel=None) -> Step | None:
                                  np.round(np.nan_to_num(st.feed[ix], nan=-1), 3), np.round(st.arm[ix], 3)])
     _, inv = np.unique(key_parts, axis=0, return_inverse=True)
     inv = inv.reshape(-1)
-    steps, vars_ = [], []
+    steps, weights, vars_ = [], [], []
     for gk in np.unique(inv):
         m = inv == gk
         up, dn = r[m & (d > 0)], r[m & (d < 0)]
         if up.size and dn.size:
             steps.append(up.mean() - dn.mean())
+            weights.append(np.mean((g[ix][m] / scale) ** 2))
             vars_.append((up.var(ddof=1) / up.size if up.size > 1 else np.nan)
                          + (dn.var(ddof=1) / dn.size if dn.size > 1 else np.nan))
     if not steps:
         return None
-    steps = np.array(steps)
-    se = np.std(steps, ddof=1) / np.sqrt(len(steps)) if len(steps) > 1 else np.nan
+    steps, w = np.array(steps), np.array(weights) / np.sum(weights)
+    mean = float(w @ steps)
+    n = len(steps)
+    # inverse-variance weights, variance c / w_i: c from the pairs' scatter, and the mean's is c
+    se = float(np.sqrt(w @ (steps - mean) ** 2 / (n - 1))) if n > 1 else np.nan
     if not np.isfinite(se) or se == 0:
         v = np.array(vars_)
-        se = float(np.sqrt(np.nanmean(v) / len(steps))) if np.isfinite(v).any() else float("nan")
-    return Step(float(steps.mean()), float(se), len(steps))
+        se = float(np.sqrt(np.nansum(w ** 2 * v))) if np.isfinite(v).any() else float("nan")
+    return Step(mean, se, n)
 
 
 # ------------------------------------------------------------------------------------ spectrum

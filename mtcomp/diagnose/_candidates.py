@@ -427,10 +427,21 @@ def _best_tau(st, design, extra, make_names, lo, hi):
     return float(np.round(np.exp(res.x)))
 
 
+def _drives(st, v) -> bool:
+    """Whether a context column ``v`` (time, speed, a temperature; NaN unknown) can drive a drift:
+    known at half or more of the readings of at least one file, and varying. A file without it (a
+    ball bar without times) leaves the other files' drift to be found: the drift's columns are zero
+    on its readings."""
+    known = np.isfinite(v)
+    if not known.any() or np.ptp(v[known]) <= 0:
+        return False
+    return any(known[st.file == fi].mean() >= 0.5 for fi in np.unique(st.file))
+
+
 def _thermal_candidates(st, design, extra) -> list[Candidate]:
     t = st.t
     known = np.isfinite(t)
-    if known.mean() < 0.5 or np.ptp(t[known]) <= 0:
+    if not _drives(st, t):
         return []
     span = float(np.ptp(t[known]))
     out = []
@@ -444,13 +455,13 @@ def _thermal_candidates(st, design, extra) -> list[Candidate]:
     if c is not None:
         out.append(c)
     sp = st.spindle
-    if np.isfinite(sp).mean() >= 0.5 and np.ptp(sp[np.isfinite(sp)]) > 0:
+    if _drives(st, sp):
         tau = _best_tau(st, design, extra, lambda tau: [spindle_heat_name(tau)], 60.0, span)
         c = _drift_candidate(st, "spindle", "spindle", [spindle_heat_name(tau)],
                              {"tau_s": tau, "complexity": 2, "search_penalty": 2.0})
         if c is not None:
             out.append(c)
-    temps = [n for n, v in st.temps.items() if np.isfinite(v).mean() >= 0.5 and np.ptp(v[np.isfinite(v)]) > 0]
+    temps = [n for n, v in st.temps.items() if _drives(st, v)]
     for n in temps:
         c = _drift_candidate(st, "temperature", f"temp_{n}", [f"dtemp_{n}"],
                              {"temperatures": [n], "complexity": 2})
@@ -467,7 +478,7 @@ def _thermal_candidates(st, design, extra) -> list[Candidate]:
 def temperature_regression(st) -> Candidate | None:
     """The plain linear regression of every reading on every temperature (rise over its first
     reading), as a candidate: the usual thermal model, reported beside the diagnosis as a reference."""
-    temps = [n for n, v in st.temps.items() if np.isfinite(v).mean() >= 0.5 and np.ptp(v[np.isfinite(v)]) > 0]
+    temps = [n for n, v in st.temps.items() if _drives(st, v)]
     if not temps:
         return None
     return _drift_candidate(st, "temperature", "all temperatures", [f"dtemp_{n}" for n in temps],

@@ -98,9 +98,11 @@ def _heldout_unit(st) -> str:
     return next((u for u in MAIN_UNITS if np.any(st.unit == u)), MAIN_UNITS[0])
 
 
-def _heldout(st, fit) -> float:
-    """Held-out rms of the readings in :func:`_heldout_unit` (one unit, never a mixture)."""
-    return rms(fit.cv_resid[st.unit == _heldout_unit(st)])
+def _heldout(st, fit, judged: np.ndarray | None = None) -> float:
+    """Held-out rms of the readings in :func:`_heldout_unit` (one unit, never a mixture), of those
+    ``judged`` when given."""
+    sel = st.unit == _heldout_unit(st)
+    return rms(fit.cv_resid[sel if judged is None else sel & judged])
 
 
 def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int = MAX_FINDINGS,
@@ -261,7 +263,8 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     diag.seconds = time.perf_counter() - t0
     model.info["diagnose"] = diag.to_dict()
     # the model written where the data leave directions open: made for the diagnosis kept only
-    diag.written = lambda: written_model(st, design, current, model, where, values, say)
+    floor = (all(nz.source == "repeats" for nz in noise.values()), EXCESS_RATIO)
+    diag.written = lambda: written_model(st, design, current, model, where, values, say, floor)
     return diag, finer
 
 
@@ -530,7 +533,10 @@ def _what_remains(st, design, sel: _Selection, noise, noise_main, may_refine, sa
     sigma = {u: nz.sigma for u, nz in noise.items()}
     n = len(st)
     structure = an.find_structure(st, current.resid, sigma)
-    excess = _heldout(st, current) / noise_main.sigma
+    # a reading whose held-out prediction rests on what only its own fold determines shows what the
+    # other folds cannot see, not what the model lacks: the excess is judged without it
+    judged = ~design.extrapolated(current.theta)
+    excess = _heldout(st, current, judged) / noise_main.sigma
     # a right model still predicts held-out readings a little worse than the noise: sqrt(1 + p/n_fit)
     inflation = np.sqrt(1.0 + current.rank / max(n * (design.K - 1) / max(design.K, 1), 1.0))
     verdict = "none" if not findings else ("unexplained" if any(f.rival_alike for f in findings) else "explained")
@@ -541,7 +547,7 @@ def _what_remains(st, design, sel: _Selection, noise, noise_main, may_refine, sa
         finer = finer_base(st, design, extra_all, current, structure)
     if structure or excess > EXCESS_RATIO * inflation:
         verdict = "unexplained"
-        findings.append(_unexplained(st, current, structure, excess, noise_main, inflation))
+        findings.append(_unexplained(st, current, structure, excess, noise_main, inflation, judged))
         say(f"structure remains: {findings[-1].params['where']}")
     return verdict, finer
 
@@ -638,9 +644,10 @@ def _not_named(f: Finding) -> Finding:
     return replace(f, effect="unexplained", params=params, evidence=evidence)
 
 
-def _unexplained(st, fit, structure, excess, noise_main, inflation: float = 1.0) -> Finding:
+def _unexplained(st, fit, structure, excess, noise_main, inflation: float = 1.0,
+                 judged: np.ndarray | None = None) -> Finding:
     from ._report import unexplained_params
-    params, evidence, axis = unexplained_params(st, fit, structure, excess, noise_main, inflation)
+    params, evidence, axis = unexplained_params(st, fit, structure, excess, noise_main, inflation, judged)
     h = _heldout(st, fit)
     return Finding("unexplained", axis, params, evidence, h, h, None, unit=_heldout_unit(st))
 

@@ -24,6 +24,9 @@ RCOND = 1e-5
 RANK_TOLERANCE = RCOND ** 2
 #: share of the information on a direction that a fold must keep for that direction to be fitted
 FOLD_TOLERANCE = 1e-4
+#: a reading is extrapolated in its fold when the directions its fold leaves out move it by more than
+#: this share of its noise in the fit on all the data (:meth:`Design.extrapolated`)
+EXTRAPOLATED_SHARE = 0.1
 
 
 def solve_normal(G: np.ndarray, b: np.ndarray, tol: float = RANK_TOLERANCE) -> tuple[np.ndarray, int]:
@@ -198,6 +201,35 @@ class Design:
                 lam, U = _eigh((M + M.T) / 2)
                 V = tri(self._L.T, U, lower=False) / self._d[:, None]
                 self._fold_basis.append((V, lam) if lam.size and lam.min() > FOLD_TOLERANCE else None)
+
+    def extrapolated(self, theta: np.ndarray, share: float = EXTRAPOLATED_SHARE) -> np.ndarray:
+        """(n,) bool: the readings whose held-out prediction rests on what only their own fold
+        determines. A fold that keeps less than FOLD_TOLERANCE of the information on a direction of
+        the common block leaves it out (:func:`_fold_solve`): its readings are predicted as if the
+        machine had no error along it. Where the fit on all the data, ``theta`` (:meth:`fit`'s, common
+        block first), moves a reading by more than ``share`` of its noise along such directions, its
+        held-out residual measures what the other folds cannot see (a stretch of a ball-bar circle
+        no other reading passes), not what the model lacks."""
+        out = np.zeros(self.n, dtype=bool)
+        if self._L is None or self.K < 2:
+            return out
+        tA = np.linalg.lstsq(self.T, np.asarray(theta, dtype=float)[:self.T.shape[0]], rcond=None)[0]
+        tri = scipy.linalg.solve_triangular
+        dd = np.outer(self._d, self._d)
+        GtA = self.G @ tA
+        for kk, ix in enumerate(self._fold_index):
+            if self._fold_basis[kk] is not None:
+                continue
+            M = tri(self._L, tri(self._L, (self.G - self.Gk[kk]) / dd, lower=True).T, lower=True)
+            lam, U = _eigh((M + M.T) / 2)
+            drop = lam <= FOLD_TOLERANCE
+            if not drop.any():
+                continue
+            # V^T G V = I: the full fit's coordinates on the left-out directions are V^T G tA
+            V = tri(self._L.T, U[:, drop], lower=False) / self._d[:, None]
+            moved = self.Aw[ix] @ (V @ (V.T @ GtA))
+            out[ix] = np.abs(moved) > share
+        return out
 
     def _solve_all(self, AE, EE, bE):
         """(theta_A, theta_E, S): least squares on all data by block elimination; S the Schur

@@ -38,7 +38,8 @@ def _backlash(st, c, theta, resid, rt):
         # residuals are in um (or urad for angular readings); the step of the positioning error
         params["step_at_matched_positions"] = round(stp.step, 4)
         ev = (f"At {stp.n_pairs} matched positions of {a}, readings approached in + minus those "
-              f"approached in - differ by {stp.step:.3g} {unit} on average (standard error "
+              f"approached in - differ by {stp.step:.3g} {unit} of {a}'s positioning on average (each "
+              f"difference over the share of {a}'s positioning its reading sees; standard error "
               f"{stp.se:.2g}); the base model has no direction dependence")
     else:
         ev = f"Readings of {a} split by approach direction with a step of {mag:.3g} {unit}"
@@ -193,9 +194,10 @@ def _runs(st, sel) -> np.ndarray:
     return np.unique(r[r >= 0])
 
 
-def unexplained_params(st, fit, structure, excess, noise_main, inflation: float = 1.0):
+def unexplained_params(st, fit, structure, excess, noise_main, inflation: float = 1.0, judged=None):
     """(params {'where', 'correlates_with', ...}, evidence, axis) of remaining structure.
-    ``inflation``: how much larger than the noise a right model's held-out rms is expected to be."""
+    ``inflation``: how much larger than the noise a right model's held-out rms is expected to be;
+    ``judged``: (n,) bool, the readings whose held-out residual the excess was judged on (None: all)."""
     if structure:
         s = structure[0]
         sel = st.series == s.series
@@ -228,12 +230,15 @@ def unexplained_params(st, fit, structure, excess, noise_main, inflation: float 
     # p: the held-out mean square over the noise variance, against what a right model leaves (the
     # noise times the held-out inflation); the noise is itself estimated (its dof): an F test
     z = fit.cv_resid / noise_main.sigma
-    sel = np.isfinite(z) & (st.unit == noise_main.unit)
+    sel = np.isfinite(z) & (st.unit == noise_main.unit) & (True if judged is None else judged)
     p = (float(f_dist.sf(np.mean(z[sel] ** 2) / inflation ** 2, int(sel.sum()), max(noise_main.dof, 1)))
          if sel.any() else None)
     runs = _runs(st, np.ones(len(st), dtype=bool))
+    left = 0 if judged is None else int(np.sum(~judged))
     ev = (f"The held-out residual stays {excess:.2f} times the noise floor ({noise_main.sigma:.3g} "
-          f"{noise_main.unit}) with no localised structure; no candidate effect explains it")
+          f"{noise_main.unit}) with no localised structure"
+          + (f" ({left} reading(s) whose prediction only their own fold determines left out)" if left else "")
+          + "; no candidate effect explains it")
     return ({"where": where, "correlates_with": corr, "runs": [int(r) for r in runs], "p_value": p},
             ev, axis)
 

@@ -15,6 +15,13 @@ the data's region does not reach the reference position, the table runs from the
 to the region with the compensation held at the region's end value (increments 0), and a note names
 the points. Values are rounded as cumulative sums, so the rounding never accumulates.
 
+``pitch_error.txt`` holds only what a Fanuc reads from a parameter tape (:func:`tape`): a line
+``%``, one block per parameter with every axis's value (``N03620Q1A1P35A2P121``), the pitch error
+data (``N10035Q0P-1``) and a line ``%``; no comment, no title. Parameter 3605 is a bit parameter,
+read from a tape as its whole byte (``N03605Q1A1P00000001`` would clear its other seven bits, which
+mtcomp does not know), so it is not written: the README says which axes need bit 0 set. Everything
+mtcomp has to say goes to the README and the summary.
+
 The sign of the values is not public: by default they are the correction (minus the error);
 ``--sign error`` writes the error. Linear axes only (a rotary table's values must sum to 0 over a
 turn; not written here).
@@ -101,75 +108,117 @@ def _general_notes(sign_note: str, max_value: int, machine) -> list:
     return notes
 
 
+def bit_3605_note(bidir: dict, numbers: dict) -> str:
+    """The line on parameter 3605 bit 0 (bidirectional pitch error compensation), which the tape
+    does not carry: a bit parameter is read as its whole byte, whose other bits mtcomp does not know."""
+    on = [f"{a} (A{numbers[a]})" for a, b in bidir.items() if b]
+    off = [f"{a} (A{numbers[a]})" for a, b in bidir.items() if not b]
+    parts = ([f"1 for {', '.join(on)} (bidirectional tables)"] if on else []) + \
+        ([f"0 for {', '.join(off)}"] if off else [])
+    return ("parameter 3605 bit 0 (bidirectional pitch error compensation) is not in pitch_error.txt: "
+            "a tape sets a bit parameter's whole byte, which would clear its other seven bits, and "
+            "mtcomp does not know them; set bit 0 on the parameter screen, where one bit changes at a "
+            "time: " + ", ".join(parts))
+
+
+def tape(params: dict, data: list) -> str:
+    """The parameter tape: ``%``, one block per parameter (``N03620Q1A1P35A2P121``: the 5-digit
+    parameter number, Q1 for parameter data, each axis's number and value), the pitch error data
+    (``N10000Q0P-1``: 10000 + point number, Q0 for pitch error compensation data) and ``%``; nothing
+    else (FANUC Series 30i/31i/32i-MODEL A parameter manual B-63950EN/02, section 3.3)."""
+    lines = ["%"]
+    for number in sorted(params):
+        lines.append(f"N{number:05d}Q1" + "".join(f"A{k}P{v}" for k, v in sorted(params[number].items())))
+    lines += [f"N{10000 + point:05d}Q0P{value}" for point, value in data]
+    return "\n".join(lines + ["%"]) + "\n"
+
+
+def _axis_blocks(t, a: str, j: int, bidir: bool, s: float, unit_mm: float, max_value: int,
+                 next_point: int):
+    """(parameters {number: value}, pitch data [(point, value)], csv rows, first point of '+',
+    next free point) of axis ``a`` (its own component: column j), numbered from ``next_point``."""
+    pos = t.positions
+    step = pos[1] - pos[0] if len(pos) > 1 else 0.0
+    interval = step / unit_mm
+    if abs(interval - round(interval)) > 1e-6:
+        raise InputError(f"axis {a}: the interval {step:g} mm is not a whole number of detection "
+                         f"units ({unit_mm * 1e3:g} um)")
+    i_ref, blocks = _axis_tables(t, j, s, bidir)
+    n = len(pos)
+    if next_point + n * len(blocks) - 1 > MAX_POINT_NUMBER:
+        raise InputError(f"the pitch error tables need more than {MAX_POINT_NUMBER + 1} points; "
+                         "use a larger --grid-mm")
+    first = {label: next_point + b * n for b, (label, _c) in enumerate(blocks)}
+    # one magnification for both travel directions
+    mag = max(cumulative_units(c, unit_mm, max_value)[1] for _, c in blocks)
+    par = {3620: first["+"] + i_ref, 3621: first["+"], 3622: first["+"] + n - 1, 3623: mag,
+           3624: int(round(interval))}
+    data, csv = [], []
+    for label, corr in blocks:
+        cum = np.round(corr / (unit_mm * mag)).astype(np.int64)
+        if label == "-":
+            offset = int(cum[i_ref])
+            par.update({3626: first["-"], 3627: offset})
+            cum = cum - offset
+        inc = np.diff(np.r_[cum[0], cum])  # value at point n: change from n - 1 to n (first: 0)
+        for i in range(n):
+            data.append((first[label] + i, int(inc[i])))
+            csv.append(f"{a},{first[label] + i},{pos[i]:.6f},{label},{int(inc[i])},"
+                       f"{corr[i] * 1e3:.4f},{int(t.held[i])}")
+    return par, data, csv, first["+"], next_point + n * len(blocks)
+
+
 def export(tables, sign: str | None = None, unit_um: float = 1.0, max_value: int = 127, **_) -> ExportResult:
     m = tables.machine
     s, sign_note = sign_factor_and_note(sign, "values")
     if not unit_um > 0:
         raise InputError(f"--fanuc-unit-um must be positive, got {unit_um}")
-    unit_mm = unit_um * 1e-3
-    files, carried, notes = {}, {}, []
-    par = [f"% mtcomp pitch error compensation; axis numbers A1, A2 ... in the order "
-           f"{' '.join(m.axis_names)}; detection unit {unit_um:g} um"]
-    data = []
+    params, data, notes, bidir, numbers = {}, [], [], {}, {}
     csv = ["axis,point,position_mm,travel,value_units,compensation_um,held"]
-    next_point = 0
+    carried, next_point = {}, 0
     for a, t in tables.tables.items():
-        k = m.axis_names.index(a) + 1
+        numbers[a] = m.axis_names.index(a) + 1
         j = own_column(m, a)
-        pos = t.positions
-        step = pos[1] - pos[0] if len(pos) > 1 else 0.0
-        interval = step / unit_mm
-        if abs(interval - round(interval)) > 1e-6:
-            raise InputError(f"axis {a}: the interval {step:g} mm is not a whole number of detection "
-                             f"units ({unit_um:g} um)")
-        bidir = tables.has_backlash(a)
-        i_ref, blocks = _axis_tables(t, j, s, bidir)
-        n = len(pos)
-        if next_point + n * len(blocks) - 1 > MAX_POINT_NUMBER:
-            raise InputError(f"the pitch error tables need more than {MAX_POINT_NUMBER + 1} points; "
-                             "use a larger --grid-mm")
-        first = {}
-        for label, _corr in blocks:
-            first[label] = next_point
-            next_point += n
-        # one magnification for both travel directions
-        mag = max(cumulative_units(c, unit_mm, max_value)[1] for _, c in blocks)
-        par += [f"; axis {a}", f"N3605 A{k} P{1 if bidir else 0}", f"N3620 A{k} P{first['+'] + i_ref}",
-                f"N3621 A{k} P{first['+']}", f"N3622 A{k} P{first['+'] + n - 1}",
-                f"N3623 A{k} P{mag}", f"N3624 A{k} P{int(round(interval))}"]
-        held = t.held
-        for label, corr in blocks:
-            cum = np.round(corr / (unit_mm * mag)).astype(np.int64)
-            if label == "-":
-                offset = int(cum[i_ref])
-                par += [f"N3626 A{k} P{first['-']}", f"N3627 A{k} P{offset}"]
-                cum = cum - offset
-            inc = np.diff(np.r_[cum[0], cum])  # value at point n: change from n - 1 to n (first: 0)
-            for i in range(n):
-                data.append(f"N{10000 + first[label] + i} P{int(inc[i])}")
-                csv.append(f"{a},{first[label] + i},{pos[i]:.6f},{label},{int(inc[i])},"
-                           f"{corr[i] * 1e3:.4f},{int(held[i])}")
-        carried[(a, component_names(a)[j])] = FULL if bidir else MEAN
-        if bidir:
+        bidir[a] = tables.has_backlash(a)
+        par, pitch, rows, first, next_point = _axis_blocks(t, a, j, bidir[a], s, unit_um * 1e-3,
+                                                           max_value, next_point)
+        for number, value in par.items():
+            params.setdefault(number, {})[numbers[a]] = value
+        data += pitch
+        csv += rows
+        carried[(a, component_names(a)[j])] = FULL if bidir[a] else MEAN
+        if bidir[a]:
             notes.append(f"axis {a}: the reversal (backlash) is in the bidirectional tables (3605#0 = 1, "
                          "3626, 3627); the backlash compensation of parameter 1851 adds its own value "
                          "at every reversal: set it to 0, or the reversal is corrected twice")
-        line = held_note(t, a, first["+"])
+        line = held_note(t, a, first)
         if line:
             notes.append(line)
-    files["pitch_error.txt"] = "\n".join(par + ["; pitch error data: N(10000 + point number) P(value)"]
-                                         + data) + "\n"
-    files["pitch_points.csv"] = "\n".join(csv) + "\n"
+    files = {"pitch_error.txt": tape(params, data), "pitch_points.csv": "\n".join(csv) + "\n"}
+    if bidir:
+        notes.append(bit_3605_note(bidir, numbers))
     notes += _general_notes(sign_note, max_value, m)
     result = ExportResult(NAME, files, False, carried, notes)
-    header = ["mtcomp export: Fanuc stored pitch error compensation",
-              "",
-              "pitch_error.txt  the parameters (N3605 bit 0, N3620 ... N3627, per axis A1, A2 ...) and",
-              "                 the pitch error data N(10000 + point) P(value) in parameter-tape style;",
-              "                 enter them on the SETTING / PITCH ERROR screens or load the tape",
-              "pitch_points.csv the same points with their positions (machine coordinates, mm), the",
-              "                 compensation in um, and held = 1 where the point lies beyond the data",
-              "                 (the compensation held at the data's nearest end value)",
-              "Power off and on after changing 3620 ... 3627."]
-    files["README.txt"] = readme_text(result, tables, header)
+    files["README.txt"] = readme_text(result, tables, _readme_header(m, unit_um))
     return result
+
+
+def _readme_header(machine, unit_um: float) -> list:
+    order = ", ".join(f"A{k} = {a}" for k, a in enumerate(machine.axis_names, start=1))
+    return ["mtcomp export: Fanuc stored pitch error compensation",
+            "",
+            "pitch_error.txt  a parameter tape as a FANUC Series 30i/31i/32i reads it (parameter",
+            "                 manual B-63950EN/02, section 3.3): a line '%', the parameters 3620 ...",
+            "                 3627 (N03620Q1A1P.. : parameter number, Q1 = parameter data, controlled",
+            "                 axis number and value), the pitch error data N(10000 + point)Q0P(value)",
+            "                 (Q0 = pitch error compensation data), and a line '%'; no comments.",
+            "                 Read it in as your control reads a parameter tape (parameter write",
+            "                 enabled, PWE = 1), or enter the values by hand on the parameter and",
+            "                 PITCH ERROR screens. A series whose tapes have no Q keyword (Series",
+            "                 15i: N00010P00000001) needs 'Q1' and 'Q0' deleted; compare with a tape",
+            "                 your control punches out.",
+            f"                 Controlled axis numbers: {order}; detection unit {unit_um:g} um",
+            "pitch_points.csv the same points with their positions (machine coordinates, mm), the",
+            "                 compensation in um, and held = 1 where the point lies beyond the data",
+            "                 (the compensation held at the data's nearest end value)",
+            "Power off and on after changing 3620 ... 3627."]

@@ -54,6 +54,8 @@ import numpy as np
 from ..errors import InputError
 from ..io.atomic import atomic_write
 from ..machine import ROTARY
+# the unit check (values in mm written under value_um) is the measurement files' own
+from ..measurement.units import UNIT_CHECK_FLOOR_URAD, unit_check, unit_limit_um
 
 UM_PER_MM = 1e3
 URAD_PER_RAD = 1e6
@@ -70,16 +72,6 @@ DRIFT_ALPHA = 0.01
 #: linear axis: 0.1 um; rad for a rotary one: 0.5 urad): values in mm read as um have scatter so
 #: small that a 0.001 um change passes the test
 MIN_DRIFT = {"linear": 1e-4, "rotary": 5e-7}
-#: unit check: a linear axis whose targets span at least UNIT_CHECK_TRAVEL_MM and whose readings all
-#: stay below max(UNIT_CHECK_FLOOR_UM, UNIT_CHECK_PPM x travel) in magnitude reads less than a laser
-#: measures reliably over that travel (about 0.5 ppm with air compensation): its values were likely
-#: written in mm
-UNIT_CHECK_TRAVEL_MM = 100.0
-UNIT_CHECK_FLOOR_UM = 0.05
-UNIT_CHECK_PPM = 0.5
-#: the same for a rotary axis: targets spanning at least 90 deg, every reading below 0.05 urad
-UNIT_CHECK_TRAVEL_DEG = 90.0
-UNIT_CHECK_FLOOR_URAD = 0.05
 
 _PER_TARGET = ("mean_up", "mean_down", "mean", "reversal", "s_up", "s_down", "R_i_up", "R_i_down", "R_i")
 _PER_AXIS = ("A", "A_up", "A_down", "B", "B_mean", "E", "E_up", "E_down", "M", "R", "R_up", "R_down")
@@ -311,7 +303,7 @@ class AxisPositioning:
                     "than any angular instrument resolves: were the values written in rad under "
                     "value_urad? if so multiply them by 1e6")
         span = float(np.ptp(self.targets))
-        return (f"axis {self.axis}: every reading is below {_unit_limit_um(span):.2g} um in magnitude "
+        return (f"axis {self.axis}: every reading is below {unit_limit_um(span):.2g} um in magnitude "
                 f"(largest {biggest:.3g} um) over {span:g} mm of travel, below what a laser measures "
                 "reliably there: were the values written in mm under value_um? if so multiply them by 1000")
 
@@ -465,26 +457,6 @@ def run_drift(axis: str, cell: np.ndarray, target: np.ndarray, direction: np.nda
                     drift=bool(p < DRIFT_ALPHA and np.ptp(run_means) >= MIN_DRIFT[
                         "rotary" if axis.upper() in "ABC" else "linear"]),
                     R_without=without.R)
-
-
-def unit_check(rotary: bool, targets: np.ndarray, value: np.ndarray) -> bool:
-    """True when every reading is smaller than a laser measures over the axis's travel, so that the
-    values were likely written in mm (rad) under value_um (value_urad) (docs/iso230_2.md).
-
-    Linear: the targets span at least UNIT_CHECK_TRAVEL_MM and every |value| is below
-    max(UNIT_CHECK_FLOOR_UM, UNIT_CHECK_PPM ppm of the span). Rotary: the targets span at least
-    UNIT_CHECK_TRAVEL_DEG and every |value| is below UNIT_CHECK_FLOOR_URAD.
-    targets : (m,) mm or rad; value : (n,) mm or rad.
-    """
-    span = float(np.ptp(targets))
-    biggest = float(np.abs(value).max())
-    if rotary:
-        return math.degrees(span) >= UNIT_CHECK_TRAVEL_DEG and biggest * URAD_PER_RAD < UNIT_CHECK_FLOOR_URAD
-    return span >= UNIT_CHECK_TRAVEL_MM and biggest * UM_PER_MM < _unit_limit_um(span)
-
-
-def _unit_limit_um(span_mm: float) -> float:
-    return max(UNIT_CHECK_FLOOR_UM, UNIT_CHECK_PPM * 1e-6 * span_mm * UM_PER_MM)
 
 
 def flag_outliers(targets, groups, run, value, row, s_all) -> tuple:

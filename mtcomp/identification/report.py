@@ -27,6 +27,7 @@ from ..models.chain import (SPINDLE_TILT, rotary_location_names,
 from ..models.evaluate import casadi_map_call
 from ..models.model_file import FittedModel
 from ..models.terms import ANGLE_LETTERS, TRANSLATION_LETTERS, positioning_component
+from .penalty import component_class
 from .predict import Undetermined, predict_readings
 
 #: positions along an axis at which a component's profile is evaluated
@@ -74,7 +75,10 @@ class ComponentRange:
         file units; sd : its standard error (NaN without a covariance).
     largest_sd : the largest standard error of the profile along [lo, hi], relative to its value at
         the first position (straightness: about its least-squares line).
-    status : 'fitted', 'undetermined' (the data do not determine the profile), 'held' (none of its
+    status : 'fitted', 'undetermined' (the data do not determine the profile), 'flat' (the data
+        determine it and show no variation above their noise: the roughness penalty, whose weight
+        REML chose from them, holds the profile flat, or straight about its line, so its range is 0
+        and its posterior variance none; :mod:`mtcomp.identification.penalty`), 'held' (none of its
         parameters was fitted: held at zero) or 'unmeasured' (no laser file names it and the data
         leave it open: held at zero, :mod:`mtcomp.identification.unmeasured`).
     """
@@ -237,6 +241,7 @@ def _axis_ranges(fitted: FittedModel, ax, lo: float, hi: float, und: Undetermine
     dE = dE.reshape(s.size, model.n_params, 6).transpose(0, 2, 1)     # (n, 6, n_params)
     f_pos = 180.0 / math.pi if ax.is_rotary else 1.0
     names = [f"E{d}{ax.name}" for d in TRANSLATION_LETTERS + ANGLE_LETTERS]
+    smoothed = _smoothed_classes(fitted)
     for j, comp in enumerate(names):
         if not np.any(dE[:, j, :]):
             continue            # not part of the model (a rotary axis's error motions of order 0)
@@ -249,15 +254,25 @@ def _axis_ranges(fitted: FittedModel, ax, lo: float, hi: float, und: Undetermine
             e = e - X @ np.linalg.lstsq(X, e, rcond=None)[0]
             J = J - X @ np.linalg.lstsq(X, J, rcond=None)[0]
         D = J - J[0]
-        sd_along = und.std(D)
+        sd_along, held = und.assess(D)
         i_max, i_min = int(np.argmax(e)), int(np.argmin(e))
         sd = float(und.std((J[i_max] - J[i_min])[None, :])[0])
         status = _status(D, sd_along, mask)
+        if status == "undetermined" and held[np.isnan(sd_along)].all() and \
+                component_class(fitted.machine, f"{ax.name}:{comp}") in smoothed:
+            status = "flat"
         ranges.append(ComponentRange(ax.name, comp, component_meaning(ax.name, comp), unit, lo * f_pos,
                                      hi * f_pos, float(e[i_max] - e[i_min]), sd,
                                      float(np.nanmax(sd_along)) if np.any(np.isfinite(sd_along))
                                      else float("nan"), status))
     return ranges
+
+
+def _smoothed_classes(fitted: FittedModel) -> set:
+    """The penalty classes whose roughness weight the fit chose (REML, :mod:`.penalty`)."""
+    info = fitted.info if isinstance(fitted.info, dict) else {}
+    smoothing = (info.get("identify") or {}).get("smoothing") or {}
+    return set(smoothing.get("weights") or ())
 
 
 def _location_values(fitted: FittedModel, und: Undetermined, mask) -> list:
@@ -290,6 +305,8 @@ def _location_values(fitted: FittedModel, und: Undetermined, mask) -> list:
 def _pm(value, sd, status, unit, width=9) -> str:
     if status == "undetermined":
         return "not determined by the data"
+    if status == "flat":
+        return f"0 {unit} (the data show none above their noise: smoothed flat)"
     if status == "unmeasured":
         return "not measured: held at zero (no laser file names it)"
     if status == "held":

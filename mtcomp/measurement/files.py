@@ -24,6 +24,7 @@ import numpy as np
 from ..errors import InputError
 from ..machine import AXIS_ORDER, LINEAR, ROTARY, Machine
 from ..io.csvtable import CsvTable, parse_ints, parse_signs, read_csv_table
+from .columns import check_columns
 # the units of the files, and the writing of a file back (also read from here)
 from .units import DEG, UM, URAD, file_unit_scale, format_cell, write_csv_with_columns  # noqa: F401
 
@@ -444,6 +445,7 @@ def read_measurements(path: str | os.PathLike, kind: str | None = None) -> Measu
         kind = detect_kind(table)
     elif kind not in KINDS:
         raise InputError(f"unknown measurement kind {kind!r} (known: {', '.join(KINDS)})", table.path)
+    check_columns(table, kind)
     context = _read_context(table)
     return _READERS[kind](table, context)
 

@@ -14,6 +14,17 @@ UM = 1e-3                      #: mm per um
 URAD = 1e-6                    #: rad per urad
 DEG = math.pi / 180.0          #: rad per deg
 
+#: unit check: readings over positions spanning at least UNIT_CHECK_TRAVEL_MM whose every magnitude
+#: stays below max(UNIT_CHECK_FLOOR_UM, UNIT_CHECK_PPM x span) are less than a laser measures
+#: reliably over that travel (about 0.5 ppm with air compensation), and less than any machine's error
+#: with any instrument's noise there: the values were likely written in mm under a ``*_um`` column
+UNIT_CHECK_TRAVEL_MM = 100.0
+UNIT_CHECK_FLOOR_UM = 0.05
+UNIT_CHECK_PPM = 0.5
+#: the same for a rotary axis: targets spanning at least 90 deg, every reading below 0.05 urad
+UNIT_CHECK_TRAVEL_DEG = 90.0
+UNIT_CHECK_FLOOR_URAD = 0.05
+
 #: column-name suffix -> factor from internal units to file units
 _SUFFIX_SCALE = (("_mm_min", 1.0), ("_urad", 1.0 / URAD), ("_um", 1.0 / UM), ("_mm", 1.0),
                  ("_deg", 1.0 / DEG), ("_s", 1.0), ("_c", 1.0), ("_rpm", 1.0))
@@ -69,3 +80,25 @@ def write_csv_with_columns(path: str | os.PathLike, data,
         writer.writerow([*data.header, *new_columns])
         for i, cells in enumerate(data.rows):
             writer.writerow([*cells, *(format_cell(float(c[i])) for c in columns)])
+
+
+def unit_check(rotary: bool, targets: np.ndarray, value: np.ndarray) -> bool:
+    """True when every reading is smaller than an instrument measures over the positions' span, so
+    that the values were likely written in mm (rad) under a ``*_um`` (``*_urad``) column
+    (docs/iso230_2.md, docs/measurements.md).
+
+    Linear: the targets span at least UNIT_CHECK_TRAVEL_MM and every |value| is below
+    max(UNIT_CHECK_FLOOR_UM, UNIT_CHECK_PPM ppm of the span). Rotary: the targets span at least
+    UNIT_CHECK_TRAVEL_DEG and every |value| is below UNIT_CHECK_FLOOR_URAD.
+    targets : (m,) mm or rad; value : (n,) mm or rad (internal units).
+    """
+    span = float(np.ptp(targets))
+    biggest = float(np.abs(value).max())
+    if rotary:
+        return math.degrees(span) >= UNIT_CHECK_TRAVEL_DEG and biggest / URAD < UNIT_CHECK_FLOOR_URAD
+    return span >= UNIT_CHECK_TRAVEL_MM and biggest / UM < unit_limit_um(span)
+
+
+def unit_limit_um(span_mm: float) -> float:
+    """The largest reading (um) the unit check takes for values in mm, over a span of ``span_mm``."""
+    return max(UNIT_CHECK_FLOOR_UM, UNIT_CHECK_PPM * 1e-6 * span_mm / UM)

@@ -33,7 +33,8 @@ import numpy as np
 
 from ._bounds import ARC, INF, REVERSAL
 
-__all__ = ["ARC", "REVERSAL", "LinkRules", "direction_axes", "node_links", "propagate", "run_start"]
+__all__ = ["ARC", "REVERSAL", "LinkRules", "direction_axes", "node_links", "propagate", "run_start",
+           "undirected_axes"]
 
 
 def direction_axes(model) -> np.ndarray:
@@ -76,6 +77,16 @@ def node_links(dp, dirs, reversal_axes, tie, no_link, unit):
     if not kind.any():
         return None
     return lo, hi, kind
+
+
+def undirected_axes(nodes):
+    """(n, na) bool: the axes of the nodes (a :class:`~._nodes.NodeSet`) whose reversal link keeps
+    their correction at the node before's because their direction state is unknown and they do
+    not move (both bounds 0: the first positioning after the start, a tool change or a home move,
+    such as a G43 line's X and Y), or None where no node has a link bound."""
+    if nodes.link_kind is None:
+        return None
+    return (nodes.link_kind == REVERSAL) & (nodes.link_lo == 0.0) & (nodes.link_hi == 0.0)
 
 
 def combined_steps(step_lo, step_hi, links):

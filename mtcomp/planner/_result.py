@@ -30,6 +30,9 @@ class PlanResult:
         block asked for one (``flags`` names the bound).
     sd_um : (n,) standard error of the block's correction, um (see NodeSet).
     counts : (rows,) nodes per segment row of the source chunk (for write_corrected), or None.
+    undirected : (n, na) bool, the axes the reversal rule keeps at the correction of the block
+        before because their approach direction is not known there (they have not moved since
+        the start, a tool change or a home move: a G43 line's X and Y), or None (no such rule).
     """
 
     line: np.ndarray
@@ -52,6 +55,7 @@ class PlanResult:
     gated: np.ndarray
     held: np.ndarray
     counts: np.ndarray | None = None
+    undirected: np.ndarray | None = None
 
     FIELDS = ("line", "inserted", "rapid", "nominal", "corrected", "correction", "before", "after",
               "before_axis", "after_axis", "flags", "iterations", "converged", "unknown", "outside",
@@ -62,7 +66,8 @@ class PlanResult:
 
     def take(self, sl) -> "PlanResult":
         return PlanResult(*(None if getattr(self, f) is None else getattr(self, f)[sl]
-                            for f in self.FIELDS))
+                            for f in self.FIELDS),
+                          undirected=None if self.undirected is None else self.undirected[sl])
 
     @staticmethod
     def concatenate(parts: list["PlanResult"]) -> "PlanResult":
@@ -70,7 +75,11 @@ class PlanResult:
         for f in PlanResult.FIELDS:
             vals = [getattr(p, f) for p in parts]
             out.append(None if vals[0] is None else np.concatenate(vals))
-        return PlanResult(*out)
+        und = None
+        if any(p.undirected is not None for p in parts):
+            und = np.concatenate([np.zeros(p.held.shape, bool) if p.undirected is None
+                                  else p.undirected for p in parts])
+        return PlanResult(*out, undirected=und)
 
     def corrected_blocks(self) -> np.ndarray:
         """(n,) bool: the blocks written with their correction on every axis that asked for one (in

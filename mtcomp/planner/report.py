@@ -197,6 +197,10 @@ class Summary:
     held_blocks: int = 0
     held_counts: dict = field(default_factory=dict)
     held_line: int = 0
+    #: of those, the blocks held only because an axis's direction was not known (it had not moved
+    #: since the start, a tool change or a home move: PlanResult.undirected), and the first's line
+    blind_blocks: int = 0
+    blind_line: int = 0
 
     def add(self, r: PlanResult):
         n = len(r)
@@ -284,6 +288,14 @@ class Summary:
             self.held_line = int(r.line[np.argmax(held)])
         self.held_blocks += int(held.sum())
         self._count_flags(self.held_counts, r.flags & r.held[:, :, None] & HOLDING)
+        if r.undirected is not None:
+            # every axis held, held by the reversal rule for want of a direction
+            blind = r.held & r.flags[..., FLAG_KINDS.index("reversal")] & r.undirected
+            only = held & ~any_rows(r.held & ~blind)
+            if only.any():
+                if not self.blind_blocks:
+                    self.blind_line = int(r.line[np.argmax(only)])
+                self.blind_blocks += int(only.sum())
 
     def _count_flags(self, into: dict, flags: np.ndarray) -> None:
         """Add to ``into`` (bound name -> count) how often each bound is set in flags (n, na, 7)."""
@@ -328,7 +340,8 @@ class Summary:
                                "outside_support": 0 if self.extrapolate else self.outside_blocks,
                                "uncertain": self.uncertain_blocks - self.contour_blocks,
                                "uncertain_contour": self.contour_blocks,
-                               "held_by_bounds": self.held_blocks},
+                               "held_by_bounds": self.held_blocks,
+                               "held_direction_unknown": self.blind_blocks},
                "max_correction_sd_um": self.max_correction_sd_um,
                # the largest finite one (strict JSON has no Infinity); whether any correction
                # moved with values the data did not determine (an infinite one)
@@ -450,5 +463,10 @@ class Summary:
                    "came to the block from, or, where that direction is not known (the first move "
                    "or hole after a tool change or a home move), at all: the machine's play "
                    "(backlash) would turn that move into an error of its own")
+        if self.blind_blocks:
+            why += (f"; {self.blind_blocks} of them only because the axis had not moved since the "
+                    "start, a tool change or a home move (its direction not known; first at line "
+                    f"{self.blind_line}, such as a G43 line's approach of Z): a move of the "
+                    "program's own to that position first gives the correction a direction")
         return (f"{counted} not corrected on every axis: a bound held the whole correction of an "
                 f"axis ({detail}; first at line {self.held_line}; BLOCKS.csv active_bounds){why}")

@@ -23,7 +23,7 @@ import numpy as np
 from ..diagnose.result import Diagnosis
 from ..errors import InputError
 from ..models.chain import ErrorModel
-from ..models.model_file import FittedModel
+from ..models.model_file import FittedModel, uncertainty_without
 from ..models.params import ParameterSet
 from ._diagnose import channel_axes_for, declared_channel_axes, diagnose_thermal
 
@@ -67,7 +67,8 @@ def diagnose_with_record(machine, datasets, channel_axes: dict | None = None, pr
     geo = diagnose(machine, geometric, progress=progress, start=start)
     say(f"thermal record {name}: drift models validated forward in time")
     th = diagnose_thermal(machine, record, channel_axes, progress)
-    model = _joined_model(geo.model, th.model, record.path)
+    dropped = _runs_own_drift(geo, th.model)
+    model = _joined_model(geo.model, th.model, record.path, dropped)
     verdicts = {geo.verdict, th.verdict}
     verdict = next(v for v in ("unexplained", "explained", "none") if v in verdicts)
     reference = dict(th.reference) if th.reference.get("linear_regression_all_temperatures") else {}
@@ -83,9 +84,33 @@ def diagnose_with_record(machine, datasets, channel_axes: dict | None = None, pr
     return diag
 
 
-def _joined_model(geo: FittedModel, drift: FittedModel, record_path) -> FittedModel:
-    """The geometric model plus the drift model's terms, values, covariance, defaults and ranges."""
-    terms = list(geo.model.terms) + list(drift.model.terms)
+def _runs_own_drift(geo: Diagnosis, drift: FittedModel) -> set:
+    """The keys of the geometric model's drift terms, which the record's drift replaces in the model
+    written, each said in its finding's evidence.
+
+    A drift the geometric search found on its own files (a laser run that drifts with its readings'
+    times) is that campaign's drift on that campaign's clock: it belongs in the fit of those files
+    (their geometry is fitted net of it), but the model written has one drift of each kind, and the
+    record's, validated forward in time on the machine's own record, is the one to predict with
+    (two drifts, of the laser runs' spindle and of the record's time, would both correct Z)."""
+    kinds = ("thermal_drift", "channel_drift")
+    if not any(t.kind in kinds for t in drift.model.terms):
+        return set()
+    dropped = {t.key() for t in geo.model.model.terms if t.kind in kinds}
+    for f in geo.findings:
+        c = f.candidate
+        if c is not None and any(t.key() in dropped for t in c.terms):
+            f.evidence += ("; a drift of these files' readings in their own time: it is fitted with "
+                           "them, and the model written carries the thermal record's drift instead")
+    return dropped
+
+
+def _joined_model(geo: FittedModel, drift: FittedModel, record_path, dropped=frozenset()) -> FittedModel:
+    """The geometric model (without its terms whose keys are ``dropped``) plus the drift model's
+    terms, values, covariance, defaults and ranges."""
+    kept = [t for t in geo.model.terms if t.key() not in dropped]
+    gone = {ps.name for t in geo.model.terms if t.key() in dropped for ps in t.param_specs(geo.model.machine)}
+    terms = kept + list(drift.model.terms)
     try:
         model = ErrorModel(geo.model.machine, terms)
     except ValueError as exc:
@@ -96,7 +121,7 @@ def _joined_model(geo: FittedModel, drift: FittedModel, record_path) -> FittedMo
     std = np.full(len(params), np.nan)
     # the drift model's base is the machine's default one, all zero: only its drift terms are taken
     drift_names = {ps.name for t in drift.model.terms for ps in t.param_specs(drift.model.machine)}
-    for part, names in ((geo, set(geo.params.names)), (drift, drift_names)):
+    for part, names in ((geo, set(geo.params.names) - gone), (drift, drift_names)):
         se = part.params.std_errors
         for i, nm in enumerate(part.params.names):
             if nm in names:
@@ -108,7 +133,8 @@ def _joined_model(geo: FittedModel, drift: FittedModel, record_path) -> FittedMo
     info.update({k: drift.info[k] for k in _THERMAL_INFO if k in drift.info})
     info["thermal_record"] = str(record_path)
     return FittedModel(model, params, {**geo.context_defaults, **drift.context_defaults}, info,
-                       geo.support, _joined_uncertainty(geo.uncertainty, drift.uncertainty), geo.held)
+                       geo.support, _joined_uncertainty(uncertainty_without(geo.uncertainty, gone),
+                                                        drift.uncertainty), geo.held)
 
 
 def _joined_uncertainty(a: dict | None, b: dict | None) -> dict | None:

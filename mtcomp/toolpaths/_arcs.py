@@ -296,3 +296,54 @@ def bisector_centres(s2, e2, radius: float, hint, fitted) -> list:
         return [c for c in (nominal, fitted) if c is not None]
     f = np.arange(1, BISECTOR_STEPS + 1) / BISECTOR_STEPS
     return [nominal] + [nominal + t * (fitted - nominal) for t in f]
+
+
+def plan_pieces(arc_piece, straight_piece, length: np.ndarray, min_piece: float, a: int, b: int,
+                start_w: np.ndarray) -> list:
+    """The pieces an arc is written as, from sample a (where the machine stands: ``start_w``
+    (na,)) to sample b: each the longest arc from where the last one ended that holds
+    (``arc_piece(a, k, start_w)``: a piece ending at sample k, with its written ``end`` (na,), or
+    None), found by bisection over the samples it may end at (an arc that holds over a stretch
+    holds over a shorter one from the same start), no shorter than ``min_piece`` (mm along
+    ``length`` (m,)) where an arc that long holds (:func:`piece_ends`); a straight piece
+    (``straight_piece(a, start_w)``, to sample a + 1) only where no arc reaches the next sample.
+    The G-code, Heidenhain writers plan their split arcs with it."""
+    pieces = []
+    while a < b:
+        piece, end = _longest_piece(arc_piece, length, min_piece, a, b, start_w)
+        if piece is None:
+            end = a + 1
+            piece = straight_piece(a, start_w)
+        pieces.append(piece)
+        a, start_w = end, piece.end
+    return pieces
+
+
+def _longest_piece(arc_piece, length, min_piece, a: int, b: int, start_w):
+    """(the arc piece from sample a to the farthest sample one arc reaches, that sample), or
+    (None, None) when no arc reaches even the next sample."""
+    piece = arc_piece(a, b, start_w)
+    if piece is not None:
+        return piece, b
+    ends = piece_ends(length, a, b, min_piece)
+    best = _farthest(arc_piece, a, ends[:-1], start_w)
+    if best[0] is None:
+        # a shorter piece only where the corrected path turns within less (a correction that
+        # changes fast): the longest arc that holds there
+        best = _farthest(arc_piece, a, list(range(a + 1, ends[0])), start_w)
+    return best
+
+
+def _farthest(arc_piece, a: int, ends: list, start_w):
+    """(piece, end) of the farthest of ``ends`` (increasing sample indices) an arc from sample a
+    reaches, by bisection; (None, None) when it reaches none."""
+    lo, hi, best = 0, len(ends) - 1, (None, None)
+    while lo <= hi:
+        mid = (lo + hi) // 2
+        piece = arc_piece(a, ends[mid], start_w)
+        if piece is None:
+            hi = mid - 1
+        else:
+            best, lo = (piece, ends[mid]), mid + 1
+    return best
+

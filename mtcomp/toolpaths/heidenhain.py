@@ -147,7 +147,7 @@ class _Reader:
             what = _REFUSED.get(word.group(0)) if word else None
             if what is None and word and word.group(0).startswith("Q"):
                 what = "Q parameters"
-            raise self.err(f"{what or repr(code[:30])} is not read by mtcomp (Heidenhain "
+            raise self.err(f"{what or repr(code)} is not read by mtcomp (Heidenhain "
                            "conversational)", k)
         name, rest = key.group(1), code[key.end():].strip()
         if name in _REFUSED:

@@ -11,13 +11,15 @@ it is kept, as G-code cycles keep the depth below R). An arc ``C`` gets its corr
 and its circle centre ``CC`` is moved: one centre for the arcs that use it, taken as the nominal
 centre shifted by the mean correction at their ends (or, for one arc, the circle through its
 corrected ends closest to its corrected path), kept only when every one of those arcs lies within
-the chord tolerance of its corrected path; otherwise the arc is refused (one line naming it).
+the chord tolerance of its corrected path; an arc no one centre holds is written in pieces, a CC
+and a C block for each after the first, the blocks after them renumbered
+(:mod:`.heidenhain_pieces`), and a full circle that none holds is refused (one line naming it).
 Under radius compensation (RL/RR, read as G41/G42) the planner gives all of an arc's nodes one
 correction, a translation, so the arc's moved centre carries it exactly and the C stays whole.
 Numbers are written in Heidenhain's signed form (``X+107.5032``), with at least the source word's
-decimals and at least 4 in mm and degrees, 5 in inch. A block is never split: a conversational
-program's blocks stay one to one, so internal nodes of the planner are not written (compensate
-plans such programs without them).
+decimals and at least 4 in mm and degrees, 5 in inch. Internal nodes of the planner are not
+written (compensate plans such programs without them): only an arc is cut, at its corrected
+points.
 """
 from __future__ import annotations
 
@@ -30,15 +32,16 @@ from ..errors import InputError
 from ..io.atomic import atomic_write
 from ._arcs import arc_misses, arc_samples, arc_sweep, fit_arc_centre, radius_refused
 from .heidenhain import WORD, read_lines, signed
+from .heidenhain_pieces import ROTARY_ARC_TOL_RAD, ArcPieces, renumbered
 from .reader import iter_blocks
 from .words import MM_PER_INCH, number_decimals
 
-#: a rotary axis on an arc must stay within this of its written value (rad: 1e-4 deg)
-ROTARY_ARC_TOL_RAD = math.radians(1e-4)
 
 
 #: the end of a motion block's keyword, after its block number
 _KEY_END = re.compile(r"^\s*\d+\s*(?:L|C)(?![A-Z])")
+#: a block's number and the blanks after it
+_KEY_START = re.compile(r"^\s*\d+\s*")
 
 
 def _code_end(text: str) -> int:
@@ -49,11 +52,13 @@ def _code_end(text: str) -> int:
 
 class _Arc:
     """One C block as written: its line, written start and end (na,), the samples of its
-    corrected path (m, na), its nominal start and end, centre (2,), direction, full circle."""
+    corrected path (m, na), its nominal start and end, centre (2,), direction, full circle; the
+    samples' nominal places (m, na) and swept fractions (m,) (None where not known)."""
 
-    def __init__(self, line, start_w, end_w, samples, block, centre2, full):
+    def __init__(self, line, start_w, end_w, samples, block, centre2, full, nominal=None, u=None):
         self.line, self.start_w, self.end_w, self.samples = line, start_w, end_w, samples
         self.block, self.centre2, self.full = block, centre2, full
+        self.nominal, self.u = nominal, u
         self.ccw = block.motion == 3
 
 
@@ -61,7 +66,9 @@ class HeidenhainWriter:
     """Writes one conversational program (see the module docstring)."""
 
     #: how a refused arc is named: the arc, its centre, what would let it through
-    ARC, CENTRE, HINT = "arc C", "CC", "a larger --chord-tol-um or a CC before each arc"
+    ARC, CENTRE, HINT = "arc C", "CC", "a larger --chord-tol-um"
+    #: an arc that no one centre holds is written in pieces (:mod:`.heidenhain_pieces`)
+    SPLITS = True
 
     def __init__(self, src, machine, chord_tol_mm: float, translation=None):
         self.src = src
@@ -81,8 +88,16 @@ class HeidenhainWriter:
         self.arcs: dict[int, list] = {}
         self.holes = 0
         self.dropped = 0
-        #: lines written with axis words they did not name, and the first of them (1-based)
-        self.added_lines, self.added_line = 0, 0
+        #: blocks put in before / after a source line (texts without their block numbers), the
+        #: arcs written in pieces and the blocks added for them
+        self.before: dict[int, list] = {}
+        self.after: dict[int, list] = {}
+        self.split_arcs = self.added_blocks = 0
+        #: lines written with axis words they did not name, and the first of them (1-based, a line
+        #: of the program read: its G-code equivalent, line for line here), the lines counted
+        self.added_lines, self.added_line, self._counted = 0, 0, set()
+        #: the line of the program read (1-based) of the block being written
+        self.line_read = 0
         self.cols = [self.letters.index(c) for c in "XY"]
 
     # ------------------------------------------------------------------ numbers and words
@@ -140,8 +155,7 @@ class HeidenhainWriter:
             edits.append((m.start(4), m.end(4), t))
             self.written[j] = self._internal(j, value, info.shift)
         if added:
-            self.added_lines += 1
-            self.added_line = self.added_line or i + 1
+            self.count_added(i)
             pos = max([m.end() for m in named.values()], default=None)
             if pos is None:
                 pos = _KEY_END.match(text).end()
@@ -150,9 +164,19 @@ class HeidenhainWriter:
             text = text[:a] + t + text[b:]
         return text + ending
 
+    def count_added(self, i: int) -> None:
+        """Count line i (0-based), written with an axis word it did not name, once (the summary's
+        ``added_axis_words``: the lines, and the first as a line of the program read,
+        ``line_read``)."""
+        if i not in self._counted:
+            self._counted.add(i)
+            self.added_lines += 1
+            self.added_line = self.added_line or self.line_read
+
     # ------------------------------------------------------------------ blocks
     def block(self, i: int, block, pts: np.ndarray, counts) -> None:
         """A motion block of line i (0-based) and its corrected points."""
+        self.line_read = i + 1
         info = self.tr.lines[i]
         if info.kind == "C":
             self._arc(i, block, pts, counts, info)
@@ -185,45 +209,120 @@ class HeidenhainWriter:
         self.written = np.where(plane, end_w, self.written)
         got = arc_samples(block.start, block.end, block.points, pts, counts, centre2, tuple(cols),
                           block.motion == 3, full)
-        samples = pts if got is None else got[0]
+        samples, nominal, u = (pts, None, None) if got is None else got
         self.arcs.setdefault(info.cc_line, []).append(
-            _Arc(i, start_w, end_w, samples, block, centre2, full))
+            _Arc(i, start_w, end_w, samples, block, centre2, full, nominal, u))
 
     # ------------------------------------------------------------------ circle centres
     def centres(self) -> None:
-        """Every CC line that arcs use, written with one centre that holds for all of them."""
+        """Every CC line that arcs use, written with one centre that holds for all of them; where
+        none does, the arcs it cannot hold are written in pieces (:mod:`.heidenhain_pieces`), or
+        refused in one line where they cannot be (a full circle, an arc under radius
+        compensation)."""
         for cc, arcs in self.arcs.items():
-            shifts = [0.5 * ((a.start_w - a.block.start) + (a.end_w - a.block.end))[self.cols]
-                      for a in arcs]
-            nominal = arcs[0].centre2
-            candidates = [nominal + np.mean(shifts, axis=0)]
-            if len(arcs) == 1:
-                a = arcs[0]
-                s2, e2 = a.start_w[self.cols], a.end_w[self.cols]
-                r = math.hypot(*(a.block.start[self.cols] - nominal))
-                fitted = fit_arc_centre(s2, e2, a.samples[:-1, self.cols], a.ccw, a.full,
-                                        candidates[0], r)
-                if fitted is not None:
-                    candidates.append(fitted)
-            worst = None
-            for c in candidates:
-                text, said = self._centre_text(cc, c)
-                misses = [self._miss(a, said) for a in arcs]
-                miss = max(misses)
-                if miss[0] <= 0.0:
-                    self.texts[cc] = text
-                    self.arc_miss = max(self.arc_miss, *(m[2] for m in misses))
-                    break
-                worst = miss if worst is None or miss[0] < worst[0] else worst
-            else:
+            worst = self._one_centre(cc, arcs)
+            if worst is not None and not (self.SPLITS and self._in_pieces(cc, arcs)):
                 raise InputError(
                     f"the corrected {self.ARC} of line {worst[1] + 1} is not within the chord "
                     f"tolerance ({self.tol * 1e3:g} um) of an arc about one circle centre "
                     f"({self.CENTRE} of line {cc + 1}): it misses its corrected path by "
                     f"{worst[2] * 1e3:.2f} um ({self.HINT})", self.src.source, line=worst[1] + 1)
 
-    def _centre_text(self, cc: int, centre) -> tuple[str, np.ndarray]:
-        """(the CC line with the centre (2,) G-code frame, mm) written, the centre it says)."""
+    def _candidates(self, arcs) -> list:
+        """The centres (2,) tried for the arcs of one CC: the nominal centre shifted by the mean
+        correction at their ends, and for one arc the circle through its corrected ends closest to
+        its corrected path."""
+        shifts = [0.5 * ((a.start_w - a.block.start) + (a.end_w - a.block.end))[self.cols]
+                  for a in arcs]
+        nominal = arcs[0].centre2
+        candidates = [nominal + np.mean(shifts, axis=0)]
+        if len(arcs) == 1:
+            a = arcs[0]
+            s2, e2 = a.start_w[self.cols], a.end_w[self.cols]
+            r = math.hypot(*(a.block.start[self.cols] - nominal))
+            fitted = fit_arc_centre(s2, e2, a.samples[:-1, self.cols], a.ccw, a.full,
+                                    candidates[0], r)
+            if fitted is not None:
+                candidates.append(fitted)
+        return candidates
+
+    def _one_centre(self, cc: int, arcs) -> tuple | None:
+        """Write the CC line with the first candidate centre that holds every one of ``arcs``:
+        None, or the least bad miss (excess, line, distance) where none does."""
+        worst = None
+        for c in self._candidates(arcs):
+            text, said = self._centre_text(cc, c)
+            misses = [self._miss(a, said) for a in arcs]
+            miss = max(misses)
+            if miss[0] <= 0.0:
+                self.texts[cc] = text
+                self.arc_miss = max(self.arc_miss, *(m[2] for m in misses))
+                return None
+            worst = miss if worst is None or miss[0] < worst[0] else worst
+        return worst
+
+    def _in_pieces(self, cc: int, arcs) -> bool:
+        """Write the arcs of one CC that no one centre holds in pieces, the others about the CC
+        line's centre (those one candidate holds most of); False where that cannot be done."""
+        keep = []
+        if len(arcs) > 1:
+            tried = self._candidates(arcs) + [c for a in arcs for c in self._candidates([a])]
+            for c in tried:
+                said = self._centre_text(cc, c)[1]
+                held = [a for a in arcs if self._miss(a, said)[0] <= 0.0]
+                keep = held if len(held) > len(keep) else keep
+            if keep and self._one_centre(cc, keep) is not None:
+                keep = []
+        split = [a for a in arcs if a not in keep]
+        if any(a.full or a.block.cutter_comp or a.nominal is None for a in split):
+            return False
+        for a in split:
+            later = any(b.line > a.line for b in keep)
+            if not self._write_in_pieces(cc, a, not keep and a is split[0], later):
+                return False
+        return True
+
+    def _write_in_pieces(self, cc: int, a: _Arc, own_cc: bool, restate: bool) -> bool:
+        """The arc ``a`` written as pieces (:class:`~.heidenhain_pieces.ArcPieces`): its line the
+        first, about the CC line's centre where ``own_cc`` (else a CC block before it), the
+        others after it, and the CC line restated after them where later arcs use it
+        (``restate``). False where the first piece would be no arc."""
+        info = self.tr.lines[a.line]
+        text = self.raws[a.line].decode("latin-1")
+        words = [m.group(4) for m in WORD.finditer(text, 0, _code_end(text))]
+        cc_text = self.texts[cc].rstrip("\r\n")
+        cc_words = [m.group(4) for m in WORD.finditer(cc_text, 0, _code_end(cc_text))]
+        dec = max([self.base] + [number_decimals(t.replace(" ", "")) for t in words + cc_words])
+        fit = ArcPieces(self, a, dec)
+        pieces = fit.plan()
+        if pieces[0].centre is None:
+            return False
+        # the source line: the first piece's end, from where the arc starts as written
+        written, self.written = self.written, a.start_w.copy()
+        self.texts[a.line], self.line_read = text, a.line + 1
+        self.texts[a.line] = self._rewrite(a.line, a.block, pieces[0].end, info,
+                                           write=np.isin(np.arange(self.na), self.cols))
+        self.written = written
+        if own_cc:
+            self.texts[cc] = self._centre_text(cc, pieces[0].centre, dec)[0]
+        else:
+            self.before.setdefault(a.line, []).append(f"CC {fit.words(pieces[0].centre)}")
+        lines = fit.later_lines(pieces)
+        if restate:
+            lines.append(_KEY_START.sub("", cc_text).strip())
+        self.after.setdefault(a.line, []).extend(lines)
+        self.arc_miss = max(self.arc_miss, *(p.miss for p in pieces))
+        self.split_arcs += len(pieces) > 1
+        self.added_blocks += len(lines) + (not own_cc)
+        return True
+
+    def output(self) -> str:
+        """The program's text, with the blocks added for arcs in pieces (renumbered after them)."""
+        return renumbered(self.texts, self.before, self.after)
+
+    def _centre_text(self, cc: int, centre, least: int = 0) -> tuple[str, np.ndarray]:
+        """(the CC line with the centre (2,) G-code frame, mm) written with at least ``least``
+        decimals, the centre it says)."""
         info = self.tr.lines[cc]
         text = self.texts[cc].rstrip("\r\n")
         ending = self.texts[cc][len(text):]
@@ -232,7 +331,7 @@ class HeidenhainWriter:
         for m in WORD.finditer(text, 0, _code_end(text)):
             k = "XY".index(m.group(2))
             number = m.group(4).replace(" ", "")
-            dec = max(self.base, number_decimals(number))
+            dec = max(self.base, number_decimals(number), least)
             sign = number[0] in "+-"
             t = signed(centre[k] / self.scale - info.shift[k], dec, sign)
             if t == signed(float(number), dec, sign):
@@ -290,7 +389,7 @@ def write_corrected(src, out_path, machine, cursor, chord_tol_mm: float, initial
     rows = plan_blocks(w, src, machine, cursor, chord_tol_mm, initial_position, inch,
                        initial_known)
     with atomic_write(out_path, "wb") as f:
-        f.write("".join(w.texts).encode("latin-1"))
+        f.write(w.output().encode("latin-1"))
     if w.dropped:
         src.notes.append(f"note: {w.dropped} internal node{'s' if w.dropped != 1 else ''} of the "
                          "plan not written: a Heidenhain program's blocks stay one to one (only "
@@ -300,6 +399,14 @@ def write_corrected(src, out_path, machine, cursor, chord_tol_mm: float, initial
                          f"path by up to {w.arc_miss * 1e3:.2f} um (within --chord-tol-um "
                          f"{w.tol * 1e3:g}): the deviation after compensation and BLOCKS.csv are "
                          "the corrected path's, the arcs as written leave up to that much more")
+    if w.added_blocks:
+        src.notes.append(f"{w.split_arcs} arc{'s' if w.split_arcs != 1 else ''} C that no one "
+                         f"circle centre holds within --chord-tol-um {w.tol * 1e3:g} (a reversal "
+                         "of an axis with play, a correction that changes along the arc) written in "
+                         f"pieces: {w.added_blocks} block{'s' if w.added_blocks != 1 else ''} "
+                         "added (a CC and a C for each piece after the first; a CC of its own for "
+                         "an arc whose CC other arcs keep), the blocks after them renumbered (the "
+                         "TNC numbers a program's blocks in ascending order)")
     if w.holes:
         src.notes.append(f"{w.holes} drilling call{'s' if w.holes != 1 else ''} (L ... M99 of a "
                          "pecking cycle) corrected at the hole's bottom: X Y of the hole, the "

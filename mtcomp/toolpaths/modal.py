@@ -24,13 +24,14 @@ from .cycle_rules import cycle_move, cycle_unclear, has_axis_words, home_with_mo
 from .dialect import GENERIC, grbl_program_end
 from .frames import (FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle, follow_given,
                      mode_change)
+from .lengths import length_number, lone_h, set_length
 from .linetext import text_with_words
 from .programmed import ProgrammedOffsets, apply_g10
-from .rrf import macro_codes
+from .rrf import macro_codes, restore_move
 from .word_use import check_motion_mode, check_value_words
 from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _CURVE_WITH_COORDINATES, KNOWN_DECIMAL_G, FANUC_CYCLES, FANUC_DIALECTS,
                     OTHER_WCS_G, mode_followed, _REFUSED_G, _REFUSED_M, _UNIQUE_LETTERS, _WCS_INDEX, DEFAULT_CHORD_TOL_MM,
-                    DIR_EPS, MAX_TOOL, MM_PER_INCH, TCP_OFF_M, TCP_ON_M, TOOL_AXIS, frame_code,
+                    DIR_EPS, MM_PER_INCH, TCP_OFF_M, TCP_ON_M, TOOL_AXIS, frame_code,
                     tokenize)
 
 
@@ -81,6 +82,7 @@ class ModalState:
         self.wcs = 0
         self.tool = 0
         self.selected_tool = 0
+        self.length_on = False          # G43/G44 in force (:mod:`.lengths`)
         self._init_cycles()
         self.inverse_time = False
         #: tool centre point mode (M428, G43.4, M128): the words are the tool tip in the workpiece
@@ -348,6 +350,7 @@ class ModalState:
                     raise self._err(f"G{gi} is not a code mtcomp follows (its effect on the motion "
                                     "cannot be known)", line)
                 self._apply_modal_code(gi, values)
+        lone_h(self, gcodes, values)
         if dwell and motion is not None and home_move is None:
             nonmotion_axes = self._dwell_with_motion(motion, tokens, line)
         if tool_change:
@@ -393,7 +396,7 @@ class ModalState:
         elif round(g, 1) in (90.1, 91.1):          # arc centres absolute / incremental
             self.arc_absolute = round(g, 1) == 90.1
         elif round(g, 1) == 43.4:                # Fanuc's tool centre point control with H
-            self.tool = int(values.get("H", self.selected_tool))
+            self.tool, self.length_on = length_number(self, values), True
             self._set_tcp(True, "G43.4")
         elif round(g, 1) in (28.1, 30.1, 92.1, 92.2, 43.1, 54.1):
             if round(g, 1) in (92.1, 92.2, 43.1, 54.1):
@@ -436,16 +439,10 @@ class ModalState:
         elif gi in OTHER_WCS_G:
             mode_change(self, "wcs", self._line)
             self._forget()
-        elif gi in (43, 44):
-            self.tool = int(values.get("H", self.selected_tool))
-            if not 0 <= self.tool < MAX_TOOL:
-                raise self._err(f"tool length number H{self.tool} is not supported (0 to "
-                                f"{MAX_TOOL - 1})", self._line)
-            self._forget(self.tool_axis)
-        elif gi == 49:
-            self.tool = 0
-            self._forget(self.tool_axis)
-            self._set_tcp(False)
+        elif gi in (43, 44, 49):
+            set_length(self, float(gi), values)
+            if gi == 49:
+                self._set_tcp(False)
 
     def _axis_words(self, values, line: int) -> list[str]:
         """The axis letters the line names (X Y Z A B C order); refuses axes the machine has not."""
@@ -508,6 +505,8 @@ class ModalState:
         """The line's move in the motion mode in force (G0 to G3), or None when it does not move."""
         arc_words = [c for c in "IJKR" if c in values]
         is_motion = bool(axes_given) or (self.motion in (2, 3) and bool(arc_words))
+        if self.dialect.name == "rrf" and self.motion in (0, 1) and "R" in values:
+            return restore_move(self, values, axes_given, line)
         if not is_motion:
             if arc_words and self.cycle is None:
                 raise self._err(f"{arc_words[0]} word outside an arc block", line)
@@ -780,13 +779,15 @@ class ModalState:
         prev = np.vstack([start[None, :], pts[:-1]])
         step = pts - prev
         sign = np.where(step > DIR_EPS, 1, np.where(step < -DIR_EPS, -1, 0)).astype(np.int8)
-        out = np.empty_like(sign)
-        cur = self.dirs.copy()
-        for r in range(sign.shape[0]):
-            moving = sign[r] != 0
-            cur[moving] = sign[r][moving]
-            if r == 0 and fresh is not None:
-                cur[fresh] = 0
-            out[r] = cur
-        self.dirs = cur.copy()
+        # each axis keeps the sign of its last segment that moves it (before the block's first,
+        # the direction it had; a fresh axis 0 from the first segment on): the row of that
+        # segment carried forward, -3 for none yet, -2 for a fresh axis's first segment
+        last = np.where(sign != 0, np.arange(sign.shape[0])[:, None], -3)
+        if fresh is not None:
+            last[0, fresh] = -2
+        np.maximum.accumulate(last, axis=0, out=last)
+        had = np.where(last == -2, 0, self.dirs[None, :])
+        out = np.where(last >= 0, sign[np.maximum(last, 0), np.arange(sign.shape[1])], had)
+        out = out.astype(np.int8)
+        self.dirs = out[-1].copy()
         return out

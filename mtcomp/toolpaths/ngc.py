@@ -169,15 +169,22 @@ def check_steps(run, steps: int, pc: int, loop_line: int | None = None) -> None:
     than ``run.max_steps`` lines were executed (naming the loop at ``loop_line``, 0-based)."""
     if steps > run.max_steps:
         where = f" (the loop at line {loop_line + 1})" if loop_line is not None else ""
-        raise run.error(f"more than {run.max_steps} lines executed{where}: a loop that does not "
-                        "end? (mtcomp expands at most that many)", pc)
+        raise _runaway(run.error(f"more than {run.max_steps} lines executed{where}: a loop that "
+                                 "does not end? (mtcomp expands at most that many)", pc))
 
 
 def check_written(run, written: int, pc: int) -> None:
     """The size guard of a program run: ``run.error`` past ``run.max_lines`` lines written."""
     if written > run.max_lines:
-        raise run.error(f"the expanded program passes {run.max_lines} lines: a loop that does not "
-                        "end?", pc)
+        raise _runaway(run.error(f"the expanded program passes {run.max_lines} lines: a loop "
+                                 "that does not end?", pc))
+
+
+def _runaway(err: InputError) -> InputError:
+    """``err`` marked as a fault of the whole run (a loop that does not end), which the expansion
+    raises at once rather than after reading the lines before it (:mod:`.source`)."""
+    err.runaway = True
+    return err
 
 
 @dataclass

@@ -56,12 +56,14 @@ def iter_blocks(path, machine: Machine, chord_tol_mm: float = DEFAULT_CHORD_TOL_
     inch : the units before any G20/G21 (False: mm). initial_known : (na,) bool or bool, axes whose
     position is known before the first line (default: known if initial_position is given).
     dialect : the controller's dialect (None: detected; see :mod:`.dialect`). For an expanded
-    program the lines are those of the expansion (see :mod:`.source`).
+    program the lines are those of the expansion (see :mod:`.source`); where an error in its code
+    stopped the expansion, that error is raised after the lines executed before it.
     """
     with open_program(path, dialect) as src:
         state = new_state(machine, src, chord_tol_mm, initial_position, inch, initial_known)
         for k, raw, text in _open_lines(src):
             yield k, raw, state.block(k, text), state
+        src.raise_error()
 
 
 def read_program(path, machine: Machine, chord_tol_mm: float = DEFAULT_CHORD_TOL_MM,

@@ -152,3 +152,30 @@ def _note_rotation(state, notes: list, line: int) -> None:
             "100 mm)")
     if not any(n.startswith(f"note: M{ROTATION_M}") for n in notes):
         notes.append(note)
+
+
+#: RepRapFirmware's restore points (G60 S0-S5: RepRapFirmware 3.5, ``NumRestorePoints``; the
+#: firmware saves 1 on a pause and 2 at a tool change)
+RESTORE_POINTS = 6
+
+
+def restore_move(state, values, axes_given, line: int) -> None:
+    """A ``G0``/``G1`` with an R parameter on RepRapFirmware: a move relative to restore point R
+    (RepRapFirmware 3.5, ``GCodes.cpp``, ``DoStraightMove``: each axis named goes to its value plus
+    the restore point's coordinate, G90 or G91 alike; the axes not named stay; R above 5 is "bad
+    restore point number"). The point was saved by a ``G60 S<R>``, a pause or a tool change, where
+    the compensated program's tool stood off by its correction, or outside the program: the line
+    passes through as written, uncorrected, and the axes it names are unknown afterwards (their
+    direction too), until the program names them again."""
+    r = values["R"]
+    if r != int(r) or not 0 <= r < RESTORE_POINTS:
+        raise state._err(f"G{state.motion} R{r:g}: RepRapFirmware's restore points are 0 to "
+                         f"{RESTORE_POINTS - 1} (G60 S0-S{RESTORE_POINTS - 1}; the firmware "
+                         "answers \"bad restore point number\"; R is no radius on a G0/G1)", line)
+    for c in axes_given:
+        i = state.names.index(c)
+        state.known[i] = False
+        state.dirs[i] = 0
+    if axes_given:
+        state.passed_move = ("restore", line)
+

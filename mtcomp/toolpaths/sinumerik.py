@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 from ..errors import InputError
 from .heidenhain import read_lines
-from .words import MAX_TOOL, MM_PER_INCH
+from .words import MM_PER_INCH, NO_LENGTH
 from .sinumerik_cycles import Call, CycleCalls
 from .sinumerik_lang import (AXES, ExpressionError, Word, code_end, evaluate, fmt,
                              split_arguments, split_words)
@@ -440,13 +440,13 @@ class _Reader(CycleCalls):
         """The tool length number H of the G-code equivalent for the tool in the spindle (the
         one M6 changed in; the one T selected before any M6): its number, or for a tool called
         by name a number of its own (``Translation.tool_names``), counted down from the largest
-        (a program's numbered tools stay below them)."""
+        below NO_LENGTH (a program's numbered tools stay below them)."""
         tool = self.tool if self.active is None else self.active
         if isinstance(tool, int):
             return tool
         names = self.out.tool_names
         if tool not in names:
-            names[tool] = MAX_TOOL - 1 - len(names)
+            names[tool] = NO_LENGTH - 1 - len(names)
         return names[tool]
 
     def _basic_frame(self) -> None:

@@ -55,6 +55,7 @@ class SinumerikWriter(HelixTurns, HeidenhainWriter):
     """Writes one Sinumerik program (see the module docstring)."""
 
     ARC, CENTRE, HINT = "circle G2/G3", "its I J", "a larger --chord-tol-um"
+    SPLITS = False          # a circle no centre holds is written in pieces by _split
 
     def __init__(self, src, machine, chord_tol_mm: float):
         super().__init__(src, machine, chord_tol_mm, translation=src.sinumerik)
@@ -119,12 +120,11 @@ class SinumerikWriter(HelixTurns, HeidenhainWriter):
                 edits.append((w.start, w.end, t))
             self.written[j] = self._internal(j, said, info.shift)
         if added:
+            self.count_added(i)
             last = max([w.end for w in named.values()], default=None)
             if last is None:
                 last = len(text[:code_end(text)].rstrip())
-                edits.append((last, last, " " + " ".join(added)))
-            else:
-                edits.append((last, last, " " + " ".join(added)))
+            edits.append((last, last, " " + " ".join(added)))
         return _edit(text, edits) + ending
 
     def _centre_text(self, cc: int, centre) -> tuple[str, np.ndarray]:
@@ -398,6 +398,7 @@ class SinumerikWriter(HelixTurns, HeidenhainWriter):
     # ------------------------------------------------------------------ blocks
     def block(self, g: int, block, pts: np.ndarray, _counts=None) -> None:
         """A motion block of G-code line g (0-based) and its corrected points."""
+        self.line_read = g + 1
         info = self.tr.lines[g]
         i = info.source
         self._units_of(info)
@@ -606,6 +607,8 @@ def _notes(src, w: SinumerikWriter, stats) -> None:
     if stats is not None:
         stats["cycle_lines"] = 0
         stats["cycle_blocks"] = 0
+        if w.added_lines:
+            stats["added_axis_words"] = (w.added_lines, w.added_line)
         if subs:
             first = next(n for n, info in enumerate(src.sinumerik.lines)
                          if info.source == subs[0][0]) + 1

@@ -21,13 +21,11 @@ from dataclasses import dataclass, field
 from ..errors import InputError
 from .dialect import Dialect, dialect_named, foreign_language, needs_expansion
 from .words import strip_comments
-from .heidenhain import translate
-from .sinumerik import translate as translate_sinumerik
-from .macro import MacroRun
-from .ngc import MAX_LINES, MAX_STEPS, NgcRun
 
-_LANGUAGE = {"ngc": (NgcRun, "O-word control flow, parameters and expressions"),
-             "macro": (MacroRun, "macro variables, IF, GOTO, WHILE and subprogram calls")}
+# the languages' readers (.ngc, .macro, .heidenhain, .sinumerik) are imported where a program
+# needs one: a plain G-code program is read without them
+_LANGUAGE = {"ngc": "O-word control flow, parameters and expressions",
+             "macro": "macro variables, IF, GOTO, WHILE and subprogram calls"}
 
 
 @dataclass
@@ -38,6 +36,9 @@ class ProgramSource(os.PathLike):
     :class:`~.dialect.Dialect`; why : how it was found ('given', 'detected from line N: ...').
     line_map : for an expanded program, the source line (1-based) of each of its lines (0 for
     the first, the comment), else None. executed : lines written by the expansion.
+    error : the InputError that stopped the expansion (an error in the program's code), or None:
+    ``path`` then holds the lines executed before it, and the readers raise it after reading them
+    (:meth:`raise_error`), so that an error of an earlier executed line is told first.
     """
 
     path: str
@@ -67,9 +68,16 @@ class ProgramSource(os.PathLike):
     #: G-code equivalent, ``line_map`` the source line of each of its lines; the writer writes
     #: the Sinumerik form)
     sinumerik: object = None
+    error: InputError | None = None
 
     def __fspath__(self) -> str:
         return self.path
+
+    def raise_error(self) -> None:
+        """Raise the error that stopped the expansion, if any: called by the readers once every
+        line before it has been read (and its rows handed out)."""
+        if self.error is not None:
+            raise self.error
 
     @property
     def expanded(self) -> bool:
@@ -118,9 +126,21 @@ def _header(source: str, language: str, dialect: Dialect) -> str:
 _PROGRAM_END_RE = re.compile(r"(?i)\bm0*(?:2|30)(?![\d.])")
 
 
-def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int):
-    """(temporary file, line map, lines written, source lines), or None when nothing changes."""
-    run_cls, language = _LANGUAGE[dialect.language]
+#: how often (lines executed) the expansion tells its progress
+PROGRESS_EVERY = 4096
+
+
+def _expand(source: str, dialect: Dialect, max_steps: int | None, max_lines: int | None,
+            progress=None):
+    """(temporary file, line map, lines written, source lines, the InputError that stopped the run
+    or None), or None when nothing changes. ``progress``: callable(lines executed), told every
+    PROGRESS_EVERY lines. An error in the code stops the run at its line: the file holds the lines
+    executed before it (the error is the readers' to raise after them), but a runaway loop's
+    (``runaway``), a fault of the whole run, is raised at once."""
+    from . import macro, ngc
+    language = _LANGUAGE[dialect.language]
+    limits = {"max_steps": ngc.MAX_STEPS if max_steps is None else max_steps,
+              "max_lines": ngc.MAX_LINES if max_lines is None else max_lines}
     with open(source, "rb") as f:
         raws = f.read().split(b"\n")          # lines as the reader counts them ('\n' ends one)
     raws = [r + b"\n" for r in raws[:-1]] + ([raws[-1]] if raws[-1] else [])
@@ -128,15 +148,17 @@ def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int):
         raws[0] = raws[0][3:]
     texts = [r.decode("latin-1").rstrip("\r\n") for r in raws]
     ending = "\r\n" if raws and raws[0].endswith(b"\r\n") else "\n"
-    extra = {"dialect": dialect.name} if run_cls is MacroRun else {}
-    run = run_cls(texts, source, max_steps=max_steps, max_lines=max_lines, **extra)
+    if dialect.language == "ngc":
+        run = ngc.NgcRun(texts, source, **limits)
+    else:
+        run = macro.MacroRun(texts, source, **limits, dialect=dialect.name)
     # the expanded program's lines (0-based) -> the source's lines (1-based; 0: the header)
     line_map = array("l")
     header = (_header(source, language, dialect) + ending).encode("latin-1")   # the first line
     # a tape's end % stays its last line (what follows the program's end is not run, but the
     # controller reads the tape to it)
     tape = bool(raws) and raws[0].strip() == b"%"
-    same, last = True, -1
+    same, last, stopped = True, -1, None
     fd, tmp = tempfile.mkstemp(prefix="mtcomp-expanded-", suffix=".nc")
     try:
         with os.fdopen(fd, "wb") as out:
@@ -148,36 +170,50 @@ def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int):
                     own = raws[i][len(raws[i].rstrip(b"\r\n")):] or ending.encode()
                     out.write(text.encode("latin-1", "replace") + own)
                 line_map.append(i + 1)
-            for i, text in run.run():
-                if last == -1 and not (tape and i == 0):
-                    out.write(header)             # first, or right after a tape's opening %
-                    line_map.append(0)
-                same = same and text is None and i == last + 1
-                write(i, text)
-                if last == -1 and tape and i == 0:
-                    out.write(header)
-                    line_map.append(0)
-                last = i
-            if last >= 0 and _PROGRAM_END_RE.search(strip_comments(texts[last])):
-                # what follows the program's end (M2/M30) is kept as it is: the controller runs
-                # none of it (its subprograms, a tape's %, notes), and the reader passes it through
-                for k in range(last + 1, len(raws)):
-                    write(k, None)
-            else:
-                end = next((k for k in range(len(raws) - 1, last, -1) if raws[k].strip() == b"%"),
-                           None)
-                if tape and end is not None and raws[last].strip() != b"%":
-                    write(end, None)
-                    same = same and end == last + 1
-            if hasattr(run, "check_ran"):
-                run.check_ran()
-        if same and len(line_map) - 1 == len(raws):
+            try:
+                for i, text in run.run():
+                    if last == -1 and not (tape and i == 0):
+                        out.write(header)             # first, or right after a tape's opening %
+                        line_map.append(0)
+                    same = same and text is None and i == last + 1
+                    write(i, text)
+                    if last == -1 and tape and i == 0:
+                        out.write(header)
+                        line_map.append(0)
+                    last = i
+                    if progress is not None and not len(line_map) % PROGRESS_EVERY:
+                        progress(len(line_map) - 1)
+            except InputError as exc:
+                if getattr(exc, "runaway", False):
+                    raise
+                stopped = exc
+            if stopped is None:
+                same = _after_the_run(write, raws, texts, last, tape) and same
+                if hasattr(run, "check_ran"):
+                    run.check_ran()
+        if stopped is None and same and len(line_map) - 1 == len(raws):
             os.unlink(tmp)
             return None
     except BaseException:
         os.unlink(tmp)
         raise
-    return tmp, line_map, len(line_map) - 1, len(raws)
+    return tmp, line_map, max(len(line_map) - 1, 0), len(raws), stopped
+
+
+def _after_the_run(write, raws, texts, last: int, tape: bool) -> bool:
+    """Write what follows the lines a run executed (``last``: the last source line, 0-based, -1
+    for none); False when that is not the source's next line (the expansion differs)."""
+    if last >= 0 and _PROGRAM_END_RE.search(strip_comments(texts[last])):
+        # what follows the program's end (M2/M30) is kept as it is: the controller runs none of
+        # it (its subprograms, a tape's %, notes), and the reader passes it through
+        for k in range(last + 1, len(raws)):
+            write(k, None)
+        return True
+    end = next((k for k in range(len(raws) - 1, last, -1) if raws[k].strip() == b"%"), None)
+    if tape and end is not None and raws[last].strip() != b"%":
+        write(end, None)
+        return end == last + 1
+    return True
 
 
 def _translated(source: str, d: Dialect, why: str):
@@ -186,7 +222,11 @@ def _translated(source: str, d: Dialect, why: str):
     if not os.path.isfile(source):
         raise InputError("no such file", source)
     sinumerik = d.language == "sinumerik"
-    translation = translate_sinumerik(source) if sinumerik else translate(source)
+    if sinumerik:
+        from .sinumerik import translate
+    else:
+        from .heidenhain import translate
+    translation = translate(source)
     fd, tmp = tempfile.mkstemp(prefix=f"mtcomp-{d.language}-", suffix=".nc")
     try:
         with os.fdopen(fd, "w", encoding="latin-1", newline="\n") as out:
@@ -202,12 +242,16 @@ def _translated(source: str, d: Dialect, why: str):
 
 
 @contextlib.contextmanager
-def open_program(path, dialect: str | None = None, *, max_steps: int = MAX_STEPS,
-                 max_lines: int = MAX_LINES):
+def open_program(path, dialect: str | None = None, *, max_steps: int | None = None,
+                 max_lines: int | None = None, progress=None):
     """The program at ``path`` as a :class:`ProgramSource` (see the module docstring); a
     ProgramSource is handed back as it is. ``dialect``: a name of :data:`~.dialect.DIALECTS`, or
-    None to detect it. The temporary file of an expansion is removed on leaving the context.
-    Raises InputError (file and source line named) for code that cannot be run."""
+    None to detect it. ``max_steps``, ``max_lines``: the limits of an expansion (None:
+    :data:`.ngc.MAX_STEPS`, :data:`.ngc.MAX_LINES`). ``progress``: callable(lines executed),
+    told as a program with code is run (every PROGRESS_EVERY lines), or None. The temporary file
+    of an expansion is removed on leaving the context. Code that cannot be run is an InputError
+    (file and source line named) that the readers raise once the lines executed before it are
+    read (``ProgramSource.error``); a loop that does not end is raised here."""
     if isinstance(path, ProgramSource):
         yield path
         return
@@ -225,13 +269,13 @@ def open_program(path, dialect: str | None = None, *, max_steps: int = MAX_STEPS
         return
     expansion = None
     if d.language is not None and os.path.isfile(source) and needs_expansion(source):
-        expansion = _expand(source, d, max_steps, max_lines)
+        expansion = _expand(source, d, max_steps, max_lines, progress)
     if expansion is None:
         yield ProgramSource(source, source, d, why)
         return
-    tmp, line_map, executed, n = expansion
+    tmp, line_map, executed, n, stopped = expansion
     try:
-        yield ProgramSource(tmp, source, d, why, line_map, executed, n)
+        yield ProgramSource(tmp, source, d, why, line_map, executed, n, error=stopped)
     finally:
         with contextlib.suppress(OSError):
             os.unlink(tmp)

@@ -151,14 +151,19 @@ MAX_OFFSET_SETS = 63
 
 #: tool length numbers H below this fit in a frame code
 MAX_TOOL = LOCAL_FRAME // 16
+#: the tool length "number" of a block after the program cancelled the tool length offset (G49)
+#: or chose offset number 0 where its value is 0 (Fanuc's H00: :mod:`.lengths`): the spindle's
+#: gauge point is the point programmed, tool length 0; H numbers stay below it
+NO_LENGTH = MAX_TOOL - 1
 
 
 def frame_code(wcs: int, tool: int, tcp: bool = False, offset_set: int = 0,
                local: bool = False) -> int:
     """Pack the work coordinate system index (0 = G54 .. 8 = G59.3), the active tool length number H
-    (0: none, G49; below MAX_TOOL), the tool centre point mode, the set of work offsets the program
-    gave itself (0: none; k: the k-th distinct set, :mod:`.programmed`) and whether the program
-    moved its frame (G52, G68, mirror, scaling) into one int:
+    (0: none stated; NO_LENGTH: an offset of 0, G49; below MAX_TOOL), the tool centre point mode,
+    the set of work offsets the program gave itself (0: none; k: the k-th distinct set,
+    :mod:`.programmed`) and whether the program moved its frame (G52, G68, mirror, scaling) into
+    one int:
     ``wcs + 16 * tool (+ LOCAL_FRAME) (+ TCP_FRAME) + OFFSET_SET_FRAME * offset_set``."""
     return (int(wcs) + 16 * int(tool) + (LOCAL_FRAME if local else 0) + (TCP_FRAME if tcp else 0)
             + OFFSET_SET_FRAME * int(offset_set))
@@ -170,7 +175,8 @@ def frame_wcs(code):
 
 
 def frame_tool(code):
-    """Active tool length number H (0: none) of frame codes (int or array)."""
+    """Active tool length number H (0: none stated, NO_LENGTH: an offset of 0) of frame codes (int
+    or array)."""
     return np.asarray(code) % LOCAL_FRAME // 16
 
 

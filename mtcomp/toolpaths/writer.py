@@ -26,7 +26,7 @@ from ..io.atomic import atomic_write
 from ..machine import Machine
 from ._arcs import (FULL_CIRCLE_TOL_MM, PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_misses,
                     arc_samples, arc_sweep, bisector_centres, centre_from_radius, fit_arc_centre,
-                    min_piece_length, piece_ends, radius_refused)
+                    min_piece_length, plan_pieces, radius_refused)
 from .blocks import MotionBlock
 from .cursor import CorrectionCursor
 from .modal import ModalState
@@ -466,50 +466,18 @@ class _ArcFit:
                                           chord_tol)
 
     def plan(self, a: int, b: int, start_w: np.ndarray) -> list:
-        """The pieces from sample a (where the machine stands: start_w) to sample b: each the
-        longest arc from where the last one ended that holds, no shorter than ``min_piece`` where
-        an arc that long holds (:func:`~._arcs.piece_ends`); a straight piece to the next sample
-        only where no arc reaches it."""
-        pieces = []
-        while a < b:
-            piece, end = self._longest(a, b, start_w)
-            if piece is None:
-                end = a + 1
-                shadow = self._shadow(a, start_w)
-                texts = _axis_texts(self.block, self.samples[end], self.rotary, shadow, self.decs,
-                                    self.block.given if a == 0 else None)
-                piece = _ArcPiece(texts, _written(self.block, texts, shadow), None)
-            pieces.append(piece)
-            a, start_w = end, piece.end
-        return pieces
+        """The pieces from sample a (where the machine stands: start_w) to sample b
+        (:func:`~._arcs.plan_pieces`: the longest arcs that hold, a straight piece to the next
+        sample only where no arc reaches it)."""
+        return plan_pieces(self.arc_piece, self._straight, self.length, self.min_piece, a, b,
+                           start_w)
 
-    def _longest(self, a: int, b: int, start_w: np.ndarray):
-        """(the arc piece from sample a to the farthest sample that one arc reaches, that sample),
-        or (None, None) when no arc reaches even the next sample. Bisection over the candidate ends:
-        an arc that holds over a stretch holds over a shorter one from the same start."""
-        piece = self.arc_piece(a, b, start_w)
-        if piece is not None:
-            return piece, b
-        ends = piece_ends(self.length, a, b, self.min_piece)
-        best = self._farthest(a, ends[:-1], start_w)
-        if best[0] is None:
-            # a shorter piece only where the corrected path turns within less (a correction that
-            # changes fast): the longest arc that holds there
-            best = self._farthest(a, list(range(a + 1, ends[0])), start_w)
-        return best
-
-    def _farthest(self, a: int, ends: list, start_w: np.ndarray):
-        """(piece, end) of the farthest of ``ends`` (increasing sample indices) an arc from sample
-        a reaches, by bisection; (None, None) when it reaches none."""
-        lo, hi, best = 0, len(ends) - 1, (None, None)
-        while lo <= hi:
-            mid = (lo + hi) // 2
-            piece = self.arc_piece(a, ends[mid], start_w)
-            if piece is None:
-                hi = mid - 1
-            else:
-                best, lo = (piece, ends[mid]), mid + 1
-        return best
+    def _straight(self, a: int, start_w: np.ndarray) -> _ArcPiece:
+        """A straight piece from sample a (start_w) to sample a + 1."""
+        shadow = self._shadow(a, start_w)
+        texts = _axis_texts(self.block, self.samples[a + 1], self.rotary, shadow, self.decs,
+                            self.block.given if a == 0 else None)
+        return _ArcPiece(texts, _written(self.block, texts, shadow), None)
 
     def _shadow(self, a, start_w):
         if a == 0:

@@ -114,7 +114,9 @@ def _motion_runs(original: ProgramPoints, compensated: ProgramPoints) -> tuple[n
     run_b = np.zeros(len(b) + 2, np.int64)
     j, run = 0, 0
     for k, raw in enumerate(a, 1):
-        if k in a_motion:
+        # a blank line bounds no run: a Heidenhain program's CC and cycle blocks read as blank
+        # G-code lines, and compensate may add CC blocks among an arc's pieces
+        if k in a_motion or not raw.strip():
             run_a[k] = run
             continue
         start = j
@@ -158,6 +160,10 @@ def pair_compensated(original: ProgramPoints, compensated: ProgramPoints, machin
         if ia.size == ib.size:
             idx[ia] = ib
             continue
+        if ib.size < ia.size:
+            raise InputError(f"the compensated program has fewer moves than line "
+                             f"{int(original.line[ia[0]])} of {original.path} and the lines after "
+                             "it: not a compensated version of that program", compensated.path)
         idx[ia] = ib[_aligned(original.q[ia], compensated.q[ib], tol)]
     if n and m:
         diff = np.abs(compensated.q[idx] - original.q) > tol

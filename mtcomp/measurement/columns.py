@@ -1,0 +1,133 @@
+"""What a measurement file's columns and values say beyond what the readers take (docs/measurements.md).
+
+A file may carry columns mtcomp does not read (an operator's note, a sensor's temperature); they
+are kept and ``mtcomp predict`` repeats them. But a column that looks like one mtcomp reads,
+misspelt (``tool_length_mm``, ``stylus_mm``, ``dx_umm``), is almost always that column under the
+wrong name: read as an extra column, its values would be ignored without a word (a points file's
+stylus lengths replaced by the machine's tool length in every row). So:
+
+* :func:`check_columns` refuses a column that names the tool length another way (``tool_length_mm``,
+  ``stylus_mm``, ``probe_length_mm`` ...: "did you mean tool_mm") or lies within a letter or two of
+  a column the file's kind reads and lacks (``difflib`` ratio at least :data:`MISSPELT_RATIO`).
+* :func:`file_notes` says, per file: the columns mtcomp does not read; that a points file without
+  ``tool_mm`` is taken at the machine's tool length in every row; and when every deviation of a
+  points or cmm file is smaller than a machine's errors and an instrument's noise over the span of
+  its positions (values in mm written under ``*_um`` columns: the unit check of
+  :func:`mtcomp.measurement.units.unit_check`, below max(0.05 um, 0.5 ppm of the span) over 100 mm
+  or more).
+"""
+from __future__ import annotations
+
+import difflib
+import re
+
+import numpy as np
+
+from ..errors import InputError
+from ..machine import AXIS_ORDER
+from .units import UM, unit_check, unit_limit_um
+
+#: a column this close (difflib ratio) to one the file's kind reads and lacks is taken as misspelt
+MISSPELT_RATIO = 0.85
+#: names of the tool length a user may write for ``tool_mm``
+_TOOL_ALIAS = re.compile(r"^(tool|stylus|probe)_?(len|length)(_mm)?$|^(stylus|probe)_mm$")
+
+_XYZ = ("x_mm", "y_mm", "z_mm")
+_ABC = ("a_deg", "b_deg", "c_deg")
+_COMMON = ("kind", "feed_mm_min", "t_s", "run", "spindle_rpm", *(f"dir_{a.lower()}" for a in AXIS_ORDER))
+#: the columns each kind's reader takes (beside the patterns of :data:`_PATTERNS`)
+KNOWN = {
+    "points": (*_XYZ, *_ABC, "tool_mm", "dx_um", "dy_um", "dz_um", "dn_um", "nx", "ny", "nz"),
+    "laser": ("axis", "component", "target_mm", "target_deg", "dir", "value_um", "value_urad", *_XYZ,
+              *_ABC, "optic_x_mm", "optic_y_mm", "optic_z_mm", "seq"),
+    "ballbar": (*_XYZ, *_ABC, "table_ball_x_mm", "table_ball_y_mm", "table_ball_z_mm",
+                "tool_ball_x_mm", "tool_ball_y_mm", "tool_ball_z_mm", "length_mm"),
+    "cmm": (*_XYZ, "nx", "ny", "nz", "dn_um"),
+    "thermal": (),
+    "velocity": ("axis", *_XYZ, "m_x_mm", "m_y_mm", "m_vx_mm_min", "m_vy_mm_min",
+                 "n_x_mm", "n_y_mm", "n_vx_mm_min", "n_vy_mm_min"),
+}
+#: column patterns read in every file (temperatures), in thermal files (channels and their axes),
+#: and mtcomp's own prediction columns (``mtcomp predict`` writes them; a file read back keeps them)
+_PATTERNS = (re.compile(r"^temp_.+_c$"), re.compile(r"^pred_.+$"))
+_THERMAL = (re.compile(r"^disp_.+_um$"), re.compile(r"^axis_.+$"))
+#: deviation columns whose values the unit check reads
+_DEVIATIONS = ("dx_um", "dy_um", "dz_um", "dn_um")
+
+
+def _known(kind: str, name: str) -> bool:
+    if name in _COMMON or name in KNOWN.get(kind, ()):
+        return True
+    patterns = _PATTERNS + (_THERMAL if kind == "thermal" else ())
+    return any(p.match(name) for p in patterns)
+
+
+def unknown_columns(kind: str, names) -> list[str]:
+    """The columns of ``names`` (lower case) a file of ``kind`` does not read, in file order."""
+    return [n for n in names if n and not _known(kind, n)]
+
+
+def check_columns(table, kind: str) -> None:
+    """InputError (row 0, the header) for a column that looks like one this kind reads, misspelt:
+    a name of the tool length other than ``tool_mm`` in a points file, or a name within
+    :data:`MISSPELT_RATIO` of a column the kind reads and the file lacks."""
+    names = table.names
+    for name in unknown_columns(kind, names):
+        meant = None
+        if kind == "points" and "tool_mm" not in names and _TOOL_ALIAS.match(name):
+            meant = "tool_mm"
+        else:
+            absent = [k for k in KNOWN.get(kind, ()) if k not in names]
+            close = difflib.get_close_matches(name, absent, n=1, cutoff=MISSPELT_RATIO)
+            meant = close[0] if close else None
+        if meant is not None:
+            what = (" (the tool or stylus length of each row, mm; blank: the machine's "
+                    "tool_length_mm)" if meant == "tool_mm" else "")
+            raise InputError(f"column {name}: did you mean {meant}{what}? mtcomp does not read "
+                             f"{name}; rename the column", table.path, row=0)
+
+
+def file_notes(machine, datasets) -> list[str]:
+    """One sentence per finding in each file (module docstring): columns not read, a points file
+    taken at the machine's tool length, deviations that look like mm under ``*_um``."""
+    notes = []
+    for data in datasets:
+        data = getattr(data, "data", data)          # a measurement model's file
+        header = [h.strip().lower() for h in getattr(data, "header", ())]
+        if not header or not len(data):
+            continue
+        extra = unknown_columns(data.kind, header)
+        if extra:
+            notes.append(f"{data.path}: column(s) {', '.join(extra)} not read by mtcomp (a {data.kind} "
+                         "file's columns are in docs/measurements.md); kept as they are")
+        if data.kind == "points" and "tool_mm" not in header:
+            notes.append(f"{data.path}: no column tool_mm: every row is taken at the machine's tool "
+                         f"length, {machine.tool_length:g} mm (its tool_length_mm); give tool_mm if the "
+                         "stylus or tool was another length")
+        line = _mm_under_um(data, header)
+        if line:
+            notes.append(line)
+    return notes
+
+
+def _mm_under_um(data, header) -> str | None:
+    """The sentence when a points or cmm file's deviations look like mm written under ``*_um``
+    (:func:`mtcomp.measurement.units.unit_check` over the axis whose positions span the most, the
+    rule the laser files' ISO 230-2 evaluation uses), else None."""
+    cols = [c for c in _DEVIATIONS if c in header]
+    if data.kind not in ("points", "cmm") or not cols or not len(data.xyz):
+        return None
+    values = np.concatenate([np.ravel(getattr(data, "deviation", np.empty(0))),
+                             np.ravel(data.normal_deviation)])
+    values = values[np.isfinite(values)]
+    xyz = data.xyz[np.all(np.isfinite(data.xyz), axis=1)]
+    if not values.size or not len(xyz):
+        return None
+    along = xyz[:, int(np.argmax(np.ptp(xyz, axis=0)))]
+    if not unit_check(False, along, values):
+        return None
+    span = float(np.ptp(along))
+    return (f"{data.path}: every deviation ({', '.join(cols)}) is below {unit_limit_um(span):.2g} um "
+            f"in magnitude (largest {np.abs(values).max() / UM:.3g} um) over positions spanning "
+            f"{span:g} mm, less than a machine's errors and an instrument's noise there: were the "
+            "values written in mm under *_um columns? if so multiply them by 1000")

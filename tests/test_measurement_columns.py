@@ -1,0 +1,94 @@
+"""What a measurement file says beyond what the readers take (docs/measurements.md, "Columns mtcomp
+does not read"): a tool length under another name is refused ("did you mean tool_mm"), so is a
+column a letter or two off one its kind reads and lacks; the commands note the columns they do not
+read, a points file without tool_mm (every row at the machine's tool length) and deviations that
+look like mm under ``*_um`` columns. The thresholds are checked against hand-computed limits:
+over positions spanning 700 mm, max(0.05 um, 0.5 ppm x 700 mm) = 0.35 um."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mtcomp import InputError, load_machine
+from mtcomp.cli import main
+from mtcomp.commands import note_outside_travel
+from mtcomp.measurement.files import read_measurements
+
+#: a small grid of points over 700 mm of X: deviations in um, largest 2.5 um
+POSITIONS = [(-350.0, -100.0, -50.0), (0.0, 0.0, 0.0), (350.0, 100.0, 50.0), (175.0, -50.0, 20.0)]
+DEVIATIONS_UM = [(1.5, -0.8, 0.2), (0.0, 0.3, -0.4), (-2.5, 1.1, 0.9), (0.7, -0.2, 0.05)]
+
+
+def _points(path, tool_column="tool_mm", extra="", scale=1.0, tool=50.0):
+    head = "x_mm,y_mm,z_mm," + (f"{tool_column}," if tool_column else "") + "dx_um,dy_um,dz_um" + \
+        (f",{extra}" if extra else "")
+    rows = [head]
+    for (x, y, z), d in zip(POSITIONS, DEVIATIONS_UM):
+        cells = [f"{x}", f"{y}", f"{z}"] + ([f"{tool}"] if tool_column else []) + \
+            [f"{v * scale:.6g}" for v in d] + (["a"] if extra else [])
+        rows.append(",".join(cells))
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+def _notes(path, capsys, machine="xfyz") -> list[str]:
+    capsys.readouterr()
+    note_outside_travel("identify", load_machine(machine), [read_measurements(path)])
+    return [ln for ln in capsys.readouterr().err.splitlines() if ln]
+
+
+@pytest.mark.parametrize("column", ["stylus_mm", "tool_length_mm", "probe_length_mm", "toollength_mm"])
+def test_a_tool_length_under_another_name_is_refused(tmp_path, capsys, column):
+    src = _points(tmp_path / "grid.csv", tool_column=column)
+    out = tmp_path / "M.json"
+    assert main(["identify", "xfyz", str(src), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert f"grid.csv: row 0: column {column}: did you mean tool_mm" in err
+    assert not out.exists()
+
+
+def test_a_column_a_letter_off_one_its_kind_lacks_is_refused(tmp_path):
+    p = tmp_path / "typo.csv"
+    p.write_text("x_mm,y_mm,z_mmm,dx_um\n1,2,3,0.5\n")
+    with pytest.raises(InputError, match=r"typo.csv: row 0: column z_mmm: did you mean z_mm\?"):
+        read_measurements(p)
+    # the same name beside the column it resembles is no misspelling: an extra column, kept
+    p.write_text("x_mm,y_mm,z_mm,z_mmm,dx_um\n1,2,3,4,0.5\n")
+    assert read_measurements(p).header[3] == "z_mmm"
+
+
+def test_a_file_mtcomp_reads_whole_gets_no_note(tmp_path, capsys):
+    assert _notes(_points(tmp_path / "ok.csv"), capsys) == []
+
+
+def test_columns_not_read_and_the_machines_tool_length_are_noted(tmp_path, capsys):
+    notes = _notes(_points(tmp_path / "g.csv", tool_column=None, extra="operator"), capsys)
+    assert len(notes) == 2, notes
+    assert "g.csv: column(s) operator not read by mtcomp" in notes[0]
+    tool = load_machine("xfyz").tool_length
+    assert (f"g.csv: no column tool_mm: every row is taken at the machine's tool length, {tool:g} mm"
+            in notes[1])
+    # tool_mm beside another name of the tool length: read, and the other one noted, not refused
+    p = tmp_path / "both.csv"
+    p.write_text("x_mm,y_mm,z_mm,tool_mm,stylus_mm,dx_um\n-350,0,0,50,50,1\n350,0,0,50,50,-1\n")
+    notes = _notes(p, capsys)
+    assert len(notes) == 1 and "column(s) stylus_mm not read by mtcomp" in notes[0]
+
+
+def test_deviations_in_mm_under_um_columns_are_noted(tmp_path, capsys):
+    # the same grid written in mm: largest 0.0025 "um" over 700 mm, below 0.35 um
+    notes = _notes(_points(tmp_path / "mm.csv", scale=1e-3), capsys)
+    assert len(notes) == 1, notes
+    assert ("mm.csv: every deviation (dx_um, dy_um, dz_um) is below 0.35 um in magnitude (largest "
+            "0.0025 um) over positions spanning 700 mm") in notes[0]
+    assert "multiply them by 1000" in notes[0]
+    # the limit, by hand: a largest deviation of 0.34 um is noted, 0.36 um is not
+    for largest, noted in ((0.34, True), (0.36, False)):
+        notes = _notes(_points(tmp_path / "edge.csv", scale=largest / 2.5), capsys)
+        assert (len(notes) == 1) is noted, (largest, notes)
+    # a span under 100 mm says nothing: tiny errors are possible there
+    p = tmp_path / "short.csv"
+    p.write_text("x_mm,y_mm,z_mm,tool_mm,dx_um\n0,0,0,50,0.001\n90,0,0,50,-0.002\n")
+    assert _notes(p, capsys) == []
+    assert np.isclose(max(abs(v) for d in DEVIATIONS_UM for v in d), 2.5, rtol=0, atol=0)
