@@ -1,9 +1,15 @@
-"""Approach directions of the machine's axes: the reader's rule, in one place.
+"""Approach directions of the machine's axes: the one rule the reader and the machine frame share.
 
 An axis's approach direction at the end of a segment is the sign of its last move (+1, -1): an
 axis that moves less than :data:`~.words.DIR_EPS` in a segment keeps the direction it had, and an
 axis moving from a position the program has not given has no known direction (0) until its next
 move. The reader (:mod:`.modal`) applies the rule to the program's steps (:func:`step_directions`).
+
+In tool centre point mode (:mod:`.tcp`) a program's X Y Z are the tool tip in the workpiece frame,
+not axis positions: where a rotary axis turns the part, the tip moving one way can be a linear axis
+moving the other. :class:`AxisDirections` takes the directions of the linear axes again, by the same
+rule, from the axis positions the controller reaches (after the inverse kinematics), and carries
+them into the rows after a TCP run until an axis moves again.
 
 Units: mm and rad; arrays (k, na) in ``machine.axis_names`` order, directions int8.
 """
@@ -54,3 +60,46 @@ def step_directions(prev: np.ndarray, start: np.ndarray, pts: np.ndarray, fresh=
         value[0, fresh] = 0
     return held_directions(prev, value, sets)
 
+
+class AxisDirections:
+    """The approach directions of the linear axes along one program in machine axis positions, in
+    chunks in program order: the reader's where the program's words are axis positions, the axes'
+    own in tool centre point rows (module docstring).
+
+    linear : (na,) bool, the axes whose TCP words are not their positions (X, Y, Z).
+    """
+
+    def __init__(self, linear: np.ndarray):
+        self.linear = np.asarray(linear, bool)
+        na = self.linear.size
+        self.reader = np.zeros(na, np.int8)    # the reader's directions at the last row
+        self.axes = np.zeros(na, np.int8)      # the axes' directions there
+
+    def chunk(self, dirs: np.ndarray, start: np.ndarray, end: np.ndarray, tcp: np.ndarray,
+              stepped: np.ndarray) -> np.ndarray:
+        """(n, na) int8 the directions of n rows. dirs : (n, na) the reader's. start, end : (n, na)
+        the rows' machine axis positions (mm, rad). tcp : (n,) bool, TCP rows. stepped : (n,) bool,
+        the TCP rows whose start and end are both axis positions (every axis given before and in
+        the block); a TCP row that is not moves its linear axes from positions not known (0).
+        Elsewhere an axis takes the reader's direction where it moves or where the reader's
+        changed without a row (a home move, a fresh axis), and keeps the one it had otherwise."""
+        n = len(dirs)
+        if n == 0 or not (tcp.any() or np.any(self.reader != self.axes)):
+            if n:
+                self.reader, self.axes = np.array(dirs[-1], np.int8), np.array(dirs[-1], np.int8)
+            return dirs
+        lin = self.linear
+        reader = np.asarray(dirs)[:, lin]
+        value = step_signs(end[:, lin] - start[:, lin])
+        sets = (value != 0) | (reader != np.vstack([self.reader[None, lin], reader[:-1]]))
+        plain = ~tcp
+        value[plain] = reader[plain]
+        rows = tcp & stepped
+        sets[rows] = value[rows] != 0
+        rows = tcp & ~stepped
+        sets[rows], value[rows] = True, 0
+        out = np.array(dirs, np.int8)
+        out[:, lin] = held_directions(self.axes[lin], value, sets)
+        self.reader = np.array(dirs[-1], np.int8)
+        self.axes = out[-1].copy()
+        return out
