@@ -221,6 +221,8 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                 if (col < 0 || (seen & (1u << col))) { simple = 0; break; }
                 const char *dot = memchr(ts, '.', (size_t)(p - ts));
                 if (dot && p - dot - 1 > 15) { simple = 0; break; }   /* more decimals: Python */
+                /* no point: Fanuc and Haas read the least input increment (word_use.py): Python */
+                if (!dot && v != 0.0) { simple = 0; break; }
                 seen |= 1u << col;
                 vals[col] = v;
                 ax_s[col] = ts; ax_e[col] = p;

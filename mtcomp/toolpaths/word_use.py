@@ -177,3 +177,49 @@ def _grbl_problem(letter, mode, gcodes, letters) -> str:
         return ""
     takers = " ".join(f"G{g:g}" for g in motions + codes)
     return f"on grbl {letter} goes with {takers}; grbl refuses it: error 36, unused value word"
+
+
+#: dialects whose controllers read a dimension word without a decimal point in the least input
+#: increment (Fanuc Series 0i-MODEL F operator's manual, "decimal point programming": X1 is 0.001 mm
+#: under G21, 0.0001 in under G20, unless calculator-type input is set, parameter 3401#0 DPI; Haas
+#: Mill operator's manual: a value without a decimal point is in 0.001 mm or 0.0001 in units)
+POINT_DIALECTS = frozenset({"fanuc", "haas"})
+_AXIS_WORDS = frozenset("XYZABCUVW")
+
+
+def check_point_words(state, tokens, motion, cycle, axes_given, own_axes, line: int) -> None:
+    """Refuse, on Fanuc and Haas, a dimension word other than zero written without a decimal point
+    (``X60``): the controller reads it in the least input increment (0.060 mm), or as 60 mm where
+    calculator-type input is set, a setting of the machine the program does not show. mtcomp would
+    read one and write the corrected word with a point, which every controller reads as mm: a move
+    of 60 mm where the controller made one of 0.06. Dimension words: the axis words, an arc's
+    I J K R, a drilling cycle's R I J and the peck Q of G73/G83 (a dwell's X or P, a cycle's repeat
+    count K, G5.1's Q are not)."""
+    if state.dialect.name not in POINT_DIALECTS:
+        return
+    letters = {t[0] for t in tokens}
+    mode = block_motion(state, motion, cycle, axes_given, own_axes, letters)
+    dwell = any(t[0] == "G" and float(t[1]) == 4 for t in tokens)
+    for t in tokens:
+        letter, number = t[0], t[1]
+        try:
+            if "." in number or float(number) == 0:
+                continue
+        except ValueError:              # a word whose value is not a plain number
+            continue
+        if letter in _AXIS_WORDS:
+            dimension = not (dwell and letter in "XU")
+        elif mode in (2.0, 3.0):
+            dimension = letter in "IJKR"
+        elif mode in _CYCLES:
+            dimension = letter in "RIJ" or (letter == "Q" and mode in (73.0, 83.0))
+        else:
+            dimension = False
+        if dimension:
+            unit = "0.0001 in" if state.inch else "0.001 mm"
+            raise state._err(
+                f"{letter}{number} has no decimal point: a {state.dialect.name.capitalize()} reads it "
+                f"in the least input increment ({unit}), or as whole units where calculator-type input "
+                f"is set (Fanuc parameter 3401#0), which the program does not show; write "
+                f"{letter}{number}. for whole units", line)
+
