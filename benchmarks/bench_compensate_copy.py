@@ -1,6 +1,6 @@
 """`mtcomp compensate` against a plain read-and-write of the same file: wall time and peak memory.
 
-    python benchmarks/bench_compensate_copy.py [--blocks 1280000] [--repeat 5] [--report]
+    python benchmarks/bench_compensate_copy.py [--blocks 1280000] [--repeat 5] [--report] [--bytecode]
 
 The program (generated in a temporary folder, nothing is kept) is bench_gcode.py's: X Y Z lines with
 4 decimals, a G1 with F every 50 blocks, a comment line every 1000, and a G2 arc every 5000 blocks
@@ -20,6 +20,13 @@ it at the head of sys.path), then from PYTHONPATH: run this from the checkout to
 a process that imports what compensate imports (numpy, CasADi, the package) and exits; ``+ osqp``
 adds OSQP and scipy.sparse, imported when a window of the program needs the bounded QP (this
 program's do).
+
+Python compiles each module it imports from source unless it finds the module's bytecode (a
+``__pycache__`` file, written at the first import, or at installation); with
+``PYTHONDONTWRITEBYTECODE`` set, as in some environments, it compiles the package's modules at
+every start (about 0.2 s for compensate's). ``--bytecode`` runs every subprocess with a bytecode
+cache in the temporary folder (``PYTHONPYCACHEPREFIX``; the warm-up writes it), as an installed
+package runs.
 """
 from __future__ import annotations
 
@@ -42,10 +49,10 @@ COPY = ("import sys\n"
         "        g.write(line)\n")
 
 
-def run(cmd: list[str]) -> tuple[float, float, float]:
+def run(cmd: list[str], env: dict | None = None) -> tuple[float, float, float]:
     """(wall s, peak rss MB, CPU s (user + system)) of one subprocess."""
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
     _, status, ru = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - t0
     err = proc.stderr.read().decode()
@@ -55,10 +62,17 @@ def run(cmd: list[str]) -> tuple[float, float, float]:
     return wall, ru.ru_maxrss / 1024.0, ru.ru_utime + ru.ru_stime
 
 
-def measure(cmd, repeat):
-    run(cmd)
-    runs = [run(cmd) for _ in range(repeat)]
+def measure(cmd, repeat, env=None):
+    run(cmd, env)
+    runs = [run(cmd, env) for _ in range(repeat)]
     return tuple(statistics.median(r[k] for r in runs) for k in range(3))
+
+
+def bytecode_env(folder: Path) -> dict:
+    """The environment with Python's bytecode cached in ``folder`` (written where missing)."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    env["PYTHONPYCACHEPREFIX"] = str(folder)
+    return env
 
 
 def main(argv=None) -> int:
@@ -66,6 +80,8 @@ def main(argv=None) -> int:
     ap.add_argument("--blocks", type=int, default=1_280_000)
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--report", action="store_true", help="also time compensate --report")
+    ap.add_argument("--bytecode", action="store_true",
+                    help="run every subprocess with a bytecode cache, as an installed package")
     args = ap.parse_args(argv)
     py = sys.executable
     with tempfile.TemporaryDirectory() as tmp:
@@ -74,17 +90,18 @@ def main(argv=None) -> int:
         make_program(prog, args.blocks)
         write_model(model, "xfyz")
         size = prog.stat().st_size / 1e6
-        copy = measure([py, "-c", COPY, str(prog), str(tmp / "copy.nc")], args.repeat)
-        floor = measure([py, "-c", IMPORTS], args.repeat)
-        floor_qp = measure([py, "-c", IMPORTS + ", osqp, scipy.sparse"], args.repeat)
+        env = bytecode_env(tmp / "pycache") if args.bytecode else None
+        copy = measure([py, "-c", COPY, str(prog), str(tmp / "copy.nc")], args.repeat, env)
+        floor = measure([py, "-c", IMPORTS], args.repeat, env)
+        floor_qp = measure([py, "-c", IMPORTS + ", osqp, scipy.sparse"], args.repeat, env)
         cmd = [py, "-m", "mtcomp", "compensate", "xfyz", str(model), str(prog), "-o", str(out),
                "--quiet"]
-        comp = measure(cmd, args.repeat)
+        comp = measure(cmd, args.repeat, env)
         out_size = out.stat().st_size / 1e6
         rows = [("copy", copy), ("import", floor), ("+ osqp", floor_qp), ("compensate", comp)]
         if args.report:
             rows.append(("+ --report", measure(cmd + ["--report", str(tmp / "b.csv")],
-                                               args.repeat)))
+                                               args.repeat, env)))
     where = subprocess.run([py, "-c", "import mtcomp; print(mtcomp.__file__)"], capture_output=True,
                            text=True, check=True).stdout.strip()
     print(f"mtcomp from {Path(where).parent}")
@@ -94,7 +111,8 @@ def main(argv=None) -> int:
         print(f"{what:12s} {wall:8.2f} {mb:8.0f} {wall / copy[0]:7.1f} {cpu:7.2f} "
               f"{cpu / copy[2]:6.1f}")
     print(f"(median of {args.repeat} runs after a warm-up; {os.cpu_count()} cpus, load average "
-          f"{os.getloadavg()[0]:.1f})")
+          f"{os.getloadavg()[0]:.1f}; bytecode "
+          f"{'cached' if args.bytecode or not sys.dont_write_bytecode else 'not written'})")
     return 0
 
 

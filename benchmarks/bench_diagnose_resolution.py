@@ -41,6 +41,11 @@ def _named(d) -> list:
     return [f"{f.effect} {f.axis}".strip() for f in d.findings]
 
 
+def _written(d) -> str:
+    """The model diagnose wrote (REPORT.json's ``final.written``, docs/diagnose.md)."""
+    return (d.final.get("written") or {}).get("model", "least squares (no weak combination)")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--case", choices=CASES, action="append", help="the cases to run (default: all)")
@@ -58,7 +63,7 @@ def main(argv=None):
                     print(f"seed003 {seed}: C-axis points over the turn (each point's offset removed) mean "
                           f"{turn.mean():.3f} um, max {turn.max():.3f} um (paper 0.3 / 0.78); with the offset "
                           f"the data leave open: mean {err.mean():.3f}, max {err.max():.3f}; named {_named(d)} "
-                          f"{d.verdict} {time.perf_counter() - t0:.1f} s", flush=True)
+                          f"{d.verdict}, model written: {_written(d)} {time.perf_counter() - t0:.1f} s", flush=True)
                     continue
                 case = {"pdge": pdge_case, "periodic_backlash": periodic_backlash_case,
                         "pitch_line": pitch_line_case, "feed_abbe": abbe_case,
@@ -66,7 +71,7 @@ def main(argv=None):
                 d, dt = run(case)
                 sc = score(case, d, noise_um=0.2 if name == "feed_abbe_fine" else 0.3)
                 print(f"{name} {seed} {case.kind}: named {_named(d)} {d.verdict}, held-out/noise "
-                      f"{sc.ratio:.3f} {dt:.1f} s", flush=True)
+                      f"{sc.ratio:.3f}, model written: {_written(d)} {dt:.1f} s", flush=True)
 
 
 if __name__ == "__main__":

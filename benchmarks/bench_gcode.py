@@ -1,12 +1,13 @@
 """G-code read + write throughput (blocks/s) and peak memory, on a generated program.
 
-    python benchmarks/bench_gcode.py [--blocks 1000000] [--runs 3] [--python]
+    python benchmarks/bench_gcode.py [--blocks 1000000] [--runs 3] [--python] [--corrected]
 
 Each run is a fresh subprocess that streams the program through ``iter_segment_chunks`` and writes
 it back with ``write_corrected`` (the corrections are the nominal end points, the shape of what the
-planner hands over); the figure is blocks / wall time of read + write, and the peak resident memory
-(ru_maxrss) of that subprocess. Prints the median of the runs. ``--python`` forces the pure-Python
-reader and writer (no compiled fast path).
+planner hands over; with ``--corrected`` every position scaled by 1 + 3e-5, so that nearly every
+number is written anew, as after a compensation); the figure is blocks / wall time of read + write,
+and the peak resident memory (ru_maxrss) of that subprocess. Prints the median of the runs.
+``--python`` forces the pure-Python reader and writer (no compiled fast path).
 """
 from __future__ import annotations
 
@@ -31,9 +32,10 @@ from mtcomp.toolpaths import iter_segment_chunks, write_corrected
 from mtcomp.toolpaths import _fast
 m = load_machine(sys.argv[3])
 t0 = time.perf_counter()
+scale = float(sys.argv[5])
 def corr():
     for c in iter_segment_chunks(sys.argv[1], m):
-        yield c, c.end, np.ones(len(c), np.int64)
+        yield c, c.end if scale == 1.0 else c.end * scale, np.ones(len(c), np.int64)
 rows = write_corrected(sys.argv[1], sys.argv[2], m, corr())
 dt = time.perf_counter() - t0
 print(json.dumps({"rows": rows, "seconds": dt, "maxrss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
@@ -70,6 +72,8 @@ def main(argv=None) -> int:
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--machine", default="xfyz")
     ap.add_argument("--python", action="store_true", help="force the pure-Python path")
+    ap.add_argument("--corrected", action="store_true",
+                    help="write every position scaled by 1 + 3e-5 (every number rewritten)")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as d:
         src = Path(d) / "bench.nc"
@@ -81,7 +85,8 @@ def main(argv=None) -> int:
         for r in range(args.runs):
             out = Path(d) / f"out{r}.nc"
             p = subprocess.run([sys.executable, "-c", CHILD, str(src), str(out), args.machine,
-                                "python" if args.python else "auto"],
+                                "python" if args.python else "auto",
+                                repr(1 + 3e-5 if args.corrected else 1.0)],
                                capture_output=True, text=True, check=True)
             res = json.loads(p.stdout.strip().splitlines()[-1])
             results.append(res)

@@ -58,7 +58,11 @@ def _store_once(parser: argparse.ArgumentParser) -> None:
             action.__class__ = _StoreOnce
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The command line's parser. ``command``: the one command whose arguments are added (its
+    module imported; the others are listed by name and help only, their modules not imported: a
+    run of one command does not import the others', e.g. compensate not export's tables); None:
+    every command's."""
     from . import __version__
     parser = _Parser(prog="mtcomp", description="Compensation planner for the geometric errors of "
                      "CNC machine tools.")
@@ -67,12 +71,20 @@ def build_parser() -> argparse.ArgumentParser:
     sub.required = True
     for name, (module, help_text) in COMMANDS.items():
         p = sub.add_parser(name, help=help_text, description=help_text)
-        mod = _command_module(module, optional=True)
+        mod = _command_module(module, optional=True) if command in (None, name) else None
         if mod is not None:
             mod.add_arguments(p)
             _store_once(p)
         p.set_defaults(_module=module)
     return parser
+
+
+def _command_named(argv: list[str]) -> str | None:
+    """The command an argument list runs: its first word that is not an option (the top level
+    takes no option with a value), None when that is no command (argparse then says what is
+    wrong, with every command's parser built)."""
+    first = next((a for a in argv if not a.startswith("-")), None)
+    return first if first in COMMANDS else None
 
 
 def _command_module(module: str, optional: bool = False):
@@ -85,7 +97,8 @@ def _command_module(module: str, optional: bool = False):
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(_command_named(argv))
     args = parser.parse_args(argv)
     vars(args).pop("_given_once", None)
     mod = _command_module(args._module, optional=True)

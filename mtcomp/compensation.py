@@ -30,7 +30,7 @@ from .planner._small import any_rows, row_norm
 from .planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
 from .toolpaths.words import frame_local, frame_tcp
 from .toolpaths import iter_segment_chunks, write_corrected
-from .toolpaths._fast import format_table
+from .toolpaths._fast import format_table, g_codes
 from .toolpaths.source import open_program
 
 _DIGITS = b"0123456789."
@@ -169,17 +169,23 @@ def words_in(path, codes, block: int = 1 << 22) -> set:
         raise InputError("no such file", path) from None
     except OSError as exc:
         raise InputError(f"cannot open: {exc.strerror}", path) from None
-    found, tail = set(), b""
+    found = set()
+    # one buffer for every block (new ones cost more than the scan): the last 16 bytes of a block
+    # again at its front, so that a word cut by the block's end is read with the next block
+    text = bytearray(16 + block)
+    view = memoryview(text)
+    kept = 0
     with f:
         while len(found) < len(codes):
-            data = f.read(block)
-            text = tail + data if data else tail + b" "
-            # a word cut by the block's end is read with the next block (the last 16 bytes again)
-            found |= _g_codes(text if not data else text[:-8],
-                              [c for c in codes if c not in found])
-            if not data:
+            got = f.readinto(view[kept:kept + block])
+            n = kept + got
+            if not got:
+                text[n] = ord(" ")
+                found |= _g_codes(text, [c for c in codes if c not in found], n + 1)
                 break
-            tail = text[-16:]
+            found |= _g_codes(text, [c for c in codes if c not in found], n - 8)
+            kept = min(16, n)
+            text[:kept] = text[n - kept:n]
     return found
 
 
@@ -189,10 +195,16 @@ def _has_g(text: bytes, code: bytes = b"20") -> bool:
     return bool(_g_codes(text, [code]))
 
 
-def _g_codes(text: bytes, codes) -> set:
-    """The ``codes`` (two-digit bytes) that :func:`_has_g` finds in ``text``, from one pass over the
-    text for its G letters: the few bytes after each are compared, vectorised over the letters."""
-    a = np.frombuffer(text, np.uint8)
+def _g_codes(text: bytes, codes, n: int | None = None) -> set:
+    """The ``codes`` (two-digit bytes) that :func:`_has_g` finds in ``text`` (its first ``n`` bytes,
+    None: all), from one pass over the text for its G letters: the few bytes after each are
+    compared; in the G-code reader's compiled code (:func:`.toolpaths._fast.g_codes`) where it is
+    built, else vectorised over the letters."""
+    n = len(text) if n is None else n
+    found = g_codes(text, n, codes) if codes else set()
+    if found is not None:
+        return found
+    a = np.frombuffer(text, np.uint8, count=n)
     g = np.flatnonzero((a | 0x20) == ord("g"))        # G or g
     if g.size == 0 or not codes:
         return set()
@@ -496,9 +508,10 @@ def _to_program_frame(res, chunk, off, setup) -> None:
         res.corrected += exact
     else:
         ends = np.cumsum(res.counts) - 1
-        exact = chunk.end - res.nominal[ends]
-        res.nominal[ends] += exact
-        res.corrected[ends] += exact
+        for j in range(chunk.end.shape[1]):    # a column at a time: numpy takes rows one by one
+            exact = chunk.end[:, j] - res.nominal[ends, j]
+            res.nominal[ends, j] += exact
+            res.corrected[ends, j] += exact
     res.corrected = setup.written(chunk, res.corrected, res.nominal, res.counts)
 
 

@@ -83,3 +83,31 @@ def compensated_line_error(case: HiddenCase, model) -> dict:
         err[f] = (reading + q[:, 0] - xt) * 1e3
     datum = np.mean(np.concatenate(list(err.values())))
     return {f: float(np.sqrt(np.mean((e - datum) ** 2))) for f, e in err.items()}
+
+
+def region_error_um(truth, fitted) -> float:
+    """rms (um) of the tool-tip deviation ``fitted`` predicts less the truth's, over a grid of the
+    region its data reach (5 positions per linear axis the data moved, the axes the data held where
+    they held them, the rotary axes at 0, every axis approached in +), the mean difference removed
+    (the files' set-ups leave a constant open); nan when the data moved no linear axis."""
+    import itertools
+
+    from mtcomp.models.evaluate import evaluate
+    names = list(fitted.model.machine.axis_names)
+    axes = [a for a in names if a in "XYZ" and a in fitted.support]
+    if not axes:
+        return float("nan")
+    pts = np.array(list(itertools.product(*[np.linspace(*fitted.support[a], 5) for a in axes])))
+    q = np.zeros((len(pts), len(names)))
+    for a, v in (fitted.held or {}).items():
+        if a in "XYZ":
+            q[:, names.index(a)] = v
+    for j, a in enumerate(axes):
+        q[:, names.index(a)] = pts[:, j]
+    n = len(q)
+    # the truth's q lists its axes in the order X Y Z A B C, as mtcomp's machines do
+    true, _ = truth.true_deviation(q, None, Context(0.0, {a: np.ones(n) for a in names}))
+    c = fitted.context(n, {f"dir_{a.lower()}": np.ones(n) for a in names})
+    model = evaluate(fitted.model, "deviation_function", q, fitted.params.values, c)[0][:, :3]
+    diff = (model - true) * 1e3
+    return float(np.sqrt(np.mean((diff - diff.mean(axis=0)) ** 2)))

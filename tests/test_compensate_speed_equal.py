@@ -128,16 +128,32 @@ def test_any_rows_matches_numpy():
     np.testing.assert_array_equal(any_rows(flags[:, :, 2]), flags[:, :, 2].any(axis=1))
 
 
-def test_g_codes_match_a_regular_expression():
+def test_distinct_work_systems_and_tools_are_numpys_unique():
+    from mtcomp.toolpaths.offsets import _distinct
+    rng = np.random.default_rng(6)
+    for n, runs in [(0, 1), (1, 1), (500, 1), (500, 4), (500, 400)]:
+        cuts = np.sort(rng.integers(0, n + 1, runs - 1))        # runs of equal values
+        a = np.repeat(rng.integers(0, 9, runs), np.diff(np.r_[0, cuts, n]))
+        assert _distinct(a) == np.unique(a).tolist()
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_g_codes_match_a_regular_expression(compiled, monkeypatch):
+    """In C and in numpy, over a text's first n bytes (those after read as a space)."""
     from mtcomp.compensation import _g_codes
+    if compiled and not _fast.available():
+        pytest.skip("no compiled G-code path here")
+    if not compiled:
+        monkeypatch.setenv("MTCOMP_NO_FAST_GCODE", "1")
     rng = np.random.default_rng(4)
     alphabet = list(b"gG0124. X\n")
     codes = [b"20", b"21", b"41", b"42"]
     for _ in range(3000):
         text = bytes(rng.choice(alphabet, int(rng.integers(0, 14))).tolist())
+        n = int(rng.integers(0, len(text) + 1))
         want = {c for c in codes
-                if re.search(rb"[Gg]0{0,2}" + c + rb"(?![0-9.])", text)}
-        assert _g_codes(text, codes) == want, text
+                if re.search(rb"[Gg]0{0,2}" + c + rb"(?![0-9.])", text[:n])}
+        assert _g_codes(text, codes, n) == want, (text, n)
 
 
 def test_sd_gate_jacobian_compiles_from_a_few_thousand_poses(monkeypatch):
@@ -160,3 +176,38 @@ def test_sd_gate_jacobian_compiles_from_a_few_thousand_poses(monkeypatch):
     assert compiled.MIN_POSES_OF["tip_pjacobian_function"] == 5000
     assert asked == [("tip_pjacobian_function", False), ("tip_pjacobian_function", True),
                      ("deviation_function", False), ("deviation_function", False)]
+
+
+def test_arc_directions_match_the_segment_by_segment_loop():
+    """ModalState._directions over an arc's chords (vectorised) gives what the loop over its
+    segments gave: each axis the sign of its last move, a fresh axis 0 until it moves again."""
+    from mtcomp.toolpaths.modal import ModalState
+    from mtcomp.toolpaths.words import DIR_EPS
+
+    def loop(dirs, start, pts, fresh):
+        step = pts - np.vstack([start[None, :], pts[:-1]])
+        sign = np.where(step > DIR_EPS, 1, np.where(step < -DIR_EPS, -1, 0))
+        out, cur = np.empty(sign.shape, np.int8), dirs.copy()
+        for r in range(sign.shape[0]):
+            cur[sign[r] != 0] = sign[r][sign[r] != 0]
+            if r == 0 and fresh is not None:
+                cur[fresh] = 0
+            out[r] = cur
+        return out
+
+    class State:                # what _directions reads: no local frame, the directions so far
+        local = type("NoFrame", (), {"kind": 0})()
+
+    rng = np.random.default_rng(9)
+    for _ in range(400):
+        na, k = int(rng.integers(1, 6)), int(rng.integers(2, 8))
+        state = State()
+        state.dirs = rng.integers(-1, 2, na).astype(np.int8)
+        start = rng.normal(size=na)
+        pts = start + np.cumsum(rng.choice([0.0, 0.0, 1.0, -1.0], size=(k, na)), axis=0)
+        fresh = None if rng.random() < 0.5 else rng.random(na) < 0.5
+        want = loop(state.dirs, start, pts, fresh)
+        got = ModalState._directions(state, start, pts, fresh)
+        assert got.dtype == np.int8
+        np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(state.dirs, want[-1])

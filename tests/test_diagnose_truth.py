@@ -3,12 +3,13 @@ set-up, and each rule by which a candidate that fits is still refused (issue 11)
 import numpy as np
 import pytest
 
-from diagnose_truth import compensated_line_error, run, score
+from diagnose_truth import compensated_line_error, region_error_um, run, score
 from mtcomp.diagnose import _refusal
 from mtcomp.diagnose._candidates import Candidate, _abbe_candidates, generate
 from mtcomp.diagnose._diagnose import _apply, _common_block, _linear_target, _parsimony, BIC_MARGIN, cv_threshold
 from mtcomp.diagnose._linalg import Design, determined_subspace, solve_normal
 from mtcomp.diagnose._stack import build_stack
+from mtcomp.identification.fit import identify
 from mtcomp.machine import load_machine
 from mtcomp.models.basis import with_data_basis
 from mtcomp.measurement.files import read_measurements
@@ -16,9 +17,24 @@ from mtcomp.measurement.readings import data_positions
 from truth import FeedAbbe, PeriodicError
 from truth.hidden import SEED000_FEEDS, hidden_case, seed000_case
 
+#: campaigns whose model written was once far worse than identify's model of the same files: the
+#: least squares, hundreds of um off where its data are weak (9857, 9078, 9079: identify's fit of
+#: the model was judged to fit the data clearly worse), or identify's fit moved along a rotary
+#: location error seen only at round-off (7008: 315 um off the truth over the data's region)
+WRITTEN_CHECKED = (7008, 9857, 9078, 9079)
 #: seed 000's gains of the IRC model over the traditional one at 180, 240, 300 mm/min (um)
 PAPER_GAINS_UM = dict(zip(SEED000_FEEDS, (0.81, 1.12, 1.18)))
 IRC_SHIFT = -800.0
+
+
+def _written_as_identify(case, d):
+    """diagnose's model written is identify's fit of the model it found (docs/diagnose.md, *The model
+    written*): over the region its data reach it is no further from the truth than identify's model
+    of the same files (1.25 times, and 1 um)."""
+    fit = identify(load_machine(case.topology), [read_measurements(p) for p in case.paths])
+    assert d.final["written"]["model"] == "penalised", d.final["written"]
+    err, ref = region_error_um(case.machine, d.model), region_error_um(case.machine, fit.fitted_model)
+    assert err <= 1.25 * ref + 1.0, (err, ref)
 
 
 @pytest.fixture(scope="module")
@@ -240,6 +256,8 @@ def test_rivals_the_data_do_not_tell_apart_are_not_named(seed, effect, kind, top
     assert [t.kind for t in d.model.model.terms] == ["feed_dependent_offset"]
     assert sc.ratio < 1.2
     assert any("only one test is decisive" in r["reason"] for r in d.rejected)
+    if seed in WRITTEN_CHECKED:
+        _written_as_identify(case, d)
 
 
 @pytest.mark.parametrize("seed,effect,kind,topology,hidden", [
@@ -284,6 +302,8 @@ def test_hidden_effect_on_the_independent_machine(seed, effect, kind, topology, 
     assert d.verdict == ("unexplained" if effect == "local_defect" else "explained")
     # a defect stays in the residual (it is reported, not modelled): a looser bound there
     assert sc.ratio < (1.2 if effect != "local_defect" else 1.6)
+    if seed in WRITTEN_CHECKED:
+        _written_as_identify(case, d)
 
 
 @pytest.mark.parametrize("seed,kind,topology,axis", [
@@ -312,6 +332,8 @@ def test_clean_campaign_finer_than_the_default_base_raises_no_alarm(seed, kind, 
     if axis:
         ax = d.model.model.machine.axis(axis)
         assert ax.spline_intervals + ax.degree > 16          # the base's functions along the axis
+    if seed in WRITTEN_CHECKED:
+        _written_as_identify(case, d)
 
 
 def test_a_profile_finer_than_the_default_base_is_no_periodic_error(tmp_path):

@@ -127,3 +127,37 @@ def test_linear_engine_holds_what_the_data_leave_open_like_a_minimum_norm_lstsq(
     pen = solve_linear(X, y, specs, P)
     np.testing.assert_allclose(pen.values * 1e3, np.linalg.solve(X.T @ X + P, X.T @ y), rtol=1e-9, atol=1e-12)
     assert pen.determined.all() and pen.rank == 4
+
+
+@pytest.mark.parametrize("given_um", [1.0, 0.1])
+def test_known_noise_is_the_least_residual_variance_of_the_posterior(tmp_path, given_um):
+    """Readings weighted by a noise the caller knows (diagnose's floors from repeats), ``known_noise``:
+    the standard errors are at that noise when the residuals scatter less (given 1 um, the readings'
+    0.4 um: sqrt(diag((X^T X)^-1)) times 1 um, the oracle written here), and at the residuals' own
+    scatter when they scatter more (given 0.1 um: as without a given noise)."""
+    rng = np.random.default_rng(3)
+    path = _positioning(tmp_path, rng)
+    model = ErrorModel(load_machine("xfyz").with_basis("polynomial"))
+    free = ["EXX_1", "EXX_2", "EXX_3"]
+    data = [read_measurements(path)]
+    n = len(data[0])
+
+    def se(**kw):
+        problem = FitProblem.from_data(model, data, free=free, penalty=False, hold_weak=False, **kw)
+        params = solve(problem, SolverOptions()).params
+        return np.array([params.stderr[params.index(nm)] for nm in free]) * 1e3
+
+    known = FitProblem.from_data(model, data, free=free, penalty=False, hold_weak=False,
+                                 weights=np.full(n, given_um))
+    known.known_noise = True
+    params = solve(known, SolverOptions()).params
+    got = np.array([params.stderr[params.index(nm)] for nm in free]) * 1e3
+    s = np.loadtxt(path, delimiter=",", skiprows=1, usecols=(2,)) / 1000.0
+    X = np.column_stack([s, s ** 2, s ** 3, np.ones_like(s)])
+    at_given = given_um * np.sqrt(np.diag(np.linalg.inv(X.T @ X)))[:3]
+    own = se()
+    # the readings scatter by 0.4 um: the given 1 um is above it, the given 0.1 um below
+    np.testing.assert_allclose(got, at_given if given_um > 0.5 else own, rtol=1e-7, atol=0)
+    assert np.all(got >= own * (1 - 1e-9)) and (given_um < 0.5 or np.all(got > 1.5 * own))
+    # without known_noise the given noise only weights: the residuals' own scatter sizes the errors
+    np.testing.assert_allclose(se(weights=np.full(n, given_um)), own, rtol=1e-7, atol=0)

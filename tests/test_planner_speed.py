@@ -123,7 +123,10 @@ def test_small_chunks_threads_and_parts_write_the_same_program(tmp_path, monkeyp
 
 def test_compensate_imports_none_of_the_fitting(tmp_path):
     """The thermal package's fitting (and with it diagnose, scipy.signal and scipy.optimize) is
-    imported on first use only: a compensation reads the model's thermal context alone."""
+    imported on first use only: a compensation reads the model's thermal context alone. So are the
+    other commands (export's tables, identification), the readers of the other languages
+    (Heidenhain, Sinumerik, LinuxCNC O-words, Fanuc macros) and the test-part programs: a plain
+    G-code program is compensated without them."""
     prog = tmp_path / "p.nc"
     _program(prog, 50)
     model = tmp_path / "m.json"
@@ -133,7 +136,12 @@ def test_compensate_imports_none_of_the_fitting(tmp_path):
             f"assert main(['compensate', 'xfyz', {str(model)!r}, {str(prog)!r}, '-o', "
             f"{str(tmp_path / 'out.nc')!r}, '--quiet']) == 0\n"
             "print(sorted(m for m in ('mtcomp.thermal._fit', 'mtcomp.diagnose', 'scipy.signal', "
-            "'scipy.optimize', 'cvxpy', 'pyvista', 'matplotlib') if m in sys.modules))\n")
+            "'scipy.optimize', 'cvxpy', 'pyvista', 'matplotlib', 'mtcomp.export', "
+            "'mtcomp.identification', 'mtcomp.commands.export', 'mtcomp.commands.identify', "
+            "'mtcomp.toolpaths.heidenhain', 'mtcomp.toolpaths.heidenhain_out', "
+            "'mtcomp.toolpaths.sinumerik', 'mtcomp.toolpaths.sinumerik_out', "
+            "'mtcomp.toolpaths.ngc', 'mtcomp.toolpaths.macro', 'mtcomp.toolpaths.parts') "
+            "if m in sys.modules))\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip().splitlines()[-1] == "[]"
     import mtcomp.thermal as thermal

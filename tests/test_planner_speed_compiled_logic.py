@@ -122,3 +122,18 @@ def test_the_avx2_reading_agrees_with_the_compiler(monkeypatch):
     if macros.returncode != 0:
         pytest.skip(f"the compiler does not take -march=native: {macros.stderr.strip()[:80]}")
     assert compiled.wide_simd() == ("#define __AVX2__ 1" in macros.stdout)
+
+
+def test_whether_the_compiler_is_gcc_is_asked_once_and_remembered(cache, monkeypatch):
+    """The preprocessor run that tells GCC from Clang is remembered in the cache folder: a second
+    process (here: the in-process answers forgotten) does not run the compiler again."""
+    compiler = compiled.find_compiler()
+    first = compiled._gcc_remembered(compiler)
+    assert first == compiled._asks_gcc(compiler)
+
+    def no_run(*args, **kwargs):
+        raise AssertionError("the compiler was run again")
+    monkeypatch.setattr(compiled.subprocess, "run", no_run)
+    monkeypatch.setattr(compiled, "_is_gcc", {})
+    assert compiled._gcc_remembered(compiler) == first
+    assert compiled.compile_flags(compiler) == compiled.compile_flags(compiler)

@@ -6,11 +6,12 @@ import pytest
 from mtcomp.planner._interleave import placed, positions
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_positions_are_the_sorted_order_of_every_node(seed):
+@pytest.mark.parametrize("seed, n_rows, n_inner", [(0, 50, 120), (1, 50, 120), (2, 50, 120),
+                                                    (3, 3000, 7), (4, 3000, 1), (5, 3000, 0)])
+def test_positions_are_the_sorted_order_of_every_node(seed, n_rows, n_inner):
+    """Many inserted nodes (placed by one scatter) and few (the ends copied in runs between them)."""
     rng = np.random.default_rng(seed)
-    n_rows = 50
-    rows = rng.integers(0, n_rows, 120)
+    rows = rng.integers(0, n_rows, n_inner)
     t = rng.permutation(rows.size) / (rows.size + 1.0) + 0.5 / (rows.size + 1.0)  # distinct, in (0, 1)
     counts = np.ones(n_rows, np.int64)
     np.add.at(counts, rows, 1)

@@ -6,10 +6,36 @@ import pytest
 
 from mtcomp.planner import CompensationProblem, PlannerOptions, output_grid, plan_arrays
 from mtcomp.planner._bounds import Bounds
-from mtcomp.planner._small import row_max
+from mtcomp.planner._small import down_columns, row_max
 from mtcomp.planner.report import WORSE_TOL_UM, Summary
 
 from test_planner_core import fitted_model
+
+
+@pytest.mark.parametrize("op", [np.add, np.subtract, np.multiply, np.divide, np.maximum, np.minimum,
+                                np.greater, np.less])
+def test_down_columns_is_numpys_broadcast_bit_for_bit(op):
+    """A row broadcast over the rows ((3,), (1, 3), a read-only broadcast), a column slice of a
+    wider array and two whole arrays, into a new array or in place: numpy's own numbers and dtype,
+    C-ordered."""
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=(1000, 3)) * 10.0 ** rng.integers(-6, 6, size=(1000, 3))
+    wide = rng.normal(size=(1000, 6))
+    v = rng.normal(size=3)
+    same, zeros = np.full(3, 1e3), np.array([0.0, -0.0, 0.0])      # a row of one number, or not
+    cases = [(a, v), (v, a), (a, v[None, :]), (a, np.broadcast_to(v, a.shape)), (wide[:, :3], a),
+             (a, wide[:, 3:]), (a, a[::-1].copy()), (a[:0], v), (a, same), (same[None, :], a),
+             (wide[:, :3], same), (-np.abs(a) * 0.0, zeros), (zeros, -np.abs(a) * 0.0)]
+    for x, y in cases:
+        with np.errstate(invalid="ignore", divide="ignore"):      # 0 / 0 among the zeros
+            got, want = down_columns(op, x, y), op(x, y)
+        assert got.dtype == want.dtype and got.flags.c_contiguous
+        np.testing.assert_array_equal(got, want)
+        assert np.array_equal(np.signbit(got), np.signbit(want))        # -0.0 stays -0.0
+    if op not in (np.greater, np.less):
+        inplace = a.copy()
+        assert down_columns(op, inplace, v, out=inplace) is inplace
+        np.testing.assert_array_equal(inplace, op(a, v))
 
 
 @pytest.mark.parametrize("cols", [1, 3, 6])

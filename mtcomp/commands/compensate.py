@@ -149,8 +149,17 @@ def _write_summary(path, run_) -> None:
         f.write("\n")
 
 
-def _print_run(args, machine, fitted, run_, seconds, unread, written) -> None:
+def _reversal_note(fitted) -> str | None:
+    """:func:`mtcomp.export.reversal_note` of the model, for a model whose file records its data's
+    reversals (``info["reversal"]``); None without that record (export and the identification it
+    imports are not loaded)."""
+    if not (isinstance(fitted.info, dict) and fitted.info.get("reversal")):
+        return None
     from ..export import reversal_note
+    return reversal_note(fitted)
+
+
+def _print_run(args, machine, fitted, run_, seconds, unread, written) -> None:
     print(f"mtcomp compensate: method {args.method}, {machine.name} ({machine.topology}), "
           f"{seconds:.1f} s")
     if run_.dialect:
@@ -163,7 +172,7 @@ def _print_run(args, machine, fitted, run_, seconds, unread, written) -> None:
     print(run_.summary.text())
     for line in run_.notes:
         print(line)
-    reversal = reversal_note(fitted)
+    reversal = _reversal_note(fitted)
     if reversal:
         print(f"note: {reversal}")
     st = run_.stats
@@ -257,6 +266,7 @@ class Progress:
 
 
 def run(args) -> int:
+    import gc
     import sys
     import time
 
@@ -292,6 +302,9 @@ def run(args) -> int:
         start_position=parse_start_position(machine, args.start_position), dialect=args.dialect)
     setup = load_setup(machine, args.offsets, args.work_offset, args.tool_length)
 
+    # what this process holds by now (the modules imported, the model) lives to its end: Python's
+    # collector no longer goes through it at each full collection the planning sets off
+    gc.freeze()
     # the summary JSON is written after the program and BLOCKS.csv, which are complete by then: a
     # failed run leaves none of the three (the first two are renamed into place only on success)
     with Progress(None if args.quiet else sys.stderr, t0) as progress, \

@@ -263,7 +263,8 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     diag.seconds = time.perf_counter() - t0
     model.info["diagnose"] = diag.to_dict()
     # the model written where the data leave directions open: made for the diagnosis kept only
-    diag.written = lambda: written_model(st, design, current, model, where, values, say)
+    floor = (all(nz.source == "repeats" for nz in noise.values()), EXCESS_RATIO)
+    diag.written = lambda: written_model(st, design, current, model, where, values, say, floor)
     return diag, finer
 
 

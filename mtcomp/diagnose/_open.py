@@ -20,8 +20,16 @@ weighted by the diagnosis's noise floor: the chosen terms start at the selection
 feed-dependent Abbe term's moving centre multiplies its angle: from zero it stays unseen), the base
 where the base fit started (zero, or a start model's determined values: at the least squares'
 millimetres the chain's products of errors would pass for information); what the data do not
-determine stays there. It is written with the fit's posterior covariance, unless it fits the data
-clearly worse than the least squares (:func:`open_fit`).
+determine stays there. What they determine is judged where the base starts, with the chosen terms
+at zero, as identify judges its model: at the selection's values a term's products with the base's
+columns are second-order effects, which no reading fixes, yet they passed the rank test (a backlash
+of 8 um made one more combination of a 5-axis model count as determined, fixed only to 24 um; the
+fit moved it to 470 urad of C's angular positioning and 330 urad of its tilt, 32 um off the truth
+at unseen poses). A factor seen only through another chosen factor (that moving centre) then stays at
+the selection's value. It is written with the fit's posterior covariance (its residual variance the
+fit's own, as identify's, but not below a noise floor measured on repeated readings: residuals that
+scatter less than the repeats have taken noise for information), unless it fits the data clearly
+worse than the least squares (:func:`open_fit`).
 
 The selection is untouched: its findings, their parameters and the final held-out figures are the
 least squares'.
@@ -38,11 +46,6 @@ import numpy as np
 #: mtcomp.planner.problem.DEFAULT_MAX_CORRECTION_SD_UM). Below it the least squares' corrections
 #: stand (the real laser runs' weakest combinations: 2.8 um at most)
 OPEN_SD_UM = 5.0
-#: the penalised fit is written unless its weighted sum of squares exceeds the least squares' by more
-#: than k + MISFIT_SD sqrt(2k) noise variances, k the directions it gives up (the least squares' rank
-#: less the fit's effective degrees of freedom: each costs one noise variance on average where the
-#: data hold nothing there); beyond it the fit went astray
-MISFIT_SD = 3.0
 
 
 @dataclass
@@ -50,12 +53,16 @@ class OpenFit:
     """Identify's fit of the model written: ``result`` (its
     :class:`~mtcomp.identification.result.FitResult`), ``n_weak`` (combinations the least squares'
     data fix only weakly), ``sse`` and ``sse_lsq`` (its weighted sum of squares and the least
-    squares', noise variances), ``rms_um`` (its rms residual of the readings in um, None without)."""
+    squares', noise variances), ``sd`` and ``sd_lsq`` (their residual standard deviations: sum of
+    squares over the degrees of freedom, noise floors), ``rms_um`` (its rms residual of the readings
+    in um, None without)."""
 
     result: object
     n_weak: int
     sse: float
     sse_lsq: float
+    sd: float = float("nan")
+    sd_lsq: float = float("nan")
     rms_um: float | None = None
 
     def report(self) -> dict:
@@ -64,7 +71,8 @@ class OpenFit:
         out = {"model": "penalised", "weak": int(self.n_weak), "held": int(len(r.held_sd_um)),
                "rms_um": None if self.rms_um is None else round(self.rms_um, 4),
                "sum_of_squares": round(float(self.sse), 4),
-               "sum_of_squares_least_squares": round(float(self.sse_lsq), 4)}
+               "sum_of_squares_least_squares": round(float(self.sse_lsq), 4),
+               "residual_sd": round(float(self.sd), 4), "residual_sd_least_squares": round(float(self.sd_lsq), 4)}
         if r.smoothing is not None:
             out["penalty_weights"] = {k: float(v) for k, v in r.smoothing.weights.items()}
         return out
@@ -113,12 +121,19 @@ def _stack_order(st, mms) -> np.ndarray:
                     dtype=np.int64)
 
 
-def open_fit(st, model, start: np.ndarray, noise: np.ndarray, lsq: tuple, n_weak: int) -> OpenFit | None:
+def open_fit(st, model, start: np.ndarray, noise: np.ndarray, lsq: tuple, n_weak: int,
+             repeats: bool, excess_ratio: float) -> OpenFit | None:
     """Identify's fit of ``model`` (the base and the chosen terms) to the stack's files from
     ``start`` ((n_params,) internal units), each reading weighted by its noise floor ``noise`` ((n,)
     in the stack's order, um or urad ...); ``lsq``: the least squares' (weighted sum of squares,
-    rank). None when Gauss-Newton does not converge or the fit costs the data more than
-    :data:`MISFIT_SD` allows."""
+    rank). What the data determine is judged with the chosen terms at zero (module docstring). The
+    posterior's residual variance is the fit's own, not below the noise floor's when ``repeats``
+    (every floor measured on repeated readings). None when Gauss-Newton does not
+    converge or the fit went astray: its residual standard deviation (sum of squares over its degrees
+    of freedom) exceeds the least squares' by more than ``excess_ratio``, the factor by which the
+    diagnosis's held-out residual may exceed the noise floor before it counts as structure
+    (``mtcomp.diagnose._diagnose.EXCESS_RATIO``): what the penalty then takes from the data's fit
+    is structure of its own."""
     from ..identification.fit import solve
     from ..identification.problem import FitProblem, SolverOptions, build_measurement_models
     from ._linalg import RCOND
@@ -129,27 +144,32 @@ def open_fit(st, model, start: np.ndarray, noise: np.ndarray, lsq: tuple, n_weak
         return None
     per_reading = np.empty(n_obs)
     per_reading[order] = noise
+    base = np.array([s.base for s in model.param_specs], dtype=bool)
     problem = FitProblem(model, mms, np.ones(model.n_params, dtype=bool), start, weights=per_reading,
-                         penalty=True, hold_weak=True)
+                         penalty=True, hold_weak=True, rank_point=np.where(base, start, 0.0),
+                         known_noise=repeats)
     result = solve(problem, SolverOptions(rcond=RCOND))
     sse = float(result.residual @ result.residual)
     sse_lsq, rank = lsq
-    k = max(float(rank) - (n_obs - float(result.dof)), 1.0)
-    if not result.converged or not sse <= sse_lsq + k + MISFIT_SD * np.sqrt(2.0 * k):
+    sd = np.sqrt(sse / max(float(result.dof), 1.0))
+    sd_lsq = np.sqrt(sse_lsq / max(n_obs - float(rank), 1.0))
+    if not result.converged or not sd <= excess_ratio * sd_lsq:
         return None
     um = np.zeros(n_obs, dtype=bool)
     um[order] = st.unit == "um"
     resid = result.residual * per_reading               # reading less prediction, um or urad
-    return OpenFit(result, n_weak, sse, sse_lsq, float(np.sqrt(np.mean(resid[um] ** 2))) if um.any() else None)
+    return OpenFit(result, n_weak, sse, sse_lsq, float(sd), float(sd_lsq),
+                   float(np.sqrt(np.mean(resid[um] ** 2))) if um.any() else None)
 
 
-def written_model(st, design, fit, fitted, where: tuple, start: dict, say) -> tuple:
+def written_model(st, design, fit, fitted, where: tuple, start: dict, say, floor: tuple) -> tuple:
     """(the model diagnose writes (module docstring), REPORT.json's ``final.written`` or None):
     ``fitted`` (the final least squares ``fit`` as a model with its covariance) when its data fix
     every combination well enough, else identify's fit of the same model, with ``fitted``'s support,
     held axes and notes. ``where``: (the extras' columns, the machine parameters' names, their
     positions among the fit's coefficients); ``start``: the base fit's start values (name ->
-    value)."""
+    value); ``floor``: (every noise floor was measured on repeated readings, the factor by which a
+    residual may exceed the floor before it counts as structure), :func:`open_fit`'s."""
     extra, names, theta_idx = where
     sd = weak_combinations(st, design, extra, fit.theta, fitted.model, names, theta_idx)
     if not sd.size or sd.max() <= OPEN_SD_UM:
@@ -157,7 +177,7 @@ def written_model(st, design, fit, fitted, where: tuple, start: dict, say) -> tu
     model = fitted.model
     p0 = np.array([start.get(n, 0.0) if s.base else v
                    for n, s, v in zip(model.param_names, model.param_specs, fitted.params.values)])
-    done = open_fit(st, model, p0, 1.0 / design.w, (fit.sse, fit.rank), sd.size)
+    done = open_fit(st, model, p0, 1.0 / design.w, (fit.sse, fit.rank), sd.size, *floor)
     weakest = f"{sd.size} combination(s) of it only weakly, to {sd.max():.3g} um of tool-tip error at worst"
     if done is None:
         say(f"model written: the least squares (its data fix {weakest}; identify's penalised fit of "

@@ -92,6 +92,20 @@ def _seen_columns(A: np.ndarray) -> np.ndarray:
     return norms > 1e-9 * max(float(norms.max()) if norms.size else 0.0, 1e-300)
 
 
+def _unseen_apart(A: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """The column-scaled normal matrix ``D A D`` with the unknowns the data do not see at all
+    (:func:`_seen_columns`) cut off from the rest: their rows and columns zero, so that each is a
+    direction the data leave undetermined by itself. Left in, their round-off (1e-10 of a column,
+    against 1e7 of the largest) couples them to the weakest directions the data do fix, whose
+    eigenvalues are as small: a rotary axis's location error, seen by no reading while the axis
+    stands at 0, took 1e-5 of such a direction and moved with it to 48 mrad."""
+    As = A * np.outer(scale, scale)
+    unseen = ~_seen_columns(A)
+    As[unseen, :] = 0.0
+    As[:, unseen] = 0.0
+    return As
+
+
 def _relative_singular_values(As: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(relative singular values s / s_max descending, eigenvectors) of a scaled normal matrix."""
     evals, V = np.linalg.eigh(As)
@@ -164,17 +178,44 @@ def file_normal_equations(m, p, nuisance, ww, observed, pred, g_n, A_nn):
     return gp, App, Apn
 
 
-def _solver(AB):
-    """A function gs_B -> (AB)^-1 gs_B for the reduced normal matrix: its Cholesky factor, formed
-    once and used by every step that shares AB (the pseudo-inverse where round-off at the edge of
-    the rank makes AB not quite positive definite)."""
+#: a penalty that outweighs the data by at most this (largest diagonal entries) is added to their
+#: normal matrix before its factor: the sum then loses at most 6 of its 16 digits to the penalty
+PLAIN_FACTOR_RANGE = 1e6
+
+
+def _solver(AB, SB=None):
+    """A function gs_B -> (AB + SB)^-1 gs_B for the reduced normal matrix AB and penalty SB (None:
+    none): its Cholesky factor, formed once and used by every step that shares them (the
+    pseudo-inverse where round-off at the edge of the rank makes it not quite positive definite).
+
+    Where the penalty outweighs the data by more than :data:`PLAIN_FACTOR_RANGE` (its largest
+    diagonal entry against theirs) the factor is that of ``U^T AB U + diag(l)`` (U, l the
+    penalty's eigenvectors and eigenvalues, those below zero by round-off taken as 0), scaled to a
+    unit diagonal (an eigen-decomposition: 10 ms at 277 unknowns, against 1 ms for the plain
+    factor). At the largest weights REML may choose (1e13 times a well-seen coefficient's) the
+    penalty's directions outweigh the data's by 1e17, and a factor of the plain sum lost the steps'
+    digits along what the data alone fix: a noise-free laser run and ball-bar circle, their pitch held
+    (:mod:`mtcomp.identification.unmeasured`), stopped after 20 iterations at 1e-4 um^2 of
+    residual; in the penalty's eigenvectors, each scaled by its own size, 1e-11 um^2."""
     if AB.shape[0] == 0:
         return lambda v: v
+    if SB is None or np.abs(np.diag(SB)).max() <= PLAIN_FACTOR_RANGE * np.abs(np.diag(AB)).max():
+        return _cholesky_solver(AB if SB is None else AB + SB)
+    lam, U = np.linalg.eigh(0.5 * (SB + SB.T))
+    H = U.T @ AB @ U
+    H[np.diag_indices_from(H)] += np.clip(lam, 0.0, None)
+    d = 1.0 / np.sqrt(np.maximum(np.diag(H), 1e-300))
+    inner = _cholesky_solver(d[:, None] * H * d[None, :])
+    return lambda v: U @ (d * inner(d * (U.T @ v)))
+
+
+def _cholesky_solver(M):
+    """:func:`_solver` of a matrix M without a penalty."""
     try:
-        cho = scipy.linalg.cho_factor(AB)
+        cho = scipy.linalg.cho_factor(M)
         return lambda v: scipy.linalg.cho_solve(cho, v)
     except np.linalg.LinAlgError:
-        pinv = scipy.linalg.pinvh(AB)
+        pinv = scipy.linalg.pinvh(M)
         return lambda v: pinv @ v
 
 

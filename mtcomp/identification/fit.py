@@ -56,9 +56,9 @@ from ..measurement.readings import data_held, data_support
 from ..models.model_file import FittedModel
 from ..models.params import ParameterSet
 from .reversal import DirectionContrast, data_reversal
-from .unmeasured import record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
+from .unmeasured import assumption, record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
 from ._linalg import (NULL_WEIGHT, column_scale, _eliminate, _error_scales, _name_null_space,
-                      _relative_singular_values, _seen_columns, _solver, _step, block_obs,
+                      _relative_singular_values, _seen_columns, _solver, _unseen_apart, _step, block_obs,
                       file_normal_equations, one_blas_thread, penalised_inverse)
 from .problem import (DEFAULT_RCOND, FitProblem, SolverOptions, data_region, fitted_axes,
                       frame_rotations, frame_rule_complement)
@@ -130,6 +130,7 @@ def _solve(problem: FitProblem, options: SolverOptions, info: dict | None, t0: f
                          paths[0] if len(paths) == 1 else None)
     stacked = _Problem(problem.model, mms, np.asarray(problem.free, dtype=bool), problem.start)
     stacked.use_penalty, stacked.hold_weak = problem.penalty, problem.hold_weak
+    stacked.rank_point, stacked.known_noise = problem.rank_point, problem.known_noise
     stacked.travel_metric = travel_metric(problem.model, stacked.free_idx, stacked.n_unknowns)
     # what the data fix only weakly is judged where the model is used: the data's region
     region = data_region(problem.model.machine, mms, fitted_axes(problem.model, problem.free))
@@ -201,6 +202,18 @@ RHO_SETTLED = 0.05
 PENALTY_RANGE = 1e6
 
 
+def _refine_from(rho):
+    """Where REML at the fit starts: the weights at the start's linearisation, unless one stands at
+    the search's bound. A start far from the fit (every set-up at zero: 3e7 noise variances of misfit)
+    sends them there, where the criterion is flat, and a search from there stayed (a rotary table's
+    ball-bar campaign kept weights of e^30, its profiles straight, six times the least squares' sum of
+    squares); then it starts from its grid again (:func:`.penalty.reml_weights`)."""
+    from .penalty import RHO_BOUND
+    if rho is None or np.any(np.abs(rho) >= RHO_BOUND - 1e-9):
+        return None
+    return rho
+
+
 @dataclass
 class _Solution:
     x: np.ndarray
@@ -228,6 +241,10 @@ class _Problem:
     use_penalty = True
     #: directions fixed only to worse than WEAK_SD_UM are held at the least error (second pass)
     hold_weak = True
+    #: (n_params,) where what the data determine is judged (FitProblem.rank_point); None: the start
+    rank_point = None
+    #: the weights are the readings' known noise: s2 is at least 1 (FitProblem.known_noise)
+    known_noise = False
 
     def __init__(self, model, mms, mask, p0):
         self.model = model
@@ -303,6 +320,12 @@ class _Problem:
         return w
 
     # --------------------------------------------------------------- evaluation
+    def _unknowns(self, p) -> np.ndarray:
+        """(n_unknowns,) the free parameters' values of ``p`` (n_params,), the set-ups at zero."""
+        x = np.zeros(self.n_unknowns)
+        x[:self.n_free] = np.asarray(p, dtype=float)[self.free_idx]
+        return x
+
     def params(self, x):
         p = self.p0.copy()
         p[self.free_idx] = x[:self.n_free]
@@ -476,27 +499,29 @@ class _Problem:
         """
         from .penalty import Smoothing
         self.smoothing, self.smoothing_rho = None, {}
-        x = np.zeros(self.n_unknowns)
-        x[:self.n_free] = self.p0[self.free_idx]
+        x = self._unknowns(self.p0)
         pred, A, g = self.normal_equations(x, w)
         r = w * (self.observed - pred)
-        scale = column_scale(A)
-        rel, V = _relative_singular_values(A * np.outer(scale, scale))
+        A0 = A if self.rank_point is None else self.normal_equations(self._unknowns(self.rank_point), w)[1]
+        scale = column_scale(A0)
+        rel, V = _relative_singular_values(_unseen_apart(A0, scale))
         keep = rel > rcond
-        penalties = self.scaled_penalties(A, scale) if self.use_penalty else {}
+        penalties = self.scaled_penalties(A0, scale) if self.use_penalty else {}
         null = self.penalised_null(V[:, ~keep], penalties)
         data_rank = int(keep.sum())
         cond = float(rel[0] / rel[keep][-1]) if data_rank else np.inf
         start = (x, r, A, g)
-        B1 = frame_rule_complement(null, scale, np.arange(self.n_unknowns) < self.n_free,
+        assumed = assumption(self, V[:, ~keep], scale)
+        held_null = self.penalised_null(assumed.null, penalties) if assumed.fixed.shape[1] else null
+        B1 = frame_rule_complement(held_null, scale, np.arange(self.n_unknowns) < self.n_free,
                                    unmeasured_unknowns(self), self.metric,
-                                   frame_rotations(self.mms, self.n_free))
+                                   frame_rotations(self.mms, self.n_free), fixed=assumed.fixed)
         first = self._penalised_fit(start, w, max_iterations, tol, B1, scale, penalties)
-        first += (null, self.n_unknowns - null.shape[1])
+        first += (null, B1.shape[1])
         self.held = None
         x, r, A, g, B, AB, iterations, converged, null, rank = hold_weak(
             self, start, first, w, max_iterations, tol, B1, scale, data_rank) if self.hold_weak else first
-        x, r, P = unmeasured_to_zero(self, x, r, w, scale[:, None] * V[:, ~keep])
+        x, r, P = unmeasured_to_zero(self, x, r, w, assumed.move)
         lev, edf, cov, held, held_sd = self._posterior(x, r, w, scale, B, AB, rank, leverage, P)
         if self.S is not None:
             lam = {k: float(np.exp(v)) for k, v in self.smoothing_rho.items()}
@@ -532,7 +557,7 @@ class _Problem:
                 rss, n = self._noise_sum_of_squares(r)
                 rho, _ = reml_weights(AB0, B1.T @ (scale * g), rss, SB,
                                       [B1.T @ (S @ z0) for S in Ss], [float(z0 @ S @ z0) for S in Ss],
-                                      n, start=rho, ranks=ranks, with_edf=False)
+                                      n, start=_refine_from(rho), ranks=ranks, with_edf=False)
                 if before is not None and np.max(np.abs(rho - before)) < RHO_SETTLED:
                     # the weights at the fit are those the fit used: it stands
                     rho = before
@@ -583,9 +608,12 @@ class _Problem:
 
     def _residual_variance(self, r, edf: float) -> float:
         """s2 of the posterior: the noise's sum of squares over its number less the edf
-        (:meth:`_noise_sum_of_squares`); NaN without degrees of freedom."""
+        (:meth:`_noise_sum_of_squares`); NaN without degrees of freedom. With the readings' noise
+        known (weights 1 / noise), at least 1: a fit whose residuals scatter less than the readings'
+        own repeats has taken some of their noise for information."""
         rss, n = self._noise_sum_of_squares(r)
-        return rss / (n - edf) if n - edf > 0 else np.nan
+        s2 = rss / (n - edf) if n - edf > 0 else np.nan
+        return max(s2, 1.0) if self.known_noise and np.isfinite(s2) else s2
 
     def _reduced_penalty(self, B) -> np.ndarray:
         """B^T S B: the penalty in the directions B (zeros without one)."""
@@ -606,7 +634,7 @@ class _Problem:
         converged = False
         iterations = 0
         AB = reduced(A)
-        solve = _solver(AB + SB)
+        solve = _solver(AB, SB)
         # The model is linear in p up to products of errors (1e-5 of the readings), so the Gram
         # matrix at the start serves every step (the chord method: the gradient is exact at each
         # step, so the minimum is the exact one). It is formed anew only when a step fails to
@@ -667,7 +695,7 @@ class _Problem:
                 _, A_new, g_new = self.normal_equations(x, w)
             if A_new is not A:
                 AB = reduced(A_new)
-                solve = _solver(AB + SB)
+                solve = _solver(AB, SB)
             A, g = A_new, g_new
         if A is None:
             _, A, g = self.normal_equations(x, w)

@@ -52,6 +52,11 @@ class FitProblem:
     outliers : the policy the files were read with (``"keep"``, or ``"repeats"``: readings far off
     their repeats left out, :func:`without_outliers`); ``removed`` the readings it left out.
     context_defaults : values of context channels the files lack.
+    rank_point : (n_params,) the values at which what the data determine is judged (the rank and the
+    undetermined combinations), None: ``start``. diagnose starts its chosen terms at the selection's
+    values but judges at zero: their products with the base's columns are no information.
+    known_noise : the weights are each reading's known noise (diagnose's floors): the posterior's
+    residual variance is not taken below 1, that noise.
     """
 
     model: ErrorModel
@@ -64,6 +69,8 @@ class FitProblem:
     outliers: str = "keep"
     removed: list = field(default_factory=list)
     context_defaults: dict = field(default_factory=dict)
+    rank_point: np.ndarray | None = None
+    known_noise: bool = False
 
     def __post_init__(self):
         # readings a fit cannot take (a ball bar's deviation in um under length_mm) are refused
@@ -371,7 +378,7 @@ def frame_rotations(mms, n_free: int) -> list[tuple[np.ndarray, np.ndarray, int]
 
 def frame_rule_complement(null: np.ndarray, scale: np.ndarray, machine: np.ndarray,
                           unmeasured: np.ndarray | None, metric: np.ndarray | None,
-                          rotations: list) -> np.ndarray:
+                          rotations: list, fixed: np.ndarray | None = None) -> np.ndarray:
     """(n, n - k) orthonormal directions (column-scaled coordinates) a fit moves in, given the k
     orthonormal directions ``null`` the data do not determine: the rule of
     :func:`mtcomp.identification._linalg.held_complement` (the set-ups take what they trade with
@@ -387,8 +394,15 @@ def frame_rule_complement(null: np.ndarray, scale: np.ndarray, machine: np.ndarr
     :data:`FRAME_MACHINE_SHARE` of what the frames move, the frames' rotations are held at their
     start along it and the machine takes it (the constraint is the frames' displacement form,
     orthogonal to every other null direction); elsewhere, the set-ups' rule holds. ``scale`` (n,) the column scaling D (unknown = D z);
-    ``machine``, ``unmeasured`` as for ``held_complement``."""
-    from ._linalg import held_complement
+    ``machine``, ``unmeasured`` as for ``held_complement``. ``fixed`` (n, c): orthonormal
+    directions of machine parameters, independent of ``null``, that the fit does not move along
+    either (:attr:`mtcomp.identification.unmeasured.Assumption.fixed`; None: none); then the
+    result has n - k - c columns."""
+    from ._linalg import held_complement as complement
+
+    def held_complement(held, machine, unmeasured):
+        return complement(held if fixed is None else np.hstack([fixed, held]), machine, unmeasured)
+
     n, k = null.shape
     if k == 0 or not rotations or metric is None:
         return held_complement(null, machine, unmeasured)
@@ -420,7 +434,7 @@ def frame_rule_complement(null: np.ndarray, scale: np.ndarray, machine: np.ndarr
     # mu = d_m^2 / (d_m^2 + d_s^2) < s^2 / (1 + s^2)  <=>  d_m < s d_s
     to_machine = mu < FRAME_MACHINE_SHARE ** 2 / (1.0 + FRAME_MACHINE_SHARE ** 2)
     held = np.hstack([N0, Nr @ Q[:, ~on], directions[:, ~to_machine]])
-    B = held_complement(held, machine, unmeasured) if held.shape[1] else np.eye(n)
+    B = held_complement(held, machine, unmeasured)
     if not to_machine.any():
         return B
     # the frames' rotations held along the directions the machine takes: (G n)^T z = 0

@@ -430,17 +430,48 @@ def _casadi_source(functions) -> str:
 _is_gcc: dict = {}  # compiler path -> whether it is GCC
 
 
+def _asks_gcc(compiler: str) -> bool:
+    """Whether ``compiler`` is GCC: its predefined macros have __GNUC__ and not __clang__ (Clang
+    defines both)."""
+    try:
+        out = subprocess.run([compiler, "-E", "-dM", "-x", "c", "-"], input="", capture_output=True,
+                             text=True, timeout=60).stdout
+    except (OSError, subprocess.SubprocessError):
+        out = ""
+    return "#define __GNUC__ " in out and "__clang__" not in out
+
+
+def _gcc_remembered(compiler: str) -> bool:
+    """:func:`_asks_gcc`, asked once per compiler binary (path, size, time) and remembered in the
+    cache folder: running the preprocessor took 30-40 ms of every process that evaluates a model."""
+    try:
+        st = os.stat(compiler)
+        key = hashlib.sha256(f"{compiler}\0{st.st_size}\0{st.st_mtime_ns}".encode()).hexdigest()
+        mark = cache_dir() / f"compiler-{key[:24]}"
+    except (OSError, CompileError):
+        return _asks_gcc(compiler)
+    try:
+        said = mark.read_text()
+        if said in ("gcc", "other"):
+            return said == "gcc"
+    except OSError:
+        pass
+    is_gcc = _asks_gcc(compiler)
+    try:
+        with tempfile.NamedTemporaryFile("w", dir=mark.parent, prefix=".compiler-", delete=False) as fh:
+            fh.write("gcc" if is_gcc else "other")
+        os.replace(fh.name, mark)
+    except OSError:
+        pass                # remembering only saves time
+    return is_gcc
+
+
 def compile_flags(compiler: str, src: str = SCHEDULE_MARK) -> tuple[str, ...]:
     """Flags for ``compiler`` and ``src``: :data:`CFLAGS`, plus :data:`GCC_FLAGS` when it is GCC
     and the source opens with :data:`SCHEDULE_MARK`, plus :data:`WIDE_FLAGS` when it opens with
     :data:`WIDE_MARK`."""
     if compiler not in _is_gcc:
-        try:  # the predefined macros tell GCC (__GNUC__ alone) from Clang (which also defines it)
-            out = subprocess.run([compiler, "-E", "-dM", "-x", "c", "-"], input="", capture_output=True,
-                                 text=True, timeout=60).stdout
-        except (OSError, subprocess.SubprocessError):
-            out = ""
-        _is_gcc[compiler] = "#define __GNUC__ " in out and "__clang__" not in out
+        _is_gcc[compiler] = _gcc_remembered(compiler)
     if src.startswith(WIDE_MARK):
         return compile_flags(compiler, src[len(WIDE_MARK):]) + WIDE_FLAGS
     return CFLAGS + (GCC_FLAGS if _is_gcc[compiler] and src.startswith(SCHEDULE_MARK) else ())

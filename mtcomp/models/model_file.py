@@ -50,6 +50,22 @@ FORMAT = "mtcomp-model"
 UNDETERMINED_UM = 0.01
 
 
+def uncertainty_without(uncertainty: dict | None, names) -> dict | None:
+    """A model's ``uncertainty`` (MODEL.json) without the parameters ``names``: their rows and
+    columns of the covariance and their rows of the undetermined and held directions left out (the
+    marginal of the others)."""
+    if uncertainty is None:
+        return None
+    n = len(uncertainty["names"])
+    keep = [k for k, nm in enumerate(uncertainty["names"]) if nm not in names]
+    out = dict(uncertainty, names=[uncertainty["names"][k] for k in keep],
+               covariance=np.asarray(uncertainty["covariance"])[np.ix_(keep, keep)],
+               undetermined=np.asarray(uncertainty["undetermined"]).reshape(n, -1)[keep])
+    if "held" in uncertainty:
+        out["held"] = np.asarray(uncertainty["held"]).reshape(n, -1)[keep]
+    return out
+
+
 @dataclass
 class FittedModel:
     """An error model with parameter values: what MODEL.json holds.
@@ -96,15 +112,8 @@ class FittedModel:
             return self
         params = self.params.copy()
         params.values[idx] = 0.0
-        uncertainty = self.uncertainty
-        if uncertainty is not None:
-            drift = {self.params.names[i] for i in idx}
-            keep = [k for k, n in enumerate(uncertainty["names"]) if n not in drift]
-            uncertainty = {"names": [uncertainty["names"][k] for k in keep],
-                           "covariance": np.asarray(uncertainty["covariance"])[np.ix_(keep, keep)],
-                           "undetermined": np.asarray(uncertainty["undetermined"])[keep],
-                           **({"held": np.asarray(uncertainty["held"])[keep],
-                               "held_sd_um": uncertainty["held_sd_um"]} if "held" in uncertainty else {})}
+        drift = {self.params.names[i] for i in idx}
+        uncertainty = uncertainty_without(self.uncertainty, drift)
         return replace(self, params=params, uncertainty=uncertainty,
                        context_defaults=dict(self.context_defaults))
 

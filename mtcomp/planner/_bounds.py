@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._small import any_rows, column_extremes
+from ._small import any_rows, column_extremes, down_columns
 from .problem import CompensationProblem
 
 #: the kinds of bound, in the order of the flag array's last axis
@@ -41,10 +41,9 @@ def flag_name(kind: str, axis: str) -> str:
 
 def _round_to(x, step):
     """x rounded to whole multiples of step (a new array; in place from the division on)."""
-    t = np.divide(x, step)
+    t = down_columns(np.divide, x, step)
     np.round(t, out=t)
-    t *= step
-    return t
+    return down_columns(np.multiply, t, step, out=t)
 
 def _one_row(a: np.ndarray) -> np.ndarray:
     """a (n, m), or its first row (1, m) when a is one row broadcast over n (:meth:`Bounds.limits_lazy`):
@@ -179,8 +178,8 @@ class Bounds:
         base = self._quantize_runs(x, links)          # a new array: clipped in place
         # np.clip's arithmetic (the larger of base and l, then the smaller of that and u), on one
         # row of a broadcast bound
-        np.maximum(base, _one_row(l), out=base)
-        np.minimum(base, _one_row(u), out=base)
+        down_columns(np.maximum, base, _one_row(l), out=base)
+        down_columns(np.minimum, base, _one_row(u), out=base)
         y = base.copy()
         n = y.shape[0]
         tol = 1e-9 * np.maximum(self.unit, 1.0)
@@ -206,7 +205,7 @@ class Bounds:
         flags = np.zeros((n, y.shape[1], len(FLAG_KINDS)), bool)
         took = np.subtract(desired, y)
         np.abs(took, out=took)
-        took = took > self.took_tol
+        took = down_columns(np.greater, took, self.took_tol)
         if not took.any():          # every flag needs the bound to have taken something away
             return y, flags
         if tlo is None:             # limits_lazy: the travel part was not computed
@@ -267,7 +266,7 @@ class Bounds:
                 before = y[s - 1:e - 1]
                 ok0 = None
             d = y[s:e] - before
-            viol = any_rows(np.abs(d) > self.S + tol)
+            viol = any_rows(down_columns(np.greater, np.abs(d), self.S + tol))
             viol &= ~exempt[s:e]
             if links is not None:
                 viol |= any_rows((d < links[0][s:e] - tol) | (d > links[1][s:e] + tol))
@@ -289,12 +288,12 @@ class Bounds:
         from the block before it (from prev for the first) or its link bounds ``links``, or None
         when every block keeps them."""
         n = x.shape[0]
-        bad = any_rows(x < _one_row(l) - tol)
-        bad |= any_rows(x > _one_row(u) + tol)
+        bad = any_rows(down_columns(np.less, x, _one_row(l) - tol))
+        bad |= any_rows(down_columns(np.greater, x, _one_row(u) + tol))
         if n > 1:
             d = np.diff(x, axis=0)
             np.abs(d, out=d)
-            step = any_rows(d > self.S + tol)
+            step = any_rows(down_columns(np.greater, d, self.S + tol))
             step &= ~exempt[1:]
             bad[1:] |= step
         if prev is not None and n and not exempt[0]:

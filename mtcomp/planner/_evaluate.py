@@ -25,7 +25,7 @@ import numpy as np
 from ..kinematics import forward as nominal_pose
 from ..kinematics import pose_jacobian as nominal_pose_jacobian
 from ..models.evaluate import evaluate
-from ._small import any_rows
+from ._small import any_rows, down_columns
 from .problem import CompensationProblem
 
 
@@ -99,6 +99,8 @@ class Evaluator:
         self._open = problem.fitted.undetermined_values() if self._factor is not None else None
         #: the model carries a covariance: :meth:`correction_sd_um` is NaN everywhere without one
         self.has_uncertainty = self._factor is not None
+        #: (function name, datum row, tool length) -> the function there (:meth:`_at_datum`)
+        self._datum_values: dict = {}
 
     def _count(self, n: int):
         with self._count_lock:
@@ -196,8 +198,8 @@ class Evaluator:
         deviation at the part's datum (:meth:`datum_reference`); None: nothing."""
         b, A, target, Jn = self.residual_jacobian(q, None, ctx, _with_nominal=True)
         if reference is not None:
-            target = target + reference
-            b = b - reference * self.S
+            target = down_columns(np.add, target, reference)
+            b = b - down_columns(np.multiply, reference, self.S)
         return b, A, target, self.orientation_rows(q, Jn)
 
     def datum_reference(self, datum, ctx) -> np.ndarray:
@@ -231,7 +233,12 @@ class Evaluator:
         new_run |= _run_starts(tool)
         firsts = np.flatnonzero(new_run)
         if firsts.size == 1:
-            value = self.problem.fitted.at_datum(name, datum[:1], tool[:1])
+            # the program's one datum and tool: evaluated once, not once a chunk
+            key = (name, datum[0].tobytes(), np.float64(tool[0]).tobytes())
+            value = self._datum_values.get(key)
+            if value is None:
+                value = self._datum_values[key] = self.problem.fitted.at_datum(name, datum[:1],
+                                                                               tool[:1])
             return np.broadcast_to(value[0], (datum.shape[0],) + value.shape[1:])
         uniq, inv = _unique_runs(np.column_stack([datum[firsts], tool[firsts]]), new_run)
         return self.problem.fitted.at_datum(name, uniq[:, :-1], uniq[:, -1])[inv]
@@ -244,7 +251,7 @@ class Evaluator:
         """
         q = np.asarray(q, dtype=float)
         zero = x is None or not np.any(x)
-        qq = q if zero else q + x / self.D
+        qq = q if zero else q + down_columns(np.divide, x, self.D)
         dev, Jd = self._deviation_and_qjacobian(qq, ctx)
         tip, axis, Jn = nominal_pose_jacobian(self.machine, qq)
         self._count(q.shape[0])
@@ -252,9 +259,10 @@ class Evaluator:
         if target is None:
             target = (tip if rows == 3 else np.concatenate([tip, axis], axis=1)) if zero \
                 else self.target(q)
-        r = dev[:, :rows] + tip if rows == 3 else dev + np.concatenate([tip, axis], axis=1)
+        r = down_columns(np.add, dev[:, :rows], tip) if rows == 3 \
+            else dev + np.concatenate([tip, axis], axis=1)
         r -= target
-        r *= self.S
+        down_columns(np.multiply, r, self.S, out=r)
         # stored entry by entry, (rows, n_axes, n) contiguous, returned as its (n, rows, n_axes)
         # view: every entry is one contiguous vector (as NormalFactor and a_x read them)
         na = Jd.shape[2]
@@ -276,13 +284,12 @@ class Evaluator:
     def residual(self, q, x, ctx, target):
         """Weighted residual b (n, rows) only (cheaper: no Jacobian of the model)."""
         q = np.asarray(q, dtype=float)
-        qq = q + x / self.D
+        qq = q + down_columns(np.divide, x, self.D)
         dev = self._deviation(qq, ctx)
         self._count(q.shape[0])
-        r = dev[:, :self.rows] + self.target(qq)
+        r = down_columns(np.add, dev[:, :self.rows], self.target(qq))
         r -= target
-        r *= self.S
-        return r
+        return down_columns(np.multiply, r, self.S, out=r)
 
     def deviation_only(self, q, ctx):
         """Weighted model deviation (n, rows) at q (the residual of the uncorrected program)."""

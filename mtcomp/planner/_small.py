@@ -6,6 +6,28 @@ from __future__ import annotations
 import numpy as np
 
 
+_COMPARISONS = (np.less, np.less_equal, np.greater, np.greater_equal, np.equal, np.not_equal)
+
+
+def down_columns(op, a, b, out=None) -> np.ndarray:
+    """``op(a, b)`` (a numpy ufunc: arithmetic on floats, or a comparison) for (n, k) operands of
+    which one is a row broadcast over the n rows (a (k,) vector, a (1, k) row, a read-only
+    broadcast) or a column slice of a wider array, computed down the columns into a C-ordered array
+    (``out`` when given; it may be ``a``).
+
+    The same numbers as numpy's own order, which for these operands loops over each row's k entries
+    one row at a time: for k = 3 five to ten times slower than one pass down each column (a
+    compensation of a million blocks made some fifty million such row loops)."""
+    shape = np.broadcast_shapes(np.shape(a), np.shape(b))
+    if out is None:
+        dtype = bool if op in _COMPARISONS else np.result_type(a, b)
+        out = np.empty(shape, dtype)
+    whole = all(isinstance(v, np.ndarray) and v.shape == shape and v.flags.c_contiguous
+                for v in (a, b))
+    # two whole C-ordered arrays (a 5-axis machine's six rows of six): numpy's order is the fast one
+    return op(a, b, out=out, order="K" if whole else "F")
+
+
 def _diagonal(lam, m: int) -> np.ndarray:
     """(m,) the regularisation weights: lam a number (the same for every column) or (m,)."""
     return np.broadcast_to(np.asarray(lam, dtype=float), (m,))

@@ -39,7 +39,7 @@ from ._pointwise import Linearization, solve_newton, solve_pinv
 from ._qp import WindowQP, never_worse_rows, reachable_nodes
 from ._result import PlanResult
 from ._rotary_grid import rotary_columns, round_rotary, solve_with_rotary_fixed
-from ._small import a_x, any_rows, at_b, gram, row_max_abs, row_norm
+from ._small import a_x, any_rows, at_b, down_columns, gram, row_max_abs, row_norm
 from .problem import CompensationProblem, PlannerOptions
 from ..models.region import outside_bounds, support_bounds
 
@@ -238,7 +238,7 @@ class Planner:
         start, x_start = self._row_starts(chunk, end, lin_end.x, ctx, ref)
         # no internal nodes in a contour the standard-error gate leaves uncorrected either
         cut_start = cycle | no_line
-        gated = self.gate.rows_gated(~rapid & known.all(axis=1), cut_start, sd)
+        gated = self.gate.rows_gated(~rapid & ~any_rows(unknown), cut_start, sd)
         inner = self._subdivide(start, end, x_start, lin_end.x, ctx, ref,
                                 rapid | pinned | cycle | no_line | gated)
         counts = np.ones(nrows, np.int64)
@@ -338,7 +338,7 @@ class Planner:
         the corrections x0 and x1 of the ends misses there."""
         qm = self.bounds.snap(start + t[:, None] * (end - start))
         target, M = self.ev.target_and_orientation_rows(qm)
-        target = target + ref
+        target = down_columns(np.add, target, ref)
         # as the objective counts it: a tool-axis deviation no rotary axis can remove there is
         # missed by any correction and says nothing about the interpolation
         miss = objective_residual(M, self.ev.residual(qm, 0.5 * (x0 + x1), c, target))
@@ -371,14 +371,15 @@ class Planner:
         D = self.bounds.D
         if self.bounds.grid is not None:
             g = self.bounds.grid
-            corrected = np.divide(nodes.q, g)            # in place from here: fewer temporaries
+            # in place from here: fewer temporaries
+            corrected = down_columns(np.divide, nodes.q, g)
             np.round(corrected, out=corrected)
-            steps = np.divide(y, self.bounds.unit)
+            steps = down_columns(np.divide, y, self.bounds.unit)
             np.round(steps, out=steps)
             corrected += steps
-            corrected *= g
+            down_columns(np.multiply, corrected, g, out=corrected)
         else:
-            corrected = nodes.q + y / D
+            corrected = nodes.q + down_columns(np.divide, y, D)
         correction = corrected - nodes.q
         # first order around the last linearisation where the written correction is close to it
         # (the iterations end there); the exact model where it is not (pinv, clamped blocks)
@@ -390,9 +391,8 @@ class Planner:
             after_w[far] = self.ev.residual(nodes.q[far], y[far], nodes.context[far],
                                             lin.target[far])
         S = self.ev.S
-        before = lin.b0 / S
-        after = after_w                 # a new array: divided in place
-        after /= S
+        before = down_columns(np.divide, lin.b0, S)
+        after = down_columns(np.divide, after_w, S, out=after_w)    # a new array: in place
         five = self.problem.correct_orientation
         self._done += len(nodes)
         self._tick()
@@ -590,11 +590,7 @@ class Planner:
             nonlocal n_done
             while pending and n_done >= pending[0][2]:
                 chunk, counts, n = pending.popleft()
-                allres = done[0] if len(done) == 1 else PlanResult.concatenate(done)
-                res, rest = allres.take(slice(0, n)), allres.take(slice(n, len(allres)))
-                done.clear()
-                if len(rest):
-                    done.append(rest)
+                res = _first_rows(done, n)
                 n_done -= n
                 res.counts = counts
                 yield chunk, res
@@ -731,6 +727,22 @@ def plan_chunks(problem: CompensationProblem, chunks: Iterable, options: Planner
     ``result.counts`` gives the output blocks per segment row (``write_corrected``'s counts) and
     ``result.corrected`` the points to write."""
     return Planner(problem, options, source).iter_chunks(chunks)
+
+
+def _first_rows(done: list, n: int) -> PlanResult:
+    """The first n (>= 1) rows of the results ``done`` (in program order) as one PlanResult, taken
+    off the list: the results they span joined, those after left as they are (of a result cut at
+    the n-th row, the rows after stay first, a view). Joining every result and cutting that copied
+    most rows twice: the windows of the next chunk are planned before this one is handed on."""
+    parts, got = [], 0
+    while got < n:
+        r = done.pop(0)
+        if got + len(r) > n:
+            done.insert(0, r.take(slice(n - got, len(r))))
+            r = r.take(slice(0, n - got))
+        parts.append(r)
+        got += len(r)
+    return parts[0] if len(parts) == 1 else PlanResult.concatenate(parts)
 
 
 def _as_list(res) -> list:

@@ -23,7 +23,7 @@ import numpy as np
 from ..diagnose.result import Diagnosis
 from ..errors import InputError
 from ..models.chain import ErrorModel
-from ..models.model_file import FittedModel
+from ..models.model_file import FittedModel, uncertainty_without
 from ..models.params import ParameterSet
 from ._diagnose import channel_axes_for, declared_channel_axes, diagnose_thermal
 
@@ -109,9 +109,8 @@ def _joined_model(geo: FittedModel, drift: FittedModel, record_path, dropped=fro
     """The geometric model (without its terms whose keys are ``dropped``) plus the drift model's
     terms, values, covariance, defaults and ranges."""
     kept = [t for t in geo.model.terms if t.key() not in dropped]
-    if len(kept) < len(geo.model.terms):
-        geo = _without_terms(geo, kept)
-    terms = list(geo.model.terms) + list(drift.model.terms)
+    gone = {ps.name for t in geo.model.terms if t.key() in dropped for ps in t.param_specs(geo.model.machine)}
+    terms = kept + list(drift.model.terms)
     try:
         model = ErrorModel(geo.model.machine, terms)
     except ValueError as exc:
@@ -122,7 +121,7 @@ def _joined_model(geo: FittedModel, drift: FittedModel, record_path, dropped=fro
     std = np.full(len(params), np.nan)
     # the drift model's base is the machine's default one, all zero: only its drift terms are taken
     drift_names = {ps.name for t in drift.model.terms for ps in t.param_specs(drift.model.machine)}
-    for part, names in ((geo, set(geo.params.names)), (drift, drift_names)):
+    for part, names in ((geo, set(geo.params.names) - gone), (drift, drift_names)):
         se = part.params.std_errors
         for i, nm in enumerate(part.params.names):
             if nm in names:
@@ -134,28 +133,8 @@ def _joined_model(geo: FittedModel, drift: FittedModel, record_path, dropped=fro
     info.update({k: drift.info[k] for k in _THERMAL_INFO if k in drift.info})
     info["thermal_record"] = str(record_path)
     return FittedModel(model, params, {**geo.context_defaults, **drift.context_defaults}, info,
-                       geo.support, _joined_uncertainty(geo.uncertainty, drift.uncertainty), geo.held)
-
-
-def _without_terms(fm: FittedModel, terms: list) -> FittedModel:
-    """``fm`` with only ``terms``: the others' parameters and their rows of the covariance (and of
-    the undetermined and held directions) left out (the marginal of the kept parameters)."""
-    model = ErrorModel(fm.model.machine, terms)
-    params = ParameterSet(model.param_specs)
-    names = list(fm.params.names)
-    keep = [names.index(n) for n in params.names]
-    params.values[:] = np.asarray(fm.params.values)[keep]
-    if fm.params.std_errors is not None:
-        params.std_errors = np.asarray(fm.params.std_errors)[keep]
-    unc = fm.uncertainty
-    if unc is not None:
-        ix = [list(unc["names"]).index(n) for n in params.names if n in unc["names"]]
-        unc = dict(unc, names=tuple(unc["names"][i] for i in ix),
-                   covariance=np.asarray(unc["covariance"])[np.ix_(ix, ix)],
-                   undetermined=np.asarray(unc["undetermined"]).reshape(len(unc["names"]), -1)[ix])
-        if "held" in fm.uncertainty:
-            unc["held"] = np.asarray(fm.uncertainty["held"]).reshape(len(fm.uncertainty["names"]), -1)[ix]
-    return FittedModel(model, params, fm.context_defaults, fm.info, fm.support, unc, fm.held)
+                       geo.support, _joined_uncertainty(uncertainty_without(geo.uncertainty, gone),
+                                                        drift.uncertainty), geo.held)
 
 
 def _joined_uncertainty(a: dict | None, b: dict | None) -> dict | None:

@@ -12,11 +12,21 @@ Public API (see docs/toolpaths.md):
 """
 from .gcode import (MotionBlock, ModalState, Program, SegmentChunk, iter_segment_chunks,
                     read_program, tokenize, write_corrected)
-from .inverse import fit_rotary_travel, inverse_kinematics
-from .parts import (write_bowl_program, write_circle_program, write_cone_frustum_program,
-                    write_three_sphere_program)
+
+#: names of the test-part programs and of the inverse kinematics, imported on first use (reading
+#: and writing a program needs neither)
+_LAZY = {"fit_rotary_travel": "inverse", "inverse_kinematics": "inverse",
+         "write_bowl_program": "parts", "write_circle_program": "parts",
+         "write_cone_frustum_program": "parts", "write_three_sphere_program": "parts"}
 
 __all__ = ["MotionBlock", "ModalState", "Program", "SegmentChunk", "iter_segment_chunks",
            "read_program", "tokenize", "write_corrected", "fit_rotary_travel", "inverse_kinematics",
            "write_bowl_program", "write_circle_program", "write_cone_frustum_program",
            "write_three_sphere_program"]
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        import importlib
+        return getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

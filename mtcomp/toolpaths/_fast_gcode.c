@@ -83,15 +83,24 @@ static char *put_fixed(char *s, long long m, int dec) {
     return s;
 }
 
-/* Python's f"{v:.{dec}f}" (dec 4 or 5), with "-0.000.." written as "0.000..". */
-static int fmt_fixed_m(char *o, double v, int dec, long long *mout, int *exact) {
+/* 1 and *m when v with dec decimals is written as the digits of m (m / 10^dec is |v| rounded to
+ * them; the text is then a function of m alone), 0 when printf rounds it: beyond 1e9 the rounding
+ * of v * 10^dec could hide a tie (values > 100 m), and near a tie printf rounds the exact value. */
+static int fixed_digits(double v, int dec, long long *m) {
     double t = v * POW10[dec];
-    *exact = 0;
-    /* beyond 1e9 the rounding of t itself could hide a tie: let printf do it (values > 100 m) */
-    if (!(fabs(t) < 1e9)) return sprintf(o, "%.*f", dec, v);
+    if (!(fabs(t) < 1e9)) return 0;
     double fl = floor(t);
     double fr = t - fl;
-    if (fabs(fr - 0.5) < 1e-6) {                 /* near a tie: let printf round the exact value */
+    if (fabs(fr - 0.5) < 1e-6) return 0;
+    *m = (long long)(fr < 0.5 ? fl : fl + 1.0);
+    return 1;
+}
+
+/* Python's f"{v:.{dec}f}" (dec 4 or 5), with "-0.000.." written as "0.000..". */
+static int fmt_fixed_m(char *o, double v, int dec, long long *mout, int *exact) {
+    long long m;
+    *exact = fixed_digits(v, dec, &m);
+    if (!*exact) {
         int n = sprintf(o, "%.*f", dec, v);
         if (o[0] == '-') {                        /* "-0.0000" -> "0.0000" */
             int zero = 1;
@@ -100,9 +109,7 @@ static int fmt_fixed_m(char *o, double v, int dec, long long *mout, int *exact) 
         }
         return n;
     }
-    long long m = (long long)(fr < 0.5 ? fl : fl + 1.0);
     *mout = m;
-    *exact = 1;
     char *s = o;
     if (m < 0) { *s++ = '-'; m = -m; }
     return (int)(put_fixed(s, m, dec) - o);
@@ -120,26 +127,36 @@ static __thread double cache_val[6];
 static __thread int cache_inch[6] = {-1, -1, -1, -1, -1, -1};
 static __thread char cache_txt[6][40];
 
+static const double RAD2DEG = 180.0 / 3.14159265358979323846;
+
+/* The number a coordinate's word shows for the position q (mm, rad): deg, inch or mm. */
+static double shown(double q, int rot, int inch) {
+    return rot ? RAD2DEG * q : (inch ? q / 25.4 : q);
+}
+
 /* One coordinate's text (without the letter) with dec decimals, NUL-terminated; returns its length. */
 static int fmt_value(char *o, double q, int rot, int inch, int dec) {
-    static const double RAD2DEG = 180.0 / 3.14159265358979323846;
-    int n;
-    if (rot) n = fmt_fixed(o, RAD2DEG * q, dec);
-    else if (inch) n = fmt_fixed(o, q / 25.4, dec);
-    else n = fmt_fixed(o, q, dec);
+    int n = fmt_fixed(o, shown(q, rot, inch), dec);
     o[n] = 0;
     return n;
+}
+
+/* Whether the positions a and b are written as different text with dec decimals: 1 or 0 when
+ * their digits say so, -1 when only their texts can (printf rounds one of them). */
+static int texts_differ(double a, double b, int rot, int inch, int dec) {
+    long long ma, mb;
+    if (!fixed_digits(shown(a, rot, inch), dec, &ma) || !fixed_digits(shown(b, rot, inch), dec, &mb))
+        return -1;
+    return ma != mb;
 }
 
 /* As fmt_value, and *back: the position the text says (mm, rad), as Python's float() of the text
  * would read it: m / 10^dec is that correctly rounded value when the digits are known exactly. */
 static int fmt_value_back(char *o, double q, int rot, int inch, int dec, double *back) {
-    static const double RAD2DEG = 180.0 / 3.14159265358979323846;
     static const double DEG2RAD_ = 3.14159265358979323846 / 180.0;
     long long m = 0;
     int exact = 0, n;
-    double v = rot ? RAD2DEG * q : (inch ? q / 25.4 : q);
-    n = fmt_fixed_m(o, v, dec, &m, &exact);
+    n = fmt_fixed_m(o, shown(q, rot, inch), dec, &m, &exact);
     o[n] = 0;
     double x = exact ? (double)m / POW10[dec] : strtod(o, NULL);
     *back = rot ? x * DEG2RAD_ : (inch ? x * 25.4 : x);
@@ -276,11 +293,11 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
             unsigned fresh = seen & ~known;   /* moved from a position not given: direction unknown */
             known |= seen;
             state[20] = (double)known;
-            for (int j = 0; j < na; j++) {
-                double step = end[j] - start[j];
-                if (fresh & (1u << j)) state[6 + j] = 0.0;
-                else if (step > 1e-9) state[6 + j] = 1.0;
-                else if (step < -1e-9) state[6 + j] = -1.0;
+            for (int j = 0; j < na; j++) {    /* selects, not branches: the signs vary */
+                double step = end[j] - start[j], d = state[6 + j];
+                d = step > 1e-9 ? 1.0 : d;
+                d = step < -1e-9 ? -1.0 : d;
+                state[6 + j] = (fresh & (1u << j)) ? 0.0 : d;
                 state[j] = end[j];
             }
             if (r_line) {
@@ -368,8 +385,11 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                         double back;
                         if (named) {
                             if (!incr && q[j] == end[j]) { last[j] = end[j]; continue; }
+                            /* a correction that leaves the word's text as it is: nothing to write */
+                            int differ = incr ? 1 : texts_differ(q[j], end[j], is_rot[j], inch, dec[j]);
+                            if (!differ) { last[j] = end[j]; continue; }
                             int tn = fmt_value_back(tmp, q[j], is_rot[j], inch, dec[j], &back);
-                            if (!incr) {
+                            if (differ < 0) {
                                 fmt_value(nom, end[j], is_rot[j], inch, dec[j]);
                                 if (strcmp(tmp, nom) == 0) { last[j] = end[j]; continue; }
                             }
@@ -482,4 +502,47 @@ long long mt_format_table(const double *vals, long long n, int k, const int *dec
         *o++ = '\n';
     }
     return (long long)(o - out);
+}
+
+/* The codes of mt_g_codes that the letter at text[i] starts (set in found), how many new. */
+static int g_word_at(const char *text, long long len, long long i, const char *codes, int n_codes,
+                     int *found) {
+    char after[6];
+    int added = 0;
+    for (int j = 0; j < 6; j++) after[j] = i + 1 + j < len ? text[i + 1 + j] : ' ';
+    for (int k = 0; k < n_codes; k++) {
+        if (found[k]) continue;
+        for (int zeros = 0; zeros < 3; zeros++) {
+            int z = 0;
+            while (z < zeros && after[z] == '0') z++;
+            if (z < zeros) break;
+            char next = after[zeros + 2];
+            if (after[zeros] == codes[2 * k] && after[zeros + 1] == codes[2 * k + 1]
+                && !is_digit(next) && next != '.') {
+                found[k] = 1;
+                added++;
+                break;
+            }
+        }
+    }
+    return added;
+}
+
+/* Which of the n_codes two-digit G codes (codes: their digits one after the other, "20214142")
+ * the first len bytes of text hold: G or g, at most two zeros, the code, not followed by a digit or
+ * '.' (a byte at or past len reads as a space). found[k] is set to 1 for each code found; those
+ * already set are not looked for. Returns how many are set. (compensation._g_codes in numpy.) */
+int mt_g_codes(const char *text, long long len, const char *codes, int n_codes, int *found) {
+    int left = 0;
+    for (int k = 0; k < n_codes; k++) left += !found[k];
+    for (int letter = 0; letter < 2 && left; letter++) {     /* the G words, then the g words */
+        const char *p = text, *end = text + len;
+        while (left && (p = memchr(p, letter ? 'g' : 'G', (size_t)(end - p))) != NULL) {
+            left -= g_word_at(text, len, p - text, codes, n_codes, found);
+            p++;
+        }
+    }
+    int n = 0;
+    for (int k = 0; k < n_codes; k++) n += found[k] != 0;
+    return n;
 }

@@ -37,7 +37,7 @@ import numpy as np
 
 from ..io.atomic import check_output_path
 from ..machine import Machine
-from . import _fast, heidenhain_out, reader, sinumerik_out, writer
+from . import _fast, reader, writer
 from .blocks import CycleBlock, MotionBlock, Program, SegmentChunk
 from .modal import ModalState
 from .reader import iter_blocks, new_state, read_program
@@ -104,8 +104,8 @@ def _still_arcs_at_the_last_feed(chunks: Iterable[SegmentChunk]) -> Iterator[Seg
     last = np.nan
     for chunk in chunks:
         if len(chunk):
-            still = np.flatnonzero(np.asarray(chunk.from_arc, bool)
-                                   & ~np.any(chunk.end != chunk.start, axis=1))
+            arc = np.flatnonzero(chunk.from_arc)        # the few arc rows only
+            still = arc[~np.any(chunk.end[arc] != chunk.start[arc], axis=1)]
             if still.size:
                 feed = np.array(chunk.feed, dtype=float)
                 for r in still.tolist():
@@ -156,8 +156,8 @@ def write_corrected(in_path, out_path, machine: Machine,
         cursor = CorrectionCursor(corrections, machine.n_axes, src.source)
         write = _fast.write_corrected if _compiled(src) else writer.write_corrected
         if src.heidenhain is not None:          # written back in its conversational form
-            write = heidenhain_out.write_corrected
+            from .heidenhain_out import write_corrected as write
         if src.sinumerik is not None:           # written back in its own form
-            write = sinumerik_out.write_corrected
+            from .sinumerik_out import write_corrected as write
         return write(src, out_path, machine, cursor, chord_tol_mm, initial_position, stats=stats,
                      **kw)

@@ -780,13 +780,15 @@ class ModalState:
         prev = np.vstack([start[None, :], pts[:-1]])
         step = pts - prev
         sign = np.where(step > DIR_EPS, 1, np.where(step < -DIR_EPS, -1, 0)).astype(np.int8)
-        out = np.empty_like(sign)
-        cur = self.dirs.copy()
-        for r in range(sign.shape[0]):
-            moving = sign[r] != 0
-            cur[moving] = sign[r][moving]
-            if r == 0 and fresh is not None:
-                cur[fresh] = 0
-            out[r] = cur
-        self.dirs = cur.copy()
+        # each axis keeps the sign of its last segment that moves it (before the block's first,
+        # the direction it had; a fresh axis 0 from the first segment on): the row of that
+        # segment carried forward, -3 for none yet, -2 for a fresh axis's first segment
+        last = np.where(sign != 0, np.arange(sign.shape[0])[:, None], -3)
+        if fresh is not None:
+            last[0, fresh] = -2
+        np.maximum.accumulate(last, axis=0, out=last)
+        had = np.where(last == -2, 0, self.dirs[None, :])
+        out = np.where(last >= 0, sign[np.maximum(last, 0), np.arange(sign.shape[1])], had)
+        out = out.astype(np.int8)
+        self.dirs = out[-1].copy()
         return out

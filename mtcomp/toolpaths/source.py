@@ -21,13 +21,11 @@ from dataclasses import dataclass, field
 from ..errors import InputError
 from .dialect import Dialect, dialect_named, foreign_language, needs_expansion
 from .words import strip_comments
-from .heidenhain import translate
-from .sinumerik import translate as translate_sinumerik
-from .macro import MacroRun
-from .ngc import MAX_LINES, MAX_STEPS, NgcRun
 
-_LANGUAGE = {"ngc": (NgcRun, "O-word control flow, parameters and expressions"),
-             "macro": (MacroRun, "macro variables, IF, GOTO, WHILE and subprogram calls")}
+# the languages' readers (.ngc, .macro, .heidenhain, .sinumerik) are imported where a program
+# needs one: a plain G-code program is read without them
+_LANGUAGE = {"ngc": "O-word control flow, parameters and expressions",
+             "macro": "macro variables, IF, GOTO, WHILE and subprogram calls"}
 
 
 @dataclass
@@ -132,13 +130,17 @@ _PROGRAM_END_RE = re.compile(r"(?i)\bm0*(?:2|30)(?![\d.])")
 PROGRESS_EVERY = 4096
 
 
-def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int, progress=None):
+def _expand(source: str, dialect: Dialect, max_steps: int | None, max_lines: int | None,
+            progress=None):
     """(temporary file, line map, lines written, source lines, the InputError that stopped the run
     or None), or None when nothing changes. ``progress``: callable(lines executed), told every
     PROGRESS_EVERY lines. An error in the code stops the run at its line: the file holds the lines
     executed before it (the error is the readers' to raise after them), but a runaway loop's
     (``runaway``), a fault of the whole run, is raised at once."""
-    run_cls, language = _LANGUAGE[dialect.language]
+    from . import macro, ngc
+    language = _LANGUAGE[dialect.language]
+    limits = {"max_steps": ngc.MAX_STEPS if max_steps is None else max_steps,
+              "max_lines": ngc.MAX_LINES if max_lines is None else max_lines}
     with open(source, "rb") as f:
         raws = f.read().split(b"\n")          # lines as the reader counts them ('\n' ends one)
     raws = [r + b"\n" for r in raws[:-1]] + ([raws[-1]] if raws[-1] else [])
@@ -146,8 +148,10 @@ def _expand(source: str, dialect: Dialect, max_steps: int, max_lines: int, progr
         raws[0] = raws[0][3:]
     texts = [r.decode("latin-1").rstrip("\r\n") for r in raws]
     ending = "\r\n" if raws and raws[0].endswith(b"\r\n") else "\n"
-    extra = {"dialect": dialect.name} if run_cls is MacroRun else {}
-    run = run_cls(texts, source, max_steps=max_steps, max_lines=max_lines, **extra)
+    if dialect.language == "ngc":
+        run = ngc.NgcRun(texts, source, **limits)
+    else:
+        run = macro.MacroRun(texts, source, **limits, dialect=dialect.name)
     # the expanded program's lines (0-based) -> the source's lines (1-based; 0: the header)
     line_map = array("l")
     header = (_header(source, language, dialect) + ending).encode("latin-1")   # the first line
@@ -218,7 +222,11 @@ def _translated(source: str, d: Dialect, why: str):
     if not os.path.isfile(source):
         raise InputError("no such file", source)
     sinumerik = d.language == "sinumerik"
-    translation = translate_sinumerik(source) if sinumerik else translate(source)
+    if sinumerik:
+        from .sinumerik import translate
+    else:
+        from .heidenhain import translate
+    translation = translate(source)
     fd, tmp = tempfile.mkstemp(prefix=f"mtcomp-{d.language}-", suffix=".nc")
     try:
         with os.fdopen(fd, "w", encoding="latin-1", newline="\n") as out:
@@ -234,15 +242,16 @@ def _translated(source: str, d: Dialect, why: str):
 
 
 @contextlib.contextmanager
-def open_program(path, dialect: str | None = None, *, max_steps: int = MAX_STEPS,
-                 max_lines: int = MAX_LINES, progress=None):
+def open_program(path, dialect: str | None = None, *, max_steps: int | None = None,
+                 max_lines: int | None = None, progress=None):
     """The program at ``path`` as a :class:`ProgramSource` (see the module docstring); a
     ProgramSource is handed back as it is. ``dialect``: a name of :data:`~.dialect.DIALECTS`, or
-    None to detect it. ``progress``: callable(lines executed), told as a program with code is run
-    (every PROGRESS_EVERY lines), or None. The temporary file of an expansion is removed on
-    leaving the context. Code that cannot be run is an InputError (file and source line named)
-    that the readers raise once the lines executed before it are read
-    (``ProgramSource.error``); a loop that does not end is raised here."""
+    None to detect it. ``max_steps``, ``max_lines``: the limits of an expansion (None:
+    :data:`.ngc.MAX_STEPS`, :data:`.ngc.MAX_LINES`). ``progress``: callable(lines executed),
+    told as a program with code is run (every PROGRESS_EVERY lines), or None. The temporary file
+    of an expansion is removed on leaving the context. Code that cannot be run is an InputError
+    (file and source line named) that the readers raise once the lines executed before it are
+    read (``ProgramSource.error``); a loop that does not end is raised here."""
     if isinstance(path, ProgramSource):
         yield path
         return
