@@ -1,9 +1,10 @@
 """A Fanuc or Haas dimension word without a decimal point (a new user's finding): `G01 X60` in a
 Fanuc program was read as 60 mm and written `X59.9984`. A Fanuc reads X60 as 0.060 mm under G21
 (0.0060 in under G20) unless calculator-type input is set (parameter 3401#0, Fanuc Series 0i-MODEL F
-operator's manual, decimal point programming), a setting the program does not show; the corrected
-word, written with a point, is read as mm by either. Refused now, with the word and the line; zero,
-a dwell's time, a cycle's repeat count and codes' own numbers stay accepted."""
+operator's manual, decimal point programming; a Haas likewise unless Setting 162, Default To
+Float, is on), a setting the program does not show; the corrected word, written with a point, is
+read as mm by either. Refused now, with the word and the line; zero, a dwell's time, a cycle's
+repeat count and codes' own numbers stay accepted."""
 from __future__ import annotations
 
 import re
@@ -39,6 +40,8 @@ def test_a_dimension_word_without_a_point_is_refused_naming_it(tmp_path, capsys,
     assert rc == 2 and not out.exists()
     assert len(err.splitlines()) == 1 and f"p.nc:{line}: {word} has no decimal point" in err, err
     assert "0.001 mm" in err
+    # the machine setting that would read it in whole units, the controller's own
+    assert ("Setting 162 (Default To Float)" if dialect == "haas" else "parameter 3401#0 DPI") in err
 
 
 def test_inch_names_the_inch_increment(tmp_path, capsys):
@@ -66,3 +69,4 @@ def test_linuxcnc_and_grbl_read_whole_millimetres(tmp_path):
                      "--dialect", dialect]) == 0
         moved = re.search(r"G1 X([0-9.]+)", out.read_text())
         assert moved and abs(float(moved.group(1)) - 60.0) < 0.01
+

@@ -24,6 +24,11 @@ Which block's code takes a word is decided as the RS274/NGC interpreter does it:
 block is its G0-G3, drilling cycle or G33.1 code, else, where the block names an axis, the motion
 mode in force (LinuxCNC source, ``interp_read.cc``/``rs274ngc_pre.cc``, ``enhance_block``:
 ``motion_to_be``); every other code is the block's own.
+
+The same reading of a block decides which words are dimensions for :func:`check_point_words`: on
+Fanuc and Haas a dimension word without a decimal point (``X60``) is read in the least input
+increment (0.060 mm) by default, and is refused (docs/toolpaths.md, "Dimension words without a
+decimal point").
 """
 from __future__ import annotations
 
@@ -182,7 +187,7 @@ def _grbl_problem(letter, mode, gcodes, letters) -> str:
 #: dialects whose controllers read a dimension word without a decimal point in the least input
 #: increment (Fanuc Series 0i-MODEL F operator's manual, "decimal point programming": X1 is 0.001 mm
 #: under G21, 0.0001 in under G20, unless calculator-type input is set, parameter 3401#0 DPI; Haas
-#: Mill operator's manual: a value without a decimal point is in 0.001 mm or 0.0001 in units)
+#: Automation, "Help with the decimal points": likewise unless Setting 162, Default To Float, is on)
 POINT_DIALECTS = frozenset({"fanuc", "haas"})
 _AXIS_WORDS = frozenset("XYZABCUVW")
 
@@ -216,10 +221,17 @@ def check_point_words(state, tokens, motion, cycle, axes_given, own_axes, line: 
         else:
             dimension = False
         if dimension:
-            unit = "0.0001 in" if state.inch else "0.001 mm"
-            raise state._err(
-                f"{letter}{number} has no decimal point: a {state.dialect.name.capitalize()} reads it "
-                f"in the least input increment ({unit}), or as whole units where calculator-type input "
-                f"is set (Fanuc parameter 3401#0), which the program does not show; write "
-                f"{letter}{number}. for whole units", line)
+            raise state._err(_point_problem(state, f"{letter}{number}"), line)
 
+
+#: the machine setting under which a word without a point is read in whole units
+_WHOLE_UNITS = {"fanuc": "calculator-type input is set (parameter 3401#0 DPI)",
+                "haas": "Setting 162 (Default To Float) is on"}
+
+
+def _point_problem(state, word: str) -> str:
+    unit = "0.0001 in" if state.inch else "0.001 mm"
+    name = state.dialect.name
+    return (f"{word} has no decimal point: a {name.capitalize()} reads it in the least input "
+            f"increment ({unit}) unless {_WHOLE_UNITS[name]}, which the program does not show; "
+            f"write {word}. for whole units")
