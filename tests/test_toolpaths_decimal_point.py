@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import re
 
+import numpy as np
 import pytest
 
 from mtcomp.cli import main
@@ -70,3 +71,31 @@ def test_linuxcnc_and_grbl_read_whole_millimetres(tmp_path):
         moved = re.search(r"G1 X([0-9.]+)", out.read_text())
         assert moved and abs(float(moved.group(1)) - 60.0) < 0.01
 
+
+def test_the_compiled_reader_hands_whole_words_to_python_on_fanuc_only(tmp_path, monkeypatch):
+    """The compiled reader sends a line with `X7` to Python (which refuses it) on fanuc and haas
+    only: elsewhere such lines stay on the compiled path, which reads them as whole units."""
+    from mtcomp.errors import InputError
+    from mtcomp.machine import load_machine
+    from mtcomp.toolpaths import _fast, iter_segment_chunks
+    from mtcomp.toolpaths.modal import ModalState
+    if not _fast.available():
+        pytest.skip("no C compiler: the compiled G-code path is not available")
+    read_in_python = []
+    block = ModalState.block
+
+    def spy(self, line, text):
+        read_in_python.append(line)
+        return block(self, line, text)
+    monkeypatch.setattr(ModalState, "block", spy)
+    p = tmp_path / "p.nc"
+    p.write_text("G21 G90\nG0 X0 Y0 Z0\n" + "".join(f"G1 X{k} F100\n" for k in range(1, 31)) + "M30\n")
+    xfyz = load_machine("xfyz")
+    for dialect in ("fanuc", "haas"):
+        with pytest.raises(InputError, match="X1 has no decimal point") as exc:
+            list(iter_segment_chunks(p, xfyz, dialect=dialect))
+        assert exc.value.line == 3
+    read_in_python.clear()
+    ends = np.vstack([c.end for c in iter_segment_chunks(p, xfyz, dialect="linuxcnc")])
+    np.testing.assert_allclose(ends[-1], [30.0, 0.0, 0.0], rtol=0, atol=0)
+    assert not set(read_in_python) & set(range(4, 33)), read_in_python
