@@ -53,6 +53,23 @@ def test_inch_names_the_inch_increment(tmp_path, capsys):
     assert "Y2 has no decimal point" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("machine, text, word", [
+    ("xfyz", "G21 G90 G17\nG0 X0 Y0 Z5.\nG68 X0 Y0 R30\nG1 X10. F100.\nG69\n", "R30"),  # 0.030 deg
+    ("cafxyz", "G21 G90\nG0 X0 Y0 Z50. A0 C0\nG1 C90 F1000.\n", "C90"),              # 0.090 deg
+])
+def test_an_angle_names_the_degree_increment(tmp_path, machine, text, word):
+    """G68's rotation angle and a rotary axis word are angles: 0.001 deg without a point."""
+    from mtcomp.errors import InputError
+    from mtcomp.machine import load_machine
+    from mtcomp.toolpaths import read_program
+    p = tmp_path / "p.nc"
+    p.write_text("O1000\n" + text + "M30\n")
+    with pytest.raises(InputError) as exc:
+        read_program(p, load_machine(machine), dialect="fanuc")
+    assert exc.value.line == 4 and f"{word} has no decimal point" in exc.value.message
+    assert "(0.001 deg)" in exc.value.message, exc.value.message
+
+
 def test_zero_dwell_repeat_count_and_codes_stay_accepted(tmp_path):
     body = ("G00 X0 Y0 Z25.\nG04 X2\nG04 P500\nG01 Z-1. F300.\nG81 X10. Y10. Z-5. R2. K3 F100.\n"
             "G80\nG05.1 Q1\nG05.1 Q0\nT2 M06\nG43 H2 Z25.\n")

@@ -198,13 +198,14 @@ def check_point_words(state, tokens, motion, cycle, axes_given, own_axes, line: 
     calculator-type input is set, a setting of the machine the program does not show. mtcomp would
     read one and write the corrected word with a point, which every controller reads as mm: a move
     of 60 mm where the controller made one of 0.06. Dimension words: the axis words, an arc's
-    I J K R, a drilling cycle's R I J and the peck Q of G73/G83 (a dwell's X or P, a cycle's repeat
-    count K, G5.1's Q are not)."""
+    I J K R, a drilling cycle's R I J, the peck Q of G73/G83 and G68's rotation angle R (a dwell's
+    X or P, a cycle's repeat count K, G5.1's Q are not)."""
     if state.dialect.name not in POINT_DIALECTS:
         return
     letters = {t[0] for t in tokens}
     mode = block_motion(state, motion, cycle, axes_given, own_axes, letters)
-    dwell = any(t[0] == "G" and float(t[1]) == 4 for t in tokens)
+    gcodes = [float(t[1]) for t in tokens if t[0] == "G"]
+    dwell, rotation = 4.0 in gcodes, 68.0 in gcodes
     for t in tokens:
         letter, number = t[0], t[1]
         try:
@@ -214,6 +215,8 @@ def check_point_words(state, tokens, motion, cycle, axes_given, own_axes, line: 
             continue
         if letter in _AXIS_WORDS:
             dimension = not (dwell and letter in "XU")
+        elif rotation and letter == "R":          # the angle of G68, in 0.001 deg without a point
+            dimension = True
         elif mode in (2.0, 3.0):
             dimension = letter in "IJKR"
         elif mode in _CYCLES:
@@ -221,7 +224,8 @@ def check_point_words(state, tokens, motion, cycle, axes_given, own_axes, line: 
         else:
             dimension = False
         if dimension:
-            raise state._err(_point_problem(state, f"{letter}{number}"), line)
+            angle = letter in "ABC" or (rotation and letter == "R")
+            raise state._err(_point_problem(state, f"{letter}{number}", angle), line)
 
 
 #: the machine setting under which a word without a point is read in whole units
@@ -229,8 +233,8 @@ _WHOLE_UNITS = {"fanuc": "calculator-type input is set (parameter 3401#0 DPI)",
                 "haas": "Setting 162 (Default To Float) is on"}
 
 
-def _point_problem(state, word: str) -> str:
-    unit = "0.0001 in" if state.inch else "0.001 mm"
+def _point_problem(state, word: str, angle: bool) -> str:
+    unit = "0.001 deg" if angle else "0.0001 in" if state.inch else "0.001 mm"
     name = state.dialect.name
     return (f"{word} has no decimal point: a {name.capitalize()} reads it in the least input "
             f"increment ({unit}) unless {_WHOLE_UNITS[name]}, which the program does not show; "
