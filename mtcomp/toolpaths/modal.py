@@ -29,7 +29,7 @@ from .lengths import length_number, lone_h, set_length
 from .linetext import text_with_words
 from .programmed import ProgrammedOffsets, apply_g10
 from .rrf import macro_codes, restore_move
-from .word_use import check_motion_mode, check_value_words
+from .word_use import check_motion_mode, check_point_words, check_value_words
 from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _CURVE_WITH_COORDINATES, KNOWN_DECIMAL_G, FANUC_CYCLES, FANUC_DIALECTS,
                     OTHER_WCS_G, mode_followed, _REFUSED_G, _REFUSED_M, _UNIQUE_LETTERS, _WCS_INDEX, DEFAULT_CHORD_TOL_MM,
                     MM_PER_INCH, TCP_OFF_M, TCP_ON_M, TOOL_AXIS, frame_code,
@@ -197,6 +197,7 @@ class ModalState:
         axes_given = self._axis_words(values, line)
         check_value_words(self, tokens, gcodes, mcodes, motion, cycle, axes_given,
                           nonmotion_axes and home_move != 53, line)
+        check_point_words(self, tokens, motion, cycle, axes_given, nonmotion_axes and home_move != 53, line)
         if home_move is not None and motion is not None and not home_with_motion(self.dialect.name, home_move, motion):
             raise self._err(f"G{home_move} and motion G{motion} in one block", line)
         self._set_feed(values, line)
