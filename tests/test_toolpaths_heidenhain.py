@@ -408,3 +408,36 @@ def test_the_shops_pocket_under_a_backlash_is_written_with_its_arcs_in_pieces(tm
     idx = pair_compensated(orig, comp, XFYZ)
     assert len(comp) > len(orig) and np.all(np.diff(idx) > 0)
     assert np.max(np.abs(comp.q[idx] - orig.q)[orig.known]) < 0.28
+
+
+# full circles by their end point (the start: HEIDENHAIN, TNC 370 User's Manual, "Circular path C
+# around the circle center CC": "To program a full circle, enter the same point for the end point
+# as for the start point in a C block") and an arc whose Y is not written (the last programmed Y)
+FULL_CIRCLES = ("0 BEGIN PGM T MM\n1 L X+0 Y+0 Z+0 FMAX\n2 CC X+10 Y+0\n3 C X+0 Y+0 DR+ F100\n"
+                "4 C X+20 DR+\n5 C X+20 DR-\n6 L X+30\n7 END PGM T MM\n")
+
+
+def test_a_full_circle_by_its_end_point_ends_where_it_starts_as_written(tmp_path):
+    """X corrected by +1 um, Y by 1 um per 10 mm of X. By hand: line 1 ends at X+0.0010 Y+0; the
+    full circle of line 3 must end there (its words say the written start, else the TNC runs a
+    1 um arc instead of the circle); line 4 (Y not written: the last one, 0) ends at X20 where Y is
+    corrected by 2 um, so Y+0.0020 is added; the full circle of line 5 from there names X only
+    and says X+20.0010 (its Y, unwritten, is the start's). The replay (the TNC's rules, not
+    mtcomp's reader) runs two full circles and a half one."""
+    lines, _notes = _written_with(
+        tmp_path, FULL_CIRCLES,
+        lambda c: np.column_stack([np.full(len(c), 0.001), 1e-4 * c.end[:, 0],
+                                   np.zeros(len(c))]))
+    assert lines[1] == "1 L X+0.0010 Y+0 Z+0 FMAX"
+    assert lines[3] == "3 C X+0.0010 Y+0 DR+ F100"
+    assert lines[4] == "4 C X+20.0010 Y+0.0020 DR+"
+    assert lines[5] == "5 C X+20.0010 DR-"
+    assert lines[6] == "6 L X+30.0010 Y+0.0030"
+    assert lines[2].startswith("2 CC X+10.00")
+    assert [ln for i, ln in enumerate(lines) if i not in (1, 2, 3, 4, 5, 6)] == \
+        [ln for i, ln in enumerate(FULL_CIRCLES.splitlines()) if i not in (1, 2, 3, 4, 5, 6)]
+    arcs = [m for m in replay_heidenhain.replay("\n".join(lines).encode()).moves
+            if m.kind == "arc"]
+    np.testing.assert_allclose([m.sweep for m in arcs], [2 * np.pi, np.pi, -2 * np.pi], rtol=0,
+                               atol=1e-6)
+    assert (arcs[1].end["X"], arcs[1].end["Y"]) == (20.001, 0.002)

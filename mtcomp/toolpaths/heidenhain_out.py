@@ -201,7 +201,10 @@ class HeidenhainWriter:
         plane = np.zeros(self.na, bool)
         plane[cols] = True
         if full:
+            # a full circle ends where it starts as written (the TNC runs a C whose end point is
+            # its start as the full circle): its X Y words, where it has them, say that start
             end_w = start_w.copy()
+            self.texts[i] = self._rewrite(i, block, end_w, info, write=plane)
         else:
             self.texts[i] = self._rewrite(i, block, pts[-1], info, write=plane)
             end_w = start_w.copy()
