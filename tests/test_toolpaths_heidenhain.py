@@ -240,15 +240,22 @@ def test_blocks_after_an_added_one_are_renumbered_only_where_needed():
 ])
 def test_refused_in_one_line_naming_the_construct(tmp_path, block, words):
     p = _write(tmp_path, f"0 BEGIN PGM T MM\n1 L X+0 Y+0 Z+5 FMAX\n2 {block}\n3 END PGM T MM\n")
-    out = tmp_path / "o.h"
+    # the TNC's block number of line 3
+    assert_refused(tmp_path, p, "p.h:3:", words, "(block 2)")
+
+
+def assert_refused(tmp_path, p, where: str, words: str, block: str) -> None:
+    """compensate refuses the program p in one line starting at ``where`` (file:line:), holding
+    ``words`` and ending with ``block``: exit status 2, nothing written."""
+    out = tmp_path / ("o" + p.suffix)
     err = io.StringIO()
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
         code = main(["compensate", "xfyz", _zero_model(tmp_path), str(p), "-o", str(out),
                      "--quiet"])
     lines = err.getvalue().strip().splitlines()
     assert code == 2 and not out.exists() and len(lines) == 1, err.getvalue()
-    assert "p.h:3:" in lines[0] and words in lines[0], lines[0]
-    assert lines[0].endswith("(block 2)"), lines[0]        # the TNC's block number of line 3
+    assert where in lines[0] and words in lines[0], lines[0]
+    assert lines[0].endswith(block), lines[0]
 
 
 def _zero_model(tmp_path) -> str:

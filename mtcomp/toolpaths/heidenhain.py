@@ -27,6 +27,9 @@ TNC 640, HEIDENHAIN 2015-2022; TNC 370, HEIDENHAIN 1995 for the direction of rot
   tool's position (its set-up clearance above the surface) to the depth, back to that position
   (as a G99 G81 cycle with R at the start level and Z at the bottom). ``CYCL DEF 9`` dwell.
 
+A program whose first block is ``%NAME G71 *`` is the TNC's DIN/ISO language, read by the same
+reader's :class:`~.heidenhain_iso.IsoReader`.
+
 Everything else is refused in one line naming the construct: other cycles, ``CR``/``CT``/polar and FK contours, ``RND``/``CHF``, ``APPR``/``DEP``, ``LBL`` and
 ``CALL``, ``CYCL CALL``, ``FN`` and Q parameters, ``PLANE``, incremental or empty ``CC``, the TNC's path functions
 ``M89`` and ``M90`` and up (but M91, M92, M99), tools by name, ``DL`` deltas, other tool axes.
@@ -59,6 +62,8 @@ _REFUSED = {"CR": "an arc by its radius (CR)", "CT": "a tangential arc (CT)",
             "CYCL CALL": "CYCL CALL (the hole's position is not in the block: call the cycle "
                          "with M99 on its positioning block L)"}
 _CYCLES = {1: "PECKING", 7: "DATUM SHIFT", 9: "DWELL TIME"}
+#: the first block of a TNC DIN/ISO program: ``%NAME G71 *`` (G70: inch), also numbered
+ISO_BEGIN = re.compile(r"(?i)^\s*(?:N\s*\d+\s*)?%\s*(\S+)\s+G\s*7([01])\s*\*?\s*(?:;.*)?$")
 #: radius compensation word -> the G code that says the same (G40 off, G41 left, G42 right)
 _RADIUS_COMP = {"R0": 40, "RL": 41, "RR": 42}
 
@@ -85,6 +90,8 @@ class Translation:
     gcode: list = field(default_factory=list)
     lines: list = field(default_factory=list)
     inch: bool = False
+    #: a DIN/ISO program (:mod:`.heidenhain_iso`), not a conversational one
+    iso: bool = False
 
 
 def _num(text: str) -> float:
@@ -105,6 +112,9 @@ class _Cycle:
 
 class _Reader:
     """The state a conversational program carries from line to line (see the module docstring)."""
+
+    #: the language named in a refusal, an arc and its centre as the language writes them
+    LANGUAGE, ARC, CENTRE = "Heidenhain conversational", "C", "CC"
 
     def __init__(self, path):
         self.path = path
@@ -175,7 +185,7 @@ class _Reader:
         for c in codes:
             if c == 89 or (c >= 90 and c not in (91, 92, 99)):
                 raise self.err(f"M{c} (a TNC path or cycle function) is not read by mtcomp "
-                               "(Heidenhain conversational)", k)
+                               f"({self.LANGUAGE})", k)
         return codes
 
     def _m_only(self, rest: str, k: int, info: LineInfo) -> tuple[str, LineInfo]:
@@ -259,6 +269,12 @@ class _Reader:
         """The G-code of an L block, its radius compensation left out."""
         mcodes = self._mcodes(rest, k)
         rapid, feed = self._feed(rest, k)
+        return self.move_gcode(words, rapid, feed, mcodes, k, info)
+
+    def move_gcode(self, words: dict, rapid: bool, feed, mcodes: list, k: int,
+                   info: LineInfo) -> tuple[str, LineInfo]:
+        """The G-code of a straight move to ``words`` (letter -> (value, incremental)): rapid or
+        at the feed, M91/M92 machine positions, M99 a cycle call."""
         f_word = "" if feed is None else f" F{_fmt(feed)}"
         if 91 in mcodes or 92 in mcodes:
             if any(inc for _v, inc in words.values()) or 99 in mcodes:
@@ -301,17 +317,23 @@ class _Reader:
         rapid, feed = self._feed(rest, k)
         if direction is None or rapid:
             raise self.err("an arc C needs its direction DR+ or DR- (and no FMAX)", k)
+        return self.arc_gcode(words, direction.group(1) == "+", feed, k, info)
+
+    def arc_gcode(self, words: dict, ccw: bool, feed, k: int,
+                  info: LineInfo) -> tuple[str, LineInfo]:
+        """The G-code of an arc about the circle centre in force to ``words`` (letter -> (value,
+        incremental); a coordinate not given is the last programmed one)."""
         if self.cc is None:
-            raise self.err("an arc C before any circle centre CC", k)
+            raise self.err(f"an arc {self.ARC} before any circle centre {self.CENTRE}", k)
         if self.pos["X"] is None or self.pos["Y"] is None:
-            raise self.err("an arc C from a position the program has not given", k)
+            raise self.err(f"an arc {self.ARC} from a position the program has not given", k)
         target = {"X": self.pos["X"], "Y": self.pos["Y"], **self._absolute(words, k)}
         sx, sy = self.pos["X"], self.pos["Y"]
         info.kind, info.cc_line, info.centre = "C", self.cc[2], self.cc[:2]
         info.incremental = frozenset(a for a, (_v, inc) in words.items() if inc)
         self.pos.update(target)
         f_word = "" if feed is None else f" F{_fmt(feed)}"
-        g = 3 if direction.group(1) == "+" else 2
+        g = 3 if ccw else 2
         return (f"G{g} {self._coords(target)} I{_fmt(self.cc[0] - sx)} J{_fmt(self.cc[1] - sy)}"
                 f"{f_word}"), info
 
@@ -398,7 +420,13 @@ def translate(path) -> Translation:
     """The program at ``path`` as G-code (see the module docstring). Raises InputError naming the
     line and the construct for what is not read."""
     raws = read_lines(path)
-    reader = _Reader(path)
+    first = next((r for r in raws if r.strip()), b"")
+    if ISO_BEGIN.match(first.decode("latin-1").lstrip("\ufeff")):
+        from .heidenhain_iso import IsoReader
+        reader = IsoReader(path)
+        reader.out.iso = True
+    else:
+        reader = _Reader(path)
     for k, raw in enumerate(raws):
         text = raw.decode("latin-1").rstrip("\r\n")
         if k == 0 and text.startswith("\ufeff"):
@@ -407,7 +435,8 @@ def translate(path) -> Translation:
         reader.out.gcode.append(g)
         reader.out.lines.append(info)
     if not reader.started:
-        raise InputError("no BEGIN PGM line: not a Heidenhain conversational program", path)
+        raise InputError("no BEGIN PGM line: not a Heidenhain conversational program (nor a "
+                         "%NAME G71 line: nor a DIN/ISO one)", path)
     return reader.out
 
 

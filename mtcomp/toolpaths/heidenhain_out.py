@@ -69,6 +69,8 @@ class HeidenhainWriter:
     ARC, CENTRE, HINT = "arc C", "CC", "a larger --chord-tol-um"
     #: an arc that no one centre holds is written in pieces (:mod:`.heidenhain_pieces`)
     SPLITS = True
+    #: the words of a circle centre, and the letters of its X and Y
+    CENTRE_WORD, CENTRE_LETTERS = WORD, "XY"
 
     def __init__(self, src, machine, chord_tol_mm: float, translation=None):
         self.src = src
@@ -133,14 +135,17 @@ class HeidenhainWriter:
                 if last == last and signed(self._units(j, last, info.shift), self.base) == \
                         signed(u, self.base):
                     continue
-                t = signed(u, max(self.base, most))
+                # in an incremental block (ISO's G91) the word added is an increment too
+                start = self._units(j, last, info.shift) if letter in info.incremental else 0.0
+                t = signed(u - start, max(self.base, most))
                 added.append(letter + t)
-                self.written[j] = self._internal(j, float(t), info.shift)
+                self.written[j] = self._internal(j, start + float(t), info.shift)
                 continue
             number = m.group(4).replace(" ", "")
             dec = max(self.base, number_decimals(number))
             sign = number[0] in "+-"
-            if m.group(1):           # incremental: the corrected end less the written start
+            inc = letter in info.incremental
+            if inc:                  # incremental: the corrected end less the written start
                 start = self._units(j, self.written[j], info.shift)
                 t = signed(u - start, dec, sign)
                 value = start + float(t)
@@ -149,7 +154,7 @@ class HeidenhainWriter:
                 value = float(t)
             if t == signed(float(number), dec, sign):
                 # the source's spelling: the machine goes where it says
-                self.written[j] = self._internal(j, value, info.shift) if m.group(1) \
+                self.written[j] = self._internal(j, value, info.shift) if inc \
                     else block.end[j]
                 continue
             edits.append((m.start(4), m.end(4), t))
@@ -158,11 +163,16 @@ class HeidenhainWriter:
             self.count_added(i)
             pos = max([m.end() for m in named.values()], default=None)
             if pos is None:
-                pos = _KEY_END.match(text).end()
+                pos = self.insert_at(text, code)
             edits.append((pos, pos, " " + " ".join(added)))
         for a, b, t in sorted(edits, reverse=True):
             text = text[:a] + t + text[b:]
         return text + ending
+
+    @staticmethod
+    def insert_at(text: str, code: int) -> int:
+        """Where an axis word goes in a block that names none: after its keyword."""
+        return _KEY_END.match(text).end()
 
     def count_added(self, i: int) -> None:
         """Count line i (0-based), written with an axis word it did not name, once (the summary's
@@ -331,8 +341,8 @@ class HeidenhainWriter:
         ending = self.texts[cc][len(text):]
         said = np.zeros(2)
         edits = []
-        for m in WORD.finditer(text, 0, _code_end(text)):
-            k = "XY".index(m.group(2))
+        for m in self.CENTRE_WORD.finditer(text, 0, _code_end(text)):
+            k = self.CENTRE_LETTERS.index(m.group(2))
             number = m.group(4).replace(" ", "")
             dec = max(self.base, number_decimals(number), least)
             sign = number[0] in "+-"
@@ -388,7 +398,10 @@ def write_corrected(src, out_path, machine, cursor, chord_tol_mm: float, initial
     """Write the conversational program of ``src`` (a :class:`~.source.ProgramSource` with its
     ``heidenhain`` translation) with the corrections of ``cursor`` (see
     :func:`mtcomp.toolpaths.gcode.write_corrected`); returns the segment rows written."""
-    w = HeidenhainWriter(src, machine, chord_tol_mm)
+    writer = HeidenhainWriter
+    if src.heidenhain.iso:
+        from .heidenhain_iso import IsoWriter as writer
+    w = writer(src, machine, chord_tol_mm)
     rows = plan_blocks(w, src, machine, cursor, chord_tol_mm, initial_position, inch,
                        initial_known)
     with atomic_write(out_path, "wb") as f:
@@ -398,8 +411,8 @@ def write_corrected(src, out_path, machine, cursor, chord_tol_mm: float, initial
                          "plan not written: a Heidenhain program's blocks stay one to one (only "
                          "the blocks' ends are corrected)")
     if w.arc_miss >= 1e-4:
-        src.notes.append(f"note: the arcs written (one circle centre CC each) miss their corrected "
-                         f"path by up to {w.arc_miss * 1e3:.2f} um (within --chord-tol-um "
+        src.notes.append(f"note: the arcs written (one circle centre {w.CENTRE} each) miss their "
+                         f"corrected path by up to {w.arc_miss * 1e3:.2f} um (within --chord-tol-um "
                          f"{w.tol * 1e3:g}): the deviation after compensation and BLOCKS.csv are "
                          "the corrected path's, the arcs as written leave up to that much more")
     if w.added_blocks:
