@@ -230,13 +230,19 @@ def test_blocks_after_an_added_one_are_renumbered_only_where_needed():
     ("CYCL DEF 200 DRILLING", "CYCL DEF 200"),
     ("CC IX+1 IY+1", "CC needs absolute X and Y"),
     ("CR X+1 Y+1 R+5 DR+", "radius (CR)"),
-    ("L X+1 FMAX M128", "M128"),
+    ("L X+1 FMAX M114", "M114"),
     ("CYCL CALL", "CYCL CALL"),
     ("TOOL CALL 1 X", "tool axis X"),
     ("L X+1 FMAX M99", "without a pecking cycle"),
     ("PLANE SPATIAL SPA+0 SPB+0 SPC+0", "PLANE"),
     # the whole construct, never cut off mid-word
-    ("FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS", "'FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS' is not"),
+    ("FUNCTION TCPM F TCP AXIS SPAT PATHCTRL AXIS",
+     "'FUNCTION TCPM F TCP AXIS SPAT PATHCTRL AXIS' is not"),
+    ("FUNCTION MODE TURN", "'FUNCTION MODE TURN' is not"),
+    # in tool centre point mode: what the TNC asks the mode reset before, arcs, compensation
+    ("L X+1 FMAX M128 RL", "radius compensation RL/RR in tool centre point mode"),
+    ("L X+1 FMAX M128 M91", "M91, M92, M99"),
+    ("C X+1 Y+0 DR+ M128", "M128 in a block other than L or M"),
 ])
 def test_refused_in_one_line_naming_the_construct(tmp_path, block, words):
     p = _write(tmp_path, f"0 BEGIN PGM T MM\n1 L X+0 Y+0 Z+5 FMAX\n2 {block}\n3 END PGM T MM\n")
@@ -448,3 +454,35 @@ def test_a_full_circle_by_its_end_point_ends_where_it_starts_as_written(tmp_path
     np.testing.assert_allclose([m.sweep for m in arcs], [2 * np.pi, np.pi, -2 * np.pi], rtol=0,
                                atol=1e-6)
     assert (arcs[1].end["X"], arcs[1].end["Y"]) == (20.001, 0.002)
+
+
+
+# tool centre point mode: M128 effective at the start of its block, M129 at its end (TNC 410/426/430
+# User's Manual, ISO programming, M128 "Effect"); FUNCTION TCPM ... FUNCTION RESET TCPM
+TCP = """0 BEGIN PGM T MM
+1 L Z+100 R0 FMAX
+2 L X+0 Y+0 Z+50 A+0 C+0 FMAX M128
+3 L X+10 Y+5 Z+2 A+10 C+20 F500
+4 L Z+50 FMAX M129
+5 L Z+100 FMAX
+6 FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS
+7 L X+0 Y+0 Z+50 A+5 C+10 FMAX
+8 FUNCTION RESET TCPM
+9 END PGM T MM
+"""
+
+
+def test_m128_and_function_tcpm_are_the_tool_centre_point_mode_of_g_code(tmp_path):
+    """By hand: M128 goes on at its block (the G-code's M128 on that line), M129 after its block
+    (its move is still in the mode: the G-code's M129 starts the next line); FUNCTION TCPM and
+    FUNCTION RESET TCPM are M128 and M129 on their lines; the words pass as they are, and every
+    switch leaves every axis unknown (line 5's X Y A C) until a block names it."""
+    from mtcomp.toolpaths.heidenhain import translate
+    from mtcomp.toolpaths.words import frame_tcp
+    p = _write(tmp_path, TCP)
+    gcode = translate(p).gcode
+    blocks = read_program(p, load_machine("cafxyz")).blocks
+    assert gcode[1:9] == ["G0 Z100", "M128 G0 X0 Y0 Z50 A0 C0", "G1 X10 Y5 Z2 A10 C20 F500",
+                          "G0 Z50", "M129 G0 Z100", "M128", "G0 X0 Y0 Z50 A5 C10", "M129"]
+    assert [(b.line, bool(frame_tcp(b.frame)), int(b.known.sum())) for b in blocks] == [
+        (2, False, 1), (3, True, 5), (4, True, 5), (5, True, 5), (6, False, 1), (8, True, 5)]

@@ -40,6 +40,7 @@ import re
 from dataclasses import dataclass, field
 
 from ..errors import InputError
+from .heidenhain_tcp import TcpMode
 
 AXES = "XYZABC"
 _BLOCK = re.compile(r"^\s*(\d+)\s*(.*?)\s*$")
@@ -110,8 +111,9 @@ class _Cycle:
     feed: float | None
 
 
-class _Reader:
-    """The state a conversational program carries from line to line (see the module docstring)."""
+class _Reader(TcpMode):
+    """The state a conversational program carries from line to line (see the module docstring;
+    the tool centre point mode: :class:`~.heidenhain_tcp.TcpMode`)."""
 
     #: the language named in a refusal, an arc and its centre as the language writes them
     LANGUAGE, ARC, CENTRE = "Heidenhain conversational", "C", "CC"
@@ -136,6 +138,10 @@ class _Reader:
 
     def line(self, k: int, text: str) -> tuple[str, LineInfo]:
         """(G-code, info) of source line k (0-based)."""
+        g, info = self._line(k, text)
+        return self.tcp_after(g), info
+
+    def _line(self, k: int, text: str) -> tuple[str, LineInfo]:
         info = LineInfo(shift=tuple(self.shift))
         body = text.strip()
         first = body.split(maxsplit=1)[0] if body else ""
@@ -151,6 +157,9 @@ class _Reader:
             return "", info
         if not self.started:
             return self._begin(code, k), info
+        tcp = self.tcp_function(code, k)
+        if tcp is not None:
+            return tcp, info
         key = _KEYWORD.match(code)
         if key is None:
             word = re.match(r"[A-Z]+", code)
@@ -164,12 +173,14 @@ class _Reader:
             raise self.err(f"{_REFUSED[name]} is not read by mtcomp (Heidenhain conversational)", k)
         if re.search(r"\bQ\d|\bFN\b", rest):
             raise self.err("Q parameters are not read by mtcomp (Heidenhain conversational)", k)
+        switch = self.tcp_block(name, rest, k)       # M128 / M129
         handler = {"L": self._l, "C": self._c, "CC": self._cc, "TOOL CALL": self._tool_call,
                    "CYCL DEF": self._cycl_def, "CYCLE DEF": self._cycl_def,
                    "M": self._m_only}.get(name)
         if handler is None:         # END PGM, BLK FORM, TOOL DEF, STOP
             return "", info
-        return handler(rest, k, info)
+        g, info = handler(rest, k, info)
+        return switch + g, info
 
     def _begin(self, code: str, k: int) -> str:
         m = re.fullmatch(r"BEGIN PGM\s+\S+\s+(MM|INCH)", code)
@@ -183,7 +194,7 @@ class _Reader:
     def _mcodes(self, rest: str, k: int) -> list[int]:
         codes = [int(v) for v in re.findall(r"(?<![A-Z])M\s*(\d+)", rest)]
         for c in codes:
-            if c == 89 or (c >= 90 and c not in (91, 92, 99)):
+            if c == 89 or (c >= 90 and c not in (91, 92, 99, 128, 129)):
                 raise self.err(f"M{c} (a TNC path or cycle function) is not read by mtcomp "
                                f"({self.LANGUAGE})", k)
         return codes
