@@ -230,6 +230,10 @@ def test_blocks_after_an_added_one_are_renumbered_only_where_needed():
     ("CYCL DEF 200 DRILLING", "CYCL DEF 200"),
     ("CC IX+1 IY+1", "CC needs absolute X and Y"),
     ("CR X+1 Y+1 R+5 DR+", "radius (CR)"),
+    # a CR cannot be a full circle (HEIDENHAIN, iTNC 530 User's Manual, "Circular path CR with
+    # defined radius": "For a full circle, program two blocks in succession")
+    ("CR X+0 Y+0 R+5 DR+", "a CR ending at its start (a full circle"),
+    ("CR IX+0 R-5 DR-", "a CR ending at its start (a full circle"),
     ("L X+1 FMAX M114", "M114"),
     ("CYCL CALL", "CYCL CALL"),
     ("TOOL CALL 1 X", "tool axis X"),

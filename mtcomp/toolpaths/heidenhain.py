@@ -169,6 +169,10 @@ class _Reader(TcpMode):
             raise self.err(f"{what or repr(code)} is not read by mtcomp (Heidenhain "
                            "conversational)", k)
         name, rest = key.group(1), code[key.end():].strip()
+        if name == "CR" and self._ends_at_start(rest, k):
+            raise self.err("a CR ending at its start (a full circle) is not read by mtcomp: no "
+                           "radius places its centre, and the TNC's manual programs a full circle "
+                           "as two CR semicircles (or as C about a CC)", k)
         if name in _REFUSED:
             raise self.err(f"{_REFUSED[name]} is not read by mtcomp (Heidenhain conversational)", k)
         if re.search(r"\bQ\d|\bFN\b", rest):
@@ -181,6 +185,14 @@ class _Reader(TcpMode):
             return "", info
         g, info = handler(rest, k, info)
         return switch + g, info
+
+    def _ends_at_start(self, rest: str, k: int) -> bool:
+        """Whether a block's X Y (absolute or incremental; those it does not give: the last
+        programmed) are the position it starts from (False where that is not known)."""
+        if self.pos["X"] is None or self.pos["Y"] is None:
+            return False
+        end = self._absolute({a: v for a, v in self._words(rest, k, AXES).items() if a in "XY"}, k)
+        return all(abs(end.get(a, self.pos[a]) - self.pos[a]) <= 1e-9 for a in "XY")
 
     def _begin(self, code: str, k: int) -> str:
         m = re.fullmatch(r"BEGIN PGM\s+\S+\s+(MM|INCH)", code)
