@@ -229,7 +229,7 @@ def test_blocks_after_an_added_one_are_renumbered_only_where_needed():
     ("L X+Q1", "Q parameters"),
     ("CYCL DEF 200 DRILLING", "CYCL DEF 200"),
     ("CC IX+1 IY+1", "CC needs absolute X and Y"),
-    ("CR X+1 Y+1 R+5 DR+", "radius (CR)"),
+    ("CR X+30 Y+1 R+5 DR+", "R+5 of a CR is smaller than half the chord"),
     # a CR cannot be a full circle (HEIDENHAIN, iTNC 530 User's Manual, "Circular path CR with
     # defined radius": "For a full circle, program two blocks in succession")
     ("CR X+0 Y+0 R+5 DR+", "a CR ending at its start (a full circle"),
@@ -490,3 +490,55 @@ def test_m128_and_function_tcpm_are_the_tool_centre_point_mode_of_g_code(tmp_pat
                           "G0 Z50", "M129 G0 Z100", "M128", "G0 X0 Y0 Z50 A5 C10", "M129"]
     assert [(b.line, bool(frame_tcp(b.frame)), int(b.known.sum())) for b in blocks] == [
         (2, False, 1), (3, True, 5), (4, True, 5), (5, True, 5), (6, False, 1), (8, True, 5)]
+
+
+
+# a full circle by two CR semicircles (HEIDENHAIN, iTNC 530 User's Manual, "Circular path CR with
+# defined radius": "For a full circle, program two blocks in succession"), after a CR of R+20
+CR_CIRCLE = ("0 BEGIN PGM T MM\n1 L X+0 Y+0 Z+0 FMAX\n2 L X+40 Y+40 F200\n"
+             "3 CR X+70 Y+40 R+20 DR-\n4 CR X+40 Y+40 R+15 DR+\n5 CR X+70 Y+40 R+15 DR+\n"
+             "6 L X+80\n7 END PGM T MM\n")
+
+
+def test_arcs_by_their_radius_cr_are_read_and_written(tmp_path):
+    """By hand: the CR of R+20 clockwise from X40 to X70 (Y40) turns less than 180 degrees about the
+    centre below the chord (55, 40 - sqrt(20^2 - 15^2)), over the top at Y 46.77; the two R+15
+    semicircles counter-clockwise about (55, 40), from X70 through Y55, back through Y25. Written
+    with Y corrected by 1 um plus 1 um per 10 mm of X, only X Y and R words change, and the arcs the
+    output's words make (the replay: the manual's rule for the centre, not mtcomp's) hold every
+    corrected point of the plan within the chord tolerance (1 um) and the output's rounding."""
+    p = _write(tmp_path, CR_CIRCLE)
+    blocks = {b.line: b for b in read_program(p, XFYZ).blocks}
+    np.testing.assert_allclose(blocks[4].centre[:2], [55.0, 40.0 - np.sqrt(175.0)], rtol=0,
+                               atol=1e-9)
+    for line in (5, 6):
+        np.testing.assert_allclose(blocks[line].centre[:2], [55.0, 40.0], rtol=0, atol=1e-9)
+    mids = [blocks[line].points[len(blocks[line].points) // 2][1] for line in (4, 5, 6)]
+    np.testing.assert_allclose(mids, [40.0 - np.sqrt(175.0) + 20.0, 55.0, 25.0], rtol=0, atol=0.1)
+
+    def correction(end):
+        return np.column_stack([np.zeros(len(end)), 0.001 + 1e-4 * end[:, 0], np.zeros(len(end))])
+    lines, _notes = _written_with(tmp_path, CR_CIRCLE, lambda c: correction(c.end))
+    import re
+    assert [re.sub(r" ?[XYR][-+][\d.]+", "", ln) for ln in lines] == \
+        [re.sub(r" ?[XYR][-+][\d.]+", "", ln) for ln in CR_CIRCLE.splitlines()]
+    assert lines[3].startswith("3 CR X+70 Y+40.0080 R")
+    assert lines[4].startswith("4 CR X+40 Y+40.0050")
+    moves = replay_heidenhain.replay("\n".join(lines).encode()).moves
+    arcs = [m for m in moves if m.kind == "arc"]
+    np.testing.assert_allclose([m.sweep for m in arcs[1:]], [np.pi, np.pi], rtol=0, atol=1e-3)
+    corrected = [(b.points + correction(b.points))[:, :2] for line, b in blocks.items()
+                 if line in (4, 5, 6)]
+    worst = max(_distance_to_moves(q, arcs) for pts in corrected for q in pts)
+    assert worst <= 1e-3 + 2e-4, worst
+
+
+def test_a_cr_no_radius_holds_is_refused(tmp_path):
+    """The reversal above on an arc CR (X+3 um coming up, -3 um along it): no radius holds it and a
+    CR is not cut into pieces: refused, naming it; nothing written."""
+    text = REVERSAL.replace("3 CC X+10 Y+0\n4 C X+0 Y+0 DR-", "3 L Z+0\n4 CR X+0 Y+0 R+10 DR-")
+    with pytest.raises(InputError) as exc:
+        _written_with(tmp_path, text,
+                      lambda c: _on_line(c, 3, dx=0.003) + _on_line(c, 5, dx=-0.003))
+    assert exc.value.line == 5 and "arc CR of line 5" in exc.value.message
+    assert "(its radius R)" in exc.value.message and not (tmp_path / "o.h").exists()

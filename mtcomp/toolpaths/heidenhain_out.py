@@ -31,9 +31,10 @@ import numpy as np
 from ..errors import InputError
 from ..io.atomic import atomic_write
 from ._arcs import arc_misses, arc_samples, arc_sweep, fit_arc_centre, radius_refused
-from .heidenhain import WORD, read_lines, signed
+from .heidenhain import CR_RADIUS, WORD, read_lines, signed
 from .heidenhain_pieces import ROTARY_ARC_TOL_RAD, ArcPieces, renumbered
 from .reader import iter_blocks
+from .sinumerik_paths import RadiusError, radius_centre, signed_radius
 from .words import MM_PER_INCH, number_decimals
 
 
@@ -235,10 +236,13 @@ class HeidenhainWriter:
         for cc, arcs in self.arcs.items():
             worst = self._one_centre(cc, arcs)
             if worst is not None and not (self.SPLITS and self._in_pieces(cc, arcs)):
+                arc, centre = (self.ARC, f"{self.CENTRE} of line {cc + 1}")
+                if self.tr.lines[cc].radius is not None:
+                    arc, centre = "arc CR", "its radius R"
                 raise InputError(
-                    f"the corrected {self.ARC} of line {worst[1] + 1} is not within the chord "
+                    f"the corrected {arc} of line {worst[1] + 1} is not within the chord "
                     f"tolerance ({self.tol * 1e3:g} um) of an arc about one circle centre "
-                    f"({self.CENTRE} of line {cc + 1}): it misses its corrected path by "
+                    f"({centre}): it misses its corrected path by "
                     f"{worst[2] * 1e3:.2f} um ({self.HINT})", self.src.source, line=worst[1] + 1)
 
     def _candidates(self, arcs) -> list:
@@ -287,7 +291,8 @@ class HeidenhainWriter:
             if keep and self._one_centre(cc, keep) is not None:
                 keep = []
         split = [a for a in arcs if a not in keep]
-        if any(a.full or a.block.cutter_comp or a.nominal is None for a in split):
+        if any(a.full or a.block.cutter_comp or a.nominal is None
+               or self.tr.lines[a.line].radius is not None for a in split):   # a CR: not cut
             return False
         for a in split:
             later = any(b.line > a.line for b in keep)
@@ -335,8 +340,10 @@ class HeidenhainWriter:
 
     def _centre_text(self, cc: int, centre, least: int = 0) -> tuple[str, np.ndarray]:
         """(the CC line with the centre (2,) G-code frame, mm) written with at least ``least``
-        decimals, the centre it says)."""
+        decimals, the centre it says); for a CR line, its radius (:meth:`_radius_text`)."""
         info = self.tr.lines[cc]
+        if info.radius is not None:
+            return self._radius_text(cc, centre, least)
         text = self.texts[cc].rstrip("\r\n")
         ending = self.texts[cc][len(text):]
         said = np.zeros(2)
@@ -355,6 +362,34 @@ class HeidenhainWriter:
         for a, b, t in sorted(edits, reverse=True):
             text = text[:a] + t + text[b:]
         return text + ending, said
+
+    def _radius_text(self, cc: int, centre, least: int = 0) -> tuple[str, np.ndarray]:
+        """(the CR line ``cc`` with the R of the circle through its written ends whose centre is
+        the nearest to ``centre`` (2,) on the chord's bisector, the centre the TNC makes of the R
+        written); a radius that rounds below half the chord says no centre (far away)."""
+        a, info = self.arcs[cc][0], self.tr.lines[cc]
+        s2, e2 = a.start_w[self.cols], a.end_w[self.cols]
+        text = self.texts[cc].rstrip("\r\n")
+        ending = self.texts[cc][len(text):]
+        m = CR_RADIUS.search(text, 0, _code_end(text))
+        number = m.group(1).replace(" ", "")
+        dec = max(self.base, number_decimals(number), least)
+        r = signed_radius(s2, e2, centre, a.ccw) / self.scale
+        half = 0.5 * math.hypot(*(e2 - s2)) / self.scale
+        if abs(r) - half < 10.0 ** -dec:
+            # a half circle: either sign turns the same within the written decimals (the
+            # source's kept), and a radius written below half the chord makes no circle
+            r = math.copysign(abs(r), info.radius)
+        said = None
+        for step in (0.0, 10.0 ** -dec):        # up by one digit where it rounds below the chord
+            t = signed(math.copysign(abs(r) + step, r), dec, number[0] in "+-")
+            t = number if t == signed(float(number), dec, number[0] in "+-") else t
+            try:
+                said = np.array(radius_centre(s2, e2, float(t) * self.scale, a.ccw))
+                break
+            except RadiusError:
+                said = np.full(2, 1e9)
+        return text[:m.start(1)] + t + text[m.end(1):] + ending, said
 
     def _miss(self, a: _Arc, centre) -> tuple:
         """(excess over the tolerance (<= 0: holds), line, distance mm) of an arc about centre."""
