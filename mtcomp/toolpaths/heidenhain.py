@@ -29,8 +29,8 @@ TNC 640, HEIDENHAIN 2015-2022; TNC 370, HEIDENHAIN 1995 for the direction of rot
   tool's position (its set-up clearance above the surface) to the depth, back to that position
   (as a G99 G81 cycle with R at the start level and Z at the bottom). ``CYCL DEF 9`` dwell.
 
-A program whose first block is ``%NAME G71 *`` is the TNC's DIN/ISO language, read by the same
-reader's :class:`~.heidenhain_iso.IsoReader`.
+A program whose first block is ``%NAME G71 *`` is the TNC's DIN/ISO language, read by this
+reader's :class:`~.heidenhain_iso.IsoReader` (:func:`.heidenhain_iso.translate` reads either).
 
 Everything else is refused in one line naming the construct: other cycles, ``CT``/polar and FK contours, ``RND``/``CHF``, ``APPR``/``DEP``, ``LBL`` and
 ``CALL``, ``CYCL CALL``, ``FN`` and Q parameters, ``PLANE``, incremental or empty ``CC``, the TNC's path functions
@@ -477,17 +477,12 @@ def read_lines(path) -> list[bytes]:
     return [r + b"\n" for r in raws[:-1]] + ([raws[-1]] if raws[-1] else [])
 
 
-def translate(path) -> Translation:
-    """The program at ``path`` as G-code (see the module docstring). Raises InputError naming the
-    line and the construct for what is not read."""
+def translate(path, reader: _Reader | None = None) -> Translation:
+    """The conversational program at ``path`` as G-code (see the module docstring), read by
+    ``reader`` (None: a conversational one; :func:`.heidenhain_iso.translate` hands its DIN/ISO
+    reader). Raises InputError naming the line and the construct for what is not read."""
     raws = read_lines(path)
-    first = next((r for r in raws if r.strip()), b"")
-    if ISO_BEGIN.match(first.decode("latin-1").lstrip("\ufeff")):
-        from .heidenhain_iso import IsoReader
-        reader = IsoReader(path)
-        reader.out.iso = True
-    else:
-        reader = _Reader(path)
+    reader = _Reader(path) if reader is None else reader
     for k, raw in enumerate(raws):
         text = raw.decode("latin-1").rstrip("\r\n")
         if k == 0 and text.startswith("\ufeff"):

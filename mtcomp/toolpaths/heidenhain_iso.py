@@ -26,8 +26,8 @@ from __future__ import annotations
 
 import re
 
-from .heidenhain import AXES, ISO_BEGIN, LineInfo, _fmt, _num, _Reader
-from .heidenhain_out import HeidenhainWriter
+from .heidenhain import AXES, ISO_BEGIN, LineInfo, Translation, _fmt, _num, _Reader, read_lines
+from .heidenhain import translate as translate_conversational
 
 #: an address word of a block: its letter and a signed number
 _TOKEN = re.compile(r"([A-Z])\s*([+-]?\s*(?:\d+\.?\d*|\.\d+))")
@@ -191,17 +191,13 @@ class IsoReader(_Reader):
         return f"T{n} M6 G43 H{n}"
 
 
-class IsoWriter(HeidenhainWriter):
-    """Writes one DIN/ISO program: as a conversational one (:class:`~.heidenhain_out.
-    HeidenhainWriter`), the circle centre in its I J words; an arc that no one centre holds is
-    refused (not written in pieces)."""
 
-    ARC, CENTRE = "arc G02/G03", "I J"
-    SPLITS = False
-    CENTRE_WORD = re.compile(r"(?<![A-Z])()([IJ])(\s*)([+-]?\s*(?:\d+\.?\d*|\.\d+))")
-    CENTRE_LETTERS = "IJ"
-
-    @staticmethod
-    def insert_at(text: str, code: int) -> int:
-        """Where an axis word goes in a block that names none: before its closing ``*``."""
-        return len(text[:code].rstrip().rstrip("*").rstrip())
+def translate(path) -> Translation:
+    """A Heidenhain program at ``path`` as G-code: DIN/ISO where its first block is ``%NAME G71 *``
+    (:class:`IsoReader`), else conversational (:func:`.heidenhain.translate`)."""
+    first = next((r for r in read_lines(path) if r.strip()), b"")
+    if not ISO_BEGIN.match(first.decode("latin-1").lstrip("\ufeff")):
+        return translate_conversational(path)
+    reader = IsoReader(path)
+    reader.out.iso = True
+    return translate_conversational(path, reader)

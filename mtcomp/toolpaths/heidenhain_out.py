@@ -340,10 +340,10 @@ class HeidenhainWriter:
 
     def _centre_text(self, cc: int, centre, least: int = 0) -> tuple[str, np.ndarray]:
         """(the CC line with the centre (2,) G-code frame, mm) written with at least ``least``
-        decimals, the centre it says); for a CR line, its radius (:meth:`_radius_text`)."""
+        decimals, the centre it says); for a CR line, its radius (:meth:`_cr_text`)."""
         info = self.tr.lines[cc]
         if info.radius is not None:
-            return self._radius_text(cc, centre, least)
+            return self._cr_text(cc, centre, least)
         text = self.texts[cc].rstrip("\r\n")
         ending = self.texts[cc][len(text):]
         said = np.zeros(2)
@@ -363,7 +363,7 @@ class HeidenhainWriter:
             text = text[:a] + t + text[b:]
         return text + ending, said
 
-    def _radius_text(self, cc: int, centre, least: int = 0) -> tuple[str, np.ndarray]:
+    def _cr_text(self, cc: int, centre, least: int = 0) -> tuple[str, np.ndarray]:
         """(the CR line ``cc`` with the R of the circle through its written ends whose centre is
         the nearest to ``centre`` (2,) on the chord's bisector, the centre the TNC makes of the R
         written); a radius that rounds below half the chord says no centre (far away)."""
@@ -408,6 +408,22 @@ class HeidenhainWriter:
         return excess, a.line, dist
 
 
+class IsoWriter(HeidenhainWriter):
+    """Writes one DIN/ISO program (:mod:`.heidenhain_iso`): as a conversational one
+    (:class:`HeidenhainWriter`), the circle centre in its I J words; an arc that no one centre
+    holds is refused (not written in pieces)."""
+
+    ARC, CENTRE = "arc G02/G03", "I J"
+    SPLITS = False
+    CENTRE_WORD = re.compile(r"(?<![A-Z])()([IJ])(\s*)([+-]?\s*(?:\d+\.?\d*|\.\d+))")
+    CENTRE_LETTERS = "IJ"
+
+    @staticmethod
+    def insert_at(text: str, code: int) -> int:
+        """Where an axis word goes in a block that names none: before its closing ``*``."""
+        return len(text[:code].rstrip().rstrip("*").rstrip())
+
+
 def plan_blocks(w, src, machine, cursor, chord_tol_mm, initial_position, inch, initial_known):
     """Hand every block of the program read through its G-code equivalent, with its corrected
     points, to the writer ``w`` (its ``block``), then the circle centres (``centres``); returns
@@ -433,10 +449,7 @@ def write_corrected(src, out_path, machine, cursor, chord_tol_mm: float, initial
     """Write the conversational program of ``src`` (a :class:`~.source.ProgramSource` with its
     ``heidenhain`` translation) with the corrections of ``cursor`` (see
     :func:`mtcomp.toolpaths.gcode.write_corrected`); returns the segment rows written."""
-    writer = HeidenhainWriter
-    if src.heidenhain.iso:
-        from .heidenhain_iso import IsoWriter as writer
-    w = writer(src, machine, chord_tol_mm)
+    w = (IsoWriter if src.heidenhain.iso else HeidenhainWriter)(src, machine, chord_tol_mm)
     rows = plan_blocks(w, src, machine, cursor, chord_tol_mm, initial_position, inch,
                        initial_known)
     with atomic_write(out_path, "wb") as f:
