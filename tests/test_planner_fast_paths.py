@@ -182,3 +182,23 @@ def test_uses_inches_finds_g20_words_across_read_blocks(tmp_path, text, want):
     path.write_text("G1 X1.0000 Y2.0000\n" * 7 + text + "G1 X3\n" * 5)
     for block in (9, 10, 11, 13, 1 << 22):      # a word cut at every place between two reads
         assert uses_inches(path, block=block) is want
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_ctrl_c_inside_osqp_stops_the_plan(monkeypatch, threads):
+    """OSQP traps SIGINT during a solve and returns its iterate with the status 'interrupted': the
+    planner raises KeyboardInterrupt (the command exits 130 and writes nothing), from the planning
+    thread too, instead of planning on with that iterate."""
+    import types
+
+    import osqp
+    problem, chunk = _bounded_stream(91)
+
+    def interrupted(self, *args, **kwargs):
+        info = types.SimpleNamespace(status="interrupted", status_val=10, iter=7)
+        return types.SimpleNamespace(x=np.zeros(self.n if hasattr(self, "n") else 0), info=info)
+
+    monkeypatch.setattr(osqp.OSQP, "solve", interrupted)
+    planner = Planner(problem, PlannerOptions(window=16, subdivide_tol_um=None, threads=threads))
+    with pytest.raises(KeyboardInterrupt):
+        list(planner.iter_chunks([chunk]))

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._qp import osqp_solve
+
 
 def tied(step_lo: np.ndarray, step_hi: np.ndarray) -> np.ndarray:
     """(n,) bool: nodes whose every correction equals the one before (both step bounds zero)."""
@@ -80,7 +82,7 @@ class GroupedQP:
                      verbose=False, eps_abs=self.eps, eps_rel=self.eps, polishing=True,
                      max_iter=200000, warm_starting=True, adaptive_rho=True, polish_refine_iter=10)
         solver.warm_start(x=np.ascontiguousarray(np.clip(x_start, lo, hi).reshape(-1)))
-        res = solver.solve(raise_error=False)
+        res = osqp_solve(solver)
         if res.x is None or res.x[0] is None:
             return np.zeros((N, na)), res.info.status
         return np.asarray(res.x, dtype=float).reshape(G, na)[gid], res.info.status

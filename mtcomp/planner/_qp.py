@@ -26,6 +26,20 @@ import numpy as np
 
 from ._bounds import INF
 
+#: OSQP's status value when it stopped on a Ctrl-C (osqp.interface.SolverStatus.OSQP_SIGINT): OSQP
+#: catches SIGINT during a solve and returns, so the interrupt is raised again here
+OSQP_SIGINT = 10
+
+
+def osqp_solve(solver):
+    """``solver.solve()`` (an ``osqp.OSQP``), its result; KeyboardInterrupt when a Ctrl-C stopped it
+    (OSQP traps the signal and returns its best iterate so far: planning on with that would write a
+    program the user asked not to have)."""
+    res = solver.solve(raise_error=False)
+    if res.info.status_val == OSQP_SIGINT:
+        raise KeyboardInterrupt
+    return res
+
 #: a bounded window keeps every block's deviation, per direction the objective counts, within this
 #: (um, or the weighted urad of the tool axis) of the uncorrected one: half the output grid (the
 #: written correction is rounded to it)
@@ -137,6 +151,6 @@ class WindowQP:
         self.solver.update(Px=self._p_data(H), q=np.ascontiguousarray(g.reshape(-1)), l=l, u=u,
                            Ax=self._values(J))
         self.solver.warm_start(x=np.ascontiguousarray(x0.reshape(-1)))
-        res = self.solver.solve(raise_error=False)
+        res = osqp_solve(self.solver)
         self.solves += 1
         return np.asarray(res.x).reshape(self.N, self.na), res.info.status
