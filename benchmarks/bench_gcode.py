@@ -48,7 +48,7 @@ def make_program(path: Path, n_blocks: int, seed: int = 0) -> None:
     F, every 1000th a comment line), an arc every 5000 blocks, footer. Written in pieces."""
     rng = np.random.default_rng(seed)
     with open(path, "w") as f:
-        f.write("%\nO0001 (BENCH)\nG21 G90 G17\nT1 M6\nS12000 M3\nG0 X0 Y0 Z10\nG1 Z0 F1000\n")
+        f.write("%\nO0001 (BENCH)\nG21 G90 G17\nT1 M6\nS12000 M3\nG0 X0 Y0 Z10.\nG1 Z0 F1000\n")
         done = 0
         while done < n_blocks:
             k = min(100_000, n_blocks - done)
@@ -60,10 +60,10 @@ def make_program(path: Path, n_blocks: int, seed: int = 0) -> None:
                 lines[i] = lines[i] + "\n(PASS)"
             for i in range(4999, k, 5000):
                 x, y, z = xyz[i - 1]
-                lines[i] = f"G2 X{x + 2:.4f} Y{y:.4f} I1 J0\nG1 X{xyz[i][0]:.4f} Y{xyz[i][1]:.4f} Z{xyz[i][2]:.4f}"
+                lines[i] = f"G2 X{x + 2:.4f} Y{y:.4f} I1. J0\nG1 X{xyz[i][0]:.4f} Y{xyz[i][1]:.4f} Z{xyz[i][2]:.4f}"
             f.write("\n".join(lines) + "\n")
             done += k
-        f.write("G0 Z10\nM5\nM30\n%\n")
+        f.write("G0 Z10.\nM5\nM30\n%\n")
 
 
 def main(argv=None) -> int:

@@ -96,6 +96,31 @@ def _command_module(module: str, optional: bool = False):
         raise
 
 
+class Terminated(BaseException):
+    """SIGTERM (``kill``, ``timeout``) raised as an exception, so that a command unwinds as on
+    Ctrl-C: its temporary output files are removed, nothing partial is left."""
+
+
+@contextlib.contextmanager
+def _terminate_as_exception():
+    """SIGTERM raises :class:`Terminated` while the block runs (in the main thread only: elsewhere
+    signal handlers cannot be set, and the default stays)."""
+    import signal
+    import threading
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        raise Terminated
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(_command_named(argv))
@@ -107,7 +132,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         try:
-            rc = int(mod.run(args) or 0)
+            with _terminate_as_exception():
+                rc = int(mod.run(args) or 0)
             sys.stdout.flush()              # a closed pipe shows here, not at the interpreter's exit
             return rc
         except InputError as exc:
@@ -116,6 +142,9 @@ def main(argv: list[str] | None = None) -> int:
         except KeyboardInterrupt:
             sys.stderr.write("mtcomp: interrupted\n")
             return 130
+        except Terminated:
+            sys.stderr.write("mtcomp: terminated\n")
+            return 143
     except BrokenPipeError:
         # the reader of the output went away (`mtcomp ... | head`): what was written is whole (atomic
         # outputs), files not yet written are not; stop quietly, with nothing left for the

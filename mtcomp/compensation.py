@@ -522,7 +522,7 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     the BLOCKS.csv ``report`` when given). ``setup``: the program's work offsets and tool lengths
     (:func:`mtcomp.toolpaths.offsets.load_setup`; None: none). ``progress``: callable(blocks done)
     every few seconds; ``io_progress``: callable(what, line), told the lines a program with code
-    has executed as it is expanded (``'expanded'``, :func:`mtcomp.toolpaths.open_program`), the
+    has executed as it is expanded (``'expanded'``, :func:`mtcomp.toolpaths.source.open_program`), the
     program lines read for the plan as the reader goes (``'read'``,
     :func:`mtcomp.toolpaths.iter_segment_chunks`) and the line up to which the output is written
     (``'written'``, a chunk at a time). ``judges``:

@@ -44,12 +44,18 @@ def reference_tool_pose(machine: Machine, params: dict, q, ctx: dict, terms=()):
     """
     g = lambda name: float(params.get(name, 0.0))  # noqa: E731
     feed_m = ctx.get("feed", 0.0) / 1000.0
+    # tool length compensation: with a tool dL longer than the machine's reference tool, the ram (Z,
+    # when no rotary axis is on the tool side) stands dL higher for the same tip, and the tip hangs
+    # dL below the reference tool's tip (the origin of the ram's frame); the ram is Z when it carries
+    # the spindle (the last axis of the tool chain)
+    ram = bool(machine.tool_chain) and machine.tool_chain[-1] == "Z"
+    dL = ctx.get("tool_length", machine.tool_length) - machine.tool_length if ram else 0.0
     T_wp = np.eye(4)
     T_tool = np.eye(4)
     for chain, side in ((machine.workpiece_chain, "workpiece"), (machine.tool_chain, "tool")):
         for name in chain:
             ax = machine.axis(name)
-            s = float(q[machine.index(name)])
+            s = float(q[machine.index(name)]) + (dL if name == "Z" else 0.0)
             if ax.is_rotary:
                 A = _rotary(machine, ax, s, g, ctx, terms)
             else:
@@ -58,12 +64,13 @@ def reference_tool_pose(machine: Machine, params: dict, q, ctx: dict, terms=()):
                 T_wp = T_wp @ A
             else:
                 T_tool = T_tool @ A
-    # spindle tilt: the tool turns about the gauge point, about X by A0S then about Y by B0S
-    gauge = np.array([0.0, 0.0, ctx.get("tool_length", machine.tool_length)])
+    # spindle tilt: the tool turns about the gauge point (fixed on the ram, the tool's length above its
+    # tip), about X by A0S then about Y by B0S
+    gauge = np.array([0.0, 0.0, ctx.get("tool_length", machine.tool_length) - dL])
     tilt = Rotation.from_euler("YX", [g("B0S"), g("A0S")]).as_matrix()
     T_tool = T_tool @ _htm(t=gauge) @ _htm(R=tilt) @ _htm(t=-gauge)
     T = np.linalg.inv(T_wp) @ T_tool
-    tip = (T @ np.array([0.0, 0.0, -g("TOOL_dL"), 1.0]))[:3]
+    tip = (T @ np.array([0.0, 0.0, -dL - g("TOOL_dL"), 1.0]))[:3]
     return tip, T[:3, 2]
 
 
@@ -149,7 +156,9 @@ def _linear(machine, ax, s, g, ctx, feed_m, terms):
         u = _rot(2, g("C0Y")) @ u
     elif L == "Z":
         u = _rot(1, g("B0Z")) @ _rot(0, g("A0Z")) @ u
-    r = np.array([0.0, 0.0, ctx.get("tool_length", machine.tool_length)]) if ax.side == "tool" else np.zeros(3)
+    # a tool-side carriage turns about a point fixed on it: the gauge point at q = 0 with the machine's
+    # reference tool, whatever tool is in the spindle
+    r = np.array([0.0, 0.0, machine.tool_length]) if ax.side == "tool" else np.zeros(3)
     A = _htm(t=s * u) @ _htm(t=[err[f"E{d}{L}"] for d in XYZ])
     for j, a in enumerate(ABC):
         c = r + centres[a]

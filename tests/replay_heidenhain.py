@@ -6,7 +6,8 @@ lines that make none.
 Rules: `BEGIN PGM name MM|INCH` units; `L` straight moves (`IX` incremental, `FMAX` rapid, else a
 feed move), `M91`/`M92` machine positions (the axes are then unknown in the program's frame);
 `CC X Y` the circle centre, `C X Y DR+` counter-clockwise / `DR-` clockwise about it (no coordinates:
-the full circle); `TOOL CALL` (Z unknown); `CYCL DEF 7` datum shift (positions are given in the
+the full circle); `CR X Y R.. DR+` the arc of radius |R| (R > 0: at most 180 degrees);
+`TOOL CALL` (Z unknown); `CYCL DEF 7` datum shift (positions are given in the
 shifted frame: the machine goes to value + shift); `CYCL DEF 1` pecking called by `M99` after the
 block's move: down to start - set-up clearance + depth and back to the start. A `CC` line is a
 state line (no move; its numbers move with the correction), so it is not among the lines without
@@ -75,6 +76,8 @@ def _block(tnc, index, code):
     elif code.startswith("CC"):
         end = tnc.target(code[2:])
         tnc.cc = (end["X"], end["Y"])
+    elif re.match(r"CR(?![A-Z])", code):
+        return [_radius_arc(tnc, index, code[2:])]
     elif re.match(r"C(?![A-Z])", code):
         return [_arc(tnc, index, code[1:])]
     elif re.match(r"L(?![A-Z])", code):
@@ -105,6 +108,24 @@ def _arc(tnc, index, code):
     end = tnc.target(code)
     tnc.pos = end
     return arc_move(index, start, end, tnc.cc, "DR+" in code)
+
+
+def _radius_arc(tnc, index, code):
+    """CR X Y R.. DR+/-: the centre on the chord's perpendicular bisector, |R| from both ends, left
+    of the chord (seen from the start) for a counter-clockwise arc of at most 180 degrees (R > 0),
+    right for a clockwise one, the other side for R < 0 (the larger arc)."""
+    start = dict(tnc.pos)
+    end = tnc.target(code)
+    tnc.pos = end
+    r = float(re.search(r"(?<![A-Z])R\s*([-+]?[\d.]+)", code).group(1)) * tnc.scale
+    ccw = "DR+" in code
+    dx, dy = end["X"] - start["X"], end["Y"] - start["Y"]
+    chord = math.hypot(dx, dy)
+    h = math.sqrt(max(r * r - 0.25 * chord * chord, 0.0))
+    side = 1.0 if ccw == (r > 0) else -1.0
+    centre = (start["X"] + 0.5 * dx - side * h * dy / chord,
+              start["Y"] + 0.5 * dy + side * h * dx / chord)
+    return arc_move(index, start, end, centre, ccw)
 
 
 def arc_move(index, start, end, centre, ccw):
@@ -146,7 +167,7 @@ def positioned_per_line(text: str):
         elif re.match(r"L(?![A-Z])", code):
             known |= axes
             moved = bool(axes) or "M99" in code
-        elif re.match(r"CC?(?![A-Z])", code):
+        elif re.match(r"C[CR]?(?![A-Z])", code):
             moved = True
         out.append((moved, set(known)))
     return out

@@ -45,14 +45,15 @@ def test_an_option_that_takes_one_value_given_twice_is_refused(tmp_path, capsys,
     assert not (tmp_path / "OUT").exists() and not (tmp_path / "OUT2").exists()
 
 
-#: a square at Z0 with the tool of H1: under a turn of Y about Y (EBY) the tip's X error grows with the tool
+#: a square with the tool of H1, tilted: its side at x = +10 at Z-10, at x = -10 at Z0. A tool's length
+#: decides where the ram stands for these tips (z + L - L0), so the straightness of Z it meets there
 SQUARE_H1 = """G21 G90 G17
 G43 H1
 G0 X-10 Y-10 Z5
 G1 Z0 F300
-G1 X10
+G1 X10 Z-10
 G1 Y10
-G1 X-10
+G1 X-10 Z0
 G1 Y-10
 G0 Z5
 M30
@@ -67,18 +68,20 @@ def _render_max(tmp_path, capsys, model, *extra):
 
 
 def test_render_takes_tool_lengths_as_compensate_does(tmp_path, capsys):
-    """EBY_1 = 500 urad/m: at y = +-10 mm the Y axis is turned by 5 urad about Y, and the tip of a
-    tool of length L (at Z0) moves by L * 5e-6 mm along X: the walls at x = +-10 are 0.75 um off
-    with L = 150 mm and 0.05 um with 10 mm (hand-derived; the machine's own length is 100)."""
-    _, _, model = _model(tmp_path, EBY_1=500.0)
+    """EXZ_2 = 500 um: Z's straightness in X is 500 um (s / 1 m)^2 at ram position s = z + L - L0
+    (L0 = 100 mm, the machine's). Against the datum (z = 0), a tip at z = -10 is off in X by
+    500 um ((s - 10)^2 - s^2) / 1e6 mm^2 with s = L - L0, the most of the square; along the tilted
+    square's normal (1, 0, 2) / sqrt(5): 0.201 um with L = 150 mm (s = 50: -900 mm^2), 0.425 um
+    with 10 mm (s = -90: 1900 mm^2), 0.022 um with the machine's 100 mm (100 mm^2) (hand-derived)."""
+    _, _, model = _model(tmp_path, EXZ_2=500.0)
     (tmp_path / "sq.nc").write_text(SQUARE_H1)
     (tmp_path / "offsets.toml").write_text("[tool_lengths]\nH1 = 150.0\n")
     assert _render_max(tmp_path, capsys, model, "--tool-length", "H1=150") == pytest.approx(
-        0.750, rel=0, abs=1e-3)
+        500 * 900e-6 / 5 ** 0.5, rel=0, abs=1e-3)
     assert _render_max(tmp_path, capsys, model, "--offsets", str(tmp_path / "offsets.toml")) == \
-        pytest.approx(0.750, rel=0, abs=1e-3)
+        pytest.approx(500 * 900e-6 / 5 ** 0.5, rel=0, abs=1e-3)
     assert _render_max(tmp_path, capsys, model, "--tool-length", "H1=10") == pytest.approx(
-        0.050, rel=0, abs=1e-3)
+        500 * 1900e-6 / 5 ** 0.5, rel=0, abs=1e-3)
 
 
 #: a ring in tool centre point mode: the table tilts (A) and turns (C) while the tool cuts
@@ -103,19 +106,19 @@ def test_a_simultaneous_five_axis_program_is_mapped_as_its_path(tmp_path, text, 
 
 
 #: the square of SQUARE_H1 in a Sinumerik program whose tool is called by name
-SQUARE_NAMED = ('G17 G71 G90\nT="CUTTER 10"\nM6\nD1\nG0 X-10 Y-10 Z5\nG1 Z0 F300\nG1 X10\nG1 Y10\n'
-                'G1 X-10\nG1 Y-10\nG0 Z5\nM30\n')
+SQUARE_NAMED = ('G17 G71 G90\nT="CUTTER 10"\nM6\nD1\nG0 X-10 Y-10 Z5\nG1 Z0 F300\nG1 X10 Z-10\nG1 Y10\n'
+                'G1 X-10 Z0\nG1 Y-10\nG0 Z5\nM30\n')
 
 
 def test_render_takes_the_length_of_a_tool_called_by_name(tmp_path, capsys):
-    """As above (0.75 um with 150 mm, 0.5 um at the machine's 100 mm), the tool given by name."""
-    _, _, model = _model(tmp_path, EBY_1=500.0)
+    """As above (0.201 um with 150 mm, 0.022 um at the machine's 100 mm), the tool given by name."""
+    _, _, model = _model(tmp_path, EXZ_2=500.0)
     (tmp_path / "sq.nc").write_text(SQUARE_NAMED)
     named = _render_max(tmp_path, capsys, model, "--dialect", "sinumerik",
                         "--tool-length", "CUTTER 10=150")
-    assert named == pytest.approx(0.750, rel=0, abs=1e-3)
+    assert named == pytest.approx(500 * 900e-6 / 5 ** 0.5, rel=0, abs=1e-3)
     assert main(["render", "xfyz", str(model), str(tmp_path / "sq.nc"), "-o", str(tmp_path / "m.png"),
                  "--backend", "matplotlib", "--dialect", "sinumerik", "--tool-length", "H1=150"]) == 0
     out = capsys.readouterr().out
-    assert "max 0.500 um" in out
+    assert "max 0.022 um" in out
     assert 'assumed: tool length of "CUTTER 10" = the machine\'s tool_length_mm (100 mm)' in out

@@ -18,16 +18,16 @@ UNIT_SCALE = {"um": 10e-3, "urad": 20e-6, "mm": 50.0, "1": 0.05}
 XFYZ_PROGRAM = """%
 O0100 (compensate test)
 N10 G21 G90 G17
-N20 G0 X-50 Y-40 Z20 ; approach
-N30 G1 Z-5 F800 M8
-N40 X60 Y-40
-N50 G2 X60 Y40 I0 J40 F600
-N60 G1 X-50 Y40
-G1 X-50 Y-38 Z-4.5
-N70 G0 Z30
-N80 X120 Y100
+N20 G0 X-50. Y-40. Z20. ; approach
+N30 G1 Z-5. F800 M8
+N40 X60. Y-40.
+N50 G2 X60. Y40. I0 J40. F600
+N60 G1 X-50. Y40.
+G1 X-50. Y-38. Z-4.5
+N70 G0 Z30.
+N80 X120. Y100.
 N90 G1 Z0 F300
-X140 Y120 Z-2
+X140. Y120. Z-2.
 M30
 %
 """
@@ -499,7 +499,7 @@ def test_model_without_support_is_said_once(tmp_path, capsys):
 def test_work_offset_and_tool_length_reach_the_model(tmp_path, capsys):
     machine, fitted, model_path = _model(tmp_path, "xfyz", seed=8)
     prog = tmp_path / "in.nc"
-    prog.write_text("G21 G90 G54\nT1 M6\nG0 G43 H1 Z20\nG0 X-50 Y-40\nG1 Z-5 F800\nX60\nY40\nM30\n")
+    prog.write_text("G21 G90 G54\nT1 M6\nG0 G43 H1 Z20.\nG0 X-50. Y-40.\nG1 Z-5. F800\nX60.\nY40.\nM30\n")
     offsets = tmp_path / "offsets.toml"
     offsets.write_text("[work_offsets]\nG54 = {X = 100.0, Y = 50.0, Z = -200.0}\n"
                        "[tool_lengths]\nH1 = 80.0\n")

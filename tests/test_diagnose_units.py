@@ -292,11 +292,14 @@ def test_a_common_block_without_determined_directions_still_fits():
     assert np.isfinite(fit.cv_sse) and fit.rank == 1
 
 
-def test_finer_base_columns_are_the_jacobian_of_the_finer_model(tmp_path):
+@pytest.mark.parametrize("axis,span", [("X", (-300.0, 300.0)), ("Z", (-250.0, 300.0))])
+def test_finer_base_columns_are_the_jacobian_of_the_finer_model(tmp_path, axis, span):
     """The finer base's columns, recovered from the base's Jacobian (d reading / d E times the finer
     functions), against a second formulation: the probe model built with the finer spline itself,
     its CasADi Jacobian columns of the same components. A points file (SPEC 3.1, written here) reads
-    every component of X through the chain, at random poses."""
+    every component of the axis through the chain, at random poses, with styli of 100 mm (the
+    machine's) and 250 mm: Z, the ram, stands 150 mm higher for the longer one, and its finer
+    functions are read there (they were read at the commanded z, and those rows got no column)."""
     from dataclasses import replace
 
     from mtcomp.diagnose._resolution import finer_base_columns
@@ -315,20 +318,20 @@ def test_finer_base_columns_are_the_jacobian_of_the_finer_model(tmp_path):
 
     def machine_with(n_intervals):
         m = load_machine("xfyz")
-        return replace(m, axes=tuple(replace(ax, spline_range=(-300.0, 300.0), spline_intervals=n_intervals,
-                                             degree=3) if ax.name == "X" else ax for ax in m.axes))
+        return replace(m, axes=tuple(replace(ax, spline_range=span, spline_intervals=n_intervals,
+                                             degree=3) if ax.name == axis else ax for ax in m.axes))
 
     def stack(m):
         st = build_stack(m, data)
         st.evaluate(np.zeros(st.probe.n_params), np.zeros(len(st.nuisance_names)))
         return st
     coarse, fine = machine_with(12), machine_with(24)
-    by_comp, basis = finer_base_columns(stack(coarse), "X")
+    by_comp, basis = finer_base_columns(stack(coarse), axis)
     assert basis.n_intervals == 24
     st = stack(fine)
     assert len(by_comp) >= 4                   # positioning, straightnesses, angles through the arms
-    for comp in linear_component_names("X"):
-        expected = st.columns([f"{comp}_{t}" for t in component_terms(fine, "X", comp)])
+    for comp in linear_component_names(axis):
+        expected = st.columns([f"{comp}_{t}" for t in component_terms(fine, axis, comp)])
         if comp not in by_comp:
             assert not np.any(expected)
             continue

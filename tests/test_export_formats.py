@@ -362,13 +362,16 @@ def test_isg_volumetric_csv_holds_every_component(fitted, model_path, tmp_path):
         assert np.all(np.isfinite(data[:, 4:]))
         if a == "X":
             continue
-        # rotations of the tool-side axes, independently: their angular errors turn the tool about
-        # the spindle gauge point, a tool length L above the tip, so the tip deviation changes with
-        # L by -dL (w x e_z) = -dL (w_y, -w_x, 0)
-        d1 = predicted(fitted, a, pos, 1.0, tool_length=100.0)
-        d2 = predicted(fitted, a, pos, 1.0, tool_length=300.0)
-        w_x = (d2[:, 1] - d1[:, 1]) / 200.0
-        w_y = -(d2[:, 0] - d1[:, 0]) / 200.0
+        # rotations of the tool-side axes, independently: their angular errors turn the tool, so the
+        # tool axis deviates by w x e_z = (w_y, -w_x, 0) (to first order; a tool's length does not
+        # show them: it raises the ram, and the tip stays where it is commanded)
+        m = fitted.machine
+        q = np.zeros((len(pos), m.n_axes))
+        q[:, m.index(a)] = pos
+        c = fitted.context(len(pos), {f"dir_{a}": np.ones(len(pos))})
+        da = (deviation(fitted.model, q, fitted.params.values, c)[:, 3:]
+              - deviation(fitted.model, np.zeros((1, m.n_axes)), fitted.params.values, fitted.context(1))[:, 3:])
+        w_x, w_y = -da[:, 1], da[:, 0]
         np.testing.assert_allclose(data[:, 4], w_x, rtol=0, atol=1e-9)
         np.testing.assert_allclose(data[:, 5], w_y, rtol=0, atol=1e-9)
         assert np.max(np.abs(w_x)) > 1e-6 and np.max(np.abs(w_y)) > 1e-6

@@ -107,9 +107,16 @@ REFUSED = {
                                                     "TRAOOF is not read"],
     "nxpost_DMU_70_eVo_840D_in_Sample_part.ptp": ["in_Sample_part.ptp:848:",
                                                   "CYCLE83 whose levels are not RTP >= RFP+SDIS"],
+    # a beginners' example with a Fanuc program number and G43 H, whose coordinates have no decimal
+    # point (`G54 X-75 Y-75`): a Fanuc reads X-75 as -0.075 mm unless calculator-type input is set
+    # (parameter 3401#0), which nothing in the program shows; mtcomp read it as -75 mm and wrote
+    # `X-75.0012`, a move of 75 mm where the controller made one of 0.075 mm. The corpus' 16 other
+    # programs read as fanuc or haas write every dimension word other than zero with a point (the
+    # one whole number among their words outside comments is MS_NMV's `G05.1 Q1`, a mode switch)
+    "gcodes_simple_mill.gcode": ["simple_mill.gcode:8:", "X-75 has no decimal point"],
 }
-#: the share of the corpus accepted today (126 of 148: 0.851); the goal is 95 %
-MIN_ACCEPTED = 0.85
+#: the share of the corpus accepted today (125 of 148: 0.845); the goal is 95 %
+MIN_ACCEPTED = 0.84
 _WORD = re.compile(r"([A-Z])\s*([-+]?\s*(?:\d+\.?\d*|\.\d+))")
 #: an axis given an expression (Sinumerik: `A=_A_HOME`)
 _ASSIGNED = re.compile(r"(?<![A-Z0-9_$#<])([A-Z])\s*=")

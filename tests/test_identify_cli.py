@@ -200,3 +200,28 @@ def test_an_axis_whose_errors_are_held_is_not_called_unmoved(files, capsys):
     text = capsys.readouterr().out
     assert "axes whose errors were held as given (--hold): X:" in text
     assert "axes the data did not move" not in text
+
+
+def test_sigterm_stops_the_command_like_ctrl_c(tmp_path, monkeypatch, capsys):
+    """`kill` / `timeout` (SIGTERM) while a command writes its output: it stops with 143, one line,
+    no traceback, and leaves neither the output nor its hidden temporary file (the default SIGTERM
+    action killed the process inside its atomic write and left '.NAME.*.part' behind)."""
+    import os
+    import signal
+
+    import mtcomp.commands.identify as identify
+    from mtcomp.io.atomic import atomic_write
+    out = tmp_path / "m.json"
+
+    def run(args):
+        with atomic_write(out) as f:
+            f.write("{")
+            os.kill(os.getpid(), signal.SIGTERM)
+        return 0
+
+    monkeypatch.setattr(identify, "run", run)
+    before = signal.getsignal(signal.SIGTERM)
+    assert main(["identify", "xfyz", str(tmp_path / "x.csv"), "-o", str(out)]) == 143
+    assert capsys.readouterr().err == "mtcomp: terminated\n"
+    assert list(tmp_path.iterdir()) == []
+    assert signal.getsignal(signal.SIGTERM) is before          # the handler is the caller's again

@@ -146,15 +146,24 @@ def eq26_printed(xs, y, z, e):
         -e["dzx"] + e["dzy"] + e["dzz"] - y * e["exx"] - xs * e["eyx"]])
 
 
-def eq26_corrected(xs, y, z, e, L=0.0):
-    """Eq. 26 re-derived: squareness S_xy tilts Y's travel (no xs*S_xy term), S_zx and S_yz tilt Z's
-    travel (z terms eq. 26 lacks), and Y's and Z's angular errors act at the spindle gauge point, a
-    tool length L above the tip (L terms; the seed's tool has L = 0)."""
+def eq26_corrected(xs, y, z, e, L=0.0, L0=None):
+    """Eq. 26 re-derived by hand: squareness S_xy tilts Y's travel (no xs*S_xy term), S_zx and S_yz
+    tilt Z's travel (terms eq. 26 lacks), and a tool of length L on a machine whose reference tool
+    (tip at q = 0 with every axis at zero) has length L0 (default L: the seed's tool, L = L0 = 0):
+
+    * Y's angular errors turn the Y carriage about a point fixed on it, the gauge point at q = 0 with
+      the reference tool: arm z - L0 from it to the tip, whatever the tool;
+    * tool length compensation puts the ram at its machine position zr = z + L - L0 for the tip at z:
+      Z's errors (the d_.z, e_.z given here) are its values there and its squareness tilts the travel
+      by zr; its angular errors turn it about the gauge point, L above the tip.
+    """
+    L0 = L if L0 is None else L0
+    zr = z + L - L0
     return np.array([
-        y * e["Sxy"] - e["dxx"] + e["dxy"] + e["dxz"] - z * e["eyx"] + (z - L) * e["eyy"]
-        - L * e["eyz"] + y * e["ezx"] + z * e["Szx"],
-        -e["dyx"] + e["dyy"] + e["dyz"] + z * e["exx"] - (z - L) * e["exy"] + L * e["exz"]
-        + xs * e["ezx"] - z * e["Syz"],
+        y * e["Sxy"] - e["dxx"] + e["dxy"] + e["dxz"] - z * e["eyx"] + (z - L0) * e["eyy"]
+        - L * e["eyz"] + y * e["ezx"] + zr * e["Szx"],
+        -e["dyx"] + e["dyy"] + e["dyz"] + z * e["exx"] - (z - L0) * e["exy"] + L * e["exz"]
+        + xs * e["ezx"] - zr * e["Syz"],
         -e["dzx"] + e["dzy"] + e["dzz"] - y * e["exx"] - xs * e["eyx"]])
 
 
@@ -186,6 +195,8 @@ def _first_order_ours(model, q, iso, L):
         else:  # E?A(s) = E?A_k * (s / 1 m)^k: the value at this pose, with the lowest power the
             # base model has (EXY_1, EXZ_1, EYZ_1 are carried by the squareness)
             s = q["XYZ".index(name[2])]
+            if name[2] == "Z":   # the values are those at the ram's machine position
+                s = s + L - model.machine.tool_length
             k = polynomial_orders(model.machine, name[2], name)[0]
             p[model.param_names.index(f"{name}_{k}")] = value / (s / 1000.0) ** k
     c = model.default_context(1)
@@ -194,7 +205,7 @@ def _first_order_ours(model, q, iso, L):
     return (Jp0[0] @ p)[:3], dcm_deviation(model, p, q[None, :], c)[0, :3]
 
 
-@pytest.mark.parametrize("L", [0.0, 100.0])
+@pytest.mark.parametrize("L", [0.0, 100.0, 250.0])
 def test_eq26_corrected_matches_our_model(L):
     m = load_machine("xfyz").with_basis("polynomial")  # the eq. 26 check sets values through the powers
     model = ErrorModel(m)
@@ -204,7 +215,7 @@ def test_eq26_corrected_matches_our_model(L):
         e = dict(zip(SEED_TERMS, rng.normal(size=21) * np.where(
             np.array([t[0] == "d" for t in SEED_TERMS]), 5e-3, 30e-6)))
         ours, dcm = _first_order_ours(model, q, seed_to_iso(q[0], e), L)
-        seed = eq26_corrected(-q[0], q[1], q[2], e, L)
+        seed = eq26_corrected(-q[0], q[1], q[2], e, L, model.machine.tool_length)
         np.testing.assert_allclose(ours, seed, rtol=0, atol=1e-12 * np.abs(seed).max())
         np.testing.assert_allclose(dcm, seed, rtol=0, atol=1e-12 * np.abs(seed).max())
 

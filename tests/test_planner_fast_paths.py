@@ -182,3 +182,74 @@ def test_uses_inches_finds_g20_words_across_read_blocks(tmp_path, text, want):
     path.write_text("G1 X1.0000 Y2.0000\n" * 7 + text + "G1 X3\n" * 5)
     for block in (9, 10, 11, 13, 1 << 22):      # a word cut at every place between two reads
         assert uses_inches(path, block=block) is want
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_ctrl_c_inside_osqp_stops_the_plan(monkeypatch, threads):
+    """OSQP traps SIGINT during a solve and returns its iterate with the status 'interrupted': the
+    planner raises KeyboardInterrupt (the command exits 130 and writes nothing), from the planning
+    thread too, instead of planning on with that iterate."""
+    import types
+
+    import osqp
+    problem, chunk = _bounded_stream(91)
+
+    def interrupted(self, *args, **kwargs):
+        info = types.SimpleNamespace(status="interrupted", status_val=10, iter=7)
+        return types.SimpleNamespace(x=np.zeros(self.n if hasattr(self, "n") else 0), info=info)
+
+    monkeypatch.setattr(osqp.OSQP, "solve", interrupted)
+    planner = Planner(problem, PlannerOptions(window=16, subdivide_tol_um=None, threads=threads))
+    with pytest.raises(KeyboardInterrupt):
+        list(planner.iter_chunks([chunk]))
+
+
+def test_a_window_osqp_does_not_converge_on_is_solved_by_the_interior_point_method(monkeypatch):
+    """Where OSQP stops at its iteration limit (a user's 2,011-block window under a backlash's
+    reversal rule took 245 s to 'solved inaccurate'), the window's QP goes to Clarabel: the same
+    plan as OSQP's converged one (a second solver as the oracle), not the clamped fallback."""
+    from mtcomp.planner import _qp
+    problem, chunk = _bounded_stream(91)
+    opts = PlannerOptions(window=16, overlap=4, subdivide_tol_um=None, threads=1)
+    (_, ref), = list(Planner(problem, opts).iter_chunks([chunk]))
+    calls = []
+    real = _qp.interior_point_solve
+
+    def spy(*args):
+        calls.append(args[0].shape[0])
+        return real(*args)
+
+    monkeypatch.setattr(_qp, "OSQP_MAX_ITER", 2)          # OSQP never converges in 2 iterations
+    monkeypatch.setattr(_qp, "interior_point_solve", spy)
+    planner = Planner(problem, opts)
+    (_, got), = list(planner.iter_chunks([chunk]))
+    assert len(calls) == planner.stats["qp_solves"] > 0
+    assert "qp_failed" not in planner.stats
+    # the same corrections up to the output grid's last digit where a bound is not active
+    np.testing.assert_allclose(got.corrected, ref.corrected, rtol=0, atol=2.01e-4)
+    np.testing.assert_array_equal(got.flags, ref.flags)
+
+
+def test_interior_point_solve_matches_osqp_on_a_small_bounded_qp():
+    """The interior-point solve of OSQP's problem form (two-sided rows, equalities, absent bounds)
+    against OSQP's converged solution of the same random QP."""
+    import osqp
+    import scipy.sparse as sp
+
+    from mtcomp.planner._bounds import INF
+    from mtcomp.planner._qp import interior_point_solve
+    rng = np.random.default_rng(5)
+    n, m = 12, 20
+    G = rng.normal(size=(n, n))
+    P = sp.csc_matrix(G @ G.T + np.eye(n))
+    q = rng.normal(size=n)
+    A = sp.csc_matrix(rng.normal(size=(m, n)))
+    lower, upper = -rng.uniform(0.1, 1, m), rng.uniform(0.1, 1, m)
+    lower[:3], upper[3:6], upper[6], lower[6] = -INF, INF, 0.2, 0.2      # one-sided rows, an equality
+    x, status = interior_point_solve(sp.triu(P, format="csc"), q, A, lower, upper)
+    s = osqp.OSQP()
+    s.setup(sp.triu(P, format="csc"), q, A, lower, upper, verbose=False, eps_abs=1e-10,
+            eps_rel=1e-10, polishing=True, max_iter=200000)
+    ref = s.solve()
+    assert status == "solved" and ref.info.status == "solved"
+    np.testing.assert_allclose(x, ref.x, rtol=0, atol=1e-6)

@@ -67,3 +67,21 @@ def test_render_prints_and_draws_what_it_left_out(tmp_path, mixed, capsys):
     text = capsys.readouterr().out
     assert f"warning: {HOLES_LEFT_OUT}" in text.splitlines()
     assert out.is_file()
+
+
+def test_the_travel_note_takes_the_work_offset_given(tmp_path, exx, capsys):
+    """A program at X 350..450 is outside X's travel (-400, 400) as axis positions, and inside it
+    with G54 at X -100: render notes the travel only where the program's positions, with the work
+    offset given, leave it (it noted it with the offset given too, naming the program's
+    coordinates as axis positions)."""
+    pytest.importorskip("matplotlib")
+    (tmp_path / "far.nc").write_text("G54 G0 X350 Y0 Z5\nG1 Z-1 F100\nG1 X450\nG1 Y10\nG0 Z5\nM30\n")
+    base = ["render", "xfyz", str(tmp_path / "model.json"), str(tmp_path / "far.nc"),
+            "--backend", "matplotlib"]
+    assert main(base + ["-o", str(tmp_path / "a.png")]) == 0
+    err = capsys.readouterr().err
+    assert "outside the travel" in err and "give --work-offset" in err
+    assert main(base + ["-o", str(tmp_path / "b.png"), "--work-offset", "G54=X-100,Y0,Z0"]) == 0
+    assert "outside the travel" not in capsys.readouterr().err
+    assert main(base + ["-o", str(tmp_path / "c.png"), "--work-offset", "G54=X100,Y0,Z0"]) == 0
+    assert "plus the work offset given" in capsys.readouterr().err

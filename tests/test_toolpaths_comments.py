@@ -23,8 +23,8 @@ from test_toolpaths_dialect import mode  # noqa: F401  (the fixture: both reader
 XFYZ = load_machine("xfyz")
 ESTLCAM = "(HSS Twist Drill, 3mm (R))"
 FUSION = "(2D Contour (cutout))"
-PROGRAM = ("G21 G90\n" + ESTLCAM + "\nG0 X1 Y2 Z3\n" + FUSION + "\n"
-           "G1 X4 F100 (T1 D=3 (flat) (end mill)) Y5\nM30\n")
+PROGRAM = ("G21 G90\n" + ESTLCAM + "\nG0 X1. Y2. Z3.\n" + FUSION + "\n"
+           "G1 X4. F100 (T1 D=3 (flat) (end mill)) Y5.\nM30\n")
 
 
 def _written(tmp_path, text: str, dialect: str | None = None) -> tuple[list, list, list]:

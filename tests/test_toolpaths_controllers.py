@@ -139,7 +139,7 @@ def test_a_file_of_subroutines_only_is_refused_by_name(tmp_path):
 @pytest.mark.parametrize("dialect", ["fanuc", "haas"])
 def test_u_w_words_are_refused_where_lathes_read_them_as_incremental_x_z(tmp_path, dialect):
     p = tmp_path / "p.nc"
-    p.write_text("G21 G90\nG0 X10 Y0 Z5\nG1 U2 W-1 F100\nM30\n")
+    p.write_text("G21 G90\nG0 X10. Y0 Z5.\nG1 U2 W-1 F100\nM30\n")
     with pytest.raises(InputError) as exc:
         list(iter_segment_chunks(p, XFYZ, dialect=dialect))
     assert exc.value.line == 3 and "incremental X and Z" in exc.value.message

@@ -13,8 +13,8 @@ from mtcomp.toolpaths.source import open_program
 
 CORPUS = Path(__file__).parent / "data" / "gcode_corpus"
 XFYZ = load_machine("xfyz")
-G80_PROGRAM = ("G90 G21\nG0 X0 Y0 Z10\nG1 F100 Z5\nG81 X1 Y1 Z-2 R1 F100\nX3 Y3\nG80\nZ5.533\n"
-               "X10 Y10\nM30\n")
+G80_PROGRAM = ("G90 G21\nG0 X0 Y0 Z10.\nG1 F100 Z5.\nG81 X1. Y1. Z-2. R1. F100\nX3. Y3.\nG80\nZ5.533\n"
+               "X10. Y10.\nM30\n")
 
 
 @pytest.fixture(params=["compiled", "python"])
@@ -88,7 +88,7 @@ def test_g98_with_the_r_plane_above_the_initial_level(tmp_path, mode, dialect, z
     # LinuxCNC retracts to the higher of the two (here R2 above the initial Z1); the others are
     # not followed there, so Z stays unknown after the cycle
     p = tmp_path / "p.nc"
-    p.write_text("G90 G21\nG0 X0 Y0 Z1\nG98 G81 X1 Y1 Z-2 R2 F100\nG80\nG0 X5\n")
+    p.write_text("G90 G21\nG0 X0 Y0 Z1.\nG98 G81 X1. Y1. Z-2. R2. F100\nG80\nG0 X5.\n")
     prog = read_program(p, XFYZ, dialect=dialect)
     last = prog.blocks[-1]
     assert bool(last.known[XFYZ.index("Z")]) == z_known
@@ -100,7 +100,7 @@ def test_linuxcnc_incremental_cycles_measure_r_from_the_initial_level(tmp_path):
     # LinuxCNC (interp_cycles.cc): r = R + initial level for every hole of the series, so the second
     # hole under G99 drills from R = 10 - 2 = 8 to 8 - 3 = 5, as the first
     p = tmp_path / "p.nc"
-    p.write_text("G90 G21\nG0 X0 Y0 Z10\nG91 G99 G81 X1 Z-3 R-2 F100\nX1\nG80\n")
+    p.write_text("G90 G21\nG0 X0 Y0 Z10.\nG91 G99 G81 X1. Z-3. R-2. F100\nX1.\nG80\n")
     blocks = read_program(p, XFYZ, dialect="linuxcnc").blocks
     np.testing.assert_allclose([b.cycle.z_bottom for b in blocks[1:]], [5.0, 5.0], rtol=0, atol=1e-12)
     with pytest.raises(InputError, match="continued without G98"):
@@ -175,7 +175,7 @@ def test_a_dwell_with_a_move_in_one_block_moves(tmp_path, mode, dialect):
 @pytest.mark.parametrize("dialect", ["fanuc", "haas"])
 def test_a_dwell_with_a_move_is_refused_where_x_is_the_dwell_time(tmp_path, mode, dialect):
     p = tmp_path / "p.nc"
-    p.write_text(DWELL_AND_MOVE)
+    p.write_text(DWELL_AND_MOVE.replace("Z1\n", "Z1.\n"))     # Z1 would be 0.0001 in there
     with pytest.raises(InputError, match="G4 with G0 and axis words in one block") as exc:
         list(iter_segment_chunks(p, XFYZ, dialect=dialect))
     assert exc.value.line == 3

@@ -330,7 +330,7 @@ def test_compensated_under_the_frame_is_the_flat_program_compensated(tmp_path, c
 def test_refusals_name_the_line_and_the_construct(tmp_path, capsys, dialect, line, words):
     _, _, model = _model(tmp_path, "xfyz", seed=5)
     p, out = tmp_path / "p.nc", tmp_path / "out.nc"
-    p.write_text(f"G21 G90 G17\nG0 X0 Y0 Z5\n{line}\nG1 X1 Y10 F100\nM30\n")
+    p.write_text(f"G21 G90 G17\nG0 X0 Y0 Z5.\n{line}\nG1 X1. Y10. F100\nM30\n")
     code, _o, err = _run(["compensate", "xfyz", str(model), str(p), "-o", str(out), "--quiet",
                           "--dialect", dialect], capsys)
     lines = err.strip().splitlines()
@@ -349,7 +349,7 @@ def test_g52_on_linuxcnc_survives_a_work_system_change(tmp_path, mode):
 def test_a_cut_program_under_a_frame_change_is_refused(tmp_path):
     from mtcomp.toolpaths.cutter import read_cut_program
     p = tmp_path / "cut.nc"
-    p.write_text("O1000\nG21 G90\nG52 X5.\nG0 X0 Y0 Z1\nG1 Z0 F100\nM30\n")    # a Fanuc's
+    p.write_text("O1000\nG21 G90\nG52 X5.\nG0 X0 Y0 Z1.\nG1 Z0 F100\nM30\n")    # a Fanuc's
     with pytest.raises(InputError) as exc:
         read_cut_program(p, XFYZ)
     assert exc.value.line == 4 and "G52" in exc.value.message

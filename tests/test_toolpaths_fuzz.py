@@ -25,8 +25,12 @@ KW = dict(initial_known=True)
 
 @st.composite
 def programs(draw):
-    """A valid program as a list of lines, built from a model of the modal state."""
+    """A valid program as a list of lines, built from a model of the modal state. A program with
+    a Fanuc program number (O0042) writes its whole numbers with a point ("X5."): a Fanuc reads
+    "X5" as 0.005 mm, and mtcomp refuses it there; the others write either form."""
     n = draw(st.integers(1, 25))
+    fanuc = draw(st.booleans())
+    pass_through = PASS_THROUGH if fanuc else [t for t in PASS_THROUGH if t != "O0042"]
     lines = ["%"] if draw(st.booleans()) else []
     pos = np.zeros(5)             # reader's positions: mm and rad
     known = np.ones(5, bool)
@@ -37,7 +41,7 @@ def programs(draw):
         if kind == "arc" and not known[:3].all():
             kind = "lin"
         if kind == "pass":
-            lines.append(draw(st.sampled_from(PASS_THROUGH)))
+            lines.append(draw(st.sampled_from(pass_through)))
             if lines[-1] in FORGETS_Z:
                 known[2] = False
         elif kind == "mode":
@@ -60,7 +64,7 @@ def programs(draw):
                 i = "XYZAC".index(c)
                 dec = draw(st.integers(0, 4))
                 v = round(draw(st.floats(-90, 90, allow_nan=False)), dec)
-                txt = f"{v:.{dec}f}" if dec else f"{int(v)}"
+                txt = f"{v:.{dec}f}" if dec else f"{int(v)}" + ("." if fanuc and int(v) else "")
                 if dec and draw(st.booleans()):
                     txt = txt.rstrip("0")        # "1." and "1.5" forms
                 words.append(f"{c}{txt}")

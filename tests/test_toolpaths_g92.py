@@ -107,8 +107,8 @@ def test_g92_while_g52_on_linuxcnc_shares_its_offset(tmp_path, mode):
 
 
 @pytest.mark.parametrize("text, words", [
-    ("G0 X1 Y1 Z1\nG52 X5.\nG92 X0\n", ["p.nc:3:", "G92 while G52 is in force", "fanuc"]),
-    ("G0 X1 Y1 Z1\nG92 X0\nG52 X5.\n", ["p.nc:3:", "G52 while a G92 offset is in force"]),
+    ("G0 X1. Y1. Z1.\nG52 X5.\nG92 X0\n", ["p.nc:3:", "G92 while G52 is in force", "fanuc"]),
+    ("G0 X1. Y1. Z1.\nG92 X0\nG52 X5.\n", ["p.nc:3:", "G52 while a G92 offset is in force"]),
 ])
 def test_g92_with_g52_on_fanuc_is_refused(tmp_path, text, words):
     p = tmp_path / "p.nc"

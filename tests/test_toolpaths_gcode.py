@@ -25,12 +25,12 @@ def gcode_path(request, monkeypatch):
 SAMPLE = """%
 O1000 (TEST)
 N10 G21 G90 G17 ; setup
-N20 G0 X10 Y10 Z5
-N30 G1 Z-1 F200 M8
-X20 (cont)
-N40 G2 X30 Y20 I0 J10
-G3 X20 Y30 R10
-G91 G1 X-5
+N20 G0 X10. Y10. Z5.
+N30 G1 Z-1. F200 M8
+X20. (cont)
+N40 G2 X30. Y20. I0 J10.
+G3 X20. Y30. R10.
+G91 G1 X-5.
 M30
 %
 """

@@ -229,26 +229,43 @@ def test_blocks_after_an_added_one_are_renumbered_only_where_needed():
     ("L X+Q1", "Q parameters"),
     ("CYCL DEF 200 DRILLING", "CYCL DEF 200"),
     ("CC IX+1 IY+1", "CC needs absolute X and Y"),
-    ("CR X+1 Y+1 R+5 DR+", "radius (CR)"),
-    ("L X+1 FMAX M128", "M128"),
+    ("CR X+30 Y+1 R+5 DR+", "R+5 of a CR is smaller than half the chord"),
+    # a CR cannot be a full circle (HEIDENHAIN, iTNC 530 User's Manual, "Circular path CR with
+    # defined radius": "For a full circle, program two blocks in succession")
+    ("CR X+0 Y+0 R+5 DR+", "a CR ending at its start (a full circle"),
+    ("CR IX+0 R-5 DR-", "a CR ending at its start (a full circle"),
+    ("L X+1 FMAX M114", "M114"),
     ("CYCL CALL", "CYCL CALL"),
     ("TOOL CALL 1 X", "tool axis X"),
     ("L X+1 FMAX M99", "without a pecking cycle"),
     ("PLANE SPATIAL SPA+0 SPB+0 SPC+0", "PLANE"),
     # the whole construct, never cut off mid-word
-    ("FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS", "'FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS' is not"),
+    ("FUNCTION TCPM F TCP AXIS SPAT PATHCTRL AXIS",
+     "'FUNCTION TCPM F TCP AXIS SPAT PATHCTRL AXIS' is not"),
+    ("FUNCTION MODE TURN", "'FUNCTION MODE TURN' is not"),
+    # in tool centre point mode: what the TNC asks the mode reset before, arcs, compensation
+    ("L X+1 FMAX M128 RL", "radius compensation RL/RR in tool centre point mode"),
+    ("L X+1 FMAX M128 M91", "M91, M92, M99"),
+    ("C X+1 Y+0 DR+ M128", "M128 in a block other than L or M"),
 ])
 def test_refused_in_one_line_naming_the_construct(tmp_path, block, words):
     p = _write(tmp_path, f"0 BEGIN PGM T MM\n1 L X+0 Y+0 Z+5 FMAX\n2 {block}\n3 END PGM T MM\n")
-    out = tmp_path / "o.h"
+    # the TNC's block number of line 3
+    assert_refused(tmp_path, p, "p.h:3:", words, "(block 2)")
+
+
+def assert_refused(tmp_path, p, where: str, words: str, block: str) -> None:
+    """compensate refuses the program p in one line starting at ``where`` (file:line:), holding
+    ``words`` and ending with ``block``: exit status 2, nothing written."""
+    out = tmp_path / ("o" + p.suffix)
     err = io.StringIO()
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
         code = main(["compensate", "xfyz", _zero_model(tmp_path), str(p), "-o", str(out),
                      "--quiet"])
     lines = err.getvalue().strip().splitlines()
     assert code == 2 and not out.exists() and len(lines) == 1, err.getvalue()
-    assert "p.h:3:" in lines[0] and words in lines[0], lines[0]
-    assert lines[0].endswith("(block 2)"), lines[0]        # the TNC's block number of line 3
+    assert where in lines[0] and words in lines[0], lines[0]
+    assert lines[0].endswith(block), lines[0]
 
 
 def _zero_model(tmp_path) -> str:
@@ -408,3 +425,120 @@ def test_the_shops_pocket_under_a_backlash_is_written_with_its_arcs_in_pieces(tm
     idx = pair_compensated(orig, comp, XFYZ)
     assert len(comp) > len(orig) and np.all(np.diff(idx) > 0)
     assert np.max(np.abs(comp.q[idx] - orig.q)[orig.known]) < 0.28
+
+
+# full circles by their end point (the start: HEIDENHAIN, TNC 370 User's Manual, "Circular path C
+# around the circle center CC": "To program a full circle, enter the same point for the end point
+# as for the start point in a C block") and an arc whose Y is not written (the last programmed Y)
+FULL_CIRCLES = ("0 BEGIN PGM T MM\n1 L X+0 Y+0 Z+0 FMAX\n2 CC X+10 Y+0\n3 C X+0 Y+0 DR+ F100\n"
+                "4 C X+20 DR+\n5 C X+20 DR-\n6 L X+30\n7 END PGM T MM\n")
+
+
+def test_a_full_circle_by_its_end_point_ends_where_it_starts_as_written(tmp_path):
+    """X corrected by +1 um, Y by 1 um per 10 mm of X. By hand: line 1 ends at X+0.0010 Y+0; the
+    full circle of line 3 must end there (its words say the written start, else the TNC runs a
+    1 um arc instead of the circle); line 4 (Y not written: the last one, 0) ends at X20 where Y is
+    corrected by 2 um, so Y+0.0020 is added; the full circle of line 5 from there names X only
+    and says X+20.0010 (its Y, unwritten, is the start's). The replay (the TNC's rules, not
+    mtcomp's reader) runs two full circles and a half one."""
+    lines, _notes = _written_with(
+        tmp_path, FULL_CIRCLES,
+        lambda c: np.column_stack([np.full(len(c), 0.001), 1e-4 * c.end[:, 0],
+                                   np.zeros(len(c))]))
+    assert lines[1] == "1 L X+0.0010 Y+0 Z+0 FMAX"
+    assert lines[3] == "3 C X+0.0010 Y+0 DR+ F100"
+    assert lines[4] == "4 C X+20.0010 Y+0.0020 DR+"
+    assert lines[5] == "5 C X+20.0010 DR-"
+    assert lines[6] == "6 L X+30.0010 Y+0.0030"
+    assert lines[2].startswith("2 CC X+10.00")
+    assert [ln for i, ln in enumerate(lines) if i not in (1, 2, 3, 4, 5, 6)] == \
+        [ln for i, ln in enumerate(FULL_CIRCLES.splitlines()) if i not in (1, 2, 3, 4, 5, 6)]
+    arcs = [m for m in replay_heidenhain.replay("\n".join(lines).encode()).moves
+            if m.kind == "arc"]
+    np.testing.assert_allclose([m.sweep for m in arcs], [2 * np.pi, np.pi, -2 * np.pi], rtol=0,
+                               atol=1e-6)
+    assert (arcs[1].end["X"], arcs[1].end["Y"]) == (20.001, 0.002)
+
+
+
+# tool centre point mode: M128 effective at the start of its block, M129 at its end (TNC 410/426/430
+# User's Manual, ISO programming, M128 "Effect"); FUNCTION TCPM ... FUNCTION RESET TCPM
+TCP = """0 BEGIN PGM T MM
+1 L Z+100 R0 FMAX
+2 L X+0 Y+0 Z+50 A+0 C+0 FMAX M128
+3 L X+10 Y+5 Z+2 A+10 C+20 F500
+4 L Z+50 FMAX M129
+5 L Z+100 FMAX
+6 FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS
+7 L X+0 Y+0 Z+50 A+5 C+10 FMAX
+8 FUNCTION RESET TCPM
+9 END PGM T MM
+"""
+
+
+def test_m128_and_function_tcpm_are_the_tool_centre_point_mode_of_g_code(tmp_path):
+    """By hand: M128 goes on at its block (the G-code's M128 on that line), M129 after its block
+    (its move is still in the mode: the G-code's M129 starts the next line); FUNCTION TCPM and
+    FUNCTION RESET TCPM are M128 and M129 on their lines; the words pass as they are, and every
+    switch leaves every axis unknown (line 5's X Y A C) until a block names it."""
+    from mtcomp.toolpaths.heidenhain import translate
+    from mtcomp.toolpaths.words import frame_tcp
+    p = _write(tmp_path, TCP)
+    gcode = translate(p).gcode
+    blocks = read_program(p, load_machine("cafxyz")).blocks
+    assert gcode[1:9] == ["G0 Z100", "M128 G0 X0 Y0 Z50 A0 C0", "G1 X10 Y5 Z2 A10 C20 F500",
+                          "G0 Z50", "M129 G0 Z100", "M128", "G0 X0 Y0 Z50 A5 C10", "M129"]
+    assert [(b.line, bool(frame_tcp(b.frame)), int(b.known.sum())) for b in blocks] == [
+        (2, False, 1), (3, True, 5), (4, True, 5), (5, True, 5), (6, False, 1), (8, True, 5)]
+
+
+
+# a full circle by two CR semicircles (HEIDENHAIN, iTNC 530 User's Manual, "Circular path CR with
+# defined radius": "For a full circle, program two blocks in succession"), after a CR of R+20
+CR_CIRCLE = ("0 BEGIN PGM T MM\n1 L X+0 Y+0 Z+0 FMAX\n2 L X+40 Y+40 F200\n"
+             "3 CR X+70 Y+40 R+20 DR-\n4 CR X+40 Y+40 R+15 DR+\n5 CR X+70 Y+40 R+15 DR+\n"
+             "6 L X+80\n7 END PGM T MM\n")
+
+
+def test_arcs_by_their_radius_cr_are_read_and_written(tmp_path):
+    """By hand: the CR of R+20 clockwise from X40 to X70 (Y40) turns less than 180 degrees about the
+    centre below the chord (55, 40 - sqrt(20^2 - 15^2)), over the top at Y 46.77; the two R+15
+    semicircles counter-clockwise about (55, 40), from X70 through Y55, back through Y25. Written
+    with Y corrected by 1 um plus 1 um per 10 mm of X, only X Y and R words change, and the arcs the
+    output's words make (the replay: the manual's rule for the centre, not mtcomp's) hold every
+    corrected point of the plan within the chord tolerance (1 um) and the output's rounding."""
+    p = _write(tmp_path, CR_CIRCLE)
+    blocks = {b.line: b for b in read_program(p, XFYZ).blocks}
+    np.testing.assert_allclose(blocks[4].centre[:2], [55.0, 40.0 - np.sqrt(175.0)], rtol=0,
+                               atol=1e-9)
+    for line in (5, 6):
+        np.testing.assert_allclose(blocks[line].centre[:2], [55.0, 40.0], rtol=0, atol=1e-9)
+    mids = [blocks[line].points[len(blocks[line].points) // 2][1] for line in (4, 5, 6)]
+    np.testing.assert_allclose(mids, [40.0 - np.sqrt(175.0) + 20.0, 55.0, 25.0], rtol=0, atol=0.1)
+
+    def correction(end):
+        return np.column_stack([np.zeros(len(end)), 0.001 + 1e-4 * end[:, 0], np.zeros(len(end))])
+    lines, _notes = _written_with(tmp_path, CR_CIRCLE, lambda c: correction(c.end))
+    import re
+    assert [re.sub(r" ?[XYR][-+][\d.]+", "", ln) for ln in lines] == \
+        [re.sub(r" ?[XYR][-+][\d.]+", "", ln) for ln in CR_CIRCLE.splitlines()]
+    assert lines[3].startswith("3 CR X+70 Y+40.0080 R")
+    assert lines[4].startswith("4 CR X+40 Y+40.0050")
+    moves = replay_heidenhain.replay("\n".join(lines).encode()).moves
+    arcs = [m for m in moves if m.kind == "arc"]
+    np.testing.assert_allclose([m.sweep for m in arcs[1:]], [np.pi, np.pi], rtol=0, atol=1e-3)
+    corrected = [(b.points + correction(b.points))[:, :2] for line, b in blocks.items()
+                 if line in (4, 5, 6)]
+    worst = max(_distance_to_moves(q, arcs) for pts in corrected for q in pts)
+    assert worst <= 1e-3 + 2e-4, worst
+
+
+def test_a_cr_no_radius_holds_is_refused(tmp_path):
+    """The reversal above on an arc CR (X+3 um coming up, -3 um along it): no radius holds it and a
+    CR is not cut into pieces: refused, naming it; nothing written."""
+    text = REVERSAL.replace("3 CC X+10 Y+0\n4 C X+0 Y+0 DR-", "3 L Z+0\n4 CR X+0 Y+0 R+10 DR-")
+    with pytest.raises(InputError) as exc:
+        _written_with(tmp_path, text,
+                      lambda c: _on_line(c, 3, dx=0.003) + _on_line(c, 5, dx=-0.003))
+    assert exc.value.line == 5 and "arc CR of line 5" in exc.value.message
+    assert "(its radius R)" in exc.value.message and not (tmp_path / "o.h").exists()

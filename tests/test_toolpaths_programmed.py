@@ -69,8 +69,8 @@ def test_g10_l2_shifts_a_known_position_by_the_change(tmp_path, mode):
     ("G10 L1 P1 Z100", "linuxcnc", "G10 L1"),
     ("G10 L2 P0 X5", "generic", "P0"),
     ("G10 L2 P1 X5 R30", "linuxcnc", "rotation"),
-    ("G91 G10 L2 P1 X5", "fanuc", "under G91"),
-    ("G10 L20 P1 X5", "haas", "G54.1"),
+    ("G91 G10 L2 P1 X5.", "fanuc", "under G91"),
+    ("G10 L20 P1 X5.", "haas", "G54.1"),
     ("G10 L2 P12 X5", "linuxcnc", "P word 0-9"),
     # X is known, but G54's offset is the command line's: the new one would be that one shifted
     ("G10 L20 P1 X5", "linuxcnc", "axis X: the active system's offset (G54) comes from outside"),
@@ -78,7 +78,7 @@ def test_g10_l2_shifts_a_known_position_by_the_change(tmp_path, mode):
 ])
 def test_g10_where_it_is_not_clear_is_refused_by_name(tmp_path, line, dialect, words):
     p = tmp_path / "p.nc"
-    p.write_text(f"G21 G90\nG0 X1 Y2\n{line}\nG0 X3\nM30\n")
+    p.write_text(f"G21 G90\nG0 X1. Y2.\n{line}\nG0 X3.\nM30\n")
     with pytest.raises(InputError) as exc:
         _machine_rows(p, ProgramSetup(XFYZ), dialect)
     assert exc.value.line == 3 and words in exc.value.message

@@ -18,15 +18,15 @@ XFYZ = load_machine("xfyz")
 FANUC = """%
 O0001 (MAIN)
 G90 G21 G17
-G0 X0 Y0 Z5
-G1 Z-1 F200
+G0 X0 Y0 Z5.
+G1 Z-1. F200
 M98 P00021000
-G1 X40 F300
+G1 X40. F300
 M98 P1000
-G0 Z5
+G0 Z5.
 M30
 O1000 (STEP)
-G91 G1 X10 Y5 F300
+G91 G1 X10. Y5. F300
 G90
 M99
 %
@@ -35,16 +35,16 @@ M99
 FANUC_FLAT = """%
 O0001 (MAIN)
 G90 G21 G17
-G0 X0 Y0 Z5
-G1 Z-1 F200
-G91 G1 X10 Y5 F300
+G0 X0 Y0 Z5.
+G1 Z-1. F200
+G91 G1 X10. Y5. F300
 G90
-G91 G1 X10 Y5 F300
+G91 G1 X10. Y5. F300
 G90
-G1 X40 F300
-G91 G1 X10 Y5 F300
+G1 X40. F300
+G91 G1 X10. Y5. F300
 G90
-G0 Z5
+G0 Z5.
 M30
 %
 """
@@ -53,22 +53,22 @@ FANUC_ENDS = [[0, 0, 5], [0, 0, -1], [10, 5, -1], [20, 10, -1], [40, 10, -1], [5
 
 HAAS = """O01000 (HAAS)
 G90 G21 G17
-G0 X0 Y0 Z5
+G0 X0 Y0 Z5.
 M97 P100 L2
-G1 X20 F100
+G1 X20. F100
 M30
-N100 G91 G1 Y30 F100
+N100 G91 G1 Y30. F100
 G90
 M99
 """
 HAAS_ENDS = [[0, 0, 5], [0, 30, 5], [0, 60, 5], [20, 60, 5]]
 #: a second program in the file holds the block N100 the first one's M97 names: not its own
 HAAS_OTHER = """O01000 (HAAS)
-G0 X0 Y0 Z5
+G0 X0 Y0 Z5.
 M97 P100
 M30
 O02000
-N100 G1 Y30 F100
+N100 G1 Y30. F100
 M99
 """
 
@@ -102,26 +102,26 @@ def test_compensated_as_the_program_flattened_by_hand(tmp_path, capsys):
     # output, and what follows its M30 as it is in the file (the subprogram, the tape's end %)
     assert sub[0] == "%" and sub[1].startswith("(expanded by mtcomp from sub.nc for fanuc")
     assert sub[2:-5] == flat[1:-1]
-    assert sub[-5:] == ["O1000 (STEP)", "G91 G1 X10 Y5 F300", "G90", "M99", "%"]
+    assert sub[-5:] == ["O1000 (STEP)", "G91 G1 X10. Y5. F300", "G90", "M99", "%"]
     # and the corrections are there: the corrected ends differ from the source's
     assert flat != FANUC_FLAT.splitlines()
 
 
 @pytest.mark.parametrize("text, dialect, words", [
-    ("O1\nG0 X0 Y0 Z5\nM98 P2000\nM30\n", "fanuc", ["p.nc:3:", "no program O2000 in this file"]),
-    ("O1\nG0 X0 Y0 Z5\nM98 P2\nM30\nO2\nG1 X5 F100\nM99 P10\n", "fanuc",
+    ("O1\nG0 X0 Y0 Z5.\nM98 P2000\nM30\n", "fanuc", ["p.nc:3:", "no program O2000 in this file"]),
+    ("O1\nG0 X0 Y0 Z5.\nM98 P2\nM30\nO2\nG1 X5. F100\nM99 P10\n", "fanuc",
      ["p.nc:7:", "M99 P"]),
-    ("O1\nG0 X0 Y0 Z5\nG1 X3 F100 M98 P2\nM30\nO2\nG1 X5 F100\nM99\n", "fanuc",
+    ("O1\nG0 X0 Y0 Z5.\nG1 X3. F100 M98 P2\nM30\nO2\nG1 X5. F100\nM99\n", "fanuc",
      ["p.nc:3:", "M98 with other words on its line (F, G, X)"]),
-    ("O1\nG0 X0 Y0 Z5\nM98 P2\nM30\nO2\nG1 X5 F100\nM98 P2\nM99\n", "fanuc",
+    ("O1\nG0 X0 Y0 Z5.\nM98 P2\nM30\nO2\nG1 X5. F100\nM98 P2\nM99\n", "fanuc",
      ["p.nc:7:", "nested more than 10 deep"]),
-    ("O1\nG0 X0 Y0 Z5\nM98 P2\nM30\nO2\nG1 X5 F100\nO3\nG1 X6\nM99\n", "fanuc",
+    ("O1\nG0 X0 Y0 Z5.\nM98 P2\nM30\nO2\nG1 X5. F100\nO3\nG1 X6.\nM99\n", "fanuc",
      ["p.nc:7:", "without its M99"]),
-    ("G0 X0 Y0 Z5\nM97 P100\nM30\nN100 G1 X5 F100\nM99\n", "haas", None),
-    ("G0 X0 Y0 Z5\nM97 P200\nM30\nN100 G1 X5 F100\nM99\n", "haas", ["p.nc:2:", "no block N200"]),
+    ("G0 X0 Y0 Z5.\nM97 P100\nM30\nN100 G1 X5. F100\nM99\n", "haas", None),
+    ("G0 X0 Y0 Z5.\nM97 P200\nM30\nN100 G1 X5. F100\nM99\n", "haas", ["p.nc:2:", "no block N200"]),
     (HAAS_OTHER, "haas", ["p.nc:3:", "no block N100 in this program"]),
-    ("G0 X0 Y0 Z5\nM97 P100\nM30\nN100 G1 X5 F100\nM99\n", "fanuc", ["p.nc:2:", "M97 (Haas'"]),
-    ("G0 X0 Y0 Z5\nM97 P100\nM30\nN100 G1 X5 F100\nM99\n", None, ["p.nc:2:", "M97 (Haas'"]),
+    ("G0 X0 Y0 Z5.\nM97 P100\nM30\nN100 G1 X5. F100\nM99\n", "fanuc", ["p.nc:2:", "M97 (Haas'"]),
+    ("G0 X0 Y0 Z5.\nM97 P100\nM30\nN100 G1 X5. F100\nM99\n", None, ["p.nc:2:", "M97 (Haas'"]),
     ("G0 X0 Y0 Z5\nM98 P100\nM30\n", "linuxcnc", ["p.nc:2:", "M98 (subprogram call"]),
 ])
 def test_calls_refused_in_one_line(tmp_path, capsys, text, dialect, words):
@@ -147,7 +147,7 @@ def test_a_g_code_mtcomp_does_not_follow_is_refused(tmp_path, capsys, code):
     block could then get a word for a position the machine never had. Refused, naming the code."""
     _, _, model = _model(tmp_path, "xfyz", seed=5)
     p, out = tmp_path / "p.nc", tmp_path / "out.nc"
-    p.write_text(f"G90 G17 G21\nG0 X0 Y0 Z5\n{code}\nG1 Y10 F100\nM30\n")
+    p.write_text(f"G90 G17 G21\nG0 X0 Y0 Z5.\n{code}\nG1 Y10. F100\nM30\n")
     code_, _o, err = _run(["compensate", "xfyz", str(model), str(p), "-o", str(out), "--quiet",
                            "--dialect", "haas"], capsys)
     lines = err.strip().splitlines()
@@ -162,7 +162,7 @@ def test_haas_work_systems_are_refused_on_other_controllers(tmp_path, capsys, di
     G2): refused, naming it, rather than read as a change of work system."""
     _, _, model = _model(tmp_path, "xfyz", seed=5)
     p, out = tmp_path / "p.nc", tmp_path / "out.nc"
-    p.write_text("G90 G17 G21\nG0 X0 Y0 Z5\nG122 X5 Y3\nM30\n")
+    p.write_text("G90 G17 G21\nG0 X0 Y0 Z5.\nG122 X5. Y3.\nM30\n")
     code_, _o, err = _run(["compensate", "xfyz", str(model), str(p), "-o", str(out), "--quiet",
                            "--dialect", dialect], capsys)
     lines = err.strip().splitlines()
@@ -176,7 +176,7 @@ def test_an_o_word_inside_a_line_is_refused(tmp_path, capsys, line):
     corrected X. A program number opens its line (O0001 stays accepted)."""
     _, _, model = _model(tmp_path, "xfyz", seed=5)
     p, out = tmp_path / "p.nc", tmp_path / "out.nc"
-    p.write_text(f"O0001 (ok)\nG90 G17 G21\nG0 X0 Y0 Z5\n{line}\nM30\n")
+    p.write_text(f"O0001 (ok)\nG90 G17 G21\nG0 X0 Y0 Z5.\n{line}\nM30\n")
     code_, _o, err = _run(["compensate", "xfyz", str(model), str(p), "-o", str(out), "--quiet"],
                           capsys)
     lines = err.strip().splitlines()
@@ -190,11 +190,11 @@ def test_a_haas_work_system_change_forgets_the_positions(tmp_path, capsys, code)
     are not known in the new system, so the block is neither corrected nor given Y or Z words."""
     _, _, model = _model(tmp_path, "xfyz", seed=5, scale=3.0)
     p, out = tmp_path / "p.nc", tmp_path / "out.nc"
-    p.write_text(f"G90 G17 G21\nG0 X0 Y0 Z5\n{code}\nG1 X10 F100\nM30\n")
+    p.write_text(f"G90 G17 G21\nG0 X0 Y0 Z5.\n{code}\nG1 X10. F100\nM30\n")
     code_, _o, err = _run(["compensate", "xfyz", str(model), str(p), "-o", str(out), "--quiet",
                            "--dialect", "haas"], capsys)
     assert code_ == 0, err
-    assert out.read_text().splitlines()[3] == "G1 X10 F100"
+    assert out.read_text().splitlines()[3] == "G1 X10. F100"
 
 
 @pytest.mark.parametrize("lines, calls", [

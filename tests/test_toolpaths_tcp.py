@@ -15,6 +15,7 @@ from mtcomp.errors import InputError
 from mtcomp.machine import load_machine
 from mtcomp.toolpaths.tcp import axes_of_tcp, tcp_of_axes
 from test_kinematics_single import TOPOLOGIES, _random_q, machine_pair  # noqa: F401
+import replay_heidenhain
 from replay import _runs, replay
 from truth.machine import TruthMachine
 
@@ -115,6 +116,33 @@ def test_a_tcp_program_is_compensated_on_an_independent_machine(tmp_path, capsys
     capsys.readouterr()
     src, dst = _paired_ends(BOAT.read_bytes(), out.read_bytes())
     assert len(src) > 1800
+    before, after = _tip_rms(truth, src, dst)
+    assert before > 5.0                             # the machine's error is material here
+    assert after <= before / 3
+    # its tilted finishing pass as a Heidenhain conversational program in M128, on the same model
+    # (here, not in a test of its own: the model's identification is most of this test's time)
+    twin, out = tmp_path / "boat.h", tmp_path / "boat_out.h"
+    twin.write_text(_heidenhain_twin(320, 660))
+    assert main(["compensate", "cafxyz", str(model), str(twin), "-o", str(out), "--units", "mm",
+                 "--max-correction-um", "200", "--max-step-um", "200",
+                 "--max-correction-urad", "2000"]) == 0
+    capsys.readouterr()
+    ends = [{m.line: m.end for m in replay_heidenhain.replay(p.read_bytes()).moves}
+            for p in (twin, out)]
+    lines = [k for k, e in ends[0].items() if all(e[a] is not None for a in "XYZAC")]
+    assert len(lines) > 300 and all(k in ends[1] for k in lines)
+    twin_before, twin_after = _tip_rms(truth, [ends[0][k] for k in lines],
+                                       [ends[1][k] for k in lines])
+    print(f"TCP demo on the truth machine: tip error rms {before:.3f} -> {after:.3f} um; its "
+          f"Heidenhain twin (M128): {twin_before:.3f} -> {twin_after:.3f} um")
+    assert twin_before > 5.0
+    assert twin_after <= twin_before / 3
+
+
+def _tip_rms(truth: TruthMachine, src: list[dict], dst: list[dict]) -> tuple[float, float]:
+    """The rms tip error (um) on the truth machine, relative to the part's datum (the workpiece
+    origin), of the moves' ends ``src`` (the program's words) cut at their words ``src`` (before)
+    and at the compensated words ``dst`` (after)."""
     q_src, q_out = _truth_axes(truth, src), _truth_axes(truth, dst)
     datum = _truth_axes(truth, [dict.fromkeys("XYZAC", 0.0)])
     err_datum = truth.true_pose(datum)[0] - truth.nominal_pose(datum)[0]
@@ -122,9 +150,28 @@ def test_a_tcp_program_is_compensated_on_an_independent_machine(tmp_path, capsys
     before = truth.true_pose(q_src)[0] - aim - err_datum
     after = truth.true_pose(q_out)[0] - aim - err_datum
     rms = lambda e: 1e3 * float(np.sqrt(np.mean(np.sum(e ** 2, axis=1))))   # noqa: E731 (um)
-    print(f"TCP demo on the truth machine: tip error rms {rms(before):.3f} -> {rms(after):.3f} um")
-    assert rms(before) > 5.0                        # the machine's error is material here
-    assert rms(after) <= rms(before) / 3
+    return rms(before), rms(after)
+
+
+def _heidenhain_twin(first: int, last: int) -> str:
+    """BOAT's lines first .. last (1-based) as a TNC conversational program in tool centre point
+    mode: each line with axis words an L block with those words (signed), FMAX where G0 is in
+    force, else a feed (the demo's G93 inverse-time feeds mean nothing here; the path is the
+    same); M128 on the first, M129 after the last."""
+    import re
+    out, rapid = ["0 BEGIN PGM BOAT MM"], True
+    for raw in BOAT.read_text().splitlines()[first - 1:last]:
+        code = re.sub(r"\(.*?\)|;.*", "", raw).upper()
+        words = re.findall(r"([A-Z])\s*([-+]?\d*\.?\d*)", code)
+        gs = {float(v) for a, v in words if a == "G"}
+        rapid = True if gs & {0.0} else False if gs & {1.0} else rapid
+        axes = [f"{a}{v if v[0] in '+-' else '+' + v}" for a, v in words if a in "XYZAC"]
+        if axes:
+            tail = "FMAX" if rapid else "F500"
+            m128 = " M128" if len(out) == 1 else ""
+            out.append(f"{len(out)} L {' '.join(axes)} {tail}{m128}")
+    out += [f"{len(out)} M129", f"{len(out) + 1} END PGM BOAT MM"]
+    return "\n".join(out) + "\n"
 
 
 def test_render_of_a_tcp_program_maps_its_report_as_its_compensated_program(tmp_path, capsys):

@@ -14,7 +14,7 @@ from mtcomp.machine import load_machine
 from mtcomp.toolpaths import iter_segment_chunks, write_corrected
 
 XFYZ = load_machine("xfyz")
-HEAD = "G21 G90 G17\nG0 X0 Y0 Z10\n"
+HEAD = "G21 G90 G17\nG0 X0 Y0 Z10.\n"
 
 
 def _read(tmp_path, text, dialect):

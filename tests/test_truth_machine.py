@@ -143,23 +143,25 @@ def test_tool_side_yaw_about_carriage_pivot_by_hand():
     m.pivots["Y"] = p
     q = _q3(np.random.default_rng(4))
     d, _ = m.true_deviation(q)
-    L = m.tool_length_mm
-    arm = np.column_stack([np.zeros(len(q)), np.zeros(len(q)), q[:, 2] - L]) - p    # tip in the Y carriage
+    L0 = m.reference_tool_mm
+    arm = np.column_stack([np.zeros(len(q)), np.zeros(len(q)), q[:, 2] - L0]) - p    # tip in the Y carriage
     assert_allclose(d, arm @ (_rz(eps) - np.eye(3)).T, rtol=1e-12, atol=1e-12)
 
 
-def test_tool_side_pitch_arm_grows_with_the_tool_length():
-    """The Y slide's pivot is fixed on the slide: a tool 90 mm longer puts the tip 90 mm further
-    from it, so a pitch of the slide moves the tip by 90 mm x eps more along Y."""
+def test_tool_side_pitch_arm_does_not_depend_on_the_tool_length():
+    """The Y slide's pivot is fixed on the slide, and with tool length compensation the tip of any
+    tool is at the commanded point (the ram stands higher for a longer tool): a pitch of the slide,
+    which carries the ram and the tool rigidly, moves that point the same for every tool."""
     m = TruthMachine.zero("XFYZ")
+    L0 = m.reference_tool_mm
     eps = 25 * URAD
     p = np.array([10.0, -40.0, 120.0])                   # relative to the gauge point at q = 0
     m.components["Y"]["EAY"] = P.Constant(eps)
     m.pivots["Y"] = p
     q = _q3(np.random.default_rng(8), 5)
-    for L in (0.0, 90.0):
+    arm = np.column_stack([np.zeros(len(q)), np.zeros(len(q)), q[:, 2] - L0]) - p
+    for L in (0.0, 90.0, 250.0):
         d, _ = m.true_deviation(q, L)
-        arm = np.column_stack([np.zeros(len(q)), np.zeros(len(q)), q[:, 2] - L]) - p
         assert_allclose(d, arm @ (_rx(eps) - np.eye(3)).T, rtol=1e-9, atol=1e-12)
 
 
@@ -199,15 +201,21 @@ def test_spindle_tilt_with_two_tool_lengths():
         assert_allclose(d_axis[0], _ry(tb) @ _rx(ta) @ [0, 0, 1.0] - [0, 0, 1], rtol=1e-12, atol=1e-14)
 
 
-def test_z_reference_tool_length_shifts_the_z_argument():
+def test_ram_errors_at_its_machine_position():
+    """Tool length compensation puts the ram at z + L - L0 for the tip of a tool of length L at z
+    (L0 = 100 mm, the xfyz file's): its positioning error, straightness and the squareness of its
+    travel are those of that position; the tool hangs along Z from it."""
     m = TruthMachine.zero("XFYZ")
+    assert m.reference_tool_mm == 100.0
     m.components["Z"]["EZZ"] = P.Linear(0.0, 20 * UM / 400.0)
+    m.components["Z"]["EXZ"] = P.Linear(1 * UM, 8 * UM / 400.0)
+    b0z = 30 * URAD
+    m.squareness["B0Z"] = b0z
     q = np.array([[0.0, 0.0, -100.0]])
-    d_same = m.true_deviation(q, 160.0)[0][0, 2]
-    m.z_reference_tool_mm = 100.0
-    d_shift = m.true_deviation(q, 160.0)[0][0, 2]
-    assert_allclose(d_same, -100 * 20 * UM / 400.0, rtol=1e-9, atol=1e-12)
-    assert_allclose(d_shift, -40 * 20 * UM / 400.0, rtol=1e-9, atol=1e-12)
+    for L, zr in ((100.0, -100.0), (160.0, -40.0), (0.0, -200.0)):
+        d = m.true_deviation(q, L)[0][0]
+        assert_allclose(d[2], zr * 20 * UM / 400.0 + zr * (math.cos(b0z) - 1), rtol=1e-9, atol=1e-12)
+        assert_allclose(d[0], 1 * UM + zr * 8 * UM / 400.0 + zr * math.sin(b0z), rtol=1e-9, atol=1e-12)
 
 
 # ------------------------------------------------------------------------------------- rotary axes

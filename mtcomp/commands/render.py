@@ -149,17 +149,20 @@ def run(args) -> int:
     progress("reading the program")
     tol = None if args.chord_tol_um is None else args.chord_tol_um * 1e-3
     program = read_program_points(args.program, machine, args.dialect, tol)
+    work_offset = _work_offset(setup, machine)
     try:
-        machine.check_travel(program.q, program.line, program.known, args.program)
+        machine.check_travel(program.q if work_offset is None else program.q + work_offset,
+                             program.line, program.known, args.program)
     except InputError as e:
-        # render takes the program's coordinates as axis positions (no work offsets): tell, not refuse
-        print(f"mtcomp render: note: {e} (the program's coordinates taken as axis positions; "
-              "compensate, given the work offsets, checks the travel)", file=sys.stderr)
+        # the map is still drawn: tell, not refuse
+        where = ("the program's coordinates taken as axis positions: give --work-offset or "
+                 "--offsets" if work_offset is None else "the program's coordinates plus the work "
+                 "offset given")
+        print(f"mtcomp render: note: {e} ({where})", file=sys.stderr)
     smap = program_error_map(machine, fitted, program, args.compensated,
                              tool_radius_mm=args.tool_radius_mm, flank_length_mm=args.flank_mm,
                              flank_side=args.flank_side, report=args.report, normal=args.normal,
-                             progress=progress, work_offset=_work_offset(setup, machine),
-                             setup=setup)
+                             progress=progress, work_offset=work_offset, setup=setup)
     for tool in smap.info.get("tools_assumed", ()):
         print(f"assumed: tool length of {tool} = the machine's tool_length_mm "
               f"({machine.tool_length:g} mm); give --tool-length or --offsets")

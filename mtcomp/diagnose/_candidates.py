@@ -139,7 +139,7 @@ def _backlash_profile_candidate(st, a: str, k: int, reads) -> Candidate | None:
 
     def cols(s, k=k, a=a):
         step = 0.5 * s.dirs[:, k] * s.g[a]
-        phis = axis_spline(s.machine.axis(a)).functions(s.q[:, k], False)
+        phis = axis_spline(s.machine.axis(a)).functions(s.guideway(a), False)
         return np.column_stack([step] + [step * phi for phi in phis])
     return Candidate("backlash", a, "profile", cols(st), [term], names, rivals=f"backlash:{a}",
                      info={"complexity": 1}, build=cols)
@@ -248,14 +248,11 @@ def joint_abbe(c1: Candidate, c2: Candidate) -> Candidate:
 def _periodic_candidates(st, design, extra, resid, a: str) -> list[Candidate]:
     lines = [ln for ln in an.spectral_lines(st, resid, a) if ln.fap < LINE_FAP]
     out = []
-    g = st.g[a]
-    k = st.machine.axis_names.index(a)
-    x = st.q[:, k]
     ser = an.axis_series(st, resid, a)
     span = float(np.ptp(ser[0])) if ser is not None else 0.0
     for ln in lines[:2]:
         def cols(period, s=st):
-            w = 2 * np.pi * s.q[:, k] / period
+            w = 2 * np.pi * s.guideway(a) / period
             return np.column_stack([s.g[a] * np.cos(w), s.g[a] * np.sin(w)])
 
         def sse(period):
@@ -304,10 +301,9 @@ def finer_profile_columns(st, a: str, period_mm: float) -> tuple[np.ndarray, flo
     ax = st.machine.axis(a)
     if ax.is_rotary or ax.basis != "bspline":
         return np.zeros((len(st), 0)), 0.0
-    k = st.machine.axis_names.index(a)
     base = axis_spline(ax)
     reads = np.abs(st.g[a]) > 0
-    distinct = np.unique(np.round(st.q[reads, k], 3)).size
+    distinct = np.unique(np.round(st.guideway(a)[reads], 3)).size
     if period_mm / RIVAL_KNOTS_PER_PERIOD < base.h:
         n_intervals = int(np.ceil((base.hi - base.lo) * RIVAL_KNOTS_PER_PERIOD / period_mm))
     else:
@@ -319,7 +315,7 @@ def finer_profile_columns(st, a: str, period_mm: float) -> tuple[np.ndarray, flo
     if n_basis <= base.n_basis:
         return np.zeros((len(st), 0)), 0.0
     fine = spline_basis(base.lo, base.hi, n_basis - 3, 3)
-    return np.column_stack([st.g[a] * phi for phi in fine.functions(st.q[:, k], False)]), fine.h
+    return np.column_stack([st.g[a] * phi for phi in fine.functions(st.guideway(a), False)]), fine.h
 
 
 def _finer_profile_veto(st, design, extra, a: str, cand: Candidate) -> str | None:

@@ -11,12 +11,15 @@ parameters on held-out data, as an extension must (BIC is not asked: most of the
 only weakly determined, and BIC counts each direction at the full log n), and a window of its
 functions about the structure's peak does not explain the gain as well, there (that is a local
 defect, which the diagnosis must report, and no axis is refined), the axis asks for the finer base and the
-diagnosis is run again with it. When the axis asks for none, the other linear axes the structure's
-series moves are tried the same way, about where they stand at the structure's peak. Structure along
-time, feed, temperature or a rotary axis asks nothing of the base.
+diagnosis is run again with it. The other linear axes the structure's series moves are tried the
+same way, about where they stand at the structure's peak; of the axes that ask for a finer base, the
+one whose component gains most is refined (a circle's structure in Z's profiles, read along Y, is
+followed in part by Y's straightness on finer knots, in full by Z's). Structure along time, feed,
+temperature or a rotary axis asks nothing of the base.
 
-The finer columns are the derivative of each reading with respect to a component's value at the
-row's position (recovered from the base's own Jacobian columns: d reading / d c_j = d reading / d E
+The finer columns are the derivative of each reading with respect to a component's value where the
+axis stood (the ram: its commanded position plus the tool's length less the machine's,
+docs/conventions.md "Tool length") (recovered from the base's own Jacobian columns: d reading / d c_j = d reading / d E
 * phi_j(s)) times the finer functions. A reading that depends on one component at two positions (a
 two-point velocity) is not of that form and gets no finer column.
 """
@@ -53,13 +56,12 @@ def data_spacing_mm(st, a: str) -> float:
     positions. Read once (a CMM part's rows, each cut in one direction), a profile that fine would
     follow whatever alternates from row to row, a reversal included, and nothing could tell."""
     from ._analysis import POSITION_DECIMALS, _pose_keys
-    k = st.machine.axis_names.index(a)
     reads = np.flatnonzero(np.abs(st.g[a]) > 0 if a in st.g else np.ones(len(st), dtype=bool))
     if reads.size < 2:
         return float("inf")
     inv = _pose_keys(st, reads)
     repeated = reads[np.bincount(inv)[inv] >= 2]
-    x = np.unique(np.round(st.q[repeated, k], POSITION_DECIMALS))
+    x = np.unique(np.round(st.guideway(a)[repeated], POSITION_DECIMALS))
     return float(np.median(np.diff(x))) if x.size >= 2 else float("inf")
 
 
@@ -83,7 +85,7 @@ def finer_base_columns(st, a: str, beyond_floor: bool = False):
     if n_int <= base.n_intervals:
         return None
     fine = spline_basis(base.lo, base.hi, n_int, base.degree)
-    s = st.q[:, st.machine.axis_names.index(a)]
+    s = st.guideway(a)                  # the ram's profiles are read where it stood
     out = {}
     for comp in linear_component_names(a):
         if beyond_floor and comp == f"E{a}{a}":
@@ -114,7 +116,6 @@ def finer_base(st, design, extra, current, structure):
     """(axis, finer SplineBasis, sentence) when the base at a finer resolution along a linear axis
     the final ``structure`` names takes that structure (see the module docstring), else None.
     ``extra``: the chosen extensions' columns; ``current``: their fit."""
-    from ._analysis import POSITION_DECIMALS
     names = st.machine.axis_names
     linear = [a for a in names if not st.machine.axis(a).is_rotary]
     # (axis, series, lo, hi): where the structure peaks along a linear axis; then, for the other
@@ -129,49 +130,66 @@ def finer_base(st, design, extra, current, structure):
             k = names.index(b)
             if b != a0 and np.ptp(st.q[rows, k]) > 0 and at.any():
                 peaks.append((b, series, float(st.q[at, k].min()), float(st.q[at, k].max())))
-    seen = set()
+    # every axis the structure names is tried; of those whose finer base earns its parameters the one
+    # that gains most takes the structure (a ball-bar circle's structure in Z read along Y: Y's
+    # straightness on finer knots follows part of it, Z's own profiles all of it); a defect found on
+    # an axis before any is refined stops the search (no other axis is refined to take its leak)
+    best, seen = None, set()
     for a, series, lo, hi in peaks:
         if a in seen:
             continue
         seen.add(a)
-        got = finer_base_columns(st, a)
-        if got is None:
-            got = finer_base_columns(st, a, beyond_floor=True)
-        if got is None:
-            continue
-        by_comp, basis = got
-        # each component on its own (one finer than the others must not be diluted by them); the
-        # one that gains most speaks for the axis: when a window takes its gain, the structure is a
-        # defect in one place, and what the others gain is the defect's leak into them
-        tried = []
-        for comp, (fine, centres) in by_comp.items():
-            fit = design.fit(np.hstack([extra, fine]))
-            tried.append((current.cv_sse - fit.cv_sse, fit.rank - current.rank, comp, fine, centres))
-        gain, dk, comp, fine, centres = max(tried, key=lambda t: t[0])
-        if not (dk >= 1 and gain > cv_threshold(dk)):
-            continue
-        # the rival: the finer functions of one window about where the structure peaks
-        c = 0.5 * (lo + hi)
-        half = 0.5 * max(hi - lo, LOCAL_WINDOW * (basis.hi - basis.lo)) + basis.h
-        window = np.abs(centres - c) <= half
-        # a defect is a shape read at several positions; a peak at one or two targets of a coarse
-        # line is the profile between them, not a place
-        k = names.index(a)
-        x = st.q[st.series == series, k]
-        resolved = np.unique(np.round(x[(x >= lo) & (x <= hi)], POSITION_DECIMALS)).size >= MIN_DEFECT_POSITIONS
-        if window.any() and resolved:
-            rival = design.fit(np.hstack([extra, fine[:, window]]))
-            # ... and a rival in one place gains there: a wave at the knots' own scale is also
-            # taken by a few finer functions anywhere, which free the coarse ones everywhere
-            each = np.nan_to_num((current.cv_resid ** 2 - rival.cv_resid ** 2) * design.w ** 2)
-            inside = np.abs(st.q[:, k] - c) <= half
-            local = each[inside].sum() >= LOCAL_SHARE * each.sum()
-            if (local and rival.rank - current.rank <= 0.5 * dk
-                    and current.cv_sse - rival.cv_sse >= RIVAL_SHARE * gain):
-                return None                 # a defect: no other axis is refined to take its leak
-        where = "not in one place" if resolved else "at a peak too narrow to be a place"
-        text = (f"the base of {a} at {basis.n_basis} spline functions (knots {basis.h:.3g} mm apart) "
-                f"takes the structure along {a}: {comp} alone on them lowers the held-out sum of "
-                f"squares by {gain:.3g} noise variances for {dk} parameters, {where}")
-        return a, basis, text
-    return None
+        got = _axis_refinement(st, design, extra, current, a, series, lo, hi)
+        if got == "defect":
+            return None if best is None else best[1:]
+        if got is not None and (best is None or got[0] > best[0]):
+            best = got
+    return None if best is None else best[1:]
+
+
+def _axis_refinement(st, design, extra, current, a, series, lo, hi):
+    """(gain, axis, finer SplineBasis, sentence) when the base of linear axis ``a`` at a finer
+    resolution earns its parameters on held-out data, "defect" when a window of its finer functions
+    about the structure's peak (``series`` between ``lo`` and ``hi`` along ``a``) takes that gain
+    there, else None (:func:`finer_base`)."""
+    from ._analysis import POSITION_DECIMALS
+    got = finer_base_columns(st, a)
+    if got is None:
+        got = finer_base_columns(st, a, beyond_floor=True)
+    if got is None:
+        return None
+    by_comp, basis = got
+    # each component on its own (one finer than the others must not be diluted by them); the
+    # one that gains most speaks for the axis: when a window takes its gain, the structure is a
+    # defect in one place, and what the others gain is the defect's leak into them
+    tried = []
+    for comp, (fine, centres) in by_comp.items():
+        fit = design.fit(np.hstack([extra, fine]))
+        tried.append((current.cv_sse - fit.cv_sse, fit.rank - current.rank, comp, fine, centres))
+    gain, dk, comp, fine, centres = max(tried, key=lambda t: t[0])
+    if not (dk >= 1 and gain > cv_threshold(dk)):
+        return None
+    # the rival: the finer functions of one window about where the structure peaks
+    c = 0.5 * (lo + hi)
+    half = 0.5 * max(hi - lo, LOCAL_WINDOW * (basis.hi - basis.lo)) + basis.h
+    window = np.abs(centres - c) <= half
+    # a defect is a shape read at several positions; a peak at one or two targets of a coarse
+    # line is the profile between them, not a place
+    k = st.machine.axis_names.index(a)
+    x = st.q[st.series == series, k]
+    resolved = np.unique(np.round(x[(x >= lo) & (x <= hi)], POSITION_DECIMALS)).size >= MIN_DEFECT_POSITIONS
+    if window.any() and resolved:
+        rival = design.fit(np.hstack([extra, fine[:, window]]))
+        # ... and a rival in one place gains there: a wave at the knots' own scale is also
+        # taken by a few finer functions anywhere, which free the coarse ones everywhere
+        each = np.nan_to_num((current.cv_resid ** 2 - rival.cv_resid ** 2) * design.w ** 2)
+        inside = np.abs(st.q[:, k] - c) <= half
+        local = each[inside].sum() >= LOCAL_SHARE * each.sum()
+        if (local and rival.rank - current.rank <= 0.5 * dk
+                and current.cv_sse - rival.cv_sse >= RIVAL_SHARE * gain):
+            return "defect"
+    where = "not in one place" if resolved else "at a peak too narrow to be a place"
+    text = (f"the base of {a} at {basis.n_basis} spline functions (knots {basis.h:.3g} mm apart) "
+            f"takes the structure along {a}: {comp} alone on them lowers the held-out sum of "
+            f"squares by {gain:.3g} noise variances for {dk} parameters, {where}")
+    return gain, a, basis, text

@@ -28,7 +28,7 @@ import numpy as np
 from ..errors import InputError
 from ..measurement.files import MeasurementSet
 from ..machine import Machine
-from ..models.chain import ErrorModel
+from ..models.chain import ErrorModel, ram_axis
 from ..models.terms import AbbeIRC, Backlash, RotaryErrorMotion, ThermalDrift, positioning_component
 
 #: name of the constant context channel the probe's drift terms read
@@ -140,6 +140,14 @@ class Stack:
 
     def index(self, name: str) -> int:
         return self.probe.param_names.index(name)
+
+    def guideway(self, a: str) -> np.ndarray:
+        """(n,) where axis ``a`` stood on its guideway at each observation, where its error profiles
+        were read (mm, rad): the commanded position, but for the ram that of a row whose tool is
+        longer than the machine's by d is q + d (docs/conventions.md, "Tool length"; the model's
+        own rule, :func:`mtcomp.models.chain.ram_axis`)."""
+        s = self.q[:, self.machine.axis_names.index(a)]
+        return s + (self.setup[:, 0] - self.machine.tool_length) if a == ram_axis(self.machine) else s
 
     def columns(self, names) -> np.ndarray:
         """(n, k) probe Jacobian columns of the named parameters."""

@@ -345,6 +345,26 @@ def _evaluation_pose(machine, region: dict) -> np.ndarray:
                      for a in machine.axis_names])
 
 
+#: the deviation at the reference position below which it goes unmentioned (um, urad)
+CONSTANT_NOTE_MIN = 0.1
+
+
+def _constant_note(zero: np.ndarray) -> list:
+    """A note on what no table carries: the deviation ``zero`` (6,) (mm, rad) the model predicts with
+    every axis at its reference position, from which every table is measured (none when each
+    component is below CONSTANT_NOTE_MIN um or urad)."""
+    um, urad = zero[:3] * 1e3, zero[3:] * 1e6
+    if not (np.nanmax(np.abs(um)) >= CONSTANT_NOTE_MIN or np.nanmax(np.abs(urad)) >= CONSTANT_NOTE_MIN):
+        return []
+    parts = [f"d{c} {v:+.2f} um" for c, v in zip("xyz", um) if abs(v) >= CONSTANT_NOTE_MIN]
+    parts += [f"a turn of {v:+.2f} urad about {c.upper()}" for c, v in zip("xyz", urad)
+              if abs(v) >= CONSTANT_NOTE_MIN]
+    return [f"with every axis at its reference position the model predicts {', '.join(parts)}: no "
+            "table carries it (each table is zero there); a work offset taken on the part takes the "
+            "translation, and a turn is the machine's set-up there (a rotary axis's zero offset: its "
+            "home offset), which compensate corrects and these tables do not"]
+
+
 def reference_notes(machine, axes) -> list:
     """One line per axis of ``axes`` whose machine zero lies outside its travel: where its reference
     position is taken instead, and why."""
@@ -455,7 +475,7 @@ def component_tables(fitted, grids: dict, region: dict | None = None,
             dropped.append(a)
             continue
         tables[a] = AxisTable(a, ax.is_rotary, g, fwd, rev, ref, known, (float(lo), float(hi)))
-    notes = list(notes or []) + reference_notes(machine, tables) + uncertain
+    notes = list(notes or []) + reference_notes(machine, tables) + uncertain + _constant_note(zero[0])
     if max_sd_um and fitted.uncertainty is None:
         notes.append("the model carries no covariance (identify, diagnose and a thermal diagnosis "
                      "write one; an older model file may not): no table could be checked against "

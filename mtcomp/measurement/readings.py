@@ -42,7 +42,7 @@ import numpy as np
 from ..errors import InputError
 from .drift import feature_value
 from .files import MeasurementSet
-from ..models.chain import ErrorModel, context_defaults as base_context_defaults
+from ..models.chain import ErrorModel, context_defaults as base_context_defaults, ram_axis
 from ..models.function_cache import model_function
 from ..models.params import ParamSpec
 
@@ -73,21 +73,34 @@ def measurement_model(model: ErrorModel, data: MeasurementSet, context_defaults:
 
 
 def data_positions(machine, datasets) -> dict[str, np.ndarray]:
-    """Axis name -> every position that axis took in the files' rows (mm, rad); files without axis
-    positions (thermal) add nothing."""
+    """Axis name -> every position that axis took on its guideway in the files' rows (mm, rad), where
+    its error profiles were read: the commanded position, but for the ram that of a row's tool
+    (``tool_mm``) longer than the machine's by d is q_Z + d (docs/conventions.md, "Tool length");
+    files without axis positions (thermal) add nothing."""
+    return _positions_by_axis(machine, datasets, guideway=True)
+
+
+def _positions_by_axis(machine, datasets, guideway: bool) -> dict[str, np.ndarray]:
     out: dict[str, list] = {a: [] for a in machine.axis_names}
-    for _, q in _positions_by_file(machine, datasets):
+    for _, q in _positions_by_file(machine, datasets, guideway):
         for j, a in enumerate(machine.axis_names):
             out[a].append(q[:, j])
     return {a: np.concatenate(v) for a, v in out.items() if v}
 
 
-def _positions_by_file(machine, datasets):
-    """(file's data, (n, n_axes) axis positions) of each file with axis positions and rows."""
+def _positions_by_file(machine, datasets, guideway: bool = False):
+    """(file's data, (n, n_axes) axis positions) of each file with axis positions and rows: the
+    commanded ones, or with ``guideway`` the ram's at its machine position (:func:`data_positions`)."""
+    ram = ram_axis(machine)
     for d in datasets:
         data = d.data if isinstance(d, MeasurementModel) else d
         if hasattr(data, "axis_positions") and len(data):
-            yield data, np.asarray(data.axis_positions(machine), dtype=float)
+            q = np.asarray(data.axis_positions(machine), dtype=float)
+            tool = getattr(data, "tool", None)
+            if guideway and ram is not None and isinstance(tool, np.ndarray) and tool.shape == (len(q),):
+                q = q.copy()
+                q[:, machine.index(ram)] += np.nan_to_num(tool - machine.tool_length)
+            yield data, q
 
 
 def outside_travel(machine, datasets) -> list[str]:
@@ -151,7 +164,7 @@ def data_spline_sizes(machine, datasets) -> dict[str, int]:
     lines = single_axis_lines(machine, datasets)
     if not lines:
         return {}
-    ranges = _position_ranges(machine, datasets)
+    ranges = _position_ranges(machine, datasets, guideway=True)
     out = {}
     for a, ls in lines.items():
         ax = machine.axis(a)
@@ -163,10 +176,11 @@ def data_spline_sizes(machine, datasets) -> dict[str, int]:
     return out
 
 
-def _position_ranges(machine, datasets) -> dict[str, tuple[float, float]]:
-    """Axis name -> (lowest, highest) finite position in the files' rows (internal units)."""
+def _position_ranges(machine, datasets, guideway: bool = False) -> dict[str, tuple[float, float]]:
+    """Axis name -> (lowest, highest) finite position in the files' rows (internal units): commanded,
+    or with ``guideway`` where each axis stood on its guideway (:func:`data_positions`)."""
     out = {}
-    for a, v in data_positions(machine, datasets).items():
+    for a, v in _positions_by_axis(machine, datasets, guideway).items():
         v = v[np.isfinite(v)]
         if v.size:
             out[a] = (float(v.min()), float(v.max()))

@@ -17,8 +17,9 @@ with the machine frame when every axis is at zero):
 
   where u_L is the axis direction tilted by the squareness errors (u_Y = Rz(C0Y) e_y,
   u_Z = Ry(B0Z) Rx(A0Z) e_z), delta = (EXL, EYL, EZL)(s) and eps = (EAL, EBL, ECL)(s) are the
-  component errors, r the carriage's reference point (the spindle gauge point at q = 0 for tool-side
-  axes, the workpiece origin for table axes) and o_a the shift of the centre of rotation a (zero in
+  component errors, r the carriage's reference point, a point fixed on the carriage (for tool-side
+  axes the spindle gauge point at q = 0 with the machine's reference tool, (0, 0, L0), whatever tool
+  is in the spindle; the workpiece origin for table axes) and o_a the shift of the centre of rotation a (zero in
   the base model, the IRC of Yang et al. (2020) with :class:`~mtcomp.models.terms.AbbeIRC`). Component errors
   are those a laser would read for the tool relative to the workpiece, so on the workpiece side the
   table's transform is the inverse of the one above (Qi and Yang (2016), eq. 17, do the same with
@@ -32,7 +33,12 @@ with the machine frame when every axis is at zero):
   line (C: Ry(B0C) Rx(A0C)), E_RR the angular positioning error (ECC for C) and delta_m, eps_m the
   error motions (EXC, EYC, EZC, EAC, EBC for C) in the fixed frame at P'.
 
-The tool tip is at (0, 0, -TOOL_dL) in the last tool-side frame, the tool axis is its +Z.
+Tool length: the carriage frames are those of the reference tool (length L0, the machine file's
+``tool_length_mm``): with every axis at zero its tip is at the origin. A tool of length L (context
+``tool_length``) at commanded position q puts the ram (Z, :func:`ram_axis`) at its machine position
+s = q_Z + (L - L0), where its nominal translation and error profiles are evaluated, and the tool tip
+L - L0 further down the actual tool axis (:meth:`ErrorModel._axis_transform`). The tool tip is at
+(0, 0, -TOOL_dL) in the last tool-side frame, the tool axis is its +Z. With L = L0 nothing moves.
 Outputs: tool tip and tool axis in the workpiece frame, their deviations (actual minus nominal), and
 Jacobians with respect to q and p.
 """
@@ -216,6 +222,15 @@ def base_param_specs(machine: Machine) -> list[ParamSpec]:
     return specs
 
 
+def ram_axis(machine: Machine) -> str | None:
+    """The ram: the axis that carries the spindle and that tool length compensation moves, Z when it is
+    the last axis of the tool chain (XFYZ, CAFXYZ, CBFXYZ); None otherwise (a Z that moves the table
+    or carries another axis: its errors stay functions of the commanded q_Z). A tool of length L puts
+    the ram at its machine position q_Z + L - L0, L0 the machine file's tool length
+    (docs/conventions.md)."""
+    return "Z" if machine.tool_chain and machine.tool_chain[-1] == "Z" else None
+
+
 # --------------------------------------------------------------------------------- the model
 class ErrorModel:
     """The symbolic error model of one machine with a given set of extension terms.
@@ -326,13 +341,19 @@ class ErrorModel:
         P = {name: p[i] for i, name in enumerate(self.param_names)}
         C = {name: c[i] for i, name in enumerate(self.context_names)}
         par = P.__getitem__
+        # a tool longer than the reference tool by `shift` puts the ram `shift` higher for the same
+        # tip (tool length compensation): its errors are those of its machine position q + shift
+        ram = ram_axis(m)
+        shift = C["tool_length"] - m.tool_length
         wp = (ca.SX.eye(3), ca.SX.zeros(3))
         for name in m.workpiece_chain:
             wp = compose(wp, self._axis_transform(name, q[m.index(name)], P, C))
         tl = (ca.SX.eye(3), ca.SX.zeros(3))
         for name in m.tool_chain:
-            tl = compose(tl, self._axis_transform(name, q[m.index(name)], P, C))
-        # the tool axis tilted by the spindle tilt about the gauge point (0, 0, tool_length)
+            tl = compose(tl, self._axis_transform(name, q[m.index(name)], P, C,
+                                                  shift if name == ram else None))
+        # the tool axis tilted by the spindle tilt about the gauge point (0, 0, tool_length) above the
+        # tip (fixed on the ram)
         tilt = ca.mtimes(rot(1, par("B0S")), rot(0, par("A0S")))
         tl = compose(tl, rot_about_point(tilt, ca.vertcat(0, 0, C["tool_length"])))
         tool2wp = compose(inverse(wp), tl)
@@ -368,11 +389,12 @@ class ErrorModel:
             if "B0Z" in P or "A0Z" in P:
                 u = ca.mtimes(ca.mtimes(rot(1, par("B0Z") if "B0Z" in P else 0),
                                         rot(0, par("A0Z") if "A0Z" in P else 0)), u)
-        r = ca.vertcat(0, 0, C["tool_length"]) if ax.side == "tool" else ca.SX.zeros(3)
+        r = ca.vertcat(0, 0, m.tool_length) if ax.side == "tool" else ca.SX.zeros(3)
         return u, comps, centres, r
 
-    def _axis_transform(self, name, s, P, C):
-        """One axis's carriage transform with its errors (the chain of the module notes)."""
+    def _axis_transform(self, name, s, P, C, shift=None):
+        """One axis's carriage transform with its errors (the chain of the module notes); for the ram
+        (:func:`ram_axis`) ``shift`` = L - L0, the tool's length less the reference tool's."""
         m = self.machine
         par = P.__getitem__
         ax = m.axis(name)
@@ -409,8 +431,16 @@ class ErrorModel:
             return (R, point + delta_m - ca.mtimes(R, point))
 
         # linear axis
-        u, comps, centres, r = self.linear_parts(name, s, P, C)
-        A = trans(s * u)
+        if shift is None:
+            u, comps, centres, r = self.linear_parts(name, s, P, C)
+            A = trans(s * u)
+        else:
+            # the ram at its machine position s + shift, then the tool's tip `shift` further down,
+            # written in the frame of that tip so that the nominal chain is exact in floating point:
+            # Trans(s u + shift (u - e_d)) and the angular errors about r + shift e_d
+            u, comps, centres, r = self.linear_parts(name, s + shift, P, C)
+            A = trans(s * u + shift * (u - unit(d)))
+            r = r + shift * unit(d)
         A = compose(A, trans(ca.vertcat(*[comps[f"E{TRANSLATION_LETTERS[j]}{name}"] for j in range(3)])))
         for j, a in enumerate(ANGLE_LETTERS):
             A = compose(A, rot_about_point(rot(j, comps[f"E{a}{name}"]), r + centres[a]))

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._qp import OSQP_MAX_ITER, solve_data
+
 
 def tied(step_lo: np.ndarray, step_hi: np.ndarray) -> np.ndarray:
     """(n,) bool: nodes whose every correction equals the one before (both step bounds zero)."""
@@ -75,15 +77,15 @@ class GroupedQP:
         x_start = np.zeros((G, na))
         np.add.at(x_start, gid, x0)
         x_start /= np.bincount(gid, minlength=G)[:, None]
+        q, lower, upper = gg.reshape(-1), np.concatenate(l_parts), np.concatenate(u_parts)
         solver = osqp.OSQP()
-        solver.setup(P, gg.reshape(-1), A, np.concatenate(l_parts), np.concatenate(u_parts),
-                     verbose=False, eps_abs=self.eps, eps_rel=self.eps, polishing=True,
-                     max_iter=200000, warm_starting=True, adaptive_rho=True, polish_refine_iter=10)
+        solver.setup(P, q, A, lower, upper, verbose=False, eps_abs=self.eps, eps_rel=self.eps,
+                     polishing=True, max_iter=OSQP_MAX_ITER, warm_starting=True, adaptive_rho=True, polish_refine_iter=10)
         solver.warm_start(x=np.ascontiguousarray(np.clip(x_start, lo, hi).reshape(-1)))
-        res = solver.solve(raise_error=False)
-        if res.x is None or res.x[0] is None:
-            return np.zeros((N, na)), res.info.status
-        return np.asarray(res.x, dtype=float).reshape(G, na)[gid], res.info.status
+        x, status = solve_data(solver, P, q, A, lower, upper)
+        if x is None or not np.all(np.isfinite(x)):
+            return np.zeros((N, na)), status
+        return x.reshape(G, na)[gid], status
 
 
 #: a run's never-worse rows become one row per direction where its nodes' rows differ by so little

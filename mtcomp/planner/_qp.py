@@ -26,6 +26,76 @@ import numpy as np
 
 from ._bounds import INF
 
+#: OSQP's status value when it stopped on a Ctrl-C (osqp.interface.SolverStatus.OSQP_SIGINT): OSQP
+#: catches SIGINT during a solve and returns, so the interrupt is raised again here
+OSQP_SIGINT = 10
+#: ... and when it stopped at its iteration limit (OSQP_MAX_ITER_REACHED)
+OSQP_MAX_ITER_REACHED = 7
+
+
+#: OSQP's iterations at most on one window (its setting ``max_iter``). OSQP (first-order, ADMM)
+#: solves the common window in tens of iterations, and the planner's tests' hardest in 17,475; a
+#: window of 2,011 blocks under a backlash's reversal rule (a user's router program) had not
+#: converged after 20,000 (11 s) and took 200,000 (245 s of a loaded machine) to "solved
+#: inaccurate". Past this count the window goes to the interior-point solver below.
+OSQP_MAX_ITER = 20000
+
+
+def osqp_solve(solver):
+    """``solver.solve()`` (an ``osqp.OSQP``), its result; KeyboardInterrupt when a Ctrl-C stopped it
+    (OSQP traps the signal and returns its best iterate so far: planning on with that would write a
+    program the user asked not to have)."""
+    res = solver.solve(raise_error=False)
+    if res.info.status_val == OSQP_SIGINT:
+        raise KeyboardInterrupt
+    return res
+
+
+def _with_data(pattern, data: np.ndarray):
+    """The sparse matrix ``pattern`` (CSC) with the values ``data`` (no copy of its structure)."""
+    m = pattern.copy()
+    m.data = data
+    return m
+
+
+_CLARABEL_STATUS = {"Solved": "solved", "AlmostSolved": "solved inaccurate",
+                    "PrimalInfeasible": "primal infeasible",
+                    "AlmostPrimalInfeasible": "primal infeasible"}
+
+
+def interior_point_solve(P, q, A, lower, upper):
+    """``min 1/2 x'Px + q'x`` s.t. ``lower <= A x <= upper`` (OSQP's form: P upper triangle, CSC;
+    bounds of magnitude >= INF are absent, equal ones equalities) by Clarabel's interior-point
+    method, which converges in a few tens of iterations whatever the conditioning, where OSQP
+    did not within OSQP_MAX_ITER. Returns (x, status in OSQP's words: 'solved', 'solved
+    inaccurate', 'primal infeasible', or Clarabel's own)."""
+    import clarabel
+    import scipy.sparse as sp
+    eq = lower == upper
+    hi = ~eq & (upper < INF)
+    lo = ~eq & (lower > -INF)
+    M = sp.vstack([A[eq], A[hi], -A[lo]], format="csc")
+    b = np.concatenate([upper[eq], upper[hi], -lower[lo]])
+    cones = [clarabel.ZeroConeT(int(eq.sum())), clarabel.NonnegativeConeT(int(hi.sum() + lo.sum()))]
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    sol = clarabel.DefaultSolver(sp.triu(P, format="csc"), np.asarray(q, float), M, b, cones,
+                                 settings).solve()
+    status = str(sol.status)
+    return np.asarray(sol.x, dtype=float), _CLARABEL_STATUS.get(status, status)
+
+
+def solve_data(solver, P, q, A, lower, upper):
+    """(x, status) of the QP an ``osqp.OSQP`` ``solver`` was set up (or updated) with, whose data
+    are P, q, A, lower, upper: OSQP's solution, or the interior-point one where OSQP ran out of
+    iterations (:func:`interior_point_solve`)."""
+    res = osqp_solve(solver)
+    if res.info.status_val != OSQP_MAX_ITER_REACHED:
+        x = res.x                        # None, or Nones, where OSQP has no iterate (infeasible)
+        x = None if x is None or (len(x) and x[0] is None) else np.asarray(x, dtype=float)
+        return x, res.info.status
+    return interior_point_solve(P, q, A, lower, upper)
+
 #: a bounded window keeps every block's deviation, per direction the objective counts, within this
 #: (um, or the weighted urad of the tool axis) of the uncorrected one: half the output grid (the
 #: written correction is rounded to it)
@@ -97,8 +167,9 @@ class WindowQP:
         self.m = A.shape[0]
         A.data = self._values(np.zeros((N - 1, self.rows, na)))
         self.solver = osqp.OSQP()
+        self._P, self._A = P, A                    # the patterns, for the interior-point solver
         self.solver.setup(P, np.zeros(nv), A, -np.ones(self.m), np.ones(self.m), verbose=False,
-                          eps_abs=eps, eps_rel=eps, polishing=True, max_iter=200000,
+                          eps_abs=eps, eps_rel=eps, polishing=True, max_iter=OSQP_MAX_ITER,
                           warm_starting=True, adaptive_rho=True, polish_refine_iter=10)
         self.solves = 0
 
@@ -134,9 +205,11 @@ class WindowQP:
             worse_hi = -worse_lo
         l = np.concatenate([lower.reshape(-1), step_lo.reshape(-1), worse_lo.reshape(-1)])
         u = np.concatenate([upper.reshape(-1), step_hi.reshape(-1), worse_hi.reshape(-1)])
-        self.solver.update(Px=self._p_data(H), q=np.ascontiguousarray(g.reshape(-1)), l=l, u=u,
-                           Ax=self._values(J))
+        Px, q, Ax = self._p_data(H), np.ascontiguousarray(g.reshape(-1)), self._values(J)
+        self.solver.update(Px=Px, q=q, l=l, u=u, Ax=Ax)
         self.solver.warm_start(x=np.ascontiguousarray(x0.reshape(-1)))
-        res = self.solver.solve(raise_error=False)
+        x, status = solve_data(self.solver, _with_data(self._P, Px), q, _with_data(self._A, Ax), l, u)
         self.solves += 1
-        return np.asarray(res.x).reshape(self.N, self.na), res.info.status
+        if x is None:
+            return np.full((self.N, self.na), np.nan), status
+        return x.reshape(self.N, self.na), status

@@ -32,6 +32,7 @@ from ..errors import InputError
 from ..io.atomic import atomic_write
 from .blocks import SegmentChunk
 from .reader import new_state
+from .word_use import POINT_DIALECTS
 from .words import PROGRESS_LINES
 from .writer import (OutputState, _line_ending, format_motion_lines, write_pass_through,
                      writer_stats)
@@ -198,6 +199,7 @@ class _Driver:
         st[21] = float(self.state.frame)
         st[17] = float(self.out.absolute)
         st[22] = -1.0
+        st[25] = float(self.state.dialect.name in POINT_DIALECTS)
         self.st = st
         self.letter_col = np.full(26, -1, np.int32)
         for j, c in enumerate(machine.axis_names):

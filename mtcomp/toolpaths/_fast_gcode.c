@@ -13,7 +13,8 @@
  * 18 separator is CRLF, 19 Python takes every line (drilling cycle or G93 in force), 20 bit mask of
  * the axes whose position the program has given, 21 frame code (work offset, tool length number),
  * 22 motion word in force in the output (-1 unknown, 0, 1), 23 lines written with axis words they
- * did not name, 24 the first of them (0: none).
+ * did not name, 24 the first of them (0: none), 25 the dialect reads an axis word without a decimal
+ * point in the least input increment (fanuc, haas: such a word other than zero goes to Python).
  * last (double[na]): per axis the position last written (mm, rad, read back from its text; NaN:
  * none yet). A coordinate is written when its text differs from the text of that value.
  *
@@ -238,6 +239,8 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                 if (col < 0 || (seen & (1u << col))) { simple = 0; break; }
                 const char *dot = memchr(ts, '.', (size_t)(p - ts));
                 if (dot && p - dot - 1 > 15) { simple = 0; break; }   /* more decimals: Python */
+                /* no point: Fanuc and Haas read the least input increment (word_use.py): Python */
+                if (!dot && v != 0.0 && state[25] != 0.0) { simple = 0; break; }
                 seen |= 1u << col;
                 vals[col] = v;
                 ax_s[col] = ts; ax_e[col] = p;

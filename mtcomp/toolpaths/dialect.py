@@ -79,7 +79,9 @@ _CLUES = [
     ("fanuc", re.compile(r"(?i)^\s*(?:n\s*\d+\s*)?(?:" + _MACRO_STATEMENT + r")")),
     ("fanuc", re.compile(r"^\s*[Oo:]\s*\d+\s*(?:\([^()]*\)\s*)*$")),   # a program number O1234
     ("grbl", re.compile(r"^\s*(?:\$[A-Za-z$#]|[?~!]\s*$)")),
-    ("heidenhain", re.compile(r"(?i)^\s*\d+\s+BEGIN\s+PGM\b")),
+    # a TNC conversational program's BEGIN PGM, a DIN/ISO program's first block %NAME G71 *
+    ("heidenhain", re.compile(r"(?i)^\s*\d+\s+BEGIN\s+PGM\b|"
+                              r"^\s*(?:N\s*\d+\s*)?%\s*\S+\s+G\s*7[01]\s*\*?\s*(?:;.*)?$")),
     # Sinumerik: its file header, its path line, a DEF of a variable, a standard cycle call, a
     # message to the operator MSG("...")
     ("sinumerik", re.compile(r"(?i)^\s*%(?:_N_\w+_(?:MPF|SPF)|MPF|SPF)\b|^\s*;\s*\$PATH=|"

@@ -18,7 +18,9 @@ TNC 640, HEIDENHAIN 2015-2022; TNC 370, HEIDENHAIN 1995 for the direction of rot
   carry it as G-code's do. A ``C`` block may repeat the compensation in force; one that changes it
   is refused (switch it on a straight line ``L``).
 * ``CC X Y``: the circle centre (modal); ``C X Y DR+`` / ``DR-``: an arc about it to the end point,
-  counter-clockwise / clockwise (``C DR-`` without coordinates: a full circle).
+  counter-clockwise / clockwise (``C DR-`` without coordinates, or ending at its start: a full
+  circle). ``CR X Y R.. DR+``: an arc by its radius (R > 0 at most 180 degrees, R < 0 more),
+  about the centre that makes; one ending at its start is refused (no radius places its centre).
 * ``TOOL CALL n Z``: a tool change (as ``T n M6 G43 H n``: the tool length of H n, Z unknown).
 * ``CYCL DEF 7`` datum shift: the program's coordinates are shifted by it from then on (relative
   to the workpiece datum, ``IX`` relative to the last shift); read here as positions in the
@@ -27,7 +29,10 @@ TNC 640, HEIDENHAIN 2015-2022; TNC 370, HEIDENHAIN 1995 for the direction of rot
   tool's position (its set-up clearance above the surface) to the depth, back to that position
   (as a G99 G81 cycle with R at the start level and Z at the bottom). ``CYCL DEF 9`` dwell.
 
-Everything else is refused in one line naming the construct: other cycles, ``CR``/``CT``/polar and FK contours, ``RND``/``CHF``, ``APPR``/``DEP``, ``LBL`` and
+A program whose first block is ``%NAME G71 *`` is the TNC's DIN/ISO language, read by this
+reader's :class:`~.heidenhain_iso.IsoReader` (:func:`.heidenhain_iso.translate` reads either).
+
+Everything else is refused in one line naming the construct: other cycles, ``CT``/polar and FK contours, ``RND``/``CHF``, ``APPR``/``DEP``, ``LBL`` and
 ``CALL``, ``CYCL CALL``, ``FN`` and Q parameters, ``PLANE``, incremental or empty ``CC``, the TNC's path functions
 ``M89`` and ``M90`` and up (but M91, M92, M99), tools by name, ``DL`` deltas, other tool axes.
 """
@@ -37,6 +42,9 @@ import re
 from dataclasses import dataclass, field
 
 from ..errors import InputError
+from .heidenhain_tcp import TcpMode
+from .sinumerik_paths import RadiusError, radius_centre
+from .words import MM_PER_INCH
 
 AXES = "XYZABC"
 _BLOCK = re.compile(r"^\s*(\d+)\s*(.*?)\s*$")
@@ -46,7 +54,7 @@ _NUMBER = r"[+-]?\s*(?:\d+\.?\d*|\.\d+)"
 _KEYWORD = re.compile(r"^(BEGIN PGM|END PGM|BLK FORM|TOOL DEF|TOOL CALL|CYCLE? DEF|CYCL CALL|"
                       r"CC|CR|CTP|CT|CP|C|LP|LN|L|STOP|M)(?![A-Z])")
 #: keywords of constructs refused by name, and what they are
-_REFUSED = {"CR": "an arc by its radius (CR)", "CT": "a tangential arc (CT)",
+_REFUSED = {"CT": "a tangential arc (CT)",
             "CP": "a polar arc (CP)", "CTP": "a polar tangential arc (CTP)",
             "LP": "a polar straight line (LP)", "LN": "a straight line with a normal vector (LN)",
             "RND": "a rounding (RND)", "CHF": "a chamfer (CHF)", "APPR": "an approach (APPR)",
@@ -59,6 +67,11 @@ _REFUSED = {"CR": "an arc by its radius (CR)", "CT": "a tangential arc (CT)",
             "CYCL CALL": "CYCL CALL (the hole's position is not in the block: call the cycle "
                          "with M99 on its positioning block L)"}
 _CYCLES = {1: "PECKING", 7: "DATUM SHIFT", 9: "DWELL TIME"}
+#: the first block of a TNC DIN/ISO program: ``%NAME G71 *`` (G70: inch), also numbered
+ISO_BEGIN = re.compile(r"(?i)^\s*(?:N\s*\d+\s*)?%\s*(\S+)\s+G\s*7([01])\s*\*?\s*(?:;.*)?$")
+#: the radius R of a CR block (signed; not the radius compensation R0)
+CR_RADIUS = re.compile(r"(?<![A-Z])R\s*([+-]\s*(?:\d+\.?\d*|\.\d+)|\d*\.\d+|\d+\.|[1-9]\d*)"
+                       r"(?![\dA-Z])")
 #: radius compensation word -> the G code that says the same (G40 off, G41 left, G42 right)
 _RADIUS_COMP = {"R0": 40, "RL": 41, "RR": 42}
 
@@ -75,6 +88,8 @@ class LineInfo:
     incremental: frozenset = frozenset()
     centre: tuple | None = None
     cc_line: int | None = None
+    #: a CR's radius R (signed, program units); None for every other line
+    radius: float | None = None
 
 
 @dataclass
@@ -85,6 +100,8 @@ class Translation:
     gcode: list = field(default_factory=list)
     lines: list = field(default_factory=list)
     inch: bool = False
+    #: a DIN/ISO program (:mod:`.heidenhain_iso`), not a conversational one
+    iso: bool = False
 
 
 def _num(text: str) -> float:
@@ -103,8 +120,12 @@ class _Cycle:
     feed: float | None
 
 
-class _Reader:
-    """The state a conversational program carries from line to line (see the module docstring)."""
+class _Reader(TcpMode):
+    """The state a conversational program carries from line to line (see the module docstring;
+    the tool centre point mode: :class:`~.heidenhain_tcp.TcpMode`)."""
+
+    #: the language named in a refusal, an arc and its centre as the language writes them
+    LANGUAGE, ARC, CENTRE = "Heidenhain conversational", "C", "CC"
 
     def __init__(self, path):
         self.path = path
@@ -126,6 +147,10 @@ class _Reader:
 
     def line(self, k: int, text: str) -> tuple[str, LineInfo]:
         """(G-code, info) of source line k (0-based)."""
+        g, info = self._line(k, text)
+        return self.tcp_after(g), info
+
+    def _line(self, k: int, text: str) -> tuple[str, LineInfo]:
         info = LineInfo(shift=tuple(self.shift))
         body = text.strip()
         first = body.split(maxsplit=1)[0] if body else ""
@@ -141,6 +166,9 @@ class _Reader:
             return "", info
         if not self.started:
             return self._begin(code, k), info
+        tcp = self.tcp_function(code, k)
+        if tcp is not None:
+            return tcp, info
         key = _KEYWORD.match(code)
         if key is None:
             word = re.match(r"[A-Z]+", code)
@@ -150,16 +178,31 @@ class _Reader:
             raise self.err(f"{what or repr(code)} is not read by mtcomp (Heidenhain "
                            "conversational)", k)
         name, rest = key.group(1), code[key.end():].strip()
+        if name == "CR" and self._ends_at_start(rest, k):
+            raise self.err("a CR ending at its start (a full circle) is not read by mtcomp: no "
+                           "radius places its centre, and the TNC's manual programs a full circle "
+                           "as two CR semicircles (or as C about a CC)", k)
         if name in _REFUSED:
             raise self.err(f"{_REFUSED[name]} is not read by mtcomp (Heidenhain conversational)", k)
         if re.search(r"\bQ\d|\bFN\b", rest):
             raise self.err("Q parameters are not read by mtcomp (Heidenhain conversational)", k)
-        handler = {"L": self._l, "C": self._c, "CC": self._cc, "TOOL CALL": self._tool_call,
+        switch = self.tcp_block(name, rest, k)       # M128 / M129
+        handler = {"L": self._l, "C": self._c, "CR": self._cr, "CC": self._cc,
+                   "TOOL CALL": self._tool_call,
                    "CYCL DEF": self._cycl_def, "CYCLE DEF": self._cycl_def,
                    "M": self._m_only}.get(name)
         if handler is None:         # END PGM, BLK FORM, TOOL DEF, STOP
             return "", info
-        return handler(rest, k, info)
+        g, info = handler(rest, k, info)
+        return switch + g, info
+
+    def _ends_at_start(self, rest: str, k: int) -> bool:
+        """Whether a block's X Y (absolute or incremental; those it does not give: the last
+        programmed) are the position it starts from (False where that is not known)."""
+        if self.pos["X"] is None or self.pos["Y"] is None:
+            return False
+        end = self._absolute({a: v for a, v in self._words(rest, k, AXES).items() if a in "XY"}, k)
+        return all(abs(end.get(a, self.pos[a]) - self.pos[a]) <= 1e-9 for a in "XY")
 
     def _begin(self, code: str, k: int) -> str:
         m = re.fullmatch(r"BEGIN PGM\s+\S+\s+(MM|INCH)", code)
@@ -173,9 +216,9 @@ class _Reader:
     def _mcodes(self, rest: str, k: int) -> list[int]:
         codes = [int(v) for v in re.findall(r"(?<![A-Z])M\s*(\d+)", rest)]
         for c in codes:
-            if c == 89 or (c >= 90 and c not in (91, 92, 99)):
+            if c == 89 or (c >= 90 and c not in (91, 92, 99, 128, 129)):
                 raise self.err(f"M{c} (a TNC path or cycle function) is not read by mtcomp "
-                               "(Heidenhain conversational)", k)
+                               f"({self.LANGUAGE})", k)
         return codes
 
     def _m_only(self, rest: str, k: int, info: LineInfo) -> tuple[str, LineInfo]:
@@ -259,6 +302,12 @@ class _Reader:
         """The G-code of an L block, its radius compensation left out."""
         mcodes = self._mcodes(rest, k)
         rapid, feed = self._feed(rest, k)
+        return self.move_gcode(words, rapid, feed, mcodes, k, info)
+
+    def move_gcode(self, words: dict, rapid: bool, feed, mcodes: list, k: int,
+                   info: LineInfo) -> tuple[str, LineInfo]:
+        """The G-code of a straight move to ``words`` (letter -> (value, incremental)): rapid or
+        at the feed, M91/M92 machine positions, M99 a cycle call."""
         f_word = "" if feed is None else f" F{_fmt(feed)}"
         if 91 in mcodes or 92 in mcodes:
             if any(inc for _v, inc in words.values()) or 99 in mcodes:
@@ -292,27 +341,61 @@ class _Reader:
         return "", info
 
     def _c(self, rest: str, k: int, info: LineInfo) -> tuple[str, LineInfo]:
+        words, ccw, feed = self._arc_block("C", rest, k, "")
+        return self.arc_gcode(words, ccw, feed, k, info)
+
+    def _cr(self, rest: str, k: int, info: LineInfo) -> tuple[str, LineInfo]:
+        """An arc by its end point and radius (HEIDENHAIN, iTNC 530 User's Manual, "Circular path
+        CR with defined radius": R > 0 the arc of at most 180 degrees, R < 0 the larger one),
+        read as an arc about the centre that makes (its own, not the CC in force)."""
+        radius = CR_RADIUS.search(rest)
+        words, ccw, feed = self._arc_block("CR", rest, k, "|" + CR_RADIUS.pattern)
+        if radius is None:
+            raise self.err("an arc CR needs its radius R", k)
+        if self.pos["X"] is None or self.pos["Y"] is None:
+            raise self.err("an arc CR from a position the program has not given", k)
+        end = {"X": self.pos["X"], "Y": self.pos["Y"], **self._absolute(words, k)}
+        info.radius = _num(radius.group(1))
+        try:
+            c = radius_centre((self.pos["X"], self.pos["Y"]), (end["X"], end["Y"]), info.radius,
+                              ccw, MM_PER_INCH if self.out.inch else 1.0)
+        except RadiusError:
+            raise self.err(f"the radius R{radius.group(1)} of a CR is smaller than half the "
+                           "chord to its end point", k) from None
+        return self.arc_gcode(words, ccw, feed, k, info, centre=(c[0], c[1], k))
+
+    def _arc_block(self, name: str, rest: str, k: int, extra: str) -> tuple[dict, bool, object]:
+        """(the axis words, counter-clockwise, the feed) of an arc block ``name`` (C, CR), its
+        words checked (``extra``: a regex of words it holds besides those of a C)."""
         direction = re.search(r"\bDR\s*([+-])", rest)
         words = self._words(rest.replace("DR", "  "), k, "XY")
         self._leftover(rest, k, r"\bDR\s*[+-]|\bR[0LR]\b|(?<![A-Z])F\s*" + _NUMBER
-                       + r"|(?<![A-Z])M\s*\d+")
+                       + r"|(?<![A-Z])M\s*\d+" + extra)
         self._radius_comp(rest, k, True)
         self._mcodes(rest, k)
         rapid, feed = self._feed(rest, k)
         if direction is None or rapid:
-            raise self.err("an arc C needs its direction DR+ or DR- (and no FMAX)", k)
-        if self.cc is None:
-            raise self.err("an arc C before any circle centre CC", k)
+            raise self.err(f"an arc {name} needs its direction DR+ or DR- (and no FMAX)", k)
+        return words, direction.group(1) == "+", feed
+
+    def arc_gcode(self, words: dict, ccw: bool, feed, k: int, info: LineInfo,
+                  centre: tuple | None = None) -> tuple[str, LineInfo]:
+        """The G-code of an arc about ``centre`` (x, y, the line that gives it; None: the circle
+        centre in force) to ``words`` (letter -> (value, incremental); a coordinate not given is
+        the last programmed one)."""
+        centre = self.cc if centre is None else centre
+        if centre is None:
+            raise self.err(f"an arc {self.ARC} before any circle centre {self.CENTRE}", k)
         if self.pos["X"] is None or self.pos["Y"] is None:
-            raise self.err("an arc C from a position the program has not given", k)
+            raise self.err(f"an arc {self.ARC} from a position the program has not given", k)
         target = {"X": self.pos["X"], "Y": self.pos["Y"], **self._absolute(words, k)}
         sx, sy = self.pos["X"], self.pos["Y"]
-        info.kind, info.cc_line, info.centre = "C", self.cc[2], self.cc[:2]
+        info.kind, info.cc_line, info.centre = "C", centre[2], centre[:2]
         info.incremental = frozenset(a for a, (_v, inc) in words.items() if inc)
         self.pos.update(target)
         f_word = "" if feed is None else f" F{_fmt(feed)}"
-        g = 3 if direction.group(1) == "+" else 2
-        return (f"G{g} {self._coords(target)} I{_fmt(self.cc[0] - sx)} J{_fmt(self.cc[1] - sy)}"
+        g = 3 if ccw else 2
+        return (f"G{g} {self._coords(target)} I{_fmt(centre[0] - sx)} J{_fmt(centre[1] - sy)}"
                 f"{f_word}"), info
 
     def _tool_call(self, rest: str, k: int, info: LineInfo) -> tuple[str, LineInfo]:
@@ -394,11 +477,12 @@ def read_lines(path) -> list[bytes]:
     return [r + b"\n" for r in raws[:-1]] + ([raws[-1]] if raws[-1] else [])
 
 
-def translate(path) -> Translation:
-    """The program at ``path`` as G-code (see the module docstring). Raises InputError naming the
-    line and the construct for what is not read."""
+def translate(path, reader: _Reader | None = None) -> Translation:
+    """The conversational program at ``path`` as G-code (see the module docstring), read by
+    ``reader`` (None: a conversational one; :func:`.heidenhain_iso.translate` hands its DIN/ISO
+    reader). Raises InputError naming the line and the construct for what is not read."""
     raws = read_lines(path)
-    reader = _Reader(path)
+    reader = _Reader(path) if reader is None else reader
     for k, raw in enumerate(raws):
         text = raw.decode("latin-1").rstrip("\r\n")
         if k == 0 and text.startswith("\ufeff"):
@@ -407,7 +491,8 @@ def translate(path) -> Translation:
         reader.out.gcode.append(g)
         reader.out.lines.append(info)
     if not reader.started:
-        raise InputError("no BEGIN PGM line: not a Heidenhain conversational program", path)
+        raise InputError("no BEGIN PGM line: not a Heidenhain conversational program (nor a "
+                         "%NAME G71 line: nor a DIN/ISO one)", path)
     return reader.out
 
 

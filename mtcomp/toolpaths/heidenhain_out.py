@@ -31,9 +31,10 @@ import numpy as np
 from ..errors import InputError
 from ..io.atomic import atomic_write
 from ._arcs import arc_misses, arc_samples, arc_sweep, fit_arc_centre, radius_refused
-from .heidenhain import WORD, read_lines, signed
+from .heidenhain import CR_RADIUS, WORD, read_lines, signed
 from .heidenhain_pieces import ROTARY_ARC_TOL_RAD, ArcPieces, renumbered
 from .reader import iter_blocks
+from .sinumerik_paths import RadiusError, radius_centre, signed_radius
 from .words import MM_PER_INCH, number_decimals
 
 
@@ -69,6 +70,8 @@ class HeidenhainWriter:
     ARC, CENTRE, HINT = "arc C", "CC", "a larger --chord-tol-um"
     #: an arc that no one centre holds is written in pieces (:mod:`.heidenhain_pieces`)
     SPLITS = True
+    #: the words of a circle centre, and the letters of its X and Y
+    CENTRE_WORD, CENTRE_LETTERS = WORD, "XY"
 
     def __init__(self, src, machine, chord_tol_mm: float, translation=None):
         self.src = src
@@ -133,14 +136,17 @@ class HeidenhainWriter:
                 if last == last and signed(self._units(j, last, info.shift), self.base) == \
                         signed(u, self.base):
                     continue
-                t = signed(u, max(self.base, most))
+                # in an incremental block (ISO's G91) the word added is an increment too
+                start = self._units(j, last, info.shift) if letter in info.incremental else 0.0
+                t = signed(u - start, max(self.base, most))
                 added.append(letter + t)
-                self.written[j] = self._internal(j, float(t), info.shift)
+                self.written[j] = self._internal(j, start + float(t), info.shift)
                 continue
             number = m.group(4).replace(" ", "")
             dec = max(self.base, number_decimals(number))
             sign = number[0] in "+-"
-            if m.group(1):           # incremental: the corrected end less the written start
+            inc = letter in info.incremental
+            if inc:                  # incremental: the corrected end less the written start
                 start = self._units(j, self.written[j], info.shift)
                 t = signed(u - start, dec, sign)
                 value = start + float(t)
@@ -149,7 +155,7 @@ class HeidenhainWriter:
                 value = float(t)
             if t == signed(float(number), dec, sign):
                 # the source's spelling: the machine goes where it says
-                self.written[j] = self._internal(j, value, info.shift) if m.group(1) \
+                self.written[j] = self._internal(j, value, info.shift) if inc \
                     else block.end[j]
                 continue
             edits.append((m.start(4), m.end(4), t))
@@ -158,11 +164,16 @@ class HeidenhainWriter:
             self.count_added(i)
             pos = max([m.end() for m in named.values()], default=None)
             if pos is None:
-                pos = _KEY_END.match(text).end()
+                pos = self.insert_at(text, code)
             edits.append((pos, pos, " " + " ".join(added)))
         for a, b, t in sorted(edits, reverse=True):
             text = text[:a] + t + text[b:]
         return text + ending
+
+    @staticmethod
+    def insert_at(text: str, code: int) -> int:
+        """Where an axis word goes in a block that names none: after its keyword."""
+        return _KEY_END.match(text).end()
 
     def count_added(self, i: int) -> None:
         """Count line i (0-based), written with an axis word it did not name, once (the summary's
@@ -201,7 +212,10 @@ class HeidenhainWriter:
         plane = np.zeros(self.na, bool)
         plane[cols] = True
         if full:
+            # a full circle ends where it starts as written (the TNC runs a C whose end point is
+            # its start as the full circle): its X Y words, where it has them, say that start
             end_w = start_w.copy()
+            self.texts[i] = self._rewrite(i, block, end_w, info, write=plane)
         else:
             self.texts[i] = self._rewrite(i, block, pts[-1], info, write=plane)
             end_w = start_w.copy()
@@ -222,10 +236,13 @@ class HeidenhainWriter:
         for cc, arcs in self.arcs.items():
             worst = self._one_centre(cc, arcs)
             if worst is not None and not (self.SPLITS and self._in_pieces(cc, arcs)):
+                arc, centre = (self.ARC, f"{self.CENTRE} of line {cc + 1}")
+                if self.tr.lines[cc].radius is not None:
+                    arc, centre = "arc CR", "its radius R"
                 raise InputError(
-                    f"the corrected {self.ARC} of line {worst[1] + 1} is not within the chord "
+                    f"the corrected {arc} of line {worst[1] + 1} is not within the chord "
                     f"tolerance ({self.tol * 1e3:g} um) of an arc about one circle centre "
-                    f"({self.CENTRE} of line {cc + 1}): it misses its corrected path by "
+                    f"({centre}): it misses its corrected path by "
                     f"{worst[2] * 1e3:.2f} um ({self.HINT})", self.src.source, line=worst[1] + 1)
 
     def _candidates(self, arcs) -> list:
@@ -274,7 +291,8 @@ class HeidenhainWriter:
             if keep and self._one_centre(cc, keep) is not None:
                 keep = []
         split = [a for a in arcs if a not in keep]
-        if any(a.full or a.block.cutter_comp or a.nominal is None for a in split):
+        if any(a.full or a.block.cutter_comp or a.nominal is None
+               or self.tr.lines[a.line].radius is not None for a in split):   # a CR: not cut
             return False
         for a in split:
             later = any(b.line > a.line for b in keep)
@@ -322,14 +340,16 @@ class HeidenhainWriter:
 
     def _centre_text(self, cc: int, centre, least: int = 0) -> tuple[str, np.ndarray]:
         """(the CC line with the centre (2,) G-code frame, mm) written with at least ``least``
-        decimals, the centre it says)."""
+        decimals, the centre it says); for a CR line, its radius (:meth:`_cr_text`)."""
         info = self.tr.lines[cc]
+        if info.radius is not None:
+            return self._cr_text(cc, centre, least)
         text = self.texts[cc].rstrip("\r\n")
         ending = self.texts[cc][len(text):]
         said = np.zeros(2)
         edits = []
-        for m in WORD.finditer(text, 0, _code_end(text)):
-            k = "XY".index(m.group(2))
+        for m in self.CENTRE_WORD.finditer(text, 0, _code_end(text)):
+            k = self.CENTRE_LETTERS.index(m.group(2))
             number = m.group(4).replace(" ", "")
             dec = max(self.base, number_decimals(number), least)
             sign = number[0] in "+-"
@@ -342,6 +362,34 @@ class HeidenhainWriter:
         for a, b, t in sorted(edits, reverse=True):
             text = text[:a] + t + text[b:]
         return text + ending, said
+
+    def _cr_text(self, cc: int, centre, least: int = 0) -> tuple[str, np.ndarray]:
+        """(the CR line ``cc`` with the R of the circle through its written ends whose centre is
+        the nearest to ``centre`` (2,) on the chord's bisector, the centre the TNC makes of the R
+        written); a radius that rounds below half the chord says no centre (far away)."""
+        a, info = self.arcs[cc][0], self.tr.lines[cc]
+        s2, e2 = a.start_w[self.cols], a.end_w[self.cols]
+        text = self.texts[cc].rstrip("\r\n")
+        ending = self.texts[cc][len(text):]
+        m = CR_RADIUS.search(text, 0, _code_end(text))
+        number = m.group(1).replace(" ", "")
+        dec = max(self.base, number_decimals(number), least)
+        r = signed_radius(s2, e2, centre, a.ccw) / self.scale
+        half = 0.5 * math.hypot(*(e2 - s2)) / self.scale
+        if abs(r) - half < 10.0 ** -dec:
+            # a half circle: either sign turns the same within the written decimals (the
+            # source's kept), and a radius written below half the chord makes no circle
+            r = math.copysign(abs(r), info.radius)
+        said = None
+        for step in (0.0, 10.0 ** -dec):        # up by one digit where it rounds below the chord
+            t = signed(math.copysign(abs(r) + step, r), dec, number[0] in "+-")
+            t = number if t == signed(float(number), dec, number[0] in "+-") else t
+            try:
+                said = np.array(radius_centre(s2, e2, float(t) * self.scale, a.ccw))
+                break
+            except RadiusError:
+                said = np.full(2, 1e9)
+        return text[:m.start(1)] + t + text[m.end(1):] + ending, said
 
     def _miss(self, a: _Arc, centre) -> tuple:
         """(excess over the tolerance (<= 0: holds), line, distance mm) of an arc about centre."""
@@ -358,6 +406,22 @@ class HeidenhainWriter:
                                a.samples, self.linear)
         excess = max(dist - self.tol, (rot - ROTARY_ARC_TOL_RAD) if rot > ROTARY_ARC_TOL_RAD else -1)
         return excess, a.line, dist
+
+
+class IsoWriter(HeidenhainWriter):
+    """Writes one DIN/ISO program (:mod:`.heidenhain_iso`): as a conversational one
+    (:class:`HeidenhainWriter`), the circle centre in its I J words; an arc that no one centre
+    holds is refused (not written in pieces)."""
+
+    ARC, CENTRE = "arc G02/G03", "I J"
+    SPLITS = False
+    CENTRE_WORD = re.compile(r"(?<![A-Z])()([IJ])(\s*)([+-]?\s*(?:\d+\.?\d*|\.\d+))")
+    CENTRE_LETTERS = "IJ"
+
+    @staticmethod
+    def insert_at(text: str, code: int) -> int:
+        """Where an axis word goes in a block that names none: before its closing ``*``."""
+        return len(text[:code].rstrip().rstrip("*").rstrip())
 
 
 def plan_blocks(w, src, machine, cursor, chord_tol_mm, initial_position, inch, initial_known):
@@ -385,7 +449,7 @@ def write_corrected(src, out_path, machine, cursor, chord_tol_mm: float, initial
     """Write the conversational program of ``src`` (a :class:`~.source.ProgramSource` with its
     ``heidenhain`` translation) with the corrections of ``cursor`` (see
     :func:`mtcomp.toolpaths.gcode.write_corrected`); returns the segment rows written."""
-    w = HeidenhainWriter(src, machine, chord_tol_mm)
+    w = (IsoWriter if src.heidenhain.iso else HeidenhainWriter)(src, machine, chord_tol_mm)
     rows = plan_blocks(w, src, machine, cursor, chord_tol_mm, initial_position, inch,
                        initial_known)
     with atomic_write(out_path, "wb") as f:
@@ -395,8 +459,8 @@ def write_corrected(src, out_path, machine, cursor, chord_tol_mm: float, initial
                          "plan not written: a Heidenhain program's blocks stay one to one (only "
                          "the blocks' ends are corrected)")
     if w.arc_miss >= 1e-4:
-        src.notes.append(f"note: the arcs written (one circle centre CC each) miss their corrected "
-                         f"path by up to {w.arc_miss * 1e3:.2f} um (within --chord-tol-um "
+        src.notes.append(f"note: the arcs written (one circle centre {w.CENTRE} each) miss their "
+                         f"corrected path by up to {w.arc_miss * 1e3:.2f} um (within --chord-tol-um "
                          f"{w.tol * 1e3:g}): the deviation after compensation and BLOCKS.csv are "
                          "the corrected path's, the arcs as written leave up to that much more")
     if w.added_blocks:

@@ -22,16 +22,17 @@ from ._arcs import (PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, cent
 from .blocks import CycleBlock, MotionBlock
 from .cycle_rules import cycle_move, cycle_unclear, has_axis_words, home_with_motion, incremental_r_level, retract_level
 from .dialect import GENERIC, grbl_program_end
+from .directions import step_directions
 from .frames import (FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle, follow_given,
                      mode_change)
 from .lengths import length_number, lone_h, set_length
 from .linetext import text_with_words
 from .programmed import ProgrammedOffsets, apply_g10
 from .rrf import macro_codes, restore_move
-from .word_use import check_motion_mode, check_value_words
+from .word_use import check_motion_mode, check_point_words, check_value_words
 from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _CURVE_WITH_COORDINATES, KNOWN_DECIMAL_G, FANUC_CYCLES, FANUC_DIALECTS,
                     OTHER_WCS_G, mode_followed, _REFUSED_G, _REFUSED_M, _UNIQUE_LETTERS, _WCS_INDEX, DEFAULT_CHORD_TOL_MM,
-                    DIR_EPS, MM_PER_INCH, TCP_OFF_M, TCP_ON_M, TOOL_AXIS, frame_code,
+                    MM_PER_INCH, TCP_OFF_M, TCP_ON_M, TOOL_AXIS, frame_code,
                     tokenize)
 
 
@@ -196,6 +197,7 @@ class ModalState:
         axes_given = self._axis_words(values, line)
         check_value_words(self, tokens, gcodes, mcodes, motion, cycle, axes_given,
                           nonmotion_axes and home_move != 53, line)
+        check_point_words(self, tokens, motion, cycle, axes_given, nonmotion_axes and home_move != 53, line)
         if home_move is not None and motion is not None and not home_with_motion(self.dialect.name, home_move, motion):
             raise self._err(f"G{home_move} and motion G{motion} in one block", line)
         self._set_feed(values, line)
@@ -556,12 +558,12 @@ class ModalState:
         self.cycle = None
         self.passed_move = ("tap", self._line) if axes_given else None
         scale = MM_PER_INCH if self.inch else 1.0
+        step = np.zeros(self.na)
         for c in axes_given:
             i = self.names.index(c)
             v = math.radians(values[c]) if c in "ABC" else values[c] * scale
-            step = v if self.incremental else (v - self.position[i] if self.known[i] else 0.0)
-            if abs(step) > DIR_EPS:
-                self.dirs[i] = 1 if step > 0 else -1
+            step[i] = v if self.incremental else (v - self.position[i] if self.known[i] else 0.0)
+        self.dirs = step_directions(self.dirs, np.zeros(self.na), step[None, :])[0].copy()
         self.distance_sensitive = self.incremental and bool(axes_given)
         return None
 
@@ -760,34 +762,12 @@ class ModalState:
 
     def _directions(self, start: np.ndarray, pts: np.ndarray, fresh=None) -> np.ndarray:
         """(k, na) int8 approach directions at the end of each segment, of the machine's axes (under
-        G68 or a mirror image the program's steps turned onto them); updates self.dirs. ``fresh``:
-        axes moving from a position not given, whose direction is not known (0) until their next."""
+        G68 or a mirror image the program's steps turned onto them: :func:`~.directions.step_directions`);
+        updates self.dirs. ``fresh``: axes moving from a position not given, whose direction is not
+        known (0) until their next."""
         if self.local.kind:
             start = self.local.to_machine(start[None, :], self.xyz_index)[0]
             pts = self.local.to_machine(pts, self.xyz_index)
-        if pts.shape[0] == 1:                 # the common straight move, without array arithmetic
-            cur = self.dirs
-            for j, (a, b) in enumerate(zip(start.tolist(), pts[0].tolist())):
-                step = b - a
-                if step > DIR_EPS:
-                    cur[j] = 1
-                elif step < -DIR_EPS:
-                    cur[j] = -1
-            if fresh is not None:
-                cur[fresh] = 0
-            return cur[None, :].copy()
-        prev = np.vstack([start[None, :], pts[:-1]])
-        step = pts - prev
-        sign = np.where(step > DIR_EPS, 1, np.where(step < -DIR_EPS, -1, 0)).astype(np.int8)
-        # each axis keeps the sign of its last segment that moves it (before the block's first,
-        # the direction it had; a fresh axis 0 from the first segment on): the row of that
-        # segment carried forward, -3 for none yet, -2 for a fresh axis's first segment
-        last = np.where(sign != 0, np.arange(sign.shape[0])[:, None], -3)
-        if fresh is not None:
-            last[0, fresh] = -2
-        np.maximum.accumulate(last, axis=0, out=last)
-        had = np.where(last == -2, 0, self.dirs[None, :])
-        out = np.where(last >= 0, sign[np.maximum(last, 0), np.arange(sign.shape[1])], had)
-        out = out.astype(np.int8)
+        out = step_directions(self.dirs, start, pts, fresh)
         self.dirs = out[-1].copy()
         return out

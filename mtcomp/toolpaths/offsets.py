@@ -35,6 +35,7 @@ import numpy as np
 from ..errors import InputError
 from ..machine import Machine
 from .blocks import SegmentChunk
+from .directions import AxisDirections
 from .frames import frames_of_rows, placed_by_frames
 from .tcp import axes_of_tcp, tcp_of_axes
 from .words import (NO_LENGTH, WORK_SYSTEMS, frame_local, frame_offset_set, frame_tcp, frame_tool,
@@ -82,6 +83,8 @@ class ProgramSetup:
     offset_writes: list = field(default_factory=list, repr=False)
     #: how far the compensated program's offsets stand from the source's (:meth:`written`)
     _shifts: object = field(default=None, repr=False)
+    #: (the program applied, the approach directions of its axes so far: :meth:`apply`)
+    _directions: tuple = field(default=None, repr=False)
 
     def _offset_table(self) -> np.ndarray:
         table = np.zeros((len(WORK_SYSTEMS), self.machine.n_axes))
@@ -121,7 +124,10 @@ class ProgramSetup:
         The returned chunk carries ``tool_length`` (mm per row; nan: the machine's tool length) and
         ``datum`` (the machine position of the program's origin per row: its work offset). Tool
         centre point rows (:mod:`.tcp`) are turned into the axes the controller reaches, and marked
-        ``jump``: between two of them the axes do not move along a straight line."""
+        ``jump``: between two of them the axes do not move along a straight line; their approach
+        directions (``dirs``) are the axes', not the tip words' (:mod:`.directions`), and so are
+        those of the rows after them until an axis moves again. Chunks of one program are applied
+        in order."""
         wcs = frame_wcs(chunk.frame)
         tool = frame_tool(chunk.frame)
         self.used_tools.update(t for t in _distinct(tool) if 0 < t != NO_LENGTH)
@@ -138,6 +144,7 @@ class ProgramSetup:
         start, end = self._local(chunk, chunk.start, source), self._local(chunk, chunk.end, source)
         start, end, datum, jump = start + off, end + off, off, chunk.jump
         tcp = frame_tcp(chunk.frame)
+        from_known = tcp
         if tcp.any():
             # tool centre point rows: the words (plus the offset) are the tip in the workpiece
             # frame and the angles; the axes are where the controller's kinematics puts them
@@ -152,8 +159,18 @@ class ProgramSetup:
             # the controller moves the tip straight, not the axes: no point of the axes' straight
             # line between two blocks is on the path (the planner puts no node on it)
             jump = jump | tcp
-        return replace(chunk, start=start, end=end, tool_length=lengths, datum=datum,
+        # the approach directions of the axes, not of the tip words (the backlash's side)
+        dirs = self._held_directions(source).chunk(chunk.dirs, start, end, tcp, from_known)
+        return replace(chunk, start=start, end=end, dirs=dirs, tool_length=lengths, datum=datum,
                        jump=jump), off
+
+    def _held_directions(self, source) -> AxisDirections:
+        """The axes' approach directions along the program ``source`` (:mod:`.directions`), new for
+        each program."""
+        if self._directions is None or self._directions[0] is not source:
+            linear = np.array([not a.is_rotary for a in self.machine.axes])
+            self._directions = (source, AxisDirections(linear))
+        return self._directions[1]
 
     def _lengths(self, source) -> dict:
         """H number -> tool length (mm): the numbered tools', and those of the tools the program

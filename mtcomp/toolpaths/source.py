@@ -224,8 +224,8 @@ def _translated(source: str, d: Dialect, why: str):
     sinumerik = d.language == "sinumerik"
     if sinumerik:
         from .sinumerik import translate
-    else:
-        from .heidenhain import translate
+    else:                           # conversational or DIN/ISO
+        from .heidenhain_iso import translate
     translation = translate(source)
     fd, tmp = tempfile.mkstemp(prefix=f"mtcomp-{d.language}-", suffix=".nc")
     try:

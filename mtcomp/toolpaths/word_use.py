@@ -24,6 +24,11 @@ Which block's code takes a word is decided as the RS274/NGC interpreter does it:
 block is its G0-G3, drilling cycle or G33.1 code, else, where the block names an axis, the motion
 mode in force (LinuxCNC source, ``interp_read.cc``/``rs274ngc_pre.cc``, ``enhance_block``:
 ``motion_to_be``); every other code is the block's own.
+
+The same reading of a block decides which words are dimensions for :func:`check_point_words`: on
+Fanuc and Haas a dimension word without a decimal point (``X60``) is read in the least input
+increment (0.060 mm) by default, and is refused (docs/toolpaths.md, "Dimension words without a
+decimal point").
 """
 from __future__ import annotations
 
@@ -177,3 +182,60 @@ def _grbl_problem(letter, mode, gcodes, letters) -> str:
         return ""
     takers = " ".join(f"G{g:g}" for g in motions + codes)
     return f"on grbl {letter} goes with {takers}; grbl refuses it: error 36, unused value word"
+
+
+#: dialects whose controllers read a dimension word without a decimal point in the least input
+#: increment (Fanuc Series 0i-MODEL F operator's manual, "decimal point programming": X1 is 0.001 mm
+#: under G21, 0.0001 in under G20, unless calculator-type input is set, parameter 3401#0 DPI; Haas
+#: Automation, "Help with the decimal points": likewise unless Setting 162, Default To Float, is on)
+POINT_DIALECTS = frozenset({"fanuc", "haas"})
+_AXIS_WORDS = frozenset("XYZABCUVW")
+
+
+def check_point_words(state, tokens, motion, cycle, axes_given, own_axes, line: int) -> None:
+    """Refuse, on Fanuc and Haas, a dimension word other than zero written without a decimal point
+    (``X60``): the controller reads it in the least input increment (0.060 mm), or as 60 mm where
+    calculator-type input is set, a setting of the machine the program does not show. mtcomp would
+    read one and write the corrected word with a point, which every controller reads as mm: a move
+    of 60 mm where the controller made one of 0.06. Dimension words: the axis words, an arc's
+    I J K R, a drilling cycle's R I J, the peck Q of G73/G83 and G68's rotation angle R (a dwell's
+    X or P, a cycle's repeat count K, G5.1's Q are not)."""
+    if state.dialect.name not in POINT_DIALECTS:
+        return
+    letters = {t[0] for t in tokens}
+    mode = block_motion(state, motion, cycle, axes_given, own_axes, letters)
+    gcodes = [float(t[1]) for t in tokens if t[0] == "G"]
+    dwell, rotation = 4.0 in gcodes, 68.0 in gcodes
+    for t in tokens:
+        letter, number = t[0], t[1]
+        try:
+            if "." in number or float(number) == 0:
+                continue
+        except ValueError:              # a word whose value is not a plain number
+            continue
+        if letter in _AXIS_WORDS:
+            dimension = not (dwell and letter in "XU")
+        elif rotation and letter == "R":          # the angle of G68, in 0.001 deg without a point
+            dimension = True
+        elif mode in (2.0, 3.0):
+            dimension = letter in "IJKR"
+        elif mode in _CYCLES:
+            dimension = letter in "RIJ" or (letter == "Q" and mode in (73.0, 83.0))
+        else:
+            dimension = False
+        if dimension:
+            angle = letter in "ABC" or (rotation and letter == "R")
+            raise state._err(_point_problem(state, f"{letter}{number}", angle), line)
+
+
+#: the machine setting under which a word without a point is read in whole units
+_WHOLE_UNITS = {"fanuc": "calculator-type input is set (parameter 3401#0 DPI)",
+                "haas": "Setting 162 (Default To Float) is on"}
+
+
+def _point_problem(state, word: str, angle: bool) -> str:
+    unit = "0.001 deg" if angle else "0.0001 in" if state.inch else "0.001 mm"
+    name = state.dialect.name
+    return (f"{word} has no decimal point: a {name.capitalize()} reads it in the least input "
+            f"increment ({unit}) unless {_WHOLE_UNITS[name]}, which the program does not show; "
+            f"write {word}. for whole units")

@@ -66,33 +66,48 @@ def read_program_points(path, machine: Machine, dialect: str | None = None,
     seg = SegmentChunk.concatenate(chunks, machine.n_axes)
     if len(seg.end) == 0:
         raise InputError("no motion block in the program: nothing to draw", path)
-    q, local = _placed(seg, frames, machine)
+    q, local = _placed(seg, seg.end, frames, machine)
     # tool centre point rows: the words are the tip and the angles; the map works on the axes the
     # controller reaches (the workpiece origin taken at the kinematics' own: render's work offset
-    # moves the linear axes only)
+    # moves the linear axes only), and on their approach directions, not the tip words'
     from ..toolpaths.tcp import axes_of_tcp
     from ..toolpaths.words import frame_tcp, frame_tool
     tcp = frame_tcp(seg.frame) & seg.known.all(axis=1)
+    dirs = seg.dirs.copy()
     if tcp.any():
         q[tcp] = axes_of_tcp(machine, q[tcp])
+        dirs = _axis_directions(seg, frames, machine, q, tcp)
     return ProgramPoints(os.fspath(path), q, seg.line.copy(), seg.feed.copy(),
-                         seg.dirs.copy(), seg.rapid.copy(), seg.known.copy(), seg.cycle.copy(), tcp,
+                         dirs, seg.rapid.copy(), seg.known.copy(), seg.cycle.copy(), tcp,
                          dialect, chord_tol_mm, frames if local.any() else None,
                          local if local.any() else None, np.asarray(frame_tool(seg.frame)).copy(),
                          names)
 
 
-def _placed(seg, frames: list, machine: Machine) -> tuple[np.ndarray, np.ndarray]:
-    """((n, na) the rows' positions in the work system, (n,) bool the rows under a frame): under a
-    frame the program moved itself (G52, G68, a mirror image, scaling) its words placed where the
-    controller puts them, so that the map and the pairing with the compensated program (read the
-    same way) see the machine's positions."""
+def _placed(seg, pts, frames: list, machine: Machine) -> tuple[np.ndarray, np.ndarray]:
+    """((n, na) the rows' positions ``pts`` (their ends or starts) in the work system, (n,) bool the
+    rows under a frame): under a frame the program moved itself (G52, G68, a mirror image, scaling)
+    its words placed where the controller puts them, so that the map and the pairing with the
+    compensated program (read the same way) see the machine's positions."""
     from ..toolpaths.frames import placed_by_frames
     from ..toolpaths.words import frame_local
     local = frame_local(seg.frame)
     if not local.any():
-        return seg.end.copy(), local
-    return placed_by_frames(frames, local, seg.line, seg.end, [machine.index(c) for c in "XYZ"]), local
+        return pts.copy(), local
+    return placed_by_frames(frames, local, seg.line, pts, [machine.index(c) for c in "XYZ"]), local
+
+
+def _axis_directions(seg, frames: list, machine: Machine, q: np.ndarray, tcp: np.ndarray):
+    """(n, na) int8 the approach directions of the axes at the rows' ends ``q`` (tool centre point
+    rows ``tcp`` turned into axes), by the reader's rule (:mod:`mtcomp.toolpaths.directions`)."""
+    from ..toolpaths.directions import AxisDirections
+    from ..toolpaths.tcp import axes_of_tcp
+    from ..toolpaths.words import frame_tcp
+    start = _placed(seg, seg.start, frames, machine)[0]
+    stepped = tcp & ~np.asarray(seg.jump, bool)
+    start[stepped] = axes_of_tcp(machine, start[stepped])
+    held = AxisDirections(np.array([not a.is_rotary for a in machine.axes]))
+    return held.chunk(seg.dirs, start, q, frame_tcp(seg.frame), stepped)
 
 
 def _motion_runs(original: ProgramPoints, compensated: ProgramPoints) -> tuple[np.ndarray, np.ndarray]:

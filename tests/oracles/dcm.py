@@ -15,7 +15,9 @@ tool frame (eq. 5). The model:
 
 1. each axis's differential motion vector D_i, first order in its errors (eqs. 15-17): for a
    tool-side linear axis ``(delta + s (u - e) + r x eps, eps)`` (translation errors, squareness as the
-   tilt of the direction of travel, angular errors turning about the carriage reference point r);
+   tilt of the direction of travel, angular errors turning about the carriage reference point r,
+   fixed on the carriage: the gauge point with the machine's reference tool, (0, 0, L0); the ram at
+   its machine position q_Z + L - L0 for a tool of length L);
    for a workpiece-side axis the differential motion of the bed seen from the carriage, the *negated*
    body error (the sign flip of eq. 17); for a rotary axis the location errors, angular positioning
    error and error motions moved into the carriage frame;
@@ -44,7 +46,8 @@ from mtcomp.models.chain import ErrorModel
 from mtcomp.models.evaluate import deviation
 from mtcomp.models.terms import ANGLE_LETTERS, TRANSLATION_LETTERS, positioning_component
 
-from .poe import adjoint, prepare_inputs, rotary_line_errors, rotation_twist, skew
+from .poe import (adjoint, machine_positions, prepare_inputs, rotary_line_errors, rotation_twist, skew,
+                  tool_shift)
 
 __all__ = ["differential_change_matrix", "tool_in_axis_frames", "axis_differential_motions",
            "tool_differential", "dcm_deviation", "machine_jacobian", "pinv_correction",
@@ -70,15 +73,18 @@ def _nominal_chain(model: ErrorModel, q: np.ndarray):
     return A
 
 
-def tool_in_axis_frames(model: ErrorModel, q) -> dict[str, np.ndarray]:
-    """{axis: (N, 4, 4)} nominal pose of the tool-tip frame in each axis's frame (eqs. 10, 11)."""
+def tool_in_axis_frames(model: ErrorModel, q, c=None) -> dict[str, np.ndarray]:
+    """{axis: (N, 4, 4)} nominal pose of the tool-tip frame in each axis's frame (eqs. 10, 11), with
+    the ram at its machine position and the tip of a tool longer than the reference tool by ``shift``
+    that much below the ram frame's origin (:func:`oracles.poe.tool_shift`)."""
     m = model.machine
     q = np.atleast_2d(np.asarray(q, dtype=float))
     n = q.shape[0]
-    A = _nominal_chain(model, q)
+    A = _nominal_chain(model, machine_positions(model, q, c))
     eye = np.broadcast_to(np.eye(4), (n, 4, 4))
     out = {}
-    tail = eye.copy()  # A_{i+1} ... A_n
+    tail = eye.copy()  # A_{i+1} ... A_n Trans(0, 0, -shift)
+    tail[:, 2, 3] = -tool_shift(model, q, c)
     for name in reversed(m.tool_chain):
         out[name] = tail.copy()
         tail = A[name] @ tail
@@ -127,8 +133,8 @@ def axis_differential_motions(model: ErrorModel, p, q, c=None) -> dict[str, np.n
         elif ax.name == "Z":
             sq = np.array([P.get("B0Z", 0.0), -P.get("A0Z", 0.0), 0.0])
         if ax.side == "tool":
-            r = np.zeros((n, 3))
-            r[:, 2] = c[:, model.context_names.index("tool_length")]
+            r = np.zeros((n, 3))      # fixed on the carriage: the gauge point with the reference tool
+            r[:, 2] = m.tool_length
             out[ax.name] = np.concatenate([delta + s[:, None] * sq + np.cross(r, eps), eps], axis=1)
         else:
             # table = (Trans(s u) E)^-1: the bed seen from the carriage moves by the error of the
@@ -141,7 +147,7 @@ def axis_differential_motions(model: ErrorModel, p, q, c=None) -> dict[str, np.n
 def tool_differential(model: ErrorModel, p, q, c=None) -> np.ndarray:
     """(N, 6) D_t: the combined differential motion of the tool frame, in the tool frame (eq. 22)."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
-    frames = tool_in_axis_frames(model, q)
+    frames = tool_in_axis_frames(model, q, c)
     D = axis_differential_motions(model, p, q, c)
     Dt = np.zeros((q.shape[0], 6))
     for name, T in frames.items():

@@ -20,8 +20,8 @@ How the errors of chain.py become exponentials:
 * linear axis, tool side: the ideal twist is ``(u, 0)`` with u the direction tilted by the squareness
   errors, i.e. ``Ad_{G_sq} (e_d, 0)`` with G_sq the squareness rotation (C0Y for Y; B0Z, A0Z for Z).
   The component errors are, in the carriage frame, a translation ``(EX, EY, EZ)`` followed by
-  rotations EA, EB, EC about the carriage reference point r (spindle gauge point: (0, 0, tool
-  length)). Moved to the left of the ideal exponential they become ``Ad_{exp(xi s)}`` of those twists:
+  rotations EA, EB, EC about the carriage reference point r, fixed on the carriage (the spindle gauge
+  point with the machine's reference tool: (0, 0, L0)). Moved to the left of the ideal exponential they become ``Ad_{exp(xi s)}`` of those twists:
   rotations about the moved point ``r + s u``.
 * linear axis, workpiece side: the table transform is the inverse of the tool-relative motion, so
   the ideal twist is ``-(u, 0)`` and the error exponentials are the inverses, in reverse order, of
@@ -31,7 +31,10 @@ How the errors of chain.py become exponentials:
   location errors (offset of the axis point, tilt of the line about P), turned by ``theta + E_own``;
   the error motions are a translation and rotations about the actual axis point, in the fixed frame
   (Tan et al. 2026, eq. 7), on the left.
-* the tool length error moves the tool frame at zero: ``g_ft(0) = exp((0, 0, -TOOL_dL, 0, 0, 0))``.
+* the tool frame at zero: ``g_ft(0) = exp((0, 0, -(L - L0) - TOOL_dL, 0, 0, 0))``: a tool of length
+  L hangs L - L0 below the reference tool's tip (the ram, Z, stands that much higher: its ideal
+  motion and component errors are those of its machine position q_Z + L - L0) and the tool length
+  error lowers it further.
 
 Only the base model (docs/models.md) is covered; extension terms raise NotImplementedError.
 Units: mm and rad; q (N, n_axes) in ``machine.axis_names`` order; p in ``model.param_names`` order.
@@ -167,12 +170,35 @@ def component_errors(model: ErrorModel, p: np.ndarray, q: np.ndarray) -> dict[st
     return out
 
 
+def tool_shift(model: ErrorModel, q, c) -> np.ndarray:
+    """(N,) mm: how much longer each row's tool is than the machine's reference tool, the distance
+    tool length compensation moves the ram (Z, when it carries the spindle: the last axis of the tool
+    chain) for the same tip; zeros on a machine without such a ram."""
+    m = model.machine
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    if not m.tool_chain or m.tool_chain[-1] != "Z":
+        return np.zeros(q.shape[0])
+    c = model.default_context(q.shape[0]) if c is None else np.atleast_2d(np.asarray(c, dtype=float))
+    return c[:, model.context_names.index("tool_length")] - m.tool_length
+
+
+def machine_positions(model: ErrorModel, q, c) -> np.ndarray:
+    """(N, n_axes): the commanded positions q with the ram at its machine position q_Z + shift."""
+    q = np.atleast_2d(np.asarray(q, dtype=float)).copy()
+    shift = tool_shift(model, q, c)
+    if shift.any():
+        q[:, model.machine.index("Z")] += shift
+    return q
+
+
 def prepare_inputs(model: ErrorModel, p, q, c):
-    """Common set-up: (q (N, n_axes), c (N, n_context), {name: value}, component errors)."""
+    """Common set-up: (machine positions (N, n_axes) (:func:`machine_positions`), c (N, n_context),
+    {name: value}, component errors at the machine positions)."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     c = model.default_context(q.shape[0]) if c is None else np.atleast_2d(np.asarray(c, dtype=float))
     p = np.asarray(p, dtype=float)
-    return q, c, dict(zip(model.param_names, p)), component_errors(model, p, q)
+    qm = machine_positions(model, q, c)
+    return qm, c, dict(zip(model.param_names, p)), component_errors(model, p, qm)
 
 
 def rotary_line_errors(P: dict, ax) -> tuple[np.ndarray, list[int], np.ndarray, np.ndarray]:
@@ -199,13 +225,13 @@ def squareness_rotation(model: ErrorModel, p: np.ndarray, axis_name: str) -> np.
 
 
 def _reference_point(model: ErrorModel, side: str, c_row: np.ndarray) -> np.ndarray:
-    """(N, 3) carriage reference point r: spindle gauge point (tool side) or workpiece origin."""
+    """(N, 3) carriage reference point r, fixed on the carriage: the spindle gauge point at q = 0
+    with the machine's reference tool (tool side, whatever the row's tool) or the workpiece origin."""
     n = c_row.shape[0]
+    r = np.zeros((n, 3))
     if side == "tool":
-        r = np.zeros((n, 3))
-        r[:, 2] = c_row[:, model.context_names.index("tool_length")]
-        return r
-    return np.zeros((n, 3))
+        r[:, 2] = model.machine.tool_length
+    return r
 
 
 def poe_transforms(model: ErrorModel, p, q, c=None, errors: bool = True,
@@ -295,18 +321,20 @@ def poe_tool_pose(model: ErrorModel, p, q, c=None, errors: bool = True,
     for name in m.tool_chain:
         g_ft = g_ft @ A[name]
     P = dict(zip(model.param_names, p))
-    dL = float(P["TOOL_dL"]) if errors else 0.0
+    shift = tool_shift(model, q, c)
+    dL = (float(P["TOOL_dL"]) if errors else 0.0) + shift
     if errors and (P.get("A0S", 0.0) or P.get("B0S", 0.0)):
-        # spindle tilt: exp of two rotation twists about the gauge point r = (0, 0, L) (Y after X)
+        # spindle tilt: exp of two rotation twists about the gauge point r = (0, 0, L - shift) of the
+        # ram's frame, the tool's length above its tip (Y after X)
         L = (model.default_context(n) if c is None else np.atleast_2d(c))[:, model.context_names.index("tool_length")]
         R = Rotation.from_rotvec([0.0, P["B0S"], 0.0]).as_matrix() @ Rotation.from_rotvec([P["A0S"], 0.0, 0.0]).as_matrix()
         r = np.zeros((n, 3))
-        r[:, 2] = L
+        r[:, 2] = L - shift
         tilt = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
         tilt[:, :3, :3] = R
         tilt[:, :3, 3] = r - r @ R.T
         g_ft = g_ft @ tilt
-    g_ft = g_ft @ exp_twist(np.array([0, 0, -1.0, 0, 0, 0]), np.full(n, dL))  # g_ft(0)
+    g_ft = g_ft @ exp_twist(np.array([0, 0, -1.0, 0, 0, 0]), dL)  # g_ft(0)
     g_wt = np.linalg.solve(g_fw, g_ft)
     return g_wt[:, :3, 3].copy(), g_wt[:, :3, 2].copy()
 

@@ -32,12 +32,13 @@ and after ``F`` those from the bed towards the tool. A tool-side linear axis tra
 ``+s`` along its axis; a table linear axis translates the table by ``-s``; a rotary axis turns the table
 by ``+theta`` right-handed about +X/+Y/+Z (A/B/C) through its ``axis_point_mm``. ``wp2bed = W_1 ... W_m``
 (bed towards workpiece), ``tool2bed = A_1 ... A_n S`` (bed towards tool, S the spindle),
-``tool2wp = wp2bed^-1 tool2bed``. With every axis at 0 the tip is at the origin and the spindle gauge
-point ``tool_length`` above it along +Z, for every tool length (the carriage frames are attached to
-the current tool's tip, so the Z errors are functions of the commanded tip z; set
-``z_reference_tool_mm`` to evaluate them at the physical ram position z + L - L_ref instead). So on a 3-axis
-machine q is the tip position in the workpiece frame, and on XFYZ/CAFXYZ/CBFXYZ the X, Y, Z positions
-are the tip in the bed frame.
+``tool2wp = wp2bed^-1 tool2bed``. Tool length compensation: q is the commanded tip. With every axis
+at 0 the tip of the reference tool (``reference_tool_mm`` = L0, the machine file's ``tool_length_mm``)
+is at the origin, where every frame coincides, and the spindle gauge point L0 above it along +Z. A tool
+of length L puts the ram (Z, when it is the last tool-side axis) at its machine position
+``z + L - L0`` (its translation and its error profiles are those of that position) and hangs L below
+the gauge point, so the tip is at the commanded point. So on a 3-axis machine q is the tip position in
+the workpiece frame, and on XFYZ/CAFXYZ/CBFXYZ the X, Y, Z positions are the tip in the bed frame.
 
 What is modelled, where each error acts, and the signs
 -------------------------------------------------------
@@ -50,10 +51,11 @@ What is modelled, where each error acts, and the signs
   (``pivots[a]``, random: within +-150 mm in X and Y and 50-400 mm above the spindle gauge point at
   q = 0, i.e. somewhere on the slide; for the spindle carriage 20-300 mm above the gauge point).
   Everything it carries (the following axes, the spindle, the tool) turns with it. The tool-side
-  carriage frames have their origin at the tool tip at q = 0, so a pivot fixed on the slide is
-  given relative to the gauge point: p + (0, 0, tool_length) in carriage coordinates, and the Abbe
-  arm of the tip is (tip position in that carriage frame) - p - (0, 0, L), e.g. on XFYZ for Y:
-  ``(0, 0, z - L) - p_Y``, for Z: ``-(p_Z + (0, 0, L))``. A longer tool has a longer arm.
+  carriage frames have their origin at the reference tool's tip at q = 0, so a pivot fixed on the
+  slide is given relative to the gauge point there: p + (0, 0, L0) in carriage coordinates, whatever
+  the tool. The Abbe arm of the tip is (tip position in that carriage frame) - p - (0, 0, L0): on
+  XFYZ for Y ``(0, 0, z - L0) - p_Y``, the same for every tool at the same tip (a longer tool raises
+  the ram, not the tip); for the ram Z ``-(p_Z + (0, 0, L))``: the tip hangs L below the gauge point.
 * table side: table in the bed = ``Trans(-s u) Trans(p) R^T Trans(-p) Trans(-delta)``, so the tool
   relative to the table moves by ``Trans(delta) Trans(p) R Trans(-p) Trans(s u)``: the component
   errors of a table axis are the error motion of the tool relative to the table (what a laser reads,
@@ -71,8 +73,8 @@ What is modelled, where each error acts, and the signs
   straightness 2-10 um p-p plus +-3 um, angular 5-30 urad p-p **with a constant part: 3-20 urad in
   magnitude at s = 0** (never anchored at zero); translational errors need not vanish at 0 either.
 
-*Spindle*: the tool frame in the last tool-side carriage = ``Trans(g) Ry(tb) Rx(ta) Trans(-g)``,
-``g = (0, 0, L)`` the spindle gauge point, ``(ta, tb) = spindle_tilt`` (rad, 3-30 urad each): the tool
+*Spindle*: the tool frame in the last tool-side carriage (the ram's) =
+``Trans(g) Ry(tb) Rx(ta) Trans(-g) Trans(0, 0, L0 - L)``, ``g = (0, 0, L0)`` the spindle gauge point, ``(ta, tb) = spindle_tilt`` (rad, 3-30 urad each): the tool
 axis is ``Ry(tb) Rx(ta) e_z`` and the tip moves by ``L (-cos ta sin tb, sin ta, 1 - cos ta cos tb)``,
 so tool lengths (``tool_mm``) reveal the tilt.
 
@@ -98,8 +100,7 @@ mm per m/min), ``ThermalDrift`` (drivers ``time`` settling exponential, ``linear
 channel, ``spindle`` first-order lag over a ``SpindleSchedule``; a translation of the spindle along the
 machine axes), ``RotaryRunout`` (eccentricity, wobble, axial run-out), ``LocalDefect`` (raised-cosine
 bump). ``random_effect(kind, machine, rng)`` draws one with realistic parameters (kinds named as in
-SPEC 6). ``z_reference_tool_mm`` (default None) evaluates the Z errors at the physical carriage position
-``z + L - L_ref`` instead of the commanded z.
+SPEC 6).
 
 Context (:class:`Context`): ``feed_mm_min`` (default 0), ``dirs`` {axis: +1/-1} (default +1),
 ``t_s`` (0), ``temperatures`` {name: degC}, ``spindle_rpm``.

@@ -132,15 +132,16 @@ class TruthMachine:
     components : {axis: {component name: profile f(s) -> mm or rad}}
     pivots : {linear axis: (3,) mm} point about which the axis's angular errors act, fixed on its
         carriage: for a table axis in the table's frame; for a tool-side axis relative to the
-        spindle gauge point (carriage coordinates ``pivot + (0, 0, tool_length)``), so that it stays
-        on the slide whatever the tool length.
+        spindle gauge point at q = 0 with the reference tool (carriage coordinates
+        ``pivot + (0, 0, reference_tool_mm)``), whatever tool is in the spindle.
     squareness : {"C0Y", "B0Z", "A0Z": rad}.
     location : {rotary location error name (X0C, Y0C, A0C, B0C ...): mm or rad}.
     spindle_tilt : (2,) rad, tilt of the tool axis about X then about Y of the Z carriage.
     effects : tuple of :class:`truth.effects.Effect`.
-    z_reference_tool_mm : None, or a tool length L_ref: then the Z errors are evaluated at the
-        physical carriage position z + (L - L_ref) instead of the commanded z (tool length
-        compensation moves the carriage); default None (errors follow the commanded z).
+    reference_tool_mm : L0, the machine file's ``tool_length_mm``: the tool whose tip is at the
+        origin with every axis at zero. Tool length compensation puts Z at its machine position
+        ``z + L - L0`` for the tip of a tool of length L at z; the tip hangs ``L`` below the gauge
+        point, fixed on the ram.
     """
 
     def __init__(self, source="xfyz", tool_length_mm: float | None = None):
@@ -148,8 +149,8 @@ class TruthMachine:
         self.name = cfg.get("name", str(source))
         self.topology = cfg["topology"].upper()
         self.workpiece_chain, self.tool_chain, self.axis_names = _parse_topology(self.topology)
-        self.tool_length_mm = float(cfg.get("tool_length_mm", 0.0) if tool_length_mm is None
-                                    else tool_length_mm)
+        self.reference_tool_mm = float(cfg.get("tool_length_mm", 0.0))
+        self.tool_length_mm = self.reference_tool_mm if tool_length_mm is None else float(tool_length_mm)
         axes = cfg.get("axes", {})
         self.travel = {}
         self.axis_point = {}
@@ -171,7 +172,6 @@ class TruthMachine:
                     self.location[k] = 0.0
         self.spindle_tilt = np.zeros(2)
         self.effects: tuple = ()
-        self.z_reference_tool_mm = None
 
     # ---------------------------------------------------------------- construction
     @classmethod
@@ -332,12 +332,12 @@ class TruthMachine:
                 vals[c] = vals[c] + v
         return vals
 
-    def _pivot(self, axis, s, ctx, L=None) -> np.ndarray:
+    def _pivot(self, axis, s, ctx) -> np.ndarray:
         p = np.broadcast_to(self.pivots[axis], (len(s), 3)).copy()
-        if L is not None and self.side(axis) == "tool":
-            # the carriage frames of the tool side have their origin at the tool tip (q = 0): a pivot
-            # fixed on a slide is fixed relative to the spindle gauge point, L above the tip
-            p[:, 2] += L
+        if self.side(axis) == "tool":
+            # the carriage frames have their origin at the reference tool's tip at q = 0: a pivot
+            # fixed on a slide is given relative to the gauge point there, L0 above that tip
+            p[:, 2] += self.reference_tool_mm
         for e in self.effects:
             d = e.pivot_shift(self, axis, s, ctx)
             if d is not None:
@@ -345,7 +345,7 @@ class TruthMachine:
         return p
 
     # ---------------------------------------------------------------- one axis
-    def _linear(self, axis, s, ctx, errors: bool, L=None) -> np.ndarray:
+    def _linear(self, axis, s, ctx, errors: bool) -> np.ndarray:
         """Carriage of linear ``axis`` in its parent frame (N, 4, 4).
 
         tool side :  Trans(s u) Trans(delta) [Trans(p) Rx(EA) Ry(EB) Rz(EC) Trans(-p)]
@@ -362,7 +362,7 @@ class TruthMachine:
         v = self.component_values(axis, s, ctx)
         delta = np.stack([v[f"EX{axis}"], v[f"EY{axis}"], v[f"EZ{axis}"]], axis=1)
         R = T.rot_x(v[f"EA{axis}"]) @ T.rot_y(v[f"EB{axis}"]) @ T.rot_z(v[f"EC{axis}"])
-        p = self._pivot(axis, s, ctx, L)
+        p = self._pivot(axis, s, ctx)
         if table:
             return (T.translation(-s[:, None] * u) @ T.about_point(p, np.transpose(R, (0, 2, 1)))
                     @ T.translation(-delta))
@@ -387,25 +387,39 @@ class TruthMachine:
         return T.translation(m) @ T.about_point(c, R_tilt) @ T.about_point(c, turn)
 
     def _spindle(self, q, L, ctx, errors: bool) -> np.ndarray:
-        """Tool frame in the last tool-side carriage frame: Trans(d_thermal) Trans(0,0,L) Ry(tb) Rx(ta)
-        Trans(0,0,-L): the tool turns about the spindle gauge point, so the tip moves by L times the tilt."""
+        """Tool frame in the last tool-side carriage frame (the ram's, origin at the reference tool's
+        tip at q = 0): Trans(d_thermal) Trans(g) Ry(tb) Rx(ta) Trans(-g) Trans(0, 0, L0 - L) with
+        g = (0, 0, L0) the gauge point, fixed on the ram: the tool's tip hangs L below it, and the tool
+        turns about it, so the tip moves by L times the tilt."""
         n = len(L)
+        tip = np.zeros((n, 3))
+        tip[:, 2] = self._ram_shift(L) * -1.0
         if not errors:
-            return T.identity(n)
+            return T.translation(tip)
         g = np.zeros((n, 3))
-        g[:, 2] = L
+        g[:, 2] = self.reference_tool_mm if self._ram() else L
         Rt = T.rot_y(np.full(n, self.spindle_tilt[1])) @ T.rot_x(np.full(n, self.spindle_tilt[0]))
-        out = T.about_point(g, Rt)
+        out = T.about_point(g, Rt) @ T.translation(tip)
         for e in self.effects:
             d = e.spindle_offset(self, q, ctx)
             if d is not None:
                 out = T.translation(d) @ out
         return out
 
+    def _ram(self) -> bool:
+        """True when Z carries the spindle (the last tool-side axis): the axis tool length
+        compensation moves."""
+        return bool(self.tool_chain) and self.tool_chain[-1] == "Z"
+
+    def _ram_shift(self, L) -> np.ndarray:
+        """(N,) mm: L - L0, how much higher the ram stands for the same tip (0 without a ram)."""
+        return (L - self.reference_tool_mm) if self._ram() else np.zeros_like(L)
+
     def _axis_argument(self, axis, q, L):
+        """The machine position of ``axis`` for the commanded ``q``: the ram's is z + L - L0."""
         s = q[:, self.index(axis)].copy()
-        if axis == "Z" and self.z_reference_tool_mm is not None:
-            s = s + (L - self.z_reference_tool_mm)
+        if axis == "Z" and self._ram():
+            s = s + self._ram_shift(L)
         return s
 
     # ---------------------------------------------------------------- chains
@@ -429,7 +443,7 @@ class TruthMachine:
         L = self._tool(tool_length, n)
         out = T.identity(n)
         for a in self.tool_chain:
-            out = out @ self._linear(a, self._axis_argument(a, q, L), ctx, errors, L)
+            out = out @ self._linear(a, self._axis_argument(a, q, L), ctx, errors)
         return out @ self._spindle(q, L, ctx, errors)
 
     def tool2wp(self, q, tool_length=None, context=None, errors: bool = True) -> np.ndarray:

@@ -1,0 +1,47 @@
+"""What no compensation table carries is said: every table is measured from the deviation with every
+axis at its reference position (each table is zero there), so a rotary table's zero offset, a
+constant turn of the workpiece, is in no table. A user's LinuxCNC export of a model with the A
+axis's zero offset EAA_0 = 40 urad wrote an all-zero A table and said nothing, while compensate
+corrected the 40 urad on every block.
+
+Hand-derived: with only EAA_0 = e, the table (and the workpiece on it) stands turned by e about X
+at every position; the tool relative to the workpiece is turned by -e about X, the tip at the
+machine's tool length displaced only by the second-order e^2 terms (no translation to note)."""
+from __future__ import annotations
+
+import numpy as np
+
+from mtcomp.cli import main
+from mtcomp.machine import load_machine
+from mtcomp.models import ErrorModel, FittedModel, save_model
+
+
+def _model(tmp_path, name, value):
+    """A model (polynomial profiles: E(s) = sum_k E_k (s / 1 m)^k) whose one parameter ``name`` is
+    ``value`` in its unit (um or urad; stored in mm, rad)."""
+    model = ErrorModel(load_machine("cafxyz").with_basis("polynomial"), ())
+    fitted = FittedModel.zero(model)
+    i = [s.name for s in model.param_specs].index(name)
+    fitted.params.values[i] = value * {"um": 1e-3, "urad": 1e-6}[model.param_specs[i].unit]
+    path = tmp_path / "m.json"
+    save_model(path, fitted)
+    return path
+
+
+def test_a_rotary_zero_offset_no_table_carries_is_said(tmp_path, capsys):
+    path = _model(tmp_path, "EAA_0", 40.0)
+    out = tmp_path / "comp"
+    assert main(["export", "cafxyz", str(path), "--format", "linuxcnc", "-o", str(out)]) == 0
+    said = capsys.readouterr().out + (out / "README.txt").read_text()
+    assert "a turn of -40.00 urad about X" in said, said
+    assert "no table carries it" in said
+
+
+def test_nothing_is_said_of_a_model_without_a_constant(tmp_path, capsys):
+    # a positioning error that is zero at X's reference position (X = 0): 20 um/m of X
+    path = _model(tmp_path, "EXX_1", 20.0)
+    out = tmp_path / "comp"
+    assert main(["export", "cafxyz", str(path), "--format", "linuxcnc", "-o", str(out)]) == 0
+    said = capsys.readouterr().out + (out / "README.txt").read_text()
+    assert "no table carries it" not in said
+    assert np.ptp(np.loadtxt(out / "x.comp")[:, 1]) > 0          # the slope is in X's table

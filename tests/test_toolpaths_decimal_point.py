@@ -1,0 +1,118 @@
+"""A Fanuc or Haas dimension word without a decimal point (a new user's finding): `G01 X60` in a
+Fanuc program was read as 60 mm and written `X59.9984`. A Fanuc reads X60 as 0.060 mm under G21
+(0.0060 in under G20) unless calculator-type input is set (parameter 3401#0, Fanuc Series 0i-MODEL F
+operator's manual, decimal point programming; a Haas likewise unless Setting 162, Default To
+Float, is on), a setting the program does not show; the corrected word, written with a point, is
+read as mm by either. Refused now, with the word and the line; zero, a dwell's time, a cycle's
+repeat count and codes' own numbers stay accepted."""
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from mtcomp.cli import main
+from test_compensate_cli import _model
+
+HEAD = "%\nO1000\nG21 G17 G40 G80 G90\nG54\n"
+TAIL = "M30\n%\n"
+
+
+def _run(tmp_path, body, dialect=None):
+    prog, out = tmp_path / "p.nc", tmp_path / "out.nc"
+    prog.write_text(HEAD + body + TAIL)
+    rc = main(["compensate", "xfyz", str(_model(tmp_path, "xfyz", scale=0.1)[2]), str(prog), "-o", str(out), "--quiet",
+               *(["--dialect", dialect] if dialect else [])])
+    return rc, out
+
+
+@pytest.mark.parametrize("dialect", [None, "fanuc", "haas"])
+@pytest.mark.parametrize("body, line, word", [
+    ("G00 X0. Y0. Z25.\nG01 X60 F1200.\n", 6, "X60"),                     # the user's line
+    ("G00 X10. Y0. Z25.\nG01 Z-5.\nG02 X20. Y10. I10 J0.\n", 7, "I10"),      # an arc's centre
+    ("G00 X0. Y0. Z25.\nG83 X10. Y10. Z-20. R2. Q5 F100.\n", 6, "Q5"),       # a peck depth
+    ("G00 X0. Y0. Z25.\nG81 X10. Y10. Z-20. R2 F100.\n", 6, "R2"),           # a cycle's R level
+])
+def test_a_dimension_word_without_a_point_is_refused_naming_it(tmp_path, capsys, dialect, body, line,
+                                                              word):
+    rc, out = _run(tmp_path, body, dialect)
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and not out.exists()
+    assert len(err.splitlines()) == 1 and f"p.nc:{line}: {word} has no decimal point" in err, err
+    assert "0.001 mm" in err
+    # the machine setting that would read it in whole units, the controller's own
+    assert ("Setting 162 (Default To Float)" if dialect == "haas" else "parameter 3401#0 DPI") in err
+
+
+def test_inch_names_the_inch_increment(tmp_path, capsys):
+    prog = tmp_path / "p.nc"
+    prog.write_text("%\nO1000\nG20 G90\nG00 X0. Y0. Z1.\nG01 Y2 F10.\nM30\n%\n")
+    model = str(_model(tmp_path, "xfyz", scale=0.1)[2])
+    assert main(["compensate", "xfyz", model, str(prog), "-o", str(tmp_path / "o.nc"), "--quiet"]) == 2
+    assert "Y2 has no decimal point" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("machine, text, word", [
+    ("xfyz", "G21 G90 G17\nG0 X0 Y0 Z5.\nG68 X0 Y0 R30\nG1 X10. F100.\nG69\n", "R30"),  # 0.030 deg
+    ("cafxyz", "G21 G90\nG0 X0 Y0 Z50. A0 C0\nG1 C90 F1000.\n", "C90"),              # 0.090 deg
+])
+def test_an_angle_names_the_degree_increment(tmp_path, machine, text, word):
+    """G68's rotation angle and a rotary axis word are angles: 0.001 deg without a point."""
+    from mtcomp.errors import InputError
+    from mtcomp.machine import load_machine
+    from mtcomp.toolpaths import read_program
+    p = tmp_path / "p.nc"
+    p.write_text("O1000\n" + text + "M30\n")
+    with pytest.raises(InputError) as exc:
+        read_program(p, load_machine(machine), dialect="fanuc")
+    assert exc.value.line == 4 and f"{word} has no decimal point" in exc.value.message
+    assert "(0.001 deg)" in exc.value.message, exc.value.message
+
+
+def test_zero_dwell_repeat_count_and_codes_stay_accepted(tmp_path):
+    body = ("G00 X0 Y0 Z25.\nG04 X2\nG04 P500\nG01 Z-1. F300.\nG81 X10. Y10. Z-5. R2. K3 F100.\n"
+            "G80\nG05.1 Q1\nG05.1 Q0\nT2 M06\nG43 H2 Z25.\n")
+    rc, out = _run(tmp_path, body, "fanuc")
+    assert rc == 0 and out.exists()
+
+
+def test_linuxcnc_and_grbl_read_whole_millimetres(tmp_path):
+    # LinuxCNC and grbl read X60 as 60 mm: nothing to refuse (the program names no Fanuc)
+    prog, out = tmp_path / "p.ngc", tmp_path / "o.ngc"
+    prog.write_text("G21 G90\nG0 X0 Y0 Z25\nG1 X60 F1200\nM2\n")
+    model = str(_model(tmp_path, "xfyz", scale=0.1)[2])
+    for dialect in ("linuxcnc", "grbl"):
+        assert main(["compensate", "xfyz", model, str(prog), "-o", str(out), "--quiet",
+                     "--dialect", dialect]) == 0
+        moved = re.search(r"G1 X([0-9.]+)", out.read_text())
+        assert moved and abs(float(moved.group(1)) - 60.0) < 0.01
+
+
+def test_the_compiled_reader_hands_whole_words_to_python_on_fanuc_only(tmp_path, monkeypatch):
+    """The compiled reader sends a line with `X7` to Python (which refuses it) on fanuc and haas
+    only: elsewhere such lines stay on the compiled path, which reads them as whole units."""
+    from mtcomp.errors import InputError
+    from mtcomp.machine import load_machine
+    from mtcomp.toolpaths import _fast, iter_segment_chunks
+    from mtcomp.toolpaths.modal import ModalState
+    if not _fast.available():
+        pytest.skip("no C compiler: the compiled G-code path is not available")
+    read_in_python = []
+    block = ModalState.block
+
+    def spy(self, line, text):
+        read_in_python.append(line)
+        return block(self, line, text)
+    monkeypatch.setattr(ModalState, "block", spy)
+    p = tmp_path / "p.nc"
+    p.write_text("G21 G90\nG0 X0 Y0 Z0\n" + "".join(f"G1 X{k} F100\n" for k in range(1, 31)) + "M30\n")
+    xfyz = load_machine("xfyz")
+    for dialect in ("fanuc", "haas"):
+        with pytest.raises(InputError, match="X1 has no decimal point") as exc:
+            list(iter_segment_chunks(p, xfyz, dialect=dialect))
+        assert exc.value.line == 3
+    read_in_python.clear()
+    ends = np.vstack([c.end for c in iter_segment_chunks(p, xfyz, dialect="linuxcnc")])
+    np.testing.assert_allclose(ends[-1], [30.0, 0.0, 0.0], rtol=0, atol=0)
+    assert not set(read_in_python) & set(range(4, 33)), read_in_python
