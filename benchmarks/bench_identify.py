@@ -33,7 +33,11 @@ def case(machine_name: str, n_points: int, runs: int, rng) -> None:
     lo = np.where(np.isin(list(machine.axis_names), list("ABC")), np.maximum(lo, -np.pi), lo)
     hi = np.where(np.isin(list(machine.axis_names), list("ABC")), np.minimum(hi, np.pi), hi)
     q = rng.uniform(lo, hi, (n_points, machine.n_axes))
-    xyz = q[:, :3]
+    tool = rng.choice([0.0, 100.0, 200.0], n_points)
+    # q's Z is the ram's machine position, inside its travel: a tool of length L stands its tip at
+    # z = Z - (L - L0), L0 the machine's reference tool (docs/conventions.md, "Tool length")
+    xyz = q[:, :3].copy()
+    xyz[:, 2] -= tool - machine.tool_length
     abc = None
     if machine.n_axes > 3:
         abc = np.zeros((n_points, 3))
@@ -41,8 +45,7 @@ def case(machine_name: str, n_points: int, runs: int, rng) -> None:
             abc[:, "ABC".index(name)] = q[:, 3 + k]
     free = model.base_mask.copy()
     p = random_parameters(model, rng, mask=free)
-    data = simulate(model, make_points(xyz, abc, tool=rng.choice([0.0, 100.0, 200.0], n_points)), p,
-                    noise_um=0.5, rng=rng)
+    data = simulate(model, make_points(xyz, abc, tool=tool), p, noise_um=0.5, rng=rng)
     t0 = time.perf_counter()
     identify(model, [data])
     first = time.perf_counter() - t0
