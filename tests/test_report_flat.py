@@ -24,12 +24,13 @@ POSES = ([(0, c) for c in range(0, 360, 30)] + [(b, 0) for b in range(-90, 91, 1
 LOCATION = {"X0C": 12e-3, "Y0C": -8e-3, "A0C": 20e-6, "Z0B": 15e-3}
 
 
-def _rtest(path, ecc_sin2_rad: float, seed: int = 5):
-    """The R-test file of a truth machine with the location errors LOCATION and ECC = ecc sin 2C:
-    each ball's commanded tip (its nominal place in the bed frame) and its deviation, 0.3 um noise."""
+def _rtest(path, ecc_sin2_rad: float, seed: int = 5, ecc_zero_rad: float = 0.0):
+    """The R-test file of a truth machine with the location errors LOCATION and ECC = ecc0 + ecc
+    sin 2C: each ball's commanded tip (its nominal place in the bed frame) and its deviation, 0.3 um
+    noise."""
     m = TruthMachine.zero("cbfxyz")
     m.location.update(LOCATION)
-    m.components["C"]["ECC"] = Fourier(0.0, (0.0, 0.0), (0.0, ecc_sin2_rad))
+    m.components["C"]["ECC"] = Fourier(ecc_zero_rad, (0.0, 0.0), (0.0, ecc_sin2_rad))
     rng = np.random.default_rng(seed)
     rows = ["x_mm,y_mm,z_mm,b_deg,c_deg,tool_mm,dx_um,dy_um,dz_um,run"]
     for p in BALLS:
@@ -44,8 +45,8 @@ def _rtest(path, ecc_sin2_rad: float, seed: int = 5):
     return path
 
 
-def _identify(tmp_path, capsys, ecc):
-    src = _rtest(tmp_path / f"rtest_{ecc:g}.csv", ecc)
+def _identify(tmp_path, capsys, ecc, ecc_zero=0.0):
+    src = _rtest(tmp_path / f"rtest_{ecc:g}.csv", ecc, ecc_zero_rad=ecc_zero)
     assert main(["identify", "cbfxyz", str(src), "--hold", "X,Y,Z,squareness,spindle",
                  "--known-setup", str(src), "-o", str(tmp_path / "M.json")]) == 0
     return capsys.readouterr().out
@@ -73,3 +74,14 @@ def test_a_flat_profile_is_reported_flat_not_undetermined(tmp_path, capsys):
     for name, truth in (("X0C", 12.0), ("Y0C", -8.0), ("A0C", 20.0), ("Z0B", 15.0)):
         m = re.search(rf"{name}\s+(-?[\d.]+) \+- ([\d.]+) u", out)
         assert m and abs(float(m.group(1)) - truth) <= 4 * float(m.group(2)) + 0.05, (name, out)
+
+
+def test_the_report_gives_a_rotary_axis_zero_offset(tmp_path, capsys):
+    """A constant angular positioning error of C (its zero offset, 30 urad in the truth) has no range:
+    the report gives it as ECC_0 with its standard error (a user's A zero offset of 40 urad showed
+    only as "EAA range 0 urad ... smoothed flat")."""
+    out = _identify(tmp_path, capsys, 0.0, ecc_zero=30e-6)
+    m = re.search(r"zero offset of C\s+ECC_0\s+([-\d.]+) \+- ([\d.]+) urad", out)
+    assert m, out
+    value, sd = float(m.group(1)), float(m.group(2))
+    assert abs(value - 30.0) <= 3.0 * sd and sd < 2.0, out

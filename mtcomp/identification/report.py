@@ -285,6 +285,8 @@ def _location_values(fitted: FittedModel, und: Undetermined, mask) -> list:
         offsets, tilts = rotary_location_names(ax.name)
         singles += [(n, f"location of {ax.name}: offset") for n in offsets]
         singles += [(n, f"location of {ax.name}: tilt") for n in tilts]
+        # the constant of its angular positioning: a range (largest minus smallest) never shows it
+        singles.append((f"{positioning_component(ax.name)}_0", f"zero offset of {ax.name}"))
     for name, meaning in singles:
         if name not in fitted.params:
             continue
