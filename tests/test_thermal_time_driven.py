@@ -48,3 +48,15 @@ def test_a_drift_in_time_is_not_compensated_and_the_output_says_why(tmp_path, ca
         assert len(err) == 1 and "a temperature or spindle speed was given, but the model's " \
             "thermal drift is a drift in time" in err[0]
         assert not (tmp_path / "out2.nc").exists()
+
+
+def test_render_of_a_drift_in_time_says_why_it_is_not_mapped(tmp_path, capsys):
+    """render's note for a drift in time is compensate's reason, not "give render the --temperature
+    ... that compensate was given" (compensate refuses a temperature for this model)."""
+    pytest.importorskip("matplotlib")
+    model = _model(tmp_path, "time_h")
+    assert main(["render", "xfyz", str(model), str(tmp_path / "in.nc"), "-o",
+                 str(tmp_path / "map.png"), "--backend", "matplotlib", "--size", "300x200"]) == 0
+    out = capsys.readouterr().out
+    assert "thermal drift not mapped: the model's thermal drift is a drift in time" in out
+    assert "--temperature" not in out.split("thermal drift not mapped")[1].split("\n")[0]

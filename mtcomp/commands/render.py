@@ -186,7 +186,8 @@ def _thermal_state(args, fitted):
     no drift, as compensate corrects none (its reference state is no state the machine was in)."""
     from dataclasses import replace
 
-    from ..thermal.context import has_tip_drift, parse_assignments, thermal_context
+    from ..thermal.context import (TIME_DRIVEN, has_tip_drift, parse_assignments, thermal_context,
+                                   time_driven)
     temperatures = parse_assignments(args.temperature, "--temperature")
     if temperatures or args.spindle_rpm is not None:
         fitted = replace(fitted, context_defaults=dict(fitted.context_defaults))
@@ -196,6 +197,8 @@ def _thermal_state(args, fitted):
         return fitted, ""
     if not has_tip_drift(fitted.model):
         return fitted, ""
+    if time_driven(fitted.model):     # nothing render or compensate is given moves it
+        return fitted.without_drift(), f"thermal drift not mapped: {TIME_DRIVEN}"
     return fitted.without_drift(), ("thermal drift not mapped: no temperature or spindle speed "
                                     "given (give render the --temperature / --spindle-rpm that "
                                     "compensate was given)")
