@@ -122,6 +122,18 @@ def test_three_sphere_program(tmp_path, name):
         write_three_sphere_program(tmp_path / "x.nc", XFYZ)
 
 
+def test_three_sphere_dwell_is_in_milliseconds_as_a_fanuc_reads_it(tmp_path):
+    """The program is Fanuc-style ('%', O0003): a Fanuc reads G04's P as whole milliseconds (a Haas
+    a P without a decimal point too), so a dwell of 1.5 s is P1500 (it was written P1.5: 1.5 ms)
+    after every reading's C move."""
+    write_three_sphere_program(tmp_path / "s.nc", load_machine("cafxyz"), step_deg=90.0, dwell_s=1.5)
+    lines = (tmp_path / "s.nc").read_text().splitlines()
+    dwells = [ln for ln in lines if ln.startswith("G4")]
+    moves = [i for i, ln in enumerate(lines) if ln.startswith("G1 C")]
+    assert dwells and set(dwells) == {"G4 P1500"}
+    assert all(lines[i + 1] == "G4 P1500" for i in moves)
+
+
 @pytest.mark.parametrize("name", ["cafxyz", "cbfxyz"])
 def test_cone_frustum_program(tmp_path, name):
     m = load_machine(name)

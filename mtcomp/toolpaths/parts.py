@@ -300,7 +300,10 @@ def write_three_sphere_program(path, machine: Machine, heights_mm=(100.0, 200.0)
                 q[ci] = math.radians(a)
                 lines.append(f"G1 C{a:.4f} F{feed_deg_min:g}")
                 rows.append((q, ball, setup, float(h), len(lines)))
-                lines.append(f"G4 P{dwell_s:g}")
+                # the program is a Fanuc-style one ('%', O number): G04's P is milliseconds, a
+                # whole number (FANUC 0i-F operator's manual, "Dwell (G04)"; Haas reads a P
+                # without a decimal point as milliseconds too): P1 was 1 ms, not 1 s
+                lines.append(f"G4 P{round(dwell_s * 1000.0):d}")
             lines.append("M0 (REMOVE BALLBAR)")
     lines += ["M30", "%"]
     q = np.array([r[0] for r in rows])
