@@ -82,7 +82,7 @@ class GroupedQP:
         solver.setup(P, q, A, lower, upper, verbose=False, eps_abs=self.eps, eps_rel=self.eps,
                      polishing=True, max_iter=OSQP_MAX_ITER, warm_starting=True, adaptive_rho=True, polish_refine_iter=10)
         solver.warm_start(x=np.ascontiguousarray(np.clip(x_start, lo, hi).reshape(-1)))
-        x, status = solve_data(solver, P, q, A, lower, upper)
+        x, status = solve_data(solver, lambda: (P, q, A, lower, upper))
         if x is None or not np.all(np.isfinite(x)):
             return np.zeros((N, na)), status
         return x.reshape(G, na)[gid], status

@@ -85,16 +85,17 @@ def interior_point_solve(P, q, A, lower, upper):
     return np.asarray(sol.x, dtype=float), _CLARABEL_STATUS.get(status, status)
 
 
-def solve_data(solver, P, q, A, lower, upper):
-    """(x, status) of the QP an ``osqp.OSQP`` ``solver`` was set up (or updated) with, whose data
-    are P, q, A, lower, upper: OSQP's solution, or the interior-point one where OSQP ran out of
-    iterations (:func:`interior_point_solve`)."""
+def solve_data(solver, data):
+    """(x, status) of the QP an ``osqp.OSQP`` ``solver`` was set up (or updated) with: OSQP's
+    solution, or the interior-point one where OSQP ran out of iterations
+    (:func:`interior_point_solve` of ``data()``, a callable returning the same problem's P, q, A,
+    lower, upper: built only then, not on every window)."""
     res = osqp_solve(solver)
     if res.info.status_val != OSQP_MAX_ITER_REACHED:
         x = res.x                        # None, or Nones, where OSQP has no iterate (infeasible)
         x = None if x is None or (len(x) and x[0] is None) else np.asarray(x, dtype=float)
         return x, res.info.status
-    return interior_point_solve(P, q, A, lower, upper)
+    return interior_point_solve(*data())
 
 #: a bounded window keeps every block's deviation, per direction the objective counts, within this
 #: (um, or the weighted urad of the tool axis) of the uncorrected one: half the output grid (the
@@ -208,7 +209,8 @@ class WindowQP:
         Px, q, Ax = self._p_data(H), np.ascontiguousarray(g.reshape(-1)), self._values(J)
         self.solver.update(Px=Px, q=q, l=l, u=u, Ax=Ax)
         self.solver.warm_start(x=np.ascontiguousarray(x0.reshape(-1)))
-        x, status = solve_data(self.solver, _with_data(self._P, Px), q, _with_data(self._A, Ax), l, u)
+        x, status = solve_data(self.solver, lambda: (_with_data(self._P, Px), q,
+                                                     _with_data(self._A, Ax), l, u))
         self.solves += 1
         if x is None:
             return np.full((self.N, self.na), np.nan), status
