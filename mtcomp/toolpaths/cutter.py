@@ -73,19 +73,20 @@ def _cutting_rows(machine, chunk, placed, path):
         raise InputError("a cutting move in tool centre point mode with an axis the program has not "
                          "given: its tip's axes are not known", str(path),
                          line=int(chunk.line[np.argmax(unknown)]))
-    out = [[] for _ in rows]
+    starts, ends, index = [], [], []
     for i in np.flatnonzero(keep):
         if not tcp[i]:
-            pieces = (placed.start[i][None], placed.end[i][None])
+            s, e = placed.start[i][None], placed.end[i][None]
         else:
             # a move from a position the program has not given: no path, its end only
-            start = chunk.end[i] if chunk.jump[i] else chunk.start[i]
-            pieces = _tcp_pieces(machine, start, chunk.end[i])
-        k = len(pieces[0])
-        for j, a in enumerate(pieces + tuple(np.repeat(np.asarray(r)[i][None], k, axis=0)
-                                           for r in rows[2:])):
-            out[j].append(a)
-    return tuple(np.concatenate(a) for a in out)
+            s, e = _tcp_pieces(machine, chunk.end[i] if chunk.jump[i] else chunk.start[i],
+                               chunk.end[i])
+        starts.append(s)
+        ends.append(e)
+        index.append(np.full(len(s), i))
+    index = np.concatenate(index)
+    return (np.concatenate(starts), np.concatenate(ends),
+            *(np.asarray(r)[index] for r in rows[2:]))
 
 
 def _tcp_pieces(machine, start, end):
