@@ -36,6 +36,16 @@ class ExportResult:
     single_file: bool = False
     carried: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
+    uncarried: tuple | None = None
+
+    def not_carried(self, tables) -> tuple[list, float | None]:
+        """(lines, largest um): the model's single-valued errors these tables do not carry
+        (:func:`mtcomp.export._uncarried.uncarried_lines`), computed once."""
+        if self.uncarried is None:
+            from ._uncarried import uncarried_lines
+            self.uncarried = (uncarried_lines(tables.fitted, tables, self.carried, self.format)
+                              if tables.fitted is not None and tables.pose is not None else ([], None))
+        return self.uncarried
 
 
 def sign_factor_and_note(sign: str | None, what: str) -> tuple[float, str]:
@@ -65,6 +75,9 @@ def slope(tables, moving: str, column: int) -> float | None:
         return None
     return fit_line(t.positions, t.mean[:, column])[1]
 
+
+#: the pose the per-axis remaining figures hold at (the tables' own: each axis moving alone)
+ONE_POSE = "with only that axis moving, the others at the one pose the tables are read at"
 
 #: what is left out is said from this size on (um, urad): below it a fit's rounding (a component
 #: the data held at zero, to 1e-3 urad), no error a table would carry
@@ -156,8 +169,16 @@ def readme_text(result: ExportResult, tables, header: list) -> str:
     rest, worst = left_out(tables, result.carried)
     lines += ["", "What the controller cannot hold (left out of these files):"]
     lines += [f"  - {r}" for r in rest] or ["  - nothing above 0.0005 um / urad"]
-    lines += [f"  remaining along {a} at the reference pose (largest translation not carried): "
+    lines += [f"  remaining along {a} {ONE_POSE} (largest translation not carried): "
               f"{w * UM_PER_MM:.3f} um" for a, w in worst.items()]
+    single, together = result.not_carried(tables)
+    if single:
+        lines += ["", "Single-valued errors of the model no table carries (value +- standard error; "
+                  "the tool-tip error each makes over the volume the data reached, linear axes at "
+                  "their ends, rotary axes swept; zero where the tables are read):"]
+        lines += [f"  - {s}" for s in single]
+        lines.append(f"  remaining over the volume from these together: up to {together:.2f} um at "
+                     "the tool tip (on top of the figures above)")
     return "\n".join(lines) + "\n"
 
 

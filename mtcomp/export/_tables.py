@@ -124,6 +124,9 @@ class ComponentTables:
     region_source : axis -> 'data' (the model's support), 'range' (--range alone), 'travel'.
     unheld_reversal : axis -> (mean, largest, unit) of the reversal the model's data show and the
         model does not hold (mtcomp.export._reversal.unheld_reversals), file units.
+    fitted : the FittedModel. pose : (n_axes,) the pose every table is read at (each other axis
+        there), mm and rad. volume : axis -> (lo, hi) where the data reached, rotary axes too (also
+        those a format writes no table for): what is not carried is swept over it.
     """
 
     machine: object
@@ -131,6 +134,9 @@ class ComponentTables:
     notes: list = field(default_factory=list)
     region_source: dict = field(default_factory=dict)
     unheld_reversal: dict = field(default_factory=dict)
+    fitted: object = None
+    pose: np.ndarray | None = None
+    volume: dict = field(default_factory=dict)
 
     def has_backlash(self, axis: str, tol: float = 1e-9) -> bool:
         """True when the positioning error of ``axis`` depends on the approach direction."""
@@ -438,11 +444,13 @@ def _too_uncertain(fitted, a: str, q: np.ndarray, q_ref: np.ndarray, max_sd_um: 
 
 def component_tables(fitted, grids: dict, region: dict | None = None,
                      notes: list | None = None, source: dict | None = None,
-                     max_sd_um: float | None = None) -> ComponentTables:
+                     max_sd_um: float | None = None, volume: dict | None = None) -> ComponentTables:
     """Evaluate the component errors of every axis of ``grids`` (module docstring).
 
     grids : axis -> (n,) positions, mm or rad (machine coordinates). region : axis -> (lo, hi) where
     the model's data reached (default: the grids' ends); grid points beyond it hold its end values.
+    volume : axis -> (lo, hi) where the data reached, rotary axes included (default ``region``):
+        where what no table carries is swept (:mod:`._uncarried`).
     max_sd_um : an axis whose table's standard error (:func:`table_sd_um`, either direction) exceeds
     this anywhere on its grid gets no table, and a note says why (None or 0: no limit). The whole
     table, not the points over the limit: a controller interpolates between its points, and a table
@@ -485,4 +493,5 @@ def component_tables(fitted, grids: dict, region: dict | None = None,
     reversal = reversal_note(fitted)
     if reversal:
         notes.append(reversal)
-    return ComponentTables(machine, tables, notes, dict(source or {}), unheld_reversals(fitted))
+    return ComponentTables(machine, tables, notes, dict(source or {}), unheld_reversals(fitted),
+                           fitted, q_ref, dict(volume or region))
