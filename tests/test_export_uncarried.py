@@ -7,8 +7,8 @@ Hand-derived oracles (a positioning error of X, 10 um/m, gives the Fanuc export 
 * a rotary table's line offset e (X0C, Y0C) moves the tool tip relative to the part by (R(C) - I) e
   (the table turns the offset with it), |.| = 2 |e| sin(C / 2): zero at C = 0, where the tables are
   read, 2 |e| at C = 180 deg (30 um for X0C = 15 um alone, 36.06 um for X0C = 15, Y0C = -10 um);
-* a squareness B0Z (Z leaning in X) moves the tip by z B0Z in X: over Z -250 .. 150 mm from Z = 0,
-  at most 250 mm x 20 urad = 5 um. LinuxCNC's matrixkins carries it (nothing listed); Fanuc's pitch
+* a squareness B0Z (Z leaning in X) moves the tip by z B0Z in X: over Z -250 .. 150 mm from the
+  tables' pose Z = -50 (the middle), at most 200 mm x 20 urad = 4 um. LinuxCNC's matrixkins carries it (nothing listed); Fanuc's pitch
   tables do not (listed).
 """
 from __future__ import annotations
@@ -69,7 +69,7 @@ def test_squareness_listed_only_where_the_format_has_no_table_for_it(tmp_path, c
     path = _model(tmp_path, "xfyz", {"B0Z": 20.0})
     readme, _ = _export(tmp_path, capsys, "xfyz", path, fmt)
     if listed:
-        assert _up_to(readme, "B0Z")[0] == pytest.approx(5.0, abs=0.01)
+        assert _up_to(readme, "B0Z")[0] == pytest.approx(4.0, abs=0.01)
         assert "mtcomp compensate" in readme
     else:
         assert "B0Z" not in readme, readme

@@ -129,7 +129,7 @@ def left_out(tables, carried: dict) -> tuple[list, dict]:
             lines.append(f"{name} of axis {a}: left out {what}: up to {peak * scale:.3f} {unit}{extra}")
     if any(line.endswith("(angular*)") for line in lines):
         lines.append("* an angular error: no per-axis table can carry it; its Abbe effect at the "
-                     "reference pose is inside the translations above, elsewhere it grows with the arm "
+                     "table pose is inside the translations above, elsewhere it grows with the arm "
                      "(other tool lengths, other positions of the axes)")
     return lines, worst
 
@@ -150,6 +150,25 @@ def region_line(tables, a: str) -> str:
     return line + f"; reference position {t.reference[a] * f:g} {u}"
 
 
+def pose_line(tables) -> str:
+    """The sentence saying where the other axes stood while each table was read, and where each
+    table is zero."""
+    m = tables.machine
+    deg = {a.name: 180 / np.pi if a.is_rotary else 1.0 for a in m.axes}
+    ref = next(iter(tables.tables.values())).reference
+    pose = tables.pose if tables.pose is not None else [ref[a] for a in m.axis_names]
+    return ("component errors are the model's deviation when only that axis moves, every other axis "
+            "at " + ", ".join(f"{a}={v * deg[a]:g}" for a, v in zip(m.axis_names, pose))
+            + f" (--at; by default each linear axis at the middle of its data, where the least-squares "
+            "best 1-D table of an error acting through that axis's arm is read, and a rotary axis at "
+            f"its reference position), tool length {m.tool_length:g} mm; each table is zero at its "
+            "axis's reference position (" + ", ".join(f"{a}={v * deg[a]:g}" for a, v in ref.items())
+            + "; one outside its axis's data region at the region's nearest end). Along a line "
+            "through that pose the tables correct what mtcomp compensate corrects, up to one "
+            "constant; elsewhere an angular error's arm differs (see 'What the controller cannot "
+            "hold')")
+
+
 def readme_text(result: ExportResult, tables, header: list) -> str:
     """README.txt beside the tables: how to load them, the limits and signs, what was left out."""
     lines = list(header)
@@ -157,14 +176,8 @@ def readme_text(result: ExportResult, tables, header: list) -> str:
               "coordinates):"]
     for a, t in tables.tables.items():
         lines.append("  " + region_line(tables, a))
-    ref = next(iter(tables.tables.values())).reference if tables.tables else {}
-    if ref:
-        lines.append("  component errors are the model's deviation when only that axis moves, every "
-                     "other axis at its reference position (" + ", ".join(
-                         f"{a}={v * (180 / np.pi if tables.machine.axis(a).is_rotary else 1):g}"
-                         for a, v in ref.items()) + "; one outside its axis's data region at the "
-                     f"region's nearest end), tool length {tables.machine.tool_length:g} mm; each table "
-                     "is zero at its axis's reference position")
+    if tables.tables:
+        lines.append("  " + pose_line(tables))
     lines += ["", "Notes:"] + [f"  - {n}" for n in tables.notes + result.notes]
     rest, worst = left_out(tables, result.carried)
     lines += ["", "What the controller cannot hold (left out of these files):"]
