@@ -191,7 +191,8 @@ def readme_text(result: ExportResult, tables, header: list) -> str:
                   "their ends, rotary axes swept; zero where the tables are read):"]
         lines += [f"  - {s}" for s in single]
         lines.append(f"  remaining over the volume from these together: up to {together:.2f} um at "
-                     "the tool tip (on top of the figures above)")
+                     "the tool tip (on top of the figures above, but for a squareness listed here: "
+                     "it is also the slope of its straightness above)")
     return "\n".join(lines) + "\n"
 
 
