@@ -341,3 +341,23 @@ def test_common_weight_grid_is_the_criterion_at_a_common_weight():
     def criterion(rho):
         return reml_criterion(rho, *args, gradient=False)[0]
     assert _grid_start(full, criterion, args, _ranks(args[3]), 2) == full[int(np.argmin(values))]
+
+
+def test_grid_start_is_the_exact_least_when_a_fast_value_lost_its_digits(monkeypatch):
+    """A fast value far below the criterion at an end of the grid (as the penalised residual sum's
+    cancellation gave one at the largest weight: -671480 where the criterion is 6674, a tracker line beside a laser
+    run) is not chosen: the shortlist is evaluated exactly until its least is an exact value. The
+    old search took that point's exact value as the least, REML started from e^30 and smoothed the
+    positioning flat."""
+    from mtcomp.identification import penalty
+    args = two_penalties(1, 20, 200, slice(0, 10), slice(10, 20))
+    full = np.arange(-30.0, 30.1, 2.0)
+
+    def criterion(rho):
+        return penalty.reml_criterion(rho, *args, gradient=False)[0]
+    values = np.array([criterion(np.full(2, r)) for r in full])
+    far = 0 if np.argmin(values) > len(full) // 2 else len(full) - 1     # the grid end away from it
+    spoilt = values.copy()
+    spoilt[far] = values.min() - 1e5
+    monkeypatch.setattr(penalty, "_common_weight_grid", lambda *a, **k: spoilt.copy())
+    assert penalty._grid_start(full, criterion, args, penalty._ranks(args[3]), 2) == full[int(np.argmin(values))]

@@ -283,7 +283,8 @@ def _common_weight_grid(grid: np.ndarray, args: tuple, ranks: np.ndarray,
     log-determinant ``log|A_00| + log|L| + sum log(w + lam)`` and its solve is a division by
     ``w + lam``: each weight costs O(k^2) where a Cholesky factor per weight costs O(k^3) (Wood 2011,
     section 3.2, diagonalises the same way for one smoothing parameter). The null part is exactly
-    unpenalised, so the values stay accurate at the largest weights."""
+    unpenalised, but at the largest weights the penalised residual sum may still lose its digits to
+    cancellation (a value far below the criterion's: :func:`_grid_start` checks the least)."""
     AB, gB, rss0, SB, bz, cz, n_obs = args
     S = sum(SB)
     ev, U = np.linalg.eigh(0.5 * (S + S.T))
@@ -330,12 +331,22 @@ def _grid_start(grid: np.ndarray, criterion, args: tuple, ranks: np.ndarray, m: 
                 rank: int | None = None) -> float:
     """The grid's common log weight with the least criterion (the first of equals, in grid order).
     The fast values of :func:`_common_weight_grid` shortlist the points within round-off of their
-    least; those are compared by the exact criterion, so the choice is the exact criterion's."""
-    fast = _common_weight_grid(grid, args, ranks, rank)
-    if fast is None or not np.all(np.isfinite(fast)):
+    least; those are evaluated by the exact criterion, and again with what that changes, until every
+    point of the shortlist has its exact value: the choice is the exact criterion's, even where a
+    fast value lost its digits and fell below the least (the exact one where it is NaN)."""
+    values = _common_weight_grid(grid, args, ranks, rank)
+    if values is None:
         return float(min(grid, key=lambda r: criterion(np.full(m, r))))
-    near = np.flatnonzero(fast <= fast.min() + GRID_SHORTLIST * max(abs(float(fast.min())), 1e3))
-    return float(min(grid[near], key=lambda r: criterion(np.full(m, r))))
+    exact = ~np.isfinite(values)
+    values[exact] = [criterion(np.full(m, r)) for r in grid[exact]]
+    while True:
+        least = float(values.min())
+        near = np.flatnonzero(values <= least + GRID_SHORTLIST * max(abs(least), 1e3))
+        todo = near[~exact[near]]
+        if not todo.size:
+            return float(grid[near[int(np.argmin(values[near]))]])
+        values[todo] = [criterion(np.full(m, grid[i])) for i in todo]
+        exact[todo] = True
 
 
 def reml_weights(AB: np.ndarray, gB: np.ndarray, rss0: float, SB: list[np.ndarray],
