@@ -680,7 +680,8 @@ def added_words_note(program, written) -> list[str]:
             "changes there (its error varies with the other axes' positions, or the step bound "
             "ramps a correction in or out), and the controller keeps what a line does not say "
             "(an axis where it stood, a drilling cycle's depth); never an axis whose position "
-            "the program has not given"]
+            "the program has not given, nor a rotary axis the program holds (outside tool centre "
+            "point mode)"]
 
 
 def tcp_note(program, tally) -> list[str]:

@@ -17,25 +17,28 @@ from ._small import any_rows, column_extremes, down_columns
 from .problem import CompensationProblem
 
 #: the kinds of bound, in the order of the flag array's last axis
-FLAG_KINDS = ("max", "min", "travel_max", "travel_min", "step", "reversal", "arc")
+FLAG_KINDS = ("max", "min", "travel_max", "travel_min", "step", "reversal", "arc", "standing")
 #: the kinds that can hold an axis's whole correction where the block asks for one: the travel
 #: and the link bounds (an axis one of them leaves at zero keeps its whole error). Not the step
 #: bound, whose ramp only passes zero, nor the correction bound, zero only where the axis gets no
-#: correction by design (a rotary axis the model's data held at one angle)
+#: correction by design (a rotary axis the model's data held at one angle), nor the standing
+#: rule's (a rotary axis the program does not move keeps its correction; the linear axes take the
+#: tip: the summary says so on a line of its own)
 HOLDING = np.array([kind in ("travel_max", "travel_min", "reversal", "arc") for kind in FLAG_KINDS])
 INF = 1e30
 #: kinds of link bound (:mod:`._links`), as stored per node and axis (0: none)
-REVERSAL, ARC = 1, 2
+REVERSAL, ARC, STANDING = 1, 2, 3
 
 
 def flag_name(kind: str, axis: str) -> str:
     """Column text of one active bound: cx_max, cx_min, travel_x_max, travel_x_min, step_x,
     reversal_x (the correction held so that X keeps its direction), arc_x (one correction along an
-    arc under cutter radius compensation)."""
+    arc under cutter radius compensation), standing_c (a rotary axis the program does not move
+    there, outside tool centre point mode, keeps the correction it has: its word is not written)."""
     a = axis.lower()
     return {"max": f"c{a}_max", "min": f"c{a}_min", "travel_max": f"travel_{a}_max",
             "travel_min": f"travel_{a}_min", "step": f"step_{a}", "reversal": f"reversal_{a}",
-            "arc": f"arc_{a}"}[kind]
+            "arc": f"arc_{a}", "standing": f"standing_{a}"}[kind]
 
 
 
@@ -106,7 +109,8 @@ class Bounds:
 
     def limits(self, q, pinned=None):
         """(l, u, travel_lo, travel_hi), each (n, na): box bounds and the travel part of them.
-        pinned : (n,) bool or None, blocks that get no correction (l = u = 0)."""
+        pinned : (n,) bool or None, blocks that get no correction (l = u = 0); (n, na): their axes
+        that get none (:meth:`~._nodes.NodeSet.box_pins`)."""
         tlo, thi = self.travel_x(q)
         l, u = np.maximum(-self.B, tlo), np.minimum(self.B, thi)
         if pinned is not None and np.any(pinned):
@@ -228,15 +232,15 @@ class Bounds:
         return y, flags
 
     def _link_flags(self, flags, took, y, prev_rows, has_prev, links, tol):
-        """Set the reversal and arc flags: the bound took something away and the change of the
-        correction into the block sits on the link bound."""
+        """Set the reversal, arc and standing flags: the bound took something away and the change
+        of the correction into the block sits on the link bound."""
         lo, hi, kind = links
         d = y - prev_rows
         on = (np.abs(d - lo) <= tol + 1e-6) | (np.abs(d - hi) <= tol + 1e-6)
         if not has_prev and y.shape[0]:
             on[0] = False
-        flags[..., FLAG_KINDS.index("reversal")] = took & on & (kind == REVERSAL)
-        flags[..., FLAG_KINDS.index("arc")] = took & on & (kind == ARC)
+        for name, k in (("reversal", REVERSAL), ("arc", ARC), ("standing", STANDING)):
+            flags[..., FLAG_KINDS.index(name)] = took & on & (kind == k)
 
     def _on_step(self, y, prev_rows, has_prev, exempt, following, tol):
         """(n, na) bool: the step into a block (from prev_rows) or out of it to the next is on its
