@@ -96,9 +96,10 @@ class CompensationSettings:
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
                     or v < 0 or (v == 0 and not allow_zero):
                 raise InputError(f"{where}{name} must be a positive number, got {v!r}")
-        for name in ("max_correction_um", "max_correction_urad", "max_step_um", "max_step_urad",
-                     "chord_tol_um", "orientation_weight"):
+        for name in ("max_correction_um", "max_step_um", "max_step_urad", "chord_tol_um",
+                     "orientation_weight"):
             positive(getattr(self, name), name)
+        positive(self.max_correction_urad, "max_correction_urad", allow_zero=True)
         positive(self.subdivide_tol_um, "subdivide_tol_um", allow_zero=True)
         positive(self.max_correction_sd_um, "max_correction_sd_um", allow_zero=True)
         for table in ("axis_max_correction", "axis_max_step"):

@@ -143,3 +143,37 @@ def test_the_standing_bound_keeps_the_correction_by_hand():
     y, _ = bounds.enforce(x, q, np.zeros(3, bool), prev, links=nodes.links,
                           limits=bounds.limits(q, nodes.box_pins()))
     np.testing.assert_allclose(y[2], [0.0, 0.0, 0.0, 0.0, -40.0], rtol=0, atol=1e-12)
+
+
+def test_a_zero_rotary_bound_corrects_no_rotary_axis(tmp_path, capsys):
+    """--max-correction-urad 0 (refused before as not positive): the C table of
+    test_planner_rotary_ramp, whose turns of C take a turn of their own otherwise, is written with
+    every C word as it was; X and Y correct the tip (the hand replay of the offset C axis: no block
+    worse, the turns better), and no bound is named for A or C. A negative bound is refused."""
+    from test_planner_rotary_ramp import PROGRAM as CA_PROGRAM, _compensate as ca_compensate
+    from test_planner_rotary_ramp import _deviation_um, _evaluated, _positions as ca_positions
+    lines, rows, summary = ca_compensate(tmp_path, "--max-correction-urad", "0")
+    meant = CA_PROGRAM.splitlines()
+    assert [re.findall(r"[AC]-?[\d.]+", t) for t in lines] == \
+        [re.findall(r"[AC]-?[\d.]+", t) for t in meant]
+    assert all(float(r["cc_urad"] or 0) == 0.0 and float(r["ca_urad"] or 0) == 0.0 for r in rows)
+    named = [b for r in rows for b in r["active_bounds"].split(";") if b]
+    assert not [b for b in named if b[-1] in "ac"], named
+    m, w = ca_positions(meant), ca_positions(lines)
+    for k in _evaluated(rows):
+        before, after = np.abs(_deviation_um(m[k], m[k])), np.abs(_deviation_um(w[k], m[k]))
+        assert np.all(after <= before + 0.1), (k, before, after)
+    assert np.linalg.norm(_deviation_um(w[10], m[10])) < 1.0 < np.linalg.norm(
+        _deviation_um(m[10], m[10]))
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as e:
+        main(["compensate", "--help"])
+    assert e.value.code == 0
+    assert "0: the rotary axes are never corrected" in " ".join(capsys.readouterr().out.split())
+    prog = tmp_path / "p.nc"
+    out = tmp_path / "neg.nc"
+    assert main(["compensate", "cafxyz", str(tmp_path / "m.json"), str(prog), "-o", str(out),
+                 "--max-correction-urad", "-1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--max-correction-urad must be 0 or a positive number" in err[0]
+    assert not out.exists()

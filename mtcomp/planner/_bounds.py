@@ -70,6 +70,9 @@ class Bounds:
         self.on_tol = 1e-9 * self.unit if self.grid is not None else np.full(len(self.D), 1e-6)
         self.B = self._floor(problem.max_correction * self.D)
         self.S = self._floor(problem.max_step * self.D)
+        #: (na,) bool, the axes whose correction bound is zero (--max-correction-urad 0, a rotary
+        #: axis the model's data held at one angle): no correction by design, no bound named
+        self._none = np.broadcast_to(self.B <= 0, (problem.n_axes,))
 
     def _floor(self, x):
         if self.grid is None:
@@ -210,6 +213,8 @@ class Bounds:
         took = np.subtract(desired, y)
         np.abs(took, out=took)
         took = down_columns(np.greater, took, self.took_tol)
+        if self._none.any():        # an axis that gets no correction by design: no bound took it
+            took[:, self._none] = False
         if not took.any():          # every flag needs the bound to have taken something away
             return y, flags
         if tlo is None:             # limits_lazy: the travel part was not computed
