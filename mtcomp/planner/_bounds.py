@@ -233,19 +233,27 @@ class Bounds:
             pp = np.vstack([prev[None, :] if prev is not None else planned[:1], planned[:-1]])
             flags[..., 4] |= took & self._on_step(planned, pp, has_prev, exempt, None, tol)
         if links is not None:
-            self._link_flags(flags, took, y, prev_rows, prev is not None, links, tol)
+            self._link_flags(flags, took, y, prev_rows, prev is not None, links, tol, desired)
         return y, flags
 
-    def _link_flags(self, flags, took, y, prev_rows, has_prev, links, tol):
+    def _link_flags(self, flags, took, y, prev_rows, has_prev, links, tol, desired):
         """Set the reversal, arc and standing flags: the bound took something away and the change
-        of the correction into the block sits on the link bound."""
+        of the correction into the block sits on the link bound, or the change out of it to the
+        next block sits on that block's link bound on the side this block's correction wanted to
+        go (the block before one where X stands after a +X move: its correction can be no larger
+        than the one X stands with there)."""
         lo, hi, kind = links
         d = y - prev_rows
-        on = (np.abs(d - lo) <= tol + 1e-6) | (np.abs(d - hi) <= tol + 1e-6)
+        at_lo, at_hi = np.abs(d - lo) <= tol + 1e-6, np.abs(d - hi) <= tol + 1e-6
+        on = at_lo | at_hi
         if not has_prev and y.shape[0]:
             on[0] = False
+        want = desired[:-1] - y[:-1]
+        out = (at_lo[1:] & (want > 0)) | (at_hi[1:] & (want < 0))
         for name, k in (("reversal", REVERSAL), ("arc", ARC), ("standing", STANDING)):
-            flags[..., FLAG_KINDS.index(name)] = took & on & (kind == k)
+            f = flags[..., FLAG_KINDS.index(name)]
+            f[:] = took & on & (kind == k)
+            f[:-1] |= took[:-1] & out & (kind[1:] == k)
 
     def _on_step(self, y, prev_rows, has_prev, exempt, following, tol):
         """(n, na) bool: the step into a block (from prev_rows) or out of it to the next is on its
