@@ -149,7 +149,8 @@ def test_a_zero_rotary_bound_corrects_no_rotary_axis(tmp_path, capsys):
     """--max-correction-urad 0 (refused before as not positive): the C table of
     test_planner_rotary_ramp, whose turns of C take a turn of their own otherwise, is written with
     every C word as it was; X and Y correct the tip (the hand replay of the offset C axis: no block
-    worse, the turns better), and no bound is named for A or C. A negative bound is refused."""
+    worse, the turns better), and only the zero bound is named for A or C, on one side. A negative
+    bound is refused."""
     from test_planner_rotary_ramp import PROGRAM as CA_PROGRAM, _compensate as ca_compensate
     from test_planner_rotary_ramp import _deviation_um, _evaluated, _positions as ca_positions
     lines, rows, summary = ca_compensate(tmp_path, "--max-correction-urad", "0")
@@ -157,8 +158,12 @@ def test_a_zero_rotary_bound_corrects_no_rotary_axis(tmp_path, capsys):
     assert [re.findall(r"[AC]-?[\d.]+", t) for t in lines] == \
         [re.findall(r"[AC]-?[\d.]+", t) for t in meant]
     assert all(float(r["cc_urad"] or 0) == 0.0 and float(r["ca_urad"] or 0) == 0.0 for r in rows)
-    named = [b for r in rows for b in r["active_bounds"].split(";") if b]
-    assert not [b for b in named if b[-1] in "ac"], named
+    # the zero bound alone is named for A and C, on the side the turn was wanted (not both)
+    for r in rows:
+        named = [b for b in r["active_bounds"].split(";") if b[:2] in ("ca", "cc") or
+                 b[-1:] in ("a", "c")]
+        assert set(named) <= {"ca_max", "ca_min", "cc_max", "cc_min"}, named
+        assert len({b[:2] for b in named}) == len(named), named
     m, w = ca_positions(meant), ca_positions(lines)
     for k in _evaluated(rows):
         before, after = np.abs(_deviation_um(m[k], m[k])), np.abs(_deviation_um(w[k], m[k]))

@@ -71,7 +71,7 @@ class Bounds:
         self.B = self._floor(problem.max_correction * self.D)
         self.S = self._floor(problem.max_step * self.D)
         #: (na,) bool, the axes whose correction bound is zero (--max-correction-urad 0, a rotary
-        #: axis the model's data held at one angle): no correction by design, no bound named
+        #: axis the model's data held at one angle): no correction by design, that bound named
         self._none = np.broadcast_to(self.B <= 0, (problem.n_axes,))
 
     def _floor(self, x):
@@ -213,8 +213,6 @@ class Bounds:
         took = np.subtract(desired, y)
         np.abs(took, out=took)
         took = down_columns(np.greater, took, self.took_tol)
-        if self._none.any():        # an axis that gets no correction by design: no bound took it
-            took[:, self._none] = False
         if not took.any():          # every flag needs the bound to have taken something away
             return y, flags
         if tlo is None:             # limits_lazy: the travel part was not computed
@@ -234,7 +232,20 @@ class Bounds:
             flags[..., 4] |= took & self._on_step(planned, pp, has_prev, exempt, None, tol)
         if links is not None:
             self._link_flags(flags, took, y, prev_rows, prev is not None, links, tol, desired)
+        if self._none.any():
+            self._zero_bound_flags(flags, desired, y)
         return y, flags
+
+    def _zero_bound_flags(self, flags, desired, y):
+        """An axis whose correction bound is zero (no correction by design) names that bound alone,
+        on the side its correction wanted to go (at zero it sits on both): not its step bound
+        (zero too) nor the standing rule, which take nothing from it."""
+        nz = self._none
+        up = desired[:, nz] > y[:, nz]
+        flags[:, nz, 0] &= up
+        flags[:, nz, 1] &= ~up
+        flags[:, nz, FLAG_KINDS.index("step")] = False
+        flags[:, nz, FLAG_KINDS.index("standing")] = False
 
     def _link_flags(self, flags, took, y, prev_rows, has_prev, links, tol, desired):
         """Set the reversal, arc and standing flags: the bound took something away and the change
