@@ -97,9 +97,10 @@ class CompensationSettings:
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
                     or v < 0 or (v == 0 and not allow_zero):
                 raise InputError(f"{where}{name} must be a positive number, got {v!r}")
-        for name in ("max_correction_um", "max_correction_urad", "max_step_um", "max_step_urad",
-                     "chord_tol_um", "orientation_weight"):
+        for name in ("max_correction_um", "max_step_um", "max_step_urad", "chord_tol_um",
+                     "orientation_weight"):
             positive(getattr(self, name), name)
+        positive(self.max_correction_urad, "max_correction_urad", allow_zero=True)
         positive(self.subdivide_tol_um, "subdivide_tol_um", allow_zero=True)
         positive(self.max_correction_sd_um, "max_correction_sd_um", allow_zero=True)
         for table in ("axis_max_correction", "axis_max_step"):
@@ -695,7 +696,8 @@ def added_words_note(program, written) -> list[str]:
             "changes there (its error varies with the other axes' positions, or the step bound "
             "ramps a correction in or out), and the controller keeps what a line does not say "
             "(an axis where it stood, a drilling cycle's depth); never an axis whose position "
-            "the program has not given"]
+            "the program has not given, nor a rotary axis the program holds (outside tool centre "
+            "point mode)"]
 
 
 def tcp_note(program, tally) -> list[str]:

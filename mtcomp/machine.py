@@ -365,7 +365,8 @@ def _rotary_axis(letter: str, side: str, ad: dict, path) -> Axis:
 
 
 def _compensation(data: dict, path) -> dict:
-    """The [compensation] table over the defaults (each a positive number)."""
+    """The [compensation] table over the defaults (each a positive number; max_correction_urad
+    may be 0)."""
     comp = dict(DEFAULT_COMPENSATION)
     comp_data = data.get("compensation", {})
     if not isinstance(comp_data, dict):
@@ -374,7 +375,9 @@ def _compensation(data: dict, path) -> dict:
         if k not in DEFAULT_COMPENSATION:
             raise InputError(f"[compensation]: unknown key {k!r} (known: "
                              f"{', '.join(sorted(DEFAULT_COMPENSATION))})", path)
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+        # max_correction_urad may be 0: the rotary axes are never corrected
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0 \
+                or (v == 0 and k != "max_correction_urad"):
             raise InputError(f"[compensation] {k} must be a positive number, got {v!r}", path)
         comp[k] = float(v)
     return comp

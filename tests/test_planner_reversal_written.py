@@ -193,3 +193,28 @@ def test_compensate_says_where_the_rule_gave_way(tmp_path, capsys, monkeypatch):
     assert main(["compensate", "xfyz", str(_model(tmp_path)), str(prog), "-o",
                  str(tmp_path / "o2.nc"), "--max-step-um", "1"]) == 0
     assert "gave way" not in capsys.readouterr().out
+
+
+def test_the_block_before_a_stand_still_names_the_bound_that_holds_it(tmp_path):
+    """A lag of X (BL_X = -2.18 um: E_XX = -1.09 um moving +X) and a squareness C0Y = -12.3 urad
+    (X off by 12.3 urad * y): the end of a +X move at Y0 is 1.09 um off in -X (by hand), the Y move
+    after it, X standing in +X, 0.14 um in +X. X's correction may rise but not drop into the
+    stand-still, and the stand-still may not be made worse than its 0.14 um: the end of the +X
+    move is held near zero by the reversal bound of the block after it. Before, its row named no
+    bound (a metrology engineer's N70: cx 0 with 1.09 um predicted, active_bounds empty)."""
+    fm = random_model("xfyz", (Backlash("X"),), 3, 0.0, None)
+    fm.params.set_file_value("BL_X", -2.18)
+    fm.params.set_file_value("C0Y", -12.3)
+    model = tmp_path / "m.json"
+    save_model(model, fm)
+    text, rows = _compensate(tmp_path, model, "G21 G90 G54\nG0 X0 Y0 Z0\nG1 X50 F500\nG1 Y100\n"
+                             "G1 X0\nM30\n", "--subdivide-tol-um", "0")
+    by = {int(r["line"]): r for r in rows}
+    end, still = by[3], by[4]
+    assert float(end["ex_before_um"]) == pytest.approx(-1.09, abs=1e-3)
+    assert float(still["ex_before_um"]) == pytest.approx(-1.09 + 12.3e-3 * 100, abs=1e-3)
+    xw = _written_x(text)
+    assert xw[1] <= xw[2]                                   # no drop into the stand-still
+    assert float(end["cx_um"]) <= 0.1 and float(end["ex_after_um"]) < -0.9
+    assert "reversal_x" in end["active_bounds"].split(";")
+    assert "reversal_x" in still["active_bounds"].split(";")

@@ -23,7 +23,8 @@ def add_arguments(parser):
     parser.add_argument("--max-correction-um", type=float, metavar="U", default=None,
                         help="largest correction of a linear axis per block (um)")
     parser.add_argument("--max-correction-urad", type=float, metavar="R", default=None,
-                        help="largest correction of a rotary axis per block (urad)")
+                        help="largest correction of a rotary axis per block (urad; 0: the rotary "
+                             "axes are never corrected, the linear axes alone correct the tip)")
     parser.add_argument("--max-step-um", type=float, metavar="S", default=None,
                         help="largest change of a linear correction between consecutive blocks (um)")
     parser.add_argument("--max-step-urad", type=float, metavar="S", default=None,
@@ -91,7 +92,8 @@ def _positive(value, flag, allow_zero=False):
     if value is None:
         return None
     if not math.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
-        raise InputError(f"{flag} must be a positive number, got {value:g}")
+        what = "0 or a positive number" if allow_zero else "a positive number"
+        raise InputError(f"{flag} must be {what}, got {value:g}")
     return value
 
 
@@ -278,11 +280,12 @@ def run(args) -> int:
 
     t0 = time.perf_counter()
     for flag, v in (("--max-correction-um", args.max_correction_um),
-                    ("--max-correction-urad", args.max_correction_urad),
                     ("--max-step-um", args.max_step_um), ("--max-step-urad", args.max_step_urad),
                     ("--chord-tol-um", args.chord_tol_um),
                     ("--orientation-weight", args.orientation_weight)):
         _positive(v, flag)
+    # 0: the rotary axes are never corrected
+    _positive(args.max_correction_urad, "--max-correction-urad", allow_zero=True)
     _positive(args.subdivide_tol_um, "--subdivide-tol-um", allow_zero=True)
     _positive(args.max_correction_sd_um, "--max-correction-sd-um", allow_zero=True)
     out, report, summary_json = _output_paths(args)

@@ -17,25 +17,28 @@ from ._small import any_rows, column_extremes, down_columns
 from .problem import CompensationProblem
 
 #: the kinds of bound, in the order of the flag array's last axis
-FLAG_KINDS = ("max", "min", "travel_max", "travel_min", "step", "reversal", "arc")
+FLAG_KINDS = ("max", "min", "travel_max", "travel_min", "step", "reversal", "arc", "standing")
 #: the kinds that can hold an axis's whole correction where the block asks for one: the travel
 #: and the link bounds (an axis one of them leaves at zero keeps its whole error). Not the step
 #: bound, whose ramp only passes zero, nor the correction bound, zero only where the axis gets no
-#: correction by design (a rotary axis the model's data held at one angle)
+#: correction by design (a rotary axis the model's data held at one angle), nor the standing
+#: rule's (a rotary axis the program does not move keeps its correction; the linear axes take the
+#: tip: the summary says so on a line of its own)
 HOLDING = np.array([kind in ("travel_max", "travel_min", "reversal", "arc") for kind in FLAG_KINDS])
 INF = 1e30
 #: kinds of link bound (:mod:`._links`), as stored per node and axis (0: none)
-REVERSAL, ARC = 1, 2
+REVERSAL, ARC, STANDING = 1, 2, 3
 
 
 def flag_name(kind: str, axis: str) -> str:
     """Column text of one active bound: cx_max, cx_min, travel_x_max, travel_x_min, step_x,
     reversal_x (the correction held so that X keeps its direction), arc_x (one correction along an
-    arc under cutter radius compensation)."""
+    arc under cutter radius compensation), standing_c (a rotary axis the program does not move
+    there, outside tool centre point mode, keeps the correction it has: its word is not written)."""
     a = axis.lower()
     return {"max": f"c{a}_max", "min": f"c{a}_min", "travel_max": f"travel_{a}_max",
             "travel_min": f"travel_{a}_min", "step": f"step_{a}", "reversal": f"reversal_{a}",
-            "arc": f"arc_{a}"}[kind]
+            "arc": f"arc_{a}", "standing": f"standing_{a}"}[kind]
 
 
 
@@ -67,6 +70,9 @@ class Bounds:
         self.on_tol = 1e-9 * self.unit if self.grid is not None else np.full(len(self.D), 1e-6)
         self.B = self._floor(problem.max_correction * self.D)
         self.S = self._floor(problem.max_step * self.D)
+        #: (na,) bool, the axes whose correction bound is zero (--max-correction-urad 0, a rotary
+        #: axis the model's data held at one angle): no correction by design, that bound named
+        self._none = np.broadcast_to(self.B <= 0, (problem.n_axes,))
 
     def _floor(self, x):
         if self.grid is None:
@@ -106,7 +112,8 @@ class Bounds:
 
     def limits(self, q, pinned=None):
         """(l, u, travel_lo, travel_hi), each (n, na): box bounds and the travel part of them.
-        pinned : (n,) bool or None, blocks that get no correction (l = u = 0)."""
+        pinned : (n,) bool or None, blocks that get no correction (l = u = 0); (n, na): their axes
+        that get none (:meth:`~._nodes.NodeSet.box_pins`)."""
         tlo, thi = self.travel_x(q)
         l, u = np.maximum(-self.B, tlo), np.minimum(self.B, thi)
         if pinned is not None and np.any(pinned):
@@ -224,19 +231,40 @@ class Bounds:
             pp = np.vstack([prev[None, :] if prev is not None else planned[:1], planned[:-1]])
             flags[..., 4] |= took & self._on_step(planned, pp, has_prev, exempt, None, tol)
         if links is not None:
-            self._link_flags(flags, took, y, prev_rows, prev is not None, links, tol)
+            self._link_flags(flags, took, y, prev_rows, prev is not None, links, tol, desired)
+        if self._none.any():
+            self._zero_bound_flags(flags, desired, y)
         return y, flags
 
-    def _link_flags(self, flags, took, y, prev_rows, has_prev, links, tol):
-        """Set the reversal and arc flags: the bound took something away and the change of the
-        correction into the block sits on the link bound."""
+    def _zero_bound_flags(self, flags, desired, y):
+        """An axis whose correction bound is zero (no correction by design) names that bound alone,
+        on the side its correction wanted to go (at zero it sits on both): not its step bound
+        (zero too) nor the standing rule, which take nothing from it."""
+        nz = self._none
+        up = desired[:, nz] > y[:, nz]
+        flags[:, nz, 0] &= up
+        flags[:, nz, 1] &= ~up
+        flags[:, nz, FLAG_KINDS.index("step")] = False
+        flags[:, nz, FLAG_KINDS.index("standing")] = False
+
+    def _link_flags(self, flags, took, y, prev_rows, has_prev, links, tol, desired):
+        """Set the reversal, arc and standing flags: the bound took something away and the change
+        of the correction into the block sits on the link bound, or the change out of it to the
+        next block sits on that block's link bound on the side this block's correction wanted to
+        go (the block before one where X stands after a +X move: its correction can be no larger
+        than the one X stands with there)."""
         lo, hi, kind = links
         d = y - prev_rows
-        on = (np.abs(d - lo) <= tol + 1e-6) | (np.abs(d - hi) <= tol + 1e-6)
+        at_lo, at_hi = np.abs(d - lo) <= tol + 1e-6, np.abs(d - hi) <= tol + 1e-6
+        on = at_lo | at_hi
         if not has_prev and y.shape[0]:
             on[0] = False
-        flags[..., FLAG_KINDS.index("reversal")] = took & on & (kind == REVERSAL)
-        flags[..., FLAG_KINDS.index("arc")] = took & on & (kind == ARC)
+        want = desired[:-1] - y[:-1]
+        out = (at_lo[1:] & (want > 0)) | (at_hi[1:] & (want < 0))
+        for name, k in (("reversal", REVERSAL), ("arc", ARC), ("standing", STANDING)):
+            f = flags[..., FLAG_KINDS.index(name)]
+            f[:] = took & on & (kind == k)
+            f[:-1] |= took[:-1] & out & (kind[1:] == k)
 
     def _on_step(self, y, prev_rows, has_prev, exempt, following, tol):
         """(n, na) bool: the step into a block (from prev_rows) or out of it to the next is on its

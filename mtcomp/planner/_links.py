@@ -20,6 +20,13 @@ Two rules, each a bound on the change of a correction between consecutive output
   arc as written, so the writer writes it as one arc; every node of it (its start, its chord ends,
   its end) carries the same correction (``x_i = x_(i-1)``), a translation of the arc, which one arc
   with the same centre offsets writes exactly.
+* **standing** (a rotary axis the program does not move into the node, outside tool centre point
+  mode: 3+2 machining, an indexed table): its correction does not change (``x_i = x_(i-1)``), so
+  its word is never added or changed where the program holds it; the axis stands (and may be
+  clamped, Fanuc and Haas M10/M11, M12/M13) where it was put with the correction it had when it last
+  moved, and the linear axes alone take the tip. A rotary axis gets a correction only in a block
+  that moves it; in tool centre point mode the controller moves the rotary axes anyway, and no
+  such bound applies.
 
 Zero correction change always keeps both, so a plan from zero stays feasible; from a window's
 anchor (a committed correction) a rule can meet a bound it cannot get past (a block that gets no
@@ -32,10 +39,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..toolpaths.words import frame_tcp
-from ._bounds import ARC, INF, REVERSAL
+from ._bounds import ARC, INF, REVERSAL, STANDING
 
-__all__ = ["ARC", "REVERSAL", "LinkRules", "direction_axes", "node_links", "propagate", "run_start",
-           "undirected_axes"]
+__all__ = ["ARC", "REVERSAL", "STANDING", "LinkRules", "direction_axes", "node_links", "propagate",
+           "run_start", "standing_axes", "undirected_axes"]
 
 
 def direction_axes(model) -> np.ndarray:
@@ -44,7 +51,7 @@ def direction_axes(model) -> np.ndarray:
     return model.direction_axes()
 
 
-def node_links(dp, dirs, reversal_axes, tie, no_link, unit):
+def node_links(dp, dirs, reversal_axes, tie, no_link, unit, standing=None):
     """The link bounds of n nodes: ``(lo, hi, kind)``, each (n, na), or None when no node has one.
 
     dp : (n, na) nominal move into each node from the node before (optimisation units, on the
@@ -53,9 +60,12 @@ def node_links(dp, dirs, reversal_axes, tie, no_link, unit):
     tie : (n,) bool, nodes of an arc under cutter radius compensation. no_link : (n, na) bool, no
     link bound (the first node of a program, a move from a position not given, a hole's tool axis).
     unit : (na,) one output-grid step (optimisation units), the margin of a nominal move.
+    standing : (n, na) bool or None, the rotary axes the standing rule holds (no change of their
+    correction into the node, whatever ``no_link`` says: :meth:`LinkRules.standing`).
     """
     n, na = dp.shape
-    if n == 0 or not (reversal_axes.any() or tie.any()):
+    stands = standing is not None and bool(standing.any())
+    if n == 0 or not (reversal_axes.any() or tie.any() or stands):
         return None
     lo = np.full((n, na), -INF)
     hi = np.full((n, na), INF)
@@ -75,6 +85,10 @@ def node_links(dp, dirs, reversal_axes, tie, no_link, unit):
     lo[no_link] = -INF
     hi[no_link] = INF
     kind[no_link] = 0
+    if stands:
+        lo[standing] = 0.0
+        hi[standing] = 0.0
+        kind[standing] = STANDING
     if not kind.any():
         return None
     return lo, hi, kind
@@ -88,6 +102,12 @@ def undirected_axes(nodes):
     if nodes.link_kind is None:
         return None
     return (nodes.link_kind == REVERSAL) & (nodes.link_lo == 0.0) & (nodes.link_hi == 0.0)
+
+
+def standing_axes(nodes):
+    """(n, na) bool: the rotary axes of the nodes (a :class:`~._nodes.NodeSet`) the standing rule
+    keeps at the node before's correction, or None where no node has a link bound."""
+    return None if nodes.link_kind is None else nodes.link_kind == STANDING
 
 
 def combined_steps(step_lo, step_hi, links):
@@ -164,6 +184,7 @@ class LinkRules:
         names = list(problem.machine.axis_names)
         # the tool axis: a drilling cycle feeds it down to the hole whatever the correction
         self.tool_axis = names.index("Z") if "Z" in names else -1
+        self.rotary = np.array([a.is_rotary for a in problem.machine.axes], bool)
         self._last_known = None       # the known axes of the last row of the last chunk
 
     def steps(self, dq):
@@ -194,7 +215,7 @@ class LinkRules:
         last_known = self._last_known
         if len(known_rows):
             self._last_known = known_rows[-1].copy()
-        if rows.size == 0 or not (self.reversal_axes.any() or tie.any()):
+        if rows.size == 0 or not (self.reversal_axes.any() or tie.any() or self.rotary.any()):
             return None
         was_known = np.empty_like(known_rows)       # known at the row's start
         was_known[1:] = known_rows[:-1]
@@ -222,8 +243,23 @@ class LinkRules:
             no_link[0] = True
         if self.tool_axis >= 0:
             no_link[np.asarray(cycle, bool)[rows], self.tool_axis] = True
-        return node_links(self.steps(q - before), np.asarray(chunk.dirs)[rows], self.reversal_axes,
-                          tie & ~jump, no_link, self.unit)
+        dp = self.steps(q - before)
+        start_known = known_rows[rows].copy()
+        start_known[firsts] &= was_known[rows[firsts]]
+        standing = self.standing(dp, start_known, frame_tcp(chunk.frame)[rows])
+        if first and standing is not None:
+            standing[0] = False
+        return node_links(dp, np.asarray(chunk.dirs)[rows], self.reversal_axes, tie & ~jump,
+                          no_link, self.unit, standing)
+
+    def standing(self, dp, known, tcp):
+        """(n, na) bool, the rotary axes the standing rule holds (module docstring), or None on a
+        machine without one: known at the node and at its move's start (``known`` (n, na)), not
+        moved into it (``dp`` (n, na), the nominal move on the output grid), outside tool centre
+        point mode (``tcp`` (n,) bool)."""
+        if not self.rotary.any():
+            return None
+        return (dp == 0) & known & self.rotary[None, :] & ~np.asarray(tcp, bool)[:, None]
 
     def window(self, links, prev, l, u, step_lo, step_hi, stats, lines):
         """A window's step bounds with its link bounds, made feasible from the anchor

@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._bounds import INF
+from ._bounds import INF, STANDING
 
 
 @dataclass
@@ -61,6 +61,17 @@ class NodeSet:
     def links(self):
         """(lo, hi, kind) or None (:meth:`Bounds.enforce`'s ``links``)."""
         return None if self.link_lo is None else (self.link_lo, self.link_hi, self.link_kind)
+
+    def box_pins(self) -> np.ndarray:
+        """What :meth:`~._bounds.Bounds.limits` pins to zero: ``pinned`` (n,), or (n, na) where a
+        pinned block has a rotary axis the standing rule holds (:mod:`._links`): the axis stands
+        with the correction it has, which the block does not write."""
+        if self.link_kind is None or not self.pinned.any():
+            return self.pinned
+        stand = self.link_kind == STANDING
+        if not (stand & self.pinned[:, None]).any():
+            return self.pinned
+        return self.pinned[:, None] & ~stand
 
     def take(self, idx) -> "NodeSet":
         links = {} if self.link_lo is None else {f: getattr(self, f)[idx] for f in self.LINKS}

@@ -33,6 +33,8 @@ class PlanResult:
     undirected : (n, na) bool, the axes the reversal rule keeps at the correction of the block
         before because their approach direction is not known there (they have not moved since
         the start, a tool change or a home move: a G43 line's X and Y), or None (no such rule).
+    standing : (n, na) bool, the rotary axes the standing rule keeps at the correction of the block
+        before (the program does not move them there, outside tool centre point mode), or None.
     """
 
     line: np.ndarray
@@ -56,6 +58,7 @@ class PlanResult:
     held: np.ndarray
     counts: np.ndarray | None = None
     undirected: np.ndarray | None = None
+    standing: np.ndarray | None = None
 
     FIELDS = ("line", "inserted", "rapid", "nominal", "corrected", "correction", "before", "after",
               "before_axis", "after_axis", "flags", "iterations", "converged", "unknown", "outside",
@@ -67,7 +70,11 @@ class PlanResult:
     def take(self, sl) -> "PlanResult":
         return PlanResult(*(None if getattr(self, f) is None else getattr(self, f)[sl]
                             for f in self.FIELDS),
-                          undirected=None if self.undirected is None else self.undirected[sl])
+                          **{f: None if getattr(self, f) is None else getattr(self, f)[sl]
+                             for f in self.MASKS})
+
+    #: (n, na) masks that may be None (no node has one)
+    MASKS = ("undirected", "standing")
 
     @staticmethod
     def concatenate(parts: list["PlanResult"]) -> "PlanResult":
@@ -75,11 +82,12 @@ class PlanResult:
         for f in PlanResult.FIELDS:
             vals = [getattr(p, f) for p in parts]
             out.append(None if vals[0] is None else np.concatenate(vals))
-        und = None
-        if any(p.undirected is not None for p in parts):
-            und = np.concatenate([np.zeros(p.held.shape, bool) if p.undirected is None
-                                  else p.undirected for p in parts])
-        return PlanResult(*out, undirected=und)
+        masks = {}
+        for f in PlanResult.MASKS:
+            if any(getattr(p, f) is not None for p in parts):
+                masks[f] = np.concatenate([np.zeros(p.held.shape, bool) if getattr(p, f) is None
+                                           else getattr(p, f) for p in parts])
+        return PlanResult(*out, **masks)
 
     def corrected_blocks(self) -> np.ndarray:
         """(n,) bool: the blocks written with their correction on every axis that asked for one (in

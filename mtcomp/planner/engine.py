@@ -31,7 +31,7 @@ from ._contours import ContourGate
 from ._evaluate import Evaluator, objective_residual
 from ._grouped import GroupedQP, tied
 from ._interleave import placed, positions
-from ._links import LinkRules, run_start, undirected_axes
+from ._links import LinkRules, run_start, standing_axes, undirected_axes
 from ._local_qp import LazyQP, solve_stretches
 from ._nodes import NodeSet
 from ._parallel import read_ahead, resolve_threads, split_rows
@@ -352,7 +352,7 @@ class Planner:
         window's plan before its turn was rounded, whose step bounds the flags name too;
         ``desired``: the unbounded correction with its turn on the grid, when the caller has it)."""
         if limits is None:
-            limits = self.bounds.limits(nodes.q, nodes.pinned)
+            limits = self.bounds.limits(nodes.q, nodes.box_pins())
         # flags compare with the unbounded correction (its turn on the grid): what the bounds took
         if desired is None:
             desired = self._round_rotary(lin, lin.x)
@@ -400,7 +400,8 @@ class Planner:
                           before[:, :3], after[:, :3], before[:, 3:6] if five else None,
                           after[:, 3:6] if five else None, flags, lin.iterations, lin.converged,
                           nodes.unknown, nodes.outside, nodes.pinned, nodes.sd_um, nodes.gated,
-                          held, undirected=undirected_axes(nodes))
+                          held, undirected=undirected_axes(nodes),
+                          standing=standing_axes(nodes))
 
     def _tick(self):
         cb = self.options.progress
@@ -533,7 +534,7 @@ class Planner:
         end = pos + count * W + O
         x = self._round_rotary(lin.take(slice(pos, end)), lin.x[pos:end])
         exempt = nodes.exempt[pos:end]
-        limits = self.bounds.limits_lazy(nodes.q[pos:end], nodes.pinned[pos:end])
+        limits = self.bounds.limits_lazy(nodes.q[pos:end], nodes.box_pins()[pos:end])
         b = self.bounds
         links = None if nodes.link_lo is None else tuple(a[pos:end] for a in nodes.links)
         k = b.first_violation(x, limits[0], limits[1], exempt, self._prev, links=links)
@@ -696,7 +697,7 @@ class Planner:
                 nc = run_start(nodes.link_lo, nodes.link_hi, pos + nc, pos + 1) - pos
             sl = slice(pos, pos + nw)
             wn, wl = nodes.take(sl), lin.take(sl)
-            limits = self.bounds.limits(wn.q, wn.pinned)
+            limits = self.bounds.limits(wn.q, wn.box_pins())
             x, planned = self._solve_window(wn, wl, limits)
             # keep the re-linearisation for the overlap nodes of the next window
             lin.b[sl], lin.A[sl], lin.x_lin[sl], lin.iterations[sl] = wl.b, wl.A, wl.x_lin, wl.iterations

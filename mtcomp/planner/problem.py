@@ -158,9 +158,11 @@ class CompensationProblem:
         mc_um = comp["max_correction_um"] if max_correction_um is None else max_correction_um
         mc_urad = comp["max_correction_urad"] if max_correction_urad is None else max_correction_urad
         ms_um = comp["max_step_um"] if max_step_um is None else max_step_um
+        # max_correction_urad may be 0: the rotary axes are never corrected
         for name, v in (("max_correction_um", mc_um), ("max_correction_urad", mc_urad),
                         ("max_step_um", ms_um), ("max_step_urad", max_step_urad)):
-            if v is not None and (isinstance(v, bool) or not math.isfinite(v) or v <= 0):
+            if v is not None and (isinstance(v, bool) or not math.isfinite(v) or v < 0
+                                  or (v == 0 and name != "max_correction_urad")):
                 raise InputError(f"{name} must be a positive number, got {v!r}")
         ms_urad = ms_um / mc_um * mc_urad if max_step_urad is None else max_step_urad
         axes = fitted.machine.axes

@@ -12,7 +12,9 @@ One row per output block (every G0/G1 line written for a motion, internal nodes 
   ``ei_before_urad, ej_before_urad, ek_before_urad, e_axis_before_urad`` and ``_after``;
 * ``active_bounds``: the bounds that kept the planner from removing the error at this block,
   separated by ``;``: ``cx_max`` / ``cx_min`` (max correction), ``travel_x_max`` / ``travel_x_min``
-  (travel), ``step_x`` (max change from the block before), ``reversal_x``, ``arc_x``; empty when
+  (travel), ``step_x`` (max change from the block before), ``reversal_x``, ``arc_x`` (the
+  link bounds into the block, or into the block after it where they hold this one's correction),
+  ``standing_c`` (a rotary axis the program does not move there keeps its correction); empty when
   none, and on a block left uncorrected for another reason (no bound acted there).
 * ``unknown_axes``: the axes whose position the program has not given at this block (e.g. ``Z``
   after a tool change); such a block gets no correction and those axes are not written: their
@@ -44,6 +46,8 @@ from ._result import PlanResult
 #: a block counts as made worse when its deviation along an axis grows by more than this (um): the
 #: planner's never-worse rows allow NEVER_WORSE_TOL (half the output grid), rounding as much again
 WORSE_TOL_UM = 2 * NEVER_WORSE_TOL
+#: every kind of bound but the standing rule's (it has a line of its own in the summary)
+_NOT_STANDING = np.array([kind != "standing" for kind in FLAG_KINDS])
 
 
 def report_columns(axis_names, five_axis: bool) -> list[str]:
@@ -201,6 +205,12 @@ class Summary:
     #: since the start, a tool change or a home move: PlanResult.undirected), and the first's line
     blind_blocks: int = 0
     blind_line: int = 0
+    #: blocks (corrected or held, not pinned) with a rotary axis the standing rule kept at its
+    #: correction (PlanResult.standing), the first one's line, the largest tool-axis deviation left
+    #: in them (urad)
+    standing_blocks: int = 0
+    standing_line: int = 0
+    standing_axis_urad: float = 0.0
 
     def add(self, r: PlanResult):
         n = len(r)
@@ -234,10 +244,13 @@ class Summary:
             if len(r) == 0:
                 return
         self.evaluated += len(r)
+        self._add_standing(r)
         flagged = bool(r.flags.any())
         if flagged:
-            self.bounded_blocks += int(any_rows(r.flags).sum())
-            self._count_flags(self.flag_counts, r.flags)
+            # the standing rule has its own line (_add_standing): no bound hit of its own
+            hit = r.flags & _NOT_STANDING if r.standing is not None else r.flags
+            self.bounded_blocks += int(any_rows(hit).sum())
+            self._count_flags(self.flag_counts, hit)
         eb = row_norm(r.before) * 1e3
         ea = row_norm(r.after) * 1e3
         self.max_before_um = max(self.max_before_um, float(eb.max()))
@@ -277,6 +290,32 @@ class Summary:
             i = int(np.argmax(grown))
             if grown[i] > self.worse_max_um:
                 self.worse_max_um, self.worse_line = float(grown[i]), int(r.line[i])
+
+    def _add_standing(self, r: PlanResult) -> None:
+        """Count the blocks (not pinned) with a rotary axis the standing rule kept at its correction
+        and the largest tool-axis deviation left in them."""
+        if r.standing is None or r.after_axis is None:
+            return
+        st = any_rows(r.standing) & ~r.pinned
+        if not st.any():
+            return
+        if not self.standing_blocks:
+            self.standing_line = int(r.line[np.argmax(st)])
+        self.standing_blocks += int(st.sum())
+        left = float(row_norm(r.after_axis[st]).max()) * 1e6
+        self.standing_axis_urad = max(self.standing_axis_urad, left)
+
+    def _standing_text(self, blocks) -> list[str]:
+        """The summary's line on the blocks with a rotary axis the program holds (3+2 machining)."""
+        if not self.standing_blocks:
+            return []
+        return [f"{blocks(self.standing_blocks)} with a rotary axis the program does not move "
+                f"there, outside tool centre point mode (3+2 or indexed machining; first at line "
+                f"{self.standing_line}): that axis keeps the correction it had when it last moved "
+                "and its word is not added or changed (it may be clamped); the tip is corrected "
+                "with the linear axes alone, and the tool-axis deviation stays: up to "
+                f"{self.standing_axis_urad:.3f} urad there (BLOCKS.csv e_axis_after_urad; "
+                "standing_<axis> in active_bounds where the rule took a correction away)"]
 
     def _add_held(self, r: PlanResult) -> None:
         """Count the blocks with an axis whose whole correction a bound held (``PlanResult.held``),
@@ -364,7 +403,9 @@ class Summary:
                "worse_than_uncorrected": {"blocks": self.worse_blocks,
                                           "largest_um": self.worse_max_um,
                                           "line": self.worse_line},
-               "ramped_blocks": {"blocks": self.ramp_blocks, "line": self.ramp_line}}
+               "ramped_blocks": {"blocks": self.ramp_blocks, "line": self.ramp_line},
+               "standing_rotary": {"blocks": self.standing_blocks, "line": self.standing_line,
+                                   "max_axis_after_urad": self.standing_axis_urad}}
         if self.max_axis_before_urad is not None:
             out["max_axis_before_urad"] = self.max_axis_before_urad
             out["max_axis_after_urad"] = self.max_axis_after_urad
@@ -400,6 +441,7 @@ class Summary:
                          f"predicted deviation {self.max_after_um:.3f} um at line {self.worst_line}")
         else:
             lines.append("0 blocks hit a bound")
+        lines += self._standing_text(blocks)
         if self.ramp_blocks:
             lines.append(f"{blocks(self.ramp_blocks)} corrected by more than their own error "
                          f"(first at line {self.ramp_line}): the step bound (--max-step-um, "
