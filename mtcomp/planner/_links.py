@@ -235,8 +235,8 @@ class LinkRules:
         jump = np.zeros(rows.size, bool) if chunk.jump is None else np.asarray(chunk.jump, bool)[rows]
         jump &= firsts
         frame = getattr(chunk, "frame", None)
-        tcp = np.zeros(rows.size, bool) if frame is None else frame_tcp(np.asarray(frame))[rows]
-        tcp &= firsts
+        in_tcp = np.zeros(rows.size, bool) if frame is None else frame_tcp(np.asarray(frame))[rows]
+        tcp = in_tcp & firsts
         whole = was_known[rows].all(axis=1)
         no_link[(jump & ~tcp & whole) | (tcp & ~whole)] = True
         if first:
@@ -246,7 +246,7 @@ class LinkRules:
         dp = self.steps(q - before)
         start_known = known_rows[rows].copy()
         start_known[firsts] &= was_known[rows[firsts]]
-        standing = self.standing(dp, start_known, frame_tcp(chunk.frame)[rows])
+        standing = self.standing(dp, start_known, in_tcp)
         if first and standing is not None:
             standing[0] = False
         return node_links(dp, np.asarray(chunk.dirs)[rows], self.reversal_axes, tie & ~jump,
