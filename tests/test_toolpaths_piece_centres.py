@@ -12,7 +12,7 @@ within 30 um + 1 um (the tolerance) of (40, -15), plus the rounding of the writt
 (0.05 um each). The writers used to fit any circle through a piece's ends: a 41.9 um move of the
 centre for the second piece of two. Every piece must still hold the corrected path within the
 tolerance: checked against the path c(t) gives, as each controller's replay interpolates the
-written pieces (tests/replay.py, replay_heidenhain.py)."""
+written pieces (tests/replay.py, replay_heidenhain.py, replay_sinumerik.py)."""
 import math
 
 import numpy as np
@@ -20,6 +20,7 @@ import pytest
 
 import replay
 import replay_heidenhain
+import replay_sinumerik
 from mtcomp.machine import load_machine
 from mtcomp.toolpaths import iter_segment_chunks, write_corrected
 
@@ -34,6 +35,9 @@ PROGRAMS = {
     "heidenhain": ("p.h", "0 BEGIN PGM T MM\n1 L X+40 Y-25 Z+5 R0 FMAX\n2 L Z-5 F300\n"
                           "3 CC X+40 Y-15\n4 C X+50 Y-15 DR+ F1000\n5 L Y+15\n6 END PGM T MM\n",
                    replay_heidenhain.replay),
+    "sinumerik": ("p.mpf", "%_N_T_MPF\nN10 G17 G90 G71\nN20 G0 X40 Y-25 Z5\nN30 G1 Z-5 F300\n"
+                           "N40 G3 X50 Y-15 I=AC(40) J=AC(-15) F1000\nN50 G1 Y15\nN60 M30\n",
+                  replay_sinumerik.replay),
 }
 
 
