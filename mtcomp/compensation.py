@@ -20,6 +20,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .errors import InputError
+from .machine import TravelError
 from .io.atomic import atomic_write
 from .planner import (CompensationProblem, Planner, PlannerOptions, Summary, output_grid,
                       report_columns, report_rows)
@@ -28,7 +29,7 @@ from .planner._bounds import FLAG_KINDS
 from .planner._parallel import read_ahead
 from .planner._small import any_rows, row_norm
 from .planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
-from .toolpaths.words import frame_local, frame_tcp
+from .toolpaths.words import WORK_SYSTEMS, frame_local, frame_tcp
 from .toolpaths import iter_segment_chunks, write_corrected
 from .toolpaths._fast import format_table, g_codes
 from .toolpaths.source import open_program
@@ -624,7 +625,10 @@ def _compensate_source(fitted, src, output, settings, setup, report, progress, j
     if report is not None:        # committed when the caller's stack closes, after the output
         rep = stack.enter_context(atomic_write(report, "w", newline=""))
         rep.write(",".join(report_columns(machine.axis_names, machine.is_five_axis)) + "\n")
-    write_corrected(src, output, machine, corrections(rep), stats=written, **read)
+    try:
+        write_corrected(src, output, machine, corrections(rep), stats=written, **read)
+    except TravelError as e:
+        raise _travel_error_with_offsets(e, setup) from None
     notes += _run_notes(src, written, fitted, setup, tally, found)
     if series is not None:
         assumed = _series_sentence(fitted, settings, series, tally)
@@ -632,6 +636,17 @@ def _compensate_source(fitted, src, output, settings, setup, report, progress, j
                            {j.label: j.as_dict() for j in judges},
                            math.sqrt(tally.sum_sq / max(tally.n, 1)), tally.max,
                            time.perf_counter() - t0, tally.bound_blocks, src.summary())
+
+
+def _travel_error_with_offsets(e: TravelError, setup) -> TravelError:
+    """A position outside the travel, and the work offsets taken as 0 because nobody gave them:
+    the error says so (the usual cause is an offset left out, not a wrong program)."""
+    missing = sorted(w for w in setup.used_wcs if w not in setup.work_offsets)
+    if not missing:
+        return e
+    names = ", ".join(WORK_SYSTEMS[w] for w in missing)
+    return TravelError(f"{e.message}, with work offset {names} taken as 0 (nobody gave it): give "
+                       "--work-offset or --offsets", e.path, e.line, e.row)
 
 
 def _planner(fitted, settings: CompensationSettings, inch: bool, src, progress) -> tuple:

@@ -43,6 +43,10 @@ BASES = ("bspline", "polynomial")
 DEFAULT_COMPENSATION = {"max_correction_um": 50.0, "max_correction_urad": 500.0, "max_step_um": 5.0}
 
 
+class TravelError(InputError):
+    """A position outside an axis's travel (an InputError: one line, exit status 2)."""
+
+
 @dataclass(frozen=True)
 class Axis:
     """One machine axis.
@@ -187,7 +191,7 @@ class Machine:
             where, k, suffix = source, int(line[i]) if line is not None else None, ""
             if hasattr(source, "locate"):
                 where, k, suffix = source.locate(k)
-            raise InputError(f"{ax.name} {v:.4f} {u} is outside the travel of axis {ax.name} "
+            raise TravelError(f"{ax.name} {v:.4f} {u} is outside the travel of axis {ax.name} "
                              f"({a:g} .. {b:g} {u}) of machine {self.name}{suffix}", where, k)
 
     def to_dict(self) -> dict:

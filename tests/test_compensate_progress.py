@@ -137,3 +137,25 @@ def test_compensate_reports_the_lines_read_before_any_block_is_planned(tmp_path,
     assert main(args + ["--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "outside the travel" in err[0]
+
+
+def test_a_travel_refusal_names_the_work_offset_taken_as_zero(tmp_path, capsys):
+    """A program written for G54 = (X -500) refused for X outside the travel says that G54 was
+    taken as 0 because nobody gave it (a new user forgot --offsets and read only 'outside the
+    travel'); with the offset given it is accepted, and a program with no work offset the user
+    left out is refused as before, without the hint."""
+    prog = tmp_path / "p.nc"
+    prog.write_text("G21 G90 G54\nG0 X300 Y0 Z10\nG1 Z0 F500\nG1 X450\nM2\n")
+    model = tmp_path / "model.json"
+    save_model(model, FittedModel.zero(ErrorModel(XFYZ)))
+    base = ["compensate", "xfyz", str(model), str(prog), "-o", str(tmp_path / "o.nc"), "--quiet"]
+    assert main(base) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "X 450.0000 mm is outside the travel" in err[0]
+    assert "work offset G54 taken as 0" in err[0] and "--offsets" in err[0]
+    assert not (tmp_path / "o.nc").exists()
+    assert main(base + ["--work-offset", "G54=X-500,Y0,Z0"]) == 0
+    capsys.readouterr()
+    assert main(base + ["--work-offset", "G54=X500,Y0,Z0"]) == 2
+    err = capsys.readouterr().err
+    assert "outside the travel" in err and "taken as 0" not in err

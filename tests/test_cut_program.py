@@ -77,3 +77,50 @@ def test_a_cut_program_the_ball_centres_cannot_follow_is_refused(tmp_path, text,
     with pytest.raises(InputError) as exc:
         read_cut_program(p, load_machine("xfyz"))
     assert words in exc.value.message and exc.value.line == line
+
+
+# a part cut in tool centre point mode (M428 on the table-table machine CAFXYZ): X Y Z are the tip on
+# the part, the surface point; the move at line 5 tilts A by 10 deg and turns C by 20 deg while the
+# tip goes straight
+TCP_PROGRAM = ("G21 G90\nM428\nG0 X40 Y0 Z60 A-30 C0\nG1 Z20 F400\nG1 X30 Y10 A-20 C20\n"
+               "G1 X20\nM429\nM30\n")
+
+
+def test_a_tcp_cut_program_is_read_at_the_axes_that_put_the_tip_on_its_words(tmp_path):
+    """The independent truth machine's nominal tip at the moves' axes is the program's tip: at every
+    move's end its words, and at every piece's ends on the straight line between the words (the
+    controller moves the tip straight); X approaches line 6's end from the side its axis comes."""
+    from test_toolpaths_tcp import _truth_axes
+    from truth.machine import TruthMachine
+    path = tmp_path / "tcp.ngc"
+    path.write_text(TCP_PROGRAM)
+    cut = read_cut_program(path, load_machine("cafxyz"))
+    truth = TruthMachine.zero("cafxyz")
+    words = {4: (40, 0, 60, -30, 0, 40, 0, 20), 5: (40, 0, 20, -30, 0, 30, 10, 20),
+             6: (30, 10, 20, -20, 20, 20, 10, 20)}        # line: start X Y Z A C, end X Y Z
+    assert sorted(set(cut.line.tolist())) == [4, 5, 6]
+    ends = {k: cut.end[np.flatnonzero(cut.line == k)[-1]] for k in words}
+    aim = {k: np.array(w[5:]) for k, w in words.items()}
+    for k in words:
+        tip = truth.nominal_pose(ends[k][None])[0][0]
+        np.testing.assert_allclose(tip, aim[k], rtol=0, atol=1e-9)
+    for k, w in words.items():
+        rows = np.flatnonzero(cut.line == k)
+        tips = truth.nominal_pose(np.vstack([cut.start[rows], cut.end[rows]]))[0]
+        a, b = np.array(w[:3]), aim[k]
+        u = (tips - a) @ (b - a) / ((b - a) @ (b - a))
+        off = np.linalg.norm(a + u[:, None] * (b - a) - tips, axis=1)
+        assert off.max() <= 1e-9 and u.min() >= -1e-9 and u.max() <= 1 + 1e-9
+    # line 6's approach direction of X: the sign of axis X's move by the truth's own inverse
+    # kinematics of its words (the tip's X goes back; the turned table's axis X need not)
+    q = _truth_axes(truth, [dict(zip("XYZAC", (30, 10, 20, -20, 20))),
+                            dict(zip("XYZAC", (20, 10, 20, -20, 20)))])
+    assert cut.dirs[np.flatnonzero(cut.line == 6)[-1], 0] == np.sign(q[1, 0] - q[0, 0]) != 0
+
+
+def test_a_tcp_cutting_move_with_an_axis_not_given_is_refused(tmp_path):
+    path = tmp_path / "tcp.ngc"
+    path.write_text("G21 G90\nM428\nG0 X40 Y0 Z60\nG1 Z20 F400\nM429\nM30\n")
+    with pytest.raises(InputError, match="tool centre point mode with an axis") as exc:
+        read_cut_program(path, load_machine("cafxyz"))
+    assert exc.value.line == 4

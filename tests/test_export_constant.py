@@ -9,6 +9,8 @@ at every position; the tool relative to the workpiece is turned by -e about X, t
 machine's tool length displaced only by the second-order e^2 terms (no translation to note)."""
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 from mtcomp.cli import main
@@ -45,3 +47,21 @@ def test_nothing_is_said_of_a_model_without_a_constant(tmp_path, capsys):
     said = capsys.readouterr().out + (out / "README.txt").read_text()
     assert "no table carries it" not in said
     assert np.ptp(np.loadtxt(out / "x.comp")[:, 1]) > 0          # the slope is in X's table
+
+
+def test_a_turn_on_a_machine_without_rotary_axes_is_said_as_a_tilted_tool(tmp_path, capsys):
+    """A 3-axis machine's spindle tilt A0S = 30 urad: the tool stands turned by 30 urad about X at
+    every position; no axis could turn it back, so the note must not call it a rotary axis's zero
+    offset (it did, on a user's VMC)."""
+    model = ErrorModel(load_machine("xfyz").with_basis("polynomial"), ())
+    fitted = FittedModel.zero(model)
+    fitted.params.set_file_value("A0S", 30.0)
+    fitted.params.set_file_value("EXX_1", 20.0)           # a table to write
+    path = tmp_path / "m.json"
+    save_model(path, fitted)
+    out = tmp_path / "comp"
+    assert main(["export", "xfyz", str(path), "--format", "linuxcnc", "-o", str(out)]) == 0
+    said = capsys.readouterr().err + (out / "README.txt").read_text()
+    assert re.search(r"a turn of [+-]30\.00 urad about X", said), said
+    assert "rotary axis's zero offset" not in said
+    assert "a machine without rotary axes has no axis that could turn it back" in said

@@ -2,7 +2,8 @@
 
 The oracle is the model's own prediction, computed here with :func:`mtcomp.models.deviation` at the
 grid positions the file names: the component error of axis L at s, approached in direction dir, is
-``dev(q_ref with q_L = s, dir_L = dir) - dev(q_ref)`` (docs/export.md). The readers below do not use
+``dev(P with q_L = s, dir_L = dir) - dev(P with q_L = 0)``, P the table pose (each other axis at
+the middle of its data; docs/export.md). The readers below do not use
 mtcomp.export:
 
 * LinuxCNC: what usrmotLoadComp (src/emc/motion/usrmotintf.cc) does: three numbers per line, stop at
@@ -58,17 +59,23 @@ def model_path(fitted, tmp_path_factory):
 
 
 def predicted(fitted, axis, positions, direction=0.0, tool_length=None):
-    """(n, 3) tip deviation (mm) when only ``axis`` moves, minus the one at the reference pose (0)."""
+    """(n, 3) tip deviation (mm) when only ``axis`` moves, the others at the table pose (each at the
+    middle of its data, 0 without data: docs/export.md, 'The table pose'), minus the one with
+    ``axis`` at its reference position (0)."""
     m = fitted.machine
-    q = np.zeros((len(positions), m.n_axes))
+    support = fitted.support or {}
+    pose = [0.5 * sum(support[a]) if a in support else 0.0 for a in m.axis_names]
+    q = np.tile(pose, (len(positions), 1))
     q[:, m.index(axis)] = positions
+    q0 = np.array([pose])
+    q0[0, m.index(axis)] = 0.0
     cols = {f"dir_{axis}": np.full(len(positions), float(direction))}
     if tool_length is not None:
         cols["tool_length"] = np.full(len(positions), tool_length)
     c = fitted.context(len(positions), cols)
     c0 = fitted.context(1, None if tool_length is None else {"tool_length": np.array([tool_length])})
     d = deviation(fitted.model, q, fitted.params.values, c)[:, :3]
-    d0 = deviation(fitted.model, np.zeros((1, m.n_axes)), fitted.params.values, c0)[:, :3]
+    d0 = deviation(fitted.model, q0, fitted.params.values, c0)[:, :3]
     return d - d0
 
 

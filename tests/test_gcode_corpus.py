@@ -117,6 +117,27 @@ REFUSED = {
 }
 #: the share of the corpus accepted today (125 of 148: 0.845); the goal is 95 %
 MIN_ACCEPTED = 0.84
+#: the refused programs that the controller they were written for refuses too (its manual's alarm
+#: or error named in REFUSED's comments): a nested comment (LinuxCNC), an R word in a G1 (grbl
+#: error 36, LinuxCNC), an arc whose end is off its circle (Fanuc: radius over tolerance; the Toyoda
+#: program reaches one at line 53 when read as a Fanuc's: `--dialect fanuc`), a program number that
+#: is not one (Haas), a unit other than MM or INCH (Heidenhain), a G code the Sinumerik does not have
+#: (G43, TRAOOF), a TURN= that is not a whole number, CYCLE83's levels out of order, unbalanced
+#: brackets. The others are mtcomp's gaps: a controller runs them (a library of subroutines called
+#: from elsewhere, an A-and-B table with pivots read from the controller's pins, the Sinumerik 850's
+#: and Okuma's languages, a grbl program that does not say it is one, a B word on a 4-axis Haas,
+#: Heidenhain comments without block numbers, a Fanuc dimension word whose unit depends on a
+#: parameter the program does not show).
+CONTROLLER_REFUSES = {
+    "cluck2sesame_BackPlate.nc", "cluck2sesame_2-Spool.nc", "cncwebsim_fresa2.cnc",
+    "rocholl25000_clover.gcode", "nxpost_4_axis_mill.ptp", "nxpost_Fadal_VMC6030_sample.ptp",
+    "nxpost_Toyoda_sample_part.ptp", "nxpost_BandB_mfg.cnc", "nxpost_Sample_mill.ptp",
+    "nxpost_sample_part.ptp", "nxpost_Training_Huron_KX20.MPF",
+    "nxpost_Cincinnati_Lamb_FTV5_840D_sample.mpf", "nxpost_Cincinnati_Lamb_FTV5_840D_sample.ptp",
+    "nxpost_DMU_70_eVo_840D_in_Sample_part.ptp", "vscodegcode_sample-colors.nc",
+}
+#: the share accepted of the programs their controllers run (125 of 133: 0.940); the goal is 95 %
+MIN_ACCEPTED_RUNNABLE = 0.93
 _WORD = re.compile(r"([A-Z])\s*([-+]?\s*(?:\d+\.?\d*|\.\d+))")
 #: an axis given an expression (Sinumerik: `A=_A_HOME`)
 _ASSIGNED = re.compile(r"(?<![A-Z0-9_$#<])([A-Z])\s*=")
@@ -391,8 +412,12 @@ def test_corpus_share_accepted():
     """Every program is refused exactly when REFUSED lists it (the test above), so the share
     accepted is the share not listed."""
     accepted = len(PROGRAMS) - len(REFUSED)
-    print(f"accepted {accepted} of {len(PROGRAMS)}")
+    runnable = len(PROGRAMS) - len(CONTROLLER_REFUSES)
+    print(f"accepted {accepted} of {len(PROGRAMS)}; of the {runnable} their controllers run, "
+          f"{accepted / runnable:.3f}")
+    assert CONTROLLER_REFUSES <= set(REFUSED)
     assert accepted / len(PROGRAMS) >= MIN_ACCEPTED
+    assert accepted / runnable >= MIN_ACCEPTED_RUNNABLE
 
 
 def test_corpus_median_output_size(tmp_path_factory):

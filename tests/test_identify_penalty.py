@@ -196,21 +196,30 @@ def test_a_tool_length_the_campaign_did_not_measure(seed, rough, tmp_path):
         assert fa < fb
 
 
-def test_reml_gradient_is_the_finite_difference_of_its_criterion():
-    """Two penalties, a start point away from zero: the criterion's exact gradient (envelope theorem
-    and the trace of H^-1 S_k) against central differences."""
-    from mtcomp.identification.penalty import reml_criterion
-    rng = np.random.default_rng(1)
-    k, n = 20, 200
+def two_penalties(seed: int, k: int, n: int, first: slice, second: slice) -> tuple:
+    """REML criterion arguments (AB, gB, rss0, SB, bz, cz, n) of n random readings of k coefficients,
+    a start point away from zero and two second-difference penalties on the coefficients ``first``
+    and ``second`` (separate, or overlapping)."""
+    rng = np.random.default_rng(seed)
     X = rng.normal(size=(n, k))
-    D = np.diff(np.eye(10), 2, axis=0)
     S1, S2 = np.zeros((k, k)), np.zeros((k, k))
-    S1[:10, :10] = D.T @ D
-    S2[10:, 10:] = D.T @ D
+    for S, part in ((S1, first), (S2, second)):
+        D = np.diff(np.eye(part.stop - part.start), 2, axis=0)
+        S[part, part] = D.T @ D
     y, z0 = rng.normal(size=n), 0.1 * rng.normal(size=k)
-    args = (X.T @ X, X.T @ y, float(y @ y), [S1, S2], [S1 @ z0, S2 @ z0],
+    return (X.T @ X, X.T @ y, float(y @ y), [S1, S2], [S1 @ z0, S2 @ z0],
             [float(z0 @ S1 @ z0), float(z0 @ S2 @ z0)], n)
-    for rho in (np.array([0.3, -1.0]), np.array([2.0, 1.0])):
+
+
+@pytest.mark.parametrize("parts", [(slice(0, 10), slice(10, 20)), (slice(0, 12), slice(6, 20))],
+                         ids=["separate", "overlapping"])
+def test_reml_gradient_is_the_finite_difference_of_its_criterion(parts):
+    """Two penalties, a start point away from zero: the criterion's exact gradient (envelope theorem
+    and the trace of H^-1 S_k, less the derivative of the penalties' log pseudo-determinant) against
+    central differences; the penalties on separate coefficients, and sharing six."""
+    from mtcomp.identification.penalty import reml_criterion
+    args = two_penalties(1, 20, 200, *parts)
+    for rho in (np.array([0.3, -1.0]), np.array([2.0, 1.0]), np.array([-3.0, 6.0])):
         _, grad, _ = reml_criterion(rho, *args)
         e = 1e-6
         fd = [(reml_criterion(rho + e * u, *args)[0] - reml_criterion(rho - e * u, *args)[0]) / (2 * e)
@@ -332,3 +341,23 @@ def test_common_weight_grid_is_the_criterion_at_a_common_weight():
     def criterion(rho):
         return reml_criterion(rho, *args, gradient=False)[0]
     assert _grid_start(full, criterion, args, _ranks(args[3]), 2) == full[int(np.argmin(values))]
+
+
+def test_grid_start_is_the_exact_least_when_a_fast_value_lost_its_digits(monkeypatch):
+    """A fast value far below the criterion at an end of the grid (as the penalised residual sum's
+    cancellation gave one at the largest weight: -671480 where the criterion is 6674, a tracker line beside a laser
+    run) is not chosen: the shortlist is evaluated exactly until its least is an exact value. The
+    old search took that point's exact value as the least, REML started from e^30 and smoothed the
+    positioning flat."""
+    from mtcomp.identification import penalty
+    args = two_penalties(1, 20, 200, slice(0, 10), slice(10, 20))
+    full = np.arange(-30.0, 30.1, 2.0)
+
+    def criterion(rho):
+        return penalty.reml_criterion(rho, *args, gradient=False)[0]
+    values = np.array([criterion(np.full(2, r)) for r in full])
+    far = 0 if np.argmin(values) > len(full) // 2 else len(full) - 1     # the grid end away from it
+    spoilt = values.copy()
+    spoilt[far] = values.min() - 1e5
+    monkeypatch.setattr(penalty, "_common_weight_grid", lambda *a, **k: spoilt.copy())
+    assert penalty._grid_start(full, criterion, args, penalty._ranks(args[3]), 2) == full[int(np.argmin(values))]

@@ -101,7 +101,7 @@ REFUSED = {
     "G01 X+Q1": "Q parameters",
     "G200 Q200=+2": "Q parameters",
     "G201": "the cycle G201",
-    "G01 X+1 M128": "M128",
+    "G01 X+1 M128 M91": "M91, M92, M99 or radius compensation RL/RR in tool centre point mode",
     "G91 I+5 J+5": "absolute I and J",
     "I+5 J+5 X+1": "absolute I and J",
     "G02 X+10 Y+10 R+5": "a radius (R)",
@@ -117,3 +117,65 @@ REFUSED = {
 def test_refused_in_one_line_naming_the_construct(tmp_path, block, words):
     p = _write(tmp_path, f"%T G71 *\nN10 G00 X+0 Y+0 Z+5 *\nN20 {block} *\nN99999999 %T G71 *\n")
     assert_refused(tmp_path, p, "p.i:3:", words, "(block N20)")
+
+
+# M128 ... M129 in a DIN/ISO program (HEIDENHAIN, TNC 620 User's Manual for DIN/ISO Programming,
+# 2013, "Maintaining the position of the tool tip when positioning with tilted axes (TCPM): M128"):
+# the tool centre point mode as in a conversational program, M129 ending it at the end of its block
+ISO_TCP = """%TCP G71 *
+N10 G00 X+40 Y+0 Z+60 A-30 C+10 M128 *
+N20 G01 Z+20 F400 *
+N30 X+30 Y+10 A-20 C+20 *
+N40 X+20 *
+N50 G00 Z+50 M129 *
+N99999999 %TCP G71 *
+"""
+CONVERSATIONAL_TCP = """0 BEGIN PGM TCP MM
+1 L X+40 Y+0 Z+60 A-30 C+10 FMAX M128
+2 L Z+20 F400
+3 L X+30 Y+10 A-20 C+20
+4 L X+20
+5 L Z+50 FMAX M129
+6 END PGM TCP MM
+"""
+
+
+def _axis_words(text: str) -> list:
+    """The axis words of each line with a move, in order: [{letter: value}]."""
+    import re
+    rows = [dict((a, float(v)) for a, v in re.findall(r"(?<![A-Z])([XYZAC])([-+]\d+\.?\d*)", line))
+            for line in text.splitlines()]
+    return [r for r in rows if r]
+
+
+def test_m128_in_an_iso_program_is_compensated_as_its_conversational_twin(tmp_path):
+    """The DIN/ISO program and its conversational twin (the same moves in M128), compensated with
+    one model on the five-axis CAFXYZ (a 30 um X backlash, random geometry), are written with the
+    same numbers: the twin's tool centre point compensation is checked on the independent machine
+    (test_toolpaths_tcp.py, test_toolpaths_tcp_directions.py)."""
+    from mtcomp.cli import main
+    from mtcomp.models import Backlash, save_model
+    from test_export_formats import random_model
+    fm = random_model("cafxyz", (Backlash("X"),), 5, 3.0, None)
+    fm.params.set_file_value("BL_X", 30.0)
+    model = tmp_path / "model.json"
+    save_model(model, fm)
+    written = []
+    for name, text in (("p.i", ISO_TCP), ("p.h", CONVERSATIONAL_TCP)):
+        src, out = _write(tmp_path, text, name), tmp_path / ("o" + name)
+        assert main(["compensate", "cafxyz", str(model), str(src), "-o", str(out), "--quiet"]) == 0
+        written.append(_axis_words(out.read_text()))
+    iso, conv = written
+    assert len(iso) == len(conv) == 5
+    assert iso == conv
+    assert iso != _axis_words(ISO_TCP)                  # corrected
+    assert "M128" in out.read_text() and "M129" in out.read_text()
+
+
+def test_the_tcp_mode_refuses_in_an_iso_program_what_it_refuses_in_a_conversational_one(tmp_path):
+    for block, words in (("T1 G17 S1000", "a tool call T (the TNC asks for the mode reset before "
+                                           "it)"), ("I+5 J+0", "a circle centre I J"),
+                         ("G41 G01 X+5", "radius compensation RL/RR")):
+        p = _write(tmp_path, f"%T G71 *\nN10 G00 X+0 Y+0 Z+5 M128 *\nN20 {block} *\n"
+                             "N99999999 %T G71 *\n")
+        assert_refused(tmp_path, p, "p.i:3:", words + " in tool centre point mode", "(block N20)")

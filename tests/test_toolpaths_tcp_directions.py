@@ -41,12 +41,12 @@ M30
 """
 
 
-def _x_directions(x: np.ndarray) -> np.ndarray:
-    """The truth's rule: the sign of each move of axis X (mm), carried where it does not move,
-    0 before its first move."""
+def _x_directions(x: np.ndarray, eps: float = 1e-9) -> np.ndarray:
+    """The truth's rule: the sign of each move of axis X (mm), carried where it moves at most
+    ``eps`` (mm), 0 before its first move."""
     d, out = 0.0, []
     for step in np.diff(x, prepend=x[0]):
-        if abs(step) > 1e-9:
+        if abs(step) > eps:
             d = float(np.sign(step))
         out.append(d)
     return np.array(out)
@@ -119,3 +119,57 @@ def test_the_directions_carry_from_chunk_to_chunk(tmp_path):
     x_axis = _truth_axes(TruthMachine.zero("cafxyz"),
                          [m.end for m in replay(prog.read_bytes()).moves])[:, 0]
     np.testing.assert_array_equal(np.concatenate(dirs), _x_directions(x_axis))
+
+
+# The first feed move after a TCP rapid from an unknown position: the plunge at A-30 moves axes Y
+# and Z, not X, so X's direction is not known there (the rapid came from where the program has not
+# said). The machine's X-Y squareness makes X's error change along the plunge (axis Y moves 20 mm),
+# so a correction that followed it would move axis X and give it a direction of its own: the backlash
+# the model evaluated at 'not known' would then be half of it off. The reversal rule holds X's
+# correction there, as it does in any program.
+PLUNGE = """G21 G90 G94 G17
+M428
+G0 X40 Y0 Z60 A-30 C0
+G1 Z20 F400
+G1 X39.848 Y3.486 C5
+G1 X39.392 Y6.946 C10
+M429
+M30
+"""
+C0Y_URAD = 200.0
+
+
+def test_a_plunge_after_a_tcp_rapid_keeps_x_where_its_direction_is_not_known(tmp_path):
+    """The truth and the model: a 30 um X backlash and a 200 urad X-Y squareness (C0Y). Cut on the
+    truth, the plunge's tip is within the squareness's own X error along the plunge (4 um) of its
+    aim: X's correction held, the axis does not move, its direction stays not known (the mean the
+    model took). Without the rule the correction moved axis X and the backlash took half its
+    play (15 um) on top."""
+    from mtcomp.models import ErrorModel, FittedModel
+    from mtcomp.models.params import ParameterSet
+    from mtcomp.machine import load_machine
+    model = ErrorModel(load_machine("cafxyz").with_basis("polynomial"), (Backlash("X"),))
+    ps = ParameterSet(model.param_specs)
+    ps.set_file_value("BL_X", BL_UM)
+    ps.set_file_value("C0Y", C0Y_URAD)
+    path, prog, out = tmp_path / "model.json", tmp_path / "plunge.ngc", tmp_path / "out.ngc"
+    save_model(path, FittedModel(model, ps, support=None))
+    prog.write_text(PLUNGE)
+    assert main(["compensate", "cafxyz", str(path), str(prog), "-o", str(out), "--quiet"]) == 0
+    truth = TruthMachine.zero("cafxyz").with_effects(TruthBacklash("X", BL_UM))
+    truth.squareness["C0Y"] = C0Y_URAD * 1e-6
+    src, dst = replay(prog.read_bytes()).moves, replay(out.read_bytes()).moves
+    assert len(dst) == len(src) == 4
+    q_src = _truth_axes(truth, [m.end for m in src])
+    q_out = _truth_axes(truth, [m.end for m in dst])
+    # the geometry: the plunge moves axis Y by 20 mm (sin 30 deg of 40 mm), not axis X
+    np.testing.assert_allclose(q_src[1, :2] - q_src[0, :2], [0.0, -20.0], rtol=0, atol=1e-9)
+    aim = truth.nominal_pose(q_src)[0]
+    # a move of axis X of at most 0.1 um (the program's resolution) keeps its direction: the rounded
+    # tip words put the axis within nm of where it stood
+    dirs = _x_directions(q_out[:, 0], 1e-4)
+    tip = truth.true_pose(q_out, context=Context(dirs={"X": dirs}))[0]
+    err = 1e3 * np.linalg.norm(tip - aim, axis=1)
+    print(f"plunge after the rapid: X direction {dirs[1]:+.0f}, tip error {err[1]:.3f} um")
+    assert dirs[1] == 0
+    assert err[1] <= 1e-3 * C0Y_URAD * 20.0 + 0.2

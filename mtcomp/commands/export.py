@@ -34,6 +34,10 @@ def add_arguments(parser):
                         help="grid step of rotary axes in deg (default as --grid-mm)")
     parser.add_argument("--range", metavar="AXIS=LO:HI", action="append", default=[],
                         help="clip the table of AXIS to LO..HI (mm or deg); repeat per axis")
+    parser.add_argument("--at", metavar="AXIS=POS[,AXIS=POS]", action="append", default=[],
+                        help="where the other axes stand while each axis's table is read (mm, or "
+                             "deg for a rotary axis), e.g. Z=-200,X=-300 (default: each linear axis "
+                             "at the middle of its data, a rotary axis at its reference position)")
     parser.add_argument("--max-points", type=int, default=None, metavar="N",
                         help="points per table the controller holds (default per format: linuxcnc "
                              "256, siemens 125, heidenhain 256, fanuc 128, isg 1024)")
@@ -62,8 +66,8 @@ def run(args) -> int:
     from ..errors import InputError
     from ..export import (component_tables, exporter, parse_ranges, plan_grids, table_region,
                           write_result)
-    from ..export._output import left_out
-    from ..export._tables import reference_positions
+    from ..export._output import ONE_POSE, left_out
+    from ..export._tables import parse_pose, reference_positions, table_pose
     from ..machine import load_machine
     from ..models.model_file import load_model
     from ..planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
@@ -81,6 +85,7 @@ def run(args) -> int:
         raise InputError(f"--fanuc-max-value must be a positive whole number, got {args.fanuc_max_value}")
     ranges = parse_ranges(args.range, machine)
     region, source, notes = table_region(fitted, ranges)
+    volume = dict(region)
     if fmt.LINEAR_ONLY:
         for a in list(region):
             if machine.axis(a).is_rotary:
@@ -94,7 +99,8 @@ def run(args) -> int:
     sd_limit = DEFAULT_MAX_CORRECTION_SD_UM if args.max_correction_sd_um is None else args.max_correction_sd_um
     if not (sd_limit >= 0 and math.isfinite(sd_limit)):
         raise InputError(f"--max-correction-sd-um must be 0 or a positive number, got {sd_limit:g}")
-    tables = component_tables(fitted, grids, region, notes, source, sd_limit)
+    pose = table_pose(machine, volume, parse_pose(args.at, machine))
+    tables = component_tables(fitted, grids, region, notes, source, sd_limit, volume, pose)
     if not tables.tables:
         why = "; ".join(n for n in tables.notes if n.startswith("axis ")) or "no axis has a region"
         raise InputError(f"nothing to export: {why}", args.model)
@@ -116,8 +122,14 @@ def run(args) -> int:
     for line in lines:
         err.write(f"  left out: {line}\n")
     for a, w in worst.items():
-        err.write(f"  remaining along {a} (reference pose, largest translation the tables do not "
+        err.write(f"  remaining along {a} {ONE_POSE} (largest translation the tables do not "
                   f"carry): {w * 1e3:.3f} um\n")
+    single, together = result.not_carried(tables)
+    for line in single:
+        err.write(f"  not carried: {line}\n")
+    if single:
+        err.write(f"  remaining over the volume from the errors not carried, together: up to "
+                  f"{together:.2f} um at the tool tip\n")
     for p in written:
         print(f"wrote {p}")
     return 0

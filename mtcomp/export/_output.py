@@ -36,6 +36,16 @@ class ExportResult:
     single_file: bool = False
     carried: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
+    uncarried: tuple | None = None
+
+    def not_carried(self, tables) -> tuple[list, float | None]:
+        """(lines, largest um): the model's single-valued errors these tables do not carry
+        (:func:`mtcomp.export._uncarried.uncarried_lines`), computed once."""
+        if self.uncarried is None:
+            from ._uncarried import uncarried_lines
+            self.uncarried = (uncarried_lines(tables.fitted, tables, self.carried, self.format)
+                              if tables.fitted is not None and tables.pose is not None else ([], None))
+        return self.uncarried
 
 
 def sign_factor_and_note(sign: str | None, what: str) -> tuple[float, str]:
@@ -65,6 +75,9 @@ def slope(tables, moving: str, column: int) -> float | None:
         return None
     return fit_line(t.positions, t.mean[:, column])[1]
 
+
+#: the pose the per-axis remaining figures hold at (the tables' own: each axis moving alone)
+ONE_POSE = "with only that axis moving, the others at the one pose the tables are read at"
 
 #: what is left out is said from this size on (um, urad): below it a fit's rounding (a component
 #: the data held at zero, to 1e-3 urad), no error a table would carry
@@ -116,7 +129,7 @@ def left_out(tables, carried: dict) -> tuple[list, dict]:
             lines.append(f"{name} of axis {a}: left out {what}: up to {peak * scale:.3f} {unit}{extra}")
     if any(line.endswith("(angular*)") for line in lines):
         lines.append("* an angular error: no per-axis table can carry it; its Abbe effect at the "
-                     "reference pose is inside the translations above, elsewhere it grows with the arm "
+                     "table pose is inside the translations above, elsewhere it grows with the arm "
                      "(other tool lengths, other positions of the axes)")
     return lines, worst
 
@@ -137,6 +150,25 @@ def region_line(tables, a: str) -> str:
     return line + f"; reference position {t.reference[a] * f:g} {u}"
 
 
+def pose_line(tables) -> str:
+    """The sentence saying where the other axes stood while each table was read, and where each
+    table is zero."""
+    m = tables.machine
+    deg = {a.name: 180 / np.pi if a.is_rotary else 1.0 for a in m.axes}
+    ref = next(iter(tables.tables.values())).reference
+    pose = tables.pose if tables.pose is not None else [ref[a] for a in m.axis_names]
+    return ("component errors are the model's deviation when only that axis moves, every other axis "
+            "at " + ", ".join(f"{a}={v * deg[a]:g}" for a, v in zip(m.axis_names, pose))
+            + f" (--at; by default each linear axis at the middle of its data, where the least-squares "
+            "best 1-D table of an error acting through that axis's arm is read, and a rotary axis at "
+            f"its reference position), tool length {m.tool_length:g} mm; each table is zero at its "
+            "axis's reference position (" + ", ".join(f"{a}={v * deg[a]:g}" for a, v in ref.items())
+            + "; one outside its axis's data region at the region's nearest end). Along a line "
+            "through that pose the tables correct what mtcomp compensate corrects, up to one "
+            "constant; elsewhere an angular error's arm differs (see 'What the controller cannot "
+            "hold')")
+
+
 def readme_text(result: ExportResult, tables, header: list) -> str:
     """README.txt beside the tables: how to load them, the limits and signs, what was left out."""
     lines = list(header)
@@ -144,20 +176,23 @@ def readme_text(result: ExportResult, tables, header: list) -> str:
               "coordinates):"]
     for a, t in tables.tables.items():
         lines.append("  " + region_line(tables, a))
-    ref = next(iter(tables.tables.values())).reference if tables.tables else {}
-    if ref:
-        lines.append("  component errors are the model's deviation when only that axis moves, every "
-                     "other axis at its reference position (" + ", ".join(
-                         f"{a}={v * (180 / np.pi if tables.machine.axis(a).is_rotary else 1):g}"
-                         for a, v in ref.items()) + "; one outside its axis's data region at the "
-                     f"region's nearest end), tool length {tables.machine.tool_length:g} mm; each table "
-                     "is zero at its axis's reference position")
+    if tables.tables:
+        lines.append("  " + pose_line(tables))
     lines += ["", "Notes:"] + [f"  - {n}" for n in tables.notes + result.notes]
     rest, worst = left_out(tables, result.carried)
     lines += ["", "What the controller cannot hold (left out of these files):"]
     lines += [f"  - {r}" for r in rest] or ["  - nothing above 0.0005 um / urad"]
-    lines += [f"  remaining along {a} at the reference pose (largest translation not carried): "
+    lines += [f"  remaining along {a} {ONE_POSE} (largest translation not carried): "
               f"{w * UM_PER_MM:.3f} um" for a, w in worst.items()]
+    single, together = result.not_carried(tables)
+    if single:
+        lines += ["", "Single-valued errors of the model no table carries (value +- standard error; "
+                  "the tool-tip error each makes over the volume the data reached, linear axes at "
+                  "their ends, rotary axes swept; zero where the tables are read):"]
+        lines += [f"  - {s}" for s in single]
+        lines.append(f"  remaining over the volume from these together: up to {together:.2f} um at "
+                     "the tool tip (on top of the figures above, but for a squareness listed here: "
+                     "it is also the slope of its straightness above)")
     return "\n".join(lines) + "\n"
 
 

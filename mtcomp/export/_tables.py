@@ -124,6 +124,9 @@ class ComponentTables:
     region_source : axis -> 'data' (the model's support), 'range' (--range alone), 'travel'.
     unheld_reversal : axis -> (mean, largest, unit) of the reversal the model's data show and the
         model does not hold (mtcomp.export._reversal.unheld_reversals), file units.
+    fitted : the FittedModel. pose : (n_axes,) the pose every table is read at (each other axis
+        there), mm and rad. volume : axis -> (lo, hi) where the data reached, rotary axes too (also
+        those a format writes no table for): what is not carried is swept over it.
     """
 
     machine: object
@@ -131,6 +134,9 @@ class ComponentTables:
     notes: list = field(default_factory=list)
     region_source: dict = field(default_factory=dict)
     unheld_reversal: dict = field(default_factory=dict)
+    fitted: object = None
+    pose: np.ndarray | None = None
+    volume: dict = field(default_factory=dict)
 
     def has_backlash(self, axis: str, tol: float = 1e-9) -> bool:
         """True when the positioning error of ``axis`` depends on the approach direction."""
@@ -140,18 +146,24 @@ class ComponentTables:
 
 
 # ------------------------------------------------------------------------------------ the region
+def _axis_named(option: str, item: str, axis: str, machine) -> str:
+    """``axis`` of the option's ``item`` upper-cased; InputError when the machine has no such axis."""
+    axis = axis.strip().upper()
+    if axis not in machine.axis_names:
+        raise InputError(f"{option} {item!r}: the machine has no axis {axis} "
+                         f"(axes: {' '.join(machine.axis_names)})")
+    return axis
+
+
 def parse_ranges(items, machine) -> dict:
     """``['X=0:400', 'C=-90:90']`` -> {'X': (0.0, 400.0), 'C': (-pi/2, pi/2)} (mm, rad)."""
     out = {}
     for item in items or ():
         axis, sep, rest = item.partition("=")
-        axis = axis.strip().upper()
         lo_s, sep2, hi_s = rest.partition(":")
         if not sep or not sep2:
             raise InputError(f"--range {item!r}: expected AXIS=LO:HI, e.g. X=0:400")
-        if axis not in machine.axis_names:
-            raise InputError(f"--range {item!r}: the machine has no axis {axis} "
-                             f"(axes: {' '.join(machine.axis_names)})")
+        axis = _axis_named("--range", item, axis, machine)
         try:
             lo, hi = float(lo_s), float(hi_s)
         except ValueError:
@@ -162,6 +174,49 @@ def parse_ranges(items, machine) -> dict:
         f = math.pi / 180.0 if machine.axis(axis).is_rotary else 1.0
         out[axis] = (lo * f, hi * f)
     return out
+
+
+def parse_pose(items, machine) -> dict:
+    """``['Z=-200,X=-300']`` (``--at``, repeatable) -> {'Z': -200.0, 'X': -300.0} (mm, rad)."""
+    out = {}
+    for item in items or ():
+        for part in str(item).split(","):
+            axis, sep, value = part.partition("=")
+            if not sep or not axis.strip():
+                raise InputError(f"--at {item!r}: expected AXIS=VALUE[,AXIS=VALUE], e.g. Z=-200,X=-300")
+            axis = _axis_named("--at", item, axis, machine)
+            try:
+                v = float(value)
+            except ValueError:
+                v = float("nan")
+            if not math.isfinite(v):
+                raise InputError(f"--at {item!r}: {axis}'s position must be a number (mm, or deg for "
+                                 "a rotary axis)")
+            out[axis] = v * (math.pi / 180.0 if machine.axis(axis).is_rotary else 1.0)
+    return out
+
+
+def table_pose(machine, volume: dict, at: dict | None = None) -> np.ndarray:
+    """(n_axes,) the pose every axis's table is read at (each other axis there), mm and rad: an
+    axis given in ``at`` (--at) there, taken into its region; else a linear axis at the middle of ``volume`` (where the
+    data reached: for an angular error acting through an arm that grows linearly with another axis,
+    the table read at the middle of that axis's data is the least-squares best 1-D table over
+    them), a rotary axis, or an axis without data, at its reference position taken into its
+    region (:func:`reference_positions`)."""
+    ref = reference_positions(machine)
+    pose = []
+    for ax in machine.axes:
+        a = ax.name
+        if at and a in at:
+            # beyond the data the model is held at the region's end, as everywhere in export
+            pose.append(min(max(float(at[a]), volume[a][0]), volume[a][1]) if a in volume else float(at[a]))
+        elif a in volume and not ax.is_rotary:
+            pose.append(0.5 * (volume[a][0] + volume[a][1]))
+        elif a in volume:
+            pose.append(min(max(ref[a], volume[a][0]), volume[a][1]))
+        else:
+            pose.append(ref[a])
+    return np.array(pose)
 
 
 def table_region(fitted, ranges: dict | None = None) -> tuple[dict, dict, list]:
@@ -349,20 +404,27 @@ def _evaluation_pose(machine, region: dict) -> np.ndarray:
 CONSTANT_NOTE_MIN = 0.1
 
 
-def _constant_note(zero: np.ndarray) -> list:
+def _constant_note(zero: np.ndarray, rotary: bool = True) -> list:
     """A note on what no table carries: the deviation ``zero`` (6,) (mm, rad) the model predicts with
     every axis at its reference position, from which every table is measured (none when each
-    component is below CONSTANT_NOTE_MIN um or urad)."""
+    component is below CONSTANT_NOTE_MIN um or urad). ``rotary``: whether the machine has rotary
+    axes (without them a turn is no axis's offset: the tool stands turned relative to the part)."""
     um, urad = zero[:3] * 1e3, zero[3:] * 1e6
     if not (np.nanmax(np.abs(um)) >= CONSTANT_NOTE_MIN or np.nanmax(np.abs(urad)) >= CONSTANT_NOTE_MIN):
         return []
     parts = [f"d{c} {v:+.2f} um" for c, v in zip("xyz", um) if abs(v) >= CONSTANT_NOTE_MIN]
     parts += [f"a turn of {v:+.2f} urad about {c.upper()}" for c, v in zip("xyz", urad)
               if abs(v) >= CONSTANT_NOTE_MIN]
+    turn = ("a turn is the machine's set-up there (a rotary axis's zero offset: its home offset), "
+            "which compensate corrects and these tables do not" if rotary else
+            "a turn is the tool standing tilted relative to the part (the spindle's tilt, a "
+            "squareness): a machine without rotary axes has no axis that could turn it back, and at "
+            "this tool length its effect at the tool tip is the translation; with another tool "
+            "length the tip moves by the length's difference times the turn, which compensate "
+            "corrects for the tool length it is given and these tables do not")
     return [f"with every axis at its reference position the model predicts {', '.join(parts)}: no "
             "table carries it (each table is zero there); a work offset taken on the part takes the "
-            "translation, and a turn is the machine's set-up there (a rotary axis's zero offset: its "
-            "home offset), which compensate corrects and these tables do not"]
+            f"translation, and {turn}"]
 
 
 def reference_notes(machine, axes) -> list:
@@ -438,11 +500,18 @@ def _too_uncertain(fitted, a: str, q: np.ndarray, q_ref: np.ndarray, max_sd_um: 
 
 def component_tables(fitted, grids: dict, region: dict | None = None,
                      notes: list | None = None, source: dict | None = None,
-                     max_sd_um: float | None = None) -> ComponentTables:
+                     max_sd_um: float | None = None, volume: dict | None = None,
+                     pose: np.ndarray | None = None) -> ComponentTables:
     """Evaluate the component errors of every axis of ``grids`` (module docstring).
 
     grids : axis -> (n,) positions, mm or rad (machine coordinates). region : axis -> (lo, hi) where
     the model's data reached (default: the grids' ends); grid points beyond it hold its end values.
+    volume : axis -> (lo, hi) where the data reached, rotary axes included (default ``region``):
+        where what no table carries is swept (:mod:`._uncarried`).
+    pose : (n_axes,) where every other axis stands while an axis's table is read (mm, rad;
+        default: the reference positions, :func:`table_pose` gives the export's). Each table is
+        zero at its own axis's reference position, the others at ``pose``: along a line through
+        ``pose`` the tables correct what compensate corrects, up to one constant.
     max_sd_um : an axis whose table's standard error (:func:`table_sd_um`, either direction) exceeds
     this anywhere on its grid gets no table, and a note says why (None or 0: no limit). The whole
     table, not the points over the limit: a controller interpolates between its points, and a table
@@ -452,17 +521,21 @@ def component_tables(fitted, grids: dict, region: dict | None = None,
     region = dict(region or {a: (float(g[0]), float(g[-1])) for a, g in grids.items()})
     ref = reference_positions(machine)
     q_ref = _evaluation_pose(machine, region)
-    zero, _ = model_errors(fitted, q_ref[None, :])
+    pose = q_ref if pose is None else np.asarray(pose, dtype=float)
     tables, dropped, uncertain = {}, [], []
     for a, g in grids.items():
         g = np.asarray(g, dtype=float)
         lo, hi = region.get(a, (float(g[0]), float(g[-1])))
-        q = np.tile(q_ref, (len(g), 1))
-        q[:, machine.index(a)] = np.clip(g, lo, hi)     # beyond the data: the end value, held
-        why = _too_uncertain(fitted, a, q, q_ref, max_sd_um)
+        i = machine.index(a)
+        q0 = pose.copy()
+        q0[i] = q_ref[i]                                # the table's zero: its axis's reference
+        q = np.tile(pose, (len(g), 1))
+        q[:, i] = np.clip(g, lo, hi)                    # beyond the data: the end value, held
+        why = _too_uncertain(fitted, a, q, q0, max_sd_um)
         if why:
             uncertain.append(why)
             continue
+        zero, _ = model_errors(fitted, q0[None, :])
         fwd, known = model_errors(fitted, q, {a: 1.0})
         rev, _ = model_errors(fitted, q, {a: -1.0})
         fwd, rev = fwd - zero, rev - zero
@@ -475,7 +548,9 @@ def component_tables(fitted, grids: dict, region: dict | None = None,
             dropped.append(a)
             continue
         tables[a] = AxisTable(a, ax.is_rotary, g, fwd, rev, ref, known, (float(lo), float(hi)))
-    notes = list(notes or []) + reference_notes(machine, tables) + uncertain + _constant_note(zero[0])
+    zero, _ = model_errors(fitted, q_ref[None, :])
+    notes = list(notes or []) + reference_notes(machine, tables) + uncertain + \
+        _constant_note(zero[0], bool(machine.rotary_axes))
     if max_sd_um and fitted.uncertainty is None:
         notes.append("the model carries no covariance (identify, diagnose and a thermal diagnosis "
                      "write one; an older model file may not): no table could be checked against "
@@ -485,4 +560,5 @@ def component_tables(fitted, grids: dict, region: dict | None = None,
     reversal = reversal_note(fitted)
     if reversal:
         notes.append(reversal)
-    return ComponentTables(machine, tables, notes, dict(source or {}), unheld_reversals(fitted))
+    return ComponentTables(machine, tables, notes, dict(source or {}), unheld_reversals(fitted),
+                           fitted, pose, dict(volume or region))

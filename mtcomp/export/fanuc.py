@@ -101,7 +101,12 @@ def _general_notes(sign_note: str, max_value: int, machine) -> list:
              f"one increment holds at most +-{max_value} units (--fanuc-max-value; the range depends on "
              "the series); the magnification 3623 was chosen to fit",
              "no smallest interval 3624 is applied: if your series' parameter manual sets one, give "
-             "--grid-mm at least that large"]
+             "--grid-mm at least that large",
+             "3624 (the interval) is written in detection units (--fanuc-unit-um), as the Series 0i-PB "
+             "parameter manual gives it; mtcomp could not check the unit on the Series 30i/31i/32i "
+             "(whose newer parameters are real values in mm): look up [Unit of data] of 3624 in your "
+             "series' parameter manual, and if it is mm enter the interval in mm on the parameter "
+             "screen (pitch_points.csv gives the positions the points must sit at)"]
     rotary = [ax.name for ax in machine.rotary_axes]
     if rotary:
         notes.append(f"rotary axes {' '.join(rotary)}: no table (not written by this exporter)")

@@ -4,7 +4,7 @@ One CSV per axis: ``//`` comment lines, a header naming the argument column (the
 and the ISO 230-1 component errors of that axis (``EXX, EYX, EZX, EAX, EBX, ECX`` for X), then one
 row per grid point; translations in mm, rotations in rad, comma separated. Component errors here are
 the model's deviation when only that axis moves (docs/export.md): the translations are those of the
-tool tip at the reference pose (the machine's tool length), so they already contain the Abbe effect
+tool tip at the table pose (the machine's tool length), so they already contain the Abbe effect
 of the angular errors there, and the straightness columns contain the squareness (enter no separate
 squareness). Volumetric compensation has no direction: the tables hold the mean of both approach
 directions.
@@ -106,7 +106,7 @@ def export(tables, **_) -> ExportResult:
             notes.append(f"axis {a}: the volumetric tables hold the mean of both directions; the "
                          f"backlash is in achskw_{a.lower()}.lis (bilateral)")
     notes.append("the angular columns act in the controller's kinematic model about its own reference "
-                 "point; the translations given are at the tool tip of the reference pose, which is "
+                 "point; the translations given are at the tool tip of the table pose, which is "
                  "what a single-tool setup needs")
     notes.append("field separator ',' and '//' comments; check file_format (P-VOLC-00013) of your "
                  "configuration")

@@ -26,9 +26,11 @@ up to products of the errors, so the normal matrix at the start point serves. Wi
 coefficients in the fitted directions, ``AB`` the data's normal matrix there and ``S(l) = sum l_k
 S_k`` the penalty,
 
-    V(rho) = (n - M_p)/2 log(RSS + pen) + 1/2 log|AB + S| - 1/2 sum_k r_k rho_k,  l_k = exp(rho_k)
+    V(rho) = (n - M_p)/2 log(RSS + pen) + 1/2 log|AB + S| - 1/2 log|S|+,  l_k = exp(rho_k)
 
-(r_k the rank of S_k, M_p the dimension of the unpenalised directions). REML is preferred to GCV:
+(log|S|+ the log product of the non-zero eigenvalues of S: ``sum_k r_k rho_k`` plus a constant when
+the penalties' ranges are independent, r_k the rank of S_k; evaluated itself where they overlap,
+:class:`_PenaltySpan`. M_p the dimension of the unpenalised directions). REML is preferred to GCV:
 it is less prone to undersmoothing and its optimum is well defined (Wood 2011, section 1).
 
 **Uncertainty**: the Bayesian posterior covariance ``phi (AB + S)^-1`` (Wood 2006, "On confidence
@@ -172,13 +174,61 @@ def _logdet_solve(M: np.ndarray, b: np.ndarray):
         return float(np.sum(np.log(w))), V @ ((V.T @ b) / w)
 
 
+class _PenaltySpan:
+    """The penalised part of the fitted directions: log|S(l)|+ (the log product of the non-zero
+    eigenvalues of ``S(l) = sum l_k SB_k``) and its rank, the REML criterion's terms of the penalty.
+
+    When the penalties' ranges are independent (the rank of their sum is the sum of their ranks),
+    ``log|S(l)|+ = sum r_k rho_k`` plus a constant. When they overlap (a fitted direction that moves
+    profiles of two classes at once, as the directions left after holding what the data leave open
+    may), that sum counts the shared dimensions twice and the criterion falls without bound as the
+    weights grow: REML then smoothed every profile flat. There the determinant is evaluated (the
+    log|S|+ of the summed penalty in Wood 2011, eq. 4): with the square roots ``R_k`` of the SB_k on
+    the range U of their sum, ``S(l) = sum l_k R_k^T R_k = Q^T Q`` on U (QR of the rows sqrt(l_k) R_k,
+    the largest weights first), log|S(l)|+ = 2 sum log|diag Q| and its derivative by rho_k is
+    ``l_k |R_k Q^-1|_F^2``."""
+
+    def __init__(self, SB: list, ranks: np.ndarray):
+        self.ranks = np.asarray(ranks)
+        total = sum(SB)
+        self.rank = int(_ranks([total])[0]) if len(SB) > 1 else int(self.ranks.sum())
+        self.overlap = self.rank < int(self.ranks.sum())
+        if not self.overlap:
+            self.rank = int(self.ranks.sum())
+            return
+        ev, U = np.linalg.eigh(0.5 * (total + total.T))
+        U = U[:, np.argsort(ev)[::-1][:self.rank]]
+        self.roots = []
+        for S in SB:
+            e, V = np.linalg.eigh(0.5 * (S + S.T))
+            on = e > 1e-9 * max(float(np.abs(S).max()), 1e-300)
+            self.roots.append((np.sqrt(e[on])[:, None] * V[:, on].T) @ U)
+
+    def logdet(self, rho: np.ndarray, gradient: bool = True):
+        """(log|S(l)|+ up to a constant, its gradient by rho or None)."""
+        rho = np.asarray(rho, dtype=float)
+        if not self.overlap:
+            return float(self.ranks @ rho), (self.ranks.astype(float) if gradient else None)
+        order = np.argsort(-rho, kind="stable")
+        rows = np.vstack([np.exp(0.5 * rho[k]) * self.roots[k] for k in order])
+        Q = scipy.linalg.qr(rows, mode="r")[0][:self.rank]
+        value = 2.0 * float(np.sum(np.log(np.abs(np.diag(Q)))))
+        if not gradient:
+            return value, None
+        grad = np.array([np.exp(rho[k]) * float(np.sum(scipy.linalg.solve_triangular(
+            Q, R.T, trans="T") ** 2)) for k, R in enumerate(self.roots)])
+        return value, grad
+
+
 def reml_criterion(rho: np.ndarray, AB: np.ndarray, gB: np.ndarray, rss0: float, SB: list, bz: list,
-                   cz: list, n_obs: int, gradient: bool = True, ranks: np.ndarray | None = None):
+                   cz: list, n_obs: int, gradient: bool = True, ranks: np.ndarray | None = None,
+                   span: _PenaltySpan | None = None):
     """(V, dV/drho or None, AB + S) of the REML criterion of the module docstring at log weights rho
     (the arguments as :func:`reml_weights` takes them; ``ranks``: the penalties' ranks, computed
-    when not given)."""
+    when not given; ``span``: their :class:`_PenaltySpan`, likewise)."""
     ranks = _ranks(SB) if ranks is None else ranks
-    mp = AB.shape[0] - int(ranks.sum())
+    span = _PenaltySpan(SB, ranks) if span is None else span
+    mp = AB.shape[0] - span.rank
     lam = np.exp(rho)
     H = AB + sum(l * Sk for l, Sk in zip(lam, SB))
     b = gB - sum(l * bk for l, bk in zip(lam, bz))
@@ -197,14 +247,15 @@ def reml_criterion(rho: np.ndarray, AB: np.ndarray, gB: np.ndarray, rss0: float,
         Hinv = (V / w) @ V.T if gradient else None
     pen_k = np.array([float(y @ Sk @ y + 2.0 * y @ bk + ck) for Sk, bk, ck in zip(SB, bz, cz)])
     total = max(rss0 - 2.0 * float(gB @ y) + float(y @ AB @ y) + float(lam @ pen_k), 1e-300)
-    value = 0.5 * (n_obs - mp) * np.log(total) + 0.5 * logdet - 0.5 * float(ranks @ rho)
+    logdet_s, dlogdet_s = span.logdet(rho, gradient)
+    value = 0.5 * (n_obs - mp) * np.log(total) + 0.5 * logdet - 0.5 * logdet_s
     if not gradient:
         return value, None, H
     # y minimises the penalised sum, so its derivative by rho_k is lam_k pen_k(y) alone (envelope
     # theorem); d log|H| / d rho_k = lam_k tr(H^-1 S_k)
     # tr(H^-1 S_k) = sum of the elementwise product (both symmetric): one inverse for every class
     grad = (0.5 * (n_obs - mp) * lam * pen_k / total
-            + 0.5 * lam * np.array([float(np.sum(Hinv * Sk)) for Sk in SB]) - 0.5 * ranks)
+            + 0.5 * lam * np.array([float(np.sum(Hinv * Sk)) for Sk in SB]) - 0.5 * dlogdet_s)
     return value, grad, H
 
 
@@ -221,7 +272,8 @@ def penalty_ranks(SB: list[np.ndarray]) -> np.ndarray:
     return _ranks(SB)
 
 
-def _common_weight_grid(grid: np.ndarray, args: tuple, ranks: np.ndarray) -> np.ndarray | None:
+def _common_weight_grid(grid: np.ndarray, args: tuple, ranks: np.ndarray,
+                        rank: int | None = None) -> np.ndarray | None:
     """(len(grid),) the REML criterion at one common log weight r for every class, at each r of
     ``grid``, from one eigen-decomposition (None where it does not exist).
 
@@ -231,7 +283,8 @@ def _common_weight_grid(grid: np.ndarray, args: tuple, ranks: np.ndarray) -> np.
     log-determinant ``log|A_00| + log|L| + sum log(w + lam)`` and its solve is a division by
     ``w + lam``: each weight costs O(k^2) where a Cholesky factor per weight costs O(k^3) (Wood 2011,
     section 3.2, diagonalises the same way for one smoothing parameter). The null part is exactly
-    unpenalised, so the values stay accurate at the largest weights."""
+    unpenalised, but at the largest weights the penalised residual sum may still lose its digits to
+    cancellation (a value far below the criterion's: :func:`_grid_start` checks the least)."""
     AB, gB, rss0, SB, bz, cz, n_obs = args
     S = sum(SB)
     ev, U = np.linalg.eigh(0.5 * (S + S.T))
@@ -257,7 +310,8 @@ def _common_weight_grid(grid: np.ndarray, args: tuple, ranks: np.ndarray) -> np.
     R = d[:, None] * Q                          # y_p = R u
     q1 = R.T @ (Up.T @ gB - A0p.T @ e1)
     q2 = R.T @ (Up.T @ bt - A0p.T @ e2)
-    mp = AB.shape[0] - int(ranks.sum())
+    rank = int(ranks.sum()) if rank is None else rank     # of the summed penalty (_PenaltySpan)
+    mp = AB.shape[0] - rank
     logdet_fixed = logdet_00 + float(np.sum(np.log(lam_p)))
     out = np.empty(len(grid))
     for i, r in enumerate(grid):
@@ -269,19 +323,30 @@ def _common_weight_grid(grid: np.ndarray, args: tuple, ranks: np.ndarray) -> np.
         pen = float(y @ S @ y + 2.0 * y @ bt) + float(sum(cz))
         total = max(rss0 - 2.0 * float(gB @ y) + float(y @ AB @ y) + lam * pen, 1e-300)
         out[i] = (0.5 * (n_obs - mp) * np.log(total) + 0.5 * (logdet_fixed + float(np.sum(np.log(w + lam))))
-                  - 0.5 * float(ranks.sum()) * r)
+                  - 0.5 * rank * r)
     return out
 
 
-def _grid_start(grid: np.ndarray, criterion, args: tuple, ranks: np.ndarray, m: int) -> float:
+def _grid_start(grid: np.ndarray, criterion, args: tuple, ranks: np.ndarray, m: int,
+                rank: int | None = None) -> float:
     """The grid's common log weight with the least criterion (the first of equals, in grid order).
     The fast values of :func:`_common_weight_grid` shortlist the points within round-off of their
-    least; those are compared by the exact criterion, so the choice is the exact criterion's."""
-    fast = _common_weight_grid(grid, args, ranks)
-    if fast is None or not np.all(np.isfinite(fast)):
+    least; those are evaluated by the exact criterion, and again with what that changes, until every
+    point of the shortlist has its exact value: the choice is the exact criterion's, even where a
+    fast value lost its digits and fell below the least (the exact one where it is NaN)."""
+    values = _common_weight_grid(grid, args, ranks, rank)
+    if values is None:
         return float(min(grid, key=lambda r: criterion(np.full(m, r))))
-    near = np.flatnonzero(fast <= fast.min() + GRID_SHORTLIST * max(abs(float(fast.min())), 1e3))
-    return float(min(grid[near], key=lambda r: criterion(np.full(m, r))))
+    exact = ~np.isfinite(values)
+    values[exact] = [criterion(np.full(m, r)) for r in grid[exact]]
+    while True:
+        least = float(values.min())
+        near = np.flatnonzero(values <= least + GRID_SHORTLIST * max(abs(least), 1e3))
+        todo = near[~exact[near]]
+        if not todo.size:
+            return float(grid[near[int(np.argmin(values[near]))]])
+        values[todo] = [criterion(np.full(m, grid[i])) for i in todo]
+        exact[todo] = True
 
 
 def reml_weights(AB: np.ndarray, gB: np.ndarray, rss0: float, SB: list[np.ndarray],
@@ -302,28 +367,29 @@ def reml_weights(AB: np.ndarray, gB: np.ndarray, rss0: float, SB: list[np.ndarra
     m = len(SB)
     args = (AB, gB, rss0, SB, bz, cz, n_obs)
     ranks = _ranks(SB) if ranks is None else np.asarray(ranks)
+    span = _PenaltySpan(SB, ranks)
     values = {}
 
     def criterion(rho):
         key = tuple(np.asarray(rho, dtype=float).tolist())
         if key not in values:
-            values[key] = reml_criterion(rho, *args, gradient=False, ranks=ranks)[0]
+            values[key] = reml_criterion(rho, *args, gradient=False, ranks=ranks, span=span)[0]
         return values[key]
 
     # a common weight on a coarse grid first (the criterion is flat far out and may have shallow
     # local minima), then every class's own from there, with the exact gradient
     if start is None:
         grid = np.arange(-RHO_BOUND, RHO_BOUND + 1e-9, 2.0)
-        rho = np.full(m, _grid_start(grid, criterion, args, ranks, m))
+        rho = np.full(m, _grid_start(grid, criterion, args, ranks, m, span.rank))
     else:
         rho = np.asarray(start, dtype=float)
-    res = scipy.optimize.minimize(lambda r: reml_criterion(r, *args, ranks=ranks)[:2], rho, jac=True,
+    res = scipy.optimize.minimize(lambda r: reml_criterion(r, *args, ranks=ranks, span=span)[:2], rho, jac=True,
                                   method="L-BFGS-B", bounds=[(-RHO_BOUND, RHO_BOUND)] * m,
                                   options={"maxiter": 500, "ftol": 1e-12, "gtol": 1e-6})
     if res.fun <= criterion(rho):
         rho = res.x
     if not with_edf:
         return rho, float("nan")
-    H = reml_criterion(rho, *args, gradient=False, ranks=ranks)[2]
+    H = reml_criterion(rho, *args, gradient=False, ranks=ranks, span=span)[2]
     edf = float(np.trace(_logdet_solve(H, AB)[1]))
     return rho, edf

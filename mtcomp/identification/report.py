@@ -176,7 +176,7 @@ def component_ranges(fitted: FittedModel, undetermined: Undetermined | None = No
     squareness's, does not count in its range.
     """
     machine = fitted.machine
-    unmeasured = set(fitted.info.get("unmeasured", ())) if isinstance(fitted.info, dict) else set()
+    unmeasured = _unmeasured(fitted)
     und = undetermined if undetermined is not None else _resolved(Undetermined.of(fitted), fitted,
                                                                    unmeasured)
     mask = _fitted_mask(fitted)
@@ -214,6 +214,19 @@ def component_ranges(fitted: FittedModel, undetermined: Undetermined | None = No
                      "them open (a positioning run at one tool length is the positioning error, "
                      "with no pitch): the components they measure are given on that assumption")
     return ranges, _location_values(fitted, und, mask), notes
+
+
+def _unmeasured(fitted: FittedModel) -> set:
+    """The components no laser file measured, which the fit held at zero (MODEL.json's info)."""
+    return set(fitted.info.get("unmeasured", ())) if isinstance(fitted.info, dict) else set()
+
+
+def location_values(fitted: FittedModel) -> list:
+    """:class:`LocationValue` of the squareness, spindle tilt and rotary location errors and zero
+    offsets (value +- standard error, file units), as :func:`component_ranges` gives them, without
+    evaluating the component ranges."""
+    und = _resolved(Undetermined.of(fitted), fitted, _unmeasured(fitted))
+    return _location_values(fitted, und, _fitted_mask(fitted))
 
 
 def _resolved(und: Undetermined, fitted: FittedModel, unmeasured: set) -> Undetermined:

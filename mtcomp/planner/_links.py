@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..toolpaths.words import frame_tcp
 from ._bounds import ARC, INF, REVERSAL
 
 __all__ = ["ARC", "REVERSAL", "LinkRules", "direction_axes", "node_links", "propagate", "run_start",
@@ -202,13 +203,21 @@ class LinkRules:
         before[1:] = q[:-1]
         before[firsts] = self.bounds.snap(np.asarray(chunk.start)[rows[firsts]])
         # no link on an axis not known at the node or at its move's start, into the program's
-        # first node, into a move the axes do not make along a line from a known start (a tool
-        # centre point move), nor on a hole's tool axis
+        # first node, into a move from a position the program has not given (a home move, a tool
+        # change), nor on a hole's tool axis. A tool centre point move (marked jump: the axes do
+        # not move along a line) whose start is known on every axis is linked: its axes move from
+        # the kinematics' inverse at its start to that at its end, the move its directions are of
+        # (:mod:`mtcomp.toolpaths.directions`); one whose start is not known on every axis moves
+        # its linear axes from positions not known
         no_link = ~known_rows[rows]
         no_link[firsts] |= ~was_known[rows[firsts]]
         jump = np.zeros(rows.size, bool) if chunk.jump is None else np.asarray(chunk.jump, bool)[rows]
         jump &= firsts
-        no_link[jump & was_known[rows].all(axis=1)] = True
+        frame = getattr(chunk, "frame", None)
+        tcp = np.zeros(rows.size, bool) if frame is None else frame_tcp(np.asarray(frame))[rows]
+        tcp &= firsts
+        whole = was_known[rows].all(axis=1)
+        no_link[(jump & ~tcp & whole) | (tcp & ~whole)] = True
         if first:
             no_link[0] = True
         if self.tool_axis >= 0:

@@ -320,16 +320,25 @@ class Summary:
                 self.ramp_line = int(r.line[np.argmax(ramp)])
             self.ramp_blocks += int(ramp.sum())
 
+    @property
+    def rms_before_um(self) -> float:
+        """Root mean square of the evaluated blocks' predicted deviation before correction (um)."""
+        return float(np.sqrt(self.sum_sq_before / max(self.evaluated, 1)))
+
+    @property
+    def rms_after_um(self) -> float:
+        """Root mean square of the evaluated blocks' predicted deviation after correction (um)."""
+        return float(np.sqrt(self.sum_sq_after / max(self.evaluated, 1)))
+
     def as_dict(self) -> dict:
         """The figures as the keys of ``mtcomp compensate --json`` (um; counts of blocks)."""
-        n = max(self.evaluated, 1)
         nc = max(self.corrected_blocks, 1)
         out = {"blocks": self.blocks, "internal_nodes": self.inserted,
                "evaluated_blocks": self.evaluated,
                "max_before_um": self.max_before_um,
-               "rms_before_um": float(np.sqrt(self.sum_sq_before / n)),
+               "rms_before_um": self.rms_before_um,
                "max_after_um": self.max_after_um,
-               "rms_after_um": float(np.sqrt(self.sum_sq_after / n)),
+               "rms_after_um": self.rms_after_um,
                "worst_line": self.worst_line,
                "corrected": {"blocks": self.corrected_blocks,
                              "max_before_um": self.corrected_max_before_um,
@@ -362,16 +371,14 @@ class Summary:
         return out
 
     def text(self) -> str:
-        n = max(self.evaluated, 1)
-
         def blocks(k: int) -> str:
             return f"{k} block" if k == 1 else f"{k} blocks"
         lines = [f"{blocks(self.blocks)} planned ({self.inserted} internal nodes inserted)"]
         if self.evaluated:
             lines += [f"predicted tool-tip deviation before: max {self.max_before_um:.3f} um, "
-                      f"rms {np.sqrt(self.sum_sq_before / n):.3f} um",
+                      f"rms {self.rms_before_um:.3f} um",
                       f"predicted tool-tip deviation after:  max {self.max_after_um:.3f} um "
-                      f"(line {self.worst_line}), rms {np.sqrt(self.sum_sq_after / n):.3f} um"]
+                      f"(line {self.worst_line}), rms {self.rms_after_um:.3f} um"]
         else:       # no figure rather than a 0.000 that reads as a perfect machine
             lines.append("predicted tool-tip deviation: not evaluated (no block has every axis "
                          "position given)")

@@ -19,8 +19,12 @@ correction changed, every other byte kept). The rules followed:
 
 Everything else is refused in one line naming it: other G functions (polar coordinates, ``G05``,
 ``G06``, ``G24``/``G25``, approach and departure, ``G29``, cycles, coordinate transformations,
-labels ``G98 L``), ``K`` and incremental circle centres, Q parameters and ``D`` functions, ``M99``,
-``M128`` and the TNC's other path functions ``M89``, ``M90`` and up.
+labels ``G98 L``), ``K`` and incremental circle centres, Q parameters and ``D`` functions, ``M99``
+and the TNC's other path functions ``M89``, ``M90`` and up. ``M128`` ... ``M129``, the tool centre
+point mode, is read as in a conversational program (:mod:`.heidenhain_tcp`; TNC 620 User's Manual
+for DIN/ISO programming, 2013, "Maintaining the position of the tool tip when positioning with
+tilted axes (TCPM): M128"): a ``T`` block is its TOOL CALL, ``G02``/``G03`` and ``I J`` its arcs
+and circle centre, ``G41``/``G42`` its radius compensation RL/RR, refused in the mode.
 """
 from __future__ import annotations
 
@@ -58,6 +62,7 @@ class IsoReader(_Reader):
     """The state a DIN/ISO program carries from line to line (see the module docstring)."""
 
     LANGUAGE, ARC, CENTRE = "Heidenhain DIN/ISO", "G02/G03", "I J"
+    TOOL = "tool call T"
 
     def __init__(self, path):
         super().__init__(path)
@@ -68,8 +73,9 @@ class IsoReader(_Reader):
     def refuse(self, what: str, k: int):
         return self.err(f"{what} is not read by mtcomp ({self.LANGUAGE})", k)
 
-    def line(self, k: int, text: str) -> tuple[str, LineInfo]:
-        """(G-code, info) of source line k (0-based)."""
+    def _line(self, k: int, text: str) -> tuple[str, LineInfo]:
+        """(G-code, info) of source line k (0-based), before the mode's M129 is carried
+        (:meth:`_Reader.line`)."""
         info = LineInfo()
         body = text.split(";", 1)[0].strip().upper()
         numbered = _NUMBERED.match(body)
@@ -135,12 +141,13 @@ class IsoReader(_Reader):
                     raise self.err(f"{letter} twice in one block", k)
                 into[letter] = (_num(value), self.incremental)
         mcodes = self._mcodes(" ".join("M" + v for letter, v in tokens if letter == "M"), k)
-        if 99 in mcodes or 128 in mcodes or 129 in mcodes:
-            raise self.refuse(f"M{99 if 99 in mcodes else 128 if 128 in mcodes else 129}", k)
+        if 99 in mcodes:
+            raise self.refuse("M99", k)
+        self.motion = next((c for c in (0, 1, 2, 3) if c in g), self.motion)
+        switch = self._tcp(letters, g, words, centre, mcodes, k)
         if "T" in letters:
             return self._tool_call(tokens, g, words or centre, k), info
         feed = next((_num(v) for letter, v in tokens if letter == "F"), None)
-        self.motion = next((c for c in (0, 1, 2, 3) if c in g), self.motion)
         if centre:
             return self._centre(centre, words, k, info)
         arc = self.motion in (2, 3)
@@ -159,7 +166,17 @@ class IsoReader(_Reader):
             gcode, info = self.arc_gcode(words, self.motion == 3, feed, k, info)
         if self.incremental:                  # every word of a G91 block, added ones too
             info.incremental = frozenset(AXES)
-        return (comp + gcode).strip(), info
+        return (switch + comp + gcode).strip(), info
+
+    def _tcp(self, letters: set, g: set, words: dict, centre: dict, mcodes: list, k: int) -> str:
+        """The block read by the tool centre point mode's rules (M128 ... M129, as in a
+        conversational program: :class:`~.heidenhain_tcp.TcpMode`): a T block is a TOOL CALL, an
+        arc G02/G03 or a centre I J the conversational C or CC, G41/G42 radius compensation RL/RR;
+        the G-code word that switches the mode, followed by a blank, or ''."""
+        name = ("TOOL CALL" if "T" in letters else "CC" if centre else
+                "C" if words and self.motion in (2, 3) else "L" if words else "M")
+        rest = " ".join(f"M{c}" for c in mcodes) + (" RL" if g & {41, 42} else "")
+        return self.tcp_block(name, rest, k)
 
     def _comp(self, g: set, k: int, arc: bool) -> str:
         """The G-code word of the block's radius compensation where it changes the one in force,

@@ -81,8 +81,11 @@ class TcpMode:
             raise self.err(f"M{128 if on else 129} in a block other than L or M", k)
         if self.tcp or on:
             if name in _UNDER_TCP:
-                raise self.err(f"{_UNDER_TCP[name]} in tool centre point mode (M128, FUNCTION "
-                               "TCPM) is not read by mtcomp", k)
+                what = {"C": f"an arc {self.ARC}", "CC": f"a circle centre {self.CENTRE}",
+                        "TOOL CALL": f"a {getattr(self, 'TOOL', 'TOOL CALL')} (the TNC asks for "
+                                     "the mode reset before it)"}
+                raise self.err(f"{what.get(name, _UNDER_TCP[name])} in tool centre point mode "
+                               "(M128, FUNCTION TCPM) is not read by mtcomp", k)
             if codes & {91, 92, 99} or re.search(r"\bR[LR]\b", rest):
                 raise self.err("M91, M92, M99 or radius compensation RL/RR in tool centre point "
                                "mode (M128, FUNCTION TCPM) is not read by mtcomp (the TNC asks "

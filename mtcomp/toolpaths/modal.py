@@ -707,7 +707,12 @@ class ModalState:
 
     def _home_move(self, g, values, axes_given, line):
         """G28/G30: named axes (all without any) go home; G53: named axes go to a machine position.
-        Either way the program's frame no longer knows where they are."""
+        Either way the program's frame no longer knows where they are. In Fanuc's tool centre
+        point mode (G43.4) refused: what the mode does at the home move is not determined here."""
+        if self.tcp and (g != 53 or axes_given) and list(self.tcp_switches.values())[-1:] == ["G43.4"]:
+            raise self._err(f"G{g:g} in tool centre point mode (G43.4) is not supported: cancel the "
+                            "mode with G49 before the move (the mode's axes at a reference "
+                            "position or machine position are not determined here)", line)
         new = self.position.copy()
         idx = [self.names.index(c) for c in axes_given]
         for i in idx:

@@ -1,0 +1,75 @@
+"""What no exported table carries is listed with its tool-tip error over the volume: a machine-tool
+builder's Fanuc export of a trunnion whose C line sat 15 um off in X and -10 um in Y (35 um at the
+tool tip in its tool-centre-point blocks) said nothing of it, and its 'remaining' figures were at
+the one pose where the offset vanishes.
+
+Hand-derived oracles (a positioning error of X, 10 um/m, gives the Fanuc export a table):
+* a rotary table's line offset e (X0C, Y0C) moves the tool tip relative to the part by (R(C) - I) e
+  (the table turns the offset with it), |.| = 2 |e| sin(C / 2): zero at C = 0, where the tables are
+  read, 2 |e| at C = 180 deg (30 um for X0C = 15 um alone, 36.06 um for X0C = 15, Y0C = -10 um);
+* a squareness B0Z (Z leaning in X) moves the tip by z B0Z in X: over Z -250 .. 150 mm from the
+  tables' pose Z = -50 (the middle), at most 200 mm x 20 urad = 4 um. LinuxCNC's matrixkins carries it (nothing listed); Fanuc's pitch
+  tables do not (listed).
+"""
+from __future__ import annotations
+
+import re
+
+import pytest
+
+from mtcomp.cli import main
+from mtcomp.machine import load_machine
+from mtcomp.models import ErrorModel, FittedModel, save_model
+
+
+def _model(tmp_path, machine, values):
+    """A model of built-in ``machine`` whose parameters ``values`` (name -> um or urad) are set, its
+    data region the whole travel."""
+    m = load_machine(machine)
+    model = ErrorModel(m.with_basis("polynomial"), ())
+    fitted = FittedModel.zero(model)
+    names = [s.name for s in model.param_specs]
+    for name, value in values.items():
+        i = names.index(name)
+        fitted.params.values[i] = value * {"um": 1e-3, "urad": 1e-6}[model.param_specs[i].unit]
+    fitted.support = {ax.name: tuple(ax.travel) for ax in m.axes}
+    path = tmp_path / "m.json"
+    save_model(path, fitted)
+    return path
+
+
+def _export(tmp_path, capsys, machine, path, fmt):
+    out = tmp_path / fmt
+    assert main(["export", machine, str(path), "--format", fmt, "-o", str(out)]) == 0
+    return (out / "README.txt").read_text(), capsys.readouterr().err
+
+
+def _up_to(text, name):
+    m = re.search(rf"^\s*- {name} \(.*?\): up to ([0-9.]+) um at the tool tip \(at ([^)]*)\)", text, re.M)
+    assert m, text
+    return float(m.group(1)), m.group(2)
+
+
+def test_rotary_line_offset_listed_with_its_tool_tip_error_swept(tmp_path, capsys):
+    path = _model(tmp_path, "cbfxyz", {"X0C": 15.0, "Y0C": -10.0, "EXX_1": 10.0})
+    readme, err = _export(tmp_path, capsys, "cbfxyz", path, "fanuc")
+    up, at = _up_to(readme, "X0C")
+    assert up == pytest.approx(30.0, abs=0.01)
+    assert re.search(r"C-?180$", at), at        # half a turn from where the tables are read
+    assert _up_to(readme, "Y0C")[0] == pytest.approx(20.0, abs=0.01)
+    together = float(re.search(r"from these together: up to ([0-9.]+) um", readme).group(1))
+    assert together == pytest.approx(2 * (15.0 ** 2 + 10.0 ** 2) ** 0.5, abs=0.01)
+    assert "19703-19705" in readme                  # Fanuc's TCP parameters that hold the line
+    assert "not carried: X0C" in err and "together: up to 36.06 um" in err
+    assert "the others at the one pose the tables are read at" in readme
+
+
+@pytest.mark.parametrize("fmt, listed", [("fanuc", True), ("linuxcnc", False)])
+def test_squareness_listed_only_where_the_format_has_no_table_for_it(tmp_path, capsys, fmt, listed):
+    path = _model(tmp_path, "xfyz", {"B0Z": 20.0})
+    readme, _ = _export(tmp_path, capsys, "xfyz", path, fmt)
+    if listed:
+        assert _up_to(readme, "B0Z")[0] == pytest.approx(4.0, abs=0.01)
+        assert "mtcomp compensate" in readme
+    else:
+        assert "B0Z" not in readme, readme
