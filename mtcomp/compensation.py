@@ -448,6 +448,18 @@ def _thermal_model(fitted, settings: CompensationSettings, series=None) -> tuple
                                     "--temperature, --temperatures or --spindle-rpm)")
 
 
+def _feed_use(fitted, series) -> str:
+    """What makes the corrections depend on the programmed feed, said for the reader's refusal of
+    an F it cannot read for sure (:mod:`.toolpaths.word_use`): the model's feed terms, the
+    temperatures of a series looked up at each block's time (its length over its feed); '' where
+    nothing does."""
+    terms = [t.key() for t in fitted.model.terms if t.uses_feed]
+    uses = [f"the model's feed terms ({', '.join(terms)})"] if terms else []
+    if series is not None:
+        uses.append("the temperatures looked up at each block's time (its length over its feed)")
+    return " and ".join(uses)
+
+
 def _checked_series(fitted, settings: CompensationSettings, series):
     """The temperature series without the sensors the settings give (a flag wins), every reading
     checked against the model's record (InputError beyond it unless ``settings.extrapolate``)."""
@@ -548,6 +560,7 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     with contextlib.ExitStack() as stack:
         expanded = None if io_progress is None else (lambda lines: io_progress("expanded", lines))
         src = stack.enter_context(open_program(program, settings.dialect, progress=expanded))
+        src.feed_use = _feed_use(fitted, series)
         # one pass over the program as read (an expansion, a conversational program's G-code) for
         # its units and for cutter radius compensation (the note); a conversational program's
         # blocks stay one to one, so it is planned without internal nodes

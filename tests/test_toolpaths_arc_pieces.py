@@ -107,6 +107,22 @@ def test_few_pieces_none_short_radii_near_the_arcs(compensated, line):
     np.testing.assert_allclose(radii[long], R, rtol=0, atol=2e-3)
 
 
+def _gap(points, pieces):
+    """(n,) distance (mm) of each of points (n, 2) to the nearest written piece, each as the
+    controller interpolates it (the radius linear in the angle; off its angles, its nearer end)."""
+    best = np.full(len(points), np.inf)
+    for s, c, sweep, r0, r1, _length in pieces:
+        e = c + r1 * np.array([math.cos(math.atan2(*(s - c)[::-1]) + sweep),
+                               math.sin(math.atan2(*(s - c)[::-1]) + sweep)])
+        turn = (np.arctan2(points[:, 1] - c[1], points[:, 0] - c[0])
+                - math.atan2(s[1] - c[1], s[0] - c[0])) * np.sign(sweep) % (2 * np.pi)
+        inside = turn <= abs(sweep)
+        r = r0 + (r1 - r0) * turn / abs(sweep)
+        d = np.where(inside, np.abs(np.hypot(*(points - c).T) - r), np.inf)
+        best = np.minimum.reduce([best, d, np.hypot(*(points - s).T), np.hypot(*(points - e).T)])
+    return best
+
+
 def _min_dist(points, path):
     """(n,) distance (mm) of each of points (n, 2) to the nearest of path (m, 2)."""
     return np.array([np.min(np.hypot(*(path - p).T)) for p in points])
@@ -180,8 +196,12 @@ def test_the_summary_says_how_far_the_written_arcs_miss_their_path(tmp_path, cap
     for line in ARC_LINES:
         turn, corr = _planned(rows, line)
         points = CENTRE + R * np.c_[np.cos(-turn[1:]), np.sin(-turn[1:])] + corr[1:]
-        dense = np.vstack([_sample(p, 20_000) for p in _pieces(data, line)])
-        gaps.append(_min_dist(points, dense).max())
+        # the distance to the pieces themselves (points 0.5 um apart along them read up to 0.03
+        # um more at 1 um off)
+        gaps.append(_gap(points, _pieces(data, line)).max())
     assert 0.1 < max(gaps) * 1e3 <= 1.0 + 0.2
-    assert float(said.group(1)) == pytest.approx(max(gaps) * 1e3, abs=0.02)
+    # BLOCKS.csv writes the planned positions to 0.1 um: the points read back from it lie up to
+    # 0.05 * sqrt(2) um from the writer's own (a piece whose centre moves least misses by the
+    # whole tolerance, so its note reads 1.00 um)
+    assert float(said.group(1)) == pytest.approx(max(gaps) * 1e3, abs=0.075)
 

@@ -116,3 +116,82 @@ def test_the_compiled_reader_hands_whole_words_to_python_on_fanuc_only(tmp_path,
     ends = np.vstack([c.end for c in iter_segment_chunks(p, xfyz, dialect="linuxcnc")])
     np.testing.assert_allclose(ends[-1], [30.0, 0.0, 0.0], rtol=0, atol=0)
     assert not set(read_in_python) & set(range(4, 33)), read_in_python
+
+
+# An F word without a point. A Haas reads it as its Setting 77 (Scale Integer F) says: F1200 is
+# 1.2 mm/min at the default (0.001 mm/min a unit), 1200 mm/min at INTEGER (Haas mill operator's
+# manual, Settings). A Fanuc reads a feed per minute in whole mm/min (F1200: 1200 mm/min), but an
+# inverse time (G93) in thousandths unless parameter 3401#0 (DPI) is set (Fanuc Series 16/18-MC
+# operator's manual, B-62764EN/01, feed functions: "F1 0.001"). The feed enters the corrections
+# through a model's feed terms (FOFF_X: um per m/min): 1200 mm/min and 1.2 mm/min give offsets
+# 1000 times apart.
+FEED_BODY = "G00 X0. Y0. Z25.\nG01 X60. F1200\nG01 Y20.\n"
+
+
+def _feed_model(tmp_path):
+    from mtcomp.models import FeedOffset, save_model
+    from test_export_formats import random_model
+    fm = random_model("xfyz", (FeedOffset("X"),), 3, 0.0, None)
+    fm.params.set_file_value("FOFF_X", 2.0)
+    path = tmp_path / "feed.json"
+    save_model(path, fm)
+    return path
+
+
+def _compensate(tmp_path, body, model, dialect, head=HEAD):
+    prog, out = tmp_path / "p.nc", tmp_path / "out.nc"
+    prog.write_text(head + body + TAIL)
+    rc = main(["compensate", "xfyz", str(model), str(prog), "-o", str(out), "--dialect", dialect])
+    return rc, out
+
+
+def test_a_haas_f_without_a_point_is_refused_where_the_model_uses_the_feed(tmp_path, capsys,
+                                                                            reader_path):
+    rc, out = _compensate(tmp_path, FEED_BODY, _feed_model(tmp_path), "haas")
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and not out.exists()
+    assert len(err.splitlines()) == 1 and "p.nc:6: F1200 has no decimal point" in err, err
+    # both readings by hand: 1200 * 0.001 mm/min at the default, 1200 mm/min at INTEGER
+    assert "Setting 77 (Scale Integer F)" in err and "1.2 mm/min at its default" in err
+    assert "1200 mm/min at INTEGER" in err and "feed terms (feed_dependent_offset:X)" in err
+    # with a point it is read and corrected as 1200 mm/min
+    rc, out = _compensate(tmp_path, FEED_BODY.replace("F1200", "F1200."), _feed_model(tmp_path),
+                          "haas")
+    assert rc == 0 and out.exists(), capsys.readouterr().err
+
+
+def test_a_haas_f_without_a_point_is_read_in_whole_units_where_nothing_uses_it(tmp_path, capsys,
+                                                                               reader_path):
+    model = _model(tmp_path, "xfyz", scale=0.1)[2]
+    rc, out = _compensate(tmp_path, FEED_BODY, model, "haas")
+    said = capsys.readouterr().out
+    assert rc == 0 and out.exists()
+    assert "note: F words without a decimal point (first F1200, line 6) read in whole mm/min" in said
+    assert "Setting 77" in said
+    # the same program with F1200. is written alike (the feed is not among what is corrected)
+    text = out.read_text()
+    rc, out = _compensate(tmp_path, FEED_BODY.replace("F1200", "F1200."), model, "haas")
+    assert rc == 0 and out.read_text() == text.replace("F1200", "F1200.")
+
+
+def test_a_fanuc_feed_per_minute_without_a_point_is_whole_mm_per_min(tmp_path, capsys):
+    from mtcomp.machine import load_machine
+    from mtcomp.toolpaths import read_program
+    prog = tmp_path / "p.nc"
+    prog.write_text(HEAD + FEED_BODY + TAIL)
+    blocks = read_program(prog, load_machine("xfyz"), dialect="fanuc").blocks
+    assert [b.feed for b in blocks if b.line == 6] == [1200.0]
+    rc, out = _compensate(tmp_path, FEED_BODY, _feed_model(tmp_path), "fanuc")
+    assert rc == 0 and "F words without" not in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("dialect", ["fanuc", "haas"])
+def test_an_inverse_time_f_without_a_point_is_refused(tmp_path, capsys, dialect):
+    """Under G93 mtcomp writes each split block's F anew from the one read: F6 read as 6 (1/min) but
+    run as 0.006 would be written as pieces' F12. and faster, run 2000 times faster."""
+    body = "G00 X0. Y0. Z25.\nG93 G01 X60. F6\nG94\n"
+    rc, out = _compensate(tmp_path, body, _model(tmp_path, "xfyz", scale=0.1)[2], dialect)
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and not out.exists()
+    assert len(err.splitlines()) == 1 and "p.nc:6: F6 has no decimal point under G93" in err, err
+    assert "0.006 1/min" in err

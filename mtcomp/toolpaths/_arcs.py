@@ -264,7 +264,7 @@ def arc_samples(start, end, chord_ends, points, counts, centre2, cols, ccw: bool
 
 
 # ------------------------------------------------------------------------ pieces of a split arc
-#: candidate centres tried between the source's radius and the fitted one (the fitted one last)
+#: steps from the circle nearest the source's towards the fitted one before the bisection
 BISECTOR_STEPS = 4
 
 
@@ -287,30 +287,79 @@ def piece_ends(length: np.ndarray, a: int, b: int, min_piece: float) -> list[int
     return [int(k) for k in j[keep]] + [b]
 
 
-def bisector_centres(s2, e2, radius: float, hint, fitted) -> list:
-    """Centres (2,) on the perpendicular bisector of s2 e2 (2,): the circle of ``radius`` (mm)
-    through both (its centre on the side of ``hint``), then steps towards ``fitted`` (2,) and
-    ``fitted`` itself (None: left out), nearest to the radius first."""
-    nominal = fit_arc_centre(s2, e2, np.empty((0, 2)), True, False, hint, radius)
-    if nominal is None or fitted is None:
-        return [c for c in (nominal, fitted) if c is not None]
-    f = np.arange(1, BISECTOR_STEPS + 1) / BISECTOR_STEPS
-    return [nominal] + [nominal + t * (fitted - nominal) for t in f]
+def near_bound(samples, nominal, cols, tol: float) -> float:
+    """How far (mm) a split arc's piece's centre may lie from the source's for a machinist to
+    recognise the source's circle: the largest in-plane correction along the arc (``samples`` less
+    ``nominal``, (m, na)) and the tolerance ``tol`` (mm)."""
+    c = (np.asarray(samples) - np.asarray(nominal))[:, list(cols)]
+    return float(np.max(np.hypot(c[:, 0], c[:, 1]), initial=0.0)) + tol
 
 
-def plan_pieces(arc_piece, straight_piece, length: np.ndarray, min_piece: float, a: int, b: int,
-                start_w: np.ndarray) -> list:
+def piece_centre(holds, s2, e2, shifted, fitted, resolution: float, source=None,
+                 bound: float = math.inf):
+    """The centre of a piece of a split arc from s2 to e2 (2,), as ``holds(centre)`` (2,) -> the
+    piece about it, or None where it does not hold: the source's centre moved by the correction
+    (``shifted`` (2,)) where its circle passes through the piece's corrected ends within the
+    tolerance and holds the path; otherwise the circle through both ends whose centre is nearest
+    to ``shifted`` (least change of centre: on the perpendicular bisector of s2 e2, from the foot
+    of ``shifted`` on it towards ``fitted`` (2,), the one closest to the corrected points, or None)
+    that holds, found to ``resolution`` (mm) by bisection. A short piece's path says little of its
+    radius (any from the source's to a straight line fits within a micrometre), so the circle a
+    machinist reads it on is the source's moved as little as the path allows. A centre farther
+    than ``bound`` (mm) from ``source`` (2,) does not hold. None where none holds."""
+    def ok(centre):
+        if bound < math.inf and math.hypot(*(np.asarray(centre) - source)) > bound:
+            return None
+        return holds(centre)
+
+    piece = ok(shifted)
+    d = np.asarray(e2, float) - np.asarray(s2, float)
+    if piece is not None or not np.any(d):
+        return piece
+    mid = 0.5 * (np.asarray(s2, float) + np.asarray(e2, float))
+    along = np.array([-d[1], d[0]]) / math.hypot(*d)
+    foot = mid + float(np.dot(np.asarray(shifted) - mid, along)) * along
+    piece = ok(foot)
+    if piece is not None or fitted is None:
+        return piece
+    step = float(np.dot(np.asarray(fitted) - foot, along))
+    lo, hi = 0.0, None
+    for t in np.arange(1, BISECTOR_STEPS + 1) / BISECTOR_STEPS:
+        piece = ok(foot + t * step * along)
+        if piece is not None:
+            hi = t
+            break
+        lo = t
+    if hi is None:
+        return None
+    while (hi - lo) * abs(step) > resolution:
+        t = 0.5 * (lo + hi)
+        nearer = ok(foot + t * step * along)
+        if nearer is None:
+            lo = t
+        else:
+            hi, piece = t, nearer
+    return piece
+
+
+def plan_pieces(arc_piece, straight_piece, points: np.ndarray, length: np.ndarray,
+                min_piece: float, a: int, b: int, start_w: np.ndarray) -> list:
     """The pieces an arc is written as, from sample a (where the machine stands: ``start_w``
-    (na,)) to sample b: each the longest arc from where the last one ended that holds
-    (``arc_piece(a, k, start_w)``: a piece ending at sample k, with its written ``end`` (na,), or
-    None), found by bisection over the samples it may end at (an arc that holds over a stretch
-    holds over a shorter one from the same start), no shorter than ``min_piece`` (mm along
-    ``length`` (m,)) where an arc that long holds (:func:`piece_ends`); a straight piece
+    (na,)) to sample b of ``points`` (m, na). ``arc_piece(a, k, start_w, near)``: the piece from
+    sample a to sample k about the centre :func:`piece_centre` chooses, with its written ``end``
+    (na,), or None where none holds; ``near``: only a centre within the correction (its largest
+    size along the arc) and the tolerance of the source's, where a machinist recognises the
+    source's circle. Each piece is the longest such near arc from where the last one ended;
+    where none holds a piece's length (a ramp of the correction: a backlash's reversal), the
+    longest arc about any centre, ending where a near arc holds again; a straight piece
     (``straight_piece(a, start_w)``, to sample a + 1) only where no arc reaches the next sample.
-    The G-code, Heidenhain writers plan their split arcs with it."""
+    The longest arcs are found by bisection over the samples they may end at (an arc that holds
+    over a stretch holds over a shorter one from the same start), none shorter than
+    ``min_piece`` (mm along ``length`` (m,)) where an arc that long holds (:func:`piece_ends`).
+    The G-code, Heidenhain and Sinumerik writers plan their split arcs with it."""
     pieces = []
     while a < b:
-        piece, end = _longest_piece(arc_piece, length, min_piece, a, b, start_w)
+        piece, end = _longest_piece(arc_piece, points, length, min_piece, a, b, start_w)
         if piece is None:
             end = a + 1
             piece = straight_piece(a, start_w)
@@ -319,25 +368,38 @@ def plan_pieces(arc_piece, straight_piece, length: np.ndarray, min_piece: float,
     return pieces
 
 
-def _longest_piece(arc_piece, length, min_piece, a: int, b: int, start_w):
+def _longest_piece(arc_piece, points, length, min_piece, a: int, b: int, start_w):
     """(the arc piece from sample a to the farthest sample one arc reaches, that sample), or
-    (None, None) when no arc reaches even the next sample."""
-    piece = arc_piece(a, b, start_w)
-    if piece is not None:
-        return piece, b
+    (None, None) when no arc reaches even the next sample (:func:`plan_pieces`)."""
     ends = piece_ends(length, a, b, min_piece)
-    best = _farthest(arc_piece, a, ends[:-1], start_w)
+
+    def near(i, k, s):
+        return arc_piece(i, k, s, True)
+
+    best = _farthest(near, a, ends, start_w)
+    if best[0] is not None:
+        return best
+    best = _farthest(arc_piece, a, ends, start_w)
     if best[0] is None:
         # a shorter piece only where the corrected path turns within less (a correction that
         # changes fast): the longest arc that holds there
-        best = _farthest(arc_piece, a, list(range(a + 1, ends[0])), start_w)
+        return _farthest(arc_piece, a, list(range(a + 1, ends[0])), start_w)
+    for j in range(a + 1, best[1]):
+        if near(j, piece_ends(length, j, b, min_piece)[0], points[j]) is not None:
+            shorter = arc_piece(a, j, start_w)
+            return best if shorter is None else (shorter, j)
     return best
 
 
 def _farthest(arc_piece, a: int, ends: list, start_w):
     """(piece, end) of the farthest of ``ends`` (increasing sample indices) an arc from sample a
-    reaches, by bisection; (None, None) when it reaches none."""
-    lo, hi, best = 0, len(ends) - 1, (None, None)
+    reaches (the last first, then by bisection); (None, None) when it reaches none."""
+    if not ends:
+        return None, None
+    piece = arc_piece(a, ends[-1], start_w)
+    if piece is not None:
+        return piece, ends[-1]
+    lo, hi, best = 0, len(ends) - 2, (None, None)
     while lo <= hi:
         mid = (lo + hi) // 2
         piece = arc_piece(a, ends[mid], start_w)

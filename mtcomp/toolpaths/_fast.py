@@ -199,7 +199,9 @@ class _Driver:
         st[21] = float(self.state.frame)
         st[17] = float(self.out.absolute)
         st[22] = -1.0
-        st[25] = float(self.state.dialect.name in POINT_DIALECTS)
+        # 1: a word without a point goes to Python (fanuc), 2: an F without one too (haas)
+        name = self.state.dialect.name
+        st[25] = float(name in POINT_DIALECTS) + float(name == "haas")
         self.st = st
         self.letter_col = np.full(26, -1, np.int32)
         for j, c in enumerate(machine.axis_names):

@@ -14,7 +14,8 @@
  * the axes whose position the program has given, 21 frame code (work offset, tool length number),
  * 22 motion word in force in the output (-1 unknown, 0, 1), 23 lines written with axis words they
  * did not name, 24 the first of them (0: none), 25 the dialect reads an axis word without a decimal
- * point in the least input increment (fanuc, haas: such a word other than zero goes to Python).
+ * point in the least input increment (1 fanuc, 2 haas: such a word other than zero goes to
+ * Python, on haas an F without a point too).
  * last (double[na]): per axis the position last written (mm, rad, read back from its text; NaN:
  * none yet). A coordinate is written when its text differs from the text of that value.
  *
@@ -233,6 +234,9 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                 has_g = 1; g = (v == 1.0);
             } else if (L == 'F') {
                 if (has_f || !(v > 0.0)) { simple = 0; break; }
+                /* no point: a Haas reads F by its Setting 77 (word_use.py): Python (a Fanuc reads
+                 * a feed per minute in whole units; G93, in thousandths, is Python's anyway) */
+                if (state[25] == 2.0 && !memchr(ts, '.', (size_t)(p - ts))) { simple = 0; break; }
                 has_f = 1; fval = v;
             } else if (L == 'X' || L == 'Y' || L == 'Z' || L == 'A' || L == 'B' || L == 'C') {
                 int col = letter_col[L - 'A'];

@@ -26,8 +26,8 @@ import re
 
 import numpy as np
 
-from ._arcs import (FULL_CIRCLE_TOL_MM, arc_misses, arc_sweep, bisector_centres, fit_arc_centre,
-                    min_piece_length, plan_pieces, radius_refused)
+from ._arcs import (FULL_CIRCLE_TOL_MM, arc_misses, arc_sweep, fit_arc_centre, min_piece_length,
+                    near_bound, piece_centre, plan_pieces, radius_refused)
 from .heidenhain import signed
 
 #: a rotary axis on an arc must stay within this of its written value (rad: 1e-4 deg)
@@ -59,11 +59,12 @@ class ArcPieces:
         self.length = np.concatenate([[0.0], np.cumsum(np.sqrt(np.sum(step * step, axis=1)))])
         self.radius = math.hypot(*(a.block.start[cols] - a.centre2))
         self.min_piece = min_piece_length(self.radius, w.tol)
+        self.near = near_bound(self.samples, self.nominal, cols, w.tol)
         _a0, self.sweep = arc_sweep(a.block.start[cols], a.block.end[cols], a.centre2, a.ccw, False)
 
     def plan(self) -> list:
-        return plan_pieces(self.arc_piece, self.straight, self.length, self.min_piece, 0,
-                           self.samples.shape[0] - 1, self.a.start_w)
+        return plan_pieces(self.arc_piece, self.straight, self.samples, self.length,
+                           self.min_piece, 0, self.samples.shape[0] - 1, self.a.start_w)
 
     def _end(self, b: int, start_w: np.ndarray) -> np.ndarray:
         """Where a piece ending at sample b ends as written: the arc's written end for the last,
@@ -86,17 +87,18 @@ class ArcPieces:
     def straight(self, a: int, start_w: np.ndarray) -> _Piece:
         return _Piece(self._end(a + 1, start_w), None)
 
-    def arc_piece(self, a: int, b: int, start_w: np.ndarray):
+    def arc_piece(self, a: int, b: int, start_w: np.ndarray, near: bool = False):
         """The arc from start_w through samples a+1 .. b about one centre within the tolerance, or
-        None (the centres tried: the source's shifted by the mean correction at the piece's ends,
-        then those on the bisector of its ends from the source's radius towards the one closest
-        to the corrected points, as the G-code writer tries them)."""
+        None (its centre as :func:`~._arcs.piece_centre` chooses it: the source's moved by the
+        mean correction at the piece's ends, else the one nearest it that holds; within
+        ``self.near`` of the source's where ``near``)."""
         cols = list(self.w.cols)
         end = self._end(b, start_w)
         s2, e2 = start_w[cols], end[cols]
         if math.hypot(*(e2 - s2)) <= FULL_CIRCLE_TOL_MM:
             return None
-        shift = 0.5 * ((self.samples[a] - self.nominal[a]) + (self.samples[b] - self.nominal[b]))
+        # the source's centre moved by the mean correction of the points the piece goes through
+        shift = np.mean(self.samples[a + 1:b + 1] - self.nominal[a + 1:b + 1], axis=0)
         shifted = self.a.centre2 + shift[cols]
         ra, rb = (math.hypot(*(self.nominal[k][cols] - self.a.centre2)) for k in (a, b))
         radius = 0.5 * (ra + rb)
@@ -104,12 +106,15 @@ class ArcPieces:
         fitted = fit_arc_centre(s2, e2, inner[:, cols], self.a.ccw, False, shifted, radius)
         span = (self.u[b] - self.u[a]) * self.sweep
         spiral = abs(rb - ra) + self.w.tol + 2.0 * 10.0 ** -self.dec * self.w.scale
-        for centre in [shifted] + bisector_centres(s2, e2, radius, shifted, fitted):
+
+        def holds(centre):
             c = self._centre(centre)
             miss = self._miss(start_w, end, c, inner, span, spiral)
-            if miss is not None:
-                return _Piece(end, c, miss)
-        return None
+            return None if miss is None else _Piece(end, c, miss)
+
+        return piece_centre(holds, s2, e2, shifted, fitted,
+                            max(self.w.tol, 10.0 ** -self.dec * self.w.scale), self.a.centre2,
+                            self.near if near else math.inf)
 
     def _miss(self, start_w, end, centre, inner, span, spiral):
         """How far (mm) the arc start_w -> end about centre misses the corrected points inner, or
@@ -117,7 +122,7 @@ class ArcPieces:
         turns otherwise than the source's part it stands for (span, rad)."""
         a, cols = self.a, list(self.w.cols)
         r0, r1 = math.hypot(*(start_w[cols] - centre)), math.hypot(*(end[cols] - centre))
-        if abs(r1 - r0) > spiral or radius_refused(r0, r1, self.w.tr.inch):
+        if abs(r1 - r0) > spiral or radius_refused(r0, r1, self.w.scale != 1.0):
             return None
         _a0, sweep = arc_sweep(start_w[cols], end[cols], centre, a.ccw, False)
         if abs(sweep - span) > 0.25 * math.pi:

@@ -37,7 +37,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..io.atomic import atomic_write
-from ._arcs import arc_misses, arc_sweep, fit_arc_centre, radius_refused
+from .heidenhain_pieces import ArcPieces
 from .heidenhain_out import ROTARY_ARC_TOL_RAD, HeidenhainWriter, plan_blocks
 from .sinumerik import AXES, BLOCK_START
 from .sinumerik_lang import code_end, corrected_text, split_words
@@ -224,43 +224,25 @@ class SinumerikWriter(HelixTurns, HeidenhainWriter):
         """The circle ``a`` (a :class:`~.heidenhain_out._Arc`) written as circle pieces, each
         within the chord tolerance of its part of the corrected path, Z (a linear axis off the
         plane) written where the corrected path moves it: the first on the source line (its other
-        words kept), the others after it. False (nothing written) when the circle is a helix or
-        a piece cannot be found."""
+        words kept), the others after it. The pieces as the G-code and Heidenhain writers plan them
+        (:class:`_CirclePieces`). False (nothing written) when the circle is a helix or a piece
+        would be a straight line."""
         off = self.linear & a.block.known
         off[self.cols] = False
-        if np.any(np.abs(a.block.end - a.block.start)[off] > 1e-9):
+        if np.any(np.abs(a.block.end - a.block.start)[off] > 1e-9) or a.nominal is None:
             return False
-        hint = a.centre2.copy()
-        if a.samples.shape == a.block.points.shape:          # the circle's mean correction
-            hint += np.mean((a.samples - a.block.points)[:, self.cols], axis=0)
-        radius = math.hypot(*(a.block.start[self.cols] - a.centre2))
-        pieces, start, first = [], a.start_w.copy(), 0
-        m = a.samples.shape[0]
-        while first < m:
-            best = None
-            for last in range(first, m):
-                end = self._rounded(a.samples[last], a.end_w if last == m - 1 else start, off,
-                                    info, last == m - 1)
-                centre = self._piece_centre(start, end, a.samples[first:last], a.ccw, hint,
-                                            radius, info)
-                span = self._nominal_sweep(a, first, last)
-                dist = None if centre is None else self._piece_miss(start, end, centre, a,
-                                                                    a.samples[first:last + 1], span)
-                if dist is None:
-                    break
-                best = (last, end, centre, dist)
-            if best is None:
-                return False
-            last, end, centre, dist = best
-            self.arc_miss = max(self.arc_miss, dist)
-            pieces.append((start, end, centre))
-            start, first = end, last + 1
+        planned = _CirclePieces(self, a, off, info).plan()
+        if any(p.centre is None for p in planned):
+            return False
+        self.arc_miss = max(self.arc_miss, *(p.miss for p in planned))
+        starts = [a.start_w] + [p.end for p in planned[:-1]]
+        pieces = [(s, p.end, p.centre) for s, p in zip(starts, planned)]
         lines = self._piece_lines(a, pieces, off, info)
         if len(lines) == 1:
             self.texts[a.line] = self._with_ending(a.line, lines[0])
         else:
             self.replaced[a.line] = lines
-        self.written[off] = start[off]
+        self.written[off] = planned[-1].end[off]
         self.added += len(pieces) - 1
         self.split_circles += 1
         return True
@@ -274,40 +256,6 @@ class SinumerikWriter(HelixTurns, HeidenhainWriter):
                                                      self._places(j))),
                                     info.shift)
         return out
-
-    def _piece_centre(self, start, end, inner, ccw, hint, radius, info):
-        """The centre (2,) as written (4 decimals) of a piece from start to end (na,) closest to
-        its inner corrected points (k, na); None when there is none."""
-        c = fit_arc_centre(start[self.cols], end[self.cols], inner[:, self.cols], ccw, False, hint,
-                           radius)
-        if c is None:
-            return None
-        return np.array([self._internal(j, float(_number(self._units(j, v, info.shift), self.base)),
-                                        info.shift) for j, v in zip(self.cols, c)])
-
-    def _nominal_sweep(self, a, first: int, last: int) -> float:
-        """The angle (rad) the nominal circle turns from before its chord end ``first`` to its
-        chord end ``last``."""
-        n = a.block.points.shape[0]
-        if a.samples.shape[0] != n:
-            return math.nan
-        _a0, sweep = arc_sweep(a.block.start[self.cols], a.block.end[self.cols], a.centre2,
-                               a.ccw, a.full)
-        return sweep * (last + 1 - first) / n
-
-    def _piece_miss(self, start, end, centre, a, samples, span) -> float | None:
-        """How far (mm) the piece about centre (2,) misses the corrected points ``samples``
-        (k, na) it stands for; None when that is more than the chord tolerance, when a controller
-        would refuse its radii, or when it turns otherwise than the nominal circle's part it
-        stands for (``span``, rad: a piece about a centre on the wrong side)."""
-        s2, e2 = start[self.cols], end[self.cols]
-        if radius_refused(math.hypot(*(s2 - centre)), math.hypot(*(e2 - centre)), self.scale != 1.0):
-            return None
-        if not abs(arc_sweep(s2, e2, centre, a.ccw, False)[1] - span) <= 0.25 * math.pi:
-            return None
-        dist, _rot = arc_misses(start, end, centre, tuple(self.cols), a.ccw, False, samples,
-                                self.linear)
-        return dist if dist <= self.tol else None
 
     def _piece_lines(self, a, pieces, off, info) -> list[str]:
         """The pieces' lines: the first is the source line with its end point and centre words
@@ -613,3 +561,24 @@ def _notes(src, w: SinumerikWriter, stats) -> None:
             first = next(n for n, info in enumerate(src.sinumerik.lines)
                          if info.source == subs[0][0]) + 1
             stats["passed_moves"] = {"subprogram": [len(subs), first]}
+
+
+class _CirclePieces(ArcPieces):
+    """The pieces of a circle G2/G3 that no one centre holds, planned as a Heidenhain arc's
+    (:class:`~.heidenhain_pieces.ArcPieces`: the shared splitter of the G-code and Heidenhain
+    writers), with this dialect's words: a piece's end has the corrected X Y (and Z where it
+    changes) as written, its centre ``I=AC(..) J=AC(..)`` as written."""
+
+    def __init__(self, w, a, off, info):
+        super().__init__(w, a, w.base)
+        self.off, self.info = off, info
+
+    def _end(self, b: int, start_w: np.ndarray) -> np.ndarray:
+        last = b == self.samples.shape[0] - 1
+        return self.w._rounded(self.samples[b], self.a.end_w if last else start_w, self.off,
+                               self.info, last)
+
+    def _centre(self, centre) -> np.ndarray:
+        w, shift = self.w, self.info.shift
+        return np.array([w._internal(j, float(_number(w._units(j, v, shift), w.base)), shift)
+                         for j, v in zip(w.cols, centre)])

@@ -49,6 +49,9 @@ class ProgramSource(os.PathLike):
     executed: int = 0
     source_lines: int = 0
     notes: list = field(default_factory=list)
+    #: what makes the corrections depend on the feed (a model's feed terms, temperatures looked up
+    #: at each block's time), as compensate says it; empty where nothing does
+    feed_use: str = ""
     #: the distinct sets of work offsets the program sets itself (G10 L2/L20), numbered by the
     #: reader (:mod:`.programmed`) and applied by :meth:`~.offsets.ProgramSetup.apply`
     work_offset_sets: list = field(default_factory=list)

@@ -213,6 +213,9 @@ def check_point_words(state, tokens, motion, cycle, axes_given, own_axes, line: 
                 continue
         except ValueError:              # a word whose value is not a plain number
             continue
+        if letter == "F":
+            _integer_feed(state, number, line)
+            continue
         if letter in _AXIS_WORDS:
             dimension = not (dwell and letter in "XU")
         elif rotation and letter == "R":          # the angle of G68, in 0.001 deg without a point
@@ -226,6 +229,42 @@ def check_point_words(state, tokens, motion, cycle, axes_given, own_axes, line: 
         if dimension:
             angle = letter in "ABC" or (rotation and letter == "R")
             raise state._err(_point_problem(state, f"{letter}{number}", angle), line)
+
+
+def _integer_feed(state, number: str, line: int) -> None:
+    """An F word without a decimal point on Fanuc or Haas. Fanuc reads a feed per minute in whole
+    mm/min (F300: 300 mm/min) whatever parameter 3401#0 says, but an inverse time (G93) in
+    thousandths (F1: 0.001 1/min) unless it is set (Fanuc Series 16/18-MC operator's manual,
+    B-62764EN/01, "Feed functions", inverse time feed); a Haas reads every F without a point as its
+    Setting 77 (Scale Integer F) says: in 0.001 mm/min (0.0001 in/min) at its default, whole units
+    at INTEGER (Haas mill operator's manual, Settings). Refused under G93, whose F mtcomp writes
+    anew for each piece of a block it splits, and on a Haas where the corrections depend on the
+    feed (``feed_use`` of the program: a model's feed terms, temperatures looked up at each
+    block's time); otherwise read in whole units, a Haas program's said once in its notes."""
+    name, word = state.dialect.name, f"F{number}"
+    value = float(number)
+    if state.inverse_time:
+        setting = ("parameter 3401#0 (DPI) is set" if name == "fanuc"
+                   else "Setting 77 (Scale Integer F) is INTEGER")
+        raise state._err(f"{word} has no decimal point under G93 (inverse time): a "
+                         f"{name.capitalize()} reads it as {value * 1e-3:g} 1/min unless {setting}, "
+                         "which the program does not show, and mtcomp writes each split block's F "
+                         f"from it: write {word}. for {value:g} 1/min", line)
+    if name != "haas":
+        return
+    unit, default = ("in/min", value * 1e-4) if state.inch else ("mm/min", value * 1e-3)
+    use = getattr(state._source, "feed_use", "")
+    said = (f"a Haas reads {word} as Setting 77 (Scale Integer F) says: {default:g} {unit} at its "
+            f"default, {value:g} {unit} at INTEGER")
+    if use:
+        raise state._err(f"{word} has no decimal point: {said}, which the program does not show, "
+                         f"and {use} make the corrections depend on the feed: write {word}. for "
+                         f"{value:g} {unit}", line)
+    notes = getattr(state._source, "notes", None)
+    if notes is not None and not any(n.startswith("note: F words without") for n in notes):
+        path, at, _suffix = state._where(line)
+        notes.append(f"note: F words without a decimal point (first {word}, line {at}) read in "
+                     f"whole {unit}: {said}; nothing the corrections depend on uses the feed")
 
 
 #: the machine setting under which a word without a point is read in whole units

@@ -25,8 +25,8 @@ import numpy as np
 from ..io.atomic import atomic_write
 from ..machine import Machine
 from ._arcs import (FULL_CIRCLE_TOL_MM, PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_misses,
-                    arc_samples, arc_sweep, bisector_centres, centre_from_radius, fit_arc_centre,
-                    min_piece_length, plan_pieces, radius_refused)
+                    arc_samples, arc_sweep, centre_from_radius, fit_arc_centre,
+                    min_piece_length, near_bound, piece_centre, plan_pieces, radius_refused)
 from .blocks import MotionBlock
 from .cursor import CorrectionCursor
 from .modal import ModalState
@@ -464,13 +464,17 @@ class _ArcFit:
         self.length = np.concatenate([[0.0], np.cumsum(np.sqrt(np.sum(step * step, axis=1)))])
         self.min_piece = min_piece_length(math.hypot(*(block.start[list(cols)] - centre2)),
                                           chord_tol)
+        self.near = near_bound(self.samples, self.nominal, cols, chord_tol)
 
     def plan(self, a: int, b: int, start_w: np.ndarray) -> list:
         """The pieces from sample a (where the machine stands: start_w) to sample b
         (:func:`~._arcs.plan_pieces`: the longest arcs that hold, a straight piece to the next
         sample only where no arc reaches it)."""
-        return plan_pieces(self.arc_piece, self._straight, self.length, self.min_piece, a, b,
-                           start_w)
+        whole = self.arc_piece(a, b, start_w) if a == 0 else None
+        if whole is not None:             # one arc holds: the source's centre or any
+            return [whole]
+        return plan_pieces(self.arc_piece, self._straight, self.samples, self.length,
+                           self.min_piece, a, b, start_w)
 
     def _straight(self, a: int, start_w: np.ndarray) -> _ArcPiece:
         """A straight piece from sample a (start_w) to sample a + 1."""
@@ -487,8 +491,9 @@ class _ArcFit:
         shadow.values = np.where(self.block.known, start_w, np.nan)
         return shadow
 
-    def arc_piece(self, a: int, b: int, start_w: np.ndarray):
-        """The arc from start_w through samples a+1 .. b within the tolerance, or None."""
+    def arc_piece(self, a: int, b: int, start_w: np.ndarray, near: bool = False):
+        """The arc from start_w through samples a+1 .. b within the tolerance, or None; its centre
+        within ``self.near`` of the source's where ``near`` (:func:`~._arcs.plan_pieces`)."""
         block, cols = self.block, list(self.cols)
         full = self.full and a == 0 and b == self.samples.shape[0] - 1
         p = self.samples[b].copy()
@@ -501,7 +506,10 @@ class _ArcFit:
         gap = math.hypot(*(e2 - s2))
         if (gap > FULL_CIRCLE_TOL_MM) if full else (gap <= FULL_CIRCLE_TOL_MM):
             return None
-        shift = 0.5 * ((self.samples[a] - self.nominal[a]) + (self.samples[b] - self.nominal[b]))
+        # the source's centre moved by the mean correction at the whole arc's ends (as the other
+        # writers move an arc's centre), a piece's by that of the points it goes through
+        at = [a, b] if a == 0 and b == self.samples.shape[0] - 1 else slice(a + 1, b + 1)
+        shift = np.mean(self.samples[at] - self.nominal[at], axis=0)
         shifted = self.centre2 + shift[cols]
         ra, rb = (math.hypot(*(self.nominal[i][cols] - self.centre2)) for i in (a, b))
         radius = 0.5 * (ra + rb)
@@ -511,18 +519,20 @@ class _ArcFit:
         inner = self.samples[a + 1:b]
         fitted = fit_arc_centre(s2, e2, inner[:, cols], self.ccw, full, shifted, radius)
         span = (self.u[b] - self.u[a]) * self.sweep
-        centres = [shifted, fitted]
-        if not full and self.path_tol < math.inf:
-            # between the source's radius and the fitted one, nearest the source's first: a short
-            # piece fits almost any radius, and the controller's look-ahead likes the arc's own
-            centres = [shifted] + bisector_centres(s2, e2, radius, shifted, fitted)
-        for centre in centres:
+
+        def holds(centre):
             if centre is None or math.hypot(*(centre - s2)) > MAX_ARC_RADIUS_MM:
-                continue
+                return None
             for words, written in self._centre_words(s2, e2, centre, full):
                 if self._fits(start_w, end_w, written, full, inner, span, spiral):
                     return _ArcPiece(texts, end_w, words, self.miss)
-        return None
+            return None
+
+        if full or self.path_tol == math.inf:    # a whole arc: the source's centre or the fitted
+            return holds(shifted) or holds(fitted)
+        return piece_centre(holds, s2, e2, shifted, fitted,
+                            max(self.tol, 10.0 ** -min(self.cdecs) * self.scale), self.centre2,
+                            self.near if near else math.inf)
 
     def _centre_words(self, s2, e2, centre, full):
         """(centre words [(letter, text)], the centre they say (2,)): R where the source has R,
