@@ -54,6 +54,8 @@ class CompensationSettings:
     subdivide_tol_um : internal nodes where the corrected path would miss a midpoint by more (0: none).
     chord_tol_um : chord tolerance of arcs written as lines.
     temperatures : sensor name -> degC while the program runs; spindle_rpm : warm spindle speed.
+    probed_temperatures, probed_spindle_rpm : the same when the part's datum was probed (empty,
+        None: at the drift terms' zero, the thermal record's first reading).
     extrapolate : correct blocks outside the region the model's data reached too, and at
         temperatures and spindle speeds outside the range of the model's thermal record (else refused).
     max_correction_sd_um : the limit on a correction's standard error (um); None: the default; 0: none.
@@ -76,6 +78,8 @@ class CompensationSettings:
     chord_tol_um: float = 1.0
     temperatures: dict = field(default_factory=dict)
     spindle_rpm: float | None = None
+    probed_temperatures: dict = field(default_factory=dict)
+    probed_spindle_rpm: float | None = None
     extrapolate: bool = False
     max_correction_sd_um: float | None = None
     units: str | None = None
@@ -268,6 +272,7 @@ class Judge:
         thermal, _ = thermal_context(fitted, settings.temperatures, settings.spindle_rpm,
                                      settings.extrapolate)
         fitted.context_defaults.update(thermal)
+        fitted.probed = _probed(fitted, settings)[0]
         self.ev = Evaluator(CompensationProblem.from_machine(fitted))
         self.count = 0
         self.max_before_um = self.max_after_um = 0.0
@@ -319,7 +324,7 @@ class CompensationRun:
     summary : the planner's Summary (figures over the blocks, under the compensating model).
     written : the writer's counts (``cycle_blocks``, ``cycle_lines``).
     notes : lines to tell the user (units assumed, drilling cycles, datum, feeds).
-    assumed : the sentence on the thermal conditions assumed ('' without drift terms).
+    assumed : the lines on the thermal state assumed and the drift's reference ('' without drift).
     stats : the planner's statistics (windows, OSQP solves ...).
     judges : Judge label -> its figures (:meth:`Judge.as_dict`).
     correction_rms_um, correction_max_um : size of the linear corrections written, over the
@@ -447,6 +452,14 @@ def _thermal_model(fitted, settings: CompensationSettings, series=None) -> tuple
                                     "--temperature, --temperatures or --spindle-rpm)")
 
 
+def _probed(fitted, settings: CompensationSettings, series=None) -> tuple:
+    """:func:`mtcomp.thermal.context.probed_state` of the settings (and ``series``'s sensors)."""
+    from .thermal.context import probed_state
+    cut = set(settings.temperatures) | set(series.temps if series is not None else ())
+    return probed_state(fitted, cut, settings.spindle_rpm, settings.probed_temperatures,
+                        settings.probed_spindle_rpm, settings.extrapolate)
+
+
 def _checked_series(fitted, settings: CompensationSettings, series):
     """The temperature series without the sensors the settings give (a flag wins), every reading
     checked against the model's record (InputError beyond it unless ``settings.extrapolate``)."""
@@ -543,6 +556,7 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     assumed = unknown_state or assumed
     series = _checked_series(fitted, settings, temperature_series)
     fitted.context_defaults.update(thermal)
+    fitted.probed, probe_line = _probed(fitted, settings, temperature_series)
     setup = setup if setup is not None else ProgramSetup(machine)
     with contextlib.ExitStack() as stack:
         expanded = None if io_progress is None else (lambda lines: io_progress("expanded", lines))
@@ -555,8 +569,10 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
             # one output block per source block: a conversational program's blocks, and a program
             # under cutter radius compensation, whose controller offsets the moves as written
             settings = replace(settings, subdivide_tol_um=0.0)
-        return _compensate_source(fitted, src, output, settings, setup, report, progress, judges,
+        run_ = _compensate_source(fitted, src, output, settings, setup, report, progress, judges,
                                   series, assumed, found, stack, t0, io_progress)
+    run_.assumed = "\n".join(line for line in (run_.assumed, probe_line) if line)
+    return run_
 
 
 def _compensate_source(fitted, src, output, settings, setup, report, progress, judges, series,
