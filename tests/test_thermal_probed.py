@@ -101,3 +101,18 @@ def test_render_maps_the_drift_since_probing():
     fitted, note = _thermal_state(args, _fitted())
     np.testing.assert_allclose(fitted.datum_deviation(np.zeros((1, 3)), [0.0]), 0.0, atol=1e-12)
     assert note.startswith("thermal drift referenced to the record's first reading")
+
+
+def test_a_spindle_heat_drift_is_referenced_to_the_spindle_speed_at_probing(tmp_path):
+    """dz = -2 um per 1000 rpm of spindle heat at steady state: run at 8000 rpm, probed warm at 4000
+    rpm: -16 um since a cold start, -8 um since probing."""
+    machine = load_machine("xfyz").with_basis("polynomial")
+    fitted = FittedModel.zero(ErrorModel(machine, [ThermalDrift(
+        "spindle", ("spindle_lag_1800",), "Z", absolute=True)]))
+    fitted.params.set_file_value("TD_Z_spindle_lag_1800", -2.0)
+    save_model(tmp_path / "model.json", fitted)
+    (tmp_path / "in.nc").write_text(PROGRAM)
+    for probed, shift in (([], 0.016), (["--probed-at-spindle-rpm", "4000"], 0.008)):
+        assert main(["compensate", "xfyz", str(tmp_path / "model.json"), str(tmp_path / "in.nc"),
+                     "-o", str(tmp_path / "out.nc"), "-q", "--spindle-rpm", "8000", *probed]) == 0
+        np.testing.assert_allclose(_z_shifts(tmp_path / "out.nc"), shift, atol=1e-4)
