@@ -33,6 +33,7 @@ from .toolpaths.words import WORK_SYSTEMS, frame_local, frame_tcp
 from .toolpaths import iter_segment_chunks, write_corrected
 from .toolpaths._fast import format_table, g_codes
 from .toolpaths.source import open_program
+from ._compensation_notes import _run_notes
 
 _DIGITS = b"0123456789."
 #: kinds of bound -> their columns in PlanResult.flags
@@ -54,6 +55,8 @@ class CompensationSettings:
     subdivide_tol_um : internal nodes where the corrected path would miss a midpoint by more (0: none).
     chord_tol_um : chord tolerance of arcs written as lines.
     temperatures : sensor name -> degC while the program runs; spindle_rpm : warm spindle speed.
+    probed_temperatures, probed_spindle_rpm : the same when the part's datum was probed (empty,
+        None: at the drift terms' zero, the thermal record's first reading).
     extrapolate : correct blocks outside the region the model's data reached too, and at
         temperatures and spindle speeds outside the range of the model's thermal record (else refused).
     max_correction_sd_um : the limit on a correction's standard error (um); None: the default; 0: none.
@@ -76,6 +79,8 @@ class CompensationSettings:
     chord_tol_um: float = 1.0
     temperatures: dict = field(default_factory=dict)
     spindle_rpm: float | None = None
+    probed_temperatures: dict = field(default_factory=dict)
+    probed_spindle_rpm: float | None = None
     extrapolate: bool = False
     max_correction_sd_um: float | None = None
     units: str | None = None
@@ -269,6 +274,7 @@ class Judge:
         thermal, _ = thermal_context(fitted, settings.temperatures, settings.spindle_rpm,
                                      settings.extrapolate)
         fitted.context_defaults.update(thermal)
+        fitted.probed = _probed(fitted, settings)[0]
         self.ev = Evaluator(CompensationProblem.from_machine(fitted))
         self.count = 0
         self.max_before_um = self.max_after_um = 0.0
@@ -320,7 +326,7 @@ class CompensationRun:
     summary : the planner's Summary (figures over the blocks, under the compensating model).
     written : the writer's counts (``cycle_blocks``, ``cycle_lines``).
     notes : lines to tell the user (units assumed, drilling cycles, datum, feeds).
-    assumed : the sentence on the thermal conditions assumed ('' without drift terms).
+    assumed : the lines on the thermal state assumed and the drift's reference ('' without drift).
     stats : the planner's statistics (windows, OSQP solves ...).
     judges : Judge label -> its figures (:meth:`Judge.as_dict`).
     correction_rms_um, correction_max_um : size of the linear corrections written, over the
@@ -460,6 +466,14 @@ def _feed_use(fitted, series) -> str:
     return " and ".join(uses)
 
 
+def _probed(fitted, settings: CompensationSettings, series=None) -> tuple:
+    """:func:`mtcomp.thermal.context.probed_state` of the settings (and ``series``'s sensors)."""
+    from .thermal.context import probed_state
+    cut = set(settings.temperatures) | set(series.temps if series is not None else ())
+    return probed_state(fitted, cut, settings.spindle_rpm, settings.probed_temperatures,
+                        settings.probed_spindle_rpm, settings.extrapolate)
+
+
 def _checked_series(fitted, settings: CompensationSettings, series):
     """The temperature series without the sensors the settings give (a flag wins), every reading
     checked against the model's record (InputError beyond it unless ``settings.extrapolate``)."""
@@ -556,6 +570,7 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     assumed = unknown_state or assumed
     series = _checked_series(fitted, settings, temperature_series)
     fitted.context_defaults.update(thermal)
+    fitted.probed, probe_line = _probed(fitted, settings, temperature_series)
     setup = setup if setup is not None else ProgramSetup(machine)
     with contextlib.ExitStack() as stack:
         expanded = None if io_progress is None else (lambda lines: io_progress("expanded", lines))
@@ -569,8 +584,10 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
             # one output block per source block: a conversational program's blocks, and a program
             # under cutter radius compensation, whose controller offsets the moves as written
             settings = replace(settings, subdivide_tol_um=0.0)
-        return _compensate_source(fitted, src, output, settings, setup, report, progress, judges,
+        run_ = _compensate_source(fitted, src, output, settings, setup, report, progress, judges,
                                   series, assumed, found, stack, t0, io_progress)
+    run_.assumed = "\n".join(line for line in (run_.assumed, probe_line) if line)
+    return run_
 
 
 def _compensate_source(fitted, src, output, settings, setup, report, progress, judges, series,
@@ -662,138 +679,3 @@ def _planner(fitted, settings: CompensationSettings, inch: bool, src, progress) 
                       support_known=fitted.support is not None, max_correction_sd_um=sd_limit,
                       has_covariance=fitted.uncertainty is not None)
     return planner, summary
-
-
-#: the moves the writer passes through uncorrected (``passed_moves`` of its stats), in this order
-_PASSED_MOVES = {"increment": "{n} incremental (G91) move{s} of an axis whose position the program "
-                              "has not given ({at}: the controller moves it from wherever it stands)",
-                 "home": "{n} move{s} to the home position (G28/G30, grbl's $H; {at})",
-                 "jog": "{n} grbl jog{s} ($J=, {at})",
-                 "machine": "{n} move{s} in machine coordinates (G53, {at})",
-                 "tap": "{n} rigid tapping move{s} (G33.1, {at}: the spindle's reversal sets its ends)",
-                 "restore": "{n} move{s} to a RepRapFirmware restore point (G0/G1 R, {at}: the "
-                            "controller saved it)",
-                 "subprogram": "{n} call{s} of a subprogram not in the file ({at}: its moves are "
-                               "not seen)"}
-
-
-def passed_move_notes(program, written) -> list[str]:
-    """The line counting the motion lines passed through uncorrected that are no block of the plan
-    (so no BLOCKS.csv row), by why, each with its (first) source line; none when there are none."""
-    passed = written.get("passed_moves") or {}
-    parts = []
-    for why, text in _PASSED_MOVES.items():
-        if why in passed:
-            n, line = passed[why]
-            at = int(program.source_lines_of([line])[0])
-            parts.append(text.format(n=n, s="" if n == 1 else "s",
-                                     at=f"{'first at ' if n > 1 else ''}line {at}"))
-    total = sum(n for n, _line in passed.values())
-    if not total:
-        return []
-    return [f"{total} motion line{'' if total == 1 else 's'} passed through uncorrected, with no "
-            f"BLOCKS.csv row: " + "; ".join(parts)]
-
-
-def added_words_note(program, written) -> list[str]:
-    """The line counting the motion lines written with axis words they did not name, and why
-    (the writer's count ``added_axis_words``: lines and the first line, which this puts in the
-    user's file's numbering)."""
-    n, line = written.get("added_axis_words") or (0, 0)
-    if not n:
-        return []
-    at = int(program.source_lines_of([line])[0])
-    written["added_axis_words"] = (n, at)       # the line of the user's file (SUMMARY.json too)
-    return [f"{n} line{'' if n == 1 else 's'} written with axis words {'it' if n == 1 else 'they'} "
-            f"did not name ({'first at ' if n > 1 else ''}line {at}): the correction of that axis "
-            "changes there (its error varies with the other axes' positions, or the step bound "
-            "ramps a correction in or out), and the controller keeps what a line does not say "
-            "(an axis where it stood, a drilling cycle's depth); never an axis whose position "
-            "the program has not given, nor a rotary axis the program holds (outside tool centre "
-            "point mode)"]
-
-
-def tcp_note(program, tally) -> list[str]:
-    """The line saying how many blocks were compensated in tool centre point mode and which code
-    switched it on at which source line (as the reader recorded it: the last switch on the lines
-    up to each run's first block)."""
-    if not tally.tcp_blocks:
-        return []
-    switches = []
-    recorded = sorted(getattr(program, "tcp_switches", {}).items())
-    if getattr(program, "sinumerik", None) is not None:      # read as M428 (docs/toolpaths.md)
-        recorded = [(line, "TRAORI") for line, _code in recorded]
-    for before, first in tally.tcp_runs[:3]:
-        last = [(line, code) for line, code in recorded if line <= first]
-        if last and last[-1][0] > before:
-            line, code = last[-1]
-            switches.append(f"{code} at line {int(program.source_lines_of([line])[0])}")
-    n = tally.tcp_blocks
-    said = ", ".join(switches) + (", ..." if len(tally.tcp_runs) > 3 else "")
-    return [f"{n} block{'' if n == 1 else 's'} in tool centre point mode"
-            + (f" ({said})" if said else "") + ": tip positions and tool angles in the workpiece "
-            "frame, compensated there and written so; the controller solves the kinematics"]
-
-
-def _run_notes(program, written, fitted, setup, tally, found) -> list[str]:
-    """The notes after a run: moves passed through, tool centre point mode, the program's
-    expansion, drilling cycles, datums, feeds, set-up."""
-    notes = passed_move_notes(program, written) + added_words_note(program, written) \
-        + tcp_note(program, tally) + list(program.notes)
-    if program.expanded:
-        notes.append(f"the program's code was run: {program.executed} lines executed from its "
-                     f"{program.source_lines}; the output is that expansion, corrected (its first "
-                     "line says so)")
-    # found in the user's file (an expansion is gone by now)
-    if b"41" in found or b"42" in found:
-        miss = written.get("cutter_arc_miss_mm", 0.0) * 1e3
-        crc = "RL/RR" if program.heidenhain is not None else "G41/G42"
-        notes.append(f"note: the program uses cutter radius compensation ({crc}): the corrections "
-                     "are those of the programmed contour, while the tool centre runs a radius off "
-                     "it (the error there differs by the model's change over that distance); no "
-                     "block is split (the controller offsets the moves as written)"
-                     + (f", and an arc under it is kept whole: the written arcs miss their "
-                        f"corrected path by up to {miss:.2f} um" if miss >= 0.005 else ""))
-    arc = written.get("arc_miss_mm", 0.0) * 1e3
-    if arc >= 0.005:
-        notes.append(f"note: the arcs written miss their corrected path by up to {arc:.2f} um (within "
-                     "--chord-tol-um): the predicted deviation after is that of the corrected path")
-    return notes + _cycle_notes(written) + datum_notes(fitted, setup) + tally.feed_note(fitted) \
-        + setup.notes()
-
-
-def _cycle_notes(written: dict) -> list[str]:
-    def cycle_lines(k):
-        return f"{k} drilling cycle line{'' if k == 1 else 's'} (G73, G81-G89)"
-    notes = []
-    if written.get("cycle_blocks"):
-        notes.append(f"{cycle_lines(written['cycle_blocks'])} kept as cycles, each hole corrected "
-                     "where the model applies and the bounds let it (X Y Z to the hole's bottom, R "
-                     "moved with Z; BLOCKS.csv says which)")
-    if written.get("cycle_lines"):
-        notes.append(f"{cycle_lines(written['cycle_lines'])} passed through unchanged and "
-                     "uncorrected: hole position, R or Z not known, or drilling along another "
-                     "axis than Z")
-    return notes
-
-
-def datum_notes(fitted, setup) -> list[str]:
-    """One line for each part's datum (the origin of a work offset the program used) outside the
-    region the model's data reached: the corrections are referenced to the model's deviation there,
-    which is then its continuation beyond the data."""
-    from .models.region import outside_bounds, support_bounds
-    from .toolpaths.offsets import WORK_SYSTEMS
-    bounds = support_bounds(fitted)
-    machine = fitted.machine
-    out = []
-    for w in sorted(setup.used_wcs):
-        datum = setup._offset_table()[w]
-        outside = outside_bounds(machine, bounds, np.asarray(datum, dtype=float)[None, :])[0]
-        off = [a for a, o in zip(machine.axis_names, outside) if o]
-        if off:
-            where = ", ".join(f"{a} {np.degrees(datum[machine.index(a)]) if machine.axis(a).is_rotary else datum[machine.index(a)]:g}"
-                              for a in off)
-            out.append(f"note: the part's datum of {WORK_SYSTEMS[w]} ({where}) lies outside the region "
-                       "the model's data reached: the corrections are referenced to the model's "
-                       "deviation there, its continuation beyond the data")
-    return out

@@ -105,6 +105,18 @@ def test_compensate_corrects_the_drift_at_the_temperature_given(tmp_path, capsys
     for k, c in enumerate("xyz"):
         before = np.array([float(r[f"e{c}_before_um"]) for r in rows])
         np.testing.assert_allclose(before, expect[k], rtol=0, atol=0.1 + 0.02 * abs(expect[k]))
+    # the datum probed at spindle 24 degC (the other sensors as while cutting): the probe took the
+    # drift up to then into the offset, and only the truth's drift since then is left
+    probed = [x for k, v in dict(given, spindle=24.0).items() for x in ("--probed-at-temperature", f"{k}={v}")]
+    assert main(["compensate", "xfyz", str(model), str(prog), "-o", str(out), "--report", str(blocks),
+                 "--max-correction-um", "200", "--max-step-um", "200", "--quiet", *flags, *probed]) == 0
+    assert "thermal drift referenced to the datum's probing" in capsys.readouterr().out
+    expect = np.asarray(eff.vector_um) * (given["spindle"] - 24.0)
+    with open(blocks, newline="") as f:
+        rows = [r for r in csv.DictReader(f) if r["ez_before_um"]]
+    for k, c in enumerate("xyz"):
+        before = np.array([float(r[f"e{c}_before_um"]) for r in rows])
+        np.testing.assert_allclose(before, expect[k], rtol=0, atol=0.1 + 0.02 * abs(expect[k]))
 
 
 def test_a_drift_model_gives_its_predictions_a_standard_error(tmp_path):

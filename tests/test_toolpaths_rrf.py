@@ -115,7 +115,7 @@ def test_a_g1_r_rrf_does_not_take_is_refused(tmp_path, line3, dialect, message):
 
 
 def test_the_summary_counts_the_restore_moves(tmp_path):
-    from mtcomp.compensation import passed_move_notes
+    from mtcomp._compensation_notes import passed_move_notes
     from mtcomp.toolpaths.source import open_program
     prog = tmp_path / "p.gcode"
     prog.write_text("G21 G90\nG0 X10 Y20 Z5\nG1 Z-1 F100\nG1 R1 Z5\nG1 Z-2\nG1 R1 X0 Y0\nM2\n")

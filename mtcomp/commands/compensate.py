@@ -61,6 +61,13 @@ def add_arguments(parser):
     parser.add_argument("--spindle-rpm", type=float, metavar="RPM", default=None,
                         help="spindle speed the machine has run at long enough to be warm, for the "
                              "model's spindle-heat drift (default: spindle stopped for long)")
+    parser.add_argument("--probed-at-temperature", metavar="NAME=DEGC", action="append", default=[],
+                        help="temperature of sensor NAME when the part's datum (G54 ...) was probed: "
+                             "the drift since then is corrected (repeatable, each sensor given above; "
+                             "default: the whole drift since the thermal record's first reading)")
+    parser.add_argument("--probed-at-spindle-rpm", type=float, metavar="RPM", default=None,
+                        help="the same for --spindle-rpm: the speed the spindle had run at long "
+                             "enough to be warm when the datum was probed")
     parser.add_argument("--extrapolate", action="store_true",
                         help="correct blocks outside the region the model's data reached too "
                              "(default: they get no correction, and the summary counts them), and "
@@ -118,9 +125,9 @@ def _output_paths(args):
 
 def _thermal_state(args, fitted):
     """(temperatures sensor -> degC, a TemperatureSeries or None, columns of the readings file not
-    read), checked against the model before any work (the model file named)."""
-    from ..thermal.context import (TemperatureSeries, parse_assignments, read_temperature_row,
-                                   thermal_context)
+    read, temperatures at probing sensor -> degC), checked against the model before any work (the model file named)."""
+    from ..thermal.context import (TemperatureSeries, parse_assignments, probed_state,
+                                   read_temperature_row, thermal_context)
     temperatures, unread, series = {}, [], None
     if args.temperatures:
         readings, unread = read_temperature_row(args.temperatures)
@@ -130,7 +137,10 @@ def _thermal_state(args, fitted):
             temperatures = readings
     temperatures.update(parse_assignments(args.temperature, "--temperature"))
     thermal_context(fitted, temperatures, args.spindle_rpm, args.extrapolate, source=args.model)
-    return temperatures, series, unread
+    probed = parse_assignments(args.probed_at_temperature, "--probed-at-temperature")
+    probed_state(fitted, set(temperatures) | set(series.temps if series else ()), args.spindle_rpm,
+                 probed, args.probed_at_spindle_rpm, args.extrapolate, source=args.model)
+    return temperatures, series, unread, probed
 
 
 def _write_summary(path, run_) -> None:
@@ -294,13 +304,14 @@ def run(args) -> int:
     fitted = load_model(args.model, machine, model_notes)
     for n in model_notes:
         sys.stderr.write(f"note: {n}\n")
-    temperatures, series, unread = _thermal_state(args, fitted)
+    temperatures, series, unread, probed = _thermal_state(args, fitted)
     settings = CompensationSettings(
         method=args.method, max_correction_um=args.max_correction_um,
         max_correction_urad=args.max_correction_urad, max_step_um=args.max_step_um,
         max_step_urad=args.max_step_urad, orientation_weight=args.orientation_weight,
         subdivide_tol_um=args.subdivide_tol_um, chord_tol_um=args.chord_tol_um,
-        temperatures=temperatures, spindle_rpm=args.spindle_rpm, extrapolate=args.extrapolate,
+        temperatures=temperatures, spindle_rpm=args.spindle_rpm, probed_temperatures=probed,
+        probed_spindle_rpm=args.probed_at_spindle_rpm, extrapolate=args.extrapolate,
         max_correction_sd_um=args.max_correction_sd_um, units=args.units,
         start_position=parse_start_position(machine, args.start_position), dialect=args.dialect)
     setup = load_setup(machine, args.offsets, args.work_offset, args.tool_length)

@@ -72,6 +72,13 @@ def add_arguments(parser):
                              "(default: no drift mapped, as compensate corrects none without them)")
     parser.add_argument("--spindle-rpm", type=float, metavar="RPM", default=None,
                         help="the spindle speed given to compensate, for a spindle-heat drift")
+    parser.add_argument("--probed-at-temperature", metavar="NAME=DEGC", action="append",
+                        default=[],
+                        help="the temperatures when the part's datum was probed, as given to "
+                             "compensate (repeatable): the drift since probing is mapped (default: "
+                             "the whole drift since the thermal record's first reading)")
+    parser.add_argument("--probed-at-spindle-rpm", type=float, metavar="RPM", default=None,
+                        help="the spindle speed at probing given to compensate")
     parser.add_argument("--extrapolate", action="store_true",
                         help="accept temperatures and spindle speeds outside the range of the "
                              "model's thermal record (default: refused, as compensate does)")
@@ -181,20 +188,25 @@ def run(args) -> int:
 
 
 def _thermal_state(args, fitted):
-    """(the model to map with, '' or the note saying the drift is not mapped): the model's thermal
-    drift at the temperatures and spindle speed given, as compensate takes them; with none given,
+    """(the model to map with, '' or the note saying the drift is not mapped or what it is
+    referenced to): the model's thermal drift at the temperatures and spindle speed given, less the
+    drift at the datum's probing (--probed-at-...), as compensate takes them; with none given,
     no drift, as compensate corrects none (its reference state is no state the machine was in)."""
     from dataclasses import replace
 
-    from ..thermal.context import (TIME_DRIVEN, has_tip_drift, parse_assignments, thermal_context,
-                                   time_driven)
+    from ..thermal.context import (TIME_DRIVEN, has_tip_drift, parse_assignments, probed_state,
+                                   thermal_context, time_driven)
     temperatures = parse_assignments(args.temperature, "--temperature")
+    probed = parse_assignments(args.probed_at_temperature, "--probed-at-temperature")
     if temperatures or args.spindle_rpm is not None:
         fitted = replace(fitted, context_defaults=dict(fitted.context_defaults))
         thermal, _ = thermal_context(fitted, temperatures, args.spindle_rpm, args.extrapolate,
                                      source=args.model)
         fitted.context_defaults.update(thermal)
-        return fitted, ""
+        fitted.probed, line = probed_state(fitted, set(temperatures), args.spindle_rpm, probed,
+                                           args.probed_at_spindle_rpm, args.extrapolate, args.model)
+        return fitted, line if fitted.probed is None else ""   # the reference when none given
+    probed_state(fitted, (), None, probed, args.probed_at_spindle_rpm, source=args.model)
     if not has_tip_drift(fitted.model):
         return fitted, ""
     if time_driven(fitted.model):     # nothing render or compensate is given moves it

@@ -87,6 +87,9 @@ class FittedModel:
         at the least error (each 1 um rms tool-tip error over the data's region), with their
         standard errors (um). Their variance is already in the covariance: they are listed so that
         its share can be told, and they are not undetermined.
+    probed : None, or the drift terms' context (``temp_<s>`` degC, ``spindle_lag_<tau>`` ...) at
+        which the part's datum was probed (:func:`mtcomp.thermal.context.probed_state`): the datum's
+        deviation then holds the drift at probing. None: the drift terms' own zero. Not saved.
     """
 
     model: ErrorModel
@@ -96,6 +99,7 @@ class FittedModel:
     support: dict | None = None
     uncertainty: dict | None = None
     held: dict | None = None
+    probed: dict | None = None
 
     def drift_param_indices(self) -> list[int]:
         """Indices into ``params`` of every drift term's parameters."""
@@ -118,10 +122,12 @@ class FittedModel:
                        context_defaults=dict(self.context_defaults))
 
     def datum_params(self) -> np.ndarray:
-        """(n_params,) the values with every drift term's at zero: the machine as the part's datum
-        was probed (the drift terms' own zero, the start of the thermal record)."""
+        """(n_params,) the values the part's datum was probed with: every drift term's at zero (the
+        drift terms' own zero, the start of the thermal record), or all of them when the thermal
+        state at probing is known (:attr:`probed`, then in :meth:`datum_context`)."""
         p = np.array(self.params.values, dtype=float, copy=True)
-        p[self.drift_param_indices()] = 0.0
+        if self.probed is None:
+            p[self.drift_param_indices()] = 0.0
         return p
 
     def datum_context(self, tool_length) -> np.ndarray:
@@ -132,6 +138,12 @@ class FittedModel:
         c = self.model.default_context(tool_length.shape[0])
         if "tool_length" in self.model.context_names:
             c[:, self.model.context_names.index("tool_length")] = tool_length
+        if self.probed is not None:
+            # the thermal state at probing; a drift feature it does not give at the value the
+            # program runs with (the model's reference unless given)
+            names = self.model.context_names
+            for f in (f for t in self.model.terms if isinstance(t, ThermalDrift) for f in t.features):
+                c[:, names.index(f)] = self.probed.get(f, self.context_defaults.get(f, 0.0))
         return c
 
     def at_datum(self, name: str, datum, tool_length) -> np.ndarray:
@@ -142,7 +154,7 @@ class FittedModel:
         datum = np.atleast_2d(np.asarray(datum, dtype=float))
         out = evaluate(self.model, name, self.clamp(datum)[0], self.datum_params(),
                        self.datum_context(tool_length))[0]
-        if name.endswith("pjacobian_function"):
+        if name.endswith("pjacobian_function") and self.probed is None:
             # the datum's deviation is taken with the drift parameters at zero, whatever their
             # fitted values: it does not depend on them (without this the intercept of an absolute
             # drift model cancelled against the datum while its temperature terms did not, and a

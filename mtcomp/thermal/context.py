@@ -216,3 +216,56 @@ def thermal_context(fitted, temperatures: dict | None = None, spindle_rpm: float
         parts.append("the model file records no range of its thermal record: the values given are "
                      "not checked against it")
     return out, "thermal drift assumed: " + "; ".join(parts)
+
+
+def probed_state(fitted, cut_sensors, cut_rpm, probed_temperatures=None, probed_rpm=None,
+                 extrapolate: bool = False, source=None) -> tuple[dict | None, str]:
+    """(the drift terms' context at the part's datum as it was probed, None for the drift terms' own
+    zero; the line saying which reference the drift is corrected from, '' when no drift is
+    corrected). The probe put the drift of its time into the work offset, so a block corrects the
+    drift while it runs less the drift at probing. ``cut_sensors``: the sensors the state while the
+    program runs gives (flags, a row or a series); ``cut_rpm``: its spindle speed or None;
+    ``probed_temperatures`` (sensor -> degC) and ``probed_rpm``: the state at probing, which must
+    give what the running state gives. InputError (naming ``source``) otherwise, and for a probed
+    state given to a model whose drift compensate does not correct."""
+    probed_temperatures = probed_temperatures or {}
+    given = bool(probed_temperatures) or probed_rpm is not None
+    cut_given = bool(cut_sensors) or cut_rpm is not None
+    if not given and not (cut_given and has_tip_drift(fitted.model)):
+        return None, ""
+    if not cut_given:
+        raise InputError("a thermal state at probing (--probed-at-temperature, "
+                         "--probed-at-spindle-rpm) was given without the state while the program "
+                         "runs (--temperature, --temperatures, --spindle-rpm): no drift is "
+                         "corrected without it", source)
+    if not given:
+        features = [f for t in _drift_terms(fitted.model)[0] for f in t.features]
+        flag = ("--probed-at-temperature" if any(f.startswith("temp_") for f in features)
+                else "--probed-at-spindle-rpm")
+        record = fitted.info.get("thermal_record") if isinstance(fitted.info, dict) else None
+        return None, (f"thermal drift referenced to the record's first reading ("
+                      f"{record or 'the thermal record'}, where the model's drift is zero: the "
+                      f"whole drift since then is corrected): give {flag} if the datum was probed "
+                      "warm")
+    if (cut_rpm is None) != (probed_rpm is None):
+        raise InputError("--spindle-rpm and --probed-at-spindle-rpm go together: give the spindle's "
+                         "state both while the program runs and at probing, or neither", source)
+    for sensor in cut_sensors:
+        if sensor not in probed_temperatures:
+            raise InputError(f"--probed-at-temperature gives no temperature of sensor {sensor}, "
+                             "which the state while the program runs gives: give every such "
+                             "sensor's temperature at probing", source)
+    for sensor in probed_temperatures:
+        if sensor not in cut_sensors:
+            raise InputError(f"--probed-at-temperature {sensor}: the state while the program runs "
+                             f"gives no temperature of sensor {sensor} (give it with --temperature)",
+                             source)
+    try:
+        context, sentence = thermal_context(fitted, probed_temperatures, probed_rpm, extrapolate,
+                                            source)
+    except InputError as e:       # the state at probing named: its messages say --spindle-rpm
+        raise InputError("at probing: " + e.message.replace("--spindle-rpm",
+                                                             "--probed-at-spindle-rpm"),
+                         e.path) from None
+    return context, ("thermal drift referenced to the datum's probing (the drift since then is "
+                     "corrected): at probing " + sentence.partition(": ")[2])

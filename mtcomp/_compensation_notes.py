@@ -1,0 +1,141 @@
+"""The notes a compensation prints after its run (one line each): moves passed through uncorrected,
+axis words added, tool centre point mode, the program's expansion, cutter radius compensation,
+arcs, drilling cycles, datums outside the data, feeds and the set-up's assumptions."""
+from __future__ import annotations
+
+import numpy as np
+
+
+#: the moves the writer passes through uncorrected (``passed_moves`` of its stats), in this order
+_PASSED_MOVES = {"increment": "{n} incremental (G91) move{s} of an axis whose position the program "
+                              "has not given ({at}: the controller moves it from wherever it stands)",
+                 "home": "{n} move{s} to the home position (G28/G30, grbl's $H; {at})",
+                 "jog": "{n} grbl jog{s} ($J=, {at})",
+                 "machine": "{n} move{s} in machine coordinates (G53, {at})",
+                 "tap": "{n} rigid tapping move{s} (G33.1, {at}: the spindle's reversal sets its ends)",
+                 "restore": "{n} move{s} to a RepRapFirmware restore point (G0/G1 R, {at}: the "
+                            "controller saved it)",
+                 "subprogram": "{n} call{s} of a subprogram not in the file ({at}: its moves are "
+                               "not seen)"}
+
+
+def passed_move_notes(program, written) -> list[str]:
+    """The line counting the motion lines passed through uncorrected that are no block of the plan
+    (so no BLOCKS.csv row), by why, each with its (first) source line; none when there are none."""
+    passed = written.get("passed_moves") or {}
+    parts = []
+    for why, text in _PASSED_MOVES.items():
+        if why in passed:
+            n, line = passed[why]
+            at = int(program.source_lines_of([line])[0])
+            parts.append(text.format(n=n, s="" if n == 1 else "s",
+                                     at=f"{'first at ' if n > 1 else ''}line {at}"))
+    total = sum(n for n, _line in passed.values())
+    if not total:
+        return []
+    return [f"{total} motion line{'' if total == 1 else 's'} passed through uncorrected, with no "
+            f"BLOCKS.csv row: " + "; ".join(parts)]
+
+
+def added_words_note(program, written) -> list[str]:
+    """The line counting the motion lines written with axis words they did not name, and why
+    (the writer's count ``added_axis_words``: lines and the first line, which this puts in the
+    user's file's numbering)."""
+    n, line = written.get("added_axis_words") or (0, 0)
+    if not n:
+        return []
+    at = int(program.source_lines_of([line])[0])
+    written["added_axis_words"] = (n, at)       # the line of the user's file (SUMMARY.json too)
+    return [f"{n} line{'' if n == 1 else 's'} written with axis words {'it' if n == 1 else 'they'} "
+            f"did not name ({'first at ' if n > 1 else ''}line {at}): the correction of that axis "
+            "changes there (its error varies with the other axes' positions, or the step bound "
+            "ramps a correction in or out), and the controller keeps what a line does not say "
+            "(an axis where it stood, a drilling cycle's depth); never an axis whose position "
+            "the program has not given, nor a rotary axis the program holds (outside tool centre "
+            "point mode)"]
+
+
+def tcp_note(program, tally) -> list[str]:
+    """The line saying how many blocks were compensated in tool centre point mode and which code
+    switched it on at which source line (as the reader recorded it: the last switch on the lines
+    up to each run's first block)."""
+    if not tally.tcp_blocks:
+        return []
+    switches = []
+    recorded = sorted(getattr(program, "tcp_switches", {}).items())
+    if getattr(program, "sinumerik", None) is not None:      # read as M428 (docs/toolpaths.md)
+        recorded = [(line, "TRAORI") for line, _code in recorded]
+    for before, first in tally.tcp_runs[:3]:
+        last = [(line, code) for line, code in recorded if line <= first]
+        if last and last[-1][0] > before:
+            line, code = last[-1]
+            switches.append(f"{code} at line {int(program.source_lines_of([line])[0])}")
+    n = tally.tcp_blocks
+    said = ", ".join(switches) + (", ..." if len(tally.tcp_runs) > 3 else "")
+    return [f"{n} block{'' if n == 1 else 's'} in tool centre point mode"
+            + (f" ({said})" if said else "") + ": tip positions and tool angles in the workpiece "
+            "frame, compensated there and written so; the controller solves the kinematics"]
+
+
+def _run_notes(program, written, fitted, setup, tally, found) -> list[str]:
+    """The notes after a run: moves passed through, tool centre point mode, the program's
+    expansion, drilling cycles, datums, feeds, set-up."""
+    notes = passed_move_notes(program, written) + added_words_note(program, written) \
+        + tcp_note(program, tally) + list(program.notes)
+    if program.expanded:
+        notes.append(f"the program's code was run: {program.executed} lines executed from its "
+                     f"{program.source_lines}; the output is that expansion, corrected (its first "
+                     "line says so)")
+    # found in the user's file (an expansion is gone by now)
+    if b"41" in found or b"42" in found:
+        miss = written.get("cutter_arc_miss_mm", 0.0) * 1e3
+        crc = "RL/RR" if program.heidenhain is not None else "G41/G42"
+        notes.append(f"note: the program uses cutter radius compensation ({crc}): the corrections "
+                     "are those of the programmed contour, while the tool centre runs a radius off "
+                     "it (the error there differs by the model's change over that distance); no "
+                     "block is split (the controller offsets the moves as written)"
+                     + (f", and an arc under it is kept whole: the written arcs miss their "
+                        f"corrected path by up to {miss:.2f} um" if miss >= 0.005 else ""))
+    arc = written.get("arc_miss_mm", 0.0) * 1e3
+    if arc >= 0.005:
+        notes.append(f"note: the arcs written miss their corrected path by up to {arc:.2f} um (within "
+                     "--chord-tol-um): the predicted deviation after is that of the corrected path")
+    return notes + _cycle_notes(written) + datum_notes(fitted, setup) + tally.feed_note(fitted) \
+        + setup.notes()
+
+
+def _cycle_notes(written: dict) -> list[str]:
+    def cycle_lines(k):
+        return f"{k} drilling cycle line{'' if k == 1 else 's'} (G73, G81-G89)"
+    notes = []
+    if written.get("cycle_blocks"):
+        notes.append(f"{cycle_lines(written['cycle_blocks'])} kept as cycles, each hole corrected "
+                     "where the model applies and the bounds let it (X Y Z to the hole's bottom, R "
+                     "moved with Z; BLOCKS.csv says which)")
+    if written.get("cycle_lines"):
+        notes.append(f"{cycle_lines(written['cycle_lines'])} passed through unchanged and "
+                     "uncorrected: hole position, R or Z not known, or drilling along another "
+                     "axis than Z")
+    return notes
+
+
+def datum_notes(fitted, setup) -> list[str]:
+    """One line for each part's datum (the origin of a work offset the program used) outside the
+    region the model's data reached: the corrections are referenced to the model's deviation there,
+    which is then its continuation beyond the data."""
+    from .models.region import outside_bounds, support_bounds
+    from .toolpaths.offsets import WORK_SYSTEMS
+    bounds = support_bounds(fitted)
+    machine = fitted.machine
+    out = []
+    for w in sorted(setup.used_wcs):
+        datum = setup._offset_table()[w]
+        outside = outside_bounds(machine, bounds, np.asarray(datum, dtype=float)[None, :])[0]
+        off = [a for a, o in zip(machine.axis_names, outside) if o]
+        if off:
+            where = ", ".join(f"{a} {np.degrees(datum[machine.index(a)]) if machine.axis(a).is_rotary else datum[machine.index(a)]:g}"
+                              for a in off)
+            out.append(f"note: the part's datum of {WORK_SYSTEMS[w]} ({where}) lies outside the region "
+                       "the model's data reached: the corrections are referenced to the model's "
+                       "deviation there, its continuation beyond the data")
+    return out
