@@ -48,26 +48,7 @@ def add_arguments(parser):
                         help="chord tolerance (um, default 1): arcs are read as chords within it, and an "
                              "arc is written as an arc (or arcs) where the corrected path stays within "
                              "it of one, else as G1 chords within it (a Heidenhain arc: refused)")
-    parser.add_argument("--temperature", metavar="NAME=DEGC", action="append", default=[],
-                        help="temperature of sensor NAME (as in temp_NAME_c of the thermal file) while "
-                             "the program runs, for the model's thermal drift (repeatable; sensors not "
-                             "given keep the model's reference; refused outside the range of the "
-                             "model's thermal record unless --extrapolate)")
-    parser.add_argument("--temperatures", metavar="READINGS.csv", default=None,
-                        help="temperature readings, a column temp_NAME_c per sensor as in the "
-                             "thermal file: one row while the program runs, or a time series (a t_s "
-                             "column, seconds from the program's start) followed along the program's "
-                             "run time at its feeds (--temperature wins for a sensor given both ways)")
-    parser.add_argument("--spindle-rpm", type=float, metavar="RPM", default=None,
-                        help="spindle speed the machine has run at long enough to be warm, for the "
-                             "model's spindle-heat drift (default: spindle stopped for long)")
-    parser.add_argument("--probed-at-temperature", metavar="NAME=DEGC", action="append", default=[],
-                        help="temperature of sensor NAME when the part's datum (G54 ...) was probed: "
-                             "the drift since then is corrected (repeatable, each sensor given above; "
-                             "default: the whole drift since the thermal record's first reading)")
-    parser.add_argument("--probed-at-spindle-rpm", type=float, metavar="RPM", default=None,
-                        help="the same for --spindle-rpm: the speed the spindle had run at long "
-                             "enough to be warm when the datum was probed")
+    _add_thermal_arguments(parser)
     parser.add_argument("--extrapolate", action="store_true",
                         help="correct blocks outside the region the model's data reached too "
                              "(default: they get no correction, and the summary counts them), and "
@@ -90,6 +71,30 @@ def add_arguments(parser):
                              "3-axis program never names (default: no axis is known at the start)")
     add_dialect_argument(parser)
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
+
+
+def _add_thermal_arguments(parser):
+    """The options of the thermal state while the program runs and when its datum was probed."""
+    parser.add_argument("--temperature", metavar="NAME=DEGC", action="append", default=[],
+                        help="temperature of sensor NAME (as in temp_NAME_c of the thermal file) while "
+                             "the program runs, for the model's thermal drift (repeatable; sensors not "
+                             "given keep the model's reference; refused outside the range of the "
+                             "model's thermal record unless --extrapolate)")
+    parser.add_argument("--temperatures", metavar="READINGS.csv", default=None,
+                        help="temperature readings, a column temp_NAME_c per sensor as in the "
+                             "thermal file: one row while the program runs, or a time series (a t_s "
+                             "column, seconds from the program's start) followed along the program's "
+                             "run time at its feeds (--temperature wins for a sensor given both ways)")
+    parser.add_argument("--spindle-rpm", type=float, metavar="RPM", default=None,
+                        help="spindle speed the machine has run at long enough to be warm, for the "
+                             "model's spindle-heat drift (default: spindle stopped for long)")
+    parser.add_argument("--probed-at-temperature", metavar="NAME=DEGC", action="append", default=[],
+                        help="temperature of sensor NAME when the part's datum (G54 ...) was probed: "
+                             "the drift since then is corrected (repeatable, each sensor given above; "
+                             "default: the whole drift since the thermal record's first reading)")
+    parser.add_argument("--probed-at-spindle-rpm", type=float, metavar="RPM", default=None,
+                        help="the same for --spindle-rpm: the speed the spindle had run at long "
+                             "enough to be warm when the datum was probed")
 
 
 def _positive(value, flag, allow_zero=False):

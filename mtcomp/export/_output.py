@@ -11,15 +11,13 @@ import numpy as np
 
 from ..errors import InputError
 from ..io.atomic import atomic_write, check_output_path
-from ._tables import component_names
+# the writers import FULL, LINEAR, MEAN from here
+from ._tables import FULL, LINEAR, MEAN, component_names, fit_line  # noqa: F401
 
 UM_PER_MM = 1e3
 URAD_PER_RAD = 1e6
 
 #: how much of a component an exporter carries
-FULL = "full"          # the table, forward and reverse
-MEAN = "mean"          # the table without direction (mean of forward and reverse)
-LINEAR = "linear"      # the least-squares line of the mean over the table
 
 
 @dataclass
@@ -58,13 +56,6 @@ def sign_factor_and_note(sign: str | None, what: str) -> tuple[float, str]:
     return (-1.0 if sign == "correction" else 1.0,
             f"{what} are the {sign} ({text}): THIS SIGN IS NOT PUBLIC. Check one point on the machine "
             f"and rerun with --sign {other} if the error doubles instead of vanishing")
-
-
-def fit_line(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
-    """Least-squares line y ~ a + b x: (a, b)."""
-    A = np.column_stack([np.ones_like(x), x])
-    (a, b), *_ = np.linalg.lstsq(A, y, rcond=None)
-    return float(a), float(b)
 
 
 def slope(tables, moving: str, column: int) -> float | None:

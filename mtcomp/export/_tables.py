@@ -44,6 +44,19 @@ from ..models.evaluate import casadi_map_call, deviation
 from ..planner.problem import unsure_advice
 from ._reversal import reversal_note, unheld_reversals
 
+
+#: how an axis table carries a component (``ExportResult.carried``)
+FULL = "full"          # the table, forward and reverse
+MEAN = "mean"          # the table without direction (mean of forward and reverse)
+LINEAR = "linear"      # the least-squares line of the mean over the table
+
+
+def fit_line(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """Least-squares line y ~ a + b x: (a, b)."""
+    A = np.column_stack([np.ones_like(x), x])
+    (a, b), *_ = np.linalg.lstsq(A, y, rcond=None)
+    return float(a), float(b)
+
 #: below this (mm, rad) everywhere an axis table is zero: the model holds that axis's errors at zero
 ZERO = 1e-12
 

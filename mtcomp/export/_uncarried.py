@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from ..models.evaluate import deviation
-from ._tables import component_names
+from ._tables import FULL, LINEAR, MEAN, component_names, fit_line
 
 #: the largest step of the sweep of a rotary axis (deg)
 SWEEP_DEG = 15.0
@@ -79,7 +79,7 @@ def uncarried_tip(fitted, tables, carried: dict, p: np.ndarray, Q: np.ndarray) -
     """(N, 3) mm: the tool-tip deviation the values ``p`` alone make at poses Q, from the tables'
     pose, less what the written tables carry of it (each carried translation column of each axis
     table, as the controller adds them; a LINEAR one as its least-squares line over the table)."""
-    from ._output import FULL, LINEAR, MEAN, fit_line
+
     machine, pose = fitted.machine, tables.pose
     zero = _tip(fitted, p, pose[None, :])
     rest = _tip(fitted, p, Q) - zero

@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..toolpaths.words import frame_tcp
 from ._bounds import ARC, INF, REVERSAL, STANDING
 
 __all__ = ["ARC", "REVERSAL", "STANDING", "LinkRules", "direction_axes", "node_links", "propagate",
@@ -234,8 +233,8 @@ class LinkRules:
         no_link[firsts] |= ~was_known[rows[firsts]]
         jump = np.zeros(rows.size, bool) if chunk.jump is None else np.asarray(chunk.jump, bool)[rows]
         jump &= firsts
-        frame = getattr(chunk, "frame", None)
-        in_tcp = np.zeros(rows.size, bool) if frame is None else frame_tcp(np.asarray(frame))[rows]
+        marked = getattr(chunk, "tcp", None)       # set where the program's setup was applied
+        in_tcp = np.zeros(rows.size, bool) if marked is None else np.asarray(marked, bool)[rows]
         tcp = in_tcp & firsts
         whole = was_known[rows].all(axis=1)
         no_link[(jump & ~tcp & whole) | (tcp & ~whole)] = True

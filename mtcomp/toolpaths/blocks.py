@@ -46,6 +46,9 @@ class SegmentChunk:
         part's datum already removes is not corrected again).
     context : dict or None, more of the model's context per row, name -> (n,) float (e.g.
         ``temp_t1``: the temperatures along the program's run time); set by the caller.
+    tcp : (n,) bool or None, the row is in tool centre point mode (set by
+        :meth:`mtcomp.toolpaths.offsets.ProgramSetup.apply`, which turns such rows into axis
+        positions; None: not known, none is).
     cutter_comp : (n,) bool, the row's block runs under cutter radius compensation (G41/G42 in
         force, or its line switches it on or off); the controller offsets such a block as written,
         so an arc under it is written as one arc (:attr:`MotionBlock.cutter_comp`).
@@ -66,11 +69,12 @@ class SegmentChunk:
     datum: np.ndarray | None = None
     context: dict | None = None
     cutter_comp: np.ndarray | None = None
+    tcp: np.ndarray | None = None
 
     FIELDS = ("line", "start", "end", "feed", "dirs", "rapid", "from_arc", "known", "frame", "cycle",
               "jump")
     #: set by the caller, None until then
-    OPTIONAL = ("tool_length", "datum")
+    OPTIONAL = ("tool_length", "datum", "tcp")
 
     def __post_init__(self):
         n, na = self.start.shape

@@ -162,7 +162,7 @@ class ProgramSetup:
         # the approach directions of the axes, not of the tip words (the backlash's side)
         dirs = self._held_directions(source).chunk(chunk.dirs, start, end, tcp, from_known)
         return replace(chunk, start=start, end=end, dirs=dirs, tool_length=lengths, datum=datum,
-                       jump=jump), off
+                       jump=jump, tcp=tcp), off
 
     def _held_directions(self, source) -> AxisDirections:
         """The axes' approach directions along the program ``source`` (:mod:`.directions`), new for
