@@ -261,18 +261,33 @@ def _name_null_space(null, scale, to_file, names, svals) -> list[UndeterminedCom
     return out
 
 
-def penalised_inverse(H: np.ndarray) -> np.ndarray:
-    """H^-1 of a penalised fit's matrix H = G + S (data plus penalty, symmetric positive definite in
-    the fitted directions), accurate where the penalty is many orders above the data.
+def penalised_inverse(H: np.ndarray, S: np.ndarray | None = None) -> np.ndarray:
+    """(H + S)^-1 of a penalised fit's matrix, H the data's part and S the penalty's (symmetric
+    positive definite together in the fitted directions; S None: H is the whole matrix),
+    accurate where the penalty is many orders above the data.
 
-    H is scaled to a unit diagonal first (Jacobi: D H D), so that each direction is judged at its
-    own size, and inverted through its Cholesky factor; the pseudo-inverse only where round-off
-    makes it not quite positive definite. A pseudo-inverse of H itself cuts at a share of its
-    largest eigenvalue: beside a roughness weight of 1e12 it dropped the directions the data fix
-    and the penalty does not see (a profile's offset and slope), and the fit's values, standard
-    errors and degrees of freedom came out wrong."""
+    With S given, the inverse is taken in S's eigenbasis, where the directions the penalty does not
+    see (a profile's offset and slope) carry the data's part alone, and its eigenvalues at the
+    round-off of its largest are zero (Wood 2011's stable reparametrisation splits the penalty's
+    range from its null space for the same reason). Summed first, H + S loses the data's part in those directions
+    to the round-off of the penalty: at REML's largest roughness weight (1.4e12) a 5-axis
+    campaign's matrix had a condition number of 4e17 after scaling, its inverse was wrong in every
+    digit (50-digit arithmetic), and the posterior put 4e-4 um of standard error on a laser-measured
+    positioning profile and variance on combinations the data leave open.
+
+    The matrix is then scaled to a unit diagonal (Jacobi: D H D), so that each direction is judged
+    at its own size, and inverted through its Cholesky factor; the pseudo-inverse only where
+    round-off makes it not quite positive definite. A pseudo-inverse of H itself cuts at a share of
+    its largest eigenvalue: beside a roughness weight of 1e12 it dropped the directions the data fix
+    and the penalty does not see, and the fit's values, standard errors and degrees of freedom came
+    out wrong."""
     if H.shape[0] == 0:
         return np.zeros_like(H)
+    if S is not None:
+        s, U = np.linalg.eigh(0.5 * (S + S.T))
+        s = np.where(s > S.shape[0] * np.finfo(float).eps * max(float(s.max()), 0.0), s, 0.0)
+        Ht = U.T @ H @ U
+        return U @ penalised_inverse(0.5 * (Ht + Ht.T) + np.diag(s)) @ U.T
     d = np.sqrt(np.clip(np.diag(H), 0.0, None))
     d = np.where(d > 0.0, 1.0 / np.where(d > 0.0, d, 1.0), 1.0)
     Hs = H * np.outer(d, d)

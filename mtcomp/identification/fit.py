@@ -598,8 +598,9 @@ class _Problem:
                     np.zeros((self.n_unknowns, 0)), np.zeros(0))
         # the Bayesian posterior covariance of a penalised fit (Wood 2006): phi (AB + S)^-1, phi
         # the residual variance over the effective degrees of freedom tr((AB + S)^-1 AB)
-        H = AB + self._reduced_penalty(B)
-        Hinv = penalised_inverse(H)
+        S = self._reduced_penalty(B)
+        Hinv = penalised_inverse(AB, S)
+        H = AB + S
         edf = float(np.trace(Hinv @ AB)) if self.S is not None else float(rank)
         s2 = self._residual_variance(r, edf)
         cov = s2 * (scale[:, None] * (B @ Hinv @ B.T) * scale[None, :])

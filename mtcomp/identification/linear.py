@@ -39,8 +39,7 @@ def solve_linear(X: np.ndarray, y: np.ndarray, specs, penalty: np.ndarray | None
         null = null @ U[:, ev <= rcond * max(float(np.trace(Ps)), 1e-300)]
     B = scipy.linalg.null_space(null.T) if null.shape[1] else np.eye(k)
     Gs = B.T @ (G * np.outer(d, d)) @ B
-    H = Gs + B.T @ Ps @ B
-    Hinv = penalised_inverse(H)
+    Hinv = penalised_inverse(Gs, B.T @ Ps @ B)
     b = d * (B @ (Hinv @ (B.T @ (d * (X.T @ y)))))
     resid = y - X @ b
     cost = float(resid @ resid)
