@@ -66,12 +66,23 @@ def test_a_cmm_program_with_only_rapids_fails_the_command_writing_nothing(tmp_pa
     assert len(err) == 1 and str(program) in err[0] and "only G0" in err[0], err
 
 
+def test_a_cut_program_s_own_work_offset_places_its_moves(tmp_path):
+    """G10 L2 P1 sets G54 from its line on, as compensate reads it: the moves are the program's plus
+    (100, 0, 0), and the part's datum is there (before: refused). By hand."""
+    p = tmp_path / "p.nc"
+    p.write_text("G21 G90\nG10 L2 P1 X100 Y0 Z0\nG0 X1 Y2 Z3\nG1 X20 F500\nM30\n")
+    m = load_machine("xfyz")
+    cut = read_cut_program(p, m)
+    np.testing.assert_array_equal(cut.start, [[101.0, 2.0, 3.0]])
+    np.testing.assert_array_equal(cut.end, [[120.0, 2.0, 3.0]])
+    np.testing.assert_array_equal(cut.datum, [100.0, 0.0, 0.0])
+    np.testing.assert_array_equal(cut.part_origin(m), [100.0, 0.0, 0.0])
+
+
 @pytest.mark.parametrize("text, line, words", [
-    ("G21 G90\nG10 L2 P1 X100 Y0 Z0\nG0 X1 Y2 Z3\nG1 X20 F500\nM30\n", 3, "work offsets the program sets itself"),
     ("G21 G90\nG0 X1 Y2 Z3\nG1 X20 W-2 F500\nM30\n", None, "U, V or W"),
 ])
 def test_a_cut_program_the_ball_centres_cannot_follow_is_refused(tmp_path, text, line, words):
-    """Before, the G10 program's moves were matched to the part as if its origin had not moved."""
     p = tmp_path / "p.nc"
     p.write_text(text)
     with pytest.raises(InputError) as exc:

@@ -60,7 +60,7 @@ def _stack(q, series, dirs=None, run=None, t=None, feed=None, unit="um"):
     d = np.zeros((n, 3))
     if dirs is not None:
         d[:, 0] = dirs
-    return SimpleNamespace(machine=m, q=qq, series=np.asarray(series, dtype=object), dirs=d,
+    return SimpleNamespace(machine=m, q=qq, stood=qq, series=np.asarray(series, dtype=object), dirs=d,
                            feed=np.full(n, np.nan) if feed is None else feed, arm=np.zeros((n, 3)),
                            spindle=np.full(n, np.nan), run=np.full(n, -1) if run is None else run,
                            t=np.full(n, np.nan) if t is None else t, unit=np.full(n, unit),

@@ -67,6 +67,7 @@ def test_a_flat_profile_is_reported_flat_not_undetermined(tmp_path, capsys):
     assert not re.findall(r"not determined by the data$", out, re.M), out
     assert "of these are not determined by the data alone" not in out
     assert "every fitted parameter is determined by the data" in out
+    assert "hint:" not in out                        # held already: no hint
     for comp in ("EBB", "ECC"):
         assert re.search(rf"{comp}\s+range 0 urad \(the data show none above their noise: smoothed "
                          r"flat\)", out), out
@@ -85,3 +86,31 @@ def test_the_report_gives_a_rotary_axis_zero_offset(tmp_path, capsys):
     assert m, out
     value, sd = float(m.group(1)), float(m.group(2))
     assert abs(value - 30.0) <= 3.0 * sd and sd < 2.0, out
+
+
+def test_an_r_test_without_hold_says_which_hold(tmp_path, capsys, monkeypatch):
+    """The same R-test (fewer poses) without --hold: the linear axes move only with B and C, and
+    combinations the data leave open trade the rotary axes' errors against theirs (ECC_0 against
+    the yaw of Y and Z). The report, and the run's last notes, say which --hold (before: a column of
+    "not determined by the data" and nothing on what to do)."""
+    monkeypatch.setattr(__import__(__name__), "POSES", [(0, c) for c in range(0, 360, 45)]
+                        + [(b, 0) for b in range(-90, 91, 30)] + [(45, c) for c in range(0, 360, 90)])
+    src = _rtest(tmp_path / "rtest.csv", 5e-6)
+    assert main(["identify", "cbfxyz", str(src), "--known-setup", str(src), "-o", str(tmp_path / "M.json")]) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"ECC_0\s+not determined by the data", out), out
+    hints = [line for line in out.splitlines() if "--hold X,Y,Z,squareness,spindle" in line]
+    assert len(hints) == 2 and hints[0].startswith("  hint: ") and hints[1].startswith("note: "), out
+
+
+def test_laser_runs_of_every_axis_get_no_hold_hint(tmp_path, capsys):
+    """Laser runs of X, Y, Z, B and C determine the linear axes' components, whatever they leave open
+    of the rotary axes' location: no --hold is suggested (a first rule, on open combinations alone,
+    told this campaign to hold X, Y and Z)."""
+    from truth import campaigns as tc
+    rng = np.random.default_rng(5)
+    m = TruthMachine.random("cbfxyz", rng, effects=[], error_motions=False)
+    files = [str(tc.laser(m, tmp_path / f"{a}.csv", rng, a, n_runs=2).path) for a in "XYZBC"]
+    assert main(["identify", "cbfxyz", *files, "-o", str(tmp_path / "M.json")]) == 0
+    out = capsys.readouterr().out
+    assert "of these are not determined by the data alone" in out and "hint:" not in out, out

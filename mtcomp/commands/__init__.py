@@ -65,6 +65,11 @@ def add_cmm_arguments(parser) -> None:
                         help="the programs' ball centres sit off the nominal surface by more than "
                              "the machine's errors (a compensated program): that offset along each "
                              "point's normal is part of what was cut (points on the passes)")
+    add_offset_arguments(parser, "work offsets (G54 ...) and tool lengths (H1 ...) of the programs "
+                         "of --cmm-program, as compensate takes them; see docs/toolpaths.md",
+                         "a work offset of the programs of --cmm-program: where their zero sat in "
+                         "machine axis positions when they cut the part (mm; repeatable; wins over "
+                         "--offsets)")
 
 
 def _split_file_value(value: str, data_paths) -> tuple[str | None, str]:
@@ -78,8 +83,10 @@ def _split_file_value(value: str, data_paths) -> tuple[str | None, str]:
 
 
 def cmm_programs(args) -> list[str]:
-    """The program paths ``--cmm-program`` names: inputs, which no output may overwrite."""
-    return [_split_file_value(value, args.data)[1] for value in args.cmm_program]
+    """The program paths ``--cmm-program`` names and the ``--offsets`` file: inputs, which no output
+    may overwrite."""
+    return ([_split_file_value(value, args.data)[1] for value in args.cmm_program]
+            + ([args.offsets] if args.offsets else []))
 
 
 def attach_cmm_cuts(args, machine, datasets) -> None:
@@ -148,8 +155,25 @@ def attach_cmm_cuts(args, machine, datasets) -> None:
         if missing:
             raise InputError(f"a cmm file is read with the G-code that cut the part and the radius of "
                              f"its ball-end tool: give {' and '.join(missing)}", d.path)
+    setup = _cut_setup(args, machine, bool(cmm))
     for d in cmm:
-        d.cut = read_cut_program(programs[id(d)], machine)
+        d.cut = read_cut_program(programs[id(d)], machine, setup)
+
+
+def _cut_setup(args, machine, any_cmm: bool):
+    """The work offsets and tool lengths of the cut programs (``--offsets``, ``--work-offset``,
+    ``--tool-length``: compensate's options, :func:`mtcomp.toolpaths.offsets.load_setup`); None
+    when none is given. InputError when one is given but no cmm file is among the data."""
+    from ..errors import InputError
+    from ..toolpaths.offsets import load_setup
+    given = [f for f, v in (("--offsets", args.offsets), ("--work-offset", args.work_offset),
+                            ("--tool-length", args.tool_length)) if v]
+    if not given:
+        return None
+    if not any_cmm:
+        raise InputError(f"{given[0]}: the offsets are those of the program that cut a cmm part "
+                         "(--cmm-program), and no cmm file is among the data")
+    return load_setup(machine, args.offsets, args.work_offset, args.tool_length)
 
 
 #: a cmm file's points lying further than this (mm, median along their normals) from the ball-centre

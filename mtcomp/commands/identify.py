@@ -76,11 +76,15 @@ def run(args) -> int:
     if disagree:
         print(f"warning: {disagree}", file=sys.stderr)
     from ..identification.report import component_lines, laser_target_tables
-    print(result.summary(verbose=args.verbose, components=component_lines(result.fitted_model),
+    components = component_lines(result.fitted_model)
+    print(result.summary(verbose=args.verbose, components=components,
                          targets=laser_target_tables(result.fitted_model, datasets, machine,
                                                      verbose=args.verbose)))
     from ..export import reversal_note
-    for note in (reversal_note(result.fitted_model), _weights_note(result, args.weights)):
+    # the report's --hold hint (identification.report.hold_hint) again where the run ends
+    hint = next((line.strip()[len("hint: "):] for line in components if line.strip().startswith("hint: ")),
+                None)
+    for note in (reversal_note(result.fitted_model), _weights_note(result, args.weights), hint):
         if note:
             print(f"note: {note}")
     print(f"\nwrote {out}")

@@ -340,12 +340,13 @@ def axis_series(st, resid, axis: str, sel=None):
     if sel is not None:
         use &= sel
     scans = use & (st.moving == axis)
-    if np.unique(np.round(st.q[scans, k], POSITION_DECIMALS)).size >= 12:
+    s = st.stood[:, k]                  # where the axis stood: its profiles are read there
+    if np.unique(np.round(s[scans], POSITION_DECIMALS)).size >= 12:
         use = scans
     ix = np.flatnonzero(use)
-    if ix.size < 12 or np.ptp(st.q[ix, k]) <= 0:
+    if ix.size < 12 or np.ptp(s[ix]) <= 0:
         return None
-    x = np.round(st.q[ix, k], POSITION_DECIMALS)
+    x = np.round(s[ix], POSITION_DECIMALS)
     r = resid[ix] * np.sign(g[ix])
     ux, inv = np.unique(x, return_inverse=True)
     means = np.bincount(inv, weights=r) / np.bincount(inv)
@@ -493,7 +494,7 @@ def find_structure(st, resid, sigma: dict, n_tests_extra: int = 0) -> list[Struc
         r = resid[ix]
         variables = []
         for k, a in enumerate(names):
-            x = st.q[ix, k]
+            x = st.stood[ix, k]            # where it stood (the ram: where the tool put it)
             if np.unique(np.round(x, POSITION_DECIMALS)).size >= 3:
                 rot = st.machine.axis(a).is_rotary
                 variables.append((f"{a} position", np.degrees(x) if rot else x, "deg" if rot else "mm"))
@@ -576,7 +577,7 @@ def correlations(st, resid, sel) -> list[tuple[str, float]]:
             ("run", np.where(st.run >= 0, st.run, np.nan).astype(float)), ("reading order", st.row.astype(float))]
     cand += [(f"temperature {n}", v) for n, v in st.temps.items()]
     cand += [(f"approach direction of {a}", st.dirs[:, k]) for k, a in enumerate(st.machine.axis_names)]
-    cand += [(f"{a} position", st.q[:, k]) for k, a in enumerate(st.machine.axis_names)]
+    cand += [(f"{a} position", st.stood[:, k]) for k, a in enumerate(st.machine.axis_names)]
     for name, v in cand:
         x = v[sel]
         ok = np.isfinite(x) & np.isfinite(r)

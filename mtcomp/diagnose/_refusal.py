@@ -25,7 +25,7 @@ def distinct_positions(st, axis: str, rows=None) -> np.ndarray:
     """Sorted distinct positions (mm or rad) that ``axis`` takes in the rows ``rows`` (bool mask,
     default all) of the stack."""
     k = st.machine.axis_names.index(axis)
-    x = st.q[:, k] if rows is None else st.q[rows, k]
+    x = st.stood[:, k] if rows is None else st.stood[rows, k]
     tol = SAME_POSITION_RAD if st.machine.axis(axis).is_rotary else SAME_POSITION_MM
     return np.unique(np.round(x / tol)) * tol
 

@@ -125,11 +125,11 @@ def finer_base(st, design, extra, current, structure):
              if s.variable.endswith(" position") and s.variable.split(" ")[0] in linear]
     for a0, series, lo, hi in list(peaks):
         rows = st.series == series
-        at = rows & (st.q[:, names.index(a0)] >= lo) & (st.q[:, names.index(a0)] <= hi)
+        at = rows & (st.stood[:, names.index(a0)] >= lo) & (st.stood[:, names.index(a0)] <= hi)
         for b in linear:
             k = names.index(b)
-            if b != a0 and np.ptp(st.q[rows, k]) > 0 and at.any():
-                peaks.append((b, series, float(st.q[at, k].min()), float(st.q[at, k].max())))
+            if b != a0 and np.ptp(st.stood[rows, k]) > 0 and at.any():
+                peaks.append((b, series, float(st.stood[at, k].min()), float(st.stood[at, k].max())))
     # every axis the structure names is tried; of those whose finer base earns its parameters the one
     # that gains most takes the structure (a ball-bar circle's structure in Z read along Y: Y's
     # straightness on finer knots follows part of it, Z's own profiles all of it); a defect found on
@@ -176,14 +176,14 @@ def _axis_refinement(st, design, extra, current, a, series, lo, hi):
     # a defect is a shape read at several positions; a peak at one or two targets of a coarse
     # line is the profile between them, not a place
     k = st.machine.axis_names.index(a)
-    x = st.q[st.series == series, k]
+    x = st.stood[st.series == series, k]
     resolved = np.unique(np.round(x[(x >= lo) & (x <= hi)], POSITION_DECIMALS)).size >= MIN_DEFECT_POSITIONS
     if window.any() and resolved:
         rival = design.fit(np.hstack([extra, fine[:, window]]))
         # ... and a rival in one place gains there: a wave at the knots' own scale is also
         # taken by a few finer functions anywhere, which free the coarse ones everywhere
         each = np.nan_to_num((current.cv_resid ** 2 - rival.cv_resid ** 2) * design.w ** 2)
-        inside = np.abs(st.q[:, k] - c) <= half
+        inside = np.abs(st.stood[:, k] - c) <= half
         local = each[inside].sum() >= LOCAL_SHARE * each.sum()
         if (local and rival.rank - current.rank <= 0.5 * dk
                 and current.cv_sse - rival.cv_sse >= RIVAL_SHARE * gain):

@@ -22,13 +22,14 @@ parameters in internal units (mm, rad), so ``J`` is file unit per internal unit.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
 from ..errors import InputError
 from ..measurement.files import MeasurementSet
 from ..machine import Machine
-from ..models.chain import ErrorModel, ram_axis
+from ..models.chain import ErrorModel, guideway_positions
 from ..models.terms import AbbeIRC, Backlash, RotaryErrorMotion, ThermalDrift, positioning_component
 
 #: name of the constant context channel the probe's drift terms read
@@ -145,9 +146,15 @@ class Stack:
         """(n,) where axis ``a`` stood on its guideway at each observation, where its error profiles
         were read (mm, rad): the commanded position, but for the ram that of a row whose tool is
         longer than the machine's by d is q + d (docs/conventions.md, "Tool length"; the model's
-        own rule, :func:`mtcomp.models.chain.ram_axis`)."""
-        s = self.q[:, self.machine.axis_names.index(a)]
-        return s + (self.setup[:, 0] - self.machine.tool_length) if a == ram_axis(self.machine) else s
+        own rule, :func:`mtcomp.models.chain.guideway_positions`)."""
+        return self.stood[:, self.machine.axis_names.index(a)]
+
+    @cached_property
+    def stood(self) -> np.ndarray:
+        """(n, na) where every axis stood on its guideway (:meth:`guideway`; the model's own rule,
+        :func:`mtcomp.models.chain.guideway_positions`): the positions diagnose reads a residual
+        structure along."""
+        return guideway_positions(self.machine, self.q, self.setup[:, 0])
 
     def columns(self, names) -> np.ndarray:
         """(n, k) probe Jacobian columns of the named parameters."""

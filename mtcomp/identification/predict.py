@@ -259,7 +259,9 @@ def _blank_outside_region(fitted, data, machine, columns: dict) -> list:
     bounds = support_bounds(fitted)
     if bounds is None or not hasattr(data, "axis_positions"):
         return []
-    out = outside_bounds(machine, bounds, data.axis_positions(machine))
+    tool = getattr(data, "tool", None)
+    out = outside_bounds(machine, bounds, data.axis_positions(machine),
+                         tool_length=tool if isinstance(tool, np.ndarray) and tool.ndim == 1 else None)
     rows = out.any(axis=1)
     if not rows.any():
         return []

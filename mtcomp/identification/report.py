@@ -355,7 +355,59 @@ def component_lines(fitted: FittedModel, undetermined: Undetermined | None = Non
         lines.append(f"  {open_} of these are not determined by the data alone; combinations of "
                      "them may be, and predictions use those (--verbose lists the parameters "
                      "and the combinations the data leave open)")
+    hint = hold_hint(fitted, ranges, values)
+    if hint:
+        lines.append(f"  {hint}")
     return lines
+
+
+#: a combination the data leave open counts as involving a parameter when the parameter's share of it
+#: (file units, relative to its largest) is above this
+HINT_SHARE = 1e-3
+#: a component's range counts as left open when the data do not determine it, or fix it only to a
+#: standard error at least its own size and above this (file units)
+OPEN_SD = {"um": 1.0, "urad": 10.0}
+
+
+def _left_open(r) -> bool:
+    """Does the data leave the :class:`ComponentRange` ``r`` open (:data:`OPEN_SD`)?"""
+    return r.status == "undetermined" or (r.status == "fitted" and np.isfinite(r.sd)
+                                          and r.sd >= max(abs(r.range), OPEN_SD.get(r.unit, 0.0)))
+
+
+def hold_hint(fitted: FittedModel, ranges, values) -> str | None:
+    """What to do when the data move a rotary axis and cannot tell its errors from the linear axes'
+    (an R-test or three-sphere test alone: the linear axes move only with the rotary ones, at few
+    positions): one sentence naming the ``--hold`` of the linear axes the data moved, the squareness
+    and the spindle tilt (those not held already), when the data leave a component of those linear
+    axes open (:func:`_left_open`) and a combination they leave open involves both a rotary axis's
+    parameter and one of those. None otherwise (ranges and values of :func:`component_ranges`): laser
+    runs of every axis determine the linear axes' components, whatever they leave open of the rotary
+    axes' location."""
+    machine = fitted.machine
+    rotary = {a.name for a in machine.rotary_axes}
+    if not any(r.axis in rotary for r in ranges):
+        return None
+    held = {r.axis for r in ranges if r.status == "held"} | {v.name for v in values if v.status == "held"}
+    hold = [a.name for a in machine.linear_axes if any(r.axis == a.name for r in ranges) and a.name not in held]
+    hold += [g for g, names in (("squareness", squareness_names(machine)), ("spindle", SPINDLE_TILT))
+             if any(v.name in names for v in values) and not held.intersection(names)]
+    if not any(_left_open(r) for r in ranges if r.axis in hold):
+        return None
+    und = Undetermined.of(fitted)
+    if und.directions is None or not und.directions.size:
+        return None
+    groups = [fitted.params.specs[i].group.split(":")[0] for i in und.index]
+    is_rotary = np.array([g in rotary for g in groups])
+    is_held = np.array([g in hold for g in groups])
+    D = np.abs(und.directions * und.to_file[:, None])
+    big = D > HINT_SHARE * D.max(axis=0, initial=0.0)
+    if not np.any(big[is_rotary].any(axis=0) & big[is_held].any(axis=0)):
+        return None
+    return ("hint: the data cannot tell the rotary axes' errors from the linear axes' (a campaign "
+            "that moves the linear axes only with the rotary ones): if the controller compensates "
+            f"those, hold them and the data go to the rotary axes: --hold {','.join(hold)} "
+            "(docs/identification.md, --hold)")
 
 
 # ------------------------------------------------------------------------------ per file

@@ -19,9 +19,13 @@ class CutProgram:
     """The cutting moves (G0 left out) of the program that cut a part, in program order.
 
     path : the program's file as the user named it (for messages).
-    start, end : (m, na) axis positions at each move's ends, ``machine.axis_names`` order, mm and rad.
+    start, end : (m, na) machine axis positions at each move's ends (the program's plus its work
+    offset), ``machine.axis_names`` order, mm and rad.
     line : (m,) int, 1-based source line of each move's block.
     feed : (m,) mm/min commanded feed. dirs : (m, na) +1/-1 approach direction of each axis.
+    tool_length : (m,) mm, the length of the tool in force (NaN or None: the machine's).
+    datum : (na,) the machine position of the program's zero, its work offset (None: machine zero):
+    the CMM measures the part in the program's frame, which sits there.
     Compared and hashed by identity: a cut program read once is one key of the cut poses' memory.
     """
 
@@ -31,9 +35,19 @@ class CutProgram:
     line: np.ndarray
     feed: np.ndarray
     dirs: np.ndarray
+    tool_length: np.ndarray | None = None
+    datum: np.ndarray | None = None
 
     def __str__(self) -> str:
         return self.path
+
+    def part_origin(self, machine) -> np.ndarray:
+        """(3,) mm the program's zero in the workpiece frame: a cmm file's points (in the program's
+        frame) are there plus their coordinates. Zero without a work offset."""
+        if self.datum is None or not np.any(self.datum):
+            return np.zeros(3)
+        tip = forward(machine, np.vstack([np.zeros(machine.n_axes), self.datum]))[0]
+        return tip[1] - tip[0]
 
 
 class CutterLocations:
@@ -93,13 +107,16 @@ class CutterLocations:
         return self._q(seg, u), seg, best
 
 
-def path_offsets(machine, data, q, radius: float) -> np.ndarray:
+def path_offsets(machine, data, q, radius: float, cut: CutProgram | None = None) -> np.ndarray:
     """(n,) mm how far the program's nominal ball centre at the cutter locations ``q`` sits from the
     cmm points' own ball centre ``x + r n``, along each normal: ``n . (c0 - (x + r n))``. Zero for a
     program that follows the nominal surface; a compensated program's corrections; a wrong radius or
-    a misplaced part as a whole."""
+    a misplaced part as a whole. ``cut``: the program (default the data's), whose zero the points'
+    coordinates are from."""
+    cut = data.cut if cut is None else cut
     tip0, axis0 = forward(machine, q)
-    return np.einsum("ij,ij->i", tip0 + radius * axis0 - (data.xyz + radius * data.normal), data.normal)
+    centre = data.xyz + (np.zeros(3) if cut is None else cut.part_origin(machine)) + radius * data.normal
+    return np.einsum("ij,ij->i", tip0 + radius * axis0 - centre, data.normal)
 
 
 #: cmm data set -> (key, cut poses): the last poses found for it (the knots are placed from them
@@ -121,7 +138,7 @@ def cut_poses(machine, data, cut: CutProgram, radius: float, sample_mm: float = 
     if not radius > 0:
         raise InputError(f"tool radius must be positive, got {radius!r}", data.path)
     loc = CutterLocations(machine, cut, radius, sample_mm)
-    q, k, gap = loc.nearest(data.xyz + radius * data.normal)
+    q, k, gap = loc.nearest(data.xyz + cut.part_origin(machine) + radius * data.normal)
     far = np.flatnonzero(gap > max_gap_mm)
     if far.size:
         data.fail(f"no cutter location of {cut.path} within {max_gap_mm:g} mm of this point's "

@@ -42,7 +42,8 @@ import numpy as np
 from ..errors import InputError
 from .drift import feature_value
 from .files import MeasurementSet
-from ..models.chain import ErrorModel, context_defaults as base_context_defaults, ram_axis
+from ..models.chain import (ErrorModel, context_defaults as base_context_defaults,
+                            guideway_positions)
 from ..models.function_cache import model_function
 from ..models.params import ParamSpec
 
@@ -91,15 +92,13 @@ def _positions_by_axis(machine, datasets, guideway: bool) -> dict[str, np.ndarra
 def _positions_by_file(machine, datasets, guideway: bool = False):
     """(file's data, (n, n_axes) axis positions) of each file with axis positions and rows: the
     commanded ones, or with ``guideway`` the ram's at its machine position (:func:`data_positions`)."""
-    ram = ram_axis(machine)
     for d in datasets:
         data = d.data if isinstance(d, MeasurementModel) else d
         if hasattr(data, "axis_positions") and len(data):
             q = np.asarray(data.axis_positions(machine), dtype=float)
             tool = getattr(data, "tool", None)
-            if guideway and ram is not None and isinstance(tool, np.ndarray) and tool.shape == (len(q),):
-                q = q.copy()
-                q[:, machine.index(ram)] += np.nan_to_num(tool - machine.tool_length)
+            if guideway and isinstance(tool, np.ndarray) and tool.shape == (len(q),):
+                q = guideway_positions(machine, q, tool)
             yield data, q
 
 
@@ -189,18 +188,21 @@ def _position_ranges(machine, datasets, guideway: bool = False) -> dict[str, tup
 
 def data_support(machine, datasets) -> dict[str, tuple[float, float]]:
     """The identified region: axis name -> (lowest, highest) position in the data, internal units,
-    for every axis the data moved. An axis the data hold at one position (the static axes of a laser
+    for every axis the data moved, each where it stood on its guideway (the ram where the rows' tools
+    put it: :func:`data_positions`). An axis the data hold at one position (the static axes of a laser
     run) is absent, like one no file positions (see :func:`data_held`): it does not bound where the
     model applies (a laser run of X corrects X along the whole table, as the pitch table from the
     same run would; correcting it only on the laser's line would make the parts of a workpiece
     disagree)."""
-    return {a: r for a, r in _position_ranges(machine, datasets).items() if r[1] - r[0] > 1e-9}
+    return {a: r for a, r in _position_ranges(machine, datasets, guideway=True).items() if r[1] - r[0] > 1e-9}
 
 
 def data_held(machine, datasets) -> dict[str, float]:
     """Axis name -> position, for every axis that the files position but hold at one and the same
-    position (internal units): how its errors vary along it, the data cannot say."""
-    return {a: r[0] for a, r in _position_ranges(machine, datasets).items() if r[1] - r[0] <= 1e-9}
+    position on its guideway (internal units; the ram where the rows' tools put it): how its errors
+    vary along it, the data cannot say."""
+    return {a: r[0] for a, r in _position_ranges(machine, datasets, guideway=True).items()
+            if r[1] - r[0] <= 1e-9}
 
 
 # ------------------------------------------------------------------------------------------ context

@@ -304,7 +304,7 @@ class CmmModel(MeasurementModel):
     Options: ``cut`` (the program's cutting moves, a :class:`~mtcomp.measurement.cut.CutProgram`:
     :func:`mtcomp.toolpaths.cutter.read_cut_program` reads them from the G-code) and
     ``tool_radius_mm`` (ball radius), required here or as the data's fields of the same names,
-    ``tool_mm`` (tool length, default the machine's), ``sample_mm`` (spacing of the sampled
+    ``tool_mm`` (tool length, default that of the program's move, else the machine's), ``sample_mm`` (spacing of the sampled
     cutter locations, default 0.1), ``max_gap_mm`` (largest distance from ``x + r n`` to the
     nearest ball centre before the point counts as not cut by the program, default 2),
     ``include_path_offset`` (default the data's field, False: the program is taken to follow the
@@ -332,12 +332,16 @@ class CmmModel(MeasurementModel):
         self.axis0 = forward(m, q)[1]
         self.path_offset = np.zeros(len(data))
         if self.options.get("include_path_offset", data.include_path_offset):
-            self.path_offset = path_offsets(m, data, q, radius)
+            self.path_offset = path_offsets(m, data, q, radius, cut)
         extra = _extra_context(self)
         cols = {"feed": loc.feed[k]}
         for j, a in enumerate(m.axis_names):
             cols[f"dir_{a}"] = loc.dirs[k, j].astype(float)
-        cols["tool_length"] = np.full(len(data), float(self.options.get("tool_mm", m.tool_length)))
+        # the tool of the move that cut each point (the program's G43 H, --tool-length), else tool_mm
+        tool = np.full(len(data), float(self.options.get("tool_mm", m.tool_length)))
+        if "tool_mm" not in self.options and cut.tool_length is not None:
+            tool = np.where(np.isfinite(cut.tool_length[k]), cut.tool_length[k], tool)
+        cols["tool_length"] = tool
         cols.update(extra)
         # the block context comes from the program, not from the CMM file's own columns
         base = self.model.default_context(len(data))

@@ -231,6 +231,24 @@ def ram_axis(machine: Machine) -> str | None:
     return "Z" if machine.tool_chain and machine.tool_chain[-1] == "Z" else None
 
 
+def guideway_positions(machine: Machine, q, tool_length=None) -> np.ndarray:
+    """(n, na) where each axis stood on its guideway at the commanded positions ``q`` ((n, na), mm and
+    rad), where its error profiles are read: ``q`` itself, but the ram (:func:`ram_axis`) with a tool
+    of length L (``tool_length``, (n,) mm or a scalar; None or NaN: the machine's L0) at its machine
+    position q_Z + L - L0 (docs/conventions.md, "Tool length"). The one rule of the model's chain,
+    of the region its data reached and of diagnose's structure analysis."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    ram = ram_axis(machine)
+    if ram is None or tool_length is None:
+        return q
+    d = np.nan_to_num(np.broadcast_to(np.asarray(tool_length, dtype=float), q.shape[:1]) - machine.tool_length)
+    if not d.any():
+        return q
+    out = q.copy()
+    out[:, machine.index(ram)] += d
+    return out
+
+
 # --------------------------------------------------------------------------------- the model
 class ErrorModel:
     """The symbolic error model of one machine with a given set of extension terms.

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .chain import guideway_positions
+
 #: slack of the support test (mm for linear axes, rad for rotary ones): a position this close to the
 #: edge of the region the model's data reached counts as inside
 SUPPORT_TOL = 1e-6
@@ -37,14 +39,17 @@ def support_bounds(fitted) -> tuple[np.ndarray, np.ndarray] | None:
     return lo, hi
 
 
-def outside_bounds(machine, bounds, q, known=None) -> np.ndarray:
+def outside_bounds(machine, bounds, q, known=None, tool_length=None) -> np.ndarray:
     """(n, na) bool: the axes of the positions ``q`` ((n, na), mm and rad) that are given
     (``known``, (n, na) bool; None: all) and lie outside ``bounds`` (:func:`support_bounds`, with
     ``SUPPORT_TOL`` of slack; a rotary axis's angle taken modulo a turn, its error profiles being
-    periodic); all False for ``bounds`` None."""
+    periodic); all False for ``bounds`` None. Each axis is tested where it stands on its guideway,
+    as the region was recorded: the ram where the tool (``tool_length``, (n,) mm; None: the
+    machine's) puts it (:func:`mtcomp.models.chain.guideway_positions`)."""
     q = np.asarray(q, dtype=float)
     if bounds is None:
         return np.zeros(q.shape, bool)
+    q = guideway_positions(machine, q, tool_length)
     lo, hi = bounds
     rotary = np.array([a.is_rotary for a in machine.axes]) & np.isfinite(lo)
     if rotary.any():

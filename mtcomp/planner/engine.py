@@ -91,13 +91,14 @@ class Planner:
             cols["tool_length"] = tool_length
         return self.problem.fitted.context(n, cols)
 
-    def outside_support(self, q, known) -> np.ndarray:
+    def outside_support(self, q, known, tool_length=None) -> np.ndarray:
         """(n, na) bool: the axes of the blocks at ``q`` ((n, na) axis positions, mm and rad) whose
         position is given (``known``, (n, na) bool) and lies outside the region the model's data
-        reached (:attr:`support`: :func:`mtcomp.models.region.outside_bounds`); all False when
+        reached (:attr:`support`: :func:`mtcomp.models.region.outside_bounds`; the ram where the
+        block's tool, ``tool_length`` (n,) mm or None for the machine's, puts it); all False when
         the model does not say where its data reached. A block with such an axis is left
         uncorrected unless the options extrapolate."""
-        return outside_bounds(self.machine, self.support, q, known)
+        return outside_bounds(self.machine, self.support, q, known, tool_length)
 
     def block_status(self, q, known, feed, dirs, datum=None, tool_length=None):
         """What the planner's rules say of each block, before any correction is planned.
@@ -116,7 +117,7 @@ class Planner:
         when any of the three says so, and so is its contour when its sd is over (:mod:`._contours`)."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         unknown = ~np.asarray(known, bool)
-        outside = self.outside_support(q, ~unknown)
+        outside = self.outside_support(q, ~unknown, tool_length)
         ctx = self._context(feed, np.asarray(dirs), q.shape[0], tool_length)
         return unknown, outside, self._sd_um(q, ctx, unknown, outside, datum)
 
@@ -223,7 +224,7 @@ class Planner:
             no_line[0] |= self._after_cycle
             self._after_cycle = bool(cycle[-1])
         unknown = ~known
-        outside = self.outside_support(end, known)
+        outside = self.outside_support(end, known, chunk.tool_length)
         sd = self._sd_um(end, ctx, unknown, outside, chunk.datum)
         pinned = self._pinned(unknown, outside, sd)
         ref = self._reference(chunk.datum, ctx)
@@ -259,7 +260,8 @@ class Planner:
         ins_all[pos_i] = True
         # an inserted node outside the region the data reached (a move from outside into it) is
         # not corrected, as a block ending there would not be
-        out_i = self.outside_support(q_i, known[rows_i])
+        out_i = self.outside_support(q_i, known[rows_i],
+                                     None if chunk.tool_length is None else np.asarray(chunk.tool_length)[rows_i])
         pin_i = pinned[rows_i] | (any_rows(out_i) & (not self.options.extrapolate))
         q_all = placed(end, q_i, pos_end, pos_i)
         firsts = np.zeros(row_sorted.size, bool)

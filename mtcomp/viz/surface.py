@@ -551,15 +551,15 @@ def planner_status(fitted, orig: ProgramPoints, sel: np.ndarray, work_offset=Non
     q = orig.q[sel] + off
     known = np.ones(q.shape, bool) if orig.known is None else np.asarray(orig.known[sel], bool)
     unknown = ~known
-    outside = planner.outside_support(q, known)
+    lengths = (np.full(len(orig), float(fitted.machine.tool_length)) if tool_length is None
+               else np.asarray(tool_length, dtype=float))[sel]
+    outside = planner.outside_support(q, known, lengths)
     # the standard error changes slowly with position: evaluated once per cell of 1/100 of the
     # part's extent (0.1 deg for rotary axes) and approach direction, at the cell's first block
     rotary = np.array([a.is_rotary for a in fitted.machine.axes])
     extent = max(float(np.max(np.ptp(q[:, ~rotary], axis=0))) if q.size and (~rotary).any() else 0.0,
                  1e-3)
     step = np.where(rotary, np.radians(0.1), extent / 100.0)
-    lengths = (np.full(len(orig), float(fitted.machine.tool_length)) if tool_length is None
-               else np.asarray(tool_length, dtype=float))[sel]
     key = np.column_stack([np.round(q / step), orig.dirs[sel], known, lengths])
     _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
     _, _, sd = planner.block_status(q[first], known[first], orig.feed[sel][first], orig.dirs[sel][first],
