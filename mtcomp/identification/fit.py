@@ -630,9 +630,12 @@ class _Problem:
 
     def _reduced_penalty(self, B) -> np.ndarray:
         """B^T S B: the penalty in the directions B (zeros without one)."""
-        if self.S is None:
-            return np.zeros((B.shape[1], B.shape[1]))
-        return B.T @ self.S @ B
+        FB = self._penalty_factor(B)
+        return np.zeros((B.shape[1], B.shape[1])) if FB is None else FB.T @ FB
+
+    def _penalty_factor(self, B):
+        """F B: the penalty's factor (:attr:`S_factor`) in the directions B, None without one."""
+        return None if self.S_factor is None else self.S_factor @ B
 
     def _gauss_newton(self, x, r, A, g, w, max_iterations, tol, B, scale):
         """Minimise ``|r|^2 + z^T S z`` (the penalty, when the problem has one) from x (with its
@@ -642,12 +645,13 @@ class _Problem:
         def reduced(A_):
             return B.T @ (A_ * np.outer(scale, scale)) @ B
 
+        FB = self._penalty_factor(B)
         SB = self._reduced_penalty(B)
         cost = float(r @ r) + self.penalty(x, scale)
         converged = False
         iterations = 0
         AB = reduced(A)
-        solve = _solver(AB, SB)
+        solve = _solver(AB, FB)
         # The model is linear in p up to products of errors (1e-5 of the readings), so the Gram
         # matrix at the start serves every step (the chord method: the gradient is exact at each
         # step, so the minimum is the exact one). It is formed anew only when a step fails to
@@ -708,7 +712,7 @@ class _Problem:
                 _, A_new, g_new = self.normal_equations(x, w)
             if A_new is not A:
                 AB = reduced(A_new)
-                solve = _solver(AB, SB)
+                solve = _solver(AB, FB)
             A, g = A_new, g_new
         if A is None:
             _, A, g = self.normal_equations(x, w)
