@@ -625,8 +625,7 @@ class _Problem:
         def reduced(A_):
             return B.T @ (A_ * np.outer(scale, scale)) @ B
 
-        FB = self._penalty_factor(B)
-        SB = self._reduced_penalty(B)
+        FB, SB = self._penalty_factor(B), self._reduced_penalty(B)
         cost = float(r @ r) + self.penalty(x, scale)
         converged = False
         iterations = 0
