@@ -248,8 +248,6 @@ def joint_abbe(c1: Candidate, c2: Candidate) -> Candidate:
 def _periodic_candidates(st, design, extra, resid, a: str) -> list[Candidate]:
     lines = [ln for ln in an.spectral_lines(st, resid, a) if ln.fap < LINE_FAP]
     out = []
-    ser = an.axis_series(st, resid, a)
-    span = float(np.ptp(ser[0])) if ser is not None else 0.0
     for ln in lines[:2]:
         def cols(period, s=st):
             w = 2 * np.pi * s.guideway(a) / period
@@ -258,6 +256,9 @@ def _periodic_candidates(st, design, extra, resid, a: str) -> list[Candidate]:
         def sse(period):
             return design.fit(np.hstack([extra, cols(period)]), cv=False).sse
 
+        # the search spans the line's width where the readings resolve it (a fine run over part
+        # of the travel: sparse targets elsewhere alias the period, and do not narrow it)
+        span = an.resolved_span(st, resid, a, ln.period)
         half = ln.period ** 2 / max(span, ln.period) * 0.75
         lo, hi = max(ln.period - half, ln.period * 0.5), ln.period + half
         res = minimize_scalar(sse, bounds=(lo, hi), method="bounded", options={"xatol": 1e-4 * ln.period})
