@@ -404,7 +404,7 @@ def sinusoid_fit(x, r, period):
 
 def _profile_columns(st, axis: str, x):
     """(n, k) the base's positioning-profile functions of linear ``axis`` at positions ``x``, or
-    None (a rotary axis or another basis): what the base fit could already take of a line."""
+    None (a rotary axis or another basis)."""
     ax = st.machine.axis(axis)
     if ax.is_rotary or ax.basis != "bspline":
         return None
@@ -486,16 +486,14 @@ def _runs(x, keep):
 
 
 def _part_sines(x, r, period, parts, prof):
-    """[(amplitude, phase, se)] of one sine per part, fitted together beside a constant and the
-    base's profile functions ``prof`` that act over the parts (None: the constant alone). The base
-    fit took what its knots could follow of a line, more where they fall in step with the period
-    than where they do not (a beat along the travel): the residual's own sine varies from part to
-    part by that alone. Beside the profile, each part's sine is the line's there."""
+    """[(amplitude, phase, se)] of one sine per part, fitted together beside a constant per part
+    and the base's profile functions ``prof`` that act over the parts. The base fit took what its
+    knots could follow of a line, more where they fall in step with the period than where they do
+    not (a beat along the travel): the residual's own sine varies from part to part by that alone.
+    Beside the profile, each part's sine is the line's there."""
     w = 2 * np.pi * x / period
-    cols = [np.ones_like(x)]
-    if prof is not None:
-        prof = prof[:, np.ptp(prof, axis=0) > 1e-9]
-        cols += list(prof.T)
+    prof = prof[:, np.ptp(prof, axis=0) > 1e-9]
+    cols = [p.astype(float) for p in parts] + list(prof.T)
     for p in parts:
         cols += [np.where(p, np.cos(w), 0.0), np.where(p, np.sin(w), 0.0)]
     X = np.column_stack(cols)
@@ -503,8 +501,8 @@ def _part_sines(x, r, period, parts, prof):
     coef, *_ = np.linalg.lstsq(X, r, rcond=None)
     res = r - X @ coef
     rank = np.linalg.matrix_rank(X)
-    # the profile's functions sum to the constant over the parts (a partition of unity): judge the
-    # sines by the rank they add, not the whole design's
+    # the profile's functions sum to the parts' constants (a partition of unity): judge the sines
+    # by the rank they add, not the whole design's
     told = rank == np.linalg.matrix_rank(X[:, :k0]) + 2 * len(parts)
     s2 = float(res @ res / max(1, x.size - rank))
     cov = s2 * np.linalg.pinv(X.T @ X)
@@ -518,31 +516,45 @@ def _part_sines(x, r, period, parts, prof):
 
 def parts_agree(st, resid, axis: str, period: float) -> tuple[bool, str]:
     """Does a line at ``period`` replicate along the axis travel (a cyclic error does, a local defect
-    does not)? Only the readings that resolve the period count (:func:`resolving_stretches`); the
-    others neither confirm nor refute it. Those are cut into thirds of equal count (halves when a
-    third is shorter than one period; a bump in the middle of a run fits a sine in each half,
-    mirrored, but not in the outer thirds). Needs the sine significant (amplitude > 5 se) in each
-    part, its amplitudes within :data:`AMPLITUDE_RATIO`, and each part's phase within 45 deg of
-    the lower part's. Returns (agree, sentence); the sentence names where the line is seen when
-    that is not everywhere the readings are."""
+    does not)? The readings are cut into thirds of equal count (halves when a third is shorter
+    than one period; a bump in the middle of a run fits a sine in each half, mirrored, but not in
+    the outer thirds). Needs the sine significant (amplitude > 5 se) in each part, its amplitudes
+    within :data:`AMPLITUDE_RATIO`, and each part's phase within 45 deg of the lower part's.
+    When that fails and some readings cannot resolve the period (:func:`resolving_stretches`),
+    those neither confirm nor refute it: the test is made again on the others alone, each part's
+    sine fitted beside the base's profile functions (:func:`_part_sines`), and the sentence says
+    where the line is seen. Returns (agree, sentence)."""
     ser = axis_series(st, resid, axis)
     if ser is None:
         return False, "too few readings"
     x, r, _ = ser
+    ok, text = _parts_test(x, r, period, None, "")
     keep = np.zeros(x.size, bool)
     for i0, i1 in resolving_stretches(x, period):
         keep[i0:i1] = True
+    if ok or keep.all():
+        return ok, text
     if not keep.any():
-        return False, (f"no stretch of the readings resolves it (neighbouring positions "
+        return False, (text + f"; no stretch of the readings resolves it (neighbouring positions "
                        f"{np.min(np.diff(x)):.3g} mm apart or more over less than one period)")
     where = _where_resolved(x, period, keep)
-    x, r = x[keep], r[keep]
+    return _parts_test(x[keep], r[keep], period, _profile_columns(st, axis, x[keep]), where)
+
+
+def _parts_test(x, r, period, prof, where: str) -> tuple[bool, str]:
+    """(agree, sentence) of the parts test of :func:`parts_agree` on positions ``x`` (residual
+    ``r``), the parts' sines fitted beside ``prof`` (None: a constant); ``where``: the clause
+    saying where the line is seen ('' for the whole travel)."""
+    of = "of it" if where else "of the travel"
     n_parts, parts = _cut_parts(x, period)
     if not n_parts:
-        return False, (where + f"a half of it is shorter than one period ({period:.4g}): a local "
-                       "defect there fits a sine as well")
+        tail = ": a local defect there fits a sine as well" if where else ""
+        return False, where + f"a half {of} is shorter than one period ({period:.4g}){tail}"
     names = {3: ("lower", "middle", "upper"), 2: ("lower", "upper")}
-    fits = _part_sines(x, r, period, parts, _profile_columns(st, axis, x))
+    if prof is None:
+        fits = [sinusoid_fit(x[p], r[p], period) for p in parts]
+    else:
+        fits = _part_sines(x, r, period, parts, prof)
     amps = [f[0] for f in fits]
     dphi = max(abs((f[1] - fits[0][1] + np.pi) % (2 * np.pi) - np.pi) for f in fits)
     # each third mixes the travel's lines in its own proportions (a fine run fills the middle one),
@@ -551,7 +563,6 @@ def parts_agree(st, resid, axis: str, period: float) -> tuple[bool, str]:
     ratio = AMPLITUDE_RATIO[n_parts]
     ok = all(f[0] > 5 * f[2] for f in fits) and max(amps) < ratio * min(amps) and dphi < np.radians(45)
     which = "third" if n_parts == 3 else "half"
-    of = "of it" if where else "of the travel"
     text = (where + "amplitude " + ", ".join(f"{a_:.3g}" for a_ in amps) + " in the "
             + ", ".join(names[n_parts]) + f" {which} {of}, phases within {np.degrees(dphi):.0f} deg of the lower one")
     return bool(ok), text
