@@ -486,14 +486,14 @@ def _runs(x, keep):
 
 
 def _part_sines(x, r, period, parts, prof):
-    """[(amplitude, phase, se)] of one sine per part, fitted together beside a constant per part
-    and the base's profile functions ``prof`` that act over the parts. The base fit took what its
-    knots could follow of a line, more where they fall in step with the period than where they do
-    not (a beat along the travel): the residual's own sine varies from part to part by that alone.
+    """[(amplitude, phase, se)] of one sine per part, fitted together beside a constant and the
+    base's profile functions ``prof`` that act over the parts. The base fit took what its knots
+    could follow of a line, more where they fall in step with the period than where they do not
+    (a beat along the travel): the residual's own sine varies from part to part by that alone.
     Beside the profile, each part's sine is the line's there."""
     w = 2 * np.pi * x / period
     prof = prof[:, np.ptp(prof, axis=0) > 1e-9]
-    cols = [p.astype(float) for p in parts] + list(prof.T)
+    cols = [np.ones_like(x)] + list(prof.T)
     for p in parts:
         cols += [np.where(p, np.cos(w), 0.0), np.where(p, np.sin(w), 0.0)]
     X = np.column_stack(cols)
@@ -501,8 +501,8 @@ def _part_sines(x, r, period, parts, prof):
     coef, *_ = np.linalg.lstsq(X, r, rcond=None)
     res = r - X @ coef
     rank = np.linalg.matrix_rank(X)
-    # the profile's functions sum to the parts' constants (a partition of unity): judge the sines
-    # by the rank they add, not the whole design's
+    # the profile's functions sum to the constant over the parts (a partition of unity): judge the
+    # sines by the rank they add, not the whole design's
     told = rank == np.linalg.matrix_rank(X[:, :k0]) + 2 * len(parts)
     s2 = float(res @ res / max(1, x.size - rank))
     cov = s2 * np.linalg.pinv(X.T @ X)
