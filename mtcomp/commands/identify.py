@@ -69,8 +69,7 @@ def run(args) -> int:
                             else "mtcomp identify"})
     save_model(out, result.fitted_model)      # before printing: a closed pipe must not lose it
     if not result.converged:
-        print(f"warning: the fit did not converge in {result.iterations} iterations; check the data",
-              file=sys.stderr)
+        print(f"warning: {_not_converged_note(result)}", file=sys.stderr)
     from ..identification.agreement import disagreement_note
     disagree = disagreement_note(result, datasets)
     if disagree:
@@ -111,3 +110,19 @@ def _weights_note(result, weights: str) -> str | None:
             "um): with --weights unit one residual variance serves every file, so the standard "
             "errors of what the quieter files fix are too large; --weights noise weights each file "
             "by its own noise")
+
+
+def _not_converged_note(result) -> str:
+    """What a fit that did not converge left unsettled, and what a user can do about it."""
+    moved = (result.unsettled or {}).get("moved", [])
+    what = ", ".join(f"{name} by {step:.3g} {unit}" + (f" ({k:.2g} standard errors)" if k == k else "")
+                     for name, step, unit, k in moved)
+    share = (result.unsettled or {}).get("share", float("nan"))
+    stands = " (a tenth of their standard errors at most: it stands)" if moved and all(
+        k < 0.1 for *_, k in moved) else ""
+    return (f"the fit did not converge in {result.iterations} iterations: its last step still moved "
+            f"{what or 'the unknowns'} and took {share:.2g} of the weighted residual sum; the model "
+            f"written is that of the last step{stands}. The model is nearly linear in its parameters, "
+            "so an effect it lacks (a backlash, a periodic error: mtcomp diagnose names them) leaves "
+            "residuals but should not keep the fit from settling: fix the parameters that keep "
+            "moving (--hold NAME)")

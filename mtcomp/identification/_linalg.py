@@ -192,27 +192,38 @@ def file_normal_equations(m, p, nuisance, ww, observed, pred, g_n, A_nn):
 PLAIN_FACTOR_RANGE = 1e6
 
 
-def _solver(AB, SB=None):
-    """A function gs_B -> (AB + SB)^-1 gs_B for the reduced normal matrix AB and penalty SB (None:
-    none): its Cholesky factor, formed once and used by every step that shares them (the
-    pseudo-inverse where round-off at the edge of the rank makes it not quite positive definite).
+def _solver(AB, FB=None):
+    """A function gs_B -> (AB + FB^T FB)^-1 gs_B for the reduced normal matrix AB and the penalty's
+    factor FB in the same directions (None: no penalty): its Cholesky factor, formed once and used
+    by every step that shares them (the pseudo-inverse where round-off at the edge of the rank makes
+    it not quite positive definite).
 
     Where the penalty outweighs the data by more than :data:`PLAIN_FACTOR_RANGE` (its largest
-    diagonal entry against theirs) the factor is that of ``U^T AB U + diag(l)`` (U, l the
-    penalty's eigenvectors and eigenvalues, those below zero by round-off taken as 0), scaled to a
-    unit diagonal (an eigen-decomposition: 10 ms at 277 unknowns, against 1 ms for the plain
-    factor). At the largest weights REML may choose (1e13 times a well-seen coefficient's) the
-    penalty's directions outweigh the data's by 1e17, and a factor of the plain sum lost the steps'
-    digits along what the data alone fix: a noise-free laser run and ball-bar circle, their pitch held
+    diagonal entry against theirs) the factor is that of ``U^T AB U + diag(l)`` (U, sqrt(l) the
+    right singular vectors and singular values of FB), scaled to a unit diagonal. At the largest
+    weights REML may choose (1e13 times a well-seen coefficient's) the penalty's directions outweigh
+    the data's by 1e17, and a factor of the plain sum lost the steps' digits along what the data
+    alone fix: a noise-free laser run and ball-bar circle, their pitch held
     (:mod:`mtcomp.identification.unmeasured`), stopped after 20 iterations at 1e-4 um^2 of
-    residual; in the penalty's eigenvectors, each scaled by its own size, 1e-11 um^2."""
+    residual; in the penalty's singular vectors, each scaled by its own size, 1e-11 um^2.
+
+    The basis comes from the factor, never from the formed square ``FB^T FB``: at a weight of e^28
+    the square's entries are 1e14 and carry 1e-2 of round-off, which its eigen-decomposition spread
+    over the directions the penalty does not see, where the data's curvature is 1e-4. The steps then
+    solved a matrix a hundred times off in those directions and Gauss-Newton crept (a 3-axis campaign
+    with a backlash the model lacks: 40 steps, cost still falling by 1e-5 a step). The singular
+    vectors of FB are exact to 1e-16 of its largest singular value, the penalty along its null
+    directions to 1e-18."""
     if AB.shape[0] == 0:
         return lambda v: v
-    if SB is None or np.abs(np.diag(SB)).max() <= PLAIN_FACTOR_RANGE * np.abs(np.diag(AB)).max():
-        return _cholesky_solver(AB if SB is None else AB + SB)
-    lam, U = np.linalg.eigh(0.5 * (SB + SB.T))
+    if FB is None or FB.shape[0] == 0:
+        return _cholesky_solver(AB)
+    if np.einsum("ij,ij->j", FB, FB).max() <= PLAIN_FACTOR_RANGE * np.abs(np.diag(AB)).max():
+        return _cholesky_solver(AB + FB.T @ FB)
+    _, sv, Vt = np.linalg.svd(FB, full_matrices=True)
+    U = Vt.T
     H = U.T @ AB @ U
-    H[np.diag_indices_from(H)] += np.clip(lam, 0.0, None)
+    H[np.diag_indices(sv.size)] += sv ** 2
     d = 1.0 / np.sqrt(np.maximum(np.diag(H), 1e-300))
     inner = _cholesky_solver(d[:, None] * H * d[None, :])
     return lambda v: U @ (d * inner(d * (U.T @ v)))

@@ -123,6 +123,31 @@ def held_variance(held, scale, s2: float, P=None, metric=None) -> tuple:
     return (D * (sd ** 2)[None, :]) @ D.T, D, sd, int(np.sum(~keep))
 
 
+def repeat_scale(problem, r, rank) -> float:
+    """The scale of ``problem``'s weighted residuals r that noise alone makes: pooled over repeat groups
+    (the same reading of the same set-up in several runs, mtcomp.measurement.outliers) when the
+    files have at least 5 degrees of freedom of repeats, so that a model's misfit (an effect it
+    lacks) is not taken for noise; else the rms residual."""
+    from ..measurement.outliers import setup_keys
+    ss, dof = 0.0, 0
+    for m, so in zip(problem.mms, problem.obs_slices):
+        keys = setup_keys(m.data)
+        if keys is None or m.n_obs == 0:
+            continue
+        names, cols = np.unique(np.asarray(m.obs_column, dtype=str), return_inverse=True)
+        group = keys[m.obs_row] * names.size + cols
+        rr = r[so]
+        counts = np.bincount(group)
+        means = np.bincount(group, weights=rr) / np.maximum(counts, 1)
+        rep = counts[group] >= 2
+        ss += float(np.sum((rr[rep] - means[group[rep]]) ** 2))
+        dof += int(np.sum(counts[counts >= 2] - 1))
+    if dof >= 5:
+        return float(np.sqrt(ss / dof))
+    dof0 = max(problem.n_obs - rank, 0)
+    return float(np.sqrt(float(r @ r) / dof0)) if dof0 > 0 else 0.0
+
+
 def hold_weak(problem, start, first, w, max_iterations, tol, B1, scale, data_rank: int) -> tuple:
     """The second pass of the fit: the weak directions of the first pass's fit ``first`` (x, r, A,
     g, B, AB, iterations, converged, null, rank) held at the least predicted error, fitted again from
@@ -133,7 +158,7 @@ def hold_weak(problem, start, first, w, max_iterations, tol, B1, scale, data_ran
     The rank counts only the directions fitted; the null space stays the data's."""
     x, r, A, g, B, AB, iterations, converged, null, rank = first
     problem.held = None
-    sigma_w = problem._repeat_scale(r, min(rank, data_rank))
+    sigma_w = repeat_scale(problem, r, min(rank, data_rank))
     H1 = AB + problem._reduced_penalty(B)
     y1 = B1.T @ ((x - start[0]) / scale)
     weak, Q = weak_directions(problem.metric, H1, B1, scale, sigma_w, y1)

@@ -63,7 +63,7 @@ from ._linalg import (NULL_WEIGHT, column_scale, _eliminate, _error_scales, _nam
 from .problem import (DEFAULT_RCOND, FitProblem, SolverOptions, data_region, fitted_axes,
                       frame_rotations, frame_rule_complement)
 from .problem import travel_metric  # noqa: F401
-from .result import FileResiduals, FitResult, error_unit
+from .result import FileResiduals, FitResult, error_unit, unsettled_parameters
 from ._weak import WEAK_SD_UM, WEAK_SIGNIFICANT, held_variance, hold_weak, weak_directions  # noqa: F401
 #: most fits with weights='noise' (each re-estimates the noise of every file and unit)
 NOISE_PASSES = 5
@@ -232,6 +232,8 @@ class _Solution:
     held: np.ndarray = None     # (n_unknowns, k) directions held weak, internal units, each 1 um rms
     #                             tool-tip error over the data's region
     held_sd: np.ndarray = None  # (k,) their standard errors, um (their variance is in cov)
+    unsettled: tuple = None     # not converged: (the last step of the unknowns, internal units, the
+    #                             share of the cost it took)
 
 
 class _Problem:
@@ -245,6 +247,8 @@ class _Problem:
     rank_point = None
     #: the weights are the readings' known noise: s2 is at least 1 (FitProblem.known_noise)
     known_noise = False
+    #: (step of the unknowns, share of the cost) of Gauss-Newton's last step, set by each step
+    unsettled = None
 
     def __init__(self, model, mms, mask, p0):
         self.model = model
@@ -387,30 +391,6 @@ class _Problem:
                 lev[blk] = np.einsum("ij,ij->j", M, M)
         return out
 
-    def _repeat_scale(self, r, rank) -> float:
-        """The scale of the weighted residuals r that noise alone makes: pooled over repeat groups
-        (the same reading of the same set-up in several runs, mtcomp.measurement.outliers) when the
-        files have at least 5 degrees of freedom of repeats, so that a model's misfit (an effect it
-        lacks) is not taken for noise; else the rms residual."""
-        from ..measurement.outliers import setup_keys
-        ss, dof = 0.0, 0
-        for m, so in zip(self.mms, self.obs_slices):
-            keys = setup_keys(m.data)
-            if keys is None or m.n_obs == 0:
-                continue
-            names, cols = np.unique(np.asarray(m.obs_column, dtype=str), return_inverse=True)
-            group = keys[m.obs_row] * names.size + cols
-            rr = r[so]
-            counts = np.bincount(group)
-            means = np.bincount(group, weights=rr) / np.maximum(counts, 1)
-            rep = counts[group] >= 2
-            ss += float(np.sum((rr[rep] - means[group[rep]]) ** 2))
-            dof += int(np.sum(counts[counts >= 2] - 1))
-        if dof >= 5:
-            return float(np.sqrt(ss / dof))
-        dof0 = max(self.n_obs - rank, 0)
-        return float(np.sqrt(float(r @ r) / dof0)) if dof0 > 0 else 0.0
-
     def _damped_step(self, x, cost, B, AB, scale, grad, w):
         """Levenberg-Marquardt steps ``(AB + mu I)^-1`` with growing mu from the smallest that helps:
         (x, r, cost) of the first that lowers the objective (penalty included), or (None, None, None)."""
@@ -536,7 +516,7 @@ class _Problem:
             lam = {k: float(np.exp(v)) for k, v in self.smoothing_rho.items()}
             self.smoothing = Smoothing(lam, dict(self.smoothing_rho), edf)
         return _Solution(x, r, cov, null, scale, rel, rank, cond, iterations, converged, lev, edf, B,
-                         held, held_sd)
+                         held, held_sd, None if converged else self.unsettled)
 
     def _penalised_fit(self, start, w, max_iterations, tol, B1, scale, penalties: dict) -> tuple:
         """The first pass of :meth:`solve`: Gauss-Newton from ``start`` (x, r, A, g) along B1, with
@@ -631,9 +611,12 @@ class _Problem:
 
     def _reduced_penalty(self, B) -> np.ndarray:
         """B^T S B: the penalty in the directions B (zeros without one)."""
-        if self.S is None:
-            return np.zeros((B.shape[1], B.shape[1]))
-        return B.T @ self.S @ B
+        FB = self._penalty_factor(B)
+        return np.zeros((B.shape[1], B.shape[1])) if FB is None else FB.T @ FB
+
+    def _penalty_factor(self, B):
+        """F B: the penalty's factor (:attr:`S_factor`) in the directions B, None without one."""
+        return None if self.S_factor is None else self.S_factor @ B
 
     def _gauss_newton(self, x, r, A, g, w, max_iterations, tol, B, scale):
         """Minimise ``|r|^2 + z^T S z`` (the penalty, when the problem has one) from x (with its
@@ -643,12 +626,12 @@ class _Problem:
         def reduced(A_):
             return B.T @ (A_ * np.outer(scale, scale)) @ B
 
-        SB = self._reduced_penalty(B)
+        FB, SB = self._penalty_factor(B), self._reduced_penalty(B)
         cost = float(r @ r) + self.penalty(x, scale)
         converged = False
         iterations = 0
         AB = reduced(A)
-        solve = _solver(AB, SB)
+        solve = _solver(AB, FB)
         # The model is linear in p up to products of errors (1e-5 of the readings), so the Gram
         # matrix at the start serves every step (the chord method: the gradient is exact at each
         # step, so the minimum is the exact one). It is formed anew only when a step fails to
@@ -700,6 +683,7 @@ class _Problem:
                 A_new = None
                 refresh = True
                 small = False
+            self.unsettled = (x_new - x, (cost - cost_new) / max(cost, 1e-300))
             x, r, cost = x_new, r_new, cost_new
             if small or cost == 0.0:
                 converged = True
@@ -709,7 +693,7 @@ class _Problem:
                 _, A_new, g_new = self.normal_equations(x, w)
             if A_new is not A:
                 AB = reduced(A_new)
-                solve = _solver(AB, SB)
+                solve = _solver(AB, FB)
             A, g = A_new, g_new
         if A is None:
             _, A, g = self.normal_equations(x, w)
@@ -758,7 +742,7 @@ class _Problem:
             sigma=float(np.sqrt(cost / dof)) if dof else float("nan"), iterations=sol.iterations,
             converged=sol.converged, cost=cost, seconds=seconds, weighting=label, info=dict(info or {}),
             directions=sol.scale[:, None] * sol.B, residual=sol.r.copy(), held_sd_um=sol.held_sd,
-            held_assumed=self.held_assumed)
+            held_assumed=self.held_assumed, unsettled=unsettled_parameters(sol, se, unknown_specs))
         if self.smoothing is not None:
             res.smoothing = self.smoothing
         params = ParameterSet(model.param_specs, values, std)

@@ -246,7 +246,13 @@ def reml_criterion(rho: np.ndarray, AB: np.ndarray, gB: np.ndarray, rss0: float,
         y = V @ ((V.T @ b) / w)
         Hinv = (V / w) @ V.T if gradient else None
     pen_k = np.array([float(y @ Sk @ y + 2.0 * y @ bk + ck) for Sk, bk, ck in zip(SB, bz, cz)])
-    total = max(rss0 - 2.0 * float(gB @ y) + float(y @ AB @ y) + float(lam @ pen_k), 1e-300)
+    data = rss0 - 2.0 * float(gB @ y) + float(y @ AB @ y)
+    if data < 0.0:
+        # a residual sum of squares below zero: y went so far along what the data leave nearly open
+        # that the linearisation's digits are gone (REML at a fit the penalty held at e^30 took the
+        # weights e^-24 for its least); no weight there is one the data choose
+        return np.inf, (np.zeros(len(SB)) if gradient else None), H
+    total = max(data + float(lam @ pen_k), 1e-300)
     logdet_s, dlogdet_s = span.logdet(rho, gradient)
     value = 0.5 * (n_obs - mp) * np.log(total) + 0.5 * logdet - 0.5 * logdet_s
     if not gradient:

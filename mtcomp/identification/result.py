@@ -169,6 +169,10 @@ class FitResult:
     #: how many more held combinations only split readings between a component a laser file names
     #: and one none names: held at zero by the assumption that those are zero, with no variance
     held_assumed: int = 0
+    #: a fit that did not converge: {"moved": [(name, step in its file unit, unit, step in standard
+    #: errors)] of the unknowns its last step moved most, "share": the share of the weighted residual
+    #: sum that step took}; None when it converged
+    unsettled: dict = None
 
     def _held_lines(self) -> list[str]:
         """The summary's sentences on the combinations held because the data fix them weakly."""
@@ -387,3 +391,19 @@ class FitResult:
         if corr:
             lines.append("strongest correlations: " + ", ".join(f"{a}/{b} {r:+.3f}" for a, b, r in corr))
         return lines
+
+
+def unsettled_parameters(sol, se, specs, n: int = 3) -> dict | None:
+    """:attr:`FitResult.unsettled` of a fit's solution ``sol`` (its ``unsettled``: the last step of
+    the unknowns, internal units, and the share of the cost it took; None when it converged), with
+    the unknowns' standard errors ``se`` (internal units, NaN where undetermined) and ``specs``: the
+    ``n`` unknowns that step moved most against their standard errors (by size where none has one)."""
+    if sol.unsettled is None:
+        return None
+    dx, share = sol.unsettled
+    ok = np.isfinite(se) & (se > 0)
+    size = np.where(ok, np.abs(dx) / np.where(ok, se, 1.0), 0.0) if ok.any() else np.abs(dx)
+    order = [int(i) for i in np.argsort(-size)[:n] if size[i] > 0]
+    moved = [(specs[i].name, float(dx[i] * specs[i].to_file), specs[i].unit,
+              float(abs(dx[i]) / se[i]) if ok[i] else float("nan")) for i in order]
+    return {"moved": moved, "share": float(share)}
