@@ -402,7 +402,11 @@ def load_machine(name_or_path: str | os.PathLike) -> Machine:
     try:
         data = tomllib.loads(p.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"not valid TOML: {exc}", s) from None
+        hint = ""
+        if p.read_text(encoding="utf-8", errors="replace").lstrip().startswith("{"):
+            hint = ("; it looks like a JSON file (a model file?): the machine file (TOML, or a "
+                    "built-in name) comes first")
+        raise InputError(f"not valid TOML: {exc}{hint}", s) from None
     except UnicodeDecodeError:
         raise InputError("not a text file", s) from None
     return machine_from_dict(data, path=s)

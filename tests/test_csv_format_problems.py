@@ -73,3 +73,22 @@ def test_cli_cut_off_file_one_line_exit_2(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith(f"mtcomp iso230-2: {p}: row 4: ") and "cut off" in err
     assert not out.exists()
+
+
+def test_a_machine_or_model_file_given_as_measurements_is_named(tmp_path):
+    """Read as CSV a machine file's first line passes for a header, and the message blamed a
+    decimal comma in a row; a model file's JSON the same."""
+    toml = _write(tmp_path, 'name = "vf2"\ntopology = "XFYZ"\n[axes.X]\ntravel_mm = [0, 500]\n',
+                  "machine.toml")
+    _refused(toml, r"a TOML file \(a machine file\?\), not a CSV measurement file")
+    model = _write(tmp_path, '{\n  "format": "mtcomp-model",\n  "machine": {}\n}\n', "MODEL.json")
+    _refused(model, r"a JSON file \(a model file\?\), not a CSV measurement file")
+
+
+def test_a_model_file_given_as_the_machine_is_named(tmp_path, capsys):
+    model = _write(tmp_path, '{\n  "format": "mtcomp-model"\n}\n', "MODEL.json")
+    laser = _write(tmp_path, "\n".join([HEADER] + ROWS) + "\n")
+    assert main(["identify", str(model), str(laser), "-o", str(tmp_path / "M.json")]) == 2
+    err = capsys.readouterr().err
+    assert "not valid TOML" in err and "it looks like a JSON file (a model file?)" in err
+    assert not (tmp_path / "M.json").exists()

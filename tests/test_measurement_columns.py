@@ -112,3 +112,25 @@ def test_a_whole_file_in_inches_is_noted(tmp_path, capsys):
             "were the file's values written in inches or mm?") in notes[0]
     assert _notes(write("fine.csv", 0.06), capsys) == []
     assert _notes(write("few.csv", 0.0019, n=4), capsys) == []
+
+
+@pytest.mark.parametrize("header, column, meant", [
+    ("x_mm,y_mm,z_mm,c_rad,dx_um", "c_rad", "c_deg"),
+    ("x_in,y_mm,z_mm,b_deg,dx_um", "x_in", "x_mm"),
+    ("x_mm,y_mm,z_mm,b_mrad,dx_um", "b_mrad", "b_deg")])
+def test_an_axis_column_in_another_unit_is_refused(tmp_path, header, column, meant):
+    """Read as a column mtcomp does not read, the axis would be taken at 0 in every row (a C
+    column named c_rad in a three-sphere ball-bar file was, and the fit went ahead)."""
+    p = tmp_path / "grid.csv"
+    p.write_text(f"{header}\n100,0,0,0.5,1.5\n0,100,0,1.0,2.5\n")
+    with pytest.raises(InputError, match=f"column {column}: mtcomp reads the .* as {meant}") as info:
+        read_measurements(p)
+    assert info.value.row == 0 and "\n" not in info.value.one_line()
+
+
+def test_an_axis_column_in_mtcomps_unit_beside_another_is_only_noted(tmp_path, capsys):
+    """c_rad beside c_deg is a copy in other units (kept, noted), not the axis under a wrong name."""
+    p = tmp_path / "bar.csv"
+    p.write_text("x_mm,y_mm,z_mm,c_deg,c_rad,dx_um\n100,0,0,90,1.5708,1.5\n0,100,0,180,3.1416,2.5\n")
+    data = read_measurements(p)
+    assert data.kind == "points" and "c_rad" in data.header

@@ -83,6 +83,7 @@ def read_csv_table(path: str | os.PathLike) -> CsvTable:
         raise InputError("not a UTF-8 text file (expected a CSV file)", spath) from None
     except OSError as exc:
         raise InputError(f"cannot read: {exc.strerror}", spath) from None
+    _check_not_toml_or_json(text, spath)
     reader = csv.reader(io.StringIO(text))
     header: list[str] | None = None
     rows: list[tuple[str, ...]] = []
@@ -110,6 +111,24 @@ def read_csv_table(path: str | os.PathLike) -> CsvTable:
     if not text.endswith(("\n", "\r")):
         _check_cut_mid_row(header, rows, spath, row_numbers[-1])
     return CsvTable(spath, tuple(header), tuple(rows), np.asarray(row_numbers, dtype=np.int64))
+
+
+#: the first line of a TOML file (a machine file: ``name = "vf2"``, ``[axes.X]``, a comment)
+_TOML_START = re.compile(r'^\s*(\[[A-Za-z_][\w.]*\]|[A-Za-z_]\w*\s*=\s*\S)')
+
+
+def _check_not_toml_or_json(text: str, path: str) -> None:
+    """InputError when the file is a machine file (TOML) or a model file (JSON) given where a CSV
+    file belongs: read as CSV its first line would pass for a header and the message would blame
+    a row's cells."""
+    first = next((ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")),
+                 "")
+    if first.lstrip().startswith("{"):
+        raise InputError("a JSON file (a model file?), not a CSV measurement file: the machine file "
+                         "comes first, then the measurement files", path)
+    if _TOML_START.match(first) and "," not in first:
+        raise InputError("a TOML file (a machine file?), not a CSV measurement file: the machine "
+                         "file comes first, then the measurement files", path)
 
 
 def _ragged(cells, n_columns: int, last: bool, path: str, row: int) -> None:

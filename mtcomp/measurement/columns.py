@@ -9,6 +9,8 @@ stylus lengths replaced by the machine's tool length in every row). So:
 * :func:`check_columns` refuses a column that names the tool length another way (``tool_length_mm``,
   ``stylus_mm``, ``probe_length_mm`` ...: "did you mean tool_mm") or lies within a letter or two of
   a column the file's kind reads and lacks (``difflib`` ratio at least :data:`MISSPELT_RATIO`).
+* :func:`check_axis_units` refuses an axis position in another unit (``c_rad``, ``x_in``) with no
+  ``c_deg`` or ``x_mm`` beside it.
 * :func:`file_notes` says, per file: the columns mtcomp does not read; that a points file without
   ``tool_mm`` is taken at the machine's tool length in every row; and when every deviation of a
   points or cmm file is smaller than a machine's errors and an instrument's noise over the span of
@@ -53,6 +55,8 @@ _PATTERNS = (re.compile(r"^temp_.+_c$"), re.compile(r"^pred_.+$"))
 _THERMAL = (re.compile(r"^disp_.+_um$"), re.compile(r"^axis_.+$"))
 #: deviation columns whose values the unit check reads
 _DEVIATIONS = ("dx_um", "dy_um", "dz_um", "dn_um")
+#: an axis position column in another unit than mtcomp's (``c_rad``, ``x_in``, ``z_m``)
+_AXIS_OTHER_UNIT = re.compile(r"^([xyzabc])_(rad|mrad|urad|grad|gon|rev|in|inch|inches|m|cm)$")
 
 
 def _known(kind: str, name: str) -> bool:
@@ -85,6 +89,25 @@ def check_columns(table, kind: str) -> None:
                     "tool_length_mm)" if meant == "tool_mm" else "")
             raise InputError(f"column {name}: did you mean {meant}{what}? mtcomp does not read "
                              f"{name}; rename the column", table.path, row=0)
+
+
+def check_axis_units(table) -> None:
+    """InputError (row 0, the header) for an axis position column in another unit, ``c_rad`` or
+    ``x_in`` with no ``c_deg`` or ``x_mm`` beside it: read as a column mtcomp does not read, the
+    axis would be taken at 0 in every row (or the file refused for a column it lacks)."""
+    for name in table.names:
+        m = _AXIS_OTHER_UNIT.match(name)
+        if m is None:
+            continue
+        letter = m.group(1)
+        column = f"{letter}_{'deg' if letter in 'abc' else 'mm'}"
+        if column in table.names:
+            continue
+        unit = "degrees" if letter in "abc" else "mm"
+        raise InputError(f"column {name}: mtcomp reads the {letter.upper()} axis's position as "
+                         f"{column}, in {unit}, and does not read {name}; convert the values and "
+                         "rename the column",
+                         table.path, row=0)
 
 
 def file_notes(machine, datasets) -> list[str]:

@@ -24,7 +24,7 @@ import numpy as np
 from ..errors import InputError
 from ..machine import AXIS_ORDER, LINEAR, ROTARY, Machine
 from ..io.csvtable import CsvTable, parse_ints, parse_signs, read_csv_table
-from .columns import check_columns
+from .columns import check_axis_units, check_columns
 # the units of the files, and the writing of a file back (also read from here)
 from .units import DEG, UM, URAD, file_unit_scale, format_cell, write_csv_with_columns  # noqa: F401
 
@@ -441,6 +441,7 @@ def read_measurements(path: str | os.PathLike, kind: str | None = None) -> Measu
     :class:`ThermalData` or :class:`VelocityData`. Raises InputError for a malformed file.
     """
     table = read_csv_table(path)
+    check_axis_units(table)
     if kind is None:
         kind = detect_kind(table)
     elif kind not in KINDS:
