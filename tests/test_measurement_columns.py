@@ -134,3 +134,21 @@ def test_an_axis_column_in_mtcomps_unit_beside_another_is_only_noted(tmp_path, c
     p.write_text("x_mm,y_mm,z_mm,c_deg,c_rad,dx_um\n100,0,0,90,1.5708,1.5\n0,100,0,180,3.1416,2.5\n")
     data = read_measurements(p)
     assert data.kind == "points" and "c_rad" in data.header
+
+
+def test_rotary_data_beyond_a_travel_of_less_than_a_turn_is_noted(tmp_path, capsys):
+    """A tilting axis's travel typed in radians under travel_deg (+-1.745 for +-100 deg): ball-bar
+    rows at B +-60 deg are noted, with the likely cause; a C of a whole turn is never noted."""
+    machine = tmp_path / "m.toml"
+    machine.write_text('name = "t"\ntopology = "CBFXYZ"\n[axes.X]\ntravel_mm = [-300, 300]\n'
+                       '[axes.Y]\ntravel_mm = [-300, 300]\n[axes.Z]\ntravel_mm = [-300, 300]\n'
+                       '[axes.B]\ntravel_deg = [-1.745, 1.745]\naxis_point_mm = [0, 0, 0]\n'
+                       '[axes.C]\ntravel_deg = [0, 360]\naxis_point_mm = [0, 0, 0]\n')
+    p = tmp_path / "grid.csv"
+    p.write_text("x_mm,y_mm,z_mm,b_deg,c_deg,dx_um\n0,0,0,-60,0,1\n0,0,0,1.5,350,2\n"
+                 "0,0,0,60,720,1\n")
+    note_outside_travel("identify", load_machine(machine), [read_measurements(p)])
+    err = capsys.readouterr().err
+    assert "2 row(s) take B to -60..60 deg, outside the machine's travel -1.745..1.745 deg " \
+           "(a travel_deg written in radians?)" in err
+    assert "take C" not in err

@@ -12,7 +12,6 @@ def note_outside_travel(command: str, machine, datasets) -> None:
     that look like mm under *_um columns: mtcomp.measurement.columns), and of velocity files read in
     the bed's sense."""
     from ..measurement.columns import file_notes
-    from ..measurement.readings import outside_travel
     for note in outside_travel(machine, datasets) + file_notes(machine, datasets):
         print(f"mtcomp {command}: note: {note}", file=sys.stderr)
     for d in datasets:
@@ -20,6 +19,35 @@ def note_outside_travel(command: str, machine, datasets) -> None:
             print(f"mtcomp {command}: note: {d.path}: every velocity along the moving axis is minus the "
                   "feed signed by dir_<axis>: read as the table's own motion (the bed's sense) and "
                   "taken in the axis's sense (negated)", file=sys.stderr)
+
+
+def outside_travel(machine, datasets) -> list[str]:
+    """One sentence per (file, axis) whose rows take the axis beyond the machine's travel (1 um, 1e-6
+    deg): data of another machine, or a wrong travel (not an error: a travel may be nominal). A rotary
+    axis only when its travel is less than a turn, each angle taken in the turn from its lower end."""
+    from ..measurement.readings import positions_by_file
+    notes = []
+    for data, q in positions_by_file(machine, datasets):
+        # positions the file does not give (a laser file's static axes without a column) are not its
+        given = (data.positions_given(machine) if hasattr(data, "positions_given")
+                 else np.ones(q.shape, dtype=bool))
+        for j, ax in enumerate(machine.axes):      # rotary: radians inside, degrees told
+            scale = np.degrees(1.0) if ax.is_rotary else 1.0
+            lo, hi = (t * scale for t in ax.travel)
+            v = q[:, j] * scale
+            if ax.is_rotary and hi - lo >= 360.0:
+                continue
+            v = lo + np.mod(v - lo, 360.0) if ax.is_rotary else v
+            tol, unit = (1e-6, "deg") if ax.is_rotary else (1e-3, "mm")
+            out = np.flatnonzero(given[:, j] & ((v < lo - tol) | (v > hi + tol)))
+            if out.size:
+                v = q[out, j] * scale
+                why = ("a travel_deg written in radians?" if ax.is_rotary and max(abs(lo), abs(hi))
+                       <= 6.3 else "data of another machine, or a machine file whose travel is wrong?")
+                notes.append(f"{data.path}: {out.size} row(s) take {ax.name} to {v.min():.6g}.."
+                             f"{v.max():.6g} {unit}, outside the machine's travel {lo:.6g}..{hi:.6g} "
+                             f"{unit} ({why})")
+    return notes
 
 
 def add_offset_arguments(parser, offsets_help: str, work_offset_help: str) -> None:

@@ -10,8 +10,7 @@ Observations are the measured scalars of a file: rows x measured columns, blank 
 Each carries the data row it came from (``obs_row``, 0-based), its column (``obs_column``) and the
 factor from internal units to its file unit (``obs_unit_scale``: 1e3 for um, 1e6 for urad, 1 for mm).
 
-Kinds implemented here (docs/measurements.md gives the file formats, docs/identification.md the
-equations):
+Kinds implemented here (formats: docs/measurements.md; equations: docs/identification.md):
 
 * ``points``: tool-tip deviation d = tip(q, p, c) - tip0(q) in the workpiece frame;
   ``dx, dy, dz`` are its components, ``dn = n . d``. Per-row tool length (``tool_mm``).
@@ -28,8 +27,8 @@ equations):
   (workpiece frame) and b the tool-ball centre relative to the nominal tool tip; nuisance: one length
   offset per file (calibration of the bar).
 
-Other kinds (cmm, thermal, velocity) register here from :mod:`.readings_extra`, which the package
-imports with this module (so every kind is registered whichever module is imported first).
+Other kinds (cmm, thermal, velocity) register here from :mod:`.readings_extra`, imported with this
+module by the package (every kind registered whichever module is imported first).
 """
 from __future__ import annotations
 
@@ -83,13 +82,13 @@ def data_positions(machine, datasets) -> dict[str, np.ndarray]:
 
 def _positions_by_axis(machine, datasets, guideway: bool) -> dict[str, np.ndarray]:
     out: dict[str, list] = {a: [] for a in machine.axis_names}
-    for _, q in _positions_by_file(machine, datasets, guideway):
+    for _, q in positions_by_file(machine, datasets, guideway):
         for j, a in enumerate(machine.axis_names):
             out[a].append(q[:, j])
     return {a: np.concatenate(v) for a, v in out.items() if v}
 
 
-def _positions_by_file(machine, datasets, guideway: bool = False):
+def positions_by_file(machine, datasets, guideway: bool = False):
     """(file's data, (n, n_axes) axis positions) of each file with axis positions and rows: the
     commanded ones, or with ``guideway`` the ram's at its machine position (:func:`data_positions`)."""
     for d in datasets:
@@ -100,29 +99,6 @@ def _positions_by_file(machine, datasets, guideway: bool = False):
             if guideway and isinstance(tool, np.ndarray) and tool.shape == (len(q),):
                 q = guideway_positions(machine, q, tool)
             yield data, q
-
-
-def outside_travel(machine, datasets) -> list[str]:
-    """One sentence per (file, linear axis) whose rows take the axis beyond the machine's travel (by
-    more than 1 um): the data may be of another machine, or the machine file's travel wrong. Not an
-    error (a machine file may give a nominal travel), but the user is told. Rotary angles are not
-    checked (an angle and that angle plus a turn are one position)."""
-    notes = []
-    for data, q in _positions_by_file(machine, datasets):
-        # positions the file does not give (a laser file's static axes without a column) are not its
-        given = (data.positions_given(machine) if hasattr(data, "positions_given")
-                 else np.ones(q.shape, dtype=bool))
-        for j, ax in enumerate(machine.axes):
-            if ax.is_rotary:
-                continue
-            lo, hi = ax.travel
-            out = np.flatnonzero(given[:, j] & ((q[:, j] < lo - 1e-3) | (q[:, j] > hi + 1e-3)))
-            if out.size:
-                v = q[out, j]
-                notes.append(f"{data.path}: {out.size} row(s) take {ax.name} to {v.min():.6g}..{v.max():.6g} mm, "
-                             f"outside the machine's travel {lo:.6g}..{hi:.6g} mm (data of another machine, "
-                             "or a machine file whose travel is wrong?)")
-    return notes
 
 
 def single_axis_lines(machine, datasets) -> dict[str, list]:
