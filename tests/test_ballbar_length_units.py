@@ -37,3 +37,18 @@ def test_lengths_within_a_millimetre_are_taken_and_predict_takes_placeholders(tm
     _file(tmp_path / "blank.csv", ["0", "", "0", ""])
     assert main(["predict", "xfyz", str(tmp_path / "m.json"), str(tmp_path / "blank.csv"), "-o",
                  str(tmp_path / "p.csv")]) == 0
+
+
+def test_a_rotary_machine_names_its_axis_points_among_the_causes(tmp_path, capsys):
+    """On a machine with rotary axes the balls' distance also rests on the axis points: a B axis
+    point typed in metres made the bar's true length look wrong, and the message blamed only the
+    length's unit. XFYZ has none to name (the test above: no 'axis_point_mm')."""
+    _file(tmp_path / "bb.csv", ["150.0021", "150.0013", "2.9", "150.0008"])
+    assert main(["identify", "cafxyz", str(tmp_path / "bb.csv"), "-o", str(tmp_path / "m.json")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "the row's ball positions or the machine file's axis_point_mm (in mm) " \
+        "are off" in err[0]
+    _file(tmp_path / "bb.csv", ["150.0021", "150.0013", "2.9", "150.0008"])
+    assert main(["identify", "xfyz", str(tmp_path / "bb.csv"), "-o", str(tmp_path / "m.json")]) == 2
+    err = capsys.readouterr().err
+    assert "the row's ball positions are off" in err and "axis_point_mm" not in err

@@ -743,10 +743,13 @@ class BallbarModel(MeasurementModel):
             far = np.flatnonzero(np.abs(length - nominal) > BAR_LENGTH_TOLERANCE_MM)
         if far.size:
             i = int(far[0])
+            also = (" or the machine file's axis_point_mm (in mm)"
+                    if any(a.is_rotary for a in self.model.machine.axes) else "")
             raise InputError(f"length_mm {length[i]:g} is {abs(length[i] - nominal[i]):.4g} mm from "
                              f"the distance of the balls there ({nominal[i]:.4f} mm): length_mm is "
                              "the bar's length in mm (its nominal length plus the reading, not the "
-                             "deviation in um)", self.data.path, row=int(self.data.row[i]))
+                             f"deviation in um); if it is, the row's ball positions{also} are off",
+                             self.data.path, row=int(self.data.row[i]))
         self._lengths_checked = True
 
     def _offset(self, nuisance) -> float:
