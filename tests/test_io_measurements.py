@@ -357,3 +357,18 @@ def test_binary_and_non_utf8_files(tmp_path):
     p.write_bytes(b"x_mm,y_mm,z_mm,dx_um\n1,2,3,\x004\n")
     with pytest.raises(InputError, match=r"bin\.csv: row 1: column dx_um: .* is not a number"):
         read_measurements(p)
+
+
+def test_identify_says_a_velocity_file_meets_a_model_without_a_rotation_centre(tmp_path, capsys):
+    """The command's base model has no instantaneous rotation centre: a new user's velocity file
+    put the centre's motion with feed into the pitch errors, and only a warning about files of
+    different machines followed. The note names the cause and diagnose."""
+    from mtcomp.cli import main
+    rows = [f"X,{feed},{x},0,0,{feed},0,100,50,{feed},0" for feed in (200, 400) for x in (0, 50, 100)]
+    text = ("axis,feed_mm_min,x_mm,m_x_mm,m_y_mm,m_vx_mm_min,m_vy_mm_min,n_x_mm,n_y_mm,n_vx_mm_min,"
+            "n_vy_mm_min\n" + "\n".join(rows) + "\n")
+    src = _write(tmp_path, text)
+    assert main(["identify", "xfyz", str(src), "-o", str(tmp_path / "m.json")]) == 0
+    err = capsys.readouterr().err
+    assert f"note: {src}: identify fits the machine's base model, which has no instantaneous " \
+           "rotation centre" in err and "mtcomp diagnose" in err

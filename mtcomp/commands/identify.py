@@ -63,6 +63,13 @@ def run(args) -> int:
     attach_cmm_cuts(args, machine, datasets)
     note_outside_travel("identify", machine, datasets)
     note_cmm_gaps("identify", machine, datasets)
+    for data in datasets:
+        if data.kind == "velocity":
+            print(f"mtcomp identify: note: {data.path}: identify fits the machine's base model, which "
+                  "has no instantaneous rotation centre: the yaw's centre and its motion with "
+                  "position and feed, which these velocities measure, go into the other errors; "
+                  "mtcomp diagnose with the same files tests the centre's terms and adds those the "
+                  "data support (docs/diagnose.md)", file=sys.stderr)
     result = identify(machine, datasets, hold=hold, weights=args.weights, rcond=rcond,
                       known_setup=list(args.known_setup),
                       info={"command": "mtcomp identify " + " ".join(sys.argv[2:]) if len(sys.argv) > 2
