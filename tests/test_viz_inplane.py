@@ -74,6 +74,24 @@ def test_the_surface_map_of_the_square_shows_nothing_and_auto_chooses_in_plane(t
         0.4, rel=0, abs=1e-9)
 
 
+def test_a_contour_in_a_plane_the_tool_is_tilted_to_is_warned_of(tmp_path, exx):
+    """The square cut in the plane z = x / 2 (a lead angle of 26.6 deg between the tool and the
+    plane's normal): the surface map fills its inside with one face whose normal is the plane's,
+    so it shows the X error only along that normal, (-1, 0, 2) / sqrt(5) times 0.4 um at the
+    walls x = +-10, and says so; the square in z = 0 gets the tool-axis warning instead."""
+    machine, fitted = exx
+    tilted = SQUARE.replace("G1 Z-1 F300", "G1 Z-6 F300").replace("G1 X10 F600", "G1 X10 Z4 F600")
+    tilted = tilted.replace("\nX-10\nY-10", "\nX-10 Z-6\nY-10")
+    (tmp_path / "tilted.nc").write_text(tilted)
+    smap = program_error_map(machine, fitted, tmp_path / "tilted.nc", normal="surface")
+    assert any("the normals are all one (a flat face) and the tool is tilted to them" in n
+               for n in smap.notes)
+    np.testing.assert_allclose(np.abs(smap.dn_before_um).max(), 0.4 / np.sqrt(5), rtol=1e-6)
+    flat = program_error_map(machine, fitted, tmp_path / "square.nc", normal="surface")
+    assert not any("tilted to them" in n for n in flat.notes)
+    assert any("the normals all lie along the tool axis" in n for n in flat.notes)
+
+
 def test_planar_levels(tmp_path):
     machine = load_machine("xfyz")
 

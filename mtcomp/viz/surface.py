@@ -334,6 +334,11 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
         notes.append("the normals all lie along the tool axis (a flat or 2-D program): the map "
                      "shows the deviation along the tool axis only, not the error across it "
                      "(--normal in-plane maps contours)")
+    elif kind == "surface" and length == 0 and g.normals.size and _one_plane(g.normals):
+        notes.append("the normals are all one (a flat face) and the tool is tilted to them: if the "
+                     "program cuts a contour in that plane (at a lead angle) rather than the face, "
+                     "the map fills the contour's inside and shows the deviation along the face's "
+                     "normal only, not the contour's position (--normal in-plane maps its walls)")
     smap = SurfaceMap(g.draw, tips[inverse], g.normals, g.triangles, orig.line[g.index].copy(),
                       dev_before[inverse], None if dev_after is None else dev_after[inverse],
                       orig.path, None if comp is None else comp.path, g.offset, kind,
@@ -520,6 +525,11 @@ def _along_tool_axis(machine: Machine, orig: ProgramPoints, g, info: dict) -> bo
     tip_axes = forward(machine, orig.q[g.index])[1]
     along = np.abs(np.einsum("ij,ij->i", g.normals, tip_axes)) >= np.cos(np.radians(1.0))
     return bool(along.all() or info.get("planar_levels"))
+
+def _one_plane(normals: np.ndarray) -> bool:
+    """Whether a surface map's normals all lie along one direction (to 1 deg): a flat face."""
+    return bool(np.all(np.abs(normals @ normals[0]) >= np.cos(np.radians(1.0))))
+
 
 def report_status(report, n: int) -> np.ndarray:
     """(n,) int8 :data:`STATUS_REASONS` of the program's segment ends from the compensation report's
