@@ -125,3 +125,25 @@ def test_seed_errors_are_our_iso_error_motions_with_their_signs():
         truth = a * np.cos(th) - 0.5 * a * np.sin(th)
         tol = 1e-9 if comp in ("EAC", "EBC") else 1e-6     # rad, mm (second-order terms)
         np.testing.assert_allclose(e[comp], truth, rtol=0, atol=tol, err_msg=comp)
+
+
+def test_a_table_moved_between_bar_directions_is_named(tmp_path):
+    """On a machine whose X carries the table (CBXFYZ) the bar directions were set by moving X: in
+    the bed frame each direction has its own table-ball position, one direction each. The message
+    says why, where it said only '1 bar directions, not 3'."""
+    from mtcomp import InputError
+    from mtcomp.measurement.files import read_measurements
+    machine = tmp_path / "m.toml"
+    machine.write_text('name = "lab"\ntopology = "CBXFYZ"\ntool_length_mm = 100.0\n'
+                       '[axes.X]\ntravel_mm = [-300, 300]\n[axes.Y]\ntravel_mm = [-250, 250]\n'
+                       '[axes.Z]\ntravel_mm = [-250, 250]\n[axes.B]\ntravel_deg = [-100, 100]\n'
+                       'axis_point_mm = [0, 0, -100]\n[axes.C]\ntravel_deg = [-360, 360]\n'
+                       'axis_point_mm = [0, 0, 0]\n')
+    rows = [f"{x},{y},100,0,{c},0,0,100,0,0,0,100.001" for c in (0, 90)
+            for x, y in ((100, 0), (0, 100), (-100, 0))]
+    path = tmp_path / "ts.csv"
+    path.write_text("x_mm,y_mm,z_mm,b_deg,c_deg,table_ball_x_mm,table_ball_y_mm,table_ball_z_mm,"
+                    "tool_ball_x_mm,tool_ball_y_mm,tool_ball_z_mm,length_mm\n" + "\n".join(rows) + "\n")
+    with pytest.raises(InputError, match=r"has 1 bar directions, not 3; the table ball stands "
+                                         r"elsewhere on the bed in the other rows of this angle"):
+        sm.three_sphere_points(read_measurements(path), load_machine(machine))

@@ -152,8 +152,14 @@ def three_sphere_points(data: BallbarData, machine: Machine, decimals: int = 6) 
         sub = groups[key]
         if len(sub) != 3:
             first = next(iter(sub.values()))[0]
+            same_angle = sum(k[0] == key[0] for k in keys)
+            why = ("; the table ball stands elsewhere on the bed in the other rows of this angle (the "
+                   "table moved with a linear axis between the bar directions: the method takes the "
+                   "three directions with the table still, by moving the tool ball)"
+                   if len(sub) < 3 and same_angle > 1 else "")
             data.fail(f"three-sphere evaluation: C = {key[0]:g} deg with table ball at "
-                      f"{key[1]:g}, {key[2]:g}, {key[3]:g} has {len(sub)} bar directions, not 3", first)
+                      f"{key[1]:g}, {key[2]:g}, {key[3]:g} (bed frame) has {len(sub)} bar "
+                      f"directions, not 3{why}", first)
         cen = np.array([tool_bed[v[0]] for v in sub.values()])
         rad = np.array([np.mean(data.length[v]) for v in sub.values()])
         centres.append(cen)
