@@ -159,6 +159,15 @@ def test_model_file_errors(tmp_path):
     save_model(tmp_path / "x.json", fitted)
     with pytest.raises(InputError, match="made for a XFYZ machine"):
         load_model(tmp_path / "x.json", load_machine("cafxyz"))
+    # an older mtcomp's error motion with a first harmonic of a radial motion: named, and why
+    import json
+    path = tmp_path / "old.json"
+    save_model(path, FittedModel.zero(ErrorModel(load_machine("cafxyz"), [RotaryErrorMotion("EXC", 2)])))
+    data = json.loads(path.read_text())
+    data["parameters"]["EXC_c1"] = {"value": 1.0, "unit": "um"}
+    path.write_text(json.dumps(data))
+    with pytest.raises(InputError, match=r"'EXC_c1' is not part of this model \(a first harmonic of a radial"):
+        load_model(path)
 
 
 def test_hand_case_spline_component_and_spindle_tilt():
