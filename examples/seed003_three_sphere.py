@@ -36,14 +36,16 @@ def make_truth(machine, rng):
     """Random rotary-axis errors (C and A location, angular positioning) plus error motions of the C
     axis of the size the paper shows (radial ~ 10-40 um, tilt ~ 20-50 urad). The linear axes and the
     tool are error-free: the paper compensated the linear axes before measuring."""
-    terms = tuple(RotaryErrorMotion(c, order=2) for c in COMPONENTS)
+    terms = tuple(RotaryErrorMotion(c, order=3) for c in COMPONENTS)
     truth = random_truth(machine, rng, terms=terms)
     for i, spec in enumerate(truth.params.specs):
         if spec.group.split(":")[0] in ("X", "Y", "Z", "squareness", "tool"):
             truth.params.values[i] = 0.0
-    for name, value in {"EXC_c1": 18.0, "EXC_s1": 6.0, "EYC_c1": -5.0, "EYC_s1": 15.0,
-                        "EXC_c2": 3.0, "EYC_s2": -2.5, "EZC_c1": 1.5, "EZC_s2": 0.8,
-                        "EAC_c1": 25.0, "EAC_s1": -10.0, "EBC_c1": 12.0, "EBC_s1": 30.0}.items():
+    # radial and tilt motions start at harmonic 2 (their first harmonic is the axis line's location,
+    # which random_truth draws); the axial motion at 1
+    for name, value in {"EXC_c2": 18.0, "EXC_s2": 6.0, "EYC_c2": -5.0, "EYC_s2": 15.0,
+                        "EXC_c3": 3.0, "EYC_s3": -2.5, "EZC_c1": 1.5, "EZC_s2": 0.8,
+                        "EAC_c2": 25.0, "EAC_s2": -10.0, "EBC_c2": 12.0, "EBC_s2": 30.0}.items():
         truth.params.set_file_value(name, value)
     return truth
 

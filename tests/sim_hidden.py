@@ -23,7 +23,7 @@ import numpy as np
 from mtcomp.machine import Machine, load_machine
 from mtcomp.models import ErrorModel, FittedModel, ParameterSet
 from mtcomp.models.terms import (AbbeIRC, Backlash, FeedOffset, PeriodicError, RotaryErrorMotion,
-                                 ThermalDrift)
+                                 ThermalDrift, motion_harmonics)
 from mtcomp.sim import campaign_plans, with_values
 
 EFFECTS = ("backlash", "rotary_backlash", "thermal_drift", "feed_dependent_abbe",
@@ -170,7 +170,7 @@ def _effect_term(effect: str, axis: str, rng):
         comp = str(rng.choice(["EXC", "EYC", "EZC", "EAC", "EBC"]))
         order = 2
         unit = 1e-5 if comp[1] in "ABC" else 1e-3
-        vals = {f"{comp}_{cs}{k}": unit * rng.normal() for k in range(1, order + 1) for cs in "cs"}
+        vals = {f"{comp}_{cs}{k}": unit * rng.normal() for k in motion_harmonics(comp, order) for cs in "cs"}
         return [RotaryErrorMotion(comp, order=order)], vals, {"component": comp}
     raise ValueError(effect)
 

@@ -96,3 +96,13 @@ def test_a_model_without_covariance_is_written_and_the_note_says_it_was_not_chec
     bare.write_text(json.dumps(d))
     assert _export(bare, tmp_path / "out") == 0
     assert "no table could be checked against --max-correction-sd-um" in capsys.readouterr().err
+
+
+def test_advice_for_undetermined_corrections_names_the_limit_that_writes_them():
+    """A correction resting on values nothing determined has an infinite standard error: every finite
+    --max-correction-sd-um leaves it out, and 0 (no limit, compensate's and export's documented
+    switch) writes it; the advice must say so, not that no value writes them."""
+    from mtcomp.planner.problem import unsure_advice
+    text = unsure_advice(float("inf"), 5.0)
+    assert "no finite --max-correction-sd-um writes them, only 0 (no limit)" in text
+    assert "no --max-correction-sd-um writes" not in text

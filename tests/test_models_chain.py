@@ -45,7 +45,7 @@ def extension_terms(machine):
     terms = [Backlash("X"), PeriodicError("Y", 5.0), FeedOffset("Z", signed=True),
              AbbeIRC("X", static=True, position=True, feed=True, angle_gain=True, angle_feed=True)]
     if machine.is_five_axis:
-        terms += [Backlash("C"), RotaryErrorMotion("EXC", 2), RotaryErrorMotion("EBC", 1)]
+        terms += [Backlash("C"), RotaryErrorMotion("EXC", 2), RotaryErrorMotion("EBC", 2)]
     return terms
 
 
@@ -159,6 +159,15 @@ def test_model_file_errors(tmp_path):
     save_model(tmp_path / "x.json", fitted)
     with pytest.raises(InputError, match="made for a XFYZ machine"):
         load_model(tmp_path / "x.json", load_machine("cafxyz"))
+    # an older mtcomp's error motion with a first harmonic of a radial motion: named, and why
+    import json
+    path = tmp_path / "old.json"
+    save_model(path, FittedModel.zero(ErrorModel(load_machine("cafxyz"), [RotaryErrorMotion("EXC", 2)])))
+    data = json.loads(path.read_text())
+    data["parameters"]["EXC_c1"] = {"value": 1.0, "unit": "um"}
+    path.write_text(json.dumps(data))
+    with pytest.raises(InputError, match=r"'EXC_c1' is not part of this model \(a first harmonic of a radial"):
+        load_model(path)
 
 
 def test_hand_case_spline_component_and_spindle_tilt():
@@ -184,3 +193,24 @@ def test_hand_case_spline_component_and_spindle_tilt():
     # Rx(a) turns the tip at (0, 0, -L) below the gauge point to (0, +L sin a, -L cos a)
     np.testing.assert_allclose(d[:, 1], [100.0 * np.sin(20e-6), 200.0 * np.sin(20e-6)], rtol=1e-12, atol=0)
     np.testing.assert_allclose(d[:, 4], [-np.sin(20e-6)] * 2, rtol=1e-9, atol=0)
+
+
+def test_radial_and_tilt_error_motions_start_at_the_second_harmonic():
+    """A rotary axis's error motions in the frame that does not turn with it: an offset v of the line
+    moves a carried point by v - R(theta) v, an artefact off centre by w by R(theta) w, so the
+    constant and the first harmonic of the radial pair (and, likewise, of the tilt pair) are the
+    location and the set-up; only the axial motion keeps harmonic 1 (ISO 230-7). Written out by hand
+    for C (about Z: axial EZC) and A (about X: axial EXA), in the base model and in the term."""
+    import dataclasses
+    m = load_machine("cafxyz")
+    m = dataclasses.replace(m, axes=tuple(dataclasses.replace(a, error_motion_order=3)
+                                          if a.is_rotary else a for a in m.axes))
+    names = ErrorModel(m).param_names
+    got = {c: [n.split("_")[1] for n in names if n.startswith(c + "_")]
+           for c in ("EXC", "EYC", "EZC", "EAC", "EBC", "EXA", "EYA", "EZA", "EBA", "ECA")}
+    two, one = ["c2", "s2", "c3", "s3"], ["c1", "s1", "c2", "s2", "c3", "s3"]
+    assert got == {"EXC": two, "EYC": two, "EZC": one, "EAC": two, "EBC": two,
+                   "EXA": one, "EYA": two, "EZA": two, "EBA": two, "ECA": two}
+    term = RotaryErrorMotion("EYC", order=1)
+    assert term.param_specs(load_machine("cafxyz")) == []
+    assert [s.name for s in RotaryErrorMotion("EZC", order=1).param_specs(m)] == ["EZC_c1", "EZC_s1"]

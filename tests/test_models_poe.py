@@ -91,13 +91,13 @@ def test_eq9_order_contradicts_fixed_frame_error_motions():
     eqs. 7, 10-14 identify it) that order turns the error with the table. Only eq. 4's order matches
     the chain, and at 90 deg eq. 9's order puts a 10 um EXC on the part's X instead of its Y."""
     m = load_machine("cafxyz")
-    axes = tuple(dataclasses.replace(a, error_motion_order=1) if a.name == "C" else a for a in m.axes)
+    axes = tuple(dataclasses.replace(a, error_motion_order=2) if a.name == "C" else a for a in m.axes)
     m = dataclasses.replace(m, axes=axes)
     model = ErrorModel(m)
     q2 = np.zeros((1, 5))
     q2[0, 4] = math.pi / 2
     p2 = np.zeros(model.n_params)
-    p2[model.param_names.index("EXC_s1")] = 10e-3  # EXC(90 deg) = 10 um
+    p2[model.param_names.index("EXC_c2")] = -10e-3  # EXC(90 deg) = 10 um
     c = model.default_context(1)
     ref = deviation(model, q2, p2, c, backend="casadi")[0]
     left = poe_deviation(model, p2, q2, c)[0]

@@ -110,11 +110,11 @@ def test_joint_least_squares_fit_of_the_same_data(scenario):
 def test_seed_errors_are_our_iso_error_motions_with_their_signs():
     # pure error motions (no location errors): eqs. 10-14 must return EXC ... EBC of the model itself
     m = load_machine("cafxyz")
-    model = ErrorModel(m, [RotaryErrorMotion(c, 1) for c in PDGE])
+    model = ErrorModel(m, [RotaryErrorMotion(c, 2) for c in PDGE])
     p = ParameterSet(model.param_specs)
     amp = {"EXC": 8e-3, "EYC": -6e-3, "EZC": 2e-3, "EAC": 30e-6, "EBC": -25e-6}
     for comp, a in amp.items():
-        p[f"{comp}_c1"], p[f"{comp}_s1"] = a, -0.5 * a
+        p[f"{comp}_c2"], p[f"{comp}_s2"] = a, -0.5 * a
     data = VirtualMachine(m, FittedModel(model, p), noise_um=0.0).measure(
         three_sphere_plan(m, n_runs=1, senses=(1,)))
     pts = sm.three_sphere_points(data, m)
@@ -122,7 +122,7 @@ def test_seed_errors_are_our_iso_error_motions_with_their_signs():
     e = sm.three_sphere_errors(pts.point[a1], pts.point[a2], 100.0, 200.0, exact=True)
     th = pts.angle[a1]
     for comp, a in amp.items():
-        truth = a * np.cos(th) - 0.5 * a * np.sin(th)
+        truth = a * np.cos(2 * th) - 0.5 * a * np.sin(2 * th)
         tol = 1e-9 if comp in ("EAC", "EBC") else 1e-6     # rad, mm (second-order terms)
         np.testing.assert_allclose(e[comp], truth, rtol=0, atol=tol, err_msg=comp)
 

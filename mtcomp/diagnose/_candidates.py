@@ -16,7 +16,8 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from ..models.terms import (AbbeIRC, Backlash, ChannelDrift, FeedOffset, PeriodicError,
-                            RotaryErrorMotion, ThermalDrift, positioning_component)
+                            RotaryErrorMotion, ThermalDrift, motion_harmonics,
+                            positioning_component)
 from ..models.basis import axis_spline
 from . import _analysis as an
 from ._analysis import cv_threshold
@@ -374,7 +375,9 @@ def _pdge_candidates(st, a: str) -> list[Candidate]:
         top = max((t.order for t in st.probe.terms
                    if isinstance(t, RotaryErrorMotion) and t.component == comp), default=0)
         for order in [o for o in PDGE_LADDER if o <= top and angles.size >= 2 * o + 1]:
-            names = [f"{comp}_{cs}{h}" for h in range(1, order + 1) for cs in "cs"]
+            names = [f"{comp}_{cs}{h}" for h in motion_harmonics(comp, order) for cs in "cs"]
+            if not names:
+                continue
             out.append(Candidate("rotary_pdge", a, f"{comp}:{order}", st.columns(names),
                                  [RotaryErrorMotion(comp, order=order)], names, rivals=f"pdge:{a}",
                                  info={"component": comp, "order": order}, build=_probe_columns(names)))

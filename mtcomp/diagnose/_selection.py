@@ -105,17 +105,13 @@ def _drop_undetermined_offsets(design, extra, current, c: Candidate, fit):
     """An Abbe candidate brings feed offsets along the directions its moved centre or its scaled
     constant angle translates (see ``_abbe_candidates``); where the data cannot tell such an offset
     from the rest of the model (a direction read at one feed only, or read only where another column
-    already moves it), the offset is dropped rather than the cause refused for it. A rotary error
-    motion's first harmonic trades with the axis's location errors and the other components' first
-    harmonics; where the data cannot tell it apart (the rank the candidate adds falls short of its
-    columns), its cosine and sine terms are dropped together (held at zero, even when the data
-    would determine one of the two: the conservative choice) and the higher harmonics kept. Returns the candidate and its fit; unchanged when nothing is undetermined."""
-    if c.effect == "feed_dependent_abbe":
-        groups = [[p] for p in c.params if p.startswith("FOFF_")]
-    elif c.effect == "rotary_pdge":
-        groups = [[p for p in c.params if p.endswith(("_c1", "_s1"))]]
-    else:
+    already moves it), the offset is dropped rather than the cause refused for it. (A rotary error
+    motion has no harmonic that trades with the axis's location errors to drop:
+    :func:`mtcomp.models.terms.motion_harmonics`; the harmonics it names are those it writes.)
+    Returns the candidate and its fit; unchanged when nothing is undetermined."""
+    if c.effect != "feed_dependent_abbe":
         return c, fit
+    groups = [[p] for p in c.params if p.startswith("FOFF_")]
     dropped = False
     for names in groups:
         if fit.rank - current.rank >= c.columns.shape[1] or not names or len(names) == len(c.params):

@@ -55,7 +55,7 @@ from ..machine import AXIS_DIRECTION, Machine
 from .basis import SLOPE_CARRIED_BY_SQUARENESS, axis_spline
 from .function_cache import model_function
 from .params import ParamSpec
-from .terms import ANGLE_LETTERS, TRANSLATION_LETTERS, Term, positioning_component
+from .terms import ANGLE_LETTERS, TRANSLATION_LETTERS, Term, motion_harmonics, positioning_component
 
 #: context channels every model has; a term may add more (temperatures, drift features)
 BASE_CONTEXT = ("feed", "t", "spindle_rpm", "tool_length")
@@ -211,7 +211,7 @@ def base_param_specs(machine: Machine) -> list[ParamSpec]:
                                        f"{own}: harmonic {k} ({'cos' if cs == 'c' else 'sin'})"))
         for comp in rotary_motion_names(ax.name):
             unit_ = "urad" if comp[1] in ANGLE_LETTERS else "um"
-            for k in range(1, ax.error_motion_order + 1):
+            for k in motion_harmonics(comp, ax.error_motion_order):
                 for cs in "cs":
                     specs.append(ParamSpec(f"{comp}_{cs}{k}", unit_, f"{ax.name}:{comp}", True,
                                            f"{comp}: harmonic {k} ({'cos' if cs == 'c' else 'sin'})"))
@@ -425,7 +425,7 @@ class ErrorModel:
             comps = {own: e_pos}
             for comp in rotary_motion_names(name):
                 e = ca.SX(0)
-                for k in range(1, ax.error_motion_order + 1):
+                for k in motion_harmonics(comp, ax.error_motion_order):
                     e = e + par(f"{comp}_c{k}") * ca.cos(k * s) + par(f"{comp}_s{k}") * ca.sin(k * s)
                 comps[comp] = e
             for t in self.terms:

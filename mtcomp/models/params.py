@@ -131,7 +131,7 @@ class ParameterSet:
         out = self.copy()
         for name, entry in data.items():
             if name not in out._index:
-                raise InputError(f"parameter {name!r} is not part of this model", path)
+                raise InputError(f"parameter {name!r} is not part of this model{_older_hint(name)}", path)
             if not isinstance(entry, dict) or "value" not in entry:
                 raise InputError(f"parameter {name!r} needs an object with 'value'", path)
             spec = out.specs[out._index[name]]
@@ -143,6 +143,18 @@ class ParameterSet:
                 raise InputError(f"parameter {name!r} has a non-numeric value {v!r}", path)
             out.set_file_value(name, float(v))
         return out
+
+
+def _older_hint(name: str) -> str:
+    """Why a model file of an older mtcomp may name a parameter this one lacks: the first harmonic
+    of a rotary axis's radial or tilt error motion ('EXC_c1' ...), now the axis line's location
+    (:func:`mtcomp.models.terms.motion_harmonics`)."""
+    import re
+    m = re.fullmatch(r"E([XYZABC])([ABC])_[cs]1", name)
+    if not m or m.group(1) in (m.group(2), "XYZ"["ABC".index(m.group(2))]):
+        return ""
+    return (" (a first harmonic of a radial or tilt error motion, which an older mtcomp wrote: it is the "
+            "axis line's location; fit the model again with identify or diagnose)")
 
 
 def with_base_flag(spec: ParamSpec, base: bool) -> ParamSpec:

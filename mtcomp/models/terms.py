@@ -34,6 +34,21 @@ def positioning_component(axis_name: str) -> str:
     return f"E{axis_name}{axis_name}"
 
 
+def motion_harmonics(component: str, order: int) -> range:
+    """The harmonics k of rotary error motion ``component`` ('EXC', 'EZC', 'EAC' ...) up to ``order``:
+    1..order for the axial motion (along the axis), 2..order for the radial pair and the tilt pair.
+
+    The motions are in the frame that does not turn with the axis. There an offset v of the axis line
+    moves a carried point by v - R(theta) v, and a carried artefact set off centre by w moves it by
+    R(theta) w: between them they span the constant and the first harmonic turning with the axis, and
+    ISO 230-7:2015 (radial error motion) removes the whole fundamental of each sensitive direction as
+    centring error; the tilt pair likewise with the axis line's tilt and the artefact's. So the first
+    harmonic of the radial and tilt motions is the location of the line and the set-up of what it
+    carries, never a parameter of its own (a model carries one parameter per effect)."""
+    axial = TRANSLATION_LETTERS[ANGLE_LETTERS.index(component[2])]
+    return range(1 if component[1] == axial else 2, order + 1)
+
+
 class Term:
     """Base class: a term contributes nothing unless it overrides a hook."""
 
@@ -273,10 +288,12 @@ class AbbeIRC(Term):
 
 @dataclass(frozen=True)
 class RotaryErrorMotion(Term):
-    """Error motion of a rotary axis beyond its location errors (Tan et al. (2026)): eccentricity,
-    wobble, axial run-out, as a Fourier series of the angle without constant term (the constant is a
-    location error). ``component`` is the ISO 230-1 name, e.g. 'EXC', 'EYC' (radial), 'EZC' (axial),
-    'EAC', 'EBC' (tilt); parameters ``<component>_c<k>``, ``<component>_s<k>``, k = 1..order."""
+    """Error motion of a rotary axis beyond its location errors (Tan et al. (2026)): radial, axial and
+    tilt motions as a Fourier series of the angle without constant term (the constant is a location
+    error). ``component`` is the ISO 230-1 name, e.g. 'EXC', 'EYC' (radial), 'EZC' (axial), 'EAC',
+    'EBC' (tilt); parameters ``<component>_c<k>``, ``<component>_s<k>`` for k in
+    :func:`motion_harmonics` (from 2 for the radial and tilt pairs: their first harmonic is the
+    axis line's location and the set-up's centring)."""
 
     component: str
     order: int = 2
@@ -292,7 +309,7 @@ class RotaryErrorMotion(Term):
     def param_specs(self, machine):
         unit = "urad" if self.component[1] in ANGLE_LETTERS else "um"
         specs = []
-        for k in range(1, self.order + 1):
+        for k in motion_harmonics(self.component, self.order):
             for cs in "cs":
                 specs.append(ParamSpec(f"{self.component}_{cs}{k}", unit, self.key(), False,
                                        f"{'cosine' if cs == 'c' else 'sine'} harmonic {k} of "
@@ -303,7 +320,7 @@ class RotaryErrorMotion(Term):
         if axis.name != self.axis:
             return {}
         e = 0
-        for k in range(1, self.order + 1):
+        for k in motion_harmonics(self.component, self.order):
             e = e + P[f"{self.component}_c{k}"] * ca.cos(k * s) + P[f"{self.component}_s{k}"] * ca.sin(k * s)
         return {self.component: e}
 

@@ -41,7 +41,8 @@ def unsure_advice(largest_sd_um: float, limit_um: float, what: str = "corrects t
     if not largest_sd_um < float("inf"):
         return ("some rest on values of the model that its data did not determine (MODEL.json's "
                 "uncertainty.undetermined; identify holds those at zero): measure there, or fit the "
-                "model again; no --max-correction-sd-um writes them")
+                "model again; no finite --max-correction-sd-um writes them, only 0 (no limit), "
+                "with corrections that rest on what nothing measured")
     if largest_sd_um > 10.0 * limit_um:
         return (f"the data do not determine them (a standard error {largest_sd_um / limit_um:.0f} "
                 "times the limit): measure there (laser runs along the axes, ballbar circles in "

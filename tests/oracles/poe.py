@@ -161,7 +161,10 @@ def component_errors(model: ErrorModel, p: np.ndarray, q: np.ndarray) -> dict[st
             comps[own] = e
             for comp in rotary_motion_names(ax.name):
                 e = np.zeros_like(s)
-                for k in range(1, ax.error_motion_order + 1):
+                # the axial motion from harmonic 1, the radial and tilt pairs from 2 (their first
+                # harmonic is the axis line's location: ISO 230-7 removes it as centring)
+                axial = comp[1] == "XYZ"["ABC".index(ax.name)]
+                for k in range(1 if axial else 2, ax.error_motion_order + 1):
                     e = e + P[f"{comp}_c{k}"] * np.cos(k * s) + P[f"{comp}_s{k}"] * np.sin(k * s)
                 comps[comp] = e
         else:
