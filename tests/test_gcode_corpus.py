@@ -114,9 +114,81 @@ REFUSED = {
     # programs read as fanuc or haas write every dimension word other than zero with a point (the
     # one whole number among their words outside comments is MS_NMV's `G05.1 Q1`, a mode switch)
     "gcodes_simple_mill.gcode": ["simple_mill.gcode:8:", "X-75 has no decimal point"],
+    # The batch of 38 added together (SOURCES.md), chosen before mtcomp was run on any of them.
+    # Siemens NX's posts for more shop machines, on the same sample part as the NX programs above:
+    # its arcs whose end is off their circle (0.2756 in from the centre at the start, 0.454 in at
+    # the end) reach a Fanuc-type control's alarm (radius over tolerance), as mtcomp refuses them
+    "nxpost_Makino_GF6_Fanuc_Pro3_Sample_Part_in.ptp": ["Pro3_Sample_Part_in.ptp:23:",
+                                                        "arc radius inconsistent"],
+    "nxpost_makino_v33_sample.ptp": ["makino_v33_sample.ptp:43:", "arc radius inconsistent"],
+    "nxpost_Yama_Seiki_VMB_1600_Fanuc_sample_part_in.ptp": ["sample_part_in.ptp:21:",
+                                                            "arc radius inconsistent"],
+    "nxpost_MightyViper_VMC1200_Sample_mill.ptp": ["VMC1200_Sample_mill.ptp:25:",
+                                                   "arc radius inconsistent"],
+    # a G2/G3 continued on the next block with X Y and no centre (`G3 I.5905 J0.0` for a full
+    # circle, then `X1.4105 Y1.7753`; `G02X0.0Y2.1329R.1644` then `G02X2.1329Y1.9685`: R and I J
+    # do not carry over): a Fanuc alarms (PS0022, "R or I, J, K command not found")
+    "nxpost_LeBolondMakino_ProfessionalJN_in_Sample.ptp": ["JN_in_Sample.ptp:324:",
+                                                           "arc without centre"],
+    "nxpost_Makino_E33_in.ptp": ["Makino_E33_in.ptp:35:", "arc without centre"],
+    "nxpost_MoriSeiki_DuraVertical5100.ptp": ["DuraVertical5100.ptp:33:", "arc without centre"],
+    "nxpost_Sundstrand_Omnimil_Fanuc0M_in_sample.ptp": ["Fanuc0M_in_sample.ptp:228:",
+                                                        "arc without centre"],
+    # `O ENTER OP AND LAST 3 DIGITS`: the post's placeholder for the program number (a Haas takes
+    # O and digits only, as nxpost_BandB_mfg.cnc)
+    "nxpost_Haas_5T.ptp": ["Haas_5T.ptp:2:", "word O without a valid number"],
+    # Heidenhain: two comment lines before `0010 BEGIN PGM T IN` without block numbers, refused at
+    # the first; the program names its unit IN (line 3), which a TNC does not read (MM or INCH, as
+    # nxpost_Sample_mill.ptp)
+    "nxpost_DMC_70V_sample_in.ptp": ["DMC_70V_sample_in.ptp:1:",
+                                     "a Heidenhain block without its block number"],
+    # `Z.3937 D02` (a D word with G0): nothing names its Fanuc-type control, so it is read as
+    # RS274/NGC, whose interpreters refuse a D no code of the block uses; read as a Fanuc's
+    # (--dialect fanuc) it reaches the sample part's arc whose end is off its circle (line 17)
+    "nxpost_BURGMASTER_sample_part.ptp": ["BURGMASTER_sample_part.ptp:8:",
+                                          "D word in a G0 block"],
+    # `:0110 T01 M06`, a colon where the N of a block number belongs (on a Fanuc ':' is the ISO
+    # code's program number O): refused at it; the part's arc off its circle follows at line 24
+    "nxpost_MS_SH8000_sample_in.ptp": ["SH8000_sample_in.ptp:12:", "unexpected character ':'"],
+    # `G40 G17 G90 G70` (inch on the Fryer's control), a code mtcomp does not follow; an arc off its
+    # circle follows at line 27 (20 mm from the centre at the start, 21.2 mm at the end)
+    "nxpost_Fryer_MB10_sample.ptp": ["Fryer_MB10_sample.ptp:1:", "G70 is not a code"],
+    # `G65 P9021 T1000 E1100`, a call of the machine's macro program (not in the file), refused:
+    # mtcomp cannot know its moves; the part's arc off its circle follows at line 27
+    "nxpost_Mitsubishi_VR33_RHead_sample.ptp": ["RHead_sample.ptp:12:", "G65 (macro call)"],
+    # mtcomp's gaps among them (their controllers run them): a macro call `G65 P8232 Z-3.93701`
+    # (a Makino's probing or chip-breaking macro, not in the file)
+    "nxpost_Makino_3ax_mill.ptp": ["Makino_3ax_mill.ptp:30:", "G65 (macro call)"],
+    # a GE control's fixed-format numbers (`N0040G00X0019685Y-0008937`: 1.9685 in, the point
+    # placed by the format)
+    "nxpost_Monarch_VMC_GE_sample.ptp": ["Monarch_VMC_GE_sample.ptp:5:",
+                                         "X0019685 is a fixed-format number"],
+    # the W axis of horizontal boring mills (the quill, along Z), which mtcomp does not model
+    "nxpost_NomuraBN-130_Fanuc6MB_sample.ptp": ["Fanuc6MB_sample.ptp:11:", "axis word W"],
+    "nxpost_Sample_Kuraki_KBT.ptp": ["Sample_Kuraki_KBT.ptp:8:", "axis word W"],
+    # a DeVlieg's `T00O00` (an O word after the tool number: its control's, meaning unknown)
+    "nxpost_Devlieg_120.ptp": ["Devlieg_120.ptp:11:", "word O00 inside a line"],
+    # Heidenhain DIN/ISO (`% 123 G71`): `N0070 G90 Z-25. M91` with no G00/G01 in force
+    "nxpost_Mikron_WF21D.ptp": ["Mikron_WF21D.ptp:8:",
+                                "axis words without G00, G01, G02 or G03 in force"],
+    # a Thermwood router's 5-axis drilling: `G81` holes with B and C (the tool's direction)
+    "nxpost_thermwood_test.ptp": ["thermwood_test.ptp:7:", "drilling cycle G81 with a rotary"],
+    # BeagleG's test programs (its own G-code: named parameters without brackets `#r=50`, G2/G3
+    # not modal, so `X100` after an arc is a line; G30 with a move is its probe; G5 splines; a
+    # program starting with an arc from wherever the machine stands)
+    "beagleg_polygon-24-vs-arc.gcode": ["polygon-24-vs-arc.gcode:1:",
+                                        "unknown function or word 'faces=24'"],
+    "beagleg_spiral-cut.gcode": ["spiral-cut.gcode:3:", "unknown function or word 'r=50'"],
+    "beagleg_rounded-bracket-simple.gcode": ["rounded-bracket-simple.gcode:6:",
+                                             "arc without centre"],
+    "beagleg_rounded-bracket-parametrized.gcode": ["rounded-bracket-parametrized.gcode:10:",
+                                                   "arc G3 from a position the program has not"],
+    "beagleg_spline-character.gcode": ["spline-character.gcode:12:", "G30 and motion G1"],
+    "beagleg_splines.gcode": ["splines.gcode:8:", "G5 (cubic spline) is not supported"],
 }
-#: the share of the corpus accepted today (125 of 148: 0.845); the goal is 95 %
-MIN_ACCEPTED = 0.84
+#: the share of the corpus accepted today (136 of 186: 0.731): 125 of the 148 before the batch of
+#: 38 programs never seen (SOURCES.md), of which 11 are accepted; the goal is 95 %
+MIN_ACCEPTED = 0.73
 #: the refused programs that the controller they were written for refuses too (its manual's alarm
 #: or error named in REFUSED's comments): a nested comment (LinuxCNC), an R word in a G1 (grbl
 #: error 36, LinuxCNC), an arc whose end is off its circle (Fanuc: radius over tolerance; the Toyoda
@@ -135,9 +207,21 @@ CONTROLLER_REFUSES = {
     "nxpost_sample_part.ptp", "nxpost_Training_Huron_KX20.MPF",
     "nxpost_Cincinnati_Lamb_FTV5_840D_sample.mpf", "nxpost_Cincinnati_Lamb_FTV5_840D_sample.ptp",
     "nxpost_DMU_70_eVo_840D_in_Sample_part.ptp", "vscodegcode_sample-colors.nc",
+    # the batch of 38: arcs off their circle or without a centre (a Fanuc's alarm), reached first
+    # or after a construct mtcomp refuses (a placeholder, a colon, G70, a macro call, a D word read
+    # as RS274/NGC), and a Heidenhain unit IN
+    "nxpost_Makino_GF6_Fanuc_Pro3_Sample_Part_in.ptp", "nxpost_makino_v33_sample.ptp",
+    "nxpost_Yama_Seiki_VMB_1600_Fanuc_sample_part_in.ptp",
+    "nxpost_MightyViper_VMC1200_Sample_mill.ptp",
+    "nxpost_LeBolondMakino_ProfessionalJN_in_Sample.ptp", "nxpost_Makino_E33_in.ptp",
+    "nxpost_MoriSeiki_DuraVertical5100.ptp", "nxpost_Sundstrand_Omnimil_Fanuc0M_in_sample.ptp",
+    "nxpost_Haas_5T.ptp", "nxpost_DMC_70V_sample_in.ptp", "nxpost_BURGMASTER_sample_part.ptp",
+    "nxpost_MS_SH8000_sample_in.ptp", "nxpost_Fryer_MB10_sample.ptp",
+    "nxpost_Mitsubishi_VR33_RHead_sample.ptp",
 }
-#: the share accepted of the programs their controllers run (125 of 133: 0.940); the goal is 95 %
-MIN_ACCEPTED_RUNNABLE = 0.93
+#: the share accepted of the programs their controllers run (136 of 157: 0.866; 125 of 133, 0.940,
+#: before the batch of 38, whose 24 runnable ones are 11 accepted: 0.458); the goal is 95 %
+MIN_ACCEPTED_RUNNABLE = 0.86
 _WORD = re.compile(r"([A-Z])\s*([-+]?\s*(?:\d+\.?\d*|\.\d+))")
 #: an axis given an expression (Sinumerik: `A=_A_HOME`)
 _ASSIGNED = re.compile(r"(?<![A-Z0-9_$#<])([A-Z])\s*=")
@@ -337,7 +421,7 @@ def test_corpus_is_the_documented_one():
     assert len({p.name.split("_")[0] for p in PROGRAMS}) >= 10
     for p in PROGRAMS:
         assert f"`{p.name}`" in sources, f"{p.name} is not in SOURCES.md"
-    assert sum(p.stat().st_size for p in PROGRAMS) < 2_700_000
+    assert sum(p.stat().st_size for p in PROGRAMS) < 2_800_000
 
 
 def run_once(tmp_path_factory, key: str, argv_for) -> tuple:

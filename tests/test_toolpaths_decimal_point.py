@@ -195,3 +195,39 @@ def test_an_inverse_time_f_without_a_point_is_refused(tmp_path, capsys, dialect)
     assert rc == 2 and not out.exists()
     assert len(err.splitlines()) == 1 and "p.nc:6: F6 has no decimal point under G93" in err, err
     assert "0.006 1/min" in err
+
+
+#: fixed-format numbers: Siemens NX's post for a Monarch VMC with a GE control writes
+#: `N0040G00X0019685Y-0008937`, 1.9685 in and -0.8937 in placed by the format (the G-code corpus,
+#: nxpost_Monarch_VMC_GE_sample.ptp)
+FIXED = "G20 G90 G17\nG0 X1. Y1. Z.5\n"
+
+
+@pytest.mark.parametrize("body, word", [
+    ("G1 X0019685 Y1. F10.\n", "X0019685"),           # the GE post's format: read as 19685 before
+    ("G1 Y-05 F10.\n", "Y-05"),
+    ("G2 X3. Y1. I01 J0\n", "I01"),                   # an arc's centre
+])
+def test_a_fixed_format_number_is_refused_where_nothing_names_the_controller(
+        tmp_path, capsys, reader_path, body, word):
+    """Nothing names the controller: X0019685 is 19685 in whole units, 1.9685 in a 3.4 format, and
+    the corrected word would be written with a point; both readers refuse it at its line."""
+    prog, out = tmp_path / "p.nc", tmp_path / "out.nc"
+    prog.write_text(FIXED + body + "M30\n")
+    rc = main(["compensate", "xfyz", str(_model(tmp_path, "xfyz", scale=0.1)[2]), str(prog), "-o",
+               str(out), "--quiet"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and not out.exists()
+    assert len(err.splitlines()) == 1 and f"p.nc:3: {word} is a fixed-format number" in err, err
+
+
+def test_a_fixed_format_number_is_whole_units_on_linuxcnc(tmp_path, reader_path):
+    """LinuxCNC reads `X015` as 15 (G-code reference, "Numbers"): accepted when the program is said
+    to be LinuxCNC's, the word corrected by less than 0.01 in."""
+    prog, out = tmp_path / "p.nc", tmp_path / "out.nc"
+    prog.write_text(FIXED + "G1 X015 F10.\nM30\n")
+    rc = main(["compensate", "xfyz", str(_model(tmp_path, "xfyz", scale=0.1)[2]), str(prog), "-o",
+               str(out), "--quiet", "--dialect", "linuxcnc"])
+    assert rc == 0
+    x = [float(m) for m in re.findall(r"^G1 X([-\d.]+)", out.read_text(), re.M)]
+    assert len(x) == 1 and x[0] == pytest.approx(15.0, abs=0.01)

@@ -39,6 +39,11 @@ static const double POW10[23] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e
 
 static int is_alpha(char c) { return (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z'); }
 static int is_digit(char c) { return c >= '0' && c <= '9'; }
+/* A number with a zero before another digit (0019685, -05): fixed format (word_use.py). */
+static int leading_zero(const char *p, const char *e) {
+    if (p < e && (*p == '+' || *p == '-')) p++;
+    return p + 1 < e && *p == '0' && is_digit(p[1]);
+}
 
 /* The number pattern of the Python tokenizer: [+-]?(\d+\.?\d*|\.\d+). 1 if found. */
 static int parse_num(const char *p, const char *e, double *out, const char **next) {
@@ -244,7 +249,9 @@ long long mt_process(const char *buf, long long len, int eof, long long *consume
                 const char *dot = memchr(ts, '.', (size_t)(p - ts));
                 if (dot && p - dot - 1 > 15) { simple = 0; break; }   /* more decimals: Python */
                 /* no point: Fanuc and Haas read the least input increment (word_use.py): Python */
-                if (!dot && v != 0.0 && state[25] != 0.0) { simple = 0; break; }
+                if (!dot && v != 0.0 && (state[25] != 0.0 || leading_zero(ts + 1, p))) {
+                    simple = 0; break;      /* leading zeros (X0019685): fixed format, Python */
+                }
                 seen |= 1u << col;
                 vals[col] = v;
                 ax_s[col] = ts; ax_e[col] = p;

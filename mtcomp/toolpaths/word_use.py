@@ -28,9 +28,13 @@ mode in force (LinuxCNC source, ``interp_read.cc``/``rs274ngc_pre.cc``, ``enhanc
 The same reading of a block decides which words are dimensions for :func:`check_point_words`: on
 Fanuc and Haas a dimension word without a decimal point (``X60``) is read in the least input
 increment (0.060 mm) by default, and is refused (docs/toolpaths.md, "Dimension words without a
-decimal point").
+decimal point"); on ``generic`` (nothing names the controller) a dimension word written with leading
+zeros and no point (``X0019685``) is a fixed-format number, whose point the controller places by
+its format, and is refused too (docs/toolpaths.md, "Fixed-format numbers").
 """
 from __future__ import annotations
+
+import re
 
 #: the value words checked here (the axis words, F, N, S, T and the codes are not value words)
 VALUE_LETTERS = frozenset("DEHIJKLPQR")
@@ -199,8 +203,10 @@ def check_point_words(state, tokens, motion, cycle, axes_given, own_axes, line: 
     read one and write the corrected word with a point, which every controller reads as mm: a move
     of 60 mm where the controller made one of 0.06. Dimension words: the axis words, an arc's
     I J K R, a drilling cycle's R I J, the peck Q of G73/G83 and G68's rotation angle R (a dwell's
-    X or P, a cycle's repeat count K, G5.1's Q are not)."""
-    if state.dialect.name not in POINT_DIALECTS:
+    X or P, a cycle's repeat count K, G5.1's Q are not). On ``generic`` only a dimension word with
+    leading zeros is refused (:func:`_fixed_problem`): RS274/NGC reads the others in whole units."""
+    fixed_only = state.dialect.name == "generic"
+    if state.dialect.name not in POINT_DIALECTS and not fixed_only:
         return
     letters = {t[0] for t in tokens}
     mode = block_motion(state, motion, cycle, axes_given, own_axes, letters)
@@ -212,6 +218,10 @@ def check_point_words(state, tokens, motion, cycle, axes_given, own_axes, line: 
             if "." in number or float(number) == 0:
                 continue
         except ValueError:              # a word whose value is not a plain number
+            continue
+        if fixed_only and not _LEADING_ZERO.match(number):
+            continue
+        if letter == "F" and fixed_only:
             continue
         if letter == "F":
             _integer_feed(state, number, line)
@@ -228,7 +238,9 @@ def check_point_words(state, tokens, motion, cycle, axes_given, own_axes, line: 
             dimension = False
         if dimension:
             angle = letter in "ABC" or (rotation and letter == "R")
-            raise state._err(_point_problem(state, f"{letter}{number}", angle), line)
+            word = f"{letter}{number}"
+            raise state._err(_fixed_problem(word) if fixed_only
+                             else _point_problem(state, word, angle), line)
 
 
 def _integer_feed(state, number: str, line: int) -> None:
@@ -265,6 +277,21 @@ def _integer_feed(state, number: str, line: int) -> None:
         path, at, _suffix = state._where(line)
         notes.append(f"note: F words without a decimal point (first {word}, line {at}) read in "
                      f"whole {unit}: {said}; nothing the corrections depend on uses the feed")
+
+
+#: a number written with a leading zero before another digit and no point (``0019685``)
+_LEADING_ZERO = re.compile(r"\s*[-+]?\s*0+[1-9]")
+
+
+def _fixed_problem(word: str) -> str:
+    """A fixed-format number (EIA RS-274-D, "Interchangeable variable block data format for
+    positioning, contouring, and contouring/positioning numerically controlled machines", 1979:
+    a word without a decimal point is read by the format detail of the controller, `X+24` placing
+    the point before the last four digits): nothing says where its point lies."""
+    return (f"{word} is a fixed-format number (leading zeros, no decimal point): its controller "
+            "places the decimal point by its format (in a 3.4 format X0019685 is 1.9685), which "
+            "the program does not show; give --dialect linuxcnc or grbl if the controller reads "
+            "it in whole units")
 
 
 #: the machine setting under which a word without a point is read in whole units
