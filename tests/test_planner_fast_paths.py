@@ -1,6 +1,8 @@
 """Planner fast paths give the plan of the plain paths: the per-block normal equations against
 numpy's dense solve, feasible runs of windows against window-by-window planning, threads against
 one thread, the read-ahead thread against plain iteration."""
+import sys
+
 import numpy as np
 import pytest
 
@@ -253,3 +255,55 @@ def test_interior_point_solve_matches_osqp_on_a_small_bounded_qp():
     ref = s.solve()
     assert status == "solved" and ref.info.status == "solved"
     np.testing.assert_allclose(x, ref.x, rtol=0, atol=1e-6)
+
+
+def test_a_long_program_planned_with_threads_imports_osqp_before_its_first_qp(monkeypatch):
+    """With CPUs to spare, a program of more than one chunk has OSQP imported in a thread of its
+    own from its second chunk on (its first window that needs the QP no longer waits for the
+    import); a one-chunk program, one planning thread or another method import nothing ahead."""
+    import threading
+
+    from mtcomp.planner import _qp, engine
+    problem, chunk = _bounded_stream(91, n=60)
+    parts = [SegmentChunk(*(getattr(chunk, f)[a:a + 20] for f in
+                            ("line", "start", "end", "feed", "dirs", "rapid", "from_arc")))
+             for a in range(0, 60, 20)]
+    calls, read = [], []
+
+    def source(chunks):
+        for c in chunks:
+            read.append(c)
+            yield c
+
+    monkeypatch.setattr(engine, "prefetch_solver", lambda: calls.append(len(read)))
+    for parts_, threads, method, want in ((parts, 2, "qp", [2]), (parts[:1], 2, "qp", []),
+                                          (parts, 1, "qp", []), (parts, 2, "pinv", [])):
+        calls.clear()
+        read.clear()
+        opts = PlannerOptions(window=16, subdivide_tol_um=None, threads=threads, method=method)
+        out = list(Planner(problem, opts).iter_chunks(source(parts_)))
+        assert [c for c, _ in out] == parts_
+        assert calls == want, (len(parts_), threads, method)     # as the second chunk is planned
+    # the thread itself: imports OSQP; a failed import raises nothing there (the QP's set-up does)
+    import builtins
+    real_import = builtins.__import__
+
+    def no_osqp(name, *args, **kwargs):
+        if name == "osqp":
+            raise ImportError("no osqp here")
+        return real_import(name, *args, **kwargs)
+
+    for importer in (no_osqp, real_import):
+        failed = []
+        with monkeypatch.context() as m:
+            for name in [k for k in sys.modules if k == "osqp" or k.startswith("osqp.")]:
+                m.delitem(sys.modules, name)
+            m.setattr(_qp, "_prefetching", False)
+            m.setattr(builtins, "__import__", importer)
+            m.setattr(threading, "excepthook", lambda args: failed.append(args.exc_type))
+            _qp.prefetch_solver()
+            for t in threading.enumerate():
+                if t.name == "mtcomp-import-qp":
+                    t.join(timeout=60)
+            assert failed == []
+            assert ("osqp" in sys.modules) is (importer is real_import)

@@ -22,6 +22,9 @@ and u change between windows and SQP iterations.
 """
 from __future__ import annotations
 
+import sys
+import threading
+
 import numpy as np
 
 from ._bounds import INF
@@ -39,6 +42,30 @@ OSQP_MAX_ITER_REACHED = 7
 #: converged after 20,000 (11 s) and took 200,000 (245 s of a loaded machine) to "solved
 #: inaccurate". Past this count the window goes to the interior-point solver below.
 OSQP_MAX_ITER = 20000
+
+
+#: whether :func:`prefetch_solver` has started its thread in this process
+_prefetching = False
+
+
+def prefetch_solver() -> None:
+    """Import OSQP and scipy.sparse (0.13-0.16 s of CPU, almost all of it scipy.sparse's own
+    imports) in a thread of their own, once per process: a long program planned
+    with CPUs to spare has them imported by the time its first window needs the QP, instead of its
+    planning thread stopping for them there. An import that fails is left to that window to raise
+    (with its message)."""
+    global _prefetching
+    if _prefetching or "osqp" in sys.modules:
+        return
+    _prefetching = True
+
+    def work():
+        try:
+            import osqp  # noqa: F401
+            import scipy.sparse  # noqa: F401
+        except Exception:            # raised again where the QP is set up
+            pass
+    threading.Thread(target=work, name="mtcomp-import-qp", daemon=True).start()
 
 
 def osqp_solve(solver):

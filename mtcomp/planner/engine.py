@@ -36,7 +36,7 @@ from ._local_qp import LazyQP, solve_stretches
 from ._nodes import NodeSet
 from ._parallel import read_ahead, resolve_threads, split_rows
 from ._pointwise import Linearization, solve_newton, solve_pinv
-from ._qp import WindowQP, never_worse_rows, reachable_nodes
+from ._qp import WindowQP, never_worse_rows, prefetch_solver, reachable_nodes
 from ._result import PlanResult
 from ._rotary_grid import rotary_columns, round_rotary, solve_with_rotary_fixed
 from ._small import a_x, any_rows, at_b, down_columns, gram, row_max_abs, row_norm
@@ -598,9 +598,13 @@ class Planner:
                 res.counts = counts
                 yield chunk, res
 
+        n_chunks = 0
         for chunk in chunks:
             if len(chunk) == 0:
                 continue
+            n_chunks += 1
+            if n_chunks == 2 and self.threads > 1 and self.options.method == "qp":
+                prefetch_solver()       # a long program: OSQP imported meanwhile on a spare CPU
             nodes, lin, counts = self.nodes_from_chunk(chunk)
             pending.append((chunk, counts, len(nodes)))
             nodes, lin = self.gate.feed(nodes, lin)     # holds back a contour still open
