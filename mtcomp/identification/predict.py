@@ -45,12 +45,18 @@ class Undetermined:
     largest_sd: float = 0.0
     #: (indices, F) with F F^T the covariance (:meth:`FittedModel.covariance_factor`), computed once
     factor: tuple | None = None
+    #: (k,) each fitted parameter's standard error (internal units; the factor's order)
+    parameter_sd: np.ndarray | None = None
 
-    #: a prediction whose standard error is below this share of :attr:`largest_sd` (per unit of its
-    #: Jacobian) has none: the fit held what it rests on (undetermined directions have no variance
-    #: at all, to rounding), it did not measure it. Measured quantities stay above 1e-7 of it on the
-    #: real ISO 230-2 runs, held ones below 1e-12.
+    #: a prediction whose standard error is below this share of what its own parameters' standard
+    #: errors could give it (all moving together) has none: the fit held what it rests on (a held
+    #: combination has no variance at all, to rounding), it did not measure it
     NO_VARIANCE = 1e-9
+    #: nor one below this share of the model's largest standard error (per unit of its Jacobian):
+    #: parameters held with no variance at all, to rounding. Measured quantities stay above 1e-7 of
+    #: it on the real ISO 230-2 runs, held ones below 1e-15; a laser-measured positioning profile
+    #: beside a spline function of 2e7 um at the data's edge, 1.3e-9
+    ROUNDING = 1e-13
 
     @classmethod
     def of(cls, fitted: FittedModel) -> "Undetermined":
@@ -63,7 +69,8 @@ class Undetermined:
         scaled = factor[1] * f[:, None]          # the same parameters, in the same order
         with one_blas_thread():
             top = float(np.linalg.norm(scaled, 2)) if scaled.size else 0.0
-        return cls(idx, np.asarray(u["undetermined"], dtype=float).reshape(idx.size, -1), f, top, factor)
+        return cls(idx, np.asarray(u["undetermined"], dtype=float).reshape(idx.size, -1), f, top, factor,
+                   np.linalg.norm(factor[1], axis=1))
 
     def std(self, J: np.ndarray, setup: np.ndarray | None = None,
             J_first: np.ndarray | None = None) -> np.ndarray:
@@ -106,9 +113,16 @@ class Undetermined:
                 D = setup[rows]
                 moved[rows] -= D @ np.linalg.lstsq(D, moved[rows], rcond=None)[0]
             open_ |= np.abs(moved).max(axis=1) > UNDETERMINED_UM
-        size = np.linalg.norm(J[:, self.index] / self.to_file, axis=1) * self.largest_sd
-        content = size > 0
-        held_only = content & (sd < self.NO_VARIANCE * size)
+        # what the prediction's own parameters could give it at most (all of them moving together,
+        # each by its standard error): a held combination of them leaves only rounding of that. Judged
+        # against the model's largest standard error instead, one profile coefficient of 2e7 um (a
+        # spline function at the data's edge) blanked every range of a laser-measured profile
+        # (and, for the rounding of parameters held with no variance at all, ROUNDING of the model's
+        # largest standard error)
+        content = np.any(J[:, self.index] != 0, axis=1)
+        size = np.abs(J[:, idx]) @ self.parameter_sd
+        largest = np.linalg.norm(J[:, self.index] / self.to_file, axis=1) * self.largest_sd
+        held_only = content & (sd <= self.NO_VARIANCE * size + self.ROUNDING * largest)
         if setup is None or not setup.shape[1]:
             unknown = held_only
         else:
@@ -119,6 +133,32 @@ class Undetermined:
                 if np.any(group & content) and np.all(held_only[group & content]):
                     unknown |= group
         return np.where(open_ | unknown, np.nan, sd), unknown
+
+
+def span_without(N: np.ndarray, rows) -> np.ndarray:
+    """(k, j) a basis of the part of span(``N``) ((k, m): directions of k parameters) in which the
+    parameters ``rows`` do not move, whatever basis N is in: the columns that do not move them (to
+    1e-6 of their largest element, rounding) as they are, the others replaced by the unit
+    combinations of them that cancel those rows. Judged column by column instead, what a basis of
+    the same span holds open changed with the basis: one column remixed made a rotary axis's error
+    motions read "not determined by the data"."""
+    N = np.array(N, dtype=float, copy=True)
+    rows = np.asarray(rows, dtype=int)
+    if not N.shape[1] or not rows.size:
+        return N
+    top = np.abs(N).max(axis=0)
+    moves = np.abs(N[rows]).max(axis=0) > 1e-6 * np.where(top > 0, top, 1.0)
+    N[np.ix_(rows, np.flatnonzero(~moves))] = 0.0
+    if not moves.any():
+        return N
+    T = N[:, moves]
+    scale = np.abs(T).max(axis=0)
+    _, s, Vt = np.linalg.svd(T[rows] / scale, full_matrices=True)
+    rank = int(np.sum(s > 1e-6 * max(float(s.max()) if s.size else 0.0, 1e-300)))
+    out = (T / scale) @ Vt[rank:].T
+    out[rows] = 0.0
+    out = out[:, np.abs(out).max(axis=0, initial=0.0) > 1e-6]
+    return np.hstack([N[:, ~moves], out * np.mean(scale)])
 
 
 @dataclass
