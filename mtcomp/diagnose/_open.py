@@ -205,9 +205,9 @@ def seen_through_factor(lsq, penalised, s2: float) -> tuple:
     value. There the least squares, linearised at the selection's values, measures it (on a
     double turntable's campaign a centre moving 79.96 +- 0.27 mm per m/min, the truth's 80). Its
     variance is that of the least squares, its covariance with the rest left out (the penalised fit
-    did not move it), and the combinations the data leave open no longer hold it."""
+    did not move it), and the combinations the data leave open no longer hold it: alone it lies in
+    their span, so each of them less its part is still one of them."""
     u = penalised.uncertainty
-    from ..identification.predict import span_without
     if u is None or lsq.params.std_errors is None:
         return penalised.params, u
     names = list(u["names"])
@@ -233,4 +233,9 @@ def seen_through_factor(lsq, penalised, s2: float) -> tuple:
         C[k, k] = v
         std[params.index(n)] = np.sqrt(v)
     params.std_errors = std
-    return params, {**u, "covariance": C, "undetermined": span_without(N, rows)}
+    # each of them alone moves nothing: a direction less its part is still one the data leave open
+    # (kept as it is, so that what the report counts as open does not change with the basis)
+    N = N.copy()
+    N[rows] = 0.0
+    top = max(float(np.abs(N).max(initial=0.0)), 1e-300)
+    return params, {**u, "covariance": C, "undetermined": N[:, np.abs(N).max(axis=0) > 1e-12 * top]}

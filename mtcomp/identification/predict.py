@@ -35,8 +35,8 @@ class Undetermined:
         covariance (``factor``).
     to_file : (k,) file unit per internal unit of each fitted parameter.
     largest_sd : the largest standard error of any combination of unit size of the fitted
-        parameters in file units (um, urad): the scale against which a standard error counts as
-        none at all.
+        parameters in file units (um, urad): below :attr:`ROUNDING` of it a standard error counts
+        as none at all (parameters held with no variance).
     """
 
     index: np.ndarray | None
@@ -133,32 +133,6 @@ class Undetermined:
                 if np.any(group & content) and np.all(held_only[group & content]):
                     unknown |= group
         return np.where(open_ | unknown, np.nan, sd), unknown
-
-
-def span_without(N: np.ndarray, rows) -> np.ndarray:
-    """(k, j) a basis of the part of span(``N``) ((k, m): directions of k parameters) in which the
-    parameters ``rows`` do not move, whatever basis N is in: the columns that do not move them (to
-    1e-6 of their largest element, rounding) as they are, the others replaced by the unit
-    combinations of them that cancel those rows. Judged column by column instead, what a basis of
-    the same span holds open changed with the basis: one column remixed made a rotary axis's error
-    motions read "not determined by the data"."""
-    N = np.array(N, dtype=float, copy=True)
-    rows = np.asarray(rows, dtype=int)
-    if not N.shape[1] or not rows.size:
-        return N
-    top = np.abs(N).max(axis=0)
-    moves = np.abs(N[rows]).max(axis=0) > 1e-6 * np.where(top > 0, top, 1.0)
-    N[np.ix_(rows, np.flatnonzero(~moves))] = 0.0
-    if not moves.any():
-        return N
-    T = N[:, moves]
-    scale = np.abs(T).max(axis=0)
-    _, s, Vt = np.linalg.svd(T[rows] / scale, full_matrices=True)
-    rank = int(np.sum(s > 1e-6 * max(float(s.max()) if s.size else 0.0, 1e-300)))
-    out = (T / scale) @ Vt[rank:].T
-    out[rows] = 0.0
-    out = out[:, np.abs(out).max(axis=0, initial=0.0) > 1e-6]
-    return np.hstack([N[:, ~moves], out * np.mean(scale)])
 
 
 @dataclass

@@ -28,7 +28,7 @@ from ..models.evaluate import casadi_map_call
 from ..models.model_file import FittedModel
 from ..models.terms import ANGLE_LETTERS, TRANSLATION_LETTERS, positioning_component
 from .penalty import RHO_BOUND, component_class
-from .predict import Undetermined, predict_readings, span_without
+from .predict import Undetermined, predict_readings
 
 #: positions along an axis at which a component's profile is evaluated
 GRID_POINTS = 201
@@ -237,8 +237,11 @@ def _resolved(und: Undetermined, fitted: FittedModel, unmeasured: set) -> Undete
     if not unmeasured or und.directions is None or not und.directions.shape[1]:
         return und
     from dataclasses import replace
-    um = [k for k, i in enumerate(und.index) if fitted.params.specs[i].group in unmeasured]
-    return replace(und, directions=span_without(und.directions, um))
+    D = und.directions
+    um = np.array([fitted.params.specs[i].group in unmeasured for i in und.index])
+    big = np.abs(D).max(axis=0)
+    keep = ~(np.abs(D[um]).max(axis=0, initial=0.0) > 1e-6 * np.where(big > 0, big, 1.0))
+    return replace(und, directions=D[:, keep])
 
 
 def _axis_ranges(fitted: FittedModel, ax, lo: float, hi: float, und: Undetermined, mask) -> list:
