@@ -53,9 +53,9 @@ class Undetermined:
     #: combination has no variance at all, to rounding), it did not measure it
     NO_VARIANCE = 1e-9
     #: nor one below this share of the model's largest standard error (per unit of its Jacobian):
-    #: parameters held with no variance at all, to rounding. Measured quantities stay above 1e-7 of
-    #: it on the real ISO 230-2 runs, held ones below 1e-15; a laser-measured positioning profile
-    #: beside a spline function of 2e7 um at the data's edge, 1.3e-9
+    #: parameters held with no variance at all, to rounding. A model of the real ISO 230-2 run of
+    #: X (ess_b02_x) predicts its own readings at 0.018 to 0.022 of it, the Y run (held) at 1e-26;
+    #: a laser-measured positioning profile beside a spline function of 2e7 um, 1.3e-9
     ROUNDING = 1e-13
 
     @classmethod
@@ -114,11 +114,10 @@ class Undetermined:
                 moved[rows] -= D @ np.linalg.lstsq(D, moved[rows], rcond=None)[0]
             open_ |= np.abs(moved).max(axis=1) > UNDETERMINED_UM
         # what the prediction's own parameters could give it at most (all of them moving together,
-        # each by its standard error): a held combination of them leaves only rounding of that. Judged
-        # against the model's largest standard error instead, one profile coefficient of 2e7 um (a
-        # spline function at the data's edge) blanked every range of a laser-measured profile
-        # (and, for the rounding of parameters held with no variance at all, ROUNDING of the model's
-        # largest standard error)
+        # each by its standard error): a held combination of them leaves only rounding of that; and
+        # ROUNDING of the model's largest standard error (parameters held with no variance at all).
+        # Judged against the largest alone, one spline coefficient of 2e7 um at the data's edge
+        # blanked every range of a laser-measured profile
         content = np.any(J[:, self.index] != 0, axis=1)
         size = np.abs(J[:, idx]) @ self.parameter_sd
         largest = np.linalg.norm(J[:, self.index] / self.to_file, axis=1) * self.largest_sd
