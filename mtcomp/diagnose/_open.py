@@ -233,9 +233,26 @@ def seen_through_factor(lsq, penalised, s2: float) -> tuple:
         C[k, k] = v
         std[params.index(n)] = np.sqrt(v)
     params.std_errors = std
-    # each of them alone moves nothing: a direction less its part is still one the data leave open
-    # (kept as it is, so that what the report counts as open does not change with the basis)
+    return params, {**u, "covariance": C, "undetermined": _less_rows(N, rows)}
+
+
+def _less_rows(N: np.ndarray, rows: list) -> np.ndarray:
+    """The directions ``N`` (columns) less their part in ``rows``, each of which alone lies in their
+    span: a direction less that part is still one the data leave open. The columns that had none
+    are kept as they are (so that what the report counts as open does not change with the basis);
+    of the others, those that add a direction to them, in turn: the span is one dimension less per
+    row, and two directions left parallel let the model file's split of its values along them
+    (FittedModel.undetermined_values) take 0.69 um of a laser-measured positioning profile."""
+    had = np.abs(N[rows]).max(axis=0, initial=0.0) > 0
     N = N.copy()
     N[rows] = 0.0
-    top = max(float(np.abs(N).max(initial=0.0)), 1e-300)
-    return params, {**u, "covariance": C, "undetermined": N[:, np.abs(N).max(axis=0) > 1e-12 * top]}
+    kept, basis = [], np.zeros((N.shape[0], 0))
+    for j in list(np.flatnonzero(~had)) + list(np.flatnonzero(had)):
+        n = np.linalg.norm(N[:, j])
+        if not n > 0:
+            continue
+        r = N[:, j] / n - basis @ (basis.T @ (N[:, j] / n))
+        if np.linalg.norm(r) > 1e-6:
+            kept.append(j)
+            basis = np.column_stack([basis, r / np.linalg.norm(r)])
+    return N[:, sorted(kept)]
