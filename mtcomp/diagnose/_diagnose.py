@@ -187,9 +187,23 @@ def _written(diag: Diagnosis) -> Diagnosis:
     if written:
         diag.final["written"] = written
     diag.model = model
+    _quote_standard_errors(diag.findings, model)
     diag.seconds += time.perf_counter() - t0
     model.info["diagnose"] = diag.to_dict()
     return diag
+
+
+def _quote_standard_errors(findings, model) -> None:
+    """Give each feed-dependent Abbe finding the standard error of its moving centre that the model
+    written gives it (``irc_shift_sd_mm_per_m_min``, file units), as MODEL.json says it."""
+    se = model.params.std_errors
+    for f in findings:
+        name = f.params.get("irc_shift_component")
+        if se is None or name not in model.params:
+            continue
+        i = model.params.index(name)
+        if np.isfinite(se[i]):
+            f.params["irc_shift_sd_mm_per_m_min"] = round(float(se[i] * model.params.specs[i].to_file), 4)
 
 
 def _heldout_sse(diag, sigma: dict) -> float:
@@ -575,14 +589,16 @@ def _what_remains(st, design, sel: _Selection, noise, noise_main, may_refine, sa
 
 
 def _final_params(st, design, findings, fit):
-    """Report the parameters of every finding at the final (re-linearised) fit."""
+    """Report the parameters of every finding, and the evidence that quotes them, at the final
+    (re-linearised) fit."""
     from ._report import evidence_and_params
     k = design.A_original.shape[1]
     for f in findings:
         c = f.candidate
         w = c.columns.shape[1]
         before, after, rivals = f.step
-        f.params, _ = evidence_and_params(st, c, fit.theta[k:k + w], before, after, rivals, None)
+        params, evidence = evidence_and_params(st, c, fit.theta[k:k + w], before, after, rivals, None)
+        f.params, f.evidence = params, evidence or f.evidence
         k += w
 
 

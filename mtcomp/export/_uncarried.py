@@ -128,7 +128,8 @@ def uncarried_lines(fitted, tables, carried: dict, fmt: str) -> tuple[list, floa
         at = Q[int(np.argmax(rest))]
         where = " ".join(f"{ax.name}{at[i] * (180 / math.pi if ax.is_rotary else 1):g}"
                          for i, ax in enumerate(machine.axes))
-        sd = (f" +- {v.sd:.2g} {v.unit}" if np.isfinite(v.sd) else
+        # what the printed report and MODEL.json say of it: no standard error where they give none
+        sd = (f" +- {v.sd:.2g} {v.unit}" if np.isfinite(v.sd) and v.status == "fitted" else
               f" {v.unit} (no standard error: the data do not fix it alone)")
         found.append((float(rest.max()), f"{v.name} ({v.meaning}) {v.value:+.2f}{sd}: up to "
                       f"{rest.max():.2f} um at the tool tip (at {where})", carrier(fmt, machine, v.name)))

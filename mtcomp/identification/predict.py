@@ -35,8 +35,8 @@ class Undetermined:
         covariance (``factor``).
     to_file : (k,) file unit per internal unit of each fitted parameter.
     largest_sd : the largest standard error of any combination of unit size of the fitted
-        parameters in file units (um, urad): the scale against which a standard error counts as
-        none at all.
+        parameters in file units (um, urad): below :attr:`ROUNDING` of it a standard error counts
+        as none at all (parameters held with no variance).
     """
 
     index: np.ndarray | None
@@ -45,12 +45,18 @@ class Undetermined:
     largest_sd: float = 0.0
     #: (indices, F) with F F^T the covariance (:meth:`FittedModel.covariance_factor`), computed once
     factor: tuple | None = None
+    #: (k,) each fitted parameter's standard error (internal units; the factor's order)
+    parameter_sd: np.ndarray | None = None
 
-    #: a prediction whose standard error is below this share of :attr:`largest_sd` (per unit of its
-    #: Jacobian) has none: the fit held what it rests on (undetermined directions have no variance
-    #: at all, to rounding), it did not measure it. Measured quantities stay above 1e-7 of it on the
-    #: real ISO 230-2 runs, held ones below 1e-12.
+    #: a prediction whose standard error is below this share of what its own parameters' standard
+    #: errors could give it (all moving together) has none: the fit held what it rests on (a held
+    #: combination has no variance at all, to rounding), it did not measure it
     NO_VARIANCE = 1e-9
+    #: nor one below this share of the model's largest standard error (per unit of its Jacobian):
+    #: parameters held with no variance at all, to rounding. A model of the real ISO 230-2 run of
+    #: X (ess_b02_x) predicts its own readings at 0.018 to 0.022 of it, the Y run (held) at 1e-26;
+    #: a laser-measured positioning profile beside a spline function of 2e7 um, 1.3e-9
+    ROUNDING = 1e-13
 
     @classmethod
     def of(cls, fitted: FittedModel) -> "Undetermined":
@@ -63,7 +69,8 @@ class Undetermined:
         scaled = factor[1] * f[:, None]          # the same parameters, in the same order
         with one_blas_thread():
             top = float(np.linalg.norm(scaled, 2)) if scaled.size else 0.0
-        return cls(idx, np.asarray(u["undetermined"], dtype=float).reshape(idx.size, -1), f, top, factor)
+        return cls(idx, np.asarray(u["undetermined"], dtype=float).reshape(idx.size, -1), f, top, factor,
+                   np.linalg.norm(factor[1], axis=1))
 
     def std(self, J: np.ndarray, setup: np.ndarray | None = None,
             J_first: np.ndarray | None = None) -> np.ndarray:
@@ -106,9 +113,15 @@ class Undetermined:
                 D = setup[rows]
                 moved[rows] -= D @ np.linalg.lstsq(D, moved[rows], rcond=None)[0]
             open_ |= np.abs(moved).max(axis=1) > UNDETERMINED_UM
-        size = np.linalg.norm(J[:, self.index] / self.to_file, axis=1) * self.largest_sd
-        content = size > 0
-        held_only = content & (sd < self.NO_VARIANCE * size)
+        # what the prediction's own parameters could give it at most (all of them moving together,
+        # each by its standard error): a held combination of them leaves only rounding of that; and
+        # ROUNDING of the model's largest standard error (parameters held with no variance at all).
+        # Judged against the largest alone, one spline coefficient of 2e7 um at the data's edge
+        # blanked every range of a laser-measured profile
+        content = np.any(J[:, self.index] != 0, axis=1)
+        size = np.abs(J[:, idx]) @ self.parameter_sd
+        largest = np.linalg.norm(J[:, self.index] / self.to_file, axis=1) * self.largest_sd
+        held_only = content & (sd <= self.NO_VARIANCE * size + self.ROUNDING * largest)
         if setup is None or not setup.shape[1]:
             unknown = held_only
         else:

@@ -27,7 +27,7 @@ from ..models.chain import (SPINDLE_TILT, rotary_location_names,
 from ..models.evaluate import casadi_map_call
 from ..models.model_file import FittedModel
 from ..models.terms import ANGLE_LETTERS, TRANSLATION_LETTERS, positioning_component
-from .penalty import component_class
+from .penalty import RHO_BOUND, component_class
 from .predict import Undetermined, predict_readings
 
 #: positions along an axis at which a component's profile is evaluated
@@ -271,8 +271,9 @@ def _axis_ranges(fitted: FittedModel, ax, lo: float, hi: float, und: Undetermine
         i_max, i_min = int(np.argmax(e)), int(np.argmin(e))
         sd = float(und.std((J[i_max] - J[i_min])[None, :])[0])
         status = _status(D, sd_along, mask)
-        if status == "undetermined" and held[np.isnan(sd_along)].all() and \
-                component_class(fitted.machine, f"{ax.name}:{comp}") in smoothed:
+        if status != "held" and not abs(e[i_max] - e[i_min]) > sd and \
+                component_class(fitted.machine, f"{ax.name}:{comp}") in smoothed and \
+                np.all(held[np.isnan(sd_along)]):
             status = "flat"
         ranges.append(ComponentRange(ax.name, comp, component_meaning(ax.name, comp), unit, lo * f_pos,
                                      hi * f_pos, float(e[i_max] - e[i_min]), sd,
@@ -282,10 +283,14 @@ def _axis_ranges(fitted: FittedModel, ax, lo: float, hi: float, und: Undetermine
 
 
 def _smoothed_classes(fitted: FittedModel) -> set:
-    """The penalty classes whose roughness weight the fit chose (REML, :mod:`.penalty`)."""
+    """The penalty classes whose roughness weight the fit (REML, :mod:`.penalty`) took far out, to
+    the flat end of its criterion (above half its bound: the curvature then weighs millions of times
+    what the data do): their profiles are held flat (straight about their line), and a range within
+    its own standard error is the data showing none."""
     info = fitted.info if isinstance(fitted.info, dict) else {}
     smoothing = (info.get("identify") or {}).get("smoothing") or {}
-    return set(smoothing.get("weights") or ())
+    return {k for k, w in (smoothing.get("weights") or {}).items()
+            if w is not None and float(w) >= math.exp(RHO_BOUND / 2.0)}
 
 
 def _location_values(fitted: FittedModel, und: Undetermined, mask) -> list:
