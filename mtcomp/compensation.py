@@ -690,5 +690,9 @@ def _planner(fitted, settings: CompensationSettings, inch: bool, src, progress) 
     planner = Planner(build_problem(fitted, settings, inch), options, source=src)
     summary = Summary(fitted.machine.axis_names, extrapolate=settings.extrapolate,
                       support_known=fitted.support is not None, max_correction_sd_um=sd_limit,
-                      has_covariance=fitted.uncertainty is not None)
+                      has_covariance=fitted.uncertainty is not None, ram=planner.ram.ram,
+                      ram_measured=(fitted.support or {}).get(planner.ram.ram),
+                      ram_asked=planner.ram.ram_asked, tools_asked=planner.ram.tools_asked,
+                      tools_measured=fitted.info.get("tool_length_mm")
+                      if isinstance(fitted.info, dict) else None)
     return planner, summary

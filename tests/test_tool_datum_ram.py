@@ -107,7 +107,7 @@ def _uncorrected(rows):
     return out
 
 
-def test_each_tool_is_referenced_to_the_probe_s_tip_in_x_and_y(plates):
+def test_each_tool_is_referenced_to_the_probe_s_tip_in_x_and_y(plates, capsys):
     """The 200 mm tool, a length the plates measured, at their height: its tip stands off the
     probe's at the datum by B0Z 100 mm = 2 um in X and -A0Z 100 mm = 1 um in Y (by hand), which
     the datum probed once in X Y does not hold. Referencing each tool to its own tip at the datum left that between the
@@ -115,6 +115,7 @@ def test_each_tool_is_referenced_to_the_probe_s_tip_in_x_and_y(plates):
     CMM data cannot tell from the plates' alignment is common to both tools.)"""
     d, m, model = plates
     rows = _compensate(d, model, [(1, 0.0), (2, 0.0)], "ref")
+    assert "note: the program's tools" not in capsys.readouterr().out     # the data's 100, 200 mm
     assert len(rows) == 2 * len(HOLES) and all(r["corrected"] == "1" for r in rows), rows
     t1, t2 = rows[:len(HOLES)], rows[len(HOLES):]
     uncorrected = _uncorrected(t1 + t2)
@@ -123,6 +124,33 @@ def test_each_tool_is_referenced_to_the_probe_s_tip_in_x_and_y(plates):
     np.testing.assert_allclose(before, np.tile([2.0, 1.0], (len(HOLES), 1)), atol=0.01)
     between = _holes_after_um(m, t2, 200.0) - _holes_after_um(m, t1, 100.0)
     assert np.max(np.hypot(*between.T)) < 0.3, between
+
+
+def test_a_ram_outside_the_data_leaves_only_its_own_correction(plates, capsys):
+    """Holes drilled 10 mm below the plates with the 100 mm tool (the ram at -160, below the -150
+    .. -50 mm the data reached) and at their height with a 260 mm tool (the ram at +10, above it):
+    the X Y errors there are the table's and the saddle's, which the plates measured, and the tilt
+    of Z's straight line in the tool length. Left uncorrected whole before (3.6 um for the long
+    tool, against the probe); now X and Y are corrected, Z is not, and the summary says where the
+    ram stood against where its data reached, and that the 260 mm tool is longer than the data's."""
+    d, m, model = plates
+    rows = _compensate(d, model, [(1, 0.0), (1, -10.0), (3, 0.0)], "ram")
+    out = capsys.readouterr().out
+    n = len(HOLES)
+    ref, deep, long_ = rows[:n], rows[n:2 * n], rows[2 * n:]
+    assert all(r["outside_support"] == "Z" and r["corrected"] == "1" for r in deep + long_), rows
+    assert all(float(r["cz_um"] or 0.0) == 0.0 for r in deep + long_), rows
+    said = "with the ram (Z) outside the -150 .. -50 mm its data reached (at -160 .. 60 mm"
+    assert said in out, out
+    said = ("note: the program's tools are 100 .. 260 mm long, the model's data were taken with "
+            "100 .. 200 mm")
+    assert said in out, out
+    base = _holes_after_um(m, ref, 100.0)                 # the part's rotation, common to all
+    for part, tool, before_um, tol in ((deep, 100.0, 1.0, 0.4), (long_, 260.0, 3.0, 0.8)):
+        zero = _uncorrected(part)
+        assert np.max(np.hypot(*_holes_after_um(m, zero, tool).T)) > before_um
+        err = np.hypot(*(_holes_after_um(m, part, tool) - base).T)
+        assert np.max(err) < tol, (tool, err)
 
 
 def test_the_probe_s_length_is_given(plates):

@@ -52,7 +52,7 @@ import numpy as np
 import scipy.linalg
 
 from ..errors import InputError
-from ..measurement.readings import data_held, data_support
+from ..measurement.readings import data_held, data_support, data_tool_lengths
 from ..models.model_file import FittedModel
 from ..models.params import ParameterSet
 from .reversal import DirectionContrast, data_reversal
@@ -182,6 +182,10 @@ def _record_data(result, model, mask, mms, datasets) -> None:
     held_axes = [a for a in moved if a not in fitted]
     if held_axes:
         result.fitted_model.info["held_axes"] = held_axes
+    # the tools the data were taken with: compensate says when a program's go beyond them
+    tools = data_tool_lengths(model.machine, datasets)
+    if tools is not None:
+        result.fitted_model.info["tool_length_mm"] = tools
     known = [m.tag for m in mms if m.options.get("setup") == "known"]
     if known:
         result.fitted_model.info["known_setup"] = known
