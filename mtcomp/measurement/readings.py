@@ -197,22 +197,6 @@ def data_support(machine, datasets) -> dict[str, tuple[float, float]]:
     return {a: r for a, r in _position_ranges(machine, datasets, guideway=True).items() if r[1] - r[0] > 1e-9}
 
 
-def data_tool_lengths(machine, datasets) -> list[float] | None:
-    """[shortest, longest] tool length (mm) of the rows of the files with axis positions (a blank
-    ``tool_mm`` the machine's), None when no file positions an axis."""
-    lengths = []
-    for d in datasets:
-        data = d.data if isinstance(d, MeasurementModel) else d
-        if hasattr(data, "axis_positions") and len(data):
-            tool = getattr(data, "tool", None)
-            tool = np.full(len(data), np.nan) if not isinstance(tool, np.ndarray) else tool
-            lengths.append(np.where(np.isfinite(tool), tool, machine.tool_length))
-    if not lengths:
-        return None
-    v = np.concatenate(lengths)
-    return [float(v.min()), float(v.max())]
-
-
 def data_held(machine, datasets) -> dict[str, float]:
     """Axis name -> position, for every axis that the files position but hold at one and the same
     position on its guideway (internal units; the ram where the rows' tools put it): how its errors
