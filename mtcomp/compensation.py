@@ -57,6 +57,8 @@ class CompensationSettings:
     temperatures : sensor name -> degC while the program runs; spindle_rpm : warm spindle speed.
     probed_temperatures, probed_spindle_rpm : the same when the part's datum was probed (empty,
         None: at the drift terms' zero, the thermal record's first reading).
+    probe_tool_length : mm, the length of the probe the part's datum was probed with in X and Y
+        (None: the machine file's tool length): FittedModel.probe_tool_length.
     extrapolate : correct blocks outside the region the model's data reached too, and at
         temperatures and spindle speeds outside the range of the model's thermal record (else refused).
     max_correction_sd_um : the limit on a correction's standard error (um); None: the default; 0: none.
@@ -81,6 +83,7 @@ class CompensationSettings:
     spindle_rpm: float | None = None
     probed_temperatures: dict = field(default_factory=dict)
     probed_spindle_rpm: float | None = None
+    probe_tool_length: float | None = None
     extrapolate: bool = False
     max_correction_sd_um: float | None = None
     units: str | None = None
@@ -108,6 +111,7 @@ class CompensationSettings:
         positive(self.max_correction_urad, "max_correction_urad", allow_zero=True)
         positive(self.subdivide_tol_um, "subdivide_tol_um", allow_zero=True)
         positive(self.max_correction_sd_um, "max_correction_sd_um", allow_zero=True)
+        positive(self.probe_tool_length, "probe_tool_length", allow_zero=True)
         for table in ("axis_max_correction", "axis_max_step"):
             for axis, v in getattr(self, table).items():
                 positive(v, f"{table} {axis}")
@@ -275,6 +279,7 @@ class Judge:
                                      settings.extrapolate)
         fitted.context_defaults.update(thermal)
         fitted.probed = _probed(fitted, settings)[0]
+        fitted.probe_tool_length = settings.probe_tool_length
         self.ev = Evaluator(CompensationProblem.from_machine(fitted))
         self.count = 0
         self.max_before_um = self.max_after_um = 0.0
@@ -571,6 +576,7 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     series = _checked_series(fitted, settings, temperature_series)
     fitted.context_defaults.update(thermal)
     fitted.probed, probe_line = _probed(fitted, settings, temperature_series)
+    fitted.probe_tool_length = settings.probe_tool_length
     setup = setup if setup is not None else ProgramSetup(machine)
     with contextlib.ExitStack() as stack:
         expanded = None if io_progress is None else (lambda lines: io_progress("expanded", lines))
@@ -684,5 +690,9 @@ def _planner(fitted, settings: CompensationSettings, inch: bool, src, progress) 
     planner = Planner(build_problem(fitted, settings, inch), options, source=src)
     summary = Summary(fitted.machine.axis_names, extrapolate=settings.extrapolate,
                       support_known=fitted.support is not None, max_correction_sd_um=sd_limit,
-                      has_covariance=fitted.uncertainty is not None)
+                      has_covariance=fitted.uncertainty is not None, ram=planner.ram.ram,
+                      ram_measured=(fitted.support or {}).get(planner.ram.ram),
+                      ram_asked=planner.ram.ram_asked, tools_asked=planner.ram.tools_asked,
+                      tools_measured=fitted.info.get("tool_length_mm")
+                      if isinstance(fitted.info, dict) else None)
     return planner, summary

@@ -69,19 +69,22 @@ def _render_max(tmp_path, capsys, model, *extra):
 
 def test_render_takes_tool_lengths_as_compensate_does(tmp_path, capsys):
     """EXZ_2 = 500 um: Z's straightness in X is 500 um (s / 1 m)^2 at ram position s = z + L - L0
-    (L0 = 100 mm, the machine's). Against the datum (z = 0), a tip at z = -10 is off in X by
-    500 um ((s - 10)^2 - s^2) / 1e6 mm^2 with s = L - L0, the most of the square; along the tilted
-    square's normal (1, 0, 2) / sqrt(5): 0.201 um with L = 150 mm (s = 50: -900 mm^2), 0.425 um
-    with 10 mm (s = -90: 1900 mm^2), 0.022 um with the machine's 100 mm (100 mm^2) (hand-derived)."""
+    (L0 = 100 mm, the machine's). Against the datum as the probe found it in X (z = 0, the
+    machine's 100 mm: s = 0, no error), a tip at z (0 .. -10 on the square) is off in X by
+    500 um s^2 / 1e6 mm^2; along the tilted square's normal (1, 0, 2) / sqrt(5) at most: 0.559 um
+    with L = 150 mm (s = 50 at z = 0: 2500 mm^2), 2.236 um with 10 mm (s = -100 at z = -10:
+    10000 mm^2), 0.022 um with the machine's 100 mm (s = -10: 100 mm^2) (hand-derived). Each tool
+    referenced to its own tip at the datum, as before, gave 0.201 and 0.425 um: the X offset of
+    the tool's tip from the probe's at the datum left out."""
     _, _, model = _model(tmp_path, EXZ_2=500.0)
     (tmp_path / "sq.nc").write_text(SQUARE_H1)
     (tmp_path / "offsets.toml").write_text("[tool_lengths]\nH1 = 150.0\n")
     assert _render_max(tmp_path, capsys, model, "--tool-length", "H1=150") == pytest.approx(
-        500 * 900e-6 / 5 ** 0.5, rel=0, abs=1e-3)
+        500 * 2500e-6 / 5 ** 0.5, rel=0, abs=1e-3)
     assert _render_max(tmp_path, capsys, model, "--offsets", str(tmp_path / "offsets.toml")) == \
-        pytest.approx(500 * 900e-6 / 5 ** 0.5, rel=0, abs=1e-3)
+        pytest.approx(500 * 2500e-6 / 5 ** 0.5, rel=0, abs=1e-3)
     assert _render_max(tmp_path, capsys, model, "--tool-length", "H1=10") == pytest.approx(
-        500 * 1900e-6 / 5 ** 0.5, rel=0, abs=1e-3)
+        500 * 10000e-6 / 5 ** 0.5, rel=0, abs=1e-3)
 
 
 #: a ring in tool centre point mode: the table tilts (A) and turns (C) while the tool cuts
@@ -111,12 +114,12 @@ SQUARE_NAMED = ('G17 G71 G90\nT="CUTTER 10"\nM6\nD1\nG0 X-10 Y-10 Z5\nG1 Z0 F300
 
 
 def test_render_takes_the_length_of_a_tool_called_by_name(tmp_path, capsys):
-    """As above (0.201 um with 150 mm, 0.022 um at the machine's 100 mm), the tool given by name."""
+    """As above (0.559 um with 150 mm, 0.022 um at the machine's 100 mm), the tool given by name."""
     _, _, model = _model(tmp_path, EXZ_2=500.0)
     (tmp_path / "sq.nc").write_text(SQUARE_NAMED)
     named = _render_max(tmp_path, capsys, model, "--dialect", "sinumerik",
                         "--tool-length", "CUTTER 10=150")
-    assert named == pytest.approx(500 * 900e-6 / 5 ** 0.5, rel=0, abs=1e-3)
+    assert named == pytest.approx(500 * 2500e-6 / 5 ** 0.5, rel=0, abs=1e-3)
     assert main(["render", "xfyz", str(model), str(tmp_path / "sq.nc"), "-o", str(tmp_path / "m.png"),
                  "--backend", "matplotlib", "--dialect", "sinumerik", "--tool-length", "H1=150"]) == 0
     out = capsys.readouterr().out

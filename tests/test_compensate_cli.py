@@ -522,9 +522,12 @@ def test_work_offset_and_tool_length_reach_the_model(tmp_path, capsys):
     q_mach = q_prog - corr + [100.0, 50.0, -200.0]
     c = fitted.context(len(rows), {"tool_length": np.full(len(rows), 80.0)})
     dev = deviation(fitted.model, q_mach, fitted.params.values, c)
-    # referenced to the part's datum: the program's origin, the work offset, with the tool of H1
-    datum = deviation(fitted.model, np.tile([100.0, 50.0, -200.0], (len(rows), 1)),
-                      fitted.params.values, c)
+    # referenced to the part's datum: the program's origin, the work offset, in X Y as the probe
+    # found it (the machine's tool length, 100 mm), in Z with the tool of H1 (set on its own)
+    at = np.tile([100.0, 50.0, -200.0], (len(rows), 1))
+    datum = deviation(fitted.model, at, fitted.params.values, c)
+    probe = fitted.context(len(rows), {"tool_length": np.full(len(rows), machine.tool_length)})
+    datum[:, :2] = deviation(fitted.model, at, fitted.params.values, probe)[:, :2]
     np.testing.assert_allclose(before[known], (dev - datum)[known, :3] * 1e3, rtol=0, atol=2e-3)
     # an oracle with another offset disagrees: the test can fail
     dev0 = deviation(fitted.model, q_prog - corr, fitted.params.values, c)

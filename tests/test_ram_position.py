@@ -3,7 +3,8 @@
 puts the ram at z + 100. Data taken with it at tips z = 0..50 read the ram at 100..150 mm (the top
 of its travel): that is the range the report gives, the region compensate and export keep to, and
 the position diagnose reads a structure along. A block cut with a 0 mm tool at tip z = 100 has the
-ram at z = 0, at tip z = 50 at -50: both outside that region; one cut with the 100 mm tool at tip
+ram at z = 0, at tip z = 50 at -50: both outside that region (compensate leaves out their Z word);
+one cut with the 100 mm tool at tip
 z = 120 has it at 120, inside (the commanded rule had 50 inside and 120 outside)."""
 import csv
 from types import SimpleNamespace
@@ -59,7 +60,7 @@ def test_identify_records_and_reports_where_the_ram_stood(fitted_model, capsys):
     assert "Z from 100 to 150 mm:" in text, text
 
 
-def test_compensate_leaves_a_block_whose_ram_is_outside_the_data_uncorrected(fitted_model, tmp_path):
+def test_compensate_leaves_the_z_word_of_a_block_whose_ram_is_outside_the_data(fitted_model, tmp_path):
     _, model = fitted_model
     prog = tmp_path / "p.ngc"
     # H1 = 0 mm: tips z 100 and 50 put the ram at 0 and -50 (outside 100..150); H2 = 100 mm: tip
@@ -75,6 +76,10 @@ def test_compensate_leaves_a_block_whose_ram_is_outside_the_data_uncorrected(fit
         rows = [r for r in csv.DictReader(f) if r.get("inserted", "0") == "0"]
     outside = {float(r["z_mm"]): r["outside_support"] for r in rows}
     assert outside[100.0] == "Z" and outside[50.0] == "Z" and outside[120.0] == "", rows
+    # the ram alone outside: X and Y corrected, its own Z word not (docs/planner.md)
+    for r in rows:
+        if r["outside_support"] == "Z":
+            assert r["corrected"] == "1" and float(r["cz_um"] or 0.0) == 0.0, r
 
 
 def test_planner_block_status_reads_the_ram_where_the_tool_put_it(fitted_model):

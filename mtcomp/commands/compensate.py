@@ -94,6 +94,11 @@ def _add_thermal_arguments(parser):
                          "above; default: the whole drift since the thermal record's first reading)",
                          "the same for --spindle-rpm: the speed the spindle had run at long enough "
                          "to be warm when the datum was probed")
+    parser.add_argument("--probed-with-tool-length", type=float, metavar="MM", default=None,
+                        help="the length of the probe (or tool) the part's datum was found with in "
+                             "X and Y: every tool's X Y correction is referenced to that probe's "
+                             "tip at the datum, its Z correction to its own tip there (each tool "
+                             "set in Z on its own). Default: the machine file's tool length")
 
 
 def _positive(value, flag, allow_zero=False):
@@ -302,6 +307,7 @@ def run(args) -> int:
     _positive(args.max_correction_urad, "--max-correction-urad", allow_zero=True)
     _positive(args.subdivide_tol_um, "--subdivide-tol-um", allow_zero=True)
     _positive(args.max_correction_sd_um, "--max-correction-sd-um", allow_zero=True)
+    _positive(args.probed_with_tool_length, "--probed-with-tool-length", allow_zero=True)
     out, report, summary_json = _output_paths(args)
     machine = load_machine(args.machine)
     model_notes: list = []
@@ -315,7 +321,8 @@ def run(args) -> int:
         max_step_urad=args.max_step_urad, orientation_weight=args.orientation_weight,
         subdivide_tol_um=args.subdivide_tol_um, chord_tol_um=args.chord_tol_um,
         temperatures=temperatures, spindle_rpm=args.spindle_rpm, probed_temperatures=probed,
-        probed_spindle_rpm=args.probed_at_spindle_rpm, extrapolate=args.extrapolate,
+        probed_spindle_rpm=args.probed_at_spindle_rpm, probe_tool_length=args.probed_with_tool_length,
+        extrapolate=args.extrapolate,
         max_correction_sd_um=args.max_correction_sd_um, units=args.units,
         start_position=parse_start_position(machine, args.start_position), dialect=args.dialect)
     setup = load_setup(machine, args.offsets, args.work_offset, args.tool_length)

@@ -52,7 +52,7 @@ import numpy as np
 import scipy.linalg
 
 from ..errors import InputError
-from ..measurement.readings import data_held, data_support
+from ..measurement.readings import MeasurementModel, data_held, data_support
 from ..models.model_file import FittedModel
 from ..models.params import ParameterSet
 from .reversal import DirectionContrast, data_reversal
@@ -170,6 +170,19 @@ def _weights(problem, weights, rcond: float, max_iterations: int, tol: float):
     raise ValueError(f"weights must be 'unit', 'noise', a dict or one noise per reading, not {weights!r}")
 
 
+def _tool_lengths(machine, datasets) -> list[float] | None:
+    """[shortest, longest] tool (mm) of the rows of the files that position an axis (a blank
+    ``tool_mm`` the machine's); None when none does."""
+    v = []
+    for d in datasets:
+        x = d.data if isinstance(d, MeasurementModel) else d
+        if hasattr(x, "axis_positions") and len(x):
+            t = getattr(x, "tool", None)
+            v.append(np.nan_to_num(t if isinstance(t, np.ndarray) else np.full(len(x), np.nan),
+                                   nan=machine.tool_length))
+    return [float(min(t.min() for t in v)), float(max(t.max() for t in v))] if v else None
+
+
 def _record_data(result, model, mask, mms, datasets) -> None:
     """Record in the fitted model where its data reached, what they held, the files whose set-up is
     known and what the data show of a reversal."""
@@ -182,6 +195,10 @@ def _record_data(result, model, mask, mms, datasets) -> None:
     held_axes = [a for a in moved if a not in fitted]
     if held_axes:
         result.fitted_model.info["held_axes"] = held_axes
+    # the tools the data were taken with: compensate says when a program's go beyond them
+    tools = _tool_lengths(model.machine, datasets)
+    if tools is not None:
+        result.fitted_model.info["tool_length_mm"] = tools
     known = [m.tag for m in mms if m.options.get("setup") == "known"]
     if known:
         result.fitted_model.info["known_setup"] = known

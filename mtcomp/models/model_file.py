@@ -90,6 +90,8 @@ class FittedModel:
     probed : None, or the drift terms' context (``temp_<s>`` degC, ``spindle_lag_<tau>`` ...) at
         which the part's datum was probed (:func:`mtcomp.thermal.context.probed_state`): the datum's
         deviation then holds the drift at probing. None: the drift terms' own zero. Not saved.
+    probe_tool_length : mm, the length of the tool (a probe) the part's datum was probed with in X
+        and Y (:meth:`at_datum`); None: the machine's tool length. Not saved.
     """
 
     model: ErrorModel
@@ -100,6 +102,7 @@ class FittedModel:
     uncertainty: dict | None = None
     held: dict | None = None
     probed: dict | None = None
+    probe_tool_length: float | None = None
 
     def drift_param_indices(self) -> list[int]:
         """Indices into ``params`` of every drift term's parameters."""
@@ -152,8 +155,17 @@ class FittedModel:
         :meth:`datum_context`), evaluated where the model is (:meth:`clamp`)."""
         from .evaluate import evaluate
         datum = np.atleast_2d(np.asarray(datum, dtype=float))
-        out = evaluate(self.model, name, self.clamp(datum)[0], self.datum_params(),
-                       self.datum_context(tool_length))[0]
+        qd, p = self.clamp(datum)[0], self.datum_params()
+        out = evaluate(self.model, name, qd, p, self.datum_context(tool_length))[0]
+        probe = self.machine.tool_length if self.probe_tool_length is None else self.probe_tool_length
+        if not np.all(np.asarray(tool_length, dtype=float) == probe):
+            # one datum in X and Y, probed once with the probe's length; each tool set in Z (a tool
+            # setter or a touch-off): a tool of another length keeps, across the tool axis, the
+            # offset its tip has at the datum from the probe's (docs/planner.md, "One datum")
+            probe_ctx = self.datum_context(np.full(datum.shape[0], probe))
+            lateral = evaluate(self.model, name, qd, p, probe_ctx)[0]
+            out = np.array(out, copy=True)
+            out[:, :2] = lateral[:, :2]
         if name.endswith("pjacobian_function") and self.probed is None:
             # the datum's deviation is taken with the drift parameters at zero, whatever their
             # fitted values: it does not depend on them (without this the intercept of an absolute

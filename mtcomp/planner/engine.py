@@ -37,6 +37,7 @@ from ._nodes import NodeSet
 from ._parallel import read_ahead, resolve_threads, split_rows
 from ._pointwise import Linearization, solve_newton, solve_pinv
 from ._qp import WindowQP, never_worse_rows, prefetch_solver, reachable_nodes
+from ._ram import RamRule
 from ._result import PlanResult
 from ._rotary_grid import rotary_columns, round_rotary, solve_with_rotary_fixed
 from ._small import a_x, any_rows, at_b, down_columns, gram, row_max_abs, row_norm
@@ -72,6 +73,8 @@ class Planner:
         self.threads = resolve_threads(self.options.threads)
         #: (lo, hi) each (na,): the model's support, +-inf for axes it does not limit; None: unknown
         self.support = support_bounds(problem.fitted)
+        #: a block whose ram alone is outside the support has its other axes corrected (:mod:`._ram`)
+        self.ram = RamRule(self.machine, self.options.extrapolate)
         self._split = self.threads          # parts a chunk's per-block work is cut into
         #: the link bounds (:mod:`._links`): each axis keeps the direction the model evaluated it
         #: with, one correction along an arc under cutter radius compensation
@@ -123,8 +126,7 @@ class Planner:
 
     def _pinned(self, unknown, outside, sd_um):
         pinned = any_rows(unknown)
-        if not self.options.extrapolate:
-            pinned |= any_rows(outside)
+        pinned |= self.ram.whole_outside(outside)
         limit = self.options.max_correction_sd_um
         if limit:
             pinned |= sd_um > limit            # NaN (not evaluated) compares False
@@ -137,8 +139,7 @@ class Planner:
         if not self.options.max_correction_sd_um or not self.ev.has_uncertainty:
             return sd
         todo = ~any_rows(unknown)
-        if not self.options.extrapolate:
-            todo &= ~any_rows(outside)
+        todo &= ~self.ram.whole_outside(outside)
         if todo.any():
             qt, ct = q[todo], ctx[todo]
             if datum is None:
@@ -227,6 +228,7 @@ class Planner:
         outside = self.outside_support(end, known, chunk.tool_length)
         sd = self._sd_um(end, ctx, unknown, outside, chunk.datum)
         pinned = self._pinned(unknown, outside, sd)
+        self.ram.note(end, outside, pinned, chunk.tool_length)
         ref = self._reference(chunk.datum, ctx)
         lin_end = self._solve_free(end, ctx, ref)
         first = self._last_end is None
@@ -262,7 +264,7 @@ class Planner:
         # not corrected, as a block ending there would not be
         out_i = self.outside_support(q_i, known[rows_i],
                                      None if chunk.tool_length is None else np.asarray(chunk.tool_length)[rows_i])
-        pin_i = pinned[rows_i] | (any_rows(out_i) & (not self.options.extrapolate))
+        pin_i = pinned[rows_i] | self.ram.whole_outside(out_i)
         q_all = placed(end, q_i, pos_end, pos_i)
         firsts = np.zeros(row_sorted.size, bool)
         firsts[np.cumsum(counts) - counts] = True
@@ -354,7 +356,7 @@ class Planner:
         window's plan before its turn was rounded, whose step bounds the flags name too;
         ``desired``: the unbounded correction with its turn on the grid, when the caller has it)."""
         if limits is None:
-            limits = self.bounds.limits(nodes.q, nodes.box_pins())
+            limits = self.bounds.limits(nodes.q, self.ram.pins(nodes))
         # flags compare with the unbounded correction (its turn on the grid): what the bounds took
         if desired is None:
             desired = self._round_rotary(lin, lin.x)
@@ -367,6 +369,7 @@ class Planner:
             # a link bound holds an axis's whole correction where it acted and the axis is written
             # without any (the step bound's ramp only passes zero: _bounds.HOLDING)
             flags[nodes.pinned] = False
+            self.ram.unflag(flags, nodes)
             held = flags[..., HOLDING].any(axis=2) & (np.abs(y) <= self.bounds.on_tol)
         if len(nodes):
             self._prev = y[-1].copy()
@@ -536,7 +539,7 @@ class Planner:
         end = pos + count * W + O
         x = self._round_rotary(lin.take(slice(pos, end)), lin.x[pos:end])
         exempt = nodes.exempt[pos:end]
-        limits = self.bounds.limits_lazy(nodes.q[pos:end], nodes.box_pins()[pos:end])
+        limits = self.bounds.limits_lazy(nodes.q[pos:end], self.ram.pins(nodes)[pos:end])
         b = self.bounds
         links = None if nodes.link_lo is None else tuple(a[pos:end] for a in nodes.links)
         k = b.first_violation(x, limits[0], limits[1], exempt, self._prev, links=links)
@@ -703,7 +706,7 @@ class Planner:
                 nc = run_start(nodes.link_lo, nodes.link_hi, pos + nc, pos + 1) - pos
             sl = slice(pos, pos + nw)
             wn, wl = nodes.take(sl), lin.take(sl)
-            limits = self.bounds.limits(wn.q, wn.box_pins())
+            limits = self.bounds.limits(wn.q, self.ram.pins(wn))
             x, planned = self._solve_window(wn, wl, limits)
             # keep the re-linearisation for the overlap nodes of the next window
             lin.b[sl], lin.A[sl], lin.x_lin[sl], lin.iterations[sl] = wl.b, wl.A, wl.x_lin, wl.iterations

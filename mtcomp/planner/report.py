@@ -139,6 +139,11 @@ def _uncertain(result: PlanResult, limit: float | None) -> np.ndarray:
         return (result.sd_um > limit) | result.gated
 
 
+def _finite(pair) -> list | None:
+    """[lo, hi] as floats for JSON, None when not known."""
+    return None if pair is None or not np.all(np.isfinite(pair)) else [float(v) for v in pair]
+
+
 def _axis_letters(mask, axis_names) -> list[str]:
     """Per row the letters of the axes set in mask (n, na) ('' when none)."""
     out = [""] * mask.shape[0]
@@ -171,6 +176,21 @@ class Summary:
     first_outside_line: int = 0
     extrapolate: bool = False
     support_known: bool = True
+    #: the ram (Z on XFYZ, CAFXYZ, CBFXYZ; None: none) and the range its data reached (mm, None:
+    #: not stated); blocks corrected but for the ram's own correction, their ram outside that range
+    #: (:meth:`Planner.pins`), the first one's line, and where their tools put the ram ([lo, hi], mm:
+    #: the Planner's ``ram_asked``, shared)
+    ram: str | None = None
+    ram_measured: tuple | None = None
+    ram_blocks: int = 0
+    #: every block with an axis outside the region (corrected, in part or not at all)
+    outside_any: int = 0
+    ram_line: int = 0
+    ram_asked: list = field(default_factory=lambda: [np.inf, -np.inf])
+    #: [shortest, longest] tool length (mm) of the model's data (None: not stated) and of the
+    #: program's blocks (the Planner's ``tools_asked``, shared)
+    tools_measured: list | None = None
+    tools_asked: list = field(default_factory=lambda: [np.inf, -np.inf])
     #: the limit on a correction's standard error (um) the plan used, None: none
     max_correction_sd_um: float | None = None
     uncertain_blocks: int = 0
@@ -221,6 +241,15 @@ class Summary:
         unknown = any_rows(r.unknown)
         self.unknown_blocks += int(unknown.sum())
         outside = any_rows(r.outside) & ~unknown
+        self.outside_any += int(outside.sum())
+        if self.ram is not None and not self.extrapolate:
+            j = self.axis_names.index(self.ram)
+            ram_only = outside & ~any_rows(np.delete(r.outside, j, axis=1))
+            outside &= ~ram_only
+            ram_only &= ~r.pinned
+            if ram_only.any():
+                self.ram_blocks += int(ram_only.sum())
+                self.ram_line = self.ram_line or int(r.line[np.argmax(ram_only)])
         uncertain = _uncertain(r, self.max_correction_sd_um) & ~unknown & ~(outside & ~self.extrapolate)
         self.uncertain_blocks += int(uncertain.sum())
         self.contour_blocks += int(np.count_nonzero(uncertain & r.gated))
@@ -390,13 +419,16 @@ class Summary:
                                "uncertain_contour": self.contour_blocks,
                                "held_by_bounds": self.held_blocks,
                                "held_direction_unknown": self.blind_blocks},
+               "ram_outside_support": {"blocks": self.ram_blocks, "line": self.ram_line,
+                                       "measured_mm": _finite(self.ram_measured),
+                                       "asked_mm": _finite(self.ram_asked if self.ram_blocks else None)},
                "max_correction_sd_um": self.max_correction_sd_um,
                # the largest finite one (strict JSON has no Infinity); whether any correction
                # moved with values the data did not determine (an infinite one)
                "largest_correction_sd_um": (self.max_sd_um if self.max_correction_sd_um
                                             and self.sd_seen else None),
                "correction_sd_undetermined": self.sd_undetermined,
-               "outside_support_blocks": self.outside_blocks,
+               "outside_support_blocks": self.outside_any,
                "bounded_blocks": self.bounded_blocks,
                "active_bounds": dict(sorted(self.flag_counts.items())),
                "not_converged": self.not_converged,
@@ -469,6 +501,30 @@ class Summary:
                          "carries no correction")
         return "\n".join(lines)
 
+    def _ram_text(self, blocks) -> str:
+        """The line on the blocks corrected but for the ram's own correction."""
+        others = ", ".join(a for a in self.axis_names if a != self.ram)
+        lo, hi = self.ram_measured or (np.nan, np.nan)
+        return (f"{blocks(self.ram_blocks)} with the ram ({self.ram}) outside the {lo:g} .. {hi:g} mm "
+                f"its data reached (at {self.ram_asked[0]:g} .. {self.ram_asked[1]:g} mm, where their "
+                f"tools and depths put it; first at line {self.ram_line}): {others} corrected, the "
+                f"ram's own errors taken at their values at the edge of the data (a continuation no "
+                f"standard error sizes); {self.ram} not corrected (pass --extrapolate to correct it "
+                f"too)")
+
+    def _tools_text(self) -> str:
+        """A note when the program's tools are longer or shorter than the model's data's."""
+        if self.ram is None or not self.tools_measured or not np.all(np.isfinite(self.tools_asked)):
+            return ""
+        lo, hi = self.tools_measured
+        if lo - 1e-6 <= self.tools_asked[0] and self.tools_asked[1] <= hi + 1e-6:
+            return ""
+        return (f"note: the program's tools are {self.tools_asked[0]:g} .. {self.tools_asked[1]:g} mm "
+                f"long, the model's data were taken with {lo:g} .. {hi:g} mm: the X Y offset of a "
+                f"tool's tip from the probe's, which grows with its length through the ram's "
+                f"tilts, is carried beyond the lengths the data had (the ram's tilt profiles held "
+                f"at the data's edge), further than its standard error says")
+
     def _not_corrected(self, blocks) -> list[str]:
         """The summary's lines on the blocks left uncorrected, by why (``blocks(k)``: 'k blocks')."""
         out = []
@@ -485,6 +541,11 @@ class Summary:
                     else "not corrected (pass --extrapolate to correct them)")
             out.append(f"{blocks(self.outside_blocks)} outside the region the model's data reached "
                        f"({axes}; first at line {self.first_outside_line}): {what}")
+        if self.ram_blocks:
+            out.append(self._ram_text(blocks))
+        tools = self._tools_text()
+        if tools:
+            out.append(tools)
         if self.uncertain_blocks:
             own = self.uncertain_blocks - self.contour_blocks
             shared = (f", and {blocks(self.contour_blocks)} of the same contours (a run of feed "

@@ -592,6 +592,6 @@ def planner_status(fitted, orig: ProgramPoints, sel: np.ndarray, work_offset=Non
         cyc = np.zeros(len(orig), bool) if orig.cycle is None else np.asarray(orig.cycle, bool)
         start = cyc | np.r_[False, cyc[:-1]]
         status[over | gated_contours(member, start, over_all)[0][sel]] = 3
-    status[outside.any(axis=1)] = 2
+    status[planner.ram.whole_outside(outside)] = 2      # the ram alone: corrected but for it
     status[unknown.any(axis=1)] = 1
     return status
