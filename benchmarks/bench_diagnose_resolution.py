@@ -10,6 +10,10 @@ mtcomp): four cases in which the base's resolution, not a missing effect, can be
 * ``periodic_backlash``: a 20 mm screw period beside a backlash of the same axis, laser runs with a
   fine run: both must be named; ``pitch_line``: the same read as a pitch table (every 5 mm, no fine
   run);
+* ``fine_run``: a 25 mm screw period (2 um) beside a backlash, read by ISO 230-2 runs at irregular
+  targets about 29 mm apart (the period aliased there) and one fine run every 2.5 mm over 120 mm:
+  both must be named, the period where the fine run resolves it; ``fine_run_bump``: a 30 mm wide
+  bump inside that fine run in place of the screw period: no periodic error may be named;
 * ``feed_abbe``: feed-dependent Abbe errors of the truth benchmark's laser, mixture and rich
   campaigns; ``feed_abbe_fine``: seed 000's set-up on a machine whose yaw has a 25 mm wave (finer
   than the base's 16 mm knot floor): the verdict (asked: ``explained``) and the held-out rms over the
@@ -27,14 +31,43 @@ from pathlib import Path
 
 
 try:
-    from resolution_cases import (abbe_case, abbe_fine_case, pdge_case, periodic_backlash_case,
-                                  pitch_line_case, seed003_diagnosed)
+    from resolution_cases import (abbe_case, abbe_fine_case, fine_run_case, pdge_case,
+                                  periodic_backlash_case, pitch_line_case, seed003_diagnosed)
     from diagnose_truth import run, score
 except ImportError:
     raise SystemExit("bench_diagnose_resolution: run it with tests/ on PYTHONPATH "
                      "(PYTHONPATH=tests python benchmarks/bench_diagnose_resolution.py)") from None
 
-CASES = ("pdge", "seed003", "periodic_backlash", "pitch_line", "feed_abbe", "feed_abbe_fine")
+CASES = ("pdge", "seed003", "periodic_backlash", "pitch_line", "fine_run", "fine_run_bump", "feed_abbe",
+         "feed_abbe_fine")
+
+
+def _fine_run_bump(seed, folder):
+    return fine_run_case(seed, folder, defect=True, width_mm=30.0)
+
+
+def _x_line_error(case, d) -> str:
+    """The true X positioning error the diagnosed model leaves along the travel the data reach (1 mm
+    grid, + approach, the other axes at 0; mean removed): rms and peak-to-peak, um, inside the fine
+    run (-100..20 mm) and elsewhere (between the sparse targets)."""
+    import numpy as np
+
+    from mtcomp.models.evaluate import evaluate
+    from truth import Context
+    fitted = d.model
+    names = list(fitted.model.machine.axis_names)
+    xs = np.arange(*fitted.support["X"], 1.0)
+    n = xs.size
+    q = np.zeros((n, len(names)))
+    q[:, 0] = xs
+    true, _ = case.machine.true_deviation(q, None, Context(0.0, {a: np.ones(n) for a in names}))
+    c = fitted.context(n, {f"dir_{a.lower()}": np.ones(n) for a in names})
+    model = evaluate(fitted.model, "deviation_function", q, fitted.params.values, c)[0][:, 0]
+    e = (model - true[:, 0]) * 1e3
+    e -= e.mean()
+    fine = (xs >= -100.0) & (xs <= 20.0)
+    return (f"true X error left: in the fine run rms {e[fine].std():.2f} um, elsewhere rms "
+            f"{e[~fine].std():.2f} um (p-p {np.ptp(e[~fine]):.3g})")
 
 
 def _named(d) -> list:
@@ -66,12 +99,14 @@ def main(argv=None):
                           f"{d.verdict}, model written: {_written(d)} {time.perf_counter() - t0:.1f} s", flush=True)
                     continue
                 case = {"pdge": pdge_case, "periodic_backlash": periodic_backlash_case,
-                        "pitch_line": pitch_line_case, "feed_abbe": abbe_case,
+                        "pitch_line": pitch_line_case, "fine_run": fine_run_case,
+                        "fine_run_bump": _fine_run_bump, "feed_abbe": abbe_case,
                         "feed_abbe_fine": abbe_fine_case}[name](seed, folder)
                 d, dt = run(case)
                 sc = score(case, d, noise_um=0.2 if name == "feed_abbe_fine" else 0.3)
+                line = f", {_x_line_error(case, d)}" if name.startswith("fine_run") else ""
                 print(f"{name} {seed} {case.kind}: named {_named(d)} {d.verdict}, held-out/noise "
-                      f"{sc.ratio:.3f}, model written: {_written(d)} {dt:.1f} s", flush=True)
+                      f"{sc.ratio:.3f}{line}, model written: {_written(d)} {dt:.1f} s", flush=True)
 
 
 if __name__ == "__main__":

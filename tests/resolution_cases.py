@@ -169,3 +169,39 @@ def abbe_fine_case(seed: int, folder, period_mm: float = 25.0, amplitude_urad: f
     from truth.hidden import seed000_case
     wave = ComponentProfile("X", "ECX", P.Sines((amplitude_urad * URAD,), (period_mm,), (0.4 + seed,)))
     return seed000_case(seed, folder, effects=(wave,))
+
+
+def fine_run_case(seed: int, folder, defect: bool = False, width_mm: float = 20.0):
+    """A metrology engineer's X campaign on an XFYZ machine: a 25 mm screw period (2 um) beside a
+    5 um backlash of X (``defect``: a raised-cosine bump, ``width_mm`` wide and 3 um high, inside the
+    fine run, in place of the screw period). ISO 230-2 runs of X's positioning at 27 irregular
+    targets over the 800 mm travel (about 29 mm apart: a 25 mm period is aliased there), five runs
+    both ways, and a fine run every 2.5 mm over 120 mm of the middle third (-100..20 mm), two runs
+    both ways."""
+    from pathlib import Path
+
+    from truth import TruthMachine
+    from truth import campaigns as tc
+    from truth.effects import LocalDefect
+    from truth.hidden import NOISE_UM, HiddenCase
+    rng = np.random.default_rng(seed)
+    if defect:
+        bump = LocalDefect("X", float(rng.uniform(-70.0, -10.0)), width_mm, 3.0)
+        eff = Together("X", (bump, Backlash("X", 5.0)))
+    else:
+        eff = Together("X", (PeriodicError("X", 25.0, 2.0, 0.3 + seed), Backlash("X", 5.0)))
+    m = TruthMachine.random("xfyz", rng, effects=[eff], error_motions=False)
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    lo, hi = m.travel["X"]
+    iso = np.linspace(lo + 20.0, hi - 20.0, 27)
+    iso[1:-1] += rng.uniform(-0.3, 0.3, iso.size - 2) * (iso[1] - iso[0])
+    fine = np.arange(-100.0, 20.0 + 1e-9, 2.5)
+    paths, t = [], 0.0
+    for name, targets, n_runs in (("iso", iso, 5), ("fine", fine, 2)):
+        r = tc.laser(m, folder / f"laser_x_{name}.csv", rng, "X", components=("EXX",), targets=targets,
+                     n_runs=n_runs, noise_um=NOISE_UM, t0_s=t)
+        paths.append(r.path)
+        t = float(np.max(r.columns["t_s"])) + 60.0
+    effect = "local_defect" if defect else "periodic_error"
+    return HiddenCase(m, paths, effect, "X", "fine_run", "xfyz", eff, {"seed": seed, "defect": defect})

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from diagnose_truth import run, score
-from resolution_cases import abbe_fine_case, pdge_case, pitch_line_case, seed003_diagnosed
+from resolution_cases import abbe_fine_case, fine_run_case, pdge_case, pitch_line_case, seed003_diagnosed
 
 
 def test_rotary_error_motions_of_harmonics_2_to_4_are_explained(tmp_path):
@@ -48,6 +48,34 @@ def test_periodic_error_and_backlash_of_one_axis_are_both_named(tmp_path):
     assert bl.params["magnitude_um"] == pytest.approx(5.0, abs=0.3)
     per = next(f for f in d.findings if f.effect == "periodic_error")
     assert per.params["period_mm"] == pytest.approx(20.0, rel=0.01)
+
+
+def test_a_screw_period_read_by_one_fine_run_among_sparse_targets_is_named(tmp_path):
+    """A 25 mm screw period (2 um) beside a 5 um backlash of X, read by ISO 230-2 runs at irregular
+    targets about 29 mm apart over the 800 mm travel (the period aliased there) and a fine run every
+    2.5 mm over -100..20 mm: both are named, the period where the fine run resolves it, with the
+    held-out gain (it was refused: the thirds of all readings by count held sparse targets where the
+    sine is not significant, and the base's knots took a share of it that varies along the run)."""
+    case = fine_run_case(1, tmp_path)
+    d, _ = run(case)
+    assert sorted((f.effect, f.axis) for f in d.findings) == [("backlash", "X"), ("periodic_error", "X")], \
+        d.summary()
+    per = next(f for f in d.findings if f.effect == "periodic_error")
+    assert per.params["period_mm"] == pytest.approx(25.0, rel=0.01)
+    assert per.params["amplitude_um"] == pytest.approx(2.0, abs=0.2)
+    assert "seen over -100..20 mm only" in per.evidence
+    assert per.heldout_rms_before - per.heldout_rms_after > 0.5
+    assert d.verdict == "explained" and score(case, d).ratio < 1.15
+
+
+def test_a_bump_inside_the_fine_run_is_not_a_screw_period(tmp_path):
+    """The same campaign with a 30 mm wide, 3 um bump inside the fine run in place of the screw
+    period: its line is refused (its halves do not agree), and X is left unexplained."""
+    case = fine_run_case(0, tmp_path, defect=True, width_mm=30.0)
+    d, _ = run(case)
+    refused = [r for r in d.rejected if r["effect"] == "periodic_error"]
+    assert refused and "does not replicate" in refused[0]["reason"], d.summary()
+    assert [(f.effect, f.axis) for f in d.findings] == [("backlash", "X"), ("unexplained", "X")]
 
 
 def test_feed_abbe_with_a_yaw_finer_than_the_knot_floor_is_explained(tmp_path):

@@ -133,6 +133,61 @@ def test_parts_tell_a_cyclic_error_from_a_local_bump():
         assert not an.parts_agree(st, bump, "X", 20.0)[0], centre
 
 
+def _iso_and_fine(rng, fine_runs, sine_in):
+    """Positions of X: 27 irregular ISO 230-2 targets over -380..380 (about 29 mm apart) and fine runs
+    every 2.5 mm over ``fine_runs`` [(lo, hi) mm]; the residual: a 2 um, 25 mm sine over the fine runs
+    whose index is in ``sine_in``, noise (0.2 um) elsewhere (the base's profile through sparse
+    targets takes what they read of the sine)."""
+    iso = np.linspace(-380.0, 380.0, 27)
+    iso[1:-1] += rng.uniform(-0.3, 0.3, 25) * (iso[1] - iso[0])
+    fines = [np.arange(lo, hi + 1e-9, 2.5) for lo, hi in fine_runs]
+    q = np.concatenate([iso] + fines)
+    r = 0.2 * rng.normal(size=q.size)
+    for k in sine_in:
+        lo, hi = fine_runs[k]
+        on = (q >= lo) & (q <= hi)
+        r[on] += 2.0 * np.sin(2 * np.pi * q[on] / 25.0 + 0.7)
+    return _stack(q, ["s"] * q.size), r
+
+
+def test_sparse_targets_neither_confirm_nor_refute_a_line():
+    """A 25 mm line read by a fine run over -100..20 mm, and ISO targets about 29 mm apart elsewhere
+    (they alias it): only the fine run resolves the period, and its thirds agree; the line is seen
+    there only, and said so. (Thirds of all readings by count had two of sparse targets, where the
+    sine is not significant: refused.)"""
+    st, r = _iso_and_fine(np.random.default_rng(11), [(-100.0, 20.0)], [0])
+    ok, text = an.parts_agree(st, r, "X", 25.0)
+    assert ok, text
+    # one stretch: the fine run, and a sparse target within half a period of its ends
+    x = np.unique(st.q[:, 0])
+    (i0, i1), = an.resolving_stretches(x, 25.0)
+    assert -112.5 <= x[i0] <= -100.0 and 20.0 <= x[i1 - 1] <= 32.5
+    assert text.startswith(f"seen over {x[i0]:.4g}..{x[i1 - 1]:.4g} mm only"), text
+
+
+def test_a_resolving_stretch_without_the_line_still_refutes_it():
+    """Two fine runs resolve a 25 mm period: the line in one, noise in the other (or the line half a
+    period out of phase there): not a cyclic error of the axis."""
+    rng = np.random.default_rng(12)
+    runs = [(-300.0, -180.0), (100.0, 220.0)]
+    st, r = _iso_and_fine(rng, runs, [0])
+    ok, text = an.parts_agree(st, r, "X", 25.0)
+    assert not ok and text.startswith("seen over -3") and "; 1" in text, text
+    st, r = _iso_and_fine(rng, runs, [0, 1])
+    assert an.parts_agree(st, r, "X", 25.0)[0]
+    second = st.q[:, 0] >= 100.0
+    r[second] = -r[second]
+    assert not an.parts_agree(st, r, "X", 25.0)[0]
+
+
+def test_one_stretch_too_short_to_compare_its_parts_is_refused():
+    """A fine run of 40 mm: its halves are shorter than a 25 mm period; a local defect there would
+    fit a sine as well: refused, and said where the line is seen."""
+    st, r = _iso_and_fine(np.random.default_rng(13), [(-40.0, 0.0)], [0])
+    ok, text = an.parts_agree(st, r, "X", 25.0)
+    assert not ok and text.startswith("seen over -") and "shorter than one period" in text, text
+
+
 def test_folds_hold_out_whole_runs():
     q = np.tile(np.linspace(0, 100, 5), 6)
     run = np.repeat(np.arange(1, 7), 5)

@@ -403,32 +403,159 @@ def sinusoid_fit(x, r, period):
     return amp, float(np.arctan2(coef[1], coef[0])), se
 
 
+def _profile_columns(st, axis: str, x):
+    """(n, k) the base's positioning-profile functions of linear ``axis`` at positions ``x``, or
+    None (a rotary axis or another basis)."""
+    ax = st.machine.axis(axis)
+    if ax.is_rotary or ax.basis != "bspline":
+        return None
+    from ..models.basis import axis_spline
+    return np.column_stack(axis_spline(ax).functions(x, False))
+
+
 #: the largest ratio of the sine's amplitudes in the parts of the travel (thirds: 3, halves: 1.5)
 AMPLITUDE_RATIO = {3: 3.0, 2: 1.5}
 
 
-def parts_agree(st, resid, axis: str, period: float) -> tuple[bool, str]:
-    """Does a line at ``period`` replicate along the axis travel (a cyclic error does, a local defect
-    does not)? The travel's readings are cut into thirds of equal count (halves when a third is
-    shorter than one period; a bump in the middle of a run fits a sine in each half, mirrored, but
-    not in the outer thirds). Needs the sine significant (amplitude > 5 se) in each part, its
-    amplitudes within :data:`AMPLITUDE_RATIO`, and each part's phase within 45 deg of the lower
-    part's. Returns (agree, sentence)."""
+#: neighbouring positions further apart than this share of the period break a resolving stretch
+RESOLVE_MAX_GAP = 0.5
+#: a resolving stretch's median spacing is at most this share of the period
+RESOLVE_MEDIAN_GAP = 1.0 / 3.0
+
+
+def resolving_stretches(x, period: float) -> list[tuple[int, int]]:
+    """[(i0, i1), ...]: slices of the sorted positions ``x`` whose readings resolve a sine of
+    ``period``. A stretch is cut where neighbouring positions are more than
+    :data:`RESOLVE_MAX_GAP` periods apart (half a cycle unread); it resolves the period when it
+    spans at least one period and its median spacing is at most :data:`RESOLVE_MEDIAN_GAP` of it
+    (the spectrum's own shortest period is three median spacings). Sparser readings, such as
+    ISO 230-2 targets a period or more apart, sample the sine aliased: the base's profile through
+    them takes it, so they can neither confirm nor refute a line of that period."""
+    cuts = np.flatnonzero(np.diff(x) > RESOLVE_MAX_GAP * period) + 1
+    out = []
+    for i0, i1 in zip(np.r_[0, cuts], np.r_[cuts, x.size]):
+        if i1 - i0 >= 2 and x[i1 - 1] - x[i0] >= period \
+                and np.median(np.diff(x[i0:i1])) <= RESOLVE_MEDIAN_GAP * period:
+            out.append((int(i0), int(i1)))
+    return out
+
+
+def resolved_span(st, resid, axis: str, period: float) -> float:
+    """mm over which the readings of ``axis`` resolve ``period`` (first to last position of its
+    resolving stretches; the whole span when none does): a line's period is known to about
+    period**2 over it, however far sparser readings reach."""
     ser = axis_series(st, resid, axis)
     if ser is None:
-        return False, "too few readings"
-    x, r, _ = ser
-    names = {3: ("lower", "middle", "upper"), 2: ("lower", "upper")}
+        return 0.0
+    x = ser[0]
+    stretches = resolving_stretches(x, period)
+    if not stretches:
+        return float(np.ptp(x))
+    return float(x[stretches[-1][1] - 1] - x[stretches[0][0]])
+
+
+def _cut_parts(x, period: float):
+    """(number of parts, boolean masks) of ``x`` cut into thirds of equal count, else halves; each
+    part must hold 8 positions over at least one period. (0, []) when not even halves do."""
     for n_parts in (3, 2):
         edges = np.quantile(x, np.linspace(0.0, 1.0, n_parts + 1))
         # half-open parts (the last one closed): a reading on an edge counts once
         parts = [(x >= lo) & ((x < hi) if k < n_parts - 1 else (x <= hi))
                  for k, (lo, hi) in enumerate(zip(edges[:-1], edges[1:]))]
         if all(p.sum() >= 8 and np.ptp(x[p]) >= period for p in parts):
-            break
+            return n_parts, parts
+    return 0, []
+
+
+def _where_resolved(x, period: float, keep) -> str:
+    """'' when every position resolves the period, else the clause saying where the line is seen
+    and that the other readings (their spacing) cannot tell."""
+    if keep.all():
+        return ""
+    gaps = np.diff(x)
+    sparse = gaps[~(keep[1:] & keep[:-1])]
+    seen = "; ".join(f"{lo:.4g}..{hi:.4g}" for lo, hi in _runs(x, keep))
+    return (f"seen over {seen} mm only (the other {int((~keep).sum())} positions, "
+            f"{np.min(sparse):.3g} to {np.max(sparse):.3g} mm apart, cannot resolve a {period:.4g} mm "
+            f"period: they neither confirm nor refute it); ")
+
+
+def _runs(x, keep):
+    """(first, last) position of each run of ``keep``."""
+    edges = np.flatnonzero(np.diff(np.r_[0, keep.astype(int), 0]))
+    return [(x[i0], x[i1 - 1]) for i0, i1 in zip(edges[::2], edges[1::2])]
+
+
+def _part_sines(x, r, period, parts, prof):
+    """[(amplitude, phase, se)] of one sine per part, fitted together beside a constant and the
+    base's profile functions ``prof`` that act over the parts. The base fit took what its knots
+    could follow of a line, more where they fall in step with the period than where they do not
+    (a beat along the travel): the residual's own sine varies from part to part by that alone.
+    Beside the profile, each part's sine is the line's there."""
+    w = 2 * np.pi * x / period
+    prof = prof[:, np.ptp(prof, axis=0) > 1e-9]
+    cols = [np.ones_like(x)] + list(prof.T)
+    for p in parts:
+        cols += [np.where(p, np.cos(w), 0.0), np.where(p, np.sin(w), 0.0)]
+    X = np.column_stack(cols)
+    k0 = X.shape[1] - 2 * len(parts)
+    coef, *_ = np.linalg.lstsq(X, r, rcond=None)
+    res = r - X @ coef
+    rank = np.linalg.matrix_rank(X)
+    # the profile's functions sum to the constant over the parts (a partition of unity): judge the
+    # sines by the rank they add, not the whole design's
+    told = rank == np.linalg.matrix_rank(X[:, :k0]) + 2 * len(parts)
+    s2 = float(res @ res / max(1, x.size - rank))
+    cov = s2 * np.linalg.pinv(X.T @ X)
+    out = []
+    for j in range(len(parts)):
+        i = k0 + 2 * j
+        se = float(np.sqrt(max((cov[i, i] + cov[i + 1, i + 1]) / 2.0, 0.0))) if told else float("inf")
+        out.append((float(np.hypot(coef[i], coef[i + 1])), float(np.arctan2(coef[i + 1], coef[i])), se))
+    return out
+
+
+def parts_agree(st, resid, axis: str, period: float) -> tuple[bool, str]:
+    """Does a line at ``period`` replicate along the axis travel (a cyclic error does, a local defect
+    does not)? The readings are cut into thirds of equal count (halves when a third is shorter
+    than one period; a bump in the middle of a run fits a sine in each half, mirrored, but not in
+    the outer thirds). Needs the sine significant (amplitude > 5 se) in each part, its amplitudes
+    within :data:`AMPLITUDE_RATIO`, and each part's phase within 45 deg of the lower part's.
+    When that fails and some readings cannot resolve the period (:func:`resolving_stretches`),
+    those neither confirm nor refute it: the test is made again on the others alone, each part's
+    sine fitted beside the base's profile functions (:func:`_part_sines`), and the sentence says
+    where the line is seen. Returns (agree, sentence)."""
+    ser = axis_series(st, resid, axis)
+    if ser is None:
+        return False, "too few readings"
+    x, r, _ = ser
+    ok, text = _parts_test(x, r, period, None, "")
+    keep = np.zeros(x.size, bool)
+    for i0, i1 in resolving_stretches(x, period):
+        keep[i0:i1] = True
+    if ok or keep.all():
+        return ok, text
+    if not keep.any():
+        return False, (text + f"; no stretch of the readings resolves it (neighbouring positions "
+                       f"{np.min(np.diff(x)):.3g} mm apart or more over less than one period)")
+    where = _where_resolved(x, period, keep)
+    return _parts_test(x[keep], r[keep], period, _profile_columns(st, axis, x[keep]), where)
+
+
+def _parts_test(x, r, period, prof, where: str) -> tuple[bool, str]:
+    """(agree, sentence) of the parts test of :func:`parts_agree` on positions ``x`` (residual
+    ``r``), the parts' sines fitted beside ``prof`` (None: a constant); ``where``: the clause
+    saying where the line is seen ('' for the whole travel)."""
+    of = "of it" if where else "of the travel"
+    n_parts, parts = _cut_parts(x, period)
+    if not n_parts:
+        tail = ": a local defect there fits a sine as well" if where else ""
+        return False, where + f"a half {of} is shorter than one period ({period:.4g}){tail}"
+    names = {3: ("lower", "middle", "upper"), 2: ("lower", "upper")}
+    if prof is None:
+        fits = [sinusoid_fit(x[p], r[p], period) for p in parts]
     else:
-        return False, f"a half of the travel is shorter than one period ({period:.4g})"
-    fits = [sinusoid_fit(x[p], r[p], period) for p in parts]
+        fits = _part_sines(x, r, period, parts, prof)
     amps = [f[0] for f in fits]
     dphi = max(abs((f[1] - fits[0][1] + np.pi) % (2 * np.pi) - np.pi) for f in fits)
     # each third mixes the travel's lines in its own proportions (a fine run fills the middle one),
@@ -437,8 +564,8 @@ def parts_agree(st, resid, axis: str, period: float) -> tuple[bool, str]:
     ratio = AMPLITUDE_RATIO[n_parts]
     ok = all(f[0] > 5 * f[2] for f in fits) and max(amps) < ratio * min(amps) and dphi < np.radians(45)
     which = "third" if n_parts == 3 else "half"
-    text = ("amplitude " + ", ".join(f"{a_:.3g}" for a_ in amps) + " in the "
-            + ", ".join(names[n_parts]) + f" {which} of the travel, phases within {np.degrees(dphi):.0f} deg of the lower one")
+    text = (where + "amplitude " + ", ".join(f"{a_:.3g}" for a_ in amps) + " in the "
+            + ", ".join(names[n_parts]) + f" {which} {of}, phases within {np.degrees(dphi):.0f} deg of the lower one")
     return bool(ok), text
 
 

@@ -248,8 +248,6 @@ def joint_abbe(c1: Candidate, c2: Candidate) -> Candidate:
 def _periodic_candidates(st, design, extra, resid, a: str) -> list[Candidate]:
     lines = [ln for ln in an.spectral_lines(st, resid, a) if ln.fap < LINE_FAP]
     out = []
-    ser = an.axis_series(st, resid, a)
-    span = float(np.ptp(ser[0])) if ser is not None else 0.0
     for ln in lines[:2]:
         def cols(period, s=st):
             w = 2 * np.pi * s.guideway(a) / period
@@ -258,11 +256,24 @@ def _periodic_candidates(st, design, extra, resid, a: str) -> list[Candidate]:
         def sse(period):
             return design.fit(np.hstack([extra, cols(period)]), cv=False).sse
 
-        half = ln.period ** 2 / max(span, ln.period) * 0.75
-        lo, hi = max(ln.period - half, ln.period * 0.5), ln.period + half
-        res = minimize_scalar(sse, bounds=(lo, hi), method="bounded", options={"xatol": 1e-4 * ln.period})
-        period = float(res.x)
+        def refined(span):
+            half = ln.period ** 2 / max(span, ln.period) * 0.75
+            lo, hi = max(ln.period - half, ln.period * 0.5), ln.period + half
+            return float(minimize_scalar(sse, bounds=(lo, hi), method="bounded",
+                                         options={"xatol": 1e-4 * ln.period}).x)
+
+        ser = an.axis_series(st, resid, a)
+        span = float(np.ptp(ser[0])) if ser is not None else 0.0
+        period = refined(span)
         agree, text = an.parts_agree(st, resid, a, period)
+        narrow = an.resolved_span(st, resid, a, ln.period)
+        if not agree and narrow < span:
+            # where only part of the travel resolves the line (a fine run among sparse targets,
+            # which alias it), its period is known only to the width that part gives
+            wide = refined(narrow)
+            agree_w, text_w = an.parts_agree(st, resid, a, wide)
+            if agree_w:
+                period, agree, text = wide, agree_w, text_w
         cand = Candidate("periodic_error", a, f"{period:.6g}mm", cols(period), [PeriodicError(a, period)],
                          [f"PER_{a}_c", f"PER_{a}_s"], rivals=f"periodic:{a}",
                          build=lambda s, period=period, cols=cols: cols(period, s),
