@@ -97,11 +97,3 @@ def test_the_backlash_reaches_compensate_and_export_and_the_undetermined_stays_o
     with open(tmp / "b.csv", newline="") as f:
         rows = [r for r in csv.DictReader(f) if r["inserted"] == "0"]
     assert rows and all(r["corrected"] == "1" and r["uncertain"] == "0" for r in rows), rows
-
-
-def test_the_least_squares_stands_where_compensate_takes_its_corrections():
-    """The model written is the least squares unless a combination its data fix only weakly has a
-    standard error over the limit compensate and export hold corrections to by default."""
-    from mtcomp.diagnose._open import OPEN_SD_UM
-    from mtcomp.planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
-    assert OPEN_SD_UM == DEFAULT_MAX_CORRECTION_SD_UM

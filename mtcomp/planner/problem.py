@@ -28,7 +28,7 @@ from ..models.model_file import FittedModel
 #: is unsure*): models of stages whose runs repeat reach 0.2 to 4.3 um over their travel (but
 #: identify's of one stage with two glitch readings, 6.7 um), those of runs drifting by up to
 #: 100 um 2.2 to 17.5 um, one ballbar circle's least squares thousands (diagnose writes identify's
-#: fit there: mtcomp.diagnose._open.OPEN_SD_UM is this limit)
+#: penalised fit, never the least squares)
 DEFAULT_MAX_CORRECTION_SD_UM = 5.0
 
 
