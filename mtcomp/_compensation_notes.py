@@ -84,8 +84,8 @@ def _run_notes(program, written, fitted, setup, tally, found) -> list[str]:
         + tcp_note(program, tally) + list(program.notes)
     if program.expanded:
         notes.append(f"the program's code was run: {program.executed} lines executed from its "
-                     f"{program.source_lines}; the output is that expansion, corrected (its first "
-                     "line says so)")
+                     f"{program.source_lines}; the output is that expansion, corrected (a comment "
+                     "at its top says so)")
     # found in the user's file (an expansion is gone by now)
     if b"41" in found or b"42" in found:
         miss = written.get("cutter_arc_miss_mm", 0.0) * 1e3

@@ -660,11 +660,18 @@ def _travel_error_with_offsets(e: TravelError, setup) -> TravelError:
     """A position outside the travel, and the work offsets taken as 0 because nobody gave them:
     the error says so (the usual cause is an offset left out, not a wrong program)."""
     missing = sorted(w for w in setup.used_wcs if w not in setup.work_offsets)
-    if not missing:
+    if missing:
+        names = ", ".join(WORK_SYSTEMS[w] for w in missing)
+        return TravelError(f"{e.message}, with work offset {names} taken as 0 (nobody gave it): "
+                           "give --work-offset or --offsets", e.path, e.line, e.row, e.axis)
+    # an offset given without the axis that left the travel: that axis of it was taken as 0
+    short = sorted(w for w in setup.used_wcs if w in setup.given_axes
+                   and e.axis is not None and e.axis not in setup.given_axes[w])
+    if not short:
         return e
-    names = ", ".join(WORK_SYSTEMS[w] for w in missing)
-    return TravelError(f"{e.message}, with work offset {names} taken as 0 (nobody gave it): give "
-                       "--work-offset or --offsets", e.path, e.line, e.row)
+    names = ", ".join(WORK_SYSTEMS[w] for w in short)
+    return TravelError(f"{e.message}, with {e.axis} of work offset {names} taken as 0 (not given)",
+                       e.path, e.line, e.row, e.axis)
 
 
 def _planner(fitted, settings: CompensationSettings, inch: bool, src, progress) -> tuple:

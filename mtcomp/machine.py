@@ -44,7 +44,12 @@ DEFAULT_COMPENSATION = {"max_correction_um": 50.0, "max_correction_urad": 500.0,
 
 
 class TravelError(InputError):
-    """A position outside an axis's travel (an InputError: one line, exit status 2)."""
+    """A position outside an axis's travel (an InputError: one line, exit status 2); ``axis``: the
+    axis's name."""
+
+    def __init__(self, message: str, path=None, line=None, row=None, axis: str | None = None):
+        self.axis = axis
+        super().__init__(message, path, line, row)
 
 
 @dataclass(frozen=True)
@@ -192,7 +197,8 @@ class Machine:
             if hasattr(source, "locate"):
                 where, k, suffix = source.locate(k)
             raise TravelError(f"{ax.name} {v:.4f} {u} is outside the travel of axis {ax.name} "
-                             f"({a:g} .. {b:g} {u}) of machine {self.name}{suffix}", where, k)
+                             f"({a:g} .. {b:g} {u}) of machine {self.name}{suffix}", where, k,
+                              axis=ax.name)
 
     def to_dict(self) -> dict:
         """The machine as TOML-like data (mm, deg), for MODEL.json."""

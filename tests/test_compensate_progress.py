@@ -159,3 +159,8 @@ def test_a_travel_refusal_names_the_work_offset_taken_as_zero(tmp_path, capsys):
     assert main(base + ["--work-offset", "G54=X500,Y0,Z0"]) == 2
     err = capsys.readouterr().err
     assert "outside the travel" in err and "taken as 0" not in err
+    # the offset given without its X: that axis of it was taken as 0 (a user's G54=X..,Y.. left
+    # out Z and read only that Z was outside the travel)
+    assert main(base + ["--work-offset", "G54=Y0,Z0"]) == 2
+    err = capsys.readouterr().err
+    assert "with X of work offset G54 taken as 0 (not given)" in err

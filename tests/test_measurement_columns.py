@@ -92,3 +92,23 @@ def test_deviations_in_mm_under_um_columns_are_noted(tmp_path, capsys):
     p.write_text("x_mm,y_mm,z_mm,tool_mm,dx_um\n0,0,0,50,0.001\n90,0,0,50,-0.002\n")
     assert _notes(p, capsys) == []
     assert np.isclose(max(abs(v) for d in DEVIATIONS_UM for v in d), 2.5, rtol=0, atol=0)
+
+
+def test_a_whole_file_in_inches_is_noted(tmp_path, capsys):
+    """A CMM file written in inches (positions spanning 19.7 'mm' for a 500 mm plate, deviations of
+    a few 1e-5 in) spans less than the laser rule's 100 mm, but no CMM reads ten points of a part
+    all within 0.05 um: noted (a job shop's file was fitted without a word, to 3.5e-5 um). A
+    largest deviation of 0.06 um, or fewer than ten values, says nothing."""
+    def write(name, largest, n=12):
+        p = tmp_path / name
+        rows = [f"{-15 + 19.685 * k / (n - 1):.4f},{-8 + 0.5 * k:.4f},0,100,"
+                f"{largest * (-1) ** k * (k + 1) / n:.6g},0" for k in range(n)]
+        p.write_text("x_mm,y_mm,z_mm,tool_mm,dx_um,dy_um\n" + "\n".join(rows) + "\n")
+        return p
+    notes = _notes(write("inch.csv", 0.0019), capsys)
+    assert len(notes) == 1, notes
+    assert ("inch.csv: every deviation (dx_um, dy_um) is below 0.05 um in magnitude (largest "
+            "0.0019 um), less than a CMM's or a tracker's noise, over positions spanning 19.685 mm: "
+            "were the file's values written in inches or mm?") in notes[0]
+    assert _notes(write("fine.csv", 0.06), capsys) == []
+    assert _notes(write("few.csv", 0.0019, n=4), capsys) == []

@@ -39,6 +39,21 @@ def test_detection_on_real_headers(name, dialect, line):
     assert why.startswith(f"detected from line {line}:") if line else "nothing" in why
 
 
+@pytest.mark.parametrize("code, dialect", [
+    ("N12 G187 P3 E0.01 (SMOOTHING)", "haas"), ("G154 P12", "haas"), ("G103 P1", "haas"),
+    ("M97 P2000", "haas"), ("G54.1 P12", "fanuc"), ("(G187 ON A HAAS ONLY)".replace("HAAS", "VMC"),
+                                                    "fanuc"), ("G1870", "fanuc"), ("M98 P2000", "fanuc")])
+def test_a_code_only_haas_has_names_haas(tmp_path, code, dialect):
+    """A Fusion 360 Haas post's program names no controller (a job shop's was read as fanuc from
+    its O number); the codes of the Haas mill control a Fanuc does not have name haas (not in a
+    comment, not as another number)."""
+    p = tmp_path / "p.nc"
+    p.write_text(f"%\nO01001 (PART)\nG90 G94 G17\n{code}\nG0 X0 Y0\nM30\n%\n")
+    d, why = detect(p)
+    assert d.name == dialect
+    assert why == "detected from line 2: O01001 (PART)"
+
+
 @pytest.mark.parametrize("text, dialect", [
     ("G21 G90\nN50 M428 (tool centre point on)\nG0 X1\n", "linuxcnc"),
     ("G21\nm0429\n", "linuxcnc"), ("G0 X1\nM430 ; identity kinematics\n", "linuxcnc"),
@@ -115,11 +130,13 @@ def test_fanuc_macro_b_while_if_goto_expanded(tmp_path):
     with open_program(p) as src:
         assert src.dialect.name == "fanuc" and src.expanded
         lines = Path(src.path).read_text().splitlines()
-    # the header comment after the tape's opening % (which Fanuc wants first)
-    assert lines[0] == "%" and lines[1].startswith("(expanded by mtcomp from m.nc for fanuc")
+    # the header comment after the tape's opening % and its program number (which Fanuc wants
+    # first: it takes the number from the line after the %)
+    assert lines[:2] == ["%", "O1234"]
+    assert lines[2].startswith("(expanded by mtcomp from m.nc for fanuc")
     # X[#100*#101] has the one decimal of #101 = 2.5; Y#100 is whole and gets its point (Fanuc
     # reads 'Y1' as 1 least input increment, the variable's 1 as 1 mm)
-    assert lines[2:] == ["O1234", "G90 G21 G0 X0 Y0 Z5", "G1 X0.0 Y0. F100", "G1 X2.5 Y1. F100",
+    assert lines[3:] == ["G90 G21 G0 X0 Y0 Z5", "G1 X0.0 Y0. F100", "G1 X2.5 Y1. F100",
                          "G1 X5.0 Y2. F100", "N20 G0 Z2.5", "M30", "%"]
 
 

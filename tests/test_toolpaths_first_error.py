@@ -45,9 +45,11 @@ def test_a_travel_error_before_a_code_error_is_told_first(tmp_path, reader_path,
                                                           refused_on_xfyz):
     err = refused_on_xfyz("code.ngc", CODE)
     # named in the user's file (and the expansion: its comment, lines 2, 5, 5, then 9)
+    # (and, no work offset given, that G54 was taken as 0)
     assert err.endswith(f"{tmp_path / 'code.ngc'}:9: Y 1200.0000 mm is outside the travel of axis "
                         "Y (-300 .. 300 mm) of machine carver800t-like (line 6 of the expanded "
-                        "program)")
+                        "program), with work offset G54 taken as 0 (nobody gave it): give "
+                        "--work-offset or --offsets")
 
 
 def test_the_code_error_comes_after_the_rows_executed_before_it(tmp_path, reader_path):

@@ -98,10 +98,13 @@ def test_compensated_as_the_program_flattened_by_hand(tmp_path, capsys):
         assert code == 0, err
         written[name] = out.read_text().splitlines()
     sub, flat = written["sub"], written["flat"]
-    # the expansion says so right after the tape's opening %; then the hand-flattened program's
-    # output, and what follows its M30 as it is in the file (the subprogram, the tape's end %)
-    assert sub[0] == "%" and sub[1].startswith("(expanded by mtcomp from sub.nc for fanuc")
-    assert sub[2:-5] == flat[1:-1]
+    # the expansion says so right after the tape's opening % and the program number line (a
+    # Fanuc or Haas takes the number from the line after the %; a job shop worried that a comment
+    # between them upsets the loader); then the hand-flattened program's output, and what follows
+    # its M30 as it is in the file (the subprogram, the tape's end %)
+    assert sub[:2] == ["%", "O0001 (MAIN)"] and flat[:2] == ["%", "O0001 (MAIN)"]
+    assert sub[2].startswith("(expanded by mtcomp from sub.nc for fanuc")
+    assert sub[3:-5] == flat[2:-1]
     assert sub[-5:] == ["O1000 (STEP)", "G91 G1 X10. Y5. F300", "G90", "M99", "%"]
     # and the corrections are there: the corrected ends differ from the source's
     assert flat != FANUC_FLAT.splitlines()

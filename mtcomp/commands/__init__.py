@@ -41,6 +41,15 @@ DIALECT_CHOICES = ("linuxcnc", "fanuc", "haas", "grbl", "heidenhain", "sinumerik
                    "generic")
 
 
+def add_probed_arguments(parser, temperature_help: str, rpm_help: str) -> None:
+    """``--probed-at-temperature`` and ``--probed-at-spindle-rpm``: the thermal state when the
+    part's datum was probed (compensate and render take them alike)."""
+    parser.add_argument("--probed-at-temperature", metavar="NAME=DEGC", action="append", default=[],
+                        help=temperature_help)
+    parser.add_argument("--probed-at-spindle-rpm", type=float, metavar="RPM", default=None,
+                        help=rpm_help)
+
+
 def add_dialect_argument(parser) -> None:
     """``--dialect``: the controller that runs the program (default: detected from it)."""
     parser.add_argument("--dialect", choices=DIALECT_CHOICES, default=None,

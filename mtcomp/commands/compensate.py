@@ -75,6 +75,7 @@ def add_arguments(parser):
 
 def _add_thermal_arguments(parser):
     """The options of the thermal state while the program runs and when its datum was probed."""
+    from . import add_probed_arguments
     parser.add_argument("--temperature", metavar="NAME=DEGC", action="append", default=[],
                         help="temperature of sensor NAME (as in temp_NAME_c of the thermal file) while "
                              "the program runs, for the model's thermal drift (repeatable; sensors not "
@@ -88,13 +89,11 @@ def _add_thermal_arguments(parser):
     parser.add_argument("--spindle-rpm", type=float, metavar="RPM", default=None,
                         help="spindle speed the machine has run at long enough to be warm, for the "
                              "model's spindle-heat drift (default: spindle stopped for long)")
-    parser.add_argument("--probed-at-temperature", metavar="NAME=DEGC", action="append", default=[],
-                        help="temperature of sensor NAME when the part's datum (G54 ...) was probed: "
-                             "the drift since then is corrected (repeatable, each sensor given above; "
-                             "default: the whole drift since the thermal record's first reading)")
-    parser.add_argument("--probed-at-spindle-rpm", type=float, metavar="RPM", default=None,
-                        help="the same for --spindle-rpm: the speed the spindle had run at long "
-                             "enough to be warm when the datum was probed")
+    add_probed_arguments(parser, "temperature of sensor NAME when the part's datum (G54 ...) was "
+                         "probed: the drift since then is corrected (repeatable, each sensor given "
+                         "above; default: the whole drift since the thermal record's first reading)",
+                         "the same for --spindle-rpm: the speed the spindle had run at long enough "
+                         "to be warm when the datum was probed")
 
 
 def _positive(value, flag, allow_zero=False):

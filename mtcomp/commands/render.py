@@ -17,7 +17,7 @@ from ..errors import InputError
 
 
 def add_arguments(parser):
-    from . import add_dialect_argument, add_offset_arguments
+    from . import add_dialect_argument, add_offset_arguments, add_probed_arguments
     parser.add_argument("machine", help="built-in machine name or machine TOML file")
     parser.add_argument("model", help="MODEL.json (from identify or diagnose)")
     parser.add_argument("program", help="the NC program (G-code) as written for the part")
@@ -72,13 +72,10 @@ def add_arguments(parser):
                              "(default: no drift mapped, as compensate corrects none without them)")
     parser.add_argument("--spindle-rpm", type=float, metavar="RPM", default=None,
                         help="the spindle speed given to compensate, for a spindle-heat drift")
-    parser.add_argument("--probed-at-temperature", metavar="NAME=DEGC", action="append",
-                        default=[],
-                        help="the temperatures when the part's datum was probed, as given to "
-                             "compensate (repeatable): the drift since probing is mapped (default: "
-                             "the whole drift since the thermal record's first reading)")
-    parser.add_argument("--probed-at-spindle-rpm", type=float, metavar="RPM", default=None,
-                        help="the spindle speed at probing given to compensate")
+    add_probed_arguments(parser, "the temperatures when the part's datum was probed, as given to "
+                         "compensate (repeatable): the drift since probing is mapped (default: the "
+                         "whole drift since the thermal record's first reading)",
+                         "the spindle speed at probing given to compensate")
     parser.add_argument("--extrapolate", action="store_true",
                         help="accept temperatures and spindle speeds outside the range of the "
                              "model's thermal record (default: refused, as compensate does)")

@@ -252,6 +252,7 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     chosen, findings, current = sel.chosen, sel.findings, sel.current
     final_metrics = _metrics(st, current, n_base + sum(c.columns.shape[1] for c in chosen))
     verdict, finer = _what_remains(st, design, sel, noise, noise_main, may_refine, say)
+    _not_judged(st, sel, final_metrics)
     model, where = _fitted_model(st, design, chosen, current)
     diag = Diagnosis(verdict, noise, base_metrics, findings, final_metrics, model, how, len(st),
                      rejected=sel.rejected, reference=reference)
@@ -274,6 +275,16 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     floor = (all(nz.source == "repeats" for nz in noise.values()), EXCESS_RATIO)
     diag.written = lambda: written_model(st, design, current, model, where, values, say, floor)
     return diag, finer
+
+
+def _not_judged(st, sel: _Selection, final: dict) -> None:
+    """``final["not_judged"]``: the readings the verdict was not judged on (their held-out
+    prediction rests on what only their own fold determines), how many and their held-out rms, when
+    there are any: the held-out figures printed include them, the verdict does not."""
+    out = ~sel.judged & (st.unit == _heldout_unit(st))
+    if out.any():
+        final["not_judged"] = {"readings": int(out.sum()), "of": int((st.unit == _heldout_unit(st)).sum()),
+                               "unit": _heldout_unit(st), "heldout_rms": round(rms(sel.current.cv_resid[out]), 4)}
 
 
 def _base_machine(machine, datasets, start, refine):
@@ -396,6 +407,7 @@ class _Selection:
     findings: list = field(default_factory=list)
     undecided: set = field(default_factory=set)
     alike_entries: list = field(default_factory=list)
+    judged: np.ndarray | None = None
 
 
 def _forward_selection(st, design, sel: _Selection, noise, noise_main, max_findings, say) -> None:
@@ -545,7 +557,7 @@ def _what_remains(st, design, sel: _Selection, noise, noise_main, may_refine, sa
     structure = an.find_structure(st, current.resid, sigma)
     # a reading whose held-out prediction rests on what only its own fold determines shows what the
     # other folds cannot see, not what the model lacks: the excess is judged without it
-    judged = ~design.extrapolated(current.theta)
+    judged = sel.judged = ~design.extrapolated(current.theta)
     excess = _heldout_in_noise(st, design, current, judged)
     # a right model still predicts held-out readings a little worse than the noise: sqrt(1 + p/n_fit)
     inflation = np.sqrt(1.0 + current.rank / max(n * (design.K - 1) / max(design.K, 1), 1.0))

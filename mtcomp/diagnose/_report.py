@@ -307,8 +307,20 @@ def summary(diag, details=()) -> str:
     if diag.thermal is not None:
         lines.append(diag.thermal.summary())
     lines += list(details)
-    lines.append(f"verdict: {diag.verdict} ({VERDICT_MEANING.get(diag.verdict, '')})")
+    lines.append(f"verdict: {diag.verdict} ({VERDICT_MEANING.get(diag.verdict, '')}{_not_judged(diag)})")
     return "\n".join(lines)
+
+
+def _not_judged(diag) -> str:
+    """What the verdict leaves out, beside it: the readings whose held-out prediction rests on what
+    only their own fold determines (their residual measures what the other folds cannot see)."""
+    nj = diag.final.get("not_judged")
+    if not nj:
+        return ""
+    return (f"; judged without {nj['readings']} of the {nj['of']} readings, whose held-out prediction "
+            f"rests on what only their own fold determines: their held-out rms {_num(nj['heldout_rms'])} "
+            f"{nj['unit']} is in the held-out figures above and says what the folds cannot check, not "
+            "that the model fits them")
 
 
 #: what each verdict says, printed beside it (docs/diagnose.md)

@@ -25,7 +25,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..machine import AXIS_ORDER
-from .units import UM, unit_check, unit_limit_um
+from .units import UM, UNIT_CHECK_FLOOR_UM, unit_check, unit_limit_um
 
 #: a column this close (difflib ratio) to one the file's kind reads and lacks is taken as misspelt
 MISSPELT_RATIO = 0.85
@@ -110,6 +110,10 @@ def file_notes(machine, datasets) -> list[str]:
     return notes
 
 
+#: the least number of deviations for the short-span unit check of a points or cmm file
+POINTS_UNIT_CHECK_MIN = 10
+
+
 def _mm_under_um(data, header) -> str | None:
     """The sentence when a points or cmm file's deviations look like mm written under ``*_um``
     (:func:`mtcomp.measurement.units.unit_check` over the axis whose positions span the most, the
@@ -124,10 +128,19 @@ def _mm_under_um(data, header) -> str | None:
     if not values.size or not len(xyz):
         return None
     along = xyz[:, int(np.argmax(np.ptp(xyz, axis=0)))]
-    if not unit_check(False, along, values):
-        return None
     span = float(np.ptp(along))
+    biggest = float(np.abs(values).max()) / UM
+    if not unit_check(False, along, values):
+        # over a short span the laser's rule says nothing; but no CMM or tracker reads every point
+        # of a part within UNIT_CHECK_FLOOR_UM (its probing noise alone is more): a whole file in
+        # inches (positions and deviations) spans a short distance with tiny deviations
+        if values.size < POINTS_UNIT_CHECK_MIN or biggest >= UNIT_CHECK_FLOOR_UM:
+            return None
+        return (f"{data.path}: every deviation ({', '.join(cols)}) is below {UNIT_CHECK_FLOOR_UM:g} "
+                f"um in magnitude (largest {biggest:.3g} um), less than a CMM's or a tracker's noise, "
+                f"over positions spanning {span:g} mm: were the file's values written in inches or "
+                "mm? positions go in mm (x_mm ...) and deviations in um (dx_um ...)")
     return (f"{data.path}: every deviation ({', '.join(cols)}) is below {unit_limit_um(span):.2g} um "
-            f"in magnitude (largest {np.abs(values).max() / UM:.3g} um) over positions spanning "
+            f"in magnitude (largest {biggest:.3g} um) over positions spanning "
             f"{span:g} mm, less than a machine's errors and an instrument's noise there: were the "
             "values written in mm under *_um columns? if so multiply them by 1000")

@@ -99,6 +99,9 @@ _FOREIGN = [
 ]
 _FOREIGN_LINES = 3      # the first lines looked at for them
 _HAAS = re.compile(r"(?i)haas")
+#: codes of the Haas mill control that a Fanuc does not have (Haas mill operator's manual, G and M
+#: codes): G187 smoothness, G154 P work offsets, G103 look-ahead, M97 local subprogram call
+_HAAS_CODES = re.compile(r"(?i)(?<![A-Z])(?:G\s*187(?![\d.])|G\s*154\s*P|G\s*103(?![\d.])|M\s*97\s*P)")
 #: a comment that names the controller
 _NAMED = re.compile(r"(?i)[(;][^)]*\b(fanuc|haas|linuxcnc|grbl|rrf|reprapfirmware|millenniumos)\b")
 #: names of a controller in a comment -> its dialect
@@ -106,11 +109,17 @@ _NAME_DIALECT = {"reprapfirmware": "rrf", "millenniumos": "rrf"}
 _HEAD = 1 << 16          # bytes of the program's start read for its dialect
 
 
+def _haas_codes(lines) -> bool:
+    """Whether the lines use a code only the Haas control has (:data:`_HAAS_CODES`), outside
+    comments."""
+    return any(_HAAS_CODES.search(strip_comments(line)) for line in lines)
+
+
 def detect(path) -> tuple[Dialect, str]:
     """(the program's dialect, why: 'detected from line N: ...' or what was taken). The first
     clue in the first 64 kB wins: LinuxCNC's O-words, named parameters, polar angle word or
     switchable kinematics codes (M428, M429, M430), a Fanuc macro statement
-    or program number (Haas where the program names Haas), grbl's '$' commands or real-time
+    or program number (Haas where the program names Haas or uses a code only Haas has), grbl's '$' commands or real-time
     characters, RepRapFirmware's quoted string parameters, Sinumerik's file header
     ``%_N_NAME_MPF``, ``;$PATH=``, a DEF, a CYCLE call or ``MSG("...")`` at a block's start, a
     comment naming the controller (rrf
@@ -130,7 +139,7 @@ def detect(path) -> tuple[Dialect, str]:
         by_name = _NAME_DIALECT.get(named.group(1).lower(), named.group(1).lower()) if named else ""
         for name, clue in _CLUES + ([(by_name, re.compile(""))] if named else []):
             if clue.search(line if name == "sinumerik" else code):
-                if name == "fanuc" and _HAAS.search(text):
+                if name == "fanuc" and (_HAAS.search(text) or _haas_codes(lines)):
                     name = "haas"
                 shown = line.strip()
                 shown = shown if len(shown) <= 40 else shown[:37] + "..."

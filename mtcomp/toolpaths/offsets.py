@@ -77,6 +77,8 @@ class ProgramSetup:
     used_wcs: set = field(default_factory=set)
     used_tools: set = field(default_factory=set)
     programmed_wcs: set = field(default_factory=set)
+    #: wcs index -> the axis letters the user gave for that work offset (the others are 0)
+    given_axes: dict = field(default_factory=dict)
     #: the frame changes of the program last applied (``source.local_frames``, :mod:`.frames`)
     local_frames: list = field(default_factory=list, repr=False)
     #: the G10 lines of the program last applied (``source.offset_writes``, :mod:`.programmed`)
@@ -401,7 +403,9 @@ def load_setup(machine: Machine, path=None, work_offset_flags=(), tool_length_fl
             where = f"[work_offsets] {name}"
             if not isinstance(values, dict):
                 raise InputError(f"{where} must be a table such as {{X = 250.0, Y = 120.0}}", p)
-            setup.work_offsets[_wcs_index(name, where, p)] = _axis_vector(machine, values, where, p)
+            w = _wcs_index(name, where, p)
+            setup.work_offsets[w] = _axis_vector(machine, values, where, p)
+            setup.given_axes[w] = {a.upper() for a in values}
         for name, x in data.get("tool_lengths", {}).items():
             _set_length(setup, name, x, f"[tool_lengths] {name}", p)
     for flag in work_offset_flags:
@@ -415,7 +419,9 @@ def load_setup(machine: Machine, path=None, work_offset_flags=(), tool_length_fl
             if not m:
                 raise InputError(f"{where}: {item!r} is not an axis value such as X250")
             values[m.group(1)] = float(m.group(2))
-        setup.work_offsets[_wcs_index(name, where, None)] = _axis_vector(machine, values, where, None)
+        w = _wcs_index(name, where, None)
+        setup.work_offsets[w] = _axis_vector(machine, values, where, None)
+        setup.given_axes[w] = {a.upper() for a in values}
     for flag in tool_length_flags:
         where = f"--tool-length {flag}"
         name, sep, rest = flag.rpartition("=")

@@ -127,6 +127,8 @@ def _header(source: str, language: str, dialect: Dialect) -> str:
 
 
 _PROGRAM_END_RE = re.compile(r"(?i)\bm0*(?:2|30)(?![\d.])")
+#: a Fanuc or Haas program number line: O1234 (or :1234), a comment after it
+_PROGRAM_NUMBER_RE = re.compile(r"^\s*[Oo:]\s*\d+\s*(?:\([^()]*\)\s*)*$")
 
 
 #: how often (lines executed) the expansion tells its progress
@@ -161,6 +163,10 @@ def _expand(source: str, dialect: Dialect, max_steps: int | None, max_lines: int
     # a tape's end % stays its last line (what follows the program's end is not run, but the
     # controller reads the tape to it)
     tape = bool(raws) and raws[0].strip() == b"%"
+    # the header follows a tape's opening % and, on a Fanuc or Haas, the program number line after
+    # it (a controller takes the number from the line after the %)
+    lead = int(tape) + int(tape and dialect.language != "ngc" and len(texts) > 1
+                           and _PROGRAM_NUMBER_RE.match(texts[1]) is not None)
     same, last, stopped = True, -1, None
     fd, tmp = tempfile.mkstemp(prefix="mtcomp-expanded-", suffix=".nc")
     try:
@@ -174,15 +180,18 @@ def _expand(source: str, dialect: Dialect, max_steps: int | None, max_lines: int
                     out.write(text.encode("latin-1", "replace") + own)
                 line_map.append(i + 1)
             try:
+                headed = False
                 for i, text in run.run():
-                    if last == -1 and not (tape and i == 0):
-                        out.write(header)             # first, or right after a tape's opening %
-                        line_map.append(0)
-                    same = same and text is None and i == last + 1
-                    write(i, text)
-                    if last == -1 and tape and i == 0:
+                    if not headed and i >= lead:      # first, or after the lines it follows
                         out.write(header)
                         line_map.append(0)
+                        headed = True
+                    same = same and text is None and i == last + 1
+                    write(i, text)
+                    if not headed and i >= lead - 1:
+                        out.write(header)
+                        line_map.append(0)
+                        headed = True
                     last = i
                     if progress is not None and not len(line_map) % PROGRESS_EVERY:
                         progress(len(line_map) - 1)
