@@ -29,10 +29,12 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
 
 try:
     from resolution_cases import (abbe_case, abbe_fine_case, fine_run_case, pdge_case,
-                                  periodic_backlash_case, pitch_line_case, seed003_diagnosed)
+                                  periodic_backlash_case, pitch_line_case, seed003_diagnosed,
+                                  x_line_error)
     from diagnose_truth import run, score
 except ImportError:
     raise SystemExit("bench_diagnose_resolution: run it with tests/ on PYTHONPATH "
@@ -47,25 +49,9 @@ def _fine_run_bump(seed, folder):
 
 
 def _x_line_error(case, d) -> str:
-    """The true X positioning error the diagnosed model leaves along the travel the data reach (1 mm
-    grid, + approach, the other axes at 0; mean removed): rms and peak-to-peak, um, inside the fine
-    run (-100..20 mm) and elsewhere (between the sparse targets)."""
-    import numpy as np
-
-    from mtcomp.models.evaluate import evaluate
-    from truth import Context
-    fitted = d.model
-    names = list(fitted.model.machine.axis_names)
-    xs = np.arange(*fitted.support["X"], 1.0)
-    n = xs.size
-    q = np.zeros((n, len(names)))
-    q[:, 0] = xs
-    true, _ = case.machine.true_deviation(q, None, Context(0.0, {a: np.ones(n) for a in names}))
-    c = fitted.context(n, {f"dir_{a.lower()}": np.ones(n) for a in names})
-    model = evaluate(fitted.model, "deviation_function", q, fitted.params.values, c)[0][:, 0]
-    e = (model - true[:, 0]) * 1e3
-    e -= e.mean()
-    fine = (xs >= -100.0) & (xs <= 20.0)
+    """The true X positioning error the diagnosed model leaves (``resolution_cases.x_line_error``):
+    rms and peak-to-peak, um, inside the fine run and elsewhere (between the sparse targets)."""
+    e, fine = x_line_error(case, d.model)
     return (f"true X error left: in the fine run rms {e[fine].std():.2f} um, elsewhere rms "
             f"{e[~fine].std():.2f} um (p-p {np.ptp(e[~fine]):.3g})")
 

@@ -205,3 +205,22 @@ def fine_run_case(seed: int, folder, defect: bool = False, width_mm: float = 20.
         t = float(np.max(r.columns["t_s"])) + 60.0
     effect = "local_defect" if defect else "periodic_error"
     return HiddenCase(m, paths, effect, "X", "fine_run", "xfyz", eff, {"seed": seed, "defect": defect})
+
+
+def x_line_error(case, fitted) -> tuple:
+    """((n,) the true X positioning error the model ``fitted`` leaves along the travel the data
+    reach, um (1 mm grid, + approach, the other axes at 0; its mean removed), (n,) inside
+    :func:`fine_run_case`'s fine run (-100..20 mm)); the truth from tests/truth, the model through
+    mtcomp's evaluation."""
+    from mtcomp.models.evaluate import evaluate
+    from truth import Context
+    names = list(fitted.model.machine.axis_names)
+    xs = np.arange(*fitted.support["X"], 1.0)
+    n = xs.size
+    q = np.zeros((n, len(names)))
+    q[:, 0] = xs
+    true, _ = case.machine.true_deviation(q, None, Context(0.0, {a: np.ones(n) for a in names}))
+    c = fitted.context(n, {f"dir_{a.lower()}": np.ones(n) for a in names})
+    model = evaluate(fitted.model, "deviation_function", q, fitted.params.values, c)[0][:, 0]
+    e = (model - true[:, 0]) * 1e3
+    return e - e.mean(), (xs >= -100.0) & (xs <= 20.0)

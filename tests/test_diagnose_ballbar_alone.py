@@ -97,4 +97,3 @@ def test_the_backlash_reaches_compensate_and_export_and_the_undetermined_stays_o
     with open(tmp / "b.csv", newline="") as f:
         rows = [r for r in csv.DictReader(f) if r["inserted"] == "0"]
     assert rows and all(r["corrected"] == "1" and r["uncertain"] == "0" for r in rows), rows
-

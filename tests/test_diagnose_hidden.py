@@ -66,8 +66,9 @@ def test_clean_campaign_gives_no_false_alarm(seed):
     d = diagnose(case.machine, case.datasets)
     assert d.findings == []
     assert d.verdict == "none"
-    # the selection's figures (final.written says how the model written was fitted)
+    # the final least squares is the base's (final.written: the penalised model written beside it)
     assert {k: v for k, v in d.final.items() if k != "written"} == d.base
+    assert d.final["written"]["model"] == "penalised"
 
 
 def test_two_effects_at_once_are_both_found():

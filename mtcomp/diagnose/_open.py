@@ -1,40 +1,45 @@
-"""The model diagnose writes where its data leave combinations of it open.
+"""The model diagnose writes: identify's penalised fit of the diagnosis's final model.
 
 The selection's final least squares (``_linalg.Design``) is the data's own fit in every direction
 the rank test keeps. Some of those directions the data fix only weakly: a ball-bar circle alone reads
 one radial deviation per angle, which the positioning, straightness and angular profiles of two axes
 share; the least squares splits it between them as the noise falls, a millimetre each, with standard
-errors of thousands of um. Identify's fit does not (:func:`mtcomp.identification.fit.solve`): its
-profiles carry the roughness penalty (Eilers and Marx 1996, eq. 5; weights by REML, Wood 2011,
-eq. 4), so that where the data are silent they follow the smoothest curve, and what the data then
-still fix only weakly is held at the least predicted error, its variance kept apart.
+errors of thousands of um. Between sparse readings it is no better: laser targets about 29 mm apart
+on 16 mm knots leave the spline's coefficients between two targets to the noise and to the other
+terms (a screw period aliased at the targets), and the least squares' profile there was 100 um rms
+off the truth while every combination counted as fixed to better than 5 um of rms tool-tip error over
+the travel. Identify's fit does not (:func:`mtcomp.identification.fit.solve`): its profiles carry the
+roughness penalty (Eilers and Marx 1996, eq. 5; weights by REML, Wood 2011, eq. 4), so that where the
+data are silent they follow the smoothest curve, and what the data then still fix only weakly is held
+at the least predicted error, its variance kept apart. So the model written is always that fit, never
+the least squares' free coefficients.
 
-The weak combinations are those of identify's rule (:func:`mtcomp.identification._weak.
+The weak combinations are reported as identify judges them (:func:`mtcomp.identification._weak.
 weak_directions`: a combination whose rms tool-tip error over the data's region the data fix only to
 worse than 1 um, and which the fit does not put more than 3 of its standard errors from zero), with
-the noise floor as the scale. When there is none, the least squares is written, value for value.
-Otherwise the model written is the same model (base and chosen terms, on the selection's knots) fitted by identify's engine, each reading
-weighted by the diagnosis's noise floor: the chosen terms start at the selection's values (a
-feed-dependent Abbe term's moving centre multiplies its angle: from zero it stays unseen), the base
-where the base fit started (zero, or a start model's determined values: at the least squares'
-millimetres the chain's products of errors would pass for information); what the data do not
-determine stays there. What they determine is judged where the base starts, with the chosen terms
-at zero, as identify judges its model: at the selection's values a term's products with the base's
-columns are second-order effects, which no reading fixes, yet they passed the rank test (a backlash
-of 8 um made one more combination of a 5-axis model count as determined, fixed only to 24 um; the
-fit moved it to 470 urad of C's angular positioning and 330 urad of its tilt, 32 um off the truth
-at unseen poses). A factor seen only through another chosen factor (that moving centre) then stays at
-the selection's value. It is written with the fit's posterior covariance (its residual variance the
-fit's own, as identify's, but not below a noise floor measured on repeated readings: residuals that
-scatter less than the repeats have taken noise for information), unless it fits the data clearly
-worse than the least squares (:func:`open_fit`).
+the noise floor as the scale. The model written is the same model (base and chosen terms, on the
+selection's knots) fitted by identify's engine, each reading weighted by the diagnosis's noise floor:
+the chosen terms start at the selection's values (a feed-dependent Abbe term's moving centre
+multiplies its angle: from zero it stays unseen), the base where the base fit started (zero, or a
+start model's determined values: at the least squares' millimetres the chain's products of errors
+would pass for information); what the data do not determine stays there. What they determine is
+judged where the base starts, with the chosen terms at zero, as identify judges its model: at the
+selection's values a term's products with the base's columns are second-order effects, which no
+reading fixes, yet they passed the rank test (a backlash of 8 um made one more combination of a
+5-axis model count as determined, fixed only to 24 um; the fit moved it to 470 urad of C's angular
+positioning and 330 urad of its tilt, 32 um off the truth at unseen poses). A factor seen only
+through another chosen factor (that moving centre) then stays at the selection's value. It is
+written with the fit's posterior covariance (its residual variance the fit's own, as identify's, but
+not below a noise floor measured on repeated readings: residuals that scatter less than the repeats
+have taken noise for information). When it fits the data clearly worse than the least squares, or
+Gauss-Newton did not converge, it is still written, and the report says so (:func:`open_fit`).
 
-Any weak combination makes the model written identify's fit, however small its standard error:
-one gated at compensate's 5 um limit (``--max-correction-sd-um``) as an rms over the region let
-through a least squares whose standard error passes that limit where the region ends (two CMM
-plates of 11 x 7 holes: a weakest combination of 3.8 um rms, 5.0 to 5.7 um at holes between the
-measured ones, which compensate left uncorrected; the least squares 0.57 um from the truth over
-the plates rigid-aligned, identify's fit of the same model 0.15 um, as identify's own model).
+No gate on the weak combinations' standard errors decides it: one at compensate's 5 um limit
+(``--max-correction-sd-um``) as an rms over the region let through a least squares whose standard
+error passes that limit where the region ends (two CMM plates of 11 x 7 holes: a weakest combination
+of 3.8 um rms, 5.0 to 5.7 um at holes between the measured ones, which compensate left uncorrected;
+the least squares 0.57 um from the truth over the plates rigid-aligned, identify's fit of the same
+model 0.15 um, as identify's own model), and the sparse targets above had no weak combination at all.
 
 The selection is untouched: its findings, their parameters and the final held-out figures are the
 least squares'.
@@ -46,7 +51,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 
-
 @dataclass
 class OpenFit:
     """Identify's fit of the model written: ``result`` (its
@@ -54,7 +58,7 @@ class OpenFit:
     data fix only weakly), ``sse`` and ``sse_lsq`` (its weighted sum of squares and the least
     squares', noise variances), ``sd`` and ``sd_lsq`` (their residual standard deviations: sum of
     squares over the degrees of freedom, noise floors), ``rms_um`` (its rms residual of the readings
-    in um, None without)."""
+    in um, None without), ``worse`` (``sd`` exceeds ``sd_lsq`` by more than the excess ratio)."""
 
     result: object
     n_weak: int
@@ -63,6 +67,7 @@ class OpenFit:
     sd: float = float("nan")
     sd_lsq: float = float("nan")
     rms_um: float | None = None
+    worse: bool = False
 
     def report(self) -> dict:
         """REPORT.json's ``final.written`` (docs/diagnose.md)."""
@@ -71,7 +76,8 @@ class OpenFit:
                "rms_um": None if self.rms_um is None else round(self.rms_um, 4),
                "sum_of_squares": round(float(self.sse), 4),
                "sum_of_squares_least_squares": round(float(self.sse_lsq), 4),
-               "residual_sd": round(float(self.sd), 4), "residual_sd_least_squares": round(float(self.sd_lsq), 4)}
+               "residual_sd": round(float(self.sd), 4), "residual_sd_least_squares": round(float(self.sd_lsq), 4),
+               "converged": bool(r.converged), "fits_worse": bool(self.worse)}
         if r.smoothing is not None:
             out["penalty_weights"] = {k: float(v) for k, v in r.smoothing.weights.items()}
         return out
@@ -121,26 +127,26 @@ def _stack_order(st, mms) -> np.ndarray:
 
 
 def open_fit(st, model, start: np.ndarray, noise: np.ndarray, lsq: tuple, n_weak: int,
-             repeats: bool, excess_ratio: float) -> OpenFit | None:
+             repeats: bool, excess_ratio: float) -> OpenFit:
     """Identify's fit of ``model`` (the base and the chosen terms) to the stack's files from
     ``start`` ((n_params,) internal units), each reading weighted by its noise floor ``noise`` ((n,)
     in the stack's order, um or urad ...); ``lsq``: the least squares' (weighted sum of squares,
     rank). What the data determine is judged with the chosen terms at zero (module docstring). The
     posterior's residual variance is the fit's own, not below the noise floor's when ``repeats``
-    (every floor measured on repeated readings). None when Gauss-Newton does not
-    converge or the fit went astray: its residual standard deviation (sum of squares over its degrees
-    of freedom) exceeds the least squares' by more than ``excess_ratio``, the factor by which the
-    diagnosis's held-out residual may exceed the noise floor before it counts as structure
-    (``mtcomp.diagnose._diagnose.EXCESS_RATIO``): what the penalty then takes from the data's fit
-    is structure of its own."""
+    (every floor measured on repeated readings). ``worse`` when its residual standard deviation (sum
+    of squares over its degrees of freedom) exceeds the least squares' by more than
+    ``excess_ratio``, the factor by which the diagnosis's held-out residual may exceed the noise
+    floor before it counts as structure (``mtcomp.diagnose._diagnose.EXCESS_RATIO``): what the
+    penalty then takes from the data's fit is structure of its own, which the report names."""
     from ..identification.fit import solve
     from ..identification.problem import FitProblem, SolverOptions, build_measurement_models
     from ._linalg import RCOND
     mms = build_measurement_models(model, st.datasets)
     n_obs = sum(m.n_obs for m in mms)
     order = _stack_order(st, mms)
-    if order.size != n_obs:
-        return None
+    if order.size != n_obs:          # (the stack and identify's models read the same files)
+        raise RuntimeError(f"diagnose: identify's models of the files hold {n_obs} readings, the "
+                           f"diagnosis's {order.size}")
     per_reading = np.empty(n_obs)
     per_reading[order] = noise
     base = np.array([s.base for s in model.param_specs], dtype=bool)
@@ -152,45 +158,44 @@ def open_fit(st, model, start: np.ndarray, noise: np.ndarray, lsq: tuple, n_weak
     sse_lsq, rank = lsq
     sd = np.sqrt(sse / max(float(result.dof), 1.0))
     sd_lsq = np.sqrt(sse_lsq / max(n_obs - float(rank), 1.0))
-    if not result.converged or not sd <= excess_ratio * sd_lsq:
-        return None
     um = np.zeros(n_obs, dtype=bool)
     um[order] = st.unit == "um"
     resid = result.residual * per_reading               # reading less prediction, um or urad
     return OpenFit(result, n_weak, sse, sse_lsq, float(sd), float(sd_lsq),
-                   float(np.sqrt(np.mean(resid[um] ** 2))) if um.any() else None)
+                   float(np.sqrt(np.mean(resid[um] ** 2))) if um.any() else None,
+                   worse=not sd <= excess_ratio * sd_lsq)
 
 
 def written_model(st, design, fit, fitted, where: tuple, start: dict, say, floor: tuple) -> tuple:
-    """(the model diagnose writes (module docstring), REPORT.json's ``final.written`` or None):
-    ``fitted`` (the final least squares ``fit`` as a model with its covariance) when its data fix
-    every combination well enough, else identify's fit of the same model, with ``fitted``'s support,
-    held axes and notes. ``where``: (the extras' columns, the machine parameters' names, their
-    positions among the fit's coefficients); ``start``: the base fit's start values (name ->
-    value); ``floor``: (every noise floor was measured on repeated readings, the factor by which a
-    residual may exceed the floor before it counts as structure), :func:`open_fit`'s."""
+    """(the model diagnose writes, identify's fit of ``fitted``'s model (module docstring) with
+    ``fitted``'s support, held axes and notes; REPORT.json's ``final.written``). ``fitted``: the
+    final least squares ``fit`` as a model with its covariance; ``where``: (the extras' columns, the
+    machine parameters' names, their positions among the fit's coefficients); ``start``: the base
+    fit's start values (name -> value); ``floor``: (every noise floor was measured on repeated
+    readings, the factor by which a residual may exceed the floor before it counts as structure),
+    :func:`open_fit`'s."""
     extra, names, theta_idx = where
     sd = weak_combinations(st, design, extra, fit.theta, fitted.model, names, theta_idx)
-    if not sd.size:
-        return fitted, None
     model = fitted.model
     p0 = np.array([start.get(n, 0.0) if s.base else v
                    for n, s, v in zip(model.param_names, model.param_specs, fitted.params.values)])
     done = open_fit(st, model, p0, 1.0 / design.w, (fit.sse, fit.rank), sd.size, *floor)
-    weakest = f"{sd.size} combination(s) of it only weakly, to {sd.max():.3g} um of tool-tip error at worst"
-    if done is None:
-        say(f"model written: the least squares (its data fix {weakest}; identify's penalised fit of "
-            "the same model fits the data clearly worse)")
-        return fitted, {"model": "least squares", "weak": int(sd.size), "largest_sd_um": round(float(sd.max()), 4)}
     r = done.result
-    say(f"model written: identify's penalised fit of the final model (the data fix {weakest}; "
-        f"{len(r.held_sd_um)} held at the least error)")
+    weakest = (f"the data fix {sd.size} combination(s) of the least squares only weakly, to "
+               f"{sd.max():.3g} um of tool-tip error at worst; " if sd.size else "")
+    caveat = "".join(
+        [f"; it fits the data clearly worse than the least squares (residual {done.sd:.3g} against "
+         f"{done.sd_lsq:.3g} noise floors): structure the model lacks" if done.worse else "",
+         "; Gauss-Newton did not converge within its iterations" if not r.converged else ""])
+    say(f"model written: identify's penalised fit of the final model ({weakest}"
+        f"{len(r.held_sd_um)} held at the least error{caveat})")
     info = dict(fitted.info)
     info["nuisance"] = {n: float(v) for n, v in zip(r.unknown_names[model.n_params:], r.nuisance_values)}
     s2 = float(r.sigma) ** 2 if np.isfinite(r.sigma) else 1.0
     params, uncertainty = seen_through_factor(fitted, r.fitted_model, max(s2, 1.0) if floor[0] else s2)
+    largest = round(float(sd.max()), 4) if sd.size else 0.0
     return (replace(fitted, params=params, info=info, uncertainty=uncertainty),
-            {**done.report(), "largest_sd_um": round(float(sd.max()), 4)})
+            {**done.report(), "largest_sd_um": largest})
 
 
 def seen_through_factor(lsq, penalised, s2: float) -> tuple:

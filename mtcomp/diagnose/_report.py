@@ -290,14 +290,15 @@ def summary(diag, details=()) -> str:
     written = fz.get("written")
     if written:
         weak = (f"its data fix {written['weak']} combination(s) of the least squares only weakly, to "
-                f"{written['largest_sd_um']:.3g} um of tool-tip error at worst")
-        lines.append(f"model written: the final model fitted as identify fits it ({weak}): its profiles follow "
+                f"{written['largest_sd_um']:.3g} um of tool-tip error at worst; " if written["weak"] else "")
+        worse = (f"; it fits the data clearly worse than the least squares (residual "
+                 f"{_num(written.get('residual_sd'))} against {_num(written.get('residual_sd_least_squares'))}"
+                 " noise floors): structure the model lacks" if written.get("fits_worse") else "")
+        worse += "; Gauss-Newton did not converge within its iterations" if written.get("converged") is False else ""
+        lines.append(f"model written: the final model fitted as identify fits it ({weak}its profiles follow "
                      f"the smoothest curve where the data are silent, {written['held']} combination(s) the "
-                     f"smoothness does not fix either are held where they predict the least error; rms "
-                     f"{_num(written.get('rms_um'))} um (the figures above are the least squares')"
-                     if written["model"] == "penalised" else
-                     f"model written: the least squares ({weak}; identify's penalised fit of the same model "
-                     "fitted the data clearly worse): their standard errors say so")
+                     f"smoothness does not fix either are held where they predict the least error{worse}); "
+                     f"rms {_num(written.get('rms_um'))} um (the figures above are the least squares')")
     ref = diag.reference.get("linear_regression_all_temperatures")
     if ref:
         lines.append(f"reference: plain linear regression on all {len(ref['temperatures'])} temperatures "

@@ -26,9 +26,9 @@ from ..models.model_file import FittedModel
 #: penalty over a gap, a tool length far from the measured ones, a ballbar circle alone, laser runs
 #: that drift from run to run). Set from real laser runs (docs/planner.md, *Blocks where the model
 #: is unsure*): models of stages whose runs repeat reach 0.2 to 4.3 um over their travel (but
-#: identify's of one stage with two glitch readings, 6.7 um), those of runs drifting by up to
-#: 100 um 2.2 to 17.5 um, one ballbar circle's least squares thousands (diagnose writes identify's
-#: fit there)
+#: identify's of one stage with two glitch readings, 6.7 um), those of runs drifting by 12.7 um
+#: (diagnose's) 5.7 um, by up to 100 um 6.2 to 17.5 um, one ballbar circle's least squares
+#: thousands (diagnose writes identify's penalised fit, never the least squares)
 DEFAULT_MAX_CORRECTION_SD_UM = 5.0
 
 
