@@ -217,3 +217,25 @@ def test_the_haas_codes_on_another_dialect_are_refused(tmp_path):
     path.write_text("G21 G90\nG00 A0 C0\nG254\nM30\n")
     with pytest.raises(InputError, match="G254 .*give --dialect haas"):
         read_program(path, load_machine("cafxyz"), dialect="fanuc")
+
+
+def test_the_axes_and_the_datum_are_the_hand_kinematics():
+    """Each complete move of both programs is placed at the axes the hand kinematics give (under
+    G234 the tip turned with the table, under G254 the part origin turned with it plus X Y Z along
+    the machine's axes), and its datum is the part origin as probed, A and C at zero: the reference
+    of the correction (a G254 datum at the turned origin with A and C at zero left 6.4 um on the
+    truth machine, against 3.1)."""
+    from mtcomp.toolpaths.gcode import iter_segment_chunks
+    from mtcomp.toolpaths.offsets import ProgramSetup
+    machine = load_machine("cafxyz")
+    setup = ProgramSetup(machine, work_offsets={0: np.array([*G54, 0.0, 0.0])})
+    for program in (TCPC, DWO):
+        placed = [setup.apply(c)[0] for c in iter_segment_chunks(program, machine, dialect="haas")]
+        end = np.concatenate([p.end for p in placed])
+        datum = np.concatenate([p.datum for p in placed])
+        line = np.concatenate([p.line for p in placed])
+        moves = _moves(program.read_text())
+        rows = [int(np.flatnonzero(line == k)[-1]) for k, _mode, _w in moves]
+        np.testing.assert_allclose(end[rows], _axes(moves), rtol=0, atol=1e-9)
+        np.testing.assert_allclose(datum[rows], np.tile([*G54, 0.0, 0.0], (len(rows), 1)),
+                                   rtol=0, atol=1e-9)
