@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .toolpaths.haas5 import mrzp_text
+
 
 #: the moves the writer passes through uncorrected (``passed_moves`` of its stats), in this order
 _PASSED_MOVES = {"increment": "{n} incremental (G91) move{s} of an axis whose position the program "
@@ -62,7 +64,8 @@ def tcp_note(program, tally) -> list[str]:
     if not tally.tcp_blocks:
         return []
     switches = []
-    recorded = sorted(getattr(program, "tcp_switches", {}).items())
+    recorded = sorted((k, c) for k, c in getattr(program, "tcp_switches", {}).items()
+                      if c != "G254")
     if getattr(program, "sinumerik", None) is not None:      # read as M428 (docs/toolpaths.md)
         recorded = [(line, "TRAORI") for line, _code in recorded]
     for before, first in tally.tcp_runs[:3]:
@@ -77,11 +80,26 @@ def tcp_note(program, tally) -> list[str]:
             "frame, compensated there and written so; the controller solves the kinematics"]
 
 
+def haas_note(program, tally, machine) -> list[str]:
+    """The line naming Haas' G234 and G254 blocks and the machine rotary zero point (MRZP) they
+    were placed by: the machine file's rotary axis lines."""
+    codes = set(getattr(program, "tcp_switches", {}).values())
+    if not ({"G234", "G254"} & codes and (tally.tcp_blocks or tally.dwo_blocks)):
+        return []
+    n = tally.dwo_blocks
+    dwo = (f"{n} block{'' if n == 1 else 's'} under G254 (first at line "
+           f"{int(program.source_lines_of([tally.dwo_line])[0])}): X Y Z along the machine's axes "
+           "from the part origin (the work offset) turned with the table; " if n else "")
+    return [f"Haas 5-axis modes: {dwo}the machine rotary zero point (MRZP, Haas settings 255-257) "
+            f"is taken as the machine file's rotary axis lines: {mrzp_text(machine)}; it must be "
+            "the control's"]
+
+
 def _run_notes(program, written, fitted, setup, tally, found) -> list[str]:
     """The notes after a run: moves passed through, tool centre point mode, the program's
     expansion, drilling cycles, datums, feeds, set-up."""
     notes = passed_move_notes(program, written) + added_words_note(program, written) \
-        + tcp_note(program, tally) + list(program.notes)
+        + tcp_note(program, tally) + haas_note(program, tally, setup.machine) + list(program.notes)
     if program.expanded:
         notes.append(f"the program's code was run: {program.executed} lines executed from its "
                      f"{program.source_lines}; the output is that expansion, corrected (a comment "

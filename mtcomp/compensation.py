@@ -29,7 +29,7 @@ from .planner._bounds import FLAG_KINDS
 from .planner._parallel import read_ahead
 from .planner._small import any_rows, row_norm
 from .planner.problem import DEFAULT_MAX_CORRECTION_SD_UM
-from .toolpaths.words import WORK_SYSTEMS, frame_local, frame_tcp
+from .toolpaths.words import WORK_SYSTEMS, frame_dwo, frame_local, frame_tcp
 from .toolpaths import iter_segment_chunks, write_corrected
 from .toolpaths._fast import format_table, g_codes
 from .toolpaths.source import open_program
@@ -369,6 +369,8 @@ class _Tally:
         self.t_s, self.rapid_timed = 0.0, False
         #: tool centre point blocks; (line before, first line) of each run of them (lines read)
         self.tcp_blocks, self.tcp_runs, self._last = 0, [], (0, False)
+        #: blocks under Haas' G254 (dynamic work offset), the first one's line (read)
+        self.dwo_blocks, self.dwo_line = 0, 0
 
     def read(self, chunk) -> None:
         """A chunk as read (program frame): its feed moves without a feed, its tool centre point
@@ -379,8 +381,10 @@ class _Tally:
             self.no_feed_line = self.no_feed_line or int(chunk.line[np.argmax(feedless)])
         if not len(chunk):
             return
-        tcp = frame_tcp(chunk.frame)
+        tcp, dwo = frame_tcp(chunk.frame), frame_dwo(chunk.frame)
         self.tcp_blocks += int(np.count_nonzero(tcp))
+        self.dwo_line = self.dwo_line or (int(chunk.line[np.argmax(dwo)]) if dwo.any() else 0)
+        self.dwo_blocks += int(np.count_nonzero(dwo))
         lines = np.asarray(chunk.line, np.int64)
         before = np.concatenate([[self._last[1]], tcp[:-1]])
         for i in np.flatnonzero(tcp & ~before).tolist():

@@ -137,6 +137,14 @@ def test_a_tcp_program_is_compensated_on_an_independent_machine(tmp_path, capsys
           f"Heidenhain twin (M128): {twin_before:.3f} -> {twin_after:.3f} um")
     assert twin_before > 5.0
     assert twin_after <= twin_before / 3
+    # Haas programs on the same model: G234 (tool centre point control) and a G254 (dynamic work
+    # offset) 3+2 program, turned into axes by a hand-written trunnion kinematics
+    from test_toolpaths_tcp_haas import tip_errors_um
+    for name, (haas_before, haas_after) in tip_errors_um(truth, model, tmp_path).items():
+        print(f"Haas {name} on the truth machine: tip error rms {haas_before:.3f} -> "
+              f"{haas_after:.3f} um")
+        assert haas_before > 5.0
+        assert haas_after <= haas_before / 3
 
 
 def _tip_rms(truth: TruthMachine, src: list[dict], dst: list[dict]) -> tuple[float, float]:

@@ -100,8 +100,10 @@ _FOREIGN = [
 _FOREIGN_LINES = 3      # the first lines looked at for them
 _HAAS = re.compile(r"(?i)haas")
 #: codes of the Haas mill control that a Fanuc does not have (Haas mill operator's manual, G and M
-#: codes): G187 smoothness, G154 P work offsets, G103 look-ahead, M97 local subprogram call
-_HAAS_CODES = re.compile(r"(?i)(?<![A-Z])(?:G\s*187(?![\d.])|G\s*154\s*P|G\s*103(?![\d.])|M\s*97\s*P)")
+#: codes): G187 smoothness, G154 P work offsets, G103 look-ahead, M97 local subprogram call, G234
+#: tool centre point control, G254/G255 dynamic work offset
+_HAAS_CODES = re.compile(r"(?i)(?<![A-Z])(?:G\s*187(?![\d.])|G\s*154\s*P|G\s*103(?![\d.])|M\s*97\s*P"
+                         r"|G\s*2(?:34|54|55)(?![\d.]))")
 #: a comment that names the controller
 _NAMED = re.compile(r"(?i)[(;][^)]*\b(fanuc|haas|linuxcnc|grbl|rrf|reprapfirmware|millenniumos)\b")
 #: names of a controller in a comment -> its dialect

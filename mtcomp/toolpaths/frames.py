@@ -168,8 +168,9 @@ class FrameCodes:
     def check_common(self, name: str) -> None:
         """Refused everywhere: a frame change in tool centre point mode, in a drilling cycle's
         mode, or on a machine without X, Y and Z (each code checks the frame in force itself)."""
-        if self.s.tcp:
-            raise self.err(f"{name} in tool centre point mode is not supported")
+        if self.s.tcp or getattr(self.s, "dwo", False):
+            raise self.err(f"{name} in tool centre point mode is not supported" if self.s.tcp else
+                           f"{name} under G254 (dynamic work offset) is not supported")
         if self.s.cycle is not None:
             raise self.err(f"{name} while a drilling cycle is in force (give G80 first) is not "
                            "supported")

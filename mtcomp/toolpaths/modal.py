@@ -25,6 +25,7 @@ from .dialect import GENERIC, grbl_program_end
 from .directions import step_directions
 from .frames import (FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle, follow_given,
                      mode_change)
+from .haas5 import HAAS_5AXIS_G, haas_block, haas_code
 from .lengths import length_number, lone_h, set_length
 from .linetext import text_with_words
 from .programmed import ProgrammedOffsets, apply_g10
@@ -89,6 +90,7 @@ class ModalState:
         #: tool centre point mode (M428, G43.4, M128): the words are the tool tip in the workpiece
         #: frame and the rotary axes' angles (:mod:`.tcp`)
         self.tcp = False
+        self.g234 = self.dwo = False        # Haas' G234 made the mode, G254 in force: .haas5
         self.f_word = math.nan
         self.tool_axis = self.names.index(TOOL_AXIS) if TOOL_AXIS in self.names else -1
         self.xyz_index = tuple(machine.index(c) if c in self.names else -1 for c in "XYZ")
@@ -145,13 +147,14 @@ class ModalState:
 
     @property
     def frame(self) -> int:
-        return frame_code(self.wcs, self.tool, self.tcp, self.offsets.index, not self.local.identity)
+        return frame_code(self.wcs, self.tool, self.tcp, self.offsets.index, not self.local.identity,
+                          self.dwo)
 
     @property
     def python_only(self) -> bool:
         """Lines the compiled scanner must not take (cycle, inverse-time or tool centre point mode
         in force)."""
-        return (self.cycle is not None or self.inverse_time or self.tcp or self.ended
+        return (self.cycle is not None or self.inverse_time or self.tcp or self.dwo or self.ended
                 or bool(self.local.kind))
 
     def _err(self, msg, line):
@@ -194,6 +197,8 @@ class ModalState:
         self._cutter_comp_codes(gcodes)
         motion, nonmotion_axes, home_move, cycle = self._apply_codes(gcodes, mcodes, values,
                                                                      tokens, line)
+        if self.tcp or self.dwo:
+            haas_block(self, gcodes, motion, home_move, values, line)
         axes_given = self._axis_words(values, line)
         check_value_words(self, tokens, gcodes, mcodes, motion, cycle, axes_given,
                           nonmotion_axes and home_move != 53, line)
@@ -348,6 +353,9 @@ class ModalState:
                     raise self._err(f"G{gi} is not a code mtcomp follows on {self.dialect.name} "
                                     "(G110-G129 and G154 select Haas' additional work systems: "
                                     "give --dialect haas for a Haas program)", line)
+                if gi in HAAS_5AXIS_G:
+                    haas_code(self, gi, values, line)
+                    continue
                 if not mode_followed(gi, [t[0] for t in tokens]):
                     raise self._err(f"G{gi} is not a code mtcomp follows (its effect on the motion "
                                     "cannot be known)", line)
@@ -709,8 +717,9 @@ class ModalState:
         """G28/G30: named axes (all without any) go home; G53: named axes go to a machine position.
         Either way the program's frame no longer knows where they are. In Fanuc's tool centre
         point mode (G43.4) refused: what the mode does at the home move is not determined here."""
-        if self.tcp and (g != 53 or axes_given) and list(self.tcp_switches.values())[-1:] == ["G43.4"]:
-            raise self._err(f"G{g:g} in tool centre point mode (G43.4) is not supported: cancel the "
+        code = "G234" if self.g234 else list(self.tcp_switches.values())[-1:] == ["G43.4"] and "G43.4"
+        if self.tcp and (g != 53 or axes_given) and code:
+            raise self._err(f"G{g:g} in tool centre point mode ({code}) is not supported: cancel the "
                             "mode with G49 before the move (the mode's axes at a reference "
                             "position or machine position are not determined here)", line)
         new = self.position.copy()

@@ -37,9 +37,10 @@ from ..machine import Machine
 from .blocks import SegmentChunk
 from .directions import AxisDirections
 from .frames import frames_of_rows, placed_by_frames
+from .haas5 import dwo_offsets
 from .tcp import axes_of_tcp, tcp_of_axes
-from .words import (NO_LENGTH, WORK_SYSTEMS, frame_local, frame_offset_set, frame_tcp, frame_tool,
-                    frame_wcs)
+from .words import (NO_LENGTH, WORK_SYSTEMS, frame_dwo, frame_local, frame_offset_set, frame_tcp,
+                    frame_tool, frame_wcs)
 
 _WCS_NAME = {name: i for i, name in enumerate(WORK_SYSTEMS)}
 _AXIS_VALUE_RE = re.compile(r"^\s*([A-Za-z])\s*=?\s*([+-]?(?:\d+\.?\d*|\.\d+))\s*$")
@@ -133,7 +134,12 @@ class ProgramSetup:
         wcs = frame_wcs(chunk.frame)
         tool = frame_tool(chunk.frame)
         self.used_tools.update(t for t in _distinct(tool) if 0 < t != NO_LENGTH)
-        off = self._row_offsets(chunk, wcs, source)
+        off = probed = self._row_offsets(chunk, wcs, source)
+        dwo = frame_dwo(chunk.frame)
+        if dwo.any():
+            # Haas' G254: the work offset turned with the rotary axes; the part's datum stays the
+            # origin as probed, the rotary axes at zero (as in tool centre point mode)
+            off = dwo_offsets(self.machine, chunk, off, dwo, getattr(source, "path", None))
         table = getattr(source, "local_frames", None)
         if table is not None:
             self.local_frames = table
@@ -144,7 +150,7 @@ class ProgramSetup:
         for h, length in self._lengths(source).items():
             lengths[tool == h] = length
         start, end = self._local(chunk, chunk.start, source), self._local(chunk, chunk.end, source)
-        start, end, datum, jump = start + off, end + off, off, chunk.jump
+        start, end, datum, jump = start + off, end + off, probed, chunk.jump
         tcp = frame_tcp(chunk.frame)
         from_known = tcp
         if tcp.any():

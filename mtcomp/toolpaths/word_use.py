@@ -49,13 +49,13 @@ _USER_M = (100.0, 199.0)
 #: M code takes it). The splines G5, G5.1, G5.2 are LinuxCNC's motion codes; mtcomp refuses them
 #: with coordinates and passes Fanuc's G05 P10000 and G05.1 Q1 (contour control modes) through, so
 #: they count as codes of the block. So do the other codes mtcomp reads or passes through on every
-#: dialect with a word: G43.4 and G44 (H), G08 P (look-ahead), G54.1 P (Fanuc's added work
+#: dialect with a word: G43.4, G44 and Haas' G234 (H), G08 P (look-ahead), G54.1 P (Fanuc's added work
 #: systems), Haas' G103 P and G187 P E.
 _MODE_P = (5.0, 5.2, 8.0, 54.1, 103.0, 187.0)
 _NGC = {
     "D": ((), (41.0, 41.1, 42.0, 42.1, 96.0), (), False),
     "E": ((76.0,), (187.0,), (66.0, 67.0, 68.0), False),
-    "H": ((76.0,), (43.0, 43.2, 43.4, 44.0), (), False),
+    "H": ((76.0,), (43.0, 43.2, 43.4, 44.0, 234.0), (), False),
     "I": ((2.0, 3.0, 71.0, 76.0, 87.0), (5.0, 5.1, 10.0), (), False),
     "J": ((2.0, 3.0, 71.0, 76.0, 87.0), (5.0, 5.1, 10.0), (), False),
     "K": ((2.0, 3.0, 33.0, 33.1, 71.0, 76.0, 87.0), (), (), False),

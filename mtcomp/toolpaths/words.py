@@ -146,7 +146,10 @@ TCP_FRAME = 1 << 24
 #: the lowest bit of the work offsets the program set itself (G10 L2/L20) in a frame code: the
 #: index + 1 of the set in force (0: none), at most MAX_OFFSET_SETS distinct sets
 OFFSET_SET_FRAME = 1 << 25
-MAX_OFFSET_SETS = 63
+MAX_OFFSET_SETS = 31
+#: the bit of a frame code set under Haas' dynamic work offset G254 (the work offset turned with
+#: the rotary axes: :mod:`.haas5`); the highest of the int32 frame codes
+DWO_FRAME = OFFSET_SET_FRAME * (MAX_OFFSET_SETS + 1)
 
 
 #: tool length numbers H below this fit in a frame code
@@ -158,15 +161,15 @@ NO_LENGTH = MAX_TOOL - 1
 
 
 def frame_code(wcs: int, tool: int, tcp: bool = False, offset_set: int = 0,
-               local: bool = False) -> int:
+               local: bool = False, dwo: bool = False) -> int:
     """Pack the work coordinate system index (0 = G54 .. 8 = G59.3), the active tool length number H
     (0: none stated; NO_LENGTH: an offset of 0, G49; below MAX_TOOL), the tool centre point mode,
     the set of work offsets the program gave itself (0: none; k: the k-th distinct set,
     :mod:`.programmed`) and whether the program moved its frame (G52, G68, mirror, scaling) into
-    one int:
-    ``wcs + 16 * tool (+ LOCAL_FRAME) (+ TCP_FRAME) + OFFSET_SET_FRAME * offset_set``."""
+    one int, and whether Haas' dynamic work offset (G254) is in force:
+    ``wcs + 16 * tool (+ LOCAL_FRAME) (+ TCP_FRAME) + OFFSET_SET_FRAME * offset_set (+ DWO_FRAME)``."""
     return (int(wcs) + 16 * int(tool) + (LOCAL_FRAME if local else 0) + (TCP_FRAME if tcp else 0)
-            + OFFSET_SET_FRAME * int(offset_set))
+            + OFFSET_SET_FRAME * int(offset_set) + (DWO_FRAME if dwo else 0))
 
 
 def frame_wcs(code):
@@ -192,7 +195,12 @@ def frame_tcp(code):
 
 def frame_offset_set(code):
     """The set of programmed work offsets (0: none, k: the k-th) of frame codes (int or array)."""
-    return np.asarray(code) // OFFSET_SET_FRAME
+    return np.asarray(code) % DWO_FRAME // OFFSET_SET_FRAME
+
+
+def frame_dwo(code):
+    """Whether frame codes (int or array) are under Haas' dynamic work offset G254."""
+    return np.asarray(code) // DWO_FRAME % 2 == 1
 
 
 # --------------------------------------------------------------------------------------- tokens
