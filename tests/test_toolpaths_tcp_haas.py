@@ -159,13 +159,25 @@ def test_only_the_corrected_words_change(program, model_file, tmp_path, capsys):
     complete = {k for k, _mode, _w in _moves(program.read_text())}
     under_dwo = {k for k, mode, _w in _moves(program.read_text()) if mode == "dwo"}
     changed = 0
+    last_in, last_out = {}, {}          # each rotary axis's last value in the input, the output
     for k, (a, b) in enumerate(zip(src, dst), 1):
         assert _WORD.sub("", a).split() == _WORD.sub("", b).split(), (k, a, b)
         wa, wb = dict(_WORD.findall(a)), dict(_WORD.findall(b))
+        standing_in, standing_out = dict(last_in), dict(last_out)
+        last_in.update({x: float(v) for x, v in wa.items() if x in "AC" and v.strip(".-")})
+        last_out.update({x: float(v) for x, v in wb.items() if x in "AC" and v.strip(".-")})
         if a == b:
             continue
         changed += 1
-        assert k in complete, (k, a, b)
+        if k not in complete:
+            # a line whose axes are not all known changes only a rotary word it names, for an axis
+            # that does not move: it stands with the correction written before (planner._links,
+            # the standing rule), which the line's own word would take away
+            for axis in (x for x in wb if wa.get(x) != wb[x]):
+                assert axis in "AC" and axis in wa, (k, a, b)
+                assert float(wa[axis]) == standing_in.get(axis), (k, a, b)
+                assert float(wb[axis]) == standing_out.get(axis), (k, a, b)
+            continue
         assert set(wa) <= set(wb)
         for axis, v in wb.items():
             old = float(wa[axis]) if axis in wa else None
