@@ -154,11 +154,14 @@ REFUSED = {
     # circle follows at line 27 (20 mm from the centre at the start, 21.2 mm at the end)
     "nxpost_Fryer_MB10_sample.ptp": ["Fryer_MB10_sample.ptp:1:", "G70 is not a code"],
     # `G65 P9021 T1000 E1100`, a call of the machine's macro program (not in the file), refused:
-    # mtcomp cannot know its moves; the part's arc off its circle follows at line 27
-    "nxpost_Mitsubishi_VR33_RHead_sample.ptp": ["RHead_sample.ptp:12:", "G65 (macro call)"],
+    # mtcomp cannot know its moves (a G65 whose macro is in the file is expanded, read as a
+    # Fanuc's: with --dialect fanuc it is refused naming O9021); the part's arc off its circle
+    # follows at line 27
+    "nxpost_Mitsubishi_VR33_RHead_sample.ptp": ["RHead_sample.ptp:12:", "G65 (macro call"],
     # mtcomp's gaps among them (their controllers run them): a macro call `G65 P8232 Z-3.93701`
-    # (a Makino's probing or chip-breaking macro, not in the file)
-    "nxpost_Makino_3ax_mill.ptp": ["Makino_3ax_mill.ptp:30:", "G65 (macro call)"],
+    # (a Makino's probing or chip-breaking macro, resident in the control, not in the file: its
+    # moves are unknown, refused as an M98 of a subprogram not in the file is)
+    "nxpost_Makino_3ax_mill.ptp": ["Makino_3ax_mill.ptp:30:", "G65 (macro call"],
     # a GE control's fixed-format numbers (`N0040G00X0019685Y-0008937`: 1.9685 in, the point
     # placed by the format)
     "nxpost_Monarch_VMC_GE_sample.ptp": ["Monarch_VMC_GE_sample.ptp:5:",

@@ -25,7 +25,7 @@ from .words import strip_comments
 # the languages' readers (.ngc, .macro, .heidenhain, .sinumerik) are imported where a program
 # needs one: a plain G-code program is read without them
 _LANGUAGE = {"ngc": "O-word control flow, parameters and expressions",
-             "macro": "macro variables, IF, GOTO, WHILE and subprogram calls"}
+             "macro": "macro variables, IF, GOTO, WHILE, subprogram and macro calls"}
 
 
 @dataclass
