@@ -103,10 +103,12 @@ def test_macro_calls_refused_in_one_line(tmp_path, capsys, text, dialect, words)
     (["G0 X1 (G65 P1000)", "M30"], False), (["G0 X1 ; G65", "M30"], False),
     (["G1 X1.65 Y65", "G165", "G65.1", "G0 X65"], False), (["N10G65P1X1."], True)])
 def test_a_macro_call_is_found_in_any_block(tmp_path, lines, calls):
-    """needs_expansion finds G65 outside comments, in whichever 64 kB block it lies."""
+    """needs_expansion finds G65 outside comments in a Fanuc or Haas program, in whichever 64 kB
+    block it lies; elsewhere it is no call (the reader refuses it)."""
     from mtcomp.toolpaths.dialect import needs_expansion
     filler = "G1 X1.2345 Y-2.3465 Z-3.4567\n" * 3000      # 87 kB, a '65' on every line
     for head in ("", filler):
         p = tmp_path / "p.nc"
         p.write_text(head + "\n".join(lines) + "\n")
-        assert needs_expansion(p) is calls, (head[:5], lines)
+        assert needs_expansion(p, macro_calls=True) is calls, (head[:5], lines)
+        assert needs_expansion(p) is False

@@ -174,9 +174,10 @@ def dialect_named(name: str | None, path) -> tuple[Dialect, str]:
     return DIALECTS[key], "given"
 
 
-def needs_expansion(path, block: int = 1 << 16) -> bool:
+def needs_expansion(path, block: int = 1 << 16, macro_calls: bool = False) -> bool:
     """True if the program has code to compute: an O-word or macro statement at a line's start, or
-    '#', '[', '@', '^' outside comments. Reads the file in blocks (memory stays flat)."""
+    '#', '[', '@', '^' outside comments, a subprogram call, and with ``macro_calls`` (a Fanuc or
+    Haas program) a G65. Reads the file in blocks (memory stays flat)."""
     try:
         f = open(os.fspath(path), "rb")
     except OSError:
@@ -187,24 +188,27 @@ def needs_expansion(path, block: int = 1 << 16) -> bool:
             data = f.read(block)
             chunk = tail + data
             if not data:
-                return _has_code(chunk)
+                return _has_code(chunk, macro_calls)
             cut = chunk.rfind(b"\n") + 1
-            if _has_code(chunk[:cut]):
+            if _has_code(chunk[:cut], macro_calls):
                 return True
             tail = chunk[cut:]
 
 
 
 
-def _has_code(chunk: bytes) -> bool:
+def _has_code(chunk: bytes, macro_calls: bool = False) -> bool:
     """Whether a block of whole lines has code to compute. Cheap searches find the lines that may
     (a '#', '[', '@', '^', an 'O' before a number or label); only those lines are read. A GOTO
     without any of these is left to the reader, which refuses it by name. A subprogram call (M98,
-    Haas' M97) or macro call (G65) counts too: the macro runner expands it."""
+    Haas' M97) counts too, and with ``macro_calls`` (a Fanuc or Haas program) a macro call G65:
+    the macro runner expands them."""
     # an M is rare in a program (a regular expression over the whole block took 1.5 ms per 64 kB);
-    # a G65 is looked for at each '65' that a G (zeros and blanks between) comes before
+    # a '65' is not rare in coordinates: only those that a G (zeros and blanks between) comes
+    # before are read
     calls = [(p, _CALL) for ch in (b"M", b"m") for p in _finds(chunk, ch) if _CALL.match(chunk, p)]
-    calls += [(p, _MACRO_CALL) for p in _finds(chunk, b"65") if _after_g(chunk, p)]
+    if macro_calls:
+        calls += [(p, _MACRO_CALL) for p in _finds(chunk, b"65") if _after_g(chunk, p)]
     for pos, pattern in calls:
         start = chunk.rfind(b"\n", 0, pos) + 1
         end = chunk.find(b"\n", pos)
