@@ -169,12 +169,24 @@ REFUSED = {
     # the W axis of horizontal boring mills (the quill, along Z), which mtcomp does not model
     "nxpost_NomuraBN-130_Fanuc6MB_sample.ptp": ["Fanuc6MB_sample.ptp:11:", "axis word W"],
     "nxpost_Sample_Kuraki_KBT.ptp": ["Sample_Kuraki_KBT.ptp:8:", "axis word W"],
-    # a DeVlieg's `T00O00` (an O word after the tool number: its control's, meaning unknown)
-    "nxpost_Devlieg_120.ptp": ["Devlieg_120.ptp:11:", "word O00 inside a line"],
-    # Heidenhain DIN/ISO (`% 123 G71`): `N0070 G90 Z-25. M91` with no G00/G01 in force
+    # a DeVlieg's `T00O00`, `T1O1`: the post (NX's Devlieg_120.def) writes the tool's number again
+    # after an O (an address it adds, `user_add_2`, whose meaning neither it nor a manual we found
+    # gives: a tool offset number?), so it stays refused, the message naming the tool word; the
+    # W quill of this horizontal boring mill follows at line 22 (`N12 G00 W0`, as the Nomura's)
+    "nxpost_Devlieg_120.ptp": ["Devlieg_120.ptp:11:", "word O00 inside a line",
+                               "after the tool word T00"],
+    # Heidenhain DIN/ISO (`% 123 G71`): `N0070 G90 Z-25. M91` (Z in machine coordinates, M91) with
+    # no G00/G01 in force: no TNC ISO manual we could read says whether the TNC takes a default
+    # path function there or stops with an error, so it stays refused (with G00 taken there, the
+    # program is refused at line 20, `N0190 G3 X41.755 Y-13. Z100. I47.5 J-17.`: a centre given in
+    # the arc's own block, which mtcomp's TNC ISO reader does not read)
     "nxpost_Mikron_WF21D.ptp": ["Mikron_WF21D.ptp:8:",
                                 "axis words without G00, G01, G02 or G03 in force"],
-    # a Thermwood router's 5-axis drilling: `G81` holes with B and C (the tool's direction)
+    # a Thermwood router's 5-axis drilling: `G81` holes with B and C in the cycle's blocks
+    # (`Y20. Z10. B90. C-90. R10.`: the head tilted 90 degrees, so the hole is not along Z). Where
+    # the rotary axes move first and the hole is drilled along the tilted tool is the Thermwood
+    # control's own rule, which no manual we found documents (a Fanuc's G81 drills along the
+    # plane's normal axis, Z in G17): refused, which is safe
     "nxpost_thermwood_test.ptp": ["thermwood_test.ptp:7:", "drilling cycle G81 with a rotary"],
     # BeagleG's test programs (its own G-code: named parameters without brackets `#r=50`, G2/G3
     # not modal, so `X100` after an arc is a line; G30 with a move is its probe; G5 splines; a

@@ -184,10 +184,13 @@ def test_haas_work_systems_are_refused_on_other_controllers(tmp_path, capsys, di
     assert "--dialect haas" in lines[0] and not out.exists()
 
 
-@pytest.mark.parametrize("line", ["G1 X1O.5 Y2 F500", "G1 X10.5 O1"])
-def test_an_o_word_inside_a_line_is_refused(tmp_path, capsys, line):
+@pytest.mark.parametrize("line, why", [("G1 X1O.5 Y2 F500", "typed for a zero"),
+                                       ("G1 X10.5 O1", "typed for a zero"),
+                                       ("T1O1 M6", "after the tool word T1, a tool offset")])
+def test_an_o_word_inside_a_line_is_refused(tmp_path, capsys, line, why):
     """A letter O typed for a zero (X1O.5): the line was read as X1 and the O.5 kept beside the
-    corrected X. A program number opens its line (O0001 stays accepted)."""
+    corrected X. A program number opens its line (O0001 stays accepted). After a tool word (a
+    DeVlieg post's T1O1) the message says what it may be."""
     _, _, model = _model(tmp_path, "xfyz", seed=5)
     p, out = tmp_path / "p.nc", tmp_path / "out.nc"
     p.write_text(f"O0001 (ok)\nG90 G17 G21\nG0 X0 Y0 Z5.\n{line}\nM30\n")
@@ -195,7 +198,7 @@ def test_an_o_word_inside_a_line_is_refused(tmp_path, capsys, line):
                           capsys)
     lines = err.strip().splitlines()
     assert code_ == 2 and len(lines) == 1 and "p.nc:4: word O" in lines[0], err
-    assert "inside a line" in lines[0] and not out.exists()
+    assert "inside a line" in lines[0] and why in lines[0] and not out.exists()
 
 
 @pytest.mark.parametrize("code", ["G154 P1", "G110"])
