@@ -214,7 +214,10 @@ MIN_ACCEPTED = 0.73
 #: from elsewhere, an A-and-B table with pivots read from the controller's pins, the Sinumerik 850's
 #: and Okuma's languages, a grbl program that does not say it is one, a B word on a 4-axis Haas,
 #: Heidenhain comments without block numbers, a Fanuc dimension word whose unit depends on a
-#: parameter the program does not show).
+#: parameter the program does not show; of the batch of 38, a G65 call of a macro resident in the
+#: machine, not in the file (a G65 whose macro is in the file is expanded), the W quill, fixed-format
+#: numbers, 5-axis drilling, BeagleG's dialect, an O word after a tool word, a TNC ISO block before
+#: any G00/G01: unchanged by the G65 expansion, 136 of 157).
 CONTROLLER_REFUSES = {
     "cluck2sesame_BackPlate.nc", "cluck2sesame_2-Spool.nc", "cncwebsim_fresa2.cnc",
     "rocholl25000_clover.gcode", "nxpost_4_axis_mill.ptp", "nxpost_Fadal_VMC6030_sample.ptp",
