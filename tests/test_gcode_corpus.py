@@ -154,11 +154,14 @@ REFUSED = {
     # circle follows at line 27 (20 mm from the centre at the start, 21.2 mm at the end)
     "nxpost_Fryer_MB10_sample.ptp": ["Fryer_MB10_sample.ptp:1:", "G70 is not a code"],
     # `G65 P9021 T1000 E1100`, a call of the machine's macro program (not in the file), refused:
-    # mtcomp cannot know its moves; the part's arc off its circle follows at line 27
-    "nxpost_Mitsubishi_VR33_RHead_sample.ptp": ["RHead_sample.ptp:12:", "G65 (macro call)"],
+    # mtcomp cannot know its moves (a G65 whose macro is in the file is expanded, read as a
+    # Fanuc's: with --dialect fanuc it is refused naming O9021); the part's arc off its circle
+    # follows at line 27
+    "nxpost_Mitsubishi_VR33_RHead_sample.ptp": ["RHead_sample.ptp:12:", "G65 (macro call"],
     # mtcomp's gaps among them (their controllers run them): a macro call `G65 P8232 Z-3.93701`
-    # (a Makino's probing or chip-breaking macro, not in the file)
-    "nxpost_Makino_3ax_mill.ptp": ["Makino_3ax_mill.ptp:30:", "G65 (macro call)"],
+    # (a Makino's probing or chip-breaking macro, resident in the control, not in the file: its
+    # moves are unknown, refused as an M98 of a subprogram not in the file is)
+    "nxpost_Makino_3ax_mill.ptp": ["Makino_3ax_mill.ptp:30:", "G65 (macro call"],
     # a GE control's fixed-format numbers (`N0040G00X0019685Y-0008937`: 1.9685 in, the point
     # placed by the format)
     "nxpost_Monarch_VMC_GE_sample.ptp": ["Monarch_VMC_GE_sample.ptp:5:",
@@ -166,12 +169,24 @@ REFUSED = {
     # the W axis of horizontal boring mills (the quill, along Z), which mtcomp does not model
     "nxpost_NomuraBN-130_Fanuc6MB_sample.ptp": ["Fanuc6MB_sample.ptp:11:", "axis word W"],
     "nxpost_Sample_Kuraki_KBT.ptp": ["Sample_Kuraki_KBT.ptp:8:", "axis word W"],
-    # a DeVlieg's `T00O00` (an O word after the tool number: its control's, meaning unknown)
-    "nxpost_Devlieg_120.ptp": ["Devlieg_120.ptp:11:", "word O00 inside a line"],
-    # Heidenhain DIN/ISO (`% 123 G71`): `N0070 G90 Z-25. M91` with no G00/G01 in force
+    # a DeVlieg's `T00O00`, `T1O1`: the post (NX's Devlieg_120.def) writes the tool's number again
+    # after an O (an address it adds, `user_add_2`, whose meaning neither it nor a manual we found
+    # gives: a tool offset number?), so it stays refused, the message naming the tool word; the
+    # W quill of this horizontal boring mill follows at line 22 (`N12 G00 W0`, as the Nomura's)
+    "nxpost_Devlieg_120.ptp": ["Devlieg_120.ptp:11:", "word O00 inside a line",
+                               "after the tool word T00"],
+    # Heidenhain DIN/ISO (`% 123 G71`): `N0070 G90 Z-25. M91` (Z in machine coordinates, M91) with
+    # no G00/G01 in force: no TNC ISO manual we could read says whether the TNC takes a default
+    # path function there or stops with an error, so it stays refused (with G00 taken there, the
+    # program is refused at line 20, `N0190 G3 X41.755 Y-13. Z100. I47.5 J-17.`: a centre given in
+    # the arc's own block, which mtcomp's TNC ISO reader does not read)
     "nxpost_Mikron_WF21D.ptp": ["Mikron_WF21D.ptp:8:",
                                 "axis words without G00, G01, G02 or G03 in force"],
-    # a Thermwood router's 5-axis drilling: `G81` holes with B and C (the tool's direction)
+    # a Thermwood router's 5-axis drilling: `G81` holes with B and C in the cycle's blocks
+    # (`Y20. Z10. B90. C-90. R10.`: the head tilted 90 degrees, so the hole is not along Z). Where
+    # the rotary axes move first and the hole is drilled along the tilted tool is the Thermwood
+    # control's own rule, which no manual we found documents (a Fanuc's G81 drills along the
+    # plane's normal axis, Z in G17): refused, which is safe
     "nxpost_thermwood_test.ptp": ["thermwood_test.ptp:7:", "drilling cycle G81 with a rotary"],
     # BeagleG's test programs (its own G-code: named parameters without brackets `#r=50`, G2/G3
     # not modal, so `X100` after an arc is a line; G30 with a move is its probe; G5 splines; a
@@ -199,7 +214,10 @@ MIN_ACCEPTED = 0.73
 #: from elsewhere, an A-and-B table with pivots read from the controller's pins, the Sinumerik 850's
 #: and Okuma's languages, a grbl program that does not say it is one, a B word on a 4-axis Haas,
 #: Heidenhain comments without block numbers, a Fanuc dimension word whose unit depends on a
-#: parameter the program does not show).
+#: parameter the program does not show; of the batch of 38, a G65 call of a macro resident in the
+#: machine, not in the file (a G65 whose macro is in the file is expanded), the W quill, fixed-format
+#: numbers, 5-axis drilling, BeagleG's dialect, an O word after a tool word, a TNC ISO block before
+#: any G00/G01: unchanged by the G65 expansion, 136 of 157).
 CONTROLLER_REFUSES = {
     "cluck2sesame_BackPlate.nc", "cluck2sesame_2-Spool.nc", "cncwebsim_fresa2.cnc",
     "rocholl25000_clover.gcode", "nxpost_4_axis_mill.ptp", "nxpost_Fadal_VMC6030_sample.ptp",

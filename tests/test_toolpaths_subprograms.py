@@ -87,16 +87,22 @@ def test_the_blocks_of_a_called_subprogram_come_where_it_is_called(tmp_path, mod
     np.testing.assert_allclose(_ends(p, dialect), ends, rtol=0, atol=1e-9)
 
 
-def test_compensated_as_the_program_flattened_by_hand(tmp_path, capsys):
+def compensated_lines(tmp_path, capsys, programs: dict) -> dict:
+    """name -> the lines of the program compensated as a Fanuc's (one model for all)."""
     _, _, model = _model(tmp_path, "xfyz", seed=5, scale=3.0)
     written = {}
-    for name, text in (("sub", FANUC), ("flat", FANUC_FLAT)):
+    for name, text in programs.items():
         p, out = tmp_path / f"{name}.nc", tmp_path / f"{name}.out.nc"
         p.write_text(text)
         code, _o, err = _run(["compensate", "xfyz", str(model), str(p), "-o", str(out), "--quiet",
                               "--dialect", "fanuc"], capsys)
         assert code == 0, err
         written[name] = out.read_text().splitlines()
+    return written
+
+
+def test_compensated_as_the_program_flattened_by_hand(tmp_path, capsys):
+    written = compensated_lines(tmp_path, capsys, {"sub": FANUC, "flat": FANUC_FLAT})
     sub, flat = written["sub"], written["flat"]
     # the expansion says so right after the tape's opening % and the program number line (a
     # Fanuc or Haas takes the number from the line after the %; a job shop worried that a comment
@@ -128,6 +134,11 @@ def test_compensated_as_the_program_flattened_by_hand(tmp_path, capsys):
     ("G0 X0 Y0 Z5\nM98 P100\nM30\n", "linuxcnc", ["p.nc:2:", "M98 (subprogram call"]),
 ])
 def test_calls_refused_in_one_line(tmp_path, capsys, text, dialect, words):
+    check_refused(tmp_path, capsys, text, dialect, words)
+
+
+def check_refused(tmp_path, capsys, text, dialect, words):
+    """The program is refused in one line holding ``words`` (None: accepted), nothing written."""
     _, _, model = _model(tmp_path, "xfyz", seed=5)
     p, out = tmp_path / "p.nc", tmp_path / "out.nc"
     p.write_text(text)
@@ -173,10 +184,13 @@ def test_haas_work_systems_are_refused_on_other_controllers(tmp_path, capsys, di
     assert "--dialect haas" in lines[0] and not out.exists()
 
 
-@pytest.mark.parametrize("line", ["G1 X1O.5 Y2 F500", "G1 X10.5 O1"])
-def test_an_o_word_inside_a_line_is_refused(tmp_path, capsys, line):
+@pytest.mark.parametrize("line, why", [("G1 X1O.5 Y2 F500", "typed for a zero"),
+                                       ("G1 X10.5 O1", "typed for a zero"),
+                                       ("T1O1 M6", "after the tool word T1, a tool offset")])
+def test_an_o_word_inside_a_line_is_refused(tmp_path, capsys, line, why):
     """A letter O typed for a zero (X1O.5): the line was read as X1 and the O.5 kept beside the
-    corrected X. A program number opens its line (O0001 stays accepted)."""
+    corrected X. A program number opens its line (O0001 stays accepted). After a tool word (a
+    DeVlieg post's T1O1) the message says what it may be."""
     _, _, model = _model(tmp_path, "xfyz", seed=5)
     p, out = tmp_path / "p.nc", tmp_path / "out.nc"
     p.write_text(f"O0001 (ok)\nG90 G17 G21\nG0 X0 Y0 Z5.\n{line}\nM30\n")
@@ -184,7 +198,7 @@ def test_an_o_word_inside_a_line_is_refused(tmp_path, capsys, line):
                           capsys)
     lines = err.strip().splitlines()
     assert code_ == 2 and len(lines) == 1 and "p.nc:4: word O" in lines[0], err
-    assert "inside a line" in lines[0] and not out.exists()
+    assert "inside a line" in lines[0] and why in lines[0] and not out.exists()
 
 
 @pytest.mark.parametrize("code", ["G154 P1", "G110"])

@@ -71,6 +71,8 @@ _STATEMENT_LINE = re.compile(
     + _MACRO_STATEMENT.encode() + rb")")
 #: a subprogram call: M98, or Haas' M97
 _CALL = re.compile(rb"(?i)m[ \t]*0*9[78](?![\d.])")
+#: a macro call: G65
+_MACRO_CALL = re.compile(rb"(?i)(?<![a-z])g[ \t]*0*65(?![\d.])")
 _CLUES = [
     ("linuxcnc", re.compile(r"(?i)^\s*(?:n\s*\d+\s*)?" + _OWORD_KEYWORD + r"|o\s*<|#\s*<")),
     ("linuxcnc", re.compile(r"\^\s*[-+.\d\[#]")),         # a polar angle word: LinuxCNC's alone
@@ -174,9 +176,10 @@ def dialect_named(name: str | None, path) -> tuple[Dialect, str]:
     return DIALECTS[key], "given"
 
 
-def needs_expansion(path, block: int = 1 << 16) -> bool:
+def needs_expansion(path, block: int = 1 << 16, macro_calls: bool = False) -> bool:
     """True if the program has code to compute: an O-word or macro statement at a line's start, or
-    '#', '[', '@', '^' outside comments. Reads the file in blocks (memory stays flat)."""
+    '#', '[', '@', '^' outside comments, a subprogram call, and with ``macro_calls`` (a Fanuc or
+    Haas program) a G65. Reads the file in blocks (memory stays flat)."""
     try:
         f = open(os.fspath(path), "rb")
     except OSError:
@@ -187,28 +190,32 @@ def needs_expansion(path, block: int = 1 << 16) -> bool:
             data = f.read(block)
             chunk = tail + data
             if not data:
-                return _has_code(chunk)
+                return _has_code(chunk, macro_calls)
             cut = chunk.rfind(b"\n") + 1
-            if _has_code(chunk[:cut]):
+            if _has_code(chunk[:cut], macro_calls):
                 return True
             tail = chunk[cut:]
 
 
 
 
-def _has_code(chunk: bytes) -> bool:
+def _has_code(chunk: bytes, macro_calls: bool = False) -> bool:
     """Whether a block of whole lines has code to compute. Cheap searches find the lines that may
     (a '#', '[', '@', '^', an 'O' before a number or label); only those lines are read. A GOTO
     without any of these is left to the reader, which refuses it by name. A subprogram call (M98,
-    Haas' M97) counts too: the macro runner expands it."""
-    # an M is rare in a program (a regular expression over the whole block took 1.5 ms per 64 kB)
-    for pos in (p for ch in (b"M", b"m") for p in _finds(chunk, ch)):
-        if not _CALL.match(chunk, pos):
-            continue
+    Haas' M97) counts too, and with ``macro_calls`` (a Fanuc or Haas program) a macro call G65:
+    the macro runner expands them."""
+    # an M is rare in a program (a regular expression over the whole block took 1.5 ms per 64 kB);
+    # a '65' is not rare in coordinates: only those that a G (zeros and blanks between) comes
+    # before are read
+    calls = [(p, _CALL) for ch in (b"M", b"m") for p in _finds(chunk, ch) if _CALL.match(chunk, p)]
+    if macro_calls:
+        calls += [(p, _MACRO_CALL) for p in _finds(chunk, b"65") if _after_g(chunk, p)]
+    for pos, pattern in calls:
         start = chunk.rfind(b"\n", 0, pos) + 1
         end = chunk.find(b"\n", pos)
         line = chunk[start:len(chunk) if end < 0 else end].decode("latin-1")
-        if _CALL.search(strip_comments(line).encode("latin-1")):
+        if pattern.search(strip_comments(line).encode("latin-1")):
             return True
     for ch in (b"#", b"[", b"@", b"^", b"o", b"O"):
         for pos in _finds(chunk, ch):
@@ -222,6 +229,14 @@ def _has_code(chunk: bytes) -> bool:
             if ch in (b"#", b"[", b"@", b"^") and ch.decode() in strip_comments(line.decode("latin-1")):
                 return True
     return False
+
+
+def _after_g(chunk: bytes, pos: int) -> bool:
+    """Whether a G comes before position ``pos`` with only zeros and blanks between."""
+    j = pos - 1
+    while j >= 0 and chunk[j] in b"0 \t":
+        j -= 1
+    return j >= 0 and chunk[j] in b"Gg"
 
 
 def _finds(chunk: bytes, what: bytes):

@@ -27,7 +27,13 @@ Refused by name: a program number the file does not hold (a subprogram in the co
 ``M99 P`` (a return to a sequence number), a call or return with other words on its line, calls
 nested more than 10 deep. An ``M99`` in the main program (no call to return from: the controller
 runs the program again from its start) passes through; one pass is what is corrected.
-Macro calls (G65, G66) are refused by the reader.
+Macro calls ``G65 P1000 L2 A1. X5.`` are expanded as subprogram calls are, with a new level of
+local variables set from the arguments (A -> #1, B -> #2, ... Z -> #26: argument specification I)
+that the macro's M99 takes away again (FANUC 16i/18i-PB operator's manual B-63684EN, custom
+macro, simple call G65, local variable levels; Haas mill operator's manual, macros, G65). Refused
+by name: a macro the file does not hold (a probing or measuring cycle in the controller's memory),
+an argument given twice (argument specification II), macro calls nested more than four deep. The
+modal macro call G66 is refused by the reader.
 """
 from __future__ import annotations
 
@@ -47,6 +53,21 @@ _ALARM = re.compile(r"#3000=")
 _SUBPROGRAM = re.compile(r"m0*(9[789])(?![\d.])")
 #: the line that starts program O<n> (its number, at the start of the line's code)
 _PROGRAM = re.compile(r"o0*(\d+)$")
+#: a macro call G65 (simple call), anywhere in the line's code
+_MACRO_CALL = re.compile(r"(?<![a-z])g0*65(?![\d.])")
+#: the local variables #1-#33
+LOCALS = 33
+#: macro calls (G65) nest at most four levels deep (FANUC Series 16i/18i-PB operator's manual
+#: B-63684EN, 16. custom macro, call nesting: four levels, M98 subprogram calls not counted)
+MAX_MACRO_DEPTH = 4
+#: argument specification I of a macro call: address -> local variable (FANUC 16i/18i-PB
+#: operator's manual B-63684EN, custom macro, argument specification; Haas mill operator's manual,
+#: macros, G65); G L N O P are not arguments
+ARGUMENTS = {"a": 1, "b": 2, "c": 3, "i": 4, "j": 5, "k": 6, "d": 7, "e": 8, "f": 9, "h": 11,
+             "m": 13, "q": 17, "r": 18, "s": 19, "t": 20, "u": 21, "v": 22, "w": 23, "x": 24,
+             "y": 25, "z": 26}
+#: a word's letter in a line's code once its bracketed expressions are taken out
+_LETTER = re.compile(r"([a-z])(?=[-+]?[\d.#\[])")
 
 
 class SystemVariable(ExprError):
@@ -54,10 +75,16 @@ class SystemVariable(ExprError):
 
 
 class MacroParams:
-    """Fanuc macro variables: every one vacant until it is set."""
+    """Fanuc macro variables: every one vacant until it is set. The local variables #1-#33 have a
+    set per macro call level (``frames``: the main program's first; a G65 call pushes a new one
+    and its M99 pops it, restoring the caller's)."""
 
     def __init__(self):
         self.values: dict[int, float] = {}
+        self.frames: list[dict[int, float]] = [{}]
+
+    def _store(self, key) -> dict:
+        return self.frames[-1] if 1 <= key <= LOCALS else self.values
 
     def get(self, key):
         if isinstance(key, str):
@@ -65,10 +92,11 @@ class MacroParams:
         if key >= 1000:
             raise SystemVariable(f"system variable #{key} (signals, offsets, modal state or positions) "
                             "is not known here")
-        if key not in self.values:
+        store = self._store(key)
+        if key not in store:
             raise ExprError(f"variable #{key} is read before it is set (vacant: a Fanuc leaves "
                             "out the word that uses it, which mtcomp does not follow)")
-        return self.values[key]
+        return store[key]
 
     def exists(self, key) -> bool:
         return False
@@ -76,7 +104,7 @@ class MacroParams:
     def set(self, key, value: float) -> None:
         if isinstance(key, str) or key == 0 or key >= 1000:
             raise ExprError(f"assignment to #{key}: not a local or common macro variable")
-        self.values[key] = value
+        self._store(key)[key] = value
 
 
 def _bracket_end(s: str, pos: int) -> int:
@@ -86,6 +114,20 @@ def _bracket_end(s: str, pos: int) -> int:
         if depth == 0:
             return p + 1
     raise ExprError("a condition without its closing ']'")
+
+
+def _without_brackets(s: str) -> str:
+    """A line's code with each bracketed expression replaced by 0 (its words' letters stay)."""
+    out, pos = [], 0
+    while pos < len(s):
+        if s[pos] == "[":
+            end = _bracket_end(s, pos)
+            out.append("0")
+            pos = end
+        else:
+            out.append(s[pos])
+            pos += 1
+    return "".join(out)
 
 
 class MacroRun:
@@ -218,6 +260,8 @@ class MacroRun:
     def _subprogram(self, i: int) -> int | None:
         """The line to run next when line ``i`` calls a subprogram (M98, Haas' M97) or returns from
         one (M99); None for any other line (an M99 of the main program included)."""
+        if _MACRO_CALL.search(self.codes[i].text):
+            return self._macro_call(i)
         m = _SUBPROGRAM.search(self.codes[i].text)
         kind = int(m.group(1)) if m else 0
         if kind == 0 or (kind == 97 and not self.local_calls) or (kind == 99 and not self.calls):
@@ -237,9 +281,11 @@ class MacroRun:
                                  "not followed", i)
             call = self.calls[-1]
             call[2] -= 1
-            if call[2] > 0:
+            if call[2] > 0:              # a G65 L repetition keeps its local variables
                 return call[1]
             self.calls.pop()
+            if call[3]:                  # the end of a macro call: the caller's locals again
+                self.ev.params.frames.pop()
             return call[0]
         return self._call(kind, r.words, i)
 
@@ -266,7 +312,45 @@ class MacroRun:
             start = lines[0]
         if len(self.calls) >= MAX_DEPTH:
             raise self.error(f"M{kind}: subprograms nested more than {MAX_DEPTH} deep", i)
-        self.calls.append([i + 1, start, int(reps)])
+        self.calls.append([i + 1, start, int(reps), False])
+        return start
+
+    def _macro_call(self, i: int) -> int:
+        """The first line of the macro program that line ``i`` calls (``G65 P.. [L..]`` and its
+        arguments): a new level of local variables, set from the arguments (argument specification
+        I), is pushed; its M99 pops it. The repetitions of ``L`` keep the level (Haas mill
+        operator's manual, macros, G65: the arguments are set on the first repetition only)."""
+        code = self.codes[i].text
+        try:
+            r = rewrite(self.texts[i], self.codes[i], self.ev, fanuc=True)
+            letters = _LETTER.findall(_without_brackets(code))
+        except ExprError as exc:
+            raise self.error(f"G65: {exc}", i) from None
+        twice = sorted({c.upper() for c in letters if letters.count(c) > 1})
+        if twice:
+            raise self.error(f"G65 with {', '.join(twice)} more than once (argument specification "
+                             "II, or a second code) is not followed", i)
+        others = sorted(c.upper() for c in set(letters) - set(ARGUMENTS) - {"g", "l", "n", "p"})
+        if r.assignments or others:
+            raise self.error(f"G65 with {', '.join(others) or 'an assignment'} on its line: put "
+                             "the call on a line of its own", i)
+        if "p" not in r.words:
+            raise self.error("G65 without P (the macro program to call)", i)
+        number, reps = r.words["p"], r.words.get("l", 1.0)
+        if number != int(number) or reps != int(reps) or reps < 1:
+            raise self.error(f"G65 P{number:g} L{reps:g}: the number and the repetitions must be "
+                             "whole, the repetitions at least 1", i)
+        if int(number) not in self.programs:
+            raise self.error(f"G65 P{number:g}: no program O{number:g} in this file (a macro in the "
+                             "controller's memory, e.g. a probing or measuring cycle: its motion "
+                             "is not in the file)", i)
+        if sum(c[3] for c in self.calls) >= MAX_MACRO_DEPTH or len(self.calls) >= MAX_DEPTH:
+            raise self.error(f"G65: macro calls nested more than {MAX_MACRO_DEPTH} deep (or calls "
+                             f"more than {MAX_DEPTH})", i)
+        start = self.programs[int(number)] + 1
+        self.ev.params.frames.append({ARGUMENTS[c]: float(v) for c, v in r.words.items()
+                                      if c in ARGUMENTS})
+        self.calls.append([i + 1, start, int(reps), True])
         return start
 
     def _program_of(self, i: int) -> tuple[int, int]:

@@ -270,8 +270,11 @@ class ModalState:
             if letter in "(;":
                 continue
             if letter == "O" and any(t[0] not in "(;" for t in tokens[:k]):
+                after = next((t[2] for t in reversed(tokens[:k]) if t[0] not in "(;"), "")
+                why = (f"after the tool word {after}, a tool offset number on some controls, whose "
+                       "rule mtcomp does not know" if after[:1] == "T" else "a letter O typed for a zero?")
                 raise self._err(f"word {raw} inside a line (a program number O opens its line; "
-                                "a letter O typed for a zero?)", line)
+                                f"{why})", line)
             try:
                 v = float(num)
             except ValueError:  # pragma: no cover - the token pattern only lets numbers through

@@ -25,7 +25,7 @@ from .words import strip_comments
 # the languages' readers (.ngc, .macro, .heidenhain, .sinumerik) are imported where a program
 # needs one: a plain G-code program is read without them
 _LANGUAGE = {"ngc": "O-word control flow, parameters and expressions",
-             "macro": "macro variables, IF, GOTO, WHILE and subprogram calls"}
+             "macro": "macro variables, IF, GOTO, WHILE, subprogram and macro calls"}
 
 
 @dataclass
@@ -280,7 +280,8 @@ def open_program(path, dialect: str | None = None, *, max_steps: int | None = No
         yield from _translated(source, d, why)
         return
     expansion = None
-    if d.language is not None and os.path.isfile(source) and needs_expansion(source):
+    if d.language is not None and os.path.isfile(source) and needs_expansion(
+            source, macro_calls=d.language == "macro"):
         expansion = _expand(source, d, max_steps, max_lines, progress)
     if expansion is None:
         yield ProgramSource(source, source, d, why)

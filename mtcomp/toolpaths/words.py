@@ -76,7 +76,9 @@ _REFUSED_G = {
           "rotary axes' angles, is followed)",
     68.2: "G68.2 (tilted working plane)", 68.3: "G68.3 (tilted working plane)",
     53.1: "G53.1 (tool axis direction control)",
-    65: "G65 (macro call)", 66: "G66 (modal macro call)",
+    65: "G65 (macro call; in a Fanuc or Haas program whose macro is in the file, give "
+        "--dialect fanuc or haas)",
+    66: "G66 (modal macro call)",
     # moves that stop where a signal comes (the position after them is not the program's), and
     # coordinates that are not axis positions
     31: "G31 (skip function: the move stops where the signal comes, and later positions are unknown)",
