@@ -146,7 +146,7 @@ def test_rotary_data_beyond_a_travel_of_less_than_a_turn_is_noted(tmp_path, caps
                        '[axes.C]\ntravel_deg = [0, 360]\naxis_point_mm = [0, 0, 0]\n')
     p = tmp_path / "grid.csv"
     p.write_text("x_mm,y_mm,z_mm,b_deg,c_deg,dx_um\n0,0,0,-60,0,1\n0,0,0,1.5,350,2\n"
-                 "0,0,0,60,720,1\n")
+                 "0,0,0,60,720,1\n0,0,0,-1.7450000005,0,1\n0,0,0,1.7450000005,0,1\n")
     note_outside_travel("identify", load_machine(machine), [read_measurements(p)])
     err = capsys.readouterr().err
     assert "2 row(s) take B to -60..60 deg, outside the machine's travel -1.745..1.745 deg " \

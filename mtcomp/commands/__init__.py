@@ -37,8 +37,9 @@ def outside_travel(machine, datasets) -> list[str]:
             v = q[:, j] * scale
             if ax.is_rotary and hi - lo >= 360.0:
                 continue
-            v = lo + np.mod(v - lo, 360.0) if ax.is_rotary else v
             tol, unit = (1e-6, "deg") if ax.is_rotary else (1e-3, "mm")
+            # the turn from just below the lower end: an angle a hair under it stays under it
+            v = (lo - tol) + np.mod(v - lo + tol, 360.0) if ax.is_rotary else v
             out = np.flatnonzero(given[:, j] & ((v < lo - tol) | (v > hi + tol)))
             if out.size:
                 v = q[out, j] * scale
