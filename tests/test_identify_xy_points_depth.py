@@ -54,14 +54,20 @@ PROGRAM = ("G21 G90 G17 G94\nT1 M6\nG54\nG0 X-225 Y-125\nG43 Z15 H1\n"
            "T2 M6\nG0 X0 Y0\nG43 Z15 H2\nG98 G81 X0 Y0 Z-12 R5 F200\nX100 Y-100\nG80\nM30\n")
 
 
-def _compensated(folder, zdepth, *extra):
-    """BLOCKS.csv rows of the part (G54 at Z -400: holes at machine Z -412) compensated with the
-    model of the two plates measured at machine depth ``zdepth``."""
+def _model(folder, zdepth):
+    """(machine file, model file) of the two plates measured at machine depth ``zdepth``."""
     machine, model = folder / "m.toml", folder / "model.json"
     if not model.exists():                  # the second call compensates with the same model
         machine.write_text(MACHINE)
         files = _plates(folder, machine, zdepth)
         assert main(["identify", str(machine), *files, "-o", str(model)]) == 0
+    return machine, model
+
+
+def _compensated(folder, zdepth, *extra):
+    """BLOCKS.csv rows of the part (G54 at Z -400: holes at machine Z -412) compensated with the
+    model of the two plates measured at machine depth ``zdepth``."""
+    machine, model = _model(folder, zdepth)
     prog = folder / "part.nc"
     prog.write_text(PROGRAM)
     offsets = folder / "offsets.toml"
@@ -98,3 +104,17 @@ def test_a_part_far_below_the_plates_is_not_corrected(tmp_path):
             if r["corrected"] == "1"]
     assert len(rows) >= 8, rows
     np.testing.assert_allclose([float(r["cz_um"] or 0.0) for r in rows], 0.0, rtol=0, atol=0.01)
+
+
+def test_predict_gives_no_depth_error(tmp_path):
+    """predict at the plates' own holes, the truth's full deviation (dz of 16 um range there, from
+    the squareness B0Z and A0Z the truth holds): dz is 0 (the old fit: up to 0.79 um, from the roll
+    of X) with no standard error, since nothing read it; dx and dy have one."""
+    machine, model = _model(tmp_path, ZDEPTH)
+    pred = tmp_path / "pred.csv"
+    assert main(["predict", str(machine), str(model), str(tmp_path / "full_0.csv"), "-o", str(pred)]) == 0
+    with open(pred) as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 154 and np.ptp([float(r["dz_um"]) for r in rows]) > 10.0
+    np.testing.assert_allclose([float(r["pred_dz_um"]) for r in rows], 0.0, rtol=0, atol=0.01)
+    assert all(r["pred_dz_um_sd"] == "" and float(r["pred_dx_um_sd"]) > 0 for r in rows), rows[0]
