@@ -9,6 +9,7 @@ error, and the part's holes got Z corrections (0.8 um on a user's VF-2, 20 um fr
 the part's frame). The data do not measure that roll, and no laser names it: it is held at zero
 (docs/identification.md, "What the data do not determine stays at zero error", rule 3)."""
 import csv
+import re
 
 import numpy as np
 
@@ -118,3 +119,28 @@ def test_predict_gives_no_depth_error(tmp_path):
     assert len(rows) == 154 and np.ptp([float(r["dz_um"]) for r in rows]) > 10.0
     np.testing.assert_allclose([float(r["pred_dz_um"]) for r in rows], 0.0, rtol=0, atol=0.01)
     assert all(r["pred_dz_um_sd"] == "" and float(r["pred_dx_um_sd"]) > 0 for r in rows), rows[0]
+
+
+def test_points_at_three_heights_keep_the_pitches_they_measure(tmp_path, capsys):
+    """The rule holds only what the data leave open. Points at three heights (Z -417, -204, 9 mm)
+    with tools of 100 and 200 mm read the table's pitch EBX (dx changes with the tip's height as
+    EBX times it) and the saddle's pitch EAY (dy likewise): the fit keeps them, their range within
+    3 standard errors of the truth's (30 urad over X's 762 mm, 20 urad over Y's 406 mm, over the
+    travel the data reached), and does not report them held at zero."""
+    machine = tmp_path / "m.toml"
+    machine.write_text(MACHINE)
+    truth = TruthMachine(str(machine))
+    truth.components["X"]["EBX"] = P.Linear(0.0, 30e-6 / 762.0)
+    truth.components["Y"]["EAY"] = P.Linear(0.0, -20e-6 / 406.0)
+    rng = np.random.default_rng(6)
+    files = [str(tc.points(truth, tmp_path / f"p{k}.csv", rng, grid=(11, 7, 3), margin=0.18,
+                           tool_lengths_mm=(100.0, 200.0), directions=(1,), noise_um=1.0).path)
+             for k in range(2)]
+    assert main(["identify", str(machine), *files, "-o", str(tmp_path / "model.json")]) == 0
+    text = capsys.readouterr().out
+    for axis, comp, per_mm in (("X", "EBX", 30.0 / 762.0), ("Y", "EAY", 20.0 / 406.0)):
+        lo, hi = map(float, re.search(rf"{axis} from (-?[\d.]+) to (-?[\d.]+) mm", text).groups())
+        m = re.search(rf"{comp}\s+range\s+([\d.]+) \+- ([\d.]+) urad", text)
+        assert m, text
+        value, sd = float(m.group(1)), float(m.group(2))
+        np.testing.assert_allclose(value, per_mm * (hi - lo), rtol=0, atol=3.0 * sd)
