@@ -58,6 +58,26 @@ def test_a_narrow_bump_is_reported_not_absorbed(tmp_path):
     assert d.findings[-1].effect == "unexplained" and d.findings[-1].axis == "X"
 
 
+def test_components_no_reading_sees_get_no_finer_columns(tmp_path):
+    """Readings of dx along X at Y 0, Z 0 and no tool: only the positioning error EXX moves them to
+    first order (the angles have no arm, the straightnesses move Y and Z). The other components'
+    columns at the fitted base are the chain's round-off (1e-56 to 1e-9 of EXX's); scaled up in the
+    held-out fits they once passed for information, a roll on finer knots "gaining" 572 noise
+    variances to EXX's 375, so that which component spoke for the axis was round-off's choice."""
+    import mtcomp.diagnose._diagnose as D
+    from mtcomp.diagnose._resolution import finer_base_columns
+    from mtcomp.diagnose._stack import build_stack
+
+    def bump(x):
+        return 2.0 * np.sin(2 * np.pi * x / 900.0)
+    data = _points(tmp_path, bump)
+    machine, values = D._base_machine(_machine(), data, None, None)
+    st = build_stack(machine, data)
+    D._base_fit(st, values, False, lambda s: None)        # leaves the stack at the fitted base
+    by_comp, _ = finer_base_columns(st, "X")
+    assert set(by_comp) == {"EXX"}
+
+
 def test_a_finer_base_that_predicts_worse_is_not_kept(monkeypatch):
     """The rerun loop of diagnose(), with stand-in diagnoses: a finer base whose diagnosis predicts
     held-out readings worse (scored with the first run's noise floor) is dropped and listed under

@@ -91,8 +91,10 @@ def test_the_report_gives_a_rotary_axis_zero_offset(tmp_path, capsys):
 def test_an_r_test_without_hold_says_which_hold(tmp_path, capsys, monkeypatch):
     """The same R-test (fewer poses) without --hold: the linear axes move only with B and C, and
     combinations the data leave open trade the rotary axes' errors against theirs (ECC_0 against
-    the yaw of Y and Z). The report, and the run's last notes, say which --hold (before: a column of
-    "not determined by the data" and nothing on what to do)."""
+    the squareness of X and Y and the slope of X's straightness in Y; the yaws of Y and Z, which
+    no laser names, are held at zero where the data leave them open, and the squareness is not).
+    The report, and the run's last notes, say which --hold (before: a column of "not determined by
+    the data" and nothing on what to do)."""
     monkeypatch.setattr(__import__(__name__), "POSES", [(0, c) for c in range(0, 360, 45)]
                         + [(b, 0) for b in range(-90, 91, 30)] + [(45, c) for c in range(0, 360, 90)])
     src = _rtest(tmp_path / "rtest.csv", 5e-6)

@@ -29,6 +29,7 @@ import numpy as np
 
 from ..models.basis import LOCAL_WINDOW, RIVAL_SHARE, axis_spline, max_intervals, spline_basis
 from ..models.chain import component_terms, linear_component_names, slope_carried
+from ..identification._linalg import SEEN_SHARE
 from ._analysis import cv_threshold
 
 #: at most this many refinements of the base in one diagnosis
@@ -86,6 +87,10 @@ def finer_base_columns(st, a: str, beyond_floor: bool = False):
         return None
     fine = spline_basis(base.lo, base.hi, n_int, base.degree)
     s = st.guideway(a)                  # the ram's profiles are read where it stood
+    # identify's round-off rule (a component no reading sees but through the rounding of the
+    # chain, an angle with no arm: its finer columns, scaled up in the held-out fits, would pass
+    # their round-off for information and "gain" hundreds of noise variances)
+    seen = SEEN_SHARE * max(float(np.linalg.norm(st.J, axis=0).max(initial=0.0)), 1e-300)
     out = {}
     for comp in linear_component_names(a):
         if beyond_floor and comp == f"E{a}{a}":
@@ -95,6 +100,8 @@ def finer_base_columns(st, a: str, beyond_floor: bool = False):
         if not names:
             continue
         Jc = st.columns(names)
+        if np.linalg.norm(Jc, axis=0).max(initial=0.0) <= seen:
+            continue
         phi = np.column_stack(base.functions(s, carried))
         norm = np.sum(phi * phi, axis=1)
         sens = np.sum(Jc * phi, axis=1) / np.where(norm > 0, norm, 1.0)

@@ -94,11 +94,15 @@ def _eliminate(F: np.ndarray, drop: np.ndarray) -> np.ndarray:
     return out
 
 
+#: a column below this share of the largest column norm is round-off: the data do not see it
+SEEN_SHARE = 1e-9
+
+
 def _seen_columns(A: np.ndarray) -> np.ndarray:
     """(n,) bool: the unknowns the data see at all, columns of the normal matrix A above round-off
-    (1e-9 of the largest column norm)."""
+    (:data:`SEEN_SHARE` of the largest column norm)."""
     norms = np.sqrt(np.clip(np.diag(A), 0.0, None))
-    return norms > 1e-9 * max(float(norms.max()) if norms.size else 0.0, 1e-300)
+    return norms > SEEN_SHARE * max(float(norms.max()) if norms.size else 0.0, 1e-300)
 
 
 def _unseen_apart(A: np.ndarray, scale: np.ndarray) -> np.ndarray:

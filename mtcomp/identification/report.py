@@ -366,18 +366,37 @@ def component_lines(fitted: FittedModel, undetermined: Undetermined | None = Non
     return lines
 
 
-#: a combination the data leave open counts as involving a parameter when the parameter's share of it
-#: (file units, relative to its largest) is above this
-HINT_SHARE = 1e-3
+#: singular values (of orthonormal bases of what the data leave open, file units) below this count
+#: as none: the fit's own threshold for an undetermined combination (--rcond's default)
+HINT_RANK = 1e-6
 #: a component's range counts as left open when the data do not determine it, or fix it only to a
 #: standard error at least its own size and above this (file units)
 OPEN_SD = {"um": 1.0, "urad": 10.0}
 
 
 def _left_open(r) -> bool:
-    """Does the data leave the :class:`ComponentRange` ``r`` open (:data:`OPEN_SD`)?"""
+    """Does the data leave the :class:`ComponentRange` or :class:`LocationValue` ``r`` open
+    (:data:`OPEN_SD`)?"""
+    size = abs(r.range if isinstance(r, ComponentRange) else r.value)
     return r.status == "undetermined" or (r.status == "fitted" and np.isfinite(r.sd)
-                                          and r.sd >= max(abs(r.range), OPEN_SD.get(r.unit, 0.0)))
+                                          and r.sd >= max(size, OPEN_SD.get(r.unit, 0.0)))
+
+
+def _holding_determines(D: np.ndarray, is_rotary: np.ndarray, is_held: np.ndarray) -> bool:
+    """Would holding the parameters ``is_held`` at zero determine some combination of the rotary
+    axes' parameters ``is_rotary`` that the data leave open? ``D`` (k, m): the combinations the data
+    leave open (file units). The rotary part of what stays open once the held part is zero spans
+    less than the rotary part of what is open now (an R-test's zero offset of C against the
+    squareness of X and Y: yes; laser runs' zero offset of C against the C laser's own zero: no,
+    whatever is held of the linear axes)."""
+    U, sv, _ = np.linalg.svd(D, full_matrices=False)
+    B = U[:, sv > HINT_RANK * sv.max(initial=0.0)]             # orthonormal: what is open
+    _, sh, Vt = np.linalg.svd(B[is_held], full_matrices=True)
+    kept = B @ Vt[int(np.sum(sh > HINT_RANK)):].T             # what is open with the held part zero
+
+    def rank(M):
+        return int(np.sum(np.linalg.svd(M, compute_uv=False) > HINT_RANK)) if M.size else 0
+    return rank(kept[is_rotary]) < rank(B[is_rotary])
 
 
 def hold_hint(fitted: FittedModel, ranges, values) -> str | None:
@@ -385,29 +404,31 @@ def hold_hint(fitted: FittedModel, ranges, values) -> str | None:
     (an R-test or three-sphere test alone: the linear axes move only with the rotary ones, at few
     positions): one sentence naming the ``--hold`` of the linear axes the data moved, the squareness
     and the spindle tilt (those not held already), when the data leave a component of those linear
-    axes open (:func:`_left_open`) and a combination they leave open involves both a rotary axis's
-    parameter and one of those. None otherwise (ranges and values of :func:`component_ranges`): laser
-    runs of every axis determine the linear axes' components, whatever they leave open of the rotary
-    axes' location."""
+    axes, or a squareness or spindle tilt, open (:func:`_left_open`) and holding them would determine
+    some of the rotary axes' errors the data leave open (:func:`_holding_determines`). None
+    otherwise (ranges and values of :func:`component_ranges`): laser runs of every axis determine
+    the linear axes' components, whatever they leave open of the rotary axes' location."""
     machine = fitted.machine
     rotary = {a.name for a in machine.rotary_axes}
     if not any(r.axis in rotary for r in ranges):
         return None
     held = {r.axis for r in ranges if r.status == "held"} | {v.name for v in values if v.status == "held"}
     hold = [a.name for a in machine.linear_axes if any(r.axis == a.name for r in ranges) and a.name not in held]
-    hold += [g for g, names in (("squareness", squareness_names(machine)), ("spindle", SPINDLE_TILT))
-             if any(v.name in names for v in values) and not held.intersection(names)]
-    if not any(_left_open(r) for r in ranges if r.axis in hold):
+    single = (("squareness", squareness_names(machine)), ("spindle", SPINDLE_TILT))
+    hold += [g for g, names in single if any(v.name in names for v in values) and not held.intersection(names)]
+    # the squareness and the spindle tilt count as the linear axes' components do: the angular
+    # error motions held at zero where the data leave them open, what an R-test leaves open of the
+    # linear axes is an angle between them (a straightness's slope, which is a squareness)
+    names = {n for g, ns in single if g in hold for n in ns}
+    if not any(_left_open(r) for r in [*(r for r in ranges if r.axis in hold),
+                                       *(v for v in values if v.name in names)]):
         return None
     und = Undetermined.of(fitted)
     if und.directions is None or not und.directions.size:
         return None
     groups = [fitted.params.specs[i].group.split(":")[0] for i in und.index]
-    is_rotary = np.array([g in rotary for g in groups])
-    is_held = np.array([g in hold for g in groups])
-    D = np.abs(und.directions * und.to_file[:, None])
-    big = D > HINT_SHARE * D.max(axis=0, initial=0.0)
-    if not np.any(big[is_rotary].any(axis=0) & big[is_held].any(axis=0)):
+    if not _holding_determines(und.directions * und.to_file[:, None],
+                               np.array([g in rotary for g in groups]), np.array([g in hold for g in groups])):
         return None
     return ("hint: the data cannot tell the rotary axes' errors from the linear axes' (a campaign "
             "that moves the linear axes only with the rotary ones): if the controller compensates "

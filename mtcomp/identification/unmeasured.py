@@ -66,12 +66,15 @@ def angular_motion(group: str) -> bool:
 
 def unmeasured_mask(specs, named: set, volumetric_data: bool = False) -> np.ndarray:
     """(len(specs),) bool: base-model parameters whose error component no laser file names
-    (``named`` from :func:`named_components`); all False when no laser file names one. With a
-    volumetric file among the data (``volumetric_data``: points, ball bar, CMM, which see every component
-    in combination and name none) only the angular error motions of the linear axes that no laser
-    names (:func:`angular_motion`): a reading at one height or tool length cannot tell them from the
-    translation they make there, and they are what changes it at another."""
-    if not named:
+    (``named`` from :func:`named_components`); all False when no laser file names one and no
+    volumetric file is among the data. With a volumetric file among the data (``volumetric_data``:
+    points, ball bar, CMM, which see every component in combination and name none) only the angular
+    error motions of the linear axes that no laser names (:func:`angular_motion`), whether or not a
+    laser file is there: a reading at one height or tool length cannot tell them from the
+    translation they make there, and they are what changes it at another (a CMM's hole positions
+    alone, dx and dy at one depth: a roll of X there is a turn of the plates in X and Y, and a Z
+    error of the roll times Y that nothing read)."""
+    if not named and not volumetric_data:
         return np.zeros(len(specs), dtype=bool)
     return np.array([s.base and s.group not in named and (not volumetric_data or angular_motion(s.group))
                      for s in specs], dtype=bool)
