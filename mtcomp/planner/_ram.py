@@ -5,7 +5,14 @@ a tool longer or shorter than the data's, a cut deeper than the data's) is corre
 ram's own correction: across the tool its errors are those of the other carriages, which the data
 measured, and the ram's straightness and tilts, which the model takes at their values at the edge
 of the data; along the tool, the ram's own errors where it now stands were never measured. With
-``--extrapolate`` every block is corrected whole, as before."""
+``--extrapolate`` every block is corrected whole, as before.
+
+That holds only while the tool tip stays at the heights the data's tips reached: the other
+carriages' angular errors move the tip across the tool by their angle times the tip's height, and
+data taken at one height leave those angles open (held at zero, with no standard error to gate
+them). A block whose tip is also beyond those heights is outside whole. The heights: the ram's
+range less the data's tool lengths beyond the machine's (``info.tool_length_mm``; the ram's range
+itself for a model that does not record them), a range that holds every tip the data had."""
 from __future__ import annotations
 
 import numpy as np
@@ -17,16 +24,37 @@ from ._small import any_rows
 class RamRule:
     """The rule for one machine and one plan, and what it saw (the ranges the summary names)."""
 
-    def __init__(self, machine, extrapolate: bool):
+    def __init__(self, machine, extrapolate: bool, support=None, tools=None):
         self.machine = machine
         self.extrapolate = bool(extrapolate)
         #: the ram's name, None without one
         self.ram = ram_axis(machine)
         self.col = None if self.ram is None else machine.index(self.ram)
+        #: (lo, hi) mm, the heights of the tool tips the data reached (module docstring), or None
+        self.tips = None
+        if self.col is not None and support is not None and np.isfinite(support[0][self.col]):
+            lo, hi = float(support[0][self.col]), float(support[1][self.col])
+            shortest, longest = (tools if tools else (machine.tool_length,) * 2)
+            self.tips = (lo - max(longest - machine.tool_length, 0.0),
+                         hi - min(shortest - machine.tool_length, 0.0))
         #: [lo, hi] mm: where the tools put the ram of the blocks so corrected (Summary.ram_asked)
         self.ram_asked = [np.inf, -np.inf]
         #: [shortest, longest] tool length (mm) of the blocks planned (Summary.tools_asked)
         self.tools_asked = [np.inf, -np.inf]
+
+    def widen(self, outside, q, known) -> np.ndarray:
+        """``outside`` ((n, na) bool) with every known axis of a block marked whose ram is outside
+        and whose tool tip (``q``'s ram column, mm) is beyond the data's tips' heights: outside
+        whole (module docstring)."""
+        if self.tips is None or self.extrapolate or not outside[:, self.col].any():
+            return outside
+        z = q[:, self.col]
+        beyond = outside[:, self.col] & ((z < self.tips[0] - 1e-6) | (z > self.tips[1] + 1e-6))
+        if not beyond.any():
+            return outside
+        out = outside.copy()
+        out[beyond] = known[beyond]
+        return out
 
     def whole_outside(self, outside) -> np.ndarray:
         """(n,) bool: the blocks left uncorrected whole for the support (none with --extrapolate):

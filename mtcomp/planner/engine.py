@@ -74,7 +74,8 @@ class Planner:
         #: (lo, hi) each (na,): the model's support, +-inf for axes it does not limit; None: unknown
         self.support = support_bounds(problem.fitted)
         #: a block whose ram alone is outside the support has its other axes corrected (:mod:`._ram`)
-        self.ram = RamRule(self.machine, self.options.extrapolate)
+        self.ram = RamRule(self.machine, self.options.extrapolate, self.support,
+                           problem.fitted.info.get("tool_length_mm"))
         self._split = self.threads          # parts a chunk's per-block work is cut into
         #: the link bounds (:mod:`._links`): each axis keeps the direction the model evaluated it
         #: with, one correction along an arc under cutter radius compensation
@@ -101,7 +102,8 @@ class Planner:
         block's tool, ``tool_length`` (n,) mm or None for the machine's, puts it); all False when
         the model does not say where its data reached. A block with such an axis is left
         uncorrected unless the options extrapolate."""
-        return outside_bounds(self.machine, self.support, q, known, tool_length)
+        return self.ram.widen(outside_bounds(self.machine, self.support, q, known, tool_length), q,
+                              known)
 
     def block_status(self, q, known, feed, dirs, datum=None, tool_length=None):
         """What the planner's rules say of each block, before any correction is planned.
