@@ -511,6 +511,40 @@ def _too_uncertain(fitted, a: str, q: np.ndarray, q_ref: np.ndarray, max_sd_um: 
             + unsure_advice(float(sd.max()), max_sd_um, "writes the table"))
 
 
+#: a table whose points miss more than this (um, along its own axis) of the model's error between
+#: them gets a note (a period shorter than a few grid steps: a screw's)
+BETWEEN_NOTE_UM = 0.5
+
+
+def _between_points(fitted, a: str, g: np.ndarray, pose: np.ndarray, region, own: np.ndarray):
+    """The note when the table of axis ``a`` (points ``g``, its own error ``own`` there, forward)
+    read by linear interpolation misses more than :data:`BETWEEN_NOTE_UM` of the model's own error
+    of that axis at the quarter and half points between its points inside ``region``."""
+    machine = fitted.machine
+    if len(g) < 2 or machine.axis(a).is_rotary:
+        return None
+    mid = (g[:-1, None] + np.diff(g)[:, None] * np.array([0.25, 0.5, 0.75])).ravel()
+    mid = mid[(mid >= region[0]) & (mid <= region[1])]
+    if not mid.size:
+        return None
+    q = np.tile(pose, (mid.size, 1))
+    q[:, machine.index(a)] = mid
+    i = machine.index(a)
+    q0 = pose.copy()
+    q0[i] = np.clip(g[0], *region)
+    at, _ = model_errors(fitted, q, {a: 1.0})
+    at0, _ = model_errors(fitted, q0[None, :], {a: 1.0})
+    col = own_column(machine, a)
+    miss = np.abs((at[:, col] - at0[0, col]) - (np.interp(mid, g, own) - own[0])) * 1e3
+    if miss.max() <= BETWEEN_NOTE_UM:
+        return None
+    k = int(np.argmax(miss))
+    return (f"axis {a}: its table's points every {g[1] - g[0]:g} mm miss up to {miss[k]:.2g} um of "
+            f"the model's error along {a} between them (at {a} {mid[k]:.6g} mm): an error of a "
+            "shorter period than a few steps (a screw's); a finer --grid-mm carries it, as far as "
+            "the controller's point limit allows")
+
+
 def component_tables(fitted, grids: dict, region: dict | None = None,
                      notes: list | None = None, source: dict | None = None,
                      max_sd_um: float | None = None, volume: dict | None = None,
@@ -557,6 +591,9 @@ def component_tables(fitted, grids: dict, region: dict | None = None,
             # a rotary table turns the workpiece: its own error is minus the tool's rotation
             j = own_column(machine, a)
             fwd[:, j], rev[:, j] = -fwd[:, j], -rev[:, j]
+        missed = _between_points(fitted, a, g, q[0], (lo, hi), fwd[:, own_column(machine, a)])
+        if missed:
+            uncertain.append(missed)
         if not (np.nanmax(np.abs(fwd)) > ZERO or np.nanmax(np.abs(rev)) > ZERO):
             dropped.append(a)
             continue
