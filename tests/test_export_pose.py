@@ -64,6 +64,19 @@ def test_at_names_a_bad_axis_in_one_line(tmp_path, capsys):
     assert not (tmp_path / "o").exists()
 
 
+def test_a_pose_or_range_beyond_the_travel_is_refused_in_one_line(tmp_path, capsys):
+    """xfyz's X travels -400 .. 400 mm: --at X=-1000 was read at the data's end without a word,
+    and --range X=500:600 dropped X's table with only a note."""
+    path = _model(tmp_path)
+    for option, value in (("--at", "X=-1000"), ("--range", "X=500:600")):
+        assert main(["export", "xfyz", str(path), "--format", "linuxcnc", "-o",
+                     str(tmp_path / "o"), option, value]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"{option} '{value}': X beyond the machine's travel " \
+            "-400 .. 400 mm" in err
+        assert not (tmp_path / "o").exists()
+
+
 def test_compensate_and_the_table_agree_along_a_line_through_its_pose(tmp_path, capsys):
     """Y moves at machine Z = -200 (no work offset: the datum is the machine zero). compensate's
     ey_before_um and the Y table read at --at Z=-200 differ by one constant to 0.01 um; the table

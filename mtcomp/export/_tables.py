@@ -185,8 +185,19 @@ def parse_ranges(items, machine) -> dict:
         if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
             raise InputError(f"--range {item!r}: needs finite LO < HI")
         f = math.pi / 180.0 if machine.axis(axis).is_rotary else 1.0
+        _within_travel("--range", item, machine, axis, (lo * f, hi * f))
         out[axis] = (lo * f, hi * f)
     return out
+
+
+def _within_travel(option: str, item: str, machine, axis: str, values) -> None:
+    """InputError when a linear axis's ``values`` (mm) lie beyond the machine's travel (a rotary
+    axis's angle is any turn of one it reaches)."""
+    ax = machine.axis(axis)
+    lo, hi = ax.travel
+    if ax.is_rotary or all(lo - 1e-9 <= v <= hi + 1e-9 for v in values):
+        return
+    raise InputError(f"{option} {item!r}: {axis} beyond the machine's travel {lo:g} .. {hi:g} mm")
 
 
 def parse_pose(items, machine) -> dict:
@@ -206,6 +217,7 @@ def parse_pose(items, machine) -> dict:
                 raise InputError(f"--at {item!r}: {axis}'s position must be a number (mm, or deg for "
                                  "a rotary axis)")
             out[axis] = v * (math.pi / 180.0 if machine.axis(axis).is_rotary else 1.0)
+            _within_travel("--at", item, machine, axis, (out[axis],))
     return out
 
 
