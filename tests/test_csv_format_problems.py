@@ -92,3 +92,13 @@ def test_a_model_file_given_as_the_machine_is_named(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "not valid TOML" in err and "it looks like a JSON file (a model file?)" in err
     assert not (tmp_path / "M.json").exists()
+
+
+def test_report_lines_before_the_header_are_named(tmp_path):
+    """An instrument's export with its report lines above the table (a laser software's title,
+    date and machine): the title is read as a one-column header, and the message blamed a decimal
+    comma."""
+    p = _write(tmp_path, "Laser calibration X axis\n" + "\n".join([HEADER] + ROWS) + "\n")
+    err = _refused(p, r"row 1: 6 cells but the header has 1 columns; the first line, read as the "
+                      r"header, is one cell: a title")
+    assert "decimal comma" not in err.message

@@ -152,3 +152,20 @@ def test_rotary_data_beyond_a_travel_of_less_than_a_turn_is_noted(tmp_path, caps
     assert "2 row(s) take B to -60..60 deg, outside the machine's travel -1.745..1.745 deg " \
            "(a travel_deg written in radians?)" in err
     assert "take C" not in err
+
+
+def test_a_ball_bar_file_in_inches_is_noted(tmp_path, capsys):
+    """A 100 mm bar's circle written in inches (3.937 'mm', positions in inches too, so the
+    lengths agree with the balls' distance): fitted without a word before. No bar is under an inch
+    long; a 50 mm one says nothing."""
+    def write(name, r):
+        p = tmp_path / name
+        rows = [f"{r * np.cos(t):.6f},{r * np.sin(t):.6f},0,0,0,0,0,0,0,{r + 1e-5:.6f}"
+                for t in np.linspace(0.0, 2 * np.pi, 12, endpoint=False)]
+        p.write_text("x_mm,y_mm,z_mm,table_ball_x_mm,table_ball_y_mm,table_ball_z_mm,tool_ball_x_mm,"
+                     "tool_ball_y_mm,tool_ball_z_mm,length_mm\n" + "\n".join(rows) + "\n")
+        return p
+    notes = _notes(write("bb_inch.csv", 3.937008), capsys)
+    assert len(notes) == 1 and "bb_inch.csv: every length_mm is below 25.4 mm (largest 3.937): no " \
+        "ball bar is that short; a file in inches?" in notes[0], notes
+    assert _notes(write("bb_50.csv", 50.0), capsys) == []

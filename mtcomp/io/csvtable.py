@@ -138,6 +138,10 @@ def _ragged(cells, n_columns: int, last: bool, path: str, row: int) -> None:
     if last and len(cells) < n_columns:
         message += (" in the last row: the file looks cut off mid-row (an interrupted export or "
                     "copy); re-export or copy it again, or delete the incomplete last row")
+    elif n_columns == 1:
+        message += ("; the first line, read as the header, is one cell: a title or an instrument's "
+                    "report lines before the table? The header row of column names comes first "
+                    "(docs/measurements.md)")
     elif len(cells) > n_columns:
         message += ("; a decimal comma splits a number into two cells: write decimal points "
                     "(1.5, not 1,5)")

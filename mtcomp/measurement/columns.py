@@ -16,7 +16,7 @@ stylus lengths replaced by the machine's tool length in every row). So:
   points or cmm file is smaller than a machine's errors and an instrument's noise over the span of
   its positions (values in mm written under ``*_um`` columns: the unit check of
   :func:`mtcomp.measurement.units.unit_check`, below max(0.05 um, 0.5 ppm of the span) over 100 mm
-  or more).
+  or more), and when every bar length of a ball-bar file is under an inch (a file in inches).
 """
 from __future__ import annotations
 
@@ -127,10 +127,24 @@ def file_notes(machine, datasets) -> list[str]:
             notes.append(f"{data.path}: no column tool_mm: every row is taken at the machine's tool "
                          f"length, {machine.tool_length:g} mm (its tool_length_mm); give tool_mm if the "
                          "stylus or tool was another length")
-        line = _mm_under_um(data, header)
+        line = _mm_under_um(data, header) or _short_bar(data)
         if line:
             notes.append(line)
     return notes
+
+
+#: no ball bar is shorter (mm): a file whose every length is below it is likely in inches
+SHORTEST_BAR_MM = 25.4
+
+
+def _short_bar(data) -> str | None:
+    """The sentence when every bar length of a ball-bar file is below :data:`SHORTEST_BAR_MM`."""
+    length = np.asarray(getattr(data, "length", ()), dtype=float) if data.kind == "ballbar" else ()
+    length = length[np.isfinite(length)] if len(length) else length
+    if not len(length) or length.max() >= SHORTEST_BAR_MM:
+        return None
+    return (f"{data.path}: every length_mm is below {SHORTEST_BAR_MM:g} mm (largest "
+            f"{length.max():.4g}): no ball bar is that short; a file in inches? mtcomp reads mm")
 
 
 #: the least number of deviations for the short-span unit check of a points or cmm file
