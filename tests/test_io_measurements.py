@@ -122,6 +122,8 @@ def test_laser_units_and_context(tmp_path):
     ("X,EAX,1,1,1,2", r"row 2: units mixed: component EAX is angular and takes value_urad"),
     ("X,EXX,1,2,1,2", r"row 2: column dir: '2' is not an approach direction"),
     ("X,EXX,1,0,1,2", r"row 2: column dir: '0' is not an approach direction"),
+    ("X,EXX,1,down,1,2", r"row 2: column dir: 'down' is not an approach direction: write \+1"),
+    ("X,EXX,1,Fwd,1,2", r"row 2: column dir: 'Fwd' is not an approach direction: write \+1"),
     ("X,EXX,1,,1,2", r"row 2: column dir is blank"),
     ("X,EXX,1,1,,2", r"row 2: column run is blank"),
     ("X,EXX,1,1,1.5,2", r"row 2: column run: '1.5' is not a whole number"),

@@ -258,7 +258,13 @@ def parse_ints(cells: list[str], column: str, path: str, row: np.ndarray, blank:
 
 def parse_signs(cells: list[str], column: str, path: str, row: np.ndarray,
                 required: bool = False) -> np.ndarray:
-    """(n,) int8 approach directions +1/-1 (``1``, ``+1``, ``-1``, ``1.0``); blank -> 0 (unknown)."""
+    """(n,) int8 approach directions +1/-1 (``1``, ``+1``, ``-1``, ``1.0``); blank -> 0 (unknown).
+    A word (``up``, ``fwd``, ``+``) is refused naming the two numbers the column takes."""
+    for i, c in enumerate(cells):
+        t = c.strip()
+        if t and not t.lstrip("+-").replace(".", "", 1).isdigit() and t.lower() not in ("nan",):
+            raise InputError(f"column {column}: {t!r} is not an approach direction: write +1 (the "
+                             "axis moving towards +) or -1", path, row=int(row[i]))
     vals = parse_floats(cells, column, path, row, required=required)
     out = np.zeros(len(cells), dtype=np.int8)
     for i, v in enumerate(vals):
