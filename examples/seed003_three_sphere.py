@@ -41,8 +41,8 @@ def make_truth(machine, rng):
     for i, spec in enumerate(truth.params.specs):
         if spec.group.split(":")[0] in ("X", "Y", "Z", "squareness", "tool"):
             truth.params.values[i] = 0.0
-    # radial and tilt motions start at harmonic 2 (their first harmonic is the axis line's location,
-    # which random_truth draws); the axial motion at 1
+    # random_truth draws the location and the first harmonic that turns against the table (EXC_c1,
+    # EXC_s1 move EXC and EYC together; the one turning with it is the location); harmonics 2, 3 here
     for name, value in {"EXC_c2": 18.0, "EXC_s2": 6.0, "EYC_c2": -5.0, "EYC_s2": 15.0,
                         "EXC_c3": 3.0, "EYC_s3": -2.5, "EZC_c1": 1.5, "EZC_s2": 0.8,
                         "EAC_c2": 25.0, "EAC_s2": -10.0, "EBC_c2": 12.0, "EBC_s2": 30.0}.items():

@@ -141,13 +141,14 @@ SEED003_POINTS = ((0.0, 0.0, 0.0), (0.0, 0.0, 100.0))
 SEED003_HOLD = ("X", "Y", "Z", "squareness", "spindle", "tool")
 
 
-def seed003_case(seed: int, folder: Path) -> tuple[TruthMachine, Path, Path]:
+def seed003_case(seed: int, folder: Path, effects=()) -> tuple[TruthMachine, Path, Path]:
     """(truth, ball-bar file, machine TOML): an independent CAFXYZ machine with rotary location
     errors, positioning errors and error motions (harmonics 2-5) of A and C, its linear axes
     compensated as in the paper (their errors, squareness and spindle tilt zero), measured by the
     three-sphere set-up (100 mm calibrated bar, heights 100 and 200 mm, C every 10 deg, 3 runs both
     ways, 0.25 um noise). The machine file is the built-in cafxyz with ``error_motion_order = 5``
-    on A and C: the base model then holds the error motions the method measures."""
+    on A and C: the base model then holds the error motions the method measures. ``effects``: hidden
+    effects (:mod:`truth.effects`) added to the truth before it is measured."""
     from truth import profiles as P
     rng = np.random.default_rng(seed)
     machine = TruthMachine.random("cafxyz", rng, error_motions=True)
@@ -155,6 +156,7 @@ def seed003_case(seed: int, folder: Path) -> tuple[TruthMachine, Path, Path]:
         machine.components[a] = {c: P.ZERO for c in machine.components[a]}
     machine.squareness = {k: 0.0 for k in machine.squareness}
     machine.spindle_tilt = np.zeros(2)
+    machine = machine.with_effects(*effects)
     folder.mkdir(parents=True, exist_ok=True)
     path = tc.three_sphere(machine, folder / "three_sphere.csv", rng, noise_mm=0.00025, setup=False).path
     toml = folder / "cafxyz_motions.toml"

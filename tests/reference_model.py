@@ -166,6 +166,23 @@ def _linear(machine, ax, s, g, ctx, feed_m, terms):
     return np.linalg.inv(A) if ax.side == "workpiece" else A
 
 
+def _counter_rotating_first_harmonic(motion, d, R_, theta, g):
+    """The first harmonic of a radial (tilt) pair is a vector in the plane normal to the axis that turns
+    by -theta while the axis turns by +theta: v(theta) = Rot_d(-theta) v0, whose first direction in
+    X, Y, Z order (the leader) reads <leader>_c1 cos + <leader>_s1 sin; the leader's c1/s1 give v0 (the
+    old model's partner _c1/_s1 are ignored: not parameters any more)."""
+    others = [j for j in range(3) if j != d]
+    for letters in (XYZ, ABC):
+        lead, part = (f"E{letters[j]}{R_}" for j in others)
+        for comp in (lead, part):
+            motion[comp] -= g(f"{comp}_c1") * np.cos(theta) + g(f"{comp}_s1") * np.sin(theta)
+        # v0 = c1 e_lead + x e_part, with the leader at theta = pi/2 equal to s1
+        x = g(f"{lead}_s1") / _rot(d, -np.pi / 2)[others[0], others[1]]
+        v = _rot(d, -theta) @ (g(f"{lead}_c1") * np.eye(3)[others[0]] + x * np.eye(3)[others[1]])
+        motion[lead] += v[others[0]]
+        motion[part] += v[others[1]]
+
+
 def _rotary(machine, ax, theta, g, ctx, terms):
     R_ = ax.name
     d = ax.direction_index
@@ -176,6 +193,7 @@ def _rotary(machine, ax, theta, g, ctx, terms):
     for comp in [f"E{x}{R_}" for x in XYZ + ABC if f"E{x}{R_}" != own]:
         motion[comp] = sum(g(f"{comp}_c{k}") * np.cos(k * theta) + g(f"{comp}_s{k}") * np.sin(k * theta)
                            for k in range(1, 9))
+    _counter_rotating_first_harmonic(motion, d, R_, theta, g)
     for t in terms:
         if type(t).__name__ == "Backlash" and t.axis == R_:
             e_own += 0.5 * g(f"BL_{R_}") * ctx.get(f"dir_{R_}", 0.0)

@@ -162,12 +162,28 @@ def test_model_file_errors(tmp_path):
     # an older mtcomp's error motion with a first harmonic of a radial motion: named, and why
     import json
     path = tmp_path / "old.json"
+    save_model(path, FittedModel.zero(ErrorModel(load_machine("cafxyz"), [RotaryErrorMotion("EYC", 2)])))
+    data = json.loads(path.read_text())
+    data["parameters"]["EYC_c1"] = {"value": 1.0, "unit": "um"}
+    path.write_text(json.dumps(data))
+    with pytest.raises(InputError, match=r"'EYC_c1' is not part of this model \(a first harmonic of EYC "
+                                         r"alone.*EXC_c1 and EXC_s1"):
+        load_model(path)
+    # the leader's first harmonic meant EXC alone in a version-1 file, both EXC and EYC now: refused
     save_model(path, FittedModel.zero(ErrorModel(load_machine("cafxyz"), [RotaryErrorMotion("EXC", 2)])))
     data = json.loads(path.read_text())
-    data["parameters"]["EXC_c1"] = {"value": 1.0, "unit": "um"}
+    assert data["version"] == 2
+    load_model(path)
+    data["version"] = 1
     path.write_text(json.dumps(data))
-    with pytest.raises(InputError, match=r"'EXC_c1' is not part of this model \(a first harmonic of a radial"):
+    with pytest.raises(InputError, match=r"'EXC_c1' of a version-1 model file.*moves EYC too"):
         load_model(path)
+    del data["parameters"]["EXC_c1"], data["parameters"]["EXC_s1"]
+    data["terms"] = []
+    for name in [n for n in data["parameters"] if n.startswith("EXC_")]:
+        del data["parameters"][name]
+    path.write_text(json.dumps(data))
+    load_model(path)            # a version-1 file without such a harmonic: read as before
 
 
 def test_hand_case_spline_component_and_spindle_tilt():
@@ -195,13 +211,18 @@ def test_hand_case_spline_component_and_spindle_tilt():
     np.testing.assert_allclose(d[:, 4], [-np.sin(20e-6)] * 2, rtol=1e-9, atol=0)
 
 
-def test_radial_and_tilt_error_motions_start_at_the_second_harmonic():
+def test_radial_and_tilt_pairs_keep_only_the_counter_rotating_first_harmonic():
     """A rotary axis's error motions in the frame that does not turn with it: an offset v of the line
-    moves a carried point by v - R(theta) v, an artefact off centre by w by R(theta) w, so the
-    constant and the first harmonic of the radial pair (and, likewise, of the tilt pair) are the
-    location and the set-up; only the axial motion keeps harmonic 1 (ISO 230-7). Written out by hand
-    for C (about Z: axial EZC) and A (about X: axial EXA), in the base model and in the term."""
+    moves a carried point by v - R(theta) v, an artefact off centre by w by R(theta) w, so of the
+    first harmonic of the radial pair (and of the tilt pair) the part turning with the axis is the
+    location and the set-up, and only the counter-rotating part is a parameter, on the pair's first
+    direction; the axial motion keeps harmonic 1. Names written out by hand for C and A (base, term);
+    the motion by hand for C and B (B turns Z towards X: its counter-rotating vector e (cos, 0, sin))."""
     import dataclasses
+
+    import casadi as ca
+
+    from mtcomp.models.terms import motion_errors
     m = load_machine("cafxyz")
     m = dataclasses.replace(m, axes=tuple(dataclasses.replace(a, error_motion_order=3)
                                           if a.is_rotary else a for a in m.axes))
@@ -209,8 +230,82 @@ def test_radial_and_tilt_error_motions_start_at_the_second_harmonic():
     got = {c: [n.split("_")[1] for n in names if n.startswith(c + "_")]
            for c in ("EXC", "EYC", "EZC", "EAC", "EBC", "EXA", "EYA", "EZA", "EBA", "ECA")}
     two, one = ["c2", "s2", "c3", "s3"], ["c1", "s1", "c2", "s2", "c3", "s3"]
-    assert got == {"EXC": two, "EYC": two, "EZC": one, "EAC": two, "EBC": two,
-                   "EXA": one, "EYA": two, "EZA": two, "EBA": two, "ECA": two}
-    term = RotaryErrorMotion("EYC", order=1)
-    assert term.param_specs(load_machine("cafxyz")) == []
+    assert got == {"EXC": one, "EYC": two, "EZC": one, "EAC": one, "EBC": two,
+                   "EXA": one, "EYA": one, "EZA": two, "EBA": one, "ECA": two}
+    assert RotaryErrorMotion("EYC", order=1).param_specs(m) == []
     assert [s.name for s in RotaryErrorMotion("EZC", order=1).param_specs(m)] == ["EZC_c1", "EZC_s1"]
+    assert [s.name for s in RotaryErrorMotion("EXC", order=1).param_specs(m)] == ["EXC_c1", "EXC_s1"]
+    th = 0.7
+    for comp, partner, want in [("EXC", "EYC", (np.cos(th), -np.sin(th))),     # R_z(-th) (1, 0)
+                                ("EAC", "EBC", (np.cos(th), -np.sin(th))),
+                                ("EXB", "EZB", (np.cos(th), np.sin(th)))]:     # R_y(-th) (1, 0, 0)
+        got = motion_errors(comp, 2, th, lambda n: {f"{comp}_c1": 1.0}.get(n, 0.0))
+        assert set(got) == {comp, partner}
+        np.testing.assert_allclose([float(ca.evalf(got[comp])), float(ca.evalf(got[partner]))], want,
+                                   rtol=0, atol=1e-15)
+        # the sine coefficient: the same vector a quarter turn on, (0, 1) at th = 0 for C
+        got = motion_errors(comp, 1, 0.0, lambda n: {f"{comp}_s1": 1.0}.get(n, 0.0))
+        np.testing.assert_allclose([float(ca.evalf(got[comp])), float(ca.evalf(got[partner]))],
+                                   [0.0, 1.0 if comp[2] != "B" else -1.0], rtol=0, atol=1e-15)
+
+def test_first_harmonic_turning_with_the_axis_is_location_and_set_up():
+    """Rank check on the model's own Jacobian (60 random poses of a CBFXYZ machine, error motions of
+    order 1, a workpiece set-up's translation and rotation among the columns): for each radial and
+    tilt pair of B and C, the first harmonic turning with the axis (written with two free harmonics
+    of each direction, a term of this test) lies in the span of the rest; the counter-rotating one
+    the model keeps (its leader's _c1, _s1) adds rank 2, and equals the free harmonics' combination."""
+    import dataclasses
+
+    import casadi as ca
+
+    from mtcomp.models.params import ParamSpec
+    from mtcomp.models.terms import Term, motion_pair
+
+    @dataclasses.dataclass(frozen=True)
+    class Free1(Term):
+        component: str
+        kind = "free1"
+
+        def key(self):
+            return f"free1:{self.component}"
+
+        def param_specs(self, machine):
+            return [ParamSpec(f"F_{self.component}_{cs}1", "um", self.key(), False, "") for cs in "cs"]
+
+        def axis_errors(self, machine, axis, s, ctx, P, components):
+            if axis.name != self.component[2]:
+                return {}
+            return {self.component: P[f"F_{self.component}_c1"] * ca.cos(s) + P[f"F_{self.component}_s1"] * ca.sin(s)}
+
+    m = load_machine("cbfxyz")
+    m = dataclasses.replace(m, axes=tuple(dataclasses.replace(a, error_motion_order=1) if a.is_rotary else a
+                                          for a in m.axes))
+    pairs = [(c, *motion_pair(c)) for a in "BC" for c in (f"EX{a}", f"EY{a}", f"EA{a}", f"EB{a}")
+             if motion_pair(c)]
+    assert [(a, b, s) for a, b, s in pairs] == [("EXB", "EZB", -1), ("EAB", "ECB", -1),
+                                                ("EXC", "EYC", 1), ("EAC", "EBC", 1)]
+    model = ErrorModel(m, [Free1(x) for a, b, _ in pairs for x in (a, b)])
+    ix = {n: i for i, n in enumerate(model.param_names)}
+    rng = np.random.default_rng(0)
+    lo, hi = (np.array([a.travel[k] for a in m.axes]) for k in (0, 1))
+    f = model.deviation_jacobian_function
+    c = model.default_context(1).ravel()
+    J = np.vstack([np.array(f(q, np.zeros(model.n_params), c)[2]) for q in lo + (hi - lo) * rng.random((60, 5))])
+    J = np.hstack([J, np.kron(np.ones((60, 1)), np.eye(6))])          # the set-up
+    first = {ix[f"{a}_{cs}1"] for a, _, _ in pairs for cs in "cs"}
+    rest = J[:, [i for i in range(model.n_params) if i not in first and not model.param_names[i].startswith("F_")]
+             + list(range(model.n_params, J.shape[1]))]
+    rest = rest / np.maximum(np.linalg.norm(rest, axis=0), 1e-300)
+    U, sv, _ = np.linalg.svd(rest, full_matrices=False)
+    U = U[:, sv > sv[0] * 1e-9]
+    unexplained = lambda v: np.linalg.norm(v - U @ (U.T @ v)) / np.linalg.norm(v)  # noqa: E731
+    for a, b, sg in pairs:
+        c1a, s1a, c1b, s1b = (J[:, ix[f"F_{x}_{cs}1"]] for x, cs in ((a, "c"), (a, "s"), (b, "c"), (b, "s")))
+        for v in (c1a + sg * s1b, s1a - sg * c1b):                  # R(theta) u: turns with the axis
+            assert unexplained(v) < 1e-6, (a, unexplained(v))
+        kept = (J[:, ix[f"{a}_c1"]], J[:, ix[f"{a}_s1"]])
+        np.testing.assert_allclose(np.column_stack(kept), np.column_stack([c1a - sg * s1b, s1a + sg * c1b]),
+                                   rtol=0, atol=1e-12)
+        assert min(unexplained(v) for v in kept) > 0.03, a          # B: 7 %, C: 85 %
+        both = np.column_stack([rest, *(v / np.linalg.norm(v) for v in kept)])
+        assert np.linalg.matrix_rank(both, tol=sv[0] * 1e-9) == U.shape[1] + 2, a

@@ -220,8 +220,8 @@ def seen_through_factor(lsq, penalised, s2: float) -> tuple:
     N = np.asarray(u["undetermined"], dtype=float).reshape(len(names), -1)
     Q = np.linalg.svd(N, full_matrices=False)[0][:, :np.linalg.matrix_rank(N)] if N.size else N
     # alone, the parameter moves no reading (it lies in the span the data leave open): not a part
-    # of a combination the data cannot tell apart (an error motion's first harmonic against the
-    # axis's location), which the least squares on its own subspace may call determined
+    # of a combination the data cannot tell apart (two terms' parameters that act alike on these
+    # readings), which the least squares on its own subspace may call determined
     alone = 1.0 - np.sum(Q ** 2, axis=1) < 1e-6
     take = [n for k, n in enumerate(names) if alone[k] and not lsq.params.specs[lsq.params.index(n)].base
             and np.isfinite(lsq.params.std_errors[lsq.params.index(n)])

@@ -6,6 +6,7 @@ import numpy as np
 from scipy.stats import f as f_dist
 
 from ..models.basis import axis_spline
+from ..models.terms import motion_pair
 from . import _analysis as an
 from ._linalg import rms
 
@@ -131,8 +132,11 @@ def _rotary_pdge(st, c, theta, resid, rt):
     span = f"{orders[0]}-{orders[-1]}" if len(orders) > 1 else f"{orders[0]}"
     params = {"component": comp, "harmonics": orders,
               f"harmonic_amplitudes_{unit}": [round(float(x), 4) for x in amps]}
+    pair = motion_pair(comp) if 1 in orders else None
+    with_pair = (f" (harmonic 1 as the motion turning against the axis, which moves {pair[0]} as much; "
+                 f"the one turning with it is the axis's location)") if pair else ""
     ev = (f"The residual varies with the {a} angle at harmonics {span} beyond the location "
-          f"errors of {a}; as the error motion {comp} they reach {amps.max():.3g} {unit}")
+          f"errors of {a}; as the error motion {comp}{with_pair} they reach {amps.max():.3g} {unit}")
     return params, ev
 
 

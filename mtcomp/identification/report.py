@@ -26,7 +26,7 @@ from ..models.chain import (SPINDLE_TILT, rotary_location_names,
                             rotary_motion_names, squareness_names)
 from ..models.evaluate import casadi_map_call
 from ..models.model_file import FittedModel
-from ..models.terms import ANGLE_LETTERS, TRANSLATION_LETTERS, positioning_component
+from ..models.terms import ANGLE_LETTERS, TRANSLATION_LETTERS, motion_errors, positioning_component
 from .penalty import RHO_BOUND, component_class
 from .predict import Undetermined, predict_readings
 
@@ -130,16 +130,17 @@ def _rotary_components(model, axis, s, P, C) -> dict:
     """The component errors of a rotary axis at angle s: the Fourier series of its base parameters
     (``<comp>_0``, ``<comp>_c<k>`` cos(k s), ``<comp>_s<k>`` sin(k s); docs/parameters.md) plus the
     extension terms' contributions."""
-    comps = {}
-    for comp in [positioning_component(axis.name)] + rotary_motion_names(axis.name):
-        e = ca.SX(0)
-        for spec in model.param_specs:
-            if not spec.base or spec.group != f"{axis.name}:{comp}":
-                continue
+    own = positioning_component(axis.name)
+    comps = {comp: ca.SX(0) for comp in [own] + rotary_motion_names(axis.name)}
+    for spec in model.param_specs:
+        if spec.base and spec.group == f"{axis.name}:{own}":
             k = spec.name.rsplit("_", 1)[1]
             wave = {"c": ca.cos, "s": ca.sin}.get(k[0])
-            e = e + P[spec.name] * (wave(int(k[1:]) * s) if wave is not None else 1.0)
-        comps[comp] = e
+            comps[own] = comps[own] + P[spec.name] * (wave(int(k[1:]) * s) if wave is not None else 1.0)
+    if axis.error_motion_order > 0:
+        for comp in rotary_motion_names(axis.name):
+            for c, e in motion_errors(comp, axis.error_motion_order, s, P.__getitem__).items():
+                comps[c] = comps[c] + e
     for term in model.terms:
         for comp, e in term.axis_errors(model.machine, axis, s, C, P, comps).items():
             comps[comp] = comps.get(comp, ca.SX(0)) + e

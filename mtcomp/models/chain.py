@@ -55,7 +55,8 @@ from ..machine import AXIS_DIRECTION, Machine
 from .basis import SLOPE_CARRIED_BY_SQUARENESS, axis_spline
 from .function_cache import model_function
 from .params import ParamSpec
-from .terms import ANGLE_LETTERS, TRANSLATION_LETTERS, Term, motion_harmonics, positioning_component
+from .terms import (ANGLE_LETTERS, TRANSLATION_LETTERS, Term, motion_errors, motion_harmonics,
+                    motion_pair, positioning_component)
 
 #: context channels every model has; a term may add more (temperatures, drift features)
 BASE_CONTEXT = ("feed", "t", "spindle_rpm", "tool_length")
@@ -214,12 +215,19 @@ def base_param_specs(machine: Machine) -> list[ParamSpec]:
             for k in motion_harmonics(comp, ax.error_motion_order):
                 for cs in "cs":
                     specs.append(ParamSpec(f"{comp}_{cs}{k}", unit_, f"{ax.name}:{comp}", True,
-                                           f"{comp}: harmonic {k} ({'cos' if cs == 'c' else 'sin'})"))
+                                           f"{comp}: harmonic {k} ({'cos' if cs == 'c' else 'sin'})"
+                                           + _against(comp, k)))
     for name, about in zip(SPINDLE_TILT, "XY"):
         specs.append(ParamSpec(name, "urad", "spindle", True,
                                f"tilt of the tool axis about {about}, about the spindle gauge point"))
     specs.append(ParamSpec("TOOL_dL", "um", "tool", True, "tool length error (tip lower when > 0)"))
     return specs
+
+
+def _against(comp: str, k: int) -> str:
+    """What a leader's first harmonic also moves (:func:`mtcomp.models.terms.motion_pair`)."""
+    pair = motion_pair(comp) if k == 1 else None
+    return f", turning against the axis with {pair[0]}" if pair else ""
 
 
 def ram_axis(machine: Machine) -> str | None:
@@ -422,12 +430,11 @@ class ErrorModel:
             e_pos = par(f"{own}_0")
             for k in range(1, ax.fourier_order + 1):
                 e_pos = e_pos + par(f"{own}_c{k}") * ca.cos(k * s) + par(f"{own}_s{k}") * ca.sin(k * s)
-            comps = {own: e_pos}
-            for comp in rotary_motion_names(name):
-                e = ca.SX(0)
-                for k in motion_harmonics(comp, ax.error_motion_order):
-                    e = e + par(f"{comp}_c{k}") * ca.cos(k * s) + par(f"{comp}_s{k}") * ca.sin(k * s)
-                comps[comp] = e
+            comps = {own: e_pos, **{comp: ca.SX(0) for comp in rotary_motion_names(name)}}
+            if ax.error_motion_order > 0:
+                for comp in rotary_motion_names(name):
+                    for c, e in motion_errors(comp, ax.error_motion_order, s, par).items():
+                        comps[c] = comps[c] + e
             for t in self.terms:
                 for comp, e in t.axis_errors(m, ax, s, C, P, comps).items():
                     comps[comp] = comps[comp] + e

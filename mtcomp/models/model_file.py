@@ -2,7 +2,7 @@
 
 Layout (file units: um, urad, mm; docs/identification.md, "MODEL.json")::
 
-    {"format": "mtcomp-model", "version": 1,
+    {"format": "mtcomp-model", "version": 2,
      "machine": {... the machine description, as in its TOML ...},
      "terms": [{"kind": "backlash", "axis": "X"}, ...],        # extension terms, in order
      "parameters": {"EXX_1": {"value": 1.2, "unit": "um", "group": "X:EXX", "base": true,
@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -39,9 +40,11 @@ from ..io.atomic import atomic_write
 from ..machine import Machine, machine_from_dict
 from .chain import ErrorModel
 from .params import ParameterSet
-from .terms import ChannelDrift, ThermalDrift, term_from_dict
+from .terms import ChannelDrift, ThermalDrift, motion_pair, term_from_dict
 
 FORMAT = "mtcomp-model"
+#: 2: a radial or tilt pair's first harmonic is its counter-rotating motion, on the leader (EXC_c1 ...)
+VERSION = 2
 
 #: a prediction (um or urad) that moves by more than this along a direction the model's data left
 #: undetermined (at the size of 1 um rms tool-tip error over the travel) rests on it: predict
@@ -309,7 +312,7 @@ class FittedModel:
         return c
 
     def to_json_dict(self) -> dict:
-        return {"format": FORMAT, "version": 1, "machine": self.machine.to_dict(),
+        return {"format": FORMAT, "version": VERSION, "machine": self.machine.to_dict(),
                 "terms": [t.to_dict() for t in self.model.terms],
                 "parameters": self.params.to_json_dict(),
                 "context_defaults": dict(self.context_defaults),
@@ -449,6 +452,23 @@ def _looks_like_gcode(path: str) -> bool:
     return bool(lines) and sum(bool(word.match(ln)) for ln in lines) >= max(1, len(lines) // 2)
 
 
+def _refuse_old_first_harmonic(data: dict, p) -> None:
+    """A version-1 file (an older mtcomp) that names the first harmonic of a radial or tilt pair's
+    leader ('EXC_c1' ...) meant that direction alone; version 2 reads it as the pair's motion turning
+    against the axis, which moves the partner too (:func:`mtcomp.models.terms.motion_pair`). Refused,
+    not read with another meaning; files without such a parameter are read as before."""
+    version = data.get("version", 1)
+    if not isinstance(data["parameters"], dict) or (isinstance(version, int) and version >= VERSION):
+        return
+    for name in data["parameters"]:
+        pair = motion_pair(name[:3]) if re.fullmatch(r"E[XYZABC][ABC]_[cs]1", str(name)) else None
+        if pair:
+            raise InputError(f"parameter {name!r} of a version-{version} model file (an older mtcomp) is "
+                             f"a first harmonic of {name[:3]} alone; mtcomp now reads it as the motion "
+                             f"turning against the axis, which moves {pair[0]} too: fit the model again "
+                             "with identify or diagnose", p)
+
+
 def load_model(path: str | os.PathLike, machine: Machine | None = None,
                notes: list | None = None) -> FittedModel:
     """Read MODEL.json. With ``machine``, check that the file was made for a machine of that topology
@@ -474,6 +494,7 @@ def load_model(path: str | os.PathLike, machine: Machine | None = None,
         raise InputError(f"not an mtcomp model file (expected \"format\": \"{FORMAT}\")", p)
     if "machine" not in data or "parameters" not in data:
         raise InputError("model file needs 'machine' and 'parameters'", p)
+    _refuse_old_first_harmonic(data, p)
     file_machine = machine_from_dict(data["machine"], path=p)
     if machine is not None:
         if machine.topology != file_machine.topology:

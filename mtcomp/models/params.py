@@ -147,14 +147,21 @@ class ParameterSet:
 
 def _older_hint(name: str) -> str:
     """Why a model file of an older mtcomp may name a parameter this one lacks: the first harmonic
-    of a rotary axis's radial or tilt error motion ('EXC_c1' ...), now the axis line's location
-    (:func:`mtcomp.models.terms.motion_harmonics`)."""
+    of the second direction of a rotary axis's radial or tilt pair ('EYC_c1', 'EBC_s1', 'EZB_c1' ...),
+    which an older mtcomp fitted on its own. A pair's first harmonic is now its counter-rotating part
+    alone, on the leader (:func:`mtcomp.models.terms.motion_pair`): the part that turned with the axis
+    is the axis line's location, and no rule maps the old four without the fit's data."""
     import re
+    from .terms import ANGLE_LETTERS, TRANSLATION_LETTERS, motion_pair
     m = re.fullmatch(r"E([XYZABC])([ABC])_[cs]1", name)
-    if not m or m.group(1) in (m.group(2), "XYZ"["ABC".index(m.group(2))]):
+    if not m or m.group(1) in (m.group(2), TRANSLATION_LETTERS[ANGLE_LETTERS.index(m.group(2))]) \
+            or motion_pair(name[:3]) is not None:
         return ""
-    return (" (a first harmonic of a radial or tilt error motion, which an older mtcomp wrote: it is the "
-            "axis line's location; fit the model again with identify or diagnose)")
+    lead = next(c for c in (f"E{x}{name[2]}" for x in TRANSLATION_LETTERS + ANGLE_LETTERS)
+                if c[1] != name[2] and (motion_pair(c) or ("",))[0] == name[:3])
+    return (f" (a first harmonic of {name[:3]} alone, which an older mtcomp wrote: the first harmonic "
+            f"of {lead} and {name[:3]} is now their counter-rotating motion alone, {lead}_c1 and "
+            f"{lead}_s1; fit the model again with identify or diagnose)")
 
 
 def with_base_flag(spec: ParamSpec, base: bool) -> ParamSpec:

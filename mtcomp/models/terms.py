@@ -34,19 +34,63 @@ def positioning_component(axis_name: str) -> str:
     return f"E{axis_name}{axis_name}"
 
 
+def motion_pair(component: str) -> tuple[str, int] | None:
+    """(partner, sign) when rotary error motion ``component`` leads a radial or a tilt pair (the pair's
+    first direction in X, Y, Z order: EXC of EXC/EYC, EAC of EAC/EBC, EYA of EYA/EZA, EXB of EXB/EZB
+    ...), None for the partner and the axial motion. The leader's first harmonic, ``<comp>_c1`` cos +
+    ``<comp>_s1`` sin, is the pair's one that turns against the axis; its partner moves by
+    ``sign * (<comp>_s1 cos - <comp>_c1 sin)`` (:func:`motion_errors`).
+
+    The sign: the chain turns the axis's carriage by R(theta) about direction d (right-handed), which
+    in the cyclic plane (d+1, d+2) turns (u, v) to (u cos - v sin, u sin + v cos). R(-theta)(p, q) is
+    the counter-rotating motion: (p cos + q sin, q cos - p sin) when the leader is direction d+1 (C:
+    X before Y, A: Y before Z), sign +1; for B the leader X is direction d+2, sign -1."""
+    d = ANGLE_LETTERS.index(component[2])
+    i = "XYZABC".index(component[1]) % 3
+    if i == d:
+        return None
+    j, k = (d + 1) % 3, (d + 2) % 3
+    lead, other = min(j, k), max(j, k)
+    if i != lead:
+        return None
+    letters = TRANSLATION_LETTERS if component[1] in TRANSLATION_LETTERS else ANGLE_LETTERS
+    return f"E{letters[other]}{component[2]}", (1 if lead == j else -1)
+
+
 def motion_harmonics(component: str, order: int) -> range:
-    """The harmonics k of rotary error motion ``component`` ('EXC', 'EZC', 'EAC' ...) up to ``order``:
-    1..order for the axial motion (along the axis), 2..order for the radial pair and the tilt pair.
+    """The harmonics k whose coefficients ``<component>_c<k>``, ``<component>_s<k>`` are parameters of
+    rotary error motion ``component`` ('EXC', 'EZC', 'EAC' ...) up to ``order``: 1..order for the
+    axial motion (along the axis) and for the leader of the radial pair and of the tilt pair
+    (:func:`motion_pair`), 2..order for their partners.
 
     The motions are in the frame that does not turn with the axis. There an offset v of the axis line
     moves a carried point by v - R(theta) v, and a carried artefact set off centre by w moves it by
-    R(theta) w: between them they span the constant and the first harmonic turning with the axis, and
-    ISO 230-7:2015 (radial error motion) removes the whole fundamental of each sensitive direction as
-    centring error; the tilt pair likewise with the axis line's tilt and the artefact's. So the first
-    harmonic of the radial and tilt motions is the location of the line and the set-up of what it
-    carries, never a parameter of its own (a model carries one parameter per effect)."""
+    R(theta) w: between them they span the constant and the first harmonic turning WITH the axis (the
+    tilt pair likewise with the line's tilt and the artefact's). The first harmonic turning the other
+    way is neither: a once-per-turn motion along X alone (EXC = e cos theta, EYC = 0) is half of each,
+    and two sensitive directions measured together (R-test, three spheres, a ball bar in a plane) tell
+    them apart; only a single fixed sensitive direction cannot, where ISO 230-7:2015 removes the
+    whole fundamental. So each pair carries its first harmonic as the counter-rotating combination
+    only, two parameters on the leader, and the partner starts at harmonic 2."""
     axial = TRANSLATION_LETTERS[ANGLE_LETTERS.index(component[2])]
-    return range(1 if component[1] == axial else 2, order + 1)
+    first = component[1] == axial or motion_pair(component) is not None
+    return range(1 if first else 2, order + 1)
+
+
+def motion_errors(component: str, order: int, s, par) -> dict:
+    """{component: its Fourier series in angle ``s`` up to ``order``} from the parameters ``par(name)``
+    (:func:`motion_harmonics`), plus {partner: the counter-rotating first harmonic's share} when
+    ``component`` leads a pair (:func:`motion_pair`). The one place the series is written: the base
+    chain and :class:`RotaryErrorMotion` both use it."""
+    e = ca.SX(0)
+    for k in motion_harmonics(component, order):
+        e = e + par(f"{component}_c{k}") * ca.cos(k * s) + par(f"{component}_s{k}") * ca.sin(k * s)
+    out = {component: e}
+    pair = motion_pair(component)
+    if pair is not None and order >= 1:
+        partner, sign = pair
+        out[partner] = sign * (par(f"{component}_s1") * ca.cos(s) - par(f"{component}_c1") * ca.sin(s))
+    return out
 
 
 class Term:
@@ -292,8 +336,9 @@ class RotaryErrorMotion(Term):
     tilt motions as a Fourier series of the angle without constant term (the constant is a location
     error). ``component`` is the ISO 230-1 name, e.g. 'EXC', 'EYC' (radial), 'EZC' (axial), 'EAC',
     'EBC' (tilt); parameters ``<component>_c<k>``, ``<component>_s<k>`` for k in
-    :func:`motion_harmonics` (from 2 for the radial and tilt pairs: their first harmonic is the
-    axis line's location and the set-up's centring)."""
+    :func:`motion_harmonics`. The first harmonic of a radial or tilt pair is carried by its leader
+    (EXC of EXC/EYC) as the combination that turns against the axis, which moves the partner too
+    (:func:`motion_errors`); the one turning with the axis is the line's location and the set-up's."""
 
     component: str
     order: int = 2
@@ -319,10 +364,7 @@ class RotaryErrorMotion(Term):
     def axis_errors(self, machine, axis, s, ctx, P, components):
         if axis.name != self.axis:
             return {}
-        e = 0
-        for k in motion_harmonics(self.component, self.order):
-            e = e + P[f"{self.component}_c{k}"] * ca.cos(k * s) + P[f"{self.component}_s{k}"] * ca.sin(k * s)
-        return {self.component: e}
+        return motion_errors(self.component, self.order, s, P.__getitem__)
 
 
 @dataclass(frozen=True)

@@ -212,7 +212,9 @@ class ThermalDrift(Effect):
 class RotaryRunout(Effect):
     """Once-per-revolution error motions of rotary ``axis`` beyond its location errors (seed 003):
     eccentricity (radial pair ``e cos(theta + phase), e sin(theta + phase)``, for C: EXC, EYC),
-    wobble (tilt pair, for C: EAC, EBC, same form) and axial run-out (for C: EZC ``a cos(theta + phase)``).
+    wobble (tilt pair, for C: EAC, EBC, same form) and axial run-out (for C: EZC ``a cos(theta + phase)``),
+    and a once-per-revolution motion along the first radial direction alone (``along_um``: for C,
+    EXC += a cos(theta + phase), EYC unchanged; a table that shakes along X once a turn).
     Magnitudes in um and urad; theta in rad."""
 
     axis: str
@@ -220,6 +222,7 @@ class RotaryRunout(Effect):
     wobble_urad: float = 0.0
     axial_um: float = 0.0
     phase_rad: float = 0.0
+    along_um: float = 0.0
     name = "rotary_pdge"
 
     def component_delta(self, machine, axis, s, ctx, base):
@@ -227,7 +230,7 @@ class RotaryRunout(Effect):
             return {}
         axial, (r1, r2), (t1, t2) = ROTARY_COMPONENTS[axis]
         c, sn = np.cos(s + self.phase_rad), np.sin(s + self.phase_rad)
-        return {r1: self.eccentricity_um * UM * c, r2: self.eccentricity_um * UM * sn,
+        return {r1: (self.eccentricity_um + self.along_um) * UM * c, r2: self.eccentricity_um * UM * sn,
                 t1: self.wobble_urad * URAD * c, t2: self.wobble_urad * URAD * sn,
                 axial: self.axial_um * UM * c}
 
