@@ -516,6 +516,11 @@ def load_model(path: str | os.PathLike, machine: Machine | None = None,
         raise InputError(f"inconsistent model terms: {exc}", p) from None
     if not isinstance(data["parameters"], dict):
         raise InputError("'parameters' must be an object", p)
+    known = set(model.param_names)
+    for name in data["parameters"]:
+        hint = "" if name in known else older_hint(name)
+        if hint:
+            raise InputError(f"parameter {name!r} is not part of this model{hint}", p)
     params = ParameterSet(model.param_specs).with_values_from_json(data["parameters"], p)
     std = np.full(len(params), np.nan)
     for name, entry in data["parameters"].items():
@@ -530,3 +535,21 @@ def load_model(path: str | os.PathLike, machine: Machine | None = None,
     held = held_from_file(model.machine, data.get("held"), p)
     return FittedModel(model, params, {str(k): float(v) for k, v in cd.items()}, data.get("info", {}),
                        support, uncertainty, held)
+
+
+def older_hint(name: str) -> str:
+    """Why a model file of an older mtcomp may name a parameter this one lacks: the first harmonic
+    of the second direction of a rotary axis's radial or tilt pair ('EYC_c1', 'EBC_s1', 'EZB_c1' ...),
+    which an older mtcomp fitted on its own. A pair's first harmonic is now its counter-rotating part
+    alone, on the leader (:func:`mtcomp.models.terms.motion_pair`): the part that turned with the axis
+    is the axis line's location, and no rule maps the old four without the fit's data."""
+    from .terms import ANGLE_LETTERS, TRANSLATION_LETTERS
+    m = re.fullmatch(r"E([XYZABC])([ABC])_[cs]1", name)
+    if not m or m.group(1) in (m.group(2), TRANSLATION_LETTERS[ANGLE_LETTERS.index(m.group(2))]) \
+            or motion_pair(name[:3]) is not None:
+        return ""
+    lead = next(c for c in (f"E{x}{name[2]}" for x in TRANSLATION_LETTERS + ANGLE_LETTERS)
+                if c[1] != name[2] and (motion_pair(c) or ("",))[0] == name[:3])
+    return (f" (a first harmonic of {name[:3]} alone, which an older mtcomp wrote: the first harmonic "
+            f"of {lead} and {name[:3]} is now their counter-rotating motion alone, {lead}_c1 and "
+            f"{lead}_s1; fit the model again with identify or diagnose)")

@@ -131,7 +131,7 @@ class ParameterSet:
         out = self.copy()
         for name, entry in data.items():
             if name not in out._index:
-                raise InputError(f"parameter {name!r} is not part of this model{_older_hint(name)}", path)
+                raise InputError(f"parameter {name!r} is not part of this model", path)
             if not isinstance(entry, dict) or "value" not in entry:
                 raise InputError(f"parameter {name!r} needs an object with 'value'", path)
             spec = out.specs[out._index[name]]
@@ -143,25 +143,6 @@ class ParameterSet:
                 raise InputError(f"parameter {name!r} has a non-numeric value {v!r}", path)
             out.set_file_value(name, float(v))
         return out
-
-
-def _older_hint(name: str) -> str:
-    """Why a model file of an older mtcomp may name a parameter this one lacks: the first harmonic
-    of the second direction of a rotary axis's radial or tilt pair ('EYC_c1', 'EBC_s1', 'EZB_c1' ...),
-    which an older mtcomp fitted on its own. A pair's first harmonic is now its counter-rotating part
-    alone, on the leader (:func:`mtcomp.models.terms.motion_pair`): the part that turned with the axis
-    is the axis line's location, and no rule maps the old four without the fit's data."""
-    import re
-    from .terms import ANGLE_LETTERS, TRANSLATION_LETTERS, motion_pair
-    m = re.fullmatch(r"E([XYZABC])([ABC])_[cs]1", name)
-    if not m or m.group(1) in (m.group(2), TRANSLATION_LETTERS[ANGLE_LETTERS.index(m.group(2))]) \
-            or motion_pair(name[:3]) is not None:
-        return ""
-    lead = next(c for c in (f"E{x}{name[2]}" for x in TRANSLATION_LETTERS + ANGLE_LETTERS)
-                if c[1] != name[2] and (motion_pair(c) or ("",))[0] == name[:3])
-    return (f" (a first harmonic of {name[:3]} alone, which an older mtcomp wrote: the first harmonic "
-            f"of {lead} and {name[:3]} is now their counter-rotating motion alone, {lead}_c1 and "
-            f"{lead}_s1; fit the model again with identify or diagnose)")
 
 
 def with_base_flag(spec: ParamSpec, base: bool) -> ParamSpec:
