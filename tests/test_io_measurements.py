@@ -374,3 +374,19 @@ def test_identify_says_a_velocity_file_meets_a_model_without_a_rotation_centre(t
     err = capsys.readouterr().err
     assert f"note: {src}: identify fits the machine's base model, which has no instantaneous " \
            "rotation centre" in err and "mtcomp diagnose" in err
+
+
+def test_a_velocity_file_of_an_axis_that_carries_the_tool_is_noted(tmp_path, capsys):
+    """The two-point method measures a table: on cbfxyz X carries the spindle, and a file of X
+    velocities was read without a word (a new user's file of an X table measured on another
+    topology). xfyz's X carries the table: no note."""
+    from mtcomp import load_machine
+    from mtcomp.commands import note_outside_travel
+    rows = [f"X,300,{x},0,0,300,0,100,50,300,0" for x in (0, 50, 100)]
+    src = _write(tmp_path, "axis,feed_mm_min,x_mm,m_x_mm,m_y_mm,m_vx_mm_min,m_vy_mm_min,n_x_mm,"
+                 "n_y_mm,n_vx_mm_min,n_vy_mm_min\n" + "\n".join(rows) + "\n")
+    for machine, said in (("cbfxyz", True), ("xfyz", False)):
+        capsys.readouterr()
+        note_outside_travel("identify", load_machine(machine), [read_measurements(src)])
+        err = capsys.readouterr().err
+        assert ("axis X carries the tool, not the table" in err) == said, (machine, err)

@@ -10,7 +10,7 @@ def note_outside_travel(command: str, machine, datasets) -> None:
     """Tell the user (stderr, one line each) of readings beyond the machine's travel, of what the files
     carry beyond what mtcomp reads (columns it does not read, a points file without tool_mm, values
     that look like mm under *_um columns: mtcomp.measurement.columns), and of velocity files read in
-    the bed's sense."""
+    the bed's sense or of an axis that carries the tool."""
     from ..measurement.columns import file_notes
     for note in outside_travel(machine, datasets) + file_notes(machine, datasets):
         print(f"mtcomp {command}: note: {note}", file=sys.stderr)
@@ -19,6 +19,13 @@ def note_outside_travel(command: str, machine, datasets) -> None:
             print(f"mtcomp {command}: note: {d.path}: every velocity along the moving axis is minus the "
                   "feed signed by dir_<axis>: read as the table's own motion (the bed's sense) and "
                   "taken in the axis's sense (negated)", file=sys.stderr)
+        tool_side = sorted({a for a in getattr(d, "axis", ()) if getattr(d, "kind", "") == "velocity"
+                            and a in machine.axis_names and machine.axis(a).side == "tool"})
+        if tool_side:
+            print(f"mtcomp {command}: note: {d.path}: on {machine.name} axis {', '.join(tool_side)} "
+                  "carries the tool, not the table: M and N are read as points of its carriage "
+                  "(Yang et al.'s two-point method measures a table: check the machine file's "
+                  "topology if the file is of a table)", file=sys.stderr)
 
 
 def outside_travel(machine, datasets) -> list[str]:
