@@ -11,14 +11,25 @@ def note_outside_travel(command: str, machine, datasets) -> None:
     carry beyond what mtcomp reads (columns it does not read, a points file without tool_mm, values
     that look like mm under *_um columns: mtcomp.measurement.columns), and of velocity files read in
     the bed's sense."""
-    from ..measurement.columns import file_notes
-    for note in outside_travel(machine, datasets) + file_notes(machine, datasets):
+    from ..measurement.columns import file_notes, static_at_zero
+    for note in (outside_travel(machine, datasets) + file_notes(machine, datasets)
+                 + static_at_zero(machine, datasets, _angular_fitted(datasets))):
         print(f"mtcomp {command}: note: {note}", file=sys.stderr)
     for d in datasets:
         if getattr(d, "bed_sense", False):
             print(f"mtcomp {command}: note: {d.path}: every velocity along the moving axis is minus the "
                   "feed signed by dir_<axis>: read as the table's own motion (the bed's sense) and "
                   "taken in the axis's sense (negated)", file=sys.stderr)
+
+
+def _angular_fitted(datasets):
+    """axis -> whether a fit of ``datasets`` takes angular errors of that axis: a laser file names
+    one (pitch, yaw or roll of the axis), or a volumetric file (points, ball bar, CMM) is among them,
+    which with runs at other positions determines them (mtcomp.identification.unmeasured)."""
+    from ..identification.unmeasured import angular_motion, named_components, volumetric
+    data = [getattr(d, "data", d) for d in datasets]
+    named, vol = named_components(data), volumetric(data)
+    return lambda axis: vol or any(angular_motion(g) and g.startswith(f"{axis}:") for g in named)
 
 
 def outside_travel(machine, datasets) -> list[str]:
