@@ -104,7 +104,7 @@ def _agrees_reversed(rms: np.ndarray, sse: np.ndarray, i: int, j: int) -> bool:
 def reversed_sign_note(result, datasets, problem) -> str | None:
     """One line naming the laser file whose readings agree with the others' with their sign
     reversed (module docstring); None when reversing none helps clearly."""
-    if len(datasets) < 2 or getattr(result, "directions", None) is None:
+    if len(datasets) < 2 or getattr(result, "directions", None) is None or not result.directions.shape[1]:
         return None
     lasers = [i for i, f in enumerate(result.files) if f.kind == "laser" and f.n_obs]
     if not lasers:
