@@ -133,49 +133,6 @@ def file_notes(machine, datasets) -> list[str]:
     return notes
 
 
-def static_at_zero(machine, datasets, angular) -> list[str]:
-    """One sentence per laser file that gives, in no row, the position of a linear axis of the
-    machine it does not move (no ``x_mm``/``y_mm``/``z_mm`` column, or every cell blank) while another
-    file places that axis elsewhere than 0, when ``angular(axis)`` says the fit takes angular errors
-    of the file's moving axis: the run is taken at 0 on that axis, which sets the Abbe arms through
-    which those errors act on its readings. A file alone (an ISO 230-2 run), or positioning runs
-    alone, get none: no other reading ties the arms to anything, or no angular error acts through
-    them."""
-    from .readings import positions_by_file
-    names = machine.axis_names
-    linear = [a.name for a in machine.axes if not a.is_rotary]
-    files = []                      # (data, given (n, n_axes), axis -> (lowest, highest) nonzero given)
-    for data, q in positions_by_file(machine, datasets):
-        given = (data.positions_given(machine) if hasattr(data, "positions_given")
-                 else np.ones(q.shape, dtype=bool))
-        at = {a: q[given[:, names.index(a)], names.index(a)] for a in linear}
-        files.append((data, given, {a: (float(v.min()), float(v.max())) for a, v in at.items()
-                                    if np.any(np.abs(v) > 1e-3)}))
-    notes = []
-    for data, given, _ in files:
-        if getattr(data, "kind", "") != "laser":
-            continue
-        moving = sorted(set(np.asarray(data.axis).tolist()))
-        if not any(angular(a) for a in moving):
-            continue
-        others = [p for d, _, p in files if d is not data]
-        zero = {a: [p[a] for p in others if a in p] for a in linear
-                if a not in moving and not given[:, names.index(a)].any()}
-        zero = {a: r for a, r in zero.items() if r}
-        if not zero:
-            continue
-        span = {a: (min(lo for lo, _ in r), max(hi for _, hi in r)) for a, r in zero.items()}
-        where = ", ".join(f"{a} {lo:g} mm" if lo == hi else f"{a} {lo:g} to {hi:g} mm"
-                          for a, (lo, hi) in span.items())
-        cols = ", ".join(f"{a.lower()}_mm" for a in zero)
-        notes.append(f"{data.path}: no column {cols}: the run is taken at "
-                     f"{', '.join(f'{a} = 0' for a in zero)} in every row, where the other files place "
-                     f"{'it' if len(zero) == 1 else 'them'} ({where}); those positions are the Abbe arms "
-                     f"through which the angular errors of {'/'.join(moving)} (pitch, yaw) act on its "
-                     f"readings: give {cols} (where the run was made)")
-    return notes
-
-
 #: no ball bar is shorter (mm): a file whose every length is below it is likely in inches
 SHORTEST_BAR_MM = 25.4
 
