@@ -169,3 +169,47 @@ def test_a_ball_bar_file_in_inches_is_noted(tmp_path, capsys):
     assert len(notes) == 1 and "bb_inch.csv: every length_mm is below 25.4 mm (largest 3.937): no " \
         "ball bar is that short; a file in inches?" in notes[0], notes
     assert _notes(write("bb_50.csv", 50.0), capsys) == []
+
+
+def _laser_y(path, static=True, component="EYY", unit="value_um"):
+    """A laser run of Y at X = -200, Z = -150 (or without those columns)."""
+    head = "axis,component,target_mm,dir,run," + unit + (",x_mm,z_mm" if static else "")
+    rows = [head] + [f"Y,{component},{t},{d},1,{0.01 * t:.3g}" + (",-200,-150" if static else "")
+                     for t in (-300, -200, -100, 0) for d in (1, -1)]
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+def _static_notes(capsys, *paths) -> list[str]:
+    capsys.readouterr()
+    note_outside_travel("identify", load_machine("xfyz"), [read_measurements(p) for p in paths])
+    return [ln for ln in capsys.readouterr().err.splitlines() if "Abbe arms" in ln]
+
+
+def test_a_laser_run_without_its_static_axes_beside_volumetric_data_is_noted(tmp_path, capsys):
+    # the points grid places X at -350..350 and Z at -50..50; the run of Y names no x_mm, z_mm
+    grid = _points(tmp_path / "grid.csv")
+    bare = _laser_y(tmp_path / "ly.csv", static=False)
+    notes = _static_notes(capsys, grid, bare)
+    assert len(notes) == 1
+    assert ("ly.csv: no column x_mm, z_mm: the run is taken at X = 0, Z = 0 in every row, where the "
+            "other files place them (X -350 to 350 mm, Z -50 to 50 mm)") in notes[0]
+    assert "angular errors of Y" in notes[0]
+    # with the columns: nothing to say
+    assert _static_notes(capsys, grid, _laser_y(tmp_path / "ly2.csv")) == []
+
+
+def test_positioning_runs_alone_without_static_axes_get_no_note(tmp_path, capsys):
+    # ISO 230-2 positioning runs of X and Y: no angular error enters their fit, the arms act on
+    # nothing (the real ISO 230-2 files have no static columns)
+    bare = _laser_y(tmp_path / "ly.csv", static=False)
+    lx = tmp_path / "lx.csv"
+    lx.write_text("axis,component,target_mm,dir,run,value_um,y_mm,z_mm\n"
+                  + "".join(f"X,EXX,{t},1,1,0.1,-150,-200\n" for t in (-300, -200, -100, 0)))
+    assert _static_notes(capsys, lx, bare) == []
+    assert _static_notes(capsys, bare) == []
+    # a run of Y's pitch beside them: the arms act through it
+    pitch = _laser_y(tmp_path / "pitch.csv", static=False, component="EAY", unit="value_urad")
+    notes = _static_notes(capsys, lx, pitch)
+    assert len(notes) == 1 and "pitch.csv: no column x_mm, z_mm" in notes[0]
+    assert "(X -300 to 0 mm, Z -200 mm)" in notes[0]

@@ -12,7 +12,8 @@ def note_outside_travel(command: str, machine, datasets) -> None:
     that look like mm under *_um columns: mtcomp.measurement.columns), and of velocity files read in
     the bed's sense or of an axis that carries the tool."""
     from ..measurement.columns import file_notes
-    for note in outside_travel(machine, datasets) + file_notes(machine, datasets):
+    for note in (outside_travel(machine, datasets) + file_notes(machine, datasets)
+                 + static_at_zero(machine, datasets, _angular_fitted(datasets))):
         print(f"mtcomp {command}: note: {note}", file=sys.stderr)
     for d in datasets:
         if getattr(d, "bed_sense", False):
@@ -26,6 +27,59 @@ def note_outside_travel(command: str, machine, datasets) -> None:
                   "carries the tool, not the table: M and N are read as points of its carriage "
                   "(Yang et al.'s two-point method measures a table: check the machine file's "
                   "topology if the file is of a table)", file=sys.stderr)
+
+
+def _angular_fitted(datasets):
+    """axis -> whether a fit of ``datasets`` takes angular errors of that axis: a laser file names
+    one (pitch, yaw or roll of the axis), or a volumetric file (points, ball bar, CMM) is among them,
+    which with runs at other positions determines them (mtcomp.identification.unmeasured)."""
+    from ..identification.unmeasured import angular_motion, named_components, volumetric
+    data = [getattr(d, "data", d) for d in datasets]
+    named, vol = named_components(data), volumetric(data)
+    return lambda axis: vol or any(angular_motion(g) and g.startswith(f"{axis}:") for g in named)
+
+
+def static_at_zero(machine, datasets, angular) -> list[str]:
+    """One sentence per laser file that gives, in no row, the position of a linear axis of the
+    machine it does not move (no ``x_mm``/``y_mm``/``z_mm`` column, or every cell blank) while another
+    file places that axis elsewhere than 0, when ``angular(axis)`` says the fit takes angular errors
+    of the file's moving axis: the run is taken at 0 on that axis, which sets the Abbe arms through
+    which those errors act on its readings. A file alone (an ISO 230-2 run), or positioning runs
+    alone, get none: no other reading ties the arms to anything, or no angular error acts through
+    them."""
+    from ..measurement.readings import positions_by_file
+    names = machine.axis_names
+    linear = [a.name for a in machine.axes if not a.is_rotary]
+    files = []                      # (data, given (n, n_axes), axis -> (lowest, highest) nonzero given)
+    for data, q in positions_by_file(machine, datasets):
+        given = (data.positions_given(machine) if hasattr(data, "positions_given")
+                 else np.ones(q.shape, dtype=bool))
+        at = {a: q[given[:, names.index(a)], names.index(a)] for a in linear}
+        files.append((data, given, {a: (float(v.min()), float(v.max())) for a, v in at.items()
+                                    if np.any(np.abs(v) > 1e-3)}))
+    notes = []
+    for data, given, _ in files:
+        if getattr(data, "kind", "") != "laser":
+            continue
+        moving = sorted(set(np.asarray(data.axis).tolist()))
+        if not any(angular(a) for a in moving):
+            continue
+        others = [p for d, _, p in files if d is not data]
+        zero = {a: [p[a] for p in others if a in p] for a in linear
+                if a not in moving and not given[:, names.index(a)].any()}
+        zero = {a: r for a, r in zero.items() if r}
+        if not zero:
+            continue
+        span = {a: (min(lo for lo, _ in r), max(hi for _, hi in r)) for a, r in zero.items()}
+        where = ", ".join(f"{a} {lo:g} mm" if lo == hi else f"{a} {lo:g} to {hi:g} mm"
+                          for a, (lo, hi) in span.items())
+        cols = ", ".join(f"{a.lower()}_mm" for a in zero)
+        notes.append(f"{data.path}: no column {cols}: the run is taken at "
+                     f"{', '.join(f'{a} = 0' for a in zero)} in every row, where the other files place "
+                     f"{'it' if len(zero) == 1 else 'them'} ({where}); those positions are the Abbe arms "
+                     f"through which the angular errors of {'/'.join(moving)} (pitch, yaw) act on its "
+                     f"readings: give {cols} (where the run was made)")
+    return notes
 
 
 def outside_travel(machine, datasets) -> list[str]:

@@ -98,6 +98,8 @@ def run(args) -> int:
     if plot_path is not None and result.thermal is None:
         raise InputError("--plot draws the drift of one thermal file; the data are not one thermal file",
                          args.data[0])
+    if getattr(result, "sign_note", None):
+        print(f"warning: {result.sign_note}", file=sys.stderr)
     result.model.info["command"] = "mtcomp diagnose " + " ".join(sys.argv[2:]) if len(sys.argv) > 2 \
         else "mtcomp diagnose"
     print(result.summary(details=_details(result, machine, datasets, args.verbose)))

@@ -81,6 +81,10 @@ def run(args) -> int:
     disagree = disagreement_note(result, datasets)
     if disagree:
         print(f"warning: {disagree}", file=sys.stderr)
+        from ..identification.signflip import reversed_sign_note
+        flipped = reversed_sign_note(result, datasets, result.problem)
+        if flipped:
+            print(f"warning: {flipped}", file=sys.stderr)
     from ..identification.report import component_lines, laser_target_tables
     components = component_lines(result.fitted_model)
     print(result.summary(verbose=args.verbose, components=components,

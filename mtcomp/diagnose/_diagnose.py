@@ -273,6 +273,10 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     diag.folds_of_observations = folds
     diag.heldout_resid, diag.units, diag.rank = current.cv_resid, st.unit, current.rank
     diag.outliers = outliers
+    if verdict == "unexplained":
+        from ._signflip import reversed_sign_note
+        extra = np.hstack([c.columns for c in chosen]) if chosen else np.zeros((len(st), 0))
+        diag.sign_note = reversed_sign_note(st, design, extra)
     from ..measurement.readings import data_held, data_support
     model.support = data_support(st.machine, datasets)
     model.held = data_held(st.machine, datasets)

@@ -109,6 +109,7 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
                                    known_setup=known_setup)
     result = solve(problem, SolverOptions(rcond, max_iterations, tol), info=info, t0=t0)
     _record_data(result, problem.model, problem.free, problem.measurements, datasets)
+    result.problem = problem        # what was fitted, for a linearised refit (.signflip)
     return result
 
 
