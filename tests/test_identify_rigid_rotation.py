@@ -14,6 +14,7 @@ part's error is the truth's deviation less the model's, and its turn about Z is 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from mtcomp.identification.fit import identify
 from mtcomp.identification.predict import predict_readings
@@ -83,8 +84,14 @@ def _turn_about_z_urad(pts, err) -> float:
     return float(sol[2])
 
 
-def test_a_turn_the_data_leave_open_goes_to_the_squareness_not_to_the_part(tmp_path):
-    truth, result = _campaign(tmp_path, seed=8)
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("rigid")
+    return (folder, *_campaign(folder, seed=8))
+
+
+def test_a_turn_the_data_leave_open_goes_to_the_squareness_not_to_the_part(fitted):
+    tmp_path, truth, result = fitted
     c0y, sd = result.value("C0Y")
     assert np.isfinite(sd) and sd < 10.0
     assert abs(c0y - C0Y_URAD) < 2.0 * sd
@@ -98,3 +105,26 @@ def test_a_turn_the_data_leave_open_goes_to_the_squareness_not_to_the_part(tmp_p
     # the oracle's own figure: dx = -y C0Y over the grid turns by C0Y var(y) / (var(x) + var(y))
     vx, vy = np.var(pts[:, 0]), np.var(pts[:, 1])
     assert abs(_turn_about_z_urad(pts, actual) - C0Y_URAD * vy / (vx + vy)) < 0.5
+
+
+def test_the_report_prints_the_slope_of_a_straightness_no_squareness_carries(fitted):
+    """EYX made a straight line of 20 urad (hand-set coefficients on a fine grid): the report's
+    range about the line is 0 and the slope line says 20 urad; EXY (slope carried) says none."""
+    from dataclasses import replace
+    from mtcomp.identification.report import component_lines, component_ranges
+    from mtcomp.models.basis import axis_spline
+    model = fitted[2].fitted_model
+    ax = model.machine.axis("X")
+    spline = axis_spline(ax)
+    s = np.linspace(spline.lo, spline.hi, 201)
+    phi = np.array(spline.functions(s, False)).T
+    c = np.linalg.lstsq(phi, 20e-6 * (s - s.mean()), rcond=None)[0]          # mm
+    params = model.params.copy()
+    for k, j in enumerate(spline.kept(False)):
+        params.values[params.index(f"EYX_b{j}")] = c[k]
+    turned = replace(model, params=params)
+    eyx = [r for r in component_ranges(turned)[0] if r.component == "EYX"][0]
+    assert eyx.slope == pytest.approx(20.0, abs=0.05) and eyx.range < 0.01
+    lines = component_lines(turned)
+    assert any("EYX" in ln and "slope 20." in ln for ln in lines)
+    assert not any("EXY" in ln and "slope" in ln for ln in lines)
