@@ -39,9 +39,10 @@ travel_mm = [-100.0, 0.0]
 CENTRE = (300.0, 200.0, Z)
 
 
-def _campaign(folder, seed: int):
+def _campaign(folder, seed: int, tracker: bool = True):
     """Laser positioning runs of X and Y, a circle in XY and a tracker grid (frame fitted) on the
-    truth machine with C0Y = 30 urad. Returns (truth, fitted result)."""
+    truth machine with C0Y = 30 urad. Without ``tracker``: a straightness run of X in Y (its optic's
+    slope fitted) in place of the grid. Returns (truth, fitted result)."""
     rng = np.random.default_rng(seed)
     machine = folder / "router.toml"
     machine.write_text(ROUTER)
@@ -54,7 +55,9 @@ def _campaign(folder, seed: int):
              tc.ballbar_circles(truth, folder / "ballbar.csv", rng, planes=("XY",), radius_mm=150.0,
                                 centre_mm=CENTRE, n_points=36).path,
              tc.points(truth, folder / "tracker.csv", rng, grid=(5, 4, 3), directions=(1,),
-                       setup=True).path]
+                       setup=True).path if tracker else
+             tc.laser(truth, folder / "straight_yx.csv", rng, "X", components=["EYX"], n_runs=2,
+                      static={"Y": 200.0, "Z": Z}).path]
     return truth, identify(load_machine(str(machine)), [read_measurements(p) for p in files])
 
 
@@ -128,3 +131,20 @@ def test_the_report_prints_the_slope_of_a_straightness_no_squareness_carries(fit
     lines = component_lines(turned)
     assert any("EYX" in ln and "slope 20." in ln for ln in lines)
     assert not any("EXY" in ln and "slope" in ln for ln in lines)
+
+
+def test_without_a_tracker_the_turn_is_open_too_and_goes_by_the_convention(tmp_path):
+    """Lasers (X and Y positioning, X's straightness in Y with its optic's slope fitted) and the
+    circle, no points file: the straightness run's slope is a set-up, so a turn of the machine with
+    the optic turned back changes no reading either, and the convention holds (a new user's VMC:
+    C0Y -7.4 urad with EYX sloping by -7.7 urad where the truth had neither, predictions of dy 1.31
+    um rms off). Before, the convention held only with a points or cmm frame fitted: C0Y 19.0 urad,
+    EYX sloping by -10.6 urad, the compensated part turned by 10.7 urad. Now C0Y 30.4 urad (not
+    determined alone: at one height a roll of Y, which no laser names and which is held at zero,
+    shifts x as C0Y does), EYX's slope 0.02 urad, the part turned by 0.15 urad."""
+    truth, result = _campaign(tmp_path, seed=8, tracker=False)
+    assert abs(result.value("C0Y")[0] - C0Y_URAD) < 2.0
+    pts, model, actual = _grid_errors(truth, result.fitted_model, tmp_path)
+    row = np.abs(pts[:, 1] - 200.0) < 1e-9
+    assert abs(np.polyfit(pts[row, 0], model[row, 1], 1)[0] * 1e3) < 1.0        # urad
+    assert abs(_turn_about_z_urad(pts, actual - model)) < 1.0

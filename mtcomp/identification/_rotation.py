@@ -1,18 +1,20 @@
 """A rigid rotation of the machine the data leave open goes by the convention: X is the reference axis.
 
-With every instrument frame fitted (points, cmm files not declared known), a turn of the whole
-machine against the workpiece frame changes no reading: about Z it is the slope of X's straightness
-in Y (EYX) together with the squareness C0Y and the frames turned back. The squareness itself (the
-angle between the two axes) is read; its split between C0Y and EYX's slope is not. The convention
-(ISO 230-1's reference lines, X the reference) puts it in C0Y: the slopes of EYX, EZX (with B0Z) and
-EZY (with A0Z) are zero wherever the data leave them open, so that nothing turns the part. Where a
-file's frame is known (``--known-setup``), the data read those slopes and the fit keeps them."""
+Where no file's frame is known, a turn of the whole machine against the workpiece frame changes no
+reading: about Z it is the slope of X's straightness in Y (EYX) together with the squareness C0Y and
+every instrument frame turned back (a tracker's or CMM's frame, a straightness run's optic slope).
+The squareness itself (the angle between the two axes, as a ball bar reads it) is read; its split
+between C0Y and EYX's slope is not. The convention (ISO 230-1's reference lines, X the reference)
+puts it in C0Y: the slopes of EYX, EZX (with B0Z) and EZY (with A0Z) are zero wherever the data
+leave them open, so that nothing turns the part. Where a file's frame is known (``--known-setup``,
+a straightness run whose slope is not fitted), the data read those slopes and the fit keeps them."""
 from __future__ import annotations
 
 import numpy as np
 
 from ..models.basis import SLOPE_OF_RIGID_ROTATION, axis_spline
 from ..models.chain import squareness_names
+from .unmeasured import unmeasured_unknowns
 
 #: a slope moves along the data's null directions (orthonormal, scaled, each slope's row of unit
 #: norm) by more than this: the data leave it open (round-off of a determined one is ~1e-8)
@@ -44,19 +46,22 @@ def _slope_rows(problem, scale: np.ndarray) -> np.ndarray:
     return np.array(out).reshape(-1, problem.n_unknowns)
 
 
-def reference_rotation(problem, null: np.ndarray, scale: np.ndarray,
-                       frames_fitted: bool) -> tuple[np.ndarray, np.ndarray]:
+def reference_rotation(problem, null: np.ndarray, scale: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(fixed (n, c), turns (n, c)) in column-scaled unknowns (``scale`` (n,)): of ``null`` (n, k:
     orthonormal, what neither the data nor the roughness penalty see), the c combinations that move
     the slopes of :data:`SLOPE_OF_RIGID_ROTATION` (``turns``, orthonormal: the machine's turns with
     the frames turned back) and the constraints that hold those slopes at their start (``fixed``,
-    orthonormal: the fit moves along none of them). Only where an instrument's frame is fitted
-    (``frames_fitted``: a points or cmm file not declared known); c = 0 where the data read the
-    slopes."""
+    orthonormal: the fit moves along none of them); c = 0 where the data read the slopes."""
     n = null.shape[0]
     L = _slope_rows(problem, scale)
-    if L.shape[0] == 0 or null.shape[1] == 0 or not frames_fitted:
+    if L.shape[0] == 0 or null.shape[1] == 0:
         return np.zeros((n, 0)), np.zeros((n, 0))
+    u = unmeasured_unknowns(problem, assumed=True)
+    if u.any():
+        # a turn leaves alone what the assumption holds (angular motions no laser names): else the
+        # slopes' SVD mixes them in (a laser run of X and a circle: a yaw of X of 20 +- 8e4 urad)
+        _, su, Vu = np.linalg.svd(null[u], full_matrices=True)
+        null = null @ Vu[int(np.sum(su > OPEN_SLOPE)):].T
     U, sv, Vt = np.linalg.svd(L @ null, full_matrices=True)
     c = int(np.sum(sv > OPEN_SLOPE))
     fixed, _ = np.linalg.qr((U[:, :c].T @ L).T)

@@ -516,7 +516,7 @@ class _Problem:
         penalties = self.scaled_penalties(A0, scale) if self.use_penalty else {}
         null = self.penalised_null(V[:, ~keep], penalties)
         frames = frame_rotations(self.mms, self.n_free)
-        rotation, turns = reference_rotation(self, null, scale, bool(frames))   # X the reference
+        rotation, turns = reference_rotation(self, null, scale)   # X the reference
         null = without(null, turns)
         self.by_convention = np.linalg.norm(rotation, axis=1) > 1.0 - 1e-9   # a slope's own parameter
         data_rank = int(keep.sum())
