@@ -352,7 +352,9 @@ def component_lines(fitted: FittedModel, undetermined: Undetermined | None = Non
         unit = "deg" if fitted.machine.axis(axis).is_rotary else "mm"
         lines.append(f"  {axis} from {rows[0].lo:g} to {rows[0].hi:g} {unit}:")
         for r in rows:
-            slope = f", slope {r.slope:.1f} urad" if np.isfinite(r.slope) and r.status == "fitted" else ""
+            # a flat straightness (no bow above the noise) can still slope: that slope is a squareness
+            slope = (f", slope {r.slope:.1f} urad" if np.isfinite(r.slope) and r.status in ("fitted", "flat")
+                     else "")
             lines.append(f"    {r.meaning:<22} {r.component:<5} range {_pm(r.range, r.sd, r.status, r.unit)}"
                          + slope)
     fitted_values = [v for v in values if v.status != "held"]
