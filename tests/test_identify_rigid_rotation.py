@@ -39,15 +39,15 @@ travel_mm = [-100.0, 0.0]
 CENTRE = (300.0, 200.0, Z)
 
 
-def _campaign(folder, seed: int, tracker: bool = True):
+def _campaign(folder, seed: int, tracker: bool | None = True, c0y_urad: float = C0Y_URAD):
     """Laser positioning runs of X and Y, a circle in XY and a tracker grid (frame fitted) on the
-    truth machine with C0Y = 30 urad. Without ``tracker``: a straightness run of X in Y (its optic's
-    slope fitted) in place of the grid. Returns (truth, fitted result)."""
+    truth machine with C0Y = ``c0y_urad``. ``tracker`` False: a straightness run of X in Y (its
+    optic's slope fitted) in place of the grid; None: neither. Returns (truth, fitted result)."""
     rng = np.random.default_rng(seed)
     machine = folder / "router.toml"
     machine.write_text(ROUTER)
     truth = TruthMachine.zero(str(machine))
-    truth.squareness["C0Y"] = C0Y_URAD * 1e-6
+    truth.squareness["C0Y"] = c0y_urad * 1e-6
     files = [tc.laser(truth, folder / "laser_x.csv", rng, "X", components=["EXX"], n_runs=2,
                       static={"Y": 200.0, "Z": Z}).path,
              tc.laser(truth, folder / "laser_y.csv", rng, "Y", components=["EYY"], n_runs=2,
@@ -58,6 +58,7 @@ def _campaign(folder, seed: int, tracker: bool = True):
                        setup=True).path if tracker else
              tc.laser(truth, folder / "straight_yx.csv", rng, "X", components=["EYX"], n_runs=2,
                       static={"Y": 200.0, "Z": Z}).path]
+    files = files[:-1] if tracker is None else files
     return truth, identify(load_machine(str(machine)), [read_measurements(p) for p in files])
 
 
@@ -97,7 +98,9 @@ def test_a_turn_the_data_leave_open_goes_to_the_squareness_not_to_the_part(fitte
     tmp_path, truth, result = fitted
     c0y, sd = result.value("C0Y")
     assert np.isfinite(sd) and sd < 10.0
-    assert abs(c0y - C0Y_URAD) < 2.0 * sd
+    # 3 sd: over seeds 1-8 of this campaign (error / sd) has an rms of 1.16, so the sd is honest and
+    # seed 8's -2.3 (29.10 +- 0.39) is a draw a 2-sd bound misses one time in twenty
+    assert abs(c0y - C0Y_URAD) < 3.0 * sd
     pts, model, actual = _grid_errors(truth, result.fitted_model, tmp_path)
     # X's straightness in Y along the X travel at y = 0: no slope
     row = np.abs(pts[:, 1] - 200.0) < 1e-9
@@ -148,3 +151,23 @@ def test_without_a_tracker_the_turn_is_open_too_and_goes_by_the_convention(tmp_p
     row = np.abs(pts[:, 1] - 200.0) < 1e-9
     assert abs(np.polyfit(pts[row, 0], model[row, 1], 1)[0] * 1e3) < 1.0        # urad
     assert abs(_turn_about_z_urad(pts, actual - model)) < 1.0
+
+
+def test_lasers_and_one_circle_give_the_squareness_with_its_standard_error_and_no_slope(tmp_path):
+    """A job shop's campaign: laser positioning runs of X and Y and one ball-bar circle in XY, no
+    straightness run, no points file; the truth's only error a squareness C0Y of 20 urad. The circle
+    reads the angle between the axes; the turn of the whole machine is open and goes by the
+    convention (EYX's slope zero), and the roll of Y and the pitch and roll of X that no laser names
+    are held at zero, so C0Y is determined on those two rules and carries a standard error. Before:
+    C0Y -14.5 urad 'not determined' (the shop's truth -20), the rest of the angle in a slope of EYX
+    (dy +-1.1 um at X's ends). Here C0Y 19.9 +- 0.53 urad, EYX's slope below 1e-8 urad; on the old
+    code C0Y 11.7 urad with no standard error and EYX sloping by -7.7 urad; with the convention but
+    C0Y counted undetermined for its combinations with the held rolls, 19.9 with no standard
+    error."""
+    truth, result = _campaign(tmp_path, seed=1, tracker=None, c0y_urad=20.0)
+    c0y, sd = result.value("C0Y")
+    assert np.isfinite(sd) and sd < 2.0, (c0y, sd)
+    assert abs(c0y - 20.0) < 3.0 * sd, (c0y, sd)
+    pts, model, _ = _grid_errors(truth, result.fitted_model, tmp_path)
+    row = np.abs(pts[:, 1] - 200.0) < 1e-9
+    assert abs(np.polyfit(pts[row, 0], model[row, 1], 1)[0] * 1e3) < 0.5        # urad

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..models.basis import SLOPE_OF_RIGID_ROTATION, axis_spline
 from ..models.chain import squareness_names
-from .unmeasured import unmeasured_unknowns
+from .unmeasured import leaving_held_alone
 
 #: a slope moves along the data's null directions (orthonormal, scaled, each slope's row of unit
 #: norm) by more than this: the data leave it open (round-off of a determined one is ~1e-8)
@@ -56,12 +56,9 @@ def reference_rotation(problem, null: np.ndarray, scale: np.ndarray) -> tuple[np
     L = _slope_rows(problem, scale)
     if L.shape[0] == 0 or null.shape[1] == 0:
         return np.zeros((n, 0)), np.zeros((n, 0))
-    u = unmeasured_unknowns(problem, assumed=True)
-    if u.any():
-        # a turn leaves alone what the assumption holds (angular motions no laser names): else the
-        # slopes' SVD mixes them in (a laser run of X and a circle: a yaw of X of 20 +- 8e4 urad)
-        _, su, Vu = np.linalg.svd(null[u], full_matrices=True)
-        null = null @ Vu[int(np.sum(su > OPEN_SLOPE)):].T
+    # a turn leaves alone what the assumption holds (angular motions no laser names): else the
+    # slopes' SVD mixes them in (a laser run of X and a circle: a yaw of X of 20 +- 8e4 urad)
+    null = leaving_held_alone(problem, null)
     U, sv, Vt = np.linalg.svd(L @ null, full_matrices=True)
     c = int(np.sum(sv > OPEN_SLOPE))
     fixed, _ = np.linalg.qr((U[:, :c].T @ L).T)
