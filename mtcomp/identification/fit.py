@@ -57,8 +57,7 @@ from ..models.model_file import FittedModel
 from ..models.params import ParameterSet
 from .reversal import DirectionContrast, data_reversal
 from ._rotation import reference_rotation, without
-from .unmeasured import (assumption, record_unmeasured, undetermined_unknowns, unmeasured_to_zero,
-                         unmeasured_unknowns)
+from .unmeasured import assumption, record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
 from ._linalg import (NULL_WEIGHT, column_scale, _eliminate, _error_scales, _name_null_space,
                       _relative_singular_values, _seen_columns, _solver, _unseen_apart, _step, block_obs,
                       file_normal_equations, one_blas_thread, penalised_inverse)
@@ -730,7 +729,11 @@ class _Problem:
         unknown_names = tuple(s.name for s in unknown_specs)
         to_file = np.array([s.to_file for s in unknown_specs])
         # undetermined unknowns: those with weight in a null direction
-        in_null = undetermined_unknowns(self, sol.null) | getattr(self, "by_convention", False)
+        if sol.null.shape[1]:
+            in_null = np.linalg.norm(sol.null, axis=1) > NULL_WEIGHT
+        else:
+            in_null = np.zeros(self.n_unknowns, dtype=bool)
+        in_null = in_null | getattr(self, "by_convention", False)     # held by the convention
         se = np.sqrt(np.clip(np.diag(sol.cov), 0.0, None))
         se[in_null] = np.nan
         cov = sol.cov.copy()

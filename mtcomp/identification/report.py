@@ -242,9 +242,12 @@ def _resolved(und: Undetermined, fitted: FittedModel, unmeasured: set) -> Undete
     from dataclasses import replace
     D = und.directions
     um = np.array([fitted.params.specs[i].group in unmeasured for i in und.index])
-    big = np.abs(D).max(axis=0)
-    keep = ~(np.abs(D[um]).max(axis=0, initial=0.0) > 1e-6 * np.where(big > 0, big, 1.0))
-    return replace(und, directions=D[:, keep])
+    if not um.any():
+        return und
+    # the part of their span that leaves those components alone: a basis vector that mixes one in
+    # can carry a direction open on its own (a circle at one height: B0Z beside the pitch of X)
+    _, s, Vt = np.linalg.svd(D[um], full_matrices=True)
+    return replace(und, directions=D @ Vt[int(np.sum(s > 1e-6 * np.abs(D).max())):].T)
 
 
 def _axis_ranges(fitted: FittedModel, ax, lo: float, hi: float, und: Undetermined, mask) -> list:
@@ -321,9 +324,6 @@ def _location_values(fitted: FittedModel, und: Undetermined, mask) -> list:
         J[0, i] = spec.to_file
         sd = und.std(J)
         status = _status(J, sd, mask)
-        std = fitted.params.std_errors
-        if status == "fitted" and std is not None and np.isfinite(std).any() and np.isnan(std[i]):
-            status = "undetermined"       # the fit gave it no standard error: part of a held combination
         values.append(LocationValue(name, meaning, spec.unit, float(p[i] * spec.to_file), float(sd[0]),
                                     status))
     return values

@@ -127,22 +127,6 @@ def leaving_held_alone(problem, null: np.ndarray) -> np.ndarray:
     return null @ Vu[int(np.sum(su > MOVES_HELD)):].T
 
 
-def undetermined_unknowns(problem, null: np.ndarray) -> np.ndarray:
-    """(n_unknowns,) bool: the unknowns the fit leaves undetermined, given its undetermined
-    directions ``null`` (orthonormal, column-scaled): those with weight in a direction that leaves
-    alone what the assumption holds (:func:`leaving_held_alone`), and the held ones in any. An
-    unknown whose only open directions move a held component is determined on the assumption (a
-    ball bar's squareness C0Y beside a roll of Y no laser names, held at zero). With laser files
-    alone every unknown with weight in ``null`` (module notes: the combination stays open)."""
-    if not null.shape[1]:
-        return np.zeros(problem.n_unknowns, dtype=bool)
-    raw = np.linalg.norm(null, axis=1) > NULL_WEIGHT
-    if not volumetric([m.data for m in problem.mms]):
-        return raw
-    held = unmeasured_unknowns(problem, assumed=True) & raw
-    return held | (np.linalg.norm(leaving_held_alone(problem, null), axis=1) > NULL_WEIGHT)
-
-
 @dataclass
 class Assumption:
     """What the assumption that components no laser file names are zero does to a fit.
