@@ -242,12 +242,9 @@ def _resolved(und: Undetermined, fitted: FittedModel, unmeasured: set) -> Undete
     from dataclasses import replace
     D = und.directions
     um = np.array([fitted.params.specs[i].group in unmeasured for i in und.index])
-    if not um.any():
-        return und
-    # the part of their span that leaves those components alone: a basis vector that mixes one in
-    # can carry a direction open on its own (a circle at one height: B0Z beside the pitch of X)
-    _, s, Vt = np.linalg.svd(D[um], full_matrices=True)
-    return replace(und, directions=D @ Vt[int(np.sum(s > 1e-6 * np.abs(D).max())):].T)
+    big = np.abs(D).max(axis=0)
+    keep = ~(np.abs(D[um]).max(axis=0, initial=0.0) > 1e-6 * np.where(big > 0, big, 1.0))
+    return replace(und, directions=D[:, keep])
 
 
 def _axis_ranges(fitted: FittedModel, ax, lo: float, hi: float, und: Undetermined, mask) -> list:
@@ -307,7 +304,8 @@ def _location_values(fitted: FittedModel, und: Undetermined, mask) -> list:
     """:class:`LocationValue` of the squareness, spindle tilt and rotary location errors."""
     machine, p = fitted.machine, fitted.params.values
     values = []
-    singles = [(n, f"squareness {n}") for n in squareness_names(machine)]
+    square = tuple(squareness_names(machine))
+    singles = [(n, f"squareness {n}") for n in square]
     singles += [(n, f"tilt of the tool axis about {about}") for n, about in zip(SPINDLE_TILT, "XY")]
     for ax in machine.rotary_axes:
         offsets, tilts = rotary_location_names(ax.name)
@@ -324,6 +322,13 @@ def _location_values(fitted: FittedModel, und: Undetermined, mask) -> list:
         J[0, i] = spec.to_file
         sd = und.std(J)
         status = _status(J, sd, mask)
+        std = fitted.params.std_errors
+        if status == "fitted" and std is not None and np.isfinite(std).any() and np.isnan(std[i]) \
+                and name not in square:
+            # the fit gave it no standard error: part of a held combination. A squareness, the
+            # angle a ball bar or points read, is determined where what it trades with is held (the
+            # rolls no laser names, rule 3; the straightness slopes, the convention)
+            status = "undetermined"
         values.append(LocationValue(name, meaning, spec.unit, float(p[i] * spec.to_file), float(sd[0]),
                                     status))
     return values
