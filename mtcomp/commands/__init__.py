@@ -39,6 +39,13 @@ def _angular_fitted(datasets):
     return lambda axis: vol or any(angular_motion(g) and g.startswith(f"{axis}:") for g in named)
 
 
+def _given(data, machine, q) -> np.ndarray:
+    """(n, n_axes) bool: the positions of ``q`` the file gives (a laser file's static axes without a
+    column are not its own)."""
+    return (data.positions_given(machine) if hasattr(data, "positions_given")
+            else np.ones(q.shape, dtype=bool))
+
+
 def static_at_zero(machine, datasets, angular) -> list[str]:
     """One sentence per laser file that gives, in no row, the position of a linear axis of the
     machine it does not move (no ``x_mm``/``y_mm``/``z_mm`` column, or every cell blank) while another
@@ -52,8 +59,7 @@ def static_at_zero(machine, datasets, angular) -> list[str]:
     linear = [a.name for a in machine.axes if not a.is_rotary]
     files = []                      # (data, given (n, n_axes), axis -> (lowest, highest) nonzero given)
     for data, q in positions_by_file(machine, datasets):
-        given = (data.positions_given(machine) if hasattr(data, "positions_given")
-                 else np.ones(q.shape, dtype=bool))
+        given = _given(data, machine, q)
         at = {a: q[given[:, names.index(a)], names.index(a)] for a in linear}
         files.append((data, given, {a: (float(v.min()), float(v.max())) for a, v in at.items()
                                     if np.any(np.abs(v) > 1e-3)}))
@@ -89,9 +95,7 @@ def outside_travel(machine, datasets) -> list[str]:
     from ..measurement.readings import positions_by_file
     notes = []
     for data, q in positions_by_file(machine, datasets):
-        # positions the file does not give (a laser file's static axes without a column) are not its
-        given = (data.positions_given(machine) if hasattr(data, "positions_given")
-                 else np.ones(q.shape, dtype=bool))
+        given = _given(data, machine, q)
         for j, ax in enumerate(machine.axes):      # rotary: radians inside, degrees told
             scale = np.degrees(1.0) if ax.is_rotary else 1.0
             lo, hi = (t * scale for t in ax.travel)

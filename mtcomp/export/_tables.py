@@ -544,10 +544,9 @@ def _between_points(fitted, a: str, g: np.ndarray, pose: np.ndarray, region, own
     i = machine.index(a)
     q0 = pose.copy()
     q0[i] = np.clip(g[0], *region)
-    at, _ = model_errors(fitted, q, {a: 1.0})
-    at0, _ = model_errors(fitted, q0[None, :], {a: 1.0})
+    at, _ = model_errors(fitted, np.vstack([q, q0]), {a: 1.0})       # the last row: q0
     col = own_column(machine, a)
-    miss = np.abs((at[:, col] - at0[0, col]) - (np.interp(mid, g, own) - own[0])) * 1e3
+    miss = np.abs((at[:-1, col] - at[-1, col]) - (np.interp(mid, g, own) - own[0])) * 1e3
     if miss.max() <= BETWEEN_NOTE_UM:
         return None
     k = int(np.argmax(miss))
