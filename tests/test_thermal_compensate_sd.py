@@ -86,8 +86,8 @@ def test_a_time_series_of_temperatures_is_followed_along_the_program(tmp_path, c
            "takes 1202 s at its feeds, rapids at 10000 mm/min; the last reading holds after it)" in said
     ends = np.array([0.06, 1.86, 601.86, 1201.86])
     rows = []
-    for t in ends:
-        row = dict(record[0], t_s="0", spindle_rpm="0")
+    for k, t in enumerate(ends):
+        row = dict(record[0], t_s=str(k), spindle_rpm="0")      # rows of states, in time order
         for c in temps:
             row[c] = repr(float(np.interp(t, [0, 300, 600], [float(r[c]) for r in picks])))
         rows.append(row)
