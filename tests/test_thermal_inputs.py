@@ -2,7 +2,10 @@
 in one line naming the file, the row or column and the problem (exit 2, nothing written); a
 suspicious one gets a one-line note saying what looks wrong and what to check.
 
-Hand-made records: 30 s steps over 10 h, a drift of 12 um, sensors that move by a degree or two."""
+Hand-made records: 30 s steps over 10 h, a drift of 12 um, sensors that move by a degree or two.
+The predict and compensate cases use a hand-written model, dz = 44 - 2 T_spindle um (zero at
+22 degC), its record spanning 20 to 35 degC, with standard errors of 0.1 um/degC and 1 um
+(independent), so a prediction's standard error is sqrt((0.1 T)^2 + 1) um by hand."""
 from __future__ import annotations
 
 import numpy as np
@@ -12,6 +15,8 @@ from mtcomp import load_machine
 from mtcomp.cli import main
 from mtcomp.commands import note_outside_travel
 from mtcomp.measurement.files import read_measurements
+from mtcomp.models import ErrorModel, FittedModel, save_model
+from mtcomp.models.terms import ThermalDrift
 
 N = 1201
 T_S = np.arange(N) * 30.0
@@ -106,3 +111,73 @@ def test_one_blank_temperature_cell_is_noted_at_its_row(tmp_path, capsys):
     assert notes == [f"mtcomp diagnose: note: {tmp_path / 'rec.csv'}: column temp_head_c is blank "
                      "at row 301 (1 of 1201 readings): diagnose leaves a sensor out of the drift fit "
                      "unless every reading has it; fill the cell or remove the row to keep sensor head"]
+
+
+# ------------------------------------------------------------------- predict and compensate
+def _model(path):
+    fitted = FittedModel.zero(ErrorModel(load_machine("xfyz").with_basis("polynomial"), [
+        ThermalDrift("temperature", ("temp_spindle",), "Z", absolute=True, channels=("z",))]))
+    fitted.params.set_file_value("TD_Z_temp_spindle", -2.0)      # um/degC
+    fitted.params.set_file_value("TD_Z_zero", 44.0)
+    fitted.info["context_ranges"] = {"temp_spindle": [20.0, 35.0]}
+    fitted.uncertainty = {"names": ["TD_Z_temp_spindle", "TD_Z_zero"],
+                          "covariance": np.diag([(0.1e-3) ** 2, (1e-3) ** 2]),
+                          "undetermined": np.zeros((2, 0))}
+    save_model(path, fitted)
+    return path
+
+
+def _day(path, temps, column="temp_spindle_c"):
+    rows = [f"t_s,disp_z_um,{column}"] + [f"{3600 * i},1.0,{v}" for i, v in enumerate(temps)]
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+def test_predict_notes_rows_beyond_the_record(tmp_path, capsys):
+    temps = [19.0, 21.0, 30.0, 36.0, 40.0]                     # rows 1, 4, 5 outside 20..35
+    model, day = _model(tmp_path / "m.json"), _day(tmp_path / "day2.csv", temps)
+    assert main(["predict", "xfyz", str(model), str(day), "-o", str(tmp_path / "p.csv")]) == 0
+    err = capsys.readouterr().err
+    assert "day2.csv: 3 of 5 row(s) lie outside the thermal state the model's record spans " \
+        "(spindle 3 row(s) at 19 to 40 degC against 20 to 35): the drift model carries on " \
+        "linearly there, beyond what it saw; their standard errors take it to hold and do not size " \
+        "that" in err, err
+    got = np.genfromtxt(tmp_path / "p.csv", delimiter=",", names=True)
+    T = np.array(temps)
+    np.testing.assert_allclose(got["pred_disp_z_um"], 44.0 - 2.0 * T, rtol=0, atol=1e-9)
+    # written on every row, as the covariance gives it (the note says what it does not cover)
+    np.testing.assert_allclose(got["pred_disp_z_um_sd"], np.sqrt((0.1 * T) ** 2 + 1.0), rtol=1e-6, atol=0)
+
+
+def test_predict_notes_temperatures_in_degf(tmp_path, capsys):
+    day = _day(tmp_path / "day2.csv", [70.0, 80.0, 86.0])      # 21.1, 26.7, 30 degC
+    assert main(["predict", "xfyz", str(_model(tmp_path / "m.json")), str(day), "-o",
+                 str(tmp_path / "p.csv")]) == 0
+    assert "spindle 3 row(s) at 70 to 86 degC against 20 to 35; as degF their median would be " \
+        "26.7 degC, inside it: temperatures are in degC" in capsys.readouterr().err
+
+
+def test_predict_refuses_a_file_without_a_sensor_the_model_reads(tmp_path, capsys):
+    day = _day(tmp_path / "day2.csv", [25.0, 26.0], column="temp_head_c")
+    assert main(["predict", "xfyz", str(_model(tmp_path / "m.json")), str(day), "-o",
+                 str(tmp_path / "p.csv")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith("day2.csv: row 0: no column temp_spindle_c: the model's thermal drift reads "
+                        "sensor(s) spindle (it reads spindle); give every sensor's readings, in degC"), err
+    assert not (tmp_path / "p.csv").exists()
+
+
+@pytest.mark.parametrize("readings, row", [("temp_spindle_c\n86\n", 1),
+                                           ("t_s,temp_spindle_c\n0,25\n600,30\n1200,95\n", 3)])
+def test_compensate_names_the_readings_file_and_row_beyond_the_record(tmp_path, capsys, readings, row):
+    (tmp_path / "in.nc").write_text("G21 G90\nG0 X0 Y0 Z10\nG1 Z5 F500\nG1 X10\nM30\n")
+    (tmp_path / "warm.csv").write_text(readings)
+    assert main(["compensate", "xfyz", str(_model(tmp_path / "m.json")), str(tmp_path / "in.nc"),
+                 "-o", str(tmp_path / "out.nc"), "-q", "--temperatures", str(tmp_path / "warm.csv")]) == 2
+    err = capsys.readouterr().err.strip()
+    value = "86" if row == 1 else "95"
+    assert err.endswith(f"warm.csv: row {row}: column temp_spindle_c: temperature of sensor spindle: "
+                        f"{value} degC is outside the range the model's thermal record spans (20 to 35 "
+                        f"degC); as degF it would be {(float(value) - 32) / 1.8:.3g} degC, inside it: "
+                        "temperatures are in degC: refused; give --extrapolate to correct beyond it"), err
+    assert not (tmp_path / "out.nc").exists()

@@ -44,6 +44,8 @@ class TemperatureSeries:
 
     t_s: np.ndarray
     temps: dict
+    #: (k,) the file's data row of each reading (for messages), None when not from a file
+    rows: np.ndarray | None = None
 
     def at(self, t_s) -> dict:
         """sensor name -> (n,) degC at the times ``t_s`` (n,) seconds."""
@@ -86,7 +88,7 @@ def read_temperature_row(path) -> tuple[dict | TemperatureSeries, list]:
                 table.fail(f"column {name}: every reading of a time series must be given",
                            int(np.flatnonzero(~np.isfinite(v))[0]))
             temps[_TEMP_COLUMN.match(name).group(1)] = v
-        return TemperatureSeries(t, temps), other
+        return TemperatureSeries(t, temps, np.asarray(table.row)), other
     temps = {}
     for name in names:
         v = float(table.floats(name)[0])
@@ -96,6 +98,30 @@ def read_temperature_row(path) -> tuple[dict | TemperatureSeries, list]:
         table.fail("no temperature in the row: expected columns temp_<name>_c (degC) with a value, "
                    "as in the thermal file", 0)
     return temps, other
+
+
+def check_readings(fitted, readings, path, flags=(), extrapolate: bool = False) -> None:
+    """InputError naming the readings file ``path`` (``--temperatures``), the row and the column of
+    the first reading beyond the range the model's thermal record spans (unless ``extrapolate``).
+    ``readings``: what :func:`read_temperature_row` returned (one row, or a series); the sensors of
+    ``flags`` are given on the command line, which wins, and are not checked here."""
+    ranges = fitted.info.get("context_ranges") if isinstance(fitted.info, dict) else None
+    if extrapolate or not isinstance(ranges, dict):
+        return
+    if isinstance(readings, TemperatureSeries):
+        temps = readings.temps
+        rows = readings.rows if readings.rows is not None else np.arange(1, len(readings.t_s) + 1)
+    else:
+        temps, rows = {s: np.array([v]) for s, v in readings.items()}, np.array([1])
+    for sensor, v in temps.items():
+        rng = ranges.get(f"temp_{sensor}")
+        if sensor in flags or not rng:
+            continue
+        bad = np.flatnonzero((v < float(rng[0])) | (v > float(rng[1])))
+        if bad.size:
+            value = float(v[bad[0]])
+            _check_range(f"column temp_{sensor}_c: temperature of sensor {sensor}:", value, "degC", rng,
+                         False, path, _degf_hint(value, rng), row=int(rows[bad[0]]))
 
 
 def has_tip_drift(model) -> bool:
@@ -126,7 +152,8 @@ def _drift_terms(model):
     return tip, channel
 
 
-def _check_range(what: str, value: float, unit: str, rng, extrapolate: bool, source, hint: str = ""):
+def _check_range(what: str, value: float, unit: str, rng, extrapolate: bool, source, hint: str = "",
+                 row: int | None = None):
     """'' inside ``rng`` ([lowest, highest]) or without one; beyond it: InputError, or with
     ``extrapolate`` the words that say so."""
     if not rng:
@@ -138,17 +165,19 @@ def _check_range(what: str, value: float, unit: str, rng, extrapolate: bool, sou
     if not extrapolate:
         raise InputError(f"{what} {value:g} {unit} is outside the range the model's thermal record "
                          f"spans ({span}){hint}: refused; give --extrapolate to correct beyond it",
-                         source)
+                         source, row=row)
     return f" (beyond the record's {span})"
 
 
-def _degf_hint(value: float, rng) -> str:
-    """A clause saying what the value would be in degC if it was written in degF, when that falls
-    inside ``rng`` (a likely slip); '' otherwise."""
-    c = (value - 32.0) / 1.8
-    if rng and float(rng[0]) <= c <= float(rng[1]):
-        return f"; as degF it would be {c:.3g} degC, inside it: temperatures are in degC"
-    return ""
+def _degf_hint(value, rng) -> str:
+    """A clause saying what the value (the median of an array of readings) would be in degC if it was
+    written in degF, when that falls inside ``rng`` (a likely slip); '' otherwise."""
+    v = np.asarray(value, dtype=float)
+    c = (float(np.median(v)) - 32.0) / 1.8 if v.size else math.nan
+    if not (rng and float(rng[0]) <= c <= float(rng[1])):
+        return ""
+    return (f"; as degF {'it' if v.size == 1 else 'their median'} would be {c:.3g} degC, inside it: "
+            "temperatures are in degC")
 
 
 def thermal_context(fitted, temperatures: dict | None = None, spindle_rpm: float | None = None,
@@ -269,3 +298,47 @@ def probed_state(fitted, cut_sensors, cut_rpm, probed_temperatures=None, probed_
                          e.path) from None
     return context, ("thermal drift referenced to the datum's probing (the drift since then is "
                      "corrected): at probing " + sentence.partition(": ")[2])
+
+
+def record_state_note(fitted, data) -> str:
+    """The sentence on the rows of a measurement file ``data`` whose temperatures or spindle speed
+    lie outside the range the model's thermal record spans (``info["context_ranges"]``), each sensor
+    the model's drift reads checked alone, as compensate checks a thermal state; '' when none does
+    (or the model records no range). InputError for a thermal file without a column
+    ``temp_<name>_c`` of a sensor the drift reads: the sensor would be taken at its mean over the
+    record in every row."""
+    tip, channel = _drift_terms(fitted.model)
+    features = [f for t in (*tip, *channel) for f in t.features]
+    temps = list(dict.fromkeys(f[5:] for f in features if f.startswith("temp_")))
+    given = data.context.temperatures
+    missing = [s for s in temps if s not in given]
+    if missing and getattr(data, "kind", "") == "thermal":
+        raise InputError(f"no column {', '.join(f'temp_{s}_c' for s in missing)}: the model's thermal "
+                         f"drift reads sensor(s) {', '.join(missing)} (it reads {', '.join(temps)}); "
+                         "give every sensor's readings, in degC", data.path, row=0)
+    ranges = fitted.info.get("context_ranges") if isinstance(fitted.info, dict) else None
+    out = np.zeros(len(data), dtype=bool)
+    if not isinstance(ranges, dict):
+        return ""
+    parts = []
+    checks = [(s, f"temp_{s}", given[s], "degC") for s in temps if s in given]
+    if any(_LAG.match(f) for f in features):
+        checks.append(("spindle_rpm", "spindle_rpm", np.nan_to_num(data.context.spindle_rpm), "rpm"))
+    for name, key, v, unit in checks:
+        rng = ranges.get(key)
+        if not rng:
+            continue
+        lo, hi = (float(x) for x in rng)
+        beyond = (np.asarray(v, dtype=float) < lo) | (np.asarray(v, dtype=float) > hi)
+        if beyond.any():
+            out |= beyond
+            w = np.asarray(v, dtype=float)[beyond]
+            parts.append(f"{name} {int(beyond.sum())} row(s) at {w.min():.4g} to {w.max():.4g} {unit} "
+                         f"against {lo:.4g} to {hi:.4g}"
+                         + (_degf_hint(w, rng) if unit == "degC" else ""))
+    if not out.any():
+        return ""
+    return (f"{data.path}: {int(out.sum())} of {len(data)} row(s) lie outside the thermal state the "
+            f"model's record spans ({', '.join(parts)}): the drift model carries on linearly there, "
+            "beyond what it saw; their standard errors take it to hold and do not size that "
+            "(compensate refuses such a state without --extrapolate)")
