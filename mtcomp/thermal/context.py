@@ -333,8 +333,8 @@ def record_state_note(fitted, data) -> str:
         if beyond.any():
             out |= beyond
             w = np.asarray(v, dtype=float)[beyond]
-            parts.append(f"{name} {int(beyond.sum())} row(s) at {w.min():.4g} to {w.max():.4g} {unit} "
-                         f"against {lo:.4g} to {hi:.4g}"
+            parts.append(f"{name} {int(beyond.sum())} row(s) at {w.min():.5g} to {w.max():.5g} {unit} "
+                         f"against {lo:.5g} to {hi:.5g}"
                          + (_degf_hint(w, rng) if unit == "degC" else ""))
     if not out.any():
         return ""
