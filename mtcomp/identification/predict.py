@@ -186,8 +186,6 @@ def predict_readings(fitted: FittedModel, data: MeasurementSet, machine: Machine
     """Predict every row of a measurement file with a fitted model: the same measurement model,
     context defaults and set-up that :func:`identify` used, so that a file that was fitted is
     reproduced exactly (its readings minus the prediction are the fit's residuals)."""
-    from ..thermal.context import record_state_note
-    beyond_note = record_state_note(fitted, data)
     tag = unique_tags([data])[0]
     known = [tag] if tag in fitted.info.get("known_setup", ()) and data.kind in KNOWN_SETUP_KINDS else []
     mm = build_measurement_models(fitted.model, [data], fitted.context_defaults, machine=machine,
@@ -227,8 +225,6 @@ def predict_readings(fitted: FittedModel, data: MeasurementSet, machine: Machine
                      "parameters its data did not determine (the model file's "
                      "uncertainty.undetermined): written with a blank standard error")
     notes += _blank_outside_region(fitted, data, machine or fitted.machine, columns)
-    if beyond_note:
-        notes.append(beyond_note)
     if fitted.uncertainty is None:
         notes.append("the model carries no uncertainty (mtcomp identify and diagnose write one; a "
                      "model file of an older mtcomp may not): the _sd columns are blank")
