@@ -199,10 +199,11 @@ def _thermal_state(args, fitted):
         fitted = replace(fitted, context_defaults=dict(fitted.context_defaults))
         thermal, _ = thermal_context(fitted, temperatures, args.spindle_rpm, args.extrapolate,
                                      source=args.model)
-        fitted.context_defaults.update(thermal)
         fitted.probed, line = probed_state(fitted, set(temperatures), args.spindle_rpm, probed,
                                            args.probed_at_spindle_rpm, args.extrapolate, args.model)
-        return fitted, line if fitted.probed is None else ""   # the reference when none given
+        fitted.context_defaults.update(thermal)     # after: the record's means are a reference
+        fitted.probed_from_record = not probed and args.probed_at_spindle_rpm is None
+        return fitted, line if fitted.probed_from_record else ""   # the reference when none given
     probed_state(fitted, (), None, probed, args.probed_at_spindle_rpm, source=args.model)
     if not has_tip_drift(fitted.model):
         return fitted, ""

@@ -92,7 +92,12 @@ class FittedModel:
         its share can be told, and they are not undetermined.
     probed : None, or the drift terms' context (``temp_<s>`` degC, ``spindle_lag_<tau>`` ...) at
         which the part's datum was probed (:func:`mtcomp.thermal.context.probed_state`): the datum's
-        deviation then holds the drift at probing. None: the drift terms' own zero. Not saved.
+        deviation then holds the drift at probing. None: the drift terms' own zero (a model whose
+        drift corrects nothing). Not saved.
+    probed_from_record : True when ``probed`` is no state the user gave but the thermal record's
+        reference (its first reading, :func:`mtcomp.thermal.context.record_reference`): a reading
+        of the record, not a prediction, so the datum adds no uncertainty of the drift and a
+        correction's standard error is the drift prediction's (:meth:`at_datum`). Not saved.
     probe_tool_length : mm, the length of the tool (a probe) the part's datum was probed with in X
         and Y (:meth:`at_datum`); None: the machine's tool length. Not saved.
     """
@@ -106,6 +111,7 @@ class FittedModel:
     held: dict | None = None
     probed: dict | None = None
     probe_tool_length: float | None = None
+    probed_from_record: bool = False
 
     def drift_param_indices(self) -> list[int]:
         """Indices into ``params`` of every drift term's parameters."""
@@ -169,11 +175,11 @@ class FittedModel:
             lateral = evaluate(self.model, name, qd, p, probe_ctx)[0]
             out = np.array(out, copy=True)
             out[:, :2] = lateral[:, :2]
-        if name.endswith("pjacobian_function") and self.probed is None:
-            # the datum's deviation is taken with the drift parameters at zero, whatever their
-            # fitted values: it does not depend on them (without this the intercept of an absolute
-            # drift model cancelled against the datum while its temperature terms did not, and a
-            # drift at the record's own temperatures had a standard error of 4 um)
+        if name.endswith("pjacobian_function") and (self.probed is None or self.probed_from_record):
+            # the datum's deviation does not depend on the drift parameters: with no drift corrected
+            # they are zero, and at the record's first reading the drift there is a reading of the
+            # record (without this the intercept of an absolute drift model, which carries the
+            # model error, cancelled against the datum, and a correction's standard error lost it)
             out = np.array(out, copy=True)
             out[..., self.drift_param_indices()] = 0.0
         return out
