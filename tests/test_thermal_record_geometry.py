@@ -161,6 +161,11 @@ def test_a_record_beside_a_laser_file_keeps_the_backlash_and_the_drift_acts_on_i
     np.testing.assert_allclose(_column(rows_hi, "ex_before_um") - _column(rows_lo, "ex_before_um"),
                                0.0, rtol=0, atol=1e-9)
     saved = json.loads(model.read_text())
+    # each is the drift since the record's first reading, which the joined model keeps (the
+    # record's 5 um probe zero is no drift)
+    np.testing.assert_allclose(_column(rows_hi, "ey_before_um"), DRIFT_UM_PER_C * (hi - temp[0]),
+                               rtol=0, atol=0.1)
+    assert saved["info"]["thermal_first_reading"] == {"temp_s": pytest.approx(temp[0], abs=1e-12)}
     assert {t["kind"] for t in saved["terms"]} >= {"backlash", "thermal_drift", "channel_drift"}
     assert "uncertainty" in saved and "TD_Y_temp_s" in saved["uncertainty"]["parameters"]
 
