@@ -14,6 +14,7 @@ from __future__ import annotations
 import re
 
 import numpy as np
+import pytest
 
 from mtcomp.cli import main
 from mtcomp.machine import load_machine
@@ -113,3 +114,33 @@ def test_a_model_file_without_any_reference_temperature_is_refused_in_one_line(t
     assert main(["compensate", "xfyz", str(model), str(prog), "-o", str(out), "--temperature",
                  "spindle=30", "--probed-at-temperature", "spindle=26", "-q"]) == 0
     np.testing.assert_allclose(_z_shifts(out.read_text()), 0.008, rtol=0, atol=1e-4)
+
+
+@pytest.mark.parametrize("fmt", ["heidenhain", "fanuc"])
+def test_export_writes_the_geometry_without_the_drift(tmp_path, capsys, fmt):
+    """A model with X positioning 20 um/m and a drift of dz = 44 - 2 T_spindle (-6 um at its mean 25
+    degC): the tables hold the 20 um/m alone, every table (and every column) zero at the reference
+    position, and nothing of the drift is said to be there (it was: "with every axis at its
+    reference position the model predicts dz -6.00 um")."""
+    from mtcomp.models import load_model
+    path = _old_model(tmp_path, {"temp_spindle": 25.0})
+    fitted = load_model(path)
+    fitted.params.set_file_value("EXX_1", 20.0)
+    save_model(path, fitted)
+    out = tmp_path / "comp"
+    assert main(["export", "xfyz", str(path), "--format", fmt, "-o", str(out)]) == 0
+    cap = capsys.readouterr()
+    said = cap.out + cap.err + (out / "README.txt").read_text()
+    assert "reference position the model predicts" not in said and "dz" not in said
+    assert "the tables leave out the thermal drift (thermal_drift:temperature)" in said
+    if fmt == "heidenhain":
+        from test_export_formats import read_heidenhain_table
+        for table in out.glob("*.COM"):
+            cols, rows = read_heidenhain_table(table)
+            at_ref = next(r for r in rows if float(r["AXISPOS"]) == 0.0)
+            np.testing.assert_allclose([float(at_ref[c]) for c in cols[2:]], 0.0, rtol=0, atol=0)
+        cols, rows = read_heidenhain_table(out / "X.COM")
+        x = np.array([float(r["AXISPOS"]) for r in rows])
+        # the correction (minus the error): -20 um/m of X, in mm
+        np.testing.assert_allclose([float(r["X"]) for r in rows], -0.02 * x * 1e-3, rtol=0,
+                                   atol=6e-6)
