@@ -56,7 +56,7 @@ class CompensationSettings:
     chord_tol_um : chord tolerance of arcs written as lines.
     temperatures : sensor name -> degC while the program runs; spindle_rpm : warm spindle speed.
     probed_temperatures, probed_spindle_rpm : the same when the part's datum was probed (empty,
-        None: at the drift terms' zero, the thermal record's first reading).
+        None: at the thermal record's first reading, thermal.context.record_reference).
     probe_tool_length : mm, the length of the probe the part's datum was probed with in X and Y
         (None: the machine file's tool length): FittedModel.probe_tool_length.
     extrapolate : correct blocks outside the region the model's data reached too, and at

@@ -116,6 +116,23 @@ def test_a_model_file_without_any_reference_temperature_is_refused_in_one_line(t
     np.testing.assert_allclose(_z_shifts(out.read_text()), 0.008, rtol=0, atol=1e-4)
 
 
+def test_a_drift_of_rises_since_each_files_first_reading_is_refused_in_one_line(tmp_path, capsys):
+    """Several records diagnosed together give a drift in each sensor's rise since each file's
+    first reading (dtemp_<s>): no temperature while a program runs gives it, so there is no first
+    reading to reference a correction to; the line says how to get a drift compensate can follow."""
+    fitted = FittedModel.zero(ErrorModel(load_machine("xfyz").with_basis("polynomial"), [
+        ThermalDrift("temperature", ("dtemp_spindle",), "Z")]))
+    fitted.params.set_file_value("TD_Z_dtemp_spindle", -2.0)
+    save_model(tmp_path / "m.json", fitted)
+    (tmp_path / "in.nc").write_text(PROGRAM)
+    assert main(["compensate", "xfyz", str(tmp_path / "m.json"), str(tmp_path / "in.nc"), "-o",
+                 str(tmp_path / "out.nc"), "--temperature", "spindle=30"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "m.json" in err[0] and "dtemp_spindle" in err[0]
+    assert "diagnose one thermal record" in err[0]
+    assert not (tmp_path / "out.nc").exists()
+
+
 @pytest.mark.parametrize("fmt", ["heidenhain", "fanuc"])
 def test_export_writes_the_geometry_without_the_drift(tmp_path, capsys, fmt):
     """A model with X positioning 20 um/m and a drift of dz = 44 - 2 T_spindle (-6 um at its mean 25

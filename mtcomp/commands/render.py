@@ -74,7 +74,7 @@ def add_arguments(parser):
                         help="the spindle speed given to compensate, for a spindle-heat drift")
     add_probed_arguments(parser, "the temperatures when the part's datum was probed, as given to "
                          "compensate (repeatable): the drift since probing is mapped (default: the "
-                         "whole drift since the thermal record's first reading)",
+                         "drift since the thermal record's first reading)",
                          "the spindle speed at probing given to compensate")
     parser.add_argument("--extrapolate", action="store_true",
                         help="accept temperatures and spindle speeds outside the range of the "

@@ -134,9 +134,9 @@ class FittedModel:
                        context_defaults=dict(self.context_defaults))
 
     def datum_params(self) -> np.ndarray:
-        """(n_params,) the values the part's datum was probed with: every drift term's at zero (the
-        drift terms' own zero, the start of the thermal record), or all of them when the thermal
-        state at probing is known (:attr:`probed`, then in :meth:`datum_context`)."""
+        """(n_params,) the values the part's datum was probed with: every drift term's at zero when
+        no drift is corrected (:attr:`probed` None), else all of them, the thermal state at probing
+        in :meth:`datum_context` (given, or the thermal record's first reading)."""
         p = np.array(self.params.values, dtype=float, copy=True)
         if self.probed is None:
             p[self.drift_param_indices()] = 0.0

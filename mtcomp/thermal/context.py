@@ -182,6 +182,13 @@ def thermal_context(fitted, temperatures: dict | None = None, spindle_rpm: float
     if given and time_driven(fitted.model):
         raise InputError(f"a temperature or spindle speed was given, but {TIME_DRIVEN}", source)
     for sensor, v in (temperatures or {}).items():
+        if sensor not in temps and f"dtemp_{sensor}" in features:
+            raise InputError(f"temperature {sensor}: the model's drift reads that sensor's rise since "
+                             f"the first reading of each file it was fitted on (dtemp_{sensor}), "
+                             "which has no value while a program runs: diagnose one thermal record, "
+                             "alone or beside the geometric files (join the records of one set-up "
+                             "into one file in time order), for a drift compensate can follow",
+                             source)
         if sensor not in temps:
             raise InputError(f"temperature {sensor}: the model has no drift term that reads that "
                              f"sensor (it reads: {', '.join(temps) or 'none'})", source)
