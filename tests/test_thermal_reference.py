@@ -27,9 +27,9 @@ RUN = {"spindle": 26.0, "bed": 20.3}
 
 
 def _record(path, zero_um: float) -> dict:
-    """A 6 h record, a reading a minute (noise 0.02 um): the spindle warming and cooling, the bed
+    """A 6 h record, a reading every 2 min (noise 0.02 um): the spindle warming and cooling, the bed
     following the room. Returns the first reading's temperatures."""
-    t = np.arange(0.0, 6 * 3600.0 + 1, 60.0)
+    t = np.arange(0.0, 6 * 3600.0 + 1, 120.0)
     h = t / 3600.0
     spindle = 20.2 + 8.0 * (1 - np.exp(-h / 1.2)) - 5.0 * np.clip(h - 4.0, 0, None) / 2.0
     bed = 20.1 + 0.6 * np.sin(2 * np.pi * h / 9.0)
