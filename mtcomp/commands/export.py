@@ -76,7 +76,6 @@ def run(args) -> int:
     model_notes: list = []
     fitted = load_model(args.model, machine, model_notes)
     rest = _left_to_compensate(fitted)
-    fitted = fitted.without_drift()
     for n in model_notes:
         sys.stderr.write(f"note: {n}\n")
     fmt = exporter(args.format)
@@ -134,9 +133,8 @@ def run(args) -> int:
 def _left_to_compensate(fitted) -> list:
     """The notes on the model's terms no table holds. A controller's tables hold errors along the
     axes' positions (and direction), not along feed, time or temperature: the feed terms are
-    evaluated at feed 0, and the drift terms are left out (export evaluates the model without them,
-    :meth:`~mtcomp.models.model_file.FittedModel.without_drift`): a drift model's value is no
-    error of an axis (its constant holds where the thermal record's probe was zeroed), and export
+    evaluated at feed 0, and the drift terms are left out (:func:`mtcomp.export.component_tables`
+    evaluates the model without them): a drift model's value is no error of an axis, and export
     is given no thermal state."""
     at_rest = [t.key() for t in fitted.model.terms if t.uses_feed]
     drift = [t.key() for t in fitted.model.terms if t.kind in ("thermal_drift", "channel_drift")]
