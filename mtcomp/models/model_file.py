@@ -66,7 +66,19 @@ def uncertainty_without(uncertainty: dict | None, names) -> dict | None:
                undetermined=np.asarray(uncertainty["undetermined"]).reshape(n, -1)[keep])
     if "held" in uncertainty:
         out["held"] = np.asarray(uncertainty["held"]).reshape(n, -1)[keep]
+    if "setup" in uncertainty:
+        out["setup"] = dict(uncertainty["setup"], cross=np.asarray(uncertainty["setup"]["cross"])[:, keep])
     return out
+
+
+def setup_uncertainty(specs, cov: np.ndarray, n_params: int) -> dict:
+    """The ``setup`` entry of a fit's uncertainty (:class:`FittedModel`): the files' set-up
+    parameters ``specs`` (the unknowns after the first ``n_params`` of the covariance ``cov``, internal
+    units), their covariance and their covariance with the fitted parameters."""
+    return {"names": tuple(s.name for s in specs),
+            "to_file": np.array([s.to_file for s in specs], dtype=float),
+            "cross": np.nan_to_num(cov[n_params:, :n_params]),
+            "covariance": np.nan_to_num(cov[n_params:, n_params:])}
 
 
 @dataclass
@@ -89,7 +101,11 @@ class FittedModel:
         (k, h) and ``"held_sd_um"`` (h,): the directions the data fix only weakly, which the fit held
         at the least error (each 1 um rms tool-tip error over the data's region), with their
         standard errors (um). Their variance is already in the covariance: they are listed so that
-        its share can be told, and they are not undetermined.
+        its share can be told, and they are not undetermined. Optionally ``"setup"``: the fitted
+        files' set-up parameters (laser zeros and slopes, a tracker's frame ...), ``{"names": (s,),
+        "to_file": (s,), "cross": (s, k), "covariance": (s, s)}``, their covariance with the
+        parameters and their own: a prediction of a fitted file with its fitted set-up moves with
+        both (:func:`mtcomp.identification.predict.predict_readings`).
     probed : None, or the drift terms' context (``temp_<s>`` degC, ``spindle_lag_<tau>`` ...) at
         which the part's datum was probed (:func:`mtcomp.thermal.context.probed_state`): the datum's
         deviation then holds the drift at probing. None: the drift terms' own zero (a model whose
@@ -350,6 +366,11 @@ def uncertainty_to_file(fitted: "FittedModel") -> dict:
     if "held" in u and np.asarray(u["held"]).size:
         out["held"] = (f[:, None] * np.asarray(u["held"])).T.tolist()
         out["held_sd_um"] = np.asarray(u["held_sd_um"], dtype=float).tolist()
+    if "setup" in u:
+        g = np.asarray(u["setup"]["to_file"], dtype=float)
+        out["setup"] = {"parameters": list(u["setup"]["names"]), "to_file": g.tolist(),
+                        "cross": (np.asarray(u["setup"]["cross"]) * np.outer(g, f)).tolist(),
+                        "covariance": (np.asarray(u["setup"]["covariance"]) * np.outer(g, g)).tolist()}
     return out
 
 
@@ -376,7 +397,23 @@ def _uncertainty_from_file(params: ParameterSet, data, path) -> dict | None:
             raise InputError("'uncertainty' 'held' must be directions over its parameters with one "
                              "'held_sd_um' each", path) from None
         out.update(held=held / f[:, None], held_sd_um=sd)
+    if "setup" in data:     # optional (older files have none): the fitted files' set-ups
+        out["setup"] = _setup_from_file(data["setup"], f, path)
     return out
+
+
+def _setup_from_file(data, f: np.ndarray, path) -> dict:
+    try:
+        names = tuple(str(n) for n in data["parameters"])
+        g = np.asarray(data["to_file"], dtype=float).reshape(len(names))
+        cross = np.asarray(data["cross"], dtype=float).reshape(len(names), f.size)
+        cov = np.asarray(data["covariance"], dtype=float).reshape(len(names), len(names))
+    except (KeyError, TypeError, ValueError):
+        raise InputError("'uncertainty' 'setup' must hold 'parameters', 'to_file', 'cross' (one row per "
+                         "set-up parameter over the parameters) and a square 'covariance'", path) from None
+    if not np.all(g != 0):
+        raise InputError("'uncertainty' 'setup' 'to_file' must be non-zero", path)
+    return {"names": names, "to_file": g, "cross": cross / np.outer(g, f), "covariance": cov / np.outer(g, g)}
 
 
 def support_to_file(machine: Machine, support: dict) -> dict:
