@@ -91,7 +91,7 @@ def _add_thermal_arguments(parser):
                              "model's spindle-heat drift (default: spindle stopped for long)")
     add_probed_arguments(parser, "temperature of sensor NAME when the part's datum (G54 ...) was "
                          "probed: the drift since then is corrected (repeatable, each sensor given "
-                         "above; default: the whole drift since the thermal record's first reading)",
+                         "above; default: the drift since the thermal record's first reading)",
                          "the same for --spindle-rpm: the speed the spindle had run at long enough "
                          "to be warm when the datum was probed")
     parser.add_argument("--probed-with-tool-length", type=float, metavar="MM", default=None,

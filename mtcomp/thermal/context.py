@@ -211,6 +211,13 @@ def thermal_context(fitted, temperatures: dict | None = None, spindle_rpm: float
     if given and time_driven(fitted.model):
         raise InputError(f"a temperature or spindle speed was given, but {TIME_DRIVEN}", source)
     for sensor, v in (temperatures or {}).items():
+        if sensor not in temps and f"dtemp_{sensor}" in features:
+            raise InputError(f"temperature {sensor}: the model's drift reads that sensor's rise since "
+                             f"the first reading of each file it was fitted on (dtemp_{sensor}), "
+                             "which has no value while a program runs: diagnose one thermal record, "
+                             "alone or beside the geometric files (join the records of one set-up "
+                             "into one file in time order), for a drift compensate can follow",
+                             source)
         if sensor not in temps:
             raise InputError(f"temperature {sensor}: the model has no drift term that reads that "
                              f"sensor (it reads: {', '.join(temps) or 'none'})", source)
@@ -249,14 +256,15 @@ def thermal_context(fitted, temperatures: dict | None = None, spindle_rpm: float
 
 def probed_state(fitted, cut_sensors, cut_rpm, probed_temperatures=None, probed_rpm=None,
                  extrapolate: bool = False, source=None) -> tuple[dict | None, str]:
-    """(the drift terms' context at the part's datum as it was probed, None for the drift terms' own
-    zero; the line saying which reference the drift is corrected from, '' when no drift is
+    """(the drift terms' context at the part's datum as it was probed, None when no drift is
+    corrected; the line saying which reference the drift is corrected from, '' when no drift is
     corrected). The probe put the drift of its time into the work offset, so a block corrects the
     drift while it runs less the drift at probing. ``cut_sensors``: the sensors the state while the
     program runs gives (flags, a row or a series); ``cut_rpm``: its spindle speed or None;
     ``probed_temperatures`` (sensor -> degC) and ``probed_rpm``: the state at probing, which must
-    give what the running state gives. InputError (naming ``source``) otherwise, and for a probed
-    state given to a model whose drift compensate does not correct."""
+    give what the running state gives; neither given: the thermal record's first reading
+    (:func:`record_reference`). InputError (naming ``source``) otherwise, and for a probed state
+    given to a model whose drift compensate does not correct."""
     probed_temperatures = probed_temperatures or {}
     given = bool(probed_temperatures) or probed_rpm is not None
     cut_given = bool(cut_sensors) or cut_rpm is not None
@@ -268,14 +276,7 @@ def probed_state(fitted, cut_sensors, cut_rpm, probed_temperatures=None, probed_
                          "runs (--temperature, --temperatures, --spindle-rpm): no drift is "
                          "corrected without it", source)
     if not given:
-        features = [f for t in _drift_terms(fitted.model)[0] for f in t.features]
-        flag = ("--probed-at-temperature" if any(f.startswith("temp_") for f in features)
-                else "--probed-at-spindle-rpm")
-        record = fitted.info.get("thermal_record") if isinstance(fitted.info, dict) else None
-        return None, (f"thermal drift referenced to the record's first reading ("
-                      f"{record or 'the thermal record'}, where the model's drift is zero: the "
-                      f"whole drift since then is corrected): give {flag} if the datum was probed "
-                      "warm")
+        return record_reference(fitted, cut_sensors, cut_rpm, source)
     if (cut_rpm is None) != (probed_rpm is None):
         raise InputError("--spindle-rpm and --probed-at-spindle-rpm go together: give the spindle's "
                          "state both while the program runs and at probing, or neither", source)
@@ -298,6 +299,46 @@ def probed_state(fitted, cut_sensors, cut_rpm, probed_temperatures=None, probed_
                          e.path) from None
     return context, ("thermal drift referenced to the datum's probing (the drift since then is "
                      "corrected): at probing " + sentence.partition(": ")[2])
+
+
+def record_reference(fitted, cut_sensors, cut_rpm, source=None) -> tuple[dict, str]:
+    """(the drift terms' context at the part's datum when no state at probing is given, the line
+    saying so): the thermal record's first reading (``info["thermal_first_reading"]``, written by
+    diagnose), so that the drift since then is corrected and never the drift model's absolute value,
+    whose constant holds the set-up zero of the record's probe (what the data leave undetermined).
+    Only what the state while the program runs gives is taken from it (``cut_sensors``, the spindle
+    heat when ``cut_rpm`` is given): the rest is at the same value at the datum and while the
+    program runs. A model file without that reading (an older mtcomp) is referenced to the
+    record's mean temperatures (its context defaults as read from the file: called before the
+    running state is written into them) and a spindle stopped long; InputError
+    (naming ``source``) for a temperature it holds no reference of."""
+    features = [f for t in _drift_terms(fitted.model)[0] for f in t.features]
+    temps = [f for f in features if f.startswith("temp_") and f[5:] in cut_sensors]
+    lags = [f for f in features if _LAG.match(f)] if cut_rpm is not None else []
+    flag = "--probed-at-temperature" if temps else "--probed-at-spindle-rpm"
+    info = fitted.info if isinstance(fitted.info, dict) else {}
+    first = info.get("thermal_first_reading")
+    record = info.get("thermal_record") or "the thermal record"
+    temp_text = lambda state: ", ".join(f"{f[5:]}={state[f]:.5g}" for f in temps) + " degC"  # noqa: E731
+    if isinstance(first, dict) and all(f in first for f in temps + lags):
+        state = {f: float(first[f]) for f in temps + lags}
+        said = ([temp_text(state)] if temps else []) + (
+            [f"spindle heat of {1e3 * state[lags[0]]:g} rpm"] if lags else [])
+        return state, (f"thermal drift referenced to the record's first reading ({record}: "
+                       f"{'; '.join(said)}): the drift since then is corrected (a probe's set-up "
+                       f"zero is not); give {flag} if the datum was probed warm")
+    missing = [f for f in temps if f not in fitted.context_defaults]
+    if missing:
+        raise InputError(f"the model file records neither the first reading of its thermal record "
+                         f"nor a reference temperature of sensor {missing[0][5:]}: give {flag} "
+                         "with the temperatures at which the part's datum was probed", source)
+    state = {**{f: float(fitted.context_defaults[f]) for f in temps}, **{f: 0.0 for f in lags}}
+    said = ([f"the record's mean temperatures {temp_text(state)}"] if temps else []) + (
+        ["a spindle stopped long"] if lags else [])
+    return state, (f"thermal drift referenced to {' and '.join(said)}: the model file records no "
+                   f"first reading of its thermal record ({record}; an older mtcomp wrote it: diagnose "
+                   f"the record again to have it); give {flag} with the state at which the datum was "
+                   "probed")
 
 
 def record_state_note(fitted, data) -> str:
