@@ -97,7 +97,7 @@ def test_a_time_series_of_temperatures_is_followed_along_the_program(tmp_path, c
         for c in temps:
             row[c] = repr(float(np.interp(t, [0, 300, 600], [float(r[c]) for r in picks])))
         rows.append(row)
-    rows.append(dict(record[0], t_s="0", spindle_rpm="0"))
+    rows.append(dict(record[0], t_s=str(len(ends)), spindle_rpm="0"))   # the first reading, last
     (tmp_path / "rows.csv").write_text(",".join(rows[0]) + "\n"
                                        + "\n".join(",".join(r.values()) for r in rows) + "\n")
     assert main(["predict", "xfyz", str(model), str(tmp_path / "rows.csv"), "-o",
