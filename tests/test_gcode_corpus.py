@@ -166,9 +166,12 @@ REFUSED = {
     # placed by the format)
     "nxpost_Monarch_VMC_GE_sample.ptp": ["Monarch_VMC_GE_sample.ptp:5:",
                                          "X0019685 is a fixed-format number"],
-    # the W axis of horizontal boring mills (the quill, along Z), which mtcomp does not model
-    "nxpost_NomuraBN-130_Fanuc6MB_sample.ptp": ["Fanuc6MB_sample.ptp:11:", "axis word W"],
-    "nxpost_Sample_Kuraki_KBT.ptp": ["Sample_Kuraki_KBT.ptp:8:", "axis word W"],
+    # the Kuraki KBT horizontal boring mill: its W quill is read now (the Nomura BN-130's program
+    # is accepted); refused at `N2200G03X1.0383Y2.1329I.2J.15`, an arc whose start is the X Y of
+    # `N2150G53G00X.8383Y2.2329`, a move in machine coordinates (the work offset unknown, the
+    # start in the program's frame is not known)
+    "nxpost_Sample_Kuraki_KBT.ptp": ["Sample_Kuraki_KBT.ptp:223:",
+                                    "arc G3 from a position the program has not given"],
     # a DeVlieg's `T00O00`, `T1O1`: the post (NX's Devlieg_120.def) writes the tool's number again
     # after an O (an address it adds, `user_add_2`, whose meaning neither it nor a manual we found
     # gives: a tool offset number?), so it stays refused, the message naming the tool word; the
@@ -201,8 +204,9 @@ REFUSED = {
     "beagleg_spline-character.gcode": ["spline-character.gcode:12:", "G30 and motion G1"],
     "beagleg_splines.gcode": ["splines.gcode:8:", "G5 (cubic spline) is not supported"],
 }
-#: the share of the corpus accepted today (136 of 186: 0.731): 125 of the 148 before the batch of
-#: 38 programs never seen (SOURCES.md), of which 11 are accepted; the goal is 95 %
+#: the share of the corpus accepted today (137 of 186: 0.737): 125 of the 148 before the batch of
+#: 38 programs never seen (SOURCES.md), of which 12 are accepted (the Nomura BN-130's W quill
+#: read); the goal is 95 %
 MIN_ACCEPTED = 0.73
 #: the refused programs that the controller they were written for refuses too (its manual's alarm
 #: or error named in REFUSED's comments): a nested comment (LinuxCNC), an R word in a G1 (grbl
@@ -215,9 +219,9 @@ MIN_ACCEPTED = 0.73
 #: and Okuma's languages, a grbl program that does not say it is one, a B word on a 4-axis Haas,
 #: Heidenhain comments without block numbers, a Fanuc dimension word whose unit depends on a
 #: parameter the program does not show; of the batch of 38, a G65 call of a macro resident in the
-#: machine, not in the file (a G65 whose macro is in the file is expanded), the W quill, fixed-format
-#: numbers, 5-axis drilling, BeagleG's dialect, an O word after a tool word, a TNC ISO block before
-#: any G00/G01: unchanged by the G65 expansion, 136 of 157).
+#: machine, not in the file (a G65 whose macro is in the file is expanded), fixed-format numbers,
+#: 5-axis drilling, BeagleG's dialect, an O word after a tool word, a TNC ISO block before any
+#: G00/G01, an arc from the X Y of a G53 move (the Kuraki, whose W quill is read now): 137 of 157).
 CONTROLLER_REFUSES = {
     "cluck2sesame_BackPlate.nc", "cluck2sesame_2-Spool.nc", "cncwebsim_fresa2.cnc",
     "rocholl25000_clover.gcode", "nxpost_4_axis_mill.ptp", "nxpost_Fadal_VMC6030_sample.ptp",
@@ -237,9 +241,9 @@ CONTROLLER_REFUSES = {
     "nxpost_MS_SH8000_sample_in.ptp", "nxpost_Fryer_MB10_sample.ptp",
     "nxpost_Mitsubishi_VR33_RHead_sample.ptp",
 }
-#: the share accepted of the programs their controllers run (136 of 157: 0.866; 125 of 133, 0.940,
-#: before the batch of 38, whose 24 runnable ones are 11 accepted: 0.458); the goal is 95 %
-MIN_ACCEPTED_RUNNABLE = 0.86
+#: the share accepted of the programs their controllers run (137 of 157: 0.873; 125 of 133, 0.940,
+#: before the batch of 38, whose 24 runnable ones are 12 accepted: 0.500); the goal is 95 %
+MIN_ACCEPTED_RUNNABLE = 0.87
 _WORD = re.compile(r"([A-Z])\s*([-+]?\s*(?:\d+\.?\d*|\.\d+))")
 #: an axis given an expression (Sinumerik: `A=_A_HOME`)
 _ASSIGNED = re.compile(r"(?<![A-Z0-9_$#<])([A-Z])\s*=")
