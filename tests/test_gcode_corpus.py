@@ -173,9 +173,11 @@ REFUSED = {
     "nxpost_Sample_Kuraki_KBT.ptp": ["Sample_Kuraki_KBT.ptp:223:",
                                     "arc G3 from a position the program has not given"],
     # a DeVlieg's `T00O00`, `T1O1`: the post (NX's Devlieg_120.def) writes the tool's number again
-    # after an O (an address it adds, `user_add_2`, whose meaning neither it nor a manual we found
-    # gives: a tool offset number?), so it stays refused, the message naming the tool word; the
-    # W quill of this horizontal boring mill follows at line 22 (`N12 G00 W0`, as the Nomura's)
+    # after an O (an address it adds, `user_add_2`: leader O, the tool number's format, fed
+    # $mom_tool_number; its meaning neither the post nor a manual we found gives: a tool offset
+    # number?), so it stays refused, the message naming the tool word. Its W quill (`N12 G00 W0`)
+    # is read now; without the O words the program is refused further on, at line 26
+    # (`G81 Z3.437 R4.037 P1`: a P in a G81, which nothing names a Fanuc-type control for)
     "nxpost_Devlieg_120.ptp": ["Devlieg_120.ptp:11:", "word O00 inside a line",
                                "after the tool word T00"],
     # Heidenhain DIN/ISO (`% 123 G71`): `N0070 G90 Z-25. M91` (Z in machine coordinates, M91) with
