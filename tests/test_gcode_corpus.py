@@ -339,7 +339,8 @@ def _positioned_per_line(text: str):
                 retract = int(v)
         moved = False
         if any(v in (28, 30) for v in g):
-            known = known - axes if axes else set()
+            # only the named axes go home (W, a quill, is one of them: `G28 W0` homes it alone)
+            known = known - axes if axes or "W" in value else set()
         elif 53 in g:
             known -= axes
         elif 10 in g or (4 in g and not any(v in (0, 1, 2, 3) for v in g)):
@@ -563,6 +564,13 @@ def test_the_oracle_reads_incremental_words_and_the_program_end():
         _check_output(src, src.replace(b"G0 Z-10 X1", b"G0 Z-10 X1.001"))
     with pytest.raises(AssertionError, match="source line 7 is missing"):
         _check_output(src, src.replace(b"G0 X5", b"G0 X5.001"))
+
+
+def test_the_oracle_homes_the_named_axes_only():
+    # G28 W0 sends the quill home alone; G28 alone every axis; G28 Z0 only Z
+    src = "G21 G90\nG0 X0 Y0 Z5\nG28 W0\nG28 Z0\nG0 X1 Y1 Z1\nG28\n"
+    assert [k for _m, k in _positioned_per_line(src)][2:] == [
+        {"X", "Y", "Z"}, {"X", "Y"}, {"X", "Y", "Z"}, set()]
 
 
 def test_the_oracle_follows_the_retract_of_drilling_cycles():
