@@ -1,11 +1,13 @@
-"""A drift correction is the drift since the record's first reading, and its standard error is the
-drift prediction's: the datum's deviation there is a reading of the record, so referencing to it
-takes nothing away (the intercept of an absolute drift model and its temperature terms stay
-together). Oracle: `mtcomp predict` on record rows at the same temperatures and at the record's
-first reading (the measurement model's predictions and standard errors), on the real 46 h record."""
+"""A drift correction is the drift since the record's first reading, and its standard error is that
+of the difference: the parameters' share (J_now - J_first) C (J_now - J_first)^T, the intercept
+cancelling, plus the model error (the forward-validated rms) once. Oracles: `mtcomp predict` on
+record rows at the same temperatures and at the record's first reading (the measurement model's
+predictions), and the covariance and model error the model file holds, by hand; on the real 46 h
+record."""
 import csv
 import json
 
+import numpy as np
 import pytest
 
 from mtcomp.cli import main
@@ -47,17 +49,44 @@ def test_drift_correction_and_its_standard_error_are_the_drift_prediction(tmp_pa
     assert "does not state the region" not in said and "outside the region" not in said
     blocks = [r for r in _rows(tmp_path / "B.csv") if r["unknown_axes"] == ""]
     assert blocks and all(r["corrected"] == "1" for r in blocks)
+    # by hand from the file: the Z channel's coefficients' covariance over the difference of the
+    # features (the block's state: the row's temperatures, the spindle stopped; the first reading)
+    saved = json.loads(model.read_text())
+    u, info = saved["uncertainty"], saved["info"]
+    names = [f"TD_Z_{f}" for f in info["drift_features"]] + ["TD_Z_zero"]
+    k = [u["parameters"].index(n) for n in names]
+    C = np.asarray(u["covariance"])[np.ix_(k, k)]
+    now = [float(row[f + "_c"]) if f.startswith("temp_") else 0.0 for f in info["drift_features"]]
+    d = np.r_[np.array(now) - [info["thermal_first_reading"][f] for f in info["drift_features"]], 0.0]
+    drift = next(f for f in json.loads((tmp_path / "R.json").read_text())["findings"]
+                 if f["effect"] == "thermal_drift")
+    error = drift["params"]["forward_rms_um"]["ch3"]        # the model error, as diagnose reports it
+    want = np.sqrt(d @ C @ d + error ** 2)
+    assert 1.0 < np.sqrt(d @ C @ d) and error > 4.0         # both shares count (1.66, 4.94 um)
     for r in blocks:
         # the Z deviation of the tip is the Z channel's prediction (the same sign convention)
         assert float(r["ez_before_um"]) == pytest.approx(since, abs=2e-3)
-        assert float(r["correction_sd_um"]) == pytest.approx(float(pred["pred_disp_ch3_um_sd"]),
-                                                             rel=2e-3, abs=1e-3)
-    # the model error is its floor; the intercept and the temperature terms stay together (the
-    # intercept's standard error alone is about 44 um)
-    drift = next(f for f in json.loads((tmp_path / "R.json").read_text())["findings"]
-                 if f["effect"] == "thermal_drift")
-    floor = drift["params"]["forward_rms_um"]["ch3"]
-    assert floor <= float(blocks[0]["correction_sd_um"]) <= 1.1 * floor
+        assert float(r["correction_sd_um"]) == pytest.approx(want, rel=2e-3, abs=1e-3)
+    # the same state given as the probed one: the same correction and standard error
+    probed = [f"--probed-at-temperature={f[5:]}={v!r}" for f, v in info["thermal_first_reading"].items()
+              if f.startswith("temp_")]
+    assert main(["compensate", "xfyz", str(model), str(prog), "-o", str(tmp_path / "o3.nc"),
+                 "--temperatures", str(tmp_path / "T.csv"), "--report", str(tmp_path / "B3.csv"),
+                 "--max-correction-sd-um", "8", "--quiet", *probed]) == 0
+    explicit = [r for r in _rows(tmp_path / "B3.csv") if r["unknown_axes"] == ""]
+    assert [(r["ez_before_um"], r["correction_sd_um"]) for r in explicit] == \
+        [(r["ez_before_um"], r["correction_sd_um"]) for r in blocks]
+    # a file of an older mtcomp (no model error kept apart) still compensates, with the absolute
+    # drift's standard error, as it did
+    del saved["uncertainty"]["model_error"]
+    (tmp_path / "old.json").write_text(json.dumps(saved))
+    assert main(["compensate", "xfyz", str(tmp_path / "old.json"), str(prog), "-o", str(tmp_path / "o4.nc"),
+                 "--temperatures", str(tmp_path / "T.csv"), "--report", str(tmp_path / "B4.csv"),
+                 "--max-correction-sd-um", "8", "--quiet"]) == 0
+    older = [r for r in _rows(tmp_path / "B4.csv") if r["unknown_axes"] == ""]
+    assert [r["ez_before_um"] for r in older] == [r["ez_before_um"] for r in blocks]
+    assert all(float(r["correction_sd_um"]) == pytest.approx(float(pred["pred_disp_ch3_um_sd"]),
+                                                             rel=2e-3, abs=1e-3) for r in older)
     # under the default limit (2 um) the same blocks are left uncorrected
     assert main(["compensate", "xfyz", str(model), str(prog), "-o", str(tmp_path / "o2.nc"),
                  "--temperatures", str(tmp_path / "T.csv"), "--report", str(tmp_path / "B2.csv"),

@@ -68,6 +68,8 @@ def uncertainty_without(uncertainty: dict | None, names) -> dict | None:
         out["held"] = np.asarray(uncertainty["held"]).reshape(n, -1)[keep]
     if "setup" in uncertainty:
         out["setup"] = dict(uncertainty["setup"], cross=np.asarray(uncertainty["setup"]["cross"])[:, keep])
+    if "model_error" in uncertainty:
+        out["model_error"] = {k: v for k, v in uncertainty["model_error"].items() if k not in names}
     return out
 
 
@@ -105,15 +107,16 @@ class FittedModel:
         files' set-up parameters (laser zeros and slopes, a tracker's frame ...), ``{"names": (s,),
         "to_file": (s,), "cross": (s, k), "covariance": (s, s)}``, their covariance with the
         parameters and their own: a prediction of a fitted file with its fitted set-up moves with
-        both (:func:`mtcomp.identification.predict.predict_readings`).
+        both (:func:`mtcomp.identification.predict.predict_readings`). Optionally ``"model_error"``:
+        {intercept name: sd} of a drift model, the share of its intercept's variance that is the
+        model error (what the drift model misses at a reading it was not fitted on), kept apart so
+        that a correction, a difference from the datum's state, counts it once (:meth:`at_datum`).
     probed : None, or the drift terms' context (``temp_<s>`` degC, ``spindle_lag_<tau>`` ...) at
         which the part's datum was probed (:func:`mtcomp.thermal.context.probed_state`): the datum's
         deviation then holds the drift at probing. None: the drift terms' own zero (a model whose
         drift corrects nothing). Not saved.
     probed_from_record : True when ``probed`` is no state the user gave but the thermal record's
-        reference (its first reading, :func:`mtcomp.thermal.context.record_reference`): a reading
-        of the record, not a prediction, so the datum adds no uncertainty of the drift and a
-        correction's standard error is the drift prediction's (:meth:`at_datum`). Not saved.
+        reference (its first reading, :func:`mtcomp.thermal.context.record_reference`). Not saved.
     probe_tool_length : mm, the length of the tool (a probe) the part's datum was probed with in X
         and Y (:meth:`at_datum`); None: the machine's tool length. Not saved.
     """
@@ -191,14 +194,35 @@ class FittedModel:
             lateral = evaluate(self.model, name, qd, p, probe_ctx)[0]
             out = np.array(out, copy=True)
             out[:, :2] = lateral[:, :2]
-        if name.endswith("pjacobian_function") and (self.probed is None or self.probed_from_record):
-            # the datum's deviation does not depend on the drift parameters: with no drift corrected
-            # they are zero, and at the record's first reading the drift there is a reading of the
-            # record (without this the intercept of an absolute drift model, which carries the
-            # model error, cancelled against the datum, and a correction's standard error lost it)
+        if name.endswith("pjacobian_function") and (self.probed is None or (
+                self.probed_from_record and not self.model_error())):
+            # with no drift corrected the datum's drift parameters are zero; a model that does not
+            # keep its model error apart (an older file) keeps it only in the intercept's variance,
+            # which a difference from the record's first reading would cancel: the correction takes
+            # the absolute drift's standard error (the parameters' share of the difference is then
+            # not the difference's: see model_error_variance)
             out = np.array(out, copy=True)
             out[..., self.drift_param_indices()] = 0.0
         return out
+
+    def model_error(self) -> dict:
+        """{intercept parameter name: sd (internal units)} of a drift model's model error
+        (``uncertainty["model_error"]``); {} when the model keeps none apart (older files)."""
+        return dict((self.uncertainty or {}).get("model_error") or {})
+
+    def model_error_variance(self, J: np.ndarray) -> np.ndarray | None:
+        """(n, 3) mm^2: the model error's variance in each tip component of a correction whose
+        Jacobian at the block (before the datum's is taken off) is J (n, 3, n_params), counted once:
+        the correction is the drift since a known state, the datum's, so the intercept carrying the
+        model error cancels and the parameters' share is that of the difference (J - J_datum) C
+        (J - J_datum)^T; what the model misses at the block's state is not in it. None when the
+        datum's drift Jacobian is not kept (:meth:`at_datum`) or no model error is kept apart."""
+        error = self.model_error()
+        if self.probed is None or not error:
+            return None
+        idx = [self.params.index(n) for n in error]
+        sd = np.array(list(error.values()), dtype=float)
+        return np.einsum("nik,k->ni", J[:, :, idx] ** 2, sd ** 2)
 
     def datum_deviation(self, datum, tool_length) -> np.ndarray:
         """(n, 3) mm: the tool tip's deviation at the part's datum as it was probed
@@ -277,7 +301,8 @@ class FittedModel:
 
     @staticmethod
     def tip_sd_um(J: np.ndarray, factor: tuple[np.ndarray, np.ndarray],
-                  undetermined: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+                  undetermined: tuple[np.ndarray, np.ndarray] | None = None,
+                  extra: np.ndarray | None = None) -> np.ndarray:
         """(n,) the standard error (um) of n tool-tip deviations whose Jacobian with respect to
         ``params`` is J (n, 3, n_params), mm: the largest of the three components' standard
         errors, under the covariance :meth:`covariance_factor` gives (``factor``).
@@ -288,7 +313,8 @@ class FittedModel:
             error there, by the same rule)."""
         idx, F = factor
         G = J[:, :, idx] @ F                        # (n, 3, rank), mm
-        sd = np.sqrt(np.max(np.einsum("nij,nij->ni", G, G), axis=1)) * 1e3
+        var = np.einsum("nij,nij->ni", G, G)
+        sd = np.sqrt(np.max(var if extra is None else var + extra, axis=1)) * 1e3
         if undetermined is not None:
             ui, v = undetermined
             moved = np.abs(J[:, :, ui] @ v).max(axis=1) * 1e3
@@ -366,6 +392,9 @@ def uncertainty_to_file(fitted: "FittedModel") -> dict:
     if "held" in u and np.asarray(u["held"]).size:
         out["held"] = (f[:, None] * np.asarray(u["held"])).T.tolist()
         out["held_sd_um"] = np.asarray(u["held_sd_um"], dtype=float).tolist()
+    if u.get("model_error"):
+        out["model_error"] = {n: float(v) * float(_file_factors(fitted.params, [n])[0])
+                              for n, v in u["model_error"].items()}
     if "setup" in u:
         g = np.asarray(u["setup"]["to_file"], dtype=float)
         out["setup"] = {"parameters": list(u["setup"]["names"]), "to_file": g.tolist(),
@@ -397,9 +426,24 @@ def _uncertainty_from_file(params: ParameterSet, data, path) -> dict | None:
             raise InputError("'uncertainty' 'held' must be directions over its parameters with one "
                              "'held_sd_um' each", path) from None
         out.update(held=held / f[:, None], held_sd_um=sd)
+    if "model_error" in data:   # optional (older files have none): a drift model's model error
+        out["model_error"] = _model_error_from_file(params, data["model_error"], names, path)
     if "setup" in data:     # optional (older files have none): the fitted files' set-ups
         out["setup"] = _setup_from_file(data["setup"], f, path)
     return out
+
+
+def _model_error_from_file(params: ParameterSet, data, names, path) -> dict:
+    try:
+        out = {str(n): float(v) for n, v in dict(data).items()}
+    except (TypeError, ValueError):
+        raise InputError("'uncertainty' 'model_error' must map intercept names to standard errors",
+                         path) from None
+    bad = [n for n, v in out.items() if n not in names or not np.isfinite(v) or v < 0]
+    if bad:
+        raise InputError(f"'uncertainty' 'model_error' of {bad[0]!r}: not a parameter of the "
+                         "covariance or not a finite standard error >= 0", path)
+    return {n: v / float(_file_factors(params, [n])[0]) for n, v in out.items()}
 
 
 def _setup_from_file(data, f: np.ndarray, path) -> dict:

@@ -123,9 +123,12 @@ class Evaluator:
             return np.full(q.shape[0], np.nan)
         fitted = self.problem.fitted
         J = evaluate(self.model, "tip_pjacobian_function", fitted.clamp(q)[0], self.p, ctx)[0]
+        extra = None
         if datum is not None:
+            # the drift since the datum's state: the model error it misses there counted once
+            extra = fitted.model_error_variance(J)
             J = J - self._at_datum("tip_pjacobian_function", datum, ctx)
-        return fitted.tip_sd_um(J, self._factor, self._open)
+        return fitted.tip_sd_um(J, self._factor, self._open, extra)
 
     def _deviation_and_qjacobian(self, q, ctx):
         """(deviation (n, 6), d deviation / d q (n, 6, n_axes)) as :meth:`_deviation`: along a held

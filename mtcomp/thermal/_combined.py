@@ -157,4 +157,6 @@ def _joined_uncertainty(a: dict | None, b: dict | None) -> dict | None:
         out["held"] = held.reshape(na + nb, -1)
         out["held_sd_um"] = np.concatenate([np.asarray(a.get("held_sd_um", ()), dtype=float),
                                             np.asarray(b.get("held_sd_um", ()), dtype=float)])
+    if a.get("model_error") or b.get("model_error"):
+        out["model_error"] = {**a.get("model_error", {}), **b.get("model_error", {})}
     return out

@@ -106,7 +106,8 @@ def drift_uncertainty(fit, axes: dict) -> dict | None:
     """The model file's ``uncertainty`` of a drift model (as identify writes it): the covariance of
     every channel's coefficients and intercept for forward predictions (``ThermalFit.covariance``:
     the posterior for residuals correlated in time, the model error on the intercept; um -> mm;
-    channels independent), nothing undetermined."""
+    channels independent), nothing undetermined; ``model_error`` the sd of that model error (mm) by
+    intercept's name."""
     if fit.covariance is None:
         return None
     feats = tuple(fit.chosen.features)
@@ -116,8 +117,12 @@ def drift_uncertainty(fit, axes: dict) -> dict | None:
         names += [f"TD_{name}_{f}" for f in feats] + [f"TD_{name}_zero"]
         blocks.append(fit.covariance[j] * 1e-6)
     import scipy.linalg
+    # the model error on each intercept, kept apart too: a correction referenced to a known state
+    # (the record's first reading) differences the intercept away and adds it once (at_datum)
+    error = {f"TD_{axes.get(ch, ch)}_zero": float(e) * 1e-3
+             for ch, e in zip(fit.channels, fit.chosen.forward_rms_um)}
     return {"names": tuple(names), "covariance": scipy.linalg.block_diag(*blocks),
-            "undetermined": np.zeros((len(names), 0))}
+            "undetermined": np.zeros((len(names), 0)), "model_error": error}
 
 
 def drift_terms_and_values(fit, axes: dict):
