@@ -267,7 +267,8 @@ class Judge:
     re-measurement, or a draw of the model from its covariance): before correction and after it,
     over the blocks the plan corrected. The same evaluator as the planner's (one simulator), its
     corrections referenced to the part's datum as this model has it (the machinist probes the datum
-    on the machine the judge stands for)."""
+    on the machine the judge stands for), probed in the one thermal state the compensation took
+    (:meth:`probed_as`; this model's own reference only when the compensating model has none)."""
 
     def __init__(self, fitted, settings: CompensationSettings, label: str = "judge"):
         from .planner._evaluate import Evaluator
@@ -284,6 +285,14 @@ class Judge:
         self.count = 0
         self.max_before_um = self.max_after_um = 0.0
         self.sum_sq_before = self.sum_sq_after = 0.0
+
+    def probed_as(self, fitted) -> None:
+        """The part's datum probed in the thermal state the compensating model ``fitted`` has
+        (``fitted.probed``, resolved once from it and the settings): one probing, one state, not
+        this model's own record's first reading. Kept as it is when ``fitted`` corrects no drift."""
+        if fitted.probed is not None:
+            self.fitted.probed = dict(fitted.probed)
+            self.fitted.probed_from_record = False      # no reading of this model's record
 
     def add(self, chunk, res) -> None:
         """Accumulate one planned chunk: ``chunk`` the machine-frame SegmentChunk the plan was made
@@ -584,6 +593,8 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     assumed = unknown_state or assumed
     series = _checked_series(fitted, settings, temperature_series)
     probe_line = _probed(fitted, settings, temperature_series)   # before the state is written
+    for judge in judges:
+        judge.probed_as(fitted)
     fitted.context_defaults.update(thermal)
     fitted.probe_tool_length = settings.probe_tool_length
     setup = setup if setup is not None else ProgramSetup(machine)
