@@ -68,17 +68,41 @@ def test_a_unit_column_beside_the_right_one_is_an_extra_column(tmp_path):
     assert set(read_measurements(path).context.temperatures) == {"spindle", "head"}
 
 
-@pytest.mark.parametrize("swap, row, words", [
-    (lambda t: np.concatenate([t[:500], [t[501], t[500]], t[502:]]), 502,
-     "column t_s: 15000 s goes back from 15030 s in the row before"),
-    (lambda t: np.concatenate([t[:700], [t[699]], t[701:]]), 701,
-     "column t_s: 20970 s repeats the row before's")])
-def test_a_time_that_goes_back_or_repeats_is_refused_at_its_row(tmp_path, capsys, swap, row, words):
-    path = _record(tmp_path / "rec.csv", t=swap(T_S))
+def test_a_time_that_goes_back_is_refused_at_its_row(tmp_path, capsys):
+    t = np.concatenate([T_S[:500], [T_S[501], T_S[500]], T_S[502:]])
+    path = _record(tmp_path / "rec.csv", t=t)
     assert main(["diagnose", "xfyz", str(path), "--json", str(tmp_path / "r.json")]) == 2
     err = capsys.readouterr().err.strip()
-    assert f"rec.csv: row {row}: {words}: a thermal record's readings are in time order" in err, err
-    assert not (tmp_path / "r.json").exists()
+    assert "rec.csv: row 502: column t_s: 15000 s goes back from 15030 s in the row before: a " \
+        "thermal record's readings are in time order" in err, err
+    assert len(err.splitlines()) == 1 and not (tmp_path / "r.json").exists()
+
+
+def test_a_repeated_time_is_read_and_noted_once(tmp_path, capsys):
+    # a logger writing whole seconds that samples faster: rows 701 and 901 repeat the row before's t_s
+    t = T_S.copy()
+    t[700], t[900] = t[699], t[899]
+    notes = _notes(_record(tmp_path / "rec.csv", t=t), capsys)
+    assert notes == [f"mtcomp diagnose: note: {tmp_path / 'rec.csv'}: 2 reading(s) at the t_s of "
+                     "the row before, the first at row 701 (t_s 20970): read in file order, as taken "
+                     "within the logger's time resolution; if they are duplicated rows, remove them"]
+
+
+def test_the_spindle_lag_holds_over_a_repeated_time():
+    """By hand: h_k = h_(k-1) + (1 - exp(-dt / tau)) (u_(k-1) - h_(k-1)); dt 0 leaves h as it was,
+    whatever the speed read at the repeated time."""
+    from mtcomp.measurement.drift import spindle_heat
+    a = 1.0 - np.exp(-10.0 / 900.0)
+    h1 = a * 1.0
+    want = [0.0, h1, h1, h1 + a * (3.0 - h1)]
+    got = spindle_heat(np.array([0.0, 10.0, 10.0, 20.0]), np.array([1000, 1000, 3000, 3000.0]), 900.0)
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=0)
+
+
+def test_a_temperature_in_degc_named_deg_c_is_read(tmp_path):
+    head = "t_s,spindle_rpm,disp_z_um,disp_y_um,temp_spindle_deg_c,temp_head_c"
+    data = read_measurements(_record(tmp_path / "rec.csv", header=head))
+    assert set(data.context.temperatures) == {"spindle_deg", "head"}
 
 
 def test_a_clean_record_gets_none_of_these_notes(tmp_path, capsys):

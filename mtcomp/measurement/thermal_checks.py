@@ -5,12 +5,15 @@ docs/measurements.md).
   mtcomp's (``disp_z_mm``, ``temp_head_F``) with no ``disp_z_um`` or ``temp_head_c`` beside it:
   read as a column mtcomp does not read, the channel or the sensor would vanish from the record
   with only a note, and the model would change without it.
-* :func:`check_time_order` refuses a thermal record whose ``t_s`` goes back or repeats: a drift
-  record is read in time order, and a row out of order is a join or an export gone wrong that
-  sorting would hide.
+* :func:`check_time_order` refuses a thermal record whose ``t_s`` goes back: a drift record is read
+  in time order, and a row out of order is a join or an export gone wrong that sorting would hide.
+  A ``t_s`` equal to the row before's is read (a logger that writes whole seconds and samples
+  faster repeats it): the spindle's lag does not move between the two readings, and the forward
+  validation cuts the rows by count, in file order.
 * :func:`thermal_notes` says, per thermal file: readings that all stay within a sensor's noise
   (mm written under ``*_um``), a record shorter than the time constants a drift model uses (``t_s``
-  in hours or minutes), a gap in the record, and a temperature column blank in some rows only.
+  in hours or minutes), a gap in the record, a ``t_s`` that repeats, and a temperature column
+  blank in some rows only.
 """
 from __future__ import annotations
 
@@ -36,8 +39,12 @@ GAP_FACTOR = 10.0
 
 def check_unit_columns(table) -> None:
     """InputError (row 0, the header) for ``disp_<name>_<unit>`` or ``temp_<name>_<unit>`` in
-    another unit than um or degC, with no ``disp_<name>_um`` or ``temp_<name>_c`` beside it."""
+    another unit than um or degC, with no ``disp_<name>_um`` or ``temp_<name>_c`` beside it. A
+    name ending ``_um`` or ``_c`` is never refused: the reader reads it (``temp_spindle_deg_c`` is
+    sensor ``spindle_deg`` in degC)."""
     for j, name in enumerate(table.names):
+        if name.endswith(("_um", "_c")):
+            continue
         for pattern, unit, what, suffix in ((_DISP_OTHER, "um", "displacement channel", "um"),
                                             (_TEMP_OTHER, "degC", "temperature sensor", "c")):
             m = pattern.match(name)
@@ -53,17 +60,16 @@ def check_unit_columns(table) -> None:
 
 
 def check_time_order(table, t: np.ndarray) -> None:
-    """InputError naming the first row whose ``t_s`` is not later than the row before's."""
+    """InputError naming the first row whose ``t_s`` is earlier than the row before's (an equal one
+    is read: :func:`thermal_notes` notes it)."""
     step = np.diff(t)
-    bad = np.flatnonzero(~(step > 0))
+    bad = np.flatnonzero(~(step >= 0))
     if not bad.size:
         return
     i = int(bad[0]) + 1
-    how = ("repeats the row before's" if step[i - 1] == 0
-           else f"goes back from {t[i - 1]:.10g} s in the row before")
-    table.fail(f"column t_s: {t[i]:.10g} s {how}: a thermal record's readings are in time order, each "
-               "later than the one before (sort the rows by t_s, remove a duplicated reading, or "
-               "join records in time order)", i)
+    table.fail(f"column t_s: {t[i]:.10g} s goes back from {t[i - 1]:.10g} s in the row before: a "
+               "thermal record's readings are in time order, none earlier than the one before (sort "
+               "the rows by t_s, or join records in time order)", i)
 
 
 def thermal_notes(data) -> list[str]:
@@ -71,8 +77,8 @@ def thermal_notes(data) -> list[str]:
     if getattr(data, "kind", "") != "thermal" or len(data) < MIN_RECORD_READINGS:
         return []
     t = np.asarray(data.t, dtype=float)
-    return [line for line in (_small_drift(data), _short(data, t), _gap(data, t)) if line] \
-        + _blank_temperatures(data)
+    return [line for line in (_small_drift(data), _short(data, t), _gap(data, t), _repeats(data, t))
+            if line] + _blank_temperatures(data)
 
 
 def _small_drift(data) -> str | None:
@@ -99,9 +105,20 @@ def _short(data, t: np.ndarray) -> str | None:
             "written in hours or minutes? t_s is seconds")
 
 
+def _repeats(data, t: np.ndarray) -> str | None:
+    same = np.flatnonzero(np.diff(t) == 0) + 1
+    if not same.size:
+        return None
+    i = int(same[0])
+    return (f"{data.path}: {same.size} reading(s) at the t_s of the row before, the first at row "
+            f"{int(data.row[i])} (t_s {t[i]:g}): read in file order, as taken within the logger's "
+            "time resolution; if they are duplicated rows, remove them")
+
+
 def _gap(data, t: np.ndarray) -> str | None:
     step = np.diff(t)
-    typical = float(np.median(step))
+    moved = step[step > 0]                  # a repeated t_s is no step
+    typical = float(np.median(moved)) if moved.size else 0.0
     if not typical > 0:
         return None
     gaps = np.flatnonzero(step > GAP_FACTOR * typical)
