@@ -70,3 +70,21 @@ def test_a_broken_model_file_names_line_and_column(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert err.endswith("not valid JSON at line 2, column 11: Invalid control character"), err
     assert not (tmp_path / "p.csv").exists()
+
+
+def test_a_file_without_a_spindle_speed_is_not_said_to_lie_beyond_the_records_speeds(tmp_path):
+    """A geometric file gives no spindle speed: its blank speed is not 0 rpm outside a record's
+    1000..6000 rpm; a thermal file's speed of 0 rpm is."""
+    from mtcomp.measurement import read_measurements
+    from mtcomp.models.model_file import load_model
+    from mtcomp.thermal.context import record_state_note
+    _model(tmp_path / "m.json")
+    fitted = load_model(tmp_path / "m.json")
+    fitted.info["context_ranges"] = {"temp_s": [20.0, 25.0], "spindle_rpm": [1000.0, 6000.0]}
+    laser = tmp_path / "x.csv"
+    laser.write_text("axis,component,target_mm,dir,run,value_um\n"
+                     + "".join(f"X,EXX,{x},{d},1,0.5\n" for x in (0, 50, 100, 150) for d in (1, -1)))
+    assert record_state_note(fitted, read_measurements(laser)) == ""
+    _file(tmp_path / "rec.csv")
+    note = record_state_note(fitted, read_measurements(tmp_path / "rec.csv"))
+    assert "21 of 50 row(s) lie outside" in note and "spindle_rpm 21 row(s) at 0 to 0 rpm" in note

@@ -161,3 +161,28 @@ def test_export_writes_the_geometry_without_the_drift(tmp_path, capsys, fmt):
         # the correction (minus the error): -20 um/m of X, in mm
         np.testing.assert_allclose([float(r["X"]) for r in rows], -0.02 * x * 1e-3, rtol=0,
                                    atol=6e-6)
+
+
+@pytest.mark.parametrize("info, why", [
+    ({"context_ranges": {"temp_spindle": [20.0, 35.0]}}, "an older mtcomp wrote it"),
+    ({"thermal_record": "rec.csv", "context_ranges": {}},
+     "its thermal record rec.csv chose no drift model, so the drift it corrects was fitted on its "
+     "other files"),
+    ({"fitted_by": "mtcomp identify"}, "its drift was fitted without a thermal record (by identify")])
+def test_the_line_says_why_a_model_has_no_first_reading(tmp_path, capsys, info, why):
+    """'older' only for a file an older mtcomp wrote (a record's ranges or a thermal diagnosis, and
+    no thermal_record, which mtcomp writes with the first reading); a record that chose no drift
+    beside a drift of the other files, or a drift fitted without a record, is said as such."""
+    model = _old_model(tmp_path, {"temp_spindle": 25.0})
+    import json
+    saved = json.loads(model.read_text())
+    saved["info"] = info
+    model.write_text(json.dumps(saved))
+    prog, out = tmp_path / "in.nc", tmp_path / "out.nc"
+    prog.write_text(PROGRAM)
+    assert main(["compensate", "xfyz", str(model), str(prog), "-o", str(out), "--temperature",
+                 "spindle=30"]) == 0
+    said = capsys.readouterr().out
+    assert "referenced to the record's mean temperatures spindle=25 degC" in said
+    assert why in said, said
+    assert ("older mtcomp" in said) == ("older" in why)

@@ -336,9 +336,24 @@ def record_reference(fitted, cut_sensors, cut_rpm, source=None) -> tuple[dict, s
     said = ([f"the record's mean temperatures {temp_text(state)}"] if temps else []) + (
         ["a spindle stopped long"] if lags else [])
     return state, (f"thermal drift referenced to {' and '.join(said)}: the model file records no "
-                   f"first reading of its thermal record ({record}; an older mtcomp wrote it: diagnose "
-                   f"the record again to have it); give {flag} with the state at which the datum was "
-                   "probed")
+                   f"first reading of a thermal record ({_why_no_first_reading(info, record)}); give "
+                   f"{flag} with the state at which the datum was probed")
+
+
+def _why_no_first_reading(info: dict, record: str) -> str:
+    """Why a model file with drift terms holds no ``thermal_first_reading``: an older mtcomp (no
+    ``thermal_record`` either, which mtcomp writes with it, but a record's ``context_ranges`` or a
+    thermal diagnosis), a record that chose no drift model (its ranges empty: the drift is the other
+    files'), or a drift fitted without a record (identify, geometric files' spindle speeds)."""
+    ranges = info.get("context_ranges")
+    if "thermal_record" in info and isinstance(ranges, dict) and not ranges:
+        return (f"its thermal record {record} chose no drift model, so the drift it corrects was "
+                "fitted on its other files, whose readings have no first one")
+    if "thermal_record" not in info and (ranges is not None
+                                         or info.get("fitted_by") == "mtcomp diagnose (thermal drift)"):
+        return f"{record}; an older mtcomp wrote it: diagnose the record again to have it"
+    return ("its drift was fitted without a thermal record (by identify, or on the spindle speeds of "
+            "geometric files), which would give one")
 
 
 def record_state_note(fitted, data) -> str:
@@ -363,8 +378,10 @@ def record_state_note(fitted, data) -> str:
         return ""
     parts = []
     checks = [(s, f"temp_{s}", given[s], "degC") for s in temps if s in given]
-    if any(_LAG.match(f) for f in features):
-        checks.append(("spindle_rpm", "spindle_rpm", np.nan_to_num(data.context.spindle_rpm), "rpm"))
+    rpm = getattr(data.context, "spindle_rpm", None)
+    if any(_LAG.match(f) for f in features) and rpm is not None:
+        # a blank speed is what the file does not give (a geometric file has none): not checked
+        checks.append(("spindle_rpm", "spindle_rpm", np.asarray(rpm, dtype=float), "rpm"))
     for name, key, v, unit in checks:
         rng = ranges.get(key)
         if not rng:
