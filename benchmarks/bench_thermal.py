@@ -18,8 +18,9 @@ A second table sets mtcomp's standard errors (`pred_<column>_sd`) against its er
 part: the rms error, the median standard error, their ratio, the rms of error / standard error over
 every reading and channel (about 1 when the standard errors are honest) and the share of readings
 within 2 standard errors; then the share of judged rows with a temperature or the spindle speed
-beyond the fitted part's range (what `mtcomp predict` notes), and the last two figures on the rows
-inside that range and on those beyond it.
+beyond the fitted part's range (what `mtcomp predict` notes), the last two figures on the rows
+inside that range and on those beyond it, and how far beyond the range those rows go (the median of
+each row's largest excess over a column's range, as a share of the range's width).
 
 The three baselines are computed here with plain numpy, independently of mtcomp's code.
 
@@ -117,8 +118,11 @@ def sd_columns(pred: np.ndarray, sd: np.ndarray, y: np.ndarray, beyond: np.ndarr
 
 
 def beyond_range(fit: np.ndarray, judged: np.ndarray) -> np.ndarray:
-    """(n,) rows of ``judged`` (n, k) with a column outside the lowest and highest of ``fit`` (m, k)."""
-    return np.any((judged < fit.min(axis=0)) | (judged > fit.max(axis=0)), axis=1)
+    """(n,) how far each row of ``judged`` (n, k) lies beyond the lowest and highest of ``fit`` (m,
+    k): its largest excess over a column's range, as a share of that range's width; 0 inside."""
+    lo, hi = fit.min(axis=0), fit.max(axis=0)
+    width = np.where(hi > lo, hi - lo, 1.0)
+    return np.max(np.clip(np.maximum(lo - judged, judged - hi), 0.0, None) / width, axis=1)
 
 
 def truth_sweep(n_seeds: int) -> None:
@@ -191,9 +195,11 @@ def main(argv=None):
             yte = Y[s:]
             mt, sd, seconds = mtcomp_prediction(header, rows, s, Path(tmp), chans)
             state = np.column_stack([T, d["spindle_rpm"]])
-            beyond = beyond_range(state[:s], state[s:])
+            excess = beyond_range(state[:s], state[s:])
+            beyond = excess > 0
+            by = f"{np.median(excess[beyond]):9.0%}" if beyond.any() else f"{'-':>9s}"
             sd_table.append(f"{round(frac * 100):3d}/{round((1 - frac) * 100):<2d} "
-                            f"{sd_columns(mt, sd, yte, beyond)}")
+                            f"{sd_columns(mt, sd, yte, beyond)} {by}")
             table = [("raw (no model)", np.zeros_like(yte)),
                      ("least squares, 16 temperatures", ridge(T[:s], Y[:s], 0.0)(T[s:])),
                      ("ridge, forward-validated penalty", forward_ridge(T[:s], Y[:s])(T[s:])),
@@ -204,9 +210,10 @@ def main(argv=None):
                       f"{absolute:9.2f}")
     print("mtcomp's standard errors (pred_..._sd) against its errors on the held-out part, absolute, um:")
     print("(then the rows beyond the fitted part's range of a temperature or the spindle speed, and rms z,")
-    print(" 2 sd cover on the rows inside it and on those beyond it)")
+    print(" 2 sd cover on the rows inside it and on those beyond it; 'by': the median over the rows")
+    print(" beyond of their largest excess over a column's range, as a share of the range's width)")
     print(f"{'split':>6s} {'rms error':>9s} {'median sd':>9s} {'ratio':>7s} {'rms z':>7s} {'2 sd cover':>9s}"
-          f"  {'beyond':>7s} {'in: z':>7s} {'cover':>9s} {'out: z':>7s} {'cover':>9s}")
+          f"  {'beyond':>7s} {'in: z':>7s} {'cover':>9s} {'out: z':>7s} {'cover':>9s} {'by':>9s}")
     print("\n".join(sd_table))
 
 
