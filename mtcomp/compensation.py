@@ -593,8 +593,9 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     assumed = unknown_state or assumed
     series = _checked_series(fitted, settings, temperature_series)
     probe_line = _probed(fitted, settings, temperature_series)   # before the state is written
-    for judge in judges:
-        judge.probed_as(fitted)
+    for judge in judges:        # one probing: a judge takes the state resolved here (Judge.probed_as)
+        if hasattr(judge, "probed_as"):
+            judge.probed_as(fitted)
     fitted.context_defaults.update(thermal)
     fitted.probe_tool_length = settings.probe_tool_length
     setup = setup if setup is not None else ProgramSetup(machine)
