@@ -22,7 +22,7 @@ import casadi as ca
 import numpy as np
 
 from ..machine import AXIS_DIRECTION
-from ..models.chain import (SPINDLE_TILT, rotary_location_names,
+from ..models.chain import (SPINDLE_TILT, rotary_location_names, slope_carried,
                             rotary_motion_names, squareness_names)
 from ..models.evaluate import casadi_map_call
 from ..models.model_file import FittedModel
@@ -93,6 +93,8 @@ class ComponentRange:
     sd: float
     largest_sd: float
     status: str
+    #: straightness whose slope no squareness carries: the least-squares line's slope, urad (um/m)
+    slope: float = float("nan")
 
 
 @dataclass
@@ -262,10 +264,14 @@ def _axis_ranges(fitted: FittedModel, ax, lo: float, hi: float, und: Undetermine
         angular = comp[1] in ANGLE_LETTERS
         unit, scale = ("urad", 1e6) if angular else ("um", 1e3)
         e, J = E[:, j] * scale, dE[:, j, :] * scale
+        slope = float("nan")
         if not ax.is_rotary and not angular and comp[1] != ax.name:
             # straightness about its least-squares line
             X = np.column_stack([np.ones_like(s), s - s.mean()])
-            e = e - X @ np.linalg.lstsq(X, e, rcond=None)[0]
+            line = np.linalg.lstsq(X, e, rcond=None)[0]
+            e = e - X @ line
+            if not slope_carried(fitted.machine, comp):
+                slope = float(line[1]) * 1e3          # um per mm -> urad
             J = J - X @ np.linalg.lstsq(X, J, rcond=None)[0]
         D = J - J[0]
         sd_along, held = und.assess(D)
@@ -279,7 +285,7 @@ def _axis_ranges(fitted: FittedModel, ax, lo: float, hi: float, und: Undetermine
         ranges.append(ComponentRange(ax.name, comp, component_meaning(ax.name, comp), unit, lo * f_pos,
                                      hi * f_pos, float(e[i_max] - e[i_min]), sd,
                                      float(np.nanmax(sd_along)) if np.any(np.isfinite(sd_along))
-                                     else float("nan"), status))
+                                     else float("nan"), status, slope))
     return ranges
 
 
@@ -298,7 +304,8 @@ def _location_values(fitted: FittedModel, und: Undetermined, mask) -> list:
     """:class:`LocationValue` of the squareness, spindle tilt and rotary location errors."""
     machine, p = fitted.machine, fitted.params.values
     values = []
-    singles = [(n, f"squareness {n}") for n in squareness_names(machine)]
+    square = tuple(squareness_names(machine))
+    singles = [(n, f"squareness {n}") for n in square]
     singles += [(n, f"tilt of the tool axis about {about}") for n, about in zip(SPINDLE_TILT, "XY")]
     for ax in machine.rotary_axes:
         offsets, tilts = rotary_location_names(ax.name)
@@ -316,8 +323,12 @@ def _location_values(fitted: FittedModel, und: Undetermined, mask) -> list:
         sd = und.std(J)
         status = _status(J, sd, mask)
         std = fitted.params.std_errors
-        if status == "fitted" and std is not None and np.isfinite(std).any() and np.isnan(std[i]):
-            status = "undetermined"       # the fit gave it no standard error: part of a held combination
+        if status == "fitted" and std is not None and np.isfinite(std).any() and np.isnan(std[i]) \
+                and name not in square:
+            # the fit gave it no standard error: part of a held combination. A squareness, the
+            # angle a ball bar or points read, is determined where what it trades with is held (the
+            # rolls no laser names, rule 3; the straightness slopes, the convention)
+            status = "undetermined"
         values.append(LocationValue(name, meaning, spec.unit, float(p[i] * spec.to_file), float(sd[0]),
                                     status))
     return values
@@ -346,7 +357,11 @@ def component_lines(fitted: FittedModel, undetermined: Undetermined | None = Non
         unit = "deg" if fitted.machine.axis(axis).is_rotary else "mm"
         lines.append(f"  {axis} from {rows[0].lo:g} to {rows[0].hi:g} {unit}:")
         for r in rows:
-            lines.append(f"    {r.meaning:<22} {r.component:<5} range {_pm(r.range, r.sd, r.status, r.unit)}")
+            # a flat straightness (no bow above the noise) can still slope: that slope is a squareness
+            slope = (f", slope {r.slope:.1f} urad" if np.isfinite(r.slope) and r.status in ("fitted", "flat")
+                     else "")
+            lines.append(f"    {r.meaning:<22} {r.component:<5} range {_pm(r.range, r.sd, r.status, r.unit)}"
+                         + slope)
     fitted_values = [v for v in values if v.status != "held"]
     if fitted_values:
         lines.append("  squareness, tool axis and axis location:")
