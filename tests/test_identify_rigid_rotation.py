@@ -40,10 +40,12 @@ travel_mm = [-100.0, 0.0]
 CENTRE = (300.0, 200.0, Z)
 
 
-def _campaign(folder, seed: int, tracker: bool | None = True, c0y_urad: float = C0Y_URAD):
-    """Laser positioning runs of X and Y, a circle in XY and a tracker grid (frame fitted) on the
-    truth machine with C0Y = ``c0y_urad``. ``tracker`` False: a straightness run of X in Y (its
-    optic's slope fitted) in place of the grid; None: neither. Returns (truth, fitted result)."""
+def _campaign(folder, seed: int, tracker: bool | None = True, c0y_urad: float = C0Y_URAD,
+              centre=CENTRE):
+    """Laser positioning runs of X and Y, a circle in XY (about ``centre``) and a tracker grid
+    (frame fitted) on the truth machine with C0Y = ``c0y_urad``. ``tracker`` False: a straightness
+    run of X in Y (its optic's slope fitted) in place of the grid; None: neither. Returns (truth,
+    fitted result)."""
     rng = np.random.default_rng(seed)
     machine = folder / "router.toml"
     machine.write_text(ROUTER)
@@ -54,7 +56,7 @@ def _campaign(folder, seed: int, tracker: bool | None = True, c0y_urad: float = 
              tc.laser(truth, folder / "laser_y.csv", rng, "Y", components=["EYY"], n_runs=2,
                       static={"X": 300.0, "Z": Z}).path,
              tc.ballbar_circles(truth, folder / "ballbar.csv", rng, planes=("XY",), radius_mm=150.0,
-                                centre_mm=CENTRE, n_points=36).path,
+                                centre_mm=centre, n_points=36).path,
              tc.points(truth, folder / "tracker.csv", rng, grid=(5, 4, 3), directions=(1,),
                        setup=True).path if tracker else
              tc.laser(truth, folder / "straight_yx.csv", rng, "X", components=["EYX"], n_runs=2,
@@ -87,6 +89,12 @@ def _turn_about_z_urad(pts, err) -> float:
     A[1::2, 2] = pts[:, 0] * 1e-3
     sol = np.linalg.lstsq(A, err[:, :2].reshape(-1), rcond=None)[0]
     return float(sol[2])
+
+
+def _file_sd(params, name: str) -> float:
+    """MODEL.json's standard error of parameter ``name`` (file units; NaN: none)."""
+    i = params.index(name)
+    return float(params.stderr[i] * params.specs[i].to_file)
 
 
 @pytest.fixture(scope="module")
@@ -165,11 +173,29 @@ def test_lasers_and_one_circle_give_the_squareness_with_its_standard_error_and_n
     code C0Y 11.7 urad with no standard error and EYX sloping by -7.7 urad; with the convention but
     the report counting C0Y undetermined for its combinations with the held rolls, "not determined"."""
     truth, result = _campaign(tmp_path, seed=1, tracker=None, c0y_urad=20.0)
-    # as the printed report gives it (the parameter table keeps the combination with the rolls open)
+    # as the printed report gives it, MODEL.json's standard error
     c0y, sd, status = [(v.value, v.sd, v.status) for v in component_ranges(result.fitted_model)[1]
                        if v.name == "C0Y"][0]
     assert status == "fitted" and np.isfinite(sd) and sd < 2.0, (c0y, sd, status)
     assert abs(c0y - 20.0) < 3.0 * sd, (c0y, sd)
+    assert sd == pytest.approx(_file_sd(result.fitted_model.params, "C0Y"), rel=1e-6)
     pts, model, _ = _grid_errors(truth, result.fitted_model, tmp_path)
     row = np.abs(pts[:, 1] - 200.0) < 1e-9
     assert abs(np.polyfit(pts[row, 0], model[row, 1], 1)[0] * 1e3) < 0.5        # urad
+
+
+def test_a_circle_at_another_height_leaves_the_squarenesses_with_z_open(tmp_path):
+    """The same shop's campaign with the circle 40 mm below the laser runs: the circle reads B0Z and
+    A0Z only as a shift of its centre (the centre its file states, not the machine), so they stay
+    "not determined" in the report and without a standard error in MODEL.json, while C0Y, read
+    from the circle's shape, keeps its own. With the rigid-turn convention's first version the
+    report gave B0Z and A0Z a standard error on the rolls held at zero (the shop's B0Z 10.1 +- 0.8
+    urad where its truth is 0)."""
+    truth, result = _campaign(tmp_path, seed=1, tracker=None, c0y_urad=20.0,
+                              centre=(CENTRE[0], CENTRE[1], Z - 40.0))
+    values = {v.name: v for v in component_ranges(result.fitted_model)[1]}
+    params = result.fitted_model.params
+    assert values["C0Y"].status == "fitted" and abs(values["C0Y"].value - 20.0) < 3.0 * values["C0Y"].sd
+    for name in ("B0Z", "A0Z"):
+        assert values[name].status == "undetermined", values[name]
+        assert np.isnan(_file_sd(params, name)), name

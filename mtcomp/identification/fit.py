@@ -56,9 +56,9 @@ from ..measurement.readings import MeasurementModel, data_held, data_support
 from ..models.model_file import FittedModel
 from ..models.params import ParameterSet
 from .reversal import DirectionContrast, data_reversal
-from ._rotation import reference_rotation, without
+from ._rotation import reference_rotation, undetermined_unknowns, without
 from .unmeasured import assumption, record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
-from ._linalg import (NULL_WEIGHT, column_scale, _eliminate, _error_scales, _name_null_space,
+from ._linalg import (column_scale, _eliminate, _error_scales, _name_null_space,
                       _relative_singular_values, _seen_columns, _solver, _unseen_apart, _step, block_obs,
                       file_normal_equations, one_blas_thread, penalised_inverse)
 from .problem import (DEFAULT_RCOND, FitProblem, SolverOptions, data_region, fitted_axes,
@@ -729,12 +729,7 @@ class _Problem:
         unknown_specs = [model.param_specs[i] for i in self.free_idx] + nuis_specs
         unknown_names = tuple(s.name for s in unknown_specs)
         to_file = np.array([s.to_file for s in unknown_specs])
-        # undetermined unknowns: those with weight in a null direction
-        if sol.null.shape[1]:
-            in_null = np.linalg.norm(sol.null, axis=1) > NULL_WEIGHT
-        else:
-            in_null = np.zeros(self.n_unknowns, dtype=bool)
-        in_null = in_null | getattr(self, "by_convention", False)     # held by the convention
+        in_null = undetermined_unknowns(self, sol.null)     # weight in a null direction, or held
         se = np.sqrt(np.clip(np.diag(sol.cov), 0.0, None))
         se[in_null] = np.nan
         cov = sol.cov.copy()

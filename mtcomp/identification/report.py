@@ -304,8 +304,7 @@ def _location_values(fitted: FittedModel, und: Undetermined, mask) -> list:
     """:class:`LocationValue` of the squareness, spindle tilt and rotary location errors."""
     machine, p = fitted.machine, fitted.params.values
     values = []
-    square = tuple(squareness_names(machine))
-    singles = [(n, f"squareness {n}") for n in square]
+    singles = [(n, f"squareness {n}") for n in squareness_names(machine)]
     singles += [(n, f"tilt of the tool axis about {about}") for n, about in zip(SPINDLE_TILT, "XY")]
     for ax in machine.rotary_axes:
         offsets, tilts = rotary_location_names(ax.name)
@@ -323,12 +322,8 @@ def _location_values(fitted: FittedModel, und: Undetermined, mask) -> list:
         sd = und.std(J)
         status = _status(J, sd, mask)
         std = fitted.params.std_errors
-        if status == "fitted" and std is not None and np.isfinite(std).any() and np.isnan(std[i]) \
-                and name not in square:
-            # the fit gave it no standard error: part of a held combination. A squareness, the
-            # angle a ball bar or points read, is determined where what it trades with is held (the
-            # rolls no laser names, rule 3; the straightness slopes, the convention)
-            status = "undetermined"
+        if status == "fitted" and std is not None and np.isfinite(std).any() and np.isnan(std[i]):
+            status = "undetermined"       # the fit gave it no standard error: part of a held combination
         values.append(LocationValue(name, meaning, spec.unit, float(p[i] * spec.to_file), float(sd[0]),
                                     status))
     return values
