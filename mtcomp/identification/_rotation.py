@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..models.basis import SLOPE_OF_RIGID_ROTATION, axis_spline
+from ..models.chain import squareness_names
 from ._linalg import NULL_WEIGHT
 from .unmeasured import leaving_held_alone
 
@@ -24,19 +25,18 @@ SQUARENESS_AXES = {"C0Y": "XY", "B0Z": "XZ", "A0Z": "YZ"}
 OPEN_SLOPE = 1e-3
 
 
-def _slope_rows(problem, scale: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(slopes (r, n_unknowns), squarenesses (r, n_unknowns)) in column-scaled unknowns, each row of
-    unit norm: the least-squares slope over its range of each free straightness of
-    :data:`SLOPE_OF_RIGID_ROTATION` (polynomials: the linear coefficient) whose squareness is free,
-    and that squareness."""
+def _slope_rows(problem, scale: np.ndarray) -> np.ndarray:
+    """(r, n_unknowns) the least-squares slope over its range of each free straightness of
+    :data:`SLOPE_OF_RIGID_ROTATION` (polynomials: the linear coefficient), in column-scaled unknowns,
+    each row of unit norm."""
     model = problem.model
     machine = model.machine
-    free = {model.param_specs[i].name: k for k, i in enumerate(problem.free_idx)}
+    square = set(squareness_names(machine))
     rows = {}
     for k, i in enumerate(problem.free_idx):
         spec = model.param_specs[i]
         axis, _, comp = spec.group.partition(":")
-        if SLOPE_OF_RIGID_ROTATION.get(comp) not in free or not spec.base:
+        if SLOPE_OF_RIGID_ROTATION.get(comp) not in square or not spec.base:
             continue
         suffix = spec.name[len(comp) + 1:]
         ax = machine.axis(axis)
@@ -44,41 +44,25 @@ def _slope_rows(problem, scale: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             weight = float(axis_spline(ax)._moments[1][int(suffix[1:])])
         else:
             weight = 1.0 if suffix == "1" else 0.0
-        row = rows.setdefault(comp, np.zeros(problem.n_unknowns))
+        row = rows.setdefault(spec.group, np.zeros(problem.n_unknowns))
         row[k] = weight * spec.to_file * scale[k]
-    L, Q = [], []
-    for comp, r in rows.items():
-        if np.linalg.norm(r) > 0:
-            L.append(r / np.linalg.norm(r))
-            Q.append(np.eye(1, problem.n_unknowns, free[SLOPE_OF_RIGID_ROTATION[comp]])[0])
-    return np.array(L).reshape(-1, problem.n_unknowns), np.array(Q).reshape(-1, problem.n_unknowns)
-
-
-def _turning(null: np.ndarray, Q: np.ndarray) -> np.ndarray:
-    """(n, k') orthonormal: the part of ``null`` that moves the squarenesses ``Q`` (rows). A turn of
-    the whole machine moves a straightness's slope and its squareness together; an open shape of a
-    straightness alone (its linear and cubic terms where the data see neither) is no turn, and the
-    convention leaves it to the fit (the data's minimum-norm choice)."""
-    _, sq, Vq = np.linalg.svd(Q @ null, full_matrices=False)
-    return null @ Vq[:int(np.sum(sq > OPEN_SLOPE))].T
+    out = [r / np.linalg.norm(r) for r in rows.values() if np.linalg.norm(r) > 0]
+    return np.array(out).reshape(-1, problem.n_unknowns)
 
 
 def reference_rotation(problem, null: np.ndarray, scale: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(fixed (n, c), turns (n, c)) in column-scaled unknowns (``scale`` (n,)): of ``null`` (n, k:
-    orthonormal, what neither the data nor the roughness penalty see), the c combinations that turn
-    the machine, moving the slopes of :data:`SLOPE_OF_RIGID_ROTATION` with their squarenesses
-    (``turns``, orthonormal: the frames turned back) and the constraints that hold those slopes at
-    their start (``fixed``, orthonormal: the fit moves along none of them); c = 0 where the data
-    read the slopes or the squarenesses."""
+    orthonormal, what neither the data nor the roughness penalty see), the c combinations that move
+    the slopes of :data:`SLOPE_OF_RIGID_ROTATION` (``turns``, orthonormal: the machine's turns with
+    the frames turned back) and the constraints that hold those slopes at their start (``fixed``,
+    orthonormal: the fit moves along none of them); c = 0 where the data read the slopes."""
     n = null.shape[0]
-    L, Q = _slope_rows(problem, scale)
+    L = _slope_rows(problem, scale)
     if L.shape[0] == 0 or null.shape[1] == 0:
         return np.zeros((n, 0)), np.zeros((n, 0))
     # a turn leaves alone what the assumption holds (angular motions no laser names): else the
     # slopes' SVD mixes them in (a laser run of X and a circle: a yaw of X of 20 +- 8e4 urad)
-    null = _turning(leaving_held_alone(problem, null), Q)
-    if not null.shape[1]:
-        return np.zeros((n, 0)), np.zeros((n, 0))
+    null = leaving_held_alone(problem, null)
     U, sv, Vt = np.linalg.svd(L @ null, full_matrices=True)
     c = int(np.sum(sv > OPEN_SLOPE))
     fixed, _ = np.linalg.qr((U[:, :c].T @ L).T)
