@@ -25,60 +25,29 @@ SQUARENESS_AXES = {"C0Y": "XY", "B0Z": "XZ", "A0Z": "YZ"}
 OPEN_SLOPE = 1e-3
 
 
-def _straightness_unknowns(problem):
-    """(k, spec, axis, term) of each free unknown of a straightness of
-    :data:`SLOPE_OF_RIGID_ROTATION`: its position, spec, axis and term (a B-spline function's
-    index, or a polynomial's power)."""
-    model = problem.model
-    square = set(squareness_names(model.machine))
-    for k, i in enumerate(problem.free_idx):
-        spec = model.param_specs[i]
-        axis, _, comp = spec.group.partition(":")
-        if SLOPE_OF_RIGID_ROTATION.get(comp) in square and spec.base:
-            ax = model.machine.axis(axis)
-            yield k, spec, ax, int(spec.name[len(comp) + 1:].lstrip("b"))
-
-
 def _slope_rows(problem, scale: np.ndarray) -> np.ndarray:
     """(r, n_unknowns) the least-squares slope over its range of each free straightness of
     :data:`SLOPE_OF_RIGID_ROTATION` (polynomials: the linear coefficient), in column-scaled unknowns,
     each row of unit norm."""
+    model = problem.model
+    machine = model.machine
+    square = set(squareness_names(machine))
     rows = {}
-    for k, spec, ax, term in _straightness_unknowns(problem):
+    for k, i in enumerate(problem.free_idx):
+        spec = model.param_specs[i]
+        axis, _, comp = spec.group.partition(":")
+        if SLOPE_OF_RIGID_ROTATION.get(comp) not in square or not spec.base:
+            continue
+        suffix = spec.name[len(comp) + 1:]
+        ax = machine.axis(axis)
         if ax.basis == "bspline":
-            weight = float(axis_spline(ax)._moments[1][term])
+            weight = float(axis_spline(ax)._moments[1][int(suffix[1:])])
         else:
-            weight = 1.0 if term == 1 else 0.0
+            weight = 1.0 if suffix == "1" else 0.0
         row = rows.setdefault(spec.group, np.zeros(problem.n_unknowns))
         row[k] = weight * spec.to_file * scale[k]
     out = [r / np.linalg.norm(r) for r in rows.values() if np.linalg.norm(r) > 0]
     return np.array(out).reshape(-1, problem.n_unknowns)
-
-
-def _shape_rows(problem, scale: np.ndarray) -> np.ndarray:
-    """(r, n_unknowns) orthonormal rows, in column-scaled unknowns: what of the straightnesses of
-    :data:`SLOPE_OF_RIGID_ROTATION` a change of the unknowns moves other than a line (their values
-    on a grid over each one's range, less the least-squares line). A turn moves each by a line."""
-    cols = {}
-    for k, spec, ax, term in _straightness_unknowns(problem):
-        if ax.basis == "bspline":
-            sp = axis_spline(ax)
-            s = np.linspace(sp.lo, sp.hi, 4 * sp.n_basis + 1)
-            f = np.asarray(sp.functions(s, False)[sp.kept(False).index(term)], dtype=float)
-        else:
-            s = np.linspace(*ax.travel, 41)
-            f = (s / 1000.0) ** term
-        X = np.column_stack([np.ones_like(s), s])
-        f = f - X @ np.linalg.lstsq(X, f, rcond=None)[0]
-        cols.setdefault(spec.group, []).append((k, f * spec.to_file * scale[k]))
-    rows = []
-    for entries in cols.values():
-        M = np.zeros((entries[0][1].size, problem.n_unknowns))
-        for k, f in entries:
-            M[:, k] = f
-        _, sv, Vt = np.linalg.svd(M, full_matrices=False)
-        rows += list(Vt[sv > 1e-9 * max(sv.max(initial=0.0), 1e-300)])
-    return np.array(rows).reshape(-1, problem.n_unknowns)
 
 
 def reference_rotation(problem, null: np.ndarray, scale: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -94,12 +63,6 @@ def reference_rotation(problem, null: np.ndarray, scale: np.ndarray) -> tuple[np
     # a turn leaves alone what the assumption holds (angular motions no laser names): else the
     # slopes' SVD mixes them in (a laser run of X and a circle: a yaw of X of 20 +- 8e4 urad)
     null = leaving_held_alone(problem, null)
-    # a turn moves those straightnesses by lines: an open shape of one (its linear and cubic terms
-    # where no reading sees them, its squareness read) is no turn
-    S = _shape_rows(problem, scale)
-    if S.shape[0]:
-        _, ss, Vs = np.linalg.svd(S @ null, full_matrices=True)
-        null = null @ Vs[int(np.sum(ss > OPEN_SLOPE)):].T
     U, sv, Vt = np.linalg.svd(L @ null, full_matrices=True)
     c = int(np.sum(sv > OPEN_SLOPE))
     fixed, _ = np.linalg.qr((U[:, :c].T @ L).T)
@@ -116,9 +79,14 @@ def without(basis: np.ndarray, turns: np.ndarray) -> np.ndarray:
 
 
 def _angle_read(problem, name: str) -> bool:
-    """True when a file moves both axes of squareness ``name`` (a circle in their plane, points or
-    a diagonal spread over both): it reads their angle from its shape. A circle at one height reads
-    B0Z and A0Z only as a shift of its centre, which rests on the centre the file states."""
+    """True when laser runs name the positioning of both axes of squareness ``name`` and a file
+    moves both (a circle in their plane, points or a diagonal spread over both): it reads their
+    angle from its shape, the lasers the axes' scales. A circle at one height reads B0Z and A0Z
+    only as a shift of its centre, which rests on the centre the file states; a circle alone
+    shares its angle with the straightnesses' shapes (C0Y 131 urad standard error)."""
+    named = {str(c) for mm in problem.mms if mm.kind == "laser" for c in np.unique(mm.data.component)}
+    if not all(f"E{a}{a}" in named for a in SQUARENESS_AXES[name]):
+        return False
     for mm in problem.mms:
         try:
             q = mm.data.axis_positions(mm.machine)
@@ -134,12 +102,13 @@ def undetermined_unknowns(problem, null: np.ndarray) -> np.ndarray:
     """(n_unknowns,) bool: the unknowns the fit leaves undetermined given its open directions
     ``null`` (orthonormal, column-scaled): those with weight in one, and the slopes the convention
     holds. A squareness whose only open directions move what the unmeasured-components rule holds
-    (:func:`leaving_held_alone`) is determined on that rule, with its standard error, where a file
-    reads the angle (:func:`_angle_read`): lasers of X and Y and one XY circle leave C0Y open only
-    with the rolls no laser names."""
+    (:func:`leaving_held_alone`) is determined on that rule, with its standard error, where the
+    data read the angle (:func:`_angle_read`): lasers of X and Y and one XY circle leave C0Y open
+    only with the rolls no laser names."""
+    by_convention = getattr(problem, "by_convention", False)
     if not null.shape[1]:
-        return np.zeros(problem.n_unknowns, dtype=bool) | getattr(problem, "by_convention", False)
-    in_null = (np.linalg.norm(null, axis=1) > NULL_WEIGHT) | getattr(problem, "by_convention", False)
+        return np.zeros(problem.n_unknowns, dtype=bool) | by_convention
+    in_null = (np.linalg.norm(null, axis=1) > NULL_WEIGHT) | by_convention
     open_alone = np.linalg.norm(leaving_held_alone(problem, null), axis=1) > NULL_WEIGHT
     specs = problem.model.param_specs
     for k, i in enumerate(problem.free_idx):
