@@ -109,3 +109,27 @@ def test_an_added_rotation_centre_carries_its_standard_error(tmp_path):
     assert f.params["irc_shift_sd_mm_per_m_min"] == pytest.approx(sd, abs=1e-4)
     for direction, v in f.params["uniform_um_per_m_min"].items():
         assert f"a uniform {v:.3g} um per m/min along {direction}" in f.evidence, (v, f.evidence)
+
+
+def test_a_seen_through_factor_s_covariance_with_the_files_set_ups_is_left_out_with_the_rest():
+    """A factor whose variance is rewritten from the least squares (seen_through_factor) keeps no
+    covariance with the penalised fit's other parameters, nor with its fitted files' set-ups: predict
+    puts both in one joint covariance ([J D] C [J D]^T), where a cross term the rewrite left behind
+    would pair the least squares' variance with the penalised fit's covariance."""
+    from types import SimpleNamespace
+    from mtcomp.diagnose._open import seen_through_factor
+    from mtcomp.models.params import ParamSpec
+    specs = (ParamSpec("a", "um", "X:EXX"), ParamSpec("b", "um", "shift", base=False))
+    lsq = SimpleNamespace(params=ParameterSet(specs, std_errors=np.array([0.1, 0.2])))
+    setup = {"names": ("f:zero",), "to_file": np.array([1e3]), "cross": np.array([[0.002, 0.0005]]),
+             "covariance": np.array([[0.04]])}
+    u = {"names": ("a", "b"), "covariance": np.array([[0.01, 3e-4], [3e-4, 1e-6]]),
+         "undetermined": np.array([[0.0], [1.0]]), "setup": setup}     # b alone is left open
+    penalised = SimpleNamespace(params=ParameterSet(specs, std_errors=np.array([0.1, np.nan])), uncertainty=u)
+    params, u = seen_through_factor(lsq, penalised, 2.0)
+    # b: the least squares' variance times s2, apart from a and from the set-up; a as it was
+    np.testing.assert_allclose(u["covariance"], [[0.01, 0.0], [0.0, 0.08]], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(u["setup"]["cross"], [[0.002, 0.0]], rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(u["setup"]["covariance"], [[0.04]])
+    np.testing.assert_array_equal(setup["cross"], [[0.002, 0.0005]])     # the penalised fit's own: unchanged
+    assert u["undetermined"].shape[1] == 0 and params.std_errors[1] == pytest.approx(np.sqrt(0.08), rel=1e-12)

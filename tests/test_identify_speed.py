@@ -143,15 +143,17 @@ def test_a_fit_in_blocks_is_the_fit_of_the_whole_file(monkeypatch):
     np.testing.assert_allclose(blocks.files[0].residual, whole.files[0].residual, rtol=0, atol=1e-6)
     fin = np.isfinite(whole.covariance)
     np.testing.assert_array_equal(np.isfinite(blocks.covariance), fin)
-    # 2e-9: the angular error motions this points file leaves open are held at zero by constraints
+    # 5e-9: the angular error motions this points file leaves open are held at zero by constraints
     # (docs/identification.md, rule 3), whose projection carries the reordered sums' round-off
     # into the covariance (1.3e-9 of its largest at most here; 1e-9 before the rule applied to
-    # points alone)
+    # points alone); the turn of the machine held by the convention (rule 2, EYX's and EZX's slopes)
+    # is one more such constraint: 3.4e-9 of the largest (48 of 61009 entries past 2e-9)
     np.testing.assert_allclose(blocks.covariance[fin], whole.covariance[fin], rtol=0,
-                               atol=2e-9 * np.abs(whole.covariance[fin]).max())
+                               atol=5e-9 * np.abs(whole.covariance[fin]).max())
     assert set(blocks.smoothing.rho) == set(whole.smoothing.rho)
+    # REML's log weights to 3e-9: with the convention's constraint they differ by 1.5e-9 (-3.59888098)
     for k, rho in whole.smoothing.rho.items():
-        assert blocks.smoothing.rho[k] == pytest.approx(rho, rel=1e-9, abs=1e-9)
+        assert blocks.smoothing.rho[k] == pytest.approx(rho, rel=3e-9, abs=1e-9)
 
 
 def test_the_fit_runs_blas_on_one_thread_and_restores_it(monkeypatch):

@@ -11,9 +11,12 @@ slope's share about the profile's reference, not the zero's: 0 at the targets' c
 line's standard error at their ends."""
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
+from mtcomp.cli import main
 from mtcomp.identification.fit import identify
 from mtcomp.identification.predict import predict_readings
 from mtcomp.machine import load_machine
@@ -55,3 +58,29 @@ def test_a_fitted_laser_file_is_predicted_with_the_standard_error_of_its_least_s
     again = predict_readings(load_model(tmp_path / "MODEL.json"), d)
     np.testing.assert_allclose(again.columns["pred_value_um_sd"], expected_sd, rtol=1e-4)
 
+
+
+@pytest.mark.parametrize("edit, needles", [
+    (lambda s: s["cross"][0].__setitem__(0, float("nan")), ("'cross'", "not a finite number")),
+    (lambda s: s["covariance"][0].__setitem__(0, float("inf")), ("'covariance'", "not a finite number")),
+    (lambda s: s.update(parameters=s["parameters"] * 2, to_file=s["to_file"] * 2,
+                        cross=s["cross"] * 2, covariance=[r * 2 for r in s["covariance"] * 2]),
+     ("'parameters'", "line_x:X:EXX:offset", "more than once")),
+], ids=["nan-cross", "infinite-covariance", "duplicate-name"])
+def test_a_set_up_covariance_that_is_not_finite_or_names_one_twice_exits_2(tmp_path, capsys, edit, needles):
+    """A NaN in the set-up's covariance silently blanked the standard errors (predict then said the
+    data left a combination open, the wrong reason); a set-up named twice took the first's rows."""
+    path = _line_file(tmp_path / "line_x.csv")
+    res = identify(load_machine("xfyz"), [read_measurements(path)])
+    model = tmp_path / "MODEL.json"
+    save_model(model, res.fitted_model)
+    data = json.loads(model.read_text())
+    edit(data["uncertainty"]["setup"])
+    model.write_text(json.dumps(data))          # NaN, Infinity: what json writes and reads
+    out = tmp_path / "pred.csv"
+    assert main(["predict", "xfyz", str(model), str(path), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "Traceback" not in err[0] and str(model) in err[0], err
+    for n in needles:
+        assert n in err[0], (n, err[0])
+    assert not out.exists()

@@ -90,17 +90,24 @@ def test_the_report_gives_a_rotary_axis_zero_offset(tmp_path, capsys):
 
 def test_an_r_test_without_hold_says_which_hold(tmp_path, capsys, monkeypatch):
     """The same R-test (fewer poses) without --hold: the linear axes move only with B and C, and
-    combinations the data leave open trade the rotary axes' errors against theirs (ECC_0 against
-    the squareness of X and Y and the slope of X's straightness in Y; the yaws of Y and Z, which
-    no laser names, are held at zero where the data leave them open, and the squareness is not).
-    The report, and the run's last notes, say which --hold (before: a column of "not determined by
-    the data" and nothing on what to do)."""
+    combinations the data leave open trade the rotary axes' errors against theirs (the tool axis's
+    tilts and B's zero against the tilts of Z, which no laser names). The turn about Z, ECC_0
+    against the squareness C0Y and the slope of X's straightness in Y, goes by the convention (X the
+    reference axis: EYX's slope zero): ECC_0 and C0Y are given with standard errors, at the truth's
+    0 within 3 sd (before the convention held wherever the turn is open, ECC_0 was "not determined
+    by the data"). The report, and the run's last notes, say which --hold (before: a column of "not
+    determined by the data" and nothing on what to do)."""
     monkeypatch.setattr(__import__(__name__), "POSES", [(0, c) for c in range(0, 360, 45)]
                         + [(b, 0) for b in range(-90, 91, 30)] + [(45, c) for c in range(0, 360, 90)])
     src = _rtest(tmp_path / "rtest.csv", 5e-6)
     assert main(["identify", "cbfxyz", str(src), "--known-setup", str(src), "-o", str(tmp_path / "M.json")]) == 0
     out = capsys.readouterr().out
-    assert re.search(r"ECC_0\s+not determined by the data", out), out
+    for name in ("ECC_0", "C0Y"):
+        m = re.search(rf"{name}\s+(-?[0-9.e+-]+) \+- ([0-9.e+-]+) urad", out)
+        assert m, out
+        value, sd = float(m.group(1)), float(m.group(2))
+        assert abs(value) <= 3.0 * sd and sd < 2.0, (name, value, sd)
+    assert re.search(r"A0S\s+not determined by the data", out), out
     hints = [line for line in out.splitlines() if "--hold X,Y,Z,squareness,spindle" in line]
     assert len(hints) == 2 and hints[0].startswith("  hint: ") and hints[1].startswith("note: "), out
 

@@ -13,6 +13,9 @@ import numpy as np
 import pytest
 
 from mtcomp.cli import main
+from mtcomp.identification.predict import predict_readings
+from mtcomp.measurement.files import read_measurements
+from mtcomp.models.model_file import load_model
 
 from laser_files import write_x_positioning
 from real_data import SHARED_REAL, THERMAL
@@ -143,7 +146,7 @@ def test_a_record_beside_a_laser_file_keeps_the_backlash_and_the_drift_acts_on_i
     assert found[("thermal_drift", "Y")]["params"]["channels"] == {"a": "Y", "b": ""}
     assert report["thermal"]["file"] == str(record) and "forward-chained" in report["thermal"]["heldout"]
     # the laser file's findings are those it has alone
-    rc, rep_alone, _ = _diagnose(tmp_path, [laser], tag="alone")
+    rc, rep_alone, model_alone = _diagnose(tmp_path, [laser], tag="alone")
     alone = json.loads(rep_alone.read_text())
     assert [(f["effect"], f["axis"]) for f in alone["findings"]] == \
         [k for k in found if k[0] != "thermal_drift"]
@@ -168,6 +171,14 @@ def test_a_record_beside_a_laser_file_keeps_the_backlash_and_the_drift_acts_on_i
     assert saved["info"]["thermal_first_reading"] == {"temp_s": pytest.approx(temp[0], abs=1e-12)}
     assert {t["kind"] for t in saved["terms"]} >= {"backlash", "thermal_drift", "channel_drift"}
     assert "uncertainty" in saved and "TD_Y_temp_s" in saved["uncertainty"]["parameters"]
+    # the laser file, which the fit saw, is predicted with its fitted set-up's standard error as
+    # by the laser file's model alone (the drift's parameters do not move its readings): the
+    # joined model keeps the set-up's covariance (without it, the parameters' share alone: 0.025 um
+    # at the targets' centre against 0.035)
+    d = read_measurements(laser)
+    sd, sd_alone = (predict_readings(load_model(m), d).columns["pred_value_um_sd"] for m in (model, model_alone))
+    assert np.all(sd_alone > 0.01)
+    np.testing.assert_allclose(sd, sd_alone, rtol=1e-6, atol=0)
 
 
 def test_the_real_spindle_record_beside_a_laser_file_keeps_its_backlash(tmp_path, capsys):
@@ -321,7 +332,13 @@ def test_the_geometric_fit_s_held_combinations_stay_apart_beside_a_drift():
     geo = {"names": ("a", "b"), "covariance": np.diag([4.0, 9.0]) + 25.0 * held @ held.T,
            "undetermined": np.zeros((2, 0)), "held": held, "held_sd_um": np.array([5.0])}
     drift = {"names": ("d",), "covariance": np.array([[1.0]]), "undetermined": np.zeros((1, 0))}
-    out = _joined_uncertainty(geo, drift)
+    setup = {"names": ("f:zero",), "to_file": np.array([1e3]), "cross": np.array([[0.5, -0.25]]),
+             "covariance": np.array([[2.0]])}
+    out = _joined_uncertainty({**geo, "setup": setup}, drift)
+    # the geometric files' set-up, its covariance with the drift's parameter zero
+    np.testing.assert_array_equal(out["setup"]["cross"], [[0.5, -0.25, 0.0]])
+    np.testing.assert_array_equal(out["setup"]["covariance"], [[2.0]])
+    assert out["setup"]["names"] == ("f:zero",) and list(out["setup"]["to_file"]) == [1e3]
     np.testing.assert_array_equal(out["held"], [[1.0], [2.0], [0.0]])
     np.testing.assert_array_equal(out["held_sd_um"], [5.0])
     G = out["held"] * out["held_sd_um"]

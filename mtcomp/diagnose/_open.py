@@ -209,9 +209,9 @@ def seen_through_factor(lsq, penalised, s2: float) -> tuple:
     where that angle is zero, it moves no reading, and the penalised fit holds it at the selection's
     value. There the least squares, linearised at the selection's values, measures it (on a
     double turntable's campaign a centre moving 79.96 +- 0.27 mm per m/min, the truth's 80). Its
-    variance is that of the least squares, its covariance with the rest left out (the penalised fit
-    did not move it), and the combinations the data leave open no longer hold it: alone it lies in
-    their span, so each of them less its part is still one of them."""
+    variance is that of the least squares, its covariance with the rest and with the files' set-ups
+    left out (the penalised fit did not move it), and the combinations the data leave open no longer
+    hold it: alone it lies in their span, so each of them less its part is still one of them."""
     u = penalised.uncertainty
     if u is None or lsq.params.std_errors is None:
         return penalised.params, u
@@ -238,7 +238,13 @@ def seen_through_factor(lsq, penalised, s2: float) -> tuple:
         C[k, k] = v
         std[params.index(n)] = np.sqrt(v)
     params.std_errors = std
-    return params, {**u, "covariance": C, "undetermined": _less_rows(N, rows)}
+    out = {**u, "covariance": C, "undetermined": _less_rows(N, rows)}
+    if "setup" in u:
+        # nor with the fitted files' set-ups (predict's covariance of a fitted file's readings)
+        cross = np.array(u["setup"]["cross"], dtype=float, copy=True)
+        cross[:, rows] = 0.0
+        out["setup"] = {**u["setup"], "cross": cross}
+    return params, out
 
 
 def _less_rows(N: np.ndarray, rows: list) -> np.ndarray:

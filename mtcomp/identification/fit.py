@@ -56,8 +56,9 @@ from ..measurement.readings import MeasurementModel, data_held, data_support
 from ..models.model_file import FittedModel, setup_uncertainty
 from ..models.params import ParameterSet
 from .reversal import DirectionContrast, data_reversal
+from ._rotation import reference_rotation, undetermined_unknowns, without
 from .unmeasured import assumption, record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
-from ._linalg import (NULL_WEIGHT, column_scale, _eliminate, _error_scales, _name_null_space,
+from ._linalg import (column_scale, _eliminate, _error_scales, _name_null_space,
                       _relative_singular_values, _seen_columns, _solver, _unseen_apart, _step, block_obs,
                       file_normal_equations, one_blas_thread, penalised_inverse)
 from .problem import (DEFAULT_RCOND, FitProblem, SolverOptions, data_region, fitted_axes,
@@ -515,14 +516,18 @@ class _Problem:
         keep = rel > rcond
         penalties = self.scaled_penalties(A0, scale) if self.use_penalty else {}
         null = self.penalised_null(V[:, ~keep], penalties)
+        frames = frame_rotations(self.mms, self.n_free)
+        rotation, turns = reference_rotation(self, null, scale)   # X the reference
+        null = without(null, turns)
+        self.by_convention = np.linalg.norm(rotation, axis=1) > 1.0 - 1e-9   # a slope's own parameter
         data_rank = int(keep.sum())
         cond = float(rel[0] / rel[keep][-1]) if data_rank else np.inf
         start = (x, r, A, g)
-        assumed = assumption(self, V[:, ~keep], scale)
+        assumed = assumption(self, without(V[:, ~keep], turns), scale)
         held_null = self.penalised_null(assumed.null, penalties) if assumed.fixed.shape[1] else null
         B1 = frame_rule_complement(held_null, scale, np.arange(self.n_unknowns) < self.n_free,
                                    unmeasured_unknowns(self), self.metric,
-                                   frame_rotations(self.mms, self.n_free), fixed=assumed.fixed)
+                                   frames, fixed=np.hstack([rotation, assumed.fixed]))
         first = self._penalised_fit(start, w, max_iterations, tol, B1, scale, penalties)
         first += (null, B1.shape[1])
         self.held = None
@@ -724,11 +729,7 @@ class _Problem:
         unknown_specs = [model.param_specs[i] for i in self.free_idx] + nuis_specs
         unknown_names = tuple(s.name for s in unknown_specs)
         to_file = np.array([s.to_file for s in unknown_specs])
-        # undetermined unknowns: those with weight in a null direction
-        if sol.null.shape[1]:
-            in_null = np.linalg.norm(sol.null, axis=1) > NULL_WEIGHT
-        else:
-            in_null = np.zeros(self.n_unknowns, dtype=bool)
+        in_null = undetermined_unknowns(self, sol.null)     # weight in a null direction, or held
         se = np.sqrt(np.clip(np.diag(sol.cov), 0.0, None))
         se[in_null] = np.nan
         cov = sol.cov.copy()

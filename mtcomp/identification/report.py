@@ -22,7 +22,7 @@ import casadi as ca
 import numpy as np
 
 from ..machine import AXIS_DIRECTION
-from ..models.chain import (SPINDLE_TILT, rotary_location_names,
+from ..models.chain import (SPINDLE_TILT, rotary_location_names, slope_carried,
                             rotary_motion_names, squareness_names)
 from ..models.evaluate import casadi_map_call
 from ..models.model_file import FittedModel
@@ -93,6 +93,8 @@ class ComponentRange:
     sd: float
     largest_sd: float
     status: str
+    #: straightness whose slope no squareness carries: the least-squares line's slope, urad (um/m)
+    slope: float = float("nan")
 
 
 @dataclass
@@ -262,10 +264,14 @@ def _axis_ranges(fitted: FittedModel, ax, lo: float, hi: float, und: Undetermine
         angular = comp[1] in ANGLE_LETTERS
         unit, scale = ("urad", 1e6) if angular else ("um", 1e3)
         e, J = E[:, j] * scale, dE[:, j, :] * scale
+        slope = float("nan")
         if not ax.is_rotary and not angular and comp[1] != ax.name:
             # straightness about its least-squares line
             X = np.column_stack([np.ones_like(s), s - s.mean()])
-            e = e - X @ np.linalg.lstsq(X, e, rcond=None)[0]
+            line = np.linalg.lstsq(X, e, rcond=None)[0]
+            e = e - X @ line
+            if not slope_carried(fitted.machine, comp):
+                slope = float(line[1]) * 1e3          # um per mm -> urad
             J = J - X @ np.linalg.lstsq(X, J, rcond=None)[0]
         D = J - J[0]
         sd_along, held = und.assess(D)
@@ -279,7 +285,7 @@ def _axis_ranges(fitted: FittedModel, ax, lo: float, hi: float, und: Undetermine
         ranges.append(ComponentRange(ax.name, comp, component_meaning(ax.name, comp), unit, lo * f_pos,
                                      hi * f_pos, float(e[i_max] - e[i_min]), sd,
                                      float(np.nanmax(sd_along)) if np.any(np.isfinite(sd_along))
-                                     else float("nan"), status))
+                                     else float("nan"), status, slope))
     return ranges
 
 
@@ -346,7 +352,11 @@ def component_lines(fitted: FittedModel, undetermined: Undetermined | None = Non
         unit = "deg" if fitted.machine.axis(axis).is_rotary else "mm"
         lines.append(f"  {axis} from {rows[0].lo:g} to {rows[0].hi:g} {unit}:")
         for r in rows:
-            lines.append(f"    {r.meaning:<22} {r.component:<5} range {_pm(r.range, r.sd, r.status, r.unit)}")
+            # a flat straightness (no bow above the noise) can still slope: that slope is a squareness
+            slope = (f", slope {r.slope:.1f} urad" if np.isfinite(r.slope) and r.status in ("fitted", "flat")
+                     else "")
+            lines.append(f"    {r.meaning:<22} {r.component:<5} range {_pm(r.range, r.sd, r.status, r.unit)}"
+                         + slope)
     fitted_values = [v for v in values if v.status != "held"]
     if fitted_values:
         lines.append("  squareness, tool axis and axis location:")

@@ -109,6 +109,24 @@ def unmeasured_unknowns(problem, assumed: bool = False) -> np.ndarray:
     return np.concatenate([mask, np.zeros(problem.n_unknowns - problem.n_free, dtype=bool)])
 
 
+#: a direction moves what the assumption holds by more than this (orthonormal, column-scaled
+#: directions): it is not among those that leave it alone (round-off of one that does is ~1e-8)
+MOVES_HELD = 1e-3
+
+
+def leaving_held_alone(problem, null: np.ndarray) -> np.ndarray:
+    """(n_unknowns, k') orthonormal: the part of ``null`` (orthonormal, column-scaled) that leaves
+    alone the components the assumption holds (:func:`unmeasured_unknowns` ``assumed=True``). A
+    direction of ``null`` that mixes such a component in is fixed by the assumption; an SVD basis of
+    ``null`` can mix it into one that is open on its own (a ball bar at one height: B0Z with the
+    rolls and pitches)."""
+    u = unmeasured_unknowns(problem, assumed=True)
+    if not null.shape[1] or not u.any():
+        return null
+    _, su, Vu = np.linalg.svd(null[u], full_matrices=True)
+    return null @ Vu[int(np.sum(su > MOVES_HELD)):].T
+
+
 @dataclass
 class Assumption:
     """What the assumption that components no laser file names are zero does to a fit.

@@ -46,6 +46,10 @@ from ..machine import DEFAULT_SPLINE_INTERVALS, Machine
 
 #: component errors whose linear part (slope) a squareness carries (ISO 230-1 reference lines)
 SLOPE_CARRIED_BY_SQUARENESS = {"EXY": "C0Y", "EXZ": "B0Z", "EYZ": "A0Z"}
+#: straightnesses whose slope, with the squareness named and a frame's turn, is a rigid rotation of the
+#: machine against the workpiece frame (X the reference axis, then Y): their slopes are zero where the
+#: data leave that rotation open (no file's frame known)
+SLOPE_OF_RIGID_ROTATION = {"EYX": "C0Y", "EZX": "B0Z", "EZY": "A0Z"}
 
 
 def _clip(x, lo, hi):

@@ -457,6 +457,13 @@ def _setup_from_file(data, f: np.ndarray, path) -> dict:
                          "set-up parameter over the parameters) and a square 'covariance'", path) from None
     if not np.all(g != 0):
         raise InputError("'uncertainty' 'setup' 'to_file' must be non-zero", path)
+    for entry, v in (("to_file", g), ("cross", cross), ("covariance", cov)):
+        if not np.all(np.isfinite(v)):      # a NaN would blank a standard error for another reason
+            raise InputError(f"'uncertainty' 'setup' {entry!r} holds a value that is not a finite "
+                             "number", path)
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise InputError(f"'uncertainty' 'setup' 'parameters' names {twice[0]!r} more than once", path)
     return {"names": names, "to_file": g, "cross": cross / np.outer(g, f), "covariance": cov / np.outer(g, g)}
 
 

@@ -159,4 +159,26 @@ def _joined_uncertainty(a: dict | None, b: dict | None) -> dict | None:
                                             np.asarray(b.get("held_sd_um", ()), dtype=float)])
     if a.get("model_error") or b.get("model_error"):
         out["model_error"] = {**a.get("model_error", {}), **b.get("model_error", {})}
+    if "setup" in a or "setup" in b:
+        out["setup"] = _joined_setup(a, b)
     return out
+
+
+def _joined_setup(a: dict, b: dict) -> dict:
+    """The fitted files' set-ups of two fits on different data (the ``setup`` entry of
+    :class:`mtcomp.models.model_file.FittedModel`'s uncertainty) side by side: a set-up's covariance
+    with the other fit's parameters and set-ups is zero. Without it a fitted laser file beside a
+    thermal record was predicted with the parameters' share of its standard error alone, which
+    leaves out its zero's variance (docs/identification.md)."""
+    import scipy.linalg
+    na, nb = len(a["names"]), len(b["names"])
+    empty = {"names": (), "to_file": np.zeros(0), "cross": np.zeros((0, 0)), "covariance": np.zeros((0, 0))}
+    sa, sb = a.get("setup", empty), b.get("setup", empty)
+    ka, kb = len(sa["names"]), len(sb["names"])
+    return {"names": tuple(sa["names"]) + tuple(sb["names"]),
+            "to_file": np.concatenate([np.asarray(sa["to_file"], dtype=float),
+                                       np.asarray(sb["to_file"], dtype=float)]),
+            "cross": scipy.linalg.block_diag(np.asarray(sa["cross"], dtype=float).reshape(ka, na),
+                                             np.asarray(sb["cross"], dtype=float).reshape(kb, nb)),
+            "covariance": scipy.linalg.block_diag(np.asarray(sa["covariance"], dtype=float).reshape(ka, ka),
+                                                  np.asarray(sb["covariance"], dtype=float).reshape(kb, kb))}

@@ -1,0 +1,118 @@
+"""A rigid rotation of the machine the data leave open goes by the convention: X is the reference axis.
+
+Where no file's frame is known, a turn of the whole machine against the workpiece frame changes no
+reading: about Z it is the slope of X's straightness in Y (EYX) together with the squareness C0Y and
+every instrument frame turned back (a tracker's or CMM's frame, a straightness run's optic slope).
+The squareness itself (the angle between the two axes, as a ball bar reads it) is read; its split
+between C0Y and EYX's slope is not. The convention (ISO 230-1's reference lines, X the reference)
+puts it in C0Y: the slopes of EYX, EZX (with B0Z) and EZY (with A0Z) are zero wherever the data
+leave them open, so that nothing turns the part. Where a file's frame is known (``--known-setup``,
+a straightness run whose slope is not fitted), the data read those slopes and the fit keeps them."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..models.basis import SLOPE_OF_RIGID_ROTATION, axis_spline
+from ..models.chain import squareness_names
+from ._linalg import NULL_WEIGHT
+from .unmeasured import leaving_held_alone
+
+#: the two axes whose angle each squareness is
+SQUARENESS_AXES = {"C0Y": "XY", "B0Z": "XZ", "A0Z": "YZ"}
+
+#: a slope moves along the data's null directions (orthonormal, scaled, each slope's row of unit
+#: norm) by more than this: the data leave it open (round-off of a determined one is ~1e-8)
+OPEN_SLOPE = 1e-3
+
+
+def _slope_rows(problem, scale: np.ndarray) -> np.ndarray:
+    """(r, n_unknowns) the least-squares slope over its range of each free straightness of
+    :data:`SLOPE_OF_RIGID_ROTATION` (polynomials: the linear coefficient), in column-scaled unknowns,
+    each row of unit norm."""
+    model = problem.model
+    machine = model.machine
+    square = set(squareness_names(machine))
+    rows = {}
+    for k, i in enumerate(problem.free_idx):
+        spec = model.param_specs[i]
+        axis, _, comp = spec.group.partition(":")
+        if SLOPE_OF_RIGID_ROTATION.get(comp) not in square or not spec.base:
+            continue
+        suffix = spec.name[len(comp) + 1:]
+        ax = machine.axis(axis)
+        if ax.basis == "bspline":
+            weight = float(axis_spline(ax)._moments[1][int(suffix[1:])])
+        else:
+            weight = 1.0 if suffix == "1" else 0.0
+        row = rows.setdefault(spec.group, np.zeros(problem.n_unknowns))
+        row[k] = weight * spec.to_file * scale[k]
+    out = [r / np.linalg.norm(r) for r in rows.values() if np.linalg.norm(r) > 0]
+    return np.array(out).reshape(-1, problem.n_unknowns)
+
+
+def reference_rotation(problem, null: np.ndarray, scale: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(fixed (n, c), turns (n, c)) in column-scaled unknowns (``scale`` (n,)): of ``null`` (n, k:
+    orthonormal, what neither the data nor the roughness penalty see), the c combinations that move
+    the slopes of :data:`SLOPE_OF_RIGID_ROTATION` (``turns``, orthonormal: the machine's turns with
+    the frames turned back) and the constraints that hold those slopes at their start (``fixed``,
+    orthonormal: the fit moves along none of them); c = 0 where the data read the slopes."""
+    n = null.shape[0]
+    L = _slope_rows(problem, scale)
+    if L.shape[0] == 0 or null.shape[1] == 0:
+        return np.zeros((n, 0)), np.zeros((n, 0))
+    # a turn leaves alone what the assumption holds (angular motions no laser names): else the
+    # slopes' SVD mixes them in (a laser run of X and a circle: a yaw of X of 20 +- 8e4 urad)
+    null = leaving_held_alone(problem, null)
+    U, sv, Vt = np.linalg.svd(L @ null, full_matrices=True)
+    c = int(np.sum(sv > OPEN_SLOPE))
+    fixed, _ = np.linalg.qr((U[:, :c].T @ L).T)
+    return fixed, null @ Vt[:c].T
+
+
+def without(basis: np.ndarray, turns: np.ndarray) -> np.ndarray:
+    """An orthonormal basis of span(``basis``) less what lies along ``turns`` (orthonormal, inside
+    the span when ``basis`` is the null space they came from)."""
+    if not turns.shape[1] or not basis.shape[1]:
+        return basis
+    U, s, _ = np.linalg.svd(basis - turns @ (turns.T @ basis), full_matrices=False)
+    return U[:, s > 0.5]
+
+
+def _angle_read(problem, name: str) -> bool:
+    """True when laser runs name the positioning of both axes of squareness ``name`` and a file
+    moves both (a circle in their plane, points or a diagonal spread over both): it reads their
+    angle from its shape, the lasers the axes' scales. A circle at one height reads B0Z and A0Z
+    only as a shift of its centre, which rests on the centre the file states; a circle alone
+    shares its angle with the straightnesses' shapes (C0Y 131 urad standard error)."""
+    named = {str(c) for mm in problem.mms if mm.kind == "laser" for c in np.unique(mm.data.component)}
+    if not all(f"E{a}{a}" in named for a in SQUARENESS_AXES[name]):
+        return False
+    for mm in problem.mms:
+        try:
+            q = mm.data.axis_positions(mm.machine)
+        except (AttributeError, ValueError):
+            continue
+        names = mm.machine.axis_names
+        if q.size and all(a in names and np.ptp(q[:, names.index(a)]) > 1e-6 for a in SQUARENESS_AXES[name]):
+            return True
+    return False
+
+
+def undetermined_unknowns(problem, null: np.ndarray) -> np.ndarray:
+    """(n_unknowns,) bool: the unknowns the fit leaves undetermined given its open directions
+    ``null`` (orthonormal, column-scaled): those with weight in one, and the slopes the convention
+    holds. A squareness whose only open directions move what the unmeasured-components rule holds
+    (:func:`leaving_held_alone`) is determined on that rule, with its standard error, where the
+    data read the angle (:func:`_angle_read`): lasers of X and Y and one XY circle leave C0Y open
+    only with the rolls no laser names."""
+    by_convention = getattr(problem, "by_convention", False)
+    if not null.shape[1]:
+        return np.zeros(problem.n_unknowns, dtype=bool) | by_convention
+    in_null = (np.linalg.norm(null, axis=1) > NULL_WEIGHT) | by_convention
+    open_alone = np.linalg.norm(leaving_held_alone(problem, null), axis=1) > NULL_WEIGHT
+    specs = problem.model.param_specs
+    for k, i in enumerate(problem.free_idx):
+        name = specs[i].name
+        if name in SQUARENESS_AXES and in_null[k] and not open_alone[k] and _angle_read(problem, name):
+            in_null[k] = False
+    return in_null
