@@ -188,22 +188,27 @@ REFUSED = {
     # control's own rule, which no manual we found documents (a Fanuc's G81 drills along the
     # plane's normal axis, Z in G17): refused, which is safe
     "nxpost_thermwood_test.ptp": ["thermwood_test.ptp:7:", "drilling cycle G81 with a rotary"],
-    # BeagleG's test programs (its own G-code: named parameters without brackets `#r=50`, G2/G3
-    # not modal, so `X100` after an arc is a line; G30 with a move is its probe; G5 splines; a
-    # program starting with an arc from wherever the machine stands)
-    "beagleg_polygon-24-vs-arc.gcode": ["polygon-24-vs-arc.gcode:1:",
-                                        "unknown function or word 'faces=24'"],
-    "beagleg_spiral-cut.gcode": ["spiral-cut.gcode:3:", "unknown function or word 'r=50'"],
+    # BeagleG's test programs (its own G-code, --dialect beagleg: docs/toolpaths.md, "BeagleG").
+    # Four are accepted: two detected by their parameters named without brackets (`#r=50`), two
+    # read alike as generic G-code: one with numbered parameters and every block with its G code, its
+    # first arc from the position a G28 left passed through uncorrected, and `splines`, whose G5 and
+    # G5.1 splines (LinuxCNC's as well) pass through uncorrected, their ends known. Left:
+    # rounded-bracket-simple has
+    # `X100` after `G3` (on BeagleG a line: G2/G3 do not stay in force), but nothing in it names
+    # BeagleG: read as generic G-code (the arc mode in force) it is an arc without centre, refused;
+    # with --dialect beagleg it is accepted (tests/test_toolpaths_beagleg.py), as fresa.gcode is
+    # with --dialect grbl. spline-character names a parameter `#<hover_z>` (LinuxCNC's form, read
+    # as LinuxCNC's) and probes with `g30 g1 z0` (two codes that use the axis words; on BeagleG
+    # G30 probes Z and sets an offset of Z from the probed height, which the program does not give:
+    # refused with --dialect beagleg too)
     "beagleg_rounded-bracket-simple.gcode": ["rounded-bracket-simple.gcode:6:",
                                              "arc without centre"],
-    "beagleg_rounded-bracket-parametrized.gcode": ["rounded-bracket-parametrized.gcode:10:",
-                                                   "arc G3 from a position the program has not"],
     "beagleg_spline-character.gcode": ["spline-character.gcode:12:", "G30 and motion G1"],
-    "beagleg_splines.gcode": ["splines.gcode:8:", "G5 (cubic spline) is not supported"],
 }
-#: the share of the corpus accepted today (136 of 186: 0.731): 125 of the 148 before the batch of
-#: 38 programs never seen (SOURCES.md), of which 11 are accepted; the goal is 95 %
-MIN_ACCEPTED = 0.73
+#: the share of the corpus accepted today (140 of 186: 0.753): 125 of the 148 before the batch of
+#: 38 programs never seen (SOURCES.md), of which 15 are accepted (11 before BeagleG's dialect and
+#: G5 splines were read); the goal is 95 %
+MIN_ACCEPTED = 0.75
 #: the refused programs that the controller they were written for refuses too (its manual's alarm
 #: or error named in REFUSED's comments): a nested comment (LinuxCNC), an R word in a G1 (grbl
 #: error 36, LinuxCNC), an arc whose end is off its circle (Fanuc: radius over tolerance; the Toyoda
@@ -216,8 +221,9 @@ MIN_ACCEPTED = 0.73
 #: Heidenhain comments without block numbers, a Fanuc dimension word whose unit depends on a
 #: parameter the program does not show; of the batch of 38, a G65 call of a macro resident in the
 #: machine, not in the file (a G65 whose macro is in the file is expanded), the W quill, fixed-format
-#: numbers, 5-axis drilling, BeagleG's dialect, an O word after a tool word, a TNC ISO block before
-#: any G00/G01: unchanged by the G65 expansion, 136 of 157).
+#: numbers, 5-axis drilling, BeagleG's programs that do not show their dialect (one needs
+#: --dialect beagleg, one probes with G30 in a program read as LinuxCNC's), an O word after a tool
+#: word, a TNC ISO block before any G00/G01: 140 of 157).
 CONTROLLER_REFUSES = {
     "cluck2sesame_BackPlate.nc", "cluck2sesame_2-Spool.nc", "cncwebsim_fresa2.cnc",
     "rocholl25000_clover.gcode", "nxpost_4_axis_mill.ptp", "nxpost_Fadal_VMC6030_sample.ptp",
@@ -237,9 +243,10 @@ CONTROLLER_REFUSES = {
     "nxpost_MS_SH8000_sample_in.ptp", "nxpost_Fryer_MB10_sample.ptp",
     "nxpost_Mitsubishi_VR33_RHead_sample.ptp",
 }
-#: the share accepted of the programs their controllers run (136 of 157: 0.866; 125 of 133, 0.940,
-#: before the batch of 38, whose 24 runnable ones are 11 accepted: 0.458); the goal is 95 %
-MIN_ACCEPTED_RUNNABLE = 0.86
+#: the share accepted of the programs their controllers run (140 of 157: 0.892; 125 of 133, 0.940,
+#: before the batch of 38, whose 24 runnable ones are 15 accepted: 0.625; 136 of 157, 0.866, before
+#: BeagleG's dialect and G5 splines were read); the goal is 95 %
+MIN_ACCEPTED_RUNNABLE = 0.89
 _WORD = re.compile(r"([A-Z])\s*([-+]?\s*(?:\d+\.?\d*|\.\d+))")
 #: an axis given an expression (Sinumerik: `A=_A_HOME`)
 _ASSIGNED = re.compile(r"(?<![A-Z0-9_$#<])([A-Z])\s*=")

@@ -17,11 +17,11 @@ import numpy as np
 
 from ..errors import InputError
 from ..machine import Machine
-from ._arcs import (PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, centre_from_radius,
-                    is_point_circle, point_circle)
+from ._arcs import (PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, blind_arc,
+                    centre_from_radius, is_point_circle, passed_spline, point_circle, spline_code)
 from .blocks import CycleBlock, MotionBlock
 from .cycle_rules import cycle_move, cycle_unclear, has_axis_words, home_with_motion, incremental_r_level, retract_level
-from .dialect import GENERIC, grbl_program_end
+from .dialect import GENERIC, beagleg_block, grbl_program_end
 from .directions import step_directions
 from .frames import (FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle, follow_given,
                      mode_change)
@@ -194,9 +194,13 @@ class ModalState:
         if not tokens:
             return None
         values, gcodes, mcodes, number = self._read_words(tokens, line)
+        if not self.dialect.arcs_modal:
+            beagleg_block(self, gcodes, line)
         self._cutter_comp_codes(gcodes)
         motion, nonmotion_axes, home_move, cycle = self._apply_codes(gcodes, mcodes, values,
                                                                      tokens, line)
+        if self.spline is not None:
+            return passed_spline(self, values, tokens, motion, line)
         if self.tcp or self.dwo:
             haas_block(self, gcodes, motion, home_move, values, line)
         axes_given = self._axis_words(values, line)
@@ -244,6 +248,7 @@ class ModalState:
         """Forget what the previous line said about itself (the flags the writer reads)."""
         self.distance_word = None
         self.distance_sensitive = False
+        self.spline = None           # G5/G5.1 with coordinates on this line (._arcs.passed_spline)
         self.had_g = False
         self.cycle_line = False
         self.cycle_start = False
@@ -331,7 +336,8 @@ class ModalState:
             if g in _CURVE_WITH_COORDINATES:
                 name, words = _CURVE_WITH_COORDINATES[g]
                 if any(letter in words for letter, _num, _raw in tokens):
-                    raise self._err(f"{name} is not supported", line)
+                    spline_code(self, g, name, line)
+                    continue
             if g != gi:
                 if round(g, 1) not in KNOWN_DECIMAL_G:
                     raise self._err(f"G{g:g} is not a code mtcomp follows (its effect on the motion "
@@ -525,6 +531,8 @@ class ModalState:
                 raise self._err(f"{arc_words[0]} word outside an arc block", line)
             return None
         check_motion_mode(self, values, arc_words, line)
+        if self.motion in (2, 3) and blind_arc(self, values, axes_given):
+            return None
         if self.incremental and self.motion in (0, 1) and \
                 any(not self.known[self.names.index(c)] for c in axes_given):
             return self._blind_increment(values, axes_given)
