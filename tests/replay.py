@@ -29,7 +29,8 @@ G0 at the start (BeagleG's src/gcode-parser/gcode-parser.cc, ParseBlock). A G5 c
 its end; the first control point the start plus I J, or without I J minus the previous G5's P Q;
 the second the end plus P Q) and a G5.1 quadratic one (its control point the start plus I J) are
 moves along their Bezier curve (LinuxCNC G-code reference, G5 and G5.1); after one no motion mode
-is in force (BeagleG: the last G0/G1).
+is in force (BeagleG: the last G0/G1). A G5 without coordinates (Fanuc's G05 P10000 contour control
+mode) moves nothing.
 
 A position is a dict axis -> value (mm or deg) or None where the controller's position in the
 program's frame is unknown."""
@@ -300,7 +301,7 @@ def _block(st, index, words):
             return []
         there = _target(st, words)
         return [Move(index, "feed", dict(st.pos), there), Move(index, "feed", there, dict(st.pos))]
-    if 5 in gs or 5.1 in gs:
+    if (5 in gs or 5.1 in gs) and any(c in AXES + "IJKR" for c, _ in words):
         return _go(st, _spline(st, index, words, 5 in gs))
     if st.motion in _CYCLES:
         return _cycle(st, index, words) if (axes or "L" in dict(words)) else []
