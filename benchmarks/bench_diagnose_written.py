@@ -21,6 +21,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 try:
     from diagnose_truth import region_error_um, run
     from truth import FeedAbbe
@@ -72,7 +74,9 @@ def main(argv=None):
             weak = written.get("largest_sd_um")
             print(f"{seed} {effect or 'clean'} {kind} {topology}: written {kind_written}"
                   + (f" (weakest {weak:.3g} um)" if weak is not None else "")
-                  + f"; error against the truth: diagnose {err_d:.3g} um, identify {err_i:.3g} um"
+                  + (f"; error against the truth: diagnose {err_d:.3g} um, identify {err_i:.3g} um"
+                     if np.isfinite(err_d) else "; no error against the truth: the data moved no "
+                     "linear axis (region_error_um weighs the region the linear axes reach)")
                   + f" ({time.perf_counter() - t0:.0f} s)", flush=True)
     print(f"penalised fit written: {counts['penalised']}; of them fitting the data clearly worse than "
           f"the least squares: {counts['fits worse']}")

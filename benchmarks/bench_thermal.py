@@ -17,7 +17,9 @@ judged segment's mean (a file's zero belongs to its set-up) and absolute, of
 A second table sets mtcomp's standard errors (`pred_<column>_sd`) against its errors on the judged
 part: the rms error, the median standard error, their ratio, the rms of error / standard error over
 every reading and channel (about 1 when the standard errors are honest) and the share of readings
-within 2 standard errors.
+within 2 standard errors; then the share of judged rows with a temperature or the spindle speed
+beyond the fitted part's range (what `mtcomp predict` notes), and the last two figures on the rows
+inside that range and on those beyond it.
 
 The three baselines are computed here with plain numpy, independently of mtcomp's code.
 
@@ -97,14 +99,26 @@ def mtcomp_prediction(header, rows, s, tmp: Path, chans) -> tuple[np.ndarray, np
             np.column_stack([p["pred_" + k + "_sd"] for k in chans]), seconds)
 
 
-def sd_columns(pred: np.ndarray, sd: np.ndarray, y: np.ndarray) -> str:
+def sd_columns(pred: np.ndarray, sd: np.ndarray, y: np.ndarray, beyond: np.ndarray) -> str:
     """The standard errors against the errors (absolute, every channel and reading): rms error, median
-    sd, their ratio, the rms of error / sd and the share of readings within 2 sd."""
+    sd, their ratio, the rms of error / sd and the share of readings within 2 sd; then the last two
+    for the rows inside the fitted part's range of every temperature and spindle speed and for the
+    rows beyond it (``beyond`` (n,) bool)."""
     err = pred - y
     z = err / sd
     rms = float(np.sqrt(np.mean(err ** 2)))
-    return (f"{rms:9.2f} {np.median(sd):9.2f} {rms / np.median(sd):7.2f} {np.sqrt(np.mean(z ** 2)):7.2f} "
-            f"{np.mean(np.abs(z) <= 2.0):9.1%}")
+    parts = [f"{rms:9.2f} {np.median(sd):9.2f} {rms / np.median(sd):7.2f} {np.sqrt(np.mean(z ** 2)):7.2f} "
+             f"{np.mean(np.abs(z) <= 2.0):9.1%}"]
+    for rows in (~beyond, beyond):
+        zz = z[rows]
+        parts.append(f"{np.sqrt(np.mean(zz ** 2)):7.2f} {np.mean(np.abs(zz) <= 2.0):9.1%}" if zz.size
+                     else f"{'-':>7s} {'-':>9s}")
+    return f"{parts[0]}  {np.mean(beyond):7.0%} {parts[1]} {parts[2]}"
+
+
+def beyond_range(fit: np.ndarray, judged: np.ndarray) -> np.ndarray:
+    """(n,) rows of ``judged`` (n, k) with a column outside the lowest and highest of ``fit`` (m, k)."""
+    return np.any((judged < fit.min(axis=0)) | (judged > fit.max(axis=0)), axis=1)
 
 
 def truth_sweep(n_seeds: int) -> None:
@@ -176,7 +190,10 @@ def main(argv=None):
             s = int(round(frac * n))
             yte = Y[s:]
             mt, sd, seconds = mtcomp_prediction(header, rows, s, Path(tmp), chans)
-            sd_table.append(f"{round(frac * 100):3d}/{round((1 - frac) * 100):<2d} {sd_columns(mt, sd, yte)}")
+            state = np.column_stack([T, d["spindle_rpm"]])
+            beyond = beyond_range(state[:s], state[s:])
+            sd_table.append(f"{round(frac * 100):3d}/{round((1 - frac) * 100):<2d} "
+                            f"{sd_columns(mt, sd, yte, beyond)}")
             table = [("raw (no model)", np.zeros_like(yte)),
                      ("least squares, 16 temperatures", ridge(T[:s], Y[:s], 0.0)(T[s:])),
                      ("ridge, forward-validated penalty", forward_ridge(T[:s], Y[:s])(T[s:])),
@@ -186,7 +203,10 @@ def main(argv=None):
                 print(f"{round(frac * 100):3d}/{round((1 - frac) * 100):<2d} {name:<36s} {about:14.2f} "
                       f"{absolute:9.2f}")
     print("mtcomp's standard errors (pred_..._sd) against its errors on the held-out part, absolute, um:")
-    print(f"{'split':>6s} {'rms error':>9s} {'median sd':>9s} {'ratio':>7s} {'rms z':>7s} {'2 sd cover':>9s}")
+    print("(then the rows beyond the fitted part's range of a temperature or the spindle speed, and rms z,")
+    print(" 2 sd cover on the rows inside it and on those beyond it)")
+    print(f"{'split':>6s} {'rms error':>9s} {'median sd':>9s} {'ratio':>7s} {'rms z':>7s} {'2 sd cover':>9s}"
+          f"  {'beyond':>7s} {'in: z':>7s} {'cover':>9s} {'out: z':>7s} {'cover':>9s}")
     print("\n".join(sd_table))
 
 

@@ -56,7 +56,7 @@ class CompensationSettings:
     chord_tol_um : chord tolerance of arcs written as lines.
     temperatures : sensor name -> degC while the program runs; spindle_rpm : warm spindle speed.
     probed_temperatures, probed_spindle_rpm : the same when the part's datum was probed (empty,
-        None: at the drift terms' zero, the thermal record's first reading).
+        None: at the thermal record's first reading, thermal.context.record_reference).
     probe_tool_length : mm, the length of the probe the part's datum was probed with in X and Y
         (None: the machine file's tool length): FittedModel.probe_tool_length.
     extrapolate : correct blocks outside the region the model's data reached too, and at
@@ -277,8 +277,8 @@ class Judge:
         self.fitted = fitted
         thermal, _ = thermal_context(fitted, settings.temperatures, settings.spindle_rpm,
                                      settings.extrapolate)
+        _probed(fitted, settings)        # before the state is written: the record's means
         fitted.context_defaults.update(thermal)
-        fitted.probed = _probed(fitted, settings)[0]
         fitted.probe_tool_length = settings.probe_tool_length
         self.ev = Evaluator(CompensationProblem.from_machine(fitted))
         self.count = 0
@@ -475,12 +475,17 @@ def _feed_use(fitted, series) -> str:
     return " and ".join(uses)
 
 
-def _probed(fitted, settings: CompensationSettings, series=None) -> tuple:
-    """:func:`mtcomp.thermal.context.probed_state` of the settings (and ``series``'s sensors)."""
+def _probed(fitted, settings: CompensationSettings, series=None) -> str:
+    """Sets ``fitted.probed`` (and ``probed_from_record``) to
+    :func:`mtcomp.thermal.context.probed_state` of the settings (and ``series``'s sensors); the line
+    saying which reference the drift is corrected from."""
     from .thermal.context import probed_state
     cut = set(settings.temperatures) | set(series.temps if series is not None else ())
-    return probed_state(fitted, cut, settings.spindle_rpm, settings.probed_temperatures,
-                        settings.probed_spindle_rpm, settings.extrapolate)
+    fitted.probed, line = probed_state(fitted, cut, settings.spindle_rpm,
+                                       settings.probed_temperatures, settings.probed_spindle_rpm,
+                                       settings.extrapolate)
+    fitted.probed_from_record = not settings.probed_temperatures and settings.probed_spindle_rpm is None
+    return line
 
 
 def _checked_series(fitted, settings: CompensationSettings, series):
@@ -578,8 +583,8 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
                                        settings.extrapolate)
     assumed = unknown_state or assumed
     series = _checked_series(fitted, settings, temperature_series)
+    probe_line = _probed(fitted, settings, temperature_series)   # before the state is written
     fitted.context_defaults.update(thermal)
-    fitted.probed, probe_line = _probed(fitted, settings, temperature_series)
     fitted.probe_tool_length = settings.probe_tool_length
     setup = setup if setup is not None else ProgramSetup(machine)
     with contextlib.ExitStack() as stack:

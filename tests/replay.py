@@ -31,6 +31,9 @@ the second the end plus P Q) and a G5.1 quadratic one (its control point the sta
 moves along their Bezier curve (LinuxCNC G-code reference, G5 and G5.1); after one no motion mode
 is in force (BeagleG: the last G0/G1). A G5 without coordinates (Fanuc's G05 P10000 contour control
 mode) moves nothing.
+W, the quill of a horizontal boring mill (ISO 841's secondary axis parallel to Z), is an axis of
+the replay like X Y Z: mtcomp never corrects it, so its positions in the output must be the
+source's exactly.
 
 A position is a dict axis -> value (mm or deg) or None where the controller's position in the
 program's frame is unknown."""
@@ -38,8 +41,11 @@ import math
 import re
 from dataclasses import dataclass, field
 
-AXES = "XYZABC"
+AXES = "XYZABCW"
 LINEAR = "XYZ"
+#: the axes of lengths (scaled by G20): X Y Z and the quill W, a secondary axis parallel to Z
+#: (ISO 841) that mtcomp never corrects: its positions must be the source's exactly
+LENGTHS = "XYZW"
 #: a comment as a control that ends it at its first ')' reads it ('(' inside is its text)
 _COMMENT = re.compile(r"\([^)]*\)|;.*")
 #: a comment that holds no parenthesis: the innermost of nested ones
@@ -103,7 +109,7 @@ class _State:
     wcs: str = "G54"
     arc_absolute: bool = False   # G90.1: I J K are the centre's position
     offsets: dict = field(default_factory=dict)   # (wcs, axis) -> offset set by G10 L2/L20
-    g92: dict = field(default_factory=lambda: {a: 0.0 for a in LINEAR})   # G92 offsets, mm
+    g92: dict = field(default_factory=lambda: {a: 0.0 for a in LENGTHS})  # G92 offsets, mm
     rrf: bool = False            # a RepRapFirmware program: its strings and macro codes
     beagleg: bool = False        # a BeagleG program: G2/G3 not modal
     linear: int = 0              # BeagleG: the G0/G1 mode axis words alone move in
@@ -219,7 +225,7 @@ def _in_work_system(move, shift):
 
 
 def _value(st, letter, v):
-    return v * st.scale if letter in LINEAR else v
+    return v * st.scale if letter in LENGTHS else v
 
 
 def _target(st, words):
@@ -288,7 +294,7 @@ def _block(st, index, words):
                 st.pos[letter] = v
         return []
     if 92.1 in gs or 92.2 in gs:
-        for a in LINEAR:
+        for a in LENGTHS:
             if st.pos[a] is not None:
                 st.pos[a] += st.g92[a]
             st.g92[a] = 0.0
@@ -489,7 +495,7 @@ def _near_end(piece: Move, move: Move, tol: Tolerance):
         return False
     for x in AXES:
         if move.end[x] is not None:
-            limit = tol.axis_mm if x in LINEAR else tol.axis_deg
+            limit = 1e-9 if x == "W" else tol.axis_mm if x in LINEAR else tol.axis_deg
             if abs(piece.end[x] - move.end[x]) > limit:
                 return False
     return True

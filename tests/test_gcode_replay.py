@@ -202,6 +202,26 @@ def test_compare_sees_motion_the_source_lacks(out, message):
         compare(SRC, out, TOL)
 
 
+W_SRC = b"G20 G90\nG0 X0 Y0 Z.2 W0\nG1 X1. F10\nW-1.\nG1 X2. W-1.\nM30\n"
+
+
+@pytest.mark.parametrize("out, message", [
+    (W_SRC.replace(b"\nW-1.\n", b"\nW-1.0001\n"), "no matching output motion"),  # W corrected
+    (W_SRC.replace(b"X2. W-1.", b"X2."), None),          # W held where it stood: the same motion
+    (W_SRC.replace(b"\nW-1.\n", b"\n"), "no matching output motion"),            # W dropped
+    (W_SRC.replace(b"G1 X1. F10", b"G1 X1. W.5 F10"), "no matching output motion"),    # W added
+])
+def test_compare_carries_the_quill_w_exactly(out, message):
+    # the quill W (parallel to Z) is never corrected: a W the output moves elsewhere is caught
+    src_moves, _ = compare(W_SRC, W_SRC, TOL)
+    assert [m.end["W"] for m in src_moves] == [0.0, 0.0, -25.4, -25.4]      # inch: 1 in = 25.4 mm
+    if message is None:
+        compare(W_SRC, out, TOL)
+    else:
+        with pytest.raises(AssertionError, match=message):
+            compare(W_SRC, out, TOL)
+
+
 G91_SRC = b"G21 G90\nG0 X0 Y0 Z5\nG91 G1 X10. F100\nX10.\nY5. (up)\nG90 G0 Z5\nM30\n"
 
 

@@ -1,7 +1,8 @@
-"""A drift correction's standard error is the drift prediction's: the part's datum is probed before
-the drift, so referencing to it takes nothing away (the intercept of an absolute drift model and
-its temperature terms stay together). Oracle: `mtcomp predict` on a record row at the same
-temperatures (the measurement model's prediction and its standard error), on the real 46 h record."""
+"""A drift correction is the drift since the record's first reading, and its standard error is the
+drift prediction's: the datum's deviation there is a reading of the record, so referencing to it
+takes nothing away (the intercept of an absolute drift model and its temperature terms stay
+together). Oracle: `mtcomp predict` on record rows at the same temperatures and at the record's
+first reading (the measurement model's predictions and standard errors), on the real 46 h record."""
 import csv
 import json
 
@@ -23,12 +24,16 @@ def test_drift_correction_and_its_standard_error_are_the_drift_prediction(tmp_pa
     row = dict(_rows(THERMAL)[6000])            # 25 h into the record, spindle warm before
     temps = [c for c in row if c.startswith("temp_")]
     (tmp_path / "T.csv").write_text(",".join(temps) + "\n" + ",".join(row[c] for c in temps) + "\n")
-    # the same state as a record row the model predicts: spindle stopped long (no lag), t 0
+    # the same state as a record row the model predicts: spindle stopped long (no lag), t 0; and
+    # the record's first reading, the reference the correction is taken from
     row.update(t_s="0", spindle_rpm="0")
-    (tmp_path / "one.csv").write_text(",".join(row) + "\n" + ",".join(row.values()) + "\n")
+    first = dict(_rows(THERMAL)[0], t_s="1", spindle_rpm="0")
+    (tmp_path / "one.csv").write_text(",".join(row) + "\n" + ",".join(row.values()) + "\n"
+                                      + ",".join(first[c] for c in row) + "\n")
     assert main(["predict", "xfyz", str(model), str(tmp_path / "one.csv"), "-o",
                  str(tmp_path / "P.csv")]) == 0
-    pred = _rows(tmp_path / "P.csv")[0]
+    pred, at_first = _rows(tmp_path / "P.csv")
+    since = float(pred["pred_disp_ch3_um"]) - float(at_first["pred_disp_ch3_um"])
     prog = tmp_path / "p.nc"
     prog.write_text("G21 G90\nG0 X0 Y0 Z10\nG1 Z-5 F500\nG1 X100\nG1 Y100\nM30\n")
     # the drift's standard error carries the model error (the Z channel's forward-validated rms,
@@ -44,7 +49,7 @@ def test_drift_correction_and_its_standard_error_are_the_drift_prediction(tmp_pa
     assert blocks and all(r["corrected"] == "1" for r in blocks)
     for r in blocks:
         # the Z deviation of the tip is the Z channel's prediction (the same sign convention)
-        assert float(r["ez_before_um"]) == pytest.approx(float(pred["pred_disp_ch3_um"]), abs=2e-3)
+        assert float(r["ez_before_um"]) == pytest.approx(since, abs=2e-3)
         assert float(r["correction_sd_um"]) == pytest.approx(float(pred["pred_disp_ch3_um_sd"]),
                                                              rel=2e-3, abs=1e-3)
     # the model error is its floor; the intercept and the temperature terms stay together (the
@@ -65,7 +70,8 @@ def test_a_time_series_of_temperatures_is_followed_along_the_program(tmp_path, c
     """Readings at 0, 300 and 600 s; a program whose blocks end at 0.06 s (a 10 mm rapid at
     10 m/min), 1.86 s (15 mm at 500 mm/min), 601.86 s and 1201.86 s (100 mm at 10 mm/min each):
     each block's drift is the model's prediction at the temperatures interpolated at its end time
-    (held after the last reading). Oracle: `mtcomp predict` on record rows at those temperatures."""
+    (held after the last reading) less that at the record's first reading. Oracle: `mtcomp predict`
+    on record rows at those temperatures and at the first reading."""
     import numpy as np
     model = tmp_path / "M.json"
     assert main(["diagnose", "xfyz", str(THERMAL), "--channel-axis", "ch3=Z", "--json",
@@ -86,16 +92,18 @@ def test_a_time_series_of_temperatures_is_followed_along_the_program(tmp_path, c
            "takes 1202 s at its feeds, rapids at 10000 mm/min; the last reading holds after it)" in said
     ends = np.array([0.06, 1.86, 601.86, 1201.86])
     rows = []
-    for t in ends:
-        row = dict(record[0], t_s="0", spindle_rpm="0")
+    for k, t in enumerate(ends):
+        row = dict(record[0], t_s=str(k), spindle_rpm="0")      # rows of states, in time order
         for c in temps:
             row[c] = repr(float(np.interp(t, [0, 300, 600], [float(r[c]) for r in picks])))
         rows.append(row)
+    rows.append(dict(record[0], t_s=str(len(ends)), spindle_rpm="0"))   # the first reading, last
     (tmp_path / "rows.csv").write_text(",".join(rows[0]) + "\n"
                                        + "\n".join(",".join(r.values()) for r in rows) + "\n")
     assert main(["predict", "xfyz", str(model), str(tmp_path / "rows.csv"), "-o",
                  str(tmp_path / "P.csv")]) == 0
-    want = [float(r["pred_disp_ch3_um"]) for r in _rows(tmp_path / "P.csv")]
+    *want, at_first = [float(r["pred_disp_ch3_um"]) for r in _rows(tmp_path / "P.csv")]
+    want = np.array(want) - at_first
     blocks = [r for r in _rows(tmp_path / "B.csv") if r["inserted"] == "0"]
     got = [float(r["ez_before_um"]) for r in blocks]
     np.testing.assert_allclose(got, want, rtol=0, atol=2e-3)
@@ -133,7 +141,7 @@ def test_without_a_thermal_state_the_drift_is_not_compensated(tmp_path, capsys):
     assert blocks and all(float(r["e_before_um"]) == 0.0 for r in blocks)
     assert (tmp_path / "o.nc").read_text() == prog.read_text()
     assert main(["compensate", "xfyz", str(model), str(prog), "-o", str(tmp_path / "o2.nc"),
-                 "--report", str(tmp_path / "B2.csv"), "--temperature", "t1=26", "--quiet"]) == 0
+                 "--report", str(tmp_path / "B2.csv"), "--temperature", "t1=28", "--quiet"]) == 0
     warm = [r for r in _rows(tmp_path / "B2.csv") if r["unknown_axes"] == ""]
     assert all(abs(float(r["ez_before_um"])) > 1.0 for r in warm)
 

@@ -27,6 +27,7 @@ def _fitted():
     fitted.params.set_file_value("TD_Z_temp_spindle", -2.0)      # um/degC
     fitted.params.set_file_value("TD_Z_zero", 44.0)              # zero at 22 degC
     fitted.info["context_ranges"] = {"temp_spindle": [20.0, 35.0]}
+    fitted.info["thermal_first_reading"] = {"temp_spindle": 22.0}     # as diagnose writes it
     return fitted
 
 

@@ -91,7 +91,7 @@ def _add_thermal_arguments(parser):
                              "model's spindle-heat drift (default: spindle stopped for long)")
     add_probed_arguments(parser, "temperature of sensor NAME when the part's datum (G54 ...) was "
                          "probed: the drift since then is corrected (repeatable, each sensor given "
-                         "above; default: the whole drift since the thermal record's first reading)",
+                         "above; default: the drift since the thermal record's first reading)",
                          "the same for --spindle-rpm: the speed the spindle had run at long enough "
                          "to be warm when the datum was probed")
     parser.add_argument("--probed-with-tool-length", type=float, metavar="MM", default=None,
@@ -135,16 +135,18 @@ def _output_paths(args):
 def _thermal_state(args, fitted):
     """(temperatures sensor -> degC, a TemperatureSeries or None, columns of the readings file not
     read, temperatures at probing sensor -> degC), checked against the model before any work (the model file named)."""
-    from ..thermal.context import (TemperatureSeries, parse_assignments, probed_state,
-                                   read_temperature_row, thermal_context)
+    from ..thermal.context import (TemperatureSeries, check_readings, parse_assignments,
+                                   probed_state, read_temperature_row, thermal_context)
     temperatures, unread, series = {}, [], None
+    flags = parse_assignments(args.temperature, "--temperature")
     if args.temperatures:
         readings, unread = read_temperature_row(args.temperatures)
+        check_readings(fitted, readings, args.temperatures, flags, args.extrapolate)
         if isinstance(readings, TemperatureSeries):
             series = readings
         else:
             temperatures = readings
-    temperatures.update(parse_assignments(args.temperature, "--temperature"))
+    temperatures.update(flags)
     thermal_context(fitted, temperatures, args.spindle_rpm, args.extrapolate, source=args.model)
     probed = parse_assignments(args.probed_at_temperature, "--probed-at-temperature")
     probed_state(fitted, set(temperatures) | set(series.temps if series else ()), args.spindle_rpm,

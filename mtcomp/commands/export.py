@@ -75,6 +75,7 @@ def run(args) -> int:
     machine = load_machine(args.machine)
     model_notes: list = []
     fitted = load_model(args.model, machine, model_notes)
+    rest = _left_to_compensate(fitted)
     for n in model_notes:
         sys.stderr.write(f"note: {n}\n")
     fmt = exporter(args.format)
@@ -111,12 +112,6 @@ def run(args) -> int:
     err = sys.stderr
     err.write(f"mtcomp export --format {args.format}: " + ", ".join(
         f"{a} {len(t.positions)} points" for a, t in tables.tables.items()) + "\n")
-    # a controller's tables hold errors along the axes' positions (and direction), not along feed,
-    # time or temperature: the model's terms that act through those are evaluated at rest
-    at_rest = [t.key() for t in fitted.model.terms if t.uses_feed or t.kind in ("thermal_drift", "channel_drift")]
-    rest = [f"the tables leave out what depends on feed, time or temperature ({', '.join(at_rest)}): they "
-            "hold the model at feed 0 and its reference conditions (mtcomp compensate applies these "
-            "terms block by block)"] if at_rest else []
     for n in tables.notes + result.notes + rest:
         err.write(f"  note: {n}\n")
     for line in lines:
@@ -133,3 +128,19 @@ def run(args) -> int:
     for p in written:
         print(f"wrote {p}")
     return 0
+
+
+def _left_to_compensate(fitted) -> list:
+    """The notes on the model's terms no table holds. A controller's tables hold errors along the
+    axes' positions (and direction), not along feed, time or temperature: the feed terms are
+    evaluated at feed 0, and the drift terms are left out (:func:`mtcomp.export.component_tables`
+    evaluates the model without them): a drift model's value is no error of an axis, and export
+    is given no thermal state."""
+    at_rest = [t.key() for t in fitted.model.terms if t.uses_feed]
+    drift = [t.key() for t in fitted.model.terms if t.kind in ("thermal_drift", "channel_drift")]
+    rest = [f"the tables leave out what depends on feed ({', '.join(at_rest)}): they hold the model "
+            "at feed 0 (mtcomp compensate applies these terms block by block)"] if at_rest else []
+    rest += [f"the tables leave out the thermal drift ({', '.join(drift)}): they hold the machine's "
+             "geometry; mtcomp compensate corrects the drift since the part's datum was probed, given "
+             "the temperatures while the program runs"] if drift else []
+    return rest

@@ -46,7 +46,7 @@ def run(args) -> int:
     data = read_measurements(args.data)
     attach_cmm_cuts(args, machine, [data])
     note_cmm_gaps("predict", machine, [data])
-    from ..thermal.context import has_tip_drift
+    from ..thermal.context import has_tip_drift, record_state_note
     if data.kind != "thermal" and has_tip_drift(fitted.model) and not data.context.temperatures \
             and not np.isfinite(data.context.spindle_rpm).any():
         # no thermal state in the file: its drift is not known, and the model's reference (the
@@ -54,10 +54,12 @@ def run(args) -> int:
         fitted = fitted.without_drift()
         print(f"note: {args.data}: no temperatures or spindle speed: predicted without the model's "
               "thermal drift", file=sys.stderr)
+    # a sensor the drift reads missing is refused; rows beyond the record's thermal range are noted
+    beyond = record_state_note(fitted, data)
     pred = predict_readings(fitted, data, machine)
     note_outside_travel("predict", machine, [data])     # once the file is predicted: a refusal is one line
     columns = pred.columns
-    for note in pred.notes:
+    for note in pred.notes + ([beyond] if beyond else []):
         print(f"note: {note}", file=sys.stderr)
     ordered = {}
     for name in list(data.prediction_columns) + [k for k in columns if not k.endswith("_sd")]:

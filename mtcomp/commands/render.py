@@ -74,7 +74,7 @@ def add_arguments(parser):
                         help="the spindle speed given to compensate, for a spindle-heat drift")
     add_probed_arguments(parser, "the temperatures when the part's datum was probed, as given to "
                          "compensate (repeatable): the drift since probing is mapped (default: the "
-                         "whole drift since the thermal record's first reading)",
+                         "drift since the thermal record's first reading)",
                          "the spindle speed at probing given to compensate")
     parser.add_argument("--extrapolate", action="store_true",
                         help="accept temperatures and spindle speeds outside the range of the "
@@ -199,10 +199,11 @@ def _thermal_state(args, fitted):
         fitted = replace(fitted, context_defaults=dict(fitted.context_defaults))
         thermal, _ = thermal_context(fitted, temperatures, args.spindle_rpm, args.extrapolate,
                                      source=args.model)
-        fitted.context_defaults.update(thermal)
         fitted.probed, line = probed_state(fitted, set(temperatures), args.spindle_rpm, probed,
                                            args.probed_at_spindle_rpm, args.extrapolate, args.model)
-        return fitted, line if fitted.probed is None else ""   # the reference when none given
+        fitted.context_defaults.update(thermal)     # after: the record's means are a reference
+        fitted.probed_from_record = not probed and args.probed_at_spindle_rpm is None
+        return fitted, line if fitted.probed_from_record else ""   # the reference when none given
     probed_state(fitted, (), None, probed, args.probed_at_spindle_rpm, source=args.model)
     if not has_tip_drift(fitted.model):
         return fitted, ""

@@ -154,7 +154,9 @@ def pose_line(tables) -> str:
             "best 1-D table of an error acting through that axis's arm is read, and a rotary axis at "
             f"its reference position), tool length {m.tool_length:g} mm; each table is zero at its "
             "axis's reference position (" + ", ".join(f"{a}={v * deg[a]:g}" for a, v in ref.items())
-            + "; one outside its axis's data region at the region's nearest end). Along a line "
+            + "; one outside its axis's data region at the region's nearest end; where the model "
+            "has a backlash, the mean of the two approach directions, each holding half of it). "
+            "Along a line "
             "through that pose the tables correct what mtcomp compensate corrects, up to one "
             "constant; elsewhere an angular error's arm differs (see 'What the controller cannot "
             "hold')")

@@ -574,7 +574,11 @@ def component_tables(fitted, grids: dict, region: dict | None = None,
     this anywhere on its grid gets no table, and a note says why (None or 0: no limit). The whole
     table, not the points over the limit: a controller interpolates between its points, and a table
     zero at some points and not at their neighbours would put steps into the axis's motion.
+    The model is evaluated without its drift terms (:meth:`FittedModel.without_drift`): the
+    tables hold the geometry, and a drift model's value at its reference temperatures is no error
+    of an axis (its constant holds where the thermal record's probe was zeroed).
     """
+    fitted = fitted.without_drift()
     machine = fitted.machine
     region = dict(region or {a: (float(g[0]), float(g[-1])) for a, g in grids.items()})
     ref = reference_positions(machine)

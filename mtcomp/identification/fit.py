@@ -53,7 +53,7 @@ import scipy.linalg
 
 from ..errors import InputError
 from ..measurement.readings import MeasurementModel, data_held, data_support
-from ..models.model_file import FittedModel
+from ..models.model_file import FittedModel, setup_uncertainty
 from ..models.params import ParameterSet
 from .reversal import DirectionContrast, data_reversal
 from .unmeasured import assumption, record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
@@ -786,7 +786,8 @@ class _Problem:
         # standard errors, so that a reader of the model can tell that share
         uncertainty = {"names": tuple(names[i] for i in self.free_idx),
                        "covariance": np.nan_to_num(sol.cov[:nf, :nf]), "undetermined": null_p,
-                       "held": sol.held[:nf], "held_sd_um": np.asarray(sol.held_sd, dtype=float)}
+                       "held": sol.held[:nf], "held_sd_um": np.asarray(sol.held_sd, dtype=float),
+                       "setup": setup_uncertainty(nuis_specs, sol.cov, nf)}
         res.fitted_model = FittedModel(model, params, dict(ctx_defaults),
                                        {"identify": res.to_dict(), **(info or {})},
                                        uncertainty=uncertainty)

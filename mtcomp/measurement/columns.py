@@ -27,6 +27,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..machine import AXIS_ORDER
+from .thermal_checks import thermal_notes
 from .units import UM, UNIT_CHECK_FLOOR_UM, unit_check, unit_limit_um
 
 #: a column this close (difflib ratio) to one the file's kind reads and lacks is taken as misspelt
@@ -130,6 +131,7 @@ def file_notes(machine, datasets) -> list[str]:
         line = _mm_under_um(data, header) or _short_bar(data)
         if line:
             notes.append(line)
+        notes += thermal_notes(data)
     return notes
 
 

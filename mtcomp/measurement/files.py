@@ -25,6 +25,7 @@ from ..errors import InputError
 from ..machine import AXIS_ORDER, LINEAR, ROTARY, Machine
 from ..io.csvtable import CsvTable, parse_ints, parse_signs, read_csv_table
 from .columns import check_axis_units, check_columns
+from .thermal_checks import check_time_order, check_unit_columns
 # the units of the files, and the writing of a file back (also read from here)
 from .units import DEG, UM, URAD, file_unit_scale, format_cell, write_csv_with_columns  # noqa: F401
 
@@ -442,6 +443,7 @@ def read_measurements(path: str | os.PathLike, kind: str | None = None) -> Measu
     """
     table = read_csv_table(path)
     check_axis_units(table)
+    check_unit_columns(table)
     if kind is None:
         kind = detect_kind(table)
     elif kind not in KINDS:
@@ -593,6 +595,7 @@ def _read_thermal(table: CsvTable, context: Context) -> ThermalData:
     if not channels:
         table.fail(f"missing column disp_<name>_um (a thermal file needs {REQUIRED['thermal']})")
     t = table.floats("t_s", required=True)
+    check_time_order(table, t)
     context.t = t
     return ThermalData(**_base(table, context), t=t, channels=channels)
 

@@ -66,7 +66,19 @@ def uncertainty_without(uncertainty: dict | None, names) -> dict | None:
                undetermined=np.asarray(uncertainty["undetermined"]).reshape(n, -1)[keep])
     if "held" in uncertainty:
         out["held"] = np.asarray(uncertainty["held"]).reshape(n, -1)[keep]
+    if "setup" in uncertainty:
+        out["setup"] = dict(uncertainty["setup"], cross=np.asarray(uncertainty["setup"]["cross"])[:, keep])
     return out
+
+
+def setup_uncertainty(specs, cov: np.ndarray, n_params: int) -> dict:
+    """The ``setup`` entry of a fit's uncertainty (:class:`FittedModel`): the files' set-up
+    parameters ``specs`` (the unknowns after the first ``n_params`` of the covariance ``cov``, internal
+    units), their covariance and their covariance with the fitted parameters."""
+    return {"names": tuple(s.name for s in specs),
+            "to_file": np.array([s.to_file for s in specs], dtype=float),
+            "cross": np.nan_to_num(cov[n_params:, :n_params]),
+            "covariance": np.nan_to_num(cov[n_params:, n_params:])}
 
 
 @dataclass
@@ -89,10 +101,19 @@ class FittedModel:
         (k, h) and ``"held_sd_um"`` (h,): the directions the data fix only weakly, which the fit held
         at the least error (each 1 um rms tool-tip error over the data's region), with their
         standard errors (um). Their variance is already in the covariance: they are listed so that
-        its share can be told, and they are not undetermined.
+        its share can be told, and they are not undetermined. Optionally ``"setup"``: the fitted
+        files' set-up parameters (laser zeros and slopes, a tracker's frame ...), ``{"names": (s,),
+        "to_file": (s,), "cross": (s, k), "covariance": (s, s)}``, their covariance with the
+        parameters and their own: a prediction of a fitted file with its fitted set-up moves with
+        both (:func:`mtcomp.identification.predict.predict_readings`).
     probed : None, or the drift terms' context (``temp_<s>`` degC, ``spindle_lag_<tau>`` ...) at
         which the part's datum was probed (:func:`mtcomp.thermal.context.probed_state`): the datum's
-        deviation then holds the drift at probing. None: the drift terms' own zero. Not saved.
+        deviation then holds the drift at probing. None: the drift terms' own zero (a model whose
+        drift corrects nothing). Not saved.
+    probed_from_record : True when ``probed`` is no state the user gave but the thermal record's
+        reference (its first reading, :func:`mtcomp.thermal.context.record_reference`): a reading
+        of the record, not a prediction, so the datum adds no uncertainty of the drift and a
+        correction's standard error is the drift prediction's (:meth:`at_datum`). Not saved.
     probe_tool_length : mm, the length of the tool (a probe) the part's datum was probed with in X
         and Y (:meth:`at_datum`); None: the machine's tool length. Not saved.
     """
@@ -106,6 +127,7 @@ class FittedModel:
     held: dict | None = None
     probed: dict | None = None
     probe_tool_length: float | None = None
+    probed_from_record: bool = False
 
     def drift_param_indices(self) -> list[int]:
         """Indices into ``params`` of every drift term's parameters."""
@@ -128,9 +150,9 @@ class FittedModel:
                        context_defaults=dict(self.context_defaults))
 
     def datum_params(self) -> np.ndarray:
-        """(n_params,) the values the part's datum was probed with: every drift term's at zero (the
-        drift terms' own zero, the start of the thermal record), or all of them when the thermal
-        state at probing is known (:attr:`probed`, then in :meth:`datum_context`)."""
+        """(n_params,) the values the part's datum was probed with: every drift term's at zero when
+        no drift is corrected (:attr:`probed` None), else all of them, the thermal state at probing
+        in :meth:`datum_context` (given, or the thermal record's first reading)."""
         p = np.array(self.params.values, dtype=float, copy=True)
         if self.probed is None:
             p[self.drift_param_indices()] = 0.0
@@ -169,11 +191,11 @@ class FittedModel:
             lateral = evaluate(self.model, name, qd, p, probe_ctx)[0]
             out = np.array(out, copy=True)
             out[:, :2] = lateral[:, :2]
-        if name.endswith("pjacobian_function") and self.probed is None:
-            # the datum's deviation is taken with the drift parameters at zero, whatever their
-            # fitted values: it does not depend on them (without this the intercept of an absolute
-            # drift model cancelled against the datum while its temperature terms did not, and a
-            # drift at the record's own temperatures had a standard error of 4 um)
+        if name.endswith("pjacobian_function") and (self.probed is None or self.probed_from_record):
+            # the datum's deviation does not depend on the drift parameters: with no drift corrected
+            # they are zero, and at the record's first reading the drift there is a reading of the
+            # record (without this the intercept of an absolute drift model, which carries the
+            # model error, cancelled against the datum, and a correction's standard error lost it)
             out = np.array(out, copy=True)
             out[..., self.drift_param_indices()] = 0.0
         return out
@@ -344,6 +366,11 @@ def uncertainty_to_file(fitted: "FittedModel") -> dict:
     if "held" in u and np.asarray(u["held"]).size:
         out["held"] = (f[:, None] * np.asarray(u["held"])).T.tolist()
         out["held_sd_um"] = np.asarray(u["held_sd_um"], dtype=float).tolist()
+    if "setup" in u:
+        g = np.asarray(u["setup"]["to_file"], dtype=float)
+        out["setup"] = {"parameters": list(u["setup"]["names"]), "to_file": g.tolist(),
+                        "cross": (np.asarray(u["setup"]["cross"]) * np.outer(g, f)).tolist(),
+                        "covariance": (np.asarray(u["setup"]["covariance"]) * np.outer(g, g)).tolist()}
     return out
 
 
@@ -370,7 +397,23 @@ def _uncertainty_from_file(params: ParameterSet, data, path) -> dict | None:
             raise InputError("'uncertainty' 'held' must be directions over its parameters with one "
                              "'held_sd_um' each", path) from None
         out.update(held=held / f[:, None], held_sd_um=sd)
+    if "setup" in data:     # optional (older files have none): the fitted files' set-ups
+        out["setup"] = _setup_from_file(data["setup"], f, path)
     return out
+
+
+def _setup_from_file(data, f: np.ndarray, path) -> dict:
+    try:
+        names = tuple(str(n) for n in data["parameters"])
+        g = np.asarray(data["to_file"], dtype=float).reshape(len(names))
+        cross = np.asarray(data["cross"], dtype=float).reshape(len(names), f.size)
+        cov = np.asarray(data["covariance"], dtype=float).reshape(len(names), len(names))
+    except (KeyError, TypeError, ValueError):
+        raise InputError("'uncertainty' 'setup' must hold 'parameters', 'to_file', 'cross' (one row per "
+                         "set-up parameter over the parameters) and a square 'covariance'", path) from None
+    if not np.all(g != 0):
+        raise InputError("'uncertainty' 'setup' 'to_file' must be non-zero", path)
+    return {"names": names, "to_file": g, "cross": cross / np.outer(g, f), "covariance": cov / np.outer(g, g)}
 
 
 def support_to_file(machine: Machine, support: dict) -> dict:

@@ -9,8 +9,8 @@ backlash of 6 um was lost that way on the 46 h spindle record); each path judges
 
 The model is the geometric model plus the drift terms (``ThermalDrift`` on the tool tip for the
 channels that read a machine axis, ``ChannelDrift`` for the others), their covariances side by side
-(the two fits share no data), the record's temperature means as the context defaults and its ranges
-in ``info["context_ranges"]``.
+(the two fits share no data), the record's temperature means as the context defaults, its ranges
+in ``info["context_ranges"]`` and its first reading in ``info["thermal_first_reading"]``.
 """
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ from ..models.params import ParameterSet
 from ._diagnose import channel_axes_for, declared_channel_axes, diagnose_thermal
 
 #: the record's keys that ``info`` takes from the thermal diagnosis's model
-_THERMAL_INFO = ("drift_features", "time_constants_s", "context_ranges")
+_THERMAL_INFO = ("drift_features", "time_constants_s", "context_ranges", "thermal_first_reading")
 
 
 @dataclass

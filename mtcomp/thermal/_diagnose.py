@@ -188,6 +188,7 @@ def diagnose_thermal(machine, data, channel_axes: dict | None = None, progress=N
     diag = Diagnosis(verdict, noise, base, findings, final, fitted, how, n_obs, reference=reference)
     diag.thermal = fit
     diag.seconds = time.perf_counter() - t0
+    fitted.info["thermal_record"] = str(data.path)
     fitted.info["diagnose"] = diag.to_dict()
     return diag
 
@@ -232,6 +233,10 @@ def _thermal_model(machine, fit, axes: dict) -> FittedModel:
     info = {"fitted_by": "mtcomp diagnose (thermal drift)", "drift_features": list(c.features),
             "time_constants_s": c.time_constants_s,
             "context_ranges": context_ranges(fit) if c.driver != "none" else {}}
+    if c.driver != "none":
+        # the state a correction is referenced to by default: the drift since the record's first
+        # reading (its absolute value holds the probe's set-up zero, which no data determine)
+        info["thermal_first_reading"] = dict(fit.first_reading)
     # support {}: the record moved no axis, and the drift model has no error that varies along one
     # (no region bounds where it applies)
     fitted = FittedModel(model, params, defaults, info, support={},

@@ -221,6 +221,9 @@ class ThermalFit:
     t_s : (n,) time of the rows (in time order, as every array here); spindle_rpm : (n,).
     temperature_means, temperature_ranges : sensor -> mean, (lowest, highest) reading over the
         record (degC), for the sensors the chosen model reads.
+    first_reading : feature -> its value at the record's first reading in time (``temp_<s>`` degC,
+        a spindle heat at its start value), for the features the chosen model reads: the thermal
+        state from which compensate corrects the drift by default (docs/thermal.md).
     """
 
     channels: list
@@ -243,6 +246,7 @@ class ThermalFit:
     covariance: np.ndarray | None = None
     temperature_ranges: dict = field(default_factory=dict)
     results: list = field(default_factory=list)
+    first_reading: dict = field(default_factory=dict)
 
     def summary(self) -> str:
         lines = [f"thermal drift ({len(self.t_s)} readings over {np.ptp(self.t_s) / 3600:.3g} h, "
@@ -334,7 +338,8 @@ def fit_thermal(data, lags_s=DEFAULT_LAGS_S, n_folds: int = N_FOLDS, penalties=P
                       np.asarray(ctx.t, dtype=float), forward_predictions(X, Y, chosen.penalty, folds),
                       np.asarray(ctx.spindle_rpm, dtype=float), n_folds, temp_means,
                       [s for s in ctx.temperatures if s not in usable_temperatures(ctx)], covariance,
-                      {s: (float(np.min(v)), float(np.max(v))) for s, v in temps}, results)
+                      {s: (float(np.min(v)), float(np.max(v))) for s, v in temps}, results,
+                      {f: float(X[0, i]) for i, f in enumerate(chosen.features)})
 
 
 def choose(scores: list[CandidateScore]) -> CandidateScore:

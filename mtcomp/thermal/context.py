@@ -44,6 +44,8 @@ class TemperatureSeries:
 
     t_s: np.ndarray
     temps: dict
+    #: (k,) the file's data row of each reading (for messages), None when not from a file
+    rows: np.ndarray | None = None
 
     def at(self, t_s) -> dict:
         """sensor name -> (n,) degC at the times ``t_s`` (n,) seconds."""
@@ -86,7 +88,7 @@ def read_temperature_row(path) -> tuple[dict | TemperatureSeries, list]:
                 table.fail(f"column {name}: every reading of a time series must be given",
                            int(np.flatnonzero(~np.isfinite(v))[0]))
             temps[_TEMP_COLUMN.match(name).group(1)] = v
-        return TemperatureSeries(t, temps), other
+        return TemperatureSeries(t, temps, np.asarray(table.row)), other
     temps = {}
     for name in names:
         v = float(table.floats(name)[0])
@@ -96,6 +98,30 @@ def read_temperature_row(path) -> tuple[dict | TemperatureSeries, list]:
         table.fail("no temperature in the row: expected columns temp_<name>_c (degC) with a value, "
                    "as in the thermal file", 0)
     return temps, other
+
+
+def check_readings(fitted, readings, path, flags=(), extrapolate: bool = False) -> None:
+    """InputError naming the readings file ``path`` (``--temperatures``), the row and the column of
+    the first reading beyond the range the model's thermal record spans (unless ``extrapolate``).
+    ``readings``: what :func:`read_temperature_row` returned (one row, or a series); the sensors of
+    ``flags`` are given on the command line, which wins, and are not checked here."""
+    ranges = fitted.info.get("context_ranges") if isinstance(fitted.info, dict) else None
+    if extrapolate or not isinstance(ranges, dict):
+        return
+    if isinstance(readings, TemperatureSeries):
+        temps = readings.temps
+        rows = readings.rows if readings.rows is not None else np.arange(1, len(readings.t_s) + 1)
+    else:
+        temps, rows = {s: np.array([v]) for s, v in readings.items()}, np.array([1])
+    for sensor, v in temps.items():
+        rng = ranges.get(f"temp_{sensor}")
+        if sensor in flags or not rng:
+            continue
+        bad = np.flatnonzero((v < float(rng[0])) | (v > float(rng[1])))
+        if bad.size:
+            value = float(v[bad[0]])
+            _check_range(f"column temp_{sensor}_c: temperature of sensor {sensor}:", value, "degC", rng,
+                         False, path, _degf_hint(value, rng), row=int(rows[bad[0]]))
 
 
 def has_tip_drift(model) -> bool:
@@ -126,7 +152,8 @@ def _drift_terms(model):
     return tip, channel
 
 
-def _check_range(what: str, value: float, unit: str, rng, extrapolate: bool, source, hint: str = ""):
+def _check_range(what: str, value: float, unit: str, rng, extrapolate: bool, source, hint: str = "",
+                 row: int | None = None):
     """'' inside ``rng`` ([lowest, highest]) or without one; beyond it: InputError, or with
     ``extrapolate`` the words that say so."""
     if not rng:
@@ -138,17 +165,19 @@ def _check_range(what: str, value: float, unit: str, rng, extrapolate: bool, sou
     if not extrapolate:
         raise InputError(f"{what} {value:g} {unit} is outside the range the model's thermal record "
                          f"spans ({span}){hint}: refused; give --extrapolate to correct beyond it",
-                         source)
+                         source, row=row)
     return f" (beyond the record's {span})"
 
 
-def _degf_hint(value: float, rng) -> str:
-    """A clause saying what the value would be in degC if it was written in degF, when that falls
-    inside ``rng`` (a likely slip); '' otherwise."""
-    c = (value - 32.0) / 1.8
-    if rng and float(rng[0]) <= c <= float(rng[1]):
-        return f"; as degF it would be {c:.3g} degC, inside it: temperatures are in degC"
-    return ""
+def _degf_hint(value, rng) -> str:
+    """A clause saying what the value (the median of an array of readings) would be in degC if it was
+    written in degF, when that falls inside ``rng`` (a likely slip); '' otherwise."""
+    v = np.asarray(value, dtype=float)
+    c = (float(np.median(v)) - 32.0) / 1.8 if v.size else math.nan
+    if not (rng and float(rng[0]) <= c <= float(rng[1])):
+        return ""
+    return (f"; as degF {'it' if v.size == 1 else 'their median'} would be {c:.3g} degC, inside it: "
+            "temperatures are in degC")
 
 
 def thermal_context(fitted, temperatures: dict | None = None, spindle_rpm: float | None = None,
@@ -182,6 +211,13 @@ def thermal_context(fitted, temperatures: dict | None = None, spindle_rpm: float
     if given and time_driven(fitted.model):
         raise InputError(f"a temperature or spindle speed was given, but {TIME_DRIVEN}", source)
     for sensor, v in (temperatures or {}).items():
+        if sensor not in temps and f"dtemp_{sensor}" in features:
+            raise InputError(f"temperature {sensor}: the model's drift reads that sensor's rise since "
+                             f"the first reading of each file it was fitted on (dtemp_{sensor}), "
+                             "which has no value while a program runs: diagnose one thermal record, "
+                             "alone or beside the geometric files (join the records of one set-up "
+                             "into one file in time order), for a drift compensate can follow",
+                             source)
         if sensor not in temps:
             raise InputError(f"temperature {sensor}: the model has no drift term that reads that "
                              f"sensor (it reads: {', '.join(temps) or 'none'})", source)
@@ -220,14 +256,15 @@ def thermal_context(fitted, temperatures: dict | None = None, spindle_rpm: float
 
 def probed_state(fitted, cut_sensors, cut_rpm, probed_temperatures=None, probed_rpm=None,
                  extrapolate: bool = False, source=None) -> tuple[dict | None, str]:
-    """(the drift terms' context at the part's datum as it was probed, None for the drift terms' own
-    zero; the line saying which reference the drift is corrected from, '' when no drift is
+    """(the drift terms' context at the part's datum as it was probed, None when no drift is
+    corrected; the line saying which reference the drift is corrected from, '' when no drift is
     corrected). The probe put the drift of its time into the work offset, so a block corrects the
     drift while it runs less the drift at probing. ``cut_sensors``: the sensors the state while the
     program runs gives (flags, a row or a series); ``cut_rpm``: its spindle speed or None;
     ``probed_temperatures`` (sensor -> degC) and ``probed_rpm``: the state at probing, which must
-    give what the running state gives. InputError (naming ``source``) otherwise, and for a probed
-    state given to a model whose drift compensate does not correct."""
+    give what the running state gives; neither given: the thermal record's first reading
+    (:func:`record_reference`). InputError (naming ``source``) otherwise, and for a probed state
+    given to a model whose drift compensate does not correct."""
     probed_temperatures = probed_temperatures or {}
     given = bool(probed_temperatures) or probed_rpm is not None
     cut_given = bool(cut_sensors) or cut_rpm is not None
@@ -239,14 +276,7 @@ def probed_state(fitted, cut_sensors, cut_rpm, probed_temperatures=None, probed_
                          "runs (--temperature, --temperatures, --spindle-rpm): no drift is "
                          "corrected without it", source)
     if not given:
-        features = [f for t in _drift_terms(fitted.model)[0] for f in t.features]
-        flag = ("--probed-at-temperature" if any(f.startswith("temp_") for f in features)
-                else "--probed-at-spindle-rpm")
-        record = fitted.info.get("thermal_record") if isinstance(fitted.info, dict) else None
-        return None, (f"thermal drift referenced to the record's first reading ("
-                      f"{record or 'the thermal record'}, where the model's drift is zero: the "
-                      f"whole drift since then is corrected): give {flag} if the datum was probed "
-                      "warm")
+        return record_reference(fitted, cut_sensors, cut_rpm, source)
     if (cut_rpm is None) != (probed_rpm is None):
         raise InputError("--spindle-rpm and --probed-at-spindle-rpm go together: give the spindle's "
                          "state both while the program runs and at probing, or neither", source)
@@ -269,3 +299,87 @@ def probed_state(fitted, cut_sensors, cut_rpm, probed_temperatures=None, probed_
                          e.path) from None
     return context, ("thermal drift referenced to the datum's probing (the drift since then is "
                      "corrected): at probing " + sentence.partition(": ")[2])
+
+
+def record_reference(fitted, cut_sensors, cut_rpm, source=None) -> tuple[dict, str]:
+    """(the drift terms' context at the part's datum when no state at probing is given, the line
+    saying so): the thermal record's first reading (``info["thermal_first_reading"]``, written by
+    diagnose), so that the drift since then is corrected and never the drift model's absolute value,
+    whose constant holds the set-up zero of the record's probe (what the data leave undetermined).
+    Only what the state while the program runs gives is taken from it (``cut_sensors``, the spindle
+    heat when ``cut_rpm`` is given): the rest is at the same value at the datum and while the
+    program runs. A model file without that reading (an older mtcomp) is referenced to the
+    record's mean temperatures (its context defaults as read from the file: called before the
+    running state is written into them) and a spindle stopped long; InputError
+    (naming ``source``) for a temperature it holds no reference of."""
+    features = [f for t in _drift_terms(fitted.model)[0] for f in t.features]
+    temps = [f for f in features if f.startswith("temp_") and f[5:] in cut_sensors]
+    lags = [f for f in features if _LAG.match(f)] if cut_rpm is not None else []
+    flag = "--probed-at-temperature" if temps else "--probed-at-spindle-rpm"
+    info = fitted.info if isinstance(fitted.info, dict) else {}
+    first = info.get("thermal_first_reading")
+    record = info.get("thermal_record") or "the thermal record"
+    temp_text = lambda state: ", ".join(f"{f[5:]}={state[f]:.5g}" for f in temps) + " degC"  # noqa: E731
+    if isinstance(first, dict) and all(f in first for f in temps + lags):
+        state = {f: float(first[f]) for f in temps + lags}
+        said = ([temp_text(state)] if temps else []) + (
+            [f"spindle heat of {1e3 * state[lags[0]]:g} rpm"] if lags else [])
+        return state, (f"thermal drift referenced to the record's first reading ({record}: "
+                       f"{'; '.join(said)}): the drift since then is corrected (a probe's set-up "
+                       f"zero is not); give {flag} if the datum was probed warm")
+    missing = [f for f in temps if f not in fitted.context_defaults]
+    if missing:
+        raise InputError(f"the model file records neither the first reading of its thermal record "
+                         f"nor a reference temperature of sensor {missing[0][5:]}: give {flag} "
+                         "with the temperatures at which the part's datum was probed", source)
+    state = {**{f: float(fitted.context_defaults[f]) for f in temps}, **{f: 0.0 for f in lags}}
+    said = ([f"the record's mean temperatures {temp_text(state)}"] if temps else []) + (
+        ["a spindle stopped long"] if lags else [])
+    return state, (f"thermal drift referenced to {' and '.join(said)}: the model file records no "
+                   f"first reading of its thermal record ({record}; an older mtcomp wrote it: diagnose "
+                   f"the record again to have it); give {flag} with the state at which the datum was "
+                   "probed")
+
+
+def record_state_note(fitted, data) -> str:
+    """The sentence on the rows of a measurement file ``data`` whose temperatures or spindle speed
+    lie outside the range the model's thermal record spans (``info["context_ranges"]``), each sensor
+    the model's drift reads checked alone, as compensate checks a thermal state; '' when none does
+    (or the model records no range). InputError for a thermal file without a column
+    ``temp_<name>_c`` of a sensor the drift reads: the sensor would be taken at its mean over the
+    record in every row."""
+    tip, channel = _drift_terms(fitted.model)
+    features = [f for t in (*tip, *channel) for f in t.features]
+    temps = list(dict.fromkeys(f[5:] for f in features if f.startswith("temp_")))
+    given = data.context.temperatures
+    missing = [s for s in temps if s not in given]
+    if missing and getattr(data, "kind", "") == "thermal":
+        raise InputError(f"no column {', '.join(f'temp_{s}_c' for s in missing)}: the model's thermal "
+                         f"drift reads sensor(s) {', '.join(missing)} (it reads {', '.join(temps)}); "
+                         "give every sensor's readings, in degC", data.path, row=0)
+    ranges = fitted.info.get("context_ranges") if isinstance(fitted.info, dict) else None
+    out = np.zeros(len(data), dtype=bool)
+    if not isinstance(ranges, dict):
+        return ""
+    parts = []
+    checks = [(s, f"temp_{s}", given[s], "degC") for s in temps if s in given]
+    if any(_LAG.match(f) for f in features):
+        checks.append(("spindle_rpm", "spindle_rpm", np.nan_to_num(data.context.spindle_rpm), "rpm"))
+    for name, key, v, unit in checks:
+        rng = ranges.get(key)
+        if not rng:
+            continue
+        lo, hi = (float(x) for x in rng)
+        beyond = (np.asarray(v, dtype=float) < lo) | (np.asarray(v, dtype=float) > hi)
+        if beyond.any():
+            out |= beyond
+            w = np.asarray(v, dtype=float)[beyond]
+            parts.append(f"{name} {int(beyond.sum())} row(s) at {w.min():.5g} to {w.max():.5g} {unit} "
+                         f"against {lo:.5g} to {hi:.5g}"
+                         + (_degf_hint(w, rng) if unit == "degC" else ""))
+    if not out.any():
+        return ""
+    return (f"{data.path}: {int(out.sum())} of {len(data)} row(s) lie outside the thermal state the "
+            f"model's record spans ({', '.join(parts)}): the drift model carries on linearly there, "
+            "beyond what it saw; their standard errors take it to hold and do not size that "
+            "(compensate refuses such a state without --extrapolate)")

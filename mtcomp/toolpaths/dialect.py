@@ -79,6 +79,9 @@ _STATEMENT_LINE = re.compile(
 _CALL = re.compile(rb"(?i)m[ \t]*0*9[78](?![\d.])")
 #: a macro call: G65
 _MACRO_CALL = re.compile(rb"(?i)(?<![a-z])g[ \t]*0*65(?![\d.])")
+#: a '65' that a G comes before with only zeros and blanks between (the places _MACRO_CALL is
+#: tried): one pattern per case of the letter, so that each starts with a literal
+_G_65 = (re.compile(rb"G[0 \t]*65"), re.compile(rb"g[0 \t]*65"))
 _CLUES = [
     ("linuxcnc", re.compile(r"(?i)^\s*(?:n\s*\d+\s*)?" + _OWORD_KEYWORD + r"|o\s*<|#\s*<")),
     ("linuxcnc", re.compile(r"\^\s*[-+.\d\[#]")),         # a polar angle word: LinuxCNC's alone
@@ -217,10 +220,11 @@ def _has_code(chunk: bytes, macro_calls: bool = False) -> bool:
     the macro runner expands them."""
     # an M is rare in a program (a regular expression over the whole block took 1.5 ms per 64 kB);
     # a '65' is not rare in coordinates: only those that a G (zeros and blanks between) comes
-    # before are read
+    # before are read, found by a pattern that starts with its letter (the regular expression
+    # engine skips to each G at memchr speed; a G is rarer than a '65' in coordinates)
     calls = [(p, _CALL) for ch in (b"M", b"m") for p in _finds(chunk, ch) if _CALL.match(chunk, p)]
     if macro_calls:
-        calls += [(p, _MACRO_CALL) for p in _finds(chunk, b"65") if _after_g(chunk, p)]
+        calls += [(m.end() - 2, _MACRO_CALL) for g in _G_65 for m in g.finditer(chunk)]
     for pos, pattern in calls:
         start = chunk.rfind(b"\n", 0, pos) + 1
         end = chunk.find(b"\n", pos)
@@ -239,14 +243,6 @@ def _has_code(chunk: bytes, macro_calls: bool = False) -> bool:
             if ch in (b"#", b"[", b"@", b"^") and ch.decode() in strip_comments(line.decode("latin-1")):
                 return True
     return False
-
-
-def _after_g(chunk: bytes, pos: int) -> bool:
-    """Whether a G comes before position ``pos`` with only zeros and blanks between."""
-    j = pos - 1
-    while j >= 0 and chunk[j] in b"0 \t":
-        j -= 1
-    return j >= 0 and chunk[j] in b"Gg"
 
 
 def _finds(chunk: bytes, what: bytes):

@@ -29,6 +29,7 @@ from .haas5 import HAAS_5AXIS_G, haas_block, haas_code
 from .lengths import length_number, lone_h, set_length
 from .linetext import text_with_words
 from .programmed import ProgrammedOffsets, apply_g10
+from .quill import follow_quill, forget_quill, init_quill
 from .rrf import macro_codes, restore_move
 from .word_use import check_motion_mode, check_point_words, check_value_words
 from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _CURVE_WITH_COORDINATES, KNOWN_DECIMAL_G, FANUC_CYCLES, FANUC_DIALECTS,
@@ -128,6 +129,7 @@ class ModalState:
         #: where TCP mode went on: line read -> code ('M428', 'G43.4', 'M128'), shared like these
         table = getattr(path, "tcp_switches", None)
         self.tcp_switches = table if table is not None else {}
+        init_quill(self, path)          # the W quill's position (:mod:`.quill`)
         self._line = 0
 
     def _init_cycles(self) -> None:
@@ -171,6 +173,7 @@ class ModalState:
         """The program's position of these axes (all by default) is unknown from here on."""
         if idx is None:
             self.known[:] = False
+            forget_quill(self)
         elif idx >= 0:
             self.known[idx] = False
 
@@ -204,6 +207,7 @@ class ModalState:
         if self.tcp or self.dwo:
             haas_block(self, gcodes, motion, home_move, values, line)
         axes_given = self._axis_words(values, line)
+        follow_quill(self, values, (motion, cycle, home_move), nonmotion_axes, line)
         check_value_words(self, tokens, gcodes, mcodes, motion, cycle, axes_given,
                           nonmotion_axes and home_move != 53, line)
         check_point_words(self, tokens, motion, cycle, axes_given, nonmotion_axes and home_move != 53, line)
@@ -374,6 +378,7 @@ class ModalState:
             nonmotion_axes = self._dwell_with_motion(motion, tokens, line)
         if tool_change:
             self._forget(self.tool_axis)
+            forget_quill(self)
         if g10:
             apply_g10(self, values, tokens, line)
         for g in frame_codes:
@@ -466,8 +471,10 @@ class ModalState:
     def _axis_words(self, values, line: int) -> list[str]:
         """The axis letters the line names (X Y Z A B C order); refuses axes the machine has not."""
         foreign = [c for c in "UVW" if c in values]
-        if foreign and self.dialect.name in ("fanuc", "haas"):
-            # on Fanuc and Haas lathes U and W are X and Z given incrementally, not other axes
+        if [c for c in foreign if c != "W" or self.dialect.name == "haas"] and \
+                self.dialect.name in ("fanuc", "haas"):
+            # on Fanuc and Haas lathes U and W are X and Z given incrementally, not other axes; a
+            # W on a Fanuc machining centre (mtcomp's machines) is the quill (:mod:`.quill`)
             raise self._err(f"axis word {foreign[0]} on {self.dialect.name} (on its lathes U and "
                             "W are incremental X and Z) is not supported", line)
         if foreign:
@@ -483,8 +490,8 @@ class ModalState:
         """U V W words (axes parallel to X Y Z that the machine model does not have, e.g. a quill
         W) pass through as written and uncorrected: said once, in the program's notes."""
         note = ("note: axis words U, V, W (axes the machine model does not have) pass through "
-                "unchanged and uncorrected; the other axes' corrections are those at their "
-                "positions")
+                "unchanged and uncorrected; the model is evaluated with the tool tip at Z + W (a "
+                "quill along Z) and at the other axes' positions")
         notes = getattr(self._source, "notes", None)
         if notes is not None and note not in notes:
             notes.append(note)
@@ -739,7 +746,7 @@ class ModalState:
             if g != 53:
                 new[i] = self.home[i]
             self.known[i] = False
-        if g != 53 and not axes_given:      # G28 / G30 alone: every axis goes home
+        if g != 53 and not axes_given and "W" not in values:    # alone: every axis goes home
             new = self.home.copy()
             self._forget()
         self.dirs = self._directions(self.position, new[None, :])[-1]

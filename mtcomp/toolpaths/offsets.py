@@ -38,6 +38,7 @@ from .blocks import SegmentChunk
 from .directions import AxisDirections
 from .frames import frames_of_rows, placed_by_frames
 from .haas5 import dwo_offsets
+from .quill import quill_of_rows
 from .tcp import axes_of_tcp, tcp_of_axes
 from .words import (NO_LENGTH, WORK_SYSTEMS, frame_dwo, frame_local, frame_offset_set, frame_tcp,
                     frame_tool, frame_wcs)
@@ -88,6 +89,8 @@ class ProgramSetup:
     _shifts: object = field(default=None, repr=False)
     #: (the program applied, the approach directions of its axes so far: :meth:`apply`)
     _directions: tuple = field(default=None, repr=False)
+    #: (the quill moves of the program applied, how many of them came before its last row so far)
+    _quill_last: tuple = field(default=(None, -1), repr=False)
 
     def _offset_table(self) -> np.ndarray:
         table = np.zeros((len(WORK_SYSTEMS), self.machine.n_axes))
@@ -129,8 +132,9 @@ class ProgramSetup:
         centre point rows (:mod:`.tcp`) are turned into the axes the controller reaches, and marked
         ``jump``: between two of them the axes do not move along a straight line; their approach
         directions (``dirs``) are the axes', not the tip words' (:mod:`.directions`), and so are
-        those of the rows after them until an axis moves again. Chunks of one program are applied
-        in order."""
+        those of the rows after them until an axis moves again. A program's W quill (:mod:`.quill`)
+        moves the tip along Z and lengthens the tool. Chunks of one program are applied in
+        order."""
         wcs = frame_wcs(chunk.frame)
         tool = frame_tool(chunk.frame)
         self.used_tools.update(t for t in _distinct(tool) if 0 < t != NO_LENGTH)
@@ -150,7 +154,12 @@ class ProgramSetup:
         for h, length in self._lengths(source).items():
             lengths[tool == h] = length
         start, end = self._local(chunk, chunk.start, source), self._local(chunk, chunk.end, source)
-        start, end, datum, jump = start + off, end + off, probed, chunk.jump
+        known = chunk.known
+        moves = getattr(source, "quill_moves", None)
+        jump = chunk.jump
+        if moves and "Z" in self.machine.axis_names:
+            off, lengths, known, jump = self._quill(chunk, moves, off, lengths)
+        start, end, datum = start + off, end + off, probed
         tcp = frame_tcp(chunk.frame)
         from_known = tcp
         if tcp.any():
@@ -170,7 +179,24 @@ class ProgramSetup:
         # the approach directions of the axes, not of the tip words (the backlash's side)
         dirs = self._held_directions(source).chunk(chunk.dirs, start, end, tcp, from_known)
         return replace(chunk, start=start, end=end, dirs=dirs, tool_length=lengths, datum=datum,
-                       jump=jump, tcp=tcp), off
+                       jump=jump, tcp=tcp, known=known), off
+
+    def _quill(self, chunk: SegmentChunk, moves: dict, off: np.ndarray, lengths: np.ndarray):
+        """(offsets, tool lengths, known) of the rows with the W quill's travel (:mod:`.quill`):
+        the tip at Z + W (W added to Z's offset, so the written Z is the program's plus its
+        correction), the tool longer by -W (the ram where the Z word puts it), and Z not known
+        where W is not (the block is not corrected); a row after a move of W alone is marked
+        ``jump`` (its tip does not come from the row before's end: no node is put on it)."""
+        last = self._quill_last if self._quill_last[0] is moves else (moves, -1)
+        w, w_known, moved, upto = quill_of_rows(moves, chunk.line, last[1])
+        self._quill_last = (moves, upto)
+        z = self.machine.index("Z")
+        off = off.copy()
+        off[:, z] += w
+        lengths = np.where(np.isnan(lengths), self.machine.tool_length, lengths) - w
+        known = chunk.known.copy()
+        known[:, z] &= w_known
+        return off, lengths, known, chunk.jump | moved
 
     def _held_directions(self, source) -> AxisDirections:
         """The axes' approach directions along the program ``source`` (:mod:`.directions`), new for

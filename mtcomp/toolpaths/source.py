@@ -64,6 +64,9 @@ class ProgramSource(os.PathLike):
     #: where the program switches tool centre point mode on: line -> code ('M428', 'G43.4'),
     #: recorded by the reader (:class:`~.modal.ModalState`)
     tcp_switches: dict = field(default_factory=dict)
+    #: the W quill's position before and after each line that changes it: line -> (mm, mm), NaN
+    #: where not known, recorded by the reader and applied by ProgramSetup.apply (:mod:`.quill`)
+    quill_moves: dict = field(default_factory=dict)
     _map_array: object = field(default=None, repr=False)     # line_map as an int64 array, once
     #: a Heidenhain conversational program: its :class:`~.heidenhain.Translation` (``path`` is
     #: then its G-code equivalent, line for line; the writer writes the conversational form)

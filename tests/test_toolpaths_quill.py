@@ -1,0 +1,91 @@
+"""The W quill of horizontal boring mills (mtcomp/toolpaths/quill.py): W words pass through as
+written, the model is evaluated with the tip at Z + W and the tool longer by -W, and a block whose
+W is not known is not corrected. Checked by hand against single error terms (docs/conventions.md):
+a pitch eps(y) of the Y carriage moves the tip by dy = -eps (z_tip - L0), a pitch eps(z_ram) of the
+ram by dy = +eps L (L the arm from the gauge point to the tip), so at one Y and one Z word the
+corrections with and without an extended quill stand in the ratio of those arms."""
+import csv
+
+import numpy as np
+import pytest
+
+from mtcomp.cli import main
+from mtcomp.errors import InputError
+from mtcomp.machine import load_machine
+from mtcomp.models import ErrorModel, FittedModel, save_model
+from mtcomp.toolpaths.gcode import iter_segment_chunks
+
+XFYZ = load_machine("xfyz")
+L0 = XFYZ.tool_length          # 100 mm
+Z, W = 20.0, -30.0
+#: the quill at 0 (line 4) and extended by 30 mm (line 6), at the same Y and Z words
+PROGRAM = ("G21 G90 G54\nG0 X10. Y50. Z20. W0.\nG1 X12. F100.\nG0 W-30.\nG1 X10. F100.\n"
+           "G1 X11.\nM30\n")
+
+
+def _compensate(tmp_path, text, param, dialect="fanuc", capsys=None):
+    machine = XFYZ.with_basis("polynomial")
+    model = ErrorModel(machine)
+    fitted = FittedModel.zero(model)
+    fitted.params.values[[s.name for s in model.param_specs].index(param)] = 1000.0e-6
+    save_model(tmp_path / "m.json", fitted)
+    prog = tmp_path / "p.nc"
+    prog.write_text(text)
+    code = main(["compensate", "xfyz", str(tmp_path / "m.json"), str(prog), "-o",
+                 str(tmp_path / "o.nc"), "--report", str(tmp_path / "r.csv"), "--method", "pinv",
+                 "--dialect", dialect, "--quiet", "--max-step-um", "1000",
+                 "--max-correction-um", "1000"])
+    assert code == 0
+    with open(tmp_path / "r.csv") as f:
+        rows = {int(r["line"]): r for r in csv.DictReader(f)}
+    return rows, (tmp_path / "o.nc").read_text()
+
+
+@pytest.mark.parametrize("param, ratio", [
+    ("EAY_1", (Z + W - L0) / (Z - L0)),     # the tip's Z (the Y carriage's Abbe arm) is Z + W
+    ("EAZ_1", (L0 - W) / L0),               # the ram's arm to the tip is the tool plus the quill
+])
+def test_the_correction_is_the_models_error_where_the_quill_puts_the_tip(tmp_path, param, ratio):
+    rows, out = _compensate(tmp_path, PROGRAM, param)
+    plain, extended = float(rows[3]["cy_um"]), float(rows[5]["cy_um"])
+    assert abs(plain) > 0.1                 # the term is felt (um)
+    np.testing.assert_allclose(extended / plain, ratio, rtol=2e-3)
+    # W words as written, none added, the W-only line byte for byte
+    src, dst = PROGRAM.splitlines(), out.splitlines()
+    assert dst[3] == src[3]
+    assert [ln.count("W") for ln in dst] == [ln.count("W") for ln in src]
+
+
+def test_a_block_whose_quill_is_not_known_is_not_corrected(tmp_path):
+    # G53 W0 sends the quill to a machine position; a tool change may move it: Z of the tip is not
+    # known until the program names W again (line 5 and 9 not corrected, 7 and 11 corrected)
+    text = ("G21 G90\nG0 X10. Y50. Z20.\nW-30.\nG53 G0 W0.\nG1 X12. F100.\nW-10.\n"
+            "G1 X10.\nT2 M6\nG1 X12. Z20.\nW-10.\nG1 X10.\nM30\n")
+    rows, out = _compensate(tmp_path, text, "EAY_1")
+    assert [int(rows[k]["corrected"]) for k in (5, 7, 9, 11)] == [0, 1, 0, 1]
+    assert rows[5]["unknown_axes"] == "Z" and rows[9]["unknown_axes"] == "Z"
+    # G28 W0 sends the quill alone home: X and Y stay known, Z of the tip is not
+    rows, _out = _compensate(tmp_path, "G21 G90\nG0 X10. Y50. Z20. W0.\nG1 X12. F100.\n"
+                             "G91 G28 W0.\nG90 G1 X10.\nW-5.\nG1 X12.\nM30\n", "EAY_1")
+    assert [rows[k]["unknown_axes"] for k in (3, 5, 7)] == ["", "Z", ""]
+    # a block moving W with X, Y or Z is not corrected either: its tip moves with the quill
+    rows, _out = _compensate(tmp_path, "G21 G90\nG0 X10. Y50. Z20. W0.\nG1 X12. W-5. F100.\n"
+                             "G1 X10.\nM30\n", "EAY_1")
+    assert [int(rows[k]["corrected"]) for k in (3, 4)] == [0, 1]
+
+
+#: a W where the quill's travel is the controller's own rule; on haas a W at all (a Haas mill has
+#: no W; on its lathes W is Z given incrementally)
+REFUSED = [
+    ("fanuc", "G2 X20. W-2. I5. J0 F100.", "W in a drilling cycle or arc"),
+    ("fanuc", "G81 X20. Z-2. R1. W-2. F100.", "W in a drilling cycle"),
+    ("haas", "G1 W-1. F100.", "incremental X and Z"),
+]
+
+
+@pytest.mark.parametrize("dialect, block, message", REFUSED)
+def test_w_is_refused_where_its_meaning_is_not_known(tmp_path, dialect, block, message):
+    (tmp_path / "p.nc").write_text(f"G21 G90\nG0 X10. Y0 Z5.\n{block}\nM30\n")
+    with pytest.raises(InputError, match=message) as exc:
+        list(iter_segment_chunks(tmp_path / "p.nc", XFYZ, dialect=dialect))
+    assert exc.value.line == 3
