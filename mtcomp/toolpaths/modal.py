@@ -20,7 +20,8 @@ from ..machine import Machine
 from ._arcs import (PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, blind_arc,
                     centre_from_radius, is_point_circle, passed_spline, point_circle, spline_code)
 from .blocks import CycleBlock, MotionBlock
-from .cycle_rules import cycle_move, cycle_unclear, has_axis_words, home_with_motion, incremental_r_level, retract_level
+from .cycle_rules import (cycle_move, cycle_unclear, has_axis_words, home_with_motion,
+                          incremental_r_level, retract_level, rigid_tap)
 from .dialect import GENERIC, beagleg_block, grbl_program_end
 from .directions import step_directions
 from .frames import (FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle, follow_given,
@@ -230,7 +231,7 @@ class ModalState:
             self.tapping = False
         if self.tap_line or (self.tapping and self.motion is None and cycle is None
                              and self.cycle is None and axes_given):
-            return self._rigid_tap(values, axes_given)
+            return rigid_tap(self, values, axes_given)
         self._set_cycle_mode(cycle, values)
         if self.cycle is not None and axes_given:
             b = self._cycle_block(line, values, axes_given, tokens, number)
@@ -571,27 +572,6 @@ class ModalState:
                            motion_word, self.incremental, self.inverse_time and self.motion != 0,
                            self.f_word, self.frame, start_known=start_known,
                            absolute_centre=self.arc_absolute and centre is not None)
-
-    def _rigid_tap(self, values, axes_given) -> None:
-        """A G33.1 rigid tapping line (or an axis line in its mode): the spindle-synchronised move
-        to the given point and back; the line passes through unchanged and uncorrected (its
-        overshoot past both ends follows the spindle's reversal, which the program does not give),
-        and every axis ends where it started (LinuxCNC G-code reference, G33.1: the moves end at
-        the original coordinate), approached in the direction of the tap's last move. In G91 the
-        writer keeps the line incremental (``distance_sensitive``)."""
-        self.tapping = True
-        self.motion = None
-        self.cycle = None
-        self.passed_move = ("tap", self._line) if axes_given else None
-        scale = MM_PER_INCH if self.inch else 1.0
-        step = np.zeros(self.na)
-        for c in axes_given:
-            i = self.names.index(c)
-            v = math.radians(values[c]) if c in "ABC" else values[c] * scale
-            step[i] = v if self.incremental else (v - self.position[i] if self.known[i] else 0.0)
-        self.dirs = step_directions(self.dirs, np.zeros(self.na), step[None, :])[0].copy()
-        self.distance_sensitive = self.incremental and bool(axes_given)
-        return None
 
     def _blind_increment(self, values, axes_given) -> None:
         """An incremental G0/G1 move of an axis whose position the program has not given (a Haas
