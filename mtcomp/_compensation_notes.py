@@ -13,6 +13,10 @@ _PASSED_MOVES = {"increment": "{n} incremental (G91) move{s} of an axis whose po
                               "has not given ({at}: the controller moves it from wherever it stands)",
                  "home": "{n} move{s} to the home position (G28/G30, grbl's $H; {at})",
                  "jog": "{n} grbl jog{s} ($J=, {at})",
+                 "arc": "{n} arc{s} from a position the program has not given ({at}: the controller "
+                        "runs it from wherever the machine stands; its end is known after it)",
+                 "spline": "{n} spline{s} (G5, G5.1; {at}: its control points are not corrected, "
+                           "its end is known after it)",
                  "machine": "{n} move{s} in machine coordinates (G53, {at})",
                  "tap": "{n} rigid tapping move{s} (G33.1, {at}: the spindle's reversal sets its ends)",
                  "restore": "{n} move{s} to a RepRapFirmware restore point (G0/G1 R, {at}: the "

@@ -23,7 +23,14 @@ kind 'none': grbl runs it without motion. Comments `( )` and `;` (a comment hold
 see `without_comments`), `%`, `:` program numbers, `$`
 lines (`$H` homing and `$J=` jogging leave every axis unknown) and a DOS end-of-file mark make no
 move. A RepRapFirmware program (see `is_rrf`) is read without its quoted strings, and a block that
-runs the controller's macro files (see `rrf_runs_macro`) leaves every axis unknown.
+runs the controller's macro files (see `rrf_runs_macro`) leaves every axis unknown. On BeagleG (see
+`is_beagleg`) G2/G3 hold for their own block only: axis words alone move in the last G0/G1 mode,
+G0 at the start (BeagleG's src/gcode-parser/gcode-parser.cc, ParseBlock). A G5 cubic spline (X Y
+its end; the first control point the start plus I J, or without I J minus the previous G5's P Q;
+the second the end plus P Q) and a G5.1 quadratic one (its control point the start plus I J) are
+moves along their Bezier curve (LinuxCNC G-code reference, G5 and G5.1); after one no motion mode
+is in force (BeagleG: the last G0/G1). A G5 without coordinates (Fanuc's G05 P10000 contour control
+mode) moves nothing.
 W, the quill of a horizontal boring mill (ISO 841's secondary axis parallel to Z), is an axis of
 the replay like X Y Z: mtcomp never corrects it, so its positions in the output must be the
 source's exactly.
@@ -52,6 +59,9 @@ _CYCLES = {73, 74, 76, 81, 82, 83, 84, 85, 86, 87, 88, 89}
 #: such a string outside comments or by a comment naming the firmware or MillenniumOS
 RRF_STRING = re.compile(r'[A-Za-z]?"(?:[^"]|"")*"')
 _RRF_CLUE = re.compile(rb'(?im)^[^(;\n]*"|reprapfirmware|\brrf\b|millenniumos')
+#: BeagleG: a parameter named without brackets (`#r=50`, `#i++`), or the controller named (the
+#: first line of a program mtcomp expanded for it says "for beagleg")
+_BEAGLEG_CLUE = re.compile(rb"(?im)^[ \t]*#[ \t]*[a-z_]\w*[ \t]*(?:=|\+\+|--|[-+*/]=)|\bbeagleg\b")
 #: the G codes RepRapFirmware carries out itself; any other runs the controller's macro file
 #: /sys/G<n>.g, and G29, G30, G32 probe: the moves are not in the program
 _RRF_OWN_G = {0, 1, 2, 3, 4, 10, 11, 17, 18, 19, 20, 21, 28, 31, 53, 54, 55, 56, 57, 58, 59, 60,
@@ -74,6 +84,7 @@ class Move:
     plane: int = 17
     centre: tuple = None
     sweep: float = 0.0
+    controls: tuple = None      # a spline's four Bezier points (x, y), start to end
 
 
 @dataclass
@@ -100,6 +111,9 @@ class _State:
     offsets: dict = field(default_factory=dict)   # (wcs, axis) -> offset set by G10 L2/L20
     g92: dict = field(default_factory=lambda: {a: 0.0 for a in LENGTHS})  # G92 offsets, mm
     rrf: bool = False            # a RepRapFirmware program: its strings and macro codes
+    beagleg: bool = False        # a BeagleG program: G2/G3 not modal
+    linear: int = 0              # BeagleG: the G0/G1 mode axis words alone move in
+    last_pq: tuple = (0.0, 0.0)  # the last G5's P Q (mm)
 
 
 def _words(code):
@@ -154,11 +168,19 @@ def rrf_runs_macro(words) -> bool:
     return False
 
 
-def replay(data: bytes, units_mm: bool = True, placed: bool = False) -> Replay:
+def is_beagleg(data: bytes) -> bool:
+    """Whether a program is one for BeagleG (see _BEAGLEG_CLUE)."""
+    return _BEAGLEG_CLUE.search(data) is not None
+
+
+def replay(data: bytes, units_mm: bool = True, placed: bool = False,
+           beagleg: bool | None = None) -> Replay:
     """The moves and motionless lines of a program (its bytes); `units_mm`: what a program
     without G20/G21 is in. `placed`: the positions on the machine, plus the work offset the program
-    set for the system in force (G10 L2/L20; None where that offset is not the program's)."""
-    st = _State(scale=1.0 if units_mm else 25.4, rrf=is_rrf(data))
+    set for the system in force (G10 L2/L20; None where that offset is not the program's).
+    `beagleg`: BeagleG's rules (None: known from the program, `is_beagleg`)."""
+    st = _State(scale=1.0 if units_mm else 25.4, rrf=is_rrf(data),
+                beagleg=is_beagleg(data) if beagleg is None else beagleg)
     out = Replay()
     for index, raw in enumerate(data.split(b"\n")):
         code = _code(raw, st.rrf)
@@ -185,8 +207,8 @@ def _offsets(st, placed):
 
 
 def _in_work_system(move, shift):
-    """A move with its positions (and arc centre) shifted by `shift` (axis -> mm or deg, None: the
-    position is not known)."""
+    """A move with its positions (and arc centre, spline control points) shifted by `shift` (axis ->
+    mm or deg, None: the position is not known)."""
     def placed(pos):
         return {a: None if v is None or shift[a] is None else v + shift[a] for a, v in pos.items()}
     centre = move.centre
@@ -194,8 +216,12 @@ def _in_work_system(move, shift):
         first, second = _PLANES[move.plane][:2]
         centre = None if shift[first] is None or shift[second] is None else (
             centre[0] + shift[first], centre[1] + shift[second])
+    controls = move.controls
+    if controls is not None:
+        controls = None if shift["X"] is None or shift["Y"] is None else tuple(
+            (x + shift["X"], y + shift["Y"]) for x, y in controls)
     return Move(move.line, move.kind, placed(move.start), placed(move.end), move.plane, centre,
-                move.sweep)
+                move.sweep, controls)
 
 
 def _value(st, letter, v):
@@ -246,6 +272,8 @@ def _block(st, index, words):
         return []
     _modal(st, gs, words)
     axes = [c for c, _ in words if c in AXES]
+    if st.beagleg and st.motion in (2, 3):
+        st.motion = st.linear            # BeagleG: an arc holds for its own block only
     _motion_mode(st, gs)
     if any(g in (28, 30) for g in gs):
         end = dict(st.pos)
@@ -279,6 +307,8 @@ def _block(st, index, words):
             return []
         there = _target(st, words)
         return [Move(index, "feed", dict(st.pos), there), Move(index, "feed", there, dict(st.pos))]
+    if (5 in gs or 5.1 in gs) and any(c in AXES + "IJKR" for c, _ in words):
+        return _go(st, _spline(st, index, words, 5 in gs))
     if st.motion in _CYCLES:
         return _cycle(st, index, words) if (axes or "L" in dict(words)) else []
     arc_words = any(c in "IJKR" for c, _ in words)
@@ -324,6 +354,7 @@ def _motion_mode(st, gs):
     for g in gs:
         if g in (0, 1, 2, 3):
             st.motion = int(g)
+            st.linear = int(g) if g in (0, 1) else st.linear
         elif g == 33.1:
             st.motion = g
         elif g in _CYCLES:
@@ -333,6 +364,32 @@ def _motion_mode(st, gs):
         elif g == 80:
             # Fanuc and Haas keep the motion in force before the cycle; LinuxCNC refuses axis words
             st.motion = st.before_cycle if st.motion in _CYCLES else st.motion
+
+
+def _spline(st, index, words, cubic):
+    """A G5 or G5.1 block's move (see the module's docstring)."""
+    value = {c: v * st.scale for c, v in words if c in "IJPQ"}
+    start, end = dict(st.pos), _target(st, words)
+    st.motion = st.linear if st.beagleg else None
+    if None in (start["X"], start["Y"], end["X"], end["Y"]):
+        return Move(index, "spline", start, end)
+    p0, p3 = (start["X"], start["Y"]), (end["X"], end["Y"])
+    if cubic:
+        d1 = (value["I"], value["J"]) if "I" in value else (-st.last_pq[0], -st.last_pq[1])
+        st.last_pq = (value["P"], value["Q"])
+        p1 = (p0[0] + d1[0], p0[1] + d1[1])
+        p2 = (p3[0] + value["P"], p3[1] + value["Q"])
+    else:
+        q = (p0[0] + value.get("I", 0.0), p0[1] + value.get("J", 0.0))
+        p1 = tuple(a + 2 / 3 * (b - a) for a, b in zip(p0, q))
+        p2 = tuple(a + 2 / 3 * (b - a) for a, b in zip(p3, q))
+    return Move(index, "spline", start, end, controls=(p0, p1, p2, p3))
+
+
+def _bezier(controls, t):
+    """The point (x, y) of a cubic Bezier curve at t."""
+    w = ((1 - t) ** 3, 3 * t * (1 - t) ** 2, 3 * t * t * (1 - t), t ** 3)
+    return tuple(sum(wi * c[k] for wi, c in zip(w, controls)) for k in (0, 1))
 
 
 def _go(st, move):
@@ -482,11 +539,20 @@ def _off_path(point: dict, move: Move):
     if move.kind == "arc" and move.centre is not None and None not in (point[first],
                                                                        point[second]):
         return _point_to_arc(point, move)
+    if move.controls is not None and None not in (point["X"], point["Y"]):
+        poly = [_bezier(move.controls, k / 64) for k in range(65)]
+        return min(_point_to_segment((point["X"], point["Y"]), a, b)
+                   for a, b in zip(poly, poly[1:]))
     return _point_to_segment([point[x] for x in axes], [move.start[x] for x in axes],
                              [move.end[x] for x in axes])
 
 
 def _midpoint(piece: Move):
+    if piece.controls is not None:
+        mid = {x: None if piece.start[x] is None or piece.end[x] is None
+               else (piece.start[x] + piece.end[x]) / 2 for x in AXES}
+        mid["X"], mid["Y"] = _bezier(piece.controls, 0.5)
+        return mid
     if piece.kind == "arc" and piece.centre is not None:
         first, second, normal = _PLANES[piece.plane][:3]
         cx, cy = piece.centre
@@ -540,10 +606,12 @@ def _show(pos):
                     if v is not None or a in LINEAR)
 
 
-def compare(src: bytes, out: bytes, tol: Tolerance, units_mm: bool = True, name: str = ""):
+def compare(src: bytes, out: bytes, tol: Tolerance, units_mm: bool = True, name: str = "",
+            beagleg: bool | None = None):
     """Raise AssertionError unless `out` moves like `src` up to the correction and keeps every
-    line without motion byte for byte and in order. Returns (source moves, output moves)."""
-    a, b = replay(src, units_mm), replay(out, units_mm)
+    line without motion byte for byte and in order. Returns (source moves, output moves).
+    `beagleg`: both replayed with BeagleG's rules (None: as each program shows, `is_beagleg`)."""
+    a, b = replay(src, units_mm, beagleg=beagleg), replay(out, units_mm, beagleg=beagleg)
     a_still = [raw for _, raw in a.still]
     b_still = [raw for _, raw in b.still]
     for i, (x, y) in enumerate(zip(a_still, b_still)):

@@ -132,7 +132,7 @@ def add_offset_arguments(parser, offsets_help: str, work_offset_help: str) -> No
 
 #: the controllers whose rules differ, for ``--dialect`` (docs/toolpaths.md)
 DIALECT_CHOICES = ("linuxcnc", "fanuc", "haas", "grbl", "heidenhain", "sinumerik", "rrf",
-                   "generic")
+                   "beagleg", "generic")
 
 
 def add_probed_arguments(parser, temperature_help: str, rpm_help: str) -> None:
@@ -150,7 +150,7 @@ def add_dialect_argument(parser) -> None:
                         help="the controller that runs the program, for the rules that differ "
                              "between controllers (G80, G98, LinuxCNC O-words and parameters, Fanuc "
                              "macro B, Heidenhain conversational, Siemens Sinumerik, "
-                             "RepRapFirmware's macro codes; see "
+                             "RepRapFirmware's macro codes, BeagleG's parameters and arcs; see "
                              "docs/toolpaths.md). Default: "
                              "detected from the program (generic when nothing in it names a "
                              "controller)")

@@ -409,3 +409,86 @@ def _farthest(arc_piece, a: int, ends: list, start_w):
             best, lo = (piece, ends[mid]), mid + 1
     return best
 
+
+
+def blind_arc(state, values, axes_given) -> bool:
+    """An absolute G2/G3 block from a position the program has not given in its plane (a program
+    that starts with an arc, or arcs after a home move, from wherever the machine stands): nothing
+    of its path is known, so it is passed through as written, uncorrected (its source line, as the
+    controller would run it without mtcomp), and the axes it names stand at their written values
+    after it, in the program and in the output alike (``declared``). True when the block is such
+    an arc; False for an arc from a known start, or an incremental one (whose end is not known
+    either: refused by the reader)."""
+    from .frames import check_arc
+    from .words import MM_PER_INCH
+    i0, i1, _ = PLANE_AXES[state.plane]
+    plane = [state.xyz_index[i0], state.xyz_index[i1]]
+    if state.incremental or min(state.xyz_index) < 0 or all(state.known[i] for i in plane):
+        return False
+    check_arc(state, state._line)       # under unequal scales no circle on the machine: refused
+    scale = MM_PER_INCH if state.inch else 1.0
+    state.position = state.position.copy()      # the last block's end is that array
+    for c in axes_given:
+        i = state.names.index(c)
+        state.position[i] = math.radians(values[c]) if c in "ABC" else values[c] * scale
+        state.known[i] = True
+        state.dirs[i] = 0           # the arc's end direction is not known: its centre is not
+        state.declared.append(i)
+    state.passed_move = ("arc", state._line)
+    return True
+
+
+#: the dialects whose G5 and G5.1 with coordinates are splines (LinuxCNC G-code reference, G5 cubic
+#: spline, G5.1 quadratic spline; BeagleG's G-code.md, "G5 syntax"); generic reads as LinuxCNC. On
+#: Fanuc and Haas G05 is a contour-control mode, and grbl, RepRapFirmware have no G5
+SPLINE_DIALECTS = ("linuxcnc", "beagleg", "generic")
+
+
+def spline_code(state, g: float, name: str, line: int) -> None:
+    """A G5/G5.1 block with coordinates: a spline where the dialect has them (``state.spline``,
+    read by :func:`passed_spline`), else refused."""
+    if state.dialect.name not in SPLINE_DIALECTS:
+        raise state._err(f"{name} is not supported", line)
+    state.spline = g
+
+
+def passed_spline(state, values, tokens, motion, line: int) -> None:
+    """A G5 (cubic) or G5.1 (quadratic) spline in G17, X and Y its only axes: passed through as
+    written, uncorrected (its control points, offsets from its ends, are not corrected), its end
+    known where its start was or the block names the axis (in G90 ``declared``, as for an arc from
+    a position not given, :func:`blind_arc`; in G91 the output moves by the increments from where
+    it stands, ``distance_sensitive``). Refused as LinuxCNC refuses it: another plane, another
+    axis, G5 without both P and Q or with one of I J, G5.1 without I or J; and under cutter radius
+    compensation, a frame change or a motion code in the block. After it no motion mode is in force
+    (LinuxCNC: G5 is a motion mode of its own, which axis words alone would continue without P Q),
+    on BeagleG the last G0/G1 (the spline holds for its block only)."""
+    from .words import MM_PER_INCH
+    name = "G5 (cubic spline)" if state.spline == 5 else "G5.1 (quadratic spline)"
+    axes = state._axis_words(values, line)
+    given = {letter for letter, _num, _raw in tokens}
+    problem = ("not in G17 (its plane is X Y)" if state.plane != 17 else
+               f"with {axes[0] if axes[0] != 'X' else axes[-1]}: its axes are X and Y only"
+               if set(axes) - {"X", "Y"} else
+               f"with motion G{motion}" if motion is not None else
+               "under cutter radius compensation" if state.cutter_comp else
+               "under a frame change (G68, mirror image, scaling)" if state.local.kind else
+               "without both P and Q" if state.spline == 5 and not {"P", "Q"} <= given else
+               "with only one of I and J" if state.spline == 5 and len({"I", "J"} & given) == 1 else
+               "without I or J" if state.spline == 5.1 and not {"I", "J"} & given else "")
+    if problem:
+        raise state._err(f"{name} {problem}", line)
+    state._set_feed(values, line)
+    scale = MM_PER_INCH if state.inch else 1.0
+    state.position = state.position.copy()      # the last block's end is that array
+    for c in axes:
+        i = state.names.index(c)
+        if state.incremental:       # the output moves by the increment from where it stands
+            state.position[i] += values[c] * scale
+        else:
+            state.position[i], state.known[i] = values[c] * scale, True
+            state.declared.append(i)
+        state.dirs[i] = 0
+    state.distance_sensitive = state.incremental
+    state.motion = getattr(state, "linear_motion", None) if not state.dialect.arcs_modal else None
+    state.cycle = None
+    state.passed_move = ("spline", line)

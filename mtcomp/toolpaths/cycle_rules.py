@@ -1,11 +1,14 @@
 """The drilling cycle rules of the reader's modal state that depend on the controller: whether a
 cycle line is clear enough to be kept as a corrected cycle, where the tool is left after it, where
-an incremental cycle's R plane lies, and a cycle line passed through (docs/toolpaths.md, "Drilling
-cycles"). Functions of a :class:`~.modal.ModalState` (``state``), kept apart from it for size."""
+an incremental cycle's R plane lies, a cycle line passed through (docs/toolpaths.md, "Drilling
+cycles"), and a G33.1 rigid tapping line. Functions of a :class:`~.modal.ModalState` (``state``), kept apart from it for size."""
 from __future__ import annotations
 
 import math
 
+import numpy as np
+
+from .directions import step_directions
 from .words import MM_PER_INCH, TOOL_AXIS
 
 
@@ -97,3 +100,25 @@ def home_with_motion(dialect: str, home_move: int, motion: int) -> bool:
 def has_axis_words(values: dict) -> bool:
     """Whether a block's words (letter -> value) name an axis."""
     return any(letter in values for letter in "XYZABCUVW")
+
+
+def rigid_tap(state, values, axes_given) -> None:
+    """A G33.1 rigid tapping line (or an axis line in its mode): the spindle-synchronised move
+    to the given point and back; the line passes through unchanged and uncorrected (its
+    overshoot past both ends follows the spindle's reversal, which the program does not give),
+    and every axis ends where it started (LinuxCNC G-code reference, G33.1: the moves end at
+    the original coordinate), approached in the direction of the tap's last move. In G91 the
+    writer keeps the line incremental (``distance_sensitive``)."""
+    state.tapping = True
+    state.motion = None
+    state.cycle = None
+    state.passed_move = ("tap", state._line) if axes_given else None
+    scale = MM_PER_INCH if state.inch else 1.0
+    step = np.zeros(state.na)
+    for c in axes_given:
+        i = state.names.index(c)
+        v = math.radians(values[c]) if c in "ABC" else values[c] * scale
+        step[i] = v if state.incremental else (v - state.position[i] if state.known[i] else 0.0)
+    state.dirs = step_directions(state.dirs, np.zeros(state.na), step[None, :])[0].copy()
+    state.distance_sensitive = state.incremental and bool(axes_given)
+    return None

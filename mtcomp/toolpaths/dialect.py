@@ -14,10 +14,13 @@ A :class:`Dialect` holds what the reader needs to know of the controller that ru
   follows Setting 33). ``rotation``: G68/G69 coordinate rotation (Fanuc, Haas). ``mirror``: the
   mirror image code ('G51.1': Fanuc's G51.1/G50.1; 'G101': Haas' G101/G100). ``scale_words``: the
   words of G51 scaling ('PIJK' Fanuc, 'P' Haas, '' none): :mod:`.frames`.
+* ``arcs_modal``: G2/G3 stay in force for the blocks after them (RS274); False on BeagleG, whose
+  blocks of axis words alone after an arc move in the last G0/G1 mode.
 * ``language``: 'ngc' (LinuxCNC's O-words and parameters, :mod:`.ngc`), 'macro' (Fanuc macro B,
   :mod:`.macro`), 'heidenhain' (a conversational program, read through its G-code equivalent:
   :mod:`.heidenhain`), 'sinumerik' (a Siemens Sinumerik program, likewise: :mod:`.sinumerik`) or
-  None (nothing is expanded). RepRapFirmware's rules (quoted strings, the
+  None (nothing is expanded), 'beagleg' (BeagleG's parameters and loops, written in LinuxCNC's
+  form by :mod:`.beagleg` and run by :mod:`.ngc`). RepRapFirmware's rules (quoted strings, the
   codes it runs as macro files) are :mod:`.rrf`'s, for the dialect named 'rrf'.
 
 :func:`detect` reads the start of a program (and :func:`needs_expansion` all of it, in blocks).
@@ -43,6 +46,7 @@ class Dialect:
     rotation: bool = False
     mirror: str | None = None
     scale_words: str = ""
+    arcs_modal: bool = True
 
 
 DIALECTS = {
@@ -59,6 +63,8 @@ DIALECTS = {
     "heidenhain": Dialect("heidenhain", language="heidenhain"),
     # Siemens Sinumerik 840D: read through its G-code equivalent (.sinumerik)
     "sinumerik": Dialect("sinumerik", language="sinumerik"),
+    # BeagleG (BeagleBone CNC): its parameters and loops read through LinuxCNC's (.beagleg)
+    "beagleg": Dialect("beagleg", language="beagleg", arcs_modal=False),
     "generic": Dialect("generic", language="ngc"),
 }
 GENERIC = DIALECTS["generic"]
@@ -93,6 +99,9 @@ _CLUES = [
                              r"^\s*(?:N\d+\s*)?DEF\s+(?:REAL|INT|BOOL)\b|"
                              r"^\s*(?:N\d+\s*)?(?:MCALL\s+)?CYCLE\d+\s*\(|"
                              r"^\s*(?:N\d+\s*)?MSG\s*\(\s*\"")),
+    # a parameter named without brackets (`#r=50`, `#i++`): BeagleG's alone (LinuxCNC names one
+    # #<r>, Fanuc numbers them)
+    ("beagleg", re.compile(r"(?i)(?<![\w<])#[ \t]*[a-z_][a-z0-9_]*[ \t]*(?:=|\+\+|--|[-+*/]=)")),
     # a quoted string parameter (M98 P"file.g", M4000 S"name"): RepRapFirmware's alone
     ("rrf", re.compile(r'(?i)^\s*(?:n\s*\d+\s*)?[gmt]\s*\d[^"]*"')),
 ]
@@ -110,7 +119,8 @@ _HAAS = re.compile(r"(?i)haas")
 _HAAS_CODES = re.compile(r"(?i)(?<![A-Z])(?:G\s*187(?![\d.])|G\s*154\s*P|G\s*103(?![\d.])|M\s*97\s*P"
                          r"|G\s*2(?:34|54|55)(?![\d.]))")
 #: a comment that names the controller
-_NAMED = re.compile(r"(?i)[(;][^)]*\b(fanuc|haas|linuxcnc|grbl|rrf|reprapfirmware|millenniumos)\b")
+_NAMED = re.compile(r"(?i)[(;][^)]*\b(fanuc|haas|linuxcnc|grbl|rrf|reprapfirmware|millenniumos|"
+                    r"beagleg)\b")
 #: names of a controller in a comment -> its dialect
 _NAME_DIALECT = {"reprapfirmware": "rrf", "millenniumos": "rrf"}
 _HEAD = 1 << 16          # bytes of the program's start read for its dialect
@@ -250,3 +260,31 @@ def grbl_program_end(state) -> None:
     state.motion, state.incremental, state.inverse_time = 1, False, False
     state._apply_modal_code(17, {})
     state._set_wcs(_WCS_INDEX[54])
+
+
+#: BeagleG's G codes (its G-code.md, "G Codes"; src/gcode-parser/gcode-parser.cc, ParseBlock). It
+#: hands any other to the machine control, which acts on M codes only
+#: (src/gcode-machine-control.cc, special_commands) and then reads the block's axis words as a move
+_BEAGLEG_G = frozenset([0, 1, 2, 3, 4, 5, 5.1, 10, 17, 18, 19, 20, 21, 28, 50, 51, 54, 55, 56, 57,
+                        58, 59, 59.1, 59.2, 59.3, 70, 71, 90, 91, 92, 92.1, 92.2, 92.3])
+
+
+def beagleg_block(state, gcodes, line: int) -> None:
+    """BeagleG's rules for a block, before its codes apply (docs/toolpaths.md, "BeagleG"): G2/G3 do
+    not stay in force (gcode-parser.cc, ParseBlock: axis words alone move in the last G0/G1 mode,
+    G0 at the start), a G code it does not have is refused (it would ignore it and move), and so is
+    G30 (its Z probe, handle_z_probe, which sets a G92 offset of Z from the probed height)."""
+    if not hasattr(state, "linear_motion"):
+        state.linear_motion = 0 if state.motion is None else state.motion
+        state.motion = state.linear_motion
+    if state.motion in (2, 3):
+        state.motion = state.linear_motion
+    for g in gcodes:
+        if g == 30:
+            raise state._err("G30 on BeagleG probes Z and sets a G92 offset of Z from the probed "
+                             "height, which the program does not give", line)
+        if g not in _BEAGLEG_G:
+            raise state._err(f"G{g:g} is not a BeagleG code (BeagleG ignores it and moves to the "
+                             "block's axis words)", line)
+        if g in (0, 1):
+            state.linear_motion = int(g)

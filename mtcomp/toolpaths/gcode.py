@@ -57,9 +57,10 @@ __all__ = ["DEFAULT_CHORD_TOL_MM", "DEFAULT_CHUNK_SIZE", "DIR_EPS", "MM_PER_INCH
 def _compiled(src) -> bool:
     """Whether the compiled scanner reads and writes the program: when it is built, and not for a
     RepRapFirmware program (the scanner takes M codes and T words as codes that move nothing, where
-    the firmware may run a macro file for them: :mod:`.rrf`), which the Python reader and writer
+    the firmware may run a macro file for them: :mod:`.rrf`) or a BeagleG one (the scanner keeps a
+    G2/G3 in force, and reads G codes BeagleG does not have), which the Python reader and writer
     read and write throughout."""
-    return _fast.available() and src.dialect.name != "rrf"
+    return _fast.available() and src.dialect.name not in ("rrf", "beagleg")
 
 
 def iter_segment_chunks(path, machine: Machine, chord_tol_mm: float = DEFAULT_CHORD_TOL_MM,

@@ -17,11 +17,12 @@ import numpy as np
 
 from ..errors import InputError
 from ..machine import Machine
-from ._arcs import (PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, centre_from_radius,
-                    is_point_circle, point_circle)
+from ._arcs import (PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, blind_arc,
+                    centre_from_radius, is_point_circle, passed_spline, point_circle, spline_code)
 from .blocks import CycleBlock, MotionBlock
-from .cycle_rules import cycle_move, cycle_unclear, has_axis_words, home_with_motion, incremental_r_level, retract_level
-from .dialect import GENERIC, grbl_program_end
+from .cycle_rules import (cycle_move, cycle_unclear, has_axis_words, home_with_motion,
+                          incremental_r_level, retract_level, rigid_tap)
+from .dialect import GENERIC, beagleg_block, grbl_program_end
 from .directions import step_directions
 from .frames import (FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle, follow_given,
                      mode_change)
@@ -197,9 +198,13 @@ class ModalState:
         if not tokens:
             return None
         values, gcodes, mcodes, number = self._read_words(tokens, line)
+        if not self.dialect.arcs_modal:
+            beagleg_block(self, gcodes, line)
         self._cutter_comp_codes(gcodes)
         motion, nonmotion_axes, home_move, cycle = self._apply_codes(gcodes, mcodes, values,
                                                                      tokens, line)
+        if self.spline is not None:
+            return passed_spline(self, values, tokens, motion, line)
         if self.tcp or self.dwo:
             haas_block(self, gcodes, motion, home_move, values, line)
         axes_given = self._axis_words(values, line)
@@ -226,7 +231,7 @@ class ModalState:
             self.tapping = False
         if self.tap_line or (self.tapping and self.motion is None and cycle is None
                              and self.cycle is None and axes_given):
-            return self._rigid_tap(values, axes_given)
+            return rigid_tap(self, values, axes_given)
         self._set_cycle_mode(cycle, values)
         if self.cycle is not None and axes_given:
             b = self._cycle_block(line, values, axes_given, tokens, number)
@@ -248,6 +253,7 @@ class ModalState:
         """Forget what the previous line said about itself (the flags the writer reads)."""
         self.distance_word = None
         self.distance_sensitive = False
+        self.spline = None           # G5/G5.1 with coordinates on this line (._arcs.passed_spline)
         self.had_g = False
         self.cycle_line = False
         self.cycle_start = False
@@ -335,7 +341,8 @@ class ModalState:
             if g in _CURVE_WITH_COORDINATES:
                 name, words = _CURVE_WITH_COORDINATES[g]
                 if any(letter in words for letter, _num, _raw in tokens):
-                    raise self._err(f"{name} is not supported", line)
+                    spline_code(self, g, name, line)
+                    continue
             if g != gi:
                 if round(g, 1) not in KNOWN_DECIMAL_G:
                     raise self._err(f"G{g:g} is not a code mtcomp follows (its effect on the motion "
@@ -532,6 +539,8 @@ class ModalState:
                 raise self._err(f"{arc_words[0]} word outside an arc block", line)
             return None
         check_motion_mode(self, values, arc_words, line)
+        if self.motion in (2, 3) and blind_arc(self, values, axes_given):
+            return None
         if self.incremental and self.motion in (0, 1) and \
                 any(not self.known[self.names.index(c)] for c in axes_given):
             return self._blind_increment(values, axes_given)
@@ -563,27 +572,6 @@ class ModalState:
                            motion_word, self.incremental, self.inverse_time and self.motion != 0,
                            self.f_word, self.frame, start_known=start_known,
                            absolute_centre=self.arc_absolute and centre is not None)
-
-    def _rigid_tap(self, values, axes_given) -> None:
-        """A G33.1 rigid tapping line (or an axis line in its mode): the spindle-synchronised move
-        to the given point and back; the line passes through unchanged and uncorrected (its
-        overshoot past both ends follows the spindle's reversal, which the program does not give),
-        and every axis ends where it started (LinuxCNC G-code reference, G33.1: the moves end at
-        the original coordinate), approached in the direction of the tap's last move. In G91 the
-        writer keeps the line incremental (``distance_sensitive``)."""
-        self.tapping = True
-        self.motion = None
-        self.cycle = None
-        self.passed_move = ("tap", self._line) if axes_given else None
-        scale = MM_PER_INCH if self.inch else 1.0
-        step = np.zeros(self.na)
-        for c in axes_given:
-            i = self.names.index(c)
-            v = math.radians(values[c]) if c in "ABC" else values[c] * scale
-            step[i] = v if self.incremental else (v - self.position[i] if self.known[i] else 0.0)
-        self.dirs = step_directions(self.dirs, np.zeros(self.na), step[None, :])[0].copy()
-        self.distance_sensitive = self.incremental and bool(axes_given)
-        return None
 
     def _blind_increment(self, values, axes_given) -> None:
         """An incremental G0/G1 move of an axis whose position the program has not given (a Haas

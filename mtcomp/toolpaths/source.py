@@ -25,7 +25,8 @@ from .words import strip_comments
 # the languages' readers (.ngc, .macro, .heidenhain, .sinumerik) are imported where a program
 # needs one: a plain G-code program is read without them
 _LANGUAGE = {"ngc": "O-word control flow, parameters and expressions",
-             "macro": "macro variables, IF, GOTO, WHILE, subprogram and macro calls"}
+             "macro": "macro variables, IF, GOTO, WHILE, subprogram and macro calls",
+             "beagleg": "BeagleG's parameters, expressions and WHILE loops"}
 
 
 @dataclass
@@ -158,6 +159,9 @@ def _expand(source: str, dialect: Dialect, max_steps: int | None, max_lines: int
     ending = "\r\n" if raws and raws[0].endswith(b"\r\n") else "\n"
     if dialect.language == "ngc":
         run = ngc.NgcRun(texts, source, **limits)
+    elif dialect.language == "beagleg":
+        from .beagleg import to_ngc
+        run = ngc.NgcRun(to_ngc(texts, source), source, **limits)
     else:
         run = macro.MacroRun(texts, source, **limits, dialect=dialect.name)
     # the expanded program's lines (0-based) -> the source's lines (1-based; 0: the header)

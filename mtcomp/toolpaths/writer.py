@@ -67,6 +67,9 @@ class OutputState:
         #: there), and the first of them (0: none)
         self.added_lines, self.added_line = 0, 0
         self.rotary = [False] * na if state is None else state.rotary
+        #: G2/G3 stay in force (False on BeagleG: a new arc piece restates G2/G3, and after the arc
+        #: axis words alone move in the G0/G1 mode written before it)
+        self.arcs_modal = state is None or state.dialect.arcs_modal
         if state is not None:       # axes known before the first line stand where the reader says
             self.values[state.known] = state.position[state.known]
 
@@ -578,6 +581,7 @@ class _ArcFit:
         """The block's text: the first piece in the source's layout, the others as new lines."""
         line, block, out = self.line, self.block, self.out
         code = block.motion
+        linear = out.motion          # BeagleG: the mode axis words alone move in after the arc
         _edit_head(line, out, code, block.incremental)
         first = pieces[0]
         added = _apply_axes(block, line, first.texts, self.letters, out, True)
@@ -590,12 +594,15 @@ class _ArcFit:
         for piece in pieces[1:]:
             parts = _apply_axes(block, line, piece.texts, self.letters, out, False)
             c = code if piece.centre_words is not None else 1
-            if out.motion != c:
+            if out.motion != c or not out.arcs_modal and c != 1:
                 parts.insert(0, f"{line.letter('G')}{c}")
                 out.motion = c
+            linear = 1 if c == 1 else linear
             if piece.centre_words is not None:
                 parts += [line.letter(letter) + t for letter, t in piece.centre_words]
             lines.append(sep.join(parts))
+        if not out.arcs_modal:
+            out.motion = linear
         return separator.join(lines)
 
     def _centre_in_place(self, words) -> None:
