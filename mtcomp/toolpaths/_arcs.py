@@ -418,14 +418,13 @@ def blind_arc(state, values, axes_given) -> bool:
     controller would run it without mtcomp), and the axes it names stand at their written values
     after it, in the program and in the output alike (``declared``). True when the block is such
     an arc; False for an arc from a known start, or an incremental one (whose end is not known
-    either: refused by the reader)."""
-    from .frames import check_arc
+    either: refused by the reader). The reader refuses an arc under unequal scales before it
+    (:func:`.frames.check_arc`)."""
     from .words import MM_PER_INCH
     i0, i1, _ = PLANE_AXES[state.plane]
     plane = [state.xyz_index[i0], state.xyz_index[i1]]
     if state.incremental or min(state.xyz_index) < 0 or all(state.known[i] for i in plane):
         return False
-    check_arc(state, state._line)       # under unequal scales no circle on the machine: refused
     scale = MM_PER_INCH if state.inch else 1.0
     state.position = state.position.copy()      # the last block's end is that array
     for c in axes_given:

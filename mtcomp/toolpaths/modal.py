@@ -539,8 +539,10 @@ class ModalState:
                 raise self._err(f"{arc_words[0]} word outside an arc block", line)
             return None
         check_motion_mode(self, values, arc_words, line)
-        if self.motion in (2, 3) and blind_arc(self, values, axes_given):
-            return None
+        if self.motion in (2, 3):
+            check_arc(self, line)   # under unequal scales no circle on the machine: refused
+            if blind_arc(self, values, axes_given):
+                return None
         if self.incremental and self.motion in (0, 1) and \
                 any(not self.known[self.names.index(c)] for c in axes_given):
             return self._blind_increment(values, axes_given)
