@@ -32,6 +32,7 @@ from .linetext import text_with_words
 from .programmed import ProgrammedOffsets, apply_g10
 from .quill import follow_quill, forget_quill, init_quill
 from .rrf import macro_codes, restore_move
+from .single_direction import single_direction
 from .word_use import check_motion_mode, check_point_words, check_value_words
 from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _CURVE_WITH_COORDINATES, KNOWN_DECIMAL_G, FANUC_CYCLES, FANUC_DIALECTS,
                     OTHER_WCS_G, mode_followed, _REFUSED_G, _REFUSED_M, _UNIQUE_LETTERS, _WCS_INDEX, DEFAULT_CHORD_TOL_MM,
@@ -215,6 +216,9 @@ class ModalState:
         if home_move is not None and motion is not None and not home_with_motion(self.dialect.name, home_move, motion):
             raise self._err(f"G{home_move} and motion G{motion} in one block", line)
         self._set_feed(values, line)
+        if self.g60:
+            return single_direction(self, values, axes_given, gcodes,
+                                    (motion, cycle, home_move, nonmotion_axes), line)
         if nonmotion_axes:
             self.distance_sensitive = home_move in (28, 30) and bool(axes_given)
             if motion is not None:          # G53 G0 Z0 (a move in machine coordinates), G0 G50
@@ -259,6 +263,7 @@ class ModalState:
         self.cycle_start = False
         self.tap_line = False
         self.passed_move = None
+        self.g60 = False             # G60 on this line (.single_direction)
         #: how far G52 or a G10 moved the program's coordinates on this line (the writer follows)
         self.frame_shift = None
         self.declared = []
@@ -362,6 +367,8 @@ class ModalState:
                 cycle = gi
             elif gi == 10:
                 nonmotion_axes = g10 = True          # the axis words are offsets
+            elif gi == 60 and self.dialect.name == "fanuc":
+                self.g60 = True                      # single-direction positioning
             else:
                 if gi in OTHER_WCS_G and self.dialect.name != "haas":
                     raise self._err(f"G{gi} is not a code mtcomp follows on {self.dialect.name} "
