@@ -202,8 +202,9 @@ class ModalState:
         if not self.dialect.arcs_modal:
             beagleg_block(self, gcodes, line)
         self._cutter_comp_codes(gcodes)
-        motion, nonmotion_axes, home_move, cycle = self._apply_codes(gcodes, mcodes, values,
-                                                                     tokens, line)
+        self.g60 = self.dialect.name == "fanuc" and 60.0 in gcodes  # single-direction positioning
+        motion, nonmotion_axes, home_move, cycle = self._apply_codes(
+            [g for g in gcodes if not (self.g60 and g == 60.0)], mcodes, values, tokens, line)
         if self.spline is not None:
             return passed_spline(self, values, tokens, motion, line)
         if self.tcp or self.dwo:
@@ -367,8 +368,6 @@ class ModalState:
                 cycle = gi
             elif gi == 10:
                 nonmotion_axes = g10 = True          # the axis words are offsets
-            elif gi == 60 and self.dialect.name == "fanuc":
-                self.g60 = True                      # single-direction positioning
             else:
                 if gi in OTHER_WCS_G and self.dialect.name != "haas":
                     raise self._err(f"G{gi} is not a code mtcomp follows on {self.dialect.name} "

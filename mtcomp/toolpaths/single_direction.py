@@ -47,5 +47,6 @@ def single_direction(state, values, axes_given, gcodes, codes, line: int) -> Non
     # G00 after G60 on the line holds after it; else G60 may hold (parameter MDL): no mode taken
     state.motion = 0 if motion == 0 and gcodes.index(0.0) > gcodes.index(60.0) else None
     state.cycle = None
+    state.had_g = True                  # the writer follows the mode it leaves
     if axes_given:
         state.passed_move = ("single", line)
