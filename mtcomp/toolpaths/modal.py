@@ -32,6 +32,7 @@ from .linetext import text_with_words
 from .programmed import ProgrammedOffsets, apply_g10
 from .quill import follow_quill, forget_quill, init_quill
 from .rrf import macro_codes, restore_move
+from .single_direction import single_direction
 from .word_use import check_motion_mode, check_point_words, check_value_words
 from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _CURVE_WITH_COORDINATES, KNOWN_DECIMAL_G, FANUC_CYCLES, FANUC_DIALECTS,
                     OTHER_WCS_G, mode_followed, _REFUSED_G, _REFUSED_M, _UNIQUE_LETTERS, _WCS_INDEX, DEFAULT_CHORD_TOL_MM,
@@ -201,8 +202,9 @@ class ModalState:
         if not self.dialect.arcs_modal:
             beagleg_block(self, gcodes, line)
         self._cutter_comp_codes(gcodes)
-        motion, nonmotion_axes, home_move, cycle = self._apply_codes(gcodes, mcodes, values,
-                                                                     tokens, line)
+        self.g60 = self.dialect.name == "fanuc" and 60.0 in gcodes  # single-direction positioning
+        motion, nonmotion_axes, home_move, cycle = self._apply_codes(
+            [g for g in gcodes if not (self.g60 and g == 60.0)], mcodes, values, tokens, line)
         if self.spline is not None:
             return passed_spline(self, values, tokens, motion, line)
         if self.tcp or self.dwo:
@@ -215,6 +217,9 @@ class ModalState:
         if home_move is not None and motion is not None and not home_with_motion(self.dialect.name, home_move, motion):
             raise self._err(f"G{home_move} and motion G{motion} in one block", line)
         self._set_feed(values, line)
+        if self.g60:
+            return single_direction(self, values, axes_given, gcodes,
+                                    (motion, cycle, home_move, nonmotion_axes), line)
         if nonmotion_axes:
             self.distance_sensitive = home_move in (28, 30) and bool(axes_given)
             if motion is not None:          # G53 G0 Z0 (a move in machine coordinates), G0 G50
@@ -259,6 +264,7 @@ class ModalState:
         self.cycle_start = False
         self.tap_line = False
         self.passed_move = None
+        self.g60 = False             # G60 on this line (.single_direction)
         #: how far G52 or a G10 moved the program's coordinates on this line (the writer follows)
         self.frame_shift = None
         self.declared = []
