@@ -117,6 +117,9 @@ class Machine:
     tool_length : mm, spindle gauge point to tool tip.
     units : 'mm' or 'inch': what a program without G20/G21 means on this machine; None: not said.
     compensation : defaults for `mtcomp compensate` (max_correction_um, max_correction_urad, max_step_um).
+    quill : the machine has a W quill parallel to Z (a horizontal boring mill: ``quill = true`` in
+        the file's [axes.Z]); only then do programs' W words move the tool tip along Z
+        (:mod:`mtcomp.toolpaths.quill`).
     """
 
     name: str
@@ -128,6 +131,7 @@ class Machine:
     compensation: dict = field(default_factory=lambda: dict(DEFAULT_COMPENSATION))
     source: str = ""
     units: str | None = None
+    quill: bool = False
 
     @property
     def axis_names(self) -> tuple[str, ...]:
@@ -219,6 +223,8 @@ class Machine:
                 if a.basis == "bspline" and a.spline_intervals is not None:
                     d["spline_intervals"] = a.spline_intervals
             axes[a.name] = d
+        if self.quill:
+            axes["Z"]["quill"] = True
         d = {"name": self.name, "topology": self.topology, "tool_length_mm": self.tool_length,
              "axes": axes, "compensation": dict(self.compensation)}
         if self.units is not None:
@@ -308,7 +314,17 @@ def machine_from_dict(data: dict, path: str | None = None) -> Machine:
     comp = _compensation(data, path)
     return Machine(name=name, topology=str(data["topology"]).strip().upper(), axes=tuple(axes),
                    workpiece_chain=wp_chain, tool_chain=tool_chain, tool_length=float(tool_length),
-                   compensation=comp, source=path or "", units=units)
+                   compensation=comp, source=path or "", units=units,
+                   quill=_quill(axes_data.get("Z", {}), path))
+
+
+def _quill(z_table: dict, path) -> bool:
+    """``quill`` of the [axes.Z] table: true when the machine has a W quill along Z (default
+    false)."""
+    quill = z_table.get("quill", False)
+    if not isinstance(quill, bool):
+        raise InputError(f"[axes.Z] quill must be true or false, got {quill!r}", path)
+    return quill
 
 
 def _refuse_unknown_keys(table: dict, allowed: set, where: str, what: str, path) -> None:
@@ -322,8 +338,10 @@ def _refuse_unknown_keys(table: dict, allowed: set, where: str, what: str, path)
 
 def _linear_axis(letter: str, side: str, ad: dict, path) -> Axis:
     """The linear axis ``letter`` of its table ``ad`` (travel in mm)."""
-    _refuse_unknown_keys(ad, {"travel_mm", "degree", "basis", "spline_range_mm", "spline_intervals"},
-                         f"[axes.{letter}]", "a linear axis", path)
+    keys = {"travel_mm", "degree", "basis", "spline_range_mm", "spline_intervals"}
+    # quill: the Z axis's only (a W quill along Z: :func:`_quill`)
+    _refuse_unknown_keys(ad, keys | {"quill"} if letter == "Z" else keys, f"[axes.{letter}]",
+                         "a linear axis", path)
     if "travel_mm" not in ad:
         raise InputError(f"[axes.{letter}]: linear axis without travel_mm", path)
     lo, hi = _number_list(ad["travel_mm"], 2, f"[axes.{letter}] travel_mm", path)

@@ -264,16 +264,25 @@ def _topology(text: str) -> str:
     return "CAFXYZ" if "A" in letters else "CBFXYZ" if "B" in letters else "XFYZ"
 
 
-def _machine_file(tmp_path, topology):
-    """A machine of the program's axes with room for any of these programs (+-5 m, any angle)."""
+#: the programs of horizontal boring mills, whose W is the quill (NX posts for Fanuc-type controls):
+#: their machine file declares it (``quill = true`` in [axes.Z]), as a user of such a machine would;
+#: without it W on fanuc keeps a lathe's meaning (Z given incrementally) and is refused
+BORING_MILLS = {"nxpost_NomuraBN-130_Fanuc6MB_sample.ptp", "nxpost_Sample_Kuraki_KBT.ptp",
+                "nxpost_Devlieg_120.ptp"}
+
+
+def _machine_file(tmp_path, topology, quill=False):
+    """A machine of the program's axes with room for any of these programs (+-5 m, any angle);
+    ``quill``: with a W quill along Z (a boring mill's: BORING_MILLS)."""
     lines = [f'name = "corpus-{topology.lower()}"', f'topology = "{topology}"']
     for a in topology.replace("F", ""):
         if a in "ABC":
             lines += [f"[axes.{a}]", "travel_deg = [-100000.0, 100000.0]",
                       "axis_point_mm = [0.0, 0.0, 0.0]"]
         else:
-            lines += [f"[axes.{a}]", "travel_mm = [-5000.0, 5000.0]"]
-    path = tmp_path / f"{topology.lower()}.toml"
+            lines += [f"[axes.{a}]", "travel_mm = [-5000.0, 5000.0]"] + ["quill = true"] * (
+                quill and a == "Z")
+    path = tmp_path / f"{topology.lower()}{'-quill' * quill}.toml"
     path.write_text("\n".join(lines) + "\n")
     return path
 
@@ -481,7 +490,8 @@ def _compensate(prog, tmp_path_factory) -> tuple:
     """(exit status, stdout, stderr, output bytes or None) of compensating a corpus program with
     the corpus model, once a session."""
     def argv(folder):
-        machine = _machine_file(folder, _topology(prog.read_text(encoding="latin-1")))
+        machine = _machine_file(folder, _topology(prog.read_text(encoding="latin-1")),
+                                quill=prog.name in BORING_MILLS)
         return ["compensate", str(machine), str(_model_file(folder, machine)), str(prog),
                 "-o", str(folder / "out.nc"), "--quiet", "--units", "mm"]
     return run_once(tmp_path_factory, f"corpus-{prog.name}", argv)
@@ -507,7 +517,7 @@ def test_corpus_program_compensated_safely(prog, tmp_path, tmp_path_factory, cap
     if re.search(r"^[^(;\n]*\bG(?:73|8[1-9])\b", text, re.M | re.I):    # drilling cycles
         assert "kept as cycles, each hole corrected" in stdout, prog.name
     # the map of the compensated program, paired with the original through its lines
-    machine = _machine_file(tmp_path, _topology(text))
+    machine = _machine_file(tmp_path, _topology(text), quill=prog.name in BORING_MILLS)
     model = _model_file(tmp_path, machine)
     compensated = tmp_path / f"{prog.stem}.out.nc"
     compensated.write_bytes(out)

@@ -143,7 +143,7 @@ def test_u_w_words_are_refused_where_lathes_read_them_as_incremental_x_z(tmp_pat
     with pytest.raises(InputError) as exc:
         list(iter_segment_chunks(p, XFYZ, dialect=dialect))
     assert exc.value.line == 3 and "incremental X and Z" in exc.value.message
-    list(iter_segment_chunks(p, XFYZ, dialect="linuxcnc"))          # a quill elsewhere
+    list(iter_segment_chunks(p, XFYZ, dialect="linuxcnc"))  # elsewhere axes the model has not
 
 
 def test_applying_a_program_offset_without_its_source_is_a_clear_error(tmp_path):

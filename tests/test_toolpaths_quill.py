@@ -5,6 +5,8 @@ a pitch eps(y) of the Y carriage moves the tip by dy = -eps (z_tip - L0), a pitc
 ram by dy = +eps L (L the arm from the gauge point to the tip), so at one Y and one Z word the
 corrections with and without an extended quill stand in the ratio of those arms."""
 import csv
+from dataclasses import replace
+from importlib import resources
 
 import numpy as np
 import pytest
@@ -15,7 +17,8 @@ from mtcomp.machine import load_machine
 from mtcomp.models import ErrorModel, FittedModel, save_model
 from mtcomp.toolpaths.gcode import iter_segment_chunks
 
-XFYZ = load_machine("xfyz")
+#: the built-in xfyz with a W quill declared (a boring mill's machine file: docs/machines.md)
+XFYZ = replace(load_machine("xfyz"), quill=True)
 L0 = XFYZ.tool_length          # 100 mm
 Z, W = 20.0, -30.0
 #: the quill at 0 (line 4) and extended by 30 mm (line 6), at the same Y and Z words
@@ -23,19 +26,32 @@ PROGRAM = ("G21 G90 G54\nG0 X10. Y50. Z20. W0.\nG1 X12. F100.\nG0 W-30.\nG1 X10.
            "G1 X11.\nM30\n")
 
 
-def _compensate(tmp_path, text, param, dialect="fanuc", capsys=None):
-    machine = XFYZ.with_basis("polynomial")
-    model = ErrorModel(machine)
+def _machine_file(tmp_path, quill=True):
+    """The built-in xfyz's file, with ``quill = true`` added to its [axes.Z] table."""
+    text = resources.files("mtcomp").joinpath("machines/xfyz.toml").read_text()
+    if quill:
+        text = text.replace("[axes.Z]\n", "[axes.Z]\nquill = true\n")
+    path = tmp_path / "machine.toml"
+    path.write_text(text)
+    return path
+
+
+def _run(tmp_path, text, param="EAY_1", dialect="fanuc", quill=True):
+    """compensate's exit status on the program ``text`` (a model of one term, ``param``)."""
+    model = ErrorModel(load_machine("xfyz").with_basis("polynomial"))
     fitted = FittedModel.zero(model)
     fitted.params.values[[s.name for s in model.param_specs].index(param)] = 1000.0e-6
     save_model(tmp_path / "m.json", fitted)
     prog = tmp_path / "p.nc"
     prog.write_text(text)
-    code = main(["compensate", "xfyz", str(tmp_path / "m.json"), str(prog), "-o",
-                 str(tmp_path / "o.nc"), "--report", str(tmp_path / "r.csv"), "--method", "pinv",
-                 "--dialect", dialect, "--quiet", "--max-step-um", "1000",
+    return main(["compensate", str(_machine_file(tmp_path, quill)), str(tmp_path / "m.json"),
+                 str(prog), "-o", str(tmp_path / "o.nc"), "--report", str(tmp_path / "r.csv"),
+                 "--method", "pinv", "--dialect", dialect, "--quiet", "--max-step-um", "1000",
                  "--max-correction-um", "1000"])
-    assert code == 0
+
+
+def _compensate(tmp_path, text, param, dialect="fanuc"):
+    assert _run(tmp_path, text, param, dialect) == 0
     with open(tmp_path / "r.csv") as f:
         rows = {int(r["line"]): r for r in csv.DictReader(f)}
     return rows, (tmp_path / "o.nc").read_text()
@@ -89,3 +105,53 @@ def test_w_is_refused_where_its_meaning_is_not_known(tmp_path, dialect, block, m
     with pytest.raises(InputError, match=message) as exc:
         list(iter_segment_chunks(tmp_path / "p.nc", XFYZ, dialect=dialect))
     assert exc.value.line == 3
+
+
+#: a Fanuc lathe's or mill-turn's W (Z given incrementally, G-code system A): two W-10 moves leave
+#: Z at -15, where a quill would leave the tip's Z at 5 - 20
+LATHE = "O0001\nG21 G90 G18\nG0 X10. Y0 Z5.\nG1 W-10. F100.\nW-10.\nG1 X20.\nM30\n"
+
+
+def test_w_is_a_quill_only_where_the_machine_file_declares_one(tmp_path, capsys):
+    # without quill = true W keeps the lathe's meaning on fanuc: refused in one line, nothing
+    # written (exit 2); with it, the program is read
+    assert _run(tmp_path, LATHE, quill=False) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err
+    assert "p.nc:4:" in err and "axis word W on fanuc (on its lathes U and W are incremental X " \
+        "and Z) is not supported" in err and "quill = true" in err
+    assert not (tmp_path / "o.nc").exists()
+    assert _run(tmp_path, LATHE, quill=True) == 0
+    # the machine file: quill on Z only, true or false, kept in the model's machine
+    machine = load_machine(_machine_file(tmp_path))
+    assert machine.quill and machine.to_dict()["axes"]["Z"]["quill"] is True
+    plain = load_machine("xfyz")
+    assert not plain.quill and "quill" not in plain.to_dict()["axes"]["Z"]
+    for table, value, message in (("X", "true", "unknown key 'quill'"),
+                                  ("Z", '"yes"', "quill must be true or false")):
+        path = tmp_path / "bad.toml"
+        path.write_text(_machine_file(tmp_path, quill=False).read_text().replace(
+            f"[axes.{table}]\n", f"[axes.{table}]\nquill = {value}\n"))
+        with pytest.raises(InputError, match=message):
+            load_machine(path)
+
+
+@pytest.mark.parametrize("quill", [True, False])
+def test_a_spline_with_w_is_refused(tmp_path, quill):
+    # a G5 spline is X and Y only: its W would move the tip's Z unseen by the blocks after it
+    (tmp_path / "p.nc").write_text("G21 G90\nG0 X0 Y0 Z5 W0\nG1 Z1 F100\n"
+                                   "G5 X10 Y0 I1 J1 P1 Q1 W-20\nG1 X20 Y5\nM30\n")
+    machine = XFYZ if quill else load_machine("xfyz")
+    with pytest.raises(InputError, match=r"G5 \(cubic spline\) with W: its axes are X and") as exc:
+        list(iter_segment_chunks(tmp_path / "p.nc", machine, dialect="generic"))
+    assert exc.value.line == 4
+
+
+@pytest.mark.parametrize("home", ["G28", "G30"])
+def test_a_home_move_of_every_axis_homes_the_quill_before_its_first_w(tmp_path, home):
+    # G28 / G30 alone sends W home too, even before the program names W: the tip's Z is not known
+    # (line 5 not corrected, Z unknown) until a W word (line 7 corrected)
+    rows, _out = _compensate(tmp_path, f"G21 G90\nG0 X10. Y50. Z20.\n{home}\nG0 X10. Y50. Z20.\n"
+                             "G1 X12. F100.\nW-10.\nG1 X10.\nM30\n", "EAY_1")
+    assert [int(rows[k]["corrected"]) for k in (5, 7)] == [0, 1]
+    assert rows[5]["unknown_axes"] == "Z"

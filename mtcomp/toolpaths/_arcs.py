@@ -464,10 +464,10 @@ def passed_spline(state, values, tokens, motion, line: int) -> None:
     from .words import MM_PER_INCH
     name = "G5 (cubic spline)" if state.spline == 5 else "G5.1 (quadratic spline)"
     axes = state._axis_words(values, line)
+    others = [c for c in axes if c not in "XY"] + [c for c in "UVW" if c in values]
     given = {letter for letter, _num, _raw in tokens}
     problem = ("not in G17 (its plane is X Y)" if state.plane != 17 else
-               f"with {axes[0] if axes[0] != 'X' else axes[-1]}: its axes are X and Y only"
-               if set(axes) - {"X", "Y"} else
+               f"with {others[0]}: its axes are X and Y only" if others else
                f"with motion G{motion}" if motion is not None else
                "under cutter radius compensation" if state.cutter_comp else
                "under a frame change (G68, mirror image, scaling)" if state.local.kind else

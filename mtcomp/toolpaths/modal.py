@@ -30,7 +30,7 @@ from .haas5 import HAAS_5AXIS_G, haas_block, haas_code
 from .lengths import length_number, lone_h, set_length
 from .linetext import text_with_words
 from .programmed import ProgrammedOffsets, apply_g10
-from .quill import follow_quill, forget_quill, init_quill
+from .quill import follow_quill, forget_quill, has_quill, init_quill
 from .rrf import macro_codes, restore_move
 from .single_direction import single_direction
 from .word_use import check_motion_mode, check_point_words, check_value_words
@@ -478,12 +478,14 @@ class ModalState:
     def _axis_words(self, values, line: int) -> list[str]:
         """The axis letters the line names (X Y Z A B C order); refuses axes the machine has not."""
         foreign = [c for c in "UVW" if c in values]
-        if [c for c in foreign if c != "W" or self.dialect.name == "haas"] and \
-                self.dialect.name in ("fanuc", "haas"):
+        refused = [c for c in foreign if c != "W" or not has_quill(self)]
+        if refused and self.dialect.name in ("fanuc", "haas"):
             # on Fanuc and Haas lathes U and W are X and Z given incrementally, not other axes; a
-            # W on a Fanuc machining centre (mtcomp's machines) is the quill (:mod:`.quill`)
-            raise self._err(f"axis word {foreign[0]} on {self.dialect.name} (on its lathes U and "
-                            "W are incremental X and Z) is not supported", line)
+            # W is a quill only where the machine file declares one (:mod:`.quill`)
+            hint = ("; a boring mill's W quill: quill = true in the machine file's [axes.Z]"
+                    if refused[0] == "W" and self.dialect.name == "fanuc" else "")
+            raise self._err(f"axis word {refused[0]} on {self.dialect.name} (on its lathes U and "
+                            f"W are incremental X and Z) is not supported{hint}", line)
         if foreign:
             self._note_foreign()
         axes_given = [c for c in _AXIS_LETTERS if c in values]
@@ -497,8 +499,10 @@ class ModalState:
         """U V W words (axes parallel to X Y Z that the machine model does not have, e.g. a quill
         W) pass through as written and uncorrected: said once, in the program's notes."""
         note = ("note: axis words U, V, W (axes the machine model does not have) pass through "
-                "unchanged and uncorrected; the model is evaluated with the tool tip at Z + W (a "
-                "quill along Z) and at the other axes' positions")
+                "unchanged and uncorrected; " + (
+                    "the model is evaluated with the tool tip at Z + W (a quill along Z) and at "
+                    "the other axes' positions" if has_quill(self) else
+                    "the other axes' corrections are those at their positions"))
         notes = getattr(self._source, "notes", None)
         if notes is not None and note not in notes:
             notes.append(note)

@@ -11,11 +11,15 @@ quill's reach (docs/conventions.md, "Tool length").
 
 The reader records, per line that changes it, the quill's position before and after the line
 (``source.quill_moves``: line -> (before, after), mm, NaN where not known); :func:`quill_of_rows`
-gives each segment row its W. Before the program's first W word the quill stands where the set-up
-left it (0: as in a program that never names W, its place is part of the Z work offset). After a
+gives each segment row its W. Only a machine whose file declares its quill (``quill = true`` in
+[axes.Z]: ``Machine.quill``) has one: elsewhere W is not followed (on Fanuc and Haas, whose lathes
+read W as Z given incrementally, it is refused by the reader). Before the program's first W word
+the quill stands where the set-up left it (0: as in a program that never names W, its place is
+part of the Z work offset), until a home move of every axis, which homes the quill too. After a
 home move of W or of every axis, a G53 move of W, a tool change, a change of work system or of
-the tool centre point mode, its position is not known until the program names W again: the tip's
-Z is not known there, so those blocks are not corrected. A block that moves W and the model's axes
+the tool centre point mode (the last three once the program has named W), its position is not
+known until the program names W again: the tip's Z is not known there, so those blocks are not
+corrected. A block that moves W and the model's axes
 together is not corrected either (its tip moves along a line the controller runs with an axis the
 model does not have).
 """
@@ -35,9 +39,19 @@ def init_quill(state, path) -> None:
     state.quill_moves = table if table is not None else {}
 
 
+def has_quill(state) -> bool:
+    """The W words of the program read by ``state`` (a ModalState) move a quill along Z: the
+    machine file declares one, and the dialect is not Haas (a Haas mill has no W; on its lathes W
+    is Z given incrementally)."""
+    return state.machine.quill and state.dialect.name != "haas"
+
+
 def follow_quill(state, values: dict, codes: tuple, nonmotion_axes: bool, line: int) -> None:
     """Follow the line's W word (``values``: its words), after its codes were applied (``codes``:
-    the line's motion code, drilling cycle code and home move, each None where it has none)."""
+    the line's motion code, drilling cycle code and home move, each None where it has none); on a
+    machine without a quill, nothing."""
+    if not has_quill(state):
+        return
     motion, cycle, home_move = codes
     motion = state.motion if motion is None else motion
     before = state.quill
@@ -59,9 +73,8 @@ def follow_quill(state, values: dict, codes: tuple, nonmotion_axes: bool, line: 
             w = values["W"] * (MM_PER_INCH if state.inch else 1.0)
             state.quill = state.quill + w if state.incremental else w
         state.quill_named = True
-    elif home_move in (28, 30) and state.quill_named and \
-            not any(c in values for c in state.names):
-        state.quill = np.nan          # G28 / G30 alone: every axis goes home
+    elif home_move in (28, 30) and not any(c in values for c in state.names):
+        state.quill = np.nan          # G28 / G30 alone: every axis goes home, W too
     if not _same(before, state.quill):
         state.quill_moves[line] = (before, state.quill)
 
