@@ -25,7 +25,7 @@ lines (`$H` homing and `$J=` jogging leave every axis unknown) and a DOS end-of-
 move. A RepRapFirmware program (see `is_rrf`) is read without its quoted strings, and a block that
 runs the controller's macro files (see `rrf_runs_macro`) leaves every axis unknown. On BeagleG (see
 `is_beagleg`) a line is read word by word, as BeagleG's parser does (`beagleg_commands`: `X5 G91`
-moves to X5 before G91 applies), and G2/G3 hold for their own block only: axis
+moves to X5 before G91 applies), G70/G71 are G20/G21, and G2/G3 hold for their own block only: axis
 words alone move in the last G0/G1 mode, G0 at the start (BeagleG's
 src/gcode-parser/gcode-parser.cc, ParseBlock). A G5 cubic spline (X Y
 its end; the first control point the start plus I J, or without I J minus the previous G5's P Q;
@@ -263,8 +263,8 @@ def _target(st, words):
 def _modal(st, gs, words):
     """Apply the modal words of a block; True when the block changes the tool length (Z)."""
     for g in gs:
-        if g in (20, 21):
-            st.scale = 25.4 if g == 20 else 1.0
+        if g in (20, 21) or (st.beagleg and g in (70, 71)):     # BeagleG: G70/G71 inch/mm
+            st.scale = 25.4 if g in (20, 70) else 1.0
         elif g in (90, 91):
             st.absolute = g == 90
         elif g in (90.1, 91.1):

@@ -269,3 +269,17 @@ def test_the_same_lines_with_their_g_words_first_are_corrected(tmp_path):
     compare(expanded, written.encode(), TOL, beagleg=True)
     _check_output(expanded, written.encode())
 
+
+def test_g70_g71_are_inch_and_mm(tmp_path):
+    # BeagleG's parser reads G70/G71 as G20/G21 (gcode-parser.cc, ParseBlock): X1 after G70 is
+    # 25.4 mm, by hand; the output keeps G70 and writes that line in inches
+    text = "G21\nG0 X10 Y0 Z5\nG70 X1\nG71 X30\n"
+    moves = replay(text.encode(), beagleg=True).moves
+    assert [m.end["X"] for m in moves] == pytest.approx([10.0, 25.4, 30.0], abs=1e-12)
+    code, _out, err, written = _compensate(tmp_path, text, "--dialect", "beagleg")
+    assert code == 0, err
+    out = written.splitlines()
+    assert out[2].startswith("G70 X") and out[3].startswith("G71 X")
+    assert float(out[2].split()[1][1:]) == pytest.approx(1.0, abs=1e-3)
+    compare(text.encode(), written.encode(), TOL, beagleg=True)
+    _check_output(text.encode(), written.encode())

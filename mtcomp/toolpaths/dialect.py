@@ -264,7 +264,8 @@ def grbl_program_end(state) -> None:
 
 #: BeagleG's G codes (its G-code.md, "G Codes"; src/gcode-parser/gcode-parser.cc, ParseBlock). It
 #: hands any other to the machine control, which acts on M codes only
-#: (src/gcode-machine-control.cc, special_commands) and then reads the block's axis words as a move
+#: (src/gcode-machine-control.cc, special_commands) and then reads the block's axis words as a move.
+#: G70/G71 are its inch/mm, as G20/G21 (ParseBlock, lines 1913-1914)
 _BEAGLEG_G = frozenset([0, 1, 2, 3, 4, 5, 5.1, 10, 17, 18, 19, 20, 21, 28, 50, 51, 54, 55, 56, 57,
                         58, 59, 59.1, 59.2, 59.3, 70, 71, 90, 91, 92, 92.1, 92.2, 92.3])
 #: BeagleG's axis letters (gcode-parser.cc, gcodep_letter2axis), and the other words a move, an arc
@@ -308,13 +309,15 @@ def beagleg_word_order(state, tokens, line: int) -> None:
 def beagleg_block(state, gcodes, line: int) -> None:
     """BeagleG's rules for a block, before its codes apply (docs/toolpaths.md, "BeagleG"): G2/G3 do
     not stay in force (gcode-parser.cc, ParseBlock: axis words alone move in the last G0/G1 mode,
-    G0 at the start), a G code it does not have is refused (it would ignore it and move), and so is
-    G30 (its Z probe, handle_z_probe, which sets a G92 offset of Z from the probed height)."""
+    G0 at the start), G70/G71 are read as G20/G21 (``gcodes`` changed in place), a G code it does
+    not have is refused (it would ignore it and move), and so is G30 (its Z probe, handle_z_probe,
+    which sets a G92 offset of Z from the probed height)."""
     if not hasattr(state, "linear_motion"):
         state.linear_motion = 0 if state.motion is None else state.motion
         state.motion = state.linear_motion
     if state.motion in (2, 3):
         state.motion = state.linear_motion
+    gcodes[:] = [{70: 20, 71: 21}.get(g, g) for g in gcodes]
     for g in gcodes:
         if g == 30:
             raise state._err("G30 on BeagleG probes Z and sets a G92 offset of Z from the probed "
