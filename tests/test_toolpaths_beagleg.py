@@ -74,6 +74,7 @@ def test_while_loops_become_o_word_loops_and_run(tmp_path):
     ("IF [#1 > 2] THEN #2=1\n", 1, "one-line IF"),
     ("#a=[#b > 1] ? 2 : 3\n", 1, "ternary"),
     ("#a=2 G1 X#a\n", 1, "#a is set and read in one line"),
+    ("#i=1\nG0 X#i++ Y0\n", 2, r"'#i\+\+' updates a parameter inside a value: BeagleG reads #i as"),
 ])
 def test_what_is_refused_by_name(tmp_path, text, line, message):
     with pytest.raises(InputError, match=message) as exc:
