@@ -24,8 +24,10 @@ see `without_comments`), `%`, `:` program numbers, `$`
 lines (`$H` homing and `$J=` jogging leave every axis unknown) and a DOS end-of-file mark make no
 move. A RepRapFirmware program (see `is_rrf`) is read without its quoted strings, and a block that
 runs the controller's macro files (see `rrf_runs_macro`) leaves every axis unknown. On BeagleG (see
-`is_beagleg`) G2/G3 hold for their own block only: axis words alone move in the last G0/G1 mode,
-G0 at the start (BeagleG's src/gcode-parser/gcode-parser.cc, ParseBlock). A G5 cubic spline (X Y
+`is_beagleg`) a line is read word by word, as BeagleG's parser does (`beagleg_commands`: `X5 G91`
+moves to X5 before G91 applies), G70/G71 are G20/G21, and G2/G3 hold for their own block only: axis
+words alone move in the last G0/G1 mode, G0 at the start (BeagleG's
+src/gcode-parser/gcode-parser.cc, ParseBlock). A G5 cubic spline (X Y
 its end; the first control point the start plus I J, or without I J minus the previous G5's P Q;
 the second the end plus P Q) and a G5.1 quadratic one (its control point the start plus I J) are
 moves along their Bezier curve (LinuxCNC G-code reference, G5 and G5.1); after one no motion mode
@@ -173,6 +175,21 @@ def is_beagleg(data: bytes) -> bool:
     return _BEAGLEG_CLUE.search(data) is not None
 
 
+def beagleg_commands(words):
+    """A line's words as BeagleG runs them, in turn (its src/gcode-parser/gcode-parser.cc,
+    ParseBlock and handle_move): each G word with the words it reads after it (axis words, F S I J
+    K R P Q L), and each run of those without a G word before it, as a move of its own, ended by
+    any other word (an M, N, T word: on a line of its own here). Each part is a block."""
+    parts, reading = [], False
+    for c, v in words:
+        arg = c in AXES + "UVE" + "FSIJKRPQL"
+        if c == "G" or not (reading and arg):
+            parts.append([])
+        parts[-1].append((c, v))
+        reading = c == "G" or arg
+    return parts
+
+
 def replay(data: bytes, units_mm: bool = True, placed: bool = False,
            beagleg: bool | None = None) -> Replay:
     """The moves and motionless lines of a program (its bytes); `units_mm`: what a program
@@ -187,7 +204,9 @@ def replay(data: bytes, units_mm: bool = True, placed: bool = False,
         if code[:2] in ("$H", "$J"):
             # grbl homing ($H) or jogging ($J=): the machine moves where the program does not say
             st.pos = {a: None for a in AXES}
-        moves = [] if (not code or code[0] in "%:$") else _block(st, index, _words(code))
+        words = [] if (not code or code[0] in "%:$") else _words(code)
+        moves = [m for part in (beagleg_commands(words) if st.beagleg else [words])
+                 for m in (_block(st, index, part) if part else [])]
         if moves:
             out.moves.extend(_in_work_system(m, _offsets(st, placed)) for m in moves)
         else:
@@ -244,8 +263,8 @@ def _target(st, words):
 def _modal(st, gs, words):
     """Apply the modal words of a block; True when the block changes the tool length (Z)."""
     for g in gs:
-        if g in (20, 21):
-            st.scale = 25.4 if g == 20 else 1.0
+        if g in (20, 21) or (st.beagleg and g in (70, 71)):     # BeagleG: G70/G71 inch/mm
+            st.scale = 25.4 if g in (20, 70) else 1.0
         elif g in (90, 91):
             st.absolute = g == 90
         elif g in (90.1, 91.1):

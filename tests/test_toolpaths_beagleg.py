@@ -74,6 +74,7 @@ def test_while_loops_become_o_word_loops_and_run(tmp_path):
     ("IF [#1 > 2] THEN #2=1\n", 1, "one-line IF"),
     ("#a=[#b > 1] ? 2 : 3\n", 1, "ternary"),
     ("#a=2 G1 X#a\n", 1, "#a is set and read in one line"),
+    ("#i=1\nG0 X#i++ Y0\n", 2, r"'#i\+\+' updates a parameter inside a value: BeagleG reads #i as"),
 ])
 def test_what_is_refused_by_name(tmp_path, text, line, message):
     with pytest.raises(InputError, match=message) as exc:
@@ -219,3 +220,67 @@ def test_an_incremental_spline_moves_the_output_by_its_increments(tmp_path):
 def test_splines_refused_as_linuxcnc_refuses_them(tmp_path, text, message):
     code, _out, err, written = _compensate(tmp_path, "G0 X0 Y0 Z0 F100\n" + text)
     assert code == 2 and written is None and message in err, err
+
+
+#: the reviewer's program: line 4 moves to X5 in G90 on BeagleG, and G91 applies after it
+WORD_ORDER = "#a=1\nG21 G17 G90\nG0 X10 Y0 Z5\nX5 G91\nX1\nM2\n"
+
+
+def test_the_replay_reads_a_line_word_by_word_as_beagleg(tmp_path):
+    # by hand: BeagleG moves to X5 (G90) and then to 5 + 1 = 6 (G91); read as one block the line
+    # moves by +5 (10 + 5 = 15, then 16)
+    def ends(program, beagleg):
+        return [(m.line, m.end["X"], m.end["Z"])
+                for m in replay(program.encode(), beagleg=beagleg).moves]
+    assert ends(WORD_ORDER, True) == [(2, 10, 5), (3, 5, 5), (4, 6, 5)]
+    assert ends(WORD_ORDER, False) == [(2, 10, 5), (3, 15, 5), (4, 16, 5)]
+    assert ends("G0 X0 Y0 Z5\nX5 M3 Y2\n", True) == [(0, 0, 5), (1, 5, 5), (1, 5, 5)]
+    # what mtcomp wrote for it before it refused the line (a model 30 times the usual size): Y and
+    # Z beside X, read by BeagleG in G90, plunge Z from 5 to 0.0051; the replay tells it apart
+    written = WORD_ORDER.replace("X5 G91", "X4.9969 Y-0.0014 Z0.0051 G91")
+    assert ends(written, True)[1] == (3, 4.9969, 0.0051)
+    with pytest.raises(AssertionError):
+        compare(WORD_ORDER.encode(), written.encode(), TOL, beagleg=True)
+
+
+@pytest.mark.parametrize("text, line, message", [
+    (WORD_ORDER, 4, "X5 comes before G91 on this line: BeagleG reads a line's words in turn"),
+    ("G91\nG0 X1 Y0 Z5\nX5 G90\nX1\n", 3, "X5 comes before G90"),
+    ("G0 X0 Y0 Z5\nG1 X1 F100 G0 Y2\n", 2, "X1 comes before G0"),
+    ("G0 X0 Y0 Z5\nX1 G20\n", 2, "X1 comes before G20"),
+    ("G0 X0 Y0 Z5\nX1 G55\n", 2, "X1 comes before G55"),
+    ("G0 X0 Y0 Z5\nX1 G18\n", 2, "X1 comes before G18"),
+    ("G0 X0 Y0 Z5\nG92 Z0 G0 X5\n", 2, "Z0 comes before G0"),
+    ("G0 X0 Y0 Z5\nF100 G20 G1 X1\n", 2, "F100 comes before G20"),
+    ("G0 X0 Y0 Z5\nX5 M3 Y2\n", 2, "Y2 comes after M3, which ends the move of X5"),
+    ("G0 X0 Y0 Z5\nG1 X5 F100 N7 Y2\n", 2, "Y2 comes after N7, which ends the move of X5"),
+])
+def test_a_line_beagleg_reads_as_two_blocks_is_refused(tmp_path, text, line, message):
+    code, _out, err, written = _compensate(tmp_path, text, "--dialect", "beagleg", factor=30.0)
+    assert code == 2 and written is None, err
+    assert f"prog.gcode:{line}: {message}" in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_the_same_lines_with_their_g_words_first_are_corrected(tmp_path):
+    text = "#a=1\nG21 G17 G90\nG0 X10 Y0 Z5\nG91 X5\nX1\nS1000 M3 G1 X2 F100\nG1 X1 F100 S9 M5\n"
+    code, _out, err, written = _compensate(tmp_path, text, "--dialect", "beagleg", factor=30.0)
+    assert code == 0, err
+    with open_program(tmp_path / "prog.gcode", "beagleg") as src:
+        expanded = Path(src.path).read_bytes()
+    compare(expanded, written.encode(), TOL, beagleg=True)
+    _check_output(expanded, written.encode())
+
+
+def test_g70_g71_are_inch_and_mm(tmp_path):
+    # BeagleG's parser reads G70/G71 as G20/G21 (gcode-parser.cc, ParseBlock): X1 after G70 is
+    # 25.4 mm, by hand; the output keeps G70 and writes that line in inches
+    text = "G21\nG0 X10 Y0 Z5\nG70 X1\nG71 X30\n"
+    moves = replay(text.encode(), beagleg=True).moves
+    assert [m.end["X"] for m in moves] == pytest.approx([10.0, 25.4, 30.0], abs=1e-12)
+    code, _out, err, written = _compensate(tmp_path, text, "--dialect", "beagleg")
+    assert code == 0, err
+    out = written.splitlines()
+    assert out[2].startswith("G70 X") and out[3].startswith("G71 X")
+    assert float(out[2].split()[1][1:]) == pytest.approx(1.0, abs=1e-3)
+    compare(text.encode(), written.encode(), TOL, beagleg=True)
+    _check_output(text.encode(), written.encode())

@@ -16,6 +16,7 @@ so that errors name the source's lines:
   starting with END closes the loop, so a WHILE inside one is refused).
 
 Refused by name: the one-line ``IF [...] THEN #a=... ELSE ...``, the ternary ``#a=[c] ? x : y``,
+an update inside a value (``X#i++``: BeagleG reads ``#i`` as the value, the ``++`` is no update),
 and an assignment whose parameter its own line reads after it (BeagleG sets a parameter at once,
 within its line; LinuxCNC after the line: the two would differ).
 """
@@ -60,8 +61,15 @@ def _code_part(code: str, path, line: int) -> str:
     while pos < len(code):
         ch = code[pos]
         if ch == "#":
+            start = pos
             name, pos = _param(code, pos)
             update = _UPDATE.match(code, pos) if name != "#" else None
+            if update and _in_value(code, start):
+                op, shown = update.group(1), code[start:update.end()].strip()
+                raise InputError(f"'{shown}' updates a parameter inside a value: BeagleG reads "
+                                 f"{code[start:pos].strip()} as the value and does not take the "
+                                 f"'{op}' after it as an update; put the update apart, as a word "
+                                 "of its own", path, line)
             if update:
                 op = update.group(1)
                 if op in ("++", "--"):
@@ -85,6 +93,15 @@ def _code_part(code: str, path, line: int) -> str:
             out.append(ch)
             pos += 1
     return "".join(out)
+
+
+def _in_value(code: str, pos: int) -> bool:
+    """Whether the '#' at ``code[pos]`` is (part of) a word's value or an expression: what comes
+    before it is a word's letter, '[', an operator or '='."""
+    before = code[:pos].rstrip()
+    if re.search(r"#\s*(?:<[^>]*>|\w+)$", before):
+        return False                # a parameter before it: the value it belongs to ends there
+    return bool(before) and (before[-1].isalpha() or before[-1] in "[+-*/=<>!&|")
 
 
 def _value_end(code: str, pos: int) -> int:

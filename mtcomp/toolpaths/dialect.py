@@ -264,21 +264,60 @@ def grbl_program_end(state) -> None:
 
 #: BeagleG's G codes (its G-code.md, "G Codes"; src/gcode-parser/gcode-parser.cc, ParseBlock). It
 #: hands any other to the machine control, which acts on M codes only
-#: (src/gcode-machine-control.cc, special_commands) and then reads the block's axis words as a move
+#: (src/gcode-machine-control.cc, special_commands) and then reads the block's axis words as a move.
+#: G70/G71 are its inch/mm, as G20/G21 (ParseBlock, lines 1913-1914)
 _BEAGLEG_G = frozenset([0, 1, 2, 3, 4, 5, 5.1, 10, 17, 18, 19, 20, 21, 28, 50, 51, 54, 55, 56, 57,
                         58, 59, 59.1, 59.2, 59.3, 70, 71, 90, 91, 92, 92.1, 92.2, 92.3])
+#: BeagleG's axis letters (gcode-parser.cc, gcodep_letter2axis), and the other words a move, an arc
+#: or a spline reads after its G code (handle_move, handle_arc, handle_spline); with F, S and G10's
+#: L they do not end a move
+_BEAGLEG_AXES = "XYZABCUVWE"
+_BEAGLEG_ARGS = "IJKRPQ"
+_BEAGLEG_UNITS_G = ("20", "21", "70", "71")
+
+
+def beagleg_word_order(state, tokens, line: int) -> None:
+    """Refuse a line BeagleG does not read as one block. Its ParseBlock (gcode-parser.cc, lines
+    1860-1982) acts on each word in turn: axis words move at once, in the modes set by the words
+    before them, and a move ends at the first word that is not an axis word, F or S (handle_move,
+    lines 1444-1459: an M, N or T word ends it). So a G word after an axis word (or after I J K R
+    P Q, which an earlier G code reads in the units then in force) applies after that move, an F
+    before G20/G21/G70/G71 is read in the units before them, and axis words after a word that
+    ended a move make a second move; mtcomp reads a line as one block, and would correct it so."""
+    first = ended = feed = None     # the first axis (or arc) word; the word that ended its move
+    for letter, number, raw in tokens:
+        if letter in "(;":
+            continue
+        before = feed if letter == "G" and number.lstrip("0") in _BEAGLEG_UNITS_G else None
+        before = first if first is not None and letter == "G" else before
+        if before is not None:
+            raise state._err(f"{before} comes before {raw} on this line: BeagleG reads a line's "
+                             f"words in turn and acts on {before} before {raw} applies (mtcomp "
+                             f"reads the line as one block): put {raw} first", line)
+        if letter in _BEAGLEG_AXES + "F" and ended is not None:
+            raise state._err(f"{raw} comes after {ended}, which ends the move of {first} on this "
+                             f"line: BeagleG reads a line's words in turn and makes a second move "
+                             f"(mtcomp reads the line as one block): put {ended} last", line)
+        if letter in _BEAGLEG_AXES + _BEAGLEG_ARGS:
+            first = raw if first is None else first
+        elif letter == "F":
+            feed = raw if feed is None else feed
+        elif first is not None and letter not in "SL" and ended is None:
+            ended = raw
 
 
 def beagleg_block(state, gcodes, line: int) -> None:
     """BeagleG's rules for a block, before its codes apply (docs/toolpaths.md, "BeagleG"): G2/G3 do
     not stay in force (gcode-parser.cc, ParseBlock: axis words alone move in the last G0/G1 mode,
-    G0 at the start), a G code it does not have is refused (it would ignore it and move), and so is
-    G30 (its Z probe, handle_z_probe, which sets a G92 offset of Z from the probed height)."""
+    G0 at the start), G70/G71 are read as G20/G21 (``gcodes`` changed in place), a G code it does
+    not have is refused (it would ignore it and move), and so is G30 (its Z probe, handle_z_probe,
+    which sets a G92 offset of Z from the probed height)."""
     if not hasattr(state, "linear_motion"):
         state.linear_motion = 0 if state.motion is None else state.motion
         state.motion = state.linear_motion
     if state.motion in (2, 3):
         state.motion = state.linear_motion
+    gcodes[:] = [{70: 20, 71: 21}.get(g, g) for g in gcodes]
     for g in gcodes:
         if g == 30:
             raise state._err("G30 on BeagleG probes Z and sets a G92 offset of Z from the probed "

@@ -22,7 +22,7 @@ from ._arcs import (PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, blin
 from .blocks import CycleBlock, MotionBlock
 from .cycle_rules import (cycle_move, cycle_unclear, has_axis_words, home_with_motion,
                           incremental_r_level, retract_level, rigid_tap)
-from .dialect import GENERIC, beagleg_block, grbl_program_end
+from .dialect import GENERIC, beagleg_block, beagleg_word_order, grbl_program_end
 from .directions import step_directions
 from .frames import (FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle, follow_given,
                      mode_change)
@@ -200,6 +200,7 @@ class ModalState:
             return None
         values, gcodes, mcodes, number = self._read_words(tokens, line)
         if not self.dialect.arcs_modal:
+            beagleg_word_order(self, tokens, line)
             beagleg_block(self, gcodes, line)
         self._cutter_comp_codes(gcodes)
         self.g60 = self.dialect.name == "fanuc" and 60.0 in gcodes  # single-direction positioning
