@@ -277,7 +277,7 @@ class Judge:
         fitted = _thermal_model(fitted, settings)[0]
         self.fitted = fitted
         thermal, _ = thermal_context(fitted, settings.temperatures, settings.spindle_rpm,
-                                     settings.extrapolate)
+                                     settings.extrapolate, every_sensor=False)
         _probed(fitted, settings)        # before the state is written: the record's means
         fitted.context_defaults.update(thermal)
         fitted.probe_tool_length = settings.probe_tool_length
@@ -589,7 +589,7 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     settings.check()
     fitted, unknown_state = _thermal_model(fitted, settings, temperature_series)
     thermal, assumed = thermal_context(fitted, settings.temperatures, settings.spindle_rpm,
-                                       settings.extrapolate)
+                                       settings.extrapolate, every_sensor=temperature_series is None)
     assumed = unknown_state or assumed
     series = _checked_series(fitted, settings, temperature_series)
     probe_line = _probed(fitted, settings, temperature_series)   # before the state is written

@@ -147,7 +147,10 @@ def test_a_time_series_without_t_s_or_with_time_going_back_is_one_line(tmp_path,
     with pytest.raises(InputError, match="no t_s column"):
         read_temperature_row(bad)
     bad.write_text("t_s,temp_t1_c\n0,25\n60,26\n30,27\n")
-    with pytest.raises(InputError, match=r"row 3.*t_s must be a time in seconds, increasing"):
+    with pytest.raises(InputError, match=r"row 3: column t_s: 30 s goes back from 60 s"):
+        read_temperature_row(bad)
+    bad.write_text("t_s,temp_t1_c\n0,25\n60,26\n60,27\n")      # a repeat: no time between them
+    with pytest.raises(InputError, match=r"row 3: column t_s: 60 s repeats the row before's"):
         read_temperature_row(bad)
 
 
@@ -169,8 +172,12 @@ def test_without_a_thermal_state_the_drift_is_not_compensated(tmp_path, capsys):
     blocks = [r for r in _rows(tmp_path / "B.csv") if r["unknown_axes"] == ""]
     assert blocks and all(float(r["e_before_um"]) == 0.0 for r in blocks)
     assert (tmp_path / "o.nc").read_text() == prog.read_text()
+    # every sensor the drift reads is given: the record's mean state of the others, t1 at 28 degC
+    temps = json.loads(model.read_text())["context_defaults"]
+    flags = [f"{k[5:]}={v:.6g}" for k, v in temps.items() if k.startswith("temp_") and k != "temp_t1"]
     assert main(["compensate", "xfyz", str(model), str(prog), "-o", str(tmp_path / "o2.nc"),
-                 "--report", str(tmp_path / "B2.csv"), "--temperature", "t1=28", "--quiet"]) == 0
+                 "--report", str(tmp_path / "B2.csv"), "--temperature", "t1=28", "--quiet",
+                 *[w for f in flags for w in ("--temperature", f)]]) == 0
     warm = [r for r in _rows(tmp_path / "B2.csv") if r["unknown_axes"] == ""]
     assert all(abs(float(r["ez_before_um"])) > 1.0 for r in warm)
 

@@ -66,7 +66,9 @@ def read_temperature_row(path) -> tuple[dict | TemperatureSeries, list]:
     :class:`TemperatureSeries` (every cell given). Columns other than these (``spindle_rpm``, ...)
     are not read. InputError naming the file and the row otherwise."""
     from ..io.csvtable import read_csv_table
+    from ..measurement.thermal_checks import check_unit_columns
     table = read_csv_table(path)
+    check_unit_columns(table)       # temp_head_F: a sensor in another unit is refused, not dropped
     names = [n for n in table.names if _TEMP_COLUMN.match(n)]
     other = [n for n in table.names if n not in names and not (n == "t_s" and len(table.rows) > 1)]
     if not names:
@@ -77,10 +79,8 @@ def read_temperature_row(path) -> tuple[dict | TemperatureSeries, list]:
             table.fail(f"{len(table.rows)} rows of readings and no t_s column: a time series needs "
                        "the time of each reading (seconds from the program's start); one row gives "
                        "the temperatures while the program runs")
+        _check_series_times(table, table.floats("t_s"))
         t = table.floats("t_s")
-        bad = np.flatnonzero(~np.isfinite(t) | np.concatenate([[False], ~(np.diff(t) > 0)]))
-        if bad.size:
-            table.fail("t_s must be a time in seconds, increasing from row to row", int(bad[0]))
         temps = {}
         for name in names:
             v = table.floats(name)
@@ -100,11 +100,53 @@ def read_temperature_row(path) -> tuple[dict | TemperatureSeries, list]:
     return temps, other
 
 
+def _check_series_times(table, t) -> None:
+    """InputError naming the first row of a series whose ``t_s`` is not a number, goes back (its
+    value and the row before's, as the thermal record reader says) or repeats the row before's."""
+    from ..measurement.thermal_checks import check_time_order
+    blank = np.flatnonzero(~np.isfinite(t))
+    if blank.size:
+        table.fail("column t_s: no time (blank or not a number): a series gives the time of every "
+                   "reading, in seconds, increasing from row to row", int(blank[0]))
+    check_time_order(table, t)
+    same = np.flatnonzero(np.diff(t) == 0)
+    if same.size:
+        i = int(same[0]) + 1
+        table.fail(f"column t_s: {t[i]:.10g} s repeats the row before's: a series' readings are at "
+                   "increasing times", i)
+
+
+def missing_sensors(fitted, given) -> tuple[list, list]:
+    """(the sensors the model's tool-tip drift reads that ``given`` (sensor names) leaves out, all
+    the sensors it reads)."""
+    features = [f for t in _drift_terms(fitted.model)[0] for f in t.features]
+    temps = list(dict.fromkeys(f[5:] for f in features if f.startswith("temp_")))
+    return [s for s in temps if s not in given], temps
+
+
+def _every_sensor(temps) -> str:
+    """Why a state must give every sensor of ``temps``, the sensors the drift reads."""
+    return (f"the model's thermal drift reads sensor(s) {', '.join(temps)}: give every sensor's "
+            "temperature (one left out is not taken at its mean over the record: the coefficients "
+            "of correlated sensors are fitted together, and one sensor's without the others' "
+            "corrects a drift that is not there)")
+
+
 def check_readings(fitted, readings, path, flags=(), extrapolate: bool = False) -> None:
     """InputError naming the readings file ``path`` (``--temperatures``), the row and the column of
     the first reading beyond the range the model's thermal record spans (unless ``extrapolate``).
     ``readings``: what :func:`read_temperature_row` returned (one row, or a series); the sensors of
-    ``flags`` are given on the command line, which wins, and are not checked here."""
+    ``flags`` are given on the command line, which wins, and are not checked here. InputError too
+    (naming the column; a series' header) for a sensor the model's drift reads that neither the
+    file (no column, a blank cell) nor ``flags`` gives."""
+    temps_given = readings.temps if isinstance(readings, TemperatureSeries) else readings
+    missing, temps = missing_sensors(fitted, set(temps_given) | set(flags))
+    if missing:
+        series = isinstance(readings, TemperatureSeries)
+        columns = ", ".join(f"temp_{s}_c" for s in missing)
+        raise InputError(f"no {'column ' + columns if series else 'reading in column(s) ' + columns} "
+                         f"(nor --temperature {missing[0]}=...): {_every_sensor(temps)}",
+                         path, row=0 if series else None)
     ranges = fitted.info.get("context_ranges") if isinstance(fitted.info, dict) else None
     if extrapolate or not isinstance(ranges, dict):
         return
@@ -181,11 +223,14 @@ def _degf_hint(value, rng) -> str:
 
 
 def thermal_context(fitted, temperatures: dict | None = None, spindle_rpm: float | None = None,
-                    extrapolate: bool = False, source=None) -> tuple[dict, str]:
+                    extrapolate: bool = False, source=None, every_sensor: bool = True
+                    ) -> tuple[dict, str]:
     """(context values to use, one sentence saying what is assumed) for the drift terms of
     ``fitted`` (a FittedModel). ``temperatures``: sensor name -> degC; ``spindle_rpm``: the speed the
-    spindle has run at long enough to reach steady state. Sensors not given keep the model's
-    reference (the mean over the thermal record it was fitted on).
+    spindle has run at long enough to reach steady state. A state given must give every sensor the
+    drift reads, else InputError naming the ones left out (never taken at the record's mean: the
+    coefficients of correlated sensors are large and opposite), unless ``every_sensor`` is False
+    (the caller gives the rest along a series and checks them itself).
 
     InputError (naming ``source``, the model file, when given) for a sensor or a spindle speed the
     model's tool-tip drift does not use, for a thermal state given to a model whose drift maps to no
@@ -233,18 +278,21 @@ def thermal_context(fitted, temperatures: dict | None = None, spindle_rpm: float
         rpm_beyond = _check_range("--spindle-rpm", float(spindle_rpm), "rpm",
                                          (ranges or {}).get("spindle_rpm"), extrapolate, source)
         out.update({n: spindle_rpm / 1000.0 for n in lags})
+    missing = [s for s in temps if f"temp_{s}" not in out]
+    if given and every_sensor and missing:
+        raise InputError(f"no temperature of sensor(s) {', '.join(missing)} is given "
+                         f"(--temperature NAME=DEGC): {_every_sensor(temps)}", source)
     if not temps and not lags:
         return out, ""
     parts = []
     if temps:
         done = [s for s in temps if f"temp_{s}" in out]
-        rest = [s for s in temps if s not in done]
         if done:
             parts.append("temperatures " + ", ".join(f"{s}={out['temp_' + s]:g} degC{beyond[s]}"
                                                       for s in done))
-        if rest:
-            parts.append(f"{'other ' if done else ''}temperatures ({', '.join(rest)}) at the model's "
-                         "reference, their mean over the thermal record")
+        if missing:     # with every_sensor False the caller's series gives them; else none given
+            parts.append(f"{'other ' if done else ''}temperatures ({', '.join(missing)}) "
+                         + ("as the readings give them" if given else "not given"))
     if lags:
         parts.append(f"spindle heat at steady state of {spindle_rpm:g} rpm{rpm_beyond}"
                      if spindle_rpm is not None else "spindle stopped for long (no spindle heat)")
