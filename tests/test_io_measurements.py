@@ -387,6 +387,6 @@ def test_a_velocity_file_of_an_axis_that_carries_the_tool_is_noted(tmp_path, cap
                  "n_y_mm,n_vx_mm_min,n_vy_mm_min\n" + "\n".join(rows) + "\n")
     for machine, said in (("cbfxyz", True), ("xfyz", False)):
         capsys.readouterr()
-        note_outside_travel("identify", load_machine(machine), [read_measurements(src)])
+        note_outside_travel(load_machine(machine), [read_measurements(src)])
         err = capsys.readouterr().err
         assert ("axis X carries the tool, not the table" in err) == said, (machine, err)

@@ -33,7 +33,7 @@ def _points(path, tool_column="tool_mm", extra="", scale=1.0, tool=50.0):
 
 def _notes(path, capsys, machine="xfyz") -> list[str]:
     capsys.readouterr()
-    note_outside_travel("identify", load_machine(machine), [read_measurements(path)])
+    note_outside_travel(load_machine(machine), [read_measurements(path)])
     return [ln for ln in capsys.readouterr().err.splitlines() if ln]
 
 
@@ -147,7 +147,7 @@ def test_rotary_data_beyond_a_travel_of_less_than_a_turn_is_noted(tmp_path, caps
     p = tmp_path / "grid.csv"
     p.write_text("x_mm,y_mm,z_mm,b_deg,c_deg,dx_um\n0,0,0,-60,0,1\n0,0,0,1.5,350,2\n"
                  "0,0,0,60,720,1\n0,0,0,-1.7450000005,0,1\n0,0,0,1.7450000005,0,1\n")
-    note_outside_travel("identify", load_machine(machine), [read_measurements(p)])
+    note_outside_travel(load_machine(machine), [read_measurements(p)])
     err = capsys.readouterr().err
     assert "2 row(s) take B to -60..60 deg, outside the machine's travel -1.745..1.745 deg " \
            "(a travel_deg written in radians?)" in err
@@ -182,7 +182,7 @@ def _laser_y(path, static=True, component="EYY", unit="value_um"):
 
 def _static_notes(capsys, *paths) -> list[str]:
     capsys.readouterr()
-    note_outside_travel("identify", load_machine("xfyz"), [read_measurements(p) for p in paths])
+    note_outside_travel(load_machine("xfyz"), [read_measurements(p) for p in paths])
     return [ln for ln in capsys.readouterr().err.splitlines() if "Abbe arms" in ln]
 
 

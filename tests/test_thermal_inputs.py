@@ -42,7 +42,7 @@ def _record(path, t=T_S, disp_scale=1.0, header=None, blank=None):
 
 def _notes(path, capsys) -> list[str]:
     capsys.readouterr()
-    note_outside_travel("diagnose", load_machine("xfyz"), [read_measurements(path)])
+    note_outside_travel(load_machine("xfyz"), [read_measurements(path)])
     return [ln for ln in capsys.readouterr().err.splitlines() if ln]
 
 
@@ -83,7 +83,7 @@ def test_a_repeated_time_is_read_and_noted_once(tmp_path, capsys):
     t = T_S.copy()
     t[700], t[900] = t[699], t[899]
     notes = _notes(_record(tmp_path / "rec.csv", t=t), capsys)
-    assert notes == [f"mtcomp diagnose: note: {tmp_path / 'rec.csv'}: 2 reading(s) at the t_s of "
+    assert notes == [f"note: {tmp_path / 'rec.csv'}: 2 reading(s) at the t_s of "
                      "the row before, the first at row 701 (t_s 20970): read in file order, as taken "
                      "within the logger's time resolution; if they are duplicated rows, remove them"]
 
@@ -132,7 +132,7 @@ def test_a_gap_is_noted_with_its_time_and_length(tmp_path, capsys):
 
 def test_one_blank_temperature_cell_is_noted_at_its_row(tmp_path, capsys):
     notes = _notes(_record(tmp_path / "rec.csv", blank=(301, 5)), capsys)
-    assert notes == [f"mtcomp diagnose: note: {tmp_path / 'rec.csv'}: column temp_head_c is blank "
+    assert notes == [f"note: {tmp_path / 'rec.csv'}: column temp_head_c is blank "
                      "at row 301 (1 of 1201 readings): diagnose leaves a sensor out of the drift fit "
                      "unless every reading has it; fill the cell or remove the row to keep sensor head"]
 

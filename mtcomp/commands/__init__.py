@@ -6,7 +6,7 @@ import sys
 import numpy as np
 
 
-def note_outside_travel(command: str, machine, datasets) -> None:
+def note_outside_travel(machine, datasets) -> None:
     """Tell the user (stderr, one line each) of readings beyond the machine's travel, of what the files
     carry beyond what mtcomp reads (columns it does not read, a points file without tool_mm, values
     that look like mm under *_um columns: mtcomp.measurement.columns), and of velocity files read in
@@ -14,16 +14,16 @@ def note_outside_travel(command: str, machine, datasets) -> None:
     from ..measurement.columns import file_notes
     for note in (outside_travel(machine, datasets) + file_notes(machine, datasets)
                  + static_at_zero(machine, datasets, _angular_fitted(datasets))):
-        print(f"mtcomp {command}: note: {note}", file=sys.stderr)
+        print(f"note: {note}", file=sys.stderr)
     for d in datasets:
         if getattr(d, "bed_sense", False):
-            print(f"mtcomp {command}: note: {d.path}: every velocity along the moving axis is minus the "
+            print(f"note: {d.path}: every velocity along the moving axis is minus the "
                   "feed signed by dir_<axis>: read as the table's own motion (the bed's sense) and "
                   "taken in the axis's sense (negated)", file=sys.stderr)
         tool_side = sorted({a for a in getattr(d, "axis", ()) if getattr(d, "kind", "") == "velocity"
                             and a in machine.axis_names and machine.axis(a).side == "tool"})
         if tool_side:
-            print(f"mtcomp {command}: note: {d.path}: on {machine.name} axis {', '.join(tool_side)} "
+            print(f"note: {d.path}: on {machine.name} axis {', '.join(tool_side)} "
                   "carries the tool, not the table: M and N are read as points of its carriage "
                   "(Yang et al.'s two-point method measures a table: check the machine file's "
                   "topology if the file is of a table)", file=sys.stderr)
@@ -284,7 +284,7 @@ def _cut_setup(args, machine, any_cmm: bool):
 CMM_GAP_NOTE_MM = 0.05
 
 
-def note_cmm_gaps(command: str, machine, datasets) -> None:
+def note_cmm_gaps(machine, datasets) -> None:
     """Tell the user (stderr) of a cmm file whose points sit off the program's ball-centre path along
     their normals: a wrong ``--cmm-tool-radius`` (a wall cut with a 3 mm ball read as 4 mm lies 1 mm
     off) or a part not where the program put it. Not an error: the fit would take a radius offset."""
@@ -296,7 +296,7 @@ def note_cmm_gaps(command: str, machine, datasets) -> None:
         q = cut_poses(machine, d, d.cut, radius)[0]
         med = -float(np.median(path_offsets(machine, d, q, radius)))   # points off the path, mm
         if abs(med) > CMM_GAP_NOTE_MM:
-            print(f"mtcomp {command}: note: {d.path}: the points lie a median {med:+.3f} mm off the "
+            print(f"note: {d.path}: the points lie a median {med:+.3f} mm off the "
                   f"ball-centre path of {d.cut.path} along their normals: is the tool radius "
                   f"{d.tool_radius_mm:g} mm right (it would be {d.tool_radius_mm - med:.3g} mm), and the "
                   "part where the program put it?", file=sys.stderr)

@@ -73,8 +73,8 @@ def run(args) -> int:
         start = load_model(args.start, machine)
     datasets = [read_measurements(path) for path in args.data]
     attach_cmm_cuts(args, machine, datasets)
-    note_outside_travel("diagnose", machine, datasets)
-    note_cmm_gaps("diagnose", machine, datasets)
+    note_outside_travel(machine, datasets)
+    note_cmm_gaps(machine, datasets)
 
     def progress(line):
         if not args.quiet:

@@ -61,11 +61,11 @@ def run(args) -> int:
         raise InputError(f"--rcond must lie between 0 and 1, got {rcond}")
     datasets = [read_measurements(path) for path in args.data]
     attach_cmm_cuts(args, machine, datasets)
-    note_outside_travel("identify", machine, datasets)
-    note_cmm_gaps("identify", machine, datasets)
+    note_outside_travel(machine, datasets)
+    note_cmm_gaps(machine, datasets)
     for data in datasets:
         if data.kind == "velocity":
-            print(f"mtcomp identify: note: {data.path}: identify fits the machine's base model, which "
+            print(f"note: {data.path}: identify fits the machine's base model, which "
                   "has no instantaneous rotation centre: the yaw's centre and its motion with "
                   "position and feed, which these velocities measure, go into the other errors; "
                   "mtcomp diagnose with the same files tests the centre's terms and adds those the "

@@ -45,7 +45,7 @@ def run(args) -> int:
         sys.stderr.write(f"note: {n}\n")
     data = read_measurements(args.data)
     attach_cmm_cuts(args, machine, [data])
-    note_cmm_gaps("predict", machine, [data])
+    note_cmm_gaps(machine, [data])
     from ..thermal.context import has_tip_drift, record_state_note
     if data.kind != "thermal" and has_tip_drift(fitted.model) and not data.context.temperatures \
             and not np.isfinite(data.context.spindle_rpm).any():
@@ -57,7 +57,7 @@ def run(args) -> int:
     # a sensor the drift reads missing is refused; rows beyond the record's thermal range are noted
     beyond = record_state_note(fitted, data)
     pred = predict_readings(fitted, data, machine)
-    note_outside_travel("predict", machine, [data])     # once the file is predicted: a refusal is one line
+    note_outside_travel(machine, [data])     # once the file is predicted: a refusal is one line
     columns = pred.columns
     for note in pred.notes + ([beyond] if beyond else []):
         print(f"note: {note}", file=sys.stderr)
