@@ -173,12 +173,38 @@ def test_predict_notes_rows_beyond_the_record(tmp_path, capsys):
     np.testing.assert_allclose(got["pred_disp_z_um_sd"], np.sqrt((0.1 * T) ** 2 + 1.0), rtol=1e-6, atol=0)
 
 
-def test_predict_notes_temperatures_in_degf(tmp_path, capsys):
-    day = _day(tmp_path / "day2.csv", [70.0, 80.0, 86.0])      # 21.1, 26.7, 30 degC
+def test_predict_refuses_temperatures_in_degf(tmp_path, capsys):
+    # 70, 80, 86 degF are 21.1, 26.7, 30 degC, inside the record's 20..35; read as degC all beyond it
+    day = _day(tmp_path / "day2.csv", [34.0, 70.0, 80.0, 86.0])
+    assert main(["predict", "xfyz", str(_model(tmp_path / "m.json")), str(day), "-o",
+                 str(tmp_path / "p.csv")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == (f"mtcomp predict: {day}: row 2: column temp_spindle_c: temperatures of sensor "
+                   "spindle: 34 to 86 degC, median 75 degC, outside the range the model's thermal "
+                   "record spans (20 to 35 degC); as degF their median would be 23.9 degC, inside it: "
+                   "temperatures are in degC: refused (write them in degC: (F - 32) / 1.8)"), err
+    assert not (tmp_path / "p.csv").exists()
+
+
+@pytest.mark.parametrize("temps, hint", [([40.0, 45.0, 50.0], ""),        # as degF below 20 degC too
+                                         ([25.0, 26.0, 27.0, 80.0, 86.0], "; as degF their median "
+                                          "would be 28.3 degC, inside it: temperatures are in degC")])
+def test_predict_notes_readings_beyond_the_record_that_are_no_degf_column(tmp_path, capsys, temps, hint):
+    # beyond the record in degC and not a column in degF (median outside 20..35 both ways, or
+    # inside it): extrapolation, predicted and noted, every note with the one prefix 'note: '
+    temps = temps + [30.0] * (12 - len(temps))                    # 12 rows: the mm note too
+    day = _day(tmp_path / "day2.csv", temps)
     assert main(["predict", "xfyz", str(_model(tmp_path / "m.json")), str(day), "-o",
                  str(tmp_path / "p.csv")]) == 0
-    assert "spindle 3 row(s) at 70 to 86 degC against 20 to 35; as degF their median would be " \
-        "26.7 degC, inside it: temperatures are in degC" in capsys.readouterr().err
+    lines = capsys.readouterr().err.strip().splitlines()
+    beyond = [t for t in temps if t > 35.0]
+    assert f"note: {day}: {len(beyond)} of 12 row(s) lie outside the thermal state the model's record " \
+        f"spans (spindle {len(beyond)} row(s) at {min(beyond):g} to {max(beyond):g} degC against 20 to " \
+        f"35{hint}): " in "\n".join(lines), lines
+    assert any("were the readings written in mm" in ln for ln in lines), lines
+    assert all(ln.startswith("note: ") for ln in lines), lines
+    got = np.genfromtxt(tmp_path / "p.csv", delimiter=",", names=True)
+    np.testing.assert_allclose(got["pred_disp_z_um"], 44.0 - 2.0 * np.array(temps), rtol=0, atol=1e-9)
 
 
 def test_predict_refuses_a_file_without_a_sensor_the_model_reads(tmp_path, capsys):

@@ -404,6 +404,26 @@ def _why_no_first_reading(info: dict, record: str) -> str:
             "geometric files), which would give one")
 
 
+def _refuse_degf(data, sensor: str, v, rng) -> None:
+    """InputError naming ``data``'s file, the first row beyond ``rng`` and the column of ``sensor``
+    when the median of its readings ``v`` lies outside ``rng`` read in degC and inside it read in degF:
+    a column of degF readings under ``temp_<sensor>_c``, not a state beyond the record (as compensate
+    refuses a reading so)."""
+    finite = v[np.isfinite(v)]
+    if not rng or not finite.size:
+        return
+    lo, hi = (float(x) for x in rng)
+    med = float(np.median(finite))
+    hint = _degf_hint(finite, rng)
+    if lo <= med <= hi or not hint:
+        return
+    first = int(np.flatnonzero((v < lo) | (v > hi))[0])
+    raise InputError(f"column temp_{sensor}_c: temperatures of sensor {sensor}: {finite.min():.5g} to "
+                     f"{finite.max():.5g} degC, median {med:.4g} degC, outside the range the model's "
+                     f"thermal record spans ({lo:.4g} to {hi:.4g} degC){hint}: refused (write them in "
+                     "degC: (F - 32) / 1.8)", data.path, row=int(data.row[first]))
+
+
 def record_state_note(fitted, data) -> str:
     """The sentence on the rows of a measurement file ``data`` whose temperatures or spindle speed
     lie outside the range the model's thermal record spans (``info["context_ranges"]``), each sensor
@@ -426,6 +446,8 @@ def record_state_note(fitted, data) -> str:
         return ""
     parts = []
     checks = [(s, f"temp_{s}", given[s], "degC") for s in temps if s in given]
+    for sensor, key, v, _ in checks:
+        _refuse_degf(data, sensor, np.asarray(v, dtype=float), ranges.get(key))
     rpm = getattr(data.context, "spindle_rpm", None)
     if any(_LAG.match(f) for f in features) and rpm is not None:
         # a blank speed is what the file does not give (a geometric file has none): not checked
