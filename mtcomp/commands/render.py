@@ -162,7 +162,7 @@ def run(args) -> int:
         where = ("the program's coordinates taken as axis positions: give --work-offset or "
                  "--offsets" if work_offset is None else "the program's coordinates plus the work "
                  "offset given")
-        print(f"mtcomp render: note: {e} ({where})", file=sys.stderr)
+        print(f"note: {e} ({where})", file=sys.stderr)
     smap = program_error_map(machine, fitted, program, args.compensated,
                              tool_radius_mm=args.tool_radius_mm, flank_length_mm=args.flank_mm,
                              flank_side=args.flank_side, report=args.report, normal=args.normal,
@@ -229,7 +229,7 @@ def _work_offset(setup, machine):
         return None
     index = 0 if 0 in setup.work_offsets or len(setup.work_offsets) > 1 else next(iter(setup.work_offsets))
     if len(setup.work_offsets) > 1:
-        print(f"mtcomp render: note: the map takes the program's origin at {WORK_SYSTEMS[index]} "
+        print(f"note: the map takes the program's origin at {WORK_SYSTEMS[index]} "
               "(render draws one work system)", file=sys.stderr)
     return setup.work_offsets.get(index, np.zeros(machine.n_axes))
 
