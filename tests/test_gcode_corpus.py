@@ -203,12 +203,18 @@ REFUSED = {
     "beagleg_rounded-bracket-simple.gcode": ["rounded-bracket-simple.gcode:6:",
                                              "arc without centre"],
     "beagleg_spline-character.gcode": ["spline-character.gcode:12:", "G30 and motion G1"],
+    # a helix from a height nobody gave: `G02 X1.5 Z0. R1.5` in G17 with Z never positioned (the
+    # controller ramps Z from wherever it stands to 0). mtcomp cut such an arc into pieces whose Z
+    # ran from a start it took as 0, or as the last Z before a tool change or home move (a plunge
+    # where the program ramps: a safety tester's finding); it is refused now. mtcomp's gap
+    "ugs_g17-g18-g19.gcode": ["g17-g18-g19.gcode:4:", "(a helix) from a height along Z"],
 }
-#: the share of the corpus accepted today (142 of 186: 0.763): 125 of the 148 before the batch of
+#: the share of the corpus accepted today (141 of 186: 0.758): 124 of the 148 before the batch of
 #: 38 programs never seen (SOURCES.md), of which 17 are accepted (the Nomura BN-130's W quill read;
 #: BeagleG's dialect, G5 splines and arcs from a position not given read: 4 of its programs; the
-#: Kuraki's G60 single-direction positioning read); the goal is 95 %
-MIN_ACCEPTED = 0.76
+#: Kuraki's G60 single-direction positioning read; a helix from a height not given refused since,
+#: UGS's g17-g18-g19); the goal is 95 %
+MIN_ACCEPTED = 0.75
 #: the refused programs that the controller they were written for refuses too (its manual's alarm
 #: or error named in REFUSED's comments): a nested comment (LinuxCNC), an R word in a G1 (grbl
 #: error 36, LinuxCNC), an arc whose end is off its circle (Fanuc: radius over tolerance; the Toyoda
@@ -223,7 +229,7 @@ MIN_ACCEPTED = 0.76
 #: machine, not in the file (a G65 whose macro is in the file is expanded), fixed-format numbers,
 #: 5-axis drilling, BeagleG's programs that do not show their dialect (one needs --dialect beagleg,
 #: one probes with G30 in a program read as LinuxCNC's), an O word after a tool word, a TNC ISO
-#: block before any G00/G01: 142 of 157).
+#: block before any G00/G01; and a helix from a height the program has not given: 141 of 157).
 CONTROLLER_REFUSES = {
     "cluck2sesame_BackPlate.nc", "cluck2sesame_2-Spool.nc", "cncwebsim_fresa2.cnc",
     "rocholl25000_clover.gcode", "nxpost_4_axis_mill.ptp", "nxpost_Fadal_VMC6030_sample.ptp",
@@ -243,11 +249,12 @@ CONTROLLER_REFUSES = {
     "nxpost_MS_SH8000_sample_in.ptp", "nxpost_Fryer_MB10_sample.ptp",
     "nxpost_Mitsubishi_VR33_RHead_sample.ptp",
 }
-#: the share accepted of the programs their controllers run (142 of 157: 0.904; 125 of 133, 0.940,
+#: the share accepted of the programs their controllers run (141 of 157: 0.898; 125 of 133, 0.940,
 #: before the batch of 38, whose 24 runnable ones are 17 accepted: 0.708; 137 of 157, 0.873, before
 #: BeagleG's dialect, G5 splines and arcs from a position not given were read; 141, 0.898, before
-#: Fanuc's G60 was read); the goal is 95 %
-MIN_ACCEPTED_RUNNABLE = 0.90
+#: Fanuc's G60 was read; 142, 0.904, before a helix from a height not given was refused); the goal
+#: is 95 %
+MIN_ACCEPTED_RUNNABLE = 0.89
 _WORD = re.compile(r"([A-Z])\s*([-+]?\s*(?:\d+\.?\d*|\.\d+))")
 #: an axis given an expression (Sinumerik: `A=_A_HOME`)
 _ASSIGNED = re.compile(r"(?<![A-Z0-9_$#<])([A-Z])\s*=")

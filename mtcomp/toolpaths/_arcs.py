@@ -437,6 +437,18 @@ def blind_arc(state, values, axes_given) -> bool:
     return True
 
 
+def check_helix_start(state, values, line: int) -> None:
+    """A helix (an absolute G2/G3 that names the axis normal to its plane) whose start along that
+    axis the program has not given (at the start, or after a home move, tool change or offset
+    change) is refused: its pieces would need a start height nobody gave, and passed through whole
+    its centre would not match the corrected start in its plane."""
+    i2 = state.xyz_index[PLANE_AXES[state.plane][2]]
+    if i2 >= 0 and state.names[i2] in values and not state.known[i2]:
+        raise state._err(f"arc G{state.motion} with {state.names[i2]} (a helix) from a height along "
+                         f"{state.names[i2]} the program has not given (at the start, or after a "
+                         "home move, tool change or offset change)", line)
+
+
 #: the dialects whose G5 and G5.1 with coordinates are splines (LinuxCNC G-code reference, G5 cubic
 #: spline, G5.1 quadratic spline; BeagleG's G-code.md, "G5 syntax"); generic reads as LinuxCNC. On
 #: Fanuc and Haas G05 is a contour-control mode, and grbl, RepRapFirmware have no G5

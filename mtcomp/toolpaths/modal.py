@@ -18,7 +18,8 @@ import numpy as np
 from ..errors import InputError
 from ..machine import Machine
 from ._arcs import (PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, blind_arc,
-                    centre_from_radius, is_point_circle, passed_spline, point_circle, spline_code)
+                    centre_from_radius, check_helix_start, is_point_circle, passed_spline,
+                    point_circle, spline_code)
 from .blocks import CycleBlock, MotionBlock
 from .cycle_rules import (cycle_move, cycle_unclear, has_axis_words, home_with_motion,
                           incremental_r_level, retract_level, rigid_tap)
@@ -634,6 +635,7 @@ class ModalState:
             raise self._err(f"arc G{self.motion} from a position the program has not given "
                             f"(axes {self.names[plane_idx[0]]} {self.names[plane_idx[1]]})",
                             line)
+        check_helix_start(self, values, line)
         return self._arc(start, end, values, line)
 
     def _block_feed(self, start, pts) -> float:
