@@ -31,7 +31,7 @@ def make_inputs(folder: Path, blocks: int) -> None:
     """The programs, machines and models of every case, and cases.json listing them."""
     from bench_compensate import write_model
     from bench_gcode import make_program
-    from test_gcode_corpus import PROGRAMS, _machine_file, _model_file, _topology
+    from test_gcode_corpus import BORING_MILLS, PROGRAMS, _machine_file, _model_file, _topology
     folder.mkdir(parents=True, exist_ok=True)
     make_program(folder / "bench.nc", blocks)
     write_model(folder / "bench_model.json", "xfyz")
@@ -40,13 +40,14 @@ def make_inputs(folder: Path, blocks: int) -> None:
     models = {}
     for prog in PROGRAMS:
         topology = _topology(prog.read_text(encoding="latin-1"))
-        if topology not in models:
-            sub = folder / topology.lower()
+        key = (topology, prog.name in BORING_MILLS)     # a boring mill's W quill, declared
+        if key not in models:
+            sub = folder / (topology.lower() + ("_quill" if key[1] else ""))
             sub.mkdir(exist_ok=True)
-            machine = _machine_file(sub, topology)
-            models[topology] = (str(machine.relative_to(folder)),
-                                str(_model_file(sub, machine).relative_to(folder)))
-        machine, model = models[topology]
+            machine = _machine_file(sub, topology, quill=key[1])
+            models[key] = (str(machine.relative_to(folder)),
+                           str(_model_file(sub, machine).relative_to(folder)))
+        machine, model = models[key]
         shutil.copyfile(prog, folder / prog.name)
         cases.append({"name": prog.name, "machine": machine, "model": model, "program": prog.name,
                       "extra": ["--units", "mm"]})
