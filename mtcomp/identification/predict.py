@@ -169,29 +169,38 @@ def stored_setup(fitted: FittedModel, mm: MeasurementModel) -> tuple[np.ndarray,
     return values, True
 
 
-def with_fitted_setup(fitted: FittedModel, mm: MeasurementModel, J: np.ndarray, D: np.ndarray | None,
-                      sd: np.ndarray) -> np.ndarray:
-    """(n,) standard error of predictions of a file the fit saw, made with its fitted set-up (a laser
-    component's zero and slope, a tracker's frame): the set-up was fitted with the parameters, so
-    the prediction moves with both, ``[J D] C [J D]^T`` with C their joint covariance (the model
-    file's ``uncertainty.setup``). What a set-up absorbs cancels: the other axes' errors at a laser
-    run's fixed positions (in its zero), a squareness the fit held but the run's optic slope
-    follows. ``sd`` (the parameters' share alone) where the model has no such covariance.
-
-    J : (n, n_params) file units per internal unit; D : (n, k) the same per internal unit of the
-    file's k set-up parameters (:func:`_setup_derivatives`)."""
+def joint_covariance(fitted: FittedModel, mm: MeasurementModel):
+    """(parameter indices, C) of a file the fit saw: C the joint covariance of the fitted
+    parameters and the file's set-up (a laser component's zero and slope, a tracker's frame: the
+    model file's ``uncertainty.setup``), for :func:`with_fitted_setup`; None where the model holds
+    no such covariance of this file's set-up."""
     u = fitted.uncertainty
     s = None if u is None else u.get("setup")
-    if s is None or D is None or not D.shape[1]:
-        return sd
+    if s is None or not mm.n_nuisance:
+        return None
     names = list(s["names"])
     if any(spec.name not in names for spec in mm.nuisance_specs):
-        return sd
+        return None
     k = [names.index(spec.name) for spec in mm.nuisance_specs]
     idx = [fitted.params.index(n) for n in u["names"]]
     cross = np.asarray(s["cross"])[k]
     C = np.block([[np.nan_to_num(np.asarray(u["covariance"], dtype=float)), cross.T],
                   [cross, np.asarray(s["covariance"])[np.ix_(k, k)]]])
+    return idx, C
+
+
+def with_fitted_setup(joint, J: np.ndarray, D: np.ndarray | None, sd: np.ndarray) -> np.ndarray:
+    """(n,) standard error of predictions of a file the fit saw, made with its fitted set-up: the
+    set-up was fitted with the parameters, so the prediction moves with both, ``[J D] C [J D]^T``
+    with ``joint`` = (indices, C) of :func:`joint_covariance`. What a set-up absorbs cancels: the
+    other axes' errors at a laser run's fixed positions (in its zero), a squareness the fit held but
+    the run's optic slope follows. ``sd`` (the parameters' share alone) where ``joint`` is None.
+
+    J : (n, n_params) file units per internal unit; D : (n, k) the same per internal unit of the
+    file's k set-up parameters (:func:`_setup_derivatives`)."""
+    if joint is None or D is None or not D.shape[1]:
+        return sd
+    idx, C = joint
     A = np.hstack([np.nan_to_num(J)[:, idx], np.nan_to_num(D)])
     with one_blas_thread():
         return np.sqrt(np.clip(np.sum((A @ C) * A, axis=1), 0.0, None))
@@ -231,15 +240,16 @@ def predict_readings(fitted: FittedModel, data: MeasurementSet, machine: Machine
     # yaw (1 um rms at the tool tip) it moved the fitted readings themselves by 0.03 um
     some = undetermined.directions is not None and undetermined.directions.shape[1] > 0
     jac0 = mm.column_jacobians(np.zeros_like(p)) if some else jac
+    joint = joint_covariance(fitted, mm) if known else None     # once per file, not per column
     notes = []
     blank = open_sd = 0
     for name in list(columns):
         if name in jac:
             sd, unknown = undetermined.assess(np.nan_to_num(jac[name]), setup.get(name),
                                               np.nan_to_num(jac0[name]))
-            if known:
-                sd = np.where(np.isfinite(sd),
-                              with_fitted_setup(fitted, mm, jac[name], setup.get(name), sd), sd)
+            if joint is not None:
+                sd = np.where(np.isfinite(sd), with_fitted_setup(joint, jac[name], setup.get(name), sd),
+                              sd)
             # what the model knows nothing of is no number (not the zero it is held at)
             unknown &= np.isfinite(columns[name])
             blank += int(unknown.sum())
