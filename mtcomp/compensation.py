@@ -594,8 +594,7 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     series = _checked_series(fitted, settings, temperature_series)
     probe_line = _probed(fitted, settings, temperature_series)   # before the state is written
     for judge in judges:        # one probing: a judge takes the state resolved here (Judge.probed_as)
-        if hasattr(judge, "probed_as"):
-            judge.probed_as(fitted)
+        judge.probed_as(fitted)
     fitted.context_defaults.update(thermal)
     fitted.probe_tool_length = settings.probe_tool_length
     setup = setup if setup is not None else ProgramSetup(machine)

@@ -200,7 +200,7 @@ class ModalState:
         if not tokens:
             return None
         values, gcodes, mcodes, number = self._read_words(tokens, line)
-        if not self.dialect.arcs_modal:
+        if self.dialect.name == "beagleg":     # its words act in turn (dialect.py)
             beagleg_word_order(self, tokens, line)
             beagleg_block(self, gcodes, line)
         self._cutter_comp_codes(gcodes)
