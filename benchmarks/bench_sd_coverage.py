@@ -48,8 +48,6 @@ from mtcomp.machine import load_machine
 from mtcomp.measurement.files import read_measurements
 
 NOISE_UM, NOISE_URAD = 0.2, 0.3
-#: identify's weights (--weights)
-WEIGHTS = ["unit"]
 
 
 def _laser_truth(res: tc.CampaignResult) -> np.ndarray:
@@ -86,8 +84,9 @@ def _noise_sd(result, tag: str, angular: bool) -> float:
     return float(result.rms()[tag].get("value_urad" if angular else "value_um", np.nan))
 
 
-def heldout(paths, truth=None) -> dict:
-    """{comparison unit: z}: every laser file fitted without its last run, that run predicted."""
+def heldout(paths, truth=None, weights="unit") -> dict:
+    """{comparison unit: z}: every laser file fitted without its last run, that run predicted
+    (identify's ``weights``: --weights)."""
     data = [read_measurements(p) for p in paths]
     train, test = [], []
     for d in data:
@@ -97,7 +96,7 @@ def heldout(paths, truth=None) -> dict:
             test.append((d, last))
         else:
             train.append(d)
-    res = identify(load_machine("xfyz"), train, weights=WEIGHTS[0])
+    res = identify(load_machine("xfyz"), train, weights=weights)
     z: dict = {}
     for d, last in test:
         t = None if truth is None else truth[str(d.path)][last]
@@ -146,7 +145,7 @@ def _summary(name, per_seed: list[dict]) -> None:
               f"expected 68 / 95 %]")
 
 
-def real() -> None:
+def real(weights="unit") -> None:
     root = Path(os.environ.get("MTCOMP_REAL_DATA", ""))
     files = sorted(root.glob("iso230_2/*.csv"))
     if not files:
@@ -156,7 +155,7 @@ def real() -> None:
         d = read_measurements(f)
         if d.kind != "laser" or np.unique(d.context.run).size < 3:
             continue
-        per_run = [_heldout_run(d, r) for r in np.unique(d.context.run)]
+        per_run = [_heldout_run(d, r, weights) for r in np.unique(d.context.run)]
         z = {k: np.concatenate([p[k] for p in per_run if k in p]) for k in per_run[0]}
         for comp, v in z.items():
             c1, c2 = _cover(v)
@@ -164,10 +163,10 @@ def real() -> None:
                   f"({v.size} readings, each run held out in turn)")
 
 
-def _heldout_run(d, r) -> dict:
+def _heldout_run(d, r, weights) -> dict:
     """z of the readings of run r of a real laser file fitted on its other runs."""
     sel = d.context.run == r
-    return _z(identify(load_machine("xfyz"), [d.subset(~sel)], weights=WEIGHTS[0]), d.subset(sel))
+    return _z(identify(load_machine("xfyz"), [d.subset(~sel)], weights=weights), d.subset(sel))
 
 
 def main() -> int:
@@ -177,19 +176,18 @@ def main() -> int:
     ap.add_argument("--real", action="store_true")
     ap.add_argument("--weights", choices=("unit", "noise"), default="unit")
     args = ap.parse_args()
-    WEIGHTS[0] = args.weights
     for kind in args.campaigns:
         per_seed = []
         for seed in args.seeds:
             with tempfile.TemporaryDirectory() as tmp:
                 paths, truth = campaign(kind, seed, Path(tmp))
-                z = heldout(paths, truth)
+                z = heldout(paths, truth, args.weights)
             per_seed.append(z)
             print(f"{kind} seed {seed}: " + ", ".join(
                 f"{k} {100 * _cover(v)[0]:.0f}/{100 * _cover(v)[1]:.0f} %" for k, v in z.items()), flush=True)
         _summary(kind, per_seed)
     if args.real:
-        real()
+        real(args.weights)
     return 0
 
 

@@ -294,6 +294,13 @@ def _machine_file(tmp_path, topology, quill=False):
     return path
 
 
+def program_machine_file(folder, prog, topology=None):
+    """The corpus machine of program ``prog`` (its topology from its axis words unless given), with
+    the W quill its machine has when it is one of the BORING_MILLS."""
+    topology = topology or _topology(prog.read_text(encoding="latin-1"))
+    return _machine_file(folder, topology, quill=prog.name in BORING_MILLS)
+
+
 def _model_file(tmp_path, machine_path, seed=1, factor=1.0):
     """A fitted model of random parameters (seeded), `factor` times the usual size of each."""
     from mtcomp.machine import load_machine
@@ -497,8 +504,7 @@ def _compensate(prog, tmp_path_factory) -> tuple:
     """(exit status, stdout, stderr, output bytes or None) of compensating a corpus program with
     the corpus model, once a session."""
     def argv(folder):
-        machine = _machine_file(folder, _topology(prog.read_text(encoding="latin-1")),
-                                quill=prog.name in BORING_MILLS)
+        machine = program_machine_file(folder, prog)
         return ["compensate", str(machine), str(_model_file(folder, machine)), str(prog),
                 "-o", str(folder / "out.nc"), "--quiet", "--units", "mm"]
     return run_once(tmp_path_factory, f"corpus-{prog.name}", argv)
@@ -524,7 +530,7 @@ def test_corpus_program_compensated_safely(prog, tmp_path, tmp_path_factory, cap
     if re.search(r"^[^(;\n]*\bG(?:73|8[1-9])\b", text, re.M | re.I):    # drilling cycles
         assert "kept as cycles, each hole corrected" in stdout, prog.name
     # the map of the compensated program, paired with the original through its lines
-    machine = _machine_file(tmp_path, _topology(text), quill=prog.name in BORING_MILLS)
+    machine = program_machine_file(tmp_path, prog)
     model = _model_file(tmp_path, machine)
     compensated = tmp_path / f"{prog.stem}.out.nc"
     compensated.write_bytes(out)

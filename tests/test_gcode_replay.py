@@ -13,8 +13,8 @@ import pytest
 import replay_heidenhain
 import replay_sinumerik
 from replay import Tolerance, compare, replay
-from test_gcode_corpus import (BORING_MILLS, PROGRAMS, REFUSED, _machine_file, _model_file,
-                               _topology, axis_letters, run_once, source_bytes)
+from test_gcode_corpus import (PROGRAMS, REFUSED, _model_file, _topology, axis_letters,
+                               program_machine_file, run_once, source_bytes)
 
 #: the correction bounds passed to compensate; the model's errors are larger, so they bind
 BOUND_UM, BOUND_URAD = 20.0, 500.0
@@ -51,7 +51,7 @@ def _compensated(prog, tmp_path_factory) -> bytes:
         own = axis_letters(text) & set("ABC")
         topology = ("C" * ("C" in own) + "A" * ("A" in own) + "B" * ("B" in own and "A" not in own)
                     + "FXYZ") if siemens else _topology(text)
-        machine = _machine_file(folder, topology, quill=prog.name in BORING_MILLS)
+        machine = program_machine_file(folder, prog, topology)
         # a conversational or Sinumerik program's arc is not split (its blocks stay one to one),
         # so under this strong model, whose correction changes by tens of um around one arc, its
         # arcs are refused (tests/test_toolpaths_heidenhain.py); it is replayed at the usual size,

@@ -28,8 +28,8 @@ from scipy.spatial import cKDTree
 from mtcomp import load_machine
 from mtcomp.cli import main
 from mtcomp.toolpaths import _fast, iter_segment_chunks, write_corrected
-from test_gcode_corpus import (BORING_MILLS, PROGRAMS, REFUSED, _machine_file, _model_file, _topology,
-                               source_bytes)
+from test_gcode_corpus import (PROGRAMS, REFUSED, _machine_file, _model_file, _topology,
+                               program_machine_file, source_bytes)
 
 XFYZ = load_machine("xfyz")
 CHORD_TOL_MM = 1e-3
@@ -420,8 +420,7 @@ def _small_field(p):
 def test_corpus_output_differs_only_by_the_correction(tmp_path, monkeypatch, prog):
     # a program with code to compute is written as its expansion (tests/test_toolpaths_ngc.py)
     text = source_bytes(prog).decode("latin-1")
-    # the boring mills' W is a quill their machine file declares, as their users' would
-    machine = load_machine(_machine_file(tmp_path, _topology(text), quill=prog.name in BORING_MILLS))
+    machine = load_machine(program_machine_file(tmp_path, prog, _topology(text)))
     outs = {}
     for kind in ("python", "compiled"):
         if _use_writer(kind, monkeypatch):
