@@ -79,8 +79,8 @@ def read_temperature_row(path) -> tuple[dict | TemperatureSeries, list]:
             table.fail(f"{len(table.rows)} rows of readings and no t_s column: a time series needs "
                        "the time of each reading (seconds from the program's start); one row gives "
                        "the temperatures while the program runs")
-        _check_series_times(table, table.floats("t_s"))
         t = table.floats("t_s")
+        _check_series_times(table, t)
         temps = {}
         for name in names:
             v = table.floats(name)
