@@ -12,8 +12,11 @@ def note_outside_travel(machine, datasets) -> None:
     that look like mm under *_um columns: mtcomp.measurement.columns), and of velocity files read in
     the bed's sense or of an axis that carries the tool."""
     from ..measurement.columns import file_notes
-    for note in (outside_travel(machine, datasets) + file_notes(machine, datasets)
-                 + static_at_zero(machine, datasets, _angular_fitted(datasets))):
+    from ..measurement.readings import positions_by_file
+    # each file's axis positions and which of them it gives, worked out once for both checks
+    files = [(data, q, _given(data, machine, q)) for data, q in positions_by_file(machine, datasets)]
+    for note in (outside_travel(machine, files) + file_notes(machine, datasets)
+                 + static_at_zero(machine, files, _angular_fitted(datasets))):
         print(f"note: {note}", file=sys.stderr)
     for d in datasets:
         if getattr(d, "bed_sense", False):
@@ -46,31 +49,29 @@ def _given(data, machine, q) -> np.ndarray:
             else np.ones(q.shape, dtype=bool))
 
 
-def static_at_zero(machine, datasets, angular) -> list[str]:
+def static_at_zero(machine, files, angular) -> list[str]:
     """One sentence per laser file that gives, in no row, the position of a linear axis of the
     machine it does not move (no ``x_mm``/``y_mm``/``z_mm`` column, or every cell blank) while another
     file places that axis elsewhere than 0, when ``angular(axis)`` says the fit takes angular errors
     of the file's moving axis: the run is taken at 0 on that axis, which sets the Abbe arms through
     which those errors act on its readings. A file alone (an ISO 230-2 run), or positioning runs
     alone, get none: no other reading ties the arms to anything, or no angular error acts through
-    them."""
-    from ..measurement.readings import positions_by_file
+    them. ``files``: (data, axis positions (n, n_axes), which of them the file gives) per file."""
     names = machine.axis_names
     linear = [a.name for a in machine.axes if not a.is_rotary]
-    files = []                      # (data, given (n, n_axes), axis -> (lowest, highest) nonzero given)
-    for data, q in positions_by_file(machine, datasets):
-        given = _given(data, machine, q)
+    spans = []                      # (data, given (n, n_axes), axis -> (lowest, highest) nonzero given)
+    for data, q, given in files:
         at = {a: q[given[:, names.index(a)], names.index(a)] for a in linear}
-        files.append((data, given, {a: (float(v.min()), float(v.max())) for a, v in at.items()
+        spans.append((data, given, {a: (float(v.min()), float(v.max())) for a, v in at.items()
                                     if np.any(np.abs(v) > 1e-3)}))
     notes = []
-    for data, given, _ in files:
+    for data, given, _ in spans:
         if getattr(data, "kind", "") != "laser":
             continue
         moving = sorted(set(np.asarray(data.axis).tolist()))
         if not any(angular(a) for a in moving):
             continue
-        others = [p for d, _, p in files if d is not data]
+        others = [p for d, _, p in spans if d is not data]
         zero = {a: [p[a] for p in others if a in p] for a in linear
                 if a not in moving and not given[:, names.index(a)].any()}
         zero = {a: r for a, r in zero.items() if r}
@@ -88,14 +89,13 @@ def static_at_zero(machine, datasets, angular) -> list[str]:
     return notes
 
 
-def outside_travel(machine, datasets) -> list[str]:
+def outside_travel(machine, files) -> list[str]:
     """One sentence per (file, axis) whose rows take the axis beyond the machine's travel (1 um, 1e-6
     deg): data of another machine, or a wrong travel (not an error: a travel may be nominal). A rotary
-    axis only when its travel is less than a turn, each angle taken in the turn from its lower end."""
-    from ..measurement.readings import positions_by_file
+    axis only when its travel is less than a turn, each angle taken in the turn from its lower end.
+    ``files``: (data, axis positions (n, n_axes), which of them the file gives) per file."""
     notes = []
-    for data, q in positions_by_file(machine, datasets):
-        given = _given(data, machine, q)
+    for data, q, given in files:
         for j, ax in enumerate(machine.axes):      # rotary: radians inside, degrees told
             scale = np.degrees(1.0) if ax.is_rotary else 1.0
             lo, hi = (t * scale for t in ax.travel)
