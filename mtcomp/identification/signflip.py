@@ -63,12 +63,13 @@ def _refits(problem, result, flips: list[int]) -> np.ndarray:
         V[sl, j] = -2.0 * w[sl] * mms[i].observed
     r = result.directions.shape[1]
     G, c = np.zeros((r, r)), np.zeros((r, V.shape[1]))
-    for idx, M in _weighted_blocks(problem, result, w):
+    blocks = list(_weighted_blocks(problem, result, w))    # each file's Jacobian evaluated once
+    for idx, M in blocks:
         G += M.T @ M
         c += M.T @ V[idx]
     coef = np.linalg.lstsq(G, c, rcond=1e-12)[0]
     R = V.copy()
-    for idx, M in _weighted_blocks(problem, result, w):
+    for idx, M in blocks:
         R[idx] -= M @ coef
     R[:, 1:] += R[:, :1]
     return R
