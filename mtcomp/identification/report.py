@@ -22,11 +22,10 @@ import casadi as ca
 import numpy as np
 
 from ..machine import AXIS_DIRECTION
-from ..models.chain import (SPINDLE_TILT, rotary_location_names, slope_carried,
-                            rotary_motion_names, squareness_names)
+from ..models.chain import SPINDLE_TILT, rotary_location_names, slope_carried, squareness_names
 from ..models.evaluate import casadi_map_call
 from ..models.model_file import FittedModel
-from ..models.terms import ANGLE_LETTERS, TRANSLATION_LETTERS, motion_errors, positioning_component
+from ..models.terms import ANGLE_LETTERS, TRANSLATION_LETTERS, positioning_component
 from .penalty import RHO_BOUND, component_class
 from .predict import Undetermined, predict_readings
 
@@ -120,33 +119,12 @@ def _component_function(model, axis) -> ca.Function:
     P = {n: p[i] for i, n in enumerate(model.param_names)}
     C = {n: c[i] for i, n in enumerate(model.context_names)}
     if axis.is_rotary:
-        comps = _rotary_components(model, axis, s, P, C)
+        comps = model.rotary_components(axis.name, s, P, C)
     else:
         _, comps, _, _ = model.linear_parts(axis.name, s, P, C)
     order = [f"E{d}{axis.name}" for d in TRANSLATION_LETTERS + ANGLE_LETTERS]
     E = ca.vertcat(*[comps.get(n, ca.SX(0)) for n in order])
     return ca.Function(f"components_{axis.name}", [s, p, c], [E, ca.jacobian(E, p)])
-
-
-def _rotary_components(model, axis, s, P, C) -> dict:
-    """The component errors of a rotary axis at angle s: the Fourier series of its base parameters
-    (``<comp>_0``, ``<comp>_c<k>`` cos(k s), ``<comp>_s<k>`` sin(k s); docs/parameters.md) plus the
-    extension terms' contributions."""
-    own = positioning_component(axis.name)
-    comps = {comp: ca.SX(0) for comp in [own] + rotary_motion_names(axis.name)}
-    for spec in model.param_specs:
-        if spec.base and spec.group == f"{axis.name}:{own}":
-            k = spec.name.rsplit("_", 1)[1]
-            wave = {"c": ca.cos, "s": ca.sin}.get(k[0])
-            comps[own] = comps[own] + P[spec.name] * (wave(int(k[1:]) * s) if wave is not None else 1.0)
-    if axis.error_motion_order > 0:
-        for comp in rotary_motion_names(axis.name):
-            for c, e in motion_errors(comp, axis.error_motion_order, s, P.__getitem__).items():
-                comps[c] = comps[c] + e
-    for term in model.terms:
-        for comp, e in term.axis_errors(model.machine, axis, s, C, P, comps).items():
-            comps[comp] = comps.get(comp, ca.SX(0)) + e
-    return comps
 
 
 def _fitted_mask(fitted: FittedModel) -> np.ndarray | None:

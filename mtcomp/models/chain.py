@@ -418,6 +418,27 @@ class ErrorModel:
         r = ca.vertcat(0, 0, m.tool_length) if ax.side == "tool" else ca.SX.zeros(3)
         return u, comps, centres, r
 
+    def rotary_components(self, name, s, P, C) -> dict:
+        """The component errors of rotary axis ``name`` at angle ``s`` (symbolic): the Fourier series
+        of its positioning (``<comp>_0``, ``<comp>_c<k>`` cos(k s), ``<comp>_s<k>`` sin(k s);
+        docs/parameters.md), its error motions' harmonics, and the extension terms' contributions
+        (``P`` parameters and ``C`` context by name)."""
+        ax = self.machine.axis(name)
+        par = P.__getitem__
+        own = positioning_component(name)
+        e_pos = par(f"{own}_0")
+        for k in range(1, ax.fourier_order + 1):
+            e_pos = e_pos + par(f"{own}_c{k}") * ca.cos(k * s) + par(f"{own}_s{k}") * ca.sin(k * s)
+        comps = {own: e_pos, **{comp: ca.SX(0) for comp in rotary_motion_names(name)}}
+        if ax.error_motion_order > 0:
+            for comp in rotary_motion_names(name):
+                for c, e in motion_errors(comp, ax.error_motion_order, s, par).items():
+                    comps[c] = comps[c] + e
+        for t in self.terms:
+            for comp, e in t.axis_errors(self.machine, ax, s, C, P, comps).items():
+                comps[comp] = comps[comp] + e
+        return comps
+
     def _axis_transform(self, name, s, P, C, shift=None):
         """One axis's carriage transform with its errors (the chain of the module notes); for the ram
         (:func:`ram_axis`) ``shift`` = L - L0, the tool's length less the reference tool's."""
@@ -427,17 +448,7 @@ class ErrorModel:
         d = ax.direction_index
         if ax.is_rotary:
             own = positioning_component(name)
-            e_pos = par(f"{own}_0")
-            for k in range(1, ax.fourier_order + 1):
-                e_pos = e_pos + par(f"{own}_c{k}") * ca.cos(k * s) + par(f"{own}_s{k}") * ca.sin(k * s)
-            comps = {own: e_pos, **{comp: ca.SX(0) for comp in rotary_motion_names(name)}}
-            if ax.error_motion_order > 0:
-                for comp in rotary_motion_names(name):
-                    for c, e in motion_errors(comp, ax.error_motion_order, s, par).items():
-                        comps[c] = comps[c] + e
-            for t in self.terms:
-                for comp, e in t.axis_errors(m, ax, s, C, P, comps).items():
-                    comps[comp] = comps[comp] + e
+            comps = self.rotary_components(name, s, P, C)
             offsets, tilts = rotary_location_names(name)
             point = ca.SX(np.asarray(ax.axis_point, dtype=float))
             others = [j for j in range(3) if j != d]
