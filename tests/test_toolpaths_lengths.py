@@ -135,3 +135,22 @@ def test_the_model_is_evaluated_at_the_gauge_point_after_h0(tmp_path, capsys):
     h1 = ey("G21 G90 G54\nG0 X10. Y10.\nG0 G43 H1 Z-50.\nG1 X20. F500\nM30\n")
     assert abs(h1[4] - zero[4]) > 1.5, (h1, zero)       # the tool length matters here
     np.testing.assert_allclose([h0[3], h0[4]], [zero[3], zero[4]], rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("dialect", ["linuxcnc", "generic", "grbl"])
+def test_g43_1_words_are_the_dynamic_offset_not_a_move(tmp_path, dialect):
+    """``G43.1 Z-3.245`` (LinuxCNC, grbl: a dynamic tool length offset) moves nothing: its Z is the
+    offset (LinuxCNC G-code reference, G43.1; grbl v1.1 commands). The line is no block, and Z is
+    unknown until the program names it again (read as a move to Z-3.245, the next traverse was
+    written with that Z: a plunge of the offset's size and more)."""
+    text = "G21 G90\nG0 X0 Y0 Z15\nG43.1 Z-3.245\nG0 X50 Y50\nG0 Z5\nG1 X60 F300\nM2\n"
+    got = _lengths(tmp_path, text, dialect)
+    assert sorted(got) == [2, 4, 5, 6]
+    assert [got[k][1] for k in (2, 4, 5, 6)] == [True, False, True, True]
+
+
+def test_g43_1_with_a_motion_code_and_axis_words_is_refused(refused_on_xfyz):
+    """Both codes use the axis words: LinuxCNC refuses the block ("Cannot use two G codes that
+    both use axis values"), and so does mtcomp."""
+    err = refused_on_xfyz("p.nc", "G21 G90\nG0 X0 Y0 Z15\nG0 G43.1 Z-3.245\nM2\n")
+    assert "p.nc:3: G43.1 and motion G0 in one block" in err

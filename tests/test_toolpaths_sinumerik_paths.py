@@ -371,3 +371,39 @@ def test_a_half_circle_by_radius_rounded_by_a_fraction_of_a_micron_is_read():
     np.testing.assert_allclose(radius_centre((0, 0), (8, 0), 5.0, False), (4, -3), rtol=0, atol=1e-12)
     np.testing.assert_allclose(radius_centre((0, 0), (8, 0), 5.0, True), (4, 3), rtol=0, atol=1e-12)
     np.testing.assert_allclose(radius_centre((0, 0), (8, 0), -5.0, True), (4, -3), rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("body, line, says", [
+    # a frame turned by CYCLE800: the next positions are in it (a safety tester's finding: the
+    # corrections were written as if no frame were in force)
+    ('N10 G0 X0 Y0 Z10\nN20 CYCLE800(0,"TABLE",100000,57,0,0,0,30,0,0,0,0,0,-1,100,1)\n'
+     "N30 G1 X20 Y5 Z5 F300\nM30\n", 4, "CYCLE800 with a rotation or an offset"),
+    ('N10 G0 X0 Y0 Z10\nN20 CYCLE800(1,"TABLE",0,57,5,0,0,0,0,0,0,0,0,1)\nN30 G1 X20\nM30\n', 4,
+     "CYCLE800 with a rotation or an offset"),
+    # frames set through the system variables (mirror, rotation, shift): not followed
+    ("N10 G0 X0 Y0 Z10\nN20 $P_PFRAME=CMIRROR(X)\nN30 G1 X-20 Y5 F300\nM30\n", 4,
+     "the system variable $P_PFRAME"),
+    ("N10 G0 X0 Y0 Z10\nN20 $P_PFRAME=CROT(Z,90)\nN30 G1 X20 F300\nM30\n", 4,
+     "the system variable $P_PFRAME"),
+])
+def test_a_frame_mtcomp_does_not_follow_is_refused_in_one_line(tmp_path, capsys, body, line, says):
+    err = _refused(tmp_path, capsys, body)
+    assert f"p.mpf:{line}:" in err and says in err, err
+
+
+@pytest.mark.parametrize("call", ["CYCLE800()", 'CYCLE800(0,"TABLE",100000,57,0,0,0,0,0,0,0,0,0,-1)'])
+def test_cycle800_that_cancels_the_swivel_passes_through(tmp_path, capsys, call):
+    """CYCLE800() (and one whose angles and offsets are all 0) cancels the swivelled frame: the
+    block passes through and the positions after it are unknown until named (the X of N30, whose
+    Y and Z are not given again, is not corrected; N40 names them all and is)."""
+    body = f"N10 G0 X0 Y0 Z10\nN20 {call}\nN30 G1 X20 F300\nN40 G0 X0 Y0 Z10\nM30\n"
+    machine = _machine_file(tmp_path, "XFYZ")
+    out = tmp_path / "out.mpf"
+    argv = ["compensate", machine, _model_file(tmp_path, machine), _write(tmp_path, body),
+            "-o", out, "--quiet"]
+    assert main([str(a) for a in argv]) == 0
+    capsys.readouterr()
+    lines = out.read_text().splitlines()
+    k = HEAD.count("\n")
+    assert lines[k + 1:k + 3] == [f"N20 {call}", "N30 G1 X20 F300"]
+    assert lines[k + 3] != "N40 G0 X0 Y0 Z10"             # named again: corrected

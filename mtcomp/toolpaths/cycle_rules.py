@@ -97,6 +97,26 @@ def home_with_motion(dialect: str, home_move: int, motion: int) -> bool:
     return home_move == 53 or (home_move in (28, 30) and dialect in ("fanuc", "haas"))
 
 
+def codes_with_motion(state, motion: int, dwell: bool, gcodes, tokens, line: int) -> bool:
+    """A block with a motion code and a code whose axis words are no motion: whether its axis words
+    are motion (False) or not (True). A G4 dwell with a motion code (``G04 P.001 G0 X1 Y1``):
+    LinuxCNC and grbl take the dwell time from P and move to the axis words; Fanuc and Haas read X
+    as the dwell time, so such a block is refused. G43.1 with a motion code and axis words
+    (``G0 G43.1 Z5``): both codes use the axis words, which LinuxCNC refuses ("Cannot use two G
+    codes that both use axis values"), and so does mtcomp. A frame code or G10 with a motion code
+    is checked where those are applied."""
+    axis_words = any(letter.upper() in "XYZABCUVW" for letter, _num, _raw in tokens)
+    if not dwell:
+        if axis_words and any(round(g, 1) == 43.1 for g in gcodes):
+            raise state._err(f"G43.1 and motion G{motion} in one block: both use the axis words "
+                             "(G43.1's are the tool's offsets)", line)
+        return True
+    if state.dialect.name in ("fanuc", "haas") and axis_words:
+        raise state._err(f"G4 with G{motion} and axis words in one block ({state.dialect.name} "
+                         "reads X as the dwell time): write the dwell on a line of its own", line)
+    return False
+
+
 def has_axis_words(values: dict) -> bool:
     """Whether a block's words (letter -> value) name an axis."""
     return any(letter in values for letter in "XYZABCUVW")

@@ -21,7 +21,7 @@ from ._arcs import (PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, blin
                     centre_from_radius, check_helix_start, is_point_circle, passed_spline,
                     point_circle, spline_code)
 from .blocks import CycleBlock, MotionBlock
-from .cycle_rules import (cycle_move, cycle_unclear, has_axis_words, home_with_motion,
+from .cycle_rules import (codes_with_motion, cycle_move, cycle_unclear, has_axis_words, home_with_motion,
                           incremental_r_level, retract_level, rigid_tap)
 from .dialect import GENERIC, beagleg_block, beagleg_word_order, grbl_program_end
 from .directions import step_directions
@@ -355,7 +355,7 @@ class ModalState:
                 if round(g, 1) not in KNOWN_DECIMAL_G:
                     raise self._err(f"G{g:g} is not a code mtcomp follows (its effect on the motion "
                                     "cannot be known)", line)
-                self._apply_decimal_code(g, values)
+                nonmotion_axes = self._apply_decimal_code(g, values, line) or nonmotion_axes
                 continue
             if gi in (0, 1, 2, 3):
                 if motion is not None:
@@ -383,8 +383,8 @@ class ModalState:
                                     "cannot be known)", line)
                 self._apply_modal_code(gi, values)
         lone_h(self, gcodes, values)
-        if dwell and motion is not None and home_move is None:
-            nonmotion_axes = self._dwell_with_motion(motion, tokens, line)
+        if nonmotion_axes and motion is not None and home_move is None:
+            nonmotion_axes = codes_with_motion(self, motion, dwell, gcodes, tokens, line)
         if tool_change:
             self._forget(self.tool_axis)
             forget_quill(self)
@@ -395,17 +395,6 @@ class ModalState:
                 raise self._err(f"G{g:g} and a move in one block is not supported", line)
             apply_frame_code(self, g, values, tokens, line)
         return motion, nonmotion_axes, home_move, cycle
-
-    def _dwell_with_motion(self, motion: int, tokens, line: int) -> bool:
-        """A G4 dwell with a motion code in one block (``G04 P.001 G0 X1 Y1``): LinuxCNC and grbl
-        take the dwell time from P and move to the axis words (False: the axis words are motion);
-        Fanuc and Haas read X as the dwell time, so such a block is refused."""
-        if self.dialect.name in ("fanuc", "haas") \
-                and any(letter.upper() in "XYZABCUVW" for letter, _num, _raw in tokens):
-            raise self._err(f"G4 with G{motion} and axis words in one block ({self.dialect.name} "
-                            "reads X as the dwell time): write the dwell on a line of its own",
-                            line)
-        return False
 
     def _set_tcp(self, on: bool, code: str = "") -> None:
         """Tool centre point mode on or off (by the G or M ``code``): the words change meaning
@@ -418,10 +407,11 @@ class ModalState:
             self.tcp = on
             self._forget()
 
-    def _apply_decimal_code(self, g: float, values) -> None:
+    def _apply_decimal_code(self, g: float, values, line: int) -> bool:
         """A G code with a decimal part that is not refused: a work coordinate system G59.1-G59.3,
         or one that changes offsets the program's positions are given in (G92.1, G92.2, G43.1,
-        G54.1: every axis unknown); the others (G28.1, G30.1 ...) change nothing followed here."""
+        G54.1: every axis unknown); the others (G28.1, G30.1 ...) change nothing followed here.
+        True where the block's axis words are no motion: G43.1's are the tool's offsets."""
         if g in _WCS_INDEX:
             self._set_wcs(_WCS_INDEX[g])
         elif round(g, 1) == 33.1:
@@ -436,6 +426,7 @@ class ModalState:
                 if round(g, 1) != 43.1:
                     mode_change(self, "g92" if round(g) == 92 else "wcs", self._line)
                 self._forget()
+        return round(g, 1) == 43.1
 
     def _apply_modal_code(self, gi: int, values) -> None:
         """A whole G code that only changes a mode: plane, units, distance mode, feed mode, retract

@@ -374,6 +374,9 @@ class _Reader(CycleCalls):
                 other.add(f"F{fmt(self.value(w.text))}")
             elif w.kind == "assign" and w.name in SETTING_VALUES:
                 self.value(w.text)              # a smoothing distance: set, moves nothing
+            elif w.kind == "assign" and w.name.startswith("$"):
+                raise self.err(f"the system variable {w.name} is not read by mtcomp (a frame, "
+                               "an offset or a tool's data: the positions' meaning changes)")
             elif w.kind == "assign" and w.name not in ("S", "M", "H"):
                 self.assign(w.name, w.text)
             elif w.kind == "keyword" and w.name == "SUPA":

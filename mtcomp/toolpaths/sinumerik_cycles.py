@@ -70,7 +70,22 @@ class CycleCalls:
         elif w.name in _PATTERNS:
             self._pattern(w)
         else:
+            if w.name == "CYCLE800":
+                self._swivel(w)
             self._unknown(w.name)
+
+    def _swivel(self, w: Word) -> None:
+        """CYCLE800 (_FR, _TC, _ST, _MODE, _X0, _Y0, _Z0, _A, _B, _C, _X1, _Y1, _Z1, _DIR, ...):
+        the swivel cycle leaves a frame turned by its angles and shifted by its offsets (SINUMERIK
+        840D sl Cycles programming manual, CYCLE800), in which the program's next positions are
+        given; mtcomp does not follow that frame, so a CYCLE800 with any angle or offset other
+        than 0 is refused. ``CYCLE800()`` and one whose offsets and angles are all 0 cancel the
+        swivel: the positions after it are unknown until named, as after any cycle."""
+        args = split_arguments(w.text)
+        for i, a in enumerate(args[4:13], 4):
+            if a.strip() and self.value(a) != 0.0:
+                raise self.err("CYCLE800 with a rotation or an offset (a swivelled frame) is not "
+                               "read by mtcomp")
 
     def _unknown(self, name: str) -> None:
         """A subprogram the program does not hold: the controller runs it, mtcomp cannot see its
