@@ -74,3 +74,19 @@ def test_verdict_says_which_readings_it_was_not_judged_on(plates):
     verdict = [ln for ln in d2.summary().splitlines() if ln.startswith("verdict:")][-1]
     assert "down to the noise" in verdict
     assert "judged without 132 of the 308 readings" in verdict and "21.6 um" in verdict, verdict
+
+
+def test_a_verdict_judged_without_readings_far_above_the_noise_says_the_model_may_be_wrong(plates):
+    """A new user's rotary campaign (a C-axis radial error motion read at one radius, which C's
+    positioning takes up alike): held-out 5.3 um against 0.29 um of noise, and "verdict: none (the
+    base model explains the data down to the noise ...)". Said now: which files the verdict was not
+    judged on, how many times the noise their held-out rms is, and that the model may be wrong there."""
+    from dataclasses import replace
+    _, d, _ = plates
+    d2 = replace(d, verdict="none", final={**d.final, "not_judged": {
+        "readings": 206, "of": 701, "unit": "um", "heldout_rms": 9.0, "times_noise": 31.3,
+        "files": {"ballbar_c.csv": 149, "ballbar_a.csv": 57}}})
+    verdict = [ln for ln in d2.summary().splitlines() if ln.startswith("verdict:")][-1]
+    assert "explains the readings it could judge down to the noise" in verdict, verdict
+    assert "(ballbar_c.csv 149, ballbar_a.csv 57)" in verdict and "31.3 times the noise" in verdict
+    assert "the model may be wrong there unseen" in verdict

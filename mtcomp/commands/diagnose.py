@@ -24,6 +24,11 @@ def add_arguments(parser):
     parser.add_argument("--start", metavar="MODEL.json", default=None,
                         help="start from this model of the machine (e.g. identify's output): its base "
                              "(knots, harmonics) is diagnosed and its values start the fit")
+    parser.add_argument("--known-setup", metavar="FILE", action="append", default=[],
+                        help="a data file whose set-up is known (repeatable): a ball-bar file of a "
+                             "calibrated bar, a points or cmm file whose instrument frame is the "
+                             "machine's; as identify's --known-setup. Without it, the files --start's "
+                             "model was fitted with a known set-up")
     parser.add_argument("--channel-axis", metavar="NAME=AXIS", action="append", default=[],
                         help="thermal file: channel disp_NAME_um reads the tool tip along machine axis "
                              "AXIS (X, Y or Z), so its drift acts where compensation needs it "
@@ -72,18 +77,18 @@ def run(args) -> int:
         from ..models.model_file import load_model
         start = load_model(args.start, machine)
     datasets = [read_measurements(path) for path in args.data]
+    if start is not None and len(datasets) == 1 and datasets[0].kind == "thermal":
+        raise InputError("--start applies to geometric data; a thermal file alone is diagnosed on its own",
+                         args.start)
+    known_setup = _known_setup(args, start, datasets)
     attach_cmm_cuts(args, machine, datasets)
     note_outside_travel(machine, datasets)
     note_cmm_gaps(machine, datasets)
 
     def progress(line):
         if not args.quiet:
-            sys.stderr.write(f"diagnose: {line}\n")
-            sys.stderr.flush()
+            print(f"diagnose: {line}", file=sys.stderr, flush=True)
 
-    if start is not None and len(datasets) == 1 and datasets[0].kind == "thermal":
-        raise InputError("--start applies to geometric data; a thermal file alone is diagnosed on its own",
-                         args.start)
     if len(datasets) == 1 and datasets[0].kind == "thermal":
         # a thermal record alone: drift models validated forward in time (docs/thermal.md)
         from ..thermal import diagnose_thermal
@@ -91,10 +96,11 @@ def run(args) -> int:
     elif sum(d.kind == "thermal" for d in datasets) == 1:
         # a thermal record beside geometric files: each on its own path, one report and one model
         from ..thermal import diagnose_with_record
-        result = diagnose_with_record(machine, datasets, channel_axes or None, progress, start)
+        result = diagnose_with_record(machine, datasets, channel_axes or None, progress, start,
+                                      known_setup)
     else:
         result = diagnose(machine, datasets, progress=progress, channel_axes=channel_axes or None,
-                          start=start)
+                          start=start, known_setup=known_setup)
     if plot_path is not None and result.thermal is None:
         raise InputError("--plot draws the drift of one thermal file; the data are not one thermal file",
                          args.data[0])
@@ -146,3 +152,19 @@ def _details(result, machine, datasets, verbose: bool) -> list[str]:
     if verbose:
         lines += [""] + parameter_lines(model)
     return lines + [""]
+
+
+def _known_setup(args, start, datasets) -> list:
+    """The files whose set-up is known: ``--known-setup``'s, else those the start model was fitted
+    with a known set-up (identify's ``--known-setup``, recorded in the model), said once."""
+    import sys
+
+    from ..identification.problem import unique_tags
+    if args.known_setup or start is None:
+        return list(args.known_setup)
+    recorded = set(start.info.get("known_setup", ()))
+    known = [t for t in unique_tags(datasets) if t in recorded]
+    if known:
+        print(f"note: the set-up of {', '.join(known)} taken as known, as the start model was fitted "
+              "(--known-setup); give --known-setup to choose", file=sys.stderr)
+    return known

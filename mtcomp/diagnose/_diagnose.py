@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -114,7 +115,7 @@ def _heldout_in_noise(st, design, fit, judged: np.ndarray | None = None) -> floa
 
 
 def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int = MAX_FINDINGS,
-             channel_axes: dict | None = None, start=None) -> Diagnosis:
+             channel_axes: dict | None = None, start=None, known_setup=()) -> Diagnosis:
     """Diagnose the base model of ``machine`` on ``datasets`` (measurement sets, mtcomp.io).
 
     progress : callable(str) for progress lines, or None.
@@ -123,6 +124,8 @@ def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int 
     start : a FittedModel (MODEL.json of ``identify``) of this machine: its base (knots, Fourier
         orders) is the base diagnosed, and its values the point the base fit starts from; extension
         terms it carries are not taken (diagnose finds its own).
+    known_setup : the files whose set-up is known (a calibrated bar, a tracker aligned to the
+        machine), named as identify's ``known_setup`` names them: no set-up is fitted for them.
     A single thermal file is diagnosed by :func:`mtcomp.thermal.diagnose_thermal` (drift models
     validated forward in time, docs/thermal.md; ``mtcomp diagnose`` chooses it for such a file),
     one beside geometric files by :func:`mtcomp.thermal.diagnose_with_record`.
@@ -150,7 +153,8 @@ def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int 
     say = progress or (lambda s: None)
     refine: dict = {}
     with single_threaded_blas():
-        diag, finer = _diagnose(machine, datasets, progress, max_findings, start, refine, may_refine=True)
+        diag, finer = _diagnose(machine, datasets, progress, max_findings, start, refine, may_refine=True,
+                                known_setup=known_setup)
         # every run is scored with the first run's noise floor: a floor estimated from the
         # residual (no repeats) would move with the base
         sigma = {u: nz.sigma for u, nz in diag.noise.items()}
@@ -160,7 +164,7 @@ def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int 
             a, basis, text = finer
             say(f"{text}: diagnosed again with it")
             again, finer = _diagnose(machine, datasets, progress, max_findings, start, {**refine, a: basis},
-                                     may_refine=n_refined < MAX_REFINEMENTS)
+                                     may_refine=n_refined < MAX_REFINEMENTS, known_setup=known_setup)
             # the finer base must hold on the diagnosis's own held-out data, once the extensions are
             # chosen again on it: no worse than noise could make it (2 sd of a chi-square with the
             # directions it adds)
@@ -236,7 +240,8 @@ def _start_point(machine, start):
     return m, dict(zip(start.model.param_names, values))
 
 
-def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None, may_refine=False):
+def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None, may_refine=False,
+              known_setup=()):
     """(Diagnosis, None), or (Diagnosis, (axis, finer basis, sentence)) when ``may_refine`` and the
     final structure is the base's resolution along a linear axis (:func:`_resolution.finer_base`).
     ``refine``: axis -> SplineBasis that replaces the data-chosen base of that axis."""
@@ -246,7 +251,7 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
         raise InputError("no measurement files given")
     machine, values = _base_machine(machine, datasets, start, refine)
     datasets, outliers = _without_outliers(datasets, say)
-    st = build_stack(machine, datasets)
+    st = build_stack(machine, datasets, known_setup=known_setup)
     say(f"{len(st)} observations in {len(datasets)} file(s); probe model with {st.probe.n_params} "
         "parameters")
     T0 = _base_fit(st, values, start is not None, say)
@@ -266,7 +271,7 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     chosen, findings, current = sel.chosen, sel.findings, sel.current
     final_metrics = _metrics(st, current, n_base + sum(c.columns.shape[1] for c in chosen))
     verdict, finer = _what_remains(st, design, sel, noise, noise_main, may_refine, say)
-    _not_judged(st, sel, final_metrics)
+    _not_judged(st, sel, final_metrics, noise)
     model, where = _fitted_model(st, design, chosen, current)
     diag = Diagnosis(verdict, noise, base_metrics, findings, final_metrics, model, how, len(st),
                      rejected=sel.rejected, reference=reference)
@@ -295,14 +300,23 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     return diag, finer
 
 
-def _not_judged(st, sel: _Selection, final: dict) -> None:
+def _not_judged(st, sel: _Selection, final: dict, noise: dict) -> None:
     """``final["not_judged"]``: the readings the verdict was not judged on (their held-out
-    prediction rests on what only their own fold determines), how many and their held-out rms, when
-    there are any: the held-out figures printed include them, the verdict does not."""
+    prediction rests on what only their own fold determines), how many, of which files, their
+    held-out rms and, where it exceeds ``EXCESS_RATIO`` times the noise floor, that ratio
+    (``times_noise``), when there are any: the held-out figures printed include them, the verdict
+    does not."""
     out = ~sel.judged & (st.unit == _heldout_unit(st))
     if out.any():
+        index, counts = np.unique(np.asarray(st.file)[out], return_counts=True)
+        names = [Path(st.paths[int(i)]).name for i in index]
         final["not_judged"] = {"readings": int(out.sum()), "of": int((st.unit == _heldout_unit(st)).sum()),
-                               "unit": _heldout_unit(st), "heldout_rms": round(rms(sel.current.cv_resid[out]), 4)}
+                               "unit": _heldout_unit(st), "heldout_rms": round(rms(sel.current.cv_resid[out]), 4),
+                               "files": {str(f): int(c) for f, c in zip(names, counts)}}
+        floor = noise.get(_heldout_unit(st))
+        ratio = final["not_judged"]["heldout_rms"] / floor.sigma if floor is not None and floor.sigma > 0 else 0.0
+        if ratio > EXCESS_RATIO:
+            final["not_judged"]["times_noise"] = round(ratio, 3)
 
 
 def _base_machine(machine, datasets, start, refine):

@@ -141,7 +141,7 @@ def open_fit(st, model, start: np.ndarray, noise: np.ndarray, lsq: tuple, n_weak
     from ..identification.fit import solve
     from ..identification.problem import FitProblem, SolverOptions, build_measurement_models
     from ._linalg import RCOND
-    mms = build_measurement_models(model, st.datasets)
+    mms = build_measurement_models(model, st.datasets, known_setup=st.known_setup)
     n_obs = sum(m.n_obs for m in mms)
     order = _stack_order(st, mms)
     if order.size != n_obs:          # (the stack and identify's models read the same files)

@@ -311,7 +311,10 @@ def summary(diag, details=()) -> str:
     if diag.thermal is not None:
         lines.append(diag.thermal.summary())
     lines += list(details)
-    lines.append(f"verdict: {diag.verdict} ({VERDICT_MEANING.get(diag.verdict, '')}{_not_judged(diag)})")
+    meaning = VERDICT_MEANING.get(diag.verdict, "")
+    if diag.final.get("not_judged") and diag.verdict == "none":
+        meaning = "the base model explains the readings it could judge down to the noise"
+    lines.append(f"verdict: {diag.verdict} ({meaning}{_not_judged(diag)})")
     return "\n".join(lines)
 
 
@@ -321,10 +324,19 @@ def _not_judged(diag) -> str:
     nj = diag.final.get("not_judged")
     if not nj:
         return ""
-    return (f"; judged without {nj['readings']} of the {nj['of']} readings, whose held-out prediction "
-            f"rests on what only their own fold determines: their held-out rms {_num(nj['heldout_rms'])} "
-            f"{nj['unit']} is in the held-out figures above and says what the folds cannot check, not "
-            "that the model fits them")
+    files = nj.get("files") or {}
+    named = f" ({', '.join(f'{k} {v}' for k, v in files.items())})" if files else ""
+    text = (f"; judged without {nj['readings']} of the {nj['of']} readings{named}, whose held-out "
+            f"prediction rests on what only their own fold determines: their held-out rms "
+            f"{_num(nj['heldout_rms'])} {nj['unit']} is in the held-out figures above and says what the "
+            "folds cannot check, not that the model fits them")
+    if nj.get("times_noise"):
+        text += (f". That is {nj['times_noise']:.3g} times the noise: what only these "
+                 "readings measure, nothing else checks, and the model may be wrong there unseen (two "
+                 "errors they cannot tell apart, e.g. a rotary axis's radial error motion and its "
+                 "positioning read at one radius): repeat the test another way (another radius, "
+                 "another set-up or instrument) before trusting the model there")
+    return text
 
 
 #: what each verdict says, printed beside it (docs/diagnose.md)

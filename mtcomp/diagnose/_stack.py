@@ -129,6 +129,7 @@ class Stack:
     h: dict = field(default_factory=dict)
     hc: dict = field(default_factory=dict)
     datasets: list = field(default_factory=list)
+    known_setup: list = field(default_factory=list)   # tags of the files whose set-up is known
     _models: list = field(default_factory=list)
     _features: dict = field(default_factory=dict)
 
@@ -220,18 +221,22 @@ class Stack:
                 self.hc[str(ch)] = np.where(thermal & (self.component == ch), 1e3, 0.0)
 
 
-def build_stack(machine: Machine, datasets: list[MeasurementSet], extra_context=None) -> Stack:
-    """Stack the observations of ``datasets`` and bind them to the probe model (not yet evaluated)."""
+def build_stack(machine: Machine, datasets: list[MeasurementSet], extra_context=None,
+                known_setup=()) -> Stack:
+    """Stack the observations of ``datasets`` and bind them to the probe model (not yet evaluated).
+    ``known_setup``: the files whose set-up is known, as identify's ``--known-setup`` names them
+    (:func:`mtcomp.identification.problem.known_setup_tags`): no set-up is fitted for them."""
     probe = ErrorModel(machine, probe_terms(machine, pdge_orders(machine, datasets)))
     parts = {k: [] for k in ("y", "unit", "file", "series", "column", "component", "row", "q", "moving",
                              "dirs", "feed", "t", "run", "spindle", "arm", "setup")}
     temp_names = sorted({n for d in datasets for n in d.context.temperatures})
     temps = {n: [] for n in temp_names}
     models, nuis_names, kinds = [], [], []
-    from ..identification.problem import unique_tags
+    from ..identification.problem import known_setup_tags, unique_tags
     tags = unique_tags(datasets)
+    known = known_setup_tags(datasets, known_setup)
     for fi, data in enumerate(datasets):
-        mm = _probe_measurement_model(machine, probe, data, tags[fi])
+        mm = _probe_measurement_model(machine, probe, data, tags[fi], tags[fi] in known)
         r, n = mm.obs_row, mm.n_obs
         rows, scale = _file_rows(machine, probe, data, mm, tags[fi], fi)
         for k, v in rows.items():
@@ -252,11 +257,13 @@ def build_stack(machine: Machine, datasets: list[MeasurementSet], extra_context=
                arm=cat["arm"], setup=cat["setup"], nuisance_names=nuis_names, kinds=kinds)
     st._models = models
     st.datasets = list(datasets)
+    st.known_setup = sorted(known)
     return st
 
 
-def _probe_measurement_model(machine: Machine, probe, data, tag: str):
-    """The measurement model of one file on the probe model; InputError when it has no readings."""
+def _probe_measurement_model(machine: Machine, probe, data, tag: str, known_setup: bool = False):
+    """The measurement model of one file on the probe model (its set-up not fitted where
+    ``known_setup``); InputError when it has no readings."""
     from ..measurement.readings import measurement_model
     # the probe reads each axis's backlash column at dir +1 where the file does not say; a cut
     # part's approach directions are the program's (its measurement model finds them)
@@ -264,7 +271,8 @@ def _probe_measurement_model(machine: Machine, probe, data, tag: str):
         f"dir_{a}": np.where(data.context.dir_of(a) == 0, 1.0, data.context.dir_of(a).astype(float))
         for a in machine.axis_names}
     extra[ONE] = np.ones(len(data))
-    mm = measurement_model(probe, data, None, tag=tag, extra_context=extra)
+    mm = measurement_model(probe, data, None, tag=tag, extra_context=extra,
+                           **({"setup": "known"} if known_setup else {}))
     if mm.n_obs == 0:
         raise InputError("the file has no measured values", data.path)
     return mm

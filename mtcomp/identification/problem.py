@@ -209,8 +209,7 @@ def build_measurement_models(model: ErrorModel, datasets, context_defaults=None,
     frame is the workpiece frame, a ball-bar file of a calibrated bar. One that names no data file, or a
     file of another kind, is an InputError."""
     out = []
-    known = [str(k) for k in known_setup]
-    used: set[str] = set()
+    known = known_setup_tags(datasets, known_setup)
     for d, tag in zip(datasets, unique_tags(datasets)):
         if isinstance(d, MeasurementModel):
             out.append(d)
@@ -218,20 +217,35 @@ def build_measurement_models(model: ErrorModel, datasets, context_defaults=None,
             opts = dict(options)
             if machine is not None:
                 opts["machine"] = machine
-            hits = [k for k in known if k == tag or same_file(k, d.path)]
-            if hits:
-                if d.kind not in KNOWN_SETUP_KINDS:
-                    raise InputError(f"--known-setup {hits[0]}: a {d.kind} file has no set-up to declare "
-                                     f"known (only {' and '.join(KNOWN_SETUP_KINDS)} files)")
-                used.update(hits)
+            if tag in known:
                 opts["setup"] = "known"
             out.append(measurement_model(model, d, context_defaults, tag=tag, **opts))
         else:
             raise TypeError(f"not a measurement set: {type(d).__name__}")
+    return out
+
+
+def known_setup_tags(datasets, known_setup) -> set[str]:
+    """The tags (:func:`unique_tags`) of the measurement sets among ``datasets`` that
+    ``known_setup`` names (tags or paths, as given, or any path to the same file). One that names no
+    data file, or a file of a kind without a set-up to declare, is an InputError."""
+    known = [str(k) for k in known_setup]
+    used: set[str] = set()
+    tags = set()
+    for d, tag in zip(datasets, unique_tags(datasets)):
+        if not isinstance(d, MeasurementSet):
+            continue
+        hits = [k for k in known if k == tag or same_file(k, d.path)]
+        if hits:
+            if d.kind not in KNOWN_SETUP_KINDS:
+                raise InputError(f"--known-setup {hits[0]}: a {d.kind} file has no set-up to declare "
+                                 f"known (only {' and '.join(KNOWN_SETUP_KINDS)} files)")
+            used.update(hits)
+            tags.add(tag)
     for k in known:
         if k not in used:
             raise InputError(f"--known-setup {k}: names none of the data files")
-    return out
+    return tags
 
 
 #: kinds whose set-up ``known_setup`` can declare known (points, cmm: the instrument frame; ballbar:

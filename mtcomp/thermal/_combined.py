@@ -43,7 +43,8 @@ class RecordDiagnosis(Diagnosis):
         return {**super().to_dict(), "thermal": self.record}
 
 
-def diagnose_with_record(machine, datasets, channel_axes: dict | None = None, progress=None, start=None):
+def diagnose_with_record(machine, datasets, channel_axes: dict | None = None, progress=None, start=None,
+                         known_setup=()):
     """Diagnosis (mtcomp.diagnose.result.Diagnosis) of exactly one thermal file among geometric ones.
 
     channel_axes : channel -> machine axis (X, Y, Z), beside the record's own ``axis_<name>`` columns.
@@ -64,7 +65,7 @@ def diagnose_with_record(machine, datasets, channel_axes: dict | None = None, pr
     channel_axes_for(list(record.channels), channel_axes, record.path, declared_channel_axes(record))
     name = Path(str(record.path)).name
     say(f"geometric files ({len(geometric)}): the general search, without the thermal record")
-    geo = diagnose(machine, geometric, progress=progress, start=start)
+    geo = diagnose(machine, geometric, progress=progress, start=start, known_setup=known_setup)
     say(f"thermal record {name}: drift models validated forward in time")
     th = diagnose_thermal(machine, record, channel_axes, progress)
     dropped = _runs_own_drift(geo, th.model)
