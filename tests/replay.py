@@ -544,10 +544,12 @@ def _point_to_arc(p: dict, move: Move):
     w0, w1 = move.start[normal], move.end[normal]
     axial = 0.0 if None in (w0, w1, p[normal]) else p[normal] - (w0 + frac * (w1 - w0))
     same_angle = math.hypot(radial, axial)
-    if axial == 0.0 or w0 == w1:
+    # on a helix the distance at the point's own angle is only an upper bound: on a steep one a
+    # small step along the arc is a large one in the normal axis. Where it may be off by more than
+    # 1 um (the helix rises more than a tenth of its arc's length), the nearest point of the helix
+    if same_angle <= 1e-3 or abs(axial) <= 0.1 * abs(radial) \
+            or abs(w1 - w0) <= 0.1 * max(r, r_end) * abs(move.sweep):
         return same_angle
-    # a helix: the distance at the point's own angle is only an upper bound (on a steep helix, a
-    # small step along the arc is a large one in the normal axis); the nearest point of the helix
     return min(same_angle, _nearest_on_helix(p, move, r, r_end, a0))
 
 
