@@ -543,7 +543,40 @@ def _point_to_arc(p: dict, move: Move):
     radial = math.hypot(p[first] - cx, p[second] - cy) - (r + frac * (r_end - r))
     w0, w1 = move.start[normal], move.end[normal]
     axial = 0.0 if None in (w0, w1, p[normal]) else p[normal] - (w0 + frac * (w1 - w0))
-    return math.hypot(radial, axial)
+    same_angle = math.hypot(radial, axial)
+    # on a helix the distance at the point's own angle is only an upper bound: on a steep one a
+    # small step along the arc is a large one in the normal axis. Where it may be off by more than
+    # 1 um (the helix rises more than a tenth of its arc's length), the nearest point of the helix
+    if same_angle <= 1e-3 or abs(axial) <= 0.1 * abs(radial) \
+            or abs(w1 - w0) <= 0.1 * max(r, r_end) * abs(move.sweep):
+        return same_angle
+    return min(same_angle, _nearest_on_helix(p, move, r, r_end, a0))
+
+
+def _nearest_on_helix(p: dict, move: Move, r: float, r_end: float, a0: float) -> float:
+    """The distance of a point to the nearest point of an arc's helix (over the plane's axes and
+    its normal): the helix sampled at 33 fractions, then a golden-section search next to the
+    nearest sample."""
+    first, second, normal = _PLANES[move.plane][:3]
+    cx, cy = move.centre
+    w0, w1 = move.start[normal], move.end[normal]
+
+    def dist(t):
+        rt, at = r + t * (r_end - r), a0 + t * move.sweep
+        return math.hypot(p[first] - cx - rt * math.cos(at), p[second] - cy - rt * math.sin(at),
+                          p[normal] - w0 - t * (w1 - w0))
+
+    n = 32
+    k = min(range(n + 1), key=lambda i: dist(i / n))
+    lo, hi = max(0.0, (k - 1) / n), min(1.0, (k + 1) / n)
+    g = (math.sqrt(5) - 1) / 2
+    for _ in range(40):
+        a, b = hi - g * (hi - lo), lo + g * (hi - lo)
+        if dist(a) < dist(b):
+            hi = b
+        else:
+            lo = a
+    return min(dist(k / n), dist((lo + hi) / 2))
 
 
 def _dist(p: dict, q: dict):

@@ -208,12 +208,36 @@ REFUSED = {
     # ran from a start it took as 0, or as the last Z before a tool change or home move (a plunge
     # where the program ramps: a safety tester's finding); it is refused now. mtcomp's gap
     "ugs_g17-g18-g19.gcode": ["g17-g18-g19.gcode:4:", "(a helix) from a height along Z"],
+    # The batch of 30 added together from six more repositories (SOURCES.md), chosen before mtcomp
+    # was run on any of them. Estlcam 11 writes a rapid's feed as `F` with no number (`G00 Z8.0000
+    # F`, `G00 Z0.5000 F`): an RS274/NGC control stops on it (LinuxCNC: bad number format; grbl
+    # 1.1: error 2, a value word without its value); Estlcam's own control runs its files, but no
+    # Estlcam manual we found says how it reads such a word, so it stays refused. mtcomp's gap
+    "v1mods_1-base-pocket.gcode": ["1-base-pocket.gcode:12:", "word F without a valid number"],
+    "v1mods_2-base-hole.gcode": ["2-base-hole.gcode:12:", "word F without a valid number"],
+    "v1mods_3-base-cont.gcode": ["3-base-cont.gcode:12:", "word F without a valid number"],
+    "v1mods_mat-cont.gcode": ["mat-cont.gcode:12:", "word F without a valid number"],
+    "v1mods_mat-engr.gcode": ["mat-engr.gcode:12:", "word F without a valid number"],
+    "v1mods_mat-hole.gcode": ["mat-hole.gcode:13:", "word F without a valid number"],
+    # FluidNC's tool-setter macro: it probes (G38.2) and sets the tool length from the probe's
+    # result, #5063, known only when the machine runs it: mtcomp's gap (it cannot know the moves)
+    "fluidnc_probe.nc": ["probe.nc:1:", "parameter #5063 holds controller state"],
+    # FluidNC's restart macro: `(Triggered by ... handling (Protocol.cpp) when a)`. LinuxCNC stops
+    # on the nested comment, as mtcomp does; FluidNC (GCode.cpp, collapseGCode) ends the comment at
+    # its first ')' and reads `when a` as words: W without a number, which its parser refuses (bad
+    # number format). Its moves go to positions the controller reconstructed, which the file does
+    # not give: refused after that too
+    "fluidnc_restart.nc": ["restart.nc:5:", "comment '(' holds parentheses"],
+    # Onefinity's spindle warm-up macro (M3, a dwell, M5): no motion to correct
+    "onefinity_SpindleWarmUp1Minute.ngc": ["SpindleWarmUp1Minute.ngc: no motion block"],
 }
-#: the share of the corpus accepted today (141 of 186: 0.758): 124 of the 148 before the batch of
-#: 38 programs never seen (SOURCES.md), of which 17 are accepted (the Nomura BN-130's W quill read;
-#: BeagleG's dialect, G5 splines and arcs from a position not given read: 4 of its programs; the
-#: Kuraki's G60 single-direction positioning read; a helix from a height not given refused since,
-#: UGS's g17-g18-g19); the goal is 95 %
+#: the share of the corpus accepted today (162 of 216: 0.750): 141 of the 186 before the batch of
+#: 30 programs from six more repositories (SOURCES.md), of which 21 are accepted (0.700; of the 29
+#: their controllers run, 0.724; 20 before polar words given by parameters were read); 124 of the 148 before the batch of 38 programs never seen, of
+#: which 17 are accepted (the Nomura BN-130's W quill read; BeagleG's dialect, G5 splines and arcs
+#: from a position not given read: 4 of its programs; the Kuraki's G60 single-direction
+#: positioning read; a helix from a height not given refused since, UGS's g17-g18-g19); the goal
+#: is 95 %
 MIN_ACCEPTED = 0.75
 #: the refused programs that the controller they were written for refuses too (its manual's alarm
 #: or error named in REFUSED's comments): a nested comment (LinuxCNC), an R word in a G1 (grbl
@@ -229,7 +253,8 @@ MIN_ACCEPTED = 0.75
 #: machine, not in the file (a G65 whose macro is in the file is expanded), fixed-format numbers,
 #: 5-axis drilling, BeagleG's programs that do not show their dialect (one needs --dialect beagleg,
 #: one probes with G30 in a program read as LinuxCNC's), an O word after a tool word, a TNC ISO
-#: block before any G00/G01; and a helix from a height the program has not given: 141 of 157).
+#: block before any G00/G01; and a helix from a height the program has not given; of the batch of
+#: 30, Estlcam's empty F words, a probing macro and a macro without motion: 162 of 186).
 CONTROLLER_REFUSES = {
     "cluck2sesame_BackPlate.nc", "cluck2sesame_2-Spool.nc", "cncwebsim_fresa2.cnc",
     "rocholl25000_clover.gcode", "nxpost_4_axis_mill.ptp", "nxpost_Fadal_VMC6030_sample.ptp",
@@ -248,21 +273,32 @@ CONTROLLER_REFUSES = {
     "nxpost_Haas_5T.ptp", "nxpost_DMC_70V_sample_in.ptp", "nxpost_BURGMASTER_sample_part.ptp",
     "nxpost_MS_SH8000_sample_in.ptp", "nxpost_Fryer_MB10_sample.ptp",
     "nxpost_Mitsubishi_VR33_RHead_sample.ptp",
+    # the batch of 30: a comment holding parentheses that FluidNC ends at its first ')'
+    "fluidnc_restart.nc",
 }
-#: the share accepted of the programs their controllers run (141 of 157: 0.898; 125 of 133, 0.940,
-#: before the batch of 38, whose 24 runnable ones are 17 accepted: 0.708; 137 of 157, 0.873, before
-#: BeagleG's dialect, G5 splines and arcs from a position not given were read; 141, 0.898, before
-#: Fanuc's G60 was read; 142, 0.904, before a helix from a height not given was refused); the goal
-#: is 95 %
-MIN_ACCEPTED_RUNNABLE = 0.89
+#: the share accepted of the programs their controllers run (162 of 186: 0.871; 161, 0.866, before
+#: polar words given by parameters were read; 141 of 157, 0.898, before the batch of 30; 125 of 133, 0.940, before the batch of 38, whose 24 runnable ones are 17
+#: accepted: 0.708; 137 of 157, 0.873, before BeagleG's dialect, G5 splines and arcs from a
+#: position not given were read; 141, 0.898, before Fanuc's G60 was read; 142, 0.904, before a
+#: helix from a height not given was refused); the goal is 95 %
+MIN_ACCEPTED_RUNNABLE = 0.87
 _WORD = re.compile(r"([A-Z])\s*([-+]?\s*(?:\d+\.?\d*|\.\d+))")
 #: an axis given an expression (Sinumerik: `A=_A_HOME`)
 _ASSIGNED = re.compile(r"(?<![A-Z0-9_$#<])([A-Z])\s*=")
 
 
+def _code_of(line: str) -> str:
+    """A line outside its comments; where the readings of a comment holding parentheses differ
+    (a program refused for it), the reading that ends a comment at its first ')'."""
+    try:
+        return without_comments(line)
+    except ValueError:
+        return re.sub(r"\([^)]*\)", "", line)
+
+
 def axis_letters(text: str) -> set:
     """The letters a program gives a number (or, Sinumerik, an expression) outside comments."""
-    code = "\n".join(without_comments(line) for line in text.upper().splitlines())
+    code = "\n".join(_code_of(line) for line in text.upper().splitlines())
     return {m.group(1) for m in _WORD.finditer(code)} | {m.group(1) for m in _ASSIGNED.finditer(code)}
 
 
@@ -471,7 +507,7 @@ def test_corpus_is_the_documented_one():
     assert len({p.name.split("_")[0] for p in PROGRAMS}) >= 10
     for p in PROGRAMS:
         assert f"`{p.name}`" in sources, f"{p.name} is not in SOURCES.md"
-    assert sum(p.stat().st_size for p in PROGRAMS) < 2_800_000
+    assert sum(p.stat().st_size for p in PROGRAMS) < 3_400_000
 
 
 def run_once(tmp_path_factory, key: str, argv_for) -> tuple:

@@ -258,3 +258,27 @@ def test_replay_reads_a_touch_off_after_homing():
     moves = replay(b"G21 G0 X1 Y2 Z3\n$H\nG0 X4\nG10 L20 P1 X0 Y0\nG0 X5\n").moves
     assert [tuple(m.end[a] for a in "XYZ") for m in moves] == [
         (1, 2, 3), (4, None, None), (5, 0, None)]
+
+
+def test_the_distance_to_a_steep_helix_is_the_nearest_point_s():
+    # a ramp into a cut (Fusion 360's lead-in helix in hazzy_Countour and pocket.ngc): radius 1 mm,
+    # 0.1 rad of arc, 1 mm of Z. A point moved 0.01 mm in the plane along the circle's tangent (a
+    # corrected end point) is, at its own angle, 0.01 rad further on, where the helix stands
+    # 0.1 mm higher; its nearest point of the helix is 0.01 / sqrt(1 + 0.1 ** 2) mm away
+    from replay import Move, _off_path
+    r, sweep, dz = 1.0, 0.1, 1.0
+    move = Move(line=0, kind="arc", start={"X": r, "Y": 0.0, "Z": 0.0},
+                end={"X": r * math.cos(sweep), "Y": r * math.sin(sweep), "Z": dz},
+                plane=17, centre=(0.0, 0.0), sweep=sweep)
+    at = 0.5 * sweep
+    on = np.array([r * math.cos(at), r * math.sin(at), 0.5 * dz])
+    moved = on + 0.01 * np.array([-math.sin(at), math.cos(at), 0.0])
+    # by brute force: the nearest of 200001 points of the helix (5 nm apart)
+    ts = np.linspace(0.0, 1.0, 200001)
+    helix = np.stack([r * np.cos(ts * sweep), r * np.sin(ts * sweep), ts * dz], axis=1)
+    brute = np.min(np.linalg.norm(helix - moved, axis=1))
+    assert brute == pytest.approx(0.01 / math.sqrt(1 + 0.1 ** 2), abs=1e-5)
+    assert _off_path(dict(zip("XYZ", moved)), move) == pytest.approx(brute, abs=1e-8)
+    # across the helix in the plane (radially), the distance at the point's angle was exact
+    across = on + 0.01 * np.array([math.cos(at), math.sin(at), 0.0])
+    assert _off_path(dict(zip("XYZ", across)), move) == pytest.approx(0.01, abs=1e-9)

@@ -105,6 +105,19 @@ def test_polar_words_absolute_and_incremental(tmp_path):
     assert lines[5] == "x-4 y0"             # a line in lower case gets lower-case words
 
 
+
+def test_polar_words_given_by_parameters_in_a_drilling_cycle(tmp_path):
+    # Kurt Jacobson's hole circle (tests/data/gcode_corpus/hazzy_hole circle.ngc): a G83 cycle whose
+    # holes are polar words with a named parameter for the distance, the later holes a line of
+    # polar words alone. LinuxCNC reads a parameter as a word's value in any word (G-code
+    # reference, Parameters), so @#<r>^45 with #<r>=2 is @2^45: X = 2 cos 45, Y = 2 sin 45
+    text = "#<r>=2\nG17 G20 G90\nG0 X0 Y0 Z1\nG83 @#<r>^45 Z-.5 R.1 Q.35 F10\n@#<r>^90\nG80\nM2\n"
+    lines, _, _ = _expanded(tmp_path, text)
+    c = 2 * math.cos(math.radians(45))
+    # (the blank after the polar words goes with them: RS274/NGC ignores blanks between words)
+    assert lines[3] == f"G83 X{c:.6f} Y{c:.6f}Z-.5 R.1 Q.35 F10"
+    assert lines[4] == "x0 y2"               # a line in lower case gets lower-case words
+
 @pytest.mark.parametrize("expr, expected", [
     ("[1 + 2 * 3]", 7.0), ("[2 ** 3 ** 2]", 64.0), ("[7 MOD 3]", 1.0), ("[-7 MOD 3]", 2.0),
     ("[10 / 4]", 2.5), ("[5 - 2 - 1]", 2.0), ("[2.0 / 3 * 1.5 - 5.5 / 11.0]", 0.5),

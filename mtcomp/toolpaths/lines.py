@@ -117,7 +117,8 @@ def rewrite(line: str, code: Code, ev: Evaluator, *, fanuc: bool = False) -> Rew
             p = pos + 1
             if _is_computed(s, p):
                 v, p2 = ev.counted(ev.value, s, p)
-                spans.append((p, p2, _word_value(ch.upper(), v, s, fanuc)))
+                if ch not in "@^":      # a polar word is replaced whole, by X and Y, below
+                    spans.append((p, p2, _word_value(ch.upper(), v, s, fanuc)))
             else:
                 m = _NUMBER.match(s, p)
                 if not m:

@@ -1,0 +1,8 @@
+; sample job for $SD/List and $SD/Run
+G21 G90
+G0 X0 Y0
+G1 X10 Y0 F500
+G1 X10 Y10
+G1 X0 Y10
+G1 X0 Y0
+M30
