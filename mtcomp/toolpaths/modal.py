@@ -17,9 +17,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..machine import Machine
-from ._arcs import (PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, blind_arc,
-                    centre_from_radius, check_helix_start, is_point_circle, passed_spline,
-                    point_circle, spline_code)
+from ._arcs import PLANE_AXES, arc_path, blind_arc, check_helix_start, passed_spline, spline_code
 from .blocks import CycleBlock, MotionBlock
 from .cycle_rules import (cycle_move, cycle_unclear, has_axis_words, home_with_motion,
                           incremental_r_level, retract_level, rigid_tap)
@@ -636,7 +634,7 @@ class ModalState:
                             f"(axes {self.names[plane_idx[0]]} {self.names[plane_idx[1]]})",
                             line)
         check_helix_start(self, values, line)
-        return self._arc(start, end, values, line)
+        return arc_path(self, start, end, values, line)
 
     def _block_feed(self, start, pts) -> float:
         """The block's feed, mm/min: nan for a rapid; under G93 its path length in X Y Z times the
@@ -746,46 +744,6 @@ class ModalState:
             self._forget()
         self.dirs = self._directions(self.position, new[None, :])[-1]
         self.position = new
-
-    def _arc(self, start, end, values, line):
-        plane = self.plane
-        i0, i1, _ = PLANE_AXES[plane]
-        if min(self.xyz_index) < 0:
-            raise self._err("arc on a machine without X, Y and Z axes", line)
-        a, b = self.xyz_index[i0], self.xyz_index[i1]
-        scale = MM_PER_INCH if self.inch else 1.0
-        ccw = self.motion == 3
-        l0, l1 = PLANE_OFFSET_LETTERS[plane]
-        s2 = np.array([start[a], start[b]])
-        try:
-            if "R" in values:
-                if any(c in values for c in "IJK"):
-                    raise ArcError("both R and I/J/K in one arc block")
-                centre2 = centre_from_radius(s2, np.array([end[a], end[b]]), values["R"] * scale, ccw)
-            else:
-                other = set("IJK") - {l0, l1}
-                bad = [c for c in other if values.get(c, 0.0) != 0.0]   # K0 in G17: harmless
-                if bad:
-                    raise ArcError(f"{bad[0]} word is not an offset in plane G{plane}")
-                if l0 not in values and l1 not in values:
-                    raise ArcError(f"arc without centre: give {l0}/{l1} or R in plane G{plane}")
-                offset = scale * np.array([values.get(l0, 0.0), values.get(l1, 0.0)])
-                if self.arc_absolute and not (l0 in values and l1 in values):
-                    raise ArcError(f"arc in G90.1 (absolute centre) without both {l0} and {l1}")
-                centre2 = offset if self.arc_absolute else s2 + offset
-            if "R" not in values and is_point_circle(start, end, centre2, (a, b)):
-                pts = point_circle(start, self.dialect.name)
-            else:
-                # under scaling the chords are cut for the machine's arc (the tolerance on it)
-                tol = self.chord_tol / self.local.scales().max()
-                pts = arc_chords(start, end, centre2, plane, ccw, tol, self.xyz_index, self.inch)
-        except ArcError as exc:
-            raise self._err(str(exc), line) from None
-        centre = np.zeros(3)
-        xyz = [start[i] for i in self.xyz_index]
-        centre[:] = xyz
-        centre[i0], centre[i1] = centre2
-        return pts, centre
 
     def _directions(self, start: np.ndarray, pts: np.ndarray, fresh=None) -> np.ndarray:
         """(k, na) int8 approach directions at the end of each segment, of the machine's axes (under
