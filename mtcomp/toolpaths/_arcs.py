@@ -11,6 +11,8 @@ import math
 
 import numpy as np
 
+from .passed import passed_end
+
 #: plane G code -> (first in-plane XYZ index, second in-plane index, normal index)
 PLANE_AXES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
 #: plane G code -> (offset letter of the first in-plane axis, of the second)
@@ -466,20 +468,11 @@ def blind_arc(state, values, axes_given) -> bool:
     an arc; False for an arc from a known start, or an incremental one (whose end is not known
     either: refused by the reader). The reader refuses an arc under unequal scales before it
     (:func:`.frames.check_arc`)."""
-    from .words import MM_PER_INCH
     i0, i1, _ = PLANE_AXES[state.plane]
     plane = [state.xyz_index[i0], state.xyz_index[i1]]
     if state.incremental or min(state.xyz_index) < 0 or all(state.known[i] for i in plane):
         return False
-    scale = MM_PER_INCH if state.inch else 1.0
-    state.position = state.position.copy()      # the last block's end is that array
-    for c in axes_given:
-        i = state.names.index(c)
-        state.position[i] = math.radians(values[c]) if c in "ABC" else values[c] * scale
-        state.known[i] = True
-        state.dirs[i] = 0           # the arc's end direction is not known: its centre is not
-        state.declared.append(i)
-    state.passed_move = ("arc", state._line)
+    passed_end(state, values, axes_given, "arc", state._line)
     return True
 
 
@@ -519,7 +512,6 @@ def passed_spline(state, values, tokens, motion, line: int) -> None:
     compensation, a frame change or a motion code in the block. After it no motion mode is in force
     (LinuxCNC: G5 is a motion mode of its own, which axis words alone would continue without P Q),
     on BeagleG the last G0/G1 (the spline holds for its block only)."""
-    from .words import MM_PER_INCH
     name = "G5 (cubic spline)" if state.spline == 5 else "G5.1 (quadratic spline)"
     axes = state._axis_words(values, line)
     others = [c for c in axes if c not in "XY"] + [c for c in "UVW" if c in values]
@@ -535,17 +527,6 @@ def passed_spline(state, values, tokens, motion, line: int) -> None:
     if problem:
         raise state._err(f"{name} {problem}", line)
     state._set_feed(values, line)
-    scale = MM_PER_INCH if state.inch else 1.0
-    state.position = state.position.copy()      # the last block's end is that array
-    for c in axes:
-        i = state.names.index(c)
-        if state.incremental:       # the output moves by the increment from where it stands
-            state.position[i] += values[c] * scale
-        else:
-            state.position[i], state.known[i] = values[c] * scale, True
-            state.declared.append(i)
-        state.dirs[i] = 0
-    state.distance_sensitive = state.incremental
+    passed_end(state, values, axes, "spline", line)
     state.motion = getattr(state, "linear_motion", None) if not state.dialect.arcs_modal else None
     state.cycle = None
-    state.passed_move = ("spline", line)
