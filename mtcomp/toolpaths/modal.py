@@ -52,6 +52,10 @@ class ModalState:
     (generic otherwise), which also names the source's lines in errors.
     """
 
+    #: a move passed through with its end known (:mod:`.passed`) stands between the last block and
+    #: the next: the next does not start where the last ended (its first row is a ``jump``)
+    off_path = False
+
     def __init__(self, machine: Machine, path=None, chord_tol: float = DEFAULT_CHORD_TOL_MM,
                  initial_position: np.ndarray | None = None, inch: bool = False,
                  initial_known=None):
@@ -156,9 +160,9 @@ class ModalState:
     @property
     def python_only(self) -> bool:
         """Lines the compiled scanner must not take (cycle, inverse-time or tool centre point mode
-        in force)."""
+        in force, or the next block starts off the last one's path)."""
         return (self.cycle is not None or self.inverse_time or self.tcp or self.dwo or self.ended
-                or bool(self.local.kind))
+                or bool(self.local.kind) or self.off_path)
 
     def _err(self, msg, line):
         path, line, suffix = self._where(line)
@@ -566,7 +570,8 @@ class ModalState:
             pts, centre = self._arc_block(start, end, values, tokens, line)
         else:
             pts = end[None, :]
-        start_known = bool(self.known.all())
+        start_known = bool(self.known.all()) and not self.off_path
+        self.off_path = False
         fresh = given & ~self.known
         self.known |= given
         dirs = self._directions(start, pts, fresh)
@@ -689,7 +694,8 @@ class ModalState:
                             ">= 1)", line)
         reps = int(reps)
         start = self.position.copy()
-        start_known = bool(self.known.all())
+        start_known = bool(self.known.all()) and not self.off_path
+        self.off_path = False
         if inc:
             if not (self.known[xi] and self.known[yi] and self.known[zi]):
                 raise self._err(f"incremental (G91) drilling cycle G{self.cycle} from a position the "

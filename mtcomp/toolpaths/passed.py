@@ -19,7 +19,9 @@ def passed_end(state, values: dict, axes, why: str, line: int) -> None:
     alike (``declared``), or in G91 moves by its increment from where it stood, in the output from
     where the output stands (``distance_sensitive``; an axis not known stays unknown). The
     direction each of them last moved in is not known (0): the controller's path there is not the
-    program's straight line."""
+    program's straight line. The next block starts from this end, not from the last block's: its
+    first row is a ``jump`` (``off_path``), so the planner puts no node on a line from the last
+    block's end and takes no step bound from its correction (the output stands here uncorrected)."""
     scale = MM_PER_INCH if state.inch else 1.0
     state.position = state.position.copy()      # the last block's end is that array
     for c in axes:
@@ -33,3 +35,4 @@ def passed_end(state, values: dict, axes, why: str, line: int) -> None:
         state.dirs[i] = 0
     state.distance_sensitive = state.incremental
     state.passed_move = (why, line)
+    state.off_path = True
