@@ -29,7 +29,7 @@ from .haas5 import HAAS_5AXIS_G, haas_block, haas_code
 from .lengths import length_number, lone_h, set_length
 from .linetext import text_with_words
 from .programmed import ProgrammedOffsets, apply_g10
-from .quill import follow_quill, forget_quill, has_quill, init_quill
+from .quill import follow_quill, forget_quill, has_quill, init_quill, quill_lost, tip_known
 from .rrf import macro_codes, restore_move
 from .single_direction import single_direction
 from .word_use import check_motion_mode, check_point_words, check_value_words
@@ -160,9 +160,9 @@ class ModalState:
     @property
     def python_only(self) -> bool:
         """Lines the compiled scanner must not take (cycle, inverse-time or tool centre point mode
-        in force, or the next block starts off the last one's path)."""
+        in force, the next block starts off the last one's path, or the quill's place is lost)."""
         return (self.cycle is not None or self.inverse_time or self.tcp or self.dwo or self.ended
-                or bool(self.local.kind) or self.off_path)
+                or bool(self.local.kind) or self.off_path or quill_lost(self))
 
     def _err(self, msg, line):
         path, line, suffix = self._where(line)
@@ -389,7 +389,7 @@ class ModalState:
             nonmotion_axes = self._dwell_with_motion(motion, tokens, line)
         if tool_change:
             self._forget(self.tool_axis)
-            forget_quill(self)
+            forget_quill(self, tool_change=True)
         if g10:
             apply_g10(self, values, tokens, line)
         for g in frame_codes:
@@ -584,10 +584,11 @@ class ModalState:
                  if not (letter == "N" or letter in _AXIS_LETTERS or letter in "IJKR"
                          or (letter == "G" and float(num) in (0, 1, 2, 3, 90, 91)))]
         motion_word = any(letter == "G" and float(num) in (0, 1, 2, 3) for letter, num, _r in tokens)
+        known = tip_known(self, self.known.copy())      # Z not known where the quill is lost
         return MotionBlock(line, self.motion, start, end, feed, pts, dirs, centre, self.plane,
-                           self.inch, words, number, self.known.copy(), given, raw_axes,
-                           motion_word, self.incremental, self.inverse_time and self.motion != 0,
-                           self.f_word, self.frame, start_known=start_known,
+                           self.inch, words, number, known, given, raw_axes, motion_word,
+                           self.incremental, self.inverse_time and self.motion != 0, self.f_word,
+                           self.frame, start_known=start_known,
                            absolute_centre=self.arc_absolute and centre is not None)
 
     def _blind_increment(self, values, axes_given) -> None:
