@@ -16,6 +16,8 @@ from mtcomp.errors import InputError
 from mtcomp.machine import load_machine
 from mtcomp.models import ErrorModel, FittedModel, save_model
 from mtcomp.toolpaths.gcode import iter_segment_chunks
+from test_gcode_corpus import _machine_file as corpus_machine, _model_file
+from test_toolpaths_dialect import mode  # noqa: F401  (the fixture: both reader paths)
 
 #: the built-in xfyz with a W quill declared (a boring mill's machine file: docs/machines.md)
 XFYZ = replace(load_machine("xfyz"), quill=True)
@@ -155,3 +157,33 @@ def test_a_home_move_of_every_axis_homes_the_quill_before_its_first_w(tmp_path, 
                              "G1 X12. F100.\nW-10.\nG1 X10.\nM30\n", "EAY_1")
     assert [int(rows[k]["corrected"]) for k in (5, 7)] == [0, 1]
     assert rows[5]["unknown_axes"] == "Z"
+
+
+#: the quill's place lost before line 5: G28 W0 homes it (line 4), or a tool change does (the
+#: builder's macro may move it), before the program's first W word too
+LOST = {"G28 W": "G0 X10. Y50. Z20. W0.\nG1 X12. F100.\nG91 G28 W0.\nG90 ",
+        "M6 before W": "G0 X10. Y50. Z20.\nG1 X12. F100.\nT2 M6\n"}
+
+
+@pytest.mark.parametrize("lost", sorted(LOST))
+def test_no_z_word_where_the_tips_z_is_not_known(tmp_path, mode, lost):
+    """Lines 5 and 6 (after the quill's place is lost) are not corrected and report Z unknown; the
+    output gets no Z word there but the one line 6 names, as written (the output's Z stays where
+    line 3 left it: nominal 20 plus its correction, as the controller keeps an axis a line does not
+    name); line 8, after W-5., is corrected again. A large random model (the corpus test's) so that
+    line 3's Z correction is not zero."""
+    text = "G21 G90\n" + LOST[lost] + "G1 X10.\nG1 X14. Z15.\nW-5.\nG1 X12.\nM30\n"
+    machine = corpus_machine(tmp_path, "XFYZ", quill=True)
+    (tmp_path / "p.nc").write_text(text)
+    assert main(["compensate", str(machine), str(_model_file(tmp_path, machine)),
+                 str(tmp_path / "p.nc"), "-o", str(tmp_path / "o.nc"), "--report",
+                 str(tmp_path / "r.csv"), "--dialect", "fanuc", "--quiet"]) == 0
+    with open(tmp_path / "r.csv") as f:
+        rows = {int(r["line"]): r for r in csv.DictReader(f)}
+    out = (tmp_path / "o.nc").read_text().splitlines()
+    assert abs(float(rows[3]["cz_um"])) >= 0.1          # line 3 leaves Z off nominal
+    assert [(rows[k]["corrected"], rows[k]["unknown_axes"]) for k in (5, 6, 8)] == [
+        ("0", "Z"), ("0", "Z"), ("1", "")]
+    assert "Z" not in out[4], out
+    assert out[5] == text.splitlines()[5], out
+    assert "Z" in out[7], out

@@ -11,6 +11,8 @@ import math
 
 import numpy as np
 
+from .passed import passed_end
+
 #: plane G code -> (first in-plane XYZ index, second in-plane index, normal index)
 PLANE_AXES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
 #: plane G code -> (offset letter of the first in-plane axis, of the second)
@@ -410,6 +412,52 @@ def _farthest(arc_piece, a: int, ends: list, start_w):
     return best
 
 
+def arc_path(state, start, end, values, line: int):
+    """(chord ends (k, na), centre (3,) mm) of the G2/G3 block read by ``state`` (a
+    :class:`~.modal.ModalState`) from ``start`` to ``end`` (na,), its words ``values``: the centre
+    from R or from the I J K offsets (absolute under G90.1), the chords within the chord tolerance
+    (of the machine's arc under scaling); an arc the words do not make is refused naming the
+    line."""
+    from .words import MM_PER_INCH
+    plane = state.plane
+    i0, i1, _ = PLANE_AXES[plane]
+    if min(state.xyz_index) < 0:
+        raise state._err("arc on a machine without X, Y and Z axes", line)
+    a, b = state.xyz_index[i0], state.xyz_index[i1]
+    scale = MM_PER_INCH if state.inch else 1.0
+    ccw = state.motion == 3
+    l0, l1 = PLANE_OFFSET_LETTERS[plane]
+    s2 = np.array([start[a], start[b]])
+    try:
+        if "R" in values:
+            if any(c in values for c in "IJK"):
+                raise ArcError("both R and I/J/K in one arc block")
+            centre2 = centre_from_radius(s2, np.array([end[a], end[b]]), values["R"] * scale, ccw)
+        else:
+            other = set("IJK") - {l0, l1}
+            bad = [c for c in other if values.get(c, 0.0) != 0.0]   # K0 in G17: harmless
+            if bad:
+                raise ArcError(f"{bad[0]} word is not an offset in plane G{plane}")
+            if l0 not in values and l1 not in values:
+                raise ArcError(f"arc without centre: give {l0}/{l1} or R in plane G{plane}")
+            offset = scale * np.array([values.get(l0, 0.0), values.get(l1, 0.0)])
+            if state.arc_absolute and not (l0 in values and l1 in values):
+                raise ArcError(f"arc in G90.1 (absolute centre) without both {l0} and {l1}")
+            centre2 = offset if state.arc_absolute else s2 + offset
+        if "R" not in values and is_point_circle(start, end, centre2, (a, b)):
+            pts = point_circle(start, state.dialect.name)
+        else:
+            # under scaling the chords are cut for the machine's arc (the tolerance on it)
+            tol = state.chord_tol / state.local.scales().max()
+            pts = arc_chords(start, end, centre2, plane, ccw, tol, state.xyz_index, state.inch)
+    except ArcError as exc:
+        raise state._err(str(exc), line) from None
+    centre = np.zeros(3)
+    xyz = [start[i] for i in state.xyz_index]
+    centre[:] = xyz
+    centre[i0], centre[i1] = centre2
+    return pts, centre
+
 
 def blind_arc(state, values, axes_given) -> bool:
     """An absolute G2/G3 block from a position the program has not given in its plane (a program
@@ -420,20 +468,11 @@ def blind_arc(state, values, axes_given) -> bool:
     an arc; False for an arc from a known start, or an incremental one (whose end is not known
     either: refused by the reader). The reader refuses an arc under unequal scales before it
     (:func:`.frames.check_arc`)."""
-    from .words import MM_PER_INCH
     i0, i1, _ = PLANE_AXES[state.plane]
     plane = [state.xyz_index[i0], state.xyz_index[i1]]
     if state.incremental or min(state.xyz_index) < 0 or all(state.known[i] for i in plane):
         return False
-    scale = MM_PER_INCH if state.inch else 1.0
-    state.position = state.position.copy()      # the last block's end is that array
-    for c in axes_given:
-        i = state.names.index(c)
-        state.position[i] = math.radians(values[c]) if c in "ABC" else values[c] * scale
-        state.known[i] = True
-        state.dirs[i] = 0           # the arc's end direction is not known: its centre is not
-        state.declared.append(i)
-    state.passed_move = ("arc", state._line)
+    passed_end(state, values, axes_given, "arc", state._line)
     return True
 
 
@@ -473,7 +512,6 @@ def passed_spline(state, values, tokens, motion, line: int) -> None:
     compensation, a frame change or a motion code in the block. After it no motion mode is in force
     (LinuxCNC: G5 is a motion mode of its own, which axis words alone would continue without P Q),
     on BeagleG the last G0/G1 (the spline holds for its block only)."""
-    from .words import MM_PER_INCH
     name = "G5 (cubic spline)" if state.spline == 5 else "G5.1 (quadratic spline)"
     axes = state._axis_words(values, line)
     others = [c for c in axes if c not in "XY"] + [c for c in "UVW" if c in values]
@@ -489,17 +527,6 @@ def passed_spline(state, values, tokens, motion, line: int) -> None:
     if problem:
         raise state._err(f"{name} {problem}", line)
     state._set_feed(values, line)
-    scale = MM_PER_INCH if state.inch else 1.0
-    state.position = state.position.copy()      # the last block's end is that array
-    for c in axes:
-        i = state.names.index(c)
-        if state.incremental:       # the output moves by the increment from where it stands
-            state.position[i] += values[c] * scale
-        else:
-            state.position[i], state.known[i] = values[c] * scale, True
-            state.declared.append(i)
-        state.dirs[i] = 0
-    state.distance_sensitive = state.incremental
+    passed_end(state, values, axes, "spline", line)
     state.motion = getattr(state, "linear_motion", None) if not state.dialect.arcs_modal else None
     state.cycle = None
-    state.passed_move = ("spline", line)

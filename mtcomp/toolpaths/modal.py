@@ -17,9 +17,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..machine import Machine
-from ._arcs import (PLANE_AXES, PLANE_OFFSET_LETTERS, ArcError, arc_chords, blind_arc,
-                    centre_from_radius, check_helix_start, is_point_circle, passed_spline,
-                    point_circle, spline_code)
+from ._arcs import PLANE_AXES, arc_path, blind_arc, check_helix_start, passed_spline, spline_code
 from .blocks import CycleBlock, MotionBlock
 from .cycle_rules import (codes_with_motion, cycle_move, cycle_unclear, has_axis_words, home_with_motion,
                           incremental_r_level, retract_level, rigid_tap)
@@ -31,7 +29,7 @@ from .haas5 import HAAS_5AXIS_G, haas_block, haas_code
 from .lengths import length_number, lone_h, set_length
 from .linetext import text_with_words
 from .programmed import ProgrammedOffsets, apply_g10
-from .quill import follow_quill, forget_quill, has_quill, init_quill
+from .quill import follow_quill, forget_quill, has_quill, init_quill, quill_lost, tip_known
 from .rrf import macro_codes, restore_move
 from .single_direction import single_direction
 from .word_use import check_motion_mode, check_point_words, check_value_words
@@ -53,6 +51,10 @@ class ModalState:
     (:class:`~.dialect.Dialect`), taken from ``path`` when it is a :class:`~.source.ProgramSource`
     (generic otherwise), which also names the source's lines in errors.
     """
+
+    #: a move passed through with its end known (:mod:`.passed`) stands between the last block and
+    #: the next: the next does not start where the last ended (its first row is a ``jump``)
+    off_path = False
 
     def __init__(self, machine: Machine, path=None, chord_tol: float = DEFAULT_CHORD_TOL_MM,
                  initial_position: np.ndarray | None = None, inch: bool = False,
@@ -158,9 +160,9 @@ class ModalState:
     @property
     def python_only(self) -> bool:
         """Lines the compiled scanner must not take (cycle, inverse-time or tool centre point mode
-        in force)."""
+        in force, the next block starts off the last one's path, or the quill's place is lost)."""
         return (self.cycle is not None or self.inverse_time or self.tcp or self.dwo or self.ended
-                or bool(self.local.kind))
+                or bool(self.local.kind) or self.off_path or quill_lost(self))
 
     def _err(self, msg, line):
         path, line, suffix = self._where(line)
@@ -387,7 +389,7 @@ class ModalState:
             nonmotion_axes = codes_with_motion(self, motion, dwell, gcodes, tokens, line)
         if tool_change:
             self._forget(self.tool_axis)
-            forget_quill(self)
+            forget_quill(self, tool_change=True)
         if g10:
             apply_g10(self, values, tokens, line)
         for g in frame_codes:
@@ -559,7 +561,8 @@ class ModalState:
             pts, centre = self._arc_block(start, end, values, tokens, line)
         else:
             pts = end[None, :]
-        start_known = bool(self.known.all())
+        start_known = bool(self.known.all()) and not self.off_path
+        self.off_path = False
         fresh = given & ~self.known
         self.known |= given
         dirs = self._directions(start, pts, fresh)
@@ -572,10 +575,11 @@ class ModalState:
                  if not (letter == "N" or letter in _AXIS_LETTERS or letter in "IJKR"
                          or (letter == "G" and float(num) in (0, 1, 2, 3, 90, 91)))]
         motion_word = any(letter == "G" and float(num) in (0, 1, 2, 3) for letter, num, _r in tokens)
+        known = tip_known(self, self.known.copy())      # Z not known where the quill is lost
         return MotionBlock(line, self.motion, start, end, feed, pts, dirs, centre, self.plane,
-                           self.inch, words, number, self.known.copy(), given, raw_axes,
-                           motion_word, self.incremental, self.inverse_time and self.motion != 0,
-                           self.f_word, self.frame, start_known=start_known,
+                           self.inch, words, number, known, given, raw_axes, motion_word,
+                           self.incremental, self.inverse_time and self.motion != 0, self.f_word,
+                           self.frame, start_known=start_known,
                            absolute_centre=self.arc_absolute and centre is not None)
 
     def _blind_increment(self, values, axes_given) -> None:
@@ -627,7 +631,7 @@ class ModalState:
                             f"(axes {self.names[plane_idx[0]]} {self.names[plane_idx[1]]})",
                             line)
         check_helix_start(self, values, line)
-        return self._arc(start, end, values, line)
+        return arc_path(self, start, end, values, line)
 
     def _block_feed(self, start, pts) -> float:
         """The block's feed, mm/min: nan for a rapid; under G93 its path length in X Y Z times the
@@ -682,7 +686,8 @@ class ModalState:
                             ">= 1)", line)
         reps = int(reps)
         start = self.position.copy()
-        start_known = bool(self.known.all())
+        start_known = bool(self.known.all()) and not self.off_path
+        self.off_path = False
         if inc:
             if not (self.known[xi] and self.known[yi] and self.known[zi]):
                 raise self._err(f"incremental (G91) drilling cycle G{self.cycle} from a position the "
@@ -737,46 +742,6 @@ class ModalState:
             self._forget()
         self.dirs = self._directions(self.position, new[None, :])[-1]
         self.position = new
-
-    def _arc(self, start, end, values, line):
-        plane = self.plane
-        i0, i1, _ = PLANE_AXES[plane]
-        if min(self.xyz_index) < 0:
-            raise self._err("arc on a machine without X, Y and Z axes", line)
-        a, b = self.xyz_index[i0], self.xyz_index[i1]
-        scale = MM_PER_INCH if self.inch else 1.0
-        ccw = self.motion == 3
-        l0, l1 = PLANE_OFFSET_LETTERS[plane]
-        s2 = np.array([start[a], start[b]])
-        try:
-            if "R" in values:
-                if any(c in values for c in "IJK"):
-                    raise ArcError("both R and I/J/K in one arc block")
-                centre2 = centre_from_radius(s2, np.array([end[a], end[b]]), values["R"] * scale, ccw)
-            else:
-                other = set("IJK") - {l0, l1}
-                bad = [c for c in other if values.get(c, 0.0) != 0.0]   # K0 in G17: harmless
-                if bad:
-                    raise ArcError(f"{bad[0]} word is not an offset in plane G{plane}")
-                if l0 not in values and l1 not in values:
-                    raise ArcError(f"arc without centre: give {l0}/{l1} or R in plane G{plane}")
-                offset = scale * np.array([values.get(l0, 0.0), values.get(l1, 0.0)])
-                if self.arc_absolute and not (l0 in values and l1 in values):
-                    raise ArcError(f"arc in G90.1 (absolute centre) without both {l0} and {l1}")
-                centre2 = offset if self.arc_absolute else s2 + offset
-            if "R" not in values and is_point_circle(start, end, centre2, (a, b)):
-                pts = point_circle(start, self.dialect.name)
-            else:
-                # under scaling the chords are cut for the machine's arc (the tolerance on it)
-                tol = self.chord_tol / self.local.scales().max()
-                pts = arc_chords(start, end, centre2, plane, ccw, tol, self.xyz_index, self.inch)
-        except ArcError as exc:
-            raise self._err(str(exc), line) from None
-        centre = np.zeros(3)
-        xyz = [start[i] for i in self.xyz_index]
-        centre[:] = xyz
-        centre[i0], centre[i1] = centre2
-        return pts, centre
 
     def _directions(self, start: np.ndarray, pts: np.ndarray, fresh=None) -> np.ndarray:
         """(k, na) int8 approach directions at the end of each segment, of the machine's axes (under

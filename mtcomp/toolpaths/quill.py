@@ -15,11 +15,12 @@ gives each segment row its W. Only a machine whose file declares its quill (``qu
 [axes.Z]: ``Machine.quill``) has one: elsewhere W is not followed (on Fanuc and Haas, whose lathes
 read W as Z given incrementally, it is refused by the reader). Before the program's first W word
 the quill stands where the set-up left it (0: as in a program that never names W, its place is
-part of the Z work offset), until a home move of every axis, which homes the quill too. After a
-home move of W or of every axis, a G53 move of W, a tool change, a change of work system or of
-the tool centre point mode (the last three once the program has named W), its position is not
-known until the program names W again: the tip's Z is not known there, so those blocks are not
-corrected. A block that moves W and the model's axes
+part of the Z work offset), until a home move of every axis, which homes the quill too, or a tool
+change (the builder's macro may move it). After a home move of W or of every axis, a G53 move of
+W, a tool change, a change of work system or of the tool centre point mode (the last two once the
+program has named W), its position is not known until the program names W again: the tip's Z is
+not known there, so those blocks are not corrected, and get no Z word they do not name
+(:func:`tip_known`). A block that moves W and the model's axes
 together is not corrected either (its tip moves along a line the controller runs with an axis the
 model does not have).
 """
@@ -37,6 +38,24 @@ def init_quill(state, path) -> None:
     state.quill, state.quill_named = 0.0, False
     table = getattr(path, "quill_moves", None)
     state.quill_moves = table if table is not None else {}
+
+
+def tip_known(state, known: np.ndarray) -> np.ndarray:
+    """``known`` (na,) of a block read by ``state``, with Z not known where the quill's position
+    is not: the tip's Z is not known there, so the writer adds no Z word to the block (one the
+    block names is written as named)."""
+    z = state.xyz_index[2]
+    if z < 0 or not quill_lost(state):
+        return known
+    known = known.copy()
+    known[z] = False
+    return known
+
+
+def quill_lost(state) -> bool:
+    """The quill of the machine read by ``state`` stands where the program has not said (the
+    compiled scanner hands such lines to Python, which knows the tip's Z is not known)."""
+    return np.isnan(state.quill) and has_quill(state)
 
 
 def has_quill(state) -> bool:
@@ -79,11 +98,15 @@ def follow_quill(state, values: dict, codes: tuple, nonmotion_axes: bool, line: 
         state.quill_moves[line] = (before, state.quill)
 
 
-def forget_quill(state) -> None:
-    """The quill's position is not known from the line being read on (a tool change, a change of
-    work system or of the tool centre point mode), once the program has named W (before, the quill
-    stands where the set-up left it: a program that never names W does not move it)."""
-    if state.quill_named and not np.isnan(state.quill):
+def forget_quill(state, tool_change: bool = False) -> None:
+    """The quill's position is not known from the line being read on: after a tool change (the
+    machine builder's macro, which may move the quill to change tools: before the program's first
+    W word as after it), or a change of work system or of the tool centre point mode once the
+    program has named W (before, the quill stands where the set-up left it: a program that never
+    names W does not move it). On a machine without a quill, nothing."""
+    if not has_quill(state):
+        return
+    if (state.quill_named or tool_change) and not np.isnan(state.quill):
         state.quill_moves[state._line] = (state.quill, np.nan)
         state.quill = np.nan
 

@@ -16,16 +16,19 @@ motion code are refused until the program gives one.
 """
 from __future__ import annotations
 
+from .passed import passed_end
+
 __all__ = ["single_direction"]
 
 
 def single_direction(state, values, axes_given, gcodes, codes, line: int) -> None:
     """The G60 line (``state`` the reader's :class:`~.modal.ModalState`; codes : (motion, cycle,
-    home move, axis words that are no motion) of the line): passed through uncorrected
-    (``passed_move``), its end known. Refused where its path or end would not be the written
-    point's: with G01-G03, a drilling cycle, a home move, a dwell, G10 or a frame code on the line
-    or a drilling cycle in force, under cutter radius compensation or a frame change (G68, mirror
-    image, scaling), or an incremental word of an axis not known."""
+    home move, axis words that are no motion) of the line): passed through uncorrected, its end
+    known, the named axes' last approach parameter No. 5440's (:func:`.passed.passed_end`).
+    Refused where its path or end would not be the written point's: with G01-G03, a drilling
+    cycle, a home move, a dwell, G10 or a frame code on the line or a drilling cycle in force,
+    under cutter radius compensation or a frame change (G68, mirror image, scaling), or an
+    incremental word of an axis not known."""
     motion, cycle, home_move, nonmotion = codes
     problem = (f"with motion G{motion}" if motion not in (None, 0) else
                f"with G{cycle or home_move}" if cycle is not None or home_move is not None else
@@ -35,18 +38,14 @@ def single_direction(state, values, axes_given, gcodes, codes, line: int) -> Non
                "under a frame change (G68, mirror image, scaling)" if state.local.kind else "")
     if problem:
         raise state._err(f"G60 (single-direction positioning) {problem}", line)
-    start = state.position.copy()
-    end, given = state._targets(start, axes_given, values, line)
-    state.position = end
-    state.known |= given
-    for i in given.nonzero()[0]:
-        state.dirs[i] = 0               # the last approach is parameter No. 5440's
-        if not state.incremental:
-            state.declared.append(int(i))
-    state.distance_sensitive = state.incremental
+    blind = [c for c in axes_given if state.incremental and not state.known[state.names.index(c)]]
+    if blind:
+        raise state._err(f"incremental (G91) move of axis {blind[0]}, whose position the program "
+                         "has not given (at the start, or after a home move, tool change or "
+                         "offset change)", line)
     # G00 after G60 on the line holds after it; else G60 may hold (parameter MDL): no mode taken
     state.motion = 0 if motion == 0 and gcodes.index(0.0) > gcodes.index(60.0) else None
     state.cycle = None
     state.had_g = True                  # the writer follows the mode it leaves
     if axes_given:
-        state.passed_move = ("single", line)
+        passed_end(state, values, axes_given, "single", line)

@@ -144,11 +144,13 @@ def _axis_texts(block: MotionBlock, p: np.ndarray, rotary: list[bool], out: Outp
                 decs: list[int], named) -> list[tuple[int, str | None]]:
     """The axes a piece writes, ``(axis, text)``: a named axis always (text None: its source
     word, whose value it keeps), any other known axis whose text at 4 (5) decimals differs from
-    the output's last; never an axis the program has not positioned. named : (na,) bool or None."""
+    the output's last; never an axis the program has not positioned (nor Z where the tip's Z is not
+    known: a W quill's place lost, :mod:`.quill`), but as the block names it. named : (na,) bool
+    or None."""
     inch = block.inch
     res = []
     for i, rot in enumerate(rotary):
-        if not block.known[i]:
+        if not block.known[i] and (named is None or not named[i]):
             continue
         if named is not None and named[i]:
             t = position_text(p[i], rot, inch, decs[i])

@@ -1,0 +1,38 @@
+"""Where a move passed through as written leaves the axes: the one rule for the moves mtcomp
+cannot correct but whose end the program gives (docs/toolpaths.md): an absolute arc from a position
+the program has not given in its plane (:func:`._arcs.blind_arc`), a G5/G5.1 spline
+(:func:`._arcs.passed_spline`) and Fanuc's G60 single-direction positioning
+(:func:`.single_direction.single_direction`)."""
+from __future__ import annotations
+
+import math
+
+from .words import MM_PER_INCH
+
+__all__ = ["passed_end"]
+
+
+def passed_end(state, values: dict, axes, why: str, line: int) -> None:
+    """The line (read by ``state``, a :class:`~.modal.ModalState`; its words ``values``) passes
+    through as written, uncorrected (``passed_move`` = (``why``, ``line``)). Each axis it names
+    (``axes``) stands after it at its written value in G90, known, in the program and in the output
+    alike (``declared``), or in G91 moves by its increment from where it stood, in the output from
+    where the output stands (``distance_sensitive``; an axis not known stays unknown). The
+    direction each of them last moved in is not known (0): the controller's path there is not the
+    program's straight line. The next block starts from this end, not from the last block's: its
+    first row is a ``jump`` (``off_path``), so the planner puts no node on a line from the last
+    block's end and takes no step bound from its correction (the output stands here uncorrected)."""
+    scale = MM_PER_INCH if state.inch else 1.0
+    state.position = state.position.copy()      # the last block's end is that array
+    for c in axes:
+        i = state.names.index(c)
+        v = math.radians(values[c]) if c in "ABC" else values[c] * scale
+        if state.incremental:
+            state.position[i] += v
+        else:
+            state.position[i], state.known[i] = v, True
+            state.declared.append(i)
+        state.dirs[i] = 0
+    state.distance_sensitive = state.incremental
+    state.passed_move = (why, line)
+    state.off_path = True
