@@ -524,19 +524,25 @@ def _series_sentence(fitted, settings: CompensationSettings, series, tally: _Tal
 
 
 def _report_lines(res, axis_names, sd_limit) -> list[str]:
-    """BLOCKS.csv's lines of one planned chunk (:func:`~mtcomp.planner.report_rows`): the numbers
-    written by the compiled formatter when there is one (a million rows took 10 s in Python's
-    ``%``), the few rows with text in them by report_rows."""
+    """BLOCKS.csv's text of one planned chunk, in pieces (:func:`~mtcomp.planner.report_rows`'
+    lines): the numbers written by the compiled formatter when there is one (a million rows took
+    10 s in Python's ``%``), the few rows with text in them by report_rows, put in place of their
+    lines (the text is not cut into a string per line: that took longer than writing it)."""
     values, decimals, blank, special = report_table(res, axis_names, sd_limit)
     text = format_table(values, decimals, blank)
     if text is None:
         return report_rows(res, axis_names, sd_limit)
-    lines = text.splitlines(keepends=True)
     rows = np.flatnonzero(special)
-    if rows.size:
-        for i, line in zip(rows.tolist(), report_rows(res.take(rows), axis_names, sd_limit)):
-            lines[i] = line
-    return lines
+    if not rows.size:
+        return [text]
+    # where each row's line ends (the text is ASCII: a character is a byte)
+    ends = np.flatnonzero(np.frombuffer(text.encode("ascii"), np.uint8) == ord("\n")) + 1
+    pieces, at = [], 0
+    for i, line in zip(rows.tolist(), report_rows(res.take(rows), axis_names, sd_limit)):
+        pieces += [text[at:int(ends[i - 1]) if i else 0], line]
+        at = int(ends[i])
+    pieces.append(text[at:])
+    return pieces
 
 
 def _to_program_frame(res, chunk, off, setup) -> None:

@@ -353,3 +353,21 @@ def test_a_cut_program_under_a_frame_change_is_refused(tmp_path):
     with pytest.raises(InputError) as exc:
         read_cut_program(p, XFYZ)
     assert exc.value.line == 4 and "G52" in exc.value.message
+
+
+def test_frame_code_fields_read_back():
+    """Every field of a frame code reads back as it was packed, at the ends of its range and in
+    an int32 array as the reader stores them (the field readers use bit operations)."""
+    from mtcomp.toolpaths import words as w
+    cases = [(wcs, tool, tcp, oset, local, dwo)
+             for wcs in (0, 5, 15) for tool in (0, 1, w.NO_LENGTH)
+             for tcp in (False, True) for oset in (0, 1, w.MAX_OFFSET_SETS)
+             for local in (False, True) for dwo in (False, True)]
+    codes = np.array([w.frame_code(wcs, tool, tcp, oset, local, dwo)
+                      for wcs, tool, tcp, oset, local, dwo in cases], np.int32)
+    assert codes.max() < 2 ** 31
+    want = np.array(cases, np.int64)
+    for k, read in enumerate((w.frame_wcs, w.frame_tool, w.frame_tcp, w.frame_offset_set,
+                              w.frame_local, w.frame_dwo)):
+        assert np.array_equal(np.asarray(read(codes), np.int64), want[:, k]), read.__name__
+        assert [int(read(int(c))) for c in codes[:8]] == want[:8, k].tolist()

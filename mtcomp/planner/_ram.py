@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..models.chain import guideway_positions, ram_axis
-from ._small import any_rows
+from ._small import any_rows, any_rows_but
 
 
 class RamRule:
@@ -63,7 +63,7 @@ class RamRule:
             return np.zeros(outside.shape[0], bool)
         if self.col is None:
             return any_rows(outside)
-        return any_rows(np.delete(outside, self.col, axis=1))
+        return any_rows_but(outside, self.col)
 
     def pins(self, nodes) -> np.ndarray:
         """What the bounds pin to zero (:meth:`~._nodes.NodeSet.box_pins`), and the ram's own

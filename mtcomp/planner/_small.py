@@ -93,6 +93,19 @@ def any_rows(a: np.ndarray) -> np.ndarray:
     return out
 
 
+def any_rows_but(a: np.ndarray, col: int) -> np.ndarray:
+    """(n,) bool: :func:`any_rows` of a (n, k) without its column ``col``, ``np.delete(a, col,
+    axis=1).any(axis=1)`` without the copy, and nothing more when no entry is true (the usual
+    case)."""
+    out = np.zeros(a.shape[0], bool)
+    if not a.any():
+        return out
+    for j in range(a.shape[1]):
+        if j != col:
+            out |= a[:, j]
+    return out
+
+
 def column_extremes(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """((m,) smallest, (m,) largest entry of each column of a (n, m), n > 0): ``a.min(axis=0)``
     and ``a.max(axis=0)`` column by column (numpy's reduction over the rows of a few columns took

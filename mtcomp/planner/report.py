@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._bounds import FLAG_KINDS, HOLDING, flag_name
-from ._small import any_rows, row_max, row_norm
+from ._small import any_rows, any_rows_but, row_max, row_norm
 from ._qp import NEVER_WORSE_TOL
 from .problem import unsure_advice
 from ._result import PlanResult
@@ -85,11 +85,11 @@ def _numeric_columns(result: PlanResult, axis_names) -> tuple[list, list, np.nda
     five = result.before_axis is not None
     for dev, dax in ((result.before, result.before_axis), (result.after, result.after_axis)):
         um = np.where(blank[:, None], np.nan, dev * 1e3)
-        cols += [um[:, 0], um[:, 1], um[:, 2], np.sqrt(np.sum(um ** 2, axis=1))]
+        cols += [um[:, 0], um[:, 1], um[:, 2], row_norm(um)]
         fmts += ["%.4f"] * 4
         if five:
             ur = np.where(blank[:, None], np.nan, dax * 1e6)
-            cols += [ur[:, 0], ur[:, 1], ur[:, 2], np.sqrt(np.sum(ur ** 2, axis=1))]
+            cols += [ur[:, 0], ur[:, 1], ur[:, 2], row_norm(ur)]
             fmts += ["%.4f"] * 4
     return cols, fmts, blank
 
@@ -244,7 +244,7 @@ class Summary:
         self.outside_any += int(outside.sum())
         if self.ram is not None and not self.extrapolate:
             j = self.axis_names.index(self.ram)
-            ram_only = outside & ~any_rows(np.delete(r.outside, j, axis=1))
+            ram_only = outside & ~any_rows_but(r.outside, j)
             outside &= ~ram_only
             ram_only &= ~r.pinned
             if ram_only.any():

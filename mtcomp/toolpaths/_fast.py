@@ -145,7 +145,7 @@ def format_table(values: np.ndarray, decimals, blank) -> str | None:
         size = _lib.mt_format_table(values.ctypes.data, n, k, dec.ctypes.data, blank.ctypes.data,
                                     out.ctypes.data, cap)
         if size >= 0:
-            return out[:size].tobytes().decode("ascii")
+            return str(memoryview(out)[:size], "ascii")     # decoded in place: no bytes copy
         cap *= 4                                  # values too large for 24 characters: room for more
 
 

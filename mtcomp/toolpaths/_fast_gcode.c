@@ -76,17 +76,15 @@ static int parse_num(const char *p, const char *e, double *out, const char **nex
 
 /* m / 10^dec (m >= 0) with dec decimals (no point when dec is 0); returns the end. */
 static char *put_fixed(char *s, long long m, int dec) {
-    long long p = (long long)POW10[dec];
-    long long ip = m / p, fp = m % p;
-    char buf[32];
+    /* the digits of m (>= 0) from the last, the point after dec of them: divisions by the constant
+     * 10 only (a multiplication), none by 10^dec */
+    unsigned long long u = (unsigned long long)m;
+    char buf[48];
     int k = 0;
-    do { buf[k++] = (char)('0' + ip % 10); ip /= 10; } while (ip);
+    for (int i = 0; i < dec; i++) { buf[k++] = (char)('0' + u % 10); u /= 10; }
+    if (dec > 0) buf[k++] = '.';
+    do { buf[k++] = (char)('0' + u % 10); u /= 10; } while (u);
     while (k) *s++ = buf[--k];
-    if (dec > 0) {
-        *s++ = '.';
-        for (int i = dec - 1; i >= 0; i--) { s[i] = (char)('0' + fp % 10); fp /= 10; }
-        s += dec;
-    }
     return s;
 }
 

@@ -152,6 +152,10 @@ MAX_OFFSET_SETS = 31
 #: the bit of a frame code set under Haas' dynamic work offset G254 (the work offset turned with
 #: the rotary axes: :mod:`.haas5`); the highest of the int32 frame codes
 DWO_FRAME = OFFSET_SET_FRAME * (MAX_OFFSET_SETS + 1)
+#: the frame code's fields are bits (every constant above a power of two): the functions below
+#: read them with bit operations, which numpy does some twenty times faster than // and %
+#: (the same numbers for every integer, negative ones too)
+OFFSET_SET_SHIFT = OFFSET_SET_FRAME.bit_length() - 1
 
 
 #: tool length numbers H below this fit in a frame code
@@ -176,33 +180,33 @@ def frame_code(wcs: int, tool: int, tcp: bool = False, offset_set: int = 0,
 
 def frame_wcs(code):
     """Work coordinate system index (0 = G54 ...) of frame codes (int or array)."""
-    return np.asarray(code) % 16
+    return np.asarray(code) & 15
 
 
 def frame_tool(code):
     """Active tool length number H (0: none stated, NO_LENGTH: an offset of 0) of frame codes (int
     or array)."""
-    return np.asarray(code) % LOCAL_FRAME // 16
+    return (np.asarray(code) & (LOCAL_FRAME - 1)) >> 4
 
 
 def frame_local(code):
     """Whether frame codes (int or array) are under a frame the program moved (:mod:`.frames`)."""
-    return np.asarray(code) // LOCAL_FRAME % 2 == 1
+    return (np.asarray(code) & LOCAL_FRAME) != 0
 
 
 def frame_tcp(code):
     """Whether frame codes (int or array) are in tool centre point mode."""
-    return np.asarray(code) // TCP_FRAME % 2 == 1
+    return (np.asarray(code) & TCP_FRAME) != 0
 
 
 def frame_offset_set(code):
     """The set of programmed work offsets (0: none, k: the k-th) of frame codes (int or array)."""
-    return np.asarray(code) % DWO_FRAME // OFFSET_SET_FRAME
+    return (np.asarray(code) & (DWO_FRAME - 1)) >> OFFSET_SET_SHIFT
 
 
 def frame_dwo(code):
     """Whether frame codes (int or array) are under Haas' dynamic work offset G254."""
-    return np.asarray(code) // DWO_FRAME % 2 == 1
+    return (np.asarray(code) & DWO_FRAME) != 0
 
 
 # --------------------------------------------------------------------------------------- tokens
