@@ -97,7 +97,7 @@ def test_no_plane_micro_moves_under_cutter_compensation(tmp_path, large_model, n
         src, written = heidenhain_as_gcode(text), heidenhain_as_gcode(out)
     far, swing, corr = compare_centres(src, written, R_MM)
     assert far <= corr + 1e-3, (far, corr)
-    assert swing <= 3e-3, swing
+    assert swing <= 5e-3, swing
 
 
 def test_offset_plane_g18(tmp_path, large_model, monkeypatch):
@@ -140,7 +140,7 @@ def test_a_short_block_keeps_its_direction(tmp_path):
     assert any("crc_x" in r["active_bounds"] for r in rows if r["line"] == "6")
     far, swing, corr = compare_centres(CHAMFER.encode(), out.encode(), R_MM)
     assert far <= corr + 1e-3, (far, corr)
-    assert swing <= 3e-3, swing
+    assert swing <= 5e-3, swing
 
 
 @pytest.mark.parametrize("name", ["dxf2gcode_IFluegel Rippen b2 0201 a.ngc",
