@@ -205,7 +205,8 @@ def _print_run(args, machine, fitted, run_, seconds, unread, written) -> None:
     if st.get("links_relaxed"):
         n = len(st["links_relaxed"])
         print(f"note: at {n} block{'' if n == 1 else 's'} the rule that a correction keeps each "
-              "axis's direction (or an arc's one correction under G41/G42) gave way to the other "
+              "axis's direction (or an arc's one correction under G41/G42, or the offset plane's "
+              "correction held under G41/G42) gave way to the other "
               "bounds from where a window starts; the written motion there may differ in "
               "direction from the one the model was evaluated with")
     if st.get("qp_failed"):

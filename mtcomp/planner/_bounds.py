@@ -4,7 +4,8 @@ Per block and axis: ``|x| <= B`` (max correction), ``lo <= q + x / scale <= hi``
 consecutive blocks ``|x_i - x_(i-1)| <= S`` (max step; not into the end of a rapid unless the problem
 says so), and the link bounds of :mod:`._links` on the same differences (a correction that keeps each
 axis's direction where the model's error depends on it; one correction along an arc under cutter
-radius compensation). With an output grid every bound is first rounded inwards to whole grid steps; corrections
+radius compensation; the offset plane's corrections held or limited under it). With an output grid
+every bound is first rounded inwards to whole grid steps; corrections
 rounded to the nearest grid step then keep every bound (rounding is monotone and commutes with
 shifts by whole steps), and :meth:`Bounds.enforce` makes sure of it, clamping what a method without
 bounds (pinv, newton) produced and saying which bound acted.
@@ -17,28 +18,31 @@ from ._small import any_rows, column_extremes, down_columns
 from .problem import CompensationProblem
 
 #: the kinds of bound, in the order of the flag array's last axis
-FLAG_KINDS = ("max", "min", "travel_max", "travel_min", "step", "reversal", "arc", "standing")
+FLAG_KINDS = ("max", "min", "travel_max", "travel_min", "step", "reversal", "arc", "crc", "standing")
 #: the kinds that can hold an axis's whole correction where the block asks for one: the travel
 #: and the link bounds (an axis one of them leaves at zero keeps its whole error). Not the step
 #: bound, whose ramp only passes zero, nor the correction bound, zero only where the axis gets no
 #: correction by design (a rotary axis the model's data held at one angle), nor the standing
 #: rule's (a rotary axis the program does not move keeps its correction; the linear axes take the
 #: tip: the summary says so on a line of its own)
-HOLDING = np.array([kind in ("travel_max", "travel_min", "reversal", "arc") for kind in FLAG_KINDS])
+HOLDING = np.array([kind in ("travel_max", "travel_min", "reversal", "arc", "crc")
+                    for kind in FLAG_KINDS])
 INF = 1e30
 #: kinds of link bound (:mod:`._links`), as stored per node and axis (0: none)
-REVERSAL, ARC, STANDING = 1, 2, 3
+REVERSAL, ARC, STANDING, CRC = 1, 2, 3, 4
 
 
 def flag_name(kind: str, axis: str) -> str:
     """Column text of one active bound: cx_max, cx_min, travel_x_max, travel_x_min, step_x,
     reversal_x (the correction held so that X keeps its direction), arc_x (one correction along an
     arc under cutter radius compensation), standing_c (a rotary axis the program does not move
-    there, outside tool centre point mode, keeps the correction it has: its word is not written)."""
+    there, outside tool centre point mode, keeps the correction it has: its word is not written),
+    crc_x (under cutter radius compensation, an axis of the offset plane held at the correction
+    of the block before, or changed by no more than turns the block by CRC_TURN: :mod:`._links`)."""
     a = axis.lower()
     return {"max": f"c{a}_max", "min": f"c{a}_min", "travel_max": f"travel_{a}_max",
             "travel_min": f"travel_{a}_min", "step": f"step_{a}", "reversal": f"reversal_{a}",
-            "arc": f"arc_{a}", "standing": f"standing_{a}"}[kind]
+            "arc": f"arc_{a}", "standing": f"standing_{a}", "crc": f"crc_{a}"}[kind]
 
 
 
@@ -176,7 +180,7 @@ class Bounds:
         links : (lo, hi, kind) each (n, na), the link bounds of x_i - x_(i-1) (:mod:`._links`), or
         None; they apply into every block but the first of a program, and the box wins over them.
 
-        Returns (y (n, na) on the grid, flags (n, na, 7) bool, see FLAG_KINDS): a flag is set where
+        Returns (y (n, na) on the grid, flags (n, na, len(FLAG_KINDS)) bool): a flag is set where
         y sits on that bound and differs from ``desired`` by more than half a grid step (the bound
         took something away); ``step`` also where the step to the next block is on its bound.
         """
@@ -261,7 +265,7 @@ class Bounds:
             on[0] = False
         want = desired[:-1] - y[:-1]
         out = (at_lo[1:] & (want > 0)) | (at_hi[1:] & (want < 0))
-        for name, k in (("reversal", REVERSAL), ("arc", ARC), ("standing", STANDING)):
+        for name, k in (("reversal", REVERSAL), ("arc", ARC), ("standing", STANDING), ("crc", CRC)):
             f = flags[..., FLAG_KINDS.index(name)]
             f[:] = took & on & (kind == k)
             f[:-1] |= took[:-1] & out & (kind[1:] == k)

@@ -1,7 +1,7 @@
 """Bounds that tie a block's correction to the one before it, besides the step bound: the written
 program must be the one the planner evaluated.
 
-Two rules, each a bound on the change of a correction between consecutive output blocks,
+Rules, each a bound on the change of a correction between consecutive output blocks,
 ``lo <= x_i - x_(i-1) <= hi`` (optimisation units: um, urad), of the same kind as the step bound:
 
 * **reversal** (axes whose error the model makes depend on the approach direction: a backlash or
@@ -27,8 +27,21 @@ Two rules, each a bound on the change of a correction between consecutive output
   moved, and the linear axes alone take the tip. A rotary axis gets a correction only in a block
   that moves it; in tool centre point mode the controller moves the rotary axes anyway, and no
   such bound applies.
+* **crc** (a block under cutter radius compensation, G41/G42 in force or switched by its line;
+  the offset plane's two axes, X Y in G17, Z X in G18, Y Z in G19): the controller offsets every
+  move in the plane perpendicular to its own direction, so the change of the correction into the
+  block must not turn that direction. A block that does not move in the plane (a plunge, a G41 or
+  G40 line naming Z alone) keeps the plane correction of the block before (``x_i = x_(i-1)``): no
+  plane word is added, where one would be a move of a few um whose offset points anywhere. A
+  block that does may change it by at most its length in the plane times ``CRC_TURN / sqrt(2)``
+  per axis, in whole grid steps (0 for a block shorter than about 70 um on the 0.1 um grid), so
+  the written move turns by at most ``CRC_TURN`` (tan 0.11 deg): the offset vector turns with it,
+  and at an inside corner the tool centre moves by the tool radius times that tangent besides the
+  correction (10 um at 5 mm: a short block's swing). On a pinned block (no correction) the held
+  plane axes keep the correction they stand with, as standing rotary axes do
+  (:meth:`~._nodes.NodeSet.box_pins`).
 
-Zero correction change always keeps both, so a plan from zero stays feasible; from a window's
+Zero correction change always keeps every rule, so a plan from zero stays feasible; from a window's
 anchor (a committed correction) a rule can meet a bound it cannot get past (a block that gets no
 correction right after a stand-still with a correction on): :func:`propagate` finds such nodes
 and lets the step bound alone hold there, and tells which nodes can still reach zero correction
@@ -38,9 +51,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._bounds import ARC, INF, REVERSAL, STANDING
+from ._bounds import ARC, CRC, INF, REVERSAL, STANDING
 
-__all__ = ["ARC", "REVERSAL", "STANDING", "LinkRules", "direction_axes", "node_links", "propagate",
+#: under cutter radius compensation, the largest turn of a block's direction in the offset plane
+#: that the change of its correction may make, as its tangent (0.002: 0.11 deg; module docstring)
+CRC_TURN = 0.002
+#: the offset plane's axes of G17, G18, G19 (the axes the controller offsets the tool along)
+PLANE_AXES = {17: ("X", "Y"), 18: ("Z", "X"), 19: ("Y", "Z")}
+
+__all__ = ["ARC", "CRC", "CRC_TURN", "REVERSAL", "STANDING", "LinkRules", "direction_axes",
+           "node_links", "propagate",
            "run_start", "standing_axes", "undirected_axes"]
 
 
@@ -50,7 +70,7 @@ def direction_axes(model) -> np.ndarray:
     return model.direction_axes()
 
 
-def node_links(dp, dirs, reversal_axes, tie, no_link, unit, standing=None):
+def node_links(dp, dirs, reversal_axes, tie, no_link, unit, standing=None, plane=None):
     """The link bounds of n nodes: ``(lo, hi, kind)``, each (n, na), or None when no node has one.
 
     dp : (n, na) nominal move into each node from the node before (optimisation units, on the
@@ -61,10 +81,14 @@ def node_links(dp, dirs, reversal_axes, tie, no_link, unit, standing=None):
     unit : (na,) one output-grid step (optimisation units), the margin of a nominal move.
     standing : (n, na) bool or None, the rotary axes the standing rule holds (no change of their
     correction into the node, whatever ``no_link`` says: :meth:`LinkRules.standing`).
+    plane : (n, na) or None, the room of the change of the correction of the offset plane's axes
+    into a node under cutter radius compensation (``-plane <= x_i - x_(i-1) <= plane``; INF on the
+    other axes and nodes: :meth:`LinkRules.plane_room`); named where it is at least as tight as the
+    reversal bound on both sides.
     """
     n, na = dp.shape
     stands = standing is not None and bool(standing.any())
-    if n == 0 or not (reversal_axes.any() or tie.any() or stands):
+    if n == 0 or not (reversal_axes.any() or tie.any() or stands or plane is not None):
         return None
     lo = np.full((n, na), -INF)
     hi = np.full((n, na), INF)
@@ -77,6 +101,10 @@ def node_links(dp, dirs, reversal_axes, tie, no_link, unit, standing=None):
         lo[:, j] = np.where(d > 0, margin - p, np.where(d == 0, 0.0, -INF))
         hi[:, j] = np.where(d < 0, -margin - p, np.where(d == 0, 0.0, INF))
         kind[:, j] = REVERSAL
+    if plane is not None:
+        kind[(plane < INF) & (-plane >= lo) & (plane <= hi)] = CRC
+        np.maximum(lo, -plane, out=lo)
+        np.minimum(hi, plane, out=hi)
     if tie.any():
         lo[tie] = 0.0
         hi[tie] = 0.0
@@ -184,6 +212,8 @@ class LinkRules:
         # the tool axis: a drilling cycle feeds it down to the hole whatever the correction
         self.tool_axis = names.index("Z") if "Z" in names else -1
         self.rotary = np.array([a.is_rotary for a in problem.machine.axes], bool)
+        self.plane_cols = {code: [names.index(a) for a in axes] for code, axes in PLANE_AXES.items()
+                           if all(a in names for a in axes)}
         self._last_known = None       # the known axes of the last row of the last chunk
 
     def steps(self, dq):
@@ -207,14 +237,14 @@ class LinkRules:
         bool the first node of its row (its move starts at the row's start: after a drilling cycle
         where the cycle left the tool), ``first`` the chunk starts the program, ``cycle`` (nrows,)
         bool the rows that are holes."""
-        crc = getattr(chunk, "cutter_comp", None)
-        tie = np.zeros(rows.size, bool) if crc is None else \
-            (np.asarray(crc, bool) & np.asarray(chunk.from_arc, bool))[rows]
+        codes = getattr(chunk, "cutter_comp", None)
+        codes = np.zeros(rows.size, np.int8) if codes is None else np.asarray(codes)[rows]
+        tie = (codes != 0) & np.asarray(chunk.from_arc, bool)[rows]
         known_rows = np.asarray(chunk.known, bool)
         last_known = self._last_known
         if len(known_rows):
             self._last_known = known_rows[-1].copy()
-        if rows.size == 0 or not (self.reversal_axes.any() or tie.any() or self.rotary.any()):
+        if rows.size == 0 or not (self.reversal_axes.any() or codes.any() or self.rotary.any()):
             return None
         was_known = np.empty_like(known_rows)       # known at the row's start
         was_known[1:] = known_rows[:-1]
@@ -249,7 +279,28 @@ class LinkRules:
         if first and standing is not None:
             standing[0] = False
         return node_links(dp, np.asarray(chunk.dirs)[rows], self.reversal_axes, tie & ~jump,
-                          no_link, self.unit, standing)
+                          no_link, self.unit, standing, self.plane_room(codes, dp))
+
+    def plane_room(self, codes, dp):
+        """(n, na) the room of the change of the offset plane's corrections into nodes under
+        cutter radius compensation (module docstring), INF elsewhere, or None where no node is
+        under it. codes : (n,) the rows' ``SegmentChunk.cutter_comp`` codes (0, or the plane 17,
+        18, 19). dp : (n, na) the nominal moves into the nodes (x units, on the output grid).
+        The room is the move's length in the plane times CRC_TURN / sqrt(2) on each of the two
+        axes (so the change turns the move by at most CRC_TURN), whole grid steps down: 0, a tie,
+        where the block does not move in the plane or is too short for one step."""
+        if not codes.any():
+            return None
+        room = np.full(dp.shape, INF)
+        for code, cols in self.plane_cols.items():
+            on = codes == code
+            if not on.any():
+                continue
+            r = np.hypot(dp[on, cols[0]], dp[on, cols[1]]) * (CRC_TURN / np.sqrt(2.0))
+            for j in cols:
+                room[on, j] = r if self.bounds.grid is None else \
+                    np.floor(r / self.unit[j] + 1e-6) * self.unit[j]
+        return room
 
     def standing(self, dp, known, tcp):
         """(n, na) bool, the rotary axes the standing rule holds (module docstring), or None on a

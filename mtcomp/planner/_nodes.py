@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._bounds import INF, STANDING
+from ._bounds import CRC, INF, STANDING
 
 
 @dataclass
@@ -64,11 +64,14 @@ class NodeSet:
 
     def box_pins(self) -> np.ndarray:
         """What :meth:`~._bounds.Bounds.limits` pins to zero: ``pinned`` (n,), or (n, na) where a
-        pinned block has a rotary axis the standing rule holds (:mod:`._links`): the axis stands
-        with the correction it has, which the block does not write."""
+        pinned block has a rotary axis the standing rule holds, or an axis of the offset plane
+        that cutter radius compensation ties to the block before's correction (the block does not
+        move in the plane; :mod:`._links`): the axis stands with the correction it has, which the
+        block does not write."""
         if self.link_kind is None or not self.pinned.any():
             return self.pinned
-        stand = self.link_kind == STANDING
+        stand = (self.link_kind == STANDING) | \
+            ((self.link_kind == CRC) & (self.link_lo == 0.0) & (self.link_hi == 0.0))
         if not (stand & self.pinned[:, None]).any():
             return self.pinned
         return self.pinned[:, None] & ~stand

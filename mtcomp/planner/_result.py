@@ -20,7 +20,8 @@ class PlanResult:
     before, after : (n, 3) tip deviation (mm) of the uncorrected and corrected block, workpiece frame;
     before_axis, after_axis : (n, 3) tool-axis deviation (actual minus nominal unit vector), 5-axis
         machines only (None otherwise).
-    flags : (n, na, 7) bool, bounds that acted (see ``FLAG_KINDS``); none on a pinned block.
+    flags : (n, na, len(FLAG_KINDS)) bool, bounds that acted (see ``FLAG_KINDS``); none on a
+        pinned block.
     iterations : (n,) model linearisations used per node. converged : (n,) bool.
     unknown, outside : (n, na) bool, axes not known / outside the model's support (see NodeSet).
     pinned : (n,) bool, the block was given no correction (bounds zero) for any of the reasons.

@@ -12,8 +12,9 @@ One row per output block (every G0/G1 line written for a motion, internal nodes 
   ``ei_before_urad, ej_before_urad, ek_before_urad, e_axis_before_urad`` and ``_after``;
 * ``active_bounds``: the bounds that kept the planner from removing the error at this block,
   separated by ``;``: ``cx_max`` / ``cx_min`` (max correction), ``travel_x_max`` / ``travel_x_min``
-  (travel), ``step_x`` (max change from the block before), ``reversal_x``, ``arc_x`` (the
-  link bounds into the block, or into the block after it where they hold this one's correction),
+  (travel), ``step_x`` (max change from the block before), ``reversal_x``, ``arc_x``, ``crc_x``
+  (the link bounds into the block, or into the block after it where they hold this one's
+  correction),
   ``standing_c`` (a rotary axis the program does not move there keeps its correction); empty when
   none, and on a block left uncorrected for another reason (no bound acted there).
 * ``unknown_axes``: the axes whose position the program has not given at this block (e.g. ``Z``
@@ -366,7 +367,8 @@ class Summary:
                 self.blind_blocks += int(only.sum())
 
     def _count_flags(self, into: dict, flags: np.ndarray) -> None:
-        """Add to ``into`` (bound name -> count) how often each bound is set in flags (n, na, 7)."""
+        """Add to ``into`` (bound name -> count) how often each bound is set in flags (n, na,
+        len(FLAG_KINDS))."""
         counts = flags.sum(axis=0)
         for j, a in enumerate(self.axis_names):
             for k, kind in enumerate(FLAG_KINDS):

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..io.atomic import atomic_write
-from .blocks import SegmentChunk
+from .blocks import SegmentChunk, crc_code
 from .reader import new_state
 from .word_use import POINT_DIALECTS
 from .words import PROGRESS_LINES
@@ -290,7 +290,8 @@ class _Driver:
 def _new_rows(cap, na):
     return (np.empty(cap, np.int64), np.empty((cap, na)), np.empty((cap, na)), np.empty(cap),
             np.empty((cap, na), np.int8), np.empty(cap, np.uint8), np.empty(cap, np.uint8),
-            np.empty(cap, np.int32), np.zeros(cap, bool), np.zeros(cap, bool), np.zeros(cap, bool))
+            np.empty(cap, np.int32), np.zeros(cap, bool), np.zeros(cap, bool),
+            np.zeros(cap, np.int8))
 
 
 def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_position=None,
@@ -318,7 +319,7 @@ def iter_segment_chunks(path, machine, chord_tol_mm, chunk_size, initial_positio
             before = n.value
             status = d.call(rows[:8], cap, n)
             # the scanner's rows: every line that switches G40-G42 is Python's, so the state holds
-            rows[10][before:n.value] = d.state.cutter_comp
+            rows[10][before:n.value] = crc_code(d.state.cutter_comp, d.state.plane)
             if status == NEED_INPUT:
                 if d.eof:
                     break
@@ -365,7 +366,7 @@ def _put_rows(rows, r, b, starts, sl, mask) -> None:
     ``starts``, known axes as the bit ``mask``)."""
     line, start, end, feed, dirs, rapid, known, frame, arc, cycle, crc = rows
     take = sl.stop - sl.start
-    crc[r:r + take] = b.cutter_comp
+    crc[r:r + take] = b.crc_code
     known[r:r + take] = mask
     if sl.start == 0 and not b.start_known:
         known[r] |= START_UNKNOWN

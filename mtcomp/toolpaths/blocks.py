@@ -49,9 +49,11 @@ class SegmentChunk:
     tcp : (n,) bool or None, the row is in tool centre point mode (set by
         :meth:`mtcomp.toolpaths.offsets.ProgramSetup.apply`, which turns such rows into axis
         positions; None: not known, none is).
-    cutter_comp : (n,) bool, the row's block runs under cutter radius compensation (G41/G42 in
-        force, or its line switches it on or off); the controller offsets such a block as written,
-        so an arc under it is written as one arc (:attr:`MotionBlock.cutter_comp`).
+    cutter_comp : (n,) int8, 0 where the row's block runs without cutter radius compensation, else
+        the offset plane it runs under (17, 18, 19 for G17, G18, G19; :func:`crc_code`): G41/G42 in
+        force, or its line switches it on or off. The controller offsets such a block as written,
+        so an arc under it is written as one arc (:attr:`MotionBlock.cutter_comp`), and the planner
+        ties the correction of the plane's axes where the block does not move in it.
     """
 
     line: np.ndarray
@@ -87,7 +89,7 @@ class SegmentChunk:
         if self.jump is None:
             self.jump = np.zeros(n, bool)
         if self.cutter_comp is None:
-            self.cutter_comp = np.zeros(n, bool)
+            self.cutter_comp = np.zeros(n, np.int8)
 
     def __len__(self) -> int:
         return int(self.line.shape[0])
@@ -106,6 +108,12 @@ class SegmentChunk:
         optional["cutter_comp"] = np.concatenate([c.cutter_comp for c in chunks])
         return SegmentChunk(*(np.concatenate([getattr(c, f) for c in chunks])
                               for f in SegmentChunk.FIELDS), **optional)
+
+
+def crc_code(cutter_comp: bool, plane: int) -> int:
+    """A row's :attr:`SegmentChunk.cutter_comp` code: 0 without cutter radius compensation, else
+    the offset plane (17, 18, 19) the controller offsets its block in."""
+    return int(plane) if cutter_comp else 0
 
 
 def _empty_chunk(na: int) -> SegmentChunk:
@@ -180,6 +188,11 @@ class MotionBlock:
         return self.motion == 0
 
     @property
+    def crc_code(self) -> int:
+        """The block's :attr:`SegmentChunk.cutter_comp` code (:func:`crc_code`)."""
+        return crc_code(self.cutter_comp, self.plane)
+
+    @property
     def from_arc(self) -> bool:
         return self.motion in (2, 3)
 
@@ -234,4 +247,4 @@ def _block_rows(b: MotionBlock) -> SegmentChunk:
                         np.full(k, b.feed), b.dirs.copy(), np.full(k, b.rapid), np.full(k, b.from_arc),
                         np.repeat(b.known[None, :], k, axis=0), np.full(k, b.frame, np.int32),
                         np.full(k, b.cycle is not None), np.arange(k) == 0 if not b.start_known
-                        else np.zeros(k, bool), cutter_comp=np.full(k, b.cutter_comp))
+                        else np.zeros(k, bool), cutter_comp=np.full(k, b.crc_code, np.int8))

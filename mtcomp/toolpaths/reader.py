@@ -90,7 +90,7 @@ class _ChunkBuilder:
 
     def _reset(self):
         self.rows: list[tuple] = []   # (line, start, end, feed, dirs, rapid, arc, known, frame,
-        #                                cycle, jump, cutter_comp)
+        #                                cycle, jump, cutter_comp code)
         self.n = 0
 
     def add(self, b: MotionBlock) -> Iterator[SegmentChunk]:
@@ -99,7 +99,7 @@ class _ChunkBuilder:
         for r in range(k):
             self.rows.append((b.line, starts[r], b.points[r], b.feed, b.dirs[r], b.rapid, b.from_arc,
                               b.known, b.frame, b.cycle is not None, r == 0 and not b.start_known,
-                              b.cutter_comp))
+                              b.crc_code))
             self.n += 1
             if self.n == self.size:
                 yield self.flush()
@@ -113,7 +113,7 @@ class _ChunkBuilder:
                          np.array(dirs, np.int8).reshape(-1, self.na), np.array(rapid, bool),
                          np.array(arc, bool), np.array(known, bool).reshape(-1, self.na),
                          np.array(frame, np.int32), np.array(cycle, bool), np.array(jump, bool),
-                         cutter_comp=np.array(crc, bool))
+                         cutter_comp=np.array(crc, np.int8))
         self._reset()
         return c
 
