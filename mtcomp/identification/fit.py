@@ -41,7 +41,7 @@ Method (docs/identification.md):
 
 The pieces: :mod:`.problem` (what is fitted: free and held parameters, the files' measurement
 models, the physical metric), :mod:`._linalg` (rank, null space, scaled solves), :mod:`.result` (the
-result types), :mod:`.predict` (predictions of a fitted model).
+result types), :mod:`.weighting` (the weights), :mod:`.predict` (predictions of a fitted model).
 """
 from __future__ import annotations
 
@@ -58,16 +58,15 @@ from ..models.params import ParameterSet
 from .reversal import DirectionContrast, data_reversal
 from ._rotation import reference_rotation, undetermined_unknowns, without
 from .unmeasured import assumption, record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
-from ._linalg import (column_scale, _eliminate, _error_scales, _name_null_space,
+from ._linalg import (column_scale, _eliminate, _name_null_space,
                       _relative_singular_values, _seen_columns, _solver, _unseen_apart, _step, block_obs,
                       file_normal_equations, one_blas_thread, penalised_inverse)
 from .problem import (DEFAULT_RCOND, FitProblem, SolverOptions, data_region, fitted_axes,
                       frame_rotations, frame_rule_complement)
 from .problem import travel_metric  # noqa: F401
-from .result import FileResiduals, FitResult, error_unit, unsettled_parameters
+from .result import FileResiduals, FitResult, unsettled_parameters
+from .weighting import fit_weights, unit_weights
 from ._weak import WEAK_SD_UM, WEAK_SIGNIFICANT, held_variance, hold_weak, weak_directions  # noqa: F401
-#: most fits with weights='noise' (each re-estimates the noise of every file and unit)
-NOISE_PASSES = 5
 
 
 # ------------------------------------------------------------------------------------- identify
@@ -138,7 +137,7 @@ def _solve(problem: FitProblem, options: SolverOptions, info: dict | None, t0: f
     region = data_region(problem.model.machine, mms, fitted_axes(problem.model, problem.free))
     stacked.metric = travel_metric(problem.model, stacked.free_idx, stacked.n_unknowns, region)
     o = options
-    w, label = _weights(stacked, problem.weights, o.rcond, o.max_iterations, o.tol)
+    w, label = fit_weights(stacked, problem.weights, o.rcond, o.max_iterations, o.tol)
     sol = stacked.solve(w, o.rcond, o.max_iterations, o.tol)
     result = stacked.result(sol, w, label, problem.context_defaults, time.perf_counter() - t0, info)
     if stacked.weak_fallback:
@@ -147,29 +146,6 @@ def _solve(problem: FitProblem, options: SolverOptions, info: dict | None, t0: f
     if problem.removed:
         result.info["outliers"] = [str(o) for o in problem.removed]
     return result
-
-
-def _weights(problem, weights, rcond: float, max_iterations: int, tol: float):
-    """((n_obs,) weights of the observations, their label for the report) of :func:`identify`'s
-    ``weights``."""
-    if isinstance(weights, str) and weights == "unit":
-        return problem.unit_weights(), "unit (um, urad)"
-    if isinstance(weights, str) and weights == "noise":
-        w = problem.unit_weights()
-        for _ in range(NOISE_PASSES):
-            sol = problem.solve(w, rcond, max_iterations, tol, leverage=True)
-            w_new = problem.noise_weights(sol, w)
-            change = np.max(np.abs(w_new / w - 1.0))
-            w = w_new
-            if change < 0.01:
-                break
-        return w, "1/noise per file"
-    if isinstance(weights, dict):
-        return problem.dict_weights(weights), "given noise per file"
-    if isinstance(weights, np.ndarray) and weights.shape == (problem.n_obs,):
-        # each reading's noise in its error unit (um, urad, um/min): diagnose's floors
-        return problem.unit_weights() / weights, "given noise per reading"
-    raise ValueError(f"weights must be 'unit', 'noise', a dict or one noise per reading, not {weights!r}")
 
 
 def _tool_lengths(machine, datasets) -> list[float] | None:
@@ -303,45 +279,8 @@ class _Problem:
 
     # --------------------------------------------------------------- weights
     def unit_weights(self):
-        return np.concatenate([_error_scales(m.obs_column) for m in self.mms])
-
-    def _groups(self):
-        """(file index, scale, observation index array) per file and error unit (um, urad and um/min
-        are separate groups: a velocity's noise is not a position's)."""
-        for i, (m, sl) in enumerate(zip(self.mms, self.obs_slices)):
-            scales = _error_scales(m.obs_column)
-            units = np.array([error_unit(c) for c in m.obs_column])
-            for u in np.unique(units):
-                sel = units == u
-                yield i, scales[sel][0], np.arange(sl.start, sl.stop)[sel]
-
-    def noise_weights(self, sol: "_Solution", w_used):
-        """1/noise per file and unit from the residuals of a fit with weights ``w_used``: noise^2 =
-        sum of squared residuals / (n - sum of the leverages of those observations)."""
-        w = self.unit_weights()
-        for _, s, idx in self._groups():
-            resid = sol.r[idx] / w_used[idx] * s   # error units
-            dof = idx.size - float(np.sum(sol.leverage[idx]))
-            noise = np.sqrt(np.sum(resid ** 2) / max(dof, 1e-12))
-            if noise > 0:
-                w[idx] = s / noise
-        return w
-
-    def dict_weights(self, noise: dict):
-        w = self.unit_weights()
-        tags = {m.tag: i for i, m in enumerate(self.mms)}
-        for tag in noise:
-            if tag not in tags:
-                raise InputError(f"weights name file {tag!r}, which is not among the data "
-                                 f"({', '.join(tags)})")
-        for i, s, idx in self._groups():
-            tag = self.mms[i].tag
-            if tag in noise:
-                sigma = float(noise[tag])
-                if not sigma > 0:
-                    raise InputError(f"noise of file {tag!r} must be positive, got {sigma}")
-                w[idx] = s / sigma
-        return w
+        """(n_obs,) the weights that put every residual in um, urad or um/min (:mod:`.weighting`)."""
+        return unit_weights(self.mms)
 
     # --------------------------------------------------------------- evaluation
     def _unknowns(self, p) -> np.ndarray:
