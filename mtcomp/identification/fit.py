@@ -9,9 +9,11 @@ observations at once; diagnose's base fit solves the problem of its probe model 
 
 Method (docs/identification.md):
 
-* Residuals ``r = w (observed - predicted)`` with one weight per observation. Default weighting
-  ``"unit"``: every residual in um (translational, lengths) or urad (angular), i.e. ``w = 1e3`` per mm
-  and ``1e6`` per rad, the same for every file. ``"noise"``: a first fit with unit weights estimates
+* Residuals ``r = w (observed - predicted)`` with one weight per observation (:mod:`.weighting`).
+  Default weighting ``"unit"``: every residual in um (translational, lengths) or urad (angular), i.e.
+  ``w = 1e3`` per mm and ``1e6`` per rad, the same for every file, each unit then weighted by its own
+  noise estimated from the residuals when the data hold more than one (generalised least squares
+  with estimated weights), so that the covariance sizes each by its own residual variance. ``"noise"``: a first fit with unit weights estimates
   each file's noise (rms residual per file and unit, corrected for the degrees of freedom the file
   uses), then the fit is repeated with ``w = 1 / noise``. A dict ``{tag: noise}`` (um or urad) fixes
   the noise per file.
@@ -65,7 +67,7 @@ from .problem import (DEFAULT_RCOND, FitProblem, SolverOptions, data_region, fit
                       frame_rotations, frame_rule_complement)
 from .problem import travel_metric  # noqa: F401
 from .result import FileResiduals, FitResult, unsettled_parameters
-from .weighting import fit_weights, unit_weights
+from .weighting import fit_weights, group_noise, unit_weights
 from ._weak import WEAK_SD_UM, WEAK_SIGNIFICANT, held_variance, hold_weak, weak_directions  # noqa: F401
 
 
@@ -137,8 +139,9 @@ def _solve(problem: FitProblem, options: SolverOptions, info: dict | None, t0: f
     region = data_region(problem.model.machine, mms, fitted_axes(problem.model, problem.free))
     stacked.metric = travel_metric(problem.model, stacked.free_idx, stacked.n_unknowns, region)
     o = options
-    w, label = fit_weights(stacked, problem.weights, o.rcond, o.max_iterations, o.tol)
-    sol = stacked.solve(w, o.rcond, o.max_iterations, o.tol)
+    w, label, sol = fit_weights(stacked, problem.weights, o.rcond, o.max_iterations, o.tol)
+    if sol is None:
+        sol = stacked.solve(w, o.rcond, o.max_iterations, o.tol)
     result = stacked.result(sol, w, label, problem.context_defaults, time.perf_counter() - t0, info)
     if stacked.weak_fallback:
         result.info["weak_directions"] = ("not held: holding them would have spoiled the fit of the "
@@ -244,6 +247,8 @@ class _Problem:
     known_noise = False
     #: (step of the unknowns, share of the cost) of Gauss-Newton's last step, set by each step
     unsettled = None
+    #: the residual variance of the last solve's posterior (weighted units)
+    s2 = float("nan")
 
     def __init__(self, model, mms, mask, p0):
         self.model = model
@@ -535,6 +540,7 @@ class _Problem:
         lev = np.zeros(self.n_obs)
         edf = float(rank)
         self.held_assumed = 0
+        self.s2 = float("nan")
         if not B.shape[1]:
             return (lev, edf, np.full((self.n_unknowns, self.n_unknowns), np.nan),
                     np.zeros((self.n_unknowns, 0)), np.zeros(0))
@@ -544,7 +550,7 @@ class _Problem:
         Hinv = penalised_inverse(AB, S)
         H = AB + S
         edf = float(np.trace(Hinv @ AB)) if self.S is not None else float(rank)
-        s2 = self._residual_variance(r, edf)
+        s2 = self.s2 = self._residual_variance(r, edf)
         cov = s2 * (scale[:, None] * (B @ Hinv @ B.T) * scale[None, :])
         if P is not None:
             cov = P @ cov @ P.T
@@ -700,7 +706,8 @@ class _Problem:
             sigma=float(np.sqrt(cost / dof)) if dof else float("nan"), iterations=sol.iterations,
             converged=sol.converged, cost=cost, seconds=seconds, weighting=label, info=dict(info or {}),
             directions=sol.scale[:, None] * sol.B, residual=sol.r.copy(), held_sd_um=sol.held_sd,
-            held_assumed=self.held_assumed, unsettled=unsettled_parameters(sol, se, unknown_specs))
+            held_assumed=self.held_assumed, unsettled=unsettled_parameters(sol, se, unknown_specs),
+            noise=group_noise(self, label, w, self.s2))
         if self.smoothing is not None:
             res.smoothing = self.smoothing
         params = ParameterSet(model.param_specs, values, std)

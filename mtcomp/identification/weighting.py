@@ -25,49 +25,94 @@ def unit_weights(mms) -> np.ndarray:
 
 def fit_weights(problem, weights, rcond: float, max_iterations: int, tol: float):
     """((n_obs,) weights of the observations of ``problem`` (:class:`.fit._Problem`), their label for
-    the report) of :func:`.fit.identify`'s ``weights``."""
+    the report, the fit at those weights when the reweighting already made it, else None) of
+    :func:`.fit.identify`'s ``weights``."""
     if isinstance(weights, str) and weights == "unit":
-        return unit_weights(problem.mms), "unit (um, urad)"
-    if isinstance(weights, str) and weights == "noise":
         w = unit_weights(problem.mms)
-        for _ in range(NOISE_PASSES):
-            sol = problem.solve(w, rcond, max_iterations, tol, leverage=True)
-            w_new = noise_weights(problem, sol, w)
-            change = np.max(np.abs(w_new / w - 1.0))
-            w = w_new
-            if change < 0.01:
-                break
-        return w, "1/noise per file"
+        classes = list(unit_groups(problem))
+        if len(classes) < 2:
+            return w, "unit (um, urad)", None
+        # one residual variance for um and urad alike sizes one class's standard errors by the
+        # other's noise: each unit gets its own (a variance-components step, feasible GLS)
+        w, sol, _ = _reweighted(problem, classes, w, rcond, max_iterations, tol)
+        return w, "unit, 1/noise per unit", sol
+    if isinstance(weights, str) and weights == "noise":
+        _, _, w = _reweighted(problem, list(file_groups(problem)), unit_weights(problem.mms), rcond,
+                              max_iterations, tol)
+        return w, "1/noise per file", None
     if isinstance(weights, dict):
-        return dict_weights(problem, weights), "given noise per file"
+        return dict_weights(problem, weights), "given noise per file", None
     if isinstance(weights, np.ndarray) and weights.shape == (problem.n_obs,):
         # each reading's noise in its error unit (um, urad, um/min): diagnose's floors
-        return unit_weights(problem.mms) / weights, "given noise per reading"
+        return unit_weights(problem.mms) / weights, "given noise per reading", None
     raise ValueError(f"weights must be 'unit', 'noise', a dict or one noise per reading, not {weights!r}")
 
 
-def _groups(problem):
-    """(file index, scale, observation index array) per file and error unit (um, urad and um/min
-    are separate groups: a velocity's noise is not a position's)."""
-    for i, (m, sl) in enumerate(zip(problem.mms, problem.obs_slices)):
+def _reweighted(problem, groups: list, w, rcond: float, max_iterations: int, tol: float):
+    """(weights, the fit at them, the weights that fit gives) of iterated reweighting from ``w`` by
+    1/noise per group of observations: each fit's residuals give each group's noise
+    (:func:`noise_weights`) until the weights change by less than 1 % (at most :data:`NOISE_PASSES`
+    fits; when they run out, the last weights and no fit)."""
+    for _ in range(NOISE_PASSES):
+        sol = problem.solve(w, rcond, max_iterations, tol, leverage=True)
+        w_new = noise_weights(sol, w, groups)
+        if np.max(np.abs(w_new / w - 1.0)) < 0.01:
+            return w, sol, w_new
+        w = w_new
+    return w, None, w
+
+
+def unit_groups(problem):
+    """(label, scale, observation index array) per error unit of the readings of every file: um, urad
+    and um/min (a velocity's noise is not a position's)."""
+    units = np.concatenate([[error_unit(c) for c in m.obs_column] for m in problem.mms])
+    scales = unit_weights(problem.mms)
+    for u in np.unique(units):
+        idx = np.flatnonzero(units == u)
+        yield str(u), scales[idx[0]], idx
+
+
+def file_groups(problem):
+    """(label "tag unit", scale, observation index array) per file and error unit."""
+    for m, u, s, idx in _file_units(problem):
+        yield f"{m.tag} {u}", s, idx
+
+
+def _file_units(problem):
+    """(measurement model, error unit, scale, observation index array) per file and error unit."""
+    for m, sl in zip(problem.mms, problem.obs_slices):
         scales = _error_scales(m.obs_column)
         units = np.array([error_unit(c) for c in m.obs_column])
         for u in np.unique(units):
             sel = units == u
-            yield i, scales[sel][0], np.arange(sl.start, sl.stop)[sel]
+            yield m, str(u), scales[sel][0], np.arange(sl.start, sl.stop)[sel]
 
 
-def noise_weights(problem, sol, w_used):
-    """1/noise per file and unit from the residuals of a fit ``sol`` with weights ``w_used``:
-    noise^2 = sum of squared residuals / (n - sum of the leverages of those observations)."""
-    w = unit_weights(problem.mms)
-    for _, s, idx in _groups(problem):
+def noise_weights(sol, w_used, groups):
+    """1/noise per group of observations (``groups``: :func:`unit_groups`, :func:`file_groups`) from
+    the residuals of a fit ``sol`` with weights ``w_used``: noise^2 = sum of squared residuals / (n -
+    sum of the leverages of those observations), the penalised fit's effective degrees of freedom
+    split by the observations that spend them. A group without degrees of freedom left, or without
+    residual, keeps its weight."""
+    w = np.array(w_used, dtype=float)
+    for _, s, idx in groups:
         resid = sol.r[idx] / w_used[idx] * s   # error units
         dof = idx.size - float(np.sum(sol.leverage[idx]))
-        noise = np.sqrt(np.sum(resid ** 2) / max(dof, 1e-12))
+        noise = np.sqrt(np.sum(resid ** 2) / dof) if dof > 0 else 0.0
         if noise > 0:
             w[idx] = s / noise
     return w
+
+
+def group_noise(problem, label: str, w, s2: float) -> dict:
+    """{group label: noise} that the fit's covariance takes for each group of observations (um, urad,
+    um/min): the noise its weights give, ``scale / w``, times the posterior's sqrt(s2). Under
+    ``"unit"`` weights one per unit, under ``"noise"`` or a dict one per file and unit; {} for weights
+    given per reading."""
+    if label == "given noise per reading" or not np.isfinite(s2):
+        return {}
+    groups = unit_groups(problem) if label.startswith("unit") else file_groups(problem)
+    return {name: float(s / np.median(w[idx]) * np.sqrt(s2)) for name, s, idx in groups}
 
 
 def dict_weights(problem, noise: dict):
@@ -79,8 +124,8 @@ def dict_weights(problem, noise: dict):
         if tag not in tags:
             raise InputError(f"weights name file {tag!r}, which is not among the data "
                              f"({', '.join(tags)})")
-    for i, s, idx in _groups(problem):
-        tag = problem.mms[i].tag
+    for m, _, s, idx in _file_units(problem):
+        tag = m.tag
         if tag in noise:
             sigma = float(noise[tag])
             if not sigma > 0:
