@@ -35,10 +35,10 @@ Method (docs/identification.md):
 * Profiles carry a roughness penalty whose weights REML chooses (:mod:`.penalty`): what the data
   leave open between what they measured follows the smoothest curve.
 * Covariance of the unknowns: the posterior ``s2 D B (B^T Js^T Js B + B^T S B)^-1 B^T D`` with B the
-  directions fitted, S the penalty and ``s2 = sum r^2 / (n_obs - edf)``, less the reversal at
-  targets a laser file reads from both sides (one degree of freedom each: a reversal the model does
-  not hold is error it leaves, not uncertainty of what it fits); standard errors are its
-  diagonal. A parameter with weight in an undetermined direction gets std error NaN and
+  directions fitted, S the penalty and ``s2 = sum r^2 / (n_obs - edf)`` (about 1 with weights
+  1/noise), less the reversal at targets a laser file reads from both sides (one degree of freedom
+  each: a reversal the model does not hold is error it leaves, not uncertainty of what it fits);
+  standard errors are its diagonal. A parameter with weight in an undetermined direction gets std error NaN and
   ``determined = False``.
 
 The pieces: :mod:`.problem` (what is fitted: free and held parameters, the files' measurement
