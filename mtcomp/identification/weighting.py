@@ -16,6 +16,10 @@ from .result import error_unit
 
 #: most fits with weights='noise' (each re-estimates the noise of every file and unit)
 NOISE_PASSES = 5
+#: under weights 'unit', the least noise a unit is weighted by (um, urad, um/min): below it the
+#: residuals are the readings' round-off (a noise-free simulation), whose ratio between the units
+#: says nothing (weights 1e9 apart took directions the data fix below the rank threshold)
+UNIT_NOISE_FLOOR = 1e-4
 
 
 def unit_weights(mms) -> np.ndarray:
@@ -34,7 +38,7 @@ def fit_weights(problem, weights, rcond: float, max_iterations: int, tol: float)
             return w, "unit (um, urad)", None
         # one residual variance for um and urad alike sizes one class's standard errors by the
         # other's noise: each unit gets its own (a variance-components step, feasible GLS)
-        w, sol, _ = _reweighted(problem, classes, w, rcond, max_iterations, tol)
+        w, sol, _ = _reweighted(problem, classes, w, rcond, max_iterations, tol, UNIT_NOISE_FLOOR)
         return w, "unit, 1/noise per unit", sol
     if isinstance(weights, str) and weights == "noise":
         _, _, w = _reweighted(problem, list(file_groups(problem)), unit_weights(problem.mms), rcond,
@@ -48,14 +52,15 @@ def fit_weights(problem, weights, rcond: float, max_iterations: int, tol: float)
     raise ValueError(f"weights must be 'unit', 'noise', a dict or one noise per reading, not {weights!r}")
 
 
-def _reweighted(problem, groups: list, w, rcond: float, max_iterations: int, tol: float):
+def _reweighted(problem, groups: list, w, rcond: float, max_iterations: int, tol: float,
+                floor: float = 0.0):
     """(weights, the fit at them, the weights that fit gives) of iterated reweighting from ``w`` by
     1/noise per group of observations: each fit's residuals give each group's noise
     (:func:`noise_weights`) until the weights change by less than 1 % (at most :data:`NOISE_PASSES`
-    fits; when they run out, the last weights and no fit)."""
+    fits; when they run out, the last weights and no fit); no group's noise below ``floor``."""
     for _ in range(NOISE_PASSES):
         sol = problem.solve(w, rcond, max_iterations, tol, leverage=True)
-        w_new = noise_weights(sol, w, groups)
+        w_new = noise_weights(sol, w, groups, floor)
         if np.max(np.abs(w_new / w - 1.0)) < 0.01:
             return w, sol, w_new
         w = w_new
@@ -88,18 +93,19 @@ def _file_units(problem):
             yield m, str(u), scales[sel][0], np.arange(sl.start, sl.stop)[sel]
 
 
-def noise_weights(sol, w_used, groups):
+def noise_weights(sol, w_used, groups, floor: float = 0.0):
     """1/noise per group of observations (``groups``: :func:`unit_groups`, :func:`file_groups`) from
     the residuals of a fit ``sol`` with weights ``w_used``: noise^2 = sum of squared residuals / (n -
     sum of the leverages of those observations), the penalised fit's effective degrees of freedom
-    split by the observations that spend them. A group without degrees of freedom left, or without
-    residual, keeps its weight."""
+    split by the observations that spend them, at least ``floor``. A group without degrees of
+    freedom left, or without residual, keeps its weight."""
     w = np.array(w_used, dtype=float)
     for _, s, idx in groups:
         resid = sol.r[idx] / w_used[idx] * s   # error units
         dof = idx.size - float(np.sum(sol.leverage[idx]))
         noise = np.sqrt(np.sum(resid ** 2) / dof) if dof > 0 else 0.0
         if noise > 0:
+            noise = max(noise, floor)
             w[idx] = s / noise
     return w
 
