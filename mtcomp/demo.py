@@ -177,8 +177,9 @@ def _identify_base(machine, datasets, out: Path, res: DemoResult, say) -> None:
     save_model(out / "MODEL_base.json", ident.fitted_model)
     (out / "identify.txt").write_text(ident.summary() + "\n", encoding="utf-8")
     res.files += ["MODEL_base.json", "identify.txt"]
-    say(f"      {ident.n_params} unknowns, rank {ident.rank}, sigma {ident.sigma:.3g} "
-        "(1 = residuals at the noise)")
+    # the residuals' sd per unit (each unit is weighted by its own, so sigma is 1 by construction)
+    resid = ", ".join(f"{v:.3g} {u}" for u, v in ident.noise.items()) or f"sigma {ident.sigma:.3g}"
+    say(f"      {ident.n_params} unknowns, rank {ident.rank}, residual sd {resid} (the noise: step 1)")
 
 
 def _diagnose_campaign(machine, datasets, out: Path, res: DemoResult, say):

@@ -103,7 +103,9 @@ def test_reml_at_the_fit_restarts_from_its_grid_when_the_start_sent_it_to_the_bo
 
     monkeypatch.setattr(penalty, "reml_weights", first_round_at_the_bound)
     sent = identify(load_machine("xfyz"), data)
-    assert len(rounds) == 2 and rounds[1] is None                   # the second round from its grid
+    # the first fit's second round from its grid (the run reads um and urad: a second fit, each
+    # unit weighted by its own noise, runs its two rounds after these)
+    assert len(rounds) >= 2 and rounds[1] is None
     for cls, rho in alone.smoothing.rho.items():
         assert abs(sent.smoothing.rho[cls] - rho) < RHO_SETTLED, (cls, sent.smoothing.rho, alone.smoothing.rho)
     np.testing.assert_allclose(sent.cost, alone.cost, rtol=1e-3, atol=0)

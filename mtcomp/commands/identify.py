@@ -24,8 +24,9 @@ def add_arguments(parser):
                              "its errors), or squareness, spindle, C:location ...; e.g. --hold "
                              "X,Y,Z,squareness for axes a controller already compensates")
     parser.add_argument("--weights", choices=("unit", "noise"), default="unit",
-                        help="unit: every residual in um or urad (default); noise: refit with "
-                             "1/noise per file estimated from a first fit")
+                        help="unit: every residual in um or urad, with one noise per unit (um, "
+                             "urad) estimated from the fit's residuals when the data hold both "
+                             "(default); noise: one noise per file and unit")
     parser.add_argument("--known-setup", metavar="FILE", action="append", default=[],
                         help="a file whose set-up is known: a points or cmm file whose instrument "
                              "frame is the workpiece frame (no set-up translation and rotation is "
@@ -106,8 +107,8 @@ WEIGHTS_NOTE_RATIO = 3.0
 
 
 def _weights_note(result, weights: str) -> str | None:
-    """One line when, under ``--weights unit`` (one residual variance for every file), the files'
-    rms residuals in um differ by more than :data:`WEIGHTS_NOTE_RATIO`: the standard errors of what
+    """One line when, under ``--weights unit`` (one residual variance for every file's readings in
+    um), the files' rms residuals in um differ by more than :data:`WEIGHTS_NOTE_RATIO`: the standard errors of what
     the quieter files fix are then too large; ``--weights noise`` gives each file its own."""
     if weights != "unit":
         return None
@@ -118,7 +119,7 @@ def _weights_note(result, weights: str) -> str | None:
         return None
     loud, quiet = max(rms, key=rms.get), min(rms, key=rms.get)
     return (f"the files' rms residuals differ ({loud} {rms[loud]:.3g} um, {quiet} {rms[quiet]:.3g} "
-            "um): with --weights unit one residual variance serves every file, so the standard "
+            "um): with --weights unit one residual variance serves every file's um, so the standard "
             "errors of what the quieter files fix are too large; --weights noise weights each file "
             "by its own noise")
 

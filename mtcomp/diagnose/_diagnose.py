@@ -376,8 +376,11 @@ def _base_fit(st: Stack, values: dict, from_start: bool, say) -> np.ndarray:
         p0[st.probe.param_names.index(nm)] = values[nm]
     if from_start:
         say(f"start: {len(taken)} of the base's {len(base_names)} parameters from the start model")
-    problem = FitProblem(st.probe, [mm for mm, _, _ in st._models], st.probe.base_mask.copy(), p0,
-                         weights="unit", penalty=False, hold_weak=False)
+    mms = [mm for mm, _, _ in st._models]
+    # every reading in um or urad as it stands (a noise of 1 per reading, not identify's noise per
+    # unit): the start of the held-out comparison, whose design weighs the units by their floors
+    problem = FitProblem(st.probe, mms, st.probe.base_mask.copy(), p0,
+                         weights=np.ones(sum(mm.n_obs for mm in mms)), penalty=False, hold_weak=False)
     fit = solve(problem, SolverOptions(rcond=RCOND))
     st.evaluate(fit.values, fit.nuisance_values)
     return fit.directions

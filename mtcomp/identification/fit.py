@@ -9,9 +9,11 @@ observations at once; diagnose's base fit solves the problem of its probe model 
 
 Method (docs/identification.md):
 
-* Residuals ``r = w (observed - predicted)`` with one weight per observation. Default weighting
-  ``"unit"``: every residual in um (translational, lengths) or urad (angular), i.e. ``w = 1e3`` per mm
-  and ``1e6`` per rad, the same for every file. ``"noise"``: a first fit with unit weights estimates
+* Residuals ``r = w (observed - predicted)`` with one weight per observation (:mod:`.weighting`).
+  Default weighting ``"unit"``: every residual in um (translational, lengths) or urad (angular), i.e.
+  ``w = 1e3`` per mm and ``1e6`` per rad, the same for every file, each unit then weighted by its own
+  noise estimated from the residuals when the data hold more than one (generalised least squares
+  with estimated weights), so that the covariance sizes each by its own residual variance. ``"noise"``: a first fit with unit weights estimates
   each file's noise (rms residual per file and unit, corrected for the degrees of freedom the file
   uses), then the fit is repeated with ``w = 1 / noise``. A dict ``{tag: noise}`` (um or urad) fixes
   the noise per file.
@@ -33,15 +35,15 @@ Method (docs/identification.md):
 * Profiles carry a roughness penalty whose weights REML chooses (:mod:`.penalty`): what the data
   leave open between what they measured follows the smoothest curve.
 * Covariance of the unknowns: the posterior ``s2 D B (B^T Js^T Js B + B^T S B)^-1 B^T D`` with B the
-  directions fitted, S the penalty and ``s2 = sum r^2 / (n_obs - edf)``, less the reversal at
-  targets a laser file reads from both sides (one degree of freedom each: a reversal the model does
-  not hold is error it leaves, not uncertainty of what it fits); standard errors are its
-  diagonal. A parameter with weight in an undetermined direction gets std error NaN and
+  directions fitted, S the penalty and ``s2 = sum r^2 / (n_obs - edf)`` (about 1 with weights
+  1/noise), less the reversal at targets a laser file reads from both sides (one degree of freedom
+  each: a reversal the model does not hold is error it leaves, not uncertainty of what it fits);
+  standard errors are its diagonal. A parameter with weight in an undetermined direction gets std error NaN and
   ``determined = False``.
 
 The pieces: :mod:`.problem` (what is fitted: free and held parameters, the files' measurement
 models, the physical metric), :mod:`._linalg` (rank, null space, scaled solves), :mod:`.result` (the
-result types), :mod:`.predict` (predictions of a fitted model).
+result types), :mod:`.weighting` (the weights), :mod:`.predict` (predictions of a fitted model).
 """
 from __future__ import annotations
 
@@ -58,16 +60,15 @@ from ..models.params import ParameterSet
 from .reversal import DirectionContrast, data_reversal
 from ._rotation import reference_rotation, undetermined_unknowns, without
 from .unmeasured import assumption, record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
-from ._linalg import (column_scale, _eliminate, _error_scales, _name_null_space,
+from ._linalg import (column_scale, _eliminate, _name_null_space,
                       _relative_singular_values, _seen_columns, _solver, _unseen_apart, _step, block_obs,
                       file_normal_equations, one_blas_thread, penalised_inverse)
 from .problem import (DEFAULT_RCOND, FitProblem, SolverOptions, data_region, fitted_axes,
                       frame_rotations, frame_rule_complement)
 from .problem import travel_metric  # noqa: F401
-from .result import FileResiduals, FitResult, error_unit, unsettled_parameters
+from .result import FileResiduals, FitResult, unsettled_parameters
+from .weighting import fit_weights, group_noise, unit_weights
 from ._weak import WEAK_SD_UM, WEAK_SIGNIFICANT, held_variance, hold_weak, weak_directions  # noqa: F401
-#: most fits with weights='noise' (each re-estimates the noise of every file and unit)
-NOISE_PASSES = 5
 
 
 # ------------------------------------------------------------------------------------- identify
@@ -138,8 +139,9 @@ def _solve(problem: FitProblem, options: SolverOptions, info: dict | None, t0: f
     region = data_region(problem.model.machine, mms, fitted_axes(problem.model, problem.free))
     stacked.metric = travel_metric(problem.model, stacked.free_idx, stacked.n_unknowns, region)
     o = options
-    w, label = _weights(stacked, problem.weights, o.rcond, o.max_iterations, o.tol)
-    sol = stacked.solve(w, o.rcond, o.max_iterations, o.tol)
+    w, label, sol = fit_weights(stacked, problem.weights, o.rcond, o.max_iterations, o.tol)
+    if sol is None:
+        sol = stacked.solve(w, o.rcond, o.max_iterations, o.tol)
     result = stacked.result(sol, w, label, problem.context_defaults, time.perf_counter() - t0, info)
     if stacked.weak_fallback:
         result.info["weak_directions"] = ("not held: holding them would have spoiled the fit of the "
@@ -147,29 +149,6 @@ def _solve(problem: FitProblem, options: SolverOptions, info: dict | None, t0: f
     if problem.removed:
         result.info["outliers"] = [str(o) for o in problem.removed]
     return result
-
-
-def _weights(problem, weights, rcond: float, max_iterations: int, tol: float):
-    """((n_obs,) weights of the observations, their label for the report) of :func:`identify`'s
-    ``weights``."""
-    if isinstance(weights, str) and weights == "unit":
-        return problem.unit_weights(), "unit (um, urad)"
-    if isinstance(weights, str) and weights == "noise":
-        w = problem.unit_weights()
-        for _ in range(NOISE_PASSES):
-            sol = problem.solve(w, rcond, max_iterations, tol, leverage=True)
-            w_new = problem.noise_weights(sol, w)
-            change = np.max(np.abs(w_new / w - 1.0))
-            w = w_new
-            if change < 0.01:
-                break
-        return w, "1/noise per file"
-    if isinstance(weights, dict):
-        return problem.dict_weights(weights), "given noise per file"
-    if isinstance(weights, np.ndarray) and weights.shape == (problem.n_obs,):
-        # each reading's noise in its error unit (um, urad, um/min): diagnose's floors
-        return problem.unit_weights() / weights, "given noise per reading"
-    raise ValueError(f"weights must be 'unit', 'noise', a dict or one noise per reading, not {weights!r}")
 
 
 def _tool_lengths(machine, datasets) -> list[float] | None:
@@ -268,6 +247,8 @@ class _Problem:
     known_noise = False
     #: (step of the unknowns, share of the cost) of Gauss-Newton's last step, set by each step
     unsettled = None
+    #: the residual variance of the last solve's posterior (weighted units)
+    s2 = float("nan")
 
     def __init__(self, model, mms, mask, p0):
         self.model = model
@@ -303,45 +284,8 @@ class _Problem:
 
     # --------------------------------------------------------------- weights
     def unit_weights(self):
-        return np.concatenate([_error_scales(m.obs_column) for m in self.mms])
-
-    def _groups(self):
-        """(file index, scale, observation index array) per file and error unit (um, urad and um/min
-        are separate groups: a velocity's noise is not a position's)."""
-        for i, (m, sl) in enumerate(zip(self.mms, self.obs_slices)):
-            scales = _error_scales(m.obs_column)
-            units = np.array([error_unit(c) for c in m.obs_column])
-            for u in np.unique(units):
-                sel = units == u
-                yield i, scales[sel][0], np.arange(sl.start, sl.stop)[sel]
-
-    def noise_weights(self, sol: "_Solution", w_used):
-        """1/noise per file and unit from the residuals of a fit with weights ``w_used``: noise^2 =
-        sum of squared residuals / (n - sum of the leverages of those observations)."""
-        w = self.unit_weights()
-        for _, s, idx in self._groups():
-            resid = sol.r[idx] / w_used[idx] * s   # error units
-            dof = idx.size - float(np.sum(sol.leverage[idx]))
-            noise = np.sqrt(np.sum(resid ** 2) / max(dof, 1e-12))
-            if noise > 0:
-                w[idx] = s / noise
-        return w
-
-    def dict_weights(self, noise: dict):
-        w = self.unit_weights()
-        tags = {m.tag: i for i, m in enumerate(self.mms)}
-        for tag in noise:
-            if tag not in tags:
-                raise InputError(f"weights name file {tag!r}, which is not among the data "
-                                 f"({', '.join(tags)})")
-        for i, s, idx in self._groups():
-            tag = self.mms[i].tag
-            if tag in noise:
-                sigma = float(noise[tag])
-                if not sigma > 0:
-                    raise InputError(f"noise of file {tag!r} must be positive, got {sigma}")
-                w[idx] = s / sigma
-        return w
+        """(n_obs,) the weights that put every residual in um, urad or um/min (:mod:`.weighting`)."""
+        return unit_weights(self.mms)
 
     # --------------------------------------------------------------- evaluation
     def _unknowns(self, p) -> np.ndarray:
@@ -596,6 +540,7 @@ class _Problem:
         lev = np.zeros(self.n_obs)
         edf = float(rank)
         self.held_assumed = 0
+        self.s2 = float("nan")
         if not B.shape[1]:
             return (lev, edf, np.full((self.n_unknowns, self.n_unknowns), np.nan),
                     np.zeros((self.n_unknowns, 0)), np.zeros(0))
@@ -605,7 +550,7 @@ class _Problem:
         Hinv = penalised_inverse(AB, S)
         H = AB + S
         edf = float(np.trace(Hinv @ AB)) if self.S is not None else float(rank)
-        s2 = self._residual_variance(r, edf)
+        s2 = self.s2 = self._residual_variance(r, edf)
         cov = s2 * (scale[:, None] * (B @ Hinv @ B.T) * scale[None, :])
         if P is not None:
             cov = P @ cov @ P.T
@@ -761,7 +706,8 @@ class _Problem:
             sigma=float(np.sqrt(cost / dof)) if dof else float("nan"), iterations=sol.iterations,
             converged=sol.converged, cost=cost, seconds=seconds, weighting=label, info=dict(info or {}),
             directions=sol.scale[:, None] * sol.B, residual=sol.r.copy(), held_sd_um=sol.held_sd,
-            held_assumed=self.held_assumed, unsettled=unsettled_parameters(sol, se, unknown_specs))
+            held_assumed=self.held_assumed, unsettled=unsettled_parameters(sol, se, unknown_specs),
+            noise=group_noise(self, label, w, self.s2))
         if self.smoothing is not None:
             res.smoothing = self.smoothing
         params = ParameterSet(model.param_specs, values, std)

@@ -173,6 +173,10 @@ class FitResult:
     #: errors)] of the unknowns its last step moved most, "share": the share of the weighted residual
     #: sum that step took}; None when it converged
     unsettled: dict = None
+    #: {class: noise}: the residual standard deviation the covariance takes for each class of readings
+    #: (um, urad or um/min; under weights "noise" or given per file, each file's: "tag unit"); the
+    #: weights' noise times the posterior's sqrt(s2)
+    noise: dict = field(default_factory=dict)
 
     def _held_lines(self) -> list[str]:
         """The summary's sentences on the combinations held because the data fix them weakly."""
@@ -312,6 +316,7 @@ class FitResult:
                 "smoothing": self.smoothing.to_dict() if self.smoothing is not None else None,
                 "sigma": _finite(self.sigma), "condition_number": _finite(self.condition_number),
                 "iterations": self.iterations, "converged": self.converged, "weighting": self.weighting,
+                "noise": {k: _finite(v) for k, v in self.noise.items()},
                 "undetermined": [str(u) for u in self.undetermined],
                 "files": [{"tag": f.tag, "path": f.path, "kind": f.kind, "n_obs": f.n_obs,
                            "rms": {c: _finite(v) for c, v in f.rms().items()}} for f in self.files],
@@ -331,7 +336,11 @@ class FitResult:
                  f"{len(self.files)} file(s), {self.n_params} unknowns, rank {self.rank}, dof {self.dof:.1f}",
                  f"weighting {self.weighting}; sigma {self.sigma:.4g}; condition number "
                  f"{self.condition_number:.3g}; {self.iterations} iteration(s)"
-                 f"{'' if self.converged else ' (NOT converged)'}; {self.seconds:.2f} s", ""]
+                 f"{'' if self.converged else ' (NOT converged)'}; {self.seconds:.2f} s"]
+        if self.noise and self.weighting != "unit (um, urad)":
+            lines.append("noise the standard errors take (residual sd, degrees of freedom counted): "
+                         + ", ".join(f"{k} {v:.3g}" for k, v in self.noise.items()))
+        lines.append("")
         if components:
             lines += list(components) + [""]
         lines.append(f"{'file':<24} {'kind':<8} {'n_obs':>7}  rms residual")
