@@ -81,3 +81,20 @@ def test_each_unit_gets_its_own_residual_variance(laser, tmp_path):
     written = json.loads((tmp_path / "model.json").read_text())["info"]["identify"]["noise"]
     assert written == pytest.approx(s, rel=1e-6)
     assert f"um {s['um']:.3g}, urad {s['urad']:.3g}" in res.summary()
+
+
+def test_a_model_with_no_machine_parameter_free_predicts_with_the_set_up_s_sd(tmp_path):
+    """Every machine parameter held, only the file's set-up (its zero) fitted: predict raised
+    "cannot reshape array of size 0" on such a model. Its prediction of each reading is the
+    readings' mean, with the standard error of a mean, s / sqrt(n), by hand."""
+    values = 4.0 + 0.01 * np.arange(11)
+    rows = ["axis,component,target_mm,dir,run,value_um"]
+    rows += [f"X,EXX,{t},1,1,{v}" for t, v in zip(np.linspace(0.0, 500.0, 11), values)]
+    path = tmp_path / "laser_x.csv"
+    path.write_text("\n".join(rows) + "\n")
+    problem = FitProblem.from_data(load_machine("xfyz"), [read_measurements(path)], free=[],
+                                   penalty=False, hold_weak=False)
+    pred = predict_readings(solve(problem).fitted_model, read_measurements(path)).columns
+    s = np.std(values, ddof=1)
+    np.testing.assert_allclose(pred["pred_value_um"], values.mean(), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(pred["pred_value_um_sd"], s / np.sqrt(values.size), rtol=1e-6)

@@ -69,8 +69,10 @@ class Undetermined:
         scaled = factor[1] * f[:, None]          # the same parameters, in the same order
         with one_blas_thread():
             top = float(np.linalg.norm(scaled, 2)) if scaled.size else 0.0
-        return cls(idx, np.asarray(u["undetermined"], dtype=float).reshape(idx.size, -1), f, top, factor,
-                   np.linalg.norm(factor[1], axis=1))
+        # (no parameter free: no direction left open either)
+        undetermined = np.asarray(u["undetermined"], dtype=float).reshape(idx.size, -1) if idx.size \
+            else np.zeros((0, 0))
+        return cls(idx, undetermined, f, top, factor, np.linalg.norm(factor[1], axis=1))
 
     def std(self, J: np.ndarray, setup: np.ndarray | None = None,
             J_first: np.ndarray | None = None) -> np.ndarray:
