@@ -217,10 +217,16 @@ def open_unknowns(problem, to_file) -> np.ndarray:
     return sd * np.abs(np.asarray(to_file, dtype=float)) > WEAK_SD_UM
 
 
-def open_count(problem) -> int:
-    """How many weak directions ``problem`` found too open to hold with a variance."""
+def open_note(problem) -> dict:
+    """{"open_weak": the summary's sentence} on the weak directions ``problem`` found too open to
+    hold with a variance; {} when there are none."""
     directions = getattr(problem, "open", None)
-    return 0 if directions is None else int(directions.shape[1])
+    if directions is None or not directions.shape[1]:
+        return {}
+    return {"open_weak": f"{directions.shape[1]} combination(s) the data see too weakly to hold with a "
+                         f"variance (standard error above {OPEN_SD_UM:.0f} um of rms tool-tip error over the "
+                         "region) are held at zero as not determined: their parameters are not determined, "
+                         "and a prediction that rests on one has a blank standard error"}
 
 
 def open_undetermined(problem, scale, to_file) -> np.ndarray:

@@ -65,7 +65,7 @@ from .problem import (DEFAULT_RCOND, FitProblem, SolverOptions, data_region, fit
                       frame_rotations, frame_rule_complement)
 from .problem import travel_metric  # noqa: F401
 from .result import FileResiduals, FitResult, error_unit, unsettled_parameters
-from ._weak import (WEAK_SD_UM, WEAK_SIGNIFICANT, held_variance, hold_weak, open_count,  # noqa: F401
+from ._weak import (WEAK_SD_UM, WEAK_SIGNIFICANT, held_variance, hold_weak, open_note,  # noqa: F401
                     open_undetermined, open_unknowns, weak_directions)
 #: most fits with weights='noise' (each re-estimates the noise of every file and unit)
 NOISE_PASSES = 5
@@ -145,7 +145,7 @@ def _solve(problem: FitProblem, options: SolverOptions, info: dict | None, t0: f
     if stacked.weak_fallback:
         result.info["weak_directions"] = ("not held: holding them would have spoiled the fit of the "
                                           "data; the data's own least-squares fit is kept")
-    result.held_open = open_count(stacked)
+    result.info.update(open_note(stacked))
     if problem.removed:
         result.info["outliers"] = [str(o) for o in problem.removed]
     return result

@@ -169,9 +169,6 @@ class FitResult:
     #: how many more held combinations only split readings between a component a laser file names
     #: and one none names: held at zero by the assumption that those are zero, with no variance
     held_assumed: int = 0
-    #: how many combinations the data see too weakly to hold with a variance (standard error above
-    #: mtcomp.identification._weak.OPEN_SD_UM): held at zero as not determined
-    held_open: int = 0
     #: a fit that did not converge: {"moved": [(name, step in its file unit, unit, step in standard
     #: errors)] of the unknowns its last step moved most, "share": the share of the weighted residual
     #: sum that step took}; None when it converged
@@ -189,12 +186,8 @@ class FitResult:
         if self.held_assumed:
             lines.append(f"{self.held_assumed} more only split readings between a component a laser file "
                          "names and one none names: held at zero by that assumption, with no variance")
-        if self.held_open:
-            from ._weak import OPEN_SD_UM
-            lines.append(f"{self.held_open} combination(s) the data see too weakly to hold with a variance "
-                         f"(standard error above {OPEN_SD_UM:.0f} um of rms tool-tip error over the region) are "
-                         "held at zero as not determined: their parameters are not determined, and a "
-                         "prediction that rests on one has a blank standard error")
+        if "open_weak" in self.info:            # mtcomp.identification._weak.open_note
+            lines.append(self.info["open_weak"])
         return lines
 
     # ------------------------------------------------------------ lmfit's MinimizerResult figures
