@@ -99,6 +99,43 @@ def test_two_styli_too_close_hold_the_tilt_of_the_tool_axis_and_far_apart_hold_n
     assert np.all(share.max(axis=0) > 5e-6), share
 
 
+def _with_longer_tool(src, dst, longer_mm: float):
+    """The points file ``src`` as poses to predict (measured columns blank) with every tool
+    ``longer_mm`` longer, written to ``dst``."""
+    with open(src, newline="") as f:
+        rows = list(csv.DictReader(f))
+    with open(dst, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        for r in rows:
+            w.writerow({**r, "tool_mm": float(r["tool_mm"]) + longer_mm, "dx_um": "", "dy_um": "", "dz_um": ""})
+    return dst
+
+
+def test_a_combination_the_data_barely_see_is_open_not_held_with_its_variance(tmp_path):
+    """Styli 0.01 mm apart read each tilt of the tool axis to sigma sqrt(2) / (d sqrt(n)) =
+    3 sqrt(2) / (0.01 sqrt(45)) = 63000 urad (module notes): on a tool 100 mm longer, about 6000 um,
+    beyond any error a model linear in its errors describes (OPEN_SD_UM, 1000 um). The fit holds
+    those combinations at zero as not determined: no held variance (before: two held directions of
+    5e3 um each, whose variance the covariance carried), a prediction that rests on them (the same
+    poses with a tool 100 mm longer) is blank, and the file's own rows keep the standard error the
+    readings give them (3 um of noise over the 10 readings at a pose: about 1 um)."""
+    from mtcomp.identification._weak import OPEN_SD_UM
+    tilt_sd_um = NOISE_UM * np.sqrt(2.0) / (0.01e-3 * np.sqrt(45)) * 100e-3
+    assert tilt_sd_um > 5 * OPEN_SD_UM
+    _, res = _rough_y_campaign(5, tmp_path, apart_mm=0.01)
+    data = read_measurements(res.path)
+    fit = identify(load_machine("xfyz"), [data])
+    assert fit.held_sd_um.size == 0, fit.held_sd_um
+    own = predict_readings(fit.fitted_model, data).columns
+    sd = np.concatenate([np.asarray(own[f"pred_d{c}_um_sd"], float) for c in "xyz"])
+    assert np.all(np.isfinite(sd)) and 0.3 < np.median(sd) < 2.0, (np.nanmin(sd), np.nanmax(sd))
+    longer = read_measurements(_with_longer_tool(res.path, tmp_path / "longer.csv", 100.0))
+    far = predict_readings(fit.fitted_model, longer).columns
+    assert np.all(np.isnan(np.asarray(far["pred_dx_um_sd"], float)))
+    assert np.all(np.isnan(np.asarray(far["pred_dy_um_sd"], float)))
+
+
 def test_held_variance_restores_the_posterior_of_the_fit_that_holds_nothing(tmp_path):
     _, res = _rough_y_campaign(5, tmp_path)
     data = [read_measurements(res.path)]

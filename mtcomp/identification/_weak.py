@@ -5,7 +5,9 @@ predicted error, and the fit keeps what the data say of each as a standard error
 A held direction is not undetermined: the data do fix it, to worse than :data:`WEAK_SD_UM` of rms
 tool-tip error over their region. Holding it at zero keeps noise from being amplified into invented
 errors; its standard error stays in the fit's covariance (:func:`held_variance`), so a prediction
-that moves along it gets that variance rather than a blank.
+that moves along it gets that variance rather than a blank. One the data barely see (a standard
+error above :data:`OPEN_SD_UM`) is held at zero as not determined instead, with no variance
+(:func:`open_unknowns`, :func:`open_undetermined`).
 """
 from __future__ import annotations
 
@@ -20,6 +22,13 @@ WEAK_SD_UM = 1.0
 #: ... unless the first fit puts it further from the start than this many of its standard errors:
 #: then the data do see it (a real error of 28 um fixed to 1.2 um is fitted, not held at zero)
 WEAK_SIGNIFICANT = 3.0
+#: a weak direction whose standard error (um of rms tool-tip error over the data's region) exceeds
+#: this is open, not held: no machine error a model linear in its errors describes is that large, so
+#: the data say nothing of it. It is held at zero with the undetermined combinations (its parameters
+#: "not determined", a prediction resting on it blank), never given its variance: held with it, a
+#: CMM dome beside laser runs of X and Y left six such combinations of 7.9e5 um, and the variance
+#: they carried into the laser-measured X positioning printed it 6.71 +- 1.9e3 um
+OPEN_SD_UM = 1e3
 #: a held direction of which the assumption that components no laser file names are zero leaves
 #: less than this share of its rms tool-tip error over the data's region is the assumption's alone
 #: (a split of readings between a named component and an unnamed one): it is counted, not kept. The
@@ -157,7 +166,7 @@ def hold_weak(problem, start, first, w, max_iterations, tol, B1, scale, data_ran
     (n_unknowns, k), their variance per unit residual variance (k,)), None when nothing is held.
     The rank counts only the directions fitted; the null space stays the data's."""
     x, r, A, g, B, AB, iterations, converged, null, rank = first
-    problem.held = None
+    problem.held = problem.open = problem.open_sd = None
     sigma_w = repeat_scale(problem, r, min(rank, data_rank))
     H1 = AB + problem._reduced_penalty(B)
     y1 = B1.T @ ((x - start[0]) / scale)
@@ -180,5 +189,63 @@ def hold_weak(problem, start, first, w, max_iterations, tol, B1, scale, data_ran
         problem.weak_fallback = True
         return first
     G, v = held_directions(H1, weak, Q)
-    problem.held = (B1 @ G, v)
+    held = open_sd(problem.metric, scale[:, None] * (B1 @ G), sigma_w, v) <= OPEN_SD_UM
+    problem.held = (B1 @ G[:, held], v[held])
+    problem.open = B1 @ G[:, ~held]
+    # what each unknown's standard error would be from them (internal units)
+    problem.open_sd = sigma_w * np.sqrt((scale[:, None] * problem.open) ** 2 @ v[~held])
     return x, r, A, g, B, AB, iterations, converged, null, rank - weak.shape[1]
+
+
+def open_sd(metric, Gi, sigma_w: float, v) -> np.ndarray:
+    """(k,) standard errors (um of rms tool-tip error over the data's region, ``metric`` mm^2) of the
+    held directions whose unknowns move by ``Gi`` (internal units) per unit, of variance
+    ``sigma_w^2 v``: as :func:`held_variance` gives them before the assumption's move."""
+    size = np.sqrt(np.clip(np.einsum("ik,ij,jk->k", Gi, metric * 1e6, Gi), 0.0, None))
+    return sigma_w * np.sqrt(v) * size
+
+
+def open_unknowns(problem, to_file) -> np.ndarray:
+    """(n_unknowns,) bool: the unknowns the weak directions too open to hold with a variance
+    (``problem.open``, :data:`OPEN_SD_UM`) leave not determined: those to which they would give a
+    standard error above :data:`WEAK_SD_UM` (um or urad; ``to_file`` (n_unknowns,) file unit per
+    internal unit). A parameter they barely move keeps its standard error (a laser-measured
+    positioning beside a CMM dome whose set-up trades with the table's zero angle)."""
+    sd = getattr(problem, "open_sd", None)
+    if sd is None:
+        return np.zeros(problem.n_unknowns, dtype=bool)
+    return sd * np.abs(np.asarray(to_file, dtype=float)) > WEAK_SD_UM
+
+
+def open_note(problem) -> dict:
+    """{"open_weak": the summary's sentence} on the weak directions ``problem`` found too open to
+    hold with a variance; {} when there are none."""
+    directions = getattr(problem, "open", None)
+    if directions is None or not directions.shape[1]:
+        return {}
+    return {"open_weak": f"{directions.shape[1]} combination(s) the data see too weakly to hold with a "
+                         f"variance (standard error above {OPEN_SD_UM:.0f} um of rms tool-tip error over the "
+                         "region) are held at zero as not determined: their parameters are not determined, "
+                         "and a prediction that rests on one has a blank standard error"}
+
+
+def open_undetermined(problem, scale, to_file) -> np.ndarray:
+    """(n_free, k) the weak directions too open to hold with a variance (``problem.open``) as
+    predict judges an undetermined combination: the machine parameters' part, internal units, each
+    by itself sized to 1 um rms tool-tip error over the travel (``problem.travel_metric``), one that
+    moves no tool tip to 1 um or urad of its parameters. Kept apart from the data's undetermined
+    span: mixed into it, a combination of the two that moves the tip little over the travel, scaled
+    up, moved the fitted readings (a laser run of X beside a CMM dome lost 120 of its 130 standard
+    errors)."""
+    nf = problem.n_free
+    directions = getattr(problem, "open", None)
+    if directions is None or not directions.shape[1]:
+        return np.zeros((nf, 0))
+    D = scale[:nf, None] * directions[:nf]
+    M = problem.travel_metric
+    size = (np.sqrt(np.clip(np.einsum("ik,ij,jk->k", D, M[:nf, :nf] * 1e6, D), 0.0, None))
+            if M is not None else np.zeros(D.shape[1]))
+    own = np.abs(D * np.asarray(to_file[:nf], dtype=float)[:, None]).max(axis=0)
+    size = np.where(size > 1e-12 * np.maximum(own, 1e-300), size, own)
+    keep = size > 0
+    return D[:, keep] / size[keep][None, :]

@@ -68,7 +68,8 @@ from .problem import (DEFAULT_RCOND, FitProblem, SolverOptions, data_region, fit
 from .problem import travel_metric  # noqa: F401
 from .result import FileResiduals, FitResult, unsettled_parameters
 from .weighting import fit_weights, group_noise, unit_weights
-from ._weak import WEAK_SD_UM, WEAK_SIGNIFICANT, held_variance, hold_weak, weak_directions  # noqa: F401
+from ._weak import (WEAK_SD_UM, WEAK_SIGNIFICANT, held_variance, hold_weak, open_note,  # noqa: F401
+                    open_undetermined, open_unknowns, weak_directions)
 
 
 # ------------------------------------------------------------------------------------- identify
@@ -146,6 +147,7 @@ def _solve(problem: FitProblem, options: SolverOptions, info: dict | None, t0: f
     if stacked.weak_fallback:
         result.info["weak_directions"] = ("not held: holding them would have spoiled the fit of the "
                                           "data; the data's own least-squares fit is kept")
+    result.info.update(open_note(stacked))
     if problem.removed:
         result.info["outliers"] = [str(o) for o in problem.removed]
     return result
@@ -674,7 +676,7 @@ class _Problem:
         unknown_specs = [model.param_specs[i] for i in self.free_idx] + nuis_specs
         unknown_names = tuple(s.name for s in unknown_specs)
         to_file = np.array([s.to_file for s in unknown_specs])
-        in_null = undetermined_unknowns(self, sol.null)     # weight in a null direction, or held
+        in_null = undetermined_unknowns(self, sol.null) | open_unknowns(self, to_file)   # or too weak
         se = np.sqrt(np.clip(np.diag(sol.cov), 0.0, None))
         se[in_null] = np.nan
         cov = sol.cov.copy()
@@ -732,7 +734,8 @@ class _Problem:
         # the covariance includes the held directions' variance; they are kept too, with their
         # standard errors, so that a reader of the model can tell that share
         uncertainty = {"names": tuple(names[i] for i in self.free_idx),
-                       "covariance": np.nan_to_num(sol.cov[:nf, :nf]), "undetermined": null_p,
+                       "covariance": np.nan_to_num(sol.cov[:nf, :nf]),
+                       "undetermined": np.hstack([null_p, open_undetermined(self, sol.scale, to_file)]),
                        "held": sol.held[:nf], "held_sd_um": np.asarray(sol.held_sd, dtype=float),
                        "setup": setup_uncertainty(nuis_specs, sol.cov, nf)}
         res.fitted_model = FittedModel(model, params, dict(ctx_defaults),

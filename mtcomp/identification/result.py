@@ -190,6 +190,8 @@ class FitResult:
         if self.held_assumed:
             lines.append(f"{self.held_assumed} more only split readings between a component a laser file "
                          "names and one none names: held at zero by that assumption, with no variance")
+        if "open_weak" in self.info:            # mtcomp.identification._weak.open_note
+            lines.append(self.info["open_weak"])
         return lines
 
     # ------------------------------------------------------------ lmfit's MinimizerResult figures
