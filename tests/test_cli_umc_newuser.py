@@ -1,0 +1,65 @@
+"""What a new user of a Haas UMC-750 (CAFXYZ: a trunnion A carrying a C table) hit on the command
+line beside the map of a turned table (tests/test_render_turned_table.py):
+
+* a machine file whose A axis line (``axis_point_mm``) lay 50 mm from the one the model was fitted
+  with was accepted, and compensate wrote other corrections with exit status 0: the model's errors
+  of a rotary axis are about its own line. Refused now, naming both lines and both files.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+import mtcomp
+from mtcomp.cli import main
+from mtcomp.machine import load_machine
+from mtcomp.models import ErrorModel, FittedModel, save_model
+
+#: the built-in cafxyz's machine file
+CAFXYZ = (Path(mtcomp.__file__).parent / "machines" / "cafxyz.toml").read_text()
+PROGRAM = "G21 G90 G17\nG0 X10 Y10 Z10 A0 C0\nG1 Z0 F300\nG1 X30\nG1 Y30\nG0 Z10\nM30\n"
+
+
+def _machine_file(path, a_point="[0.0, 0.0, -100.0]", topology="CAFXYZ"):
+    """cafxyz as a machine file at ``path``, with its A axis line through ``a_point`` and the
+    ``topology`` given."""
+    text = CAFXYZ.replace('topology = "CAFXYZ"', f'topology = "{topology}"')
+    path.write_text(text.replace("axis_point_mm = [0.0, 0.0, -100.0]", f"axis_point_mm = {a_point}"))
+    assert load_machine(str(path)).axes[3].axis_point == tuple(eval(a_point))
+    return path
+
+
+def _model(tmp_path, machine_file, info=None):
+    """A model of ``machine_file`` with Y0A = 15 um, its data region the whole travel."""
+    machine = load_machine(str(machine_file)).with_basis("polynomial")
+    model = ErrorModel(machine, ())
+    fitted = FittedModel.zero(model)
+    fitted.params.values[model.param_names.index("Y0A")] = 15e-3
+    fitted.support = {ax.name: tuple(ax.travel) for ax in machine.axes}
+    fitted.info.update(info or {})
+    save_model(tmp_path / "model.json", fitted)
+    return tmp_path / "model.json"
+
+
+@pytest.mark.parametrize("a_point, refused", [("[0.0, 0.0, -150.0]", True),
+                                              ("[0.0, 0.002, -100.0]", True),
+                                              ("[50.0, 0.0, -100.0]", False),      # the same line
+                                              ("[0.0, 0.0005, -100.0]", False)])   # within 1 um
+def test_a_machine_file_whose_rotary_axis_line_is_not_the_models_is_refused(tmp_path, capsys,
+                                                                            a_point, refused):
+    model = _model(tmp_path, _machine_file(tmp_path / "fitted.toml"))
+    other = _machine_file(tmp_path / "given.toml", a_point)
+    (tmp_path / "p.nc").write_text(PROGRAM)
+    out = tmp_path / "out.nc"
+    argv = ["compensate", str(other), str(model), str(tmp_path / "p.nc"), "-o", str(out), "--quiet"]
+    if not refused:
+        assert main(argv) == 0 and out.exists()
+        return
+    assert main(argv) == 2 and not out.exists()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    given = ", ".join(f"{v:g}" for v in eval(a_point))
+    assert "model.json" in err[0] and "given.toml" in err[0]
+    assert "rotary axis A" in err[0] and "(0, 0, -100) mm" in err[0] and f"({given}) mm" in err[0]
+
