@@ -3,18 +3,23 @@ line beside the map of a turned table (tests/test_render_turned_table.py):
 
 * a machine file whose A axis line (``axis_point_mm``) lay 50 mm from the one the model was fitted
   with was accepted, and compensate wrote other corrections with exit status 0: the model's errors
-  of a rotary axis are about its own line. Refused now, naming both lines and both files.
+  of a rotary axis are about its own line. Refused now, naming both lines and both files;
+* a machine file with the rotary axes stacked the wrong way round (ACFXYZ) was refused on a
+  ball-bar row whose length it blamed on the bar or on ``axis_point_mm``: now the topology is
+  named, the one the file fits (CAFXYZ, by the independent truth machine's lengths).
 """
 from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import mtcomp
 from mtcomp.cli import main
 from mtcomp.machine import load_machine
 from mtcomp.models import ErrorModel, FittedModel, save_model
+from truth.machine import TruthMachine
 
 #: the built-in cafxyz's machine file
 CAFXYZ = (Path(mtcomp.__file__).parent / "machines" / "cafxyz.toml").read_text()
@@ -62,4 +67,32 @@ def test_a_machine_file_whose_rotary_axis_line_is_not_the_models_is_refused(tmp_
     given = ", ".join(f"{v:g}" for v in eval(a_point))
     assert "model.json" in err[0] and "given.toml" in err[0]
     assert "rotary axis A" in err[0] and "(0, 0, -100) mm" in err[0] and f"({given}) mm" in err[0]
+
+
+def test_a_topology_with_the_rotary_axes_the_wrong_way_round_is_named(tmp_path, capsys):
+    """A ball-bar file of a CAFXYZ trunnion (lengths by the independent truth machine) given with a
+    machine file that says ACFXYZ: the rows where both A and C have turned put the balls tens of mm
+    from the bar's length, and the message names the topology that fits every row."""
+    truth = TruthMachine.zero("cafxyz")
+    c = np.arange(0.0, 360.0, 30.0)
+    a = np.repeat([0.0, -60.0], c.size)
+    c = np.tile(c, 2)
+    x, y, z = 100 * np.cos(np.radians(c)), 100 * np.sin(np.radians(c)), np.full(c.size, 50.0)
+    q = truth.q_from(x, y, z, a_deg=a, c_deg=c)
+    table = np.array([0.0, 0.0, 50.0])
+    length = truth.ballbar_length(q, table)
+    rows = ["x_mm,y_mm,z_mm,a_deg,c_deg,table_ball_x_mm,table_ball_y_mm,table_ball_z_mm,"
+            "tool_ball_x_mm,tool_ball_y_mm,tool_ball_z_mm,length_mm"]
+    rows += [f"{x[i]:.5f},{y[i]:.5f},{z[i]:.5f},{a[i]:g},{c[i]:g},0,0,50,0,0,0,{length[i]:.5f}"
+             for i in range(c.size)]
+    (tmp_path / "bar.csv").write_text("\n".join(rows) + "\n")
+    wrong = _machine_file(tmp_path / "wrong.toml", topology="ACFXYZ")
+    assert main(["identify", str(wrong), str(tmp_path / "bar.csv"), "-o",
+                 str(tmp_path / "m.json")]) == 2
+    assert not (tmp_path / "m.json").exists()
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    first = 1 + int(np.flatnonzero((a != 0) & (c != 0))[0])     # the data row: A and C turned
+    assert f"row {first}" in err
+    assert "topology ACFXYZ (A carried by C" in err and "with CAFXYZ (C carried by A)" in err
+    assert "axis_point_mm" not in err
 
