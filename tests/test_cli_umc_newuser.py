@@ -6,10 +6,13 @@ line beside the map of a turned table (tests/test_render_turned_table.py):
   of a rotary axis are about its own line. Refused now, naming both lines and both files;
 * a machine file with the rotary axes stacked the wrong way round (ACFXYZ) was refused on a
   ball-bar row whose length it blamed on the bar or on ``axis_point_mm``: now the topology is
-  named, the one the file fits (CAFXYZ, by the independent truth machine's lengths).
+  named, the one the file fits (CAFXYZ, by the independent truth machine's lengths);
+* the tool-length note said "the program's tools are 0 .. 100 mm long" of a program that used H01
+  alone: the 0 was the blocks after a home move under G49, which are not corrected.
 """
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -96,3 +99,20 @@ def test_a_topology_with_the_rotary_axes_the_wrong_way_round_is_named(tmp_path, 
     assert "topology ACFXYZ (A carried by C" in err and "with CAFXYZ (C carried by A)" in err
     assert "axis_point_mm" not in err
 
+
+TOOLS = ("G21 G90 G17\nG0 A0 C0\nG43 H1 Z20\nG0 X10 Y10\nG1 Z-1 F300\nG1 X20\nG0 Z5\nG49\n"
+         "G28 G91 Z0\nG90\nG0 X0 Y0\nM30\n")
+
+
+@pytest.mark.parametrize("h1, said", [(100.0, None), (150.0, "150 .. 150")])
+def test_the_tool_length_note_names_the_tools_of_the_blocks_corrected(tmp_path, capsys, h1, said):
+    """The data were taken with 100 mm tools; the program uses H1 only. The block after the home
+    move (G49 in force: length 0, Z not known, not corrected) made it "0 .. 100 mm" (and "0 ..
+    150")."""
+    model = _model(tmp_path, _machine_file(tmp_path / "m.toml"), {"tool_length_mm": [100.0, 100.0]})
+    (tmp_path / "p.nc").write_text(TOOLS)
+    assert main(["compensate", str(tmp_path / "m.toml"), str(model), str(tmp_path / "p.nc"), "-o",
+                 str(tmp_path / "out.nc"), "--tool-length", f"H1={h1:g}"]) == 0
+    out = capsys.readouterr().out
+    note = re.search(r"the program's tools are ([0-9.]+ \.\. [0-9.]+) mm", out)
+    assert (note and note.group(1)) == (said or None), out
