@@ -57,8 +57,8 @@ def add_arguments(parser):
                         help="arrow exaggeration factor (default: largest arrow = 1/10 of the part)")
     parser.add_argument("--range-um", type=float, default=None, metavar="U",
                         help="colour scale -U..U um (default: the largest |deviation| of both maps)")
-    add_offset_arguments(parser, "work offsets of the program, as for compensate (the map takes "
-                                 "G54, or the one work system the file gives)",
+    add_offset_arguments(parser, "work offsets of the program, as for compensate (each block "
+                                 "placed by its own work system, as compensate places it)",
                          "where the program's zero sits in machine axis positions (mm), as given "
                          "to compensate: the model is evaluated there")
     add_dialect_argument(parser)
