@@ -268,16 +268,11 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
     progress : callable(stage text) told at each stage, or None.
     work_offset : (na,) mm (linear axes only) where the program's origin (G54) sits in machine
         axis positions, as compensate was given it, when no ``setup`` is given.
-    setup : the :class:`mtcomp.toolpaths.offsets.ProgramSetup` compensate was given (its work
-        offsets and tool lengths): the program's blocks (and the corrected ones) are placed on the
-        machine by it as compensate places them (:meth:`~mtcomp.toolpaths.offsets.ProgramSetup.apply`:
-        each block's work offset, under Haas' G254 turned with the table, a tool centre point
-        block's tip turned into axes), the model evaluated there and the map referenced to the
-        deviation at the part's datum; the lengths of its tools (``--tool-length``,
-        ``[tool_lengths]``, by number or by name) are the model's Abbe arm at the blocks of that
-        tool (a tool it does not list: the machine's tool length, as compensate assumes; such
-        tools are listed in ``info["tools_assumed"]``). None: the one ``program`` (ProgramPoints)
-        was read with, else no offsets. The map is drawn in the program's frame.
+    setup : the :class:`mtcomp.toolpaths.offsets.ProgramSetup` compensate was given: the blocks
+        (and the corrected ones) are placed on the machine by it as compensate places them, the
+        model evaluated there, the map referenced to the part's datum; its tool lengths are the
+        model's Abbe arm (a tool it does not list: the machine's, as compensate assumes, listed in
+        ``info["tools_assumed"]``). None: the one ``program`` was read with, else no offsets.
     Raises InputError for programs without a surface or a compensated program that does not match.
     """
     radius, length = _tool(program, tool_radius_mm, flank_length_mm)
