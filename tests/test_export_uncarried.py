@@ -60,6 +60,8 @@ def test_rotary_line_offset_listed_with_its_tool_tip_error_swept(tmp_path, capsy
     together = float(re.search(r"from these together: up to ([0-9.]+) um", readme).group(1))
     assert together == pytest.approx(2 * (15.0 ** 2 + 10.0 ** 2) ** 0.5, abs=0.01)
     assert "19703-19705" in readme                  # Fanuc's TCP parameters that hold the line
+    # and a Haas control's: its machine rotary zero point (Haas mill operator's manual, settings)
+    assert "machine rotary zero point (MRZP), settings 255-257" in readme
     assert "not carried: X0C" in err and "together: up to 36.06 um" in err
     assert "the others at the one pose the tables are read at" in readme
 

@@ -10,7 +10,6 @@ from mtcomp.measurement.readings import chain_function
 from mtcomp.measurement.readings_extra import normal_deviation_function, velocity_function
 from mtcomp.models import ErrorModel, PeriodicError, function_cache
 from mtcomp.models.evaluate import casadi_map_call
-from mtcomp.viz.surface import _frame_function
 
 SITES = {
     "pose": lambda m: m.pose_function,
@@ -23,7 +22,6 @@ SITES = {
     "measurement laser_jac": lambda m: chain_function(m, "laser_jac"),
     "cmm normal": normal_deviation_function,
     "grid velocity": lambda m: velocity_function(m, "X"),
-    "viz frame": _frame_function,
     "export rotation": _rotation_function,
 }
 

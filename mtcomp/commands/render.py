@@ -57,8 +57,8 @@ def add_arguments(parser):
                         help="arrow exaggeration factor (default: largest arrow = 1/10 of the part)")
     parser.add_argument("--range-um", type=float, default=None, metavar="U",
                         help="colour scale -U..U um (default: the largest |deviation| of both maps)")
-    add_offset_arguments(parser, "work offsets of the program, as for compensate (the map takes "
-                                 "G54, or the one work system the file gives)",
+    add_offset_arguments(parser, "work offsets of the program, as for compensate (each block "
+                                 "placed by its own work system, as compensate places it)",
                          "where the program's zero sits in machine axis positions (mm), as given "
                          "to compensate: the model is evaluated there")
     add_dialect_argument(parser)
@@ -152,21 +152,19 @@ def run(args) -> int:
     fitted, drift_note = _thermal_state(args, fitted)
     progress("reading the program")
     tol = None if args.chord_tol_um is None else args.chord_tol_um * 1e-3
-    program = read_program_points(args.program, machine, args.dialect, tol)
-    work_offset = _work_offset(setup, machine)
+    program = read_program_points(args.program, machine, args.dialect, tol, setup)
     try:
-        machine.check_travel(program.q if work_offset is None else program.q + work_offset,
-                             program.line, program.known, args.program)
+        machine.check_travel(program.machine_q, program.line, program.known, args.program)
     except InputError as e:
         # the map is still drawn: tell, not refuse
         where = ("the program's coordinates taken as axis positions: give --work-offset or "
-                 "--offsets" if work_offset is None else "the program's coordinates plus the work "
-                 "offset given")
+                 "--offsets" if not setup.work_offsets else "the program's coordinates plus the "
+                 "work offset given")
         print(f"note: {e} ({where})", file=sys.stderr)
     smap = program_error_map(machine, fitted, program, args.compensated,
                              tool_radius_mm=args.tool_radius_mm, flank_length_mm=args.flank_mm,
                              flank_side=args.flank_side, report=args.report, normal=args.normal,
-                             progress=progress, work_offset=work_offset, setup=setup)
+                             progress=progress, setup=setup)
     for tool in smap.info.get("tools_assumed", ()):
         print(f"assumed: tool length of {tool} = the machine's tool_length_mm "
               f"({machine.tool_length:g} mm); give --tool-length or --offsets")
@@ -219,19 +217,6 @@ def _setup(args, machine):
     once)."""
     from ..toolpaths.offsets import load_setup
     return load_setup(machine, args.offsets, args.work_offset, args.tool_length)
-
-
-def _work_offset(setup, machine):
-    """(na,) the program origin's machine position from the set-up (one work system: the one
-    given, G54 when several are), or None."""
-    from ..toolpaths.offsets import WORK_SYSTEMS
-    if not setup.work_offsets:
-        return None
-    index = 0 if 0 in setup.work_offsets or len(setup.work_offsets) > 1 else next(iter(setup.work_offsets))
-    if len(setup.work_offsets) > 1:
-        print(f"note: the map takes the program's origin at {WORK_SYSTEMS[index]} "
-              "(render draws one work system)", file=sys.stderr)
-    return setup.work_offsets.get(index, np.zeros(machine.n_axes))
 
 
 def _check_numbers(args) -> None:

@@ -27,6 +27,7 @@ SWEEP_DEG = 15.0
 FLOOR_UM = 0.1
 
 _FANUC_TCP = ("FANUC Series 30i-MODEL A, Tool center point control for 5-axis machining, A-79348E")
+_HAAS = "Haas mill operator's manual, Next Generation Control, Settings 255-257"
 _HEIDENHAIN = ("HEIDENHAIN Technical Manual iTNC 530 HSCI, KinematicsComp: 'Geometry errors of axes' "
                "and the recommended transformation chains")
 
@@ -45,7 +46,10 @@ def carrier(fmt: str, machine, name: str) -> str:
                 "holds where the rotary axis lines lie: parameters 19700-19702 (rotary table "
                 "position) and 19703-19705 (intersection offset vector between the first and second "
                 f"rotation axes of the table), in mm ({_FANUC_TCP}): correct the value set there by "
-                "this offset, or correct the program with mtcomp compensate")
+                "this offset, or correct the program with mtcomp compensate; on a Haas control the "
+                "lines its G234 and G254 turn about are the machine rotary zero point (MRZP), "
+                f"settings 255-257 (MRZP X, Y, Z offsets; {_HAAS}): there it is a correction of "
+                "the setting that holds this line")
     return ("no parameter of this controller that takes it is known to mtcomp: correct the program "
             "with mtcomp compensate")
 

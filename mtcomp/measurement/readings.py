@@ -39,6 +39,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import InputError
+from ._topology import refuse_other_topology
 from .drift import feature_value
 from .files import MeasurementSet
 from ..models.chain import (ErrorModel, context_defaults as base_context_defaults,
@@ -745,6 +746,7 @@ class BallbarModel(MeasurementModel):
             i = int(far[0])
             also = (" or the machine file's axis_point_mm (in mm)"
                     if any(a.is_rotary for a in self.model.machine.axes) else "")
+            refuse_other_topology(self, length, i, BAR_LENGTH_TOLERANCE_MM)
             raise InputError(f"length_mm {length[i]:g} is {abs(length[i] - nominal[i]):.4g} mm from "
                              f"the distance of the balls there ({nominal[i]:.4f} mm): length_mm is "
                              "the bar's length in mm (its nominal length plus the reading, not the "
@@ -775,3 +777,4 @@ class BallbarModel(MeasurementModel):
     def predict_columns(self, p, nuisance=None):
         p, nuisance = self._check_p(p, nuisance)
         return {"pred_length_mm": self._lengths(p, False)[0] + self._offset(nuisance)}
+

@@ -594,6 +594,7 @@ def load_model(path: str | os.PathLike, machine: Machine | None = None,
         if machine.topology != file_machine.topology:
             raise InputError(f"model was made for a {file_machine.topology} machine, not "
                              f"{machine.topology}", p)
+        _same_axis_lines(file_machine, machine, p)
         if notes is not None and machine.name != file_machine.name:
             notes.append(f"{p} was made for the machine {file_machine.name!r}; its errors are used "
                          f"on {machine.name!r}, the machine given (its travel, tool length and axis "
@@ -629,6 +630,34 @@ def load_model(path: str | os.PathLike, machine: Machine | None = None,
     held = held_from_file(model.machine, data.get("held"), p)
     return FittedModel(model, params, {str(k): float(v) for k, v in cd.items()}, data.get("info", {}),
                        support, uncertainty, held)
+
+
+#: how far (mm) a rotary axis's line in the machine file given may lie from the one the model was
+#: fitted with: the resolution of the files' values (a line 1 um away moves a turned tip by 1 um)
+AXIS_LINE_TOL_MM = 1e-3
+
+
+def _same_axis_lines(fitted_on, given, path) -> None:
+    """InputError, naming both lines and the files, when a rotary axis's line (``axis_point_mm``,
+    the control's rotary zero point) in the machine file ``given`` lies more than
+    :data:`AXIS_LINE_TOL_MM` from the line of the machine the model was fitted on: the model's
+    rotary errors (an axis's offset, its tilt) are deviations from that line, so on another one
+    the model predicts, and compensate corrects, errors the machine does not have."""
+    for a, b in zip(fitted_on.axes, given.axes):
+        if not a.is_rotary:
+            continue
+        d = np.asarray(b.axis_point, float) - np.asarray(a.axis_point, float)
+        apart = float(np.linalg.norm(d - (d @ a.direction) * a.direction))
+        if apart > AXIS_LINE_TOL_MM:
+            def where(v):
+                return f"({', '.join(f'{x:g}' for x in v)}) mm"
+            machine_file = f" in {given.source}" if given.source else ""
+            raise InputError(f"rotary axis {a.name}: the model was fitted on a machine whose {a.name} "
+                             f"axis runs through {where(a.axis_point)}, the machine file"
+                             f"{machine_file} puts it through {where(b.axis_point)} ({apart:.4g} mm "
+                             "apart): the model's errors of that axis are about its own line; give "
+                             "the machine file the model was fitted with, or fit it again on this one",
+                             path)
 
 
 def older_hint(name: str) -> str:

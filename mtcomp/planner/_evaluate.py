@@ -294,6 +294,21 @@ class Evaluator:
         r -= target
         return down_columns(np.multiply, r, self.S, out=r)
 
+    def tool_point(self, q, ctx, along=None) -> np.ndarray:
+        """(n, 3) mm, workpiece frame: where the model puts the point ``along`` (n,) mm up the tool
+        axis from the tip (None: the tip) with the axes at q (n, na) in the context ``ctx``: the
+        nominal pose plus the model's tip and tool-axis deviation, evaluated as the residual
+        evaluates it (:meth:`_deviation`). The error maps' deviation: this at a block's corrected
+        (or own) position, less the nominal point at its own position and the deviation at the
+        part's datum (:meth:`datum_reference`), is the residual the plan left there."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        dev = self._deviation(q, ctx)
+        tip, axis = nominal_pose(self.machine, q)
+        out = tip + dev[:, :3]
+        if along is not None:
+            out += np.asarray(along, dtype=float)[:, None] * (axis + dev[:, 3:6])
+        return out
+
     def deviation_only(self, q, ctx):
         """Weighted model deviation (n, rows) at q (the residual of the uncorrected program)."""
         dev = self._deviation(q, ctx)

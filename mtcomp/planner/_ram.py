@@ -83,18 +83,22 @@ class RamRule:
         if self.col is not None and not self.extrapolate:
             flags[nodes.outside[:, self.col], self.col] = False
 
-    def note(self, q, outside, pinned, tool_length=None) -> None:
-        """Widen :attr:`tools_asked` by the blocks' tools (``tool_length`` (n,) mm, None or NaN the
-        machine's) and :attr:`ram_asked` by the ram positions of the blocks corrected but for the
-        ram (``outside`` (n, na), ``pinned`` (n,) of the blocks at ``q``)."""
+    def note(self, q, outside, pinned, tool_length=None, given=None) -> None:
+        """Widen :attr:`tools_asked` by the tools (``tool_length`` (n,) mm, None or NaN the
+        machine's) of the blocks whose every axis the program has given (``given`` (n,) bool, None:
+        all; the others are not corrected: a block after a home move under G49, whose length is
+        0, says nothing of the tools that cut) and :attr:`ram_asked` by the ram positions of the
+        blocks corrected but for the ram (``outside`` (n, na), ``pinned`` (n,) of the blocks at
+        ``q``)."""
         if self.col is None:
             return
         L0 = self.machine.tool_length
         tools = np.full(q.shape[0], L0) if tool_length is None else \
             np.nan_to_num(np.asarray(tool_length, dtype=float), nan=L0)
-        if tools.size:
-            self.tools_asked[0] = min(self.tools_asked[0], float(tools.min()))
-            self.tools_asked[1] = max(self.tools_asked[1], float(tools.max()))
+        counted = tools if given is None else tools[given]
+        if counted.size:
+            self.tools_asked[0] = min(self.tools_asked[0], float(counted.min()))
+            self.tools_asked[1] = max(self.tools_asked[1], float(counted.max()))
         rows = outside[:, self.col] & ~pinned
         if self.extrapolate or not rows.any():
             return

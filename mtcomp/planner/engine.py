@@ -230,7 +230,7 @@ class Planner:
         outside = self.outside_support(end, known, chunk.tool_length)
         sd = self._sd_um(end, ctx, unknown, outside, chunk.datum)
         pinned = self._pinned(unknown, outside, sd)
-        self.ram.note(end, outside, pinned, chunk.tool_length)
+        self.ram.note(end, outside, pinned, chunk.tool_length, ~any_rows(unknown))
         ref = self._reference(chunk.datum, ctx)
         lin_end = self._solve_free(end, ctx, ref)
         first = self._last_end is None

@@ -159,16 +159,12 @@ class ProgramSetup:
         jump = chunk.jump
         if moves and "Z" in self.machine.axis_names:
             off, lengths, known, jump = self._quill(chunk, moves, off, lengths)
-        start, end, datum = start + off, end + off, probed
         tcp = frame_tcp(chunk.frame)
+        rows = tcp & chunk.known.all(axis=1)
+        start, end, datum = start + off, self.on_machine(end, off, rows), probed
         from_known = tcp
         if tcp.any():
-            # tool centre point rows: the words (plus the offset) are the tip in the workpiece
-            # frame and the angles; the axes are where the controller's kinematics puts them
-            # (rows whose every axis the program has given: the others are not corrected)
-            rows = tcp & chunk.known.all(axis=1)
-            end, datum = end.copy(), datum.copy()
-            end[rows] = axes_of_tcp(self.machine, end[rows])
+            datum = datum.copy()
             datum[tcp] = axes_of_tcp(self.machine, datum[tcp])
             from_known = rows & ~chunk.jump
             start = start.copy()
@@ -180,6 +176,19 @@ class ProgramSetup:
         dirs = self._held_directions(source).chunk(chunk.dirs, start, end, tcp, from_known)
         return replace(chunk, start=start, end=end, dirs=dirs, tool_length=lengths, datum=datum,
                        jump=jump, tcp=tcp, known=known), off
+
+    def on_machine(self, placed: np.ndarray, off: np.ndarray, tcp: np.ndarray) -> np.ndarray:
+        """(n, na) machine axis positions of program positions ``placed`` (n, na; in the work
+        system, placed by any frame the program moved itself) with the rows' work offsets ``off``
+        (from :meth:`apply`; under Haas' G254 the part origin turned with the table): the offset
+        added, and in tool centre point rows ``tcp`` (n,) bool (the words (plus the offset) the tip
+        in the workpiece frame and the angles; rows whose every axis the program has given) the
+        axes where the controller's kinematics puts them. How :meth:`apply` places a row's end, and
+        how the error maps place the positions of a compensation's report."""
+        out = placed + off
+        if tcp.any():
+            out[tcp] = axes_of_tcp(self.machine, out[tcp])
+        return out
 
     def _quill(self, chunk: SegmentChunk, moves: dict, off: np.ndarray, lengths: np.ndarray):
         """(offsets, tool lengths, known) of the rows with the W quill's travel (:mod:`.quill`):

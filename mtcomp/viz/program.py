@@ -29,6 +29,14 @@ class ProgramPoints:
     tool : (n,) int, the tool length offset number (``G43 H``) in force at each row, 0 for none
     (None: not read). tool_names : the tools the program calls by name (a Sinumerik ``T="..."``)
     -> the number ``tool`` holds for each.
+    machine_q : (n, na) where the machine's axes stand at each row, as compensate places the
+    program (:meth:`mtcomp.toolpaths.offsets.ProgramSetup.apply`: the work offset in force, under
+    Haas' G254 the part origin turned with the table, a tool centre point row's tip and angles
+    turned into axes with the offset added to the tip); the model is evaluated there. datum : (n,
+    na) the machine position of the part's datum (the program's origin as probed) at each row, the
+    reference of the deviations. offsets : (n, na) the work offset of each row, as
+    :meth:`~mtcomp.toolpaths.offsets.ProgramSetup.on_machine` takes it. setup : the set-up they
+    were placed by. (None: not placed.)
     """
 
     path: str
@@ -46,42 +54,53 @@ class ProgramPoints:
     local: np.ndarray | None = None
     tool: np.ndarray | None = None
     tool_names: dict | None = None
+    machine_q: np.ndarray | None = None
+    datum: np.ndarray | None = None
+    offsets: np.ndarray | None = None
+    setup: object = None
 
     def __len__(self):
         return int(self.line.shape[0])
 
 
 def read_program_points(path, machine: Machine, dialect: str | None = None,
-                        chord_tol_mm: float | None = None) -> ProgramPoints:
+                        chord_tol_mm: float | None = None, setup=None) -> ProgramPoints:
     """Every segment end of the program at ``path`` (arcs as chords within ``chord_tol_mm``, None:
-    the reader's default), read by the rules of ``dialect`` (None: detected from the program).
+    the reader's default), read by the rules of ``dialect`` (None: detected from the program), and
+    placed on the machine by ``setup`` (a :class:`~mtcomp.toolpaths.offsets.ProgramSetup`, as
+    compensate was given it; None: no work offsets): ``machine_q``, ``datum``, ``offsets``.
     Raises InputError."""
     from ..toolpaths import SegmentChunk, iter_segment_chunks
+    from ..toolpaths.offsets import ProgramSetup
     from ..toolpaths.source import open_program
     tol = {} if chord_tol_mm is None else {"chord_tol_mm": chord_tol_mm}
+    setup = ProgramSetup(machine) if setup is None else setup
     with open_program(path, dialect) as src:
         chunks = list(iter_segment_chunks(src, machine, **tol))
         frames = list(getattr(src, "local_frames", None) or [])
         names = dict(getattr(getattr(src, "sinumerik", None), "tool_names", None) or {})
+        # compensate's placement of the blocks (one engine): the model is evaluated there
+        placed = [setup.apply(c, src) for c in chunks]
     seg = SegmentChunk.concatenate(chunks, machine.n_axes)
     if len(seg.end) == 0:
         raise InputError("no motion block in the program: nothing to draw", path)
     q, local = _placed(seg, seg.end, frames, machine)
-    # tool centre point rows: the words are the tip and the angles; the map works on the axes the
-    # controller reaches (the workpiece origin taken at the kinematics' own: render's work offset
-    # moves the linear axes only), and on their approach directions, not the tip words'
+    # tool centre point rows: the words are the tip and the angles; the map is drawn from the axes
+    # the controller reaches with the workpiece origin at the kinematics' own (the model is
+    # evaluated at ``machine_q``), the approach directions are the axes' (compensate's), not the
+    # tip words'
     from ..toolpaths.tcp import axes_of_tcp
     from ..toolpaths.words import frame_tcp, frame_tool
     tcp = frame_tcp(seg.frame) & seg.known.all(axis=1)
-    dirs = seg.dirs.copy()
     if tcp.any():
         q[tcp] = axes_of_tcp(machine, q[tcp])
-        dirs = _axis_directions(seg, frames, machine, q, tcp)
+    machine_q, datum, dirs, offsets = (np.concatenate(v) for v in zip(
+        *((m.end, m.datum, m.dirs, off) for m, off in placed)))
     return ProgramPoints(os.fspath(path), q, seg.line.copy(), seg.feed.copy(),
                          dirs, seg.rapid.copy(), seg.known.copy(), seg.cycle.copy(), tcp,
                          dialect, chord_tol_mm, frames if local.any() else None,
                          local if local.any() else None, np.asarray(frame_tool(seg.frame)).copy(),
-                         names)
+                         names, machine_q, datum, offsets, setup)
 
 
 def _placed(seg, pts, frames: list, machine: Machine) -> tuple[np.ndarray, np.ndarray]:
@@ -95,19 +114,6 @@ def _placed(seg, pts, frames: list, machine: Machine) -> tuple[np.ndarray, np.nd
     if not local.any():
         return pts.copy(), local
     return placed_by_frames(frames, local, seg.line, pts, [machine.index(c) for c in "XYZ"]), local
-
-
-def _axis_directions(seg, frames: list, machine: Machine, q: np.ndarray, tcp: np.ndarray):
-    """(n, na) int8 the approach directions of the axes at the rows' ends ``q`` (tool centre point
-    rows ``tcp`` turned into axes), by the reader's rule (:mod:`mtcomp.toolpaths.directions`)."""
-    from ..toolpaths.directions import AxisDirections
-    from ..toolpaths.tcp import axes_of_tcp
-    from ..toolpaths.words import frame_tcp
-    start = _placed(seg, seg.start, frames, machine)[0]
-    stepped = tcp & ~np.asarray(seg.jump, bool)
-    start[stepped] = axes_of_tcp(machine, start[stepped])
-    held = AxisDirections(np.array([not a.is_rotary for a in machine.axes]))
-    return held.chunk(seg.dirs, start, q, frame_tcp(seg.frame), stepped)
 
 
 def _motion_runs(original: ProgramPoints, compensated: ProgramPoints) -> tuple[np.ndarray, np.ndarray]:
@@ -264,14 +270,23 @@ def report_points(original: ProgramPoints, report, machine: Machine) -> ProgramP
         from ..toolpaths.frames import placed_by_frames
         q = placed_by_frames(original.frames, original.local, original.line, np.where(blank, 0.0, q),
                              [machine.index(c) for c in "XYZ"])
-    q = np.where(blank, original.q, q)     # already placed
+    # a blank cell: the program's own position (placed; a tool centre point row has none blank)
+    words = np.where(blank, original.q, q)
     program_line = _source_lines(original)
-    if original.tcp is not None and original.tcp.any():
-        # the report holds a tool centre point block's words: the tip and angles it writes
-        from ..toolpaths.tcp import axes_of_tcp
-        q[original.tcp] = axes_of_tcp(machine, q[original.tcp])
     bad = np.flatnonzero(line != program_line)
     if bad.size:
         raise InputError(f"row {int(bad[0]) + 2} is for line {int(line[bad[0]])}, the program's "
                          f"segment end there is on line {int(program_line[bad[0]])}", path)
-    return ProgramPoints(path, q, line, original.feed, original.dirs, original.rapid)
+    # the report holds the words written (a tool centre point block's: the tip and angles), placed
+    # on the machine as compensate placed the program's (the same work offsets, per row)
+    tcp = np.zeros(len(original), bool) if original.tcp is None else original.tcp
+    q = words.copy()
+    if tcp.any():
+        from ..toolpaths.tcp import axes_of_tcp
+        q[tcp] = axes_of_tcp(machine, q[tcp])
+    machine_q = None if original.offsets is None else \
+        original.setup.on_machine(words, original.offsets, tcp)
+    return ProgramPoints(path, q, line, original.feed, original.dirs, original.rapid,
+                         machine_q=machine_q, datum=original.datum, offsets=original.offsets,
+                         setup=original.setup)
+

@@ -20,7 +20,9 @@ point, only rapids -- is mapped as the points of its path, the deviation along t
   ``SurfaceMap.depth_um`` the deviation along it.
 
 The deviation at a point is that of the tool point that cuts there -- the tip, the ball centre, or
-the axis point at the contact height on a flank -- actual minus nominal, in the workpiece frame , from the model's tool frame (tip and rotation); ``dn`` is its component along the normal
+the axis point at the contact height on a flank -- actual minus nominal, in the workpiece frame, by
+compensate's evaluator (the model's tip and tool-axis deviation, at the blocks placed on the machine
+as compensate places them); ``dn`` is its component along the normal
 (positive: the tool stays off the surface, material is left outside, the sign a CMM reports). For a
 compensated program the same tool point is taken at the corrected axis positions and compared with
 its ORIGINAL nominal position; original and compensated blocks are paired through the programs'
@@ -189,55 +191,30 @@ def tools_assumed(orig: "ProgramPoints", sel: np.ndarray, lengths: dict) -> list
     return [f'"{by_number[h]}"' if h in by_number else f"H{h}" for h in sorted(used)]
 
 
-def _frame_function(model):
-    """CasADi (q, p, c) -> (tip (3,), R (9,) column-major): the actual tool frame in the workpiece
-    frame, from the model's symbolic chain. Built once per model structure
-    (:func:`mtcomp.models.function_cache.model_function`)."""
-    from ..models.function_cache import model_function
-
-    def build():
-        import casadi as ca
-        q = ca.SX.sym("q", model.machine.n_axes)
-        p = ca.SX.sym("p", model.n_params)
-        c = ca.SX.sym("c", model.n_context)
-        tip, _, R = model.symbolic(q, p, c, errors=True)
-        return ca.Function("viz_tool_frame", [q, p, c], [tip, ca.reshape(R, 9, 1)])
-    return model_function(model, "viz_tool_frame", build)
+def tool_point_evaluator(fitted):
+    """Compensate's evaluator of ``fitted`` (:class:`mtcomp.planner._evaluate.Evaluator`): the one
+    way the model's deviation at a pose is computed, for the planner's residuals, the judges' and
+    the error maps."""
+    from ..planner import CompensationProblem
+    from ..planner._evaluate import Evaluator
+    return Evaluator(CompensationProblem.from_machine(fitted))
 
 
 def predicted_points(fitted, q: np.ndarray, feed: np.ndarray, dirs: np.ndarray,
-                     offset_tool: np.ndarray | None = None, tool_length=None) -> np.ndarray:
-    """(n, 3) mm: where the tool point at ``offset_tool`` (n, 3) mm, tool frame (None: the tip) really
-    is in the workpiece frame at axis positions q (n, na), as the model ``fitted`` predicts it (its
-    tool tip and tool rotation, every term included; feed mm/min, approach directions and
-    ``tool_length`` (n,) mm (None: the machine's) as context).
+                     along: np.ndarray | None = None, tool_length=None, evaluator=None) -> np.ndarray:
+    """(n, 3) mm: where the tool point ``along`` (n,) mm up the tool axis from the tip (None: the
+    tip) really is in the workpiece frame at axis positions q (n, na), as the model ``fitted``
+    predicts it (its tool tip and tool axis, every term included, evaluated where the model's data
+    held an axis as compensate evaluates it; feed mm/min, approach directions and ``tool_length``
+    (n,) mm (None: the machine's) as context), by compensate's evaluator (``evaluator``: one from
+    :func:`tool_point_evaluator`, made here when None).
     """
-    from ..models.evaluate import casadi_map_call
     n = q.shape[0]
     if n == 0:
         return np.zeros((0, 3))
+    ev = tool_point_evaluator(fitted) if evaluator is None else evaluator
     c = np.ascontiguousarray(_context(fitted, n, feed, dirs, tool_length), dtype=float)
-    f = _frame_function(fitted.model)
-    p = np.asarray(fitted.params.values, dtype=float)
-    q = np.ascontiguousarray(q, dtype=float)
-
-    def frame(q_, p_):
-        tip_, rflat_ = casadi_map_call(f, q_, p_, c)
-        return tip_, rflat_.reshape(n, 3, 3).transpose(0, 2, 1)
-
-    qc, held = fitted.clamp(q)
-    tip, R = frame(q, p)
-    if held:
-        # the model's error is evaluated where the data held those axes (as compensate does): the
-        # deviation at the clamped pose, carried to the block's own nominal pose
-        tip_c, R_c = frame(qc, p)
-        tip0_c, R0_c = frame(qc, np.zeros_like(p))
-        tip0, R0 = frame(q, np.zeros_like(p))
-        tip = tip0 + (tip_c - tip0_c)
-        R = np.einsum("nij,nkj,nkl->nil", R_c, R0_c, R0)
-    if offset_tool is None:
-        return tip
-    return tip + np.einsum("nij,nj->ni", R, offset_tool)
+    return ev.tool_point(np.ascontiguousarray(q, dtype=float), c, along)
 
 
 #: the bowl's header; programs written by earlier versions of mtcomp name it "SEED 001 BOWL"
@@ -289,14 +266,13 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
     uncorrected : mark the blocks left uncorrected (``SurfaceMap.status``): from the report's
         columns when a report is given, else by the planner's rules (:func:`planner_status`).
     progress : callable(stage text) told at each stage, or None.
-    work_offset : (na,) mm (linear axes only) where the program's origin sits in machine axis
-        positions (its G54 ...), as compensate was given it: the model is evaluated at the machine
-        positions and the map referenced to the deviation there (the part's datum); None: the
-        program's coordinates are machine positions. The map is drawn in the program's frame.
-    setup : the :class:`mtcomp.toolpaths.offsets.ProgramSetup` compensate was given: the lengths of
-        its tools (``--tool-length``, ``[tool_lengths]``, by number or by name) are the model's Abbe
-        arm at the blocks of that tool (None, or a tool it does not list: the machine's tool length,
-        as compensate assumes; with a setup such tools are listed in ``info["tools_assumed"]``).
+    work_offset : (na,) mm (linear axes only) where the program's origin (G54) sits in machine
+        axis positions, as compensate was given it, when no ``setup`` is given.
+    setup : the :class:`mtcomp.toolpaths.offsets.ProgramSetup` compensate was given: the blocks
+        (and the corrected ones) are placed on the machine by it as compensate places them, the
+        model evaluated there, the map referenced to the part's datum; its tool lengths are the
+        model's Abbe arm (a tool it does not list: the machine's, as compensate assumes, listed in
+        ``info["tools_assumed"]``). None: the one ``program`` was read with, else no offsets.
     Raises InputError for programs without a surface or a compensated program that does not match.
     """
     radius, length = _tool(program, tool_radius_mm, flank_length_mm)
@@ -305,7 +281,7 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
     if normal not in ("surface", "in-plane", "holes", "path", "auto"):
         raise InputError(f"normal must be 'surface', 'in-plane', 'holes', 'path' or 'auto', not "
                          f"{normal!r}")
-    orig = program if isinstance(program, ProgramPoints) else read_program_points(program, machine)
+    orig, setup = _placed_program(machine, program, work_offset, setup)
     comp, pair = _compensated_points(orig, compensated, report, machine)
     say = progress or (lambda _stage: None)
     g, segments, info, kind = _map_geometry(orig, machine, radius, length, normal, flank_side,
@@ -315,20 +291,19 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
     _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
     inverse = inverse.ravel()
     sel = g.index[first]
-    off = _work_offset(machine, work_offset)
     tips = tool2wp(machine, orig.q[sel])[:, :3, 3]
-    lengths = {} if setup is None else setup.lengths_by_number(orig.tool_names or {})
+    lengths = setup.lengths_by_number(orig.tool_names or {})
     length_of = tool_lengths_of(orig, machine, lengths)
-    if setup is not None and orig.tool is not None:
+    if orig.tool is not None:
         info["tools_assumed"] = tools_assumed(orig, sel, lengths)
     dev_before, dev_after = _deviations(machine, fitted, orig, comp, pair, sel, g.offset[first],
-                                        off, length_of[sel], say)
+                                        length_of[sel], say)
     status, source = None, ""
     if report is not None:
         status, source = report_status(report, len(orig))[sel], "report"
     elif uncorrected and hasattr(fitted, "support"):
         say(f"finding the blocks the planner leaves uncorrected ({sel.size} points)")
-        status, source = planner_status(fitted, orig, sel, off, length_of), "planner"
+        status, source = planner_status(fitted, orig, sel, length_of), "planner"
     notes = [info.pop("left_out")] if "left_out" in info else []
     if kind == "surface" and length == 0 and g.normals.size and _along_tool_axis(machine, orig, g, info):
         notes.append("the normals all lie along the tool axis (a flat or 2-D program): the map "
@@ -347,38 +322,60 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
     return smap
 
 
-def _deviations(machine, fitted, orig: ProgramPoints, comp, pair, sel, offset, off, lengths, say):
+def _deviations(machine, fitted, orig: ProgramPoints, comp, pair, sel, offset, lengths, say):
     """(before (n, 3), after (n, 3) or None) mm: the deviation the model predicts of the tool point
-    ``offset`` (n, 3) mm, workpiece frame, carried by the tool at the segment ends ``sel`` of the
-    program (and at their corrected counterparts ``pair[sel]`` in ``comp``), tools of ``lengths``
-    (n,) mm. Referenced to the part's datum, as compensate references its corrections: the
-    program's origin (its work offset ``off``, else the machine zero), where the machinist probed
-    the part; the model evaluated at machine positions."""
-    T0 = tool2wp(machine, orig.q[sel])
-    offset_tool = np.einsum("nji,nj->ni", T0[:, :3, :3], offset)      # R0^T offset: tool frame
-    each, which = np.unique(lengths, return_inverse=True)      # a program has a tool or a few
-    datum_dev = fitted.datum_deviation(np.repeat(off[None, :], each.size, axis=0), each)
-    nominal = tool2wp(machine, orig.q[sel] + off)[:, :3, 3] + offset + datum_dev[which.ravel()]
+    ``offset`` (n, 3) mm, workpiece frame (a point of the tool axis), carried by the tool at the
+    segment ends ``sel`` of the program (and at their corrected counterparts ``pair[sel]`` in
+    ``comp``), tools of ``lengths`` (n,) mm: compensate's residual (:func:`predicted_points`). The
+    model is evaluated where compensate places the blocks on the machine (``machine_q``: the work
+    offset in force, under G254 turned with the table, a tool centre point row's tip turned into
+    axes), and the deviation referenced to the part's datum as compensate references its
+    corrections (``datum``: the program's origin as probed)."""
+    ev = tool_point_evaluator(fitted)
+    q0 = orig.machine_q[sel]
+    along = np.einsum("ij,ij->i", offset, forward(machine, orig.q[sel])[1])
+    ctx = _context(fitted, sel.size, orig.feed[sel], orig.dirs[sel], lengths)
+    nominal = tool2wp(machine, q0)[:, :3, 3] + offset \
+        + ev.datum_reference(orig.datum[sel], ctx)[:, :3]
     say(f"deviation at {sel.size} points")
-    before = predicted_points(fitted, orig.q[sel] + off, orig.feed[sel], orig.dirs[sel],
-                              offset_tool, lengths) - nominal
+    before = predicted_points(fitted, q0, orig.feed[sel], orig.dirs[sel], along, lengths, ev) \
+        - nominal
     if comp is None:
         return before, None
     say(f"deviation after compensation at {sel.size} points")
     j = pair[sel]
-    return before, predicted_points(fitted, comp.q[j] + off, comp.feed[j], comp.dirs[j],
-                                    offset_tool, lengths) - nominal
+    return before, predicted_points(fitted, comp.machine_q[j], comp.feed[j], comp.dirs[j], along,
+                                    lengths, ev) - nominal
 
 
-def _work_offset(machine: Machine, work_offset) -> np.ndarray:
-    """(na,) the program origin's machine position (zeros for None); InputError for a rotary one
+def _placed_program(machine: Machine, program, work_offset, setup):
+    """(the program's ProgramPoints, the set-up that placed them on the machine): ``program`` (a
+    path, or ProgramPoints) placed by the set-up compensate was given (:func:`_program_setup`; one
+    placement, compensate's), read again when it was read with another."""
+    setup = _program_setup(machine, program, work_offset, setup)
+    if isinstance(program, ProgramPoints) and program.setup is setup:
+        return program, setup
+    path = program.path if isinstance(program, ProgramPoints) else program
+    return read_program_points(path, machine, setup=setup), setup
+
+
+def _program_setup(machine: Machine, program, work_offset, setup):
+    """The :class:`~mtcomp.toolpaths.offsets.ProgramSetup` the program is placed by: ``setup``, else
+    one whose G54 is ``work_offset`` (na,), else the one ``program`` (ProgramPoints) was read with
+    (else no offset); InputError for a rotary work offset
     (a map drawn in a turned frame is not what the program cut: not supported)."""
-    off = np.zeros(machine.n_axes) if work_offset is None else np.asarray(work_offset, dtype=float)
-    turned = [a.name for a, v in zip(machine.axes, off) if a.is_rotary and v != 0.0]
-    if turned:
-        raise InputError(f"a work offset of rotary axis {turned[0]} is not supported by render "
-                         "(linear axes only)")
-    return off
+    from ..toolpaths.offsets import ProgramSetup
+    if setup is None and work_offset is None and isinstance(program, ProgramPoints):
+        setup = program.setup       # as it was read
+    if setup is None:
+        setup = ProgramSetup(machine, work_offsets={} if work_offset is None else
+                             {0: np.asarray(work_offset, dtype=float)})
+    for off in setup.work_offsets.values():
+        turned = [a.name for a, v in zip(machine.axes, off) if a.is_rotary and v != 0.0]
+        if turned:
+            raise InputError(f"a work offset of rotary axis {turned[0]} is not supported by render "
+                             "(linear axes only)")
+    return setup
 
 
 def _tool(program, tool_radius_mm, flank_length_mm) -> tuple[float, float]:
@@ -400,7 +397,11 @@ def _compensated_points(orig: ProgramPoints, compensated, report, machine: Machi
         return report_points(orig, report, machine), np.arange(len(orig))
     if compensated is not None:
         comp = (compensated if isinstance(compensated, ProgramPoints)
-                else read_program_points(compensated, machine, orig.dialect, orig.chord_tol_mm))
+                else read_program_points(compensated, machine, orig.dialect, orig.chord_tol_mm,
+                                         orig.setup))
+        if comp.setup is not orig.setup:        # placed as the program is
+            comp = read_program_points(comp.path, machine, orig.dialect, orig.chord_tol_mm,
+                                       orig.setup)
         return comp, pair_compensated(orig, comp, machine)
     return None, None
 
@@ -509,7 +510,8 @@ def _rows(orig: ProgramPoints, rows: np.ndarray) -> ProgramPoints:
     return ProgramPoints(orig.path, orig.q[rows], orig.line[rows], orig.feed[rows], orig.dirs[rows],
                          orig.rapid[rows], take(orig.known), take(orig.cycle), take(orig.tcp),
                          orig.dialect, orig.chord_tol_mm, tool=take(orig.tool),
-                         tool_names=orig.tool_names)
+                         tool_names=orig.tool_names, machine_q=take(orig.machine_q),
+                         datum=take(orig.datum), offsets=take(orig.offsets), setup=orig.setup)
 
 
 def _lines_text(lines) -> str:
@@ -548,17 +550,16 @@ def report_status(report, n: int) -> np.ndarray:
     return status
 
 
-def planner_status(fitted, orig: ProgramPoints, sel: np.ndarray, work_offset=None,
-                   tool_length=None) -> np.ndarray:
+def planner_status(fitted, orig: ProgramPoints, sel: np.ndarray, tool_length=None) -> np.ndarray:
     """(len(sel),) int8 :data:`STATUS_REASONS`: which of the blocks ``sel`` the planner would leave
     uncorrected under the model's and the machine's defaults (no --extrapolate, the default limit on
-    a correction's standard error), by the planner's own rules, the part's datum at the program's
-    origin as render takes it (``work_offset`` (na,): its machine position; None: machine zero),
+    a correction's standard error), by the planner's own rules, at the machine positions and the
+    part's datum compensate places the blocks at (``orig.machine_q``, ``orig.datum``),
     ``tool_length`` (len(orig),) mm per segment end (None: the machine's)."""
     from ..planner import CompensationProblem, Planner, PlannerOptions
     planner = Planner(CompensationProblem.from_machine(fitted), PlannerOptions(threads=1))
-    off = _work_offset(fitted.machine, work_offset)
-    q = orig.q[sel] + off
+    q = orig.machine_q[sel]
+    datum = orig.datum[sel]
     known = np.ones(q.shape, bool) if orig.known is None else np.asarray(orig.known[sel], bool)
     unknown = ~known
     lengths = (np.full(len(orig), float(fitted.machine.tool_length)) if tool_length is None
@@ -573,7 +574,7 @@ def planner_status(fitted, orig: ProgramPoints, sel: np.ndarray, work_offset=Non
     key = np.column_stack([np.round(q / step), orig.dirs[sel], known, lengths])
     _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
     _, _, sd = planner.block_status(q[first], known[first], orig.feed[sel][first], orig.dirs[sel][first],
-                                    datum=np.broadcast_to(off, q[first].shape),
+                                    datum=datum[first],
                                     tool_length=lengths[first])
     sd = sd[inverse.ravel()]
     status = np.zeros(q.shape[0], np.int8)
