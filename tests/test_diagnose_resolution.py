@@ -97,7 +97,7 @@ def test_a_finer_base_that_predicts_worse_is_not_kept(monkeypatch):
     fine = spline_basis(-300.0, 300.0, 16, 3)
     calls = []
 
-    def worse(machine, datasets, progress, max_findings, start, refine, may_refine):
+    def worse(machine, datasets, progress, max_findings, start, refine, may_refine, known_setup=()):
         calls.append(dict(refine))
         if not refine:
             return stub([0.5] * 100, 10, ("X", fine, "finer X"))
@@ -109,7 +109,7 @@ def test_a_finer_base_that_predicts_worse_is_not_kept(monkeypatch):
 
     calls.clear()
 
-    def better(machine, datasets, progress, max_findings, start, refine, may_refine):
+    def better(machine, datasets, progress, max_findings, start, refine, may_refine, known_setup=()):
         calls.append((dict(refine), may_refine))
         # every run finds structure a finer base of Y would take, and predicts better than the one
         # before; the loop must stop on its own
