@@ -83,8 +83,9 @@ def _without_empty_feeds(state, line: int, text: str) -> str:
         return text
     code = strip_comments(text)
     if len(re.findall(r"(?<![A-Za-z])[Ff]", code)) > len(places):
-        raise state._err("an F without a number and an F with one in one block (Marlin takes "
-                         "the last F it finds, other readers the first)", line)
+        raise state._err("an F without a number and an F with one in one block (which one "
+                         "counts depends on the controller: Marlin's fast parser takes the last, "
+                         "its plain one and other readers the first)", line)
     first = state._where(line)[1]
     _note_once(state, f"note: an F word without a number (first at line {first}: "
                       f"{text.strip()[:40]!r}) is kept as written and leaves the feed in force, "
