@@ -14,7 +14,7 @@ import re
 from ..errors import InputError
 from .rrf import without_strings
 from .words import (_COLON_PROGRAM_RE, _NUMBERED_PERCENT_RE, GRBL_DROPPED, NESTED_COMMENT_RE,
-                    comment_end, nested_comment_problem, strip_comments)
+                    comment_end, empty_feeds, nested_comment_problem, strip_comments)
 
 #: a CSV header line (names separated by commas), given where G-code was meant
 _CSV_HEADER = re.compile(r"^[A-Za-z_][\w ]*(?:,[\w ]*){2,}$")
@@ -58,6 +58,8 @@ def text_with_words(state, line: int, text: str) -> str | None:
                          "G-code: give the NC program here", line)
     if "(" in text and NESTED_COMMENT_RE.search(text):
         _comment_with_parentheses(state, line, text)
+    if state.dialect.name == "generic" and ("F" in text or "f" in text):
+        text = _without_empty_feeds(state, line, text)
     if state.dialect.name == "grbl":
         return _grbl_without_controls(state, line, text)
     if state.dialect.name == "rrf":
@@ -67,6 +69,32 @@ def text_with_words(state, line: int, text: str) -> str | None:
             raise state._err(exc.message, line) from None
         return None if _bad_command(state, line, text) else text
     return text
+
+
+def _without_empty_feeds(state, line: int, text: str) -> str:
+    """The line without its F words that have no number (``G00 Z8.0000 F``, as Estlcam 11 writes
+    every rapid for a Marlin router), on the generic dialect only: Marlin reads a parameter letter
+    without a value as seen without one (src/gcode/parser.cpp, GCodeParser::parse) and G0/G1 set
+    the feed only from an F with a value (src/gcode/gcode.cpp, get_destination_from_command), so
+    the feed in force stays. The written line keeps the F; said once. LinuxCNC and grbl refuse it
+    (the tokenizer then names the word)."""
+    places = empty_feeds(text)
+    if not places:
+        return text
+    code = strip_comments(text)
+    if len(re.findall(r"(?<![A-Za-z])[Ff]", code)) > len(places):
+        raise state._err("an F without a number and an F with one in one block (which one "
+                         "counts depends on the controller: Marlin's fast parser takes the last, "
+                         "its plain one and other readers the first)", line)
+    first = state._where(line)[1]
+    _note_once(state, f"note: an F word without a number (first at line {first}: "
+                      f"{text.strip()[:40]!r}) is kept as written and leaves the feed in force, "
+                      "as Marlin reads it; LinuxCNC and grbl refuse it (give --dialect linuxcnc "
+                      "or grbl to have it refused)")
+    chars = list(text)
+    for pos in places:
+        chars[pos] = " "
+    return "".join(chars)
 
 
 #: the control characters grbl does not drop: Ctrl-X, its soft reset, and DEL
@@ -99,11 +127,9 @@ def _bad_command(state, line: int, text: str) -> bool:
     code = strip_comments(text).strip(" \t")
     if not code or any(c.isalnum() for c in code):
         return False
-    notes = getattr(state._source, "notes", None)
-    if notes is not None and not any(n.startswith("note: RepRapFirmware answers") for n in notes):
-        notes.append(f"note: RepRapFirmware answers line {state._where(line)[1]} ({code[:20]!r}: no "
-                     "command) 'Bad command', moves nothing and runs on: it passes through as "
-                     "written")
+    _note_once(state, f"note: RepRapFirmware answers line {state._where(line)[1]} "
+                      f"({code[:20]!r}: no command) 'Bad command', moves nothing and runs on: it "
+                      "passes through as written")
     return True
 
 
@@ -130,12 +156,11 @@ def _comment_with_parentheses(state, line: int, text: str) -> None:
         raise state._err(f"comment '(' holds parentheses, {shown!r}: {rule}", line)
     if end < 0 or nested_comment_problem(text, pos, end) is not None:
         return                          # the tokenizer names the problem
-    notes = getattr(state._source, "notes", None)
-    if notes is not None and not any(n.startswith("note: a comment holding") for n in notes):
-        notes.append(f"note: a comment holding parentheses (first at line {state._where(line)[1]}: "
-                     f"{shown!r}) is read as one comment: a control that nests parentheses reads "
-                     "it so, and one that ends it at its first ')' finds only ')' after it; no "
-                     "word either way, and the line passes as written")
+    first = state._where(line)[1]
+    _note_once(state, f"note: a comment holding parentheses (first at line {first}: {shown!r}) "
+                      "is read as one comment: a control that nests parentheses reads it so, and "
+                      "one that ends it at its first ')' finds only ')' after it; no word either "
+                      "way, and the line passes as written")
 
 
 def _first_nested(text: str) -> int:
@@ -152,3 +177,11 @@ def _first_nested(text: str) -> int:
             pos = e
         pos += 1
     return -1
+
+
+def _note_once(state, note: str) -> None:
+    """Add a note to the program's notes unless one of its kind (its first 24 characters) is
+    there: said once, naming the first line."""
+    notes = getattr(state._source, "notes", None)
+    if notes is not None and not any(n.startswith(note[:24]) for n in notes):
+        notes.append(note)

@@ -295,6 +295,24 @@ def _foreign_feature(text: str) -> str | None:
     return None
 
 
+#: a feed word F without a number, followed by a blank, a comment or the line's end (not a letter
+#: of a keyword: ``ENDIF``): Estlcam 11 writes one on every rapid (``G00 Z8.0000 F``) for Marlin,
+#: which reads it as F seen without a value and keeps the feed in force (:mod:`.linetext`)
+_EMPTY_F_RE = re.compile(r"(?<![A-Za-z])[Ff](?=[ \t]*(?:[(;]|$)|[ \t]+[A-Za-z])")
+
+
+def empty_feed_at(text: str, pos: int) -> bool:
+    """Whether the character at ``pos`` (in the line's code) is an F word without a number."""
+    return _EMPTY_F_RE.match(text, pos) is not None
+
+
+def empty_feeds(text: str) -> list[int]:
+    """Where a line's F words without a number are (comments left out)."""
+    if _EMPTY_F_RE.search(text) is None:
+        return []
+    return [m.start() for s, e in _code_parts(text) for m in _EMPTY_F_RE.finditer(text, s, e)]
+
+
 def tokenize(text: str, path=None, line: int | None = None) -> list[tuple[str, str, str]]:
     """Cut one line (without its line ending) into tokens ``(letter, number, raw)``.
 
@@ -420,6 +438,9 @@ def _line_words(text: str, pos: int) -> list | None:
     while pos < n:
         m = _SPAN_RE.match(text, pos)
         if m.group(3) is not None:
+            if empty_feed_at(text, pos):          # kept as written (read only where accepted)
+                pos += 1
+                continue
             end = comment_end(text, pos) if text[pos] == "(" else -1
             if end < 0:
                 return None
@@ -557,19 +578,26 @@ def strip_comments(line: str) -> str:
     parentheses to where they balance, :func:`comment_end`; one not closed is kept)."""
     if "(" not in line or not NESTED_COMMENT_RE.search(line):
         return _COMMENT_TEXT_RE.sub("", line)
-    out = []
-    pos, n = 0, len(line)
+    return "".join(line[s:e] for s, e in _code_parts(line))
+
+
+def _code_parts(line: str) -> list[tuple[int, int]]:
+    """The (start, end) places of a line's code between its comments (see :func:`strip_comments`)."""
+    parts = []
+    pos = start = 0
+    n = len(line)
     while pos < n:
         ch = line[pos]
         if ch == ";":
             break
         end = comment_end(line, pos) if ch == "(" else -1
         if ch == "(" and end > 0:
-            pos = end
+            parts.append((start, pos))
+            pos = start = end
             continue
-        out.append(ch)
         pos += 1
-    return "".join(out)
+    parts.append((start, pos))
+    return parts
 
 
 def cutter_comp_code(text: str) -> int | None:
