@@ -90,3 +90,23 @@ def test_a_verdict_judged_without_readings_far_above_the_noise_says_the_model_ma
     assert "explains the readings it could judge down to the noise" in verdict, verdict
     assert "(ballbar_c.csv 149, ballbar_a.csv 57)" in verdict and "31.3 times the noise" in verdict
     assert "the model may be wrong there unseen" in verdict
+
+
+def test_the_readings_not_judged_are_counted_per_file_against_the_noise():
+    """``final["not_judged"]`` computed by hand: 4 readings of b.csv not judged, held-out
+    residuals 3 um each (rms 3), against a noise floor of 1 um: 3 times the noise, said; against
+    2.5 um (1.2 times, under the 1.3 of the verdict's test) not said. The urad reading is another
+    unit, left out."""
+    from types import SimpleNamespace
+    from mtcomp.diagnose._diagnose import _not_judged
+    st = SimpleNamespace(unit=np.array(["um"] * 6 + ["urad"]), file=np.array([0, 0, 1, 1, 1, 1, 1]),
+                         paths=["dir/a.csv", "dir/b.csv"])
+    sel = SimpleNamespace(judged=np.array([True, True, False, False, False, False, False]),
+                          current=SimpleNamespace(cv_resid=np.array([0.1, -0.1, 3.0, -3.0, 3.0, -3.0, 9.0])))
+    final = {}
+    _not_judged(st, sel, final, {"um": SimpleNamespace(sigma=1.0)})
+    assert final["not_judged"] == {"readings": 4, "of": 6, "unit": "um", "heldout_rms": 3.0,
+                                   "files": {"b.csv": 4}, "times_noise": 3.0}
+    final = {}
+    _not_judged(st, sel, final, {"um": SimpleNamespace(sigma=2.5)})
+    assert "times_noise" not in final["not_judged"]
