@@ -213,3 +213,67 @@ def test_positioning_runs_alone_without_static_axes_get_no_note(tmp_path, capsys
     notes = _static_notes(capsys, lx, pitch)
     assert len(notes) == 1 and "pitch.csv: no column x_mm, z_mm" in notes[0]
     assert "(X -300 to 0 mm, Z -200 mm)" in notes[0]
+
+
+#: a laser positioning run of X at two feeds (mm/min as mtcomp reads them)
+_LASER = ("axis,component,target_mm,dir,run,value_um,{feed},t_s\n"
+          "X,EXX,-100,1,1,1.0,{f1},0\nX,EXX,100,1,1,2.0,{f1},5\n"
+          "X,EXX,-100,1,2,1.1,{f2},10\nX,EXX,100,1,2,2.1,{f2},15\n")
+
+
+_BALLS = "x_mm,y_mm,z_mm," + ",".join(f"{b}_ball_{a}_mm" for b in ("table", "tool") for a in "xyz")
+
+
+@pytest.mark.parametrize("header, column, meant, unit", [
+    ("axis,component,target_mm,dir,run,value_um,feed_mm_s", "feed_mm_s", "feed_mm_min", "mm/min"),
+    ("axis,component,target_mm,dir,run,value_um,feed_m_min", "feed_m_min", "feed_mm_min", "mm/min"),
+    ("axis,component,target_mm,dir,run,value_um,t_min", "t_min", "t_s", "seconds"),
+    ("axis,component,target_mm,dir,run,value_nm,t_s", "value_nm", "value_um", "um"),
+    ("axis,component,target_in,dir,run,value_um,t_s", "target_in", "target_mm", "mm"),
+    (_BALLS + ",Length_IN", "Length_IN", "length_mm", "mm"),
+    ("x_mm,y_mm,z_mm,dx_mm,dy_um", "dx_mm", "dx_um", "um")])
+def test_a_quantity_mtcomp_reads_in_another_unit_is_refused(tmp_path, capsys, header, column, meant, unit):
+    """A feed in mm/s under feed_mm_s was only noted "not read": every run was taken at an unknown
+    feed, and diagnose named a thermal drift of X that was the feed's effect. Any quantity mtcomp
+    reads, in another unit, is refused in one line as an axis in c_rad is (exit 2, nothing written)."""
+    p = tmp_path / "run.csv"
+    p.write_text(f"{header}\n" + "\n".join(",".join(_row(header, k)) for k in range(4)) + "\n")
+    out = tmp_path / "R.json"
+    assert main(["diagnose", "xfyz", str(p), "--json", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert (f"run.csv: row 0: column {column}: mtcomp reads " in err
+            and f" as {meant}, in {unit}, and does not read {column}; convert the values to {unit} "
+            "and rename the column" in err), err
+    assert not out.exists()
+
+
+def _row(header: str, k: int) -> list[str]:
+    """Row ``k`` of a small file with the columns of ``header``: a laser run or a ball-bar circle."""
+    cells = {"axis": "X", "component": "EXX", "target_mm": f"{-100 + 50 * k}", "target_in": f"{-4 + 2 * k}",
+             "dir": "1", "run": "1", "value_um": f"{0.1 * k}", "value_nm": f"{100 * k}", "t_s": f"{5 * k}",
+             "t_min": f"{k / 12:.4f}", "feed_mm_s": "16.7", "feed_m_min": "1", "x_mm": f"{100 - 10 * k}",
+             "y_mm": f"{10 * k}", "z_mm": "0", "length_in": "3.937", "dx_mm": "0.001", "dy_um": "1"}
+    return [cells.get(c.lower(), "0") for c in header.split(",")]
+
+
+def test_a_quantity_in_another_unit_beside_mtcomps_column_is_only_noted(tmp_path, capsys):
+    """feed_mm_s beside feed_mm_min is a copy in other units: kept and noted, as c_rad beside c_deg."""
+    p = tmp_path / "run.csv"
+    p.write_text(_LASER.format(feed="feed_mm_min,feed_mm_s", f1="1000,16.67", f2="3000,50"))
+    notes = _notes(p, capsys)
+    assert len(notes) == 1 and "column(s) feed_mm_s not read by mtcomp" in notes[0], notes
+
+
+def test_feeds_that_look_like_mm_s_under_feed_mm_min_are_noted(tmp_path, capsys):
+    """Feeds of 1000 and 5000 mm/min written in mm/s (16.67, 83.33) under feed_mm_min were taken
+    without a word: a note names the file and the range; plausible feeds get none, and nothing is
+    refused."""
+    p = tmp_path / "slow.csv"
+    p.write_text(_LASER.format(feed="feed_mm_min", f1="16.67", f2="83.33"))
+    notes = _notes(p, capsys)
+    assert notes == ["note: " + str(p) + ": every feed_mm_min is below 100 mm/min (16.67 to 83.33), "
+                     "slower than laser and ball-bar runs are made: feeds in mm/s? mtcomp reads "
+                     "feed_mm_min in mm/min (mm/s times 60)"], notes
+    p.write_text(_LASER.format(feed="feed_mm_min", f1="100", f2="5000"))
+    assert _notes(p, capsys) == []

@@ -11,6 +11,10 @@ stylus lengths replaced by the machine's tool length in every row). So:
   a column the file's kind reads and lacks (``difflib`` ratio at least :data:`MISSPELT_RATIO`).
 * :func:`check_axis_units` refuses an axis position in another unit (``c_rad``, ``x_in``) with no
   ``c_deg`` or ``x_mm`` beside it.
+* :func:`check_columns` also refuses any other quantity the file's kind reads written in another
+  unit (``feed_mm_s``, ``t_min``, ``value_nm``, ``length_in``) with no column of mtcomp's unit beside
+  it: read as an extra column, the quantity would vanish with only a note (a laser file's feeds in
+  ``feed_mm_s`` left every run at an unknown feed, and a time drift was named in their place).
 * :func:`file_notes` says, per file: the columns mtcomp does not read; that a points file without
   ``tool_mm`` is taken at the machine's tool length in every row; and when every deviation of a
   points or cmm file is smaller than a machine's errors and an instrument's noise over the span of
@@ -72,12 +76,59 @@ def unknown_columns(kind: str, names) -> list[str]:
     return [n for n in names if n and not _known(kind, n)]
 
 
+#: the units of the columns mtcomp reads (their names' suffixes), with what each is a unit of, its
+#: words, and the other spellings of that quantity's units a file may carry instead
+_UNITS = {"mm_min": ("speed", "mm/min"), "mm": ("length", "mm"), "um": ("length", "um"),
+          "deg": ("angle", "degrees"), "urad": ("angle", "urad"), "s": ("time", "seconds"),
+          "rpm": ("turning speed", "rev/min")}
+_OTHER_UNITS = {
+    "speed": ("mm_s", "mm_sec", "mm_per_s", "mm_per_min", "mmpm", "mmps", "m_min", "m_s", "m_per_min",
+              "in_min", "in_s", "ipm", "ips", "um_s", "um_min"),
+    "length": ("m", "cm", "nm", "in", "inch", "inches", "mil", "mils", "thou", "micron", "microns", "mu"),
+    "angle": ("rad", "mrad", "arcsec", "asec", "arcmin", "grad", "gon", "rev"),
+    "time": ("sec", "secs", "ms", "min", "mins", "minutes", "h", "hr", "hrs", "hour", "hours"),
+    "turning speed": ("rps", "hz", "rad_s", "deg_s", "rev_s"),
+}
+#: what the common columns read, in words (others are named by their column)
+_QUANTITY = {"feed": "the feed", "t": "the time of each reading", "value": "the reading",
+             "target": "the target", "length": "the bar length", "tool": "the tool or stylus length",
+             "spindle": "the spindle speed"}
+
+
+def _meant_in_other_unit(kind: str, name: str, names) -> tuple | None:
+    """(column, unit in words, quantity) when ``name`` is a column ``kind`` reads (or every file
+    reads) written in another unit of the same quantity, and that column is not in ``names``."""
+    for column in (*_COMMON, *KNOWN.get(kind, ())):
+        unit = next((u for u in _UNITS if column.endswith("_" + u)), None)
+        if unit is None:
+            continue
+        stem = column[:-len(unit) - 1]
+        quantity = _UNITS[unit][0]
+        words = (*_OTHER_UNITS[quantity], *(u for u, (q, _) in _UNITS.items() if q == quantity))
+        if name.startswith(stem + "_") and name[len(stem) + 1:] in words:
+            same = [c for c in (*_COMMON, *KNOWN.get(kind, ())) if c.startswith(stem + "_")
+                    and c[len(stem) + 1:] in _UNITS]
+            if any(c in names for c in same):
+                return None                 # beside the column mtcomp reads: an extra column
+            return column, _UNITS[unit][1], _QUANTITY.get(stem, f"column {column}")
+    return None
+
+
 def check_columns(table, kind: str) -> None:
-    """InputError (row 0, the header) for a column that looks like one this kind reads, misspelt:
-    a name of the tool length other than ``tool_mm`` in a points file, or a name within
-    :data:`MISSPELT_RATIO` of a column the kind reads and the file lacks."""
+    """InputError (row 0, the header) for a column that looks like one this kind reads, misspelt
+    or in another unit: a quantity the kind reads in another unit (``feed_mm_s`` for
+    ``feed_mm_min``, ``t_min`` for ``t_s``), a name of the tool length other than ``tool_mm`` in a
+    points file, or a name within :data:`MISSPELT_RATIO` of a column the kind reads and the file
+    lacks."""
     names = table.names
     for name in unknown_columns(kind, names):
+        other = _meant_in_other_unit(kind, name, names)
+        if other is not None:
+            column, unit, what = other
+            given = table.header[names.index(name)].strip()
+            raise InputError(f"column {given}: mtcomp reads {what} as {column}, in {unit}, and does "
+                             f"not read {given}; convert the values to {unit} and rename the column",
+                             table.path, row=0)
         meant = None
         if kind == "points" and "tool_mm" not in names and _TOOL_ALIAS.match(name):
             meant = "tool_mm"
@@ -131,6 +182,9 @@ def file_notes(machine, datasets) -> list[str]:
         line = _mm_under_um(data, header) or _short_bar(data)
         if line:
             notes.append(line)
+        line = _slow_feeds(data, header)
+        if line:
+            notes.append(line)
         notes += thermal_notes(data)
     return notes
 
@@ -147,6 +201,25 @@ def _short_bar(data) -> str | None:
         return None
     return (f"{data.path}: every length_mm is below {SHORTEST_BAR_MM:g} mm (largest "
             f"{length.max():.4g}): no ball bar is that short; a file in inches? mtcomp reads mm")
+
+
+#: a file whose every feed is below this (mm/min) is likely in mm/s: 1000 to 6000 mm/min, the usual
+#: feeds of laser and ball-bar runs, are 16.7 to 100 mm/s
+SLOWEST_FEED_MM_MIN = 100.0
+
+
+def _slow_feeds(data, header) -> str | None:
+    """The sentence when every feed of a file is below :data:`SLOWEST_FEED_MM_MIN` (feeds in mm/s
+    written under ``feed_mm_min``?), else None: a plausibility note, never a refusal."""
+    if "feed_mm_min" not in header:
+        return None
+    feed = np.asarray(data.context.feed, dtype=float)
+    feed = feed[np.isfinite(feed) & (feed > 0)]
+    if not feed.size or feed.max() >= SLOWEST_FEED_MM_MIN:
+        return None
+    return (f"{data.path}: every feed_mm_min is below {SLOWEST_FEED_MM_MIN:g} mm/min ({feed.min():.4g} to "
+            f"{feed.max():.4g}), slower than laser and ball-bar runs are made: feeds in mm/s? mtcomp reads "
+            "feed_mm_min in mm/min (mm/s times 60)")
 
 
 #: the least number of deviations for the short-span unit check of a points or cmm file
