@@ -19,6 +19,9 @@ ACTS_SHARE = 0.05
 MAX_RANGE_RATIO = 1.5
 #: an angular error that grows by more than this multiple of itself over the data's feeds is absurd
 MAX_ANGLE_GAIN = 3.0
+#: a candidate's column whose largest entry is below this share of its largest column's is round-off:
+#: its parameter moves no reading (a gain or a moving centre of an angle the model holds at zero)
+ROUNDOFF_SHARE = 1e-9
 
 
 def distinct_positions(st, axis: str, rows=None) -> np.ndarray:
@@ -92,6 +95,14 @@ def absurd(st, c, theta: np.ndarray) -> str | None:
         f = st.feed[rows]
         fmax = float(np.nanmax(np.abs(f))) / 1000.0 if np.isfinite(f).any() else 0.0
         size = machine_size_mm(st.machine)
+        reach = np.max(np.abs(c.columns), axis=0)
+        for name, r in zip(c.params, reach):
+            if name.startswith(("IRC_", "AG_")) and r <= ROUNDOFF_SHARE * reach.max():
+                # its fitted value is round-off over round-off: a ratio to an angle held at zero
+                comp = "E" + name.split("_")[1]
+                return (f"{name} is not determined: it acts through {comp}, which the model holds at "
+                        f"zero where the data reach (nothing measured it), so no reading tells how "
+                        f"{comp} changes with feed")
         for name, v in zip(c.params, theta):
             if name.startswith("IRC_") and abs(v) * fmax > size:
                 return (f"its rotation centre ({name}) would move {abs(v) * fmax:.3g} mm at "
