@@ -4,6 +4,7 @@ same files), bad input gives exit 2, one line, and no output file."""
 import csv
 import json
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -109,12 +110,13 @@ def test_bad_inputs_exit_2_and_write_nothing(campaign, tmp_path, capsys):
     import os
     os.link(files[0], links / "hard.csv")
     spelt = str(links / ".." / "links" / "sym.csv")
-    for other in (files[0], spelt, str(links / "sym.csv"), str(links / "hard.csv")):
+    dotted = f"{Path(files[0]).parent}/./{Path(files[0]).name}"      # named as typed, ./ and all
+    for other in (files[0], spelt, dotted, str(links / "sym.csv"), str(links / "hard.csv")):
         for cmd in (["diagnose", "xfyz", files[0], other, "--json", str(report)],
                     ["identify", "xfyz", files[0], other, "-o", str(report)]):
             assert main(cmd) == 2, cmd
             err = capsys.readouterr().err
-            assert err.count("\n") == 1 and "given twice" in err, err
+            assert err.count("\n") == 1 and f"{other}: given twice (also as {files[0]})" in err, err
             assert not report.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["folder", "links", "rotary.csv"]
     assert not any(folder.iterdir())

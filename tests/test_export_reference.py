@@ -102,6 +102,14 @@ def test_fanuc_bidirectional_table_from_the_reference_follows_the_model(tmp_path
     # the reversal at the reference point (the held value at 15 mm): 8 um
     pos, comp = tables[1]["-"]
     assert comp[0] == pytest.approx(-8 * UM, abs=0.5e-3)
+    # the README says what the files hold there: the + table zero, the - table the reversal (3627);
+    # it said "the mean of the two approach directions", which the generic tables are, not these
+    readme = " ".join((out / "README.txt").read_text().split())
+    assert "mean of the two approach directions" not in readme
+    assert ("where the model has a backlash, the table for positive travel; the table for negative "
+            "travel (bidirectional, 3605#0 = 1) differs from it there by the reversal, which parameter "
+            "3627 holds") in readme
+    assert tables[1]["+"][1][0] == 0.0
 
 
 def test_fanuc_reference_outside_the_travel_is_the_travels_nearest_end(tmp_path, capsys):

@@ -141,9 +141,13 @@ def region_line(tables, a: str) -> str:
     return line + f"; reference position {t.reference[a] * f:g} {u}"
 
 
-def pose_line(tables) -> str:
+#: where a table with a backlash is zero, as the generic tables are (mtcomp.export._tables)
+MEAN_ZERO = "the mean of the two approach directions, each holding half of it"
+
+
+def pose_line(tables, backlash_zero: str = MEAN_ZERO) -> str:
     """The sentence saying where the other axes stood while each table was read, and where each
-    table is zero."""
+    table is zero (``backlash_zero``: where the model has a backlash, what is zero there)."""
     m = tables.machine
     deg = {a.name: 180 / np.pi if a.is_rotary else 1.0 for a in m.axes}
     ref = next(iter(tables.tables.values())).reference
@@ -155,22 +159,23 @@ def pose_line(tables) -> str:
             f"its reference position), tool length {m.tool_length:g} mm; each table is zero at its "
             "axis's reference position (" + ", ".join(f"{a}={v * deg[a]:g}" for a, v in ref.items())
             + "; one outside its axis's data region at the region's nearest end; where the model "
-            "has a backlash, the mean of the two approach directions, each holding half of it). "
+            f"has a backlash, {backlash_zero}). "
             "Along a line "
             "through that pose the tables correct what mtcomp compensate corrects, up to one "
             "constant; elsewhere an angular error's arm differs (see 'What the controller cannot "
             "hold')")
 
 
-def readme_text(result: ExportResult, tables, header: list) -> str:
-    """README.txt beside the tables: how to load them, the limits and signs, what was left out."""
+def readme_text(result: ExportResult, tables, header: list, backlash_zero: str = MEAN_ZERO) -> str:
+    """README.txt beside the tables: how to load them, the limits and signs, what was left out
+    (``backlash_zero``: what the tables of an axis with a backlash hold at the reference position)."""
     lines = list(header)
     lines += ["", "Region of each table (where the model's data reached; positions are machine "
               "coordinates):"]
     for a, t in tables.tables.items():
         lines.append("  " + region_line(tables, a))
     if tables.tables:
-        lines.append("  " + pose_line(tables))
+        lines.append("  " + pose_line(tables, backlash_zero))
     lines += ["", "Notes:"] + [f"  - {n}" for n in tables.notes + result.notes]
     rest, worst = left_out(tables, result.carried)
     lines += ["", "What the controller cannot hold (left out of these files):"]

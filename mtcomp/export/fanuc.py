@@ -88,6 +88,12 @@ def _axis_tables(t, j: int, s: float, bidir: bool) -> tuple[int, list]:
     return i_ref, [("+", corr_f - base), ("-", corr_r - base)]
 
 
+#: what a bidirectional pair of tables holds at the reference position (3627: parameter manual)
+BACKLASH_ZERO = ("the table for positive travel; the table for negative travel (bidirectional, "
+                 "3605#0 = 1) differs from it there by the reversal, which parameter 3627 holds (the "
+                 "compensation at the reference position moving negative, relative to moving positive)")
+
+
 def _general_notes(sign_note: str, max_value: int, machine) -> list:
     """The lines on signs, placement, limits and rotary axes every Fanuc export carries."""
     notes = [sign_note,
@@ -204,7 +210,7 @@ def export(tables, sign: str | None = None, unit_um: float = 1.0, max_value: int
         notes.append(bit_3605_note(bidir, numbers))
     notes += _general_notes(sign_note, max_value, m)
     result = ExportResult(NAME, files, False, carried, notes)
-    files["README.txt"] = readme_text(result, tables, _readme_header(m, unit_um))
+    files["README.txt"] = readme_text(result, tables, _readme_header(m, unit_um), BACKLASH_ZERO)
     return result
 
 

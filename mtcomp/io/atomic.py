@@ -44,10 +44,10 @@ def check_output_path(out: str | os.PathLike, inputs: list[str | os.PathLike] = 
 def check_distinct_inputs(paths: list[str | os.PathLike]) -> None:
     """Refuse a data file given twice (by the same path, a symlink or a hard link): its readings
     would count twice and pass for repeats."""
-    seen: list[Path] = []
-    for p in map(Path, paths):
+    seen: list[str] = []
+    for p in map(os.fspath, paths):      # named as typed: Path("./a.csv") would print a.csv
         for q in seen:
-            if same_file(p, q):
+            if same_file(Path(p), Path(q)):
                 raise InputError(f"given twice (also as {q}): its readings would count twice", p)
         seen.append(p)
 
