@@ -25,6 +25,8 @@ from ._stack import MOTION_LETTERS
 
 #: false-alarm probability below which a spectral line makes a periodic candidate
 LINE_FAP = 1e-3
+#: a reading is one of an axis's own where that axis's error reaches this share of its largest
+READS_SHARE = 0.3
 
 
 @dataclass(eq=False)
@@ -85,7 +87,7 @@ def generate(st, design, extra: np.ndarray, resid: np.ndarray, chosen_keys: set[
         gmax = float(np.max(np.abs(g))) if g.size else 0.0
         if gmax == 0.0:
             continue
-        reads = np.abs(g) > 0.3 * gmax
+        reads = np.abs(g) > READS_SHARE * gmax
         rotary = m.axis(a).is_rotary
         dirs = st.dirs[reads, k]
         # backlash: both approach directions must be present among readings of this axis's error

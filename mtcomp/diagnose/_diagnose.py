@@ -278,6 +278,8 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     diag.folds_of_observations = folds
     diag.heldout_resid, diag.units, diag.rank = current.cv_resid, st.unit, current.rank
     diag.outliers = outliers
+    from ._untested import untested
+    diag.untested = untested(st)
     if verdict == "unexplained":
         from ._signflip import reversed_sign_note
         extra = np.hstack([c.columns for c in chosen]) if chosen else np.zeros((len(st), 0))

@@ -284,6 +284,8 @@ def summary(diag, details=()) -> str:
         variant = f" ({r['variant']})" if r.get("variant") else ""
         on = f" on {r['axis']}" if r.get("axis") else ""
         lines.append(f"refused: {r['effect']}{on}{variant}: {r['reason']}")
+    from ._untested import untested_lines
+    lines += untested_lines(getattr(diag, "untested", None) or {})
     fz = diag.final
     rank = getattr(diag, "rank", None)
     dof = (f", {rank} of them determined by the data, {diag.n_obs - rank} degrees of freedom left"
@@ -314,6 +316,8 @@ def summary(diag, details=()) -> str:
     meaning = VERDICT_MEANING.get(diag.verdict, "")
     if diag.final.get("not_judged") and diag.verdict == "none":
         meaning = "the base model explains the readings it could judge down to the noise"
+    if getattr(diag, "untested", None) and diag.verdict in ("none", "explained"):
+        meaning += "; it says nothing of what these data could not test (\"not testable\" above)"
     lines.append(f"verdict: {diag.verdict} ({meaning}{_not_judged(diag)})")
     return "\n".join(lines)
 

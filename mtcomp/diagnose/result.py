@@ -93,6 +93,8 @@ class Diagnosis:
     folds_of_observations: np.ndarray | None = None
     outliers: list = field(default_factory=list)
     thermal: object = None
+    #: axis -> [{"effect", "reason"}]: what the data could not test on that axis (._untested)
+    untested: dict = field(default_factory=dict)
 
     @property
     def noise_um(self) -> float:
@@ -111,7 +113,7 @@ class Diagnosis:
         return _finite({"verdict": self.verdict, "noise_um": _r(self.noise_um), **extra,
                         "noise": noise, "base": self.base, "findings": [f.to_dict() for f in self.findings],
                         "final": self.final, "heldout": self.folds, "n_observations": self.n_obs,
-                        "rejected": self.rejected, "reference": self.reference,
+                        "rejected": self.rejected, "untested": self.untested, "reference": self.reference,
                         "outliers": [{"file": o.path, "row": o.row, "column": o.column, "value": o.value,
                                       "off_median_of_repeats": o.deviation} for o in self.outliers]})
 
