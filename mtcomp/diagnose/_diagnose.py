@@ -198,16 +198,10 @@ def _written(diag: Diagnosis) -> Diagnosis:
 
 
 def _quote_standard_errors(findings, model) -> None:
-    """Give each feed-dependent Abbe finding the standard error of its moving centre that the model
-    written gives it (``irc_shift_sd_mm_per_m_min``, file units), as MODEL.json says it."""
-    se = model.params.std_errors
-    for f in findings:
-        name = f.params.get("irc_shift_component")
-        if se is None or name not in model.params:
-            continue
-        i = model.params.index(name)
-        if np.isfinite(se[i]):
-            f.params["irc_shift_sd_mm_per_m_min"] = round(float(se[i] * model.params.specs[i].to_file), 4)
+    """Give each feed-dependent Abbe finding the values and standard errors of its parts that the
+    model written gives them, as MODEL.json says them, and its headline on them (._headline)."""
+    from ._headline import quote_standard_errors
+    quote_standard_errors(findings, model)
 
 
 def _heldout_sse(diag, sigma: dict) -> float:

@@ -8,6 +8,7 @@ from scipy.stats import f as f_dist
 from ..models.basis import axis_spline
 from ..models.terms import motion_pair
 from . import _analysis as an
+from ._headline import others_text, part_values, set_headline
 from ._linalg import rms
 
 
@@ -118,6 +119,7 @@ def _feed_dependent_abbe(st, c, theta, resid, rt):
             " from the angular error's constant part"
     ev = (f"The feed-dependent part of the {a} residual follows the fitted angular error profile of "
           f"{a} times the Abbe arm ({what}; Yang et al. 2020){rt}")
+    set_headline(params, a, part_values(c.params, theta), contribution=dict(zip(c.params, contrib)))
     return params, ev
 
 
@@ -276,6 +278,8 @@ def summary(diag, details=()) -> str:
         lines.append("findings: none")
     for i, f in enumerate(diag.findings, 1):
         ps = ", ".join(f"{k}={_short(v)}" for k, v in f.params.items() if not isinstance(v, dict))
+        if "headline" in f.params:           # a finding of several parts: the one that stands out
+            ps = f.params["headline"] + others_text(f.params)
         lines.append(f"{i}. {f.effect}{' on ' + f.axis if f.axis else ''}: {ps}")
         lines.append(f"   evidence: {f.evidence}")
         if f.effect != "unexplained" or f.candidate is not None:     # a term the model holds
