@@ -65,3 +65,29 @@ def test_a_turn_on_a_machine_without_rotary_axes_is_said_as_a_tilted_tool(tmp_pa
     assert re.search(r"a turn of [+-]30\.00 urad about X", said), said
     assert "rotary axis's zero offset" not in said
     assert "a machine without rotary axes has no axis that could turn it back" in said
+
+
+def test_a_turn_the_data_do_not_determine_is_said_to_be_none_of_their_making(tmp_path, capsys):
+    """A service engineer's Fanuc export reported "a turn of +4.62 urad about X" at the reference
+    position: the spindle tilt A0S that the fit held there, which the data read only in combination
+    with set-ups and rolls no file measured (MODEL.json lists it among the undetermined directions;
+    no truth had it). With A0S along an undetermined direction the turn is marked not determined;
+    with the same value determined (a standard error, no such direction) it is not."""
+    model = ErrorModel(load_machine("xfyz").with_basis("polynomial"), ())
+    names = ["A0S", "EXX_1"]
+    said = {}
+    for case, undetermined in (("open", [[1e-5], [0.0]]), ("fixed", [[0.0], [0.0]])):
+        fitted = FittedModel.zero(model)
+        fitted.params.set_file_value("A0S", 30.0)
+        fitted.params.set_file_value("EXX_1", 20.0)
+        fitted.uncertainty = {"names": names, "covariance": np.diag([1e-12, 1e-8]),
+                              "undetermined": np.array(undetermined)[:, :1 if case == "open" else 0]}
+        path = tmp_path / f"{case}.json"
+        save_model(path, fitted)
+        out = tmp_path / case
+        assert main(["export", "xfyz", str(path), "--format", "linuxcnc", "-o", str(out)]) == 0
+        said[case] = capsys.readouterr().err + (out / "README.txt").read_text()
+    assert re.search(r"a turn of [+-]30\.00 urad about X \(not determined by the data\)", said["open"])
+    assert "the fit's choice among models that fit the data alike" in said["open"]
+    assert re.search(r"a turn of [+-]30\.00 urad about X:", said["fixed"]), said["fixed"]
+    assert "not determined by the data" not in said["fixed"]

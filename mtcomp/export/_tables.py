@@ -429,17 +429,52 @@ def _evaluation_pose(machine, region: dict) -> np.ndarray:
 CONSTANT_NOTE_MIN = 0.1
 
 
-def _constant_note(zero: np.ndarray, rotary: bool = True) -> list:
+def undetermined_at(fitted, q: np.ndarray) -> np.ndarray:
+    """(6,) bool: which of the tip deviation's and the tool's turn's components at the pose ``q``
+    (n_axes,) move along a direction the data left undetermined (MODEL.json's
+    ``uncertainty.undetermined``, each at the size of 1 um of tool-tip error) by more than
+    :data:`CONSTANT_NOTE_MIN` / 100 um or urad: what the model holds there is the fit's choice
+    among models that fit the data alike, not a measurement (a spindle tilt A0S that the data read
+    only in combination with set-ups and rolls no laser named)."""
+    import copy
+    u = fitted.uncertainty
+    N = None if u is None else np.asarray(u.get("undetermined", ()), dtype=float)
+    out = np.zeros(6, dtype=bool)
+    if N is None or not N.size or not len(u["names"]):
+        return out
+    N = N.reshape(len(u["names"]), -1)
+    idx = np.array([fitted.params.index(n) for n in u["names"]], dtype=int)
+    base, ok = model_errors(fitted, q[None, :])
+    moved = copy.copy(fitted)
+    for k in range(N.shape[1]):
+        moved.params = fitted.params.copy()
+        moved.params.values[idx] += N[:, k]
+        other, _ = model_errors(moved, q[None, :])
+        d = np.abs(other[0] - base[0]) * np.r_[np.full(3, 1e3), np.full(3, 1e6)]
+        out |= np.nan_to_num(d) > CONSTANT_NOTE_MIN / 100.0
+    return out
+
+
+def _constant_note(zero: np.ndarray, rotary: bool = True, open_parts=None) -> list:
     """A note on what no table carries: the deviation ``zero`` (6,) (mm, rad) the model predicts with
     every axis at its reference position, from which every table is measured (none when each
     component is below CONSTANT_NOTE_MIN um or urad). ``rotary``: whether the machine has rotary
-    axes (without them a turn is no axis's offset: the tool stands turned relative to the part)."""
+    axes (without them a turn is no axis's offset: the tool stands turned relative to the part).
+    ``open_parts``: (6,) bool, the components the data do not determine (:func:`undetermined_at`)."""
     um, urad = zero[:3] * 1e3, zero[3:] * 1e6
     if not (np.nanmax(np.abs(um)) >= CONSTANT_NOTE_MIN or np.nanmax(np.abs(urad)) >= CONSTANT_NOTE_MIN):
         return []
-    parts = [f"d{c} {v:+.2f} um" for c, v in zip("xyz", um) if abs(v) >= CONSTANT_NOTE_MIN]
-    parts += [f"a turn of {v:+.2f} urad about {c.upper()}" for c, v in zip("xyz", urad)
-              if abs(v) >= CONSTANT_NOTE_MIN]
+    open_parts = np.zeros(6, dtype=bool) if open_parts is None else np.asarray(open_parts, dtype=bool)
+    mark = [" (not determined by the data)" if o else "" for o in open_parts]
+    parts = [f"d{c} {v:+.2f} um{mark[j]}" for j, (c, v) in enumerate(zip("xyz", um))
+             if abs(v) >= CONSTANT_NOTE_MIN]
+    parts += [f"a turn of {v:+.2f} urad about {c.upper()}{mark[3 + j]}"
+              for j, (c, v) in enumerate(zip("xyz", urad)) if abs(v) >= CONSTANT_NOTE_MIN]
+    shown = np.r_[np.abs(um) >= CONSTANT_NOTE_MIN, np.abs(urad) >= CONSTANT_NOTE_MIN]
+    why = ("; what is marked not determined is the fit's choice among models that fit the data "
+           "alike (the data read a spindle tilt or a squareness there only in combination with "
+           "set-ups and angles no file measured; identify --verbose lists the combinations), not a "
+           "measurement, and any value there fits the data as well" if np.any(open_parts & shown) else "")
     turn = ("a turn is the machine's set-up there (a rotary axis's zero offset: its home offset), "
             "which compensate corrects and these tables do not" if rotary else
             "a turn is the tool standing tilted relative to the part (the spindle's tilt, a "
@@ -449,7 +484,7 @@ def _constant_note(zero: np.ndarray, rotary: bool = True) -> list:
             "corrects for the tool length it is given and these tables do not")
     return [f"with every axis at its reference position the model predicts {', '.join(parts)}: no "
             "table carries it (each table is zero there); a work offset taken on the part takes the "
-            f"translation, and {turn}"]
+            f"translation, and {turn}{why}"]
 
 
 def reference_notes(machine, axes) -> list:
@@ -615,7 +650,7 @@ def component_tables(fitted, grids: dict, region: dict | None = None,
         tables[a] = AxisTable(a, ax.is_rotary, g, fwd, rev, ref, known, (float(lo), float(hi)))
     zero, _ = model_errors(fitted, q_ref[None, :])
     notes = list(notes or []) + reference_notes(machine, tables) + uncertain + \
-        _constant_note(zero[0], bool(machine.rotary_axes))
+        _constant_note(zero[0], bool(machine.rotary_axes), undetermined_at(fitted, q_ref))
     if max_sd_um and fitted.uncertainty is None:
         notes.append("the model carries no covariance (identify, diagnose and a thermal diagnosis "
                      "write one; an older model file may not): no table could be checked against "
