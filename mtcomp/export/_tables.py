@@ -34,6 +34,7 @@ All arrays are in internal units (mm, rad).
 """
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, field
 
@@ -436,7 +437,6 @@ def undetermined_at(fitted, q: np.ndarray) -> np.ndarray:
     :data:`CONSTANT_NOTE_MIN` / 100 um or urad: what the model holds there is the fit's choice
     among models that fit the data alike, not a measurement (a spindle tilt A0S that the data read
     only in combination with set-ups and rolls no laser named)."""
-    import copy
     u = fitted.uncertainty
     N = None if u is None else np.asarray(u.get("undetermined", ()), dtype=float)
     out = np.zeros(6, dtype=bool)

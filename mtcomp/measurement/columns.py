@@ -93,6 +93,7 @@ _OTHER_UNITS = {
 _QUANTITY = {"feed": "the feed", "t": "the time of each reading", "value": "the reading",
              "target": "the target", "length": "the bar length", "tool": "the tool or stylus length",
              "spindle": "the spindle speed"}
+_AXIS_LETTERS = ("x", "y", "z", "a", "b", "c")
 
 
 def _meant_in_other_unit(kind: str, name: str, names) -> tuple | None:
@@ -110,7 +111,9 @@ def _meant_in_other_unit(kind: str, name: str, names) -> tuple | None:
                     and c[len(stem) + 1:] in _UNITS]
             if any(c in names for c in same):
                 return None                 # beside the column mtcomp reads: an extra column
-            return column, _UNITS[unit][1], _QUANTITY.get(stem, f"column {column}")
+            what = _QUANTITY.get(stem) or (f"the {stem.upper()} axis's position" if stem in _AXIS_LETTERS
+                                           else f"the quantity of {column}")
+            return column, _UNITS[unit][1], what
     return None
 
 
