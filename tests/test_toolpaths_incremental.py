@@ -1,9 +1,11 @@
 """Incremental (G91) programs come out incremental, and nothing after the program's end changes.
 
-Expected lines are written by hand from the rule: a corrected G91 word is the increment between
-the corrected written ends of this block and the one before (both rounded to the output's
-decimals), so the increments add up exactly to the rounded corrected positions. Every test runs
-on the compiled and the pure-Python path (the ``gcode_path`` fixture)."""
+Expected lines are written by hand from the rule: a corrected G91 word is the line's own increment
+plus the change of the correction, the corrected end less the input's end less the correction the
+output carries where it stands, that change rounded to the word's decimals; in a program in one
+unit the increments then add up exactly to the rounded corrected positions, and a line whose
+correction does not change keeps its word as written. Every test runs on the compiled and the
+pure-Python path (the ``gcode_path`` fixture)."""
 from decimal import Decimal
 
 import numpy as np
@@ -176,3 +178,45 @@ def test_grbl_runs_on_after_m30_with_its_modes_reset(tmp_path, dialect, last):
     out = _write(tmp_path, text, _constant_x, initial_position=ORIGIN, dialect=dialect)
     assert out[:4] == ["G21 G90", "G0 X0.0010 Y0 Z5", "G91 G0 X1", "M30"]
     assert out[4] == last
+
+
+CAFXYZ = load_machine("cafxyz")
+#: programs with nothing to correct that switch units (G20/G21) around G91 lines; the generated
+#: programs of test_toolpaths_fuzz found them: mm words written from positions reached in
+#: inches (X1.5 -> X1.49996, Z-2 -> Z-1.99998), and incremental full circles split in two arcs
+UNIT_SWITCHES = [
+    "G0 X0 Y0 Z0 A0\n\nG20\nG17 G2 X1.4161 Y-0.9093 I0.4161 J-0.9093 F300\n\n\n\nG91\nG21\n\n"
+    "G0 X1.5 Y0 Z0 A0\n\nG20\n\nG0 X0",
+    "%\nG0 X-0. Y-30 Z-89.0 A0. C8.3 F1851\n\nG20\nG18 G3 X14.7298 Z-17.8303 R14.4759 F300\n\n\t\n"
+    "\nG91\nG21\n\t\nG17 G2 X-4.9609 Y-2.2704 R3.0000 F300\n\n\n\nG0 X37.217 Y0 Z-2 A0\n\nG20\n\n\n"
+    "\nG17 G2 X0.0000 Y0.0000 I-0.5000 J0.0000 F300\n\n%",
+    "G0 X1\nG91\nG20\nG17 G2 X0.0000 Y0.0000 I-1.0000 J0.0000 F300\n",
+    "G20\nG0 X1.2812 Y0 Z0\nG21\nG91\nG0 X0\n",
+]
+
+
+@pytest.mark.parametrize("text", UNIT_SWITCHES, ids=["mm-after-inch-arc", "inch-circle-after-mm",
+                                                      "circle-after-mm-move", "mm-after-inch"])
+def test_a_program_with_nothing_to_correct_comes_back_byte_for_byte(tmp_path, text):
+    src = _path(tmp_path, text)
+    out = tmp_path / "out.nc"
+    write_corrected(src, out, CAFXYZ, None, chord_tol_mm=0.05, initial_known=True)
+    assert out.read_bytes() == src.read_bytes()
+
+
+def test_a_g91_word_after_a_change_of_units_changes_by_the_change_of_correction(tmp_path):
+    # +1 um in X everywhere. X0.0591 in = 1.50114 mm, corrected 1.50214 mm = 0.0591394 in, written
+    # X0.05914: the output stands at 1.502156 mm, carrying 1.016 um. The G91 X1.5 in mm: the
+    # change, 1 - 1.016 um, is 0.0000 at 4 decimals, so X1.5 stays as written and so does X2
+    # (an increment between rounded ends wrote X1.499944: 3.0021 less 1.502156)
+    text = "G21 G90\nG0 X0\nG20\nG1 X0.0591 F100\nG91 G21\nG1 X1.5\nX2\n"
+    out = _write(tmp_path, text, _constant_x)
+    assert out == ["G21 G90", "G0 X0.0010", "G20", "G1 X0.05914 F100", "G91 G21", "G1 X1.5", "X2"]
+
+
+def test_an_incremental_full_circle_in_other_units_stays_one_block(tmp_path):
+    # +1 um in X: X12.7 is written X12.7010. The G20 G91 full circle from there keeps X0 Y0 (its
+    # correction does not change) and its centre I: (0.001 - 12.701) mm = -0.5 in, as written
+    text = "G21 G90 G17\nG0 X12.7 Y0 Z0\nG20 G91\nG2 X0 Y0 I-0.5 J0 F100\n"
+    out = _write(tmp_path, text, _constant_x)
+    assert out == ["G21 G90 G17", "G0 X12.7010 Y0 Z0", "G20 G91", "G2 X0 Y0 I-0.5 J0 F100"]

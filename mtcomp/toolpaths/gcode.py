@@ -138,8 +138,8 @@ def write_corrected(in_path, out_path, machine: Machine,
     Every line that is not a motion line is written byte for byte and in place. In a motion line
     only the numbers that carry a correction change, in place (see :func:`format_motion_lines`); an
     axis whose position the program has not given is never written. Output is in the distance
-    mode (G90/G91: an incremental word is the increment between corrected written ends) and the
-    units of the input at that line, a corrected number with at least its source word's decimals
+    mode (G90/G91: an incremental word is the source's increment plus the change of correction)
+    and the units of the input at that line, a corrected number with at least its source word's decimals
     (and 4 for mm and deg, 5 for inch); lines after M2/M30 are written as they are. The file is written atomically: nothing is left on
     failure and the input is never overwritten. inch, initial_known : see :func:`iter_blocks`.
     stats : a dict that receives ``cycle_lines``, the drilling cycle lines passed through unchanged

@@ -399,9 +399,20 @@ def base_decimals(rot: bool, inch: bool) -> int:
     return 5 if inch and not rot else 4
 
 
+def program_units(v: float, rot: bool, inch: bool) -> float:
+    """An axis value v (mm, rad) in the program's units (mm, inch, deg)."""
+    return math.degrees(v) if rot else (v / MM_PER_INCH if inch else v)
+
+
+def machine_units(x: float, rot: bool, inch: bool) -> float:
+    """A value x written in the program's units (mm, inch, deg) in mm and rad, as the reader
+    takes it."""
+    return math.radians(x) if rot else x * (MM_PER_INCH if inch else 1.0)
+
+
 def position_text(v: float, rot: bool, inch: bool, decimals: int) -> str:
     """The text of an axis position v (mm, rad) in the program's units (mm, inch, deg)."""
-    return format_number(math.degrees(v) if rot else (v / MM_PER_INCH if inch else v), decimals)
+    return format_number(program_units(v, rot, inch), decimals)
 
 
 def grid_text(v: float, rot: bool, inch: bool) -> str:
@@ -410,26 +421,16 @@ def grid_text(v: float, rot: bool, inch: bool) -> str:
     return position_text(v, rot, inch, base_decimals(rot, inch))
 
 
-def on_grid(v: float, rot: bool, inch: bool) -> Decimal:
-    """The position v (mm, rad) in the program's units as the decimal number that was written for
-    it (its text read back: 10 decimals give back every word of up to 10 decimals exactly)."""
-    x = math.degrees(v) if rot else (v / MM_PER_INCH if inch else v)
-    return Decimal(repr(round(float(x), 10)))
-
-
-def increment_text(target: str, start: float, rot: bool, inch: bool) -> str:
-    """The incremental word from ``start`` (mm, rad: where the output stands) to the absolute
-    position ``target`` (its text, program units): their difference on the output's grid, with
-    the decimals of both, so that the increments written add up exactly to the written ends."""
-    prev = on_grid(start, rot, inch)
-    end = Decimal(target)
-    if -prev.as_tuple().exponent > 8:
-        # not a position written in these units (the program changed them, G20/G21): taken on
-        # the target's grid, the machine's own position carried on by out.values
-        prev = prev.quantize(Decimal(1).scaleb(-max(-end.as_tuple().exponent,
-                                                    base_decimals(rot, inch))))
-    decimals = max(-end.as_tuple().exponent, -prev.as_tuple().exponent, 0)
-    return format_number(end - prev, decimals)
+def increment_text(step: float, change: float, rot: bool, inch: bool, decimals: int) -> str:
+    """The G91 word of an axis: the input's increment ``step`` plus the change of the written
+    correction ``change`` (both mm or rad), each taken on the word's grid (``decimals`` in the
+    program's units). A change that rounds to zero gives back the input's increment exactly,
+    whatever the units the program stood in before; the output never drifts from the corrected
+    path by more than the rounding of one word, since ``change`` is taken from where the output
+    stands."""
+    total = Decimal(position_text(step, rot, inch, decimals)) + \
+        Decimal(position_text(change, rot, inch, decimals))
+    return f"{abs(total) if total == 0 else total:.{decimals}f}"
 
 
 def _line_words(text: str, pos: int) -> list | None:

@@ -11,8 +11,9 @@ and runs the compiled writer when it can, with the same bytes).
 
 Output: the input with only the numbers that carry a correction changed (at least the source
 word's decimals, and 4 in mm and deg, 5 in inch), in the distance mode (G90/G91) and the units of
-the input at each line: an incremental word is the increment between the corrected written ends,
-both on the output's grid (:func:`_increment_text`); see docs/toolpaths.md for what is rewritten
+the input at each line: an incremental word is the source's increment plus the change of the
+correction from where the output stands (:func:`_increment`), so that a line with no change keeps
+its word as written; see docs/toolpaths.md for what is rewritten
 and what passes through.
 """
 from __future__ import annotations
@@ -32,8 +33,8 @@ from .cursor import CorrectionCursor
 from .modal import ModalState
 from .reader import iter_blocks, new_state
 from .words import (DEFAULT_CHORD_TOL_MM, MM_PER_INCH, SourceLine, base_decimals,
-                    cutter_comp_code, format_number, grid_text, increment_text, number_decimals,
-                    on_grid, position_text)
+                    cutter_comp_code, format_number, grid_text, increment_text, machine_units,
+                    number_decimals, position_text)
 
 
 class OutputState:
@@ -86,8 +87,7 @@ class OutputState:
             self.added_line = self.added_line or line
 
     def set_last(self, j: int, text: str, inch: bool) -> None:
-        v = float(text)
-        self.values[j] = math.radians(v) if self.rotary[j] else v * (MM_PER_INCH if inch else 1.0)
+        self.values[j] = machine_units(float(text), self.rotary[j], inch)
 
 
 def _piece_feeds(block: MotionBlock, points: np.ndarray, xyz: list[int]) -> np.ndarray:
@@ -146,19 +146,34 @@ def _axis_texts(block: MotionBlock, p: np.ndarray, rotary: list[bool], out: Outp
     word, whose value it keeps), any other known axis whose text at 4 (5) decimals differs from
     the output's last; never an axis the program has not positioned (nor Z where the tip's Z is not
     known: a W quill's place lost, :mod:`.quill`), but as the block names it. named : (na,) bool
-    or None."""
+    or None. In G91 the text is the increment (:func:`_increment`), written for a named axis
+    always and for any other where it is not zero."""
     inch = block.inch
     res = []
     for i, rot in enumerate(rotary):
         if not block.known[i] and (named is None or not named[i]):
             continue
-        if named is not None and named[i]:
+        if block.incremental:
+            t = _increment(block, i, p[i], out.values[i], rot, decs[i])
+            if named is not None and named[i] or float(t) != 0.0:
+                res.append((i, t))
+        elif named is not None and named[i]:
             t = position_text(p[i], rot, inch, decs[i])
-            keep = not block.incremental and t == position_text(block.end[i], rot, inch, decs[i])
+            keep = t == position_text(block.end[i], rot, inch, decs[i])
             res.append((i, None if keep else t))
         elif grid_text(p[i], rot, inch) != out.last(i, inch):
             res.append((i, position_text(p[i], rot, inch, decs[i])))
     return res
+
+
+def _increment(block: MotionBlock, i: int, p: float, v: float, rot: bool, dec: int) -> str:
+    """The G91 word of axis i for a piece that ends at p (mm, rad) from where the output stands
+    (v; nan: where the program stands): the block's own increment plus the change between the
+    correction at p and the one the output carries at its start, so that a piece with nothing new
+    to correct keeps the source's increment exactly (:func:`~.words.increment_text`)."""
+    start = block.start[i] if v != v else v
+    change = (p - block.end[i]) - (start - block.start[i])
+    return increment_text(block.end[i] - block.start[i], change, rot, block.inch, dec)
 
 
 def _written(block: MotionBlock, texts, out: OutputState) -> np.ndarray:
@@ -169,9 +184,9 @@ def _written(block: MotionBlock, texts, out: OutputState) -> np.ndarray:
     for i, t in texts:
         if t is None:
             v[i] = block.end[i]
-        else:
-            x = float(t)
-            v[i] = math.radians(x) if out.rotary[i] else x * (MM_PER_INCH if block.inch else 1.0)
+        else:     # G91: the increment from where the output stands
+            v[i] = (v[i] if block.incremental else 0.0) + machine_units(float(t), out.rotary[i],
+                                                                         block.inch)
     return v
 
 
@@ -189,9 +204,7 @@ def _apply_axes(block: MotionBlock, line: SourceLine, texts, letters: str, out: 
         if block.incremental:       # G91: the increment from where the output stands
             v = out.values[i]
             start = block.start[i] if v != v else v
-            said = increment_text(t, start, out.rotary[i], block.inch)
-            step = float(said)
-            if w is not None and Decimal(said) == Decimal(line.number(w)):
+            if w is not None and Decimal(t) == Decimal(line.number(w)):
                 said = None         # the source's own increment keeps its spelling
         if w is not None:
             if said is not None:
@@ -200,9 +213,8 @@ def _apply_axes(block: MotionBlock, line: SourceLine, texts, letters: str, out: 
             added.append(line.letter(letters[i]) + said)
         if block.incremental:
             # the machine moves by the increment written from where it stands (which, after a
-            # change of units, need not lie on this unit's grid)
-            out.values[i] = start + (math.radians(step) if out.rotary[i]
-                                     else step * (MM_PER_INCH if block.inch else 1.0))
+            # change of units, need not lie on this unit's grid), as the reader adds it
+            out.values[i] = start + machine_units(float(t), out.rotary[i], block.inch)
         else:
             out.set_last(i, t, block.inch)
     return added
@@ -221,8 +233,8 @@ def format_motion_lines(block: MotionBlock, points: np.ndarray, letters: str, ro
     name whose written value changes is added after the line's last axis word, in the line's letter
     case; never an axis whose position the program has not given. Word order, case, spacing,
     comments, the N word, the motion word and G90/G91 stay as written (in G91 a word is the
-    increment between corrected written ends), and G90/G91 or a motion word are put after the N
-    word only where the output needs them. Later pieces of a block split into several (inserted nodes, G93 pieces) are new
+    source's increment plus the change of correction), and G90/G91 or a motion word are put after
+    the N word only where the output needs them. Later pieces of a block split into several (inserted nodes, G93 pieces) are new
     lines with what changes. A G2/G3 block stays one arc where the corrected path lies within
     ``chord_tol`` (mm) of one, else it becomes consecutive arcs (:func:`_arc_text`); ``counts`` (k,)
     are the corrected points per chord of the arc (None: one each). A drilling cycle is restated
@@ -696,8 +708,7 @@ def _follow_increments(raw: bytes, state: ModalState, out: OutputState) -> None:
         v = out.values[i]
         if w is None or not state.known[i] or v != v:
             continue
-        end = on_grid(v, out.rotary[i], state.inch) + Decimal(line.number(w))
-        out.set_last(i, str(end), state.inch)
+        out.values[i] = v + machine_units(float(line.number(w)), out.rotary[i], state.inch)
 
 
 def _touched_off(raw: bytes, state: ModalState, out: OutputState) -> None:
