@@ -48,6 +48,23 @@ def test_a_sinumerik_program_is_detected_from_its_header_or_a_def(tmp_path):
     assert detect(plain)[0].name == "sinumerik"
 
 
+def test_a_program_that_sets_r_parameters_is_read_as_sinumerik(tmp_path):
+    """No header, DEF, cycle or MSG: blocks that set arithmetic parameters (`R1=5`; Fundamentals,
+    "Arithmetic parameters (R)") show a Sinumerik program, to the reader and to the replay alike
+    (read as generic G-code, `R1=5` was refused: "unexpected character '='"). By hand: R1 = 5,
+    R2 = 5 * 2 + 1 = 11; the blocks go to (5, 11, 10), then X = 5 + 11 = 16 at F = 1100."""
+    p = tmp_path / "p.nc"
+    p.write_text("; a plate\nR1=5 ; origin X\nR2=R1*2+1\nG17 G90 G94\nG0 X=R1 Y=R2 Z10\n"
+                 "G1 X=R1+R2 F=R2*100\nM30\n")
+    d, why = detect(p)
+    assert d.name == "sinumerik" and why == "detected from line 2: R1=5 ; origin X"
+    assert replay_sinumerik.is_sinumerik(p.read_bytes())
+    first, second = _blocks(p)
+    np.testing.assert_allclose([first.end[:3], second.end[:3]], [[5, 11, 10], [16, 11, 10]],
+                               rtol=0, atol=1e-12)
+    assert second.feed == pytest.approx(1100.0, rel=0, abs=1e-9)
+
+
 @pytest.mark.parametrize("head", ["%_N_PART_MPF\n;$PATH=/_N_MPF_DIR\nG0 X1\n",
                                   "%MPF  90\n( SINUMERIK 850 )\nG0 X1\n"])
 def test_the_840d_and_850_headers_are_read_as_sinumerik(tmp_path, head):
