@@ -417,6 +417,23 @@ def test_a_circle_the_correction_bends_is_written_in_pieces_within_the_tolerance
     assert nearest.max() > 0.3e-3            # the pieces do use the tolerance (it is not trivial)
 
 
+def test_a_bent_circle_after_lines_without_moves_is_written_in_pieces(tmp_path):
+    # the circle above after comment lines and R parameters: its source line lies past the last
+    # line of the program's G-code translation, and finding that no centre holds it once raised an
+    # IndexError (a traceback, from looking up the radius of a translation line by a source line)
+    # instead of writing it in pieces: the pieces go once around, replayed independently
+    body = ("; a plate\n" * 6 + "R1=20\nR2=0\nR3=-1\nR4=200\n"
+            "N10 G0 X=R1 Y=R2 Z5 F300\nN20 G1 Z=R3\nN30 G3 I=AC(0) J=AC(0) F=R4\nN40 G0 Z20\nM30\n")
+    lines = _lines_after(_write(tmp_path, body), load_machine("xfyz"),
+                         lambda p: np.outer(p[:, 1], [2e-4, 0, 0]))
+    assert "circle written in pieces" in lines[2]
+    arcs = [m for m in replay_sinumerik.replay("\n".join(lines).encode("latin-1")).moves
+            if m.kind == "arc"]
+    assert len(arcs) >= 2
+    assert sum(m.sweep for m in arcs) == pytest.approx(2 * math.pi, rel=0, abs=1e-3)
+    assert [m.end["Z"] for m in arcs] == [-1.0] * len(arcs)
+
+
 def test_a_circle_whose_z_correction_changes_gets_the_corrected_z(tmp_path):
     # a half circle from (20, 0) to (-20, 0) about (0, 0), Z corrected by 1e-4 * x: from +2 um to
     # -2 um along it, so one circle at the start's Z misses the end by 4 um; as a helix to the
