@@ -257,7 +257,8 @@ REFUSED = {
 #: of 30 programs from six more repositories (SOURCES.md), of which 24 are accepted now (0.800;
 #: of the 25 their controllers run, 0.960), 23 as they came (0.767; of the 25, 0.920); 162,
 #: 0.750, before Estlcam's F words without a number were read as Marlin reads them): 141 of the
-#: 186 before the batch of 30 programs from six more repositories (SOURCES.md), of which 27 are accepted now (0.900; of the 29 their
+#: 186 before the batch of 30 programs from six more repositories (SOURCES.md), of which 27 are
+#: accepted now (0.900; of the 29 their
 #: controllers run, 0.931), 21 when they were added (0.700; of the 29, 0.724; 20 before polar
 #: words given by parameters were read); 124 of the 148 before the batch of 38 programs never seen, of
 #: which 17 are accepted (the Nomura BN-130's W quill read; BeagleG's dialect, G5 splines and arcs
