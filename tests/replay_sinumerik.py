@@ -46,11 +46,12 @@ _G = re.compile(r"(?<![A-Z0-9_])G(\d+)")
 _ASSIGN = re.compile(r"(?<![A-Z0-9_])(R\d+|[A-Z_][A-Z0-9_]{2,})\s*=\s*(\S+)")
 
 
-#: a Sinumerik program, known from its file header, its path line, or a DEF, a standard cycle call
-#: or a message MSG("...") at a block's start
+#: a Sinumerik program, known from its file header, its path line, or a DEF, a standard cycle call,
+#: a message MSG("...") or an arithmetic parameter set (`R1=0`: Fundamentals, "Arithmetic
+#: parameters (R)"; no other controller here names a parameter R<n>) at a block's start
 _SIEMENS = re.compile(rb'(?im)^\s*%(?:_N_\w+_MPF|MPF)|^\s*;\s*\$PATH=|'
                       rb'^\s*(?:N\d+\s*)?(?:DEF\s+(?:REAL|INT|BOOL)\b|(?:MCALL\s+)?CYCLE\d+\s*\(|'
-                      rb'MSG\s*\(\s*")')
+                      rb'MSG\s*\(\s*"|R\d+\s*=)')
 
 
 def is_sinumerik(data: bytes) -> bool:

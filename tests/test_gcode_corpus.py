@@ -222,17 +222,50 @@ REFUSED = {
     "fluidnc_restart.nc": ["restart.nc:5:", "comment '(' holds parentheses"],
     # Onefinity's spindle warm-up macro (M3, a dwell, M5): no motion to correct
     "onefinity_SpindleWarmUp1Minute.ngc": ["SpindleWarmUp1Minute.ngc: no motion block"],
+    # The second blind batch of 30 from six more repositories (SOURCES.md), chosen and committed
+    # before mtcomp was run on any of them: 23 accepted as they came, 7 refused, 5 of them by the
+    # controllers too (24 accepted since a Sinumerik program is known by its R parameters).
+    # cncjs's gcode-toolpath fixtures: `G02` alone, then `X0Y20` with no centre
+    # and no R (LinuxCNC's rs274ngc stops at the `G02`, "All axes missing with motion code", and on
+    # the arc, "R, I, J, and K words all missing for arc"); `g92` without axis words (LinuxCNC
+    # "All axes missing with g92"; grbl 1.1 gcode.c, "[G92 Errors]: No axis words", error 26)
+    "gcodetoolpath_arc-r.nc": ["arc-r.nc:3:", "arc without centre"],
+    "gcodetoolpath_g92offset.nc": ["g92offset.nc:28:", "G92 without axis words"],
+    # a helical thread-milling excerpt that starts in G91 (`G01 G91 Z-0.6533`, `G42 D08 X.. Y..`,
+    # then incremental helices `G03 X.. Y.. Z.. R..`) and never gives a position: a controller
+    # runs it from wherever the tool stands. mtcomp's gap
+    "gcodetoolpath_helical-thread-milling.nc": ["helical-thread-milling.nc:3:",
+                                                "incremental (G91) move of axis X"],
+    # an NC viewer's examples: Sinumerik programs of R parameters (`R1=0`, `G00 X=R60 Y=R61+R22`),
+    # read as Sinumerik programs since (plate_star_cutout is accepted; it was refused as it came,
+    # read as generic G-code: "unexpected character '='"). slot_ring_polygon mixes in Heidenhain's
+    # `LBL 10` / `CALL LBL 10` and an arc radius `R=R23`, which no controller reads: a Sinumerik's
+    # labels end with a colon and its arc radius is `CR=` (SINUMERIK 840D sl Programming Manual,
+    # Fundamentals: program jumps to jump markers; circular interpolation with radius)
+    "ncview_01_slot_ring_polygon.nc": ["01_slot_ring_polygon.nc:28:", "'10' is not a word"],
+    # a router's drilling program with tool marks `T1 E`, `FT2 S`, `T2E` between its blocks: a
+    # letter without a number, which LinuxCNC ("No characters found in reading real value") and
+    # grbl (error 2, "Numeric value format is not valid or missing an expected value") refuse
+    "ncview_test.nc": ["ncview_test.nc:1087:", "word E without a valid number"],
+    # the Notepad++ syntax package's sample opens with a banner of `*` lines (Edgecam EditNC's
+    # heading, "RS-274"): no RS-274 interpreter reads `*` as a comment (LinuxCNC: "Bad character
+    # used"; grbl: error 1, "Letter was not found")
+    "nppgcode_sample.nc": ["sample.nc:1:", "unexpected character '*'"],
 }
-#: the share of the corpus accepted today (168 of 216: 0.778; 162, 0.750, before Estlcam's F words
-#: without a number were read as Marlin reads them): 141 of the 186 before the batch of 30 programs
-#: from six more repositories (SOURCES.md), of which 27 are accepted now (0.900; of the 29 their
+#: the share of the corpus accepted today (192 of 246: 0.780; 191, 0.776, before a Sinumerik
+#: program was known by its R parameters; 168 of the 216, 0.778, before the second blind batch
+#: of 30 programs from six more repositories (SOURCES.md), of which 24 are accepted now (0.800;
+#: of the 25 their controllers run, 0.960), 23 as they came (0.767; of the 25, 0.920); 162,
+#: 0.750, before Estlcam's F words without a number were read as Marlin reads them): 141 of the
+#: 186 before the batch of 30 programs from six more repositories (SOURCES.md), of which 27 are
+#: accepted now (0.900; of the 29 their
 #: controllers run, 0.931), 21 when they were added (0.700; of the 29, 0.724; 20 before polar
 #: words given by parameters were read); 124 of the 148 before the batch of 38 programs never seen, of
 #: which 17 are accepted (the Nomura BN-130's W quill read; BeagleG's dialect, G5 splines and arcs
 #: from a position not given read: 4 of its programs; the Kuraki's G60 single-direction
 #: positioning read; a helix from a height not given refused since, UGS's g17-g18-g19); the goal
 #: is 95 %
-MIN_ACCEPTED = 0.77
+MIN_ACCEPTED = 0.78
 #: the refused programs that the controller they were written for refuses too (its manual's alarm
 #: or error named in REFUSED's comments): a nested comment (LinuxCNC), an R word in a G1 (grbl
 #: error 36, LinuxCNC), an arc whose end is off its circle (Fanuc: radius over tolerance; the Toyoda
@@ -248,7 +281,8 @@ MIN_ACCEPTED = 0.77
 #: 5-axis drilling, BeagleG's programs that do not show their dialect (one needs --dialect beagleg,
 #: one probes with G30 in a program read as LinuxCNC's), an O word after a tool word, a TNC ISO
 #: block before any G00/G01; and a helix from a height the program has not given; of the batch of
-#: 30, a probing macro and a macro without motion: 168 of 186).
+#: 30, a probing macro and a macro without motion: 168 of 186; of the second blind batch of 30, a
+#: G91 helical excerpt that never gives a position: 192 of 211).
 CONTROLLER_REFUSES = {
     "cluck2sesame_BackPlate.nc", "cluck2sesame_2-Spool.nc", "cncwebsim_fresa2.cnc",
     "rocholl25000_clover.gcode", "nxpost_4_axis_mill.ptp", "nxpost_Fadal_VMC6030_sample.ptp",
@@ -269,8 +303,14 @@ CONTROLLER_REFUSES = {
     "nxpost_Mitsubishi_VR33_RHead_sample.ptp",
     # the batch of 30: a comment holding parentheses that FluidNC ends at its first ')'
     "fluidnc_restart.nc",
+    # the second blind batch of 30: an arc without centre after a `G02` alone, a G92 without axis
+    # words, Heidenhain labels in a Sinumerik program, letters without numbers, `*` banner lines
+    "gcodetoolpath_arc-r.nc", "gcodetoolpath_g92offset.nc", "ncview_01_slot_ring_polygon.nc",
+    "ncview_test.nc", "nppgcode_sample.nc",
 }
-#: the share accepted of the programs their controllers run (168 of 186: 0.903; 162, 0.871, before
+#: the share accepted of the programs their controllers run (192 of 211: 0.910; 191, 0.905, before
+#: a Sinumerik program was known by its R parameters; 168 of 186, 0.903, before the second blind
+#: batch of 30, whose 25 runnable ones are 24 accepted, 23 as they came: 0.920; 162, 0.871, before
 #: Estlcam's F words without a number were read as Marlin reads them; 161, 0.866, before
 #: polar words given by parameters were read; 141 of 157, 0.898, before the batch of 30; 125 of 133, 0.940, before the batch of 38, whose 24 runnable ones are 17
 #: accepted: 0.708; 137 of 157, 0.873, before BeagleG's dialect, G5 splines and arcs from a
@@ -502,7 +542,7 @@ def test_corpus_is_the_documented_one():
     assert len({p.name.split("_")[0] for p in PROGRAMS}) >= 10
     for p in PROGRAMS:
         assert f"`{p.name}`" in sources, f"{p.name} is not in SOURCES.md"
-    assert sum(p.stat().st_size for p in PROGRAMS) < 3_400_000
+    assert sum(p.stat().st_size for p in PROGRAMS) < 3_750_000
 
 
 def run_once(tmp_path_factory, key: str, argv_for) -> tuple:

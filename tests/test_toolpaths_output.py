@@ -28,6 +28,7 @@ from scipy.spatial import cKDTree
 from mtcomp import load_machine
 from mtcomp.cli import main
 from mtcomp.toolpaths import _fast, iter_segment_chunks, write_corrected
+from replay_sinumerik import is_sinumerik
 from test_gcode_corpus import (PROGRAMS, REFUSED, _machine_file, _model_file, _topology,
                                program_machine_file, source_bytes)
 
@@ -411,11 +412,12 @@ def _small_field(p):
                      0.003 * np.sin(p[:, 2] / 10)], axis=1)
 
 
-# Heidenhain conversational (.h) and Sinumerik programs are written in their own form, not G-code:
-# they are checked by tests/test_toolpaths_heidenhain.py, test_toolpaths_sinumerik.py, the corpus
-# test and their own replays
+# Heidenhain conversational (.h) and Sinumerik programs (known as tests/replay_sinumerik.py knows
+# them: a header, a DEF, a cycle call, MSG or an R parameter set) are written in their own form, not
+# G-code: they are checked by tests/test_toolpaths_heidenhain.py, test_toolpaths_sinumerik.py, the
+# corpus test and their own replays
 @pytest.mark.parametrize("prog", [p for p in PROGRAMS if p.name not in REFUSED and p.suffix != ".h"
-                                  and not p.read_bytes().startswith(b"%_N_")],
+                                  and not is_sinumerik(p.read_bytes())],
                          ids=lambda p: p.name)
 def test_corpus_output_differs_only_by_the_correction(tmp_path, monkeypatch, prog):
     # a program with code to compute is written as its expansion (tests/test_toolpaths_ngc.py)

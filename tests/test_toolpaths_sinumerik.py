@@ -48,6 +48,23 @@ def test_a_sinumerik_program_is_detected_from_its_header_or_a_def(tmp_path):
     assert detect(plain)[0].name == "sinumerik"
 
 
+def test_a_program_that_sets_r_parameters_is_read_as_sinumerik(tmp_path):
+    """No header, DEF, cycle or MSG: blocks that set arithmetic parameters (`R1=5`; Fundamentals,
+    "Arithmetic parameters (R)") show a Sinumerik program, to the reader and to the replay alike
+    (read as generic G-code, `R1=5` was refused: "unexpected character '='"). By hand: R1 = 5,
+    R2 = 5 * 2 + 1 = 11; the blocks go to (5, 11, 10), then X = 5 + 11 = 16 at F = 1100."""
+    p = tmp_path / "p.nc"
+    p.write_text("; a plate\nR1=5 ; origin X\nR2=R1*2+1\nG17 G90 G94\nG0 X=R1 Y=R2 Z10\n"
+                 "G1 X=R1+R2 F=R2*100\nM30\n")
+    d, why = detect(p)
+    assert d.name == "sinumerik" and why == "detected from line 2: R1=5 ; origin X"
+    assert replay_sinumerik.is_sinumerik(p.read_bytes())
+    first, second = _blocks(p)
+    np.testing.assert_allclose([first.end[:3], second.end[:3]], [[5, 11, 10], [16, 11, 10]],
+                               rtol=0, atol=1e-12)
+    assert second.feed == pytest.approx(1100.0, rel=0, abs=1e-9)
+
+
 @pytest.mark.parametrize("head", ["%_N_PART_MPF\n;$PATH=/_N_MPF_DIR\nG0 X1\n",
                                   "%MPF  90\n( SINUMERIK 850 )\nG0 X1\n"])
 def test_the_840d_and_850_headers_are_read_as_sinumerik(tmp_path, head):
@@ -398,6 +415,23 @@ def test_a_circle_the_correction_bends_is_written_in_pieces_within_the_tolerance
     nearest = np.min(np.linalg.norm(corrected - got[:, None, :], axis=2), axis=1)
     assert nearest.max() <= 1.1e-3
     assert nearest.max() > 0.3e-3            # the pieces do use the tolerance (it is not trivial)
+
+
+def test_a_bent_circle_after_lines_without_moves_is_written_in_pieces(tmp_path):
+    # the circle above after comment lines and R parameters: its source line lies past the last
+    # line of the program's G-code translation, and finding that no centre holds it once raised an
+    # IndexError (a traceback, from looking up the radius of a translation line by a source line)
+    # instead of writing it in pieces: the pieces go once around, replayed independently
+    body = ("; a plate\n" * 6 + "R1=20\nR2=0\nR3=-1\nR4=200\n"
+            "N10 G0 X=R1 Y=R2 Z5 F300\nN20 G1 Z=R3\nN30 G3 I=AC(0) J=AC(0) F=R4\nN40 G0 Z20\nM30\n")
+    lines = _lines_after(_write(tmp_path, body), load_machine("xfyz"),
+                         lambda p: np.outer(p[:, 1], [2e-4, 0, 0]))
+    assert "circle written in pieces" in lines[2]
+    arcs = [m for m in replay_sinumerik.replay("\n".join(lines).encode("latin-1")).moves
+            if m.kind == "arc"]
+    assert len(arcs) >= 2
+    assert sum(m.sweep for m in arcs) == pytest.approx(2 * math.pi, rel=0, abs=1e-3)
+    assert [m.end["Z"] for m in arcs] == [-1.0] * len(arcs)
 
 
 def test_a_circle_whose_z_correction_changes_gets_the_corrected_z(tmp_path):

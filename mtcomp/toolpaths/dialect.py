@@ -94,11 +94,14 @@ _CLUES = [
     ("heidenhain", re.compile(r"(?i)^\s*\d+\s+BEGIN\s+PGM\b|"
                               r"^\s*(?:N\s*\d+\s*)?%\s*\S+\s+G\s*7[01]\s*\*?\s*(?:;.*)?$")),
     # Sinumerik: its file header, its path line, a DEF of a variable, a standard cycle call, a
-    # message to the operator MSG("...")
+    # message to the operator MSG("..."), an arithmetic parameter set at a block's start (`R1=0`;
+    # SINUMERIK 840D sl Programming Manual, Fundamentals, "Arithmetic parameters (R)": Fanuc and
+    # LinuxCNC number theirs #1, a TNC's are Q parameters)
     ("sinumerik", re.compile(r"(?i)^\s*%(?:_N_\w+_(?:MPF|SPF)|MPF|SPF)\b|^\s*;\s*\$PATH=|"
                              r"^\s*(?:N\d+\s*)?DEF\s+(?:REAL|INT|BOOL)\b|"
                              r"^\s*(?:N\d+\s*)?(?:MCALL\s+)?CYCLE\d+\s*\(|"
-                             r"^\s*(?:N\d+\s*)?MSG\s*\(\s*\"")),
+                             r"^\s*(?:N\d+\s*)?MSG\s*\(\s*\"|"
+                             r"^\s*(?:N\d+\s*)?R\d+\s*=")),
     # a parameter named without brackets (`#r=50`, `#i++`): BeagleG's alone (LinuxCNC names one
     # #<r>, Fanuc numbers them)
     ("beagleg", re.compile(r"(?i)(?<![\w<])#[ \t]*[a-z_][a-z0-9_]*[ \t]*(?:=|\+\+|--|[-+*/]=)")),
@@ -138,8 +141,8 @@ def detect(path) -> tuple[Dialect, str]:
     switchable kinematics codes (M428, M429, M430), a Fanuc macro statement
     or program number (Haas where the program names Haas or uses a code only Haas has), grbl's '$' commands or real-time
     characters, RepRapFirmware's quoted string parameters, Sinumerik's file header
-    ``%_N_NAME_MPF``, ``;$PATH=``, a DEF, a CYCLE call or ``MSG("...")`` at a block's start, a
-    comment naming the controller (rrf
+    ``%_N_NAME_MPF``, ``;$PATH=``, a DEF, a CYCLE call, ``MSG("...")`` or ``R1=`` at a block's
+    start, a comment naming the controller (rrf
     for RepRapFirmware, RRF or MillenniumOS); nothing: generic."""
     try:
         with open(os.fspath(path), "rb") as f:

@@ -237,13 +237,18 @@ class HeidenhainWriter:
             worst = self._one_centre(cc, arcs)
             if worst is not None and not (self.SPLITS and self._in_pieces(cc, arcs)):
                 arc, centre = (self.ARC, f"{self.CENTRE} of line {cc + 1}")
-                if self.tr.lines[cc].radius is not None:
+                if self._by_radius(cc):
                     arc, centre = "arc CR", "its radius R"
                 raise InputError(
                     f"the corrected {arc} of line {worst[1] + 1} is not within the chord "
                     f"tolerance ({self.tol * 1e3:g} um) of an arc about one circle centre "
                     f"({centre}): it misses its corrected path by "
                     f"{worst[2] * 1e3:.2f} um ({self.HINT})", self.src.source, line=worst[1] + 1)
+
+    def _by_radius(self, cc: int) -> bool:
+        """Whether the arcs of CC line ``cc`` (a line of the translation) are given by a radius
+        (`CR`), not about a circle centre."""
+        return self.tr.lines[cc].radius is not None
 
     def _candidates(self, arcs) -> list:
         """The centres (2,) tried for the arcs of one CC: the nominal centre shifted by the mean

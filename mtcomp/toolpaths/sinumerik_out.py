@@ -319,6 +319,11 @@ class SinumerikWriter(HelixTurns, HeidenhainWriter):
             edits.append((at, at, " ".join(missing) + " "))
         return _edit(text, edits)
 
+    def _by_radius(self, cc: int) -> bool:
+        """False: a circle's ``cc`` is its source line, not a line of the translation, and
+        :attr:`CENTRE` already names its centre words (`I J` or `CR=`: :meth:`_arc`)."""
+        return False
+
     def _rotary_cause(self, line: int) -> str | None:
         """Why the circle of ``line`` (0-based) is refused when its rotary axes are: the rotary
         axis whose corrected path leaves the value the circle holds, and by how much; None when
