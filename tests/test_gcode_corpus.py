@@ -56,13 +56,9 @@ REFUSED = {
     "cluck2sesame_2-Spool.nc": ["2-Spool.nc:12:", "comment '(' holds parentheses",
                                 "Nested comment found"],
     # G92 before any move (`G92 z50 x-10`, `G92 Y200 z50`) is followed (its offset assumed 0,
-    # said once); these two are refused further on. fresa.gcode ends line 98 with a byte 0x01:
-    # grbl 1.1's protocol.c throws control characters away, and mtcomp drops it on grbl (with
-    # --dialect grbl the program is accepted), but nothing in the program names grbl (no '$'
-    # command, no real-time character, no comment naming it: it is read as generic G-code, and
-    # other controllers do not drop it). fresa2.cnc has `G1 X145 Y-36.4 R20`: grbl 1.1 refuses
-    # an R word a G1 does not use (gcode.c, unused value words, error 36), as mtcomp does
-    "cncwebsim_fresa.gcode": ["fresa.gcode:98:", "control character 0x01"],
+    # said once). fresa.gcode (accepted with --dialect grbl: DIALECTS) ends line 98 with a byte
+    # 0x01, which grbl 1.1's protocol.c throws away. fresa2.cnc has `G1 X145 Y-36.4 R20`: grbl 1.1
+    # refuses an R word a G1 does not use (gcode.c, unused value words, error 36), as mtcomp does
     "cncwebsim_fresa2.cnc": ["fresa2.cnc:145:", "R word in a G1 block"],
     # Siemens NX post-processor samples. Arcs whose end does not lie on their circle (the centre
     # I J from the start is 0.2756 in away, the end 0.454 in; the Toyoda's 0.7874 in and 0.835 in):
@@ -191,17 +187,12 @@ REFUSED = {
     # Four are accepted: two detected by their parameters named without brackets (`#r=50`), two
     # read alike as generic G-code: one with numbered parameters and every block with its G code, its
     # first arc from the position a G28 left passed through uncorrected, and `splines`, whose G5 and
-    # G5.1 splines (LinuxCNC's as well) pass through uncorrected, their ends known. Left:
-    # rounded-bracket-simple has
-    # `X100` after `G3` (on BeagleG a line: G2/G3 do not stay in force), but nothing in it names
-    # BeagleG: read as generic G-code (the arc mode in force) it is an arc without centre, refused;
-    # with --dialect beagleg it is accepted (tests/test_toolpaths_beagleg.py), as fresa.gcode is
-    # with --dialect grbl. spline-character names a parameter `#<hover_z>` (LinuxCNC's form, read
+    # G5.1 splines (LinuxCNC's as well) pass through uncorrected, their ends known; a fifth,
+    # rounded-bracket-simple, with --dialect beagleg (DIALECTS). Left: spline-character names a
+    # parameter `#<hover_z>` (LinuxCNC's form, read
     # as LinuxCNC's) and probes with `g30 g1 z0` (two codes that use the axis words; on BeagleG
     # G30 probes Z and sets an offset of Z from the probed height, which the program does not give:
     # refused with --dialect beagleg too)
-    "beagleg_rounded-bracket-simple.gcode": ["rounded-bracket-simple.gcode:6:",
-                                             "arc without centre"],
     "beagleg_spline-character.gcode": ["spline-character.gcode:12:", "G30 and motion G1"],
     # a helix from a height nobody gave: `G02 X1.5 Z0. R1.5` in G17 with Z never positioned (the
     # controller ramps Z from wherever it stands to 0). mtcomp cut such an arc into pieces whose Z
@@ -307,6 +298,13 @@ def _topology(text: str) -> str:
 #: without it W on fanuc keeps a lathe's meaning (Z given incrementally) and is refused
 BORING_MILLS = {"nxpost_NomuraBN-130_Fanuc6MB_sample.ptp", "nxpost_Sample_Kuraki_KBT.ptp",
                 "nxpost_Devlieg_120.ptp"}
+#: the dialect a user gives (--dialect) for a program that does not show its controller, known from
+#: the controller that runs it: fresa.gcode is a grbl program (SOURCES.md; it ends line 98 with a
+#: byte 0x01, which grbl drops and other controllers do not), rounded-bracket-simple BeagleG's test
+#: data (`X100` after `G3`: a line on BeagleG, whose G2/G3 do not stay in force; read as generic
+#: G-code an arc without centre). Without it fresa.gcode is refused naming the option, and
+#: rounded-bracket-simple at its arc (tests/test_toolpaths_beagleg.py)
+DIALECTS = {"cncwebsim_fresa.gcode": "grbl", "beagleg_rounded-bracket-simple.gcode": "beagleg"}
 
 
 def _machine_file(tmp_path, topology, quill=False):
@@ -487,7 +485,7 @@ def source_bytes(prog) -> bytes:
     (checked against hand-derived expansions in tests/test_toolpaths_ngc.py), which compensate
     writes with its corrections."""
     from mtcomp.toolpaths.source import open_program
-    with open_program(prog) as src:
+    with open_program(prog, DIALECTS.get(prog.name)) as src:
         # a conversational or Sinumerik program is written back in its own form: the source is
         # the reference
         with open(src.source if src.translated else src, "rb") as f:
@@ -531,13 +529,18 @@ def run_once(tmp_path_factory, key: str, argv_for) -> tuple:
     return record["code"], record["stdout"], record["stderr"], out
 
 
+def _dialect_option(prog) -> list:
+    """``--dialect`` for a program of DIALECTS, as its user would give it."""
+    return ["--dialect", DIALECTS[prog.name]] if prog.name in DIALECTS else []
+
+
 def _compensate(prog, tmp_path_factory) -> tuple:
     """(exit status, stdout, stderr, output bytes or None) of compensating a corpus program with
     the corpus model, once a session."""
     def argv(folder):
         machine = program_machine_file(folder, prog)
         return ["compensate", str(machine), str(_model_file(folder, machine)), str(prog),
-                "-o", str(folder / "out.nc"), "--quiet", "--units", "mm"]
+                "-o", str(folder / "out.nc"), "--quiet", "--units", "mm"] + _dialect_option(prog)
     return run_once(tmp_path_factory, f"corpus-{prog.name}", argv)
 
 
@@ -567,7 +570,7 @@ def test_corpus_program_compensated_safely(prog, tmp_path, tmp_path_factory, cap
     compensated.write_bytes(out)
     code = main(["render", str(machine), str(model), str(prog), "--compensated", str(compensated),
                  "-o", str(tmp_path / f"{prog.stem}.png"), "--backend", "matplotlib",
-                 "--size", "300x150"])
+                 "--size", "300x150"] + _dialect_option(prog))
     stdout, err = capsys.readouterr()
     assert code == 0, (prog.name, err)
     assert "model prediction after" in stdout
