@@ -103,13 +103,6 @@ REFUSED = {
                                                     "TRAOOF is not read"],
     "nxpost_DMU_70_eVo_840D_in_Sample_part.ptp": ["in_Sample_part.ptp:848:",
                                                   "CYCLE83 whose levels are not RTP >= RFP+SDIS"],
-    # a beginners' example with a Fanuc program number and G43 H, whose coordinates have no decimal
-    # point (`G54 X-75 Y-75`): a Fanuc reads X-75 as -0.075 mm unless calculator-type input is set
-    # (parameter 3401#0), which nothing in the program shows; mtcomp read it as -75 mm and wrote
-    # `X-75.0012`, a move of 75 mm where the controller made one of 0.075 mm. The corpus' 16 other
-    # programs read as fanuc or haas write every dimension word other than zero with a point (the
-    # one whole number among their words outside comments is MS_NMV's `G05.1 Q1`, a mode switch)
-    "gcodes_simple_mill.gcode": ["simple_mill.gcode:8:", "X-75 has no decimal point"],
     # The batch of 38 added together (SOURCES.md), chosen before mtcomp was run on any of them.
     # Siemens NX's posts for more shop machines, on the same sample part as the NX programs above:
     # its arcs whose end is off their circle (0.2756 in from the centre at the start, 0.454 in at
@@ -298,6 +291,15 @@ def _topology(text: str) -> str:
 #: without it W on fanuc keeps a lathe's meaning (Z given incrementally) and is refused
 BORING_MILLS = {"nxpost_NomuraBN-130_Fanuc6MB_sample.ptp", "nxpost_Sample_Kuraki_KBT.ptp",
                 "nxpost_Devlieg_120.ptp"}
+#: programs whose dimension words have no decimal point, for a Fanuc set to read them in whole units
+#: (parameter 3401#0 DPI = 1, calculator-type input): their machine file says so
+#: (``calculator_input = true``), as its user would. gcodes' simple_mill, a beginners' example with
+#: a Fanuc program number and G43 H, writes `G54 X-75 Y-75`: a Fanuc at its default reads X-75 as
+#: -0.075 mm, and without the setting mtcomp refuses it (naming the parameter); read as 75 mm it had
+#: been written `X-75.0012` before the refusal, a move of 75 mm where such a controller made one of
+#: 0.075 mm. The corpus' 16 other programs read as fanuc or haas write every dimension word other
+#: than zero with a point
+CALCULATOR_INPUT = {"gcodes_simple_mill.gcode"}
 #: the dialect a user gives (--dialect) for a program that does not show its controller, known from
 #: the controller that runs it: fresa.gcode is a grbl program (SOURCES.md; it ends line 98 with a
 #: byte 0x01, which grbl drops and other controllers do not), rounded-bracket-simple BeagleG's test
@@ -307,10 +309,12 @@ BORING_MILLS = {"nxpost_NomuraBN-130_Fanuc6MB_sample.ptp", "nxpost_Sample_Kuraki
 DIALECTS = {"cncwebsim_fresa.gcode": "grbl", "beagleg_rounded-bracket-simple.gcode": "beagleg"}
 
 
-def _machine_file(tmp_path, topology, quill=False):
+def _machine_file(tmp_path, topology, quill=False, calculator=False):
     """A machine of the program's axes with room for any of these programs (+-5 m, any angle);
-    ``quill``: with a W quill along Z (a boring mill's: BORING_MILLS)."""
-    lines = [f'name = "corpus-{topology.lower()}"', f'topology = "{topology}"']
+    ``quill``: with a W quill along Z (a boring mill's: BORING_MILLS); ``calculator``: its control
+    reads words without a point in whole units (CALCULATOR_INPUT)."""
+    lines = [f'name = "corpus-{topology.lower()}"', f'topology = "{topology}"'] + [
+        "calculator_input = true"] * calculator
     for a in topology.replace("F", ""):
         if a in "ABC":
             lines += [f"[axes.{a}]", "travel_deg = [-100000.0, 100000.0]",
@@ -318,16 +322,18 @@ def _machine_file(tmp_path, topology, quill=False):
         else:
             lines += [f"[axes.{a}]", "travel_mm = [-5000.0, 5000.0]"] + ["quill = true"] * (
                 quill and a == "Z")
-    path = tmp_path / f"{topology.lower()}{'-quill' * quill}.toml"
+    path = tmp_path / f"{topology.lower()}{'-quill' * quill}{'-calculator' * calculator}.toml"
     path.write_text("\n".join(lines) + "\n")
     return path
 
 
 def program_machine_file(folder, prog, topology=None):
     """The corpus machine of program ``prog`` (its topology from its axis words unless given), with
-    the W quill its machine has when it is one of the BORING_MILLS."""
+    the W quill its machine has when it is one of the BORING_MILLS, the calculator-type input when
+    one of CALCULATOR_INPUT."""
     topology = topology or _topology(prog.read_text(encoding="latin-1"))
-    return _machine_file(folder, topology, quill=prog.name in BORING_MILLS)
+    return _machine_file(folder, topology, quill=prog.name in BORING_MILLS,
+                         calculator=prog.name in CALCULATOR_INPUT)
 
 
 def _model_file(tmp_path, machine_path, seed=1, factor=1.0):
