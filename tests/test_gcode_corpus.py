@@ -206,32 +206,31 @@ REFUSED = {
 #: (nothing calls them, so nothing runs; the arguments come from the program that calls it) and
 #: Onefinity's spindle warm-up macro (M3, a dwell, M5)
 UNCHANGED = {"linuxcnc_db25.ngc", "onefinity_SpindleWarmUp1Minute.ngc"}
-#: the share of the corpus accepted today (168 of 216: 0.778; 162, 0.750, before Estlcam's F words
+#: the share of the corpus accepted today (173 of 216: 0.801; 168, 0.778, before the programs with
+#: nothing to correct were written unchanged (UNCHANGED) and DIALECTS' and CALCULATOR_INPUT's
+#: options were given; 162, 0.750, before Estlcam's F words
 #: without a number were read as Marlin reads them): 141 of the 186 before the batch of 30 programs
-#: from six more repositories (SOURCES.md), of which 27 are accepted now (0.900; of the 29 their
-#: controllers run, 0.931), 21 when they were added (0.700; of the 29, 0.724; 20 before polar
+#: from six more repositories (SOURCES.md), of which 28 are accepted now (0.933; of the 29 their
+#: controllers run, 0.966; 27 before the warm-up macro was written unchanged), 21 when they were added (0.700; of the 29, 0.724; 20 before polar
 #: words given by parameters were read); 124 of the 148 before the batch of 38 programs never seen, of
-#: which 17 are accepted (the Nomura BN-130's W quill read; BeagleG's dialect, G5 splines and arcs
+#: which 18 are accepted (rounded-bracket-simple with --dialect beagleg; the Nomura BN-130's W quill read; BeagleG's dialect, G5 splines and arcs
 #: from a position not given read: 4 of its programs; the Kuraki's G60 single-direction
 #: positioning read; a helix from a height not given refused since, UGS's g17-g18-g19); the goal
 #: is 95 %
-MIN_ACCEPTED = 0.77
+MIN_ACCEPTED = 0.80
 #: the refused programs that the controller they were written for refuses too (its manual's alarm
 #: or error named in REFUSED's comments): a nested comment (LinuxCNC), an R word in a G1 (grbl
 #: error 36, LinuxCNC), an arc whose end is off its circle (Fanuc: radius over tolerance; the Toyoda
 #: program reaches one at line 53 when read as a Fanuc's: `--dialect fanuc`), a program number that
 #: is not one (Haas), a unit other than MM or INCH (Heidenhain), a G code the Sinumerik does not have
 #: (G43, TRAOOF), a TURN= that is not a whole number, CYCLE83's levels out of order, unbalanced
-#: brackets. The others are mtcomp's gaps: a controller runs them (a library of subroutines called
-#: from elsewhere, an A-and-B table with pivots read from the controller's pins, the Sinumerik 850's
-#: and Okuma's languages, a grbl program that does not say it is one, a B word on a 4-axis Haas,
-#: Heidenhain comments without block numbers, a Fanuc dimension word whose unit depends on a
-#: parameter the program does not show; of the batch of 38, a G65 call of a macro resident in the
-#: machine, not in the file (a G65 whose macro is in the file is expanded), fixed-format numbers,
-#: 5-axis drilling, BeagleG's programs that do not show their dialect (one needs --dialect beagleg,
-#: one probes with G30 in a program read as LinuxCNC's), an O word after a tool word, a TNC ISO
-#: block before any G00/G01; and a helix from a height the program has not given; of the batch of
-#: 30, a probing macro and a macro without motion: 168 of 186).
+#: brackets. The others are mtcomp's gaps: a controller runs them (an A-and-B table with pivots
+#: read from the controller's pins, the Sinumerik 850's and Okuma's languages, a B word on a 4-axis
+#: Haas, Heidenhain comments without block numbers; of the batch of 38, a G65 call of a macro
+#: resident in the machine, not in the file (a G65 whose macro is in the file is expanded),
+#: fixed-format numbers, 5-axis drilling, a BeagleG program that probes with G30 in a program read
+#: as LinuxCNC's, an O word after a tool word, a TNC ISO block before any G00/G01; and a helix from
+#: a height the program has not given; of the batch of 30, a probing macro: 173 of 186).
 CONTROLLER_REFUSES = {
     "cluck2sesame_BackPlate.nc", "cluck2sesame_2-Spool.nc", "cncwebsim_fresa2.cnc",
     "rocholl25000_clover.gcode", "nxpost_4_axis_mill.ptp", "nxpost_Fadal_VMC6030_sample.ptp",
@@ -253,13 +252,14 @@ CONTROLLER_REFUSES = {
     # the batch of 30: a comment holding parentheses that FluidNC ends at its first ')'
     "fluidnc_restart.nc",
 }
-#: the share accepted of the programs their controllers run (168 of 186: 0.903; 162, 0.871, before
+#: the share accepted of the programs their controllers run (173 of 186: 0.930; 168, 0.903, before
+#: UNCHANGED, DIALECTS and CALCULATOR_INPUT; 162, 0.871, before
 #: Estlcam's F words without a number were read as Marlin reads them; 161, 0.866, before
 #: polar words given by parameters were read; 141 of 157, 0.898, before the batch of 30; 125 of 133, 0.940, before the batch of 38, whose 24 runnable ones are 17
 #: accepted: 0.708; 137 of 157, 0.873, before BeagleG's dialect, G5 splines and arcs from a
 #: position not given were read; 141, 0.898, before Fanuc's G60 was read; 142, 0.904, before a
 #: helix from a height not given was refused); the goal is 95 %
-MIN_ACCEPTED_RUNNABLE = 0.90
+MIN_ACCEPTED_RUNNABLE = 0.93
 _WORD = re.compile(r"([A-Z])\s*([-+]?\s*(?:\d+\.?\d*|\.\d+))")
 #: an axis given an expression (Sinumerik: `A=_A_HOME`)
 _ASSIGNED = re.compile(r"(?<![A-Z0-9_$#<])([A-Z])\s*=")
