@@ -211,9 +211,10 @@ UNCHANGED = {"linuxcnc_db25.ngc", "onefinity_SpindleWarmUp1Minute.ngc"}
 #: options were given; 162, 0.750, before Estlcam's F words
 #: without a number were read as Marlin reads them): 141 of the 186 before the batch of 30 programs
 #: from six more repositories (SOURCES.md), of which 28 are accepted now (0.933; of the 29 their
-#: controllers run, 0.966; 27 before the warm-up macro was written unchanged), 21 when they were added (0.700; of the 29, 0.724; 20 before polar
-#: words given by parameters were read); 124 of the 148 before the batch of 38 programs never seen, of
-#: which 18 are accepted (rounded-bracket-simple with --dialect beagleg; the Nomura BN-130's W quill read; BeagleG's dialect, G5 splines and arcs
+#: controllers run, 0.966; 27 before the warm-up macro was written unchanged), 21 when they were
+#: added (0.700; of the 29, 0.724; 20 before polar words given by parameters were read); 124 of the
+#: 148 before the batch of 38 programs never seen, of which 18 are accepted (rounded-bracket-simple
+#: with --dialect beagleg; the Nomura BN-130's W quill read; BeagleG's dialect, G5 splines and arcs
 #: from a position not given read: 4 of its programs; the Kuraki's G60 single-direction
 #: positioning read; a helix from a height not given refused since, UGS's g17-g18-g19); the goal
 #: is 95 %

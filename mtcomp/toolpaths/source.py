@@ -142,9 +142,9 @@ PROGRESS_EVERY = 4096
 def _expand(source: str, dialect: Dialect, max_steps: int | None, max_lines: int | None,
             progress=None):
     """(temporary file, line map, lines written, source lines, the InputError that stopped the run
-    or None, notes), or None when nothing changes. ``progress``: callable(lines executed), told every
-    PROGRESS_EVERY lines. An error in the code stops the run at its line: the file holds the lines
-    executed before it (the error is the readers' to raise after them), but a runaway loop's
+    or None, notes), or None when nothing changes. ``progress``: callable(lines executed), told
+    every PROGRESS_EVERY lines. An error in the code stops the run at its line: the file holds the
+    lines executed before it (the error is the readers' to raise after them), but a runaway loop's
     (``runaway``), a fault of the whole run, is raised at once."""
     from . import macro, ngc
     language = _LANGUAGE[dialect.language]
