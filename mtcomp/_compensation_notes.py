@@ -106,7 +106,10 @@ def _run_notes(program, written, fitted, setup, tally, found) -> list[str]:
     expansion, drilling cycles, datums, feeds, set-up."""
     notes = passed_move_notes(program, written) + added_words_note(program, written) \
         + tcp_note(program, tally) + haas_note(program, tally, setup.machine) + list(program.notes)
-    if program.expanded:
+    if written.get("unchanged"):
+        notes.append("note: no block of the program can be corrected (it moves no axis, or only "
+                     "from positions it does not give): it is written unchanged, byte for byte")
+    elif program.expanded:
         notes.append(f"the program's code was run: {program.executed} lines executed from its "
                      f"{program.source_lines}; the output is that expansion, corrected (a comment "
                      "at its top says so)")

@@ -587,7 +587,8 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     ``temperature_series``: a :class:`~mtcomp.thermal.context.TemperatureSeries`, the temperatures
     along the program's run time (each block at the time the program reaches its end at its feeds,
     :func:`block_times`); a sensor also in ``settings.temperatures`` keeps that value.
-    InputError, with nothing written, for a program without motion."""
+    A program with no block to correct (no motion, or only moves passed through) is written
+    unchanged, byte for byte, and a note says so."""
     from .thermal.context import thermal_context
     from .toolpaths.offsets import ProgramSetup
     t0 = time.perf_counter()
@@ -667,9 +668,6 @@ def _compensate_source(fitted, src, output, settings, setup, report, progress, j
             yield chunk, res.corrected, res.counts
             if io_progress is not None and len(chunk):   # the writer is done with the chunk
                 io_progress("written", int(chunk.line[-1]))
-        if summary.blocks == 0:
-            # raised while the outputs are still temporary files: nothing is written
-            raise InputError("no motion block in the program: nothing to compensate", program)
 
     written, rep = {}, None
     if report is not None:        # committed when the caller's stack closes, after the output
@@ -679,6 +677,12 @@ def _compensate_source(fitted, src, output, settings, setup, report, progress, j
         write_corrected(src, output, machine, corrections(rep), stats=written, **read)
     except TravelError as e:
         raise _travel_error_with_offsets(e, setup) from None
+    if summary.blocks == 0:
+        # nothing to correct (a macro without moves, a file of subroutines nothing in it calls,
+        # moves all passed through): the user's file is the corrected program, byte for byte
+        with open(program, "rb") as f, atomic_write(output, "wb") as out:
+            out.write(f.read())
+        written["unchanged"] = True
     notes += _run_notes(src, written, fitted, setup, tally, found)
     if series is not None:
         assumed = _series_sentence(fitted, settings, series, tally)

@@ -120,6 +120,10 @@ class Machine:
     quill : the machine has a W quill parallel to Z (a horizontal boring mill: ``quill = true`` in
         the file's [axes.Z]); only then do programs' W words move the tool tip along Z
         (:mod:`mtcomp.toolpaths.quill`).
+    calculator_input : the control reads a dimension word without a decimal point in whole units
+        (Fanuc: parameter 3401#0 DPI = 1; Haas: Setting 162, Default To Float, on), said by
+        ``calculator_input = true`` in the file; else a Fanuc or Haas program's ``X60`` is refused
+        (:func:`mtcomp.toolpaths.word_use.check_point_words`).
     """
 
     name: str
@@ -132,6 +136,7 @@ class Machine:
     source: str = ""
     units: str | None = None
     quill: bool = False
+    calculator_input: bool = False
 
     @property
     def axis_names(self) -> tuple[str, ...]:
@@ -229,6 +234,8 @@ class Machine:
              "axes": axes, "compensation": dict(self.compensation)}
         if self.units is not None:
             d["units"] = self.units
+        if self.calculator_input:
+            d["calculator_input"] = True
         return d
 
 
@@ -274,7 +281,8 @@ def machine_from_dict(data: dict, path: str | None = None) -> Machine:
     """Build and validate a Machine from TOML data (mm, deg). Raises InputError naming the key."""
     if not isinstance(data, dict):
         raise InputError("machine description must be a table", path)
-    known = {"name", "topology", "tool_length_mm", "axes", "compensation", "units"}
+    known = {"name", "topology", "tool_length_mm", "axes", "compensation", "units",
+             "calculator_input"}
     for key in data:
         if key not in known:
             raise InputError(f"unknown key {key!r} (known: {', '.join(sorted(known))})", path)
@@ -312,10 +320,13 @@ def machine_from_dict(data: dict, path: str | None = None) -> Machine:
         axes.append(_linear_axis(letter, side, ad, path) if letter in LINEAR
                     else _rotary_axis(letter, side, ad, path))
     comp = _compensation(data, path)
+    calculator = data.get("calculator_input", False)
+    if not isinstance(calculator, bool):
+        raise InputError(f"calculator_input must be true or false, got {calculator!r}", path)
     return Machine(name=name, topology=str(data["topology"]).strip().upper(), axes=tuple(axes),
                    workpiece_chain=wp_chain, tool_chain=tool_chain, tool_length=float(tool_length),
                    compensation=comp, source=path or "", units=units,
-                   quill=_quill(axes_data.get("Z", {}), path))
+                   quill=_quill(axes_data.get("Z", {}), path), calculator_input=calculator)
 
 
 def _quill(z_table: dict, path) -> bool:

@@ -241,13 +241,13 @@ def test_a_widened_grid_computes_only_what_is_new(tmp_path, capsys):
 
 def test_a_failing_task_records_its_error_and_the_study_goes_on(tmp_path, capsys):
     study = _write_study(tmp_path, STUDY.replace("draws = 2", "draws = 0"))
-    (tmp_path / "progs" / "c.nc").write_text("G21 G90\nM30\n")       # no motion
+    (tmp_path / "progs" / "c.nc").write_text("G21 G90\nG1 X1 Y$ F100\n")     # a stray '$'
     out = tmp_path / "R"
     assert main(["study", str(study), "-o", str(out), "--workers", "1", "--quiet"]) == 0
     rows = _rows(out / "results.csv")
     bad = [r for r in rows if r["program"].endswith("c.nc")]
     assert len(bad) == 2 and all(r["status"] == "error" for r in bad)
-    assert all("no motion block" in r["error"] and "\n" not in r["error"] for r in bad)
+    assert all("c.nc:2:" in r["error"] and "\n" not in r["error"] for r in bad)
     assert sum(r["status"] == "ok" for r in rows) == 4
     assert "failed: progs/c.nc" in capsys.readouterr().out
     # a failed task is not kept: fixed, it runs again, and only it

@@ -152,8 +152,10 @@ def test_an_arc_from_a_position_not_given_passes_through(tmp_path, dialect):
 
 
 def test_the_corpus_program_that_names_no_controller_is_accepted_with_the_dialect_given(tmp_path):
-    # rounded-bracket-simple stays refused without --dialect (tests/test_gcode_corpus.py, REFUSED)
+    # rounded-bracket-simple is refused without --dialect (tests/test_gcode_corpus.py, DIALECTS)
     text = "G0 Z0\n" + (CORPUS / "beagleg_rounded-bracket-simple.gcode").read_text()
+    code, _out, err, written = _compensate(tmp_path, text)
+    assert code == 2 and written is None and ":7: arc without centre" in err, err
     code, _out, err, written = _compensate(tmp_path, text, "--dialect", "beagleg")
     assert code == 0, err
     with open_program(tmp_path / "prog.gcode", "beagleg") as src:    # F[150 * 60] computed

@@ -125,12 +125,19 @@ def test_rigid_tapping_passes_through_and_ends_where_it_started(tmp_path, gcode_
                                     "M30"]
 
 
-def test_a_file_of_subroutines_only_is_refused_by_name(tmp_path):
-    # nothing in it runs (an ngcgui file is called by another program, with its arguments)
+def test_a_file_of_subroutines_only_runs_nothing_and_says_so(tmp_path):
+    # nothing in it runs (an ngcgui file is called by another program, with its arguments): no
+    # move, and a note naming its first subroutine (compensate writes it unchanged)
+    from mtcomp.toolpaths.source import open_program
     body = "(a library)\no<hole> sub\nG0 X#1 Y#2\nG1 Z-1 F100\no<hole> endsub\n"
-    with pytest.raises(InputError, match="a file of subroutines only .o<hole> sub") as exc:
-        _ends(tmp_path, body)
-    assert exc.value.line == 2
+    p = tmp_path / "p.nc"
+    p.write_text(body)
+    with open_program(p) as src:
+        assert not any(len(c.end) for c in iter_segment_chunks(src, XFYZ))
+        assert src.notes == ["note: a file of subroutines only (o<hole> sub ... endsub at line 2, "
+                             "called by no line of it): nothing in it runs, so nothing in it is "
+                             "corrected; compensate the program that calls it, with the "
+                             "subroutine in it"]
     # called once from the same file, it runs
     ends = _ends(tmp_path, "G21 G90\n" + body + "o<hole> call [1] [2]\nM2\n")
     np.testing.assert_allclose(ends, [[1, 2, 0], [1, 2, -1]], rtol=0, atol=0)

@@ -231,3 +231,64 @@ def test_a_fixed_format_number_is_whole_units_on_linuxcnc(tmp_path, reader_path)
     assert rc == 0
     x = [float(m) for m in re.findall(r"^G1 X([-\d.]+)", out.read_text(), re.M)]
     assert len(x) == 1 and x[0] == pytest.approx(15.0, abs=0.01)
+
+
+def _calculator_machine(tmp_path, value="true"):
+    """The built-in xfyz with ``calculator_input`` (a top-level key, before its tables)."""
+    from mtcomp import machine as machine_module
+    from pathlib import Path
+    text = (Path(machine_module.__file__).parent / "machines" / "xfyz.toml").read_text()
+    path = tmp_path / "xfyz-calculator.toml"
+    path.write_text(f"calculator_input = {value}\n" + text)
+    return path
+
+
+def test_a_machine_set_to_calculator_input_reads_whole_units(tmp_path, capsys):
+    """Fanuc parameter 3401#0 DPI = 1 ("calculator-type"), said in the machine file: X60 is 60 mm,
+    so the program is compensated as the same program with X60. is (its words written with a point,
+    which the control reads alike); under G93 a Fanuc's F6 is then 6 1/min. A Haas's F stays
+    Setting 77's (Setting 162 is about dimension words): refused under G93 there."""
+    machine = str(_calculator_machine(tmp_path))
+    model = str(_model(tmp_path, "xfyz", scale=0.1)[2])
+    body = ("G00 X0. Y0. Z25.\nG01 X60 F1200.\nG02 X80 Y20 I10 J10\nG81 X10 Y10 Z-20 R2 Q5 F100.\n"
+            "G80\nG93 G01 X5 F6\nG94\n")
+    written, said = {}, {}
+    for name, text in (("whole", body), ("pointed", re.sub(r"([XYZIJRQ]-?\d+)(?![\d.])", r"\1.",
+                                                          body))):
+        prog, out = tmp_path / f"{name}.nc", tmp_path / f"{name}.out.nc"
+        prog.write_text(HEAD + text + TAIL)
+        assert main(["compensate", machine, model, str(prog), "-o", str(out), "--dialect",
+                     "fanuc"]) == 0, capsys.readouterr().err
+        written[name] = out.read_text().splitlines()
+        said[name] = capsys.readouterr().out
+    assert "note: dimension words without a decimal point (first X60, line 6) read in whole " \
+        "units" in said["whole"] and "parameter 3401#0 DPI" in said["whole"]
+    assert "dimension words without" not in said["pointed"]
+    whole, pointed = written["whole"], written["pointed"]
+    moved = [k for k, line in enumerate(whole) if line != pointed[k]]
+    # only lines whose words the correction rewrote may differ, and then by the points alone
+    def pointless(line):
+        return re.sub(r"(\d)\.(?!\d)", r"\1", line)
+    for k in moved:
+        assert pointless(whole[k]) == pointless(pointed[k]), (whole[k], pointed[k])
+    moved_to = re.match(r"G01 X(\d+\.\d*) ", whole[5])        # 60 mm, not 0.060 mm
+    assert moved_to and float(moved_to.group(1)) == pytest.approx(60.0, abs=0.01), whole[5]
+    # without the setting the first such word is refused, naming the machine file's key
+    prog = tmp_path / "whole.nc"
+    assert main(["compensate", "xfyz", model, str(prog), "-o", str(tmp_path / "o.nc"), "--dialect",
+                 "fanuc"]) == 2
+    assert "whole.nc:6: X60 has no decimal point" in capsys.readouterr().err
+    prog.write_text(HEAD + "G00 X0. Y0. Z25.\nG93 G01 X60. F6\nG94\n" + TAIL)
+    assert main(["compensate", machine, model, str(prog), "-o", str(tmp_path / "o.nc"),
+                 "--dialect", "haas"]) == 2
+    assert "F6 has no decimal point under G93" in capsys.readouterr().err
+
+
+def test_calculator_input_is_true_or_false_and_kept_with_the_model(tmp_path):
+    from mtcomp.errors import InputError
+    from mtcomp.machine import load_machine, machine_from_dict
+    m = load_machine(_calculator_machine(tmp_path))
+    assert m.calculator_input and machine_from_dict(m.to_dict()).calculator_input
+    assert not load_machine("xfyz").calculator_input
+    with pytest.raises(InputError, match="calculator_input must be true or false, got 1"):
+        load_machine(_calculator_machine(tmp_path, "1"))

@@ -29,7 +29,7 @@ from mtcomp import load_machine
 from mtcomp.cli import main
 from mtcomp.toolpaths import _fast, iter_segment_chunks, write_corrected
 from replay_sinumerik import is_sinumerik
-from test_gcode_corpus import (PROGRAMS, REFUSED, _machine_file, _model_file, _topology,
+from test_gcode_corpus import (DIALECTS, PROGRAMS, REFUSED, _machine_file, _model_file, _topology,
                                program_machine_file, source_bytes)
 
 XFYZ = load_machine("xfyz")
@@ -424,9 +424,11 @@ def test_corpus_output_differs_only_by_the_correction(tmp_path, monkeypatch, pro
     text = source_bytes(prog).decode("latin-1")
     machine = load_machine(program_machine_file(tmp_path, prog, _topology(text)))
     outs = {}
+    # the dialect its user gives where the program does not show it (test_gcode_corpus.DIALECTS)
+    given = {"dialect": DIALECTS[prog.name]} if prog.name in DIALECTS else {}
     for kind in ("python", "compiled"):
         if _use_writer(kind, monkeypatch):
-            outs[kind] = _write_with(tmp_path, text, machine, _small_field)
+            outs[kind] = _write_with(tmp_path, text, machine, _small_field, **given)
     out = outs["python"]
     assert all(o == out for o in outs.values())          # both writers, the same bytes
     check_program(text, out)

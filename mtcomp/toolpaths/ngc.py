@@ -221,16 +221,17 @@ class NgcRun:
     def error(self, message: str, index: int) -> InputError:
         return InputError(message, self.path, index + 1)
 
-    def check_ran(self) -> None:
-        """InputError for a file of subroutine definitions that nothing in it calls: no line of
-        words runs (an ngcgui subroutine file runs when another program calls it, with that
-        program's arguments, which this file does not give)."""
+    def check_ran(self) -> str | None:
+        """The note for a file of subroutine definitions that nothing in it calls (None for any
+        other): no line of words runs (an ngcgui subroutine file runs when another program calls
+        it, with that program's arguments, which this file does not give), so nothing in it moves
+        and nothing is corrected."""
         if self.ran_code or not self.subs:
-            return
+            return None
         label, first = min(self.subs.items(), key=lambda item: item[1])
-        raise self.error(f"a file of subroutines only (o{label} sub ... endsub, called by no line "
-                         "of it): nothing in it runs, so nothing is compensated; compensate the "
-                         "program that calls it", first)
+        return (f"note: a file of subroutines only (o{label} sub ... endsub at line {first + 1}, "
+                "called by no line of it): nothing in it runs, so nothing in it is corrected; "
+                "compensate the program that calls it, with the subroutine in it")
 
     def _eval(self, text: str, index: int, what: str) -> float:
         try:

@@ -142,9 +142,9 @@ PROGRESS_EVERY = 4096
 def _expand(source: str, dialect: Dialect, max_steps: int | None, max_lines: int | None,
             progress=None):
     """(temporary file, line map, lines written, source lines, the InputError that stopped the run
-    or None), or None when nothing changes. ``progress``: callable(lines executed), told every
-    PROGRESS_EVERY lines. An error in the code stops the run at its line: the file holds the lines
-    executed before it (the error is the readers' to raise after them), but a runaway loop's
+    or None, notes), or None when nothing changes. ``progress``: callable(lines executed), told
+    every PROGRESS_EVERY lines. An error in the code stops the run at its line: the file holds the
+    lines executed before it (the error is the readers' to raise after them), but a runaway loop's
     (``runaway``), a fault of the whole run, is raised at once."""
     from . import macro, ngc
     language = _LANGUAGE[dialect.language]
@@ -174,7 +174,7 @@ def _expand(source: str, dialect: Dialect, max_steps: int | None, max_lines: int
     # it (a controller takes the number from the line after the %)
     lead = int(tape) + int(tape and dialect.language != "ngc" and len(texts) > 1
                            and _PROGRAM_NUMBER_RE.match(texts[1]) is not None)
-    same, last, stopped = True, -1, None
+    same, last, stopped, notes = True, -1, None, []
     fd, tmp = tempfile.mkstemp(prefix="mtcomp-expanded-", suffix=".nc")
     try:
         with os.fdopen(fd, "wb") as out:
@@ -208,15 +208,15 @@ def _expand(source: str, dialect: Dialect, max_steps: int | None, max_lines: int
                 stopped = exc
             if stopped is None:
                 same = _after_the_run(write, raws, texts, last, tape) and same
-                if hasattr(run, "check_ran"):
-                    run.check_ran()
+                ran_nothing = run.check_ran() if hasattr(run, "check_ran") else None
+                notes += [ran_nothing] if ran_nothing else []
         if stopped is None and same and len(line_map) - 1 == len(raws):
             os.unlink(tmp)
             return None
     except BaseException:
         os.unlink(tmp)
         raise
-    return tmp, line_map, max(len(line_map) - 1, 0), len(raws), stopped
+    return tmp, line_map, max(len(line_map) - 1, 0), len(raws), stopped, notes
 
 
 def _after_the_run(write, raws, texts, last: int, tape: bool) -> bool:
@@ -293,9 +293,9 @@ def open_program(path, dialect: str | None = None, *, max_steps: int | None = No
     if expansion is None:
         yield ProgramSource(source, source, d, why)
         return
-    tmp, line_map, executed, n, stopped = expansion
+    tmp, line_map, executed, n, stopped, notes = expansion
     try:
-        yield ProgramSource(tmp, source, d, why, line_map, executed, n, error=stopped)
+        yield ProgramSource(tmp, source, d, why, line_map, executed, n, notes=notes, error=stopped)
     finally:
         with contextlib.suppress(OSError):
             os.unlink(tmp)

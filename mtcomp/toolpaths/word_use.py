@@ -204,10 +204,14 @@ def check_point_words(state, tokens, motion, cycle, axes_given, own_axes, line: 
     of 60 mm where the controller made one of 0.06. Dimension words: the axis words, an arc's
     I J K R, a drilling cycle's R I J, the peck Q of G73/G83 and G68's rotation angle R (a dwell's
     X or P, a cycle's repeat count K, G5.1's Q are not). On ``generic`` only a dimension word with
-    leading zeros is refused (:func:`_fixed_problem`): RS274/NGC reads the others in whole units."""
+    leading zeros is refused (:func:`_fixed_problem`): RS274/NGC reads the others in whole units.
+    Where the machine file says the control reads whole units (``calculator_input``: Fanuc
+    parameter 3401#0 DPI = 1, Haas Setting 162 on) the word is read so, as it is everywhere else,
+    and written back with its point, which the control reads alike."""
     fixed_only = state.dialect.name == "generic"
     if state.dialect.name not in POINT_DIALECTS and not fixed_only:
         return
+    calculator = state.machine.calculator_input and not fixed_only
     letters = {t[0] for t in tokens}
     mode = block_motion(state, motion, cycle, axes_given, own_axes, letters)
     gcodes = [float(t[1]) for t in tokens if t[0] == "G"]
@@ -236,17 +240,33 @@ def check_point_words(state, tokens, motion, cycle, axes_given, own_axes, line: 
             dimension = letter in "RIJ" or (letter == "Q" and mode in (73.0, 83.0))
         else:
             dimension = False
-        if dimension:
+        if dimension and calculator:
+            _calculator_input_note(state, f"{letter}{number}", line)
+        elif dimension:
             angle = letter in "ABC" or (rotation and letter == "R")
             word = f"{letter}{number}"
             raise state._err(_fixed_problem(word) if fixed_only
                              else _point_problem(state, word, angle), line)
 
 
+def _calculator_input_note(state, word: str, line: int) -> None:
+    """Say once, in the program's notes, that its words without a point are read in whole units
+    because the machine file says so (the one place a reader of the summary learns it)."""
+    notes = getattr(state._source, "notes", None)
+    if notes is None or any(n.startswith("note: dimension words without") for n in notes):
+        return
+    _path, at, _suffix = state._where(line)
+    notes.append(f"note: dimension words without a decimal point (first {word}, line {at}) read "
+                 f"in whole units, as a {state.dialect.name.capitalize()} reads them where "
+                 f"{_WHOLE_UNITS[state.dialect.name]} (the machine file's calculator_input = "
+                 "true); the corrected words are written with a point")
+
+
 def _integer_feed(state, number: str, line: int) -> None:
     """An F word without a decimal point on Fanuc or Haas. Fanuc reads a feed per minute in whole
     mm/min (F300: 300 mm/min) whatever parameter 3401#0 says, but an inverse time (G93) in
-    thousandths (F1: 0.001 1/min) unless it is set (Fanuc Series 16/18-MC operator's manual,
+    thousandths (F1: 0.001 1/min) unless it is set (``calculator_input`` of the machine: whole
+    units then; Fanuc Series 16/18-MC operator's manual,
     B-62764EN/01, "Feed functions", inverse time feed); a Haas reads every F without a point as its
     Setting 77 (Scale Integer F) says: in 0.001 mm/min (0.0001 in/min) at its default, whole units
     at INTEGER (Haas mill operator's manual, Settings). Refused under G93, whose F mtcomp writes
@@ -255,7 +275,7 @@ def _integer_feed(state, number: str, line: int) -> None:
     block's time); otherwise read in whole units, a Haas program's said once in its notes."""
     name, word = state.dialect.name, f"F{number}"
     value = float(number)
-    if state.inverse_time:
+    if state.inverse_time and not (name == "fanuc" and state.machine.calculator_input):
         setting = ("parameter 3401#0 (DPI) is set" if name == "fanuc"
                    else "Setting 77 (Scale Integer F) is INTEGER")
         raise state._err(f"{word} has no decimal point under G93 (inverse time): a "
@@ -304,4 +324,5 @@ def _point_problem(state, word: str, angle: bool) -> str:
     name = state.dialect.name
     return (f"{word} has no decimal point: a {name.capitalize()} reads it in the least input "
             f"increment ({unit}) unless {_WHOLE_UNITS[name]}, which the program does not show; "
-            f"write {word}. for whole units")
+            f"write {word}. for whole units, or say calculator_input = true in the machine file "
+            "where the control is set so")
