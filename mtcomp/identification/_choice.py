@@ -25,6 +25,14 @@ import numpy as np
 #: relative singular values of the fit's data matrix (on the directions it moves in) at or below
 #: this share of the largest are directions the data do not see: the penalty alone sets them
 CHOICE_RCOND = 1e-6
+#: an alternative split must take at least this share of a class's fitted curvature off it: a class
+#: whose least curvature along the open combinations is nearly its fitted one has nothing to give
+#: away there (a move that buys a fraction of a per cent of it drifts far along what the penalty
+#: barely weighs, and is no split)
+SPLIT_SHARE = 0.1
+#: an alternative split within this many of the posterior's standard errors of the fit's is covered
+#: by them already
+COVERED_SD = 2.0
 #: a direction a class's penalty weighs below this share of its strongest (on the open combinations)
 #: is one that class does not decide: the others settle it
 SEEN_BY_CLASS = 1e-3
@@ -55,35 +63,56 @@ def _least_then(G_first, f_first, G_rest, f_rest) -> np.ndarray:
     return t0 + N @ s_opt
 
 
-def choice_directions(z: np.ndarray, B: np.ndarray, AB: np.ndarray, factors: list,
-                      rcond: float = CHOICE_RCOND) -> np.ndarray:
-    """(n_unknowns, c) D, the penalty's alternative splits of what the data leave open among the
-    fit's directions B, in the scaled unknowns: D D^T is their covariance, each column one
-    standard error (zero columns dropped).
+def choice_directions(z: np.ndarray, BZ: np.ndarray, factors: list) -> tuple[np.ndarray, np.ndarray]:
+    """((n_unknowns, c) D, (1 + c, n_classes) penalties): the penalty's alternative splits of what the
+    data leave open, in the scaled unknowns (D D^T their covariance, each column one standard error;
+    zero columns dropped), and each class's penalty at the fit and after each alternative
+    (:func:`beyond_posterior` keeps those that fill a class the fit left empty).
 
     z : (n_unknowns,) the fitted scaled unknowns (x / scale), where the penalty is evaluated.
-    AB : B^T As B, the data's normal matrix on B. factors : [(m_k, n_unknowns) sqrt(l_k) F_k], one
-    weighted penalty factor per class (l_k the class's weight), so that the fit's penalty is
-    ``sum_k |F_k z|^2``. The fit sits at t = 0 of ``z + B Z t`` (Z :func:`data_null`): the least
-    penalty there. For each class k, t_k is the move that makes class k's penalty least, the
-    others weighed as in the fit; the columns of D are ``B Z t_k``, so that the covariance is
-    ``sum_k (B Z t_k)(B Z t_k)^T``: each split one class alone would choose lies one standard
-    error from the fit's."""
-    n = z.shape[0]
-    Z = data_null(AB, rcond)
-    if len(factors) < 2 or not Z.shape[1]:
-        return np.zeros((n, 0))
-    BZ = B @ Z
+    BZ : (n_unknowns, k) orthonormal combinations among the fit's directions that the data do not
+    see (:func:`data_null` on the fit's directions B), less those that move what the assumption
+    that components no laser file names are zero holds (that split is the assumption's, not the
+    penalty's). factors : [(m_k, n_unknowns) sqrt(l_k) F_k], one weighted penalty factor per
+    class (l_k the class's weight), so that the fit's penalty is ``sum_k |F_k z|^2``. The fit sits
+    at t = 0 of ``z + BZ t``: the least penalty there. For each class k, t_k is the move that
+    makes class k's penalty least, the others weighed as in the fit; the columns of D are
+    ``BZ t_k``, so that the covariance is ``sum_k (BZ t_k)(BZ t_k)^T``: each split one class alone
+    would choose lies one standard error from the fit's."""
+    if len(factors) < 2 or not BZ.shape[1]:
+        return np.zeros((z.shape[0], 0)), np.zeros((1, len(factors)))
     G = [F @ BZ for F in factors]
     f = [F @ z for F in factors]
-    T = []
+    T, cost = [], []
     for k in range(len(factors)):
         rest = [j for j in range(len(factors)) if j != k]
         t = _least_then(G[k], f[k], np.vstack([G[j] for j in rest]), np.concatenate([f[j] for j in rest]))
-        T.append(t)
+        before = float(f[k] @ f[k])
+        after = float(np.sum((f[k] + G[k] @ t) ** 2))
+        T.append(t if before - after >= SPLIT_SHARE * before else 0.0 * t)
+        # each class's penalty after the move
+        cost.append([float(np.sum((fj + Gj @ T[-1]) ** 2)) for fj, Gj in zip(f, G)])
     # an alternative split moves at most what the fit carries along the open combinations: a
     # class's least curvature reached by moving far more than that invents a combination
-    carried = float(np.linalg.norm(Z.T @ (B.T @ z)))
+    carried = float(np.linalg.norm(BZ.T @ z))
     T = [t * min(1.0, carried / max(float(np.linalg.norm(t)), 1e-300)) for t in T]
     D = BZ @ np.array(T).T                                # (n_unknowns, n_classes)
-    return D[:, np.abs(D).max(axis=0) > 0.0]
+    on = np.abs(D).max(axis=0) > 0.0
+    return D[:, on], np.vstack([[float(fj @ fj) for fj in f], np.array(cost)[on]])
+
+
+def beyond_posterior(D: np.ndarray, pens: np.ndarray, s2: float) -> np.ndarray:
+    """The alternative splits ``D`` (:func:`choice_directions`) that fill a class the fit left empty:
+    ``pens`` (1 + c, n_classes), each class's penalty at the fit (first row) and after each
+    alternative, in the weighted residuals' units. A class whose penalty at the fit is at most the
+    residual variance s2 carries no curvature the data show, and REML weighs it at or near its
+    bound: the posterior gives it the prior's variance at that weight, next to nothing, whatever
+    the open combinations could put there. An alternative that puts more than :data:`COVERED_SD`
+    squared times s2 into such a class is one the posterior cannot represent: kept. One that moves
+    curvature between classes that both carry some is the prior's to weigh, and the posterior
+    does (Wood 2017, section 5.8)."""
+    if not D.shape[1] or not np.isfinite(s2):
+        return D[:, :0]
+    empty = pens[0] <= s2
+    filled = ((pens[1:] - pens[0][None, :]) > COVERED_SD ** 2 * s2) & empty[None, :]
+    return D[:, filled.any(axis=1)]

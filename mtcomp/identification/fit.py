@@ -59,8 +59,9 @@ from ..models.model_file import FittedModel, setup_uncertainty
 from ..models.params import ParameterSet
 from .reversal import DirectionContrast, data_reversal
 from ._rotation import reference_rotation, undetermined_unknowns, without
-from ._choice import choice_directions
-from .unmeasured import assumption, record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
+from ._choice import beyond_posterior, choice_directions, data_null
+from .unmeasured import (assumption, leaving_held_alone, record_unmeasured, unmeasured_to_zero,
+                         unmeasured_unknowns)
 from ._linalg import (column_scale, _eliminate, _name_null_space,
                       _relative_singular_values, _seen_columns, _solver, _unseen_apart, _step, block_obs,
                       file_normal_equations, one_blas_thread, penalised_inverse)
@@ -286,6 +287,7 @@ class _Problem:
         self._contrast = None       # reversal.DirectionContrast of the files, made when first needed
         self.class_factors = []     # the weighted penalty factor of each class (the last fit's weights)
         self.choice = np.zeros((self.n_unknowns, 0))  # the penalty's alternative splits across classes (._choice)
+        self._choice_cost = np.zeros((1, 0))  # each class's penalty at the fit and after each
 
     # --------------------------------------------------------------- weights
     def unit_weights(self):
@@ -482,7 +484,9 @@ class _Problem:
         self.held = None
         x, r, A, g, B, AB, iterations, converged, null, rank = hold_weak(
             self, start, first, w, max_iterations, tol, B1, scale, data_rank) if self.hold_weak else first
-        self.choice = scale[:, None] * choice_directions(x / scale, B, AB, self.class_factors)
+        open_ = leaving_held_alone(self, B @ data_null(AB)) if len(self.class_factors) > 1 else B[:, :0]
+        choice, self._choice_cost = choice_directions(x / scale, open_, self.class_factors)
+        self.choice = scale[:, None] * choice
         x, r, P = unmeasured_to_zero(self, x, r, w, assumed.move)
         lev, edf, cov, held, held_sd = self._posterior(x, r, w, scale, B, AB, rank, leverage, P)
         if self.S is not None:
@@ -564,6 +568,7 @@ class _Problem:
             cov = P @ cov @ P.T
         held_cov, held, held_sd, self.held_assumed = held_variance(self.held, scale, s2, P, self.metric)
         # the penalty's split of what the data cannot see across classes (._choice)
+        self.choice = beyond_posterior(self.choice, self._choice_cost, s2)
         if self.choice.shape[1]:
             self.choice = self.choice if P is None else P @ self.choice
             cov = cov + self.choice @ self.choice.T
