@@ -13,10 +13,11 @@ at that weight (7.5e-4 um) where the truth's was 2 um.
 So the fit's value along such a combination is given a variance that covers the other splits the
 weights could have made: for each class k, the split that the penalty of class k alone would
 choose (the combination moved so that class k carries the least curvature it can, the other
-classes settling the rest as the fit's weights do) is one standard error from the fit's. A
-combination within one class (a profile smoothed between what was measured) is the same at every
-weight of that class and gets none; a combination along which the fit carries nothing gets none
-either, whatever its classes.
+classes settling the rest as the fit's weights do) is one standard error from the fit's, where it
+fills a class the fit left empty (:func:`beyond_posterior`): between classes that both carry
+curvature the posterior weighs the split itself. A combination within one class (a profile
+smoothed between what was measured) is the same at every weight of that class and gets none; a
+combination along which the fit carries nothing gets none either, whatever its classes.
 """
 from __future__ import annotations
 
@@ -64,10 +65,11 @@ def _least_then(G_first, f_first, G_rest, f_rest) -> np.ndarray:
 
 
 def choice_directions(z: np.ndarray, BZ: np.ndarray, factors: list) -> tuple[np.ndarray, np.ndarray]:
-    """((n_unknowns, c) D, (1 + c, n_classes) penalties): the penalty's alternative splits of what the
-    data leave open, in the scaled unknowns (D D^T their covariance, each column one standard error;
-    zero columns dropped), and each class's penalty at the fit and after each alternative
-    (:func:`beyond_posterior` keeps those that fill a class the fit left empty).
+    """((n_unknowns, c) D, (1 + c, n_classes + 1) penalties): the penalty's alternative splits of what
+    the data leave open, in the scaled unknowns (D D^T their covariance, each column one standard
+    error; zero columns dropped), each class's penalty at the fit and after each alternative, and
+    the class each takes curvature from (:func:`beyond_posterior` keeps those that move curvature
+    from a class that carries some into one the fit left empty).
 
     z : (n_unknowns,) the fitted scaled unknowns (x / scale), where the penalty is evaluated.
     BZ : (n_unknowns, k) orthonormal combinations among the fit's directions that the data do not
@@ -80,31 +82,34 @@ def choice_directions(z: np.ndarray, BZ: np.ndarray, factors: list) -> tuple[np.
     ``BZ t_k``, so that the covariance is ``sum_k (BZ t_k)(BZ t_k)^T``: each split one class alone
     would choose lies one standard error from the fit's."""
     if len(factors) < 2 or not BZ.shape[1]:
-        return np.zeros((z.shape[0], 0)), np.zeros((1, len(factors)))
+        return np.zeros((z.shape[0], 0)), np.zeros((1, len(factors) + 1))
     G = [F @ BZ for F in factors]
     f = [F @ z for F in factors]
-    T, cost = [], []
+    T = []
     for k in range(len(factors)):
         rest = [j for j in range(len(factors)) if j != k]
         t = _least_then(G[k], f[k], np.vstack([G[j] for j in rest]), np.concatenate([f[j] for j in rest]))
         before = float(f[k] @ f[k])
         after = float(np.sum((f[k] + G[k] @ t) ** 2))
         T.append(t if before - after >= SPLIT_SHARE * before else 0.0 * t)
-        # each class's penalty after the move
-        cost.append([float(np.sum((fj + Gj @ T[-1]) ** 2)) for fj, Gj in zip(f, G)])
     # an alternative split moves at most what the fit carries along the open combinations: a
     # class's least curvature reached by moving far more than that invents a combination
     carried = float(np.linalg.norm(BZ.T @ z))
     T = [t * min(1.0, carried / max(float(np.linalg.norm(t)), 1e-300)) for t in T]
+    # each class's penalty after each move
+    cost = [[float(np.sum((fj + Gj @ t) ** 2)) for fj, Gj in zip(f, G)] for t in T]
     D = BZ @ np.array(T).T                                # (n_unknowns, n_classes)
     on = np.abs(D).max(axis=0) > 0.0
-    return D[:, on], np.vstack([[float(fj @ fj) for fj in f], np.array(cost)[on]])
+    # the last column: the class each alternative takes curvature from
+    pens = np.vstack([[float(fj @ fj) for fj in f], np.array(cost)[on]])
+    return D[:, on], np.hstack([pens, np.concatenate([[-1.0], np.flatnonzero(on)])[:, None]])
 
 
 def beyond_posterior(D: np.ndarray, pens: np.ndarray, s2: float) -> np.ndarray:
     """The alternative splits ``D`` (:func:`choice_directions`) that fill a class the fit left empty:
-    ``pens`` (1 + c, n_classes), each class's penalty at the fit (first row) and after each
-    alternative, in the weighted residuals' units. A class whose penalty at the fit is at most the
+    ``pens`` (1 + c, n_classes + 1), each class's penalty at the fit (first row) and after each
+    alternative, in the weighted residuals' units, and (last column) the class each alternative
+    takes curvature from, which must carry some: a class with none has nothing to give away. A class whose penalty at the fit is at most the
     residual variance s2 carries no curvature the data show, and REML weighs it at or near its
     bound: the posterior gives it the prior's variance at that weight, next to nothing, whatever
     the open combinations could put there. An alternative that puts more than :data:`COVERED_SD`
@@ -113,6 +118,8 @@ def beyond_posterior(D: np.ndarray, pens: np.ndarray, s2: float) -> np.ndarray:
     does (Wood 2017, section 5.8)."""
     if not D.shape[1] or not np.isfinite(s2):
         return D[:, :0]
+    source = pens[1:, -1].astype(int)
+    pens = pens[:, :-1]
     empty = pens[0] <= s2
     filled = ((pens[1:] - pens[0][None, :]) > COVERED_SD ** 2 * s2) & empty[None, :]
-    return D[:, filled.any(axis=1)]
+    return D[:, filled.any(axis=1) & ~empty[source]]

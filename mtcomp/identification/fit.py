@@ -287,7 +287,7 @@ class _Problem:
         self._contrast = None       # reversal.DirectionContrast of the files, made when first needed
         self.class_factors = []     # the weighted penalty factor of each class (the last fit's weights)
         self.choice = np.zeros((self.n_unknowns, 0))  # the penalty's alternative splits across classes (._choice)
-        self._choice_cost = np.zeros((1, 0))  # each class's penalty at the fit and after each
+        self._choice_cost = np.zeros((1, 1))  # each class's penalty at the fit and after each
 
     # --------------------------------------------------------------- weights
     def unit_weights(self):
