@@ -524,7 +524,7 @@ def table_sd_um(fitted, q: np.ndarray, q_ref: np.ndarray, directions: dict,
     J = evaluate(fitted.model, "tip_pjacobian_function", fitted.clamp(q)[0], p, fitted.context(n, cols))[0]
     J0 = evaluate(fitted.model, "tip_pjacobian_function", fitted.clamp(q_ref[None, :])[0], p,
                   fitted.context(1, {}))[0]
-    return fitted.tip_sd_um(J - J0, factor, undetermined)
+    return fitted.tip_sd_um(J - J0, factor, undetermined, None, fitted.choice_directions())
 
 
 def axis_table_sd_um(fitted, a: str, q: np.ndarray, q_ref: np.ndarray) -> np.ndarray | None:

@@ -59,7 +59,9 @@ from ..models.model_file import FittedModel, setup_uncertainty
 from ..models.params import ParameterSet
 from .reversal import DirectionContrast, data_reversal
 from ._rotation import reference_rotation, undetermined_unknowns, without
-from .unmeasured import assumption, record_unmeasured, unmeasured_to_zero, unmeasured_unknowns
+from ._choice import beyond_posterior, choice_directions, data_null
+from .unmeasured import (assumption, leaving_held_alone, record_unmeasured, unmeasured_to_zero,
+                         unmeasured_unknowns)
 from ._linalg import (column_scale, _eliminate, _name_null_space,
                       _relative_singular_values, _seen_columns, _solver, _unseen_apart, _step, block_obs,
                       file_normal_equations, one_blas_thread, penalised_inverse)
@@ -283,6 +285,9 @@ class _Problem:
         self.held = None            # (directions (n_unknowns, k) scaled, variances (k,)) of the held weak ones
         self.held_assumed = 0       # of those, how many the unmeasured components' assumption fixes
         self._contrast = None       # reversal.DirectionContrast of the files, made when first needed
+        self.class_factors = []     # the weighted penalty factor of each class (the last fit's weights)
+        self.choice = np.zeros((self.n_unknowns, 0))  # the penalty's alternative splits across classes (._choice)
+        self._choice_cost = np.zeros((1, 1))  # each class's penalty at the fit and after each
 
     # --------------------------------------------------------------- weights
     def unit_weights(self):
@@ -479,6 +484,9 @@ class _Problem:
         self.held = None
         x, r, A, g, B, AB, iterations, converged, null, rank = hold_weak(
             self, start, first, w, max_iterations, tol, B1, scale, data_rank) if self.hold_weak else first
+        open_ = leaving_held_alone(self, B @ data_null(AB)) if len(self.class_factors) > 1 else B[:, :0]
+        choice, self._choice_cost = choice_directions(x / scale, open_, self.class_factors)
+        self.choice = scale[:, None] * choice
         x, r, P = unmeasured_to_zero(self, x, r, w, assumed.move)
         lev, edf, cov, held, held_sd = self._posterior(x, r, w, scale, B, AB, rank, leverage, P)
         if self.S is not None:
@@ -494,6 +502,7 @@ class _Problem:
         from .penalty import penalty_ranks, reml_weights
         x, r, A, g = start
         self.S = self.S_factor = None
+        self.class_factors = []
         iterations = 0
         Fs = list(penalties.values())
         Ss = [F.T @ F for F in Fs]
@@ -525,6 +534,7 @@ class _Problem:
                     break
                 self.S = sum(np.exp(rk) * S for rk, S in zip(rho, Ss))
                 self.S_factor = np.vstack([np.exp(0.5 * rk) * F for rk, F in zip(rho, Fs)])
+                self.class_factors = [np.exp(0.5 * rk) * F for rk, F in zip(rho, Fs)]
                 self.smoothing_rho = dict(zip(penalties, rho))
             x, r, A, g, B, AB, more, converged = self._gauss_newton(
                 x, r, A, g, w, max_iterations, tol, B1, scale)
@@ -557,6 +567,11 @@ class _Problem:
         if P is not None:
             cov = P @ cov @ P.T
         held_cov, held, held_sd, self.held_assumed = held_variance(self.held, scale, s2, P, self.metric)
+        # the penalty's split of what the data cannot see across classes (._choice)
+        self.choice = beyond_posterior(self.choice, self._choice_cost, s2)
+        if self.choice.shape[1]:
+            self.choice = self.choice if P is None else P @ self.choice
+            cov = cov + self.choice @ self.choice.T
         if leverage:
             lev = self.leverages(x, w, scale, B, np.linalg.cholesky(H))
         return lev, edf, cov + held_cov, held, held_sd
@@ -737,6 +752,7 @@ class _Problem:
                        "covariance": np.nan_to_num(sol.cov[:nf, :nf]),
                        "undetermined": np.hstack([null_p, open_undetermined(self, sol.scale, to_file)]),
                        "held": sol.held[:nf], "held_sd_um": np.asarray(sol.held_sd, dtype=float),
+                       "choice": self.choice[:nf],
                        "setup": setup_uncertainty(nuis_specs, sol.cov, nf)}
         res.fitted_model = FittedModel(model, params, dict(ctx_defaults),
                                        {"identify": res.to_dict(), **(info or {})},

@@ -64,8 +64,9 @@ def uncertainty_without(uncertainty: dict | None, names) -> dict | None:
     out = dict(uncertainty, names=[uncertainty["names"][k] for k in keep],
                covariance=np.asarray(uncertainty["covariance"])[np.ix_(keep, keep)],
                undetermined=np.asarray(uncertainty["undetermined"]).reshape(n, -1)[keep])
-    if "held" in uncertainty:
-        out["held"] = np.asarray(uncertainty["held"]).reshape(n, -1)[keep]
+    for key in ("held", "choice"):
+        if key in uncertainty:
+            out[key] = np.asarray(uncertainty[key]).reshape(n, -1)[keep]
     if "setup" in uncertainty:
         out["setup"] = dict(uncertainty["setup"], cross=np.asarray(uncertainty["setup"]["cross"])[:, keep])
     if "model_error" in uncertainty:
@@ -103,7 +104,10 @@ class FittedModel:
         (k, h) and ``"held_sd_um"`` (h,): the directions the data fix only weakly, which the fit held
         at the least error (each 1 um rms tool-tip error over the data's region), with their
         standard errors (um). Their variance is already in the covariance: they are listed so that
-        its share can be told, and they are not undetermined. Optionally ``"setup"``: the fitted
+        its share can be told, and they are not undetermined. Optionally ``"choice"`` (k, c): the
+        roughness penalty's split of what the data cannot see across penalty classes, one column
+        per alternative split, each one standard error (:mod:`mtcomp.identification._choice`);
+        their variance is in the covariance too. Optionally ``"setup"``: the fitted
         files' set-up parameters (laser zeros and slopes, a tracker's frame ...), ``{"names": (s,),
         "to_file": (s,), "cross": (s, k), "covariance": (s, s)}``, their covariance with the
         parameters and their own: a prediction of a fitted file with its fitted set-up moves with
@@ -299,10 +303,22 @@ class FittedModel:
             c = np.linalg.lstsq(Nf - Q @ (Q.T @ Nf), p - Q @ (Q.T @ p), rcond=None)[0]
         return idx, (Nf @ c) / f
 
+    def choice_directions(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(indices into ``params``, (k, c) D): the roughness penalty's alternative splits across
+        classes of what the data cannot see (``uncertainty["choice"]``, internal units, each one
+        standard error); None when the model keeps none."""
+        u = self.uncertainty
+        if u is None or "choice" not in u or not len(u["names"]):
+            return None
+        idx = np.array([self.params.index(n) for n in u["names"]], dtype=int)
+        D = np.asarray(u["choice"], dtype=float).reshape(idx.size, -1)
+        return (idx, D) if D.shape[1] else None
+
     @staticmethod
     def tip_sd_um(J: np.ndarray, factor: tuple[np.ndarray, np.ndarray],
                   undetermined: tuple[np.ndarray, np.ndarray] | None = None,
-                  extra: np.ndarray | None = None) -> np.ndarray:
+                  extra: np.ndarray | None = None,
+                  choice: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
         """(n,) the standard error (um) of n tool-tip deviations whose Jacobian with respect to
         ``params`` is J (n, 3, n_params), mm: the largest of the three components' standard
         errors, under the covariance :meth:`covariance_factor` gives (``factor``).
@@ -310,7 +326,11 @@ class FittedModel:
         undetermined : :meth:`undetermined_values`; where the deviation moves with that part of the
             values by more than :data:`UNDETERMINED_UM` in some component, the standard error is
             infinite: it rests on numbers the data did not determine (predict blanks its standard
-            error there, by the same rule)."""
+            error there, by the same rule).
+        choice : :meth:`choice_directions`; where a component's variance is more the penalty's
+            choice of split than the data's, and that choice moves it by more than
+            :data:`UNDETERMINED_UM`, the standard error is infinite too: the deviation there rests
+            on how the penalty divided what the data cannot tell apart."""
         idx, F = factor
         G = J[:, :, idx] @ F                        # (n, 3, rank), mm
         var = np.einsum("nij,nij->ni", G, G)
@@ -319,6 +339,12 @@ class FittedModel:
             ui, v = undetermined
             moved = np.abs(J[:, :, ui] @ v).max(axis=1) * 1e3
             sd = np.where(moved > UNDETERMINED_UM, np.inf, sd)
+        if choice is not None:
+            ci, D = choice
+            Gc = J[:, :, ci] @ D
+            cvar = np.einsum("nij,nij->ni", Gc, Gc)
+            chosen = (np.sqrt(cvar) * 1e3 > UNDETERMINED_UM) & (cvar > var - cvar)
+            sd = np.where(chosen.any(axis=1), np.inf, sd)
         return sd
 
     def prediction_std(self, J: np.ndarray) -> np.ndarray:
@@ -392,6 +418,8 @@ def uncertainty_to_file(fitted: "FittedModel") -> dict:
     if "held" in u and np.asarray(u["held"]).size:
         out["held"] = (f[:, None] * np.asarray(u["held"])).T.tolist()
         out["held_sd_um"] = np.asarray(u["held_sd_um"], dtype=float).tolist()
+    if "choice" in u and np.asarray(u["choice"]).size:
+        out["choice"] = (f[:, None] * np.asarray(u["choice"])).T.tolist()
     if u.get("model_error"):
         out["model_error"] = {n: float(v) * float(_file_factors(fitted.params, [n])[0])
                               for n, v in u["model_error"].items()}
@@ -426,6 +454,12 @@ def _uncertainty_from_file(params: ParameterSet, data, path) -> dict | None:
             raise InputError("'uncertainty' 'held' must be directions over its parameters with one "
                              "'held_sd_um' each", path) from None
         out.update(held=held / f[:, None], held_sd_um=sd)
+    if "choice" in data:    # optional (older files have none): the penalty's splits across classes
+        try:
+            choice = np.asarray(data["choice"], dtype=float).reshape(-1, len(names)).T
+        except (TypeError, ValueError):
+            raise InputError("'uncertainty' 'choice' must be directions over its parameters", path) from None
+        out["choice"] = choice / f[:, None]
     if "model_error" in data:   # optional (older files have none): a drift model's model error
         out["model_error"] = _model_error_from_file(params, data["model_error"], names, path)
     if "setup" in data:     # optional (older files have none): the fitted files' set-ups

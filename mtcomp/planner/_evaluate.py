@@ -97,6 +97,8 @@ class Evaluator:
         # the part of the values along what the data left undetermined: a correction that moves
         # with it is unsure (FittedModel.tip_sd_um)
         self._open = problem.fitted.undetermined_values() if self._factor is not None else None
+        # the penalty's split of what the data cannot tell apart: a correction resting on it is unsure
+        self._choice = problem.fitted.choice_directions() if self._factor is not None else None
         #: the model carries a covariance: :meth:`correction_sd_um` is NaN everywhere without one
         self.has_uncertainty = self._factor is not None
         #: (function name, datum row, tool length) -> the function there (:meth:`_at_datum`)
@@ -128,7 +130,7 @@ class Evaluator:
             # the drift since the datum's state: the model error it misses there counted once
             extra = fitted.model_error_variance(J)
             J = J - self._at_datum("tip_pjacobian_function", datum, ctx)
-        return fitted.tip_sd_um(J, self._factor, self._open, extra)
+        return fitted.tip_sd_um(J, self._factor, self._open, extra, self._choice)
 
     def _deviation_and_qjacobian(self, q, ctx):
         """(deviation (n, 6), d deviation / d q (n, 6, n_axes)) as :meth:`_deviation`: along a held
