@@ -70,3 +70,35 @@ def test_five_targets_give_a_standard_error_that_covers_the_miss_between_them(tm
     # and between targets the standard error is larger than at them
     assert np.median(sd[~at]) > 3.0 * np.median(sd[at])
 
+
+def test_laser_targets_in_inches_are_told_not_refused(tmp_path, capsys):
+    """A positioning run of X at -400 .. 400 mm written in inches under target_mm (-15.748 ..
+    15.748): read as mm it is 37 um of error over 31 mm, faster than any machine tool's. identify
+    names the file and the figure in one line and fits it (a user's data is never refused); the
+    same run in mm is not noted. (Old code: accepted without a word.)"""
+    truth = TruthMachine.zero("xfyz")
+    truth.components["X"]["EXX"] = P.Sines((6e-3, 2e-3), (900.0, 500.0), (0.3, 1.1))
+    mm = tc.laser(truth, tmp_path / "lx_mm.csv", np.random.default_rng(5), "X", components=("EXX",),
+                  targets=np.arange(-400.0, 400.1, 50.0), n_runs=2, noise_um=0.1, setup=False)
+    lines = mm.path.read_text().splitlines()
+    col = lines[0].split(",").index("target_mm")
+    inch = tmp_path / "lx_inch.csv"
+    rows = [lines[0]]
+    for line in lines[1:]:
+        cells = line.split(",")
+        cells[col] = f"{float(cells[col]) / 25.4:.4f}"
+        rows.append(",".join(cells))
+    inch.write_text("\n".join(rows) + "\n")
+    for path, told in ((inch, True), (mm.path, False)):
+        out = tmp_path / f"model_{path.stem}.json"
+        assert main(["identify", "xfyz", str(path), "-o", str(out)]) == 0
+        err = capsys.readouterr().err
+        notes = [line for line in err.splitlines() if "targets in inches?" in line]
+        assert len(notes) == told, err
+        assert out.exists()
+        if told:
+            assert str(path) in notes[0] and "-400 to 400" in notes[0], notes[0]
+            # the figure: the readings' range over the span as read, um/m (hand: ptp over 31.496 mm)
+            values = np.asarray(mm.columns["value_um"], dtype=float)
+            rate = np.ptp(values) / (800.0 / 25.4) * 1e3
+            assert f"{rate:.0f} um/m as read" in notes[0], (rate, notes[0])
