@@ -237,8 +237,14 @@ def open_undetermined(problem, scale, to_file) -> np.ndarray:
     span: mixed into it, a combination of the two that moves the tip little over the travel, scaled
     up, moved the fitted readings (a laser run of X beside a CMM dome lost 120 of its 130 standard
     errors)."""
+    return sized_undetermined(problem, getattr(problem, "open", None), scale, to_file)
+
+
+def sized_undetermined(problem, directions, scale, to_file) -> np.ndarray:
+    """(n_free, k) the machine parameters' part of ``directions`` (scaled coordinates; None: none)
+    as predict judges an undetermined combination: internal units, each sized to 1 um rms tool-tip
+    error over the travel, or to 1 um or urad of its parameters where it moves no tool tip."""
     nf = problem.n_free
-    directions = getattr(problem, "open", None)
     if directions is None or not directions.shape[1]:
         return np.zeros((nf, 0))
     D = scale[:nf, None] * directions[:nf]

@@ -71,7 +71,8 @@ from .problem import travel_metric  # noqa: F401
 from .result import FileResiduals, FitResult, unsettled_parameters
 from .weighting import fit_weights, group_noise, unit_weights
 from ._weak import (WEAK_SD_UM, WEAK_SIGNIFICANT, held_variance, hold_weak, open_note,  # noqa: F401
-                    open_undetermined, open_unknowns, weak_directions)
+                    open_undetermined, open_unknowns, sized_undetermined, weak_directions)
+from ._sparse import sparse_note, unbounded_directions, without_unbounded
 
 
 # ------------------------------------------------------------------------------------- identify
@@ -150,6 +151,7 @@ def _solve(problem: FitProblem, options: SolverOptions, info: dict | None, t0: f
         result.info["weak_directions"] = ("not held: holding them would have spoiled the fit of the "
                                           "data; the data's own least-squares fit is kept")
     result.info.update(open_note(stacked))
+    result.info.update(sparse_note(stacked.unbounded_classes))
     if problem.removed:
         result.info["outliers"] = [str(o) for o in problem.removed]
     return result
@@ -234,6 +236,8 @@ class _Solution:
     held: np.ndarray = None     # (n_unknowns, k) directions held weak, internal units, each 1 um rms
     #                             tool-tip error over the data's region
     held_sd: np.ndarray = None  # (k,) their standard errors, um (their variance is in cov)
+    unbounded: np.ndarray = None  # (n_unknowns, k) directions only a penalty the data cannot bound
+    #                               fixes (._sparse), scaled coordinates: recorded as undetermined
     unsettled: tuple = None     # not converged: (the last step of the unknowns, internal units, the
     #                             share of the cost it took)
 
@@ -277,6 +281,7 @@ class _Problem:
         self.metric = None      # (n_unknowns, n_unknowns) mean squared tip error over the data's region, mm^2
         self.travel_metric = None   # the same over the machine's travel
         self.weak_fallback = False  # the weak-direction pass was refused (see solve)
+        self.unbounded_classes = {}  # classes whose roughness the data cannot bound (._sparse)
         self.S = None               # the penalty in scaled coordinates at the chosen weights
         self.S_factor = None        # its factor: S = S_factor^T S_factor (the penalty's value)
         self.smoothing = None       # penalty.Smoothing of the last solve
@@ -489,11 +494,14 @@ class _Problem:
         self.choice = scale[:, None] * choice
         x, r, P = unmeasured_to_zero(self, x, r, w, assumed.move)
         lev, edf, cov, held, held_sd = self._posterior(x, r, w, scale, B, AB, rank, leverage, P)
+        unbounded, self.unbounded_classes = unbounded_directions(
+            penalties if self.S is not None else {}, B, AB, scale, P, self.n_free)
+        cov = without_unbounded(cov, unbounded, scale)
         if self.S is not None:
             lam = {k: float(np.exp(v)) for k, v in self.smoothing_rho.items()}
             self.smoothing = Smoothing(lam, dict(self.smoothing_rho), edf)
         return _Solution(x, r, cov, null, scale, rel, rank, cond, iterations, converged, lev, edf, B,
-                         held, held_sd, None if converged else self.unsettled)
+                         held, held_sd, unbounded, None if converged else self.unsettled)
 
     def _penalised_fit(self, start, w, max_iterations, tol, B1, scale, penalties: dict) -> tuple:
         """The first pass of :meth:`solve`: Gauss-Newton from ``start`` (x, r, A, g) along B1, with
@@ -750,7 +758,8 @@ class _Problem:
         # standard errors, so that a reader of the model can tell that share
         uncertainty = {"names": tuple(names[i] for i in self.free_idx),
                        "covariance": np.nan_to_num(sol.cov[:nf, :nf]),
-                       "undetermined": np.hstack([null_p, open_undetermined(self, sol.scale, to_file)]),
+                       "undetermined": np.hstack([null_p, open_undetermined(self, sol.scale, to_file),
+                                                  sized_undetermined(self, sol.unbounded, sol.scale, to_file)]),
                        "held": sol.held[:nf], "held_sd_um": np.asarray(sol.held_sd, dtype=float),
                        "choice": self.choice[:nf],
                        "setup": setup_uncertainty(nuis_specs, sol.cov, nf)}

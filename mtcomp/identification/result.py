@@ -192,6 +192,8 @@ class FitResult:
                          "names and one none names: held at zero by that assumption, with no variance")
         if "open_weak" in self.info:            # mtcomp.identification._weak.open_note
             lines.append(self.info["open_weak"])
+        if "sparse" in self.info:               # mtcomp.identification._sparse.sparse_note
+            lines.append(self.info["sparse"])
         return lines
 
     # ------------------------------------------------------------ lmfit's MinimizerResult figures

@@ -20,7 +20,8 @@ stylus lengths replaced by the machine's tool length in every row). So:
   points or cmm file is smaller than a machine's errors and an instrument's noise over the span of
   its positions (values in mm written under ``*_um`` columns: the unit check of
   :func:`mtcomp.measurement.units.unit_check`, below max(0.05 um, 0.5 ppm of the span) over 100 mm
-  or more), and when every bar length of a ball-bar file is under an inch (a file in inches).
+  or more), when every bar length of a ball-bar file is under an inch (a file in inches), and when
+  a laser file's targets are whole mm only times 25.4 (targets in inches, :func:`_inch_targets`).
 """
 from __future__ import annotations
 
@@ -167,7 +168,8 @@ def check_axis_units(table) -> None:
 
 def file_notes(machine, datasets) -> list[str]:
     """One sentence per finding in each file (module docstring): columns not read, a points file
-    taken at the machine's tool length, deviations that look like mm under ``*_um``."""
+    taken at the machine's tool length, deviations that look like mm under ``*_um``, lengths or
+    laser targets that look like inches."""
     notes = []
     for data in datasets:
         data = getattr(data, "data", data)          # a measurement model's file
@@ -182,7 +184,7 @@ def file_notes(machine, datasets) -> list[str]:
             notes.append(f"{data.path}: no column tool_mm: every row is taken at the machine's tool "
                          f"length, {machine.tool_length:g} mm (its tool_length_mm); give tool_mm if the "
                          "stylus or tool was another length")
-        line = _mm_under_um(data, header) or _short_bar(data)
+        line = _mm_under_um(data, header) or _short_bar(data) or _inch_targets(data)
         if line:
             notes.append(line)
         line = _slow_feeds(data, header)
@@ -223,6 +225,38 @@ def _slow_feeds(data, header) -> str | None:
     return (f"{data.path}: every feed_mm_min is below {SLOWEST_FEED_MM_MIN:g} mm/min ({feed.min():.4g} to "
             f"{feed.max():.4g}), slower than laser and ball-bar runs are made: feeds in mm/s? mtcomp reads "
             "feed_mm_min in mm/min (mm/s times 60)")
+
+
+#: a laser file's targets that are whole mm once multiplied by 25.4 (within this, mm), and not all
+#: multiples of 0.1 mm as written, are inches under ``target_mm``
+INCH_TARGET_TOL_MM = 0.01
+
+
+def _inch_targets(data) -> str | None:
+    """The sentence when a laser file's targets look like inches written under ``target_mm``: each
+    times 25.4 is a whole number of mm (within :data:`INCH_TARGET_TOL_MM`: 0.0001 in written), and
+    as written they are not all multiples of 0.1 mm; else None. It gives the figure that follows:
+    how fast the positioning error changes along the axis as read (um per m), against what it
+    would be in inches. Judged on the targets, not on that figure: real short-stroke stages change
+    by 1200 to 4200 um/m peak to peak over 8 to 40 mm (periodic errors, drift), as fast as a run
+    in inches seems to."""
+    if data.kind != "laser" or not len(data.target):
+        return None
+    linear = ~np.isin(data.axis, list("ABC")) & np.isfinite(data.target)
+    t = np.unique(data.target[linear])
+    if t.size < 3 or not np.ptp(t) > 0:
+        return None
+    whole_in_inches = np.all(np.abs(t * 25.4 - np.round(t * 25.4)) < INCH_TARGET_TOL_MM)
+    tenths_in_mm = np.all(np.abs(t * 10.0 - np.round(t * 10.0)) < 1e-6)
+    if not whole_in_inches or tenths_in_mm:
+        return None
+    span = float(np.ptp(t))
+    rows = linear & np.isfinite(data.value) & ~data.angular
+    change = float(np.ptp(data.value[rows])) / UM if rows.any() else 0.0
+    return (f"{data.path}: targets {t[0]:g} to {t[-1]:g} are whole mm only times 25.4 "
+            f"({t[0] * 25.4:.0f} to {t[-1] * 25.4:.0f}): targets in inches? target_mm is read in mm, so the "
+            f"readings change by {change:.3g} um over {span:.4g} mm ({change / span * 1e3:.0f} um/m as read, "
+            f"{change / (span * 25.4) * 1e3:.0f} um/m with the targets in inches); multiply inches by 25.4")
 
 
 #: the least number of deviations for the short-span unit check of a points or cmm file

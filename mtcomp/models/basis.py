@@ -189,7 +189,8 @@ def max_intervals(lo: float, hi: float) -> int:
 
 
 def auto_spline(positions, travel: tuple[float, float], max_basis: int | None = None,
-                resolution_mm: float = 1e-3, finest: int = MAX_BASIS) -> tuple[float, float, int, int]:
+                resolution_mm: float = 1e-3, finest: int = MAX_BASIS,
+                room: bool = False) -> tuple[float, float, int, int]:
     """Knots that the data can determine: (lo, hi, n_intervals, degree) for one linear axis.
 
     positions : every position the axis took in the data (mm). The range is that of the data; the
@@ -200,13 +201,19 @@ def auto_spline(positions, travel: tuple[float, float], max_basis: int | None = 
     :func:`spline_size_by_cv`); by default the knots stay ``MIN_KNOT_MM`` apart and there are at
     most ``finest`` functions (never fewer than ``DEFAULT_MAX_BASIS`` allowed). Degree 3 when there
     are four or more functions, less below.
+    room : the fit carries the roughness penalty: an axis read at three or more positions, fewer
+    than ``DEFAULT_MAX_BASIS``, still gets that many functions (knots ``MIN_KNOT_MM`` apart at the
+    closest; two positions keep their straight line: they read no curvature at all),
+    so that between its positions the penalty, not the basis, decides the profile, and the
+    penalised fit's posterior gives what it does there its variance (a basis of as many functions
+    as positions is fixed by them, and claimed to know the profile between them).
     An axis that did not move gets the travel and one linear piece (its errors are undetermined and
     held at zero).
     """
     distinct = _distinct(positions, resolution_mm)
     if distinct.size < 2:
         return float(travel[0]), float(travel[1]), 1, 1
-    n_basis = _n_functions(distinct, max_basis, finest)
+    n_basis = _n_functions(distinct, max_basis, finest, room)
     degree = min(3, n_basis - 1)
     return float(distinct[0]), float(distinct[-1]), n_basis - degree, degree
 
@@ -218,11 +225,15 @@ def _distinct(positions, resolution_mm: float = 1e-3) -> np.ndarray:
     return np.unique(np.round(pos / resolution_mm)) * resolution_mm if pos.size else pos
 
 
-def _n_functions(distinct: np.ndarray, max_basis: int | None, finest: int) -> int:
+def _n_functions(distinct: np.ndarray, max_basis: int | None, finest: int, room: bool = False) -> int:
     """The functions :func:`auto_spline` gives an axis with these distinct positions (two or more)."""
     if max_basis is None:
         max_basis = max(DEFAULT_MAX_BASIS, min(finest, max_intervals(distinct[0], distinct[-1]) + 3))
-    return int(min(distinct.size, max_basis))
+    n = distinct.size
+    spans = max_intervals(distinct[0], distinct[-1])
+    if room and spans >= 1 and n >= 3:
+        n = max(n, min(DEFAULT_MAX_BASIS, spans + 3))
+    return int(min(n, max_basis))
 
 
 def finest_within_budget(machine: Machine, distinct: dict, sizes: dict | None, rows: int) -> int:
@@ -242,7 +253,7 @@ def finest_within_budget(machine: Machine, distinct: dict, sizes: dict | None, r
                 if a.spline_intervals is not None:
                     n += a.spline_intervals + a.degree
                 elif distinct[a.name].size >= 2:
-                    n += _n_functions(distinct[a.name], (sizes or {}).get(a.name), finest)
+                    n += _n_functions(distinct[a.name], (sizes or {}).get(a.name), finest, True)
                 else:
                     n += 2
             else:
@@ -437,7 +448,7 @@ def with_data_basis(machine: Machine, positions: dict, fourier: bool = True,
                         fourier_from_data=False)
         if not a.is_rotary and a.basis_from_data:
             cap = {"max_basis": int(sizes[a.name])} if sizes and a.name in sizes else {}
-            lo, hi, n, degree = auto_spline(distinct[a.name], a.travel, finest=finest, **cap)
+            lo, hi, n, degree = auto_spline(distinct[a.name], a.travel, finest=finest, room=penalised, **cap)
             if a.spline_range is not None:
                 lo, hi = a.spline_range
             if a.spline_intervals is not None:
