@@ -31,6 +31,9 @@ from .unmeasured import angular_motion
 
 #: the rotation about each linear axis (its angular motions' second letter: EBX turns about Y)
 _ABOUT = {"X": "A", "Y": "B", "Z": "C"}
+#: the most items (never-moved axes and held groups) a block's mask names: a float64 holds 52 bits
+#: (integers up to 2**53) exactly
+MAX_ITEMS = 52
 #: a block stands away from a never-moved axis's held position beyond this (mm: the output grid)
 AWAY_MM = 1e-3
 
@@ -54,7 +57,9 @@ class Assumed:
                       if not a.is_rotary and a.name not in fitted.support and a.name in free_axes]
         never = {n for n, _, _ in self.never}
         info = fitted.info if isinstance(fitted.info, dict) else {}
-        self.groups = [g for g in info.get("unmeasured", ()) if g.partition(":")[0] not in never]
+        # a block's mask is kept in a float64 column: at most MAX_ITEMS bits, exact
+        self.groups = [g for g in info.get("unmeasured", ())
+                       if g.partition(":")[0] not in never][:MAX_ITEMS - len(self.never)]
         self.items = [n for n, _, _ in self.never] + self.groups
         N = np.asarray(u["undetermined"], dtype=float).reshape(idx.size, -1) if idx.size else np.zeros((0, 0))
         self._idx, self._N = idx, N
