@@ -26,17 +26,8 @@ import numpy as np
 
 
 def make_inputs(folder: Path, blocks: int) -> tuple[Path, Path]:
-    from truth import TruthMachine
-    from truth import campaigns as tc
-    from truth import profiles as P
-    rng = np.random.default_rng(4)
-    truth = TruthMachine.zero("xfyz")
-    truth.components["X"]["EXX"] = P.Linear(0.0, 20e-6)
-    truth.components["X"]["EBX"] = P.Linear(0.0, 30e-6 / 400.0)
-    paths = [str(tc.laser(truth, folder / f"laser_{a.lower()}.csv", rng, a,
-                          components=[f"E{c}{a}" for c in "XYZ"], n_targets=9, n_runs=1,
-                          static={b: 0.0 for b in "XYZ" if b != a}, noise_um=0.1).path)
-             for a in "XZ"]
+    from laser_files import xz_lasers
+    paths = xz_lasers(folder)
     model = folder / "model.json"
     subprocess.run([sys.executable, "-m", "mtcomp", "identify", "xfyz", *paths, "-o", str(model)],
                    check=True, capture_output=True)

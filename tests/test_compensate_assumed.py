@@ -8,13 +8,10 @@ X and X = 0, Y = 0 for Z; the arms are the blocks' distances from those lines, b
 import csv
 import json
 
-import numpy as np
 import pytest
 
+from laser_files import xz_lasers
 from mtcomp.cli import main
-from truth import TruthMachine
-from truth import campaigns as tc
-from truth import profiles as P
 
 #: blocks on the laser's line of X (nothing assumed), at Y = 80 (Y never moved) and 120 mm below
 #: the line (X's and Z's angular motions act over that height)
@@ -31,14 +28,7 @@ M30
 @pytest.fixture(scope="module")
 def campaign(tmp_path_factory):
     folder = tmp_path_factory.mktemp("xz_lasers")
-    rng = np.random.default_rng(4)
-    truth = TruthMachine.zero("xfyz")
-    truth.components["X"]["EXX"] = P.Linear(0.0, 20e-6)
-    truth.components["X"]["EBX"] = P.Linear(0.0, 30e-6 / 400.0)
-    paths = [str(tc.laser(truth, folder / f"laser_{a.lower()}.csv", rng, a,
-                          components=[f"E{c}{a}" for c in "XYZ"], n_targets=9, n_runs=1,
-                          static={b: 0.0 for b in "XYZ" if b != a}, noise_um=0.1).path)
-             for a in "XZ"]
+    paths = xz_lasers(folder)
     model = folder / "model.json"
     assert main(["identify", "xfyz", *paths, "-o", str(model)]) == 0
     prog = folder / "prog.nc"
