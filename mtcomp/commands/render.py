@@ -178,7 +178,7 @@ def run(args) -> int:
                            backend=args.backend)
     progress.done()
     _print_summary(args, smap, res)
-    from ..identification.assumed import model_note
+    from ..models.assumed import model_note
     said = model_note(fitted, machine, "the predicted deviations")
     if said:
         print(said)

@@ -19,7 +19,7 @@ from ..measurement.files import MeasurementSet
 from ..measurement.readings import MeasurementModel
 from ..models.model_file import UNDETERMINED_UM, FittedModel
 from ._linalg import one_blas_thread
-from .assumed import model_note
+from ..models.assumed import model_note
 from .problem import KNOWN_SETUP_KINDS, unique_tags, build_measurement_models
 
 
@@ -310,7 +310,7 @@ def _thermal_notes(fitted: FittedModel, mm, known: bool) -> list:
 
 
 def _assumed_note(fitted, data, machine, acting: bool) -> list:
-    """What the predictions assume at zero (compensate's rule, :mod:`.assumed`):
+    """What the predictions assume at zero (compensate's rule, :mod:`mtcomp.models.assumed`):
     said when some prediction rests on what the data left open (``acting``) or a row stands away
     from where the data held an axis they never moved."""
     q = data.axis_positions(machine) if hasattr(data, "axis_positions") else None

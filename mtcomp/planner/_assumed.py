@@ -1,10 +1,10 @@
 """What the corrected blocks of a program assume at zero, added up for compensate's summary
-(:class:`AssumedTally`; the rules: :mod:`mtcomp.identification.assumed`)."""
+(:class:`AssumedTally`; the rules: :mod:`mtcomp.models.assumed`)."""
 from __future__ import annotations
 
 import numpy as np
 
-from ..identification.assumed import Assumed, held_words
+from ..models.assumed import Assumed, held_words
 
 
 class AssumedTally:
@@ -59,12 +59,10 @@ class AssumedTally:
         if groups:
             arm = (f": their effect over arms up to {self.arm_mm:.0f} mm" if self.arm_mm >= 0.5
                    else ": their effect")
-            said.append(f"{held_words(groups)} (held at zero where the data leave them open{arm} "
+            said.append(f"{held_words(groups, self.assumed.angular)} (held at zero where the data leave them open{arm} "
                         "is not in the standard errors)")
         return (f"note: the corrections assume zero for {' and for '.join(said)}; on "
                 f"{self.blocks} of the {corrected} corrected blocks (first at line {self.line}; "
                 "BLOCKS.csv column assumed_arm_mm): the figures after are the model's, on these "
                 "assumptions, not a measurement; measure there (the axis moved, at the heights "
                 "and offsets the program uses) to know them")
-
-

@@ -25,7 +25,7 @@ import numpy as np
 from ..kinematics import forward as nominal_pose
 from ..kinematics import pose_jacobian as nominal_pose_jacobian
 from ..models.evaluate import evaluate
-from ..identification.assumed import Assumed
+from ..models.assumed import Assumed
 from ._small import any_rows, down_columns
 from .problem import CompensationProblem
 

@@ -26,8 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..models.model_file import UNDETERMINED_UM
-from .unmeasured import angular_motion
+from .model_file import UNDETERMINED_UM
 
 #: the rotation about each linear axis (its angular motions' second letter: EBX turns about Y)
 _ABOUT = {"X": "A", "Y": "B", "Z": "C"}
@@ -61,24 +60,29 @@ class Assumed:
         self.groups = [g for g in info.get("unmeasured", ())
                        if g.partition(":")[0] not in never][:MAX_ITEMS - len(self.never)]
         self.items = [n for n, _, _ in self.never] + self.groups
-        N = np.asarray(u["undetermined"], dtype=float).reshape(idx.size, -1) if idx.size else np.zeros((0, 0))
+        N = (np.asarray(u["undetermined"], dtype=float).reshape(idx.size, -1) if idx.size
+             else np.zeros((0, 0)))
         self._idx, self._N = idx, N
         # N over every parameter: J's columns are used as they come (no copy of the fitted ones)
         self._full = np.zeros((fitted.params.values.size, N.shape[1]))
         self._full[idx] = N
-        # per held group its parameters and the combinations it has a part in (most have one)
+        # per held group its parameters and the combinations it has a part in
         self._cols = [np.array([k for k, s in enumerate(specs) if s.group == g], dtype=int)
                       for g in self.groups]
         self._dirs = [np.flatnonzero(np.any(N[c] != 0.0, axis=0)) for c in self._cols]
         # of those, the few where the group's part is largest: tried first at every block
         self._top = [ks[np.argsort(-np.abs(N[np.ix_(c, ks)]).sum(axis=0))[:3]]
                      for c, ks in zip(self._cols, self._dirs)]
+        linear = {a.name for a in machine.axes if not a.is_rotary}
+        #: the held groups that are angular motions of a linear axis (pitch, roll, yaw: in urad)
+        self.angular = {s.group for s in specs if s.unit == "urad"
+                        and s.group.partition(":")[0] in linear and s.group in self.groups}
         angle = np.array([s.unit == "urad" for s in specs], dtype=bool)
         # the largest angle (rad) of each combination: its arm is its motion per unit of that
         self._theta = np.abs(N[angle]).max(axis=0) if angle.any() and N.shape[1] else np.zeros(N.shape[1])
         # per never-moved axis the held angular motions with an arm along it (not those about it)
         self._angular = [sum(1 << (len(self.never) + b) for b, g in enumerate(self.groups)
-                             if angular_motion(g) and g[3] != _ABOUT.get(name))
+                             if g in self.angular and g[3] != _ABOUT.get(name))
                          for name, _, _ in self.never]
 
     @staticmethod
@@ -155,15 +159,15 @@ _GROUP_WORDS = {"squareness": "the squareness", "spindle": "the tool axis's tilt
                 "tool": "the tool length's offset"}
 
 
-def held_words(groups) -> str:
-    """'X's angular motions (EAX, EBX), Z's straightness (EXZ) and the squareness': the held
-    groups ('X:EAX', 'squareness'), an axis's components together."""
+def held_words(groups, angular) -> str:
+    """'X's angular motions (EAX, EBX), Z's errors (EXZ) and the squareness': the held groups
+    ('X:EAX', 'squareness'; ``angular``: those that are angular motions), an axis's together."""
     per: dict = {}
     other = []
     for g in groups:
         axis, _, comp = g.partition(":")
         if comp:
-            kind = "angular motions" if angular_motion(g) else "errors"
+            kind = "angular motions" if g in angular else "errors"
             per.setdefault((axis, kind), []).append(comp)
         else:
             other.append(_GROUP_WORDS.get(g, g))
@@ -186,7 +190,7 @@ def model_note(fitted, machine, what: str, q: np.ndarray | None = None, acting: 
     said = [f"{n}'s errors (never measured: the data held {n} at {pos:g} mm)" if pos is not None
             else f"{n}'s errors (never measured)" for n, pos in never]
     if a.groups:
-        said.append(f"{held_words(a.groups)} (held at zero where the data leave them open)")
+        said.append(f"{held_words(a.groups, a.angular)} (held at zero where the data leave them open)")
     return (f"note: {what} assume zero for {' and for '.join(said)}: where these act (away from "
             "the positions the data were taken at, over an Abbe arm) the figures are the model's on "
             "that assumption, not a measurement, and no standard error counts it")
