@@ -25,6 +25,7 @@ from .io.atomic import atomic_write
 from .planner import (CompensationProblem, Planner, PlannerOptions, Summary, output_grid,
                       report_columns, report_rows)
 from .planner.report import report_table
+from .planner._assumed import AssumedTally
 from .planner._bounds import FLAG_KINDS
 from .planner._parallel import read_ahead
 from .planner._small import any_rows, row_norm
@@ -672,7 +673,8 @@ def _compensate_source(fitted, src, output, settings, setup, report, progress, j
     written, rep = {}, None
     if report is not None:        # committed when the caller's stack closes, after the output
         rep = stack.enter_context(atomic_write(report, "w", newline=""))
-        rep.write(",".join(report_columns(machine.axis_names, machine.is_five_axis)) + "\n")
+        rep.write(",".join(report_columns(machine.axis_names, machine.is_five_axis,
+                                          summary.assumed is not None)) + "\n")
     try:
         write_corrected(src, output, machine, corrections(rep), stats=written, **read)
     except TravelError as e:
@@ -724,5 +726,6 @@ def _planner(fitted, settings: CompensationSettings, inch: bool, src, progress) 
                       ram_measured=(fitted.support or {}).get(planner.ram.ram),
                       ram_asked=planner.ram.ram_asked, tools_asked=planner.ram.tools_asked,
                       tools_measured=fitted.info.get("tool_length_mm")
-                      if isinstance(fitted.info, dict) else None)
+                      if isinstance(fitted.info, dict) else None,
+                      assumed=None if planner.ev.assumed is None else AssumedTally(planner.ev.assumed))
     return planner, summary

@@ -178,6 +178,10 @@ def run(args) -> int:
                            backend=args.backend)
     progress.done()
     _print_summary(args, smap, res)
+    from ..models.assumed import model_note
+    said = model_note(fitted, machine, "the predicted deviations")
+    if said:
+        print(said)
     print(f"wrote {res.png} ({res.backend}) and {res.vtp}")
     return 0
 

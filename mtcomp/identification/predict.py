@@ -19,6 +19,7 @@ from ..measurement.files import MeasurementSet
 from ..measurement.readings import MeasurementModel
 from ..models.model_file import UNDETERMINED_UM, FittedModel
 from ._linalg import one_blas_thread
+from ..models.assumed import model_note
 from .problem import KNOWN_SETUP_KINDS, unique_tags, build_measurement_models
 
 
@@ -267,6 +268,7 @@ def predict_readings(fitted: FittedModel, data: MeasurementSet, machine: Machine
         notes.append(f"{open_sd} prediction(s) of {mm.tag} depend on a combination of the model's "
                      "parameters its data did not determine (the model file's "
                      "uncertainty.undetermined): written with a blank standard error")
+    notes += _assumed_note(fitted, data, machine or fitted.machine, open_sd > 0)
     notes += _blank_outside_region(fitted, data, machine or fitted.machine, columns)
     if fitted.uncertainty is None:
         notes.append("the model carries no uncertainty (mtcomp identify and diagnose write one; a "
@@ -305,6 +307,15 @@ def _thermal_notes(fitted: FittedModel, mm, known: bool) -> list:
             notes.append(f"{mm.tag} was not part of the fit: channel(s) {', '.join(relative)} "
                          "predicted as the change since this file's first reading")
     return notes
+
+
+def _assumed_note(fitted, data, machine, acting: bool) -> list:
+    """What the predictions assume at zero (compensate's rule, :mod:`mtcomp.models.assumed`):
+    said when some prediction rests on what the data left open (``acting``) or a row stands away
+    from where the data held an axis they never moved."""
+    q = data.axis_positions(machine) if hasattr(data, "axis_positions") else None
+    said = model_note(fitted, machine, "the predictions", q, acting)
+    return [said[len("note: "):]] if said else []
 
 
 def _blank_outside_region(fitted, data, machine, columns: dict) -> list:

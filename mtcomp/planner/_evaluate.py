@@ -25,6 +25,7 @@ import numpy as np
 from ..kinematics import forward as nominal_pose
 from ..kinematics import pose_jacobian as nominal_pose_jacobian
 from ..models.evaluate import evaluate
+from ..models.assumed import Assumed
 from ._small import any_rows, down_columns
 from .problem import CompensationProblem
 
@@ -103,6 +104,8 @@ class Evaluator:
         self.has_uncertainty = self._factor is not None
         #: (function name, datum row, tool length) -> the function there (:meth:`_at_datum`)
         self._datum_values: dict = {}
+        #: what the model's corrections assume at zero (None: nothing), :mod:`._assumed`
+        self.assumed = Assumed.of(problem.fitted, problem.machine)
 
     def _count(self, n: int):
         with self._count_lock:
@@ -120,17 +123,29 @@ class Evaluator:
         covariance, evaluated where :meth:`_deviation` evaluates it; infinite where the correction
         moves with values the data left undetermined (FittedModel.tip_sd_um); NaN when the model
         carries no uncertainty."""
+        return self.correction_sd_assumed(q, ctx, datum)[:, 0]
+
+    def correction_sd_assumed(self, q, ctx, datum=None, sd: bool = True) -> np.ndarray:
+        """(n, 1 + Assumed.width): :meth:`correction_sd_um` (NaN where not ``sd``) and, when the
+        model assumes something at zero (:attr:`assumed`), :meth:`Assumed.blocks` of the same
+        Jacobian."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
+        out = np.full((q.shape[0], 1 + (self.assumed.width if self.assumed else 0)), np.nan)
         if self._factor is None:
-            return np.full(q.shape[0], np.nan)
+            return out
         fitted = self.problem.fitted
         J = evaluate(self.model, "tip_pjacobian_function", fitted.clamp(q)[0], self.p, ctx)[0]
         extra = None
         if datum is not None:
             # the drift since the datum's state: the model error it misses there counted once
-            extra = fitted.model_error_variance(J)
+            if sd:
+                extra = fitted.model_error_variance(J)
             J = J - self._at_datum("tip_pjacobian_function", datum, ctx)
-        return fitted.tip_sd_um(J, self._factor, self._open, extra, self._choice)
+        if sd:
+            out[:, 0] = fitted.tip_sd_um(J, self._factor, self._open, extra, self._choice)
+        if self.assumed:
+            out[:, 1:] = self.assumed.blocks(q, J)
+        return out
 
     def _deviation_and_qjacobian(self, q, ctx):
         """(deviation (n, 6), d deviation / d q (n, 6, n_axes)) as :meth:`_deviation`: along a held

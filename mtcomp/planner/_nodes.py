@@ -32,6 +32,8 @@ class NodeSet:
     link_lo, link_hi, link_kind : (n, na) the link bounds of the change of each correction into
         the node (x units; :mod:`._links`: an axis keeping its direction, one correction along an
         arc under cutter radius compensation) and their kind, or all None when no node has one.
+    assumed : (n, w) what each node's correction assumes at zero (:mod:`._assumed`), or None when
+        the model assumes nothing.
     """
 
     q: np.ndarray
@@ -49,6 +51,7 @@ class NodeSet:
     link_lo: np.ndarray | None = None
     link_hi: np.ndarray | None = None
     link_kind: np.ndarray | None = None
+    assumed: np.ndarray | None = None
 
     FIELDS = ("q", "context", "exempt", "line", "inserted", "rapid", "unknown", "outside", "pinned",
               "sd_um", "cut_start", "gated")
@@ -78,7 +81,8 @@ class NodeSet:
 
     def take(self, idx) -> "NodeSet":
         links = {} if self.link_lo is None else {f: getattr(self, f)[idx] for f in self.LINKS}
-        return NodeSet(*(getattr(self, f)[idx] for f in self.FIELDS), **links)
+        return NodeSet(*(getattr(self, f)[idx] for f in self.FIELDS), **links,
+                       assumed=None if self.assumed is None else self.assumed[idx])
 
     @staticmethod
     def concatenate(parts: list["NodeSet"]) -> "NodeSet":
@@ -87,7 +91,7 @@ class NodeSet:
             filled = [p.links or _no_links(p.q.shape) for p in parts]
             links = {f: np.concatenate([t[k] for t in filled]) for k, f in enumerate(NodeSet.LINKS)}
         return NodeSet(*(np.concatenate([getattr(p, f) for p in parts]) for f in NodeSet.FIELDS),
-                       **links)
+                       **links, assumed=concatenate_rows([p.assumed for p in parts]))
 
 
     @staticmethod
@@ -96,6 +100,15 @@ class NodeSet:
         b = np.zeros(0, bool)
         return NodeSet(np.zeros((0, na)), np.zeros((0, n_context)), b, np.zeros(0, np.int64), b, b,
                        np.zeros((0, na), bool), np.zeros((0, na), bool), b, np.zeros(0), b, b)
+
+
+def concatenate_rows(parts: list) -> np.ndarray | None:
+    """The (n_i, w) arrays of ``parts`` stacked, a part's None as zero rows of the others' width
+    (an empty part); None when every part is None."""
+    w = next((a.shape[1] for a in parts if a is not None), None)
+    if w is None:
+        return None
+    return np.concatenate([np.zeros((0, w)) if a is None else a for a in parts])
 
 
 def _no_links(shape):

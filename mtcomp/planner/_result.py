@@ -6,6 +6,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._bounds import FLAG_KINDS, flag_name
+from ._nodes import concatenate_rows
 from ._small import any_rows
 
 
@@ -36,6 +37,7 @@ class PlanResult:
         the start, a tool change or a home move: a G43 line's X and Y), or None (no such rule).
     standing : (n, na) bool, the rotary axes the standing rule keeps at the correction of the block
         before (the program does not move them there, outside tool centre point mode), or None.
+    assumed : (n, w) what each block's correction assumes at zero (:mod:`._assumed`), or None.
     """
 
     line: np.ndarray
@@ -60,6 +62,7 @@ class PlanResult:
     counts: np.ndarray | None = None
     undirected: np.ndarray | None = None
     standing: np.ndarray | None = None
+    assumed: np.ndarray | None = None
 
     FIELDS = ("line", "inserted", "rapid", "nominal", "corrected", "correction", "before", "after",
               "before_axis", "after_axis", "flags", "iterations", "converged", "unknown", "outside",
@@ -72,7 +75,8 @@ class PlanResult:
         return PlanResult(*(None if getattr(self, f) is None else getattr(self, f)[sl]
                             for f in self.FIELDS),
                           **{f: None if getattr(self, f) is None else getattr(self, f)[sl]
-                             for f in self.MASKS})
+                             for f in self.MASKS},
+                          assumed=None if self.assumed is None else self.assumed[sl])
 
     #: (n, na) masks that may be None (no node has one)
     MASKS = ("undirected", "standing")
@@ -88,7 +92,7 @@ class PlanResult:
             if any(getattr(p, f) is not None for p in parts):
                 masks[f] = np.concatenate([np.zeros(p.held.shape, bool) if getattr(p, f) is None
                                            else getattr(p, f) for p in parts])
-        return PlanResult(*out, **masks)
+        return PlanResult(*out, **masks, assumed=concatenate_rows([p.assumed for p in parts]))
 
     def corrected_blocks(self) -> np.ndarray:
         """(n,) bool: the blocks written with their correction on every axis that asked for one (in

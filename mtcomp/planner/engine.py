@@ -124,7 +124,7 @@ class Planner:
         unknown = ~np.asarray(known, bool)
         outside = self.outside_support(q, ~unknown, tool_length)
         ctx = self._context(feed, np.asarray(dirs), q.shape[0], tool_length)
-        return unknown, outside, self._sd_um(q, ctx, unknown, outside, datum)
+        return unknown, outside, self._sd_um(q, ctx, unknown, outside, datum)[0]
 
     def _pinned(self, unknown, outside, sd_um):
         pinned = any_rows(unknown)
@@ -135,21 +135,28 @@ class Planner:
         return pinned
 
     def _sd_um(self, q, ctx, unknown, outside, datum=None):
-        """(n,) the standard error of each block's correction (um), NaN for blocks that are not
-        corrected anyway (an unknown axis, outside the support) and when no limit is asked."""
+        """((n,) the standard error of each block's correction (um), NaN for blocks that are not
+        corrected anyway (an unknown axis, outside the support) and when no limit is asked; (n, w)
+        what the correction assumes at zero there (:meth:`Evaluator.correction_sd_assumed`), or None
+        when the model assumes nothing)."""
         sd = np.full(q.shape[0], np.nan)
-        if not self.options.max_correction_sd_um or not self.ev.has_uncertainty:
-            return sd
+        assumed = self.ev.assumed
+        out = None if assumed is None else np.zeros((q.shape[0], assumed.width))
+        limit = bool(self.options.max_correction_sd_um)
+        if not (limit or assumed) or not self.ev.has_uncertainty:
+            return sd, out
         todo = ~any_rows(unknown)
         todo &= ~self.ram.whole_outside(outside)
         if todo.any():
             qt, ct = q[todo], ctx[todo]
-            if datum is None:
-                parts = split_rows(self.ev.correction_sd_um, qt.shape[0], self._split, qt, ct)
-            else:
-                parts = split_rows(self.ev.correction_sd_um, qt.shape[0], self._split, qt, ct, datum[todo])
-            sd[todo] = np.concatenate(parts)
-        return sd
+            args = (qt, ct) if datum is None else (qt, ct, datum[todo])
+            parts = split_rows(lambda *a: self.ev.correction_sd_assumed(*a, sd=limit),
+                               qt.shape[0], self._split, *args)
+            both = np.concatenate(parts)
+            sd[todo] = both[:, 0]
+            if out is not None:
+                out[todo] = both[:, 1:]
+        return sd, out
 
     def _solve_free(self, q, ctx, reference) -> Linearization:
         parts = split_rows(self._solve_free_part, q.shape[0], self._split, q, ctx, reference)
@@ -195,11 +202,11 @@ class Planner:
         outside = self.outside_support(q, ~unknown)
         ctx = self._context(feed, dirs, n)
         datum = None if datum is None else np.broadcast_to(np.asarray(datum, dtype=float), q.shape)
-        sd = self._sd_um(q, ctx, unknown, outside, datum)
+        sd, assumed = self._sd_um(q, ctx, unknown, outside, datum)
         links = self.links.arrays(q, dirs, None if self._last_end is None else self._last_end[0])
         nodes = NodeSet(q, ctx, exempt, line, np.zeros(n, bool), rapid, unknown, outside,
                         self._pinned(unknown, outside, sd), sd, np.zeros(n, bool), np.zeros(n, bool),
-                        *(links or ()))
+                        *(links or (None, None, None)), assumed=assumed)
         lin = self._solve_free(nodes.q, nodes.context, self._reference(datum, ctx))
         nodes, lin = self.gate.feed(nodes, lin, final=True)     # the arrays are whole contours
         if n:
@@ -228,7 +235,7 @@ class Planner:
             self._after_cycle = bool(cycle[-1])
         unknown = ~known
         outside = self.outside_support(end, known, chunk.tool_length)
-        sd = self._sd_um(end, ctx, unknown, outside, chunk.datum)
+        sd, assumed = self._sd_um(end, ctx, unknown, outside, chunk.datum)
         pinned = self._pinned(unknown, outside, sd)
         self.ram.note(end, outside, pinned, chunk.tool_length, ~any_rows(unknown))
         ref = self._reference(chunk.datum, ctx)
@@ -251,7 +258,7 @@ class Planner:
             links = self.links.chunk(chunk, end, np.arange(nrows), np.ones(nrows, bool), first, cycle)
             nodes = NodeSet(end, ctx, exempt, np.asarray(chunk.line), np.zeros(nrows, bool), rapid,
                             unknown, outside, pinned, sd, cut_start, np.zeros(nrows, bool),
-                            *(links or ()))
+                            *(links or (None, None, None)), assumed=assumed)
             return nodes, lin_end, counts
         rows_i, t_i, q_i, lin_i = inner
         np.add.at(counts, rows_i, 1)
@@ -276,7 +283,8 @@ class Planner:
                         ins_all, rapid[row_sorted], unknown[row_sorted],
                         placed(outside, out_i, pos_end, pos_i),
                         placed(pinned, pin_i, pos_end, pos_i), sd[row_sorted], cut_all,
-                        np.zeros(row_sorted.size, bool), *(links or ()))
+                        np.zeros(row_sorted.size, bool), *(links or (None, None, None)),
+                        assumed=None if assumed is None else assumed[row_sorted])
         lin = Linearization(*(placed(getattr(lin_end, f), getattr(lin_i, f), pos_end, pos_i)
                               for f in Linearization.FIELDS))
         return nodes, lin, counts
@@ -408,7 +416,7 @@ class Planner:
                           after[:, 3:6] if five else None, flags, lin.iterations, lin.converged,
                           nodes.unknown, nodes.outside, nodes.pinned, nodes.sd_um, nodes.gated,
                           held, undirected=undirected_axes(nodes),
-                          standing=standing_axes(nodes))
+                          standing=standing_axes(nodes), assumed=nodes.assumed)
 
     def _tick(self):
         cb = self.options.progress

@@ -43,6 +43,7 @@ from ._small import any_rows, any_rows_but, row_max, row_norm
 from ._qp import NEVER_WORSE_TOL
 from .problem import unsure_advice
 from ._result import PlanResult
+from ._assumed import AssumedTally
 
 #: a block counts as made worse when its deviation along an axis grows by more than this (um): the
 #: planner's never-worse rows allow NEVER_WORSE_TOL (half the output grid), rounding as much again
@@ -51,7 +52,9 @@ WORSE_TOL_UM = 2 * NEVER_WORSE_TOL
 _NOT_STANDING = np.array([kind != "standing" for kind in FLAG_KINDS])
 
 
-def report_columns(axis_names, five_axis: bool) -> list[str]:
+def report_columns(axis_names, five_axis: bool, assumed: bool = False) -> list[str]:
+    """BLOCKS.csv's columns (``assumed``: the model holds something at zero, :mod:`._assumed`,
+    and the last column says how far it acts on each block)."""
     cols = ["line", "inserted", "rapid"]
     cols += [f"{a.lower()}_deg" if a in "ABC" else f"{a.lower()}_mm" for a in axis_names]
     cols += [f"c{a.lower()}_urad" if a in "ABC" else f"c{a.lower()}_um" for a in axis_names]
@@ -61,7 +64,18 @@ def report_columns(axis_names, five_axis: bool) -> list[str]:
             cols += [f"ei_{when}_urad", f"ej_{when}_urad", f"ek_{when}_urad", f"e_axis_{when}_urad"]
     cols += ["active_bounds", "unknown_axes", "outside_support", "corrected", "correction_sd_um",
              "uncertain"]
-    return cols
+    return cols + (["assumed_arm_mm"] if assumed else [])
+
+
+def _assumed_arm_mm(result: PlanResult) -> np.ndarray | None:
+    """(n,) BLOCKS.csv's ``assumed_arm_mm``: the largest distance over which what the model holds at
+    zero acts on the block's correction (its arm, its distance from where the data held an axis
+    they never moved), NaN (blank) where nothing acts; None when the model assumes nothing."""
+    a = result.assumed
+    if a is None:
+        return None
+    arm = a[:, 1:].max(axis=1) if a.shape[1] > 1 else np.zeros(a.shape[0])
+    return np.where(a[:, 0] != 0, arm, np.nan)
 
 
 def _numeric_columns(result: PlanResult, axis_names) -> tuple[list, list, np.ndarray]:
@@ -104,9 +118,12 @@ def report_rows(result: PlanResult, axis_names, max_correction_sd_um: float | No
     outside = _axis_letters(result.outside, axis_names)
     sd = ["" if not np.isfinite(v) else f"{v:.4f}" for v in result.sd_um.tolist()]
     uncertain = _uncertain(result, max_correction_sd_um).astype(int).tolist()
-    fmt = ",".join(fmts) + ",%s,%s,%s,%d,%s,%d\n"
+    arm = _assumed_arm_mm(result)
+    extra = [] if arm is None else [["" if not np.isfinite(v) else f"{v:.1f}" for v in arm.tolist()]]
+    fmt = ",".join(fmts) + ",%s,%s,%s,%d,%s,%d" + ",%s" * len(extra) + "\n"
     lines = [fmt % row for row in zip(*[c.tolist() for c in cols], bounds, unknown, outside,
-                                        result.corrected_blocks().astype(int).tolist(), sd, uncertain)]
+                                        result.corrected_blocks().astype(int).tolist(), sd, uncertain,
+                                        *extra)]
     for i in np.flatnonzero(blank):
         lines[i] = ",".join("" if f == "nan" else f for f in lines[i][:-1].split(",")) + "\n"
     return lines
@@ -128,6 +145,11 @@ def report_table(result: PlanResult, axis_names, max_correction_sd_um: float | N
     decimals = [0 if f == "%d" else int(f[2]) for f in fmts] + [-1, -1, -1, 0, 4, 0]
     blank = np.zeros(len(cols), bool)
     blank[-2] = True
+    arm = _assumed_arm_mm(result)
+    if arm is not None:
+        cols.append(arm)
+        decimals.append(1)
+        blank = np.append(blank, True)
     return np.column_stack(cols), np.array(decimals), blank, special
 
 
@@ -232,6 +254,9 @@ class Summary:
     standing_blocks: int = 0
     standing_line: int = 0
     standing_axis_urad: float = 0.0
+    #: what the corrected blocks assume at zero (:class:`._assumed.AssumedTally`; None: the model
+    #: assumes nothing)
+    assumed: AssumedTally | None = None
 
     def add(self, r: PlanResult):
         n = len(r)
@@ -304,6 +329,8 @@ class Summary:
             self.corrected_max_after_um = max(self.corrected_max_after_um, float(ea.max()))
             self.corrected_sum_sq_before += float(np.sum(eb ** 2))
             self.corrected_sum_sq_after += float(np.sum(ea ** 2))
+            if self.assumed is not None and r.assumed is not None:
+                self.assumed.add(r.assumed[done], r.line[done])
         if r.before_axis is not None:
             ab = float(np.sqrt(np.sum(r.before_axis ** 2, axis=1)).max()) * 1e6
             aa = float(np.sqrt(np.sum(r.after_axis ** 2, axis=1)).max()) * 1e6
@@ -443,7 +470,16 @@ class Summary:
         if self.max_axis_before_urad is not None:
             out["max_axis_before_urad"] = self.max_axis_before_urad
             out["max_axis_after_urad"] = self.max_axis_after_urad
+        assumed = self.assumed.as_dict() if self.assumed is not None else None
+        if assumed is not None:
+            out["assumed_zero"] = assumed
         return out
+
+    @property
+    def _on_assumptions(self) -> str:
+        """What the figures after rest on, when a held component acts on a corrected block."""
+        return (" (the model's, assuming zero where the note below says)"
+                if self.assumed is not None and self.assumed.blocks else "")
 
     def text(self) -> str:
         def blocks(k: int) -> str:
@@ -453,7 +489,8 @@ class Summary:
             lines += [f"predicted tool-tip deviation before: max {self.max_before_um:.3f} um, "
                       f"rms {self.rms_before_um:.3f} um",
                       f"predicted tool-tip deviation after:  max {self.max_after_um:.3f} um "
-                      f"(line {self.worst_line}), rms {self.rms_after_um:.3f} um"]
+                      f"(line {self.worst_line}), rms {self.rms_after_um:.3f} um"
+                      + self._on_assumptions]
         else:       # no figure rather than a 0.000 that reads as a perfect machine
             lines.append("predicted tool-tip deviation: not evaluated (no block has every axis "
                          "position given)")
@@ -465,7 +502,8 @@ class Summary:
             c = self.as_dict()["corrected"]
             lines.append(f"over the {blocks(c['blocks'])} corrected: before max "
                          f"{c['max_before_um']:.3f} um, rms {c['rms_before_um']:.3f} um; after max "
-                         f"{c['max_after_um']:.3f} um, rms {c['rms_after_um']:.3f} um")
+                         f"{c['max_after_um']:.3f} um, rms {c['rms_after_um']:.3f} um"
+                         + self._on_assumptions)
         if self.max_axis_before_urad is not None:
             lines.append(f"predicted tool-axis deviation: max {self.max_axis_before_urad:.3f} urad "
                          f"before, {self.max_axis_after_urad:.3f} urad after")
@@ -495,6 +533,8 @@ class Summary:
             lines.append("note: the model carries no covariance (identify, diagnose and a thermal "
                          "diagnosis write one; an older model file may not): no block's correction "
                          "could be checked against --max-correction-sd-um")
+        if self.assumed is not None and self.assumed.blocks:
+            lines.append(self.assumed.text(self.corrected_blocks))
         if not self.support_known:
             lines.append("note: the model does not state the region its data reached; every "
                          "block was corrected as if inside it")
