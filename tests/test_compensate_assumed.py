@@ -95,3 +95,30 @@ def test_predict_names_the_same(campaign, capsys, tmp_path):
     err = capsys.readouterr().err
     assert "the predictions assume zero for Y's errors (never measured: the data held Y at 0 mm)" in err
     assert "X's angular motions" in err
+
+
+def test_a_combination_of_straightness_profiles_gets_no_arm(tmp_path, capsys):
+    """Positioning of X read at three targets only, on the laser's line: X's straightness profiles
+    (no laser file names them) are held at zero, and the combinations the data leave open are
+    mostly spline directions of those profiles with a trace of an angle. The arm is the motion the
+    angles make per unit of angle: on the laser's line (Y = 0, Z = 0) it is 0, by hand (it was
+    45667 mm when the whole combination's motion was divided by its trace of an angle)."""
+    import numpy as np
+    from truth import TruthMachine
+    from truth import campaigns as tc
+    from truth import profiles as P
+    truth = TruthMachine.zero("xfyz")
+    truth.components["X"]["EXX"] = P.Linear(0.0, 20e-6)
+    laser = tc.laser(truth, tmp_path / "laser_x.csv", np.random.default_rng(7), "X",
+                     components=["EXX"], n_targets=3, n_runs=1,
+                     static={"Y": 0.0, "Z": 0.0}, noise_um=0.1).path
+    model = tmp_path / "model.json"
+    assert main(["identify", "xfyz", str(laser), "-o", str(model)]) == 0
+    prog = tmp_path / "prog.nc"
+    prog.write_text("G21 G90 G17\nG54\nG0 X-150. Y0. Z0.\nG1 X-60. F500\nG1 X40.\nG1 X150.\nM30\n")
+    text, rows, summary = _compensate(tmp_path, model, prog, capsys, "--max-correction-sd-um", "0")
+    arms = [float(r["assumed_arm_mm"]) for r in rows if r.get("assumed_arm_mm")]
+    assert all(a < 1.0 for a in arms), arms
+    a = summary.get("assumed_zero")
+    assert a is None or a["largest_arm_mm"] < 1.0
+    assert "arms up to" not in text

@@ -16,8 +16,9 @@ A held component acts on a block when a combination of the machine's errors the 
 (MODEL.json ``uncertainty.undetermined``, each at the size that makes 1 um rms error over the
 region) moves the block's correction, as compensate writes it (relative to the part's datum), by
 more than :data:`~mtcomp.models.model_file.UNDETERMINED_UM` and its part of that combination does
-too (predict's rule for a blank standard error). Its arm at the block is that motion per unit of
-the largest angle (an angular motion, a squareness, a tilt of the tool axis) in the combination:
+too (predict's rule for a blank standard error). Its arm at the block is the motion the
+combination's angles (angular motions, a squareness, a tilt of the tool axis) make there, per unit of
+the largest of them:
 0 at the data's own positions, the height above the laser's line elsewhere. An axis never moved
 acts where the block stands away from its held position, over that distance; the held angular
 motions of the other axes act over it too (the model, evaluated at the held position, cannot).
@@ -80,6 +81,9 @@ class Assumed:
         angle = np.array([s.unit == "urad" for s in specs], dtype=bool)
         # the largest angle (rad) of each combination: its arm is its motion per unit of that
         self._theta = np.abs(N[angle]).max(axis=0) if angle.any() and N.shape[1] else np.zeros(N.shape[1])
+        # the angles' own rows: the arm is the motion *they* make (a combination of straightness
+        # profiles with a trace of an angle would otherwise get an arm of kilometres)
+        self._angle_rows = np.flatnonzero(angle)
         # per never-moved axis the held angular motions with an arm along it (not those about it)
         self._angular = [sum(1 << (len(self.never) + b) for b, g in enumerate(self.groups)
                              if g in self.angular and g[3] != _ABOUT.get(name))
@@ -136,7 +140,10 @@ class Assumed:
                 if ks.size:
                     hit = self._part_over(J[:, :, self._idx[cols]], cols, ks, top, keep, some, tol)
                     mask |= hit.astype(np.int64) << (len(self.never) + b)
-            ratio = np.divide(tot, self._theta, out=np.zeros_like(tot), where=self._theta > 0)
+            rows = self._angle_rows
+            turned = (np.abs(J[:, :, self._idx[rows]] @ self._N[rows]).max(axis=1) if rows.size
+                      else np.zeros_like(tot))                                   # (n, k) mm
+            ratio = np.divide(turned, self._theta, out=np.zeros_like(tot), where=self._theta > 0)
             out[:, 1] = np.where(moved, ratio, 0.0).max(axis=1)
         for k, (_, j, pos) in enumerate(self.never):
             if pos is None:
