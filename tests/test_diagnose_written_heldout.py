@@ -47,9 +47,10 @@ def test_the_files_the_written_model_fits_worse_are_named_with_both_figures():
                          file=np.array([0, 0, 0, 1, 1]), unit=np.array(["um", "um", "um", "um/min", "um/min"]))
     resid = np.array([0.8, -0.9, 0.85, 1.0, -1.0])
     lsq = np.array([0.3, -0.3, 0.3, 1.0, -0.9])
-    by = _by_file(st, resid, lsq)
+    by = _by_file(st, resid, lsq, 1.3)
     assert by["laser_X"] == {"unit": "um", "rms": pytest.approx(np.sqrt((0.64 + 0.81 + 0.7225) / 3), abs=1e-4),
-                             "rms_least_squares": 0.3}
+                             "rms_least_squares": 0.3, "worse": True}
+    assert by["velocity_X"]["worse"] is False
     assert by["velocity_X"]["rms"] == 1.0 and by["velocity_X"]["rms_least_squares"] == pytest.approx(
         np.sqrt((1.0 + 0.81) / 2), abs=1e-4)
     text = worse_files({"by_file": by, "heldout_rms_um": 0.7352})

@@ -171,23 +171,25 @@ def open_fit(st, model, start: np.ndarray, noise: np.ndarray, lsq: tuple, n_weak
     resid = (result.residual * per_reading)[order]      # reading less prediction, stack order
     done = OpenFit(result, n_weak, sse, sse_lsq, float(sd), float(sd_lsq),
                    float(np.sqrt(np.mean(resid[um] ** 2))) if um.any() else None,
-                   worse=not sd <= excess_ratio * sd_lsq, by_file=_by_file(st, resid, resid_lsq))
+                   worse=not sd <= excess_ratio * sd_lsq,
+                   by_file=_by_file(st, resid, resid_lsq, excess_ratio))
     if done.worse and um.any():
         done.heldout_rms_um = _heldout_rms_um(fit, per_reading, order, folds, um)
     return done
 
 
-def _by_file(st, resid: np.ndarray, resid_lsq: np.ndarray) -> dict:
+def _by_file(st, resid: np.ndarray, resid_lsq: np.ndarray, excess_ratio: float) -> dict:
     """Per file and unit: the rms residual of the model written and of the least squares (stack
-    order, file units)."""
+    order, file units), and whether the first exceeds the second by more than ``excess_ratio``."""
     from ..identification.problem import unique_tags
     out = {}
     for fi, tag in enumerate(unique_tags(st.datasets)):
         for u in np.unique(st.unit[st.file == fi]):
             sel = (st.file == fi) & (st.unit == u)
+            rms, rms_lsq = (float(np.sqrt(np.mean(r[sel] ** 2))) for r in (resid, resid_lsq))
             out[f"{tag}" if len(np.unique(st.unit[st.file == fi])) == 1 else f"{tag} ({u})"] = {
-                "unit": str(u), "rms": round(float(np.sqrt(np.mean(resid[sel] ** 2))), 4),
-                "rms_least_squares": round(float(np.sqrt(np.mean(resid_lsq[sel] ** 2))), 4)}
+                "unit": str(u), "rms": round(rms, 4), "rms_least_squares": round(rms_lsq, 4),
+                "worse": bool(rms > excess_ratio * rms_lsq)}
     return out
 
 
@@ -247,12 +249,10 @@ def written_model(st, design, fit, fitted, where: tuple, start: dict, say, floor
 
 def worse_files(written: dict) -> str:
     """'; <file> <rms> against <rms of the least squares> <unit>, ...' for the files the model written
-    (REPORT.json's ``final.written``) fits more than the excess ratio worse than the least squares,
-    and its held-out rms beside the least squares' when it was measured; '' when none."""
-    from ._diagnose import EXCESS_RATIO
+    (REPORT.json's ``final.written``) fits more than the excess ratio worse than the least squares
+    (their ``worse``), and its held-out rms when it was measured; '' when neither."""
     out = [f"{name} {v['rms']:.3g} against {v['rms_least_squares']:.3g} {v['unit']}"
-           for name, v in (written.get("by_file") or {}).items()
-           if v["rms"] > EXCESS_RATIO * v["rms_least_squares"]]
+           for name, v in (written.get("by_file") or {}).items() if v["worse"]]
     text = f"; {', '.join(out)}" if out else ""
     if written.get("heldout_rms_um") is not None:
         text += f"; held-out {written['heldout_rms_um']:.4g} um"
