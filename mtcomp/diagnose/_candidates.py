@@ -198,9 +198,16 @@ def _abbe_candidates(st, a: str) -> list[Candidate]:
 
 
 def without_params(c: Candidate, names) -> Candidate:
-    """``c`` without the accompanying feed offsets ``names`` (``FOFF_<d>`` of an Abbe candidate):
-    their columns and their FeedOffset terms go, the cause's own parameters stay."""
+    """``c`` without the accompanying parameters ``names``: the feed offsets (``FOFF_<d>``) of an
+    Abbe candidate (their columns and their FeedOffset terms go, the cause's own parameters stay), or
+    the directions and channels (``TD_<d>_<feature>``) of a drift (:func:`_drift_candidate`)."""
     keep = [i for i, n in enumerate(c.params) if n not in names]
+    if c.effect == "thermal_drift":
+        only = {d for d in _drift_names(c) if any(c.params[i].startswith(f"TD_{d}_") for i in keep)}
+        out = _drift_candidate(None, c.info["driver"], c.variant, c.info["features"], c.info, only,
+                               (c.columns[:, keep], [c.params[i] for i in keep]))
+        out.veto = c.veto
+        return out
     gone = {n[len("FOFF_"):] for n in names}
     terms = [t for t in c.terms if not (isinstance(t, FeedOffset) and t.axis in gone)]
 
@@ -387,13 +394,14 @@ def _pdge_candidates(st, a: str) -> list[Candidate]:
 
 
 # ------------------------------------------------------------------------------------ thermal
-def _drift_columns(st, feature_names):
-    """Columns and parameter names of tip drift (X, Y, Z) and channel drift for the features."""
+def _drift_columns(st, feature_names, only=None):
+    """Columns and parameter names of tip drift (X, Y, Z) and channel drift for the features (of the
+    directions and channels in ``only``, when given)."""
     cols, params, dirs, chans = [], [], [], []
     for d in "XYZ":
-        if np.any(st.h[d]):
+        if np.any(st.h[d]) and (only is None or d in only):
             dirs.append(d)
-    chans = [c for c, v in st.hc.items() if np.any(v)]
+    chans = [c for c, v in st.hc.items() if np.any(v) and (only is None or c in only)]
     for f in feature_names:
         v = st.feature(f)
         # a direction or channel none of whose readings has the feature (e.g. laser files without
@@ -415,13 +423,32 @@ def _drift_terms(driver, feature_names, dirs, chans):
     return terms
 
 
-def _drift_candidate(st, driver, variant, names, info=None):
-    cols, params, dirs, chans = _drift_columns(st, names)
+def _drift_names(c: Candidate) -> list:
+    """The directions (X, Y, Z) and channels a drift candidate's terms act along."""
+    out = []
+    for t in c.terms:
+        out += list(t.channels) if isinstance(t, ChannelDrift) else list(t.directions)
+    return out
+
+
+def _drift_candidate(st, driver, variant, names, info=None, only=None, made=None):
+    """A drift of ``driver`` on the features ``names``, along every direction and channel the data
+    read (or those in ``only``); ``made``: its (columns, parameter names) when already built."""
+    if made is None:
+        cols, params, dirs, chans = _drift_columns(st, names, only)
+    else:
+        cols, params = made
+        dirs = [d for d in "XYZ" if d in only]
+        chans = sorted(only - set("XYZ"))
     if cols.shape[1] == 0:
         return None
+
+    def build(s):
+        c, p, *_ = _drift_columns(s, names, only)
+        return c[:, [p.index(n) for n in params]]
     return Candidate("thermal_drift", "", variant, cols, _drift_terms(driver, names, dirs, chans), params,
-                     rivals="thermal", info={"driver": driver, "features": list(names), **(info or {})},
-                     build=lambda s: _drift_columns(s, names)[0])
+                     rivals="thermal", info={**(info or {}), "driver": driver, "features": list(names)},
+                     build=build)
 
 
 def spindle_heat_name(tau_s: float) -> str:

@@ -482,12 +482,11 @@ def _score_candidates(st, design, sel: _Selection, n: int) -> list:
              if not ({t.key() for t in c.terms} & used_terms)
              and not (drift_chosen and c.effect == "thermal_drift")
              and (c.effect, c.axis) not in sel.undecided]
-    _forward_in_time(st, design, sel.extra, cands)
     scored = []
     for c in cands:
         fit = design.fit(np.hstack([sel.extra, c.columns]))
         dk = fit.rank - current.rank
-        if dk < c.columns.shape[1]:
+        if dk < c.columns.shape[1] or (c.effect == "thermal_drift" and c.columns.shape[1] > 1):
             c, fit = _drop_undetermined_offsets(design, sel.extra, current, c, fit)
             dk = fit.rank - current.rank
         gain = current.cv_sse - fit.cv_sse
@@ -496,9 +495,13 @@ def _score_candidates(st, design, sel: _Selection, n: int) -> list:
         excess = max(current.cv_sse - n, 0.0)
         ok = (dk >= 1 and gain > cv_threshold(dk) + pen and dbic < -BIC_MARGIN - pen
               and gain >= MIN_EXCESS_SHARE * excess)
+        scored.append((c, fit, dk, gain, dbic, ok))
+    # a drift is judged forward in time as it would be chosen (its parts the data do not ask for
+    # dropped), and only when it passes the other tests
+    _forward_in_time(st, design, sel.extra, [s[0] for s in scored if s[5] and s[0].veto is None])
+    for c, fit, dk, gain, dbic, ok in scored:
         if ok and c.veto is None:
             c.veto = refusal(st, c, fit.theta[-c.columns.shape[1]:], dk)
-        scored.append((c, fit, dk, gain, dbic, ok))
     return scored
 
 

@@ -68,6 +68,8 @@ class OpenFit:
     sd_lsq: float = float("nan")
     rms_um: float | None = None
     worse: bool = False
+    by_file: dict | None = None
+    heldout_rms_um: float | None = None
 
     def report(self) -> dict:
         """REPORT.json's ``final.written`` (docs/diagnose.md)."""
@@ -80,6 +82,10 @@ class OpenFit:
                "converged": bool(r.converged), "fits_worse": bool(self.worse)}
         if r.smoothing is not None:
             out["penalty_weights"] = {k: float(v) for k, v in r.smoothing.weights.items()}
+        if self.by_file:
+            out["by_file"] = self.by_file
+        if self.heldout_rms_um is not None:
+            out["heldout_rms_um"] = round(self.heldout_rms_um, 4)
         return out
 
 
@@ -150,20 +156,61 @@ def open_fit(st, model, start: np.ndarray, noise: np.ndarray, lsq: tuple, n_weak
     per_reading = np.empty(n_obs)
     per_reading[order] = noise
     base = np.array([s.base for s in model.param_specs], dtype=bool)
-    problem = FitProblem(model, mms, np.ones(model.n_params, dtype=bool), start, weights=per_reading,
-                         penalty=True, hold_weak=True, rank_point=np.where(base, start, 0.0),
-                         known_noise=repeats)
-    result = solve(problem, SolverOptions(rcond=RCOND))
+
+    def fit(sd_of_reading):
+        problem = FitProblem(model, mms, np.ones(model.n_params, dtype=bool), start,
+                             weights=sd_of_reading, penalty=True, hold_weak=True,
+                             rank_point=np.where(base, start, 0.0), known_noise=repeats)
+        return solve(problem, SolverOptions(rcond=RCOND))
+    result = fit(per_reading)
     sse = float(result.residual @ result.residual)
-    sse_lsq, rank = lsq
+    sse_lsq, rank, resid_lsq, folds = lsq
     sd = np.sqrt(sse / max(float(result.dof), 1.0))
     sd_lsq = np.sqrt(sse_lsq / max(n_obs - float(rank), 1.0))
-    um = np.zeros(n_obs, dtype=bool)
-    um[order] = st.unit == "um"
-    resid = result.residual * per_reading               # reading less prediction, um or urad
-    return OpenFit(result, n_weak, sse, sse_lsq, float(sd), float(sd_lsq),
+    um = st.unit == "um"
+    resid = (result.residual * per_reading)[order]      # reading less prediction, stack order
+    done = OpenFit(result, n_weak, sse, sse_lsq, float(sd), float(sd_lsq),
                    float(np.sqrt(np.mean(resid[um] ** 2))) if um.any() else None,
-                   worse=not sd <= excess_ratio * sd_lsq)
+                   worse=not sd <= excess_ratio * sd_lsq,
+                   by_file=_by_file(st, resid, resid_lsq, excess_ratio))
+    if done.worse and um.any():
+        done.heldout_rms_um = _heldout_rms_um(fit, per_reading, order, folds, um)
+    return done
+
+
+def _by_file(st, resid: np.ndarray, resid_lsq: np.ndarray, excess_ratio: float) -> dict:
+    """Per file and unit: the rms residual of the model written and of the least squares (stack
+    order, file units), and whether the first exceeds the second by more than ``excess_ratio``."""
+    from ..identification.problem import unique_tags
+    out = {}
+    for fi, tag in enumerate(unique_tags(st.datasets)):
+        for u in np.unique(st.unit[st.file == fi]):
+            sel = (st.file == fi) & (st.unit == u)
+            rms, rms_lsq = (float(np.sqrt(np.mean(r[sel] ** 2))) for r in (resid, resid_lsq))
+            out[f"{tag}" if len(np.unique(st.unit[st.file == fi])) == 1 else f"{tag} ({u})"] = {
+                "unit": str(u), "rms": round(rms, 4), "rms_least_squares": round(rms_lsq, 4),
+                "worse": bool(rms > excess_ratio * rms_lsq)}
+    return out
+
+
+#: standard deviation (file units) that leaves a held-out reading out of identify's fit
+LEFT_OUT_SD = 1e9
+
+
+def _heldout_rms_um(fit, per_reading: np.ndarray, order: np.ndarray, folds: np.ndarray,
+                    um: np.ndarray) -> float:
+    """Held-out rms (um) of the model written: identify's fit (``fit``: noise floors per reading ->
+    its result) once per fold of the diagnosis's held-out evaluation, the fold's readings left out
+    (their standard deviation ``LEFT_OUT_SD``), each reading predicted by the fit without its fold.
+    Costs one fit per fold: made only when the model written fits clearly worse than the least
+    squares, whose held-out figures then do not describe it."""
+    cv = np.full(order.size, np.nan)
+    for k in np.unique(folds):
+        out = np.flatnonzero(folds == k)                 # stack order
+        sd = per_reading.copy()
+        sd[order[out]] = LEFT_OUT_SD
+        cv[out] = (fit(sd).residual * sd)[order[out]]
+    return float(np.sqrt(np.nanmean(cv[um] ** 2)))
 
 
 def written_model(st, design, fit, fitted, where: tuple, start: dict, say, floor: tuple) -> tuple:
@@ -179,13 +226,15 @@ def written_model(st, design, fit, fitted, where: tuple, start: dict, say, floor
     model = fitted.model
     p0 = np.array([start.get(n, 0.0) if s.base else v
                    for n, s, v in zip(model.param_names, model.param_specs, fitted.params.values)])
-    done = open_fit(st, model, p0, 1.0 / design.w, (fit.sse, fit.rank), sd.size, *floor)
+    done = open_fit(st, model, p0, 1.0 / design.w, (fit.sse, fit.rank, fit.resid, design.folds),
+                    sd.size, *floor)
     r = done.result
     weakest = (f"the data fix {sd.size} combination(s) of the least squares only weakly, to "
                f"{sd.max():.3g} um of tool-tip error at worst; " if sd.size else "")
     caveat = "".join(
         [f"; it fits the data clearly worse than the least squares (residual {done.sd:.3g} against "
-         f"{done.sd_lsq:.3g} noise floors): structure the model lacks" if done.worse else "",
+         f"{done.sd_lsq:.3g} noise floors{worse_files(done.report())}): structure the model lacks"
+         if done.worse else "",
          "; Gauss-Newton did not converge within its iterations" if not r.converged else ""])
     say(f"model written: identify's penalised fit of the final model ({weakest}"
         f"{len(r.held_sd_um)} held at the least error{caveat})")
@@ -196,6 +245,18 @@ def written_model(st, design, fit, fitted, where: tuple, start: dict, say, floor
     largest = round(float(sd.max()), 4) if sd.size else 0.0
     return (replace(fitted, params=params, info=info, uncertainty=uncertainty),
             {**done.report(), "largest_sd_um": largest})
+
+
+def worse_files(written: dict) -> str:
+    """'; <file> <rms> against <rms of the least squares> <unit>, ...' for the files the model written
+    (REPORT.json's ``final.written``) fits more than the excess ratio worse than the least squares
+    (their ``worse``), and its held-out rms when it was measured; '' when neither."""
+    out = [f"{name} {v['rms']:.3g} against {v['rms_least_squares']:.3g} {v['unit']}"
+           for name, v in (written.get("by_file") or {}).items() if v["worse"]]
+    text = f"; {', '.join(out)}" if out else ""
+    if written.get("heldout_rms_um") is not None:
+        text += f"; held-out {written['heldout_rms_um']:.4g} um"
+    return text
 
 
 def seen_through_factor(lsq, penalised, s2: float) -> tuple:

@@ -301,14 +301,19 @@ def summary(diag, details=()) -> str:
     if written:
         weak = (f"its data fix {written['weak']} combination(s) of the least squares only weakly, to "
                 f"{written['largest_sd_um']:.3g} um of tool-tip error at worst; " if written["weak"] else "")
+        from ._open import worse_files
         worse = (f"; it fits the data clearly worse than the least squares (residual "
                  f"{_num(written.get('residual_sd'))} against {_num(written.get('residual_sd_least_squares'))}"
-                 " noise floors): structure the model lacks" if written.get("fits_worse") else "")
+                 f" noise floors{worse_files(written)}): structure the model lacks" if written.get("fits_worse")
+                 else "")
         worse += "; Gauss-Newton did not converge within its iterations" if written.get("converged") is False else ""
+        held = (f", held-out {_num(written['heldout_rms_um'])} um" if written.get("heldout_rms_um") is not None
+                else "")
         lines.append(f"model written: the final model fitted as identify fits it ({weak}its profiles follow "
                      f"the smoothest curve where the data are silent, {written['held']} combination(s) the "
                      f"smoothness does not fix either are held where they predict the least error{worse}); "
-                     f"rms {_num(written.get('rms_um'))} um (the figures above are the least squares')")
+                     f"rms {_num(written.get('rms_um'))} um{held} (the figures above are the least squares'"
+                     + (", which the model written does not reach)" if written.get("fits_worse") else ")"))
     ref = diag.reference.get("linear_regression_all_temperatures")
     if ref:
         lines.append(f"reference: plain linear regression on all {len(ref['temperatures'])} temperatures "

@@ -27,53 +27,87 @@ MIN_EXCESS_SHARE = 0.05
 def _forward_in_time(st, design, extra, cands) -> None:
     """A drift (in time, temperature or spindle history) must predict later readings from earlier
     ones: the model with each thermal_drift candidate and the model without it are fitted on the
-    past and scored on the future (forward-chained blocks in time, :func:`mtcomp.diagnose._analysis.forward_folds`);
-    a candidate that does not lower the future's weighted sum of squares by more than noise could
-    gets a veto saying so.
+    past and scored on the future; a candidate that does not lower the future's weighted sum of
+    squares by more than noise could gets a veto saying so.
+
+    The future is cut file by file: each file that carries the drift's readings (its columns are not
+    zero there) is cut into forward-chained blocks of its own readings in time
+    (:func:`mtcomp.diagnose._analysis.forward_folds`), and each block is predicted from every reading
+    of the campaign taken before the block begins (:func:`_forward_cuts`). Cut over the whole
+    campaign instead, a file read first (a warm-up laser run of Z before the other files) fell whole
+    into the first block, which is only ever fitted: the drift was scored only on the later files,
+    where it had settled, and refused.
 
     Only future readings that repeat a past one are scored (same series, same row of the model's
     columns: same axis positions, optic arm, tool, balls): there the past has fixed the geometry and
-    the file's set-up, and what the future
-    adds is the change in time, which is the drift's to predict. A reading at a position or of a
-    file the past has not seen would be predicted by extrapolating the geometry, with or without a
-    drift (a laser run of X cannot predict a later run of Y)."""
-    from ._analysis import N_FOLDS, forward_folds
+    the file's set-up, and what the future adds is the change in time, which is the drift's to
+    predict. A reading at a position or of a file the past has not seen would be predicted by
+    extrapolating the geometry, with or without a drift (a laser run of X cannot predict a later run
+    of Y)."""
     drift = [c for c in cands if c.effect == "thermal_drift"]
-    timed = np.flatnonzero(np.isfinite(st.t))
-    if not drift or timed.size < 2 * (N_FOLDS + 1) or np.ptp(st.t[timed]) <= 0:
+    if not drift:
         return
-    order = timed[np.argsort(st.t[timed], kind="stable")]
     Bw = np.hstack([design.Aw, extra * design.w[:, None]])
-    # a repeat: the same series and the same row of the model's columns (same axis positions, optic
-    # arm, tool, ball positions, approach directions ...), to 1e-6 of each column's largest entry
+    carried = np.zeros(Bw.shape[0], dtype=bool)
+    for c in drift:
+        carried |= np.any(c.columns != 0, axis=1)
+    cuts = _forward_cuts(st, Bw, carried)
+    if not cuts:
+        return
+    without = _forward_sse(Bw, design.zw, cuts)
+    for c in drift:
+        with_c = _forward_sse(np.hstack([Bw, c.columns * design.w[:, None]]), design.zw, cuts)
+        if not without - with_c > cv_threshold(c.columns.shape[1]):
+            c.veto = (f"predicted forward in time (fitted on earlier readings, scored on later ones "
+                      f"that repeat them) it does not beat the model without it (weighted sum of "
+                      f"squares {with_c:.4g} against {without:.4g})")
+
+
+def _forward_cuts(st, Bw, carried) -> list:
+    """[(order, n_past, scored)]: the timed readings in time order, and per cut the number of them
+    in the past and the readings scored there (sorted by ``n_past``). Each file with timed readings
+    ``carried`` (the drift's columns not zero) is cut into the forward folds of its own timed
+    readings; a fold's block is predicted from every timed reading earlier than its first, and only
+    its readings that repeat a past one (same series and row of ``Bw``, to 1e-6 of each column's
+    largest entry) are scored."""
+    from ._analysis import N_FOLDS, forward_folds
+    timed = np.flatnonzero(np.isfinite(st.t))
+    if timed.size < 2 * (N_FOLDS + 1) or np.ptp(st.t[timed]) <= 0:
+        return []
+    order = timed[np.argsort(st.t[timed], kind="stable")]
+    t_sorted = st.t[order]
     _, series = np.unique(st.series.astype(str), return_inverse=True)
     scale = np.max(np.abs(Bw), axis=0)
     rows = np.round(Bw / np.where(scale > 0, scale, 1.0), 6)
     _, key = np.unique(np.column_stack([series, rows]), axis=0, return_inverse=True)
     key = key.ravel()
-    zw = design.zw
-    folds = []
-    for tr, te in forward_folds(order.size, N_FOLDS):
-        tr, te = order[tr], order[te]
-        scored = te[np.isin(key[te], key[tr])]
-        if scored.size:
-            folds.append((tr, scored))
-    if not folds:
-        return
+    scored_at: dict = {}
+    for fi in np.unique(st.file[timed]):
+        own = order[st.file[order] == fi]
+        if own.size < 2 * (N_FOLDS + 1) or np.ptp(st.t[own]) <= 0 or not carried[own].any():
+            continue
+        for _, te in forward_folds(own.size, N_FOLDS):
+            block = own[te]
+            n_past = int(np.searchsorted(t_sorted, st.t[block[0]], side="left"))
+            scored = block[np.isin(key[block], key[order[:n_past]])]
+            if n_past and scored.size:
+                scored_at.setdefault(n_past, []).append(scored)
+    return [(order, n, np.concatenate(scored_at[n])) for n in sorted(scored_at)]
 
-    def sse(M):
-        out = 0.0
-        for tr, te in folds:
-            theta, _ = solve_normal(M[tr].T @ M[tr], M[tr].T @ zw[tr])
-            out += float(np.sum((zw[te] - M[te] @ theta) ** 2))
-        return out
-    without = sse(Bw)
-    for c in drift:
-        with_c = sse(np.hstack([Bw, c.columns * design.w[:, None]]))
-        if not without - with_c > cv_threshold(c.columns.shape[1]):
-            c.veto = (f"predicted forward in time (fitted on earlier readings, scored on later ones "
-                      f"that repeat them) it does not beat the model without it (weighted sum of "
-                      f"squares {with_c:.4g} against {without:.4g})")
+
+def _forward_sse(M, zw, cuts) -> float:
+    """Weighted sum of squares of the scored readings of ``cuts`` (:func:`_forward_cuts`), each
+    predicted by the least squares of ``M`` on the readings before its cut (normal equations summed
+    forward in time, one solve per cut)."""
+    out, G, b, done = 0.0, np.zeros((M.shape[1], M.shape[1])), np.zeros(M.shape[1]), 0
+    for order, n_past, scored in cuts:
+        new = order[done:n_past]
+        G += M[new].T @ M[new]
+        b += M[new].T @ zw[new]
+        done = n_past
+        theta, _ = solve_normal(G, b)
+        out += float(np.sum((zw[scored] - M[scored] @ theta) ** 2))
+    return out
 
 
 def _backward(design, chosen, findings, fit, n) -> list:
@@ -105,13 +139,20 @@ def _drop_undetermined_offsets(design, extra, current, c: Candidate, fit):
     """An Abbe candidate brings feed offsets along the directions its moved centre or its scaled
     constant angle translates (see ``_abbe_candidates``); where the data cannot tell such an offset
     from the rest of the model (a direction read at one feed only, or read only where another column
-    already moves it), the offset is dropped rather than the cause refused for it. (A rotary error
+    already moves it), the offset is dropped rather than the cause refused for it. A drift acts along
+    every direction (and channel) the data read; where the data cannot tell its part along one from
+    the files' set-ups (a warm-up that has settled before a file of that direction begins: the
+    drift's feature is constant over that file), that part is dropped alike, and so is a part the
+    rank test keeps but held-out data do not ask for (:func:`_drift_parts_that_earn`). (A rotary error
     motion has no harmonic that trades with the axis's location errors to drop:
     :func:`mtcomp.models.terms.motion_harmonics`; the harmonics it names are those it writes.)
     Returns the candidate and its fit; unchanged when nothing is undetermined."""
-    if c.effect != "feed_dependent_abbe":
+    if c.effect == "feed_dependent_abbe":
+        groups = [[p] for p in c.params if p.startswith("FOFF_")]
+    elif c.effect == "thermal_drift":
+        groups = [[p] for p in c.params]
+    else:
         return c, fit
-    groups = [[p] for p in c.params if p.startswith("FOFF_")]
     dropped = False
     for names in groups:
         if fit.rank - current.rank >= c.columns.shape[1] or not names or len(names) == len(c.params):
@@ -122,6 +163,27 @@ def _drop_undetermined_offsets(design, extra, current, c: Candidate, fit):
             c, fit, dropped = trial, f, True
     if dropped:
         fit = design.fit(np.hstack([extra, c.columns]))
+    if c.effect == "thermal_drift":
+        c, fit = _drift_parts_that_earn(design, extra, c, fit)
+    return c, fit
+
+
+def _drift_parts_that_earn(design, extra, c: Candidate, fit):
+    """A drift's part along a direction (or channel) that the data determine only barely (a warm-up
+    that has all but settled before the first file of that direction begins: a laser run of X an hour
+    after the start sees 1 % of a 15-minute settling) is fitted from that sliver of its feature and
+    trades with the file's set-up: 0.63 +- 2.7 um of drift along X beside a warm-up of Z, which
+    predicted without the drift (as `predict` does a file without the drift's context) moved
+    unseen readings of X by 0.6 um. Each part is kept only where held-out data ask for it: dropping
+    it must raise the held-out sum of squares by more than noise could (``cv_threshold`` of one
+    parameter). The last part always stays (the candidate as a whole is judged by the selection)."""
+    for name in list(c.params):
+        if len(c.params) < 2:
+            break
+        trial = without_params(c, [name])
+        f = design.fit(np.hstack([extra, trial.columns]))
+        if not f.cv_sse - fit.cv_sse > cv_threshold(1):
+            c, fit = trial, f
     return c, fit
 
 
