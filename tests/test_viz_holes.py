@@ -86,6 +86,59 @@ def test_a_drilling_program_maps_its_holes_with_their_position_error(tmp_path, e
                                rtol=1e-9, atol=0)
 
 
+#: the same holes pecked in three steps each with G0/G1 (grbl has no canned cycles), the last hole's
+#: deepest peck not its last (a peck-back program); a fourth hole at X100 Y20 again, after another
+PECKED = """G21 G90
+G0 X0 Y0 Z10
+G0 X10 Y5
+G1 Z-1 F100
+G0 Z1
+G1 Z-2
+G0 Z1
+G1 Z-3
+G0 Z2
+G0 X50 Y5
+G1 Z-1
+G0 Z1
+G1 Z-2
+G0 Z1
+G1 Z-3
+G0 Z2
+G0 X100 Y20
+G1 Z-1
+G0 Z1
+G1 Z-3
+G0 Z1
+G1 Z-2
+G0 Z10
+G0 X0 Y0
+G1 Z-3
+G0 Z10
+G0 X100 Y20
+G1 Z-3
+G0 Z10
+M30
+"""
+
+
+def test_a_hole_pecked_in_steps_is_one_hole_at_its_deepest(tmp_path, exx, capsys):
+    """Consecutive plunges at one X Y are one hole (its deepest peck); a hole drilled again after
+    another is a hole again (hand-counted: 5 holes of 11 plunges)."""
+    machine, fitted = exx
+    (tmp_path / "pecked.nc").write_text(PECKED)
+    smap = program_error_map(machine, fitted, tmp_path / "pecked.nc", normal="auto")
+    assert smap.normal_kind == "holes"
+    holes = np.array([[10, 5], [50, 5], [100, 20], [0, 0], [100, 20]], float)
+    np.testing.assert_allclose(smap.tips[:, :2], holes, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(smap.tips[:, 2], -3.0, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(smap.dn_before_um, 0.04 * holes[:, 0], rtol=0, atol=1e-6)
+    rc = main(["render", "xfyz", str(tmp_path / "model.json"), str(tmp_path / "pecked.nc"),
+               "-o", str(tmp_path / "map.png")])
+    text = capsys.readouterr()
+    assert rc == 0 and "holes: 5 (plunges along the tool axis" in text.out
+    assert "not drawn" not in text.out + text.err
+
+
 def test_a_milled_program_is_no_hole_map(tmp_path, exx):
     machine, fitted = exx
     assert program_error_map(machine, fitted, tmp_path / "slot.nc", normal="auto").normal_kind != "holes"

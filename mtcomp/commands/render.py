@@ -258,7 +258,8 @@ def _print_summary(args, smap, res) -> None:
                   "offset passes clearing material: no wall) left out")
         along = "along the contour's normal in its plane"
     elif smap.normal_kind == "holes":
-        how = "drilling cycles" if info.get("drilling_cycles") else "plunges along the tool axis"
+        how = ("drilling cycles" if info.get("drilling_cycles") else "plunges along the tool axis, "
+               "consecutive ones at one place (a hole's pecks) one hole")
         print(f"holes: {st['n_points']} ({how}); the map shows each hole's position error across "
               "the tool axis, its direction as an arrow")
         along = None

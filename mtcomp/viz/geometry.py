@@ -117,8 +117,11 @@ def path_geometry(orig: ProgramPoints, machine: Machine) -> SurfaceGeometry:
 def hole_rows(orig: ProgramPoints, machine: Machine) -> np.ndarray:
     """Indices of the segment ends that are the bottoms of drilled holes: the holes of drilling cycles
     (G73, G81-G89); in a program without cycles whose every feed move runs along the tool axis (holes
-    plunged with G1), the ends of the plunges into the part. Empty when the program is no drilling
-    program (a feed move across the tool axis cuts, so its map is a surface or a contour)."""
+    plunged with G1), the ends of the plunges into the part, one per hole: consecutive plunges at the
+    same place across the tool axis (within 1 um: the pecks of a hole drilled in steps, as a
+    controller without canned cycles, grbl, is given them) are one hole, its deepest plunge. Empty
+    when the program is no drilling program (a feed move across the tool axis cuts, so its map is a
+    surface or a contour)."""
     cycle = np.zeros(len(orig), bool) if orig.cycle is None else np.asarray(orig.cycle, bool)
     if cycle.any():
         return np.flatnonzero(cycle)
@@ -128,7 +131,22 @@ def hole_rows(orig: ProgramPoints, machine: Machine) -> np.ndarray:
     tips, axes = forward(machine, orig.q)
     step = tips[idx] - tips[np.maximum(idx - 1, 0)]
     step[idx == 0] = 0.0
-    return idx[np.einsum("ij,ij->i", step, axes[idx]) < -1e-3]
+    return _one_per_hole(idx[np.einsum("ij,ij->i", step, axes[idx]) < -1e-3], tips, axes)
+
+
+def _one_per_hole(rows: np.ndarray, tips: np.ndarray, axes: np.ndarray) -> np.ndarray:
+    """Of the plunges' ends ``rows``, the deepest (along the tool axis) of each run of consecutive
+    ones at the same place across the tool axis (within 1 um)."""
+    if rows.size < 2:
+        return rows
+    step = tips[rows[1:]] - tips[rows[:-1]]
+    along = np.einsum("ij,ij->i", step, axes[rows[1:]])
+    new = np.linalg.norm(step - along[:, None] * axes[rows[1:]], axis=1) > 1e-3
+    hole = np.concatenate([[0], np.cumsum(new)])
+    depth = np.einsum("ij,ij->i", tips[rows], axes[rows])       # deeper: smaller along the axis
+    order = np.lexsort((depth, hole))
+    first = np.concatenate([[True], hole[order][1:] != hole[order][:-1]])
+    return np.sort(rows[order[first]])
 
 
 def cutting_rows(orig: ProgramPoints, machine: Machine) -> np.ndarray:

@@ -424,7 +424,9 @@ def _map_geometry(orig: ProgramPoints, machine: Machine, radius: float, length: 
     if holes is not None and holes.size and (normal == "holes" or not cuts.size):
         say(f"{holes.size} holes")
         info = {"holes": int(holes.size), "drilling_cycles": bool(cycle.any())}
-        left = np.setdiff1d(np.flatnonzero(~orig.rapid), holes)
+        # without cycles every feed move runs along the tool axis: a hole's pecks and retracts
+        left = (np.setdiff1d(np.flatnonzero(~orig.rapid), holes) if cycle.any()
+                else np.zeros(0, np.int64))
         if left.size:       # the feed moves that drill no hole (a milled slot beside the holes)
             info["left_out"] = (f"{left.size} feed move{'s' if left.size > 1 else ''} "
                                 f"({_lines_text(orig.line[left])}) not drawn: the map shows the "
