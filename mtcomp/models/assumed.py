@@ -38,6 +38,30 @@ MAX_ITEMS = 52
 AWAY_MM = 1e-3
 
 
+#: a parameter held at zero is below this (internal units: mm, rad)
+_ZERO = 1e-9
+#: a group has a part in a combination the data leave open when its parameters' largest entry is
+#: above this fraction of the combination's largest (the identification report's rule)
+_PART = 1e-6
+
+
+def _open_groups(specs, N: np.ndarray) -> set:
+    """The groups of ``specs`` with a part in some combination of ``N`` (k, m) (columns: the
+    combinations the data leave open; rows: ``specs``'s parameters)."""
+    if not N.size:
+        return set()
+    big = np.abs(N).max(axis=0)
+    part = np.abs(N) > _PART * np.where(big > 0, big, 1.0)
+    return {s.group for s, row in zip(specs, part) if row.any()}
+
+
+def never_words(name: str, pos, more: str = "") -> str:
+    """'Z's errors (never measured: ...)': an axis the data never moved, held at ``pos`` mm."""
+    if pos is None:
+        return f"{name}'s errors (never measured{more})"
+    return f"{name}'s errors (never measured: the data held {name} at {pos:g} mm{more})"
+
+
 class Assumed:
     """The components a model holds at zero and the axes its data never moved.
 
@@ -57,12 +81,19 @@ class Assumed:
                       if not a.is_rotary and a.name not in fitted.support and a.name in free_axes]
         never = {n for n, _, _ in self.never}
         info = fitted.info if isinstance(fitted.info, dict) else {}
-        # a block's mask is kept in a float64 column: at most MAX_ITEMS bits, exact
-        self.groups = [g for g in info.get("unmeasured", ())
-                       if g.partition(":")[0] not in never][:MAX_ITEMS - len(self.never)]
-        self.items = [n for n, _, _ in self.never] + self.groups
         N = (np.asarray(u["undetermined"], dtype=float).reshape(idx.size, -1) if idx.size
              else np.zeros((0, 0)))
+        # the groups the rule names (info.unmeasured) that have a part in what the data leave open:
+        # one the data determine (a roll the twist of a plate shows) is fitted, not held
+        open_ = _open_groups(specs, N)
+        # a block's mask is kept in a float64 column: at most MAX_ITEMS bits, exact
+        self.groups = [g for g in info.get("unmeasured", ())
+                       if g.partition(":")[0] not in never and g in open_][:MAX_ITEMS - len(self.never)]
+        #: of those, the ones the data determine in part (a parameter of theirs is not zero)
+        self.partly = {g for g in self.groups
+                       if np.any(np.abs(fitted.params.values[[i for i, s in zip(idx, specs)
+                                                               if s.group == g]]) > _ZERO)}
+        self.items = [n for n, _, _ in self.never] + self.groups
         self._idx, self._N = idx, N
         # N over every parameter: J's columns are used as they come (no copy of the fitted ones)
         self._full = np.zeros((fitted.params.values.size, N.shape[1]))
@@ -166,18 +197,20 @@ _GROUP_WORDS = {"squareness": "the squareness", "spindle": "the tool axis's tilt
                 "tool": "the tool length's offset"}
 
 
-def held_words(groups, angular) -> str:
+def held_words(groups, angular, partly=()) -> str:
     """'X's angular motions (EAX, EBX), Z's errors (EXZ) and the squareness': the held groups
-    ('X:EAX', 'squareness'; ``angular``: those that are angular motions), an axis's together."""
+    ('X:EAX', 'squareness'; ``angular``: those that are angular motions, ``partly``: those the data
+    determine in part: 'EBX in part'), an axis's together."""
     per: dict = {}
     other = []
     for g in groups:
         axis, _, comp = g.partition(":")
+        part = " in part" if g in partly else ""
         if comp:
             kind = "angular motions" if g in angular else "errors"
-            per.setdefault((axis, kind), []).append(comp)
+            per.setdefault((axis, kind), []).append(comp + part)
         else:
-            other.append(_GROUP_WORDS.get(g, g))
+            other.append(_GROUP_WORDS.get(g, g) + part)
     parts = [f"{a}'s {kind} ({', '.join(c)})" for (a, kind), c in per.items()] + other
     return parts[0] if len(parts) == 1 else ", ".join(parts[:-1]) + " and " + parts[-1]
 
@@ -194,10 +227,10 @@ def model_note(fitted, machine, what: str, q: np.ndarray | None = None, acting: 
              if q is None or pos is None or bool(np.any(np.abs(q[:, j] - pos) > AWAY_MM))]
     if not (acting or never):
         return ""
-    said = [f"{n}'s errors (never measured: the data held {n} at {pos:g} mm)" if pos is not None
-            else f"{n}'s errors (never measured)" for n, pos in never]
+    said = [never_words(n, pos) for n, pos in never]
     if a.groups:
-        said.append(f"{held_words(a.groups, a.angular)} (held at zero where the data leave them open)")
+        said.append(f"{held_words(a.groups, a.angular, a.partly)} (held at zero where the data "
+                    "leave them open)")
     return (f"note: {what} assume zero for {' and for '.join(said)}: where these act (away from "
             "the positions the data were taken at, over an Abbe arm) the figures are the model's on "
             "that assumption, not a measurement, and no standard error counts it")

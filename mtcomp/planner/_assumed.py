@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..models.assumed import Assumed, held_words
+from ..models.assumed import Assumed, held_words, never_words
 
 
 class AssumedTally:
@@ -54,12 +54,11 @@ class AssumedTally:
         never, groups = self._items()
         said = []
         for n, pos, d in never:
-            said.append(f"{n}'s errors (never measured: the data held {n} at {pos:g} mm, the "
-                        f"corrected blocks stand up to {d:.0f} mm from it)")
+            said.append(never_words(n, pos, f", the corrected blocks stand up to {d:.0f} mm from it"))
         if groups:
             arm = (f": their effect over arms up to {self.arm_mm:.0f} mm" if self.arm_mm >= 0.5
                    else ": their effect")
-            said.append(f"{held_words(groups, self.assumed.angular)} (held at zero where the data leave them open{arm} "
+            said.append(f"{held_words(groups, self.assumed.angular, self.assumed.partly)} (held at zero where the data leave them open{arm} "
                         "is not in the standard errors)")
         return (f"note: the corrections assume zero for {' and for '.join(said)}; on "
                 f"{self.blocks} of the {corrected} corrected blocks (first at line {self.line}; "
