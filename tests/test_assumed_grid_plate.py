@@ -4,7 +4,8 @@ fit determines EAX and the notes must not name it; X's pitch (EBX: at one height
 like X's own positioning) is held at zero and is named.
 
 Oracle: the independent truth machine (tests/truth): X rolls by 0.4 urad per mm of X (EAX: 0 to
-about 380 urad over the plate), nothing else; the roll's range the fit prints is compared with it."""
+about 380 urad over the plate) and X's scale is 400 um/m (EXX), nothing else; the ranges the fit
+prints are compared with them."""
 import re
 
 import numpy as np
@@ -13,8 +14,8 @@ import pytest
 from mtcomp.cli import main
 from mtcomp.models.assumed import held_words
 
-#: the roll of X per mm of X (rad/mm)
-ROLL = 0.4e-6
+#: the roll of X per mm of X (rad/mm); X's scale (mm/mm)
+ROLL, SCALE = 0.4e-6, 400e-6
 
 
 @pytest.fixture(scope="module")
@@ -25,6 +26,7 @@ def plate(tmp_path_factory):
     folder = tmp_path_factory.mktemp("plate")
     truth = TruthMachine.zero("xfyz")
     truth.components["X"]["EAX"] = P.Linear(0.0, ROLL)
+    truth.components["X"]["EXX"] = P.Linear(0.0, SCALE)
     res = tc.points(truth, folder / "plate.csv", np.random.default_rng(3), grid=(9, 6, 1),
                     plane={"Z": -100.0}, directions=(1,), setup=False, noise_um=0.5,
                     tool_lengths_mm=(truth.tool_length_mm,))
@@ -34,13 +36,23 @@ def plate(tmp_path_factory):
 
 def test_a_fitted_roll_is_not_named_held(plate, capsys):
     folder, path, model = plate
-    assert main(["identify", "xfyz", str(path), "-o", str(model)]) == 0
+    assert main(["identify", "xfyz", str(path), "-o", str(model), "-v"]) == 0
     out = capsys.readouterr().out
     row = next(ln for ln in out.splitlines() if re.search(r"\broll\s+EAX", ln))
     m = re.search(r"range\s+([-\d.e+]+) \+- ([\d.e+-]+) urad", row)
     assert m, row
     lo, hi = _plate_x(path)
     np.testing.assert_allclose(float(m.group(1)), ROLL * (hi - lo) * 1e6, rtol=0.05, atol=0)
+    # X's positioning: its range is determined on the assumption that X's pitch (which at one
+    # height moves X alike) is zero, while its parameters are each open in the data alone: the
+    # parameter table's legend says both
+    row = next(ln for ln in out.splitlines() if re.search(r"\bpositioning\s+EXX", ln))
+    m = re.search(r"range\s+([-\d.e+]+) \+- ([\d.e+-]+) um", row)
+    assert m, row
+    np.testing.assert_allclose(float(m.group(1)), SCALE * (hi - lo) * 1e3, rtol=0.02, atol=0)
+    assert re.search(r"^EXX_b1\s+\S+\s+undeterm\.", out, re.M)
+    legend = out[out.index("undeterm.: "):]
+    assert "A component's range in the table above" in " ".join(legend.split())
     pts = folder / "pts.csv"
     pts.write_text("x_mm,y_mm,z_mm,dx_um,dy_um,dz_um\n100,100,-60,0,0,0\n")
     assert main(["predict", "xfyz", str(model), str(pts), "-o", str(folder / "pred.csv")]) == 0

@@ -82,6 +82,19 @@ def _file_scale(column: str) -> float:
     return file_unit_scale(str(column))
 
 
+#: what 'undeterm.' in the parameter table means, beside the component table's ranges
+_UNDETERMINED_LEGEND = [
+    "undeterm.: part of a combination the data alone leave open (listed below); the value is where "
+    "the fit holds it (the least",
+    "  predicted error, the components no laser file names at zero), not a measurement. A "
+    "component's range in the table above",
+    "  is still given where such combinations move it only through a component held at zero (a "
+    "positioning error beside",
+    "  the pitch no laser file names, on one plane): it is determined on that assumption; a value "
+    "printed 'not determined'",
+    "  there is not"]
+
+
 @dataclass
 class UndeterminedCombination:
     """A direction of the unknowns the data cannot determine.
@@ -381,6 +394,8 @@ class FitResult:
             else:
                 e = f"{'undeterm.':>11}"
             lines.append(f"{s.name:<28} {v:12.5g} {e}  {s.unit}")
+        if np.any(self.free & ~self.determined):
+            lines += _UNDETERMINED_LEGEND
         held = [s.name for i, s in enumerate(self.specs) if not self.free[i]]
         if held:
             lines.append(f"held at their start values: {len(held)} parameter(s)"
