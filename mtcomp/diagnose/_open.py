@@ -248,8 +248,6 @@ def written_model(st, design, fit, fitted, where: tuple, start: dict, say, floor
          "; Gauss-Newton did not converge within its iterations" if not r.converged else ""])
     say(f"model written: identify's penalised fit of the final model ({weakest}"
         f"{len(r.held_sd_um)} held at the least error{caveat})")
-    if "sparse" in r.info:
-        say(f"model written: {r.info['sparse']}")
     info = dict(fitted.info)
     info["nuisance"] = {n: float(v) for n, v in zip(r.unknown_names[model.n_params:], r.nuisance_values)}
     s2 = float(r.sigma) ** 2 if np.isfinite(r.sigma) else 1.0
