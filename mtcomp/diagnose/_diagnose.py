@@ -243,7 +243,7 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     say = progress or (lambda s: None)
     if not datasets:
         raise InputError("no measurement files given")
-    machine, values = _base_machine(machine, datasets, start, refine)
+    machine, roomy, values = _base_machines(machine, datasets, start, refine)
     datasets, outliers = _without_outliers(datasets, say)
     st = build_stack(machine, datasets, known_setup=known_setup)
     say(f"{len(st)} observations in {len(datasets)} file(s); probe model with {st.probe.n_params} "
@@ -292,7 +292,7 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     model.info["diagnose"] = diag.to_dict()
     # the model written where the data leave directions open: made for the diagnosis kept only
     floor = (all(nz.source == "repeats" for nz in noise.values()), EXCESS_RATIO)
-    diag.written = lambda: written_model(st, design, current, model, where, values, say, floor)
+    diag.written = lambda: written_model(st, design, current, model, where, values, say, floor, roomy)
     return diag, finer
 
 
@@ -316,30 +316,40 @@ def _not_judged(st, sel: _Selection, final: dict, noise: dict) -> None:
 
 
 def _base_machine(machine, datasets, start, refine):
-    """(machine, {parameter name: start value}): the machine whose base is diagnosed (the start
-    model's, its resolution chosen by the data as identify's is, ``refine``'s bases put in) and the
-    start values of its parameters (none without a start model)."""
+    """(machine, {parameter name: start value}) of :func:`_base_machines`: the base diagnosed."""
+    base, _, values = _base_machines(machine, datasets, start, refine)
+    return base, values
+
+
+def _base_machines(machine, datasets, start, refine):
+    """(machine, the machine of the model written, {parameter name: start value}): the machine whose
+    base is diagnosed (the start model's, its resolution chosen by the data as identify's is,
+    ``refine``'s bases put in); the same with room between sparse positions for the model written
+    (an axis read at 3 to 15 positions gets 16 functions, as in identify's penalised fit: with one
+    function per position the positions fix the profile, and its posterior claims to know it between
+    them); and the start values of its parameters (none without a start model)."""
     values = {}
     if start is not None:
         machine, values = _start_point(machine, start)
     # the base model's resolution follows the data, as identify's does
     from ..models.basis import with_data_basis
     from ..measurement.readings import data_positions, data_spline_sizes
+    positions, sizes = data_positions(machine, datasets), data_spline_sizes(machine, datasets)
     # (the Fourier orders of rotary axes too, as identify chooses them: with identify's column-scale
     # rule and steps that must lower the misfit, the weak high harmonics no longer run away)
     # (no finer knots than 16 functions per axis by the data's spacing: the base fit is unpenalised)
-    machine = with_data_basis(machine, data_positions(machine, datasets), fourier=True,
-                              sizes=data_spline_sizes(machine, datasets), penalised=False)
+    machines = [with_data_basis(machine, positions, fourier=True, sizes=sizes, penalised=False, room=room)
+                for room in (False, True)]
     if refine:
-        machine = replace(machine, axes=tuple(
+        machines = [replace(m, axes=tuple(
             replace(ax, spline_range=(refine[ax.name].lo, refine[ax.name].hi),
                     spline_intervals=refine[ax.name].n_intervals, degree=refine[ax.name].degree)
-            if ax.name in refine else ax for ax in machine.axes))
+            if ax.name in refine else ax for ax in m.axes)) for m in machines]
         # a start model's coefficients of a refined axis are of other functions
         if start is not None:
             other = {ps.name for ps in start.model.param_specs if ps.group.split(":")[0] in refine}
             values = {k: v for k, v in values.items() if k not in other}
-    return machine, values
+    return machines[0], machines[1], values
 
 
 def _without_outliers(datasets, say):

@@ -18,21 +18,23 @@ The weak combinations are reported as identify judges them (:func:`mtcomp.identi
 weak_directions`: a combination whose rms tool-tip error over the data's region the data fix only to
 worse than 1 um, and which the fit does not put more than 3 of its standard errors from zero), with
 the noise floor as the scale. The model written is the same model (base and chosen terms, on the
-selection's knots) fitted by identify's engine, each reading weighted by the diagnosis's noise floor:
-the chosen terms start at the selection's values (a feed-dependent Abbe term's moving centre
-multiplies its angle: from zero it stays unseen), the base where the base fit started (zero, or a
-start model's determined values: at the least squares' millimetres the chain's products of errors
-would pass for information); what the data do not determine stays there. What they determine is
-judged where the base starts, with the chosen terms at zero, as identify judges its model: at the
-selection's values a term's products with the base's columns are second-order effects, which no
-reading fixes, yet they passed the rank test (a backlash of 8 um made one more combination of a
-5-axis model count as determined, fixed only to 24 um; the fit moved it to 470 urad of C's angular
-positioning and 330 urad of its tilt, 32 um off the truth at unseen poses). A factor seen only
-through another chosen factor (that moving centre) then stays at the selection's value. It is
-written with the fit's posterior covariance (its residual variance the fit's own, as identify's, but
-not below a noise floor measured on repeated readings: residuals that scatter less than the repeats
-have taken noise for information). When it fits the data clearly worse than the least squares, or
-Gauss-Newton did not converge, it is still written, and the report says so (:func:`open_fit`).
+selection's knots, but for an axis read at 3 to 15 positions, which gets 16 functions as in
+identify's fit: :mod:`mtcomp.identification._sparse`) fitted by identify's engine, each reading
+weighted by the diagnosis's noise floor: the chosen terms start at the selection's values (a
+feed-dependent Abbe term's moving centre multiplies its angle: from zero it stays unseen), the base
+where the base fit started (zero, or a start model's determined values: at the least squares'
+millimetres the chain's products of errors would pass for information); what the data do not
+determine stays there. What they determine is judged where the base starts, with the chosen terms at
+zero, as identify judges its model: at the selection's values a term's products with the base's
+columns are second-order effects, which no reading fixes, yet they passed the rank test (a backlash
+of 8 um made one more combination of a 5-axis model count as determined, fixed only to 24 um; the
+fit moved it to 470 urad of C's angular positioning and 330 urad of its tilt, 32 um off the truth at
+unseen poses). A factor seen only through another chosen factor (that moving centre) then stays at
+the selection's value. It is written with the fit's posterior covariance (its residual variance the
+fit's own, as identify's, but not below a noise floor measured on repeated readings: residuals that
+scatter less than the repeats have taken noise for information). When it fits the data clearly worse
+than the least squares, or Gauss-Newton did not converge, it is still written, and the report says
+so (:func:`open_fit`).
 
 No gate on the weak combinations' standard errors decides it: one at compensate's 5 um limit
 (``--max-correction-sd-um``) as an rms over the region let through a least squares whose standard
@@ -86,6 +88,8 @@ class OpenFit:
             out["by_file"] = self.by_file
         if self.heldout_rms_um is not None:
             out["heldout_rms_um"] = round(self.heldout_rms_um, 4)
+        if "sparse" in r.info:              # (mtcomp.identification._sparse.sparse_note)
+            out["sparse"] = r.info["sparse"]
         return out
 
 
@@ -213,19 +217,25 @@ def _heldout_rms_um(fit, per_reading: np.ndarray, order: np.ndarray, folds: np.n
     return float(np.sqrt(np.nanmean(cv[um] ** 2)))
 
 
-def written_model(st, design, fit, fitted, where: tuple, start: dict, say, floor: tuple) -> tuple:
+def written_model(st, design, fit, fitted, where: tuple, start: dict, say, floor: tuple,
+                  machine=None) -> tuple:
     """(the model diagnose writes, identify's fit of ``fitted``'s model (module docstring) with
     ``fitted``'s support, held axes and notes; REPORT.json's ``final.written``). ``fitted``: the
     final least squares ``fit`` as a model with its covariance; ``where``: (the extras' columns, the
     machine parameters' names, their positions among the fit's coefficients); ``start``: the base
     fit's start values (name -> value); ``floor``: (every noise floor was measured on repeated
     readings, the factor by which a residual may exceed the floor before it counts as structure),
-    :func:`open_fit`'s."""
+    :func:`open_fit`'s. ``machine``: the base of the model written, when its knots differ from the
+    diagnosis's (room between sparse positions, ``_diagnose._base_machines``): the chosen terms
+    start at their values, the base where the base fit started, as on the diagnosis's knots."""
+    from ..models.chain import ErrorModel
     extra, names, theta_idx = where
     sd = weak_combinations(st, design, extra, fit.theta, fitted.model, names, theta_idx)
     model = fitted.model
-    p0 = np.array([start.get(n, 0.0) if s.base else v
-                   for n, s, v in zip(model.param_names, model.param_specs, fitted.params.values)])
+    if machine is not None and machine != model.machine:
+        model = ErrorModel(machine, model.terms)
+    p0 = np.array([start.get(n, 0.0) if s.base else fitted.params[n]
+                   for n, s in zip(model.param_names, model.param_specs)])
     done = open_fit(st, model, p0, 1.0 / design.w, (fit.sse, fit.rank, fit.resid, design.folds),
                     sd.size, *floor)
     r = done.result
@@ -243,7 +253,7 @@ def written_model(st, design, fit, fitted, where: tuple, start: dict, say, floor
     s2 = float(r.sigma) ** 2 if np.isfinite(r.sigma) else 1.0
     params, uncertainty = seen_through_factor(fitted, r.fitted_model, max(s2, 1.0) if floor[0] else s2)
     largest = round(float(sd.max()), 4) if sd.size else 0.0
-    return (replace(fitted, params=params, info=info, uncertainty=uncertainty),
+    return (replace(fitted, model=model, params=params, info=info, uncertainty=uncertainty),
             {**done.report(), "largest_sd_um": largest})
 
 
@@ -284,7 +294,8 @@ def seen_through_factor(lsq, penalised, s2: float) -> tuple:
     # of a combination the data cannot tell apart (two terms' parameters that act alike on these
     # readings), which the least squares on its own subspace may call determined
     alone = 1.0 - np.sum(Q ** 2, axis=1) < 1e-6
-    take = [n for k, n in enumerate(names) if alone[k] and not lsq.params.specs[lsq.params.index(n)].base
+    specs = penalised.params.specs
+    take = [n for k, n in enumerate(names) if alone[k] and not specs[penalised.params.index(n)].base
             and np.isfinite(lsq.params.std_errors[lsq.params.index(n)])
             and (se is None or not np.isfinite(se[penalised.params.index(n)]))]
     if not take:

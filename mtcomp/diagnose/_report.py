@@ -314,6 +314,8 @@ def summary(diag, details=()) -> str:
                      f"smoothness does not fix either are held where they predict the least error{worse}); "
                      f"rms {_num(written.get('rms_um'))} um{held} (the figures above are the least squares'"
                      + (", which the model written does not reach)" if written.get("fits_worse") else ")"))
+        if written.get("sparse"):
+            lines.append(f"model written: {written['sparse']}")
     ref = diag.reference.get("linear_regression_all_temperatures")
     if ref:
         lines.append(f"reference: plain linear regression on all {len(ref['temperatures'])} temperatures "

@@ -419,7 +419,8 @@ def axis_spline(axis) -> SplineBasis:
 
 
 def with_data_basis(machine: Machine, positions: dict, fourier: bool = True,
-                    sizes: dict | None = None, penalised: bool = True) -> Machine:
+                    sizes: dict | None = None, penalised: bool = True,
+                    room: bool | None = None) -> Machine:
     """The machine with the spline knots of every 'bspline' axis without fixed knots, and the Fourier
     order of every rotary axis whose machine file leaves it open, chosen from the data
     (:func:`mtcomp.models.basis.auto_spline`, :func:`~mtcomp.models.basis.auto_fourier_order`).
@@ -434,6 +435,9 @@ def with_data_basis(machine: Machine, positions: dict, fourier: bool = True,
         most as many as :func:`finest_within_budget` allows the data's rows; False (an unpenalised
         fit, diagnose's base, whose held-out comparisons refine an axis where the data ask): at most
         ``DEFAULT_MAX_BASIS``.
+    room : an axis read at 3 to 15 positions gets ``DEFAULT_MAX_BASIS`` functions
+        (:func:`auto_spline`'s ``room``); default: ``penalised``. Diagnose's model written (the
+        penalised fit on its unpenalised base's knots) asks for it without the finer knots.
     """
     from dataclasses import replace
 
@@ -448,7 +452,8 @@ def with_data_basis(machine: Machine, positions: dict, fourier: bool = True,
                         fourier_from_data=False)
         if not a.is_rotary and a.basis_from_data:
             cap = {"max_basis": int(sizes[a.name])} if sizes and a.name in sizes else {}
-            lo, hi, n, degree = auto_spline(distinct[a.name], a.travel, finest=finest, room=penalised, **cap)
+            lo, hi, n, degree = auto_spline(distinct[a.name], a.travel, finest=finest,
+                                         room=penalised if room is None else room, **cap)
             if a.spline_range is not None:
                 lo, hi = a.spline_range
             if a.spline_intervals is not None:
