@@ -685,7 +685,11 @@ def _compensate_source(fitted, src, output, settings, setup, report, progress, j
         with open(program, "rb") as f, atomic_write(output, "wb") as out:
             out.write(f.read())
         written["unchanged"] = True
-    notes += _run_notes(src, written, fitted, setup, tally, found)
+    gated = {k: [n, int(src.source_lines_of(np.array([line]))[0])]
+             for k, (n, line) in planner.datum.gated.items()}
+    summary.datum_blocks = sum(n for n, _ in gated.values())
+    summary.datum_line = min((line for _, line in gated.values()), default=0)
+    notes += _run_notes(src, written, fitted, setup, tally, found, gated)
     if series is not None:
         assumed = _series_sentence(fitted, settings, series, tally)
     return CompensationRun(summary, written, notes, assumed, planner.stats,

@@ -209,6 +209,10 @@ class Summary:
     #: every block with an axis outside the region (corrected, in part or not at all)
     outside_any: int = 0
     ram_line: int = 0
+    #: blocks left uncorrected (as uncertain) because their part's datum lies outside the region the
+    #: model's data reached, and the first one's line (set by compensate after the run)
+    datum_blocks: int = 0
+    datum_line: int = 0
     ram_asked: list = field(default_factory=lambda: [np.inf, -np.inf])
     #: [shortest, longest] tool length (mm) of the model's data (None: not stated) and of the
     #: program's blocks (the Planner's ``tools_asked``, shared)
@@ -451,6 +455,7 @@ class Summary:
                "ram_outside_support": {"blocks": self.ram_blocks, "line": self.ram_line,
                                        "measured_mm": _finite(self.ram_measured),
                                        "asked_mm": _finite(self.ram_asked if self.ram_blocks else None)},
+               "datum_outside_support": {"blocks": self.datum_blocks, "line": self.datum_line},
                "max_correction_sd_um": self.max_correction_sd_um,
                # the largest finite one (strict JSON has no Infinity); whether any correction
                # moved with values the data did not determine (an infinite one)
