@@ -101,9 +101,9 @@ def haas_note(program, tally, machine) -> list[str]:
             "the control's"]
 
 
-def _run_notes(program, written, fitted, setup, tally, found, gated=None) -> list[str]:
+def _run_notes(program, written, fitted, setup, tally, found, datum=()) -> list[str]:
     """The notes after a run: moves passed through, tool centre point mode, the program's
-    expansion, drilling cycles, datums, feeds, set-up."""
+    expansion, drilling cycles, datums (``datum``: :func:`datum_notes`'s notes), feeds, set-up."""
     notes = passed_move_notes(program, written) + added_words_note(program, written) \
         + tcp_note(program, tally) + haas_note(program, tally, setup.machine) + list(program.notes)
     if written.get("unchanged"):
@@ -127,7 +127,7 @@ def _run_notes(program, written, fitted, setup, tally, found, gated=None) -> lis
     if arc >= 0.005:
         notes.append(f"note: the arcs written miss their corrected path by up to {arc:.2f} um (within "
                      "--chord-tol-um): the predicted deviation after is that of the corrected path")
-    return notes + _cycle_notes(written) + datum_notes(fitted, setup, gated) + tally.feed_note(fitted) \
+    return notes + _cycle_notes(written) + list(datum) + tally.feed_note(fitted) \
         + setup.notes()
 
 
@@ -146,12 +146,13 @@ def _cycle_notes(written: dict) -> list[str]:
     return notes
 
 
-def datum_notes(fitted, setup, gated=None) -> list[str]:
+def datum_notes(fitted, setup, gated=None) -> tuple[list[str], list[str]]:
     """One line for each part's datum (the origin of a work offset the program used) outside the
     region the model's data reached: the corrections are referenced to the model's deviation there,
     its continuation beyond the data. ``gated``: datum (machine positions, a tuple) -> [blocks,
     first line of the user's file] left uncorrected for it (the planner's ``DatumRule.gated``):
-    the line counts them and says what to do."""
+    the line counts them and says what to do. Returns (the notes, the lines of blocks left
+    uncorrected: the summary's, among its other reasons)."""
     from .models.region import support_bounds
     from .toolpaths.offsets import WORK_SYSTEMS
     bounds = support_bounds(fitted)
@@ -165,7 +166,7 @@ def datum_notes(fitted, setup, gated=None) -> list[str]:
     # a datum no work offset of the set-up names (one the program set itself, G10)
     for k, v in left.items():
         out += _datum_line(fitted.machine, bounds, "the part's datum", np.asarray(k), v)
-    return out
+    return [t for t in out if t.startswith("note:")], [t for t in out if not t.startswith("note:")]
 
 
 def _datum_line(machine, bounds, name, datum, hit) -> list[str]:

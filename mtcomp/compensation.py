@@ -34,7 +34,7 @@ from .toolpaths.words import WORK_SYSTEMS, frame_dwo, frame_local, frame_tcp
 from .toolpaths import iter_segment_chunks, write_corrected
 from .toolpaths._fast import format_table, g_codes
 from .toolpaths.source import open_program
-from ._compensation_notes import _run_notes
+from ._compensation_notes import _run_notes, datum_notes
 
 _DIGITS = b"0123456789."
 #: kinds of bound -> their columns in PlanResult.flags
@@ -689,7 +689,8 @@ def _compensate_source(fitted, src, output, settings, setup, report, progress, j
              for k, (n, line) in planner.datum.gated.items()}
     summary.datum_blocks = sum(n for n, _ in gated.values())
     summary.datum_line = min((line for _, line in gated.values()), default=0)
-    notes += _run_notes(src, written, fitted, setup, tally, found, gated)
+    datum, summary.datum_lines = datum_notes(fitted, setup, gated)
+    notes += _run_notes(src, written, fitted, setup, tally, found, datum)
     if series is not None:
         assumed = _series_sentence(fitted, settings, series, tally)
     return CompensationRun(summary, written, notes, assumed, planner.stats,

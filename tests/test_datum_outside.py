@@ -79,6 +79,9 @@ def test_a_datum_outside_the_data_leaves_the_blocks_uncorrected(campaign, capsys
                            "lies outside the region the model's data reached (X -100 .. 100 mm; "
                            "first at line 3)")
     assert "--extrapolate" in line and "measure there" in line
+    # said once, among the reasons, not again as a generic unsure line
+    assert "the model is unsure there" not in text
+    assert text.index(line) < text.index("warning: no block was corrected")
 
 
 def test_extrapolate_corrects_against_the_continuation(campaign, capsys):
