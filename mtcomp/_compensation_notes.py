@@ -101,9 +101,9 @@ def haas_note(program, tally, machine) -> list[str]:
             "the control's"]
 
 
-def _run_notes(program, written, fitted, setup, tally, found) -> list[str]:
+def _run_notes(program, written, fitted, setup, tally, found, datum=()) -> list[str]:
     """The notes after a run: moves passed through, tool centre point mode, the program's
-    expansion, drilling cycles, datums, feeds, set-up."""
+    expansion, drilling cycles, datums (``datum``: :func:`datum_notes`'s notes), feeds, set-up."""
     notes = passed_move_notes(program, written) + added_words_note(program, written) \
         + tcp_note(program, tally) + haas_note(program, tally, setup.machine) + list(program.notes)
     if written.get("unchanged"):
@@ -127,7 +127,7 @@ def _run_notes(program, written, fitted, setup, tally, found) -> list[str]:
     if arc >= 0.005:
         notes.append(f"note: the arcs written miss their corrected path by up to {arc:.2f} um (within "
                      "--chord-tol-um): the predicted deviation after is that of the corrected path")
-    return notes + _cycle_notes(written) + datum_notes(fitted, setup) + tally.feed_note(fitted) \
+    return notes + _cycle_notes(written) + list(datum) + tally.feed_note(fitted) \
         + setup.notes()
 
 
@@ -146,23 +146,59 @@ def _cycle_notes(written: dict) -> list[str]:
     return notes
 
 
-def datum_notes(fitted, setup) -> list[str]:
+def datum_notes(fitted, setup, gated=None) -> tuple[list[str], list[str]]:
     """One line for each part's datum (the origin of a work offset the program used) outside the
     region the model's data reached: the corrections are referenced to the model's deviation there,
-    which is then its continuation beyond the data."""
-    from .models.region import outside_bounds, support_bounds
+    its continuation beyond the data. ``gated``: datum (machine positions, a tuple) -> [blocks,
+    first line of the user's file] left uncorrected for it (the planner's ``DatumRule.gated``):
+    the line counts them and says what to do. Returns (the notes, the lines of blocks left
+    uncorrected: the summary's, among its other reasons)."""
+    from .models.region import support_bounds
     from .toolpaths.offsets import WORK_SYSTEMS
     bounds = support_bounds(fitted)
-    machine = fitted.machine
+    left = dict(gated or {})
     out = []
     for w in sorted(setup.used_wcs):
-        datum = setup._offset_table()[w]
-        outside = outside_bounds(machine, bounds, np.asarray(datum, dtype=float)[None, :])[0]
-        off = [a for a, o in zip(machine.axis_names, outside) if o]
-        if off:
-            where = ", ".join(f"{a} {np.degrees(datum[machine.index(a)]) if machine.axis(a).is_rotary else datum[machine.index(a)]:g}"
-                              for a in off)
-            out.append(f"note: the part's datum of {WORK_SYSTEMS[w]} ({where}) lies outside the region "
-                       "the model's data reached: the corrections are referenced to the model's "
-                       "deviation there, its continuation beyond the data")
-    return out
+        datum = np.asarray(setup._offset_table()[w], dtype=float)
+        hit = [k for k in left if np.allclose(k, datum, rtol=0, atol=1e-9)]
+        out += _datum_line(fitted.machine, bounds, f"the part's datum of {WORK_SYSTEMS[w]}", datum,
+                           left.pop(hit[0]) if hit else None)
+    # a datum no work offset of the set-up names (one the program set itself, G10)
+    for k, v in left.items():
+        out += _datum_line(fitted.machine, bounds, "the part's datum", np.asarray(k), v)
+    return [t for t in out if t.startswith("note:")], [t for t in out if not t.startswith("note:")]
+
+
+def _datum_line(machine, bounds, name, datum, hit) -> list[str]:
+    """:func:`datum_notes`'s line of one datum (machine positions) ``name``d; ``hit``: [blocks,
+    first line] left uncorrected for it, or None."""
+    from .models.region import outside_bounds
+    outside = outside_bounds(machine, bounds, datum[None, :])[0]
+    off = [j for j, o in enumerate(outside) if o]
+    if not off:
+        return []
+    where = ", ".join(f"{machine.axis_names[j]} {_value(machine, j, datum[j]):g}" for j in off)
+    if hit is None:
+        return [f"note: {name} ({where}) lies outside the region the model's data reached: the "
+                "corrections are referenced to the model's deviation there, its continuation "
+                "beyond the data"]
+    reach = ", ".join(_reach(machine, j, bounds[0][j], bounds[1][j]) for j in off)
+    k, line = hit
+    return [f"{k} block{'' if k == 1 else 's'} not corrected: {name} ({where}) lies outside the "
+            f"region the model's data reached ({reach}; first at line {line}): every correction "
+            "is referenced to the model's deviation at the datum, which no data determine "
+            "(BLOCKS.csv correction_sd_um blank, uncertain 1); measure there, set the datum inside "
+            "the region, or pass --extrapolate to correct against the model's continuation there"]
+
+
+def _value(machine, j, v) -> float:
+    """Axis j's position ``v`` as the user reads it (deg for a rotary axis, mm)."""
+    return float(np.degrees(v)) if machine.axes[j].is_rotary else float(v)
+
+
+def _reach(machine, j, lo, hi) -> str:
+    """'X -100 .. 100 mm', or 'A at 30 deg only' for an axis the data held at one angle."""
+    unit = "deg" if machine.axes[j].is_rotary else "mm"
+    lo, hi = _value(machine, j, lo), _value(machine, j, hi)
+    name = machine.axis_names[j]
+    return f"{name} at {lo:g} {unit} only" if hi - lo < 1e-9 else f"{name} {lo:g} .. {hi:g} {unit}"

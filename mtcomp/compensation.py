@@ -34,7 +34,7 @@ from .toolpaths.words import WORK_SYSTEMS, frame_dwo, frame_local, frame_tcp
 from .toolpaths import iter_segment_chunks, write_corrected
 from .toolpaths._fast import format_table, g_codes
 from .toolpaths.source import open_program
-from ._compensation_notes import _run_notes
+from ._compensation_notes import _run_notes, datum_notes
 
 _DIGITS = b"0123456789."
 #: kinds of bound -> their columns in PlanResult.flags
@@ -685,7 +685,12 @@ def _compensate_source(fitted, src, output, settings, setup, report, progress, j
         with open(program, "rb") as f, atomic_write(output, "wb") as out:
             out.write(f.read())
         written["unchanged"] = True
-    notes += _run_notes(src, written, fitted, setup, tally, found)
+    gated = {k: [n, int(src.source_lines_of(np.array([line]))[0])]
+             for k, (n, line) in planner.datum.gated.items()}
+    summary.datum_blocks = sum(n for n, _ in gated.values())
+    summary.datum_line = min((line for _, line in gated.values()), default=0)
+    datum, summary.datum_lines = datum_notes(fitted, setup, gated)
+    notes += _run_notes(src, written, fitted, setup, tally, found, datum)
     if series is not None:
         assumed = _series_sentence(fitted, settings, series, tally)
     return CompensationRun(summary, written, notes, assumed, planner.stats,

@@ -37,6 +37,7 @@ from ._nodes import NodeSet
 from ._parallel import read_ahead, resolve_threads, split_rows
 from ._pointwise import Linearization, solve_newton, solve_pinv
 from ._qp import WindowQP, never_worse_rows, prefetch_solver, reachable_nodes
+from ._datum import DatumRule
 from ._ram import RamRule
 from ._result import PlanResult
 from ._rotary_grid import rotary_columns, round_rotary, solve_with_rotary_fixed
@@ -82,6 +83,8 @@ class Planner:
         self.links = LinkRules(problem, self.bounds)
         #: the standard-error gate acts per contour (:mod:`._contours`)
         self.gate = ContourGate(self.options.max_correction_sd_um, self.ev.has_uncertainty)
+        #: a part's datum outside the support leaves the blocks referenced to it unsure (:mod:`._datum`)
+        self.datum = DatumRule(self)
 
     # ------------------------------------------------------------------ nodes
     def _context(self, feed, dirs, n, tool_length=None, extra=None):
@@ -134,11 +137,12 @@ class Planner:
             pinned |= sd_um > limit            # NaN (not evaluated) compares False
         return pinned
 
-    def _sd_um(self, q, ctx, unknown, outside, datum=None):
+    def _sd_um(self, q, ctx, unknown, outside, datum=None, datum_out=None):
         """((n,) the standard error of each block's correction (um), NaN for blocks that are not
         corrected anyway (an unknown axis, outside the support) and when no limit is asked; (n, w)
         what the correction assumes at zero there (:meth:`Evaluator.correction_sd_assumed`), or None
-        when the model assumes nothing)."""
+        when the model assumes nothing). ``datum_out`` (n,) bool or None: the blocks whose datum
+        lies outside the support (:meth:`._datum.DatumRule.outside`): their standard error is infinite."""
         sd = np.full(q.shape[0], np.nan)
         assumed = self.ev.assumed
         out = None if assumed is None else np.zeros((q.shape[0], assumed.width))
@@ -156,6 +160,8 @@ class Planner:
             sd[todo] = both[:, 0]
             if out is not None:
                 out[todo] = both[:, 1:]
+            if limit and datum_out is not None:
+                sd[todo & datum_out] = np.inf
         return sd, out
 
     def _solve_free(self, q, ctx, reference) -> Linearization:
@@ -202,10 +208,13 @@ class Planner:
         outside = self.outside_support(q, ~unknown)
         ctx = self._context(feed, dirs, n)
         datum = None if datum is None else np.broadcast_to(np.asarray(datum, dtype=float), q.shape)
-        sd, assumed = self._sd_um(q, ctx, unknown, outside, datum)
+        datum_out = self.datum.outside(datum)
+        sd, assumed = self._sd_um(q, ctx, unknown, outside, datum, datum_out)
+        pinned = self._pinned(unknown, outside, sd)
+        self.datum.note(datum, datum_out, pinned, line)
         links = self.links.arrays(q, dirs, None if self._last_end is None else self._last_end[0])
         nodes = NodeSet(q, ctx, exempt, line, np.zeros(n, bool), rapid, unknown, outside,
-                        self._pinned(unknown, outside, sd), sd, np.zeros(n, bool), np.zeros(n, bool),
+                        pinned, sd, np.zeros(n, bool), np.zeros(n, bool),
                         *(links or (None, None, None)), assumed=assumed)
         lin = self._solve_free(nodes.q, nodes.context, self._reference(datum, ctx))
         nodes, lin = self.gate.feed(nodes, lin, final=True)     # the arrays are whole contours
@@ -235,8 +244,10 @@ class Planner:
             self._after_cycle = bool(cycle[-1])
         unknown = ~known
         outside = self.outside_support(end, known, chunk.tool_length)
-        sd, assumed = self._sd_um(end, ctx, unknown, outside, chunk.datum)
+        datum_out = self.datum.outside(chunk.datum, chunk.tool_length)
+        sd, assumed = self._sd_um(end, ctx, unknown, outside, chunk.datum, datum_out)
         pinned = self._pinned(unknown, outside, sd)
+        self.datum.note(chunk.datum, datum_out, pinned, chunk.line)
         self.ram.note(end, outside, pinned, chunk.tool_length, ~any_rows(unknown))
         ref = self._reference(chunk.datum, ctx)
         lin_end = self._solve_free(end, ctx, ref)

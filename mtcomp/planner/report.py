@@ -209,6 +209,12 @@ class Summary:
     #: every block with an axis outside the region (corrected, in part or not at all)
     outside_any: int = 0
     ram_line: int = 0
+    #: blocks left uncorrected (as uncertain) because their part's datum lies outside the region the
+    #: model's data reached, and the first one's line (set by compensate after the run)
+    datum_blocks: int = 0
+    datum_line: int = 0
+    #: the summary's lines on them (naming each datum, its axis and the data's range)
+    datum_lines: list = field(default_factory=list)
     ram_asked: list = field(default_factory=lambda: [np.inf, -np.inf])
     #: [shortest, longest] tool length (mm) of the model's data (None: not stated) and of the
     #: program's blocks (the Planner's ``tools_asked``, shared)
@@ -451,6 +457,7 @@ class Summary:
                "ram_outside_support": {"blocks": self.ram_blocks, "line": self.ram_line,
                                        "measured_mm": _finite(self.ram_measured),
                                        "asked_mm": _finite(self.ram_asked if self.ram_blocks else None)},
+               "datum_outside_support": {"blocks": self.datum_blocks, "line": self.datum_line},
                "max_correction_sd_um": self.max_correction_sd_um,
                # the largest finite one (strict JSON has no Infinity); whether any correction
                # moved with values the data did not determine (an infinite one)
@@ -588,8 +595,10 @@ class Summary:
         tools = self._tools_text()
         if tools:
             out.append(tools)
-        if self.uncertain_blocks:
-            own = self.uncertain_blocks - self.contour_blocks
+        # the blocks unsure for their datum alone have their own line (compensate's datum notes)
+        out += self.datum_lines
+        if self.uncertain_blocks > self.datum_blocks:
+            own = self.uncertain_blocks - self.contour_blocks - self.datum_blocks
             shared = (f", and {blocks(self.contour_blocks)} of the same contours (a run of feed "
                       "moves cut one after the other is corrected whole or not at all: corrected in "
                       "part, it would step where the correction stops)" if self.contour_blocks else "")
