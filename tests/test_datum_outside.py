@@ -96,3 +96,24 @@ def test_extrapolate_corrects_against_the_continuation(campaign, capsys):
     after = np.abs(_truth_error_after_um(truth, rows))
     # the truth's error at machine X 300 (-6.9 um) is not the model's continuation there
     assert np.max(after - before) > 3.0, (before, after)
+
+
+def test_blocks_left_for_another_reason_are_not_counted_for_their_datum(campaign, capsys, tmp_path):
+    """Two blocks whose Y and Z the program has not given are left uncorrected for that, before
+    any standard error is asked: the datum's line counts the others only (it counted every block
+    referenced to the datum, so 2 blocks were said twice); with no limit on the standard error
+    (``--max-correction-sd-um 0``) nothing is gated for the datum and no line says it is."""
+    folder, model, _, _ = campaign
+    prog = tmp_path / "prog.nc"
+    prog.write_text("G21 G90 G17\nG54\nG0 X-400.\nG1 X-375. F500\nG0 Y0. Z0.\n"
+                    + "".join(f"G1 X{x:.1f}\n" for x in PROGRAM_X[2:]) + "M30\n")
+    text, rows, summary = _compensate(folder, model, prog, capsys)
+    unknown = sum(1 for r in rows if not r["y_mm"] or not r["z_mm"])
+    assert unknown >= 2
+    gated = len(rows) - unknown
+    assert summary["datum_outside_support"]["blocks"] == gated
+    assert summary["uncorrected"]["uncertain"] == gated
+    assert any(t.startswith(f"{gated} blocks not corrected: the part's datum of G54") for t in text.splitlines())
+    text, rows, summary = _compensate(folder, model, prog, capsys, "--max-correction-sd-um", "0")
+    assert "blocks not corrected: the part's datum" not in text
+    assert summary.get("datum_outside_support", {"blocks": 0})["blocks"] == 0

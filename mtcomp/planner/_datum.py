@@ -44,12 +44,13 @@ class DatumRule:
             return None
         return whole[np.cumsum(new_run) - 1]
 
-    def note(self, datum, datum_out, pinned, line) -> None:
-        """Count in :attr:`gated` the blocks of ``datum_out`` ((n,) bool or None) that are
-        ``pinned`` ((n,) bool), each datum's first ``line``."""
-        if datum_out is None:
+    def note(self, datum, gated, line) -> None:
+        """Count in :attr:`gated` the blocks ``gated`` ((n,) bool or None: those whose standard
+        error the datum made infinite, not those left uncorrected for another reason first), each
+        datum's first ``line``."""
+        if gated is None:
             return
-        rows = np.flatnonzero(datum_out & pinned)
+        rows = np.flatnonzero(gated)
         if not rows.size:
             return
         datum = np.atleast_2d(np.asarray(datum, dtype=float))[rows]

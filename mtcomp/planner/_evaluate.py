@@ -100,7 +100,7 @@ class Evaluator:
         self._open = problem.fitted.undetermined_values() if self._factor is not None else None
         # the penalty's split of what the data cannot tell apart: a correction resting on it is unsure
         self._choice = problem.fitted.choice_directions() if self._factor is not None else None
-        #: the model carries a covariance: :meth:`correction_sd_um` is NaN everywhere without one
+        #: the model carries a covariance: :meth:`correction_sd_assumed` is NaN everywhere without one
         self.has_uncertainty = self._factor is not None
         #: (function name, datum row, tool length) -> the function there (:meth:`_at_datum`)
         self._datum_values: dict = {}
@@ -116,19 +116,14 @@ class Evaluator:
         model's data held still (FittedModel.clamp)."""
         return evaluate(self.model, "deviation_function", self.problem.fitted.clamp(q)[0], self.p, ctx)[0]
 
-    def correction_sd_um(self, q, ctx, datum=None) -> np.ndarray:
-        """(n,) standard error (um) of the correction at q: the largest of the three components'
-        standard errors of the tip deviation (less the deviation at the part's datum, as
-        :meth:`datum_reference` takes it, when ``datum`` (n, na) is given) under the model's
-        covariance, evaluated where :meth:`_deviation` evaluates it; infinite where the correction
-        moves with values the data left undetermined (FittedModel.tip_sd_um); NaN when the model
-        carries no uncertainty."""
-        return self.correction_sd_assumed(q, ctx, datum)[:, 0]
-
     def correction_sd_assumed(self, q, ctx, datum=None, sd: bool = True) -> np.ndarray:
-        """(n, 1 + Assumed.width): :meth:`correction_sd_um` (NaN where not ``sd``) and, when the
-        model assumes something at zero (:attr:`assumed`), :meth:`Assumed.blocks` of the same
-        Jacobian."""
+        """(n, 1 + Assumed.width): the standard error (um) of the correction at q (NaN where not
+        ``sd``): the largest of the three components' standard errors of the tip deviation (less
+        the deviation at the part's datum, as :meth:`datum_reference` takes it, when ``datum``
+        (n, na) is given) under the model's covariance, evaluated where :meth:`_deviation`
+        evaluates it; infinite where the correction moves with values the data left undetermined
+        (FittedModel.tip_sd_um); NaN when the model carries no uncertainty. Then, when the model
+        assumes something at zero (:attr:`assumed`), :meth:`Assumed.blocks` of the same Jacobian."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         out = np.full((q.shape[0], 1 + (self.assumed.width if self.assumed else 0)), np.nan)
         if self._factor is None:

@@ -127,7 +127,8 @@ class Planner:
         unknown = ~np.asarray(known, bool)
         outside = self.outside_support(q, ~unknown, tool_length)
         ctx = self._context(feed, np.asarray(dirs), q.shape[0], tool_length)
-        return unknown, outside, self._sd_um(q, ctx, unknown, outside, datum)[0]
+        datum_out = self.datum.outside(datum, tool_length)
+        return unknown, outside, self._sd_um(q, ctx, unknown, outside, datum, datum_out)[0]
 
     def _pinned(self, unknown, outside, sd_um):
         pinned = any_rows(unknown)
@@ -141,14 +142,17 @@ class Planner:
         """((n,) the standard error of each block's correction (um), NaN for blocks that are not
         corrected anyway (an unknown axis, outside the support) and when no limit is asked; (n, w)
         what the correction assumes at zero there (:meth:`Evaluator.correction_sd_assumed`), or None
-        when the model assumes nothing). ``datum_out`` (n,) bool or None: the blocks whose datum
-        lies outside the support (:meth:`._datum.DatumRule.outside`): their standard error is infinite."""
+        when the model assumes nothing; (n,) bool or None, the blocks gated for their datum).
+        ``datum_out`` (n,) bool or None: the blocks whose datum lies outside the support
+        (:meth:`._datum.DatumRule.outside`): where a limit is asked, their standard error is
+        infinite (unless they are left uncorrected for an unknown axis or the ram already)."""
         sd = np.full(q.shape[0], np.nan)
         assumed = self.ev.assumed
         out = None if assumed is None else np.zeros((q.shape[0], assumed.width))
         limit = bool(self.options.max_correction_sd_um)
+        gated = None
         if not (limit or assumed) or not self.ev.has_uncertainty:
-            return sd, out
+            return sd, out, gated
         todo = ~any_rows(unknown)
         todo &= ~self.ram.whole_outside(outside)
         if todo.any():
@@ -161,8 +165,9 @@ class Planner:
             if out is not None:
                 out[todo] = both[:, 1:]
             if limit and datum_out is not None:
-                sd[todo & datum_out] = np.inf
-        return sd, out
+                gated = todo & datum_out
+                sd[gated] = np.inf
+        return sd, out, gated
 
     def _solve_free(self, q, ctx, reference) -> Linearization:
         parts = split_rows(self._solve_free_part, q.shape[0], self._split, q, ctx, reference)
@@ -209,9 +214,9 @@ class Planner:
         ctx = self._context(feed, dirs, n)
         datum = None if datum is None else np.broadcast_to(np.asarray(datum, dtype=float), q.shape)
         datum_out = self.datum.outside(datum)
-        sd, assumed = self._sd_um(q, ctx, unknown, outside, datum, datum_out)
+        sd, assumed, gated = self._sd_um(q, ctx, unknown, outside, datum, datum_out)
         pinned = self._pinned(unknown, outside, sd)
-        self.datum.note(datum, datum_out, pinned, line)
+        self.datum.note(datum, gated, line)
         links = self.links.arrays(q, dirs, None if self._last_end is None else self._last_end[0])
         nodes = NodeSet(q, ctx, exempt, line, np.zeros(n, bool), rapid, unknown, outside,
                         pinned, sd, np.zeros(n, bool), np.zeros(n, bool),
@@ -245,9 +250,9 @@ class Planner:
         unknown = ~known
         outside = self.outside_support(end, known, chunk.tool_length)
         datum_out = self.datum.outside(chunk.datum, chunk.tool_length)
-        sd, assumed = self._sd_um(end, ctx, unknown, outside, chunk.datum, datum_out)
+        sd, assumed, gated = self._sd_um(end, ctx, unknown, outside, chunk.datum, datum_out)
         pinned = self._pinned(unknown, outside, sd)
-        self.datum.note(chunk.datum, datum_out, pinned, chunk.line)
+        self.datum.note(chunk.datum, gated, chunk.line)
         self.ram.note(end, outside, pinned, chunk.tool_length, ~any_rows(unknown))
         ref = self._reference(chunk.datum, ctx)
         lin_end = self._solve_free(end, ctx, ref)
