@@ -58,3 +58,16 @@ def test_the_printed_line_leads_with_it_and_calls_the_gain_not_significant():
     assert "AG_CX 0.005694 +- 0.008 (not significant)" in text
     assert "FOFF_X -0.000958 +- 0.011 um (not significant)" in text
     assert "AF_CX" not in text
+
+
+def test_a_part_without_a_standard_error_leaves_the_headline_chosen_on_contributions():
+    """AG_CX with no standard error in the model written: the parts cannot be ranked in standard
+    errors, and their values (a ratio, urad, um) are no measure of which acts most: the headline
+    the report chose on contributions stays; the standard errors there are still quoted."""
+    f, model = _finding_and_model()
+    f.params.update({"headline_component": "AG_CX", "headline": "kept"})
+    model.params.std_errors[model.params.index("AG_CX")] = np.nan
+    _quote_standard_errors([f], model)
+    assert f.params["headline_component"] == "AG_CX" and f.params["headline"] == "kept"
+    assert "AG_CX" not in f.params["parts_sd_per_m_min"]
+    assert abs(f.params["parts_sd_per_m_min"]["AF_CX"] - 0.035954) < 1e-6

@@ -111,4 +111,12 @@ def quote_standard_errors(findings, model) -> None:
                               ("angle_gain_sd_per_m_min", "angle_gain_component", 6)):
             if f.params.get(comp) in sds:
                 f.params[key] = round(sds[f.params[comp]], nd)
-        set_headline(f.params, f.axis, values, sds)
+        causes = [n for n in values if n.startswith(_CAUSES)]
+        if all(n in sds and sds[n] > 0 for n in causes):
+            set_headline(f.params, f.axis, values, sds)
+        else:
+            # a cause without a standard error: the headline stays the one chosen on the parts'
+            # contributions (values in different units are no measure of which part acts most)
+            f.params["parts_per_m_min"] = dict(values)
+            if sds:
+                f.params["parts_sd_per_m_min"] = {n: round(float(v), 6) for n, v in sds.items()}
