@@ -13,7 +13,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ._analysis import cv_threshold
-from ._candidates import Candidate, without_params
+from ._candidates import Candidate, _drift_names, without_params
 from ._linalg import solve_normal
 from ._refusal import refusal
 
@@ -150,7 +150,7 @@ def _drop_undetermined_offsets(design, extra, current, c: Candidate, fit):
     if c.effect == "feed_dependent_abbe":
         groups = [[p] for p in c.params if p.startswith("FOFF_")]
     elif c.effect == "thermal_drift":
-        groups = [[p] for p in c.params]
+        groups = _drift_parts(c)
     else:
         return c, fit
     dropped = False
@@ -175,16 +175,24 @@ def _drift_parts_that_earn(design, extra, c: Candidate, fit):
     trades with the file's set-up: 0.63 +- 2.7 um of drift along X beside a warm-up of Z, which
     predicted without the drift (as `predict` does a file without the drift's context) moved
     unseen readings of X by 0.6 um. Each part is kept only where held-out data ask for it: dropping
-    it must raise the held-out sum of squares by more than noise could (``cv_threshold`` of one
-    parameter). The last part always stays (the candidate as a whole is judged by the selection)."""
-    for name in list(c.params):
-        if len(c.params) < 2:
+    it must raise the held-out sum of squares by more than noise could (``cv_threshold`` of its
+    parameters). The last part always stays (the candidate as a whole is judged by the selection)."""
+    for names in _drift_parts(c):
+        if len(_drift_parts(c)) < 2:
             break
-        trial = without_params(c, [name])
+        trial = without_params(c, names)
         f = design.fit(np.hstack([extra, trial.columns]))
-        if not f.cv_sse - fit.cv_sse > cv_threshold(1):
+        if not f.cv_sse - fit.cv_sse > cv_threshold(len(names)):
             c, fit = trial, f
     return c, fit
+
+
+def _drift_parts(c: Candidate) -> list:
+    """A drift's parameters per direction or channel it acts along (``TD_<d>_<feature>``): a part
+    goes whole, every feature of it (:func:`without_params` rebuilds the drift per direction, so a
+    direction kept with one feature dropped would keep that feature's term)."""
+    parts = [[p for p in c.params if p.startswith(f"TD_{d}_")] for d in _drift_names(c)]
+    return [p for p in parts if p]
 
 
 def _joint_abbe(design, extra, current, best, good, n, st, max_parts: int = 4):
