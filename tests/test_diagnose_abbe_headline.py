@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from mtcomp.diagnose._candidates import Candidate
-from mtcomp.diagnose._diagnose import _quote_standard_errors
+from mtcomp.diagnose._headline import quote_standard_errors as _quote_standard_errors
 from mtcomp.diagnose.result import Finding
 from mtcomp.models.params import ParameterSet, ParamSpec
 

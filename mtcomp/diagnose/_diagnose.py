@@ -30,6 +30,7 @@ from ..models.params import ParameterSet
 from . import _analysis as an
 from ._analysis import cv_threshold
 from ._candidates import Candidate, generate, temperature_regression
+from ._headline import quote_standard_errors
 from ._refusal import moved_axes, refusal
 from ._linalg import Design, rms
 from ._selection import (BIC_MARGIN, MIN_EXCESS_SHARE, _axis_ties, _backward,  # noqa: F401
@@ -191,17 +192,10 @@ def _written(diag: Diagnosis) -> Diagnosis:
     if written:
         diag.final["written"] = written
     diag.model = model
-    _quote_standard_errors(diag.findings, model)
+    quote_standard_errors(diag.findings, model)
     diag.seconds += time.perf_counter() - t0
     model.info["diagnose"] = diag.to_dict()
     return diag
-
-
-def _quote_standard_errors(findings, model) -> None:
-    """Give each feed-dependent Abbe finding the values and standard errors of its parts that the
-    model written gives them, as MODEL.json says them, and its headline on them (._headline)."""
-    from ._headline import quote_standard_errors
-    quote_standard_errors(findings, model)
 
 
 def _heldout_sse(diag, sigma: dict) -> float:
