@@ -42,6 +42,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..models.evaluate import casadi_map_call, deviation
+from ..models.model_file import UNDETERMINED_UM
 from ..planner.problem import unsure_advice
 from ._reversal import reversal_note, unheld_reversals
 
@@ -434,7 +435,8 @@ def undetermined_at(fitted, q: np.ndarray) -> np.ndarray:
     """(6,) bool: which of the tip deviation's and the tool's turn's components at the pose ``q``
     (n_axes,) move along a direction the data left undetermined (MODEL.json's
     ``uncertainty.undetermined``, each at the size of 1 um of tool-tip error) by more than
-    :data:`CONSTANT_NOTE_MIN` / 100 um or urad: what the model holds there is the fit's choice
+    :data:`~mtcomp.models.model_file.UNDETERMINED_UM` um or urad (predict's rule for a blank
+    standard error): what the model holds there is the fit's choice
     among models that fit the data alike, not a measurement (a spindle tilt A0S that the data read
     only in combination with set-ups and rolls no laser named)."""
     u = fitted.uncertainty
@@ -451,7 +453,7 @@ def undetermined_at(fitted, q: np.ndarray) -> np.ndarray:
         moved.params.values[idx] += N[:, k]
         other, _ = model_errors(moved, q[None, :])
         d = np.abs(other[0] - base[0]) * np.r_[np.full(3, 1e3), np.full(3, 1e6)]
-        out |= np.nan_to_num(d) > CONSTANT_NOTE_MIN / 100.0
+        out |= np.nan_to_num(d) > UNDETERMINED_UM
     return out
 
 
