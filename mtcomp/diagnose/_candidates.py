@@ -73,6 +73,16 @@ def _feeds(st, sel):
     return np.unique(np.round(f, 6))
 
 
+
+def axis_reads(st, a: str) -> np.ndarray | None:
+    """(n,) bool: the readings of axis ``a``'s error (where its share of the reading is
+    :data:`READS_SHARE` of its largest or more), None where the data do not read it at all."""
+    g = st.g.get(a)
+    if g is None or not g.size or not float(np.max(np.abs(g))) > 0.0:
+        return None
+    return np.abs(g) > READS_SHARE * float(np.max(np.abs(g)))
+
+
 def generate(st, design, extra: np.ndarray, resid: np.ndarray, chosen_keys: set[str]) -> list[Candidate]:
     """Every candidate that the data could support, given the current model (``extra`` columns beyond
     the common block, ``resid`` its full-data residual)."""
@@ -83,11 +93,9 @@ def generate(st, design, extra: np.ndarray, resid: np.ndarray, chosen_keys: set[
     for k, a in enumerate(m.axis_names):
         if a not in moved:
             continue                        # no term is named on an axis the data do not move
-        g = st.g[a]
-        gmax = float(np.max(np.abs(g))) if g.size else 0.0
-        if gmax == 0.0:
+        reads = axis_reads(st, a)
+        if reads is None:
             continue
-        reads = np.abs(g) > READS_SHARE * gmax
         rotary = m.axis(a).is_rotary
         dirs = st.dirs[reads, k]
         # backlash: both approach directions must be present among readings of this axis's error

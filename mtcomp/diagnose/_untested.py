@@ -12,11 +12,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._candidates import READS_SHARE, _drives, _feeds
+from ._candidates import _drives, _feeds, axis_reads
 from ._refusal import moved_axes
 
 
-def _reversal(st, a: str, k: int, reads) -> str | None:
+def _reversal(st, k: int, reads) -> str | None:
     dirs = st.dirs[reads, k]
     if np.any(dirs > 0) and np.any(dirs < 0):
         return None
@@ -48,13 +48,13 @@ def untested(st) -> dict:
     ``thermal_drift``); axes with none are left out."""
     out = {}
     m = st.machine
+    moved = moved_axes(st)
     for k, a in enumerate(m.axis_names):
-        g = st.g.get(a)
-        if a not in moved_axes(st) or g is None or not g.size or not np.max(np.abs(g)) > 0:
+        reads = axis_reads(st, a) if a in moved else None
+        if reads is None:
             continue
-        reads = np.abs(g) > READS_SHARE * float(np.max(np.abs(g)))
         rotary = m.axis(a).is_rotary
-        checks = [("rotary_backlash" if rotary else "backlash", _reversal(st, a, k, reads))]
+        checks = [("rotary_backlash" if rotary else "backlash", _reversal(st, k, reads))]
         if not rotary:
             checks.append(("feed_dependence", _feed(st, reads)))
         checks.append(("thermal_drift", _drift(st, reads)))
