@@ -277,3 +277,26 @@ def test_feeds_that_look_like_mm_s_under_feed_mm_min_are_noted(tmp_path, capsys)
                      "feed_mm_min in mm/min (mm/s times 60)"], notes
     p.write_text(_LASER.format(feed="feed_mm_min", f1="100", f2="5000"))
     assert _notes(p, capsys) == []
+
+
+def test_points_positions_in_inches_are_noted(tmp_path):
+    """A grid read at -300 .. 300 mm by 100 mm written in inches under x_mm and y_mm (-11.8110 ..
+    11.8110, each 100/25.4 in apart, 4 decimals as an inch file writes them) is fitted as errors
+    changing 25.4 times as fast as they do: noted, naming the columns and spans as read (23.622 and
+    15.748 mm, by hand). The same grid in mm, and a grid whose positions are tenths of a mm, are
+    not."""
+    from mtcomp.measurement.columns import file_notes
+    machine = load_machine("xfyz")
+
+    def notes(name, xs, ys):
+        p = tmp_path / name
+        rows = [f"{x:.4f},{y:.4f},-50,100,0.5,-0.5" for x in xs for y in ys]
+        p.write_text("x_mm,y_mm,z_mm,tool_mm,dx_um,dy_um\n" + "\n".join(rows) + "\n")
+        return [n for n in file_notes(machine, [read_measurements(p)]) if "inches" in n]
+    mm_x, mm_y = np.arange(-300, 301, 100.0), np.arange(-200, 201, 100.0)
+    found = notes("inch.csv", mm_x / 25.4, mm_y / 25.4)
+    assert len(found) == 1, found
+    assert "inch.csv: the positions (x_mm, y_mm) are whole mm only times 25.4 (spans 23.62, 15.75 mm" \
+        in found[0]
+    assert notes("mm.csv", mm_x, mm_y) == []
+    assert notes("tenths.csv", mm_x / 10.0, mm_y / 10.0) == []

@@ -21,7 +21,8 @@ stylus lengths replaced by the machine's tool length in every row). So:
   its positions (values in mm written under ``*_um`` columns: the unit check of
   :func:`mtcomp.measurement.units.unit_check`, below max(0.05 um, 0.5 ppm of the span) over 100 mm
   or more), when every bar length of a ball-bar file is under an inch (a file in inches), and when
-  a laser file's targets are whole mm only times 25.4 (targets in inches, :func:`_inch_targets`).
+  a laser file's targets are whole mm only times 25.4 (targets in inches, :func:`_inch_targets`),
+  and when a points or cmm file's positions are (:func:`_inch_positions`).
 """
 from __future__ import annotations
 
@@ -184,7 +185,8 @@ def file_notes(machine, datasets) -> list[str]:
             notes.append(f"{data.path}: no column tool_mm: every row is taken at the machine's tool "
                          f"length, {machine.tool_length:g} mm (its tool_length_mm); give tool_mm if the "
                          "stylus or tool was another length")
-        line = _mm_under_um(data, header) or _short_bar(data) or _inch_targets(data)
+        line = (_inch_positions(data) or _mm_under_um(data, header) or _short_bar(data)
+                or _inch_targets(data))
         if line:
             notes.append(line)
         line = _slow_feeds(data, header)
@@ -244,11 +246,7 @@ def _inch_targets(data) -> str | None:
         return None
     linear = ~np.isin(data.axis, list("ABC")) & np.isfinite(data.target)
     t = np.unique(data.target[linear])
-    if t.size < 3 or not np.ptp(t) > 0:
-        return None
-    whole_in_inches = np.all(np.abs(t * 25.4 - np.round(t * 25.4)) < INCH_TARGET_TOL_MM)
-    tenths_in_mm = np.all(np.abs(t * 10.0 - np.round(t * 10.0)) < 1e-6)
-    if not whole_in_inches or tenths_in_mm:
+    if not _look_like_inches(t):
         return None
     span = float(np.ptp(t))
     rows = linear & np.isfinite(data.value) & ~data.angular
@@ -257,6 +255,36 @@ def _inch_targets(data) -> str | None:
             f"({t[0] * 25.4:.0f} to {t[-1] * 25.4:.0f}): targets in inches? target_mm is read in mm, so the "
             f"readings change by {change:.3g} um over {span:.4g} mm ({change / span * 1e3:.0f} um/m as read, "
             f"{change / (span * 25.4) * 1e3:.0f} um/m with the targets in inches); multiply inches by 25.4")
+
+
+def _look_like_inches(values) -> bool:
+    """Whether distinct positions (at least 3, spanning something) read in mm are whole mm only once
+    multiplied by 25.4 (within :data:`INCH_TARGET_TOL_MM`) and, as written, not all multiples of
+    0.1 mm: positions in inches under a ``*_mm`` column."""
+    t = np.unique(np.asarray(values, dtype=float))
+    t = t[np.isfinite(t)]
+    if t.size < 3 or not np.ptp(t) > 0:
+        return False
+    whole_in_inches = np.all(np.abs(t * 25.4 - np.round(t * 25.4)) < INCH_TARGET_TOL_MM)
+    tenths_in_mm = np.all(np.abs(t * 10.0 - np.round(t * 10.0)) < 1e-6)
+    return bool(whole_in_inches and not tenths_in_mm)
+
+
+def _inch_positions(data) -> str | None:
+    """The sentence when a points or cmm file's positions look like inches under ``x_mm``,
+    ``y_mm``, ``z_mm`` (:func:`_look_like_inches` on every axis with 3 or more distinct positions,
+    at least one such axis), else None: a plausibility note, never a refusal. Such a file spans
+    1/25.4 of the travel it was measured over, so its errors are read as changing 25.4 times as
+    fast as they do."""
+    if data.kind not in ("points", "cmm") or not len(getattr(data, "xyz", ())):
+        return None
+    axes = [k for k in range(3) if np.unique(data.xyz[:, k][np.isfinite(data.xyz[:, k])]).size >= 3]
+    if not axes or not all(_look_like_inches(data.xyz[:, k]) for k in axes):
+        return None
+    names = ", ".join(f"{'xyz'[k]}_mm" for k in axes)
+    spans = ", ".join(f"{np.nanmax(data.xyz[:, k]) - np.nanmin(data.xyz[:, k]):.4g}" for k in axes)
+    return (f"{data.path}: the positions ({names}) are whole mm only times 25.4 (spans {spans} mm as "
+            "read): positions in inches? x_mm, y_mm, z_mm are read in mm; multiply inches by 25.4")
 
 
 #: the least number of deviations for the short-span unit check of a points or cmm file
