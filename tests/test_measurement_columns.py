@@ -283,8 +283,8 @@ def test_points_positions_in_inches_are_noted(tmp_path):
     """A grid read at -300 .. 300 mm by 100 mm written in inches under x_mm and y_mm (-11.8110 ..
     11.8110, each 100/25.4 in apart, 4 decimals as an inch file writes them) is fitted as errors
     changing 25.4 times as fast as they do: noted, naming the columns and spans as read (23.622 and
-    15.748 mm, by hand). The same grid in mm, and a grid whose positions are tenths of a mm, are
-    not."""
+    15.748 mm, by hand), as is the grid with only X in inches (a quality engineer's CMM file). The
+    same grid in mm, and a grid whose positions are tenths of a mm, are not."""
     from mtcomp.measurement.columns import file_notes
     machine = load_machine("xfyz")
 
@@ -298,5 +298,8 @@ def test_points_positions_in_inches_are_noted(tmp_path):
     assert len(found) == 1, found
     assert "inch.csv: the positions (x_mm, y_mm) are whole mm only times 25.4 (spans 23.62, 15.75 mm" \
         in found[0]
+    one = notes("x_only.csv", mm_x / 25.4, mm_y)            # one column converted, not the other
+    assert len(one) == 1 and "x_only.csv: the positions (x_mm) are whole mm only times 25.4 " \
+        "(spans 23.62 mm" in one[0], one
     assert notes("mm.csv", mm_x, mm_y) == []
     assert notes("tenths.csv", mm_x / 10.0, mm_y / 10.0) == []

@@ -272,14 +272,14 @@ def _look_like_inches(values) -> bool:
 
 def _inch_positions(data) -> str | None:
     """The sentence when a points or cmm file's positions look like inches under ``x_mm``,
-    ``y_mm``, ``z_mm`` (:func:`_look_like_inches` on every axis with 3 or more distinct positions,
-    at least one such axis), else None: a plausibility note, never a refusal. Such a file spans
-    1/25.4 of the travel it was measured over, so its errors are read as changing 25.4 times as
-    fast as they do."""
+    ``y_mm`` or ``z_mm`` (:func:`_look_like_inches`, axis by axis: one column converted and the
+    others not is the same mistake), else None: a plausibility note, never a refusal. Such a
+    column spans 1/25.4 of the travel it was measured over, so its errors are read as changing
+    25.4 times as fast as they do."""
     if data.kind not in ("points", "cmm") or not len(getattr(data, "xyz", ())):
         return None
-    axes = [k for k in range(3) if np.unique(data.xyz[:, k][np.isfinite(data.xyz[:, k])]).size >= 3]
-    if not axes or not all(_look_like_inches(data.xyz[:, k]) for k in axes):
+    axes = [k for k in range(3) if _look_like_inches(data.xyz[:, k])]
+    if not axes:
         return None
     names = ", ".join(f"{'xyz'[k]}_mm" for k in axes)
     spans = ", ".join(f"{np.nanmax(data.xyz[:, k]) - np.nanmin(data.xyz[:, k]):.4g}" for k in axes)
