@@ -4,15 +4,13 @@ Between what was measured a profile follows the smoothest curve, and the posteri
 penalised fit, ``phi (J^T W J + S)^-1`` (Wood 2006; Wahba 1983's Bayesian intervals for smoothing
 splines), gives that curve the standard error the roughness leaves there: the penalty's weight is
 the inverse of the roughness's prior variance, in units of the residual variance. REML estimates
-that variance from the curvature the data read, and a profile (one component of one axis) whose
-curvature the data read in fewer than :data:`MIN_CURVATURE_DOF` directions (nu: the data's rank with
-every other profile held straight, less their rank with every profile straight; three targets of one
-laser run: one, the middle target's departure from the line through the ends) cannot bound it: a
+that variance from the curvature the data read, and a class of components whose curvature the data
+read in fewer than :data:`MIN_CURVATURE_DOF` directions (nu: the data's rank with the other classes'
+profiles held straight, less their rank with every profile straight; three targets of one laser
+run: one, the middle target's departure from the line through the ends) cannot bound it: a
 variance estimated from nu degrees of freedom has a one-sided 95 % upper bound of
-``nu / chi2_{nu, 0.05}`` times the estimate, 254 at nu = 1, 19.5 at nu = 2, 8.5 at nu = 3. The
-count is the profile's own, not its class's: the weight REML gives a class pools its profiles, but
-the roughness of Y's positioning error bounds nothing of X's (X at three targets beside Y at 13
-missed the smoothest curve by 6.6 of the standard errors Y's curvature gave it). Below that the directions the penalty alone fixes (what the profile does between the targets) are
+``nu / chi2_{nu, 0.05}`` times the estimate, 254 at nu = 1, 19.5 at nu = 2, 8.5 at nu = 3. Below
+that the directions the penalty alone fixes (what the profile does between the targets) are
 recorded as undetermined: a prediction that moves with them gets a blank standard error, compensate
 leaves such blocks uncorrected and export writes no table from them. The values keep the smoothest
 curve; only their claim to be known goes.
@@ -21,30 +19,29 @@ from __future__ import annotations
 
 import numpy as np
 
-#: a profile whose penalised directions the data read in fewer than this many dimensions cannot
-#: bound its roughness (nu / chi2_{nu, 0.05}: 254 at 1, 19.5 at 2, 8.5 at 3)
+#: a class of components whose penalised directions the data read in fewer than this many
+#: dimensions cannot bound its roughness (nu / chi2_{nu, 0.05}: 254 at 1, 19.5 at 2, 8.5 at 3)
 MIN_CURVATURE_DOF = 3
 #: eigenvalues of the data's normal matrix (scaled coordinates) below this share of the largest are
 #: directions the data do not see
 UNSEEN_EV = 1e-12
-#: a profile whose penalty on the fit's directions the assumption map shrinks below this share is
-#: held at zero by it whole (what is left is the map's round-off, 1e-13 to 1e-8)
+#: a class whose penalty on the fit's directions the assumption map shrinks below this share has
+#: every component held at zero by it (what is left is the map's round-off, 1e-13 to 1e-8)
 TAKEN_AWAY = 1e-6
 
 
 def unbounded_directions(penalties: dict, B: np.ndarray, AB: np.ndarray, scale: np.ndarray,
                          P: np.ndarray | None = None, n_free: int | None = None) -> tuple[np.ndarray, dict]:
     """((n_unknowns, k) orthonormal directions in scaled coordinates, {class: nu}): the directions
-    along B (the fit's, orthonormal, scaled) that only the penalty of a profile the data read in
-    fewer than :data:`MIN_CURVATURE_DOF` of its directions fixes, and the classes of those profiles
-    with the least nu among them.
+    along B (the fit's, orthonormal, scaled) that only the penalty of a class the data read in fewer
+    than :data:`MIN_CURVATURE_DOF` of its directions fixes, and those classes with their nu.
 
     penalties : {class: F_k}, the factors of the penalties in scaled coordinates (unweighted).
     AB : the data's normal matrix along B (no penalty).
     P : the move that took the components no laser file names to zero
     (:func:`.unmeasured.assumption_map`, internal units; None: none). The fit's directions are taken
     as that move leaves them (``P B``), both where the curvatures are counted and for the directions
-    returned: what the assumption holds at zero has no curvature to bound, a profile it takes away
+    returned: what the assumption holds at zero has no curvature to bound, a class it takes away
     whole (the straightnesses beside positioning runs alone) is not counted, and a count is not
     lowered by a line of another profile that B carries only with a curvature of a component the
     assumption holds (with X and Y positioning runs B had X's slope only with a little of the
@@ -64,12 +61,11 @@ def unbounded_directions(penalties: dict, B: np.ndarray, AB: np.ndarray, scale: 
     if n_free is not None and N.shape[1] and n_free < B.shape[0]:
         _, sk, Vk = np.linalg.svd(M[n_free:] @ N, full_matrices=True)
         N = N @ Vk[int(np.sum(sk > 1e-9)):].T
-    FBs = []                                    # (class, one profile's penalty on M)
+    FBs = []                                    # (class, its penalty on M)
     for cls, F in penalties.items():
-        for rows in _profiles(F):
-            FM = F[rows] @ M
-            if np.linalg.norm(FM, 2) > TAKEN_AWAY * np.linalg.norm(F[rows] @ B, 2):
-                FBs.append((cls, FM))
+        FM = F @ M
+        if np.linalg.norm(FM, 2) > TAKEN_AWAY * np.linalg.norm(F @ B, 2):
+            FBs.append((cls, FM))
     tol = UNSEEN_EV * max(float(ev.max()), 1e-300)
 
     def rank_on_null(blocks):
@@ -87,7 +83,8 @@ def unbounded_directions(penalties: dict, B: np.ndarray, AB: np.ndarray, scale: 
         top = np.linalg.norm(FB, 2) if FB.size else 0.0
         if not top > 0:
             continue
-        # nu: the curvature of this profile the data read, every other profile held straight
+        # nu: the curvature of this class the data read, the other classes held straight: the
+        # degrees of freedom REML has for its weight
         nu = rank_on_null([G for j, (_, G) in enumerate(FBs) if j != i]) - straight
         if nu >= MIN_CURVATURE_DOF or not N.shape[1]:
             continue
@@ -98,39 +95,11 @@ def unbounded_directions(penalties: dict, B: np.ndarray, AB: np.ndarray, scale: 
         D = D[:, np.linalg.norm(D, axis=0) > 1e-6]
         if D.shape[1]:
             out.append(D)
-            classes[cls] = min(nu, classes.get(cls, nu))
+            classes[cls] = nu
     if not out:
         return np.zeros((n, 0)), {}
     Q, s, _ = np.linalg.svd(np.hstack(out), full_matrices=False)
     return Q[:, s > 1e-9 * s.max()], classes
-
-
-def _profiles(F: np.ndarray) -> list:
-    """The rows of a class's penalty factor F grouped by profile: rows that share a column (one
-    component's spline coefficients) are one profile's; rows of round-off alone belong to none."""
-    owner = {}
-    groups = []
-    tiny = 1e-12 * max(float(np.abs(F).max()) if F.size else 0.0, 1e-300)
-    for r in range(F.shape[0]):
-        cols = np.flatnonzero(np.abs(F[r]) > tiny)
-        if not cols.size:                       # a row the elimination of unseen coefficients emptied
-            continue
-        hit = sorted({owner[c] for c in cols if c in owner})
-        if not hit:
-            g = len(groups)
-            groups.append([r])
-        else:
-            g = hit[0]
-            groups[g].append(r)
-            for h in hit[1:]:                   # a row that joins two groups merges them
-                groups[g] += groups[h]
-                for c, o in owner.items():
-                    if o == h:
-                        owner[c] = g
-                groups[h] = []
-        for c in cols:
-            owner[c] = g
-    return [np.array(sorted(g)) for g in groups if g]
 
 
 def without_unbounded(cov: np.ndarray, D: np.ndarray, scale: np.ndarray) -> np.ndarray:
