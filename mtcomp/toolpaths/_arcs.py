@@ -475,8 +475,8 @@ def blind_arc(state, values, axes_given) -> bool:
     i0, i1, _ = PLANE_AXES[state.plane]
     if min(state.xyz_index) < 0:
         return False
-    moved = [state.xyz_index[i0], state.xyz_index[i1]] + [state.names.index(c) for c in axes_given]
-    if all(state.known[i] for i in moved):
+    state.passed_plane = [state.xyz_index[i0], state.xyz_index[i1]]
+    if all(state.known[i] for i in state.passed_plane + [state.names.index(c) for c in axes_given]):
         return False
     passed_end(state, values, axes_given, "increment" if state.incremental else "arc", state._line)
     return True

@@ -48,12 +48,11 @@ def check_passed_start(state, out_values) -> None:
     (``out_values``, the writer's, equal to the program's): the controller takes its centre from
     where the tool stands (I J K offsets, or R from there to the written end), so from a corrected
     start its centre would move and its end stay (a full circle shrunk to a sliver, an end off its
-    circle). InputError naming the line otherwise (the output is not written)."""
+    circle). ``state.passed_plane``: the columns of the arc's plane (set by ``blind_arc``).
+    InputError naming the line otherwise (the output is not written)."""
     if state.passed_move is None or state.passed_move[0] != "arc" or state.incremental:
         return
-    from ._arcs import PLANE_AXES
-    plane = [state.xyz_index[k] for k in PLANE_AXES[state.plane][:2]]
-    off = [state.names[i] for i in plane
+    off = [state.names[i] for i in state.passed_plane
            if abs(out_values[i] - state.passed_start[i]) > _SAME_START]    # nan: not known, passes
     if off:
         raise state._err(f"arc G{state.motion} from a position the program has not given "
