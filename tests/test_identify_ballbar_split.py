@@ -93,6 +93,16 @@ def test_the_angular_motions_held_at_zero_leave_x_and_y_their_standard_errors(ci
     assert np.all(np.isfinite(sd)), sd
 
 
+def test_a_prediction_resting_on_the_penalty_s_split_carries_it_in_its_standard_error(circle):
+    miss, sd, rows = _blocks(*circle[::2])
+    # the fit misses by 0.9-2.8 um: the split is not the data's
+    assert miss.max() > 2.0, miss
+    # at the fitted weights alone sd 0.4-0.7 um, misses up to 4.3 sd; now 1.0-2.2 um, misses
+    # within 1.6 sd, and every block still corrected
+    assert np.all(miss <= 2.5 * sd), (miss, sd)
+    assert all(r["corrected"] == "1" for r in rows)
+
+
 def test_what_the_circle_reads_keeps_its_standard_error(circle):
     _, path, tmp = circle
     pred = predict_readings(load_model(tmp / "m.json"), read_measurements(path)).columns
