@@ -58,7 +58,8 @@ from ..measurement.readings import MeasurementModel, data_held, data_support
 from ..models.model_file import FittedModel, setup_uncertainty
 from ..models.params import ParameterSet
 from .reversal import DirectionContrast, data_reversal
-from ._rotation import reference_rotation, undetermined_unknowns, without
+from ._rotation import (least_error_along, plate_tilts, reference_rotation, undetermined_unknowns,
+                        without)
 from ._choice import beyond_posterior, choice_directions, data_null
 from .unmeasured import (assumption, leaving_held_alone, record_unmeasured, unmeasured_to_zero,
                          unmeasured_unknowns)
@@ -474,6 +475,7 @@ class _Problem:
         null = self.penalised_null(V[:, ~keep], penalties)
         frames = frame_rotations(self.mms, self.n_free)
         rotation, turns = reference_rotation(self, null, scale)   # X the reference
+        tilts = plate_tilts(self, turns, frames, scale)   # a plate's tilts: left open
         null = without(null, turns)
         self.by_convention = np.linalg.norm(rotation, axis=1) > 1.0 - 1e-9   # a slope's own parameter
         data_rank = int(keep.sum())
@@ -493,6 +495,10 @@ class _Problem:
         choice, self._choice_cost = choice_directions(x / scale, open_, self.class_factors)
         self.choice = scale[:, None] * choice
         x, r, P = unmeasured_to_zero(self, x, r, w, assumed.move)
+        if tilts.shape[1]:
+            x = least_error_along(x, tilts, scale, self.metric)
+            r = w * (self.observed - self.evaluate(x))
+            null = np.hstack([null, tilts])
         lev, edf, cov, held, held_sd = self._posterior(x, r, w, scale, B, AB, rank, leverage, P)
         unbounded, self.unbounded_classes = unbounded_directions(
             penalties if self.S is not None else {}, B, AB, scale, P, self.n_free)

@@ -248,9 +248,13 @@ def _axis_ranges(fitted: FittedModel, ax, lo: float, hi: float, und: Undetermine
             X = np.column_stack([np.ones_like(s), s - s.mean()])
             line = np.linalg.lstsq(X, e, rcond=None)[0]
             e = e - X @ line
+            fit_J = np.linalg.lstsq(X, J, rcond=None)[0]
             if not slope_carried(fitted.machine, comp):
-                slope = float(line[1]) * 1e3          # um per mm -> urad
-            J = J - X @ np.linalg.lstsq(X, J, rcond=None)[0]
+                # um per mm -> urad; infinite where the slope rests on what the data leave open
+                # (a plate's tilt against it): the report says so
+                slope = float(line[1]) * 1e3 if np.isfinite(und.std(fit_J[1:] * 1e3)[0]) or \
+                    und.directions is None else float("inf")
+            J = J - X @ fit_J
         D = J - J[0]
         sd_along, held = und.assess(D)
         i_max, i_min = int(np.argmax(e)), int(np.argmin(e))
@@ -331,8 +335,8 @@ def component_lines(fitted: FittedModel, undetermined: Undetermined | None = Non
         lines.append(f"  {axis} from {rows[0].lo:g} to {rows[0].hi:g} {unit}:")
         for r in rows:
             # a flat straightness (no bow above the noise) can still slope: that slope is a squareness
-            slope = (f", slope {r.slope:.1f} urad" if np.isfinite(r.slope) and r.status in ("fitted", "flat")
-                     else "")
+            slope = "" if r.status not in ("fitted", "flat") or np.isnan(r.slope) else \
+                f", slope {r.slope:.1f} urad" if np.isfinite(r.slope) else ", slope not determined by the data"
             lines.append(f"    {r.meaning:<22} {r.component:<5} range {_pm(r.range, r.sd, r.status, r.unit)}"
                          + slope)
     fitted_values = [v for v in values if v.status != "held"]
