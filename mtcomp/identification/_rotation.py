@@ -125,18 +125,46 @@ def undetermined_unknowns(problem, null: np.ndarray) -> np.ndarray:
 TILT_SLOPES = {comp for comp, square in SLOPE_OF_RIGID_ROTATION.items() if square != "C0Y"}
 
 
-def plate_tilts(problem, turns: np.ndarray, frames: list, scale: np.ndarray) -> np.ndarray:
+def _z_held(problem) -> bool:
+    """The data hold Z at one position (every file that positions the axes): nothing reads Z."""
+    z = []
+    for m in problem.mms:
+        try:
+            q = m.data.axis_positions(m.machine)
+        except (AttributeError, ValueError):
+            continue
+        if "Z" in m.machine.axis_names and q.size:
+            z.append(q[:, m.machine.axis_names.index("Z")])
+    return bool(z) and np.ptp(np.concatenate(z)) <= 1e-9
+
+
+def _plate_frames(problem) -> list[int]:
+    """The unknowns' indices of the tilts ``rx``, ``ry`` of every points or CMM file whose frame is
+    fitted, where the data hold Z at one position (:func:`_z_held`): plates read on one plane."""
+    if not _z_held(problem):
+        return []
+    out, k = [], problem.n_free
+    for m in problem.mms:
+        names = [s.name for s in m.nuisance_specs]
+        wanted = [f"{m.tag}:setup:{a}" for a in ("rx", "ry")]
+        if getattr(m, "_setup_arm", None) is not None and all(w in names for w in wanted):
+            out += [k + names.index(w) for w in wanted]
+        k += m.n_nuisance
+    return out
+
+
+def plate_tilts(problem, turns: np.ndarray, scale: np.ndarray) -> np.ndarray:
     """(n, t) orthonormal, column-scaled: the part of ``turns`` (:func:`reference_rotation`) that
-    tilts the machine about X or Y against the frame of a points or CMM file (``frames``,
-    :func:`.problem.frame_rotations`: its ``rx`` or ``ry``), moving no slope of X's straightness in
-    Y. A plate reads its heights only up to its own tilt: the slopes of X's and Y's straightness in
-    Z trade with it, and what the model's convention makes of them depends on where the machine's
-    zero is (a roll of X acts on the tip over its distance along Y from the machine's Y = 0, and the
-    plate's tilt takes what the convention leaves). They stay among the combinations the data do not
-    determine, held where they predict the least error (:func:`least_error_along`); the turn about Z
-    (a part aligned to X) keeps the convention."""
+    tilts the machine about X or Y against the frame of a plate (:func:`_plate_frames`: its ``rx``
+    or ``ry``), moving no slope of X's straightness in Y. A plate reads its heights only up to its
+    own tilt, and where nothing else reads the Z axis the slopes of X's and Y's straightness in Z
+    trade with that tilt: what the model's convention makes of them depends on where the machine's
+    zero is (a roll of X acts on the tip over its distance along Y from the machine's Y = 0, and
+    the plate's tilt takes what the convention leaves). They stay among the combinations the data
+    do not determine, held where they predict the least error (:func:`least_error_along`); the turn
+    about Z (a part aligned to X) keeps the convention."""
     n = turns.shape[0]
-    idx = [int(i[j]) for i, _, _ in frames for j in (0, 1)]
+    idx = _plate_frames(problem)
     if not turns.shape[1] or not idx:
         return np.zeros((n, 0))
     L = _slope_rows(problem, scale, lambda comp: comp not in TILT_SLOPES)

@@ -58,6 +58,7 @@ from ..measurement.readings import MeasurementModel, data_held, data_support
 from ..models.model_file import FittedModel, setup_uncertainty
 from ..models.params import ParameterSet
 from .reversal import DirectionContrast, data_reversal
+from ._offsets import mark_unread_offsets
 from ._rotation import (least_error_along, plate_tilts, reference_rotation, undetermined_unknowns,
                         without)
 from ._choice import beyond_posterior, choice_directions, data_null
@@ -116,6 +117,7 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
                                    known_setup=known_setup)
     result = solve(problem, SolverOptions(rcond, max_iterations, tol), info=info, t0=t0)
     _record_data(result, problem.model, problem.free, problem.measurements, datasets)
+    mark_unread_offsets(result)
     result.problem = problem        # what was fitted, for a linearised refit (.signflip)
     return result
 
@@ -475,7 +477,7 @@ class _Problem:
         null = self.penalised_null(V[:, ~keep], penalties)
         frames = frame_rotations(self.mms, self.n_free)
         rotation, turns = reference_rotation(self, null, scale)   # X the reference
-        tilts = plate_tilts(self, turns, frames, scale)   # a plate's tilts: left open
+        tilts = plate_tilts(self, turns, scale)   # a plate's tilts: left open
         null = without(null, turns)
         self.by_convention = np.linalg.norm(rotation, axis=1) > 1.0 - 1e-9   # a slope's own parameter
         data_rank = int(keep.sum())
