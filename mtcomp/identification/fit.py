@@ -58,7 +58,9 @@ from ..measurement.readings import MeasurementModel, data_held, data_support
 from ..models.model_file import FittedModel, setup_uncertainty
 from ..models.params import ParameterSet
 from .reversal import DirectionContrast, data_reversal
-from ._rotation import reference_rotation, undetermined_unknowns, without
+from ._offsets import mark_unread_offsets
+from ._rotation import (least_error_along, plate_tilts, reference_rotation, undetermined_unknowns,
+                        without)
 from ._choice import beyond_posterior, bounded_split_variance, choice_directions, data_null
 from .unmeasured import (assumption, leaving_held_alone, record_unmeasured, unmeasured_to_zero,
                          unmeasured_unknowns)
@@ -115,6 +117,7 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
                                    known_setup=known_setup)
     result = solve(problem, SolverOptions(rcond, max_iterations, tol), info=info, t0=t0)
     _record_data(result, problem.model, problem.free, problem.measurements, datasets)
+    mark_unread_offsets(result)
     result.problem = problem        # what was fitted, for a linearised refit (.signflip)
     return result
 
@@ -475,6 +478,7 @@ class _Problem:
         null = self.penalised_null(V[:, ~keep], penalties)
         frames = frame_rotations(self.mms, self.n_free)
         rotation, turns = reference_rotation(self, null, scale)   # X the reference
+        tilts = plate_tilts(self, turns, scale)   # a plate's tilts: left open
         null = without(null, turns)
         self.by_convention = np.linalg.norm(rotation, axis=1) > 1.0 - 1e-9   # a slope's own parameter
         data_rank = int(keep.sum())
@@ -495,6 +499,10 @@ class _Problem:
         self.choice = scale[:, None] * choice
         self._splits = B.T @ choice                           # the same along B, for the posterior
         x, r, P = unmeasured_to_zero(self, x, r, w, assumed.move)
+        if tilts.shape[1]:
+            x = least_error_along(x, tilts, scale, self.metric)
+            r = w * (self.observed - self.evaluate(x))
+            null = np.hstack([null, tilts])
         lev, edf, cov, held, held_sd = self._posterior(x, r, w, scale, B, AB, rank, leverage, P)
         unbounded, self.unbounded_classes = unbounded_directions(
             penalties if self.S is not None else {}, B, AB, scale, P, self.n_free)
