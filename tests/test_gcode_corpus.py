@@ -78,9 +78,10 @@ REFUSED = {
     "nxpost_Sample_mill.ptp": ["Sample_mill.ptp:1:", "BEGIN PGM name MM (or INCH)"],
     # a Sinumerik program (MCALL CYCLE81) with Fanuc's `G43 H01`: no Sinumerik G code
     "nxpost_sample_part.ptp": ["sample_part.ptp:8:", "G43 is not read"],
-    # Heidenhain lines without a block number (`;LE 30-11-2007 14:10`, a comment added by hand)
-    "nxpost_training_deckel.h": ["training_deckel.h:4:",
-                                 "a Heidenhain block without its block number"],
+    # a Heidenhain program whose working plane is tilted by CYCL DEF 19 (`19.1 A-90`), which mtcomp
+    # does not read (its comment lines without a block number, `;LE 30-11-2007 14:10`, added by
+    # hand, are read since as the TNC reads them: comments; it was refused at line 4 before)
+    "nxpost_training_deckel.h": ["training_deckel.h:11:", "CYCL DEF 19 is not read"],
     # `G1 R12.6 X15.9203 Y6`: an R word a G1 does not use (LinuxCNC and grbl refuse it)
     "rocholl25000_clover.gcode": ["clover.gcode:24:", "R word in a G1 block"],
     # a syntax-colouring sample: `WHILE[ABS[#5+7.]]LT0.1]D02` (brackets that do not balance,
@@ -123,11 +124,10 @@ REFUSED = {
     # `O ENTER OP AND LAST 3 DIGITS`: the post's placeholder for the program number (a Haas takes
     # O and digits only, as nxpost_BandB_mfg.cnc)
     "nxpost_Haas_5T.ptp": ["Haas_5T.ptp:2:", "word O without a valid number"],
-    # Heidenhain: two comment lines before `0010 BEGIN PGM T IN` without block numbers, refused at
-    # the first; the program names its unit IN (line 3), which a TNC does not read (MM or INCH, as
-    # nxpost_Sample_mill.ptp)
-    "nxpost_DMC_70V_sample_in.ptp": ["DMC_70V_sample_in.ptp:1:",
-                                     "a Heidenhain block without its block number"],
+    # Heidenhain: two comment lines before `0010 BEGIN PGM T IN` without block numbers (read as
+    # comments since; refused at the first before); the program names its unit IN (line 3), which
+    # a TNC does not read (MM or INCH, as nxpost_Sample_mill.ptp)
+    "nxpost_DMC_70V_sample_in.ptp": ["DMC_70V_sample_in.ptp:3:", "BEGIN PGM name MM (or INCH)"],
     # `Z.3937 D02` (a D word with G0): nothing names its Fanuc-type control, so it is read as
     # RS274/NGC, whose interpreters refuse a D no code of the block uses; read as a Fanuc's
     # (--dialect fanuc) it reaches the sample part's arc whose end is off its circle (line 17)
@@ -259,7 +259,7 @@ MIN_ACCEPTED = 0.80
 #: (G43, TRAOOF), a TURN= that is not a whole number, CYCLE83's levels out of order, unbalanced
 #: brackets. The others are mtcomp's gaps: a controller runs them (an A-and-B table with pivots
 #: read from the controller's pins, the Sinumerik 850's and Okuma's languages, a B word on a 4-axis
-#: Haas, Heidenhain comments without block numbers; of the batch of 38, a G65 call of a macro
+#: Haas, a Heidenhain working plane tilted by CYCL DEF 19; of the batch of 38, a G65 call of a macro
 #: resident in the machine, not in the file (a G65 whose macro is in the file is expanded),
 #: fixed-format numbers, 5-axis drilling, a BeagleG program that probes with G30 in a program read
 #: as LinuxCNC's, an O word after a tool word, a TNC ISO block before any G00/G01; and a helix from
