@@ -148,10 +148,15 @@ REFUSED = {
     # (a Makino's probing or chip-breaking macro, resident in the control, not in the file: its
     # moves are unknown, refused as an M98 of a subprogram not in the file is)
     "nxpost_Makino_3ax_mill.ptp": ["Makino_3ax_mill.ptp:30:", "G65 (macro call"],
-    # a GE control's fixed-format numbers (`N0040G00X0019685Y-0008937`: 1.9685 in, the point
-    # placed by the format)
-    "nxpost_Monarch_VMC_GE_sample.ptp": ["Monarch_VMC_GE_sample.ptp:5:",
-                                         "X0019685 is a fixed-format number"],
+    # a GE 1050 control's `G87 R-0003937 Z-0003937 F600` (a move along the spindle as NX's post
+    # writes it, not RS274/NGC's back boring; no manual we found gives its motion). Its
+    # fixed-format numbers (`N0040G00X0019685Y-0008937`: 1.9685 in) are read with the format its
+    # machine file gives (FIXED_FORMAT); without it, refused at line 5 naming the setting. Past
+    # its G86/G87 it reaches, at line 15, the NX sample part's arc whose end is off its circle
+    # (0.2756 in from the centre at the start, 0.454 in at the end), on which the other NX posts'
+    # controls alarm; no GE 1050 manual we found names its alarm, so it stays a gap of mtcomp
+    "nxpost_Monarch_VMC_GE_sample.ptp": ["Monarch_VMC_GE_sample.ptp:6:",
+                                         "G87 in a program read in the fixed format 3.4"],
     # a DeVlieg's `T00O00`, `T1O1`: the post (NX's Devlieg_120.def) writes the tool's number again
     # after an O (an address it adds, `user_add_2`: leader O, the tool number's format, fed
     # $mom_tool_number; its meaning neither the post nor a manual we found gives: a tool offset
@@ -261,7 +266,7 @@ MIN_ACCEPTED = 0.80
 #: read from the controller's pins, the Sinumerik 850's and Okuma's languages, a B word on a 4-axis
 #: Haas, a Heidenhain working plane tilted by CYCL DEF 19; of the batch of 38, a G65 call of a macro
 #: resident in the machine, not in the file (a G65 whose macro is in the file is expanded),
-#: fixed-format numbers, 5-axis drilling, a BeagleG program that probes with G30 in a program read
+#: a GE 1050's own G87, 5-axis drilling, a BeagleG program that probes with G30 in a program read
 #: as LinuxCNC's, an O word after a tool word, a TNC ISO block before any G00/G01; and a helix from
 #: a height the program has not given; of the batch of 30, a probing macro: 173 of 186; of the
 #: second blind batch of 30, a G91 helical excerpt that never gives a position: 197 of 211).
@@ -339,6 +344,11 @@ BORING_MILLS = {"nxpost_NomuraBN-130_Fanuc6MB_sample.ptp", "nxpost_Sample_Kuraki
 #: 0.075 mm. The corpus' 16 other programs read as fanuc or haas write every dimension word other
 #: than zero with a point
 CALCULATOR_INPUT = {"gcodes_simple_mill.gcode"}
+#: programs whose words are written in a fixed format (no decimal point, leading zeros: the
+#: point after the format's first digits), for a control that reads that format: their machine file
+#: says so (``fixed_format = "3.4"``), as its user would. Siemens NX's post for a Monarch VMC 150's
+#: GE 1050 control writes coordinates in 3.4 (its .def: FORMAT Coordinate "&_03_4_")
+FIXED_FORMAT = {"nxpost_Monarch_VMC_GE_sample.ptp": "3.4"}
 #: the dialect a user gives (--dialect) for a program that does not show its controller, known from
 #: the controller that runs it: fresa.gcode is a grbl program (SOURCES.md; it ends line 98 with a
 #: byte 0x01, which grbl drops and other controllers do not), rounded-bracket-simple BeagleG's test
@@ -348,12 +358,13 @@ CALCULATOR_INPUT = {"gcodes_simple_mill.gcode"}
 DIALECTS = {"cncwebsim_fresa.gcode": "grbl", "beagleg_rounded-bracket-simple.gcode": "beagleg"}
 
 
-def _machine_file(tmp_path, topology, quill=False, calculator=False):
+def _machine_file(tmp_path, topology, quill=False, calculator=False, fixed=None):
     """A machine of the program's axes with room for any of these programs (+-5 m, any angle);
     ``quill``: with a W quill along Z (a boring mill's: BORING_MILLS); ``calculator``: its control
-    reads words without a point in whole units (CALCULATOR_INPUT)."""
+    reads words without a point in whole units (CALCULATOR_INPUT); ``fixed``: the fixed format its
+    control reads (FIXED_FORMAT)."""
     lines = [f'name = "corpus-{topology.lower()}"', f'topology = "{topology}"'] + [
-        "calculator_input = true"] * calculator
+        "calculator_input = true"] * calculator + [f'fixed_format = "{fixed}"'] * bool(fixed)
     for a in topology.replace("F", ""):
         if a in "ABC":
             lines += [f"[axes.{a}]", "travel_deg = [-100000.0, 100000.0]",
@@ -361,7 +372,8 @@ def _machine_file(tmp_path, topology, quill=False, calculator=False):
         else:
             lines += [f"[axes.{a}]", "travel_mm = [-5000.0, 5000.0]"] + ["quill = true"] * (
                 quill and a == "Z")
-    path = tmp_path / f"{topology.lower()}{'-quill' * quill}{'-calculator' * calculator}.toml"
+    path = tmp_path / (f"{topology.lower()}{'-quill' * quill}{'-calculator' * calculator}"
+                       f"{'-fixed' * bool(fixed)}.toml")
     path.write_text("\n".join(lines) + "\n")
     return path
 
@@ -369,10 +381,11 @@ def _machine_file(tmp_path, topology, quill=False, calculator=False):
 def program_machine_file(folder, prog, topology=None):
     """The corpus machine of program ``prog`` (its topology from its axis words unless given), with
     the W quill its machine has when it is one of the BORING_MILLS, the calculator-type input when
-    one of CALCULATOR_INPUT."""
+    one of CALCULATOR_INPUT, the fixed format when one of FIXED_FORMAT."""
     topology = topology or _topology(prog.read_text(encoding="latin-1"))
     return _machine_file(folder, topology, quill=prog.name in BORING_MILLS,
-                         calculator=prog.name in CALCULATOR_INPUT)
+                         calculator=prog.name in CALCULATOR_INPUT,
+                         fixed=FIXED_FORMAT.get(prog.name))
 
 
 def _model_file(tmp_path, machine_path, seed=1, factor=1.0):
