@@ -18,6 +18,7 @@ Conventions (see docs/conventions.md):
 from __future__ import annotations
 
 import math
+import re
 import os
 import tomllib
 from dataclasses import dataclass, field
@@ -283,6 +284,15 @@ def _positive_int(value, what, path, minimum=0):
     return value
 
 
+def _fixed_format(value, path) -> tuple[int, int] | None:
+    """(digits before the point, digits after it) of ``fixed_format = "3.4"``, or None."""
+    m = re.match(r"^([1-9])\.([0-9])$", value) if isinstance(value, str) else None
+    if value is not None and m is None:
+        raise InputError(f"fixed_format must be a string of the digits before and after the point, "
+                         f"as \"3.4\", got {value!r}", path)
+    return None if m is None else (int(m.group(1)), int(m.group(2)))
+
+
 def machine_from_dict(data: dict, path: str | None = None) -> Machine:
     """Build and validate a Machine from TOML data (mm, deg). Raises InputError naming the key."""
     if not isinstance(data, dict):
@@ -329,10 +339,7 @@ def machine_from_dict(data: dict, path: str | None = None) -> Machine:
     calculator = data.get("calculator_input", False)
     if not isinstance(calculator, bool):
         raise InputError(f"calculator_input must be true or false, got {calculator!r}", path)
-    fixed = data.get("fixed_format")
-    if fixed is not None:
-        from .toolpaths.fixed_format import parse_format
-        fixed = parse_format(fixed, path)
+    fixed = _fixed_format(data.get("fixed_format"), path)
     return Machine(name=name, topology=str(data["topology"]).strip().upper(), axes=tuple(axes),
                    workpiece_chain=wp_chain, tool_chain=tool_chain, tool_length=float(tool_length),
                    compensation=comp, source=path or "", units=units,

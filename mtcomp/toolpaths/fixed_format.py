@@ -41,7 +41,6 @@ LETTERS = frozenset("XYZUVWIJKRQF")
 _ROTARY = frozenset("ABC")
 #: a word of a line's code (lower case, without blanks: :func:`~.lines.line_code`)
 _WORD = re.compile(r"([a-z])([+-]?(?:\d+\.?\d*|\.\d+))")
-_FORMAT = re.compile(r"^([1-9])\.([0-9])$")
 #: G codes that controls reading a fixed format use for moves of their own: the GE 1050's G86 and
 #: G87 as Siemens NX's post for a Monarch VMC 150 writes them, `G87 R-0003937 Z-0003937 F600` (R
 #: and Z the same level: a move along the spindle), `G86 R-0001181 Z0 F0098` (from R to Z at the
@@ -50,15 +49,6 @@ _FORMAT = re.compile(r"^([1-9])\.([0-9])$")
 _GE = ("the GE 1050 control's own code (Siemens NX's post for a Monarch VMC 150 writes {} for "
        "a move along the spindle, not RS274/NGC's boring cycle), whose motion mtcomp does not know")
 _OWN_CODES = {"86": _GE.format("G86 R.. Z.. F.."), "87": _GE.format("G87 R.. Z.. F..")}
-
-
-def parse_format(value, path) -> tuple[int, int]:
-    """(digits before the point, digits after it) of the machine file's ``fixed_format``."""
-    m = _FORMAT.match(value) if isinstance(value, str) else None
-    if m is None:
-        raise InputError(f"fixed_format must be a string of the digits before and after the point, "
-                         f"as \"3.4\", got {value!r}", path)
-    return int(m.group(1)), int(m.group(2))
 
 
 @dataclass
