@@ -18,8 +18,8 @@ Conventions (see docs/conventions.md):
 from __future__ import annotations
 
 import math
-import re
 import os
+import re
 import tomllib
 from dataclasses import dataclass, field
 from importlib import resources
