@@ -608,7 +608,8 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     setup = setup if setup is not None else ProgramSetup(machine)
     with contextlib.ExitStack() as stack:
         expanded = None if io_progress is None else (lambda lines: io_progress("expanded", lines))
-        src = stack.enter_context(open_program(program, settings.dialect, progress=expanded))
+        src = stack.enter_context(open_program(program, settings.dialect, progress=expanded,
+                                                 fixed_format=machine.fixed_format))
         src.feed_use = _feed_use(fitted, series)
         # one pass over the program as read (an expansion, a conversational program's G-code) for
         # its units and for cutter radius compensation (the note); a conversational program's

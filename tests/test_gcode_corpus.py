@@ -78,9 +78,10 @@ REFUSED = {
     "nxpost_Sample_mill.ptp": ["Sample_mill.ptp:1:", "BEGIN PGM name MM (or INCH)"],
     # a Sinumerik program (MCALL CYCLE81) with Fanuc's `G43 H01`: no Sinumerik G code
     "nxpost_sample_part.ptp": ["sample_part.ptp:8:", "G43 is not read"],
-    # Heidenhain lines without a block number (`;LE 30-11-2007 14:10`, a comment added by hand)
-    "nxpost_training_deckel.h": ["training_deckel.h:4:",
-                                 "a Heidenhain block without its block number"],
+    # a Heidenhain program whose working plane is tilted by CYCL DEF 19 (`19.1 A-90`), which mtcomp
+    # does not read (its comment lines without a block number, `;LE 30-11-2007 14:10`, added by
+    # hand, are read since as the TNC reads them: comments; it was refused at line 4 before)
+    "nxpost_training_deckel.h": ["training_deckel.h:11:", "CYCL DEF 19 is not read"],
     # `G1 R12.6 X15.9203 Y6`: an R word a G1 does not use (LinuxCNC and grbl refuse it)
     "rocholl25000_clover.gcode": ["clover.gcode:24:", "R word in a G1 block"],
     # a syntax-colouring sample: `WHILE[ABS[#5+7.]]LT0.1]D02` (brackets that do not balance,
@@ -123,11 +124,10 @@ REFUSED = {
     # `O ENTER OP AND LAST 3 DIGITS`: the post's placeholder for the program number (a Haas takes
     # O and digits only, as nxpost_BandB_mfg.cnc)
     "nxpost_Haas_5T.ptp": ["Haas_5T.ptp:2:", "word O without a valid number"],
-    # Heidenhain: two comment lines before `0010 BEGIN PGM T IN` without block numbers, refused at
-    # the first; the program names its unit IN (line 3), which a TNC does not read (MM or INCH, as
-    # nxpost_Sample_mill.ptp)
-    "nxpost_DMC_70V_sample_in.ptp": ["DMC_70V_sample_in.ptp:1:",
-                                     "a Heidenhain block without its block number"],
+    # Heidenhain: two comment lines before `0010 BEGIN PGM T IN` without block numbers (read as
+    # comments since; refused at the first before); the program names its unit IN (line 3), which
+    # a TNC does not read (MM or INCH, as nxpost_Sample_mill.ptp)
+    "nxpost_DMC_70V_sample_in.ptp": ["DMC_70V_sample_in.ptp:3:", "BEGIN PGM name MM (or INCH)"],
     # `Z.3937 D02` (a D word with G0): nothing names its Fanuc-type control, so it is read as
     # RS274/NGC, whose interpreters refuse a D no code of the block uses; read as a Fanuc's
     # (--dialect fanuc) it reaches the sample part's arc whose end is off its circle (line 17)
@@ -148,10 +148,15 @@ REFUSED = {
     # (a Makino's probing or chip-breaking macro, resident in the control, not in the file: its
     # moves are unknown, refused as an M98 of a subprogram not in the file is)
     "nxpost_Makino_3ax_mill.ptp": ["Makino_3ax_mill.ptp:30:", "G65 (macro call"],
-    # a GE control's fixed-format numbers (`N0040G00X0019685Y-0008937`: 1.9685 in, the point
-    # placed by the format)
-    "nxpost_Monarch_VMC_GE_sample.ptp": ["Monarch_VMC_GE_sample.ptp:5:",
-                                         "X0019685 is a fixed-format number"],
+    # a GE 1050 control's `G87 R-0003937 Z-0003937 F600` (a move along the spindle as NX's post
+    # writes it, not RS274/NGC's back boring; no manual we found gives its motion). Its
+    # fixed-format numbers (`N0040G00X0019685Y-0008937`: 1.9685 in) are read with the format its
+    # machine file gives (FIXED_FORMAT); without it, refused at line 5 naming the setting. Past
+    # its G86/G87 it reaches, at line 15, the NX sample part's arc whose end is off its circle
+    # (0.2756 in from the centre at the start, 0.454 in at the end), on which the other NX posts'
+    # controls alarm; no GE 1050 manual we found names its alarm, so it stays a gap of mtcomp
+    "nxpost_Monarch_VMC_GE_sample.ptp": ["Monarch_VMC_GE_sample.ptp:6:",
+                                         "G87 in a program read in the fixed format 3.4"],
     # a DeVlieg's `T00O00`, `T1O1`: the post (NX's Devlieg_120.def) writes the tool's number again
     # after an O (an address it adds, `user_add_2`: leader O, the tool number's format, fed
     # $mom_tool_number; its meaning neither the post nor a manual we found gives: a tool offset
@@ -278,9 +283,9 @@ MIN_ACCEPTED = 0.80
 #: (G43, TRAOOF), a TURN= that is not a whole number, CYCLE83's levels out of order, unbalanced
 #: brackets. The others are mtcomp's gaps: a controller runs them (an A-and-B table with pivots
 #: read from the controller's pins, the Sinumerik 850's and Okuma's languages, a B word on a 4-axis
-#: Haas, Heidenhain comments without block numbers; of the batch of 38, a G65 call of a macro
+#: Haas, a Heidenhain working plane tilted by CYCL DEF 19; of the batch of 38, a G65 call of a macro
 #: resident in the machine, not in the file (a G65 whose macro is in the file is expanded),
-#: fixed-format numbers, 5-axis drilling, a BeagleG program that probes with G30 in a program read
+#: a GE 1050's own G87, 5-axis drilling, a BeagleG program that probes with G30 in a program read
 #: as LinuxCNC's, an O word after a tool word, a TNC ISO block before any G00/G01; of the batch of
 #: 30, a probing macro: 173 of 186; of the second blind batch of 30, none: 199 of 211; of the
 #: third blind batch of 30, a G81 repeated in G91 with the Z given in G90, uCNC's height-map
@@ -366,6 +371,11 @@ BORING_MILLS = {"nxpost_NomuraBN-130_Fanuc6MB_sample.ptp", "nxpost_Sample_Kuraki
 #: 0.075 mm. The corpus' 16 other programs read as fanuc or haas write every dimension word other
 #: than zero with a point
 CALCULATOR_INPUT = {"gcodes_simple_mill.gcode"}
+#: programs whose words are written in a fixed format (no decimal point, leading zeros: the
+#: point after the format's first digits), for a control that reads that format: their machine file
+#: says so (``fixed_format = "3.4"``), as its user would. Siemens NX's post for a Monarch VMC 150's
+#: GE 1050 control writes coordinates in 3.4 (its .def: FORMAT Coordinate "&_03_4_")
+FIXED_FORMAT = {"nxpost_Monarch_VMC_GE_sample.ptp": "3.4"}
 #: the dialect a user gives (--dialect) for a program that does not show its controller, known from
 #: the controller that runs it: fresa.gcode is a grbl program (SOURCES.md; it ends line 98 with a
 #: byte 0x01, which grbl drops and other controllers do not), rounded-bracket-simple BeagleG's test
@@ -375,12 +385,13 @@ CALCULATOR_INPUT = {"gcodes_simple_mill.gcode"}
 DIALECTS = {"cncwebsim_fresa.gcode": "grbl", "beagleg_rounded-bracket-simple.gcode": "beagleg"}
 
 
-def _machine_file(tmp_path, topology, quill=False, calculator=False):
+def _machine_file(tmp_path, topology, quill=False, calculator=False, fixed=None):
     """A machine of the program's axes with room for any of these programs (+-5 m, any angle);
     ``quill``: with a W quill along Z (a boring mill's: BORING_MILLS); ``calculator``: its control
-    reads words without a point in whole units (CALCULATOR_INPUT)."""
+    reads words without a point in whole units (CALCULATOR_INPUT); ``fixed``: the fixed format its
+    control reads (FIXED_FORMAT)."""
     lines = [f'name = "corpus-{topology.lower()}"', f'topology = "{topology}"'] + [
-        "calculator_input = true"] * calculator
+        "calculator_input = true"] * calculator + [f'fixed_format = "{fixed}"'] * bool(fixed)
     for a in topology.replace("F", ""):
         if a in "ABC":
             lines += [f"[axes.{a}]", "travel_deg = [-100000.0, 100000.0]",
@@ -388,7 +399,8 @@ def _machine_file(tmp_path, topology, quill=False, calculator=False):
         else:
             lines += [f"[axes.{a}]", "travel_mm = [-5000.0, 5000.0]"] + ["quill = true"] * (
                 quill and a == "Z")
-    path = tmp_path / f"{topology.lower()}{'-quill' * quill}{'-calculator' * calculator}.toml"
+    path = tmp_path / (f"{topology.lower()}{'-quill' * quill}{'-calculator' * calculator}"
+                       f"{'-fixed' * bool(fixed)}.toml")
     path.write_text("\n".join(lines) + "\n")
     return path
 
@@ -396,10 +408,11 @@ def _machine_file(tmp_path, topology, quill=False, calculator=False):
 def program_machine_file(folder, prog, topology=None):
     """The corpus machine of program ``prog`` (its topology from its axis words unless given), with
     the W quill its machine has when it is one of the BORING_MILLS, the calculator-type input when
-    one of CALCULATOR_INPUT."""
+    one of CALCULATOR_INPUT, the fixed format when one of FIXED_FORMAT."""
     topology = topology or _topology(prog.read_text(encoding="latin-1"))
     return _machine_file(folder, topology, quill=prog.name in BORING_MILLS,
-                         calculator=prog.name in CALCULATOR_INPUT)
+                         calculator=prog.name in CALCULATOR_INPUT,
+                         fixed=FIXED_FORMAT.get(prog.name))
 
 
 def _model_file(tmp_path, machine_path, seed=1, factor=1.0):
