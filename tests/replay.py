@@ -7,7 +7,8 @@ Replay: modal G0/G1/G2/G3 (I J K or R), G90/G91, G20/G21 (everything in mm and d
 G19, G90.1/G91.1 (absolute or incremental arc centres), G33.1 rigid tapping (to the point and
 back), drilling cycles G73 and G81-G89 expanded into their moves (to X Y at the current level, to
 the R plane, to the bottom, back to R with G99 or to the higher of R and the initial level with
-G98; under G91 R from the series' initial level and Z from R, L repeats), G28/G30 and G53 moves
+G98; R and Z kept as the numbers written and read in each block's distance mode, under G91 R
+from the series' initial level and Z from R; L repeats), G28/G30 and G53 moves
 leave the axes they move (G28/G30 without axis words: every axis) at an unknown position, so do a
 tool change or tool length change (Z) and a change of work coordinate system (every axis); G92
 declares the named axes' positions by an offset of every work system (the old position less the
@@ -454,21 +455,25 @@ def _arc(st, index, words):
 
 
 def _cycle(st, index, words):
-    """The moves of one drilling cycle block: per hole to X Y, to R, to the bottom, and back."""
+    """The moves of one drilling cycle block: per hole to X Y, to R, to the bottom, and back.
+
+    R and Z are kept as the numbers last written and read in the distance mode of the block
+    (LinuxCNC's interp_cycles.cc, convert_cycle_xy: `block->z_number = block->z_flag ?
+    block->z_number : settings->cycle_cc`, R likewise from `settings->cycle_r` in convert_cycle):
+    in G90 they are the levels; in G91 R is measured from the series' initial level (`cycle_il`,
+    the Z where the cycles began) and Z from R (`r = block->r_number + old_cc; cc = r +
+    block->z_number`). mtcomp refuses a G91 series continued under G99 where other controllers
+    differ, and R or Z given in the other distance mode on them."""
     value = dict(words)
+    if "R" in value:
+        st.cycle_r = value["R"] * st.scale
+    if "Z" in value:
+        st.cycle_z = value["Z"] * st.scale
     if st.absolute:
-        if "R" in value:
-            st.cycle_r = value["R"] * st.scale
-        if "Z" in value:
-            st.cycle_z = value["Z"] * st.scale
+        r, bottom = st.cycle_r, st.cycle_z
     else:
-        # R from the series' initial level (LinuxCNC: its cycle_il; mtcomp refuses a series
-        # where other controllers differ)
-        if "R" in value:
-            st.cycle_r = None if st.init_z is None else st.init_z + value["R"] * st.scale
-        if "Z" in value and st.cycle_r is not None:
-            st.cycle_z = st.cycle_r + value["Z"] * st.scale
-    r, bottom = st.cycle_r, st.cycle_z
+        r = None if st.init_z is None or st.cycle_r is None else st.init_z + st.cycle_r
+        bottom = None if r is None or st.cycle_z is None else r + st.cycle_z
     moves = []
     xy = [(c, v) for c, v in words if c in AXES and c != "Z"]
     for _ in range(max(int(value.get("L", 1)), 1)):
