@@ -83,17 +83,24 @@ def incremental_r_level(state, z: float, line: int) -> float:
     return z + state.cycle_r[0]
 
 
+#: the axis a drilling cycle drills along in each plane (LinuxCNC's interp_cycles.cc:
+#: convert_cycle_zx drills along Y, convert_cycle_yz along X; the other two are the hole's place)
+DRILL_AXIS = {17: "Z", 18: "Y", 19: "X"}
+
+
 def cycle_move(state, values, axes_given):
-    """A drilling cycle line passed through: X/Y go where it says (absolute) or stay unknown; the
-    tool axis ends at the R plane or the start height: unknown."""
+    """A drilling cycle line passed through: the axes of its plane go where it says (absolute) or
+    stay unknown; the axis it drills along (Z in G17, Y in G18, X in G19) ends at the R plane or
+    the start height: unknown."""
     scale = MM_PER_INCH if state.inch else 1.0
+    depth = DRILL_AXIS.get(state.plane, TOOL_AXIS)
     state.cycle_line = True
     # new arrays: the block before holds the old ones as its end (changed in place, a passed-through
     # back boring G87 moved the block before it to the next hole in the pure-Python reader)
     state.position, state.known = state.position.copy(), state.known.copy()
     for c in axes_given:
         i = state.names.index(c)
-        if c == TOOL_AXIS:
+        if c == depth:
             continue
         v = math.radians(values[c]) if c in "ABC" else values[c] * scale
         if state.incremental:
@@ -101,7 +108,7 @@ def cycle_move(state, values, axes_given):
         else:
             state.position[i] = v
             state.known[i] = True
-    state._forget(state.tool_axis)
+    state._forget(state.names.index(depth) if depth in state.names else -1)
 
 
 def home_with_motion(dialect: str, home_move: int, motion: int) -> bool:
