@@ -234,8 +234,12 @@ REFUSED = {
     # which LinuxCNC refuses ("No characters found in reading real value")
     "lcncui_example.ngc": ["example.ngc:26:", "word D without a valid number"],
     # mtcomp's gaps among them (their controllers run them): the RS274/NGC specification's cycle
-    # test repeats a G81 in G91 (`x1 y0 r0 g91 l3`) with the Z it was given in G90 (`z-1.1`)
-    "printhor_example3.gcode": ["example3.gcode:4:", "incremental (G91) drilling cycle G81"],
+    # test repeats a G81 in G91 (`x1 y0 r0 g91 l3`) with the Z it was given in G90 (`z-1.1`),
+    # which LinuxCNC reads (read as linuxcnc: DIALECTS); its R is measured from the initial level,
+    # the Z where the cycles began, which the program never gives (a G91 G87 back boring at line
+    # 14 would be refused next, and its G18/G19 series after)
+    "printhor_example3.gcode": ["example3.gcode:4:", "incremental (G91) drilling cycle G81",
+                                "from the initial level"],
     # uCNC's G39 probes a height map and applies it to Z: the moves depend on what it probes
     "ucnc_motion-tests-hmap.nc": ["motion-tests-hmap.nc:2:", "G39 is not a code mtcomp follows"],
     # uCNC's file subroutine O100 (called `O100 CALL [n]`, its branches on #1, one `O100 RETURN`,
@@ -381,8 +385,10 @@ FIXED_FORMAT = {"nxpost_Monarch_VMC_GE_sample.ptp": "3.4"}
 #: byte 0x01, which grbl drops and other controllers do not), rounded-bracket-simple BeagleG's test
 #: data (`X100` after `G3`: a line on BeagleG, whose G2/G3 do not stay in force; read as generic
 #: G-code an arc without centre). Without it fresa.gcode is refused naming the option, and
-#: rounded-bracket-simple at its arc (tests/test_toolpaths_beagleg.py)
-DIALECTS = {"cncwebsim_fresa.gcode": "grbl", "beagleg_rounded-bracket-simple.gcode": "beagleg"}
+#: rounded-bracket-simple at its arc (tests/test_toolpaths_beagleg.py). printhor's example3 is the
+#: RS274/NGC specification's cycle test, which LinuxCNC runs
+DIALECTS = {"cncwebsim_fresa.gcode": "grbl", "beagleg_rounded-bracket-simple.gcode": "beagleg",
+            "printhor_example3.gcode": "linuxcnc"}
 
 
 def _machine_file(tmp_path, topology, quill=False, calculator=False, fixed=None):

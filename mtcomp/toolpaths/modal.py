@@ -19,8 +19,9 @@ from ..errors import InputError
 from ..machine import Machine
 from ._arcs import arc_path, blind_arc, passed_spline, spline_code
 from .blocks import CycleBlock, MotionBlock
-from .cycle_rules import (codes_with_motion, cycle_move, cycle_unclear, has_axis_words, home_with_motion,
-                          incremental_r_level, retract_level, rigid_tap)
+from .cycle_rules import (check_held_numbers, codes_with_motion, cycle_move, cycle_unclear,
+                          has_axis_words, home_with_motion, incremental_r_level, retract_level,
+                          rigid_tap)
 from .dialect import GENERIC, beagleg_block, beagleg_word_order, grbl_program_end
 from .directions import step_directions
 from .frames import (FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle, follow_given,
@@ -666,6 +667,7 @@ class ModalState:
         if reason is not None:
             if inc:
                 raise self._err(f"incremental (G91) drilling cycle G{self.cycle}: {reason}", line)
+            check_held_numbers(self, values, reason, line)
             cycle_move(self, values, axes_given)
             return None
         scale = MM_PER_INCH if self.inch else 1.0
@@ -683,9 +685,6 @@ class ModalState:
         start_known = bool(self.known.all()) and not self.off_path
         self.off_path = False
         if inc:
-            if not (self.known[xi] and self.known[yi] and self.known[zi]):
-                raise self._err(f"incremental (G91) drilling cycle G{self.cycle} from a position the "
-                                "program has not given", line)
             r_level = incremental_r_level(self, start[zi], line)
             z_bottom = r_level + self.cycle_z[0]
             steps = np.arange(1, reps + 1)

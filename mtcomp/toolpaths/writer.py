@@ -696,9 +696,9 @@ def write_pass_through(f, raw: bytes, state: ModalState, out: OutputState, separ
         xi, yi, zi = state.xyz_index
         if state.cycle_start:
             out.cycle_init_z = out.values[zi]
-        for i in (xi, yi):
+        # the axis drilled along (Z in G17, Y in G18, X in G19) is not known after the line
+        for i in (xi, yi, zi):
             out.values[i] = state.position[i] if state.known[i] else math.nan
-        out.values[zi] = math.nan
         for attr in ("cycle_r", "cycle_z"):
             v = getattr(state, attr)
             setattr(out, attr, "" if v is None or v[1] else grid_text(v[0], False, state.inch))
