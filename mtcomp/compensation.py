@@ -688,6 +688,7 @@ def _compensate_source(fitted, src, output, settings, setup, report, progress, j
     gated = {k: [n, int(src.source_lines_of(np.array([line]))[0])]
              for k, (n, line) in planner.datum.gated.items()}
     summary.datum_blocks = sum(n for n, _ in gated.values())
+    summary.uncorrected_cause = _offset_cause(setup, summary)
     summary.datum_line = min((line for _, line in gated.values()), default=0)
     datum, summary.datum_lines = datum_notes(fitted, setup, gated)
     notes += _run_notes(src, written, fitted, setup, tally, found, datum)
@@ -697,6 +698,24 @@ def _compensate_source(fitted, src, output, settings, setup, report, progress, j
                            {j.label: j.as_dict() for j in judges},
                            math.sqrt(tally.sum_sq / max(tally.n, 1)), tally.max,
                            time.perf_counter() - t0, tally.bound_blocks, src.summary())
+
+
+def _offset_cause(setup, summary) -> str:
+    """What the warning that no block was corrected adds where a work offset given without an
+    axis the program positions (taken as 0) put blocks outside the region the data reached, on
+    that axis: the offset and the axis ("" otherwise)."""
+    if summary.corrected_blocks or not summary.outside_blocks:
+        return ""
+    short = [(w, [a for a in left if summary.outside_axes.get(a)])
+             for w, left in setup.left_out().items()]
+    short = [(w, left) for w, left in short if left]
+    if not short:
+        return ""
+    said = "; ".join(f"{', '.join(left)} of work offset {WORK_SYSTEMS[w]} taken as 0 (not given)"
+                     for w, left in short)
+    return (f"; {said}: the program stands outside the region the model's data reached on "
+            f"{', '.join(sorted({a for _, left in short for a in left}))}: give that offset's "
+            "every axis")
 
 
 def _travel_error_with_offsets(e: TravelError, setup) -> TravelError:

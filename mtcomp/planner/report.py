@@ -230,6 +230,9 @@ class Summary:
     sd_seen: bool = False
     #: the model carries a covariance (without one no block's standard error is known)
     has_covariance: bool = True
+    #: what the warning that no block was corrected adds on its likely cause (set by compensate:
+    #: a work offset given without an axis the program positions, where blocks left the region)
+    uncorrected_cause: str = ""
     #: the same figures over the corrected blocks only (``corrected`` = 1 in BLOCKS.csv)
     corrected_blocks: int = 0
     corrected_max_before_um: float = 0.0
@@ -547,7 +550,7 @@ class Summary:
                          "block was corrected as if inside it")
         if self.blocks and not self.corrected_blocks:
             lines.append("warning: no block was corrected (for the reasons above): the output "
-                         "carries no correction")
+                         "carries no correction" + self.uncorrected_cause)
         return "\n".join(lines)
 
     def _ram_text(self, blocks) -> str:
