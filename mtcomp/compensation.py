@@ -54,6 +54,9 @@ class CompensationSettings:
         urad for rotary ones), over the ones above.
     orientation_weight : um of tip deviation that weigh as much as 1 urad of tool-axis deviation.
     subdivide_tol_um : internal nodes where the corrected path would miss a midpoint by more (0: none).
+    ramp_nodes : a straight feed move after a block left uncorrected gets the nodes of the step
+        bound's ramp (PlannerOptions.ramp_nodes; set off where the program's writer cannot write
+        them: a Heidenhain program, cutter radius compensation).
     chord_tol_um : chord tolerance of arcs written as lines.
     temperatures : sensor name -> degC while the program runs; spindle_rpm : warm spindle speed.
     probed_temperatures, probed_spindle_rpm : the same when the part's datum was probed (empty,
@@ -79,6 +82,7 @@ class CompensationSettings:
     axis_max_step: dict = field(default_factory=dict)
     orientation_weight: float = 1.0
     subdivide_tol_um: float = 0.5
+    ramp_nodes: bool = True
     chord_tol_um: float = 1.0
     temperatures: dict = field(default_factory=dict)
     spindle_rpm: float | None = None
@@ -617,7 +621,9 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
         if src.translated or b"41" in found or b"42" in found:
             # one output block per source block: a conversational program's blocks, and a program
             # under cutter radius compensation, whose controller offsets the moves as written
-            settings = replace(settings, subdivide_tol_um=0.0)
+            # (a Sinumerik program's writer writes a straight move's ramp nodes as blocks)
+            settings = replace(settings, subdivide_tol_um=0.0, ramp_nodes=src.sinumerik is not None
+                               and b"41" not in found and b"42" not in found)
         run_ = _compensate_source(fitted, src, output, settings, setup, report, progress, judges,
                                   series, assumed, found, stack, t0, io_progress)
     run_.assumed = "\n".join(line for line in (run_.assumed, probe_line) if line)
@@ -741,6 +747,7 @@ def _planner(fitted, settings: CompensationSettings, inch: bool, src, progress) 
     program as read (its errors name the user's file and line)."""
     sd_limit = settings.sd_limit()
     options = PlannerOptions(method=settings.method, subdivide_tol_um=settings.subdivide_tol_um or None,
+                             ramp_nodes=settings.ramp_nodes,
                              progress=progress, extrapolate=settings.extrapolate,
                              max_correction_sd_um=sd_limit, threads=settings.threads)
     planner = Planner(build_problem(fitted, settings, inch), options, source=src)

@@ -30,6 +30,10 @@ its corrected position differs from the written one. A hole pattern (``HOLES1`` 
 circle) whose holes share one correction gets its reference point moved; otherwise it is written as
 explicit positions, one block each. The retract plane RTP is kept as written (a clearance, not a cut). Where lines are added the
 output's first line after the file header says so.
+
+The program is planned one output block per source block, but for the nodes of the step bound's
+ramp along a straight feed move after a block left uncorrected (mtcomp.planner): they are written
+as ``G1`` blocks before the move's line, every axis the program has given, with the line's feed.
 """
 from __future__ import annotations
 
@@ -71,6 +75,7 @@ class SinumerikWriter(HelixTurns, HeidenhainWriter):
         self.dxy: dict[int, np.ndarray] = {}    # a HOLES2 hole -> its X Y correction, mm
         self.retracts = 0
         self.added = 0
+        self.ramp_blocks = 0                    # internal nodes written as blocks (_nodes)
         self.split_circles = 0
         self.arc_info: dict = {}                # a circle's line -> its GInfo
         self.zi = self.letters.index("Z")
@@ -391,7 +396,9 @@ class SinumerikWriter(HelixTurns, HeidenhainWriter):
         info = self.tr.lines[g]
         i = info.source
         self._units_of(info)
-        if pts.shape[0] > 1 and info.kind != "arc":
+        if pts.shape[0] > 1 and info.kind == "move" and block.motion == 1:
+            self._nodes(i, block, pts[:-1], info)
+        elif pts.shape[0] > 1 and info.kind != "arc":
             self.dropped += pts.shape[0] - 1
         if info.kind == "arc" and info.turn is not None:
             self._turn_piece(i, block, pts, info)
@@ -408,6 +415,22 @@ class SinumerikWriter(HelixTurns, HeidenhainWriter):
             self.texts[i] = self._rewrite(i, block, pts[-1], info, write=write)
         else:
             self.texts[i] = self._rewrite(i, block, pts[-1], info)
+
+    def _nodes(self, i: int, block, nodes: np.ndarray, info) -> None:
+        """The internal nodes (k, na) of a straight feed move (the step bound's ramp into it after
+        a block left uncorrected: mtcomp.planner) written as ``G1`` blocks before its line, every
+        axis the program has given, with the line's feed word (the feed it moves at)."""
+        text = self.texts[i].rstrip("\r\n")
+        feed = [text[self._word_start(text, w):w.end] for w in self._words(text) if w.name == "F"]
+        for p in nodes:
+            words = ["G1"]
+            for j in np.flatnonzero(block.known):
+                t = _number(self._units(j, p[j], info.shift), self._places(j))
+                words.append(self.letters[j] + t)
+                self.written[j] = self._internal(j, float(t), info.shift)
+            self.before.setdefault(i, []).append(" ".join(words + feed[-1:]))
+        self.added += len(nodes)
+        self.ramp_blocks += len(nodes)
 
     def _hole(self, g, i, block, end, info) -> None:
         nominal = block.points[-1]
@@ -539,7 +562,8 @@ class SinumerikWriter(HelixTurns, HeidenhainWriter):
                            "write corrected holes and circles (a cycle call restated, a hole's "
                            "position, a hole pattern HOLES1 or HOLES2 written as explicit "
                            "positions, a circle written in pieces, a helix with TURN= written as "
-                           "pieces)"
+                           "pieces" + (", a feed move's ramp of the correction written at its "
+                                       "nodes" if self.ramp_blocks else "") + ")"
                            + ending)
             own = text[len(text.rstrip("\r\n")):] or ending
             out.extend(t + own for t in self.before.get(i, []))
