@@ -200,10 +200,13 @@ def _runs(st, sel) -> np.ndarray:
     return np.unique(r[r >= 0])
 
 
-def unexplained_params(st, fit, structure, excess, noise_main, inflation: float = 1.0, judged=None):
+def unexplained_params(st, fit, structure, excess, noise_main, spread=1.0, judged=None):
     """(params {'where', 'correlates_with', ...}, evidence, axis) of remaining structure.
-    ``inflation``: how much larger than the noise a right model's held-out rms is expected to be;
+    ``excess``: the held-out rms in noise floors and, second, in what a right model's held-out
+    prediction leaves (a float: the two alike); ``spread``: (n,) or a float, how much larger than the
+    noise a right model's held-out residual is expected to be, reading by reading;
     ``judged``: (n,) bool, the readings whose held-out residual the excess was judged on (None: all)."""
+    excess, beyond = excess if isinstance(excess, tuple) else (excess, excess)
     if structure:
         s = structure[0]
         sel = st.series == s.series
@@ -234,15 +237,18 @@ def unexplained_params(st, fit, structure, excess, noise_main, inflation: float 
         elif cors[0][0].endswith(" position"):
             axis = words[0]
     # p: the held-out mean square over the noise variance, against what a right model leaves (the
-    # noise times the held-out inflation); the noise is itself estimated (its dof): an F test
-    z = fit.cv_resid / noise_main.sigma
+    # noise times each reading's held-out spread); the noise is itself estimated (its dof): an F test
+    z = fit.cv_resid / noise_main.sigma / spread
     sel = np.isfinite(z) & (st.unit == noise_main.unit) & (True if judged is None else judged)
-    p = (float(f_dist.sf(np.mean(z[sel] ** 2) / inflation ** 2, int(sel.sum()), max(noise_main.dof, 1)))
+    p = (float(f_dist.sf(np.mean(z[sel] ** 2), int(sel.sum()), max(noise_main.dof, 1)))
          if sel.any() else None)
     runs = _runs(st, np.ones(len(st), dtype=bool))
     left = 0 if judged is None else int(np.sum(~judged))
     ev = (f"The held-out residual stays {excess:.2f} times the noise floor ({noise_main.sigma:.3g} "
-          f"{noise_main.unit}) with no localised structure"
+          f"{noise_main.unit})"
+          + (f", {beyond:.2f} times what a right model's held-out prediction leaves (the other folds "
+             f"fix some readings' prediction only loosely)" if abs(beyond - excess) > 0.005 else "")
+          + " with no localised structure"
           + (f" ({left} reading(s) whose prediction only their own fold determines left out)" if left else "")
           + "; no candidate effect explains it")
     return ({"where": where, "correlates_with": corr, "runs": [int(r) for r in runs], "p_value": p},
@@ -349,8 +355,9 @@ def _not_judged(diag) -> str:
         text += (f". That is {nj['times_noise']:.3g} times the noise: what only these "
                  "readings measure, nothing else checks, and the model may be wrong there unseen (two "
                  "errors they cannot tell apart, e.g. a rotary axis's radial error motion and its "
-                 "positioning read at one radius): repeat the test another way (another radius, "
-                 "another set-up or instrument) before trusting the model there")
+                 "positioning read at one radius, or a profile's stretch only one part's outermost "
+                 "points reach): repeat the test another way (another radius, another set-up or "
+                 "instrument, a part that reaches there too) before trusting the model there")
     return text
 
 
