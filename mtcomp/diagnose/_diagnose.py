@@ -615,7 +615,8 @@ def _what_remains(st, design, sel: _Selection, noise, noise_main, may_refine, sa
         finer = finer_base(st, design, extra_all, current, structure)
     if structure or beyond > EXCESS_RATIO:
         verdict = "unexplained"
-        findings.append(_unexplained(st, current, structure, (excess, beyond), noise_main, spread, judged))
+        findings.append(_unexplained(st, current, structure, (excess, beyond), noise_main, spread,
+                                     judged))
         say(f"structure remains: {findings[-1].params['where']}")
     return verdict, finer
 
