@@ -69,3 +69,18 @@ def test_alike_z_on_a_hand_made_loss_differential():
     a.forward_sse, b.forward_sse = np.array([np.sum(d + 1.0)]), np.array([float(n)])
     assert choose([a, b]) is b
 
+
+def test_the_drift_finding_names_every_direction_it_holds(tmp_path):
+    """The finding was 'thermal_drift on Z' (the channel that drifts most) although X and Y are
+    fitted and corrected too: it names X, Y and Z, each with its largest drift since the first
+    reading, computed here from the file."""
+    path = _record(tmp_path / "full.csv", seed=1, gap=False)
+    d = diagnose_thermal(load_machine("xfyz"), read_measurements(path))
+    f = d.findings[0]
+    rows = np.loadtxt(path, delimiter=",", skiprows=1)
+    drift = np.max(np.abs(rows[:, 4:7] - rows[0, 4:7]), axis=0)
+    assert f.params["directions"] == ["X", "Y", "Z"]
+    got = f.params["drift_range_by_direction_um"]
+    np.testing.assert_allclose([got[a] for a in "XYZ"], drift, rtol=0, atol=1e-3)
+    assert f.axis == "Z" and f.params["direction"] == "Z"      # the contract's keys, unchanged
+    assert "1. thermal_drift on X, Y, Z:" in d.summary()

@@ -164,6 +164,8 @@ def _thermal_drift(st, c, theta, resid, rt):
     if ranges:
         top = max(ranges, key=ranges.get)
         params["direction" if top in ("X", "Y", "Z") else "channel"] = top
+        if any(d in ("X", "Y", "Z") for d in ranges):
+            params["directions"] = [d for d in ranges if d in ("X", "Y", "Z")]
         params["drift_range_by_direction_um"] = {d: round(v, 4) for d, v in ranges.items()}
     params["drift_range_um"] = round(float(np.ptp(drift[st.unit == "um"])) if np.any(st.unit == "um")
                                      else float(np.ptp(drift)), 4)
@@ -283,10 +285,11 @@ def summary(diag, details=()) -> str:
     if not diag.findings:
         lines.append("findings: none")
     for i, f in enumerate(diag.findings, 1):
-        ps = ", ".join(f"{k}={_short(v)}" for k, v in f.params.items() if not isinstance(v, dict))
+        ps = ", ".join(f"{k}={_short(v)}" for k, v in f.params.items()
+                       if not isinstance(v, dict) or k in _PRINTED_DICTS)
         if "headline" in f.params:           # a finding of several parts: the one that stands out
             ps = f.params["headline"] + others_text(f.params)
-        lines.append(f"{i}. {f.effect}{' on ' + f.axis if f.axis else ''}: {ps}")
+        lines.append(f"{i}. {f.effect}{' on ' + _on(f) if _on(f) else ''}: {ps}")
         lines.append(f"   evidence: {f.evidence}")
         if f.effect != "unexplained" or f.candidate is not None:     # a term the model holds
             lines.append(f"   held-out rms {f.heldout_rms_before:.4g} -> {f.heldout_rms_after:.4g} {f.unit}")
@@ -339,6 +342,16 @@ def summary(diag, details=()) -> str:
     return "\n".join(lines)
 
 
+#: the finding parameters held as dicts that the summary prints (the others are in REPORT.json)
+_PRINTED_DICTS = ("drift_range_by_direction_um",)
+
+
+def _on(f) -> str:
+    """What a finding is on, printed: its axis, or for a drift every tip direction it holds."""
+    held = f.params.get("directions") if f.effect == "thermal_drift" else None
+    return ", ".join(held) if held else f.axis
+
+
 def _not_judged(diag) -> str:
     """What the verdict leaves out, beside it: the readings whose held-out prediction rests on what
     only their own fold determines (their residual measures what the other folds cannot see)."""
@@ -379,6 +392,8 @@ def _short(v):
         return f"{v:.4g}"
     if isinstance(v, list):
         return "[" + ", ".join(_short(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{k}: {_short(x)}" for k, x in v.items()) + "}"
     return str(v)
 
 

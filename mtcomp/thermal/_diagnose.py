@@ -217,6 +217,11 @@ def _drift_finding(fit, axes: dict):
     if fit.channels[worst] in axes:
         params["direction"] = axes[fit.channels[worst]]
     params["drift_range_um"] = _r(float(fit.max_drift_um[worst]), 3)
+    # every tip direction the drift term holds (and corrects), not only the one that drifts most
+    held = [(axes[ch], v) for ch, v in zip(fit.channels, fit.max_drift_um) if ch in axes]
+    if held:
+        params["directions"] = [a for a, _ in held]
+        params["drift_range_by_direction_um"] = {a: _r(float(v), 3) for a, v in held}
     runner_up = sorted((s for s in fit.scores if s is not c), key=lambda s: s.total_sse)[0]
     evidence = (f"predicting each next block of the record from the readings before it, "
                 f"{c.label} leaves {_rms(c.forward_rms_um):.3g} um rms against "
