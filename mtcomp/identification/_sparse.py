@@ -25,6 +25,9 @@ MIN_CURVATURE_DOF = 3
 #: eigenvalues of the data's normal matrix (scaled coordinates) below this share of the largest are
 #: directions the data do not see
 UNSEEN_EV = 1e-12
+#: a class whose penalty on the fit's directions the assumption map shrinks below this share has
+#: every component held at zero by it (what is left is the map's round-off, 1e-13 to 1e-8)
+TAKEN_AWAY = 1e-6
 
 
 def unbounded_directions(penalties: dict, B: np.ndarray, AB: np.ndarray, scale: np.ndarray,
@@ -36,9 +39,14 @@ def unbounded_directions(penalties: dict, B: np.ndarray, AB: np.ndarray, scale: 
     penalties : {class: F_k}, the factors of the penalties in scaled coordinates (unweighted).
     AB : the data's normal matrix along B (no penalty).
     P : the move that took the components no laser file names to zero
-    (:func:`.unmeasured.assumption_map`, internal units; None: none): the directions go through it as
-    the values did, and a class's directions that it takes away (an angular profile no laser names,
-    held at zero by that assumption) are not counted.
+    (:func:`.unmeasured.assumption_map`, internal units; None: none). The fit's directions are taken
+    as that move leaves them (``P B``), both where the curvatures are counted and for the directions
+    returned: what the assumption holds at zero has no curvature to bound, a class it takes away
+    whole (the straightnesses beside positioning runs alone) is not counted, and a count is not
+    lowered by a line of another profile that B carries only with a curvature of a component the
+    assumption holds (with X and Y positioning runs B had X's slope only with a little of the
+    straightness of Y in X, read at Y 0 against X's laser zero: with that straightness held straight
+    the slopes went, and the straightnesses counted 2 curvatures that were the positioning's).
     n_free : the machine parameters come first, the files' set-ups after: only the directions that
     leave the set-ups alone are counted (one that shifts a profile at every target and the laser's
     zero against it is a set-up's, whose variance stays in the covariance)."""
@@ -48,45 +56,49 @@ def unbounded_directions(penalties: dict, B: np.ndarray, AB: np.ndarray, scale: 
     ev, V = np.linalg.eigh(0.5 * (AB + AB.T))
     seen = ev > UNSEEN_EV * max(float(ev.max()), 1e-300)
     N = V[:, ~seen]
+    # the fit's directions as the assumption leaves them; the data read them as B's (J P = J)
+    M = B if P is None else (P @ (scale[:, None] * B)) / scale[:, None]
     if n_free is not None and N.shape[1] and n_free < B.shape[0]:
-        _, sk, Vk = np.linalg.svd(B[n_free:] @ N, full_matrices=True)
+        _, sk, Vk = np.linalg.svd(M[n_free:] @ N, full_matrices=True)
         N = N @ Vk[int(np.sum(sk > 1e-9)):].T
-    FBs = {cls: F @ B for cls, F in penalties.items()}
+    FBs = []                                    # (class, its penalty on M)
+    for cls, F in penalties.items():
+        FM = F @ M
+        if np.linalg.norm(FM, 2) > TAKEN_AWAY * np.linalg.norm(F @ B, 2):
+            FBs.append((cls, FM))
     tol = UNSEEN_EV * max(float(ev.max()), 1e-300)
 
     def rank_on_null(blocks):
         """The data's rank on the null space of the penalties ``blocks`` (all of B without any)."""
         if not blocks:
             return int(seen.sum())
-        M = np.vstack(blocks)
-        _, sf, Vt = np.linalg.svd(M, full_matrices=True)
+        X = np.vstack(blocks)
+        _, sf, Vt = np.linalg.svd(X, full_matrices=True)
         Z = Vt[int(np.sum(sf > 1e-9 * max(float(sf.max()) if sf.size else 0.0, 1e-300))):].T
         return int(np.sum(np.linalg.eigvalsh(Z.T @ AB @ Z) > tol)) if Z.shape[1] else 0
 
-    straight = rank_on_null(list(FBs.values()))
+    straight = rank_on_null([G for _, G in FBs])
     out, classes = [], {}
-    for cls, FB in FBs.items():
+    for i, (cls, FB) in enumerate(FBs):
         top = np.linalg.norm(FB, 2) if FB.size else 0.0
         if not top > 0:
             continue
         # nu: the curvature of this class the data read, the other classes held straight: the
         # degrees of freedom REML has for its weight
-        nu = rank_on_null([G for c, G in FBs.items() if c != cls]) - straight
+        nu = rank_on_null([G for j, (_, G) in enumerate(FBs) if j != i]) - straight
         if nu >= MIN_CURVATURE_DOF or not N.shape[1]:
             continue
         G = FB @ N
         w, U = np.linalg.eigh(G.T @ G)
         U = U[:, w > 1e-12 * top ** 2]
-        D = B @ (N @ U)
-        if P is not None and D.shape[1]:
-            # what the assumption leaves of the class's own part: a direction whose part in this
-            # class the move takes to zero (an angular profile no laser names) is the assumption's;
-            # what it leaves in the other classes (the split of a ball bar's radial reading between
-            # positioning and straightness, which the move trades the angular part against) is
-            # theirs to weigh, not this class's
-            Dm = (P @ (scale[:, None] * D)) / scale[:, None]
-            own = np.abs(penalties[cls]).sum(axis=0) > 0
-            D = Dm[:, np.linalg.norm(Dm[own], axis=0) > 1e-6]
+        D = M @ (N @ U)
+        # what the assumption leaves of the class's own part: a direction whose part in this class
+        # the move takes to zero (an angular profile no laser names) is the assumption's; what it
+        # leaves in the other classes (the split of a ball bar's radial reading between positioning
+        # and straightness, which the move trades the angular part against) is theirs to weigh,
+        # not this class's
+        own = np.abs(penalties[cls]).sum(axis=0) > 0
+        D = D[:, np.linalg.norm(D[own], axis=0) > 1e-6]
         if D.shape[1]:
             out.append(D)
             classes[cls] = nu

@@ -39,6 +39,10 @@ VOLUMETRIC_KINDS = frozenset({"points", "ballbar", "cmm"})
 #: undetermined directions (orthonormal, column-scaled) exceeds this is left open by the data (the
 #: fit's rule for an undetermined unknown, :data:`mtcomp.identification._linalg.NULL_WEIGHT`)
 OPEN_WEIGHT = NULL_WEIGHT
+#: what a move of the files' set-ups and of the components no laser names costs in
+#: :func:`assumption_map`, against 1 for the named components' (column-scaled): nearly nothing, so
+#: that a point of an unnamed profile a run reads with its zero goes to that zero
+SETUP_COST = 1e-6
 
 
 def named_components(datasets) -> set[str]:
@@ -157,7 +161,7 @@ def assumption(problem, null: np.ndarray, scale: np.ndarray) -> Assumption:
     n = null.shape[0]
     u = unmeasured_unknowns(problem, assumed=True)
     if not u.any() or null.shape[1] == 0 or not volumetric([m.data for m in problem.mms]):
-        return Assumption(np.zeros((n, 0)), null, assumption_map(problem, scale[:, None] * null))
+        return Assumption(np.zeros((n, 0)), null, assumption_map(problem, null, scale))
     return _volumetric_split(problem, u, null, scale)
 
 
@@ -197,10 +201,18 @@ def _volumetric_split(problem, u: np.ndarray, null: np.ndarray, scale: np.ndarra
     return Assumption(fixed, null @ Vt[c:].T, scale[:, None] * Ps / scale[None, :])
 
 
-def assumption_map(problem, data_null) -> np.ndarray | None:
-    """(n_unknowns, n_unknowns) P, the linear move ``x -> P x`` along ``data_null`` (n_unknowns, k:
-    directions the data do not see, unknowns' units) that takes the parameters of components no
-    laser file names as near zero as those directions allow; None when there is nothing to move.
+def assumption_map(problem, null: np.ndarray, scale: np.ndarray) -> np.ndarray | None:
+    """(n_unknowns, n_unknowns) P, the linear move ``x -> P x`` along ``null`` (n_unknowns, k:
+    orthonormal directions of the column-scaled unknowns, scale (n_unknowns,), that the data do not
+    see) that takes the parameters of components no laser file names as near zero as those
+    directions allow (internal units); None when there is nothing to move.
+
+    Of the moves that do, it takes the one that changes the named components least (column-scaled),
+    the files' set-ups costing nearly nothing (:data:`SETUP_COST`): X's positioning run at Y = 0
+    reads the straightness of Y in X there with its laser zero, and that point goes to the zero. The
+    least change of every unknown alike shared it between the zero and X's positioning profile
+    between its targets (which the readings do not see), and the straightness's variance, which only
+    the roughness penalty had sized, went there with it.
 
     It is what :func:`unmeasured_to_zero` does to the values, and what the fit's covariance goes
     through with them: the variance of a split between a named component and one no file names
@@ -210,10 +222,16 @@ def assumption_map(problem, data_null) -> np.ndarray | None:
     also took the variance of the named component along with them (a combination of a positioning
     profile and a pitch the data see only in sum), this keeps it."""
     u = unmeasured_unknowns(problem)
-    if not u.any() or data_null.shape[1] == 0:
+    if not u.any() or null.shape[1] == 0:
         return None
-    P = np.eye(data_null.shape[0])
-    P[:, u] -= data_null @ np.linalg.pinv(data_null[u], rcond=1e-10)
+    internal = scale[:, None] * null
+    named = ~u
+    named[problem.n_free:] = False
+    G = null[named].T @ null[named] + SETUP_COST * np.eye(null.shape[1])
+    w, E = np.linalg.eigh(0.5 * (G + G.T))
+    R = E / np.sqrt(w)[None, :]                 # G^(-1/2): the least named change is the least norm
+    P = np.eye(null.shape[0])
+    P[:, u] -= internal @ (R @ np.linalg.pinv(internal[u] @ R, rcond=1e-10))
     return P
 
 
