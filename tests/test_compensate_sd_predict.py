@@ -66,6 +66,10 @@ def _split_model(split: bool):
     # what the data see, dx at z0 per unit of (EXX_1, EBX_1), its standard error that of EXX_1 alone
     w = np.array([sx, sb]) if split else np.array([sx, 0.0])
     n *= 1e-4                                      # 100 urad of pitch slope (internal units)
+    # the fit's values: the least-norm split of what the data see (none along n), as identify's
+    i, j = fitted.params.index("EXX_1"), fitted.params.index("EBX_1")
+    seen = sx * fitted.params.values[i]
+    fitted.params.values[[i, j]] = seen * w / (w @ w)
     fitted.uncertainty = {"names": ["EXX_1", "EBX_1"],
                           "covariance": (SIGMA * sx) ** 2 * np.outer(w, w) / (w @ w) ** 2,
                           "undetermined": n[:, None]}
