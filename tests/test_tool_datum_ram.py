@@ -131,29 +131,22 @@ def test_a_ram_outside_the_data_leaves_only_its_own_correction(plates, capsys):
     .. -50 mm the data reached) and at their height with a 260 mm tool (the ram at +10, above it):
     the X Y errors there are the table's and the saddle's, which the plates measured, and the tilt
     of Z's straight line in the tool length. Left uncorrected whole before (3.6 um for the long
-    tool, against the probe); now the long tool's X and Y are corrected, Z is not, and the summary
-    says where the ram stood against where its data reached, and that the 260 mm tool is longer
-    than the data's. The deep holes are not corrected: plates at one tip height see Z's squareness
-    and the tool axis's tilt only in the sum their tools' lengths make (the ram moves with the
-    tool), and 10 mm below them the two part (predict gives the deviation there no standard
-    error); the 260 mm tool's tip stands at the plates' height, where the split does not act."""
+    tool, against the probe); now X and Y are corrected, Z is not, and the summary says where the
+    ram stood against where its data reached, and that the 260 mm tool is longer than the data's."""
     d, m, model = plates
     rows = _compensate(d, model, [(1, 0.0), (1, -10.0), (3, 0.0)], "ram")
     out = capsys.readouterr().out
     n = len(HOLES)
     ref, deep, long_ = rows[:n], rows[n:2 * n], rows[2 * n:]
-    assert all(r["outside_support"] == "Z" for r in deep + long_), rows
-    assert all(r["corrected"] == "1" for r in long_), rows
-    assert all(r["corrected"] == "0" and r["uncertain"] == "1" and r["correction_sd_um"] == ""
-               for r in deep), deep
+    assert all(r["outside_support"] == "Z" and r["corrected"] == "1" for r in deep + long_), rows
     assert all(float(r["cz_um"] or 0.0) == 0.0 for r in deep + long_), rows
-    said = "with the ram (Z) outside the -150 .. -50 mm its data reached (at 10 .. 10 mm"
+    said = "with the ram (Z) outside the -150 .. -50 mm its data reached (at -160 .. 60 mm"
     assert said in out, out
     said = ("note: the program's tools are 100 .. 260 mm long, the model's data were taken with "
             "100 .. 200 mm")
     assert said in out, out
     base = _holes_after_um(m, ref, 100.0)                 # the part's rotation, common to all
-    for part, tool, before_um, tol in ((long_, 260.0, 3.0, 0.8),):
+    for part, tool, before_um, tol in ((deep, 100.0, 1.0, 0.4), (long_, 260.0, 3.0, 0.8)):
         zero = _uncorrected(part)
         assert np.max(np.hypot(*_holes_after_um(m, zero, tool).T)) > before_um
         err = np.hypot(*(_holes_after_um(m, part, tool) - base).T)

@@ -181,16 +181,13 @@ class FittedModel:
                 c[:, names.index(f)] = self.probed.get(f, self.context_defaults.get(f, 0.0))
         return c
 
-    def at_datum(self, name: str, datum, tool_length, zero: bool = False) -> np.ndarray:
+    def at_datum(self, name: str, datum, tool_length) -> np.ndarray:
         """The model's function ``name`` (e.g. 'deviation_function') at the part's datum (machine
         positions (n, na) of the program's origin) as it was probed (:meth:`datum_params`,
-        :meth:`datum_context`), evaluated where the model is (:meth:`clamp`); ``zero``: at zero
-        errors (a Jacobian as predict judges what the data left undetermined)."""
+        :meth:`datum_context`), evaluated where the model is (:meth:`clamp`)."""
         from .evaluate import evaluate
         datum = np.atleast_2d(np.asarray(datum, dtype=float))
         qd, p = self.clamp(datum)[0], self.datum_params()
-        if zero:
-            p = np.zeros_like(p)
         out = evaluate(self.model, name, qd, p, self.datum_context(tool_length))[0]
         probe = self.machine.tool_length if self.probe_tool_length is None else self.probe_tool_length
         if not np.all(np.asarray(tool_length, dtype=float) == probe):

@@ -27,7 +27,6 @@ from ..kinematics import pose_jacobian as nominal_pose_jacobian
 from ..models.evaluate import evaluate
 from ..models.model_file import UNDETERMINED_UM
 from ..models.assumed import Assumed
-from ..models.undetermined import Undetermined
 from ._small import any_rows, down_columns
 from .problem import CompensationProblem
 
@@ -97,13 +96,7 @@ class Evaluator:
         self._count_lock = threading.Lock()     # parts of a chunk are evaluated in threads
         # predict's covariance, the combinations the fit held weakly included: the truth may differ
         # from the held values by that much, at the block and at the datum (docs/planner.md)
-        und = Undetermined.of(problem.fitted)
-        self._factor = und.factor
-        #: what predict calls undetermined, less what the model holds at zero by rule: a correction
-        #: that moves along it rests on the fit's choice of a split (:meth:`Undetermined.splits`)
-        self._splits = None if und.factor is None else und.splits(problem.fitted)
-        if self._splits is not None and not self._splits.directions.shape[1]:
-            self._splits = None
+        self._factor = problem.fitted.covariance_factor(held=True)
         # the part of the values along what the data left undetermined: a correction that moves
         # with it is unsure (FittedModel.tip_sd_um)
         self._open = problem.fitted.undetermined_values() if self._factor is not None else None
@@ -131,11 +124,9 @@ class Evaluator:
         the deviation at the part's datum, as :meth:`datum_reference` takes it, when ``datum``
         (n, na) is given) under the model's covariance, evaluated where :meth:`_deviation`
         evaluates it; infinite where the correction moves with values the data left undetermined
-        (FittedModel.tip_sd_um) or along a split of what the data see that they leave open
-        (:meth:`_rests_on_split`, predict's rule); NaN when the model carries no uncertainty. Then
-        the correction in its standard errors (:meth:`_in_sd`; NaN where not ``sd``), and, when the
-        model assumes something at zero (:attr:`assumed`), :meth:`Assumed.blocks` of the same
-        Jacobian."""
+        (FittedModel.tip_sd_um); NaN when the model carries no uncertainty. Then the correction in
+        its standard errors (:meth:`_in_sd`; NaN where not ``sd``), and, when the model assumes
+        something at zero (:attr:`assumed`), :meth:`Assumed.blocks` of the same Jacobian."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         out = np.full((q.shape[0], 2 + (self.assumed.width if self.assumed else 0)), np.nan)
         if self._factor is None:
@@ -150,7 +141,6 @@ class Evaluator:
             J = J - self._at_datum("tip_pjacobian_function", datum, ctx)
         if sd:
             each = fitted.tip_sd_um(J, self._factor, self._open, extra, self._choice, components=True)
-            each[self._rests_on_split(q, ctx, datum)] = np.inf
             out[:, 0] = each.max(axis=1)
             out[:, 1] = self._in_sd(q, ctx, datum, each)
         if self.assumed:
@@ -171,20 +161,6 @@ class Evaluator:
             z = np.where(size > 0, size / each, 0.0).max(axis=1)
         z[np.isinf(each).any(axis=1) | (size.max(axis=1) < UNDETERMINED_UM)] = np.nan
         return z
-
-    def _rests_on_split(self, q, ctx, datum=None) -> np.ndarray:
-        """(n,) bool: the corrections at q (less the datum's deviation when ``datum`` is given) that
-        predict's rule calls undetermined (:meth:`Undetermined.rests_on_open`, judged as predict
-        judges it: with the Jacobian at zero errors, in um) along a split the data leave open
-        (:attr:`_splits`); all False when there is none."""
-        n = q.shape[0]
-        if self._splits is None:
-            return np.zeros(n, bool)
-        zero = np.zeros_like(self.p)
-        J0 = evaluate(self.model, "tip_pjacobian_function", self.problem.fitted.clamp(q)[0], zero, ctx)[0]
-        if datum is not None:
-            J0 = J0 - self._at_datum("tip_pjacobian_function", datum, ctx, zero=True)
-        return self._splits.rests_on_open(J0.reshape(3 * n, -1) * 1e3).reshape(n, 3).any(axis=1)
 
     def _deviation_and_qjacobian(self, q, ctx):
         """(deviation (n, 6), d deviation / d q (n, 6, n_axes)) as :meth:`_deviation`: along a held
@@ -280,11 +256,10 @@ class Evaluator:
         out[:, :3] = dev[:, :3]
         return out
 
-    def _at_datum(self, name: str, datum, ctx, zero: bool = False) -> np.ndarray:
+    def _at_datum(self, name: str, datum, ctx) -> np.ndarray:
         """The model's function ``name`` at each block's datum in the datum's context, evaluated once
         per distinct (datum, tool length): a program has one datum or a few (one: its value
-        broadcast over the blocks, read-only). ``zero``: at zero errors (predict's first-order
-        test, :meth:`_rests_on_split`)."""
+        broadcast over the blocks, read-only)."""
         ctx = np.atleast_2d(ctx)
         names = self.model.context_names
         tool = ctx[:, names.index("tool_length")] if "tool_length" in names else np.zeros(ctx.shape[0])
@@ -294,14 +269,14 @@ class Evaluator:
         firsts = np.flatnonzero(new_run)
         if firsts.size == 1:
             # the program's one datum and tool: evaluated once, not once a chunk
-            key = (name, zero, datum[0].tobytes(), np.float64(tool[0]).tobytes())
+            key = (name, datum[0].tobytes(), np.float64(tool[0]).tobytes())
             value = self._datum_values.get(key)
             if value is None:
                 value = self._datum_values[key] = self.problem.fitted.at_datum(name, datum[:1],
-                                                                               tool[:1], zero)
+                                                                               tool[:1])
             return np.broadcast_to(value[0], (datum.shape[0],) + value.shape[1:])
         uniq, inv = _unique_runs(np.column_stack([datum[firsts], tool[firsts]]), new_run)
-        return self.problem.fitted.at_datum(name, uniq[:, :-1], uniq[:, -1], zero)[inv]
+        return self.problem.fitted.at_datum(name, uniq[:, :-1], uniq[:, -1])[inv]
 
     def residual_jacobian(self, q, x, ctx, target=None, _with_nominal=False):
         """Weighted residual b (n, rows) and Jacobian A (n, rows, n_axes) at corrections x (n, n_axes)
