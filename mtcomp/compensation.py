@@ -54,6 +54,9 @@ class CompensationSettings:
         urad for rotary ones), over the ones above.
     orientation_weight : um of tip deviation that weigh as much as 1 urad of tool-axis deviation.
     subdivide_tol_um : internal nodes where the corrected path would miss a midpoint by more (0: none).
+    ramp_nodes : a straight feed move after a block left uncorrected gets the nodes of the step
+        bound's ramp (PlannerOptions.ramp_nodes; set off where the program's writer cannot write
+        them: a Heidenhain program, cutter radius compensation).
     chord_tol_um : chord tolerance of arcs written as lines.
     temperatures : sensor name -> degC while the program runs; spindle_rpm : warm spindle speed.
     probed_temperatures, probed_spindle_rpm : the same when the part's datum was probed (empty,
@@ -79,6 +82,7 @@ class CompensationSettings:
     axis_max_step: dict = field(default_factory=dict)
     orientation_weight: float = 1.0
     subdivide_tol_um: float = 0.5
+    ramp_nodes: bool = True
     chord_tol_um: float = 1.0
     temperatures: dict = field(default_factory=dict)
     spindle_rpm: float | None = None
@@ -608,7 +612,8 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
     setup = setup if setup is not None else ProgramSetup(machine)
     with contextlib.ExitStack() as stack:
         expanded = None if io_progress is None else (lambda lines: io_progress("expanded", lines))
-        src = stack.enter_context(open_program(program, settings.dialect, progress=expanded))
+        src = stack.enter_context(open_program(program, settings.dialect, progress=expanded,
+                                                 fixed_format=machine.fixed_format))
         src.feed_use = _feed_use(fitted, series)
         # one pass over the program as read (an expansion, a conversational program's G-code) for
         # its units and for cutter radius compensation (the note); a conversational program's
@@ -617,7 +622,9 @@ def compensate_program(fitted, program, output, settings: CompensationSettings, 
         if src.translated or b"41" in found or b"42" in found:
             # one output block per source block: a conversational program's blocks, and a program
             # under cutter radius compensation, whose controller offsets the moves as written
-            settings = replace(settings, subdivide_tol_um=0.0)
+            # (a Sinumerik program's writer writes a straight move's ramp nodes as blocks)
+            settings = replace(settings, subdivide_tol_um=0.0, ramp_nodes=src.sinumerik is not None
+                               and b"41" not in found and b"42" not in found)
         run_ = _compensate_source(fitted, src, output, settings, setup, report, progress, judges,
                                   series, assumed, found, stack, t0, io_progress)
     run_.assumed = "\n".join(line for line in (run_.assumed, probe_line) if line)
@@ -688,6 +695,7 @@ def _compensate_source(fitted, src, output, settings, setup, report, progress, j
     gated = {k: [n, int(src.source_lines_of(np.array([line]))[0])]
              for k, (n, line) in planner.datum.gated.items()}
     summary.datum_blocks = sum(n for n, _ in gated.values())
+    summary.uncorrected_cause = _offset_cause(setup, summary)
     summary.datum_line = min((line for _, line in gated.values()), default=0)
     datum, summary.datum_lines = datum_notes(fitted, setup, gated)
     notes += _run_notes(src, written, fitted, setup, tally, found, datum)
@@ -697,6 +705,24 @@ def _compensate_source(fitted, src, output, settings, setup, report, progress, j
                            {j.label: j.as_dict() for j in judges},
                            math.sqrt(tally.sum_sq / max(tally.n, 1)), tally.max,
                            time.perf_counter() - t0, tally.bound_blocks, src.summary())
+
+
+def _offset_cause(setup, summary) -> str:
+    """What the warning that no block was corrected adds where a work offset given without an
+    axis the program positions (taken as 0) put blocks outside the region the data reached, on
+    that axis: the offset and the axis ("" otherwise)."""
+    if summary.corrected_blocks or not summary.outside_blocks:
+        return ""
+    short = [(w, [a for a in left if summary.outside_axes.get(a)])
+             for w, left in setup.left_out().items()]
+    short = [(w, left) for w, left in short if left]
+    if not short:
+        return ""
+    said = "; ".join(f"{', '.join(left)} of work offset {WORK_SYSTEMS[w]} taken as 0 (not given)"
+                     for w, left in short)
+    return (f"; {said}: the program stands outside the region the model's data reached on "
+            f"{', '.join(sorted({a for _, left in short for a in left}))}: give that offset's "
+            "every axis")
 
 
 def _travel_error_with_offsets(e: TravelError, setup) -> TravelError:
@@ -722,6 +748,7 @@ def _planner(fitted, settings: CompensationSettings, inch: bool, src, progress) 
     program as read (its errors name the user's file and line)."""
     sd_limit = settings.sd_limit()
     options = PlannerOptions(method=settings.method, subdivide_tol_um=settings.subdivide_tol_um or None,
+                             ramp_nodes=settings.ramp_nodes,
                              progress=progress, extrapolate=settings.extrapolate,
                              max_correction_sd_um=sd_limit, threads=settings.threads)
     planner = Planner(build_problem(fitted, settings, inch), options, source=src)

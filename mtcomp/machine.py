@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import tomllib
 from dataclasses import dataclass, field
 from importlib import resources
@@ -124,6 +125,9 @@ class Machine:
         (Fanuc: parameter 3401#0 DPI = 1; Haas: Setting 162, Default To Float, on), said by
         ``calculator_input = true`` in the file; else a Fanuc or Haas program's ``X60`` is refused
         (:func:`mtcomp.toolpaths.word_use.check_point_words`).
+    fixed_format : (digits before, after the point) where the control reads words without a
+        decimal point in a fixed format (``fixed_format = "3.4"``: ``X0019685`` is 1.9685), else
+        None (:mod:`mtcomp.toolpaths.fixed_format`).
     """
 
     name: str
@@ -137,6 +141,7 @@ class Machine:
     units: str | None = None
     quill: bool = False
     calculator_input: bool = False
+    fixed_format: tuple[int, int] | None = None
 
     @property
     def axis_names(self) -> tuple[str, ...]:
@@ -236,6 +241,8 @@ class Machine:
             d["units"] = self.units
         if self.calculator_input:
             d["calculator_input"] = True
+        if self.fixed_format is not None:
+            d["fixed_format"] = "%d.%d" % self.fixed_format
         return d
 
 
@@ -277,12 +284,21 @@ def _positive_int(value, what, path, minimum=0):
     return value
 
 
+def _fixed_format(value, path) -> tuple[int, int] | None:
+    """(digits before the point, digits after it) of ``fixed_format = "3.4"``, or None."""
+    m = re.match(r"^([1-9])\.([0-9])$", value) if isinstance(value, str) else None
+    if value is not None and m is None:
+        raise InputError(f"fixed_format must be a string of the digits before and after the point, "
+                         f"as \"3.4\", got {value!r}", path)
+    return None if m is None else (int(m.group(1)), int(m.group(2)))
+
+
 def machine_from_dict(data: dict, path: str | None = None) -> Machine:
     """Build and validate a Machine from TOML data (mm, deg). Raises InputError naming the key."""
     if not isinstance(data, dict):
         raise InputError("machine description must be a table", path)
     known = {"name", "topology", "tool_length_mm", "axes", "compensation", "units",
-             "calculator_input"}
+             "calculator_input", "fixed_format"}
     for key in data:
         if key not in known:
             raise InputError(f"unknown key {key!r} (known: {', '.join(sorted(known))})", path)
@@ -323,10 +339,12 @@ def machine_from_dict(data: dict, path: str | None = None) -> Machine:
     calculator = data.get("calculator_input", False)
     if not isinstance(calculator, bool):
         raise InputError(f"calculator_input must be true or false, got {calculator!r}", path)
+    fixed = _fixed_format(data.get("fixed_format"), path)
     return Machine(name=name, topology=str(data["topology"]).strip().upper(), axes=tuple(axes),
                    workpiece_chain=wp_chain, tool_chain=tool_chain, tool_length=float(tool_length),
                    compensation=comp, source=path or "", units=units,
-                   quill=_quill(axes_data.get("Z", {}), path), calculator_input=calculator)
+                   quill=_quill(axes_data.get("Z", {}), path), calculator_input=calculator,
+                   fixed_format=fixed)
 
 
 def _quill(z_table: dict, path) -> bool:

@@ -7,7 +7,8 @@ Replay: modal G0/G1/G2/G3 (I J K or R), G90/G91, G20/G21 (everything in mm and d
 G19, G90.1/G91.1 (absolute or incremental arc centres), G33.1 rigid tapping (to the point and
 back), drilling cycles G73 and G81-G89 expanded into their moves (to X Y at the current level, to
 the R plane, to the bottom, back to R with G99 or to the higher of R and the initial level with
-G98; under G91 R from the series' initial level and Z from R, L repeats), G28/G30 and G53 moves
+G98; along Z in G17, Y in G18, X in G19; R and Z kept as the numbers written and read in each
+block's distance mode, under G91 R from the series' initial level and Z from R; L repeats), G28/G30 and G53 moves
 leave the axes they move (G28/G30 without axis words: every axis) at an unknown position, so do a
 tool change or tool length change (Z) and a change of work coordinate system (every axis); G92
 declares the named axes' positions by an offset of every work system (the old position less the
@@ -56,6 +57,9 @@ _WORD = re.compile(r"([A-Z])\s*([-+]?\s*(?:\d+\.?\d*|\.\d+))")
 #: drilling cycles; G74 (left-hand tapping) and G76 (fine boring) are Fanuc's and Haas' (mtcomp
 #: refuses them on other controllers, so no other program reaches this replay with them)
 _CYCLES = {73, 74, 76, 81, 82, 83, 84, 85, 86, 87, 88, 89}
+#: the axis a drilling cycle drills along in each plane (LinuxCNC's interp_cycles.cc: aa, bb the
+#: plane's axes, cc the one drilled along: Z in convert_cycle_xy, Y in _zx, X in _yz)
+_DRILL = {17: "Z", 18: "Y", 19: "X"}
 #: RepRapFirmware (Duet3D, G-code dictionary): a parameter's value may be a string in double quotes
 #: ("" inside is one quote character; ; and ( inside belong to it); a program for it is known by
 #: such a string outside comments or by a comment naming the firmware or MillenniumOS
@@ -378,7 +382,7 @@ def _motion_mode(st, gs):
             st.motion = g
         elif g in _CYCLES:
             if st.motion not in _CYCLES:
-                st.before_cycle, st.init_z = st.motion, st.pos["Z"]
+                st.before_cycle, st.init_z = st.motion, st.pos[_DRILL[st.plane]]
             st.motion = int(g)
         elif g == 80:
             # Fanuc and Haas keep the motion in force before the cycle; LinuxCNC refuses axis words
@@ -454,41 +458,47 @@ def _arc(st, index, words):
 
 
 def _cycle(st, index, words):
-    """The moves of one drilling cycle block: per hole to X Y, to R, to the bottom, and back."""
+    """The moves of one drilling cycle block: per hole to X Y, to R, to the bottom, and back.
+
+    R and Z are kept as the numbers last written and read in the distance mode of the block
+    (LinuxCNC's interp_cycles.cc, convert_cycle_xy: `block->z_number = block->z_flag ?
+    block->z_number : settings->cycle_cc`, R likewise from `settings->cycle_r` in convert_cycle):
+    in G90 they are the levels; in G91 R is measured from the series' initial level (`cycle_il`,
+    the Z where the cycles began) and Z from R (`r = block->r_number + old_cc; cc = r +
+    block->z_number`). mtcomp refuses a G91 series continued under G99 where other controllers
+    differ, and R or Z given in the other distance mode on them."""
     value = dict(words)
+    drill = _DRILL[st.plane]          # its word is the depth (Z in G17, Y in G18, X in G19)
+    if "R" in value:
+        st.cycle_r = value["R"] * st.scale
+    if drill in value:
+        st.cycle_z = value[drill] * st.scale
     if st.absolute:
-        if "R" in value:
-            st.cycle_r = value["R"] * st.scale
-        if "Z" in value:
-            st.cycle_z = value["Z"] * st.scale
+        r, bottom = st.cycle_r, st.cycle_z
     else:
-        # R from the series' initial level (LinuxCNC: its cycle_il; mtcomp refuses a series
-        # where other controllers differ)
-        if "R" in value:
-            st.cycle_r = None if st.init_z is None else st.init_z + value["R"] * st.scale
-        if "Z" in value and st.cycle_r is not None:
-            st.cycle_z = st.cycle_r + value["Z"] * st.scale
-    r, bottom = st.cycle_r, st.cycle_z
+        r = None if st.init_z is None or st.cycle_r is None else st.init_z + st.cycle_r
+        bottom = None if r is None or st.cycle_z is None else r + st.cycle_z
     moves = []
-    xy = [(c, v) for c, v in words if c in AXES and c != "Z"]
+    xy = [(c, v) for c, v in words if c in AXES and c != drill]
     for _ in range(max(int(value.get("L", 1)), 1)):
-        moves += _hole(st, index, xy, r, bottom)
+        moves += _hole(st, index, xy, r, bottom, drill)
     return moves
 
 
-def _hole(st, index, xy, r, bottom):
+def _hole(st, index, xy, r, bottom, drill):
+    """One hole: to its place in the plane, along the axis ``drill`` to R, to the bottom, back."""
     moves = []
-    if st.pos["Z"] is not None and r is not None and st.pos["Z"] < r:
-        moves += _go(st, Move(index, "rapid", dict(st.pos), {**st.pos, "Z": r}))
+    if st.pos[drill] is not None and r is not None and st.pos[drill] < r:
+        moves += _go(st, Move(index, "rapid", dict(st.pos), {**st.pos, drill: r}))
     if xy:
         moves += _go(st, Move(index, "rapid", dict(st.pos), _target(st, xy)))
-    moves += _go(st, Move(index, "rapid", dict(st.pos), {**st.pos, "Z": r}))
-    moves += _go(st, Move(index, "feed", dict(st.pos), {**st.pos, "Z": bottom}))
+    moves += _go(st, Move(index, "rapid", dict(st.pos), {**st.pos, drill: r}))
+    moves += _go(st, Move(index, "feed", dict(st.pos), {**st.pos, drill: bottom}))
     if st.retract == 99 or r is None:
         up = r
     else:
         up = None if st.init_z is None else max(st.init_z, r)
-    moves += _go(st, Move(index, "rapid", dict(st.pos), {**st.pos, "Z": up}))
+    moves += _go(st, Move(index, "rapid", dict(st.pos), {**st.pos, drill: up}))
     return moves
 
 

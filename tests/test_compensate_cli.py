@@ -682,3 +682,31 @@ def test_a_program_with_no_corrected_block_says_so(tmp_path, capsys):
     assert "warning: no block was corrected (for the reasons above): the output carries no " \
            "correction" in out
     assert (tmp_path / "o.nc").read_text() == prog.read_text()
+
+
+def test_a_work_offset_without_z_is_said_and_named_when_nothing_is_corrected(tmp_path, capsys):
+    """--work-offset G55=X-80,Y-60 with Z left out: Z of G55 is 0, so the program's Z 5 .. -4 stand
+    at machine Z 5 .. -4, above the -300 .. -100 mm the data reached, and no block is corrected; a
+    quality engineer's run said only "no block was corrected". Now a note says Z was taken as 0 and
+    the warning names the offset. With Z given (-200: machine Z -195 .. -204) the blocks are
+    corrected and neither line is printed."""
+    machine, fitted, model_path = _model_with_support(
+        tmp_path, {"X": (-200.0, 200.0), "Y": (-200.0, 200.0), "Z": (-300.0, -100.0)})
+    prog = tmp_path / "in.nc"
+    prog.write_text("G21 G90\nG55\nG0 X0 Y0 Z5\nG1 Z-4 F300\nX40\nY30\nG0 Z5\nM30\n")
+    out = tmp_path / "out.nc"
+    args = ["compensate", "xfyz", str(model_path), str(prog), "-o", str(out), "-q"]
+    code, stdout, err = _run(args + ["--work-offset", "G55=X-80,Y-60"], capsys)
+    assert code == 0, err
+    said = stdout.splitlines()
+    assert said.count("assumed: Z of work offset G55 = 0 (given with X, Y only; the program "
+                      "positions Z too): give every axis it positions, e.g. --work-offset "
+                      "G55=X..,Y..,Z..") == 1, stdout
+    warning = [t for t in said if t.startswith("warning: no block was corrected")]
+    assert warning == ["warning: no block was corrected (for the reasons above): the output carries "
+                       "no correction; Z of work offset G55 taken as 0 (not given): the program "
+                       "stands outside the region the model's data reached on Z: give that "
+                       "offset's every axis"], stdout
+    code, stdout, err = _run(args + ["--work-offset", "G55=X-80,Y-60,Z-200"], capsys)
+    assert code == 0, err
+    assert "no block was corrected" not in stdout and "of work offset G55 = 0" not in stdout, stdout

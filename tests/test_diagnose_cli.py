@@ -118,6 +118,15 @@ def test_bad_inputs_exit_2_and_write_nothing(campaign, tmp_path, capsys):
             err = capsys.readouterr().err
             assert err.count("\n") == 1 and f"{other}: given twice (also as {files[0]})" in err, err
             assert not report.exists()
+    # a copy under another name (a quality engineer's part saved twice): the same readings again
+    import shutil
+    copy = shutil.copy(files[0], links / "part4.csv")
+    for cmd in (["diagnose", "xfyz", files[0], str(copy), "--json", str(report)],
+                ["identify", "xfyz", files[0], str(copy), "-o", str(report)]):
+        assert main(cmd) == 2, cmd
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"{copy}: the same bytes as {files[0]}" in err, err
+        assert not report.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["folder", "links", "rotary.csv"]
     assert not any(folder.iterdir())
 

@@ -95,7 +95,8 @@ def test_a_verdict_judged_without_readings_far_above_the_noise_says_the_model_ma
 def test_the_readings_not_judged_are_counted_per_file_against_the_noise():
     """``final["not_judged"]`` computed by hand: 4 readings of b.csv not judged, held-out
     residuals 3 um each (rms 3), against a noise floor of 1 um: 3 times the noise, said; against
-    2.5 um (1.2 times, under the 1.3 of the verdict's test) not said. The urad reading is another
+    2.5 um (1.2 times, under the 1.3 of the verdict's test) not said; each reading against its own
+    floor (weights 1 / floor). The urad reading is another
     unit, left out."""
     from types import SimpleNamespace
     from mtcomp.diagnose._diagnose import _not_judged
@@ -104,9 +105,13 @@ def test_the_readings_not_judged_are_counted_per_file_against_the_noise():
     sel = SimpleNamespace(judged=np.array([True, True, False, False, False, False, False]),
                           current=SimpleNamespace(cv_resid=np.array([0.1, -0.1, 3.0, -3.0, 3.0, -3.0, 9.0])))
     final = {}
-    _not_judged(st, sel, final, {"um": SimpleNamespace(sigma=1.0)})
+    _not_judged(st, sel, final, np.ones(7))
     assert final["not_judged"] == {"readings": 4, "of": 6, "unit": "um", "heldout_rms": 3.0,
                                    "files": {"b.csv": 4}, "times_noise": 3.0}
     final = {}
-    _not_judged(st, sel, final, {"um": SimpleNamespace(sigma=2.5)})
+    _not_judged(st, sel, final, np.full(7, 1 / 2.5))
     assert "times_noise" not in final["not_judged"]
+    # each reading against the floor it is weighted by (its file kind's own): b.csv's at 1 um
+    final = {}
+    _not_judged(st, sel, final, np.array([1 / 2.5] * 2 + [1.0] * 5))
+    assert final["not_judged"]["times_noise"] == 3.0

@@ -70,6 +70,17 @@ def test_temperature_flags_that_leave_a_sensor_out_are_refused_naming_it(tmp_pat
     assert not (tmp_path / "out.nc").exists()
 
 
+def test_the_help_of_temperature_says_a_missing_sensor_is_refused(capsys):
+    # what the refusal above does, the help says (it said sensors not given keep the model's
+    # reference, which no run does)
+    with pytest.raises(SystemExit):
+        main(["compensate", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    start = text.index("--temperature NAME=DEGC temperature of sensor")
+    said = text[start:text.index("--temperatures READINGS.csv", start)]
+    assert "a missing one is refused" in said and "reference" not in said, said
+
+
 def test_every_sensor_given_a_file_and_a_flag_together_corrects_the_drift_by_hand(tmp_path, capsys):
     (tmp_path / "warm.csv").write_text("temp_head_c\n24\n")
     rc, err = _compensate(tmp_path, capsys, "--temperatures", str(tmp_path / "warm.csv"),

@@ -12,6 +12,7 @@ import pytest
 
 from mtcomp import InputError, load_machine
 from mtcomp.toolpaths import iter_segment_chunks, read_program, write_corrected
+from replay import Tolerance, compare
 from test_toolpaths_gcode import gcode_path  # noqa: F401  (autouse: compiled and Python path)
 
 XFYZ = load_machine("xfyz")
@@ -221,3 +222,26 @@ def test_fanuc_k_is_the_repeat_count_without_l(tmp_path):
     p.write_text("G21 G90 G17\nG0 X0 Y0 Z10\nG91 G98 G81 X5 Y0 Z-4 R-8 K2 F100\nG90 G80\nM30\n")
     holes = [x.points.tolist() for x in read_program(p, XFYZ).blocks if x.cycle is not None]
     assert holes == [[[5, 0, -2], [10, 0, -2]]]
+
+
+@pytest.mark.parametrize("text, written", [
+    # G18 drills along Y: Z3 X4 place the hole, Y-5 is its bottom; G98 takes Y back to the
+    # initial level (not followed: Y unknown after), so the next lines write X and Z, never Y
+    ("G0 X0 Y5 Z10\nG18 G98 G81 Z3 X4 R2 Y-5 F100\nG80\nG17\nG0 X20\nG1 Z0 F100\n",
+     ["G0 X20.0012 Z3.0033", "G1 Z0.0033 F100"]),
+    # G19 drills along X: Y3 Z4 place the hole, X-5 is its bottom; X unknown after it
+    ("G0 X10 Y0 Z5\nG99 G19 G81 Y3 Z4 R2 X-5 F100\nG80\nG17\nG0 Y20\nG1 X0 F100\n",
+     ["G0 Y19.9979 Z4.0033", "G1 X0.0012 F100"]),
+])
+def test_cycle_in_another_plane_leaves_its_drilling_axis_unknown(tmp_path, text, written):
+    # a G18/G19 cycle passes through uncorrected (LinuxCNC's interp_cycles.cc: convert_cycle_zx
+    # drills along Y, convert_cycle_yz along X); the axis it drills along is not where its word
+    # says after it (that word is the bottom), the plane's two axes are
+    p = tmp_path / "in.nc"
+    p.write_text("G21 G90 G17\n" + text)
+    out = _write(p)
+    assert out[2:5] == p.read_text().splitlines()[2:5]     # the cycle line, G80, G17 as written
+    assert out[5:7] == written
+    # the replay (tests/replay.py, the plane's drilling axis from LinuxCNC's source) moves both alike
+    compare(p.read_bytes(), "\n".join(out).encode() + b"\n",
+            Tolerance(axis_mm=0.005, axis_deg=0.01, path_mm=0.01))

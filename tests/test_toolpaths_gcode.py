@@ -206,14 +206,8 @@ def test_home_moves_and_dwell(tmp_path):
     ("G0 X1\nTRAORI\n", 2, "TRAORI"),
     ("G0 X1\nG43.5 H1\n", 2, "G43.5 .tool centre point"),
     ("G0 X1\nM98 P1000\n", 2, "M98 .subprogram call"),
-    # an incremental arc from a position not given (an absolute one passes through: its end is
-    # known, tests/test_toolpaths_beagleg.py)
-    ("G0 X1\nG91 G2 X1 I0.5 F100\n", 2, "arc G2 from a position the program has not given"),
-    # a helix from a height not given (its pieces once ramped Z from an invented start: from 0, or
-    # from the Z before the tool change, a plunge where the program ramps)
-    ("G0 X0 Y0\nG2 X10 Y0 Z-2 I5 J0 F100\n", 2, "G2 with Z .a helix. from a height along Z"),
-    ("G0 X0 Y0 Z50\nM6 T2\nG0 X30 Y0\nG3 X30 Y0 Z-2 I5 J0 F300\n", 4, "G3 with Z .a helix."),
-    ("G18\nG0 X0 Z0\nG2 X10 Z0 Y-1 I5 K0 F100\n", 3, "G2 with Y .a helix. from a height along Y"),
+    # (an arc from a position not given, absolute or incremental, and a helix from a height not
+    # given pass through as written: tests/test_toolpaths_unknown_start.py)
     ("G93\nG0 X0 Y0\nG1 X1\n", 3, "G93 .inverse time feed.: the G1 block has no F word"),
     ("G0 X1\nG0 A10\n", 2, "no A axis"),
     ("G0 X1\nG1 B10\n", 2, "no B axis"),

@@ -72,6 +72,18 @@ def _shifted(path, c):
         yield chunk, chunk.end + c, np.ones(len(chunk), np.int64)
 
 
+def _constant_correction_by_hand() -> list:
+    """PROGRAM's lines with the correction (+1, -2, +3) um written by hand."""
+    expected = PROGRAM.splitlines()
+    expected[4] = "4 L X+0.0010 Y-0.0020 Z+5.0030 FMAX"
+    expected[5] = "5 L Z-0.9970 F100"
+    expected[7] = "7 CC X+25.0010 Y-0.0020"
+    expected[8] = "8 C X+30.0010 Y-0.0020 DR+"
+    expected[9] = "9 L Z+5.0030 FMAX"
+    expected[16] = "16 L X+50.0010 Y+9.9980 FMAX M99"
+    return expected
+
+
 def test_a_constant_correction_is_written_in_place(tmp_path):
     """A correction of (+1, -2, +3) um everywhere: every written position is the source's plus it,
     in the signed form with 4 decimals, the centre moved with it, IX+20 unchanged (both of its
@@ -80,17 +92,36 @@ def test_a_constant_correction_is_written_in_place(tmp_path):
     p = _write(tmp_path, PROGRAM)
     out = tmp_path / "o.h"
     write_corrected(p, out, XFYZ, _shifted(p, np.array([0.001, -0.002, 0.003])))
-    expected = PROGRAM.splitlines()
-    expected[4] = "4 L X+0.0010 Y-0.0020 Z+5.0030 FMAX"
-    expected[5] = "5 L Z-0.9970 F100"
-    expected[7] = "7 CC X+25.0010 Y-0.0020"
-    expected[8] = "8 C X+30.0010 Y-0.0020 DR+"
-    expected[9] = "9 L Z+5.0030 FMAX"
-    expected[16] = "16 L X+50.0010 Y+9.9980 FMAX M99"
-    assert out.read_text().splitlines() == expected
+    assert out.read_text().splitlines() == _constant_correction_by_hand()
     # no correction: the same bytes
     write_corrected(p, out, XFYZ, None)
     assert out.read_bytes() == p.read_bytes()
+
+
+def test_comment_lines_without_a_block_number_are_kept_as_written(tmp_path):
+    """Comment lines added by hand without a block number (`;LE 30-11-2007 14:10`, `;`, a line
+    holding `100.`), before BEGIN PGM and between blocks, CR LF too: the same moves as the program
+    without them, the constant correction written as by hand (the test above), every comment line
+    byte for byte. A block without its number that is no comment stays refused."""
+    comments = {0: ";  POSTPROCESSOR NAME", 4: ";LE 30-11-2007 14:10", 5: ";", 8: "   ",
+                9: ";DIA OUTIL = 100. RAYON = 1.\r", 17: "; X+99 L Z-50"}
+    lines = PROGRAM.splitlines()
+    for k in sorted(comments):
+        lines.insert(k, comments[k])
+    p = _write(tmp_path, "\n".join(lines) + "\n")
+    plain = _write(tmp_path, PROGRAM, "plain.h")
+    moves = {b.line: b.end.tolist() for b in read_program(plain, XFYZ).blocks}
+    kept = [i + 1 for i in range(len(lines)) if i not in comments]   # PROGRAM's lines, now
+    shifted = {kept[line - 1]: end for line, end in moves.items()}
+    assert {b.line: b.end.tolist() for b in read_program(p, XFYZ).blocks} == shifted
+    out = tmp_path / "w.h"
+    write_corrected(p, out, XFYZ, _shifted(p, np.array([0.001, -0.002, 0.003])))
+    expected = _constant_correction_by_hand()
+    for k in sorted(comments):
+        expected.insert(k, comments[k])
+    assert out.read_bytes().decode("latin-1").split("\n") == expected + [""]
+    bad = _write(tmp_path, PROGRAM.replace("9 L Z+5 FMAX", "L Z+5 FMAX"), "bad.h")
+    assert_refused(tmp_path, bad, "bad.h:10:", "a Heidenhain block without its block number", "")
 
 
 def test_an_axis_the_block_does_not_name_is_added_and_incremental_words_take_the_difference(

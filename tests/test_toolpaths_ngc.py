@@ -106,6 +106,22 @@ def test_polar_words_absolute_and_incremental(tmp_path):
 
 
 
+def test_a_function_as_a_word_value_without_brackets_around_it(tmp_path):
+    # LinuxCNC G-code reference, Unary Operation Value: a real value may be a function applied to a
+    # value in brackets, `X SIN[30]`, as `X[SIN[30]]` (the RS274/NGC interpreter's own expression
+    # test writes `x sin[30]`, `x atan[1.7321]/[1.0]`: tests/data/gcode_corpus/printhor_example2)
+    text = ("G90 G0 X0 Y0 Z0\nG1 X SIN[30] Y cos[60] F100\nX ATAN[1]/[1] Y-SQRT[4]\n"
+            "X abs[-2.5] Y ROUND[2.5]\nM2\n")
+    lines, expanded, _ = _expanded(tmp_path, text)
+    assert expanded
+    # sin 30 deg = cos 60 deg = 0.5, atan2(1, 1) = 45 deg, -sqrt 4 = -2, |-2.5|, 2.5 rounded away
+    # (the blank after the letter is kept; a value has the decimals of the numbers it comes from)
+    assert lines[2:5] == ["G1 X 0.5 Y 0.5 F100", "X 45 Y-2", "X 2.5 Y 3.0"]
+    prog = read_program(tmp_path / "in.ngc", XFYZ, dialect="linuxcnc")
+    np.testing.assert_allclose([b.end for b in prog.blocks][1:],
+                               [[0.5, 0.5, 0], [45, -2, 0], [2.5, 3, 0]], rtol=0, atol=1e-12)
+
+
 def test_polar_words_given_by_parameters_in_a_drilling_cycle(tmp_path):
     # Kurt Jacobson's hole circle (tests/data/gcode_corpus/hazzy_hole circle.ngc): a G83 cycle whose
     # holes are polar words with a named parameter for the distance, the later holes a line of

@@ -205,8 +205,18 @@ def test_incremental_move_of_an_unknown_axis_passes_through_and_keeps_it_unknown
     assert res[3:] == ["G0 X10 Y10", "T1 M6", "G0 Z-10.", "G90 G0 Z20.0020"]
 
 
-def test_incremental_arc_of_an_unknown_axis_is_still_refused(tmp_path):
+def test_incremental_arc_of_an_unknown_axis_passes_as_written(tmp_path):
+    # Z lost by the tool change: the G91 helix runs from wherever Z stands, so it is no block and
+    # passes as written; X and Y move by its increments from where the output stands (10.002:
+    # the shift), so the next known increment is the source's and Z is written only once the
+    # program gives it again
     p = tmp_path / "in.nc"
-    p.write_text("G21 G91 G17\nG2 X10 Y0 I5 J0\n")
-    with pytest.raises(InputError, match="incremental \(G91\) move of axis X, whose position"):
-        read_program(p, XFYZ)
+    p.write_text("G21 G90 G17\nG0 X10 Y10 Z50\nT1 M6\nG91 G2 X10 Y0 Z-1 I5 J0 F100\nG1 X5\n"
+                 "G90 G0 Z20.\nG1 X30\n")
+    b = read_program(p, XFYZ).blocks
+    assert [x.line for x in b] == [2, 5, 6, 7]
+    np.testing.assert_allclose(b[1].start[:2], [20.0, 10.0], rtol=0, atol=0)
+    out = _shifted(p, XFYZ)
+    src = p.read_text().splitlines()
+    assert out[3] == src[3]
+    assert out[4:] == ["G1 X5", "G90 G0 Z20.0020", "G1 X30.0020"]

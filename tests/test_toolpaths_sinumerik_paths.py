@@ -196,6 +196,45 @@ def test_a_circle_by_radius_the_correction_bends_is_written_in_pieces(tmp_path):
     assert np.max(np.abs(np.hypot(x - 2e-4 * y, y) - 20.0)) <= 1.1e-3
 
 
+def test_a_half_circle_by_radius_keeps_its_radius_when_its_chord_shortens(tmp_path):
+    # a half circle G2 from (60, 60) to (60, 40) (CR=-10, a quality engineer's contour) with Y
+    # scaled by 1 - 2.5e-5 about Y 40: the start goes to Y59.9995, the chord to 19.9995 mm, the
+    # corrected path a half ellipse of half-axes 10 and 9.99975 about (60, 49.99975). The written
+    # radii next to half the chord (9.99975) are 9.9997, 0.05 um short: the controller's half
+    # circle about the chord's middle, and 9.9998, whose centre lies sqrt(9.9998^2 - 9.99975^2) =
+    # 31.6 um (by hand) off the chord: that circle misses by 31.6 um and the block was written
+    # about I=AC J=AC. Now CR=-9.9997: the half circle, within 0.25 um of the ellipse (by hand:
+    # the circle of radius 9.99975 about its centre meets it at the ends and on the Y axis, and
+    # stands 0.25 um inside it at X 50)
+    path = _write(tmp_path, "N10 G0 X60 Y60 Z5\nN20 G1 Z-4 F100\nN30 G2 X60 Y40 CR=-10\n"
+                            "N40 G0 Z5\nM30\n")
+    lines = _lines_after(path, lambda p: np.outer(p[:, 1] - 40.0, [0.0, -2.5e-5, 0.0]))
+    assert lines[2:7] == ["N10 G0 X60 Y59.9995 Z5", "N20 G1 Z-4 F100", "N30 G2 X60 Y40 CR=-9.9997",
+                          "N40 G0 Z5", "M30"]
+    arc = [m for m in replay_sinumerik.replay("\n".join(lines).encode()).moves if m.kind == "arc"]
+    assert len(arc) == 1
+    np.testing.assert_allclose(arc[0].centre, [60.0, 49.99975], rtol=0, atol=1e-9)
+    x, y = _points(arc[0]).T
+    off = np.abs(np.hypot((x - 60.0) / 10.0, (y - 49.99975) / 9.99975) - 1.0) * 10.0
+    assert 0.24e-3 < off.max() <= 0.26e-3
+
+
+def test_a_circle_by_radius_written_to_its_corrected_z_keeps_its_radius(tmp_path):
+    # a quarter circle CR=10 at Z-1, Z corrected by 2e-4 * x: +2 um at its start (10, 0), none at
+    # its end (0, 10); no circle at one Z holds that within 1 um, the helix from Z-0.998 to Z-1
+    # does (it misses z = -1 + 0.002 cos t by 0.42 um at most, by hand as in the helix test
+    # above). It stays one piece, so it keeps its form: its words, Z added, CR= (it was written
+    # "X0.0000 Y10.0000 Z-1.0000 I=AC(0.0000) J=AC(0.0000)")
+    path = _write(tmp_path, QUARTER)
+    lines = _lines_after(path, lambda p: np.outer(p[:, 0], [0.0, 0.0, 2e-4]))
+    assert lines[3:6] == ["N20 G1 Z-0.9980 F100", "N30 G3 X0 Y10 Z-1.0000 CR=10", "N40 G0 Z5"]
+    arc = [m for m in replay_sinumerik.replay("\n".join(lines).encode()).moves if m.kind == "arc"]
+    u = np.linspace(0, 1, 401)
+    z = arc[0].start["Z"] + (arc[0].end["Z"] - arc[0].start["Z"]) * u
+    miss = np.abs(z - (-1 + 0.002 * np.cos(0.5 * np.pi * u)))
+    assert 0.40e-3 < miss.max() <= 0.43e-3
+
+
 def test_a_circle_by_radius_compensated_against_the_replay(tmp_path, capsys):
     """compensate's output, replayed independently, cuts the source's circles by radius up to the
     correction."""

@@ -78,8 +78,9 @@ def _add_thermal_arguments(parser):
     from . import add_probed_arguments
     parser.add_argument("--temperature", metavar="NAME=DEGC", action="append", default=[],
                         help="temperature of sensor NAME (as in temp_NAME_c of the thermal file) while "
-                             "the program runs, for the model's thermal drift (repeatable; sensors not "
-                             "given keep the model's reference; refused outside the range of the "
+                             "the program runs, for the model's thermal drift (repeatable; every sensor "
+                             "the drift reads must be given, here or in --temperatures: a missing "
+                             "one is refused, naming it; refused outside the range of the "
                              "model's thermal record unless --extrapolate)")
     parser.add_argument("--temperatures", metavar="READINGS.csv", default=None,
                         help="temperature readings, a column temp_NAME_c per sensor as in the "

@@ -84,7 +84,8 @@ def _detrend_runs(st, resid, sel):
     return r
 
 
-def noise_floor(st, resid: np.ndarray, n_params: int = 0) -> dict[str, Noise]:
+def noise_floor(st, resid: np.ndarray, n_params: int = 0,
+                leverage: np.ndarray | None = None) -> dict[str, Noise]:
     """Noise floor per unit class from repeated readings of the base-fit residual ``resid``.
 
     Repeats: same series, pose, approach directions, feed, arm and spindle speed, in different runs
@@ -92,7 +93,12 @@ def noise_floor(st, resid: np.ndarray, n_params: int = 0) -> dict[str, Noise]:
     residual is first freed of a per-(series, run) offset and time trend (readings that disagree
     with their repeats were left out before, mtcomp.measurement.outliers).
     Classes without repeats fall back to a robust estimate (Noise.source says which), scaled
-    by sqrt(n / (n - n_params)) for the degrees of freedom the fit took from the residual.
+    by sqrt(n / (n - p)) for the degrees of freedom p the fit took from the class's residual: the
+    sum of its readings' ``leverage`` (n,) (the hat matrix's diagonal of the fit that left
+    ``resid``) when given, else its share of ``n_params``. A file kind of a class without repeats
+    whose own robust floor exceeds the pooled one is judged by its own, as beside repeats
+    (:func:`_kind_floors`): three CMM parts at 0.8 um beside a ball bar at 0.3 um were weighted
+    and judged by the 0.36 um pooled over both, the ball bar's 720 readings against their 201.
     """
     out = {}
     posed = np.array([k != "thermal" for k in st.kinds])[st.file]
@@ -115,14 +121,21 @@ def noise_floor(st, resid: np.ndarray, n_params: int = 0) -> dict[str, Noise]:
                 sigma = float(np.sqrt(np.sum(dev[rep] ** 2) / dof))
         if np.isfinite(sigma) and sigma > 0:
             own = _series_floors(st.series[ps], inv, dev, rep, sigma)
-            own.update(_kind_floors(st, resid, sel, ps[rep], sigma, n_params))
+            own.update(_kind_floors(st, resid, sel, ps[rep], sigma, n_params, leverage))
             out[unit] = Noise(unit, sigma, dof, "repeats", groups, own)
         else:
-            share = n_params * sel.size / max(len(resid), 1)      # the class's share of the parameters
-            dof = max(sel.size - share, 1.0)
-            out[unit] = Noise(unit, robust_sigma(st, resid, sel) * np.sqrt(sel.size / dof), int(dof),
-                              "robust")
+            dof = _class_dof(sel, len(resid), n_params, leverage)
+            sigma = robust_sigma(st, resid, sel) * np.sqrt(sel.size / dof)
+            own = _kind_floors(st, resid, sel, sel[:0], sigma, n_params, leverage)
+            out[unit] = Noise(unit, sigma, int(dof), "robust", by_series=own)
     return out
+
+
+def _class_dof(rows: np.ndarray, n: int, n_params: int, leverage: np.ndarray | None) -> float:
+    """The degrees of freedom the residual of ``rows`` keeps: their number less the sum of their
+    ``leverage`` (the parameters the fit spent on them), or less their share of ``n_params``."""
+    spent = float(np.sum(leverage[rows])) if leverage is not None else n_params * rows.size / max(n, 1)
+    return max(rows.size - spent, 1.0)
 
 
 def _series_floors(series, inv, dev, rep, pooled: float) -> dict:
@@ -141,11 +154,13 @@ def _series_floors(series, inv, dev, rep, pooled: float) -> dict:
     return out
 
 
-def _kind_floors(st, resid, sel, repeated, pooled: float, n_params: int) -> dict:
+def _kind_floors(st, resid, sel, repeated, pooled: float, n_params: int,
+                 leverage: np.ndarray | None = None) -> dict:
     """series -> the noise floor of its file kind, for the series of the kinds among ``sel`` none of
     whose readings are repeated (``repeated``: the readings that are) and whose robust floor
-    (:func:`robust_sigma` over the kind's readings, corrected for the parameters' share as the
-    unit's own fallback is) exceeds the floor ``pooled`` that other kinds' repeats give. A ball bar
+    (:func:`robust_sigma` over the kind's readings, corrected for the parameters the fit spent on
+    them as the unit's own fallback is) exceeds the floor ``pooled`` that other kinds' repeats give
+    (or, in a class without repeats, the robust floor pooled over every kind). A ball bar
     read once per angle is judged by its own noise, not by the laser's repeats beside it: at 0.3 um
     against the laser's 0.2 um the base model's held-out residual stood 1.5 times above the pooled
     floor, and diagnose called all the data unexplained. Never below the pooled floor: a kind is not
@@ -157,7 +172,7 @@ def _kind_floors(st, resid, sel, repeated, pooled: float, n_params: int) -> dict
         if kind in has_repeats:
             continue
         rows = sel[kinds == kind]
-        dof = max(rows.size - n_params * rows.size / max(len(resid), 1), 1.0)
+        dof = _class_dof(rows, len(resid), n_params, leverage)
         sigma = robust_sigma(st, resid, rows) * np.sqrt(rows.size / dof)
         if sigma > pooled:
             out.update({str(s): float(sigma) for s in np.unique(st.series[rows])})

@@ -107,12 +107,15 @@ def _heldout(st, fit, judged: np.ndarray | None = None) -> float:
     return rms(fit.cv_resid[sel if judged is None else sel & judged])
 
 
-def _heldout_in_noise(st, design, fit, judged: np.ndarray | None = None) -> float:
+def _heldout_in_noise(st, design, fit, judged: np.ndarray | None = None,
+                      spread: np.ndarray | None = None) -> float:
     """:func:`_heldout` in noise floors: each reading's held-out residual over the floor it is
     weighted by (``design.w``: its unit's, or its series' or file kind's own, :func:`.an.noise_floor`),
-    so that a ball bar noisier than the laser beside it is judged by its own noise."""
+    so that a ball bar noisier than the laser beside it is judged by its own noise; over ``spread``
+    (n,) as well when given (each reading's held-out rms under a right model, in noise floors)."""
     sel = st.unit == _heldout_unit(st)
-    return rms((fit.cv_resid * design.w)[sel if judged is None else sel & judged])
+    z = fit.cv_resid * design.w / (1.0 if spread is None else spread)
+    return rms(z[sel if judged is None else sel & judged])
 
 
 def diagnose(machine: Machine, datasets: list, progress=None, max_findings: int = MAX_FINDINGS,
@@ -259,7 +262,7 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     chosen, findings, current = sel.chosen, sel.findings, sel.current
     final_metrics = _metrics(st, current, n_base + sum(c.columns.shape[1] for c in chosen))
     verdict, finer = _what_remains(st, design, sel, noise, noise_main, may_refine, say)
-    _not_judged(st, sel, final_metrics, noise)
+    _not_judged(st, sel, final_metrics, design.w)
     model, where = _fitted_model(st, design, chosen, current)
     diag = Diagnosis(verdict, noise, base_metrics, findings, final_metrics, model, how, len(st),
                      rejected=sel.rejected, reference=reference)
@@ -290,10 +293,11 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     return diag, finer
 
 
-def _not_judged(st, sel: _Selection, final: dict, noise: dict) -> None:
+def _not_judged(st, sel: _Selection, final: dict, w: np.ndarray) -> None:
     """``final["not_judged"]``: the readings the verdict was not judged on (their held-out
     prediction rests on what only their own fold determines), how many, of which files, their
-    held-out rms and, where it exceeds ``EXCESS_RATIO`` times the noise floor, that ratio
+    held-out rms and, where it exceeds ``EXCESS_RATIO`` times the noise floor (``w``: 1 / the floor
+    each reading is weighted by), that ratio
     (``times_noise``), when there are any: the held-out figures printed include them, the verdict
     does not."""
     out = ~sel.judged & (st.unit == _heldout_unit(st))
@@ -303,8 +307,8 @@ def _not_judged(st, sel: _Selection, final: dict, noise: dict) -> None:
         final["not_judged"] = {"readings": int(out.sum()), "of": int((st.unit == _heldout_unit(st)).sum()),
                                "unit": _heldout_unit(st), "heldout_rms": round(rms(sel.current.cv_resid[out]), 4),
                                "files": {str(f): int(c) for f, c in zip(names, counts)}}
-        floor = noise.get(_heldout_unit(st))
-        ratio = final["not_judged"]["heldout_rms"] / floor.sigma if floor is not None and floor.sigma > 0 else 0.0
+        # each reading over the floor it is weighted by (its file kind's own, where it has one)
+        ratio = rms(sel.current.cv_resid[out] * w[out])
         if ratio > EXCESS_RATIO:
             final["not_judged"]["times_noise"] = round(ratio, 3)
 
@@ -391,8 +395,9 @@ def _weighted_design(st: Stack, T0: np.ndarray, say):
     folds of the observations, how the folds were made), at the stack's current point."""
     A = _common_block(st)
     z = _linear_target(st)
-    first = Design(A, z, np.ones(len(st)), np.zeros(len(st), dtype=np.int64), T0).fit(cv=False)
-    noise = an.noise_floor(st, first.resid, first.rank)
+    plain = Design(A, z, np.ones(len(st)), np.zeros(len(st), dtype=np.int64), T0)
+    first = plain.fit(cv=False)
+    noise = an.noise_floor(st, first.resid, first.rank, plain.leverage())
     w = np.ones(len(st))
     for u, nz in noise.items():
         say(f"noise floor ({u}): {nz.sigma:.4g} {u} from {nz.source}"
@@ -591,23 +596,27 @@ def _what_remains(st, design, sel: _Selection, noise, noise_main, may_refine, sa
     sigma = {u: nz.sigma for u, nz in noise.items()}
     for nz in noise.values():
         sigma.update(nz.by_series)               # a series judged by its own floor
-    n = len(st)
     structure = an.find_structure(st, current.resid, sigma)
     # a reading whose held-out prediction rests on what only its own fold determines shows what the
     # other folds cannot see, not what the model lacks: the excess is judged without it
     judged = sel.judged = ~design.extrapolated(current.theta)
     excess = _heldout_in_noise(st, design, current, judged)
-    # a right model still predicts held-out readings a little worse than the noise: sqrt(1 + p/n_fit)
-    inflation = np.sqrt(1.0 + current.rank / max(n * (design.K - 1) / max(design.K, 1), 1.0))
+    extra_all = np.hstack([c.columns for c in chosen]) if chosen else np.zeros((len(st), 0))
+    # a right model predicts a held-out reading worse than its noise by the error of the fit that
+    # predicts it: sqrt(1 + h), h the variance of the kept folds' prediction in noise variances
+    # (large where the other folds fix a reading's prediction only loosely: a part's few points
+    # that alone read a spline function): the excess is judged against that, reading by reading
+    spread = np.sqrt(1.0 + design.heldout_variance(extra_all))
+    beyond = _heldout_in_noise(st, design, current, judged, spread)
     verdict = "none" if not findings else ("unexplained" if any(f.rival_alike for f in findings) else "explained")
     finer = None
     if structure and may_refine:
         from ._resolution import finer_base
-        extra_all = np.hstack([c.columns for c in chosen]) if chosen else np.zeros((len(st), 0))
         finer = finer_base(st, design, extra_all, current, structure)
-    if structure or excess > EXCESS_RATIO * inflation:
+    if structure or beyond > EXCESS_RATIO:
         verdict = "unexplained"
-        findings.append(_unexplained(st, current, structure, excess, noise_main, inflation, judged))
+        findings.append(_unexplained(st, current, structure, (excess, beyond), noise_main, spread,
+                                     judged))
         say(f"structure remains: {findings[-1].params['where']}")
     return verdict, finer
 
@@ -706,10 +715,10 @@ def _not_named(f: Finding) -> Finding:
     return replace(f, effect="unexplained", params=params, evidence=evidence)
 
 
-def _unexplained(st, fit, structure, excess, noise_main, inflation: float = 1.0,
+def _unexplained(st, fit, structure, excess, noise_main, spread=1.0,
                  judged: np.ndarray | None = None) -> Finding:
     from ._report import unexplained_params
-    params, evidence, axis = unexplained_params(st, fit, structure, excess, noise_main, inflation, judged)
+    params, evidence, axis = unexplained_params(st, fit, structure, excess, noise_main, spread, judged)
     h = _heldout(st, fit)
     return Finding("unexplained", axis, params, evidence, h, h, None, unit=_heldout_unit(st))
 

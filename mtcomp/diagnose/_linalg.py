@@ -231,6 +231,46 @@ class Design:
             out[ix] = np.abs(moved) > share
         return out
 
+    def leverage(self) -> np.ndarray:
+        """(n,) the hat matrix's diagonal of the fit of the common block on all the data: the share of
+        each reading's residual the fit takes (their sum is the directions fitted)."""
+        if self._L is None:
+            return np.full(self.n, self.A.shape[1] / max(self.n, 1))
+        P = scipy.linalg.solve_triangular(self._L, (self.Aw / self._d).T, lower=True)
+        return np.sum(P ** 2, axis=0)
+
+    def heldout_variance(self, extra: np.ndarray | None = None) -> np.ndarray:
+        """(n,) the variance of each reading's held-out prediction under a right model, in noise
+        variances: h_i = x_i G_k^+ x_i for the weighted row x_i of the common block plus ``extra``
+        and G_k the normal matrix of the data its fold keeps, on the directions :func:`_fold_solve`
+        fits (those the fold keeps more than FOLD_TOLERANCE of). A right model's held-out residual
+        then has variance 1 + h_i noise variances (the reading's own noise and the error of the fit
+        that predicts it, which shares none of it): a reading whose fold removes most of what fixes
+        its prediction (the only points of a part that read one spline function) is predicted
+        loosely by the other folds, however right the model is. :meth:`fit` predicts with the same
+        directions; the readings whose prediction rests on the directions left out are
+        :meth:`extrapolated`."""
+        X = self.Aw if extra is None or np.size(extra) == 0 else \
+            np.hstack([self.Aw, np.asarray(extra, dtype=float).reshape(self.n, -1) * self.w[:, None]])
+        h = np.zeros(self.n)
+        if self.K < 2:
+            return h
+        G = X.T @ X
+        d, L = _scaled_cholesky(G)
+        if L is None:
+            return h
+        tri = scipy.linalg.solve_triangular
+        dd = np.outer(d, d)
+        for ix in self._fold_index:
+            Gk = G - X[ix].T @ X[ix]
+            M = tri(L, tri(L, Gk / dd, lower=True).T, lower=True)
+            lam, U = _eigh((M + M.T) / 2)
+            ok = lam > FOLD_TOLERANCE
+            # V^T G_k V = diag(lam): the kept data's normal matrix is diagonal on these directions
+            P = X[ix] @ (tri(L.T, U[:, ok], lower=False) / d[:, None])
+            h[ix] = np.sum(P ** 2 / lam[ok], axis=1)
+        return h
+
     def _solve_all(self, AE, EE, bE):
         """(theta_A, theta_E, S): least squares on all data by block elimination; S the Schur
         complement of the extra columns (their information beyond the common block)."""

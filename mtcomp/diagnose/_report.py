@@ -164,6 +164,8 @@ def _thermal_drift(st, c, theta, resid, rt):
     if ranges:
         top = max(ranges, key=ranges.get)
         params["direction" if top in ("X", "Y", "Z") else "channel"] = top
+        if any(d in ("X", "Y", "Z") for d in ranges):
+            params["directions"] = [d for d in ranges if d in ("X", "Y", "Z")]
         params["drift_range_by_direction_um"] = {d: round(v, 4) for d, v in ranges.items()}
     params["drift_range_um"] = round(float(np.ptp(drift[st.unit == "um"])) if np.any(st.unit == "um")
                                      else float(np.ptp(drift)), 4)
@@ -200,10 +202,13 @@ def _runs(st, sel) -> np.ndarray:
     return np.unique(r[r >= 0])
 
 
-def unexplained_params(st, fit, structure, excess, noise_main, inflation: float = 1.0, judged=None):
+def unexplained_params(st, fit, structure, excess, noise_main, spread=1.0, judged=None):
     """(params {'where', 'correlates_with', ...}, evidence, axis) of remaining structure.
-    ``inflation``: how much larger than the noise a right model's held-out rms is expected to be;
+    ``excess``: the held-out rms in noise floors and, second, in what a right model's held-out
+    prediction leaves (a float: the two alike); ``spread``: (n,) or a float, how much larger than the
+    noise a right model's held-out residual is expected to be, reading by reading;
     ``judged``: (n,) bool, the readings whose held-out residual the excess was judged on (None: all)."""
+    excess, beyond = excess if isinstance(excess, tuple) else (excess, excess)
     if structure:
         s = structure[0]
         sel = st.series == s.series
@@ -234,15 +239,18 @@ def unexplained_params(st, fit, structure, excess, noise_main, inflation: float 
         elif cors[0][0].endswith(" position"):
             axis = words[0]
     # p: the held-out mean square over the noise variance, against what a right model leaves (the
-    # noise times the held-out inflation); the noise is itself estimated (its dof): an F test
-    z = fit.cv_resid / noise_main.sigma
+    # noise times each reading's held-out spread); the noise is itself estimated (its dof): an F test
+    z = fit.cv_resid / noise_main.sigma / spread
     sel = np.isfinite(z) & (st.unit == noise_main.unit) & (True if judged is None else judged)
-    p = (float(f_dist.sf(np.mean(z[sel] ** 2) / inflation ** 2, int(sel.sum()), max(noise_main.dof, 1)))
+    p = (float(f_dist.sf(np.mean(z[sel] ** 2), int(sel.sum()), max(noise_main.dof, 1)))
          if sel.any() else None)
     runs = _runs(st, np.ones(len(st), dtype=bool))
     left = 0 if judged is None else int(np.sum(~judged))
     ev = (f"The held-out residual stays {excess:.2f} times the noise floor ({noise_main.sigma:.3g} "
-          f"{noise_main.unit}) with no localised structure"
+          f"{noise_main.unit})"
+          + (f", {beyond:.2f} times what a right model's held-out prediction leaves (the other folds "
+             f"fix some readings' prediction only loosely)" if abs(beyond - excess) > 0.005 else "")
+          + " with no localised structure"
           + (f" ({left} reading(s) whose prediction only their own fold determines left out)" if left else "")
           + "; no candidate effect explains it")
     return ({"where": where, "correlates_with": corr, "runs": [int(r) for r in runs], "p_value": p},
@@ -277,10 +285,11 @@ def summary(diag, details=()) -> str:
     if not diag.findings:
         lines.append("findings: none")
     for i, f in enumerate(diag.findings, 1):
-        ps = ", ".join(f"{k}={_short(v)}" for k, v in f.params.items() if not isinstance(v, dict))
+        ps = ", ".join(f"{k}={_short(v)}" for k, v in f.params.items()
+                       if not isinstance(v, dict) or k in _PRINTED_DICTS)
         if "headline" in f.params:           # a finding of several parts: the one that stands out
             ps = f.params["headline"] + others_text(f.params)
-        lines.append(f"{i}. {f.effect}{' on ' + f.axis if f.axis else ''}: {ps}")
+        lines.append(f"{i}. {f.effect}{' on ' + _on(f) if _on(f) else ''}: {ps}")
         lines.append(f"   evidence: {f.evidence}")
         if f.effect != "unexplained" or f.candidate is not None:     # a term the model holds
             lines.append(f"   held-out rms {f.heldout_rms_before:.4g} -> {f.heldout_rms_after:.4g} {f.unit}")
@@ -333,6 +342,16 @@ def summary(diag, details=()) -> str:
     return "\n".join(lines)
 
 
+#: the finding parameters held as dicts that the summary prints (the others are in REPORT.json)
+_PRINTED_DICTS = ("drift_range_by_direction_um",)
+
+
+def _on(f) -> str:
+    """What a finding is on, printed: its axis, or for a drift every tip direction it holds."""
+    held = f.params.get("directions") if f.effect == "thermal_drift" else None
+    return ", ".join(held) if held else f.axis
+
+
 def _not_judged(diag) -> str:
     """What the verdict leaves out, beside it: the readings whose held-out prediction rests on what
     only their own fold determines (their residual measures what the other folds cannot see)."""
@@ -349,8 +368,9 @@ def _not_judged(diag) -> str:
         text += (f". That is {nj['times_noise']:.3g} times the noise: what only these "
                  "readings measure, nothing else checks, and the model may be wrong there unseen (two "
                  "errors they cannot tell apart, e.g. a rotary axis's radial error motion and its "
-                 "positioning read at one radius): repeat the test another way (another radius, "
-                 "another set-up or instrument) before trusting the model there")
+                 "positioning read at one radius, or a profile's stretch only one part's outermost "
+                 "points reach): repeat the test another way (another radius, another set-up or "
+                 "instrument, a part that reaches there too) before trusting the model there")
     return text
 
 
@@ -372,6 +392,8 @@ def _short(v):
         return f"{v:.4g}"
     if isinstance(v, list):
         return "[" + ", ".join(_short(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{k}: {_short(x)}" for k, x in v.items()) + "}"
     return str(v)
 
 

@@ -38,14 +38,42 @@ def unheld_reversals(fitted) -> dict:
     return out
 
 
+def one_direction_axes(fitted) -> dict:
+    """axis -> '+' or '-': the axes whose positioning the model's laser data read approaching from
+    that side only (``info["reversal"]``'s ``one_direction``) and on which the model holds no
+    backlash term: their reversal is not measured, so the model's correction is the same both ways."""
+    record = fitted.info.get("reversal") if isinstance(fitted.info, dict) else None
+    if not isinstance(record, dict):
+        return {}
+    held = {getattr(t, "axis", None) for t in fitted.model.terms if t.kind == "backlash"}
+    return {a: r["one_direction"] for a in fitted.machine.axis_names
+            if a not in held and isinstance(r := record.get(a), dict)
+            and r.get("one_direction") in ("+", "-")}
+
+
+def one_direction_note(fitted) -> str | None:
+    """One line (no 'note:' prefix) when the model's laser data read an axis approaching from one
+    side only, else None: the reversal there is not measured, held at zero."""
+    axes = one_direction_axes(fitted)
+    if not axes:
+        return None
+    said = ", ".join(f"{a} in {sign} only" for a, sign in axes.items())
+    other = ", ".join(f"{a} in {'-' if sign == '+' else '+'}" for a, sign in axes.items())
+    return (f"the laser data read the positioning approaching {said}: the reversal (backlash) there "
+            f"is not measured and is taken as zero, so moves approaching {other} get the correction "
+            "read from the other side, and whatever reversal the axis has stays in the part; measure "
+            "both directions (ISO 230-2 runs are bidirectional) to know it")
+
+
 def reversal_note(fitted) -> str | None:
     """One line (no trailing newline, no 'note:' prefix) when the data of ``fitted`` (a FittedModel)
     show a reversal the model does not hold, else None: the size per axis (ISO 230-2 mean reversal
     value, and the largest), that the model is the same in both approach directions, and the command
-    that fits it."""
+    that fits it; and, for an axis the laser data read from one side only, :func:`one_direction_note`."""
     missing = unheld_reversals(fitted)
+    one_side = one_direction_note(fitted)
     if not missing:
-        return None
+        return one_side
     sizes = ", ".join(f"{a} {mean:+.1f} {unit} (largest {largest:+.1f} {unit})"
                       for a, (mean, largest, unit) in missing.items())
     if "diagnose" in fitted.info:
@@ -55,4 +83,4 @@ def reversal_note(fitted) -> str | None:
                   "REPORT.json -o MODEL.json`, then use that model")
     return (f"the data show a reversal (mean up minus mean down, ISO 230-2) that this model does not "
             f"hold: {sizes}; the model, and every table and correction made from it, is the same in "
-            f"both approach directions; {advice}")
+            f"both approach directions; {advice}" + (f"; {one_side}" if one_side else ""))

@@ -442,11 +442,11 @@ def undetermined_at(fitted, q: np.ndarray) -> np.ndarray:
     u = fitted.uncertainty
     N = None if u is None else np.asarray(u.get("undetermined", ()), dtype=float)
     out = np.zeros(6, dtype=bool)
+    base, ok = model_errors(fitted, q[None, :])
     if N is None or not N.size or not len(u["names"]):
-        return out
+        return out | _unread_at(fitted, q, base)
     N = N.reshape(len(u["names"]), -1)
     idx = np.array([fitted.params.index(n) for n in u["names"]], dtype=int)
-    base, ok = model_errors(fitted, q[None, :])
     moved = copy.copy(fitted)
     for k in range(N.shape[1]):
         moved.params = fitted.params.copy()
@@ -454,7 +454,23 @@ def undetermined_at(fitted, q: np.ndarray) -> np.ndarray:
         other, _ = model_errors(moved, q[None, :])
         d = np.abs(other[0] - base[0]) * np.r_[np.full(3, 1e3), np.full(3, 1e6)]
         out |= np.nan_to_num(d) > UNDETERMINED_UM
-    return out
+    return out | _unread_at(fitted, q, base)
+
+
+def _unread_at(fitted, q: np.ndarray, base: np.ndarray) -> np.ndarray:
+    """(6,) bool: the components at ``q`` that move with a rotary axis's zero offset the data did
+    not read apart from its positioning error (:func:`mtcomp.identification._offsets.unread_offsets`):
+    more than UNDETERMINED_UM um or urad of their value ``base`` (1, 6) there is that offset's."""
+    from ..identification._offsets import unread_offsets
+    names = unread_offsets(fitted)
+    if not names:
+        return np.zeros(6, dtype=bool)
+    moved = copy.copy(fitted)
+    moved.params = fitted.params.copy()
+    moved.params.values[[fitted.params.index(n) for n in names]] = 0.0
+    other, _ = model_errors(moved, q[None, :])
+    d = np.abs(other[0] - base[0]) * np.r_[np.full(3, 1e3), np.full(3, 1e6)]
+    return np.nan_to_num(d) > UNDETERMINED_UM
 
 
 def _constant_note(zero: np.ndarray, rotary: bool = True, open_parts=None) -> list:
@@ -475,7 +491,8 @@ def _constant_note(zero: np.ndarray, rotary: bool = True, open_parts=None) -> li
     shown = np.r_[np.abs(um) >= CONSTANT_NOTE_MIN, np.abs(urad) >= CONSTANT_NOTE_MIN]
     why = ("; what is marked not determined is the fit's choice among models that fit the data "
            "alike (the data read a spindle tilt or a squareness there only in combination with "
-           "set-ups and angles no file measured; identify --verbose lists the combinations), not a "
+           "set-ups and angles no file measured, a rotary axis's zero offset only with its "
+           "positioning error at the angles read; identify --verbose lists them), not a "
            "measurement, and any value there fits the data as well" if np.any(open_parts & shown) else "")
     turn = ("a turn is the machine's set-up there (a rotary axis's zero offset: its home offset), "
             "which compensate corrects and these tables do not" if rotary else

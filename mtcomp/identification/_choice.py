@@ -14,14 +14,30 @@ So the fit's value along such a combination is given a variance that covers the 
 weights could have made: for each class k, the split that the penalty of class k alone would
 choose (the combination moved so that class k carries the least curvature it can, the other
 classes settling the rest as the fit's weights do) is one standard error from the fit's, where it
-fills a class the fit left empty (:func:`beyond_posterior`): between classes that both carry
-curvature the posterior weighs the split itself. A combination within one class (a profile
+fills a class the fit left empty (:func:`beyond_posterior`); between classes that both carry
+curvature it adds the posterior at the classes' weights lowered to their REML bounds
+(:func:`bounded_split_variance`). A combination within one class (a profile
 smoothed between what was measured) is the same at every weight of that class and gets none; a
 combination along which the fit carries nothing gets none either, whatever its classes.
+
+Between classes that both carry curvature the posterior's variance along such a combination is the
+prior's at the fitted weights (Wahba 1983; Wood 2017, section 5.8: the posterior covariance
+``phi (A + sum_k l_k S_k)^-1``), and a weight is as good as the curvature REML read to estimate
+it: a class the penalty has squeezed to a curvature direction or two (a ball bar's straightness,
+nu = 1, beside its positioning) has a weight that could have been hundreds of times smaller.
+:func:`bounded_split_variance` gives those combinations, and only those, the posterior at each
+carrying class's weight lowered to its REML variance's one-sided 95 % upper bound: the class's
+variance estimated from nu degrees of freedom (nu the class's effective degrees of freedom,
+its penalised rank less ``tr((A + S)^-1 l_k S_k)``) is below ``nu / chi2_{nu, 0.05}`` times the
+estimate with 95 % confidence (as :mod:`._sparse` bounds a class within itself). A prediction
+resting on the penalty's split carries that variance as a finite standard error; what the data
+determine keeps its own.
 """
 from __future__ import annotations
 
 import numpy as np
+
+from ._linalg import penalised_inverse
 
 #: relative singular values of the fit's data matrix (on the directions it moves in) at or below
 #: this share of the largest are directions the data do not see: the penalty alone sets them
@@ -34,6 +50,11 @@ SPLIT_SHARE = 0.1
 #: an alternative split within this many of the posterior's standard errors of the fit's is covered
 #: by them already
 COVERED_SD = 2.0
+#: a class's weight is estimated from at least this many degrees of freedom in the upper bound of
+#: :func:`bounded_split_variance` (nu / chi2_{nu, 0.05}: 254 at 1; it grows without limit below)
+MIN_WEIGHT_DOF = 1.0
+#: the one-sided confidence of the upper bound on a class's prior variance
+WEIGHT_BOUND_P = 0.05
 #: a direction a class's penalty weighs below this share of its strongest (on the open combinations)
 #: is one that class does not decide: the others settle it
 SEEN_BY_CLASS = 1e-3
@@ -114,8 +135,8 @@ def beyond_posterior(D: np.ndarray, pens: np.ndarray, s2: float) -> np.ndarray:
     bound: the posterior gives it the prior's variance at that weight, next to nothing, whatever
     the open combinations could put there. An alternative that puts more than :data:`COVERED_SD`
     squared times s2 into such a class is one the posterior cannot represent: kept. One that moves
-    curvature between classes that both carry some is the prior's to weigh, and the posterior
-    does (Wood 2017, section 5.8)."""
+    curvature between classes that both carry some is the prior's to weigh, at weights known to
+    REML's precision (:func:`bounded_split_variance`)."""
     if not D.shape[1] or not np.isfinite(s2):
         return D[:, :0]
     source = pens[1:, -1].astype(int)
@@ -123,3 +144,37 @@ def beyond_posterior(D: np.ndarray, pens: np.ndarray, s2: float) -> np.ndarray:
     empty = pens[0] <= s2
     filled = ((pens[1:] - pens[0][None, :]) > COVERED_SD ** 2 * s2) & empty[None, :]
     return D[:, filled.any(axis=1) & ~empty[source]]
+
+
+def bounded_split_variance(AB: np.ndarray, FB: list, Hinv: np.ndarray, carried: np.ndarray, s2: float,
+                           splits: np.ndarray) -> np.ndarray:
+    """(k, k) the variance, in the fit's directions B, that the penalty's alternative splits add to
+    the posterior ``s2 Hinv`` when each class's weight is only known to REML's precision.
+
+    AB : the data's normal matrix along B. FB : [(m_k, k) sqrt(l_k) F_k B], each class's weighted
+    penalty factor along B. Hinv : ``(AB + sum_k FB_k^T FB_k)^-1``. carried : (n_classes,) each
+    class's weighted penalty at the fit (:func:`choice_directions`' first row). splits : (k, c)
+    the alternative splits (:func:`choice_directions`) along B.
+
+    Each class that carries curvature beyond the residual variance (``carried > s2``; an empty
+    one is :func:`beyond_posterior`'s) has its weight multiplied by ``chi2_{nu, 0.05} / nu``, nu
+    its effective degrees of freedom (its penalised rank less ``tr(Hinv FB_k^T FB_k)``, at least
+    :data:`MIN_WEIGHT_DOF`): the lower bound of the weight, the upper of the prior variance. The
+    posterior at those weights less the fit's, on the span of the splits only (a profile smoothed
+    within one class between what was measured is no split and keeps its variance), is returned;
+    zeros where there is no split."""
+    from scipy.special import gammaincinv    # chi2_{nu, p} = 2 gammaincinv(nu / 2, p): no scipy.stats
+    k = AB.shape[0]
+    if not splits.shape[1] or len(FB) < 2 or not np.isfinite(s2) or not np.any(np.asarray(carried) > s2):
+        return np.zeros((k, k))
+    lowered = []
+    for G, pen in zip(FB, carried):
+        Sk = G.T @ G
+        sv = np.linalg.svd(G, compute_uv=False)
+        rank = int(np.sum(sv > 1e-9 * max(float(sv.max()) if sv.size else 0.0, 1e-300)))
+        nu = max(rank - float(np.trace(Hinv @ Sk)), MIN_WEIGHT_DOF)
+        lowered.append(Sk * (2.0 * float(gammaincinv(0.5 * nu, WEIGHT_BOUND_P)) / nu if pen > s2 else 1.0))
+    extra = s2 * (penalised_inverse(AB + sum(lowered), sum(lowered)) - Hinv)
+    U, sv, _ = np.linalg.svd(splits, full_matrices=False)
+    Q = U[:, sv > 1e-9 * max(float(sv.max()), 1e-300)]
+    return Q @ (Q.T @ extra @ Q) @ Q.T

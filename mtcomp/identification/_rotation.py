@@ -7,7 +7,9 @@ The squareness itself (the angle between the two axes, as a ball bar reads it) i
 between C0Y and EYX's slope is not. The convention (ISO 230-1's reference lines, X the reference)
 puts it in C0Y: the slopes of EYX, EZX (with B0Z) and EZY (with A0Z) are zero wherever the data
 leave them open, so that nothing turns the part. Where a file's frame is known (``--known-setup``,
-a straightness run whose slope is not fitted), the data read those slopes and the fit keeps them."""
+a straightness run whose slope is not fitted), the data read those slopes and the fit keeps them.
+A tilt about X or Y that a points or CMM file's frame takes (a grid plate's) is not settled by the
+convention: it stays among the combinations the data do not determine (:func:`plate_tilts`)."""
 from __future__ import annotations
 
 import numpy as np
@@ -25,10 +27,10 @@ SQUARENESS_AXES = {"C0Y": "XY", "B0Z": "XZ", "A0Z": "YZ"}
 OPEN_SLOPE = 1e-3
 
 
-def _slope_rows(problem, scale: np.ndarray) -> np.ndarray:
+def _slope_rows(problem, scale: np.ndarray, which=None) -> np.ndarray:
     """(r, n_unknowns) the least-squares slope over its range of each free straightness of
     :data:`SLOPE_OF_RIGID_ROTATION` (polynomials: the linear coefficient), in column-scaled unknowns,
-    each row of unit norm."""
+    each row of unit norm; ``which``: a test of the component's name (None: all)."""
     model = problem.model
     machine = model.machine
     square = set(squareness_names(machine))
@@ -36,7 +38,8 @@ def _slope_rows(problem, scale: np.ndarray) -> np.ndarray:
     for k, i in enumerate(problem.free_idx):
         spec = model.param_specs[i]
         axis, _, comp = spec.group.partition(":")
-        if SLOPE_OF_RIGID_ROTATION.get(comp) not in square or not spec.base:
+        if SLOPE_OF_RIGID_ROTATION.get(comp) not in square or not spec.base or \
+                (which is not None and not which(comp)):
             continue
         suffix = spec.name[len(comp) + 1:]
         ax = machine.axis(axis)
@@ -116,3 +119,74 @@ def undetermined_unknowns(problem, null: np.ndarray) -> np.ndarray:
         if name in SQUARENESS_AXES and in_null[k] and not open_alone[k] and _angle_read(problem, name):
             in_null[k] = False
     return in_null
+
+
+#: the straightnesses whose slope is a tilt of the machine about X or Y (with the squareness named)
+TILT_SLOPES = {comp for comp, square in SLOPE_OF_RIGID_ROTATION.items() if square != "C0Y"}
+
+
+def _z_held(problem) -> bool:
+    """The data hold Z at one position (every file that positions the axes): nothing reads Z."""
+    z = []
+    for m in problem.mms:
+        try:
+            q = m.data.axis_positions(m.machine)
+        except (AttributeError, ValueError):
+            continue
+        if "Z" in m.machine.axis_names and q.size:
+            z.append(q[:, m.machine.axis_names.index("Z")])
+    return bool(z) and np.ptp(np.concatenate(z)) <= 1e-9
+
+
+def _plate_frames(problem) -> list[int]:
+    """The unknowns' indices of the tilts ``rx``, ``ry`` of every points or CMM file whose frame is
+    fitted, where the data hold Z at one position (:func:`_z_held`): plates read on one plane."""
+    if not _z_held(problem):
+        return []
+    out, k = [], problem.n_free
+    for m in problem.mms:
+        names = [s.name for s in m.nuisance_specs]
+        wanted = [f"{m.tag}:setup:{a}" for a in ("rx", "ry")]
+        if getattr(m, "_setup_arm", None) is not None and all(w in names for w in wanted):
+            out += [k + names.index(w) for w in wanted]
+        k += m.n_nuisance
+    return out
+
+
+def plate_tilts(problem, turns: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """(n, t) orthonormal, column-scaled: the part of ``turns`` (:func:`reference_rotation`) that
+    tilts the machine about X or Y against the frame of a plate (:func:`_plate_frames`: its ``rx``
+    or ``ry``), moving no slope of X's straightness in Y. A plate reads its heights only up to its
+    own tilt, and where nothing else reads the Z axis the slopes of X's and Y's straightness in Z
+    trade with that tilt: what the model's convention makes of them depends on where the machine's
+    zero is (a roll of X acts on the tip over its distance along Y from the machine's Y = 0, and
+    the plate's tilt takes what the convention leaves). They stay among the combinations the data
+    do not determine, held where they predict the least error (:func:`least_error_along`); the turn
+    about Z (a part aligned to X) keeps the convention."""
+    n = turns.shape[0]
+    idx = _plate_frames(problem)
+    if not turns.shape[1] or not idx:
+        return np.zeros((n, 0))
+    L = _slope_rows(problem, scale, lambda comp: comp not in TILT_SLOPES)
+    basis = turns
+    if L.shape[0]:
+        _, s, Vt = np.linalg.svd(L @ turns, full_matrices=True)
+        basis = turns @ Vt[int(np.sum(s > OPEN_SLOPE)):].T       # leaving the turn about Z alone
+    if not basis.shape[1]:
+        return np.zeros((n, 0))
+    _, s, Vt = np.linalg.svd(basis[idx], full_matrices=True)
+    return basis @ Vt[:int(np.sum(s > OPEN_SLOPE))].T
+
+
+def least_error_along(x: np.ndarray, directions: np.ndarray, scale: np.ndarray,
+                      metric: np.ndarray | None) -> np.ndarray:
+    """x (internal units) moved along ``directions`` (column-scaled, combinations the data do not
+    determine) to the least mean squared tool-tip error over ``metric``'s region
+    (:func:`.problem.travel_metric`): a choice that does not depend on where the axes' zeros are,
+    as the region is the same whatever coordinates name it."""
+    if metric is None or not directions.shape[1]:
+        return x
+    d = scale[:, None] * directions
+    Md = metric @ d
+    t = -np.linalg.lstsq(d.T @ Md, Md.T @ x, rcond=1e-12)[0]
+    return x + d @ t

@@ -79,8 +79,14 @@ def unbounded_directions(penalties: dict, B: np.ndarray, AB: np.ndarray, scale: 
         U = U[:, w > 1e-12 * top ** 2]
         D = B @ (N @ U)
         if P is not None and D.shape[1]:
+            # what the assumption leaves of the class's own part: a direction whose part in this
+            # class the move takes to zero (an angular profile no laser names) is the assumption's;
+            # what it leaves in the other classes (the split of a ball bar's radial reading between
+            # positioning and straightness, which the move trades the angular part against) is
+            # theirs to weigh, not this class's
             Dm = (P @ (scale[:, None] * D)) / scale[:, None]
-            D = Dm[:, np.linalg.norm(Dm, axis=0) > 1e-6]
+            own = np.abs(penalties[cls]).sum(axis=0) > 0
+            D = Dm[:, np.linalg.norm(Dm[own], axis=0) > 1e-6]
         if D.shape[1]:
             out.append(D)
             classes[cls] = nu

@@ -58,8 +58,10 @@ from ..measurement.readings import MeasurementModel, data_held, data_support
 from ..models.model_file import FittedModel, setup_uncertainty
 from ..models.params import ParameterSet
 from .reversal import DirectionContrast, data_reversal
-from ._rotation import reference_rotation, undetermined_unknowns, without
-from ._choice import beyond_posterior, choice_directions, data_null
+from ._offsets import mark_unread_offsets
+from ._rotation import (least_error_along, plate_tilts, reference_rotation, undetermined_unknowns,
+                        without)
+from ._choice import beyond_posterior, bounded_split_variance, choice_directions, data_null
 from .unmeasured import (assumption, leaving_held_alone, record_unmeasured, unmeasured_to_zero,
                          unmeasured_unknowns)
 from ._linalg import (column_scale, _eliminate, _name_null_space,
@@ -115,6 +117,7 @@ def identify(machine_or_model, datasets, *, free=None, hold=(), initial=None, we
                                    known_setup=known_setup)
     result = solve(problem, SolverOptions(rcond, max_iterations, tol), info=info, t0=t0)
     _record_data(result, problem.model, problem.free, problem.measurements, datasets)
+    mark_unread_offsets(result)
     result.problem = problem        # what was fitted, for a linearised refit (.signflip)
     return result
 
@@ -293,6 +296,7 @@ class _Problem:
         self.class_factors = []     # the weighted penalty factor of each class (the last fit's weights)
         self.choice = np.zeros((self.n_unknowns, 0))  # the penalty's alternative splits across classes (._choice)
         self._choice_cost = np.zeros((1, 1))  # each class's penalty at the fit and after each
+        self._splits = np.zeros((0, 0))  # the alternative splits along the fit's directions B
 
     # --------------------------------------------------------------- weights
     def unit_weights(self):
@@ -474,6 +478,7 @@ class _Problem:
         null = self.penalised_null(V[:, ~keep], penalties)
         frames = frame_rotations(self.mms, self.n_free)
         rotation, turns = reference_rotation(self, null, scale)   # X the reference
+        tilts = plate_tilts(self, turns, scale)   # a plate's tilts: left open
         null = without(null, turns)
         self.by_convention = np.linalg.norm(rotation, axis=1) > 1.0 - 1e-9   # a slope's own parameter
         data_rank = int(keep.sum())
@@ -492,7 +497,12 @@ class _Problem:
         open_ = leaving_held_alone(self, B @ data_null(AB)) if len(self.class_factors) > 1 else B[:, :0]
         choice, self._choice_cost = choice_directions(x / scale, open_, self.class_factors)
         self.choice = scale[:, None] * choice
+        self._splits = B.T @ choice                           # the same along B, for the posterior
         x, r, P = unmeasured_to_zero(self, x, r, w, assumed.move)
+        if tilts.shape[1]:
+            x = least_error_along(x, tilts, scale, self.metric)
+            r = w * (self.observed - self.evaluate(x))
+            null = np.hstack([null, tilts])
         lev, edf, cov, held, held_sd = self._posterior(x, r, w, scale, B, AB, rank, leverage, P)
         unbounded, self.unbounded_classes = unbounded_directions(
             penalties if self.S is not None else {}, B, AB, scale, P, self.n_free)
@@ -575,7 +585,12 @@ class _Problem:
         if P is not None:
             cov = P @ cov @ P.T
         held_cov, held, held_sd, self.held_assumed = held_variance(self.held, scale, s2, P, self.metric)
-        # the penalty's split of what the data cannot see across classes (._choice)
+        # the penalty's split of what the data cannot see across classes (._choice): between classes
+        # that carry curvature, the posterior at the weights' REML bounds; into an empty class, more
+        extra = bounded_split_variance(AB, [F @ B for F in self.class_factors], Hinv,
+                                       self._choice_cost[0, :-1], s2, self._splits)
+        extra = scale[:, None] * (B @ extra @ B.T) * scale[None, :]
+        cov = cov + (extra if P is None else P @ extra @ P.T)
         self.choice = beyond_posterior(self.choice, self._choice_cost, s2)
         if self.choice.shape[1]:
             self.choice = self.choice if P is None else P @ self.choice

@@ -248,9 +248,13 @@ def _axis_ranges(fitted: FittedModel, ax, lo: float, hi: float, und: Undetermine
             X = np.column_stack([np.ones_like(s), s - s.mean()])
             line = np.linalg.lstsq(X, e, rcond=None)[0]
             e = e - X @ line
+            fit_J = np.linalg.lstsq(X, J, rcond=None)[0]
             if not slope_carried(fitted.machine, comp):
-                slope = float(line[1]) * 1e3          # um per mm -> urad
-            J = J - X @ np.linalg.lstsq(X, J, rcond=None)[0]
+                # um per mm -> urad; infinite where the slope rests on what the data leave open
+                # (a plate's tilt against it): the report says so
+                slope = float(line[1]) * 1e3 if np.isfinite(und.std(fit_J[1:] * 1e3)[0]) or \
+                    und.directions is None else float("inf")
+            J = J - X @ fit_J
         D = J - J[0]
         sd_along, held = und.assess(D)
         i_max, i_min = int(np.argmax(e)), int(np.argmin(e))
@@ -280,7 +284,9 @@ def _smoothed_classes(fitted: FittedModel) -> set:
 
 def _location_values(fitted: FittedModel, und: Undetermined, mask) -> list:
     """:class:`LocationValue` of the squareness, spindle tilt and rotary location errors."""
+    from ._offsets import unread_offsets
     machine, p = fitted.machine, fitted.params.values
+    unread = unread_offsets(fitted)
     values = []
     singles = [(n, f"squareness {n}") for n in squareness_names(machine)]
     singles += [(n, f"tilt of the tool axis about {about}") for n, about in zip(SPINDLE_TILT, "XY")]
@@ -300,8 +306,11 @@ def _location_values(fitted: FittedModel, und: Undetermined, mask) -> list:
         sd = und.std(J)
         status = _status(J, sd, mask)
         std = fitted.params.std_errors
-        if status == "fitted" and std is not None and np.isfinite(std).any() and np.isnan(std[i]):
-            status = "undetermined"       # the fit gave it no standard error: part of a held combination
+        if status == "fitted" and (std is not None and np.isfinite(std).any() and np.isnan(std[i])
+                                   or name in unread):
+            # the fit gave it no standard error: part of a held combination, or a rotary axis's
+            # zero offset read only with its positioning error at the angles read (._offsets)
+            status = "undetermined"
         values.append(LocationValue(name, meaning, spec.unit, float(p[i] * spec.to_file), float(sd[0]),
                                     status))
     return values
@@ -331,8 +340,9 @@ def component_lines(fitted: FittedModel, undetermined: Undetermined | None = Non
         lines.append(f"  {axis} from {rows[0].lo:g} to {rows[0].hi:g} {unit}:")
         for r in rows:
             # a flat straightness (no bow above the noise) can still slope: that slope is a squareness
-            slope = (f", slope {r.slope:.1f} urad" if np.isfinite(r.slope) and r.status in ("fitted", "flat")
-                     else "")
+            slope = ("" if r.status not in ("fitted", "flat") or np.isnan(r.slope) else
+                     f", slope {r.slope:.1f} urad" if np.isfinite(r.slope) else
+                     ", slope not determined by the data")
             lines.append(f"    {r.meaning:<22} {r.component:<5} range {_pm(r.range, r.sd, r.status, r.unit)}"
                          + slope)
     fitted_values = [v for v in values if v.status != "held"]

@@ -207,6 +207,8 @@ class FitResult:
             lines.append(self.info["open_weak"])
         if "sparse" in self.info:               # mtcomp.identification._sparse.sparse_note
             lines.append(self.info["sparse"])
+        if "unread_offsets" in self.info:       # mtcomp.identification._offsets
+            lines.append(self.info["unread_offsets"])
         return lines
 
     # ------------------------------------------------------------ lmfit's MinimizerResult figures

@@ -87,8 +87,10 @@ def data_reversal(datasets) -> dict:
                "files": ["ess_b02_x"]}}
 
     (``_urad`` for rotary axes; from ball-bar files ``B`` and ``B_mean`` are the one fitted value and
-    ``n_targets`` the positions read both ways). Axes without a target read in both directions are
-    absent."""
+    ``n_targets`` the positions read both ways). An axis whose positioning the laser files read
+    approaching from one side only (every reading's direction +1, or every one -1) and no file reads
+    both ways is ``{"one_direction": "+", "files": [...]}``: its reversal is not measured. Other axes
+    without a target read in both directions are absent."""
     found: dict = {}
     for d in _laser_sets(datasets):
         tag = Path(str(d.path)).stem if getattr(d, "path", None) else "laser"
@@ -101,6 +103,9 @@ def data_reversal(datasets) -> dict:
                 entry["groups"] += groups
                 entry["files"].append(tag)
     out = _ballbar_reversal(datasets)
+    for a, (sign, files) in _one_direction(datasets).items():
+        if a not in found and a not in out:
+            out[a] = {"one_direction": sign, "files": files}
     for a, entry in found.items():
         B, n_up, n_down, ss, dof = (np.array(c) for c in zip(*entry["groups"]))
         unit, scale = ("urad", 1e6) if a in ROTARY else ("um", 1e3)
@@ -108,6 +113,22 @@ def data_reversal(datasets) -> dict:
                   "p_value": reversal_p_value(B, n_up, n_down, float(ss.sum()), int(dof.sum())),
                   "n_targets": int(B.size), "files": list(dict.fromkeys(entry["files"]))}
     return out
+
+
+def _one_direction(datasets) -> dict:
+    """axis -> ('+' or '-', files) for every axis whose positioning readings in the laser files
+    all approach from that one side."""
+    signs: dict = {}
+    for d in _laser_sets(datasets):
+        tag = Path(str(d.path)).stem if getattr(d, "path", None) else "laser"
+        for a in dict.fromkeys(d.axis.tolist()):
+            sel = (d.axis == a) & (d.component == positioning_component(a)) & np.isfinite(d.value)
+            if sel.any():
+                entry = signs.setdefault(a, [set(), []])
+                entry[0].update(np.sign(d.dir[sel]).astype(int).tolist())
+                entry[1].append(tag)
+    return {a: ("+" if s == {1} else "-", list(dict.fromkeys(files)))
+            for a, (s, files) in signs.items() if s in ({1}, {-1})}
 
 
 def _ballbar_pairs(d):

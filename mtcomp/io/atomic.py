@@ -5,6 +5,7 @@ A failed run leaves nothing behind, and an input file is never overwritten.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
 import tempfile
 from pathlib import Path
@@ -41,15 +42,29 @@ def check_output_path(out: str | os.PathLike, inputs: list[str | os.PathLike] = 
     return out_p
 
 
+def _digest(path: str) -> str | None:
+    """The file's SHA-256, None when it cannot be read (its reader says why)."""
+    try:
+        with open(path, "rb") as f:
+            return hashlib.file_digest(f, "sha256").hexdigest()
+    except (OSError, ValueError):
+        return None
+
+
 def check_distinct_inputs(paths: list[str | os.PathLike]) -> None:
-    """Refuse a data file given twice (by the same path, a symlink or a hard link): its readings
-    would count twice and pass for repeats."""
-    seen: list[str] = []
+    """Refuse a data file given twice (by the same path, a symlink or a hard link), or a copy of
+    another byte for byte (the same part saved under two names): its readings would count twice
+    and pass for repeats (repeated measurements differ at least by their noise)."""
+    seen: list[tuple[str, str | None]] = []
     for p in map(os.fspath, paths):      # named as typed: Path("./a.csv") would print a.csv
-        for q in seen:
+        digest = _digest(p)
+        for q, other in seen:
             if same_file(Path(p), Path(q)):
                 raise InputError(f"given twice (also as {q}): its readings would count twice", p)
-        seen.append(p)
+            if digest is not None and digest == other:
+                raise InputError(f"the same bytes as {q} (a copy under another name?): its readings "
+                                 "would count twice; give each measurement once", p)
+        seen.append((p, digest))
 
 
 @contextlib.contextmanager

@@ -37,6 +37,7 @@ from ._nodes import NodeSet
 from ._parallel import read_ahead, resolve_threads, split_rows
 from ._pointwise import Linearization, solve_newton, solve_pinv
 from ._qp import WindowQP, never_worse_rows, prefetch_solver, reachable_nodes
+from ._ramp import merged, ramp_nodes
 from ._datum import DatumRule
 from ._ram import RamRule
 from ._result import PlanResult
@@ -67,6 +68,7 @@ class Planner:
         self._prev: np.ndarray | None = None        # last committed correction (x units)
         self._last_end: tuple | None = None         # (q, x_free) of the last node of the last chunk
         self._after_cycle = False                   # the last row of the last chunk was a hole
+        self._ramp_prev = False                     # ... was left uncorrected (_ramp)
         self._buffer: list[tuple[NodeSet, Linearization]] = []
         self._done = 0
         self._last_progress = time.monotonic()
@@ -274,8 +276,11 @@ class Planner:
         # no internal nodes in a contour the standard-error gate leaves uncorrected either
         cut_start = cycle | no_line
         gated = self.gate.rows_gated(~rapid & ~any_rows(unknown), cut_start, sd, in_sd)
-        inner = self._subdivide(start, end, x_start, lin_end.x, ctx, ref,
-                                rapid | pinned | cycle | no_line | gated)
+        skip = rapid | pinned | cycle | no_line | gated
+        # a straight move after a block left uncorrected: nodes for the step bound's ramp (_ramp)
+        ramped, ramp = ramp_nodes(self, chunk, start, end, lin_end.x, pinned, exempt, skip, ctx, ref)
+        skip[ramped] = True
+        inner = merged(self._subdivide(start, end, x_start, lin_end.x, ctx, ref, skip), ramp)
         counts = np.ones(nrows, np.int64)
         if inner is None:
             links = self.links.chunk(chunk, end, np.arange(nrows), np.ones(nrows, bool), first, cycle)
@@ -287,9 +292,6 @@ class Planner:
         np.add.at(counts, rows_i, 1)
         pos_end, pos_i = positions(counts, rows_i, t_i)
         row_sorted = np.repeat(np.arange(nrows), counts)
-        # the first node of a row (inserted or its end) takes the row's exemption
-        ex_all = np.zeros(row_sorted.size, bool)
-        ex_all[np.cumsum(counts) - counts] = exempt
         ins_all = np.zeros(row_sorted.size, bool)
         ins_all[pos_i] = True
         # an inserted node outside the region the data reached (a move from outside into it) is
@@ -301,6 +303,8 @@ class Planner:
         firsts = np.zeros(row_sorted.size, bool)
         firsts[np.cumsum(counts) - counts] = True
         cut_all = np.repeat(cut_start, counts) & firsts
+        # the first node of a row (inserted or its end) takes the row's exemption
+        ex_all = np.repeat(exempt, counts) & firsts
         links = self.links.chunk(chunk, q_all, row_sorted, firsts, first, cycle)
         nodes = NodeSet(q_all, ctx[row_sorted], ex_all, np.asarray(chunk.line)[row_sorted],
                         ins_all, rapid[row_sorted], unknown[row_sorted],

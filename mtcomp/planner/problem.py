@@ -196,6 +196,9 @@ class PlannerOptions:
         linearly between the corrected end points, would miss the midpoint by more than this (um,
         and urad times orientation_weight); None or 0: end points only.
     max_subdivision_depth : recursion depth of that test (2**depth pieces per move at most).
+    ramp_nodes : give a straight feed move after a block left uncorrected the internal nodes the
+        step bound needs to ramp its correction in along it (:mod:`._ramp`; default True, also
+        with ``subdivide_tol_um`` None); False for a program whose writer cannot write them.
     always_qp : solve every window with OSQP even when the unbounded solution satisfies every bound
         (the result is the same; for tests and timing).
     osqp_eps : absolute and relative tolerance of OSQP (solutions are polished on the active set).
@@ -221,6 +224,7 @@ class PlannerOptions:
     max_iterations: int = 20
     subdivide_tol_um: float | None = 0.5
     max_subdivision_depth: int = 6
+    ramp_nodes: bool = True
     always_qp: bool = False
     osqp_eps: float = 1e-7
     progress: object = field(default=None, compare=False)

@@ -236,6 +236,9 @@ class Summary:
     sd_seen: bool = False
     #: the model carries a covariance (without one no block's standard error is known)
     has_covariance: bool = True
+    #: what the warning that no block was corrected adds on its likely cause (set by compensate:
+    #: a work offset given without an axis the program positions, where blocks left the region)
+    uncorrected_cause: str = ""
     #: the same figures over the corrected blocks only (``corrected`` = 1 in BLOCKS.csv)
     corrected_blocks: int = 0
     corrected_max_before_um: float = 0.0
@@ -251,6 +254,10 @@ class Summary:
     #: larger correction of a block after or before them), and the first one's line
     ramp_blocks: int = 0
     ramp_line: int = 0
+    #: feed moves' blocks the step bound held to part of their own correction (a ramp in the cut),
+    #: and the first one's line
+    cut_ramp_blocks: int = 0
+    cut_ramp_line: int = 0
     #: blocks written without the correction of an axis because a bound held all of it (not
     #: corrected), per bound name how often it held an axis so, and the first one's line
     held_blocks: int = 0
@@ -437,6 +444,11 @@ class Summary:
             if not self.ramp_blocks:
                 self.ramp_line = int(r.line[np.argmax(ramp)])
             self.ramp_blocks += int(ramp.sum())
+        cut = any_rows(step) & ~longer & ~r.rapid & ~r.pinned
+        if cut.any():
+            if not self.cut_ramp_blocks:
+                self.cut_ramp_line = int(r.line[np.argmax(cut)])
+            self.cut_ramp_blocks += int(cut.sum())
 
     @property
     def rms_before_um(self) -> float:
@@ -489,6 +501,7 @@ class Summary:
                                           "largest_um": self.worse_max_um,
                                           "line": self.worse_line},
                "ramped_blocks": {"blocks": self.ramp_blocks, "line": self.ramp_line},
+               "cut_ramp_blocks": {"blocks": self.cut_ramp_blocks, "line": self.cut_ramp_line},
                "standing_rotary": {"blocks": self.standing_blocks, "line": self.standing_line,
                                    "max_axis_after_urad": self.standing_axis_urad}}
         if self.max_axis_before_urad is not None:
@@ -544,6 +557,14 @@ class Summary:
                          "--max-step-urad) ramps a larger correction in over the blocks before it "
                          "and out over those after, the other axes holding those blocks' own tip "
                          "(BLOCKS.csv: step_<axis> in active_bounds)")
+        if self.cut_ramp_blocks:
+            lines.append(f"{blocks(self.cut_ramp_blocks)} in the cut carry a ramp (first at line "
+                         f"{self.cut_ramp_line}): feed moves the step bound (--max-step-um, "
+                         "--max-step-urad) held to part of their correction, a step from the block "
+                         "before, the rest of their error kept (BLOCKS.csv: rapid 0 and step_<axis> "
+                         "in active_bounds); a straight feed move after a block left uncorrected "
+                         "gets the nodes its ramp needs, from where it enters the region the data "
+                         "reached, so that the ramp ends where the move ends")
         if self.worse_blocks:
             lines.append(f"warning: {blocks(self.worse_blocks)} left worse than uncorrected along an "
                          f"axis (up to {self.worse_max_um:.3f} um more, at line {self.worse_line}): "
@@ -564,7 +585,7 @@ class Summary:
                          "block was corrected as if inside it")
         if self.blocks and not self.corrected_blocks:
             lines.append("warning: no block was corrected (for the reasons above): the output "
-                         "carries no correction")
+                         "carries no correction" + self.uncorrected_cause)
         return "\n".join(lines)
 
     def _ram_text(self, blocks) -> str:

@@ -217,13 +217,47 @@ def _drift_finding(fit, axes: dict):
     if fit.channels[worst] in axes:
         params["direction"] = axes[fit.channels[worst]]
     params["drift_range_um"] = _r(float(fit.max_drift_um[worst]), 3)
+    # every tip direction the drift term holds (and corrects), not only the one that drifts most
+    held = [(axes[ch], v) for ch, v in zip(fit.channels, fit.max_drift_um) if ch in axes]
+    if held:
+        params["directions"] = [a for a, _ in held]
+        params["drift_range_by_direction_um"] = {a: _r(float(v), 3) for a, v in held}
     runner_up = sorted((s for s in fit.scores if s is not c), key=lambda s: s.total_sse)[0]
     evidence = (f"predicting each next block of the record from the readings before it, "
                 f"{c.label} leaves {_rms(c.forward_rms_um):.3g} um rms against "
                 f"{_rms(none.forward_rms_um):.3g} um without a drift model and "
                 f"{_rms(runner_up.forward_rms_um):.3g} um for the next best ({runner_up.label})")
     axis = params.get("direction", "")
-    return Finding("thermal_drift", axis, params, evidence, _rms(none.forward_rms_um), _rms(c.forward_rms_um))
+    return Finding("thermal_drift", axis, params, evidence + _compensable_words(fit),
+                   _rms(none.forward_rms_um), _rms(c.forward_rms_um))
+
+
+def _compensable_words(fit) -> str:
+    """What the choice means for compensate: a drift in time it cannot follow, and how its rival that
+    compensate can follow compares (:func:`._fit.alike_z`), or that such a rival predicted the record
+    alike and was kept for that."""
+    from ._fit import ALIKE_Z, COMPENSABLE, alike, alike_z
+    c = fit.chosen
+    finite = [s for s in fit.scores if np.isfinite(s.total_sse)]
+    usable = sorted((s for s in finite if s.driver in COMPENSABLE), key=lambda s: s.total_sse)
+    timed = sorted((s for s in finite if s.driver == "time"), key=lambda s: s.total_sse)
+    if c.driver in COMPENSABLE and timed and alike(timed[0], c):
+        t = timed[0]
+        return (f"; {t.label} predicts it alike ({_rms(t.forward_rms_um):.3g} um: the difference of "
+                f"their forward sums of squares is {alike_z(t, c):+.2g} standard errors, within "
+                f"{ALIKE_Z:g}, Diebold and Mariano 1995): the drift on {c.label} is kept, which "
+                "compensate can follow, where a time since the record began is nothing it is told")
+    if c.driver != "time":
+        return ""
+    words = ("; compensate cannot use a drift in time (it is told temperatures and a spindle speed, "
+             "not when in the record a program runs)")
+    if not usable:
+        return words + (": a record with temperature sensors near the heat sources gives a model it "
+                        "can use")
+    u = usable[0]
+    return (words + f": {u.label}, which it could use, predicts the record {alike_z(u, c):.2g} "
+            f"standard errors worse ({_rms(u.forward_rms_um):.3g} um; Diebold and Mariano 1995); "
+            "sensors nearer the heat sources, or a longer record, may give one that predicts as well")
 
 
 def _thermal_model(machine, fit, axes: dict) -> FittedModel:

@@ -28,6 +28,11 @@ PARSIMONY = 0.05
 #: the residuals' lag-1 autocorrelation is taken no closer to 1 than this (an effective count of at
 #: least n / 1999 independent readings)
 RHO_MAX = 0.999
+#: two drift models predict the record alike when the difference of their forward sums of squares is
+#: within this many of its standard errors (:func:`alike_z`)
+ALIKE_Z = 2.0
+#: the drivers compensate follows (it is told temperatures and a spindle speed, not a time)
+COMPENSABLE = ("temperature", "spindle")
 
 
 # ------------------------------------------------------------------------------------ linear algebra
@@ -146,6 +151,8 @@ class CandidateScore:
     forward_sse: np.ndarray | None = None
     forward_rms_um: np.ndarray | None = None
     time_constants_s: list = field(default_factory=list)
+    #: (n, m) forward prediction minus reading (NaN in the first block, which is only fitted)
+    forward_err: np.ndarray | None = None
 
     @property
     def total_sse(self) -> float:
@@ -317,9 +324,10 @@ def fit_thermal(data, lags_s=DEFAULT_LAGS_S, n_folds: int = N_FOLDS, penalties=P
             s.forward_rms_um = np.full(Y.shape[1], np.inf)
             continue
         options = penalties if X.shape[1] > 1 else (0.0,)
-        sse = [forward_sse(X, Y, lam, folds) for lam in options]
+        err = [forward_predictions(X, Y, lam, folds) - Y for lam in options]
+        sse = [np.nansum(e ** 2, axis=0) for e in err]
         best = int(np.argmin([np.sum(x) for x in sse]))
-        s.penalty, s.forward_sse = float(options[best]), sse[best]
+        s.penalty, s.forward_sse, s.forward_err = float(options[best]), sse[best], err[best]
         n_test = sum(te.stop - te.start for _, te in folds)
         s.forward_rms_um = np.sqrt(s.forward_sse / n_test)
     chosen = choose(scores)
@@ -344,9 +352,43 @@ def fit_thermal(data, lags_s=DEFAULT_LAGS_S, n_folds: int = N_FOLDS, penalties=P
 
 def choose(scores: list[CandidateScore]) -> CandidateScore:
     """The candidate with the smallest forward-validated sum of squares, unless a simpler one comes
-    within ``PARSIMONY`` of it (a more complex driver must earn its place on the future)."""
+    within ``PARSIMONY`` of it (a more complex driver must earn its place on the future). A drift in
+    time so chosen gives way to the best drift compensate can follow (:data:`COMPENSABLE`) when the
+    two predict the record alike (:func:`alike`): a time since the record began is nothing
+    compensate is told, so between two equals the one it can use is kept."""
     finite = [s for s in scores if np.isfinite(s.total_sse)]
     best = min(finite, key=lambda s: s.total_sse)
     simpler = [s for s in finite if s.complexity < best.complexity
                and s.total_sse <= (1.0 + PARSIMONY) * best.total_sse]
-    return min(simpler, key=lambda s: s.complexity) if simpler else best
+    pick = min(simpler, key=lambda s: s.complexity) if simpler else best
+    usable = [s for s in finite if s.driver in COMPENSABLE]
+    if pick.driver == "time" and usable:
+        other = min(usable, key=lambda s: s.total_sse)
+        if alike(other, pick):
+            return other
+    return pick
+
+
+def alike_z(a: CandidateScore, b: CandidateScore) -> float:
+    """How much worse ``a`` predicts the record forward than ``b``, in standard errors: the
+    difference of their forward sums of squares over its standard error, from the loss differential
+    d_t = sum over channels of (a's error^2 - b's error^2) at each predicted reading t taken as
+    independent (the asymptotic test of equal predictive accuracy of Diebold and Mariano 1995,
+    "Comparing predictive accuracy", J. Business & Economic Statistics 13, with no autocorrelation
+    of d_t). Two models that both follow the drift leave errors near the readings' own noise, whose
+    d_t is near white: there the test is right. When one of them misses the drift, its error (and
+    d_t) runs on from reading to reading, the standard error taken so is too small, and the two
+    are told apart: the choice falls back on the parsimony rule, never on a tie that is not there.
+    0 when either has no forward errors (or their errors are equal)."""
+    if a.forward_err is None or b.forward_err is None:
+        return 0.0
+    d = np.nansum(a.forward_err ** 2 - b.forward_err ** 2, axis=1)[np.isfinite(a.forward_err).all(axis=1)]
+    if d.size < 3 or np.ptp(d) == 0:
+        return 0.0
+    return float(np.sum(d) / np.sqrt(d.size * np.var(d, ddof=1)))
+
+
+def alike(a: CandidateScore, b: CandidateScore) -> bool:
+    """``a`` predicts the record forward no worse than ``b`` beyond noise: within ``ALIKE_Z``
+    standard errors (:func:`alike_z`)."""
+    return alike_z(a, b) < ALIKE_Z

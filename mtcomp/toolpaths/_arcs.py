@@ -460,32 +460,26 @@ def arc_path(state, start, end, values, line: int):
 
 
 def blind_arc(state, values, axes_given) -> bool:
-    """An absolute G2/G3 block from a position the program has not given in its plane (a program
-    that starts with an arc, or arcs after a home move, from wherever the machine stands): nothing
-    of its path is known, so it is passed through as written, uncorrected (its source line, as the
-    controller would run it without mtcomp), and the axes it names stand at their written values
-    after it, in the program and in the output alike (``declared``). True when the block is such
-    an arc; False for an arc from a known start, or an incremental one (whose end is not known
-    either: refused by the reader). The reader refuses an arc under unequal scales before it
-    (:func:`.frames.check_arc`)."""
+    """A G2/G3 block that moves an axis whose position the program has not given (a program that
+    starts with an arc, an arc right after a home move, a helix from a height nobody gave, an
+    incremental arc from wherever the tool stands), or that starts from such a position in its
+    plane: the controller runs it from wherever the machine stands, so nothing of its path is
+    known and it is passed through as written, uncorrected (its source line, as the controller
+    would run it without mtcomp). After it each axis it names stands, in G90, at its written value,
+    known, in the program and in the output alike (``declared``); in G91 it moves by its increment
+    from where it stood (an axis not known stays unknown; the output moves from where it stands,
+    ``distance_sensitive``) (:func:`.passed.passed_end`). An absolute one must start where the
+    output stands uncorrected in its plane (:func:`.passed.check_passed_start`, the writer's
+    check). True when the block is such an arc; False for an arc whose every axis is known. The
+    reader refuses an arc under unequal scales before it (:func:`.frames.check_arc`)."""
     i0, i1, _ = PLANE_AXES[state.plane]
-    plane = [state.xyz_index[i0], state.xyz_index[i1]]
-    if state.incremental or min(state.xyz_index) < 0 or all(state.known[i] for i in plane):
+    if min(state.xyz_index) < 0:
         return False
-    passed_end(state, values, axes_given, "arc", state._line)
+    state.passed_plane = [state.xyz_index[i0], state.xyz_index[i1]]
+    if all(state.known[i] for i in state.passed_plane + [state.names.index(c) for c in axes_given]):
+        return False
+    passed_end(state, values, axes_given, "increment" if state.incremental else "arc", state._line)
     return True
-
-
-def check_helix_start(state, values, line: int) -> None:
-    """A helix (an absolute G2/G3 that names the axis normal to its plane) whose start along that
-    axis the program has not given (at the start, or after a home move, tool change or offset
-    change) is refused: its pieces would need a start height nobody gave, and passed through whole
-    its centre would not match the corrected start in its plane."""
-    i2 = state.xyz_index[PLANE_AXES[state.plane][2]]
-    if i2 >= 0 and state.names[i2] in values and not state.known[i2]:
-        raise state._err(f"arc G{state.motion} with {state.names[i2]} (a helix) from a height along "
-                         f"{state.names[i2]} the program has not given (at the start, or after a "
-                         "home move, tool change or offset change)", line)
 
 
 #: the dialects whose G5 and G5.1 with coordinates are splines (LinuxCNC G-code reference, G5 cubic

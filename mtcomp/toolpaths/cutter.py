@@ -38,7 +38,7 @@ def read_cut_program(path, machine, setup=None) -> CutProgram:
     is bad or moves its own frame, and where its cutting moves lie in more than one work offset or
     in one that turns a rotary axis (:func:`_part_datum`)."""
     setup = ProgramSetup(machine) if setup is None else setup
-    with open_program(path) as src:
+    with open_program(path, fixed_format=machine.fixed_format) as src:
         raw = list(iter_segment_chunks(src, machine))
         for c in raw:
             _refuse_local_frame(c, path)

@@ -24,9 +24,22 @@ def cycle_unclear(state, inc: bool) -> str | None:
         return "inverse time feed G93"
     if state.cycle_r is None or state.cycle_z is None:
         return "no R or Z word given for the cycle"
-    if state.cycle_r[1] != inc or state.cycle_z[1] != inc:
+    if not state.dialect.cycle_words_as_numbers and (state.cycle_r[1] != inc
+                                                     or state.cycle_z[1] != inc):
         return "its R or Z was given in the other distance mode (G90/G91)"
     return None
+
+
+def check_held_numbers(state, values, reason: str, line: int) -> None:
+    """A G90 cycle line passed through (``reason``) on LinuxCNC, which reads the R and Z its line
+    does not name as the numbers last written: refused where one was written in G91, since the
+    output writes that line absolute and so holds other numbers."""
+    held = [c for c, v in (("R", state.cycle_r), ("Z", state.cycle_z))
+            if v is not None and v[1] and c not in values]
+    if state.dialect.cycle_words_as_numbers and held:
+        raise state._err(f"drilling cycle G{state.cycle} passed through uncorrected ({reason}) "
+                         f"with the {held[0]} of an incremental (G91) cycle line, which the output "
+                         "writes absolute", line)
 
 
 def retract_level(state, r_level: float) -> tuple[float, bool]:
@@ -48,10 +61,20 @@ def retract_level(state, r_level: float) -> tuple[float, bool]:
 
 def incremental_r_level(state, z: float, line: int) -> float:
     """The R plane (mm) of a G91 cycle line started at height z: LinuxCNC measures every hole's
-    R from the series' initial level; elsewhere the controllers differ once the tool stands at
-    the R plane (G99), so a series continued without G98 is refused."""
+    R from the series' initial level (the Z where the series began: only that and X, Y need be
+    known); elsewhere the controllers differ once the tool stands at the R plane (G99), so a
+    series continued without G98 is refused, and X, Y and Z must be known."""
     init_z, init_known = state.cycle_init
-    if state.dialect.incremental_r_from_initial and init_known:
+    xi, yi, zi = state.xyz_index
+    from_initial = state.dialect.incremental_r_from_initial
+    if not (state.known[xi] and state.known[yi] and (state.known[zi] or from_initial)):
+        raise state._err(f"incremental (G91) drilling cycle G{state.cycle} from a position the "
+                         "program has not given", line)
+    if from_initial:
+        if not init_known:
+            raise state._err(f"incremental (G91) drilling cycle G{state.cycle}: its R is measured "
+                             "from the initial level, the Z where the cycles began, which the "
+                             "program has not given", line)
         return init_z + state.cycle_r[0]
     if not state.cycle_start and state.retract != 98:
         raise state._err(f"incremental (G91) drilling cycle G{state.cycle} continued without "
@@ -60,17 +83,24 @@ def incremental_r_level(state, z: float, line: int) -> float:
     return z + state.cycle_r[0]
 
 
+#: the axis a drilling cycle drills along in each plane (LinuxCNC's interp_cycles.cc:
+#: convert_cycle_zx drills along Y, convert_cycle_yz along X; the other two are the hole's place)
+DRILL_AXIS = {17: "Z", 18: "Y", 19: "X"}
+
+
 def cycle_move(state, values, axes_given):
-    """A drilling cycle line passed through: X/Y go where it says (absolute) or stay unknown; the
-    tool axis ends at the R plane or the start height: unknown."""
+    """A drilling cycle line passed through: the axes of its plane go where it says (absolute) or
+    stay unknown; the axis it drills along (Z in G17, Y in G18, X in G19) ends at the R plane or
+    the start height: unknown."""
     scale = MM_PER_INCH if state.inch else 1.0
+    depth = DRILL_AXIS.get(state.plane, TOOL_AXIS)
     state.cycle_line = True
     # new arrays: the block before holds the old ones as its end (changed in place, a passed-through
     # back boring G87 moved the block before it to the next hole in the pure-Python reader)
     state.position, state.known = state.position.copy(), state.known.copy()
     for c in axes_given:
         i = state.names.index(c)
-        if c == TOOL_AXIS:
+        if c == depth:
             continue
         v = math.radians(values[c]) if c in "ABC" else values[c] * scale
         if state.incremental:
@@ -78,7 +108,7 @@ def cycle_move(state, values, axes_given):
         else:
             state.position[i] = v
             state.known[i] = True
-    state._forget(state.tool_axis)
+    state._forget(state.names.index(depth) if depth in state.names else -1)
 
 
 def home_with_motion(dialect: str, home_move: int, motion: int) -> bool:

@@ -10,6 +10,10 @@ A :class:`Dialect` holds what the reader needs to know of the controller that ru
   elsewhere the Z after a G98 cycle is known only where the R plane lies below the initial level.
 * ``incremental_r_from_initial``: in G91 the R of every hole of a series is measured from the
   series' initial level (LinuxCNC), so a series may continue under G99.
+* ``cycle_words_as_numbers``: a drilling cycle keeps its R and Z as the numbers last written and
+  reads them in the distance mode in force at each line (LinuxCNC's ``interp_cycles.cc``,
+  ``convert_cycle_xy``); elsewhere a cycle line whose R or Z was given in the other distance mode
+  is not read.
 * ``local_shift``: G52 is a local shift of the work system (LinuxCNC, Fanuc; on a Haas its meaning
   follows Setting 33). ``rotation``: G68/G69 coordinate rotation (Fanuc, Haas). ``mirror``: the
   mirror image code ('G51.1': Fanuc's G51.1/G50.1; 'G101': Haas' G101/G100). ``scale_words``: the
@@ -41,6 +45,7 @@ class Dialect:
     g80_keeps_motion: bool = False
     g98_to_higher: bool = False
     incremental_r_from_initial: bool = False
+    cycle_words_as_numbers: bool = False
     language: str | None = None
     local_shift: bool = False
     rotation: bool = False
@@ -51,7 +56,7 @@ class Dialect:
 
 DIALECTS = {
     "linuxcnc": Dialect("linuxcnc", g98_to_higher=True, incremental_r_from_initial=True,
-                        language="ngc", local_shift=True),
+                        cycle_words_as_numbers=True, language="ngc", local_shift=True),
     "fanuc": Dialect("fanuc", g80_keeps_motion=True, language="macro", local_shift=True,
                      rotation=True, mirror="G51.1", scale_words="PIJK"),
     "haas": Dialect("haas", g80_keeps_motion=True, language="macro", rotation=True,

@@ -21,7 +21,8 @@ from .words import number_decimals
 #: two values are equal within this (LinuxCNC's TOLERANCE_EQUAL)
 TOLERANCE_EQUAL = 1e-6
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
-_FUNCTIONS = ("abs", "acos", "asin", "atan", "cos", "exp", "exists", "fix", "fup", "ln", "round",
+#: the functions, by name (``atan`` takes two bracketed arguments, ``exists`` a named parameter)
+FUNCTIONS = ("abs", "acos", "asin", "atan", "cos", "exp", "exists", "fix", "fup", "ln", "round",
               "sin", "sqrt", "tan")
 #: binary operators by precedence group, lowest first (LinuxCNC G-code reference, Binary Operators)
 _GROUPS = (("and", "or", "xor"), ("eq", "ne", "gt", "ge", "lt", "le"), ("+", "-"),
@@ -178,7 +179,7 @@ class Evaluator:
         return v, pos + 1
 
     def function(self, s: str, pos: int) -> tuple[float, int]:
-        for name in _FUNCTIONS:
+        for name in FUNCTIONS:
             if s.startswith(name, pos):
                 break
         else:

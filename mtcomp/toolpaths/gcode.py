@@ -85,7 +85,7 @@ def iter_segment_chunks(path, machine: Machine, chord_tol_mm: float = DEFAULT_CH
     guarantees through atomic_write).
     """
     kw = dict(inch=inch, initial_known=initial_known)
-    with open_program(path, dialect) as src:
+    with open_program(path, dialect, fixed_format=machine.fixed_format) as src:
         if _compiled(src):
             chunks = _fast.iter_segment_chunks(src, machine, chord_tol_mm, chunk_size,
                                                initial_position, progress, **kw)
@@ -150,7 +150,7 @@ def write_corrected(in_path, out_path, machine: Machine,
     """
     check_output_path(out_path, [getattr(in_path, "source", in_path)])
     kw = dict(inch=inch, initial_known=initial_known)
-    with open_program(in_path, dialect) as src:
+    with open_program(in_path, dialect, fixed_format=machine.fixed_format) as src:
         if corrections is None:
             corrections = _uncorrected(src, machine, chord_tol_mm, DEFAULT_CHUNK_SIZE,
                                        initial_position, **kw)
@@ -160,5 +160,9 @@ def write_corrected(in_path, out_path, machine: Machine,
             from .heidenhain_out import write_corrected as write
         if src.sinumerik is not None:           # written back in its own form
             from .sinumerik_out import write_corrected as write
+        if src.fixed is not None:               # its words written back in the format
+            from .fixed_format import write_corrected as fixed_write
+            return fixed_write(write, src, out_path, machine, cursor, chord_tol_mm,
+                               initial_position, stats=stats, **kw)
         return write(src, out_path, machine, cursor, chord_tol_mm, initial_position, stats=stats,
                      **kw)

@@ -7,7 +7,8 @@ of HEIDENHAIN's user's manuals for conversational programming (iTNC 530, HEIDENH
 TNC 640, HEIDENHAIN 2015-2022; TNC 370, HEIDENHAIN 1995 for the direction of rotation):
 
 * ``BEGIN PGM name MM|INCH``: the program's units; ``END PGM``, ``BLK FORM``, ``TOOL DEF``, ``;``
-  and ``*`` comments, ``STOP`` and lines of M functions alone make no move.
+  and ``*`` comments, ``STOP`` and lines of M functions alone make no move. A line that starts
+  with ``;`` is a comment with or without its block number (the TNC numbers the blocks itself).
 * ``L``: a straight move to the given coordinates (``IX`` ... incremental from the last
   programmed position); ``FMAX`` rapid in that block only, ``F..`` a feed that stays.
   ``M91``/``M92``: the coordinates are machine positions (as G53: passed through, those axes
@@ -155,7 +156,9 @@ class _Reader(TcpMode):
         body = text.strip()
         first = body.split(maxsplit=1)[0] if body else ""
         self.current = (k, first if first.isdigit() else "")
-        if not body:
+        if not body or body.startswith(";"):
+            # a comment line without a block number (added by hand): the TNC numbers its blocks
+            # itself (docs/toolpaths.md, "Heidenhain conversational"); kept as written
             return "", info
         m = _BLOCK.match(body)
         if not m:

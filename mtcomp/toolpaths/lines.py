@@ -14,7 +14,7 @@ import math
 import re
 from dataclasses import dataclass, field
 
-from .expr import Evaluator, ExprError, Number, decimals_of, format_value
+from .expr import FUNCTIONS, Evaluator, ExprError, Number, decimals_of, format_value
 from .words import comment_end, number_decimals
 
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
@@ -88,11 +88,18 @@ class Rewritten:
     polar: dict
 
 
-def _is_computed(s: str, p: int) -> bool:
+def _is_computed(s: str, p: int, fanuc: bool = False) -> bool:
+    """Whether the word value at s[p] is computed: an expression, a parameter, either after a sign,
+    or (RS274/NGC) a function applied to a value in brackets, ``X SIN[30]``: LinuxCNC reads a real
+    value that starts with a letter as a unary operation (LinuxCNC G-code reference, Unary
+    Operation Value). Not read so in Fanuc macro B (``fanuc``), whose programs here give an
+    address's expression in brackets (``X[SIN[30]]``): such a word stays refused there."""
     if p >= len(s):
         return False
     if s[p] in "[#":
         return True
+    if not fanuc and s[p].isalpha():
+        return any(s.startswith(name + "[", p) for name in FUNCTIONS)
     return s[p] in "+-" and p + 1 < len(s) and (s[p + 1] in "[#" or s[p + 1].isalpha())
 
 
@@ -115,7 +122,7 @@ def rewrite(line: str, code: Code, ev: Evaluator, *, fanuc: bool = False) -> Rew
             pos = p2
         elif ch in "@^" or ch.isalpha():
             p = pos + 1
-            if _is_computed(s, p):
+            if _is_computed(s, p, fanuc):
                 v, p2 = ev.counted(ev.value, s, p)
                 if ch not in "@^":      # a polar word is replaced whole, by X and Y, below
                     spans.append((p, p2, _word_value(ch.upper(), v, s, fanuc)))

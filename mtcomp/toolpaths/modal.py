@@ -17,10 +17,11 @@ import numpy as np
 
 from ..errors import InputError
 from ..machine import Machine
-from ._arcs import PLANE_AXES, arc_path, blind_arc, check_helix_start, passed_spline, spline_code
+from ._arcs import arc_path, blind_arc, passed_spline, spline_code
 from .blocks import CycleBlock, MotionBlock
-from .cycle_rules import (codes_with_motion, cycle_move, cycle_unclear, has_axis_words, home_with_motion,
-                          incremental_r_level, retract_level, rigid_tap)
+from .cycle_rules import (check_held_numbers, codes_with_motion, cycle_move, cycle_unclear,
+                          has_axis_words, home_with_motion, incremental_r_level, retract_level,
+                          rigid_tap)
 from .dialect import GENERIC, beagleg_block, beagleg_word_order, grbl_program_end
 from .directions import step_directions
 from .frames import (FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle, follow_given,
@@ -617,20 +618,14 @@ class ModalState:
         return end, given
 
     def _arc_block(self, start, end, values, tokens, line: int):
-        """(chord ends (k, na), centre (3,) mm) of a G2/G3 move from a known position in its plane."""
+        """(chord ends (k, na), centre (3,) mm) of a G2/G3 move from a known position in its plane
+        (one from a position not given passed through before it: :func:`._arcs.blind_arc`)."""
         # LinuxCNC's P turns: even P1 (the plain arc) is refused, since a corrected arc is written
         # as straight G1 chords, which may not carry a P word
         if any(letter == "P" for letter, _num, _raw in tokens):
             raise self._err(f"arc G{self.motion} with a P word (a number of turns) is not supported",
                             line)
-        i0, i1, _ = PLANE_AXES[self.plane]
-        plane_idx = [self.xyz_index[i0], self.xyz_index[i1]]
         check_arc(self, line)
-        if min(self.xyz_index) >= 0 and not all(self.known[i] for i in plane_idx):
-            raise self._err(f"arc G{self.motion} from a position the program has not given "
-                            f"(axes {self.names[plane_idx[0]]} {self.names[plane_idx[1]]})",
-                            line)
-        check_helix_start(self, values, line)
         return arc_path(self, start, end, values, line)
 
     def _block_feed(self, start, pts) -> float:
@@ -672,6 +667,7 @@ class ModalState:
         if reason is not None:
             if inc:
                 raise self._err(f"incremental (G91) drilling cycle G{self.cycle}: {reason}", line)
+            check_held_numbers(self, values, reason, line)
             cycle_move(self, values, axes_given)
             return None
         scale = MM_PER_INCH if self.inch else 1.0
@@ -689,9 +685,6 @@ class ModalState:
         start_known = bool(self.known.all()) and not self.off_path
         self.off_path = False
         if inc:
-            if not (self.known[xi] and self.known[yi] and self.known[zi]):
-                raise self._err(f"incremental (G91) drilling cycle G{self.cycle} from a position the "
-                                "program has not given", line)
             r_level = incremental_r_level(self, start[zi], line)
             z_bottom = r_level + self.cycle_z[0]
             steps = np.arange(1, reps + 1)

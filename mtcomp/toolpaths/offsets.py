@@ -81,6 +81,9 @@ class ProgramSetup:
     programmed_wcs: set = field(default_factory=set)
     #: wcs index -> the axis letters the user gave for that work offset (the others are 0)
     given_axes: dict = field(default_factory=dict)
+    #: wcs index -> (na,) bool, the axes the program positioned under that work offset (filled by
+    #: :meth:`apply` for the offsets given in part only: :meth:`left_out`)
+    positioned: dict = field(default_factory=dict)
     #: the frame changes of the program last applied (``source.local_frames``, :mod:`.frames`)
     local_frames: list = field(default_factory=list, repr=False)
     #: the G10 lines of the program last applied (``source.offset_writes``, :mod:`.programmed`)
@@ -119,8 +122,25 @@ class ProgramSetup:
                 if given.all():
                     full |= rows
         self.programmed_wcs.update(_distinct(wcs[full]))
-        self.used_wcs.update(_distinct(wcs[~full]))
+        used = _distinct(wcs[~full])
+        self.used_wcs.update(used)
+        for w in used:
+            if w in self.given_axes and len(self.given_axes[w]) < table.shape[1]:
+                rows = (wcs == w) & ~full
+                seen = self.positioned.get(w, np.zeros(table.shape[1], bool))
+                self.positioned[w] = seen | np.asarray(chunk.known, bool)[rows].any(axis=0)
         return off
+
+    def left_out(self) -> dict:
+        """wcs index -> the letters of the axes the program positioned under a work offset given
+        without them (taken as 0), for the offsets the program used."""
+        names = self.machine.axis_names
+        out = {}
+        for w, seen in sorted(self.positioned.items()):
+            left = [names[j] for j in np.flatnonzero(seen) if names[j] not in self.given_axes[w]]
+            if left and w in self.used_wcs:
+                out[w] = left
+        return out
 
     def apply(self, chunk: SegmentChunk, source=None) -> tuple[SegmentChunk, np.ndarray]:
         """The chunk in machine axis positions, and the (n, na) offsets added to each row.
@@ -303,6 +323,13 @@ class ProgramSetup:
             names = ", ".join(WORK_SYSTEMS[w] for w in missing)
             out.append(f"assumed: work offset {names} = 0 (the program's coordinates taken as machine "
                        "axis positions); give --work-offset or --offsets")
+        for w, left in self.left_out().items():
+            given = [a for a in self.machine.axis_names if a in self.given_axes[w]]
+            every = ",".join(f"{a}.." for a in self.machine.axis_names if a in given or a in left)
+            out.append(f"assumed: {', '.join(left)} of work offset {WORK_SYSTEMS[w]} = 0 (given "
+                       f"with {', '.join(given) or 'no axis'} only; the program positions "
+                       f"{', '.join(left)} too): give every axis it positions, e.g. --work-offset "
+                       f"{WORK_SYSTEMS[w]}={every}")
         unused = sorted(n for n in self.named_lengths if n not in self.tool_names.values())
         if unused:
             names = ", ".join(f'"{n}"' for n in unused)

@@ -9,7 +9,10 @@ import math
 
 from .words import MM_PER_INCH
 
-__all__ = ["passed_end"]
+__all__ = ["passed_end", "check_passed_start"]
+
+#: an axis of the output within this (mm, rad) of the program's position stands uncorrected there
+_SAME_START = 1e-6
 
 
 def passed_end(state, values: dict, axes, why: str, line: int) -> None:
@@ -23,6 +26,7 @@ def passed_end(state, values: dict, axes, why: str, line: int) -> None:
     first row is a ``jump`` (``off_path``), so the planner puts no node on a line from the last
     block's end and takes no step bound from its correction (the output stands here uncorrected)."""
     scale = MM_PER_INCH if state.inch else 1.0
+    state.passed_start = state.position.copy()  # where the program stood before it
     state.position = state.position.copy()      # the last block's end is that array
     for c in axes:
         i = state.names.index(c)
@@ -36,3 +40,23 @@ def passed_end(state, values: dict, axes, why: str, line: int) -> None:
     state.distance_sensitive = state.incremental
     state.passed_move = (why, line)
     state.off_path = True
+
+
+def check_passed_start(state, out_values) -> None:
+    """An absolute arc passed through (``passed_move`` 'arc', :func:`._arcs.blind_arc`) must start,
+    on the axes of its plane whose position is known, where the output stands uncorrected
+    (``out_values``, the writer's, equal to the program's): the controller takes its centre from
+    where the tool stands (I J K offsets, or R from there to the written end), so from a corrected
+    start its centre would move and its end stay (a full circle shrunk to a sliver, an end off its
+    circle). ``state.passed_plane``: the columns of the arc's plane (set by ``blind_arc``).
+    InputError naming the line otherwise (the output is not written)."""
+    if state.passed_move is None or state.passed_move[0] != "arc" or state.incremental:
+        return
+    off = [state.names[i] for i in state.passed_plane
+           if abs(out_values[i] - state.passed_start[i]) > _SAME_START]    # nan: not known, passes
+    if off:
+        raise state._err(f"arc G{state.motion} from a position the program has not given "
+                         f"starts where the output stands corrected on {' '.join(off)} (a move "
+                         "before it was corrected, and the controller would take the arc's centre "
+                         f"from there): position {' '.join(off)} again before the arc",
+                         state.passed_move[1])

@@ -59,7 +59,7 @@ def iter_blocks(path, machine: Machine, chord_tol_mm: float = DEFAULT_CHORD_TOL_
     program the lines are those of the expansion (see :mod:`.source`); where an error in its code
     stopped the expansion, that error is raised after the lines executed before it.
     """
-    with open_program(path, dialect) as src:
+    with open_program(path, dialect, fixed_format=machine.fixed_format) as src:
         state = new_state(machine, src, chord_tol_mm, initial_position, inch, initial_known)
         for k, raw, text in _open_lines(src):
             yield k, raw, state.block(k, text), state

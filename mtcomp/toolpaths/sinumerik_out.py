@@ -13,8 +13,10 @@ positioned). A circle's centre ``I=AC(..) J=AC(..)`` (or incremental ``I J``) is
 Heidenhain ``CC`` is (:mod:`.heidenhain_out`): one centre per circle, kept when the circle lies
 within the chord tolerance of its corrected path, otherwise refused in one line. A circle by its
 radius ``CR=`` gets the radius of the circle through its written ends whose centre is the moved
-centre's nearest on the chord's bisector (the centre the controller makes of it is the one checked
-against the corrected path); where none holds, it is written in pieces about ``I=AC J=AC`` centres.
+centre's nearest on the chord's bisector (of the radii its decimals give next to it, the one whose
+centre the controller makes nearest; that centre is the one checked against the corrected path),
+written to its corrected Z with that ``CR=`` where one circle then holds it; where none holds, it
+is written in pieces about ``I=AC J=AC`` centres.
 Under a programmable offset ``TRANS``/``ATRANS`` the positions are written in the program's
 coordinates (the offset taken off); the offset's lines, and blocks in machine coordinates
 (``SUPA``, ``G53``), are kept as written.
@@ -28,9 +30,14 @@ its corrected position differs from the written one. A hole pattern (``HOLES1`` 
 circle) whose holes share one correction gets its reference point moved; otherwise it is written as
 explicit positions, one block each. The retract plane RTP is kept as written (a clearance, not a cut). Where lines are added the
 output's first line after the file header says so.
+
+The program is planned one output block per source block, but for the nodes of the step bound's
+ramp along a straight feed move after a block left uncorrected (mtcomp.planner): they are written
+as ``G1`` blocks before the move's line, every axis the program has given, with the line's feed.
 """
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -68,6 +75,7 @@ class SinumerikWriter(HelixTurns, HeidenhainWriter):
         self.dxy: dict[int, np.ndarray] = {}    # a HOLES2 hole -> its X Y correction, mm
         self.retracts = 0
         self.added = 0
+        self.ramp_blocks = 0                    # internal nodes written as blocks (_nodes)
         self.split_circles = 0
         self.arc_info: dict = {}                # a circle's line -> its GInfo
         self.zi = self.letters.index("Z")
@@ -160,7 +168,11 @@ class SinumerikWriter(HelixTurns, HeidenhainWriter):
     def _radius_text(self, cc: int, centre, info) -> tuple[str, np.ndarray]:
         """(line cc with the CR= of the circle through its written start and end whose centre is
         the nearest to ``centre`` (2,) on the chord's bisector; the centre the controller makes of
-        the CR= written). A radius that rounds below half the chord says no centre (far away)."""
+        the CR= written). Of the radii the written decimals give next to it (rounded, one digit
+        below, one above), the one whose centre is nearest ``centre``: near a half circle a radius
+        a tenth of a micrometre above half the chord moves the centre off the chord by the root of
+        the chord times that (30 um on a 20 mm chord), while one below it by less than the
+        controller's tolerance makes the half circle itself (:func:`radius_centre`)."""
         a = self.arcs[cc][0]
         f = self.scale                      # in the program's units here
         s2, e2 = a.start_w[self.cols] / f, a.end_w[self.cols] / f
@@ -171,16 +183,21 @@ class SinumerikWriter(HelixTurns, HeidenhainWriter):
         half = 0.5 * math.hypot(*(e2 - s2))
         if abs(r) - half < 10.0 ** -self.base:
             # a half circle: either sign turns the same within the written decimals (the
-            # source's kept), and a radius written below half the chord makes no circle
+            # source's kept)
             r = math.copysign(abs(r), info.radius)
-        t, said_r = corrected_text(w.text, info.radius, r, self.base)
-        if abs(said_r) < half - 1e-6:
+        best = None
+        for step in (0.0, -1.0, 1.0):
             t, said_r = corrected_text(w.text, info.radius,
-                                       math.copysign(abs(r) + 10.0 ** -self.base, r), self.base)
-        try:
-            said = np.array(radius_centre(s2, e2, said_r, a.ccw, f)) * f
-        except RadiusError:
-            said = np.full(2, 1e9)
+                                       math.copysign(abs(r) + step * 10.0 ** -self.base, r),
+                                       self.base)
+            try:
+                said = np.array(radius_centre(s2, e2, said_r, a.ccw, f)) * f
+            except RadiusError:
+                said = np.full(2, 1e9)
+            miss = math.hypot(*(said - np.asarray(centre)))
+            if best is None or miss < best[0] - 1e-12:
+                best = (miss, t, said)
+        _miss, t, said = best
         return _edit(text, [(w.start, w.end, t)] if t != w.text else []) + ending, said
 
     def _arc(self, i, block, pts, counts, info) -> None:
@@ -237,7 +254,9 @@ class SinumerikWriter(HelixTurns, HeidenhainWriter):
         self.arc_miss = max(self.arc_miss, *(p.miss for p in planned))
         starts = [a.start_w] + [p.end for p in planned[:-1]]
         pieces = [(s, p.end, p.centre) for s, p in zip(starts, planned)]
-        lines = self._piece_lines(a, pieces, off, info)
+        one = (None if len(planned) > 1 or info.radius is None
+               else self._radius_piece(a, planned[0], off, info))
+        lines = [one] if one is not None else self._piece_lines(a, pieces, off, info)
         if len(lines) == 1:
             self.texts[a.line] = self._with_ending(a.line, lines[0])
         else:
@@ -246,6 +265,26 @@ class SinumerikWriter(HelixTurns, HeidenhainWriter):
         self.added += len(pieces) - 1
         self.split_circles += 1
         return True
+
+    def _radius_piece(self, a, piece, off, info) -> str | None:
+        """A circle by its radius written as one piece (to its corrected Z): its source line with
+        the CR= of the piece's centre (:meth:`_radius_text`) and the Z word of the piece's end, the
+        form it was written in; None where the circle that CR= makes misses the corrected path by
+        more than the chord tolerance (it is then written about ``I=AC J=AC``)."""
+        text, said = self._radius_text(a.line, piece.centre, info)
+        whole = copy.copy(a)
+        whole.end_w = piece.end
+        excess, _line, miss = self._miss(whole, said)
+        if excess > 0.0:
+            return None
+        self.arc_miss = max(self.arc_miss, miss)
+        text = text.rstrip("\r\n")
+        named = {w.name: w for w in self._words(text) if w.kind in ("address", "assign")}
+        words = {self.letters[j]: _number(self._units(j, piece.end[j], info.shift), self._places(j))
+                 for j in np.flatnonzero(off)
+                 if _number(self._units(j, piece.end[j], info.shift), self._places(j))
+                 != _number(self._units(j, a.start_w[j], info.shift), self._places(j))}
+        return self._first_piece(text, named, words, None)
 
     def _rounded(self, point, like, off, info, last: bool) -> np.ndarray:
         """A piece's end: ``like`` (na,) with the corrected point's (na,) X Y (unless ``last``:
@@ -303,8 +342,10 @@ class SinumerikWriter(HelixTurns, HeidenhainWriter):
 
     def _first_piece(self, text, named, words, ij) -> str:
         """The source line with the first piece's end point (``words``: letter -> value text)
-        and centre ``ij`` written."""
-        if "I" in named:
+        and centre ``ij`` written (None: the line's centre words kept)."""
+        if ij is None:
+            edits = []
+        elif "I" in named:
             edits = [(self._word_start(text, named[c]), named[c].end, t) for c, t in zip("IJ", ij)]
         else:                       # CR=: the pieces' centres are absolute
             edits = [(self._word_start(text, named["CR"]), named["CR"].end, " ".join(ij))]
@@ -355,7 +396,9 @@ class SinumerikWriter(HelixTurns, HeidenhainWriter):
         info = self.tr.lines[g]
         i = info.source
         self._units_of(info)
-        if pts.shape[0] > 1 and info.kind != "arc":
+        if pts.shape[0] > 1 and info.kind == "move" and block.motion == 1:
+            self._nodes(i, block, pts[:-1], info)
+        elif pts.shape[0] > 1 and info.kind != "arc":
             self.dropped += pts.shape[0] - 1
         if info.kind == "arc" and info.turn is not None:
             self._turn_piece(i, block, pts, info)
@@ -372,6 +415,22 @@ class SinumerikWriter(HelixTurns, HeidenhainWriter):
             self.texts[i] = self._rewrite(i, block, pts[-1], info, write=write)
         else:
             self.texts[i] = self._rewrite(i, block, pts[-1], info)
+
+    def _nodes(self, i: int, block, nodes: np.ndarray, info) -> None:
+        """The internal nodes (k, na) of a straight feed move (the step bound's ramp into it after
+        a block left uncorrected: mtcomp.planner) written as ``G1`` blocks before its line, every
+        axis the program has given, with the line's feed word (the feed it moves at)."""
+        text = self.texts[i].rstrip("\r\n")
+        feed = [text[self._word_start(text, w):w.end] for w in self._words(text) if w.name == "F"]
+        for p in nodes:
+            words = ["G1"]
+            for j in np.flatnonzero(block.known):
+                t = _number(self._units(j, p[j], info.shift), self._places(j))
+                words.append(self.letters[j] + t)
+                self.written[j] = self._internal(j, float(t), info.shift)
+            self.before.setdefault(i, []).append(" ".join(words + feed[-1:]))
+        self.added += len(nodes)
+        self.ramp_blocks += len(nodes)
 
     def _hole(self, g, i, block, end, info) -> None:
         nominal = block.points[-1]
@@ -503,7 +562,8 @@ class SinumerikWriter(HelixTurns, HeidenhainWriter):
                            "write corrected holes and circles (a cycle call restated, a hole's "
                            "position, a hole pattern HOLES1 or HOLES2 written as explicit "
                            "positions, a circle written in pieces, a helix with TURN= written as "
-                           "pieces)"
+                           "pieces" + (", a feed move's ramp of the correction written at its "
+                                       "nodes" if self.ramp_blocks else "") + ")"
                            + ending)
             own = text[len(text.rstrip("\r\n")):] or ending
             out.extend(t + own for t in self.before.get(i, []))

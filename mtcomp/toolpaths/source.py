@@ -75,6 +75,10 @@ class ProgramSource(os.PathLike):
     #: G-code equivalent, ``line_map`` the source line of each of its lines; the writer writes
     #: the Sinumerik form)
     sinumerik: object = None
+    #: a program in a fixed format (the machine file's ``fixed_format``): its
+    #: :class:`~.fixed_format.FixedFormat` (``path`` is then its G-code with points, line for line;
+    #: the writer writes the words back in the format)
+    fixed: object = None
     error: InputError | None = None
 
     def __fspath__(self) -> str:
@@ -260,9 +264,36 @@ def _translated(source: str, d: Dialect, why: str):
             os.unlink(tmp)
 
 
+def _fixed(source: str, d: Dialect, why: str, digits: tuple):
+    """A program whose words are written in a fixed format as a ProgramSource of its G-code with
+    points (:mod:`.fixed_format`)."""
+    from .fixed_format import FixedFormat, read_lines, translate
+    if not os.path.isfile(source):
+        raise InputError("no such file", source)
+    raws = read_lines(source)
+    texts = [r.decode("latin-1").rstrip("\r\n") for r in raws]
+    fixed = FixedFormat(digits)
+    gcode = translate(texts, fixed, source)
+    fd, tmp = tempfile.mkstemp(prefix="mtcomp-fixed-", suffix=".nc")
+    try:
+        with os.fdopen(fd, "wb") as out:
+            for raw, g in zip(raws, gcode):
+                out.write(g.encode("latin-1") + raw[len(raw.rstrip(b"\r\n")):])
+        if d.language is not None and needs_expansion(tmp, macro_calls=d.language == "macro"):
+            raise InputError(f"a program with code ({_LANGUAGE[d.language]}) is not read in a "
+                             "fixed format (the machine file's fixed_format)", source)
+        note = (f"note: the words are read in the fixed format {fixed.name()} (the machine file's "
+                f"fixed_format), the corrected ones written back in it, rounded to its resolution "
+                f"({10.0 ** -digits[1]:g})")
+        yield ProgramSource(tmp, source, d, why, fixed=fixed, notes=[note])
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+
+
 @contextlib.contextmanager
 def open_program(path, dialect: str | None = None, *, max_steps: int | None = None,
-                 max_lines: int | None = None, progress=None):
+                 max_lines: int | None = None, progress=None, fixed_format=None):
     """The program at ``path`` as a :class:`ProgramSource` (see the module docstring); a
     ProgramSource is handed back as it is. ``dialect``: a name of :data:`~.dialect.DIALECTS`, or
     None to detect it. ``max_steps``, ``max_lines``: the limits of an expansion (None:
@@ -270,7 +301,9 @@ def open_program(path, dialect: str | None = None, *, max_steps: int | None = No
     told as a program with code is run (every PROGRESS_EVERY lines), or None. The temporary file
     of an expansion is removed on leaving the context. Code that cannot be run is an InputError
     (file and source line named) that the readers raise once the lines executed before it are
-    read (``ProgramSource.error``); a loop that does not end is raised here."""
+    read (``ProgramSource.error``); a loop that does not end is raised here. ``fixed_format``:
+    (digits before, after the point) where the machine reads words in a fixed format
+    (:mod:`.fixed_format`), or None."""
     if isinstance(path, ProgramSource):
         yield path
         return
@@ -285,6 +318,9 @@ def open_program(path, dialect: str | None = None, *, max_steps: int | None = No
     d, why = dialect_named(dialect, source)
     if d.language in ("heidenhain", "sinumerik"):
         yield from _translated(source, d, why)
+        return
+    if fixed_format is not None:
+        yield from _fixed(source, d, why, fixed_format)
         return
     expansion = None
     if d.language is not None and os.path.isfile(source) and needs_expansion(

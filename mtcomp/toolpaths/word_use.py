@@ -310,8 +310,9 @@ def _fixed_problem(word: str) -> str:
     the point before the last four digits): nothing says where its point lies."""
     return (f"{word} is a fixed-format number (leading zeros, no decimal point): its controller "
             "places the decimal point by its format (in a 3.4 format X0019685 is 1.9685), which "
-            "the program does not show; give --dialect linuxcnc or grbl if the controller reads "
-            "it in whole units")
+            "the program does not show; say the format in the machine file (fixed_format = "
+            "\"3.4\") where the controller reads one, or give --dialect linuxcnc or grbl if it "
+            "reads whole units")
 
 
 #: the machine setting under which a word without a point is read in whole units

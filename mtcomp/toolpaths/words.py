@@ -567,7 +567,10 @@ class SourceLine:
             out.append(new)
             pos = max(pos, e)
         out.append(self.text[pos:])
-        return "".join(out)
+        text = "".join(out)
+        # two words deleted at the line's end leave the blank between them: a line that ended
+        # without blanks still does
+        return text.rstrip(" \t") if self.text == self.text.rstrip(" \t") else text
 
 
 _CUTTER_COMP_RE = re.compile(r"(?i)g0*4([012])(?![\d.])")

@@ -31,6 +31,7 @@ from ._arcs import (FULL_CIRCLE_TOL_MM, PLANE_AXES, PLANE_OFFSET_LETTERS, ArcErr
 from .blocks import MotionBlock
 from .cursor import CorrectionCursor
 from .modal import ModalState
+from .passed import check_passed_start
 from .reader import iter_blocks, new_state
 from .words import (DEFAULT_CHORD_TOL_MM, MM_PER_INCH, SourceLine, base_decimals,
                     cutter_comp_code, format_number, grid_text, increment_text, machine_units,
@@ -653,8 +654,11 @@ def write_pass_through(f, raw: bytes, state: ModalState, out: OutputState, separ
     axis not known, G33.1) gets a line ``G91`` inserted before it. The output stands where the
     line leaves it: a known axis an incremental pass-through moves moves by the same increment
     from the output's position; an axis whose position the program loses is lost to the output
-    too, and one the line gives again (G10 L20) reads what the program reads.
+    too, and one the line gives again (G10 L20) reads what the program reads. An absolute arc
+    from a position not given must start where the output stands uncorrected in its plane
+    (:func:`.passed.check_passed_start`: InputError otherwise).
     """
+    check_passed_start(state, out.values)
     if state.distance_sensitive and state.distance_word is None and state.incremental \
             and out.absolute:
         f.write(("G91" + (_line_ending(raw) or separator)).encode("latin-1"))
@@ -692,9 +696,9 @@ def write_pass_through(f, raw: bytes, state: ModalState, out: OutputState, separ
         xi, yi, zi = state.xyz_index
         if state.cycle_start:
             out.cycle_init_z = out.values[zi]
-        for i in (xi, yi):
+        # the axis drilled along (Z in G17, Y in G18, X in G19) is not known after the line
+        for i in (xi, yi, zi):
             out.values[i] = state.position[i] if state.known[i] else math.nan
-        out.values[zi] = math.nan
         for attr in ("cycle_r", "cycle_z"):
             v = getattr(state, attr)
             setattr(out, attr, "" if v is None or v[1] else grid_text(v[0], False, state.inch))

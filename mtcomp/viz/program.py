@@ -75,7 +75,7 @@ def read_program_points(path, machine: Machine, dialect: str | None = None,
     from ..toolpaths.source import open_program
     tol = {} if chord_tol_mm is None else {"chord_tol_mm": chord_tol_mm}
     setup = ProgramSetup(machine) if setup is None else setup
-    with open_program(path, dialect) as src:
+    with open_program(path, dialect, fixed_format=machine.fixed_format) as src:
         chunks = list(iter_segment_chunks(src, machine, **tol))
         frames = list(getattr(src, "local_frames", None) or [])
         names = dict(getattr(getattr(src, "sinumerik", None), "tool_names", None) or {})
