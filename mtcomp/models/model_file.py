@@ -318,10 +318,12 @@ class FittedModel:
     def tip_sd_um(J: np.ndarray, factor: tuple[np.ndarray, np.ndarray],
                   undetermined: tuple[np.ndarray, np.ndarray] | None = None,
                   extra: np.ndarray | None = None,
-                  choice: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+                  choice: tuple[np.ndarray, np.ndarray] | None = None,
+                  components: bool = False) -> np.ndarray:
         """(n,) the standard error (um) of n tool-tip deviations whose Jacobian with respect to
         ``params`` is J (n, 3, n_params), mm: the largest of the three components' standard
-        errors, under the covariance :meth:`covariance_factor` gives (``factor``).
+        errors, under the covariance :meth:`covariance_factor` gives (``factor``); (n, 3) each
+        component's with ``components``.
 
         undetermined : :meth:`undetermined_values`; where the deviation moves with that part of the
             values by more than :data:`UNDETERMINED_UM` in some component, the standard error is
@@ -334,18 +336,18 @@ class FittedModel:
         idx, F = factor
         G = J[:, :, idx] @ F                        # (n, 3, rank), mm
         var = np.einsum("nij,nij->ni", G, G)
-        sd = np.sqrt(np.max(var if extra is None else var + extra, axis=1)) * 1e3
+        sd = np.sqrt(var if extra is None else var + extra) * 1e3
         if undetermined is not None:
             ui, v = undetermined
             moved = np.abs(J[:, :, ui] @ v).max(axis=1) * 1e3
-            sd = np.where(moved > UNDETERMINED_UM, np.inf, sd)
+            sd[moved > UNDETERMINED_UM] = np.inf
         if choice is not None:
             ci, D = choice
             Gc = J[:, :, ci] @ D
             cvar = np.einsum("nij,nij->ni", Gc, Gc)
             chosen = (np.sqrt(cvar) * 1e3 > UNDETERMINED_UM) & (cvar > var - cvar)
-            sd = np.where(chosen.any(axis=1), np.inf, sd)
-        return sd
+            sd[chosen.any(axis=1)] = np.inf
+        return sd if components else sd.max(axis=1)
 
     def prediction_std(self, J: np.ndarray) -> np.ndarray:
         """(n,) standard error of n predictions whose Jacobian with respect to ``params`` is J (n,

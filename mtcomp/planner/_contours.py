@@ -26,6 +26,9 @@ from ._nodes import NodeSet
 from ._pointwise import Linearization
 from ._small import any_rows
 
+#: a correction within this many of its standard errors of zero (in every component of the tip) is
+#: not told from none (docs/planner.md, *Blocks where the model is unsure*)
+SMALL_IN_SD = 2.0
 #: the longest open contour held back for the batch that closes it (nodes; about 250 bytes each)
 HOLD_NODES = 1 << 18
 
@@ -48,16 +51,43 @@ def gated_contours(member, start, over, carry_open=False, carry_gated=False):
     n = member.size
     if n == 0:
         return np.zeros(0, bool), 0
-    prev = np.empty(n, bool)
-    prev[0] = carry_open
-    prev[1:] = member[:-1]
-    new = member & (np.asarray(start, bool) | ~prev)
-    cid = np.cumsum(new)                     # 0: the contour carried from the batch before
+    cid = _contour_ids(member, start, carry_open)
     bad = np.bincount(cid[member & np.asarray(over, bool)], minlength=int(cid[-1]) + 1) > 0
     bad[0] |= bool(carry_gated)
     gated = member & bad[cid]
     tail = int(np.searchsorted(cid, cid[-1])) if member[-1] else n
     return gated, tail
+
+
+def _contour_ids(member, start, carry_open) -> np.ndarray:
+    """(n,) the number of each node's contour in the batch (:func:`gated_contours`'s arguments); 0:
+    the contour carried from the batch before."""
+    prev = np.empty(member.size, bool)
+    prev[0] = carry_open
+    prev[1:] = member[:-1]
+    return np.cumsum(member & (np.asarray(start, bool) | ~prev))
+
+
+def quiet_contours(member, start, in_sd, carry_open=False, carried_whole=True) -> np.ndarray:
+    """(n,) bool: the nodes left uncorrected because their correction is not told from zero by its
+    standard error (``in_sd`` (n,): the correction in its standard errors, NaN where not judged;
+    under :data:`SMALL_IN_SD` in every component): a node in no contour on its own; a contour's
+    members when every member judged is, at least one was judged, and (for the contour carried from
+    the batch before, ``carry_open``) the batch holds it whole (``carried_whole``). A contour with
+    one correction told from zero is corrected whole: left in part it would step where its
+    correction stops (module docstring). member, start, carry_open : as :func:`gated_contours`."""
+    member, in_sd = np.asarray(member, bool), np.asarray(in_sd, dtype=float)
+    if member.size == 0:
+        return np.zeros(0, bool)
+    with np.errstate(invalid="ignore"):
+        small = in_sd < SMALL_IN_SD
+    cid = _contour_ids(member, start, carry_open)
+    size = int(cid[-1]) + 1
+    counted = member & np.isfinite(in_sd)
+    loud = np.bincount(cid[counted & ~small], minlength=size) > 0
+    quiet = (np.bincount(cid[counted], minlength=size) > 0) & ~loud
+    quiet[0] &= bool(carried_whole) or not carry_open
+    return (member & quiet[cid]) | (~member & small)
 
 
 class ContourGate:
@@ -84,13 +114,17 @@ class ContourGate:
     def _carry(self):
         return (True, False) if self._held is not None else (self._open, self._gated)
 
-    def rows_gated(self, member, start, sd_um) -> np.ndarray:
+    def rows_gated(self, member, start, sd_um, in_sd=None) -> np.ndarray:
         """(n,) bool: the rows of a batch about to be made into nodes that the gate will leave
         uncorrected as far as the batch tells (no internal nodes are placed in them); the state is
-        not changed. member, start : (n,) bool as in :func:`gated_contours`; sd_um : (n,)."""
+        not changed. member, start : (n,) bool as in :func:`gated_contours`; sd_um : (n,); in_sd :
+        (n,) or None, as :func:`quiet_contours`."""
         if not self.active:
             return np.zeros(len(member), bool)
-        return gated_contours(member, start, self._over(sd_um), *self._carry())[0]
+        gated = gated_contours(member, start, self._over(sd_um), *self._carry())[0]
+        if in_sd is not None:
+            gated |= quiet_contours(member, start, in_sd, self._carry()[0], self._held is not None)
+        return gated
 
     def feed(self, nodes: NodeSet, lin: Linearization, final: bool = False):
         """The nodes of the next batch (after those fed before) that can be planned now, with the
@@ -99,6 +133,7 @@ class ContourGate:
         if not self.active:
             return nodes, lin
         carry = self._carry()
+        whole = self._held is not None          # the contour carried in is here from its start
         if self._held is not None:
             hn, hl = self._held
             self._held = None
@@ -111,14 +146,19 @@ class ContourGate:
         if gated.any():
             nodes.gated = nodes.gated | (gated & ~nodes.pinned)
             nodes.pinned = nodes.pinned | gated
+        quiet = None if nodes.in_sd is None else quiet_contours(member, nodes.cut_start,
+                                                                nodes.in_sd, carry[0], whole)
         self._open, self._gated = bool(member[-1]), bool(gated[-1])
         if final or tail == n or self._gated:
-            return nodes, lin
+            return _leave_quiet(nodes, quiet), lin
         if n - tail > self.hold:
             self.released_open += 1
-            return nodes, lin
+            return _leave_quiet(nodes, quiet), lin
+        # the open contour goes back unjudged: one correction told from zero later keeps it whole
         self._held = (nodes.take(slice(tail, n)), lin.take(slice(tail, n)))
-        return nodes.take(slice(0, tail)), lin.take(slice(0, tail))
+        if quiet is not None:
+            quiet[tail:] = False
+        return _leave_quiet(nodes, quiet).take(slice(0, tail)), lin.take(slice(0, tail))
 
     def finish(self):
         """The nodes still held back at the end of the program, (nodes, lin) or None: their contour
@@ -126,3 +166,13 @@ class ContourGate:
         held, self._held = self._held, None
         self._open = self._gated = False
         return held
+
+
+def _leave_quiet(nodes: NodeSet, quiet) -> NodeSet:
+    """``nodes`` with the ``quiet`` ones (:func:`quiet_contours`; None: none) not pinned already
+    pinned and marked ``indistinct``."""
+    if quiet is not None:
+        quiet = quiet & ~nodes.pinned
+        nodes.indistinct = quiet
+        nodes.pinned = nodes.pinned | quiet
+    return nodes

@@ -25,6 +25,7 @@ import numpy as np
 from ..kinematics import forward as nominal_pose
 from ..kinematics import pose_jacobian as nominal_pose_jacobian
 from ..models.evaluate import evaluate
+from ..models.model_file import UNDETERMINED_UM
 from ..models.assumed import Assumed
 from ._small import any_rows, down_columns
 from .problem import CompensationProblem
@@ -93,8 +94,9 @@ class Evaluator:
         self.D = problem.axis_scale
         self.evaluations = 0
         self._count_lock = threading.Lock()     # parts of a chunk are evaluated in threads
-        # the correction's own variance: not that of what the fit held (it corrects nothing there)
-        self._factor = problem.fitted.covariance_factor(held=False)
+        # predict's covariance, the combinations the fit held weakly included: the truth may differ
+        # from the held values by that much, at the block and at the datum (docs/planner.md)
+        self._factor = problem.fitted.covariance_factor(held=True)
         # the part of the values along what the data left undetermined: a correction that moves
         # with it is unsure (FittedModel.tip_sd_um)
         self._open = problem.fitted.undetermined_values() if self._factor is not None else None
@@ -117,15 +119,16 @@ class Evaluator:
         return evaluate(self.model, "deviation_function", self.problem.fitted.clamp(q)[0], self.p, ctx)[0]
 
     def correction_sd_assumed(self, q, ctx, datum=None, sd: bool = True) -> np.ndarray:
-        """(n, 1 + Assumed.width): the standard error (um) of the correction at q (NaN where not
+        """(n, 2 + Assumed.width): the standard error (um) of the correction at q (NaN where not
         ``sd``): the largest of the three components' standard errors of the tip deviation (less
         the deviation at the part's datum, as :meth:`datum_reference` takes it, when ``datum``
         (n, na) is given) under the model's covariance, evaluated where :meth:`_deviation`
         evaluates it; infinite where the correction moves with values the data left undetermined
-        (FittedModel.tip_sd_um); NaN when the model carries no uncertainty. Then, when the model
-        assumes something at zero (:attr:`assumed`), :meth:`Assumed.blocks` of the same Jacobian."""
+        (FittedModel.tip_sd_um); NaN when the model carries no uncertainty. Then the correction in
+        its standard errors (:meth:`_in_sd`; NaN where not ``sd``), and, when the model assumes
+        something at zero (:attr:`assumed`), :meth:`Assumed.blocks` of the same Jacobian."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
-        out = np.full((q.shape[0], 1 + (self.assumed.width if self.assumed else 0)), np.nan)
+        out = np.full((q.shape[0], 2 + (self.assumed.width if self.assumed else 0)), np.nan)
         if self._factor is None:
             return out
         fitted = self.problem.fitted
@@ -137,10 +140,27 @@ class Evaluator:
                 extra = fitted.model_error_variance(J)
             J = J - self._at_datum("tip_pjacobian_function", datum, ctx)
         if sd:
-            out[:, 0] = fitted.tip_sd_um(J, self._factor, self._open, extra, self._choice)
+            each = fitted.tip_sd_um(J, self._factor, self._open, extra, self._choice, components=True)
+            out[:, 0] = each.max(axis=1)
+            out[:, 1] = self._in_sd(q, ctx, datum, each)
         if self.assumed:
-            out[:, 1:] = self.assumed.blocks(q, J)
+            out[:, 2:] = self.assumed.blocks(q, J)
         return out
+
+    def _in_sd(self, q, ctx, datum, each) -> np.ndarray:
+        """(n,) the correction at q (the deviation less the datum's, :meth:`datum_reference`) in its
+        own standard errors ``each`` (n, 3) um: the largest over the tip's components of |its
+        correction| / its standard error; NaN where some standard error is infinite (the block is
+        over any limit) or the correction is under :data:`UNDETERMINED_UM` in every component
+        (written or not, the block is the same)."""
+        dev = self._deviation(q, ctx)[:, :3]
+        if datum is not None:
+            dev = dev - self._at_datum("deviation_function", datum, ctx)[:, :3]
+        size = np.abs(dev) * 1e3
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z = np.where(size > 0, size / each, 0.0).max(axis=1)
+        z[np.isinf(each).any(axis=1) | (size.max(axis=1) < UNDETERMINED_UM)] = np.nan
+        return z
 
     def _deviation_and_qjacobian(self, q, ctx):
         """(deviation (n, 6), d deviation / d q (n, 6, n_axes)) as :meth:`_deviation`: along a held

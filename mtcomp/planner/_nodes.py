@@ -34,6 +34,12 @@ class NodeSet:
         arc under cutter radius compensation) and their kind, or all None when no node has one.
     assumed : (n, w) what each node's correction assumes at zero (:mod:`._assumed`), or None when
         the model assumes nothing.
+    in_sd : (n,) the node's correction in its standard errors, the largest over the tip's
+        components (:mod:`._contours`: under two it is not told from zero); NaN where not judged
+        (its standard error not evaluated or infinite, a correction under 0.01 um), or None (no
+        limit, no covariance).
+    indistinct : (n,) bool, pinned because its correction, or every one of its contour's, is not
+        told from zero by its standard error (:mod:`._contours`), or None (none is).
     """
 
     q: np.ndarray
@@ -52,10 +58,14 @@ class NodeSet:
     link_hi: np.ndarray | None = None
     link_kind: np.ndarray | None = None
     assumed: np.ndarray | None = None
+    in_sd: np.ndarray | None = None
+    indistinct: np.ndarray | None = None
 
     FIELDS = ("q", "context", "exempt", "line", "inserted", "rapid", "unknown", "outside", "pinned",
               "sd_um", "cut_start", "gated")
     LINKS = ("link_lo", "link_hi", "link_kind")
+    #: (n,) fields that may be None, and what a None stands for when joined with others
+    FLAGS = {"in_sd": np.nan, "indistinct": False}
 
     def __len__(self):
         return int(self.q.shape[0])
@@ -81,7 +91,8 @@ class NodeSet:
 
     def take(self, idx) -> "NodeSet":
         links = {} if self.link_lo is None else {f: getattr(self, f)[idx] for f in self.LINKS}
-        return NodeSet(*(getattr(self, f)[idx] for f in self.FIELDS), **links,
+        flags = {f: None if getattr(self, f) is None else getattr(self, f)[idx] for f in self.FLAGS}
+        return NodeSet(*(getattr(self, f)[idx] for f in self.FIELDS), **links, **flags,
                        assumed=None if self.assumed is None else self.assumed[idx])
 
     @staticmethod
@@ -90,8 +101,10 @@ class NodeSet:
         if any(p.link_lo is not None for p in parts):
             filled = [p.links or _no_links(p.q.shape) for p in parts]
             links = {f: np.concatenate([t[k] for t in filled]) for k, f in enumerate(NodeSet.LINKS)}
+        flags = {f: concatenate_flags([getattr(p, f) for p in parts], [len(p) for p in parts], fill)
+                 for f, fill in NodeSet.FLAGS.items()}
         return NodeSet(*(np.concatenate([getattr(p, f) for p in parts]) for f in NodeSet.FIELDS),
-                       **links, assumed=concatenate_rows([p.assumed for p in parts]))
+                       **links, **flags, assumed=concatenate_rows([p.assumed for p in parts]))
 
 
     @staticmethod
@@ -109,6 +122,14 @@ def concatenate_rows(parts: list) -> np.ndarray | None:
     if w is None:
         return None
     return np.concatenate([np.zeros((0, w)) if a is None else a for a in parts])
+
+
+def concatenate_flags(parts: list, lengths: list, fill=False) -> np.ndarray | None:
+    """The (n_i,) arrays of ``parts`` joined, a part's None as ``fill`` over its ``lengths``; None
+    when every part is None."""
+    if all(a is None for a in parts):
+        return None
+    return np.concatenate([np.full(k, fill) if a is None else a for a, k in zip(parts, lengths)])
 
 
 def _no_links(shape):

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._bounds import FLAG_KINDS, flag_name
-from ._nodes import concatenate_rows
+from ._nodes import concatenate_flags, concatenate_rows
 from ._small import any_rows
 
 
@@ -38,6 +38,8 @@ class PlanResult:
     standing : (n, na) bool, the rotary axes the standing rule keeps at the correction of the block
         before (the program does not move them there, outside tool centre point mode), or None.
     assumed : (n, w) what each block's correction assumes at zero (:mod:`._assumed`), or None.
+    indistinct : (n,) bool, pinned because its correction (or every one of its contour's) is not
+        told from zero by its standard error (NodeSet), or None (none is).
     """
 
     line: np.ndarray
@@ -63,6 +65,7 @@ class PlanResult:
     undirected: np.ndarray | None = None
     standing: np.ndarray | None = None
     assumed: np.ndarray | None = None
+    indistinct: np.ndarray | None = None
 
     FIELDS = ("line", "inserted", "rapid", "nominal", "corrected", "correction", "before", "after",
               "before_axis", "after_axis", "flags", "iterations", "converged", "unknown", "outside",
@@ -76,7 +79,8 @@ class PlanResult:
                             for f in self.FIELDS),
                           **{f: None if getattr(self, f) is None else getattr(self, f)[sl]
                              for f in self.MASKS},
-                          assumed=None if self.assumed is None else self.assumed[sl])
+                          assumed=None if self.assumed is None else self.assumed[sl],
+                          indistinct=None if self.indistinct is None else self.indistinct[sl])
 
     #: (n, na) masks that may be None (no node has one)
     MASKS = ("undirected", "standing")
@@ -92,7 +96,9 @@ class PlanResult:
             if any(getattr(p, f) is not None for p in parts):
                 masks[f] = np.concatenate([np.zeros(p.held.shape, bool) if getattr(p, f) is None
                                            else getattr(p, f) for p in parts])
-        return PlanResult(*out, **masks, assumed=concatenate_rows([p.assumed for p in parts]))
+        return PlanResult(*out, **masks, assumed=concatenate_rows([p.assumed for p in parts]),
+                          indistinct=concatenate_flags([p.indistinct for p in parts],
+                                                       [len(p) for p in parts]))
 
     def corrected_blocks(self) -> np.ndarray:
         """(n,) bool: the blocks written with their correction on every axis that asked for one (in

@@ -147,14 +147,17 @@ class Planner:
         when the model assumes nothing; (n,) bool or None, the blocks gated for their datum).
         ``datum_out`` (n,) bool or None: the blocks whose datum lies outside the support
         (:meth:`._datum.DatumRule.outside`): where a limit is asked, their standard error is
-        infinite (unless they are left uncorrected for an unknown axis or the ram already)."""
+        infinite (unless they are left uncorrected for an unknown axis or the ram already); (n,) or
+        None (no limit asked), each block's correction in its standard errors (NaN where not
+        judged: :func:`._contours.quiet_contours`))."""
         sd = np.full(q.shape[0], np.nan)
+        in_sd = None
         assumed = self.ev.assumed
         out = None if assumed is None else np.zeros((q.shape[0], assumed.width))
         limit = bool(self.options.max_correction_sd_um)
         gated = None
         if not (limit or assumed) or not self.ev.has_uncertainty:
-            return sd, out, gated
+            return sd, out, gated, in_sd
         todo = ~any_rows(unknown)
         todo &= ~self.ram.whole_outside(outside)
         if todo.any():
@@ -164,12 +167,16 @@ class Planner:
                                qt.shape[0], self._split, *args)
             both = np.concatenate(parts)
             sd[todo] = both[:, 0]
+            if limit:
+                # the correction in its standard errors: under two, nothing tells it from none
+                in_sd = np.full(q.shape[0], np.nan)
+                in_sd[todo] = both[:, 1]
             if out is not None:
-                out[todo] = both[:, 1:]
+                out[todo] = both[:, 2:]
             if limit and datum_out is not None:
                 gated = todo & datum_out
                 sd[gated] = np.inf
-        return sd, out, gated
+        return sd, out, gated, in_sd
 
     def _solve_free(self, q, ctx, reference) -> Linearization:
         parts = split_rows(self._solve_free_part, q.shape[0], self._split, q, ctx, reference)
@@ -216,13 +223,13 @@ class Planner:
         ctx = self._context(feed, dirs, n)
         datum = None if datum is None else np.broadcast_to(np.asarray(datum, dtype=float), q.shape)
         datum_out = self.datum.outside(datum)
-        sd, assumed, gated = self._sd_um(q, ctx, unknown, outside, datum, datum_out)
+        sd, assumed, gated, in_sd = self._sd_um(q, ctx, unknown, outside, datum, datum_out)
         pinned = self._pinned(unknown, outside, sd)
         self.datum.note(datum, gated, line)
         links = self.links.arrays(q, dirs, None if self._last_end is None else self._last_end[0])
         nodes = NodeSet(q, ctx, exempt, line, np.zeros(n, bool), rapid, unknown, outside,
                         pinned, sd, np.zeros(n, bool), np.zeros(n, bool),
-                        *(links or (None, None, None)), assumed=assumed)
+                        *(links or (None, None, None)), assumed=assumed, in_sd=in_sd)
         lin = self._solve_free(nodes.q, nodes.context, self._reference(datum, ctx))
         nodes, lin = self.gate.feed(nodes, lin, final=True)     # the arrays are whole contours
         if n:
@@ -252,7 +259,7 @@ class Planner:
         unknown = ~known
         outside = self.outside_support(end, known, chunk.tool_length)
         datum_out = self.datum.outside(chunk.datum, chunk.tool_length)
-        sd, assumed, gated = self._sd_um(end, ctx, unknown, outside, chunk.datum, datum_out)
+        sd, assumed, gated, in_sd = self._sd_um(end, ctx, unknown, outside, chunk.datum, datum_out)
         pinned = self._pinned(unknown, outside, sd)
         self.datum.note(chunk.datum, gated, chunk.line)
         self.ram.note(end, outside, pinned, chunk.tool_length, ~any_rows(unknown))
@@ -268,7 +275,7 @@ class Planner:
         start, x_start = self._row_starts(chunk, end, lin_end.x, ctx, ref)
         # no internal nodes in a contour the standard-error gate leaves uncorrected either
         cut_start = cycle | no_line
-        gated = self.gate.rows_gated(~rapid & ~any_rows(unknown), cut_start, sd)
+        gated = self.gate.rows_gated(~rapid & ~any_rows(unknown), cut_start, sd, in_sd)
         skip = rapid | pinned | cycle | no_line | gated
         # a straight move after a block left uncorrected: nodes for the step bound's ramp (_ramp)
         ramped, ramp = ramp_nodes(self, chunk, start, end, lin_end.x, pinned, exempt, skip, ctx, ref)
@@ -279,15 +286,12 @@ class Planner:
             links = self.links.chunk(chunk, end, np.arange(nrows), np.ones(nrows, bool), first, cycle)
             nodes = NodeSet(end, ctx, exempt, np.asarray(chunk.line), np.zeros(nrows, bool), rapid,
                             unknown, outside, pinned, sd, cut_start, np.zeros(nrows, bool),
-                            *(links or (None, None, None)), assumed=assumed)
+                            *(links or (None, None, None)), assumed=assumed, in_sd=in_sd)
             return nodes, lin_end, counts
         rows_i, t_i, q_i, lin_i = inner
         np.add.at(counts, rows_i, 1)
         pos_end, pos_i = positions(counts, rows_i, t_i)
         row_sorted = np.repeat(np.arange(nrows), counts)
-        # the first node of a row (inserted or its end) takes the row's exemption
-        ex_all = np.zeros(row_sorted.size, bool)
-        ex_all[np.cumsum(counts) - counts] = exempt
         ins_all = np.zeros(row_sorted.size, bool)
         ins_all[pos_i] = True
         # an inserted node outside the region the data reached (a move from outside into it) is
@@ -299,13 +303,16 @@ class Planner:
         firsts = np.zeros(row_sorted.size, bool)
         firsts[np.cumsum(counts) - counts] = True
         cut_all = np.repeat(cut_start, counts) & firsts
+        # the first node of a row (inserted or its end) takes the row's exemption
+        ex_all = np.repeat(exempt, counts) & firsts
         links = self.links.chunk(chunk, q_all, row_sorted, firsts, first, cycle)
         nodes = NodeSet(q_all, ctx[row_sorted], ex_all, np.asarray(chunk.line)[row_sorted],
                         ins_all, rapid[row_sorted], unknown[row_sorted],
                         placed(outside, out_i, pos_end, pos_i),
                         placed(pinned, pin_i, pos_end, pos_i), sd[row_sorted], cut_all,
                         np.zeros(row_sorted.size, bool), *(links or (None, None, None)),
-                        assumed=None if assumed is None else assumed[row_sorted])
+                        assumed=None if assumed is None else assumed[row_sorted],
+                        in_sd=None if in_sd is None else in_sd[row_sorted])
         lin = Linearization(*(placed(getattr(lin_end, f), getattr(lin_i, f), pos_end, pos_i)
                               for f in Linearization.FIELDS))
         return nodes, lin, counts
@@ -437,7 +444,8 @@ class Planner:
                           after[:, 3:6] if five else None, flags, lin.iterations, lin.converged,
                           nodes.unknown, nodes.outside, nodes.pinned, nodes.sd_um, nodes.gated,
                           held, undirected=undirected_axes(nodes),
-                          standing=standing_axes(nodes), assumed=nodes.assumed)
+                          standing=standing_axes(nodes), assumed=nodes.assumed,
+                          indistinct=nodes.indistinct)
 
     def _tick(self):
         cb = self.options.progress

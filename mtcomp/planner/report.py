@@ -155,11 +155,13 @@ def report_table(result: PlanResult, axis_names, max_correction_sd_um: float | N
 
 def _uncertain(result: PlanResult, limit: float | None) -> np.ndarray:
     """(n,) bool: blocks left uncorrected because their correction's standard error exceeds limit,
-    or that of another block of their contour (``PlanResult.gated``)."""
+    or that of another block of their contour (``PlanResult.gated``), or because their correction
+    (and every one of their contour's) is not told from zero by it (``PlanResult.indistinct``)."""
     if not limit:
         return np.zeros(len(result), bool)
     with np.errstate(invalid="ignore"):
-        return (result.sd_um > limit) | result.gated
+        out = (result.sd_um > limit) | result.gated
+    return out if result.indistinct is None else out | result.indistinct
 
 
 def _finite(pair) -> list | None:
@@ -225,6 +227,10 @@ class Summary:
     uncertain_blocks: int = 0
     #: of those, the blocks left uncorrected only because their contour has a block over the limit
     contour_blocks: int = 0
+    #: of those, the blocks whose correction (every one of their contour's) is within two standard
+    #: errors of zero (PlanResult.indistinct), and the first one's line
+    indistinct_blocks: int = 0
+    indistinct_line: int = 0
     max_sd_um: float = 0.0
     sd_undetermined: bool = False
     sd_seen: bool = False
@@ -271,6 +277,22 @@ class Summary:
     #: assumes nothing)
     assumed: AssumedTally | None = None
 
+    def _add_uncertain(self, r: PlanResult, uncertain: np.ndarray):
+        """Count the blocks of ``r`` left uncorrected as unsure (``uncertain`` (n,) bool), apart
+        those of a contour over the limit and those not told from zero, and the standard errors."""
+        self.uncertain_blocks += int(uncertain.sum())
+        self.contour_blocks += int(np.count_nonzero(uncertain & r.gated))
+        if r.indistinct is not None and (uncertain & r.indistinct).any():
+            quiet = uncertain & r.indistinct
+            self.indistinct_blocks += int(quiet.sum())
+            self.indistinct_line = self.indistinct_line or int(r.line[np.argmax(quiet)])
+        finite = np.isfinite(r.sd_um)
+        if finite.any():
+            self.max_sd_um = max(self.max_sd_um, float(np.max(r.sd_um[finite])))
+            self.sd_seen = True
+        # an infinite standard error: the correction moves with values the data did not determine
+        self.sd_undetermined |= bool(np.isposinf(r.sd_um).any())
+
     def add(self, r: PlanResult):
         n = len(r)
         if n == 0:
@@ -289,15 +311,8 @@ class Summary:
             if ram_only.any():
                 self.ram_blocks += int(ram_only.sum())
                 self.ram_line = self.ram_line or int(r.line[np.argmax(ram_only)])
-        uncertain = _uncertain(r, self.max_correction_sd_um) & ~unknown & ~(outside & ~self.extrapolate)
-        self.uncertain_blocks += int(uncertain.sum())
-        self.contour_blocks += int(np.count_nonzero(uncertain & r.gated))
-        finite = np.isfinite(r.sd_um)
-        if finite.any():
-            self.max_sd_um = max(self.max_sd_um, float(np.max(r.sd_um[finite])))
-            self.sd_seen = True
-        # an infinite standard error: the correction moves with values the data did not determine
-        self.sd_undetermined |= bool(np.isposinf(r.sd_um).any())
+        self._add_uncertain(r, _uncertain(r, self.max_correction_sd_um) & ~unknown
+                            & ~(outside & ~self.extrapolate))
         if outside.any():
             self.outside_blocks += int(outside.sum())
             if not self.first_outside_line:
@@ -462,8 +477,10 @@ class Summary:
                              "rms_after_um": float(np.sqrt(self.corrected_sum_sq_after / nc))},
                "uncorrected": {"unknown_axes": self.unknown_blocks,
                                "outside_support": 0 if self.extrapolate else self.outside_blocks,
-                               "uncertain": self.uncertain_blocks - self.contour_blocks,
+                               "uncertain": self.uncertain_blocks - self.contour_blocks
+                                            - self.indistinct_blocks,
                                "uncertain_contour": self.contour_blocks,
+                               "indistinct_from_zero": self.indistinct_blocks,
                                "held_by_bounds": self.held_blocks,
                                "held_direction_unknown": self.blind_blocks},
                "ram_outside_support": {"blocks": self.ram_blocks, "line": self.ram_line,
@@ -618,8 +635,8 @@ class Summary:
             out.append(tools)
         # the blocks unsure for their datum alone have their own line (compensate's datum notes)
         out += self.datum_lines
-        if self.uncertain_blocks > self.datum_blocks:
-            own = self.uncertain_blocks - self.contour_blocks - self.datum_blocks
+        if self.uncertain_blocks > self.datum_blocks + self.indistinct_blocks:
+            own = self.uncertain_blocks - self.contour_blocks - self.datum_blocks - self.indistinct_blocks
             shared = (f", and {blocks(self.contour_blocks)} of the same contours (a run of feed "
                       "moves cut one after the other is corrected whole or not at all: corrected in "
                       "part, it would step where the correction stops)" if self.contour_blocks else "")
@@ -632,6 +649,12 @@ class Summary:
                        f"{shared}; "
                        + unsure_advice(float("inf") if self.sd_undetermined else self.max_sd_um,
                                        self.max_correction_sd_um))
+        if self.indistinct_blocks:
+            out.append(f"{blocks(self.indistinct_blocks)} not corrected: the correction is within "
+                       "two of its standard errors of zero in every component, so the data do not "
+                       "tell it from none (a contour only when that holds on every one of its "
+                       f"blocks; first at line {self.indistinct_line}; BLOCKS.csv uncertain 1, "
+                       "column correction_sd_um): measure more, or more often, to tell it")
         if self.held_blocks:
             out.append(self._held_text(blocks(self.held_blocks)))
         return out
