@@ -73,7 +73,8 @@ def test_cmm_parts_are_judged_by_their_own_noise_floor(parts):
     nz = parts.noise["um"]
     own = {s: v for s, v in nz.by_series.items() if s.startswith("part")}
     # every series of the three parts at the CMM's own floor: 0.8 um, within the spread an estimate
-    # from 201 readings less the fit's share has; the pooled floor stays the ball bar's side
+    # from 201 readings less the fit's share has (each reading's own leverage: the parameter-share
+    # count it replaced gave 0.61); the pooled floor stays the ball bar's side
     assert len(own) == 9, nz.by_series
-    assert all(0.6 <= v <= 1.05 for v in own.values()), own
+    assert all(0.7 <= v <= 1.05 for v in own.values()), own
     assert nz.sigma < 0.6, nz.sigma

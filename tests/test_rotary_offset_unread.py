@@ -50,7 +50,7 @@ def test_an_offset_read_with_its_profile_is_not_determined(tmp_path, capsys, mac
     if axis != "C":
         # what the data do read: the error at the one angle, the truth's profile there
         value = fitted.params.values[fitted.params.index(name)]
-        np.testing.assert_allclose(value, RATE * math.radians(30.0), rtol=0.02, atol=0)
+        np.testing.assert_allclose(value, RATE * math.radians(30.0), rtol=1e-8, atol=0)
         assert main(["export", machine, str(model), "--format", "linuxcnc", "-o", str(tmp_path / "exp")]) == 0
         err = capsys.readouterr()
         text = err.out + err.err

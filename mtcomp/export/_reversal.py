@@ -18,19 +18,22 @@ def _number(x) -> float | None:
     return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) else None
 
 
-def unheld_reversals(fitted) -> dict:
-    """axis -> (mean reversal, largest reversal, unit) of every axis whose data show a reversal the
-    model does not hold (no backlash term on that axis), file units (um, urad). A record that is
-    absent or not understood (a hand-edited file) says nothing."""
+def _unheld_records(fitted) -> dict:
+    """axis -> its record in ``info["reversal"]`` for every axis on which the model holds no
+    backlash term (a record absent or not understood, a hand-edited file, says nothing)."""
     record = fitted.info.get("reversal") if isinstance(fitted.info, dict) else None
     if not isinstance(record, dict):
         return {}
     held = {getattr(t, "axis", None) for t in fitted.model.terms if t.kind == "backlash"}
+    return {a: r for a in fitted.machine.axis_names
+            if a not in held and isinstance(r := record.get(a), dict)}
+
+
+def unheld_reversals(fitted) -> dict:
+    """axis -> (mean reversal, largest reversal, unit) of every axis whose data show a reversal the
+    model does not hold (no backlash term on that axis), file units (um, urad)."""
     out = {}
-    for a in fitted.machine.axis_names:
-        r = record.get(a)
-        if a in held or not isinstance(r, dict):
-            continue
+    for a, r in _unheld_records(fitted).items():
         unit = "urad" if fitted.machine.axis(a).is_rotary else "um"
         p, mean, largest = (_number(r.get(k)) for k in ("p_value", f"B_mean_{unit}", f"B_{unit}"))
         if p is not None and mean is not None and largest is not None and p < REVERSAL_P:
@@ -42,13 +45,8 @@ def one_direction_axes(fitted) -> dict:
     """axis -> '+' or '-': the axes whose positioning the model's laser data read approaching from
     that side only (``info["reversal"]``'s ``one_direction``) and on which the model holds no
     backlash term: their reversal is not measured, so the model's correction is the same both ways."""
-    record = fitted.info.get("reversal") if isinstance(fitted.info, dict) else None
-    if not isinstance(record, dict):
-        return {}
-    held = {getattr(t, "axis", None) for t in fitted.model.terms if t.kind == "backlash"}
-    return {a: r["one_direction"] for a in fitted.machine.axis_names
-            if a not in held and isinstance(r := record.get(a), dict)
-            and r.get("one_direction") in ("+", "-")}
+    return {a: r["one_direction"] for a, r in _unheld_records(fitted).items()
+            if r.get("one_direction") in ("+", "-")}
 
 
 def one_direction_note(fitted) -> str | None:

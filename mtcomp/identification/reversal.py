@@ -92,20 +92,26 @@ def data_reversal(datasets) -> dict:
     both ways is ``{"one_direction": "+", "files": [...]}``: its reversal is not measured. Other axes
     without a target read in both directions are absent."""
     found: dict = {}
+    signs: dict = {}                    # axis -> (approach directions read, files), every file
     for d in _laser_sets(datasets):
         tag = Path(str(d.path)).stem if getattr(d, "path", None) else "laser"
         for a in dict.fromkeys(d.axis.tolist()):
             sel = np.flatnonzero((d.axis == a) & (d.component == positioning_component(a))
                                  & np.isfinite(d.value))
-            groups = _groups(d, sel) if sel.size else []
+            if not sel.size:
+                continue
+            read = signs.setdefault(a, (set(), []))
+            read[0].update(np.sign(d.dir[sel]).astype(int).tolist())
+            read[1].append(tag)
+            groups = _groups(d, sel)
             if groups:
                 entry = found.setdefault(a, {"groups": [], "files": []})
                 entry["groups"] += groups
                 entry["files"].append(tag)
     out = _ballbar_reversal(datasets)
-    for a, (sign, files) in _one_direction(datasets).items():
-        if a not in found and a not in out:
-            out[a] = {"one_direction": sign, "files": files}
+    for a, (read, files) in signs.items():
+        if a not in found and a not in out and read in ({1}, {-1}):
+            out[a] = {"one_direction": "+" if read == {1} else "-", "files": list(dict.fromkeys(files))}
     for a, entry in found.items():
         B, n_up, n_down, ss, dof = (np.array(c) for c in zip(*entry["groups"]))
         unit, scale = ("urad", 1e6) if a in ROTARY else ("um", 1e3)
@@ -113,22 +119,6 @@ def data_reversal(datasets) -> dict:
                   "p_value": reversal_p_value(B, n_up, n_down, float(ss.sum()), int(dof.sum())),
                   "n_targets": int(B.size), "files": list(dict.fromkeys(entry["files"]))}
     return out
-
-
-def _one_direction(datasets) -> dict:
-    """axis -> ('+' or '-', files) for every axis whose positioning readings in the laser files
-    all approach from that one side."""
-    signs: dict = {}
-    for d in _laser_sets(datasets):
-        tag = Path(str(d.path)).stem if getattr(d, "path", None) else "laser"
-        for a in dict.fromkeys(d.axis.tolist()):
-            sel = (d.axis == a) & (d.component == positioning_component(a)) & np.isfinite(d.value)
-            if sel.any():
-                entry = signs.setdefault(a, [set(), []])
-                entry[0].update(np.sign(d.dir[sel]).astype(int).tolist())
-                entry[1].append(tag)
-    return {a: ("+" if s == {1} else "-", list(dict.fromkeys(files)))
-            for a, (s, files) in signs.items() if s in ({1}, {-1})}
 
 
 def _ballbar_pairs(d):
