@@ -615,7 +615,7 @@ def _what_remains(st, design, sel: _Selection, noise, noise_main, may_refine, sa
         finer = finer_base(st, design, extra_all, current, structure)
     if structure or beyond > EXCESS_RATIO:
         verdict = "unexplained"
-        findings.append(_unexplained(st, current, structure, (excess, beyond), noise_main, spread,
+        findings.append(_unexplained(st, current, structure, excess, beyond, noise_main, spread,
                                      judged))
         say(f"structure remains: {findings[-1].params['where']}")
     return verdict, finer
@@ -715,10 +715,11 @@ def _not_named(f: Finding) -> Finding:
     return replace(f, effect="unexplained", params=params, evidence=evidence)
 
 
-def _unexplained(st, fit, structure, excess, noise_main, spread=1.0,
+def _unexplained(st, fit, structure, excess, beyond, noise_main, spread,
                  judged: np.ndarray | None = None) -> Finding:
     from ._report import unexplained_params
-    params, evidence, axis = unexplained_params(st, fit, structure, excess, noise_main, spread, judged)
+    params, evidence, axis = unexplained_params(st, fit, structure, excess, beyond, noise_main, spread,
+                                                judged)
     h = _heldout(st, fit)
     return Finding("unexplained", axis, params, evidence, h, h, None, unit=_heldout_unit(st))
 

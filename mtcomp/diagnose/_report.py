@@ -202,13 +202,12 @@ def _runs(st, sel) -> np.ndarray:
     return np.unique(r[r >= 0])
 
 
-def unexplained_params(st, fit, structure, excess, noise_main, spread=1.0, judged=None):
+def unexplained_params(st, fit, structure, excess, beyond, noise_main, spread, judged=None):
     """(params {'where', 'correlates_with', ...}, evidence, axis) of remaining structure.
-    ``excess``: the held-out rms in noise floors and, second, in what a right model's held-out
-    prediction leaves (a float: the two alike); ``spread``: (n,) or a float, how much larger than the
-    noise a right model's held-out residual is expected to be, reading by reading;
+    ``excess``: the held-out rms in noise floors; ``beyond``: in what a right model's held-out
+    prediction leaves; ``spread``: (n,), how much larger than the noise a right model's held-out
+    residual is expected to be, reading by reading;
     ``judged``: (n,) bool, the readings whose held-out residual the excess was judged on (None: all)."""
-    excess, beyond = excess if isinstance(excess, tuple) else (excess, excess)
     if structure:
         s = structure[0]
         sel = st.series == s.series
