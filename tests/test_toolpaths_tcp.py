@@ -109,10 +109,14 @@ def test_a_tcp_program_is_compensated_on_an_independent_machine(tmp_path, capsys
     model = tmp_path / "model.json"
     assert main(["identify", "cafxyz", *map(str, paths), "-o", str(model)]) == 0
     out = tmp_path / "boat.ngc"
-    # bounds wide enough for this machine's errors (up to 70 um at the largest tilts)
+    # bounds wide enough for this machine's errors (up to 70 um at the largest tilts); the campaign
+    # fixes three combinations only weakly (the rotary axes' errors against the linear axes':
+    # standard error 3.1 to 6.7 um over its region), whose variance a correction's standard error
+    # counts: up to 9.4 um on this program, so the gate is set above it (at the default 5 um, 211
+    # of its 1906 blocks are left uncorrected and the tip error goes 49.8 -> 20.0 um)
     assert main(["compensate", "cafxyz", str(model), str(BOAT), "-o", str(out), "--units", "mm",
                  "--max-correction-um", "200", "--max-step-um", "200",
-                 "--max-correction-urad", "2000"]) == 0
+                 "--max-correction-urad", "2000", "--max-correction-sd-um", "10"]) == 0
     capsys.readouterr()
     src, dst = _paired_ends(BOAT.read_bytes(), out.read_bytes())
     assert len(src) > 1800
