@@ -7,6 +7,7 @@ distance from the datum), and the hand-built machine's truth."""
 import json
 
 import numpy as np
+import pytest
 
 from mtcomp import load_machine
 from mtcomp.cli import main
@@ -72,9 +73,11 @@ def test_the_correction_standard_error_counts_the_held_variance_and_the_datum():
 
 
 # ------------------------------------------------------------------ not told from zero
-def test_a_correction_within_two_standard_errors_is_not_made(tmp_path, capsys):
+@pytest.mark.parametrize("end", ["G0 Z10\n", ""], ids=["rapid_last", "contour_last"])
+def test_a_correction_within_two_standard_errors_is_not_made(tmp_path, capsys, end):
     # the truth's X is exact; the fit read 4 um per m from noise, with a standard error of 3:
-    # every correction is 1.33 standard errors (4 / 3), so nothing is corrected and the user told
+    # every correction is 1.33 standard errors (4 / 3), so nothing is corrected and the user told;
+    # also where the program ends in the contour (no rapid closes it: it is judged at the end)
     m = _machine()
     fitted = FittedModel.zero(ErrorModel(m))
     fitted.params.set_file_value("EXX_1", 4.0)
@@ -84,7 +87,7 @@ def test_a_correction_within_two_standard_errors_is_not_made(tmp_path, capsys):
     path = tmp_path / "M.json"
     save_model(path, fitted)
     prog = tmp_path / "p.nc"
-    prog.write_text("G21 G90\nG0 X20 Y0 Z0\nG1 X100 F1000\nG1 X200\nG1 X300\nG0 Z10\nM30\n")
+    prog.write_text("G21 G90\nG0 X20 Y0 Z0\nG1 X100 F1000\nG1 X200\nG1 X300\n" + end + "M30\n")
     capsys.readouterr()
     assert main(["compensate", "xfyz", str(path), str(prog), "-o", str(tmp_path / "o.nc"),
                  "--report", str(tmp_path / "B.csv"), "--json", str(tmp_path / "S.json"),
