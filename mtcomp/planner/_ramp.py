@@ -1,12 +1,12 @@
 """Nodes that let the step bound ramp a correction in along the move that enters it.
 
 A block that gets no correction (outside the region the model's data reached, an axis the program
-has not given, a correction too uncertain) followed by a feed move that needs one: the step bound
-(``max_step`` per output block) ramps the correction in from zero, and with the move's end as its
-only node the rest of the ramp fell on the blocks after it, in the cut. A quality engineer's
-pocket: ``G0 Z20.`` above the data (no correction), the plunge ``G1 Z-4. F250.`` needing 11 um
-in X and Z: 5 um at the plunge's bottom, 10 um at the end of the first wall, which was cut
-tilted (its X error falling from 5.6 to -0.8 um along it on their own simulator).
+has not given, a correction too uncertain or not told from zero) followed by a feed move that needs
+one: the step bound (``max_step`` per output block) ramps the correction in from zero, and with the
+move's end as its only node the rest of the ramp fell on the blocks after it, in the cut. A quality
+engineer's pocket: ``G0 Z20.`` above the data (no correction), the plunge ``G1 Z-4. F250.``
+needing 11 um in X and Z: 5 um at the plunge's bottom, 10 um at the end of the first wall, which
+was cut tilted (its X error falling from 5.6 to -0.8 um along it on their own simulator).
 
 So that move gets nodes of its own, as many as the step bound needs to reach the correction its
 end wants (``ceil(largest |correction| / step) - 1``): the first where the move enters the region

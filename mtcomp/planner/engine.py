@@ -277,8 +277,10 @@ class Planner:
         cut_start = cycle | no_line
         gated = self.gate.rows_gated(~rapid & ~any_rows(unknown), cut_start, sd, in_sd)
         skip = rapid | pinned | cycle | no_line | gated
-        # a straight move after a block left uncorrected: nodes for the step bound's ramp (_ramp)
-        ramped, ramp = ramp_nodes(self, chunk, start, end, lin_end.x, pinned, exempt, skip, ctx, ref)
+        # a straight move after a block left uncorrected (pinned, or a rapid the gate leaves: a
+        # contour's rows may yet be corrected whole): nodes for the step bound's ramp (_ramp)
+        ramped, ramp = ramp_nodes(self, chunk, start, end, lin_end.x, pinned | (gated & rapid),
+                                  exempt, skip, ctx, ref)
         skip[ramped] = True
         inner = merged(self._subdivide(start, end, x_start, lin_end.x, ctx, ref, skip), ramp)
         counts = np.ones(nrows, np.int64)
