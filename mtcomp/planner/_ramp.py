@@ -18,8 +18,6 @@ jumps during the rapid).
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 #: at most this many nodes per move (a correction over 100 step bounds is a bound's matter)
@@ -92,7 +90,7 @@ def _entry(r: int, s: np.ndarray, e: np.ndarray, outside) -> float | None:
             hi = mid
     # a micrometre on, so that the node rounded to the output grid stays inside
     length = float(np.sqrt(np.sum((e - s) ** 2)))
-    return min(hi + 1e-3 / length, 1.0) if length > 0.0 and math.isfinite(hi) else None
+    return min(hi + 1e-3 / length, 1.0) if length > 0.0 else None
 
 
 def ramp_nodes(planner, chunk, start, end, x_end, pinned, exempt, skip, ctx, ref):
@@ -112,9 +110,9 @@ def ramp_nodes(planner, chunk, start, end, x_end, pinned, exempt, skip, ctx, ref
     known = np.asarray(chunk.known, bool)
     lengths = None if chunk.tool_length is None else np.asarray(chunk.tool_length)
 
-    def outside(q, r):
+    def outside(q, r):       # rows r are not pinned (skip): only the support leaves their points
         out = planner.outside_support(q, known[r], None if lengths is None else lengths[r])
-        return pinned[r] | planner.ram.whole_outside(out)
+        return planner.ram.whole_outside(out)
 
     rows_i, t_i = entry_parameters(rows, k, start, end, outside)
     if rows_i.size == 0:
