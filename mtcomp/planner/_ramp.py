@@ -96,8 +96,10 @@ def _entry(r: int, s: np.ndarray, e: np.ndarray, outside) -> float | None:
 def ramp_nodes(planner, chunk, start, end, x_end, pinned, exempt, skip, ctx, ref):
     """(rows, (rows_i, t_i, q_i, lin_i) or None): the straight moves of ``chunk`` (not chords of
     an arc, which carry a ramp as blocks) given ramp nodes and their nodes, as
-    :meth:`~.engine.Planner._subdivide` gives its own (see the module docstring); ``planner``'s
-    ``_ramp_prev`` carries whether the last row of the last chunk was left uncorrected."""
+    :meth:`~.engine.Planner._subdivide` gives its own (see the module docstring); ``pinned`` the
+    rows left uncorrected for good (not a contour's rows the gate may yet correct whole: the row
+    after one in its contour is in ``skip`` anyway); ``planner``'s ``_ramp_prev`` carries whether
+    the last row of the last chunk was left uncorrected."""
     prev, planner._ramp_prev = planner._ramp_prev, bool(pinned[-1]) if len(pinned) else \
         planner._ramp_prev
     if planner.problem.step_across_rapids or not planner.options.ramp_nodes:
