@@ -103,3 +103,39 @@ def test_a_sinumerik_program_gets_the_ramp_nodes_as_blocks_before_the_move(run, 
     moves = [m for m in replay_sinumerik.replay(out.read_bytes()).moves if m.kind == "feed"]
     np.testing.assert_allclose([m.end["X"] for m in moves], [nodes[0][0], nodes[1][0], -40.012,
                                                              39.988], rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("limit", ["20", "5"])
+def test_a_rapid_the_two_standard_error_rule_leaves_is_ramped_out_of_as_one_over_the_limit(
+        tmp_path, limit):
+    """By hand: X's slope 40 um/m (standard error 3) and a curvature of X of 0 whose standard error
+    is 9 um at X300, the slope's 0.9: the rapid G0 X300 would take -12 um, 1.33 of its standard errors
+    (hypot(9, 0.9) = 9.04 um): left uncorrected by the two-standard-error rule under the limit 20 um,
+    for being over it under the limit 5 um.
+    Either way G1 X50 needs -2 um with the step bound 0.5 um a block: ceil(2 / 0.5) - 1 = 3 nodes
+    evenly along it (X 237.5, 175, 112.5: -0.5, -1, -1.5 um), and the cut is corrected whole
+    (-2 um at X50, -1.6 at X40: none of the 40 um/m left)."""
+    fitted = FittedModel.zero(ErrorModel(load_machine("xfyz").with_basis("polynomial")))
+    fitted.params.set_file_value("EXX_1", 40.0)
+    fitted.support = {"X": (-400.0, 400.0), "Y": (-300.0, 300.0)}
+    fitted.uncertainty = {"names": ["EXX_1", "EXX_2"], "covariance": np.diag([3e-3 ** 2, 0.1 ** 2]),
+                          "undetermined": np.zeros((2, 0))}
+    save_model(tmp_path / "m.json", fitted)
+    (tmp_path / "in.nc").write_text("G21 G90\nG0 X300 Y0 Z0\nG1 X50 F1000\nG1 X40\nM30\n")
+    assert main(["compensate", "xfyz", str(tmp_path / "m.json"), str(tmp_path / "in.nc"), "-o",
+                 str(tmp_path / "out.nc"), "--report", str(tmp_path / "B.csv"), "--work-offset",
+                 "G54=X0,Y0,Z0", "--max-step-um", "0.5", "--subdivide-tol-um", "0",
+                 "--max-correction-sd-um", limit, "-q"]) == 0
+    with open(tmp_path / "B.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    rapid, moved = rows[0], rows[1:]
+    assert (rapid["line"], rapid["corrected"], rapid["uncertain"]) == ("2", "0", "1")
+    np.testing.assert_allclose(float(rapid["ex_before_um"]) / float(rapid["correction_sd_um"]),
+                               12.0 / np.hypot(9.0, 0.9), rtol=1e-3, atol=0)
+    assert [r["line"] + r["inserted"] for r in moved] == ["31", "31", "31", "30", "40"]
+    nominal_x = [float(r["x_mm"]) - float(r["cx_um"]) * 1e-3 for r in moved]
+    np.testing.assert_allclose(nominal_x, [237.5, 175.0, 112.5, 50.0, 40.0], rtol=0, atol=2e-3)
+    np.testing.assert_allclose([float(r["cx_um"]) for r in moved], [-0.5, -1.0, -1.5, -2.0, -1.6],
+                               rtol=0, atol=1e-3)
+    np.testing.assert_allclose([float(r["ex_after_um"]) for r in moved[3:]], [0.0, 0.0],
+                               rtol=0, atol=1e-3)

@@ -7,6 +7,7 @@ distance from the datum), and the hand-built machine's truth."""
 import json
 
 import numpy as np
+import pytest
 
 from mtcomp import load_machine
 from mtcomp.cli import main
@@ -72,9 +73,11 @@ def test_the_correction_standard_error_counts_the_held_variance_and_the_datum():
 
 
 # ------------------------------------------------------------------ not told from zero
-def test_a_correction_within_two_standard_errors_is_not_made(tmp_path, capsys):
+@pytest.mark.parametrize("end", ["G0 Z10\n", ""], ids=["rapid_last", "contour_last"])
+def test_a_correction_within_two_standard_errors_is_not_made(tmp_path, capsys, end):
     # the truth's X is exact; the fit read 4 um per m from noise, with a standard error of 3:
-    # every correction is 1.33 standard errors (4 / 3), so nothing is corrected and the user told
+    # every correction is 1.33 standard errors (4 / 3), so nothing is corrected and the user told;
+    # also where the program ends in the contour (no rapid closes it: it is judged at the end)
     m = _machine()
     fitted = FittedModel.zero(ErrorModel(m))
     fitted.params.set_file_value("EXX_1", 4.0)
@@ -84,7 +87,7 @@ def test_a_correction_within_two_standard_errors_is_not_made(tmp_path, capsys):
     path = tmp_path / "M.json"
     save_model(path, fitted)
     prog = tmp_path / "p.nc"
-    prog.write_text("G21 G90\nG0 X20 Y0 Z0\nG1 X100 F1000\nG1 X200\nG1 X300\nG0 Z10\nM30\n")
+    prog.write_text("G21 G90\nG0 X20 Y0 Z0\nG1 X100 F1000\nG1 X200\nG1 X300\n" + end + "M30\n")
     capsys.readouterr()
     assert main(["compensate", "xfyz", str(path), str(prog), "-o", str(tmp_path / "o.nc"),
                  "--report", str(tmp_path / "B.csv"), "--json", str(tmp_path / "S.json"),
@@ -126,3 +129,21 @@ def test_a_contour_with_one_correction_told_from_zero_is_corrected_whole():
     # X's part corrected too, 4 um per m (the tip lands where the program meant it on the model)
     np.testing.assert_allclose(res_b.correction[:4, 0], -4e-3 * xa / 1000.0, rtol=0, atol=2e-5)
     np.testing.assert_allclose(res_b.correction[4:, 1], -40e-3 * qb[4:, 1] / 1000.0, rtol=0, atol=2e-5)
+
+
+@pytest.mark.parametrize("slope, made", [(5.7, False), (6.3, True), (7.5, True)])
+def test_the_rule_is_two_standard_errors_from_both_sides(slope, made):
+    # X's slope ``slope`` +- 3 um per m: every correction is slope / 3 of its standard errors (1.9,
+    # 2.1, 2.5), so the contour is left under two and corrected whole over two
+    m = _machine()
+    fitted = FittedModel.zero(ErrorModel(m))
+    fitted.params.set_file_value("EXX_1", slope)
+    fitted.support = {"X": (-400.0, 400.0)}
+    fitted.uncertainty = {"names": ["EXX_1"], "covariance": np.array([[SIGMA ** 2]]),
+                          "undetermined": np.zeros((1, 0))}
+    x = np.array([50.0, 100.0, 200.0, 300.0])
+    res = _plan(fitted, _q(x, 0.0), datum=np.zeros((x.size, 3)), limit=50.0)
+    np.testing.assert_allclose(res.sd_um, 1e3 * SIGMA * x / 1000.0, rtol=1e-6, atol=1e-9)
+    assert not res.pinned.any() if made else (res.pinned.all() and res.indistinct.all())
+    want = -slope * 1e-3 * x / 1000.0 if made else np.zeros(x.size)
+    np.testing.assert_allclose(res.correction[:, 0], want, rtol=0, atol=2e-5)

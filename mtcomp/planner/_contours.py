@@ -162,8 +162,13 @@ class ContourGate:
 
     def finish(self):
         """The nodes still held back at the end of the program, (nodes, lin) or None: their contour
-        ended there with no node over the limit."""
-        held, self._held = self._held, None
+        ended there with no node over the limit, and is judged by the two-standard-error rule as
+        one ended by a rapid is (:meth:`feed` with ``final``)."""
+        if self._held is None:
+            self._open = self._gated = False
+            return None
+        none = slice(0, 0)
+        held = self.feed(self._held[0].take(none), self._held[1].take(none), final=True)
         self._open = self._gated = False
         return held
 

@@ -1,12 +1,12 @@
 """Nodes that let the step bound ramp a correction in along the move that enters it.
 
 A block that gets no correction (outside the region the model's data reached, an axis the program
-has not given, a correction too uncertain) followed by a feed move that needs one: the step bound
-(``max_step`` per output block) ramps the correction in from zero, and with the move's end as its
-only node the rest of the ramp fell on the blocks after it, in the cut. A quality engineer's
-pocket: ``G0 Z20.`` above the data (no correction), the plunge ``G1 Z-4. F250.`` needing 11 um
-in X and Z: 5 um at the plunge's bottom, 10 um at the end of the first wall, which was cut
-tilted (its X error falling from 5.6 to -0.8 um along it on their own simulator).
+has not given, a correction too uncertain or not told from zero) followed by a feed move that needs
+one: the step bound (``max_step`` per output block) ramps the correction in from zero, and with the
+move's end as its only node the rest of the ramp fell on the blocks after it, in the cut. A quality
+engineer's pocket: ``G0 Z20.`` above the data (no correction), the plunge ``G1 Z-4. F250.``
+needing 11 um in X and Z: 5 um at the plunge's bottom, 10 um at the end of the first wall, which
+was cut tilted (its X error falling from 5.6 to -0.8 um along it on their own simulator).
 
 So that move gets nodes of its own, as many as the step bound needs to reach the correction its
 end wants (``ceil(largest |correction| / step) - 1``): the first where the move enters the region
@@ -17,8 +17,6 @@ a position the program has not given have no step bound into them and need none 
 jumps during the rapid).
 """
 from __future__ import annotations
-
-import math
 
 import numpy as np
 
@@ -92,14 +90,16 @@ def _entry(r: int, s: np.ndarray, e: np.ndarray, outside) -> float | None:
             hi = mid
     # a micrometre on, so that the node rounded to the output grid stays inside
     length = float(np.sqrt(np.sum((e - s) ** 2)))
-    return min(hi + 1e-3 / length, 1.0) if length > 0.0 and math.isfinite(hi) else None
+    return min(hi + 1e-3 / length, 1.0) if length > 0.0 else None
 
 
 def ramp_nodes(planner, chunk, start, end, x_end, pinned, exempt, skip, ctx, ref):
     """(rows, (rows_i, t_i, q_i, lin_i) or None): the straight moves of ``chunk`` (not chords of
     an arc, which carry a ramp as blocks) given ramp nodes and their nodes, as
-    :meth:`~.engine.Planner._subdivide` gives its own (see the module docstring); ``planner``'s
-    ``_ramp_prev`` carries whether the last row of the last chunk was left uncorrected."""
+    :meth:`~.engine.Planner._subdivide` gives its own (see the module docstring); ``pinned`` the
+    rows left uncorrected for good (not a contour's rows the gate may yet correct whole: the row
+    after one in its contour is in ``skip`` anyway); ``planner``'s ``_ramp_prev`` carries whether
+    the last row of the last chunk was left uncorrected."""
     prev, planner._ramp_prev = planner._ramp_prev, bool(pinned[-1]) if len(pinned) else \
         planner._ramp_prev
     if planner.problem.step_across_rapids or not planner.options.ramp_nodes:
@@ -112,9 +112,9 @@ def ramp_nodes(planner, chunk, start, end, x_end, pinned, exempt, skip, ctx, ref
     known = np.asarray(chunk.known, bool)
     lengths = None if chunk.tool_length is None else np.asarray(chunk.tool_length)
 
-    def outside(q, r):
+    def outside(q, r):       # rows r are not pinned (skip): only the support leaves their points
         out = planner.outside_support(q, known[r], None if lengths is None else lengths[r])
-        return pinned[r] | planner.ram.whole_outside(out)
+        return planner.ram.whole_outside(out)
 
     rows_i, t_i = entry_parameters(rows, k, start, end, outside)
     if rows_i.size == 0:

@@ -270,15 +270,15 @@ class Planner:
         # (after a home move or a tool change: the machine did not come along the cut)
         exempt = (rapid | cycle | jump) & (not self.problem.step_across_rapids)
         if first and nrows:
-            exempt = exempt.copy()
             exempt[0] = True
         start, x_start = self._row_starts(chunk, end, lin_end.x, ctx, ref)
         # no internal nodes in a contour the standard-error gate leaves uncorrected either
         cut_start = cycle | no_line
         gated = self.gate.rows_gated(~rapid & ~any_rows(unknown), cut_start, sd, in_sd)
         skip = rapid | pinned | cycle | no_line | gated
-        # a straight move after a block left uncorrected: nodes for the step bound's ramp (_ramp)
-        ramped, ramp = ramp_nodes(self, chunk, start, end, lin_end.x, pinned, exempt, skip, ctx, ref)
+        # a straight move after a block left uncorrected (or a rapid the gate leaves): ramp nodes
+        ramped, ramp = ramp_nodes(self, chunk, start, end, lin_end.x, pinned | (gated & rapid),
+                                  exempt, skip, ctx, ref)
         skip[ramped] = True
         inner = merged(self._subdivide(start, end, x_start, lin_end.x, ctx, ref, skip), ramp)
         counts = np.ones(nrows, np.int64)
