@@ -431,43 +431,38 @@ def _evaluation_pose(machine, region: dict) -> np.ndarray:
 CONSTANT_NOTE_MIN = 0.1
 
 
-def undetermined_at(fitted, q: np.ndarray) -> np.ndarray:
+def undetermined_at(fitted, q: np.ndarray, base: np.ndarray) -> np.ndarray:
     """(6,) bool: which of the tip deviation's and the tool's turn's components at the pose ``q``
-    (n_axes,) move along a direction the data left undetermined (MODEL.json's
-    ``uncertainty.undetermined``, each at the size of 1 um of tool-tip error) by more than
-    :data:`~mtcomp.models.model_file.UNDETERMINED_UM` um or urad (predict's rule for a blank
-    standard error): what the model holds there is the fit's choice
+    (n_axes,), whose values there are ``base`` (1, 6) (:func:`model_errors`), move along a direction
+    the data left undetermined (MODEL.json's ``uncertainty.undetermined``, each at the size of 1 um
+    of tool-tip error) by more than :data:`~mtcomp.models.model_file.UNDETERMINED_UM` um or urad
+    (predict's rule for a blank standard error): what the model holds there is the fit's choice
     among models that fit the data alike, not a measurement (a spindle tilt A0S that the data read
-    only in combination with set-ups and rolls no laser named)."""
+    only in combination with set-ups and rolls no laser named); or with a rotary axis's zero offset
+    the data did not read apart from its positioning error
+    (:func:`mtcomp.identification._offsets.unread_offsets`), taken to zero."""
+    from ..identification._offsets import unread_offsets
+    out = np.zeros(6, dtype=bool)
+    names = unread_offsets(fitted)
+    if names:
+        out |= _moves(fitted, q, base, [fitted.params.index(n) for n in names], 0.0)
     u = fitted.uncertainty
     N = None if u is None else np.asarray(u.get("undetermined", ()), dtype=float)
-    out = np.zeros(6, dtype=bool)
-    base, ok = model_errors(fitted, q[None, :])
     if N is None or not N.size or not len(u["names"]):
-        return out | _unread_at(fitted, q, base)
+        return out
     N = N.reshape(len(u["names"]), -1)
     idx = np.array([fitted.params.index(n) for n in u["names"]], dtype=int)
-    moved = copy.copy(fitted)
     for k in range(N.shape[1]):
-        moved.params = fitted.params.copy()
-        moved.params.values[idx] += N[:, k]
-        other, _ = model_errors(moved, q[None, :])
-        d = np.abs(other[0] - base[0]) * np.r_[np.full(3, 1e3), np.full(3, 1e6)]
-        out |= np.nan_to_num(d) > UNDETERMINED_UM
-    return out | _unread_at(fitted, q, base)
+        out |= _moves(fitted, q, base, idx, fitted.params.values[idx] + N[:, k])
+    return out
 
 
-def _unread_at(fitted, q: np.ndarray, base: np.ndarray) -> np.ndarray:
-    """(6,) bool: the components at ``q`` that move with a rotary axis's zero offset the data did
-    not read apart from its positioning error (:func:`mtcomp.identification._offsets.unread_offsets`):
-    more than UNDETERMINED_UM um or urad of their value ``base`` (1, 6) there is that offset's."""
-    from ..identification._offsets import unread_offsets
-    names = unread_offsets(fitted)
-    if not names:
-        return np.zeros(6, dtype=bool)
+def _moves(fitted, q: np.ndarray, base: np.ndarray, idx, values) -> np.ndarray:
+    """(6,) bool: the components at ``q`` that move from ``base`` (1, 6) by more than
+    UNDETERMINED_UM um or urad when the parameters ``idx`` take ``values``."""
     moved = copy.copy(fitted)
     moved.params = fitted.params.copy()
-    moved.params.values[[fitted.params.index(n) for n in names]] = 0.0
+    moved.params.values[idx] = values
     other, _ = model_errors(moved, q[None, :])
     d = np.abs(other[0] - base[0]) * np.r_[np.full(3, 1e3), np.full(3, 1e6)]
     return np.nan_to_num(d) > UNDETERMINED_UM
@@ -669,7 +664,7 @@ def component_tables(fitted, grids: dict, region: dict | None = None,
         tables[a] = AxisTable(a, ax.is_rotary, g, fwd, rev, ref, known, (float(lo), float(hi)))
     zero, _ = model_errors(fitted, q_ref[None, :])
     notes = list(notes or []) + reference_notes(machine, tables) + uncertain + \
-        _constant_note(zero[0], bool(machine.rotary_axes), undetermined_at(fitted, q_ref))
+        _constant_note(zero[0], bool(machine.rotary_axes), undetermined_at(fitted, q_ref, zero))
     if max_sd_um and fitted.uncertainty is None:
         notes.append("the model carries no covariance (identify, diagnose and a thermal diagnosis "
                      "write one; an older model file may not): no table could be checked against "
