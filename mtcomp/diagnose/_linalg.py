@@ -77,6 +77,21 @@ class FitResult:
         return self.sse + self.rank * np.log(n)
 
 
+def _fold_eig(kept: np.ndarray, d: np.ndarray, L: np.ndarray) -> tuple:
+    """(lam, U): the eigenpairs of L^-1 (kept / d d^T) L^-T, for ``kept`` the normal matrix of the
+    data a fold keeps and (d, L) the scaled Cholesky factor of all the data's
+    (:func:`_scaled_cholesky`): on the directions :func:`_fold_directions` makes of U, ``kept`` is
+    diag(lam) and all the data's normal matrix the identity."""
+    tri = scipy.linalg.solve_triangular
+    M = tri(L, tri(L, kept / np.outer(d, d), lower=True).T, lower=True)
+    return _eigh((M + M.T) / 2)
+
+
+def _fold_directions(d: np.ndarray, L: np.ndarray, U: np.ndarray) -> np.ndarray:
+    """V = d^-1 L^-T U: the directions of :func:`_fold_eig`'s eigenvectors U, in the unknowns."""
+    return scipy.linalg.solve_triangular(L.T, U, lower=False) / d[:, None]
+
+
 def _scaled_cholesky(G: np.ndarray):
     """(d, L): the diagonal scaling d of a symmetric positive (semi-)definite G and the Cholesky factor
     L of the unit-diagonal matrix G / (d d^T) with a tiny ridge; L is None when that fails."""
@@ -194,12 +209,9 @@ class Design:
         # takes the general route of _fold_solve, which leaves such directions out
         self._fold_basis = []
         if self._L is not None and self.K >= 2:
-            tri = scipy.linalg.solve_triangular
-            dd = np.outer(self._d, self._d)
             for Gk in self.Gk:
-                M = tri(self._L, tri(self._L, (self.G - Gk) / dd, lower=True).T, lower=True)
-                lam, U = _eigh((M + M.T) / 2)
-                V = tri(self._L.T, U, lower=False) / self._d[:, None]
+                lam, U = _fold_eig(self.G - Gk, self._d, self._L)
+                V = _fold_directions(self._d, self._L, U)
                 self._fold_basis.append((V, lam) if lam.size and lam.min() > FOLD_TOLERANCE else None)
 
     def extrapolated(self, theta: np.ndarray, share: float = EXTRAPOLATED_SHARE) -> np.ndarray:
@@ -214,19 +226,16 @@ class Design:
         if self._L is None or self.K < 2:
             return out
         tA = np.linalg.lstsq(self.T, np.asarray(theta, dtype=float)[:self.T.shape[0]], rcond=None)[0]
-        tri = scipy.linalg.solve_triangular
-        dd = np.outer(self._d, self._d)
         GtA = self.G @ tA
         for kk, ix in enumerate(self._fold_index):
             if self._fold_basis[kk] is not None:
                 continue
-            M = tri(self._L, tri(self._L, (self.G - self.Gk[kk]) / dd, lower=True).T, lower=True)
-            lam, U = _eigh((M + M.T) / 2)
+            lam, U = _fold_eig(self.G - self.Gk[kk], self._d, self._L)
             drop = lam <= FOLD_TOLERANCE
             if not drop.any():
                 continue
             # V^T G V = I: the full fit's coordinates on the left-out directions are V^T G tA
-            V = tri(self._L.T, U[:, drop], lower=False) / self._d[:, None]
+            V = _fold_directions(self._d, self._L, U[:, drop])
             moved = self.Aw[ix] @ (V @ (V.T @ GtA))
             out[ix] = np.abs(moved) > share
         return out
@@ -259,15 +268,11 @@ class Design:
         d, L = _scaled_cholesky(G)
         if L is None:
             return h
-        tri = scipy.linalg.solve_triangular
-        dd = np.outer(d, d)
         for ix in self._fold_index:
-            Gk = G - X[ix].T @ X[ix]
-            M = tri(L, tri(L, Gk / dd, lower=True).T, lower=True)
-            lam, U = _eigh((M + M.T) / 2)
+            lam, U = _fold_eig(G - X[ix].T @ X[ix], d, L)
             ok = lam > FOLD_TOLERANCE
             # V^T G_k V = diag(lam): the kept data's normal matrix is diagonal on these directions
-            P = X[ix] @ (tri(L.T, U[:, ok], lower=False) / d[:, None])
+            P = X[ix] @ _fold_directions(d, L, U[:, ok])
             h[ix] = np.sum(P ** 2 / lam[ok], axis=1)
         return h
 
