@@ -236,13 +236,10 @@ def _compensable_words(fit) -> str:
     """What the choice means for compensate: a drift in time it cannot follow, and how its rival that
     compensate can follow compares (:func:`._fit.alike_z`), or that such a rival predicted the record
     alike and was kept for that."""
-    from ._fit import ALIKE_Z, COMPENSABLE, alike, alike_z
+    from ._fit import ALIKE_Z, COMPENSABLE, alike, alike_z, best_of
     c = fit.chosen
-    finite = [s for s in fit.scores if np.isfinite(s.total_sse)]
-    usable = sorted((s for s in finite if s.driver in COMPENSABLE), key=lambda s: s.total_sse)
-    timed = sorted((s for s in finite if s.driver == "time"), key=lambda s: s.total_sse)
-    if c.driver in COMPENSABLE and timed and alike(timed[0], c):
-        t = timed[0]
+    t, u = best_of(fit.scores, ("time",)), best_of(fit.scores, COMPENSABLE)
+    if c.driver in COMPENSABLE and t is not None and alike(t, c):
         return (f"; {t.label} predicts it alike ({_rms(t.forward_rms_um):.3g} um: the difference of "
                 f"their forward sums of squares is {alike_z(t, c):+.2g} standard errors, within "
                 f"{ALIKE_Z:g}, Diebold and Mariano 1995): the drift on {c.label} is kept, which "
@@ -251,10 +248,9 @@ def _compensable_words(fit) -> str:
         return ""
     words = ("; compensate cannot use a drift in time (it is told temperatures and a spindle speed, "
              "not when in the record a program runs)")
-    if not usable:
+    if u is None:
         return words + (": a record with temperature sensors near the heat sources gives a model it "
                         "can use")
-    u = usable[0]
     return (words + f": {u.label}, which it could use, predicts the record {alike_z(u, c):.2g} "
             f"standard errors worse ({_rms(u.forward_rms_um):.3g} um; Diebold and Mariano 1995); "
             "sensors nearer the heat sources, or a longer record, may give one that predicts as well")

@@ -361,12 +361,17 @@ def choose(scores: list[CandidateScore]) -> CandidateScore:
     simpler = [s for s in finite if s.complexity < best.complexity
                and s.total_sse <= (1.0 + PARSIMONY) * best.total_sse]
     pick = min(simpler, key=lambda s: s.complexity) if simpler else best
-    usable = [s for s in finite if s.driver in COMPENSABLE]
-    if pick.driver == "time" and usable:
-        other = min(usable, key=lambda s: s.total_sse)
-        if alike(other, pick):
-            return other
+    other = best_of(scores, COMPENSABLE)
+    if pick.driver == "time" and other is not None and alike(other, pick):
+        return other
     return pick
+
+
+def best_of(scores: list[CandidateScore], drivers) -> CandidateScore | None:
+    """The candidate driven by one of ``drivers`` with the smallest forward-validated sum of
+    squares (None: no such candidate was fitted)."""
+    return min((s for s in scores if np.isfinite(s.total_sse) and s.driver in drivers),
+               key=lambda s: s.total_sse, default=None)
 
 
 def alike_z(a: CandidateScore, b: CandidateScore) -> float:
