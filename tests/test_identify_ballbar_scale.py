@@ -114,3 +114,17 @@ def test_predict_and_export_leave_the_scale_open(fitted):
                 assert r[f"pred_{c}_sd"] == "", r
     # before: x.comp and y.comp written on the held scale
     assert not (tmp / "tables" / "x.comp").exists() and not (tmp / "tables" / "y.comp").exists(), code
+
+
+def test_a_model_file_whose_traded_directions_are_malformed_is_refused(fitted, tmp_path):
+    _, tmp, _ = fitted
+    data = json.loads((tmp / "m.json").read_text())
+    data["uncertainty"]["traded"] = [[1.0, 2.0]]        # not one value per parameter
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(data))
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        code = main(["compensate", "xfyz", str(bad), str(tmp / "prog.nc"), "-o", str(tmp_path / "out.nc")])
+    assert code == 2 and not (tmp_path / "out.nc").exists()
+    lines = err.getvalue().strip().splitlines()
+    assert len(lines) == 1 and "bad.json" in lines[0] and "'traded' must be directions" in lines[0], lines
