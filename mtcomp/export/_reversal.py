@@ -42,25 +42,30 @@ def unheld_reversals(fitted) -> dict:
 
 
 def one_direction_axes(fitted) -> dict:
-    """axis -> '+' or '-': the axes whose positioning the model's laser data read approaching from
-    that side only (``info["reversal"]``'s ``one_direction``) and on which the model holds no
-    backlash term: their reversal is not measured, so the model's correction is the same both ways."""
+    """axis -> '+' or '-': the axes whose readings in the model's data all state the one approach
+    direction (``info["reversal"]``'s ``one_direction``: laser files, and points and ball-bar
+    files with ``dir_<axis>`` columns) and on which the model holds no backlash term: their
+    reversal is not measured, so the model's correction is the one read from that side."""
     return {a: r["one_direction"] for a, r in _unheld_records(fitted).items()
             if r.get("one_direction") in ("+", "-")}
 
 
 def one_direction_note(fitted) -> str | None:
-    """One line (no 'note:' prefix) when the model's laser data read an axis approaching from one
-    side only, else None: the reversal there is not measured, held at zero."""
+    """One line (no 'note:' prefix) when the model's data read an axis approaching from one side
+    only, else None: the reversal there is not measured; compensate leaves the blocks approaching
+    from the other side (or a side not known) uncorrected, and export writes that side's column
+    without correction where the format keeps the sides apart."""
     axes = one_direction_axes(fitted)
     if not axes:
         return None
     said = ", ".join(f"{a} in {sign} only" for a, sign in axes.items())
     other = ", ".join(f"{a} in {'-' if sign == '+' else '+'}" for a, sign in axes.items())
-    return (f"the laser data read the positioning approaching {said}: the reversal (backlash) there "
-            f"is not measured and is taken as zero, so moves approaching {other} get the correction "
-            "read from the other side, and whatever reversal the axis has stays in the part; measure "
-            "both directions (ISO 230-2 runs are bidirectional) to know it")
+    return (f"the data read the approach {said}: the reversal (backlash) there is not measured; "
+            f"compensate leaves uncorrected the blocks that approach {other}, or from a side not "
+            "known, and a table from this model holds the side read: LinuxCNC's COMP_FILE has a "
+            "column per side and the other one is written without correction, the other formats' "
+            "tables apply it both ways (whatever reversal the axis has stays in the part there); "
+            "measure both directions (ISO 230-2 runs are bidirectional) to know it")
 
 
 def reversal_note(fitted) -> str | None:

@@ -106,6 +106,8 @@ class Evaluator:
         self.has_uncertainty = self._factor is not None
         #: (function name, datum row, tool length) -> the function there (:meth:`_at_datum`)
         self._datum_values: dict = {}
+        #: why some corrections' standard errors were infinite (:meth:`_note_causes`)
+        self.infinite_causes: set = set()
         #: what the model's corrections assume at zero (None: nothing), :mod:`._assumed`
         self.assumed = Assumed.of(problem.fitted, problem.machine)
 
@@ -141,11 +143,36 @@ class Evaluator:
             J = J - self._at_datum("tip_pjacobian_function", datum, ctx)
         if sd:
             each = fitted.tip_sd_um(J, self._factor, self._open, extra, self._choice, components=True)
+            self._note_causes(J, each)
             out[:, 0] = each.max(axis=1)
             out[:, 1] = self._in_sd(q, ctx, datum, each)
         if self.assumed:
             out[:, 2:] = self.assumed.blocks(q, J)
         return out
+
+    def _note_causes(self, J, each) -> None:
+        """Add to :attr:`infinite_causes` why some of the standard errors ``each`` (n, 3) of the
+        tip deviations of Jacobian J are infinite: ``"undetermined"`` where the deviation moves
+        with values the data left undetermined (MODEL.json ``uncertainty.undetermined``),
+        ``"choice"`` where it rests on the penalty's split of what the data cannot tell apart
+        (``uncertainty.choice``) and not on undetermined values."""
+        inf = np.isinf(each).any(axis=1)
+        if not inf.any() or self.infinite_causes >= {"undetermined", "choice"}:
+            return
+        found = set()
+        if self._choice is None:
+            found.add("undetermined")
+        elif self._open is None:
+            found.add("choice")
+        else:
+            fitted = self.problem.fitted
+            alone = np.isinf(fitted.tip_sd_um(J[inf], self._factor, self._open))
+            if alone.any():
+                found.add("undetermined")
+            if not alone.all():
+                found.add("choice")
+        with self._count_lock:
+            self.infinite_causes |= found
 
     def _in_sd(self, q, ctx, datum, each) -> np.ndarray:
         """(n,) the correction at q (the deviation less the datum's, :meth:`datum_reference`) in its
