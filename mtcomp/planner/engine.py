@@ -313,9 +313,8 @@ class Planner:
                         placed(outside, out_i, pos_end, pos_i),
                         placed(pinned, pin_i, pos_end, pos_i), sd[row_sorted], cut_all,
                         np.zeros(row_sorted.size, bool), *(links or (None, None, None)),
-                        assumed=None if assumed is None else assumed[row_sorted],
-                        in_sd=None if in_sd is None else in_sd[row_sorted],
-                        unread=None if unread is None else unread[row_sorted])
+                        **{k: None if v is None else v[row_sorted] for k, v in
+                           (("assumed", assumed), ("in_sd", in_sd), ("unread", unread))})
         lin = Linearization(*(placed(getattr(lin_end, f), getattr(lin_i, f), pos_end, pos_i)
                               for f in Linearization.FIELDS))
         return nodes, lin, counts
