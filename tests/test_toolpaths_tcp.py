@@ -61,19 +61,23 @@ BOAT = Path(__file__).parent / "data" / "gcode_corpus" / "linuxcnc_boat-xyzac.ng
 def _paired_ends(src: bytes, out: bytes) -> tuple[list[dict], list[dict]]:
     """(source move ends, their output counterparts) in word space (mm, deg), replayed as a controller
     reads the words (tests/replay.py, no mtcomp): within each run of moves between the same two
-    motionless lines, each source move's end and the output move ending nearest to it (the
-    correction is um, the moves mm apart; an arc split into pieces ends where its last piece does).
-    Moves with an axis the program has not given are left out."""
+    motionless lines, the moves in order where the run has as many in both; else (an arc split into
+    pieces) each source move's end and the output move ending nearest to it (an arc ends where its
+    last piece does). Nearest alone mispairs where the program's moves lie closer than a correction
+    (the boat demo near A = 0, where C's correction reaches 0.07 deg): there the after figure was
+    another move's. Moves with an axis the program has not given are left out."""
     a, b = replay(src), replay(out)
     ends_src, ends_out = [], []
+    given = lambda e: all(e.get(k) is not None for k in "XYZAC")          # noqa: E731
     for run_a, run_b in zip(_runs(a), _runs(b)):
-        ends = [m.end for m in run_b if all(m.end.get(k) is not None for k in "XYZAC")]
-        for move in run_a:
-            if not ends or any(move.end.get(k) is None for k in "XYZAC"):
-                continue
-            near = min(ends, key=lambda e: sum((e[k] - move.end[k]) ** 2 for k in "XYZAC"))
-            ends_src.append(move.end)
-            ends_out.append(near)
+        if len(run_a) == len(run_b):
+            pairs = [(m.end, n.end) for m, n in zip(run_a, run_b) if given(m.end) and given(n.end)]
+        else:
+            ends = [m.end for m in run_b if given(m.end)]
+            pairs = [(m.end, min(ends, key=lambda e: sum((e[k] - m.end[k]) ** 2 for k in "XYZAC")))
+                     for m in run_a if ends and given(m.end)]
+        ends_src += [p[0] for p in pairs]
+        ends_out += [p[1] for p in pairs]
     return ends_src, ends_out
 
 
@@ -113,7 +117,7 @@ def test_a_tcp_program_is_compensated_on_an_independent_machine(tmp_path, capsys
     standard errors of 6.7 and 3.1 um, which a correction's standard error counts (up to 9.4 um; a Monte
     Carlo over the noise, benchmarks/bench_tcp_sd.py, finds the corrections off the truth by 3.8 to
     5.5 um there: the standard error is right), so 211 of the 1906 blocks were left uncorrected and
-    the tip error went 49.8 -> 20.0 um only."""
+    the tip error went 49.8 -> 19.6 um only."""
     from independent_cases import tcp_campaign
     truth, paths = tcp_campaign("CAFXYZ", 11, tmp_path / "campaign")
     _first_pass_only(paths[0])          # the points file's second pass doubles the fit's time
@@ -131,6 +135,9 @@ def test_a_tcp_program_is_compensated_on_an_independent_machine(tmp_path, capsys
     before, after = _tip_rms(truth, src, dst)
     assert before > 5.0                             # the machine's error is material here
     assert after <= before / 3
+    # 0.885 um: the model's corrections miss the truth by 0.88 um rms over the program (benchmarks/
+    # bench_tcp_sd.py --campaign tcp); main's campaign with the limit raised to 10 um gave 2.31 um
+    assert after <= 1.5
     # its tilted finishing pass as a Heidenhain conversational program in M128, on the same model
     # (here, not in a test of its own: the model's identification is most of this test's time)
     twin, out = tmp_path / "boat.h", tmp_path / "boat_out.h"
