@@ -124,9 +124,9 @@ def run(args) -> int:
     single, together = result.not_carried(tables)
     for line in single:
         err.write(f"  not carried: {line}\n")
-    if single:
-        err.write(f"  remaining over the volume from the errors not carried, together: up to "
-                  f"{together:.2f} um at the tool tip\n")
+    if together is not None:
+        err.write(f"  remaining over the volume from the errors not carried that the data determine, "
+                  f"together: up to {together:.2f} um at the tool tip\n")
     for p in written:
         print(f"wrote {p}")
     return 0

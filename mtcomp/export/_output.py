@@ -188,11 +188,14 @@ def readme_text(result: ExportResult, tables, header: list, backlash_zero: str =
     if single:
         lines += ["", "Single-valued errors of the model no table carries (value +- standard error; "
                   "the tool-tip error each makes over the volume the data reached, linear axes at "
-                  "their ends, rotary axes swept; zero where the tables are read):"]
+                  "their ends, rotary axes swept; zero where the tables are read; a value the data "
+                  "do not determine is named without a value):"]
         lines += [f"  - {s}" for s in single]
-        lines.append(f"  remaining over the volume from these together: up to {together:.2f} um at "
-                     "the tool tip (on top of the figures above, but for a squareness listed here: "
-                     "it is also the slope of its straightness above)")
+        if together is not None:
+            lines.append(f"  remaining over the volume from these together: up to {together:.2f} um "
+                         "at the tool tip (those with a standard error; on top of the figures above, "
+                         "but for a squareness listed here: it is also the slope of its straightness "
+                         "above)")
     return "\n".join(lines) + "\n"
 
 
