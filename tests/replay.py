@@ -300,7 +300,8 @@ def _block(st, index, words):
     _motion_mode(st, gs)
     if any(g in (28, 30) for g in gs):
         end = dict(st.pos)
-        for a in (axes or AXES):
+        # BeagleG's G30 probes Z (gcode-parser.cc, handle_z_probe: its Z word is the thickness)
+        for a in ("Z" if st.beagleg and 30 in gs else axes or AXES):
             end[a] = None
         return _go(st, Move(index, "home", dict(st.pos), end))
     if 53 in gs:

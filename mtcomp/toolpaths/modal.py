@@ -29,6 +29,7 @@ from .frames import (FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle
 from .haas5 import HAAS_5AXIS_G, haas_block, haas_code
 from .lengths import length_number, lone_h, set_length
 from .linetext import text_with_words
+from .probe import beagleg_probe, passed_probe
 from .programmed import ProgrammedOffsets, apply_g10
 from .quill import follow_quill, forget_quill, has_quill, init_quill, quill_lost, tip_known
 from .rrf import macro_codes, restore_move
@@ -205,6 +206,8 @@ class ModalState:
         values, gcodes, mcodes, number = self._read_words(tokens, line)
         if self.dialect.name == "beagleg":     # its words act in turn (dialect.py)
             beagleg_word_order(self, tokens, line)
+            if 30.0 in gcodes:              # its Z probe (.probe)
+                beagleg_probe(self, tokens, values, gcodes, line)
             beagleg_block(self, gcodes, line)
         self._cutter_comp_codes(gcodes)
         self.g60 = self.dialect.name == "fanuc" and 60.0 in gcodes  # single-direction positioning
@@ -222,6 +225,8 @@ class ModalState:
         if home_move is not None and motion is not None and not home_with_motion(self.dialect.name, home_move, motion):
             raise self._err(f"G{home_move} and motion G{motion} in one block", line)
         self._set_feed(values, line)
+        if self.probe_line == line:         # BeagleG's G30 (.probe)
+            return passed_probe(self, values, axes_given, motion, line)
         if self.g60:
             return single_direction(self, values, axes_given, gcodes,
                                     (motion, cycle, home_move, nonmotion_axes), line)
@@ -270,6 +275,7 @@ class ModalState:
         self.tap_line = False
         self.passed_move = None
         self.g60 = False             # G60 on this line (.single_direction)
+        self.probe_line = None       # BeagleG's G30 on this line (.probe)
         #: how far G52 or a G10 moved the program's coordinates on this line (the writer follows)
         self.frame_shift = None
         self.declared = []
