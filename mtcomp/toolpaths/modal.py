@@ -29,6 +29,7 @@ from .frames import (FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle
 from .haas5 import HAAS_5AXIS_G, haas_block, haas_code
 from .lengths import length_number, lone_h, set_length
 from .linetext import text_with_words
+from .height_map import height_map_code, passed_height_map
 from .probe import beagleg_probe, passed_probe
 from .programmed import ProgrammedOffsets, apply_g10
 from .quill import follow_quill, forget_quill, has_quill, init_quill, quill_lost, tip_known
@@ -227,6 +228,8 @@ class ModalState:
         self._set_feed(values, line)
         if self.probe_line == line:         # BeagleG's G30 (.probe)
             return passed_probe(self, values, axes_given, motion, line)
+        if self.map_line == line:           # uCNC's G39 (.height_map)
+            return passed_height_map(self, values, axes_given, motion, line)
         if self.g60:
             return single_direction(self, values, axes_given, gcodes,
                                     (motion, cycle, home_move, nonmotion_axes), line)
@@ -276,6 +279,7 @@ class ModalState:
         self.passed_move = None
         self.g60 = False             # G60 on this line (.single_direction)
         self.probe_line = None       # BeagleG's G30 on this line (.probe)
+        self.map_line = None         # uCNC's G39 on this line (.height_map)
         #: how far G52 or a G10 moved the program's coordinates on this line (the writer follows)
         self.frame_shift = None
         self.declared = []
@@ -352,6 +356,9 @@ class ModalState:
             if g in FRAME_G:       # G52, G68/G69, mirror, scaling: their axis words are no motion
                 frame_codes.append(g)
                 nonmotion_axes = True
+                continue
+            if round(g, 1) in (39.0, 39.1, 39.2):       # uCNC's height map (.height_map)
+                nonmotion_axes = height_map_code(self, g, values, line) or nonmotion_axes
                 continue
             if g in _REFUSED_G and not (g in FANUC_CYCLES and self.dialect.name in FANUC_DIALECTS):
                 raise self._err(f"{_REFUSED_G[g]} is not supported", line)
