@@ -4,8 +4,9 @@ uCNC refuses (src/core/parser.c) is refused. Checked by hand and by the corpus o
 (tests/test_gcode_corpus.py, _check_output)."""
 import pytest
 
+from replay import compare, replay
 from test_gcode_corpus import _check_output
-from test_toolpaths_beagleg import _compensate
+from test_toolpaths_beagleg import TOL, _compensate
 
 MAP = ("G90 G21 G17\nG0 X5 Y5 Z3\nG39 X0 Y0 Z-1 R2 I10 J10 F50\nG1 X10 F600\nG0 Z1\n"
        "G1 X0 Y10\nG39.1\nG1 X5\n")
@@ -25,6 +26,10 @@ def test_the_probing_line_passes_and_z_is_lost_until_named(tmp_path, dialect):
     assert "1 height map probing (uCNC's G39, line 3" in out
     assert "assumed: G39 at line 3 (uCNC's height map)" in out
     _check_output(MAP.encode(), written.encode())
+    compare(MAP.encode(), written.encode(), TOL)
+    # the replay (tests/replay.py) of uCNC's G39: X Y at the grid's start, Z not known
+    probing = replay(MAP.encode()).moves[1]
+    assert (probing.end["X"], probing.end["Y"], probing.end["Z"]) == (0, 0, None)
     wrong = written.replace(lines[3], lines[3] + " Z-1")
     with pytest.raises(AssertionError, match="writes \\['Z'\\]"):
         _check_output(MAP.encode(), wrong.encode())
