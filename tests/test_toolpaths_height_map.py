@@ -35,6 +35,16 @@ def test_the_probing_line_passes_and_z_is_lost_until_named(tmp_path, dialect):
         _check_output(MAP.encode(), wrong.encode())
 
 
+def test_the_map_ends_with_the_program_on_grbl(tmp_path):
+    # uCNC resets its modes at M2 (parser.c, parser_reset: height_map_active = 0) and a sender
+    # streams on: an arc in G18 after it is read
+    text = "G0 X0 Y0 Z1\nG39 Z-1 R1 I10 J10\nG0 Z1\nM2\nG18 G2 X5 Z1 I2.5 K0\n"
+    code, _out, err, written = _compensate(tmp_path, text, "--dialect", "grbl")
+    assert code == 0, err
+    code, _out, err, written = _compensate(tmp_path, text.replace("M2\n", ""), "--dialect", "grbl")
+    assert code == 2 and "while uCNC's height map (G39) is on" in err
+
+
 @pytest.mark.parametrize("text, extra, message", [
     ("G0 X0 Y0 Z1\nG39 Z-1 I10 J10\n", [], "G39 (uCNC's height map) without R"),
     ("G0 X0 Y0 Z1\nG18\nG39 Z-1 R1 I10 J10\n", [], "G39 (uCNC's height map) not in G17"),

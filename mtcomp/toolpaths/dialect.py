@@ -263,8 +263,10 @@ def _finds(chunk: bytes, what: bytes):
 
 def grbl_program_end(state) -> None:
     """grbl after M2/M30 (grbl 1.1, gcode.c, program flow): it goes on with the lines a sender
-    streams after it, its modes reset to G1 G17 G90 G94 G54 (positions kept, G92 kept)."""
+    streams after it, its modes reset to G1 G17 G90 G94 G54 (positions kept, G92 kept); uCNC's
+    reset turns its height map off too (parser.c, parser_reset)."""
     state.ended = False
+    state.height_map = False
     state.motion, state.incremental, state.inverse_time = 1, False, False
     state._apply_modal_code(17, {})
     state._set_wcs(_WCS_INDEX[54])
