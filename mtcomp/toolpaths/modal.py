@@ -339,17 +339,14 @@ class ModalState:
         for m in mcodes:
             if m in _REFUSED_M:
                 raise self._err(f"{_REFUSED_M[m]} is not supported", line)
-        motion = None
+            if m in TCP_ON_M or m in TCP_OFF_M:
+                self._set_tcp(m in TCP_ON_M, f"M{m:g}")
+        motion = home_move = cycle = None
         nonmotion_axes = macro     # G4 dwell (X/P is time), G28/G30/G53: axis words are no motion
-        home_move = None
-        cycle = None
         dwell = g10 = False
         frame_codes = []
         tool_change = any(m == 6 for m in mcodes)
         self.ended = any(m in (2, 30) for m in mcodes)
-        for m in mcodes:
-            if m in TCP_ON_M or m in TCP_OFF_M:
-                self._set_tcp(m in TCP_ON_M, f"M{m:g}")
         self.had_g = bool(gcodes)
         for g in gcodes:
             gi = round(g)
