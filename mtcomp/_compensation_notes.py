@@ -145,8 +145,8 @@ def _cycle_notes(written: dict) -> list[str]:
                      "moved with Z; BLOCKS.csv says which)")
     if written.get("cycle_lines"):
         notes.append(f"{cycle_lines(written['cycle_lines'])} passed through unchanged and "
-                     "uncorrected: hole position, R or Z not known, or drilling along another "
-                     "axis than Z")
+                     "uncorrected: hole position, R or Z not known, drilling along another "
+                     "axis than Z, or a rotary axis word in their series of cycles")
     return notes
 
 

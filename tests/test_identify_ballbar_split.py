@@ -51,26 +51,37 @@ def _truth() -> TruthMachine:
     return t
 
 
-@pytest.fixture(scope="module")
-def circle(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("split")
-    truth = _truth()
+def run_circle(truth, tmp, corners, *, known: bool, setup: bool = False, seed: int = 10) -> str:
+    """One circle of radius 150 mm about the origin in XY, both ways (``tmp / "circle.csv"``, the
+    bar's length offset drawn with ``setup``), identified (``--known-setup`` when ``known``) into
+    ``tmp / "m.json"``, and a program through ``corners`` (the first a rapid) compensated at G54 =
+    0 (``tmp / "blocks.csv"``); identify's and compensate's printed output."""
     path = tmp / "circle.csv"
-    campaigns.ballbar_circles(truth, path, np.random.default_rng(10), planes=("XY",), radius_mm=150.0,
-                              centre_mm=(0.0, 0.0, 0.0), n_points=72, setup=False, noise_mm=0.0002)
+    campaigns.ballbar_circles(truth, path, np.random.default_rng(seed), planes=("XY",), radius_mm=150.0,
+                              centre_mm=(0.0, 0.0, 0.0), n_points=72, setup=setup, noise_mm=0.0002)
     prog = tmp / "prog.nc"
     prog.write_text("%\nG21 G90 G17\nG54\n" + "".join(
         f"G{0 if i == 0 else 1} X{x:.3f} Y{y:.3f} Z0.000{'' if i == 0 else ' F1000'}\n"
-        for i, (x, y) in enumerate(CORNERS)) + "M30\n%\n")
-    # a bar of calibrated length (--known-setup): without it the bar's length offset takes a scale
-    # of X and Y alike, which the fit holds at zero, a set-up's trade and not the penalty's split
-    with contextlib.redirect_stdout(io.StringIO()):
-        assert main(["identify", "xfyz", str(path), "--known-setup", str(path),
+        for i, (x, y) in enumerate(corners)) + "M30\n%\n")
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert main(["identify", "xfyz", str(path), *(["--known-setup", str(path)] if known else []),
                      "-o", str(tmp / "m.json")]) == 0
         assert main(["compensate", "xfyz", str(tmp / "m.json"), str(prog), "-o", str(tmp / "out.nc"),
                      "--work-offset", "G54=X0,Y0,Z0", "--subdivide-tol-um", "0",
                      "--report", str(tmp / "blocks.csv")]) == 0
-    return truth, path, tmp
+    return out.getvalue()
+
+
+@pytest.fixture(scope="module")
+def circle(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("split")
+    truth = _truth()
+    # a bar of calibrated length (--known-setup): without it the bar's length offset takes a scale
+    # of X and Y alike, which the fit holds at zero, a set-up's trade and not the penalty's split
+    # (tests/test_identify_ballbar_scale.py)
+    run_circle(truth, tmp, CORNERS, known=True)
+    return truth, tmp / "circle.csv", tmp
 
 
 def _blocks(truth, tmp):

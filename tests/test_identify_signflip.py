@@ -88,6 +88,13 @@ def test_laser_runs_of_two_machines_are_not_called_reversed(tmp_path, capsys):
     assert main(["identify", "xfyz", *map(str, runs), "-o", str(tmp_path / "m.json")]) == 0
     err = capsys.readouterr().err
     assert "the files do not agree" in err and "sign reversed" not in err, err
+    assert "cannot judge" not in err                # every file has repeats to judge it by
+    # beside a ball bar (no repeats): the test cannot judge it, and says so, naming it (a new
+    # user's R-test file in radians pulled the fit off while the warning named a laser file only)
+    bar = tc.ballbar_circles(a, tmp_path / "bar.csv", rng, planes=("XY",)).path
+    assert main(["identify", "xfyz", *map(str, runs), str(bar), "-o", str(tmp_path / "m2.json")]) == 0
+    told = [ln for ln in capsys.readouterr().err.splitlines() if "do not agree" in ln]
+    assert len(told) == 1 and "it cannot judge the files without repeats: bar" in told[0], told
 
 
 def test_diagnose_names_the_reversed_file_it_leaves_unexplained(tmp_path, capsys):

@@ -303,3 +303,35 @@ def test_points_positions_in_inches_are_noted(tmp_path):
         "(spans 23.62 mm" in one[0], one
     assert notes("mm.csv", mm_x, mm_y) == []
     assert notes("tenths.csv", mm_x / 10.0, mm_y / 10.0) == []
+
+
+def test_angles_in_radians_and_a_missing_rotary_column_are_noted(tmp_path):
+    """An R-test on a B-C table read at B -30, 0, 30, 60, 90 deg and C every 45 deg, written in
+    radians under b_deg and c_deg (-0.52360 .. 1.57080, 0 .. 5.49779, 5 decimals): whole degrees
+    only as radians (-30.0001 deg, by hand), so noted naming both columns; the same angles in
+    degrees, and tenths of a degree (a tilt read -0.5 .. 1.5 deg), are not. A file without c_deg
+    on that machine is noted: C taken at 0 in every row; a file without any rotary column (a
+    linear-axis campaign with the table at 0) is not."""
+    from mtcomp.measurement.columns import file_notes
+    machine = load_machine("cbfxyz")
+    b_deg, c_deg = np.arange(-30.0, 91.0, 30.0), np.arange(0.0, 360.0, 45.0)
+
+    def notes(name, head, rows, says):
+        p = tmp_path / name
+        p.write_text(head + "\n" + "\n".join(rows) + "\n")
+        return [n for n in file_notes(machine, [read_measurements(p)]) if says in n]
+    head = "x_mm,y_mm,z_mm,tool_mm,b_deg,c_deg,dx_um,dy_um,dz_um"
+    rad = [f"50,0,20,100,{np.radians(b):.5f},{np.radians(c):.5f},1,2,3" for b in b_deg for c in c_deg]
+    found = notes("rad.csv", head, rad, "radians")
+    assert len(found) == 1 and "rad.csv: the angles of b_deg (-0.5236 to 1.5708), c_deg (0 to " \
+        "5.4978) are whole degrees only if read as radians" in found[0], found
+    deg = [f"50,0,20,100,{b:g},{c:g},1,2,3" for b in b_deg for c in c_deg]
+    assert notes("deg.csv", head, deg, "radians") == []
+    tenths = [f"50,0,20,100,{b:g},0,1,2,3" for b in (-0.5, 0.0, 0.5, 1.0, 1.5)]
+    assert notes("tenths.csv", head, tenths, "radians") == []
+    no_c = [f"50,0,20,100,{b:g},1,2,3" for b in b_deg]
+    found = notes("no_c.csv", "x_mm,y_mm,z_mm,tool_mm,b_deg,dx_um,dy_um,dz_um", no_c, "taken at 0")
+    assert len(found) == 1 and "no_c.csv: no column c_deg: C taken at 0 in every row" in found[0]
+    linear = ["50,0,20,100,1,2,3", "0,50,20,100,1,2,3"]
+    assert notes("linear.csv", "x_mm,y_mm,z_mm,tool_mm,dx_um,dy_um,dz_um", linear,
+                 "taken at 0") == []

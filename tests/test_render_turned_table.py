@@ -115,3 +115,24 @@ def test_the_map_of_a_turned_table_is_the_hand_derived_deviation(turned, mode, t
                                 setup=setup)
     np.testing.assert_allclose(written.dev_after * 1e3, smap.dev_after * 1e3, rtol=0, atol=1e-6)
 
+
+
+def test_a_g254_program_is_drawn_where_its_holes_are_on_the_part(tmp_path):
+    """Where the map draws a G254 block: its tip on the part, relative to the part's datum. The
+    words are along the machine's axes from the part origin O turned with the table (about C's
+    line through c): the tool stands at m = c + Rz(C) (O - c) + w, which on the table (turned back)
+    is c + Rz(-C) (m - c) = O + Rz(-C) w: at C 90, (Y, -X, Z) from the datum, wherever C's line
+    is. With the lines off the machine origin, the words drawn as axis positions (as render did: a
+    new user's second set-up's holes 40 mm from where they were cut) put them c - Rz(-C) c off."""
+    from test_kinematics_single import _shifted_machine_file
+    machine = load_machine(str(_shifted_machine_file(tmp_path, "cafxyz")))
+    prog = tmp_path / "g254.nc"
+    prog.write_text(PROGRAMS["G254"])
+    fitted = FittedModel.zero(ErrorModel(machine.with_basis("polynomial"), ()))
+    smap = program_error_map(machine, fitted, prog, normal="path",
+                             setup=ProgramSetup(machine, work_offsets={0: G54}))
+    under = (smap.line >= 8) & (smap.line <= 13)               # under G254, before G255 and G53
+    words = _words("G254", PROGRAMS["G254"], smap.line[under])
+    assert under.sum() >= 4 and not np.isnan(words).any()
+    hand = np.column_stack([words[:, 1], -words[:, 0], words[:, 2]])
+    np.testing.assert_allclose(smap.tips[under], hand, rtol=0, atol=1e-9)

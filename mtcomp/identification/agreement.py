@@ -76,11 +76,16 @@ def disagreement_note(result, datasets) -> str | None:
     (one file alone: what the model misses of it is diagnose's to say)."""
     if len(datasets) < 2:
         return None
-    worst = max(lack_of_fit(result, datasets), key=lambda x: x.ratio, default=None)
+    judged = lack_of_fit(result, datasets)
+    worst = max(judged, key=lambda x: x.ratio, default=None)
     if worst is None or not worst.ratio > DISAGREE_RATIO:
         return None
+    # the file that pulls the fit off may be one without repeats, which this test cannot judge
+    unjudged = [f.tag for f in result.files if f.tag not in {x.tag for x in judged}]
+    others = (f"; it cannot judge the files without repeats: "
+              f"{', '.join(unjudged)}" if unjudged else "")
     return (f"the files do not agree: the fit of them all leaves {worst.tag}'s readings {worst.left:.3g} "
             f"{worst.unit} rms off at its set-ups (mean of its runs), where its repeats allow "
-            f"{worst.allowed:.2g} {worst.unit} ({worst.ratio:.0f} times): files of different machines "
-            "fitted as one, or of one machine that changed between them? (mtcomp diagnose names an "
-            "effect the model lacks)")
+            f"{worst.allowed:.2g} {worst.unit} ({worst.ratio:.0f} times){others}: files of different "
+            "machines fitted as one, or of one machine that changed between them? (mtcomp diagnose "
+            "names an effect the model lacks)")

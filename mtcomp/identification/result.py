@@ -209,6 +209,8 @@ class FitResult:
             lines.append(self.info["sparse"])
         if "unread_offsets" in self.info:       # mtcomp.identification._offsets
             lines.append(self.info["unread_offsets"])
+        if "bar_scale" in self.info:            # mtcomp.identification._traded
+            lines.append(self.info["bar_scale"])
         return lines
 
     # ------------------------------------------------------------ lmfit's MinimizerResult figures

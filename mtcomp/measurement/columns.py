@@ -22,7 +22,9 @@ stylus lengths replaced by the machine's tool length in every row). So:
   :func:`mtcomp.measurement.units.unit_check`, below max(0.05 um, 0.5 ppm of the span) over 100 mm
   or more), when every bar length of a ball-bar file is under an inch (a file in inches), and when
   a laser file's targets are whole mm only times 25.4 (targets in inches, :func:`_inch_targets`),
-  and when a points or cmm file's positions are (:func:`_inch_positions`).
+  and when a points or cmm file's positions are (:func:`_inch_positions`); when a rotary axis's
+  angles (``b_deg``...) are whole degrees only once read as radians (:func:`_radian_angles`), and
+  when the machine has a rotary axis the file gives no column for (taken at 0 in every row).
 """
 from __future__ import annotations
 
@@ -187,8 +189,7 @@ def file_notes(machine, datasets) -> list[str]:
                          "stylus or tool was another length")
         line = (_inch_positions(data) or _mm_under_um(data, header) or _short_bar(data)
                 or _inch_targets(data))
-        if line:
-            notes.append(line)
+        notes += [n for n in (line, _radian_angles(data), _rotary_at_zero(machine, data)) if n]
         line = _slow_feeds(data, header)
         if line:
             notes.append(line)
@@ -285,6 +286,48 @@ def _inch_positions(data) -> str | None:
     spans = ", ".join(f"{np.nanmax(data.xyz[:, k]) - np.nanmin(data.xyz[:, k]):.4g}" for k in axes)
     return (f"{data.path}: the positions ({names}) are whole mm only times 25.4 (spans {spans} mm as "
             "read): positions in inches? x_mm, y_mm, z_mm are read in mm; multiply inches by 25.4")
+
+
+#: angles read in degrees that are whole degrees within this (deg) once taken as radians
+RADIAN_TOL_DEG = 0.01
+
+
+def _radian_angles(data) -> str | None:
+    """The sentence when a rotary column of a file with commanded poses (``a_deg``, ``b_deg``,
+    ``c_deg``) holds at least 3 distinct angles, all within one turn in radians (|a| <= 2 pi), that
+    are whole degrees only once read as radians (within :data:`RADIAN_TOL_DEG`) and, as written,
+    not all multiples of 0.1 deg: angles in radians under ``*_deg``; else None (a note)."""
+    names = [c for c in getattr(data, "rotary_columns", ()) if c in _ABC]
+    found = []
+    for col in names:
+        written = np.unique(data.abc[:, _ABC.index(col)] * 180.0 / np.pi)
+        written = written[np.isfinite(written)]
+        if written.size < 3 or np.abs(written).max() > 2.0 * np.pi + 1e-9:
+            continue
+        as_radians = np.degrees(written)
+        whole = np.all(np.abs(as_radians - np.round(as_radians)) < RADIAN_TOL_DEG)
+        tenths = np.all(np.abs(written * 10.0 - np.round(written * 10.0)) < 1e-6)
+        if whole and not tenths:
+            found.append(f"{col} ({written.min():.5g} to {written.max():.5g})")
+    if not found:
+        return None
+    return (f"{data.path}: the angles of {', '.join(found)} are whole degrees only if read as "
+            "radians: angles in radians? *_deg columns are read in degrees; multiply radians by "
+            "180/pi")
+
+
+def _rotary_at_zero(machine, data) -> str | None:
+    """The sentence when a file with commanded poses has no column for one of the machine's rotary
+    axes: that axis is taken at 0 in every row (docs/measurements.md); else None."""
+    if not hasattr(data, "rotary_columns") or not hasattr(data, "abc"):
+        return None
+    missing = [a.name for a in machine.axes
+               if a.is_rotary and f"{a.name.lower()}_deg" not in data.rotary_columns]
+    if not missing or not any(f"{c.lower()}_deg" in data.rotary_columns for c in "ABC"):
+        return None
+    cols = ", ".join(f"{a.lower()}_deg" for a in missing)
+    return (f"{data.path}: no column {cols}: {' and '.join(missing)} taken at 0 in every row; "
+            f"give {cols} if the table stood elsewhere")
 
 
 #: the least number of deviations for the short-span unit check of a points or cmm file

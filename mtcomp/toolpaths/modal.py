@@ -21,7 +21,7 @@ from ._arcs import arc_path, blind_arc, passed_spline, spline_code
 from .blocks import CycleBlock, MotionBlock
 from .cycle_rules import (check_held_numbers, codes_with_motion, cycle_move, cycle_unclear,
                           has_axis_words, home_with_motion, incremental_r_level, retract_level,
-                          rigid_tap)
+                          rigid_tap, rotary_cycle)
 from .dialect import GENERIC, beagleg_block, beagleg_word_order, grbl_program_end
 from .directions import step_directions
 from .frames import (FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle, follow_given,
@@ -154,6 +154,8 @@ class ModalState:
         #: the group-01 motion mode in force when the drilling cycles began (G80 restores it
         #: where the dialect says so)
         self.cycle_motion: int | None = None
+        #: the first rotary axis word of the series of cycles in force (None: none yet)
+        self.cycle_rotary: str | None = None
 
     @property
     def frame(self) -> int:
@@ -532,6 +534,7 @@ class ModalState:
             if self.cycle is None:
                 self.cycle_motion = self.motion
                 self.cycle_start = True
+                self.cycle_rotary = None
                 z = self.tool_axis
                 self.cycle_init = (float(self.position[z]), bool(self.known[z])) if z >= 0 \
                     else (math.nan, False)
@@ -664,12 +667,8 @@ class ModalState:
         otherwise it passes through uncorrected (G90) or is refused (G91: an incremental cycle
         passed through would be read against an absolute output)."""
         check_cycle(self, line)
-        rot = [c for c in axes_given if c in "ABC"]
-        if rot:
-            raise self._err(f"drilling cycle G{self.cycle} with a rotary axis word {rot[0]} is not "
-                            "supported", line)
         inc = self.incremental
-        reason = cycle_unclear(self, inc)
+        reason = rotary_cycle(self, axes_given) or cycle_unclear(self, inc)
         xi, yi, zi = self.xyz_index
         if reason is None and not inc and not all(self.known[i] or c in values
                                                   for i, c in ((xi, "X"), (yi, "Y"))):

@@ -12,7 +12,7 @@ import numpy as np
 from ..errors import InputError
 from ..kinematics import forward
 from ..machine import Machine
-from .program import ProgramPoints
+from .program import ProgramPoints, drawn_q
 
 
 #: points closer than this in XY (mm) count as the same surface point
@@ -110,7 +110,7 @@ def path_geometry(orig: ProgramPoints, machine: Machine) -> SurfaceGeometry:
     idx = np.flatnonzero(~orig.rapid)
     if idx.size == 0:
         idx = np.arange(len(orig))
-    tips, axes = forward(machine, orig.q[idx])
+    tips, axes = forward(machine, drawn_q(orig)[idx])
     return SurfaceGeometry(idx, tips, np.zeros_like(tips), axes, np.zeros((0, 3), np.int64))
 
 
@@ -128,7 +128,7 @@ def hole_rows(orig: ProgramPoints, machine: Machine) -> np.ndarray:
     idx = np.flatnonzero(~orig.rapid)
     if idx.size == 0 or cutting_rows(orig, machine).size:
         return np.zeros(0, np.int64)
-    tips, axes = forward(machine, orig.q)
+    tips, axes = forward(machine, drawn_q(orig))
     step = tips[idx] - tips[np.maximum(idx - 1, 0)]
     step[idx == 0] = 0.0
     return _one_per_hole(idx[np.einsum("ij,ij->i", step, axes[idx]) < -1e-3], tips, axes)
@@ -157,7 +157,7 @@ def cutting_rows(orig: ProgramPoints, machine: Machine) -> np.ndarray:
     idx = idx[idx > 0]
     if idx.size == 0:
         return idx
-    tips, axes = forward(machine, orig.q[np.concatenate([idx - 1, idx])])
+    tips, axes = forward(machine, drawn_q(orig)[np.concatenate([idx - 1, idx])])
     step = tips[idx.size:] - tips[:idx.size]
     along = np.einsum("ij,ij->i", step, axes[idx.size:])
     across = np.linalg.norm(step - along[:, None] * axes[idx.size:], axis=1)
@@ -167,7 +167,7 @@ def cutting_rows(orig: ProgramPoints, machine: Machine) -> np.ndarray:
 def hole_geometry(orig: ProgramPoints, machine: Machine, rows: np.ndarray) -> SurfaceGeometry:
     """The holes' bottoms (``rows`` from :func:`hole_rows`), drawn where they are, with the tool
     axis as their 'normal': a hole map shows each hole's position error across the tool axis."""
-    tips, axes = forward(machine, orig.q[rows])
+    tips, axes = forward(machine, drawn_q(orig)[rows])
     return SurfaceGeometry(rows, tips, np.zeros_like(tips), axes, np.zeros((0, 3), np.int64))
 
 
@@ -177,7 +177,7 @@ def path_line_geometry(orig: ProgramPoints, machine: Machine):
     with the direction of the move that reaches it (of the move that leaves it, for a move's start)
     as its 'normal'; a path map shows the size of the deviation across that direction (the error of
     the path's shape, not of its timing along it)."""
-    tips, _ = forward(machine, orig.q)
+    tips, _ = forward(machine, drawn_q(orig))
     feed = np.flatnonzero(~orig.rapid)
     feed = feed[feed > 0]
     rows = np.unique(np.concatenate([feed - 1, feed]))
@@ -196,7 +196,7 @@ def path_line_geometry(orig: ProgramPoints, machine: Machine):
 
 def tip_geometry(orig: ProgramPoints, machine: Machine, radius: float, max_edge_factor: float):
     cut = np.flatnonzero(~orig.rapid)
-    tips_all, axes_all = forward(machine, orig.q[cut])
+    tips_all, axes_all = forward(machine, drawn_q(orig)[cut])
     keep = select_surface_points(tips_all)
     tips, axis = tips_all[keep], axes_all[keep]
     tri = triangulate_xy(tips, max_edge_factor)
@@ -238,7 +238,7 @@ def cutting_runs(tips: np.ndarray, gap_factor: float = 5.0, corner_deg: float = 
 def flank_geometry(orig: ProgramPoints, machine: Machine, radius: float, length: float,
                     side: str, n_levels: int | None):
     cut = np.flatnonzero(~orig.rapid)
-    tips_all, axes_all = forward(machine, orig.q[cut])
+    tips_all, axes_all = forward(machine, drawn_q(orig)[cut])
     idx, draw, offset, normals, tris = [], [], [], [], []
     base = 0
     for run in cutting_runs(tips_all):

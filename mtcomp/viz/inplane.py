@@ -9,7 +9,7 @@ from ..errors import InputError
 from ..kinematics import forward
 from ..machine import Machine
 from .geometry import SurfaceGeometry
-from .program import ProgramPoints
+from .program import ProgramPoints, drawn_q
 
 
 #: a program is planar (a 2-D contour) when this share of its cutting path runs across a constant
@@ -45,7 +45,7 @@ def planar_levels(orig: ProgramPoints, machine: Machine) -> int:
     feed = feed[feed > 0]
     if feed.size < 2:
         return 0
-    tips, axes = forward(machine, orig.q)
+    tips, axes = forward(machine, drawn_q(orig))
     axis = axes[feed[0]]
     if np.max(np.abs(axes[feed] - axis)) > 1e-9:
         return 0
@@ -127,7 +127,7 @@ def inplane_geometry(orig: ProgramPoints, machine: Machine, radius: float, side:
       with the deviation of its own two end points, so a corner keeps the normals of both walls.
 
     Returns (geometry, segments (S, 2) point indices of the contour, info dict)."""
-    tips, axes = forward(machine, orig.q)
+    tips, axes = forward(machine, drawn_q(orig))
     j, unit, length, extent = _moves_across(orig, tips, axes)
     first, ends, new_pass = _merged_segments(j, unit, length, extent)
     a_idx, b_idx = j[first] - 1, j[ends]                    # program rows of each segment's ends

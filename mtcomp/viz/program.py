@@ -37,6 +37,9 @@ class ProgramPoints:
     reference of the deviations. offsets : (n, na) the work offset of each row, as
     :meth:`~mtcomp.toolpaths.offsets.ProgramSetup.on_machine` takes it. setup : the set-up they
     were placed by. (None: not placed.)
+    drawn : (n, na) the axis positions the map draws each row at (:func:`drawn_q`), where they
+    differ from ``q``: under Haas' G254 the words are the tip relative to the part origin turned
+    with the table, so the row is drawn where the tip is on the part (None: ``q``).
     """
 
     path: str
@@ -58,6 +61,7 @@ class ProgramPoints:
     datum: np.ndarray | None = None
     offsets: np.ndarray | None = None
     setup: object = None
+    drawn: np.ndarray | None = None
 
     def __len__(self):
         return int(self.line.shape[0])
@@ -100,7 +104,34 @@ def read_program_points(path, machine: Machine, dialect: str | None = None,
                          dirs, seg.rapid.copy(), seg.known.copy(), seg.cycle.copy(), tcp,
                          dialect, chord_tol_mm, frames if local.any() else None,
                          local if local.any() else None, np.asarray(frame_tool(seg.frame)).copy(),
-                         names, machine_q, datum, offsets, setup)
+                         names, machine_q, datum, offsets, setup,
+                         _on_the_part(machine, q, seg, machine_q, datum))
+
+
+def _on_the_part(machine: Machine, q: np.ndarray, seg, machine_q: np.ndarray,
+                 datum: np.ndarray) -> np.ndarray | None:
+    """The axis positions that draw each row under Haas' G254 (dynamic work offset) where its tip
+    is on the part: the tip where compensate places it (``machine_q``, the offset turned with the
+    table) less the part's datum, both in the table's frame, at the row's angles (None: no such
+    row). Elsewhere the words are drawn as they are."""
+    from ..kinematics import forward
+    from ..toolpaths.tcp import axes_of_tcp
+    from ..toolpaths.words import frame_dwo
+    rows = frame_dwo(seg.frame) & seg.known.all(axis=1)
+    if not rows.any():
+        return None
+    drawn = q.copy()
+    words = q[rows].copy()
+    xyz = [machine.index(c) for c in "XYZ"]
+    words[:, xyz] = forward(machine, machine_q[rows])[0] - forward(machine, datum[rows])[0]
+    drawn[rows] = axes_of_tcp(machine, words)
+    return drawn
+
+
+def drawn_q(orig: ProgramPoints) -> np.ndarray:
+    """(n, na) the axis positions a map draws the program's rows at: the words (``q``), except
+    where the program's words are not the tip on the part (``drawn``)."""
+    return orig.q if orig.drawn is None else orig.drawn
 
 
 def _placed(seg, pts, frames: list, machine: Machine) -> tuple[np.ndarray, np.ndarray]:

@@ -44,7 +44,8 @@ from .geometry import (MAX_EDGE_FACTOR, cutting_rows, cutting_runs, flank_geomet
                        path_geometry, path_line_geometry, select_surface_points, steep_triangles,
                        tip_geometry, triangulate_xy, vertex_normals)
 from .inplane import inplane_geometry, planar_levels
-from .program import ProgramPoints, pair_compensated, read_program_points, report_points
+from .program import (ProgramPoints, drawn_q, pair_compensated, read_program_points,
+                      report_points)
 
 #: the public face of the error maps (the surfaces and the program's points from their modules too)
 __all__ = ["STATUS_REASONS", "SurfaceMap", "ProgramPoints", "read_program_points", "pair_compensated",
@@ -292,7 +293,7 @@ def program_error_map(machine: Machine, fitted, program, compensated=None,
     _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
     inverse = inverse.ravel()
     sel = g.index[first]
-    tips = tool2wp(machine, orig.q[sel])[:, :3, 3]
+    tips = tool2wp(machine, drawn_q(orig)[sel])[:, :3, 3]
     lengths = setup.lengths_by_number(orig.tool_names or {})
     length_of = tool_lengths_of(orig, machine, lengths)
     if orig.tool is not None:
@@ -334,7 +335,7 @@ def _deviations(machine, fitted, orig: ProgramPoints, comp, pair, sel, offset, l
     corrections (``datum``: the program's origin as probed)."""
     ev = tool_point_evaluator(fitted)
     q0 = orig.machine_q[sel]
-    along = np.einsum("ij,ij->i", offset, forward(machine, orig.q[sel])[1])
+    along = np.einsum("ij,ij->i", offset, forward(machine, drawn_q(orig)[sel])[1])
     ctx = _context(fitted, sel.size, orig.feed[sel], orig.dirs[sel], lengths)
     nominal = tool2wp(machine, q0)[:, :3, 3] + offset \
         + ev.datum_reference(orig.datum[sel], ctx)[:, :3]
@@ -499,8 +500,8 @@ def _tool_axis_turns(orig: ProgramPoints, machine: Machine, limit_deg: float = 1
     feed = feed[feed > 0]
     if feed.size < 2:
         return False
-    start = forward(machine, orig.q[feed - 1])[1]
-    end = forward(machine, orig.q[feed])[1]
+    start = forward(machine, drawn_q(orig)[feed - 1])[1]
+    end = forward(machine, drawn_q(orig)[feed])[1]
     turn = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", start, end), -1.0, 1.0)))
     spread = np.degrees(np.arccos(np.clip(end @ end[0], -1.0, 1.0))).max()
     return bool(np.mean(turn > 1e-3) >= 0.1 and spread > limit_deg)
@@ -514,7 +515,8 @@ def _rows(orig: ProgramPoints, rows: np.ndarray) -> ProgramPoints:
                          orig.rapid[rows], take(orig.known), take(orig.cycle), take(orig.tcp),
                          orig.dialect, orig.chord_tol_mm, tool=take(orig.tool),
                          tool_names=orig.tool_names, machine_q=take(orig.machine_q),
-                         datum=take(orig.datum), offsets=take(orig.offsets), setup=orig.setup)
+                         datum=take(orig.datum), offsets=take(orig.offsets), setup=orig.setup,
+                         drawn=take(orig.drawn))
 
 
 def _lines_text(lines) -> str:
@@ -527,7 +529,7 @@ def _lines_text(lines) -> str:
 def _along_tool_axis(machine: Machine, orig: ProgramPoints, g, info: dict) -> bool:
     """Whether a surface map's normals all lie along the tool axis (to 1 deg), or the program is
     planar: the map then shows the deviation along the tool axis only."""
-    tip_axes = forward(machine, orig.q[g.index])[1]
+    tip_axes = forward(machine, drawn_q(orig)[g.index])[1]
     along = np.abs(np.einsum("ij,ij->i", g.normals, tip_axes)) >= np.cos(np.radians(1.0))
     return bool(along.all() or info.get("planar_levels"))
 
