@@ -64,7 +64,7 @@ def uncertainty_without(uncertainty: dict | None, names) -> dict | None:
     out = dict(uncertainty, names=[uncertainty["names"][k] for k in keep],
                covariance=np.asarray(uncertainty["covariance"])[np.ix_(keep, keep)],
                undetermined=np.asarray(uncertainty["undetermined"]).reshape(n, -1)[keep])
-    for key in ("held", "choice"):
+    for key in ("held", "choice", "open"):
         if key in uncertainty:
             out[key] = np.asarray(uncertainty[key]).reshape(n, -1)[keep]
     if "setup" in uncertainty:
@@ -277,7 +277,10 @@ class FittedModel:
     def undetermined_values(self) -> tuple[np.ndarray, np.ndarray] | None:
         """(indices into ``params``, v): the part of the values that lies along the directions the
         data left undetermined (``uncertainty["undetermined"]``), internal units; None when the
-        model carries no uncertainty or no such direction.
+        model carries no uncertainty or no such direction; v (k, 1 + t) with the t directions of
+        ``uncertainty["open"]`` beside it (a part's tilts the data leave open, 1 um rms tool-tip
+        error over the travel each, :func:`mtcomp.identification._rotation.plate_tilts`): a
+        correction that moves with one rests on the fit's choice, whatever the values hold there.
 
         The values are split into what the fit moved (the covariance's range: a fit moves only
         along the directions it determines) and a combination of the undetermined directions; v is
@@ -301,7 +304,8 @@ class FittedModel:
             w, V = np.linalg.eigh(0.5 * (C + C.T) / np.outer(d, d))    # correlations: unit-free
             Q = np.linalg.qr(d[:, None] * V[:, w > 1e-12 * max(float(w.max()), 1e-300)])[0]
             c = np.linalg.lstsq(Nf - Q @ (Q.T @ Nf), p - Q @ (Q.T @ p), rcond=None)[0]
-        return idx, (Nf @ c) / f
+        tilts = np.asarray(u.get("open", np.zeros((idx.size, 0))), dtype=float).reshape(idx.size, -1)
+        return idx, ((Nf @ c) / f if not tilts.shape[1] else np.column_stack([(Nf @ c) / f, tilts]))
 
     def choice_directions(self) -> tuple[np.ndarray, np.ndarray] | None:
         """(indices into ``params``, (k, c) D): the roughness penalty's alternative splits across
@@ -339,7 +343,7 @@ class FittedModel:
         sd = np.sqrt(var if extra is None else var + extra) * 1e3
         if undetermined is not None:
             ui, v = undetermined
-            moved = np.abs(J[:, :, ui] @ v).max(axis=1) * 1e3
+            moved = np.abs(J[:, :, ui] @ v.reshape(ui.size, -1)).max(axis=(1, 2)) * 1e3
             sd[moved > UNDETERMINED_UM] = np.inf
         if choice is not None:
             ci, D = choice
@@ -420,8 +424,9 @@ def uncertainty_to_file(fitted: "FittedModel") -> dict:
     if "held" in u and np.asarray(u["held"]).size:
         out["held"] = (f[:, None] * np.asarray(u["held"])).T.tolist()
         out["held_sd_um"] = np.asarray(u["held_sd_um"], dtype=float).tolist()
-    if "choice" in u and np.asarray(u["choice"]).size:
-        out["choice"] = (f[:, None] * np.asarray(u["choice"])).T.tolist()
+    for key in ("choice", "open"):
+        if key in u and np.asarray(u[key]).size:
+            out[key] = (f[:, None] * np.asarray(u[key])).T.tolist()
     if u.get("model_error"):
         out["model_error"] = {n: float(v) * float(_file_factors(fitted.params, [n])[0])
                               for n, v in u["model_error"].items()}
@@ -456,12 +461,15 @@ def _uncertainty_from_file(params: ParameterSet, data, path) -> dict | None:
             raise InputError("'uncertainty' 'held' must be directions over its parameters with one "
                              "'held_sd_um' each", path) from None
         out.update(held=held / f[:, None], held_sd_um=sd)
-    if "choice" in data:    # optional (older files have none): the penalty's splits across classes
-        try:
-            choice = np.asarray(data["choice"], dtype=float).reshape(-1, len(names)).T
-        except (TypeError, ValueError):
-            raise InputError("'uncertainty' 'choice' must be directions over its parameters", path) from None
-        out["choice"] = choice / f[:, None]
+    # optional (older files have none): the penalty's splits across classes; a part's tilts
+    for key in ("choice", "open"):
+        if key in data:
+            try:
+                dirs = np.asarray(data[key], dtype=float).reshape(-1, len(names)).T
+            except (TypeError, ValueError):
+                raise InputError(f"'uncertainty' '{key}' must be directions over its parameters",
+                                 path) from None
+            out[key] = dirs / f[:, None]
     if "model_error" in data:   # optional (older files have none): a drift model's model error
         out["model_error"] = _model_error_from_file(params, data["model_error"], names, path)
     if "setup" in data:     # optional (older files have none): the fitted files' set-ups
