@@ -89,7 +89,9 @@ def generate(st, design, extra: np.ndarray, resid: np.ndarray, chosen_keys: set[
     from ._refusal import moved_axes
     m = st.machine
     out: list[Candidate] = []
+    from ._reversal import reversal_columns
     moved = moved_axes(st)
+    both_ways = reversal_columns(st)
     for k, a in enumerate(m.axis_names):
         if a not in moved:
             continue                        # no term is named on an axis the data do not move
@@ -99,7 +101,7 @@ def generate(st, design, extra: np.ndarray, resid: np.ndarray, chosen_keys: set[
         rotary = m.axis(a).is_rotary
         dirs = st.dirs[reads, k]
         # backlash: both approach directions must be present among readings of this axis's error
-        if np.any(dirs > 0) and np.any(dirs < 0):
+        if a in both_ways:
             def bl(s, k=k, a=a):
                 return (0.5 * s.dirs[:, k] * s.g[a])[:, None]
             out.append(Candidate("rotary_backlash" if rotary else "backlash", a, "step", bl(st),
