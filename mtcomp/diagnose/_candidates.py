@@ -21,12 +21,11 @@ from ..models.terms import (AbbeIRC, Backlash, ChannelDrift, FeedOffset, Periodi
 from ..models.basis import axis_spline
 from . import _analysis as an
 from ._analysis import cv_threshold
+from ._reversal import axis_reads, reversal_columns
 from ._stack import MOTION_LETTERS
 
 #: false-alarm probability below which a spectral line makes a periodic candidate
 LINE_FAP = 1e-3
-#: a reading is one of an axis's own where that axis's error reaches this share of its largest
-READS_SHARE = 0.3
 
 
 @dataclass(eq=False)
@@ -73,23 +72,12 @@ def _feeds(st, sel):
     return np.unique(np.round(f, 6))
 
 
-
-def axis_reads(st, a: str) -> np.ndarray | None:
-    """(n,) bool: the readings of axis ``a``'s error (where its share of the reading is
-    :data:`READS_SHARE` of its largest or more), None where the data do not read it at all."""
-    g = st.g.get(a)
-    if g is None or not g.size or not float(np.max(np.abs(g))) > 0.0:
-        return None
-    return np.abs(g) > READS_SHARE * float(np.max(np.abs(g)))
-
-
 def generate(st, design, extra: np.ndarray, resid: np.ndarray, chosen_keys: set[str]) -> list[Candidate]:
     """Every candidate that the data could support, given the current model (``extra`` columns beyond
     the common block, ``resid`` its full-data residual)."""
     from ._refusal import moved_axes
     m = st.machine
     out: list[Candidate] = []
-    from ._reversal import reversal_columns
     moved = moved_axes(st)
     both_ways = reversal_columns(st)
     for k, a in enumerate(m.axis_names):

@@ -23,13 +23,24 @@ from __future__ import annotations
 
 import numpy as np
 
+#: a reading is one of an axis's own where that axis's error reaches this share of its largest
+READS_SHARE = 0.3
+
+
+def axis_reads(st, a: str) -> np.ndarray | None:
+    """(n,) bool: the readings of axis ``a``'s error (where its share of the reading is
+    :data:`READS_SHARE` of its largest or more), None where the data do not read it at all."""
+    g = st.g.get(a)
+    if g is None or not g.size or not float(np.max(np.abs(g))) > 0.0:
+        return None
+    return np.abs(g) > READS_SHARE * float(np.max(np.abs(g)))
+
 
 def reversal_columns(st) -> dict:
     """axis -> (n,) the column of a constant reversal of that axis (``BL_<axis>``: its positioning
     error steps by half of it with the approach direction, :class:`mtcomp.models.terms.Backlash`), for
-    every axis the data move whose own readings (:func:`._candidates.axis_reads`) state both approach
+    every axis the data move whose own readings (:func:`axis_reads`) state both approach
     directions, linear and rotary alike."""
-    from ._candidates import axis_reads
     from ._refusal import moved_axes
     moved = moved_axes(st)
     out = {}
