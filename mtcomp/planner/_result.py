@@ -119,3 +119,23 @@ class PlanResult:
                      if self.flags[i, j, k]]
             out[i] = ";".join(names)
         return out
+
+
+def first_rows(done: list, n: int) -> PlanResult:
+    """The first n (>= 1) rows of the results ``done`` (in program order) as one PlanResult, taken
+    off the list: the results they span joined, those after left as they are (of a result cut at
+    the n-th row, the rows after stay first, a view). Joining every result and cutting that copied
+    most rows twice: the windows of the next chunk are planned before this one is handed on."""
+    parts, got = [], 0
+    while got < n:
+        r = done.pop(0)
+        if got + len(r) > n:
+            done.insert(0, r.take(slice(n - got, len(r))))
+            r = r.take(slice(0, n - got))
+        parts.append(r)
+        got += len(r)
+    return parts[0] if len(parts) == 1 else PlanResult.concatenate(parts)
+
+
+def as_list(res) -> list:
+    return [r for r in (res if isinstance(res, list) else [res]) if r is not None and len(r)]
