@@ -40,6 +40,9 @@ class PlanResult:
     assumed : (n, w) what each block's correction assumes at zero (:mod:`._assumed`), or None.
     indistinct : (n,) bool, pinned because its correction (or every one of its contour's) is not
         told from zero by its standard error (NodeSet), or None (none is).
+    axis_left : (n,) bool, the tool-axis correction not made (NodeSet), or None (none is).
+    kept : (n, 3) bool, a tip component not corrected in a block corrected in its others
+        (NodeSet), or None (none is).
     """
 
     line: np.ndarray
@@ -66,6 +69,8 @@ class PlanResult:
     standing: np.ndarray | None = None
     assumed: np.ndarray | None = None
     indistinct: np.ndarray | None = None
+    axis_left: np.ndarray | None = None
+    kept: np.ndarray | None = None
 
     FIELDS = ("line", "inserted", "rapid", "nominal", "corrected", "correction", "before", "after",
               "before_axis", "after_axis", "flags", "iterations", "converged", "unknown", "outside",
@@ -80,7 +85,11 @@ class PlanResult:
                           **{f: None if getattr(self, f) is None else getattr(self, f)[sl]
                              for f in self.MASKS},
                           assumed=None if self.assumed is None else self.assumed[sl],
-                          indistinct=None if self.indistinct is None else self.indistinct[sl])
+                          **{f: None if getattr(self, f) is None else getattr(self, f)[sl]
+                             for f in self.FLAGS})
+
+    #: (n,) or (n, 3) flags that may be None (no node has one)
+    FLAGS = ("indistinct", "axis_left", "kept")
 
     #: (n, na) masks that may be None (no node has one)
     MASKS = ("undirected", "standing")
@@ -97,8 +106,8 @@ class PlanResult:
                 masks[f] = np.concatenate([np.zeros(p.held.shape, bool) if getattr(p, f) is None
                                            else getattr(p, f) for p in parts])
         return PlanResult(*out, **masks, assumed=concatenate_rows([p.assumed for p in parts]),
-                          indistinct=concatenate_flags([p.indistinct for p in parts],
-                                                       [len(p) for p in parts]))
+                          **{f: concatenate_flags([getattr(p, f) for p in parts],
+                                                  [len(p) for p in parts]) for f in PlanResult.FLAGS})
 
     def corrected_blocks(self) -> np.ndarray:
         """(n,) bool: the blocks written with their correction on every axis that asked for one (in

@@ -42,7 +42,7 @@ from ._datum import DatumRule
 from ._ram import RamRule
 from ._result import PlanResult, as_list, first_rows
 from ._rotary_grid import rotary_columns, round_rotary, solve_with_rotary_fixed
-from ._uncertainty import in_sd
+from ._partial import PartialRule
 from ._small import a_x, any_rows, at_b, down_columns, gram, row_max_abs, row_norm
 from .problem import CompensationProblem, PlannerOptions
 from ..models.region import outside_bounds, support_bounds
@@ -88,6 +88,8 @@ class Planner:
         self.gate = ContourGate(self.options.max_correction_sd_um, self.ev.has_uncertainty)
         #: a part's datum outside the support leaves the blocks referenced to it unsure (:mod:`._datum`)
         self.datum = DatumRule(self)
+        #: what the data do not determine of a correction is not made, the rest is (:mod:`._partial`)
+        self.partial = PartialRule(problem, self.options.max_correction_sd_um)
 
     # ------------------------------------------------------------------ nodes
     def _context(self, feed, dirs, n, tool_length=None, extra=None):
@@ -136,7 +138,8 @@ class Planner:
         datum_out = self.datum.outside(datum, tool_length)
         sd, _, _, each = self._sd_um(q, ctx, unknown, outside, datum, datum_out)
         correction = None if each is None else self.ev.correction_um(q, ctx, datum)
-        return unknown, outside, sd, self._in_sd(each, correction)
+        z = self.partial.judged(None if each is None else each[:, :3], correction)[0]
+        return unknown, outside, sd, None if z is None else z.max(axis=1)
 
     def _pinned(self, unknown, outside, sd_um):
         pinned = any_rows(unknown)
@@ -155,7 +158,7 @@ class Planner:
         (:meth:`._datum.DatumRule.outside`): where a limit is asked, their standard error is
         infinite (unless they are left uncorrected for an unknown axis or the ram already); (n, 3)
         or None (no limit asked), each tip component's standard error (NaN where not evaluated),
-        for :meth:`_in_sd`."""
+        then on 5-axis machines each tool-axis component's (urad), for :meth:`PartialRule.judged`."""
         sd = np.full(q.shape[0], np.nan)
         each = None
         assumed = self.ev.assumed
@@ -173,22 +176,16 @@ class Planner:
                                qt.shape[0], self._split, *args)
             both = np.concatenate(parts)
             sd[todo] = both[:, :3].max(axis=1)
+            k = 3 + self.ev.axis_columns            # the tool axis's (urad) after the tip's
             if limit:
-                each = np.full((q.shape[0], 3), np.nan)
-                each[todo] = both[:, :3]
+                each = np.full((q.shape[0], k), np.nan)
+                each[todo] = both[:, :k]
             if out is not None:
-                out[todo] = both[:, 3:]
+                out[todo] = both[:, k:]
             if limit and datum_out is not None:
                 gated = todo & datum_out
                 sd[gated] = np.inf
         return sd, out, gated, each
-
-    @staticmethod
-    def _in_sd(each, correction_um):
-        """(n,) the corrections (n, rows) um (the tip rows: a plan's ``b0``) in their standard
-        errors ``each`` (:meth:`_sd_um`; None: no limit asked, and None is returned): under two,
-        nothing tells a correction from none (:func:`._uncertainty.in_sd`)."""
-        return None if each is None else in_sd(correction_um[:, :3], each)
 
     def _solve_free(self, q, ctx, reference) -> Linearization:
         parts = split_rows(self._solve_free_part, q.shape[0], self._split, q, ctx, reference)
@@ -240,10 +237,11 @@ class Planner:
         self.datum.note(datum, gated, line)
         links = self.links.arrays(q, dirs, None if self._last_end is None else self._last_end[0])
         lin = self._solve_free(q, ctx, self._reference(datum, ctx))
+        in_sd, axis_left = self.partial.judged(each, lin.b0)
         nodes = NodeSet(q, ctx, exempt, line, np.zeros(n, bool), rapid, unknown, outside,
                         pinned, sd, np.zeros(n, bool), np.zeros(n, bool),
-                        *(links or (None, None, None)), assumed=assumed,
-                        in_sd=self._in_sd(each, lin.b0))
+                        *(links or (None, None, None)), assumed=assumed, in_sd=in_sd,
+                        axis_left=axis_left)
         nodes, lin = self.gate.feed(nodes, lin, final=True)     # the arrays are whole contours
         if n:
             self._last_end = (nodes.q[-1], lin.x[-1])
@@ -277,7 +275,7 @@ class Planner:
         self.datum.note(chunk.datum, gated, chunk.line)
         self.ram.note(end, outside, pinned, chunk.tool_length, ~any_rows(unknown))
         lin_end = self._solve_free(end, ctx, ref := self._reference(chunk.datum, ctx))
-        in_sd = self._in_sd(each, lin_end.b0)
+        in_sd, axis_left = self.partial.judged(each, lin_end.b0)
         first = self._last_end is None
         # no step bound into a rapid, a hole, or a move that starts where the program has not said
         # (after a home move or a tool change: the machine did not come along the cut)
@@ -295,11 +293,12 @@ class Planner:
         skip[ramped] = True
         inner = merged(self._subdivide(start, end, x_start, lin_end.x, ctx, ref, skip), ramp)
         counts = np.ones(nrows, np.int64)
+        each_row = {"assumed": assumed, "in_sd": in_sd, "axis_left": axis_left}   # None or (n, ...)
         if inner is None:
             links = self.links.chunk(chunk, end, np.arange(nrows), np.ones(nrows, bool), first, cycle)
             nodes = NodeSet(end, ctx, exempt, np.asarray(chunk.line), np.zeros(nrows, bool), rapid,
                             unknown, outside, pinned, sd, cut_start, np.zeros(nrows, bool),
-                            *(links or (None, None, None)), assumed=assumed, in_sd=in_sd)
+                            *(links or (None, None, None)), **each_row)
             return nodes, lin_end, counts
         rows_i, t_i, q_i, lin_i = inner
         np.add.at(counts, rows_i, 1)
@@ -324,8 +323,7 @@ class Planner:
                         placed(outside, out_i, pos_end, pos_i),
                         placed(pinned, pin_i, pos_end, pos_i), sd[row_sorted], cut_all,
                         np.zeros(row_sorted.size, bool), *(links or (None, None, None)),
-                        assumed=None if assumed is None else assumed[row_sorted],
-                        in_sd=None if in_sd is None else in_sd[row_sorted])
+                        **{k: None if v is None else v[row_sorted] for k, v in each_row.items()})
         lin = Linearization(*(placed(getattr(lin_end, f), getattr(lin_i, f), pos_end, pos_i)
                               for f in Linearization.FIELDS))
         return nodes, lin, counts
@@ -449,6 +447,7 @@ class Planner:
         S = self.ev.S
         before = down_columns(np.divide, lin.b0, S)
         after = down_columns(np.divide, after_w, S, out=after_w)    # a new array: in place
+        self.partial.restore(nodes, before, after)
         five = self.problem.correct_orientation
         self._done += len(nodes)
         self._tick()
@@ -458,7 +457,8 @@ class Planner:
                           nodes.unknown, nodes.outside, nodes.pinned, nodes.sd_um, nodes.gated,
                           held, undirected=undirected_axes(nodes),
                           standing=standing_axes(nodes), assumed=nodes.assumed,
-                          indistinct=nodes.indistinct)
+                          indistinct=nodes.indistinct, axis_left=nodes.axis_left,
+                          kept=None if nodes.kept is None else np.isfinite(nodes.kept))
 
     def _tick(self):
         cb = self.options.progress
@@ -681,6 +681,7 @@ class Planner:
         node is committed; otherwise qp keeps the last ``overlap`` (or fewer) for the next call
         (``join=False``: qp's results as the list of its committed runs, not copied into one)."""
         o = self.options
+        self.partial.apply(nodes, lin)
         if o.method != "qp":
             x = self._round_rotary(lin, lin.x)
             return self._commit(nodes, lin, x, desired=x)
