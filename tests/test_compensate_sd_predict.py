@@ -132,9 +132,8 @@ def test_a_contour_with_one_correction_told_from_zero_is_corrected_whole():
     assert res_a.pinned.all() and res_a.indistinct.all()
     res_b = _plan(fitted, qb, datum=np.tile(datum, (6, 1)))
     assert not res_b.pinned.any()
-    # X's part is within two of its standard errors of zero on every block of the contour: left as
-    # it is (tests/test_compensate_axis_gate.py), Y's corrected
-    np.testing.assert_allclose(res_b.correction[:, 0], 0.0, rtol=0, atol=1e-12)
+    # X's part corrected too, 4 um per m (the tip lands where the program meant it on the model)
+    np.testing.assert_allclose(res_b.correction[:4, 0], -4e-3 * xa / 1000.0, rtol=0, atol=2e-5)
     np.testing.assert_allclose(res_b.correction[4:, 1], -40e-3 * qb[4:, 1] / 1000.0, rtol=0, atol=2e-5)
 
 

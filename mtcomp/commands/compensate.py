@@ -57,10 +57,9 @@ def add_arguments(parser):
     parser.add_argument("--max-correction-sd-um", type=float, metavar="SD", default=None,
                         help="leave a block uncorrected where its correction's standard error (from "
                              "the model's covariance) exceeds SD um: the model is unsure there "
-                             f"(default {DEFAULT_MAX_CORRECTION_SD_UM:g}; 0: no limit); a tool-axis "
-                             "correction over SD / W urad (W: --orientation-weight), and any "
-                             "correction or component of the tip within two standard errors of "
-                             "zero, is not made either")
+                             f"(default {DEFAULT_MAX_CORRECTION_SD_UM:g}; 0: no limit); nor a correction "
+                             "within two standard errors of zero, nor a tool-axis correction over "
+                             "SD / W urad (W: --orientation-weight)")
     parser.add_argument("--units", choices=("mm", "inch"), default=None,
                         help="what a program without G20/G21 is written in (default: the machine "
                              "file's 'units', else mm with a warning)")

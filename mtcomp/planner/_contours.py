@@ -72,13 +72,8 @@ def quiet_contours(member, start, in_sd, carry_open=False, carried_whole=True) -
     members when every member judged is, at least one was judged, and (for the contour carried from
     the batch before, ``carry_open``) the batch holds it whole (``carried_whole``). A contour with
     one correction told from zero is corrected whole: left in part it would step where its
-    correction stops (module docstring). member, start, carry_open : as :func:`gated_contours`.
-    ``in_sd`` (n, 3), each tip component's (:func:`._uncertainty.in_sd_each`): (n, 3) bool, the
-    rule per component (a node is left whole where it holds in all three)."""
+    correction stops (module docstring). member, start, carry_open : as :func:`gated_contours`."""
     member, in_sd = np.asarray(member, bool), np.asarray(in_sd, dtype=float)
-    if in_sd.ndim == 2:
-        return np.stack([quiet_contours(member, start, in_sd[:, k], carry_open, carried_whole)
-                         for k in range(in_sd.shape[1])], axis=1).reshape(in_sd.shape)
     if member.size == 0:
         return np.zeros(0, bool)
     with np.errstate(invalid="ignore"):
@@ -141,8 +136,7 @@ class ContourGate:
             return np.zeros(len(member), bool)
         gated = gated_contours(member, start, self._over(sd_um), *self._carry())[0]
         if in_sd is not None:
-            quiet = quiet_contours(member, start, in_sd, self._carry()[0], self._held is not None)
-            gated |= quiet if quiet.ndim == 1 else quiet.all(axis=1)
+            gated |= quiet_contours(member, start, in_sd, self._carry()[0], self._held is not None)
         return gated
 
     def feed(self, nodes: NodeSet, lin: Linearization, final: bool = False):
@@ -194,17 +188,9 @@ class ContourGate:
 
 def _leave_quiet(nodes: NodeSet, quiet) -> NodeSet:
     """``nodes`` with the ``quiet`` ones (:func:`quiet_contours`; None: none) not pinned already
-    pinned and marked ``indistinct``; per component ((n, 3)): those quiet in all three so, and
-    in a node corrected in the others, the quiet components marked ``kept`` (their correction is
-    not made: :mod:`._partial`)."""
+    pinned and marked ``indistinct``."""
     if quiet is not None:
-        part = None
-        if quiet.ndim == 2:
-            quiet, part = quiet.all(axis=1), quiet
         quiet = quiet & ~nodes.pinned
         nodes.indistinct = quiet
         nodes.pinned = nodes.pinned | quiet
-        if part is not None:
-            part = part & ~nodes.pinned[:, None]
-            nodes.kept = np.where(part, 0.0, np.nan) if part.any() else None
     return nodes

@@ -34,18 +34,14 @@ class NodeSet:
         arc under cutter radius compensation) and their kind, or all None when no node has one.
     assumed : (n, w) what each node's correction assumes at zero (:mod:`._assumed`), or None when
         the model assumes nothing.
-    in_sd : (n, 3) the node's correction in its standard errors, each component of the tip
-        (:mod:`._contours`: under two it is not told from zero); NaN rows where not judged (its
-        standard error not evaluated or infinite, a correction under 0.01 um), or None (no limit,
-        no covariance).
+    in_sd : (n,) the node's correction in its standard errors, the largest over the tip's
+        components (:mod:`._contours`: under two it is not told from zero); NaN where not judged
+        (its standard error not evaluated or infinite, a correction under 0.01 um), or None (no
+        limit, no covariance).
     indistinct : (n,) bool, pinned because its correction, or every one of its contour's, is not
         told from zero by its standard error (:mod:`._contours`), or None (none is).
     axis_left : (n,) bool, a 5-axis node whose tool-axis correction is not made (:mod:`._partial`:
         its rotary axes keep their words), or None (none is).
-    kept : (n, 3) the tip components of a node corrected in its others whose correction is not
-        told from zero (:mod:`._contours`): 0 as marked there, the correction left (um) once
-        :mod:`._partial` has set the plan's target to it; NaN where the component is corrected,
-        or None (none is).
     """
 
     q: np.ndarray
@@ -67,13 +63,12 @@ class NodeSet:
     in_sd: np.ndarray | None = None
     indistinct: np.ndarray | None = None
     axis_left: np.ndarray | None = None
-    kept: np.ndarray | None = None
 
     FIELDS = ("q", "context", "exempt", "line", "inserted", "rapid", "unknown", "outside", "pinned",
               "sd_um", "cut_start", "gated")
     LINKS = ("link_lo", "link_hi", "link_kind")
     #: (n,) fields that may be None, and what a None stands for when joined with others
-    FLAGS = {"in_sd": np.nan, "indistinct": False, "axis_left": False, "kept": np.nan}
+    FLAGS = {"in_sd": np.nan, "indistinct": False, "axis_left": False}
 
     def __len__(self):
         return int(self.q.shape[0])
@@ -147,9 +142,7 @@ def concatenate_flags(parts: list, lengths: list, fill=False) -> np.ndarray | No
     when every part is None."""
     if all(a is None for a in parts):
         return None
-    tail = next(a for a in parts if a is not None).shape[1:]      # (n_i, 3) flags too
-    return np.concatenate([np.full((k,) + tail, fill) if a is None else a
-                           for a, k in zip(parts, lengths)])
+    return np.concatenate([np.full(k, fill) if a is None else a for a, k in zip(parts, lengths)])
 
 
 def _no_links(shape):

@@ -41,8 +41,6 @@ class PlanResult:
     indistinct : (n,) bool, pinned because its correction (or every one of its contour's) is not
         told from zero by its standard error (NodeSet), or None (none is).
     axis_left : (n,) bool, the tool-axis correction not made (NodeSet), or None (none is).
-    kept : (n, 3) bool, a tip component not corrected in a block corrected in its others
-        (NodeSet), or None (none is).
     """
 
     line: np.ndarray
@@ -70,7 +68,6 @@ class PlanResult:
     assumed: np.ndarray | None = None
     indistinct: np.ndarray | None = None
     axis_left: np.ndarray | None = None
-    kept: np.ndarray | None = None
 
     FIELDS = ("line", "inserted", "rapid", "nominal", "corrected", "correction", "before", "after",
               "before_axis", "after_axis", "flags", "iterations", "converged", "unknown", "outside",
@@ -88,8 +85,8 @@ class PlanResult:
                           **{f: None if getattr(self, f) is None else getattr(self, f)[sl]
                              for f in self.FLAGS})
 
-    #: (n,) or (n, 3) flags that may be None (no node has one)
-    FLAGS = ("indistinct", "axis_left", "kept")
+    #: (n,) flags that may be None (no node has one)
+    FLAGS = ("indistinct", "axis_left")
 
     #: (n, na) masks that may be None (no node has one)
     MASKS = ("undirected", "standing")

@@ -62,7 +62,6 @@ class CorrectionUncertainty:
             J = J - J_reference
         return self.fitted.tip_sd_um(J, self.factor, self.open, extra, self.choice, components=True)
 
-
     def orientation(self, J: np.ndarray) -> np.ndarray:
         """(n, 3) urad: each component's standard error of the tool-axis deviations whose
         Jacobians with respect to the parameters are J (n, 3, n_params), rad, under the same
@@ -96,19 +95,11 @@ def orientation_left(axis_urad: np.ndarray, each: np.ndarray, limit_urad: float)
 def in_sd(correction_um: np.ndarray, each: np.ndarray) -> np.ndarray:
     """(n,) the corrections ``correction_um`` (n, 3) (tip deviation less its reference's, um) in
     their own standard errors ``each`` (n, 3) (:meth:`CorrectionUncertainty.components`): the
-    largest over the tip's components of :func:`in_sd_each`; NaN (not judged) where some standard
-    error is infinite (the correction is over any limit) or the correction is under
-    :data:`UNDETERMINED_UM` in every component (written or not, the pose is the same)."""
-    return in_sd_each(correction_um, each).max(axis=1)
-
-
-def in_sd_each(correction_um: np.ndarray, each: np.ndarray) -> np.ndarray:
-    """(n, 3) each component of the corrections ``correction_um`` (n, 3) in its own standard error
-    ``each`` (n, 3): |the correction| / its standard error (0 where it is 0); a row of NaN where
-    :func:`in_sd` does not judge the correction. A component under :data:`SMALL_IN_SD` of a
-    correction judged is not told from zero (docs/planner.md)."""
+    largest over the tip's components of |its correction| / its standard error; NaN (not judged)
+    where some standard error is infinite (the correction is over any limit) or the correction is
+    under :data:`UNDETERMINED_UM` in every component (written or not, the pose is the same)."""
     size = np.abs(np.asarray(correction_um, dtype=float))
     with np.errstate(divide="ignore", invalid="ignore"):
-        z = np.where(size > 0, size / each, 0.0)
+        z = np.where(size > 0, size / each, 0.0).max(axis=1)
     z[np.isinf(each).any(axis=1) | (size.max(axis=1) < UNDETERMINED_UM)] = np.nan
     return z

@@ -138,8 +138,8 @@ class Planner:
         datum_out = self.datum.outside(datum, tool_length)
         sd, _, _, each = self._sd_um(q, ctx, unknown, outside, datum, datum_out)
         correction = None if each is None else self.ev.correction_um(q, ctx, datum)
-        z = self.partial.judged(None if each is None else each[:, :3], correction)[0]
-        return unknown, outside, sd, None if z is None else z.max(axis=1)
+        return unknown, outside, sd, self.partial.judged(None if each is None else each[:, :3],
+                                                         correction)[0]
 
     def _pinned(self, unknown, outside, sd_um):
         pinned = any_rows(unknown)
@@ -447,7 +447,6 @@ class Planner:
         S = self.ev.S
         before = down_columns(np.divide, lin.b0, S)
         after = down_columns(np.divide, after_w, S, out=after_w)    # a new array: in place
-        self.partial.restore(nodes, before, after)
         five = self.problem.correct_orientation
         self._done += len(nodes)
         self._tick()
@@ -457,8 +456,7 @@ class Planner:
                           nodes.unknown, nodes.outside, nodes.pinned, nodes.sd_um, nodes.gated,
                           held, undirected=undirected_axes(nodes),
                           standing=standing_axes(nodes), assumed=nodes.assumed,
-                          indistinct=nodes.indistinct, axis_left=nodes.axis_left,
-                          kept=None if nodes.kept is None else np.isfinite(nodes.kept))
+                          indistinct=nodes.indistinct, axis_left=nodes.axis_left)
 
     def _tick(self):
         cb = self.options.progress
