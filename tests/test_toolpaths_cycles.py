@@ -33,11 +33,13 @@ M30
 """
 
 
-def _write(path, shift=SHIFT, stats=None):
+def _write(path, shift=SHIFT, stats=None, machine=XFYZ):
+    """The program corrected by ``shift`` on every known axis (rotary axes beyond it by 0)."""
     out = path.with_name("out.nc")
+    shift = np.concatenate([shift, np.zeros(len(machine.axis_names) - len(shift))])
     corr = [(c, c.end + np.where(c.known, shift, 0.0), np.ones(len(c), int))
-            for c in iter_segment_chunks(path, XFYZ)]
-    write_corrected(path, out, XFYZ, iter(corr), stats=stats)
+            for c in iter_segment_chunks(path, machine)]
+    write_corrected(path, out, machine, iter(corr), stats=stats)
     return out.read_text().splitlines()
 
 
@@ -143,7 +145,8 @@ def test_cycle_at_unknown_position_passes_through(tmp_path):
 @pytest.mark.parametrize("text, line, words", [
     ("G0 X0 Y0 Z10\nG91 G99 G81 X5 Z-3 R-8 F100\nX5\n", 3, "continued without G98"),
     ("G0 X0 Y0\nG91 G98 G81 X5 Z-3 R-8 F100\n", 2, "from a position the program has not given"),
-    ("G0 X0 Y0 Z10\nG98 G81 X5 Z-3 R2 A10 F100\n", 2, "rotary axis word A"),
+    ("G0 X0 Y0 Z10\nG91 G98 G81 X5 Z-3 R-8 A10 F100\n", 2,
+     "incremental (G91) drilling cycle G81: a rotary axis word A on the line"),
     ("G0 X0 Y0 Z10\nG98 G81 X5 Z-3 R2 L0 F100\n", 2, "repeat count 0"),
 ])
 def test_unclear_incremental_cycles_are_refused(tmp_path, text, line, words):
@@ -245,3 +248,50 @@ def test_cycle_in_another_plane_leaves_its_drilling_axis_unknown(tmp_path, text,
     # the replay (tests/replay.py, the plane's drilling axis from LinuxCNC's source) moves both alike
     compare(p.read_bytes(), "\n".join(out).encode() + b"\n",
             Tolerance(axis_mm=0.005, axis_deg=0.01, path_mm=0.01))
+
+
+CBFXYZ = load_machine("cbfxyz")          # axes X Y Z B C
+#: 5-axis drilling: the first hole at B0 C0 is corrected; the second line turns B, so it and the
+#: rest of its series pass through as written (where the control turns B and along which axis it
+#: then drills is its own rule); X Y Z are not known after them, B and C are
+ROTARY_SERIES = """G21 G90 G17
+G0 X0 Y0 Z10 B0 C0
+G98 G81 X5 Y5 Z-3 R2 F100
+X10 Z-4 B90. R2
+X20 Y5
+G80
+G0 X30 Y5
+G0 Z10
+M30
+"""
+
+
+def test_cycle_series_turning_a_rotary_axis_passes_through(tmp_path):
+    p = tmp_path / "in.nc"
+    p.write_text(ROTARY_SERIES)
+    blocks = read_program(p, CBFXYZ).blocks
+    assert [b.line for b in blocks] == [2, 3, 7, 8]
+    # after the series X Y Z are not known until given again; B stands at 90 deg
+    assert blocks[2].known.tolist() == [True, True, False, True, True]
+    assert blocks[2].start[3] == pytest.approx(np.pi / 2, abs=1e-12)
+    stats = {}
+    out = _write(p, stats=stats, machine=CBFXYZ)
+    src = ROTARY_SERIES.splitlines()
+    assert out[2] == "G98 G81 X5.0012 Y4.9979 Z-2.9967 R2.0033 F100"
+    assert out[3:6] == src[3:6]
+    # no Z added to the rapid: the program had not given Z again after the cycle
+    assert out[6:8] == ["G0 X30.0012 Y4.9979", "G0 Z10.0033"]
+    assert stats["cycle_lines"] == 2 and stats["cycle_blocks"] == 1
+
+
+@pytest.mark.parametrize("line", ["X10 B90.", "X10 Z-4 B90."])
+def test_rotary_cycle_line_on_a_corrected_cycles_levels_is_refused(tmp_path, line):
+    # the passed line would drill from the R plane (or to the bottom) the output's cycle holds,
+    # corrected for the hole before it: refused, naming the level it does not give
+    p = tmp_path / "in.nc"
+    p.write_text(f"G21 G90 G17\nG0 X0 Y0 Z10 B0 C0\nG98 G81 X5 Y5 Z-3 R2 F100\n{line}\nG80\n")
+    with pytest.raises(InputError) as e:
+        _write(p, machine=CBFXYZ)
+    msg = str(e.value)
+    assert ":4:" in msg and "passed through uncorrected without its own R" in msg
+    assert "R2.0033" in msg and "\n" not in msg

@@ -93,6 +93,24 @@ def test_words_added_to_a_g91_block_are_increments(tmp_path):
     assert lines[5] == "N40 G91 G03 X-10 Y-0.0010 *"
 
 
+def test_machine_move_before_any_path_function_passes_through(tmp_path):
+    """`N10 G90 Z-25. M91 *` before any G00/G01 (Siemens NX's Mikron post begins so): a straight
+    move to a machine position, at rapid or at the feed alike, passed through as written; Z is not
+    known after it (machine coordinates), so N30 writes X and Y only and N40's Z is corrected;
+    the path function is still not in force after it (N20 without G00-G03 is refused)."""
+    text = ("%T G71 *\nN10 G90 Z-25. M91 *\nN20 G0 X+50 Y-10 *\nN30 X+60 *\nN40 Z+110 *\n"
+            "N99999999 %T G71 *\n")
+    blocks = read_program(_write(tmp_path, text), XFYZ).blocks
+    assert [(b.line, b.known.tolist()) for b in blocks] == [
+        (3, [True, True, False]), (4, [True, True, False]), (5, [True, True, True])]
+    lines, _notes = _written_with(tmp_path, text, lambda c: np.where(c.known, 0.001, 0.0))
+    assert lines[1:5] == ["N10 G90 Z-25. M91 *", "N20 G0 X+50.0010 Y-9.9990 *",
+                          "N30 X+60.0010 *", "N40 Z+110.0010 *"]
+    p = _write(tmp_path, text.replace("N20 G0 X+50", "N20 X+50"), "q.i")
+    assert_refused(tmp_path, p, "q.i:3:", "axis words without G00, G01, G02 or G03 in force",
+                   "(block N20)")
+
+
 #: a block of the program and what its refusal names
 REFUSED = {
     "G05 X+10 Y+10": "circle without a direction of rotation (G05)",

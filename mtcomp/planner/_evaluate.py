@@ -100,6 +100,8 @@ class Evaluator:
         self.has_uncertainty = self.uncertainty.known
         #: (function name, datum row, tool length) -> the function there (:meth:`_at_datum`)
         self._datum_values: dict = {}
+        #: why some corrections' standard errors were infinite (:meth:`_note_causes`)
+        self.infinite_causes: set = set()
         #: what the model's corrections assume at zero (None: nothing), :mod:`._assumed`
         self.assumed = Assumed.of(problem.fitted, problem.machine)
 
@@ -139,12 +141,37 @@ class Evaluator:
         J0 = None if datum is None else self._at_datum("tip_pjacobian_function", datum, ctx)
         if sd:
             out[:, :3] = self.uncertainty.components(J, J0)
+            self._note_causes(J if J0 is None else J - J0, out[:, :3])
             if k:
                 Ja = evaluate(self.model, "axis_pjacobian_function", fitted.clamp(q)[0], self.p, ctx)[0]
                 out[:, 3:6] = self.uncertainty.orientation(Ja)
         if self.assumed:
             out[:, 3 + k:] = self.assumed.blocks(q, J if J0 is None else J - J0)
         return out
+
+    def _note_causes(self, J, each) -> None:
+        """Add to :attr:`infinite_causes` why some of the standard errors ``each`` (n, 3) of the
+        tip deviations of Jacobian J are infinite: ``"undetermined"`` where the deviation moves
+        with values the data left undetermined (MODEL.json ``uncertainty.undetermined``),
+        ``"choice"`` where it rests on the penalty's split of what the data cannot tell apart
+        (``uncertainty.choice``) and not on undetermined values."""
+        inf = np.isinf(each).any(axis=1)
+        if not inf.any() or self.infinite_causes >= {"undetermined", "choice"}:
+            return
+        found = set()
+        u = self.uncertainty
+        if u.choice is None:
+            found.add("undetermined")
+        elif u.open is None:
+            found.add("choice")
+        else:
+            alone = np.isinf(self.problem.fitted.tip_sd_um(J[inf], u.factor, u.open))
+            if alone.any():
+                found.add("undetermined")
+            if not alone.all():
+                found.add("choice")
+        with self._count_lock:
+            self.infinite_causes |= found
 
     def correction_um(self, q, ctx, datum=None) -> np.ndarray:
         """(n, 3) um: the correction at q, the tip deviation less that at the part's datum

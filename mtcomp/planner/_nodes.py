@@ -42,6 +42,8 @@ class NodeSet:
         told from zero by its standard error (:mod:`._contours`), or None (none is).
     axis_left : (n,) bool, a 5-axis node whose tool-axis correction is not made (:mod:`._partial`:
         its rotary axes keep their words), or None (none is).
+    unread : (n,) bool, its standard error made infinite because an axis its data read from one
+        side only approaches it from the other or a side not known (:mod:`._direction`), or None.
     """
 
     q: np.ndarray
@@ -63,12 +65,13 @@ class NodeSet:
     in_sd: np.ndarray | None = None
     indistinct: np.ndarray | None = None
     axis_left: np.ndarray | None = None
+    unread: np.ndarray | None = None
 
     FIELDS = ("q", "context", "exempt", "line", "inserted", "rapid", "unknown", "outside", "pinned",
               "sd_um", "cut_start", "gated")
     LINKS = ("link_lo", "link_hi", "link_kind")
     #: (n,) fields that may be None, and what a None stands for when joined with others
-    FLAGS = {"in_sd": np.nan, "indistinct": False, "axis_left": False}
+    FLAGS = {"in_sd": np.nan, "indistinct": False, "axis_left": False, "unread": False}
 
     def __len__(self):
         return int(self.q.shape[0])

@@ -41,6 +41,8 @@ class PlanResult:
     indistinct : (n,) bool, pinned because its correction (or every one of its contour's) is not
         told from zero by its standard error (NodeSet), or None (none is).
     axis_left : (n,) bool, the tool-axis correction not made (NodeSet), or None (none is).
+    unread : (n,) bool, left uncorrected because an axis its data read from one side only
+        approaches it from the other or a side not known (NodeSet), or None (none is).
     """
 
     line: np.ndarray
@@ -68,6 +70,7 @@ class PlanResult:
     assumed: np.ndarray | None = None
     indistinct: np.ndarray | None = None
     axis_left: np.ndarray | None = None
+    unread: np.ndarray | None = None
 
     FIELDS = ("line", "inserted", "rapid", "nominal", "corrected", "correction", "before", "after",
               "before_axis", "after_axis", "flags", "iterations", "converged", "unknown", "outside",
@@ -85,11 +88,10 @@ class PlanResult:
                           **{f: None if getattr(self, f) is None else getattr(self, f)[sl]
                              for f in self.FLAGS})
 
-    #: (n,) flags that may be None (no node has one)
-    FLAGS = ("indistinct", "axis_left")
-
     #: (n, na) masks that may be None (no node has one)
     MASKS = ("undirected", "standing")
+    #: (n,) flags that may be None (no node has one)
+    FLAGS = ("indistinct", "unread", "axis_left")
 
     @staticmethod
     def concatenate(parts: list["PlanResult"]) -> "PlanResult":
@@ -102,9 +104,9 @@ class PlanResult:
             if any(getattr(p, f) is not None for p in parts):
                 masks[f] = np.concatenate([np.zeros(p.held.shape, bool) if getattr(p, f) is None
                                            else getattr(p, f) for p in parts])
-        return PlanResult(*out, **masks, assumed=concatenate_rows([p.assumed for p in parts]),
-                          **{f: concatenate_flags([getattr(p, f) for p in parts],
-                                                  [len(p) for p in parts]) for f in PlanResult.FLAGS})
+        flags = {f: concatenate_flags([getattr(p, f) for p in parts], [len(p) for p in parts])
+                 for f in PlanResult.FLAGS}
+        return PlanResult(*out, **masks, assumed=concatenate_rows([p.assumed for p in parts]), **flags)
 
     def corrected_blocks(self) -> np.ndarray:
         """(n,) bool: the blocks written with their correction on every axis that asked for one (in

@@ -39,6 +39,7 @@ from ._pointwise import Linearization, solve_newton, solve_pinv
 from ._qp import WindowQP, never_worse_rows, prefetch_solver, reachable_nodes
 from ._ramp import merged, ramp_nodes
 from ._datum import DatumRule
+from ._direction import DirectionRule, note_unsure, unsure_rows
 from ._ram import RamRule
 from ._result import PlanResult, as_list, first_rows
 from ._rotary_grid import rotary_columns, round_rotary, solve_with_rotary_fixed
@@ -88,7 +89,8 @@ class Planner:
         self.gate = ContourGate(self.options.max_correction_sd_um, self.ev.has_uncertainty)
         #: a part's datum outside the support leaves the blocks referenced to it unsure (:mod:`._datum`)
         self.datum = DatumRule(self)
-        #: what the data do not determine of a correction is not made, the rest is (:mod:`._partial`)
+        self.direction = DirectionRule(self)      # an approach its data never read (_direction)
+        #: a tool axis the data do not determine is not corrected (:mod:`._partial`)
         self.partial = PartialRule(problem, self.options.max_correction_sd_um)
 
     # ------------------------------------------------------------------ nodes
@@ -135,8 +137,8 @@ class Planner:
         unknown = ~np.asarray(known, bool)
         outside = self.outside_support(q, ~unknown, tool_length)
         ctx = self._context(feed, np.asarray(dirs), q.shape[0], tool_length)
-        datum_out = self.datum.outside(datum, tool_length)
-        sd, _, _, each = self._sd_um(q, ctx, unknown, outside, datum, datum_out)
+        inf = unsure_rows(self, datum, tool_length, dirs)[2]
+        sd, _, _, each = self._sd_um(q, ctx, unknown, outside, datum, inf)
         correction = None if each is None else self.ev.correction_um(q, ctx, datum)
         return unknown, outside, sd, self.partial.judged(None if each is None else each[:, :3],
                                                          correction)[0]
@@ -153,12 +155,13 @@ class Planner:
         """((n,) the standard error of each block's correction (um), NaN for blocks that are not
         corrected anyway (an unknown axis, outside the support) and when no limit is asked; (n, w)
         what the correction assumes at zero there (:meth:`Evaluator.correction_sd_assumed`), or None
-        when the model assumes nothing; (n,) bool or None, the blocks gated for their datum).
-        ``datum_out`` (n,) bool or None: the blocks whose datum lies outside the support
-        (:meth:`._datum.DatumRule.outside`): where a limit is asked, their standard error is
-        infinite (unless they are left uncorrected for an unknown axis or the ram already); (n, 3)
-        or None (no limit asked), each tip component's standard error (NaN where not evaluated),
-        then on 5-axis machines each tool-axis component's (urad), for :meth:`PartialRule.judged`."""
+        when the model assumes nothing; (n,) bool or None, the blocks gated for ``datum_out``).
+        ``datum_out`` (n,) bool or None: the blocks whose datum lies outside the support, or whose
+        approach the data never read (:func:`._direction.unsure_rows`): where a limit is asked,
+        their standard error is infinite (unless left uncorrected for an unknown axis or the ram
+        already); (n, 3) or None (no limit asked), each tip component's standard error (NaN where
+        not evaluated), then on 5-axis machines each tool-axis component's (urad), for
+        :meth:`PartialRule.judged`."""
         sd = np.full(q.shape[0], np.nan)
         each = None
         assumed = self.ev.assumed
@@ -231,17 +234,17 @@ class Planner:
         outside = self.outside_support(q, ~unknown)
         ctx = self._context(feed, dirs, n)
         datum = None if datum is None else np.broadcast_to(np.asarray(datum, dtype=float), q.shape)
-        datum_out = self.datum.outside(datum)
-        sd, assumed, gated, each = self._sd_um(q, ctx, unknown, outside, datum, datum_out)
+        datum_out, unread, inf = unsure_rows(self, datum, None, dirs)
+        sd, assumed, gated, each = self._sd_um(q, ctx, unknown, outside, datum, inf)
         pinned = self._pinned(unknown, outside, sd)
-        self.datum.note(datum, gated, line)
+        unread = note_unsure(self, datum, dirs, gated, datum_out, unread, line)
         links = self.links.arrays(q, dirs, None if self._last_end is None else self._last_end[0])
         lin = self._solve_free(q, ctx, self._reference(datum, ctx))
         in_sd, axis_left = self.partial.judged(each, lin.b0)
         nodes = NodeSet(q, ctx, exempt, line, np.zeros(n, bool), rapid, unknown, outside,
                         pinned, sd, np.zeros(n, bool), np.zeros(n, bool),
                         *(links or (None, None, None)), assumed=assumed, in_sd=in_sd,
-                        axis_left=axis_left)
+                        axis_left=axis_left, unread=unread)
         nodes, lin = self.gate.feed(nodes, lin, final=True)     # the arrays are whole contours
         if n:
             self._last_end = (nodes.q[-1], lin.x[-1])
@@ -269,10 +272,10 @@ class Planner:
             self._after_cycle = bool(cycle[-1])
         unknown = ~known
         outside = self.outside_support(end, known, chunk.tool_length)
-        datum_out = self.datum.outside(chunk.datum, chunk.tool_length)
-        sd, assumed, gated, each = self._sd_um(end, ctx, unknown, outside, chunk.datum, datum_out)
+        datum_out, unread, inf = unsure_rows(self, chunk.datum, chunk.tool_length, chunk.dirs)
+        sd, assumed, gated, each = self._sd_um(end, ctx, unknown, outside, chunk.datum, inf)
         pinned = self._pinned(unknown, outside, sd)
-        self.datum.note(chunk.datum, gated, chunk.line)
+        unread = note_unsure(self, chunk.datum, chunk.dirs, gated, datum_out, unread, chunk.line)
         self.ram.note(end, outside, pinned, chunk.tool_length, ~any_rows(unknown))
         lin_end = self._solve_free(end, ctx, ref := self._reference(chunk.datum, ctx))
         in_sd, axis_left = self.partial.judged(each, lin_end.b0)
@@ -293,7 +296,7 @@ class Planner:
         skip[ramped] = True
         inner = merged(self._subdivide(start, end, x_start, lin_end.x, ctx, ref, skip), ramp)
         counts = np.ones(nrows, np.int64)
-        each_row = {"assumed": assumed, "in_sd": in_sd, "axis_left": axis_left}   # None or (n, ...)
+        each_row = dict(assumed=assumed, in_sd=in_sd, axis_left=axis_left, unread=unread)
         if inner is None:
             links = self.links.chunk(chunk, end, np.arange(nrows), np.ones(nrows, bool), first, cycle)
             nodes = NodeSet(end, ctx, exempt, np.asarray(chunk.line), np.zeros(nrows, bool), rapid,
@@ -454,9 +457,9 @@ class Planner:
                           before[:, :3], after[:, :3], before[:, 3:6] if five else None,
                           after[:, 3:6] if five else None, flags, lin.iterations, lin.converged,
                           nodes.unknown, nodes.outside, nodes.pinned, nodes.sd_um, nodes.gated,
-                          held, undirected=undirected_axes(nodes),
-                          standing=standing_axes(nodes), assumed=nodes.assumed,
-                          indistinct=nodes.indistinct, axis_left=nodes.axis_left)
+                          held, undirected=undirected_axes(nodes), standing=standing_axes(nodes),
+                          assumed=nodes.assumed, indistinct=nodes.indistinct, unread=nodes.unread,
+                          axis_left=nodes.axis_left)
 
     def _tick(self):
         cb = self.options.progress

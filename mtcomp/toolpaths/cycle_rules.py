@@ -30,6 +30,24 @@ def cycle_unclear(state, inc: bool) -> str | None:
     return None
 
 
+def rotary_cycle(state, axes_given) -> str | None:
+    """Why a drilling cycle line that turns a rotary axis, or follows one in its series, cannot be
+    kept as a corrected cycle (None: no rotary word in the series so far). Where the control turns
+    the rotary axes and along which axis it then drills is its own rule: a Fanuc's G81 drills along
+    the plane's normal, Z in G17 (Fanuc Series 0i-MF operator's manual, canned cycles), while a
+    5-axis router's control (Thermwood's) drills along the tilted tool. So the line passes through
+    as written (in G91 it is refused), its rotary axes stand at their words afterwards and X, Y
+    and Z are not known; the rest of the series (to G80 or another motion code) passes through
+    too, its holes drilled at that pose by the same rule."""
+    rot = [c for c in axes_given if c in "ABC"]
+    if rot and state.cycle_rotary is None:
+        state.cycle_rotary = rot[0]
+    if state.cycle_rotary is None:
+        return None
+    return (f"a rotary axis word {rot[0]} on the line" if rot else
+            f"a rotary axis word {state.cycle_rotary} earlier in its series of cycles")
+
+
 def check_held_numbers(state, values, reason: str, line: int) -> None:
     """A G90 cycle line passed through (``reason``) on LinuxCNC, which reads the R and Z its line
     does not name as the numbers last written: refused where one was written in G91, since the
@@ -109,6 +127,13 @@ def cycle_move(state, values, axes_given):
             state.position[i] = v
             state.known[i] = True
     state._forget(state.names.index(depth) if depth in state.names else -1)
+    if state.cycle_rotary is not None:      # drilled along a tilted tool: X Y Z end by its rule
+        for i in state.xyz_index:
+            state._forget(i)
+    # what the writer's output holds after it: the rotary axes the line names, and the R and Z
+    # the line leaves to the cycle's held values
+    state.cycle_rotaries = [state.names.index(c) for c in axes_given if c in "ABC"]
+    state.cycle_held = [c for c in "RZ" if c not in values]
 
 
 def home_with_motion(dialect: str, home_move: int, motion: int) -> bool:

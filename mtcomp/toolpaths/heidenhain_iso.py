@@ -156,10 +156,14 @@ class IsoReader(_Reader):
             if 91 in mcodes or 92 in mcodes:
                 raise self.err("M91 or M92 without a straight move G00/G01", k)
             return (comp + ("" if feed is None else f"F{_fmt(feed)}")).strip(), info
-        if self.motion is None:
+        machine = 91 in mcodes or 92 in mcodes
+        if self.motion is None and not machine:
             raise self.err("axis words without G00, G01, G02 or G03 in force", k)
         if not arc:
-            gcode, info = self.move_gcode(words, self.motion == 0, feed, mcodes, k, info)
+            # M91/M92 before any path function (`N70 G90 Z-25. M91 *`, a post's first block): a
+            # straight move to machine positions whether the TNC takes it at rapid or at the feed,
+            # passed through as G53 moves are, the path function still not in force after it
+            gcode, info = self.move_gcode(words, self.motion in (0, None), feed, mcodes, k, info)
         elif set(words) - set("XY") or 91 in mcodes or 92 in mcodes:
             raise self.refuse("an arc G02/G03 with other axes than X Y (a helix) or M91/M92", k)
         else:

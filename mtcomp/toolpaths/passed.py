@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import math
 
-from .words import MM_PER_INCH
+from .words import MM_PER_INCH, grid_text
 
-__all__ = ["passed_end", "check_passed_start"]
+__all__ = ["passed_end", "check_passed_start", "passed_cycle"]
 
 #: an axis of the output within this (mm, rad) of the program's position stands uncorrected there
 _SAME_START = 1e-6
@@ -60,3 +60,21 @@ def check_passed_start(state, out_values) -> None:
                          "before it was corrected, and the controller would take the arc's centre "
                          f"from there): position {' '.join(off)} again before the arc",
                          state.passed_move[1])
+
+
+def passed_cycle(state, out) -> None:
+    """A drilling cycle line passed through as written (:func:`.cycle_rules.cycle_move`), seen by the
+    writer (``out``, its :class:`~.writer.OutputState`): the rotary axes the line names stand at
+    their words in the output too. An R or Z the line does not name is the one the output's cycle
+    holds, which a cycle line corrected before it may have moved: where that differs from the
+    program's, the controller would drill the passed line's holes at a corrected depth without
+    their correction, so the line is refused (InputError naming it; the output is not written)."""
+    for i in state.cycle_rotaries:
+        out.values[i] = state.position[i]
+    for c in state.cycle_held:
+        v = state.cycle_r if c == "R" else state.cycle_z
+        held = out.cycle_r if c == "R" else out.cycle_z
+        if held and v is not None and not v[1] and held != grid_text(v[0], False, state.inch):
+            raise state._err(f"drilling cycle G{state.cycle} passed through uncorrected without "
+                             f"its own {c}: the output's cycle holds the corrected {c}{held} of a "
+                             "line before it (give the line its " + c + ")", state._line)

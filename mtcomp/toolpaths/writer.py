@@ -31,7 +31,7 @@ from ._arcs import (FULL_CIRCLE_TOL_MM, PLANE_AXES, PLANE_OFFSET_LETTERS, ArcErr
 from .blocks import MotionBlock
 from .cursor import CorrectionCursor
 from .modal import ModalState
-from .passed import check_passed_start
+from .passed import check_passed_start, passed_cycle
 from .reader import iter_blocks, new_state
 from .words import (DEFAULT_CHORD_TOL_MM, MM_PER_INCH, SourceLine, base_decimals,
                     cutter_comp_code, format_number, grid_text, increment_text, machine_units,
@@ -693,6 +693,7 @@ def write_pass_through(f, raw: bytes, state: ModalState, out: OutputState, separ
         out.passed_moves.setdefault(why, [0, line])[0] += 1
     if state.cycle_line:
         out.cycle_lines += 1
+        passed_cycle(state, out)
         xi, yi, zi = state.xyz_index
         if state.cycle_start:
             out.cycle_init_z = out.values[zi]

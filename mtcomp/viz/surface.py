@@ -56,8 +56,8 @@ __all__ = ["STATUS_REASONS", "SurfaceMap", "ProgramPoints", "read_program_points
 #: why a block is left uncorrected (SurfaceMap.status)
 STATUS_REASONS = {1: "an axis position the program has not given",
                   2: "outside the region the model's data reached",
-                  3: "the model unsure (correction's standard error over the limit, or the "
-                     "correction within two of them of zero)",
+                  3: "the model unsure (correction's standard error over the limit, the "
+                     "correction within two of them of zero, or an approach its data never read)",
                   4: "a bound held an axis's whole correction"}
 
 
