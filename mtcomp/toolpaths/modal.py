@@ -29,6 +29,7 @@ from .frames import (FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle
 from .haas5 import HAAS_5AXIS_G, haas_block, haas_code
 from .lengths import length_number, lone_h, set_length
 from .linetext import text_with_words
+from .controller_values import PROBE_G, held_block, probe_code
 from .height_map import height_map_code, passed_height_map
 from .probe import beagleg_probe, passed_probe
 from .programmed import ProgrammedOffsets, apply_g10
@@ -94,6 +95,7 @@ class ModalState:
         self.tool = 0
         self.selected_tool = 0
         self.length_on = False          # G43/G44 in force (:mod:`.lengths`)
+        self.length_unknown = False     # G43.1 of a value the controller holds (.controller_values)
         self._init_cycles()
         self.inverse_time = False
         #: tool centre point mode (M428, G43.4, M128): the words are the tool tip in the workpiece
@@ -165,9 +167,10 @@ class ModalState:
     @property
     def python_only(self) -> bool:
         """Lines the compiled scanner must not take (cycle, inverse-time or tool centre point mode
-        in force, the next block starts off the last one's path, or the quill's place is lost)."""
+        in force, the next block starts off the last one's path, the quill's place is lost, or the
+        tool length is one the controller holds)."""
         return (self.cycle is not None or self.inverse_time or self.tcp or self.dwo or self.ended
-                or bool(self.local.kind) or self.off_path or quill_lost(self))
+                or bool(self.local.kind) or self.off_path or quill_lost(self) or self.length_unknown)
 
     def _err(self, msg, line):
         path, line, suffix = self._where(line)
@@ -197,6 +200,9 @@ class ModalState:
         self._line = line
         if self.ended and self.dialect.name == "grbl":
             grbl_program_end(self)
+        held = getattr(self._source, "controller_lines", None)
+        if held and line in held:       # read from its text with those words given 0
+            text, self.held = held[line]
         text = None if self.ended else text_with_words(self, line, text)
         if text is None:
             return None
@@ -228,6 +234,8 @@ class ModalState:
         if home_move is not None and motion is not None and not home_with_motion(self.dialect.name, home_move, motion):
             raise self._err(f"G{home_move} and motion G{motion} in one block", line)
         self._set_feed(values, line)
+        if held_block(self, gcodes, values, axes_given, motion, nonmotion_axes, line):
+            return None
         if self.probe_line == line:         # BeagleG's G30 (.probe)
             return passed_probe(self, values, axes_given, motion, line)
         if self.map_line == line:           # uCNC's G39 (.height_map)
@@ -282,6 +290,7 @@ class ModalState:
         self.g60 = False             # G60 on this line (.single_direction)
         self.probe_line = None       # BeagleG's G30 on this line (.probe)
         self.map_line = None         # uCNC's G39 on this line (.height_map)
+        self.held = self.probing = None  # words of values the controller holds, G38.x: .controller_values
         #: how far G52 or a G10 moved the program's coordinates on this line (the writer follows)
         self.frame_shift = None
         self.declared = []
@@ -358,6 +367,9 @@ class ModalState:
                 continue
             if round(g, 1) in (39.0, 39.1, 39.2):       # uCNC's height map (.height_map)
                 nonmotion_axes = height_map_code(self, g, values, line) or nonmotion_axes
+                continue
+            if round(g, 1) in PROBE_G:                 # probing (.controller_values)
+                nonmotion_axes = probe_code(self, g, line)
                 continue
             if g in _REFUSED_G and not (g in FANUC_CYCLES and self.dialect.name in FANUC_DIALECTS):
                 raise self._err(f"{_REFUSED_G[g]} is not supported", line)
