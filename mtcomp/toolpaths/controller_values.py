@@ -20,7 +20,8 @@ and read here from its ``reading`` text, where those words are 0 (a feed or spee
 The probing moves G38.2-G38.5 (LinuxCNC G-code reference, G38.x; FluidNC follows them, its
 GCode.cpp) stop where the probe touches or leaves: the line passes through as written and the axes
 it names are unknown after it. G38.x is a motion mode of its own: no motion mode is in force after
-it here, so a block of axis words alone (another probe) is refused, naming the missing G0/G1.
+it here, so a block of axis words alone (another probe) is refused, naming the missing G0/G1. On a
+Fanuc or Haas G38 is no probing move (refused, :mod:`.modal`).
 """
 from __future__ import annotations
 

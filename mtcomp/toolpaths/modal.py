@@ -42,6 +42,9 @@ from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _CURVE_WITH_COORDINATES, KNOW
                     MM_PER_INCH, TCP_OFF_M, TCP_ON_M, TOOL_AXIS, frame_code,
                     tokenize)
 
+#: the codes whose axis words probe: uCNC's height map G39 (G39.1, G39.2 switch it), G38.2-G38.5
+_PROBING_G = (39.0, 39.1, 39.2) + PROBE_G
+
 
 class ModalState:
     """The machine's modal state while a program is read, and the interpreter of one block.
@@ -59,6 +62,9 @@ class ModalState:
     #: a move passed through with its end known (:mod:`.passed`) stands between the last block and
     #: the next: the next does not start where the last ended (its first row is a ``jump``)
     off_path = False
+    #: a G43.1 of a value the controller holds is in force: the tool length, so the tip, is unknown
+    #: and no block is corrected (:mod:`.controller_values`)
+    length_unknown = False
 
     def __init__(self, machine: Machine, path=None, chord_tol: float = DEFAULT_CHORD_TOL_MM,
                  initial_position: np.ndarray | None = None, inch: bool = False,
@@ -95,7 +101,6 @@ class ModalState:
         self.tool = 0
         self.selected_tool = 0
         self.length_on = False          # G43/G44 in force (:mod:`.lengths`)
-        self.length_unknown = False     # G43.1 of a value the controller holds (.controller_values)
         self._init_cycles()
         self.inverse_time = False
         #: tool centre point mode (M428, G43.4, M128): the words are the tool tip in the workpiece
@@ -365,11 +370,8 @@ class ModalState:
                 frame_codes.append(g)
                 nonmotion_axes = True
                 continue
-            if round(g, 1) in (39.0, 39.1, 39.2):       # uCNC's height map (.height_map)
-                nonmotion_axes = height_map_code(self, g, values, line) or nonmotion_axes
-                continue
-            if round(g, 1) in PROBE_G:                 # probing (.controller_values)
-                nonmotion_axes = probe_code(self, g, line)
+            if round(g, 1) in _PROBING_G:       # uCNC's height map, a probing move G38.x
+                nonmotion_axes = self._probing_code(g, values, line) or nonmotion_axes
                 continue
             if g in _REFUSED_G and not (g in FANUC_CYCLES and self.dialect.name in FANUC_DIALECTS):
                 raise self._err(f"{_REFUSED_G[g]} is not supported", line)
@@ -422,6 +424,15 @@ class ModalState:
                 raise self._err(f"G{g:g} and a move in one block is not supported", line)
             apply_frame_code(self, g, values, tokens, line)
         return motion, nonmotion_axes, home_move, cycle
+
+    def _probing_code(self, g: float, values, line: int) -> bool:
+        """uCNC's height map G39 (:mod:`.height_map`) or a probing move G38.x
+        (:mod:`.controller_values`; on a Fanuc or Haas G38.x is no probe: refused)."""
+        if round(g, 1) in PROBE_G:
+            if self.dialect.name in FANUC_DIALECTS:
+                raise self._err(f"{_REFUSED_G[g]} is not supported", line)
+            return probe_code(self, g, line)
+        return height_map_code(self, g, values, line)
 
     def _set_tcp(self, on: bool, code: str = "") -> None:
         """Tool centre point mode on or off (by the G or M ``code``): the words change meaning

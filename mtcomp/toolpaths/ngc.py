@@ -10,9 +10,12 @@ sequence of lines the controller executes: a subroutine called at two places app
 once per pass. A line that needs nothing computed keeps its bytes; O-word lines and lines of
 assignments alone are left out; a line with computed values is written with the numbers.
 
-Controller state that the program's file does not hold is refused by name: parameters #5000 and
-above (offsets, positions, tool data), LinuxCNC's predefined named parameters (``#<_x>`` ...), and
-subroutines in other files.
+A value the controller holds as it runs (its position ``#<_x>``, a probe's result ``#5063``, FluidNC's
+``#</...>`` settings: :func:`controller_value`) is read as unknown, and the line using it written as
+the controller computes it (:mod:`.controller_values`); control flow on it is refused. Other
+controller state that the program's file does not hold is refused by name: parameters #5000 and
+above (offsets, tool data), LinuxCNC's other predefined named parameters, and subroutines in other
+files.
 """
 from __future__ import annotations
 
