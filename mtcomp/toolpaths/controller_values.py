@@ -26,11 +26,14 @@ Fanuc or Haas G38 is no probing move (refused, :mod:`.modal`).
 from __future__ import annotations
 
 from .passed import passed_end
+from .words import _CANNED_CYCLES, FANUC_CYCLES
 
 __all__ = ["PROBE_G", "probe_code", "held_block"]
 
 #: the probing moves
 PROBE_G = (38.2, 38.3, 38.4, 38.5)
+#: the drilling cycles
+_CYCLE_G = _CANNED_CYCLES | FANUC_CYCLES
 #: the codes whose axis words set an offset of the program's frame
 _OFFSET_G = (10.0, 52.0, 92.0)
 
@@ -64,10 +67,12 @@ def held_block(state, gcodes, values: dict, axes_given, motion, nonmotion_axes, 
         return _probing(state, axes_given, motion, line)
     if not axes_given or (state.held is None and not state.length_unknown):
         return False                # nothing moves (a D, F or S word of such a value)
-    if state.cycle is not None or motion is None and state.motion is None and axes_given:
-        raise state._err("a drilling cycle or a move without motion mode given a value the "
-                         "controller holds (its position, a probe's result, a setting): not "
-                         "followed", line)
+    cycle = state.cycle is not None or any(round(g) in _CYCLE_G for g in gcodes)
+    if cycle or motion is None and state.motion is None:
+        what = "a drilling cycle" if cycle else "axis words without a motion mode"
+        why = "given a value" if state.held is not None else "under a tool length"
+        raise state._err(f"{what} {why} the controller holds (its position, a probe's result, a "
+                         "setting): not followed", line)
     if motion is not None:
         state.motion = motion
     passed_end(state, values, [c for c in axes_given if c not in held], "controller", line)
