@@ -97,7 +97,7 @@ def test_a_tool_length_from_a_probe_stops_every_correction_until_g49(tmp_path):
     ("G0 X0 Y0 Z0\no3 repeat [#<_x>]\nG0 X1\no3 endrepeat\nM2\n", 2, "o3 repeat reads a value"),
     ("G0 X0 Y0 Z0\nG92 X#<_x>\nM2\n", 2, "an offset (G10, G52, G92) set from a value"),
     ("o1 sub\n#<a> = #<_x>\no1 endsub\nG0 X0 Y0 Z0\no1 call\nM2\n", 2,
-     "assigned to #a inside a subroutine call"),
+     "assigned to #<a> inside a subroutine call"),
     ("o1 sub\nG0 X#1\no1 endsub\nG0 X0 Y0 Z0\no1 call [#<_x>]\nM2\n", 5, "o1 call argument"),
     ("G0 X0 Y0 Z0\nG0 X##5063\nM2\n", 2, "a parameter number computed from a value"),
     ("G0 X0 Y0 Z0\nG81 X1 Y1 Z#5063 R1 F100\nM2\n", 2, "a drilling cycle given a value"),

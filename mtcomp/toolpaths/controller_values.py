@@ -8,7 +8,8 @@ Parameters; FluidNC, src/Parameters.cpp, get_numbered_param and get_system_param
 FluidNC's configuration items ``#</axes/z/max_travel_mm>`` (Parameters.cpp, get_config_item). The
 expansion (:mod:`.ngc`) reads such a value as unknown, and anything computed from it too; a line
 with a word of such a value is written as the controller computes it (:class:`~.lines.ControllerLine`)
-and read here from its ``reading`` text, where those words are 0 (a feed or speed left out):
+and read here from its ``reading`` text, where those words are 0 (a feed, a speed or FluidNC's D
+left out):
 
 * it passes through as written, uncorrected; each axis whose word is such a value is unknown after
   it (no word is written for it until the program positions it again), each axis of a known word

@@ -19,6 +19,7 @@ from ..errors import InputError
 from ..machine import Machine
 from ._arcs import arc_path, blind_arc, passed_spline, spline_code
 from .blocks import CycleBlock, MotionBlock
+from .controller_values import PROBE_G, held_block, probe_code
 from .cycle_rules import (check_held_numbers, codes_with_motion, cycle_move, cycle_unclear,
                           has_axis_words, home_with_motion, incremental_r_level, retract_level,
                           rigid_tap, rotary_cycle)
@@ -29,7 +30,6 @@ from .frames import (FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle
 from .haas5 import HAAS_5AXIS_G, haas_block, haas_code
 from .lengths import length_number, lone_h, set_length
 from .linetext import text_with_words
-from .controller_values import PROBE_G, held_block, probe_code
 from .height_map import height_map_code, passed_height_map
 from .probe import beagleg_probe, passed_probe
 from .programmed import ProgrammedOffsets, apply_g10
@@ -295,7 +295,7 @@ class ModalState:
         self.g60 = False             # G60 on this line (.single_direction)
         self.probe_line = None       # BeagleG's G30 on this line (.probe)
         self.map_line = None         # uCNC's G39 on this line (.height_map)
-        self.held = self.probing = None  # words of values the controller holds, G38.x: .controller_values
+        self.held = self.probing = None  # held words' letters, G38.x (.controller_values)
         #: how far G52 or a G10 moved the program's coordinates on this line (the writer follows)
         self.frame_shift = None
         self.declared = []

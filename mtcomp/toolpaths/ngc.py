@@ -131,11 +131,12 @@ class NgcParams:
         return key in (self.globals if key.startswith("_") else self.frames[-1])
 
     def set(self, key, value: float) -> None:
+        name = f"#<{key}>" if isinstance(key, str) else f"#{key}"
         if is_unknown(value) and self.in_call:
-            raise ExprError(f"a value the controller holds assigned to #{key} inside a subroutine "
+            raise ExprError(f"a value the controller holds assigned to {name} inside a subroutine "
                             "call: not followed (assign it in the main program)")
         if controller_value(key):
-            raise ExprError(f"assignment to #{key}: a value the controller holds")
+            raise ExprError(f"assignment to {name}: a value the controller holds")
         if isinstance(key, int):
             if key >= 5000 or key == 0:
                 raise ExprError(f"assignment to parameter #{key}: it changes controller state "
@@ -149,7 +150,7 @@ class NgcParams:
 
 #: the refusal of control flow that depends on a value the controller holds
 _UNKNOWN_FLOW = ("{what} reads a value the controller holds (its position, a probe's result, a "
-                 "setting): which lines run cannot be known, so the flat sequence of moves cannot")
+                 "setting): which lines run, and so the flat sequence of moves, cannot be known")
 
 _OPENERS = {"endsub": "sub", "endif": "if", "endwhile": "while", "endrepeat": "repeat"}
 
