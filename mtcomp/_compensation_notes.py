@@ -27,6 +27,11 @@ _PASSED_MOVES = {"increment": "{n} incremental (G91) move{s} of an axis whose po
                  "tap": "{n} rigid tapping move{s} (G33.1, {at}: the spindle's reversal sets its ends)",
                  "restore": "{n} move{s} to a RepRapFirmware restore point (G0/G1 R, {at}: the "
                             "controller saved it)",
+                 "controller": "{n} move{s} to a value the controller holds or under a tool "
+                               "length it holds ({at}: its position, a probe's result, a setting; "
+                               "an axis given such a value is not written until positioned again)",
+                 "probing": "{n} probing move{s} (G38.2-G38.5, {at}: the axes named stand where "
+                            "the probe stopped, not written until positioned again)",
                  "subprogram": "{n} call{s} of a subprogram not in the file ({at}: its moves are "
                                "not seen)"}
 
