@@ -149,7 +149,7 @@ class Planner:
         (:meth:`._datum.DatumRule.outside`): where a limit is asked, their standard error is
         infinite (unless they are left uncorrected for an unknown axis or the ram already); (n,) or
         None (no limit asked), each block's correction in its standard errors (NaN where not
-        judged: :func:`._contours.quiet_contours`))."""
+        judged: :func:`._contours.quiet_contours`)); NaN outside the support when extrapolating."""
         sd = np.full(q.shape[0], np.nan)
         in_sd = None
         assumed = self.ev.assumed
@@ -176,6 +176,8 @@ class Planner:
             if limit and datum_out is not None:
                 gated = todo & datum_out
                 sd[gated] = np.inf
+            if limit and self.options.extrapolate:      # asked for: a continuation nothing sizes
+                sd[todo & any_rows(outside)] = in_sd[todo & any_rows(outside)] = np.nan
         return sd, out, gated, in_sd
 
     def _solve_free(self, q, ctx, reference) -> Linearization:

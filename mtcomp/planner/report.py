@@ -624,7 +624,9 @@ class Summary:
                           if self.unknown_blocks == self.blocks else ""))
         if self.outside_blocks:
             axes = ", ".join(f"{a} {k}" for a, k in self.outside_axes.items())
-            what = ("corrected anyway (--extrapolate)" if self.extrapolate
+            what = ("corrected anyway (--extrapolate) with the model's continuation past its data, "
+                    "which no standard error sizes (BLOCKS.csv correction_sd_um blank): the "
+                    "figures after are the model's there, not what the data back" if self.extrapolate
                     else "not corrected (pass --extrapolate to correct them)")
             out.append(f"{blocks(self.outside_blocks)} outside the region the model's data reached "
                        f"({axes}; first at line {self.first_outside_line}): {what}")
