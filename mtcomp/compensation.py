@@ -759,5 +759,6 @@ def _planner(fitted, settings: CompensationSettings, inch: bool, src, progress) 
                       ram_asked=planner.ram.ram_asked, tools_asked=planner.ram.tools_asked,
                       tools_measured=fitted.info.get("tool_length_mm")
                       if isinstance(fitted.info, dict) else None,
-                      assumed=None if planner.ev.assumed is None else AssumedTally(planner.ev.assumed))
+                      assumed=None if planner.ev.assumed is None else AssumedTally(planner.ev.assumed),
+                      traded=tuple(fitted.info.get("traded") or ()) if isinstance(fitted.info, dict) else ())
     return planner, summary

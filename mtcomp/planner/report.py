@@ -233,6 +233,9 @@ class Summary:
     indistinct_line: int = 0
     max_sd_um: float = 0.0
     sd_undetermined: bool = False
+    #: what a file's set-up took from the machine (MODEL.json ``info.traded``, identify's sentences):
+    #: said where a correction's standard error is infinite
+    traded: tuple = ()
     sd_seen: bool = False
     #: the model carries a covariance (without one no block's standard error is known)
     has_covariance: bool = True
@@ -650,7 +653,8 @@ class Summary:
                        + "; BLOCKS.csv column correction_sd_um)"
                        f"{shared}; "
                        + unsure_advice(float("inf") if self.sd_undetermined else self.max_sd_um,
-                                       self.max_correction_sd_um))
+                                       self.max_correction_sd_um)
+                       + "".join(f"; {t}" for t in (self.traded if self.sd_undetermined else ())))
         if self.indistinct_blocks:
             out.append(f"{blocks(self.indistinct_blocks)} not corrected: the correction is within "
                        "two of its standard errors of zero in every component, so the data do not "
