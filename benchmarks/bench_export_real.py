@@ -17,7 +17,8 @@ figure is the rms of the corrected held-out readings about their mean: a new fil
 set-up whose zero no fit can know. When the model file has no 'support' (the region of its data) the
 export gets --range from the training targets. Each table is exported whatever its standard error
 (``--max-correction-sd-um 0``); a second list gives each table's largest standard error and whether
-export's default limit would have written it.
+export writes it at its default limit (the standard error under it, and the table's values told
+from zero by it: compensate's rule for a correction).
 
     python benchmarks/bench_export_real.py [--data DIR]
 
@@ -145,13 +146,15 @@ def mtcomp_table(train_csv: Path, axis: str, how: str, work: Path, grid_mm: floa
         if grid_mm is not None:
             extra += ["--grid-mm", f"{grid_mm:g}"]
         out = work / f"linuxcnc_{how}"
-        # the table itself, whatever its standard error (largest_sd_um says whether the default
-        # limit would have written it)
+        # the table itself, whatever its standard error; and whether export's default limit writes
+        # it (its standard error under the limit, and its values told from zero by it)
         rc = main(["export", "xfyz", str(model), "--format", "linuxcnc", "-o", str(out),
                    "--max-correction-sd-um", "0", *extra])
         if rc != 0:
             raise RuntimeError(f"mtcomp export failed: {sink.getvalue()}")
-    return out / f"{axis.lower()}.comp"
+        gated = work / f"linuxcnc_{how}_gated"
+        main(["export", "xfyz", str(model), "--format", "linuxcnc", "-o", str(gated), *extra])
+    return out / f"{axis.lower()}.comp", (gated / f"{axis.lower()}.comp").exists()
 
 
 def compare(path: Path, grid_mm: float | None = None) -> dict:
@@ -168,7 +171,7 @@ def compare(path: Path, grid_mm: float | None = None) -> dict:
         train_csv = work / f"{path.stem}_runs123.csv"
         write_rows(train_csv, train)
         for how in ("identify", "diagnose"):
-            comp = mtcomp_table(train_csv, axis, how, work, grid_mm)
+            comp, out[f"{how}_written"] = mtcomp_table(train_csv, axis, how, work, grid_mm)
             out[f"{how}_um"] = rms_about_mean(linuxcnc_residual(comp, test))
             out[f"{how}_sd_um"] = largest_sd_um(work / f"model_{how}.json", axis)
     return out
@@ -207,12 +210,12 @@ def main():
         r = compare(folder / f"{name}.csv", args.grid_mm)
         print(f"{r['file']:16s} {r['raw_um']:8.2f} {r['pitch_um']:12.2f} {r['identify_um']:16.2f} "
               f"{r['diagnose_um']:16.2f} {r['diagnose_um'] / r['pitch_um']:15.2f}")
-        sds.append((r["file"], r["identify_sd_um"], r["diagnose_sd_um"]))
-    print(f"largest standard error of each table, um (export's default limit {limit:g} um: "
-          "'left out' above it)")
+        sds.append((r["file"], *((r[f"{h}_sd_um"], r[f"{h}_written"]) for h in ("identify", "diagnose"))))
+    print(f"largest standard error of each table, um, and whether export writes it at its default "
+          f"limit ({limit:g} um; 'left out' over it, or where no value is told from zero by it)")
     for name, *sd in sds:
-        print(f"{name:16s} " + "  ".join(f"{how} {v:5.2f} {'left out' if v > limit else 'written'}"
-                                         for how, v in zip(("identify", "diagnose"), sd)))
+        print(f"{name:16s} " + "  ".join(f"{how} {v:5.2f} {'written' if w else 'left out'}"
+                                         for how, (v, w) in zip(("identify", "diagnose"), sd)))
 
 
 if __name__ == "__main__":

@@ -528,22 +528,22 @@ def _series_sentence(fitted, settings: CompensationSettings, series, tally: _Tal
             + ("; the last reading holds after it" if tally.t_s > series.t_s[-1] else "") + ")")
 
 
-def _report_lines(res, axis_names, sd_limit) -> list[str]:
+def _report_lines(res, axis_names, sd_limit, unread=False) -> list[str]:
     """BLOCKS.csv's text of one planned chunk, in pieces (:func:`~mtcomp.planner.report_rows`'
     lines): the numbers written by the compiled formatter when there is one (a million rows took
     10 s in Python's ``%``), the few rows with text in them by report_rows, put in place of their
     lines (the text is not cut into a string per line: that took longer than writing it)."""
-    values, decimals, blank, special = report_table(res, axis_names, sd_limit)
+    values, decimals, blank, special = report_table(res, axis_names, sd_limit, unread)
     text = format_table(values, decimals, blank)
     if text is None:
-        return report_rows(res, axis_names, sd_limit)
+        return report_rows(res, axis_names, sd_limit, unread)
     rows = np.flatnonzero(special)
     if not rows.size:
         return [text]
     # where each row's line ends (the text is ASCII: a character is a byte)
     ends = np.flatnonzero(np.frombuffer(text.encode("ascii"), np.uint8) == ord("\n")) + 1
     pieces, at = [], 0
-    for i, line in zip(rows.tolist(), report_rows(res.take(rows), axis_names, sd_limit)):
+    for i, line in zip(rows.tolist(), report_rows(res.take(rows), axis_names, sd_limit, unread)):
         pieces += [text[at:int(ends[i - 1]) if i else 0], line]
         at = int(ends[i])
     pieces.append(text[at:])
@@ -672,7 +672,7 @@ def _compensate_source(fitted, src, output, settings, setup, report, progress, j
             res.line = src.source_lines_of(res.line)
             summary.add(res)
             if rep is not None:
-                rep.writelines(_report_lines(res, machine.axis_names, sd_limit))
+                rep.writelines(_report_lines(res, machine.axis_names, sd_limit, planner.direction.active))
             yield chunk, res.corrected, res.counts
             if io_progress is not None and len(chunk):   # the writer is done with the chunk
                 io_progress("written", int(chunk.line[-1]))
@@ -681,7 +681,7 @@ def _compensate_source(fitted, src, output, settings, setup, report, progress, j
     if report is not None:        # committed when the caller's stack closes, after the output
         rep = stack.enter_context(atomic_write(report, "w", newline=""))
         rep.write(",".join(report_columns(machine.axis_names, machine.is_five_axis,
-                                          summary.assumed is not None)) + "\n")
+                                          summary.assumed is not None, planner.direction.active)) + "\n")
     try:
         write_corrected(src, output, machine, corrections(rep), stats=written, **read)
     except TravelError as e:
@@ -698,6 +698,10 @@ def _compensate_source(fitted, src, output, settings, setup, report, progress, j
     summary.uncorrected_cause = _offset_cause(setup, summary)
     summary.datum_line = min((line for _, line in gated.values()), default=0)
     datum, summary.datum_lines = datum_notes(fitted, setup, gated)
+    summary.direction_blocks, summary.infinite_causes = planner.direction.blocks, planner.ev.infinite_causes
+    summary.direction_lines = planner.direction.text(
+        lambda k: f"{k} block" if k == 1 else f"{k} blocks",
+        lambda line: int(src.source_lines_of(np.array([line]))[0]))
     notes += _run_notes(src, written, fitted, setup, tally, found, datum)
     if series is not None:
         assumed = _series_sentence(fitted, settings, series, tally)

@@ -26,16 +26,42 @@ NOISE_MM = NOISE_UM * 1e-3
 LASER_RUNS = 5
 
 
-def clean_campaign(topology: str, seed: int, folder: Path) -> tuple[TruthMachine, list[Path]]:
+class _NoiseApart:
+    """A random generator whose normal draws (the truth's campaigns draw only their noise so) come
+    from ``noise``; everything else, and as many normal draws thrown away, from ``design``: the same
+    campaign (poses, set-ups, offsets) as ``design`` alone writes, with other noise."""
+
+    def __init__(self, design, noise):
+        self._design, self._noise = design, noise
+
+    def normal(self, loc=0.0, scale=1.0, size=None):
+        self._design.normal(loc, scale, size)
+        return self._noise.normal(loc, scale, size)
+
+    def __getattr__(self, name):
+        return getattr(self._design, name)
+
+
+def clean_campaign(topology: str, seed: int, folder: Path,
+                   noise_seed: int | None = None) -> tuple[TruthMachine, list[Path]]:
     """A rich campaign on a random independent machine with no hidden effect: volumetric points (two
     tool lengths, both directions, two passes), laser runs of every axis (all components, an optic
     offset, the other axes at random positions; five bidirectional runs, as ISO 230-2 asks),
     ball-bar circles and, with a C axis, the
     three-sphere set-up. Rotary error motions are left out: they are a diagnose finding
-    (rotary_pdge), not part of the base model."""
+    (rotary_pdge), not part of the base model. ``noise_seed``: the same machine and campaign with
+    the readings' noise drawn from that seed instead (a Monte Carlo over the noise)."""
+    machine, paths, _ = _clean(topology, seed, folder, noise_seed)
+    return machine, paths
+
+
+def _clean(topology, seed, folder: Path, noise_seed):
+    """:func:`clean_campaign`'s (machine, files) and its random generator, at its end."""
     rng = np.random.default_rng(seed)
     name = {"XFYZ": "xfyz", "CAFXYZ": "cafxyz", "CBFXYZ": "cbfxyz"}[topology]
     machine = TruthMachine.random(name, rng, error_motions=False)
+    if noise_seed is not None:
+        rng = _NoiseApart(rng, np.random.default_rng(noise_seed))
     folder.mkdir(parents=True, exist_ok=True)
     paths = [tc.points(machine, folder / "points.csv", rng, repeats=2, noise_um=NOISE_UM).path]
     for a in machine.axis_names:
@@ -51,6 +77,24 @@ def clean_campaign(topology: str, seed: int, folder: Path) -> tuple[TruthMachine
     paths.append(tc.ballbar_circles(machine, folder / "ballbar.csv", rng, noise_mm=NOISE_MM).path)
     if "C" in machine.axis_names:
         paths.append(tc.three_sphere(machine, folder / "three_sphere.csv", rng, noise_mm=NOISE_MM).path)
+    return machine, paths, rng
+
+
+def tcp_campaign(topology: str, seed: int, folder: Path,
+                 noise_seed: int | None = None) -> tuple[TruthMachine, list[Path]]:
+    """:func:`clean_campaign` (the same machine and files) and what a 5-axis user measures for tool
+    centre point programs: the tool tip read in the table's frame (an R-test's nests, a tracker's
+    target on the table; the file's frame fitted) where the part sits, a 3 x 3 x 2 lattice over the
+    central fifth of each linear axis's travel, at two tool lengths, at the tilts the programs use
+    (A or B at -90, -45 and 0 deg) times C at 0, 90, 180 and 270 deg. clean_campaign reads the
+    linear axes' angular errors at the laser's targets (76 mm apart on X) and at its points' lattice
+    (160 mm): between them, where the boat demo's part sits, X's roll and its straightness in Y trade
+    at the untilted tool tip, and Y's roll and its straightness in X likewise (held combinations of
+    6.7 and 3.1 um, tests/test_toolpaths_tcp.py); this file tells them apart."""
+    machine, paths, rng = _clean(topology, seed, folder, noise_seed)
+    poses = [(t, c) for t in (-90.0, -45.0, 0.0) for c in (0.0, 90.0, 180.0, 270.0)]
+    paths.append(tc.points(machine, folder / "rtest.csv", rng, grid=(3, 3, 2), margin=0.4, rotary_deg=poses,
+                           directions=(1,), noise_um=NOISE_UM).path)
     return machine, paths
 
 

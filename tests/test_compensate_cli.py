@@ -475,6 +475,7 @@ def test_figures_over_the_corrected_blocks_only(tmp_path, capsys):
         np.testing.assert_allclose([figures[f"max_{when}_um"], figures[f"rms_{when}_um"]],
                                    stats(known, when), rtol=0, atol=1e-4)
     assert figures["uncorrected"] == {"unknown_axes": 1, "outside_support": 2, "uncertain": 0,
+                                       "direction_not_read": 0,
                                        "uncertain_contour": 0, "indistinct_from_zero": 0,
                                        "held_by_bounds": 0, "held_direction_unknown": 0}
     # the corrected blocks alone show what the correction did; the outside ones keep their error

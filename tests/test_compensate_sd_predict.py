@@ -108,9 +108,8 @@ def test_a_correction_within_two_standard_errors_is_not_made(tmp_path, capsys, e
     assert summary["uncorrected"]["uncertain"] == 0
 
 
-def test_a_contour_with_one_correction_told_from_zero_is_corrected_whole():
-    # X's slope 4 +- 3 um per m (not told from zero); Y's 40 +- 3 (told): a contour along X at
-    # y = 0 is left, the same contour turning to y = 200 mm is corrected whole
+def _x_quiet_y_told():
+    """(machine, model): X's slope 4 +- 3 um per m (not told from zero), Y's 40 +- 3 (told)."""
     m = _machine()
     fitted = FittedModel.zero(ErrorModel(m))
     fitted.params.set_file_value("EXX_1", 4.0)
@@ -118,6 +117,13 @@ def test_a_contour_with_one_correction_told_from_zero_is_corrected_whole():
     fitted.support = {"X": (-400.0, 400.0), "Y": (-300.0, 300.0)}
     fitted.uncertainty = {"names": ["EXX_1", "EYY_1"], "covariance": np.diag([SIGMA ** 2] * 2),
                           "undetermined": np.zeros((2, 0))}
+    return m, fitted
+
+
+def test_a_contour_with_one_correction_told_from_zero_is_corrected_whole():
+    # X's slope 4 +- 3 um per m (not told from zero); Y's 40 +- 3 (told): a contour along X at
+    # y = 0 is left, the same contour turning to y = 200 mm is corrected whole
+    m, fitted = _x_quiet_y_told()
     xa = np.array([50.0, 100.0, 150.0, 200.0])
     qa = _q(xa, 0.0)
     qb = np.vstack([qa, [[200.0, 100.0, 0.0], [200.0, 200.0, 0.0]]])
@@ -147,3 +153,32 @@ def test_the_rule_is_two_standard_errors_from_both_sides(slope, made):
     assert not res.pinned.any() if made else (res.pinned.all() and res.indistinct.all())
     want = -slope * 1e-3 * x / 1000.0 if made else np.zeros(x.size)
     np.testing.assert_allclose(res.correction[:, 0], want, rtol=0, atol=2e-5)
+
+
+def test_render_leaves_what_compensate_leaves_for_the_two_standard_error_rule(tmp_path):
+    """render without a report marks uncertain (3) the blocks compensate leaves because their
+    correction is not told from zero: X's slope 4 +- 3 um per m (a contour along X at y = 0 is
+    left), Y's 40 +- 3 (a contour along Y is corrected); the oracle is compensate's BLOCKS.csv."""
+    import csv
+    from mtcomp.viz.surface import program_error_map
+    m, fitted = _x_quiet_y_told()
+    path = tmp_path / "M.json"
+    save_model(path, fitted)
+    xs, ys = (50.0, 100.0, 150.0, 200.0), (50.0, 100.0, 150.0, 200.0)
+    prog = tmp_path / "p.nc"
+    prog.write_text("G21 G90\nG0 X0 Y0 Z0\n" + "".join(f"G1 X{x:g} F1000\n" for x in xs)
+                    + "G0 X0 Y0\n" + "".join(f"G1 Y{y:g}\n" for y in ys) + "M30\n")
+    rep = tmp_path / "B.csv"
+    assert main(["compensate", "xfyz", str(path), str(prog), "-o", str(tmp_path / "o.nc"),
+                 "--report", str(rep), "--work-offset", "G54=X0,Y0,Z0", "--subdivide-tol-um", "0",
+                 "--quiet"]) == 0
+    with open(rep, newline="") as f:
+        left = {(round(float(r["x_mm"]), 3), round(float(r["y_mm"]), 3)): r["uncertain"] == "1"
+                for r in csv.DictReader(f) if r["rapid"] == "0"}
+    assert sum(left.values()) == len(xs) and len(left) == len(xs) + len(ys)
+    smap = program_error_map(m, fitted, prog, tool_radius_mm=0.0, normal="path")
+    assert smap.status_source == "planner"
+    for tip, status in zip(np.round(smap.tips, 3), smap.status):
+        key = (float(tip[0]), float(tip[1]))
+        if key in left:
+            assert bool(status == 3) == left[key], (key, status)

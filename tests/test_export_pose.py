@@ -16,6 +16,7 @@ from __future__ import annotations
 import csv
 
 import numpy as np
+import pytest
 from mtcomp.cli import main
 from mtcomp.machine import load_machine
 from mtcomp.models import ErrorModel, FittedModel, save_model
@@ -23,13 +24,21 @@ from mtcomp.models import ErrorModel, FittedModel, save_model
 EAY_1 = 100.0        # urad per metre of Y
 
 
-def _model(tmp_path):
+def _model(tmp_path, sd=None, held_share=0.0):
+    """The model; with ``sd`` (urad per m) EAY_1's standard error, ``held_share`` of its variance
+    along a combination the fit held weakly (MODEL.json uncertainty.held, held_sd_um 2 um)."""
     m = load_machine("xfyz")
     model = ErrorModel(m.with_basis("polynomial"), ())
     fitted = FittedModel.zero(model)
     fitted.params.set_file_value("EAY_1", EAY_1)
     fitted.support = {"X": (-400.0, 400.0), "Y": (-300.0, 300.0), "Z": (-200.0, 0.0)}
-    path = tmp_path / "m.json"
+    if sd is not None:
+        s = sd / fitted.params.specs[fitted.params.index("EAY_1")].to_file      # internal units
+        fitted.uncertainty = {"names": ["EAY_1"], "covariance": np.array([[s ** 2]]),
+                              "undetermined": np.zeros((1, 0)),
+                              "held": np.array([[np.sqrt(held_share) * s / 2.0]]),
+                              "held_sd_um": np.array([2.0])}
+    path = tmp_path / f"m{'' if sd is None else f'_{sd:g}'}.json"
     save_model(path, fitted)
     return path
 
@@ -77,23 +86,70 @@ def test_a_pose_or_range_beyond_the_travel_is_refused_in_one_line(tmp_path, caps
         assert not (tmp_path / "o").exists()
 
 
+def _compensated_y(tmp_path, path, *extra, end=250.0):
+    """compensate's report rows of the Y contour (Y moves from -``end`` to ``end`` mm at machine
+    Z = -200; no work offset)."""
+    ys = np.arange(-end, end + 1.0, 50.0)
+    prog = tmp_path / "y.nc"
+    prog.write_text(f"G21 G90\nG0 X0 Y0 Z0\nG0 Y{-end + 5:g} Z-200\n"
+                    + "".join(f"G1 Y{y:g} F1000\n" for y in ys)
+                    + "M30\n")
+    rep = tmp_path / f"b_{path.stem}.csv"
+    assert main(["compensate", "xfyz", str(path), str(prog), "-o", str(tmp_path / "o.nc"), "--report",
+                 str(rep), "--subdivide-tol-um", "0", "--max-step-um", "50", *extra]) == 0
+    rows = {int(r["line"]): r for r in csv.DictReader(open(rep, newline=""))}
+    return ys, [rows[4 + k] for k in range(ys.size)]
+
+
 def test_compensate_and_the_table_agree_along_a_line_through_its_pose(tmp_path, capsys):
     """Y moves at machine Z = -200 (no work offset: the datum is the machine zero). compensate's
     ey_before_um and the Y table read at --at Z=-200 differ by one constant to 0.01 um; the table
     read at the reference pose does not (6 um of arm between them)."""
     path = _model(tmp_path)
-    ys = np.arange(-250.0, 251.0, 50.0)
-    prog = tmp_path / "y.nc"
-    prog.write_text("G21 G90\nG0 X0 Y0 Z0\nG0 Y-255 Z-200\n" + "".join(f"G1 Y{y:g} F1000\n" for y in ys)
-                    + "M30\n")
-    rep = tmp_path / "b.csv"
-    assert main(["compensate", "xfyz", str(path), str(prog), "-o", str(tmp_path / "o.nc"), "--report",
-                 str(rep), "--subdivide-tol-um", "0", "--max-step-um", "50"]) == 0
-    rows = {int(r["line"]): r for r in csv.DictReader(open(rep, newline=""))}
-    before = np.array([float(rows[4 + k]["ey_before_um"]) for k in range(ys.size)])
+    ys, rows = _compensated_y(tmp_path, path)
+    before = np.array([float(r["ey_before_um"]) for r in rows])
     assert np.ptp(before) > 5.0
     for at, agree in (("Z=-200", True), ("Z=0", False)):
         y, trim, _ = _y_trim(tmp_path, path, at.replace("=", ""), "--at", at)
         diff = before + np.interp(ys, y, trim)
         assert bool(np.ptp(diff) < 0.02) is agree, (at, diff)
     capsys.readouterr()
+
+
+@pytest.mark.parametrize("sd, limit, written", [
+    (EAY_1 / 1.5, 1000.0, False),    # every value 1.5 of its standard errors: not told from zero
+    (EAY_1 / 3.0, 2.9, False),       # told (3 of them), but the largest standard error (3 um)
+    (EAY_1 / 3.0, 3.1, True)],       # over 2.9 ... and under 3.1: written
+    ids=["within_two_sd", "over_the_limit", "written"])
+def test_the_table_is_written_exactly_where_compensate_corrects(tmp_path, capsys, sd, limit, written):
+    """The same gate: where compensate leaves Y's motion through the table's points (Y's data reach
+    -300 .. 300 mm) uncorrected, as one contour (its standard error over the limit, or no block told
+    from zero), export writes no Y table; where it corrects, the table is written and its values
+    are compensate's up to one constant. 90 % of EAY_1's variance lies along a combination the fit
+    held weakly: both count it (sized without it, as export did, the largest standard error is
+    sqrt(0.1) 3 = 0.95 um, under both limits). Hand-derived: the arm from Y's pitch to the tip is
+    the tool length 100 mm plus 200 mm at Z = -200, so at Y = 300 mm (EAY = 30 urad) the
+    correction is 9 um; every correction is EAY_1 / sd of its standard errors (one parameter),
+    the largest standard error 9 sd / EAY_1 (3 um at sd = EAY_1 / 3)."""
+    path = _model(tmp_path, sd=sd, held_share=0.9)
+    ys, rows = _compensated_y(tmp_path, path, "--max-correction-sd-um", f"{limit:g}", end=300.0)
+    corrected = {r["corrected"] for r in rows}
+    assert corrected == {"1" if written else "0"}, corrected
+    sds = np.array([float(r["correction_sd_um"]) for r in rows])
+    before = np.array([float(r["ey_before_um"]) for r in rows])
+    told = np.abs(before) > 0.01
+    np.testing.assert_allclose(np.abs(before[told]) / sds[told], EAY_1 / sd, rtol=1e-3, atol=0)
+    np.testing.assert_allclose(np.abs(before).max(), 9.0, rtol=0, atol=0.01)
+    np.testing.assert_allclose(sds.max(), 9.0 * sd / EAY_1, rtol=1e-3, atol=0)
+    out = tmp_path / "table"
+    code = main(["export", "xfyz", str(path), "--format", "linuxcnc", "-o", str(out), "--at", "Z=-200",
+                 "--max-correction-sd-um", f"{limit:g}"])
+    err = capsys.readouterr().err
+    assert code == (0 if written else 2)
+    assert (out / "y.comp").exists() is written
+    if not written:
+        assert "axis Y: no table" in err and "as compensate leaves such blocks uncorrected" in err
+        return
+    table = np.loadtxt(out / "y.comp")
+    diff = before + np.interp(ys, table[:, 0], table[:, 1] * 1e3)
+    assert np.ptp(diff) < 0.02, diff

@@ -192,8 +192,8 @@ def test_identify_says_what_the_data_show_of_a_reversal(tmp_path, capsys):
 def test_one_approach_direction_is_recorded_and_said(tmp_path, capsys):
     """X's positioning read approaching in + only (the bidirectional runs' + rows kept): the data
     cannot know the reversal, so the model records X as read from + only and compensate says that
-    moves approaching in - carry the reversal no data measured (an identifiability tester's
-    campaign: an 8 um reversal made 29 of 121 lines worse, without a word). The same runs read
+    it leaves the moves approaching in - uncorrected (an identifiability tester's campaign: an 8 um
+    reversal made 29 of 121 lines worse, without a word). The same runs read
     both ways record a reversal, not one direction; a Y file read both ways adds nothing."""
     both = _laser(tmp_path, lambda t: -8.0)
     lines = both.read_text().splitlines()
@@ -201,6 +201,6 @@ def test_one_approach_direction_is_recorded_and_said(tmp_path, capsys):
     plus.write_text("\n".join([lines[0]] + [r for r in lines[1:] if r.split(",")[3] == "1"]) + "\n")
     assert data_reversal([read_measurements(plus)]) == {"X": {"one_direction": "+", "files": ["x_plus"]}}
     assert "one_direction" not in data_reversal([read_measurements(both)])["X"]
-    said = _compensate_lines(tmp_path, capsys, plus, 40, "approaching X in + only")
-    assert len(said) == 1 and "moves approaching X in - get the correction read from the other side" \
+    said = _compensate_lines(tmp_path, capsys, plus, 40, "the data read the approach X in + only")
+    assert len(said) == 1 and "compensate leaves uncorrected the blocks that approach X in -" \
         in said[0], said

@@ -339,8 +339,8 @@ def test_two_axis_runs_keep_no_variance_of_the_components_no_file_names(tmp_path
 def test_the_correction_gate_counts_the_variance_of_what_the_fit_held(tmp_path):
     """compensate's gate counts predict's variance: along a held direction the fitted values do not
     move whatever the data say, but the truth may differ from the held value by its standard
-    error, and the correction is then off by as much. (export's tables still take the factor
-    without it, ``held=False``.)"""
+    error, and the correction is then off by as much. export's tables take the same
+    (:class:`mtcomp.planner._uncertainty.CorrectionUncertainty`)."""
     from mtcomp.models.model_file import FittedModel
     _, res = _rough_y_campaign(7, tmp_path)
     fitted = identify(load_machine("xfyz"), [read_measurements(res.path)]).fitted_model
@@ -364,7 +364,8 @@ def test_the_correction_gate_counts_the_variance_of_what_the_fit_held(tmp_path):
     prob.fitted, prob.machine = fitted, fitted.machine
     prob.correct_orientation, prob.residual_scale, prob.axis_scale = False, None, None
     ev = Evaluator(prob)
-    np.testing.assert_allclose(ev._factor[1] @ ev._factor[1].T, u["covariance"], rtol=0,
+    F_ev = ev.uncertainty.factor[1]
+    np.testing.assert_allclose(F_ev @ F_ev.T, u["covariance"], rtol=0,
                                atol=1e-9 * np.abs(u["covariance"]).max())
 
 

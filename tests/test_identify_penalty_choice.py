@@ -178,3 +178,22 @@ def test_a_correction_that_rests_on_the_split_is_unsure(fit):
     sd = fitted.tip_sd_um(J, fitted.covariance_factor(held=False), fitted.undetermined_values(), None,
                           fitted.choice_directions())
     assert np.isinf(sd[0])
+
+
+
+def test_compensate_names_the_split_as_the_reason(fit, tmp_path, capsys):
+    """A block left uncorrected because its correction rests on the split is said to rest on the
+    split (MODEL.json's uncertainty.choice), not on undetermined values: an identifiability tester's
+    campaign had every block said to rest on 'uncertainty.undetermined' while that list was empty."""
+    from mtcomp.cli import main
+    from mtcomp.models import save_model
+    x, y, z = _axes(np.array([250.0 * np.cos(np.radians(20)), 250.0 * np.sin(np.radians(20)), 20.0]),
+                    -30.0, 60.0)
+    (tmp_path / "m.toml").write_text(MACHINE)
+    save_model(tmp_path / "m.json", fit.fitted_model)
+    (tmp_path / "p.nc").write_text(f"G21 G90\nG0 X{x:.4f} Y{y:.4f} Z{z:.4f} A-30 C60\nM30\n")
+    capsys.readouterr()
+    assert main(["compensate", str(tmp_path / "m.toml"), str(tmp_path / "m.json"), str(tmp_path / "p.nc"),
+                 "-o", str(tmp_path / "o.nc")]) == 0
+    said = [line for line in capsys.readouterr().out.splitlines() if "not corrected" in line]
+    assert len(said) == 1 and "uncertainty.choice" in said[0] and "undetermined" not in said[0], said

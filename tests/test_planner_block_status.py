@@ -29,7 +29,7 @@ def test_block_status_names_unknown_and_outside_axes_and_the_standard_error():
     q[3, 0] = 50.0
     feed = np.full(5, 1000.0)
     dirs = np.ones(q.shape)
-    unknown, outside, sd = planner.block_status(q, known, feed, dirs)
+    unknown, outside, sd, _ = planner.block_status(q, known, feed, dirs)
     np.testing.assert_array_equal(unknown, ~known)
     expected_out = np.zeros(q.shape, bool)
     expected_out[2, 0] = True                             # x = 10 mm > 0; -20 - 1e-7 is within slack
@@ -52,7 +52,7 @@ def test_block_status_names_unknown_and_outside_axes_and_the_standard_error():
 def test_block_status_without_a_limit_evaluates_no_standard_error():
     _, _, _, planner = _planner(limit_um=0.0)
     q = np.array([[-10.0, 5.0, -3.0]])
-    unknown, outside, sd = planner.block_status(q, np.ones(q.shape, bool), np.full(1, 1000.0),
+    unknown, outside, sd, _ = planner.block_status(q, np.ones(q.shape, bool), np.full(1, 1000.0),
                                                 np.ones(q.shape))
     assert not unknown.any() and not outside.any()
     assert np.isnan(sd).all()

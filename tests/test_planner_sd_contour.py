@@ -222,10 +222,12 @@ def test_contours_across_chunks_are_planned_as_in_one_piece(tmp_path, monkeypatc
 def test_render_leaves_out_the_contours_the_planner_leaves_out(tmp_path, flank):
     """render without a report guesses which blocks compensate leaves uncorrected by the planner's
     rules: with the default limit (5 um) between the standard error at x = 250 mm and at 200 mm,
-    contour A's every block is marked uncertain (3), contour B's none; as compensate's BLOCKS.csv."""
+    contour A's every block is marked uncertain (3), contour B's none; as compensate's BLOCKS.csv.
+    X's slope 100 um per m at a standard error of 24 (the scale below): B's corrections are told
+    from zero (4.2 standard errors; at 40 um per m, 1.7, compensate leaves B too)."""
     from mtcomp.planner.problem import DEFAULT_MAX_CORRECTION_SD_UM as limit
     from mtcomp.viz.surface import program_error_map
-    machine, fitted = _fitted(40.0)
+    machine, fitted = _fitted(100.0)
     q, _rapid = _two_contours()
     scale = 1.2 * limit / _sd_oracle(fitted, q)[len(XA) - 1]        # sd(250 mm) = 1.2 x the limit
     fitted.uncertainty["covariance"] = fitted.uncertainty["covariance"] * scale ** 2

@@ -90,7 +90,7 @@ def test_planner_block_status_reads_the_ram_where_the_tool_put_it(fitted_model):
     fitted = load_model(fitted_model[1])
     planner = Planner(CompensationProblem.from_machine(fitted), PlannerOptions(threads=1))
     q = np.array([[0.0, 0.0, 50.0], [0.0, 0.0, 120.0], [0.0, 0.0, 0.0]])
-    _, outside, _ = planner.block_status(q, np.ones(q.shape, bool), np.full(3, np.nan), np.zeros(q.shape),
+    _, outside, _, _ = planner.block_status(q, np.ones(q.shape, bool), np.full(3, np.nan), np.zeros(q.shape),
                                          tool_length=np.array([0.0, 100.0, STYLUS]))
     np.testing.assert_array_equal(outside[:, 2], [True, False, False])
 

@@ -49,9 +49,10 @@ def add_arguments(parser):
                              "one point on the machine")
     parser.add_argument("--max-correction-sd-um", type=float, default=None, metavar="UM",
                         help="an axis whose correction's standard error (the model's covariance) "
-                             "exceeds UM um anywhere on its table gets no table, as compensate leaves "
-                             f"such blocks uncorrected (default {DEFAULT_MAX_CORRECTION_SD_UM:g}; 0: "
-                             "no limit)")
+                             "exceeds UM um anywhere on its table, or none of whose values is told "
+                             "from zero by it (within two of them), gets no table, as compensate "
+                             f"leaves such blocks uncorrected (default {DEFAULT_MAX_CORRECTION_SD_UM:g}; "
+                             "0: no limit, and neither rule)")
     parser.add_argument("--fanuc-unit-um", type=float, default=1.0, metavar="U",
                         help="fanuc detection unit in um (default 1)")
     parser.add_argument("--fanuc-max-value", type=int, default=127, metavar="V",

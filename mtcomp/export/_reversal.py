@@ -11,29 +11,18 @@ from __future__ import annotations
 
 import math
 
-from ..identification.reversal import REVERSAL_P
+from ..identification.reversal import REVERSAL_P, one_direction_axes, unheld_records
 
 
 def _number(x) -> float | None:
     return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) else None
 
 
-def _unheld_records(fitted) -> dict:
-    """axis -> its record in ``info["reversal"]`` for every axis on which the model holds no
-    backlash term (a record absent or not understood, a hand-edited file, says nothing)."""
-    record = fitted.info.get("reversal") if isinstance(fitted.info, dict) else None
-    if not isinstance(record, dict):
-        return {}
-    held = {getattr(t, "axis", None) for t in fitted.model.terms if t.kind == "backlash"}
-    return {a: r for a in fitted.machine.axis_names
-            if a not in held and isinstance(r := record.get(a), dict)}
-
-
 def unheld_reversals(fitted) -> dict:
     """axis -> (mean reversal, largest reversal, unit) of every axis whose data show a reversal the
     model does not hold (no backlash term on that axis), file units (um, urad)."""
     out = {}
-    for a, r in _unheld_records(fitted).items():
+    for a, r in unheld_records(fitted).items():
         unit = "urad" if fitted.machine.axis(a).is_rotary else "um"
         p, mean, largest = (_number(r.get(k)) for k in ("p_value", f"B_mean_{unit}", f"B_{unit}"))
         if p is not None and mean is not None and largest is not None and p < REVERSAL_P:
@@ -41,26 +30,22 @@ def unheld_reversals(fitted) -> dict:
     return out
 
 
-def one_direction_axes(fitted) -> dict:
-    """axis -> '+' or '-': the axes whose positioning the model's laser data read approaching from
-    that side only (``info["reversal"]``'s ``one_direction``) and on which the model holds no
-    backlash term: their reversal is not measured, so the model's correction is the same both ways."""
-    return {a: r["one_direction"] for a, r in _unheld_records(fitted).items()
-            if r.get("one_direction") in ("+", "-")}
-
-
 def one_direction_note(fitted) -> str | None:
-    """One line (no 'note:' prefix) when the model's laser data read an axis approaching from one
-    side only, else None: the reversal there is not measured, held at zero."""
+    """One line (no 'note:' prefix) when the model's data read an axis approaching from one side
+    only, else None: the reversal there is not measured; compensate leaves the blocks approaching
+    from the other side (or a side not known) uncorrected, and export writes that side's column
+    without correction where the format keeps the sides apart."""
     axes = one_direction_axes(fitted)
     if not axes:
         return None
     said = ", ".join(f"{a} in {sign} only" for a, sign in axes.items())
     other = ", ".join(f"{a} in {'-' if sign == '+' else '+'}" for a, sign in axes.items())
-    return (f"the laser data read the positioning approaching {said}: the reversal (backlash) there "
-            f"is not measured and is taken as zero, so moves approaching {other} get the correction "
-            "read from the other side, and whatever reversal the axis has stays in the part; measure "
-            "both directions (ISO 230-2 runs are bidirectional) to know it")
+    return (f"the data read the approach {said}: the reversal (backlash) there is not measured; "
+            f"compensate leaves uncorrected the blocks that approach {other}, or from a side not "
+            "known, and a table from this model holds the side read: LinuxCNC's COMP_FILE has a "
+            "column per side and the other one is written without correction, the other formats' "
+            "tables apply it both ways (whatever reversal the axis has stays in the part there); "
+            "measure both directions (ISO 230-2 runs are bidirectional) to know it")
 
 
 def reversal_note(fitted) -> str | None:

@@ -43,6 +43,8 @@ import numpy as np
 from ..errors import InputError
 from ..models.evaluate import casadi_map_call, deviation
 from ..models.model_file import UNDETERMINED_UM
+from ..planner._contours import one_contour_left
+from ..planner._uncertainty import SMALL_IN_SD, CorrectionUncertainty, in_sd
 from ..planner.problem import unsure_advice
 from ._reversal import reversal_note, unheld_reversals
 
@@ -518,19 +520,18 @@ def reference_notes(machine, axes) -> list:
 
 
 def table_sd_um(fitted, q: np.ndarray, q_ref: np.ndarray, directions: dict,
-                factor=None, undetermined=None) -> np.ndarray | None:
+                uncertainty: CorrectionUncertainty | None = None,
+                components: bool = False) -> np.ndarray | None:
     """(N,) the standard error (um) of the tip deviation at poses ``q`` (N, n_axes) less that at
-    ``q_ref`` (the table's zero), under the model's covariance: the largest of its three components'
-    (:meth:`~mtcomp.models.model_file.FittedModel.tip_sd_um`, as compensate's check of a
-    correction takes it; infinite where the table moves with values the data left undetermined),
-    with the context ``dir_<axis>`` of ``directions``; None when the model carries no uncertainty.
-    The directions the fit held are left out (they correct nothing). ``factor``, ``undetermined``:
-    the model's :meth:`covariance_factor` (held=False) and :meth:`undetermined_values` when already
-    computed (both, or neither)."""
+    ``q_ref`` (the table's zero), with the context ``dir_<axis>`` of ``directions``: the largest of
+    its three components' ((N, 3) each component's with ``components``), by compensate's rule for a
+    correction's (:class:`~mtcomp.planner._uncertainty.CorrectionUncertainty`: predict's
+    covariance, the weakly held combinations' variance included; infinite where the table moves
+    with values the data left undetermined). None when the model carries no uncertainty.
+    ``uncertainty``: the model's CorrectionUncertainty when already made."""
     from ..models.evaluate import evaluate
-    if factor is None:
-        factor, undetermined = fitted.covariance_factor(held=False), fitted.undetermined_values()
-    if factor is None:
+    unc = CorrectionUncertainty(fitted) if uncertainty is None else uncertainty
+    if not unc.known:
         return None
     n = q.shape[0]
     cols = {f"dir_{a}": np.broadcast_to(np.asarray(v, dtype=float), (n,)) for a, v in directions.items()}
@@ -538,38 +539,54 @@ def table_sd_um(fitted, q: np.ndarray, q_ref: np.ndarray, directions: dict,
     J = evaluate(fitted.model, "tip_pjacobian_function", fitted.clamp(q)[0], p, fitted.context(n, cols))[0]
     J0 = evaluate(fitted.model, "tip_pjacobian_function", fitted.clamp(q_ref[None, :])[0], p,
                   fitted.context(1, {}))[0]
-    return fitted.tip_sd_um(J - J0, factor, undetermined, None, fitted.choice_directions())
+    each = unc.components(J, J0)
+    return each if components else each.max(axis=1)
 
 
 def axis_table_sd_um(fitted, a: str, q: np.ndarray, q_ref: np.ndarray) -> np.ndarray | None:
     """(N,) :func:`table_sd_um` of axis ``a``'s table at poses ``q``, the larger of its two approach
     directions; None when the model carries no uncertainty."""
-    factor = fitted.covariance_factor(held=False)
-    if factor is None:
+    unc = CorrectionUncertainty(fitted)
+    if not unc.known:
         return None
-    und = fitted.undetermined_values()
-    return np.maximum(*(table_sd_um(fitted, q, q_ref, {a: d}, factor, und) for d in (1.0, -1.0)))
+    return np.maximum(*(table_sd_um(fitted, q, q_ref, {a: d}, unc) for d in (1.0, -1.0)))
 
 
-def _too_uncertain(fitted, a: str, q: np.ndarray, q_ref: np.ndarray, max_sd_um: float | None):
-    """The note saying why axis ``a``'s table is not written (its largest standard error over the
-    grid ``q`` exceeds ``max_sd_um``), or None (written)."""
-    if not max_sd_um:
+def _table_left(fitted, a: str, q: np.ndarray, q_ref: np.ndarray, tips: dict,
+                max_sd_um: float | None, unc: CorrectionUncertainty | None):
+    """The note saying why axis ``a``'s table is not written, or None (written): compensate's gate
+    on the axis moving through the table's points, one contour
+    (:func:`~mtcomp.planner._contours.one_contour_left`): some point's standard error exceeds
+    ``max_sd_um``, or no point's value is told from zero by its standard errors. ``tips``: +-1 ->
+    (N, 3) mm, the table's tip columns in that direction (the correction compensate makes there
+    with its datum at the table's zero); ``unc`` the model's CorrectionUncertainty (None: no
+    limit asked)."""
+    if not max_sd_um or unc is None or not unc.known:
         return None
-    sd = axis_table_sd_um(fitted, a, q, q_ref)
-    if sd is None or not sd.max() > max_sd_um:
+    each = {d: table_sd_um(fitted, q, q_ref, {a: d}, unc, components=True) for d in (1.0, -1.0)}
+    sd = np.concatenate([each[d].max(axis=1) for d in each])
+    z = np.concatenate([in_sd(tips[d] * 1e3, each[d]) for d in each])
+    why = one_contour_left(sd, z, max_sd_um)
+    if why is None:
         return None
     ax = fitted.machine.axis(a)
     u, f = ("deg", 180.0 / math.pi) if ax.is_rotary else ("mm", 1.0)
-    at = q[int(np.argmax(sd)), fitted.machine.index(a)] * f
-    if not np.isfinite(sd.max()):
+    if why == "indistinct":
+        k = int(np.nanargmax(z))
+        return (f"axis {a}: no table: no point's value is told from zero by its standard error (at "
+                f"most {z[k]:.2g} of them, at {q[k % len(q), fitted.machine.index(a)] * f:g} {u}; "
+                f"under {SMALL_IN_SD:g} everywhere), as compensate leaves such blocks uncorrected: "
+                "measure more, or more often, to tell it")
+    top = float(sd.max())
+    at = q[int(np.argmax(sd)) % len(q), fitted.machine.index(a)] * f
+    if not np.isfinite(top):
         return (f"axis {a}: no table: it moves with values of the model its data did not determine "
                 f"(at {at:g} {u}), as compensate leaves such blocks uncorrected; "
-                + unsure_advice(float(sd.max()), max_sd_um, "writes the table"))
-    return (f"axis {a}: no table: its correction's standard error reaches {sd.max():.3g} um (at "
+                + unsure_advice(top, max_sd_um, "writes the table"))
+    return (f"axis {a}: no table: its correction's standard error reaches {top:.3g} um (at "
             f"{at:g} {u}), above the limit of {max_sd_um:g} um (--max-correction-sd-um), as "
             "compensate leaves such blocks uncorrected; "
-            + unsure_advice(float(sd.max()), max_sd_um, "writes the table"))
+            + unsure_advice(top, max_sd_um, "writes the table"))
 
 
 #: a table whose points miss more than this (um, along its own axis) of the model's error between
@@ -619,8 +636,10 @@ def component_tables(fitted, grids: dict, region: dict | None = None,
         default: the reference positions, :func:`table_pose` gives the export's). Each table is
         zero at its own axis's reference position, the others at ``pose``: along a line through
         ``pose`` the tables correct what compensate corrects, up to one constant.
-    max_sd_um : an axis whose table's standard error (:func:`table_sd_um`, either direction) exceeds
-    this anywhere on its grid gets no table, and a note says why (None or 0: no limit). The whole
+    max_sd_um : an axis gets no table, and a note says why, where compensate would leave its
+    axis's motion through the table's points uncorrected as one contour (:func:`_table_left`): its
+    standard error (:func:`table_sd_um`, either direction) exceeds this anywhere on its grid, or
+    no point's value is told from zero by it (None or 0: no limit, and neither rule). The whole
     table, not the points over the limit: a controller interpolates between its points, and a table
     zero at some points and not at their neighbours would put steps into the axis's motion.
     The model is evaluated without its drift terms (:meth:`FittedModel.without_drift`): the
@@ -634,6 +653,7 @@ def component_tables(fitted, grids: dict, region: dict | None = None,
     q_ref = _evaluation_pose(machine, region)
     pose = q_ref if pose is None else np.asarray(pose, dtype=float)
     tables, dropped, uncertain = {}, [], []
+    unc = CorrectionUncertainty(fitted) if max_sd_um else None
     for a, g in grids.items():
         g = np.asarray(g, dtype=float)
         lo, hi = region.get(a, (float(g[0]), float(g[-1])))
@@ -642,14 +662,14 @@ def component_tables(fitted, grids: dict, region: dict | None = None,
         q0[i] = q_ref[i]                                # the table's zero: its axis's reference
         q = np.tile(pose, (len(g), 1))
         q[:, i] = np.clip(g, lo, hi)                    # beyond the data: the end value, held
-        why = _too_uncertain(fitted, a, q, q0, max_sd_um)
-        if why:
-            uncertain.append(why)
-            continue
         zero, _ = model_errors(fitted, q0[None, :])
         fwd, known = model_errors(fitted, q, {a: 1.0})
         rev, _ = model_errors(fitted, q, {a: -1.0})
         fwd, rev = fwd - zero, rev - zero
+        why = _table_left(fitted, a, q, q0, {1.0: fwd[:, :3], -1.0: rev[:, :3]}, max_sd_um, unc)
+        if why:
+            uncertain.append(why)
+            continue
         ax = machine.axis(a)
         if ax.is_rotary and ax.side == "workpiece":
             # a rotary table turns the workpiece: its own error is minus the tool's rotation

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._output import FULL, LINEAR, ExportResult, readme_text, slope
+from ._reversal import one_direction_axes
 from ._tables import ZERO, component_names, own_column
 
 MAX_POINTS = 256
@@ -23,13 +24,19 @@ INCLUDE_END = True
 DECIMALS = 6  # machine units (mm, deg): 1 nm
 
 
-def comp_lines(table, column: int, comp_type: int, factor: float) -> list[str]:
-    """Lines ``nominal forward reverse`` of one joint (machine units: mm or deg)."""
+def comp_lines(table, column: int, comp_type: int, factor: float, read: str | None = None) -> list[str]:
+    """Lines ``nominal forward reverse`` of one joint (machine units: mm or deg); ``read`` '+' or
+    '-': the model's data read the axis from that side only, and the other column carries no
+    correction (the reversal there is not measured: what compensate leaves uncorrected)."""
     out = []
-    for s, ef, er in zip(table.positions, table.forward[:, column], table.reverse[:, column]):
+    forward, reverse = table.forward[:, column], table.reverse[:, column]
+    if read is not None:
+        none = np.zeros_like(forward)
+        forward, reverse = (forward, none) if read == "+" else (none, reverse)
+    for s, ef, er in zip(table.positions, forward, reverse):
         nom = s * factor
         if comp_type == 1:
-            fwd, rev = -ef * factor, -er * factor
+            fwd, rev = -ef * factor + 0.0, -er * factor + 0.0
         else:
             fwd, rev = nom + ef * factor, nom + er * factor
         out.append(f"{nom:.{DECIMALS}f} {fwd:.{DECIMALS}f} {rev:.{DECIMALS}f}")
@@ -42,8 +49,13 @@ def measured(table, column: int) -> bool:
     return bool(np.nanmax(np.abs(table.mean[:, column])) > ZERO)
 
 
-def backlash_comment(tables, a: str) -> str:
-    """The ini comment on BACKLASH for axis ``a``: where the reversal is, or that there is none."""
+def backlash_comment(tables, a: str, read: str | None = None) -> str:
+    """The ini comment on BACKLASH for axis ``a``: where the reversal is, or that there is none;
+    ``read``: the one side the model's data read the axis from (:func:`comp_lines`)."""
+    if read is not None:
+        other = "reverse" if read == "+" else "forward"
+        return (f"# BACKLASH is ignored when COMP_FILE is set; the data read {a} approaching in "
+                f"{read} only: the {other} column carries no correction (its reversal not measured)")
     if tables.has_backlash(a):
         return "# BACKLASH is ignored when COMP_FILE is set: the reversal is in the two columns"
     line = ("# BACKLASH is ignored when COMP_FILE is set, and this model holds no reversal: the two "
@@ -60,6 +72,7 @@ def export(tables, comp_type: int = 1, **_) -> ExportResult:
     files, carried, notes = {}, {}, []
     ini = ["# paste into the machine's INI file (one [JOINT_n] per axis, trivkins order assumed: "
            "joint n = axis n of " + " ".join(m.axis_names) + ")"]
+    one_side = one_direction_axes(tables.fitted) if tables.fitted is not None else {}
     for n, a in enumerate(m.axis_names):
         t = tables.tables.get(a)
         if t is None:
@@ -67,10 +80,10 @@ def export(tables, comp_type: int = 1, **_) -> ExportResult:
         j = own_column(m, a)
         factor = 180.0 / 3.141592653589793 if t.rotary else 1.0
         name = f"{a.lower()}.comp"
-        files[name] = "\n".join(comp_lines(t, j, comp_type, factor)) + "\n"
+        files[name] = "\n".join(comp_lines(t, j, comp_type, factor, one_side.get(a))) + "\n"
         carried[(a, component_names(a)[j])] = FULL
         ini += ["", f"[JOINT_{n}]", f"COMP_FILE = {name}", f"COMP_FILE_TYPE = {comp_type}",
-                backlash_comment(tables, a)]
+                backlash_comment(tables, a, one_side.get(a))]
     files["ini_lines.txt"] = "\n".join(ini) + "\n"
     # squareness (and the linear part of every cross straightness) as matrixkins C = I - S
     hal = ["# matrixkins: [KINS] KINEMATICS = matrixkins; joint = C . axis position",

@@ -267,7 +267,9 @@ def predict_readings(fitted: FittedModel, data: MeasurementSet, machine: Machine
     if open_sd and fitted.uncertainty is not None:
         notes.append(f"{open_sd} prediction(s) of {mm.tag} depend on a combination of the model's "
                      "parameters its data did not determine (the model file's "
-                     "uncertainty.undetermined): written with a blank standard error")
+                     "uncertainty.undetermined): written with a blank standard error (what the "
+                     "data say nothing of has none; compensate's correction_sd_um there is that of "
+                     "the rest, since a correction has no part along that combination)")
     notes += _assumed_note(fitted, data, machine or fitted.machine, open_sd > 0)
     notes += _blank_outside_region(fitted, data, machine or fitted.machine, columns)
     if fitted.uncertainty is None:

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..machine import ROTARY
+from ..machine import AXIS_ORDER, ROTARY
 from .iso230_2 import positioning_component
 
 #: the data show a reversal when its p-value (module docstring) is below this
@@ -87,22 +87,25 @@ def data_reversal(datasets) -> dict:
                "files": ["ess_b02_x"]}}
 
     (``_urad`` for rotary axes; from ball-bar files ``B`` and ``B_mean`` are the one fitted value and
-    ``n_targets`` the positions read both ways). An axis whose positioning the laser files read
-    approaching from one side only (every reading's direction +1, or every one -1) and no file reads
-    both ways is ``{"one_direction": "+", "files": [...]}``: its reversal is not measured. Other axes
-    without a target read in both directions are absent."""
+    ``n_targets`` the positions read both ways). An axis, linear or rotary, whose readings state
+    their approach direction (:func:`_stated_directions`: laser files, and points, ball-bar and CMM
+    files with ``dir_<axis>`` columns) and all state the same one (every direction +1, or every one
+    -1) is ``{"one_direction": "+", "files": [...]}``: its reversal is not measured, and compensate
+    leaves the blocks approaching it the other way uncorrected. Other axes without a target read in
+    both directions are absent."""
     found: dict = {}
     signs: dict = {}                    # axis -> (approach directions read, files), every file
+    for a, read, tag in _stated_directions(datasets):
+        entry = signs.setdefault(a, (set(), []))
+        entry[0].update(read)
+        entry[1].append(tag)
     for d in _laser_sets(datasets):
-        tag = Path(str(d.path)).stem if getattr(d, "path", None) else "laser"
+        tag = _tag(d, "laser")
         for a in dict.fromkeys(d.axis.tolist()):
             sel = np.flatnonzero((d.axis == a) & (d.component == positioning_component(a))
                                  & np.isfinite(d.value))
             if not sel.size:
                 continue
-            read = signs.setdefault(a, (set(), []))
-            read[0].update(np.sign(d.dir[sel]).astype(int).tolist())
-            read[1].append(tag)
             groups = _groups(d, sel)
             if groups:
                 entry = found.setdefault(a, {"groups": [], "files": []})
@@ -119,6 +122,41 @@ def data_reversal(datasets) -> dict:
                   "p_value": reversal_p_value(B, n_up, n_down, float(ss.sum()), int(dof.sum())),
                   "n_targets": int(B.size), "files": list(dict.fromkeys(entry["files"]))}
     return out
+
+
+def _tag(d, kind: str) -> str:
+    """The name a file goes by in ``info["reversal"]``: its stem."""
+    return Path(str(d.path)).stem if getattr(d, "path", None) else kind
+
+
+def _stated_directions(datasets):
+    """(axis letter, the approach directions its readings state (a set of +1/-1), file name) per
+    axis and file whose readings state the axis's approach direction: a laser file's moving axis
+    (column ``dir``, every component read), and in a points (R-test, three-sphere, grid) or
+    ball-bar file every axis that moves in the file and has a ``dir_<axis>`` cell that is not blank
+    (a blank cell or an absent column states nothing). An axis the file holds at one position is
+    not approached from anywhere the readings tell; a CMM file's points are where a program cut
+    (its moves' directions are the program's), and thermal and velocity files read no position:
+    they state nothing."""
+    for d in datasets:
+        d = getattr(d, "data", d)
+        kind = getattr(d, "kind", None)
+        if kind == "laser":
+            for a in dict.fromkeys(d.axis.tolist()):
+                sel = (d.axis == a) & np.isfinite(d.value) & (d.dir != 0)
+                if sel.any():
+                    yield a, set(np.sign(d.dir[sel]).astype(int).tolist()), _tag(d, kind)
+            continue
+        xyz, abc = getattr(d, "xyz", None), getattr(d, "abc", None)
+        if kind not in ("points", "ballbar") or xyz is None:
+            continue
+        pos = np.column_stack([xyz, abc if abc is not None else np.zeros_like(xyz)])
+        for k, a in enumerate(AXIS_ORDER):
+            stated = d.context.dirs[:, k] != 0
+            column = pos[stated, k]
+            column = column[np.isfinite(column)]
+            if column.size and float(column.max() - column.min()) > 1e-9:
+                yield a, set(np.sign(d.context.dirs[stated, k]).astype(int).tolist()), _tag(d, kind)
 
 
 def _ballbar_pairs(d):
@@ -161,7 +199,7 @@ def _ballbar_reversal(datasets) -> dict:
         if dz.size:
             diffs.append(dz)
             cols.append(h)
-            files.append(Path(str(d.path)).stem if getattr(d, "path", None) else "ballbar")
+            files.append(_tag(d, "ballbar"))
     if not diffs:
         return {}
     dz, h = np.concatenate(diffs), np.vstack(cols)
@@ -236,3 +274,23 @@ class DirectionContrast:
         num = np.bincount(self._g, weights=self._c * r[self._idx], minlength=self.n_groups)
         den = np.bincount(self._g, weights=self._c ** 2, minlength=self.n_groups)
         return float(np.sum(num ** 2 / den))
+
+
+def unheld_records(fitted) -> dict:
+    """axis -> its record in ``info["reversal"]`` for every axis on which the model holds no
+    backlash term (a record absent or not understood, a hand-edited file, says nothing)."""
+    record = fitted.info.get("reversal") if isinstance(fitted.info, dict) else None
+    if not isinstance(record, dict):
+        return {}
+    held = {getattr(t, "axis", None) for t in fitted.model.terms if t.kind == "backlash"}
+    return {a: r for a in fitted.machine.axis_names
+            if a not in held and isinstance(r := record.get(a), dict)}
+
+
+def one_direction_axes(fitted) -> dict:
+    """axis -> '+' or '-': the axes whose readings in the model's data all state the one approach
+    direction (``info["reversal"]``'s ``one_direction``: laser files, and points and ball-bar
+    files with ``dir_<axis>`` columns) and on which the model holds no backlash term: their
+    reversal is not measured, so the model's correction is the one read from that side."""
+    return {a: r["one_direction"] for a, r in unheld_records(fitted).items()
+            if r.get("one_direction") in ("+", "-")}

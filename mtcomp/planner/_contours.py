@@ -25,10 +25,7 @@ import numpy as np
 from ._nodes import NodeSet
 from ._pointwise import Linearization
 from ._small import any_rows
-
-#: a correction within this many of its standard errors of zero (in every component of the tip) is
-#: not told from none (docs/planner.md, *Blocks where the model is unsure*)
-SMALL_IN_SD = 2.0
+from ._uncertainty import SMALL_IN_SD
 #: the longest open contour held back for the batch that closes it (nodes; about 250 bytes each)
 HOLD_NODES = 1 << 18
 
@@ -88,6 +85,22 @@ def quiet_contours(member, start, in_sd, carry_open=False, carried_whole=True) -
     quiet = (np.bincount(cid[counted], minlength=size) > 0) & ~loud
     quiet[0] &= bool(carried_whole) or not carry_open
     return (member & quiet[cid]) | (~member & small)
+
+
+def one_contour_left(sd_um, in_sd, limit) -> str | None:
+    """Why the gate leaves a whole contour of nodes uncorrected ('over': some node's standard error
+    ``sd_um`` (n,) exceeds ``limit``; 'indistinct': no node's correction is told from zero by its
+    standard errors, ``in_sd`` (n,) as :func:`quiet_contours`), or None (corrected whole). None
+    too without a limit (None or 0): neither rule acts then, as in :class:`ContourGate`. An export
+    table is one such contour: its axis moving through its points (docs/export.md)."""
+    if not limit:
+        return None
+    sd_um = np.asarray(sd_um, dtype=float)
+    member, start = np.ones(sd_um.size, bool), np.zeros(sd_um.size, bool)
+    with np.errstate(invalid="ignore"):
+        if gated_contours(member, start, sd_um > limit)[0].any():
+            return "over"
+    return "indistinct" if quiet_contours(member, start, in_sd).any() else None
 
 
 class ContourGate:

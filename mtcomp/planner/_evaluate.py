@@ -25,9 +25,9 @@ import numpy as np
 from ..kinematics import forward as nominal_pose
 from ..kinematics import pose_jacobian as nominal_pose_jacobian
 from ..models.evaluate import evaluate
-from ..models.model_file import UNDETERMINED_UM
 from ..models.assumed import Assumed
 from ._small import any_rows, down_columns
+from ._uncertainty import CorrectionUncertainty
 from .problem import CompensationProblem
 
 
@@ -94,18 +94,14 @@ class Evaluator:
         self.D = problem.axis_scale
         self.evaluations = 0
         self._count_lock = threading.Lock()     # parts of a chunk are evaluated in threads
-        # predict's covariance, the combinations the fit held weakly included: the truth may differ
-        # from the held values by that much, at the block and at the datum (docs/planner.md)
-        self._factor = problem.fitted.covariance_factor(held=True)
-        # the part of the values along what the data left undetermined: a correction that moves
-        # with it is unsure (FittedModel.tip_sd_um)
-        self._open = problem.fitted.undetermined_values() if self._factor is not None else None
-        # the penalty's split of what the data cannot tell apart: a correction resting on it is unsure
-        self._choice = problem.fitted.choice_directions() if self._factor is not None else None
+        #: a correction's standard error, as export's tables and render's map take it
+        self.uncertainty = CorrectionUncertainty(problem.fitted)
         #: the model carries a covariance: :meth:`correction_sd_assumed` is NaN everywhere without one
-        self.has_uncertainty = self._factor is not None
+        self.has_uncertainty = self.uncertainty.known
         #: (function name, datum row, tool length) -> the function there (:meth:`_at_datum`)
         self._datum_values: dict = {}
+        #: why some corrections' standard errors were infinite (:meth:`_note_causes`)
+        self.infinite_causes: set = set()
         #: what the model's corrections assume at zero (None: nothing), :mod:`._assumed`
         self.assumed = Assumed.of(problem.fitted, problem.machine)
 
@@ -119,48 +115,59 @@ class Evaluator:
         return evaluate(self.model, "deviation_function", self.problem.fitted.clamp(q)[0], self.p, ctx)[0]
 
     def correction_sd_assumed(self, q, ctx, datum=None, sd: bool = True) -> np.ndarray:
-        """(n, 2 + Assumed.width): the standard error (um) of the correction at q (NaN where not
-        ``sd``): the largest of the three components' standard errors of the tip deviation (less
-        the deviation at the part's datum, as :meth:`datum_reference` takes it, when ``datum``
-        (n, na) is given) under the model's covariance, evaluated where :meth:`_deviation`
-        evaluates it; infinite where the correction moves with values the data left undetermined
-        (FittedModel.tip_sd_um); NaN when the model carries no uncertainty. Then the correction in
-        its standard errors (:meth:`_in_sd`; NaN where not ``sd``), and, when the model assumes
-        something at zero (:attr:`assumed`), :meth:`Assumed.blocks` of the same Jacobian."""
+        """(n, 3 + Assumed.width): each tip component's standard error (um) of the correction at q
+        (NaN where not ``sd``): the tip deviation less the deviation at the part's datum, as
+        :meth:`datum_reference` takes it, when ``datum`` (n, na) is given, evaluated where
+        :meth:`_deviation` evaluates it (:meth:`CorrectionUncertainty.components`: infinite where
+        the correction moves with values the data left undetermined); NaN when the model carries
+        no uncertainty. Then, when the model assumes something at zero (:attr:`assumed`),
+        :meth:`Assumed.blocks` of the same Jacobian. The correction in its standard errors is
+        :func:`._uncertainty.in_sd` of the correction the plan evaluates anyway (its ``b0``)."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
-        out = np.full((q.shape[0], 2 + (self.assumed.width if self.assumed else 0)), np.nan)
-        if self._factor is None:
+        out = np.full((q.shape[0], 3 + (self.assumed.width if self.assumed else 0)), np.nan)
+        if not self.has_uncertainty:
             return out
         fitted = self.problem.fitted
         J = evaluate(self.model, "tip_pjacobian_function", fitted.clamp(q)[0], self.p, ctx)[0]
-        extra = None
-        if datum is not None:
-            # the drift since the datum's state: the model error it misses there counted once
-            if sd:
-                extra = fitted.model_error_variance(J)
-            J = J - self._at_datum("tip_pjacobian_function", datum, ctx)
+        J0 = None if datum is None else self._at_datum("tip_pjacobian_function", datum, ctx)
         if sd:
-            each = fitted.tip_sd_um(J, self._factor, self._open, extra, self._choice, components=True)
-            out[:, 0] = each.max(axis=1)
-            out[:, 1] = self._in_sd(q, ctx, datum, each)
+            out[:, :3] = self.uncertainty.components(J, J0)
+            self._note_causes(J if J0 is None else J - J0, out[:, :3])
         if self.assumed:
-            out[:, 2:] = self.assumed.blocks(q, J)
+            out[:, 3:] = self.assumed.blocks(q, J if J0 is None else J - J0)
         return out
 
-    def _in_sd(self, q, ctx, datum, each) -> np.ndarray:
-        """(n,) the correction at q (the deviation less the datum's, :meth:`datum_reference`) in its
-        own standard errors ``each`` (n, 3) um: the largest over the tip's components of |its
-        correction| / its standard error; NaN where some standard error is infinite (the block is
-        over any limit) or the correction is under :data:`UNDETERMINED_UM` in every component
-        (written or not, the block is the same)."""
+    def _note_causes(self, J, each) -> None:
+        """Add to :attr:`infinite_causes` why some of the standard errors ``each`` (n, 3) of the
+        tip deviations of Jacobian J are infinite: ``"undetermined"`` where the deviation moves
+        with values the data left undetermined (MODEL.json ``uncertainty.undetermined``),
+        ``"choice"`` where it rests on the penalty's split of what the data cannot tell apart
+        (``uncertainty.choice``) and not on undetermined values."""
+        inf = np.isinf(each).any(axis=1)
+        if not inf.any() or self.infinite_causes >= {"undetermined", "choice"}:
+            return
+        found = set()
+        u = self.uncertainty
+        if u.choice is None:
+            found.add("undetermined")
+        elif u.open is None:
+            found.add("choice")
+        else:
+            alone = np.isinf(self.problem.fitted.tip_sd_um(J[inf], u.factor, u.open))
+            if alone.any():
+                found.add("undetermined")
+            if not alone.all():
+                found.add("choice")
+        with self._count_lock:
+            self.infinite_causes |= found
+
+    def correction_um(self, q, ctx, datum=None) -> np.ndarray:
+        """(n, 3) um: the correction at q, the tip deviation less that at the part's datum
+        (:meth:`datum_reference`; None: the raw deviation), as the plan's ``b0`` holds it."""
         dev = self._deviation(q, ctx)[:, :3]
         if datum is not None:
             dev = dev - self._at_datum("deviation_function", datum, ctx)[:, :3]
-        size = np.abs(dev) * 1e3
-        with np.errstate(divide="ignore", invalid="ignore"):
-            z = np.where(size > 0, size / each, 0.0).max(axis=1)
-        z[np.isinf(each).any(axis=1) | (size.max(axis=1) < UNDETERMINED_UM)] = np.nan
-        return z
+        return dev * 1e3
 
     def _deviation_and_qjacobian(self, q, ctx):
         """(deviation (n, 6), d deviation / d q (n, 6, n_axes)) as :meth:`_deviation`: along a held

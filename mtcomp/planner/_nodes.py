@@ -40,6 +40,8 @@ class NodeSet:
         limit, no covariance).
     indistinct : (n,) bool, pinned because its correction, or every one of its contour's, is not
         told from zero by its standard error (:mod:`._contours`), or None (none is).
+    unread : (n,) bool, its standard error made infinite because an axis its data read from one
+        side only approaches it from the other or a side not known (:mod:`._direction`), or None.
     """
 
     q: np.ndarray
@@ -60,12 +62,13 @@ class NodeSet:
     assumed: np.ndarray | None = None
     in_sd: np.ndarray | None = None
     indistinct: np.ndarray | None = None
+    unread: np.ndarray | None = None
 
     FIELDS = ("q", "context", "exempt", "line", "inserted", "rapid", "unknown", "outside", "pinned",
               "sd_um", "cut_start", "gated")
     LINKS = ("link_lo", "link_hi", "link_kind")
     #: (n,) fields that may be None, and what a None stands for when joined with others
-    FLAGS = {"in_sd": np.nan, "indistinct": False}
+    FLAGS = {"in_sd": np.nan, "indistinct": False, "unread": False}
 
     def __len__(self):
         return int(self.q.shape[0])

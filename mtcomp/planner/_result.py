@@ -40,6 +40,8 @@ class PlanResult:
     assumed : (n, w) what each block's correction assumes at zero (:mod:`._assumed`), or None.
     indistinct : (n,) bool, pinned because its correction (or every one of its contour's) is not
         told from zero by its standard error (NodeSet), or None (none is).
+    unread : (n,) bool, left uncorrected because an axis its data read from one side only
+        approaches it from the other or a side not known (NodeSet), or None (none is).
     """
 
     line: np.ndarray
@@ -66,6 +68,7 @@ class PlanResult:
     standing: np.ndarray | None = None
     assumed: np.ndarray | None = None
     indistinct: np.ndarray | None = None
+    unread: np.ndarray | None = None
 
     FIELDS = ("line", "inserted", "rapid", "nominal", "corrected", "correction", "before", "after",
               "before_axis", "after_axis", "flags", "iterations", "converged", "unknown", "outside",
@@ -80,10 +83,13 @@ class PlanResult:
                           **{f: None if getattr(self, f) is None else getattr(self, f)[sl]
                              for f in self.MASKS},
                           assumed=None if self.assumed is None else self.assumed[sl],
-                          indistinct=None if self.indistinct is None else self.indistinct[sl])
+                          **{f: None if getattr(self, f) is None else getattr(self, f)[sl]
+                             for f in self.FLAGS})
 
     #: (n, na) masks that may be None (no node has one)
     MASKS = ("undirected", "standing")
+    #: (n,) flags that may be None (no node has one)
+    FLAGS = ("indistinct", "unread")
 
     @staticmethod
     def concatenate(parts: list["PlanResult"]) -> "PlanResult":
@@ -96,9 +102,9 @@ class PlanResult:
             if any(getattr(p, f) is not None for p in parts):
                 masks[f] = np.concatenate([np.zeros(p.held.shape, bool) if getattr(p, f) is None
                                            else getattr(p, f) for p in parts])
-        return PlanResult(*out, **masks, assumed=concatenate_rows([p.assumed for p in parts]),
-                          indistinct=concatenate_flags([p.indistinct for p in parts],
-                                                       [len(p) for p in parts]))
+        flags = {f: concatenate_flags([getattr(p, f) for p in parts], [len(p) for p in parts])
+                 for f in PlanResult.FLAGS}
+        return PlanResult(*out, **masks, assumed=concatenate_rows([p.assumed for p in parts]), **flags)
 
     def corrected_blocks(self) -> np.ndarray:
         """(n,) bool: the blocks written with their correction on every axis that asked for one (in
@@ -119,3 +125,23 @@ class PlanResult:
                      if self.flags[i, j, k]]
             out[i] = ";".join(names)
         return out
+
+
+def first_rows(done: list, n: int) -> PlanResult:
+    """The first n (>= 1) rows of the results ``done`` (in program order) as one PlanResult, taken
+    off the list: the results they span joined, those after left as they are (of a result cut at
+    the n-th row, the rows after stay first, a view). Joining every result and cutting that copied
+    most rows twice: the windows of the next chunk are planned before this one is handed on."""
+    parts, got = [], 0
+    while got < n:
+        r = done.pop(0)
+        if got + len(r) > n:
+            done.insert(0, r.take(slice(n - got, len(r))))
+            r = r.take(slice(0, n - got))
+        parts.append(r)
+        got += len(r)
+    return parts[0] if len(parts) == 1 else PlanResult.concatenate(parts)
+
+
+def as_list(res) -> list:
+    return [r for r in (res if isinstance(res, list) else [res]) if r is not None and len(r)]

@@ -39,9 +39,11 @@ from ._pointwise import Linearization, solve_newton, solve_pinv
 from ._qp import WindowQP, never_worse_rows, prefetch_solver, reachable_nodes
 from ._ramp import merged, ramp_nodes
 from ._datum import DatumRule
+from ._direction import DirectionRule, note_unsure, unsure_rows
 from ._ram import RamRule
-from ._result import PlanResult
+from ._result import PlanResult, as_list, first_rows
 from ._rotary_grid import rotary_columns, round_rotary, solve_with_rotary_fixed
+from ._uncertainty import in_sd
 from ._small import a_x, any_rows, at_b, down_columns, gram, row_max_abs, row_norm
 from .problem import CompensationProblem, PlannerOptions
 from ..models.region import outside_bounds, support_bounds
@@ -87,6 +89,7 @@ class Planner:
         self.gate = ContourGate(self.options.max_correction_sd_um, self.ev.has_uncertainty)
         #: a part's datum outside the support leaves the blocks referenced to it unsure (:mod:`._datum`)
         self.datum = DatumRule(self)
+        self.direction = DirectionRule(self)      # an approach its data never read (_direction)
 
     # ------------------------------------------------------------------ nodes
     def _context(self, feed, dirs, n, tool_length=None, extra=None):
@@ -119,18 +122,23 @@ class Planner:
         rad (the corrections are referenced to it), or None (the raw deviation). tool_length : (n,)
         mm or None (the model's default).
 
-        Returns (unknown, outside, sd_um): (n, na) bool, the axis positions the program has not
-        given; (n, na) bool, the known axes outside the model's support (:meth:`outside_support`);
-        (n,) the standard error of each block's correction, um, NaN for blocks not corrected anyway
-        (an unknown axis, or outside the support unless the options extrapolate) and for every block
-        when the options set no limit on it (``max_correction_sd_um``). A block is left uncorrected
-        when any of the three says so, and so is its contour when its sd is over (:mod:`._contours`)."""
+        Returns (unknown, outside, sd_um, in_sd): (n, na) bool, the axis positions the program has
+        not given; (n, na) bool, the known axes outside the model's support
+        (:meth:`outside_support`); (n,) the standard error of each block's correction, um, NaN for
+        blocks not corrected anyway (an unknown axis, or outside the support unless the options
+        extrapolate) and for every block when the options set no limit on it
+        (``max_correction_sd_um``); (n,) each block's correction in its standard errors
+        (:func:`._uncertainty.in_sd`; NaN where not judged, everywhere without a limit). A block is
+        left uncorrected when any of the first three says so, and so is its contour when its sd is
+        over, or when no block of it is told from zero (:mod:`._contours`)."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         unknown = ~np.asarray(known, bool)
         outside = self.outside_support(q, ~unknown, tool_length)
         ctx = self._context(feed, np.asarray(dirs), q.shape[0], tool_length)
-        datum_out = self.datum.outside(datum, tool_length)
-        return unknown, outside, self._sd_um(q, ctx, unknown, outside, datum, datum_out)[0]
+        inf = unsure_rows(self, datum, tool_length, dirs)[2]
+        sd, _, _, each = self._sd_um(q, ctx, unknown, outside, datum, inf)
+        correction = None if each is None else self.ev.correction_um(q, ctx, datum)
+        return unknown, outside, sd, self._in_sd(each, correction)
 
     def _pinned(self, unknown, outside, sd_um):
         pinned = any_rows(unknown)
@@ -144,20 +152,20 @@ class Planner:
         """((n,) the standard error of each block's correction (um), NaN for blocks that are not
         corrected anyway (an unknown axis, outside the support) and when no limit is asked; (n, w)
         what the correction assumes at zero there (:meth:`Evaluator.correction_sd_assumed`), or None
-        when the model assumes nothing; (n,) bool or None, the blocks gated for their datum).
-        ``datum_out`` (n,) bool or None: the blocks whose datum lies outside the support
-        (:meth:`._datum.DatumRule.outside`): where a limit is asked, their standard error is
-        infinite (unless they are left uncorrected for an unknown axis or the ram already); (n,) or
-        None (no limit asked), each block's correction in its standard errors (NaN where not
-        judged: :func:`._contours.quiet_contours`)); NaN outside the support when extrapolating."""
+        when the model assumes nothing; (n,) bool or None, the blocks gated for ``datum_out``).
+        ``datum_out`` (n,) bool or None: the blocks whose datum lies outside the support, or whose
+        approach the data never read (:func:`._direction.unsure_rows`): where a limit is asked,
+        their standard error is infinite (unless left uncorrected for an unknown axis or the ram
+        already); (n, 3) or None (no limit asked), each tip component's standard error (NaN where
+        not evaluated), for :meth:`_in_sd`; NaN outside the support when extrapolating."""
         sd = np.full(q.shape[0], np.nan)
-        in_sd = None
+        each = None
         assumed = self.ev.assumed
         out = None if assumed is None else np.zeros((q.shape[0], assumed.width))
         limit = bool(self.options.max_correction_sd_um)
         gated = None
         if not (limit or assumed) or not self.ev.has_uncertainty:
-            return sd, out, gated, in_sd
+            return sd, out, gated, each
         todo = ~any_rows(unknown)
         todo &= ~self.ram.whole_outside(outside)
         if todo.any():
@@ -166,19 +174,25 @@ class Planner:
             parts = split_rows(lambda *a: self.ev.correction_sd_assumed(*a, sd=limit),
                                qt.shape[0], self._split, *args)
             both = np.concatenate(parts)
-            sd[todo] = both[:, 0]
+            sd[todo] = both[:, :3].max(axis=1)
             if limit:
-                # the correction in its standard errors: under two, nothing tells it from none
-                in_sd = np.full(q.shape[0], np.nan)
-                in_sd[todo] = both[:, 1]
+                each = np.full((q.shape[0], 3), np.nan)
+                each[todo] = both[:, :3]
             if out is not None:
-                out[todo] = both[:, 2:]
+                out[todo] = both[:, 3:]
             if limit and datum_out is not None:
                 gated = todo & datum_out
                 sd[gated] = np.inf
             if limit and self.options.extrapolate:      # asked for: a continuation nothing sizes
-                sd[todo & any_rows(outside)] = in_sd[todo & any_rows(outside)] = np.nan
-        return sd, out, gated, in_sd
+                sd[todo & any_rows(outside)] = each[todo & any_rows(outside)] = np.nan
+        return sd, out, gated, each
+
+    @staticmethod
+    def _in_sd(each, correction_um):
+        """(n,) the corrections (n, rows) um (the tip rows: a plan's ``b0``) in their standard
+        errors ``each`` (:meth:`_sd_um`; None: no limit asked, and None is returned): under two,
+        nothing tells a correction from none (:func:`._uncertainty.in_sd`)."""
+        return None if each is None else in_sd(correction_um[:, :3], each)
 
     def _solve_free(self, q, ctx, reference) -> Linearization:
         parts = split_rows(self._solve_free_part, q.shape[0], self._split, q, ctx, reference)
@@ -224,15 +238,16 @@ class Planner:
         outside = self.outside_support(q, ~unknown)
         ctx = self._context(feed, dirs, n)
         datum = None if datum is None else np.broadcast_to(np.asarray(datum, dtype=float), q.shape)
-        datum_out = self.datum.outside(datum)
-        sd, assumed, gated, in_sd = self._sd_um(q, ctx, unknown, outside, datum, datum_out)
+        datum_out, unread, inf = unsure_rows(self, datum, None, dirs)
+        sd, assumed, gated, each = self._sd_um(q, ctx, unknown, outside, datum, inf)
         pinned = self._pinned(unknown, outside, sd)
-        self.datum.note(datum, gated, line)
+        unread = note_unsure(self, datum, dirs, gated, datum_out, unread, line)
         links = self.links.arrays(q, dirs, None if self._last_end is None else self._last_end[0])
+        lin = self._solve_free(q, ctx, self._reference(datum, ctx))
         nodes = NodeSet(q, ctx, exempt, line, np.zeros(n, bool), rapid, unknown, outside,
                         pinned, sd, np.zeros(n, bool), np.zeros(n, bool),
-                        *(links or (None, None, None)), assumed=assumed, in_sd=in_sd)
-        lin = self._solve_free(nodes.q, nodes.context, self._reference(datum, ctx))
+                        *(links or (None, None, None)), assumed=assumed,
+                        in_sd=self._in_sd(each, lin.b0), unread=unread)
         nodes, lin = self.gate.feed(nodes, lin, final=True)     # the arrays are whole contours
         if n:
             self._last_end = (nodes.q[-1], lin.x[-1])
@@ -260,13 +275,13 @@ class Planner:
             self._after_cycle = bool(cycle[-1])
         unknown = ~known
         outside = self.outside_support(end, known, chunk.tool_length)
-        datum_out = self.datum.outside(chunk.datum, chunk.tool_length)
-        sd, assumed, gated, in_sd = self._sd_um(end, ctx, unknown, outside, chunk.datum, datum_out)
+        datum_out, unread, inf = unsure_rows(self, chunk.datum, chunk.tool_length, chunk.dirs)
+        sd, assumed, gated, each = self._sd_um(end, ctx, unknown, outside, chunk.datum, inf)
         pinned = self._pinned(unknown, outside, sd)
-        self.datum.note(chunk.datum, gated, chunk.line)
+        unread = note_unsure(self, chunk.datum, chunk.dirs, gated, datum_out, unread, chunk.line)
         self.ram.note(end, outside, pinned, chunk.tool_length, ~any_rows(unknown))
-        ref = self._reference(chunk.datum, ctx)
-        lin_end = self._solve_free(end, ctx, ref)
+        lin_end = self._solve_free(end, ctx, ref := self._reference(chunk.datum, ctx))
+        in_sd = self._in_sd(each, lin_end.b0)
         first = self._last_end is None
         # no step bound into a rapid, a hole, or a move that starts where the program has not said
         # (after a home move or a tool change: the machine did not come along the cut)
@@ -288,7 +303,7 @@ class Planner:
             links = self.links.chunk(chunk, end, np.arange(nrows), np.ones(nrows, bool), first, cycle)
             nodes = NodeSet(end, ctx, exempt, np.asarray(chunk.line), np.zeros(nrows, bool), rapid,
                             unknown, outside, pinned, sd, cut_start, np.zeros(nrows, bool),
-                            *(links or (None, None, None)), assumed=assumed, in_sd=in_sd)
+                            *(links or (None, None, None)), assumed=assumed, in_sd=in_sd, unread=unread)
             return nodes, lin_end, counts
         rows_i, t_i, q_i, lin_i = inner
         np.add.at(counts, rows_i, 1)
@@ -313,8 +328,8 @@ class Planner:
                         placed(outside, out_i, pos_end, pos_i),
                         placed(pinned, pin_i, pos_end, pos_i), sd[row_sorted], cut_all,
                         np.zeros(row_sorted.size, bool), *(links or (None, None, None)),
-                        assumed=None if assumed is None else assumed[row_sorted],
-                        in_sd=None if in_sd is None else in_sd[row_sorted])
+                        **{k: None if v is None else v[row_sorted] for k, v in
+                           (("assumed", assumed), ("in_sd", in_sd), ("unread", unread))})
         lin = Linearization(*(placed(getattr(lin_end, f), getattr(lin_i, f), pos_end, pos_i)
                               for f in Linearization.FIELDS))
         return nodes, lin, counts
@@ -445,9 +460,8 @@ class Planner:
                           before[:, :3], after[:, :3], before[:, 3:6] if five else None,
                           after[:, 3:6] if five else None, flags, lin.iterations, lin.converged,
                           nodes.unknown, nodes.outside, nodes.pinned, nodes.sd_um, nodes.gated,
-                          held, undirected=undirected_axes(nodes),
-                          standing=standing_axes(nodes), assumed=nodes.assumed,
-                          indistinct=nodes.indistinct)
+                          held, undirected=undirected_axes(nodes), standing=standing_axes(nodes),
+                          assumed=nodes.assumed, indistinct=nodes.indistinct, unread=nodes.unread)
 
     def _tick(self):
         cb = self.options.progress
@@ -637,7 +651,7 @@ class Planner:
             nonlocal n_done
             while pending and n_done >= pending[0][2]:
                 chunk, counts, n = pending.popleft()
-                res = _first_rows(done, n)
+                res = first_rows(done, n)
                 n_done -= n
                 res.counts = counts
                 yield chunk, res
@@ -652,14 +666,14 @@ class Planner:
             nodes, lin, counts = self.nodes_from_chunk(chunk)
             pending.append((chunk, counts, len(nodes)))
             nodes, lin = self.gate.feed(nodes, lin)     # holds back a contour still open
-            for res in _as_list(self.plan_nodes(nodes, lin, final=False, join=False)):
+            for res in as_list(self.plan_nodes(nodes, lin, final=False, join=False)):
                 done.append(res)
                 n_done += len(res)
             yield from ready()
         last = self.gate.finish() or (
             NodeSet.empty(self.na, self.problem.fitted.model.n_context),
             Linearization.empty(self.na, self.ev.rows, 3 if self.problem.correct_orientation else 0))
-        for res in _as_list(self.plan_nodes(*last, join=False)):
+        for res in as_list(self.plan_nodes(*last, join=False)):
             done.append(res)
             n_done += len(res)
         yield from ready()
@@ -778,23 +792,3 @@ def plan_chunks(problem: CompensationProblem, chunks: Iterable, options: Planner
     ``result.counts`` gives the output blocks per segment row (``write_corrected``'s counts) and
     ``result.corrected`` the points to write."""
     return Planner(problem, options, source).iter_chunks(chunks)
-
-
-def _first_rows(done: list, n: int) -> PlanResult:
-    """The first n (>= 1) rows of the results ``done`` (in program order) as one PlanResult, taken
-    off the list: the results they span joined, those after left as they are (of a result cut at
-    the n-th row, the rows after stay first, a view). Joining every result and cutting that copied
-    most rows twice: the windows of the next chunk are planned before this one is handed on."""
-    parts, got = [], 0
-    while got < n:
-        r = done.pop(0)
-        if got + len(r) > n:
-            done.insert(0, r.take(slice(n - got, len(r))))
-            r = r.take(slice(0, n - got))
-        parts.append(r)
-        got += len(r)
-    return parts[0] if len(parts) == 1 else PlanResult.concatenate(parts)
-
-
-def _as_list(res) -> list:
-    return [r for r in (res if isinstance(res, list) else [res]) if r is not None and len(r)]

@@ -32,15 +32,26 @@ from ..models.model_file import FittedModel
 DEFAULT_MAX_CORRECTION_SD_UM = 5.0
 
 
-def unsure_advice(largest_sd_um: float, limit_um: float, what: str = "corrects them") -> str:
+#: why a standard error is infinite (FittedModel.tip_sd_um), as unsure_advice says it
+_INFINITE = {
+    "undetermined": "values of the model that its data did not determine (MODEL.json's "
+                    "uncertainty.undetermined; identify holds those at zero)",
+    "choice": "how the fit's roughness penalty split between kinds of error what the data cannot "
+              "tell apart (MODEL.json's uncertainty.choice: the split is the penalty's choice, not "
+              "a reading; e.g. a rotary axis's error motions read at one height or one radius)"}
+
+
+def unsure_advice(largest_sd_um: float, limit_um: float, what: str = "corrects them",
+                  causes=("undetermined",)) -> str:
     """What to do about corrections left out for their standard error: a larger limit where it is
     near the limit; where it is far beyond (10 times), only more data (a ballbar circle alone leaves
     the axes' profiles at standard errors of thousands of um: a larger limit would write them).
     An infinite standard error: the correction moves with values of the model that its data did not
-    determine (:meth:`mtcomp.models.model_file.FittedModel.tip_sd_um`)."""
+    determine, or rests on the penalty's split of what they cannot tell apart (``causes``, of
+    ``"undetermined"`` and ``"choice"``: :meth:`mtcomp.models.model_file.FittedModel.tip_sd_um`)."""
     if not largest_sd_um < float("inf"):
-        return ("some rest on values of the model that its data did not determine (MODEL.json's "
-                "uncertainty.undetermined; identify holds those at zero): measure there, or fit the "
+        said = " and some on ".join(_INFINITE[c] for c in ("undetermined", "choice") if c in causes)
+        return (f"some rest on {said or _INFINITE['undetermined']}: measure there, or fit the "
                 "model again; no finite --max-correction-sd-um writes them, only 0 (no limit), "
                 "with corrections that rest on what nothing measured")
     if largest_sd_um > 10.0 * limit_um:

@@ -31,6 +31,10 @@ One row per output block (every G0/G1 line written for a motion, internal nodes 
   without a covariance, or no limit asked); ``uncertain``: 1 when the block was left uncorrected
   because that exceeds ``--max-correction-sd-um``, or because the block shares a contour (a run of
   feed moves cut one after the other) with such a block: a contour is corrected whole or not at all.
+* ``direction_not_read`` (only when the model's data read an axis approaching from one side only):
+  1 where the block was left uncorrected because that axis approaches it from the other side, or
+  from a side not known (its standard error is then infinite: ``uncertain`` 1); its contour's other
+  blocks have ``uncertain`` 1 and 0 here.
 """
 from __future__ import annotations
 
@@ -52,9 +56,10 @@ WORSE_TOL_UM = 2 * NEVER_WORSE_TOL
 _NOT_STANDING = np.array([kind != "standing" for kind in FLAG_KINDS])
 
 
-def report_columns(axis_names, five_axis: bool, assumed: bool = False) -> list[str]:
+def report_columns(axis_names, five_axis: bool, assumed: bool = False, unread: bool = False) -> list[str]:
     """BLOCKS.csv's columns (``assumed``: the model holds something at zero, :mod:`._assumed`,
-    and the last column says how far it acts on each block)."""
+    and a column says how far it acts on each block; ``unread``: the model's data read an axis
+    from one side only, :mod:`._direction`, and the last column marks the blocks left for it)."""
     cols = ["line", "inserted", "rapid"]
     cols += [f"{a.lower()}_deg" if a in "ABC" else f"{a.lower()}_mm" for a in axis_names]
     cols += [f"c{a.lower()}_urad" if a in "ABC" else f"c{a.lower()}_um" for a in axis_names]
@@ -64,7 +69,7 @@ def report_columns(axis_names, five_axis: bool, assumed: bool = False) -> list[s
             cols += [f"ei_{when}_urad", f"ej_{when}_urad", f"ek_{when}_urad", f"e_axis_{when}_urad"]
     cols += ["active_bounds", "unknown_axes", "outside_support", "corrected", "correction_sd_um",
              "uncertain"]
-    return cols + (["assumed_arm_mm"] if assumed else [])
+    return cols + (["assumed_arm_mm"] if assumed else []) + (["direction_not_read"] if unread else [])
 
 
 def _assumed_arm_mm(result: PlanResult) -> np.ndarray | None:
@@ -109,9 +114,16 @@ def _numeric_columns(result: PlanResult, axis_names) -> tuple[list, list, np.nda
     return cols, fmts, blank
 
 
-def report_rows(result: PlanResult, axis_names, max_correction_sd_um: float | None = None) -> list[str]:
+def _unread(result: PlanResult, n: int) -> np.ndarray:
+    """(n,) BLOCKS.csv's ``direction_not_read``: 1 where the block was left uncorrected because an
+    axis its data read from one side only approaches it from the other or a side not known."""
+    return np.zeros(n) if result.unread is None else result.unread.astype(float)
+
+
+def report_rows(result: PlanResult, axis_names, max_correction_sd_um: float | None = None,
+                unread: bool = False) -> list[str]:
     """CSV text lines (with newline) of one planned result (``max_correction_sd_um``: the limit
-    the plan used, for the ``uncertain`` column)."""
+    the plan used, for the ``uncertain`` column; ``unread``: the ``direction_not_read`` column)."""
     cols, fmts, blank = _numeric_columns(result, axis_names)
     bounds = result.active_bounds(axis_names)
     unknown = _axis_letters(result.unknown, axis_names)
@@ -120,6 +132,8 @@ def report_rows(result: PlanResult, axis_names, max_correction_sd_um: float | No
     uncertain = _uncertain(result, max_correction_sd_um).astype(int).tolist()
     arm = _assumed_arm_mm(result)
     extra = [] if arm is None else [["" if not np.isfinite(v) else f"{v:.1f}" for v in arm.tolist()]]
+    if unread:
+        extra.append([f"{v:.0f}" for v in _unread(result, len(result)).tolist()])
     fmt = ",".join(fmts) + ",%s,%s,%s,%d,%s,%d" + ",%s" * len(extra) + "\n"
     lines = [fmt % row for row in zip(*[c.tolist() for c in cols], bounds, unknown, outside,
                                         result.corrected_blocks().astype(int).tolist(), sd, uncertain,
@@ -129,7 +143,8 @@ def report_rows(result: PlanResult, axis_names, max_correction_sd_um: float | No
     return lines
 
 
-def report_table(result: PlanResult, axis_names, max_correction_sd_um: float | None = None):
+def report_table(result: PlanResult, axis_names, max_correction_sd_um: float | None = None,
+                 unread: bool = False):
     """:func:`report_rows` as numbers, for a compiled formatter: (values (n, k), decimals (k,),
     blank (k,), special (n,) bool). Row i of BLOCKS.csv is column j of values written as
     ``"%.{decimals[j]}f"`` (an empty field where decimals[j] < 0, and for NaN where blank[j]),
@@ -150,6 +165,10 @@ def report_table(result: PlanResult, axis_names, max_correction_sd_um: float | N
         cols.append(arm)
         decimals.append(1)
         blank = np.append(blank, True)
+    if unread:
+        cols.append(_unread(result, n))
+        decimals.append(0)
+        blank = np.append(blank, False)
     return np.column_stack(cols), np.array(decimals), blank, special
 
 
@@ -217,6 +236,14 @@ class Summary:
     datum_line: int = 0
     #: the summary's lines on them (naming each datum, its axis and the data's range)
     datum_lines: list = field(default_factory=list)
+    #: blocks left uncorrected (as uncertain) because an axis the model's data read approaching
+    #: from one side only approaches them from the other or from a side not known (not counted
+    #: in datum_blocks), and the summary's line on them (set by compensate: :mod:`._direction`)
+    direction_blocks: int = 0
+    direction_lines: list = field(default_factory=list)
+    #: why some standard errors were infinite (the Evaluator's ``infinite_causes``, set by
+    #: compensate); None: not said, taken as values the data did not determine
+    infinite_causes: set | None = None
     ram_asked: list = field(default_factory=lambda: [np.inf, -np.inf])
     #: [shortest, longest] tool length (mm) of the model's data (None: not stated) and of the
     #: program's blocks (the Planner's ``tools_asked``, shared)
@@ -481,7 +508,8 @@ class Summary:
                "uncorrected": {"unknown_axes": self.unknown_blocks,
                                "outside_support": 0 if self.extrapolate else self.outside_blocks,
                                "uncertain": self.uncertain_blocks - self.contour_blocks
-                                            - self.indistinct_blocks,
+                                            - self.indistinct_blocks - self.direction_blocks,
+                               "direction_not_read": self.direction_blocks,
                                "uncertain_contour": self.contour_blocks,
                                "indistinct_from_zero": self.indistinct_blocks,
                                "held_by_bounds": self.held_blocks,
@@ -495,7 +523,8 @@ class Summary:
                # moved with values the data did not determine (an infinite one)
                "largest_correction_sd_um": (self.max_sd_um if self.max_correction_sd_um
                                             and self.sd_seen else None),
-               "correction_sd_undetermined": self.sd_undetermined,
+               "correction_sd_undetermined": self.sd_undetermined if self.infinite_causes is None
+                                             else bool(self.infinite_causes or self.datum_blocks),
                "outside_support_blocks": self.outside_any,
                "bounded_blocks": self.bounded_blocks,
                "active_bounds": dict(sorted(self.flag_counts.items())),
@@ -638,23 +667,12 @@ class Summary:
         tools = self._tools_text()
         if tools:
             out.append(tools)
-        # the blocks unsure for their datum alone have their own line (compensate's datum notes)
-        out += self.datum_lines
-        if self.uncertain_blocks > self.datum_blocks + self.indistinct_blocks:
-            own = self.uncertain_blocks - self.contour_blocks - self.datum_blocks - self.indistinct_blocks
-            shared = (f", and {blocks(self.contour_blocks)} of the same contours (a run of feed "
-                      "moves cut one after the other is corrected whole or not at all: corrected in "
-                      "part, it would step where the correction stops)" if self.contour_blocks else "")
-            out.append(f"{blocks(own)} not corrected: the model is unsure there "
-                       f"(a correction's standard error above {self.max_correction_sd_um:g} um, "
-                       + "; ".join(([f"largest finite {self.max_sd_um:.3f} um"] if self.sd_seen
-                                    else []) + (["some not determined by the model's data at all"]
-                                                if self.sd_undetermined else []))
-                       + "; BLOCKS.csv column correction_sd_um)"
-                       f"{shared}; "
-                       + unsure_advice(float("inf") if self.sd_undetermined else self.max_sd_um,
-                                       self.max_correction_sd_um)
-                       + "".join(f"; {t}" for t in (self.traded if self.sd_undetermined else ())))
+        # the blocks unsure for their datum or an approach direction alone have their own lines
+        # (compensate's datum notes, :mod:`._direction`)
+        out += self.datum_lines + self.direction_lines
+        named = self.datum_blocks + self.direction_blocks + self.indistinct_blocks
+        if self.uncertain_blocks > named:
+            out.append(self._unsure_text(blocks, self.uncertain_blocks - self.contour_blocks - named))
         if self.indistinct_blocks:
             out.append(f"{blocks(self.indistinct_blocks)} not corrected: the correction is within "
                        "two of its standard errors of zero in every component, so the data do not "
@@ -664,6 +682,26 @@ class Summary:
         if self.held_blocks:
             out.append(self._held_text(blocks(self.held_blocks)))
         return out
+
+    def _unsure_text(self, blocks, own: int) -> str:
+        """The line on the blocks left uncorrected for their standard error (``own`` of them over
+        the limit, not said elsewhere) and those of the same contours."""
+        causes = ({"undetermined"} if self.sd_undetermined else set()) \
+            if self.infinite_causes is None else self.infinite_causes
+        shared = (f"{blocks(self.contour_blocks)} of the same contours (a run of feed moves cut one "
+                  "after the other is corrected whole or not at all: corrected in part, it would "
+                  "step where the correction stops)" if self.contour_blocks else "")
+        if own <= 0:        # the contours of blocks said above
+            return f"{shared}: not corrected either"
+        return (f"{blocks(own)} not corrected: the model is unsure there "
+                f"(a correction's standard error above {self.max_correction_sd_um:g} um, "
+                + "; ".join(([f"largest finite {self.max_sd_um:.3f} um"] if self.sd_seen else [])
+                            + (["some not determined by the model's data at all"] if causes else []))
+                + "; BLOCKS.csv column correction_sd_um)"
+                + (f", and {shared}" if shared else "") + "; "
+                + unsure_advice(float("inf") if causes else self.max_sd_um,
+                                self.max_correction_sd_um, causes=causes)
+                + "".join(f"; {t}" for t in (self.traded if "undetermined" in causes else ())))
 
     def _held_text(self, counted: str) -> str:
         """The summary's line on the blocks with an axis whose whole correction a bound held."""

@@ -29,6 +29,8 @@ from .frames import (FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle
 from .haas5 import HAAS_5AXIS_G, haas_block, haas_code
 from .lengths import length_number, lone_h, set_length
 from .linetext import text_with_words
+from .height_map import height_map_code, passed_height_map
+from .probe import beagleg_probe, passed_probe
 from .programmed import ProgrammedOffsets, apply_g10
 from .quill import follow_quill, forget_quill, has_quill, init_quill, quill_lost, tip_known
 from .rrf import macro_codes, restore_move
@@ -207,6 +209,8 @@ class ModalState:
         values, gcodes, mcodes, number = self._read_words(tokens, line)
         if self.dialect.name == "beagleg":     # its words act in turn (dialect.py)
             beagleg_word_order(self, tokens, line)
+            if 30.0 in gcodes:              # its Z probe (.probe)
+                beagleg_probe(self, tokens, values, gcodes, line)
             beagleg_block(self, gcodes, line)
         self._cutter_comp_codes(gcodes)
         self.g60 = self.dialect.name == "fanuc" and 60.0 in gcodes  # single-direction positioning
@@ -224,6 +228,10 @@ class ModalState:
         if home_move is not None and motion is not None and not home_with_motion(self.dialect.name, home_move, motion):
             raise self._err(f"G{home_move} and motion G{motion} in one block", line)
         self._set_feed(values, line)
+        if self.probe_line == line:         # BeagleG's G30 (.probe)
+            return passed_probe(self, values, axes_given, motion, line)
+        if self.map_line == line:           # uCNC's G39 (.height_map)
+            return passed_height_map(self, values, axes_given, motion, line)
         if self.g60:
             return single_direction(self, values, axes_given, gcodes,
                                     (motion, cycle, home_move, nonmotion_axes), line)
@@ -272,6 +280,8 @@ class ModalState:
         self.tap_line = False
         self.passed_move = None
         self.g60 = False             # G60 on this line (.single_direction)
+        self.probe_line = None       # BeagleG's G30 on this line (.probe)
+        self.map_line = None         # uCNC's G39 on this line (.height_map)
         #: how far G52 or a G10 moved the program's coordinates on this line (the writer follows)
         self.frame_shift = None
         self.declared = []
@@ -331,23 +341,23 @@ class ModalState:
         for m in mcodes:
             if m in _REFUSED_M:
                 raise self._err(f"{_REFUSED_M[m]} is not supported", line)
-        motion = None
+            if m in TCP_ON_M or m in TCP_OFF_M:
+                self._set_tcp(m in TCP_ON_M, f"M{m:g}")
+        motion = home_move = cycle = None
         nonmotion_axes = macro     # G4 dwell (X/P is time), G28/G30/G53: axis words are no motion
-        home_move = None
-        cycle = None
         dwell = g10 = False
         frame_codes = []
         tool_change = any(m == 6 for m in mcodes)
         self.ended = any(m in (2, 30) for m in mcodes)
-        for m in mcodes:
-            if m in TCP_ON_M or m in TCP_OFF_M:
-                self._set_tcp(m in TCP_ON_M, f"M{m:g}")
         self.had_g = bool(gcodes)
         for g in gcodes:
             gi = round(g)
             if g in FRAME_G:       # G52, G68/G69, mirror, scaling: their axis words are no motion
                 frame_codes.append(g)
                 nonmotion_axes = True
+                continue
+            if round(g, 1) in (39.0, 39.1, 39.2):       # uCNC's height map (.height_map)
+                nonmotion_axes = height_map_code(self, g, values, line) or nonmotion_axes
                 continue
             if g in _REFUSED_G and not (g in FANUC_CYCLES and self.dialect.name in FANUC_DIALECTS):
                 raise self._err(f"{_REFUSED_G[g]} is not supported", line)

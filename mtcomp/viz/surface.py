@@ -56,8 +56,8 @@ __all__ = ["STATUS_REASONS", "SurfaceMap", "ProgramPoints", "read_program_points
 #: why a block is left uncorrected (SurfaceMap.status)
 STATUS_REASONS = {1: "an axis position the program has not given",
                   2: "outside the region the model's data reached",
-                  3: "the model unsure (correction's standard error over the limit, or the "
-                     "correction within two of them of zero)",
+                  3: "the model unsure (correction's standard error over the limit, the "
+                     "correction within two of them of zero, or an approach its data never read)",
                   4: "a bound held an axis's whole correction"}
 
 
@@ -578,26 +578,40 @@ def planner_status(fitted, orig: ProgramPoints, sel: np.ndarray, tool_length=Non
     step = np.where(rotary, np.radians(0.1), extent / 100.0)
     key = np.column_stack([np.round(q / step), orig.dirs[sel], known, lengths])
     _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
-    _, _, sd = planner.block_status(q[first], known[first], orig.feed[sel][first], orig.dirs[sel][first],
-                                    datum=datum[first],
-                                    tool_length=lengths[first])
+    _, _, sd, z = planner.block_status(q[first], known[first], orig.feed[sel][first],
+                                       orig.dirs[sel][first], datum=datum[first],
+                                       tool_length=lengths[first])
     sd = sd[inverse.ravel()]
     status = np.zeros(q.shape[0], np.int8)
-    limit = planner.options.max_correction_sd_um
-    if limit:
-        # as the planner: a contour (feed moves cut one after the other; a hole is one of its
-        # own) is left whole, found on the whole program (sel may repeat or skip blocks)
-        from ..planner._contours import gated_contours
-        with np.errstate(invalid="ignore"):
-            over = sd > limit
-        over_all = np.zeros(len(orig), bool)
-        np.logical_or.at(over_all, sel, over)
-        member = ~np.asarray(orig.rapid, bool)
-        if orig.known is not None:
-            member &= np.asarray(orig.known, bool).all(axis=1)
-        cyc = np.zeros(len(orig), bool) if orig.cycle is None else np.asarray(orig.cycle, bool)
-        start = cyc | np.r_[False, cyc[:-1]]
-        status[over | gated_contours(member, start, over_all)[0][sel]] = 3
+    if planner.options.max_correction_sd_um:
+        z = None if z is None else z[inverse.ravel()]
+        status[_gated(orig, sel, sd, z, planner.options.max_correction_sd_um)] = 3
     status[planner.ram.whole_outside(outside)] = 2      # the ram alone: corrected but for it
     status[unknown.any(axis=1)] = 1
     return status
+
+
+def _gated(orig: ProgramPoints, sel: np.ndarray, sd: np.ndarray, z: np.ndarray, limit: float):
+    """(len(sel),) bool: the blocks ``sel`` the planner's gate leaves as compensate's does
+    (:mod:`mtcomp.planner._contours`): a contour (feed moves cut one after the other; a hole is one
+    of its own), found on the whole program (sel may repeat or skip blocks), is left whole when a
+    block's standard error ``sd`` is over ``limit`` and when no block's correction is told from
+    zero by its standard errors (``z``, :func:`mtcomp.planner._uncertainty.in_sd`; None: none
+    judged)."""
+    from ..planner._contours import gated_contours, quiet_contours
+    with np.errstate(invalid="ignore"):
+        over = sd > limit
+    over_all = np.zeros(len(orig), bool)
+    np.logical_or.at(over_all, sel, over)
+    # a block's in_sd as the program has it (the last of a repeated one: they are the same block);
+    # None: a model without a covariance, nothing judged
+    z_all = np.full(len(orig), np.nan)
+    if z is not None:
+        z_all[sel] = z
+    member = ~np.asarray(orig.rapid, bool)
+    if orig.known is not None:
+        member &= np.asarray(orig.known, bool).all(axis=1)
+    cyc = np.zeros(len(orig), bool) if orig.cycle is None else np.asarray(orig.cycle, bool)
+    start = cyc | np.r_[False, cyc[:-1]]
+    return over | gated_contours(member, start, over_all)[0][sel] | \
+        quiet_contours(member, start, z_all)[sel]
