@@ -134,15 +134,17 @@ def frame_shift_note(problem, traded: np.ndarray) -> dict:
     big = part >= NAMED_SHARE * part.max(axis=0)[None, :]
     names = ", ".join(s.name for s, row in zip(specs, big) if row.any())
     tags = ", ".join(m.tag for m in problem.mms if m.kind in ("points", "cmm") and m.nuisance_specs)
-    return {"frame_shift": f"the frame of {tags} is fitted (no --known-setup) and takes, as its shift, "
-                           f"what {names} make alike at every reading (the balls turn with the table); "
-                           "elsewhere on the part they move the tip by other amounts, which no reading "
-                           "tells: predict leaves the standard error blank, and compensate and export "
-                           "give no correction, where a prediction moves with them (--known-setup, the "
-                           "balls' places on the part known, determines them)"}
+    return {"frame_shift": f"the frame of {tags} is fitted (no --known-setup) and takes, as its "
+                           f"shift, what {names} make alike at every reading (what it measured "
+                           "stands on the table); elsewhere on the part they move the tip by other "
+                           "amounts, which no reading tells: predict leaves the standard error "
+                           "blank, and compensate and export give no correction, where a prediction "
+                           "moves with them (--known-setup, the places of what was measured on the "
+                           "part known, determines them)"}
 
 
-def set_up_trades(problem, null: np.ndarray, scale: np.ndarray, info: dict) -> tuple[np.ndarray, list]:
+def set_up_trades(problem, null: np.ndarray, scale: np.ndarray,
+                  info: dict) -> tuple[np.ndarray, list]:
     """((n_free, c) the machine's part of every combination a file's set-up takes from the machine,
     a bar's length (:func:`bar_length_trades`) and a frame's shift (:func:`frame_shift_trades`),
     MODEL.json ``uncertainty.traded``; the summary's sentences on them, also added to ``info``):
