@@ -765,5 +765,6 @@ def _planner(fitted, settings: CompensationSettings, inch: bool, src, progress) 
                       tools_measured=fitted.info.get("tool_length_mm")
                       if isinstance(fitted.info, dict) else None,
                       assumed=None if planner.ev.assumed is None else AssumedTally(planner.ev.assumed),
+                      traded=tuple(fitted.info.get("traded") or ()) if isinstance(fitted.info, dict) else (),
                       partial=PartialTally(planner.partial.limit_urad, planner.partial.rotary))
     return planner, summary

@@ -22,6 +22,9 @@ from .unmeasured import unmeasured_unknowns
 #: a null direction's share on the bars' offsets (orthonormal, scaled coordinates) below this
 #: trades no bar length
 LENGTH_SHARE = 1e-6
+#: a parameter's share of a traded combination (file units, of the combination's largest) above
+#: which it takes a part in it (the note names it)
+NAMED_SHARE = 0.05
 
 
 def bar_length_unknowns(problem) -> np.ndarray:
@@ -33,19 +36,57 @@ def bar_length_unknowns(problem) -> np.ndarray:
     return np.asarray(out, dtype=int)
 
 
-def bar_length_trades(problem, null: np.ndarray, scale: np.ndarray) -> np.ndarray:
-    """(n_free, c) the machine's part of the combinations the data leave open that move a bar's
-    length offset (``null`` (n_unknowns, k): the fit's undetermined combinations, orthonormal in
-    the scaled unknowns), internal units, each scaled to 1 um rms tool-tip error over the travel;
-    (n_free, 0) when no bar's length trades with the machine.
+def frame_shift_unknowns(problem) -> np.ndarray:
+    """(j,) indices among ``problem``'s unknowns of the fitted translations of the frames of
+    instruments aligned to the part (points and cmm files without ``--known-setup``)."""
+    out = []
+    for m, sl in zip(problem.mms, problem.nuis_slices):
+        if m.kind in ("points", "cmm"):
+            out += [sl.start + k for k, s in enumerate(m.nuisance_specs)
+                    if s.name.rpartition(":")[2] in ("tx", "ty", "tz")]
+    return np.asarray(out, dtype=int)
 
-    Of the machine parts that go with a change of the offsets (the other open combinations free to
+
+def bar_length_trades(problem, null: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """:func:`setup_trades` of the ball bars' length offsets (:func:`bar_length_unknowns`)."""
+    return setup_trades(problem, null, scale, bar_length_unknowns(problem))
+
+
+def frame_shift_trades(problem, null: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """:func:`setup_trades` of the frame translations of points and cmm files
+    (:func:`frame_shift_unknowns`): a machine error that moves every reading of such a file alike
+    (an R-test's ball: the zero offset of the table it stands on, the location of the table's lines
+    at one ball) reads as the frame's shift, which takes it, while it moves the tip elsewhere on the
+    part by other amounts. A turn that a frame takes is not among them: that is the part's
+    alignment (nothing turns the part: :mod:`._rotation`). Only the combinations in which a rotary
+    axis's own parameters (its location, zero offset, positioning) take a part are kept: the balls
+    turn with the table, so a frame fitted to them takes the table's errors there, which act
+    elsewhere on the part as no shift does. What the linear axes trade with a plate's position
+    (a squareness times the one height the plates were measured at) is bounded by the region rule
+    for the tip's height and said by the note on what the corrections assume at zero."""
+    D = setup_trades(problem, null, scale, frame_shift_unknowns(problem))
+    machine = problem.model.machine
+    specs = [problem.model.param_specs[i] for i in problem.free_idx]
+    rotary = np.array([s.group.partition(":")[0] in machine.axis_names
+                       and machine.axis(s.group.partition(":")[0]).is_rotary for s in specs], dtype=bool)
+    if not D.shape[1] or not rotary.any():
+        return D[:, :0]
+    f = np.abs(D * np.array([s.to_file for s in specs])[:, None])
+    return D[:, (f[rotary] >= NAMED_SHARE * f.max(axis=0)[None, :]).any(axis=0)]
+
+
+def setup_trades(problem, null: np.ndarray, scale: np.ndarray, L: np.ndarray) -> np.ndarray:
+    """(n_free, c) the machine's part of the combinations the data leave open that move the set-up
+    unknowns ``L`` (``null`` (n_unknowns, k): the fit's undetermined combinations, orthonormal in
+    the scaled unknowns), internal units, each scaled to 1 um rms tool-tip error over the travel;
+    (n_free, 0) when no such set-up trades with the machine.
+
+    Of the machine parts that go with a change of those set-ups (the other open combinations free to
     settle the rest), each is the one that leaves the components the fit holds at zero by assumption
     (the angular motions no laser names, :func:`.unmeasured.unmeasured_unknowns`) as near zero as
     it can, then makes the least rms tool-tip error over the travel: a common scale of the axes,
     not a pitch that makes the same readings at the circle's height."""
     nf = problem.n_free
-    L = bar_length_unknowns(problem)
     M = problem.travel_metric
     if not L.size or not null.shape[1] or M is None:
         return np.zeros((nf, 0))
@@ -79,3 +120,38 @@ def bar_scale_note(problem, traded: np.ndarray) -> dict:
                          "and compensate and export give no correction, where a prediction moves with it "
                          "(--known-setup for a calibrated bar, or a laser run of one of those axes, "
                          "determines it)"}
+
+
+def frame_shift_note(problem, traded: np.ndarray) -> dict:
+    """{"frame_shift": the summary's sentence} when a points or cmm file's fitted frame translation
+    takes a machine error (``traded``: :func:`frame_shift_trades`), naming the parameters the
+    combinations move most; {} otherwise."""
+    if not traded.shape[1]:
+        return {}
+    specs = [problem.model.param_specs[i] for i in problem.free_idx]
+    f = np.array([s.to_file for s in specs])
+    part = np.abs(traded * f[:, None])
+    big = part >= NAMED_SHARE * part.max(axis=0)[None, :]
+    names = ", ".join(s.name for s, row in zip(specs, big) if row.any())
+    tags = ", ".join(m.tag for m in problem.mms if m.kind in ("points", "cmm") and m.nuisance_specs)
+    return {"frame_shift": f"the frame of {tags} is fitted (no --known-setup) and takes, as its "
+                           f"shift, what {names} make alike at every reading (what it measured "
+                           "stands on the table); elsewhere on the part they move the tip by other "
+                           "amounts, which no reading tells: predict leaves the standard error "
+                           "blank, and compensate and export give no correction, where a prediction "
+                           "moves with them (--known-setup, the places of what was measured on the "
+                           "part known, determines them)"}
+
+
+def set_up_trades(problem, null: np.ndarray, scale: np.ndarray,
+                  info: dict) -> tuple[np.ndarray, list]:
+    """((n_free, c) the machine's part of every combination a file's set-up takes from the machine,
+    a bar's length (:func:`bar_length_trades`) and a frame's shift (:func:`frame_shift_trades`),
+    MODEL.json ``uncertainty.traded``; the summary's sentences on them, also added to ``info``):
+    compensate says them again where a correction rests on one."""
+    bar = bar_length_trades(problem, null, scale)
+    shift = frame_shift_trades(problem, null, scale)
+    notes = {**bar_scale_note(problem, bar), **frame_shift_note(problem, shift)}
+    info.update(notes)
+    return np.hstack([bar, shift]), list(notes.values())
+

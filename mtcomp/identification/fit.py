@@ -59,7 +59,7 @@ from ..models.model_file import FittedModel, setup_uncertainty
 from ..models.params import ParameterSet
 from .reversal import DirectionContrast, data_reversal
 from ._offsets import mark_unread_offsets
-from ._traded import bar_length_trades, bar_scale_note
+from ._traded import set_up_trades
 from ._rotation import (least_error_along, plate_tilts, reference_rotation, undetermined_unknowns,
                         without)
 from ._choice import beyond_posterior, bounded_split_variance, choice_directions, data_null
@@ -755,8 +755,7 @@ class _Problem:
             res.smoothing = self.smoothing
         params = ParameterSet(model.param_specs, values, std)
         nf = self.n_free
-        traded = bar_length_trades(self, sol.null, sol.scale)
-        res.info.update(bar_scale_note(self, traded))
+        traded, traded_why = set_up_trades(self, sol.null, sol.scale, res.info)
         # every combination the data leave open, by its machine part. One that trades machine errors
         # against a file's set-up (a constant against a laser zero, a turn of the table against an
         # R-test's frame) changes that file's readings only as its set-up would, and predict takes
@@ -785,6 +784,7 @@ class _Problem:
                        "open": sized_undetermined(self, self.open_tilts, sol.scale, to_file),
                        "setup": setup_uncertainty(nuis_specs, sol.cov, nf)}
         res.fitted_model = FittedModel(model, params, dict(ctx_defaults),
-                                       {"identify": res.to_dict(), **(info or {})},
+                                       {"identify": res.to_dict(), **(info or {}),
+                                        **({"traded": traded_why} if traded_why else {})},
                                        uncertainty=uncertainty)
         return res

@@ -269,7 +269,8 @@ def predict_readings(fitted: FittedModel, data: MeasurementSet, machine: Machine
                      "parameters its data did not determine (the model file's "
                      "uncertainty.undetermined): written with a blank standard error (what the "
                      "data say nothing of has none; compensate's correction_sd_um there is that of "
-                     "the rest, since a correction has no part along that combination)")
+                     "the rest, since a correction has no part along that combination, unless a "
+                     "file's set-up took it from the machine: then compensate corrects nothing there)")
     notes += _assumed_note(fitted, data, machine or fitted.machine, open_sd > 0)
     notes += _blank_outside_region(fitted, data, machine or fitted.machine, columns)
     if fitted.uncertainty is None:

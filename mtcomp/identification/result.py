@@ -209,8 +209,9 @@ class FitResult:
             lines.append(self.info["sparse"])
         if "unread_offsets" in self.info:       # mtcomp.identification._offsets
             lines.append(self.info["unread_offsets"])
-        if "bar_scale" in self.info:            # mtcomp.identification._traded
-            lines.append(self.info["bar_scale"])
+        for key in ("bar_scale", "frame_shift"):        # mtcomp.identification._traded
+            if key in self.info:
+                lines.append(self.info[key])
         return lines
 
     # ------------------------------------------------------------ lmfit's MinimizerResult figures

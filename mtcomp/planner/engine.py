@@ -161,7 +161,7 @@ class Planner:
         their standard error is infinite (unless left uncorrected for an unknown axis or the ram
         already); (n, 3) or None (no limit asked), each tip component's standard error (NaN where
         not evaluated), then on 5-axis machines each tool-axis component's (urad), for
-        :meth:`PartialRule.judged`."""
+        :meth:`PartialRule.judged`; NaN outside the support when extrapolating."""
         sd = np.full(q.shape[0], np.nan)
         each = None
         assumed = self.ev.assumed
@@ -188,6 +188,8 @@ class Planner:
             if limit and datum_out is not None:
                 gated = todo & datum_out
                 sd[gated] = np.inf
+            if limit and self.options.extrapolate:      # asked for: a continuation nothing sizes
+                sd[todo & any_rows(outside)] = each[todo & any_rows(outside)] = np.nan
         return sd, out, gated, each
 
     def _solve_free(self, q, ctx, reference) -> Linearization:

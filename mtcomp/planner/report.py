@@ -261,6 +261,9 @@ class Summary:
     indistinct_line: int = 0
     max_sd_um: float = 0.0
     sd_undetermined: bool = False
+    #: what a file's set-up took from the machine (MODEL.json ``info.traded``, identify's sentences):
+    #: said where a correction's standard error is infinite
+    traded: tuple = ()
     sd_seen: bool = False
     #: the model carries a covariance (without one no block's standard error is known)
     has_covariance: bool = True
@@ -658,7 +661,9 @@ class Summary:
                           if self.unknown_blocks == self.blocks else ""))
         if self.outside_blocks:
             axes = ", ".join(f"{a} {k}" for a, k in self.outside_axes.items())
-            what = ("corrected anyway (--extrapolate)" if self.extrapolate
+            what = ("corrected anyway (--extrapolate) with the model's continuation past its data, "
+                    "which no standard error sizes (BLOCKS.csv correction_sd_um blank): the "
+                    "figures after are the model's there, not what the data back" if self.extrapolate
                     else "not corrected (pass --extrapolate to correct them)")
             out.append(f"{blocks(self.outside_blocks)} outside the region the model's data reached "
                        f"({axes}; first at line {self.first_outside_line}): {what}")
@@ -701,7 +706,8 @@ class Summary:
                 + "; BLOCKS.csv column correction_sd_um)"
                 + (f", and {shared}" if shared else "") + "; "
                 + unsure_advice(float("inf") if causes else self.max_sd_um,
-                                self.max_correction_sd_um, causes=causes))
+                                self.max_correction_sd_um, causes=causes)
+                + "".join(f"; {t}" for t in (self.traded if "undetermined" in causes else ())))
 
     def _held_text(self, counted: str) -> str:
         """The summary's line on the blocks with an axis whose whole correction a bound held."""
