@@ -1,17 +1,20 @@
-"""Where a table ends: no correction beyond the span its data reached.
+"""Where a table ends: a rotary table measured over part of its turn returns to zero beyond it.
 
 A controller holds a table's end values beyond it (LinuxCNC: the entries at -DBL_MAX and +DBL_MAX
 take the first and last values, src/emc/motion/command.c, EMCMOT_SET_JOINT_COMP; Sinumerik: values
-outside _MIN .. _MAX keep the end values). A table that stops where the data stop would so correct
-the axis everywhere beyond them by its end value, where ``mtcomp compensate`` leaves a block
-uncorrected (docs/planner.md, *Blocks that get no correction*): a C table of data over 0 .. 180 deg
-applied its 180 deg value over the other half turn. So wherever the axis can stand beyond the span
-(a linear axis whose data stop short of its travel; a rotary axis not measured around its turn, by
-compensate's rule :data:`~mtcomp.models.region.WRAP_GAP_RAD`), the grid gets a point at or beyond
-the span's end (the end value, as inside) and one grid step further a point of zero correction:
-the table ramps to zero over that one step, outside the span, and is zero from there on (the
-controller holds that zero). The ramp is the one stretch where the table corrects what the data
-do not determine.
+outside _MIN .. _MAX keep the end values). On a linear axis whose data stop short of its travel
+that is the table's answer beyond the data, as it is the model's (a position beyond the data takes
+the value at their nearest end): the correction goes on smoothly from the last one the data
+determine. Ramping it to zero there instead put a step of the whole table's value (20 um on a new
+user's X, whose Fanuc table is referenced at the far end of the travel) into the part.
+A rotary axis is different: its turn closes. A C table of data over 0 .. 180 deg held its 180 deg
+value over the other half turn, back to 0 deg where the table's value is its reference's, and
+applied it where ``mtcomp compensate`` leaves every block uncorrected (docs/planner.md, *Blocks that
+get no correction*). So where a rotary axis is not measured around its turn (by compensate's rule
+:data:`~mtcomp.models.region.WRAP_GAP_RAD`), the grid gets a point at or beyond the span's end (the
+end value, as inside) and one grid step further a point of zero correction: the table ramps to zero
+over that one step, outside the span, and is zero from there on (the controller holds that zero).
+The ramp is the one stretch where the table corrects what the data do not determine.
 """
 from __future__ import annotations
 
@@ -23,11 +26,12 @@ from ..models.region import WRAP_GAP_RAD
 
 
 def open_ends(machine, a: str, lo: float, hi: float) -> tuple[bool, bool]:
-    """(low, high): whether axis ``a`` can stand beyond the span ``lo`` .. ``hi`` (mm, rad) at that
-    end: where the span stops short of the axis's travel, unless the axis is rotary and the span
-    covers its turn (but for a gap of at most WRAP_GAP_RAD, as compensate counts it)."""
+    """(low, high): whether the table of axis ``a`` returns to zero beyond the span ``lo`` .. ``hi``
+    (mm, rad) at that end: a rotary axis's, where the span stops short of its travel and does not
+    cover its turn (but for a gap of at most WRAP_GAP_RAD, as compensate counts it); never a linear
+    axis's (its table holds the end value: module docstring)."""
     ax = machine.axis(a)
-    if ax.is_rotary and 2.0 * math.pi - (hi - lo) <= WRAP_GAP_RAD + 1e-12:
+    if not ax.is_rotary or 2.0 * math.pi - (hi - lo) <= WRAP_GAP_RAD + 1e-12:
         return False, False
     t_lo, t_hi = ax.travel
     tol = 1e-9 * max(1.0, abs(t_lo), abs(t_hi))
@@ -60,10 +64,13 @@ def points_inside(g: np.ndarray, lo: float, hi: float) -> int:
     return int(np.count_nonzero((g >= lo - tol) & (g <= hi + tol)))
 
 
-def beyond_span(positions: np.ndarray, lo: float, hi: float) -> np.ndarray:
+def beyond_span(positions: np.ndarray, lo: float, hi: float, rotary: bool) -> np.ndarray:
     """(n,) bool: the points past the last point at or beyond each end of the span ``lo`` .. ``hi``
-    (the points where the table is zero: :func:`close_grid`)."""
+    (the points where the table is zero: :func:`close_grid`); none on a linear axis's table (it
+    holds the end values)."""
     p = np.asarray(positions, dtype=float)
+    if not rotary:
+        return np.zeros(p.shape, bool)
     tol = 1e-9 * max(1.0, abs(lo), abs(hi))
     below, above = p[p <= lo + tol], p[p >= hi - tol]
     first = below.max() if below.size else p[0]
@@ -75,7 +82,7 @@ def ends_sentence(t) -> str:
     """What the AxisTable ``t`` holds beyond the data's region (when any of its points lie there)."""
     u, f = ("deg", 180.0 / math.pi) if t.rotary else ("mm", 1.0)
     lo, hi = t.data_region
-    zero = beyond_span(t.positions, lo, hi)
+    zero = beyond_span(t.positions, lo, hi, t.rotary)
     held = t.held & ~zero
     live = np.flatnonzero(~zero)
     p = t.positions

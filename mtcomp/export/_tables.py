@@ -8,9 +8,9 @@ Definition. Every axis has a *reference position*: its machine coordinate 0 (the
 where the workpiece frame coincides with the machine frame; a controller's reference position), or
 the nearest end of its travel when 0 lies outside the travel (a reference return has to reach it).
 Every position is a machine coordinate. The model is used only inside the region its data reached:
-a position beyond that region takes the value at the region's nearest end, and a table's grid
-points past the first one beyond each end are zero (:mod:`mtcomp.export._ends`: controllers hold a
-table's end values beyond it, and compensate corrects nothing beyond the data). The
+a position beyond that region takes the value at the region's nearest end, and on a rotary axis
+measured over part of its turn a table's grid points past the first one beyond each end are zero
+(:mod:`mtcomp.export._ends`: its turn closes, and compensate corrects nothing beyond the data). The
 component errors of axis L at position s, approached in direction dir, are what the model predicts
 when only L moves:
 
@@ -689,7 +689,7 @@ def component_tables(fitted, grids: dict, region: dict | None = None,
         missed = _between_points(fitted, a, g, q[0], (lo, hi), fwd[:, own_column(machine, a)])
         if missed:
             uncertain.append(missed)
-        off = beyond_span(g, lo, hi)          # past the ramp beyond the data: no correction
+        off = beyond_span(g, lo, hi, ax.is_rotary)    # past a rotary's ramp: no correction
         fwd[off], rev[off] = 0.0, 0.0
         if not (np.nanmax(np.abs(fwd)) > ZERO or np.nanmax(np.abs(rev)) > ZERO):
             dropped.append(a)
