@@ -335,3 +335,20 @@ def test_angles_in_radians_and_a_missing_rotary_column_are_noted(tmp_path):
     linear = ["50,0,20,100,1,2,3", "0,50,20,100,1,2,3"]
     assert notes("linear.csv", "x_mm,y_mm,z_mm,tool_mm,dx_um,dy_um,dz_um", linear,
                  "taken at 0") == []
+
+
+def test_a_laser_run_whose_own_axis_column_disagrees_with_its_target_is_refused(tmp_path):
+    """A Y run at X -400 written as axis X (a new user's mislabelled file): its x_mm column says X
+    stood at -400 while the rows' targets say X moved: refused naming the row and column. The same
+    column equal to the targets, or blank, is read."""
+    bad = tmp_path / "y_as_x.csv"
+    bad.write_text("axis,component,target_mm,dir,run,value_um,x_mm,z_mm\n"
+                   "X,EXX,-491.204,1,1,0.09,-400.0,-350.0\nX,EXX,-455.348,1,1,0.57,-400.0,-350.0\n")
+    with pytest.raises(InputError, match=r"row 1: column x_mm gives -400 for the moving axis X, "
+                                         r"which stands at its target -491.204"):
+        read_measurements(bad)
+    for cells in ("-491.204", ""):
+        ok = tmp_path / f"x{len(cells)}.csv"
+        ok.write_text("axis,component,target_mm,dir,run,value_um,x_mm,z_mm\n"
+                      f"X,EXX,-491.204,1,1,0.09,{cells},-350.0\nX,EXX,-455.348,1,1,0.57,,-350.0\n")
+        assert len(read_measurements(ok)) == 2
