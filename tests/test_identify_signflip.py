@@ -110,3 +110,18 @@ def test_diagnose_names_the_reversed_file_it_leaves_unexplained(tmp_path, capsys
     # the right files: explained, nothing said
     assert main(["diagnose", "xfyz", *map(str, runs), "--json", str(report), "-q"]) == 0
     assert "sign reversed" not in capsys.readouterr().err
+
+
+def test_diagnose_records_the_tools_its_data_were_taken_with_as_identify_does(tmp_path, capsys):
+    """diagnose's MODEL.json records the data's tool lengths (info.tool_length_mm) as identify's
+    does, so that compensate says when a program's tools are longer or shorter (a new user's
+    diagnosed model had none, and the note never came)."""
+    import json
+    runs = _runs(tmp_path)
+    assert main(["identify", "xfyz", *map(str, runs), "-o", str(tmp_path / "i.json")]) == 0
+    assert main(["diagnose", "xfyz", *map(str, runs), "-o", str(tmp_path / "d.json"), "-q",
+                 "--json", str(tmp_path / "r.json")]) == 0
+    capsys.readouterr()
+    tools = [json.loads((tmp_path / f"{k}.json").read_text())["info"].get("tool_length_mm")
+             for k in "id"]
+    assert tools[0] is not None and tools[1] == tools[0], tools

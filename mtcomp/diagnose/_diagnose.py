@@ -282,6 +282,12 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
     from ..identification.reversal import data_reversal
     from ..identification.unmeasured import unmeasured_groups
     model.info["reversal"] = data_reversal(datasets)
+    # the tools the data were taken with, as identify records them: compensate says when a
+    # program's go beyond them
+    from ..identification.fit import tool_lengths
+    tools = tool_lengths(st.machine, datasets)
+    if tools is not None:
+        model.info["tool_length_mm"] = tools
     unmeasured = unmeasured_groups([s for s in model.model.param_specs if s.base], datasets)
     if unmeasured:
         model.info["unmeasured"] = unmeasured

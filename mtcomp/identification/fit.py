@@ -161,7 +161,7 @@ def _solve(problem: FitProblem, options: SolverOptions, info: dict | None, t0: f
     return result
 
 
-def _tool_lengths(machine, datasets) -> list[float] | None:
+def tool_lengths(machine, datasets) -> list[float] | None:
     """[shortest, longest] tool (mm) of the rows of the files that position an axis (a blank
     ``tool_mm`` the machine's); None when none does."""
     v = []
@@ -187,7 +187,7 @@ def _record_data(result, model, mask, mms, datasets) -> None:
     if held_axes:
         result.fitted_model.info["held_axes"] = held_axes
     # the tools the data were taken with: compensate says when a program's go beyond them
-    tools = _tool_lengths(model.machine, datasets)
+    tools = tool_lengths(model.machine, datasets)
     if tools is not None:
         result.fitted_model.info["tool_length_mm"] = tools
     known = [m.tag for m in mms if m.options.get("setup") == "known"]
