@@ -1,0 +1,78 @@
+"""A block whose correction is undetermined in one tip component only is corrected in the others.
+
+Three plates each read on a CMM in its own alignment (as tests/test_parts_heights_tilt.py) leave
+the heights across the table open: a Z correction away from a part's datum has no standard error.
+X's and Y's, at the datum's height, have finite ones. A pass over a plate's top face is then
+corrected in X and Y, and keeps its Z deviation (BLOCKS.csv ``components_left`` "z", the summary's
+``components_left``); main left every block of it uncorrected (its standard error was the largest
+of the three components', infinite).
+
+Oracle: the plain-numpy machine of tests/test_parts_heights_tilt.py (no mtcomp code) with X and Y
+positioning errors of 30 and -20 um/m added, which the holes read: the truth at the corrected
+positions less that at the datum."""
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from mtcomp.cli import main
+from test_parts_heights_tilt import PARTS, truth_um as tilt_truth_um, write_parts
+
+DATUM = np.array(PARTS["part3"])
+
+
+def truth_um(x, y, z):
+    """(n, 3) um: the heights' machine of test_parts_heights_tilt with X and Y scale errors."""
+    x, y, z = (np.asarray(v, dtype=float) for v in np.broadcast_arrays(x, y, z))
+    return tilt_truth_um(x, y, z) + np.stack([30e-3 * x, -20e-3 * y, 0 * x], -1)
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    d = tmp_path_factory.mktemp("left")
+    files = write_parts(d, truth_um)
+    assert main(["identify", str(d / "vmc.toml"), *files, "-o", str(d / "m.json")]) == 0
+    # a pass over part 3's top face (its datum at X200 Y60 Z-150), rows along X
+    moves = ["G90 G54", "G0 X20 Y20", "G0 Z0"]
+    for k, y in enumerate(range(20, 141, 40)):
+        moves += [f"G1 X{180 if k % 2 == 0 else 20} Y{y} F1000", f"G1 Y{y + 40 if y < 140 else y}"]
+    moves += ["G0 Z50", "M30"]
+    (d / "face.nc").write_text("\n".join(moves) + "\n")
+    assert main(["compensate", str(d / "vmc.toml"), str(d / "m.json"), str(d / "face.nc"),
+                 "-o", str(d / "out.nc"), "--report", str(d / "blocks.csv"), "--json",
+                 str(d / "sum.json"), "--work-offset", "G54=X200,Y60,Z-150"]) == 0
+    rows = list(csv.DictReader(open(d / "blocks.csv")))
+    return rows, json.loads((d / "sum.json").read_text())
+
+
+def test_the_face_is_corrected_in_x_and_y_and_keeps_its_z(run):
+    rows, summary = run
+    cut = [r for r in rows if r["rapid"] == "0"]
+    assert cut and all(r["components_left"] == "z" and r["corrected"] == "1" for r in cut), cut
+    f = lambda r, k: float(r[k])
+    # Z's deviation kept (within the planner's never-worse tolerance), Z not moved by more
+    assert all(abs(f(r, "ez_after_um") - f(r, "ez_before_um")) <= 0.06 for r in cut)
+    assert all(abs(f(r, "cz_um")) <= 0.06 for r in cut)
+    part = [r for r in rows if r["components_left"]]           # the cut and the rapid down to it
+    assert all(r["components_left"] == "z" and r["corrected"] == "1" for r in part), part
+    left = summary["components_left"]
+    assert (left["blocks"], left["x"], left["y"], left["z"]) == (len(part), 0, 0, len(part)), left
+
+
+def test_the_truth_after_is_better_in_x_and_y_and_unchanged_in_z(run):
+    """The truth (numpy machine) at the written positions, less that at the datum: X and Y lose
+    most of their deviation, no block gets worse in them, and Z's is the uncorrected one."""
+    rows, _ = run
+    cut = [r for r in rows if r["rapid"] == "0"]
+    q = np.array([[float(r[k]) for k in ("x_mm", "y_mm", "z_mm")] for r in cut])
+    c = np.array([[float(r[k]) for k in ("cx_um", "cy_um", "cz_um")] for r in cut]) * 1e-3
+    nominal = q - c + DATUM
+    before = truth_um(*nominal.T) - truth_um(*DATUM)
+    # written q + c: the tip lands at q + c plus the truth there, wanted at q
+    after = c * 1e3 + truth_um(*(nominal + c).T) - truth_um(*DATUM)
+    rms = lambda e: np.sqrt(np.mean(e ** 2, axis=0))
+    assert rms(before)[0] > 2.0, rms(before)
+    assert np.all(rms(after)[:2] <= 0.3 * rms(before)[:2]), (rms(before), rms(after))
+    assert np.all(np.abs(after[:, :2]) <= np.abs(before[:, :2]) + 0.3), (before, after)
+    np.testing.assert_allclose(after[:, 2], before[:, 2], atol=0.06)
