@@ -102,3 +102,22 @@ def test_export_writes_x_positioning_and_leaves_its_straightness_in_z(run, tmp_p
     cec = (out / "NC_CEC.INI").read_text()
     pairs = re.findall(r"INPUT_AXIS\[(\d+)\]=\((AX\d)\)\s*\$AN_CEC_OUTPUT_AXIS\[\1\]=\((AX\d)\)", cec)
     assert ("AX1", "AX3") not in {(i, o) for _, i, o in pairs} and pairs, pairs
+
+
+def test_a_component_left_at_one_node_of_a_contour_is_left_at_all_of_them():
+    """Hand-made standard errors (um): contour 1 (nodes 0-2) has z undetermined at node 1 only,
+    contour 2 (nodes 4-5, after a rapid at 3) none; node 6 starts contour 3 with x over the limit
+    (finite: the block is left whole by the contour gate, not here) and node 7 has y undetermined.
+    Left: z at nodes 0-2 (else the cut steps in z where node 1 stops correcting it), y at 6-7."""
+    from types import SimpleNamespace
+    from mtcomp.planner._partial import PartialRule
+    inf = np.inf
+    each = np.array([[1, 1, 1], [1, 1, inf], [1, 1, 1], [inf, inf, inf], [1, 1, 1], [1, 1, 1],
+                     [9, 1, 1], [1, inf, 1]], dtype=float)
+    member = np.array([1, 1, 1, 0, 1, 1, 1, 1], bool)
+    start = np.array([0, 0, 0, 0, 0, 0, 1, 0], bool)
+    problem = SimpleNamespace(orientation_weight=1.0, machine=SimpleNamespace(axes=[]),
+                              regularization_weights=0.0, fitted=SimpleNamespace(uncertainty={}))
+    rule = PartialRule(problem, 5.0)
+    assert rule.tip_left(each).tolist() == [0, 4, 0, 0, 0, 0, 0, 2]
+    assert rule.tip_left(each, member, start).tolist() == [4, 4, 4, 0, 0, 0, 2, 2]

@@ -108,8 +108,8 @@ def left_out(tables, carried: dict) -> tuple[list, dict]:
         worst[a] = float(trans.max()) if len(trans) else 0.0
         # a straightness the table leaves (its values rest on what the data did not determine):
         # no size to give, and the remaining figure above does not count it
-        lines += [f"{component_names(a)[j]} of axis {a}: left out all of it: its standard error is "
-                  "over the limit or not determined by the data (not in the remaining figure)"
+        lines += [f"{component_names(a)[j]} of axis {a}: left out all of it: not determined by the "
+                  "data (not in the remaining figure)"
                   for j in getattr(t, "left", ())]
         for j, name in enumerate(component_names(a)):
             peak = np.nanmax(np.abs(rem[:, j])) if np.isfinite(rem[:, j]).any() else np.nan

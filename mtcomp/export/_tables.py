@@ -575,14 +575,13 @@ def _table_left(fitted, a: str, q: np.ndarray, q_ref: np.ndarray, tips: dict,
     with its datum at the table's zero); ``unc`` the model's CorrectionUncertainty (None: no
     limit asked). As compensate corrects a block in the tip components it is sure of
     (:func:`~mtcomp.planner._uncertainty.components_left`), a linear axis whose own component
-    (its positioning) is within the limit at every point keeps its table without the components
-    over it or not determined (``left``, columns; their values are set to zero in ``tips``, views
+    (its positioning) is determined at every point keeps its table without the components the data
+    do not determine (``left``, columns; their values are set to zero in ``tips``, views
     of the table's columns, and the note says so) and is judged on the rest."""
     if not max_sd_um or unc is None or not unc.known:
         return None, ()
     each = {d: table_sd_um(fitted, q, q_ref, {a: d}, unc, components=True) for d in (1.0, -1.0)}
-    with np.errstate(invalid="ignore"):
-        over = np.any([(e[:, :3] > max_sd_um).any(axis=0) for e in each.values()], axis=0)
+    over = np.any([np.isinf(e[:, :3]).any(axis=0) for e in each.values()], axis=0)
     own = own_column(fitted.machine, a)
     left = tuple(int(c) for c in np.flatnonzero(over)) if own < 3 and not over[own] else ()
     for d in each:
@@ -596,9 +595,8 @@ def _table_left(fitted, a: str, q: np.ndarray, q_ref: np.ndarray, tips: dict,
         return (None, ()) if not left else (
             f"axis {a}: its table carries its own error and leaves its "
             + " and ".join(f"straightness in {'XYZ'[c]} (E{'XYZ'[c]}{a})" for c in left)
-            + ": that moves with values of the model its data did not determine, or its standard "
-            f"error exceeds {max_sd_um:g} um (--max-correction-sd-um), as compensate leaves that "
-            "component of a block and corrects the others", left)
+            + ": that moves with values of the model its data did not determine, as compensate "
+            "leaves that component of a block and corrects the others", left)
     ax = fitted.machine.axis(a)
     u, f = ("deg", 180.0 / math.pi) if ax.is_rotary else ("mm", 1.0)
     if why == "indistinct":

@@ -10,9 +10,8 @@ zero in every component, the block's rotary axes keep their words (their bounds 
 ``--max-correction-urad 0`` makes them everywhere) and the linear axes alone correct the tip.
 ``NodeSet.axis_left`` marks such a block; the tip's own rules (:mod:`._contours`) are unchanged.
 
-The same holds for a tip component: where its standard error exceeds the limit or is infinite (a
-height across the table that rests on a tilt the data leave open) while the others' are finite and
-within it, the block is corrected in those others; the solve's target in that component is the
+The same holds for a tip component: where its standard error is infinite (a height across the
+table that rests on a tilt the data leave open) while the others' are finite and within the limit, the block is corrected in those others; the solve's target in that component is the
 uncorrected pose (:func:`._uncertainty.with_hold`), so the correction keeps its deviation there
 (within the never-worse tolerance), and ``NodeSet.tip_left`` marks which component was left.
 """
@@ -20,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._contours import contour_ids
 from ._rotary_grid import set_turn
 from ._uncertainty import components_left, in_sd, left_mask, orientation_left
 
@@ -43,16 +43,17 @@ class PartialRule:
         orientation weight (W um of tip weigh as 1 urad of tool axis); None without a limit."""
         return self.limit / self.weight if self.limit and self.weight > 0 else None
 
-    def judged(self, each, b0):
+    def judged(self, each, b0, tip_left=False):
         """(in_sd, axis_left, tip_left): (n,) the corrections (``b0``'s tip rows, um) in their
         standard errors ``each`` (n, 3 + k) from :meth:`Planner._sd_um`, the tool axis's (urad)
         after the tip's on 5-axis machines (:func:`._uncertainty.in_sd`, over the tip components
         the block corrects), (n,) bool the blocks whose tool-axis correction is not made (or None:
-        none) and (n,) int8 the tip components left (:func:`._uncertainty.components_left`, or
-        None: none); (None, None, None) without a limit (``each`` None)."""
+        none) and (n,) int8 the tip components left (``tip_left`` as :meth:`tip_left` gave it,
+        or computed here per block when not given; None: none); (None, None, None) without a
+        limit (``each`` None)."""
         if each is None:
             return None, None, None
-        tip_left = self.tip_left(each)
+        tip_left = self.tip_left(each) if tip_left is False else tip_left
         tip, tip_each = np.array(b0[:, :3], dtype=float), np.array(each[:, :3], dtype=float)
         if tip_left is not None:
             mask = left_mask(tip_left, tip.shape[0])
@@ -63,9 +64,19 @@ class PartialRule:
         left = orientation_left(b0[:, 3:6] / self.weight, each[:, 3:6], self.limit_urad)
         return tip, (left if left.any() else None), tip_left
 
-    def tip_left(self, each):
-        """(n,) int8 or None: :func:`._uncertainty.components_left` of ``each`` (None: no limit)."""
-        return None if each is None else components_left(each[:, :3], self.limit)
+    def tip_left(self, each, member=None, start=None):
+        """(n,) int8 or None: :func:`._uncertainty.components_left` of ``each`` (None: no limit),
+        and with ``member``, ``start`` (as :func:`._contours.gated_contours` takes them) the same
+        for every node of a contour: a component left at one of its nodes is left at all (else the
+        cut steps in it where it stops). A contour the batch before began is judged from this
+        batch's nodes only."""
+        left = None if each is None else components_left(each[:, :3], self.limit)
+        if left is None or member is None or not len(left):
+            return left
+        cid = contour_ids(member, start, False)
+        whole = np.zeros(int(cid[-1]) + 1, np.int8)
+        np.bitwise_or.at(whole, cid[member], left[member])
+        return np.where(member, whole[cid], left).astype(np.int8)
 
     def apply(self, nodes, lin) -> None:
         """The free corrections of the blocks ``axis_left`` of ``nodes`` with their rotary part set
@@ -147,9 +158,9 @@ class PartialTally:
         k = self.tip_blocks
         named = ", ".join(f"{c} at {n}" for c, n in zip("xyz", self.tip_each) if n)
         return [f"{k} block{'' if k == 1 else 's'} corrected in part (first at line {self.tip_line};"
-                f" components left: {named}): the standard error of the correction in those tip "
-                "components exceeds --max-correction-sd-um or is not determined by the model's data "
-                "(a height across the table that rests on a part's tilt its own alignment took), "
+                f" components left: {named}): the correction in those tip components is not "
+                "determined by the model's data (a height across the table that rests on a part's "
+                "tilt its own alignment took), "
                 "while the other components' are within it: the block is corrected in those, and "
                 "keeps its deviation in these (BLOCKS.csv components_left); measure there (the "
                 "heights with one alignment, e.g. a test bar or a laser along Z) to correct them"]

@@ -13,9 +13,9 @@ not made where the largest component's standard error exceeds the limit
 (``--max-correction-sd-um``), nor where it is within :data:`SMALL_IN_SD` of its standard errors of
 zero in every component (docs/planner.md, *Blocks where the model is unsure*); how those decisions
 spread over a contour, or over an export table, is :mod:`._contours`'s. Where the standard error
-exceeds the limit (or is infinite) in some tip components only, and is finite and within it in the
+is infinite in some tip components only, and is finite and within it in the
 others, the block is corrected in those others and the unsure components keep their deviation
-(:func:`components_left`).
+(:func:`components_left`: for infinite standard errors only).
 """
 from __future__ import annotations
 
@@ -115,15 +115,18 @@ COMPONENT_BITS = np.array([1, 2, 4], dtype=np.int8)
 def components_left(each: np.ndarray, limit: float | None) -> np.ndarray | None:
     """(n,) int8 bit mask (:data:`COMPONENT_BITS`) of the tip components whose correction is not
     made while the others' is: their standard error (``each`` (n, 3), um, :meth:`CorrectionUncertainty
-    .components`) exceeds ``limit`` or is infinite, where some other component's is finite and
-    within it. 0 where no component is over the limit, or every one is (the block is not corrected
-    at all); None without a limit or where no block has such a component."""
+    .components`) is infinite (the data do not determine them), where some other component's is
+    finite and within ``limit``. 0 where none is infinite, or none is within the limit (the block
+    is not corrected at all); None without a limit or where no block has such a component. A
+    finite standard error over the limit leaves the block whole, and its contour with it
+    (:mod:`._contours`): left in one component at one block and corrected at the next, a cut would
+    step in that component where the gate keeps it whole."""
     if not limit or each is None:
         return None
     each = np.asarray(each, dtype=float)[:, :3]
     with np.errstate(invalid="ignore"):
-        over = each > limit                     # NaN (not evaluated) is never over
-        sure = each <= limit
+        over = np.isinf(each)
+        sure = each <= limit                    # NaN (not evaluated) is neither
     part = over.any(axis=1) & sure.any(axis=1)
     if not part.any():
         return None

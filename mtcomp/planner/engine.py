@@ -202,13 +202,13 @@ class Planner:
         return solve_newton(self.ev, q, ctx, self.problem.regularization_weights, o.step_tol_um,
                             o.max_iterations, reference)
 
-    def _reference(self, datum, ctx, each=None) -> np.ndarray:
+    def _reference(self, datum, ctx, left=None) -> np.ndarray:
         """(n, rows) the deviation at the part's datum of each block (Evaluator.datum_reference);
         zeros without a datum (the raw deviation is corrected); with the tip components the block
-        leaves (its standard errors ``each``, :func:`._uncertainty.with_hold`)."""
+        leaves (``left``: :meth:`PartialRule.tip_left`, :func:`._uncertainty.with_hold`)."""
         ref = np.zeros((ctx.shape[0], self.ev.rows)) if datum is None else \
             self.ev.datum_reference(datum, ctx)
-        return with_hold(ref, self.partial.tip_left(each))
+        return with_hold(ref, left)
 
     def _check_travel(self, q, line, known=None):
         self.machine.check_travel(q, line, known, self.source)
@@ -241,7 +241,7 @@ class Planner:
         pinned = self._pinned(unknown, outside, sd)
         unread = note_unsure(self, datum, dirs, gated, datum_out, unread, line)
         links = self.links.arrays(q, dirs, None if self._last_end is None else self._last_end[0])
-        lin = self._solve_free(q, ctx, self._reference(datum, ctx, each))
+        lin = self._solve_free(q, ctx, self._reference(datum, ctx, self.partial.tip_left(each)))
         in_sd, axis_left, tip_left = self.partial.judged(each, lin.b0)
         nodes = NodeSet(q, ctx, exempt, line, np.zeros(n, bool), rapid, unknown, outside,
                         pinned, sd, np.zeros(n, bool), np.zeros(n, bool),
@@ -278,17 +278,17 @@ class Planner:
         pinned = self._pinned(unknown, outside, sd)
         unread = note_unsure(self, chunk.datum, chunk.dirs, gated, datum_out, unread, chunk.line)
         self.ram.note(end, outside, pinned, chunk.tool_length, ~any_rows(unknown))
-        lin_end = self._solve_free(end, ctx, ref := self._reference(chunk.datum, ctx, each))
-        in_sd, axis_left, tip_left = self.partial.judged(each, lin_end.b0)
+        cut_start = cycle | no_line
+        tips = self.partial.tip_left(each, ~rapid & ~any_rows(unknown), cut_start)
+        lin_end = self._solve_free(end, ctx, ref := self._reference(chunk.datum, ctx, tips))
+        in_sd, axis_left, tip_left = self.partial.judged(each, lin_end.b0, tips)
         first = self._last_end is None
         # no step bound into a rapid, a hole, or a move that starts where the program has not said
         # (after a home move or a tool change: the machine did not come along the cut)
         exempt = (rapid | cycle | jump) & (not self.problem.step_across_rapids)
-        if first and nrows:
-            exempt[0] = True
+        exempt[:1] |= first
         start, x_start = self._row_starts(chunk, end, lin_end.x, ctx, ref)
         # no internal nodes in a contour the standard-error gate leaves uncorrected either
-        cut_start = cycle | no_line
         gated = self.gate.rows_gated(~rapid & ~any_rows(unknown), cut_start, sd, in_sd)
         skip = rapid | pinned | cycle | no_line | gated
         # a straight move after a block left uncorrected (or a rapid the gate leaves): ramp nodes

@@ -36,9 +36,9 @@ One row per output block (every G0/G1 line written for a motion, internal nodes 
   from a side not known (its standard error is then infinite: ``uncertain`` 1); its contour's other
   blocks have ``uncertain`` 1 and 0 here.
 * ``components_left`` (only when a standard-error limit is asked of a model with a covariance): the
-  tip components (``x``, ``y``, ``z``) whose correction the block does not make because their
-  standard error exceeds ``--max-correction-sd-um`` or is not determined by the model's data while
-  the other components' are within it: the block is corrected in those others (``corrected`` 1) and
+  tip components (``x``, ``y``, ``z``) whose correction the block does not make because the model's
+  data do not determine it (an infinite standard error) while the other components' standard
+  errors are within ``--max-correction-sd-um``: the block is corrected in those others (``corrected`` 1) and
   keeps its deviation in these (their ``e*_after_um`` as before, within the never-worse tolerance);
   blank where the block leaves none.
 """
