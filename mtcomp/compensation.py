@@ -529,22 +529,23 @@ def _series_sentence(fitted, settings: CompensationSettings, series, tally: _Tal
             + ("; the last reading holds after it" if tally.t_s > series.t_s[-1] else "") + ")")
 
 
-def _report_lines(res, axis_names, sd_limit, unread=False) -> list[str]:
+def _report_lines(res, axis_names, sd_limit, unread=False, left=False) -> list[str]:
     """BLOCKS.csv's text of one planned chunk, in pieces (:func:`~mtcomp.planner.report_rows`'
     lines): the numbers written by the compiled formatter when there is one (a million rows took
     10 s in Python's ``%``), the few rows with text in them by report_rows, put in place of their
     lines (the text is not cut into a string per line: that took longer than writing it)."""
-    values, decimals, blank, special = report_table(res, axis_names, sd_limit, unread)
+    values, decimals, blank, special = report_table(res, axis_names, sd_limit, unread, left)
     text = format_table(values, decimals, blank)
     if text is None:
-        return report_rows(res, axis_names, sd_limit, unread)
+        return report_rows(res, axis_names, sd_limit, unread, left)
     rows = np.flatnonzero(special)
     if not rows.size:
         return [text]
     # where each row's line ends (the text is ASCII: a character is a byte)
     ends = np.flatnonzero(np.frombuffer(text.encode("ascii"), np.uint8) == ord("\n")) + 1
     pieces, at = [], 0
-    for i, line in zip(rows.tolist(), report_rows(res.take(rows), axis_names, sd_limit, unread)):
+    for i, line in zip(rows.tolist(), report_rows(res.take(rows), axis_names, sd_limit, unread,
+                                                         left)):
         pieces += [text[at:int(ends[i - 1]) if i else 0], line]
         at = int(ends[i])
     pieces.append(text[at:])
@@ -673,7 +674,8 @@ def _compensate_source(fitted, src, output, settings, setup, report, progress, j
             res.line = src.source_lines_of(res.line)
             summary.add(res)
             if rep is not None:
-                rep.writelines(_report_lines(res, machine.axis_names, sd_limit, planner.direction.active))
+                rep.writelines(_report_lines(res, machine.axis_names, sd_limit, planner.direction.active,
+                                             planner.partial.column))
             yield chunk, res.corrected, res.counts
             if io_progress is not None and len(chunk):   # the writer is done with the chunk
                 io_progress("written", int(chunk.line[-1]))
@@ -682,7 +684,8 @@ def _compensate_source(fitted, src, output, settings, setup, report, progress, j
     if report is not None:        # committed when the caller's stack closes, after the output
         rep = stack.enter_context(atomic_write(report, "w", newline=""))
         rep.write(",".join(report_columns(machine.axis_names, machine.is_five_axis,
-                                          summary.assumed is not None, planner.direction.active)) + "\n")
+                                          summary.assumed is not None, planner.direction.active,
+                                          planner.partial.column)) + "\n")
     try:
         write_corrected(src, output, machine, corrections(rep), stats=written, **read)
     except TravelError as e:

@@ -39,14 +39,16 @@ def truth_um(x, y, z):
     return (rel - np.stack([x, y, z], -1)) * 1e3
 
 
-def _part(path, off, rng):
+def _part(path, off, rng, truth=None):
+    """One plate's CMM file at ``off`` read on the machine ``truth`` (None: :func:`truth_um`)."""
+    truth = truth_um if truth is None else truth
     pts = [(xp, yp, -8.0, "xy") for xp in range(20, 181, 40) for yp in range(20, 141, 40)]
     pts += [(xp, yp, 0.0, "z") for xp in (10, 55, 100, 145, 190) for yp in (10, 80, 150)]
     pts += [(-6.0, yp, zp, "x") for yp in (15, 80, 145) for zp in (-4.0, -12.0)]
     pts += [(xp, -6.0, zp, "y") for xp in (15, 100, 185) for zp in (-4.0, -12.0)]
     P = np.array([p[:3] for p in pts]) + np.array(off)
     c = P.mean(axis=0)
-    d = truth_um(*P.T) + rng.normal(0, 5, 3) + np.cross(rng.normal(0, 20e-6, 3), P - c) * 1e3
+    d = truth(*P.T) + rng.normal(0, 5, 3) + np.cross(rng.normal(0, 20e-6, 3), P - c) * 1e3
     d += rng.normal(0, 0.3, d.shape)
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
@@ -57,15 +59,22 @@ def _part(path, off, rng):
                                                   f"{e[2]:.4f}" if k == "z" else ""])
 
 
-@pytest.fixture(scope="module")
-def fitted(tmp_path_factory):
-    d = tmp_path_factory.mktemp("parts")
+def write_parts(d, truth=None) -> list:
+    """The machine file and the three plates' CMM files in folder ``d`` (``truth`` as
+    :func:`_part`): the plates' paths."""
     (d / "vmc.toml").write_text(MACHINE)
     rng = np.random.default_rng(5)
     files = []
     for name, off in PARTS.items():
-        _part(d / f"{name}.csv", off, rng)
+        _part(d / f"{name}.csv", off, rng, truth)
         files.append(str(d / f"{name}.csv"))
+    return files
+
+
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory):
+    d = tmp_path_factory.mktemp("parts")
+    files = write_parts(d)
     return d, files
 
 

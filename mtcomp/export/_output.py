@@ -106,6 +106,11 @@ def left_out(tables, carried: dict) -> tuple[list, dict]:
             rem[:, j] = np.where(np.abs(r_f) >= np.abs(r_r), r_f, r_r)
         trans = np.linalg.norm(rem[:, :3], axis=1)
         worst[a] = float(trans.max()) if len(trans) else 0.0
+        # a straightness the table leaves (its values rest on what the data did not determine):
+        # no size to give, and the remaining figure above does not count it
+        lines += [f"{component_names(a)[j]} of axis {a}: left out all of it: not determined by the "
+                  "data (not in the remaining figure)"
+                  for j in getattr(t, "left", ())]
         for j, name in enumerate(component_names(a)):
             peak = np.nanmax(np.abs(rem[:, j])) if np.isfinite(rem[:, j]).any() else np.nan
             how = carried.get((a, name))

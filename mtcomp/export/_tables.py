@@ -105,6 +105,9 @@ class AxisTable:
     reference: dict
     angular_known: bool = True
     region: tuple | None = None
+    #: the tip columns the table leaves (zero in ``forward``, ``reverse``): their values rest on
+    #: what the data did not determine or are over the standard-error limit (:func:`_table_left`)
+    left: tuple = ()
 
     @property
     def data_region(self) -> tuple[float, float]:
@@ -564,21 +567,36 @@ def axis_table_sd_um(fitted, a: str, q: np.ndarray, q_ref: np.ndarray) -> np.nda
 
 def _table_left(fitted, a: str, q: np.ndarray, q_ref: np.ndarray, tips: dict,
                 max_sd_um: float | None, unc: CorrectionUncertainty | None):
-    """The note saying why axis ``a``'s table is not written, or None (written): compensate's gate
-    on the axis moving through the table's points, one contour
+    """(note, left): the note saying why axis ``a``'s table is not written, or None (written):
+    compensate's gate on the axis moving through the table's points, one contour
     (:func:`~mtcomp.planner._contours.one_contour_left`): some point's standard error exceeds
     ``max_sd_um``, or no point's value is told from zero by its standard errors. ``tips``: +-1 ->
     (N, 3) mm, the table's tip columns in that direction (the correction compensate makes there
     with its datum at the table's zero); ``unc`` the model's CorrectionUncertainty (None: no
-    limit asked)."""
+    limit asked). As compensate corrects a block in the tip components it is sure of
+    (:func:`~mtcomp.planner._uncertainty.components_left`), a linear axis whose own component
+    (its positioning) is determined at every point keeps its table without the components the data
+    do not determine (``left``, columns; their values are set to zero in ``tips``, views
+    of the table's columns, and the note says so) and is judged on the rest."""
     if not max_sd_um or unc is None or not unc.known:
-        return None
+        return None, ()
     each = {d: table_sd_um(fitted, q, q_ref, {a: d}, unc, components=True) for d in (1.0, -1.0)}
+    over = np.any([np.isinf(e[:, :3]).any(axis=0) for e in each.values()], axis=0)
+    own = own_column(fitted.machine, a)
+    left = tuple(int(c) for c in np.flatnonzero(over)) if own < 3 and not over[own] else ()
+    for d in each:
+        each[d] = np.array(each[d][:, :3])
+        each[d][:, list(left)] = 1.0           # a component left is judged by none of the rules
+        tips[d][:, list(left)] = 0.0
     sd = np.concatenate([each[d].max(axis=1) for d in each])
     z = np.concatenate([in_sd(tips[d] * 1e3, each[d]) for d in each])
     why = one_contour_left(sd, z, max_sd_um)
     if why is None:
-        return None
+        return (None, ()) if not left else (
+            f"axis {a}: its table carries its own error and leaves its "
+            + " and ".join(f"straightness in {'XYZ'[c]} (E{'XYZ'[c]}{a})" for c in left)
+            + ": that moves with values of the model its data did not determine, as compensate "
+            "leaves that component of a block and corrects the others", left)
     ax = fitted.machine.axis(a)
     u, f = ("deg", 180.0 / math.pi) if ax.is_rotary else ("mm", 1.0)
     if why == "indistinct":
@@ -586,17 +604,17 @@ def _table_left(fitted, a: str, q: np.ndarray, q_ref: np.ndarray, tips: dict,
         return (f"axis {a}: no table: no point's value is told from zero by its standard error (at "
                 f"most {z[k]:.2g} of them, at {q[k % len(q), fitted.machine.index(a)] * f:g} {u}; "
                 f"under {SMALL_IN_SD:g} everywhere), as compensate leaves such blocks uncorrected: "
-                "measure more, or more often, to tell it")
+                "measure more, or more often, to tell it"), ()
     top = float(sd.max())
     at = q[int(np.argmax(sd)) % len(q), fitted.machine.index(a)] * f
     if not np.isfinite(top):
         return (f"axis {a}: no table: it moves with values of the model its data did not determine "
                 f"(at {at:g} {u}), as compensate leaves such blocks uncorrected; "
-                + unsure_advice(top, max_sd_um, "writes the table"))
+                + unsure_advice(top, max_sd_um, "writes the table")), ()
     return (f"axis {a}: no table: its correction's standard error reaches {top:.3g} um (at "
             f"{at:g} {u}), above the limit of {max_sd_um:g} um (--max-correction-sd-um), as "
             "compensate leaves such blocks uncorrected; "
-            + unsure_advice(top, max_sd_um, "writes the table"))
+            + unsure_advice(top, max_sd_um, "writes the table")), ()
 
 
 #: a table whose points miss more than this (um, along its own axis) of the model's error between
@@ -677,9 +695,9 @@ def component_tables(fitted, grids: dict, region: dict | None = None,
         fwd, known = model_errors(fitted, q, {a: 1.0})
         rev, _ = model_errors(fitted, q, {a: -1.0})
         fwd, rev = fwd - zero, rev - zero
-        why = _table_left(fitted, a, q, q0, {1.0: fwd[:, :3], -1.0: rev[:, :3]}, max_sd_um, unc)
-        if why:
-            uncertain.append(why)
+        why, left = _table_left(fitted, a, q, q0, {1.0: fwd[:, :3], -1.0: rev[:, :3]}, max_sd_um, unc)
+        uncertain += [why] if why else []
+        if why and not left:
             continue
         ax = machine.axis(a)
         if ax.is_rotary and ax.side == "workpiece":
@@ -694,7 +712,7 @@ def component_tables(fitted, grids: dict, region: dict | None = None,
         if not (np.nanmax(np.abs(fwd)) > ZERO or np.nanmax(np.abs(rev)) > ZERO):
             dropped.append(a)
             continue
-        tables[a] = AxisTable(a, ax.is_rotary, g, fwd, rev, ref, known, (float(lo), float(hi)))
+        tables[a] = AxisTable(a, ax.is_rotary, g, fwd, rev, ref, known, (float(lo), float(hi)), left)
     zero, _ = model_errors(fitted, q_ref[None, :])
     notes = list(notes or []) + reference_notes(machine, tables) + uncertain + \
         _constant_note(zero[0], bool(machine.rotary_axes), undetermined_at(fitted, q_ref, zero))

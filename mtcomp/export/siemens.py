@@ -85,8 +85,8 @@ def export(tables, sign: str | None = None, **_) -> ExportResult:
         if t.rotary:
             continue
         for d in "XYZ":
-            if d == a or d not in m.axis_names:
-                continue
+            if d == a or d not in m.axis_names or "XYZ".index(d) in t.left:
+                continue            # a straightness left: the notes say why (no sag table)
             col = t.mean[:, "XYZ".index(d)]
             if not np.any(np.abs(col) >= 0.5e-6):
                 # a straightness the model holds at zero (no data on it) would be a table of zeros

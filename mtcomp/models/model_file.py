@@ -335,27 +335,28 @@ class FittedModel:
 
         undetermined : :meth:`undetermined_values`; where the deviation moves with that part of the
             values, or along a direction a bar's length trades with, by more than
-            :data:`UNDETERMINED_UM` in some component, the standard error is infinite: it rests on
+            :data:`UNDETERMINED_UM`, that component's standard error is infinite: it rests on
             numbers the data did not determine (predict blanks its standard error there, by the
-            same rule).
+            same rule); the other components keep theirs (the largest is infinite all the same).
         choice : :meth:`choice_directions`; where a component's variance is more the penalty's
             choice of split than the data's, and that choice moves it by more than
-            :data:`UNDETERMINED_UM`, the standard error is infinite too: the deviation there rests
-            on how the penalty divided what the data cannot tell apart."""
+            :data:`UNDETERMINED_UM`, that component's standard error is infinite too: it rests on
+            how the penalty divided what the data cannot tell apart."""
         idx, F = factor
         G = J[:, :, idx] @ F                        # (n, 3, rank), mm
         var = np.einsum("nij,nij->ni", G, G)
         sd = np.sqrt(var if extra is None else var + extra) * 1e3
         if undetermined is not None:
             ui, v = undetermined
-            moved = np.abs(J[:, :, ui] @ np.reshape(v, (len(ui), -1))).max(axis=(1, 2)) * 1e3
+            # per component: a height resting on an open tilt leaves the plane's components known
+            moved = np.abs(J[:, :, ui] @ np.reshape(v, (len(ui), -1))).max(axis=2) * 1e3
             sd[moved > UNDETERMINED_UM] = np.inf
         if choice is not None:
             ci, D = choice
             Gc = J[:, :, ci] @ D
             cvar = np.einsum("nij,nij->ni", Gc, Gc)
             chosen = (np.sqrt(cvar) * 1e3 > UNDETERMINED_UM) & (cvar > var - cvar)
-            sd[chosen.any(axis=1)] = np.inf
+            sd[chosen] = np.inf
         return sd if components else sd.max(axis=1)
 
     def prediction_std(self, J: np.ndarray) -> np.ndarray:

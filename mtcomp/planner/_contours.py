@@ -48,7 +48,7 @@ def gated_contours(member, start, over, carry_open=False, carry_gated=False):
     n = member.size
     if n == 0:
         return np.zeros(0, bool), 0
-    cid = _contour_ids(member, start, carry_open)
+    cid = contour_ids(member, start, carry_open)
     bad = np.bincount(cid[member & np.asarray(over, bool)], minlength=int(cid[-1]) + 1) > 0
     bad[0] |= bool(carry_gated)
     gated = member & bad[cid]
@@ -56,7 +56,7 @@ def gated_contours(member, start, over, carry_open=False, carry_gated=False):
     return gated, tail
 
 
-def _contour_ids(member, start, carry_open) -> np.ndarray:
+def contour_ids(member, start, carry_open) -> np.ndarray:
     """(n,) the number of each node's contour in the batch (:func:`gated_contours`'s arguments); 0:
     the contour carried from the batch before."""
     prev = np.empty(member.size, bool)
@@ -78,7 +78,7 @@ def quiet_contours(member, start, in_sd, carry_open=False, carried_whole=True) -
         return np.zeros(0, bool)
     with np.errstate(invalid="ignore"):
         small = in_sd < SMALL_IN_SD
-    cid = _contour_ids(member, start, carry_open)
+    cid = contour_ids(member, start, carry_open)
     size = int(cid[-1]) + 1
     counted = member & np.isfinite(in_sd)
     loud = np.bincount(cid[counted & ~small], minlength=size) > 0

@@ -27,7 +27,7 @@ from ..kinematics import pose_jacobian as nominal_pose_jacobian
 from ..models.evaluate import evaluate
 from ..models.assumed import Assumed
 from ._small import any_rows, down_columns
-from ._uncertainty import CorrectionUncertainty
+from ._uncertainty import CorrectionUncertainty, split_hold
 from .problem import CompensationProblem
 
 
@@ -247,14 +247,24 @@ class Evaluator:
         return tip if self.rows == 3 else np.concatenate([tip, axis], axis=1)
 
     def residual_jacobian_rows(self, q, ctx, reference=None):
-        """(b, A, target, orientation_rows) of the uncorrected blocks (x = 0): one nominal Jacobian
-        for both. ``reference`` (n, rows): what the target takes beside the nominal pose, the
-        deviation at the part's datum (:meth:`datum_reference`); None: nothing."""
+        """(b, A, target, orientation_rows, held) of the uncorrected blocks (x = 0): one nominal
+        Jacobian for both. ``reference`` (n, rows): what the target takes beside the nominal pose,
+        the deviation at the part's datum (:meth:`datum_reference`); None: nothing; with three
+        more columns (:func:`._uncertainty.with_hold`), the tip components whose deviation the
+        solve holds: their target is the uncorrected pose, so the solve keeps their deviation;
+        ``held`` (n, rows) the weighted residual the target took that way (zero elsewhere):
+        ``b + held`` is the deviation less the datum's."""
         b, A, target, Jn = self.residual_jacobian(q, None, ctx, _with_nominal=True)
+        held = np.zeros(b.shape)
         if reference is not None:
+            reference, hold = split_hold(reference, self.rows)
             target = down_columns(np.add, target, reference)
             b = b - down_columns(np.multiply, reference, self.S)
-        return b, A, target, self.orientation_rows(q, Jn)
+            if hold is not None:
+                held[:, :3] = np.where(hold, b[:, :3], 0.0)
+                b = b - held
+                target = target + held / self.S
+        return b, A, target, self.orientation_rows(q, Jn), held
 
     def datum_reference(self, datum, ctx) -> np.ndarray:
         """(n, rows): the model's tip deviation at the part's datum (machine positions (n, na) of the

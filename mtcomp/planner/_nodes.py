@@ -66,12 +66,14 @@ class NodeSet:
     indistinct: np.ndarray | None = None
     axis_left: np.ndarray | None = None
     unread: np.ndarray | None = None
+    tip_left: np.ndarray | None = None
 
     FIELDS = ("q", "context", "exempt", "line", "inserted", "rapid", "unknown", "outside", "pinned",
               "sd_um", "cut_start", "gated")
     LINKS = ("link_lo", "link_hi", "link_kind")
     #: (n,) fields that may be None, and what a None stands for when joined with others
-    FLAGS = {"in_sd": np.nan, "indistinct": False, "axis_left": False, "unread": False}
+    FLAGS = {"in_sd": np.nan, "indistinct": False, "axis_left": False, "unread": False,
+             "tip_left": 0}
 
     def __len__(self):
         return int(self.q.shape[0])

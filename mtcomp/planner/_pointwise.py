@@ -33,6 +33,9 @@ class Linearization:
     iterations : (n,) evaluations used. converged : (n,) bool.
     orientation_rows : (n, 3, 3), (n, 0, 0) on 3-axis machines: the objective counts the tool-axis
         rows e of b as ``orientation_rows @ e`` (:meth:`Evaluator.orientation_rows`); fixed per block.
+    held : (n, rows) the weighted deviation of the tip components the target holds (zero elsewhere,
+        :meth:`Evaluator.residual_jacobian_rows`): b0 + held is the uncorrected block's residual
+        against the program's pose, b + held the corrected one's.
     """
 
     x: np.ndarray
@@ -44,8 +47,14 @@ class Linearization:
     iterations: np.ndarray
     converged: np.ndarray
     orientation_rows: np.ndarray
+    held: np.ndarray | None = None
 
-    FIELDS = ("x", "x_lin", "b", "A", "b0", "target", "iterations", "converged", "orientation_rows")
+    def __post_init__(self):
+        if self.held is None:
+            self.held = np.zeros(self.b.shape)
+
+    FIELDS = ("x", "x_lin", "b", "A", "b0", "target", "iterations", "converged", "orientation_rows",
+              "held")
 
     def predict(self, x: np.ndarray) -> np.ndarray:
         """(n, rows) weighted residual at corrections x, to first order around x_lin."""
@@ -67,7 +76,7 @@ class Linearization:
         """No blocks (na axes, rows residual rows, k tool-axis rows of the objective)."""
         z = np.zeros
         return Linearization(z((0, na)), z((0, na)), z((0, rows)), z((0, rows, na)), z((0, rows)),
-                             z((0, rows)), z(0, int), z(0, bool), z((0, k, k)))
+                             z((0, rows)), z(0, int), z(0, bool), z((0, k, k)), z((0, rows)))
 
     @staticmethod
     def concatenate(parts: list["Linearization"]) -> "Linearization":
@@ -93,9 +102,10 @@ def solve_pinv(ev: Evaluator, q: np.ndarray, ctx: np.ndarray, lam=0.0, reference
     """One pseudo-inverse step (Qi and Yang 2016) per block at the nominal position (no iteration).
     reference: see :meth:`Evaluator.residual_jacobian_rows`."""
     n, na = q.shape
-    b0, A0, target, M = ev.residual_jacobian_rows(q, ctx, reference)
+    b0, A0, target, M, held = ev.residual_jacobian_rows(q, ctx, reference)
     x = pinv_step(objective_jacobian(M, A0), objective_residual(M, b0), lam)
-    return Linearization(x, np.zeros_like(x), b0, A0, b0, target, np.ones(n, int), np.ones(n, bool), M)
+    return Linearization(x, np.zeros_like(x), b0, A0, b0, target, np.ones(n, int), np.ones(n, bool), M,
+                         held)
 
 
 def solve_newton(ev: Evaluator, q: np.ndarray, ctx: np.ndarray, lam, tol: float,
@@ -111,7 +121,8 @@ def solve_newton(ev: Evaluator, q: np.ndarray, ctx: np.ndarray, lam, tol: float,
     to and from the rest); once fewer than :data:`WHOLE_SHARE` do, only those are evaluated.
     """
     n, na = q.shape
-    st = _NewtonState(q, ctx, *ev.residual_jacobian_rows(q, ctx, reference), na)
+    *rows, held = ev.residual_jacobian_rows(q, ctx, reference)
+    st = _NewtonState(q, ctx, *rows, na)
     for _ in range(max_iterations):
         if st.live is not None or st.active.size == n:
             _whole_iteration(ev, st, lam, tol)
@@ -120,7 +131,7 @@ def solve_newton(ev: Evaluator, q: np.ndarray, ctx: np.ndarray, lam, tol: float,
         if st.active.size == 0:
             break
     return Linearization(st.x, st.x_lin, st.b, st.A, st.b0, st.target, st.iterations, st.converged,
-                         st.M)
+                         st.M, held)
 
 
 #: the share of a chunk's blocks that must still iterate for :func:`solve_newton` to compute every

@@ -71,6 +71,8 @@ class PlanResult:
     indistinct: np.ndarray | None = None
     axis_left: np.ndarray | None = None
     unread: np.ndarray | None = None
+    #: (n,) int8 bit mask of the tip components left uncorrected (:func:`._uncertainty.components_left`)
+    tip_left: np.ndarray | None = None
 
     FIELDS = ("line", "inserted", "rapid", "nominal", "corrected", "correction", "before", "after",
               "before_axis", "after_axis", "flags", "iterations", "converged", "unknown", "outside",
@@ -91,7 +93,7 @@ class PlanResult:
     #: (n, na) masks that may be None (no node has one)
     MASKS = ("undirected", "standing")
     #: (n,) flags that may be None (no node has one)
-    FLAGS = ("indistinct", "unread", "axis_left")
+    FLAGS = ("indistinct", "unread", "axis_left", "tip_left")
 
     @staticmethod
     def concatenate(parts: list["PlanResult"]) -> "PlanResult":

@@ -12,7 +12,10 @@ penalty split what the data cannot tell apart (:meth:`FittedModel.tip_sd_um`). A
 not made where the largest component's standard error exceeds the limit
 (``--max-correction-sd-um``), nor where it is within :data:`SMALL_IN_SD` of its standard errors of
 zero in every component (docs/planner.md, *Blocks where the model is unsure*); how those decisions
-spread over a contour, or over an export table, is :mod:`._contours`'s.
+spread over a contour, or over an export table, is :mod:`._contours`'s. Where the standard error
+is infinite in some tip components only, and is finite and within it in the
+others, the block is corrected in those others and the unsure components keep their deviation
+(:func:`components_left`: for infinite standard errors only).
 """
 from __future__ import annotations
 
@@ -103,3 +106,62 @@ def in_sd(correction_um: np.ndarray, each: np.ndarray) -> np.ndarray:
         z = np.where(size > 0, size / each, 0.0).max(axis=1)
     z[np.isinf(each).any(axis=1) | (size.max(axis=1) < UNDETERMINED_UM)] = np.nan
     return z
+
+
+#: the tip components of :func:`components_left`'s bit mask: bit k set, component k (x, y, z) left
+COMPONENT_BITS = np.array([1, 2, 4], dtype=np.int8)
+
+
+def components_left(each: np.ndarray, limit: float | None) -> np.ndarray | None:
+    """(n,) int8 bit mask (:data:`COMPONENT_BITS`) of the tip components whose correction is not
+    made while the others' is: their standard error (``each`` (n, 3), um, :meth:`CorrectionUncertainty
+    .components`) is infinite (the data do not determine them), where some other component's is
+    finite and within ``limit``. 0 where none is infinite, or none is within the limit (the block
+    is not corrected at all); None without a limit or where no block has such a component. A
+    finite standard error over the limit leaves the block whole, and its contour with it
+    (:mod:`._contours`): left in one component at one block and corrected at the next, a cut would
+    step in that component where the gate keeps it whole."""
+    if not limit or each is None:
+        return None
+    each = np.asarray(each, dtype=float)[:, :3]
+    with np.errstate(invalid="ignore"):
+        over = np.isinf(each)
+        sure = each <= limit                    # NaN (not evaluated) is neither
+    part = over.any(axis=1) & sure.any(axis=1)
+    if not part.any():
+        return None
+    return np.where(part, (over * COMPONENT_BITS).sum(axis=1), 0).astype(np.int8)
+
+
+def left_mask(left: np.ndarray | None, n: int) -> np.ndarray:
+    """(n, 3) bool: the tip components :func:`components_left`'s mask ``left`` leaves (None: none)."""
+    if left is None:
+        return np.zeros((n, 3), bool)
+    return (np.asarray(left, dtype=np.int8)[:, None] & COMPONENT_BITS) > 0
+
+
+def sure_sd(each: np.ndarray, left: np.ndarray | None) -> np.ndarray:
+    """(n,) um: each block's standard error, the largest over the tip components ``each`` (n, 3)
+    that its correction makes (those :func:`components_left` leaves not counted)."""
+    each = np.asarray(each, dtype=float)[:, :3]
+    if left is None:
+        return each.max(axis=1)
+    return np.where(left_mask(left, each.shape[0]), -np.inf, each).max(axis=1)
+
+
+def with_hold(reference: np.ndarray, left: np.ndarray | None) -> np.ndarray:
+    """The datum reference ``reference`` (n, rows) of blocks with the tip components that
+    :func:`components_left`'s ``left`` leaves appended as three columns (1: held), as
+    :func:`split_hold` reads them; ``reference`` itself where none is left. The columns go where
+    the reference goes (a block's inserted nodes take its row), so every node of a block holds the
+    same components."""
+    if left is None or not np.any(left):
+        return reference
+    return np.concatenate([reference, left_mask(left, reference.shape[0]).astype(float)], axis=1)
+
+
+def split_hold(reference: np.ndarray, rows: int):
+    """(reference (n, rows), hold (n, 3) bool or None) of a reference :func:`with_hold` made."""
+    if reference.shape[1] == rows:
+        return reference, None
+    return reference[:, :rows], reference[:, rows:] > 0

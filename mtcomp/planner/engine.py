@@ -44,6 +44,7 @@ from ._ram import RamRule
 from ._result import PlanResult, as_list, first_rows
 from ._rotary_grid import rotary_columns, round_rotary, solve_with_rotary_fixed
 from ._partial import PartialRule
+from ._uncertainty import components_left, split_hold, sure_sd, with_hold
 from ._small import a_x, any_rows, at_b, down_columns, gram, row_max_abs, row_norm
 from .problem import CompensationProblem, PlannerOptions
 from ..models.region import outside_bounds, support_bounds
@@ -178,7 +179,7 @@ class Planner:
             parts = split_rows(lambda *a: self.ev.correction_sd_assumed(*a, sd=limit),
                                qt.shape[0], self._split, *args)
             both = np.concatenate(parts)
-            sd[todo] = both[:, :3].max(axis=1)
+            sd[todo] = sure_sd(both, components_left(both, self.options.max_correction_sd_um))
             k = 3 + self.ev.axis_columns            # the tool axis's (urad) after the tip's
             if limit:
                 each = np.full((q.shape[0], k), np.nan)
@@ -203,12 +204,13 @@ class Planner:
         return solve_newton(self.ev, q, ctx, self.problem.regularization_weights, o.step_tol_um,
                             o.max_iterations, reference)
 
-    def _reference(self, datum, ctx) -> np.ndarray:
+    def _reference(self, datum, ctx, left=None) -> np.ndarray:
         """(n, rows) the deviation at the part's datum of each block (Evaluator.datum_reference);
-        zeros without a datum (the raw deviation is corrected)."""
-        if datum is None:
-            return np.zeros((ctx.shape[0], self.ev.rows))
-        return self.ev.datum_reference(datum, ctx)
+        zeros without a datum (the raw deviation is corrected); with the tip components the block
+        leaves (``left``: :meth:`PartialRule.tip_left`, :func:`._uncertainty.with_hold`)."""
+        ref = np.zeros((ctx.shape[0], self.ev.rows)) if datum is None else \
+            self.ev.datum_reference(datum, ctx)
+        return with_hold(ref, left)
 
     def _check_travel(self, q, line, known=None):
         self.machine.check_travel(q, line, known, self.source)
@@ -241,12 +243,12 @@ class Planner:
         pinned = self._pinned(unknown, outside, sd)
         unread = note_unsure(self, datum, dirs, gated, datum_out, unread, line)
         links = self.links.arrays(q, dirs, None if self._last_end is None else self._last_end[0])
-        lin = self._solve_free(q, ctx, self._reference(datum, ctx))
-        in_sd, axis_left = self.partial.judged(each, lin.b0)
+        lin = self._solve_free(q, ctx, self._reference(datum, ctx, self.partial.tip_left(each)))
+        in_sd, axis_left, tip_left = self.partial.judged(each, lin.b0)
         nodes = NodeSet(q, ctx, exempt, line, np.zeros(n, bool), rapid, unknown, outside,
                         pinned, sd, np.zeros(n, bool), np.zeros(n, bool),
                         *(links or (None, None, None)), assumed=assumed, in_sd=in_sd,
-                        axis_left=axis_left, unread=unread)
+                        axis_left=axis_left, unread=unread, tip_left=tip_left)
         nodes, lin = self.gate.feed(nodes, lin, final=True)     # the arrays are whole contours
         if n:
             self._last_end = (nodes.q[-1], lin.x[-1])
@@ -260,7 +262,7 @@ class Planner:
         self._check_travel(end, chunk.line, known)
         ctx = self._context(chunk.feed, chunk.dirs, nrows, chunk.tool_length,
                             getattr(chunk, "context", None))
-        rapid = np.asarray(chunk.rapid, bool)
+        rapid, unknown = np.asarray(chunk.rapid, bool), ~known
         # a drilling cycle's hole: one block, reached by rapids, never subdivided
         cycle = np.zeros(nrows, bool) if chunk.cycle is None else np.asarray(chunk.cycle, bool)
         # internal nodes lie on the line from the previous node: not where the move starts from a
@@ -272,24 +274,23 @@ class Planner:
             no_line[1:] |= cycle[:-1]
             no_line[0] |= self._after_cycle
             self._after_cycle = bool(cycle[-1])
-        unknown = ~known
         outside = self.outside_support(end, known, chunk.tool_length)
         datum_out, unread, inf = unsure_rows(self, chunk.datum, chunk.tool_length, chunk.dirs)
         sd, assumed, gated, each = self._sd_um(end, ctx, unknown, outside, chunk.datum, inf)
         pinned = self._pinned(unknown, outside, sd)
         unread = note_unsure(self, chunk.datum, chunk.dirs, gated, datum_out, unread, chunk.line)
         self.ram.note(end, outside, pinned, chunk.tool_length, ~any_rows(unknown))
-        lin_end = self._solve_free(end, ctx, ref := self._reference(chunk.datum, ctx))
-        in_sd, axis_left = self.partial.judged(each, lin_end.b0)
+        cut_start = cycle | no_line
+        tips = self.partial.tip_left(each, ~rapid & ~any_rows(unknown), cut_start)
+        lin_end = self._solve_free(end, ctx, ref := self._reference(chunk.datum, ctx, tips))
+        in_sd, axis_left, tip_left = self.partial.judged(each, lin_end.b0, tips)
         first = self._last_end is None
         # no step bound into a rapid, a hole, or a move that starts where the program has not said
         # (after a home move or a tool change: the machine did not come along the cut)
         exempt = (rapid | cycle | jump) & (not self.problem.step_across_rapids)
-        if first and nrows:
-            exempt[0] = True
+        exempt[:1] |= first
         start, x_start = self._row_starts(chunk, end, lin_end.x, ctx, ref)
         # no internal nodes in a contour the standard-error gate leaves uncorrected either
-        cut_start = cycle | no_line
         gated = self.gate.rows_gated(~rapid & ~any_rows(unknown), cut_start, sd, in_sd)
         skip = rapid | pinned | cycle | no_line | gated
         # a straight move after a block left uncorrected (or a rapid the gate leaves): ramp nodes
@@ -298,7 +299,8 @@ class Planner:
         skip[ramped] = True
         inner = merged(self._subdivide(start, end, x_start, lin_end.x, ctx, ref, skip), ramp)
         counts = np.ones(nrows, np.int64)
-        each_row = dict(assumed=assumed, in_sd=in_sd, axis_left=axis_left, unread=unread)
+        each_row = dict(assumed=assumed, in_sd=in_sd, axis_left=axis_left, unread=unread,
+                        tip_left=tip_left)
         if inner is None:
             links = self.links.chunk(chunk, end, np.arange(nrows), np.ones(nrows, bool), first, cycle)
             nodes = NodeSet(end, ctx, exempt, np.asarray(chunk.line), np.zeros(nrows, bool), rapid,
@@ -396,10 +398,13 @@ class Planner:
         the corrections x0 and x1 of the ends misses there."""
         qm = self.bounds.snap(start + t[:, None] * (end - start))
         target, M = self.ev.target_and_orientation_rows(qm)
+        ref, hold = split_hold(ref, self.ev.rows)
         target = down_columns(np.add, target, ref)
         # as the objective counts it: a tool-axis deviation no rotary axis can remove there is
         # missed by any correction and says nothing about the interpolation
         miss = objective_residual(M, self.ev.residual(qm, 0.5 * (x0 + x1), c, target))
+        if hold is not None:
+            miss[:, :3][hold] = 0.0         # a component held: its correction is zero at both ends
         return row_norm(miss), qm
 
     # ------------------------------------------------------------------ committing
@@ -449,9 +454,9 @@ class Planner:
         if far.size:
             after_w[far] = self.ev.residual(nodes.q[far], y[far], nodes.context[far],
                                             lin.target[far])
-        S = self.ev.S
-        before = down_columns(np.divide, lin.b0, S)
-        after = down_columns(np.divide, after_w, S, out=after_w)    # a new array: in place
+        S = self.ev.S       # the tip components the target held: their deviation as it is
+        before = down_columns(np.divide, lin.b0 + lin.held, S)
+        after = down_columns(np.divide, after_w + lin.held, S)
         five = self.problem.correct_orientation
         self._done += len(nodes)
         self._tick()
@@ -461,7 +466,7 @@ class Planner:
                           nodes.unknown, nodes.outside, nodes.pinned, nodes.sd_um, nodes.gated,
                           held, undirected=undirected_axes(nodes), standing=standing_axes(nodes),
                           assumed=nodes.assumed, indistinct=nodes.indistinct, unread=nodes.unread,
-                          axis_left=nodes.axis_left)
+                          axis_left=nodes.axis_left, tip_left=nodes.tip_left)
 
     def _tick(self):
         cb = self.options.progress

@@ -35,6 +35,12 @@ One row per output block (every G0/G1 line written for a motion, internal nodes 
   1 where the block was left uncorrected because that axis approaches it from the other side, or
   from a side not known (its standard error is then infinite: ``uncertain`` 1); its contour's other
   blocks have ``uncertain`` 1 and 0 here.
+* ``components_left`` (only when a standard-error limit is asked of a model with a covariance): the
+  tip components (``x``, ``y``, ``z``) whose correction the block does not make because the model's
+  data do not determine it (an infinite standard error) while the other components' standard
+  errors are within ``--max-correction-sd-um``: the block is corrected in those others (``corrected`` 1) and
+  keeps its deviation in these (their ``e*_after_um`` as before, within the never-worse tolerance);
+  blank where the block leaves none.
 """
 from __future__ import annotations
 
@@ -57,10 +63,12 @@ WORSE_TOL_UM = 2 * NEVER_WORSE_TOL
 _NOT_STANDING = np.array([kind != "standing" for kind in FLAG_KINDS])
 
 
-def report_columns(axis_names, five_axis: bool, assumed: bool = False, unread: bool = False) -> list[str]:
+def report_columns(axis_names, five_axis: bool, assumed: bool = False, unread: bool = False,
+                   left: bool = False) -> list[str]:
     """BLOCKS.csv's columns (``assumed``: the model holds something at zero, :mod:`._assumed`,
     and a column says how far it acts on each block; ``unread``: the model's data read an axis
-    from one side only, :mod:`._direction`, and the last column marks the blocks left for it)."""
+    from one side only, :mod:`._direction`, and a column marks the blocks left for it; ``left``:
+    the ``components_left`` column, :mod:`._partial`)."""
     cols = ["line", "inserted", "rapid"]
     cols += [f"{a.lower()}_deg" if a in "ABC" else f"{a.lower()}_mm" for a in axis_names]
     cols += [f"c{a.lower()}_urad" if a in "ABC" else f"c{a.lower()}_um" for a in axis_names]
@@ -70,7 +78,8 @@ def report_columns(axis_names, five_axis: bool, assumed: bool = False, unread: b
             cols += [f"ei_{when}_urad", f"ej_{when}_urad", f"ek_{when}_urad", f"e_axis_{when}_urad"]
     cols += ["active_bounds", "unknown_axes", "outside_support", "corrected", "correction_sd_um",
              "uncertain"]
-    return cols + (["assumed_arm_mm"] if assumed else []) + (["direction_not_read"] if unread else [])
+    return cols + (["assumed_arm_mm"] if assumed else []) + (["direction_not_read"] if unread else []) \
+        + (["components_left"] if left else [])
 
 
 def _assumed_arm_mm(result: PlanResult) -> np.ndarray | None:
@@ -121,10 +130,19 @@ def _unread(result: PlanResult, n: int) -> np.ndarray:
     return np.zeros(n) if result.unread is None else result.unread.astype(float)
 
 
+def _components_left(result: PlanResult, n: int) -> list[str]:
+    """(n,) BLOCKS.csv's ``components_left``: the letters of the tip components a block leaves."""
+    if result.tip_left is None:
+        return [""] * n
+    bits = np.asarray(result.tip_left, dtype=np.int64)
+    return ["".join(c for k, c in enumerate("xyz") if b >> k & 1) for b in bits.tolist()]
+
+
 def report_rows(result: PlanResult, axis_names, max_correction_sd_um: float | None = None,
-                unread: bool = False) -> list[str]:
+                unread: bool = False, left: bool = False) -> list[str]:
     """CSV text lines (with newline) of one planned result (``max_correction_sd_um``: the limit
-    the plan used, for the ``uncertain`` column; ``unread``: the ``direction_not_read`` column)."""
+    the plan used, for the ``uncertain`` column; ``unread``: the ``direction_not_read`` column;
+    ``left``: the ``components_left`` column)."""
     cols, fmts, blank = _numeric_columns(result, axis_names)
     bounds = result.active_bounds(axis_names)
     unknown = _axis_letters(result.unknown, axis_names)
@@ -135,6 +153,8 @@ def report_rows(result: PlanResult, axis_names, max_correction_sd_um: float | No
     extra = [] if arm is None else [["" if not np.isfinite(v) else f"{v:.1f}" for v in arm.tolist()]]
     if unread:
         extra.append([f"{v:.0f}" for v in _unread(result, len(result)).tolist()])
+    if left:
+        extra.append(_components_left(result, len(result)))
     fmt = ",".join(fmts) + ",%s,%s,%s,%d,%s,%d" + ",%s" * len(extra) + "\n"
     lines = [fmt % row for row in zip(*[c.tolist() for c in cols], bounds, unknown, outside,
                                         result.corrected_blocks().astype(int).tolist(), sd, uncertain,
@@ -145,16 +165,18 @@ def report_rows(result: PlanResult, axis_names, max_correction_sd_um: float | No
 
 
 def report_table(result: PlanResult, axis_names, max_correction_sd_um: float | None = None,
-                 unread: bool = False):
+                 unread: bool = False, left: bool = False):
     """:func:`report_rows` as numbers, for a compiled formatter: (values (n, k), decimals (k,),
     blank (k,), special (n,) bool). Row i of BLOCKS.csv is column j of values written as
     ``"%.{decimals[j]}f"`` (an empty field where decimals[j] < 0, and for NaN where blank[j]),
     joined by commas, except for the ``special`` rows (an active bound, an axis not known or
-    outside the model's region: text in the columns of letters), which :func:`report_rows`
-    writes."""
+    outside the model's region, a tip component left: text in the columns of letters), which
+    :func:`report_rows` writes."""
     cols, fmts, unknown = _numeric_columns(result, axis_names)
     n = len(result)
     special = unknown | any_rows(result.flags) | any_rows(result.outside)
+    if left and result.tip_left is not None:
+        special = special | (np.asarray(result.tip_left) != 0)
     empty = np.zeros(n)
     cols = cols + [empty, empty, empty, result.corrected_blocks().astype(float), result.sd_um,
                    _uncertain(result, max_correction_sd_um).astype(float)]
@@ -169,6 +191,10 @@ def report_table(result: PlanResult, axis_names, max_correction_sd_um: float | N
     if unread:
         cols.append(_unread(result, n))
         decimals.append(0)
+        blank = np.append(blank, False)
+    if left:        # empty but on the special rows (report_rows writes the letters)
+        cols.append(empty)
+        decimals.append(-1)
         blank = np.append(blank, False)
     return np.column_stack(cols), np.array(decimals), blank, special
 
