@@ -22,9 +22,16 @@ from trunnion_case import TRUTH_URAD, trunnion_campaign
 SQUARENESS = ("C0Y", "B0Z", "A0Z")
 
 
-@pytest.fixture(scope="module")
-def campaign(tmp_path_factory):
-    return trunnion_campaign(tmp_path_factory.mktemp("trunnion"))
+#: the squarenesses' spread (urad) over 8 noise draws of the campaign (seeds 42..49; PYTHONPATH=tests:.
+#: python benchmarks/bench_noise_weights_mc.py), the standard errors' Monte Carlo oracle
+MC_SPREAD_URAD = {"C0Y": 3.05, "B0Z": 2.17, "A0Z": 1.24}
+
+
+@pytest.fixture(scope="module", params=[42, 45])
+def campaign(request, tmp_path_factory):
+    # seed 42: the new user's files to the digit (before: a traceback); 45: the same truth, other
+    # noise (before: squarenesses +-17 to 36 urad)
+    return trunnion_campaign(tmp_path_factory.mktemp("trunnion"), request.param)
 
 
 def _correlation(cov: np.ndarray) -> np.ndarray:
@@ -47,8 +54,9 @@ def test_noise_weights_fit_without_traceback_and_write_a_psd_covariance(campaign
     _assert_psd(np.array(model["uncertainty"]["covariance"], dtype=float))
     for name in SQUARENESS:
         p = model["parameters"][name]
-        # each file's noise taken: the standard errors are some urad, the truth within 3 of them
-        assert 1.0 < p["std_error"] < 10.0
+        # each file's noise taken: the standard errors within a factor of 4 of what the noise moves
+        # the value by over draws (conservative by 1.4 to 2.8: a held combination's variance is in)
+        assert MC_SPREAD_URAD[name] / 4.0 < p["std_error"] < 4.0 * MC_SPREAD_URAD[name]
         assert abs(p["value"] - TRUTH_URAD[name]) < 3.0 * p["std_error"]
 
 
