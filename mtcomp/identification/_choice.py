@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._linalg import penalised_inverse
+from ._linalg import penalised_inverse, psd_factor
 
 #: relative singular values of the fit's data matrix (on the directions it moves in) at or below
 #: this share of the largest are directions the data do not see: the penalty alone sets them
@@ -148,8 +148,9 @@ def beyond_posterior(D: np.ndarray, pens: np.ndarray, s2: float) -> np.ndarray:
 
 def bounded_split_variance(AB: np.ndarray, FB: list, Hinv: np.ndarray, carried: np.ndarray, s2: float,
                            splits: np.ndarray) -> np.ndarray:
-    """(k, k) the variance, in the fit's directions B, that the penalty's alternative splits add to
-    the posterior ``s2 Hinv`` when each class's weight is only known to REML's precision.
+    """(k, m) R, R R^T the variance, in the fit's directions B, that the penalty's alternative
+    splits add to the posterior ``s2 Hinv`` when each class's weight is only known to REML's
+    precision.
 
     AB : the data's normal matrix along B. FB : [(m_k, k) sqrt(l_k) F_k B], each class's weighted
     penalty factor along B. Hinv : ``(AB + sum_k FB_k^T FB_k)^-1``. carried : (n_classes,) each
@@ -161,20 +162,23 @@ def bounded_split_variance(AB: np.ndarray, FB: list, Hinv: np.ndarray, carried: 
     its effective degrees of freedom (its penalised rank less ``tr(Hinv FB_k^T FB_k)``, at least
     :data:`MIN_WEIGHT_DOF`): the lower bound of the weight, the upper of the prior variance. The
     posterior at those weights less the fit's, on the span of the splits only (a profile smoothed
-    within one class between what was measured is no split and keeps its variance), is returned;
-    zeros where there is no split."""
+    within one class between what was measured is no split and keeps its variance), is returned
+    as its factor R; none (k, 0) where there is no split."""
     from scipy.special import gammaincinv    # chi2_{nu, p} = 2 gammaincinv(nu / 2, p): no scipy.stats
     k = AB.shape[0]
     if not splits.shape[1] or len(FB) < 2 or not np.isfinite(s2) or not np.any(np.asarray(carried) > s2):
-        return np.zeros((k, k))
+        return np.zeros((k, 0))
     lowered = []
     for G, pen in zip(FB, carried):
         Sk = G.T @ G
         sv = np.linalg.svd(G, compute_uv=False)
         rank = int(np.sum(sv > 1e-9 * max(float(sv.max()) if sv.size else 0.0, 1e-300)))
         nu = max(rank - float(np.trace(Hinv @ Sk)), MIN_WEIGHT_DOF)
-        lowered.append(Sk * (2.0 * float(gammaincinv(0.5 * nu, WEIGHT_BOUND_P)) / nu if pen > s2 else 1.0))
-    extra = s2 * (penalised_inverse(AB + sum(lowered), sum(lowered)) - Hinv)
+        lowered.append(G * np.sqrt(2.0 * float(gammaincinv(0.5 * nu, WEIGHT_BOUND_P)) / nu if pen > s2 else 1.0))
+    # (AB + lowered)^-1, the penalty given once and through its factor, as the fit's Hinv (given
+    # both as part of H and as S it counted twice: a class at its weight doubled took 2.9e6 of
+    # variance off a 5-axis campaign's split, the covariance not positive semi-definite)
+    extra = s2 * (penalised_inverse(AB, factor=np.vstack(lowered)) - Hinv)
     U, sv, _ = np.linalg.svd(splits, full_matrices=False)
     Q = U[:, sv > 1e-9 * max(float(sv.max()), 1e-300)]
-    return Q @ (Q.T @ extra @ Q) @ Q.T
+    return Q @ psd_factor(Q.T @ extra @ Q)    # a variance added, never taken: its round-off cut

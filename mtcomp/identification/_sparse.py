@@ -108,16 +108,15 @@ def unbounded_directions(penalties: dict, B: np.ndarray, AB: np.ndarray, scale: 
     return Q[:, s > 1e-9 * s.max()], classes
 
 
-def without_unbounded(cov: np.ndarray, D: np.ndarray, scale: np.ndarray) -> np.ndarray:
-    """The covariance ``cov`` (internal units) with the directions D (scaled coordinates,
-    orthonormal) projected out: what is left is the variance of what the data bound; the values
-    along D are then the model's part along undetermined directions (``FittedModel.
+def without_unbounded(L: np.ndarray, D: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """The factor L of a covariance L L^T (internal units) with the directions D (scaled
+    coordinates, orthonormal) projected out: what is left is the variance of what the data bound;
+    the values along D are then the model's part along undetermined directions (``FittedModel.
     undetermined_values``), as for any direction recorded so."""
     if not D.shape[1]:
-        return cov
-    P = np.eye(D.shape[0]) - D @ D.T
-    Cs = cov / np.outer(scale, scale)
-    return np.outer(scale, scale) * (P @ Cs @ P.T)
+        return L
+    Ls = L / scale[:, None]
+    return scale[:, None] * (Ls - D @ (D.T @ Ls))
 
 
 def sparse_note(classes: dict) -> dict:

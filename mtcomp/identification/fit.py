@@ -67,7 +67,7 @@ from .unmeasured import (assumption, leaving_held_alone, record_unmeasured, unme
                          unmeasured_unknowns)
 from ._linalg import (column_scale, _eliminate, _name_null_space,
                       _relative_singular_values, _seen_columns, _solver, _unseen_apart, _step, block_obs,
-                      file_normal_equations, one_blas_thread, penalised_inverse)
+                      file_normal_equations, one_blas_thread, penalised_inverse, psd_factor)
 from .problem import (DEFAULT_RCOND, FitProblem, SolverOptions, data_region, fitted_axes,
                       frame_rotations, frame_rule_complement)
 from .problem import travel_metric  # noqa: F401
@@ -355,8 +355,9 @@ class _Problem:
                 A[sn, :nf] += Apn[fi].T
         return pred, A, g
 
-    def leverages(self, x, w, scale, B, L):
-        """(n_obs,) diagonal of the hat matrix Js B (B^T Js^T Js B)^-1 B^T Js^T, L L^T = B^T Js^T Js B."""
+    def leverages(self, x, w, scale, B, R):
+        """(n_obs,) diagonal of the hat matrix Js B Hinv B^T Js^T, R R^T = Hinv, the penalised fit's
+        inverse (:func:`._linalg.psd_factor` of :func:`._linalg.penalised_inverse`)."""
         p = self.params(x)
         out = np.zeros(self.n_obs)
         for m, so, sn in zip(self.mms, self.obs_slices, self.nuis_slices):
@@ -368,7 +369,7 @@ class _Problem:
                 Js[:, :self.n_free] = Jp[:, self.free_idx]
                 Js[:, sn] = Jn
                 Js *= ww[blk][:, None] * scale[None, :]
-                M = scipy.linalg.solve_triangular(L, (Js @ B).T, lower=True)
+                M = R.T @ (Js @ B).T
                 lev[blk] = np.einsum("ij,ij->j", M, M)
         return out
 
@@ -506,10 +507,11 @@ class _Problem:
             x = least_error_along(x, tilts, scale, self.metric)
             r = w * (self.observed - self.evaluate(x))
             null = np.hstack([null, tilts])
-        lev, edf, cov, held, held_sd = self._posterior(x, r, w, scale, B, AB, rank, leverage, P)
+        lev, edf, L, held, held_sd = self._posterior(x, r, w, scale, B, AB, rank, leverage, P)
         unbounded, self.unbounded_classes = unbounded_directions(
             penalties if self.S is not None else {}, B, AB, scale, P, self.n_free)
-        cov = without_unbounded(cov, unbounded, scale)
+        L = without_unbounded(L, unbounded, scale)
+        cov = L @ L.T
         if self.S is not None:
             lam = {k: float(np.exp(v)) for k, v in self.smoothing_rho.items()}
             self.smoothing = Smoothing(lam, dict(self.smoothing_rho), edf)
@@ -564,43 +566,43 @@ class _Problem:
 
     def _posterior(self, x, r, w, scale, B, AB, rank: int, leverage: bool, P=None):
         """((n_obs,) leverages (zeros unless ``leverage``), effective degrees of freedom, (n_unknowns,
-        n_unknowns) covariance of the unknowns, NaN when nothing is fitted, (n_unknowns, k) held
-        directions (internal units, each 1 um rms tool-tip error over the data's region) and (k,)
-        their standard errors, um) of a fit along B. The covariance includes the variance the data
-        leave along each held direction (:func:`._weak.held_variance`): held, not undetermined. It
-        goes through ``P``, the move that took the components no laser file names to zero
-        (:func:`.unmeasured.assumption_map`; None: none), as the values did."""
+        m) factor L of the covariance of the unknowns L L^T, NaN when nothing is fitted, (n_unknowns,
+        k) held directions (internal units, each 1 um rms tool-tip error over the data's region) and
+        (k,) their standard errors, um) of a fit along B. The covariance includes the variance the
+        data leave along each held direction (:func:`._weak.held_variance`): held, not undetermined.
+        It goes through ``P``, the move that took the components no laser file names to zero
+        (:func:`.unmeasured.assumption_map`; None: none), as the values did. Each variance is added
+        as a factor, so that the covariance is positive semi-definite by construction: summed and
+        mapped as matrices, round-off gave parameters of variance 1e-19 correlations of 1.13 (and,
+        with the split's variance taken off, -20)."""
         lev = np.zeros(self.n_obs)
         edf = float(rank)
         self.held_assumed = 0
         self.s2 = float("nan")
         if not B.shape[1]:
-            return (lev, edf, np.full((self.n_unknowns, self.n_unknowns), np.nan),
+            return (lev, edf, np.full((self.n_unknowns, 1), np.nan),
                     np.zeros((self.n_unknowns, 0)), np.zeros(0))
         # the Bayesian posterior covariance of a penalised fit (Wood 2006): phi (AB + S)^-1, phi
-        # the residual variance over the effective degrees of freedom tr((AB + S)^-1 AB)
-        S = self._reduced_penalty(B)
-        Hinv = penalised_inverse(AB, S)
-        H = AB + S
+        # the residual variance over the effective degrees of freedom tr((AB + S)^-1 AB); the
+        # penalty through its factor (penalised_inverse: its square, formed, lost the classes at
+        # small weights beside one at e^28, and the posterior 10 um of tool-tip error with them)
+        Hinv = penalised_inverse(AB, factor=self._penalty_factor(B))
         edf = float(np.trace(Hinv @ AB)) if self.S is not None else float(rank)
         s2 = self.s2 = self._residual_variance(r, edf)
-        cov = s2 * (scale[:, None] * (B @ Hinv @ B.T) * scale[None, :])
-        if P is not None:
-            cov = P @ cov @ P.T
-        held_cov, held, held_sd, self.held_assumed = held_variance(self.held, scale, s2, P, self.metric)
+        _, held, held_sd, self.held_assumed = held_variance(self.held, scale, s2, P, self.metric)
         # the penalty's split of what the data cannot see across classes (._choice): between classes
         # that carry curvature, the posterior at the weights' REML bounds; into an empty class, more
         extra = bounded_split_variance(AB, [F @ B for F in self.class_factors], Hinv,
                                        self._choice_cost[0, :-1], s2, self._splits)
-        extra = scale[:, None] * (B @ extra @ B.T) * scale[None, :]
-        cov = cov + (extra if P is None else P @ extra @ P.T)
+        L = scale[:, None] * (B @ np.hstack([np.sqrt(s2) * psd_factor(Hinv), extra]))
         self.choice = beyond_posterior(self.choice, self._choice_cost, s2)
-        if self.choice.shape[1]:
-            self.choice = self.choice if P is None else P @ self.choice
-            cov = cov + self.choice @ self.choice.T
+        if P is not None:
+            L, self.choice = P @ L, P @ self.choice
         if leverage:
-            lev = self.leverages(x, w, scale, B, np.linalg.cholesky(H))
-        return lev, edf, cov + held_cov, held, held_sd
+            # from the inverse the covariance takes: a Cholesky factor of AB + S itself failed at a
+            # roughness weight of e^28 beside the data (condition 1e17: "not positive definite")
+            lev = self.leverages(x, w, scale, B, psd_factor(Hinv))
+        return lev, edf, np.hstack([L, self.choice, held * held_sd[None, :]]), held, held_sd
 
     def _noise_sum_of_squares(self, r) -> tuple[float, int]:
         """(sum of squares, number) of the residuals ``r`` that noise makes: all of them, less what a
