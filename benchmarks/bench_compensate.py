@@ -90,6 +90,18 @@ def write_identified_model(path: Path, seed: int = 2026) -> None:
     (folder / "MODEL.json").replace(path)
 
 
+def write_identified_model_apart(path: Path) -> None:
+    """:func:`write_identified_model` in a subprocess: the identification's memory (about 250 MB)
+    then counts neither in this process's peak nor in its later subprocesses' (on Linux a child's
+    ru_maxrss starts from its parent's size at the fork)."""
+    here = str(Path(__file__).resolve().parent)
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (env.get("PYTHONPATH"), here) if p)
+    subprocess.run([sys.executable, "-c", "import sys; from pathlib import Path; "
+                    "from bench_compensate import write_identified_model; "
+                    "write_identified_model(Path(sys.argv[1]))", str(path)], check=True, env=env)
+
+
 def run(cmd: list[str], env=None) -> tuple[float, float, float, int]:
     """(wall s, cpu s, peak rss MB, exit code) of one subprocess."""
     t0 = time.perf_counter()

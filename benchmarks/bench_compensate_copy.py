@@ -46,7 +46,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from bench_compensate import write_identified_model, write_model
+from bench_compensate import write_identified_model_apart, write_model
 from bench_gcode import make_program
 
 IMPORTS = "import mtcomp.commands.compensate, mtcomp.compensation, casadi"
@@ -101,7 +101,7 @@ def main(argv=None) -> int:
         model = args.model
         if model is None:
             model = tmp / "m.json"
-            write_identified_model(model)
+            write_identified_model_apart(model)
         size = prog.stat().st_size / 1e6
         env = bytecode_env(tmp / "pycache") if args.bytecode else None
         copy = measure([py, "-c", COPY, str(prog), str(tmp / "copy.nc")], args.repeat, env)

@@ -127,12 +127,12 @@ def main(argv=None) -> int:
             prog = tmp / "p.nc"
             make_program(prog, args.blocks)
         if model is None:
-            from bench_compensate import write_identified_model, write_model
+            from bench_compensate import write_identified_model_apart, write_model
             model = tmp / "m.json"
             if args.synthetic:
                 write_model(model, args.machine)
             else:
-                write_identified_model(model)
+                write_identified_model_apart(model)
         cmd = ["compensate", args.machine, str(model), str(prog), "-o", str(tmp / "out.nc"),
                "--quiet", *args.extra]
         if args.report:
