@@ -18,11 +18,20 @@ _PASSED_MOVES = {"increment": "{n} incremental (G91) move{s} of an axis whose po
                  "spline": "{n} spline{s} (G5, G5.1; {at}: its control points are not corrected, "
                            "its end is known after it)",
                  "machine": "{n} move{s} in machine coordinates (G53, {at})",
+                 "height map": "{n} height map probing{s} (uCNC's G39, {at}: Z stands where the "
+                               "grid's first point was probed; X Y as the line names them)",
+                 "probe": "{n} Z probe{s} (BeagleG's G30, {at}: Z stands where the probe stopped; "
+                          "a move after it on its line passes as written, its end known)",
                  "single": "{n} single-direction positioning{s} (Fanuc G60, {at}: its end is "
                            "known, the axes' approach direction is the control's parameter's)",
                  "tap": "{n} rigid tapping move{s} (G33.1, {at}: the spindle's reversal sets its ends)",
                  "restore": "{n} move{s} to a RepRapFirmware restore point (G0/G1 R, {at}: the "
                             "controller saved it)",
+                 "controller": "{n} move{s} to a value the controller holds or under a tool "
+                               "length it holds ({at}: its position, a probe's result, a setting; "
+                               "an axis given such a value is not written until positioned again)",
+                 "probing": "{n} probing move{s} (G38.2-G38.5, {at}: the axes named stand where "
+                            "the probe stopped, not written until positioned again)",
                  "subprogram": "{n} call{s} of a subprogram not in the file ({at}: its moves are "
                                "not seen)"}
 

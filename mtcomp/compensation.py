@@ -26,6 +26,7 @@ from .planner import (CompensationProblem, Planner, PlannerOptions, Summary, out
                       report_columns, report_rows)
 from .planner.report import report_table
 from .planner._assumed import AssumedTally
+from .planner._partial import PartialTally
 from .planner._bounds import FLAG_KINDS
 from .planner._parallel import read_ahead
 from .planner._small import any_rows, row_norm
@@ -763,5 +764,6 @@ def _planner(fitted, settings: CompensationSettings, inch: bool, src, progress) 
                       ram_asked=planner.ram.ram_asked, tools_asked=planner.ram.tools_asked,
                       tools_measured=fitted.info.get("tool_length_mm")
                       if isinstance(fitted.info, dict) else None,
-                      assumed=None if planner.ev.assumed is None else AssumedTally(planner.ev.assumed))
+                      assumed=None if planner.ev.assumed is None else AssumedTally(planner.ev.assumed),
+                      partial=PartialTally(planner.partial.limit_urad, planner.partial.rotary))
     return planner, summary

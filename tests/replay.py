@@ -28,7 +28,9 @@ runs the controller's macro files (see `rrf_runs_macro`) leaves every axis unkno
 `is_beagleg`) a line is read word by word, as BeagleG's parser does (`beagleg_commands`: `X5 G91`
 moves to X5 before G91 applies), G70/G71 are G20/G21, and G2/G3 hold for their own block only: axis
 words alone move in the last G0/G1 mode, G0 at the start (BeagleG's
-src/gcode-parser/gcode-parser.cc, ParseBlock). A G5 cubic spline (X Y
+src/gcode-parser/gcode-parser.cc, ParseBlock), and G30 probes Z (handle_z_probe: Z unknown after
+it, its own Z word the probe's thickness). uCNC's G39 probes a height map and leaves Z unknown, X Y
+where it names them (motion_control.c, mc_build_hmap). A G5 cubic spline (X Y
 its end; the first control point the start plus I J, or without I J minus the previous G5's P Q;
 the second the end plus P Q) and a G5.1 quadratic one (its control point the start plus I J) are
 moves along their Bezier curve (LinuxCNC G-code reference, G5 and G5.1); after one no motion mode
@@ -298,9 +300,17 @@ def _block(st, index, words):
     if st.beagleg and st.motion in (2, 3):
         st.motion = st.linear            # BeagleG: an arc holds for its own block only
     _motion_mode(st, gs)
+    if 39 in gs:
+        # uCNC's height map (motion_control.c, mc_build_hmap): it probes a grid from the X Y it
+        # names, then stands at the first point at the height probed there; G39 stays in force
+        end = _target(st, [(c, v) for c, v in words if c in "XY"])
+        end["Z"] = None
+        st.motion = None
+        return _go(st, Move(index, "home", dict(st.pos), end))
     if any(g in (28, 30) for g in gs):
         end = dict(st.pos)
-        for a in (axes or AXES):
+        # BeagleG's G30 probes Z (gcode-parser.cc, handle_z_probe: its Z word is the thickness)
+        for a in ("Z" if st.beagleg and 30 in gs else axes or AXES):
             end[a] = None
         return _go(st, Move(index, "home", dict(st.pos), end))
     if 53 in gs:

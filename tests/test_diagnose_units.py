@@ -199,6 +199,24 @@ def test_folds_hold_out_whole_runs():
     assert np.unique(folds).size == 5
 
 
+def test_runs_of_opposite_approach_are_not_held_out_as_repeats():
+    """Runs that each approach X from one side (an R-test's B read up in run 1, down in run 2) are a
+    reversal: no fold may hold out every reading of one direction. Four runs (+ - + -): the k-th run
+    of each direction is held out together; two runs: the readings are dealt to the folds."""
+    q = np.tile(np.linspace(0, 100, 10), 4)
+    run = np.repeat(np.arange(1, 5), 10)
+    dirs = np.where(run % 2 == 1, 1.0, -1.0)
+    folds, how = an.make_folds(_stack(q, ["s"] * q.size, dirs=dirs, run=run))
+    assert "a reversal, not repeats" in how and "whole runs" not in how
+    assert folds[run == 1][0] == folds[run == 2][0] != folds[run == 3][0] == folds[run == 4][0]
+    two = run <= 2
+    folds, how = an.make_folds(_stack(q[two], ["s"] * int(two.sum()), dirs=dirs[two], run=run[two]))
+    assert "dealt" in how and np.unique(folds).size == 5
+    for k in range(5):
+        kept = dirs[two][folds != k]
+        assert (kept > 0).any() and (kept < 0).any(), k
+
+
 def test_a_cut_part_is_dealt_to_the_folds_not_held_out_by_columns():
     """A CMM grid of 21 rows of 20 points: every point of a column must reach the fit in some fold
     (every 5th point in reading order had put whole columns in one fold), and no fold holds a

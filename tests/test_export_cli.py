@@ -26,7 +26,8 @@ def test_axis_without_data_gets_no_table_and_a_reason(tmp_path, capsys):
     assert not (tmp_path / "lc" / "z.comp").exists()
     assert "axis Z: no table: the axis did not move in the data" in err
     nom = _nominals(tmp_path / "lc" / "x.comp")
-    assert nom[0] == -20 and nom[-1] == 20 and np.allclose(np.diff(nom), 1.0)
+    # the data's span and one step beyond each end, where the table is zero (X travels -400 .. 400)
+    assert nom[1] == -20 and nom[-2] == 20 and np.allclose(np.diff(nom), 1.0)
     assert "axis Z: no table" in (tmp_path / "lc" / "README.txt").read_text()
 
 
@@ -39,7 +40,7 @@ def test_model_without_support_uses_the_travel_loudly_or_the_range(tmp_path, cap
     x = _nominals(tmp_path / "a" / "x.comp")
     y = _nominals(tmp_path / "a" / "y.comp")
     assert (x[0], x[-1]) == (-400, 400) and len(x) <= 256
-    assert (y[0], y[-1]) == (-5, 5)
+    assert (y[1], y[-2]) == (-5, 5) and (y[0], y[-1]) == (-6, 6)
 
 
 def test_range_clips_the_support_and_grid_step_is_honoured(tmp_path, capsys):
@@ -48,7 +49,8 @@ def test_range_clips_the_support_and_grid_step_is_honoured(tmp_path, capsys):
                  "--range", "X=0:50", "--grid-mm", "3"]) == 0
     nom = _nominals(tmp_path / "lc" / "x.comp")
     # equidistant from the start, the last point at the end of the region (LinuxCNC takes any nominal)
-    np.testing.assert_allclose(nom, [0, 3, 6, 9, 12, 15, 18, 20], rtol=0, atol=1e-9)
+    # one step beyond each end the table is zero
+    np.testing.assert_allclose(nom, [-3, 0, 3, 6, 9, 12, 15, 18, 20, 23], rtol=0, atol=1e-9)
 
 
 @pytest.mark.parametrize("args,expected", [
@@ -191,7 +193,7 @@ def test_data_outside_the_machines_travel_get_no_table_and_another_machine_is_na
     assert "axis X: the region of the data -20:20 mm lies outside the machine's travel 30:600 mm" in err
     assert not (tmp_path / "lc" / "x.comp").exists()
     nom = _nominals(tmp_path / "lc" / "y.comp")
-    assert (nom[0], nom[-1]) == (5.0, 10.0)
+    assert (nom[0], nom[-2], nom[-1]) == (5.0, 10.0, 11.0)     # at the travel's end no step beyond
     # the machine the model was made for: no such note
     assert main(["export", "xfyz", str(p), "--format", "linuxcnc", "-o", str(tmp_path / "lc2")]) == 0
     assert "was made for the machine" not in capsys.readouterr().err

@@ -58,15 +58,29 @@ def model_path(fitted, tmp_path_factory):
     return p
 
 
-def predicted(fitted, axis, positions, direction=0.0, tool_length=None):
+def beyond_the_ramp(positions, lo, hi):
+    """(n,) bool: the points of a table past its first point at or beyond each end of the data's
+    span lo .. hi, where the table is zero (docs/export.md, 'Where': it ramps to zero over the one
+    grid step after that point)."""
+    p = np.asarray(positions, dtype=float)
+    first = p[p <= lo + 1e-9].max(initial=p[0])
+    last = p[p >= hi - 1e-9].min(initial=p[-1])
+    return (p < first - 1e-9) | (p > last + 1e-9)
+
+
+def predicted(fitted, axis, positions, direction=0.0, tool_length=None, table=True):
     """(n, 3) tip deviation (mm) when only ``axis`` moves, the others at the table pose (each at the
     middle of its data, 0 without data: docs/export.md, 'The table pose'), minus the one with
-    ``axis`` at its reference position (0)."""
+    ``axis`` at its reference position (0); a position beyond the data at the data's nearest end,
+    and, for the points of a table (``table``), zero past its first point beyond each end
+    (:func:`beyond_the_ramp`)."""
     m = fitted.machine
     support = fitted.support or {}
     pose = [0.5 * sum(support[a]) if a in support else 0.0 for a in m.axis_names]
+    positions = np.asarray(positions, dtype=float)
+    lo, hi = support.get(axis, (-np.inf, np.inf))
     q = np.tile(pose, (len(positions), 1))
-    q[:, m.index(axis)] = positions
+    q[:, m.index(axis)] = np.clip(positions, lo, hi)
     q0 = np.array([pose])
     q0[0, m.index(axis)] = 0.0
     cols = {f"dir_{axis}": np.full(len(positions), float(direction))}
@@ -76,7 +90,10 @@ def predicted(fitted, axis, positions, direction=0.0, tool_length=None):
     c0 = fitted.context(1, None if tool_length is None else {"tool_length": np.array([tool_length])})
     d = deviation(fitted.model, q, fitted.params.values, c)[:, :3]
     d0 = deviation(fitted.model, q0, fitted.params.values, c0)[:, :3]
-    return d - d0
+    out = d - d0
+    if table and len(positions) > 1:
+        out[beyond_the_ramp(positions, lo, hi)] = 0.0
+    return out
 
 
 def export(model_path, out, fmt, *extra):
@@ -114,7 +131,12 @@ def test_linuxcnc_comp_files_reproduce_the_model_with_backlash(fitted, model_pat
         assert 2 <= len(nom) <= 256
         assert np.all(np.diff(nom) > 0)
         lo, hi = SUPPORT[axis]
-        assert nom[0] == pytest.approx(lo, abs=1e-9) and nom[-1] == pytest.approx(hi, abs=1e-9)
+        # the data's span, then one grid step beyond each end (inside the travel) with no correction
+        assert nom[1] == pytest.approx(lo, abs=1e-9) and nom[-2] == pytest.approx(hi, abs=1e-9)
+        assert nom[1] - nom[0] == pytest.approx(nom[2] - nom[1], abs=1e-9)
+        assert nom[-1] - nom[-2] == pytest.approx(nom[2] - nom[1], abs=1e-9)
+        for col in (fwd, rev):
+            assert col[0] == 0.0 and col[-1] == 0.0
         j = AXES.index(axis)
         e_f = predicted(fitted, axis, nom, +1.0)[:, j]
         e_r = predicted(fitted, axis, nom, -1.0)[:, j]
@@ -188,7 +210,10 @@ def test_siemens_lec_and_cec_tables_reproduce_the_model(fitted, model_path, tmp_
     assert set(lec) == {"AX1", "AX2", "AX3"}
     for ax, (pos, vals) in lec.items():
         a = ax_of[ax]
-        assert len(pos) <= 125 and SUPPORT[a][0] - 1e-9 <= pos[0] and pos[-1] <= SUPPORT[a][1] + 1e-9
+        # from the data's low end, a point at or past the high end, and one step beyond each (zero)
+        step = pos[1] - pos[0]
+        assert len(pos) <= 125 and pos[1] == pytest.approx(SUPPORT[a][0], abs=1e-9)
+        assert SUPPORT[a][1] - 1e-9 <= pos[-2] < SUPPORT[a][1] + step
         mean = 0.5 * (predicted(fitted, a, pos, 1.0) + predicted(fitted, a, pos, -1.0))
         # LEC holds the error itself (a positive value moves the axis negative)
         np.testing.assert_allclose(vals, mean[:, AXES.index(a)], rtol=0, atol=6e-7)
@@ -374,10 +399,11 @@ def test_isg_volumetric_csv_holds_every_component(fitted, model_path, tmp_path):
         # show them: it raises the ram, and the tip stays where it is commanded)
         m = fitted.machine
         q = np.zeros((len(pos), m.n_axes))
-        q[:, m.index(a)] = pos
+        q[:, m.index(a)] = np.clip(pos, *SUPPORT[a])
         c = fitted.context(len(pos), {f"dir_{a}": np.ones(len(pos))})
         da = (deviation(fitted.model, q, fitted.params.values, c)[:, 3:]
               - deviation(fitted.model, np.zeros((1, m.n_axes)), fitted.params.values, fitted.context(1))[:, 3:])
+        da[beyond_the_ramp(pos, *SUPPORT[a])] = 0.0
         w_x, w_y = -da[:, 1], da[:, 0]
         np.testing.assert_allclose(data[:, 4], w_x, rtol=0, atol=1e-9)
         np.testing.assert_allclose(data[:, 5], w_y, rtol=0, atol=1e-9)
@@ -409,7 +435,9 @@ def test_isg_leadscrew_lists_hold_the_error_with_backlash(fitted, model_path, tm
         pos, up, down = read_isg_ssfk(out / f"achskw_{a.lower()}.lis")
         j = AXES.index(a)
         e_f, e_r = predicted(fitted, a, pos, 1.0)[:, j], predicted(fitted, a, pos, -1.0)[:, j]
-        assert SUPPORT[a][0] - 1e-9 <= pos[0] and pos[-1] <= SUPPORT[a][1] + 1e-9
+        assert pos[1] == pytest.approx(SUPPORT[a][0], abs=1e-9)
+        assert pos[-2] == pytest.approx(SUPPORT[a][1], abs=1e-9)
+        assert up[0] == up[-1] == 0
         if a == "X":   # actual minus setpoint, each direction
             np.testing.assert_allclose(up, e_f, rtol=0, atol=5.1e-5)
             np.testing.assert_allclose(down, e_r, rtol=0, atol=5.1e-5)
@@ -430,7 +458,7 @@ def test_isg_tables_reach_the_high_end_of_the_region_like_linuxcnc(tmp_path):
     _, vc = read_isg(out / "vc_x.csv")
     pos, up, down = read_isg_ssfk(out / "achskw_x.lis")
     for grid in (vc[:, 0], pos):
-        np.testing.assert_allclose(grid[[0, -1]], [-20.0, 55.8], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(grid[[0, 1, -2, -1]], [-21.0, -20.0, 55.8, 56.8], rtol=0, atol=1e-9)
         np.testing.assert_allclose(grid, lcnc, rtol=0, atol=1e-9)
     e_f, e_r = predicted(fm, "X", pos, 1.0)[:, 0], predicted(fm, "X", pos, -1.0)[:, 0]
     np.testing.assert_allclose(up, e_f, rtol=0, atol=5.1e-5)
@@ -494,8 +522,8 @@ def test_linuxcnc_table_applied_as_linuxcnc_does_cancels_the_positioning_error(f
     x = np.random.default_rng(7).uniform(SUPPORT["X"][0], SUPPORT["X"][1], 200)
     for d, col in ((1.0, fwd), (-1.0, rev)):
         cmd = x + np.interp(x, nom, col)
-        reached = cmd + predicted(fitted, "X", cmd, d)[:, 0]
-        before = predicted(fitted, "X", x, d)[:, 0]
+        reached = cmd + predicted(fitted, "X", cmd, d, table=False)[:, 0]
+        before = predicted(fitted, "X", x, d, table=False)[:, 0]
         assert np.max(np.abs(before)) > 5e-3
         np.testing.assert_allclose(reached, x, rtol=0, atol=2e-3 * np.max(np.abs(before)))
 

@@ -24,21 +24,22 @@ from mtcomp.models import ErrorModel, FittedModel, save_model
 EAY_1 = 100.0        # urad per metre of Y
 
 
-def _model(tmp_path, sd=None, held_share=0.0):
+def _model(tmp_path, sd=None, held_share=0.0, y_data=300.0):
     """The model; with ``sd`` (urad per m) EAY_1's standard error, ``held_share`` of its variance
-    along a combination the fit held weakly (MODEL.json uncertainty.held, held_sd_um 2 um)."""
+    along a combination the fit held weakly (MODEL.json uncertainty.held, held_sd_um 2 um); its Y
+    data reach -``y_data`` .. ``y_data`` mm (Y travels -300 .. 300)."""
     m = load_machine("xfyz")
     model = ErrorModel(m.with_basis("polynomial"), ())
     fitted = FittedModel.zero(model)
     fitted.params.set_file_value("EAY_1", EAY_1)
-    fitted.support = {"X": (-400.0, 400.0), "Y": (-300.0, 300.0), "Z": (-200.0, 0.0)}
+    fitted.support = {"X": (-400.0, 400.0), "Y": (-y_data, y_data), "Z": (-200.0, 0.0)}
     if sd is not None:
         s = sd / fitted.params.specs[fitted.params.index("EAY_1")].to_file      # internal units
         fitted.uncertainty = {"names": ["EAY_1"], "covariance": np.array([[s ** 2]]),
                               "undetermined": np.zeros((1, 0)),
                               "held": np.array([[np.sqrt(held_share) * s / 2.0]]),
                               "held_sd_um": np.array([2.0])}
-    path = tmp_path / f"m{'' if sd is None else f'_{sd:g}'}.json"
+    path = tmp_path / f"m{'' if sd is None else f'_{sd:g}'}_{y_data:g}.json"
     save_model(path, fitted)
     return path
 
@@ -113,6 +114,27 @@ def test_compensate_and_the_table_agree_along_a_line_through_its_pose(tmp_path, 
         y, trim, _ = _y_trim(tmp_path, path, at.replace("=", ""), "--at", at)
         diff = before + np.interp(ys, y, trim)
         assert bool(np.ptp(diff) < 0.02) is agree, (at, diff)
+    capsys.readouterr()
+
+
+def test_over_part_of_the_travel_the_table_corrects_where_compensate_does_and_nowhere_else(tmp_path, capsys):
+    """Y's data reach -100 .. 100 mm of its -300 .. 300 mm travel; Y moves -250 .. 250 mm at Z
+    -200. Inside the data the table read there and compensate's ey_before_um differ by one constant
+    to 0.01 um, as along the whole travel above; beyond them compensate leaves every block
+    uncorrected, and from one grid step past the data's ends on the table is zero (it held its end
+    values, 3 um (EAY 10 urad at 100 mm, through the 300 mm arm), where LinuxCNC holds them)."""
+    path = _model(tmp_path, y_data=100.0)
+    ys, rows = _compensated_y(tmp_path, path)
+    corrected = np.array([r["corrected"] == "1" for r in rows])
+    np.testing.assert_array_equal(corrected, np.abs(ys) <= 100.0)
+    assert all(float(r["cy_um"]) == 0.0 for r, c in zip(rows, corrected) if not c)
+    before = np.array([float(r["ey_before_um"]) for r in rows])
+    y, trim, readme = _y_trim(tmp_path, path, "part", "--at", "Z=-200")
+    at = np.interp(ys, y, trim)              # LinuxCNC: linear between points, ends held
+    assert np.ptp(before[corrected] + at[corrected]) < 0.02 and np.ptp(before[corrected]) > 5.0
+    np.testing.assert_array_equal(at[~corrected], 0.0)
+    assert (y[0], y[1], y[-2], y[-1]) == (-101.0, -100.0, 100.0, 101.0) and trim[0] == trim[-1] == 0.0
+    assert "the data reach -100 .. 100 mm" in readme
     capsys.readouterr()
 
 

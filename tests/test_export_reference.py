@@ -47,10 +47,14 @@ def export(path, out, fmt, *extra, machine="xfyz"):
     return out
 
 
-def held_error_um(s):
-    """The hand-derived error of X relative to the reference position 0 (um): held at the data's
-    ends, EXX = x um inside."""
-    return np.clip(s, LO, HI) - LO
+def held_error_um(s, hi=HI):
+    """The hand-derived error of X relative to the reference position 0 (um) at a table's points
+    ``s``: EXX = x um inside the data (15 .. ``hi``), held at the data's ends, and zero past the
+    table's first point beyond each end (there it has ramped to zero over one step: no table
+    corrects where the data did not reach, as compensate corrects nothing there)."""
+    s = np.asarray(s, dtype=float)
+    first, last = s[s <= LO + 1e-9].max(initial=s[0]), s[s >= hi - 1e-9].min(initial=s[-1])
+    return np.where((s < first - 1e-9) | (s > last + 1e-9), 0.0, np.clip(s, LO, hi) - LO)
 
 
 # ------------------------------------------------------------------------------------ Fanuc
@@ -64,7 +68,7 @@ def test_fanuc_point_3620_is_the_machine_zero_and_the_table_reaches_the_data(tmp
     pos, comp = tables[1]["+"]
     # point 3620's position is the machine zero; the grid runs from it past the data's start
     assert pos[par[3620] - par[3621]] == 0.0
-    assert pos[0] == pytest.approx(0.0, abs=1e-12) and pos[-1] <= HI
+    assert pos[0] == pytest.approx(0.0, abs=1e-12) and (pos[-2], pos[-1]) == (56.0, 57.0)
     assert par[3624] == 1000 and len(pos) <= 128
     # the value at s, summed from the reference point: the correction at s minus that at the
     # reference, the data's end value held from 0 to 15 mm (1 unit = 1 um, cumulative rounding)
@@ -75,8 +79,10 @@ def test_fanuc_point_3620_is_the_machine_zero_and_the_table_reaches_the_data(tmp
     # pitch_points.csv lists the true positions and says which points are held
     rows = list(csv.DictReader(open(out / "pitch_points.csv", newline="")))
     np.testing.assert_allclose([float(r["position_mm"]) for r in rows], pos, rtol=0, atol=1e-9)
-    np.testing.assert_array_equal([int(r["held"]) for r in rows], (pos < LO).astype(int))
-    assert "points 0 .. 14 (0 .. 14 mm) hold the compensation at its value at 15 mm" in err
+    np.testing.assert_array_equal([int(r["held"]) for r in rows], ((pos < LO) | (pos > HI)).astype(int))
+    assert ("points 0 .. 14 (0 .. 14 mm) carry no compensation; point 56 (56 mm) holds the "
+            "compensation at its value at 55.8 mm, the data's nearest end; point 57 (57 mm) carries no "
+            "compensation: nothing was measured there, where compensate corrects nothing") in err
     assert "reference position 0 mm" in (out / "README.txt").read_text()
 
 
@@ -97,11 +103,16 @@ def test_fanuc_bidirectional_table_from_the_reference_follows_the_model(tmp_path
     for travel, d in (("+", 1.0), ("-", -1.0)):
         pos, comp = tables[1][travel]
         assert pos[0] == 0.0
-        ref_f = error(np.array([0.0]), 1.0)[0]           # the reference point, moving positive
-        np.testing.assert_allclose(comp, -(error(pos, d) - ref_f), rtol=0, atol=0.5e-3 + 1e-12)
-    # the reversal at the reference point (the held value at 15 mm): 8 um
+        # each table is zero at the data's nearest end to the reference (the mean of both
+        # directions there) and beyond the data (the reference point included): no correction
+        zero = 0.5 * (error(np.array([LO]), 1.0)[0] + error(np.array([LO]), -1.0)[0])
+        expected = np.where((pos < LO) | (pos > HI + 1.0), 0.0, -(error(pos, d) - zero))
+        np.testing.assert_allclose(comp, expected, rtol=0, atol=0.5e-3 + 1e-12)
+    # no reversal at the reference point: the data start at 15 mm, and below them no table corrects
+    # (compensate corrects nothing there); from 15 mm on the two tables differ by the 8 um reversal
     pos, comp = tables[1]["-"]
-    assert comp[0] == pytest.approx(-8 * UM, abs=0.5e-3)
+    k = list(pos).index(15.0)
+    assert comp[0] == 0.0 and comp[k] - tables[1]["+"][1][k] == pytest.approx(-8 * UM, abs=0.5e-3)
     # the README says what the files hold there: the + table zero, the - table the reversal (3627);
     # it said "the mean of the two approach directions", which the generic tables are, not these
     readme = " ".join((out / "README.txt").read_text().split())
@@ -131,7 +142,9 @@ def test_fanuc_reference_outside_the_travel_is_the_travels_nearest_end(tmp_path,
     assert float(by_point[p3620]["position_mm"]) == 100.0
     pos = np.array([float(r["position_mm"]) for r in rows])
     comp = np.array([float(r["compensation_um"]) for r in rows])
-    np.testing.assert_allclose(comp, -(np.clip(pos, 150.0, 300.0) - 150.0), rtol=0, atol=1e-3)
+    expected = np.where(pos > 300.0, 0.0, np.clip(pos, 150.0, 300.0) - 150.0)    # one step beyond: 0
+    assert pos[-1] > 300.0 and comp[-1] == 0.0
+    np.testing.assert_allclose(comp, -expected, rtol=0, atol=1e-3)
 
 
 def test_fanuc_grid_step_grows_to_reach_a_far_region(tmp_path):
@@ -140,9 +153,10 @@ def test_fanuc_grid_step_grows_to_reach_a_far_region(tmp_path):
     path, _ = linear_model(tmp_path, support={"X": (300.0, 390.0)})
     out = export(path, tmp_path / "fa", "fanuc")
     pos, comp = read_fanuc((out / "pitch_error.txt").read_text(), 1e-3)[1]["+"]
-    assert len(pos) <= 128 and pos[0] == 0.0 and pos[-1] == 390.0
+    assert len(pos) <= 128 and pos[0] == 0.0 and (pos[-2], pos[-1]) == (390.0, 395.0)
     np.testing.assert_allclose(np.diff(pos), 5.0, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(comp, -(np.clip(pos, 300.0, 390.0) - 300.0) * UM, rtol=0, atol=0.5e-3)
+    expected = np.where(pos > 390.0, 0.0, np.clip(pos, 300.0, 390.0) - 300.0)
+    np.testing.assert_allclose(comp, -expected * UM, rtol=0, atol=0.5e-3)
 
 
 # ------------------------------------------------------------------------------------ every format
@@ -153,43 +167,43 @@ def test_every_format_states_machine_coordinates_for_data_not_starting_at_0(tmp_
     path, _ = linear_model(tmp_path, eyx_1=500.0)
     lc = export(path, tmp_path / "lc", "linuxcnc")
     nom, fwd, rev = read_linuxcnc_comp(lc / "x.comp", 1)
-    assert (nom[0], nom[-1]) == (LO, HI)
+    assert (nom[0], nom[1], nom[-2], nom[-1]) == (LO - 1, LO, HI, HI + 1)
     np.testing.assert_allclose(fwd, -held_error_um(nom) * UM, rtol=0, atol=6e-7)
     np.testing.assert_allclose(rev, fwd, rtol=0, atol=0)
 
     sie = export(path, tmp_path / "sie", "siemens")
     lec, cec = read_siemens((sie / "AX_EEC.INI").read_text() + (sie / "NC_CEC.INI").read_text())
     pos, vals = lec["AX1"]
-    assert pos[0] == LO
+    assert pos[1] == LO
     np.testing.assert_allclose(vals, held_error_um(pos) * UM, rtol=0, atol=6e-7)   # the error itself
     eyx = [t for t in cec if t["input"] == "AX1" and t["output"] == "AX2"][0]
-    assert eyx["positions"][0] == LO
+    assert eyx["positions"][1] == LO
     np.testing.assert_allclose(eyx["values"], -0.5 * held_error_um(eyx["positions"]) * UM, rtol=0,
                                atol=6e-7)
 
     hh = export(path, tmp_path / "hh", "heidenhain")
     cols, rows = read_heidenhain_table(hh / "X.COM")
     pos = np.array([float(r["AXISPOS"]) for r in rows])
-    assert (pos[0], pos[-1]) == (LO, HI)
+    assert (pos[1], pos[-2]) == (LO, HI)
     np.testing.assert_allclose([float(r["X"]) for r in rows], -held_error_um(pos) * UM, rtol=0, atol=6e-6)
     np.testing.assert_allclose([float(r["Y"]) for r in rows], -0.5 * held_error_um(pos) * UM, rtol=0,
                                atol=6e-6)
 
     isg = export(path, tmp_path / "isg", "isg")
     _, vc = read_isg(isg / "vc_x.csv")
-    assert (vc[0, 0], vc[-1, 0]) == (LO, HI)
+    assert (vc[1, 0], vc[-2, 0]) == (LO, HI)
     np.testing.assert_allclose(vc[:, 1], held_error_um(vc[:, 0]) * UM, rtol=0, atol=1e-12)
     np.testing.assert_allclose(vc[:, 2], 0.5 * held_error_um(vc[:, 0]) * UM, rtol=0, atol=1e-12)
     assert "// mean of both approach directions; reference position 0" in (isg / "vc_x.csv").read_text()
     pos, up, _ = read_isg_ssfk(isg / "achskw_x.lis")
-    assert pos[0] == LO
+    assert pos[1] == LO
     np.testing.assert_allclose(up, held_error_um(pos) * UM, rtol=0, atol=5.1e-5)
 
     # Klipper carries only the slope (0.5 um/mm of dy as X moves; Y has no table): no position
     kl = export(path, tmp_path / "skew.cfg", "klipper")
     assert read_klipper(kl)["xy_skew"] == pytest.approx(0.5e-3, rel=1e-6, abs=0)
     for readme in (lc, sie, hh, isg):
-        assert "  X: 15 .. 55" in (readme / "README.txt").read_text()
+        assert "  X: 14 .. 5" in (readme / "README.txt").read_text()
     for text in [(d / "README.txt").read_text() for d in (lc, sie, hh, isg)] + [kl.read_text()]:
         assert "reference position 0 mm" in text and "reference position 15" not in text
 
@@ -202,11 +216,11 @@ def test_range_beyond_the_data_is_named_and_fanuc_still_starts_at_the_reference(
     assert ("axis X: --range -30:30 mm reaches beyond the region of the data 15:55.8 mm: the table "
             "covers 15:30 mm") in err
     nom = read_linuxcnc_comp(lc / "x.comp", 1)[0]
-    assert (nom[0], nom[-1]) == (LO, 30.0)
+    assert (nom[1], nom[-2]) == (LO, 30.0)
     fa = export(path, tmp_path / "fa", "fanuc", "--range", "X=-30:30")
     pos, comp = read_fanuc((fa / "pitch_error.txt").read_text(), 1e-3)[1]["+"]
-    assert (pos[0], pos[-1]) == (0.0, 30.0)
-    np.testing.assert_allclose(comp, -(np.clip(pos, LO, 30.0) - LO) * UM, rtol=0, atol=0.5e-3)
+    assert (pos[0], pos[-2]) == (0.0, 30.0)
+    np.testing.assert_allclose(comp, -held_error_um(pos, 30.0) * UM, rtol=0, atol=0.5e-3)
     # a range inside the data is no clip of the data: nothing said
     capsys.readouterr()
     export(path, tmp_path / "lc2", "linuxcnc", "--range", "X=20:30")

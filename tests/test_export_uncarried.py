@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import re
 
+import numpy as np
+
 import pytest
 
 from mtcomp.cli import main
@@ -75,3 +77,42 @@ def test_squareness_listed_only_where_the_format_has_no_table_for_it(tmp_path, c
         assert "mtcomp compensate" in readme
     else:
         assert "B0Z" not in readme, readme
+
+
+def test_an_offset_the_data_do_not_determine_is_advised_as_no_correction(tmp_path, capsys):
+    """A new user's Haas trunnion (one stylus length): the Fanuc export advised correcting the MRZP
+    settings by X0C +9.75 um and X0B +7.80 um, each 'no standard error: the data do not fix it
+    alone' (truth 15 and 12 um): with one stylus length such an offset trades with the spindle's
+    tilt and the tool's length. Here X0C (15 um) moves along a direction the data left open
+    (MODEL.json uncertainty.undetermined) and Y0C (-10 um) is fitted, +- 0.5 um: Y0C keeps its value,
+    standard error, tool-tip error (20 um, 2 |e| at C 180) and the parameters that hold a line;
+    X0C is named not determined, with no value and no size, and what would measure it; 'together'
+    is Y0C's alone."""
+    m = load_machine("cbfxyz")
+    model = ErrorModel(m.with_basis("polynomial"), ())
+    fitted = FittedModel.zero(model)
+    for name, value in (("X0C", 15.0), ("Y0C", -10.0), ("EXX_1", 10.0)):
+        fitted.params.set_file_value(name, value)
+    fitted.support = {ax.name: tuple(ax.travel) for ax in m.axes}
+    sd = 0.5e-3                                                      # mm
+    fitted.uncertainty = {"names": ["X0C", "Y0C"], "covariance": np.diag([sd ** 2, sd ** 2]),
+                          "undetermined": np.array([[1e-3], [0.0]]),
+                          "held": np.zeros((2, 0)), "held_sd_um": np.zeros(0)}
+    path = tmp_path / "m.json"
+    save_model(path, fitted)
+    readme, err = _export(tmp_path, capsys, "cbfxyz", path, "fanuc")
+    lines = err.splitlines()
+
+    def said(name):         # (the line on ``name``, the line its mark [n] points to)
+        line = next(ln for ln in lines if f"not carried: {name} " in ln)
+        mark = re.search(r"\[(\d)\]$", line).group(1)
+        return line, next(ln for ln in lines if f"not carried: [{mark}] " in ln)
+    x0c, advice = said("X0C")
+    assert "not determined by the data" in x0c and "+15" not in x0c and "up to" not in x0c, x0c
+    assert "no value of it is a correction to enter" in advice and "two stylus lengths" in advice
+    assert "19703" not in advice and "MRZP" not in advice, advice
+    y0c, advice = said("Y0C")
+    assert "-10.00 +- 0.5 um: up to 20.00 um at the tool tip" in y0c, y0c
+    assert "19703-19705" in advice and "MRZP" in advice, advice
+    assert "together: up to 20.00 um" in err
+    assert "- X0C (location of C: offset): not determined by the data" in readme

@@ -129,7 +129,6 @@ def test_an_arc_split_into_pieces_restates_its_g2_g3(tmp_path):
 
 @pytest.mark.parametrize("text, message", [
     ("G0 X0 Y0 Z0\nG81 X1 Y1 Z-1 R1 F100\n", "G81 is not a BeagleG code"),
-    ("G0 X0 Y0 Z0\nG30\nG1 Z0\n", "G30 on BeagleG probes Z"),
 ])
 def test_codes_beagleg_does_not_run_as_rs274_are_refused(tmp_path, text, message):
     code, _out, err, text = _compensate(tmp_path, text, "--dialect", "beagleg")
@@ -285,3 +284,40 @@ def test_g70_g71_are_inch_and_mm(tmp_path):
     assert float(out[2].split()[1][1:]) == pytest.approx(1.0, abs=1e-3)
     compare(text.encode(), written.encode(), TOL, beagleg=True)
     _check_output(text.encode(), written.encode())
+
+
+#: BeagleG's Z probe: `G30` moves Z down to the probe's switch and sets the G92 offset of Z so that
+#: the tool reads the thickness there (its own Z word, 0 without); the words after its own F and Z
+#: act as usual (gcode-parser.cc, handle_z_probe and ParseBlock)
+PROBE = ("G0 X0 Y0 Z5\nG1 X10 Y10 F600\nG4 P25 G30 G1 Z0\nG1 X20 Y10\nG1 Z5\nG30 Z1.5 F100\n"
+         "G1 X30\nG0 Z10\nG1 X40\n")
+
+
+def test_a_probe_loses_z_until_a_move_names_it(tmp_path):
+    code, out, err, written = _compensate(tmp_path, PROBE, "--dialect", "beagleg", factor=30.0)
+    assert code == 0, err
+    lines, source = written.splitlines(), PROBE.splitlines()
+    # the probe lines as written; after line 3's `G1 Z0` Z stands at 0, after line 6 nowhere known
+    assert lines[2] == source[2] and lines[5] == source[5]
+    assert lines[3].startswith("G1 X19.99") and lines[4].startswith("G1 Z4.99")  # corrected
+    assert lines[6].startswith("G1 X30") and "Z" not in lines[6]  # Z lost: not written
+    assert lines[7].startswith("G0 Z10") and lines[7] != source[7]
+    assert "2 Z probes (BeagleG's G30, first at line 3" in out
+    assert "assumed: G30 at line 3 (BeagleG's Z probe) sets the G92 offset of Z" in out
+    _check_output(PROBE.encode(), written.encode(), beagleg=True)
+    compare(PROBE.encode(), written.encode(), TOL, beagleg=True)
+    # the oracle: a Z word after the second probe, before `G0 Z10`, is caught
+    wrong = written.replace(lines[6], lines[6] + " Z1.5")
+    with pytest.raises(AssertionError, match="writes \\['Z'\\]"):
+        _check_output(PROBE.encode(), wrong.encode(), beagleg=True)
+
+
+@pytest.mark.parametrize("text, message", [
+    ("G0 X0 Y0 Z5\nM3 G30\n", "M3 before G30 (BeagleG's Z probe) on one line"),
+    ("G0 X0 Y0 Z5\nG30 G2 X1 Y1 I1\n", "G30 (BeagleG's Z probe) and an arc G2 on one line"),
+    ("G0 X0 Y0 Z5\nG92 X0\nG30\n", "while a G52 or G92 offset is in force"),
+])
+def test_what_a_probe_line_may_not_hold(tmp_path, text, message):
+    code, _out, err, written = _compensate(tmp_path, text, "--dialect", "beagleg")
+    assert code == 2 and written is None and message in err, err
+    assert len(err.strip().splitlines()) == 1

@@ -220,8 +220,9 @@ def test_home_moves_and_dwell(tmp_path):
     ("G0 X1 X2\n", 1, "appears twice"),
     ("G92.3\n", 1, "G92.3"),
     # moves that stop where a signal comes: the position after them is not the program's (a corrected
-    # later block once carried the probe's target Z)
-    ("G0 X10 Y0 Z5\nG38.2 Z-10 F100\nG1 X20 Y3\n", 2, "G38.2 .probing move"),
+    # later block once carried the probe's target Z). G38.2 is read where it is a probing move
+    # (LinuxCNC, grbl, FluidNC: tests/test_toolpaths_controller_values.py), refused on a Fanuc
+    ("O1000\nG0 X10. Y0 Z5.\nG38.2 Z-10. F100\nG1 X20. Y3.\n", 3, "G38.2 .probing move"),
     ("G0 X10 Y0 Z5\nG31 Z-10 F100\n", 2, "G31 .skip function"),
     # coordinates that are not axis positions, and curves mtcomp does not follow
     ("G16\nG1 X50 Y45 F100\n", 1, "G16 .polar coordinates"),

@@ -187,7 +187,7 @@ def test_runaway_loop_is_refused_in_one_line(tmp_path):
     ("o1 if [1]\n", 1, "o1 if without its o1 endif"),
     ("o1 break\n", 1, "o1 break outside its o1 loop"),
     ("G0 X0 Y0\nG1 X#<depth>\n", 2, "#<depth>: used before it is set"),
-    ("G0 X0 Y0\nG1 X#<_x>\n", 2, "global parameter used before the program sets it"),
+    ("G0 X0 Y0\nG1 X#<_feed>\n", 2, "global parameter used before the program sets it"),
     ("#5221 = 1\n", 1, "assignment to parameter #5221"),
     ("G0 X0 Y0\nG1 @1 X2\n", 2, "polar words @ \\^ and X or Y"),
     ("G20\nG0 X1.5 Y0 Z0\nG81 R.1 Z-.5 ^60 L6 F10\n", 3, "repeat count L"),

@@ -57,7 +57,9 @@ def add_arguments(parser):
     parser.add_argument("--max-correction-sd-um", type=float, metavar="SD", default=None,
                         help="leave a block uncorrected where its correction's standard error (from "
                              "the model's covariance) exceeds SD um: the model is unsure there "
-                             f"(default {DEFAULT_MAX_CORRECTION_SD_UM:g}; 0: no limit)")
+                             f"(default {DEFAULT_MAX_CORRECTION_SD_UM:g}; 0: no limit); nor a correction "
+                             "within two standard errors of zero, nor a tool-axis correction over "
+                             "SD / W urad (W: --orientation-weight)")
     parser.add_argument("--units", choices=("mm", "inch"), default=None,
                         help="what a program without G20/G21 is written in (default: the machine "
                              "file's 'units', else mm with a warning)")
@@ -229,6 +231,7 @@ class Progress:
     #: seconds between two lines (and before the first)
     EVERY_S = 3.0
     _WHAT = {"tip_pjacobian_function": "standard-error function",
+             "axis_pjacobian_function": "tool axis's standard-error function",
              "deviation_qjacobian_function": "deviation and Jacobian",
              "deviation_function": "deviation"}
 

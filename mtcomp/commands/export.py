@@ -67,6 +67,7 @@ def run(args) -> int:
     from ..errors import InputError
     from ..export import (component_tables, exporter, parse_ranges, plan_grids, table_region,
                           write_result)
+    from ..export._ends import points_inside
     from ..export._output import ONE_POSE, left_out
     from ..export._tables import parse_pose, reference_positions, table_pose
     from ..machine import load_machine
@@ -95,7 +96,7 @@ def run(args) -> int:
     anchors = reference_positions(machine) if getattr(fmt, "ANCHOR_AT_REFERENCE", False) else None
     grids = plan_grids(machine, region, max_points, args.grid_mm, args.grid_deg, fmt.INCLUDE_END,
                        what=args.format, anchors=anchors)
-    for a in [a for a, g in grids.items() if len(g) < 2]:
+    for a in [a for a, g in grids.items() if points_inside(g, *region[a]) < 2]:
         del grids[a]
         notes.append(f"axis {a}: no table: its region is shorter than one grid step")
     sd_limit = DEFAULT_MAX_CORRECTION_SD_UM if args.max_correction_sd_um is None else args.max_correction_sd_um
@@ -123,9 +124,9 @@ def run(args) -> int:
     single, together = result.not_carried(tables)
     for line in single:
         err.write(f"  not carried: {line}\n")
-    if single:
-        err.write(f"  remaining over the volume from the errors not carried, together: up to "
-                  f"{together:.2f} um at the tool tip\n")
+    if together is not None:
+        err.write(f"  remaining over the volume from the errors not carried that the data determine, "
+                  f"together: up to {together:.2f} um at the tool tip\n")
     for p in written:
         print(f"wrote {p}")
     return 0

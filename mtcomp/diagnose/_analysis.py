@@ -199,7 +199,8 @@ def make_folds(st, max_folds: int = MAX_FOLDS) -> tuple[np.ndarray, str]:
     """Fold of each observation for K-fold held-out evaluation, and a sentence saying how.
 
     Whole runs are held out together (run r of every file in fold r mod K, by rank of its run number
-    in the file). Files without runs are cut into blocks: by spindle-speed block (a speed step and the
+    in the file), but for runs that approach an axis from opposite sides: a reversal, not repeats
+    (:func:`._reversal.run_blocks`). Files without runs are cut into blocks: by spindle-speed block (a speed step and the
     time until the next one) when the spindle speed changes at least four times, else into K
     contiguous stretches of reading order; a cmm file (a cut part) and a points file without runs or
     spindle-speed blocks (a plate measured on a CMM) have their points dealt to the folds in a fixed
@@ -213,10 +214,17 @@ def make_folds(st, max_folds: int = MAX_FOLDS) -> tuple[np.ndarray, str]:
         runs = st.run[ix]
         known = np.unique(runs[runs >= 0])
         if known.size >= 2:
-            rank = np.searchsorted(known, runs)
-            rank[runs < 0] = 0
-            block_of[ix] = rank
-            how.add("whole runs")
+            from ._reversal import run_blocks
+            reversal = run_blocks(st, ix, runs, known)
+            if reversal is None:
+                rank = np.searchsorted(known, runs)
+                rank[runs < 0] = 0
+                block_of[ix] = rank
+                how.add("whole runs")
+                continue
+            blocks, said = reversal
+            block_of[ix] = _dealt(st.row[ix], fi, max_folds) if blocks is None else blocks
+            how.add(said)
             continue
         rows = st.row[ix]
         if st.kinds[fi] == "cmm":

@@ -21,12 +21,11 @@ from ..models.terms import (AbbeIRC, Backlash, ChannelDrift, FeedOffset, Periodi
 from ..models.basis import axis_spline
 from . import _analysis as an
 from ._analysis import cv_threshold
+from ._reversal import axis_reads, reversal_columns
 from ._stack import MOTION_LETTERS
 
 #: false-alarm probability below which a spectral line makes a periodic candidate
 LINE_FAP = 1e-3
-#: a reading is one of an axis's own where that axis's error reaches this share of its largest
-READS_SHARE = 0.3
 
 
 @dataclass(eq=False)
@@ -73,16 +72,6 @@ def _feeds(st, sel):
     return np.unique(np.round(f, 6))
 
 
-
-def axis_reads(st, a: str) -> np.ndarray | None:
-    """(n,) bool: the readings of axis ``a``'s error (where its share of the reading is
-    :data:`READS_SHARE` of its largest or more), None where the data do not read it at all."""
-    g = st.g.get(a)
-    if g is None or not g.size or not float(np.max(np.abs(g))) > 0.0:
-        return None
-    return np.abs(g) > READS_SHARE * float(np.max(np.abs(g)))
-
-
 def generate(st, design, extra: np.ndarray, resid: np.ndarray, chosen_keys: set[str]) -> list[Candidate]:
     """Every candidate that the data could support, given the current model (``extra`` columns beyond
     the common block, ``resid`` its full-data residual)."""
@@ -90,6 +79,7 @@ def generate(st, design, extra: np.ndarray, resid: np.ndarray, chosen_keys: set[
     m = st.machine
     out: list[Candidate] = []
     moved = moved_axes(st)
+    both_ways = reversal_columns(st)
     for k, a in enumerate(m.axis_names):
         if a not in moved:
             continue                        # no term is named on an axis the data do not move
@@ -99,7 +89,7 @@ def generate(st, design, extra: np.ndarray, resid: np.ndarray, chosen_keys: set[
         rotary = m.axis(a).is_rotary
         dirs = st.dirs[reads, k]
         # backlash: both approach directions must be present among readings of this axis's error
-        if np.any(dirs > 0) and np.any(dirs < 0):
+        if a in both_ways:
             def bl(s, k=k, a=a):
                 return (0.5 * s.dirs[:, k] * s.g[a])[:, None]
             out.append(Candidate("rotary_backlash" if rotary else "backlash", a, "step", bl(st),

@@ -396,7 +396,10 @@ def _weighted_design(st: Stack, T0: np.ndarray, say):
     A = _common_block(st)
     z = _linear_target(st)
     plain = Design(A, z, np.ones(len(st)), np.zeros(len(st), dtype=np.int64), T0)
-    first = plain.fit(cv=False)
+    # runs of opposite approach: their reversal is error the base leaves, not noise (._reversal)
+    from ._reversal import floor_reversals
+    steps = floor_reversals(st)
+    first = plain.fit(np.column_stack(steps) if steps else None, cv=False)
     noise = an.noise_floor(st, first.resid, first.rank, plain.leverage())
     w = np.ones(len(st))
     for u, nz in noise.items():

@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._candidates import _drives, _feeds, axis_reads
+from ._candidates import _drives, _feeds
+from ._reversal import axis_reads
 from ._refusal import moved_axes
 
 

@@ -12,6 +12,7 @@ import numpy as np
 from ..errors import InputError
 from ..io.atomic import atomic_write, check_output_path
 # the writers import FULL, LINEAR, MEAN from here
+from ._ends import ends_sentence
 from ._tables import FULL, LINEAR, MEAN, component_names, fit_line  # noqa: F401
 
 UM_PER_MM = 1e3
@@ -64,7 +65,8 @@ def slope(tables, moving: str, column: int) -> float | None:
     t = tables.tables.get(moving)
     if t is None or len(t.positions) < 2:
         return None
-    return fit_line(t.positions, t.mean[:, column])[1]
+    k = ~t.held                     # the points inside the data's region (beyond: zero, a ramp)
+    return fit_line(t.positions[k], t.mean[k, column])[1]
 
 
 #: the pose the per-axis remaining figures hold at (the tables' own: each axis moving alone)
@@ -79,22 +81,25 @@ def left_out(tables, carried: dict) -> tuple[list, dict]:
     """Lines on what the tables do not carry, and the peak remaining translation per axis (mm).
 
     For each axis table and component: the part not carried (the whole component, its direction
-    dependence, or what a straight line leaves), its largest magnitude over the grid.
+    dependence, or what a straight line leaves), its largest magnitude over the grid's points
+    inside the data's region (beyond it the tables are zero, as compensate corrects nothing there).
     """
     lines, worst = [], {}
     for a, t in tables.tables.items():
-        rem = np.zeros_like(t.forward)
+        k = ~t.held
+        pos = t.positions[k]
+        rem = np.zeros_like(t.forward[k])
         for j, name in enumerate(component_names(a)):
             how = carried.get((a, name))
-            fwd, rev = t.forward[:, j], t.reverse[:, j]
+            fwd, rev = t.forward[k, j], t.reverse[k, j]
             if how == FULL:
                 r_f, r_r = 0 * fwd, 0 * rev
             elif how == MEAN:
                 m = 0.5 * (fwd + rev)
                 r_f, r_r = fwd - m, rev - m
             elif how == LINEAR:
-                c0, c1 = fit_line(t.positions, 0.5 * (fwd + rev))
-                line = c0 + c1 * t.positions
+                c0, c1 = fit_line(pos, 0.5 * (fwd + rev))
+                line = c0 + c1 * pos
                 r_f, r_r = fwd - line, rev - line
             else:
                 r_f, r_r = fwd, rev
@@ -133,11 +138,8 @@ def region_line(tables, a: str) -> str:
     src = {"data": "the data", "range": "--range", "travel": "the travel (NO data region known)"}
     line = (f"{a}: {t.positions[0] * f:g} .. {t.positions[-1] * f:g} {u}, {len(t.positions)} points, "
             f"from {src.get(tables.region_source.get(a), 'the given grid')}")
-    held = t.held
-    if held.any():
-        lo, hi = t.data_region
-        line += (f" (the data reach {lo * f:g} .. {hi * f:g} {u}; the {int(held.sum())} points beyond "
-                 "them hold the values at the nearest end)")
+    if t.held.any():
+        line += f" ({ends_sentence(t)})"
     return line + f"; reference position {t.reference[a] * f:g} {u}"
 
 
@@ -186,11 +188,14 @@ def readme_text(result: ExportResult, tables, header: list, backlash_zero: str =
     if single:
         lines += ["", "Single-valued errors of the model no table carries (value +- standard error; "
                   "the tool-tip error each makes over the volume the data reached, linear axes at "
-                  "their ends, rotary axes swept; zero where the tables are read):"]
+                  "their ends, rotary axes swept; zero where the tables are read; a value the data "
+                  "do not determine is named without a value):"]
         lines += [f"  - {s}" for s in single]
-        lines.append(f"  remaining over the volume from these together: up to {together:.2f} um at "
-                     "the tool tip (on top of the figures above, but for a squareness listed here: "
-                     "it is also the slope of its straightness above)")
+        if together is not None:
+            lines.append(f"  remaining over the volume from these together: up to {together:.2f} um "
+                         "at the tool tip (those with a standard error; on top of the figures above, "
+                         "but for a squareness listed here: it is also the slope of its straightness "
+                         "above)")
     return "\n".join(lines) + "\n"
 
 

@@ -8,8 +8,9 @@ Definition. Every axis has a *reference position*: its machine coordinate 0 (the
 where the workpiece frame coincides with the machine frame; a controller's reference position), or
 the nearest end of its travel when 0 lies outside the travel (a reference return has to reach it).
 Every position is a machine coordinate. The model is used only inside the region its data reached:
-a position beyond that region takes the value at the region's nearest end (what nothing measured
-is held at the end value; controllers hold a table's end values beyond it the same way). The
+a position beyond that region takes the value at the region's nearest end, and a table's grid
+points past the first one beyond each end are zero (:mod:`mtcomp.export._ends`: controllers hold a
+table's end values beyond it, and compensate corrects nothing beyond the data). The
 component errors of axis L at position s, approached in direction dir, are what the model predicts
 when only L moves:
 
@@ -46,6 +47,7 @@ from ..models.model_file import UNDETERMINED_UM
 from ..planner._contours import one_contour_left
 from ..planner._uncertainty import SMALL_IN_SD, CorrectionUncertainty, in_sd
 from ..planner.problem import unsure_advice
+from ._ends import beyond_span, close_grid, open_ends
 from ._reversal import reversal_note, unheld_reversals
 
 
@@ -90,8 +92,9 @@ class AxisTable:
         position in the + / - direction. angular_known : False when the model's rotations could not
         be evaluated (columns 3..5 are then NaN).
     reference : the reference position of every axis (dict axis -> mm or rad).
-    region : (lo, hi) where the model's data reached along this axis (mm or rad); grid points beyond
-        it hold the values at its nearest end (default: the grid's ends).
+    region : (lo, hi) where the model's data reached along this axis (mm or rad); of the grid
+        points beyond it the first at or past each end holds the value at that end, the others are
+        zero (:mod:`mtcomp.export._ends`; default: the grid's ends).
     """
 
     axis: str
@@ -112,8 +115,8 @@ class AxisTable:
 
     @property
     def held(self) -> np.ndarray:
-        """(n,) bool: grid points outside the data's region (their values are the region's end
-        values, held)."""
+        """(n,) bool: grid points outside the data's region (the first past an end holds the end
+        value, the others are zero)."""
         lo, hi = self.data_region
         tol = 1e-9 * max(1.0, abs(lo), abs(hi))
         return (self.positions < lo - tol) | (self.positions > hi + tol)
@@ -345,31 +348,38 @@ def plan_grids(machine, region: dict, max_points: int, step_mm: float | None = N
     refused (InputError) when the grid would exceed ``max_points``; without one, the smallest of
     1, 2, 2.5, 5 x 10^k mm (deg) not below 1 mm (1 deg) whose grid fits ``max_points``.
     ``anchors`` (axis -> position): grids through that position (:func:`grid_positions`), reaching
-    from it to the region when it lies outside the region.
+    from it to the region when it lies outside the region. Where the axis can stand beyond its
+    region, the grid reaches one step past it (:func:`mtcomp.export._ends.close_grid`: the table is
+    zero there), and those points count towards ``max_points``.
     """
     grids = {}
     for a, (lo, hi) in region.items():
         anchor = None if anchors is None else anchors.get(a)
-        if anchor is not None:
-            lo, hi = min(lo, anchor), max(hi, anchor)
+        ends = open_ends(machine, a, lo, hi)
         rotary = machine.axis(a).is_rotary
         f = math.pi / 180.0 if rotary else 1.0
         u = "deg" if rotary else "mm"
         given = step_deg if rotary else step_mm
+
+        def grid(step, a_lo=min(lo, anchor) if anchor is not None else lo,
+                 a_hi=max(hi, anchor) if anchor is not None else hi, anchor=anchor):
+            g = grid_positions(a_lo, a_hi, step * f, include_end and anchor is None, anchor)
+            return close_grid(g, lo, hi, step * f, ends)
         span = (hi - lo) / f
         if given is not None:
             if not (given > 0 and math.isfinite(given)):
                 raise InputError(f"--grid-{u} must be a positive number, got {given:g}")
-            n = int(math.floor(span / given + 1e-9)) + 1 + (1 if include_end else 0)
+            n = len(grid(given))
             if n > max_points:
-                raise InputError(f"--grid-{u} {given:g} gives {n} points on axis {a} ({span:g} {u}); "
-                                 f"{what} holds at most {max_points}: use --grid-{u} >= "
-                                 f"{span / (max_points - 1 - (1 if include_end else 0)):.4g}")
-            step = given
+                extra = n - int(math.floor(span / given + 1e-9)) - 1
+                raise InputError(f"--grid-{u} {given:g} gives {n} points on axis {a} ({span:g} {u}"
+                                 + (", with the points beyond the data" if any(ends) else "")
+                                 + f"); {what} holds at most {max_points}: use --grid-{u} >= "
+                                 f"{span / max(1, max_points - 1 - extra):.4g}")
+            grids[a] = grid(given)
         else:
-            smallest = max(1.0, span / (max_points - 1 - (1 if include_end else 0)))
-            step = next(_nice_steps(smallest))
-        grids[a] = grid_positions(lo, hi, step * f, include_end and anchor is None, anchor)
+            steps = _nice_steps(max(1.0, span / (max_points - 1 - (1 if include_end else 0))))
+            grids[a] = next(g for g in map(grid, steps) if len(g) <= max_points)
     return grids
 
 
@@ -629,7 +639,8 @@ def component_tables(fitted, grids: dict, region: dict | None = None,
     """Evaluate the component errors of every axis of ``grids`` (module docstring).
 
     grids : axis -> (n,) positions, mm or rad (machine coordinates). region : axis -> (lo, hi) where
-    the model's data reached (default: the grids' ends); grid points beyond it hold its end values.
+    the model's data reached (default: the grids' ends); grid points beyond it are zero but for the
+    first at or past each end, which holds the end value (:func:`mtcomp.export._ends.beyond_span`).
     volume : axis -> (lo, hi) where the data reached, rotary axes included (default ``region``):
         where what no table carries is swept (:mod:`._uncarried`).
     pose : (n_axes,) where every other axis stands while an axis's table is read (mm, rad;
@@ -678,6 +689,8 @@ def component_tables(fitted, grids: dict, region: dict | None = None,
         missed = _between_points(fitted, a, g, q[0], (lo, hi), fwd[:, own_column(machine, a)])
         if missed:
             uncertain.append(missed)
+        off = beyond_span(g, lo, hi)          # past the ramp beyond the data: no correction
+        fwd[off], rev[off] = 0.0, 0.0
         if not (np.nanmax(np.abs(fwd)) > ZERO or np.nanmax(np.abs(rev)) > ZERO):
             dropped.append(a)
             continue

@@ -32,6 +32,17 @@ _HEIDENHAIN = ("HEIDENHAIN Technical Manual iTNC 530 HSCI, KinematicsComp: 'Geom
                "and the recommended transformation chains")
 
 
+#: what is said of a value the data do not determine, in place of who carries it
+UNDETERMINED = ("not determined by the data: its value in the model is one of many that fit the data "
+                "alike, so no value of it is a correction to enter (in a parameter, a setting or a "
+                "program): a rotary axis line's offset read at one stylus length or ball height trades "
+                "with the spindle's tilt and the tool's length, a tilt with a squareness, a zero offset "
+                "with the axis's positioning error at the angles read (identify --verbose lists what "
+                "each trades with); measure it apart (an R-test at two stylus lengths or ball heights "
+                "for a line's offset and tilt; the axis's angle read where it is zero for a zero "
+                "offset) and fit again; mtcomp compensate leaves uncorrected what moves with it")
+
+
 def carrier(fmt: str, machine, name: str) -> str:
     """Which of the controller's own parameters carry the value ``name`` (a sentence), or the advice
     to correct the program instead."""
@@ -102,7 +113,8 @@ def uncarried_tip(fitted, tables, carried: dict, p: np.ndarray, Q: np.ndarray) -
         for j in cols:
             e = E[:len(s), j]
             if carried[(a, names[j])] == LINEAR:
-                c0, c1 = fit_line(t.positions, E[len(s):, j])
+                k = ~t.held             # the table's points inside the region (beyond: zero)
+                c0, c1 = fit_line(t.positions[k], E[len(s):, j][k])
                 e = c0 + c1 * s
             rest[:, j] -= e[back.ravel()]
     return rest
@@ -128,13 +140,18 @@ def uncarried_lines(fitted, tables, carried: dict, fmt: str) -> tuple[list, floa
         rest = np.linalg.norm(uncarried_tip(fitted, tables, carried, p, Q), axis=1) * 1e3
         if not rest.max() >= FLOOR_UM:
             continue
+        if v.status == "undetermined":
+            # what the printed report and MODEL.json say of it: no standard error; its value is the
+            # fit's choice, no correction to enter anywhere, so neither it nor its size is given
+            found.append((-np.inf, f"{v.name} ({v.meaning}): not determined by the data (no standard "
+                          "error: the data do not fix it alone)", UNDETERMINED))
+            continue
         together[k] = p[k]
         at = Q[int(np.argmax(rest))]
         where = " ".join(f"{ax.name}{at[i] * (180 / math.pi if ax.is_rotary else 1):g}"
                          for i, ax in enumerate(machine.axes))
-        # what the printed report and MODEL.json say of it: no standard error where they give none
-        sd = (f" +- {v.sd:.2g} {v.unit}" if np.isfinite(v.sd) and v.status == "fitted" else
-              f" {v.unit} (no standard error: the data do not fix it alone)")
+        sd = f" +- {v.sd:.2g} {v.unit}" if np.isfinite(v.sd) else \
+            f" {v.unit} (no standard error: the model carries no covariance)"
         found.append((float(rest.max()), f"{v.name} ({v.meaning}) {v.value:+.2f}{sd}: up to "
                       f"{rest.max():.2f} um at the tool tip (at {where})", carrier(fmt, machine, v.name)))
     if not found:
@@ -142,5 +159,7 @@ def uncarried_lines(fitted, tables, carried: dict, fmt: str) -> tuple[list, floa
     marks = list(dict.fromkeys(c for _, _, c in sorted(found, key=lambda f: -f[0])))
     lines = [f"{text} [{marks.index(c) + 1}]" for _, text, c in sorted(found, key=lambda f: -f[0])]
     lines += [f"[{i + 1}] {c}" for i, c in enumerate(marks)]
+    if not together.any():
+        return lines, None
     worst = np.linalg.norm(uncarried_tip(fitted, tables, carried, together, Q), axis=1).max() * 1e3
     return lines, float(worst)

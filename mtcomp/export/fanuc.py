@@ -31,6 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from ._ends import beyond_span
 from ._output import FULL, MEAN, ExportResult, readme_text, sign_factor_and_note
 from ._tables import component_names, own_column
 
@@ -55,22 +56,31 @@ def cumulative_units(correction_mm: np.ndarray, unit_mm: float, max_value: int) 
 
 
 def held_note(t, a: str, first_point: int) -> str | None:
-    """The line naming the points of axis ``a``'s table that lie between the reference position and
-    the data's region (their increments are 0), or None when the data reach the reference."""
+    """The line naming the points of axis ``a``'s table that lie beyond the data's region (between
+    the reference position and the region, and one interval or two past its ends), or None."""
     held = np.flatnonzero(t.held)
     if not held.size:
         return None
     lo, hi = t.data_region
+    zero = beyond_span(t.positions, lo, hi)
+
+    def named(idx):
+        i, j = first_point + idx[0], first_point + idx[-1]
+        where = f"{t.positions[idx[0]]:g} .. {t.positions[idx[-1]]:g} mm" if i != j else \
+            f"{t.positions[idx[0]]:g} mm"
+        return f"point{'s' if i != j else ''} {i}{f' .. {j}' if i != j else ''} ({where})"
     parts = []
     for side, idx in (("below", held[t.positions[held] < lo]), ("above", held[t.positions[held] > hi])):
-        if idx.size:
-            end = lo if side == "below" else hi
-            parts.append(f"points {first_point + idx[0]} .. {first_point + idx[-1]} "
-                         f"({t.positions[idx[0]]:g} .. {t.positions[idx[-1]]:g} mm) hold the compensation "
-                         f"at its value at {end:g} mm, the data's nearest end (increments 0)")
+        end = lo if side == "below" else hi
+        kept, none = idx[~zero[idx]], idx[zero[idx]]
+        if kept.size:
+            parts.append(f"{named(kept)} hold{'s' if kept.size == 1 else ''} the compensation at its "
+                         f"value at {end:g} mm, the data's nearest end")
+        if none.size:
+            parts.append(f"{named(none)} carr{'ies' if none.size == 1 else 'y'} no compensation")
     return (f"axis {a}: the data reach {lo:g} .. {hi:g} mm and the table runs from the reference "
             f"position {t.reference[a]:g} mm (point 3620); " + "; ".join(parts)
-            + ": nothing was measured there")
+            + ": nothing was measured there, where compensate corrects nothing")
 
 
 def _axis_tables(t, j: int, s: float, bidir: bool) -> tuple[int, list]:

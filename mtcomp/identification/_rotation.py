@@ -125,22 +125,45 @@ def undetermined_unknowns(problem, null: np.ndarray) -> np.ndarray:
 TILT_SLOPES = {comp for comp, square in SLOPE_OF_RIGID_ROTATION.items() if square != "C0Y"}
 
 
+def _heights_at_one_z(m) -> bool | None:
+    """Of a points or CMM file whose frame is fitted: True when its readings along Z (dz, or a
+    normal with a Z part) are all at one height of the tool tip (a part's top face read in its own
+    set-up), which it reads only up to its frame's tilt; False when it reads heights at two; None
+    when it reads none."""
+    arm = np.asarray(m._setup_arm, dtype=float)
+    if getattr(m, "_A", None) is not None:                      # points: a row per reading
+        z = arm[m._rows, 2][np.abs(m._A[:, 2]) > 1e-9]
+    else:                                                       # cmm: a reading per row, along its normal
+        z = arm[np.abs(np.nan_to_num(np.asarray(m.data.normal, dtype=float))[:, 2]) > 1e-9, 2]
+    return float(np.ptp(z)) <= 1e-6 if z.size else None
+
+
 def _z_held(problem) -> bool:
-    """The data hold Z at one position (every file that positions the axes): nothing reads Z."""
-    z = []
+    """No file reads heights at two positions of Z in one set-up: the data hold Z at one position
+    (every file that positions the axes: nothing reads Z), or every points or CMM file whose frame
+    is fitted reads its heights at one (:func:`_heights_at_one_z`: parts cut at several heights,
+    each read in its own alignment on its top face) and every other file holds Z at one position."""
+    z, heights = [], []
     for m in problem.mms:
         try:
             q = m.data.axis_positions(m.machine)
         except (AttributeError, ValueError):
             continue
-        if "Z" in m.machine.axis_names and q.size:
+        if "Z" not in m.machine.axis_names or not q.size:
+            continue
+        one = _heights_at_one_z(m) if getattr(m, "_setup_arm", None) is not None else None
+        if one is None:                 # reads no height in a frame of its own: where it holds Z
             z.append(q[:, m.machine.axis_names.index("Z")])
-    return bool(z) and np.ptp(np.concatenate(z)) <= 1e-9
+        else:
+            heights.append(one)
+    held = not z or np.ptp(np.concatenate(z)) <= 1e-9
+    return bool(z or heights) and held and all(heights)
 
 
 def _plate_frames(problem) -> list[int]:
     """The unknowns' indices of the tilts ``rx``, ``ry`` of every points or CMM file whose frame is
-    fitted, where the data hold Z at one position (:func:`_z_held`): plates read on one plane."""
+    fitted, where no file reads heights at two positions of Z in one set-up (:func:`_z_held`):
+    plates read on one plane, parts read each on its top face in its own alignment."""
     if not _z_held(problem):
         return []
     out, k = [], problem.n_free

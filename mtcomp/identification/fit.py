@@ -298,6 +298,7 @@ class _Problem:
         self.choice = np.zeros((self.n_unknowns, 0))  # the penalty's alternative splits across classes (._choice)
         self._choice_cost = np.zeros((1, 1))  # each class's penalty at the fit and after each
         self._splits = np.zeros((0, 0))  # the alternative splits along the fit's directions B
+        self.open_tilts = None      # a part's tilts no file reads (._rotation.plate_tilts), scaled
 
     # --------------------------------------------------------------- weights
     def unit_weights(self):
@@ -500,6 +501,7 @@ class _Problem:
         self.choice = scale[:, None] * choice
         self._splits = B.T @ choice                           # the same along B, for the posterior
         x, r, P = unmeasured_to_zero(self, x, r, w, assumed.move)
+        self.open_tilts = tilts             # a correction that moves with one is not made
         if tilts.shape[1]:
             x = least_error_along(x, tilts, scale, self.metric)
             r = w * (self.observed - self.evaluate(x))
@@ -780,6 +782,7 @@ class _Problem:
                                                   sized_undetermined(self, sol.unbounded, sol.scale, to_file)]),
                        "held": sol.held[:nf], "held_sd_um": np.asarray(sol.held_sd, dtype=float),
                        "choice": self.choice[:nf], "traded": traded,
+                       "open": sized_undetermined(self, self.open_tilts, sol.scale, to_file),
                        "setup": setup_uncertainty(nuis_specs, sol.cov, nf)}
         res.fitted_model = FittedModel(model, params, dict(ctx_defaults),
                                        {"identify": res.to_dict(), **(info or {})},

@@ -222,7 +222,9 @@ def _resolved(und: Undetermined, fitted: FittedModel, unmeasured: set) -> Undete
     um = np.array([fitted.params.specs[i].group in unmeasured for i in und.index])
     big = np.abs(D).max(axis=0)
     keep = ~(np.abs(D[um]).max(axis=0, initial=0.0) > 1e-6 * np.where(big > 0, big, 1.0))
-    return replace(und, directions=D[:, keep])
+    # a part's tilts no file reads (._rotation.plate_tilts) stay open whatever the assumption holds
+    tilts = np.asarray((fitted.uncertainty or {}).get("open", np.zeros((D.shape[0], 0))), dtype=float)
+    return replace(und, directions=np.hstack([D[:, keep], tilts.reshape(D.shape[0], -1)]))
 
 
 def _axis_ranges(fitted: FittedModel, ax, lo: float, hi: float, und: Undetermined, mask) -> list:

@@ -533,6 +533,12 @@ class ErrorModel:
         return self._function("tip_pjac", lambda e: [ca.jacobian(e["dev"][:3], self._p)], ["J_p"])
 
     @cached_property
+    def axis_pjacobian_function(self) -> ca.Function:
+        """(q, p, c) -> J_p (3, n_params): the tool-axis deviation's Jacobian with respect to the
+        parameters, for the standard error of an orientation correction (5-axis machines)."""
+        return self._function("axis_pjac", lambda e: [ca.jacobian(e["dev"][3:], self._p)], ["J_p"])
+
+    @cached_property
     def deviation_qjacobian_function(self) -> ca.Function:
         """(q, p, c) -> (dev (6,), J_q (6, n_axes)): what the planner needs per block."""
         return self._function("deviation_qjac", lambda e: [e["dev"], ca.jacobian(e["dev"], self._q)],

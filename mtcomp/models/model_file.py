@@ -64,7 +64,7 @@ def uncertainty_without(uncertainty: dict | None, names) -> dict | None:
     out = dict(uncertainty, names=[uncertainty["names"][k] for k in keep],
                covariance=np.asarray(uncertainty["covariance"])[np.ix_(keep, keep)],
                undetermined=np.asarray(uncertainty["undetermined"]).reshape(n, -1)[keep])
-    for key in ("held", "choice", "traded"):
+    for key in ("held", "choice", "traded", "open"):
         if key in uncertainty:
             out[key] = np.asarray(uncertainty[key]).reshape(n, -1)[keep]
     if "setup" in uncertainty:
@@ -287,9 +287,11 @@ class FittedModel:
         directions the data left undetermined (``uncertainty["undetermined"]``), internal units,
         then the directions along which the fit held a machine error by giving a ball bar's
         uncalibrated length what it trades with (``uncertainty["traded"]``, each 1 um rms tool-tip
-        error over the travel: :mod:`mtcomp.identification._traded`); None when the model carries
-        no uncertainty or no such direction. A correction that moves along a column rests on
-        numbers the data did not determine (:meth:`tip_sd_um`).
+        error over the travel: :mod:`mtcomp.identification._traded`), and the directions of a
+        part's tilts the data leave open (``uncertainty["open"]``, 1 um rms tool-tip error over
+        the travel each, :func:`mtcomp.identification._rotation.plate_tilts`); None when the model
+        carries no uncertainty or no such direction. A correction that moves along a column rests
+        on numbers the data did not determine, or on the fit's choice (:meth:`tip_sd_um`).
 
         The values are split into what the fit moved (the covariance's range: a fit moves only
         along the directions it determines) and a combination of the undetermined directions; v is
@@ -313,8 +315,9 @@ class FittedModel:
             w, V = np.linalg.eigh(0.5 * (C + C.T) / np.outer(d, d))    # correlations: unit-free
             Q = np.linalg.qr(d[:, None] * V[:, w > 1e-12 * max(float(w.max()), 1e-300)])[0]
             c = np.linalg.lstsq(Nf - Q @ (Q.T @ Nf), p - Q @ (Q.T @ p), rcond=None)[0]
-        traded = np.asarray(u.get("traded", np.zeros((idx.size, 0))), dtype=float).reshape(idx.size, -1)
-        return idx, np.hstack([((Nf @ c) / f)[:, None], traded])
+        extra = [np.asarray(u.get(key, np.zeros((idx.size, 0))), dtype=float).reshape(idx.size, -1)
+                 for key in ("traded", "open")]
+        return idx, np.hstack([((Nf @ c) / f)[:, None], *extra])
 
     def choice_directions(self) -> tuple[np.ndarray, np.ndarray] | None:
         """(indices into ``params``, (k, c) D): the roughness penalty's alternative splits across
@@ -437,7 +440,7 @@ def uncertainty_to_file(fitted: "FittedModel") -> dict:
     if "held" in u and np.asarray(u["held"]).size:
         out["held"] = (f[:, None] * np.asarray(u["held"])).T.tolist()
         out["held_sd_um"] = np.asarray(u["held_sd_um"], dtype=float).tolist()
-    for key in ("choice", "traded"):
+    for key in ("choice", "traded", "open"):
         if key in u and np.asarray(u[key]).size:
             out[key] = (f[:, None] * np.asarray(u[key])).T.tolist()
     if u.get("model_error"):
@@ -474,9 +477,9 @@ def _uncertainty_from_file(params: ParameterSet, data, path) -> dict | None:
             raise InputError("'uncertainty' 'held' must be directions over its parameters with one "
                              "'held_sd_um' each", path) from None
         out.update(held=held / f[:, None], held_sd_um=sd)
-    # optional (older files have neither): the penalty's splits across classes; what a bar's
-    # uncalibrated length trades with
-    for key in ("choice", "traded"):
+    # optional (older files have none): the penalty's splits across classes; what a bar's
+    # uncalibrated length trades with; a part's tilts the data leave open
+    for key in ("choice", "traded", "open"):
         if key in data:
             try:
                 D = np.asarray(data[key], dtype=float).reshape(-1, len(names)).T

@@ -120,17 +120,26 @@ class Evaluator:
         model's data held still (FittedModel.clamp)."""
         return evaluate(self.model, "deviation_function", self.problem.fitted.clamp(q)[0], self.p, ctx)[0]
 
+    @property
+    def axis_columns(self) -> int:
+        """3 on 5-axis machines (the tool axis's standard errors follow the tip's in
+        :meth:`correction_sd_assumed`), else 0."""
+        return 3 if self.rows == 6 else 0
+
     def correction_sd_assumed(self, q, ctx, datum=None, sd: bool = True) -> np.ndarray:
-        """(n, 3 + Assumed.width): each tip component's standard error (um) of the correction at q
-        (NaN where not ``sd``): the tip deviation less the deviation at the part's datum, as
+        """(n, 3 + k + Assumed.width): each tip component's standard error (um) of the correction at
+        q (NaN where not ``sd``): the tip deviation less the deviation at the part's datum, as
         :meth:`datum_reference` takes it, when ``datum`` (n, na) is given, evaluated where
         :meth:`_deviation` evaluates it (:meth:`CorrectionUncertainty.components`: infinite where
         the correction moves with values the data left undetermined); NaN when the model carries
-        no uncertainty. Then, when the model assumes something at zero (:attr:`assumed`),
+        no uncertainty. On 5-axis machines (k = :attr:`axis_columns`) each tool-axis component's
+        (urad, :meth:`CorrectionUncertainty.orientation`: the deviation as it stands, not
+        referenced). Then, when the model assumes something at zero (:attr:`assumed`),
         :meth:`Assumed.blocks` of the same Jacobian. The correction in its standard errors is
         :func:`._uncertainty.in_sd` of the correction the plan evaluates anyway (its ``b0``)."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
-        out = np.full((q.shape[0], 3 + (self.assumed.width if self.assumed else 0)), np.nan)
+        k = self.axis_columns
+        out = np.full((q.shape[0], 3 + k + (self.assumed.width if self.assumed else 0)), np.nan)
         if not self.has_uncertainty:
             return out
         # in parts of SD_ROWS poses: the Jacobians of a spline model (3 x 274 numbers a pose) of a
@@ -150,10 +159,14 @@ class Evaluator:
             out[:, :3] = self.uncertainty.components(J, J0)
         if J0 is not None and (sd or self.assumed):
             J = J - J0
+        k = self.axis_columns
         if sd:
             self._note_causes(J, out[:, :3])
+            if k:
+                Ja = evaluate(self.model, "axis_pjacobian_function", fitted.clamp(q)[0], self.p, ctx)[0]
+                out[:, 3:6] = self.uncertainty.orientation(Ja)
         if self.assumed:
-            out[:, 3:] = self.assumed.blocks(q, J)
+            out[:, 3 + k:] = self.assumed.blocks(q, J)
 
     def _note_causes(self, J, each) -> None:
         """Add to :attr:`infinite_causes` why some of the standard errors ``each`` (n, 3) of the

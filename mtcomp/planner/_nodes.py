@@ -40,6 +40,8 @@ class NodeSet:
         limit, no covariance).
     indistinct : (n,) bool, pinned because its correction, or every one of its contour's, is not
         told from zero by its standard error (:mod:`._contours`), or None (none is).
+    axis_left : (n,) bool, a 5-axis node whose tool-axis correction is not made (:mod:`._partial`:
+        its rotary axes keep their words), or None (none is).
     unread : (n,) bool, its standard error made infinite because an axis its data read from one
         side only approaches it from the other or a side not known (:mod:`._direction`), or None.
     """
@@ -62,13 +64,14 @@ class NodeSet:
     assumed: np.ndarray | None = None
     in_sd: np.ndarray | None = None
     indistinct: np.ndarray | None = None
+    axis_left: np.ndarray | None = None
     unread: np.ndarray | None = None
 
     FIELDS = ("q", "context", "exempt", "line", "inserted", "rapid", "unknown", "outside", "pinned",
               "sd_um", "cut_start", "gated")
     LINKS = ("link_lo", "link_hi", "link_kind")
     #: (n,) fields that may be None, and what a None stands for when joined with others
-    FLAGS = {"in_sd": np.nan, "indistinct": False, "unread": False}
+    FLAGS = {"in_sd": np.nan, "indistinct": False, "axis_left": False, "unread": False}
 
     def __len__(self):
         return int(self.q.shape[0])
@@ -91,6 +94,16 @@ class NodeSet:
         if not (stand & self.pinned[:, None]).any():
             return self.pinned
         return self.pinned[:, None] & ~stand
+
+    def pins(self, rotary) -> np.ndarray:
+        """:meth:`box_pins`, and the rotary axes (``rotary`` (na,) bool) of a node whose tool-axis
+        correction is not made (``axis_left``)."""
+        pins = self.box_pins()
+        if self.axis_left is None or not self.axis_left.any():
+            return pins
+        pins = np.array(np.broadcast_to(pins[:, None] if pins.ndim == 1 else pins, self.q.shape))
+        pins[np.ix_(self.axis_left, rotary)] = True
+        return pins
 
     def take(self, idx) -> "NodeSet":
         links = {} if self.link_lo is None else {f: getattr(self, f)[idx] for f in self.LINKS}

@@ -30,6 +30,7 @@ class RamRule:
         #: the ram's name, None without one
         self.ram = ram_axis(machine)
         self.col = None if self.ram is None else machine.index(self.ram)
+        self.rotary = np.array([a.is_rotary for a in machine.axes], bool)
         #: (lo, hi) mm, the heights of the tool tips the data reached (module docstring), or None
         self.tips = None
         if self.col is not None and support is not None and np.isfinite(support[0][self.col]):
@@ -66,9 +67,9 @@ class RamRule:
         return any_rows_but(outside, self.col)
 
     def pins(self, nodes) -> np.ndarray:
-        """What the bounds pin to zero (:meth:`~._nodes.NodeSet.box_pins`), and the ram's own
+        """What the bounds pin to zero (:meth:`~._nodes.NodeSet.pins`), and the ram's own
         correction of a block that is corrected though its ram is outside the support."""
-        pins = nodes.box_pins()
+        pins = nodes.pins(self.rotary)
         if self.col is None or self.extrapolate:
             return pins
         ram_out = nodes.outside[:, self.col] & ~nodes.pinned
@@ -79,7 +80,10 @@ class RamRule:
         return pins
 
     def unflag(self, flags, nodes) -> None:
-        """No bound is named for the ram's own correction where this rule pinned it."""
+        """No bound is named for the ram's own correction where this rule pinned it, nor for the
+        rotary axes of a node whose tool-axis correction is not made (``NodeSet.axis_left``)."""
+        if nodes.axis_left is not None and nodes.axis_left.any():
+            flags[np.ix_(nodes.axis_left, self.rotary)] = False
         if self.col is not None and not self.extrapolate:
             flags[nodes.outside[:, self.col], self.col] = False
 

@@ -40,6 +40,7 @@ class PlanResult:
     assumed : (n, w) what each block's correction assumes at zero (:mod:`._assumed`), or None.
     indistinct : (n,) bool, pinned because its correction (or every one of its contour's) is not
         told from zero by its standard error (NodeSet), or None (none is).
+    axis_left : (n,) bool, the tool-axis correction not made (NodeSet), or None (none is).
     unread : (n,) bool, left uncorrected because an axis its data read from one side only
         approaches it from the other or a side not known (NodeSet), or None (none is).
     """
@@ -68,6 +69,7 @@ class PlanResult:
     standing: np.ndarray | None = None
     assumed: np.ndarray | None = None
     indistinct: np.ndarray | None = None
+    axis_left: np.ndarray | None = None
     unread: np.ndarray | None = None
 
     FIELDS = ("line", "inserted", "rapid", "nominal", "corrected", "correction", "before", "after",
@@ -89,7 +91,7 @@ class PlanResult:
     #: (n, na) masks that may be None (no node has one)
     MASKS = ("undirected", "standing")
     #: (n,) flags that may be None (no node has one)
-    FLAGS = ("indistinct", "unread")
+    FLAGS = ("indistinct", "unread", "axis_left")
 
     @staticmethod
     def concatenate(parts: list["PlanResult"]) -> "PlanResult":

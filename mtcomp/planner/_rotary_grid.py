@@ -41,7 +41,13 @@ def round_rotary(bounds, lin, x: np.ndarray, rotary: np.ndarray, lam) -> np.ndar
     x = np.array(x, dtype=float, copy=True)
     if bounds.grid is None or not rotary.any() or x.shape[0] == 0:
         return x
-    xr = bounds.quantize(x)[:, rotary]
+    return set_turn(lin, x, bounds.quantize(x)[:, rotary], rotary, lam)
+
+
+def set_turn(lin, x: np.ndarray, xr: np.ndarray, rotary: np.ndarray, lam) -> np.ndarray:
+    """x (n, na), changed in place and returned, with its rotary columns set to ``xr`` (n, k) and
+    its linear columns re-solved for that turn (module docstring: the least change of the linear
+    corrections that gives back the objective's residual, to first order around ``lin``)."""
     d_r = xr - x[:, rotary]
     x[:, rotary] = xr
     rows = np.flatnonzero(row_max_abs(d_r) > 0)

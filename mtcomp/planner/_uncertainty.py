@@ -37,6 +37,14 @@ class CorrectionUncertainty:
         #: it is unsure), and the penalty's split of what the data cannot tell apart
         self.open = fitted.undetermined_values() if known else None
         self.choice = fitted.choice_directions() if known else None
+        #: (indices into the parameters, (k, m) the directions the data left undetermined, each
+        #: at 1 um rms over the region), or None: where a tool-axis deviation moves along one, the
+        #: data do not determine it (predict's rule for a blank standard error)
+        u = fitted.uncertainty if known else None
+        N = None if u is None else np.asarray(u["undetermined"], dtype=float)
+        self.undetermined = None if N is None or not N.size else (
+            np.array([fitted.params.index(n) for n in u["names"]], dtype=int),
+            N.reshape(len(u["names"]), -1))
 
     @property
     def known(self) -> bool:
@@ -53,6 +61,35 @@ class CorrectionUncertainty:
             extra = self.fitted.model_error_variance(J)
             J = J - J_reference
         return self.fitted.tip_sd_um(J, self.factor, self.open, extra, self.choice, components=True)
+
+    def orientation(self, J: np.ndarray) -> np.ndarray:
+        """(n, 3) urad: each component's standard error of the tool-axis deviations whose
+        Jacobians with respect to the parameters are J (n, 3, n_params), rad, under the same
+        covariance as :meth:`components` (a tool-axis deviation is corrected as it stands: probing
+        a datum removes none); infinite where it moves with values the data left undetermined or
+        along a direction they leave open by more than :data:`UNDETERMINED_UM` urad (a spindle's
+        tilt that no measurement with one stylus length tells from a table's: predict leaves its
+        standard error blank there)."""
+        J = np.asarray(J, dtype=float) * 1e3        # rad as the mm tip_sd_um takes: its um are urad
+        sd = self.fitted.tip_sd_um(J, self.factor, self.open, None, self.choice, components=True)
+        if self.undetermined is not None:
+            idx, N = self.undetermined
+            moved = np.abs(J[:, :, idx] @ N).max(axis=(1, 2)) * 1e3
+            sd[moved > UNDETERMINED_UM] = np.inf
+        return sd
+
+
+def orientation_left(axis_urad: np.ndarray, each: np.ndarray, limit_urad: float) -> np.ndarray:
+    """(n,) bool: the blocks whose tool-axis correction (``axis_urad`` (n, 3), the deviation it
+    removes) is not made: its standard error ``each`` (n, 3) (:meth:`CorrectionUncertainty
+    .orientation`) exceeds ``limit_urad`` in some component (infinite: the data do not determine
+    it), or it is within :data:`SMALL_IN_SD` of its standard errors of zero in every component
+    (as :func:`in_sd` judges a tip correction)."""
+    each = np.asarray(each, dtype=float)
+    with np.errstate(invalid="ignore"):
+        over = (each > limit_urad).any(axis=1)
+        z = in_sd(axis_urad, each)
+        return over | (z < SMALL_IN_SD)
 
 
 def in_sd(correction_um: np.ndarray, each: np.ndarray) -> np.ndarray:

@@ -43,7 +43,7 @@ from ._direction import DirectionRule, note_unsure, unsure_rows
 from ._ram import RamRule
 from ._result import PlanResult, as_list, first_rows
 from ._rotary_grid import rotary_columns, round_rotary, solve_with_rotary_fixed
-from ._uncertainty import in_sd
+from ._partial import PartialRule
 from ._small import a_x, any_rows, at_b, down_columns, gram, row_max_abs, row_norm
 from .problem import CompensationProblem, PlannerOptions
 from ..models.region import outside_bounds, support_bounds
@@ -90,6 +90,8 @@ class Planner:
         #: a part's datum outside the support leaves the blocks referenced to it unsure (:mod:`._datum`)
         self.datum = DatumRule(self)
         self.direction = DirectionRule(self)      # an approach its data never read (_direction)
+        #: a tool axis the data do not determine is not corrected (:mod:`._partial`)
+        self.partial = PartialRule(problem, self.options.max_correction_sd_um)
 
     # ------------------------------------------------------------------ nodes
     def _context(self, feed, dirs, n, tool_length=None, extra=None):
@@ -138,7 +140,8 @@ class Planner:
         inf = unsure_rows(self, datum, tool_length, dirs)[2]
         sd, _, _, each = self._sd_um(q, ctx, unknown, outside, datum, inf)
         correction = None if each is None else self.ev.correction_um(q, ctx, datum)
-        return unknown, outside, sd, self._in_sd(each, correction)
+        return unknown, outside, sd, self.partial.judged(None if each is None else each[:, :3],
+                                                         correction)[0]
 
     def _pinned(self, unknown, outside, sd_um):
         pinned = any_rows(unknown)
@@ -157,7 +160,8 @@ class Planner:
         approach the data never read (:func:`._direction.unsure_rows`): where a limit is asked,
         their standard error is infinite (unless left uncorrected for an unknown axis or the ram
         already); (n, 3) or None (no limit asked), each tip component's standard error (NaN where
-        not evaluated), for :meth:`_in_sd`."""
+        not evaluated), then on 5-axis machines each tool-axis component's (urad), for
+        :meth:`PartialRule.judged`."""
         sd = np.full(q.shape[0], np.nan)
         each = None
         assumed = self.ev.assumed
@@ -175,22 +179,16 @@ class Planner:
                                qt.shape[0], self._split, *args)
             both = np.concatenate(parts)
             sd[todo] = both[:, :3].max(axis=1)
+            k = 3 + self.ev.axis_columns            # the tool axis's (urad) after the tip's
             if limit:
-                each = np.full((q.shape[0], 3), np.nan)
-                each[todo] = both[:, :3]
+                each = np.full((q.shape[0], k), np.nan)
+                each[todo] = both[:, :k]
             if out is not None:
-                out[todo] = both[:, 3:]
+                out[todo] = both[:, k:]
             if limit and datum_out is not None:
                 gated = todo & datum_out
                 sd[gated] = np.inf
         return sd, out, gated, each
-
-    @staticmethod
-    def _in_sd(each, correction_um):
-        """(n,) the corrections (n, rows) um (the tip rows: a plan's ``b0``) in their standard
-        errors ``each`` (:meth:`_sd_um`; None: no limit asked, and None is returned): under two,
-        nothing tells a correction from none (:func:`._uncertainty.in_sd`)."""
-        return None if each is None else in_sd(correction_um[:, :3], each)
 
     def _solve_free(self, q, ctx, reference) -> Linearization:
         parts = split_rows(self._solve_free_part, q.shape[0], self._split, q, ctx, reference)
@@ -242,10 +240,11 @@ class Planner:
         unread = note_unsure(self, datum, dirs, gated, datum_out, unread, line)
         links = self.links.arrays(q, dirs, None if self._last_end is None else self._last_end[0])
         lin = self._solve_free(q, ctx, self._reference(datum, ctx))
+        in_sd, axis_left = self.partial.judged(each, lin.b0)
         nodes = NodeSet(q, ctx, exempt, line, np.zeros(n, bool), rapid, unknown, outside,
                         pinned, sd, np.zeros(n, bool), np.zeros(n, bool),
-                        *(links or (None, None, None)), assumed=assumed,
-                        in_sd=self._in_sd(each, lin.b0), unread=unread)
+                        *(links or (None, None, None)), assumed=assumed, in_sd=in_sd,
+                        axis_left=axis_left, unread=unread)
         nodes, lin = self.gate.feed(nodes, lin, final=True)     # the arrays are whole contours
         if n:
             self._last_end = (nodes.q[-1], lin.x[-1])
@@ -279,7 +278,7 @@ class Planner:
         unread = note_unsure(self, chunk.datum, chunk.dirs, gated, datum_out, unread, chunk.line)
         self.ram.note(end, outside, pinned, chunk.tool_length, ~any_rows(unknown))
         lin_end = self._solve_free(end, ctx, ref := self._reference(chunk.datum, ctx))
-        in_sd = self._in_sd(each, lin_end.b0)
+        in_sd, axis_left = self.partial.judged(each, lin_end.b0)
         first = self._last_end is None
         # no step bound into a rapid, a hole, or a move that starts where the program has not said
         # (after a home move or a tool change: the machine did not come along the cut)
@@ -297,11 +296,12 @@ class Planner:
         skip[ramped] = True
         inner = merged(self._subdivide(start, end, x_start, lin_end.x, ctx, ref, skip), ramp)
         counts = np.ones(nrows, np.int64)
+        each_row = dict(assumed=assumed, in_sd=in_sd, axis_left=axis_left, unread=unread)
         if inner is None:
             links = self.links.chunk(chunk, end, np.arange(nrows), np.ones(nrows, bool), first, cycle)
             nodes = NodeSet(end, ctx, exempt, np.asarray(chunk.line), np.zeros(nrows, bool), rapid,
                             unknown, outside, pinned, sd, cut_start, np.zeros(nrows, bool),
-                            *(links or (None, None, None)), assumed=assumed, in_sd=in_sd, unread=unread)
+                            *(links or (None, None, None)), **each_row)
             return nodes, lin_end, counts
         rows_i, t_i, q_i, lin_i = inner
         np.add.at(counts, rows_i, 1)
@@ -326,8 +326,7 @@ class Planner:
                         placed(outside, out_i, pos_end, pos_i),
                         placed(pinned, pin_i, pos_end, pos_i), sd[row_sorted], cut_all,
                         np.zeros(row_sorted.size, bool), *(links or (None, None, None)),
-                        **{k: None if v is None else v[row_sorted] for k, v in
-                           (("assumed", assumed), ("in_sd", in_sd), ("unread", unread))})
+                        **{k: None if v is None else v[row_sorted] for k, v in each_row.items()})
         lin = Linearization(*(placed(getattr(lin_end, f), getattr(lin_i, f), pos_end, pos_i)
                               for f in Linearization.FIELDS))
         return nodes, lin, counts
@@ -459,7 +458,8 @@ class Planner:
                           after[:, 3:6] if five else None, flags, lin.iterations, lin.converged,
                           nodes.unknown, nodes.outside, nodes.pinned, nodes.sd_um, nodes.gated,
                           held, undirected=undirected_axes(nodes), standing=standing_axes(nodes),
-                          assumed=nodes.assumed, indistinct=nodes.indistinct, unread=nodes.unread)
+                          assumed=nodes.assumed, indistinct=nodes.indistinct, unread=nodes.unread,
+                          axis_left=nodes.axis_left)
 
     def _tick(self):
         cb = self.options.progress
@@ -682,6 +682,7 @@ class Planner:
         node is committed; otherwise qp keeps the last ``overlap`` (or fewer) for the next call
         (``join=False``: qp's results as the list of its committed runs, not copied into one)."""
         o = self.options
+        self.partial.apply(nodes, lin)
         if o.method != "qp":
             x = self._round_rotary(lin, lin.x)
             return self._commit(nodes, lin, x, desired=x)

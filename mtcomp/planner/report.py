@@ -48,6 +48,7 @@ from ._qp import NEVER_WORSE_TOL
 from .problem import unsure_advice
 from ._result import PlanResult
 from ._assumed import AssumedTally
+from ._partial import PartialTally
 
 #: a block counts as made worse when its deviation along an axis grows by more than this (um): the
 #: planner's never-worse rows allow NEVER_WORSE_TOL (half the output grid), rounding as much again
@@ -303,6 +304,8 @@ class Summary:
     #: what the corrected blocks assume at zero (:class:`._assumed.AssumedTally`; None: the model
     #: assumes nothing)
     assumed: AssumedTally | None = None
+    #: the blocks whose tool axis was not corrected (:mod:`._partial`)
+    partial: PartialTally = field(default_factory=PartialTally)
 
     def _add_uncertain(self, r: PlanResult, uncertain: np.ndarray):
         """Count the blocks of ``r`` left uncorrected as unsure (``uncertain`` (n,) bool), apart
@@ -354,6 +357,7 @@ class Summary:
             if len(r) == 0:
                 return
         self.evaluated += len(r)
+        self.partial.add(r)
         self._add_standing(r)
         flagged = bool(r.flags.any())
         if flagged:
@@ -535,7 +539,9 @@ class Summary:
                                    "max_axis_after_urad": self.standing_axis_urad}}
         if self.max_axis_before_urad is not None:
             out["max_axis_before_urad"] = self.max_axis_before_urad
-            out["max_axis_after_urad"] = self.max_axis_after_urad
+            out["max_axis_after_urad"] = (self.max_axis_after_urad if not self.partial.axis_blocks
+                                          else self.partial.axis_after_urad)
+        out.update(self.partial.as_dict())
         assumed = self.assumed.as_dict() if self.assumed is not None else None
         if assumed is not None:
             out["assumed_zero"] = assumed
@@ -571,8 +577,7 @@ class Summary:
                          f"{c['max_after_um']:.3f} um, rms {c['rms_after_um']:.3f} um"
                          + self._on_assumptions)
         if self.max_axis_before_urad is not None:
-            lines.append(f"predicted tool-axis deviation: max {self.max_axis_before_urad:.3f} urad "
-                         f"before, {self.max_axis_after_urad:.3f} urad after")
+            lines.append(self.partial.axis_text(self.max_axis_before_urad, self.max_axis_after_urad))
         if self.bounded_blocks:
             detail = ", ".join(f"{k} {v}" for k, v in sorted(self.flag_counts.items()))
             lines.append(f"{blocks(self.bounded_blocks)} hit a bound ({detail}); worst remaining "
@@ -676,6 +681,7 @@ class Summary:
                        "column correction_sd_um): measure more, or more often, to tell it")
         if self.held_blocks:
             out.append(self._held_text(blocks(self.held_blocks)))
+        out += self.partial.lines()
         return out
 
     def _unsure_text(self, blocks, own: int) -> str:

@@ -158,6 +158,9 @@ def _joined_uncertainty(a: dict | None, b: dict | None) -> dict | None:
         out["held"] = held.reshape(na + nb, -1)
         out["held_sd_um"] = np.concatenate([np.asarray(a.get("held_sd_um", ()), dtype=float),
                                             np.asarray(b.get("held_sd_um", ()), dtype=float)])
+    if "open" in a or "open" in b:      # a part's tilts the data leave open: as undetermined
+        out["open"] = scipy.linalg.block_diag(*(np.asarray(u.get("open", np.zeros((k, 0)))).reshape(k, -1)
+                                                for u, k in ((a, na), (b, nb))))
     if a.get("model_error") or b.get("model_error"):
         out["model_error"] = {**a.get("model_error", {}), **b.get("model_error", {})}
     if "setup" in a or "setup" in b:

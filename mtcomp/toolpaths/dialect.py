@@ -263,8 +263,10 @@ def _finds(chunk: bytes, what: bytes):
 
 def grbl_program_end(state) -> None:
     """grbl after M2/M30 (grbl 1.1, gcode.c, program flow): it goes on with the lines a sender
-    streams after it, its modes reset to G1 G17 G90 G94 G54 (positions kept, G92 kept)."""
+    streams after it, its modes reset to G1 G17 G90 G94 G54 (positions kept, G92 kept); uCNC's
+    reset turns its height map off too (parser.c, parser_reset)."""
     state.ended = False
+    state.height_map = False
     state.motion, state.incremental, state.inverse_time = 1, False, False
     state._apply_modal_code(17, {})
     state._set_wcs(_WCS_INDEX[54])
@@ -293,9 +295,11 @@ def beagleg_word_order(state, tokens, line: int) -> None:
     before G20/G21/G70/G71 is read in the units before them, and axis words after a word that
     ended a move make a second move; mtcomp reads a line as one block, and would correct it so."""
     first = ended = feed = None     # the first axis (or arc) word; the word that ended its move
+    last_g = None
     for letter, number, raw in tokens:
-        if letter in "(;":
-            continue
+        if letter in "(;" or (letter == "P" and last_g == "4"):
+            continue                # a dwell's time (set_param: no units), done before what follows
+        last_g = (number.lstrip("0") or "0") if letter == "G" else last_g
         before = feed if letter == "G" and number.lstrip("0") in _BEAGLEG_UNITS_G else None
         before = first if first is not None and letter == "G" else before
         if before is not None:
@@ -318,8 +322,8 @@ def beagleg_block(state, gcodes, line: int) -> None:
     """BeagleG's rules for a block, before its codes apply (docs/toolpaths.md, "BeagleG"): G2/G3 do
     not stay in force (gcode-parser.cc, ParseBlock: axis words alone move in the last G0/G1 mode,
     G0 at the start), G70/G71 are read as G20/G21 (``gcodes`` changed in place), a G code it does
-    not have is refused (it would ignore it and move), and so is G30 (its Z probe, handle_z_probe,
-    which sets a G92 offset of Z from the probed height)."""
+    not have is refused (it would ignore it and move). Its G30, a Z probe, is :mod:`.probe`'s,
+    taken out of ``gcodes`` before this."""
     if not hasattr(state, "linear_motion"):
         state.linear_motion = 0 if state.motion is None else state.motion
         state.motion = state.linear_motion
@@ -327,9 +331,6 @@ def beagleg_block(state, gcodes, line: int) -> None:
         state.motion = state.linear_motion
     gcodes[:] = [{70: 20, 71: 21}.get(g, g) for g in gcodes]
     for g in gcodes:
-        if g == 30:
-            raise state._err("G30 on BeagleG probes Z and sets a G92 offset of Z from the probed "
-                             "height, which the program does not give", line)
         if g not in _BEAGLEG_G:
             raise state._err(f"G{g:g} is not a BeagleG code (BeagleG ignores it and moves to the "
                              "block's axis words)", line)

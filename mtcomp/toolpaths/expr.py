@@ -35,6 +35,17 @@ class ExprError(ValueError):
     """A bad expression or parameter use (message only: the caller names file and line)."""
 
 
+#: the value of a parameter the controller holds when it runs the program (its position, a probe's
+#: result, a setting): not known here. Anything computed from it is unknown too (NaN carries
+#: through arithmetic and functions; a comparison or logical operator on it is made unknown here)
+UNKNOWN = math.nan
+
+
+def is_unknown(v) -> bool:
+    """Whether a computed value is :data:`UNKNOWN` (computed from a value the controller holds)."""
+    return v != v
+
+
 class Number(float):
     """A computed value that remembers ``decimals``: the most digits after the point of the numbers
     it was computed from (literals, and the parameters read, each with its own). A word written
@@ -76,6 +87,8 @@ _UNARY = {
 
 
 def _binary(op: str, a: float, b: float) -> float:
+    if is_unknown(a) or is_unknown(b):
+        return UNKNOWN
     if op == "+":
         return a + b
     if op == "-":
@@ -166,6 +179,10 @@ class Evaluator:
                 raise ExprError("named parameter without a name")
             return name, end + 1
         v, pos = self.value(s, pos)
+        if is_unknown(v):
+            raise ExprError("a parameter number computed from a value the controller holds (its "
+                            "position, a probe's result, a setting): which parameter is read "
+                            "cannot be known")
         k = round(v)
         if abs(v - k) > 1e-4 or k < 0:
             raise ExprError(f"parameter number {v:g} is not a whole number")
@@ -200,6 +217,8 @@ class Evaluator:
                 raise ExprError("ATAN takes two arguments: ATAN[y]/[x]")
             b, pos = self.bracket(s, pos + 1)
             return math.degrees(math.atan2(a, b)), pos
+        if is_unknown(a):
+            return UNKNOWN, pos
         return _UNARY[name](a), pos
 
     # ------------------------------------------------------------------ expressions
@@ -239,7 +258,7 @@ class Evaluator:
         while ops:
             b = values.pop()
             values[-1] = self._binary(ops.pop(), values[-1], b)
-        if not math.isfinite(values[0]):
+        if not math.isfinite(values[0]) and not is_unknown(values[0]):
             raise ExprError("the expression is not a finite number")
         return values[0], pos
 

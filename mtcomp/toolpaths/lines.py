@@ -14,7 +14,7 @@ import math
 import re
 from dataclasses import dataclass, field
 
-from .expr import FUNCTIONS, Evaluator, ExprError, Number, decimals_of, format_value
+from .expr import FUNCTIONS, Evaluator, ExprError, Number, decimals_of, format_value, is_unknown
 from .words import comment_end, number_decimals
 
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
@@ -80,12 +80,33 @@ def line_code(line: str) -> Code:
 @dataclass
 class Rewritten:
     """A line after its values were computed: ``text`` (None: unchanged), the assignments to make
-    after it (key -> value), the words it names (letter -> value), its polar words."""
+    after it (key -> value), the words it names (letter -> value), its polar words. ``unknown``: the
+    letters of the words whose value the controller holds (:data:`~.expr.UNKNOWN`); such a line
+    is written with those words and its assignments of such values as written (the parameters
+    whose values are known put in as numbers), and ``reading`` is its text for the reader: those
+    words given 0 and those assignments taken out (the reader passes the line through)."""
 
     text: str | None
     assignments: list
     words: dict
     polar: dict
+    unknown: set = field(default_factory=set)
+    reading: str | None = None
+
+
+class ControllerLine(str):
+    """An expanded line written as the controller computes it (a value it holds in its words or
+    assignments: :class:`Rewritten`), with ``reading``, its text for the reader, and ``unknown``,
+    the letters of its words of such values."""
+
+    reading: str = ""
+    unknown: frozenset = frozenset()
+
+    @classmethod
+    def of(cls, r: Rewritten) -> "ControllerLine":
+        line = cls(r.text)
+        line.reading, line.unknown = r.reading, frozenset(r.unknown)
+        return line
 
 
 def _is_computed(s: str, p: int, fanuc: bool = False) -> bool:
@@ -107,8 +128,8 @@ def rewrite(line: str, code: Code, ev: Evaluator, *, fanuc: bool = False) -> Rew
     """Compute a line's word values and take out its assignments (see the module docstring).
     Raises ExprError."""
     s = code.text
-    spans = []                 # (start, end) in code positions, replacement text
-    assignments, words, polar = [], {}, {}
+    spans, reads = [], []      # (start, end) in code positions, replacement: written, read
+    assignments, words, polar, unknown = [], {}, {}, set()
     pos = 0
     while pos < len(s):
         ch = s[pos]
@@ -118,14 +139,29 @@ def rewrite(line: str, code: Code, ev: Evaluator, *, fanuc: bool = False) -> Rew
                 raise ExprError("a parameter outside a word must be assigned: #1=...")
             v, p2 = ev.counted(ev.expression if fanuc else ev.value, s, p + 1)
             assignments.append((key, v))
-            spans.append((pos, p2, ""))
+            if is_unknown(v):           # the controller computes it: kept, as the words using it
+                spans += _with_known(s, p + 1, p2, ev)
+                unknown.add("#")
+            else:
+                spans.append((pos, p2, ""))
+            reads.append((pos, p2, ""))
             pos = p2
         elif ch in "@^" or ch.isalpha():
             p = pos + 1
             if _is_computed(s, p, fanuc):
                 v, p2 = ev.counted(ev.value, s, p)
-                if ch not in "@^":      # a polar word is replaced whole, by X and Y, below
-                    spans.append((p, p2, _word_value(ch.upper(), v, s, fanuc)))
+                if is_unknown(v):
+                    if ch in "@^":
+                        raise ExprError(f"polar word {ch} of a value the controller holds (its "
+                                        "position, a probe's result, a setting)")
+                    unknown.add(ch.upper())
+                    spans += _with_known(s, p, p2, ev)
+                    # read as 0 (a feed, a speed, FluidNC's D print: not read, the feed kept)
+                    reads.append((pos, p2, "") if ch in "fsd" else (p, p2, "0"))
+                elif ch not in "@^":    # a polar word is replaced whole, by X and Y, below
+                    text = _word_value(ch.upper(), v, s, fanuc)
+                    spans.append((p, p2, text))
+                    reads.append((p, p2, text))
             else:
                 m = _NUMBER.match(s, p)
                 if not m:
@@ -135,14 +171,40 @@ def rewrite(line: str, code: Code, ev: Evaluator, *, fanuc: bool = False) -> Rew
             if ch in "@^":
                 polar[ch] = v
                 spans.append((pos, p2, None))
+                reads.append((pos, p2, None))
             else:
                 words.setdefault(ch, v)
             pos = p2
         else:
             pos += 1
+    if unknown:
+        return Rewritten(_apply(line, code, spans), assignments, words, polar,
+                         unknown - {"#"}, _apply(line, code, reads))
     if not spans:
         return Rewritten(None, assignments, words, polar)
     return Rewritten(_apply(line, code, spans), assignments, words, polar)
+
+
+def _with_known(s: str, start: int, end: int, ev: Evaluator) -> list:
+    """The span s[start:end] (a value computed from one the controller holds) to write: [] where it
+    reads no parameter whose value is known (kept as written), else the span with each of those
+    put in as its number (the expansion leaves out their assignments)."""
+    out, pos, changed = [], start, False
+    while pos < end:
+        if s[pos] != "#":
+            out.append(s[pos])
+            pos += 1
+            continue
+        key, after = ev.parameter_key(s, pos)
+        v = ev.params.get(key)
+        if is_unknown(v):
+            out.append(s[pos:after])
+        else:
+            text = format_value(v)
+            out.append(f"[{text}]" if text.startswith("-") else text)
+            changed = True
+        pos = after
+    return [(start, end, "".join(out))] if changed else []
 
 
 def _apply(line: str, code: Code, spans) -> str:
@@ -217,6 +279,9 @@ class XYTracker:
             self.xy = None
             return
         if any(round(g, 1) == 4.0 for g in gcodes):
+            return
+        if is_unknown(words.get("x", 0.0)) or is_unknown(words.get("y", 0.0)):
+            self.xy = None                  # a value the controller holds
             return
         if "x" in words or "y" in words:
             if self.incremental:

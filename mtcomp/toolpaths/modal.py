@@ -19,6 +19,7 @@ from ..errors import InputError
 from ..machine import Machine
 from ._arcs import arc_path, blind_arc, passed_spline, spline_code
 from .blocks import CycleBlock, MotionBlock
+from .controller_values import PROBE_G, held_block, probe_code
 from .cycle_rules import (check_held_numbers, codes_with_motion, cycle_move, cycle_unclear,
                           has_axis_words, home_with_motion, incremental_r_level, retract_level,
                           rigid_tap, rotary_cycle)
@@ -29,6 +30,8 @@ from .frames import (FRAME_G, IDENTITY, apply_frame_code, check_arc, check_cycle
 from .haas5 import HAAS_5AXIS_G, haas_block, haas_code
 from .lengths import length_number, lone_h, set_length
 from .linetext import text_with_words
+from .height_map import height_map_code, passed_height_map
+from .probe import beagleg_probe, passed_probe
 from .programmed import ProgrammedOffsets, apply_g10
 from .quill import follow_quill, forget_quill, has_quill, init_quill, quill_lost, tip_known
 from .rrf import macro_codes, restore_move
@@ -38,6 +41,9 @@ from .words import (_AXIS_LETTERS, _CANNED_CYCLES, _CURVE_WITH_COORDINATES, KNOW
                     OTHER_WCS_G, mode_followed, _REFUSED_G, _REFUSED_M, _UNIQUE_LETTERS, _WCS_INDEX, DEFAULT_CHORD_TOL_MM,
                     MM_PER_INCH, TCP_OFF_M, TCP_ON_M, TOOL_AXIS, frame_code,
                     tokenize)
+
+#: the codes whose axis words probe: uCNC's height map G39 (G39.1, G39.2 switch it), G38.2-G38.5
+_PROBING_G = (39.0, 39.1, 39.2) + PROBE_G
 
 
 class ModalState:
@@ -56,6 +62,9 @@ class ModalState:
     #: a move passed through with its end known (:mod:`.passed`) stands between the last block and
     #: the next: the next does not start where the last ended (its first row is a ``jump``)
     off_path = False
+    #: a G43.1 of a value the controller holds is in force: the tool length, so the tip, is unknown
+    #: and no block is corrected (:mod:`.controller_values`)
+    length_unknown = False
 
     def __init__(self, machine: Machine, path=None, chord_tol: float = DEFAULT_CHORD_TOL_MM,
                  initial_position: np.ndarray | None = None, inch: bool = False,
@@ -163,9 +172,10 @@ class ModalState:
     @property
     def python_only(self) -> bool:
         """Lines the compiled scanner must not take (cycle, inverse-time or tool centre point mode
-        in force, the next block starts off the last one's path, or the quill's place is lost)."""
+        in force, the next block starts off the last one's path, the quill's place is lost, or the
+        tool length is one the controller holds)."""
         return (self.cycle is not None or self.inverse_time or self.tcp or self.dwo or self.ended
-                or bool(self.local.kind) or self.off_path or quill_lost(self))
+                or bool(self.local.kind) or self.off_path or quill_lost(self) or self.length_unknown)
 
     def _err(self, msg, line):
         path, line, suffix = self._where(line)
@@ -195,6 +205,9 @@ class ModalState:
         self._line = line
         if self.ended and self.dialect.name == "grbl":
             grbl_program_end(self)
+        held = getattr(self._source, "controller_lines", None)
+        if held and line in held:       # read from its text with those words given 0
+            text, self.held = held[line]
         text = None if self.ended else text_with_words(self, line, text)
         if text is None:
             return None
@@ -207,6 +220,8 @@ class ModalState:
         values, gcodes, mcodes, number = self._read_words(tokens, line)
         if self.dialect.name == "beagleg":     # its words act in turn (dialect.py)
             beagleg_word_order(self, tokens, line)
+            if 30.0 in gcodes:              # its Z probe (.probe)
+                beagleg_probe(self, tokens, values, gcodes, line)
             beagleg_block(self, gcodes, line)
         self._cutter_comp_codes(gcodes)
         self.g60 = self.dialect.name == "fanuc" and 60.0 in gcodes  # single-direction positioning
@@ -224,6 +239,12 @@ class ModalState:
         if home_move is not None and motion is not None and not home_with_motion(self.dialect.name, home_move, motion):
             raise self._err(f"G{home_move} and motion G{motion} in one block", line)
         self._set_feed(values, line)
+        if held_block(self, gcodes, values, axes_given, motion, nonmotion_axes, line):
+            return None
+        if self.probe_line == line:         # BeagleG's G30 (.probe)
+            return passed_probe(self, values, axes_given, motion, line)
+        if self.map_line == line:           # uCNC's G39 (.height_map)
+            return passed_height_map(self, values, axes_given, motion, line)
         if self.g60:
             return single_direction(self, values, axes_given, gcodes,
                                     (motion, cycle, home_move, nonmotion_axes), line)
@@ -272,6 +293,9 @@ class ModalState:
         self.tap_line = False
         self.passed_move = None
         self.g60 = False             # G60 on this line (.single_direction)
+        self.probe_line = None       # BeagleG's G30 on this line (.probe)
+        self.map_line = None         # uCNC's G39 on this line (.height_map)
+        self.held = self.probing = None  # held words' letters, G38.x (.controller_values)
         #: how far G52 or a G10 moved the program's coordinates on this line (the writer follows)
         self.frame_shift = None
         self.declared = []
@@ -331,23 +355,23 @@ class ModalState:
         for m in mcodes:
             if m in _REFUSED_M:
                 raise self._err(f"{_REFUSED_M[m]} is not supported", line)
-        motion = None
+            if m in TCP_ON_M or m in TCP_OFF_M:
+                self._set_tcp(m in TCP_ON_M, f"M{m:g}")
+        motion = home_move = cycle = None
         nonmotion_axes = macro     # G4 dwell (X/P is time), G28/G30/G53: axis words are no motion
-        home_move = None
-        cycle = None
         dwell = g10 = False
         frame_codes = []
         tool_change = any(m == 6 for m in mcodes)
         self.ended = any(m in (2, 30) for m in mcodes)
-        for m in mcodes:
-            if m in TCP_ON_M or m in TCP_OFF_M:
-                self._set_tcp(m in TCP_ON_M, f"M{m:g}")
         self.had_g = bool(gcodes)
         for g in gcodes:
             gi = round(g)
             if g in FRAME_G:       # G52, G68/G69, mirror, scaling: their axis words are no motion
                 frame_codes.append(g)
                 nonmotion_axes = True
+                continue
+            if round(g, 1) in _PROBING_G:       # uCNC's height map, a probing move G38.x
+                nonmotion_axes = self._probing_code(g, values, line) or nonmotion_axes
                 continue
             if g in _REFUSED_G and not (g in FANUC_CYCLES and self.dialect.name in FANUC_DIALECTS):
                 raise self._err(f"{_REFUSED_G[g]} is not supported", line)
@@ -400,6 +424,15 @@ class ModalState:
                 raise self._err(f"G{g:g} and a move in one block is not supported", line)
             apply_frame_code(self, g, values, tokens, line)
         return motion, nonmotion_axes, home_move, cycle
+
+    def _probing_code(self, g: float, values, line: int) -> bool:
+        """uCNC's height map G39 (:mod:`.height_map`) or a probing move G38.x
+        (:mod:`.controller_values`; on a Fanuc or Haas G38.x is no probe: refused)."""
+        if round(g, 1) in PROBE_G:
+            if self.dialect.name in FANUC_DIALECTS:
+                raise self._err(f"{_REFUSED_G[g]} is not supported", line)
+            return probe_code(self, g, line)
+        return height_map_code(self, g, values, line)
 
     def _set_tcp(self, on: bool, code: str = "") -> None:
         """Tool centre point mode on or off (by the G or M ``code``): the words change meaning

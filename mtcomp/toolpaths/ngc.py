@@ -10,9 +10,12 @@ sequence of lines the controller executes: a subroutine called at two places app
 once per pass. A line that needs nothing computed keeps its bytes; O-word lines and lines of
 assignments alone are left out; a line with computed values is written with the numbers.
 
-Controller state that the program's file does not hold is refused by name: parameters #5000 and
-above (offsets, positions, tool data), LinuxCNC's predefined named parameters (``#<_x>`` ...), and
-subroutines in other files.
+A value the controller holds as it runs (its position ``#<_x>``, a probe's result ``#5063``, FluidNC's
+``#</...>`` settings: :func:`controller_value`) is read as unknown, and the line using it written as
+the controller computes it (:mod:`.controller_values`); control flow on it is refused. Other
+controller state that the program's file does not hold is refused by name: parameters #5000 and
+above (offsets, tool data), LinuxCNC's other predefined named parameters, and subroutines in other
+files.
 """
 from __future__ import annotations
 
@@ -20,8 +23,9 @@ import re
 from dataclasses import dataclass, field
 
 from ..errors import InputError
-from .expr import Evaluator, ExprError
-from .lines import (XYTracker, gcodes_of, line_code, place_polar, polar_target, rewrite)
+from .expr import UNKNOWN, Evaluator, ExprError, is_unknown
+from .lines import (ControllerLine, XYTracker, gcodes_of, line_code, place_polar, polar_target,
+                    rewrite)
 
 #: at most this many lines executed (a loop that never ends is refused, not followed forever)
 MAX_STEPS = 5_000_000
@@ -71,16 +75,45 @@ def parse_oword(code: str) -> Statement | None:
     return Statement("", label, code[pos:], label_expr)
 
 
+#: the numbered parameters that hold what the controller measured as it runs the program: the last
+#: probe's end #5061-#5069 and whether it touched #5070, the current position #5420-#5428
+#: (LinuxCNC G-code reference, Numbered Parameters; FluidNC src/Parameters.cpp, get_numbered_param)
+CONTROLLER_NUMBERED = frozenset(range(5061, 5071)) | frozenset(range(5420, 5429))
+#: the predefined named parameters of the current position, in the work frame and the machine's
+#: (LinuxCNC G-code reference, Predefined Named Parameters; FluidNC src/Parameters.cpp,
+#: get_system_param); FluidNC's ``#</axes/z/...>`` (a ``/`` first) reads its configuration
+CONTROLLER_NAMED = frozenset(f"_{a}" for a in "xyzabcuvw") | frozenset(
+    f"_abs_{a}" for a in "xyzabcuvw")
+
+
+def controller_value(key) -> bool:
+    """Whether parameter ``key`` holds a value the controller has when it runs the program and the
+    file does not give (:data:`CONTROLLER_NUMBERED`, :data:`CONTROLLER_NAMED`, a configuration
+    item ``/...``): read as :data:`~.expr.UNKNOWN`."""
+    if isinstance(key, int):
+        return key in CONTROLLER_NUMBERED
+    return key in CONTROLLER_NAMED or key.startswith("/")
+
+
 class NgcParams:
     """LinuxCNC's parameters: numbered (#1-#30 saved and restored around a call), global named
-    (``_`` first) and local named ones (one table per call)."""
+    (``_`` first) and local named ones (one table per call). A value the controller holds
+    (:func:`controller_value`) reads as :data:`~.expr.UNKNOWN`, and so does a parameter assigned one."""
 
     def __init__(self):
         self.numbered: dict[int, float] = {}
         self.globals: dict[str, float] = {}
         self.frames: list[dict] = [{}]
 
+    @property
+    def in_call(self) -> bool:
+        """A subroutine call is in progress (a value the controller holds is not assigned there:
+        the expansion writes its assignment where the main program's parameters are)."""
+        return len(self.frames) > 1
+
     def get(self, key):
+        if controller_value(key):
+            return UNKNOWN
         if isinstance(key, int):
             if key >= 5000:
                 raise ExprError(f"parameter #{key} holds controller state (offsets, positions, tool "
@@ -98,6 +131,12 @@ class NgcParams:
         return key in (self.globals if key.startswith("_") else self.frames[-1])
 
     def set(self, key, value: float) -> None:
+        name = f"#<{key}>" if isinstance(key, str) else f"#{key}"
+        if is_unknown(value) and self.in_call:
+            raise ExprError(f"a value the controller holds assigned to {name} inside a subroutine "
+                            "call: not followed (assign it in the main program)")
+        if controller_value(key):
+            raise ExprError(f"assignment to {name}: a value the controller holds")
         if isinstance(key, int):
             if key >= 5000 or key == 0:
                 raise ExprError(f"assignment to parameter #{key}: it changes controller state "
@@ -108,6 +147,10 @@ class NgcParams:
         else:
             self.frames[-1][key] = value
 
+
+#: the refusal of control flow that depends on a value the controller holds
+_UNKNOWN_FLOW = ("{what} reads a value the controller holds (its position, a probe's result, a "
+                 "setting): which lines run, and so the flat sequence of moves, cannot be known")
 
 _OPENERS = {"endsub": "sub", "endif": "if", "endwhile": "while", "endrepeat": "repeat"}
 
@@ -240,6 +283,8 @@ class NgcRun:
             v, end = self.ev.counted(self.ev.bracket, text, 0)
             if end != len(text):
                 raise ExprError(f"{what}: text after the value: {text[end:end + 12]!r}")
+            if is_unknown(v):
+                raise ExprError(_UNKNOWN_FLOW.format(what=what))
             return v
         except ExprError as exc:
             raise self.error(str(exc), index) from None
@@ -288,6 +333,8 @@ class NgcRun:
                 self.params.set(key, v)
         except ExprError as exc:
             raise self.error(str(exc), i) from None
+        if r.reading is not None:           # a value the controller holds: as it computes it
+            return ControllerLine.of(r)
         if text is not None and not text.strip(" \t"):
             return False
         return text
@@ -386,6 +433,8 @@ class NgcRun:
                 if rest[pos] != "[":
                     raise ExprError(f"call arguments must each be in [ ], got {rest[pos:pos + 12]!r}")
                 v, pos = self.ev.counted(self.ev.bracket, rest, pos)
+                if is_unknown(v):
+                    raise ExprError(_UNKNOWN_FLOW.format(what=f"o{label} call argument"))
                 args.append(v)
         except ExprError as exc:
             raise self.error(str(exc), i) from None

@@ -80,6 +80,10 @@ class ProgramSource(os.PathLike):
     #: the writer writes the words back in the format)
     fixed: object = None
     error: InputError | None = None
+    #: the expanded lines (1-based) written as the controller computes them, from a value it holds
+    #: (:class:`~.lines.ControllerLine`): line -> (the text the reader reads, the letters of the
+    #: words of such values). The reader passes them through (:mod:`.controller_values`)
+    controller_lines: dict = field(default_factory=dict)
 
     def __fspath__(self) -> str:
         return self.path
@@ -178,7 +182,7 @@ def _expand(source: str, dialect: Dialect, max_steps: int | None, max_lines: int
     # it (a controller takes the number from the line after the %)
     lead = int(tape) + int(tape and dialect.language != "ngc" and len(texts) > 1
                            and _PROGRAM_NUMBER_RE.match(texts[1]) is not None)
-    same, last, stopped, notes = True, -1, None, []
+    same, last, stopped, notes, held = True, -1, None, [], {}
     fd, tmp = tempfile.mkstemp(prefix="mtcomp-expanded-", suffix=".nc")
     try:
         with os.fdopen(fd, "wb") as out:
@@ -189,6 +193,8 @@ def _expand(source: str, dialect: Dialect, max_steps: int | None, max_lines: int
                 else:
                     own = raws[i][len(raws[i].rstrip(b"\r\n")):] or ending.encode()
                     out.write(text.encode("latin-1", "replace") + own)
+                    if hasattr(text, "reading"):        # a ControllerLine
+                        held[len(line_map) + 1] = (text.reading, text.unknown)
                 line_map.append(i + 1)
             try:
                 headed = False
@@ -220,7 +226,7 @@ def _expand(source: str, dialect: Dialect, max_steps: int | None, max_lines: int
     except BaseException:
         os.unlink(tmp)
         raise
-    return tmp, line_map, max(len(line_map) - 1, 0), len(raws), stopped, notes
+    return tmp, line_map, max(len(line_map) - 1, 0), len(raws), stopped, (notes, held)
 
 
 def _after_the_run(write, raws, texts, last: int, tape: bool) -> bool:
@@ -329,9 +335,10 @@ def open_program(path, dialect: str | None = None, *, max_steps: int | None = No
     if expansion is None:
         yield ProgramSource(source, source, d, why)
         return
-    tmp, line_map, executed, n, stopped, notes = expansion
+    tmp, line_map, executed, n, stopped, (notes, held) = expansion
     try:
-        yield ProgramSource(tmp, source, d, why, line_map, executed, n, notes=notes, error=stopped)
+        yield ProgramSource(tmp, source, d, why, line_map, executed, n, notes=notes, error=stopped,
+                            controller_lines=held)
     finally:
         with contextlib.suppress(OSError):
             os.unlink(tmp)

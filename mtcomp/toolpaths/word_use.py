@@ -36,6 +36,8 @@ from __future__ import annotations
 
 import re
 
+from .height_map import check_map_plane
+
 #: the value words checked here (the axis words, F, N, S, T and the codes are not value words)
 VALUE_LETTERS = frozenset("DEHIJKLPQR")
 #: dialects that refuse a value word no code of its block uses
@@ -104,6 +106,8 @@ def check_motion_mode(state, values, arc_words, line: int) -> None:
         raise state._err("coordinates without a motion mode (no G0/G1/G2/G3 in force; a "
                          "controller's power-on mode is not assumed: write G0 or G1 in this "
                          "block)", line)
+    if state.motion in (2, 3):
+        check_map_plane(state, line)
     if state.motion in (0, 1) and arc_words:
         raise state._err(f"{arc_words[0]} word in a G{state.motion} block (only G2/G3 take I J K "
                          "R)", line)
@@ -121,6 +125,8 @@ def check_value_words(state, tokens, gcodes, mcodes, motion, cycle, axes_given, 
     if dialect not in CHECKED:
         return
     words = [(t[0], float(t[1])) for t in tokens if t[0] in VALUE_LETTERS]
+    if 39.0 in gcodes:           # uCNC's height map takes I J R (.height_map)
+        words = [w for w in words if w[0] not in "IJR"]
     if not words:
         return
     letters = {letter for letter, _v in words}
