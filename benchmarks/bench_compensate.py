@@ -73,6 +73,35 @@ def write_model(path: Path, machine_name: str, seed: int = 7) -> None:
     save_model(path, fitted)
 
 
+def write_identified_model(path: Path, seed: int = 2026) -> None:
+    """MODEL.json as a user has it: the one ``mtcomp demo`` compensates with (its steps 1 and 3:
+    a small simulated campaign on the xfyz machine with a hidden backlash of X, diagnosed into
+    the extended model: penalised B-splines, 274 parameters, a covariance and a support region).
+    About 10-20 s; the campaign's CSV files are written beside ``path``."""
+    from mtcomp import load_machine
+    from mtcomp.demo import DemoResult, _diagnose_campaign, _simulate
+    folder = Path(path).parent / "identified"
+    (folder / "campaign").mkdir(parents=True, exist_ok=True)
+    machine = load_machine("xfyz")
+    res = DemoResult(folder)
+    _, datasets = _simulate(machine, np.random.default_rng(seed), folder / "campaign", res,
+                            lambda *a: None)
+    _diagnose_campaign(machine, datasets, folder, res, lambda *a: None)
+    (folder / "MODEL.json").replace(path)
+
+
+def write_identified_model_apart(path: Path) -> None:
+    """:func:`write_identified_model` in a subprocess: the identification's memory (about 250 MB)
+    then counts neither in this process's peak nor in its later subprocesses' (on Linux a child's
+    ru_maxrss starts from its parent's size at the fork)."""
+    here = str(Path(__file__).resolve().parent)
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (env.get("PYTHONPATH"), here) if p)
+    subprocess.run([sys.executable, "-c", "import sys; from pathlib import Path; "
+                    "from bench_compensate import write_identified_model; "
+                    "write_identified_model(Path(sys.argv[1]))", str(path)], check=True, env=env)
+
+
 def run(cmd: list[str], env=None) -> tuple[float, float, float, int]:
     """(wall s, cpu s, peak rss MB, exit code) of one subprocess."""
     t0 = time.perf_counter()

@@ -1,16 +1,23 @@
 """`mtcomp compensate` against a plain read-and-write of the same file: wall time and peak memory.
 
     python benchmarks/bench_compensate_copy.py [--blocks 1280000] [--repeat 5] [--report] [--bytecode]
+        [--model MODEL.json]
 
 The program (generated in a temporary folder, nothing is kept) is bench_gcode.py's: X Y Z lines with
 4 decimals, a G1 with F every 50 blocks, a comment line every 1000, and a G2 arc every 5000 blocks
-(so the arc path of the writer is exercised). The model is bench_compensate.py's synthetic base
-model of machine-tool size (seeded). Every figure is the median of ``--repeat`` fresh subprocesses
-after one warm-up (which compiles the model's and the reader's C code into the cache):
+(so the arc path of the writer is exercised). The model is one as users have it: the one
+``mtcomp demo`` compensates with, identified here once from the demo's simulated campaign
+(bench_compensate.py's ``write_identified_model``: penalised B-splines, 274 parameters, a covariance,
+so the correction standard-error gate runs, and a support region), or ``--model``'s. Every figure
+is the median of ``--repeat`` fresh subprocesses after one warm-up (which compiles the model's and
+the reader's C code into the cache):
 
 * copy: the file read line by line and written to another file by a plain Python loop;
 * compensate: ``python -m mtcomp compensate xfyz MODEL PROGRAM -o OUT --quiet`` (method qp);
-* with ``--report``, also the same with ``--report BLOCKS.csv`` (one row per block).
+* sd gate off: the same with ``--max-correction-sd-um 0`` (no standard error computed);
+* synthetic: the same with bench_compensate.py's synthetic base model (polynomials, few
+  parameters, no covariance, no support region: the gate does not run; a floor, no user's model);
+* with ``--report``, also compensate with ``--report BLOCKS.csv`` (one row per block).
 
 Peak memory is ru_maxrss of each subprocess (os.wait4). The ratio is compensate / copy of wall
 times ("x copy"), and of CPU times, user and system ("cpu x": less sensitive to other work on the
@@ -39,7 +46,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from bench_compensate import write_model
+from bench_compensate import write_identified_model_apart, write_model
 from bench_gcode import make_program
 
 IMPORTS = "import mtcomp.commands.compensate, mtcomp.compensation, casadi"
@@ -82,13 +89,19 @@ def main(argv=None) -> int:
     ap.add_argument("--report", action="store_true", help="also time compensate --report")
     ap.add_argument("--bytecode", action="store_true",
                     help="run every subprocess with a bytecode cache, as an installed package")
+    ap.add_argument("--model", type=Path,
+                    help="MODEL.json to compensate with (default: identified as mtcomp demo does)")
     args = ap.parse_args(argv)
     py = sys.executable
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        prog, model, out = tmp / "p.nc", tmp / "m.json", tmp / "out.nc"
+        prog, synthetic, out = tmp / "p.nc", tmp / "synthetic.json", tmp / "out.nc"
         make_program(prog, args.blocks)
-        write_model(model, "xfyz")
+        write_model(synthetic, "xfyz")
+        model = args.model
+        if model is None:
+            model = tmp / "m.json"
+            write_identified_model_apart(model)
         size = prog.stat().st_size / 1e6
         env = bytecode_env(tmp / "pycache") if args.bytecode else None
         copy = measure([py, "-c", COPY, str(prog), str(tmp / "copy.nc")], args.repeat, env)
@@ -98,14 +111,18 @@ def main(argv=None) -> int:
                "--quiet"]
         comp = measure(cmd, args.repeat, env)
         out_size = out.stat().st_size / 1e6
-        rows = [("copy", copy), ("import", floor), ("+ osqp", floor_qp), ("compensate", comp)]
+        rows = [("copy", copy), ("import", floor), ("+ osqp", floor_qp), ("compensate", comp),
+                ("sd gate off", measure(cmd + ["--max-correction-sd-um", "0"], args.repeat, env))]
+        cmd_synthetic = cmd[:5] + [str(synthetic)] + cmd[6:]
+        rows.append(("synthetic", measure(cmd_synthetic, args.repeat, env)))
         if args.report:
             rows.append(("+ --report", measure(cmd + ["--report", str(tmp / "b.csv")],
                                                args.repeat, env)))
     where = subprocess.run([py, "-c", "import mtcomp; print(mtcomp.__file__)"], capture_output=True,
                            text=True, check=True).stdout.strip()
     print(f"mtcomp from {Path(where).parent}")
-    print(f"program: {args.blocks} blocks, {size:.1f} MB (output {out_size:.1f} MB)")
+    print(f"program: {args.blocks} blocks, {size:.1f} MB (output {out_size:.1f} MB); model "
+          f"{args.model or 'identified as mtcomp demo does'}")
     print(f"{'what':12s} {'wall s':>8s} {'peak MB':>8s} {'x copy':>7s} {'cpu s':>7s} {'cpu x':>6s}")
     for what, (wall, mb, cpu) in rows:
         print(f"{what:12s} {wall:8.2f} {mb:8.0f} {wall / copy[0]:7.1f} {cpu:7.2f} "

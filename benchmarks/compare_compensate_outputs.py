@@ -6,7 +6,8 @@
     python benchmarks/compare_compensate_outputs.py cmp OUT_A OUT_B
 
 ``inputs`` writes, once, the programs and models both checkouts read: bench_compensate_copy.py's
-program and model, and every program of tests/data/gcode_corpus with the machine and model the
+program with its identified model (as ``mtcomp demo`` identifies it: splines, a covariance, a
+support region) and with the synthetic one, the demo's bowl with the identified model, and every program of tests/data/gcode_corpus with the machine and model the
 corpus test gives it (tests/test_gcode_corpus.py). ``run`` compensates each of them in a fresh
 subprocess of CHECKOUT (``python -m mtcomp`` run from that folder, so it imports that checkout),
 twice: with the default settings and with ``--report``; it keeps the output program, the report,
@@ -29,14 +30,21 @@ CORPUS = Path(__file__).resolve().parent.parent / "tests" / "data" / "gcode_corp
 
 def make_inputs(folder: Path, blocks: int) -> None:
     """The programs, machines and models of every case, and cases.json listing them."""
-    from bench_compensate import write_model
+    from bench_compensate import write_identified_model, write_model
     from bench_gcode import make_program
+
+    from mtcomp.demo import write_bowl
     from test_gcode_corpus import BORING_MILLS, PROGRAMS, _machine_file, _model_file, _topology
     folder.mkdir(parents=True, exist_ok=True)
     make_program(folder / "bench.nc", blocks)
     write_model(folder / "bench_model.json", "xfyz")
     cases = [{"name": "bench", "machine": "xfyz", "model": "bench_model.json",
               "program": "bench.nc", "extra": []}]
+    write_identified_model(folder / "identified_model.json")
+    write_bowl(folder / "bowl.nc")
+    cases += [{"name": name, "machine": "xfyz", "model": "identified_model.json",
+               "program": prog, "extra": []}
+              for name, prog in (("bench_identified", "bench.nc"), ("bowl_identified", "bowl.nc"))]
     models = {}
     for prog in PROGRAMS:
         topology = _topology(prog.read_text(encoding="latin-1"))

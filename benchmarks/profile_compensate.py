@@ -1,11 +1,15 @@
 """Where a compensation's time goes: seconds per stage of one ``mtcomp compensate`` run.
 
     PYTHONPATH=. python benchmarks/profile_compensate.py [--blocks 1280000] [--report]
-        [--program IN.nc --model MODEL.json --machine xfyz] [-- extra compensate flags]
+        [--program IN.nc] [--model MODEL.json | --synthetic] [--machine xfyz]
+        [-- extra compensate flags, e.g. --max-correction-sd-um 0]
 
 Runs the compensation in this process, with one planner thread (``MTCOMP_THREADS=1``: every stage
 on the main thread, so that the stages add up), on bench_compensate_copy.py's program and model
-unless ``--program`` and ``--model`` are given. Each stage is the inclusive time of the functions
+(identified as ``mtcomp demo`` does, bench_compensate.py's ``write_identified_model``; with
+``--synthetic`` its synthetic base model, which no user has) unless ``--program`` and ``--model``
+are given. Stage times are wall seconds; the CPU seconds of the whole run are printed too (on a
+loaded machine wall time overstates). Each stage is the inclusive time of the functions
 named in ``STAGES`` (a stage called inside another is subtracted from it, see ``_Clock``); what no
 stage claims is "planner (rest)". The import of what compensate uses is timed before it. The
 checkout profiled is the one on PYTHONPATH (``PYTHONPATH=/other/checkout:benchmarks`` profiles
@@ -16,6 +20,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import resource
 import sys
 import tempfile
 import time
@@ -99,6 +104,8 @@ def main(argv=None) -> int:
     ap.add_argument("--blocks", type=int, default=1_280_000)
     ap.add_argument("--program")
     ap.add_argument("--model")
+    ap.add_argument("--synthetic", action="store_true",
+                    help="bench_compensate.py's synthetic base model instead of an identified one")
     ap.add_argument("--machine", default="xfyz")
     ap.add_argument("--report", action="store_true")
     ap.add_argument("extra", nargs="*")
@@ -120,18 +127,23 @@ def main(argv=None) -> int:
             prog = tmp / "p.nc"
             make_program(prog, args.blocks)
         if model is None:
-            from bench_compensate import write_model
+            from bench_compensate import write_identified_model_apart, write_model
             model = tmp / "m.json"
-            write_model(model, args.machine)
+            if args.synthetic:
+                write_model(model, args.machine)
+            else:
+                write_identified_model_apart(model)
         cmd = ["compensate", args.machine, str(model), str(prog), "-o", str(tmp / "out.nc"),
                "--quiet", *args.extra]
         if args.report:
             cmd += ["--report", str(tmp / "blocks.csv")]
         _install(clock)
-        t1 = time.perf_counter()
+        t1, c1 = time.perf_counter(), time.process_time()
         code = cli(cmd)
-        wall = time.perf_counter() - t1
-    print(f"exit {code}; import {t_import:.2f} s; compensate {wall:.2f} s", file=sys.stderr)
+        wall, cpu = time.perf_counter() - t1, time.process_time() - c1
+    print(f"exit {code}; import {t_import:.2f} s; compensate {wall:.2f} s wall, {cpu:.2f} s CPU; "
+          f"peak {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB",
+          file=sys.stderr)
     claimed = 0.0
     for stage, s in sorted(clock.total.items(), key=lambda kv: -kv[1]):
         print(f"  {stage:24s} {s:7.2f} s", file=sys.stderr)

@@ -84,6 +84,14 @@ def setup_uncertainty(specs, cov: np.ndarray, n_params: int) -> dict:
             "covariance": np.nan_to_num(cov[n_params:, n_params:])}
 
 
+def _columns(rows: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """``rows[:, idx]``, without the copy when ``idx`` takes every column in order (a fitted
+    model's covariance usually names every parameter)."""
+    if len(idx) == rows.shape[1] and np.array_equal(idx, np.arange(rows.shape[1])):
+        return rows
+    return rows[:, idx]
+
+
 @dataclass
 class FittedModel:
     """An error model with parameter values: what MODEL.json holds.
@@ -342,19 +350,22 @@ class FittedModel:
             choice of split than the data's, and that choice moves it by more than
             :data:`UNDETERMINED_UM`, that component's standard error is infinite too: it rests on
             how the penalty divided what the data cannot tell apart."""
+        n = J.shape[0]
+        rows = np.reshape(J, (3 * n, J.shape[2]))   # one matrix product for all rows (BLAS)
         idx, F = factor
-        G = J[:, :, idx] @ F                        # (n, 3, rank), mm
-        var = np.einsum("nij,nij->ni", G, G)
+        G = _columns(rows, idx) @ F                 # (3 n, rank), mm
+        var = np.einsum("ij,ij->i", G, G).reshape(n, 3)
         sd = np.sqrt(var if extra is None else var + extra) * 1e3
         if undetermined is not None:
             ui, v = undetermined
             # per component: a height resting on an open tilt leaves the plane's components known
-            moved = np.abs(J[:, :, ui] @ np.reshape(v, (len(ui), -1))).max(axis=2) * 1e3
+            moved = np.abs(_columns(rows, ui) @ np.reshape(v, (len(ui), -1)))
+            moved = moved.reshape(n, 3, moved.shape[1]).max(axis=2, initial=0.0) * 1e3
             sd[moved > UNDETERMINED_UM] = np.inf
         if choice is not None:
             ci, D = choice
-            Gc = J[:, :, ci] @ D
-            cvar = np.einsum("nij,nij->ni", Gc, Gc)
+            Gc = _columns(rows, ci) @ D
+            cvar = np.einsum("ij,ij->i", Gc, Gc).reshape(n, 3)
             chosen = (np.sqrt(cvar) * 1e3 > UNDETERMINED_UM) & (cvar > var - cvar)
             sd[chosen] = np.inf
         return sd if components else sd.max(axis=1)

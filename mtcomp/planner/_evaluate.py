@@ -81,6 +81,12 @@ def _unique_rows(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return _unique_runs(a[new_run], new_run)
 
 
+#: poses whose parameter Jacobians :meth:`Evaluator.correction_sd_assumed` evaluates and reduces at
+#: once: about 7 MB of Jacobian at 274 parameters (a few copies of it a planner thread), and one
+#: matrix product of 3 x this many rows
+SD_ROWS = 1024
+
+
 class Evaluator:
     """Residuals and Jacobians of one problem, vectorised over blocks."""
 
@@ -136,18 +142,31 @@ class Evaluator:
         out = np.full((q.shape[0], 3 + k + (self.assumed.width if self.assumed else 0)), np.nan)
         if not self.has_uncertainty:
             return out
+        # in parts of SD_ROWS poses: the Jacobians of a spline model (3 x 274 numbers a pose) of a
+        # whole chunk of a program took a gigabyte
+        for lo in range(0, q.shape[0], SD_ROWS):
+            part = slice(lo, lo + SD_ROWS)
+            self._sd_assumed_part(out[part], q[part], ctx[part],
+                                  None if datum is None else datum[part], sd)
+        return out
+
+    def _sd_assumed_part(self, out, q, ctx, datum, sd: bool) -> None:
+        """:meth:`correction_sd_assumed` of some poses, written into ``out``."""
         fitted = self.problem.fitted
         J = evaluate(self.model, "tip_pjacobian_function", fitted.clamp(q)[0], self.p, ctx)[0]
         J0 = None if datum is None else self._at_datum("tip_pjacobian_function", datum, ctx)
         if sd:
             out[:, :3] = self.uncertainty.components(J, J0)
-            self._note_causes(J if J0 is None else J - J0, out[:, :3])
+        if J0 is not None and (sd or self.assumed):
+            J = J - J0
+        k = self.axis_columns
+        if sd:
+            self._note_causes(J, out[:, :3])
             if k:
                 Ja = evaluate(self.model, "axis_pjacobian_function", fitted.clamp(q)[0], self.p, ctx)[0]
                 out[:, 3:6] = self.uncertainty.orientation(Ja)
         if self.assumed:
-            out[:, 3 + k:] = self.assumed.blocks(q, J if J0 is None else J - J0)
-        return out
+            out[:, 3 + k:] = self.assumed.blocks(q, J)
 
     def _note_causes(self, J, each) -> None:
         """Add to :attr:`infinite_causes` why some of the standard errors ``each`` (n, 3) of the

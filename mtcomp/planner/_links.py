@@ -158,33 +158,48 @@ def propagate(prev, lower, upper, step_lo, step_hi, plain_lo, plain_hi):
     """
     n, na = lower.shape
     step_lo, step_hi = step_lo.copy(), step_hi.copy()
-    reachable = np.zeros(n, bool)
-    if prev is None:
-        a = np.full(na, -INF)
-        b = np.full(na, INF)
-    else:
-        a = np.asarray(prev, dtype=float).copy()
-        b = a.copy()
+    reachable = np.ones(n, bool)
     relaxed = np.zeros(n, bool)
-    lo_l, hi_l = lower.tolist(), upper.tolist()
-    slo, shi = step_lo.tolist(), step_hi.tolist()
-    a, b = a.tolist(), b.tolist()
-    for i in range(n):
-        ok = True
-        for j in range(na):
-            aj = max(a[j] + slo[i][j], lo_l[i][j])
-            bj = min(b[j] + shi[i][j], hi_l[i][j])
-            if aj > bj:             # the links cannot be kept from here: the step bound alone
-                step_lo[i, j], step_hi[i, j] = plain_lo[i, j], plain_hi[i, j]
-                relaxed[i] = True
-                aj = max(a[j] + plain_lo[i, j], lo_l[i][j])
-                bj = min(b[j] + plain_hi[i, j], hi_l[i][j])
-                if aj > bj:         # not even so (the step bound's own conflict): the box
-                    aj, bj = lo_l[i][j], hi_l[i][j]
-            a[j], b[j] = max(aj, -INF), min(bj, INF)
-            ok = ok and aj <= 1e-9 and bj >= -1e-9
-        reachable[i] = ok
+    if prev is None:
+        a, b = [-INF] * na, [INF] * na
+    else:
+        a = np.asarray(prev, dtype=float).tolist()
+        b = list(a)
+    for j in range(na):
+        # one axis at a time, on Python floats (a loop over the nodes: each interval is the one
+        # before carried one step; per node numpy calls cost more than the arithmetic)
+        ok, gave = _propagate_axis(a[j], b[j], lower[:, j].tolist(), upper[:, j].tolist(),
+                                   step_lo[:, j].tolist(), step_hi[:, j].tolist(),
+                                   plain_lo[:, j], plain_hi[:, j])
+        reachable &= np.frombuffer(ok, dtype=bool)
+        if gave:
+            step_lo[gave, j], step_hi[gave, j] = plain_lo[gave, j], plain_hi[gave, j]
+            relaxed[gave] = True
     return step_lo, step_hi, reachable, relaxed
+
+
+def _propagate_axis(a, b, lower, upper, step_lo, step_hi, plain_lo, plain_hi):
+    """:func:`propagate` along one axis from the anchor's interval [a, b]: (bytearray of 1 where
+    the axis's interval holds zero, list of the nodes where its link gave way). ``x if x > y
+    else y`` is ``max(y, x)`` of the same floats (and ``min`` likewise), without the calls."""
+    ok = bytearray(len(lower))
+    gave = []
+    for i, (lo, hi, s, t) in enumerate(zip(lower, upper, step_lo, step_hi)):
+        x, y = a + s, b + t
+        aj = lo if lo > x else x
+        bj = hi if hi < y else y
+        if aj > bj:             # the links cannot be kept from here: the step bound alone
+            gave.append(i)
+            x, y = a + plain_lo[i], b + plain_hi[i]
+            aj = lo if lo > x else x
+            bj = hi if hi < y else y
+            if aj > bj:         # not even so (the step bound's own conflict): the box
+                aj, bj = lo, hi
+        a = -INF if -INF > aj else aj
+        b = INF if INF < bj else bj
+        if aj <= 1e-9 and bj >= -1e-9:
+            ok[i] = 1
+    return ok, gave
 
 
 def run_start(link_lo, link_hi, k: int, lowest: int) -> int:
