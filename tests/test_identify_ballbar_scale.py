@@ -87,7 +87,9 @@ def test_no_correction_rests_on_the_held_scale(fitted):
     # before: every block corrected, standard errors 0.6-2.3 um, misses up to 6.7 of them
     for r, m, s, away in zip(rows, miss, sd, far):
         if away:
-            assert r["corrected"] == "0" and np.isnan(s), (r, m, s)
+            # left whole, or corrected in z alone with x and y (what the scale moves) left
+            whole = r["corrected"] == "0" and np.isnan(s)
+            assert whole or set("xy") <= set(r["components_left"]), (r, m, s)
         else:
             assert m <= 2.5 * s + 0.01, (r, m, s)
 

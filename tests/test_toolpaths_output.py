@@ -121,6 +121,14 @@ def check_line(src: str, out: str, inch: bool = False) -> None:
                                                          u[0] == "w"), (src, out, t)
 
 
+def _after_expansion_header(text: str) -> str:
+    """``text`` without its first lines that are mtcomp's notes of an expansion (each names the
+    file it expanded)."""
+    while text.startswith("(expanded by mtcomp from "):
+        text = text.partition("\n")[2]
+    return text
+
+
 def _piece_line(line: str) -> bool:
     """A line the writer adds: a later piece of a split block (axis, centre, motion and F words) or
     a G91 before a line that relies on it."""
@@ -434,5 +442,8 @@ def test_corpus_output_differs_only_by_the_correction(tmp_path, monkeypatch, pro
                                      **given)
     out = outs["python"]
     assert all(o == out for o in outs.values())          # both writers, the same bytes
+    # an expansion that still holds code (values the controller holds: fluidnc_probe.nc) is
+    # expanded again, and its first line names the file it was expanded from: not compared
+    text, out = (_after_expansion_header(x) for x in (text, out))
     check_program(text, out)
     assert _g23_lines(out) >= _g23_lines(text)

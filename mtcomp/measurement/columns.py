@@ -189,7 +189,8 @@ def file_notes(machine, datasets) -> list[str]:
                          "stylus or tool was another length")
         line = (_inch_positions(data) or _mm_under_um(data, header) or _short_bar(data)
                 or _inch_targets(data))
-        notes += [n for n in (line, _radian_angles(data), _rotary_at_zero(machine, data)) if n]
+        notes += [n for n in (line, _radian_angles(data), _rotary_at_zero(machine, data),
+                              _moving_axis_column(data)) if n]
         line = _slow_feeds(data, header)
         if line:
             notes.append(line)
@@ -286,6 +287,26 @@ def _inch_positions(data) -> str | None:
     spans = ", ".join(f"{np.nanmax(data.xyz[:, k]) - np.nanmin(data.xyz[:, k]):.4g}" for k in axes)
     return (f"{data.path}: the positions ({names}) are whole mm only times 25.4 (spans {spans} mm as "
             "read): positions in inches? x_mm, y_mm, z_mm are read in mm; multiply inches by 25.4")
+
+
+def _moving_axis_column(data) -> str | None:
+    """The sentence when a laser row's static column for its own moving axis (``x_mm`` in a row of
+    X) holds another position than its target, else None: the moving axis stands at its target
+    (the column is not read there), so the file may be a run of another axis labelled with this
+    one (a Y run at X -400 written as axis X) or have its columns mixed up (a note)."""
+    if data.kind != "laser" or not len(data):
+        return None
+    for k, letter in enumerate("XYZ"):
+        static = data.xyz[:, k]
+        bad = np.flatnonzero((data.axis == letter) & np.isfinite(static)
+                             & (np.abs(static - data.target) > 1e-6))
+        if bad.size:
+            i = int(bad[0])
+            return (f"{data.path}: row {i + 1}: column {letter.lower()}_mm gives {static[i]:g} for the "
+                    f"moving axis {letter}, which stands at its target {data.target[i]:g} "
+                    f"({bad.size} such row(s); the column is not read there): a run of another axis "
+                    f"labelled {letter}?")
+    return None
 
 
 #: angles read in degrees that are whole degrees within this (deg) once taken as radians

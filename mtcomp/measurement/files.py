@@ -673,25 +673,6 @@ def _read_velocity(table: CsvTable, context: Context) -> VelocityData:
     return data
 
 
-def _check_moving_column(table: CsvTable, axis: np.ndarray, target: np.ndarray) -> None:
-    """Refuse a laser row whose static column for its own moving axis (``x_mm`` in a row of X)
-    holds another position than its target: the moving axis stands at its target, so the file is a
-    run of another axis labelled with this one (a Y run at X -400 written as axis X), or its columns
-    are mixed up."""
-    for k, letter in enumerate(AXIS_ORDER[:3]):
-        col = f"{letter.lower()}_mm"
-        rows = axis == letter
-        if not rows.any() or not table.has(col):
-            continue
-        static = table.optional_floats(col)
-        bad = np.flatnonzero(rows & np.isfinite(static) & (np.abs(static - target) > 1e-6))
-        if bad.size:
-            i = bad[0]
-            table.fail(f"column {col} gives {static[i]:g} for the moving axis {letter}, which stands "
-                       f"at its target {target[i]:g} (target_mm): a run of another axis labelled "
-                       f"{letter}? leave {col} blank in the rows that move {letter}", i)
-
-
 def _read_laser(table: CsvTable, context: Context) -> LaserData:
     _require(table, "laser", ("axis", "component", "dir", "run"))
     if not (table.has("target_mm") or table.has("target_deg")):
@@ -726,7 +707,6 @@ def _read_laser(table: CsvTable, context: Context) -> LaserData:
             table.fail(f"column {col} is blank; a value is required", blank[0])
         target[rows] = vals[rows]
 
-    _check_moving_column(table, axis, target)
     um = table.optional_floats("value_um", scale=UM)
     urad = table.optional_floats("value_urad", scale=URAD)
     mixed = np.flatnonzero((angular & np.isfinite(um)) | (~angular & np.isfinite(urad)))
