@@ -153,3 +153,30 @@ def test_the_table_is_written_exactly_where_compensate_corrects(tmp_path, capsys
     table = np.loadtxt(out / "y.comp")
     diff = before + np.interp(ys, table[:, 0], table[:, 1] * 1e3)
     assert np.ptp(diff) < 0.02, diff
+
+
+def test_a_straightness_over_the_limit_leaves_that_column_not_the_pitch_table(monkeypatch):
+    """X's own error (its positioning) known to 0.5 um at every point, its straightness in Z to 8
+    um only (over the 5 um limit; nothing measured it, as on a FANUC user's laser-and-ball-bar
+    campaign, whose X got no pitch table at all): the table keeps X's own column and leaves EZX
+    (set to zero), judged by the rules on the rest; the own column over the limit leaves the
+    table."""
+    from types import SimpleNamespace
+    from mtcomp.export import _tables
+    machine = load_machine("xfyz")
+    n = 5
+    q = np.zeros((n, 3))
+    q[:, 0] = np.linspace(-100.0, 100.0, n)
+
+    def run(own_sd):
+        sd = np.tile([own_sd, 0.5, 8.0, 0.0, 0.0, 0.0], (n, 1))
+        monkeypatch.setattr(_tables, "table_sd_um", lambda *a, **k: sd.copy())
+        tips = {d: np.tile([0.02, 0.004, 0.01], (n, 1)) for d in (1.0, -1.0)}    # mm: 20, 4, 10 um
+        fitted = SimpleNamespace(machine=machine)
+        note, left = _tables._table_left(fitted, "X", q, q[0], tips, 5.0, SimpleNamespace(known=True))
+        return note, left, tips
+    note, left, tips = run(0.5)
+    assert left == (2,) and "leaves its straightness in Z (EZX)" in note, note
+    assert np.all(tips[1.0][:, 2] == 0.0) and np.all(tips[1.0][:, 0] == 0.02)
+    note, left, _ = run(6.0)
+    assert left == () and note.startswith("axis X: no table: its correction's standard error"), note

@@ -581,7 +581,9 @@ def _table_left(fitted, a: str, q: np.ndarray, q_ref: np.ndarray, tips: dict,
     if not max_sd_um or unc is None or not unc.known:
         return None, ()
     each = {d: table_sd_um(fitted, q, q_ref, {a: d}, unc, components=True) for d in (1.0, -1.0)}
-    over = np.any([np.isinf(e[:, :3]).any(axis=0) for e in each.values()], axis=0)
+    # a component another axis's straightness the data do not determine, or not to within the
+    # limit: a table carries its own error without it (a pitch table without the straightness)
+    over = np.any([(e[:, :3] > max_sd_um).any(axis=0) for e in each.values()], axis=0)
     own = own_column(fitted.machine, a)
     left = tuple(int(c) for c in np.flatnonzero(over)) if own < 3 and not over[own] else ()
     for d in each:
@@ -595,8 +597,8 @@ def _table_left(fitted, a: str, q: np.ndarray, q_ref: np.ndarray, tips: dict,
         return (None, ()) if not left else (
             f"axis {a}: its table carries its own error and leaves its "
             + " and ".join(f"straightness in {'XYZ'[c]} (E{'XYZ'[c]}{a})" for c in left)
-            + ": that moves with values of the model its data did not determine, as compensate "
-            "leaves that component of a block and corrects the others", left)
+            + ": the data do not determine it, or not to within --max-correction-sd-um (a "
+            "controller's pitch table does not carry it anyway)", left)
     ax = fitted.machine.axis(a)
     u, f = ("deg", 180.0 / math.pi) if ax.is_rotary else ("mm", 1.0)
     if why == "indistinct":
