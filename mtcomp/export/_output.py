@@ -65,7 +65,7 @@ def slope(tables, moving: str, column: int) -> float | None:
     t = tables.tables.get(moving)
     if t is None or len(t.positions) < 2:
         return None
-    k = ~t.held                     # the points inside the data's region (beyond: zero, a ramp)
+    k = ~t.held                     # the points inside the data's region (beyond: held, or zero)
     return fit_line(t.positions[k], t.mean[k, column])[1]
 
 
@@ -82,7 +82,7 @@ def left_out(tables, carried: dict) -> tuple[list, dict]:
 
     For each axis table and component: the part not carried (the whole component, its direction
     dependence, or what a straight line leaves), its largest magnitude over the grid's points
-    inside the data's region (beyond it the tables are zero, as compensate corrects nothing there).
+    inside the data's region (beyond it a table holds its end value, or a rotary's ramps to zero).
     """
     lines, worst = [], {}
     for a, t in tables.tables.items():

@@ -118,8 +118,9 @@ class AxisTable:
 
     @property
     def held(self) -> np.ndarray:
-        """(n,) bool: grid points outside the data's region (the first past an end holds the end
-        value, the others are zero)."""
+        """(n,) bool: grid points outside the data's region (a linear axis's hold the end value;
+        a rotary axis's measured over part of its turn: the first past an end holds it, the others
+        are zero, :mod:`mtcomp.export._ends`)."""
         lo, hi = self.data_region
         tol = 1e-9 * max(1.0, abs(lo), abs(hi))
         return (self.positions < lo - tol) | (self.positions > hi + tol)
@@ -659,8 +660,9 @@ def component_tables(fitted, grids: dict, region: dict | None = None,
     """Evaluate the component errors of every axis of ``grids`` (module docstring).
 
     grids : axis -> (n,) positions, mm or rad (machine coordinates). region : axis -> (lo, hi) where
-    the model's data reached (default: the grids' ends); grid points beyond it are zero but for the
-    first at or past each end, which holds the end value (:func:`mtcomp.export._ends.beyond_span`).
+    the model's data reached (default: the grids' ends); grid points beyond it hold the end value,
+    but on a rotary axis measured over part of its turn those past the first at or past each end
+    are zero (:func:`mtcomp.export._ends.beyond_span`).
     volume : axis -> (lo, hi) where the data reached, rotary axes included (default ``region``):
         where what no table carries is swept (:mod:`._uncarried`).
     pose : (n_axes,) where every other axis stands while an axis's table is read (mm, rad;

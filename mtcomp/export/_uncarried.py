@@ -113,7 +113,7 @@ def uncarried_tip(fitted, tables, carried: dict, p: np.ndarray, Q: np.ndarray) -
         for j in cols:
             e = E[:len(s), j]
             if carried[(a, names[j])] == LINEAR:
-                k = ~t.held             # the table's points inside the region (beyond: zero)
+                k = ~t.held             # the table's points inside the region (beyond: held)
                 c0, c1 = fit_line(t.positions[k], E[len(s):, j][k])
                 e = c0 + c1 * s
             rest[:, j] -= e[back.ravel()]
