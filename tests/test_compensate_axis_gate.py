@@ -67,7 +67,7 @@ def test_a_tool_axis_the_data_determine_is_corrected():
     # the control: A0C at 40 +- 0.5 urad, the spindle measured: B and C turn against it
     m, fitted = _tilted_b_line(0.5, open_spindle=False)
     res = _plan(fitted, _poses(), datum=np.zeros((4, 5)))
-    assert getattr(res, "axis_left", None) is None or not res.axis_left.any()
+    assert res.axis_left is None or not res.axis_left.any()
     assert np.abs(res.after_axis).max() * 1e6 < 1.0 < np.abs(res.before_axis).max() * 1e6
 
 

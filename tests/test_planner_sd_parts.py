@@ -57,7 +57,7 @@ def _oracle_um(fitted, q):
 def test_parts_give_each_block_its_own_standard_error(monkeypatch):
     """Blocks on either side of the parts' borders (and a covariance naming only some parameters,
     in another order) get the standard error central differences give."""
-    monkeypatch.setattr(_evaluate, "SD_ROWS", 7, raising=False)
+    monkeypatch.setattr(_evaluate, "SD_ROWS", 7)
     q = _poses(23)
     for names in (None, ["EZY_3", "EXX_1", "EYX_2", "A0Z"]):
         fitted = _fitted(names)
@@ -69,7 +69,7 @@ def test_parts_give_each_block_its_own_standard_error(monkeypatch):
 def test_working_memory_does_not_grow_with_the_blocks(monkeypatch):
     """64 parts of poses: the peak of what the gate allocates stays under a quarter of what the
     whole program's Jacobian alone takes (the previous code held it whole, and copies of it)."""
-    monkeypatch.setattr(_evaluate, "SD_ROWS", PART, raising=False)
+    monkeypatch.setattr(_evaluate, "SD_ROWS", PART)
     fitted = _fitted()
     ev = _evaluator(fitted)
     n = 64 * PART

@@ -63,9 +63,9 @@ def slope(tables, moving: str, column: int) -> float | None:
     """Least-squares slope (mm/mm) of component ``column`` of axis ``moving`` (mean of directions)
     over its table, or None when the axis has no table."""
     t = tables.tables.get(moving)
-    if t is None or len(t.positions) < 2:
+    k = None if t is None else ~t.held      # the points inside the data's region (beyond: held)
+    if k is None or k.sum() < 2:
         return None
-    k = ~t.held                     # the points inside the data's region (beyond: held, or zero)
     return fit_line(t.positions[k], t.mean[k, column])[1]
 
 

@@ -594,14 +594,15 @@ class _Problem:
         # that carry curvature, the posterior at the weights' REML bounds; into an empty class, more
         extra = bounded_split_variance(AB, [F @ B for F in self.class_factors], Hinv,
                                        self._choice_cost[0, :-1], s2, self._splits)
-        L = scale[:, None] * (B @ np.hstack([np.sqrt(s2) * psd_factor(Hinv), extra]))
+        R = psd_factor(Hinv)                    # one eigendecomposition: covariance and leverages
+        L = scale[:, None] * (B @ np.hstack([np.sqrt(s2) * R, extra]))
         self.choice = beyond_posterior(self.choice, self._choice_cost, s2)
         if P is not None:
             L, self.choice = P @ L, P @ self.choice
         if leverage:
             # from the inverse the covariance takes: a Cholesky factor of AB + S itself failed at a
             # roughness weight of e^28 beside the data (condition 1e17: "not positive definite")
-            lev = self.leverages(x, w, scale, B, psd_factor(Hinv))
+            lev = self.leverages(x, w, scale, B, R)
         return lev, edf, np.hstack([L, self.choice, held * held_sd[None, :]]), held, held_sd
 
     def _noise_sum_of_squares(self, r) -> tuple[float, int]:

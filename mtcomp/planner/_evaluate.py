@@ -152,8 +152,8 @@ class Evaluator:
 
     def _sd_assumed_part(self, out, q, ctx, datum, sd: bool) -> None:
         """:meth:`correction_sd_assumed` of some poses, written into ``out``."""
-        fitted = self.problem.fitted
-        J = evaluate(self.model, "tip_pjacobian_function", fitted.clamp(q)[0], self.p, ctx)[0]
+        qc = self.problem.fitted.clamp(q)[0]
+        J = evaluate(self.model, "tip_pjacobian_function", qc, self.p, ctx)[0]
         J0 = None if datum is None else self._at_datum("tip_pjacobian_function", datum, ctx)
         if sd:
             out[:, :3] = self.uncertainty.components(J, J0)
@@ -163,7 +163,7 @@ class Evaluator:
         if sd:
             self._note_causes(J, out[:, :3])
             if k:
-                Ja = evaluate(self.model, "axis_pjacobian_function", fitted.clamp(q)[0], self.p, ctx)[0]
+                Ja = evaluate(self.model, "axis_pjacobian_function", qc, self.p, ctx)[0]
                 out[:, 3:6] = self.uncertainty.orientation(Ja)
         if self.assumed:
             out[:, 3 + k:] = self.assumed.blocks(q, J)
