@@ -275,19 +275,11 @@ def _diagnose(machine, datasets, progress, max_findings, start=None, refine=None
         from ._signflip import reversed_sign_note
         extra = np.hstack([c.columns for c in chosen]) if chosen else np.zeros((len(st), 0))
         diag.sign_note = reversed_sign_note(st, design, extra)
-    from ..measurement.readings import data_held, data_support
-    model.support = data_support(st.machine, datasets)
-    model.held = data_held(st.machine, datasets)
-    # what the data show of a reversal, so that export can say when the model leaves one out
-    from ..identification.reversal import data_reversal
+    # where the data reached, what they held, their tools, known set-ups and reversal, as identify
+    # records them (every axis's errors are diagnose's to fit)
+    from ..identification.fit import record_data
     from ..identification.unmeasured import unmeasured_groups
-    model.info["reversal"] = data_reversal(datasets)
-    # the tools the data were taken with, as identify records them: compensate says when a
-    # program's go beyond them
-    from ..identification.fit import tool_lengths
-    tools = tool_lengths(st.machine, datasets)
-    if tools is not None:
-        model.info["tool_length_mm"] = tools
+    record_data(model, set(st.machine.axis_names), list(st.known_setup), datasets)
     unmeasured = unmeasured_groups([s for s in model.model.param_specs if s.base], datasets)
     if unmeasured:
         model.info["unmeasured"] = unmeasured

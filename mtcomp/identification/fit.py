@@ -175,29 +175,35 @@ def tool_lengths(machine, datasets) -> list[float] | None:
 
 
 def _record_data(result, model, mask, mms, datasets) -> None:
-    """Record in the fitted model where its data reached, what they held, the files whose set-up is
-    known and what the data show of a reversal."""
+    """:func:`record_data` of identify's fit."""
+    known = [m.tag for m in mms if m.options.get("setup") == "known"]
+    record_data(result.fitted_model, fitted_axes(model, mask), known, datasets)
+    record_unmeasured(result.fitted_model, datasets)
+
+
+def record_data(fitted_model, fitted: set, known: list, datasets) -> None:
+    """Record in ``fitted_model`` where its data reached, what they held, the tools they were taken
+    with, the files whose set-up is known (``known``, tags) and what the data show of a reversal:
+    identify's and diagnose's models alike. ``fitted``: the axes some of whose own errors were
+    fitted (:func:`~.problem.fitted_axes`)."""
     # an axis none of whose own errors were fitted (all held: the user says the controller already
     # compensates it) does not bound the model: what was fitted (a rotary table's motion) holds for
     # the rigid body wherever that axis stands
-    fitted = fitted_axes(model, mask)
-    moved = data_support(model.machine, datasets)
-    result.fitted_model.support = {a: r for a, r in moved.items() if a in fitted}
+    machine = fitted_model.machine
+    moved = data_support(machine, datasets)
+    fitted_model.support = {a: r for a, r in moved.items() if a in fitted}
     held_axes = [a for a in moved if a not in fitted]
     if held_axes:
-        result.fitted_model.info["held_axes"] = held_axes
+        fitted_model.info["held_axes"] = held_axes
     # the tools the data were taken with: compensate says when a program's go beyond them
-    tools = tool_lengths(model.machine, datasets)
+    tools = tool_lengths(machine, datasets)
     if tools is not None:
-        result.fitted_model.info["tool_length_mm"] = tools
-    known = [m.tag for m in mms if m.options.get("setup") == "known"]
+        fitted_model.info["tool_length_mm"] = tools
     if known:
-        result.fitted_model.info["known_setup"] = known
-    result.fitted_model.held = {a: v for a, v in data_held(model.machine, datasets).items()
-                                if a in fitted}
+        fitted_model.info["known_setup"] = list(known)
+    fitted_model.held = {a: v for a, v in data_held(machine, datasets).items() if a in fitted}
     # what the data show of a reversal, so that export can say when the model leaves it out
-    result.fitted_model.info["reversal"] = data_reversal(datasets)
-    record_unmeasured(result.fitted_model, datasets)
+    fitted_model.info["reversal"] = data_reversal(datasets)
 
 
 #: Gauss-Newton stops at a step that moves every combination of the unknowns by less than this
