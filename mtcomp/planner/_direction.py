@@ -16,8 +16,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..identification.reversal import one_direction_axes
 from ._small import any_rows
+
+
+def _one_direction(fitted) -> dict:
+    """axis -> '+' or '-' as :func:`mtcomp.identification.reversal.one_direction_axes`; {} without a
+    record of one direction, checked first so that compensate imports no fitting code for a model
+    without one (tests/test_planner_speed.py)."""
+    record = fitted.info.get("reversal") if isinstance(fitted.info, dict) else None
+    if not isinstance(record, dict) or not any(isinstance(r, dict) and "one_direction" in r
+                                               for r in record.values()):
+        return {}
+    from ..identification.reversal import one_direction_axes
+    return one_direction_axes(fitted)
 
 
 class DirectionRule:
@@ -28,7 +39,7 @@ class DirectionRule:
     def __init__(self, planner):
         fitted = planner.problem.fitted
         names = list(planner.machine.axis_names)
-        read = one_direction_axes(fitted) if planner.options.max_correction_sd_um else {}
+        read = _one_direction(fitted) if planner.options.max_correction_sd_um else {}
         #: axis -> '+' or '-', the side the data read
         self.read = {a: s for a, s in read.items() if a in names}
         self._cols = [names.index(a) for a in self.read]
